@@ -1,0 +1,101 @@
+"""The robot catalog (``models/catalog.toml``) and the URDF files it points to."""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import importlib.resources
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from .exceptions import CalibError, RobotNotFoundError
+
+ERD_PREFIX = "erd:"
+"""Prefix of a catalog URDF that lives in example-robot-data's ``robots/`` folder."""
+
+_ERD_ROBOTS = "share/example-robot-data/robots/"
+
+
+@dataclass(frozen=True)
+class CatalogEntry:
+    """One named serial chain of the catalog.
+
+    Attributes:
+        name: Short identifier used on the command line (``ur5``).
+        urdf: ``erd:<path>`` inside example-robot-data, or a file name inside ``models/``.
+        base: Name of the base frame (frame -1 of the chain).
+        tool: Name of the tool frame (frame n+1 of the chain).
+        description: One line for ``calib list``.
+        expect_error: Why the chain cannot be analysed, when it is known not to be.
+    """
+
+    name: str
+    urdf: str
+    base: str
+    tool: str
+    description: str
+    expect_error: str | None = None
+
+    @property
+    def path(self) -> Path:
+        """Absolute path of the URDF file."""
+        return resolve_urdf(self.urdf)
+
+
+def models_dir() -> Path:
+    """The folder holding the catalog and the project's own URDFs (installed or in-tree)."""
+    return Path(str(importlib.resources.files("calib.models")))
+
+
+@functools.cache
+def erd_robots_dir() -> Path:
+    """Locate example-robot-data's ``robots/`` folder through the installed distribution.
+
+    Raises:
+        CalibError: example-robot-data is not installed or ships no robots folder.
+    """
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError as exc:
+        raise CalibError("example-robot-data is not installed (pip install example-robot-data)") from exc
+    for f in dist.files or ():
+        s = f.as_posix()
+        i = s.find(_ERD_ROBOTS)
+        if i >= 0:
+            return Path(str(dist.locate_file(s[: i + len(_ERD_ROBOTS)])))
+    raise CalibError("example-robot-data is installed but ships no share/example-robot-data/robots")
+
+
+def resolve_urdf(spec: str) -> Path:
+    """Turn a catalog ``urdf`` field into an absolute path.
+
+    Args:
+        spec: ``erd:<relative path>`` or a file name inside ``models/``.
+
+    Returns:
+        The path (not checked for existence).
+    """
+    if spec.startswith(ERD_PREFIX):
+        return erd_robots_dir() / spec[len(ERD_PREFIX) :]
+    return models_dir() / spec
+
+
+@functools.cache
+def catalog() -> tuple[CatalogEntry, ...]:
+    """All catalog entries, in file order."""
+    with open(models_dir() / "catalog.toml", "rb") as f:
+        data = tomllib.load(f)
+    return tuple(CatalogEntry(**row) for row in data["robot"])
+
+
+def catalog_entry(name: str) -> CatalogEntry:
+    """Look a robot up by name.
+
+    Raises:
+        RobotNotFoundError: No entry has that name.
+    """
+    for entry in catalog():
+        if entry.name == name:
+            return entry
+    raise RobotNotFoundError(name, [e.name for e in catalog()])

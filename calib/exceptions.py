@@ -1,0 +1,116 @@
+"""One exception hierarchy: every error calib raises on bad input derives from CalibError."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Sequence
+
+
+class CalibError(Exception):
+    """Base class of every error calib raises on bad input.
+
+    The message is a single line meant for a user; the CLI prints it and exits non-zero.
+    """
+
+
+class RobotNotFoundError(CalibError):
+    """A robot name is neither in the catalog nor a path to a URDF file."""
+
+    def __init__(self, name: str, known: Sequence[str]):
+        self.name = name
+        self.known = tuple(known)
+        close = difflib.get_close_matches(name, self.known, n=3, cutoff=0.5)
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        super().__init__(
+            f"unknown robot '{name}'{hint}: give a URDF path or one of the catalog names "
+            f"(`calib list`)"
+        )
+
+
+class URDFError(CalibError):
+    """A URDF file is missing, unreadable or malformed."""
+
+    def __init__(self, path: str, reason: str):
+        self.path = path
+        self.reason = reason
+        super().__init__(f"cannot load URDF '{path}': {reason}")
+
+
+def closest_first(name: str, candidates: Iterable[str]) -> list[str]:
+    """Sort candidate names by similarity to ``name``, most similar first.
+
+    Args:
+        name: The name that was asked for.
+        candidates: Names that exist.
+
+    Returns:
+        The distinct candidates, most similar first (ties in alphabetical order).
+    """
+    unique = sorted(set(candidates))
+    return sorted(
+        unique, key=lambda c: -difflib.SequenceMatcher(None, name.lower(), c.lower()).ratio()
+    )
+
+
+class FrameNotFoundError(CalibError):
+    """A frame name does not exist in the robot model."""
+
+    def __init__(self, name: str, available: Iterable[str], limit: int = 8):
+        self.name = name
+        self.available = tuple(closest_first(name, available))
+        shown = ", ".join(self.available[:limit])
+        more = f", ... ({len(self.available)} in all)" if len(self.available) > limit else ""
+        super().__init__(f"no frame named '{name}'; frames that exist, closest first: {shown}{more}")
+
+
+class AmbiguousFrameError(CalibError):
+    """A frame name matches several frames at different places (e.g. a link and a joint)."""
+
+    def __init__(self, name: str, kinds: Sequence[str]):
+        self.name = name
+        self.kinds = tuple(kinds)
+        options = " or ".join(f"'{k}:{name}'" for k in self.kinds)
+        super().__init__(
+            f"frame name '{name}' is ambiguous ({', '.join(self.kinds)} frames at different "
+            f"places); write {options}"
+        )
+
+
+class ChainError(CalibError):
+    """The base and tool frames do not delimit a usable serial chain."""
+
+
+class UnsupportedJointError(CalibError):
+    """A joint in the chain is of a kind calib does not model (planar, floating, mimic, ...)."""
+
+    def __init__(self, joint: str, kind: str):
+        self.joint = joint
+        self.kind = kind
+        super().__init__(
+            f"joint '{joint}' in the chain is {kind}: only revolute, continuous and prismatic "
+            f"joints are supported"
+        )
+
+
+class InvalidArgumentError(CalibError, ValueError):
+    """An argument has a value outside what the function accepts."""
+
+
+class DataError(CalibError):
+    """A measurement file is malformed; the message names the row and/or column."""
+
+    def __init__(self, path: str, reason: str, row: int | None = None, column: str | None = None):
+        self.path = path
+        self.row = row
+        self.column = column
+        where = []
+        if row is not None:
+            where.append(f"row {row}")
+        if column is not None:
+            where.append(f"column '{column}'")
+        at = f" ({', '.join(where)})" if where else ""
+        super().__init__(f"{path}{at}: {reason}")
+
+
+class ConvergenceError(CalibError):
+    """An iterative fit did not converge."""

@@ -1,0 +1,447 @@
+"""Identifiable (base) parameters by QR decomposition, regrouping and completeness."""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.linalg
+
+from .exceptions import CalibError, InvalidArgumentError
+from .jacobian import Measurement, complete_jacobian, identification_jacobian
+from .mdh import MDHModel, from_chain
+from .parameters import Kind, Parameter, ParameterSet, parameter_set
+from .robot import Chain, load_chain
+
+DEFAULT_CONFIGS = 100
+"""Random configurations drawn by default."""
+
+REGROUP_TOL = 1e-8
+"""Regrouping coefficients smaller than this (in absolute value) are printed as zero."""
+
+ON_AXIS_TOL = 1e-9
+"""Distance [m] under which the measured point lies on the last joint axis."""
+
+_SPECIAL_ANGLES = (0.0, math.pi / 2, -math.pi / 2, math.pi, -math.pi)
+
+
+class RankWarning(UserWarning):
+    """The observation matrix is too small, or its rank gap too weak, to trust the rank."""
+
+
+def numerical_rank(diag: np.ndarray, n_rows: int) -> tuple[int, float]:
+    """Rank from the |R_ii| of a pivoted QR: b = #{|R_ii| > tau}, tau = r eps |R_11|.
+
+    Args:
+        diag: |R_ii| in pivoting order (non-increasing).
+        n_rows: Number of rows r of the observation matrix.
+
+    Returns:
+        The rank and the tolerance tau.
+    """
+    if diag.size == 0 or diag[0] == 0.0:
+        return 0, 0.0
+    tau = n_rows * np.finfo(float).eps * float(diag[0])
+    return int(np.sum(diag > tau)), tau
+
+
+def _triangular(W: np.ndarray) -> np.ndarray:
+    """R factor of a tall W (min(r, c) x c): column norms and angles of W, cheaply."""
+    return np.linalg.qr(W, mode="r")
+
+
+def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
+    """|R_ii| of the QR decomposition with column pivoting of W (non-increasing)."""
+    R = _triangular(W)
+    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
+    return np.abs(np.diag(Rp))
+
+
+def preference(mdh: MDHModel, p: Parameter) -> int:
+    """Rank of a parameter in the paper's order of preference (0 = kept first).
+
+    0 joint offsets; 1 distances with a non-zero nominal value; 2 angles whose nominal value
+    is neither 0 nor 90 degrees (mod 90); 3 base parameters (rows 0 and 1); 4 tool
+    parameters (row n+1); 5 the rest.
+    """
+    k, kind = p.row, p.kind
+    if 1 <= k <= mdh.n and (
+        (kind is Kind.THETA and mdh.sigma[k] == 0) or (kind is Kind.R and mdh.sigma[k] == 1)
+    ):
+        return 0
+    if k <= 1:
+        return 3
+    if k == mdh.n + 1:
+        return 4
+    value = float(getattr(mdh, kind.value)[k])
+    if kind in (Kind.D, Kind.R) and abs(value) > 1e-9:
+        return 1
+    if kind in (Kind.ALPHA, Kind.THETA) and min(abs(value - a) for a in _SPECIAL_ANGLES) > 1e-6:
+        return 2
+    return 5
+
+
+def theoretical_count(chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axis: bool) -> int | None:
+    """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
+
+    4R + 2P + 6 for the full pose, 4R + 2P + 3 for the position of one point, 2 fewer when
+    the point lies on the last (revolute) axis. None for other row subsets.
+    """
+    sigma = np.asarray(chain_or_mdh.sigma)
+    R = int(np.sum(sigma == 0))
+    P = int(np.sum(sigma == 1))
+    if measurement.rows == (0, 1, 2, 3, 4, 5):
+        return 4 * R + 2 * P + 6
+    if measurement.rows == (0, 1, 2):
+        return 4 * R + 2 * P + 3 - (2 if on_axis else 0)
+    return None
+
+
+def point_on_last_axis(mdh: MDHModel, measurement: Measurement) -> bool:
+    """Whether the measured point lies on the last joint axis (a revolute one)."""
+    if mdh.sigma[mdh.n] != 0:
+        return False
+    kin = mdh.kinematics(np.zeros((1, mdh.n)))
+    E = kin.p[0, -1] + kin.R[0, -1] @ measurement.marker_array
+    v = E - kin.p[0, mdh.n]
+    z = kin.R[0, mdh.n, :, 2]
+    return bool(np.linalg.norm(v - np.dot(v, z) * z) < ON_AXIS_TOL)
+
+
+def _explain(p: Parameter, mdh: MDHModel) -> str:
+    k = p.row
+    prev = "the base z axis (z_-1)" if k == 1 else f"axis {k - 1}"
+    this = "the tool z axis" if k == mdh.n + 1 else f"axis {k}"
+    if p.kind is Kind.BETA:
+        return (
+            f"{p.name}: {prev} is parallel to {this} and the set has no beta there, so a "
+            f"rotation about y_{k - 1} cannot be represented"
+        )
+    return (
+        f"{p.name}: {prev} and {this} lie on one line, so a translation along y_{k - 1} "
+        f"cannot be represented"
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Identifiability:
+    """Result of the identifiability analysis of one chain and measurement set-up.
+
+    Attributes:
+        robot: Robot name.
+        base_frame: Frame -1.
+        tool_frame: Frame n+1.
+        mdh: The nominal MDH model.
+        measurement: What is measured.
+        params: The standard parameter set analysed.
+        n_configs: Number of random configurations m.
+        seed: Seed of the configurations.
+        n_rows: Rows r of the observation matrix.
+        diag: |R_ii| of the pivoted QR, non-increasing.
+        tolerance: tau = r eps |R_11|.
+        base: Base parameters kept, in the order of preference.
+        others: Standard parameters not kept (regrouped or zero), in set order.
+        zero: Parameters with no effect (zero columns).
+        B: Regrouping matrix: base value = kept + B @ others, shape (b, len(others)).
+        n_complete: Rank of the complete reference error model.
+        n_theory: 4R + 2P + 6 (pose) or + 3 (position), or None.
+        on_last_axis: The measured point lies on the last joint axis.
+        missing: One sentence per error direction the set cannot represent.
+        warnings: Reasons not to trust the rank.
+        timings_ms: Time of each stage [ms].
+    """
+
+    robot: str
+    base_frame: str
+    tool_frame: str
+    mdh: MDHModel
+    measurement: Measurement
+    params: ParameterSet
+    n_configs: int
+    seed: int
+    n_rows: int
+    diag: np.ndarray
+    tolerance: float
+    base: tuple[str, ...]
+    others: tuple[str, ...]
+    zero: tuple[str, ...]
+    B: np.ndarray
+    n_complete: int
+    n_theory: int | None
+    on_last_axis: bool
+    missing: tuple[str, ...]
+    warnings: tuple[str, ...]
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_standard(self) -> int:
+        """Number of standard parameters."""
+        return len(self.params)
+
+    @property
+    def n_base(self) -> int:
+        """Number of base (identifiable) parameters: the rank."""
+        return len(self.base)
+
+    @property
+    def gap(self) -> tuple[float, float | None]:
+        """|R_bb| and |R_(b+1)(b+1)|: the smallest kept and largest dropped pivots."""
+        b = self.n_base
+        last = float(self.diag[b - 1]) if b else 0.0
+        nxt = float(self.diag[b]) if b < len(self.diag) else None
+        return last, nxt
+
+    def regrouping(self, threshold: float = REGROUP_TOL) -> dict[str, str]:
+        """Each base parameter as the expression it stands for, e.g. ``theta5 - 4.762 d6``."""
+        out = {}
+        for i, name in enumerate(self.base):
+            expr = name
+            for j, other in enumerate(self.others):
+                c = float(self.B[i, j])
+                if abs(c) > threshold:
+                    sign = "-" if c < 0 else "+"
+                    coef = "" if abs(abs(c) - 1.0) < 1e-9 else f"{abs(c):.4g} "
+                    expr += f" {sign} {coef}{other}"
+            out[name] = expr
+        return out
+
+    def status(self, name: str) -> str:
+        """``identifiable``, ``regrouped`` (eliminated into base parameters) or ``zero``."""
+        if name in self.base:
+            return "identifiable"
+        if name in self.zero:
+            return "zero"
+        if name in self.params.names:
+            return "regrouped"
+        raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary."""
+        last, nxt = self.gap
+        return {
+            "robot": self.robot,
+            "base_frame": self.base_frame,
+            "tool_frame": self.tool_frame,
+            "measure": self.measurement.label,
+            "marker": list(self.measurement.marker),
+            "params": self.params.label,
+            "joints": {
+                "revolute": int(np.sum(self.mdh.sigma == 0)),
+                "prismatic": int(np.sum(self.mdh.sigma == 1)),
+            },
+            "configs": self.n_configs,
+            "seed": self.seed,
+            "n_standard": self.n_standard,
+            "n_base": self.n_base,
+            "n_complete": self.n_complete,
+            "n_theory": self.n_theory,
+            "point_on_last_axis": self.on_last_axis,
+            "standard_parameters": list(self.params.names),
+            "base_parameters": list(self.base),
+            "nonidentifiable": list(self.zero),
+            "regrouped": [n for n in self.others if n not in self.zero],
+            "regrouping": self.regrouping(),
+            "missing": list(self.missing),
+            "tolerance": self.tolerance,
+            "gap": {"last_kept": last, "first_dropped": nxt},
+            "warnings": list(self.warnings),
+            "timings_ms": dict(self.timings_ms),
+        }
+
+
+def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]:
+    """Walk the columns in ``order`` and keep each one that is independent of those kept.
+
+    A column is kept when its distance to the span of the kept ones exceeds ``tau``
+    (Gram-Schmidt, re-orthogonalised). This is what deleting the columns with
+    |R_ii| <= tau of an unpivoted QR means; Householder QR itself does not reveal it once
+    an exactly dependent column has been met.
+
+    Args:
+        R: Triangular factor (or any matrix with the same column geometry as W).
+        order: Column indices, most preferred first.
+        tau: Distance under which a column is dependent.
+
+    Returns:
+        The kept column indices, in ``order``.
+    """
+    basis = np.zeros((R.shape[0], 0))
+    kept = []
+    for i in order:
+        v = R[:, i].copy()
+        for _ in range(2):
+            v -= basis @ (basis.T @ v)
+        norm = float(np.linalg.norm(v))
+        if norm > tau:
+            kept.append(i)
+            basis = np.column_stack([basis, v / norm])
+    return kept
+
+
+def identify_base(
+    mdh: MDHModel, params: ParameterSet, W: np.ndarray
+) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
+    """Rank, base columns and regrouping of an observation matrix (METHOD.md section 3).
+
+    Args:
+        mdh: Nominal model (for the order of preference).
+        params: The parameters of W's columns.
+        W: Observation matrix ``(r, c)``.
+
+    Returns:
+        |R_ii| of the pivoted QR, tau, the kept column indices (preference order), the other
+        column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
+    """
+    R = _triangular(W)
+    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
+    diag = np.abs(np.diag(Rp))
+    rank, tau = numerical_rank(diag, W.shape[0])
+    order = sorted(range(len(params)), key=lambda i: (preference(mdh, params.parameters[i]), i))
+    # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
+    # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
+    # the order in which the columns are visited.
+    threshold = tau if rank in (0, len(diag)) else max(tau, math.sqrt(diag[rank - 1] * diag[rank]))
+    kept = select_independent(R, order, threshold)
+    others = [i for i in range(len(params)) if i not in kept]
+    Rk = scipy.linalg.qr(R[:, kept + others], mode="r", check_finite=False)[0]
+    b = len(kept)
+    B = scipy.linalg.solve_triangular(Rk[:b, :b], Rk[:b, b:], check_finite=False)
+    return diag, tau, kept, others, B
+
+
+def analyze_model(
+    mdh: MDHModel,
+    params: str | ParameterSet = "paper",
+    measurement: Measurement | None = None,
+    configs: np.ndarray | None = None,
+    robot: str = "",
+    seed: int = 0,
+) -> Identifiability:
+    """Identifiability of an MDH model at given configurations.
+
+    Args:
+        mdh: Nominal model.
+        params: ``paper``, ``complete`` or an explicit set.
+        measurement: What is measured (default: the full pose at the tool origin).
+        configs: Joint positions ``(m, n)``.
+        robot: Name for reports.
+        seed: Seed that drew ``configs`` (reported only).
+
+    Returns:
+        The analysis.
+    """
+    measurement = measurement or Measurement.of("pose")
+    pset = parameter_set(mdh, params) if isinstance(params, str) else params
+    q = np.atleast_2d(np.asarray(configs, dtype=float))
+    t0 = time.perf_counter()
+    kin = mdh.kinematics(q)
+    W = identification_jacobian(mdh, pset, q, measurement, kin=kin)
+    t1 = time.perf_counter()
+    diag, tau, kept, others, B = identify_base(mdh, pset, W)
+    names = pset.names
+    col_norm = np.linalg.norm(W, axis=0)
+    zero = tuple(names[i] for i in others if col_norm[i] <= tau)
+    Wc = complete_jacobian(mdh, q, measurement, kin=kin)
+    n_complete, _ = numerical_rank(pivoted_diagonal(Wc), Wc.shape[0])
+    t2 = time.perf_counter()
+    on_axis = point_on_last_axis(mdh, measurement)
+    missing: list[str] = []
+    if len(kept) < n_complete:
+        full = parameter_set(mdh, "complete")
+        extras = [p for p in full.parameters if p.name not in names]
+        rank = len(kept)
+        for p in extras:
+            Wx = identification_jacobian(mdh, ParameterSet("x", (*pset.parameters, p)), q, measurement, kin=kin)
+            r_x, _ = numerical_rank(pivoted_diagonal(Wx), Wx.shape[0])
+            if r_x > rank:
+                missing.append(_explain(p, mdh))
+        if not missing:
+            missing.append(
+                f"the set reaches {rank} of the {n_complete} independent errors for a reason "
+                f"calib does not diagnose"
+            )
+    notes = []
+    if W.shape[0] < len(pset):
+        notes.append(
+            f"only {W.shape[0]} measurement rows for {len(pset)} parameters: the rank cannot "
+            f"exceed {W.shape[0]}; draw more configurations"
+        )
+    b = len(kept)
+    if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
+        notes.append(
+            f"weak rank gap: |R_bb| = {diag[b - 1]:.3g} vs |R_b+1| = {diag[b]:.3g}; the "
+            f"rank may change with more or other configurations"
+        )
+    for note in notes:
+        warnings.warn(note, RankWarning, stacklevel=2)
+    return Identifiability(
+        robot=robot,
+        base_frame=mdh.base_frame,
+        tool_frame=mdh.tool_frame,
+        mdh=mdh,
+        measurement=measurement,
+        params=pset,
+        n_configs=len(q),
+        seed=seed,
+        n_rows=W.shape[0],
+        diag=diag,
+        tolerance=tau,
+        base=tuple(names[i] for i in kept),
+        others=tuple(names[i] for i in others),
+        zero=zero,
+        B=B,
+        n_complete=n_complete,
+        n_theory=theoretical_count(mdh, measurement, on_axis),
+        on_last_axis=on_axis,
+        missing=tuple(missing),
+        warnings=tuple(notes),
+        timings_ms={"jacobian": 1e3 * (t1 - t0), "qr": 1e3 * (t2 - t1)},
+    )
+
+
+def analyze(
+    robot: str | Path | Chain,
+    base: str | None = None,
+    tool: str | None = None,
+    measure: str = "pose",
+    marker=None,
+    params: str = "paper",
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+) -> Identifiability:
+    """Load a robot and analyse the identifiability of its geometric parameters.
+
+    Args:
+        robot: Catalog name, URDF path, or an already loaded chain.
+        base: Base frame (default: the catalog's or the URDF root).
+        tool: Tool frame (default: the catalog's or the deepest tip).
+        measure: ``pose``, ``position`` or comma-separated rows (``x,y,z,rx``).
+        marker: Measured point in the tool frame, 3 numbers [m].
+        params: ``paper`` or ``complete``.
+        configs: Number of random configurations m (>= 1).
+        seed: Seed of the configurations.
+
+    Returns:
+        The analysis, with load/convert/jacobian/qr timings.
+    """
+    measurement = Measurement.of(measure, marker)
+    if isinstance(configs, bool) or int(configs) != configs or int(configs) < 1:
+        raise InvalidArgumentError(f"the number of configurations must be an integer >= 1, got {configs}")
+    if params not in ("paper", "complete"):
+        raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
+    t0 = time.perf_counter()
+    chain = robot if isinstance(robot, Chain) else load_chain(robot, base, tool)
+    t1 = time.perf_counter()
+    mdh = from_chain(chain)
+    t2 = time.perf_counter()
+    q = chain.random_configurations(int(configs), seed)
+    result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
+    result.timings_ms.update({"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1)})
+    return result
+
+
+__all__ = ["CalibError", "Identifiability", "RankWarning", "analyze", "analyze_model"]

@@ -1,0 +1,319 @@
+"""Khalil-Kleinfinger modified Denavit-Hartenberg model of a chain, with Hayati's beta.
+
+Frame -1 is the chosen base frame, frame 0 is fixed to it, frames 1..n follow the joints
+and frame n+1 is the chosen tool frame. Row k (k = 0..n+1) places frame k in frame k-1:
+
+    T(k-1, k) = Trans(y, y_k) Rot(y, beta_k) Rot(x, alpha_k) Trans(x, d_k)
+                Rot(z, theta_k + (1 - sigma_k) q_k) Trans(z, r_k + sigma_k q_k)
+
+``y_k`` is zero in every converted model; it only exists as an error parameter of the
+complete set, where two consecutive lines coincide.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from .robot import Chain
+
+PARALLEL_TOL = 0.01
+"""Angle [rad] under which two consecutive axes are treated as parallel (Hayati's beta).
+
+Between parallel axes the common normal is not unique and, for nearly parallel ones, lies
+far away: a 6e-6 rad tilt over 0.4 m puts it kilometres off. Rounded URDF angles
+(1.5708, 1.57) tilt axes by up to 1e-3 rad, so the tolerance is ten times that.
+"""
+
+FREE_DIRECTION_TOL = 1e-10
+"""Length [m] under which a perpendicular has no direction (the x axis is then free)."""
+
+COINCIDENT_TOL = 1e-6
+"""Distance [m] under which two parallel lines are coincident (the complete set adds y)."""
+
+
+def _rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_y(b: float) -> np.ndarray:
+    c, s = math.cos(b), math.sin(b)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
+    """Angle [rad] from unit vector a to unit vector b about ``axis`` (both orthogonal to it)."""
+    return math.atan2(float(np.dot(np.cross(a, b), axis)), float(np.dot(a, b)))
+
+
+class Kinematics(NamedTuple):
+    """Frames of an MDH model at m configurations, all in the base frame (frame -1).
+
+    Attributes:
+        R: Rotation of frame k, shape ``(m, n+2, 3, 3)``.
+        p: Origin of frame k, ``(m, n+2, 3)`` [m].
+        y_prev: y axis of frame k-1, ``(m, n+2, 3)``: axis of ``y_k`` and ``beta_k``.
+        x_mid: x axis after ``Rot(y, beta_k) Rot(x, alpha_k)``, ``(m, n+2, 3)``: axis of
+            ``alpha_k`` and ``d_k``.
+        q_mid: Point where ``beta_k`` and ``alpha_k`` rotate, ``(m, n+2, 3)`` [m].
+    """
+
+    R: np.ndarray
+    p: np.ndarray
+    y_prev: np.ndarray
+    x_mid: np.ndarray
+    q_mid: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class MDHModel:
+    """Modified-DH rows of a chain (frames 0..n+1), a value object.
+
+    Attributes:
+        sigma: 0 revolute, 1 prismatic, -1 fixed row, shape ``(n+2,)``.
+        beta: Hayati angle about y_{k-1} [rad].
+        alpha: Angle about x_{k-1} [rad].
+        d: Distance along x_{k-1} [m].
+        theta: Angle about z_k [rad] (joint offset for a revolute row).
+        r: Distance along z_k [m] (joint offset for a prismatic row).
+        y: Translation along y_{k-1} [m] (zero for a converted model).
+        joint_names: URDF joint of each row, None for the fixed rows 0 and n+1.
+        parallel: Row k whose axis is parallel to the previous one (beta convention).
+        coincident: Row k whose axis lies on the previous one (parallel and through it).
+        base_frame: Name of frame -1.
+        tool_frame: Name of frame n+1.
+    """
+
+    sigma: np.ndarray
+    beta: np.ndarray
+    alpha: np.ndarray
+    d: np.ndarray
+    theta: np.ndarray
+    r: np.ndarray
+    y: np.ndarray
+    joint_names: tuple[str | None, ...]
+    parallel: np.ndarray
+    coincident: np.ndarray
+    base_frame: str = ""
+    tool_frame: str = ""
+    _pre: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        pre = np.array([_rot_y(b) @ _rot_x(a) for b, a in zip(self.beta, self.alpha, strict=True)])
+        object.__setattr__(self, "_pre", pre)
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return len(self.sigma) - 2
+
+    @property
+    def joint_rows(self) -> np.ndarray:
+        """Row index of each joint (1..n)."""
+        return np.arange(1, self.n + 1)
+
+    def replace(self, **changes: np.ndarray) -> MDHModel:
+        """A copy with some arrays replaced (the model itself is never mutated)."""
+        fields = {
+            name: getattr(self, name)
+            for name in ("sigma", "beta", "alpha", "d", "theta", "r", "y", "joint_names",
+                         "parallel", "coincident", "base_frame", "tool_frame")
+        }
+        fields.update(changes)
+        return MDHModel(**fields)
+
+    def kinematics(self, q: np.ndarray) -> Kinematics:
+        """Every frame at every configuration, vectorised over configurations.
+
+        Args:
+            q: Joint positions ``(m, n)`` or ``(n,)`` [rad or m].
+
+        Returns:
+            The frames (see :class:`Kinematics`).
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        m, rows = q.shape[0], self.n + 2
+        R = np.empty((m, rows, 3, 3))
+        p = np.empty((m, rows, 3))
+        y_prev = np.empty((m, rows, 3))
+        x_mid = np.empty((m, rows, 3))
+        q_mid = np.empty((m, rows, 3))
+        R_prev = np.broadcast_to(np.eye(3), (m, 3, 3))
+        p_prev = np.zeros((m, 3))
+        for k in range(rows):
+            s = self.sigma[k]
+            angle = self.theta[k] + (q[:, k - 1] if s == 0 else 0.0)
+            length = self.r[k] + (q[:, k - 1] if s == 1 else 0.0)
+            A = R_prev @ self._pre[k]
+            yk = R_prev[:, :, 1]
+            qk = p_prev + self.y[k] * yk if self.y[k] else p_prev
+            c, sn = np.cos(angle), np.sin(angle)
+            c = np.broadcast_to(c, (m,))[:, None]
+            sn = np.broadcast_to(sn, (m,))[:, None]
+            a0, a1, a2 = A[:, :, 0], A[:, :, 1], A[:, :, 2]
+            R[:, k, :, 0] = c * a0 + sn * a1
+            R[:, k, :, 1] = c * a1 - sn * a0
+            R[:, k, :, 2] = a2
+            length = np.broadcast_to(length, (m,))[:, None]
+            p[:, k] = qk + self.d[k] * a0 + length * a2
+            y_prev[:, k] = yk
+            x_mid[:, k] = a0
+            q_mid[:, k] = qk
+            R_prev, p_prev = R[:, k], p[:, k]
+        return Kinematics(R, p, y_prev, x_mid, q_mid)
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Tool frame in the base frame, homogeneous, shape ``(m, 4, 4)``."""
+        kin = self.kinematics(q)
+        T = np.zeros((kin.R.shape[0], 4, 4))
+        T[:, :3, :3] = kin.R[:, -1]
+        T[:, :3, 3] = kin.p[:, -1]
+        T[:, 3, 3] = 1.0
+        return T
+
+    def rows(self) -> list[dict]:
+        """The rows as JSON-ready dictionaries (radians, metres), from base to tool."""
+        out = []
+        for k in range(self.n + 2):
+            s = int(self.sigma[k])
+            out.append(
+                {
+                    "name": str(k),
+                    "joint": self.joint_names[k],
+                    "sigma": None if s < 0 else s,
+                    "beta": float(self.beta[k]),
+                    "alpha": float(self.alpha[k]),
+                    "d": float(self.d[k]),
+                    "theta": float(self.theta[k]),
+                    "r": float(self.r[k]),
+                }
+            )
+        return out
+
+
+def _sign_towards(x: np.ndarray, x_ref: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Choose +x or -x so that the angle from x_ref to it about z lies in (-90, 90] degrees."""
+    dot = float(np.dot(x, x_ref))
+    if abs(dot) > 1e-9:
+        return x if dot > 0 else -x
+    return x if float(np.dot(np.cross(x_ref, x), z)) > 0 else -x
+
+
+def _closest_points(p1, u1, p2, u2) -> tuple[float, float]:
+    """Parameters t, s of the closest points p1 + t u1 and p2 + s u2 of two skew lines."""
+    w0 = p1 - p2
+    b = float(np.dot(u1, u2))
+    dd, e = float(np.dot(u1, w0)), float(np.dot(u2, w0))
+    den = 1.0 - b * b
+    return (b * e - dd) / den, (e - b * dd) / den
+
+
+def from_lines(
+    points: np.ndarray,
+    directions: np.ndarray,
+    sigma: np.ndarray,
+    tool: np.ndarray,
+    joint_names: tuple[str, ...] | None = None,
+    parallel_tol: float = PARALLEL_TOL,
+) -> MDHModel:
+    """Convert joint lines and a tool pose (all in the base frame) to MDH rows.
+
+    Frame choices (documented in the README):
+        * z_k is the joint axis, oriented so that theta (or r) grows with the joint position;
+        * x_k is along the common normal to the next axis; its sign makes the offset theta_k
+          lie in (-90, 90] degrees, so d may be negative (as in Franka's table);
+        * where the next axis is parallel (within ``parallel_tol``), Hayati's beta is used,
+          the origin is the foot of the perpendicular from the previous origin (r_k = 0)
+          and, where the two lines coincide, x_k keeps the previous direction (theta_k = 0);
+        * frame 0 shares z with the base frame (z_{-1}) and frame n+1 is the tool frame.
+
+    Args:
+        points: A point of each joint axis ``(n, 3)`` [m].
+        directions: Unit direction of each joint axis ``(n, 3)``.
+        sigma: 0 revolute, 1 prismatic ``(n,)``.
+        tool: Tool pose ``(4, 4)`` in the base frame.
+        joint_names: Names for the joint rows.
+        parallel_tol: Parallel-axis tolerance [rad].
+
+    Returns:
+        The model; its forward kinematics equals the input geometry.
+    """
+    n = len(sigma)
+    tool = np.asarray(tool, dtype=float)
+    line_p = [np.zeros(3), *np.asarray(points, dtype=float), tool[:3, 3]]
+    line_u = [np.array([0.0, 0.0, 1.0])]
+    line_u += [u / np.linalg.norm(u) for u in np.asarray(directions, dtype=float)]
+    line_u += [tool[:3, 2]]
+    rows = n + 2
+    beta, alpha, d, theta, r = (np.zeros(rows) for _ in range(5))
+    parallel = np.zeros(rows, dtype=bool)
+    coincident = np.zeros(rows, dtype=bool)
+
+    # State of frame k-1 while row k is built: its z axis, the point where row k-1 lands on
+    # its line (r_{k-1} measured from there), its x axis at zero offset, and its full rotation
+    # once x is chosen.
+    z = line_u[0]
+    entry = np.zeros(3)
+    x_zero = np.array([1.0, 0.0, 0.0])
+    for k in range(1, rows):
+        pk, uk = line_p[k], line_u[k]
+        cos_angle = float(np.clip(np.dot(z, uk), -1.0, 1.0))
+        is_parallel = math.acos(abs(cos_angle)) < parallel_tol
+        if not is_parallel:
+            t, s = _closest_points(entry, z, pk, uk)
+            origin = entry + t * z
+            foot_next = pk + s * uk
+            x = _sign_towards(np.cross(z, uk) / np.linalg.norm(np.cross(z, uk)), x_zero, z)
+        else:
+            origin = entry
+            v = pk - origin
+            w = v - np.dot(v, uk) * uk
+            wp = w - np.dot(w, z) * z
+            if np.linalg.norm(wp) > FREE_DIRECTION_TOL:
+                x = _sign_towards(wp / np.linalg.norm(wp), x_zero, z)
+            else:
+                x = x_zero
+            coincident[k] = np.linalg.norm(w) < COINCIDENT_TOL
+        parallel[k] = is_parallel
+        # Close row k-1: its offset theta and its distance r along z_{k-1}.
+        theta[k - 1] = _signed_angle(x_zero, x, z)
+        r[k - 1] = float(np.dot(origin - entry, z))
+        R_prev = np.column_stack([x, np.cross(z, x), z])
+        u_loc = R_prev.T @ uk
+        if is_parallel:
+            sgn = 1.0 if u_loc[2] >= 0 else -1.0
+            alpha[k] = math.atan2(-u_loc[1], sgn * math.hypot(u_loc[0], u_loc[2]))
+            beta[k] = math.atan2(sgn * u_loc[0], sgn * u_loc[2])
+            x_mid = R_prev @ _rot_y(beta[k])[:, 0]
+            d[k] = float(np.dot(w, x_mid))
+            foot_next = origin + d[k] * x_mid
+        else:
+            alpha[k] = _signed_angle(z, uk, x)
+            x_mid = x
+            d[k] = float(np.dot(foot_next - origin, x))
+        z, entry, x_zero = uk, foot_next, x_mid
+    # Row n+1 lands on the tool z line; the tool frame fixes its x axis and origin.
+    theta[-1] = _signed_angle(x_zero, tool[:3, 0], z)
+    r[-1] = float(np.dot(tool[:3, 3] - entry, z))
+    sig = np.concatenate([[-1], np.asarray(sigma, dtype=int), [-1]])
+    names = (None, *(joint_names or tuple(str(i + 1) for i in range(n))), None)
+    return MDHModel(sig, beta, alpha, d, theta, r, np.zeros(rows), names, parallel, coincident)
+
+
+def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
+    """Convert a Pinocchio chain to its MDH model (base frame = frame -1).
+
+    Args:
+        chain: The serial chain.
+        parallel_tol: Parallel-axis tolerance [rad].
+
+    Returns:
+        The MDH model, whose forward kinematics equals Pinocchio's.
+    """
+    points, dirs, tool = chain.joint_lines()
+    model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
+    return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)

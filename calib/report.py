@@ -1,0 +1,111 @@
+"""Human-readable text for the CLI and notebooks: MDH tables and identifiability reports."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .identifiability import Identifiability
+from .mdh import MDHModel
+from .parameters import Kind
+
+_STATUS = {"identifiable": "id", "regrouped": "reg", "zero": "0"}
+
+
+def _num(x: float, digits: int = 4) -> str:
+    """Fixed-point text without a negative zero."""
+    text = f"{x:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
+def format_table(header: list[str], rows: list[list[str]]) -> str:
+    """Right-aligned plain-text table."""
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
+    lines.append("  ".join("-" * w for w in widths))
+    lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    return "\n".join(lines)
+
+
+def mdh_table(mdh: MDHModel) -> str:
+    """The MDH rows in degrees and metres, frame 0 to frame n+1."""
+    header = ["j", "joint", "sigma", "beta[deg]", "alpha[deg]", "d[m]", "theta[deg]", "r[m]"]
+    rows = []
+    for k in range(mdh.n + 2):
+        s = int(mdh.sigma[k])
+        theta = _num(math.degrees(mdh.theta[k]), 3)
+        r = _num(mdh.r[k])
+        if s == 0:
+            theta = f"q{k}" if abs(mdh.theta[k]) < 5e-7 else f"q{k}{'+' if mdh.theta[k] > 0 else ''}{theta}"
+        elif s == 1:
+            r = f"q{k}" if abs(mdh.r[k]) < 5e-7 else f"q{k}{'+' if mdh.r[k] > 0 else ''}{r}"
+        rows.append(
+            [
+                str(k),
+                mdh.joint_names[k] or ("(base)" if k == 0 else "(tool)"),
+                "fixed" if s < 0 else str(s),
+                _num(math.degrees(mdh.beta[k]), 3),
+                _num(math.degrees(mdh.alpha[k]), 3),
+                _num(mdh.d[k]),
+                theta,
+                r,
+            ]
+        )
+    return format_table(header, rows)
+
+
+def status_table(res: Identifiability) -> str:
+    """Table-2 style: per frame and parameter, id / reg / 0 (- where not in the set)."""
+    kinds = [k for k in (Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA, Kind.R, Kind.Y)
+             if any(p.kind is k for p in res.params.parameters)]
+    names = set(res.params.names)
+    rows = []
+    for k in range(res.mdh.n + 2):
+        row = [str(k)]
+        for kind in kinds:
+            name = f"{kind.value}{k}"
+            row.append(_STATUS[res.status(name)] if name in names else "-")
+        rows.append(row)
+    return format_table(["j", *[k.value for k in kinds]], rows)
+
+
+def analysis_text(res: Identifiability) -> str:
+    """The full human report of ``calib analyze``."""
+    d = res.to_dict()
+    j = d["joints"]
+    lines = [
+        f"{res.robot}: {res.base_frame} -> {res.tool_frame}, {j['revolute']}R {j['prismatic']}P, "
+        f"measure {res.measurement.label}"
+        + (f" at marker {tuple(res.measurement.marker)} m" if any(res.measurement.marker) else "")
+        + f", {res.params.label} set, {res.n_configs} configurations (seed {res.seed})",
+        "",
+        "Status of the standard parameters (id identifiable, reg regrouped/eliminated, 0 no effect):",
+        status_table(res),
+        "",
+        f"Base parameters ({res.n_base}) and what they stand for:",
+    ]
+    for name, expr in res.regrouping().items():
+        lines.append(f"  {name:>8} = {expr}")
+    last, nxt = res.gap
+    gap = f"|R_bb| = {last:.3g}, next {nxt:.3g}" if nxt is not None else f"|R_bb| = {last:.3g}, full rank"
+    lines += [
+        "",
+        f"standard {res.n_standard}, base {res.n_base}, complete model {res.n_complete}, "
+        f"theory {res.n_theory if res.n_theory is not None else 'n/a'}"
+        + (" (point on the last axis: 2 fewer)" if res.on_last_axis and res.measurement.rows == (0, 1, 2) else ""),
+        f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
+    ]
+    if res.zero:
+        lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
+    if res.missing:
+        lines.append(f"incomplete: the {res.params.label} set misses {res.n_complete - res.n_base} "
+                     f"error direction(s) a complete model has:")
+        lines += [f"  - {m}" for m in res.missing]
+    else:
+        lines.append("complete: the set represents every error direction the measurement can see")
+    return "\n".join(lines)
+
+
+def _fmt_vec(v: np.ndarray) -> str:
+    return " ".join(_num(x, 6) for x in v)
