@@ -58,7 +58,9 @@ def erd_robots_dir() -> Path:
     try:
         dist = importlib.metadata.distribution("example-robot-data")
     except importlib.metadata.PackageNotFoundError as exc:
-        raise CalibError("example-robot-data is not installed (pip install example-robot-data)") from exc
+        raise CalibError(
+            "example-robot-data is not installed (pip install example-robot-data)"
+        ) from exc
     for f in dist.files or ():
         s = f.as_posix()
         i = s.find(_ERD_ROBOTS)

@@ -60,7 +60,9 @@ class FrameNotFoundError(CalibError):
         self.available = tuple(closest_first(name, available))
         shown = ", ".join(self.available[:limit])
         more = f", ... ({len(self.available)} in all)" if len(self.available) > limit else ""
-        super().__init__(f"no frame named '{name}'; frames that exist, closest first: {shown}{more}")
+        super().__init__(
+            f"no frame named '{name}'; frames that exist, closest first: {shown}{more}"
+        )
 
 
 class AmbiguousFrameError(CalibError):

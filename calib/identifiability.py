@@ -85,7 +85,9 @@ def preference(mdh: MDHModel, p: Parameter) -> int:
     return 5
 
 
-def theoretical_count(chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axis: bool) -> int | None:
+def theoretical_count(
+    chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axis: bool
+) -> int | None:
     """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
 
     4R + 2P + 6 for the full pose, 4R + 2P + 3 for the position of one point, 2 fewer when
@@ -256,10 +258,11 @@ class Identifiability:
 def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]:
     """Walk the columns in ``order`` and keep each one that is independent of those kept.
 
-    A column is kept when its distance to the span of the kept ones exceeds ``tau``
-    (Gram-Schmidt, re-orthogonalised). This is what deleting the columns with
-    |R_ii| <= tau of an unpivoted QR means; Householder QR itself does not reveal it once
-    an exactly dependent column has been met.
+    A column is kept when its distance to the span of the kept ones exceeds ``tau``: this
+    is what deleting the columns with |R_ii| <= tau of an unpivoted QR means. Householder
+    QR stops revealing it after an exactly dependent column (that column's row is left
+    unused), so after each dependent column the QR restarts on the residual block, which is
+    an orthogonal image of the remaining columns' components orthogonal to the kept ones.
 
     Args:
         R: Triangular factor (or any matrix with the same column geometry as W).
@@ -269,16 +272,21 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
     Returns:
         The kept column indices, in ``order``.
     """
-    basis = np.zeros((R.shape[0], 0))
-    kept = []
-    for i in order:
-        v = R[:, i].copy()
-        for _ in range(2):
-            v -= basis @ (basis.T @ v)
-        norm = float(np.linalg.norm(v))
-        if norm > tau:
-            kept.append(i)
-            basis = np.column_stack([basis, v / norm])
+    kept: list[int] = []
+    idx = list(order)
+    M = R[:, idx]
+    while idx and M.shape[0] > 0:
+        T = scipy.linalg.qr(M, mode="r", check_finite=False)[0]
+        d = np.abs(np.diag(T))
+        small = np.flatnonzero(d <= tau)
+        j = int(small[0]) if small.size else len(d)
+        kept += idx[:j]
+        if j == len(d):  # all kept, or the rows are exhausted: the rest depends on the kept
+            break
+        # Column j depends on the kept ones; the rows j.. of the columns after it hold their
+        # components orthogonal to the kept columns.
+        idx = idx[j + 1 :]
+        M = T[j:, j + 1 :]
     return kept
 
 
@@ -337,33 +345,38 @@ def analyze_model(
     measurement = measurement or Measurement.of("pose")
     pset = parameter_set(mdh, params) if isinstance(params, str) else params
     q = np.atleast_2d(np.asarray(configs, dtype=float))
+    names = pset.names
+    extras = [p for p in parameter_set(mdh, "complete").parameters if p.name not in names]
     t0 = time.perf_counter()
     kin = mdh.kinematics(q)
-    W = identification_jacobian(mdh, pset, q, measurement, kin=kin)
+    # One Jacobian for the set and the complete set's extras; ranks of column subsets come
+    # from the small triangular factor, which keeps W's column geometry.
+    W_all = identification_jacobian(
+        mdh, ParameterSet(pset.label, (*pset.parameters, *extras)), q, measurement, kin=kin
+    )
+    W = W_all[:, : len(pset)]
     t1 = time.perf_counter()
     diag, tau, kept, others, B = identify_base(mdh, pset, W)
-    names = pset.names
     col_norm = np.linalg.norm(W, axis=0)
     zero = tuple(names[i] for i in others if col_norm[i] <= tau)
+    t2 = time.perf_counter()
     Wc = complete_jacobian(mdh, q, measurement, kin=kin)
     n_complete, _ = numerical_rank(pivoted_diagonal(Wc), Wc.shape[0])
-    t2 = time.perf_counter()
     on_axis = point_on_last_axis(mdh, measurement)
     missing: list[str] = []
     if len(kept) < n_complete:
-        full = parameter_set(mdh, "complete")
-        extras = [p for p in full.parameters if p.name not in names]
-        rank = len(kept)
-        for p in extras:
-            Wx = identification_jacobian(mdh, ParameterSet("x", (*pset.parameters, p)), q, measurement, kin=kin)
-            r_x, _ = numerical_rank(pivoted_diagonal(Wx), Wx.shape[0])
-            if r_x > rank:
+        R_all = _triangular(W_all)
+        for j, p in enumerate(extras):
+            cols = [*kept, len(pset) + j]
+            r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), W.shape[0])
+            if r_x > len(kept):
                 missing.append(_explain(p, mdh))
         if not missing:
             missing.append(
-                f"the set reaches {rank} of the {n_complete} independent errors for a reason "
-                f"calib does not diagnose"
+                f"the set reaches {len(kept)} of the {n_complete} independent errors for a "
+                f"reason calib does not diagnose"
             )
+    t3 = time.perf_counter()
     notes = []
     if W.shape[0] < len(pset):
         notes.append(
@@ -399,7 +412,11 @@ def analyze_model(
         on_last_axis=on_axis,
         missing=tuple(missing),
         warnings=tuple(notes),
-        timings_ms={"jacobian": 1e3 * (t1 - t0), "qr": 1e3 * (t2 - t1)},
+        timings_ms={
+            "jacobian": 1e3 * (t1 - t0),
+            "qr": 1e3 * (t2 - t1),
+            "complete": 1e3 * (t3 - t2),
+        },
     )
 
 
@@ -430,7 +447,9 @@ def analyze(
     """
     measurement = Measurement.of(measure, marker)
     if isinstance(configs, bool) or int(configs) != configs or int(configs) < 1:
-        raise InvalidArgumentError(f"the number of configurations must be an integer >= 1, got {configs}")
+        raise InvalidArgumentError(
+            f"the number of configurations must be an integer >= 1, got {configs}"
+        )
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     t0 = time.perf_counter()

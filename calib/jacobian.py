@@ -56,7 +56,9 @@ class Measurement:
             marker = (0.0, 0.0, 0.0)
         mk = np.asarray(marker, dtype=float).ravel() if _numeric(marker) else None
         if mk is None or mk.shape != (3,) or not np.all(np.isfinite(mk)):
-            raise InvalidArgumentError(f"a marker is 3 finite numbers (x y z in metres), got {marker!r}")
+            raise InvalidArgumentError(
+                f"a marker is 3 finite numbers (x y z in metres), got {marker!r}"
+            )
         return Measurement(rows, (float(mk[0]), float(mk[1]), float(mk[2])), measure)
 
     @property

@@ -120,8 +120,20 @@ class MDHModel:
         """A copy with some arrays replaced (the model itself is never mutated)."""
         fields = {
             name: getattr(self, name)
-            for name in ("sigma", "beta", "alpha", "d", "theta", "r", "y", "joint_names",
-                         "parallel", "coincident", "base_frame", "tool_frame")
+            for name in (
+                "sigma",
+                "beta",
+                "alpha",
+                "d",
+                "theta",
+                "r",
+                "y",
+                "joint_names",
+                "parallel",
+                "coincident",
+                "base_frame",
+                "tool_frame",
+            )
         }
         fields.update(changes)
         return MDHModel(**fields)
@@ -136,34 +148,36 @@ class MDHModel:
             The frames (see :class:`Kinematics`).
         """
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        m, rows = q.shape[0], self.n + 2
+        m, rows, n = q.shape[0], self.n + 2, self.n
+        revolute = self.sigma[1 : n + 1] == 0
+        angle = np.broadcast_to(self.theta, (m, rows)).copy()
+        angle[:, 1 : n + 1] += q * revolute
+        length = np.broadcast_to(self.r, (m, rows)).copy()
+        length[:, 1 : n + 1] += q * ~revolute
+        C, S = np.cos(angle)[:, :, None], np.sin(angle)[:, :, None]
+        L = length[:, :, None]
         R = np.empty((m, rows, 3, 3))
         p = np.empty((m, rows, 3))
-        y_prev = np.empty((m, rows, 3))
         x_mid = np.empty((m, rows, 3))
-        q_mid = np.empty((m, rows, 3))
+        y_prev = np.empty((m, rows, 3))
+        y_prev[:, 0] = (0.0, 1.0, 0.0)
+        q_mid = np.zeros((m, rows, 3))
         R_prev = np.broadcast_to(np.eye(3), (m, 3, 3))
-        p_prev = np.zeros((m, 3))
         for k in range(rows):
-            s = self.sigma[k]
-            angle = self.theta[k] + (q[:, k - 1] if s == 0 else 0.0)
-            length = self.r[k] + (q[:, k - 1] if s == 1 else 0.0)
             A = R_prev @ self._pre[k]
-            yk = R_prev[:, :, 1]
-            qk = p_prev + self.y[k] * yk if self.y[k] else p_prev
-            c, sn = np.cos(angle), np.sin(angle)
-            c = np.broadcast_to(c, (m,))[:, None]
-            sn = np.broadcast_to(sn, (m,))[:, None]
             a0, a1, a2 = A[:, :, 0], A[:, :, 1], A[:, :, 2]
+            c, sn = C[:, k], S[:, k]
             R[:, k, :, 0] = c * a0 + sn * a1
             R[:, k, :, 1] = c * a1 - sn * a0
             R[:, k, :, 2] = a2
-            length = np.broadcast_to(length, (m,))[:, None]
-            p[:, k] = qk + self.d[k] * a0 + length * a2
-            y_prev[:, k] = yk
+            if k:
+                y_prev[:, k] = R_prev[:, :, 1]
+                q_mid[:, k] = p[:, k - 1]
+            if self.y[k]:
+                q_mid[:, k] += self.y[k] * y_prev[:, k]
+            p[:, k] = q_mid[:, k] + self.d[k] * a0 + L[:, k] * a2
             x_mid[:, k] = a0
-            q_mid[:, k] = qk
-            R_prev, p_prev = R[:, k], p[:, k]
+            R_prev = R[:, k]
         return Kinematics(R, p, y_prev, x_mid, q_mid)
 
     def forward(self, q: np.ndarray) -> np.ndarray:

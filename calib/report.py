@@ -37,7 +37,11 @@ def mdh_table(mdh: MDHModel) -> str:
         theta = _num(math.degrees(mdh.theta[k]), 3)
         r = _num(mdh.r[k])
         if s == 0:
-            theta = f"q{k}" if abs(mdh.theta[k]) < 5e-7 else f"q{k}{'+' if mdh.theta[k] > 0 else ''}{theta}"
+            theta = (
+                f"q{k}"
+                if abs(mdh.theta[k]) < 5e-7
+                else f"q{k}{'+' if mdh.theta[k] > 0 else ''}{theta}"
+            )
         elif s == 1:
             r = f"q{k}" if abs(mdh.r[k]) < 5e-7 else f"q{k}{'+' if mdh.r[k] > 0 else ''}{r}"
         rows.append(
@@ -57,8 +61,11 @@ def mdh_table(mdh: MDHModel) -> str:
 
 def status_table(res: Identifiability) -> str:
     """Table-2 style: per frame and parameter, id / reg / 0 (- where not in the set)."""
-    kinds = [k for k in (Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA, Kind.R, Kind.Y)
-             if any(p.kind is k for p in res.params.parameters)]
+    kinds = [
+        k
+        for k in (Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA, Kind.R, Kind.Y)
+        if any(p.kind is k for p in res.params.parameters)
+    ]
     names = set(res.params.names)
     rows = []
     for k in range(res.mdh.n + 2):
@@ -80,7 +87,8 @@ def analysis_text(res: Identifiability) -> str:
         + (f" at marker {tuple(res.measurement.marker)} m" if any(res.measurement.marker) else "")
         + f", {res.params.label} set, {res.n_configs} configurations (seed {res.seed})",
         "",
-        "Status of the standard parameters (id identifiable, reg regrouped/eliminated, 0 no effect):",
+        "Status of the standard parameters"
+        " (id identifiable, reg regrouped/eliminated, 0 no effect):",
         status_table(res),
         "",
         f"Base parameters ({res.n_base}) and what they stand for:",
@@ -88,19 +96,29 @@ def analysis_text(res: Identifiability) -> str:
     for name, expr in res.regrouping().items():
         lines.append(f"  {name:>8} = {expr}")
     last, nxt = res.gap
-    gap = f"|R_bb| = {last:.3g}, next {nxt:.3g}" if nxt is not None else f"|R_bb| = {last:.3g}, full rank"
+    gap = (
+        f"|R_bb| = {last:.3g}, next {nxt:.3g}"
+        if nxt is not None
+        else f"|R_bb| = {last:.3g}, full rank"
+    )
     lines += [
         "",
         f"standard {res.n_standard}, base {res.n_base}, complete model {res.n_complete}, "
         f"theory {res.n_theory if res.n_theory is not None else 'n/a'}"
-        + (" (point on the last axis: 2 fewer)" if res.on_last_axis and res.measurement.rows == (0, 1, 2) else ""),
+        + (
+            " (point on the last axis: 2 fewer)"
+            if res.on_last_axis and res.measurement.rows == (0, 1, 2)
+            else ""
+        ),
         f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
     ]
     if res.zero:
         lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
     if res.missing:
-        lines.append(f"incomplete: the {res.params.label} set misses {res.n_complete - res.n_base} "
-                     f"error direction(s) a complete model has:")
+        lines.append(
+            f"incomplete: the {res.params.label} set misses {res.n_complete - res.n_base} "
+            f"error direction(s) a complete model has:"
+        )
         lines += [f"  - {m}" for m in res.missing]
     else:
         lines.append("complete: the set represents every error direction the measurement can see")

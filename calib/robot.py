@@ -26,7 +26,10 @@ PLACEMENT_TOL = 1e-12
 DEFAULT_PRISMATIC_RANGE = 0.1
 """Half-range [m] sampled for a prismatic joint whose URDF gives no usable limits."""
 
-_KIND_PREFIX = {"link": (pin.FrameType.BODY,), "joint": (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT)}
+_KIND_PREFIX = {
+    "link": (pin.FrameType.BODY,),
+    "joint": (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT),
+}
 
 
 def _joint_kind(shortname: str) -> str | None:
@@ -95,7 +98,9 @@ def read_urdf_info(path: Path) -> URDFInfo:
     children = {c.get("link") for j in root.findall("joint") for c in j.findall("child")}
     roots = [name for name in links if name not in children]
     joint_types = {j.get("name", ""): j.get("type", "") for j in root.findall("joint")}
-    mimic = frozenset(j.get("name", "") for j in root.findall("joint") if j.find("mimic") is not None)
+    mimic = frozenset(
+        j.get("name", "") for j in root.findall("joint") if j.find("mimic") is not None
+    )
     return URDFInfo(roots[0] if roots else links[0], mimic, joint_types)
 
 
@@ -143,7 +148,11 @@ def resolve_frame(model: pin.Model, name: str) -> int:
     prefix, sep, rest = name.partition(":")
     if sep and prefix in _KIND_PREFIX:
         kinds, bare = _KIND_PREFIX[prefix], rest
-    ids = [i for i, f in enumerate(model.frames) if f.name == bare and (kinds is None or f.type in kinds)]
+    ids = [
+        i
+        for i, f in enumerate(model.frames)
+        if f.name == bare and (kinds is None or f.type in kinds)
+    ]
     if not ids:
         raise FrameNotFoundError(name, [f.name for f in model.frames if f.name != "universe"])
     if len(ids) == 1:
@@ -395,4 +404,6 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
         return _chain_from_model(path.stem, path, model, info, base, tool)
     entry = catalog_entry(text)
     model, info = load_model(entry.path)
-    return _chain_from_model(entry.name, entry.path, model, info, base or entry.base, tool or entry.tool)
+    return _chain_from_model(
+        entry.name, entry.path, model, info, base or entry.base, tool or entry.tool
+    )

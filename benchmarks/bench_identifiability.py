@@ -1,0 +1,102 @@
+"""Speed of the identifiability analysis (issue: W + QR < 1 ms, `analyze ur5` < 20 ms).
+
+Run: .venv/bin/python benchmarks/bench_identifiability.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import median_ms, one_core, process_ms, table
+
+one_core()
+
+import warnings  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from calib import (  # noqa: E402
+    Measurement,
+    analyze,
+    analyze_model,
+    from_chain,
+    from_lines,
+    identification_jacobian,
+    load_chain,
+    paper_parameters,
+)
+from calib.identifiability import identify_base  # noqa: E402
+
+warnings.simplefilter("ignore")
+
+
+def w_and_qr(mdh, q, measurement):
+    params = paper_parameters(mdh)
+    W = identification_jacobian(mdh, params, q, measurement)
+    return identify_base(mdh, params, W)
+
+
+def random_chain(n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    points = np.cumsum(rng.uniform(-0.2, 0.2, (n, 3)), axis=0)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    tool = np.eye(4)
+    tool[:3, 3] = points[-1] + 0.1
+    return from_lines(points, dirs, np.zeros(n, dtype=int), tool)
+
+
+def main() -> None:
+    pose = Measurement.of("pose")
+    rows = []
+    for name in ("ur5", "panda"):
+        chain = load_chain(name)
+        mdh = from_chain(chain)
+        q = chain.random_configurations(100, 0)
+        rows.append(
+            [
+                f"{name}: W + QR + base set, m=100, pose",
+                f"{median_ms(lambda mdh=mdh, q=q: w_and_qr(mdh, q, pose), 300):.3f}",
+            ]
+        )
+        rows.append(
+            [
+                f"{name}: analyze_model (+ complete model), m=100",
+                f"{median_ms(lambda mdh=mdh, q=q: analyze_model(mdh, 'paper', pose, q), 200):.3f}",
+            ]
+        )
+    rows.append(
+        [
+            "calib.analyze('ur5') in-process (load+convert+all)",
+            f"{median_ms(lambda: analyze('ur5'), 50):.3f}",
+        ]
+    )
+    rows.append(["`calib analyze ur5` whole process", f"{process_ms(['analyze', 'ur5']):.0f}"])
+    print(table(["case", "median [ms]"], rows))
+
+    print("\nGrowth with m (ur5, pose, W + QR + base set):")
+    chain = load_chain("ur5")
+    mdh = from_chain(chain)
+    grow = []
+    for m in (10, 100, 1000, 10000):
+        q = chain.random_configurations(m, 0)
+        repeats = 30 if m >= 1000 else 200
+        t = median_ms(lambda q=q: w_and_qr(mdh, q, pose), repeats)
+        grow.append([m, f"{t:.3f}"])
+    print(table(["m", "median [ms]"], grow))
+
+    print("\nGrowth with chain length (random revolute chains, m=100, pose):")
+    grow = []
+    for n in (6, 12, 18, 24, 30):
+        mdh = random_chain(n, n)
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, (100, n))
+        grow.append(
+            [n, 4 * n + 6, f"{median_ms(lambda mdh=mdh, q=q: w_and_qr(mdh, q, pose), 100):.3f}"]
+        )
+    print(table(["joints", "parameters", "median [ms]"], grow))
+
+
+if __name__ == "__main__":
+    main()

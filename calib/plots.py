@@ -1,0 +1,93 @@
+"""Matplotlib figures: counts across robots, the |R_ii| spectrum, calibration errors.
+
+Every function returns a ``matplotlib.figure.Figure``; notebooks show it inline and the CLI
+saves it with :func:`save_figure`.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .identifiability import Identifiability
+from .sweep import SweepRow
+
+
+def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
+    """Base-parameter counts per robot (paper and complete sets) against the theory."""
+    ok = [r for r in rows if r.error is None]
+    fig = Figure(figsize=(max(6.0, 0.28 * len(ok) + 2.0), 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    x = np.arange(len(ok))
+    ax.bar(x - 0.2, [r.n_base_paper for r in ok], 0.4, label="paper set")
+    ax.bar(x + 0.2, [r.n_base_complete for r in ok], 0.4, label="complete set")
+    ax.scatter(
+        x,
+        [r.n_theory for r in ok],
+        marker="_",
+        s=160,
+        color="k",
+        zorder=3,
+        label="theory (4R+2P+6 or +3)",
+    )
+    ax.set_xticks(x, [r.robot for r in ok], rotation=90, fontsize=7)
+    ax.set_ylabel("base parameters")
+    ax.set_title(title or "Identifiable parameters per chain")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def spectrum_figure(res: Identifiability) -> Figure:
+    """|R_ii| of the pivoted QR on a log scale, with tau and the rank gap."""
+    fig = Figure(figsize=(6.0, 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    diag = np.maximum(res.diag, np.finfo(float).tiny)
+    i = np.arange(1, len(diag) + 1)
+    ax.semilogy(i[: res.n_base], diag[: res.n_base], "o", label=f"kept ({res.n_base})")
+    ax.semilogy(
+        i[res.n_base :], diag[res.n_base :], "x", label=f"dropped ({len(diag) - res.n_base})"
+    )
+    ax.axhline(res.tolerance, color="k", ls="--", lw=1, label=r"$\tau = r\,\epsilon\,|R_{11}|$")
+    ax.set_xlabel("i (pivot order)")
+    ax.set_ylabel(r"$|R_{ii}|$")
+    ax.set_title(f"{res.robot}: {res.params.label} set, {res.measurement.label}")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Figure:
+    """Position error per configuration before and after calibration [mm]."""
+    fig = Figure(figsize=(6.0, 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    before = 1e3 * np.asarray(before)
+    after = 1e3 * np.asarray(after)
+    bins = np.linspace(0.0, max(float(before.max(initial=0.0)), 1e-9), 30)
+    ax.hist(
+        before, bins=bins, alpha=0.6, label=f"nominal (RMS {np.sqrt(np.mean(before**2)):.3g} mm)"
+    )
+    ax.hist(
+        after, bins=bins, alpha=0.8, label=f"calibrated (RMS {np.sqrt(np.mean(after**2)):.3g} mm)"
+    )
+    ax.set_xlabel("position error [mm]")
+    ax.set_ylabel("configurations")
+    ax.set_title(title or "Calibration")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def save_figure(fig: Figure, path: str | Path) -> None:
+    """Save as PNG atomically (a temporary file renamed into place)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), suffix=".png")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, format="png", dpi=120)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

@@ -1,0 +1,156 @@
+"""Survey of identifiable sets across many chains (the catalog and extra URDFs)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from .catalog import catalog
+from .exceptions import CalibError
+from .identifiability import DEFAULT_CONFIGS, analyze
+from .jacobian import Measurement
+from .robot import load_chain
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One chain of a sweep.
+
+    Attributes:
+        robot: Catalog name or URDF path.
+        chain: ``base -> tool``.
+        revolute: Number R of revolute joints.
+        prismatic: Number P of prismatic joints.
+        n_standard: Standard parameters of the paper set.
+        n_base_paper: Base parameters of the paper set.
+        n_base_complete: Base parameters of the complete set.
+        n_complete: Rank of the complete reference model.
+        n_theory: 4R + 2P + 6 (pose) or + 3 (position; 2 fewer on the last axis).
+        verdict: ``complete``, ``misses N`` (the paper set), or ``error``.
+        time_ms: Time to load and analyse the chain with both sets [ms].
+        error: Why the chain could not be analysed, else None.
+    """
+
+    robot: str
+    chain: str
+    revolute: int | None = None
+    prismatic: int | None = None
+    n_standard: int | None = None
+    n_base_paper: int | None = None
+    n_base_complete: int | None = None
+    n_complete: int | None = None
+    n_theory: int | None = None
+    verdict: str = "error"
+    time_ms: float = 0.0
+    error: str | None = None
+
+
+def sweep_one(
+    robot: str,
+    base: str | None,
+    tool: str | None,
+    measurement: Measurement,
+    configs: int,
+    seed: int,
+) -> SweepRow:
+    """Analyse one chain with the paper and the complete sets; errors become a row."""
+    t0 = time.perf_counter()
+    label = f"{base or '?'} -> {tool or '?'}"
+    try:
+        chain = load_chain(robot, base, tool)
+        label = f"{chain.base_frame} -> {chain.tool_frame}"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kw = {
+                "measure": measurement.label,
+                "marker": measurement.marker,
+                "configs": configs,
+                "seed": seed,
+            }
+            paper = analyze(chain, params="paper", **kw)
+            full = analyze(chain, params="complete", **kw)
+    except CalibError as exc:
+        return SweepRow(str(robot), label, time_ms=1e3 * (time.perf_counter() - t0), error=str(exc))
+    missing = full.n_complete - paper.n_base
+    return SweepRow(
+        robot=str(robot),
+        chain=label,
+        revolute=chain.n_revolute,
+        prismatic=chain.n_prismatic,
+        n_standard=paper.n_standard,
+        n_base_paper=paper.n_base,
+        n_base_complete=full.n_base,
+        n_complete=full.n_complete,
+        n_theory=full.n_theory,
+        verdict="complete" if missing == 0 else f"misses {missing}",
+        time_ms=1e3 * (time.perf_counter() - t0),
+    )
+
+
+def sweep(
+    robots: Iterable[str] | None = None,
+    extra: Sequence[str] = (),
+    measure: str = "pose",
+    marker=None,
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+    progress: Callable[[Iterable], Iterable] | None = None,
+) -> list[SweepRow]:
+    """Analyse every catalog chain (or the given names) and extra URDF files.
+
+    A chain that cannot be analysed is a row with its reason, never skipped.
+
+    Args:
+        robots: Catalog names (default: the whole catalog).
+        extra: URDF paths (default frames) analysed after the catalog.
+        measure: ``pose`` or ``position`` (or rows).
+        marker: Measured point in the tool frame [m].
+        configs: Random configurations per chain.
+        seed: Seed of the configurations.
+        progress: Wraps the iterable of jobs (e.g. a progress bar).
+
+    Returns:
+        One row per chain, in order.
+    """
+    measurement = Measurement.of(measure, marker)
+    entries = {e.name: e for e in catalog()}
+    jobs: list[tuple[str, str | None, str | None]] = []
+    for name in robots if robots is not None else entries:
+        e = entries.get(name)
+        jobs.append((name, e.base, e.tool) if e else (name, None, None))
+    jobs += [(str(Path(p)), None, None) for p in extra]
+    it = progress(jobs) if progress else jobs
+    return [sweep_one(r, b, t, measurement, configs, seed) for r, b, t in it]
+
+
+COLUMNS = (
+    "robot",
+    "chain",
+    "revolute",
+    "prismatic",
+    "n_standard",
+    "n_base_paper",
+    "n_base_complete",
+    "n_complete",
+    "n_theory",
+    "verdict",
+    "time_ms",
+    "error",
+)
+
+
+def rows_to_csv(rows: Sequence[SweepRow]) -> str:
+    """The rows as CSV text (one header line)."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        d = asdict(row)
+        d["time_ms"] = f"{row.time_ms:.1f}"
+        writer.writerow(d)
+    return buf.getvalue()
