@@ -19,13 +19,24 @@ def _num(x: float, digits: int = 4) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def format_table(header: list[str], rows: list[list[str]]) -> str:
-    """Right-aligned plain-text table."""
+    """Plain-text table: numeric columns right-aligned, text columns left-aligned."""
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
-    lines.append("  ".join("-" * w for w in widths))
-    lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
-    return "\n".join(lines)
+    right = [all(_is_number(r[i]) or r[i] in ("-", "") for r in rows) for i in range(len(header))]
+
+    def line(cells: list[str]) -> str:
+        out = [c.rjust(w) if rj else c.ljust(w) for c, w, rj in zip(cells, widths, right, strict=True)]
+        return "  ".join(out).rstrip()
+
+    return "\n".join([line(header), line(["-" * w for w in widths]), *(line(r) for r in rows)])
 
 
 def mdh_table(mdh: MDHModel) -> str:
