@@ -86,32 +86,56 @@ def preference(mdh: MDHModel, p: Parameter) -> int:
 
 
 def theoretical_count(
-    chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axis: bool
+    chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axes: tuple[int, ...] = ()
 ) -> int | None:
     """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
 
     4R + 2P + 6 for the full pose, 4R + 2P + 3 for the position of one point, 2 fewer when
-    the point lies on the last (revolute) axis. None for other row subsets.
+    the point lies on the last (revolute) axis. None where the formula says nothing: other
+    row subsets, or a point on a joint axis other than the last (a wrist centre).
+
+    Args:
+        chain_or_mdh: The chain or its model (for sigma).
+        measurement: What is measured.
+        on_axes: Joints whose axis passes through the measured point.
     """
     sigma = np.asarray(chain_or_mdh.sigma)
+    n = int(np.sum(sigma >= 0))
     R = int(np.sum(sigma == 0))
     P = int(np.sum(sigma == 1))
     if measurement.rows == (0, 1, 2, 3, 4, 5):
         return 4 * R + 2 * P + 6
     if measurement.rows == (0, 1, 2):
-        return 4 * R + 2 * P + 3 - (2 if on_axis else 0)
+        if any(k != n for k in on_axes):
+            return None
+        return 4 * R + 2 * P + 3 - (2 if on_axes else 0)
     return None
+
+
+def axes_through_point(mdh: MDHModel, measurement: Measurement) -> tuple[int, ...]:
+    """Revolute joints (1..n) whose axis passes through the measured point.
+
+    An axis counts only if it does so at every configuration: it is tested at the zero
+    configuration and four fixed others.
+    """
+    q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
+    kin = mdh.kinematics(q)
+    E = kin.p[:, -1] + np.einsum("mij,j->mi", kin.R[:, -1], measurement.marker_array)
+    out = []
+    for k in range(1, mdh.n + 1):
+        if mdh.sigma[k] != 0:
+            continue
+        v = E - kin.p[:, k]
+        z = kin.R[:, k, :, 2]
+        off = v - np.sum(v * z, axis=1)[:, None] * z
+        if np.all(np.linalg.norm(off, axis=1) < ON_AXIS_TOL):
+            out.append(k)
+    return tuple(out)
 
 
 def point_on_last_axis(mdh: MDHModel, measurement: Measurement) -> bool:
     """Whether the measured point lies on the last joint axis (a revolute one)."""
-    if mdh.sigma[mdh.n] != 0:
-        return False
-    kin = mdh.kinematics(np.zeros((1, mdh.n)))
-    E = kin.p[0, -1] + kin.R[0, -1] @ measurement.marker_array
-    v = E - kin.p[0, mdh.n]
-    z = kin.R[0, mdh.n, :, 2]
-    return bool(np.linalg.norm(v - np.dot(v, z) * z) < ON_AXIS_TOL)
+    return mdh.n in axes_through_point(mdh, measurement)
 
 
 def _explain(p: Parameter, mdh: MDHModel) -> str:
@@ -151,7 +175,7 @@ class Identifiability:
         B: Regrouping matrix: base value = kept + B @ others, shape (b, len(others)).
         n_complete: Rank of the complete reference error model.
         n_theory: 4R + 2P + 6 (pose) or + 3 (position), or None.
-        on_last_axis: The measured point lies on the last joint axis.
+        on_axes: Revolute joints whose axis passes through the measured point.
         missing: One sentence per error direction the set cannot represent.
         warnings: Reasons not to trust the rank.
         timings_ms: Time of each stage [ms].
@@ -174,7 +198,7 @@ class Identifiability:
     B: np.ndarray
     n_complete: int
     n_theory: int | None
-    on_last_axis: bool
+    on_axes: tuple[int, ...]
     missing: tuple[str, ...]
     warnings: tuple[str, ...]
     timings_ms: dict[str, float] = field(default_factory=dict)
@@ -190,9 +214,37 @@ class Identifiability:
         return len(self.base)
 
     @property
+    def on_last_axis(self) -> bool:
+        """The measured point lies on the last joint axis."""
+        return self.mdh.n in self.on_axes
+
+    @property
+    def missing_parameters(self) -> tuple[str, ...]:
+        """Names of the complete set's extras that the set lacks (see ``missing``)."""
+        return tuple(m.split(":", 1)[0] for m in self.missing if ":" in m)
+
+    @property
+    def rank(self) -> int:
+        """Numerical rank: #{|R_ii| > tau} of the pivoted QR."""
+        return int(np.sum(self.diag > self.tolerance)) if self.tolerance > 0 else 0
+
+    def regrouping_coefficients(
+        self, threshold: float = REGROUP_TOL
+    ) -> dict[str, dict[str, float]]:
+        """Each base parameter's regrouped parameters and their coefficients (B's rows)."""
+        return {
+            name: {
+                o: float(c)
+                for o, c in zip(self.others, self.B[i], strict=True)
+                if abs(c) > threshold
+            }
+            for i, name in enumerate(self.base)
+        }
+
+    @property
     def gap(self) -> tuple[float, float | None]:
         """|R_bb| and |R_(b+1)(b+1)|: the smallest kept and largest dropped pivots."""
-        b = self.n_base
+        b = self.rank
         last = float(self.diag[b - 1]) if b else 0.0
         nxt = float(self.diag[b]) if b < len(self.diag) else None
         return last, nxt
@@ -242,12 +294,14 @@ class Identifiability:
             "n_complete": self.n_complete,
             "n_theory": self.n_theory,
             "point_on_last_axis": self.on_last_axis,
+            "point_on_axes": list(self.on_axes),
             "standard_parameters": list(self.params.names),
             "base_parameters": list(self.base),
             "nonidentifiable": list(self.zero),
             "regrouped": [n for n in self.others if n not in self.zero],
             "regrouping": self.regrouping(),
             "missing": list(self.missing),
+            "missing_parameters": list(self.missing_parameters),
             "tolerance": self.tolerance,
             "gap": {"last_kept": last, "first_dropped": nxt},
             "warnings": list(self.warnings),
@@ -362,7 +416,7 @@ def analyze_model(
     t2 = time.perf_counter()
     Wc = complete_jacobian(mdh, q, measurement, kin=kin)
     n_complete, _ = numerical_rank(pivoted_diagonal(Wc), Wc.shape[0])
-    on_axis = point_on_last_axis(mdh, measurement)
+    on_axes = axes_through_point(mdh, measurement)
     missing: list[str] = []
     if len(kept) < n_complete:
         R_all = _triangular(W_all)
@@ -378,12 +432,18 @@ def analyze_model(
             )
     t3 = time.perf_counter()
     notes = []
+    rank, _ = numerical_rank(diag, W.shape[0])
+    if len(kept) != rank:
+        notes.append(
+            f"{len(kept)} independent columns were selected for a numerical rank of {rank}: "
+            f"the rank is ill-defined at this geometry"
+        )
     if W.shape[0] < len(pset):
         notes.append(
             f"only {W.shape[0]} measurement rows for {len(pset)} parameters: the rank cannot "
             f"exceed {W.shape[0]}; draw more configurations"
         )
-    b = len(kept)
+    b = rank
     if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
         notes.append(
             f"weak rank gap: |R_bb| = {diag[b - 1]:.3g} vs |R_b+1| = {diag[b]:.3g}; the "
@@ -408,8 +468,8 @@ def analyze_model(
         zero=zero,
         B=B,
         n_complete=n_complete,
-        n_theory=theoretical_count(mdh, measurement, on_axis),
-        on_last_axis=on_axis,
+        n_theory=theoretical_count(mdh, measurement, on_axes),
+        on_axes=on_axes,
         missing=tuple(missing),
         warnings=tuple(notes),
         timings_ms={
@@ -455,7 +515,7 @@ def analyze(
     t0 = time.perf_counter()
     chain = robot if isinstance(robot, Chain) else load_chain(robot, base, tool)
     t1 = time.perf_counter()
-    mdh = from_chain(chain)
+    mdh = from_chain(chain).idealized()
     t2 = time.perf_counter()
     q = chain.random_configurations(int(configs), seed)
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)

@@ -34,6 +34,15 @@ FREE_DIRECTION_TOL = 1e-10
 COINCIDENT_TOL = 1e-6
 """Distance [m] under which two parallel lines are coincident (the complete set adds y)."""
 
+SNAP_ANGLE = 1e-5
+"""Angle [rad] within which :meth:`MDHModel.idealized` snaps to a multiple of 90 degrees.
+
+URDF files round pi/2 to 1.5708 (3.7e-6 rad off), 1.57079 or 1.57079632679 (5e-12 off).
+"""
+
+SNAP_LENGTH = 1e-6
+"""Length [m] under which :meth:`MDHModel.idealized` snaps a distance to zero."""
+
 
 def _rot_x(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
@@ -137,6 +146,33 @@ class MDHModel:
         }
         fields.update(changes)
         return MDHModel(**fields)
+
+    def idealized(self, angle_tol: float = SNAP_ANGLE, length_tol: float = SNAP_LENGTH) -> MDHModel:
+        """A copy with URDF round-off removed, for structural (rank) analysis.
+
+        Angles within ``angle_tol`` of a multiple of 90 degrees are snapped to it and
+        distances under ``length_tol`` to zero. A rounded ``rpy`` otherwise leaves a tool
+        4e-13 m off the last axis, and the rank counts directions that only round-off creates.
+        The forward kinematics moves by at most ``angle_tol`` times the reach plus
+        ``length_tol`` per row: use the exact model for calibration.
+        """
+        quarter = math.pi / 2
+
+        def snap_angle(a: np.ndarray) -> np.ndarray:
+            target = np.round(a / quarter) * quarter
+            return np.where(np.abs(a - target) < angle_tol, target, a)
+
+        def snap_length(v: np.ndarray) -> np.ndarray:
+            return np.where(np.abs(v) < length_tol, 0.0, v)
+
+        return self.replace(
+            beta=snap_angle(self.beta),
+            alpha=snap_angle(self.alpha),
+            theta=snap_angle(self.theta),
+            d=snap_length(self.d),
+            r=snap_length(self.r),
+            y=snap_length(self.y),
+        )
 
     def kinematics(self, q: np.ndarray) -> Kinematics:
         """Every frame at every configuration, vectorised over configurations.

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from .identifiability import Identifiability
 from .mdh import MDHModel
 from .parameters import Kind
@@ -33,7 +31,9 @@ def format_table(header: list[str], rows: list[list[str]]) -> str:
     right = [all(_is_number(r[i]) or r[i] in ("-", "") for r in rows) for i in range(len(header))]
 
     def line(cells: list[str]) -> str:
-        out = [c.rjust(w) if rj else c.ljust(w) for c, w, rj in zip(cells, widths, right, strict=True)]
+        out = [
+            c.rjust(w) if rj else c.ljust(w) for c, w, rj in zip(cells, widths, right, strict=True)
+        ]
         return "  ".join(out).rstrip()
 
     return "\n".join([line(header), line(["-" * w for w in widths]), *(line(r) for r in rows)])
@@ -115,12 +115,7 @@ def analysis_text(res: Identifiability) -> str:
     lines += [
         "",
         f"standard {res.n_standard}, base {res.n_base}, complete model {res.n_complete}, "
-        f"theory {res.n_theory if res.n_theory is not None else 'n/a'}"
-        + (
-            " (point on the last axis: 2 fewer)"
-            if res.on_last_axis and res.measurement.rows == (0, 1, 2)
-            else ""
-        ),
+        f"theory {res.n_theory if res.n_theory is not None else 'n/a'}" + _axes_note(res),
         f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
     ]
     if res.zero:
@@ -136,5 +131,10 @@ def analysis_text(res: Identifiability) -> str:
     return "\n".join(lines)
 
 
-def _fmt_vec(v: np.ndarray) -> str:
-    return " ".join(_num(x, 6) for x in v)
+def _axes_note(res: Identifiability) -> str:
+    if res.measurement.rows != (0, 1, 2) or not res.on_axes:
+        return ""
+    if res.on_axes == (res.mdh.n,):
+        return " (point on the last axis: 2 fewer)"
+    axes = ", ".join(str(k) for k in res.on_axes)
+    return f" (point on axes {axes}: the formula covers the last axis only)"

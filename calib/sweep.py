@@ -34,6 +34,7 @@ class SweepRow:
         verdict: ``complete``, ``misses N`` (the paper set), or ``error``.
         time_ms: Time to load and analyse the chain with both sets [ms].
         error: Why the chain could not be analysed, else None.
+        note: What else a reader should know (point on joint axes, rank warnings).
     """
 
     robot: str
@@ -48,6 +49,7 @@ class SweepRow:
     verdict: str = "error"
     time_ms: float = 0.0
     error: str | None = None
+    note: str = ""
 
 
 def sweep_one(
@@ -65,7 +67,7 @@ def sweep_one(
         chain = load_chain(robot, base, tool)
         label = f"{chain.base_frame} -> {chain.tool_frame}"
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+            warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
             kw = {
                 "measure": measurement.label,
                 "marker": measurement.marker,
@@ -77,6 +79,8 @@ def sweep_one(
     except CalibError as exc:
         return SweepRow(str(robot), label, time_ms=1e3 * (time.perf_counter() - t0), error=str(exc))
     missing = full.n_complete - paper.n_base
+    notes = [f"point on axes {', '.join(map(str, full.on_axes))}"] if full.on_axes else []
+    notes += list(dict.fromkeys(paper.warnings + full.warnings))
     return SweepRow(
         robot=str(robot),
         chain=label,
@@ -87,8 +91,9 @@ def sweep_one(
         n_base_complete=full.n_base,
         n_complete=full.n_complete,
         n_theory=full.n_theory,
-        verdict="complete" if missing == 0 else f"misses {missing}",
+        verdict="complete" if missing <= 0 else f"misses {missing}",
         time_ms=1e3 * (time.perf_counter() - t0),
+        note="; ".join(notes),
     )
 
 
@@ -141,6 +146,7 @@ COLUMNS = (
     "verdict",
     "time_ms",
     "error",
+    "note",
 )
 
 

@@ -1,0 +1,100 @@
+"""The notebooks in notebooks/ run from top to bottom and are committed without outputs.
+
+Each notebook is executed with nbclient in a temporary copy of notebooks/ (nothing is
+written into the repository), by a kernel that runs this very interpreter: a private
+kernelspec named ``python3`` whose argv is ``sys.executable``, so a ``python3`` kernelspec
+installed elsewhere (user or system Jupyter) cannot pick another Python without calib.
+The notebooks' own ``assert`` cells check calib's numbers, so a regression fails here.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import nbclient
+import nbformat
+import pytest
+from jupyter_client import KernelManager
+from jupyter_client.kernelspec import KernelSpecManager
+
+NOTEBOOKS_DIR = Path(__file__).resolve().parent.parent / "notebooks"
+NOTEBOOKS = sorted(NOTEBOOKS_DIR.glob("*.ipynb"))
+TIMEOUT_S = 600
+
+
+def _kernel_manager(tmp_path: Path):
+    """A kernel manager whose only ``python3`` kernelspec runs ``sys.executable``."""
+    spec_dir = tmp_path / "kernels" / "python3"
+    spec_dir.mkdir(parents=True)
+    spec = {
+        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+        "display_name": "Python 3 (calib tests)",
+        "language": "python",
+    }
+    (spec_dir / "kernel.json").write_text(json.dumps(spec))
+    ksm = KernelSpecManager(kernel_dirs=[str(tmp_path / "kernels")], ensure_native_kernel=False)
+    return KernelManager(kernel_name="python3", kernel_spec_manager=ksm)
+
+
+def _execute(nb: nbformat.NotebookNode, cwd: Path, tmp_path: Path) -> nbformat.NotebookNode:
+    client = nbclient.NotebookClient(
+        nb,
+        km=_kernel_manager(tmp_path),
+        kernel_name="python3",
+        timeout=TIMEOUT_S,
+        resources={"metadata": {"path": str(cwd)}},
+    )
+    return client.execute()
+
+
+def _outputs_of(nb: nbformat.NotebookNode) -> list:
+    return [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+
+
+def test_there_are_notebooks():
+    assert len(NOTEBOOKS) >= 2, f"no notebooks found in {NOTEBOOKS_DIR}"
+
+
+def test_kernel_runs_this_interpreter(tmp_path):
+    nb = nbformat.v4.new_notebook()
+    nb.cells.append(nbformat.v4.new_code_cell("import sys\nprint(sys.executable)"))
+    _execute(nb, tmp_path, tmp_path)
+    (out,) = _outputs_of(nb)
+    assert out.output_type == "stream"
+    assert Path(out.text.strip()) == Path(sys.executable)
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_notebook_is_committed_without_outputs(path: Path):
+    nb = nbformat.read(path, as_version=4)
+    nbformat.validate(nb)
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    assert code, f"{path.name} has no code cell"
+    dirty = [i for i, c in enumerate(nb.cells) if c.cell_type == "code" and c.outputs != []]
+    counted = [
+        i for i, c in enumerate(nb.cells) if c.cell_type == "code" and c.execution_count is not None
+    ]
+    assert not dirty, f"{path.name}: cells {dirty} have outputs (clear them before committing)"
+    assert not counted, f"{path.name}: cells {counted} have execution counts"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_notebook_runs(path: Path, tmp_path: Path):
+    # Run in a copy of the whole folder, so a notebook may read its neighbours and anything
+    # it writes lands in tmp_path.
+    work = tmp_path / "notebooks"
+    shutil.copytree(NOTEBOOKS_DIR, work, ignore=shutil.ignore_patterns(".ipynb_checkpoints"))
+    nb = nbformat.read(work / path.name, as_version=4)
+    _execute(nb, work, tmp_path)  # raises CellExecutionError on a failing cell or assert
+    outputs = _outputs_of(nb)
+    errors = [o for o in outputs if o.output_type == "error"]
+    assert not errors, errors
+    # Figures from calib.plots must show inline as images, not as "<Figure size ...>" text.
+    if "_figure(" in "".join(c.source for c in nb.cells if c.cell_type == "code"):
+        assert any("image/png" in o.get("data", {}) for o in outputs), (
+            f"{path.name} builds figures but displays none"
+        )
