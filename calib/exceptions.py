@@ -55,9 +55,11 @@ def closest_first(name: str, candidates: Iterable[str]) -> list[str]:
 class FrameNotFoundError(CalibError):
     """A frame name does not exist in the robot model."""
 
-    def __init__(self, name: str, available: Iterable[str], limit: int = 8):
+    def __init__(
+        self, name: str, available: Iterable[str], limit: int = 8, ranked_as: str | None = None
+    ):
         self.name = name
-        self.available = tuple(closest_first(name, available))
+        self.available = tuple(closest_first(ranked_as or name, available))
         shown = ", ".join(self.available[:limit])
         more = f", ... ({len(self.available)} in all)" if len(self.available) > limit else ""
         super().__init__(

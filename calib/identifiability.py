@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -178,6 +179,8 @@ class Identifiability:
         on_axes: Revolute joints whose axis passes through the measured point.
         missing: One sentence per error direction the set cannot represent.
         warnings: Reasons not to trust the rank.
+        snapped: URDF round-off removed before the analysis (by :func:`analyze`), one
+            ``name: value -> snapped`` string per changed parameter.
         timings_ms: Time of each stage [ms].
     """
 
@@ -201,6 +204,7 @@ class Identifiability:
     on_axes: tuple[int, ...]
     missing: tuple[str, ...]
     warnings: tuple[str, ...]
+    snapped: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -305,6 +309,7 @@ class Identifiability:
             "tolerance": self.tolerance,
             "gap": {"last_kept": last, "first_dropped": nxt},
             "warnings": list(self.warnings),
+            "snapped": list(self.snapped),
             "timings_ms": dict(self.timings_ms),
         }
 
@@ -344,6 +349,19 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
     return kept
 
 
+def select_by_rank(R: np.ndarray, order: list[int], tau: float) -> list[int]:
+    """Keep each column, in ``order``, whose addition raises the numerical rank (slow, robust)."""
+    kept: list[int] = []
+    for i in order:
+        cols = [*kept, i]
+        d = np.abs(
+            np.diag(scipy.linalg.qr(R[:, cols], mode="r", pivoting=True, check_finite=False)[0])
+        )
+        if int(np.sum(d > tau)) > len(kept):
+            kept = cols
+    return kept
+
+
 def identify_base(
     mdh: MDHModel, params: ParameterSet, W: np.ndarray
 ) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
@@ -368,6 +386,10 @@ def identify_base(
     # the order in which the columns are visited.
     threshold = tau if rank in (0, len(diag)) else max(tau, math.sqrt(diag[rank - 1] * diag[rank]))
     kept = select_independent(R, order, threshold)
+    if len(kept) != rank:
+        # Nearly dependent columns (small tilts) amplify round-off in the residuals; fall back
+        # to the definition: keep a column when it raises the pivoted-QR rank.
+        kept = select_by_rank(R, order, tau)
     others = [i for i in range(len(params)) if i not in kept]
     Rk = scipy.linalg.qr(R[:, kept + others], mode="r", check_finite=False)[0]
     b = len(kept)
@@ -480,6 +502,20 @@ def analyze_model(
     )
 
 
+def snapped_values(exact: MDHModel, idealized: MDHModel) -> tuple[str, ...]:
+    """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
+
+    Changes under 1e-14 (float noise of the conversion) are not listed.
+    """
+    out = []
+    for kind in Kind:
+        a, b = getattr(exact, kind.value), getattr(idealized, kind.value)
+        unit = "rad" if kind.is_rotation else "m"
+        for k in np.flatnonzero(np.abs(a - b) > 1e-14):
+            out.append(f"{kind.value}{k}: {a[k]:.3g} {unit} -> {b[k]:.6g}")
+    return tuple(out)
+
+
 def analyze(
     robot: str | Path | Chain,
     base: str | None = None,
@@ -502,6 +538,9 @@ def analyze(
         configs: Number of random configurations m (>= 1).
         seed: Seed of the configurations.
 
+    The analysis runs on the nominal geometry with URDF round-off removed
+    (:meth:`MDHModel.idealized`); the result's ``snapped`` lists what that changed.
+
     Returns:
         The analysis, with load/convert/jacobian/qr timings.
     """
@@ -515,10 +554,12 @@ def analyze(
     t0 = time.perf_counter()
     chain = robot if isinstance(robot, Chain) else load_chain(robot, base, tool)
     t1 = time.perf_counter()
-    mdh = from_chain(chain).idealized()
+    exact = from_chain(chain)
+    mdh = exact.idealized()
     t2 = time.perf_counter()
     q = chain.random_configurations(int(configs), seed)
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
+    result = dataclasses.replace(result, snapped=snapped_values(exact, mdh))
     result.timings_ms.update({"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1)})
     return result
 

@@ -159,7 +159,7 @@ class MDHModel:
         quarter = math.pi / 2
 
         def snap_angle(a: np.ndarray) -> np.ndarray:
-            target = np.round(a / quarter) * quarter
+            target = np.round(a / quarter) * quarter + 0.0  # no negative zero
             return np.where(np.abs(a - target) < angle_tol, target, a)
 
         def snap_length(v: np.ndarray) -> np.ndarray:

@@ -118,6 +118,8 @@ def analysis_text(res: Identifiability) -> str:
         f"theory {res.n_theory if res.n_theory is not None else 'n/a'}" + _axes_note(res),
         f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
     ]
+    if res.snapped:
+        lines.append(f"URDF round-off removed before the analysis: {'; '.join(res.snapped)}")
     if res.zero:
         lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
     if res.missing:

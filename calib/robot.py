@@ -97,6 +97,25 @@ def read_urdf_info(path: Path) -> URDFInfo:
         raise URDFError(str(path), "no <link> element")
     children = {c.get("link") for j in root.findall("joint") for c in j.findall("child")}
     roots = [name for name in links if name not in children]
+    names = set(links)
+    for j in root.findall("joint"):
+        for tag in ("parent", "child"):
+            e = j.find(tag)
+            link = e.get("link") if e is not None else None
+            if link not in names:
+                raise URDFError(
+                    str(path), f"joint '{j.get('name')}' names a missing {tag} link '{link}'"
+                )
+        axis = j.find("axis")
+        if j.get("type") not in ("fixed", "floating", "planar") and axis is not None:
+            try:
+                xyz = [float(v) for v in axis.get("xyz", "1 0 0").split()]
+            except ValueError:
+                xyz = []
+            if len(xyz) != 3 or not all(map(math.isfinite, xyz)) or max(map(abs, xyz)) == 0.0:
+                raise URDFError(
+                    str(path), f"joint '{j.get('name')}' has an invalid axis '{axis.get('xyz')}'"
+                )
     joint_types = {j.get("name", ""): j.get("type", "") for j in root.findall("joint")}
     mimic = frozenset(
         j.get("name", "") for j in root.findall("joint") if j.find("mimic") is not None
@@ -154,7 +173,9 @@ def resolve_frame(model: pin.Model, name: str) -> int:
         if f.name == bare and (kinds is None or f.type in kinds)
     ]
     if not ids:
-        raise FrameNotFoundError(name, [f.name for f in model.frames if f.name != "universe"])
+        raise FrameNotFoundError(
+            name, [f.name for f in model.frames if f.name != "universe"], ranked_as=bare
+        )
     if len(ids) == 1:
         return ids[0]
     data = model.createData()
@@ -312,9 +333,8 @@ class Chain:
         oMb = data.oMf[self.base_id]
         points, dirs = [], []
         for jid, s in zip(self.joint_ids, self.sigma, strict=True):
-            col = pin.getJointJacobian(model, data, jid, pin.ReferenceFrame.LOCAL)[
-                :, model.joints[jid].idx_v
-            ]
+            J = pin.getJointJacobian(model, data, jid, pin.ReferenceFrame.LOCAL)
+            col = np.reshape(J, (6, -1))[:, model.joints[jid].idx_v]
             local = col[:3] if s == 1 else col[3:]
             bMj = oMb.actInv(data.oMi[jid])
             u = bMj.rotation @ local
