@@ -1,9 +1,18 @@
 """calib: identifiable geometric parameters and calibration of serial robots from URDF.
 
 Load a chain with :func:`load_chain`, convert it to modified DH with :func:`from_chain`,
-and ask :func:`analyze` which parameters can be identified.
+and ask :func:`analyze` which parameters can be identified. Then :func:`simulate` or
+:func:`read_measurements` a campaign, :func:`calibrate` the base parameters from it and
+:func:`write_calibrated_urdf`.
 """
 
+from .calibration import (
+    CalibrationResult,
+    ResidualStats,
+    calibrate,
+    measurement_to_base,
+    model_residuals,
+)
 from .catalog import CatalogEntry, catalog
 from .exceptions import (
     AmbiguousFrameError,
@@ -20,8 +29,17 @@ from .exceptions import (
 from .identifiability import Identifiability, RankWarning, analyze, analyze_model
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
+from .measurements import (
+    Campaign,
+    Measurements,
+    SimulationTruth,
+    read_measurements,
+    simulate,
+    write_measurements,
+)
 from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
 from .robot import Chain, load_chain
+from .urdf_export import calibrated_urdf, write_calibrated_urdf
 
 __version__ = "0.1.0"
 
@@ -29,6 +47,8 @@ __all__ = [
     "PARALLEL_TOL",
     "AmbiguousFrameError",
     "CalibError",
+    "CalibrationResult",
+    "Campaign",
     "CatalogEntry",
     "Chain",
     "ChainError",
@@ -40,14 +60,19 @@ __all__ = [
     "Kind",
     "MDHModel",
     "Measurement",
+    "Measurements",
     "Parameter",
     "ParameterSet",
     "RankWarning",
+    "ResidualStats",
     "RobotNotFoundError",
+    "SimulationTruth",
     "URDFError",
     "UnsupportedJointError",
     "analyze",
     "analyze_model",
+    "calibrate",
+    "calibrated_urdf",
     "catalog",
     "complete_jacobian",
     "complete_parameters",
@@ -55,5 +80,11 @@ __all__ = [
     "from_lines",
     "identification_jacobian",
     "load_chain",
+    "measurement_to_base",
+    "model_residuals",
     "paper_parameters",
+    "read_measurements",
+    "simulate",
+    "write_calibrated_urdf",
+    "write_measurements",
 ]

@@ -7,14 +7,26 @@ import json
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 from . import __version__
+from .calibration import (
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_ORIENTATION_WEIGHT,
+    DEFAULT_PARAMS,
+    calibrate,
+    calibration_text,
+)
 from .catalog import catalog
-from .exceptions import CalibError
+from .exceptions import CalibError, ConvergenceError, DataError, InvalidArgumentError
+from .fileio import json_text, write_files_atomic
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .mdh import from_chain
+from .measurements import CAMPAIGN_MEASURES, measurements_csv, read_measurements, simulate
+from .parameters import PARAMETER_SETS
 from .report import analysis_text, format_table, mdh_table
 from .robot import load_chain
+from .urdf_export import calibrated_urdf, check_exportable
 
 
 def _print_json(obj: dict) -> None:
@@ -23,8 +35,14 @@ def _print_json(obj: dict) -> None:
 
 def cmd_list(args: argparse.Namespace) -> int:
     """Print the catalog."""
-    rows = [[e.name, f"{e.base} -> {e.tool}", e.description + (f" [{e.expect_error}]" if e.expect_error else "")]
-            for e in catalog()]
+    rows = [
+        [
+            e.name,
+            f"{e.base} -> {e.tool}",
+            e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
+        ]
+        for e in catalog()
+    ]
     if args.json:
         _print_json({"robots": [e.__dict__ | {"path": str(e.path)} for e in catalog()]})
     else:
@@ -37,8 +55,15 @@ def cmd_show(args: argparse.Namespace) -> int:
     chain = load_chain(args.robot, args.base, args.tool)
     mdh = from_chain(chain)
     if args.json:
-        _print_json({"robot": chain.name, "base": chain.base_frame, "tool": chain.tool_frame,
-                     "urdf": str(chain.urdf_path), "frames": mdh.rows()})
+        _print_json(
+            {
+                "robot": chain.name,
+                "base": chain.base_frame,
+                "tool": chain.tool_frame,
+                "urdf": str(chain.urdf_path),
+                "frames": mdh.rows(),
+            }
+        )
     else:
         print(f"{chain.name}: {chain.base_frame} -> {chain.tool_frame} ({chain.urdf_path})")
         print(mdh_table(mdh))
@@ -46,8 +71,16 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def _analyze(args: argparse.Namespace):
-    return analyze(args.robot, args.base, args.tool, args.measure, args.marker, args.params,
-                   args.configs, args.seed)
+    return analyze(
+        args.robot,
+        args.base,
+        args.tool,
+        args.measure,
+        args.marker,
+        args.params,
+        args.configs,
+        args.seed,
+    )
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
@@ -72,6 +105,89 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write(files: dict[Path, str | bytes]) -> None:
+    """Write output files atomically; an OS error becomes a one-line CalibError."""
+    try:
+        write_files_atomic(files)
+    except OSError as exc:
+        name = exc.filename or ", ".join(str(p) for p in files)
+        raise CalibError(f"cannot write {name}: {exc.strerror or exc}") from None
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
+    chain = load_chain(args.robot, args.base, args.tool)
+    campaign = simulate(
+        chain,
+        args.configs,
+        args.measure,
+        args.marker,
+        args.error_mm,
+        args.error_mrad,
+        args.noise_mm,
+        args.noise_mrad,
+        args.seed,
+        args.params,
+    )
+    out = Path(args.out)
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    if truth_path.resolve() == out.resolve():
+        raise InvalidArgumentError("--truth and --out name the same file")
+    truth = campaign.truth
+    _write({out: measurements_csv(campaign.measurements), truth_path: json_text(truth.to_dict())})
+    print(
+        f"{chain.name}: {campaign.measurements.m} configurations, measure {args.measure}, "
+        f"{len(truth.params)} {truth.params.label} parameters perturbed "
+        f"({truth.error_mm:g} mm, {truth.error_mrad:g} mrad), noise {truth.noise_mm:g} mm"
+        + (f", {truth.noise_mrad:g} mrad" if args.measure == "pose" else "")
+        + f", seed {truth.seed}"
+    )
+    print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
+    return 0
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Identify the base parameters from a CSV; write the calibrated URDF and a report."""
+    chain = load_chain(args.robot, args.base, args.tool)
+    out = Path(args.out)
+    report = Path(args.report) if args.report else None
+    if report is not None and report.resolve() == out.resolve():
+        raise InvalidArgumentError("--report and --out name the same file")
+    outputs = {"--out": out, "--report": report}
+    inputs = {"the nominal URDF": chain.urdf_path, "the data": Path(args.data)}
+    for option, target in outputs.items():
+        for what, path in inputs.items():
+            if target is not None and target.resolve() == path.resolve():
+                raise InvalidArgumentError(f"{option} {target} would overwrite {what}")
+    check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
+    data = read_measurements(args.data, chain)
+    if args.measure == "position":
+        data = data.position_only()
+    elif args.measure == "pose" and data.quaternion is None:
+        raise DataError(args.data, "--measure pose needs the columns qx, qy, qz, qw")
+    result = calibrate(
+        chain, data, args.marker, args.params, args.orientation_weight, args.max_iterations
+    )
+    text = json_text(result.to_dict())
+    print(text if args.json else calibration_text(result), end="" if args.json else "\n")
+    if not result.converged:
+        if report is not None:
+            _write({report: text})
+        kept = f"; report written to {report}" if report is not None else ""
+        raise ConvergenceError(
+            f"the fit did not converge after {result.iterations} iterations "
+            f"({result.message}): no URDF written{kept}"
+        )
+    urdf = calibrated_urdf(chain, result.nominal, result.calibrated)
+    files: dict[Path, str | bytes] = {out: urdf}
+    if report is not None:
+        files[report] = text
+    _write(files)
+    if not args.json:
+        print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
+    return 0
+
+
 def _add_chain_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("robot", help="catalog name (see `calib list`) or path to a URDF file")
     p.add_argument("--base", help="base frame (default: the catalog's, or the URDF root link)")
@@ -79,10 +195,18 @@ def _add_chain_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_measure_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--measure", default="pose",
-                   help="pose, position, or comma-separated rows among x,y,z,rx,ry,rz (default: pose)")
-    p.add_argument("--marker", nargs="+", type=float, metavar=("X", "Y"),
-                   help="measured point in the tool frame: X Y Z [m] (default: the tool origin)")
+    p.add_argument(
+        "--measure",
+        default="pose",
+        help="pose, position, or comma-separated rows among x,y,z,rx,ry,rz (default: pose)",
+    )
+    p.add_argument(
+        "--marker",
+        nargs="+",
+        type=float,
+        metavar=("X", "Y"),
+        help="measured point in the tool frame: X Y Z [m] (default: the tool origin)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -107,11 +231,109 @@ def build_parser() -> argparse.ArgumentParser:
     _add_chain_args(p)
     _add_measure_args(p)
     p.add_argument("--params", default="paper", help="paper or complete (default: paper)")
-    p.add_argument("--configs", type=int, default=DEFAULT_CONFIGS,
-                   help=f"random configurations m (default: {DEFAULT_CONFIGS})")
+    p.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations m (default: {DEFAULT_CONFIGS})",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_analyze)
+
+    p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
+    _add_chain_args(p)
+    p.add_argument("--out", required=True, help="measurement CSV to write")
+    p.add_argument("--truth", help="JSON of the true errors (default: OUT with .truth.json)")
+    p.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations m (default: {DEFAULT_CONFIGS})",
+    )
+    p.add_argument(
+        "--measure",
+        choices=CAMPAIGN_MEASURES,
+        default="pose",
+        help="pose (point + orientation) or position (default: pose)",
+    )
+    p.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m] (default: the tool origin)",
+    )
+    p.add_argument(
+        "--params",
+        choices=PARAMETER_SETS,
+        default=DEFAULT_PARAMS,
+        help=f"parameter set perturbed (default: {DEFAULT_PARAMS})",
+    )
+    p.add_argument(
+        "--error-mm", type=float, default=1.0, help="std of every length error [mm] (default: 1)"
+    )
+    p.add_argument(
+        "--error-mrad", type=float, default=1.0, help="std of every angle error [mrad] (default: 1)"
+    )
+    p.add_argument(
+        "--noise-mm",
+        type=float,
+        default=0.0,
+        help="std of the position noise per axis [mm] (default: 0)",
+    )
+    p.add_argument(
+        "--noise-mrad",
+        type=float,
+        default=None,
+        help="std of the orientation noise per axis [mrad] (default: NOISE_MM)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the configurations, errors and noise (default: 0)",
+    )
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("calibrate", help="identify the base parameters, write a calibrated URDF")
+    _add_chain_args(p)
+    p.add_argument("--data", required=True, help="measurement CSV (joints, x, y, z[, qx..qw])")
+    p.add_argument("--out", required=True, help="calibrated URDF to write")
+    p.add_argument("--report", help="JSON report to write")
+    p.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m] (default: the tool origin)",
+    )
+    p.add_argument(
+        "--measure",
+        choices=("auto", *CAMPAIGN_MEASURES),
+        default="auto",
+        help="auto: pose when the CSV has qx..qw, else position (default: auto)",
+    )
+    p.add_argument(
+        "--params",
+        choices=PARAMETER_SETS,
+        default=DEFAULT_PARAMS,
+        help=f"standard parameter set (default: {DEFAULT_PARAMS})",
+    )
+    p.add_argument(
+        "--orientation-weight",
+        type=float,
+        default=DEFAULT_ORIENTATION_WEIGHT,
+        help="weight of the orientation rows [m/rad] (default: 1, 1 mrad ~ 1 mm)",
+    )
+    p.add_argument(
+        "--max-iterations",
+        type=int,
+        default=DEFAULT_MAX_ITERATIONS,
+        help=f"most residual evaluations of the solver (default: {DEFAULT_MAX_ITERATIONS})",
+    )
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
     p.set_defaults(func=cmd_demo)

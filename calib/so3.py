@@ -1,0 +1,111 @@
+"""Rotations, vectorised: quaternions (scalar last), rotation vectors, SO(3) Jacobians.
+
+Plain numpy, so that importing calib does not pull in ``scipy.spatial`` (a tenth of a second
+at every start of the command line). Checked against ``scipy.spatial.transform.Rotation`` in
+the tests.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SMALL_ANGLE = 1e-4
+"""Angle [rad] under which series expansions replace the closed forms."""
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Skew matrices ``[v]x`` of vectors ``(..., 3)``, shape ``(..., 3, 3)``."""
+    v = np.asarray(v, dtype=float)
+    S = np.zeros((*v.shape[:-1], 3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def quaternion_to_matrix(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` of quaternions ``(..., 4)`` (x, y, z, w; normalised)."""
+    q = np.asarray(quat, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    R = np.empty((*q.shape[:-1], 3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - z * w)
+    R[..., 0, 2] = 2 * (x * z + y * w)
+    R[..., 1, 0] = 2 * (x * y + z * w)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - x * w)
+    R[..., 2, 0] = 2 * (x * z - y * w)
+    R[..., 2, 1] = 2 * (y * z + x * w)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(..., 4)`` (x, y, z, w with w >= 0) of rotation matrices ``(..., 3, 3)``.
+
+    Shepperd's method: the largest of 4w^2, 4x^2, 4y^2, 4z^2 is taken from the diagonal, the
+    others from off-diagonal sums, which is accurate for every rotation.
+    """
+    R = np.asarray(R, dtype=float)
+    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    s10, d10 = R[..., 1, 0] + R[..., 0, 1], R[..., 1, 0] - R[..., 0, 1]
+    s20, d02 = R[..., 2, 0] + R[..., 0, 2], R[..., 0, 2] - R[..., 2, 0]
+    s21, d21 = R[..., 2, 1] + R[..., 1, 2], R[..., 2, 1] - R[..., 1, 2]
+    four = np.stack(  # 4x^2, 4y^2, 4z^2, 4w^2 (each times 1, up to round-off)
+        [1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22, 1 + m00 + m11 + m22],
+        axis=-1,
+    )
+    # Candidate i holds 4 q_i * q for the largest component i: (x, y, z, w) in each row.
+    cand = np.stack(
+        [
+            np.stack([four[..., 0], s10, s20, d21], axis=-1),
+            np.stack([s10, four[..., 1], s21, d02], axis=-1),
+            np.stack([s20, s21, four[..., 2], d10], axis=-1),
+            np.stack([d21, d02, d10, four[..., 3]], axis=-1),
+        ],
+        axis=-2,
+    )
+    best = np.argmax(four, axis=-1)[..., None, None]
+    q = np.take_along_axis(cand, best, axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., 3:] < 0, -q, q)
+
+
+def rotation_vector(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors ``(..., 3)`` [rad] (angle in [0, pi] times unit axis) of matrices ``R``."""
+    q = matrix_to_quaternion(R)
+    v, w = q[..., :3], q[..., 3]
+    s = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(s, w)
+    small = s < 1e-8
+    factor = np.where(small, 2.0 / np.where(small, w, 1.0), angle / np.where(small, 1.0, s))
+    return v * factor[..., None]
+
+
+def rotation_matrix(phi: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``exp([phi]x)`` ``(..., 3, 3)`` of rotation vectors ``(..., 3)`` [rad]."""
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)
+    small = theta < SMALL_ANGLE
+    half = np.where(small, 0.5 - theta**2 / 48.0, np.sin(theta / 2) / np.where(small, 1.0, theta))
+    quat = np.concatenate([phi * half[..., None], np.cos(theta / 2)[..., None]], axis=-1)
+    return quaternion_to_matrix(quat)
+
+
+def inverse_right_jacobian(phi: np.ndarray) -> np.ndarray:
+    """Inverse right Jacobian of SO(3) at rotation vectors ``(..., 3)``, ``(..., 3, 3)``.
+
+    ``Log(Exp(phi) Exp(e)) = phi + Jr^-1(phi) e + O(|e|^2)``.
+    """
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)
+    small = theta < SMALL_ANGLE
+    t = np.where(small, 1.0, theta)
+    coef = np.where(
+        small,
+        1.0 / 12.0 + theta**2 / 720.0,
+        1.0 / t**2 - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t)),
+    )
+    S = skew(phi)
+    return np.eye(3) + 0.5 * S + coef[..., None, None] * (S @ S)

@@ -1,0 +1,231 @@
+"""Write a calibrated model back as a URDF that changes only what calibration changed.
+
+Only the ``<origin xyz rpy>`` of chain joints 2..n and of the fixed joint that carries the
+tool frame are rewritten; everything else of the original file is kept (comments, limits,
+mimic tags, transmissions, mesh paths, other branches). Joint 1 keeps its nominal placement
+in the base link: the base part of the calibration is the measurement-frame -> base
+transform (:func:`calib.calibration.measurement_to_base`), which a URDF has no place for.
+
+For chain joint k the constant ``C_k = T_mdh_k_nom(0)^-1 T_urdf_joint_k_nom(0)`` maps the MDH
+frame onto the URDF joint frame (it keeps the joint axis); the calibrated joint frame is
+``T_mdh_k_cal(0) C_k``. A link rigidly carried by joint k-1 (the parent link of joint k,
+possibly behind fixed joints) moves with joint k-1's frame, so the fixed joints in between
+keep their placements, and the new origin is ``T_parent_new^-1 T_joint_new``. The same holds
+for the tool: frame n+1 of the MDH model is the tool frame.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import xml.etree.ElementTree as ET
+import xml.parsers.expat
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .calibration import frames_at_zero
+from .exceptions import CalibError, URDFError
+from .fileio import write_atomic
+from .mdh import MDHModel
+from .robot import Chain
+
+
+def _xml_layout(raw: bytes, src: str) -> tuple[int, int, list[tuple[str, str]]]:
+    """Byte offsets of the root element (start, end) and the namespace declarations."""
+    parser = xml.parsers.expat.ParserCreate(namespace_separator=None)
+    state = {"depth": 0, "start": -1, "end": -1}
+    namespaces: list[tuple[str, str]] = []
+
+    def start(name, attrs):
+        if state["depth"] == 0 and state["start"] < 0:
+            state["start"] = parser.CurrentByteIndex
+            for key, value in attrs.items():
+                if key == "xmlns" or key.startswith("xmlns:"):
+                    namespaces.append((key.partition(":")[2], value))
+        state["depth"] += 1
+
+    def end(name):
+        state["depth"] -= 1
+        if state["depth"] == 0:
+            state["end"] = parser.CurrentByteIndex
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    try:
+        parser.Parse(raw, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise URDFError(src, f"malformed XML: {exc}") from None
+    stop = raw.index(b">", state["end"]) + 1
+    if raw[state["end"] : state["end"] + 2] != b"</":  # a self-closing root element
+        stop = raw.index(b"/>", state["start"]) + 2
+    return state["start"], stop, namespaces
+
+
+def _homogeneous(se3: pin.SE3) -> np.ndarray:
+    return np.array(se3.homogeneous)
+
+
+class _NominalPoses:
+    """Poses of URDF joint frames and links in the base frame, chain at zero."""
+
+    def __init__(self, chain: Chain):
+        model = chain.model
+        self.model = model
+        self.data = model.createData()
+        q0 = chain.pin_configurations(np.zeros((1, chain.n)))[0]
+        pin.framesForwardKinematics(model, self.data, q0)
+        self.bMo = self.data.oMf[chain.base_id].inverse()
+
+    def joint(self, jid: int) -> np.ndarray:
+        """URDF joint frame of Pinocchio joint ``jid``."""
+        return _homogeneous(self.bMo * self.data.oMi[jid])
+
+    def link(self, name: str) -> np.ndarray:
+        """Frame of a link."""
+        if not self.model.existBodyName(name):
+            raise CalibError(f"link '{name}' of the URDF is not in the Pinocchio model")
+        fid = self.model.getFrameId(name, pin.FrameType.BODY)
+        return _homogeneous(self.bMo * self.data.oMf[fid])
+
+
+def _child_link(joint: ET.Element) -> str:
+    child = joint.find("child")
+    return "" if child is None else child.get("link", "")
+
+
+def _parent_link(joint: ET.Element) -> str:
+    parent = joint.find("parent")
+    return "" if parent is None else parent.get("link", "")
+
+
+def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
+    """The fixed joint whose child link is the tool frame (or which is the tool frame)."""
+    frame = chain.model.frames[chain.tool_id]
+    joints = root.findall("joint")
+    if frame.type in (pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT):
+        found = [j for j in joints if j.get("name") == chain.tool_frame]
+    else:
+        found = [j for j in joints if _child_link(j) == chain.tool_frame]
+    if not found:
+        raise CalibError(f"no URDF joint carries the tool frame '{chain.tool_frame}'")
+    joint = found[0]
+    kind = joint.get("type", "")
+    if kind != "fixed":
+        raise CalibError(
+            f"the tool frame '{chain.tool_frame}' is carried by the {kind} joint "
+            f"'{joint.get('name')}', not by a fixed joint: the calibrated tool placement has "
+            f"nowhere to go in the URDF (attach a tool link with a fixed joint and use it "
+            f"as --tool)"
+        )
+    return joint
+
+
+def _set_origin(joint: ET.Element, T: np.ndarray) -> None:
+    origin = joint.find("origin")
+    if origin is None:
+        origin = ET.Element("origin")
+        origin.tail = joint.text
+        joint.insert(0, origin)
+    origin.set("xyz", " ".join(repr(float(v)) for v in T[:3, 3]))
+    origin.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(T[:3, :3])))
+
+
+def _read(chain: Chain) -> tuple[bytes, ET.Element]:
+    """The URDF file's bytes and its element tree (comments and processing instructions kept)."""
+    src = str(chain.urdf_path)
+    try:
+        raw = Path(chain.urdf_path).read_bytes()
+    except OSError as exc:
+        raise URDFError(src, f"cannot read: {exc}") from None
+    tree_builder = ET.TreeBuilder(insert_comments=True, insert_pis=True)
+    try:
+        return raw, ET.fromstring(raw, parser=ET.XMLParser(target=tree_builder))
+    except ET.ParseError as exc:
+        raise URDFError(src, f"malformed XML: {exc}") from None
+
+
+def _edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element], ET.Element]:
+    """The chain's joint elements by name and the tool's fixed joint."""
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
+    missing = [name for name in chain.joint_names if name not in joints]
+    if missing:
+        raise CalibError(f"{chain.urdf_path}: no <joint name='{missing[0]}'> (a chain joint)")
+    return joints, _tool_joint(root, chain)
+
+
+def check_exportable(chain: Chain) -> None:
+    """Raise now what :func:`calibrated_urdf` would raise about the chain's URDF.
+
+    Raises:
+        URDFError: The file cannot be read.
+        CalibError: The tool frame is not carried by a fixed joint, or a joint is missing.
+    """
+    _edited_joints(_read(chain)[1], chain)
+
+
+def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> bytes:
+    """The chain's URDF file with the calibrated joint and tool placements.
+
+    Args:
+        chain: The nominal chain (its ``urdf_path`` is edited).
+        nominal: The nominal MDH model of the chain (``from_chain(chain)``).
+        calibrated: The calibrated model (same rows; frame -1 = the measurement frame).
+
+    Returns:
+        The new file content (UTF-8). Loaded with the same base and tool frames, its forward
+        kinematics T satisfies ``measurement_to_base(nominal, calibrated) @ T(q) ==
+        calibrated.forward(q)``.
+
+    Raises:
+        URDFError: The original file cannot be read.
+        CalibError: The tool frame is not carried by a fixed joint, or the file does not
+            match the chain.
+    """
+    raw, root = _read(chain)
+    joints, tool_joint = _edited_joints(root, chain)
+    start, stop, namespaces = _xml_layout(raw, str(chain.urdf_path))
+
+    poses = _NominalPoses(chain)
+    n = chain.n
+    # T_mdh_cal(0) T_mdh_nom(0)^-1 per MDH frame: applied to a nominal pose (base frame) that
+    # frame carries, it gives the calibrated pose (measurement frame).
+    moved = frames_at_zero(calibrated) @ np.linalg.inv(frames_at_zero(nominal))
+    nom_joint = [poses.joint(jid) for jid in chain.joint_ids]
+    new_joint = [moved[k + 1] @ T for k, T in enumerate(nom_joint)]
+
+    def carried(k: int, link: str) -> np.ndarray:
+        """New pose of a link rigidly carried by chain joint k (0-based)."""
+        return new_joint[k] @ np.linalg.inv(nom_joint[k]) @ poses.link(link)
+
+    for k in range(1, n):
+        joint = joints[chain.joint_names[k]]
+        parent = carried(k - 1, _parent_link(joint))
+        _set_origin(joint, np.linalg.inv(parent) @ new_joint[k])
+    tool_child = _child_link(tool_joint)
+    tool_new = moved[n + 1] @ poses.link(tool_child)
+    parent = carried(n - 1, _parent_link(tool_joint))
+    _set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
+
+    names = {el.tag for el in root.iter() if isinstance(el.tag, str)}
+    names |= {key for el in root.iter() for key in el.attrib}
+    for prefix, uri in namespaces:
+        # Keep the declared prefixes: ElementTree renames used ones ns0, ns1, ... unless they
+        # are registered (a process-wide registry), and drops unused declarations.
+        used = any(name.startswith(f"{{{uri}}}") for name in names)
+        if used and prefix:
+            with contextlib.suppress(ValueError):
+                ET.register_namespace(prefix, uri)
+        elif not used:
+            root.set(f"xmlns:{prefix}" if prefix else "xmlns", uri)
+    body = io.BytesIO()
+    ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
+    return raw[:start] + body.getvalue() + raw[stop:]
+
+
+def write_calibrated_urdf(
+    path: str | Path, chain: Chain, nominal: MDHModel, calibrated: MDHModel
+) -> None:
+    """Write :func:`calibrated_urdf` to ``path`` atomically (complete or not at all)."""
+    write_atomic(path, calibrated_urdf(chain, nominal, calibrated))

@@ -1,0 +1,403 @@
+"""Measurement campaigns: CSV round trip and validation, simulated campaigns, rotations,
+atomic writing.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import chain_of, mdh_of
+from scipy.spatial.transform import Rotation
+
+from calib import (
+    DataError,
+    InvalidArgumentError,
+    Measurements,
+    analyze_model,
+    read_measurements,
+    simulate,
+    so3,
+    write_measurements,
+)
+from calib.fileio import json_text, write_files_atomic
+from calib.jacobian import measured_point
+from calib.measurements import measurements_csv, parse_measurements
+
+MARKER = (0.05, 0.02, 0.1)
+
+
+@pytest.fixture(scope="module")
+def ur5_pose():
+    return simulate(chain_of("ur5"), configs=12, measure="pose", seed=4, noise_mm=0.1)
+
+
+def csv_lines(campaign) -> list[str]:
+    return measurements_csv(campaign.measurements).splitlines()
+
+
+# --- CSV round trip -------------------------------------------------------------------------
+
+
+def test_csv_round_trip_is_exact(ur5_pose, tmp_path):
+    path = tmp_path / "meas.csv"
+    write_measurements(path, ur5_pose.measurements)
+    back = read_measurements(path, chain_of("ur5"))
+    data = ur5_pose.measurements
+    assert back.measure == "pose" and back.source == str(path)
+    assert np.array_equal(back.q, data.q)
+    assert np.array_equal(back.position, data.position)
+    assert np.allclose(back.quaternion, data.quaternion, atol=1e-15, rtol=0)
+
+
+def test_csv_header_is_joints_then_xyz_then_quaternion(ur5_pose):
+    header = csv_lines(ur5_pose)[0].split(",")
+    assert header == [*chain_of("ur5").joint_names, "x", "y", "z", "qx", "qy", "qz", "qw"]
+    position = simulate(chain_of("ur5"), configs=12, measure="position", marker=MARKER, seed=1)
+    assert csv_lines(position)[0].split(",")[-3:] == ["x", "y", "z"]
+
+
+def test_columns_in_any_order_blank_lines_and_bom(ur5_pose):
+    lines = [line.split(",") for line in csv_lines(ur5_pose)]
+    order = np.random.default_rng(0).permutation(len(lines[0]))
+    shuffled = [",".join(row[i] for i in order) for row in lines]
+    text = "\ufeff" + "\n".join([shuffled[0], "", *shuffled[1:], "", ""])
+    back = parse_measurements(text.removeprefix("\ufeff"), chain_of("ur5"))
+    assert np.array_equal(back.q, ur5_pose.measurements.q)
+    assert np.array_equal(back.position, ur5_pose.measurements.position)
+
+
+def test_quaternions_are_normalised_and_scalar_last(tmp_path):
+    chain = chain_of("ur5")
+    names = ",".join(chain.joint_names)
+    # 90 degrees about z, scaled by 2: (0, 0, sin 45, cos 45) * 2.
+    s = math.sqrt(2.0)
+    (tmp_path / "m.csv").write_text(f"{names},x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,1,2,3,0,0,{s},{s}\n")
+    data = read_measurements(tmp_path / "m.csv", chain)
+    assert np.allclose(np.linalg.norm(data.quaternion, axis=1), 1.0)
+    assert np.allclose(data.rotations[0], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15)
+
+
+def test_continuous_joints_are_unbounded():
+    chain = chain_of("stanford")  # joint6 is continuous
+    q = np.zeros(chain.n)
+    q[5] = 10.0
+    q[2] = 0.2  # the prismatic joint3 is limited to [0, 0.5]
+    text = (
+        ",".join([*chain.joint_names, "x", "y", "z"])
+        + "\n"
+        + ",".join([*(repr(float(v)) for v in q), "0", "0", "0"])
+    )
+    assert parse_measurements(text, chain).q[0, 5] == 10.0
+
+
+# --- bad input --------------------------------------------------------------------------------
+
+
+def _text(chain, rows: list[list[str]], header: list[str] | None = None) -> str:
+    header = header or [*chain.joint_names, "x", "y", "z"]
+    return "\n".join(",".join(r) for r in [header, *rows]) + "\n"
+
+
+def _good_row(chain) -> list[str]:
+    return ["0.1"] * chain.n + ["0.5", "0.1", "0.2"]
+
+
+BAD_CASES = {
+    "missing joint column": (
+        lambda c: _text(c, [_good_row(c)[1:]], [*c.joint_names[1:], "x", "y", "z"]),
+        1,
+        "shoulder_pan_joint",
+        "missing joint column",
+    ),
+    "unknown column": (
+        lambda c: _text(c, [[*_good_row(c), "1"]], [*c.joint_names, "x", "y", "z", "temp"]),
+        1,
+        "temp",
+        "unknown column",
+    ),
+    "duplicate column": (
+        lambda c: _text(c, [[*_good_row(c), "1"]], [*c.joint_names, "x", "y", "z", "x"]),
+        1,
+        "x",
+        "duplicate column",
+    ),
+    "missing position column": (
+        lambda c: _text(c, [_good_row(c)[:-1]], [*c.joint_names, "x", "y"]),
+        1,
+        "z",
+        "missing position column",
+    ),
+    "partial quaternion": (
+        lambda c: _text(
+            c, [[*_good_row(c), "0", "0", "0"]], [*c.joint_names, "x", "y", "z", "qx", "qy", "qz"]
+        ),
+        1,
+        "qw",
+        "missing quaternion column",
+    ),
+    "NaN cell": (
+        lambda c: _text(c, [_good_row(c), [*_good_row(c)[:7], "nan", "0.2"]]),
+        3,
+        "y",
+        "not a finite number",
+    ),
+    "infinite cell": (
+        lambda c: _text(c, [[*_good_row(c)[:2], "-inf", *_good_row(c)[3:]]]),
+        2,
+        "elbow_joint",
+        "not a finite number",
+    ),
+    "empty cell": (
+        lambda c: _text(c, [_good_row(c), _good_row(c), ["0.1", "", *_good_row(c)[2:]]]),
+        4,
+        "shoulder_lift_joint",
+        "empty cell",
+    ),
+    "non-numeric text": (
+        lambda c: _text(c, [[*_good_row(c)[:6], "12 mm", *_good_row(c)[7:]]]),
+        2,
+        "x",
+        "not a number: '12 mm'",
+    ),
+    "short row": (
+        lambda c: _text(c, [_good_row(c), _good_row(c)[:-1]]),
+        3,
+        None,
+        "expected 9 cells, found 8",
+    ),
+    "joint outside its limits": (
+        lambda c: _text(c, [_good_row(c), _good_row(c), ["0.1", "0.2", "3.5", *_good_row(c)[3:]]]),
+        4,
+        "elbow_joint",
+        "outside the joint limits",
+    ),
+    "zero quaternion": (
+        lambda c: _text(
+            c,
+            [[*_good_row(c), "0", "0", "0", "1"], [*_good_row(c), "0", "0", "0", "0"]],
+            [*c.joint_names, "x", "y", "z", "qx", "qy", "qz", "qw"],
+        ),
+        3,
+        None,
+        "zero norm",
+    ),
+    "header only": (lambda c: _text(c, []), None, None, "no measurement rows"),
+    "empty file": (lambda c: "\n\n", None, None, "empty file"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_CASES))
+def test_bad_csv_names_row_and_column(case, tmp_path):
+    chain = chain_of("ur5")
+    make, row, column, reason = BAD_CASES[case]
+    path = tmp_path / "bad.csv"
+    path.write_text(make(chain))
+    with pytest.raises(DataError) as info:
+        read_measurements(path, chain)
+    err = info.value
+    assert err.row == row and err.column == column
+    assert reason in str(err) and str(path) in str(err)
+    if row is not None:
+        assert f"row {row}" in str(err)
+    if column is not None:
+        assert f"column '{column}'" in str(err)
+    assert "\n" not in str(err)
+
+
+def test_missing_and_unreadable_files(tmp_path):
+    with pytest.raises(DataError, match="no such file"):
+        read_measurements(tmp_path / "nope.csv", chain_of("ur5"))
+    (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00bad")
+    with pytest.raises(DataError, match="cannot read"):
+        read_measurements(tmp_path / "bin.csv", chain_of("ur5"))
+
+
+def test_measurements_value_checks():
+    names = ("a", "b")
+    with pytest.raises(InvalidArgumentError):
+        Measurements(names, np.zeros((3, 3)), np.zeros((3, 3)))
+    with pytest.raises(InvalidArgumentError):
+        Measurements(names, np.zeros((3, 2)), np.zeros((2, 3)))
+    with pytest.raises(InvalidArgumentError):
+        Measurements(names, np.zeros((1, 2)), [[0, np.nan, 0]])
+    with pytest.raises(InvalidArgumentError):
+        Measurements(names, np.zeros((1, 2)), np.zeros((1, 3)), np.zeros((1, 4)))
+    data = Measurements(names, np.zeros((1, 2)), np.zeros((1, 3)), [[0, 0, 0, 2.0]])
+    assert data.quaternion.tolist() == [[0, 0, 0, 1.0]] and not data.q.flags.writeable
+    assert data.position_only().measure == "position"
+
+
+# --- simulation -------------------------------------------------------------------------------
+
+
+def test_simulation_is_the_true_robot_plus_noise():
+    chain = chain_of("panda")
+    clean = simulate(chain, configs=30, measure="pose", marker=MARKER, seed=2)
+    noisy = simulate(chain, configs=30, measure="pose", marker=MARKER, seed=2, noise_mm=0.5)
+    truth = clean.truth
+    kin = truth.true_mdh.kinematics(clean.measurements.q)
+    assert np.allclose(
+        clean.measurements.position, measured_point(kin, np.array(MARKER)), atol=1e-15, rtol=0
+    )
+    assert np.allclose(clean.measurements.rotations, kin.R[:, -1], atol=1e-14, rtol=0)
+    # Same seed: same configurations and errors, only the noise differs.
+    assert np.array_equal(noisy.measurements.q, clean.measurements.q)
+    assert np.array_equal(noisy.truth.errors, truth.errors)
+    q = noisy.measurements.q
+    assert np.all(q >= chain.lower) and np.all(q <= chain.upper)
+    assert 0 < np.abs(noisy.measurements.position - clean.measurements.position).max() < 5e-3
+    other = simulate(chain, configs=30, measure="pose", seed=3)
+    assert not np.array_equal(other.truth.errors, truth.errors)
+
+
+def test_configurations_are_those_analyze_draws():
+    chain = chain_of("ur5")
+    campaign = simulate(chain, configs=9, seed=11)
+    assert np.array_equal(campaign.measurements.q, chain.random_configurations(9, 11))
+
+
+def test_errors_follow_the_requested_scales():
+    chain = chain_of("ur5")
+    truth = simulate(chain, configs=6, error_mm=2.0, error_mrad=0.0, seed=5).truth
+    rot = np.array([p.kind.is_rotation for p in truth.params.parameters])
+    assert np.all(truth.errors[rot] == 0) and np.all(truth.errors[~rot] != 0)
+    assert 0.5e-3 < np.std(truth.errors[~rot]) < 4e-3
+    none = simulate(chain, configs=6, error_mm=0.0, error_mrad=0.0, seed=5).truth
+    assert np.all(none.errors == 0)
+    assert truth.params.label == "complete"
+    assert simulate(chain, configs=6, params="paper", seed=5).truth.params.label == "paper"
+
+
+def test_noise_statistics():
+    chain = chain_of("ur5")
+    m = 4000
+    clean = simulate(chain, configs=m, error_mm=0, error_mrad=0, seed=8)
+    noisy = simulate(
+        chain, configs=m, error_mm=0, error_mrad=0, seed=8, noise_mm=0.2, noise_mrad=0.5
+    )
+    dp = noisy.measurements.position - clean.measurements.position
+    assert np.allclose(np.std(dp, axis=0), 0.2e-3, rtol=0.06)
+    rel = noisy.measurements.rotations @ np.swapaxes(clean.measurements.rotations, 1, 2)
+    dr = so3.rotation_vector(rel)
+    assert np.allclose(np.std(dr, axis=0), 0.5e-3, rtol=0.06)
+    default = simulate(chain, configs=6, seed=8, noise_mm=0.3).truth
+    assert default.noise_mrad == 0.3
+
+
+def test_truth_base_values_are_the_regrouped_errors():
+    chain = chain_of("ur5")
+    campaign = simulate(chain, configs=40, measure="position", marker=MARKER, seed=6)
+    truth = campaign.truth
+    res = analyze_model(
+        mdh_of("ur5").idealized(), "complete", truth.measurement, campaign.measurements.q
+    )
+    assert truth.analysis.base == res.base
+    idx = {n: i for i, n in enumerate(truth.params.names)}
+    dx = truth.errors
+    expected = dx[[idx[n] for n in res.base]] + res.B @ dx[[idx[n] for n in res.others]]
+    assert np.allclose(truth.base_values, expected, atol=1e-15)
+    record = json.loads(json_text(truth.to_dict()))
+    assert record["robot"] == "ur5" and record["params"] == "complete"
+    assert record["measure"] == "position" and record["marker"] == list(MARKER)
+    assert record["seed"] == 6 and record["configs"] == 40
+    assert set(record) >= {
+        "error_mm",
+        "error_mrad",
+        "noise_mm",
+        "noise_mrad",
+        "parameter_names",
+        "errors",
+        "base_parameters",
+        "regrouping",
+        "true_mdh",
+    }
+    assert list(record["errors"]) == list(truth.params.names)
+    assert list(record["base_parameters"]) == list(res.base)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"measure": "x,y"},
+        {"configs": 0},
+        {"configs": 2.5},
+        {"seed": -1},
+        {"error_mm": -1},
+        {"noise_mm": float("nan")},
+        {"marker": (1, 2)},
+        {"params": "all"},
+    ],
+)
+def test_simulate_rejects_bad_arguments(kwargs):
+    with pytest.raises(InvalidArgumentError):
+        simulate(chain_of("ur5"), **{"configs": 5, **kwargs})
+
+
+# --- rotations --------------------------------------------------------------------------------
+
+
+def test_rotations_match_scipy():
+    R = Rotation.random(500, random_state=1)
+    M = R.as_matrix()
+    assert np.allclose(so3.quaternion_to_matrix(R.as_quat()), M, atol=1e-15)
+    q = so3.matrix_to_quaternion(M)
+    ref = R.as_quat()
+    assert np.allclose(q, np.where(ref[:, 3:] < 0, -ref, ref), atol=1e-15)
+    assert np.allclose(so3.rotation_vector(M), R.as_rotvec(), atol=1e-14)
+    assert np.allclose(so3.rotation_matrix(R.as_rotvec()), M, atol=1e-15)
+    tiny = np.random.default_rng(0).normal(0, 1e-9, (50, 3))
+    assert np.allclose(so3.rotation_vector(so3.rotation_matrix(tiny)), tiny, atol=1e-22, rtol=1e-9)
+    half_turn = so3.rotation_vector(so3.rotation_matrix([[math.pi, 0, 0], [0, 0, -math.pi]]))
+    assert np.allclose(np.abs(half_turn), [[math.pi, 0, 0], [0, 0, math.pi]])
+
+
+def test_inverse_right_jacobian_against_finite_differences():
+    rng = np.random.default_rng(3)
+    for phi in [rng.normal(0, 0.7, 3), rng.normal(0, 1e-6, 3), np.zeros(3)]:
+        Jinv = so3.inverse_right_jacobian(phi[None])[0]
+        h = 1e-6
+        cols = []
+        for i in range(3):
+            e = np.zeros(3)
+            e[i] = h
+            plus = so3.rotation_vector(so3.rotation_matrix(phi) @ so3.rotation_matrix(e))
+            minus = so3.rotation_vector(so3.rotation_matrix(phi) @ so3.rotation_matrix(-e))
+            cols.append((plus - minus) / (2 * h))
+        assert np.allclose(np.array(cols).T, Jinv, atol=1e-8)
+
+
+# --- atomic writing ---------------------------------------------------------------------------
+
+
+def test_atomic_write_leaves_nothing_behind_on_failure(tmp_path, monkeypatch, ur5_pose):
+    import calib.fileio
+
+    def broken(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(calib.fileio.os, "replace", broken)
+    target = tmp_path / "meas.csv"
+    with pytest.raises(OSError):
+        write_measurements(target, ur5_pose.measurements)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_write_keeps_the_old_file_when_a_write_fails(tmp_path):
+    old = tmp_path / "a.txt"
+    old.write_text("old")
+
+    class Unwritable:  # not str/bytes: fails while staging the second file
+        pass
+
+    with pytest.raises(TypeError):
+        write_files_atomic({old: "new", tmp_path / "b.txt": Unwritable()})
+    assert old.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+    write_files_atomic({old: "new", tmp_path / "b.txt": b"bytes"})
+    assert old.read_text() == "new" and (tmp_path / "b.txt").read_bytes() == b"bytes"
+    assert not any(Path(p).name.endswith(".tmp") for p in os.listdir(tmp_path))
