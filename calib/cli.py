@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -188,6 +190,55 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Analyse every catalog chain (and extra URDFs) and print one table."""
+    from tqdm import tqdm
+
+    from .plots import counts_figure, save_figure
+    from .sweep import rows_table, rows_to_csv, sweep
+
+    def bar(jobs):
+        return tqdm(
+            jobs,
+            desc="calib sweep",
+            unit="chain",
+            file=sys.stderr,
+            leave=False,
+            disable=not sys.stderr.isatty(),
+        )
+
+    rows = sweep(
+        extra=args.urdf,
+        measure=args.measure,
+        marker=args.marker,
+        configs=args.configs,
+        seed=args.seed,
+        progress=bar,
+        params=args.params,
+    )
+    if args.csv:
+        write_files_atomic({args.csv: rows_to_csv(rows)})
+    if args.plot:
+        label = f"{args.measure} measurement"
+        save_figure(counts_figure(rows, title=f"Base parameters per chain, {label}"), args.plot)
+    if args.json:
+        _print_json(
+            {
+                "measure": args.measure,
+                "params": args.params,
+                "rows": [dataclasses.asdict(r) for r in rows],
+            }
+        )
+    else:
+        print(rows_table(rows))
+        bad = sum(r.error is not None for r in rows)
+        print(
+            f"\n{len(rows)} chains, {len(rows) - bad} analysed, {bad} with an error "
+            f"(reason in the last column); {args.measure}, verdict for the {args.params} set"
+        )
+    return 0
+
+
 def _add_chain_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("robot", help="catalog name (see `calib list`) or path to a URDF file")
     p.add_argument("--base", help="base frame (default: the catalog's, or the URDF root link)")
@@ -335,6 +386,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_calibrate)
 
+    p = sub.add_parser("sweep", help="analyse every catalog chain (and extra URDFs): one table")
+    p.add_argument("urdf", nargs="*", help="extra URDF files analysed after the catalog")
+    _add_measure_args(p)
+    p.add_argument(
+        "--params",
+        default="paper",
+        choices=PARAMETER_SETS,
+        help="set the verdict is about (default: paper)",
+    )
+    p.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations per chain (default: {DEFAULT_CONFIGS})",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
+    p.add_argument("--csv", help="also write the table as CSV to this file")
+    p.add_argument("--plot", help="also save the counts plot as PNG to this file")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_sweep)
+
     p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
     p.set_defaults(func=cmd_demo)
     return parser
@@ -354,6 +426,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("calib: interrupted", file=sys.stderr)
             code = 130
+        except BrokenPipeError:  # `calib ... | head`: stop quietly
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            code = 0
+        except OSError as exc:  # a file that cannot be written
+            print(
+                f"calib: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
+                file=sys.stderr,
+            )
+            code = 2
     for w in caught:
         if issubclass(w.category, UserWarning):
             print(f"calib: warning: {w.message}", file=sys.stderr)

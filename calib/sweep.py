@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from .catalog import catalog
-from .exceptions import CalibError
+from .exceptions import CalibError, InvalidArgumentError
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .jacobian import Measurement
 from .robot import load_chain
@@ -31,7 +31,8 @@ class SweepRow:
         n_base_complete: Base parameters of the complete set.
         n_complete: Rank of the complete reference model.
         n_theory: 4R + 2P + 6 (pose) or + 3 (position; 2 fewer on the last axis).
-        verdict: ``complete``, ``misses N`` (the paper set), or ``error``.
+        verdict: ``complete`` or ``misses N`` (for the set the sweep was asked about), or
+            ``error``.
         time_ms: Time to load and analyse the chain with both sets [ms].
         error: Why the chain could not be analysed, else None.
         note: What else a reader should know (point on joint axes, rank warnings).
@@ -59,6 +60,7 @@ def sweep_one(
     measurement: Measurement,
     configs: int,
     seed: int,
+    params: str = "paper",
 ) -> SweepRow:
     """Analyse one chain with the paper and the complete sets; errors become a row."""
     t0 = time.perf_counter()
@@ -78,8 +80,9 @@ def sweep_one(
             full = analyze(chain, params="complete", **kw)
     except CalibError as exc:
         return SweepRow(str(robot), label, time_ms=1e3 * (time.perf_counter() - t0), error=str(exc))
-    missing = full.n_complete - paper.n_base
-    notes = [f"point on axes {', '.join(map(str, full.on_axes))}"] if full.on_axes else []
+    missing = full.n_complete - (paper if params == "paper" else full).n_base
+    on_axes = full.on_axes if measurement.rows == (0, 1, 2) else ()
+    notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
     notes += list(dict.fromkeys(paper.warnings + full.warnings))
     return SweepRow(
         robot=str(robot),
@@ -105,6 +108,7 @@ def sweep(
     configs: int = DEFAULT_CONFIGS,
     seed: int = 0,
     progress: Callable[[Iterable], Iterable] | None = None,
+    params: str = "paper",
 ) -> list[SweepRow]:
     """Analyse every catalog chain (or the given names) and extra URDF files.
 
@@ -118,11 +122,14 @@ def sweep(
         configs: Random configurations per chain.
         seed: Seed of the configurations.
         progress: Wraps the iterable of jobs (e.g. a progress bar).
+        params: Set the verdict is about: ``paper`` or ``complete``.
 
     Returns:
         One row per chain, in order.
     """
     measurement = Measurement.of(measure, marker)
+    if params not in ("paper", "complete"):
+        raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     entries = {e.name: e for e in catalog()}
     jobs: list[tuple[str, str | None, str | None]] = []
     for name in robots if robots is not None else entries:
@@ -130,7 +137,7 @@ def sweep(
         jobs.append((name, e.base, e.tool) if e else (name, None, None))
     jobs += [(str(Path(p)), None, None) for p in extra]
     it = progress(jobs) if progress else jobs
-    return [sweep_one(r, b, t, measurement, configs, seed) for r, b, t in it]
+    return [sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
 
 
 COLUMNS = (
@@ -160,3 +167,44 @@ def rows_to_csv(rows: Sequence[SweepRow]) -> str:
         d["time_ms"] = f"{row.time_ms:.1f}"
         writer.writerow(d)
     return buf.getvalue()
+
+
+def rows_table(rows: Sequence[SweepRow]) -> str:
+    """The rows as a plain-text table (errors and notes in the last column)."""
+    from .report import format_table
+
+    def num(v: int | None) -> str:
+        return "-" if v is None else str(v)
+
+    body = [
+        [
+            r.robot,
+            r.chain,
+            num(r.revolute),
+            num(r.prismatic),
+            num(r.n_standard),
+            num(r.n_base_paper),
+            num(r.n_base_complete),
+            num(r.n_complete),
+            num(r.n_theory),
+            r.verdict,
+            f"{r.time_ms:.0f}",
+            r.error or r.note,
+        ]
+        for r in rows
+    ]
+    header = [
+        "robot",
+        "chain",
+        "R",
+        "P",
+        "std",
+        "paper",
+        "complete",
+        "model",
+        "theory",
+        "verdict",
+        "ms",
+        "note",
+    ]
+    return format_table(header, body)

@@ -1,0 +1,130 @@
+"""calib sweep: the whole catalog, no row silently missing, counts equal to `calib analyze`."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import warnings
+from pathlib import Path
+
+import pytest
+
+from calib import analyze, catalog
+from calib.cli import main
+from calib.plots import counts_figure, errors_figure, spectrum_figure
+from calib.sweep import COLUMNS, rows_to_csv, sweep
+
+DATA = Path(__file__).parent / "data"
+EXPECTED_ERRORS = {e.name for e in catalog() if e.expect_error}
+
+
+@pytest.fixture(scope="module")
+def pose_rows():
+    return sweep(measure="pose", configs=60)
+
+
+def test_every_catalog_chain_is_a_row_in_order(pose_rows):
+    assert [r.robot for r in pose_rows] == [e.name for e in catalog()]
+    assert {r.robot for r in pose_rows if r.error} == EXPECTED_ERRORS
+    for r in pose_rows:
+        if r.error:
+            assert r.verdict == "error" and "\n" not in r.error and r.error.strip()
+
+
+def test_counts_match_theory_on_every_analysable_chain(pose_rows):
+    for r in pose_rows:
+        if r.error:
+            continue
+        assert r.n_standard == 4 * (r.revolute + r.prismatic + 2) - 2, r
+        assert r.n_base_complete == r.n_complete == 4 * r.revolute + 2 * r.prismatic + 6, r
+        assert r.n_base_paper <= r.n_complete, r
+        missing = r.n_complete - r.n_base_paper
+        assert r.verdict == ("complete" if missing == 0 else f"misses {missing}"), r
+
+
+@pytest.mark.parametrize("measure", ["pose", "position"])
+def test_sweep_counts_equal_analyze(measure):
+    names = ["aid", "stanford", "ur5", "panda", "tiago", "anymal_lf", "human_left_leg"]
+    rows = sweep(names, measure=measure, configs=80, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for r in rows:
+            paper = analyze(r.robot, measure=measure, params="paper", configs=80, seed=3)
+            full = analyze(r.robot, measure=measure, params="complete", configs=80, seed=3)
+            assert (r.n_base_paper, r.n_base_complete, r.n_complete, r.n_theory) == (
+                paper.n_base,
+                full.n_base,
+                full.n_complete,
+                full.n_theory,
+            )
+
+
+def test_extra_urdfs_and_unloadable_ones_are_rows(tmp_path):
+    bad = tmp_path / "broken.urdf"
+    bad.write_text("<robot name='x'><link name='a'>")
+    good = str(DATA / "negative_axes.urdf")
+    rows = sweep([], extra=[good, str(bad)], configs=40)
+    assert [r.robot for r in rows] == [good, str(bad)]
+    assert rows[0].error is None and rows[0].n_base_complete == rows[0].n_complete
+    assert rows[1].error and "malformed XML" in rows[1].error
+
+
+def test_csv_text_has_one_row_per_chain(pose_rows):
+    parsed = list(csv.DictReader(io.StringIO(rows_to_csv(pose_rows))))
+    assert [p["robot"] for p in parsed] == [r.robot for r in pose_rows]
+    assert list(parsed[0]) == list(COLUMNS)
+
+
+def test_cli_sweep_writes_csv_png_and_json(tmp_path, capsys):
+    out_csv, out_png = tmp_path / "s.csv", tmp_path / "s.png"
+    code = main(
+        [
+            "sweep",
+            "--measure",
+            "position",
+            "--configs",
+            "40",
+            "--params",
+            "complete",
+            "--csv",
+            str(out_csv),
+            "--plot",
+            str(out_png),
+            "--json",
+        ]
+    )
+    assert code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["measure"] == "position" and data["params"] == "complete"
+    assert [r["robot"] for r in data["rows"]] == [e.name for e in catalog()]
+    assert out_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert len(list(csv.DictReader(out_csv.open()))) == len(catalog())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.csv", "s.png"]  # no temp files
+
+
+def test_cli_sweep_plain_output_without_progress_bar(capsys):
+    assert main(["sweep", "--configs", "30"]) == 0
+    out, err = capsys.readouterr()
+    assert "calib sweep" not in err  # no progress bar when stderr is not a terminal
+    assert out.count("\n") >= len(catalog()) + 2
+    assert f"{len(catalog())} chains" in out
+
+
+def test_cli_sweep_unwritable_csv_is_one_line_error(tmp_path, capsys):
+    code = main(["sweep", "--configs", "20", "--csv", str(tmp_path / "no" / "dir" / "s.csv")])
+    err = capsys.readouterr().err
+    assert code != 0 and err.count("\n") == 1 and err.startswith("calib: error:")
+    assert not (tmp_path / "no").exists()
+
+
+def test_figures_have_the_expected_content(pose_rows):
+    fig = counts_figure(pose_rows)
+    ax = fig.axes[0]
+    assert len(ax.get_xticklabels()) == len([r for r in pose_rows if r.error is None])
+    res = analyze("aid", measure="position")
+    spec = spectrum_figure(res).axes[0]
+    kept, dropped = spec.lines[0].get_ydata(), spec.lines[1].get_ydata()
+    assert len(kept) == 23 and len(dropped) == 7
+    assert min(kept) > res.tolerance > max(dropped)
+    assert errors_figure([1e-3, 2e-3], [1e-6, 2e-6]).axes[0].get_xlabel() == "position error [mm]"
