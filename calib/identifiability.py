@@ -86,6 +86,12 @@ def preference(mdh: MDHModel, p: Parameter) -> int:
     return 5
 
 
+def preference_order(mdh: MDHModel, params: ParameterSet) -> list[int]:
+    """Column indices sorted by :func:`preference` (stable: set order within a class)."""
+    ranks = [preference(mdh, p) for p in params.parameters]
+    return sorted(range(len(ranks)), key=ranks.__getitem__)
+
+
 def theoretical_count(
     chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axes: tuple[int, ...] = ()
 ) -> int | None:
@@ -335,7 +341,7 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
     idx = list(order)
     M = R[:, idx]
     while idx and M.shape[0] > 0:
-        T = scipy.linalg.qr(M, mode="r", check_finite=False)[0]
+        T = np.linalg.qr(M, mode="r")
         d = np.abs(np.diag(T))
         small = np.flatnonzero(d <= tau)
         j = int(small[0]) if small.size else len(d)
@@ -380,7 +386,7 @@ def identify_base(
     Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
     diag = np.abs(np.diag(Rp))
     rank, tau = numerical_rank(diag, W.shape[0])
-    order = sorted(range(len(params)), key=lambda i: (preference(mdh, params.parameters[i]), i))
+    order = preference_order(mdh, params)
     # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
     # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
     # the order in which the columns are visited.
@@ -391,7 +397,7 @@ def identify_base(
         # to the definition: keep a column when it raises the pivoted-QR rank.
         kept = select_by_rank(R, order, tau)
     others = [i for i in range(len(params)) if i not in kept]
-    Rk = scipy.linalg.qr(R[:, kept + others], mode="r", check_finite=False)[0]
+    Rk = np.linalg.qr(R[:, kept + others], mode="r")
     b = len(kept)
     B = scipy.linalg.solve_triangular(Rk[:b, :b], Rk[:b, b:], check_finite=False)
     return diag, tau, kept, others, B

@@ -8,15 +8,12 @@ import numpy as np
 
 from .exceptions import InvalidArgumentError
 from .mdh import Kinematics, MDHModel
-from .parameters import Kind, ParameterSet
+from .parameters import ParameterSet
 
 ROW_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 """The six rows of a pose error: position [m] then orientation [rad], in the base frame."""
 
 MEASURES = ("pose", "position")
-
-_AXIS = {Kind.Y: 0, Kind.BETA: 0, Kind.ALPHA: 1, Kind.D: 1, Kind.THETA: 2, Kind.R: 2}
-_POINT = {Kind.Y: 0, Kind.BETA: 0, Kind.ALPHA: 0, Kind.D: 0, Kind.THETA: 1, Kind.R: 1}
 
 
 @dataclass(frozen=True)
@@ -108,15 +105,24 @@ def identification_jacobian(
     """
     if kin is None:
         kin = mdh.kinematics(q)
-    rows = np.array([p.row for p in params.parameters], dtype=int)
-    axis = np.array([_AXIS[p.kind] for p in params.parameters], dtype=int)
-    point = np.array([_POINT[p.kind] for p in params.parameters], dtype=int)
-    rot = np.array([p.kind.is_rotation for p in params.parameters])
-    zk = kin.R[:, :, :, 2]
-    axes = np.stack([kin.y_prev, kin.x_mid, zk], axis=2)[:, rows, axis]  # (m, k, 3)
-    points = np.stack([kin.q_mid, kin.p], axis=2)[:, rows, point]  # (m, k, 3)
+    rows, axis, point, rot = params.layout
+    m, k = kin.p.shape[0], len(rows)
+    # Gather, per column, the axis of its elementary motion and the point it acts at.
+    axes = np.empty((m, k, 3))
+    for src, arr in enumerate((kin.y_prev, kin.x_mid, kin.R[:, :, :, 2])):
+        sel = axis == src
+        if sel.any():
+            axes[:, sel] = arr[:, rows[sel]]
     E = measured_point(kin, measurement.marker_array)
-    lin = np.where(rot[None, :, None], np.cross(axes, E[:, None, :] - points), axes)
+    lin = axes.copy()
+    if rot.any():
+        pts = np.empty((m, int(rot.sum()), 3))
+        prow, ppt = rows[rot], point[rot]
+        for src, arr in enumerate((kin.q_mid, kin.p)):
+            sel = ppt == src
+            if sel.any():
+                pts[:, sel] = arr[:, prow[sel]]
+        lin[:, rot] = np.cross(axes[:, rot], E[:, None, :] - pts)
     ang = axes * rot[None, :, None]
     return _stack(lin, ang, measurement.rows)
 

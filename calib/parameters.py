@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +65,22 @@ class ParameterSet:
     def names(self) -> tuple[str, ...]:
         """Parameter names, e.g. ``('theta0', 'r0', 'alpha1', ...)``."""
         return tuple(p.name for p in self.parameters)
+
+    @functools.cached_property
+    def layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Column layout used by the Jacobian, computed once per set.
+
+        Per column: row k, axis source (0 y_{k-1}, 1 x_mid, 2 z_k), point source (0 the
+        point of beta/alpha, 1 the origin of frame k) and whether it is a rotation.
+        """
+        axis_of = {Kind.Y: 0, Kind.BETA: 0, Kind.ALPHA: 1, Kind.D: 1, Kind.THETA: 2, Kind.R: 2}
+        ps = self.parameters
+        return (
+            np.array([p.row for p in ps], dtype=int),
+            np.array([axis_of[p.kind] for p in ps], dtype=int),
+            np.array([int(p.kind in (Kind.THETA, Kind.R)) for p in ps], dtype=int),
+            np.array([p.kind.is_rotation for p in ps], dtype=bool),
+        )
 
     def index(self, name: str) -> int:
         """Position of a parameter by name."""
