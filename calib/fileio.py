@@ -35,6 +35,7 @@ def write_files_atomic(files: Mapping[str | Path, str | bytes]) -> None:
                 prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or Path(".")
             )
             staged.append((tmp, target))
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
             with os.fdopen(fd, "wb") as f:
                 f.write(_to_bytes(content))
                 f.flush()
@@ -45,6 +46,12 @@ def write_files_atomic(files: Mapping[str | Path, str | bytes]) -> None:
         for tmp, _ in staged:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def write_atomic(path: str | Path, content: str | bytes) -> None:

@@ -6,14 +6,14 @@ saves it with :func:`save_figure`.
 
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from .fileio import write_atomic
 from .identifiability import Identifiability
 from .sweep import SweepRow
 
@@ -81,13 +81,7 @@ def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Fig
 
 
 def save_figure(fig: Figure, path: str | Path) -> None:
-    """Save as PNG atomically (a temporary file renamed into place)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), suffix=".png")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", dpi=120)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    """Save as PNG atomically (no partial file is ever left at ``path``)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120)
+    write_atomic(path, buf.getvalue())
