@@ -105,26 +105,27 @@ def identification_jacobian(
     """
     if kin is None:
         kin = mdh.kinematics(q)
-    rows, axis, point, rot = params.layout
-    m, k = kin.p.shape[0], len(rows)
-    # Gather, per column, the axis of its elementary motion and the point it acts at.
+    plan = params.layout
+    m, k = kin.p.shape[0], len(params)
     axes = np.empty((m, k, 3))
-    for src, arr in enumerate((kin.y_prev, kin.x_mid, kin.R[:, :, :, 2])):
-        sel = axis == src
-        if sel.any():
-            axes[:, sel] = arr[:, rows[sel]]
-    E = measured_point(kin, measurement.marker_array)
-    lin = axes.copy()
-    if rot.any():
-        pts = np.empty((m, int(rot.sum()), 3))
-        prow, ppt = rows[rot], point[rot]
-        for src, arr in enumerate((kin.q_mid, kin.p)):
-            sel = ppt == src
-            if sel.any():
-                pts[:, sel] = arr[:, prow[sel]]
-        lin[:, rot] = np.cross(axes[:, rot], E[:, None, :] - pts)
-    ang = axes * rot[None, :, None]
-    return _stack(lin, ang, measurement.rows)
+    for src, cols, rows in plan.axes:
+        axes[:, cols] = (kin.y_prev, kin.x_mid, kin.R[:, :, :, 2])[src][:, rows]
+    J = np.zeros((m, 6, k))
+    J[:, :3, :] = np.swapaxes(axes, 1, 2)
+    rot = plan.rotations
+    if rot.size:
+        E = measured_point(kin, measurement.marker_array)
+        L = np.empty((m, rot.size, 3))
+        for src, cols, rows in plan.points:
+            L[:, cols] = E[:, None, :] - (kin.q_mid, kin.p)[src][:, rows]
+        a = axes[:, rot]
+        J[:, 0, rot] = a[:, :, 1] * L[:, :, 2] - a[:, :, 2] * L[:, :, 1]
+        J[:, 1, rot] = a[:, :, 2] * L[:, :, 0] - a[:, :, 0] * L[:, :, 2]
+        J[:, 2, rot] = a[:, :, 0] * L[:, :, 1] - a[:, :, 1] * L[:, :, 0]
+        J[:, 3:, rot] = np.swapaxes(a, 1, 2)
+    if measurement.rows != (0, 1, 2, 3, 4, 5):
+        J = J[:, list(measurement.rows)]
+    return J.reshape(-1, k)
 
 
 def complete_jacobian(

@@ -47,6 +47,23 @@ class Parameter:
 
 
 @dataclass(frozen=True)
+class ColumnLayout:
+    """Gather plan of a parameter set's Jacobian columns.
+
+    Attributes:
+        axes: ``(source, columns, rows)`` triples: the columns whose axis is source 0
+            (y_{k-1}), 1 (x after beta and alpha) or 2 (z_k), taken at those rows.
+        points: The same for the rotation columns' points: 0 (where beta and alpha act) or
+            1 (the origin of frame k); ``columns`` index into ``rotations``.
+        rotations: Indices of the rotation columns.
+    """
+
+    axes: tuple[tuple[int, np.ndarray, np.ndarray], ...]
+    points: tuple[tuple[int, np.ndarray, np.ndarray], ...]
+    rotations: np.ndarray
+
+
+@dataclass(frozen=True)
 class ParameterSet:
     """An ordered set of standard parameters.
 
@@ -67,20 +84,25 @@ class ParameterSet:
         return tuple(p.name for p in self.parameters)
 
     @functools.cached_property
-    def layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Column layout used by the Jacobian, computed once per set.
-
-        Per column: row k, axis source (0 y_{k-1}, 1 x_mid, 2 z_k), point source (0 the
-        point of beta/alpha, 1 the origin of frame k) and whether it is a rotation.
-        """
+    def layout(self) -> ColumnLayout:
+        """How the Jacobian gathers each column's axis and point (computed once per set)."""
         axis_of = {Kind.Y: 0, Kind.BETA: 0, Kind.ALPHA: 1, Kind.D: 1, Kind.THETA: 2, Kind.R: 2}
         ps = self.parameters
-        return (
-            np.array([p.row for p in ps], dtype=int),
-            np.array([axis_of[p.kind] for p in ps], dtype=int),
-            np.array([int(p.kind in (Kind.THETA, Kind.R)) for p in ps], dtype=int),
-            np.array([p.kind.is_rotation for p in ps], dtype=bool),
+        rows = np.array([p.row for p in ps], dtype=int)
+        axis = np.array([axis_of[p.kind] for p in ps], dtype=int)
+        at_origin = np.array([p.kind in (Kind.THETA, Kind.R) for p in ps], dtype=bool)
+        rot = np.flatnonzero([p.kind.is_rotation for p in ps])
+        axes = tuple(
+            (src, np.flatnonzero(axis == src), rows[axis == src])
+            for src in range(3)
+            if np.any(axis == src)
         )
+        points = tuple(
+            (src, np.flatnonzero(at_origin[rot] == src), rows[rot][at_origin[rot] == src])
+            for src in (0, 1)
+            if np.any(at_origin[rot] == src)
+        )
+        return ColumnLayout(axes, points, rot)
 
     def index(self, name: str) -> int:
         """Position of a parameter by name."""
