@@ -5,12 +5,11 @@ the complete reference model against perturbed Pinocchio joint placements, row l
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import chain_of, mdh_of
+from pinref import own_random_q, pin_config, pin_frame
 
 import calib
 from calib import (
@@ -27,32 +26,6 @@ from calib import (
 ROBOTS = ["aid", "panda", "stanford", "tiago", "ur5", "so100", "kinova", "talos_left_leg"]
 MARKER = (0.011, 0.023, 0.037)
 POSE = Measurement.of("pose")
-
-
-def pin_frame(model: pin.Model, name: str) -> int:
-    bare = name.split(":", 1)[1] if name.startswith(("link:", "joint:")) else name
-    ids = [i for i, f in enumerate(model.frames) if f.name == bare]
-    bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
-    return bodies[0] if bodies else ids[0]
-
-
-def pin_config(model, joints, q):
-    out = pin.neutral(model)
-    for jid, qk in zip(joints, q, strict=True):
-        joint = model.joints[jid]
-        if joint.nq == 2:
-            out[joint.idx_q : joint.idx_q + 2] = (math.cos(qk), math.sin(qk))
-        else:
-            out[joint.idx_q] = qk
-    return out
-
-
-def own_random_q(sigma, m: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    sigma = np.asarray(sigma)
-    q = rng.uniform(-math.pi, math.pi, (m, len(sigma)))
-    q[:, sigma == 1] = rng.uniform(-0.3, 0.3, (m, int(np.sum(sigma == 1))))
-    return q
 
 
 def joint_parameters(mdh) -> ParameterSet:

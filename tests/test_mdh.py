@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ANALYSABLE, chain_of, mdh_of
+from pinref import own_random_q, pin_frame
 
 import calib
 from calib import PARALLEL_TOL, load_chain
@@ -26,15 +27,6 @@ N_CONFIGS = 100
 # --------------------------------------------------------------------------------------
 # Independent references
 # --------------------------------------------------------------------------------------
-
-
-def pin_frame(model: pin.Model, name: str) -> int:
-    """Frame id by name: the BODY (link) frame when there is one, as the catalog says."""
-    bare = name.split(":", 1)[1] if name.startswith(("link:", "joint:")) else name
-    ids = [i for i, f in enumerate(model.frames) if f.name == bare]
-    assert ids, f"no frame {bare} in the Pinocchio model"
-    bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
-    return bodies[0] if bodies else ids[0]
 
 
 class PinChain:
@@ -85,14 +77,6 @@ class PinChain:
 
 def pin_of(chain) -> PinChain:
     return PinChain(chain.model, chain.base_frame, chain.tool_frame, chain.joint_names)
-
-
-def own_random_q(sigma, m: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    sigma = np.asarray(sigma)
-    q = rng.uniform(-math.pi, math.pi, (m, len(sigma)))
-    q[:, sigma == 1] = rng.uniform(-0.3, 0.3, (m, int(np.sum(sigma == 1))))
-    return q
 
 
 def rot(axis: str, a: float) -> np.ndarray:

@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ANALYSABLE, chain_of, mdh_of
+from pinref import own_random_q, pin_config, pin_frame
 
 import calib
 from calib import (
@@ -35,15 +36,6 @@ FK_TOL = 1e-10
 # --------------------------------------------------------------------------------------
 
 
-def pin_frame(model: pin.Model, name: str) -> int:
-    """Frame id by name: the BODY (link) frame when there is one, as the catalog says."""
-    bare = name.split(":", 1)[1] if name.startswith(("link:", "joint:")) else name
-    ids = [i for i, f in enumerate(model.frames) if f.name == bare]
-    assert ids, f"no frame {bare} in the Pinocchio model"
-    bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
-    return bodies[0] if bodies else ids[0]
-
-
 def pin_path(model: pin.Model, base: int, tool: int) -> list[int]:
     """Joint ids between two frames, from base to tool (Pinocchio's supports)."""
     jb, jt = model.frames[base].parentJoint, model.frames[tool].parentJoint
@@ -52,31 +44,10 @@ def pin_path(model: pin.Model, base: int, tool: int) -> list[int]:
     return support[support.index(jb) + 1 :]
 
 
-def pin_config(model: pin.Model, joint_ids, q: np.ndarray, q_full: np.ndarray | None = None):
-    """Pinocchio configuration with URDF positions q on the given joints."""
-    out = pin.neutral(model) if q_full is None else q_full.copy()
-    for jid, qk in zip(joint_ids, q, strict=True):
-        joint = model.joints[jid]
-        if joint.nq == 2:
-            out[joint.idx_q : joint.idx_q + 2] = (math.cos(qk), math.sin(qk))
-        else:
-            out[joint.idx_q] = qk
-    return out
-
-
 def pin_tool_in_base(model, base: int, tool: int, q_full: np.ndarray) -> np.ndarray:
     data = model.createData()
     pin.framesForwardKinematics(model, data, q_full)
     return (data.oMf[base].inverse() * data.oMf[tool]).homogeneous
-
-
-def own_random_q(chain, m: int, seed: int) -> np.ndarray:
-    """Configurations drawn by the test, not by calib (wider than most joint limits)."""
-    rng = np.random.default_rng(seed)
-    q = rng.uniform(-math.pi, math.pi, (m, chain.n))
-    prismatic = np.asarray(chain.sigma) == 1
-    q[:, prismatic] = rng.uniform(-0.3, 0.3, (m, int(prismatic.sum())))
-    return q
 
 
 def is_prismatic(joint) -> bool:
@@ -168,7 +139,7 @@ def test_tree_robot_other_joints_do_not_matter(name):
     others = [j for j in range(1, model.njoints) if j not in path]
     assert others, "a tree robot has joints outside the chain"
     rng = np.random.default_rng(5)
-    qs = own_random_q(chain, 20, seed=6)
+    qs = own_random_q(chain.sigma, 20, seed=6)
     M = mdh_of(name).forward(qs)
     for i, qi in enumerate(qs):
         q_chain = pin_config(model, path, qi)
@@ -208,7 +179,7 @@ def test_link_and_fixed_joint_sharing_a_name_at_one_place():
     ]
     assert np.abs(ref[0] - ref[1]).max() < 1e-12, "fixture: both frames at one place"
     ids = [model.getJointId("j0"), model.getJointId("j1")]
-    q = own_random_q(chain, 10, seed=1)
+    q = own_random_q(chain.sigma, 10, seed=1)
     M = calib.from_chain(chain).forward(q)
     for i, qi in enumerate(q):
         T = pin_tool_in_base(model, base, pin_frame(model, "flange"), pin_config(model, ids, qi))
@@ -228,7 +199,7 @@ def test_link_and_revolute_joint_sharing_a_name_at_different_places():
         i for i, f in enumerate(model.frames) if f.name == "j" and f.type == pin.FrameType.BODY
     )
     ids = [model.getJointId("a0"), model.getJointId("a")]
-    q = own_random_q(chain, 10, seed=2)
+    q = own_random_q(chain.sigma, 10, seed=2)
     M = calib.from_chain(chain).forward(q)
     for i, qi in enumerate(q):
         T = pin_tool_in_base(model, base, link_j, pin_config(model, ids, qi))
@@ -246,7 +217,7 @@ def test_single_joint_chain():
     model = chain.model
     mdh = calib.from_chain(chain)
     base, tool = pin_frame(model, "base"), pin_frame(model, "tool")
-    q = own_random_q(chain, 20, seed=4)
+    q = own_random_q(chain.sigma, 20, seed=4)
     M = mdh.forward(q)
     for i, qi in enumerate(q):
         T = pin_tool_in_base(model, base, tool, pin_config(model, [model.getJointId("j1")], qi))
