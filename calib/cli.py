@@ -10,6 +10,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from . import __version__
 from .calibration import (
@@ -21,7 +22,7 @@ from .calibration import (
 )
 from .catalog import catalog
 from .exceptions import CalibError, ConvergenceError, DataError, InvalidArgumentError
-from .fileio import json_text, write_files_atomic
+from .fileio import check_writable, json_text, write_files_atomic
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .mdh import from_chain
 from .measurements import CAMPAIGN_MEASURES, measurements_csv, read_measurements, simulate
@@ -29,6 +30,13 @@ from .parameters import PARAMETER_SETS
 from .report import analysis_text, format_table, mdh_table
 from .robot import load_chain
 from .urdf_export import calibrated_urdf, check_exportable
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors, like every other calib error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
 
 
 def _print_json(obj: dict) -> None:
@@ -116,8 +124,19 @@ def _write(files: dict[Path, str | bytes]) -> None:
         raise CalibError(f"cannot write {name}: {exc.strerror or exc}") from None
 
 
+def _check_outputs(*paths: Path | str | None) -> None:
+    """Fail now, in one line, if an output cannot be written (not after the work)."""
+    try:
+        check_writable(*paths)
+    except OSError as exc:
+        raise CalibError(f"cannot write {exc.filename}: {exc.strerror}") from None
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
+    out = Path(args.out)
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    _check_outputs(out, truth_path)
     chain = load_chain(args.robot, args.base, args.tool)
     campaign = simulate(
         chain,
@@ -131,8 +150,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         args.seed,
         args.params,
     )
-    out = Path(args.out)
-    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     if truth_path.resolve() == out.resolve():
         raise InvalidArgumentError("--truth and --out name the same file")
     truth = campaign.truth
@@ -162,6 +179,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             if target is not None and target.resolve() == path.resolve():
                 raise InvalidArgumentError(f"{option} {target} would overwrite {what}")
     check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
+    _check_outputs(out, report)
     data = read_measurements(args.data, chain)
     if args.measure == "position":
         data = data.position_only()
@@ -194,7 +212,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Analyse every catalog chain (and extra URDFs) and print one table."""
     from tqdm import tqdm
 
-    from .plots import counts_figure, save_figure
+    from .plots import counts_figure, figure_png
     from .sweep import rows_table, rows_to_csv, sweep
 
     def bar(jobs):
@@ -207,6 +225,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             disable=not sys.stderr.isatty(),
         )
 
+    _check_outputs(args.csv, args.plot)
     rows = sweep(
         extra=args.urdf,
         measure=args.measure,
@@ -216,11 +235,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         progress=bar,
         params=args.params,
     )
+    files: dict[Path, str | bytes] = {}
     if args.csv:
-        write_files_atomic({args.csv: rows_to_csv(rows)})
+        files[Path(args.csv)] = rows_to_csv(rows)
     if args.plot:
-        label = f"{args.measure} measurement"
-        save_figure(counts_figure(rows, title=f"Base parameters per chain, {label}"), args.plot)
+        title = f"Base parameters per chain, {args.measure} measurement"
+        files[Path(args.plot)] = figure_png(counts_figure(rows, title=title))
+    _write(files)
     if args.json:
         _print_json(
             {
@@ -253,16 +274,16 @@ def _add_measure_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--marker",
-        nargs="+",
+        nargs=3,
         type=float,
-        metavar=("X", "Y"),
-        help="measured point in the tool frame: X Y Z [m] (default: the tool origin)",
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m] (default: the tool origin)",
     )
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``calib``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="calib",
         description="Identifiable geometric parameters and calibration of serial robots (URDF).",
     )
@@ -281,7 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("analyze", help="identifiable (base) parameters of a chain")
     _add_chain_args(p)
     _add_measure_args(p)
-    p.add_argument("--params", default="paper", help="paper or complete (default: paper)")
+    p.add_argument(
+        "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
+    )
     p.add_argument(
         "--configs",
         type=int,
@@ -415,7 +438,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the exit code (errors: one line on stderr, code 2)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # usage error (one line already printed), --help, --version
+        return exc.code if isinstance(exc.code, int) else 2
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:

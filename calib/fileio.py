@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import tempfile
@@ -25,18 +26,24 @@ def write_files_atomic(files: Mapping[str | Path, str | bytes]) -> None:
         files: Content (text is written as UTF-8) by target path.
 
     Raises:
-        OSError: A directory is missing or not writable, or the disk is full.
+        OSError: A target is a directory, a directory is missing or not writable, or the
+            disk is full; the error names the target, never the temporary file.
     """
+    for path in files:
+        _check_target(Path(path))
     staged: list[tuple[str, Path]] = []
     try:
         for path, content in files.items():
             target = Path(path)
-            fd, tmp = tempfile.mkstemp(
-                prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or Path(".")
-            )
+            try:
+                fd, tmp = tempfile.mkstemp(
+                    prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or Path(".")
+                )
+            except OSError as exc:
+                raise OSError(exc.errno, exc.strerror, str(target)) from None
             staged.append((tmp, target))
-            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
             with os.fdopen(fd, "wb") as f:
+                os.fchmod(f.fileno(), 0o666 & ~_UMASK)  # mkstemp makes 0600: use the usual mode
                 f.write(_to_bytes(content))
                 f.flush()
                 os.fsync(f.fileno())
@@ -48,10 +55,36 @@ def write_files_atomic(files: Mapping[str | Path, str | bytes]) -> None:
                 os.unlink(tmp)
 
 
-def _umask() -> int:
+def _check_target(target: Path) -> None:
+    """Raise OSError (naming the target) if it cannot be written: before any work is done."""
+    parent = target.parent if str(target.parent) else Path(".")
+    if target.is_dir():
+        raise OSError(errno.EISDIR, "is a directory", str(target))
+    if not parent.is_dir():
+        raise OSError(errno.ENOENT, "no such directory", str(parent))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OSError(errno.EACCES, "directory not writable", str(parent))
+
+
+def check_writable(*paths: str | Path | None) -> None:
+    """Check, before a long computation, that every output path can be written.
+
+    Raises:
+        OSError: A target is a directory, or its directory is missing or not writable.
+    """
+    for path in paths:
+        if path is not None:
+            _check_target(Path(path))
+
+
+def _read_umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+_UMASK = _read_umask()
+"""The process umask, read once at import."""
 
 
 def write_atomic(path: str | Path, content: str | bytes) -> None:

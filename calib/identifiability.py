@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg
 
-from .exceptions import CalibError, InvalidArgumentError
+from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import MDHModel, from_chain
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
-from .robot import Chain, load_chain
+from .robot import Chain, check_count, load_chain
 
 DEFAULT_CONFIGS = 100
 """Random configurations drawn by default."""
@@ -236,7 +236,7 @@ class Identifiability:
     @property
     def rank(self) -> int:
         """Numerical rank: #{|R_ii| > tau} of the pivoted QR."""
-        return int(np.sum(self.diag > self.tolerance)) if self.tolerance > 0 else 0
+        return numerical_rank(self.diag, self.n_rows)[0]
 
     def regrouping_coefficients(
         self, threshold: float = REGROUP_TOL
@@ -360,10 +360,7 @@ def select_by_rank(R: np.ndarray, order: list[int], tau: float) -> list[int]:
     kept: list[int] = []
     for i in order:
         cols = [*kept, i]
-        d = np.abs(
-            np.diag(scipy.linalg.qr(R[:, cols], mode="r", pivoting=True, check_finite=False)[0])
-        )
-        if int(np.sum(d > tau)) > len(kept):
+        if int(np.sum(pivoted_diagonal(R[:, cols]) > tau)) > len(kept):
             kept = cols
     return kept
 
@@ -382,6 +379,10 @@ def identify_base(
         |R_ii| of the pivoted QR, tau, the kept column indices (preference order), the other
         column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
     """
+    if not np.all(np.isfinite(W)):
+        raise InvalidArgumentError(
+            "the observation matrix has non-finite entries: check the marker and the configurations"
+        )
     R = _triangular(W)
     Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
     diag = np.abs(np.diag(Rp))
@@ -426,7 +427,13 @@ def analyze_model(
     """
     measurement = measurement or Measurement.of("pose")
     pset = parameter_set(mdh, params) if isinstance(params, str) else params
+    if configs is None:
+        raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
     q = np.atleast_2d(np.asarray(configs, dtype=float))
+    if q.shape[1:] != (mdh.n,) or not np.all(np.isfinite(q)):
+        raise InvalidArgumentError(
+            f"configurations must be finite joint positions of shape (m, {mdh.n}), got {q.shape}"
+        )
     names = pset.names
     extras = [p for p in parameter_set(mdh, "complete").parameters if p.name not in names]
     t0 = time.perf_counter()
@@ -551,10 +558,8 @@ def analyze(
         The analysis, with load/convert/jacobian/qr timings.
     """
     measurement = Measurement.of(measure, marker)
-    if isinstance(configs, bool) or int(configs) != configs or int(configs) < 1:
-        raise InvalidArgumentError(
-            f"the number of configurations must be an integer >= 1, got {configs}"
-        )
+    check_count(configs, "the number of configurations")
+    check_count(seed, "the seed", minimum=0)
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     t0 = time.perf_counter()
@@ -565,9 +570,8 @@ def analyze(
     t2 = time.perf_counter()
     q = chain.random_configurations(int(configs), seed)
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
-    result = dataclasses.replace(result, snapped=snapped_values(exact, mdh))
-    result.timings_ms.update({"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1)})
-    return result
+    timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
+    return dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
 
 
-__all__ = ["CalibError", "Identifiability", "RankWarning", "analyze", "analyze_model"]
+__all__ = ["Identifiability", "RankWarning", "analyze", "analyze_model"]

@@ -10,10 +10,11 @@ from .exceptions import InvalidArgumentError
 from .mdh import Kinematics, MDHModel
 from .parameters import ParameterSet
 
+MAX_MARKER = 1e3
+"""Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
+
 ROW_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 """The six rows of a pose error: position [m] then orientation [rad], in the base frame."""
-
-MEASURES = ("pose", "position")
 
 
 @dataclass(frozen=True)
@@ -52,9 +53,15 @@ class Measurement:
         if marker is None:
             marker = (0.0, 0.0, 0.0)
         mk = np.asarray(marker, dtype=float).ravel() if _numeric(marker) else None
-        if mk is None or mk.shape != (3,) or not np.all(np.isfinite(mk)):
+        if (
+            mk is None
+            or mk.shape != (3,)
+            or not np.all(np.isfinite(mk))
+            or np.max(np.abs(mk)) > MAX_MARKER
+        ):
             raise InvalidArgumentError(
-                f"a marker is 3 finite numbers (x y z in metres), got {marker!r}"
+                f"a marker is 3 finite numbers (x y z in metres, each within {MAX_MARKER:g} m), "
+                f"got {marker!r}"
             )
         return Measurement(rows, (float(mk[0]), float(mk[1]), float(mk[2])), measure)
 

@@ -112,6 +112,10 @@ class MDHModel:
     _pre: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        for name in ("sigma", "beta", "alpha", "d", "theta", "r", "y", "parallel", "coincident"):
+            a = np.array(getattr(self, name))  # a private, read-only copy: a value object
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
         pre = np.array([_rot_y(b) @ _rot_x(a) for b, a in zip(self.beta, self.alpha, strict=True)])
         object.__setattr__(self, "_pre", pre)
 
@@ -119,11 +123,6 @@ class MDHModel:
     def n(self) -> int:
         """Number of joints."""
         return len(self.sigma) - 2
-
-    @property
-    def joint_rows(self) -> np.ndarray:
-        """Row index of each joint (1..n)."""
-        return np.arange(1, self.n + 1)
 
     def replace(self, **changes: np.ndarray) -> MDHModel:
         """A copy with some arrays replaced (the model itself is never mutated)."""

@@ -80,8 +80,13 @@ def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Fig
     return fig
 
 
-def save_figure(fig: Figure, path: str | Path) -> None:
-    """Save as PNG atomically (no partial file is ever left at ``path``)."""
+def figure_png(fig: Figure) -> bytes:
+    """The figure as PNG bytes (120 dpi)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=120)
-    write_atomic(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def save_figure(fig: Figure, path: str | Path) -> None:
+    """Save as PNG atomically (no partial file is ever left at ``path``)."""
+    write_atomic(path, figure_png(fig))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -70,12 +70,10 @@ class URDFInfo:
     Attributes:
         root_link: Name of the root link.
         mimic_joints: Names of joints carrying a ``<mimic>`` tag.
-        joint_types: URDF type of every joint, by name.
     """
 
     root_link: str
     mimic_joints: frozenset[str]
-    joint_types: dict[str, str] = field(hash=False)
 
 
 def read_urdf_info(path: Path) -> URDFInfo:
@@ -116,11 +114,10 @@ def read_urdf_info(path: Path) -> URDFInfo:
                 raise URDFError(
                     str(path), f"joint '{j.get('name')}' has an invalid axis '{axis.get('xyz')}'"
                 )
-    joint_types = {j.get("name", ""): j.get("type", "") for j in root.findall("joint")}
     mimic = frozenset(
         j.get("name", "") for j in root.findall("joint") if j.find("mimic") is not None
     )
-    return URDFInfo(roots[0] if roots else links[0], mimic, joint_types)
+    return URDFInfo(roots[0] if roots else links[0], mimic)
 
 
 def load_model(path: str | Path) -> tuple[pin.Model, URDFInfo]:
@@ -195,6 +192,18 @@ def resolve_frame(model: pin.Model, name: str) -> int:
         if kind not in found:
             found.append(kind)
     raise AmbiguousFrameError(bare, found)
+
+
+def check_count(value, what: str, minimum: int = 1) -> int:
+    """Validate an integer argument (a count or a seed).
+
+    Raises:
+        InvalidArgumentError: Not an integer, a bool, or below ``minimum``.
+    """
+    ok = isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= minimum
+    if not ok:
+        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 def _default_tool(model: pin.Model) -> int:
@@ -299,9 +308,9 @@ class Chain:
         Returns:
             Joint positions, shape ``(m, n)`` [rad or m].
         """
-        if int(m) < 1:
-            raise InvalidArgumentError(f"the number of configurations must be >= 1, got {m}")
-        rng = np.random.default_rng(seed)
+        check_count(m, "the number of configurations")
+        check_count(seed, "the seed", minimum=0)
+        rng = np.random.default_rng(int(seed))
         return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
 
     def tool_placements(self, q: np.ndarray) -> np.ndarray:
@@ -344,9 +353,17 @@ class Chain:
         return np.array(points).reshape(-1, 3), np.array(dirs).reshape(-1, 3), tool
 
 
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
 def _chain_from_model(
     name: str, path: Path, model: pin.Model, info: URDFInfo, base: str | None, tool: str | None
 ) -> Chain:
+    for option, frame in (("base", base), ("tool", tool)):
+        if frame is not None and not frame.strip():
+            raise InvalidArgumentError(f"the {option} frame name is empty")
     base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
     tool_id = resolve_frame(model, tool) if tool else _default_tool(model)
     base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
@@ -394,11 +411,11 @@ def _chain_from_model(
         tool_id=tool_id,
         joint_ids=joint_ids,
         joint_names=tuple(model.names[j] for j in joint_ids),
-        sigma=np.array(sigma, dtype=int),
-        continuous=np.array(cont, dtype=bool),
-        lower=np.array(lower),
-        upper=np.array(upper),
-        q_ref=pin.neutral(model),
+        sigma=_frozen(np.array(sigma, dtype=int)),
+        continuous=_frozen(np.array(cont, dtype=bool)),
+        lower=_frozen(np.array(lower)),
+        upper=_frozen(np.array(upper)),
+        q_ref=_frozen(pin.neutral(model)),
     )
 
 
@@ -425,5 +442,10 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
     entry = catalog_entry(text)
     model, info = load_model(entry.path)
     return _chain_from_model(
-        entry.name, entry.path, model, info, base or entry.base, tool or entry.tool
+        entry.name,
+        entry.path,
+        model,
+        info,
+        entry.base if base is None else base,
+        entry.tool if tool is None else tool,
     )

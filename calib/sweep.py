@@ -14,7 +14,7 @@ from .catalog import catalog
 from .exceptions import CalibError, InvalidArgumentError
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .jacobian import Measurement
-from .robot import load_chain
+from .robot import check_count, load_chain
 
 
 @dataclass(frozen=True)
@@ -128,6 +128,8 @@ def sweep(
         One row per chain, in order.
     """
     measurement = Measurement.of(measure, marker)
+    check_count(configs, "the number of configurations")
+    check_count(seed, "the seed", minimum=0)
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     entries = {e.name: e for e in catalog()}

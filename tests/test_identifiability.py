@@ -441,3 +441,30 @@ def test_to_dict_is_consistent():
         d["standard_parameters"]
     )
     assert d["joints"] == {"revolute": 6, "prismatic": 0}
+
+
+def test_values_are_read_only_and_configs_are_required():
+    chain, mdh = chain_of("ur5"), mdh_of("ur5")
+    with pytest.raises(ValueError):
+        mdh.theta[1] = 1.0
+    with pytest.raises(ValueError):
+        chain.sigma[0] = 1
+    with pytest.raises(calib.InvalidArgumentError):
+        analyze_model(mdh)
+    with pytest.raises(calib.InvalidArgumentError):
+        analyze_model(mdh, "paper", Measurement.of("pose"), np.full((3, 6), np.nan))
+    for seed in (None, -1, 1.5, True):
+        with pytest.raises(calib.InvalidArgumentError):
+            chain.random_configurations(10, seed)
+
+
+def test_regrouping_coefficients_are_the_rows_of_b():
+    res = quiet_analyze("aid", measure="position", params="paper")
+    coef = res.regrouping_coefficients()
+    assert set(coef) == set(res.base)
+    for i, name in enumerate(res.base):
+        for j, other in enumerate(res.others):
+            assert coef[name].get(other, 0.0) == pytest.approx(
+                res.B[i, j] if abs(res.B[i, j]) > 1e-8 else 0.0
+            )
+    assert coef["theta5"]["d6"] == pytest.approx(-1 / 0.21)  # Table 1: r7 = 0.21 m

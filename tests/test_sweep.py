@@ -128,3 +128,28 @@ def test_figures_have_the_expected_content(pose_rows):
     assert len(kept) == 23 and len(dropped) == 7
     assert min(kept) > res.tolerance > max(dropped)
     assert errors_figure([1e-3, 2e-3], [1e-6, 2e-6]).axes[0].get_xlabel() == "position error [mm]"
+
+
+def test_cli_sweep_with_one_bad_output_writes_nothing(tmp_path, capsys):
+    out_csv = tmp_path / "s.csv"
+    code = main(["sweep", "--configs", "20", "--csv", str(out_csv), "--plot", "/no/such/dir/p.png"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "/no/such/dir" in err
+    assert not out_csv.exists() and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "fact"),
+    [
+        (["sweep", "--configs", "0"], "configurations"),
+        (["sweep", "--seed", "-1"], "seed"),
+        (["analyze", "ur5", "--seed", "-1"], "seed"),
+        (["analyze", "ur5", "--configs", "abc"], "--configs"),
+        (["analyze", "ur5", "--marker", "1e308", "0", "0"], "marker"),
+        (["show", "ur5", "--tool", ""], "empty"),
+    ],
+)
+def test_cli_rejects_bad_numbers_in_one_line(capsys, argv, fact):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err.count("\n") == 1 and fact in err, err
