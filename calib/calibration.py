@@ -31,6 +31,21 @@ orientation rows are mapped through the inverse right Jacobian of SO(3), exact a
 residual), starting from the nominal model. At the solution, with J the weighted Jacobian (r
 rows, b columns): sigma_hat^2 = RSS / (r - b), cov = sigma_hat^2 (J^T J)^-1, and the
 condition number is that of J with its columns scaled to unit norm.
+
+Checks of the data: the rank at the measured configurations is compared with the rank at
+generic (random) configurations of the chain; a lower one means the configurations do not
+excite every base parameter, and the result carries a warning.
+
+A point measured on the last joint axis of the nominal model (position only, e.g. the tool
+origin of a UR5): there the point's offset from that axis and the axis direction cannot be
+identified (4R + 2P + 1 base parameters instead of 4R + 2P + 3), yet a real robot's point
+is off the axis, and the nominal base set cannot follow it (residuals of micrometres to
+millimetres, noise-free). After the first fit the base set is re-selected at the calibrated
+geometry; if it is larger, the fit is repeated from the nominal model with that base set
+and its minimum-norm lift, and kept if it converged and lowers the residual significantly
+(F test of the nested fits, p < ``REFIT_P``): noise-free campaigns are then reproduced
+exactly. Either way the result carries a warning: the offset and the axis direction are
+poorly determined unless the point is well off the axis; measure a marker off it.
 """
 
 from __future__ import annotations
@@ -67,6 +82,9 @@ ILL_CONDITIONED = 1e6
 
 TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
+
+REFIT_P = 1e-3
+"""Significance of the F test under which the refit of a point on the last axis is kept."""
 
 
 @dataclass(frozen=True)
@@ -108,11 +126,11 @@ class ResidualStats:
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians)."""
         return {
-            "rms": dict(zip(self.axes, self.rms, strict=True)),
-            "position_rms": self.position_rms,
-            "position_max": self.position_max,
-            "orientation_rms": self.orientation_rms,
-            "orientation_max": self.orientation_max,
+            "rms": {a: _finite(v) for a, v in zip(self.axes, self.rms, strict=True)},
+            "position_rms": _finite(self.position_rms),
+            "position_max": _finite(self.position_max),
+            "orientation_rms": _finite(self.orientation_rms),
+            "orientation_max": _finite(self.orientation_max),
         }
 
 
@@ -221,7 +239,8 @@ class CalibrationResult:
         data: The measurements used.
         measurement: Measured rows and marker.
         analysis: Identifiability of the nominal model (URDF round-off removed) at the
-            measured configurations: base set, regrouping B, standard set ``params``.
+            measured configurations: base set, regrouping B, standard set ``params``. After
+            a refit (``refitted``), that of the first fit's model instead.
         lift: G, the map from base values to standard-parameter errors ``(k, b)``.
         nominal: The nominal MDH model (frame -1 = the URDF base frame).
         calibrated: The calibrated MDH model (frame -1 = the measurement frame).
@@ -235,8 +254,9 @@ class CalibrationResult:
         condition: Condition number of the weighted W_b with unit-norm columns.
         before: Residuals of the nominal model.
         after: Residuals of the calibrated model.
-        iterations: Levenberg-Marquardt iterations (Jacobian evaluations).
-        evaluations: Residual evaluations.
+        iterations: Levenberg-Marquardt iterations (Jacobian evaluations; of both fits after a
+            refit).
+        evaluations: Residual evaluations (of both fits after a refit).
         converged: The solver met a convergence criterion.
         status: Solver status (scipy's ``least_squares`` status).
         message: Solver message.
@@ -244,6 +264,8 @@ class CalibrationResult:
         measurement_to_base: Pose of the URDF base frame in the measurement frame ``(4, 4)``.
         warnings: Reasons to be careful with the result.
         timings_ms: Time of each stage [ms].
+        refitted: The base set was re-selected at the first fit's geometry and the fit
+            repeated (a position measured on the last joint axis of the nominal model).
     """
 
     robot: str
@@ -271,6 +293,7 @@ class CalibrationResult:
     measurement_to_base: np.ndarray
     warnings: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
+    refitted: bool = False
 
     @property
     def n_base(self) -> int:
@@ -305,11 +328,11 @@ class CalibrationResult:
         return measured_point(self.calibrated.kinematics(q), self.measurement.marker_array)
 
     def to_dict(self) -> dict:
-        """JSON-ready report (radians, metres); undefined numbers are None."""
+        """JSON-ready report (radians, metres); undefined or infinite numbers are None."""
         T = self.measurement_to_base
         regrouping = self.analysis.regrouping()
         params = self.analysis.params
-        return {
+        report = {
             "robot": self.robot,
             "urdf": str(self.chain.urdf_path),
             "data": self.data.source,
@@ -321,6 +344,7 @@ class CalibrationResult:
             "configs": self.data.m,
             "rows": self.n_rows,
             "n_base": self.n_base,
+            "refitted": self.refitted,
             "converged": self.converged,
             "status": self.status,
             "message": self.message,
@@ -331,15 +355,15 @@ class CalibrationResult:
             "sigma": _finite(self.sigma),
             "condition_number": _finite(self.condition),
             "base_parameters": [
-                {"name": n, "stands_for": regrouping[n], "value": float(v), "std": _finite(s)}
+                {"name": n, "stands_for": regrouping[n], "value": _finite(v), "std": _finite(s)}
                 for n, v, s in zip(self.base_names, self.estimate, self.std, strict=True)
             ],
             "standard_corrections": {
-                n: float(v) for n, v in zip(params.names, self.corrections, strict=True)
+                n: _finite(v) for n, v in zip(params.names, self.corrections, strict=True)
             },
             "measurement_to_base": {
-                "xyz": [float(v) for v in T[:3, 3]],
-                "rpy": [float(v) for v in pin.rpy.matrixToRpy(T[:3, :3])],
+                "xyz": [_finite(v) for v in T[:3, 3]],
+                "rpy": [_finite(v) for v in pin.rpy.matrixToRpy(T[:3, :3])],
                 "matrix": T.tolist(),
             },
             "mdh_nominal": self.nominal.rows(),
@@ -347,10 +371,24 @@ class CalibrationResult:
             "warnings": list(self.warnings),
             "timings_ms": dict(self.timings_ms),
         }
+        # Every float, the MDH rows and the matrix included: JSON has no inf or NaN.
+        return _finite_tree(report)
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
+def _finite(x: float | None) -> float | None:
+    """``float(x)``, or None for None, an infinity or NaN."""
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def _finite_tree(value):
+    """A copy of a JSON-ready tree with every non-finite float replaced by None."""
+    if isinstance(value, dict):
+        return {k: _finite_tree(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_tree(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return _finite(value)
+    return value
 
 
 def frames_at_zero(mdh: MDHModel) -> np.ndarray:
@@ -394,14 +432,127 @@ def _condition(J: np.ndarray) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else math.inf
 
 
-def _rows_needed(
+def _generic_rank(
     nominal: MDHModel, pset: ParameterSet, measurement: Measurement, chain: Chain
 ) -> int:
-    """Base parameters of the set at generic (random) configurations."""
+    """Base parameters of the set at generic (random) configurations of the chain."""
     q = chain.random_configurations(DEFAULT_CONFIGS, 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return analyze_model(nominal.idealized(), pset, measurement, q).n_base
+
+
+def _lift_at(
+    mdh: MDHModel,
+    analysis: Identifiability,
+    data: Measurements,
+    measurement: Measurement,
+    weight: float,
+) -> np.ndarray:
+    """Minimum-norm lift G of a base set, columns of the weighted W at ``mdh`` as the norm."""
+    W = identification_jacobian(mdh, analysis.params, data.q, measurement)
+    W *= np.tile(row_weights(measurement, weight), data.m)[:, None]
+    return minimum_norm_lift(analysis, np.linalg.norm(W, axis=0))
+
+
+def _solve(problem: _Problem, b: int, max_iterations: int):
+    """Levenberg-Marquardt from the nominal model (x = 0): scipy's OptimizeResult."""
+    import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
+
+    return scipy.optimize.least_squares(
+        problem.fun,
+        np.zeros(b),
+        jac=problem.jac,
+        method="lm",
+        ftol=TOLERANCE,
+        xtol=TOLERANCE,
+        gtol=TOLERANCE,
+        max_nfev=max_iterations,
+    )
+
+
+def _significant(rss_small: float, rss_large: float, extra: int, dof: int) -> bool:
+    """Whether ``extra`` more parameters lower the RSS significantly (F test, p < REFIT_P).
+
+    With F = ((RSS_small - RSS_large) / extra) / (RSS_large / dof), the p-value
+    P(F(extra, dof) > F) is the regularised incomplete beta I_x(dof/2, extra/2) at
+    x = RSS_large / RSS_small.
+    """
+    import scipy.special
+
+    if not (rss_small > 0 and 0 <= rss_large < rss_small and extra > 0 and dof > 0):
+        return False
+    p = float(scipy.special.betainc(dof / 2, extra / 2, rss_large / rss_small))
+    return p < REFIT_P
+
+
+def _counts(sol) -> tuple[int, int]:
+    """Iterations (Jacobian evaluations) and residual evaluations of a solver result."""
+    njev = sol.njev if sol.njev is not None else sol.nfev
+    return int(njev), int(sol.nfev)
+
+
+def _refit(
+    problem: _Problem,
+    sol,
+    analysis: Identifiability,
+    weight: float,
+    max_iterations: int,
+    robot: str,
+) -> tuple[bool, tuple] | None:
+    """Refit a point measured on the last axis with the base set of the first fit's geometry.
+
+    The base set and its minimum-norm lift are taken at the model of the first fit (whose
+    point is off the axis when the data say so); the fit restarts from the nominal model.
+
+    Args:
+        problem: The first fit's problem (nominal base set).
+        sol: The first fit's solver result (converged or not: it only gives a geometry).
+        analysis: The first fit's base set.
+        weight: Weight of the orientation rows [m/rad].
+        max_iterations: Most residual evaluations of the refit.
+        robot: Robot name, for the analysis.
+
+    Returns:
+        None if there is nothing to refit (non-finite first fit, no larger base set, or no
+        residual left to test it); else whether the refit is kept (converged, finite, and
+        a significantly lower residual: :func:`_significant`) and its analysis, lift,
+        problem and solver result.
+    """
+    data, measurement = problem.data, problem.measurement
+    f = problem.fun(sol.x)
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(sol.x))):
+        return None
+    first = problem.state(sol.x)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        at_first = analyze_model(first, problem.params, measurement, data.q, robot=robot)
+    b, b2, r = analysis.n_base, at_first.n_base, f.size
+    if not b < b2 < r:
+        return None
+    lift = _lift_at(first, at_first, data, measurement, weight)
+    refit = _Problem(problem.nominal, problem.params, lift, data, measurement, weight)
+    sol2 = _solve(refit, b2, max_iterations)
+    f2 = refit.fun(sol2.x)
+    kept = bool(
+        sol2.status > 0
+        and np.all(np.isfinite(f2))
+        and np.all(np.isfinite(sol2.x))
+        and _significant(float(f @ f), float(f2 @ f2), b2 - b, r - b2)
+    )
+    return kept, (at_first, lift, refit, sol2)
+
+
+def _max_iterations(value) -> int:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer, float, np.floating))
+        or not math.isfinite(value)
+        or int(value) != value
+        or int(value) < 1
+    ):
+        raise InvalidArgumentError(f"max_iterations must be an integer >= 1, got {value!r}")
+    return int(value)
 
 
 def calibrate(
@@ -421,18 +572,19 @@ def calibrate(
         params: Standard parameter set: ``complete`` (default) or ``paper``.
         orientation_weight: Weight of the orientation rows [m/rad] (pose data only).
         max_iterations: Most residual evaluations of the solver (each Levenberg-Marquardt
-            iteration takes one or more).
+            iteration takes one or more), per fit.
 
     Returns:
-        The result; check ``converged`` (or call :meth:`CalibrationResult.check`).
+        The result; check ``converged`` (or call :meth:`CalibrationResult.check`) and
+        ``warnings``: configurations that identify fewer base parameters than generic ones
+        would, a point measured on the last joint axis (see the module docstring: the fit
+        is then repeated with the base set of the calibrated geometry), ill-conditioning.
 
     Raises:
         DataError: The data do not belong to the chain (joints, limits), or there are fewer
             equations than base parameters.
         InvalidArgumentError: A bad argument.
     """
-    import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
-
     t0 = time.perf_counter()
     check_against_chain(data, chain)
     weight = float(orientation_weight)
@@ -441,60 +593,68 @@ def calibrate(
             f"the orientation weight must be a finite number > 0 [m/rad], "
             f"got {orientation_weight!r}"
         )
-    if (
-        isinstance(max_iterations, bool)
-        or int(max_iterations) != max_iterations
-        or (int(max_iterations) < 1)
-    ):
-        raise InvalidArgumentError(
-            f"max_iterations must be an integer >= 1, got {max_iterations!r}"
-        )
+    max_iterations = _max_iterations(max_iterations)
     measurement = Measurement.of(data.measure, marker)
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
     k = len(measurement.rows)
     r = data.m * k
     notes: list[str] = []
-    needed = None
-    if r < len(pset):  # the number of rows may limit the rank: compare with generic data
-        needed = _rows_needed(nominal, pset, measurement, chain)
-        if r < needed:
-            raise DataError(
-                data.source,
-                f"{data.m} measurement rows give {r} equations, fewer than the {needed} base "
-                f"parameters of {chain.name} ({data.measure}, {pset.label} set): at least "
-                f"{math.ceil(needed / k)} rows are needed, many more for a useful fit",
-            )
+    # The rank generic configurations give (cheap): the measured ones should reach it.
+    needed = _generic_rank(nominal, pset, measurement, chain)
+    if r < needed:
+        raise DataError(
+            data.source,
+            f"{data.m} measurement rows give {r} equations, fewer than the {needed} base "
+            f"parameters of {chain.name} ({data.measure}, {pset.label} set): at least "
+            f"{math.ceil(needed / k)} rows are needed, many more for a useful fit",
+        )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         analysis = analyze_model(nominal.idealized(), pset, measurement, data.q, robot=chain.name)
     for w in caught:
         notes.append(str(w.message))
-    if needed is not None and analysis.n_base < needed:
+    if analysis.n_base < needed:
         notes.append(
-            f"the measured configurations identify only {analysis.n_base} of the {needed} base "
-            f"parameters; measure more, and more varied, configurations"
+            f"the measured configurations identify only {analysis.n_base} of the {needed} "
+            f"base parameters of {chain.name} ({data.measure}, {pset.label} set) that varied "
+            f"configurations identify: measure more varied configurations"
         )
     b = analysis.n_base
-    W0 = identification_jacobian(nominal, pset, data.q, measurement)
-    W0 *= np.tile(row_weights(measurement, weight), data.m)[:, None]
-    scale = np.linalg.norm(W0, axis=0)
-    lift = minimum_norm_lift(analysis, scale)
+    lift = _lift_at(nominal, analysis, data, measurement, weight)
     problem = _Problem(nominal, pset, lift, data, measurement, weight)
     t1 = time.perf_counter()
-    x0 = np.zeros(b)
-    before = ResidualStats.of(problem.state(x0)[2])
-    sol = scipy.optimize.least_squares(
-        problem.fun,
-        x0,
-        jac=problem.jac,
-        method="lm",
-        ftol=TOLERANCE,
-        xtol=TOLERANCE,
-        gtol=TOLERANCE,
-        max_nfev=int(max_iterations),
-    )
+    before = ResidualStats.of(problem.state(np.zeros(b))[2])
+    sol = _solve(problem, b, max_iterations)
     t2 = time.perf_counter()
+    iterations, evaluations = _counts(sol)
+    on_axis = measurement.rows == (0, 1, 2) and analysis.on_last_axis
+    refitted = False
+    if on_axis:
+        tried = _refit(problem, sol, analysis, weight, max_iterations, chain.name)
+        if tried is not None:
+            refitted, (analysis2, lift2, problem2, sol2) = tried
+            more_iterations, more_evaluations = _counts(sol2)
+            iterations += more_iterations
+            evaluations += more_evaluations
+            if refitted:
+                analysis, lift, problem, sol = analysis2, lift2, problem2, sol2
+                b = analysis.n_base
+    t3 = time.perf_counter()
+    if on_axis:
+        notes.append(
+            "the measured point lies on the last joint axis of the nominal model: its offset "
+            "from that axis and the axis direction cannot be identified there, and a real "
+            "robot's point is off the axis, so "
+            + (
+                f"the fit was repeated with the {b} base parameters of the calibrated geometry; "
+                f"that offset and direction are poorly determined unless the point is well off "
+                f"the axis"
+                if refitted
+                else "the fit cannot follow it exactly"
+            )
+            + "; measure a marker off the axis (--marker)"
+        )
     x = sol.x
     calibrated, _, res = problem.state(x)
     J = problem.jac(x)
@@ -513,8 +673,7 @@ def calibrate(
             f"the scaled W_b is ill-conditioned at the solution (condition number "
             f"{condition:.3g}): some base values are poorly determined by these data"
         )
-    t3 = time.perf_counter()
-    njev = sol.njev if sol.njev is not None else sol.nfev
+    t4 = time.perf_counter()
     return CalibrationResult(
         robot=chain.name,
         chain=chain,
@@ -532,8 +691,8 @@ def calibrate(
         condition=condition,
         before=before,
         after=ResidualStats.of(res),
-        iterations=int(njev),
-        evaluations=int(sol.nfev),
+        iterations=iterations,
+        evaluations=evaluations,
         converged=converged,
         status=int(sol.status),
         message=str(sol.message) if finite else "non-finite parameters or residuals",
@@ -543,8 +702,10 @@ def calibrate(
         timings_ms={
             "setup": 1e3 * (t1 - t0),
             "fit": 1e3 * (t2 - t1),
-            "statistics": 1e3 * (t3 - t2),
+            "refit": 1e3 * (t3 - t2),
+            "statistics": 1e3 * (t4 - t3),
         },
+        refitted=refitted,
     )
 
 

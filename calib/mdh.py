@@ -225,7 +225,10 @@ class MDHModel:
         return T
 
     def rows(self) -> list[dict]:
-        """The rows as JSON-ready dictionaries (radians, metres), from base to tool."""
+        """The rows as JSON-ready dictionaries (radians, metres), from base to tool.
+
+        ``y`` is zero in a converted model; a calibrated one may carry y1 or y_{n+1}.
+        """
         out = []
         for k in range(self.n + 2):
             s = int(self.sigma[k])
@@ -239,6 +242,7 @@ class MDHModel:
                     "d": float(self.d[k]),
                     "theta": float(self.theta[k]),
                     "r": float(self.r[k]),
+                    "y": float(self.y[k]),
                 }
             )
         return out

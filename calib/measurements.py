@@ -4,7 +4,8 @@ CSV format (one header line, then one row per configuration; comma separated):
 
 * one column per joint of the chain, named as the URDF joint, holding the URDF joint
   position [rad for revolute and continuous joints, m for prismatic ones];
-* ``x, y, z``: the measured point in the measurement frame [m];
+* ``x, y, z``: the measured point in the measurement frame [m], each within
+  ``MAX_COORDINATE`` (1 km) of its origin;
 * for pose measurements also ``qx, qy, qz, qw``: the orientation of the tool frame in the
   measurement frame as a quaternion, scalar last (normalised on reading).
 
@@ -44,6 +45,13 @@ from .so3 import matrix_to_quaternion, quaternion_to_matrix, rotation_matrix
 POSITION_COLUMNS = ("x", "y", "z")
 """Columns of the measured point [m]."""
 
+MAX_COORDINATE = 1e3
+"""Largest magnitude [m] of a measured coordinate: a point near a robot, not a kilometre away.
+
+Larger values (a unit mix-up, a corrupt file) are rejected: squared in the residuals they
+would overflow to infinity.
+"""
+
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
 """Columns of the measured orientation, a quaternion with the scalar last."""
 
@@ -67,7 +75,8 @@ class Measurements:
     Attributes:
         joint_names: URDF joint of each column of ``q``, base to tool.
         q: Joint positions ``(m, n)`` [rad or m].
-        position: Measured point in the measurement frame ``(m, 3)`` [m].
+        position: Measured point in the measurement frame ``(m, 3)`` [m], every coordinate
+            within ``MAX_COORDINATE``.
         quaternion: Measured tool orientation ``(m, 4)`` (qx, qy, qz, qw; unit norm), or
             None for position-only data.
         source: Where the data came from (a file path), for messages.
@@ -92,16 +101,29 @@ class Measurements:
             raise InvalidArgumentError(f"positions must have shape ({m}, 3), got {pos.shape}")
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(pos))):
             raise InvalidArgumentError("measurements contain NaN or infinity")
+        if np.any(np.abs(pos) > MAX_COORDINATE):
+            i, j = (int(v) for v in np.argwhere(np.abs(pos) > MAX_COORDINATE)[0])
+            raise InvalidArgumentError(
+                f"measured {POSITION_COLUMNS[j]} = {pos[i, j]:.9g} (configuration {i + 1}) is "
+                f"not a plausible measurement in metres: coordinates are within "
+                f"{MAX_COORDINATE:g} m"
+            )
         if self.quaternion is not None:
             quat = np.asarray(self.quaternion, dtype=float)
             if quat.shape != (m, 4):
                 raise InvalidArgumentError(
                     f"quaternions must have shape ({m}, 4), got {quat.shape}"
                 )
-            norm = np.linalg.norm(quat, axis=1)
-            if np.any(~np.isfinite(norm)) or np.any(norm < 1e-12):
+            if not np.all(np.isfinite(quat)):
                 raise InvalidArgumentError("quaternions must be finite and non-zero")
-            object.__setattr__(self, "quaternion", _frozen(quat / norm[:, None]))
+            # The norm of the quaternion scaled by its largest component first: (1e300, 0,
+            # 0, 1e300) is a rotation too, and its plain norm overflows.
+            big = np.max(np.abs(quat), axis=1)
+            unit = quat / np.where(big > 0, big, 1.0)[:, None]
+            if np.any(big * np.linalg.norm(unit, axis=1) < 1e-12):
+                raise InvalidArgumentError("quaternions must be finite and non-zero")
+            unit /= np.linalg.norm(unit, axis=1)[:, None]
+            object.__setattr__(self, "quaternion", _frozen(unit))
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
         object.__setattr__(self, "q", _frozen(q))
         object.__setattr__(self, "position", _frozen(pos))
@@ -248,8 +270,8 @@ def parse_measurements(text: str, chain: Chain, source: str = "<text>") -> Measu
 
     Raises:
         DataError: Missing, unknown or duplicate column, a row of the wrong length, an empty,
-            non-numeric or non-finite cell, a joint value outside its limits, a zero
-            quaternion, or no data row.
+            non-numeric or non-finite cell, a joint value outside its limits, a measured
+            coordinate beyond ``MAX_COORDINATE`` [m], a zero quaternion, or no data row.
     """
     reader = csv.reader(io.StringIO(text))
     names: list[str] | None = None
@@ -280,17 +302,28 @@ def parse_measurements(text: str, chain: Chain, source: str = "<text>") -> Measu
     col = {n: j for j, n in enumerate(names)}
     q = table[:, [col[n] for n in chain.joint_names]]
     _check_limits(chain, q, source, np.array(lines))
+    position = table[:, [col[n] for n in POSITION_COLUMNS]]
+    far = np.abs(position) > MAX_COORDINATE
+    if np.any(far):
+        i, j = (int(v) for v in np.argwhere(far)[0])
+        raise DataError(
+            source,
+            f"{position[i, j]:.9g} is not a plausible measurement in metres (coordinates are "
+            f"within {MAX_COORDINATE:g} m)",
+            row=lines[i],
+            column=POSITION_COLUMNS[j],
+        )
     quat = None
     if has_quat:
         quat = table[:, [col[n] for n in QUATERNION_COLUMNS]]
-        zero = np.linalg.norm(quat, axis=1) < 1e-12
+        big = np.max(np.abs(quat), axis=1)
+        zero = big * np.linalg.norm(quat / np.where(big > 0, big, 1.0)[:, None], axis=1) < 1e-12
         if np.any(zero):
             raise DataError(
                 source,
                 "the quaternion (qx, qy, qz, qw) has zero norm",
                 row=lines[int(np.argmax(zero))],
             )
-    position = table[:, [col[n] for n in POSITION_COLUMNS]]
     return Measurements(chain.joint_names, q, position, quat, source)
 
 
@@ -409,8 +442,22 @@ class Campaign:
     truth: SimulationTruth
 
 
+def _integer(what: str, value, minimum: int) -> int:
+    """``value`` as an int, if it is an integer (not a bool) >= ``minimum``.
+
+    Raises:
+        InvalidArgumentError: None, a bool, a float, a string or a smaller integer.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
 def _non_negative(name: str, value: float) -> float:
-    if isinstance(value, bool) or not math.isfinite(float(value)) or float(value) < 0:
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, bool
+    )
+    if not number or not math.isfinite(float(value)) or float(value) < 0:
         raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
     return float(value)
 
@@ -434,7 +481,7 @@ def simulate(
 
     Args:
         chain: The nominal chain.
-        configs: Number of configurations m.
+        configs: Number of configurations m (an integer >= 1).
         measure: ``pose`` or ``position``.
         marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
         error_mm: Standard deviation of every length error [mm].
@@ -442,7 +489,7 @@ def simulate(
         noise_mm: Standard deviation of the position noise per axis [mm].
         noise_mrad: Standard deviation of the orientation noise per axis [mrad] (default:
             the number given as ``noise_mm``, so that 1 mrad weighs like 1 mm).
-        seed: Seed (an integer >= 0).
+        seed: Seed (an integer >= 0; not None, a bool or a float).
         params: Parameter set perturbed: ``complete`` (default) or ``paper``.
 
     Returns:
@@ -453,12 +500,8 @@ def simulate(
     """
     if measure not in CAMPAIGN_MEASURES:
         raise InvalidArgumentError(f"unknown measure '{measure}': choose pose or position")
-    if isinstance(configs, bool) or int(configs) != configs or int(configs) < 1:
-        raise InvalidArgumentError(
-            f"the number of configurations must be an integer >= 1, got {configs!r}"
-        )
-    if isinstance(seed, bool) or int(seed) != seed or int(seed) < 0:
-        raise InvalidArgumentError(f"the seed must be an integer >= 0, got {seed!r}")
+    m = _integer("the number of configurations", configs, 1)
+    seed = _integer("the seed", seed, 0)
     error_mm = _non_negative("error_mm", error_mm)
     error_mrad = _non_negative("error_mrad", error_mrad)
     noise_mm = _non_negative("noise_mm", noise_mm)
@@ -466,7 +509,6 @@ def simulate(
     measurement = Measurement.of(measure, marker)
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
-    m, seed = int(configs), int(seed)
 
     q = chain.random_configurations(m, seed)
     rng_errors = np.random.default_rng([seed, 1])

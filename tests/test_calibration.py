@@ -5,7 +5,9 @@ cover the truth; the analytic Jacobian of the fit; bad input; the command line.
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +26,7 @@ from calib import (
     read_measurements,
     simulate,
 )
-from calib.calibration import _Problem, calibration_text
+from calib.calibration import ResidualStats, _Problem, calibration_text
 from calib.cli import main
 from calib.jacobian import measured_point
 from calib.measurements import measurements_csv
@@ -101,6 +103,87 @@ def test_nominal_model_is_a_fixed_point():
     res = calibrate(chain, campaign.measurements)
     assert np.abs(res.estimate).max() < 1e-12 and res.after.position_max < 1e-12
     assert np.allclose(res.measurement_to_base, np.eye(4), atol=1e-12)
+
+
+# --- a point on the last joint axis ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(("robot", "b_nominal"), [("ur5", 25), ("panda", 29)])
+@pytest.mark.parametrize("error", [1.0, 10.0])
+def test_point_on_the_last_axis_is_refitted(robot, b_nominal, error):
+    # The tool origin lies on the last axis of the nominal model, where its offset from the
+    # axis and the axis direction cannot be identified; the true robot's point is off the
+    # axis. The base set of the first fit's geometry has 2 more parameters and reproduces it.
+    chain = chain_of(robot)
+    campaign = simulate(
+        chain, configs=100, measure="position", seed=0, error_mm=error, error_mrad=error
+    )
+    res = calibrate(chain, campaign.measurements)
+    assert res.converged and res.refitted and res.n_base == b_nominal + 2
+    assert res.after.position_max < 1e-9
+    assert held_out_error(chain, res, campaign.truth)[0] < 1e-9
+    assert any("lies on the last joint axis of the nominal model" in w for w in res.warnings)
+    assert any("--marker" in w for w in res.warnings)
+    report = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert report["refitted"] is True and report["n_base"] == b_nominal + 2
+    assert "last joint axis" in calibration_text(res)
+    # The corrections are the lift of the base values, as without a refit.
+    assert np.allclose(res.corrections, res.lift @ res.estimate, rtol=0, atol=1e-15)
+
+
+def test_point_really_on_the_last_axis_keeps_the_first_fit():
+    # No error: the true point is on the axis too, and noise alone does not justify the two
+    # extra parameters (F test): the first fit stays, with the warning.
+    chain = chain_of("ur5")
+    campaign = simulate(
+        chain, configs=100, measure="position", seed=0, error_mm=0, error_mrad=0, noise_mm=0.01
+    )
+    res = calibrate(chain, campaign.measurements)
+    assert res.converged and not res.refitted and res.n_base == 25
+    assert any("cannot follow it exactly" in w for w in res.warnings)
+    assert 0.7 < res.sigma / 1e-5 < 1.3
+
+
+def test_marker_off_the_axis_and_pose_do_not_refit():
+    chain = chain_of("ur5")
+    for measure, marker in (("pose", None), ("position", MARKER)):
+        campaign = simulate(chain, configs=40, measure=measure, marker=marker, seed=1)
+        res = calibrate(chain, campaign.measurements, marker=marker)
+        assert not res.refitted and res.warnings == () and res.timings_ms["refit"] < 1
+
+
+# --- poorly varied configurations -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("measure", "marker", "expected"),
+    [("position", MARKER, "only 3 of the 27"), ("pose", None, "only 6 of the 30")],
+    ids=["position", "pose"],
+)
+def test_identical_configurations_are_flagged(measure, marker, expected):
+    chain = chain_of("ur5")
+    data = simulate(chain, configs=100, measure=measure, marker=marker, seed=1).measurements
+    quat = None if data.quaternion is None else np.repeat(data.quaternion[:1], 100, axis=0)
+    same = Measurements(
+        data.joint_names,
+        np.repeat(data.q[:1], 100, axis=0),
+        np.repeat(data.position[:1], 100, axis=0),
+        quat,
+    )
+    res = calibrate(chain, same, marker=marker)
+    assert res.n_base == int(expected.split()[1])
+    notes = [w for w in res.warnings if "measure more varied configurations" in w]
+    assert len(notes) == 1 and expected in notes[0]
+    # Varied configurations of the same campaign carry no such warning.
+    assert calibrate(chain, data, marker=marker).warnings == ()
+
+
+def test_few_configurations_that_reach_the_generic_rank_are_not_flagged():
+    chain = chain_of("ur5")
+    data = simulate(chain, configs=10, measure="pose", seed=2).measurements
+    res = calibrate(chain, data)
+    assert res.n_base == 30
+    assert not any("varied configurations" in w for w in res.warnings)
 
 
 # --- noisy campaigns --------------------------------------------------------------------------
@@ -229,6 +312,47 @@ def test_report_and_summary():
     assert "converged in" in text and "theta6" in text and "measurement frame" in text
 
 
+def test_report_writes_null_for_every_non_finite_number():
+    chain = chain_of("ur5")
+    campaign = simulate(chain, configs=30, measure="pose", seed=1)
+    res = calibrate(chain, campaign.measurements)
+    nan, inf = math.nan, math.inf
+    residual = np.zeros((30, 6))
+    residual[0, 0], residual[1, 4] = inf, nan
+    broken = dataclasses.replace(
+        res,
+        sigma=nan,
+        condition=inf,
+        estimate=np.full(res.n_base, nan),
+        corrections=np.full(len(res.corrections), inf),
+        std=np.full(res.n_base, inf),
+        before=ResidualStats.of(residual),
+        after=ResidualStats.of(residual),
+        calibrated=res.nominal.replace(d=np.full(res.nominal.n + 2, nan)),
+        measurement_to_base=np.full((4, 4), nan),
+    )
+    report = broken.to_dict()
+    json.dumps(report, allow_nan=False)  # raises ValueError on inf or NaN
+
+    def floats(tree):
+        if isinstance(tree, dict):
+            return [v for x in tree.values() for v in floats(x)]
+        if isinstance(tree, list):
+            return [v for x in tree for v in floats(x)]
+        return [tree] if isinstance(tree, float) else []
+
+    assert all(math.isfinite(v) for v in floats(report))
+    assert report["sigma"] is None and report["condition_number"] is None
+    assert report["residuals"]["after"]["rms"]["x"] is None
+    assert report["residuals"]["after"]["position_max"] is None
+    assert report["residuals"]["after"]["rms"]["y"] == 0.0
+    assert all(p["value"] is None and p["std"] is None for p in report["base_parameters"])
+    assert set(report["standard_corrections"].values()) == {None}
+    assert report["measurement_to_base"]["matrix"][0] == [None] * 4
+    assert report["mdh_calibrated"][1]["d"] is None
+    assert report["mdh_calibrated"][1]["alpha"] == res.nominal.alpha[1]
+
+
 # --- bad input and non-convergence ------------------------------------------------------------
 
 
@@ -264,6 +388,8 @@ def test_data_must_belong_to_the_chain():
         {"orientation_weight": float("inf")},
         {"max_iterations": 0},
         {"max_iterations": 1.5},
+        {"max_iterations": None},
+        {"max_iterations": True},
         {"params": "all"},
         {"marker": (1, 2)},
     ],
@@ -357,6 +483,16 @@ def test_cli_simulate_then_calibrate(tmp_path, capsys):
     assert worst < 1e-4  # 0.02 mm noise
 
 
+def test_cli_position_of_the_tool_origin_warns(tmp_path, capsys):
+    meas, urdf = tmp_path / "m.csv", tmp_path / "c.urdf"
+    assert main(["simulate", "ur5", "--out", str(meas), "--measure", "position"]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "ur5", "--data", str(meas), "--out", str(urdf)]) == 0
+    out = capsys.readouterr().out
+    assert "warning: the measured point lies on the last joint axis" in out
+    assert "27 base parameters" in out and urdf.exists()
+
+
 def test_cli_json_and_pose_only_on_request(tmp_path, capsys):
     meas = tmp_path / "m.csv"
     main(["simulate", "panda", "--out", str(meas), "--configs", "30", "--seed", "1"])
@@ -388,6 +524,11 @@ def _cli_fails(capsys, argv) -> str:
     return err
 
 
+def _with_cell(line: str, j: int, value: str) -> str:
+    cells = line.split(",")
+    return ",".join([*cells[:j], value, *cells[j + 1 :]])
+
+
 @pytest.mark.parametrize(
     ("edit", "message"),
     [
@@ -401,8 +542,12 @@ def _cli_fails(capsys, argv) -> str:
             "row 4, column 'y'",
         ),
         (lambda lines: lines[:6], "fewer than the"),
+        (
+            lambda lines: [*lines[:5], _with_cell(lines[5], 6, "1e300"), *lines[6:]],
+            "row 6, column 'x'",
+        ),
     ],
-    ids=["unknown column", "text cell", "too few rows"],
+    ids=["unknown column", "text cell", "too few rows", "absurd coordinate"],
 )
 def test_cli_bad_csv_writes_nothing(tmp_path, capsys, edit, message):
     chain = chain_of("ur5")

@@ -170,6 +170,18 @@ BAD_CASES = {
         None,
         "expected 9 cells, found 8",
     ),
+    "absurd coordinate": (
+        lambda c: _text(c, [_good_row(c), [*_good_row(c)[:6], "1e300", *_good_row(c)[7:]]]),
+        3,
+        "x",
+        "not a plausible measurement in metres",
+    ),
+    "coordinate beyond a kilometre": (
+        lambda c: _text(c, [[*_good_row(c)[:8], "-1000.5"]]),
+        2,
+        "z",
+        "not a plausible measurement in metres",
+    ),
     "joint outside its limits": (
         lambda c: _text(c, [_good_row(c), _good_row(c), ["0.1", "0.2", "3.5", *_good_row(c)[3:]]]),
         4,
@@ -227,9 +239,26 @@ def test_measurements_value_checks():
         Measurements(names, np.zeros((1, 2)), [[0, np.nan, 0]])
     with pytest.raises(InvalidArgumentError):
         Measurements(names, np.zeros((1, 2)), np.zeros((1, 3)), np.zeros((1, 4)))
+    with pytest.raises(InvalidArgumentError, match="not a plausible measurement in metres"):
+        Measurements(names, np.zeros((1, 2)), [[0, 1e300, 0]])
     data = Measurements(names, np.zeros((1, 2)), np.zeros((1, 3)), [[0, 0, 0, 2.0]])
     assert data.quaternion.tolist() == [[0, 0, 0, 1.0]] and not data.q.flags.writeable
     assert data.position_only().measure == "position"
+    # Within the bound; a huge quaternion is a rotation too (its plain norm would overflow).
+    data = Measurements(names, np.zeros((1, 2)), [[1e3, -1e3, 0]], [[0, 0, 1e300, 1e300]])
+    assert np.allclose(data.quaternion, [[0, 0, math.sqrt(0.5), math.sqrt(0.5)]], atol=1e-15)
+
+
+def test_absurd_coordinate_in_a_file_names_row_and_column(tmp_path):
+    chain = chain_of("ur5")
+    lines = csv_lines(simulate(chain, configs=12, measure="position", marker=MARKER, seed=1))
+    cells = lines[3].split(",")
+    cells[7] = "1e300"  # y
+    path = tmp_path / "m.csv"
+    path.write_text("\n".join([*lines[:3], ",".join(cells), *lines[4:]]) + "\n")
+    with pytest.raises(DataError, match=r"row 4, column 'y'.*not a plausible measurement") as info:
+        read_measurements(path, chain)
+    assert info.value.row == 4 and info.value.column == "y"
 
 
 # --- simulation -------------------------------------------------------------------------------
@@ -327,6 +356,17 @@ def test_truth_base_values_are_the_regrouped_errors():
         {"configs": 0},
         {"configs": 2.5},
         {"seed": -1},
+        {"seed": None},
+        {"seed": True},
+        {"seed": 1.5},
+        {"seed": 2.0},
+        {"seed": "3"},
+        {"configs": None},
+        {"configs": "5"},
+        {"configs": np.float64(5)},
+        {"error_mm": None},
+        {"noise_mm": "0.1"},
+        {"noise_mrad": True},
         {"error_mm": -1},
         {"noise_mm": float("nan")},
         {"marker": (1, 2)},
@@ -336,6 +376,13 @@ def test_truth_base_values_are_the_regrouped_errors():
 def test_simulate_rejects_bad_arguments(kwargs):
     with pytest.raises(InvalidArgumentError):
         simulate(chain_of("ur5"), **{"configs": 5, **kwargs})
+
+
+def test_simulate_accepts_numpy_integers():
+    chain = chain_of("ur5")
+    campaign = simulate(chain, configs=np.int64(6), seed=np.uint8(3))
+    assert campaign.measurements.m == 6 and campaign.truth.seed == 3
+    assert type(campaign.truth.seed) is int
 
 
 # --- rotations --------------------------------------------------------------------------------
