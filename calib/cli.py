@@ -266,12 +266,7 @@ def _add_chain_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
 
 
-def _add_measure_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--measure",
-        default="pose",
-        help="pose, position, or comma-separated rows among x,y,z,rx,ry,rz (default: pose)",
-    )
+def _add_marker_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--marker",
         nargs=3,
@@ -279,6 +274,15 @@ def _add_measure_args(p: argparse.ArgumentParser) -> None:
         metavar=("X", "Y", "Z"),
         help="measured point in the tool frame [m] (default: the tool origin)",
     )
+
+
+def _add_measure_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--measure",
+        default="pose",
+        help="pose, position, or comma-separated rows among x,y,z,rx,ry,rz (default: pose)",
+    )
+    _add_marker_arg(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -331,13 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="pose",
         help="pose (point + orientation) or position (default: pose)",
     )
-    p.add_argument(
-        "--marker",
-        nargs=3,
-        type=float,
-        metavar=("X", "Y", "Z"),
-        help="measured point in the tool frame [m] (default: the tool origin)",
-    )
+    _add_marker_arg(p)
     p.add_argument(
         "--params",
         choices=PARAMETER_SETS,
@@ -375,13 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", required=True, help="measurement CSV (joints, x, y, z[, qx..qw])")
     p.add_argument("--out", required=True, help="calibrated URDF to write")
     p.add_argument("--report", help="JSON report to write")
-    p.add_argument(
-        "--marker",
-        nargs=3,
-        type=float,
-        metavar=("X", "Y", "Z"),
-        help="measured point in the tool frame [m] (default: the tool origin)",
-    )
+    _add_marker_arg(p)
     p.add_argument(
         "--measure",
         choices=("auto", *CAMPAIGN_MEASURES),
