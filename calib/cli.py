@@ -276,6 +276,16 @@ def _add_marker_arg(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_sampling_args(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations {what} (default: {DEFAULT_CONFIGS})",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
+
+
 def _add_measure_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--measure",
@@ -309,13 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
     )
-    p.add_argument(
-        "--configs",
-        type=int,
-        default=DEFAULT_CONFIGS,
-        help=f"random configurations m (default: {DEFAULT_CONFIGS})",
-    )
-    p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
+    _add_sampling_args(p, "m")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_analyze)
 
@@ -410,13 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=PARAMETER_SETS,
         help="set the verdict is about (default: paper)",
     )
-    p.add_argument(
-        "--configs",
-        type=int,
-        default=DEFAULT_CONFIGS,
-        help=f"random configurations per chain (default: {DEFAULT_CONFIGS})",
-    )
-    p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
+    _add_sampling_args(p, "per chain")
     p.add_argument("--csv", help="also write the table as CSV to this file")
     p.add_argument("--plot", help="also save the counts plot as PNG to this file")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -36,3 +36,18 @@ def own_random_q(sigma, m: int, seed: int) -> np.ndarray:
     q = rng.uniform(-math.pi, math.pi, (m, len(sigma)))
     q[:, sigma == 1] = rng.uniform(-0.3, 0.3, (m, int(np.sum(sigma == 1))))
     return q
+
+
+def rigid_error_columns(frames, E: np.ndarray) -> np.ndarray:
+    """Pose-error columns ``(6, 6 len(frames))`` of a 6-DOF error at each frame, seen at point E.
+
+    For every frame (a pin.SE3 in the base frame) and each of its axes a: a translation along a
+    ([a; 0]) and a rotation about a through the frame's origin ([a x (E - o); a]).
+    """
+    cols = []
+    for F in frames:
+        for i in range(3):
+            a = F.rotation[:, i]
+            cols.append(np.hstack([a, np.zeros(3)]))
+            cols.append(np.hstack([np.cross(a, E - F.translation), a]))
+    return np.array(cols).T

@@ -13,7 +13,7 @@ import pinocchio as pin
 import pytest
 import scipy.linalg
 from conftest import ANALYSABLE, chain_of, mdh_of
-from pinref import own_random_q, pin_config, pin_frame
+from pinref import own_random_q, pin_config, pin_frame, rigid_error_columns
 
 import calib
 from calib import (
@@ -52,13 +52,7 @@ def pin_complete_rank(chain, q, rows=(0, 1, 2, 3, 4, 5), marker=(0.0, 0.0, 0.0))
         T = oMb.inverse() * data.oMf[tool]
         E = T.translation + T.rotation @ np.asarray(marker, dtype=float)
         frames = [pin.SE3.Identity()] + [oMb.inverse() * data.oMi[j] for j in joints]
-        cols = []
-        for F in frames:
-            for i in range(3):
-                a = F.rotation[:, i]
-                cols.append(np.hstack([a, np.zeros(3)]))
-                cols.append(np.hstack([np.cross(a, E - F.translation), a]))
-        blocks.append(np.array(cols).T[list(rows)])
+        blocks.append(rigid_error_columns(frames, E)[list(rows)])
     s = np.linalg.svd(np.vstack(blocks), compute_uv=False)
     return int(np.sum(s > 1e-8 * s[0]))
 

@@ -19,6 +19,7 @@ import pytest
 import scipy.linalg
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
+from pinref import rigid_error_columns
 
 import calib
 from calib import Measurement, analyze_model, complete_jacobian, from_lines
@@ -190,14 +191,8 @@ class PinReference:
             pin.framesForwardKinematics(self.model, self.data, qi)
             T = self.data.oMf[self.tool]
             E = T.translation + T.rotation @ np.asarray(marker, dtype=float)
-            cols = []
             frames = [pin.SE3.Identity()] + [self.data.oMi[j] for j in range(1, self.n + 1)]
-            for F in frames:
-                for i in range(3):
-                    a = F.rotation[:, i]
-                    cols.append(np.hstack([a, np.zeros(3)]))
-                    cols.append(np.hstack([np.cross(a, E - F.translation), a]))
-            blocks.append(np.array(cols).T[list(rows)])
+            blocks.append(rigid_error_columns(frames, E)[list(rows)])
         W = np.vstack(blocks)
         s = np.linalg.svd(W, compute_uv=False)
         return int(np.sum(s > 1e-8 * s[0]))
