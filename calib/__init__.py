@@ -10,13 +10,13 @@ from .calibration import (
     CalibrationResult,
     ResidualStats,
     calibrate,
-    measurement_to_base,
-    model_residuals,
+    residual_stats,
 )
 from .catalog import CatalogEntry, catalog
 from .exceptions import (
     AmbiguousFrameError,
     CalibError,
+    CalibrationRefusedError,
     ChainError,
     ConvergenceError,
     DataError,
@@ -31,6 +31,8 @@ from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
 from .measurements import (
     Campaign,
+    Columns,
+    DataWarning,
     Measurements,
     SimulationTruth,
     read_measurements,
@@ -39,7 +41,7 @@ from .measurements import (
 )
 from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
 from .robot import Chain, load_chain
-from .urdf_export import calibrated_urdf, write_calibrated_urdf
+from .urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
 
 __version__ = "0.1.0"
 
@@ -47,10 +49,13 @@ __all__ = [
     "PARALLEL_TOL",
     "AmbiguousFrameError",
     "CalibError",
+    "CalibrationRefusedError",
     "CalibrationResult",
     "Campaign",
     "CatalogEntry",
     "Chain",
+    "Columns",
+    "DataWarning",
     "ChainError",
     "ConvergenceError",
     "DataError",
@@ -81,9 +86,9 @@ __all__ = [
     "identification_jacobian",
     "load_chain",
     "measurement_to_base",
-    "model_residuals",
     "paper_parameters",
     "read_measurements",
+    "residual_stats",
     "simulate",
     "write_calibrated_urdf",
     "write_measurements",

@@ -14,18 +14,27 @@ from typing import NoReturn
 
 from . import __version__
 from .calibration import (
+    DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_ORIENTATION_WEIGHT,
-    DEFAULT_PARAMS,
+    LEVELS,
+    LOSSES,
     calibrate,
-    calibration_text,
 )
+from .calibration.text import calibration_text
 from .catalog import catalog
-from .exceptions import CalibError, ConvergenceError, DataError, InvalidArgumentError
+from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from .fileio import check_writable, json_text, write_files_atomic
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .mdh import from_chain
-from .measurements import CAMPAIGN_MEASURES, measurements_csv, read_measurements, simulate
+from .measurements import (
+    CAMPAIGN_MEASURES,
+    ORIENTATION_FORMATS,
+    UNITS,
+    measurements_csv,
+    read_measurements,
+    simulate,
+)
 from .parameters import PARAMETER_SETS
 from .report import analysis_text, format_table, mdh_table
 from .robot import load_chain
@@ -165,8 +174,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _columns(args: argparse.Namespace):
+    from .measurements import Columns
+
+    cols = tuple(args.orientation_columns) if args.orientation_columns else None
+    return Columns(args.orientation, cols, args.units)
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    """Identify the base parameters from a CSV; write the calibrated URDF and a report."""
+    """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report."""
     chain = load_chain(args.robot, args.base, args.tool)
     out = Path(args.out)
     report = Path(args.report) if args.report else None
@@ -174,30 +190,35 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InvalidArgumentError("--report and --out name the same file")
     outputs = {"--out": out, "--report": report}
     inputs = {"the nominal URDF": chain.urdf_path, "the data": Path(args.data)}
+    if args.validate:
+        inputs["the validation data"] = Path(args.validate)
     for option, target in outputs.items():
         for what, path in inputs.items():
             if target is not None and target.resolve() == path.resolve():
                 raise InvalidArgumentError(f"{option} {target} would overwrite {what}")
     check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
     _check_outputs(out, report)
-    data = read_measurements(args.data, chain)
+    columns = _columns(args)
+    data = read_measurements(args.data, chain, columns)
+    check = read_measurements(args.validate, chain, columns) if args.validate else None
     if args.measure == "position":
         data = data.position_only()
+        check = check.position_only() if check is not None else None
     elif args.measure == "pose" and data.quaternion is None:
-        raise DataError(args.data, "--measure pose needs the columns qx, qy, qz, qw")
+        raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
     result = calibrate(
-        chain, data, args.marker, args.params, args.orientation_weight, args.max_iterations
+        chain, data, args.marker, args.params, validate=check, fix=tuple(args.fix), free=tuple(args.free),
+        elastic=args.elastic, loss=args.loss, noise_mm=args.noise_mm,
+        orientation_weight=args.orientation_weight, max_iterations=args.max_iterations,
+        holdout=args.holdout, seed=args.seed,
     )
     text = json_text(result.to_dict())
     print(text if args.json else calibration_text(result), end="" if args.json else "\n")
-    if not result.converged:
+    if not result.accepted:
         if report is not None:
             _write({report: text})
         kept = f"; report written to {report}" if report is not None else ""
-        raise ConvergenceError(
-            f"the fit did not converge after {result.iterations} iterations "
-            f"({result.message}): no URDF written{kept}"
-        )
+        raise CalibrationRefusedError(f"calibration refused: {result.refusal}: no URDF written{kept}")
     urdf = calibrated_urdf(chain, result.nominal, result.calibrated)
     files: dict[Path, str | bytes] = {out: urdf}
     if report is not None:
@@ -343,8 +364,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--params",
         choices=PARAMETER_SETS,
-        default=DEFAULT_PARAMS,
-        help=f"parameter set perturbed (default: {DEFAULT_PARAMS})",
+        default="complete",
+        help="parameter set perturbed (default: complete)",
     )
     p.add_argument(
         "--error-mm", type=float, default=1.0, help="std of every length error [mm] (default: 1)"
@@ -372,24 +393,43 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_simulate)
 
-    p = sub.add_parser("calibrate", help="identify the base parameters, write a calibrated URDF")
+    p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
     _add_chain_args(p)
-    p.add_argument("--data", required=True, help="measurement CSV (joints, x, y, z[, qx..qw])")
+    p.add_argument("--data", required=True, help="measurement CSV (joints, x y z or x1..zK, ...)")
     p.add_argument("--out", required=True, help="calibrated URDF to write")
-    p.add_argument("--report", help="JSON report to write")
-    _add_marker_arg(p)
+    p.add_argument("--report", help="JSON report to write (also when the model is refused)")
+    p.add_argument(
+        "--marker", nargs="+", type=float, metavar="X",
+        help="guess of the marker(s) in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
+    )
     p.add_argument(
         "--measure",
         choices=("auto", *CAMPAIGN_MEASURES),
         default="auto",
-        help="auto: pose when the CSV has qx..qw, else position (default: auto)",
+        help="auto: pose when the CSV has orientation columns, else position (default: auto)",
     )
     p.add_argument(
-        "--params",
-        choices=PARAMETER_SETS,
-        default=DEFAULT_PARAMS,
-        help=f"standard parameter set (default: {DEFAULT_PARAMS})",
+        "--params", choices=LEVELS, default=DEFAULT_LEVEL,
+        help="parameter level: auto keeps what the data support (cross-validated); frames = "
+        "measurement frame + markers; offsets adds joint offsets; paper, complete (default: auto)",
     )
+    p.add_argument("--fix", nargs="+", default=[], metavar="NAME", help="parameters (or frame, markers, tool) held at their start")
+    p.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
+    p.add_argument(
+        "--elastic", action=argparse.BooleanOptionalAction, default=None,
+        help="fit joint compliance under gravity (default: with --params auto, where the URDF has masses)",
+    )
+    p.add_argument("--validate", help="measurement CSV of other configurations: score the result on it")
+    p.add_argument("--holdout", type=float, default=0.0, help="fraction of the rows set aside for validation (default: 0)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    p.add_argument("--loss", choices=LOSSES, default="linear", help="linear, or a robust loss (default: linear)")
+    p.add_argument("--noise-mm", type=float, help="instrument noise [mm]: scale of the robust loss and of the outlier test")
+    p.add_argument("--units", choices=tuple(UNITS), default="m", help="unit of the position columns (default: m)")
+    p.add_argument(
+        "--orientation", choices=("auto", *ORIENTATION_FORMATS), default="auto",
+        help="orientation columns: quaternion (xyzw or wxyz), rotation vector or rpy (default: from the names)",
+    )
+    p.add_argument("--orientation-columns", nargs="+", metavar="COL", help="names of the orientation columns, in the format's order")
     p.add_argument(
         "--orientation-weight",
         type=float,
@@ -400,7 +440,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-iterations",
         type=int,
         default=DEFAULT_MAX_ITERATIONS,
-        help=f"most residual evaluations of the solver (default: {DEFAULT_MAX_ITERATIONS})",
+        help=f"most residual evaluations of each fit (default: {DEFAULT_MAX_ITERATIONS})",
     )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_calibrate)

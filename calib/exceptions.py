@@ -118,3 +118,7 @@ class DataError(CalibError):
 
 class ConvergenceError(CalibError):
     """An iterative fit did not converge."""
+
+
+class CalibrationRefusedError(CalibError):
+    """A calibration failed a check (worse than its start, not identified by the data, ...)."""

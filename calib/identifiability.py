@@ -365,6 +365,39 @@ def select_by_rank(R: np.ndarray, order: list[int], tau: float) -> list[int]:
     return kept
 
 
+def independent_columns(
+    W: np.ndarray, order: list[int]
+) -> tuple[np.ndarray, float, list[int], np.ndarray]:
+    """Rank of W and the independent columns met first in an order of preference.
+
+    Args:
+        W: Observation matrix ``(r, c)``.
+        order: Column indices, most preferred first.
+
+    Returns:
+        |R_ii| of the pivoted QR, tau, the kept column indices (in ``order``) and the
+        triangular factor of W.
+    """
+    if not np.all(np.isfinite(W)):
+        raise InvalidArgumentError(
+            "the observation matrix has non-finite entries: check the marker and the configurations"
+        )
+    R = _triangular(W)
+    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
+    diag = np.abs(np.diag(Rp))
+    rank, tau = numerical_rank(diag, W.shape[0])
+    # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
+    # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
+    # the order in which the columns are visited.
+    threshold = tau if rank in (0, len(diag)) else max(tau, math.sqrt(diag[rank - 1] * diag[rank]))
+    kept = select_independent(R, order, threshold)
+    if len(kept) != rank:
+        # Nearly dependent columns (small tilts) amplify round-off in the residuals; fall back
+        # to the definition: keep a column when it raises the pivoted-QR rank.
+        kept = select_by_rank(R, order, tau)
+    return diag, tau, kept, R
+
+
 def identify_base(
     mdh: MDHModel, params: ParameterSet, W: np.ndarray
 ) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
@@ -379,24 +412,7 @@ def identify_base(
         |R_ii| of the pivoted QR, tau, the kept column indices (preference order), the other
         column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
     """
-    if not np.all(np.isfinite(W)):
-        raise InvalidArgumentError(
-            "the observation matrix has non-finite entries: check the marker and the configurations"
-        )
-    R = _triangular(W)
-    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
-    diag = np.abs(np.diag(Rp))
-    rank, tau = numerical_rank(diag, W.shape[0])
-    order = preference_order(mdh, params)
-    # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
-    # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
-    # the order in which the columns are visited.
-    threshold = tau if rank in (0, len(diag)) else max(tau, math.sqrt(diag[rank - 1] * diag[rank]))
-    kept = select_independent(R, order, threshold)
-    if len(kept) != rank:
-        # Nearly dependent columns (small tilts) amplify round-off in the residuals; fall back
-        # to the definition: keep a column when it raises the pivoted-QR rank.
-        kept = select_by_rank(R, order, tau)
+    diag, tau, kept, R = independent_columns(W, preference_order(mdh, params))
     others = [i for i in range(len(params)) if i not in kept]
     Rk = np.linalg.qr(R[:, kept + others], mode="r")
     b = len(kept)

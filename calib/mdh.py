@@ -370,3 +370,11 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
     points, dirs, tool = chain.joint_lines()
     model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
     return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)
+
+
+def frames_at_zero(mdh: MDHModel) -> np.ndarray:
+    """Pose of every MDH frame 0..n+1 in frame -1 at the zero configuration ``(n+2, 4, 4)``."""
+    kin = mdh.kinematics(np.zeros((1, mdh.n)))
+    T = np.zeros((mdh.n + 2, 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[0], kin.p[0], 1.0
+    return T

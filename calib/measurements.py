@@ -26,8 +26,11 @@ orientation.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
+import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,10 +43,10 @@ from .jacobian import Measurement, measured_point
 from .mdh import MDHModel, from_chain
 from .parameters import ParameterSet, parameter_set
 from .robot import Chain
-from .so3 import matrix_to_quaternion, quaternion_to_matrix, rotation_matrix
+from .so3 import matrix_to_quaternion, quaternion_to_matrix, rotation_matrix, rpy_to_matrix
 
 POSITION_COLUMNS = ("x", "y", "z")
-"""Columns of the measured point [m]."""
+"""Columns of the measured point [m] (one marker); markers 1..K use ``x1, y1, z1, ...``."""
 
 MAX_COORDINATE = 1e3
 """Largest magnitude [m] of a measured coordinate: a point near a robot, not a kilometre away.
@@ -55,17 +58,59 @@ would overflow to infinity.
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
 """Columns of the measured orientation, a quaternion with the scalar last."""
 
+ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
+"""How orientation columns are written: quaternion (scalar last or first), rotation vector
+[rad], or roll-pitch-yaw [rad] (``R = Rz(yaw) Ry(pitch) Rx(roll)``, Pinocchio's ``rpy``)."""
+
+DEFAULT_ORIENTATION_COLUMNS = {
+    "quat-xyzw": QUATERNION_COLUMNS,
+    "quat-wxyz": ("qw", "qx", "qy", "qz"),
+    "rotvec": ("rx", "ry", "rz"),
+    "rpy": ("roll", "pitch", "yaw"),
+}
+"""Column names of each orientation format, in the order the format reads them."""
+
 LIMIT_TOL = 1e-9
 """Slack [rad or m] allowed beyond a joint limit (values written at the limit, rounded)."""
 
+LIMIT_MARGIN = (0.1, 0.01)
+"""Margin [rad, m] beyond a joint limit that a reading may have with only a warning.
+
+Real encoders read a little past the limits the URDF gives for motion planning; kinematics
+does not need the limits. Farther out is an error (a wrong column, degrees for radians).
+"""
+
+UNITS = {"m": 1.0, "mm": 1e-3}
+"""Position units a file may use, and their size in metres."""
+
 CAMPAIGN_MEASURES = ("pose", "position")
 """What a campaign can measure."""
+
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+"""Strict decimal number grammar of a CSV cell (no ``1_0``, no ``0x10``, no ``nan``)."""
+
+
+class DataWarning(UserWarning):
+    """Data that are usable but unusual (readings past a joint limit, ignored columns)."""
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
     return a
+
+
+def _unit_quaternions(quat: np.ndarray) -> np.ndarray:
+    """Normalised quaternions; raise on a zero or non-finite one (overflow-safe norm)."""
+    if not np.all(np.isfinite(quat)):
+        raise InvalidArgumentError("quaternions must be finite and non-zero")
+    # The norm of the quaternion scaled by its largest component first: (1e300, 0, 0,
+    # 1e300) is a rotation too, and its plain norm overflows.
+    big = np.max(np.abs(quat), axis=1)
+    unit = quat / np.where(big > 0, big, 1.0)[:, None]
+    if np.any(big * np.linalg.norm(unit, axis=1) < 1e-12):
+        raise InvalidArgumentError("quaternions must be finite and non-zero")
+    return unit / np.linalg.norm(unit, axis=1)[:, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,11 +120,12 @@ class Measurements:
     Attributes:
         joint_names: URDF joint of each column of ``q``, base to tool.
         q: Joint positions ``(m, n)`` [rad or m].
-        position: Measured point in the measurement frame ``(m, 3)`` [m], every coordinate
-            within ``MAX_COORDINATE``.
+        position: Measured points in the measurement frame ``(m, 3 K)`` [m]: x, y, z of
+            marker 1, then of marker 2, ...; every coordinate within ``MAX_COORDINATE``.
         quaternion: Measured tool orientation ``(m, 4)`` (qx, qy, qz, qw; unit norm), or
             None for position-only data.
         source: Where the data came from (a file path), for messages.
+        rows: Row of each configuration in the source file (the header is row 1), or None.
     """
 
     joint_names: tuple[str, ...]
@@ -87,6 +133,7 @@ class Measurements:
     position: np.ndarray
     quaternion: np.ndarray | None = None
     source: str = "<measurements>"
+    rows: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -97,15 +144,19 @@ class Measurements:
                 f"joint positions must have shape (m >= 1, {len(self.joint_names)}), got "
                 f"{np.shape(self.q)}"
             )
-        if pos.shape != (m, 3):
-            raise InvalidArgumentError(f"positions must have shape ({m}, 3), got {pos.shape}")
+        if pos.ndim == 3 and pos.shape[0] == m and pos.shape[2] == 3:
+            pos = pos.reshape(m, -1)
+        if pos.ndim != 2 or pos.shape[0] != m or pos.shape[1] % 3 or pos.shape[1] == 0:
+            raise InvalidArgumentError(
+                f"positions must have shape ({m}, 3 K) or ({m}, K, 3), got {np.shape(self.position)}"
+            )
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(pos))):
             raise InvalidArgumentError("measurements contain NaN or infinity")
         if np.any(np.abs(pos) > MAX_COORDINATE):
             i, j = (int(v) for v in np.argwhere(np.abs(pos) > MAX_COORDINATE)[0])
             raise InvalidArgumentError(
-                f"measured {POSITION_COLUMNS[j]} = {pos[i, j]:.9g} (configuration {i + 1}) is "
-                f"not a plausible measurement in metres: coordinates are within "
+                f"measured {POSITION_COLUMNS[j % 3]} = {pos[i, j]:.9g} (configuration {i + 1}) "
+                f"is not a plausible measurement in metres: coordinates are within "
                 f"{MAX_COORDINATE:g} m"
             )
         if self.quaternion is not None:
@@ -114,24 +165,29 @@ class Measurements:
                 raise InvalidArgumentError(
                     f"quaternions must have shape ({m}, 4), got {quat.shape}"
                 )
-            if not np.all(np.isfinite(quat)):
-                raise InvalidArgumentError("quaternions must be finite and non-zero")
-            # The norm of the quaternion scaled by its largest component first: (1e300, 0,
-            # 0, 1e300) is a rotation too, and its plain norm overflows.
-            big = np.max(np.abs(quat), axis=1)
-            unit = quat / np.where(big > 0, big, 1.0)[:, None]
-            if np.any(big * np.linalg.norm(unit, axis=1) < 1e-12):
-                raise InvalidArgumentError("quaternions must be finite and non-zero")
-            unit /= np.linalg.norm(unit, axis=1)[:, None]
-            object.__setattr__(self, "quaternion", _frozen(unit))
+            object.__setattr__(self, "quaternion", _frozen(_unit_quaternions(quat)))
+        if self.rows is not None and len(self.rows) != m:
+            raise InvalidArgumentError(f"rows must give one row number per configuration ({m})")
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
         object.__setattr__(self, "q", _frozen(q))
         object.__setattr__(self, "position", _frozen(pos))
+        if self.rows is not None:
+            object.__setattr__(self, "rows", tuple(int(r) for r in self.rows))
 
     @property
     def m(self) -> int:
         """Number of configurations (rows)."""
         return self.q.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        """Number of points K measured per configuration."""
+        return self.position.shape[1] // 3
+
+    @property
+    def points(self) -> np.ndarray:
+        """The measured points as ``(m, K, 3)`` [m]."""
+        return self.position.reshape(self.m, self.n_markers, 3)
 
     @property
     def measure(self) -> str:
@@ -145,15 +201,35 @@ class Measurements:
             return None
         return quaternion_to_matrix(self.quaternion)
 
+    def row_of(self, i: int) -> int:
+        """Row of configuration i in the source (file row, or i + 1 without a file)."""
+        return self.rows[i] if self.rows is not None else i + 1
+
     def position_only(self) -> Measurements:
         """The same data without the orientations."""
-        return Measurements(self.joint_names, self.q, self.position, None, self.source)
+        return dataclasses.replace(self, quaternion=None)
+
+    def subset(self, index: np.ndarray) -> Measurements:
+        """The configurations ``index`` (an integer array or a boolean mask)."""
+        index = np.arange(self.m)[index]
+        quat = None if self.quaternion is None else self.quaternion[index]
+        rows = tuple(self.row_of(int(i)) for i in index)
+        return Measurements(
+            self.joint_names, self.q[index], self.position[index], quat, self.source, rows
+        )
+
+    @property
+    def position_columns(self) -> tuple[str, ...]:
+        """Names of the position columns: ``x, y, z`` or ``x1, y1, z1, ..., zK``."""
+        if self.n_markers == 1 and not set(POSITION_COLUMNS) & set(self.joint_names):
+            return POSITION_COLUMNS
+        return tuple(f"{a}{k + 1}" for k in range(self.n_markers) for a in POSITION_COLUMNS)
 
     @property
     def columns(self) -> tuple[str, ...]:
         """CSV header of this data."""
         quat = QUATERNION_COLUMNS if self.quaternion is not None else ()
-        return (*self.joint_names, *POSITION_COLUMNS, *quat)
+        return (*self.joint_names, *self.position_columns, *quat)
 
     def table(self) -> np.ndarray:
         """The values in the order of :attr:`columns`, ``(m, len(columns))``."""
@@ -175,11 +251,13 @@ def _unit(sigma: int) -> str:
 
 
 def check_against_chain(data: Measurements, chain: Chain) -> None:
-    """Check that measurements belong to a chain: same joints, values within the limits.
+    """Check that measurements belong to a chain: same joints, values near the limits.
+
+    A reading past a joint limit by at most ``LIMIT_MARGIN`` gives a :class:`DataWarning`.
 
     Raises:
-        DataError: Other joints, or a joint value outside its limits (row numbers count
-            data rows from 1 here; :func:`read_measurements` reports file rows instead).
+        DataError: Other joints, or a joint value farther outside its limits (naming the
+            row and the column).
     """
     if data.joint_names != chain.joint_names:
         raise DataError(
@@ -187,30 +265,121 @@ def check_against_chain(data: Measurements, chain: Chain) -> None:
             f"joints {', '.join(data.joint_names)} do not match the chain's "
             f"{', '.join(chain.joint_names)}",
         )
-    _check_limits(chain, data.q, data.source, np.arange(1, data.m + 1))
+    _check_limits(chain, data.q, data.source, np.array([data.row_of(i) for i in range(data.m)]))
 
 
-def _check_limits(chain: Chain, q: np.ndarray, source: str, rows: np.ndarray) -> None:
-    """Raise a DataError naming the first joint value outside its limits (row-major order)."""
+def _check_limits(
+    chain: Chain, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
+) -> None:
+    """Raise a DataError naming the first joint value far outside its limits; warn on others."""
     lower, upper = joint_bounds(chain)
-    bad = (q < lower - LIMIT_TOL) | (q > upper + LIMIT_TOL)
-    if not np.any(bad):
-        return
-    i, k = (int(v) for v in np.argwhere(bad)[0])
-    unit = _unit(int(chain.sigma[k]))
-    raise DataError(
-        source,
-        f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
-        f"[{chain.lower[k]:.9g}, {chain.upper[k]:.9g}] {unit}",
-        row=int(rows[i]),
-        column=chain.joint_names[k],
-    )
+    margin = np.where(chain.sigma == 1, LIMIT_MARGIN[1], LIMIT_MARGIN[0])
+    past = np.maximum(lower - q, q - upper)
+    far = past > margin + LIMIT_TOL
+    if np.any(far):
+        i, k = (int(v) for v in np.argwhere(far)[0])
+        unit = _unit(int(chain.sigma[k]))
+        raise DataError(
+            source,
+            f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
+            f"[{chain.lower[k]:.9g}, {chain.upper[k]:.9g}] {unit} by more than "
+            f"{margin[k]:g} {unit} (a wrong column, or degrees for radians?)",
+            row=int(rows[i]),
+            column=chain.joint_names[k],
+        )
+    near = past > LIMIT_TOL
+    if warn and np.any(near):
+        worst = [
+            f"{chain.joint_names[k]} by up to {np.max(past[:, k]):.3g} {_unit(int(chain.sigma[k]))}"
+            for k in np.flatnonzero(np.any(near, axis=0))
+        ]
+        warnings.warn(
+            f"{source}: {int(np.sum(np.any(near, axis=1)))} rows read past the URDF joint limits "
+            f"({'; '.join(worst)}): accepted (kinematics does not need the limits)",
+            DataWarning,
+            stacklevel=3,
+        )
 
 
-def _header(cells: list[str], chain: Chain, src: str, line: int) -> tuple[list[str], bool]:
-    """Validate the header; return the column names and whether orientations are present."""
+@dataclass(frozen=True)
+class Columns:
+    """How a measurement CSV is read.
+
+    Attributes:
+        orientation: ``auto`` (from the column names: qx..qw, rx..rz or roll, pitch, yaw;
+            none: position only) or one of ``ORIENTATION_FORMATS``.
+        orientation_columns: Column names of the orientation, in the format's order
+            (default: the format's names, see ``DEFAULT_ORIENTATION_COLUMNS``).
+        units: Unit of the position columns, ``m`` or ``mm``.
+    """
+
+    orientation: str = "auto"
+    orientation_columns: tuple[str, ...] | None = None
+    units: str = "m"
+
+    def __post_init__(self) -> None:
+        if self.orientation not in ("auto", *ORIENTATION_FORMATS):
+            raise InvalidArgumentError(
+                f"unknown orientation format '{self.orientation}': choose auto or "
+                f"{', '.join(ORIENTATION_FORMATS)}"
+            )
+        if self.units not in UNITS:
+            raise InvalidArgumentError(f"unknown units '{self.units}': choose m or mm")
+        cols = self.orientation_columns
+        if cols is not None:
+            if self.orientation == "auto":
+                raise InvalidArgumentError("orientation columns need an orientation format")
+            want = len(DEFAULT_ORIENTATION_COLUMNS[self.orientation])
+            if len(cols) != want or len(set(cols)) != len(cols):
+                raise InvalidArgumentError(
+                    f"{self.orientation} needs {want} distinct orientation columns, got "
+                    f"{', '.join(cols)}"
+                )
+
+
+def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: int):
+    """Position columns (K triples) and the orientation format and columns of a header."""
+    joints = set(chain.joint_names)
+    free = [n for n in names if n not in joints]
+    if all(f"{a}1" in free for a in POSITION_COLUMNS):
+        k = 1
+        while all(f"{a}{k + 1}" in free for a in POSITION_COLUMNS):
+            k += 1
+        pos = [f"{a}{i + 1}" for i in range(k) for a in POSITION_COLUMNS]
+    elif all(a in free for a in POSITION_COLUMNS):
+        pos = list(POSITION_COLUMNS)
+    else:
+        missing = next(a for a in POSITION_COLUMNS if a not in free)
+        raise DataError(
+            src,
+            "missing position column: expected x, y, z (one marker) or x1, y1, z1, ..., "
+            "xK, yK, zK",
+            row=line,
+            column=missing,
+        )
+    fmt, cols = columns.orientation, columns.orientation_columns
+    if fmt == "auto":
+        fmt = next(
+            (f for f in ("quat-xyzw", "rotvec", "rpy") if any(c in free for c in DEFAULT_ORIENTATION_COLUMNS[f])),
+            None,
+        )
+    if fmt is not None:
+        cols = cols or DEFAULT_ORIENTATION_COLUMNS[fmt]
+        for c in cols:
+            if c not in free:
+                raise DataError(
+                    src, f"missing orientation column ({fmt}: {', '.join(cols)})", row=line, column=c
+                )
+    return pos, fmt, tuple(cols or ())
+
+
+def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: int):
+    """Validate the header: column names, position columns, orientation format and columns."""
     names = [c.strip() for c in cells]
-    allowed = (*chain.joint_names, *POSITION_COLUMNS, *QUATERNION_COLUMNS)
+    if len(names) == 1 and ";" in names[0]:
+        raise DataError(
+            src, "the header has one column containing ';': write the CSV comma-separated", row=line
+        )
     seen: set[str] = set()
     for j, name in enumerate(names):
         if not name:
@@ -219,120 +388,140 @@ def _header(cells: list[str], chain: Chain, src: str, line: int) -> tuple[list[s
             )
         if name in seen:
             raise DataError(src, "duplicate column", row=line, column=name)
-        if name not in allowed:
-            raise DataError(
-                src,
-                f"unknown column: expected the chain's joints ({', '.join(chain.joint_names)}), "
-                f"x, y, z and, for poses, qx, qy, qz, qw",
-                row=line,
-                column=name,
-            )
         seen.add(name)
-    for name in (*chain.joint_names, *POSITION_COLUMNS):
+    for name in chain.joint_names:
         if name not in seen:
-            kind = "joint" if name in chain.joint_names else "position"
-            raise DataError(src, f"missing {kind} column", row=line, column=name)
-    present = [c in seen for c in QUATERNION_COLUMNS]
-    if any(present) and not all(present):
-        missing = QUATERNION_COLUMNS[present.index(False)]
-        raise DataError(
-            src,
-            "missing quaternion column: orientations need qx, qy, qz, qw",
-            row=line,
-            column=missing,
+            raise DataError(src, "missing joint column", row=line, column=name)
+    pos, fmt, ori = _layout(names, chain, columns, src, line)
+    used = {*chain.joint_names, *pos, *ori}
+    ignored = [n for n in names if n not in used]
+    if ignored:
+        warnings.warn(
+            f"{src}: columns ignored (not joints of the chain, positions or orientation): "
+            f"{', '.join(ignored)}",
+            DataWarning,
+            stacklevel=4,
         )
-    return names, all(present)
+    return names, pos, fmt, ori
 
 
 def _number(cell: str, src: str, line: int, column: str) -> float:
     text = cell.strip()
     if not text:
         raise DataError(src, "empty cell", row=line, column=column)
-    try:
-        value = float(text)
-    except ValueError:
-        raise DataError(src, f"not a number: {text!r}", row=line, column=column) from None
+    if not _NUMBER.fullmatch(text):
+        raise DataError(src, f"not a number: {text!r}", row=line, column=column)
+    value = float(text)
     if not math.isfinite(value):
         raise DataError(src, f"{text!r} is not a finite number", row=line, column=column)
     return value
 
 
-def parse_measurements(text: str, chain: Chain, source: str = "<text>") -> Measurements:
+def _records(text: str, src: str):
+    """(first line, cells) of each non-blank CSV record; malformed CSV names its row."""
+    reader = csv.reader(io.StringIO(text), strict=True)
+    start = 1
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise DataError(src, f"malformed CSV: {exc}", row=start) from None
+        if any(c.strip() for c in cells):
+            if any("\n" in c or "\r" in c for c in cells):
+                raise DataError(src, "a quoted cell spans several lines", row=start)
+            yield start, cells
+        start = reader.line_num + 1
+
+
+def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:
+    """Quaternions (x, y, z, w) from orientation columns in a format."""
+    if fmt in ("quat-xyzw", "quat-wxyz"):
+        quat = values if fmt == "quat-xyzw" else values[:, [1, 2, 3, 0]]
+        big = np.max(np.abs(quat), axis=1)
+        zero = big * np.linalg.norm(quat / np.where(big > 0, big, 1.0)[:, None], axis=1) < 1e-12
+        if np.any(zero):
+            raise DataError(src, "the quaternion has zero norm", row=lines[int(np.argmax(zero))])
+        return quat
+    if np.any(np.abs(values) > 1e3):
+        i = int(np.argmax(np.any(np.abs(values) > 1e3, axis=1)))
+        raise DataError(src, "an orientation angle beyond 1000 rad", row=lines[i])
+    R = rotation_matrix(values) if fmt == "rotvec" else rpy_to_matrix(values)
+    return matrix_to_quaternion(R)
+
+
+def parse_measurements(
+    text: str, chain: Chain, source: str = "<text>", columns: Columns | None = None
+) -> Measurements:
     """Parse and validate CSV text (see the module docstring for the format).
 
     Args:
         text: The CSV content.
         chain: The chain the data belongs to (joint names and limits).
         source: Name of the data in messages (a file path).
+        columns: How to read positions and orientations (default: metres, orientation
+            format from the column names).
 
     Returns:
-        The measurements, joints in chain order.
+        The measurements, joints in chain order, positions in metres.
 
     Raises:
-        DataError: Missing, unknown or duplicate column, a row of the wrong length, an empty,
-            non-numeric or non-finite cell, a joint value outside its limits, a measured
+        DataError: Missing or duplicate column, a row of the wrong length, an empty,
+            non-numeric or non-finite cell, a joint value far outside its limits, a measured
             coordinate beyond ``MAX_COORDINATE`` [m], a zero quaternion, or no data row.
     """
-    reader = csv.reader(io.StringIO(text))
-    names: list[str] | None = None
-    has_quat = False
+    columns = columns or Columns()
+    header = None
     values: list[list[float]] = []
     lines: list[int] = []
-    try:
-        for cells in reader:
-            line = reader.line_num
-            if not any(c.strip() for c in cells):
-                continue
-            if names is None:
-                names, has_quat = _header(cells, chain, source, line)
-                continue
-            if len(cells) != len(names):
-                raise DataError(
-                    source, f"expected {len(names)} cells, found {len(cells)}", row=line
-                )
-            values.append([_number(c, source, line, n) for c, n in zip(cells, names, strict=True)])
-            lines.append(line)
-    except csv.Error as exc:
-        raise DataError(source, f"malformed CSV: {exc}", row=reader.line_num) from None
-    if names is None:
+    for line, cells in _records(text, source):
+        if header is None:
+            header = _header(cells, chain, columns, source, line)
+            continue
+        names = header[0]
+        if len(cells) != len(names):
+            raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=line)
+        used = {*chain.joint_names, *header[1], *header[3]}
+        values.append(
+            [_number(c, source, line, n) if n in used else 0.0 for c, n in zip(cells, names, strict=True)]
+        )
+        lines.append(line)
+    if header is None:
         raise DataError(source, "empty file: expected a header line and measurement rows")
     if not values:
         raise DataError(source, "no measurement rows after the header")
+    names, pos_cols, fmt, ori_cols = header
     table = np.array(values)
     col = {n: j for j, n in enumerate(names)}
     q = table[:, [col[n] for n in chain.joint_names]]
-    _check_limits(chain, q, source, np.array(lines))
-    position = table[:, [col[n] for n in POSITION_COLUMNS]]
+    _check_limits(chain, q, source, np.array(lines), warn=False)
+    position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     far = np.abs(position) > MAX_COORDINATE
     if np.any(far):
         i, j = (int(v) for v in np.argwhere(far)[0])
         raise DataError(
             source,
-            f"{position[i, j]:.9g} is not a plausible measurement in metres (coordinates are "
-            f"within {MAX_COORDINATE:g} m)",
+            f"{position[i, j]:.9g} m is not a plausible measurement (coordinates are within "
+            f"{MAX_COORDINATE:g} m)",
             row=lines[i],
-            column=POSITION_COLUMNS[j],
+            column=pos_cols[j],
         )
     quat = None
-    if has_quat:
-        quat = table[:, [col[n] for n in QUATERNION_COLUMNS]]
-        big = np.max(np.abs(quat), axis=1)
-        zero = big * np.linalg.norm(quat / np.where(big > 0, big, 1.0)[:, None], axis=1) < 1e-12
-        if np.any(zero):
-            raise DataError(
-                source,
-                "the quaternion (qx, qy, qz, qw) has zero norm",
-                row=lines[int(np.argmax(zero))],
-            )
-    return Measurements(chain.joint_names, q, position, quat, source)
+    if fmt is not None:
+        quat = _orientation(table[:, [col[n] for n in ori_cols]], fmt, source, lines)
+    return Measurements(chain.joint_names, q, position, quat, source, tuple(lines))
 
 
-def read_measurements(path: str | Path, chain: Chain) -> Measurements:
+def read_measurements(
+    path: str | Path, chain: Chain, columns: Columns | None = None
+) -> Measurements:
     """Read and validate a measurement CSV file (see the module docstring for the format).
 
     Args:
         path: The CSV file.
         chain: The chain the data belongs to (joint names and limits).
+        columns: How to read positions and orientations (see :class:`Columns`).
 
     Returns:
         The measurements, joints in chain order.
@@ -348,7 +537,7 @@ def read_measurements(path: str | Path, chain: Chain) -> Measurements:
         raise DataError(src, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise DataError(src, f"cannot read the file: {exc}") from None
-    return parse_measurements(text, chain, src)
+    return parse_measurements(text, chain, src, columns)
 
 
 def measurements_csv(data: Measurements) -> str:

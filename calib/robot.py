@@ -313,6 +313,18 @@ class Chain:
         rng = np.random.default_rng(int(seed))
         return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
 
+    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
+        """Gravity torque each chain joint carries ``(m, n)`` [N m or N] (URDF masses).
+
+        The generalized gravity of Pinocchio's model (joints outside the chain at
+        ``q_ref``, gravity along -z of the URDF root); zero for a URDF without masses.
+        """
+        data = self.model.createData()
+        idx = [self.model.joints[j].idx_v for j in self.joint_ids]
+        return np.array(
+            [pin.computeGeneralizedGravity(self.model, data, qp)[idx] for qp in self.pin_configurations(q)]
+        ).reshape(-1, self.n)
+
     def tool_placements(self, q: np.ndarray) -> np.ndarray:
         """Tool frame in the base frame computed by Pinocchio, shape ``(m, 4, 4)``.
 

@@ -109,3 +109,34 @@ def inverse_right_jacobian(phi: np.ndarray) -> np.ndarray:
     )
     S = skew(phi)
     return np.eye(3) + 0.5 * S + coef[..., None, None] * (S @ S)
+
+
+def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``Rz(yaw) Ry(pitch) Rx(roll)`` of ``(..., 3)`` roll, pitch, yaw [rad].
+
+    The convention of Pinocchio's ``rpy.rpyToMatrix`` (and of URDF's ``rpy`` attribute).
+    """
+    rpy = np.asarray(rpy, dtype=float)
+    cr, sr = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
+    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
+    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    R = np.empty((*rpy.shape[:-1], 3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
+    return R
+
+
+def left_jacobian(phi: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3) at rotation vectors ``(..., 3)``, ``(..., 3, 3)``.
+
+    ``Exp(phi + e) = Exp(Jl(phi) e) Exp(phi) + O(|e|^2)``.
+    """
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)
+    small = theta < SMALL_ANGLE
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
+    b = np.where(small, 1.0 / 6.0 - theta**2 / 120.0, (t - np.sin(t)) / t**3)
+    S = skew(phi)
+    return np.eye(3) + a[..., None, None] * S + b[..., None, None] * (S @ S)

@@ -4,7 +4,7 @@ Only the ``<origin xyz rpy>`` of chain joints 2..n and of the fixed joint that c
 tool frame are rewritten; everything else of the original file is kept (comments, limits,
 mimic tags, transmissions, mesh paths, other branches). Joint 1 keeps its nominal placement
 in the base link: the base part of the calibration is the measurement-frame -> base
-transform (:func:`calib.calibration.measurement_to_base`), which a URDF has no place for.
+transform (:func:`measurement_to_base`), which a URDF has no place for.
 
 For chain joint k the constant ``C_k = T_mdh_k_nom(0)^-1 T_urdf_joint_k_nom(0)`` maps the MDH
 frame onto the URDF joint frame (it keeps the joint axis); the calibrated joint frame is
@@ -25,10 +25,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .calibration import frames_at_zero
 from .exceptions import CalibError, URDFError
 from .fileio import write_atomic
-from .mdh import MDHModel
+from .mdh import MDHModel, frames_at_zero
 from .robot import Chain
 
 
@@ -163,6 +162,16 @@ def check_exportable(chain: Chain) -> None:
         CalibError: The tool frame is not carried by a fixed joint, or a joint is missing.
     """
     _edited_joints(_read(chain)[1], chain)
+
+
+def measurement_to_base(nominal: MDHModel, calibrated: MDHModel) -> np.ndarray:
+    """Pose of the calibrated URDF's base frame in frame -1 of ``calibrated`` ``(4, 4)``.
+
+    The calibrated URDF keeps the nominal placement of joint 1 in its base link, so the base
+    part of a calibrated model (rows 0 and 1) becomes this transform:
+    ``T @ FK_urdf_calibrated(q) == calibrated.forward(q)``.
+    """
+    return frames_at_zero(calibrated)[1] @ np.linalg.inv(frames_at_zero(nominal)[1])
 
 
 def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> bytes:

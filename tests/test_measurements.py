@@ -114,11 +114,11 @@ BAD_CASES = {
         "shoulder_pan_joint",
         "missing joint column",
     ),
-    "unknown column": (
-        lambda c: _text(c, [[*_good_row(c), "1"]], [*c.joint_names, "x", "y", "z", "temp"]),
-        1,
-        "temp",
-        "unknown column",
+    "number with an underscore": (
+        lambda c: _text(c, [[*_good_row(c)[:6], "1_0", *_good_row(c)[7:]]]),
+        2,
+        "x",
+        "not a number: '1_0'",
     ),
     "duplicate column": (
         lambda c: _text(c, [[*_good_row(c), "1"]], [*c.joint_names, "x", "y", "z", "x"]),
@@ -138,19 +138,19 @@ BAD_CASES = {
         ),
         1,
         "qw",
-        "missing quaternion column",
+        "missing orientation column",
     ),
     "NaN cell": (
         lambda c: _text(c, [_good_row(c), [*_good_row(c)[:7], "nan", "0.2"]]),
         3,
         "y",
-        "not a finite number",
+        "not a number: 'nan'",
     ),
     "infinite cell": (
         lambda c: _text(c, [[*_good_row(c)[:2], "-inf", *_good_row(c)[3:]]]),
         2,
         "elbow_joint",
-        "not a finite number",
+        "not a number: '-inf'",
     ),
     "empty cell": (
         lambda c: _text(c, [_good_row(c), _good_row(c), ["0.1", "", *_good_row(c)[2:]]]),
@@ -174,13 +174,13 @@ BAD_CASES = {
         lambda c: _text(c, [_good_row(c), [*_good_row(c)[:6], "1e300", *_good_row(c)[7:]]]),
         3,
         "x",
-        "not a plausible measurement in metres",
+        "not a plausible measurement",
     ),
     "coordinate beyond a kilometre": (
         lambda c: _text(c, [[*_good_row(c)[:8], "-1000.5"]]),
         2,
         "z",
-        "not a plausible measurement in metres",
+        "not a plausible measurement",
     ),
     "joint outside its limits": (
         lambda c: _text(c, [_good_row(c), _good_row(c), ["0.1", "0.2", "3.5", *_good_row(c)[3:]]]),

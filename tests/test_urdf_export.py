@@ -104,7 +104,8 @@ def test_calibrated_urdf_of_a_calibration_predicts_the_true_robot(tmp_path):
     chain = chain_of("panda")
     marker = np.array([0.05, 0.02, 0.1])
     campaign = simulate(chain, configs=50, measure="position", marker=marker, seed=2)
-    res = calibrate(chain, campaign.measurements, marker=marker)
+    res = calibrate(chain, campaign.measurements, marker=marker, params="complete")
+    fitted = res.state.markers[0]  # the fitted marker, in the calibrated tool frame
     path = tmp_path / "panda_cal.urdf"
     write_calibrated_urdf(path, chain, res.nominal, res.calibrated)
     q = chain.random_configurations(100, 77)
@@ -116,7 +117,7 @@ def test_calibrated_urdf_of_a_calibration_predicts_the_true_robot(tmp_path):
         yourdfpy_tool_placements(path, chain, q),
     ):
         world = T @ placements
-        points = world[:, :3, :3] @ marker + world[:, :3, 3]
+        points = world[:, :3, :3] @ fitted + world[:, :3, 3]
         assert np.abs(points - true_points).max() < 1e-9
 
 

@@ -1,0 +1,89 @@
+"""Likely causes of data that no calibration can fit: the usual mistakes, each tried.
+
+When the registration (nominal model, fitted measurement frame and markers) leaves errors far
+above what a robot's geometric errors can cause (``SUSPECT`` [m] RMS, or ``NOISE_FACTOR``
+times the instrument noise), the data are read again under each usual mistake, registered,
+and the mistake whose correction explains the data (RMS ``EXPLAINS`` times lower and under
+``SUSPECT``) is named:
+
+* two joint columns swapped (every pair);
+* joint positions in degrees instead of radians;
+* positions in millimetres instead of metres;
+* quaternions written scalar first (w, x, y, z) in scalar-last columns, or the reverse.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+SUSPECT = 0.02
+"""Registration RMS error per point [m] above which the usual mistakes are tried."""
+
+NOISE_FACTOR = 20.0
+"""... or above this many times the instrument noise, when given."""
+
+EXPLAINS = 5.0
+"""A mistake explains the data if correcting it divides the RMS error by this."""
+
+
+def _swaps(data) -> Iterator[tuple[str, object]]:
+    names = data.joint_names
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            q = data.q.copy()
+            q[:, [i, j]] = q[:, [j, i]]
+            yield f"joint columns {names[i]} and {names[j]} swapped", dataclasses.replace(data, q=q)
+
+
+def _mistakes(data, revolute: np.ndarray) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for each usual mistake."""
+    yield from _swaps(data)
+    if np.any(revolute):
+        q = data.q.copy()
+        q[:, revolute] = np.deg2rad(q[:, revolute])
+        yield "revolute joint positions in degrees, not radians", dataclasses.replace(data, q=q)
+    yield "positions in millimetres, not metres (--units mm)", dataclasses.replace(
+        data, position=data.position * 1e-3
+    )
+    if data.quaternion is not None:
+        quat = data.quaternion
+        yield "quaternions written w, x, y, z (--orientation quat-wxyz)", dataclasses.replace(
+            data, quaternion=quat[:, [1, 2, 3, 0]]
+        )
+        yield "quaternions written x, y, z, w (--orientation quat-xyzw)", dataclasses.replace(
+            data, quaternion=quat[:, [3, 0, 1, 2]]
+        )
+
+
+def suspect(rms: float, noise: float | None) -> bool:
+    """Whether a registration RMS error [m] is too large for geometric errors."""
+    limit = SUSPECT if noise is None else min(SUSPECT, NOISE_FACTOR * noise)
+    return rms > limit
+
+
+def likely_cause(
+    data, revolute: np.ndarray, registration_rms: Callable[[object], float]
+) -> tuple[str, float] | None:
+    """The usual mistake that explains the data, with the RMS error once it is corrected.
+
+    Args:
+        data: The measurements.
+        revolute: Which joint columns are revolute.
+        registration_rms: RMS error per point [m] of the registration of some data.
+
+    Returns:
+        (description, RMS [m]) of the best explaining mistake, or None.
+    """
+    before = registration_rms(data)
+    best = None
+    for what, fixed in _mistakes(data, revolute):
+        try:
+            rms = registration_rms(fixed)
+        except Exception:  # noqa: BLE001 - a mistake that makes no valid data explains nothing
+            continue
+        if rms * EXPLAINS < before and rms < SUSPECT and (best is None or rms < best[1]):
+            best = (what, rms)
+    return best

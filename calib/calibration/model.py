@@ -1,0 +1,287 @@
+"""The calibration model: what predicts a measurement, and which of its parameters are free.
+
+A measured point k at configuration q is predicted as
+
+    p_k(q) = R_f (p_tool(q') + R_tool(q') m_k) + t_f,     q' = q + c * tau(q)
+
+* ``(R_f, t_f)``: the measurement frame, i.e. the pose of the URDF base frame (frame -1 of
+  the MDH model) in the instrument's frame;
+* ``m_k``: marker k in the tool frame [m];
+* ``p_tool, R_tool``: the MDH model's tool frame (geometric errors live in its rows);
+* ``c * tau``: joint compliance c_j [rad/(N m) or m/N] times the gravity torque tau_j(q)
+  [N m or N] that the joint carries (nominal masses of the URDF); zero unless chosen.
+
+A measured orientation (pose data) is predicted as ``R_f R_tool(q') R_m``, ``R_m`` the
+orientation of the measured frame in the tool frame.
+
+The free parameters x, in this order: the frame (rotation vector [rad] applied on the left,
+then translation [m]), the markers (3 per marker [m]), the measured frame's rotation (pose
+data, rotation vector [rad] on the right), the MDH base values (``dX = lift @ x_b``) and the
+compliances. Every group may be fixed. The Jacobian is analytic (frame and tool rotations
+through the SO(3) left Jacobian, so it is exact at any x).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..jacobian import Measurement, identification_jacobian, measured_point
+from ..mdh import MDHModel
+from ..parameters import Kind, Parameter, ParameterSet
+from ..so3 import inverse_right_jacobian, left_jacobian, rotation_matrix, rotation_vector, skew
+
+FRAME_NAMES = ("frame.rx", "frame.ry", "frame.rz", "frame.x", "frame.y", "frame.z")
+"""Names of the measurement-frame parameters: rotation [rad] then translation [m]."""
+
+TOOL_NAMES = ("tool.rx", "tool.ry", "tool.rz")
+"""Names of the measured frame's rotation in the tool frame [rad] (pose data)."""
+
+
+def marker_names(k: int) -> tuple[str, str, str]:
+    """Names of marker k's coordinates (1-based) in the tool frame [m]."""
+    return (f"marker{k}.x", f"marker{k}.y", f"marker{k}.z")
+
+
+def compliance_name(mdh: MDHModel, joint: int) -> str:
+    """Name of the compliance of joint ``joint`` (0-based): ``c<row>``, e.g. ``c3``."""
+    del mdh
+    return f"c{joint + 1}"
+
+
+def offset_parameter(mdh: MDHModel, joint: int) -> Parameter:
+    """The joint offset of joint ``joint`` (0-based): theta (revolute) or r (prismatic)."""
+    row = joint + 1
+    return Parameter(row, Kind.THETA if mdh.sigma[row] == 0 else Kind.R)
+
+
+@dataclass(frozen=True, eq=False)
+class State:
+    """A complete model of the measurements: geometry, measurement frame, markers, compliance.
+
+    Attributes:
+        mdh: MDH model in the URDF base frame (frame -1).
+        frame: Pose of the URDF base frame in the measurement frame ``(4, 4)``.
+        markers: Measured points in the tool frame ``(K, 3)`` [m].
+        tool_rotation: Orientation of the measured frame in the tool frame ``(3, 3)``, or
+            None for position data.
+        compliance: Joint compliance ``(n,)`` [rad/(N m) or m/N].
+    """
+
+    mdh: MDHModel
+    frame: np.ndarray
+    markers: np.ndarray
+    tool_rotation: np.ndarray | None
+    compliance: np.ndarray
+
+    @property
+    def n_markers(self) -> int:
+        """Number of markers K."""
+        return len(self.markers)
+
+    def joints(self, q: np.ndarray, torque: np.ndarray | None) -> np.ndarray:
+        """Joint positions the geometry sees: ``q + c * tau`` [rad or m]."""
+        if torque is None or not np.any(self.compliance):
+            return q
+        return q + torque * self.compliance
+
+    def predict(self, q: np.ndarray, torque: np.ndarray | None = None):
+        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None)."""
+        kin = self.mdh.kinematics(self.joints(q, torque))
+        R, t = self.frame[:3, :3], self.frame[:3, 3]
+        pts = kin.p[:, -1][:, None, :] + np.einsum("mij,kj->mki", kin.R[:, -1], self.markers)
+        rot = None
+        if self.tool_rotation is not None:
+            rot = R @ kin.R[:, -1] @ self.tool_rotation
+        return pts @ R.T + t, rot
+
+    def residuals(self, data, torque: np.ndarray | None = None) -> np.ndarray:
+        """Measured - model per configuration ``(m, 3 K [+ 3])`` [m, rad]."""
+        pts, rot = self.predict(data.q, torque)
+        e = data.points - pts
+        parts = [e.reshape(data.m, -1)]
+        if rot is not None and data.quaternion is not None:
+            parts.append(rotation_vector(data.rotations @ np.swapaxes(rot, 1, 2)))
+        return np.hstack(parts)
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorModel:
+    """Which parameters of a :class:`State` a fit moves, and how.
+
+    Attributes:
+        params: Standard MDH parameter set the base values come from.
+        base: Names of the free MDH base values, each a parameter of ``params``.
+        lift: ``dX = lift @ x_b`` ``(len(params), len(base))``: how the base values move
+            the standard parameters.
+        compliance: Joints (0-based) whose compliance is free.
+        frame: The measurement frame is free.
+        markers: The markers are free.
+        tool: The measured frame's rotation is free (pose data).
+        n_markers: Number of markers K.
+        pose: Orientation rows are fitted.
+    """
+
+    params: ParameterSet
+    base: tuple[str, ...]
+    lift: np.ndarray
+    compliance: tuple[int, ...]
+    frame: bool = True
+    markers: bool = True
+    tool: bool = True
+    n_markers: int = 1
+    pose: bool = False
+
+    def names(self, mdh: MDHModel) -> tuple[str, ...]:
+        """Names of the free parameters, in the order of x."""
+        out: list[str] = list(FRAME_NAMES) if self.frame else []
+        if self.markers:
+            out += [n for k in range(self.n_markers) for n in marker_names(k + 1)]
+        if self.pose and self.tool:
+            out += TOOL_NAMES
+        out += self.base
+        out += [compliance_name(mdh, j) for j in self.compliance]
+        return tuple(out)
+
+    def _sizes(self) -> tuple[int, int, int, int, int]:
+        return (
+            6 * self.frame,
+            3 * self.n_markers * self.markers,
+            3 * (self.pose and self.tool),
+            len(self.base),
+            len(self.compliance),
+        )
+
+    def size(self) -> int:
+        """Number of free parameters."""
+        return sum(self._sizes())
+
+    def split(self, x: np.ndarray) -> list[np.ndarray]:
+        """x cut into its groups: frame, markers, tool, base values, compliances."""
+        return np.split(np.asarray(x, dtype=float), np.cumsum(self._sizes())[:-1])
+
+    def apply(self, start: State, x: np.ndarray) -> State:
+        """The state at parameters x (x = 0 is ``start``)."""
+        xf, xm, xt, xb, xc = self.split(x)
+        frame = start.frame.copy()
+        if self.frame:
+            frame[:3, :3] = rotation_matrix(xf[:3]) @ start.frame[:3, :3]
+            frame[:3, 3] = start.frame[:3, 3] + xf[3:]
+        markers = start.markers + (xm.reshape(-1, 3) if self.markers else 0.0)
+        tool = start.tool_rotation
+        if xt.size:
+            tool = tool @ rotation_matrix(xt)
+        mdh = self.params.apply(start.mdh, self.lift @ xb) if xb.size else start.mdh
+        compliance = start.compliance.copy()
+        compliance[list(self.compliance)] += xc
+        return State(mdh, frame, markers, tool, compliance)
+
+    def jacobian(
+        self, start: State, x: np.ndarray, data, torque: np.ndarray | None
+    ) -> np.ndarray:
+        """d(model)/dx, ``(m, rows, size)``: rows are 3 K point rows then 3 rotation rows.
+
+        The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
+        whole Jacobian is that of model - measured).
+        """
+        state = self.apply(start, x)
+        xf, _, xt, _, _ = self.split(x)
+        q = state.joints(data.q, torque)
+        kin = state.mdh.kinematics(q)
+        m, K = data.m, state.n_markers
+        R = state.frame[:3, :3]
+        pts, rot = state.predict(data.q, torque)
+        blocks = []
+        if self.frame:
+            blocks.append(self._frame_block(pts - state.frame[:3, 3], xf))
+        if self.markers:
+            Rt = R @ kin.R[:, -1]
+            blk = np.zeros((m, K, 3, 3 * K))
+            for k in range(K):
+                blk[:, k, :, 3 * k : 3 * k + 3] = Rt
+            blocks.append(self._stack(blk, np.zeros((m, 3, 3 * K))))
+        if self.pose and self.tool:
+            ang = rot @ left_jacobian(xt).T  # right perturbation: R_model Jr(psi)
+            blocks.append(self._stack(np.zeros((m, K, 3, 3)), ang))
+        blocks += self._mdh_blocks(state, q, kin, torque)
+        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((m, self.rows, 0))
+        if self.pose:
+            res = state.residuals(data, torque)[:, 3 * K :]
+            J[:, 3 * K :] = inverse_right_jacobian(res) @ J[:, 3 * K :]
+        return J
+
+    @property
+    def rows(self) -> int:
+        """Residual rows per configuration."""
+        return 3 * self.n_markers + 3 * self.pose
+
+    def _stack(self, point: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """(m, K, 3, c) point rows and (m, 3, c) rotation rows as (m, rows, c)."""
+        m = point.shape[0]
+        out = point.reshape(m, -1, point.shape[-1])
+        return np.concatenate([out, ang], axis=1) if self.pose else out
+
+    def _frame_block(self, lever: np.ndarray, xf: np.ndarray) -> np.ndarray:
+        m, K = lever.shape[:2]
+        Jl = left_jacobian(xf[:3])
+        rot = -skew(lever) @ Jl  # d(R p)/dphi with R = Exp(phi) R0
+        trans = np.broadcast_to(np.eye(3), (m, K, 3, 3))
+        point = np.concatenate([rot, trans], axis=3)
+        ang = np.concatenate([np.broadcast_to(Jl, (m, 3, 3)), np.zeros((m, 3, 3))], axis=2)
+        return self._stack(point, ang)
+
+    def _mdh_blocks(self, state: State, q: np.ndarray, kin, torque) -> list[np.ndarray]:
+        """Columns of the base values (through the lift) and of the compliances."""
+        if not self.base and not self.compliance:
+            return []
+        offsets = [offset_parameter(state.mdh, j) for j in self.compliance]
+        pset = ParameterSet("columns", (*self.params.parameters, *offsets))
+        R = state.frame[:3, :3]
+        m, K = q.shape[0], state.n_markers
+        point = np.empty((m, K, 3, len(pset)))
+        for k in range(K):
+            meas = Measurement((0, 1, 2), tuple(state.markers[k]), "position")
+            W = identification_jacobian(state.mdh, pset, q, meas, kin=kin)
+            point[:, k] = R @ W.reshape(m, 3, -1)
+        ang = np.zeros((m, 3, len(pset)))
+        if self.pose:
+            W = identification_jacobian(state.mdh, pset, q, Measurement((3, 4, 5)), kin=kin)
+            ang = R @ W.reshape(m, 3, -1)
+        cols = self._stack(point, ang)
+        p = len(self.params)
+        out = []
+        if self.base:
+            out.append(cols[:, :, :p] @ self.lift)
+        if self.compliance:
+            out.append(cols[:, :, p:] * torque[:, None, list(self.compliance)])
+        return out
+
+    def with_(self, **changes) -> ErrorModel:
+        """A copy with some fields replaced."""
+        return dataclasses.replace(self, **changes)
+
+
+def selection_lift(params: ParameterSet, base: tuple[str, ...]) -> np.ndarray:
+    """The lift that moves each base value's own standard parameter only."""
+    lift = np.zeros((len(params), len(base)))
+    for j, name in enumerate(base):
+        lift[params.index(name), j] = 1.0
+    return lift
+
+
+def registration_state(
+    mdh: MDHModel, frame: np.ndarray, markers: np.ndarray, tool_rotation: np.ndarray | None
+) -> State:
+    """A state with the nominal geometry, no compliance, and the given frame and markers."""
+    return State(
+        mdh, np.array(frame, dtype=float), np.array(markers, dtype=float), tool_rotation,
+        np.zeros(mdh.n),
+    )
+
+
+def tool_points(mdh: MDHModel, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Markers in the URDF base frame ``(m, K, 3)`` [m] (no measurement frame)."""
+    kin = mdh.kinematics(q)
+    return np.stack([measured_point(kin, mk) for mk in np.atleast_2d(markers)], axis=1)

@@ -1,0 +1,351 @@
+"""``calibrate``: registration, model choice, fit, validation, as a short pipeline."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import DataError, InvalidArgumentError
+from ..identifiability import independent_columns, preference_order
+from ..mdh import MDHModel, from_chain
+from ..measurements import Measurements, check_against_chain
+from ..parameters import ParameterSet, parameter_set
+from ..robot import Chain
+from . import diagnosis, outliers, validation
+from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
+from .registration import register
+from .result import CalibrationResult, ResidualStats, Validation
+from .selection import Selection, select
+from .solve import LOSSES, Fit, covariance, fit, row_weights
+
+LEVELS = ("auto", "frames", "offsets", "paper", "complete")
+"""Parameter levels: ``frames`` = measurement frame + markers; ``offsets`` adds the joint
+offsets; ``paper`` and ``complete`` add the base parameters of those sets; ``auto`` (the
+default) keeps the ones the data support (:mod:`calib.calibration.selection`)."""
+
+DEFAULT_LEVEL = "auto"
+
+DEFAULT_ORIENTATION_WEIGHT = 1.0
+"""Weight of the orientation rows [m/rad]: 1 mrad of orientation error counts as 1 mm."""
+
+DEFAULT_MAX_ITERATIONS = 100
+"""Most residual evaluations of each solver run."""
+
+GROUPS = ("frame", "markers", "tool")
+"""Names ``--fix`` takes for whole groups (besides single parameters)."""
+
+
+@dataclass(frozen=True)
+class Options:
+    """Validated options of :func:`calibrate` (see there)."""
+
+    level: str = DEFAULT_LEVEL
+    fix: tuple[str, ...] = ()
+    free: tuple[str, ...] = ()
+    elastic: bool | None = None
+    loss: str = "linear"
+    noise_mm: float | None = None
+    orientation_weight: float = DEFAULT_ORIENTATION_WEIGHT
+    max_iterations: int = DEFAULT_MAX_ITERATIONS
+    holdout: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.level not in LEVELS:
+            raise InvalidArgumentError(
+                f"unknown parameter level '{self.level}': choose {', '.join(LEVELS)}"
+            )
+        if self.loss not in LOSSES:
+            raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
+        for name, value in (("orientation weight", self.orientation_weight), ("noise", self.noise_mm)):
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InvalidArgumentError(f"the {name} must be a finite number > 0, got {value!r}")
+        it = self.max_iterations
+        if isinstance(it, bool) or not isinstance(it, (int, np.integer)) or it < 1:
+            raise InvalidArgumentError(f"max_iterations must be an integer >= 1, got {it!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise InvalidArgumentError(f"the seed must be an integer >= 0, got {self.seed!r}")
+        for opt, names in (("fix", self.fix), ("free", self.free)):
+            if len(set(names)) != len(names):
+                raise InvalidArgumentError(f"--{opt} names a parameter twice: {', '.join(names)}")
+        both = set(self.fix) & set(self.free)
+        if both:
+            raise InvalidArgumentError(f"{', '.join(sorted(both))} both fixed and free")
+
+    @property
+    def noise(self) -> float | None:
+        """Instrument noise [m], or None."""
+        return None if self.noise_mm is None else 1e-3 * self.noise_mm
+
+
+def calibrate(
+    chain: Chain,
+    data: Measurements,
+    marker=None,
+    params: str = DEFAULT_LEVEL,
+    *,
+    validate: Measurements | None = None,
+    **options,
+) -> CalibrationResult:
+    """Calibrate a chain from measurements: a model that predicts unseen configurations.
+
+    Steps: check the data, set rows aside (``holdout``), register the measurement frame and
+    the markers in closed form (naming a likely mistake if the data cannot be registered,
+    setting outlier rows aside), choose the free parameters (``params``), fit them, and
+    validate the result on held-out rows.
+
+    Args:
+        chain: The nominal chain.
+        data: Measurements of it (joints in chain order; see :mod:`calib.measurements`).
+        marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
+            [m] (default: the tool origin); the markers are fitted unless fixed.
+        params: Parameter level, one of ``LEVELS``.
+        validate: Measurements of other configurations to score the result on (never fitted).
+        **options: ``fix``, ``free`` (parameter names, or ``frame``, ``markers``, ``tool``),
+            ``elastic`` (fit joint compliance; default: in ``auto`` where the URDF has
+            masses), ``loss``, ``noise_mm`` [mm], ``orientation_weight`` [m/rad],
+            ``max_iterations``, ``holdout`` (fraction of rows set aside), ``seed``.
+
+    Returns:
+        The result: check ``accepted`` (or call :meth:`CalibrationResult.check`).
+
+    Raises:
+        DataError: The data do not belong to the chain, are too few, or match it only under
+            a usual mistake (which is named).
+        InvalidArgumentError: A bad argument.
+    """
+    unknown = set(options) - {f.name for f in dataclasses.fields(Options)} - {"level"}
+    if unknown:
+        raise InvalidArgumentError(f"unknown option(s): {', '.join(sorted(unknown))}")
+    opts = Options(level=params, **options)
+    clock = [time.perf_counter()]
+    train, held = _datasets(chain, data, validate, opts)
+    nominal = from_chain(chain)
+    guess = _marker_guess(marker, train.n_markers)
+    reg, train, dropped, notes = _register(chain, nominal, train, guess, opts)
+    clock.append(time.perf_counter())
+    torque = _torques(chain, opts, train, held)
+    model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts)
+    clock.append(time.perf_counter())
+    fitted = fit(
+        model, reg, train, torque[0], opts.orientation_weight, prior=prior,
+        loss=opts.loss, scale=opts.noise or 1e-3, max_iterations=opts.max_iterations,
+    )
+    clock.append(time.perf_counter())
+    result = _assemble(chain, nominal, train, held, torque, fitted, prior, selection, dropped, notes, opts)
+    clock.append(time.perf_counter())
+    stages = ("registration", "selection", "fit", "validation")
+    timings = {s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
+    return dataclasses.replace(result, timings_ms=timings)
+
+
+def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
+    """Check the data; the training set and the held-out set (with its label)."""
+    if not isinstance(data, Measurements):
+        raise InvalidArgumentError(f"data must be Measurements (read_measurements), got {type(data).__name__}")
+    check_against_chain(data, chain)
+    train, held = validation.split(data, opts.holdout, opts.seed)
+    if validate is not None:
+        if held is not None:
+            raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
+        check_against_chain(validate, chain)
+        if (validate.n_markers, validate.measure) != (data.n_markers, data.measure):
+            raise DataError(validate.source, "the validation data measure other points than the data")
+        return train, (validate, validate.source)
+    return train, None if held is None else (held, "holdout")
+
+
+def _marker_guess(marker, k: int) -> np.ndarray:
+    if marker is None:
+        return np.zeros((k, 3))
+    try:
+        mk = np.array(marker, dtype=float).reshape(-1, 3)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"a marker is 3 numbers [m], got {marker!r}") from None
+    if not np.all(np.isfinite(mk)) or np.max(np.abs(mk)) > 1e3:
+        raise InvalidArgumentError(f"a marker is 3 finite numbers within 1000 m, got {marker!r}")
+    if len(mk) == 1:
+        mk = np.repeat(mk, k, axis=0)
+    if len(mk) != k:
+        raise InvalidArgumentError(f"{len(mk)} marker guesses for {k} measured points")
+    return mk
+
+
+def _frames_model(data: Measurements, opts: Options) -> ErrorModel:
+    """The registration's free parameters: frame, markers (and measured-frame rotation)."""
+    return ErrorModel(
+        ParameterSet("none", ()), (), np.zeros((0, 0)), (),
+        frame="frame" not in opts.fix, markers="markers" not in opts.fix,
+        tool="tool" not in opts.fix, n_markers=data.n_markers, pose=data.quaternion is not None,
+    )
+
+
+def _registration(nominal, data, guess, opts) -> Fit:
+    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only)."""
+    start = register(nominal, data.q, data.points, data.rotations, guess)
+    if "frame" in opts.fix:
+        start = dataclasses.replace(start, frame=np.eye(4))
+    if "markers" in opts.fix:
+        start = dataclasses.replace(start, markers=guess)
+    return fit(_frames_model(data, opts), start, data, None, opts.orientation_weight,
+               max_iterations=opts.max_iterations)
+
+
+def _register(chain, nominal, data, guess, opts):
+    """Registration, a likely cause for data it cannot fit, and outlier removal."""
+    def rms(d):
+        return validation.stats(_registration(nominal, d, guess, opts).state, d, None).position_rms
+
+    notes: list[str] = []
+    first = rms(data)
+    if diagnosis.suspect(first, opts.noise):
+        cause = diagnosis.likely_cause(data, chain.sigma == 0, rms)
+        if cause is not None:
+            raise DataError(
+                data.source,
+                f"the data look like {cause[0]}: the registration error drops from "
+                f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
+            )
+        notes.append(
+            f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, "
+            f"and no usual mistake (swapped joint columns, degrees, millimetres, quaternion "
+            f"order) explains it: check the data and the chain"
+        )
+    dropped: list[outliers.Outlier] = []
+    for _ in range(outliers.PASSES):
+        reg = _registration(nominal, data, guess, opts)
+        errors = outliers.configuration_errors(reg.state.residuals(data), data.n_markers)
+        bad = outliers.find_outliers(errors, opts.noise)
+        if not np.any(bad):
+            break
+        median = float(np.median(errors))
+        dropped += [outliers.Outlier(data.row_of(i), float(errors[i]), median) for i in np.flatnonzero(bad)]
+        data = data.subset(~bad)
+    if dropped:
+        reg = _registration(nominal, data, guess, opts)
+        notes.append(
+            f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
+            + ", ".join(f"row {o.row} ({1e3 * o.error:.3g} mm)" for o in dropped)
+        )
+    if not reg.converged:
+        raise DataError(data.source, f"the registration did not converge ({reg.message})")
+    return reg.state, data, tuple(dropped), notes
+
+
+def _torques(chain, opts, train, held):
+    """Gravity torques of the training and held-out configurations, if compliance may be fitted."""
+    if opts.elastic is False or (opts.elastic is None and opts.level != "auto"):
+        return None, None
+    tau = chain.gravity_torques(train.q)
+    if not np.any(tau) and opts.elastic is None:
+        return None, None
+    return tau, None if held is None else chain.gravity_torques(held[0].q)
+
+
+def _level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[str]]:
+    """The standard set and the names a level offers (before --fix / --free)."""
+    pset = parameter_set(nominal, "paper" if opts.level == "paper" else "complete")
+    if opts.level == "frames":
+        names: list[str] = []
+    elif opts.level == "offsets":
+        names = [offset_parameter(nominal, j).name for j in range(nominal.n)]
+    else:
+        names = list(pset.names)
+    valid = set(pset.names) | {compliance_name(nominal, j) for j in range(nominal.n)} | set(GROUPS)
+    for name in (*opts.fix, *opts.free):
+        if name not in valid:
+            raise InvalidArgumentError(
+                f"unknown parameter '{name}' for --fix/--free: give frame, markers, tool, a "
+                f"parameter of the {pset.label} set (e.g. {', '.join(pset.names[2:5])}) or a "
+                f"compliance c1..c{nominal.n}"
+            )
+    names += [n for n in opts.free if n in pset.names and n not in names]
+    return pset, [n for n in names if n not in opts.fix]
+
+
+def _choose(chain, nominal, reg: State, data, torque, opts):
+    """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
+    pset, names = _level_names(nominal, opts)
+    joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
+    joints = [j for j in joints if compliance_name(nominal, j) not in opts.fix]
+    base = _frames_model(data, opts)
+    order = [pset.index(n) for n in np.array(pset.names)[preference_order(nominal, pset)] if n in names]
+    wide = base.with_(params=pset, base=tuple(pset.names[i] for i in order),
+                      lift=selection_lift(pset, tuple(pset.names[i] for i in order)), compliance=tuple(joints))
+    ideal = dataclasses.replace(reg, mdh=nominal.idealized())
+    w = row_weights(wide, opts.orientation_weight)
+    J = wide.jacobian(ideal, np.zeros(wide.size()), data, torque) * w[None, :, None]
+    fixed = base.size()
+    _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
+    cand = [wide.names(nominal)[i] for i in kept if i >= fixed]
+    if len(kept) < fixed:
+        raise DataError(data.source, "the configurations do not even determine the measurement frame and markers")
+    if opts.level == "auto":
+        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
+        cols = list(range(fixed)) + [fixed + wide.names(nominal)[fixed:].index(c) for c in cand]
+        forced = [cand.index(n) for n in opts.free if n in cand]
+        selection, weights = select(Jr[:, :, cols], reg.residuals(data) * w, fixed, tuple(cand), forced)
+        cand = list(selection.kept)
+    else:
+        selection, weights = None, np.zeros(len(cand))
+    mdh_names = tuple(c for c in cand if c in pset.names)
+    comp = tuple(j for j in joints if compliance_name(nominal, j) in cand)
+    model = base.with_(params=pset, base=mdh_names, lift=selection_lift(pset, mdh_names), compliance=comp)
+    order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
+    prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names(nominal)[fixed:]]]
+    return model, selection, prior if np.any(prior) else None
+
+
+def _assemble(chain, nominal, train, held, torque, fitted: Fit, prior, selection: Selection | None, dropped, notes, opts):
+    """Statistics, validation and checks of a fit, as a result."""
+    p = fitted.x.size
+    cov, sigma = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
+    reg = fitted.start
+    before = validation.stats(reg, train, None)
+    after = validation.stats(fitted.state, train, torque[0])
+    m, rows = train.m, fitted.model.rows
+    std_train = validation.predicted_std(fitted.J.reshape(m, rows, p), cov, train.n_markers)
+    val = None
+    if held is not None:
+        hdata, label = held
+        Jh = fitted.model.jacobian(reg, fitted.x, hdata, torque[1])
+        val = Validation(
+            label,
+            validation.stats(reg, hdata, None),
+            validation.stats(fitted.state, hdata, torque[1]),
+            validation.predicted_std(Jh, cov, hdata.n_markers),
+        )
+    checks = (before, after) if val is None else (val.registration, val.calibrated)
+    reason = validation.refusal(
+        fitted.converged, before, after, validation.full_rank(fitted.J),
+        None if val is None else checks, fitted.model.names(nominal),
+    )
+    notes = list(notes)
+    if torque[0] is not None and np.any(fitted.state.compliance):
+        notes.append("joint compliance was fitted: the calibrated URDF cannot hold it (see the report)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
+    from .solve import condition
+
+    return CalibrationResult(
+        robot=chain.name, chain=chain, data=train, level=opts.level, model=fitted.model,
+        names=fitted.model.names(nominal), nominal=nominal, registration=reg, state=fitted.state,
+        estimate=fitted.x, std=std, covariance=cov, sigma=sigma, condition=condition(fitted.J),
+        before=before, after=after, predicted_std=std_train, validation=val,
+        selection=selection, outliers=tuple(dropped),
+        prior=np.zeros(p) if prior is None else prior, iterations=fitted.iterations,
+        evaluations=fitted.evaluations, converged=fitted.converged, message=fitted.message,
+        orientation_weight=opts.orientation_weight, refusal=reason, warnings=tuple(notes),
+    )
+
+
+def residual_stats(result: CalibrationResult, data: Measurements) -> ResidualStats:
+    """Errors of a calibrated model on other data (gravity torques recomputed if needed)."""
+    torque = result.chain.gravity_torques(data.q) if np.any(result.state.compliance) else None
+    return validation.stats(result.state, data, torque)

@@ -1,0 +1,257 @@
+"""What a calibration returns: residual statistics, the result, its report."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ..exceptions import CalibrationRefusedError, ConvergenceError
+from ..mdh import MDHModel
+from ..measurements import Measurements
+from ..robot import Chain
+from ..urdf_export import measurement_to_base
+from .model import ErrorModel, State
+from .outliers import Outlier
+from .selection import Selection
+
+
+@dataclass(frozen=True)
+class ResidualStats:
+    """Errors measured - model of a set of measurements.
+
+    Attributes:
+        configs: Number of configurations.
+        position_rms: sqrt(mean |e_p|^2) over every measured point [m].
+        position_max: Largest point error [m].
+        orientation_rms: sqrt(mean |e_r|^2) of the rotation error [rad], or None.
+        orientation_max: Largest rotation error [rad], or None.
+    """
+
+    configs: int
+    position_rms: float
+    position_max: float
+    orientation_rms: float | None = None
+    orientation_max: float | None = None
+
+    @staticmethod
+    def of(residual: np.ndarray, n_markers: int = 1) -> ResidualStats:
+        """Statistics of residuals ``(m, 3 K)`` or, with orientations, ``(m, 3 K + 3)``."""
+        residual = np.asarray(residual, dtype=float)
+        m = len(residual)
+        pos = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
+        rot = None
+        if residual.shape[1] == 3 * n_markers + 3:
+            rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+        return ResidualStats(
+            configs=m,
+            position_rms=float(np.sqrt(np.mean(pos**2))),
+            position_max=float(np.max(pos)),
+            orientation_rms=None if rot is None else float(np.sqrt(np.mean(rot**2))),
+            orientation_max=None if rot is None else float(np.max(rot)),
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (metres, radians)."""
+        return {
+            "configs": self.configs,
+            "position_rms": finite(self.position_rms),
+            "position_max": finite(self.position_max),
+            "orientation_rms": finite(self.orientation_rms),
+            "orientation_max": finite(self.orientation_max),
+        }
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Errors on configurations the fit never saw.
+
+    Attributes:
+        source: ``holdout`` (rows set aside) or the validation file.
+        registration: Errors of the registration alone (nominal geometry).
+        calibrated: Errors of the calibrated model.
+        predicted_std: Predicted position standard deviation of the calibrated model at
+            these configurations, RMS over them [m].
+    """
+
+    source: str
+    registration: ResidualStats
+    calibrated: ResidualStats
+    predicted_std: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready form."""
+        return {
+            "source": self.source,
+            "registration": self.registration.to_dict(),
+            "calibrated": self.calibrated.to_dict(),
+            "predicted_std": finite(self.predicted_std),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """Result of a calibration.
+
+    Attributes:
+        robot: Robot name.
+        chain: The nominal chain (its URDF is what :mod:`calib.urdf_export` edits).
+        data: The measurements fitted (outliers and held-out rows removed).
+        level: Parameter level: ``auto``, ``frames``, ``offsets``, ``paper`` or ``complete``.
+        model: The free parameters of the fit.
+        names: Their names, in the order of ``estimate``.
+        nominal: The nominal MDH model (URDF base frame).
+        registration: The registration: nominal geometry, fitted frame and markers.
+        state: The calibrated model.
+        estimate: Fitted parameters (changes from the registration's start) [rad, m, ...].
+        std: Standard deviation of each [same units] (NaN where undefined).
+        covariance: Their covariance.
+        sigma: Estimated noise of a weighted residual row sigma_hat [m].
+        condition: Condition number of the weighted Jacobian with unit-norm columns.
+        before: Errors of the registration on the fitted data.
+        after: Errors of the calibrated model on the fitted data.
+        predicted_std: Predicted position standard deviation at the fitted
+            configurations, RMS over them [m].
+        validation: Errors on held-out configurations, or None.
+        selection: The automatic choice (level ``auto``), or None.
+        outliers: Configurations set aside.
+        prior: Prior weight of each parameter in the fit (zeros: none).
+        iterations: Jacobian evaluations of the final fit.
+        evaluations: Residual evaluations of the final fit.
+        converged: The final fit converged.
+        message: Solver message.
+        orientation_weight: Weight of the orientation rows [m/rad].
+        refusal: Why the model must not be written (None: accepted).
+        warnings: Reasons to be careful with the result.
+        timings_ms: Time of each stage [ms].
+    """
+
+    robot: str
+    chain: Chain
+    data: Measurements
+    level: str
+    model: ErrorModel
+    names: tuple[str, ...]
+    nominal: MDHModel
+    registration: State
+    state: State
+    estimate: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    sigma: float
+    condition: float
+    before: ResidualStats
+    after: ResidualStats
+    predicted_std: float
+    validation: Validation | None
+    selection: Selection | None
+    outliers: tuple[Outlier, ...]
+    prior: np.ndarray
+    iterations: int
+    evaluations: int
+    converged: bool
+    message: str
+    orientation_weight: float
+    refusal: str | None = None
+    warnings: tuple[str, ...] = ()
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def calibrated(self) -> MDHModel:
+        """The calibrated MDH model (URDF base frame; see :attr:`measurement_to_base`)."""
+        return self.state.mdh
+
+    @property
+    def accepted(self) -> bool:
+        """The model passed every check and may be written."""
+        return self.refusal is None
+
+    @property
+    def measurement_to_base(self) -> np.ndarray:
+        """Pose of the calibrated URDF's base frame in the measurement frame ``(4, 4)``.
+
+        The calibrated URDF keeps the nominal placement of joint 1 in its base link: the
+        change of MDH rows 0 and 1 joins the measurement frame.
+        """
+        return self.state.frame @ measurement_to_base(self.nominal, self.calibrated)
+
+    def check(self) -> CalibrationResult:
+        """Return self if the model may be written.
+
+        Raises:
+            ConvergenceError: The fit did not converge.
+            CalibrationRefusedError: A check failed (``refusal`` says which).
+        """
+        if not self.converged:
+            raise ConvergenceError(f"the fit did not converge: {self.message}")
+        if self.refusal is not None:
+            raise CalibrationRefusedError(self.refusal)
+        return self
+
+    def points(self, q: np.ndarray) -> np.ndarray:
+        """Points predicted by the calibrated model, measurement frame ``(m, K, 3)`` [m].
+
+        Joint compliance, if fitted, needs the gravity torques: use ``state.predict``.
+        """
+        return self.state.predict(np.atleast_2d(q))[0]
+
+    def to_dict(self) -> dict:
+        """JSON-ready report (radians, metres); undefined or infinite numbers are None."""
+        T = self.measurement_to_base
+        report = {
+            "robot": self.robot,
+            "urdf": str(self.chain.urdf_path),
+            "data": self.data.source,
+            "base_frame": self.chain.base_frame,
+            "tool_frame": self.chain.tool_frame,
+            "measure": self.data.measure,
+            "markers": self.state.markers.tolist(),
+            "params": self.level,
+            "configs": self.data.m,
+            "accepted": self.accepted,
+            "refusal": self.refusal,
+            "converged": self.converged,
+            "message": self.message,
+            "iterations": self.iterations,
+            "orientation_weight": self.orientation_weight,
+            "residuals": {"registration": self.before.to_dict(), "calibrated": self.after.to_dict()},
+            "validation": None if self.validation is None else self.validation.to_dict(),
+            "selection": None if self.selection is None else self.selection.to_dict(),
+            "outliers": [o.to_dict() for o in self.outliers],
+            "sigma": finite(self.sigma),
+            "condition_number": finite(self.condition),
+            "predicted_std": finite(self.predicted_std),
+            "parameters": [
+                {"name": n, "value": v, "std": s, "prior_weight": p}
+                for n, v, s, p in zip(self.names, self.estimate, self.std, self.prior, strict=True)
+            ],
+            "compliance": dict(zip(self.nominal.joint_names[1:-1], self.state.compliance.tolist(), strict=True)),
+            "measurement_to_base": {
+                "xyz": T[:3, 3].tolist(),
+                "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
+                "matrix": T.tolist(),
+            },
+            "mdh_nominal": self.nominal.rows(),
+            "mdh_calibrated": self.calibrated.rows(),
+            "warnings": list(self.warnings),
+            "timings_ms": dict(self.timings_ms),
+        }
+        return finite_tree(report)
+
+
+def finite(x: float | None) -> float | None:
+    """``float(x)``, or None for None, an infinity or NaN."""
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def finite_tree(value):
+    """A copy of a JSON-ready tree with every non-finite float replaced by None."""
+    if isinstance(value, dict):
+        return {k: finite_tree(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_tree(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return finite(value)
+    return value

@@ -1,0 +1,168 @@
+"""The nonlinear least-squares fit of an error model, and its statistics."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from .model import ErrorModel, State
+
+TOLERANCE = 1e-10
+"""Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
+
+LOSSES = ("linear", "soft_l1", "huber")
+"""Losses of the fit: least squares, or a robust loss (scipy's, scale ``--noise-mm``)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """A solved fit.
+
+    Attributes:
+        model: What was free.
+        start: The state at x = 0.
+        state: The state at the solution.
+        x: The solution ``(p,)``.
+        J: Weighted Jacobian of the data rows at the solution ``(r, p)``.
+        f: Weighted residuals model - measured of the data rows ``(r,)`` [m].
+        converged: The solver met a convergence criterion with finite numbers.
+        status: scipy's status.
+        message: scipy's message.
+        iterations: Jacobian evaluations.
+        evaluations: Residual evaluations.
+    """
+
+    model: ErrorModel
+    start: State
+    state: State
+    x: np.ndarray
+    J: np.ndarray
+    f: np.ndarray
+    converged: bool
+    status: int
+    message: str
+    iterations: int
+    evaluations: int
+
+
+def row_weights(model: ErrorModel, weight: float) -> np.ndarray:
+    """Weight of each residual row of a configuration: 1 for points, ``weight`` [m/rad] else."""
+    return np.r_[np.ones(3 * model.n_markers), np.full(3 * model.pose, weight)]
+
+
+class Problem:
+    """Weighted residuals model - measured (and prior rows) and their Jacobian, of x."""
+
+    def __init__(self, model, start, data, torque, weight, prior=None):
+        self.model, self.start, self.data, self.torque = model, start, data, torque
+        self.w = row_weights(model, weight)
+        self.prior = prior  # (p,) weights of x in the prior rows, or None
+
+    def data_rows(self, x: np.ndarray) -> np.ndarray:
+        """Weighted model - measured of the data, configuration-major ``(m rows,)``."""
+        state = self.model.apply(self.start, x)
+        return (-state.residuals(self.data, self.torque) * self.w).ravel()
+
+    def fun(self, x: np.ndarray) -> np.ndarray:
+        """Data rows, then the prior rows ``prior * x``."""
+        f = self.data_rows(x)
+        return f if self.prior is None else np.r_[f, self.prior * x]
+
+    def data_jac(self, x: np.ndarray) -> np.ndarray:
+        """Jacobian of :meth:`data_rows`, ``(m rows, p)``."""
+        J = self.model.jacobian(self.start, x, self.data, self.torque)
+        return (J * self.w[None, :, None]).reshape(-1, J.shape[2])
+
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        """Jacobian of :meth:`fun`."""
+        J = self.data_jac(x)
+        return J if self.prior is None else np.vstack([J, np.diag(self.prior)])
+
+
+def fit(
+    model: ErrorModel,
+    start: State,
+    data,
+    torque: np.ndarray | None,
+    weight: float,
+    *,
+    prior: np.ndarray | None = None,
+    loss: str = "linear",
+    scale: float = 1e-3,
+    max_iterations: int = 100,
+) -> Fit:
+    """Levenberg-Marquardt (least squares) or trust-region (robust loss) from x = 0.
+
+    Args:
+        model: The free parameters.
+        start: The state at x = 0.
+        data: The measurements.
+        torque: Gravity torques ``(m, n)`` for compliance, or None.
+        weight: Orientation weight [m/rad].
+        prior: Weights of x in extra residual rows ``prior * x`` (a Gaussian prior toward
+            the start), or None.
+        loss: One of ``LOSSES``.
+        scale: Residual scale of a robust loss [m].
+        max_iterations: Most residual evaluations.
+    """
+    import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
+
+    problem = Problem(model, start, data, torque, weight, prior)
+    p = model.size()
+    if p == 0:
+        x = np.zeros(0)
+        status, message, njev, nfev = 1, "nothing to fit", 0, 1
+    else:
+        sol = scipy.optimize.least_squares(
+            problem.fun,
+            np.zeros(p),
+            jac=problem.jac,
+            method="lm" if loss == "linear" else "trf",
+            loss=loss,
+            f_scale=scale,
+            ftol=TOLERANCE,
+            xtol=TOLERANCE,
+            gtol=TOLERANCE,
+            max_nfev=max_iterations,
+        )
+        x, status, message = sol.x, int(sol.status), str(sol.message)
+        njev = int(sol.njev if sol.njev is not None else sol.nfev)
+        nfev = int(sol.nfev)
+    f = problem.data_rows(x)
+    J = problem.data_jac(x) if p else np.zeros((f.size, 0))
+    finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
+    return Fit(
+        model, start, model.apply(start, x), x, J, f, status > 0 and finite,
+        status, message if finite else "non-finite parameters or residuals", njev, nfev,
+    )
+
+
+def covariance(J: np.ndarray, rss: float, prior: np.ndarray | None = None):
+    """Covariance ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat = sqrt(RSS / (r - p)).
+
+    A singular information matrix gives infinite variances.
+    """
+    r, p = J.shape
+    sigma = math.sqrt(rss / (r - p)) if r > p else math.nan
+    A = J if prior is None else np.vstack([J, np.diag(prior)])
+    if p == 0:
+        return np.zeros((0, 0)), sigma
+    R = scipy.linalg.qr(A, mode="r", check_finite=False)[0][:p]
+    if not np.all(np.isfinite(R)) or np.any(np.abs(np.diag(R)) <= 1e-14 * np.max(np.abs(R))):
+        return np.full((p, p), math.inf), sigma
+    Rinv = scipy.linalg.solve_triangular(R, np.eye(p), check_finite=False)
+    return sigma**2 * (Rinv @ Rinv.T), sigma
+
+
+def condition(J: np.ndarray) -> float:
+    """Condition number of J with its columns scaled to unit norm."""
+    if J.shape[1] == 0:
+        return 1.0
+    norms = np.linalg.norm(J, axis=0)
+    if np.any(norms == 0):
+        return math.inf
+    s = np.linalg.svd(J / norms, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else math.inf

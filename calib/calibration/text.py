@@ -1,0 +1,89 @@
+"""The human-readable summary of a calibration (millimetres and milliradians)."""
+
+from __future__ import annotations
+
+import math
+
+import pinocchio as pin
+
+from ..report import format_table
+from .result import CalibrationResult, ResidualStats
+
+
+def _mm(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}"
+
+
+def _row(label: str, st: ResidualStats) -> list[str]:
+    row = [label, str(st.configs), _mm(st.position_rms), _mm(st.position_max)]
+    if st.orientation_rms is not None:
+        row += [_mm(st.orientation_rms), _mm(st.orientation_max)]
+    return row
+
+
+def _errors(r: CalibrationResult) -> str:
+    rows = [_row("fitted, registration only", r.before), _row("fitted, calibrated", r.after)]
+    if r.validation is not None:
+        v = r.validation
+        rows += [_row(f"held out ({v.source}), registration only", v.registration),
+                 _row(f"held out ({v.source}), calibrated", v.calibrated)]
+    header = ["errors", "configs", "rms [mm]", "max [mm]"]
+    if r.after.orientation_rms is not None:
+        header += ["rot rms [mrad]", "rot max [mrad]"]
+    return format_table(header, rows)
+
+
+def _selection(r: CalibrationResult) -> list[str]:
+    s = r.selection
+    if s is None:
+        return []
+    steps = ", ".join(f"{st.name} {1e3 * st.loo:.3f}" for st in s.steps)
+    lines = [f"selection (leave-one-configuration-out RMS per point [mm] after each step): {steps}"]
+    verdict = "kept the registration alone" if s.guarded else f"kept {len(s.kept)} parameters"
+    lines.append(
+        f"cross-validated check: registration alone {1e3 * s.registration_cv:.3f} mm, "
+        f"selection {1e3 * s.selection_cv:.3f} mm: {verdict}"
+        + (f"; prior strength {s.strength:.3g}" if s.strength else "")
+    )
+    return lines
+
+
+def _unit(name: str) -> tuple[float, str]:
+    if name.startswith("c"):
+        return 1.0, ""
+    angle = name.split(".")[-1] in ("rx", "ry", "rz") or name.startswith(("alpha", "beta", "theta"))
+    return 1e3, "mrad" if angle else "mm"
+
+
+def calibration_text(result: CalibrationResult) -> str:
+    """Summary: level and selection, errors before/after, parameters, frame, markers, verdict."""
+    r = result
+    lines = [
+        f"{r.robot}: {r.chain.base_frame} -> {r.chain.tool_frame}, {r.data.m} configurations, "
+        f"{r.data.n_markers} point(s){' and orientation' if r.data.quaternion is not None else ''}, "
+        f"level {r.level}, {len(r.names)} parameters",
+        *_selection(r),
+        ("converged" if r.converged else "NOT CONVERGED") + f" in {r.iterations} iterations ({r.message})",
+        _errors(r),
+        f"predicted position std (parameter uncertainty): {_mm(r.predicted_std)} mm at the fitted "
+        f"configurations"
+        + (f", {_mm(r.validation.predicted_std)} mm held out" if r.validation is not None else ""),
+        "parameters (change from the registration +- std):",
+    ]
+    width = max((len(n) for n in r.names), default=0)
+    for name, v, s in zip(r.names, r.estimate, r.std, strict=True):
+        f, unit = _unit(name)
+        sd = f"{f * s:.4g}" if math.isfinite(s) else "-"
+        lines.append(f"  {name:>{width}} = {f * v:>10.4g} +- {sd:<9} {unit}")
+    T = r.measurement_to_base
+    rpy = pin.rpy.matrixToRpy(T[:3, :3])
+    lines.append(
+        f"measurement frame -> URDF base frame: xyz [{', '.join(f'{v:.6f}' for v in T[:3, 3])}] m, "
+        f"rpy [{', '.join(f'{v:.6f}' for v in rpy)}] rad"
+    )
+    for k, mk in enumerate(r.state.markers):
+        lines.append(f"marker {k + 1} in the tool frame: [{', '.join(f'{v:.6f}' for v in mk)}] m")
+    lines += [f"outlier: row {o.row}, {1e3 * o.error:.3g} mm (median {1e3 * o.median:.3g} mm)" for o in r.outliers]
+    lines += [f"warning: {w}" for w in r.warnings]
+    lines.append("accepted" if r.accepted else f"REFUSED: {r.refusal}")
+    return "\n".join(lines)

@@ -1,0 +1,105 @@
+"""Validation: held-out configurations, predicted uncertainty, and the checks a model must pass.
+
+A calibrated model is written only if it passes every check:
+
+1. the fit converged;
+2. it fits the training data no worse than the registration alone (nominal geometry with
+   the fitted measurement frame and markers);
+3. the measured configurations identify every fitted parameter (the weighted Jacobian at
+   the solution has full column rank);
+4. on held-out configurations (``--validate`` or ``--holdout``), its RMS error is no larger
+   than the registration's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..measurements import Measurements
+from .model import State
+from .result import ResidualStats
+
+RANK_TOL = 1e-9
+"""Smallest singular value, relative to the largest, of the unit-norm columns of a fit."""
+
+
+def split(data: Measurements, fraction: float, seed: int) -> tuple[Measurements, Measurements | None]:
+    """Set aside a seeded random ``fraction`` of the configurations (training, held out)."""
+    if not (0.0 <= fraction < 1.0):
+        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {fraction!r}")
+    n_out = int(round(fraction * data.m))
+    if n_out == 0:
+        return data, None
+    held = np.zeros(data.m, dtype=bool)
+    held[np.random.default_rng([seed, 3]).permutation(data.m)[:n_out]] = True
+    return data.subset(~held), data.subset(held)
+
+
+def stats(state: State, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
+    """Errors measured - model of a state on some data."""
+    return ResidualStats.of(state.residuals(data, torque), data.n_markers)
+
+
+def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
+    """RMS over configurations and points of the predicted position std [m].
+
+    Args:
+        J_points: Jacobian of the points of each configuration ``(m, rows, p)`` (the first
+            3 K rows are points).
+        covariance: Parameter covariance ``(p, p)``.
+        n_markers: K.
+
+    Returns:
+        sqrt(mean over points of trace(J_k C J_k^T)): the RMS distance between the predicted
+        and the true point that the parameter uncertainty alone explains.
+    """
+    if covariance.size == 0:
+        return 0.0
+    if not np.all(np.isfinite(covariance)):
+        return float("inf")
+    Jp = J_points[:, : 3 * n_markers]
+    var = np.einsum("mrp,pq,mrq->m", Jp, covariance, Jp) / n_markers
+    return float(np.sqrt(np.mean(var)))
+
+
+def full_rank(J: np.ndarray) -> bool:
+    """Whether a Jacobian's unit-norm columns are independent (``RANK_TOL``)."""
+    if J.shape[1] == 0:
+        return True
+    norms = np.linalg.norm(J, axis=0)
+    if np.any(norms == 0):
+        return False
+    s = np.linalg.svd(J / norms, compute_uv=False)
+    return bool(s[-1] > RANK_TOL * s[0])
+
+
+def refusal(
+    converged: bool,
+    before: ResidualStats,
+    after: ResidualStats,
+    identified: bool,
+    held: tuple[ResidualStats, ResidualStats] | None,
+    names: tuple[str, ...],
+) -> str | None:
+    """The first check a calibration fails, as a sentence (None: every check passed)."""
+    if not converged:
+        return "the fit did not converge"
+    if after.position_rms > before.position_rms * (1 + 1e-9) + 1e-12:
+        return (
+            f"the calibrated model fits the data worse than the registration alone "
+            f"({1e3 * after.position_rms:.3g} mm vs {1e3 * before.position_rms:.3g} mm RMS)"
+        )
+    if not identified:
+        return (
+            f"the measured configurations do not identify the {len(names)} fitted parameters "
+            f"(rank-deficient Jacobian): measure more varied configurations or fit fewer "
+            f"parameters"
+        )
+    if held is not None and held[1].position_rms > held[0].position_rms:
+        return (
+            f"on held-out configurations the calibrated model is worse than the registration "
+            f"alone ({1e3 * held[1].position_rms:.3g} mm vs {1e3 * held[0].position_rms:.3g} mm "
+            f"RMS): it would make the robot less accurate"
+        )
+    return None
