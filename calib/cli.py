@@ -207,10 +207,20 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     elif args.measure == "pose" and data.quaternion is None:
         raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
     result = calibrate(
-        chain, data, args.marker, args.params, validate=check, fix=tuple(args.fix), free=tuple(args.free),
-        elastic=args.elastic, loss=args.loss, noise_mm=args.noise_mm,
-        orientation_weight=args.orientation_weight, max_iterations=args.max_iterations,
-        holdout=args.holdout, seed=args.seed,
+        chain,
+        data,
+        args.marker,
+        args.params,
+        validate=check,
+        fix=tuple(args.fix),
+        free=tuple(args.free),
+        elastic=args.elastic,
+        loss=args.loss,
+        noise_mm=args.noise_mm,
+        orientation_weight=args.orientation_weight,
+        max_iterations=args.max_iterations,
+        holdout=args.holdout,
+        seed=args.seed,
     )
     text = json_text(result.to_dict())
     print(text if args.json else calibration_text(result), end="" if args.json else "\n")
@@ -218,7 +228,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         if report is not None:
             _write({report: text})
         kept = f"; report written to {report}" if report is not None else ""
-        raise CalibrationRefusedError(f"calibration refused: {result.refusal}: no URDF written{kept}")
+        raise CalibrationRefusedError(
+            f"calibration refused: {result.refusal}: no URDF written{kept}"
+        )
     urdf = calibrated_urdf(chain, result.nominal, result.calibrated)
     files: dict[Path, str | bytes] = {out: urdf}
     if report is not None:
@@ -399,7 +411,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="calibrated URDF to write")
     p.add_argument("--report", help="JSON report to write (also when the model is refused)")
     p.add_argument(
-        "--marker", nargs="+", type=float, metavar="X",
+        "--marker",
+        nargs="+",
+        type=float,
+        metavar="X",
         help="guess of the marker(s) in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
     )
     p.add_argument(
@@ -409,27 +424,67 @@ def build_parser() -> argparse.ArgumentParser:
         help="auto: pose when the CSV has orientation columns, else position (default: auto)",
     )
     p.add_argument(
-        "--params", choices=LEVELS, default=DEFAULT_LEVEL,
+        "--params",
+        choices=LEVELS,
+        default=DEFAULT_LEVEL,
         help="parameter level: auto keeps what the data support (cross-validated); frames = "
         "measurement frame + markers; offsets adds joint offsets; paper, complete (default: auto)",
     )
-    p.add_argument("--fix", nargs="+", default=[], metavar="NAME", help="parameters (or frame, markers, tool) held at their start")
+    p.add_argument(
+        "--fix",
+        nargs="+",
+        default=[],
+        metavar="NAME",
+        help="parameters (or frame, markers, tool) held at their start",
+    )
     p.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
     p.add_argument(
-        "--elastic", action=argparse.BooleanOptionalAction, default=None,
-        help="fit joint compliance under gravity (default: with --params auto, where the URDF has masses)",
+        "--elastic",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="fit joint compliance under gravity (default: with --params auto, where the URDF "
+        "has masses)",
     )
-    p.add_argument("--validate", help="measurement CSV of other configurations: score the result on it")
-    p.add_argument("--holdout", type=float, default=0.0, help="fraction of the rows set aside for validation (default: 0)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
-    p.add_argument("--loss", choices=LOSSES, default="linear", help="linear, or a robust loss (default: linear)")
-    p.add_argument("--noise-mm", type=float, help="instrument noise [mm]: scale of the robust loss and of the outlier test")
-    p.add_argument("--units", choices=tuple(UNITS), default="m", help="unit of the position columns (default: m)")
     p.add_argument(
-        "--orientation", choices=("auto", *ORIENTATION_FORMATS), default="auto",
-        help="orientation columns: quaternion (xyzw or wxyz), rotation vector or rpy (default: from the names)",
+        "--validate", help="measurement CSV of other configurations: score the result on it"
     )
-    p.add_argument("--orientation-columns", nargs="+", metavar="COL", help="names of the orientation columns, in the format's order")
+    p.add_argument(
+        "--holdout",
+        type=float,
+        default=0.0,
+        help="fraction of the rows set aside for validation (default: 0)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    p.add_argument(
+        "--loss",
+        choices=LOSSES,
+        default="linear",
+        help="linear, or a robust loss (default: linear)",
+    )
+    p.add_argument(
+        "--noise-mm",
+        type=float,
+        help="instrument noise [mm]: scale of the robust loss and of the outlier test",
+    )
+    p.add_argument(
+        "--units",
+        choices=tuple(UNITS),
+        default="m",
+        help="unit of the position columns (default: m)",
+    )
+    p.add_argument(
+        "--orientation",
+        choices=("auto", *ORIENTATION_FORMATS),
+        default="auto",
+        help="orientation columns: quaternion (xyzw or wxyz), rotation vector or rpy "
+        "(default: from the column names)",
+    )
+    p.add_argument(
+        "--orientation-columns",
+        nargs="+",
+        metavar="COL",
+        help="names of the orientation columns, in the format's order",
+    )
     p.add_argument(
         "--orientation-weight",
         type=float,

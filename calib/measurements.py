@@ -148,7 +148,8 @@ class Measurements:
             pos = pos.reshape(m, -1)
         if pos.ndim != 2 or pos.shape[0] != m or pos.shape[1] % 3 or pos.shape[1] == 0:
             raise InvalidArgumentError(
-                f"positions must have shape ({m}, 3 K) or ({m}, K, 3), got {np.shape(self.position)}"
+                f"positions must have shape ({m}, 3 K) or ({m}, K, 3), got "
+                f"{np.shape(self.position)}"
             )
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(pos))):
             raise InvalidArgumentError("measurements contain NaN or infinity")
@@ -352,15 +353,18 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
         missing = next(a for a in POSITION_COLUMNS if a not in free)
         raise DataError(
             src,
-            "missing position column: expected x, y, z (one marker) or x1, y1, z1, ..., "
-            "xK, yK, zK",
+            "missing position column: expected x, y, z (one marker) or x1, y1, z1, ..., xK, yK, zK",
             row=line,
             column=missing,
         )
     fmt, cols = columns.orientation, columns.orientation_columns
     if fmt == "auto":
         fmt = next(
-            (f for f in ("quat-xyzw", "rotvec", "rpy") if any(c in free for c in DEFAULT_ORIENTATION_COLUMNS[f])),
+            (
+                f
+                for f in ("quat-xyzw", "rotvec", "rpy")
+                if any(c in free for c in DEFAULT_ORIENTATION_COLUMNS[f])
+            ),
             None,
         )
     if fmt is not None:
@@ -368,7 +372,10 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
         for c in cols:
             if c not in free:
                 raise DataError(
-                    src, f"missing orientation column ({fmt}: {', '.join(cols)})", row=line, column=c
+                    src,
+                    f"missing orientation column ({fmt}: {', '.join(cols)})",
+                    row=line,
+                    column=c,
                 )
     return pos, fmt, tuple(cols or ())
 
@@ -484,7 +491,10 @@ def parse_measurements(
             raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=line)
         used = {*chain.joint_names, *header[1], *header[3]}
         values.append(
-            [_number(c, source, line, n) if n in used else 0.0 for c, n in zip(cells, names, strict=True)]
+            [
+                _number(c, source, line, n) if n in used else 0.0
+                for c, n in zip(cells, names, strict=True)
+            ]
         )
         lines.append(line)
     if header is None:

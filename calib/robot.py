@@ -322,7 +322,10 @@ class Chain:
         data = self.model.createData()
         idx = [self.model.joints[j].idx_v for j in self.joint_ids]
         return np.array(
-            [pin.computeGeneralizedGravity(self.model, data, qp)[idx] for qp in self.pin_configurations(q)]
+            [
+                pin.computeGeneralizedGravity(self.model, data, qp)[idx]
+                for qp in self.pin_configurations(q)
+            ]
         ).reshape(-1, self.n)
 
     def tool_placements(self, q: np.ndarray) -> np.ndarray:

@@ -121,8 +121,16 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
     cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
     cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
     R = np.empty((*rpy.shape[:-1], 3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = (
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+    )
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = (
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+    )
     R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
     return R
 

@@ -45,16 +45,19 @@ def _mistakes(data, revolute: np.ndarray) -> Iterator[tuple[str, object]]:
         q = data.q.copy()
         q[:, revolute] = np.deg2rad(q[:, revolute])
         yield "revolute joint positions in degrees, not radians", dataclasses.replace(data, q=q)
-    yield "positions in millimetres, not metres (--units mm)", dataclasses.replace(
-        data, position=data.position * 1e-3
+    yield (
+        "positions in millimetres, not metres (--units mm)",
+        dataclasses.replace(data, position=data.position * 1e-3),
     )
     if data.quaternion is not None:
         quat = data.quaternion
-        yield "quaternions written w, x, y, z (--orientation quat-wxyz)", dataclasses.replace(
-            data, quaternion=quat[:, [1, 2, 3, 0]]
+        yield (
+            "quaternions written w, x, y, z (--orientation quat-wxyz)",
+            dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
         )
-        yield "quaternions written x, y, z, w (--orientation quat-xyzw)", dataclasses.replace(
-            data, quaternion=quat[:, [3, 0, 1, 2]]
+        yield (
+            "quaternions written x, y, z, w (--orientation quat-xyzw)",
+            dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
         )
 
 
@@ -82,7 +85,7 @@ def likely_cause(
     for what, fixed in _mistakes(data, revolute):
         try:
             rms = registration_rms(fixed)
-        except Exception:  # noqa: BLE001 - a mistake that makes no valid data explains nothing
+        except Exception:
             continue
         if rms * EXPLAINS < before and rms < SUSPECT and (best is None or rms < best[1]):
             best = (what, rms)

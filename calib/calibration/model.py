@@ -159,7 +159,7 @@ class ErrorModel:
         return sum(self._sizes())
 
     def split(self, x: np.ndarray) -> list[np.ndarray]:
-        """x cut into its groups: frame, markers, tool, base values, compliances."""
+        """X cut into its groups: frame, markers, tool, base values, compliances."""
         return np.split(np.asarray(x, dtype=float), np.cumsum(self._sizes())[:-1])
 
     def apply(self, start: State, x: np.ndarray) -> State:
@@ -178,9 +178,7 @@ class ErrorModel:
         compliance[list(self.compliance)] += xc
         return State(mdh, frame, markers, tool, compliance)
 
-    def jacobian(
-        self, start: State, x: np.ndarray, data, torque: np.ndarray | None
-    ) -> np.ndarray:
+    def jacobian(self, start: State, x: np.ndarray, data, torque: np.ndarray | None) -> np.ndarray:
         """d(model)/dx, ``(m, rows, size)``: rows are 3 K point rows then 3 rotation rows.
 
         The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
@@ -276,7 +274,10 @@ def registration_state(
 ) -> State:
     """A state with the nominal geometry, no compliance, and the given frame and markers."""
     return State(
-        mdh, np.array(frame, dtype=float), np.array(markers, dtype=float), tool_rotation,
+        mdh,
+        np.array(frame, dtype=float),
+        np.array(markers, dtype=float),
+        tool_rotation,
         np.zeros(mdh.n),
     )
 

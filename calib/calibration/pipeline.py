@@ -62,13 +62,22 @@ class Options:
             )
         if self.loss not in LOSSES:
             raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
-        for name, value in (("orientation weight", self.orientation_weight), ("noise", self.noise_mm)):
-            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        for name, value in (
+            ("orientation weight", self.orientation_weight),
+            ("noise", self.noise_mm),
+        ):
+            if value is not None and not (
+                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+            ):
                 raise InvalidArgumentError(f"the {name} must be a finite number > 0, got {value!r}")
         it = self.max_iterations
         if isinstance(it, bool) or not isinstance(it, (int, np.integer)) or it < 1:
             raise InvalidArgumentError(f"max_iterations must be an integer >= 1, got {it!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, (int, np.integer))
+            or self.seed < 0
+        ):
             raise InvalidArgumentError(f"the seed must be an integer >= 0, got {self.seed!r}")
         for opt, names in (("fix", self.fix), ("free", self.free)):
             if len(set(names)) != len(names):
@@ -133,11 +142,20 @@ def calibrate(
     model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts)
     clock.append(time.perf_counter())
     fitted = fit(
-        model, reg, train, torque[0], opts.orientation_weight, prior=prior,
-        loss=opts.loss, scale=opts.noise or 1e-3, max_iterations=opts.max_iterations,
+        model,
+        reg,
+        train,
+        torque[0],
+        opts.orientation_weight,
+        prior=prior,
+        loss=opts.loss,
+        scale=opts.noise or 1e-3,
+        max_iterations=opts.max_iterations,
     )
     clock.append(time.perf_counter())
-    result = _assemble(chain, nominal, train, held, torque, fitted, prior, selection, dropped, notes, opts)
+    result = _assemble(
+        chain, nominal, train, held, torque, fitted, prior, selection, dropped, notes, opts
+    )
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
     timings = {s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
@@ -147,7 +165,9 @@ def calibrate(
 def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
     """Check the data; the training set and the held-out set (with its label)."""
     if not isinstance(data, Measurements):
-        raise InvalidArgumentError(f"data must be Measurements (read_measurements), got {type(data).__name__}")
+        raise InvalidArgumentError(
+            f"data must be Measurements (read_measurements), got {type(data).__name__}"
+        )
     check_against_chain(data, chain)
     train, held = validation.split(data, opts.holdout, opts.seed)
     if validate is not None:
@@ -155,7 +175,9 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         check_against_chain(validate, chain)
         if (validate.n_markers, validate.measure) != (data.n_markers, data.measure):
-            raise DataError(validate.source, "the validation data measure other points than the data")
+            raise DataError(
+                validate.source, "the validation data measure other points than the data"
+            )
         return train, (validate, validate.source)
     return train, None if held is None else (held, "holdout")
 
@@ -179,9 +201,15 @@ def _marker_guess(marker, k: int) -> np.ndarray:
 def _frames_model(data: Measurements, opts: Options) -> ErrorModel:
     """The registration's free parameters: frame, markers (and measured-frame rotation)."""
     return ErrorModel(
-        ParameterSet("none", ()), (), np.zeros((0, 0)), (),
-        frame="frame" not in opts.fix, markers="markers" not in opts.fix,
-        tool="tool" not in opts.fix, n_markers=data.n_markers, pose=data.quaternion is not None,
+        ParameterSet("none", ()),
+        (),
+        np.zeros((0, 0)),
+        (),
+        frame="frame" not in opts.fix,
+        markers="markers" not in opts.fix,
+        tool="tool" not in opts.fix,
+        n_markers=data.n_markers,
+        pose=data.quaternion is not None,
     )
 
 
@@ -192,12 +220,19 @@ def _registration(nominal, data, guess, opts) -> Fit:
         start = dataclasses.replace(start, frame=np.eye(4))
     if "markers" in opts.fix:
         start = dataclasses.replace(start, markers=guess)
-    return fit(_frames_model(data, opts), start, data, None, opts.orientation_weight,
-               max_iterations=opts.max_iterations)
+    return fit(
+        _frames_model(data, opts),
+        start,
+        data,
+        None,
+        opts.orientation_weight,
+        max_iterations=opts.max_iterations,
+    )
 
 
 def _register(chain, nominal, data, guess, opts):
     """Registration, a likely cause for data it cannot fit, and outlier removal."""
+
     def rms(d):
         return validation.stats(_registration(nominal, d, guess, opts).state, d, None).position_rms
 
@@ -224,7 +259,9 @@ def _register(chain, nominal, data, guess, opts):
         if not np.any(bad):
             break
         median = float(np.median(errors))
-        dropped += [outliers.Outlier(data.row_of(i), float(errors[i]), median) for i in np.flatnonzero(bad)]
+        dropped += [
+            outliers.Outlier(data.row_of(i), float(errors[i]), median) for i in np.flatnonzero(bad)
+        ]
         data = data.subset(~bad)
     if dropped:
         reg = _registration(nominal, data, guess, opts)
@@ -274,9 +311,15 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
     joints = [j for j in joints if compliance_name(nominal, j) not in opts.fix]
     base = _frames_model(data, opts)
-    order = [pset.index(n) for n in np.array(pset.names)[preference_order(nominal, pset)] if n in names]
-    wide = base.with_(params=pset, base=tuple(pset.names[i] for i in order),
-                      lift=selection_lift(pset, tuple(pset.names[i] for i in order)), compliance=tuple(joints))
+    order = [
+        pset.index(n) for n in np.array(pset.names)[preference_order(nominal, pset)] if n in names
+    ]
+    wide = base.with_(
+        params=pset,
+        base=tuple(pset.names[i] for i in order),
+        lift=selection_lift(pset, tuple(pset.names[i] for i in order)),
+        compliance=tuple(joints),
+    )
     ideal = dataclasses.replace(reg, mdh=nominal.idealized())
     w = row_weights(wide, opts.orientation_weight)
     J = wide.jacobian(ideal, np.zeros(wide.size()), data, torque) * w[None, :, None]
@@ -284,24 +327,43 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
     cand = [wide.names(nominal)[i] for i in kept if i >= fixed]
     if len(kept) < fixed:
-        raise DataError(data.source, "the configurations do not even determine the measurement frame and markers")
+        raise DataError(
+            data.source,
+            "the configurations do not even determine the measurement frame and markers",
+        )
     if opts.level == "auto":
         Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
         cols = list(range(fixed)) + [fixed + wide.names(nominal)[fixed:].index(c) for c in cand]
         forced = [cand.index(n) for n in opts.free if n in cand]
-        selection, weights = select(Jr[:, :, cols], reg.residuals(data) * w, fixed, tuple(cand), forced)
+        selection, weights = select(
+            Jr[:, :, cols], reg.residuals(data) * w, fixed, tuple(cand), forced
+        )
         cand = list(selection.kept)
     else:
         selection, weights = None, np.zeros(len(cand))
     mdh_names = tuple(c for c in cand if c in pset.names)
     comp = tuple(j for j in joints if compliance_name(nominal, j) in cand)
-    model = base.with_(params=pset, base=mdh_names, lift=selection_lift(pset, mdh_names), compliance=comp)
+    model = base.with_(
+        params=pset, base=mdh_names, lift=selection_lift(pset, mdh_names), compliance=comp
+    )
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names(nominal)[fixed:]]]
     return model, selection, prior if np.any(prior) else None
 
 
-def _assemble(chain, nominal, train, held, torque, fitted: Fit, prior, selection: Selection | None, dropped, notes, opts):
+def _assemble(
+    chain,
+    nominal,
+    train,
+    held,
+    torque,
+    fitted: Fit,
+    prior,
+    selection: Selection | None,
+    dropped,
+    notes,
+    opts,
+):
     """Statistics, validation and checks of a fit, as a result."""
     p = fitted.x.size
     cov, sigma = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
@@ -322,26 +384,52 @@ def _assemble(chain, nominal, train, held, torque, fitted: Fit, prior, selection
         )
     checks = (before, after) if val is None else (val.registration, val.calibrated)
     reason = validation.refusal(
-        fitted.converged, before, after, validation.full_rank(fitted.J),
-        None if val is None else checks, fitted.model.names(nominal),
+        fitted.converged,
+        before,
+        after,
+        validation.full_rank(fitted.J),
+        None if val is None else checks,
+        fitted.model.names(nominal),
     )
     notes = list(notes)
     if torque[0] is not None and np.any(fitted.state.compliance):
-        notes.append("joint compliance was fitted: the calibrated URDF cannot hold it (see the report)")
+        notes.append(
+            "joint compliance was fitted: the calibrated URDF cannot hold it (see the report)"
+        )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
     from .solve import condition
 
     return CalibrationResult(
-        robot=chain.name, chain=chain, data=train, level=opts.level, model=fitted.model,
-        names=fitted.model.names(nominal), nominal=nominal, registration=reg, state=fitted.state,
-        estimate=fitted.x, std=std, covariance=cov, sigma=sigma, condition=condition(fitted.J),
-        before=before, after=after, predicted_std=std_train, validation=val,
-        selection=selection, outliers=tuple(dropped),
-        prior=np.zeros(p) if prior is None else prior, iterations=fitted.iterations,
-        evaluations=fitted.evaluations, converged=fitted.converged, message=fitted.message,
-        orientation_weight=opts.orientation_weight, refusal=reason, warnings=tuple(notes),
+        robot=chain.name,
+        chain=chain,
+        data=train,
+        level=opts.level,
+        model=fitted.model,
+        names=fitted.model.names(nominal),
+        nominal=nominal,
+        registration=reg,
+        state=fitted.state,
+        estimate=fitted.x,
+        std=std,
+        covariance=cov,
+        sigma=sigma,
+        condition=condition(fitted.J),
+        before=before,
+        after=after,
+        predicted_std=std_train,
+        validation=val,
+        selection=selection,
+        outliers=tuple(dropped),
+        prior=np.zeros(p) if prior is None else prior,
+        iterations=fitted.iterations,
+        evaluations=fitted.evaluations,
+        converged=fitted.converged,
+        message=fitted.message,
+        orientation_weight=opts.orientation_weight,
+        refusal=reason,
+        warnings=tuple(notes),
     )
 
 

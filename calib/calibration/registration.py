@@ -70,7 +70,7 @@ def register(
     """
     kin = mdh.kinematics(q)
     Rt, pt = kin.R[:, -1], kin.p[:, -1]
-    m, K, _ = points.shape
+    K = points.shape[1]
     mk = np.zeros((K, 3)) if markers is None else np.array(markers, dtype=float).reshape(K, 3)
     A = Rt.reshape(-1, 3)
     for _ in range(ITERATIONS):

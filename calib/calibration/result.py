@@ -216,7 +216,10 @@ class CalibrationResult:
             "message": self.message,
             "iterations": self.iterations,
             "orientation_weight": self.orientation_weight,
-            "residuals": {"registration": self.before.to_dict(), "calibrated": self.after.to_dict()},
+            "residuals": {
+                "registration": self.before.to_dict(),
+                "calibrated": self.after.to_dict(),
+            },
             "validation": None if self.validation is None else self.validation.to_dict(),
             "selection": None if self.selection is None else self.selection.to_dict(),
             "outliers": [o.to_dict() for o in self.outliers],
@@ -227,7 +230,9 @@ class CalibrationResult:
                 {"name": n, "value": v, "std": s, "prior_weight": p}
                 for n, v, s, p in zip(self.names, self.estimate, self.std, self.prior, strict=True)
             ],
-            "compliance": dict(zip(self.nominal.joint_names[1:-1], self.state.compliance.tolist(), strict=True)),
+            "compliance": dict(
+                zip(self.nominal.joint_names[1:-1], self.state.compliance.tolist(), strict=True)
+            ),
             "measurement_to_base": {
                 "xyz": T[:3, 3].tolist(),
                 "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),

@@ -135,8 +135,17 @@ def fit(
     J = problem.data_jac(x) if p else np.zeros((f.size, 0))
     finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
     return Fit(
-        model, start, model.apply(start, x), x, J, f, status > 0 and finite,
-        status, message if finite else "non-finite parameters or residuals", njev, nfev,
+        model,
+        start,
+        model.apply(start, x),
+        x,
+        J,
+        f,
+        status > 0 and finite,
+        status,
+        message if finite else "non-finite parameters or residuals",
+        njev,
+        nfev,
     )
 
 

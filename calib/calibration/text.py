@@ -25,8 +25,10 @@ def _errors(r: CalibrationResult) -> str:
     rows = [_row("fitted, registration only", r.before), _row("fitted, calibrated", r.after)]
     if r.validation is not None:
         v = r.validation
-        rows += [_row(f"held out ({v.source}), registration only", v.registration),
-                 _row(f"held out ({v.source}), calibrated", v.calibrated)]
+        rows += [
+            _row(f"held out ({v.source}), registration only", v.registration),
+            _row(f"held out ({v.source}), calibrated", v.calibrated),
+        ]
     header = ["errors", "configs", "rms [mm]", "max [mm]"]
     if r.after.orientation_rms is not None:
         header += ["rot rms [mrad]", "rot max [mrad]"]
@@ -60,10 +62,12 @@ def calibration_text(result: CalibrationResult) -> str:
     r = result
     lines = [
         f"{r.robot}: {r.chain.base_frame} -> {r.chain.tool_frame}, {r.data.m} configurations, "
-        f"{r.data.n_markers} point(s){' and orientation' if r.data.quaternion is not None else ''}, "
+        f"{r.data.n_markers} point(s)"
+        f"{' and orientation' if r.data.quaternion is not None else ''}, "
         f"level {r.level}, {len(r.names)} parameters",
         *_selection(r),
-        ("converged" if r.converged else "NOT CONVERGED") + f" in {r.iterations} iterations ({r.message})",
+        ("converged" if r.converged else "NOT CONVERGED")
+        + f" in {r.iterations} iterations ({r.message})",
         _errors(r),
         f"predicted position std (parameter uncertainty): {_mm(r.predicted_std)} mm at the fitted "
         f"configurations"
@@ -83,7 +87,10 @@ def calibration_text(result: CalibrationResult) -> str:
     )
     for k, mk in enumerate(r.state.markers):
         lines.append(f"marker {k + 1} in the tool frame: [{', '.join(f'{v:.6f}' for v in mk)}] m")
-    lines += [f"outlier: row {o.row}, {1e3 * o.error:.3g} mm (median {1e3 * o.median:.3g} mm)" for o in r.outliers]
+    lines += [
+        f"outlier: row {o.row}, {1e3 * o.error:.3g} mm (median {1e3 * o.median:.3g} mm)"
+        for o in r.outliers
+    ]
     lines += [f"warning: {w}" for w in r.warnings]
     lines.append("accepted" if r.accepted else f"REFUSED: {r.refusal}")
     return "\n".join(lines)

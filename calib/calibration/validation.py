@@ -24,11 +24,13 @@ RANK_TOL = 1e-9
 """Smallest singular value, relative to the largest, of the unit-norm columns of a fit."""
 
 
-def split(data: Measurements, fraction: float, seed: int) -> tuple[Measurements, Measurements | None]:
+def split(
+    data: Measurements, fraction: float, seed: int
+) -> tuple[Measurements, Measurements | None]:
     """Set aside a seeded random ``fraction`` of the configurations (training, held out)."""
     if not (0.0 <= fraction < 1.0):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {fraction!r}")
-    n_out = int(round(fraction * data.m))
+    n_out = round(fraction * data.m)
     if n_out == 0:
         return data, None
     held = np.zeros(data.m, dtype=bool)
