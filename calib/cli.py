@@ -104,11 +104,34 @@ def _analyze(args: argparse.Namespace):
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     """Identifiable parameters of one chain."""
+    if args.markers is not None:
+        return _analyze_markers(args)
     res = _analyze(args)
     if args.json:
         _print_json(res.to_dict())
     else:
         print(analysis_text(res))
+    return 0
+
+
+def _analyze_markers(args: argparse.Namespace) -> int:
+    """What a calibration with K measured points (and free frame and markers) identifies."""
+    from .calibration.counting import identifiable_parameters
+
+    if args.measure not in CAMPAIGN_MEASURES:
+        raise InvalidArgumentError("--markers takes --measure position or pose")
+    chain = load_chain(args.robot, args.base, args.tool)
+    names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
+    if args.json:
+        _print_json({"robot": chain.name, "markers": args.markers, "measure": args.measure,
+                     "n_identifiable": len(names), "parameters": list(names)})
+    else:
+        print(
+            f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
+            f"{args.measure}: {len(names)} identifiable parameters (measurement frame and "
+            f"markers free)"
+        )
+        print("  " + ", ".join(names))
     return 0
 
 
@@ -353,6 +376,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
     )
     _add_sampling_args(p, "m")
+    p.add_argument(
+        "--markers",
+        type=int,
+        help="count what a calibration identifies with K points measured per configuration "
+        "(frame and markers free)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_analyze)
 

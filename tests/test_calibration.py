@@ -376,3 +376,21 @@ def test_ur10_cross_validation_with_default_options():
         errors.append(np.linalg.norm(res.state.residuals(held, torque)[:, :3], axis=1))
     pooled = np.sqrt(np.mean(np.concatenate(errors) ** 2))
     assert pooled <= 4.03e-3
+
+
+@pytest.mark.parametrize("robot", ["ur5", "panda", "stanford"])
+@pytest.mark.parametrize("k", [1, 2, 4])
+def test_identifiable_count_with_k_markers_matches_theory(robot, k):
+    """Each marker adds its 3 offsets to 4R + 2P (+ 3 for the tool orientation of a pose)."""
+    from calib.calibration.counting import identifiable_parameters
+
+    chain = chain_of(robot)
+    base = 4 * chain.n_revolute + 2 * chain.n_prismatic
+    assert len(identifiable_parameters(chain, k, "position")) == base + 3 * k
+    assert len(identifiable_parameters(chain, k, "pose")) == base + 3 + 3 * k
+
+
+def test_cli_analyze_markers(capsys):
+    assert main(["analyze", "ur5", "--markers", "2", "--measure", "position", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_identifiable"] == 4 * 6 + 6
