@@ -477,13 +477,18 @@ def _sigterm_raises() -> Iterator[None]:
         signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
+def _one_line(message: object) -> str:
+    """A message on one line: control characters (line breaks included) shown escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(message))
+
+
 def _run(args: argparse.Namespace) -> int:
     """Run a command; every error becomes one line on stderr and an exit code."""
     try:
         with _sigterm_raises(), _blas_limit(blas_threads()):
             return args.func(args)
     except CalibError as exc:
-        print(f"calib: error: {exc}", file=sys.stderr)
+        print(f"calib: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("calib: interrupted", file=sys.stderr)
@@ -495,10 +500,8 @@ def _run(args: argparse.Namespace) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:  # an OS error not raised as a CalibError
-        print(
-            f"calib: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
-            file=sys.stderr,
-        )
+        message = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")
+        print(f"calib: error: {_one_line(message)}", file=sys.stderr)
         return 2
 
 
@@ -518,7 +521,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = _run(args)
     for w in caught:
         if issubclass(w.category, UserWarning):
-            print(f"calib: warning: {w.message}", file=sys.stderr)
+            print(f"calib: warning: {_one_line(w.message)}", file=sys.stderr)
     return code
 
 
