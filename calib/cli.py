@@ -25,7 +25,7 @@ from .calibration import (
 )
 from .catalog import catalog, catalog_files
 from .exceptions import CalibError, ConvergenceError, DataError, InvalidArgumentError
-from .fileio import check_outputs, json_text, write_files_atomic
+from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .mdh import from_chain
 from .measurements import CAMPAIGN_MEASURES, measurements_csv, read_measurements, simulate
@@ -137,6 +137,8 @@ def _check_outputs(
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
     out = Path(args.out)
+    if args.truth is None and written_in_place(out):
+        raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     chain = load_chain(args.robot, args.base, args.tool)
     _check_outputs({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
@@ -323,8 +325,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
     _add_chain_args(p)
-    p.add_argument("--out", required=True, help="measurement CSV to write")
-    p.add_argument("--truth", help="JSON of the true errors (default: OUT with .truth.json)")
+    p.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
+    p.add_argument(
+        "--truth",
+        help="JSON of the true errors (default: OUT with .truth.json; needed if OUT is '-')",
+    )
     p.add_argument(
         "--configs",
         type=int,

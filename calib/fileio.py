@@ -9,9 +9,9 @@ Every command that writes files goes through :func:`check_outputs` (before its w
   onto its path, so it is complete or left as it was; a symbolic link is written through to
   its target and stays a link;
 * a character device (``/dev/null``), a FIFO and any path under ``/dev`` or ``/proc`` are
-  written directly: renaming onto them would replace the device node; ``-``, and any path
-  that is the file standard output goes to (``/dev/stdout``), is written to standard output
-  after what was printed there;
+  written directly: renaming onto them would replace the device node; ``-`` (and a path
+  under ``/dev`` that is standard output, such as ``/dev/stdout``) is written to standard
+  output after what was printed there;
 * every OS error becomes one :class:`~calib.exceptions.OutputError` line naming the target.
 """
 
@@ -70,12 +70,13 @@ def _target(path: PathLike) -> _Target:
         OutputError: A directory, a socket or block device, or a missing parent directory.
     """
     text = os.fspath(path)
-    key = _file_key(text)
-    if text == STDOUT or (key is not None and key == _file_key(STDOUT)):  # /dev/stdout too
+    if text == STDOUT:
         return _Target(text, text, _Kind.STDOUT)
-    real = os.path.realpath(text)
     if os.path.abspath(text).startswith(_DIRECT_TREES):
-        return _Target(text, text, _Kind.DIRECT)
+        key = _file_key(text)  # /dev/stdout, /dev/fd/1: after what was printed
+        stdout = key is not None and key == _file_key(STDOUT)
+        return _Target(text, text, _Kind.STDOUT if stdout else _Kind.DIRECT)
+    real = os.path.realpath(text)
     try:
         mode = os.stat(real).st_mode
     except FileNotFoundError:
@@ -167,23 +168,23 @@ def check_outputs(
         _check_writable(_target(path))
 
 
-def check_writable(*paths: PathLike | None) -> None:
-    """Check, before a long computation, that every output path can be written.
-
-    Raises:
-        OutputError: A target is a directory, or its directory is missing or not writable.
-    """
-    for path in paths:
-        if path is not None:
-            _check_writable(_target(path))
-
-
 def _to_bytes(content: str | bytes) -> bytes:
     if isinstance(content, str):
         return content.encode("utf-8")
     if isinstance(content, bytes | bytearray | memoryview):
         return bytes(content)
     raise TypeError(f"file content must be str or bytes, not {type(content).__name__}")
+
+
+def written_in_place(path: PathLike) -> bool:
+    """Whether ``path`` is written directly (``-``, a device, a FIFO, a /dev or /proc path).
+
+    Such an output is no file of its own: no name can be derived from it.
+
+    Raises:
+        OutputError: ``path`` cannot be an output (a directory, a socket, no such folder).
+    """
+    return _target(path).kind is not _Kind.RENAME
 
 
 def write_files_atomic(files: Mapping[PathLike, str | bytes]) -> None:

@@ -60,7 +60,7 @@ def no_work(monkeypatch):
         raise AssertionError("the work started before the outputs were checked")
 
     for name in ("simulate", "calibrate", "read_measurements"):
-        monkeypatch.setattr(calib.cli, name, forbidden)
+        monkeypatch.setattr(calib.cli, name, forbidden, raising=False)
     monkeypatch.setattr(calib.sweep, "sweep", forbidden)
 
 
@@ -206,6 +206,16 @@ def test_dev_null_stays_a_device_and_the_other_output_is_written(tmp_path, capsy
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
     assert json.loads(truth.read_text())["robot"] == "ur5"
     assert listing(tmp_path) == ["t.json"]
+
+
+@pytest.mark.parametrize("out", ["/dev/null", "-"])
+def test_simulate_to_a_device_or_stdout_needs_an_explicit_truth_file(
+    tmp_path, capsys, no_work, monkeypatch, out
+):
+    monkeypatch.chdir(tmp_path)
+    line = one_line_error(capsys, [*SIMULATE, "--out", out])
+    assert "--truth" in line
+    assert listing(tmp_path) == [] and not os.path.exists("/dev/null.truth.json")
 
 
 def test_dev_full_is_a_one_line_error_and_nothing_else_is_written(tmp_path, capsys):
