@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib.metadata
 import importlib.resources
@@ -101,3 +102,19 @@ def catalog_entry(name: str) -> CatalogEntry:
         if entry.name == name:
             return entry
     raise RobotNotFoundError(name, [e.name for e in catalog()])
+
+
+def catalog_files() -> dict[str, Path]:
+    """The installed catalog's files by what they are: inputs no command may overwrite.
+
+    Every file of ``models/`` (the catalog and the project's URDFs) and every URDF a catalog
+    entry points to (example-robot-data's, when it is installed).
+    """
+    labels: dict[Path, str] = {}
+    for entry in catalog():
+        with contextlib.suppress(CalibError):  # example-robot-data missing: nothing to guard
+            labels.setdefault(entry.path, f"the catalog URDF of '{entry.name}'")
+    for path in sorted(models_dir().iterdir()):
+        if path.is_file():
+            labels.setdefault(path, f"the catalog's file {path.name}")
+    return {label: path for path, label in labels.items()}

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import NoReturn
 
@@ -22,9 +25,9 @@ from .calibration import (
     calibrate,
 )
 from .calibration.text import calibration_text
-from .catalog import catalog
+from .catalog import catalog, catalog_files
 from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
-from .fileio import check_writable, json_text, write_files_atomic
+from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .mdh import from_chain
 from .measurements import (
@@ -148,28 +151,29 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _write(files: dict[Path, str | bytes]) -> None:
-    """Write output files atomically; an OS error becomes a one-line CalibError."""
-    try:
-        write_files_atomic(files)
-    except OSError as exc:
-        name = exc.filename or ", ".join(str(p) for p in files)
-        raise CalibError(f"cannot write {name}: {exc.strerror or exc}") from None
+    """Write output files (atomically for regular files; one-line OutputError on failure)."""
+    write_files_atomic(files)
 
 
-def _check_outputs(*paths: Path | str | None) -> None:
-    """Fail now, in one line, if an output cannot be written (not after the work)."""
-    try:
-        check_writable(*paths)
-    except OSError as exc:
-        raise CalibError(f"cannot write {exc.filename}: {exc.strerror}") from None
+def _check_outputs(
+    outputs: Mapping[str, Path | str | None], inputs: Mapping[str, Path | str | None]
+) -> None:
+    """Refuse now, in one line, outputs that cannot be written or would overwrite a file.
+
+    The files protected: the command's inputs, the installed catalog's files, the other
+    outputs.
+    """
+    check_outputs(outputs, {**inputs, **catalog_files()})
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
     out = Path(args.out)
+    if args.truth is None and written_in_place(out):
+        raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    _check_outputs(out, truth_path)
     chain = load_chain(args.robot, args.base, args.tool)
+    _check_outputs({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
     campaign = simulate(
         chain,
         args.configs,
@@ -182,8 +186,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         args.seed,
         args.params,
     )
-    if truth_path.resolve() == out.resolve():
-        raise InvalidArgumentError("--truth and --out name the same file")
     truth = campaign.truth
     _write({out: measurements_csv(campaign.measurements), truth_path: json_text(truth.to_dict())})
     print(
@@ -209,18 +211,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     chain = load_chain(args.robot, args.base, args.tool)
     out = Path(args.out)
     report = Path(args.report) if args.report else None
-    if report is not None and report.resolve() == out.resolve():
-        raise InvalidArgumentError("--report and --out name the same file")
-    outputs = {"--out": out, "--report": report}
-    inputs = {"the nominal URDF": chain.urdf_path, "the data": Path(args.data)}
+    inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
     if args.validate:
-        inputs["the validation data"] = Path(args.validate)
-    for option, target in outputs.items():
-        for what, path in inputs.items():
-            if target is not None and target.resolve() == path.resolve():
-                raise InvalidArgumentError(f"{option} {target} would overwrite {what}")
+        inputs["the validation data (--validate)"] = args.validate
+    _check_outputs({"--out": out, "--report": report}, inputs)
     check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
-    _check_outputs(out, report)
     columns = _columns(args)
     data = read_measurements(args.data, chain, columns)
     check = read_measurements(args.validate, chain, columns) if args.validate else None
@@ -268,7 +263,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Analyse every catalog chain (and extra URDFs) and print one table."""
     from tqdm import tqdm
 
-    from .plots import counts_figure, figure_png
+    from .plots import counts_figure, figure_bytes, figure_format
     from .sweep import rows_table, rows_to_csv, sweep
 
     def bar(jobs):
@@ -281,7 +276,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             disable=not sys.stderr.isatty(),
         )
 
-    _check_outputs(args.csv, args.plot)
+    plot_format = figure_format(args.plot, "--plot") if args.plot else None
+    _check_outputs(
+        {"--csv": args.csv, "--plot": args.plot}, {f"the URDF {u}": u for u in args.urdf}
+    )
     rows = sweep(
         extra=args.urdf,
         measure=args.measure,
@@ -296,7 +294,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         files[Path(args.csv)] = rows_to_csv(rows)
     if args.plot:
         title = f"Base parameters per chain, {args.measure} measurement"
-        files[Path(args.plot)] = figure_png(counts_figure(rows, title=title))
+        files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
     _write(files)
     if args.json:
         _print_json(
@@ -387,8 +385,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
     _add_chain_args(p)
-    p.add_argument("--out", required=True, help="measurement CSV to write")
-    p.add_argument("--truth", help="JSON of the true errors (default: OUT with .truth.json)")
+    p.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
+    p.add_argument(
+        "--truth",
+        help="JSON of the true errors (default: OUT with .truth.json; needed if OUT is '-')",
+    )
     p.add_argument(
         "--configs",
         type=int,
@@ -539,8 +540,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="set the verdict is about (default: paper)",
     )
     _add_sampling_args(p, "per chain")
-    p.add_argument("--csv", help="also write the table as CSV to this file")
-    p.add_argument("--plot", help="also save the counts plot as PNG to this file")
+    p.add_argument("--csv", help="also write the table as CSV to this file ('-': stdout)")
+    p.add_argument("--plot", help="also save the counts plot to this .png, .svg or .pdf file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_sweep)
 
@@ -549,8 +550,94 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+THREADS_ENV = "CALIB_THREADS"
+"""Environment variable: BLAS threads of the CLI (default 1)."""
+
+_BLAS_ENVS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""BLAS's own variables: when the user set one, the CLI leaves the thread count to it."""
+
+
+def blas_threads() -> int | None:
+    """BLAS threads the CLI runs with (None: leave BLAS's own setting).
+
+    ``CALIB_THREADS`` if set; else None when the user set ``OPENBLAS_NUM_THREADS``,
+    ``OMP_NUM_THREADS`` or ``MKL_NUM_THREADS``; else 1 (calib's matrices are small: more
+    threads only spin and contend for the cores).
+
+    Raises:
+        InvalidArgumentError: ``CALIB_THREADS`` is not a positive integer.
+    """
+    text = os.environ.get(THREADS_ENV, "").strip()
+    if text:
+        if not text.isdigit() or int(text) < 1:
+            raise InvalidArgumentError(f"{THREADS_ENV}={text!r}: expected a positive integer")
+        return int(text)
+    return None if any(os.environ.get(v, "").strip() for v in _BLAS_ENVS) else 1
+
+
+def _blas_limit(threads: int | None) -> contextlib.AbstractContextManager:
+    if threads is None:
+        return contextlib.nullcontext()
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=threads, user_api="blas")
+
+
+class _Terminated(BaseException):
+    """Raised by the SIGTERM handler: ``finally`` clean-ups (temporary files) then run."""
+
+
+def _raise_terminated(signum, frame) -> NoReturn:
+    raise _Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises _Terminated inside (main thread only); the old handler is back after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _one_line(message: object) -> str:
+    """A message on one line: control characters (line breaks included) shown escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(message))
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run a command; every error becomes one line on stderr and an exit code."""
+    try:
+        with _sigterm_raises(), _blas_limit(blas_threads()):
+            return args.func(args)
+    except CalibError as exc:
+        print(f"calib: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("calib: interrupted", file=sys.stderr)
+        return 130
+    except _Terminated:
+        print("calib: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    except BrokenPipeError:  # `calib ... | head`: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:  # an OS error not raised as a CalibError
+        message = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")
+        print(f"calib: error: {_one_line(message)}", file=sys.stderr)
+        return 2
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; return the exit code (errors: one line on stderr, code 2)."""
+    """Run the CLI and return the exit code.
+
+    Errors are one line on stderr and exit code 2; SIGINT gives 130 and SIGTERM 143, after
+    any temporary file is removed.
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -558,26 +645,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else 2
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        try:
-            code = args.func(args)
-        except CalibError as exc:
-            print(f"calib: error: {exc}", file=sys.stderr)
-            code = 2
-        except KeyboardInterrupt:
-            print("calib: interrupted", file=sys.stderr)
-            code = 130
-        except BrokenPipeError:  # `calib ... | head`: stop quietly
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            code = 0
-        except OSError as exc:  # a file that cannot be written
-            print(
-                f"calib: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
-                file=sys.stderr,
-            )
-            code = 2
+        code = _run(args)
     for w in caught:
         if issubclass(w.category, UserWarning):
-            print(f"calib: warning: {w.message}", file=sys.stderr)
+            print(f"calib: warning: {_one_line(w.message)}", file=sys.stderr)
     return code
 
 

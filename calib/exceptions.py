@@ -100,6 +100,19 @@ class InvalidArgumentError(CalibError, ValueError):
     """An argument has a value outside what the function accepts."""
 
 
+class OutputError(CalibError, OSError):
+    """An output file cannot be written (missing or read-only directory, full disk, ...).
+
+    Also an ``OSError``: ``errno`` and ``filename`` (the target as given) are set.
+    """
+
+    def __init__(self, code: int | None, reason: str | None, target: str):
+        super().__init__(code, reason or "cannot be written", target)
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
 class DataError(CalibError):
     """A measurement file is malformed; the message names the row and/or column."""
 

@@ -1,80 +1,294 @@
-"""Atomic file output: a file calib writes is either complete or absent, never half-written."""
+"""File output: checked before any work, never onto an input, complete or not written at all.
+
+Every command that writes files goes through :func:`check_outputs` (before its work) and
+:func:`write_files_atomic` (after it):
+
+* an output that is the same file as an input, or as another output (same resolved path,
+  or ``os.path.samefile``: symbolic and hard links included), is refused;
+* a regular file (or a new one) is written to a temporary file in its directory and renamed
+  onto its path, so it is complete or left as it was; a symbolic link is written through to
+  its target and stays a link;
+* a character device (``/dev/null``), a FIFO and any path under ``/dev`` or ``/proc`` are
+  written directly: renaming onto them would replace the device node; ``-`` (and a path
+  under ``/dev`` that is standard output, such as ``/dev/stdout``) is written to standard
+  output after what was printed there;
+* every OS error becomes one :class:`~calib.exceptions.OutputError` line naming the target.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import enum
 import errno
+import itertools
 import json
 import os
+import stat
+import sys
 import tempfile
 from collections.abc import Mapping
-from pathlib import Path
+from dataclasses import dataclass
+
+from .exceptions import InvalidArgumentError, OutputError
+
+STDOUT = "-"
+"""The output name that means standard output."""
+
+_DIRECT_TREES = ("/dev/", "/proc/")
+"""Paths under these folders are written directly (``/dev/stdout`` is a link into /proc)."""
+
+PathLike = str | os.PathLike[str]
+
+
+class _Kind(enum.Enum):
+    """How an output is written."""
+
+    RENAME = "temporary file renamed onto the target"
+    DIRECT = "opened and written in place"
+    STDOUT = "standard output"
+
+
+@dataclass(frozen=True)
+class _Target:
+    """An output path, what it really names and how it is written.
+
+    Attributes:
+        path: The path as given (errors name it).
+        real: Where the bytes go: ``path`` with every symbolic link resolved.
+        kind: How it is written.
+    """
+
+    path: str
+    real: str
+    kind: _Kind
+
+
+def _target(path: PathLike) -> _Target:
+    """Classify an output path.
+
+    Raises:
+        OutputError: A directory, a socket or block device, or a missing parent directory.
+    """
+    text = os.fspath(path)
+    if text == STDOUT:
+        return _Target(text, text, _Kind.STDOUT)
+    if os.path.abspath(text).startswith(_DIRECT_TREES):
+        key = _file_key(text)  # /dev/stdout, /dev/fd/1: after what was printed
+        stdout = key is not None and key == _file_key(STDOUT)
+        return _Target(text, text, _Kind.STDOUT if stdout else _Kind.DIRECT)
+    real = os.path.realpath(text)
+    try:
+        mode = os.stat(real).st_mode
+    except FileNotFoundError:
+        if not os.path.isdir(os.path.dirname(real)):
+            raise OutputError(errno.ENOENT, "no such directory", text) from None
+        return _Target(text, real, _Kind.RENAME)
+    except OSError as exc:
+        raise OutputError(exc.errno, exc.strerror, text) from None
+    if stat.S_ISREG(mode):
+        return _Target(text, real, _Kind.RENAME)
+    if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
+        return _Target(text, text, _Kind.DIRECT)
+    if stat.S_ISDIR(mode):
+        raise OutputError(errno.EISDIR, "is a directory", text)
+    raise OutputError(errno.EINVAL, "not a regular file, character device or FIFO", text)
+
+
+def _check_writable(target: _Target) -> None:
+    """Raise OutputError (naming the target) if it cannot be written."""
+    if target.kind is _Kind.STDOUT:
+        return
+    if target.kind is _Kind.RENAME:
+        folder = os.path.dirname(target.real)
+        if _read_only(folder):
+            raise OutputError(errno.EROFS, "read-only file system", target.path)
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise OutputError(errno.EACCES, "directory not writable", target.path)
+    if os.path.exists(target.real) and not os.access(target.real, os.W_OK):
+        raise OutputError(errno.EACCES, "file not writable", target.path)
+
+
+def _read_only(folder: str) -> bool:
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
+
+
+def _file_key(path: PathLike) -> tuple[int, int] | None:
+    """(device, inode) of the file a path names (standard output for ``-``), if it exists."""
+    try:
+        st = os.fstat(sys.stdout.fileno()) if os.fspath(path) == STDOUT else os.stat(path)
+    except (OSError, ValueError, AttributeError):  # no such file; stdout without a descriptor
+        return None
+    return st.st_dev, st.st_ino
+
+
+def same_file(a: PathLike, b: PathLike) -> bool:
+    """Whether two paths name one file: same resolved path, or same device and inode.
+
+    ``-`` (standard output) is the same file as ``-`` and as the file standard output is.
+    """
+    a, b = os.fspath(a), os.fspath(b)
+    if a == b:
+        return True
+    if STDOUT not in (a, b) and os.path.realpath(a) == os.path.realpath(b):
+        return True
+    key_a = _file_key(a)
+    return key_a is not None and key_a == _file_key(b)
+
+
+def check_outputs(
+    outputs: Mapping[str, PathLike | None], inputs: Mapping[str, PathLike | None] | None = None
+) -> None:
+    """Refuse, before any work, outputs that would overwrite an input or each other.
+
+    Args:
+        outputs: Output path by the option that names it (``{"--out": "cal.urdf"}``);
+            None for an output not asked for.
+        inputs: Input path by what it is (``{"the nominal URDF": path}``); None entries
+            are ignored.
+
+    Raises:
+        InvalidArgumentError: An output is the same file as an input or as another output.
+        OutputError: An output cannot be written: a directory, a missing or read-only
+            directory, a socket.
+    """
+    given = {option: path for option, path in outputs.items() if path is not None}
+    for option, path in given.items():
+        for what, source in (inputs or {}).items():
+            if source is not None and same_file(path, source):
+                raise InvalidArgumentError(f"{option} {os.fspath(path)} would overwrite {what}")
+    for (opt_a, a), (opt_b, b) in itertools.combinations(given.items(), 2):
+        if same_file(a, b):
+            raise InvalidArgumentError(
+                f"{opt_a} and {opt_b} name the same file ({os.fspath(a)}, {os.fspath(b)})"
+            )
+    for path in given.values():
+        _check_writable(_target(path))
 
 
 def _to_bytes(content: str | bytes) -> bytes:
-    return content.encode("utf-8") if isinstance(content, str) else content
+    if isinstance(content, str):
+        return content.encode("utf-8")
+    if isinstance(content, bytes | bytearray | memoryview):
+        return bytes(content)
+    raise TypeError(f"file content must be str or bytes, not {type(content).__name__}")
 
 
-def write_files_atomic(files: Mapping[str | Path, str | bytes]) -> None:
-    """Write several files so that none of them is ever left half-written.
+def written_in_place(path: PathLike) -> bool:
+    """Whether ``path`` is written directly (``-``, a device, a FIFO, a /dev or /proc path).
 
-    Every file is first written in full to a temporary file in its target directory; only
-    when all of them are written are they renamed (``os.replace``) onto their paths. On any
-    failure the temporary files are removed and the targets are left as they were.
-
-    Args:
-        files: Content (text is written as UTF-8) by target path.
+    Such an output is no file of its own: no name can be derived from it.
 
     Raises:
-        OSError: A target is a directory, a directory is missing or not writable, or the
-            disk is full; the error names the target, never the temporary file.
+        OutputError: ``path`` cannot be an output (a directory, a socket, no such folder).
     """
-    for path in files:
-        _check_target(Path(path))
-    staged: list[tuple[str, Path]] = []
+    return _target(path).kind is not _Kind.RENAME
+
+
+def write_files_atomic(files: Mapping[PathLike, str | bytes]) -> None:
+    """Write several files so that no regular file is ever left half-written.
+
+    Regular (and new) files are first written in full to temporary files in their target
+    directories; devices, FIFOs and ``-`` are then written directly; only when all of that
+    succeeded are the temporary files renamed (``os.replace``) onto their paths. On any
+    failure, a signal that raises included, the temporary files are removed and the regular
+    targets are left as they were.
+
+    Args:
+        files: Content (text is written as UTF-8) by target path; ``-`` is standard output.
+
+    Raises:
+        OutputError: A target is a directory, a directory is missing or not writable, or the
+            disk is full; the error names the target, never the temporary file.
+        TypeError: A content is neither text nor bytes.
+    """
+    jobs = [(_target(path), _to_bytes(content)) for path, content in files.items()]
+    for target, _ in jobs:
+        _check_writable(target)
+    staged: list[str] = []
     try:
-        for path, content in files.items():
-            target = Path(path)
-            try:
-                fd, tmp = tempfile.mkstemp(
-                    prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or Path(".")
-                )
-            except OSError as exc:
-                raise OSError(exc.errno, exc.strerror, str(target)) from None
-            staged.append((tmp, target))
-            with os.fdopen(fd, "wb") as f:
-                os.fchmod(f.fileno(), 0o666 & ~_UMASK)  # mkstemp makes 0600: use the usual mode
-                f.write(_to_bytes(content))
-                f.flush()
-                os.fsync(f.fileno())
-        for tmp, target in staged:
-            os.replace(tmp, target)
+        renames = [
+            (_stage(target, data, staged), target)
+            for target, data in jobs
+            if target.kind is _Kind.RENAME
+        ]
+        for target, data in jobs:
+            if target.kind is _Kind.DIRECT:
+                _write_direct(target, data)
+            elif target.kind is _Kind.STDOUT:
+                _write_stdout(data)
+        for tmp, target in renames:
+            _guarded(target, os.replace, tmp, target.real)
     finally:
-        for tmp, _ in staged:
+        for tmp in staged:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
 
 
-def _check_target(target: Path) -> None:
-    """Raise OSError (naming the target) if it cannot be written: before any work is done."""
-    parent = target.parent if str(target.parent) else Path(".")
-    if target.is_dir():
-        raise OSError(errno.EISDIR, "is a directory", str(target))
-    if not parent.is_dir():
-        raise OSError(errno.ENOENT, "no such directory", str(parent))
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OSError(errno.EACCES, "directory not writable", str(parent))
+def _guarded(target: _Target, func, *args):
+    """Call ``func(*args)``; an OSError becomes an OutputError naming the target."""
+    try:
+        return func(*args)
+    except OutputError:
+        raise
+    except OSError as exc:
+        raise OutputError(exc.errno, exc.strerror or str(exc), target.path) from None
 
 
-def check_writable(*paths: str | Path | None) -> None:
-    """Check, before a long computation, that every output path can be written.
+def _stage(target: _Target, data: bytes, staged: list[str]) -> str:
+    """Write ``data`` to a new temporary file beside the target; record it in ``staged``."""
+    folder = os.path.dirname(target.real)
+    name = os.path.basename(target.real)
+    fd, tmp = _guarded(target, tempfile.mkstemp, ".tmp", f".{name}.", folder)
+    staged.append(tmp)
+    try:
+        _guarded(target, os.fchmod, fd, _mode_for(target.real))
+        _guarded(target, write_all, fd, data)
+        _guarded(target, os.fsync, fd)
+    finally:
+        os.close(fd)
+    return tmp
+
+
+def _mode_for(path: str) -> int:
+    """The permission bits of the file being replaced, else the usual ones (umask applied)."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        return 0o666 & ~_UMASK
+
+
+def write_all(fd: int, data: bytes) -> None:
+    """Write every byte of ``data`` to a file descriptor (``os.write`` may write fewer).
 
     Raises:
-        OSError: A target is a directory, or its directory is missing or not writable.
+        OSError: The write failed (disk full, device error, ...).
     """
-    for path in paths:
-        if path is not None:
-            _check_target(Path(path))
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _write_direct(target: _Target, data: bytes) -> None:
+    """Open a device, FIFO or /dev, /proc path and write to it in place."""
+    fd = _guarded(target, os.open, target.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+    try:
+        _guarded(target, write_all, fd, data)
+    finally:
+        os.close(fd)
+
+
+def _write_stdout(data: bytes) -> None:
+    """Write to standard output after what was printed there before."""
+    sys.stdout.flush()
+    buffer = getattr(sys.stdout, "buffer", None)
+    if buffer is None:
+        sys.stdout.write(data.decode("utf-8", errors="replace"))
+    else:
+        buffer.write(data)
+        buffer.flush()
 
 
 def _read_umask() -> int:
@@ -87,8 +301,8 @@ _UMASK = _read_umask()
 """The process umask, read once at import."""
 
 
-def write_atomic(path: str | Path, content: str | bytes) -> None:
-    """Write one file atomically (see :func:`write_files_atomic`)."""
+def write_atomic(path: PathLike, content: str | bytes) -> None:
+    """Write one file (see :func:`write_files_atomic`)."""
     write_files_atomic({path: content})
 
 

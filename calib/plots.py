@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from .exceptions import InvalidArgumentError
 from .fileio import write_atomic
 from .identifiability import Identifiability
 from .sweep import SweepRow
@@ -80,13 +81,54 @@ def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Fig
     return fig
 
 
-def figure_png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (120 dpi)."""
+FIGURE_FORMATS = ("png", "svg", "pdf")
+"""File formats a figure is saved in, chosen by the file's extension."""
+
+
+def figure_format(path: str | Path, option: str = "the figure file") -> str:
+    """The format a figure file is written in, from its extension (``.png``, ``.svg``, ``.pdf``).
+
+    Args:
+        path: The file the figure goes to.
+        option: What names the file in the error (``--plot``).
+
+    Raises:
+        InvalidArgumentError: The extension is missing or not one of :data:`FIGURE_FORMATS`.
+    """
+    ext = Path(path).suffix.lower().lstrip(".")
+    if ext not in FIGURE_FORMATS:
+        given = f"extension '.{ext}'" if ext else "no extension"
+        raise InvalidArgumentError(
+            f"{option} {path}: {given}; give a file ending in "
+            + ", ".join(f".{f}" for f in FIGURE_FORMATS)
+        )
+    return ext
+
+
+def figure_bytes(fig: Figure, fmt: str = "png") -> bytes:
+    """The figure as the bytes of a PNG (120 dpi), SVG or PDF file (no date: reproducible).
+
+    Raises:
+        InvalidArgumentError: ``fmt`` is not one of :data:`FIGURE_FORMATS`.
+    """
+    if fmt not in FIGURE_FORMATS:
+        raise InvalidArgumentError(f"figure format '{fmt}': expected one of {FIGURE_FORMATS}")
+    metadata = {} if fmt == "png" else {"Date": None} if fmt == "svg" else {"CreationDate": None}
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120)
+    fig.savefig(buf, format=fmt, dpi=120, metadata=metadata)
     return buf.getvalue()
 
 
+def figure_png(fig: Figure) -> bytes:
+    """The figure as PNG bytes (120 dpi)."""
+    return figure_bytes(fig, "png")
+
+
 def save_figure(fig: Figure, path: str | Path) -> None:
-    """Save as PNG atomically (no partial file is ever left at ``path``)."""
-    write_atomic(path, figure_png(fig))
+    """Save in the format of the extension (png, svg, pdf); no partial file is ever left.
+
+    Raises:
+        InvalidArgumentError: Unknown or missing extension.
+        OutputError: The file cannot be written.
+    """
+    write_atomic(path, figure_bytes(fig, figure_format(path)))

@@ -26,7 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import CalibError, URDFError
-from .fileio import write_atomic
+from .fileio import check_outputs, write_atomic
 from .mdh import MDHModel, frames_at_zero
 from .robot import Chain
 
@@ -236,5 +236,11 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
 def write_calibrated_urdf(
     path: str | Path, chain: Chain, nominal: MDHModel, calibrated: MDHModel
 ) -> None:
-    """Write :func:`calibrated_urdf` to ``path`` atomically (complete or not at all)."""
+    """Write :func:`calibrated_urdf` to ``path`` atomically (complete or not at all).
+
+    Raises:
+        InvalidArgumentError: ``path`` is the nominal URDF (``chain.urdf_path``).
+        OutputError: The file cannot be written.
+    """
+    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
     write_atomic(path, calibrated_urdf(chain, nominal, calibrated))

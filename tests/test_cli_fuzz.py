@@ -1,0 +1,244 @@
+"""Fuzz the command line with mutated URDF and CSV files, in-process.
+
+The contract, whatever the bytes: exit 0 with valid output, or a non-zero exit with exactly
+one ``calib: error:`` line on stderr and no traceback; the input file is unchanged; the output
+directory holds nothing but complete outputs (no temporary or half-written file).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import os
+import re
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
+
+from calib.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+AID = ROOT / "models" / "aid.urdf"
+
+FUZZ = settings(
+    max_examples=int(os.environ.get("CALIB_FUZZ_EXAMPLES", "80")),
+    deadline=None,
+    derandomize=os.environ.get("CALIB_FUZZ_EXAMPLES") is None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+
+NUMBER = re.compile(rb"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])")
+"""A number on its own (not the digit of a name such as ``joint1``)."""
+ODD_NUMBERS = [
+    b"nan", b"-nan", b"inf", b"-inf", b"1e300", b"-1e300", b"1e-300", b"", b" ", b"0", b"-0",
+    b"1_0", b"0x10", b"1e", b"--1", b"1,5", b"\xff",
+]  # fmt: skip
+
+
+def _flip_byte(draw, text: bytes) -> bytes:
+    if not text:
+        return text
+    i = draw(st.integers(0, len(text) - 1))
+    return text[:i] + bytes([draw(st.integers(0, 255))]) + text[i + 1 :]
+
+
+def _truncate(draw, text: bytes) -> bytes:
+    return text[: draw(st.integers(0, len(text)))]
+
+
+def _lines_edit(draw, text: bytes) -> bytes:
+    lines = text.splitlines(keepends=True)
+    if not lines:
+        return text
+    i = draw(st.integers(0, len(lines) - 1))
+    if draw(st.booleans()):
+        return b"".join(lines[:i] + lines[i + 1 :])  # a line deleted
+    return b"".join(lines[: i + 1] + lines[i:])  # a line duplicated
+
+
+def _odd_number(draw, text: bytes) -> bytes:
+    found = list(NUMBER.finditer(text))
+    if not found:
+        return text
+    m = draw(st.sampled_from(found))
+    return text[: m.start()] + draw(st.sampled_from(ODD_NUMBERS)) + text[m.end() :]
+
+
+def _insert_junk(draw, text: bytes) -> bytes:
+    i = draw(st.integers(0, len(text)))
+    junk = draw(st.sampled_from([b"<", b">", b"&", b'"', b",", b"\n", b"\x00", b"\r\n", b";"]))
+    return text[:i] + junk + text[i:]
+
+
+MUTATIONS: tuple[Callable, ...] = (
+    _flip_byte,
+    _truncate,
+    _lines_edit,
+    _odd_number,
+    _odd_number,  # numbers are what most of a URDF or a measurement file is made of
+    _insert_junk,
+)
+
+
+@st.composite
+def mutated(draw, base: bytes) -> bytes:
+    """``base`` after one to three random mutations."""
+    text = base
+    for _ in range(draw(st.integers(1, 3))):
+        text = draw(st.sampled_from(MUTATIONS))(draw, text)
+    return text
+
+
+@contextlib.contextmanager
+def workspace(name: str, content: bytes) -> Iterator[tuple[Path, Path]]:
+    """A fresh input file ``in/name`` holding ``content`` and an empty ``out/`` folder."""
+    with tempfile.TemporaryDirectory() as tmp:
+        src, out_dir = Path(tmp) / "in", Path(tmp) / "out"
+        src.mkdir()
+        out_dir.mkdir()
+        (src / name).write_bytes(content)
+        yield src / name, out_dir
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    return code, out.getvalue(), err.getvalue()
+
+
+def check_contract(code: int, out: str, err: str, valid_output: Callable[[str], object]) -> None:
+    """Exit 0 and valid output, or one error line; warnings may precede, nothing else."""
+    assert "Traceback" not in err
+    lines = err.splitlines()
+    errors = [line for line in lines if line.startswith("calib: error: ")]
+    assert all(line.startswith(("calib: error: ", "calib: warning: ")) for line in lines), err
+    if code == 0:
+        assert errors == [], err
+        valid_output(out)
+    else:
+        assert len(errors) == 1, err
+    event("exit 0" if code == 0 else f"refused: {_gist(errors[0])}")
+
+
+def _gist(line: str) -> str:
+    """The kind of an error line, without paths and numbers (hypothesis statistics)."""
+    return re.sub(r"\S*/\S*|\d+|'[^']*'", "_", line.removeprefix("calib: error: "))[:60]
+
+
+class NonFiniteJSONError(AssertionError):
+    """JSON output with NaN or Infinity (not JSON)."""
+
+
+def strict_json(text: str) -> object:
+    def refuse(name: str):
+        raise NonFiniteJSONError(f"invalid JSON constant {name}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+KNOWN_NAN = (
+    "issue 11 item 5 (the 'input' part: robot.py/mdh.py): a zero, huge or denormal joint axis "
+    "gives NaN in the MDH table and JSON"
+)
+
+
+def urdf_json(text: str) -> object:
+    """Strict JSON, except for the one known defect of URDF numbers (:data:`KNOWN_NAN`).
+
+    Remove this exception when item 5 lands (test_known_defect_nan_from_a_huge_axis then
+    passes, and its strict xfail mark fails the suite as a reminder).
+    """
+    try:
+        return strict_json(text)
+    except NonFiniteJSONError:
+        event("known defect: " + KNOWN_NAN)
+        return json.loads(text)
+
+
+def csv_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+# --------------------------------------------------------------------------------------
+# URDF text: show, analyze and simulate
+# --------------------------------------------------------------------------------------
+
+
+@FUZZ
+@given(mutated(AID.read_bytes()))
+def test_mutated_urdf(urdf: bytes):
+    with workspace("r.urdf", urdf) as (robot, out_dir):
+        check_contract(*run_cli(["show", str(robot), "--json"]), urdf_json)
+        check_contract(*run_cli(["analyze", str(robot), "--configs", "15", "--json"]), urdf_json)
+        meas = out_dir / "m.csv"
+        code, out, err = run_cli(
+            ["simulate", str(robot), "--configs", "8", "--measure", "position", "--out", str(meas)]
+        )
+        check_contract(code, out, err, lambda _: None)
+        assert robot.read_bytes() == urdf  # the input is never touched
+        left = sorted(p.name for p in out_dir.iterdir())
+        if code == 0:
+            assert left == ["m.csv", "m.truth.json"]
+            assert len(csv_rows(meas)) == 8
+            strict_json((out_dir / "m.truth.json").read_text())
+        else:
+            assert left == []
+
+
+@pytest.mark.xfail(strict=True, raises=NonFiniteJSONError, reason=KNOWN_NAN)
+@pytest.mark.parametrize("axis", ["1e300 0 1", "0 0 1e-300"])
+def test_known_defect_nan_from_a_huge_axis(tmp_path, axis):
+    """The minimal reproducer the fuzz test found (left to the 'input' helper)."""
+    robot = tmp_path / "r.urdf"
+    robot.write_text(AID.read_text().replace('<axis xyz="0 0 1"/>', f'<axis xyz="{axis}"/>', 4))
+    check_contract(*run_cli(["show", str(robot), "--json"]), strict_json)
+
+
+# --------------------------------------------------------------------------------------
+# Measurement CSV: calibrate (the file comes from `calib simulate`, whatever its format)
+# --------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def clean_csv(tmp_path_factory) -> bytes:
+    path = tmp_path_factory.mktemp("clean") / "m.csv"
+    code, _, err = run_cli(
+        ["simulate", "ur5", "--configs", "20", "--measure", "position", "--out", str(path)]
+    )
+    assert code == 0, err
+    return path.read_bytes()
+
+
+def _valid_urdf(path: Path) -> None:
+    assert ET.parse(path).getroot().tag == "robot"
+
+
+@FUZZ
+@given(data=st.data())
+def test_mutated_measurements(clean_csv, data):
+    csv_bytes = data.draw(mutated(clean_csv), label="csv")
+    with workspace("m.csv", csv_bytes) as (meas, out_dir):
+        urdf, report = out_dir / "cal.urdf", out_dir / "report.json"
+        argv = ["calibrate", "ur5", "--data", str(meas), "--out", str(urdf)]
+        code, out, err = run_cli([*argv, "--report", str(report)])
+        check_contract(code, out, err, lambda text: None)
+        assert meas.read_bytes() == csv_bytes
+        left = sorted(p.name for p in out_dir.iterdir())
+        if code == 0:
+            assert left == ["cal.urdf", "report.json"]
+            _valid_urdf(urdf)
+        else:
+            # only a fit that did not converge keeps its (complete) report, and no URDF
+            assert left in ([], ["report.json"]), left
+        if report.exists():
+            strict_json(report.read_text())
