@@ -394,3 +394,26 @@ def test_cli_analyze_markers(capsys):
     assert main(["analyze", "ur5", "--markers", "2", "--measure", "position", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["n_identifiable"] == 4 * 6 + 6
+
+
+def test_robust_loss_fits_and_bad_options_are_one_line_errors():
+    chain = chain_of("ur5")
+    campaign = simulate(chain, configs=60, measure="position", marker=MARKER, seed=3, noise_mm=0.1)
+    res = calibrate(chain, campaign.measurements, params="complete", loss="soft_l1", noise_mm=0.1)
+    q = chain.random_configurations(50, 8)
+    err = res.check().points(q)[:, 0] - true_points(campaign, q)
+    assert np.sqrt(np.mean(np.sum(err**2, axis=1))) < 0.3e-3
+    from calib import InvalidArgumentError
+
+    for bad in (
+        {"loss": "cauchy"},
+        {"params": "all"},
+        {"fix": ("nope",)},
+        {"holdout": 1.5},
+        {"fix": ("theta3",), "free": ("theta3",)},
+        {"noise_mm": -1.0},
+        {"speed": 2},
+    ):
+        with pytest.raises(InvalidArgumentError) as info:
+            calibrate(chain, campaign.measurements, **bad)
+        assert "\n" not in str(info.value)

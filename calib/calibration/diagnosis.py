@@ -19,6 +19,8 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from ..exceptions import CalibError
+
 SUSPECT = 0.02
 """Registration RMS error per point [m] above which the usual mistakes are tried."""
 
@@ -85,7 +87,7 @@ def likely_cause(
     for what, fixed in _mistakes(data, revolute):
         try:
             rms = registration_rms(fixed)
-        except Exception:
+        except (CalibError, np.linalg.LinAlgError, ValueError):  # no valid data: no explanation
             continue
         if rms * EXPLAINS < before and rms < SUSPECT and (best is None or rms < best[1]):
             best = (what, rms)
