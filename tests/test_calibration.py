@@ -118,6 +118,20 @@ def test_block_loo_equals_refits_without_each_configuration():
     assert np.isclose(block_loo(A, e, rows, lam), np.sqrt(sse / (m * rows / 3)), rtol=1e-10)
 
 
+def overfitting_campaign(chain):
+    """No geometric error and 2 mm noise: any model beyond the registration overfits."""
+    return simulate(
+        chain,
+        configs=30,
+        measure="position",
+        marker=MARKER,
+        seed=5,
+        noise_mm=2.0,
+        error_mm=0.0,
+        error_mrad=0.0,
+    )
+
+
 # --- simulated campaigns --------------------------------------------------------------------
 
 
@@ -219,16 +233,7 @@ def test_millimetres_are_named_and_units_mm_reads_them(tmp_path):
 
 def test_holdout_reports_validation_and_refuses_a_worse_model():
     chain = chain_of("ur5")
-    campaign = simulate(
-        chain,
-        configs=30,
-        measure="position",
-        marker=MARKER,
-        seed=5,
-        noise_mm=2.0,
-        error_mm=0.0,
-        error_mrad=0.0,
-    )
+    campaign = overfitting_campaign(chain)
     res = calibrate(chain, campaign.measurements, params="complete", holdout=0.3, seed=1)
     assert res.validation is not None and res.validation.registration.configs == 9
     # Nothing to calibrate (no geometric error) and 2 mm noise: the complete model overfits.
@@ -298,16 +303,7 @@ def test_joint_named_like_a_measured_column_round_trips(tmp_path):
 
 def test_cli_refusal_writes_the_report_and_no_urdf(tmp_path, capsys):
     chain = chain_of("ur5")
-    campaign = simulate(
-        chain,
-        configs=30,
-        measure="position",
-        marker=MARKER,
-        seed=5,
-        noise_mm=2.0,
-        error_mm=0.0,
-        error_mrad=0.0,
-    )
+    campaign = overfitting_campaign(chain)
     data = tmp_path / "m.csv"
     data.write_text(measurements_csv(campaign.measurements))
     out, report = tmp_path / "c.urdf", tmp_path / "r.json"
