@@ -21,7 +21,7 @@ from .model import ErrorModel, State, compliance_name, offset_parameter, selecti
 from .registration import register
 from .result import CalibrationResult, ResidualStats, Validation
 from .selection import Selection, select
-from .solve import LOSSES, Fit, covariance, fit, row_weights
+from .solve import LOSSES, Fit, condition, covariance, fit, row_weights
 
 LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels: ``frames`` = measurement frame + markers; ``offsets`` adds the joint
@@ -372,16 +372,7 @@ def _assemble(
     after = validation.stats(fitted.state, train, torque[0])
     m, rows = train.m, fitted.model.rows
     std_train = validation.predicted_std(fitted.J.reshape(m, rows, p), cov, train.n_markers)
-    val = None
-    if held is not None:
-        hdata, label = held
-        Jh = fitted.model.jacobian(reg, fitted.x, hdata, torque[1])
-        val = Validation(
-            label,
-            validation.stats(reg, hdata, None),
-            validation.stats(fitted.state, hdata, torque[1]),
-            validation.predicted_std(Jh, cov, hdata.n_markers),
-        )
+    val = None if held is None else _validation(fitted, held, torque[1], cov)
     checks = (before, after) if val is None else (val.registration, val.calibrated)
     reason = validation.refusal(
         fitted.converged,
@@ -399,8 +390,6 @@ def _assemble(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
-    from .solve import condition
-
     return CalibrationResult(
         robot=chain.name,
         chain=chain,
@@ -430,6 +419,18 @@ def _assemble(
         orientation_weight=opts.orientation_weight,
         refusal=reason,
         warnings=tuple(notes),
+    )
+
+
+def _validation(fitted: Fit, held, torque, cov) -> Validation:
+    """Errors of the registration and of the fit on held-out data, and the predicted std."""
+    data, label = held
+    J = fitted.model.jacobian(fitted.start, fitted.x, data, torque)
+    return Validation(
+        label,
+        validation.stats(fitted.start, data, None),
+        validation.stats(fitted.state, data, torque),
+        validation.predicted_std(J, cov, data.n_markers),
     )
 
 
