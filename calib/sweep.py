@@ -11,10 +11,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from .catalog import catalog
+from .checks import check_count
 from .exceptions import CalibError, InvalidArgumentError
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .jacobian import Measurement
-from .robot import check_count, load_chain
+from .robot import load_chain
 
 
 @dataclass(frozen=True)
