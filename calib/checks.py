@@ -14,8 +14,9 @@ MAX_WORK_BYTES = 2 << 30
 
 BYTES_PER_CONFIG_JOINT = 3000
 """Memory [B] the analysis needs per configuration and joint (Jacobians of the paper, complete
-and reference sets, their QR copies and the kinematics), measured with a margin; see
-``benchmarks/bench_identifiability.py``."""
+and reference sets, their QR copies and the kinematics), with a margin: the measured peak is
+1.9 kB (UR5, 50000 configurations) and 1.6 kB (100 joints, 2000 configurations); a test
+checks that the estimate covers a real run."""
 
 
 def check_count(value, what: str, minimum: int = 1) -> int:

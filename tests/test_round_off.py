@@ -1,0 +1,106 @@
+"""Round-off removal (issue 11, item 9): a rounded URDF gives the counts of the exact one.
+
+The references are independent of calib's snapping: the theory (4R + 2P + 3, two fewer for a
+point on the last axis) and a complete-model rank computed here from Pinocchio's frames of
+the *unrounded* file (tests/pinref.py), with an SVD and a relative tolerance of 1e-8.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import ANALYSABLE, chain_of
+from pinref import own_random_q, pin_config, pin_frame, rigid_error_columns
+
+import calib
+from calib import analyze, load_chain
+
+MINIMAL = """<?xml version="1.0"?>
+<robot name="minimal">
+  <link name="base"/><link name="l1"/><link name="tool"/>
+  <joint name="j1" type="revolute">
+    <parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/>
+  </joint>
+  <joint name="t" type="fixed">
+    <parent link="l1"/><child link="tool"/>
+    <origin xyz="0 0 0.2" rpy="RPY"/>
+  </joint>
+</robot>
+"""
+
+
+def reference_rank(path: Path, base: str, tool: str, rows, q: np.ndarray) -> int:
+    """Rank of a 6-DOF error on the base and on every moving link of the chain, from a
+    Pinocchio model built from the file itself (Pinocchio's own Data, no calib code)."""
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    b, t = pin_frame(model, base), pin_frame(model, tool)
+    jb, jt = model.frames[b].parentJoint, model.frames[t].parentJoint
+    support = list(model.supports[jt])
+    joints = support[support.index(jb) + 1 :]
+    blocks = []
+    for qi in q:
+        pin.framesForwardKinematics(model, data, pin_config(model, joints, qi))
+        bMo = data.oMf[b].inverse()
+        E = (bMo * data.oMf[t]).translation
+        frames = [pin.SE3.Identity()] + [bMo * data.oMi[j] for j in joints]
+        blocks.append(rigid_error_columns(frames, E)[list(rows)])
+    s = np.linalg.svd(np.vstack(blocks), compute_uv=False)
+    return int(np.sum(s > 1e-8 * s[0]))
+
+
+@pytest.mark.parametrize("rpy", ["3.1416 0 0", "3.14159265358979 0 0", "3.1416 0 -3.1416"])
+def test_minimal_rounded_tool_on_the_axis_gives_five(tmp_path, rpy):
+    """One revolute joint about z, the tool on its axis with a rounded half-turn: the point
+    is on the last axis, so position gives 4R + 3 - 2 = 5 (not 7)."""
+    path = tmp_path / "minimal.urdf"
+    path.write_text(MINIMAL.replace("RPY", rpy))
+    q = own_random_q([0], 30, seed=1)
+    assert reference_rank(path, "base", "tool", (0, 1, 2), q) == 5
+    for params in ("paper", "complete"):
+        res = analyze(path, "base", "tool", measure="position", params=params)
+        assert (res.n_base, res.n_complete, res.n_theory) == (5, 5, 5), params
+        assert res.on_last_axis
+
+
+def rounded_copy(src: Path, dst: Path, digits: int = 4) -> None:
+    """The URDF with every joint's rpy and xyz rounded to ``digits`` decimals (text edit)."""
+    text = src.read_text()
+
+    def rounded(match: re.Match) -> str:
+        try:
+            values = [round(float(v), digits) for v in match.group(2).split()]
+        except ValueError:  # a xacro expression left in a comment: not a number to round
+            return match.group(0)
+        return f'{match.group(1)}="{" ".join(f"{v:g}" for v in values)}"'
+
+    dst.write_text(re.sub(r'\b(rpy|xyz)="([^"]*)"', rounded, text))
+
+
+def counts(res) -> tuple:
+    return res.n_base, res.n_complete, res.n_theory, res.on_axes
+
+
+@pytest.mark.parametrize("name", ANALYSABLE)
+def test_rounded_catalog_chain_has_the_counts_of_the_exact_one(name, tmp_path):
+    chain = chain_of(name)
+    entry = next(e for e in calib.catalog() if e.name == name)
+    rounded = tmp_path / "rounded.urdf"
+    rounded_copy(chain.urdf_path, rounded)
+    other = load_chain(rounded, entry.base, entry.tool)
+    q = own_random_q(chain.sigma, 40, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", calib.RankWarning)
+        for measure, rows in (("position", (0, 1, 2)), ("pose", tuple(range(6)))):
+            exact = analyze(chain, measure=measure, params="complete")
+            again = analyze(other, measure=measure, params="complete")
+            assert counts(again) == counts(exact), (measure, again.snapped)
+            ref = reference_rank(chain.urdf_path, chain.base_frame, chain.tool_frame, rows, q)
+            assert exact.n_complete == ref, measure
