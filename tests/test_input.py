@@ -19,7 +19,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ANALYSABLE, chain_of
-from pinref import own_random_q, pin_config, pin_frame
+from pinref import file_chain_poses, own_random_q
 
 import calib
 from calib import (
@@ -93,17 +93,7 @@ def assert_one_error_line(code: int, out: str, err: str, *facts: str) -> None:
 
 def pin_tool_in_base(path: Path, base: str, tool: str, q: np.ndarray) -> np.ndarray:
     """Reference: Pinocchio builds the file itself and computes the tool in the base."""
-    model = pin.buildModelFromUrdf(str(path))
-    data = model.createData()
-    b, t = pin_frame(model, base), pin_frame(model, tool)
-    jb, jt = model.frames[b].parentJoint, model.frames[t].parentJoint
-    support = list(model.supports[jt])
-    joints = support[support.index(jb) + 1 :]
-    out = []
-    for qi in q:
-        pin.framesForwardKinematics(model, data, pin_config(model, joints, qi))
-        out.append((data.oMf[b].inverse() * data.oMf[t]).homogeneous)
-    return np.array(out)
+    return np.array([T.homogeneous for _, T, _ in file_chain_poses(path, base, tool, q)])
 
 
 # --------------------------------------------------------------------------------------

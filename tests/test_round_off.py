@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ANALYSABLE, chain_of
-from pinref import own_random_q, pin_config, pin_frame, rigid_error_columns
+from pinref import file_chain_poses, own_random_q, rigid_error_columns
 
 import calib
 from calib import analyze, load_chain
@@ -39,19 +39,10 @@ MINIMAL = """<?xml version="1.0"?>
 def reference_rank(path: Path, base: str, tool: str, rows, q: np.ndarray) -> int:
     """Rank of a 6-DOF error on the base and on every moving link of the chain, from a
     Pinocchio model built from the file itself (Pinocchio's own Data, no calib code)."""
-    model = pin.buildModelFromUrdf(str(path))
-    data = model.createData()
-    b, t = pin_frame(model, base), pin_frame(model, tool)
-    jb, jt = model.frames[b].parentJoint, model.frames[t].parentJoint
-    support = list(model.supports[jt])
-    joints = support[support.index(jb) + 1 :]
     blocks = []
-    for qi in q:
-        pin.framesForwardKinematics(model, data, pin_config(model, joints, qi))
-        bMo = data.oMf[b].inverse()
-        E = (bMo * data.oMf[t]).translation
-        frames = [pin.SE3.Identity()] + [bMo * data.oMi[j] for j in joints]
-        blocks.append(rigid_error_columns(frames, E)[list(rows)])
+    for _, tool_in_base, joints in file_chain_poses(path, base, tool, q):
+        frames = [pin.SE3.Identity(), *joints]
+        blocks.append(rigid_error_columns(frames, tool_in_base.translation)[list(rows)])
     s = np.linalg.svd(np.vstack(blocks), compute_uv=False)
     return int(np.sum(s > 1e-8 * s[0]))
 
