@@ -98,8 +98,9 @@ class MDHModel:
         coincident: Row k whose axis lies on the previous one (parallel and through it).
         base_frame: Name of frame -1.
         tool_frame: Name of frame n+1.
-        urdf_idealized: The model converted from the chain's URDF with round-off removed
-            (set by :func:`from_chain`; :meth:`idealized` starts from it), or None.
+        source: The chain a model was converted from and the parallel tolerance of the
+            conversion (set by :func:`from_chain`): :meth:`idealized` then converts the
+            chain's URDF with round-off removed. None for other models.
     """
 
     sigma: np.ndarray
@@ -114,7 +115,7 @@ class MDHModel:
     coincident: np.ndarray
     base_frame: str = ""
     tool_frame: str = ""
-    urdf_idealized: MDHModel | None = field(default=None, repr=False)
+    source: tuple[Chain, float] | None = field(default=None, repr=False)
     _pre: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -167,11 +168,10 @@ class MDHModel:
         ``length_tol`` per row: use the exact model for calibration.
         """
         source = self
-        if self.urdf_idealized is not None and (angle_tol, length_tol) == (
-            SNAP_ANGLE,
-            SNAP_LENGTH,
-        ):
-            source = self.urdf_idealized
+        if self.source is not None and (angle_tol, length_tol) == (SNAP_ANGLE, SNAP_LENGTH):
+            chain, parallel_tol = self.source
+            if chain.ideal_model is not None:
+                source = _converted(chain.idealized(), parallel_tol)
         quarter = math.pi / 2
 
         def snap_angle(a: np.ndarray) -> np.ndarray:
@@ -436,12 +436,10 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
         raise InvalidArgumentError(
             f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
         )
+    return _converted(chain, parallel_tol).replace(source=(chain, parallel_tol))
+
+
+def _converted(chain: Chain, parallel_tol: float) -> MDHModel:
     points, dirs, tool = chain.joint_lines()
     model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
-    frames = {"base_frame": chain.base_frame, "tool_frame": chain.tool_frame}
-    ideal = chain.idealized()
-    if ideal is chain:
-        return model.replace(**frames)
-    points, dirs, tool = ideal.joint_lines()
-    snapped = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
-    return model.replace(**frames, urdf_idealized=snapped.replace(**frames))
+    return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)
