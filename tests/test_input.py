@@ -12,6 +12,7 @@ import json
 import math
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -19,6 +20,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ANALYSABLE, chain_of
+from hypothesis import event, given, settings
+from hypothesis import strategies as st
 from pinref import file_chain_poses, own_random_q
 
 import calib
@@ -509,3 +512,40 @@ def test_kinematic_copy_is_the_model_pinocchio_reads_from_the_file(name):
         lo, hi = ref.lowerPositionLimit[joint.idx_q], ref.upperPositionLimit[joint.idx_q]
         if joint.nq == 1 and hi > lo:
             assert (lower[k], upper[k]) == (lo, hi)
+
+
+NUMBER_TEXT = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.floats(-1e5, 1e5).map(lambda v: f"{v:.4e}"),
+    st.text(alphabet="0123456789.eE+-_ naif", max_size=12),
+)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(
+    field=st.sampled_from(["xyz2", "rpy2", "axis2", "lower", "upper"]),
+    words=st.one_of(
+        st.lists(NUMBER_TEXT, min_size=1, max_size=4),
+        st.lists(st.floats(-20, 20).map(repr), min_size=1, max_size=3),
+    ),
+)
+def test_fuzzed_numbers_give_a_finite_model_or_one_error_naming_the_joint(field, words):
+    value = " ".join(words)
+    if field in ("lower", "upper"):
+        old = 'lower="-2"' if field == "lower" else 'upper="2"'
+        text = two_joint_urdf(limit2=LIMIT.replace(old, f'{field}="{value}"'))
+    else:
+        text = two_joint_urdf(**{field: value})
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write(Path(tmp), text)
+        try:
+            chain = load_chain(path, tool="tool")
+        except URDFError as exc:
+            assert "\n" not in str(exc) and "'j2'" in str(exc), str(exc)
+            event("refused")
+            return
+        event("accepted")
+        mdh = from_chain(chain)
+        rows = [v for row in mdh.rows() for v in row.values() if isinstance(v, float)]
+        assert all(map(math.isfinite, rows))
+        assert np.all(np.isfinite(mdh.forward(chain.random_configurations(5, seed=0))))
