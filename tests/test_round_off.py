@@ -95,3 +95,36 @@ def test_rounded_catalog_chain_has_the_counts_of_the_exact_one(name, tmp_path):
             assert counts(again) == counts(exact), (measure, again.snapped)
             ref = reference_rank(chain.urdf_path, chain.base_frame, chain.tool_frame, rows, q)
             assert exact.n_complete == ref, measure
+
+
+ARM = """<?xml version="1.0"?>
+<robot name="arm">
+  <link name="b"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/>
+  <link name="ee"/>
+  <joint name="j1" type="continuous"><parent link="b"/><child link="l1"/>
+    <origin rpy="-PI 0 0" xyz="0 0 0.15"/><axis xyz="0 0 1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin rpy="HALF 0 0" xyz="0 0.005 -0.13"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/>
+    <origin rpy="PI 0 0" xyz="0 -0.4 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="j4" type="continuous"><parent link="l3"/><child link="l4"/>
+    <origin rpy="HALF 0 0" xyz="0 0.2 -0.006"/><axis xyz="0 0 1"/></joint>
+  <joint name="ee" type="fixed"><parent link="l4"/><child link="ee"/>
+    <origin rpy="PI 0 -PI" xyz="0 0 -0.06"/></joint>
+</robot>
+"""
+
+
+def test_arm_with_rounded_half_turns_has_the_counts_of_the_exact_one(tmp_path):
+    """A Kinova-like arm (rpy 1.5708 and 3.1416 everywhere, tool rpy "3.1416 0 -3.1416" on
+    the last axis): position gives 4R + 3 - 2 = 17, as the exact file and Pinocchio say."""
+    exact, rounded = tmp_path / "exact.urdf", tmp_path / "rounded.urdf"
+    exact.write_text(ARM.replace("HALF", repr(np.pi / 2)).replace("PI", repr(np.pi)))
+    rounded.write_text(ARM.replace("HALF", "1.5708").replace("PI", "3.1416"))
+    q = own_random_q([0, 0, 0, 0], 30, seed=2)
+    assert reference_rank(exact, "b", "ee", (0, 1, 2), q) == 17
+    for path in (exact, rounded):
+        res = analyze(path, "b", "ee", measure="position", params="complete")
+        assert (res.n_base, res.n_complete, res.n_theory, res.on_axes) == (17, 17, 17, (4,))
