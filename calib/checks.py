@@ -80,12 +80,13 @@ def joint_positions(q, n: int) -> np.ndarray:
     return real_array(q, "joint positions", shape, bound=MAX_JOINT_POSITION).reshape(-1, n)
 
 
-def check_work(m: int, n: int) -> None:
+def check_work(m: int, n: int, chain: str | None = None) -> None:
     """Refuse, before any work, an analysis that would need more than :data:`MAX_WORK_BYTES`.
 
     Args:
         m: Number of configurations.
         n: Number of joints of the chain.
+        chain: How the message names the chain (default: "a chain of n joints").
 
     Raises:
         InvalidArgumentError: The estimate exceeds the budget; the message says how many
@@ -95,6 +96,7 @@ def check_work(m: int, n: int) -> None:
     if need > MAX_WORK_BYTES:
         fit = MAX_WORK_BYTES // (max(n, 1) * BYTES_PER_CONFIG_JOINT)
         raise InvalidArgumentError(
-            f"{m} configurations of a {n}-joint chain need about {need / 2**30:.3g} GB; calib "
+            f"{m} configurations of {chain or f'a chain of {n} joints'} need about "
+            f"{need / 2**30:.3g} GB; calib "
             f"allows {MAX_WORK_BYTES / 2**30:g} GB: use at most {fit} configurations"
         )

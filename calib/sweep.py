@@ -131,7 +131,7 @@ def sweep(
     measurement = Measurement.of(measure, marker)
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
-    check_work(configs, 1)  # what no chain, however short, can afford
+    check_work(configs, 1, "even a 1-joint chain")  # what no chain can afford
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     entries = {e.name: e for e in catalog()}
