@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import logging
 import os
 import signal
 import sys
@@ -547,6 +548,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
     p.set_defaults(func=cmd_demo)
+    _add_verbose(parser, sub)
     return parser
 
 
@@ -632,6 +634,33 @@ def _run(args: argparse.Namespace) -> int:
         return 2
 
 
+def _add_verbose(parser: argparse.ArgumentParser, sub) -> None:
+    """``--verbose`` before or after the command: show Pinocchio's own messages."""
+    text = "show the messages of Pinocchio's URDF parser (hidden by default)"
+    parser.add_argument("--verbose", action="store_true", help=text)
+    for p in sub.choices.values():
+        p.add_argument("--verbose", action="store_true", default=argparse.SUPPRESS, help=text)
+
+
+@contextlib.contextmanager
+def _verbose_logging(verbose: bool):
+    """Print calib's log (Pinocchio's messages, level INFO) on stderr while the command runs."""
+    if not verbose:
+        yield
+        return
+    logger = logging.getLogger("calib")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("calib: %(message)s"))
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI and return the exit code.
 
@@ -643,7 +672,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage error (one line already printed), --help, --version
         return exc.code if isinstance(exc.code, int) else 2
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, _verbose_logging(args.verbose):
         warnings.simplefilter("always")
         code = _run(args)
     for w in caught:

@@ -1,4 +1,7 @@
-"""File output: checked before any work, never onto an input, complete or not written at all.
+"""File input and output: size-limited reads, and outputs that are never half-written.
+
+Inputs are read with a size limit (:func:`read_text_limited`, :func:`read_bytes_limited`).
+Outputs are checked before any work, never onto an input, complete or not written at all.
 
 Every command that writes files goes through :func:`check_outputs` (before its work) and
 :func:`write_files_atomic` (after it):
@@ -28,6 +31,7 @@ import sys
 import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 from .exceptions import InvalidArgumentError, OutputError
 
@@ -166,6 +170,72 @@ def check_outputs(
             )
     for path in given.values():
         _check_writable(_target(path))
+
+READ_CHUNK = 1 << 20
+"""Bytes read at a time by :func:`read_bytes_limited` [B]."""
+
+
+def read_bytes_limited(path: str | Path, limit: int) -> bytes:
+    """Read a whole file, refusing one larger than ``limit`` bytes before reading it all.
+
+    The size is checked while reading, so a device (``/dev/zero``), a FIFO or a file that
+    grows is refused after at most ``limit + 1`` bytes, in well under a second.
+
+    Args:
+        path: File to read.
+        limit: Largest accepted size [B].
+
+    Returns:
+        The content.
+
+    Raises:
+        OSError: The file is missing (``FileNotFoundError``), a directory
+            (``IsADirectoryError``), unreadable, or larger than ``limit`` (``errno.EFBIG``);
+            the error names the file and its ``strerror`` is a one-line reason.
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", str(target))
+    chunks: list[bytes] = []
+    size = 0
+    with open(target, "rb") as f:
+        while size <= limit:
+            chunk = f.read(min(READ_CHUNK, limit + 1 - size))
+            if not chunk:
+                return b"".join(chunks)
+            chunks.append(chunk)
+            size += len(chunk)
+    raise OSError(errno.EFBIG, f"file larger than {_human_size(limit)}", str(target))
+
+
+def read_text_limited(path: str | Path, limit: int) -> str:
+    """Read a UTF-8 text file (a BOM is dropped) of at most ``limit`` bytes.
+
+    Args:
+        path: File to read.
+        limit: Largest accepted size [B].
+
+    Returns:
+        The text; line ends are kept as they are in the file.
+
+    Raises:
+        OSError: As :func:`read_bytes_limited`, or ``errno.EILSEQ`` when the bytes are not
+            UTF-8 (the message gives the byte offset).
+    """
+    raw = read_bytes_limited(path, limit)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise OSError(
+            errno.EILSEQ, f"not UTF-8 text (byte {exc.start})", str(Path(path))
+        ) from None
+
+
+def _human_size(n: int) -> str:
+    for unit, size in (("GB", 1 << 30), ("MB", 1 << 20), ("kB", 1 << 10)):
+        if n >= size:
+            return f"{n / size:g} {unit}"
+    return f"{n} bytes"
 
 
 def _to_bytes(content: str | bytes) -> bytes:

@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg
 
+from .checks import check_count, check_work, joint_positions
 from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import MDHModel, from_chain
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
-from .robot import Chain, check_count, load_chain
+from .robot import Chain, load_chain
 
 DEFAULT_CONFIGS = 100
 """Random configurations drawn by default."""
@@ -420,6 +421,33 @@ def identify_base(
     return diag, tau, kept, others, B
 
 
+def _checked_arguments(mdh, params, measurement, configs):
+    """Checked arguments of :func:`analyze_model`: measurement, parameter set, ``(m, n)``."""
+    if not isinstance(mdh, MDHModel):
+        raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
+    measurement = Measurement.of("pose") if measurement is None else measurement
+    if not isinstance(measurement, Measurement):
+        raise InvalidArgumentError(
+            f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
+        )
+    if isinstance(params, str):
+        pset = parameter_set(mdh, params)
+    elif isinstance(params, ParameterSet) and all(
+        isinstance(p, Parameter) and 0 <= p.row <= mdh.n + 1 for p in params.parameters
+    ):
+        pset = params
+    else:
+        raise InvalidArgumentError(
+            f"params must be 'paper', 'complete' or a ParameterSet of this model's rows, "
+            f"got {params!r:.60}"
+        )
+    if configs is None:
+        raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
+    q = joint_positions(configs, mdh.n)
+    check_work(len(q), mdh.n)
+    return measurement, pset, q
+
+
 def analyze_model(
     mdh: MDHModel,
     params: str | ParameterSet = "paper",
@@ -440,16 +468,13 @@ def analyze_model(
 
     Returns:
         The analysis.
+
+    Raises:
+        InvalidArgumentError: A bad argument: configurations of the wrong shape, with NaN,
+            or too many to fit in memory (:data:`~calib.checks.MAX_WORK_BYTES`).
     """
-    measurement = measurement or Measurement.of("pose")
-    pset = parameter_set(mdh, params) if isinstance(params, str) else params
-    if configs is None:
-        raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
-    q = np.atleast_2d(np.asarray(configs, dtype=float))
-    if q.shape[1:] != (mdh.n,) or not np.all(np.isfinite(q)):
-        raise InvalidArgumentError(
-            f"configurations must be finite joint positions of shape (m, {mdh.n}), got {q.shape}"
-        )
+    measurement, pset, q = _checked_arguments(mdh, params, measurement, configs)
+    check_count(seed, "the seed", minimum=0)
     names = pset.names
     extras = [p for p in parameter_set(mdh, "complete").parameters if p.name not in names]
     t0 = time.perf_counter()
@@ -531,17 +556,26 @@ def analyze_model(
     )
 
 
+SNAPPED_CHANGE = 1e-3
+"""Largest change [rad or m] :func:`snapped_values` lists: a larger one is a different frame
+choice of the idealized conversion (a 90-degree offset), not round-off."""
+
+
 def snapped_values(exact: MDHModel, idealized: MDHModel) -> tuple[str, ...]:
     """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
 
-    Changes under 1e-14 (float noise of the conversion) are not listed.
+    Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are
+    not listed; angles are compared modulo 2 pi.
     """
     out = []
     for kind in Kind:
         a, b = getattr(exact, kind.value), getattr(idealized, kind.value)
+        diff = b - a
+        if kind.is_rotation:
+            diff = (diff + math.pi) % (2 * math.pi) - math.pi
         unit = "rad" if kind.is_rotation else "m"
-        for k in np.flatnonzero(np.abs(a - b) > 1e-14):
-            out.append(f"{kind.value}{k}: {a[k]:.3g} {unit} -> {b[k]:.6g}")
+        for k in np.flatnonzero((np.abs(diff) > 1e-14) & (np.abs(diff) <= SNAPPED_CHANGE)):
+            out.append(f"{kind.value}{k}: {a[k]:.7g} {unit} -> {b[k]:.7g}")
     return tuple(out)
 
 

@@ -79,6 +79,23 @@ def _numeric(value) -> bool:
     return True
 
 
+def _check_types(mdh: MDHModel, measurement: Measurement, params=None) -> None:
+    """Raise InvalidArgumentError for arguments of the wrong kind (not for their values)."""
+    if not isinstance(mdh, MDHModel):
+        raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
+    if not isinstance(measurement, Measurement):
+        raise InvalidArgumentError(
+            f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
+        )
+    if params is not None and not (
+        isinstance(params, ParameterSet)
+        and all(0 <= p.row <= mdh.n + 1 for p in params.parameters)
+    ):
+        raise InvalidArgumentError(
+            f"params must be a ParameterSet of this model's rows, got {params!r:.60}"
+        )
+
+
 def measured_point(kin: Kinematics, marker: np.ndarray) -> np.ndarray:
     """Measured point in the base frame at every configuration ``(m, 3)`` [m]."""
     return kin.p[:, -1] + kin.R[:, -1] @ marker
@@ -110,6 +127,7 @@ def identification_jacobian(
         ``W`` of shape ``(m * len(rows), len(params))``: configuration-major, so rows
         ``i*len(rows):(i+1)*len(rows)`` belong to configuration i.
     """
+    _check_types(mdh, measurement, params)
     if kin is None:
         kin = mdh.kinematics(q)
     plan = params.layout
@@ -152,6 +170,7 @@ def complete_jacobian(
     Returns:
         ``W`` of shape ``(m * len(rows), 6 (n + 1))``.
     """
+    _check_types(mdh, measurement)
     if kin is None:
         kin = mdh.kinematics(q)
     m = kin.R.shape[0]

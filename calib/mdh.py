@@ -18,6 +18,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import urdf_xml
+from .checks import joint_positions, real_array
+from .exceptions import InvalidArgumentError
 from .robot import Chain
 
 PARALLEL_TOL = 0.01
@@ -34,13 +37,13 @@ FREE_DIRECTION_TOL = 1e-10
 COINCIDENT_TOL = 1e-6
 """Distance [m] under which two parallel lines are coincident (the complete set adds y)."""
 
-SNAP_ANGLE = 1e-5
+SNAP_ANGLE = urdf_xml.SNAP_ANGLE
 """Angle [rad] within which :meth:`MDHModel.idealized` snaps to a multiple of 90 degrees.
 
 URDF files round pi/2 to 1.5708 (3.7e-6 rad off), 1.57079 or 1.57079632679 (5e-12 off).
 """
 
-SNAP_LENGTH = 1e-6
+SNAP_LENGTH = urdf_xml.SNAP_LENGTH
 """Length [m] under which :meth:`MDHModel.idealized` snaps a distance to zero."""
 
 
@@ -95,6 +98,9 @@ class MDHModel:
         coincident: Row k whose axis lies on the previous one (parallel and through it).
         base_frame: Name of frame -1.
         tool_frame: Name of frame n+1.
+        source: The chain a model was converted from and the parallel tolerance of the
+            conversion (set by :func:`from_chain`): :meth:`idealized` then converts the
+            chain's URDF with round-off removed. None for other models.
     """
 
     sigma: np.ndarray
@@ -109,6 +115,7 @@ class MDHModel:
     coincident: np.ndarray
     base_frame: str = ""
     tool_frame: str = ""
+    source: tuple[Chain, float] | None = field(default=None, repr=False)
     _pre: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -149,12 +156,22 @@ class MDHModel:
     def idealized(self, angle_tol: float = SNAP_ANGLE, length_tol: float = SNAP_LENGTH) -> MDHModel:
         """A copy with URDF round-off removed, for structural (rank) analysis.
 
-        Angles within ``angle_tol`` of a multiple of 90 degrees are snapped to it and
-        distances under ``length_tol`` to zero. A rounded ``rpy`` otherwise leaves a tool
-        4e-13 m off the last axis, and the rank counts directions that only round-off creates.
-        The forward kinematics moves by at most ``angle_tol`` times the reach plus
+        A model converted from a URDF chain (:func:`from_chain`) starts from the conversion
+        of the URDF geometry itself with round-off removed (each ``rpy`` angle within
+        ``SNAP_ANGLE`` of a multiple of 90 degrees snapped to it, each ``xyz`` coordinate and
+        axis component under ``SNAP_LENGTH`` / ``SNAP_ANGLE`` to zero): the lengths that a
+        rounded angle induces (a tool 1e-6 m off the last axis) vanish with the angle. Then, and
+        for any other model, angles within ``angle_tol`` of a multiple of 90 degrees are snapped
+        to it and distances under ``length_tol`` to zero. A rounded ``rpy`` otherwise leaves a
+        tool 4e-13 m off the last axis, and the rank counts directions that only round-off
+        creates. The forward kinematics moves by at most ``angle_tol`` times the reach plus
         ``length_tol`` per row: use the exact model for calibration.
         """
+        source = self
+        if self.source is not None and (angle_tol, length_tol) == (SNAP_ANGLE, SNAP_LENGTH):
+            chain, parallel_tol = self.source
+            if chain.ideal_model is not None:
+                source = _converted(chain.idealized(), parallel_tol)
         quarter = math.pi / 2
 
         def snap_angle(a: np.ndarray) -> np.ndarray:
@@ -164,13 +181,15 @@ class MDHModel:
         def snap_length(v: np.ndarray) -> np.ndarray:
             return np.where(np.abs(v) < length_tol, 0.0, v)
 
-        return self.replace(
-            beta=snap_angle(self.beta),
-            alpha=snap_angle(self.alpha),
-            theta=snap_angle(self.theta),
-            d=snap_length(self.d),
-            r=snap_length(self.r),
-            y=snap_length(self.y),
+        return source.replace(
+            beta=snap_angle(source.beta),
+            alpha=snap_angle(source.alpha),
+            theta=snap_angle(source.theta),
+            d=snap_length(source.d),
+            r=snap_length(source.r),
+            y=snap_length(source.y),
+            base_frame=self.base_frame,
+            tool_frame=self.tool_frame,
         )
 
     def kinematics(self, q: np.ndarray) -> Kinematics:
@@ -181,8 +200,12 @@ class MDHModel:
 
         Returns:
             The frames (see :class:`Kinematics`).
+
+        Raises:
+            InvalidArgumentError: ``q`` has the wrong shape, NaN or values beyond
+                :data:`~calib.checks.MAX_JOINT_POSITION`.
         """
-        q = np.atleast_2d(np.asarray(q, dtype=float))
+        q = joint_positions(q, self.n)
         m, rows, n = q.shape[0], self.n + 2, self.n
         revolute = self.sigma[1 : n + 1] == 0
         angle = np.broadcast_to(self.theta, (m, rows)).copy()
@@ -265,6 +288,35 @@ def _closest_points(p1, u1, p2, u2) -> tuple[float, float]:
     return (b * e - dd) / den, (e - b * dd) / den
 
 
+RIGID_TOL = 1e-6
+"""Largest deviation of a tool rotation from orthonormality accepted by :func:`from_lines`."""
+
+
+def _checked_lines(points, directions, sigma, tool):
+    """The inputs of :func:`from_lines` as checked arrays (unit directions)."""
+    s = real_array(sigma, "sigma", (None,))
+    n = len(s)
+    if not np.all((s == 0) | (s == 1)):
+        raise InvalidArgumentError(f"sigma holds 0 (revolute) or 1 (prismatic), got {s.tolist()}")
+    bound = urdf_xml.MAX_COORDINATE
+    p = real_array(points, "joint points", (n, 3), bound=bound).reshape(n, 3)
+    u = real_array(directions, "joint directions", (n, 3)).reshape(n, 3)
+    scale = np.max(np.abs(u), axis=1) if n else np.ones(0)
+    zero = np.flatnonzero(scale < urdf_xml.MIN_AXIS_NORM)
+    if zero.size:
+        raise InvalidArgumentError(f"joint direction {int(zero[0]) + 1} is zero: no axis")
+    u = u / scale[:, None]
+    u = u / np.linalg.norm(u, axis=1)[:, None]
+    T = real_array(tool, "the tool pose", (4, 4))
+    R = T[:3, :3]
+    rigid = np.allclose(R.T @ R, np.eye(3), atol=RIGID_TOL, rtol=0) and np.linalg.det(R) > 0
+    if not rigid or not np.allclose(T[3], (0.0, 0.0, 0.0, 1.0)):
+        raise InvalidArgumentError("the tool pose must be a rigid homogeneous transform (4, 4)")
+    if np.max(np.abs(T[:3, 3])) > bound:
+        raise InvalidArgumentError(f"the tool position must be within {bound:g} m")
+    return p, u, s.astype(int), T
+
+
 def from_lines(
     points: np.ndarray,
     directions: np.ndarray,
@@ -294,12 +346,25 @@ def from_lines(
 
     Returns:
         The model; its forward kinematics equals the input geometry.
+
+    Raises:
+        InvalidArgumentError: Arrays of the wrong shape, not finite, coordinates beyond
+            :data:`~calib.urdf_xml.MAX_COORDINATE`, a zero direction, sigma not 0 or 1, a tool
+            that is not a rigid transform, or a tolerance outside (0, pi/4).
     """
+    points, directions, sigma, tool = _checked_lines(points, directions, sigma, tool)
     n = len(sigma)
-    tool = np.asarray(tool, dtype=float)
-    line_p = [np.zeros(3), *np.asarray(points, dtype=float), tool[:3, 3]]
+    if n == 0:
+        raise InvalidArgumentError("a chain has at least one joint: sigma is empty")
+    if joint_names is not None and (
+        len(joint_names) != n or not all(isinstance(x, str) for x in joint_names)
+    ):
+        raise InvalidArgumentError(f"joint_names must be {n} strings, got {joint_names!r:.60}")
+    if not (isinstance(parallel_tol, int | float) and 0.0 < parallel_tol < math.pi / 4):
+        raise InvalidArgumentError(f"parallel_tol must be in (0, pi/4) rad, got {parallel_tol!r}")
+    line_p = [np.zeros(3), *points, tool[:3, 3]]
     line_u = [np.array([0.0, 0.0, 1.0])]
-    line_u += [u / np.linalg.norm(u) for u in np.asarray(directions, dtype=float)]
+    line_u += [u / np.linalg.norm(u) for u in directions]
     line_u += [tool[:3, 2]]
     rows = n + 2
     beta, alpha, d, theta, r = (np.zeros(rows) for _ in range(5))
@@ -367,6 +432,14 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
     Returns:
         The MDH model, whose forward kinematics equals Pinocchio's.
     """
+    if not isinstance(chain, Chain):
+        raise InvalidArgumentError(
+            f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
+        )
+    return _converted(chain, parallel_tol).replace(source=(chain, parallel_tol))
+
+
+def _converted(chain: Chain, parallel_tol: float) -> MDHModel:
     points, dirs, tool = chain.joint_lines()
     model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
     return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)

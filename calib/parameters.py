@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import real_array
 from .exceptions import InvalidArgumentError
 from .mdh import MDHModel
 
@@ -114,13 +115,20 @@ class ParameterSet:
 
     def apply(self, mdh: MDHModel, delta: np.ndarray) -> MDHModel:
         """A new model whose parameters are shifted by ``delta`` (same order as the set)."""
+        _check_model(mdh)
+        delta = real_array(delta, "delta", (len(self),))
         arrays = {k.value: getattr(mdh, k.value).copy() for k in Kind}
-        for p, dx in zip(self.parameters, np.asarray(delta, dtype=float), strict=True):
+        for p, dx in zip(self.parameters, delta, strict=True):
             arrays[p.kind.value][p.row] += dx
         return mdh.replace(**arrays)
 
 
 PARAMETER_SETS = ("paper", "complete")
+
+
+def _check_model(mdh) -> None:
+    if not isinstance(mdh, MDHModel):
+        raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
 
 
 def paper_parameters(mdh: MDHModel) -> ParameterSet:
@@ -129,6 +137,7 @@ def paper_parameters(mdh: MDHModel) -> ParameterSet:
     Row 0 carries theta0 and r0 (the base merged into frames 0 and 1); rows 1..n+1 carry
     alpha, d, theta, r, except where rows k >= 2 are parallel: beta_k replaces r_k.
     """
+    _check_model(mdh)
     params = [Parameter(0, Kind.THETA), Parameter(0, Kind.R)]
     for k in range(1, mdh.n + 2):
         if mdh.parallel[k] and k >= 2:
@@ -146,6 +155,7 @@ def complete_parameters(mdh: MDHModel) -> ParameterSet:
     there), and ``y_k`` (a translation along y_{k-1}) wherever lines k-1 and k coincide, where
     no MDH parameter can move line k sideways.
     """
+    _check_model(mdh)
     params = list(paper_parameters(mdh).parameters)
     if mdh.parallel[1]:
         params.append(Parameter(1, Kind.BETA))

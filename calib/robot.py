@@ -2,23 +2,26 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from .catalog import catalog_entry
+from .checks import check_count, check_work, joint_positions
 from .exceptions import (
     AmbiguousFrameError,
     ChainError,
     FrameNotFoundError,
     InvalidArgumentError,
     UnsupportedJointError,
-    URDFError,
 )
+from .urdf_model import build_model, read_urdf_file
+from .urdf_xml import URDFInfo, kinematic_xml
 
 PLACEMENT_TOL = 1e-12
 """Two same-named frames closer than this [m, rotation entries] are the same place."""
@@ -63,83 +66,54 @@ def _describe_joint(shortname: str) -> str:
     return names.get(shortname, f"of unsupported type {shortname}")
 
 
-@dataclass(frozen=True)
-class URDFInfo:
-    """What calib reads from the URDF XML itself (Pinocchio does not keep it).
+def joint_placements(model: pin.Model, q: np.ndarray, last: int | None = None) -> dict:
+    """Placements ``oMi`` of the joints at a Pinocchio configuration, without ``pin.Data``.
 
-    Attributes:
-        root_link: Name of the root link.
-        mimic_joints: Names of joints carrying a ``<mimic>`` tag.
-    """
-
-    root_link: str
-    mimic_joints: frozenset[str]
-
-
-def read_urdf_info(path: Path) -> URDFInfo:
-    """Parse the URDF XML for what Pinocchio's model does not keep.
-
-    Raises:
-        URDFError: The file is missing or is not a well-formed URDF.
-    """
-    if not path.is_file():
-        raise URDFError(str(path), "no such file")
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise URDFError(str(path), f"malformed XML: {exc}") from None
-    if root.tag != "robot":
-        raise URDFError(str(path), f"root element is <{root.tag}>, not <robot>")
-    links = [e.get("name") for e in root.findall("link")]
-    if not links:
-        raise URDFError(str(path), "no <link> element")
-    children = {c.get("link") for j in root.findall("joint") for c in j.findall("child")}
-    roots = [name for name in links if name not in children]
-    names = set(links)
-    for j in root.findall("joint"):
-        for tag in ("parent", "child"):
-            e = j.find(tag)
-            link = e.get("link") if e is not None else None
-            if link not in names:
-                raise URDFError(
-                    str(path), f"joint '{j.get('name')}' names a missing {tag} link '{link}'"
-                )
-        axis = j.find("axis")
-        if j.get("type") not in ("fixed", "floating", "planar") and axis is not None:
-            try:
-                xyz = [float(v) for v in axis.get("xyz", "1 0 0").split()]
-            except ValueError:
-                xyz = []
-            if len(xyz) != 3 or not all(map(math.isfinite, xyz)) or max(map(abs, xyz)) == 0.0:
-                raise URDFError(
-                    str(path), f"joint '{j.get('name')}' has an invalid axis '{axis.get('xyz')}'"
-                )
-    mimic = frozenset(
-        j.get("name", "") for j in root.findall("joint") if j.find("mimic") is not None
-    )
-    return URDFInfo(roots[0] if roots else links[0], mimic)
-
-
-def load_model(path: str | Path) -> tuple[pin.Model, URDFInfo]:
-    """Build a fixed-base Pinocchio model from a URDF file (meshes are not needed).
+    ``pin.Data`` holds tensors whose size grows as the cube of the number of joints (1.8 GB
+    for 300 joints): calib walks the tree itself, with Pinocchio's joint models.
 
     Args:
-        path: URDF file.
+        model: Pinocchio model.
+        q: Configuration ``(nq,)``.
+        last: Only this joint and its ancestors (default: every joint).
 
     Returns:
-        The model and the URDF facts Pinocchio does not keep.
-
-    Raises:
-        URDFError: The file is missing, malformed, or Pinocchio rejects it.
+        ``pin.SE3`` placement in the world by joint index.
     """
-    path = Path(path)
-    info = read_urdf_info(path)
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except (RuntimeError, ValueError) as exc:
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise URDFError(str(path), reason) from None
-    return model, info
+    joints = range(1, model.njoints) if last is None else list(model.supports[last])[1:]
+    neutral = pin.neutral(model)
+    out = {0: pin.SE3.Identity()}
+    for jid in joints:
+        joint = model.joints[jid]
+        span = slice(joint.idx_q, joint.idx_q + joint.nq)
+        motion = pin.SE3.Identity()
+        if not np.array_equal(q[span], neutral[span]):
+            motion = _joint_motion(model.names[jid], joint, q[span])
+        out[jid] = out[model.parents[jid]] * model.jointPlacements[jid] * motion
+    return out
+
+
+def motion_axis(joint) -> np.ndarray:
+    """Motion subspace ``(6,)`` (linear, angular) of a 1-DOF joint model, in its own frame."""
+    jdata = joint.createData()
+    q = np.zeros(joint.nq)
+    q[0] = 1.0 if joint.nq == 2 else 0.0  # continuous joints: (cos, sin) = (1, 0)
+    joint.calc(jdata, q)
+    return np.reshape(np.array(jdata.S), (6, -1))[:, 0]
+
+
+def _joint_motion(name: str, joint, qj: np.ndarray) -> pin.SE3:
+    """Transform of a revolute, continuous or prismatic joint at its position ``qj``."""
+    if _joint_kind(joint.shortname()) is None or joint.nv != 1:
+        raise InvalidArgumentError(f"joint '{name}' ({joint.shortname()}) can only stay neutral")
+    value = math.atan2(qj[1], qj[0]) if joint.nq == 2 else float(qj[0])
+    return pin.exp6(pin.Motion(motion_axis(joint) * value))
+
+
+def frame_placement(model: pin.Model, oMi: dict, fid: int) -> pin.SE3:
+    """Placement of frame ``fid`` in the world, from :func:`joint_placements`."""
+    frame = model.frames[fid]
+    return oMi[frame.parentJoint] * frame.placement
 
 
 def resolve_frame(model: pin.Model, name: str) -> int:
@@ -175,12 +149,16 @@ def resolve_frame(model: pin.Model, name: str) -> int:
         )
     if len(ids) == 1:
         return ids[0]
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, pin.neutral(model))
-    first = data.oMf[ids[0]]
+    oMi = joint_placements(model, pin.neutral(model))
+    first = frame_placement(model, oMi, ids[0])
     same = all(
         model.frames[i].parentJoint == model.frames[ids[0]].parentJoint
-        and np.allclose(data.oMf[i].homogeneous, first.homogeneous, atol=PLACEMENT_TOL, rtol=0)
+        and np.allclose(
+            frame_placement(model, oMi, i).homogeneous,
+            first.homogeneous,
+            atol=PLACEMENT_TOL,
+            rtol=0,
+        )
         for i in ids
     )
     if same:
@@ -192,18 +170,6 @@ def resolve_frame(model: pin.Model, name: str) -> int:
         if kind not in found:
             found.append(kind)
     raise AmbiguousFrameError(bare, found)
-
-
-def check_count(value, what: str, minimum: int = 1) -> int:
-    """Validate an integer argument (a count or a seed).
-
-    Raises:
-        InvalidArgumentError: Not an integer, a bool, or below ``minimum``.
-    """
-    ok = isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= minimum
-    if not ok:
-        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
 
 
 def _default_tool(model: pin.Model) -> int:
@@ -236,6 +202,8 @@ class Chain:
         lower: Lower sampling bound per joint [rad or m].
         upper: Upper sampling bound per joint [rad or m].
         q_ref: Pinocchio configuration of the joints outside the chain.
+        ideal_model: The same model built from the URDF with round-off removed (see
+            :meth:`idealized`), or None.
     """
 
     name: str
@@ -252,6 +220,17 @@ class Chain:
     lower: np.ndarray
     upper: np.ndarray
     q_ref: np.ndarray
+    ideal_model: pin.Model | None = field(default=None, repr=False)
+
+    def idealized(self) -> Chain:
+        """The chain on its URDF with round-off removed, for structural analysis.
+
+        The model is built from :func:`~calib.urdf_xml.kinematic_xml` with ``snap``; a chain
+        without such a model returns itself.
+        """
+        if self.ideal_model is None:
+            return self
+        return dataclasses.replace(self, model=self.ideal_model, ideal_model=None)
 
     @property
     def n(self) -> int:
@@ -272,18 +251,10 @@ class Chain:
         """Validate and reshape joint positions to ``(m, n)``.
 
         Raises:
-            InvalidArgumentError: Wrong shape or non-finite values.
+            InvalidArgumentError: Wrong shape, or values that are not finite or beyond
+                :data:`~calib.checks.MAX_JOINT_POSITION`.
         """
-        q = np.asarray(q, dtype=float)
-        if q.ndim == 1:
-            q = q[None, :]
-        if q.ndim != 2 or q.shape[1] != self.n:
-            raise InvalidArgumentError(
-                f"expected joint positions of shape (m, {self.n}), got {np.shape(q)}"
-            )
-        if not np.all(np.isfinite(q)):
-            raise InvalidArgumentError("joint positions contain NaN or infinity")
-        return q
+        return joint_positions(q, self.n)
 
     def pin_configurations(self, q: np.ndarray) -> np.ndarray:
         """Map URDF joint positions ``(m, n)`` to Pinocchio configurations ``(m, nq)``."""
@@ -307,9 +278,14 @@ class Chain:
 
         Returns:
             Joint positions, shape ``(m, n)`` [rad or m].
+
+        Raises:
+            InvalidArgumentError: Bad count or seed, or an analysis of that many
+                configurations would not fit in :data:`~calib.checks.MAX_WORK_BYTES`.
         """
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)
+        check_work(int(m), self.n)
         rng = np.random.default_rng(int(seed))
         return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
 
@@ -329,16 +305,17 @@ class Chain:
         ).reshape(-1, self.n)
 
     def tool_placements(self, q: np.ndarray) -> np.ndarray:
-        """Tool frame in the base frame computed by Pinocchio, shape ``(m, 4, 4)``.
+        """Tool frame in the base frame, from Pinocchio's joint models, shape ``(m, 4, 4)``.
 
-        A reference implementation for tests and checks (one Pinocchio call per row).
+        A reference implementation for tests and checks (one tree walk per row).
         """
-        data = self.model.createData()
         out = []
+        tool_joint = self.model.frames[self.tool_id].parentJoint
         for qp in self.pin_configurations(q):
-            pin.framesForwardKinematics(self.model, data, qp)
-            out.append((data.oMf[self.base_id].actInv(data.oMf[self.tool_id])).homogeneous)
-        return np.array(out)
+            oMi = joint_placements(self.model, qp, last=tool_joint)
+            oMb = frame_placement(self.model, oMi, self.base_id)
+            out.append(oMb.actInv(frame_placement(self.model, oMi, self.tool_id)).homogeneous)
+        return np.array(out).reshape(-1, 4, 4)
 
     def joint_lines(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint axes at the zero configuration, in the base frame.
@@ -349,22 +326,18 @@ class Chain:
             tool placement ``(4, 4)`` in the base frame.
         """
         model = self.model
-        data = model.createData()
         q0 = self.pin_configurations(np.zeros(self.n))[0]
-        pin.forwardKinematics(model, data, q0)
-        pin.updateFramePlacements(model, data)
-        pin.computeJointJacobians(model, data, q0)
-        oMb = data.oMf[self.base_id]
+        oMi = joint_placements(model, q0, last=model.frames[self.tool_id].parentJoint)
+        oMb = frame_placement(model, oMi, self.base_id)
         points, dirs = [], []
         for jid, s in zip(self.joint_ids, self.sigma, strict=True):
-            J = pin.getJointJacobian(model, data, jid, pin.ReferenceFrame.LOCAL)
-            col = np.reshape(J, (6, -1))[:, model.joints[jid].idx_v]
-            local = col[:3] if s == 1 else col[3:]
-            bMj = oMb.actInv(data.oMi[jid])
+            S = motion_axis(model.joints[jid])  # in the joint frame
+            local = S[:3] if s == 1 else S[3:]
+            bMj = oMb.actInv(oMi[jid])
             u = bMj.rotation @ local
             points.append(bMj.translation.copy())
             dirs.append(u / np.linalg.norm(u))
-        tool = oMb.actInv(data.oMf[self.tool_id]).homogeneous
+        tool = oMb.actInv(frame_placement(model, oMi, self.tool_id)).homogeneous
         return np.array(points).reshape(-1, 3), np.array(dirs).reshape(-1, 3), tool
 
 
@@ -374,11 +347,16 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 def _chain_from_model(
-    name: str, path: Path, model: pin.Model, info: URDFInfo, base: str | None, tool: str | None
+    name: str, path: Path, info: URDFInfo, base: str | None, tool: str | None
 ) -> Chain:
     for option, frame in (("base", base), ("tool", tool)):
+        if frame is not None and not isinstance(frame, str):
+            raise InvalidArgumentError(
+                f"the {option} frame is a name (a string), got {type(frame).__name__} {frame!r}"
+            )
         if frame is not None and not frame.strip():
             raise InvalidArgumentError(f"the {option} frame name is empty")
+    model = build_model(kinematic_xml(info), str(path))
     base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
     tool_id = resolve_frame(model, tool) if tool else _default_tool(model)
     base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
@@ -431,6 +409,7 @@ def _chain_from_model(
         lower=_frozen(np.array(lower)),
         upper=_frozen(np.array(upper)),
         q_ref=_frozen(pin.neutral(model)),
+        ideal_model=build_model(kinematic_xml(info, snap=True), str(path)),
     )
 
 
@@ -449,18 +428,20 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
         CalibError: Unknown robot, bad URDF, unknown or ambiguous frame, no serial chain,
             unsupported joint in the chain.
     """
-    text = str(robot)
+    if not isinstance(robot, str | os.PathLike):
+        raise InvalidArgumentError(
+            f"the robot is a catalog name or a URDF path, got {type(robot).__name__} {robot!r}"
+        )
+    text = os.fspath(robot)
     path = Path(text)
-    if isinstance(robot, Path) or path.is_file() or text.endswith((".urdf", ".xml")) or "/" in text:
-        model, info = load_model(path)
-        return _chain_from_model(path.stem, path, model, info, base, tool)
+    is_path = isinstance(robot, os.PathLike) or path.is_file() or path.is_dir()
+    if is_path or text.endswith((".urdf", ".xml")) or "/" in text:
+        return _chain_from_model(path.stem, path, read_urdf_file(path), base, tool)
     entry = catalog_entry(text)
-    model, info = load_model(entry.path)
     return _chain_from_model(
         entry.name,
         entry.path,
-        model,
-        info,
+        read_urdf_file(entry.path),
         entry.base if base is None else base,
         entry.tool if tool is None else tool,
     )

@@ -11,10 +11,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from .catalog import catalog
+from .checks import check_count, check_work
 from .exceptions import CalibError, InvalidArgumentError
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .jacobian import Measurement
-from .robot import check_count, load_chain
+from .robot import load_chain
 
 
 @dataclass(frozen=True)
@@ -130,6 +131,7 @@ def sweep(
     measurement = Measurement.of(measure, marker)
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
+    check_work(configs, 1, "even a 1-joint chain")  # what no chain can afford
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     entries = {e.name: e for e in catalog()}

@@ -16,8 +16,8 @@ for the tool: frame n+1 of the MDH model is the tool frame.
 
 from __future__ import annotations
 
-import contextlib
 import io
+import os
 import xml.etree.ElementTree as ET
 import xml.parsers.expat
 from pathlib import Path
@@ -25,24 +25,21 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import CalibError, URDFError
-from .fileio import check_outputs, write_atomic
+from .exceptions import CalibError, InvalidArgumentError, URDFError
+from .fileio import check_outputs, read_bytes_limited, write_atomic
 from .mdh import MDHModel, frames_at_zero
-from .robot import Chain
+from .robot import Chain, frame_placement, joint_placements
+from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
 
-def _xml_layout(raw: bytes, src: str) -> tuple[int, int, list[tuple[str, str]]]:
-    """Byte offsets of the root element (start, end) and the namespace declarations."""
-    parser = xml.parsers.expat.ParserCreate(namespace_separator=None)
+def _xml_layout(raw: bytes, src: str) -> tuple[int, int]:
+    """Byte offsets of the root element: where it starts and where it ends."""
+    parser = xml.parsers.expat.ParserCreate()  # no namespace processing, as parse_xml
     state = {"depth": 0, "start": -1, "end": -1}
-    namespaces: list[tuple[str, str]] = []
 
     def start(name, attrs):
         if state["depth"] == 0 and state["start"] < 0:
             state["start"] = parser.CurrentByteIndex
-            for key, value in attrs.items():
-                if key == "xmlns" or key.startswith("xmlns:"):
-                    namespaces.append((key.partition(":")[2], value))
         state["depth"] += 1
 
     def end(name):
@@ -59,7 +56,7 @@ def _xml_layout(raw: bytes, src: str) -> tuple[int, int, list[tuple[str, str]]]:
     stop = raw.index(b">", state["end"]) + 1
     if raw[state["end"] : state["end"] + 2] != b"</":  # a self-closing root element
         stop = raw.index(b"/>", state["start"]) + 2
-    return state["start"], stop, namespaces
+    return state["start"], stop
 
 
 def _homogeneous(se3: pin.SE3) -> np.ndarray:
@@ -72,21 +69,20 @@ class _NominalPoses:
     def __init__(self, chain: Chain):
         model = chain.model
         self.model = model
-        self.data = model.createData()
         q0 = chain.pin_configurations(np.zeros((1, chain.n)))[0]
-        pin.framesForwardKinematics(model, self.data, q0)
-        self.bMo = self.data.oMf[chain.base_id].inverse()
+        self.oMi = joint_placements(model, q0)
+        self.bMo = frame_placement(model, self.oMi, chain.base_id).inverse()
 
     def joint(self, jid: int) -> np.ndarray:
         """URDF joint frame of Pinocchio joint ``jid``."""
-        return _homogeneous(self.bMo * self.data.oMi[jid])
+        return _homogeneous(self.bMo * self.oMi[jid])
 
     def link(self, name: str) -> np.ndarray:
         """Frame of a link."""
         if not self.model.existBodyName(name):
             raise CalibError(f"link '{name}' of the URDF is not in the Pinocchio model")
         fid = self.model.getFrameId(name, pin.FrameType.BODY)
-        return _homogeneous(self.bMo * self.data.oMf[fid])
+        return _homogeneous(self.bMo * frame_placement(self.model, self.oMi, fid))
 
 
 def _child_link(joint: ET.Element) -> str:
@@ -135,14 +131,10 @@ def _read(chain: Chain) -> tuple[bytes, ET.Element]:
     """The URDF file's bytes and its element tree (comments and processing instructions kept)."""
     src = str(chain.urdf_path)
     try:
-        raw = Path(chain.urdf_path).read_bytes()
+        raw = read_bytes_limited(chain.urdf_path, MAX_URDF_BYTES)
     except OSError as exc:
-        raise URDFError(src, f"cannot read: {exc}") from None
-    tree_builder = ET.TreeBuilder(insert_comments=True, insert_pis=True)
-    try:
-        return raw, ET.fromstring(raw, parser=ET.XMLParser(target=tree_builder))
-    except ET.ParseError as exc:
-        raise URDFError(src, f"malformed XML: {exc}") from None
+        raise URDFError(src, f"cannot read: {exc.strerror or exc}") from None
+    return raw, parse_xml(raw, src)
 
 
 def _edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element], ET.Element]:
@@ -170,8 +162,28 @@ def measurement_to_base(nominal: MDHModel, calibrated: MDHModel) -> np.ndarray:
     The calibrated URDF keeps the nominal placement of joint 1 in its base link, so the base
     part of a calibrated model (rows 0 and 1) becomes this transform:
     ``T @ FK_urdf_calibrated(q) == calibrated.forward(q)``.
+
+    Raises:
+        InvalidArgumentError: Not two MDH models of the same joints.
     """
+    if not (isinstance(nominal, MDHModel) and isinstance(calibrated, MDHModel)) or not (
+        np.array_equal(nominal.sigma, calibrated.sigma)
+    ):
+        raise InvalidArgumentError("measurement_to_base takes two MDH models of one chain")
     return frames_at_zero(calibrated)[1] @ np.linalg.inv(frames_at_zero(nominal)[1])
+
+
+def _check_models(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> None:
+    if not isinstance(chain, Chain):
+        raise InvalidArgumentError(f"chain must be a Chain (see load_chain), got {chain!r:.60}")
+    for what, model in (("nominal", nominal), ("calibrated", calibrated)):
+        if not isinstance(model, MDHModel):
+            raise InvalidArgumentError(f"the {what} model must be an MDHModel, got {model!r:.60}")
+        if not np.array_equal(model.sigma[1:-1], chain.sigma):
+            raise InvalidArgumentError(
+                f"the {what} model has joints {model.sigma[1:-1].tolist()} (0 revolute, "
+                f"1 prismatic), the chain {chain.sigma.tolist()}: not a model of this chain"
+            )
 
 
 def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> bytes:
@@ -188,13 +200,15 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
         calibrated.forward(q)``.
 
     Raises:
+        InvalidArgumentError: The models are not models of the chain.
         URDFError: The original file cannot be read.
         CalibError: The tool frame is not carried by a fixed joint, or the file does not
             match the chain.
     """
+    _check_models(chain, nominal, calibrated)
     raw, root = _read(chain)
     joints, tool_joint = _edited_joints(root, chain)
-    start, stop, namespaces = _xml_layout(raw, str(chain.urdf_path))
+    start, stop = _xml_layout(raw, str(chain.urdf_path))
 
     poses = _NominalPoses(chain)
     n = chain.n
@@ -217,17 +231,6 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
     parent = carried(n - 1, _parent_link(tool_joint))
     _set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
 
-    names = {el.tag for el in root.iter() if isinstance(el.tag, str)}
-    names |= {key for el in root.iter() for key in el.attrib}
-    for prefix, uri in namespaces:
-        # Keep the declared prefixes: ElementTree renames used ones ns0, ns1, ... unless they
-        # are registered (a process-wide registry), and drops unused declarations.
-        used = any(name.startswith(f"{{{uri}}}") for name in names)
-        if used and prefix:
-            with contextlib.suppress(ValueError):
-                ET.register_namespace(prefix, uri)
-        elif not used:
-            root.set(f"xmlns:{prefix}" if prefix else "xmlns", uri)
     body = io.BytesIO()
     ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
     return raw[:start] + body.getvalue() + raw[stop:]
@@ -239,8 +242,13 @@ def write_calibrated_urdf(
     """Write :func:`calibrated_urdf` to ``path`` atomically (complete or not at all).
 
     Raises:
-        InvalidArgumentError: ``path`` is the nominal URDF (``chain.urdf_path``).
-        OutputError: The file cannot be written.
+        InvalidArgumentError: ``path`` is not a path, or is the nominal URDF
+            (``chain.urdf_path``).
+        CalibError: As :func:`calibrated_urdf`.
+        OutputError: The file cannot be written (a missing directory, no permission, a full
+            disk; the message names the file).
     """
+    if not isinstance(path, str | os.PathLike):
+        raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
     check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
     write_atomic(path, calibrated_urdf(chain, nominal, calibrated))

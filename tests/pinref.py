@@ -51,3 +51,22 @@ def rigid_error_columns(frames, E: np.ndarray) -> np.ndarray:
             cols.append(np.hstack([a, np.zeros(3)]))
             cols.append(np.hstack([np.cross(a, E - F.translation), a]))
     return np.array(cols).T
+
+
+def file_chain_poses(path, base: str, tool: str, q: np.ndarray):
+    """Pinocchio reads a URDF file itself and poses the chain between two frames.
+
+    Yields, per row of ``q`` (URDF positions of the chain joints), the base placement
+    ``bMo`` (world to base), the tool placement in the base, and the chain joints' placements
+    in the base (pin.SE3).
+    """
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    b, t = pin_frame(model, base), pin_frame(model, tool)
+    jb, jt = model.frames[b].parentJoint, model.frames[t].parentJoint
+    support = list(model.supports[jt])
+    joints = support[support.index(jb) + 1 :]
+    for qi in q:
+        pin.framesForwardKinematics(model, data, pin_config(model, joints, qi))
+        bMo = data.oMf[b].inverse()
+        yield bMo, bMo * data.oMf[t], [bMo * data.oMi[j] for j in joints]

@@ -413,3 +413,24 @@ def test_robust_loss_fits_and_bad_options_are_one_line_errors():
         with pytest.raises(InvalidArgumentError) as info:
             calibrate(chain, campaign.measurements, **bad)
         assert "\n" not in str(info.value)
+
+
+def test_gravity_torques_match_pinocchio_on_the_original_file():
+    """calib builds its model from a kinematic copy with the masses: same gravity torques."""
+    import pinocchio as pin
+
+    chain = chain_of("panda")
+    model = pin.buildModelFromUrdf(str(chain.urdf_path))
+    data = model.createData()
+    q = chain.random_configurations(5, 2)
+    ids = [model.getJointId(n) for n in chain.joint_names]
+    expected = []
+    for row in q:
+        qp = pin.neutral(model)
+        for k, jid in enumerate(ids):
+            qp[model.joints[jid].idx_q] = row[k]
+        expected.append(
+            pin.computeGeneralizedGravity(model, data, qp)[[model.joints[j].idx_v for j in ids]]
+        )
+    assert np.any(np.abs(expected) > 1.0)
+    assert np.allclose(chain.gravity_torques(q), expected, rtol=1e-9, atol=1e-9)

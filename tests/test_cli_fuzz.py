@@ -145,25 +145,6 @@ def strict_json(text: str) -> object:
     return json.loads(text, parse_constant=refuse)
 
 
-KNOWN_NAN = (
-    "issue 11 item 5 (the 'input' part: robot.py/mdh.py): a zero, huge or denormal joint axis "
-    "gives NaN in the MDH table and JSON"
-)
-
-
-def urdf_json(text: str) -> object:
-    """Strict JSON, except for the one known defect of URDF numbers (:data:`KNOWN_NAN`).
-
-    Remove this exception when item 5 lands (test_known_defect_nan_from_a_huge_axis then
-    passes, and its strict xfail mark fails the suite as a reminder).
-    """
-    try:
-        return strict_json(text)
-    except NonFiniteJSONError:
-        event("known defect: " + KNOWN_NAN)
-        return json.loads(text)
-
-
 def csv_rows(path: Path) -> list[dict[str, str]]:
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
@@ -178,8 +159,8 @@ def csv_rows(path: Path) -> list[dict[str, str]]:
 @given(mutated(AID.read_bytes()))
 def test_mutated_urdf(urdf: bytes):
     with workspace("r.urdf", urdf) as (robot, out_dir):
-        check_contract(*run_cli(["show", str(robot), "--json"]), urdf_json)
-        check_contract(*run_cli(["analyze", str(robot), "--configs", "15", "--json"]), urdf_json)
+        check_contract(*run_cli(["show", str(robot), "--json"]), strict_json)
+        check_contract(*run_cli(["analyze", str(robot), "--configs", "15", "--json"]), strict_json)
         meas = out_dir / "m.csv"
         code, out, err = run_cli(
             ["simulate", str(robot), "--configs", "8", "--measure", "position", "--out", str(meas)]
@@ -195,13 +176,17 @@ def test_mutated_urdf(urdf: bytes):
             assert left == []
 
 
-@pytest.mark.xfail(strict=True, raises=NonFiniteJSONError, reason=KNOWN_NAN)
 @pytest.mark.parametrize("axis", ["1e300 0 1", "0 0 1e-300"])
-def test_known_defect_nan_from_a_huge_axis(tmp_path, axis):
-    """The minimal reproducer the fuzz test found (left to the 'input' helper)."""
+def test_a_huge_or_denormal_axis_is_refused_not_nan(tmp_path, axis):
+    """The minimal reproducer the fuzz test found: now one error line, never NaN in JSON."""
     robot = tmp_path / "r.urdf"
     robot.write_text(AID.read_text().replace('<axis xyz="0 0 1"/>', f'<axis xyz="{axis}"/>', 4))
-    check_contract(*run_cli(["show", str(robot), "--json"]), strict_json)
+    code, out, err = run_cli(["show", str(robot), "--json"])
+    if code == 0:  # a huge axis is a direction: normalised, then valid (strict) JSON
+        strict_json(out)
+    else:
+        assert code == 2 and out == "" and len(err.splitlines()) == 1
+        assert err.startswith("calib: error:") and "axis" in err
 
 
 # --------------------------------------------------------------------------------------

@@ -230,6 +230,6 @@ def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):
         raise OSError(5, "Input/output error")
 
     monkeypatch.setattr(calib.fileio.os, "replace", broken)
-    with pytest.raises(OSError):
+    with pytest.raises(CalibError, match="Input/output error"):
         write_calibrated_urdf(tmp_path / "cal.urdf", chain, nominal, calibrated)
     assert list(tmp_path.iterdir()) == []

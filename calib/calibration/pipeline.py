@@ -164,6 +164,8 @@ def calibrate(
 
 def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
     """Check the data; the training set and the held-out set (with its label)."""
+    if not isinstance(chain, Chain):
+        raise InvalidArgumentError(f"chain must be a Chain (see load_chain), got {chain!r:.60}")
     if not isinstance(data, Measurements):
         raise InvalidArgumentError(
             f"data must be Measurements (read_measurements), got {type(data).__name__}"
@@ -435,6 +437,13 @@ def _validation(fitted: Fit, held, torque, cov) -> Validation:
 
 
 def residual_stats(result: CalibrationResult, data: Measurements) -> ResidualStats:
-    """Errors of a calibrated model on other data (gravity torques recomputed if needed)."""
+    """Errors of a calibrated model on other data (gravity torques recomputed if needed).
+
+    Raises:
+        InvalidArgumentError: Not a calibration result and measurements of its chain.
+    """
+    if not isinstance(result, CalibrationResult) or not isinstance(data, Measurements):
+        raise InvalidArgumentError("residual_stats takes a CalibrationResult and Measurements")
+    check_against_chain(data, result.chain)
     torque = result.chain.gravity_torques(data.q) if np.any(result.state.compliance) else None
     return validation.stats(result.state, data, torque)

@@ -20,6 +20,9 @@ from ..measurements import Measurements
 from .model import State
 from .result import ResidualStats
 
+SAME = 1e-6
+"""Relative difference of two RMS errors under which they are the same (solver round-off)."""
+
 RANK_TOL = 1e-9
 """Smallest singular value, relative to the largest, of the unit-norm columns of a fit."""
 
@@ -87,7 +90,7 @@ def refusal(
     """The first check a calibration fails, as a sentence (None: every check passed)."""
     if not converged:
         return "the fit did not converge"
-    if after.position_rms > before.position_rms * (1 + 1e-9) + 1e-12:
+    if after.position_rms > before.position_rms * (1 + SAME):
         return (
             f"the calibrated model fits the data worse than the registration alone "
             f"({1e3 * after.position_rms:.3g} mm vs {1e3 * before.position_rms:.3g} mm RMS)"
@@ -98,7 +101,7 @@ def refusal(
             f"(rank-deficient Jacobian): measure more varied configurations or fit fewer "
             f"parameters"
         )
-    if held is not None and held[1].position_rms > held[0].position_rms:
+    if held is not None and held[1].position_rms > held[0].position_rms * (1 + SAME):
         return (
             f"on held-out configurations the calibrated model is worse than the registration "
             f"alone ({1e3 * held[1].position_rms:.3g} mm vs {1e3 * held[0].position_rms:.3g} mm "
