@@ -42,10 +42,9 @@ def identifiable_parameters(
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
     pose = measure == "pose"
-    rot = np.broadcast_to(np.eye(3), (len(q), 3, 3)) if pose else None
     state = registration_state(nominal, np.eye(4), markers, np.eye(3) if pose else None)
     pts, _ = state.predict(q)
-    quat = np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1)) if rot is not None else None
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1)) if pose else None
     data = Measurements(chain.joint_names, q, pts.reshape(len(q), -1), quat)
     pset = complete_parameters(nominal)
     names = tuple(np.array(pset.names)[preference_order(nominal, pset)])
@@ -53,7 +52,7 @@ def identifiable_parameters(
     J = model.jacobian(state, np.zeros(model.size()), data, None)
     J = J * row_weights(model, 1.0)[None, :, None]
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
-    all_names = model.names(nominal)
+    all_names = model.names()
     return tuple(all_names[i] for i in sorted(kept))
 
 

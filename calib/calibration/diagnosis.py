@@ -70,7 +70,7 @@ def suspect(rms: float, noise: float | None) -> bool:
 
 
 def likely_cause(
-    data, revolute: np.ndarray, registration_rms: Callable[[object], float]
+    data, revolute: np.ndarray, registration_rms: Callable[[object], float], before: float
 ) -> tuple[str, float] | None:
     """The usual mistake that explains the data, with the RMS error once it is corrected.
 
@@ -78,11 +78,11 @@ def likely_cause(
         data: The measurements.
         revolute: Which joint columns are revolute.
         registration_rms: RMS error per point [m] of the registration of some data.
+        before: That error for ``data`` as they are [m].
 
     Returns:
         (description, RMS [m]) of the best explaining mistake, or None.
     """
-    before = registration_rms(data)
     best = None
     for what, fixed in _mistakes(data, revolute):
         try:

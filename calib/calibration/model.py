@@ -45,9 +45,8 @@ def marker_names(k: int) -> tuple[str, str, str]:
     return (f"marker{k}.x", f"marker{k}.y", f"marker{k}.z")
 
 
-def compliance_name(mdh: MDHModel, joint: int) -> str:
+def compliance_name(joint: int) -> str:
     """Name of the compliance of joint ``joint`` (0-based): ``c<row>``, e.g. ``c3``."""
-    del mdh
     return f"c{joint + 1}"
 
 
@@ -134,7 +133,7 @@ class ErrorModel:
     n_markers: int = 1
     pose: bool = False
 
-    def names(self, mdh: MDHModel) -> tuple[str, ...]:
+    def names(self) -> tuple[str, ...]:
         """Names of the free parameters, in the order of x."""
         out: list[str] = list(FRAME_NAMES) if self.frame else []
         if self.markers:
@@ -142,7 +141,7 @@ class ErrorModel:
         if self.pose and self.tool:
             out += TOOL_NAMES
         out += self.base
-        out += [compliance_name(mdh, j) for j in self.compliance]
+        out += [compliance_name(j) for j in self.compliance]
         return tuple(out)
 
     def _sizes(self) -> tuple[int, int, int, int, int]:

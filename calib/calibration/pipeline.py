@@ -239,9 +239,10 @@ def _register(chain, nominal, data, guess, opts):
         return validation.stats(_registration(nominal, d, guess, opts).state, d, None).position_rms
 
     notes: list[str] = []
-    first = rms(data)
+    reg = _registration(nominal, data, guess, opts)
+    first = validation.stats(reg.state, data, None).position_rms
     if diagnosis.suspect(first, opts.noise):
-        cause = diagnosis.likely_cause(data, chain.sigma == 0, rms)
+        cause = diagnosis.likely_cause(data, chain.sigma == 0, rms, first)
         if cause is not None:
             raise DataError(
                 data.source,
@@ -254,8 +255,7 @@ def _register(chain, nominal, data, guess, opts):
             f"order) explains it: check the data and the chain"
         )
     dropped: list[outliers.Outlier] = []
-    for _ in range(outliers.PASSES):
-        reg = _registration(nominal, data, guess, opts)
+    for _ in range(outliers.PASSES):  # one registration per data set
         errors = outliers.configuration_errors(reg.state.residuals(data), data.n_markers)
         bad = outliers.find_outliers(errors, opts.noise)
         if not np.any(bad):
@@ -265,8 +265,8 @@ def _register(chain, nominal, data, guess, opts):
             outliers.Outlier(data.row_of(i), float(errors[i]), median) for i in np.flatnonzero(bad)
         ]
         data = data.subset(~bad)
-    if dropped:
         reg = _registration(nominal, data, guess, opts)
+    if dropped:
         notes.append(
             f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
             + ", ".join(f"row {o.row} ({1e3 * o.error:.3g} mm)" for o in dropped)
@@ -295,7 +295,7 @@ def _level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[s
         names = [offset_parameter(nominal, j).name for j in range(nominal.n)]
     else:
         names = list(pset.names)
-    valid = set(pset.names) | {compliance_name(nominal, j) for j in range(nominal.n)} | set(GROUPS)
+    valid = set(pset.names) | {compliance_name(j) for j in range(nominal.n)} | set(GROUPS)
     for name in (*opts.fix, *opts.free):
         if name not in valid:
             raise InvalidArgumentError(
@@ -311,23 +311,21 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
     pset, names = _level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
-    joints = [j for j in joints if compliance_name(nominal, j) not in opts.fix]
+    joints = [j for j in joints if compliance_name(j) not in opts.fix]
     base = _frames_model(data, opts)
-    order = [
-        pset.index(n) for n in np.array(pset.names)[preference_order(nominal, pset)] if n in names
-    ]
+    ordered = tuple(
+        pset.names[i] for i in preference_order(nominal, pset) if pset.names[i] in names
+    )
     wide = base.with_(
-        params=pset,
-        base=tuple(pset.names[i] for i in order),
-        lift=selection_lift(pset, tuple(pset.names[i] for i in order)),
-        compliance=tuple(joints),
+        params=pset, base=ordered, lift=selection_lift(pset, ordered), compliance=tuple(joints)
     )
     ideal = dataclasses.replace(reg, mdh=nominal.idealized())
     w = row_weights(wide, opts.orientation_weight)
     J = wide.jacobian(ideal, np.zeros(wide.size()), data, torque) * w[None, :, None]
     fixed = base.size()
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
-    cand = [wide.names(nominal)[i] for i in kept if i >= fixed]
+    columns = [i for i in kept if i >= fixed]  # kept is in column order
+    cand = [wide.names()[i] for i in columns]
     if len(kept) < fixed:
         raise DataError(
             data.source,
@@ -335,7 +333,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
         )
     if opts.level == "auto":
         Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
-        cols = list(range(fixed)) + [fixed + wide.names(nominal)[fixed:].index(c) for c in cand]
+        cols = list(range(fixed)) + columns
         forced = [cand.index(n) for n in opts.free if n in cand]
         selection, weights = select(
             Jr[:, :, cols], reg.residuals(data) * w, fixed, tuple(cand), forced
@@ -344,12 +342,12 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     else:
         selection, weights = None, np.zeros(len(cand))
     mdh_names = tuple(c for c in cand if c in pset.names)
-    comp = tuple(j for j in joints if compliance_name(nominal, j) in cand)
+    comp = tuple(j for j in joints if compliance_name(j) in cand)
     model = base.with_(
         params=pset, base=mdh_names, lift=selection_lift(pset, mdh_names), compliance=comp
     )
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
-    prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names(nominal)[fixed:]]]
+    prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
 
 
@@ -382,7 +380,7 @@ def _assemble(
         after,
         validation.full_rank(fitted.J),
         None if val is None else checks,
-        fitted.model.names(nominal),
+        fitted.model.names(),
     )
     notes = list(notes)
     if torque[0] is not None and np.any(fitted.state.compliance):
@@ -398,7 +396,7 @@ def _assemble(
         data=train,
         level=opts.level,
         model=fitted.model,
-        names=fitted.model.names(nominal),
+        names=fitted.model.names(),
         nominal=nominal,
         registration=reg,
         state=fitted.state,
