@@ -1,8 +1,9 @@
 """Speed of calibration (issue 10: the default fit on the TIAGo session, and the selection,
 within 10x of the complete fit of issue 4, about 50 ms).
 
-Cases: the real TIAGo session of ../shared/realdata (37 postures, point 1 and the four
-points) at every parameter level, and simulated UR5 / Panda campaigns (100 configurations).
+Cases: the real TIAGo session of ../shared/realdata (37 postures: point 1, the four points,
+the four points read as the plate's pose) at every parameter level, and simulated UR5 /
+Panda campaigns (100 configurations).
 Medians, in-process and whole-process (interpreter start and imports included).
 
 Run: .venv/bin/python benchmarks/bench_calibration.py
@@ -22,7 +23,14 @@ one_core()
 
 import warnings  # noqa: E402
 
-from calib import calibrate, load_chain, read_measurements, simulate, write_measurements  # noqa: E402
+from calib import (  # noqa: E402
+    Columns,
+    calibrate,
+    load_chain,
+    read_measurements,
+    simulate,
+    write_measurements,
+)
 
 warnings.simplefilter("ignore")
 
@@ -36,8 +44,11 @@ def tiago_rows() -> list[list[str]]:
     chain = load_chain(TIAGO / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
     four = read_measurements(TIAGO / "qualisys_2021-11-30_static_postures.csv", chain)
     one = dataclasses.replace(four, position=four.position[:, :3])
+    plate = read_measurements(
+        TIAGO / "qualisys_2021-11-30_static_postures.csv", chain, Columns("markers")
+    )
     rows = []
-    for label, data in (("point 1", one), ("4 points", four)):
+    for label, data in (("point 1", one), ("4 points", four), ("plate pose", plate)):
         for level in ("auto", "frames", "offsets", "complete"):
             last = []
             ms = median_ms(

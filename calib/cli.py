@@ -20,7 +20,6 @@ from . import __version__
 from .calibration import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
-    DEFAULT_ORIENTATION_WEIGHT,
     LEVELS,
     LOSSES,
     calibrate,
@@ -33,6 +32,7 @@ from .identifiability import DEFAULT_CONFIGS, analyze
 from .mdh import from_chain
 from .measurements import (
     CAMPAIGN_MEASURES,
+    MARKERS,
     ORIENTATION_FORMATS,
     UNITS,
     measurements_csv,
@@ -127,8 +127,15 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     chain = load_chain(args.robot, args.base, args.tool)
     names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
     if args.json:
-        _print_json({"robot": chain.name, "markers": args.markers, "measure": args.measure,
-                     "n_identifiable": len(names), "parameters": list(names)})
+        _print_json(
+            {
+                "robot": chain.name,
+                "markers": args.markers,
+                "measure": args.measure,
+                "n_identifiable": len(names),
+                "parameters": list(names),
+            }
+        )
     else:
         print(
             f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
@@ -198,6 +205,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
     return 0
+
+
+def _weight(text: str) -> float | None:
+    """``--orientation-weight``: a number [m/rad] or ``auto`` (None)."""
+    if text == "auto":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or auto, got '{text}'") from None
 
 
 def _columns(args: argparse.Namespace):
@@ -505,10 +522,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--orientation",
-        choices=("auto", *ORIENTATION_FORMATS),
+        choices=("auto", MARKERS, *ORIENTATION_FORMATS),
         default="auto",
-        help="orientation columns: quaternion (xyzw or wxyz), rotation vector or rpy "
-        "(default: from the column names)",
+        help="orientation columns: quaternion (xyzw or wxyz), rotation vector or rpy; "
+        "markers: the x1..zK points (K >= 3) of one rigid set read as marker 1's position "
+        "and the set's orientation (default: from the column names)",
     )
     p.add_argument(
         "--orientation-columns",
@@ -518,9 +536,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--orientation-weight",
-        type=float,
-        default=DEFAULT_ORIENTATION_WEIGHT,
-        help="weight of the orientation rows [m/rad] (default: 1, 1 mrad ~ 1 mm)",
+        type=_weight,
+        default=None,
+        metavar="W|auto",
+        help="weight of the orientation rows [m/rad] (default: auto, the ratio of the "
+        "position and orientation errors of the registration, estimated until it settles)",
     )
     p.add_argument(
         "--max-iterations",

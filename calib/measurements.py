@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import marker_set
 from .exceptions import DataError, InvalidArgumentError
 from .fileio import write_atomic
 from .identifiability import Identifiability, analyze_model
@@ -61,6 +62,9 @@ QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
 ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 """How orientation columns are written: quaternion (scalar last or first), rotation vector
 [rad], or roll-pitch-yaw [rad] (``R = Rz(yaw) Ry(pitch) Rx(roll)``, Pinocchio's ``rpy``)."""
+
+MARKERS = "markers"
+"""Orientation format: no columns, the orientation of the K >= 3 measured points."""
 
 DEFAULT_ORIENTATION_COLUMNS = {
     "quat-xyzw": QUATERNION_COLUMNS,
@@ -308,7 +312,9 @@ class Columns:
 
     Attributes:
         orientation: ``auto`` (from the column names: qx..qw, rx..rz or roll, pitch, yaw;
-            none: position only) or one of ``ORIENTATION_FORMATS``.
+            none: position only), one of ``ORIENTATION_FORMATS``, or ``markers``: K >= 3
+            points of one rigid set read as a pose, marker 1's position and the set's
+            orientation (:mod:`calib.marker_set`).
         orientation_columns: Column names of the orientation, in the format's order
             (default: the format's names, see ``DEFAULT_ORIENTATION_COLUMNS``).
         units: Unit of the position columns, ``m`` or ``mm``.
@@ -319,16 +325,16 @@ class Columns:
     units: str = "m"
 
     def __post_init__(self) -> None:
-        if self.orientation not in ("auto", *ORIENTATION_FORMATS):
+        if self.orientation not in ("auto", MARKERS, *ORIENTATION_FORMATS):
             raise InvalidArgumentError(
-                f"unknown orientation format '{self.orientation}': choose auto or "
+                f"unknown orientation format '{self.orientation}': choose auto, markers or "
                 f"{', '.join(ORIENTATION_FORMATS)}"
             )
         if self.units not in UNITS:
             raise InvalidArgumentError(f"unknown units '{self.units}': choose m or mm")
         cols = self.orientation_columns
         if cols is not None:
-            if self.orientation == "auto":
+            if self.orientation in ("auto", MARKERS):
                 raise InvalidArgumentError("orientation columns need an orientation format")
             want = len(DEFAULT_ORIENTATION_COLUMNS[self.orientation])
             if len(cols) != want or len(set(cols)) != len(cols):
@@ -358,6 +364,15 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
             column=missing,
         )
     fmt, cols = columns.orientation, columns.orientation_columns
+    if fmt == MARKERS:
+        if len(pos) < 3 * marker_set.MIN_MARKERS:
+            raise DataError(
+                src,
+                f"--orientation markers needs x1..z{marker_set.MIN_MARKERS} or more points "
+                f"of one rigid set, the header has {len(pos) // 3}",
+                row=line,
+            )
+        return pos, fmt, ()
     if fmt == "auto":
         fmt = next(
             (
@@ -518,9 +533,26 @@ def parse_measurements(
             column=pos_cols[j],
         )
     quat = None
-    if fmt is not None:
+    if fmt == MARKERS:
+        position, quat = _marker_set(position, source)
+    elif fmt is not None:
         quat = _orientation(table[:, [col[n] for n in ori_cols]], fmt, source, lines)
     return Measurements(chain.joint_names, q, position, quat, source, tuple(lines))
+
+
+def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """Marker 1's position and the orientation of a rigid set of K >= 3 markers."""
+    pose = marker_set.marker_set_pose(position.reshape(len(position), -1, 3))
+    if pose.flat < marker_set.MIN_FLATNESS:
+        raise DataError(src, "the markers lie on a line: their set has no orientation")
+    if pose.spread > marker_set.SPREAD_WARNING:
+        warnings.warn(
+            f"{src}: the markers move up to {1e3 * pose.spread:.3g} mm relative to each "
+            f"other: they are not one rigid set, its orientation is a least-squares fit",
+            DataWarning,
+            stacklevel=4,
+        )
+    return position[:, :3], matrix_to_quaternion(pose.rotations)
 
 
 def read_measurements(

@@ -12,7 +12,6 @@ from .outliers import Outlier
 from .pipeline import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
-    DEFAULT_ORIENTATION_WEIGHT,
     LEVELS,
     calibrate,
     residual_stats,
@@ -24,7 +23,6 @@ from .solve import LOSSES
 __all__ = [
     "DEFAULT_LEVEL",
     "DEFAULT_MAX_ITERATIONS",
-    "DEFAULT_ORIENTATION_WEIGHT",
     "LEVELS",
     "LOSSES",
     "CalibrationResult",

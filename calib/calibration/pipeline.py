@@ -16,7 +16,7 @@ from ..mdh import MDHModel, from_chain
 from ..measurements import Measurements, check_against_chain
 from ..parameters import ParameterSet, parameter_set
 from ..robot import Chain
-from . import diagnosis, outliers, validation
+from . import diagnosis, outliers, validation, weighting
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .registration import register
 from .result import CalibrationResult, ResidualStats, Validation
@@ -30,8 +30,6 @@ default) keeps the ones the data support (:mod:`calib.calibration.selection`).""
 
 DEFAULT_LEVEL = "auto"
 
-DEFAULT_ORIENTATION_WEIGHT = 1.0
-"""Weight of the orientation rows [m/rad]: 1 mrad of orientation error counts as 1 mm."""
 
 DEFAULT_MAX_ITERATIONS = 100
 """Most residual evaluations of each solver run."""
@@ -50,7 +48,7 @@ class Options:
     elastic: bool | None = None
     loss: str = "linear"
     noise_mm: float | None = None
-    orientation_weight: float = DEFAULT_ORIENTATION_WEIGHT
+    orientation_weight: float | None = None
     max_iterations: int = DEFAULT_MAX_ITERATIONS
     holdout: float = 0.0
     seed: int = 0
@@ -117,7 +115,8 @@ def calibrate(
         validate: Measurements of other configurations to score the result on (never fitted).
         **options: ``fix``, ``free`` (parameter names, or ``frame``, ``markers``, ``tool``),
             ``elastic`` (fit joint compliance; default: in ``auto`` where the URDF has
-            masses), ``loss``, ``noise_mm`` [mm], ``orientation_weight`` [m/rad],
+            masses), ``loss``, ``noise_mm`` [mm], ``orientation_weight`` [m/rad] (default:
+            estimated from the data, :mod:`calib.calibration.weighting`),
             ``max_iterations``, ``holdout`` (fraction of rows set aside), ``seed``.
 
     Returns:
@@ -136,7 +135,9 @@ def calibrate(
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
     guess = _marker_guess(marker, train.n_markers)
-    reg, train, dropped, notes = _register(chain, nominal, train, guess, opts)
+    notes = _diagnose(chain, nominal, train, guess, opts)
+    opts = _weighted(nominal, train, guess, opts)
+    reg, train, dropped = _register(nominal, train, guess, opts, notes)
     clock.append(time.perf_counter())
     torque = _torques(chain, opts, train, held)
     model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts)
@@ -232,28 +233,53 @@ def _registration(nominal, data, guess, opts) -> Fit:
     )
 
 
-def _register(chain, nominal, data, guess, opts):
-    """Registration, a likely cause for data it cannot fit, and outlier removal."""
+def _diagnose(chain, nominal, data, guess, opts) -> list[str]:
+    """Raise the likely mistake if the data cannot be registered; a note if none explains it.
+
+    It runs at the default orientation weight: an estimated weight would let wrong
+    orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed.
+    """
+    if opts.orientation_weight is None:
+        opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
 
     def rms(d):
         return validation.stats(_registration(nominal, d, guess, opts).state, d, None).position_rms
 
-    notes: list[str] = []
-    reg = _registration(nominal, data, guess, opts)
-    first = validation.stats(reg.state, data, None).position_rms
-    if diagnosis.suspect(first, opts.noise):
-        cause = diagnosis.likely_cause(data, chain.sigma == 0, rms, first)
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration error drops from "
-                f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
-            )
-        notes.append(
-            f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, "
-            f"and no usual mistake (swapped joint columns, degrees, millimetres, quaternion "
-            f"order) explains it: check the data and the chain"
+    first = rms(data)
+    if not diagnosis.suspect(first, opts.noise):
+        return []
+    cause = diagnosis.likely_cause(data, chain.sigma == 0, rms, first)
+    if cause is not None:
+        raise DataError(
+            data.source,
+            f"the data look like {cause[0]}: the registration error drops from "
+            f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
         )
+    return [
+        f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, "
+        f"and no usual mistake (swapped joint columns, degrees, millimetres, quaternion "
+        f"order) explains it: check the data and the chain"
+    ]
+
+
+def _weighted(nominal, data, guess, opts: Options) -> Options:
+    """The options with the orientation weight: given, or estimated from the registration."""
+    if opts.orientation_weight is not None:
+        return opts
+    weight = weighting.DEFAULT_WEIGHT
+    if data.quaternion is not None:
+
+        def residuals_at(w: float) -> np.ndarray:
+            w_opts = dataclasses.replace(opts, orientation_weight=w)
+            return _registration(nominal, data, guess, w_opts).state.residuals(data)
+
+        weight = weighting.estimate_weight(residuals_at, data.n_markers)
+    return dataclasses.replace(opts, orientation_weight=weight)
+
+
+def _register(nominal, data, guess, opts, notes: list[str]):
+    """Registration, with outlier rows set aside (and noted)."""
+    reg = _registration(nominal, data, guess, opts)
     dropped: list[outliers.Outlier] = []
     for _ in range(outliers.PASSES):  # one registration per data set
         errors = outliers.configuration_errors(reg.state.residuals(data), data.n_markers)
@@ -273,7 +299,7 @@ def _register(chain, nominal, data, guess, opts):
         )
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
-    return reg.state, data, tuple(dropped), notes
+    return reg.state, data, tuple(dropped)
 
 
 def _torques(chain, opts, train, held):
