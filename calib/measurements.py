@@ -28,6 +28,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import itertools
 import math
 import re
 import warnings
@@ -62,6 +63,9 @@ QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
 ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 """How orientation columns are written: quaternion (scalar last or first), rotation vector
 [rad], or roll-pitch-yaw [rad] (``R = Rz(yaw) Ry(pitch) Rx(roll)``, Pinocchio's ``rpy``)."""
+
+TOOL_COLUMN = "tool"
+"""Column naming the tool frame a row measures (several tools of a tree; optional)."""
 
 MARKERS = "markers"
 """Orientation format: no columns, the orientation of the K >= 3 measured points."""
@@ -130,6 +134,8 @@ class Measurements:
             None for position-only data.
         source: Where the data came from (a file path), for messages.
         rows: Row of each configuration in the source file (the header is row 1), or None.
+        tool: The tool frame each row measures (the CSV's ``tool`` column), or None: the
+            only tool.
     """
 
     joint_names: tuple[str, ...]
@@ -138,6 +144,7 @@ class Measurements:
     quaternion: np.ndarray | None = None
     source: str = "<measurements>"
     rows: tuple[int, ...] | None = None
+    tool: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -173,6 +180,10 @@ class Measurements:
             object.__setattr__(self, "quaternion", _frozen(_unit_quaternions(quat)))
         if self.rows is not None and len(self.rows) != m:
             raise InvalidArgumentError(f"rows must give one row number per configuration ({m})")
+        if self.tool is not None:
+            if len(self.tool) != m or not all(isinstance(t, str) and t for t in self.tool):
+                raise InvalidArgumentError(f"tool must give one tool frame name per row ({m})")
+            object.__setattr__(self, "tool", tuple(self.tool))
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
         object.__setattr__(self, "q", _frozen(q))
         object.__setattr__(self, "position", _frozen(pos))
@@ -219,9 +230,15 @@ class Measurements:
         index = np.arange(self.m)[index]
         quat = None if self.quaternion is None else self.quaternion[index]
         rows = tuple(self.row_of(int(i)) for i in index)
+        tool = None if self.tool is None else tuple(self.tool[int(i)] for i in index)
         return Measurements(
-            self.joint_names, self.q[index], self.position[index], quat, self.source, rows
+            self.joint_names, self.q[index], self.position[index], quat, self.source, rows, tool
         )
+
+    @property
+    def tools(self) -> tuple[str, ...]:
+        """The tool frames the rows measure, in order of first appearance (() if not named)."""
+        return () if self.tool is None else tuple(dict.fromkeys(self.tool))
 
     @property
     def position_columns(self) -> tuple[str, ...]:
@@ -232,9 +249,10 @@ class Measurements:
 
     @property
     def columns(self) -> tuple[str, ...]:
-        """CSV header of this data."""
+        """CSV header of this data (the ``tool`` column last, if rows name their tool)."""
         quat = QUATERNION_COLUMNS if self.quaternion is not None else ()
-        return (*self.joint_names, *self.position_columns, *quat)
+        tool = (TOOL_COLUMN,) if self.tool is not None else ()
+        return (*self.joint_names, *self.position_columns, *quat, *tool)
 
     def table(self) -> np.ndarray:
         """The values in the order of :attr:`columns`, ``(m, len(columns))``."""
@@ -270,7 +288,33 @@ def check_against_chain(data: Measurements, chain: Chain) -> None:
             f"joints {', '.join(data.joint_names)} do not match the chain's "
             f"{', '.join(chain.joint_names)}",
         )
+    _check_tools(data, tool_frames(chain))
     _check_limits(chain, data.q, data.source, np.array([data.row_of(i) for i in range(data.m)]))
+
+
+def tool_frames(chain) -> tuple[str, ...]:
+    """The tool frames of a chain (one) or of a tree (several)."""
+    return tuple(getattr(chain, "tool_frames", (chain.tool_frame,)))
+
+
+def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:
+    """Every row's tool is one of the model's; several tools need the ``tool`` column."""
+    if data.tool is None:
+        if len(tools) > 1:
+            raise DataError(
+                data.source,
+                f"the model has {len(tools)} tools ({', '.join(tools)}): a '{TOOL_COLUMN}' "
+                f"column must name the one each row measures",
+            )
+        return
+    for i, name in enumerate(data.tool):
+        if name not in tools:
+            raise DataError(
+                data.source,
+                f"unknown tool '{name}': the model's tools are {', '.join(tools)}",
+                row=data.row_of(i),
+                column=TOOL_COLUMN,
+            )
 
 
 def _check_limits(
@@ -415,11 +459,11 @@ def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: in
         if name not in seen:
             raise DataError(src, "missing joint column", row=line, column=name)
     pos, fmt, ori = _layout(names, chain, columns, src, line)
-    used = {*chain.joint_names, *pos, *ori}
+    used = {*chain.joint_names, *pos, *ori, TOOL_COLUMN}
     ignored = [n for n in names if n not in used]
     if ignored:
         warnings.warn(
-            f"{src}: columns ignored (not joints of the chain, positions or orientation): "
+            f"{src}: columns ignored (not joints of the chain, positions, orientation or tool): "
             f"{', '.join(ignored)}",
             DataWarning,
             stacklevel=4,
@@ -497,6 +541,7 @@ def parse_measurements(
     header = None
     values: list[list[float]] = []
     lines: list[int] = []
+    tools: list[str] = []
     for line, cells in _records(text, source):
         if header is None:
             header = _header(cells, chain, columns, source, line)
@@ -505,6 +550,11 @@ def parse_measurements(
         if len(cells) != len(names):
             raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=line)
         used = {*chain.joint_names, *header[1], *header[3]}
+        if TOOL_COLUMN in names and TOOL_COLUMN not in chain.joint_names:
+            tool = cells[names.index(TOOL_COLUMN)].strip()
+            if not tool:
+                raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
+            tools.append(tool)
         values.append(
             [
                 _number(c, source, line, n) if n in used else 0.0
@@ -537,7 +587,11 @@ def parse_measurements(
         position, quat = _marker_set(position, source)
     elif fmt is not None:
         quat = _orientation(table[:, [col[n] for n in ori_cols]], fmt, source, lines)
-    return Measurements(chain.joint_names, q, position, quat, source, tuple(lines))
+    data = Measurements(
+        chain.joint_names, q, position, quat, source, tuple(lines), tuple(tools) or None
+    )
+    _check_tools(data, tool_frames(chain))
+    return data
 
 
 def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
@@ -587,8 +641,9 @@ def measurements_csv(data: Measurements) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(data.columns)
-    for row in data.table():
-        writer.writerow([repr(float(v)) for v in row])
+    tools = data.tool or ()
+    for row, tool in itertools.zip_longest(data.table(), tools):
+        writer.writerow([repr(float(v)) for v in row] + ([tool] if tool is not None else []))
     return out.getvalue()
 
 

@@ -4,6 +4,7 @@ atomic writing.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -448,3 +449,22 @@ def test_atomic_write_keeps_the_old_file_when_a_write_fails(tmp_path):
     write_files_atomic({old: "new", tmp_path / "b.txt": b"bytes"})
     assert old.read_text() == "new" and (tmp_path / "b.txt").read_bytes() == b"bytes"
     assert not any(Path(p).name.endswith(".tmp") for p in os.listdir(tmp_path))
+
+
+def test_tool_column_names_each_rows_tool_and_survives_a_round_trip():
+
+    chain = chain_of("ur5")
+    data = simulate(chain, configs=6, measure="position", seed=1).measurements
+    named = dataclasses.replace(data, tool=(chain.tool_frame,) * data.m)
+    text = measurements_csv(named)
+    assert text.splitlines()[0].endswith(",tool")
+    back = parse_measurements(text, chain)
+    assert back.tool == named.tool and np.array_equal(back.position, data.position)
+    assert back.subset(np.array([0, 2])).tool == (chain.tool_frame,) * 2
+    assert back.tools == (chain.tool_frame,)
+    wrong = text.replace(f",{chain.tool_frame}\n", ",left_hand\n", 1)
+    with pytest.raises(DataError, match=r"row 2, column 'tool'\): unknown tool 'left_hand'"):
+        parse_measurements(wrong, chain)
+    empty = text.replace(f",{chain.tool_frame}\n", ",\n", 1)
+    with pytest.raises(DataError, match=r"row 2, column 'tool'\): empty cell"):
+        parse_measurements(empty, chain)
