@@ -4,6 +4,10 @@ Load a chain with :func:`load_chain`, convert it to modified DH with :func:`from
 and ask :func:`analyze` which parameters can be identified. Then :func:`simulate` or
 :func:`read_measurements` a campaign, :func:`calibrate` the base parameters from it and
 :func:`write_calibrated_urdf`.
+
+A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func:`from_tree`
+(Khalil-Kleinfinger's tree notation), :func:`tree_parameters`, :func:`tree_jacobian`;
+:func:`analyze` takes a tree too.
 """
 
 from .calibration import (
@@ -42,6 +46,9 @@ from .measurements import (
 )
 from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
 from .robot import Chain, load_chain
+from .tree import Tree, load_robot, load_tree
+from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
+from .tree_model import TreeMDH, from_tree
 from .urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
 
 __version__ = "0.1.0"
@@ -74,6 +81,8 @@ __all__ = [
     "ResidualStats",
     "RobotNotFoundError",
     "SimulationTruth",
+    "Tree",
+    "TreeMDH",
     "URDFError",
     "UnsupportedJointError",
     "analyze",
@@ -85,13 +94,19 @@ __all__ = [
     "complete_parameters",
     "from_chain",
     "from_lines",
+    "from_tree",
     "identification_jacobian",
     "load_chain",
+    "load_robot",
+    "load_tree",
     "measurement_to_base",
     "paper_parameters",
     "read_measurements",
     "residual_stats",
     "simulate",
+    "tree_complete_jacobian",
+    "tree_jacobian",
+    "tree_parameters",
     "write_calibrated_urdf",
     "write_measurements",
 ]

@@ -20,13 +20,14 @@ _ERD_ROBOTS = "share/example-robot-data/robots/"
 
 @dataclass(frozen=True)
 class CatalogEntry:
-    """One named serial chain of the catalog.
+    """One named serial chain, or tree of chains, of the catalog.
 
     Attributes:
         name: Short identifier used on the command line (``ur5``).
         urdf: ``erd:<path>`` inside example-robot-data, or a file name inside ``models/``.
         base: Name of the base frame (frame -1 of the chain).
-        tool: Name of the tool frame (frame n+1 of the chain).
+        tool: Name of the tool frame (frame n+1 of the chain), or the names of the tools of a
+            tree (a list in the catalog file, at least two).
         description: One line for ``calib list``.
         expect_error: Why the chain cannot be analysed, when it is known not to be.
     """
@@ -34,9 +35,25 @@ class CatalogEntry:
     name: str
     urdf: str
     base: str
-    tool: str
+    tool: str | tuple[str, ...]
     description: str
     expect_error: str | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.tool, list | tuple):
+            if len(self.tool) < 2 or not all(isinstance(t, str) for t in self.tool):
+                raise CalibError(f"catalog entry '{self.name}': a tool list has 2 or more names")
+            object.__setattr__(self, "tool", tuple(self.tool))
+
+    @property
+    def tools(self) -> tuple[str, ...]:
+        """The tool frame names: one for a chain, several for a tree."""
+        return self.tool if isinstance(self.tool, tuple) else (self.tool,)
+
+    @property
+    def is_tree(self) -> bool:
+        """True when the entry names several tools (a tree, see :func:`calib.load_tree`)."""
+        return isinstance(self.tool, tuple)
 
     @property
     def path(self) -> Path:

@@ -40,13 +40,34 @@ from .measurements import (
     simulate,
 )
 from .parameters import PARAMETER_SETS
-from .report import analysis_text, format_table, mdh_table
+from .report import analysis_text, format_table, mdh_table, tree_table
 from .robot import load_chain
+from .tree import Tree, load_robot
+from .tree_model import from_tree
 from .urdf_export import calibrated_urdf, check_exportable
+
+_GIVEN = "_calib_given"
+"""Namespace attribute where :class:`_StoreOnce` notes the options already given."""
+
+
+class _StoreOnce(argparse._StoreAction):
+    """A value option given twice is an error (argparse would silently keep the last)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        given = vars(namespace).setdefault(_GIVEN, set())
+        if option_string is not None and self.dest in given:
+            parser.error(f"argument {option_string}: given more than once (it takes one value)")
+        given.add(self.dest)
+        super().__call__(parser, namespace, values, option_string)
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line usage errors, like every other calib error."""
+    """argparse with one-line usage errors (like every other calib error), no repeated value."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.register("action", None, _StoreOnce)
+        self.register("action", "store", _StoreOnce)
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
@@ -61,7 +82,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     rows = [
         [
             e.name,
-            f"{e.base} -> {e.tool}",
+            f"{e.base} -> {', '.join(e.tools)}",
             e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
         ]
         for e in catalog()
@@ -73,9 +94,18 @@ def cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tool(args: argparse.Namespace) -> str | tuple[str, ...] | None:
+    """``--tool`` of a command that takes several: None, one name, or several (a tree)."""
+    if args.tool is None or isinstance(args.tool, str):
+        return args.tool
+    return args.tool[0] if len(args.tool) == 1 else tuple(args.tool)
+
+
 def cmd_show(args: argparse.Namespace) -> int:
-    """Print the MDH table of a chain."""
-    chain = load_chain(args.robot, args.base, args.tool)
+    """Print the MDH table of a chain or tree."""
+    chain = load_robot(args.robot, args.base, _tool(args))
+    if isinstance(chain, Tree):
+        return _show_tree(chain, args.json)
     mdh = from_chain(chain)
     if args.json:
         _print_json(
@@ -93,11 +123,29 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show_tree(tree: Tree, as_json: bool) -> int:
+    model = from_tree(tree)
+    if as_json:
+        _print_json(
+            {
+                "robot": tree.name,
+                "base": tree.base_frame,
+                "tools": list(tree.tool_frames),
+                "urdf": str(tree.urdf_path),
+                "frames": model.rows(),
+            }
+        )
+    else:
+        print(f"{tree.name}: {tree.base_frame} -> {model.tool_frame} ({tree.urdf_path})")
+        print(tree_table(model))
+    return 0
+
+
 def _analyze(args: argparse.Namespace):
     return analyze(
         args.robot,
         args.base,
-        args.tool,
+        _tool(args),
         args.measure,
         args.marker,
         args.params,
@@ -124,7 +172,9 @@ def _analyze_markers(args: argparse.Namespace) -> int:
 
     if args.measure not in CAMPAIGN_MEASURES:
         raise InvalidArgumentError("--markers takes --measure position or pose")
-    chain = load_chain(args.robot, args.base, args.tool)
+    chain = load_robot(args.robot, args.base, _tool(args))
+    if isinstance(chain, Tree):
+        raise InvalidArgumentError("--markers counts for one chain: give one --tool")
     names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
     if args.json:
         _print_json(
@@ -278,7 +328,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """Analyse every catalog chain (and extra URDFs) and print one table."""
+    """Analyse every catalog chain and tree (and extra URDFs) and print one table."""
     from tqdm import tqdm
 
     from .plots import counts_figure, figure_bytes, figure_format
@@ -326,16 +376,24 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(rows_table(rows))
         bad = sum(r.error is not None for r in rows)
         print(
-            f"\n{len(rows)} chains, {len(rows) - bad} analysed, {bad} with an error "
+            f"\n{len(rows)} chains and trees, {len(rows) - bad} analysed, {bad} with an error "
             f"(reason in the last column); {args.measure}, verdict for the {args.params} set"
         )
     return 0
 
 
-def _add_chain_args(p: argparse.ArgumentParser) -> None:
+def _add_chain_args(p: argparse.ArgumentParser, trees: bool = False) -> None:
     p.add_argument("robot", help="catalog name (see `calib list`) or path to a URDF file")
     p.add_argument("--base", help="base frame (default: the catalog's, or the URDF root link)")
-    p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
+    if trees:
+        p.add_argument(
+            "--tool",
+            action="append",
+            help="tool frame; give it several times for a tree: the chains to each tool, "
+            "shared joints once (default: the catalog's tool or tools, or the deepest tip)",
+        )
+    else:
+        p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
 
 
 def _add_marker_arg(p: argparse.ArgumentParser) -> None:
@@ -380,13 +438,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_list)
 
-    p = sub.add_parser("show", help="modified-DH table of a chain")
-    _add_chain_args(p)
+    p = sub.add_parser("show", help="modified-DH table of a chain or tree")
+    _add_chain_args(p, trees=True)
     p.add_argument("--json", action="store_true", help="print JSON (radians, metres)")
     p.set_defaults(func=cmd_show)
 
-    p = sub.add_parser("analyze", help="identifiable (base) parameters of a chain")
-    _add_chain_args(p)
+    p = sub.add_parser("analyze", help="identifiable (base) parameters of a chain or tree")
+    _add_chain_args(p, trees=True)
     _add_measure_args(p)
     p.add_argument(
         "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
@@ -551,7 +609,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_calibrate)
 
-    p = sub.add_parser("sweep", help="analyse every catalog chain (and extra URDFs): one table")
+    p = sub.add_parser(
+        "sweep", help="analyse every catalog chain and tree (and extra URDFs): one table"
+    )
     p.add_argument("urdf", nargs="*", help="extra URDF files analysed after the catalog")
     _add_measure_args(p)
     p.add_argument(
@@ -692,6 +752,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage error (one line already printed), --help, --version
         return exc.code if isinstance(exc.code, int) else 2
+    vars(args).pop(_GIVEN, None)
     with warnings.catch_warnings(record=True) as caught, _verbose_logging(args.verbose):
         warnings.simplefilter("always")
         code = _run(args)

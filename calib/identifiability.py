@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +19,10 @@ from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import MDHModel, from_chain
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
-from .robot import Chain, load_chain
+from .robot import Chain
+from .tree import Tree, load_robot
+from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
+from .tree_model import TreeMDH, from_tree
 
 DEFAULT_CONFIGS = 100
 """Random configurations drawn by default."""
@@ -63,50 +68,58 @@ def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
     return np.abs(np.diag(Rp))
 
 
-def preference(mdh: MDHModel, p: Parameter) -> int:
+def preference(mdh: MDHModel | TreeMDH, p: Parameter) -> int:
     """Rank of a parameter in the paper's order of preference (0 = kept first).
 
-    0 joint offsets; 1 distances with a non-zero nominal value; 2 angles whose nominal value
-    is neither 0 nor 90 degrees (mod 90); 3 base parameters (rows 0 and 1); 4 tool
-    parameters (row n+1); 5 the rest.
+    0 joint offsets; 1 distances (d, r, b) with a non-zero nominal value; 2 angles (alpha,
+    theta, gamma) whose nominal value is neither 0 nor 90 degrees (mod 90); 3 base parameters
+    (row 0 and the rows placed from it: row 1 of a chain); 4 tool parameters (row n+1 of a
+    chain, every tool row of a tree); 5 the rest.
     """
     k, kind = p.row, p.kind
     if 1 <= k <= mdh.n and (
         (kind is Kind.THETA and mdh.sigma[k] == 0) or (kind is Kind.R and mdh.sigma[k] == 1)
     ):
         return 0
-    if k <= 1:
+    if k == 0 or mdh.antecedent[k] == 0:
         return 3
-    if k == mdh.n + 1:
+    if k in mdh.tool_rows:
         return 4
     value = float(getattr(mdh, kind.value)[k])
-    if kind in (Kind.D, Kind.R) and abs(value) > 1e-9:
+    if kind in (Kind.D, Kind.R, Kind.B) and abs(value) > 1e-9:
         return 1
-    if kind in (Kind.ALPHA, Kind.THETA) and min(abs(value - a) for a in _SPECIAL_ANGLES) > 1e-6:
+    if kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA) and min(
+        abs(value - a) for a in _SPECIAL_ANGLES
+    ) > 1e-6:
         return 2
     return 5
 
 
-def preference_order(mdh: MDHModel, params: ParameterSet) -> list[int]:
+def preference_order(mdh: MDHModel | TreeMDH, params: ParameterSet) -> list[int]:
     """Column indices sorted by :func:`preference` (stable: set order within a class)."""
     ranks = [preference(mdh, p) for p in params.parameters]
     return sorted(range(len(ranks)), key=ranks.__getitem__)
 
 
 def theoretical_count(
-    chain_or_mdh: Chain | MDHModel, measurement: Measurement, on_axes: tuple[int, ...] = ()
+    chain_or_mdh: Chain | MDHModel | TreeMDH,
+    measurement: Measurement,
+    on_axes: tuple[int, ...] = (),
 ) -> int | None:
     """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
 
     4R + 2P + 6 for the full pose, 4R + 2P + 3 for the position of one point, 2 fewer when
     the point lies on the last (revolute) axis. None where the formula says nothing: other
-    row subsets, or a point on a joint axis other than the last (a wrist centre).
+    row subsets, or a point on a joint axis other than the last (a wrist centre). A tree
+    model gets :func:`tree_theoretical_count`.
 
     Args:
         chain_or_mdh: The chain or its model (for sigma).
         measurement: What is measured.
         on_axes: Joints whose axis passes through the measured point.
     """
+    if isinstance(chain_or_mdh, TreeMDH):
+        return tree_theoretical_count(chain_or_mdh, measurement)
     sigma = np.asarray(chain_or_mdh.sigma)
     n = int(np.sum(sigma >= 0))
     R = int(np.sum(sigma == 0))
@@ -120,12 +133,51 @@ def theoretical_count(
     return None
 
 
-def axes_through_point(mdh: MDHModel, measurement: Measurement) -> tuple[int, ...]:
+@functools.lru_cache(maxsize=16)
+def tree_axes(model: TreeMDH, measurement: Measurement) -> tuple[tuple[int, ...], ...]:
+    """Per tool of a tree, the revolute joint rows whose axis passes through its point."""
+    out = []
+    for t in range(model.n_tools):
+        rows = model.path_rows(t)
+        on = axes_through_point(model.path_model(t), measurement)
+        out.append(tuple(int(rows[k]) for k in on))
+    return tuple(out)
+
+
+def tree_theoretical_count(model: TreeMDH, measurement: Measurement) -> int | None:
+    """Independent parameters of a tree's complete model: 4R + 2P + 6T (pose of T tools).
+
+    Each joint is counted once however many tools it carries: the placement of each joint
+    and tool in its antecedent (6 each) and of the base (6), minus 6 for the base (the base
+    link's children absorb it) and, per joint, the errors its motion absorbs (2 revolute,
+    4 prismatic). Position of one point per tool: 3 fewer per tool (rotations about the
+    point), and 2 fewer per joint whose only children are tools with their points on its
+    axis. None for other row subsets or a point on another axis.
+    """
+    R, P, T = int(np.sum(model.sigma == 0)), int(np.sum(model.sigma == 1)), model.n_tools
+    if measurement.rows == (0, 1, 2, 3, 4, 5):
+        return 4 * R + 2 * P + 6 * T
+    if measurement.rows != (0, 1, 2):
+        return None
+    axes = tree_axes(model, measurement)
+    lost = 0
+    for k in sorted({k for rows in axes for k in rows}):
+        children = np.flatnonzero(model.antecedent == k)
+        tools = [t for t, row in enumerate(model.tool_rows) if row in children]
+        if len(tools) < len(children) or any(k not in axes[t] for t in tools):
+            return None
+        lost += 2
+    return 4 * R + 2 * P + 3 * T - lost
+
+
+def axes_through_point(mdh: MDHModel | TreeMDH, measurement: Measurement) -> tuple[int, ...]:
     """Revolute joints (1..n) whose axis passes through the measured point.
 
     An axis counts only if it does so at every configuration: it is tested at the zero
-    configuration and four fixed others.
+    configuration and four fixed others. For a tree: through the point of a tool it carries.
     """
+    if isinstance(mdh, TreeMDH):
+        return tuple(sorted({k for rows in tree_axes(mdh, measurement) for k in rows}))
     q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
     kin = mdh.kinematics(q)
     E = kin.p[:, -1] + np.einsum("mij,j->mi", kin.R[:, -1], measurement.marker_array)
@@ -146,17 +198,20 @@ def point_on_last_axis(mdh: MDHModel, measurement: Measurement) -> bool:
     return mdh.n in axes_through_point(mdh, measurement)
 
 
-def _explain(p: Parameter, mdh: MDHModel) -> str:
-    k = p.row
-    prev = "the base z axis (z_-1)" if k == 1 else f"axis {k - 1}"
-    this = "the tool z axis" if k == mdh.n + 1 else f"axis {k}"
+def _explain(p: Parameter, mdh: MDHModel | TreeMDH) -> str:
+    k, a = p.row, int(mdh.antecedent[p.row])
+    prev = "the base z axis (z_-1)" if a == 0 else f"axis {a}"
+    this = f"axis {k}"
+    if k in mdh.tool_rows:
+        tools = getattr(mdh, "tool_frames", ())
+        this = f"the z axis of tool {tools[mdh.tool_rows.index(k)]}" if tools else "the tool z axis"
     if p.kind is Kind.BETA:
         return (
             f"{p.name}: {prev} is parallel to {this} and the set has no beta there, so a "
-            f"rotation about y_{k - 1} cannot be represented"
+            f"rotation about y_{a} cannot be represented"
         )
     return (
-        f"{p.name}: {prev} and {this} lie on one line, so a translation along y_{k - 1} "
+        f"{p.name}: {prev} and {this} lie on one line, so a translation along y_{a} "
         f"cannot be represented"
     )
 
@@ -186,6 +241,8 @@ class Identifiability:
         on_axes: Revolute joints whose axis passes through the measured point.
         missing: One sentence per error direction the set cannot represent.
         warnings: Reasons not to trust the rank.
+        per_tool: For a tree, each tool's chain alone: its name and theoretical count (the
+            tree's count is lower where tools share joints: see :func:`tree_theoretical_count`).
         snapped: URDF round-off removed before the analysis (by :func:`analyze`), one
             ``name: value -> snapped`` string per changed parameter.
         timings_ms: Time of each stage [ms].
@@ -194,7 +251,7 @@ class Identifiability:
     robot: str
     base_frame: str
     tool_frame: str
-    mdh: MDHModel
+    mdh: MDHModel | TreeMDH
     measurement: Measurement
     params: ParameterSet
     n_configs: int
@@ -213,6 +270,7 @@ class Identifiability:
     warnings: tuple[str, ...]
     snapped: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
+    per_tool: tuple[tuple[str, int | None], ...] = ()
 
     @property
     def n_standard(self) -> int:
@@ -225,9 +283,14 @@ class Identifiability:
         return len(self.base)
 
     @property
+    def tool_frames(self) -> tuple[str, ...]:
+        """The tool frames: one for a chain, several for a tree."""
+        return getattr(self.mdh, "tool_frames", (self.tool_frame,))
+
+    @property
     def on_last_axis(self) -> bool:
-        """The measured point lies on the last joint axis."""
-        return self.mdh.n in self.on_axes
+        """The measured point lies on the last joint axis (of some tool, for a tree)."""
+        return any(int(self.mdh.antecedent[t]) in self.on_axes for t in self.mdh.tool_rows)
 
     @property
     def missing_parameters(self) -> tuple[str, ...]:
@@ -291,6 +354,7 @@ class Identifiability:
             "robot": self.robot,
             "base_frame": self.base_frame,
             "tool_frame": self.tool_frame,
+            "tool_frames": list(self.tool_frames),
             "measure": self.measurement.label,
             "marker": list(self.measurement.marker),
             "params": self.params.label,
@@ -304,6 +368,7 @@ class Identifiability:
             "n_base": self.n_base,
             "n_complete": self.n_complete,
             "n_theory": self.n_theory,
+            "per_tool_theory": {name: count for name, count in self.per_tool},
             "point_on_last_axis": self.on_last_axis,
             "point_on_axes": list(self.on_axes),
             "standard_parameters": list(self.params.names),
@@ -367,13 +432,14 @@ def select_by_rank(R: np.ndarray, order: list[int], tau: float) -> list[int]:
 
 
 def independent_columns(
-    W: np.ndarray, order: list[int]
+    W: np.ndarray, order: list[int], n_rows: int | None = None
 ) -> tuple[np.ndarray, float, list[int], np.ndarray]:
     """Rank of W and the independent columns met first in an order of preference.
 
     Args:
-        W: Observation matrix ``(r, c)``.
+        W: Observation matrix ``(r, c)``, or a smaller matrix with its column geometry.
         order: Column indices, most preferred first.
+        n_rows: Rows r of the observation matrix (default: W's).
 
     Returns:
         |R_ii| of the pivoted QR, tau, the kept column indices (in ``order``) and the
@@ -386,7 +452,7 @@ def independent_columns(
     R = _triangular(W)
     Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
     diag = np.abs(np.diag(Rp))
-    rank, tau = numerical_rank(diag, W.shape[0])
+    rank, tau = numerical_rank(diag, W.shape[0] if n_rows is None else n_rows)
     # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
     # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
     # the order in which the columns are visited.
@@ -400,20 +466,21 @@ def independent_columns(
 
 
 def identify_base(
-    mdh: MDHModel, params: ParameterSet, W: np.ndarray
+    mdh: MDHModel | TreeMDH, params: ParameterSet, W: np.ndarray, n_rows: int | None = None
 ) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
     """Rank, base columns and regrouping of an observation matrix (METHOD.md section 3).
 
     Args:
         mdh: Nominal model (for the order of preference).
         params: The parameters of W's columns.
-        W: Observation matrix ``(r, c)``.
+        W: Observation matrix ``(r, c)``, or a smaller matrix with its column geometry.
+        n_rows: Rows r of the observation matrix (default: W's).
 
     Returns:
         |R_ii| of the pivoted QR, tau, the kept column indices (preference order), the other
         column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
     """
-    diag, tau, kept, R = independent_columns(W, preference_order(mdh, params))
+    diag, tau, kept, R = independent_columns(W, preference_order(mdh, params), n_rows)
     others = [i for i in range(len(params)) if i not in kept]
     Rk = np.linalg.qr(R[:, kept + others], mode="r")
     b = len(kept)
@@ -423,17 +490,19 @@ def identify_base(
 
 def _checked_arguments(mdh, params, measurement, configs):
     """Checked arguments of :func:`analyze_model`: measurement, parameter set, ``(m, n)``."""
-    if not isinstance(mdh, MDHModel):
-        raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
+    if not isinstance(mdh, MDHModel | TreeMDH):
+        raise InvalidArgumentError(
+            f"mdh must be an MDHModel or a TreeMDH (see from_chain, from_tree), got {mdh!r:.60}"
+        )
     measurement = Measurement.of("pose") if measurement is None else measurement
     if not isinstance(measurement, Measurement):
         raise InvalidArgumentError(
             f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
         )
     if isinstance(params, str):
-        pset = parameter_set(mdh, params)
+        pset = _set_of(mdh, params)
     elif isinstance(params, ParameterSet) and all(
-        isinstance(p, Parameter) and 0 <= p.row <= mdh.n + 1 for p in params.parameters
+        isinstance(p, Parameter) and 0 <= p.row < len(mdh.sigma) for p in params.parameters
     ):
         pset = params
     else:
@@ -444,22 +513,49 @@ def _checked_arguments(mdh, params, measurement, configs):
     if configs is None:
         raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
     q = joint_positions(configs, mdh.n)
-    check_work(len(q), mdh.n)
+    check_work(len(q) * len(mdh.tool_rows), mdh.n)
     return measurement, pset, q
 
 
+def _set_of(mdh: MDHModel | TreeMDH, label: str) -> ParameterSet:
+    """The ``paper`` or ``complete`` set of a chain or tree model."""
+    return tree_parameters(mdh, label) if isinstance(mdh, TreeMDH) else parameter_set(mdh, label)
+
+
+def _matrices(mdh: MDHModel | TreeMDH, params: ParameterSet, q: np.ndarray, measurement):
+    """W of a set (for a tree: its small factor), W's rows, and the complete model's W."""
+    if isinstance(mdh, TreeMDH):
+        F = tree_jacobian(mdh, params, q, measurement, factor=True)
+        rows = len(q) * mdh.n_tools * len(measurement.rows)
+        return F, rows, lambda: tree_complete_jacobian(mdh, q, measurement, factor=True)
+    kin = mdh.kinematics(q)
+    W = identification_jacobian(mdh, params, q, measurement, kin=kin)
+    return W, W.shape[0], lambda: complete_jacobian(mdh, q, measurement, kin=kin)
+
+
+def per_tool_theory(mdh: TreeMDH, measurement: Measurement) -> tuple[tuple[str, int | None], ...]:
+    """Each tool's chain alone: its name and theoretical count (see :func:`theoretical_count`)."""
+    out = []
+    axes = tree_axes(mdh, measurement)
+    for t, name in enumerate(mdh.tool_frames):
+        rows = list(mdh.path_rows(t))
+        on = tuple(rows.index(k) for k in axes[t])
+        out.append((name, theoretical_count(mdh.path_model(t), measurement, on)))
+    return tuple(out)
+
+
 def analyze_model(
-    mdh: MDHModel,
+    mdh: MDHModel | TreeMDH,
     params: str | ParameterSet = "paper",
     measurement: Measurement | None = None,
     configs: np.ndarray | None = None,
     robot: str = "",
     seed: int = 0,
 ) -> Identifiability:
-    """Identifiability of an MDH model at given configurations.
+    """Identifiability of an MDH model (chain or tree) at given configurations.
 
     Args:
-        mdh: Nominal model.
+        mdh: Nominal model: a chain's, or a tree's (every tool measured at each configuration).
         params: ``paper``, ``complete`` or an explicit set.
         measurement: What is measured (default: the full pose at the tool origin).
         configs: Joint positions ``(m, n)``.
@@ -476,29 +572,27 @@ def analyze_model(
     measurement, pset, q = _checked_arguments(mdh, params, measurement, configs)
     check_count(seed, "the seed", minimum=0)
     names = pset.names
-    extras = [p for p in parameter_set(mdh, "complete").parameters if p.name not in names]
+    extras = [p for p in _set_of(mdh, "complete").parameters if p.name not in names]
     t0 = time.perf_counter()
-    kin = mdh.kinematics(q)
     # One Jacobian for the set and the complete set's extras; ranks of column subsets come
     # from the small triangular factor, which keeps W's column geometry.
-    W_all = identification_jacobian(
-        mdh, ParameterSet(pset.label, (*pset.parameters, *extras)), q, measurement, kin=kin
-    )
+    all_params = ParameterSet(pset.label, (*pset.parameters, *extras))
+    W_all, n_rows, complete = _matrices(mdh, all_params, q, measurement)
     W = W_all[:, : len(pset)]
     t1 = time.perf_counter()
-    diag, tau, kept, others, B = identify_base(mdh, pset, W)
+    diag, tau, kept, others, B = identify_base(mdh, pset, W, n_rows)
     col_norm = np.linalg.norm(W, axis=0)
     zero = tuple(names[i] for i in others if col_norm[i] <= tau)
     t2 = time.perf_counter()
-    Wc = complete_jacobian(mdh, q, measurement, kin=kin)
-    n_complete, _ = numerical_rank(pivoted_diagonal(Wc), Wc.shape[0])
+    Wc = complete()
+    n_complete, _ = numerical_rank(pivoted_diagonal(Wc), n_rows)
     on_axes = axes_through_point(mdh, measurement)
     missing: list[str] = []
     if len(kept) < n_complete:
         R_all = _triangular(W_all)
         for j, p in enumerate(extras):
             cols = [*kept, len(pset) + j]
-            r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), W.shape[0])
+            r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), n_rows)
             if r_x > len(kept):
                 missing.append(_explain(p, mdh))
         if not missing:
@@ -508,16 +602,16 @@ def analyze_model(
             )
     t3 = time.perf_counter()
     notes = []
-    rank, _ = numerical_rank(diag, W.shape[0])
+    rank, _ = numerical_rank(diag, n_rows)
     if len(kept) != rank:
         notes.append(
             f"{len(kept)} independent columns were selected for a numerical rank of {rank}: "
             f"the rank is ill-defined at this geometry"
         )
-    if W.shape[0] < len(pset):
+    if n_rows < len(pset):
         notes.append(
-            f"only {W.shape[0]} measurement rows for {len(pset)} parameters: the rank cannot "
-            f"exceed {W.shape[0]}; draw more configurations"
+            f"only {n_rows} measurement rows for {len(pset)} parameters: the rank cannot "
+            f"exceed {n_rows}; draw more configurations"
         )
     b = rank
     if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
@@ -536,7 +630,7 @@ def analyze_model(
         params=pset,
         n_configs=len(q),
         seed=seed,
-        n_rows=W.shape[0],
+        n_rows=n_rows,
         diag=diag,
         tolerance=tau,
         base=tuple(names[i] for i in kept),
@@ -546,6 +640,7 @@ def analyze_model(
         n_complete=n_complete,
         n_theory=theoretical_count(mdh, measurement, on_axes),
         on_axes=on_axes,
+        per_tool=per_tool_theory(mdh, measurement) if isinstance(mdh, TreeMDH) else (),
         missing=tuple(missing),
         warnings=tuple(notes),
         timings_ms={
@@ -561,7 +656,9 @@ SNAPPED_CHANGE = 1e-3
 choice of the idealized conversion (a 90-degree offset), not round-off."""
 
 
-def snapped_values(exact: MDHModel, idealized: MDHModel) -> tuple[str, ...]:
+def snapped_values(
+    exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH
+) -> tuple[str, ...]:
     """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
 
     Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are
@@ -569,6 +666,8 @@ def snapped_values(exact: MDHModel, idealized: MDHModel) -> tuple[str, ...]:
     """
     out = []
     for kind in Kind:
+        if not hasattr(exact, kind.value):  # gamma and b: trees only
+            continue
         a, b = getattr(exact, kind.value), getattr(idealized, kind.value)
         diff = b - a
         if kind.is_rotation:
@@ -580,9 +679,9 @@ def snapped_values(exact: MDHModel, idealized: MDHModel) -> tuple[str, ...]:
 
 
 def analyze(
-    robot: str | Path | Chain,
+    robot: str | Path | Chain | Tree,
     base: str | None = None,
-    tool: str | None = None,
+    tool: str | Sequence[str] | None = None,
     measure: str = "pose",
     marker=None,
     params: str = "paper",
@@ -592,9 +691,10 @@ def analyze(
     """Load a robot and analyse the identifiability of its geometric parameters.
 
     Args:
-        robot: Catalog name, URDF path, or an already loaded chain.
+        robot: Catalog name, URDF path, or an already loaded chain or tree.
         base: Base frame (default: the catalog's or the URDF root).
-        tool: Tool frame (default: the catalog's or the deepest tip).
+        tool: Tool frame (default: the catalog's or the deepest tip), or several: the tree of
+            their chains, every tool measured at each configuration (see :func:`load_robot`).
         measure: ``pose``, ``position`` or comma-separated rows (``x,y,z,rx``).
         marker: Measured point in the tool frame, 3 numbers [m].
         params: ``paper`` or ``complete``.
@@ -613,9 +713,9 @@ def analyze(
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     t0 = time.perf_counter()
-    chain = robot if isinstance(robot, Chain) else load_chain(robot, base, tool)
+    chain = load_robot(robot, base, tool)
     t1 = time.perf_counter()
-    exact = from_chain(chain)
+    exact = from_tree(chain) if isinstance(chain, Tree) else from_chain(chain)
     mdh = exact.idealized()
     t2 = time.perf_counter()
     q = chain.random_configurations(int(configs), seed)

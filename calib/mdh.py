@@ -47,6 +47,18 @@ SNAP_LENGTH = urdf_xml.SNAP_LENGTH
 """Length [m] under which :meth:`MDHModel.idealized` snaps a distance to zero."""
 
 
+def snap_angle(a: np.ndarray, tol: float) -> np.ndarray:
+    """Angles [rad] within ``tol`` of a multiple of 90 degrees, snapped to it."""
+    quarter = math.pi / 2
+    target = np.round(a / quarter) * quarter + 0.0  # no negative zero
+    return np.where(np.abs(a - target) < tol, target, a)
+
+
+def snap_length(v: np.ndarray, tol: float) -> np.ndarray:
+    """Lengths [m] under ``tol`` in absolute value, snapped to zero."""
+    return np.where(np.abs(v) < tol, 0.0, v)
+
+
 def _rot_x(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
@@ -172,25 +184,26 @@ class MDHModel:
             chain, parallel_tol = self.source
             if chain.ideal_model is not None:
                 source = _converted(chain.idealized(), parallel_tol)
-        quarter = math.pi / 2
-
-        def snap_angle(a: np.ndarray) -> np.ndarray:
-            target = np.round(a / quarter) * quarter + 0.0  # no negative zero
-            return np.where(np.abs(a - target) < angle_tol, target, a)
-
-        def snap_length(v: np.ndarray) -> np.ndarray:
-            return np.where(np.abs(v) < length_tol, 0.0, v)
-
         return source.replace(
-            beta=snap_angle(source.beta),
-            alpha=snap_angle(source.alpha),
-            theta=snap_angle(source.theta),
-            d=snap_length(source.d),
-            r=snap_length(source.r),
-            y=snap_length(source.y),
+            beta=snap_angle(source.beta, angle_tol),
+            alpha=snap_angle(source.alpha, angle_tol),
+            theta=snap_angle(source.theta, angle_tol),
+            d=snap_length(source.d, length_tol),
+            r=snap_length(source.r, length_tol),
+            y=snap_length(source.y, length_tol),
             base_frame=self.base_frame,
             tool_frame=self.tool_frame,
         )
+
+    @property
+    def antecedent(self) -> np.ndarray:
+        """Row each row is placed from: ``k - 1`` (-1 for row 0), as a tree's antecedents."""
+        return np.arange(-1, self.n + 1)
+
+    @property
+    def tool_rows(self) -> tuple[int, ...]:
+        """Rows of the tool frames: ``(n + 1,)``."""
+        return (self.n + 1,)
 
     def kinematics(self, q: np.ndarray) -> Kinematics:
         """Every frame at every configuration, vectorised over configurations.

@@ -11,11 +11,14 @@ import numpy as np
 from .checks import real_array
 from .exceptions import InvalidArgumentError
 from .mdh import MDHModel
+from .tree_model import TreeMDH
 
 
 class Kind(enum.Enum):
     """The elementary error a parameter stands for, in row k (frame k-1 to frame k)."""
 
+    GAMMA = "gamma"  # rotation about z_{a(k)} of a tree's branch [rad] (trees only)
+    B = "b"  # translation along z_{a(k)} of a tree's branch [m] (trees only)
     Y = "y"  # translation along y_{k-1} [m] (complete set only)
     BETA = "beta"  # rotation about y_{k-1} [rad]
     ALPHA = "alpha"  # rotation about x_{k-1} (after beta) [rad]
@@ -26,7 +29,7 @@ class Kind(enum.Enum):
     @property
     def is_rotation(self) -> bool:
         """True for angles [rad], False for lengths [m]."""
-        return self in (Kind.BETA, Kind.ALPHA, Kind.THETA)
+        return self in (Kind.GAMMA, Kind.BETA, Kind.ALPHA, Kind.THETA)
 
 
 @dataclass(frozen=True)
@@ -110,14 +113,15 @@ class ParameterSet:
         return self.names.index(name)
 
     def values(self, mdh: MDHModel) -> np.ndarray:
-        """Nominal values of the parameters in a model [rad or m]."""
+        """Nominal values of the parameters in a model (chain or tree) [rad or m]."""
+        _check_model(mdh, tree=True)
         return np.array([getattr(mdh, p.kind.value)[p.row] for p in self.parameters])
 
-    def apply(self, mdh: MDHModel, delta: np.ndarray) -> MDHModel:
-        """A new model whose parameters are shifted by ``delta`` (same order as the set)."""
-        _check_model(mdh)
+    def apply(self, mdh: MDHModel | TreeMDH, delta: np.ndarray) -> MDHModel | TreeMDH:
+        """A new model (chain or tree) whose parameters are shifted by ``delta`` (set order)."""
+        _check_model(mdh, tree=True)
         delta = real_array(delta, "delta", (len(self),))
-        arrays = {k.value: getattr(mdh, k.value).copy() for k in Kind}
+        arrays = {p.kind.value: getattr(mdh, p.kind.value).copy() for p in self.parameters}
         for p, dx in zip(self.parameters, delta, strict=True):
             arrays[p.kind.value][p.row] += dx
         return mdh.replace(**arrays)
@@ -126,9 +130,10 @@ class ParameterSet:
 PARAMETER_SETS = ("paper", "complete")
 
 
-def _check_model(mdh) -> None:
-    if not isinstance(mdh, MDHModel):
-        raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
+def _check_model(mdh, tree: bool = False) -> None:
+    if isinstance(mdh, MDHModel) or (tree and isinstance(mdh, TreeMDH)):
+        return
+    raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
 
 
 def paper_parameters(mdh: MDHModel) -> ParameterSet:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .catalog import catalog_entry
+from .catalog import CatalogEntry, catalog_entry
 from .checks import check_count, check_work, joint_positions
 from .exceptions import (
     AmbiguousFrameError,
@@ -179,8 +179,24 @@ def _default_tool(model: pin.Model) -> int:
     return max(i for i, d in enumerate(depth) if d == best)
 
 
+class JointCounts:
+    """Revolute and prismatic joint counts of anything with a ``sigma`` array (0 or 1)."""
+
+    sigma: np.ndarray
+
+    @property
+    def n_revolute(self) -> int:
+        """Number of revolute (and continuous) joints."""
+        return int(np.sum(self.sigma == 0))
+
+    @property
+    def n_prismatic(self) -> int:
+        """Number of prismatic joints."""
+        return int(np.sum(self.sigma == 1))
+
+
 @dataclass(frozen=True, eq=False)
-class Chain:
+class Chain(JointCounts):
     """A serial chain between a base frame and a tool frame of a Pinocchio model.
 
     Joint positions are *URDF* positions, one number per chain joint (radians for revolute
@@ -237,15 +253,6 @@ class Chain:
         """Number of joints in the chain."""
         return len(self.joint_ids)
 
-    @property
-    def n_revolute(self) -> int:
-        """Number of revolute (and continuous) joints."""
-        return int(np.sum(self.sigma == 0))
-
-    @property
-    def n_prismatic(self) -> int:
-        """Number of prismatic joints."""
-        return int(np.sum(self.sigma == 1))
 
     def check_configurations(self, q: np.ndarray) -> np.ndarray:
         """Validate and reshape joint positions to ``(m, n)``.
@@ -346,17 +353,61 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def check_frame_name(option: str, frame) -> None:
+    """Refuse a frame option that is not a non-empty string (None means the default)."""
+    if frame is not None and not isinstance(frame, str):
+        raise InvalidArgumentError(
+            f"the {option} frame is a name (a string), got {type(frame).__name__} {frame!r}"
+        )
+    if frame is not None and not frame.strip():
+        raise InvalidArgumentError(f"the {option} frame name is empty")
+
+
+@dataclass(frozen=True, eq=False)
+class RobotModels:
+    """A URDF read once: its Pinocchio model and the model with round-off removed.
+
+    Attributes:
+        name: Robot name (catalog name or URDF file stem).
+        path: The URDF file.
+        info: What calib read from the URDF itself (root link, mimic joints, ...).
+        model: Pinocchio model of the kinematic URDF.
+        ideal_model: The same with round-off removed (see :meth:`Chain.idealized`).
+    """
+
+    name: str
+    path: Path
+    info: URDFInfo
+    model: pin.Model
+    ideal_model: pin.Model
+
+    @staticmethod
+    def build(name: str, path: Path, info: URDFInfo) -> RobotModels:
+        """Build both Pinocchio models of a URDF."""
+        return RobotModels(
+            name,
+            path,
+            info,
+            build_model(kinematic_xml(info), str(path)),
+            build_model(kinematic_xml(info, snap=True), str(path)),
+        )
+
+
 def _chain_from_model(
     name: str, path: Path, info: URDFInfo, base: str | None, tool: str | None
 ) -> Chain:
     for option, frame in (("base", base), ("tool", tool)):
-        if frame is not None and not isinstance(frame, str):
-            raise InvalidArgumentError(
-                f"the {option} frame is a name (a string), got {type(frame).__name__} {frame!r}"
-            )
-        if frame is not None and not frame.strip():
-            raise InvalidArgumentError(f"the {option} frame name is empty")
-    model = build_model(kinematic_xml(info), str(path))
+        check_frame_name(option, frame)
+    return chain_between(RobotModels.build(name, path, info), base, tool)
+
+
+def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Chain:
+    """The serial chain between two frames of a robot read once (None: the default frame).
+
+    Raises:
+        CalibError: Unknown or ambiguous frame, no serial chain, unsupported joint.
+    """
+    name, path, info, model = robot.name, robot.path, robot.info, robot.model
     base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
     tool_id = resolve_frame(model, tool) if tool else _default_tool(model)
     base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
@@ -409,8 +460,27 @@ def _chain_from_model(
         lower=_frozen(np.array(lower)),
         upper=_frozen(np.array(upper)),
         q_ref=_frozen(pin.neutral(model)),
-        ideal_model=build_model(kinematic_xml(info, snap=True), str(path)),
+        ideal_model=robot.ideal_model,
     )
+
+
+def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
+    """Name, URDF path and catalog entry (None for a file) of a robot argument.
+
+    Raises:
+        CalibError: Not a name or path, or an unknown catalog name.
+    """
+    if not isinstance(robot, str | os.PathLike):
+        raise InvalidArgumentError(
+            f"the robot is a catalog name or a URDF path, got {type(robot).__name__} {robot!r}"
+        )
+    text = os.fspath(robot)
+    path = Path(text)
+    is_path = isinstance(robot, os.PathLike) or path.is_file() or path.is_dir()
+    if is_path or text.endswith((".urdf", ".xml")) or "/" in text:
+        return path.stem, path, None
+    entry = catalog_entry(text)
+    return entry.name, entry.path, entry
 
 
 def load_chain(robot: str | Path, base: str | None = None, tool: str | None = None) -> Chain:
@@ -426,22 +496,15 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
 
     Raises:
         CalibError: Unknown robot, bad URDF, unknown or ambiguous frame, no serial chain,
-            unsupported joint in the chain.
+            unsupported joint in the chain, a catalog tree without a tool.
     """
-    if not isinstance(robot, str | os.PathLike):
-        raise InvalidArgumentError(
-            f"the robot is a catalog name or a URDF path, got {type(robot).__name__} {robot!r}"
-        )
-    text = os.fspath(robot)
-    path = Path(text)
-    is_path = isinstance(robot, os.PathLike) or path.is_file() or path.is_dir()
-    if is_path or text.endswith((".urdf", ".xml")) or "/" in text:
-        return _chain_from_model(path.stem, path, read_urdf_file(path), base, tool)
-    entry = catalog_entry(text)
-    return _chain_from_model(
-        entry.name,
-        entry.path,
-        read_urdf_file(entry.path),
-        entry.base if base is None else base,
-        entry.tool if tool is None else tool,
-    )
+    name, path, entry = robot_source(robot)
+    if entry is not None:
+        if entry.is_tree and tool is None:
+            raise ChainError(
+                f"'{entry.name}' is a tree of {len(entry.tools)} tools "
+                f"({', '.join(entry.tools)}): load it with load_tree, or name one tool"
+            )
+        base = entry.base if base is None else base
+        tool = entry.tool if tool is None else tool
+    return _chain_from_model(name, path, read_urdf_file(path), base, tool)

@@ -1,4 +1,4 @@
-"""Survey of identifiable sets across many chains (the catalog and extra URDFs)."""
+"""Survey of identifiable sets across many chains and trees (the catalog and extra URDFs)."""
 
 from __future__ import annotations
 
@@ -15,23 +15,24 @@ from .checks import check_count, check_work
 from .exceptions import CalibError, InvalidArgumentError
 from .identifiability import DEFAULT_CONFIGS, analyze
 from .jacobian import Measurement
-from .robot import load_chain
+from .tree import Tree, load_robot
 
 
 @dataclass(frozen=True)
 class SweepRow:
-    """One chain of a sweep.
+    """One chain (or tree) of a sweep.
 
     Attributes:
         robot: Catalog name or URDF path.
-        chain: ``base -> tool``.
-        revolute: Number R of revolute joints.
+        chain: ``base -> tool`` (a tree: ``base -> tool1, tool2, ...``).
+        revolute: Number R of revolute joints (shared joints of a tree once).
         prismatic: Number P of prismatic joints.
+        tools: Number T of tools (1 for a chain).
         n_standard: Standard parameters of the paper set.
         n_base_paper: Base parameters of the paper set.
         n_base_complete: Base parameters of the complete set.
         n_complete: Rank of the complete reference model.
-        n_theory: 4R + 2P + 6 (pose) or + 3 (position; 2 fewer on the last axis).
+        n_theory: 4R + 2P + 6T (pose) or + 3T (position; 2 fewer on the last axis).
         verdict: ``complete`` or ``misses N`` (for the set the sweep was asked about), or
             ``error``.
         time_ms: Time to load and analyse the chain with both sets [ms].
@@ -43,6 +44,7 @@ class SweepRow:
     chain: str
     revolute: int | None = None
     prismatic: int | None = None
+    tools: int | None = None
     n_standard: int | None = None
     n_base_paper: int | None = None
     n_base_complete: int | None = None
@@ -57,18 +59,20 @@ class SweepRow:
 def sweep_one(
     robot: str,
     base: str | None,
-    tool: str | None,
+    tool: str | tuple[str, ...] | None,
     measurement: Measurement,
     configs: int,
     seed: int,
     params: str = "paper",
 ) -> SweepRow:
-    """Analyse one chain with the paper and the complete sets; errors become a row."""
+    """Analyse one chain or tree with the paper and the complete sets; errors become a row."""
     t0 = time.perf_counter()
-    label = f"{base or '?'} -> {tool or '?'}"
+    tools = (tool,) if tool is None or isinstance(tool, str) else tool
+    label = f"{base or '?'} -> {', '.join(t or '?' for t in tools)}"
     try:
-        chain = load_chain(robot, base, tool)
-        label = f"{chain.base_frame} -> {chain.tool_frame}"
+        chain = load_robot(robot, base, tool)
+        tools = chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,)
+        label = f"{chain.base_frame} -> {', '.join(tools)}"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
             kw = {
@@ -90,6 +94,7 @@ def sweep_one(
         chain=label,
         revolute=chain.n_revolute,
         prismatic=chain.n_prismatic,
+        tools=len(tools),
         n_standard=paper.n_standard,
         n_base_paper=paper.n_base,
         n_base_complete=full.n_base,
@@ -111,7 +116,7 @@ def sweep(
     progress: Callable[[Iterable], Iterable] | None = None,
     params: str = "paper",
 ) -> list[SweepRow]:
-    """Analyse every catalog chain (or the given names) and extra URDF files.
+    """Analyse every catalog chain and tree (or the given names) and extra URDF files.
 
     A chain that cannot be analysed is a row with its reason, never skipped.
 
@@ -135,7 +140,7 @@ def sweep(
     if params not in ("paper", "complete"):
         raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
     entries = {e.name: e for e in catalog()}
-    jobs: list[tuple[str, str | None, str | None]] = []
+    jobs: list[tuple[str, str | None, str | tuple[str, ...] | None]] = []
     for name in robots if robots is not None else entries:
         e = entries.get(name)
         jobs.append((name, e.base, e.tool) if e else (name, None, None))
@@ -149,6 +154,7 @@ COLUMNS = (
     "chain",
     "revolute",
     "prismatic",
+    "tools",
     "n_standard",
     "n_base_paper",
     "n_base_complete",
@@ -186,6 +192,7 @@ def rows_table(rows: Sequence[SweepRow]) -> str:
             r.chain,
             num(r.revolute),
             num(r.prismatic),
+            num(r.tools),
             num(r.n_standard),
             num(r.n_base_paper),
             num(r.n_base_complete),
@@ -202,6 +209,7 @@ def rows_table(rows: Sequence[SweepRow]) -> str:
         "chain",
         "R",
         "P",
+        "T",
         "std",
         "paper",
         "complete",

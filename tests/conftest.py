@@ -8,8 +8,11 @@ import pytest
 
 from calib import catalog, from_chain, load_chain
 
-ANALYSABLE = tuple(e.name for e in catalog() if e.expect_error is None)
+ANALYSABLE = tuple(e.name for e in catalog() if e.expect_error is None and not e.is_tree)
 """Catalog chains calib can analyse."""
+
+TREES = tuple(e.name for e in catalog() if e.expect_error is None and e.is_tree)
+"""Catalog trees (several tools) calib can analyse."""
 
 
 @functools.cache

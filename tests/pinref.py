@@ -29,6 +29,22 @@ def pin_config(model: pin.Model, joint_ids, q: np.ndarray, q_full: np.ndarray | 
     return out
 
 
+def rot(axis: str, a: float) -> np.ndarray:
+    """Homogeneous rotation about x, y or z by a [rad]."""
+    c, s = math.cos(a), math.sin(a)
+    T = np.eye(4)
+    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
+    T[i, i], T[i, j], T[j, i], T[j, j] = c, -s, s, c
+    return T
+
+
+def trans(axis: str, v: float) -> np.ndarray:
+    """Homogeneous translation along x, y or z by v [m]."""
+    T = np.eye(4)
+    T["xyz".index(axis), 3] = v
+    return T
+
+
 def own_random_q(sigma, m: int, seed: int) -> np.ndarray:
     """Configurations drawn by the test, not by calib (wider than most joint limits)."""
     rng = np.random.default_rng(seed)
@@ -70,3 +86,113 @@ def file_chain_poses(path, base: str, tool: str, q: np.ndarray):
         pin.framesForwardKinematics(model, data, pin_config(model, joints, qi))
         bMo = data.oMf[b].inverse()
         yield bMo, bMo * data.oMf[t], [bMo * data.oMi[j] for j in joints]
+
+
+# --------------------------------------------------------------------------------------
+# Trees: Pinocchio alone, from the URDF file or from a model built joint by joint
+# --------------------------------------------------------------------------------------
+
+
+class PinTree:
+    """A tree of a Pinocchio model: a base frame, tool frames and the joints between.
+
+    The joints are those Pinocchio's own ``supports`` put between the base frame's joint and
+    each tool's joint; positions are URDF positions given by joint name.
+    """
+
+    def __init__(self, model: pin.Model, base: int, tools: list[int]):
+        self.model, self.base, self.tools = model, base, list(tools)
+        self.data = model.createData()
+        jb = model.frames[base].parentJoint
+        joints = set()
+        for t in self.tools:
+            support = list(model.supports[model.frames[t].parentJoint])
+            assert jb in support, "a tool below the base"
+            joints.update(support[support.index(jb) + 1 :])
+        self.joint_ids = sorted(joints)
+        self.joint_names = [model.names[j] for j in self.joint_ids]
+
+    @staticmethod
+    def of_file(path, base: str, tools) -> PinTree:
+        """Pinocchio reads the URDF file itself."""
+        model = pin.buildModelFromUrdf(str(path))
+        return PinTree(model, pin_frame(model, base), [pin_frame(model, t) for t in tools])
+
+    def _poses(self, qp: np.ndarray) -> list[pin.SE3]:
+        pin.framesForwardKinematics(self.model, self.data, qp)
+        bMo = self.data.oMf[self.base].inverse()
+        return [bMo * self.data.oMf[t] for t in self.tools]
+
+    def configs(self, names, q: np.ndarray) -> list[np.ndarray]:
+        """Pinocchio configurations with URDF positions q (columns named by ``names``)."""
+        ids = [self.model.getJointId(n) for n in names]
+        return [pin_config(self.model, ids, qi) for qi in np.atleast_2d(q)]
+
+    def poses(self, names, q: np.ndarray) -> np.ndarray:
+        """Every tool in the base frame, ``(m, T, 4, 4)``."""
+        return np.array([[T.homogeneous for T in self._poses(qp)] for qp in self.configs(names, q)])
+
+    def _perturbable(self):
+        """(getter, setter) of every placement a generic 6-DOF error can act on."""
+        model = self.model
+        out = []
+        for j in self.joint_ids:
+
+            def set_joint(M, j=j):
+                model.jointPlacements[j] = M
+
+            out.append((lambda j=j: model.jointPlacements[j].copy(), set_joint))
+        for f in [self.base, *self.tools]:
+
+            def set_frame(M, f=f):
+                frame = model.frames[f]
+                frame.placement = M
+                model.frames[f] = frame
+
+            out.append((lambda f=f: model.frames[f].placement.copy(), set_frame))
+        return out
+
+    def placement_jacobian(self, names, q, marker=(0.0, 0.0, 0.0), eps: float = 1e-6):
+        """Finite differences of the tools' poses under a generic 6-DOF error on every joint
+        placement, every tool frame placement and the base frame placement.
+
+        Rows per (configuration, tool): the velocity of the marker point (x, y, z) and the
+        rotation (rx, ry, rz), in the base frame; columns: 6 per placement.
+        """
+        point = np.append(np.asarray(marker, dtype=float), 1.0)
+        qps = self.configs(names, q)
+
+        def poses() -> np.ndarray:
+            return np.array([[T.homogeneous for T in self._poses(qp)] for qp in qps])
+
+        cols = []
+        for get, put in self._perturbable():
+            nominal = get()
+            for i in range(6):
+                xi = np.zeros(6)
+                xi[i] = eps
+                put(nominal * pin.exp6(pin.Motion(xi)))
+                a = poses()
+                put(nominal * pin.exp6(pin.Motion(-xi)))
+                b = poses()
+                put(nominal)
+                dp = (a - b) @ point
+                # a small rotation R_a R_b^T = I + [w]x: w from its skew part
+                S = a[..., :3, :3] @ np.swapaxes(b[..., :3, :3], -1, -2)
+                w = 0.5 * np.stack(
+                    [
+                        S[..., 2, 1] - S[..., 1, 2],
+                        S[..., 0, 2] - S[..., 2, 0],
+                        S[..., 1, 0] - S[..., 0, 1],
+                    ],
+                    axis=-1,
+                )
+                cols.append(np.concatenate([dp[..., :3], w], axis=-1).ravel() / (2 * eps))
+        return np.array(cols).T
+
+    def complete_rank(self, names, q, rows=(0, 1, 2, 3, 4, 5), marker=(0.0, 0.0, 0.0)) -> int:
+        """Rank of :meth:`placement_jacobian` restricted to some rows (SVD, 1e-7 relative)."""
+        W = self.placement_jacobian(names, q, marker)
+        keep = np.concatenate([6 * k + np.array(rows) for k in range(W.shape[0] // 6)])
+        s = np.linalg.svd(W[keep], compute_uv=False)
+        return int(np.sum(s > 1e-7 * s[0]))

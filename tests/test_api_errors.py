@@ -20,6 +20,9 @@ PSET = calib.paper_parameters(MDH)
 Q = np.zeros((4, 6))
 NAN_Q = np.array([[0, 0, np.nan, 0, 0, 0]] * 4)
 WRONG_Q = np.zeros((4, 5))
+TREE_MODEL = calib.from_tree(calib.load_tree("bolt"))  # 6 joints, 2 tools
+TREE_SET = calib.tree_parameters(TREE_MODEL)
+TREE_Q = np.zeros((4, 6))
 
 
 def _cases():
@@ -34,6 +37,28 @@ def _cases():
         "load_chain empty base": lambda: calib.load_chain("ur5", base=" "),
         "load_chain missing file": lambda: calib.load_chain("/no/such/robot.urdf"),
         "load_chain unknown name": lambda: calib.load_chain("nosuchrobot"),
+        "load_tree robot=5": lambda: calib.load_tree(5),
+        "load_tree tools=str list": lambda: calib.load_tree("talos", tools=["left_sole_link", 5]),
+        "load_tree tools=5": lambda: calib.load_tree("talos", tools=5),
+        "load_tree file without tools": lambda: calib.load_tree(str(CHAIN.urdf_path)),
+        "load_robot tool=[]": lambda: calib.load_robot("ur5", tool=[]),
+        "load_robot tool=5": lambda: calib.load_robot("ur5", tool=5),
+        "from_tree chain": lambda: calib.from_tree(CHAIN),
+        "tree_parameters chain model": lambda: calib.tree_parameters(MDH),
+        "tree_parameters label": lambda: calib.tree_parameters(TREE_MODEL, "all"),
+        "tree_jacobian shape": lambda: calib.tree_jacobian(TREE_MODEL, TREE_SET, WRONG_Q),
+        "tree_jacobian params": lambda: calib.tree_jacobian(TREE_MODEL, "paper", TREE_Q),
+        "tree_jacobian foreign set": lambda: calib.tree_jacobian(
+            TREE_MODEL, calib.ParameterSet("x", (calib.Parameter(40, calib.Kind.R),)), TREE_Q
+        ),
+        "tree_jacobian measurement": lambda: calib.tree_jacobian(
+            TREE_MODEL, TREE_SET, TREE_Q, "pose"
+        ),
+        "tree_jacobian measured": lambda: calib.tree_jacobian(
+            TREE_MODEL, TREE_SET, TREE_Q, measured=np.ones((4, 3))
+        ),
+        "tree_complete_jacobian q": lambda: calib.tree_complete_jacobian(TREE_MODEL, "x"),
+        "tree_complete_jacobian model": lambda: calib.tree_complete_jacobian(MDH, Q),
         "from_chain str": lambda: calib.from_chain("ur5"),
         "from_chain tol": lambda: calib.from_chain(CHAIN, parallel_tol=-1),
         "from_lines shapes": lambda: calib.from_lines(np.zeros(3), np.eye(3), [0], np.eye(4)),

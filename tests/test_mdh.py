@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ANALYSABLE, chain_of, mdh_of
-from pinref import own_random_q, pin_frame
+from pinref import own_random_q, pin_frame, rot, trans
 
 import calib
 from calib import PARALLEL_TOL, load_chain
@@ -77,20 +77,6 @@ class PinChain:
 
 def pin_of(chain) -> PinChain:
     return PinChain(chain.model, chain.base_frame, chain.tool_frame, chain.joint_names)
-
-
-def rot(axis: str, a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    T = np.eye(4)
-    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
-    T[i, i], T[i, j], T[j, i], T[j, j] = c, -s, s, c
-    return T
-
-
-def trans(axis: str, v: float) -> np.ndarray:
-    T = np.eye(4)
-    T["xyz".index(axis), 3] = v
-    return T
 
 
 def rows_forward(rows: list[dict], q: np.ndarray) -> np.ndarray:
