@@ -1,0 +1,143 @@
+"""Calibration of trees: TALOS's two arms with the torso, several tools in one campaign."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from calib import DataError, InvalidArgumentError, Measurements, calibrate
+from calib.calibration.tree import TreeErrorModel, TreeState, calibrate_tree, register_tree
+from calib.catalog import resolve_urdf
+from calib.tree import load_tree
+from calib.tree_campaign import simulate_tree, true_points
+from calib.tree_export import calibrated_tree_urdf, tree_measurement_to_base
+from calib.tree_jacobian import tree_parameters
+from calib.tree_model import from_tree
+
+HANDS = ("wrist_left_ft_tool_link", "wrist_right_ft_tool_link")
+MARKERS = np.array([[0.05, 0.02, 0.1], [0.03, -0.02, 0.08]])
+
+
+@functools.cache
+def talos(tools=HANDS):
+    return load_tree(resolve_urdf("erd:talos_data/robots/talos_reduced.urdf"), "base_link", tools)
+
+
+def _held_out(state: TreeState, truth, q: np.ndarray) -> np.ndarray:
+    """Distance from the calibrated to the true point of every tool ``(m, T)`` [m]."""
+    pred = true_points(state.mdh, q, state.markers) @ state.frame[:3, :3].T + state.frame[:3, 3]
+    return np.linalg.norm(pred - true_points(truth.true_mdh, q, truth.markers), axis=2)
+
+
+def test_noise_free_two_arms_and_torso_recover_both_hands():
+    tree = talos()
+    camp = simulate_tree(tree, 40, markers=MARKERS, error_mm=2, error_mrad=3, seed=1)
+    res = calibrate_tree(tree, camp.measurements).check()
+    assert res.after.position_max < 1e-12
+    q = tree.random_configurations(100, 11)  # configurations the fit never saw
+    assert _held_out(res.state, camp, q).max() < 1e-9
+
+
+def test_noise_free_recovers_the_true_base_parameters():
+    """A truth that differs from the nominal tree along the base parameters only."""
+    tree = talos()
+    nominal = from_tree(tree)
+    first = calibrate_tree(tree, simulate_tree(tree, 40, markers=MARKERS, seed=2).measurements)
+    base = [n for n in first.names if n in tree_parameters(nominal, "complete").names]
+    pset = tree_parameters(nominal, "complete")
+    errors = np.zeros(len(pset))
+    rng = np.random.default_rng(5)
+    for name in base:
+        kind = pset.parameters[pset.index(name)].kind
+        errors[pset.index(name)] = rng.normal(0, 3e-3 if kind.is_rotation else 2e-3)
+    true_mdh = pset.apply(nominal, errors)
+    q = tree.random_configurations(40, 2)
+    points = true_points(true_mdh, q, MARKERS).reshape(-1, 3)
+    data = Measurements(tree.joint_names, np.repeat(q, 2, axis=0), points, tool=HANDS * len(q))
+    res = calibrate_tree(tree, data).check()
+    assert res.names[-len(base) :] == tuple(base)
+    assert np.allclose(res.estimate[-len(base) :], errors[[pset.index(n) for n in base]], atol=1e-8)
+    assert np.allclose(res.state.frame, np.eye(4), atol=1e-8)
+
+
+def test_with_noise_each_hand_is_better_than_calibrating_its_arm_alone():
+    tree = talos()
+    tree_err, arm_err = [], []
+    for seed in range(5):
+        camp = simulate_tree(tree, 30, markers=MARKERS, noise_mm=0.1, seed=seed)
+        q = tree.random_configurations(200, 100 + seed)
+        res = calibrate_tree(tree, camp.measurements)
+        tree_err.append(np.sqrt(np.mean(_held_out(res.state, camp, q) ** 2, axis=0)))
+        data, per_arm = camp.measurements, []
+        for t, chain in enumerate(tree.chains):
+            rows = np.array([name == HANDS[t] for name in data.tool])
+            arm = Measurements(
+                chain.joint_names, data.q[rows][:, tree.paths[t]], data.position[rows]
+            )
+            pts, _ = calibrate(chain, arm, params="complete").state.predict(q[:, tree.paths[t]])
+            truth = true_points(camp.true_mdh, q, camp.markers)[:, t]
+            per_arm.append(np.sqrt(np.mean(np.sum((pts[:, 0] - truth) ** 2, axis=1))))
+        arm_err.append(per_arm)
+    assert np.all(np.median(tree_err, axis=0) < np.median(arm_err, axis=0))
+
+
+def test_analytic_jacobian_matches_finite_differences():
+    tree = talos()
+    camp = simulate_tree(tree, 6, markers=MARKERS, error_mm=2, seed=3)
+    nominal = from_tree(tree)
+    pset = tree_parameters(nominal, "complete")
+    model = TreeErrorModel(pset, pset.names, 2)
+    start = register_tree(nominal, camp.measurements)
+    x = np.random.default_rng(0).normal(0, 1e-3, model.size())
+    J = model.jacobian(start, x, camp.measurements).reshape(-1, model.size())
+
+    def model_points(x):
+        return -model.apply(start, x).residuals(camp.measurements).ravel()
+
+    h = 1e-6
+    fd = np.stack(
+        [(model_points(x + h * e) - model_points(x - h * e)) / (2 * h) for e in np.eye(len(x))],
+        axis=1,
+    )
+    assert np.allclose(J, fd, atol=1e-7 * max(1.0, np.abs(fd).max()))
+
+
+@pytest.mark.parametrize(
+    "tools",
+    [HANDS, ("left_sole_link", "right_sole_link"), (*HANDS, "rgbd_link")],
+)
+def test_calibrated_urdf_moves_every_branch(tools, tmp_path):
+    """Reloaded in Pinocchio, the calibrated URDF gives the calibrated model of every tool."""
+    tree = talos(tools)
+    camp = simulate_tree(tree, 40, markers=[0.05, 0.02, 0.1], error_mm=2, error_mrad=3, seed=4)
+    res = calibrate_tree(tree, camp.measurements).check()
+    path = tmp_path / "cal.urdf"
+    path.write_bytes(calibrated_tree_urdf(tree, res.nominal, res.state.mdh))
+    reloaded = load_tree(path, "base_link", tools)
+    q = tree.random_configurations(30, 7)
+    base = tree_measurement_to_base(res.nominal, res.state.mdh)
+    assert np.allclose(base @ reloaded.tool_placements(q), res.state.mdh.forward(q), atol=1e-9)
+
+
+def test_far_measurement_frame_is_registered():
+    tree = talos()
+    camp = simulate_tree(tree, 30, markers=MARKERS, seed=6)
+    yaw = np.array([[np.cos(2.5), -np.sin(2.5), 0], [np.sin(2.5), np.cos(2.5), 0], [0, 0, 1]])
+    data = camp.measurements
+    moved = dataclasses.replace(data, position=data.position @ yaw.T + [3.0, -1.0, 0.5])
+    res = calibrate_tree(tree, moved).check()
+    assert res.after.position_max < 1e-9
+
+
+def test_bad_tree_data_is_a_one_line_error():
+    tree = talos()
+    data = simulate_tree(tree, 5, seed=0).measurements
+    with pytest.raises(DataError, match="'tool' column must name"):
+        calibrate_tree(tree, dataclasses.replace(data, tool=None))
+    with pytest.raises(InvalidArgumentError, match="choose frames, complete"):
+        calibrate_tree(tree, data, params="auto")
+    with pytest.raises(DataError, match="unknown tool 'head'"):
+        calibrate_tree(tree, dataclasses.replace(data, tool=("head",) * data.m))
