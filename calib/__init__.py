@@ -7,7 +7,8 @@ and ask :func:`analyze` which parameters can be identified. Then :func:`simulate
 
 A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func:`from_tree`
 (Khalil-Kleinfinger's tree notation), :func:`tree_parameters`, :func:`tree_jacobian`;
-:func:`analyze` takes a tree too.
+:func:`analyze` takes a tree too; :func:`simulate_tree`, :func:`calibrate_tree` and
+:func:`write_calibrated_tree_urdf` calibrate it from rows that name their tool.
 """
 
 from .calibration import (
@@ -16,6 +17,7 @@ from .calibration import (
     calibrate,
     residual_stats,
 )
+from .calibration.tree_pipeline import TreeCalibrationResult, calibrate_tree
 from .catalog import CatalogEntry, catalog
 from .exceptions import (
     AmbiguousFrameError,
@@ -47,6 +49,8 @@ from .measurements import (
 from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
 from .robot import Chain, load_chain
 from .tree import Tree, load_robot, load_tree
+from .tree_campaign import TreeCampaign, simulate_tree
+from .tree_export import calibrated_tree_urdf, write_calibrated_tree_urdf
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 from .tree_model import TreeMDH, from_tree
 from .urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
@@ -82,12 +86,16 @@ __all__ = [
     "RobotNotFoundError",
     "SimulationTruth",
     "Tree",
+    "TreeCalibrationResult",
+    "TreeCampaign",
     "TreeMDH",
     "URDFError",
     "UnsupportedJointError",
     "analyze",
     "analyze_model",
     "calibrate",
+    "calibrate_tree",
+    "calibrated_tree_urdf",
     "calibrated_urdf",
     "catalog",
     "complete_jacobian",
@@ -104,9 +112,11 @@ __all__ = [
     "read_measurements",
     "residual_stats",
     "simulate",
+    "simulate_tree",
     "tree_complete_jacobian",
     "tree_jacobian",
     "tree_parameters",
+    "write_calibrated_tree_urdf",
     "write_calibrated_urdf",
     "write_measurements",
 ]

@@ -230,7 +230,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    chain = load_chain(args.robot, args.base, args.tool)
+    chain = load_robot(args.robot, args.base, _tool(args))
+    if isinstance(chain, Tree):
+        return _simulate_tree(args, chain, out, truth_path)
     _check_outputs({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
     campaign = simulate(
         chain,
@@ -257,6 +259,42 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate_tree(args: argparse.Namespace, tree: Tree, out: Path, truth_path: Path) -> int:
+    """`simulate` with several tools: every tool at each configuration, a ``tool`` column."""
+    from .tree_campaign import simulate_tree
+
+    if args.measure != "position":
+        raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
+    _check_outputs({"--out": out, "--truth": truth_path}, {"the URDF": tree.urdf_path})
+    camp = simulate_tree(
+        tree,
+        args.configs,
+        args.marker,
+        args.error_mm,
+        args.error_mrad,
+        args.noise_mm,
+        args.seed,
+        args.params,
+    )
+    truth = {
+        "robot": tree.name,
+        "base_frame": tree.base_frame,
+        "tools": list(tree.tool_frames),
+        "params": camp.params.label,
+        "errors": dict(zip(camp.params.names, camp.errors.tolist(), strict=True)),
+        "markers": camp.markers.tolist(),
+        "seed": args.seed,
+    }
+    _write({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
+    print(
+        f"{tree.name}: {args.configs} configurations x {tree.n_tools} tools "
+        f"({', '.join(tree.tool_frames)}), {len(camp.params)} {camp.params.label} parameters "
+        f"perturbed ({args.error_mm:g} mm, {args.error_mrad:g} mrad), noise {args.noise_mm:g} mm"
+    )
+    print(f"wrote {out} and {truth_path}")
+    return 0
+
+
 def _weight(text: str) -> float | None:
     """``--orientation-weight``: a number [m/rad] or ``auto`` (None)."""
     if text == "auto":
@@ -276,7 +314,9 @@ def _columns(args: argparse.Namespace):
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report."""
-    chain = load_chain(args.robot, args.base, args.tool)
+    chain = load_robot(args.robot, args.base, _tool(args))
+    if isinstance(chain, Tree):
+        return _calibrate_tree(args, chain)
     out = Path(args.out)
     report = Path(args.report) if args.report else None
     inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
@@ -322,6 +362,64 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if report is not None:
         files[report] = text
     _write(files)
+    if not args.json:
+        print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
+    return 0
+
+
+CHAIN_ONLY = {
+    "fix": [],
+    "free": [],
+    "elastic": None,
+    "loss": "linear",
+    "noise_mm": None,
+    "orientation_weight": None,
+    "marker": None,
+    "units": "m",
+    "orientation": "auto",
+    "orientation_columns": None,
+}
+"""Options of `calibrate` a tree calibration does not take, at their defaults."""
+
+
+def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
+    """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
+    from .calibration.tree_pipeline import TREE_LEVELS, calibrate_tree
+    from .tree_export import calibrated_tree_urdf
+
+    given = [k for k, v in CHAIN_ONLY.items() if getattr(args, k) != v]
+    if given:
+        raise InvalidArgumentError(
+            f"--{given[0].replace('_', '-')} is for one chain; a tree is calibrated with "
+            f"--params {'|'.join(TREE_LEVELS)}, --validate, --holdout, --seed, --max-iterations"
+        )
+    level = "complete" if args.params == "auto" else args.params
+    out, report = Path(args.out), Path(args.report) if args.report else None
+    inputs = {"the nominal URDF": tree.urdf_path, "the data (--data)": args.data}
+    if args.validate:
+        inputs["the validation data (--validate)"] = args.validate
+    _check_outputs({"--out": out, "--report": report}, inputs)
+    data = read_measurements(args.data, tree)
+    check = read_measurements(args.validate, tree) if args.validate else None
+    result = calibrate_tree(
+        tree,
+        data,
+        level,
+        validate=check,
+        holdout=args.holdout,
+        seed=args.seed,
+        max_iterations=args.max_iterations,
+    )
+    text = json_text(result.to_dict())
+    print(text if args.json else result.text(), end="" if args.json else "\n")
+    files: dict[Path, str | bytes] = {} if report is None else {report: text}
+    if not result.accepted:
+        _write(files)
+        raise CalibrationRefusedError(
+            f"calibration refused: {result.refusal}: no URDF written"
+            + (f"; report written to {report}" if report is not None else "")
+        )
+    _write({out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh), **files})
     if not args.json:
         print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     return 0
@@ -460,7 +558,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
-    _add_chain_args(p)
+    _add_chain_args(p, trees=True)
     p.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
     p.add_argument(
         "--truth",
@@ -512,7 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
-    _add_chain_args(p)
+    _add_chain_args(p, trees=True)
     p.add_argument("--data", required=True, help="measurement CSV (joints, x y z or x1..zK, ...)")
     p.add_argument("--out", required=True, help="calibrated URDF to write")
     p.add_argument("--report", help="JSON report to write (also when the model is refused)")

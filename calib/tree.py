@@ -77,6 +77,14 @@ class Tree(JointCounts):
         return tuple(c.tool_frame for c in self.chains)
 
     @property
+    def continuous(self) -> np.ndarray:
+        """True for joints without limits (continuous joints), per tree joint."""
+        out = np.zeros(self.n, dtype=bool)
+        for chain, path in zip(self.chains, self.paths, strict=True):
+            out[path] = chain.continuous
+        return out
+
+    @property
     def n(self) -> int:
         """Number of joints of the tree (shared joints once)."""
         return len(self.joint_ids)

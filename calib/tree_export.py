@@ -72,9 +72,9 @@ def calibrated_tree_urdf(tree: Tree, nominal: TreeMDH, calibrated: TreeMDH) -> b
         CalibError: A tool frame is not carried by a fixed joint, or the file does not
             match the tree.
     """
-    if not isinstance(tree, Tree) or nominal.n != tree.n or calibrated.n != tree.n:
-        raise InvalidArgumentError("calibrated_tree_urdf takes a Tree and two models of it")
     moved = moved_frames(nominal, calibrated)
+    if not isinstance(tree, Tree) or nominal.n != tree.n or nominal.n_tools != tree.n_tools:
+        raise InvalidArgumentError("calibrated_tree_urdf takes a Tree and two models of it")
     base = tree_measurement_to_base(nominal, calibrated)
     raw, root = _read(tree.chains[0])
     start, stop = _xml_layout(raw, str(tree.urdf_path))

@@ -20,7 +20,8 @@ PSET = calib.paper_parameters(MDH)
 Q = np.zeros((4, 6))
 NAN_Q = np.array([[0, 0, np.nan, 0, 0, 0]] * 4)
 WRONG_Q = np.zeros((4, 5))
-TREE_MODEL = calib.from_tree(calib.load_tree("bolt"))  # 6 joints, 2 tools
+TREE = calib.load_tree("bolt")  # 6 joints, 2 tools
+TREE_MODEL = calib.from_tree(TREE)
 TREE_SET = calib.tree_parameters(TREE_MODEL)
 TREE_Q = np.zeros((4, 6))
 
@@ -108,6 +109,18 @@ def _cases():
         "residual_stats result": lambda: calib.residual_stats(None, None),
         "calibrate chain": lambda: calib.calibrate("ur5", None),
         "write_calibrated_urdf path": lambda: calib.write_calibrated_urdf(3.5, CHAIN, MDH, MDH),
+        "calibrate_tree chain": lambda: calib.calibrate_tree(CHAIN, None),
+        "calibrate_tree level": lambda: calib.calibrate_tree(TREE, None, "auto"),
+        "simulate_tree chain": lambda: calib.simulate_tree(CHAIN),
+        "simulate_tree markers": lambda: calib.simulate_tree(TREE, markers=[1, 2]),
+        "simulate_tree noise": lambda: calib.simulate_tree(TREE, noise_mm=-1),
+        "calibrated_tree_urdf models": lambda: calib.calibrated_tree_urdf(TREE, None, TREE_MODEL),
+        "calibrated_tree_urdf tree": lambda: calib.calibrated_tree_urdf(
+            CHAIN, TREE_MODEL, TREE_MODEL
+        ),
+        "write_calibrated_tree_urdf path": lambda: calib.write_calibrated_tree_urdf(
+            3.5, TREE, TREE_MODEL, TREE_MODEL
+        ),
     }
 
 

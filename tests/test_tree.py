@@ -323,24 +323,10 @@ def test_cli_analyze_catalog_tree_uses_its_tools(capsys):
     [
         (["analyze", "ur5", "--measure", "pose", "--measure", "position"], "--measure"),
         (["analyze", "ur5", "--base", "base_link", "--base", "tool0"], "--base"),
+        (["simulate", "ur5", "--out", "x.csv", "--seed", "1", "--seed", "2"], "--seed"),
         (
-            ["simulate", "ur5", "--out", "x.csv", "--tool", "tool0", "--tool", "wrist_3_link"],
-            "--tool",
-        ),
-        (
-            [
-                "calibrate",
-                "ur5",
-                "--data",
-                "d.csv",
-                "--out",
-                "o.urdf",
-                "--tool",
-                "a",
-                "--tool",
-                "b",
-            ],
-            "--tool",
+            ["calibrate", "ur5", "--data", "d", "--out", "o.urdf", "--base", "a", "--base", "b"],
+            "--base",
         ),
         (["analyze", "ur5", "--seed", "1", "--seed", "2"], "--seed"),
         (["analyze", "ur5", "--marker", "0", "0", "0", "--marker", "1", "1", "1"], "--marker"),

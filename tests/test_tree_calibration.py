@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 
 import numpy as np
 import pytest
 
 from calib import DataError, InvalidArgumentError, Measurements, calibrate
-from calib.calibration.tree import TreeErrorModel, TreeState, calibrate_tree, register_tree
+from calib.calibration.tree import TreeErrorModel, TreeState, register_tree
+from calib.calibration.tree_pipeline import calibrate_tree
 from calib.catalog import resolve_urdf
 from calib.tree import load_tree
 from calib.tree_campaign import simulate_tree, true_points
@@ -141,3 +143,38 @@ def test_bad_tree_data_is_a_one_line_error():
         calibrate_tree(tree, data, params="auto")
     with pytest.raises(DataError, match="unknown tool 'head'"):
         calibrate_tree(tree, dataclasses.replace(data, tool=("head",) * data.m))
+
+
+def test_cli_simulates_and_calibrates_a_tree(tmp_path, capsys):
+    from calib.cli import main
+
+    tools = ["--tool", HANDS[0], "--tool", HANDS[1], "--base", "base_link"]
+    data, out, report = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
+    sim = ["simulate", "talos", *tools, "--measure", "position", "--configs", "30"]
+    assert main([*sim, "--out", str(data), "--marker", "0.05", "0.02", "0.1"]) == 0
+    assert data.read_text().splitlines()[0].endswith(",tool")
+    cal = ["calibrate", "talos", *tools, "--data", str(data)]
+    assert main([*cal, "--out", str(out), "--report", str(report), "--json"]) == 0
+    rep = json.loads(report.read_text())
+    assert rep["accepted"] and rep["tools"] == list(HANDS)
+    assert rep["residuals"]["calibrated"]["position_max"] < 1e-9  # noise-free
+    tree = talos()
+    nominal = from_tree(tree)
+    reloaded = load_tree(out, "base_link", HANDS)
+    q = tree.random_configurations(20, 3)
+    base = np.array(rep["measurement_to_base"])  # measurement frame <- calibrated URDF base
+    truth = json.loads(data.with_suffix(".truth.json").read_text())
+    pset = tree_parameters(nominal, "complete")
+    true_mdh = pset.apply(nominal, np.array([truth["errors"][n] for n in pset.names]))
+    expected = true_points(true_mdh, q, np.array(truth["markers"]))
+    T = reloaded.tool_placements(q)
+    got = T[..., :3, 3] + np.einsum(
+        "mtij,tj->mti", T[..., :3, :3], np.array(list(rep["markers"].values()))
+    )
+    got = got @ base[:3, :3].T + base[:3, 3]
+    assert np.abs(got - expected).max() < 1e-9
+    capsys.readouterr()
+    assert main([*cal, "--out", str(tmp_path / "x.urdf"), "--loss", "huber"]) == 2
+    assert "--loss is for one chain" in capsys.readouterr().err
+    assert main([*sim[:-4], "--out", str(tmp_path / "p.csv")]) == 2
+    assert "add --measure position" in capsys.readouterr().err

@@ -18,25 +18,18 @@ every tool, and one marker per tool. Steps, as for a chain:
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import DataError, InvalidArgumentError
-from ..identifiability import independent_columns
 from ..jacobian import Measurement
-from ..measurements import Measurements, check_against_chain
+from ..measurements import Measurements
 from ..parameters import ParameterSet
 from ..so3 import left_jacobian, rotation_matrix, skew
-from ..tree import Tree
-from ..tree_jacobian import tree_jacobian, tree_parameters
-from ..tree_model import TreeMDH, from_tree
-from . import validation
+from ..tree_jacobian import tree_jacobian
+from ..tree_model import TreeMDH
 from .model import FRAME_NAMES
 from .registration import rigid_fit
-from .result import ResidualStats
-from .solve import Fit, covariance, fit
 
 TREE_LEVELS = ("frames", "complete")
 """Parameter levels of a tree calibration."""
@@ -204,189 +197,3 @@ def register_tree(nominal: TreeMDH, data: Measurements) -> TreeState:
             break
         markers = new
     return TreeState(nominal, frame, markers)
-
-
-@dataclass(frozen=True, eq=False)
-class ToolErrors:
-    """Errors of one tool's rows: registration and calibrated model."""
-
-    tool: str
-    registration: ResidualStats
-    calibrated: ResidualStats
-
-
-@dataclass(frozen=True, eq=False)
-class TreeCalibrationResult:
-    """Result of a tree calibration.
-
-    Attributes:
-        tree: The nominal tree (its URDF is what :mod:`calib.tree_export` edits).
-        level: ``frames`` or ``complete``.
-        names: Free parameters, in the order of ``estimate``.
-        nominal: The nominal tree model (URDF base frame).
-        registration: Nominal geometry with the fitted frame and markers.
-        state: The calibrated model.
-        estimate: Fitted changes from the registration [rad, m].
-        std: Their standard deviations (NaN where undefined).
-        before: Registration errors on the fitted rows.
-        after: Calibrated errors on the fitted rows.
-        per_tool: Errors on the fitted rows, per tool.
-        validation: Registration and calibrated errors on held-out rows, or None.
-        held_per_tool: Errors on held-out rows, per tool (empty without held-out rows).
-        converged: The fit converged.
-        refusal: Why the model must not be written (None: accepted).
-    """
-
-    tree: Tree
-    level: str
-    names: tuple[str, ...]
-    nominal: TreeMDH
-    registration: TreeState
-    state: TreeState
-    estimate: np.ndarray
-    std: np.ndarray
-    before: ResidualStats
-    after: ResidualStats
-    per_tool: tuple[ToolErrors, ...]
-    validation: tuple[ResidualStats, ResidualStats] | None
-    held_per_tool: tuple[ToolErrors, ...]
-    converged: bool
-    refusal: str | None
-
-    @property
-    def accepted(self) -> bool:
-        """True when every check passed: the calibrated model may be written."""
-        return self.refusal is None
-
-    def check(self) -> TreeCalibrationResult:
-        """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
-        from ..exceptions import CalibrationRefusedError
-
-        if self.refusal is not None:
-            raise CalibrationRefusedError(self.refusal)
-        return self
-
-
-def calibrate_tree(
-    tree: Tree,
-    data: Measurements,
-    params: str = "complete",
-    *,
-    validate: Measurements | None = None,
-    holdout: float = 0.0,
-    seed: int = 0,
-    max_iterations: int = 100,
-) -> TreeCalibrationResult:
-    """Calibrate a tree from measurements of several tools (one point per row and tool).
-
-    Args:
-        tree: The nominal tree (:func:`calib.tree.load_tree`).
-        data: Measurements whose ``tool`` names the tool of each row.
-        params: ``complete`` (frame, markers and the tree's base parameters) or ``frames``.
-        validate: Measurements of other configurations to score the result on.
-        holdout: Fraction of the rows set aside (seeded) when ``validate`` is not given.
-        seed: Seed of the holdout draw.
-        max_iterations: Most residual evaluations of each solver run.
-
-    Raises:
-        DataError: Data of other joints or tools, pose or several-point rows, too few rows.
-        InvalidArgumentError: A bad argument.
-    """
-    train, held = _tree_datasets(tree, data, params, validate, holdout, seed)
-    nominal = from_tree(tree)
-    frames = TreeErrorModel(ParameterSet("none", ()), (), nominal.n_tools)
-    reg = fit(
-        frames, register_tree(nominal, train), train, None, 1.0, max_iterations=max_iterations
-    )
-    if not reg.converged:
-        raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    model = _tree_model(nominal, reg.state, train) if params == "complete" else frames
-    fitted = fit(model, reg.state, train, None, 1.0, max_iterations=max_iterations)
-    return _tree_result(tree, params, train, held, fitted, reg.state)
-
-
-def _tree_datasets(tree, data, params, validate, holdout, seed):
-    if not isinstance(tree, Tree):
-        raise InvalidArgumentError(f"tree must be a Tree (see load_tree), got {tree!r:.60}")
-    if params not in TREE_LEVELS:
-        raise InvalidArgumentError(
-            f"unknown parameter level '{params}' for a tree: choose {', '.join(TREE_LEVELS)}"
-        )
-    for d in (data, validate):
-        if d is None:
-            continue
-        if not isinstance(d, Measurements):
-            raise InvalidArgumentError(f"data must be Measurements, got {type(d).__name__}")
-        check_against_chain(d, tree)
-        if d.quaternion is not None or d.n_markers != 1:
-            raise DataError(
-                d.source, "a tree is calibrated from one point per row (x, y, z and a tool)"
-            )
-    if validate is not None:
-        return data, validate
-    return validation.split(data, holdout, seed)
-
-
-def _tree_model(nominal: TreeMDH, reg: TreeState, data: Measurements) -> TreeErrorModel:
-    """Frame, markers and the base parameters of the complete set at the measured q."""
-    pset = tree_parameters(nominal, "complete")
-    wide = TreeErrorModel(pset, pset.names, nominal.n_tools)
-    ideal = dataclasses.replace(reg, mdh=nominal.idealized())
-    J = wide.jacobian(ideal, np.zeros(wide.size()), data).reshape(-1, wide.size())
-    fixed = wide.size() - len(pset)
-    _, _, kept, _ = independent_columns(J, list(range(J.shape[1])))
-    if len([k for k in kept if k < fixed]) < fixed:
-        raise DataError(data.source, "the rows do not determine the frame and every marker")
-    base = tuple(pset.names[k - fixed] for k in sorted(kept) if k >= fixed)
-    return dataclasses.replace(wide, base=base)
-
-
-def _per_tool(state_a, state_b, data, tools) -> tuple[ToolErrors, ...]:
-    out = []
-    for name in tools:
-        rows = np.array([t == name for t in data.tool]) if data.tool else np.ones(data.m, bool)
-        if np.any(rows):
-            sub = data.subset(rows)
-            out.append(
-                ToolErrors(
-                    name, validation.stats(state_a, sub, None), validation.stats(state_b, sub, None)
-                )
-            )
-    return tuple(out)
-
-
-def _tree_result(tree, level, train, held, fitted: Fit, reg: TreeState) -> TreeCalibrationResult:
-    cov, _ = covariance(fitted.J, float(fitted.f @ fitted.f))
-    before = validation.stats(reg, train, None)
-    after = validation.stats(fitted.state, train, None)
-    val = None
-    if held is not None:
-        val = (validation.stats(reg, held, None), validation.stats(fitted.state, held, None))
-    tools = fitted.state.mdh.tool_frames
-    reason = validation.refusal(
-        fitted.converged,
-        before,
-        after,
-        validation.full_rank(fitted.J),
-        val,
-        fitted.model.names(tools),
-    )
-    with np.errstate(invalid="ignore"):
-        std = np.sqrt(np.diag(cov)) if fitted.x.size else np.zeros(0)
-    return TreeCalibrationResult(
-        tree=tree,
-        level=level,
-        names=fitted.model.names(tools),
-        nominal=reg.mdh,
-        registration=reg,
-        state=fitted.state,
-        estimate=fitted.x,
-        std=std,
-        before=before,
-        after=after,
-        per_tool=_per_tool(reg, fitted.state, train, tools),
-        validation=val,
-        held_per_tool=() if held is None else _per_tool(reg, fitted.state, held, tools),
-        converged=fitted.converged,
-        refusal=reason,
-    )
