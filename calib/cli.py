@@ -40,7 +40,7 @@ from .measurements import (
     simulate,
 )
 from .parameters import PARAMETER_SETS
-from .report import analysis_text, format_table, mdh_table
+from .report import analysis_text, coupling_lines, format_table, mdh_table
 from .robot import load_chain
 from .urdf_export import calibrated_urdf, check_exportable
 
@@ -77,6 +77,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     """Print the MDH table of a chain."""
     chain = load_chain(args.robot, args.base, args.tool)
     mdh = from_chain(chain)
+    mimic = () if chain.coupling is None else chain.coupling.mimic
     if args.json:
         _print_json(
             {
@@ -85,11 +86,15 @@ def cmd_show(args: argparse.Namespace) -> int:
                 "tool": chain.tool_frame,
                 "urdf": str(chain.urdf_path),
                 "frames": mdh.rows(),
+                "variables": list(chain.variable_names),
+                "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
             }
         )
     else:
         print(f"{chain.name}: {chain.base_frame} -> {chain.tool_frame} ({chain.urdf_path})")
         print(mdh_table(mdh))
+        for line in coupling_lines(mimic):
+            print(line)
     return 0
 
 

@@ -16,6 +16,7 @@ from .checks import check_count, check_work, joint_positions
 from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import MDHModel, from_chain
+from .mimic import MimicJoint
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
 from .robot import Chain, load_chain
 
@@ -189,6 +190,9 @@ class Identifiability:
         snapped: URDF round-off removed before the analysis (by :func:`analyze`), one
             ``name: value -> snapped`` string per changed parameter.
         timings_ms: Time of each stage [ms].
+        mimic: The chain's mimic joints (set by :func:`analyze`): the offset of each one's
+            mimic expression, named ``offset<k>`` after its row k, is one parameter with its
+            joint offset (theta_k or r_k) and regroups with it.
     """
 
     robot: str
@@ -213,6 +217,7 @@ class Identifiability:
     warnings: tuple[str, ...]
     snapped: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
+    mimic: tuple[MimicJoint, ...] = ()
 
     @property
     def n_standard(self) -> int:
@@ -242,8 +247,12 @@ class Identifiability:
     def regrouping_coefficients(
         self, threshold: float = REGROUP_TOL
     ) -> dict[str, dict[str, float]]:
-        """Each base parameter's regrouped parameters and their coefficients (B's rows)."""
-        return {
+        """Each base parameter's regrouped parameters and their coefficients (B's rows).
+
+        A mimic joint's offset (``offset<k>``, see :attr:`mimic`) enters wherever its joint
+        offset does, with the same coefficient: their columns are equal.
+        """
+        out = {
             name: {
                 o: float(c)
                 for o, c in zip(self.others, self.B[i], strict=True)
@@ -251,6 +260,20 @@ class Identifiability:
             }
             for i, name in enumerate(self.base)
         }
+        for k, joint_offset in self.mimic_offsets().items():
+            for name, terms in out.items():
+                c = 1.0 if name == joint_offset else terms.get(joint_offset)
+                if c is not None:
+                    terms[f"offset{k}"] = c
+        return out
+
+    def mimic_offsets(self) -> dict[int, str]:
+        """The joint offset parameter (theta_k or r_k) of each mimic joint's row k."""
+        out = {}
+        for mj in self.mimic:
+            k = mj.joint + 1
+            out[k] = f"{'theta' if self.mdh.sigma[k] == 0 else 'r'}{k}"
+        return out
 
     @property
     def gap(self) -> tuple[float, float | None]:
@@ -263,14 +286,12 @@ class Identifiability:
     def regrouping(self, threshold: float = REGROUP_TOL) -> dict[str, str]:
         """Each base parameter as the expression it stands for, e.g. ``theta5 - 4.762 d6``."""
         out = {}
-        for i, name in enumerate(self.base):
+        for name, terms in self.regrouping_coefficients(threshold).items():
             expr = name
-            for j, other in enumerate(self.others):
-                c = float(self.B[i, j])
-                if abs(c) > threshold:
-                    sign = "-" if c < 0 else "+"
-                    coef = "" if abs(abs(c) - 1.0) < 1e-9 else f"{abs(c):.4g} "
-                    expr += f" {sign} {coef}{other}"
+            for other, c in terms.items():
+                sign = "-" if c < 0 else "+"
+                coef = "" if abs(abs(c) - 1.0) < 1e-9 else f"{abs(c):.4g} "
+                expr += f" {sign} {coef}{other}"
             out[name] = expr
         return out
 
@@ -318,6 +339,18 @@ class Identifiability:
             "warnings": list(self.warnings),
             "snapped": list(self.snapped),
             "timings_ms": dict(self.timings_ms),
+            "mimic": [
+                {
+                    "row": mj.joint + 1,
+                    "joint": mj.name,
+                    "master": mj.master,
+                    "multiplier": mj.multiplier,
+                    "offset": mj.offset,
+                    "offset_parameter": f"offset{mj.joint + 1}",
+                    "regroups_with": self.mimic_offsets()[mj.joint + 1],
+                }
+                for mj in self.mimic
+            ],
         }
 
 
@@ -621,7 +654,10 @@ def analyze(
     q = chain.random_configurations(int(configs), seed)
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
     timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
-    return dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
+    result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
+    if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
+        result = dataclasses.replace(result, n_theory=None, mimic=chain.coupling.mimic)
+    return result
 
 
 __all__ = ["Identifiability", "RankWarning", "analyze", "analyze_model"]
