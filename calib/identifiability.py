@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.linalg
 
+from . import qr
 from .checks import check_count, check_work, joint_positions
 from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
@@ -54,14 +54,12 @@ def numerical_rank(diag: np.ndarray, n_rows: int) -> tuple[int, float]:
 
 def _triangular(W: np.ndarray) -> np.ndarray:
     """R factor of a tall W (min(r, c) x c): column norms and angles of W, cheaply."""
-    return np.linalg.qr(W, mode="r")
+    return qr.triangular(W)
 
 
 def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
     """|R_ii| of the QR decomposition with column pivoting of W (non-increasing)."""
-    R = _triangular(W)
-    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
-    return np.abs(np.diag(Rp))
+    return qr.pivoted_diagonal(_triangular(W))
 
 
 def preference(mdh: MDHModel, p: Parameter) -> int:
@@ -375,8 +373,8 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
     idx = list(order)
     M = R[:, idx]
     while idx and M.shape[0] > 0:
-        T = np.linalg.qr(M, mode="r")
-        d = np.abs(np.diag(T))
+        T = qr.householder(M)  # R on and above the diagonal, the reflectors below it
+        d = np.abs(T.diagonal())
         small = np.flatnonzero(d <= tau)
         j = int(small[0]) if small.size else len(d)
         kept += idx[:j]
@@ -385,7 +383,7 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
         # Column j depends on the kept ones; the rows j.. of the columns after it hold their
         # components orthogonal to the kept columns.
         idx = idx[j + 1 :]
-        M = T[j:, j + 1 :]
+        M = qr.upper(T[j:, j + 1 :], -1)  # R's part of that block (it starts below the diagonal)
     return kept
 
 
@@ -417,8 +415,7 @@ def independent_columns(
             "the observation matrix has non-finite entries: check the marker and the configurations"
         )
     R = _triangular(W)
-    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
-    diag = np.abs(np.diag(Rp))
+    diag = qr.pivoted_diagonal(R)
     rank, tau = numerical_rank(diag, W.shape[0])
     # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
     # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
@@ -447,10 +444,11 @@ def identify_base(
         column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
     """
     diag, tau, kept, R = independent_columns(W, preference_order(mdh, params))
-    others = [i for i in range(len(params)) if i not in kept]
-    Rk = np.linalg.qr(R[:, kept + others], mode="r")
+    chosen = set(kept)
+    others = [i for i in range(len(params)) if i not in chosen]
+    Rk = qr.triangular(R[:, kept + others])
     b = len(kept)
-    B = scipy.linalg.solve_triangular(Rk[:b, :b], Rk[:b, b:], check_finite=False)
+    B = qr.solve_upper(Rk[:b, :b], Rk[:b, b:])
     return diag, tau, kept, others, B
 
 
