@@ -40,7 +40,7 @@ from .measurements import (
     simulate,
 )
 from .parameters import PARAMETER_SETS
-from .report import analysis_text, format_table, mdh_table, tree_table
+from .report import analysis_text, coupling_lines, format_table, mdh_table, tree_table
 from .robot import load_chain
 from .tree import Tree, load_robot
 from .tree_model import from_tree
@@ -107,6 +107,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     if isinstance(chain, Tree):
         return _show_tree(chain, args.json)
     mdh = from_chain(chain)
+    mimic = () if chain.coupling is None else chain.coupling.mimic
     if args.json:
         _print_json(
             {
@@ -115,11 +116,15 @@ def cmd_show(args: argparse.Namespace) -> int:
                 "tool": chain.tool_frame,
                 "urdf": str(chain.urdf_path),
                 "frames": mdh.rows(),
+                "variables": list(chain.variable_names),
+                "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
             }
         )
     else:
         print(f"{chain.name}: {chain.base_frame} -> {chain.tool_frame} ({chain.urdf_path})")
         print(mdh_table(mdh))
+        for line in coupling_lines(mimic):
+            print(line)
     return 0
 
 

@@ -12,12 +12,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.linalg
 
+from . import qr
 from .checks import check_count, check_work, joint_positions
 from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import MDHModel, from_chain
+from .mimic import MimicJoint
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
 from .robot import Chain
 from .tree import Tree, load_robot
@@ -58,14 +59,12 @@ def numerical_rank(diag: np.ndarray, n_rows: int) -> tuple[int, float]:
 
 def _triangular(W: np.ndarray) -> np.ndarray:
     """R factor of a tall W (min(r, c) x c): column norms and angles of W, cheaply."""
-    return np.linalg.qr(W, mode="r")
+    return qr.triangular(W)
 
 
 def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
     """|R_ii| of the QR decomposition with column pivoting of W (non-increasing)."""
-    R = _triangular(W)
-    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
-    return np.abs(np.diag(Rp))
+    return qr.pivoted_diagonal(_triangular(W))
 
 
 def preference(mdh: MDHModel | TreeMDH, p: Parameter) -> int:
@@ -246,6 +245,9 @@ class Identifiability:
         snapped: URDF round-off removed before the analysis (by :func:`analyze`), one
             ``name: value -> snapped`` string per changed parameter.
         timings_ms: Time of each stage [ms].
+        mimic: The chain's mimic joints (set by :func:`analyze`): the offset of each one's
+            mimic expression, named ``offset<k>`` after its row k, is one parameter with its
+            joint offset (theta_k or r_k) and regroups with it.
     """
 
     robot: str
@@ -271,6 +273,7 @@ class Identifiability:
     snapped: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
     per_tool: tuple[tuple[str, int | None], ...] = ()
+    mimic: tuple[MimicJoint, ...] = ()
 
     @property
     def n_standard(self) -> int:
@@ -305,8 +308,12 @@ class Identifiability:
     def regrouping_coefficients(
         self, threshold: float = REGROUP_TOL
     ) -> dict[str, dict[str, float]]:
-        """Each base parameter's regrouped parameters and their coefficients (B's rows)."""
-        return {
+        """Each base parameter's regrouped parameters and their coefficients (B's rows).
+
+        A mimic joint's offset (``offset<k>``, see :attr:`mimic`) enters wherever its joint
+        offset does, with the same coefficient: their columns are equal.
+        """
+        out = {
             name: {
                 o: float(c)
                 for o, c in zip(self.others, self.B[i], strict=True)
@@ -314,6 +321,20 @@ class Identifiability:
             }
             for i, name in enumerate(self.base)
         }
+        for k, joint_offset in self.mimic_offsets().items():
+            for name, terms in out.items():
+                c = 1.0 if name == joint_offset else terms.get(joint_offset)
+                if c is not None:
+                    terms[f"offset{k}"] = c
+        return out
+
+    def mimic_offsets(self) -> dict[int, str]:
+        """The joint offset parameter (theta_k or r_k) of each mimic joint's row k."""
+        out = {}
+        for mj in self.mimic:
+            k = mj.joint + 1
+            out[k] = f"{'theta' if self.mdh.sigma[k] == 0 else 'r'}{k}"
+        return out
 
     @property
     def gap(self) -> tuple[float, float | None]:
@@ -326,14 +347,12 @@ class Identifiability:
     def regrouping(self, threshold: float = REGROUP_TOL) -> dict[str, str]:
         """Each base parameter as the expression it stands for, e.g. ``theta5 - 4.762 d6``."""
         out = {}
-        for i, name in enumerate(self.base):
+        for name, terms in self.regrouping_coefficients(threshold).items():
             expr = name
-            for j, other in enumerate(self.others):
-                c = float(self.B[i, j])
-                if abs(c) > threshold:
-                    sign = "-" if c < 0 else "+"
-                    coef = "" if abs(abs(c) - 1.0) < 1e-9 else f"{abs(c):.4g} "
-                    expr += f" {sign} {coef}{other}"
+            for other, c in terms.items():
+                sign = "-" if c < 0 else "+"
+                coef = "" if abs(abs(c) - 1.0) < 1e-9 else f"{abs(c):.4g} "
+                expr += f" {sign} {coef}{other}"
             out[name] = expr
         return out
 
@@ -383,6 +402,18 @@ class Identifiability:
             "warnings": list(self.warnings),
             "snapped": list(self.snapped),
             "timings_ms": dict(self.timings_ms),
+            "mimic": [
+                {
+                    "row": mj.joint + 1,
+                    "joint": mj.name,
+                    "master": mj.master,
+                    "multiplier": mj.multiplier,
+                    "offset": mj.offset,
+                    "offset_parameter": f"offset{mj.joint + 1}",
+                    "regroups_with": self.mimic_offsets()[mj.joint + 1],
+                }
+                for mj in self.mimic
+            ],
         }
 
 
@@ -407,8 +438,8 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
     idx = list(order)
     M = R[:, idx]
     while idx and M.shape[0] > 0:
-        T = np.linalg.qr(M, mode="r")
-        d = np.abs(np.diag(T))
+        T = qr.householder(M)  # R on and above the diagonal, the reflectors below it
+        d = np.abs(T.diagonal())
         small = np.flatnonzero(d <= tau)
         j = int(small[0]) if small.size else len(d)
         kept += idx[:j]
@@ -417,7 +448,7 @@ def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]
         # Column j depends on the kept ones; the rows j.. of the columns after it hold their
         # components orthogonal to the kept columns.
         idx = idx[j + 1 :]
-        M = T[j:, j + 1 :]
+        M = qr.upper(T[j:, j + 1 :], -1)  # R's part of that block (it starts below the diagonal)
     return kept
 
 
@@ -450,8 +481,7 @@ def independent_columns(
             "the observation matrix has non-finite entries: check the marker and the configurations"
         )
     R = _triangular(W)
-    Rp, _ = scipy.linalg.qr(R, mode="r", pivoting=True, check_finite=False)
-    diag = np.abs(np.diag(Rp))
+    diag = qr.pivoted_diagonal(R)
     rank, tau = numerical_rank(diag, W.shape[0] if n_rows is None else n_rows)
     # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
     # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
@@ -481,10 +511,11 @@ def identify_base(
         column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
     """
     diag, tau, kept, R = independent_columns(W, preference_order(mdh, params), n_rows)
-    others = [i for i in range(len(params)) if i not in kept]
-    Rk = np.linalg.qr(R[:, kept + others], mode="r")
+    chosen = set(kept)
+    others = [i for i in range(len(params)) if i not in chosen]
+    Rk = qr.triangular(R[:, kept + others])
     b = len(kept)
-    B = scipy.linalg.solve_triangular(Rk[:b, :b], Rk[:b, b:], check_finite=False)
+    B = qr.solve_upper(Rk[:b, :b], Rk[:b, b:])
     return diag, tau, kept, others, B
 
 
@@ -721,7 +752,10 @@ def analyze(
     q = chain.random_configurations(int(configs), seed)
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
     timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
-    return dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
+    result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
+    if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
+        result = dataclasses.replace(result, n_theory=None, mimic=chain.coupling.mimic)
+    return result
 
 
 __all__ = ["Identifiability", "RankWarning", "analyze", "analyze_model"]

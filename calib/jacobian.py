@@ -131,26 +131,32 @@ def identification_jacobian(
     if kin is None:
         kin = mdh.kinematics(q)
     plan = params.layout
-    m, k = kin.p.shape[0], len(params)
-    axes = np.empty((m, k, 3))
+    m, k, frames = kin.p.shape[0], len(params), kin.p.shape[1]
+    # One gather per kind of vector: the sources side by side, indexed by source and row.
+    index = np.empty(k, dtype=int)
     for src, cols, rows in plan.axes:
-        axes[:, cols] = (kin.y_prev, kin.x_mid, kin.R[:, :, :, 2])[src][:, rows]
-    J = np.zeros((m, 6, k))
-    J[:, :3, :] = np.swapaxes(axes, 1, 2)
+        index[cols] = src * frames + rows
+    axes = np.concatenate([kin.y_prev, kin.x_mid, kin.R[:, :, :, 2]], axis=1)[:, index]
+    out = np.empty((m, len(measurement.rows), k))  # only the rows measured
     rot = plan.rotations
     if rot.size:
         E = measured_point(kin, measurement.marker_array)
-        L = np.empty((m, rot.size, 3))
+        index = np.empty(rot.size, dtype=int)
         for src, cols, rows in plan.points:
-            L[:, cols] = E[:, None, :] - (kin.q_mid, kin.p)[src][:, rows]
+            index[cols] = src * frames + rows
+        L = E[:, None, :] - np.concatenate([kin.q_mid, kin.p], axis=1)[:, index]
         a = axes[:, rot]
-        J[:, 0, rot] = a[:, :, 1] * L[:, :, 2] - a[:, :, 2] * L[:, :, 1]
-        J[:, 1, rot] = a[:, :, 2] * L[:, :, 0] - a[:, :, 0] * L[:, :, 2]
-        J[:, 2, rot] = a[:, :, 0] * L[:, :, 1] - a[:, :, 1] * L[:, :, 0]
-        J[:, 3:, rot] = np.swapaxes(a, 1, 2)
-    if measurement.rows != (0, 1, 2, 3, 4, 5):
-        J = J[:, list(measurement.rows)]
-    return J.reshape(-1, k)
+    for i, row in enumerate(measurement.rows):
+        if row < 3:  # a translation moves the point along its axis; a rotation: axis x L
+            out[:, i] = axes[:, :, row]
+            if rot.size:
+                c1, c2 = (row + 1) % 3, (row + 2) % 3
+                out[:, i, rot] = a[:, :, c1] * L[:, :, c2] - a[:, :, c2] * L[:, :, c1]
+        else:  # orientation rows: a rotation turns the tool about its axis
+            out[:, i] = 0.0
+            if rot.size:
+                out[:, i, rot] = a[:, :, row - 3]
+    return out.reshape(-1, k)
 
 
 def complete_jacobian(

@@ -235,7 +235,7 @@ class MDHModel:
         q_mid = np.zeros((m, rows, 3))
         R_prev = np.broadcast_to(np.eye(3), (m, 3, 3))
         for k in range(rows):
-            A = R_prev @ self._pre[k]
+            A = (R_prev.reshape(-1, 3) @ self._pre[k]).reshape(m, 3, 3)  # one matrix product
             a0, a1, a2 = A[:, :, 0], A[:, :, 1], A[:, :, 2]
             c, sn = C[:, k], S[:, k]
             R[:, k, :, 0] = c * a0 + sn * a1

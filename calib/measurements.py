@@ -3,7 +3,10 @@
 CSV format (one header line, then one row per configuration; comma separated):
 
 * one column per joint of the chain, named as the URDF joint, holding the URDF joint
-  position [rad for revolute and continuous joints, m for prismatic ones];
+  position [rad for revolute and continuous joints, m for prismatic ones]; a chain with
+  mimic joints has one column per *independent* joint (:attr:`Chain.variable_names`: a
+  mimic joint's position is computed from its master's, whose column it needs, in the
+  chain or not);
 * ``x, y, z``: the measured point in the measurement frame [m], each within
   ``MAX_COORDINATE`` (1 km) of its origin;
 * for pose measurements also ``qx, qy, qz, qw``: the orientation of the tool frame in the
@@ -43,6 +46,7 @@ from .fileio import write_atomic
 from .identifiability import Identifiability, analyze_model
 from .jacobian import Measurement, measured_point
 from .mdh import MDHModel, from_chain
+from .mimic import Coupling
 from .parameters import ParameterSet, parameter_set
 from .robot import Chain
 from .so3 import matrix_to_quaternion, quaternion_to_matrix, rotation_matrix, rpy_to_matrix
@@ -136,6 +140,8 @@ class Measurements:
         rows: Row of each configuration in the source file (the header is row 1), or None.
         tool: The tool frame each row measures (the CSV's ``tool`` column), or None: the
             only tool.
+        coupling: The chain's mimic relation, or None: the CSV then holds the independent
+            joints (``coupling.names``) and ``q`` follows from them.
     """
 
     joint_names: tuple[str, ...]
@@ -145,6 +151,7 @@ class Measurements:
     source: str = "<measurements>"
     rows: tuple[int, ...] | None = None
     tool: tuple[str, ...] | None = None
+    coupling: Coupling | None = None
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -232,7 +239,14 @@ class Measurements:
         rows = tuple(self.row_of(int(i)) for i in index)
         tool = None if self.tool is None else tuple(self.tool[int(i)] for i in index)
         return Measurements(
-            self.joint_names, self.q[index], self.position[index], quat, self.source, rows, tool
+            self.joint_names,
+            self.q[index],
+            self.position[index],
+            quat,
+            self.source,
+            rows,
+            tool,
+            self.coupling,
         )
 
     @property
@@ -241,9 +255,14 @@ class Measurements:
         return () if self.tool is None else tuple(dict.fromkeys(self.tool))
 
     @property
+    def joint_columns(self) -> tuple[str, ...]:
+        """Names of the joint columns: the joints, or the independent ones (mimic joints)."""
+        return self.joint_names if self.coupling is None else self.coupling.names
+
+    @property
     def position_columns(self) -> tuple[str, ...]:
         """Names of the position columns: ``x, y, z`` or ``x1, y1, z1, ..., zK``."""
-        if self.n_markers == 1 and not set(POSITION_COLUMNS) & set(self.joint_names):
+        if self.n_markers == 1 and not set(POSITION_COLUMNS) & set(self.joint_columns):
             return POSITION_COLUMNS
         return tuple(f"{a}{k + 1}" for k in range(self.n_markers) for a in POSITION_COLUMNS)
 
@@ -252,11 +271,12 @@ class Measurements:
         """CSV header of this data (the ``tool`` column last, if rows name their tool)."""
         quat = QUATERNION_COLUMNS if self.quaternion is not None else ()
         tool = (TOOL_COLUMN,) if self.tool is not None else ()
-        return (*self.joint_names, *self.position_columns, *quat, *tool)
+        return (*self.joint_columns, *self.position_columns, *quat, *tool)
 
     def table(self) -> np.ndarray:
         """The values in the order of :attr:`columns`, ``(m, len(columns))``."""
-        parts = [self.q, self.position]
+        q = self.q if self.coupling is None else self.coupling.variables(self.q)
+        parts = [q, self.position]
         if self.quaternion is not None:
             parts.append(self.quaternion)
         return np.hstack(parts)
@@ -324,6 +344,8 @@ def _check_limits(
     lower, upper = joint_bounds(chain)
     margin = np.where(chain.sigma == 1, LIMIT_MARGIN[1], LIMIT_MARGIN[0])
     past = np.maximum(lower - q, q - upper)
+    if chain.coupling is not None:  # a mimic joint's position is computed, not read
+        past[:, [mj.joint for mj in chain.coupling.mimic]] = -np.inf
     far = past > margin + LIMIT_TOL
     if np.any(far):
         i, k = (int(v) for v in np.argwhere(far)[0])
@@ -390,7 +412,7 @@ class Columns:
 
 def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: int):
     """Position columns (K triples) and the orientation format and columns of a header."""
-    joints = set(chain.joint_names)
+    joints = set(chain.variable_names)
     free = [n for n in names if n not in joints]
     if all(f"{a}1" in free for a in POSITION_COLUMNS):
         k = 1
@@ -455,11 +477,11 @@ def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: in
         if name in seen:
             raise DataError(src, "duplicate column", row=line, column=name)
         seen.add(name)
-    for name in chain.joint_names:
+    for name in chain.variable_names:
         if name not in seen:
             raise DataError(src, "missing joint column", row=line, column=name)
     pos, fmt, ori = _layout(names, chain, columns, src, line)
-    used = {*chain.joint_names, *pos, *ori, TOOL_COLUMN}
+    used = {*chain.variable_names, *pos, *ori, TOOL_COLUMN}
     ignored = [n for n in names if n not in used]
     if ignored:
         warnings.warn(
@@ -549,7 +571,7 @@ def parse_measurements(
         names = header[0]
         if len(cells) != len(names):
             raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=line)
-        used = {*chain.joint_names, *header[1], *header[3]}
+        used = {*chain.variable_names, *header[1], *header[3]}
         if TOOL_COLUMN in names and TOOL_COLUMN not in chain.joint_names:
             tool = cells[names.index(TOOL_COLUMN)].strip()
             if not tool:
@@ -569,7 +591,7 @@ def parse_measurements(
     names, pos_cols, fmt, ori_cols = header
     table = np.array(values)
     col = {n: j for j, n in enumerate(names)}
-    q = table[:, [col[n] for n in chain.joint_names]]
+    q = chain.joint_values(table[:, [col[n] for n in chain.variable_names]])
     _check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     far = np.abs(position) > MAX_COORDINATE
@@ -588,7 +610,14 @@ def parse_measurements(
     elif fmt is not None:
         quat = _orientation(table[:, [col[n] for n in ori_cols]], fmt, source, lines)
     data = Measurements(
-        chain.joint_names, q, position, quat, source, tuple(lines), tuple(tools) or None
+        chain.joint_names,
+        q,
+        position,
+        quat,
+        source,
+        tuple(lines),
+        tuple(tools) or None,
+        chain.coupling,
     )
     _check_tools(data, tool_frames(chain))
     return data
@@ -818,7 +847,14 @@ def simulate(
     others = errors[[index[n] for n in analysis.others]]
     base_values = kept + analysis.B @ others if others.size else kept
 
-    data = Measurements(chain.joint_names, q, position, quat, f"<simulated {chain.name}>")
+    data = Measurements(
+        chain.joint_names,
+        q,
+        position,
+        quat,
+        f"<simulated {chain.name}>",
+        coupling=chain.coupling,
+    )
     truth = SimulationTruth(
         robot=chain.name,
         base_frame=chain.base_frame,

@@ -6,6 +6,7 @@ import math
 
 from .identifiability import Identifiability
 from .mdh import MDHModel
+from .mimic import MimicJoint
 from .parameters import Kind
 from .tree_model import TreeMDH
 
@@ -133,6 +134,7 @@ def analysis_text(res: Identifiability) -> str:
     ]
     if res.snapped:
         lines.append(f"URDF round-off removed before the analysis: {'; '.join(res.snapped)}")
+    lines += mimic_lines(res)
     if res.zero:
         lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
     if res.missing:
@@ -169,6 +171,38 @@ def tree_theory_lines(res: Identifiability) -> list[str]:
             f"prismatic joint), once in the tree"
         )
     return lines
+
+
+def mimic_expression(mj: MimicJoint) -> str:
+    """``joint3 = -1 joint2 + 0.1``: how a mimic joint follows its master."""
+    sign = "-" if mj.offset < 0 else "+"
+    return f"{mj.name} = {mj.multiplier:g} {mj.master} {sign} {abs(mj.offset):g}"
+
+
+def coupling_lines(mimic: tuple[MimicJoint, ...]) -> list[str]:
+    """The mimic joints of a chain, one line each (none for a chain without them)."""
+    if not mimic:
+        return []
+    return [
+        "coupled joints (URDF <mimic>): their positions are computed, q_k of row k:",
+        *(f"  row {mj.joint + 1}: {mimic_expression(mj)}" for mj in mimic),
+    ]
+
+
+def mimic_lines(res: Identifiability) -> list[str]:
+    """What the analysis says about coupled joints (none for a chain without mimic joints)."""
+    if not res.mimic:
+        return []
+    out = [
+        "coupled joints (URDF <mimic>; the theory is for independent joints): the offset of "
+        "each mimic expression and the joint offset of its row are one parameter"
+    ]
+    offsets = res.mimic_offsets()
+    for mj in res.mimic:
+        k = mj.joint + 1
+        with_ = f"no effect, as {offsets[k]}" if offsets[k] in res.zero else offsets[k]
+        out.append(f"  offset{k} of {mimic_expression(mj)}: with {with_}")
+    return out
 
 
 def _axes_note(res: Identifiability) -> str:

@@ -20,6 +20,7 @@ from .exceptions import (
     InvalidArgumentError,
     UnsupportedJointError,
 )
+from .mimic import Coupling, chain_coupling
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 
@@ -220,6 +221,8 @@ class Chain(JointCounts):
         q_ref: Pinocchio configuration of the joints outside the chain.
         ideal_model: The same model built from the URDF with round-off removed (see
             :meth:`idealized`), or None.
+        coupling: How mimic joints follow the independent joints (:mod:`calib.mimic`), or
+            None when no chain joint has a ``<mimic>`` tag.
     """
 
     name: str
@@ -237,6 +240,7 @@ class Chain(JointCounts):
     upper: np.ndarray
     q_ref: np.ndarray
     ideal_model: pin.Model | None = field(default=None, repr=False)
+    coupling: Coupling | None = field(default=None, repr=False)
 
     def idealized(self) -> Chain:
         """The chain on its URDF with round-off removed, for structural analysis.
@@ -279,6 +283,8 @@ class Chain(JointCounts):
     def random_configurations(self, m: int, seed: int) -> np.ndarray:
         """Draw ``m`` configurations uniformly inside the joint limits (continuous: full turn).
 
+        With mimic joints, the independent joints are drawn and the mimic joints follow.
+
         Args:
             m: Number of configurations.
             seed: Seed of the random generator.
@@ -294,7 +300,24 @@ class Chain(JointCounts):
         check_count(seed, "the seed", minimum=0)
         check_work(int(m), self.n)
         rng = np.random.default_rng(int(seed))
-        return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
+        if self.coupling is None:
+            return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
+        lo, hi = self.coupling.lower, self.coupling.upper
+        return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
+
+    @property
+    def variable_names(self) -> tuple[str, ...]:
+        """The independent joints: a configuration is given for these (see :mod:`calib.mimic`).
+
+        The chain's joints, less its mimic joints, plus the masters of those outside the chain.
+        """
+        return self.joint_names if self.coupling is None else self.coupling.names
+
+    def joint_values(self, variables: np.ndarray) -> np.ndarray:
+        """Positions of the chain joints ``(m, n)`` from the independent joints' ``(m, v)``."""
+        if self.coupling is None:
+            return self.check_configurations(variables)
+        return self.coupling.joint_values(variables)
 
     def gravity_torques(self, q: np.ndarray) -> np.ndarray:
         """Gravity torque each chain joint carries ``(m, n)`` [N m or N] (URDF masses).
@@ -433,18 +456,20 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
         kind = _joint_kind(short)
         if kind is None or joint.nv != 1:
             raise UnsupportedJointError(jname, _describe_joint(short))
-        if jname in info.mimic_joints:
-            raise UnsupportedJointError(jname, "a mimic joint")
         sigma.append(1 if kind == "prismatic" else 0)
-        unbounded = joint.nq == 2
-        lo = -math.pi if unbounded else float(model.lowerPositionLimit[joint.idx_q])
-        hi = math.pi if unbounded else float(model.upperPositionLimit[joint.idx_q])
-        if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-            half = DEFAULT_PRISMATIC_RANGE if kind == "prismatic" else math.pi
-            lo, hi = -half, half
-        cont.append(unbounded)
+        cont.append(joint.nq == 2)
+        lo, hi = _sampling_bounds(model, jid)
         lower.append(lo)
         upper.append(hi)
+    joint_names = tuple(model.names[j] for j in joint_ids)
+    coupling = None
+    if info.mimic_joints & set(joint_names):
+        bounds = {
+            model.names[j]: _sampling_bounds(model, j)
+            for j in range(1, model.njoints)
+            if _joint_kind(model.joints[j].shortname()) and model.joints[j].nv == 1
+        }
+        coupling = chain_coupling(info, joint_names, bounds)
     return Chain(
         name=name,
         urdf_path=path,
@@ -454,13 +479,14 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
         base_id=base_id,
         tool_id=tool_id,
         joint_ids=joint_ids,
-        joint_names=tuple(model.names[j] for j in joint_ids),
+        joint_names=joint_names,
         sigma=_frozen(np.array(sigma, dtype=int)),
         continuous=_frozen(np.array(cont, dtype=bool)),
         lower=_frozen(np.array(lower)),
         upper=_frozen(np.array(upper)),
         q_ref=_frozen(pin.neutral(model)),
         ideal_model=robot.ideal_model,
+        coupling=coupling,
     )
 
 
@@ -481,6 +507,20 @@ def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
         return path.stem, path, None
     entry = catalog_entry(text)
     return entry.name, entry.path, entry
+
+
+def _sampling_bounds(model: pin.Model, jid: int) -> tuple[float, float]:
+    """Sampling bounds of a 1-DOF joint [rad or m]: its limits, else a default range."""
+    joint = model.joints[jid]
+    if joint.nq == 2:  # continuous
+        return -math.pi, math.pi
+    lo = float(model.lowerPositionLimit[joint.idx_q])
+    hi = float(model.upperPositionLimit[joint.idx_q])
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        prismatic = _joint_kind(joint.shortname()) == "prismatic"
+        half = DEFAULT_PRISMATIC_RANGE if prismatic else math.pi
+        return -half, half
+    return lo, hi
 
 
 def load_chain(robot: str | Path, base: str | None = None, tool: str | None = None) -> Chain:

@@ -88,6 +88,8 @@ def sweep_one(
     missing = full.n_complete - (paper if params == "paper" else full).n_base
     on_axes = full.on_axes if measurement.rows == (0, 1, 2) else ()
     notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
+    if full.mimic:  # the formula is for independent joints
+        notes.append(f"{len(full.mimic)} coupled (mimic) joint(s): no theory")
     notes += list(dict.fromkeys(paper.warnings + full.warnings))
     return SweepRow(
         robot=str(robot),

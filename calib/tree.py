@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from .checks import check_count, check_work, joint_positions
-from .exceptions import InvalidArgumentError
+from .exceptions import ChainError, InvalidArgumentError
 from .robot import (
     Chain,
     JointCounts,
@@ -75,6 +75,20 @@ class Tree(JointCounts):
     def tool_frames(self) -> tuple[str, ...]:
         """Names of the tool frames, in tool order."""
         return tuple(c.tool_frame for c in self.chains)
+
+    @property
+    def coupling(self) -> None:
+        """Trees have no coupled (mimic) joints: every joint is independent."""
+        return None
+
+    @property
+    def variable_names(self) -> tuple[str, ...]:
+        """Names of the independent joints: every joint of the tree."""
+        return self.joint_names
+
+    def joint_values(self, variables: np.ndarray) -> np.ndarray:
+        """Joint positions from the independent ones: the same (no coupled joints)."""
+        return np.asarray(variables, dtype=float)
 
     @property
     def continuous(self) -> np.ndarray:
@@ -144,6 +158,11 @@ def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
             raise InvalidArgumentError(f"tool frame '{c.tool_frame}' is given twice")
         if c.base_id != chains[0].base_id:
             raise InvalidArgumentError("the chains of a tree start from one base frame")
+        if c.coupling is not None:
+            raise ChainError(
+                f"joint '{c.coupling.mimic[0].name}' on the way to '{c.tool_frame}' is a mimic "
+                f"joint: coupled joints are supported in one chain, not yet in a tree"
+            )
     joint_ids = tuple(sorted({j for c in chains for j in c.joint_ids}))
     index = {j: i for i, j in enumerate(joint_ids)}
     model = chains[0].model

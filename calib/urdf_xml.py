@@ -58,6 +58,22 @@ _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
 
 @dataclass(frozen=True)
+class URDFMimic:
+    """A ``<mimic>`` tag: the joint's position is ``multiplier * q[joint] + offset``.
+
+    Attributes:
+        joint: Name of the joint followed (it may be missing from the file: the chain that
+            needs it says so).
+        multiplier: Factor (default 1).
+        offset: Offset [rad or m] (default 0).
+    """
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
 class URDFJoint:
     """One ``<joint>`` as calib reads it (checked numbers).
 
@@ -71,7 +87,7 @@ class URDFJoint:
         axis: Unit axis (``(1, 0, 0)`` when the joint has none).
         lower: Lower position limit [rad or m], None if not given.
         upper: Upper position limit [rad or m], None if not given.
-        mimic: The joint carries a ``<mimic>`` tag.
+        mimic: The joint's ``<mimic>`` tag, or None.
     """
 
     name: str
@@ -83,7 +99,7 @@ class URDFJoint:
     axis: tuple[float, float, float]
     lower: float | None
     upper: float | None
-    mimic: bool
+    mimic: URDFMimic | None
 
 
 @dataclass(frozen=True)
@@ -213,8 +229,22 @@ def _joint(j: ET.Element, links: set[str], src: str) -> URDFJoint:
     _bounded(rpy, MAX_ANGLE, "rad", "origin rpy", where, src)
     axis = _unit_axis(j.find("axis"), where, src) if kind in _WITH_AXIS else (1.0, 0.0, 0.0)
     lower, upper = _limits(j, kind, where, src)
-    mimic = j.find("mimic") is not None
-    return URDFJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, mimic)
+    return URDFJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, _mimic(j, where, src))
+
+
+def _mimic(joint: ET.Element, where: str, src: str) -> URDFMimic | None:
+    """The checked ``<mimic joint multiplier offset>`` of a joint, or None."""
+    tag = joint.find("mimic")
+    if tag is None:
+        return None
+    master = (tag.get("joint") or "").strip()
+    if not master:
+        raise URDFError(src, f"{where} has a <mimic> without a joint name")
+    (factor,) = _numbers(tag.get("multiplier"), (1.0,), "mimic multiplier", where, src)
+    (offset,) = _numbers(tag.get("offset"), (0.0,), "mimic offset", where, src)
+    _bounded((factor,), MAX_ANGLE, "", "mimic multiplier", where, src)
+    _bounded((offset,), MAX_COORDINATE, "rad or m", "mimic offset", where, src)
+    return URDFMimic(master, factor, offset)
 
 
 def _unique(names: list[str], what: str, src: str) -> None:

@@ -14,6 +14,19 @@ ANALYSABLE = tuple(e.name for e in catalog() if e.expect_error is None and not e
 TREES = tuple(e.name for e in catalog() if e.expect_error is None and e.is_tree)
 """Catalog trees (several tools) calib can analyse."""
 
+COUPLED = (
+    "mimic_arm",
+    "pr2_left_fingertip",
+    "romeo_left_finger",
+    "tiago_pro_left_fingertip",
+    "baxter_left_finger",
+    "panda_right_finger",
+)
+"""Catalog chains through mimic joints (tests/test_mimic.py checks this list is complete)."""
+
+INDEPENDENT = tuple(name for name in ANALYSABLE if name not in COUPLED)
+"""Catalog chains of independent joints, where Everett's counts hold."""
+
 
 @functools.cache
 def chain_of(name: str):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pinocchio as pin
@@ -196,3 +197,116 @@ class PinTree:
         keep = np.concatenate([6 * k + np.array(rows) for k in range(W.shape[0] // 6)])
         s = np.linalg.svd(W[keep], compute_uv=False)
         return int(np.sum(s > 1e-7 * s[0]))
+
+
+class MimicChain:
+    """A chain of a URDF with ``<mimic>`` tags, posed by the test from its independent joints.
+
+    ``pin_mimic=True``: Pinocchio's own mimic joints (``buildModelFromUrdf(mimic=True)``),
+    which need each master before its mimic joints in the file. Otherwise Pinocchio's model
+    without the tags, and the test applies the relation itself: it reads the tags with
+    ElementTree and sets each mimic joint to ``multiplier * q_master + offset``.
+    """
+
+    def __init__(self, path, base: str, tool: str, pin_mimic: bool = False):
+        self.model = pin.buildModelFromUrdf(str(path), mimic=pin_mimic)
+        self.data = self.model.createData()
+        self.base, self.tool = pin_frame(self.model, base), pin_frame(self.model, tool)
+        jb = self.model.frames[self.base].parentJoint
+        support = list(self.model.supports[self.model.frames[self.tool].parentJoint])
+        self.joints = support[support.index(jb) + 1 :]
+        self.tags = {}
+        if not pin_mimic:
+            for joint in ET.parse(str(path)).getroot().iter("joint"):
+                tag = joint.find("mimic")
+                if tag is not None:
+                    self.tags[joint.get("name")] = (
+                        tag.get("joint").strip(),
+                        float(tag.get("multiplier", "1")),
+                        float(tag.get("offset", "0")),
+                    )
+
+    def _master(self, name: str) -> str:
+        while name in self.tags:
+            name = self.tags[name][0]
+        return name
+
+    @property
+    def variables(self) -> set[str]:
+        """Names of the independent joints that move the chain (masters included)."""
+        if not self.tags:
+            pairs = zip(self.model.mimicking_joints, self.model.mimicked_joints, strict=True)
+            mimic = dict(pairs)
+            return {self.model.names[mimic.get(j, j)] for j in self.joints}
+        return {self._master(self.model.names[j]) for j in self.joints}
+
+    def config(self, names, values) -> np.ndarray:
+        """Pinocchio configuration with the named independent joints at ``values``."""
+        given = dict(zip(names, values, strict=True))
+
+        def value(name: str) -> float:
+            if name in given:
+                return given[name]
+            master, factor, offset = self.tags[name]
+            return factor * value(master) + offset
+
+        q = pin.neutral(self.model)
+        for jid in range(1, self.model.njoints):
+            name = self.model.names[jid]
+            joint = self.model.joints[jid]
+            if joint.nq == 0 or (name not in given and self._master(name) not in given):
+                continue
+            v = value(name)
+            if joint.nq == 2:
+                q[joint.idx_q : joint.idx_q + 2] = (math.cos(v), math.sin(v))
+            else:
+                q[joint.idx_q] = v
+        return q
+
+    def pose(self, q: np.ndarray) -> pin.SE3:
+        """Tool frame in the base frame."""
+        pin.forwardKinematics(self.model, self.data, q)
+        b = pin.updateFramePlacement(self.model, self.data, self.base)
+        return b.actInv(pin.updateFramePlacement(self.model, self.data, self.tool))
+
+    def _placement(self, kind: str, i: int) -> pin.SE3:
+        if kind == "joint":
+            return self.model.jointPlacements[i].copy()
+        return self.model.frames[i].placement.copy()
+
+    def _place(self, kind: str, i: int, placement: pin.SE3) -> None:
+        if kind == "joint":
+            self.model.jointPlacements[i] = placement
+        else:
+            frame = self.model.frames[i]
+            frame.placement = placement
+            self.model.frames[i] = frame
+
+    def error_rank(self, configs, rows, h: float = 1e-6, rtol: float = 1e-8):
+        """Rank of a generic 6-DOF error on every chain joint placement, the base and the tool.
+
+        Central finite differences of the tool pose (position, rotation vector, in the base
+        frame) over ``configs`` (Pinocchio configurations); ``rows`` picks among
+        (x, y, z, rx, ry, rz). Returns the rank and the singular values.
+        """
+        places = [("joint", j) for j in self.joints]
+        places += [("frame", self.base), ("frame", self.tool)]
+        cols = []
+        for kind, i in places:
+            nominal = self._placement(kind, i)
+            for a in range(6):
+                diffs = []
+                for sign in (1.0, -1.0):
+                    step = np.zeros(6)
+                    step[a] = sign * h
+                    self._place(kind, i, nominal * pin.exp6(pin.Motion(step)))
+                    diffs.append([self.pose(q) for q in configs])
+                self._place(kind, i, nominal)
+                col = [
+                    np.hstack([p.translation - n.translation, pin.log3(p.rotation @ n.rotation.T)])
+                    / (2 * h)
+                    for p, n in zip(*diffs, strict=True)
+                ]
+                cols.append(np.array(col)[:, list(rows)].ravel())
+        s = np.linalg.svd(np.array(cols).T, compute_uv=False)
+        return int(np.sum(s > rtol * s[0])), s

@@ -201,7 +201,7 @@ def _error_cases(tmp: Path):
         (["show", "ur5", "--base", "tool0", "--tool", "tool0"], "tool0"),
         (["show", str(DATA / "planar_joint.urdf"), "--tool", "tool"], "planar"),
         (["show", str(DATA / "floating_joint.urdf"), "--tool", "tool"], "floating"),
-        (["show", str(DATA / "mimic_joint.urdf"), "--tool", "tool"], "mimic"),
+        (["show", str(DATA / "mimic_broken.urdf"), "--tool", "tool"], "mimic"),
         (["show", "so100", "--tool", "gripper"], "gripper"),
         (["analyze", "aid", "--measure", "orientation"], "orientation"),
         (["analyze", "aid", "--marker", "0.1", "0.2"], "marker"),

@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import scipy.linalg
-from conftest import ANALYSABLE, chain_of, mdh_of
+from conftest import ANALYSABLE, INDEPENDENT, chain_of, mdh_of
 from pinref import own_random_q, pin_config, pin_frame, rigid_error_columns
 
 import calib
@@ -154,7 +154,7 @@ def test_aid_beta1_would_give_24_and_the_complete_set_25():
 # --------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ANALYSABLE)
+@pytest.mark.parametrize("name", INDEPENDENT)
 def test_complete_set_pose_reaches_4r_2p_6(name):
     chain = chain_of(name)
     R, P = counts(chain)
@@ -166,7 +166,7 @@ def test_complete_set_pose_reaches_4r_2p_6(name):
     assert res.missing == ()
 
 
-@pytest.mark.parametrize("name", ANALYSABLE)
+@pytest.mark.parametrize("name", INDEPENDENT)
 def test_complete_set_position_off_axis_marker_reaches_4r_2p_3(name):
     chain = chain_of(name)
     R, P = counts(chain)
@@ -179,7 +179,7 @@ def test_complete_set_position_off_axis_marker_reaches_4r_2p_3(name):
 
 def _on_last_axis_chains():
     out = []
-    for name in ANALYSABLE:
+    for name in INDEPENDENT:
         chain = chain_of(name)
         if chain.sigma[-1] != 0:
             continue

@@ -28,7 +28,6 @@ import calib
 from calib import (
     CalibError,
     InvalidArgumentError,
-    UnsupportedJointError,
     URDFError,
     analyze,
     from_chain,
@@ -439,14 +438,12 @@ def test_mimic_joint_behind_an_entity_name_is_still_a_mimic_joint(tmp_path):
     text = text.replace(end_of_j2, LIMIT + '<mimic joint="j1"/>' + end_of_j2[len(LIMIT) :])
     assert "<mimic" in text
     path = write(tmp_path, text)
-    with pytest.raises(UnsupportedJointError, match=r"'j2'.*mimic"):
-        load_chain(path, tool="tool")
-    for tool in ("joint:j2", "l2", "link:tool"):
-        with pytest.raises(UnsupportedJointError, match="mimic"):
-            load_chain(path, tool=tool)
-    with pytest.raises(UnsupportedJointError, match="mimic"):
-        load_chain(DATA / "mimic_joint.urdf", tool="joint:j2")
-    assert load_chain(path, tool="l1").n == 1  # the chain before it is fine
+    for tool in ("tool", "joint:j2", "l2", "link:tool"):
+        chain = load_chain(path, tool=tool)
+        assert chain.joint_names == ("j1", "j2")
+        assert chain.variable_names == ("j1",)  # j2 follows j1: one independent joint
+        assert [mj.name for mj in chain.coupling.mimic] == ["j2"]
+    assert load_chain(path, tool="l1").coupling is None  # the chain before it has none
 
 
 # --------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import ANALYSABLE, chain_of
+from conftest import INDEPENDENT, chain_of
 from pinref import file_chain_poses, own_random_q, rigid_error_columns
 
 import calib
@@ -79,7 +79,7 @@ def counts(res) -> tuple:
     return res.n_base, res.n_complete, res.n_theory, res.on_axes
 
 
-@pytest.mark.parametrize("name", ANALYSABLE)
+@pytest.mark.parametrize("name", INDEPENDENT)  # coupled chains: tests/test_mimic.py
 def test_rounded_catalog_chain_has_the_counts_of_the_exact_one(name, tmp_path):
     chain = chain_of(name)
     entry = next(e for e in calib.catalog() if e.name == name)

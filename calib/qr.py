@@ -1,0 +1,72 @@
+"""QR factorisations of the small matrices of the analysis, called through LAPACK directly.
+
+The same LAPACK routines NumPy and SciPy call (``dgeqrf``, ``dgeqp3``, ``dtrtrs``), so the
+same numbers, without their per-call overhead (checks, copies, ``triu`` of the whole
+result), which dominates for a 30 x 30 triangular factor: 2 us instead of 20 us.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import scipy.linalg
+from scipy.linalg import lapack
+
+
+def triangular(W: np.ndarray) -> np.ndarray:
+    """R factor of the QR decomposition of W ``(r, c)``: ``(min(r, c), c)``, upper triangular.
+
+    As ``numpy.linalg.qr(W, mode="r")``.
+    """
+    k = min(W.shape)
+    if k == 0:
+        return np.zeros((k, W.shape[1]))
+    return upper(householder(W)[:k])
+
+
+def upper(M: np.ndarray, k: int = 0) -> np.ndarray:
+    """``numpy.triu(M, k)`` (a new array), with the mask of each shape built once."""
+    return np.where(_below(M.shape, k), 0.0, M)
+
+
+@functools.lru_cache(maxsize=256)
+def _below(shape: tuple[int, int], k: int) -> np.ndarray:
+    return ~np.triu(np.ones(shape, dtype=bool), k)
+
+
+def householder(W: np.ndarray) -> np.ndarray:
+    """LAPACK's compact QR of W ``(r, c)``: R on and above the diagonal, reflectors below.
+
+    ``triangular(W) == triu(householder(W)[:min(r, c)])``; ``W`` must not be empty.
+    """
+    qr, _, _, info = lapack.dgeqrf(W)
+    if info != 0:
+        return np.linalg.qr(W, mode="r")
+    return qr
+
+
+def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
+    """|R_ii| of the QR decomposition with column pivoting of W (non-increasing).
+
+    As ``abs(diag(scipy.linalg.qr(W, mode="r", pivoting=True)[0]))``.
+    """
+    if min(W.shape) == 0:
+        return np.zeros(0)
+    qr, _, _, _, info = lapack.dgeqp3(W)
+    if info != 0:
+        qr = scipy.linalg.qr(W, mode="r", pivoting=True, check_finite=False)[0]
+    return np.abs(np.diag(qr))
+
+
+def solve_upper(R: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``R^-1 B`` for an upper triangular R ``(b, b)`` and B ``(b, k)``, by back substitution.
+
+    As ``scipy.linalg.solve_triangular(R, B)``.
+    """
+    if R.size == 0 or B.size == 0:
+        return np.zeros((R.shape[1], B.shape[1]))
+    x, info = lapack.dtrtrs(R, B, lower=0)
+    if info != 0:  # a zero pivot: SciPy raises the usual error
+        return scipy.linalg.solve_triangular(R, B, check_finite=False)
+    return x
