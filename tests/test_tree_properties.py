@@ -19,7 +19,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 from conftest import CI
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from pinref import PinTree, own_random_q
 
@@ -201,8 +201,25 @@ def test_forward_of_every_tool_equals_pinocchio(tr):
     assert np.abs(T - T_ref).max() <= 1e-9
 
 
+# Always tried: a link carrying a parallel, an intersecting and a coincident child, and a
+# prismatic joint on the base z axis whose children are parallel and perpendicular-intersecting,
+# with a tool on its last axis.
+BRANCHING = (
+    build_tree(
+        1, [-1, 0, 0, 0], ("generic", "parallel", "intersecting", "coincident"),
+        [0, 0, 1, 0], [], [False],
+    ),
+    build_tree(
+        2, [-1, 0, 1, 1], ("coincident", "parallel", "perpendicular_intersecting", "parallel"),
+        [1, 0, 0, 0], [1], [True, False],
+    ),
+)  # fmt: skip
+
+
 @TREES
 @given(trees())
+@example(BRANCHING[0])
+@example(BRANCHING[1])
 def test_complete_set_reaches_the_pinocchio_complete_rank(tr):
     tree, ref = loaded(tr), pin_reference(tr)
     q = own_random_q(tree.sigma, 25, seed=2)
