@@ -23,8 +23,10 @@ from calib import (  # noqa: E402
     analyze_model,
     from_chain,
     from_lines,
+    from_tree,
     identification_jacobian,
     load_chain,
+    load_tree,
     paper_parameters,
 )
 from calib.identifiability import identify_base  # noqa: E402
@@ -46,6 +48,29 @@ def random_chain(n: int, seed: int):
     tool = np.eye(4)
     tool[:3, 3] = points[-1] + 0.1
     return from_lines(points, dirs, np.zeros(n, dtype=int), tool)
+
+
+def tree_against_chain() -> None:
+    """A whole humanoid (TALOS: 30 joints, 5 tools) against a 7-joint chain (Panda)."""
+    pose = Measurement.of("pose")
+    chain = load_chain("panda")
+    chain_mdh = from_chain(chain).idealized()
+    q_chain = chain.random_configurations(100, 0)
+    tree = load_tree("talos")
+    tree_mdh = from_tree(tree).idealized()
+    q_tree = tree.random_configurations(100, 0)
+    t_chain = median_ms(lambda: analyze_model(chain_mdh, "paper", pose, q_chain), 100)
+    t_tree = median_ms(lambda: analyze_model(tree_mdh, "paper", pose, q_tree), 50)
+    rows = [
+        ["panda chain: 7 joints, 1 tool, analyze_model, m=100, pose", f"{t_chain:.3f}"],
+        [
+            f"talos tree: {tree.n} joints, {tree.n_tools} tools, analyze_model, m=100, pose",
+            f"{t_tree:.3f}",
+        ],
+        ["ratio tree / chain (target < 10)", f"{t_tree / t_chain:.1f}"],
+    ]
+    print("\nA whole humanoid against a 7-joint chain (W, QR, base set, complete model):")
+    print(table(["case", "median [ms]"], rows))
 
 
 def main() -> None:
@@ -96,6 +121,7 @@ def main() -> None:
             [n, 4 * n + 6, f"{median_ms(lambda mdh=mdh, q=q: w_and_qr(mdh, q, pose), 100):.3f}"]
         )
     print(table(["joints", "parameters", "median [ms]"], grow))
+    tree_against_chain()
 
 
 if __name__ == "__main__":

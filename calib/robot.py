@@ -543,7 +543,8 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
         if entry.is_tree and tool is None:
             raise ChainError(
                 f"'{entry.name}' is a tree of {len(entry.tools)} tools "
-                f"({', '.join(entry.tools)}): load it with load_tree, or name one tool"
+                f"({', '.join(entry.tools)}): name one of them as the tool, or analyse the "
+                f"tree (load_tree, `calib analyze {entry.name}`)"
             )
         base = entry.base if base is None else base
         tool = entry.tool if tool is None else tool

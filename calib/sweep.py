@@ -188,10 +188,15 @@ def rows_table(rows: Sequence[SweepRow]) -> str:
     def num(v: int | None) -> str:
         return "-" if v is None else str(v)
 
+    def chain(r: SweepRow) -> str:
+        if r.tools is None or r.tools < 2:
+            return r.chain
+        return f"{r.chain.split(' -> ')[0]} -> {r.tools} tools"  # the list: CSV, JSON, `list`
+
     body = [
         [
             r.robot,
-            r.chain,
+            chain(r),
             num(r.revolute),
             num(r.prismatic),
             num(r.tools),

@@ -8,6 +8,7 @@ are URDF positions, one column per tree joint, like a chain's.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -108,7 +109,6 @@ class Tree(JointCounts):
         """Number of tools."""
         return len(self.chains)
 
-
     def idealized(self) -> Tree:
         """The tree on its URDF with round-off removed (see :meth:`Chain.idealized`)."""
         return dataclasses.replace(self, chains=tuple(c.idealized() for c in self.chains))
@@ -185,7 +185,9 @@ def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
     )
 
 
-def load_tree(robot: str | Path, base: str | None = None, tools=None) -> Tree:
+def load_tree(
+    robot: str | Path, base: str | None = None, tools: Sequence[str] | str | None = None
+) -> Tree:
     """Load the tree from a base frame to several tools (a catalog name or a URDF path).
 
     Args:
@@ -219,7 +221,9 @@ def load_tree(robot: str | Path, base: str | None = None, tools=None) -> Tree:
 
 
 def load_robot(
-    robot: str | Path | Chain | Tree, base: str | None = None, tool=None
+    robot: str | Path | Chain | Tree,
+    base: str | None = None,
+    tool: str | Sequence[str] | None = None,
 ) -> Chain | Tree:
     """A chain, or a tree where several tools are named.
 

@@ -33,9 +33,9 @@ def tree_parameters(model: TreeMDH, label: str = "paper") -> ParameterSet:
 
     ``paper``: theta0, r0; for every other row alpha, d, theta, r, with gamma and b first for
     a child that is not the first of its antecedent; where the row's axis is parallel to its
-    antecedent's (antecedent not frame 0) beta replaces r, unless the row is the first child
-    of a frame with several children (r then moves that branch alone). ``complete`` adds
-    beta where a child of frame 0 is parallel to the base z axis and y where two lines
+    antecedent's (antecedent not frame 0) beta replaces r, as in a chain: r_k then moves the
+    branch along the antecedent's z, as r_{a(k)} less the other children's b do. ``complete``
+    adds beta where a child of frame 0 is parallel to the base z axis and y where two lines
     coincide.
 
     Raises:
@@ -49,9 +49,8 @@ def tree_parameters(model: TreeMDH, label: str = "paper") -> ParameterSet:
     for k in range(1, len(a)):
         first = model.first_child(k)
         kinds = [] if first else [Kind.GAMMA, Kind.B]
-        if model.parallel[k] and a[k] != 0:
-            alone = first and np.sum(a == a[k]) > 1
-            kinds += [Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA] + ([Kind.R] if alone else [])
+        if model.parallel[k] and a[k] != 0:  # r_k: r_{a(k)} minus the other children's b
+            kinds += [Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA]
         else:
             kinds += [Kind.ALPHA, Kind.D, Kind.THETA, Kind.R]
             if label == "complete" and model.parallel[k]:

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import functools
+import os
 
 import pytest
+from hypothesis import HealthCheck, Phase, settings
 
 from calib import catalog, from_chain, load_chain
 
@@ -41,3 +43,26 @@ def mdh_of(name: str):
 @pytest.fixture(params=ANALYSABLE)
 def catalog_name(request) -> str:
     return request.param
+
+
+# CI: a fixed (derandomised) set of 60 examples per property, no deadline, and no shrinking so
+# that a failing property costs seconds, not minutes; the failing example is printed in full.
+# Set CALIB_HYPOTHESIS_PROFILE=calib-dev to shrink failures to a minimal example and draw more.
+settings.register_profile(
+    "calib-ci",
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    phases=(Phase.explicit, Phase.generate),
+    suppress_health_check=[HealthCheck.too_slow],
+    report_multiple_bugs=False,
+)
+settings.register_profile(
+    "calib-dev",
+    max_examples=300,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+CI = settings.get_profile(os.environ.get("CALIB_HYPOTHESIS_PROFILE", "calib-ci"))
+"""Settings of the property tests (hypothesis)."""

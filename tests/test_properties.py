@@ -9,7 +9,6 @@ JointModelPrismaticUnaligned), which knows nothing about DH.
 from __future__ import annotations
 
 import math
-import os
 import warnings
 from dataclasses import dataclass
 
@@ -17,33 +16,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import scipy.linalg
-from hypothesis import HealthCheck, Phase, given, settings
+from conftest import CI
+from hypothesis import given
 from hypothesis import strategies as st
 from pinref import rigid_error_columns
 
 import calib
 from calib import Measurement, analyze_model, complete_jacobian, from_lines
-
-# CI: a fixed (derandomised) set of 60 examples per property, no deadline, and no shrinking so
-# that a failing property costs seconds, not minutes; the failing example is printed in full.
-# Set CALIB_HYPOTHESIS_PROFILE=calib-dev to shrink failures to a minimal chain and draw more.
-settings.register_profile(
-    "calib-ci",
-    max_examples=60,
-    deadline=None,
-    derandomize=True,
-    database=None,
-    phases=(Phase.explicit, Phase.generate),
-    suppress_health_check=[HealthCheck.too_slow],
-    report_multiple_bugs=False,
-)
-settings.register_profile(
-    "calib-dev",
-    max_examples=300,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow],
-)
-CI = settings.get_profile(os.environ.get("CALIB_HYPOTHESIS_PROFILE", "calib-ci"))
 
 RELATIONS = (
     "generic",
