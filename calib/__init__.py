@@ -6,12 +6,6 @@ and ask :func:`analyze` which parameters can be identified. Then :func:`simulate
 :func:`write_calibrated_urdf`.
 """
 
-from .calibration import (
-    CalibrationResult,
-    ResidualStats,
-    calibrate,
-    residual_stats,
-)
 from .catalog import CatalogEntry, catalog
 from .exceptions import (
     AmbiguousFrameError,
@@ -29,6 +23,7 @@ from .exceptions import (
 )
 from .identifiability import Identifiability, RankWarning, analyze, analyze_model
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
+from .lazy import attributes
 from .mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
 from .measurements import (
     Campaign,
@@ -42,7 +37,21 @@ from .measurements import (
 )
 from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
 from .robot import Chain, load_chain
-from .urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
+
+_LAZY = {
+    "CalibrationResult": "calibration",
+    "ResidualStats": "calibration",
+    "calibrate": "calibration",
+    "residual_stats": "calibration",
+    "calibrated_urdf": "urdf_export",
+    "measurement_to_base": "urdf_export",
+    "write_calibrated_urdf": "urdf_export",
+}
+"""Names imported when first used, so that ``calib analyze`` does not load the calibration."""
+
+
+__getattr__ = attributes(__name__, _LAZY)
+
 
 __version__ = "0.1.0"
 

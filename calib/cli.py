@@ -17,15 +17,13 @@ from pathlib import Path
 from typing import NoReturn
 
 from . import __version__
-from .calibration import (
+from .calibration.options import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_ORIENTATION_WEIGHT,
     LEVELS,
     LOSSES,
-    calibrate,
 )
-from .calibration.text import calibration_text
 from .catalog import catalog, catalog_files
 from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
@@ -42,7 +40,6 @@ from .measurements import (
 from .parameters import PARAMETER_SETS
 from .report import analysis_text, coupling_lines, format_table, mdh_table
 from .robot import load_chain
-from .urdf_export import calibrated_urdf, check_exportable
 
 
 class _Parser(argparse.ArgumentParser):
@@ -214,6 +211,10 @@ def _columns(args: argparse.Namespace):
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report."""
+    from .calibration import calibrate  # only this command loads the calibration
+    from .calibration.text import calibration_text
+    from .urdf_export import calibrated_urdf, check_exportable
+
     chain = load_chain(args.robot, args.base, args.tool)
     out = Path(args.out)
     report = Path(args.report) if args.report else None
