@@ -1,15 +1,22 @@
 """Speed of the identifiability analysis (issue: W + QR < 1 ms, `analyze ur5` < 20 ms).
 
+Also the structural step against FIGAROH 1.0.2's ``calculate_base_kinematics_regressor``,
+measured in the same run: FIGAROH runs in its own venv (``FIGAROH_PYTHON``, default
+``.figaroh-venv/bin/python``, which ``bash .ci/run bench`` creates), see figaroh_peer.py.
+
 Run: .venv/bin/python benchmarks/bench_identifiability.py
 """
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import median_ms, one_core, process_ms, table
+from common import ROOT, median_ms, one_core, process_ms, table
 
 one_core()
 
@@ -38,6 +45,55 @@ def w_and_qr(mdh, q, measurement):
     params = paper_parameters(mdh)
     W = identification_jacobian(mdh, params, q, measurement)
     return identify_base(mdh, params, W)
+
+
+def structural_step(chain, mdh, params, measurement):
+    """Random configurations, W, QR, base set: what FIGAROH's step does (m = 100)."""
+    q = chain.random_configurations(100, 0)
+    return identify_base(mdh, params, identification_jacobian(mdh, params, q, measurement))
+
+
+def figaroh_ms(chains: dict) -> dict | None:
+    """FIGAROH's medians by chain name, or None when its venv is not there."""
+    python = Path(os.environ.get("FIGAROH_PYTHON", ROOT / ".figaroh-venv" / "bin" / "python"))
+    if not python.exists():
+        return None
+    args = [str(python), str(Path(__file__).with_name("figaroh_peer.py")), "30"]
+    for name, chain in chains.items():
+        args += [name, str(chain.urdf_path), chain.tool_frame]
+    run = subprocess.run(args, capture_output=True, text=True, check=True)
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def versus_figaroh() -> None:
+    """The structural step, UR5 and Panda, position, m = 100, against FIGAROH 1.0.2."""
+    position = Measurement.of("position")
+    chains = {name: load_chain(name) for name in ("ur5", "panda")}
+    ours = {}
+    for name, chain in chains.items():
+        mdh = from_chain(chain).idealized()
+        params = paper_parameters(mdh)
+        step = lambda c=chain, m=mdh, p=params: structural_step(c, m, p, position)  # noqa: E731
+        ours[name] = (median_ms(step, 300), len(step()[2]))
+    peer = figaroh_ms(chains)
+    print("\nStructural step (random configurations, W, QR, base set), position, m = 100:")
+    if peer is None:
+        print("FIGAROH not measured: no venv (bash .ci/run bench creates .figaroh-venv)")
+    rows = []
+    for name, (ms, n_base) in ours.items():
+        other = peer[name] if peer else None
+        rows.append(
+            [
+                name,
+                f"{ms:.3f}",
+                n_base,
+                f"{other['median_ms']:.2f}" if other else "-",
+                other["n_base"] if other else "-",
+                f"{other['median_ms'] / ms:.1f}x" if other else "-",
+            ]
+        )
+    header = ["chain", "calib [ms]", "base", "FIGAROH 1.0.2 [ms]", "base", "calib faster"]
+    print(table(header, rows))
 
 
 def random_chain(n: int, seed: int):
@@ -122,6 +178,7 @@ def main() -> None:
         )
     print(table(["joints", "parameters", "median [ms]"], grow))
     tree_against_chain()
+    versus_figaroh()
 
 
 if __name__ == "__main__":

@@ -11,13 +11,6 @@ A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func
 :func:`write_calibrated_tree_urdf` calibrate it from rows that name their tool.
 """
 
-from .calibration import (
-    CalibrationResult,
-    ResidualStats,
-    calibrate,
-    residual_stats,
-)
-from .calibration.tree_pipeline import TreeCalibrationResult, calibrate_tree
 from .catalog import CatalogEntry, catalog
 from .exceptions import (
     AmbiguousFrameError,
@@ -35,6 +28,7 @@ from .exceptions import (
 )
 from .identifiability import Identifiability, RankWarning, analyze, analyze_model
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
+from .lazy import attributes
 from .mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
 from .measurements import (
     Campaign,
@@ -49,11 +43,29 @@ from .measurements import (
 from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
 from .robot import Chain, load_chain
 from .tree import Tree, load_robot, load_tree
-from .tree_campaign import TreeCampaign, simulate_tree
-from .tree_export import calibrated_tree_urdf, write_calibrated_tree_urdf
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 from .tree_model import TreeMDH, from_tree
-from .urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
+
+_LAZY = {
+    "CalibrationResult": "calibration",
+    "ResidualStats": "calibration",
+    "calibrate": "calibration",
+    "residual_stats": "calibration",
+    "calibrated_urdf": "urdf_export",
+    "measurement_to_base": "urdf_export",
+    "write_calibrated_urdf": "urdf_export",
+    "TreeCalibrationResult": "calibration.tree_pipeline",
+    "calibrate_tree": "calibration.tree_pipeline",
+    "TreeCampaign": "tree_campaign",
+    "simulate_tree": "tree_campaign",
+    "calibrated_tree_urdf": "tree_export",
+    "write_calibrated_tree_urdf": "tree_export",
+}
+"""Names imported when first used, so that ``calib analyze`` does not load the calibration."""
+
+
+__getattr__ = attributes(__name__, _LAZY)
+
 
 __version__ = "0.1.0"
 

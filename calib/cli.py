@@ -17,14 +17,12 @@ from pathlib import Path
 from typing import NoReturn
 
 from . import __version__
-from .calibration import (
+from .calibration.options import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
     LEVELS,
     LOSSES,
-    calibrate,
 )
-from .calibration.text import calibration_text
 from .catalog import catalog, catalog_files
 from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
@@ -44,7 +42,6 @@ from .report import analysis_text, coupling_lines, format_table, mdh_table, tree
 from .robot import load_chain
 from .tree import Tree, load_robot
 from .tree_model import from_tree
-from .urdf_export import calibrated_urdf, check_exportable
 
 _GIVEN = "_calib_given"
 """Namespace attribute where :class:`_StoreOnce` notes the options already given."""
@@ -322,6 +319,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     chain = load_robot(args.robot, args.base, _tool(args))
     if isinstance(chain, Tree):
         return _calibrate_tree(args, chain)
+    from .calibration import calibrate  # only this command loads the calibration
+    from .calibration.text import calibration_text
+    from .urdf_export import calibrated_urdf, check_exportable
+
     out = Path(args.out)
     report = Path(args.report) if args.report else None
     inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}

@@ -87,9 +87,9 @@ def _check_types(mdh: MDHModel, measurement: Measurement, params=None) -> None:
         raise InvalidArgumentError(
             f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
         )
+    last = mdh.n + 1
     if params is not None and not (
-        isinstance(params, ParameterSet)
-        and all(0 <= p.row <= mdh.n + 1 for p in params.parameters)
+        isinstance(params, ParameterSet) and all(0 <= p.row <= last for p in params.parameters)
     ):
         raise InvalidArgumentError(
             f"params must be a ParameterSet of this model's rows, got {params!r:.60}"

@@ -7,18 +7,31 @@ One module per step, in the order :func:`calibrate` runs them: :mod:`.registrati
 model of :mod:`.model`; :mod:`.pipeline` chains them and :mod:`.result` holds the outcome.
 """
 
-from .model import ErrorModel, State
-from .outliers import Outlier
-from .pipeline import (
+from ..lazy import attributes
+from .options import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
     LEVELS,
-    calibrate,
-    residual_stats,
+    LOSSES,
 )
-from .result import CalibrationResult, ResidualStats, Validation
-from .selection import Selection, Step
-from .solve import LOSSES
+
+_LAZY = {
+    "ErrorModel": "model",
+    "State": "model",
+    "Outlier": "outliers",
+    "calibrate": "pipeline",
+    "residual_stats": "pipeline",
+    "CalibrationResult": "result",
+    "ResidualStats": "result",
+    "Validation": "result",
+    "Selection": "selection",
+    "Step": "selection",
+}
+"""Names imported when first used: ``calib`` commands that do not calibrate skip the import."""
+
+
+__getattr__ = attributes(__name__, _LAZY)
+
 
 __all__ = [
     "DEFAULT_LEVEL",

@@ -18,21 +18,16 @@ from ..parameters import ParameterSet, parameter_set
 from ..robot import Chain
 from . import diagnosis, outliers, validation, weighting
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
+from .options import (
+    DEFAULT_LEVEL,
+    DEFAULT_MAX_ITERATIONS,
+    LEVELS,
+    LOSSES,
+)
 from .registration import register
 from .result import CalibrationResult, ResidualStats, Validation
 from .selection import Selection, select
-from .solve import LOSSES, Fit, condition, covariance, fit, row_weights
-
-LEVELS = ("auto", "frames", "offsets", "paper", "complete")
-"""Parameter levels: ``frames`` = measurement frame + markers; ``offsets`` adds the joint
-offsets; ``paper`` and ``complete`` add the base parameters of those sets; ``auto`` (the
-default) keeps the ones the data support (:mod:`calib.calibration.selection`)."""
-
-DEFAULT_LEVEL = "auto"
-
-
-DEFAULT_MAX_ITERATIONS = 100
-"""Most residual evaluations of each solver run."""
+from .solve import Fit, condition, covariance, fit, row_weights
 
 GROUPS = ("frame", "markers", "tool")
 """Names ``--fix`` takes for whole groups (besides single parameters)."""

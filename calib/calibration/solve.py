@@ -13,8 +13,6 @@ from .model import ErrorModel, State
 TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
 
-LOSSES = ("linear", "soft_l1", "huber")
-"""Losses of the fit: least squares, or a robust loss (scipy's, scale ``--noise-mm``)."""
 
 
 @dataclass(frozen=True, eq=False)
