@@ -13,7 +13,7 @@ checked: every pair of geometries that the chain's joints move relative to each 
 
 Obstacles are boxes in the chain's base frame, checked against every moving geometry. The
 line of sight from an instrument to a measured point is a thin capsule checked against every
-geometry except those of the tool's link (the marker sits on it).
+geometry except those of the tool's link and the links it carries (the marker sits on them).
 """
 
 from __future__ import annotations
@@ -48,7 +48,8 @@ class CollisionChecker:
         chain: The chain (its Pinocchio model carries the geometry).
         geometry: Collision geometry, with the active pairs.
         moving: Geometry indices that move with the chain's joints.
-        tool_geometries: Geometry indices on the tool frame's link.
+        tool_geometries: Geometry indices on the tool frame's link and the links beyond it
+            (a gripper's fingers): the measured point sits among them.
         base_placement: The chain's base frame in Pinocchio's world at the reference
             configuration ``(4, 4)``.
         notes: What was disabled, or why nothing is checked.
@@ -283,7 +284,11 @@ def collision_checker(
     base = data.oMf[chain.base_id].homogeneous.copy()
     moving = _moving(chain, geom)
     tool_joint = model.frames[chain.tool_id].parentJoint
-    tool = tuple(g for g, o in enumerate(geom.geometryObjects) if o.parentJoint == tool_joint)
+    tool = tuple(
+        g
+        for g, o in enumerate(geom.geometryObjects)
+        if tool_joint in model.supports[o.parentJoint]
+    )
     if not geom.geometryObjects:
         notes = [f"{Path(chain.urdf_path).name} has no collision geometry: collisions not checked"]
     else:

@@ -23,7 +23,6 @@ from .exchange import EXCHANGE_CRITERIA, optimal_subset
 from .observability import (
     CRITERIA,
     REFERENCE_CONFIGS,
-    STRUCTURE_CONFIGS,
     Indices,
     ObservationModel,
     Reference,
@@ -175,14 +174,14 @@ def design(
     q = q_all[keep]
     if len(q) < k:
         raise InvalidArgumentError(
-            f"{len(q)} of {len(q_all)} candidates pass the filters, fewer than the {k} "
-            f"configurations asked: draw more candidates or relax the constraints"
+            f"{len(q)} of {len(q_all)} candidates pass the filters ("
+            + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
+            + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
+            f"constraints"
         )
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
-    model = observation_model(
-        chain, measure, markers, params, structure_q=q[_subset(len(q), STRUCTURE_CONFIGS, rng)]
-    )
+    model = observation_model(chain, measure, markers, params, seed=seed)
     ref = reference(model, q[_subset(len(q), REFERENCE_CONFIGS, rng)])
     J = model.jacobian(q)
     clock.append(time.perf_counter())
@@ -207,7 +206,9 @@ def design(
         exchanges=result.exchanges,
         sweeps=result.sweeps,
         seed=seed,
-        timings_ms={s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)},
+        timings_ms={
+            s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
+        },
     )
 
 
@@ -235,4 +236,67 @@ def evaluate(
     return indices(model, q, ref)
 
 
-__all__ = ["DEFAULT_CANDIDATES", "Design", "candidate_configurations", "design", "evaluate"]
+_LABELS = {
+    "cond": "cond (lower is better)",
+    "O1": "O1 (higher)",
+    "O3": "O3 (higher)",
+    "O4": "O4 (higher)",
+    "D": "D = log det M (higher)",
+    "A": "A = trace M^-1 (lower)",
+    "I": "I [per unit noise] (lower)",
+    "G": "G [per unit noise] (lower)",
+}
+
+
+def indices_table(columns: dict[str, list[float]]) -> str:
+    """A text table of indices: one row per index, one column per set."""
+    from .report import format_table
+
+    rows = [
+        [_LABELS[c], *(f"{v:.4g}" for v in values)]
+        for c, values in ((c, [col[i] for col in columns.values()]) for i, c in enumerate(CRITERIA))
+    ]
+    return format_table(["index", *columns], rows)
+
+
+def _values(ind: Indices) -> list[float]:
+    return [ind.value(c) for c in CRITERIA]
+
+
+def design_text(d: Design, noise_mm: float = 0.05) -> str:
+    """What ``calib design`` prints."""
+    rejected = ", ".join(f"{n} {name}" for name, n in d.filters.rejected if n)
+    lines = [
+        f"{d.robot}: {len(d.q)} configurations designed from {d.candidates} of "
+        f"{d.filters.candidates} candidates"
+        + (f" (rejected: {rejected})" if rejected else "")
+        + f", criterion {d.criterion}, {d.model.rows} rows per configuration, "
+        f"{d.model.b} parameters",
+        *(f"note: {n}" for n in d.filters.notes),
+        f"greedy start then {d.exchanges} exchange(s) in {d.sweeps} sweep(s); angles scaled by "
+        f"L = {d.model.length:.4g} m",
+        "",
+        indices_table(
+            {
+                "design": _values(d.indices),
+                "greedy": _values(d.greedy),
+                f"random (median of {len(d.random)})": [d.random_median(c) for c in CRITERIA],
+            }
+        ),
+        "",
+        f"predicted RMS position error after calibration at {noise_mm:g} mm noise: "
+        f"design {noise_mm * d.indices.value('I'):.4g} mm, random sets "
+        f"{noise_mm * d.random_median('I'):.4g} mm (median)",
+    ]
+    return "\n".join(lines)
+
+
+__all__ = [
+    "DEFAULT_CANDIDATES",
+    "Design",
+    "candidate_configurations",
+    "design",
+    "design_text",
+    "evaluate",
+    "indices_table",
+]
