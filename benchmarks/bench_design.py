@@ -72,7 +72,7 @@ def collision_rows() -> list[list[str]]:
     for name in ("ur5", "panda", "tiago"):
         chain = load_chain(name)
         q = candidate_configurations(chain, 2000, 0)
-        wall, cpu, (keep, report) = timed(
+        wall, cpu, (_, report) = timed(
             lambda c=chain, q=q: filter_candidates(c, q, [[0.0, 0.0, 0.0]], Constraints()), 3
         )
         rows.append(
