@@ -2,18 +2,19 @@
 
 Each candidate c contributes the block ``J_c`` (``r x b``) to the information matrix
 ``M = ridge I + sum_{c in design} J_c^T J_c``. The state keeps ``M^-1`` and, for every
-candidate, ``G_c = J_c M^-1`` (and ``F_c = G_c L`` for a trace criterion), so that changing
-the design by a few blocks is a low-rank (Woodbury) update: adding candidate i and removing
-design point j is ``M' = M + R^T S R`` with ``R = [J_i; J_j]`` and ``S = diag(+1, -1)``
-(per row), and with ``K = S + R M^-1 R^T`` (2r x 2r):
+candidate, the r x r block ``S_c = J_c M^-1 J_c^T`` (and ``P_c = J_c M^-1 L M^-1 J_c^T`` for
+a trace criterion), so that changing the design by a few blocks is a low-rank update: adding
+candidate i and removing design point j is ``M' = M + R^T S R`` with ``R = [J_i; J_j]`` and
+``S = diag(+1, -1)`` (per row), and with ``K = S + R M^-1 R^T`` (2r x 2r):
 
 * ``det M' / det M = det(S) det(K)`` (matrix determinant lemma);
 * ``M'^-1 = M^-1 - M^-1 R^T K^-1 R M^-1`` (Sherman-Morrison-Woodbury), so
   ``trace(L M'^-1) = trace(L M^-1) - trace(K^-1 R M^-1 L M^-1 R^T)``.
 
-Every entry of K and of ``R M^-1 L M^-1 R^T`` is a product of a row of G (or F) with a row
-of J (or G): evaluating one exchange costs O(r^2 b) per candidate, vectorised over all the
-candidates, and applying it O(r^2 b) per candidate too; nothing is decomposed again.
+Every quantity an exchange needs is an r x r block formed from S, P and one matrix product
+``J_c (M^-1 X)`` over all the candidates: evaluating one exchange costs O(r^2 b) per
+candidate, vectorised, and applying it O(r^2 b) per candidate too; nothing is decomposed
+again (``M^-1`` is recomputed from scratch once per sweep, against round-off).
 
 Criteria: ``D`` maximises ``log det M``; ``A`` minimises ``trace M^-1`` (L = I) and ``I``
 minimises ``trace(L M^-1)`` with L the mean information of the reference points (the mean
