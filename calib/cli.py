@@ -235,10 +235,18 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     chain = load_robot(args.robot, args.base, _tool(args))
     if isinstance(chain, Tree):
         return _simulate_tree(args, chain, out, truth_path)
-    _check_outputs({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    _check_outputs(
+        {"--out": out, "--truth": truth_path},
+        {"the URDF": chain.urdf_path, "--configs-file": args.configs_file},
+    )
+    configs = args.configs
+    if args.configs_file:
+        from .configurations import read_configurations
+
+        configs = read_configurations(args.configs_file, chain)
     campaign = simulate(
         chain,
-        args.configs,
+        configs,
         args.measure,
         args.marker,
         args.error_mm,
@@ -577,6 +585,10 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"random configurations m (default: {DEFAULT_CONFIGS})",
     )
     p.add_argument(
+        "--configs-file",
+        help="CSV of the configurations to simulate (joint columns, e.g. from calib design)",
+    )
+    p.add_argument(
         "--measure",
         choices=CAMPAIGN_MEASURES,
         default="pose",
@@ -729,6 +741,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="also save the counts plot to this .png, .svg or .pdf file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_sweep)
+
+    from .design_cli import add_design_parser
+
+    add_design_parser(sub)
 
     p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
     p.set_defaults(func=cmd_demo)

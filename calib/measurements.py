@@ -779,7 +779,7 @@ def _non_negative(name: str, value: float) -> float:
 
 def simulate(
     chain: Chain,
-    configs: int = 100,
+    configs: int | np.ndarray = 100,
     measure: str = "pose",
     marker=None,
     error_mm: float = 1.0,
@@ -796,7 +796,8 @@ def simulate(
 
     Args:
         chain: The nominal chain.
-        configs: Number of configurations m (an integer >= 1).
+        configs: Number of configurations m (an integer >= 1), or the configurations
+            themselves ``(m, n)`` [rad or m] (a designed set).
         measure: ``pose`` or ``position``.
         marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
         error_mm: Standard deviation of every length error [mm].
@@ -815,7 +816,8 @@ def simulate(
     """
     if measure not in CAMPAIGN_MEASURES:
         raise InvalidArgumentError(f"unknown measure '{measure}': choose pose or position")
-    m = _integer("the number of configurations", configs, 1)
+    given = isinstance(configs, np.ndarray | list | tuple)
+    m = 0 if given else _integer("the number of configurations", configs, 1)
     seed = _integer("the seed", seed, 0)
     error_mm = _non_negative("error_mm", error_mm)
     error_mrad = _non_negative("error_mrad", error_mrad)
@@ -825,7 +827,8 @@ def simulate(
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
 
-    q = chain.random_configurations(m, seed)
+    q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
+    m = len(q)
     rng_errors = np.random.default_rng([seed, 1])
     rng_noise = np.random.default_rng([seed, 2])
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])

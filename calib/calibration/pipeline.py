@@ -307,7 +307,7 @@ def _torques(chain, opts, train, held):
     return tau, None if held is None else chain.gravity_torques(held[0].q)
 
 
-def _level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[str]]:
+def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[str]]:
     """The standard set and the names a level offers (before --fix / --free)."""
     pset = parameter_set(nominal, "paper" if opts.level == "paper" else "complete")
     if opts.level == "frames":
@@ -330,7 +330,7 @@ def _level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[s
 
 def _choose(chain, nominal, reg: State, data, torque, opts):
     """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
-    pset, names = _level_names(nominal, opts)
+    pset, names = level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
     joints = [j for j in joints if compliance_name(j) not in opts.fix]
     base = _frames_model(data, opts)

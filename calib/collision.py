@@ -1,0 +1,300 @@
+"""Collision-free candidates: Pinocchio's collision model of the URDF (hpp-fcl / coal).
+
+The collision geometry (``<collision>`` elements; meshes found through example-robot-data's
+package path and the URDF's folders) is attached to the chain's Pinocchio model. Pairs
+checked: every pair of geometries that the chain's joints move relative to each other, except
+
+* pairs the robot's SRDF disables (``<disable_collisions>``; given, or found beside the URDF
+  as example-robot-data ships them: ``../srdf/NAME.srdf``, ``NAME`` without ``_robot``);
+* pairs on one link or on two adjacent links (parent and child joint), and pairs whose
+  relative pose no chain joint changes (fingers of a hand, wheels of a base);
+* pairs already in contact at the reference configuration (joints at zero, or at the middle
+  of their limits if zero is outside them): touching covers and wheels, not a motion.
+
+Obstacles are boxes in the chain's base frame, checked against every moving geometry. The
+line of sight from an instrument to a measured point is a thin capsule checked against every
+geometry except those of the tool's link and the links it carries (the marker sits on them).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from .catalog import erd_robots_dir
+from .exceptions import CalibError, InvalidArgumentError, URDFError
+from .fileio import read_text_limited
+from .robot import Chain
+from .urdf_model import _console_captured
+from .urdf_xml import MAX_URDF_BYTES
+
+_LOG = logging.getLogger("calib")
+
+SIGHT_RADIUS = 1e-3
+"""Radius [m] of the line of sight (a capsule from the instrument to the point)."""
+
+
+@dataclass(frozen=True, eq=False)
+class CollisionChecker:
+    """The collision model of a chain, with the pairs to check.
+
+    Attributes:
+        chain: The chain (its Pinocchio model carries the geometry).
+        geometry: Collision geometry, with the active pairs.
+        moving: Geometry indices that move with the chain's joints.
+        tool_geometries: Geometry indices on the tool frame's link and the links beyond it
+            (a gripper's fingers): the measured point sits among them.
+        base_placement: The chain's base frame in Pinocchio's world at the reference
+            configuration ``(4, 4)``.
+        notes: What was disabled, or why nothing is checked.
+    """
+
+    chain: Chain
+    geometry: pin.GeometryModel
+    moving: tuple[int, ...]
+    tool_geometries: tuple[int, ...]
+    base_placement: np.ndarray
+    notes: tuple[str, ...]
+
+    @property
+    def pairs(self) -> int:
+        """Number of pairs checked."""
+        return len(self.geometry.collisionPairs)
+
+    def _placements(self, q: np.ndarray):
+        """Pinocchio data for each configuration: yields (index, geometry data)."""
+        model = self.chain.model
+        data = model.createData()
+        gdata = pin.GeometryData(self.geometry)
+        for i, qp in enumerate(self.chain.pin_configurations(q)):
+            pin.updateGeometryPlacements(model, data, self.geometry, gdata, qp)
+            yield i, gdata
+
+    def colliding(self, q: np.ndarray) -> np.ndarray:
+        """Whether each configuration ``(m, n)`` has a pair in contact ``(m,)``."""
+        out = np.zeros(len(np.atleast_2d(q)), dtype=bool)
+        if not self.pairs:
+            return out
+        model = self.chain.model
+        data = model.createData()
+        gdata = pin.GeometryData(self.geometry)
+        for i, qp in enumerate(self.chain.pin_configurations(q)):
+            out[i] = pin.computeCollisions(model, data, self.geometry, gdata, qp, True)
+        return out
+
+    def blocked(self, q: np.ndarray, points: np.ndarray, instrument: np.ndarray) -> np.ndarray:
+        """Whether a geometry hides a point from the instrument, per configuration ``(m,)``.
+
+        Args:
+            q: Joint positions ``(m, n)``.
+            points: Measured points in the base frame ``(m, K, 3)`` [m].
+            instrument: Instrument position in the base frame ``(3,)`` [m].
+        """
+        out = np.zeros(len(points), dtype=bool)
+        others = [
+            g for g in range(len(self.geometry.geometryObjects)) if g not in self.tool_geometries
+        ]
+        if not others:
+            return out
+        world = self.base_placement
+        src = world[:3, :3] @ instrument + world[:3, 3]
+        pts = points @ world[:3, :3].T + world[:3, 3]
+        request, shapes = coal.CollisionRequest(), self.geometry.geometryObjects
+        for i, gdata in self._placements(q):
+            for p in pts[i]:
+                capsule, tf = _segment(src, p)
+                if capsule is None:
+                    continue
+                for g in others:
+                    result = coal.CollisionResult()
+                    placement = gdata.oMg[g]
+                    other_tf = coal.Transform3s(placement.rotation, placement.translation)
+                    if coal.collide(capsule, tf, shapes[g].geometry, other_tf, request, result):
+                        out[i] = True
+                        break
+                if out[i]:
+                    break
+        return out
+
+
+def _segment(a: np.ndarray, b: np.ndarray):
+    """A thin capsule from a to b and its placement (None if the points coincide)."""
+    v = b - a
+    length = float(np.linalg.norm(v))
+    if length < 1e-9:
+        return None, None
+    z = v / length
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    R = np.column_stack([x, np.cross(z, x), z])
+    return coal.Capsule(SIGHT_RADIUS, length), coal.Transform3s(R, (a + b) / 2)
+
+
+def find_srdf(urdf: Path) -> Path | None:
+    """The SRDF example-robot-data ships for a URDF, if any (``../srdf/NAME.srdf``)."""
+    folder = urdf.parent.parent / "srdf"
+    for stem in (urdf.stem, urdf.stem.removesuffix("_robot")):
+        path = folder / f"{stem}.srdf"
+        if path.is_file():
+            return path
+    return None
+
+
+def _package_dirs(urdf: Path) -> list[str]:
+    dirs = [str(urdf.parent), str(urdf.parent.parent)]
+    with contextlib.suppress(CalibError):
+        dirs.insert(0, str(erd_robots_dir().parent.parent))
+    return dirs
+
+
+def _geometry(chain: Chain) -> pin.GeometryModel:
+    """The URDF's collision geometry on the chain's model (meshes loaded)."""
+    path = chain.urdf_path
+    try:
+        text = read_text_limited(path, MAX_URDF_BYTES)
+    except OSError as exc:
+        raise URDFError(str(path), exc.strerror or str(exc)) from None
+    with _console_captured() as captured:
+        try:
+            geom = pin.buildGeomFromUrdfString(
+                chain.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path)
+            )
+        except (RuntimeError, ValueError) as exc:
+            geom = exc
+    if captured and captured[0].strip():
+        _LOG.info("Pinocchio on %s:\n%s", path, captured[0].rstrip())
+    if isinstance(geom, Exception):
+        first = str(geom).strip().splitlines()[0] if str(geom).strip() else type(geom).__name__
+        raise URDFError(
+            str(path),
+            f"cannot load its collision geometry ({first}): check the mesh paths, "
+            f"or skip the collision check",
+        )
+    return geom
+
+
+def _moving(chain: Chain, geom: pin.GeometryModel) -> list[int]:
+    """Geometries whose joint lies on or after the chain's first joint."""
+    first = chain.joint_ids[0]
+    return [
+        g
+        for g, obj in enumerate(geom.geometryObjects)
+        if first in chain.model.supports[obj.parentJoint]
+    ]
+
+
+def reference_configuration(chain: Chain) -> np.ndarray:
+    """Zero, or the middle of the limits for the joints whose limits exclude zero ``(n,)``."""
+    inside = (chain.lower <= 0.0) & (chain.upper >= 0.0)
+    return np.where(inside, 0.0, 0.5 * (chain.lower + chain.upper))
+
+
+def _relative_motion(chain: Chain, a: int, b: int) -> bool:
+    """Whether the chain's joints move joint a's body relative to joint b's (not adjacent).
+
+    The path between two bodies in the tree is the symmetric difference of their supports;
+    a pair whose path holds no chain joint keeps its relative pose (its state is that of the
+    reference configuration), and adjacent bodies touch at their joint by construction.
+    """
+    model = chain.model
+    if a == b or model.parents[a] == b or model.parents[b] == a:
+        return False
+    path = set(model.supports[a]) ^ set(model.supports[b])
+    return bool(path & set(chain.joint_ids))
+
+
+def _keep_pairs(chain: Chain, geom: pin.GeometryModel, srdf: Path | None) -> list[str]:
+    """Active pairs: those the chain moves, minus SRDF-disabled and touching at reference."""
+    model = chain.model
+    joints = [o.parentJoint for o in geom.geometryObjects]
+    for a in range(len(joints)):
+        for b in range(a + 1, len(joints)):
+            if _relative_motion(chain, joints[a], joints[b]):
+                geom.addCollisionPair(pin.CollisionPair(a, b))
+    notes = []
+    before = len(geom.collisionPairs)
+    if srdf is not None:
+        with _console_captured():
+            pin.removeCollisionPairs(model, geom, str(srdf))
+        notes.append(f"{before - len(geom.collisionPairs)} pair(s) disabled by {srdf.name}")
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    q0 = chain.pin_configurations(reference_configuration(chain))[0]
+    pin.computeCollisions(model, data, geom, gdata, q0, False)
+    touching = [  # copies: removing a pair moves the others in the vector
+        pin.CollisionPair(geom.collisionPairs[k].first, geom.collisionPairs[k].second)
+        for k, res in enumerate(gdata.collisionResults)
+        if res.isCollision()
+    ]
+    for pair in touching:
+        geom.removeCollisionPair(pair)
+    if touching:
+        notes.append(f"{len(touching)} pair(s) in contact at the reference configuration skipped")
+    return notes
+
+
+def _add_obstacles(chain: Chain, geom, moving, obstacles, base: np.ndarray) -> None:
+    for k, box in enumerate(obstacles):
+        lo, hi = np.asarray(box[:3], dtype=float), np.asarray(box[3:], dtype=float)
+        center = base[:3, :3] @ ((lo + hi) / 2) + base[:3, 3]
+        placement = pin.SE3(base[:3, :3], center)
+        obj = pin.GeometryObject(f"obstacle{k + 1}", 0, 0, placement, coal.Box(*(hi - lo)))
+        g = geom.addGeometryObject(obj)
+        for other in moving:
+            geom.addCollisionPair(pin.CollisionPair(other, g))
+
+
+def collision_checker(
+    chain: Chain, srdf: str | Path | None = None, obstacles=()
+) -> CollisionChecker:
+    """The collision model of a chain, from its URDF's ``<collision>`` geometry.
+
+    Args:
+        chain: The chain.
+        srdf: SRDF whose ``<disable_collisions>`` pairs are skipped (default: the one
+            example-robot-data ships beside the URDF, if any).
+        obstacles: Boxes ``(xmin, ymin, zmin, xmax, ymax, zmax)`` in the base frame [m].
+
+    Returns:
+        The checker; without collision geometry it checks nothing and its notes say so.
+
+    Raises:
+        URDFError: The geometry cannot be loaded (a missing mesh).
+        InvalidArgumentError: A missing SRDF file or a box with min > max.
+    """
+    for box in obstacles:
+        if len(box) != 6 or not np.all(np.asarray(box[:3]) < np.asarray(box[3:])):
+            raise InvalidArgumentError(
+                f"an obstacle box is xmin ymin zmin xmax ymax zmax with min < max, got {box}"
+            )
+    if srdf is not None and not Path(srdf).is_file():
+        raise InvalidArgumentError(f"no SRDF file {srdf}")
+    srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(chain.urdf_path))
+    geom = _geometry(chain)
+    model = chain.model
+    data = model.createData()
+    pin.framesForwardKinematics(
+        model, data, chain.pin_configurations(reference_configuration(chain))[0]
+    )
+    base = data.oMf[chain.base_id].homogeneous.copy()
+    moving = _moving(chain, geom)
+    tool_joint = model.frames[chain.tool_id].parentJoint
+    tool = tuple(
+        g
+        for g, o in enumerate(geom.geometryObjects)
+        if tool_joint in model.supports[o.parentJoint]
+    )
+    if not geom.geometryObjects:
+        notes = [f"{Path(chain.urdf_path).name} has no collision geometry: collisions not checked"]
+    else:
+        notes = _keep_pairs(chain, geom, srdf_path)
+    _add_obstacles(chain, geom, moving, obstacles, base)
+    return CollisionChecker(chain, geom, tuple(moving), tool, base, tuple(notes))
+
+
+__all__ = ["CollisionChecker", "collision_checker", "find_srdf", "reference_configuration"]

@@ -1,0 +1,192 @@
+"""The ``calib design`` command: choose the configurations to measure, or evaluate a set.
+
+Kept beside :mod:`calib.cli` (which registers it) so that the command's options and output
+live with the feature.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .cli import _add_chain_args, _check_outputs, _print_json, _write
+from .configurations import configurations_csv, read_configurations
+from .constraints import Constraints
+from .design import DEFAULT_CANDIDATES, design, design_text, evaluate, indices_table
+from .exceptions import InvalidArgumentError
+from .exchange import EXCHANGE_CRITERIA
+from .measurements import CAMPAIGN_MEASURES
+from .observability import CRITERIA, DESIGN_LEVELS
+from .robot import load_chain
+
+
+def cmd_design(args: argparse.Namespace) -> int:
+    """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    chain = load_chain(args.robot, args.base, args.tool)
+    markers = args.marker
+    if args.evaluate:
+        q = read_configurations(args.evaluate, chain)
+        ind = evaluate(chain, q, args.measure, markers, args.params, args.seed)
+        if args.json:
+            _print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
+        else:
+            print(
+                f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
+                f"{ind.parameters} parameters, rank {ind.rank}"
+            )
+            print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
+        return 0
+    if args.configs is None:
+        raise InvalidArgumentError("give --configs K (or --evaluate CONFIGS.csv)")
+    out = Path(args.out) if args.out else None
+    inputs = {
+        "the URDF": chain.urdf_path,
+        "--candidates-file": args.candidates_file,
+        "--srdf": args.srdf,
+    }
+    _check_outputs({"--out": out}, inputs)
+    candidates = args.candidates
+    if args.candidates_file:
+        candidates = read_configurations(args.candidates_file, chain)
+    constraints = Constraints(
+        margin=args.margin,
+        workspace=tuple(args.workspace) if args.workspace else None,
+        collision=args.collision,
+        obstacles=tuple(tuple(b) for b in args.obstacle),
+        srdf=args.srdf,
+        line_of_sight=tuple(args.line_of_sight) if args.line_of_sight else None,
+    )
+    result = design(
+        chain,
+        args.configs,
+        candidates=candidates,
+        criterion=args.criterion,
+        measure=args.measure,
+        markers=markers,
+        params=args.params,
+        constraints=constraints,
+        seed=args.seed,
+        progress=_progress("calib design"),
+    )
+    if out is not None:
+        _write({out: configurations_csv(chain, result.q)})
+    if args.json:
+        _print_json(result.to_dict())
+    else:
+        print(design_text(result, args.noise_mm))
+        if out is not None:
+            print(f"wrote {out} ({len(result.q)} configurations)")
+    return 0
+
+
+def _progress(desc: str):
+    """A tqdm wrapper shown only when stderr is a terminal."""
+    from tqdm import tqdm
+
+    def bar(jobs):
+        return tqdm(jobs, desc=desc, file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
+
+    return bar
+
+
+def add_design_parser(sub) -> None:
+    """The ``design`` subcommand's options."""
+    p = sub.add_parser("design", help="choose the configurations to measure (experiment design)")
+    _add_chain_args(p)
+    p.add_argument("--configs", type=int, help="number of configurations K to choose")
+    p.add_argument(
+        "--evaluate",
+        metavar="CONFIGS.csv",
+        help="print the observability indices of these configurations instead",
+    )
+    p.add_argument(
+        "--candidates",
+        type=int,
+        default=DEFAULT_CANDIDATES,
+        help=f"random candidates within the joint limits (default: {DEFAULT_CANDIDATES})",
+    )
+    p.add_argument(
+        "--candidates-file", help="CSV of candidate configurations known to be reachable"
+    )
+    p.add_argument(
+        "--criterion",
+        choices=EXCHANGE_CRITERIA,
+        default="D",
+        help="D: log det of the information; A: mean parameter variance; I: mean "
+        "predicted position error (default: D)",
+    )
+    p.add_argument(
+        "--measure",
+        choices=CAMPAIGN_MEASURES,
+        default="position",
+        help="position or pose (default: position)",
+    )
+    p.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        action="append",
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m]; repeat for several markers "
+        "(default: the tool origin)",
+    )
+    p.add_argument(
+        "--params",
+        choices=DESIGN_LEVELS,
+        default="complete",
+        help="what the calibration fits (calibrate --params; default: complete)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the candidates, reference and random sets (default: 0)",
+    )
+    p.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=0.0,
+        help="distance kept from the joint limits [rad or m] (default: 0)",
+    )
+    p.add_argument(
+        "--workspace",
+        nargs=6,
+        type=float,
+        metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+        help="box of the base frame that must hold the measured points [m]",
+    )
+    p.add_argument(
+        "--line-of-sight",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="instrument position in the base frame [m]: points must be in view",
+    )
+    p.add_argument(
+        "--obstacle",
+        nargs=6,
+        type=float,
+        action="append",
+        default=[],
+        metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+        help="box of the environment in the base frame [m] (repeatable)",
+    )
+    p.add_argument(
+        "--srdf", help="SRDF of the disabled collision pairs (default: found beside the URDF)"
+    )
+    p.add_argument(
+        "--collision",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="reject self-colliding candidates (default: yes)",
+    )
+    p.add_argument(
+        "--noise-mm",
+        type=float,
+        default=0.05,
+        help="noise for the printed error prediction [mm] (default: 0.05)",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_design)

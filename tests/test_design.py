@@ -1,0 +1,336 @@
+"""Experiment design: indices, low-rank updates, designed vs random sets, filters, CLI."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import chain_of
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calib import InvalidArgumentError, calibrate, residual_stats, simulate
+from calib.catalog import erd_robots_dir
+from calib.cli import main
+from calib.configurations import configurations_csv, parse_configurations
+from calib.constraints import Constraints, filter_candidates
+from calib.design import candidate_configurations, design, evaluate
+from calib.exceptions import DataError
+from calib.exchange import ExchangeState, optimal_subset, solve_blocks
+from calib.observability import indices_of, observation_model, reference
+
+
+@pytest.fixture(scope="module")
+def panda_problem():
+    chain = chain_of("panda")
+    model = observation_model(chain, "position")
+    q = candidate_configurations(chain, 600, seed=1)
+    ref = reference(model, candidate_configurations(chain, 100, seed=2))
+    return chain, model, q, model.jacobian(q), ref
+
+
+# --- indices --------------------------------------------------------------------------
+
+
+def test_indices_against_their_definitions(panda_problem):
+    """Each index from the singular values, recomputed from M = W^T W by other routines."""
+    _, model, _, J, ref = panda_problem
+    ind = indices_of(J[:40], ref)
+    W = J[:40].reshape(-1, model.b)
+    M = W.T @ W
+    eig = np.linalg.eigvalsh(M)  # s_i^2
+    assert ind.rank == model.b
+    assert ind.cond == pytest.approx(math.sqrt(eig[-1] / eig[0]), rel=1e-9)
+    assert ind.d == pytest.approx(np.linalg.slogdet(M)[1], rel=1e-12)
+    assert ind.a == pytest.approx(np.trace(np.linalg.inv(M)), rel=1e-9)
+    assert ind.o1 == pytest.approx(np.prod(np.sqrt(eig)) ** (1 / model.b) / math.sqrt(40), 1e-9)
+    assert ind.o3 == pytest.approx(math.sqrt(eig[0]), rel=1e-9)
+    assert ind.o4 == pytest.approx(eig[0] / math.sqrt(eig[-1]), rel=1e-9)
+    var = [np.trace(P @ np.linalg.solve(M, P.T)) for P in ref.points]
+    assert ind.i == pytest.approx(math.sqrt(np.mean(var)), rel=1e-9)
+    assert ind.g == pytest.approx(math.sqrt(np.max(var)), rel=1e-9)
+
+
+def test_predicted_error_is_the_monte_carlo_error(panda_problem):
+    """I x noise is the RMS error of a linear least-squares fit with that noise."""
+    _, model, _, J, ref = panda_problem
+    W = J[:40].reshape(-1, model.b)
+    rng = np.random.default_rng(0)
+    noise = rng.standard_normal((2000, W.shape[0]))
+    x = np.linalg.lstsq(W, noise.T, rcond=None)[0]  # estimation errors, true x = 0
+    err = np.einsum("prb,bt->tpr", ref.points, x)
+    rms = math.sqrt(np.mean(np.sum(err**2, axis=2)))
+    assert rms == pytest.approx(indices_of(J[:40], ref).i, rel=0.05)
+
+
+def test_rank_deficient_set_has_infinite_indices(panda_problem):
+    _, _, _, J, ref = panda_problem
+    ind = indices_of(J[:5], ref)  # 15 rows for 29 parameters
+    assert ind.rank < ind.parameters and math.isinf(ind.cond) and ind.d == -math.inf
+    assert ind.to_dict()["cond"] is None and ind.to_dict()["I"] is None
+
+
+def test_scaling_moves_angles_only():
+    """Angle columns are divided by L; L is the summed MDH lengths (UR5 by hand)."""
+    chain = chain_of("ur5")
+    model = observation_model(chain, "position", markers=(0.0, 0.0, 0.1))
+    # UR5's MDH table (`calib show ur5`): r1, d3, (d4, r4), r5, tool r; marker 0.1.
+    lengths = [0.089159, 0.425, math.hypot(0.39225, 0.10915), 0.09465, 0.0823]
+    assert model.length == pytest.approx(sum(lengths) + 0.1, rel=1e-9)
+    assert set(np.array(model.names)[model.angular]) >= {"frame.rx", "frame.ry", "frame.rz"}
+    assert not any(n.startswith(("d", "r", "marker", "frame.x")) for n in
+                   np.array(model.names)[model.angular])
+
+
+# --- low-rank updates -----------------------------------------------------------------
+
+
+def _fresh(J, design, L):
+    ind = indices_of(J[design], None)
+    return -ind.d if L is None else float(np.trace(L @ np.linalg.inv(
+        J[design].reshape(-1, J.shape[2]).T @ J[design].reshape(-1, J.shape[2]))))
+
+
+@pytest.mark.parametrize("criterion", ["D", "A", "I"])
+def test_low_rank_update_equals_fresh_computation(panda_problem, criterion):
+    """Predicted change and updated state agree with a new SVD / inverse to 1e-9 relative."""
+    _, model, _, J, ref = panda_problem
+    L = {"D": None, "A": np.eye(model.b), "I": ref.mean}[criterion]
+    design_ = list(range(0, 80, 2))
+    state = ExchangeState(J, design_, L, 0.0)
+    before = _fresh(J, design_, L)
+    assert state.value() == pytest.approx(before, rel=1e-9)
+    for remove, add in ((design_[3], 101), (design_[17], 333), (None, 555)):
+        gains = state.gains(remove)
+        new = [c for c in state.design if c != remove] + [add]
+        after = _fresh(J, new, L)
+        if L is None:  # log det: compare det ratios
+            assert math.exp(gains[add] - (before - after)) == pytest.approx(1.0, abs=1e-9)
+        else:
+            assert gains[add] == pytest.approx(before - after, rel=1e-9, abs=1e-12 * before)
+        state.apply(add, remove)
+        assert state.value() == pytest.approx(after, rel=1e-9)
+        if L is not None:  # the trace criterion is I^2 for the reference weight
+            ref_i = indices_of(J[new], ref).i
+            assert criterion != "I" or state.value() == pytest.approx(ref_i**2, rel=1e-9)
+        before = after
+
+
+def test_bounds_never_below_gains(panda_problem):
+    _, model, _, J, ref = panda_problem
+    for L in (None, np.eye(model.b), ref.mean):
+        state = ExchangeState(J, list(range(40)), L, 0.0)
+        for j in state.design[:6]:
+            assert np.all(state.bounds(j) >= state.gains(j) - 1e-9)
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(1, 6), st.integers(0, 2**31 - 1))
+def test_small_block_solver(r, seed):
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((5, r, r))
+    X = A @ np.swapaxes(A, 1, 2) + 0.1 * np.eye(r)
+    E = rng.standard_normal((5, r, 2))
+    logdet, Y, ok = solve_blocks(X.transpose(1, 2, 0), E.transpose(1, 2, 0))
+    assert np.all(ok)
+    np.testing.assert_allclose(logdet, np.linalg.slogdet(X)[1], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(Y.transpose(2, 0, 1), np.linalg.solve(X, E), rtol=1e-7, atol=1e-9)
+
+
+def test_exchange_never_worse_than_greedy_and_reaches_a_local_optimum(panda_problem):
+    """No single swap of the result improves it (checked by brute force on a fresh SVD)."""
+    J = panda_problem[3]
+    res = optimal_subset(J[:150], 12, "D")
+    final = indices_of(J[list(res.design)]).d
+    assert final >= indices_of(J[list(res.greedy)]).d - 1e-9
+    rng = np.random.default_rng(3)
+    for j in rng.choice(res.design, 3, replace=False):
+        for c in rng.choice(150, 20, replace=False):
+            if c in res.design:
+                continue
+            swapped = [c if d == j else d for d in res.design]
+            assert indices_of(J[swapped]).d <= final + 1e-7
+
+
+# --- designed vs random ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("criterion", ["D", "A", "I"])
+def test_design_beats_random_sets(criterion):
+    d = design(chain_of("panda"), 30, candidates=1000, criterion=criterion, seed=4,
+               constraints=Constraints(collision=False))
+    for name in ("D", "A", "I", "cond"):
+        worse = [d.indices.better(r, name) for r in d.random]
+        assert np.mean(worse) >= 0.9, name  # better than 90 % of the random sets
+    assert d.indices.better(d.greedy, criterion) or d.exchanges == 0
+
+
+def _heldout_rms(chain, q, q_ref, seed):
+    data = simulate(chain, q, "position", noise_mm=0.05, seed=seed).measurements
+    truth = simulate(chain, q_ref, "position", noise_mm=0.0, seed=seed).measurements
+    result = calibrate(chain, data, params="complete")
+    return residual_stats(result, truth).position_rms
+
+
+def test_designed_set_calibrates_better_than_random_sets():
+    """Median over seeds of the held-out error (true, noise-free points) after calibration."""
+    chain = chain_of("ur5")
+    k = 30
+    q_ref = candidate_configurations(chain, 200, seed=99)
+    designed, randoms = [], []
+    for seed in range(5):
+        d = design(chain, k, candidates=1000, seed=seed, random_sets=1,
+                   constraints=Constraints(collision=False))
+        q_rand = candidate_configurations(chain, k, seed=100 + seed)
+        designed.append(_heldout_rms(chain, d.q, q_ref, seed))
+        randoms.append(_heldout_rms(chain, q_rand, q_ref, seed))
+    assert np.median(designed) < np.median(randoms)
+
+
+# --- filters --------------------------------------------------------------------------
+
+COLLIDING = {  # hand-made: the forearm folded onto the shoulder, the hand onto link 1, ...
+    "ur5": ([0.0, -1.57, 2.9, 0.0, 0.0, 0.0], ("shoulder_link", "forearm_link")),
+    "panda": ([0.0, 0.0, 0.0, -3.0, 0.0, 0.2, 0.0], ("panda_link1", "panda_hand")),
+    "tiago": ([0.0, 0.07, -1.5, -3.4, 0.2, 0.0, 0.0, 0.0], ("base_link", "arm_5_link")),
+}
+FREE = {  # and a pose of the same pair apart (Franka's "ready" pose for the Panda)
+    "ur5": [0.0] * 6,
+    "panda": [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785],
+    "tiago": [0.0] * 8,
+}
+
+
+def _pinocchio_pair_collides(chain, q, links) -> bool:
+    """Pinocchio alone, on the original URDF: do the two links' collision meshes touch?"""
+    path = str(chain.urdf_path)
+    model = pin.buildModelFromUrdf(path)
+    geom = pin.buildGeomFromUrdf(model, path, pin.GeometryType.COLLISION,
+                                 package_dirs=[str(erd_robots_dir().parent.parent)])
+    ids = [next(i for i, g in enumerate(geom.geometryObjects) if g.name == f"{n}_0")
+           for n in links]
+    geom.addCollisionPair(pin.CollisionPair(*ids))
+    full = pin.neutral(model)
+    for name, v in zip(chain.joint_names, q, strict=True):
+        full[model.joints[model.getJointId(name)].idx_q] = v
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    pin.updateGeometryPlacements(model, data, geom, gdata, full)
+    return pin.computeCollision(geom, gdata, 0)
+
+
+@pytest.mark.parametrize("robot", sorted(COLLIDING))
+def test_collision_filter_rejects_a_known_colliding_configuration(robot):
+    chain = chain_of(robot)
+    q, links = COLLIDING[robot]
+    assert _pinocchio_pair_collides(chain, q, links)
+    free = np.array(FREE[robot])
+    assert not _pinocchio_pair_collides(chain, free, links)
+    keep, report = filter_candidates(chain, np.array([q, free]), np.zeros((1, 3)), Constraints())
+    assert keep.tolist() == [False, True]
+    assert dict(report.rejected)["collision"] == 1
+
+
+def test_urdf_without_collision_geometry_is_accepted_with_a_note():
+    chain = chain_of("aid")
+    q = candidate_configurations(chain, 50, seed=0)
+    keep, report = filter_candidates(chain, q, np.zeros((1, 3)), Constraints())
+    assert keep.all() and "no collision geometry" in report.notes[0]
+
+
+def test_workspace_and_margin_filters_against_pinocchio():
+    chain = chain_of("ur5")
+    q = candidate_configurations(chain, 300, seed=5)
+    box = (-0.5, -0.5, 0.0, 0.5, 0.5, 0.8)
+    keep, _ = filter_candidates(chain, q, np.zeros((1, 3)),
+                                Constraints(workspace=box, collision=False))
+    tool = chain.tool_placements(q)[:, :3, 3]  # Pinocchio's forward kinematics
+    inside = np.all((tool >= box[:3]) & (tool <= box[3:]), axis=1)
+    assert keep.tolist() == inside.tolist() and 0 < inside.sum() < len(q)
+    keep, _ = filter_candidates(chain, q, np.zeros((1, 3)), Constraints(margin=1.0,
+                                collision=False))
+    near = np.any((q < chain.lower + 1.0) | (q > chain.upper - 1.0), axis=1)
+    assert keep.tolist() == (~near).tolist()
+
+
+def test_line_of_sight_blocked_by_a_wall():
+    chain = chain_of("panda")
+    q = candidate_configurations(chain, 40, seed=6)
+    eye = (2.0, 0.0, 0.5)
+    wall = (1.2, -3.0, -3.0, 1.3, 3.0, 3.0)  # out of the Panda's reach, between it and eye
+    free, _ = filter_candidates(chain, q, np.zeros((1, 3)), Constraints(line_of_sight=eye))
+    walled, report = filter_candidates(
+        chain, q, np.zeros((1, 3)), Constraints(line_of_sight=eye, obstacles=(wall,))
+    )
+    assert free.sum() > 0 and walled.sum() == 0
+    assert dict(report.rejected)["collision"] == dict(
+        filter_candidates(chain, q, np.zeros((1, 3)), Constraints())[1].rejected)["collision"]
+
+
+# --- files and CLI --------------------------------------------------------------------
+
+
+def test_configurations_csv_round_trip_and_errors():
+    chain = chain_of("ur5")
+    q = candidate_configurations(chain, 5, seed=0)
+    text = configurations_csv(chain, q)
+    np.testing.assert_array_equal(parse_configurations(text, chain), q)
+    shuffled = "x," + ",".join(reversed(chain.joint_names)) + "\n" + "\n".join(
+        "1.0," + ",".join(repr(float(v)) for v in row[::-1]) for row in q)
+    np.testing.assert_array_equal(parse_configurations(shuffled, chain), q)
+    with pytest.raises(DataError, match="missing joint column"):
+        parse_configurations("a,b\n1,2\n", chain)
+    bad = text.replace(repr(float(q[2, 1])), "1_0")
+    with pytest.raises(DataError, match=r"row 4.*not a number"):
+        parse_configurations(bad, chain)
+
+
+def test_cli_design_simulate_evaluate(tmp_path, capsys):
+    out = tmp_path / "configs.csv"
+    assert main(["design", "ur5", "--configs", "30", "--candidates", "500", "--out",
+                 str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "random (median of 20)" in text and f"wrote {out}" in text
+    chain = chain_of("ur5")
+    q = parse_configurations(out.read_text(), chain)
+    assert q.shape == (30, 6)
+    meas = tmp_path / "meas.csv"
+    assert main(["simulate", "ur5", "--configs-file", str(out), "--out", str(meas),
+                 "--measure", "position"]) == 0
+    lines = meas.read_text().splitlines()
+    assert len(lines) == 31 and lines[1].startswith(repr(float(q[0, 0])))
+    capsys.readouterr()
+    assert main(["design", "ur5", "--evaluate", str(out), "--json"]) == 0
+    import json
+
+    got = json.loads(capsys.readouterr().out)
+    assert got["D"] == pytest.approx(evaluate(chain, q).d, rel=1e-12)
+
+
+def test_cli_design_errors_leave_no_output(tmp_path, capsys):
+    out = tmp_path / "configs.csv"
+    assert main(["design", "ur5", "--configs", "3", "--out", str(out)]) == 2
+    assert "choose at least" in capsys.readouterr().err and not out.exists()
+    cand = tmp_path / "cand.csv"
+    cand.write_text(configurations_csv(chain_of("ur5"), np.zeros((40, 6))))
+    before = cand.read_text()
+    assert main(["design", "ur5", "--configs", "10", "--candidates-file", str(cand), "--out",
+                 str(cand)]) == 2
+    assert "would overwrite" in capsys.readouterr().err and cand.read_text() == before
+    assert main(["design", "ur5", "--configs", "10", "--candidates-file", str(cand)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "do not identify" in err  # 40 copies of one pose
+    assert main(["design", "ur5", "--configs", "30", "--workspace", "5", "5", "5", "6", "6",
+                 "6", "--out", str(out)]) == 2
+    assert "workspace rejects 2000" in capsys.readouterr().err and not out.exists()
+
+
+def test_design_refuses_bad_arguments():
+    chain = chain_of("ur5")
+    with pytest.raises(InvalidArgumentError, match="criterion"):
+        design(chain, 30, criterion="E")
+    with pytest.raises(InvalidArgumentError, match="measure"):
+        design(chain, 30, measure="orientation")
+    with pytest.raises(InvalidArgumentError, match="margin"):
+        design(chain, 30, constraints=Constraints(margin=4.0))
