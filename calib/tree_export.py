@@ -12,9 +12,7 @@ and the other joints on the base are placed relative to it.
 
 from __future__ import annotations
 
-import io
 import os
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +29,7 @@ from .urdf_export import (
     _parent_link,
     _read,
     _set_origin,
+    _spliced,
     _xml_layout,
 )
 
@@ -96,9 +95,7 @@ def calibrated_tree_urdf(tree: Tree, nominal: TreeMDH, calibrated: TreeMDH) -> b
             new = moved[j + 1] @ nom_joint[j]
             parent = carried(int(nominal.antecedent[j + 1]), _parent_link(joint))
             _set_origin(joint, np.linalg.inv(parent) @ new)
-    body = io.BytesIO()
-    ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
-    return raw[:start] + body.getvalue() + raw[stop:]
+    return _spliced(raw, root, start, stop)
 
 
 def write_calibrated_tree_urdf(

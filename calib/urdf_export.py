@@ -59,6 +59,13 @@ def _xml_layout(raw: bytes, src: str) -> tuple[int, int]:
     return state["start"], stop
 
 
+def _spliced(raw: bytes, root: ET.Element, start: int, stop: int) -> bytes:
+    """The file with its root element (bytes ``start:stop``) replaced by the edited ``root``."""
+    body = io.BytesIO()
+    ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
+    return raw[:start] + body.getvalue() + raw[stop:]
+
+
 def _homogeneous(se3: pin.SE3) -> np.ndarray:
     return np.array(se3.homogeneous)
 
@@ -231,9 +238,7 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
     parent = carried(n - 1, _parent_link(tool_joint))
     _set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
 
-    body = io.BytesIO()
-    ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
-    return raw[:start] + body.getvalue() + raw[stop:]
+    return _spliced(raw, root, start, stop)
 
 
 def write_calibrated_urdf(
