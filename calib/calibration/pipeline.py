@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -130,9 +132,10 @@ def calibrate(
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
     guess = _marker_guess(marker, train.n_markers)
-    notes = _diagnose(chain, nominal, train, guess, opts)
-    opts = _weighted(nominal, train, guess, opts)
-    reg, train, dropped = _register(nominal, train, guess, opts, notes)
+    at = _registrations(nominal, train, guess, opts)
+    notes = _diagnose(chain, nominal, train, guess, opts, at)
+    opts = _weighted(train, opts, at)
+    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
     clock.append(time.perf_counter())
     torque = _torques(chain, opts, train, held)
     model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts)
@@ -228,19 +231,29 @@ def _registration(nominal, data, guess, opts) -> Fit:
     )
 
 
-def _diagnose(chain, nominal, data, guess, opts) -> list[str]:
+def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
+    """The registration of one data set at an orientation weight, each weight run once."""
+
+    @functools.cache
+    def at(weight: float) -> Fit:
+        w_opts = dataclasses.replace(opts, orientation_weight=weight)
+        return _registration(nominal, data, guess, w_opts)
+
+    return at
+
+
+def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     """Raise the likely mistake if the data cannot be registered; a note if none explains it.
 
     It runs at the default orientation weight: an estimated weight would let wrong
     orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed.
     """
-    if opts.orientation_weight is None:
-        opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
+    opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
 
     def rms(d):
         return validation.stats(_registration(nominal, d, guess, opts).state, d, None).position_rms
 
-    first = rms(data)
+    first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None).position_rms
     if not diagnosis.suspect(first, opts.noise):
         return []
     cause = diagnosis.likely_cause(data, chain.sigma == 0, rms, first)
@@ -257,24 +270,19 @@ def _diagnose(chain, nominal, data, guess, opts) -> list[str]:
     ]
 
 
-def _weighted(nominal, data, guess, opts: Options) -> Options:
+def _weighted(data, opts: Options, at) -> Options:
     """The options with the orientation weight: given, or estimated from the registration."""
     if opts.orientation_weight is not None:
         return opts
     weight = weighting.DEFAULT_WEIGHT
     if data.quaternion is not None:
-
-        def residuals_at(w: float) -> np.ndarray:
-            w_opts = dataclasses.replace(opts, orientation_weight=w)
-            return _registration(nominal, data, guess, w_opts).state.residuals(data)
-
-        weight = weighting.estimate_weight(residuals_at, data.n_markers)
+        weight = weighting.estimate_weight(lambda w: at(w).state.residuals(data), data.n_markers)
     return dataclasses.replace(opts, orientation_weight=weight)
 
 
-def _register(nominal, data, guess, opts, notes: list[str]):
-    """Registration, with outlier rows set aside (and noted)."""
-    reg = _registration(nominal, data, guess, opts)
+def _register(nominal, data, guess, opts, notes: list[str], at):
+    """Registration (``at``: the data set's registrations by weight), outlier rows set aside."""
+    reg = at(opts.orientation_weight)
     dropped: list[outliers.Outlier] = []
     for _ in range(outliers.PASSES):  # one registration per data set
         errors = outliers.configuration_errors(reg.state.residuals(data), data.n_markers)
