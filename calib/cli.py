@@ -70,7 +70,8 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
 
 
-def _print_json(obj: dict) -> None:
+def print_json(obj: dict) -> None:
+    """Print a JSON document (indented)."""
     print(json.dumps(obj, indent=2))
 
 
@@ -85,7 +86,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         for e in catalog()
     ]
     if args.json:
-        _print_json({"robots": [e.__dict__ | {"path": str(e.path)} for e in catalog()]})
+        print_json({"robots": [e.__dict__ | {"path": str(e.path)} for e in catalog()]})
     else:
         print(format_table(["name", "chain", "description"], rows))
     return 0
@@ -106,7 +107,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     mdh = from_chain(chain)
     mimic = () if chain.coupling is None else chain.coupling.mimic
     if args.json:
-        _print_json(
+        print_json(
             {
                 "robot": chain.name,
                 "base": chain.base_frame,
@@ -128,7 +129,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 def _show_tree(tree: Tree, as_json: bool) -> int:
     model = from_tree(tree)
     if as_json:
-        _print_json(
+        print_json(
             {
                 "robot": tree.name,
                 "base": tree.base_frame,
@@ -162,7 +163,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         return _analyze_markers(args)
     res = _analyze(args)
     if args.json:
-        _print_json(res.to_dict())
+        print_json(res.to_dict())
     else:
         print(analysis_text(res))
     return 0
@@ -179,7 +180,7 @@ def _analyze_markers(args: argparse.Namespace) -> int:
         raise InvalidArgumentError("--markers counts for one chain: give one --tool")
     names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
     if args.json:
-        _print_json(
+        print_json(
             {
                 "robot": chain.name,
                 "markers": args.markers,
@@ -210,12 +211,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write(files: dict[Path, str | bytes]) -> None:
+def write_outputs(files: dict[Path, str | bytes]) -> None:
     """Write output files (atomically for regular files; one-line OutputError on failure)."""
     write_files_atomic(files)
 
 
-def _check_outputs(
+def check_output_paths(
     outputs: Mapping[str, Path | str | None], inputs: Mapping[str, Path | str | None]
 ) -> None:
     """Refuse now, in one line, outputs that cannot be written or would overwrite a file.
@@ -235,7 +236,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     chain = load_robot(args.robot, args.base, _tool(args))
     if isinstance(chain, Tree):
         return _simulate_tree(args, chain, out, truth_path)
-    _check_outputs(
+    check_output_paths(
         {"--out": out, "--truth": truth_path},
         {"the URDF": chain.urdf_path, "--configs-file": args.configs_file},
     )
@@ -257,7 +258,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         args.params,
     )
     truth = campaign.truth
-    _write({out: measurements_csv(campaign.measurements), truth_path: json_text(truth.to_dict())})
+    write_outputs(
+        {out: measurements_csv(campaign.measurements), truth_path: json_text(truth.to_dict())}
+    )
     print(
         f"{chain.name}: {campaign.measurements.m} configurations, measure {args.measure}, "
         f"{len(truth.params)} {truth.params.label} parameters perturbed "
@@ -275,7 +278,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, out: Path, truth_path: 
 
     if args.measure != "position":
         raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
-    _check_outputs({"--out": out, "--truth": truth_path}, {"the URDF": tree.urdf_path})
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": tree.urdf_path})
     camp = simulate_tree(
         tree,
         args.configs,
@@ -295,7 +298,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, out: Path, truth_path: 
         "markers": camp.markers.tolist(),
         "seed": args.seed,
     }
-    _write({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
+    write_outputs({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
     print(
         f"{tree.name}: {args.configs} configurations x {tree.n_tools} tools "
         f"({', '.join(tree.tool_frames)}), {len(camp.params)} {camp.params.label} parameters "
@@ -336,7 +339,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
     if args.validate:
         inputs["the validation data (--validate)"] = args.validate
-    _check_outputs({"--out": out, "--report": report}, inputs)
+    check_output_paths({"--out": out, "--report": report}, inputs)
     check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
     columns = _columns(args)
     data = read_measurements(args.data, chain, columns)
@@ -366,7 +369,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     print(text if args.json else calibration_text(result), end="" if args.json else "\n")
     if not result.accepted:
         if report is not None:
-            _write({report: text})
+            write_outputs({report: text})
         kept = f"; report written to {report}" if report is not None else ""
         raise CalibrationRefusedError(
             f"calibration refused: {result.refusal}: no URDF written{kept}"
@@ -375,7 +378,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     files: dict[Path, str | bytes] = {out: urdf}
     if report is not None:
         files[report] = text
-    _write(files)
+    write_outputs(files)
     if not args.json:
         print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     return 0
@@ -412,7 +415,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
     inputs = {"the nominal URDF": tree.urdf_path, "the data (--data)": args.data}
     if args.validate:
         inputs["the validation data (--validate)"] = args.validate
-    _check_outputs({"--out": out, "--report": report}, inputs)
+    check_output_paths({"--out": out, "--report": report}, inputs)
     data = read_measurements(args.data, tree)
     check = read_measurements(args.validate, tree) if args.validate else None
     result = calibrate_tree(
@@ -428,12 +431,12 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
     print(text if args.json else result.text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: text}
     if not result.accepted:
-        _write(files)
+        write_outputs(files)
         raise CalibrationRefusedError(
             f"calibration refused: {result.refusal}: no URDF written"
             + (f"; report written to {report}" if report is not None else "")
         )
-    _write({out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh), **files})
+    write_outputs({out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh), **files})
     if not args.json:
         print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     return 0
@@ -457,7 +460,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         )
 
     plot_format = figure_format(args.plot, "--plot") if args.plot else None
-    _check_outputs(
+    check_output_paths(
         {"--csv": args.csv, "--plot": args.plot}, {f"the URDF {u}": u for u in args.urdf}
     )
     rows = sweep(
@@ -475,9 +478,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.plot:
         title = f"Base parameters per chain, {args.measure} measurement"
         files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
-    _write(files)
+    write_outputs(files)
     if args.json:
-        _print_json(
+        print_json(
             {
                 "measure": args.measure,
                 "params": args.params,
@@ -494,7 +497,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_chain_args(p: argparse.ArgumentParser, trees: bool = False) -> None:
+def add_chain_args(p: argparse.ArgumentParser, trees: bool = False) -> None:
+    """The robot, ``--base`` and ``--tool`` options (``--tool`` repeatable with ``trees``)."""
     p.add_argument("robot", help="catalog name (see `calib list`) or path to a URDF file")
     p.add_argument("--base", help="base frame (default: the catalog's, or the URDF root link)")
     if trees:
@@ -551,12 +555,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_list)
 
     p = sub.add_parser("show", help="modified-DH table of a chain or tree")
-    _add_chain_args(p, trees=True)
+    add_chain_args(p, trees=True)
     p.add_argument("--json", action="store_true", help="print JSON (radians, metres)")
     p.set_defaults(func=cmd_show)
 
     p = sub.add_parser("analyze", help="identifiable (base) parameters of a chain or tree")
-    _add_chain_args(p, trees=True)
+    add_chain_args(p, trees=True)
     _add_measure_args(p)
     p.add_argument(
         "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
@@ -572,7 +576,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
-    _add_chain_args(p, trees=True)
+    add_chain_args(p, trees=True)
     p.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
     p.add_argument(
         "--truth",
@@ -628,7 +632,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
-    _add_chain_args(p, trees=True)
+    add_chain_args(p, trees=True)
     p.add_argument("--data", required=True, help="measurement CSV (joints, x y z or x1..zK, ...)")
     p.add_argument("--out", required=True, help="calibrated URDF to write")
     p.add_argument("--report", help="JSON report to write (also when the model is refused)")

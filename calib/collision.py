@@ -31,7 +31,7 @@ from .catalog import erd_robots_dir
 from .exceptions import CalibError, InvalidArgumentError, URDFError
 from .fileio import read_text_limited
 from .robot import Chain
-from .urdf_model import _console_captured
+from .urdf_model import console_captured
 from .urdf_xml import MAX_URDF_BYTES
 
 _LOG = logging.getLogger("calib")
@@ -160,7 +160,7 @@ def _geometry(chain: Chain) -> pin.GeometryModel:
         text = read_text_limited(path, MAX_URDF_BYTES)
     except OSError as exc:
         raise URDFError(str(path), exc.strerror or str(exc)) from None
-    with _console_captured() as captured:
+    with console_captured() as captured:
         try:
             geom = pin.buildGeomFromUrdfString(
                 chain.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path)
@@ -220,7 +220,7 @@ def _keep_pairs(chain: Chain, geom: pin.GeometryModel, srdf: Path | None) -> lis
     notes = []
     before = len(geom.collisionPairs)
     if srdf is not None:
-        with _console_captured():
+        with console_captured():
             pin.removeCollisionPairs(model, geom, str(srdf))
         notes.append(f"{before - len(geom.collisionPairs)} pair(s) disabled by {srdf.name}")
     data, gdata = model.createData(), pin.GeometryData(geom)

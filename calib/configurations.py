@@ -18,7 +18,7 @@ import numpy as np
 
 from .exceptions import DataError
 from .fileio import read_text_limited
-from .measurements import _check_limits, _number, _records
+from .measurements import check_limits, csv_records, parse_number
 from .robot import Chain
 
 MAX_CONFIGS_BYTES = 256 << 20
@@ -35,7 +35,7 @@ def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.
     header: list[str] | None = None
     rows: list[list[float]] = []
     lines: list[int] = []
-    for line, cells in _records(text, source):
+    for line, cells in csv_records(text, source):
         if header is None:
             header = [c.strip() for c in cells]
             for name in chain.joint_names:
@@ -47,14 +47,14 @@ def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.
             continue
         if len(cells) != len(header):
             raise DataError(source, f"expected {len(header)} cells, found {len(cells)}", row=line)
-        rows.append([_number(cells[c], source, line, header[c]) for c in cols])
+        rows.append([parse_number(cells[c], source, line, header[c]) for c in cols])
         lines.append(line)
     if header is None:
         raise DataError(source, "empty file: expected a header line of joint names and rows")
     if not rows:
         raise DataError(source, "no configuration rows after the header")
     q = np.array(rows)
-    _check_limits(chain, q, source, np.array(lines), warn=False)
+    check_limits(chain, q, source, np.array(lines), warn=False)
     return q
 
 

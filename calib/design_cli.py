@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .cli import _add_chain_args, _check_outputs, _print_json, _write
+from .cli import add_chain_args, check_output_paths, print_json, write_outputs
 from .configurations import configurations_csv, read_configurations
 from .constraints import Constraints
 from .design import DEFAULT_CANDIDATES, design, design_text, evaluate, indices_table
@@ -29,7 +29,7 @@ def cmd_design(args: argparse.Namespace) -> int:
         q = read_configurations(args.evaluate, chain)
         ind = evaluate(chain, q, args.measure, markers, args.params, args.seed)
         if args.json:
-            _print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
+            print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
         else:
             print(
                 f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
@@ -45,7 +45,7 @@ def cmd_design(args: argparse.Namespace) -> int:
         "--candidates-file": args.candidates_file,
         "--srdf": args.srdf,
     }
-    _check_outputs({"--out": out}, inputs)
+    check_output_paths({"--out": out}, inputs)
     candidates = args.candidates
     if args.candidates_file:
         candidates = read_configurations(args.candidates_file, chain)
@@ -70,9 +70,9 @@ def cmd_design(args: argparse.Namespace) -> int:
         progress=_progress("calib design"),
     )
     if out is not None:
-        _write({out: configurations_csv(chain, result.q)})
+        write_outputs({out: configurations_csv(chain, result.q)})
     if args.json:
-        _print_json(result.to_dict())
+        print_json(result.to_dict())
     else:
         print(design_text(result, args.noise_mm))
         if out is not None:
@@ -93,7 +93,7 @@ def _progress(desc: str):
 def add_design_parser(sub) -> None:
     """The ``design`` subcommand's options."""
     p = sub.add_parser("design", help="choose the configurations to measure (experiment design)")
-    _add_chain_args(p)
+    add_chain_args(p)
     p.add_argument("--configs", type=int, help="number of configurations K to choose")
     p.add_argument(
         "--evaluate",

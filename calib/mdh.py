@@ -183,7 +183,7 @@ class MDHModel:
         if self.source is not None and (angle_tol, length_tol) == (SNAP_ANGLE, SNAP_LENGTH):
             chain, parallel_tol = self.source
             if chain.ideal_model is not None:
-                source = _converted(chain.idealized(), parallel_tol)
+                source = converted_chain(chain.idealized(), parallel_tol)
         return source.replace(
             beta=snap_angle(source.beta, angle_tol),
             alpha=snap_angle(source.alpha, angle_tol),
@@ -449,10 +449,11 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
         raise InvalidArgumentError(
             f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
         )
-    return _converted(chain, parallel_tol).replace(source=(chain, parallel_tol))
+    return converted_chain(chain, parallel_tol).replace(source=(chain, parallel_tol))
 
 
-def _converted(chain: Chain, parallel_tol: float) -> MDHModel:
+def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
+    """The MDH model of a chain from its joint lines (no idealisation, no cache)."""
     points, dirs, tool = chain.joint_lines()
     model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
     return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)

@@ -309,7 +309,7 @@ def check_against_chain(data: Measurements, chain: Chain) -> None:
             f"{', '.join(chain.joint_names)}",
         )
     _check_tools(data, tool_frames(chain))
-    _check_limits(chain, data.q, data.source, np.array([data.row_of(i) for i in range(data.m)]))
+    check_limits(chain, data.q, data.source, np.array([data.row_of(i) for i in range(data.m)]))
 
 
 def tool_frames(chain) -> tuple[str, ...]:
@@ -337,7 +337,7 @@ def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:
             )
 
 
-def _check_limits(
+def check_limits(
     chain: Chain, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
 ) -> None:
     """Raise a DataError naming the first joint value far outside its limits; warn on others."""
@@ -493,7 +493,8 @@ def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: in
     return names, pos, fmt, ori
 
 
-def _number(cell: str, src: str, line: int, column: str) -> float:
+def parse_number(cell: str, src: str, line: int, column: str) -> float:
+    """A finite number from a CSV cell (strict grammar); DataError naming its row and column."""
     text = cell.strip()
     if not text:
         raise DataError(src, "empty cell", row=line, column=column)
@@ -505,7 +506,7 @@ def _number(cell: str, src: str, line: int, column: str) -> float:
     return value
 
 
-def _records(text: str, src: str):
+def csv_records(text: str, src: str):
     """(first line, cells) of each non-blank CSV record; malformed CSV names its row."""
     reader = csv.reader(io.StringIO(text), strict=True)
     start = 1
@@ -564,7 +565,7 @@ def parse_measurements(
     values: list[list[float]] = []
     lines: list[int] = []
     tools: list[str] = []
-    for line, cells in _records(text, source):
+    for line, cells in csv_records(text, source):
         if header is None:
             header = _header(cells, chain, columns, source, line)
             continue
@@ -579,7 +580,7 @@ def parse_measurements(
             tools.append(tool)
         values.append(
             [
-                _number(c, source, line, n) if n in used else 0.0
+                parse_number(c, source, line, n) if n in used else 0.0
                 for c, n in zip(cells, names, strict=True)
             ]
         )
@@ -592,7 +593,7 @@ def parse_measurements(
     table = np.array(values)
     col = {n: j for j, n in enumerate(names)}
     q = chain.joint_values(table[:, [col[n] for n in chain.variable_names]])
-    _check_limits(chain, q, source, np.array(lines), warn=False)
+    check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     far = np.abs(position) > MAX_COORDINATE
     if np.any(far):

@@ -23,14 +23,14 @@ from .mdh import frames_at_zero
 from .tree import Tree
 from .tree_model import TreeMDH
 from .urdf_export import (
-    _child_link,
-    _edited_joints,
-    _NominalPoses,
-    _parent_link,
-    _read,
-    _set_origin,
-    _spliced,
-    _xml_layout,
+    NominalPoses,
+    child_link,
+    edited_joints,
+    parent_link,
+    read_urdf_source,
+    set_origin,
+    spliced,
+    xml_layout,
 )
 
 
@@ -75,9 +75,9 @@ def calibrated_tree_urdf(tree: Tree, nominal: TreeMDH, calibrated: TreeMDH) -> b
     if not isinstance(tree, Tree) or nominal.n != tree.n or nominal.n_tools != tree.n_tools:
         raise InvalidArgumentError("calibrated_tree_urdf takes a Tree and two models of it")
     base = tree_measurement_to_base(nominal, calibrated)
-    raw, root = _read(tree.chains[0])
-    start, stop = _xml_layout(raw, str(tree.urdf_path))
-    poses = _NominalPoses(tree.chains[0])
+    raw, root = read_urdf_source(tree.chains[0])
+    start, stop = xml_layout(raw, str(tree.urdf_path))
+    poses = NominalPoses(tree.chains[0])
     nom_joint = [poses.joint(jid) for jid in tree.joint_ids]
 
     def carried(row: int, link: str) -> np.ndarray:
@@ -85,17 +85,17 @@ def calibrated_tree_urdf(tree: Tree, nominal: TreeMDH, calibrated: TreeMDH) -> b
         return (base if row == 0 else moved[row]) @ poses.link(link)
 
     for t, chain in enumerate(tree.chains):
-        joints, tool_joint = _edited_joints(root, chain)
+        joints, tool_joint = edited_joints(root, chain)
         tool_row = nominal.tool_rows[t]
-        tool_new = moved[tool_row] @ poses.link(_child_link(tool_joint))
-        parent = carried(int(nominal.antecedent[tool_row]), _parent_link(tool_joint))
-        _set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
+        tool_new = moved[tool_row] @ poses.link(child_link(tool_joint))
+        parent = carried(int(nominal.antecedent[tool_row]), parent_link(tool_joint))
+        set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
         for j in tree.paths[t]:
             joint = joints[tree.joint_names[j]]
             new = moved[j + 1] @ nom_joint[j]
-            parent = carried(int(nominal.antecedent[j + 1]), _parent_link(joint))
-            _set_origin(joint, np.linalg.inv(parent) @ new)
-    return _spliced(raw, root, start, stop)
+            parent = carried(int(nominal.antecedent[j + 1]), parent_link(joint))
+            set_origin(joint, np.linalg.inv(parent) @ new)
+    return spliced(raw, root, start, stop)
 
 
 def write_calibrated_tree_urdf(

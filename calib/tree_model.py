@@ -29,7 +29,7 @@ from .mdh import (
     SNAP_ANGLE,
     SNAP_LENGTH,
     MDHModel,
-    _converted,
+    converted_chain,
     snap_angle,
     snap_length,
 )
@@ -268,7 +268,7 @@ def from_tree(tree: Tree, parallel_tol: float = PARALLEL_TOL) -> TreeMDH:
 
 def _converted_tree(tree: Tree, parallel_tol: float) -> TreeMDH:
     n, T = tree.n, tree.n_tools
-    models = [_converted(c, parallel_tol) for c in tree.chains]
+    models = [converted_chain(c, parallel_tol) for c in tree.chains]
     paths = [np.concatenate([[0], 1 + p, [n + 1 + t]]) for t, p in enumerate(tree.paths)]
     antecedent = np.concatenate([[-1], 1 + tree.parent, [p[-2] for p in paths]])
     rows = 1 + n + T

@@ -32,7 +32,7 @@ from .robot import Chain, frame_placement, joint_placements
 from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
 
-def _xml_layout(raw: bytes, src: str) -> tuple[int, int]:
+def xml_layout(raw: bytes, src: str) -> tuple[int, int]:
     """Byte offsets of the root element: where it starts and where it ends."""
     parser = xml.parsers.expat.ParserCreate()  # no namespace processing, as parse_xml
     state = {"depth": 0, "start": -1, "end": -1}
@@ -59,7 +59,7 @@ def _xml_layout(raw: bytes, src: str) -> tuple[int, int]:
     return state["start"], stop
 
 
-def _spliced(raw: bytes, root: ET.Element, start: int, stop: int) -> bytes:
+def spliced(raw: bytes, root: ET.Element, start: int, stop: int) -> bytes:
     """The file with its root element (bytes ``start:stop``) replaced by the edited ``root``."""
     body = io.BytesIO()
     ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
@@ -70,7 +70,7 @@ def _homogeneous(se3: pin.SE3) -> np.ndarray:
     return np.array(se3.homogeneous)
 
 
-class _NominalPoses:
+class NominalPoses:
     """Poses of URDF joint frames and links in the base frame, chain at zero."""
 
     def __init__(self, chain: Chain):
@@ -92,12 +92,14 @@ class _NominalPoses:
         return _homogeneous(self.bMo * frame_placement(self.model, self.oMi, fid))
 
 
-def _child_link(joint: ET.Element) -> str:
+def child_link(joint: ET.Element) -> str:
+    """The ``<child link>`` of a URDF joint element ('' without one)."""
     child = joint.find("child")
     return "" if child is None else child.get("link", "")
 
 
-def _parent_link(joint: ET.Element) -> str:
+def parent_link(joint: ET.Element) -> str:
+    """The ``<parent link>`` of a URDF joint element ('' without one)."""
     parent = joint.find("parent")
     return "" if parent is None else parent.get("link", "")
 
@@ -109,7 +111,7 @@ def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
     if frame.type in (pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT):
         found = [j for j in joints if j.get("name") == chain.tool_frame]
     else:
-        found = [j for j in joints if _child_link(j) == chain.tool_frame]
+        found = [j for j in joints if child_link(j) == chain.tool_frame]
     if not found:
         raise CalibError(f"no URDF joint carries the tool frame '{chain.tool_frame}'")
     joint = found[0]
@@ -124,7 +126,8 @@ def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
     return joint
 
 
-def _set_origin(joint: ET.Element, T: np.ndarray) -> None:
+def set_origin(joint: ET.Element, T: np.ndarray) -> None:
+    """Set a joint element's ``<origin xyz rpy>`` to the pose ``T`` ``(4, 4)`` (added if none)."""
     origin = joint.find("origin")
     if origin is None:
         origin = ET.Element("origin")
@@ -134,7 +137,7 @@ def _set_origin(joint: ET.Element, T: np.ndarray) -> None:
     origin.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(T[:3, :3])))
 
 
-def _read(chain: Chain) -> tuple[bytes, ET.Element]:
+def read_urdf_source(chain: Chain) -> tuple[bytes, ET.Element]:
     """The URDF file's bytes and its element tree (comments and processing instructions kept)."""
     src = str(chain.urdf_path)
     try:
@@ -144,7 +147,7 @@ def _read(chain: Chain) -> tuple[bytes, ET.Element]:
     return raw, parse_xml(raw, src)
 
 
-def _edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element], ET.Element]:
+def edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element], ET.Element]:
     """The chain's joint elements by name and the tool's fixed joint."""
     joints = {j.get("name", ""): j for j in root.findall("joint")}
     missing = [name for name in chain.joint_names if name not in joints]
@@ -160,7 +163,7 @@ def check_exportable(chain: Chain) -> None:
         URDFError: The file cannot be read.
         CalibError: The tool frame is not carried by a fixed joint, or a joint is missing.
     """
-    _edited_joints(_read(chain)[1], chain)
+    edited_joints(read_urdf_source(chain)[1], chain)
 
 
 def measurement_to_base(nominal: MDHModel, calibrated: MDHModel) -> np.ndarray:
@@ -213,11 +216,11 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
             match the chain.
     """
     _check_models(chain, nominal, calibrated)
-    raw, root = _read(chain)
-    joints, tool_joint = _edited_joints(root, chain)
-    start, stop = _xml_layout(raw, str(chain.urdf_path))
+    raw, root = read_urdf_source(chain)
+    joints, tool_joint = edited_joints(root, chain)
+    start, stop = xml_layout(raw, str(chain.urdf_path))
 
-    poses = _NominalPoses(chain)
+    poses = NominalPoses(chain)
     n = chain.n
     # T_mdh_cal(0) T_mdh_nom(0)^-1 per MDH frame: applied to a nominal pose (base frame) that
     # frame carries, it gives the calibrated pose (measurement frame).
@@ -231,14 +234,14 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
 
     for k in range(1, n):
         joint = joints[chain.joint_names[k]]
-        parent = carried(k - 1, _parent_link(joint))
-        _set_origin(joint, np.linalg.inv(parent) @ new_joint[k])
-    tool_child = _child_link(tool_joint)
+        parent = carried(k - 1, parent_link(joint))
+        set_origin(joint, np.linalg.inv(parent) @ new_joint[k])
+    tool_child = child_link(tool_joint)
     tool_new = moved[n + 1] @ poses.link(tool_child)
-    parent = carried(n - 1, _parent_link(tool_joint))
-    _set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
+    parent = carried(n - 1, parent_link(tool_joint))
+    set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
 
-    return _spliced(raw, root, start, stop)
+    return spliced(raw, root, start, stop)
 
 
 def write_calibrated_urdf(

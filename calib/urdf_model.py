@@ -35,7 +35,7 @@ def _pinocchio_failure(exc: Exception, messages: str) -> str:
 
 
 @contextlib.contextmanager
-def _console_captured():
+def console_captured():
     """Send the process's stdout and stderr (file descriptors 1 and 2) to a temporary file.
 
     Pinocchio's C++ parser prints to them directly. Yields a list that receives the captured
@@ -86,7 +86,7 @@ def build_model(xml: str, src: str) -> pin.Model:
     """
     error: Exception | None = None
     model = None
-    with _console_captured() as captured:
+    with console_captured() as captured:
         try:
             model = pin.buildModelFromXML(xml)
         except (RuntimeError, ValueError) as exc:
