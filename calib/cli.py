@@ -14,7 +14,7 @@ import threading
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from . import __version__
 from .calibration.options import (
@@ -39,9 +39,12 @@ from .measurements import (
 )
 from .parameters import PARAMETER_SETS
 from .report import analysis_text, coupling_lines, format_table, mdh_table, tree_table
-from .robot import load_chain
+from .robot import Chain, load_chain
 from .tree import Tree, load_robot
 from .tree_model import from_tree
+
+if TYPE_CHECKING:
+    import numpy as np
 
 _GIVEN = "_calib_given"
 """Namespace attribute where :class:`_StoreOnce` notes the options already given."""
@@ -92,7 +95,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tool(args: argparse.Namespace) -> str | tuple[str, ...] | None:
+def tool_arg(args: argparse.Namespace) -> str | tuple[str, ...] | None:
     """``--tool`` of a command that takes several: None, one name, or several (a tree)."""
     if args.tool is None or isinstance(args.tool, str):
         return args.tool
@@ -101,7 +104,7 @@ def _tool(args: argparse.Namespace) -> str | tuple[str, ...] | None:
 
 def cmd_show(args: argparse.Namespace) -> int:
     """Print the MDH table of a chain or tree."""
-    chain = load_robot(args.robot, args.base, _tool(args))
+    chain = load_robot(args.robot, args.base, tool_arg(args))
     if isinstance(chain, Tree):
         return _show_tree(chain, args.json)
     mdh = from_chain(chain)
@@ -148,7 +151,7 @@ def _analyze(args: argparse.Namespace):
     return analyze(
         args.robot,
         args.base,
-        _tool(args),
+        tool_arg(args),
         args.measure,
         args.marker,
         args.params,
@@ -175,7 +178,7 @@ def _analyze_markers(args: argparse.Namespace) -> int:
 
     if args.measure not in CAMPAIGN_MEASURES:
         raise InvalidArgumentError("--markers takes --measure position or pose")
-    chain = load_robot(args.robot, args.base, _tool(args))
+    chain = load_robot(args.robot, args.base, tool_arg(args))
     if isinstance(chain, Tree):
         raise InvalidArgumentError("--markers counts for one chain: give one --tool")
     names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
@@ -227,24 +230,29 @@ def check_output_paths(
     check_outputs(outputs, {**inputs, **catalog_files()})
 
 
+def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
+    """``simulate``'s configurations: ``--configs`` random ones, or ``--configs-file``'s."""
+    if not args.configs_file:
+        return args.configs
+    from .configurations import read_configurations
+
+    return read_configurations(args.configs_file, robot)
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    chain = load_robot(args.robot, args.base, _tool(args))
+    chain = load_robot(args.robot, args.base, tool_arg(args))
     if isinstance(chain, Tree):
         return _simulate_tree(args, chain, out, truth_path)
     check_output_paths(
         {"--out": out, "--truth": truth_path},
         {"the URDF": chain.urdf_path, "--configs-file": args.configs_file},
     )
-    configs = args.configs
-    if args.configs_file:
-        from .configurations import read_configurations
-
-        configs = read_configurations(args.configs_file, chain)
+    configs = _configs(args, chain)
     campaign = simulate(
         chain,
         configs,
@@ -278,10 +286,14 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, out: Path, truth_path: 
 
     if args.measure != "position":
         raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
-    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": tree.urdf_path})
+    check_output_paths(
+        {"--out": out, "--truth": truth_path},
+        {"the URDF": tree.urdf_path, "--configs-file": args.configs_file},
+    )
+    configs = _configs(args, tree)
     camp = simulate_tree(
         tree,
-        args.configs,
+        configs,
         args.marker,
         args.error_mm,
         args.error_mrad,
@@ -300,7 +312,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, out: Path, truth_path: 
     }
     write_outputs({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
     print(
-        f"{tree.name}: {args.configs} configurations x {tree.n_tools} tools "
+        f"{tree.name}: {camp.measurements.m // tree.n_tools} configurations x {tree.n_tools} tools "
         f"({', '.join(tree.tool_frames)}), {len(camp.params)} {camp.params.label} parameters "
         f"perturbed ({args.error_mm:g} mm, {args.error_mrad:g} mrad), noise {args.noise_mm:g} mm"
     )
@@ -327,7 +339,7 @@ def _columns(args: argparse.Namespace):
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report."""
-    chain = load_robot(args.robot, args.base, _tool(args))
+    chain = load_robot(args.robot, args.base, tool_arg(args))
     if isinstance(chain, Tree):
         return _calibrate_tree(args, chain)
     from .calibration import calibrate  # only this command loads the calibration

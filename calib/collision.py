@@ -1,8 +1,8 @@
 """Collision-free candidates: Pinocchio's collision model of the URDF (hpp-fcl / coal).
 
 The collision geometry (``<collision>`` elements; meshes found through example-robot-data's
-package path and the URDF's folders) is attached to the chain's Pinocchio model. Pairs
-checked: every pair of geometries that the chain's joints move relative to each other, except
+package path and the URDF's folders) is attached to the chain's (or tree's) Pinocchio model.
+Pairs checked: every pair of geometries that its joints move relative to each other, except
 
 * pairs the robot's SRDF disables (``<disable_collisions>``; given, or found beside the URDF
   as example-robot-data ships them: ``../srdf/NAME.srdf``, ``NAME`` without ``_robot``);
@@ -13,7 +13,8 @@ checked: every pair of geometries that the chain's joints move relative to each 
 
 Obstacles are boxes in the chain's base frame, checked against every moving geometry. The
 line of sight from an instrument to a measured point is a thin capsule checked against every
-geometry except those of the tool's link and the links it carries (the marker sits on them).
+geometry except those of the point's tool link and the links it carries (the marker sits on
+them).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from .catalog import erd_robots_dir
 from .exceptions import CalibError, InvalidArgumentError, URDFError
 from .fileio import read_text_limited
 from .robot import Chain
+from .tree import Tree
 from .urdf_model import console_captured
 from .urdf_xml import MAX_URDF_BYTES
 
@@ -42,23 +44,23 @@ SIGHT_RADIUS = 1e-3
 
 @dataclass(frozen=True, eq=False)
 class CollisionChecker:
-    """The collision model of a chain, with the pairs to check.
+    """The collision model of a chain or a tree, with the pairs to check.
 
     Attributes:
-        chain: The chain (its Pinocchio model carries the geometry).
+        robot: The chain or tree (its Pinocchio model carries the geometry).
         geometry: Collision geometry, with the active pairs.
-        moving: Geometry indices that move with the chain's joints.
-        tool_geometries: Geometry indices on the tool frame's link and the links beyond it
-            (a gripper's fingers): the measured point sits among them.
-        base_placement: The chain's base frame in Pinocchio's world at the reference
-            configuration ``(4, 4)``.
+        moving: Geometry indices that move with the robot's joints.
+        tool_geometries: For each tool, the geometry indices on the tool frame's link and the
+            links beyond it (a gripper's fingers): the measured point sits among them.
+        base_placement: The base frame in Pinocchio's world at the reference configuration
+            ``(4, 4)``.
         notes: What was disabled, or why nothing is checked.
     """
 
-    chain: Chain
+    robot: Chain | Tree
     geometry: pin.GeometryModel
     moving: tuple[int, ...]
-    tool_geometries: tuple[int, ...]
+    tool_geometries: tuple[tuple[int, ...], ...]
     base_placement: np.ndarray
     notes: tuple[str, ...]
 
@@ -69,10 +71,10 @@ class CollisionChecker:
 
     def _placements(self, q: np.ndarray):
         """Pinocchio data for each configuration: yields (index, geometry data)."""
-        model = self.chain.model
+        model = self.robot.model
         data = model.createData()
         gdata = pin.GeometryData(self.geometry)
-        for i, qp in enumerate(self.chain.pin_configurations(q)):
+        for i, qp in enumerate(self.robot.pin_configurations(q)):
             pin.updateGeometryPlacements(model, data, self.geometry, gdata, qp)
             yield i, gdata
 
@@ -81,10 +83,10 @@ class CollisionChecker:
         out = np.zeros(len(np.atleast_2d(q)), dtype=bool)
         if not self.pairs:
             return out
-        model = self.chain.model
+        model = self.robot.model
         data = model.createData()
         gdata = pin.GeometryData(self.geometry)
-        for i, qp in enumerate(self.chain.pin_configurations(q)):
+        for i, qp in enumerate(self.robot.pin_configurations(q)):
             out[i] = pin.computeCollisions(model, data, self.geometry, gdata, qp, True)
         return out
 
@@ -93,25 +95,25 @@ class CollisionChecker:
 
         Args:
             q: Joint positions ``(m, n)``.
-            points: Measured points in the base frame ``(m, K, 3)`` [m].
+            points: Measured points in the base frame ``(m, K, 3)`` [m]: on the one tool of
+                a chain, or point k on tool k of a tree.
             instrument: Instrument position in the base frame ``(3,)`` [m].
         """
         out = np.zeros(len(points), dtype=bool)
+        every = range(len(self.geometry.geometryObjects))
         others = [
-            g for g in range(len(self.geometry.geometryObjects)) if g not in self.tool_geometries
-        ]
-        if not others:
-            return out
+            [g for g in every if g not in tool] for tool in self.tool_geometries
+        ]  # what may hide a point on each tool
         world = self.base_placement
         src = world[:3, :3] @ instrument + world[:3, 3]
         pts = points @ world[:3, :3].T + world[:3, 3]
         request, shapes = coal.CollisionRequest(), self.geometry.geometryObjects
         for i, gdata in self._placements(q):
-            for p in pts[i]:
+            for k, p in enumerate(pts[i]):
                 capsule, tf = _segment(src, p)
                 if capsule is None:
                     continue
-                for g in others:
+                for g in others[k if len(others) > 1 else 0]:
                     result = coal.CollisionResult()
                     placement = gdata.oMg[g]
                     other_tf = coal.Transform3s(placement.rotation, placement.translation)
@@ -153,9 +155,9 @@ def _package_dirs(urdf: Path) -> list[str]:
     return dirs
 
 
-def _geometry(chain: Chain) -> pin.GeometryModel:
-    """The URDF's collision geometry on the chain's model (meshes loaded)."""
-    path = chain.urdf_path
+def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
+    """The URDF's collision geometry on the robot's model (meshes loaded)."""
+    path = robot.urdf_path
     try:
         text = read_text_limited(path, MAX_URDF_BYTES)
     except OSError as exc:
@@ -163,7 +165,7 @@ def _geometry(chain: Chain) -> pin.GeometryModel:
     with console_captured() as captured:
         try:
             geom = pin.buildGeomFromUrdfString(
-                chain.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path)
+                robot.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path)
             )
         except (RuntimeError, ValueError) as exc:
             geom = exc
@@ -179,43 +181,43 @@ def _geometry(chain: Chain) -> pin.GeometryModel:
     return geom
 
 
-def _moving(chain: Chain, geom: pin.GeometryModel) -> list[int]:
-    """Geometries whose joint lies on or after the chain's first joint."""
-    first = chain.joint_ids[0]
+def _moving(robot: Chain | Tree, geom: pin.GeometryModel) -> list[int]:
+    """Geometries whose joint lies on or after a joint of the chain or tree."""
+    joints = set(robot.joint_ids)
     return [
         g
         for g, obj in enumerate(geom.geometryObjects)
-        if first in chain.model.supports[obj.parentJoint]
+        if joints.intersection(robot.model.supports[obj.parentJoint])
     ]
 
 
-def reference_configuration(chain: Chain) -> np.ndarray:
+def reference_configuration(robot: Chain | Tree) -> np.ndarray:
     """Zero, or the middle of the limits for the joints whose limits exclude zero ``(n,)``."""
-    inside = (chain.lower <= 0.0) & (chain.upper >= 0.0)
-    return np.where(inside, 0.0, 0.5 * (chain.lower + chain.upper))
+    inside = (robot.lower <= 0.0) & (robot.upper >= 0.0)
+    return np.where(inside, 0.0, 0.5 * (robot.lower + robot.upper))
 
 
-def _relative_motion(chain: Chain, a: int, b: int) -> bool:
-    """Whether the chain's joints move joint a's body relative to joint b's (not adjacent).
+def _relative_motion(robot: Chain | Tree, a: int, b: int) -> bool:
+    """Whether the robot's joints move joint a's body relative to joint b's (not adjacent).
 
     The path between two bodies in the tree is the symmetric difference of their supports;
-    a pair whose path holds no chain joint keeps its relative pose (its state is that of the
+    a pair whose path holds no robot joint keeps its relative pose (its state is that of the
     reference configuration), and adjacent bodies touch at their joint by construction.
     """
-    model = chain.model
+    model = robot.model
     if a == b or model.parents[a] == b or model.parents[b] == a:
         return False
     path = set(model.supports[a]) ^ set(model.supports[b])
-    return bool(path & set(chain.joint_ids))
+    return bool(path & set(robot.joint_ids))
 
 
-def _keep_pairs(chain: Chain, geom: pin.GeometryModel, srdf: Path | None) -> list[str]:
-    """Active pairs: those the chain moves, minus SRDF-disabled and touching at reference."""
-    model = chain.model
+def _keep_pairs(robot: Chain | Tree, geom: pin.GeometryModel, srdf: Path | None) -> list[str]:
+    """Active pairs: those the robot moves, minus SRDF-disabled and touching at reference."""
+    model = robot.model
     joints = [o.parentJoint for o in geom.geometryObjects]
     for a in range(len(joints)):
         for b in range(a + 1, len(joints)):
-            if _relative_motion(chain, joints[a], joints[b]):
+            if _relative_motion(robot, joints[a], joints[b]):
                 geom.addCollisionPair(pin.CollisionPair(a, b))
     notes = []
     before = len(geom.collisionPairs)
@@ -224,7 +226,7 @@ def _keep_pairs(chain: Chain, geom: pin.GeometryModel, srdf: Path | None) -> lis
             pin.removeCollisionPairs(model, geom, str(srdf))
         notes.append(f"{before - len(geom.collisionPairs)} pair(s) disabled by {srdf.name}")
     data, gdata = model.createData(), pin.GeometryData(geom)
-    q0 = chain.pin_configurations(reference_configuration(chain))[0]
+    q0 = robot.pin_configurations(reference_configuration(robot))[0]
     pin.computeCollisions(model, data, geom, gdata, q0, False)
     touching = [  # copies: removing a pair moves the others in the vector
         pin.CollisionPair(geom.collisionPairs[k].first, geom.collisionPairs[k].second)
@@ -238,7 +240,7 @@ def _keep_pairs(chain: Chain, geom: pin.GeometryModel, srdf: Path | None) -> lis
     return notes
 
 
-def _add_obstacles(chain: Chain, geom, moving, obstacles, base: np.ndarray) -> None:
+def _add_obstacles(robot: Chain | Tree, geom, moving, obstacles, base: np.ndarray) -> None:
     for k, box in enumerate(obstacles):
         lo, hi = np.asarray(box[:3], dtype=float), np.asarray(box[3:], dtype=float)
         center = base[:3, :3] @ ((lo + hi) / 2) + base[:3, 3]
@@ -250,12 +252,12 @@ def _add_obstacles(chain: Chain, geom, moving, obstacles, base: np.ndarray) -> N
 
 
 def collision_checker(
-    chain: Chain, srdf: str | Path | None = None, obstacles=()
+    robot: Chain | Tree, srdf: str | Path | None = None, obstacles=()
 ) -> CollisionChecker:
-    """The collision model of a chain, from its URDF's ``<collision>`` geometry.
+    """The collision model of a chain or tree, from its URDF's ``<collision>`` geometry.
 
     Args:
-        chain: The chain.
+        robot: The chain or tree.
         srdf: SRDF whose ``<disable_collisions>`` pairs are skipped (default: the one
             example-robot-data ships beside the URDF, if any).
         obstacles: Boxes ``(xmin, ymin, zmin, xmax, ymax, zmax)`` in the base frame [m].
@@ -274,27 +276,29 @@ def collision_checker(
             )
     if srdf is not None and not Path(srdf).is_file():
         raise InvalidArgumentError(f"no SRDF file {srdf}")
-    srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(chain.urdf_path))
-    geom = _geometry(chain)
-    model = chain.model
+    srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(robot.urdf_path))
+    geom = _geometry(robot)
+    model = robot.model
     data = model.createData()
     pin.framesForwardKinematics(
-        model, data, chain.pin_configurations(reference_configuration(chain))[0]
+        model, data, robot.pin_configurations(reference_configuration(robot))[0]
     )
-    base = data.oMf[chain.base_id].homogeneous.copy()
-    moving = _moving(chain, geom)
-    tool_joint = model.frames[chain.tool_id].parentJoint
+    base = data.oMf[robot.base_id].homogeneous.copy()
+    moving = _moving(robot, geom)
     tool = tuple(
-        g
-        for g, o in enumerate(geom.geometryObjects)
-        if tool_joint in model.supports[o.parentJoint]
+        tuple(
+            g
+            for g, o in enumerate(geom.geometryObjects)
+            if model.frames[t].parentJoint in model.supports[o.parentJoint]
+        )
+        for t in robot.tool_ids
     )
     if not geom.geometryObjects:
-        notes = [f"{Path(chain.urdf_path).name} has no collision geometry: collisions not checked"]
+        notes = [f"{Path(robot.urdf_path).name} has no collision geometry: collisions not checked"]
     else:
-        notes = _keep_pairs(chain, geom, srdf_path)
-    _add_obstacles(chain, geom, moving, obstacles, base)
-    return CollisionChecker(chain, geom, tuple(moving), tool, base, tuple(notes))
+        notes = _keep_pairs(robot, geom, srdf_path)
+    _add_obstacles(robot, geom, moving, obstacles, base)
+    return CollisionChecker(robot, geom, tuple(moving), tool, base, tuple(notes))
 
 
 __all__ = ["CollisionChecker", "collision_checker", "find_srdf", "reference_configuration"]

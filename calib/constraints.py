@@ -23,6 +23,8 @@ from .exceptions import InvalidArgumentError
 from .jacobian import measured_point
 from .mdh import from_chain
 from .robot import Chain
+from .tree import Tree
+from .tree_model import from_tree
 
 
 @dataclass(frozen=True)
@@ -97,38 +99,68 @@ class FilterReport:
         }
 
 
-def margin_bounds(chain: Chain, margin: float) -> tuple[np.ndarray, np.ndarray]:
+def _shrunk(lower, upper, continuous, names, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    m = np.where(continuous, 0.0, margin)
+    lo, hi = lower + m, upper - m
+    if np.any(lo >= hi):
+        k = int(np.argmax(lo >= hi))
+        raise InvalidArgumentError(
+            f"a margin of {margin:g} leaves no room in the limits of joint "
+            f"'{names[k]}' [{lower[k]:.6g}, {upper[k]:.6g}]"
+        )
+    return lo, hi
+
+
+def margin_bounds(robot: Chain | Tree, margin: float) -> tuple[np.ndarray, np.ndarray]:
     """Sampling bounds of each joint with the margin (continuous joints: a full turn).
 
     Raises:
         InvalidArgumentError: The margin leaves no room in some joint's range.
     """
-    m = np.where(chain.continuous, 0.0, margin)
-    lower, upper = chain.lower + m, chain.upper - m
-    if np.any(lower >= upper):
-        k = int(np.argmax(lower >= upper))
-        raise InvalidArgumentError(
-            f"a margin of {margin:g} leaves no room in the limits of joint "
-            f"'{chain.joint_names[k]}' [{chain.lower[k]:.6g}, {chain.upper[k]:.6g}]"
-        )
-    return lower, upper
+    return _shrunk(robot.lower, robot.upper, robot.continuous, robot.joint_names, margin)
 
 
-def measured_points(chain: Chain, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
-    """Measured points in the base frame ``(m, K, 3)`` [m] (nominal geometry)."""
-    kin = from_chain(chain).kinematics(q)
+def variable_bounds(robot: Chain | Tree, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Sampling bounds of the independent joints (``robot.variable_names``) with the margin.
+
+    The joints themselves, or, for a chain with mimic joints, the joints they follow
+    (:mod:`calib.mimic`): configurations are drawn there and ``robot.joint_values`` maps them.
+
+    Raises:
+        InvalidArgumentError: The margin leaves no room in some joint's range.
+    """
+    coupling = robot.coupling
+    if coupling is None:
+        return margin_bounds(robot, margin)
+    endless = {n for n, c in zip(robot.joint_names, robot.continuous, strict=True) if c}
+    continuous = np.array([n in endless for n in coupling.names], dtype=bool)
+    return _shrunk(coupling.lower, coupling.upper, continuous, coupling.names, margin)
+
+
+def measured_points(robot: Chain | Tree, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Measured points in the base frame ``(m, K, 3)`` [m] (nominal geometry).
+
+    Args:
+        robot: A chain (K markers on its tool) or a tree (K = T: marker t on tool t).
+        q: Joint positions ``(m, n)``.
+        markers: Markers in their tool's frame ``(K, 3)`` [m].
+    """
+    if isinstance(robot, Tree):
+        F = from_tree(robot).forward(q)
+        return F[..., :3, 3] + np.einsum("mtij,tj->mti", F[..., :3, :3], markers)
+    kin = from_chain(robot).kinematics(q)
     return np.stack([measured_point(kin, mk) for mk in markers], axis=1)
 
 
 def filter_candidates(
-    chain: Chain, q: np.ndarray, markers: np.ndarray, constraints: Constraints
+    chain: Chain | Tree, q: np.ndarray, markers: np.ndarray, constraints: Constraints
 ) -> tuple[np.ndarray, FilterReport]:
     """Keep the candidate configurations a campaign can measure.
 
     Args:
-        chain: The chain.
+        chain: The chain or tree.
         q: Candidate joint positions ``(N, n)``.
-        markers: Measured points in the tool frame ``(K, 3)`` [m].
+        markers: Measured points in the tool frame ``(K, 3)`` [m] (a tree: one per tool).
         constraints: The limits.
 
     Returns:
@@ -167,4 +199,11 @@ def filter_candidates(
     return keep, FilterReport(len(q), tuple(rejected), tuple(notes))
 
 
-__all__ = ["Constraints", "FilterReport", "filter_candidates", "margin_bounds", "measured_points"]
+__all__ = [
+    "Constraints",
+    "FilterReport",
+    "filter_candidates",
+    "margin_bounds",
+    "measured_points",
+    "variable_bounds",
+]

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .checks import check_count, check_work
-from .constraints import Constraints, FilterReport, filter_candidates, margin_bounds
+from .constraints import Constraints, FilterReport, filter_candidates, variable_bounds
 from .exceptions import InvalidArgumentError
 from .exchange import EXCHANGE_CRITERIA, optimal_subset
 from .observability import (
@@ -29,11 +29,12 @@ from .observability import (
     check_model_arguments,
     indices,
     indices_of,
-    marker_array,
     observation_model,
     reference,
+    robot_markers,
 )
 from .robot import Chain
+from .tree import Tree
 
 DEFAULT_CANDIDATES = 2000
 """Random candidates drawn by default."""
@@ -48,7 +49,7 @@ class Design:
 
     Attributes:
         robot: Robot name.
-        joint_names: The chain's joints.
+        joint_names: The joints of the chain or tree.
         q: The chosen configurations ``(K, n)`` [rad or m].
         criterion: ``D``, ``A`` or ``I``.
         model: The observation model (the calibration's parameters).
@@ -106,13 +107,18 @@ class Design:
         }
 
 
-def candidate_configurations(chain: Chain, n: int, seed: int, margin: float = 0.0) -> np.ndarray:
-    """``n`` configurations drawn uniformly within the joint limits less the margin ``(n, j)``."""
+def candidate_configurations(
+    chain: Chain | Tree, n: int, seed: int, margin: float = 0.0
+) -> np.ndarray:
+    """``n`` configurations ``(n, j)`` drawn uniformly within the joint limits less the margin.
+
+    The independent joints are drawn (mimic joints follow the joint they mimic).
+    """
     check_count(n, "the number of candidates")
     check_work(n, chain.n, chain.name)
-    lower, upper = margin_bounds(chain, margin)
+    lower, upper = variable_bounds(chain, margin)
     rng = np.random.default_rng([check_count(seed, "the seed", 0), 5])
-    return lower + (upper - lower) * rng.random((n, chain.n))
+    return chain.joint_values(lower + (upper - lower) * rng.random((n, len(lower))))
 
 
 def _subset(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
@@ -120,7 +126,7 @@ def _subset(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def design(
-    chain: Chain,
+    chain: Chain | Tree,
     configs: int,
     *,
     candidates: int | np.ndarray = DEFAULT_CANDIDATES,
@@ -128,6 +134,7 @@ def design(
     measure: str = "position",
     markers=None,
     params: str = "complete",
+    orientation_weight: float = 1.0,
     constraints: Constraints | None = None,
     seed: int = 0,
     random_sets: int = RANDOM_SETS,
@@ -136,15 +143,20 @@ def design(
     """Choose K configurations to measure.
 
     Args:
-        chain: The chain.
+        chain: The chain, or a tree (its tools measured at every configuration).
         configs: Number of configurations K.
         candidates: Number of random candidates, or the candidates ``(N, n)`` themselves
             (configurations known to be reachable).
         criterion: ``D`` (log det of the information), ``A`` (mean parameter variance) or
             ``I`` (mean predicted position error on the reference set).
-        measure: ``position`` or ``pose``.
-        markers: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m].
-        params: The calibration's parameter level (``DESIGN_LEVELS``).
+        measure: ``position`` or ``pose`` (a tree: ``position``).
+        markers: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (a tree: one
+            point for every tool, or one per tool).
+        params: The calibration's parameter level (``DESIGN_LEVELS``; a tree: ``frames`` or
+            ``complete``).
+        orientation_weight: Weight of the orientation rows of pose data [m/rad]: the ratio
+            of the position noise to the orientation noise (``calibrate`` estimates it from
+            the data; 1 by default).
         constraints: Limits of the campaign (default: self-collision checked, no margin).
         seed: Seed of the candidates, the reference set and the random sets.
         random_sets: Random sets of K candidates to compare with.
@@ -169,8 +181,8 @@ def design(
         q_all = candidate_configurations(chain, int(candidates), seed, constraints.margin)
     else:
         q_all = chain.check_configurations(candidates)
-    check_model_arguments(measure, params)
-    keep, report = filter_candidates(chain, q_all, marker_array(markers), constraints)
+    check_model_arguments(measure, params, orientation_weight, isinstance(chain, Tree))
+    keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
     q = q_all[keep]
     if len(q) < k:
         raise InvalidArgumentError(
@@ -181,7 +193,7 @@ def design(
         )
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
-    model = observation_model(chain, measure, markers, params, seed=seed)
+    model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
     ref = reference(model, q[_subset(len(q), REFERENCE_CONFIGS, rng)])
     J = model.jacobian(q)
     clock.append(time.perf_counter())
@@ -217,21 +229,23 @@ def _indices_rows(J: np.ndarray, rows: np.ndarray, ref: Reference) -> Indices:
 
 
 def evaluate(
-    chain: Chain,
+    chain: Chain | Tree,
     q: np.ndarray,
     measure: str = "position",
     markers=None,
     params: str = "complete",
     seed: int = 0,
+    orientation_weight: float = 1.0,
 ) -> Indices:
-    """Observability indices of a user's configurations ``(K, n)``.
+    """Observability indices of a user's configurations ``(K, n)`` of a chain or tree.
 
     The reference set of I and G: ``REFERENCE_CONFIGS`` random configurations within the
     joint limits (seed ``seed``); the independent columns are chosen at random
-    configurations too, so that the set's own rank deficiency shows.
+    configurations too, so that the set's own rank deficiency shows. The other arguments
+    are :func:`design`'s.
     """
     q = chain.check_configurations(q)
-    model = observation_model(chain, measure, markers, params, seed=seed)
+    model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
     ref = reference(model, candidate_configurations(chain, REFERENCE_CONFIGS, seed))
     return indices(model, q, ref)
 

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .cli import add_chain_args, check_output_paths, print_json, write_outputs
+from .cli import add_chain_args, check_output_paths, print_json, tool_arg, write_outputs
 from .configurations import configurations_csv, read_configurations
 from .constraints import Constraints
 from .design import DEFAULT_CANDIDATES, design, design_text, evaluate, indices_table
@@ -18,16 +18,17 @@ from .exceptions import InvalidArgumentError
 from .exchange import EXCHANGE_CRITERIA
 from .measurements import CAMPAIGN_MEASURES
 from .observability import CRITERIA, DESIGN_LEVELS
-from .robot import load_chain
+from .tree import load_robot
 
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
-    chain = load_chain(args.robot, args.base, args.tool)
+    chain = load_robot(args.robot, args.base, tool_arg(args))
     markers = args.marker
+    weight = args.orientation_weight
     if args.evaluate:
         q = read_configurations(args.evaluate, chain)
-        ind = evaluate(chain, q, args.measure, markers, args.params, args.seed)
+        ind = evaluate(chain, q, args.measure, markers, args.params, args.seed, weight)
         if args.json:
             print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
         else:
@@ -65,6 +66,7 @@ def cmd_design(args: argparse.Namespace) -> int:
         measure=args.measure,
         markers=markers,
         params=args.params,
+        orientation_weight=weight,
         constraints=constraints,
         seed=args.seed,
         progress=_progress("calib design"),
@@ -93,7 +95,7 @@ def _progress(desc: str):
 def add_design_parser(sub) -> None:
     """The ``design`` subcommand's options."""
     p = sub.add_parser("design", help="choose the configurations to measure (experiment design)")
-    add_chain_args(p)
+    add_chain_args(p, trees=True)
     p.add_argument("--configs", type=int, help="number of configurations K to choose")
     p.add_argument(
         "--evaluate",
@@ -128,14 +130,24 @@ def add_design_parser(sub) -> None:
         type=float,
         action="append",
         metavar=("X", "Y", "Z"),
-        help="measured point in the tool frame [m]; repeat for several markers "
-        "(default: the tool origin)",
+        help="measured point in the tool frame [m]; repeat for several markers (a tree: "
+        "one for every tool, or one per tool in --tool order; default: the tool origin)",
+    )
+    p.add_argument(
+        "--orientation-weight",
+        type=float,
+        default=1.0,
+        metavar="W",
+        help="weight of the orientation rows of pose data [m/rad]: position noise / "
+        "orientation noise, e.g. 0.05 mm / 0.1 mrad = 0.5 (default: 1; calibrate "
+        "estimates it from the data)",
     )
     p.add_argument(
         "--params",
         choices=DESIGN_LEVELS,
         default="complete",
-        help="what the calibration fits (calibrate --params; default: complete)",
+        help="what the calibration fits (calibrate --params; a tree: frames or complete; "
+        "default: complete)",
     )
     p.add_argument(
         "--seed",

@@ -51,12 +51,17 @@ from .calibration.model import (
 )
 from .calibration.pipeline import Options, level_names
 from .calibration.solve import row_weights
+from .calibration.tree import TREE_LEVELS, TreeErrorModel, TreeState
 from .checks import check_count, real_array
 from .exceptions import InvalidArgumentError
 from .identifiability import independent_columns, preference_order
 from .mdh import from_chain
 from .measurements import CAMPAIGN_MEASURES, Measurements
+from .parameters import ParameterSet
 from .robot import Chain
+from .tree import Tree
+from .tree_jacobian import tree_parameters
+from .tree_model import from_tree
 
 DESIGN_LEVELS = ("frames", "offsets", "paper", "complete")
 """Parameter levels a design can target (``calib calibrate --params``; ``auto`` chooses from
@@ -159,14 +164,28 @@ def marker_array(markers) -> np.ndarray:
     return mk
 
 
-def check_model_arguments(measure: str, params: str, orientation_weight: float = 1.0) -> None:
+def check_model_arguments(
+    measure: str, params: str, orientation_weight: float = 1.0, tree: bool = False
+) -> None:
     """Refuse a bad measure, parameter level or orientation weight (before any work).
+
+    Args:
+        measure: ``position`` or ``pose`` (a tree: ``position``).
+        params: One of ``DESIGN_LEVELS`` (a tree: ``TREE_LEVELS``).
+        orientation_weight: Weight of the orientation rows [m/rad], > 0.
+        tree: The model is a tree's.
 
     Raises:
         InvalidArgumentError: One of them is not accepted.
     """
     if measure not in CAMPAIGN_MEASURES:
         raise InvalidArgumentError(f"unknown measure '{measure}': choose pose or position")
+    if tree and measure != "position":
+        raise InvalidArgumentError("a tree is calibrated from positions: use measure position")
+    if tree and params not in TREE_LEVELS:
+        raise InvalidArgumentError(
+            f"unknown parameter level '{params}' for a tree: choose {', '.join(TREE_LEVELS)}"
+        )
     if params not in DESIGN_LEVELS:
         raise InvalidArgumentError(
             f"unknown parameter level '{params}' for a design: choose {', '.join(DESIGN_LEVELS)}"
@@ -177,7 +196,7 @@ def check_model_arguments(measure: str, params: str, orientation_weight: float =
 
 
 def observation_model(
-    chain: Chain,
+    chain: Chain | Tree,
     measure: str = "position",
     markers=None,
     params: str = "complete",
@@ -185,14 +204,19 @@ def observation_model(
     structure_q: np.ndarray | None = None,
     seed: int = 0,
 ) -> ObservationModel:
-    """The observation model of a calibration of a chain.
+    """The observation model of a calibration of a chain or a tree.
+
+    A tree (several tools, :func:`calib.calibrate_tree`) is measured at one point per tool
+    and configuration, in position: its rows are 3 per tool, its columns the frame, one
+    marker per tool and the tree's base parameters (``complete``) or none (``frames``).
 
     Args:
-        chain: The chain.
-        measure: ``position`` or ``pose``.
+        chain: The chain or tree.
+        measure: ``position`` or ``pose`` (a tree: ``position``).
         markers: Measured points in the tool frame, ``(3,)`` or ``(K, 3)`` [m] (default:
-            the tool origin).
-        params: Parameter level, one of ``DESIGN_LEVELS``.
+            the tool origin); for a tree, one point for every tool ``(3,)`` or one per tool
+            ``(T, 3)``.
+        params: Parameter level, one of ``DESIGN_LEVELS`` (a tree: ``TREE_LEVELS``).
         orientation_weight: Weight of the orientation rows [m/rad] (as in ``calibrate``).
         structure_q: Configurations on which the independent columns are chosen (default:
             ``STRUCTURE_CONFIGS`` random ones drawn with ``seed``); give the candidates when
@@ -205,6 +229,8 @@ def observation_model(
     Raises:
         InvalidArgumentError: A bad argument.
     """
+    if isinstance(chain, Tree):
+        return _tree_observation_model(chain, measure, markers, params, structure_q, seed)
     check_model_arguments(measure, params, orientation_weight)
     mk = marker_array(markers)
     pose = measure == "pose"
@@ -239,6 +265,73 @@ def observation_model(
         rows=model.rows,
         n_markers=len(mk),
         joint_names=chain.joint_names,
+        jacobian_of=jacobian_of,
+        columns=np.array(kept, dtype=int),
+    )
+
+
+def robot_markers(robot: Chain | Tree, markers) -> np.ndarray:
+    """The measured points of a configuration in their tool's frame ``(K, 3)`` [m].
+
+    A chain: the markers on its tool (:func:`marker_array`). A tree: one marker per tool
+    ``(T, 3)``, the origins (None), one for every tool or one per tool.
+
+    Raises:
+        InvalidArgumentError: Bad numbers, or a tree given another number of markers.
+    """
+    mk = marker_array(markers)
+    if not isinstance(robot, Tree):
+        return mk
+    tree = robot
+    if len(mk) == 1:
+        return np.repeat(mk, tree.n_tools, axis=0)
+    if len(mk) != tree.n_tools:
+        raise InvalidArgumentError(
+            f"a tree of {tree.n_tools} tools takes one marker for all or one per tool, "
+            f"got {len(mk)}"
+        )
+    return mk
+
+
+def _tree_observation_model(
+    tree: Tree, measure: str, markers, params: str, structure_q, seed: int
+) -> ObservationModel:
+    """:func:`observation_model` of a tree (one point per tool, position rows)."""
+    check_model_arguments(measure, params, tree=True)
+    mk = robot_markers(tree, markers)
+    nominal = from_tree(tree).idealized()
+    n_tools = nominal.n_tools
+    pset = tree_parameters(nominal, "complete") if params == "complete" else None
+    if pset is None:
+        model = TreeErrorModel(ParameterSet("none", ()), (), n_tools)
+    else:
+        model = TreeErrorModel(pset, pset.names, n_tools)
+    state = TreeState(nominal, np.eye(4), mk)
+    x0 = np.zeros(model.size())
+
+    def jacobian_of(q: np.ndarray) -> np.ndarray:
+        tool = np.tile(np.arange(n_tools), len(q))
+        J = model.jacobian_at(state, x0, np.repeat(q, n_tools, axis=0), tool)
+        return J.reshape(len(q), 3 * n_tools, -1)
+
+    if structure_q is None:
+        structure_q = tree.random_configurations(STRUCTURE_CONFIGS, check_count(seed, "seed", 0))
+    J = jacobian_of(real_array(structure_q, "joint positions", (None, tree.n)))
+    _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
+    kept = sorted(kept)
+    all_names = model.names(nominal.tool_frames)
+    angular = set(FRAME_NAMES[:3])
+    if pset is not None:
+        angular |= {p.name for p in pset.parameters if p.kind.is_rotation}
+    lengths = np.sqrt(nominal.d**2 + nominal.r**2 + nominal.b**2)
+    path = max(float(np.sum(lengths[nominal.path_rows(t)])) for t in range(n_tools))
+    return ObservationModel(
+        names=tuple(all_names[i] for i in kept),
+        angular=np.array([all_names[i] in angular for i in kept], dtype=bool),
+        length=characteristic_length(np.array([path]), mk),
+        rows=3 * n_tools,
+        n_markers=n_tools,
+        joint_names=tree.joint_names,
         jacobian_of=jacobian_of,
         columns=np.array(kept, dtype=int),
     )
@@ -380,4 +473,5 @@ __all__ = [
     "marker_array",
     "observation_model",
     "reference",
+    "robot_markers",
 ]

@@ -196,6 +196,29 @@ class JointCounts:
         return int(np.sum(self.sigma == 1))
 
 
+def pin_configurations(
+    model: pin.Model, q_ref: np.ndarray, joint_ids: tuple[int, ...], q: np.ndarray
+) -> np.ndarray:
+    """Pinocchio configurations ``(m, nq)``: ``q_ref`` with the joints ``joint_ids`` set.
+
+    Args:
+        model: The Pinocchio model.
+        q_ref: Configuration of the other joints ``(nq,)``.
+        joint_ids: Pinocchio joint indices.
+        q: Their URDF positions ``(m, n)`` [rad or m] (a continuous joint's two numbers in
+            Pinocchio are ``cos`` and ``sin``).
+    """
+    out = np.repeat(np.asarray(q_ref, dtype=float)[None, :], len(q), axis=0)
+    for k, jid in enumerate(joint_ids):
+        joint = model.joints[jid]
+        if joint.nq == 2:  # continuous joint: (cos, sin)
+            out[:, joint.idx_q] = np.cos(q[:, k])
+            out[:, joint.idx_q + 1] = np.sin(q[:, k])
+        else:
+            out[:, joint.idx_q] = q[:, k]
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class Chain(JointCounts):
     """A serial chain between a base frame and a tool frame of a Pinocchio model.
@@ -257,6 +280,10 @@ class Chain(JointCounts):
         """Number of joints in the chain."""
         return len(self.joint_ids)
 
+    @property
+    def tool_ids(self) -> tuple[int, ...]:
+        """The tool frame's index in ``model.frames``, as a one-tool tree has it."""
+        return (self.tool_id,)
 
     def check_configurations(self, q: np.ndarray) -> np.ndarray:
         """Validate and reshape joint positions to ``(m, n)``.
@@ -269,16 +296,9 @@ class Chain(JointCounts):
 
     def pin_configurations(self, q: np.ndarray) -> np.ndarray:
         """Map URDF joint positions ``(m, n)`` to Pinocchio configurations ``(m, nq)``."""
-        q = self.check_configurations(q)
-        out = np.repeat(self.q_ref[None, :], len(q), axis=0)
-        for k, jid in enumerate(self.joint_ids):
-            joint = self.model.joints[jid]
-            if joint.nq == 2:  # continuous joint: (cos, sin)
-                out[:, joint.idx_q] = np.cos(q[:, k])
-                out[:, joint.idx_q + 1] = np.sin(q[:, k])
-            else:
-                out[:, joint.idx_q] = q[:, k]
-        return out
+        return pin_configurations(
+            self.model, self.q_ref, self.joint_ids, self.check_configurations(q)
+        )
 
     def random_configurations(self, m: int, seed: int) -> np.ndarray:
         """Draw ``m`` configurations uniformly inside the joint limits (continuous: full turn).

@@ -24,6 +24,7 @@ from .robot import (
     chain_between,
     check_frame_name,
     load_chain,
+    pin_configurations,
     robot_source,
 )
 from .urdf_model import read_urdf_file
@@ -66,6 +67,16 @@ class Tree(JointCounts):
     def model(self) -> pin.Model:
         """The Pinocchio model (shared by every chain; never mutated)."""
         return self.chains[0].model
+
+    @property
+    def base_id(self) -> int:
+        """Index of the base frame in ``model.frames``."""
+        return self.chains[0].base_id
+
+    @property
+    def tool_ids(self) -> tuple[int, ...]:
+        """Indices of the tool frames in ``model.frames``, in tool order."""
+        return tuple(c.tool_id for c in self.chains)
 
     @property
     def base_frame(self) -> str:
@@ -120,6 +131,11 @@ class Tree(JointCounts):
             InvalidArgumentError: Wrong shape, not finite or beyond the position bound.
         """
         return joint_positions(q, self.n)
+
+    def pin_configurations(self, q: np.ndarray) -> np.ndarray:
+        """Map URDF joint positions ``(m, n)`` to Pinocchio configurations ``(m, nq)``."""
+        q = self.check_configurations(q)
+        return pin_configurations(self.model, self.chains[0].q_ref, self.joint_ids, q)
 
     def random_configurations(self, m: int, seed: int) -> np.ndarray:
         """Draw ``m`` configurations uniformly inside the joint limits (as a chain does).

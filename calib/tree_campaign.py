@@ -49,7 +49,7 @@ def true_points(mdh: TreeMDH, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
 
 def simulate_tree(
     tree: Tree,
-    configs: int = 100,
+    configs: int | np.ndarray = 100,
     markers=None,
     error_mm: float = 1.0,
     error_mrad: float = 1.0,
@@ -61,7 +61,8 @@ def simulate_tree(
 
     Args:
         tree: The nominal tree.
-        configs: Number of configurations m (the data has m T rows).
+        configs: Number of random configurations m (the data has m T rows), or the joint
+            positions themselves ``(m, n)`` (a designed campaign).
         markers: Point on each tool ``(T, 3)`` or one for all ``(3,)`` [m] (default: origins).
         error_mm: Std of the length errors [mm].
         error_mrad: Std of the angle errors [mrad].
@@ -84,7 +85,10 @@ def simulate_tree(
             raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
     nominal = from_tree(tree)
     pset = tree_parameters(nominal, params)
-    q = tree.random_configurations(configs, seed)
+    if isinstance(configs, int | np.integer) and not isinstance(configs, bool):
+        q = tree.random_configurations(int(configs), seed)
+    else:
+        q = tree.check_configurations(configs)
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])
     scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
     errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))

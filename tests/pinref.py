@@ -310,3 +310,27 @@ class MimicChain:
                 cols.append(np.array(col)[:, list(rows)].ravel())
         s = np.linalg.svd(np.array(cols).T, compute_uv=False)
         return int(np.sum(s > rtol * s[0])), s
+
+
+def pair_collides(urdf, package_dir: str, joint_names, q, links) -> bool:
+    """Pinocchio alone, on the original URDF: do two links' collision meshes touch?
+
+    Args:
+        urdf: The URDF file.
+        package_dir: Where its ``package://`` meshes are found.
+        joint_names: URDF joints set to ``q`` (the others at Pinocchio's neutral).
+        q: Their positions [rad or m].
+        links: The two links (their first collision geometry, ``<link>_0``).
+    """
+    model = pin.buildModelFromUrdf(str(urdf))
+    geom = pin.buildGeomFromUrdf(
+        model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[package_dir]
+    )
+    names = [g.name for g in geom.geometryObjects]
+    geom.addCollisionPair(pin.CollisionPair(*(names.index(f"{n}_0") for n in links)))
+    full = pin.neutral(model)
+    for name, v in zip(joint_names, q, strict=True):
+        full[model.joints[model.getJointId(name)].idx_q] = v
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    pin.updateGeometryPlacements(model, data, geom, gdata, full)
+    return pin.computeCollision(geom, gdata, 0)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from conftest import chain_of
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pinref import pair_collides
 
 from calib import InvalidArgumentError, calibrate, residual_stats, simulate
 from calib.catalog import erd_robots_dir
@@ -204,20 +204,8 @@ FREE = {  # and a pose of the same pair apart (Franka's "ready" pose for the Pan
 
 
 def _pinocchio_pair_collides(chain, q, links) -> bool:
-    """Pinocchio alone, on the original URDF: do the two links' collision meshes touch?"""
-    path = str(chain.urdf_path)
-    model = pin.buildModelFromUrdf(path)
-    geom = pin.buildGeomFromUrdf(model, path, pin.GeometryType.COLLISION,
-                                 package_dirs=[str(erd_robots_dir().parent.parent)])
-    ids = [next(i for i, g in enumerate(geom.geometryObjects) if g.name == f"{n}_0")
-           for n in links]
-    geom.addCollisionPair(pin.CollisionPair(*ids))
-    full = pin.neutral(model)
-    for name, v in zip(chain.joint_names, q, strict=True):
-        full[model.joints[model.getJointId(name)].idx_q] = v
-    data, gdata = model.createData(), pin.GeometryData(geom)
-    pin.updateGeometryPlacements(model, data, geom, gdata, full)
-    return pin.computeCollision(geom, gdata, 0)
+    package = str(erd_robots_dir().parent.parent)
+    return pair_collides(chain.urdf_path, package, chain.joint_names, q, links)
 
 
 @pytest.mark.parametrize("robot", sorted(COLLIDING))

@@ -144,23 +144,32 @@ class TreeErrorModel:
 
     def jacobian(self, start: TreeState, x: np.ndarray, data, torque=None) -> np.ndarray:
         """d(model)/dx, ``(m, 3, size)`` (rows in the data's order)."""
+        return self.jacobian_at(start, x, data.q, tool_indices(start.mdh, data))
+
+    def jacobian_at(
+        self, start: TreeState, x: np.ndarray, q: np.ndarray, tool: np.ndarray
+    ) -> np.ndarray:
+        """d(model)/dx at rows of joint positions ``(m, n)`` and tool indices ``(m,)``.
+
+        Returns:
+            ``(m, 3, size)``.
+        """
         state = self.apply(start, x)
-        tool = tool_indices(state.mdh, data)
         R = state.frame[:3, :3]
-        Rt, _ = state.tool_placements(data.q, tool)
-        lever = state.base_points(data.q, tool) @ R.T
+        Rt, _ = state.tool_placements(q, tool)
+        lever = state.base_points(q, tool) @ R.T
         blocks = []
         if self.frame:
             rot = -skew(lever) @ left_jacobian(self.split(x)[0][:3])
             blocks.append(np.concatenate([rot, np.broadcast_to(np.eye(3), rot.shape)], axis=2))
         if self.markers:
-            blk = np.zeros((data.m, 3, 3 * self.n_tools))
+            blk = np.zeros((len(q), 3, 3 * self.n_tools))
             for t in range(self.n_tools):
                 blk[tool == t, :, 3 * t : 3 * t + 3] = R @ Rt[tool == t]
             blocks.append(blk)
         if self.base:
-            blocks.append(self._geometry_block(state, data.q, tool) @ self.lift())
-        return np.concatenate(blocks, axis=2) if blocks else np.zeros((data.m, 3, 0))
+            blocks.append(self._geometry_block(state, q, tool) @ self.lift())
+        return np.concatenate(blocks, axis=2) if blocks else np.zeros((len(q), 3, 0))
 
     def _geometry_block(self, state: TreeState, q: np.ndarray, tool: np.ndarray) -> np.ndarray:
         """Columns of the standard parameters, ``(m, 3, len(params))``."""
