@@ -49,6 +49,7 @@ class Design:
 
     Attributes:
         robot: Robot name.
+        tools: The measured tool frames (one for a chain).
         joint_names: The joints of the chain or tree.
         q: The chosen configurations ``(K, n)`` [rad or m].
         criterion: ``D``, ``A`` or ``I``.
@@ -65,6 +66,7 @@ class Design:
     """
 
     robot: str
+    tools: tuple[str, ...]
     joint_names: tuple[str, ...]
     q: np.ndarray
     criterion: str
@@ -88,6 +90,7 @@ class Design:
         median = {c: self.random_median(c) for c in CRITERIA}
         return {
             "robot": self.robot,
+            "tools": list(self.tools),
             "criterion": self.criterion,
             "configs": len(self.q),
             "candidates": self.candidates,
@@ -206,6 +209,7 @@ def design(
     stages = ("filters", "jacobian", "exchange", "random")
     return Design(
         robot=chain.name,
+        tools=chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,),
         joint_names=chain.joint_names,
         q=q[chosen],
         criterion=criterion,

@@ -4,6 +4,7 @@ and the orientation weight of pose designs."""
 from __future__ import annotations
 
 import functools
+import json
 
 import numpy as np
 import pytest
@@ -169,6 +170,10 @@ def test_cli_tree_design_simulate_calibrate(tmp_path, capsys):
     assert float(first[tree.joint_names[3]]) == q[0, 3]
     capsys.readouterr()
     assert main(["design", "talos", *tools, "--evaluate", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["rank"] == 70
+    assert main(["design", "talos", *tools, "--configs", "40", "--candidates", "300",
+                 "--no-collision", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["tools"] == list(HANDS)
     assert main(["design", "talos", *tools, "--configs", "40", "--measure", "pose"]) == 2
     assert "positions" in capsys.readouterr().err
 
@@ -207,3 +212,24 @@ def test_orientation_weight_scales_the_orientation_rows_only():
         J2.reshape(-1, half.b).T @ J2.reshape(-1, half.b))[1], rel=1e-9)
     with pytest.raises(InvalidArgumentError, match="orientation weight"):
         design(chain, 30, measure="pose", orientation_weight=-1.0)
+
+
+def test_tree_line_of_sight_checks_every_tool():
+    """An instrument in front sees both hands' origins in some configurations; a wall
+    between them hides every one; from the robot's left, the right hand is often behind the
+    body, so checking both hands rejects more than checking the left one."""
+    tree = hands()
+    q = tree.random_configurations(60, 8)
+    origins = np.zeros((2, 3))
+    front, left = (2.0, 0.0, 0.3), (0.0, 3.0, 0.3)
+    wall = (1.5, -3.0, -3.0, 1.6, 3.0, 3.0)
+    seen, _ = filter_candidates(tree, q, origins, Constraints(line_of_sight=front))
+    walled, _ = filter_candidates(
+        tree, q, origins, Constraints(line_of_sight=front, obstacles=(wall,))
+    )
+    assert seen.sum() > 0 and walled.sum() == 0
+    checker = collision_checker(tree)
+    pts = measured_points(tree, q, origins)
+    both = checker.blocked(q, pts, np.array(left))
+    left_hand = checker.blocked(q, pts[:, :1], np.array(left))
+    assert np.all(both >= left_hand) and both.sum() > left_hand.sum()
