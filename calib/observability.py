@@ -30,8 +30,9 @@ this choice; the condition number, O1, O3, O4 and A do.
   [mm] of the calibrated point, the quantity a user cares about; lower is better.
 
 The model behind the columns is generic: :class:`ObservationModel` wraps any function that
-returns the Jacobian of the calibration's parameters at configurations (a chain today; a
-tree can plug in the same way).
+returns the Jacobian of the calibration's parameters at configurations: a chain's
+(:class:`~calib.calibration.model.ErrorModel`) or a tree's, every tool measured at each
+configuration (:class:`~calib.calibration.tree.TreeErrorModel`, 3 rows per tool).
 """
 
 from __future__ import annotations
