@@ -346,12 +346,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from .calibration.text import calibration_text
     from .urdf_export import calibrated_urdf, check_exportable
 
-    out = Path(args.out)
-    report = Path(args.report) if args.report else None
-    inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
-    if args.validate:
-        inputs["the validation data (--validate)"] = args.validate
-    check_output_paths({"--out": out, "--report": report}, inputs)
+    out, report = _calibration_outputs(args, chain.urdf_path)
     check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
     columns = _columns(args)
     data = read_measurements(args.data, chain, columns)
@@ -377,20 +372,49 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         holdout=args.holdout,
         seed=args.seed,
     )
-    text = json_text(result.to_dict())
-    print(text if args.json else calibration_text(result), end="" if args.json else "\n")
-    if not result.accepted:
-        if report is not None:
-            write_outputs({report: text})
+    return _write_calibration(
+        args,
+        result.to_dict(),
+        lambda: calibration_text(result),
+        result.refusal if not result.accepted else None,
+        lambda: calibrated_urdf(chain, result.nominal, result.calibrated),
+        (out, report),
+    )
+
+
+def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:
+    """``--out`` and ``--report``, refused now if they cannot be written or are inputs."""
+    out, report = Path(args.out), Path(args.report) if args.report else None
+    inputs = {"the nominal URDF": urdf, "the data (--data)": args.data}
+    if args.validate:
+        inputs["the validation data (--validate)"] = args.validate
+    check_output_paths({"--out": out, "--report": report}, inputs)
+    return out, report
+
+
+def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
+    """Print the result; write the URDF and report, or only the report of a refused model.
+
+    Args:
+        args: The command's arguments (``--json``).
+        report_dict: The JSON report.
+        text: Returns the text printed without ``--json``.
+        refusal: Why the model must not be written, or None.
+        urdf: Returns the calibrated URDF (called only for an accepted model).
+        paths: ``(--out, --report or None)``.
+
+    Raises:
+        CalibrationRefusedError: The model was refused (no URDF is written).
+    """
+    out, report = paths
+    doc = json_text(report_dict)
+    print(doc if args.json else text(), end="" if args.json else "\n")
+    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
+    if refusal is not None:
+        write_outputs(files)
         kept = f"; report written to {report}" if report is not None else ""
-        raise CalibrationRefusedError(
-            f"calibration refused: {result.refusal}: no URDF written{kept}"
-        )
-    urdf = calibrated_urdf(chain, result.nominal, result.calibrated)
-    files: dict[Path, str | bytes] = {out: urdf}
-    if report is not None:
-        files[report] = text
-    write_outputs(files)
+        raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
+    write_outputs({out: urdf(), **files})
     if not args.json:
         print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     return 0
@@ -423,11 +447,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
             f"--params {'|'.join(TREE_LEVELS)}, --validate, --holdout, --seed, --max-iterations"
         )
     level = "complete" if args.params == "auto" else args.params
-    out, report = Path(args.out), Path(args.report) if args.report else None
-    inputs = {"the nominal URDF": tree.urdf_path, "the data (--data)": args.data}
-    if args.validate:
-        inputs["the validation data (--validate)"] = args.validate
-    check_output_paths({"--out": out, "--report": report}, inputs)
+    out, report = _calibration_outputs(args, tree.urdf_path)
     data = read_measurements(args.data, tree)
     check = read_measurements(args.validate, tree) if args.validate else None
     result = calibrate_tree(
@@ -439,19 +459,14 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
         seed=args.seed,
         max_iterations=args.max_iterations,
     )
-    text = json_text(result.to_dict())
-    print(text if args.json else result.text(), end="" if args.json else "\n")
-    files: dict[Path, str | bytes] = {} if report is None else {report: text}
-    if not result.accepted:
-        write_outputs(files)
-        raise CalibrationRefusedError(
-            f"calibration refused: {result.refusal}: no URDF written"
-            + (f"; report written to {report}" if report is not None else "")
-        )
-    write_outputs({out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh), **files})
-    if not args.json:
-        print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
-    return 0
+    return _write_calibration(
+        args,
+        result.to_dict(),
+        result.text,
+        result.refusal if not result.accepted else None,
+        lambda: calibrated_tree_urdf(tree, result.nominal, result.state.mdh),
+        (out, report),
+    )
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
