@@ -51,7 +51,7 @@ MAX_CONDITION = 1e8
 MIN_DET_RATIO = 1e-10
 """Smallest det M' / det M of an accepted move: a nearly singular design is never entered."""
 
-FIRST_CHUNK = 32
+FIRST_CHUNK = 128
 """Candidates evaluated first for an exchange (those of highest bound); then twice as many."""
 
 
@@ -162,6 +162,7 @@ class ExchangeState:
         Minv = np.linalg.inv(M)
         self.Minv = 0.5 * (Minv + Minv.T)
         self.logdet = float(logdet)
+        self._removed = (None, None)
         G = self.Minv @ self.Jt  # M^-1 J_c^T of every candidate
         self.trS = _dot(G, self.Jt, self.J.shape[1])
         self.trP = None if self.L is None else _dot(self.L @ G, G, self.J.shape[1])
@@ -173,14 +174,25 @@ class ExchangeState:
     def blocks(self, subset: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """``S_c`` and ``P_c`` (None for D) of the candidates of ``subset``, ``(r, r, n)``."""
         Js = self.J[subset]
-        G = _gemm(Js, self.Minv)
-        S = np.einsum("nrb,nsb->rsn", G, Js, optimize=True)
+        return self._blocks_of(Js, _gemm(Js, self.Minv))
+
+    def _blocks_of(self, Js: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """``S_c`` and ``P_c`` from the rows ``Js`` and ``G = Js M^-1``, ``(n, r, b)``."""
+        S = _blocks(np.matmul(G, Js.transpose(0, 2, 1)))
         if self.L is None:
             return S, None
-        return S, np.einsum("nrb,nsb->rsn", _gemm(G, self.L), G, optimize=True)
+        return S, _blocks(np.matmul(_gemm(G, self.L), G.transpose(0, 2, 1)))
 
     def _removal(self, j: int):
-        """``G_j = J_j M^-1``, ``W = (I - S_j)^-1``, ``log det(I - S_j)`` and ``P_j`` (or None)."""
+        """``G_j = J_j M^-1``, ``W = (I - S_j)^-1``, ``log det(I - S_j)`` and ``P_j`` (or None).
+
+        Kept until M changes: the bounds and every chunk of gains of j share them.
+        """
+        if self._removed[0] != j:
+            self._removed = (j, self._removal_of(j))
+        return self._removed[1]
+
+    def _removal_of(self, j: int):
         r = self.J.shape[1]
         Gj = self.J[j] @ self.Minv
         Sj = Gj @ self.J[j].T
@@ -193,30 +205,30 @@ class ExchangeState:
     def bounds(self, j: int) -> np.ndarray:
         """Upper bounds of :meth:`gains` for removing design point ``j`` ``(N,)``.
 
-        With ``W = R^T R``, one matrix product over the candidates gives ``Y_c = R S_cj^T``
-        (and, for a trace criterion, ``Z_c = R T_cj^T``); then ``t_c = trace(D_c) = trace
-        S_c + |Y_c|_F^2`` and ``trace(E_c) = trace P_c + 2 <Z_c, Y_c> + <Y_c, R P_j R^T
-        Y_c>`` exactly (the terms of :meth:`gains`). ``log det(I + D_c) <= r log(1 + t_c /
-        r)`` (arithmetic-geometric mean of the eigenvalues of ``I + D_c``), and ``trace((I +
-        D_c)^-1 E_c) <= min(trace E_c, mu r t_c / (r + t_c))`` with mu the largest
-        eigenvalue of ``L M_-j^-1`` (``E_c <= mu D_c``, and ``trace((I + D)^-1 D)`` is
-        concave in the eigenvalues of D). A candidate whose bound does not exceed a gain
-        already found cannot be the best exchange, so :meth:`gains` need not look at it.
+        One matrix product over the candidates gives the exact traces of the blocks of
+        :meth:`gains` (``J_c^T`` times a few rows): for D, with ``W = R^T R``, ``trace D_c =
+        trace S_c + |R G_j J_c^T|_F^2``, and ``log det(I + D_c) <= r log(1 + trace(D_c) /
+        r)`` (arithmetic-geometric mean of the eigenvalues of ``I + D_c``); for a trace
+        criterion, with ``V_c = W G_j J_c^T = A_c^T`` and ``P_j = F^T F``, ``trace E_c =
+        trace P_c + 2 <V_c, G_j L M^-1 J_c^T> + |F V_c|_F^2``, and ``trace((I + D_c)^-1 E_c)
+        <= trace E_c``. A candidate whose bound does not exceed a gain already found cannot
+        be the best exchange, so :meth:`gains` need not look at it.
         """
         removal = self._removal(j)
         if removal is None:
             return np.full(len(self.J), -np.inf)
         Gj, W, lw, Pj = removal
         r = self.J.shape[1]
-        R = np.linalg.cholesky(W).T
-        left = R @ Gj if self.L is None else np.vstack([R @ Gj, R @ Gj @ self.L @ self.Minv])
-        Y = left @ self.Jt  # R S_cj^T (then R T_cj^T) of every candidate, (r or 2r, r N)
-        t = self.trS + _dot(Y[:r], Y[:r], r)
         if self.L is None:
-            return lw + r * np.log1p(t / r)
-        trE = self.trP + 2.0 * _dot(Y[r:], Y[:r], r) + _dot((R @ Pj @ R.T) @ Y[:r], Y[:r], r)
-        mu = float(np.max(np.linalg.eigvals(self.L @ (self.Minv + Gj.T @ W @ Gj)).real))
-        return -float(np.trace(W @ Pj)) + np.minimum(trE, mu * r * t / (r + t))
+            Y = (np.linalg.cholesky(W).T @ Gj) @ self.Jt  # R S_cj^T of every candidate
+            return lw + r * np.log1p((self.trS + _dot(Y, Y, r)) / r)
+        e, U = np.linalg.eigh(Pj)
+        F = np.sqrt(np.maximum(e, 0.0))[:, None] * U.T
+        V = W @ Gj
+        rows = np.vstack([V, Gj @ self.L @ self.Minv, F @ V])
+        Y = rows @ self.Jt  # V_c, T_cj^T and F V_c of every candidate, (3r, r N)
+        trE = self.trP + 2.0 * _dot(Y[:r], Y[r : 2 * r], r) + _dot(Y[2 * r :], Y[2 * r :], r)
+        return trE - float(np.trace(W @ Pj))
 
     def add_bounds(self) -> np.ndarray:
         """Upper bounds of ``gains(None)`` for D ``(N,)``.
@@ -244,21 +256,26 @@ class ExchangeState:
             One gain per candidate of ``subset``; -inf where the move would make M (nearly)
             singular.
         """
-        subset = np.arange(len(self.J)) if subset is None else np.asarray(subset)
-        n, r = len(subset), self.J.shape[1]
-        D, E = self.blocks(subset)
+        Js = self.J[np.arange(len(self.J)) if subset is None else subset]
+        n, r, b = Js.shape
+        removal = None if j is None else self._removal(j)
+        if j is not None and removal is None:
+            return np.full(n, -np.inf)
+        right = [self.Minv]
+        if removal is not None:  # S_cj, then T_cj, from the same product
+            right.append(removal[0].T)
+            if self.L is not None:
+                right.append(self.Minv @ self.L @ removal[0].T)
+        X = _gemm(Js, np.hstack(right))
+        D, E = self._blocks_of(Js, X[:, :, :b])
         base = trace_base = 0.0
-        if j is not None:
-            removal = self._removal(j)
-            if removal is None:
-                return np.full(n, -np.inf)
-            Gj, W, base, Pj = removal
-            Jc = self.J[subset]
-            Scj = _blocks(_gemm(Jc, Gj.T))
+        if removal is not None:
+            _, W, base, Pj = removal
+            Scj = _blocks(X[:, :, b : b + r])
             A = _times(Scj, W)
             D = D + _outer(A, Scj)
             if E is not None:
-                Tcj = _blocks(_gemm(Jc, self.Minv @ self.L @ Gj.T))
+                Tcj = _blocks(X[:, :, b + r :])
                 AT = _outer(A, Tcj)
                 E = E + AT + AT.transpose(1, 0, 2) + _outer(_times(A, Pj), A)
                 trace_base = -float(np.trace(W @ Pj))
@@ -294,6 +311,7 @@ class ExchangeState:
             H = GR @ self.L @ GR.T
             self.trP -= 2.0 * _dot(Ut, QT[p:], r) - _dot(H @ Ut, Ut, r)
         self.Minv -= GR.T @ C @ GR
+        self._removed = (None, None)
         if remove is None:
             self.design.append(add)
         else:
