@@ -1,20 +1,23 @@
 """Optimal subsets of candidate configurations: greedy start, then Fedorov-type exchange.
 
 Each candidate c contributes the block ``J_c`` (``r x b``) to the information matrix
-``M = ridge I + sum_{c in design} J_c^T J_c``. The state keeps ``M^-1`` and, for every
-candidate, the r x r block ``S_c = J_c M^-1 J_c^T`` (and ``P_c = J_c M^-1 L M^-1 J_c^T`` for
-a trace criterion), so that changing the design by a few blocks is a low-rank update: adding
-candidate i and removing design point j is ``M' = M + R^T S R`` with ``R = [J_i; J_j]`` and
-``S = diag(+1, -1)`` (per row), and with ``K = S + R M^-1 R^T`` (2r x 2r):
+``M = ridge I + sum_{c in design} J_c^T J_c``. Changing the design by a few blocks is a
+low-rank update: adding candidate i and removing design point j is ``M' = M + R^T S R`` with
+``R = [J_i; J_j]`` and ``S = diag(+1, -1)`` (per row), and with ``K = S + R M^-1 R^T`` (2r x
+2r):
 
 * ``det M' / det M = det(S) det(K)`` (matrix determinant lemma);
 * ``M'^-1 = M^-1 - M^-1 R^T K^-1 R M^-1`` (Sherman-Morrison-Woodbury), so
   ``trace(L M'^-1) = trace(L M^-1) - trace(K^-1 R M^-1 L M^-1 R^T)``.
 
-Every quantity an exchange needs is an r x r block formed from S, P and one matrix product
-``J_c (M^-1 X)`` over all the candidates: evaluating one exchange costs O(r^2 b) per
-candidate, vectorised, and applying it O(r^2 b) per candidate too; nothing is decomposed
-again (``M^-1`` is recomputed from scratch once per sweep, against round-off).
+The gain of an exchange is then a function of r x r blocks (``S_c = J_c M^-1 J_c^T``, ``P_c
+= J_c M^-1 L M^-1 J_c^T`` and their cross terms with j), O(r^2 b) per candidate. The state
+keeps ``M^-1`` and only the traces of ``S_c`` and ``P_c`` for every candidate; one matrix
+product over the candidates per design point turns them into an upper bound of every
+candidate's gain, and the exact gains are evaluated only for the candidates whose bound
+exceeds the best gain found so far (branch and bound), which are few: the exchange made is
+the best one all the same. Nothing is decomposed again (``M^-1`` is recomputed from scratch
+once per sweep, against round-off).
 
 Criteria: ``D`` maximises ``log det M``; ``A`` minimises ``trace M^-1`` (L = I) and ``I``
 minimises ``trace(L M^-1)`` with L the mean information of the reference points (the mean
@@ -53,6 +56,10 @@ MIN_DET_RATIO = 1e-10
 
 FIRST_CHUNK = 128
 """Candidates evaluated first for an exchange (those of highest bound); then twice as many."""
+
+GATHER = 0.25
+"""Fraction of the candidates below which their rows are gathered for the bounds (above it,
+one product over all the candidates is cheaper)."""
 
 
 def _eye(r: int, n: int) -> np.ndarray:
@@ -202,8 +209,29 @@ class ExchangeState:
         Pj = None if self.L is None else Gj @ self.L @ Gj.T
         return Gj, W[:, :, 0], float(lw[0]), Pj
 
-    def bounds(self, j: int) -> np.ndarray:
-        """Upper bounds of :meth:`gains` for removing design point ``j`` ``(N,)``.
+    def coarse_bounds(self, j: int) -> np.ndarray:
+        """Looser upper bounds of :meth:`gains` for removing ``j``, from the kept traces alone.
+
+        No product over the candidates: ``M_-j^-1 <= M^-1 / (1 - l)``, l the largest
+        eigenvalue of ``S_j``, so ``trace D_c <= trace S_c / (1 - l)``; for a trace criterion
+        ``sqrt(trace E_c) <= sqrt(trace P_c) + sqrt(w l trace S_c)`` with w the largest
+        eigenvalue of ``W P_j W`` (triangle inequality, ``|S_cj|_F^2 <= l trace S_c``). Then
+        as in :meth:`bounds`. No coarse bound is below the bound of :meth:`bounds`.
+        """
+        removal = self._removal(j)
+        if removal is None:
+            return np.full(len(self.J), -np.inf)
+        Gj, W, lw, Pj = removal
+        r = self.J.shape[1]
+        lj = float(np.max(np.linalg.eigvalsh(Gj @ self.J[j].T)))
+        if self.L is None:
+            return lw + r * np.log1p(self.trS / (r * (1.0 - lj)))
+        w = float(np.max(np.linalg.eigvalsh(W @ Pj @ W)))
+        cross = np.sqrt(np.maximum(w * lj * self.trS, 0.0))
+        return (np.sqrt(np.maximum(self.trP, 0.0)) + cross) ** 2 - float(np.trace(W @ Pj))
+
+    def bounds(self, j: int, subset: np.ndarray | None = None) -> np.ndarray:
+        """Upper bounds of :meth:`gains` for removing design point ``j``, one per candidate.
 
         One matrix product over the candidates gives the exact traces of the blocks of
         :meth:`gains` (``J_c^T`` times a few rows): for D, with ``W = R^T R``, ``trace D_c =
@@ -213,22 +241,38 @@ class ExchangeState:
         trace P_c + 2 <V_c, G_j L M^-1 J_c^T> + |F V_c|_F^2``, and ``trace((I + D_c)^-1 E_c)
         <= trace E_c``. A candidate whose bound does not exceed a gain already found cannot
         be the best exchange, so :meth:`gains` need not look at it.
+
+        Args:
+            j: Candidate index of the design point to remove.
+            subset: Candidates to bound (default: all).
         """
+        every = slice(None) if subset is None else subset
         removal = self._removal(j)
         if removal is None:
-            return np.full(len(self.J), -np.inf)
+            return np.full(len(self.trS[every]), -np.inf)
         Gj, W, lw, Pj = removal
         r = self.J.shape[1]
         if self.L is None:
-            Y = (np.linalg.cholesky(W).T @ Gj) @ self.Jt  # R S_cj^T of every candidate
-            return lw + r * np.log1p((self.trS + _dot(Y, Y, r)) / r)
+            Y = self._products(np.linalg.cholesky(W).T @ Gj, subset)  # R S_cj^T
+            return lw + r * np.log1p((self.trS[every] + _dot(Y, Y, r)) / r)
         e, U = np.linalg.eigh(Pj)
         F = np.sqrt(np.maximum(e, 0.0))[:, None] * U.T
         V = W @ Gj
-        rows = np.vstack([V, Gj @ self.L @ self.Minv, F @ V])
-        Y = rows @ self.Jt  # V_c, T_cj^T and F V_c of every candidate, (3r, r N)
-        trE = self.trP + 2.0 * _dot(Y[:r], Y[r : 2 * r], r) + _dot(Y[2 * r :], Y[2 * r :], r)
-        return trE - float(np.trace(W @ Pj))
+        Y = self._products(np.vstack([V, Gj @ self.L @ self.Minv, F @ V]), subset)
+        cross = _dot(Y[:r], Y[r : 2 * r], r)  # Y: V_c, T_cj^T and F V_c
+        return self.trP[every] + 2.0 * cross + _dot(Y[2 * r :], Y[2 * r :], r) - np.trace(W @ Pj)
+
+    def _products(self, rows: np.ndarray, subset: np.ndarray | None) -> np.ndarray:
+        """``rows J_c^T`` of the candidates of ``subset`` (default: all), ``(p, r n)``.
+
+        Column ``s n + i`` is column s of the i-th candidate's block (as :func:`_dot` reads).
+        """
+        if subset is None:
+            return rows @ self.Jt
+        Js = self.J[subset]
+        m, r, b = Js.shape
+        Y = (Js.reshape(m * r, b) @ rows.T).reshape(m, r, -1)
+        return Y.transpose(2, 1, 0).reshape(-1, r * m)
 
     def add_bounds(self) -> np.ndarray:
         """Upper bounds of ``gains(None)`` for D ``(N,)``.
@@ -338,6 +382,9 @@ class ExchangeResult:
 def greedy_start(J: np.ndarray, k: int, progress: Callable | None = None) -> list[int]:
     """K candidates chosen one by one, each maximising ``log det M`` (with a small ridge).
 
+    Each step evaluates only the candidates whose :meth:`ExchangeState.add_bounds` exceed
+    the best gain found (:func:`_best`): the candidate added is the best one all the same.
+
     Args:
         J: Candidate blocks ``(N, r, b)``.
         k: Number to choose (at most N).
@@ -353,9 +400,7 @@ def greedy_start(J: np.ndarray, k: int, progress: Callable | None = None) -> lis
         bound = state.add_bounds()
         bound[state.design] = -np.inf
         best = _best(bound, lambda subset: state.gains(None, subset), -np.inf)
-        if best is None:
-            raise InvalidArgumentError("the candidates' Jacobian is not finite")
-        state.apply(best, None)
+        state.apply(int(best), None)  # found: adding never lowers det M (finite J)
     return state.design
 
 
@@ -380,10 +425,20 @@ def _sweep(state: ExchangeState, progress: Callable | None) -> int:
 
 
 def _best_exchange(state: ExchangeState, j: int, need: float) -> int | None:
-    """The candidate whose exchange with design point j gains most, if more than ``need``."""
-    bound = state.bounds(j)
-    bound[state.design] = -np.inf
-    return _best(bound, lambda subset: state.gains(j, subset), need)
+    """The candidate whose exchange with design point j gains most, if more than ``need``.
+
+    The coarse bounds (no product over the candidates) leave some candidates; the bounds of
+    these (their rows gathered if they are few) order the branch and bound.
+    """
+    coarse = state.coarse_bounds(j)
+    coarse[state.design] = -np.inf
+    live = np.flatnonzero(coarse > need)
+    if not live.size:
+        return None
+    few = live.size < GATHER * len(coarse)
+    bound = state.bounds(j, live) if few else state.bounds(j)[live]
+    best = _best(bound, lambda subset: state.gains(j, live[subset]), need)
+    return None if best is None else int(live[best])
 
 
 def _best(bound: np.ndarray, gains: Callable, floor: float) -> int | None:
@@ -457,6 +512,8 @@ def optimal_subset(
         )
     if criterion == "I" and (L is None or L.shape != (b, b)):
         raise InvalidArgumentError("criterion I needs the reference information matrix")
+    if not np.all(np.isfinite(J)):
+        raise InvalidArgumentError("the candidates' Jacobian is not finite")
     greedy = greedy_start(J, k, progress)
     weight = {"D": None, "A": np.eye(b), "I": L}[criterion]
     if np.linalg.cond(J[greedy].reshape(-1, b)) > MAX_CONDITION:

@@ -10,6 +10,7 @@ from conftest import CI, chain_of
 from hypothesis import given
 from hypothesis import strategies as st
 
+from calib import InvalidArgumentError
 from calib.design import candidate_configurations
 from calib.exchange import (
     GREEDY_RIDGE,
@@ -66,12 +67,16 @@ def test_bounds_never_below_the_gain_of_any_exchange(seed, r, b):
         cost = _cost(J, design, L)
         tol = 1e-9 * max(1.0, abs(cost))
         for j in design:
-            bound, gains = state.bounds(j), state.gains(j)
+            bound, coarse, gains = state.bounds(j), state.coarse_bounds(j), state.gains(j)
             if _cost(J, [d for d in design if d != j], None) - _cost(J, design, None) > -np.log(
                 MIN_DET_RATIO
             ):  # det M_-j / det M below the ratio: j is never removed
                 assert np.all(gains == -np.inf) and np.all(bound == -np.inf)
+                assert np.all(coarse == -np.inf)
                 continue
+            np.testing.assert_allclose(state.bounds(j, others[::2]), bound[others[::2]],
+                                       rtol=1e-9, atol=tol)  # rows gathered: same bounds
+            assert np.all(coarse >= bound - tol)
             for c in others:
                 fresh = cost - _cost(J, _swap(design, j, c), L)
                 if np.isfinite(gains[c]):
@@ -189,3 +194,9 @@ def test_design_equals_the_plain_exchange_on_random_instances(seed, criterion):
     res = optimal_subset(J, 5, criterion, L)
     assert (res.design, res.greedy, res.exchanges, res.sweeps) == _plain_optimal_subset(
         J, 5, weight)
+
+
+def test_candidates_without_a_finite_gain_are_refused():
+    J = np.full((10, 2, 3), np.nan)
+    with pytest.raises(InvalidArgumentError, match="not finite"):
+        optimal_subset(J, 3, "D")
