@@ -24,6 +24,7 @@ one_core()
 from calib import load_chain  # noqa: E402
 from calib.constraints import Constraints, filter_candidates  # noqa: E402
 from calib.design import candidate_configurations, design  # noqa: E402
+from calib.tree import load_tree  # noqa: E402
 
 NO_COLLISION = Constraints(collision=False)
 
@@ -67,6 +68,22 @@ def design_rows() -> list[list[str]]:
     return rows
 
 
+def tree_rows() -> list[list[str]]:
+    """TALOS's two hands (16 joints, 70 parameters, 6 rows per configuration)."""
+    tree = load_tree("talos", tools=("wrist_left_ft_tool_link", "wrist_right_ft_tool_link"))
+    rows = []
+    for k, n, repeats in ((30, 2000, 3), (100, 20000, 1)):
+        wall, cpu, d = timed(
+            lambda k=k, n=n: design(tree, k, candidates=n, constraints=NO_COLLISION), repeats
+        )
+        stages = ", ".join(f"{s} {v:.0f}" for s, v in d.timings_ms.items())
+        rows.append(
+            [f"TALOS hands (tree), {k} from {n}, position, D", f"{wall:.2f}", f"{cpu:.2f}", "",
+             f"{d.model.b} parameters; ms: {stages}"]
+        )
+    return rows
+
+
 def collision_rows() -> list[list[str]]:
     rows = []
     for name in ("ur5", "panda", "tiago"):
@@ -84,6 +101,6 @@ def collision_rows() -> list[list[str]]:
 
 if __name__ == "__main__":
     header = ["case", "wall [s]", "cpu [s]", "target", "detail"]
-    print(table(header, design_rows() + collision_rows()))
+    print(table(header, design_rows() + tree_rows() + collision_rows()))
     ms = process_ms(["design", "panda", "--configs", "30"], repeats=3)
     print(f"\n`calib design panda --configs 30` (collision filter on), whole process: {ms:.0f} ms")
