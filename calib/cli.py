@@ -246,13 +246,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree):
-        return _simulate_tree(args, chain, out, truth_path)
+    if isinstance(chain, Tree) and args.measure != "position":
+        raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
     check_output_paths(
         {"--out": out, "--truth": truth_path},
         {"the URDF": chain.urdf_path, "--configs-file": args.configs_file},
     )
     configs = _configs(args, chain)
+    if isinstance(chain, Tree):
+        return _simulate_tree(args, chain, configs, (out, truth_path))
     campaign = simulate(
         chain,
         configs,
@@ -280,17 +282,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _simulate_tree(args: argparse.Namespace, tree: Tree, out: Path, truth_path: Path) -> int:
-    """`simulate` with several tools: every tool at each configuration, a ``tool`` column."""
+def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
+    """`simulate` with several tools: every tool at each configuration, a ``tool`` column.
+
+    ``configs``: a count or joint positions; ``paths``: ``(--out, --truth)``, checked.
+    """
     from .tree_campaign import simulate_tree
 
-    if args.measure != "position":
-        raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
-    check_output_paths(
-        {"--out": out, "--truth": truth_path},
-        {"the URDF": tree.urdf_path, "--configs-file": args.configs_file},
-    )
-    configs = _configs(args, tree)
+    out, truth_path = paths
     camp = simulate_tree(
         tree,
         configs,
