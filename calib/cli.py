@@ -375,7 +375,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         args,
         result.to_dict(),
         lambda: calibration_text(result),
-        result.refusal if not result.accepted else None,
+        result.refusal,
         lambda: calibrated_urdf(chain, result.nominal, result.calibrated),
         (out, report),
     )
@@ -462,7 +462,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
         args,
         result.to_dict(),
         result.text,
-        result.refusal if not result.accepted else None,
+        result.refusal,
         lambda: calibrated_tree_urdf(tree, result.nominal, result.state.mdh),
         (out, report),
     )
