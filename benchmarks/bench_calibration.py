@@ -1,7 +1,7 @@
 """Speed of calibration (issue 10: the default fit on the TIAGo session, and the selection,
 within 10x of the complete fit of issue 4, about 50 ms).
 
-Cases: the real TIAGo session of ../shared/realdata (37 postures: point 1, the four points,
+Cases: the real TIAGo session of data/realdata (37 postures: point 1, the four points,
 the four points read as the plate's pose) at every parameter level, and simulated UR5 /
 Panda campaigns (100 configurations).
 Medians, in-process and whole-process (interpreter start and imports included).
@@ -34,7 +34,7 @@ from calib import (  # noqa: E402
 
 warnings.simplefilter("ignore")
 
-TIAGO = ROOT.parent / "shared" / "realdata" / "tiago"
+TIAGO = ROOT / "data" / "realdata" / "tiago"
 MARKER = (0.05, 0.02, 0.1)
 
 

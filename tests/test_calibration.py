@@ -36,7 +36,7 @@ from calib.cli import main
 from calib.measurements import measurements_csv
 from calib.parameters import complete_parameters
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "realdata"
+REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 MARKER = (0.05, 0.02, 0.1)
 
 
@@ -333,15 +333,9 @@ def test_cli_refusal_writes_the_report_and_no_urdf(tmp_path, capsys):
 
 # --- real data ------------------------------------------------------------------------------
 
-needs_real = pytest.mark.skipif(
-    not REAL.is_dir(), reason="../shared/realdata is not beside the repo"
-)
-
-
 FILE_26 = "qualisys_2021-11-26_static_postures.csv"
 
 
-@needs_real
 def test_tiago_default_beats_the_issue_targets_on_the_other_session():
     tiago = REAL / "tiago"
     chain = load_chain(tiago / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
@@ -371,7 +365,6 @@ def test_tiago_default_beats_the_issue_targets_on_the_other_session():
     assert four.calibrated.orientation_rms < 0.7 * four.registration.orientation_rms
 
 
-@needs_real
 def test_ur10_cross_validation_with_default_options():
     ur10 = REAL / "ur10"
     chain = load_chain(ur10 / "ur10_robot.urdf", "universe", "wrist_3_link")

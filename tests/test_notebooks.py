@@ -21,6 +21,7 @@ from jupyter_client import KernelManager
 from jupyter_client.kernelspec import KernelSpecManager
 
 NOTEBOOKS_DIR = Path(__file__).resolve().parent.parent / "notebooks"
+DATA_DIR = NOTEBOOKS_DIR.parent / "data"
 NOTEBOOKS = sorted(NOTEBOOKS_DIR.glob("*.ipynb"))
 TIMEOUT_S = 600
 
@@ -84,10 +85,12 @@ def test_notebook_is_committed_without_outputs(path: Path):
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_notebook_runs(path: Path, tmp_path: Path):
-    # Run in a copy of the whole folder, so a notebook may read its neighbours and anything
-    # it writes lands in tmp_path.
+    # Run in a copy of the whole folder, so a notebook may read its neighbours (and the
+    # repository's data/ as ../data, as it does from a clone) and anything it writes lands in
+    # tmp_path.
     work = tmp_path / "notebooks"
     shutil.copytree(NOTEBOOKS_DIR, work, ignore=shutil.ignore_patterns(".ipynb_checkpoints"))
+    shutil.copytree(DATA_DIR, tmp_path / "data")
     nb = nbformat.read(work / path.name, as_version=4)
     _execute(nb, work, tmp_path)  # raises CellExecutionError on a failing cell or assert
     outputs = _outputs_of(nb)
