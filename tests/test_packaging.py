@@ -1,4 +1,4 @@
-"""What `pip install .` builds is the whole package: every module of calib/ and every file of models/.
+"""What `pip install .` builds is the whole package: every module of calib/ and of models/.
 
 An editable install imports from the tree and hides a subpackage that the wheel leaves out, so
 this builds the real wheel (no network: the build runs in this environment) and reads its
