@@ -498,7 +498,7 @@ def independent_columns(
 def identify_base(
     mdh: MDHModel | TreeMDH, params: ParameterSet, W: np.ndarray, n_rows: int | None = None
 ) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
-    """Rank, base columns and regrouping of an observation matrix (METHOD.md section 3).
+    """Rank, base columns and regrouping of an observation matrix (docs/method.md section 3).
 
     Args:
         mdh: Nominal model (for the order of preference).

@@ -114,7 +114,7 @@ def identification_jacobian(
     measurement: Measurement = Measurement((0, 1, 2, 3, 4, 5)),
     kin: Kinematics | None = None,
 ) -> np.ndarray:
-    """Observation matrix W: stacked identification Jacobians, analytic (METHOD.md eq. 2).
+    """Observation matrix W: stacked identification Jacobians, analytic (docs/method.md eq. 2).
 
     Args:
         mdh: Nominal (or current) model.

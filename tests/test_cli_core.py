@@ -72,7 +72,7 @@ def test_show_aid_text(capsys):
     assert len(body) == 8
     assert [row[0] for row in body] == [str(k) for k in range(8)]
     assert body[0][2] == "fixed" and body[-1][2] == "fixed"
-    # Table 1 (METHOD.md): alpha of frames 1..6 and the three lengths
+    # Table 1 (docs/method.md): alpha of frames 1..6 and the three lengths
     assert [float(row[4]) for row in body[1:7]] == [0.0, 90.0, 0.0, -90.0, 90.0, -90.0]
     assert float(body[3][5]) == 0.3
     assert float(body[4][7]) == 0.4

@@ -84,7 +84,7 @@ def distance_to_line(x, p, u) -> float:
 
 
 def own_rank(W: np.ndarray) -> int:
-    """METHOD.md section 3: pivoted QR, b = #{|R_ii| > tau}, tau = r eps |R_11|."""
+    """docs/method.md section 3: pivoted QR, b = #{|R_ii| > tau}, tau = r eps |R_11|."""
     R = scipy.linalg.qr(W, mode="r", pivoting=True)[0]
     d = np.abs(np.diag(R))
     return int(np.sum(d > W.shape[0] * np.finfo(float).eps * d[0]))
@@ -138,7 +138,7 @@ def test_aid_beta1_would_give_24_and_the_complete_set_25():
     meas = Measurement.of("position")
     paper = paper_parameters(mdh)
     with_beta1 = ParameterSet("paper+beta1", (*paper.parameters, Parameter(1, Kind.BETA)))
-    assert analyze_model(mdh, with_beta1, meas, q).n_base == 24  # METHOD.md section 4
+    assert analyze_model(mdh, with_beta1, meas, q).n_base == 24  # docs/method.md section 4
     res = analyze("aid", measure="position", params="paper")
     assert res.n_complete == 4 * 6 + 3 - 2 == 25  # point on the last axis: 2 fewer
     assert res.n_complete == pin_complete_rank(chain, q, rows=(0, 1, 2))
@@ -217,7 +217,7 @@ def test_point_on_last_axis_loses_two(name):
 @pytest.mark.parametrize("params", ["paper", "complete"])
 @pytest.mark.parametrize("measure", ["pose", "position"])
 def test_base_count_is_the_numerical_rank(name, params, measure):
-    """n_base is the rank b of W (METHOD.md section 3), however the columns are chosen."""
+    """n_base is the rank b of W (docs/method.md section 3), however the columns are chosen."""
     chain, mdh = chain_of(name), mdh_of(name)
     q = own_random_q(chain.sigma, 60, seed=8)
     meas = Measurement.of(measure)

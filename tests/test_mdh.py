@@ -1,5 +1,5 @@
 """Modified DH conversion (foundation): forward kinematics against Pinocchio, the JSON
-contract rebuilt by hand, published tables (METHOD.md Table 1, Franka's Panda table) and
+contract rebuilt by hand, published tables (docs/method.md Table 1, Franka's Panda table) and
 URDF quirks (negative axes, fixed joints in the middle, rounded angles).
 """
 
@@ -200,7 +200,7 @@ def test_show_json_header(capsys):
 # Published tables
 # --------------------------------------------------------------------------------------
 
-# METHOD.md, Table 1 (Khalil & Gautier 1991), frames 0..7: sigma, alpha [deg], d, theta, r.
+# docs/method.md, Table 1 (Khalil & Gautier 1991), frames 0..7: sigma, alpha [deg], d, theta, r.
 AID_TABLE_1 = [
     (None, 0, 0.0, 0, 0.0),
     (0, 0, 0.0, 0, 0.0),

@@ -262,7 +262,7 @@ def test_complete_set_reaches_the_complete_rank_position_with_marker(ch):
 @CI
 @given(chains(), st.sampled_from(["pose", "position"]), st.sampled_from(["paper", "complete"]))
 def test_base_count_is_the_numerical_rank(ch, measure, params):
-    """n_base is the rank b = #{|R_ii| > tau} of W (METHOD.md section 3), computed here with
+    """n_base is the rank b = #{|R_ii| > tau} of W (docs/method.md section 3), computed here with
     scipy's pivoted QR, and never more than the complete reference's rank."""
     mdh = convert(ch)
     q = random_q(ch, N_CONFIGS, seed=7)

@@ -55,7 +55,7 @@ def pin_tree_of(name: str) -> PinTree:
 
 
 def own_rank(W: np.ndarray) -> int:
-    """METHOD.md section 3: pivoted QR, b = #{|R_ii| > tau}, tau = r eps |R_11|."""
+    """docs/method.md section 3: pivoted QR, b = #{|R_ii| > tau}, tau = r eps |R_11|."""
     R = scipy.linalg.qr(W, mode="r", pivoting=True)[0]
     d = np.abs(np.diag(R))
     return int(np.sum(d > W.shape[0] * np.finfo(float).eps * d[0]))
