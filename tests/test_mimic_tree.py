@@ -99,6 +99,19 @@ def test_the_hand_made_tree_has_each_kind_of_coupling():
     assert follows == {"a2": ("a1", -0.5, 0.2), "b1": ("a1", -1.0, 0.5), "b3": ("c1", 0.05, 0.02)}
 
 
+def test_cli_show_lists_the_coupled_joints_of_a_tree(capsys):
+    argv = ["show", str(DATA / "mimic_tree.urdf"), "--tool", "tool_a", "--tool", "tool_b"]
+    assert main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["variables"] == ["j1", "a1", "b2", "c1"]
+    ref = reference("mimic_tree")
+    rows = {m["name"]: (m["row"], m["master"]) for m in out["mimic"]}
+    names = [f["joint"] for f in out["frames"]]
+    assert {n: (names.index(n), ref.leader(n)) for n in ref.tags if n in names} == rows
+    assert main(argv) == 0
+    assert "  row 4: b1 = -1 a1 + 0.5" in capsys.readouterr().out.splitlines()
+
+
 @pytest.mark.parametrize("case", CASES)
 def test_joint_values_and_forward_kinematics_equal_pinocchio_with_the_relation(case):
     tree, ref = tree_of(case), reference(case)
