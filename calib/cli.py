@@ -131,6 +131,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 def _show_tree(tree: Tree, as_json: bool) -> int:
     model = from_tree(tree)
+    mimic = () if tree.coupling is None else tree.coupling.mimic
     if as_json:
         print_json(
             {
@@ -139,11 +140,15 @@ def _show_tree(tree: Tree, as_json: bool) -> int:
                 "tools": list(tree.tool_frames),
                 "urdf": str(tree.urdf_path),
                 "frames": model.rows(),
+                "variables": list(tree.variable_names),
+                "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
             }
         )
     else:
         print(f"{tree.name}: {tree.base_frame} -> {model.tool_frame} ({tree.urdf_path})")
         print(tree_table(model))
+        for line in coupling_lines(mimic):
+            print(line)
     return 0
 
 

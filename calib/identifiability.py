@@ -754,7 +754,13 @@ def analyze(
     timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
     result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
     if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
-        result = dataclasses.replace(result, n_theory=None, mimic=chain.coupling.mimic)
+        per_tool = result.per_tool
+        if isinstance(chain, Tree):  # so it is for each tool's chain through mimic joints
+            pairs = zip(per_tool, chain.chains, strict=True)
+            per_tool = tuple((t, None if c.coupling else n) for (t, n), c in pairs)
+        result = dataclasses.replace(
+            result, n_theory=None, mimic=chain.coupling.mimic, per_tool=per_tool
+        )
     return result
 
 

@@ -135,7 +135,6 @@ def chain_coupling(
             not a revolute, continuous or prismatic joint.
     """
     tags = {j.name: j.mimic for j in info.joints}
-    names = [n for n in joint_names if tags[n] is None]
     mimic: list[MimicJoint] = []
     for k, joint in enumerate(joint_names):
         if tags[joint] is None:
@@ -146,13 +145,25 @@ def chain_coupling(
                 f"joint '{joint}' mimics '{master}', which is not a revolute, continuous or "
                 f"prismatic joint: it cannot drive it"
             )
-        if factor != 0.0 and master not in names:  # a 0 multiplier: a joint held at offset
-            names.append(master)
         mimic.append(MimicJoint(k, joint, master, factor, offset))
+    return _coupling(joint_names, mimic, limits)
+
+
+def _coupling(
+    joint_names: tuple[str, ...],
+    mimic: list[MimicJoint],
+    limits: dict[str, tuple[float, float]],
+) -> Coupling:
+    """The coupling of joints of which ``mimic`` follow others (rows in joint order)."""
+    following = {mj.name for mj in mimic}
+    names = [n for n in joint_names if n not in following]
+    for mj in mimic:  # a 0 multiplier: a joint held at its offset, no variable
+        if mj.multiplier != 0.0 and mj.master not in names:
+            names.append(mj.master)
     matrix = np.zeros((len(joint_names), len(names)))
     offsets = np.zeros(len(joint_names))
     for k, joint in enumerate(joint_names):
-        if tags[joint] is None:
+        if joint not in following:
             matrix[k, names.index(joint)] = 1.0
     for mj in mimic:
         offsets[mj.joint] = mj.offset
@@ -166,3 +177,38 @@ def chain_coupling(
         upper=np.array([limits[n][1] for n in names]),
         mimic=tuple(mimic),
     )
+
+
+def tree_coupling(
+    joint_names: tuple[str, ...],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    couplings: tuple[Coupling | None, ...],
+) -> Coupling | None:
+    """The coupling of a tree's joints, from the couplings of its chains (None: no mimic).
+
+    The variables are the tree joints without a mimic tag in tree order, then the masters
+    outside the tree in the order first needed, as for a chain.
+
+    Args:
+        joint_names: The tree joints, antecedents first.
+        lower: Their lower sampling bounds [rad or m].
+        upper: Their upper sampling bounds [rad or m].
+        couplings: The coupling (or None) of each chain of the tree.
+    """
+    limits = {n: (float(a), float(b)) for n, a, b in zip(joint_names, lower, upper, strict=True)}
+    follows: dict[str, MimicJoint] = {}
+    for coupling in couplings:
+        if coupling is None:
+            continue
+        bounds = zip(coupling.names, coupling.lower, coupling.upper, strict=True)
+        limits.update({n: (float(lo), float(hi)) for n, lo, hi in bounds if n not in limits})
+        follows.update({mj.name: mj for mj in coupling.mimic})
+    if not follows:
+        return None
+    mimic = [
+        MimicJoint(k, name, follows[name].master, follows[name].multiplier, follows[name].offset)
+        for k, name in enumerate(joint_names)
+        if name in follows
+    ]
+    return _coupling(joint_names, mimic, limits)

@@ -155,10 +155,14 @@ def tree_theory_lines(res: Identifiability) -> list[str]:
     sigma = res.mdh.sigma
     R, P, T = int(sum(sigma == 0)), int(sum(sigma == 1)), len(res.per_tool)
     per = 6 if res.measurement.rows == (0, 1, 2, 3, 4, 5) else 3
+    theory = (
+        f"4R + 2P + {per}T = {4 * R + 2 * P + per * T} for R={R}, P={P}, T={T}"
+        + (", before points on axes" if res.on_axes and per == 3 else "")
+        if not res.mimic
+        else f"4R + 2P + {per}T is for independent joints: n/a with coupled joints"
+    )
     lines = [
-        f"tree of {T} tools: every joint counted once, each tool {per} (4R + 2P + {per}T = "
-        f"{4 * R + 2 * P + per * T} for R={R}, P={P}, T={T}"
-        + (", before points on axes)" if res.on_axes and per == 3 else ")"),
+        f"tree of {T} tools: every joint counted once, each tool {per} ({theory})",
         "  each tool's chain alone: "
         + ", ".join(f"{name} {'n/a' if c is None else c}" for name, c in res.per_tool),
     ]

@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from .checks import check_count, check_work, joint_positions
-from .exceptions import ChainError, InvalidArgumentError
+from .exceptions import InvalidArgumentError
+from .mimic import Coupling, tree_coupling
 from .robot import (
     Chain,
     JointCounts,
@@ -50,6 +51,9 @@ class Tree(JointCounts):
         sigma: 0 revolute, 1 prismatic, per tree joint.
         lower: Lower sampling bound per joint [rad or m].
         upper: Upper sampling bound per joint [rad or m].
+        coupling: How the tree's mimic joints follow the independent joints
+            (:func:`~calib.mimic.tree_coupling`), or None when no tree joint has a
+            ``<mimic>`` tag.
     """
 
     name: str
@@ -62,6 +66,7 @@ class Tree(JointCounts):
     sigma: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    coupling: Coupling | None = field(default=None, repr=False)
 
     @property
     def model(self) -> pin.Model:
@@ -89,18 +94,18 @@ class Tree(JointCounts):
         return tuple(c.tool_frame for c in self.chains)
 
     @property
-    def coupling(self) -> None:
-        """Trees have no coupled (mimic) joints: every joint is independent."""
-        return None
-
-    @property
     def variable_names(self) -> tuple[str, ...]:
-        """Names of the independent joints: every joint of the tree."""
-        return self.joint_names
+        """The independent joints: a configuration is given for these (see :mod:`calib.mimic`).
+
+        The tree's joints, less its mimic joints, plus the masters of those outside the tree.
+        """
+        return self.joint_names if self.coupling is None else self.coupling.names
 
     def joint_values(self, variables: np.ndarray) -> np.ndarray:
-        """Joint positions from the independent ones: the same (no coupled joints)."""
-        return np.asarray(variables, dtype=float)
+        """Positions of the tree joints ``(m, n)`` from the independent joints' ``(m, v)``."""
+        if self.coupling is None:
+            return self.check_configurations(variables)
+        return self.coupling.joint_values(variables)
 
     @property
     def continuous(self) -> np.ndarray:
@@ -140,6 +145,8 @@ class Tree(JointCounts):
     def random_configurations(self, m: int, seed: int) -> np.ndarray:
         """Draw ``m`` configurations uniformly inside the joint limits (as a chain does).
 
+        With mimic joints, the independent joints are drawn and the mimic joints follow.
+
         Returns:
             Joint positions, shape ``(m, n)`` [rad or m].
 
@@ -150,7 +157,10 @@ class Tree(JointCounts):
         check_count(seed, "the seed", minimum=0)
         check_work(int(m) * self.n_tools, self.n)
         rng = np.random.default_rng(int(seed))
-        return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
+        if self.coupling is None:
+            return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
+        lo, hi = self.coupling.lower, self.coupling.upper
+        return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
 
     def tool_placements(self, q: np.ndarray) -> np.ndarray:
         """Every tool frame in the base frame, from Pinocchio, shape ``(m, T, 4, 4)``.
@@ -165,6 +175,9 @@ class Tree(JointCounts):
 def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
     """Assemble chains of one model that share their base frame into a tree.
 
+    Mimic joints on the chains follow their masters in the tree as in each chain
+    (:func:`~calib.mimic.tree_coupling`).
+
     Raises:
         InvalidArgumentError: A tool given twice, or chains from different base frames.
     """
@@ -174,11 +187,6 @@ def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
             raise InvalidArgumentError(f"tool frame '{c.tool_frame}' is given twice")
         if c.base_id != chains[0].base_id:
             raise InvalidArgumentError("the chains of a tree start from one base frame")
-        if c.coupling is not None:
-            raise ChainError(
-                f"joint '{c.coupling.mimic[0].name}' on the way to '{c.tool_frame}' is a mimic "
-                f"joint: coupled joints are supported in one chain, not yet in a tree"
-            )
     joint_ids = tuple(sorted({j for c in chains for j in c.joint_ids}))
     index = {j: i for i, j in enumerate(joint_ids)}
     model = chains[0].model
@@ -187,17 +195,20 @@ def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
     for c in chains:
         at = [index[j] for j in c.joint_ids]
         sigma[at], lower[at], upper[at] = c.sigma, c.lower, c.upper
+    joint_names = tuple(model.names[j] for j in joint_ids)
+    coupling = tree_coupling(joint_names, lower, upper, tuple(c.coupling for c in chains))
     return Tree(
         name=name,
         urdf_path=path,
         chains=chains,
         joint_ids=joint_ids,
-        joint_names=tuple(model.names[j] for j in joint_ids),
+        joint_names=joint_names,
         parent=_frozen(parent),
         paths=tuple(_frozen(np.array([index[j] for j in c.joint_ids], dtype=int)) for c in chains),
         sigma=_frozen(sigma.astype(int)),
         lower=_frozen(lower),
         upper=_frozen(upper),
+        coupling=coupling,
     )
 
 

@@ -103,5 +103,6 @@ def simulate_tree(
         points,
         source=f"<simulated {tree.name}>",
         tool=tree.tool_frames * len(q),
+        coupling=tree.coupling,
     )
     return TreeCampaign(data, pset, errors, true_mdh, mk)

@@ -334,3 +334,55 @@ def pair_collides(urdf, package_dir: str, joint_names, q, links) -> bool:
     data, gdata = model.createData(), pin.GeometryData(geom)
     pin.updateGeometryPlacements(model, data, geom, gdata, full)
     return pin.computeCollision(geom, gdata, 0)
+
+
+class MimicTree(PinTree):
+    """A tree of a URDF with ``<mimic>`` tags, posed by the test from its independent joints.
+
+    Pinocchio's model without the tags (``buildModelFromUrdf``); the test reads the tags with
+    ElementTree and sets every mimic joint to ``multiplier * q_leader + offset``, the leader's
+    own position computed first when it mimics another joint in turn.
+    """
+
+    def __init__(self, path, base: str, tools):
+        model = pin.buildModelFromUrdf(str(path))
+        super().__init__(model, pin_frame(model, base), [pin_frame(model, t) for t in tools])
+        self.tags, self.axes = {}, {}
+        for joint in ET.parse(str(path)).getroot().iter("joint"):
+            axis = joint.find("axis")
+            xyz = "1 0 0" if axis is None else axis.get("xyz", "1 0 0")
+            self.axes[joint.get("name")] = np.array([float(v) for v in xyz.split()])
+            tag = joint.find("mimic")
+            if tag is not None:
+                self.tags[joint.get("name")] = (
+                    tag.get("joint").strip(),
+                    float(tag.get("multiplier", "1")),
+                    float(tag.get("offset", "0")),
+                )
+
+    def leader(self, name: str) -> str:
+        """The independent joint at the end of a joint's mimic tags."""
+        while name in self.tags:
+            name = self.tags[name][0]
+        return name
+
+    @property
+    def variables(self) -> set[str]:
+        """The independent joints that move the tree (leaders outside it included)."""
+        return {self.leader(n) for n in self.joint_names}
+
+    def values(self, names, q: np.ndarray) -> np.ndarray:
+        """Positions ``(m, n)`` of the tree joints (``joint_names``) from the independent ones."""
+
+        def value(given: dict, name: str) -> float:
+            if name in given:
+                return given[name]
+            leader, factor, offset = self.tags[name]
+            return factor * value(given, leader) + offset
+
+        rows = [dict(zip(names, qi, strict=True)) for qi in np.atleast_2d(q)]
+        return np.array([[value(g, n) for n in self.joint_names] for g in rows])
+
+    def configs(self, names, q: np.ndarray) -> list[np.ndarray]:
+        """Pinocchio configurations from independent joint positions (columns ``names``)."""
+        return super().configs(self.joint_names, self.values(names, q))
