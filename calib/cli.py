@@ -496,7 +496,9 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
         result.to_dict(),
         result.text,
         result.refusal,
-        lambda: {out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh)},
+        lambda: {
+            out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh, result.state.markers)
+        },
         (out, report),
     )
 
@@ -814,6 +816,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .design_cli import add_design_parser
 
     add_design_parser(sub)
+
+    from .predict_cli import add_predict_parser
+
+    add_predict_parser(sub)
 
     p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
     p.set_defaults(func=cmd_demo)
