@@ -307,3 +307,109 @@ def test_tiago_written_urdf_reproduces_the_printed_held_out_figures(tmp_path, ca
     assert abs(1e3 * held["position_max"] - worst) < 1e-6
     assert report["validation"]["urdf"] == held
     assert not any(report["compliance"].values())
+
+
+def key_paths(doc, prefix: str = "", leaves: tuple[str, ...] = ()) -> set[str]:
+    """Every key of a JSON report, nested as ``a.b`` and ``a[].b`` (first item of a list)."""
+    out: set[str] = set()
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            path = f"{prefix}.{k}" if prefix else k
+            out.add(path)
+            if path not in leaves:
+                out |= key_paths(v, path, leaves)
+    elif isinstance(doc, list) and doc and isinstance(doc[0], dict):
+        out |= key_paths(doc[0], prefix + "[]", leaves)
+    return out
+
+
+STATS = ("configs", "position_rms", "position_max", "orientation_rms", "orientation_max")
+POSE = ("xyz", "rpy", "matrix")
+MDH = ("name", "joint", "sigma", "beta", "alpha", "d", "theta", "r", "y")
+
+CHAIN_REPORT_KEYS = {
+    "format_version", "deprecated", "deprecated.marker", "robot", "urdf", "data",
+    "base_frame", "tool_frame", "measure", "markers", "marker", "marker_links",
+    "measured_frame", *(f"measured_frame.{k}" for k in POSE), "world_link", "params",
+    "configs", "accepted", "refusal", "converged", "message", "iterations",
+    "orientation_weight", "residuals",
+    *(f"residuals.{g}" for g in ("registration", "calibrated", "urdf")),
+    *(f"residuals.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
+    "validation", "validation.source", "validation.predicted_std",
+    *(f"validation.{g}" for g in ("registration", "calibrated", "urdf")),
+    *(f"validation.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
+    "selection", "selection.kept", "selection.steps", "selection.steps[].name",
+    "selection.steps[].loo", "selection.prior_strength", "selection.cv_registration",
+    "selection.cv_selection", "selection.guarded",
+    "outliers", "outliers[].row", "outliers[].error", "outliers[].median",
+    "sigma", "condition_number", "predicted_std", "parameters", "parameters[].name",
+    "parameters[].value", "parameters[].std", "parameters[].prior_weight", "compliance",
+    "gravity", "gravity.frame", "gravity.vector", "measurement_to_base",
+    *(f"measurement_to_base.{k}" for k in POSE), "mdh_nominal", "mdh_calibrated",
+    *(f"mdh_{w}[].{k}" for w in ("nominal", "calibrated") for k in MDH),
+    "warnings", "timings_ms",
+    *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
+}  # fmt: skip
+"""The chain report's keys (format 2): a change here is a change of format_version."""
+
+TREE_REPORT_KEYS = {
+    "format_version", "deprecated", "robot", "urdf", "base_frame", "tools", "params", "rows",
+    "accepted", "refusal", "converged", "residuals", "residuals.registration",
+    "residuals.calibrated", *(f"residuals.{g}.{k}" for g in ("registration", "calibrated")
+    for k in STATS), "per_tool", "per_tool[].tool", "per_tool[].registration",
+    "per_tool[].calibrated", *(f"per_tool[].{g}.{k}" for g in ("registration", "calibrated")
+    for k in STATS), "validation", "validation.registration", "validation.calibrated",
+    *(f"validation.{g}.{k}" for g in ("registration", "calibrated") for k in STATS),
+    "validation.per_tool", "validation.per_tool[].tool", "validation.per_tool[].registration",
+    "validation.per_tool[].calibrated", *(f"validation.per_tool[].{g}.{k}"
+    for g in ("registration", "calibrated") for k in STATS), "parameters",
+    "parameters[].name", "parameters[].value", "parameters[].std", "markers",
+    "marker_links", "measurement_to_base",
+}  # fmt: skip
+"""The tree report's keys (format 2)."""
+
+
+def readme_report_table() -> tuple[set[str], set[str]]:
+    """Keys in the first column of the README's "Report JSON" table, and every name in it."""
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    table = text[text.index("**Report JSON**") :].split("\n\n")[1]
+    lines = table.splitlines()[2:]
+    first = {k for line in lines for k in re.findall(r"`([a-z_]+)`", line.split("|")[1])}
+    return first, set(re.findall(r"`([a-z_]+)`", table))
+
+
+def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
+    from calib import calibrate, read_measurements
+
+    chain = load_chain("ur5")
+    rows = elastic_campaign(chain, 40, 5, 1e-4)
+    rows[7, chain.n :] += 0.05  # an outlier row
+    data = tmp_path / "m.csv"
+    write_rows(data, chain, rows)
+    res = calibrate(chain, read_measurements(data, chain), holdout=0.25)
+    report = json.loads(json.dumps(res.to_dict()))
+    assert report["outliers"] and report["selection"] is not None
+    assert report["validation"] is not None
+    assert key_paths(report, leaves=("compliance",)) == CHAIN_REPORT_KEYS
+    assert report["format_version"] == "2"
+    assert report["marker"] == report["markers"][0] and "marker" in report["deprecated"]
+    assert set(report["compliance"]) == set(chain.joint_names)
+    # The tree report (written by `calib calibrate` with several tools).
+    m, rep = tmp_path / "t.csv", tmp_path / "t.json"
+    tools = ["--tool", "wrist_left_ft_tool_link", "--tool", "wrist_right_ft_tool_link"]
+    base = ["talos", "--base", "base_link", *tools]
+    assert run(capsys, "simulate", *base, "--measure", "position", "--out", str(m))[0] == 0
+    code, out, _ = run(
+        capsys, "calibrate", *base, "--data", str(m), "--holdout", "0.25",
+        "--out", str(tmp_path / "t.urdf"), "--report", str(rep),
+    )  # fmt: skip
+    assert code == 0, out
+    tree = json.loads(rep.read_text())
+    assert key_paths(tree, leaves=("markers", "marker_links")) == TREE_REPORT_KEYS
+    assert tree["format_version"] == "2" and tree["deprecated"] == {}
+    # Every key is documented in the README's table (chain and tree reports).
+    rows, names = readme_report_table()
+    top = {k.split(".")[0].split("[")[0] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS}
+    assert top <= rows, top - rows
+    nested = {k.split(".")[-1] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS if "." in k}
+    assert nested <= names, nested - names
