@@ -346,7 +346,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from .elastic import compliance_document
 
     out, report = _calibration_outputs(args, chain.urdf_path)
-    comp = compliance_path(out)
+    comp = None if written_in_place(out) else compliance_path(out)
+    if comp is None and args.elastic:
+        raise InvalidArgumentError(
+            f"--out {out} is no regular file: --elastic writes the compliance file next to it"
+        )
     check_output_paths(
         {"--out": out, "--report": report, "the compliance file": comp},
         {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
@@ -380,6 +384,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     def files() -> dict[Path, str | bytes]:
         urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
         if result.elastic:
+            if comp is None:
+                raise InvalidArgumentError(
+                    f"--out {out} is no regular file: the fitted compliance cannot be written "
+                    f"next to it (give a file, or --no-elastic)"
+                )
             urdf[comp] = json_text(compliance_document(result, str(out)))
         return urdf
 

@@ -413,3 +413,41 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     assert top <= rows, top - rows
     nested = {k.split(".")[-1] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS if "." in k}
     assert nested <= names, nested - names
+
+
+def test_tree_marker_links_give_the_measured_points(tmp_path, capsys):
+    m, urdf, rep = tmp_path / "t.csv", tmp_path / "t.urdf", tmp_path / "t.json"
+    tools = ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
+    base = ["talos", "--base", "base_link", *(a for t in tools for a in ("--tool", t))]
+    sim = ["--measure", "position", "--marker", "0.05", "0.02", "0.1", "--noise-mm", "0"]
+    assert run(capsys, "simulate", *base, *sim, "--out", str(m))[0] == 0
+    cal = ["calibrate", *base, "--data", str(m), "--report", str(rep)]
+    assert run(capsys, *cal, "--out", str(urdf))[0] == 0
+    report = json.loads(rep.read_text())
+    assert report["marker_links"] == {t: f"{t}_marker1" for t in tools}
+    T = np.array(report["measurement_to_base"])
+    rows = read_csv(m)
+    names = [k for k in rows[0] if k not in ("tool", "x", "y", "z", "x1", "y1", "z1")]
+    model = PinURDF(urdf)
+    for tool in tools:
+        mine = [r for r in rows if r["tool"] == tool]
+        P = T @ model.placements(joint_rows(mine, names), "base_link", f"{tool}_marker1")
+        assert np.max(np.abs(P[:, :3, 3] - points(mine))) < 1e-8
+    # --world-link is for one chain: a one-line error, no file.
+    code, _, err = run(capsys, *cal, "--out", str(tmp_path / "w.urdf"), "--world-link", "w")
+    assert code == 2 and err.count("\n") == 1 and "--world-link" in err
+    assert not (tmp_path / "w.urdf").exists()
+
+
+def test_compliance_file_never_overwrites_an_input(tmp_path, capsys):
+    chain = load_chain("ur5")
+    data = tmp_path / "cal.compliance.json"  # an input named as the compliance file would be
+    write_rows(data, chain, elastic_campaign(chain, 30, 6, 0.0))
+    before = data.read_bytes()
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--data", str(data), "--out", str(tmp_path / "cal.urdf")
+    )
+    assert code == 2 and err.count("\n") == 1 and "compliance file" in err, err
+    assert data.read_bytes() == before and not (tmp_path / "cal.urdf").exists()
+    code, _, err = run(capsys, "calibrate", "ur5", "--data", str(data), "--out", "-", "--elastic")
+    assert code == 2 and err.count("\n") == 1 and "no regular file" in err, err
