@@ -79,13 +79,13 @@ class ElasticModel:
         model.gravity = pin.Motion(np.r_[oMb.rotation @ self.gravity, np.zeros(3)])
         data = model.createData()
         idx = [model.joints[j].idx_v for j in self.chain.joint_ids]
-        qp = self.chain.pin_configurations(np.atleast_2d(q))
+        qp = self.chain.pin_configurations(q)
         tau = [pin.computeGeneralizedGravity(model, data, row)[idx] for row in qp]
         return np.array(tau).reshape(-1, self.chain.n)
 
     def deflected(self, q: np.ndarray) -> np.ndarray:
         """Joint positions the geometry sees at commanded ``q`` ``(m, n)``: ``q + c tau(q)``."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
+        q = self.chain.check_configurations(q)
         return q + self.compliance * self.torques(q)
 
     def command(self, target: np.ndarray, tol: float = 1e-12) -> np.ndarray:
@@ -97,7 +97,7 @@ class ElasticModel:
         Raises:
             InvalidArgumentError: It does not settle in ``COMMAND_ITERATIONS`` iterations.
         """
-        target = np.atleast_2d(np.asarray(target, dtype=float))
+        target = self.chain.check_configurations(target)
         q = target.copy()
         for _ in range(COMMAND_ITERATIONS):
             new = target - self.compliance * self.torques(q)

@@ -237,9 +237,17 @@ def calibrated_urdf(
             match the chain.
     """
     _check_models(chain, nominal, calibrated)
-    X = np.eye(4) if tool is None else np.asarray(tool, dtype=float)
-    if X.shape != (4, 4) or not np.allclose(X[:3, :3] @ X[:3, :3].T, np.eye(3), atol=1e-9):
+    X = np.eye(4) if tool is None else _array(tool, (4, 4), "tool")
+    if not np.allclose(X[:3, :3] @ X[:3, :3].T, np.eye(3), atol=1e-9):
         raise InvalidArgumentError("tool must be a rigid transform (4, 4)")
+    if markers is not None:
+        markers = _array(markers, (-1, 3), "markers")
+    if world is not None and not (
+        isinstance(world, tuple) and len(world) == 2 and isinstance(world[0], str)
+    ):
+        raise InvalidArgumentError("world must be (link name, pose (4, 4))")
+    if world is not None:
+        world = (world[0], _array(world[1], (4, 4), "the world pose"))
     raw, root = read_urdf_source(chain)
     joints, tool_joint = edited_joints(root, chain)
     start, stop = xml_layout(raw, str(chain.urdf_path))
@@ -266,10 +274,22 @@ def calibrated_urdf(
     set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
     _keep_tool_children(root, tool_child, X)
     if markers is not None:
-        add_marker_links(root, chain.tool_frame, tool_child, np.reshape(markers, (-1, 3)))
+        add_marker_links(root, chain.tool_frame, tool_child, markers)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, poses))
     return spliced(raw, root, start, stop)
+
+
+def _array(value, shape: tuple[int, int], what: str) -> np.ndarray:
+    """``value`` as finite numbers of ``shape`` (-1: any count), else InvalidArgumentError."""
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    ok = a.ndim == 2 and all(s in (-1, d) for s, d in zip(shape, a.shape, strict=True))
+    if not ok or not np.all(np.isfinite(a)):
+        raise InvalidArgumentError(f"{what} must be finite numbers of shape {shape}")
+    return a
 
 
 def origin_of(joint: ET.Element) -> np.ndarray:

@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
-from calib import complete_parameters, from_chain, load_calibrated, load_chain
+from calib import InvalidArgumentError, complete_parameters, from_chain, load_calibrated, load_chain
 from calib.calibration.model import State
 from calib.cli import main
 
@@ -209,6 +210,9 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
         assert np.max(np.abs(model.points(q)[:, 0] - expected)) < 1e-9
         target = model.deflected(q)
         assert np.max(np.abs(model.deflected(model.command(target)) - target)) < 1e-10
+        for bad in ("x", q[:, :3], np.full_like(q, np.nan)):
+            with pytest.raises(InvalidArgumentError):
+                model.points(bad)
     # calib predict writes the same points and deflected joints.
     configs, pred = tmp_path / "configs.csv", tmp_path / "pred.csv"
     write_rows(configs, chain, held)
