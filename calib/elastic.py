@@ -6,8 +6,9 @@ whole model is the calibrated URDF whose joints see
     q' = q + c * tau(q)
 
 ``c`` the compliance of each chain joint [rad/(N m) or m/N] and ``tau(q)`` the gravity torque
-it carries [N m or N] (the URDF's masses, the other joints at their neutral position,
-gravity as recorded: a vector in the base frame). calib writes ``c`` and the gravity next to
+it carries [N m or N], as in the fit: the URDF's masses on the nominal joint placements (the
+file records them: ``nominal_origins``), the other joints at their neutral position,
+gravity as recorded (a vector in the base frame). calib writes ``c`` and the gravity next to
 the URDF (:func:`compliance_document`, ``<out>.compliance.json``); :func:`load_calibrated`
 reads the URDF with that file (or the report) back as an :class:`ElasticModel`, which
 predicts measured points and gives the deflected or the compensating joint positions.
@@ -16,6 +17,7 @@ predicts measured points and gives the deflected or the compensating joint posit
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import math
@@ -25,10 +27,19 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import DataError, InvalidArgumentError
+from .exceptions import DataError, InvalidArgumentError, URDFError
 from .fileio import read_text_limited
 from .mdh import MDHModel, from_chain
-from .robot import Chain, frame_placement, joint_placements, load_chain
+from .robot import (
+    Chain,
+    frame_placement,
+    joint_placements,
+    load_chain,
+    pin_configurations,
+    resolve_frame,
+)
+from .urdf_model import build_model, read_urdf_file
+from .urdf_xml import URDFInfo, kinematic_xml
 
 COMPLIANCE_FORMAT = "1"
 """Version of the compliance file's layout (its ``format_version``)."""
@@ -70,16 +81,20 @@ class ElasticModel:
     compliance: np.ndarray
     gravity: np.ndarray
     mdh: MDHModel
+    torque_model: pin.Model
 
     def torques(self, q: np.ndarray) -> np.ndarray:
-        """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``."""
-        model = pin.Model(self.chain.model)  # a copy: the gravity is set on it
-        q0 = self.chain.pin_configurations(np.zeros((1, self.chain.n)))[0]
-        oMb = frame_placement(model, joint_placements(model, q0), self.chain.base_id)
-        model.gravity = pin.Motion(np.r_[oMb.rotation @ self.gravity, np.zeros(3)])
+        """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``.
+
+        As in the fit: the URDF's masses on the nominal joint placements (``torque_model``,
+        whose gravity is set from ``gravity``), the other joints at their neutral position.
+        """
+        model = self.torque_model
+        ids = tuple(model.getJointId(name) for name in self.chain.joint_names)
+        q = self.chain.check_configurations(q)
         data = model.createData()
-        idx = [model.joints[j].idx_v for j in self.chain.joint_ids]
-        qp = self.chain.pin_configurations(q)
+        idx = [model.joints[j].idx_v for j in ids]
+        qp = pin_configurations(model, pin.neutral(model), ids, q)
         tau = [pin.computeGeneralizedGravity(model, data, row)[idx] for row in qp]
         return np.array(tau).reshape(-1, self.chain.n)
 
@@ -143,7 +158,62 @@ def compliance_document(result, urdf: str) -> dict:
         "measurement_to_base": np.asarray(result.measurement_to_base).tolist(),
         "markers": result.urdf_markers.tolist(),
         "marker_links": list(result.marker_links),
+        "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
     }
+
+
+def nominal_origins(info: URDFInfo) -> dict[str, dict[str, list[float]]]:
+    """Every joint's ``<origin>`` in a URDF: name -> ``{xyz [m], rpy [rad]}``."""
+    return {j.name: {"xyz": list(j.xyz), "rpy": list(j.rpy)} for j in info.joints}
+
+
+def torque_model(urdf: str | Path, origins: dict, base: str, gravity: np.ndarray) -> pin.Model:
+    """The gravity model of a fit: the calibrated URDF's masses on the nominal placements.
+
+    Args:
+        urdf: The calibrated URDF.
+        origins: Nominal joint origins (:func:`nominal_origins`); joints it does not name
+            (the added marker and world links) keep theirs.
+        base: The base frame (``gravity`` is given in it).
+        gravity: Gravity in the base frame ``(3,)`` [m/s^2].
+    """
+    info = read_urdf_file(urdf)
+    joints = []
+    for j in info.joints:
+        o = origins.get(j.name)
+        if o is not None:
+            j = dataclasses.replace(j, xyz=tuple(o["xyz"]), rpy=tuple(o["rpy"]))
+        joints.append(j)
+    model = build_model(kinematic_xml(dataclasses.replace(info, joints=tuple(joints))), str(urdf))
+    oMi = joint_placements(model, pin.neutral(model))
+    oMb = frame_placement(model, oMi, resolve_frame(model, base))
+    model.gravity = pin.Motion(np.r_[oMb.rotation @ gravity, np.zeros(3)])
+    return model
+
+
+def _origins(doc: dict, src: str) -> dict:
+    """The nominal joint origins of a compliance file, or of a report's nominal URDF."""
+    origins = doc.get("nominal_origins")
+    if origins is None and isinstance(doc.get("urdf"), str):  # a report
+        try:
+            return nominal_origins(read_urdf_file(doc["urdf"]))
+        except URDFError as exc:
+            raise DataError(
+                src, f"its nominal URDF (the gravity model) cannot be read: {exc}"
+            ) from None
+    ok = isinstance(origins, dict) and all(
+        isinstance(o, dict)
+        and all(
+            isinstance(o.get(k), list)
+            and len(o[k]) == 3
+            and all(isinstance(v, (int, float)) and math.isfinite(v) for v in o[k])
+            for k in ("xyz", "rpy")
+        )
+        for o in origins.values()
+    )
+    if not ok:
+        raise DataError(src, "'nominal_origins' is missing or not {joint: {xyz, rpy}}")
+    return origins
 
 
 def _read_json(path: str | Path) -> dict:
@@ -216,7 +286,8 @@ def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
         raise DataError(src, f"the gravity is given in '{gravity.get('frame')}', not the base")
     T = _numbers(doc, "measurement_to_base", (4, 4), src)
     markers = _numbers(doc, "markers", (-1, 3), src)
-    return ElasticModel(chain, T, markers, c, vec, from_chain(chain))
+    model = torque_model(urdf, _origins(doc, src), base, vec)
+    return ElasticModel(chain, T, markers, c, vec, from_chain(chain), model)
 
 
 def predictions_csv(model: ElasticModel, q: np.ndarray) -> str:

@@ -182,29 +182,22 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
         assert abs(rms - 1e3 * st["position_rms"]) < 6e-4
 
     q, measured = held[:, : chain.n], held[:, chain.n :]
-    # Independent of calib's model: Pinocchio gravity and FK on the written URDF.
-    pm = PinURDF(urdf)
-    g = pm.model.copy() if hasattr(pm.model, "copy") else pin.Model(pm.model)
-    base = pm.model.getFrameId("base_link")
+    # Independent of calib's model: Pinocchio's gravity torques of the nominal URDF (root -z)
+    # and its forward kinematics of the written URDF at the deflected joints.
+    pm, nom = PinURDF(urdf), PinURDF(chain.urdf_path)
     T = np.array(doc["measurement_to_base"])
     c = np.array(doc["compliance"])
+    v = [nom.model.joints[nom.model.getJointId(n)].idx_v for n in chain.joint_names]
     expected = []
     for row in q:
-        qp = pm.q(dict(zip(chain.joint_names, row, strict=True)))
-        pin.framesForwardKinematics(pm.model, pm.data, qp)
-        g.gravity = pin.Motion(
-            np.r_[pm.data.oMf[base].rotation @ np.array(doc["gravity"]["vector"]), 0, 0, 0]
-        )
-        tau = pin.computeGeneralizedGravity(g, g.createData(), qp)
-        tau = np.array(
-            [tau[pm.model.joints[pm.model.getJointId(n)].idx_v] for n in chain.joint_names]
-        )
+        qn = nom.q(dict(zip(chain.joint_names, row, strict=True)))
+        tau = pin.computeGeneralizedGravity(nom.model, nom.data, qn)[v]
         defl = dict(zip(chain.joint_names, row + c * tau, strict=True))
         P = pm.placements([defl], "base_link", "tool0_marker1")[0]
         expected.append((T @ P)[:3, 3])
     expected = np.array(expected)
     rms = np.sqrt(np.mean(np.sum((expected - measured) ** 2, axis=1)))
-    assert abs(rms - whole["position_rms"]) < 1e-5
+    assert abs(rms - whole["position_rms"]) < 1e-9
     for source in (comp, rep):  # the compliance file or the report
         model = load_calibrated(urdf, source)
         assert np.max(np.abs(model.points(q)[:, 0] - expected)) < 1e-9
@@ -455,3 +448,36 @@ def test_compliance_file_never_overwrites_an_input(tmp_path, capsys):
     assert data.read_bytes() == before and not (tmp_path / "cal.urdf").exists()
     code, _, err = run(capsys, "calibrate", "ur5", "--data", str(data), "--out", "-", "--elastic")
     assert code == 2 and err.count("\n") == 1 and "no regular file" in err, err
+
+
+def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path):
+    """--elastic on the TIAGo: the URDF alone is worse than the registration, so calib refuses
+    it; the files it would write still reproduce the whole model's held-out figure."""
+    import warnings
+
+    from calib import DataWarning, calibrate, read_measurements
+    from calib.elastic import compliance_document
+
+    tiago = REAL / "tiago"
+    train, test = tmp_path / "train.csv", tmp_path / "test.csv"
+    point1_csv(tiago / "qualisys_2021-11-30_static_postures.csv", train)
+    point1_csv(tiago / "qualisys_2021-11-26_static_postures.csv", test)
+    chain = load_chain(tiago / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        tr, te = read_measurements(train, chain), read_measurements(test, chain)
+        res = calibrate(chain, tr, validate=te, elastic=True)
+    assert res.elastic and "URDF alone" in res.refusal
+    urdf, comp = tmp_path / "cal.urdf", tmp_path / "cal.compliance.json"
+    urdf.write_bytes(res.urdf("mocap"))
+    comp.write_text(json.dumps(compliance_document(res, str(urdf))))
+    model = load_calibrated(urdf, comp)
+    e = np.linalg.norm(model.points(te.q)[:, 0] - te.points[:, 0], axis=1)
+    assert abs(np.sqrt(np.mean(e**2)) - res.validation.calibrated.position_rms) < 1e-9
+    assert abs(np.max(e) - res.validation.calibrated.position_max) < 1e-9
+    # The URDF alone, scored by Pinocchio from the world link: the refused figure.
+    rows = read_csv(test)
+    names = list(chain.joint_names)
+    P = PinURDF(urdf).placements(joint_rows(rows, names), "mocap", "wrist_ft_tool_link_marker1")
+    e = np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)
+    assert abs(np.sqrt(np.mean(e**2)) - res.validation.urdf.position_rms) < 1e-9
