@@ -409,12 +409,21 @@ def compliance_path(out: Path) -> Path:
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
     """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
-    from .urdf_export import check_base_fixed, check_exportable, read_urdf_source
-    from .urdf_links import check_new_names, marker_link_names
+    from .urdf_export import (
+        check_base_fixed,
+        check_exportable,
+        child_link,
+        edited_joints,
+        read_urdf_source,
+    )
+    from .urdf_links import check_new_names, marker_joints, marker_link_names
 
     check_exportable(chain)
     root = read_urdf_source(chain)[1]
-    check_new_names(root, marker_link_names(chain.tool_frame, n_markers), "marker links")
+    tool_link = child_link(edited_joints(root, chain)[1])
+    kept = marker_joints(root, chain.tool_frame, tool_link, n_markers)
+    names = marker_link_names(chain.tool_frame, n_markers)
+    check_new_names(root, tuple(n for n in names if n not in kept), "marker links")
     if world_link is not None:
         check_new_names(root, (world_link,), "--world-link")
         check_base_fixed(chain)

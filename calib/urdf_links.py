@@ -94,15 +94,38 @@ def add_marker_links(root: ET.Element, tool: str, tool_link: str, markers: np.nd
     Raises:
         InvalidArgumentError: A link or joint of that name exists.
     """
+    from .urdf_export import set_origin
+
     names = marker_link_names(tool, len(markers))
-    check_new_names(root, names, "marker links")
+    existing = marker_joints(root, tool, tool_link, len(markers))
+    check_new_names(root, tuple(n for n in names if n not in existing), "marker links")
     elements: list[ET.Element] = []
     for name, mk in zip(names, np.asarray(markers, dtype=float), strict=True):
         T = np.eye(4)
         T[:3, 3] = mk
+        if name in existing:  # a calibrated URDF calibrated again: the link is moved
+            set_origin(existing[name], T)
+            continue
         elements.append(_element("link", "", "", name=name))
         elements.append(_fixed_joint(f"{name}_joint", tool_link, name, T, "  "))
-    _append(root, elements)
+    if elements:
+        _append(root, elements)
+
+
+def marker_joints(root: ET.Element, tool: str, tool_link: str, k: int) -> dict[str, ET.Element]:
+    """Marker links a previous calibration wrote (name -> its fixed joint under the tool)."""
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
+    links = {link.get("name", "") for link in root.findall("link")}
+    found = {}
+    for name in marker_link_names(tool, k):
+        joint = joints.get(f"{name}_joint")
+        if name in links and joint is not None and joint.get("type") == "fixed":
+            parent, child = joint.find("parent"), joint.find("child")
+            if (parent is not None and parent.get("link") == tool_link) and (
+                child is not None and child.get("link") == name
+            ):
+                found[name] = joint
+    return found
 
 
 def add_world_link(root: ET.Element, name: str, world_to_root: np.ndarray) -> None:

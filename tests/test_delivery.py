@@ -122,6 +122,16 @@ def test_marker_links_and_world_link_give_the_measured_points(tmp_path, capsys):
         < 1e-9
     )
 
+    # Calibrated again, the calibrated URDF's marker link is moved, not duplicated.
+    again = tmp_path / "again.urdf"
+    code, out, _ = run(
+        capsys, "calibrate", str(urdf), "--base", "base_link", "--tool", "tool0", "--data",
+        str(m), "--params", "frames", "--out", str(again),
+    )  # fmt: skip
+    assert code == 0, out
+    assert again.read_text().count('<link name="tool0_marker1"') == 1
+    mk2 = PinURDF(again).placements(q, "tracker", "tool0_marker1")
+    assert np.max(np.abs(mk2[:, :3, 3] - points(rows))) < 1e-9
     # A taken name is a one-line error, exit 2, no file written.
     for name in ("world", "base_link", "tool0_marker1", "world_joint"):
         out2 = tmp_path / f"clash_{name}.urdf"
