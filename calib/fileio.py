@@ -171,7 +171,6 @@ def check_outputs(
     for path in given.values():
         _check_writable(_target(path))
 
-
 READ_CHUNK = 1 << 20
 """Bytes read at a time by :func:`read_bytes_limited` [B]."""
 
@@ -227,7 +226,9 @@ def read_text_limited(path: str | Path, limit: int) -> str:
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise OSError(errno.EILSEQ, f"not UTF-8 text (byte {exc.start})", str(Path(path))) from None
+        raise OSError(
+            errno.EILSEQ, f"not UTF-8 text (byte {exc.start})", str(Path(path))
+        ) from None
 
 
 def _human_size(n: int) -> str:
