@@ -60,6 +60,8 @@ _LAZY = {
     "simulate_tree": "tree_campaign",
     "calibrated_tree_urdf": "tree_export",
     "write_calibrated_tree_urdf": "tree_export",
+    "ElasticModel": "elastic",
+    "load_calibrated": "elastic",
 }
 """Names imported when first used, so that ``calib analyze`` does not load the calibration."""
 
@@ -83,6 +85,7 @@ __all__ = [
     "ConvergenceError",
     "DataError",
     "DataWarning",
+    "ElasticModel",
     "FrameNotFoundError",
     "Identifiability",
     "InvalidArgumentError",
@@ -116,6 +119,7 @@ __all__ = [
     "from_lines",
     "from_tree",
     "identification_jacobian",
+    "load_calibrated",
     "load_chain",
     "load_robot",
     "load_tree",

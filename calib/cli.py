@@ -348,12 +348,21 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return _calibrate_tree(args, chain)
     from .calibration import calibrate  # only this command loads the calibration
     from .calibration.text import calibration_text
-    from .urdf_export import calibrated_urdf, check_exportable
+    from .elastic import compliance_document
 
     out, report = _calibration_outputs(args, chain.urdf_path)
-    check_exportable(chain)  # before the fit: a URDF it cannot be written to is known now
+    comp = None if written_in_place(out) else compliance_path(out)
+    if comp is None and args.elastic:
+        raise InvalidArgumentError(
+            f"--out {out} is no regular file: --elastic writes the compliance file next to it"
+        )
+    check_output_paths(
+        {"--out": out, "--report": report, "the compliance file": comp},
+        {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
+    )
     columns = _columns(args)
     data = read_measurements(args.data, chain, columns)
+    _check_links(chain, data.n_markers, args.world_link)  # before the fit
     check = read_measurements(args.validate, chain, columns) if args.validate else None
     if args.measure == "position":
         data = data.position_only()
@@ -376,14 +385,53 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         holdout=args.holdout,
         seed=args.seed,
     )
+
+    def files() -> dict[Path, str | bytes]:
+        urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+        if result.elastic:
+            if comp is None:
+                raise InvalidArgumentError(
+                    f"--out {out} is no regular file: the fitted compliance cannot be written "
+                    f"next to it (give a file, or --no-elastic)"
+                )
+            urdf[comp] = json_text(compliance_document(result, str(out)))
+        return urdf
+
     return _write_calibration(
         args,
-        result.to_dict(),
+        result.to_dict(args.world_link),
         lambda: calibration_text(result),
         result.refusal,
-        lambda: calibrated_urdf(chain, result.nominal, result.calibrated),
+        files,
         (out, report),
     )
+
+
+def compliance_path(out: Path) -> Path:
+    """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
+    return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
+
+
+def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
+    """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
+    from .urdf_export import (
+        check_base_fixed,
+        check_exportable,
+        child_link,
+        edited_joints,
+        read_urdf_source,
+    )
+    from .urdf_links import check_new_names, marker_joints, marker_link_names
+
+    check_exportable(chain)
+    root = read_urdf_source(chain)[1]
+    tool_link = child_link(edited_joints(root, chain)[1])
+    kept = marker_joints(root, chain.tool_frame, tool_link, n_markers)
+    names = marker_link_names(chain.tool_frame, n_markers)
+    check_new_names(root, tuple(n for n in names if n not in kept), "marker links")
+    if world_link is not None:
+        check_new_names(root, (world_link,), "--world-link")
+        check_base_fixed(chain)
 
 
 def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:
@@ -404,13 +452,14 @@ def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
         report_dict: The JSON report.
         text: Returns the text printed without ``--json``.
         refusal: Why the model must not be written, or None.
-        urdf: Returns the calibrated URDF (called only for an accepted model).
+        urdf: Returns the files of an accepted model: the calibrated URDF (and the
+            compliance file) by path (called only for an accepted model).
         paths: ``(--out, --report or None)``.
 
     Raises:
         CalibrationRefusedError: The model was refused (no URDF is written).
     """
-    out, report = paths
+    report = paths[1]
     doc = json_text(report_dict)
     print(doc if args.json else text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
@@ -418,9 +467,10 @@ def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
         write_outputs(files)
         kept = f"; report written to {report}" if report is not None else ""
         raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
-    write_outputs({out: urdf(), **files})
+    written = {**urdf(), **files}
+    write_outputs(written)
     if not args.json:
-        print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
+        print(f"wrote {', '.join(str(p) for p in written)}")
     return 0
 
 
@@ -435,6 +485,7 @@ CHAIN_ONLY = {
     "units": "m",
     "orientation": "auto",
     "orientation_columns": None,
+    "world_link": None,
 }
 """Options of `calibrate` a tree calibration does not take, at their defaults."""
 
@@ -468,7 +519,9 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
         result.to_dict(),
         result.text,
         result.refusal,
-        lambda: calibrated_tree_urdf(tree, result.nominal, result.state.mdh),
+        lambda: {
+            out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh, result.state.markers)
+        },
         (out, report),
     )
 
@@ -757,6 +810,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_MAX_ITERATIONS,
         help=f"most residual evaluations of each fit (default: {DEFAULT_MAX_ITERATIONS})",
     )
+    p.add_argument(
+        "--world-link",
+        metavar="NAME",
+        help="also write the measurement frame as link NAME, the new root of the URDF: forward "
+        "kinematics from NAME gives measured coordinates",
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_calibrate)
 
@@ -780,6 +839,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .design_cli import add_design_parser
 
     add_design_parser(sub)
+
+    from .predict_cli import add_predict_parser
+
+    add_predict_parser(sub)
 
     p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
     p.set_defaults(func=cmd_demo)

@@ -32,6 +32,7 @@ from .urdf_export import (
     spliced,
     xml_layout,
 )
+from .urdf_links import add_marker_links
 
 
 def moved_frames(nominal: TreeMDH, calibrated: TreeMDH) -> dict[int, np.ndarray]:
@@ -62,8 +63,13 @@ def tree_measurement_to_base(nominal: TreeMDH, calibrated: TreeMDH) -> np.ndarra
     return moved_frames(nominal, calibrated)[first]
 
 
-def calibrated_tree_urdf(tree: Tree, nominal: TreeMDH, calibrated: TreeMDH) -> bytes:
+def calibrated_tree_urdf(
+    tree: Tree, nominal: TreeMDH, calibrated: TreeMDH, markers: np.ndarray | None = None
+) -> bytes:
     """The tree's URDF file with the calibrated placements of every joint and tool.
+
+    ``markers``: each tool's measured point in its frame ``(T, 3)`` [m], written as a fixed
+    link ``<tool>_marker1`` under the tool link (default: none).
 
     Raises:
         InvalidArgumentError: The models are not models of the tree.
@@ -95,6 +101,8 @@ def calibrated_tree_urdf(tree: Tree, nominal: TreeMDH, calibrated: TreeMDH) -> b
             new = moved[j + 1] @ nom_joint[j]
             parent = carried(int(nominal.antecedent[j + 1]), parent_link(joint))
             set_origin(joint, np.linalg.inv(parent) @ new)
+        if markers is not None:
+            add_marker_links(root, chain.tool_frame, child_link(tool_joint), markers[t : t + 1])
     return spliced(raw, root, start, stop)
 
 

@@ -4,7 +4,9 @@ Only the ``<origin xyz rpy>`` of chain joints 2..n and of the fixed joint that c
 tool frame are rewritten; everything else of the original file is kept (comments, limits,
 mimic tags, transmissions, mesh paths, other branches). Joint 1 keeps its nominal placement
 in the base link: the base part of the calibration is the measurement-frame -> base
-transform (:func:`measurement_to_base`), which a URDF has no place for.
+transform (:func:`measurement_to_base`). On request the file gains links
+(:mod:`calib.urdf_links`): the markers under the tool link, and the measurement frame as a
+new root link; pose data's measured frame is folded into the tool's fixed joint.
 
 For chain joint k the constant ``C_k = T_mdh_k_nom(0)^-1 T_urdf_joint_k_nom(0)`` maps the MDH
 frame onto the URDF joint frame (it keeps the joint axis); the calibrated joint frame is
@@ -29,6 +31,7 @@ from .exceptions import CalibError, InvalidArgumentError, URDFError
 from .fileio import check_outputs, read_bytes_limited, write_atomic
 from .mdh import MDHModel, frames_at_zero
 from .robot import Chain, frame_placement, joint_placements
+from .urdf_links import add_marker_links, add_world_link
 from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
 
@@ -196,26 +199,55 @@ def _check_models(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> None
             )
 
 
-def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> bytes:
+def calibrated_urdf(
+    chain: Chain,
+    nominal: MDHModel,
+    calibrated: MDHModel,
+    *,
+    tool: np.ndarray | None = None,
+    markers: np.ndarray | None = None,
+    world: tuple[str, np.ndarray] | None = None,
+) -> bytes:
     """The chain's URDF file with the calibrated joint and tool placements.
 
     Args:
         chain: The nominal chain (its ``urdf_path`` is edited).
         nominal: The nominal MDH model of the chain (``from_chain(chain)``).
         calibrated: The calibrated model (same rows; frame -1 = the measurement frame).
+        tool: Pose of the measured frame in the calibrated tool frame ``(4, 4)`` (pose data:
+            the fitted marker 1 and measured-frame rotation), written into the tool's fixed
+            joint so that the URDF's tool frame is the measured frame; the links fixed to
+            the tool link keep their calibrated place. Default: identity.
+        markers: Measured points in the written tool frame ``(K, 3)`` [m], each written as a
+            fixed link ``<tool>_marker<k>`` under the tool link (default: none).
+        world: ``(name, T)``: add the link ``name`` as the parent of the URDF's root link,
+            ``T`` ``(4, 4)`` the pose of the base frame in it (``measurement_to_base``), so
+            that forward kinematics from ``name`` gives measured coordinates.
 
     Returns:
         The new file content (UTF-8). Loaded with the same base and tool frames, its forward
         kinematics T satisfies ``measurement_to_base(nominal, calibrated) @ T(q) ==
-        calibrated.forward(q)``.
+        calibrated.forward(q) @ tool``.
 
     Raises:
-        InvalidArgumentError: The models are not models of the chain.
+        InvalidArgumentError: The models are not models of the chain, or a new link's name
+            is taken.
         URDFError: The original file cannot be read.
         CalibError: The tool frame is not carried by a fixed joint, or the file does not
             match the chain.
     """
     _check_models(chain, nominal, calibrated)
+    X = np.eye(4) if tool is None else _array(tool, (4, 4), "tool")
+    if not np.allclose(X[:3, :3] @ X[:3, :3].T, np.eye(3), atol=1e-9):
+        raise InvalidArgumentError("tool must be a rigid transform (4, 4)")
+    if markers is not None:
+        markers = _array(markers, (-1, 3), "markers")
+    if world is not None and not (
+        isinstance(world, tuple) and len(world) == 2 and isinstance(world[0], str)
+    ):
+        raise InvalidArgumentError("world must be (link name, pose (4, 4))")
+    if world is not None:
+        world = (world[0], _array(world[1], (4, 4), "the world pose"))
     raw, root = read_urdf_source(chain)
     joints, tool_joint = edited_joints(root, chain)
     start, stop = xml_layout(raw, str(chain.urdf_path))
@@ -237,17 +269,80 @@ def calibrated_urdf(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> by
         parent = carried(k - 1, parent_link(joint))
         set_origin(joint, np.linalg.inv(parent) @ new_joint[k])
     tool_child = child_link(tool_joint)
-    tool_new = moved[n + 1] @ poses.link(tool_child)
+    tool_new = moved[n + 1] @ poses.link(tool_child) @ X
     parent = carried(n - 1, parent_link(tool_joint))
     set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
-
+    _keep_tool_children(root, tool_child, X)
+    if markers is not None:
+        add_marker_links(root, chain.tool_frame, tool_child, markers)
+    if world is not None:
+        add_world_link(root, world[0], world[1] @ base_to_root(chain, poses))
     return spliced(raw, root, start, stop)
 
 
+def _array(value, shape: tuple[int, int], what: str) -> np.ndarray:
+    """``value`` as finite numbers of ``shape`` (-1: any count), else InvalidArgumentError."""
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    ok = a.ndim == 2 and all(s in (-1, d) for s, d in zip(shape, a.shape, strict=True))
+    if not ok or not np.all(np.isfinite(a)):
+        raise InvalidArgumentError(f"{what} must be finite numbers of shape {shape}")
+    return a
+
+
+def origin_of(joint: ET.Element) -> np.ndarray:
+    """A joint element's ``<origin xyz rpy>`` as a pose ``(4, 4)`` (identity if none)."""
+    origin = joint.find("origin")
+    T = np.eye(4)
+    if origin is None:
+        return T
+    xyz = [float(v) for v in origin.get("xyz", "0 0 0").split()]
+    rpy = [float(v) for v in origin.get("rpy", "0 0 0").split()]
+    T[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
+    T[:3, 3] = xyz
+    return T
+
+
+def _keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
+    """Joints fixed to the tool link keep their place when its frame moves by ``X``."""
+    if np.array_equal(X, np.eye(4)):
+        return
+    for joint in root.findall("joint"):
+        if parent_link(joint) == tool_link:
+            set_origin(joint, np.linalg.inv(X) @ origin_of(joint))
+
+
+def check_base_fixed(chain: Chain) -> None:
+    """Raise if the base frame moves relative to the URDF's root link (``--world-link``).
+
+    Raises:
+        CalibError: A joint lies between the root link and the base frame.
+    """
+    if chain.model.frames[chain.base_id].parentJoint != 0:
+        raise CalibError(
+            f"--world-link: the base frame '{chain.base_frame}' is moved by a joint relative "
+            f"to the URDF's root link: the measurement frame cannot be fixed to the root"
+        )
+
+
+def base_to_root(chain: Chain, poses: NominalPoses) -> np.ndarray:
+    """Pose of the URDF's root link in the base frame ``(4, 4)``.
+
+    Raises:
+        CalibError: The base frame moves relative to the root link (a joint between them).
+    """
+    check_base_fixed(chain)
+    return _homogeneous(poses.bMo)
+
+
 def write_calibrated_urdf(
-    path: str | Path, chain: Chain, nominal: MDHModel, calibrated: MDHModel
+    path: str | Path, chain: Chain, nominal: MDHModel, calibrated: MDHModel, **links
 ) -> None:
     """Write :func:`calibrated_urdf` to ``path`` atomically (complete or not at all).
+
+    ``links``: ``tool``, ``markers``, ``world`` of :func:`calibrated_urdf`.
 
     Raises:
         InvalidArgumentError: ``path`` is not a path, or is the nominal URDF
@@ -259,4 +354,4 @@ def write_calibrated_urdf(
     if not isinstance(path, str | os.PathLike):
         raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
     check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
-    write_atomic(path, calibrated_urdf(chain, nominal, calibrated))
+    write_atomic(path, calibrated_urdf(chain, nominal, calibrated, **links))

@@ -118,6 +118,14 @@ def _cases():
         "calibrated_tree_urdf tree": lambda: calib.calibrated_tree_urdf(
             CHAIN, TREE_MODEL, TREE_MODEL
         ),
+        "calibrated_urdf tool": lambda: calib.calibrated_urdf(CHAIN, MDH, MDH, tool="x"),
+        "calibrated_urdf markers": lambda: calib.calibrated_urdf(CHAIN, MDH, MDH, markers=[1]),
+        "calibrated_urdf world": lambda: calib.calibrated_urdf(
+            CHAIN, MDH, MDH, world=("a<b", np.eye(4))
+        ),
+        "load_calibrated missing": lambda: calib.load_calibrated(CHAIN.urdf_path, "/no/such.json"),
+        "load_calibrated not json": lambda: calib.load_calibrated(CHAIN.urdf_path, CHAIN.urdf_path),
+        "load_calibrated urdf": lambda: calib.load_calibrated(5, CHAIN.urdf_path),
         "write_calibrated_tree_urdf path": lambda: calib.write_calibrated_tree_urdf(
             3.5, TREE, TREE_MODEL, TREE_MODEL
         ),
@@ -138,7 +146,9 @@ def test_bad_argument_is_a_calib_error(case):
 def test_every_public_function_is_covered():
     """A new public function must be added to the cases above (or to the rewrite's list)."""
     rewritten = {
-        "simulate", "read_measurements", "write_measurements",
+        "simulate",
+        "read_measurements",
+        "write_measurements",
     }
     functions = {
         name

@@ -411,10 +411,16 @@ def _assemble(
         None if val is None else checks,
         fitted.model.names(),
     )
+    urdf_after = _geometry_stats(fitted.state, train)
+    if reason is None and urdf_after is not None:
+        reason = validation.urdf_refusal(
+            (before, urdf_after), None if val is None else (val.registration, val.geometry)
+        )
     notes = list(notes)
     if torque[0] is not None and np.any(fitted.state.compliance):
         notes.append(
-            "joint compliance was fitted: the calibrated URDF cannot hold it (see the report)"
+            "joint compliance was fitted: the calibrated URDF cannot hold it; it is written "
+            "to the compliance file (apply it with calib predict or calib.load_calibrated)"
         )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -448,6 +454,16 @@ def _assemble(
         orientation_weight=opts.orientation_weight,
         refusal=reason,
         warnings=tuple(notes),
+        urdf_after=urdf_after,
+    )
+
+
+def _geometry_stats(state: State, data: Measurements) -> ResidualStats | None:
+    """Errors of the state without its compliance (the URDF alone), None without compliance."""
+    if not np.any(state.compliance):
+        return None
+    return validation.stats(
+        dataclasses.replace(state, compliance=np.zeros_like(state.compliance)), data, None
     )
 
 
@@ -460,6 +476,7 @@ def _validation(fitted: Fit, held, torque, cov) -> Validation:
         validation.stats(fitted.start, data, None),
         validation.stats(fitted.state, data, torque),
         validation.predicted_std(J, cov, data.n_markers),
+        _geometry_stats(fitted.state, data),
     )
 
 

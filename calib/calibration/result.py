@@ -8,11 +8,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..elastic import gravity_in_base
 from ..exceptions import CalibrationRefusedError, ConvergenceError
 from ..mdh import MDHModel
 from ..measurements import Measurements
 from ..robot import Chain
-from ..urdf_export import measurement_to_base
+from ..urdf_export import calibrated_urdf, measurement_to_base
+from ..urdf_links import marker_link_names
 from .model import ErrorModel, State
 from .outliers import Outlier
 from .selection import Selection
@@ -74,12 +76,21 @@ class Validation:
         calibrated: Errors of the calibrated model.
         predicted_std: Predicted position standard deviation of the calibrated model at
             these configurations, RMS over them [m].
+        urdf: Errors of the calibrated URDF alone (the geometry, frame and markers, without
+            the joint compliance), or None when no compliance was fitted (then it is
+            ``calibrated``).
     """
 
     source: str
     registration: ResidualStats
     calibrated: ResidualStats
     predicted_std: float
+    urdf: ResidualStats | None = None
+
+    @property
+    def geometry(self) -> ResidualStats:
+        """Errors of the calibrated URDF alone (no compliance; ``calibrated`` without any)."""
+        return self.calibrated if self.urdf is None else self.urdf
 
     def to_dict(self) -> dict:
         """JSON-ready form."""
@@ -87,6 +98,7 @@ class Validation:
             "source": self.source,
             "registration": self.registration.to_dict(),
             "calibrated": self.calibrated.to_dict(),
+            "urdf": self.geometry.to_dict(),
             "predicted_std": finite(self.predicted_std),
         }
 
@@ -126,6 +138,8 @@ class CalibrationResult:
         refusal: Why the model must not be written (None: accepted).
         warnings: Reasons to be careful with the result.
         timings_ms: Time of each stage [ms].
+        urdf_after: Errors of the calibrated URDF alone (no compliance) on the fitted data,
+            or None when no compliance was fitted (then it is ``after``).
     """
 
     robot: str
@@ -157,6 +171,7 @@ class CalibrationResult:
     refusal: str | None = None
     warnings: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
+    urdf_after: ResidualStats | None = None
 
     @property
     def calibrated(self) -> MDHModel:
@@ -176,6 +191,53 @@ class CalibrationResult:
         change of MDH rows 0 and 1 joins the measurement frame.
         """
         return self.state.frame @ measurement_to_base(self.nominal, self.calibrated)
+
+    @property
+    def elastic(self) -> bool:
+        """Joint compliance was fitted (nonzero): the URDF alone is not the whole model."""
+        return bool(np.any(self.state.compliance))
+
+    @property
+    def tool_placement(self) -> np.ndarray:
+        """Pose of the measured frame in the calibrated model's tool frame ``(4, 4)``.
+
+        Pose data: the fitted marker 1 and measured-frame rotation, written into the URDF's
+        tool joint (the URDF's tool frame is the measured frame). Position data: identity.
+        """
+        T = np.eye(4)
+        if self.state.tool_rotation is not None:
+            T[:3, :3], T[:3, 3] = self.state.tool_rotation, self.state.markers[0]
+        return T
+
+    @property
+    def urdf_markers(self) -> np.ndarray:
+        """The markers in the written URDF's tool frame ``(K, 3)`` [m] (the marker links)."""
+        T = self.tool_placement
+        return (self.state.markers - T[:3, 3]) @ T[:3, :3]
+
+    @property
+    def marker_links(self) -> tuple[str, ...]:
+        """Names of the marker links of the written URDF."""
+        return marker_link_names(self.chain.tool_frame, self.state.n_markers)
+
+    def urdf(self, world_link: str | None = None) -> bytes:
+        """The calibrated URDF: joints, tool (measured frame), marker links, world link.
+
+        Args:
+            world_link: Add the measurement frame as this root link (None: not added).
+
+        Raises:
+            CalibError: As :func:`calib.urdf_export.calibrated_urdf`.
+        """
+        world = None if world_link is None else (world_link, self.measurement_to_base)
+        return calibrated_urdf(
+            self.chain,
+            self.nominal,
+            self.calibrated,
+            tool=self.tool_placement,
+            markers=self.urdf_markers,
+            world=world,
+        )
 
     def check(self) -> CalibrationResult:
         """Return self if the model may be written.
@@ -197,17 +259,27 @@ class CalibrationResult:
         """
         return self.state.predict(np.atleast_2d(q))[0]
 
-    def to_dict(self) -> dict:
-        """JSON-ready report (radians, metres); undefined or infinite numbers are None."""
+    def to_dict(self, world_link: str | None = None) -> dict:
+        """JSON-ready report (radians, metres); undefined or infinite numbers are None.
+
+        Args:
+            world_link: The ``--world-link`` the URDF was written with (None: none).
+        """
         T = self.measurement_to_base
         report = {
+            "format_version": REPORT_FORMAT,
+            "deprecated": dict(DEPRECATED),
             "robot": self.robot,
             "urdf": str(self.chain.urdf_path),
             "data": self.data.source,
             "base_frame": self.chain.base_frame,
             "tool_frame": self.chain.tool_frame,
             "measure": self.data.measure,
-            "markers": self.state.markers.tolist(),
+            "markers": self.urdf_markers.tolist(),
+            "marker": self.urdf_markers[0].tolist(),
+            "marker_links": list(self.marker_links),
+            "measured_frame": pose_dict(self.tool_placement),
+            "world_link": world_link,
             "params": self.level,
             "configs": self.data.m,
             "accepted": self.accepted,
@@ -219,6 +291,7 @@ class CalibrationResult:
             "residuals": {
                 "registration": self.before.to_dict(),
                 "calibrated": self.after.to_dict(),
+                "urdf": (self.after if self.urdf_after is None else self.urdf_after).to_dict(),
             },
             "validation": None if self.validation is None else self.validation.to_dict(),
             "selection": None if self.selection is None else self.selection.to_dict(),
@@ -233,17 +306,39 @@ class CalibrationResult:
             "compliance": dict(
                 zip(self.nominal.joint_names[1:-1], self.state.compliance.tolist(), strict=True)
             ),
-            "measurement_to_base": {
-                "xyz": T[:3, 3].tolist(),
-                "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
-                "matrix": T.tolist(),
-            },
+            "gravity": gravity_dict(self.chain),
+            "measurement_to_base": pose_dict(T),
             "mdh_nominal": self.nominal.rows(),
             "mdh_calibrated": self.calibrated.rows(),
             "warnings": list(self.warnings),
             "timings_ms": dict(self.timings_ms),
         }
         return finite_tree(report)
+
+
+REPORT_FORMAT = "2"
+"""Version of the report's layout (``format_version``): raised when a key changes."""
+
+DEPRECATED = {
+    "marker": "format 2 renamed it 'markers' (one point per marker, in the URDF's tool frame); "
+    "'marker' (marker 1) is written until format 3",
+}
+"""Keys written under an old name for one more format, and why (the report's ``deprecated``)."""
+
+
+def pose_dict(T: np.ndarray) -> dict:
+    """A pose ``(4, 4)`` as ``{xyz [m], rpy [rad], matrix}`` (JSON-ready)."""
+    T = np.asarray(T, dtype=float)
+    return {
+        "xyz": T[:3, 3].tolist(),
+        "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
+        "matrix": T.tolist(),
+    }
+
+
+def gravity_dict(chain: Chain) -> dict:
+    """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
+    return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
 
 
 def finite(x: float | None) -> float | None:

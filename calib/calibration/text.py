@@ -23,12 +23,16 @@ def _row(label: str, st: ResidualStats) -> list[str]:
 
 def _errors(r: CalibrationResult) -> str:
     rows = [_row("fitted, registration only", r.before), _row("fitted, calibrated", r.after)]
+    if r.urdf_after is not None:
+        rows.append(_row("fitted, URDF alone (no compliance)", r.urdf_after))
     if r.validation is not None:
         v = r.validation
         rows += [
             _row(f"held out ({v.source}), registration only", v.registration),
             _row(f"held out ({v.source}), calibrated", v.calibrated),
         ]
+        if v.urdf is not None:
+            rows.append(_row(f"held out ({v.source}), URDF alone (no compliance)", v.urdf))
     header = ["errors", "configs", "rms [mm]", "max [mm]"]
     if r.after.orientation_rms is not None:
         header += ["rot rms [mrad]", "rot max [mrad]"]
@@ -85,8 +89,17 @@ def calibration_text(result: CalibrationResult) -> str:
         f"measurement frame -> URDF base frame: xyz [{', '.join(f'{v:.6f}' for v in T[:3, 3])}] m, "
         f"rpy [{', '.join(f'{v:.6f}' for v in rpy)}] rad"
     )
-    for k, mk in enumerate(r.state.markers):
-        lines.append(f"marker {k + 1} in the tool frame: [{', '.join(f'{v:.6f}' for v in mk)}] m")
+    if r.state.tool_rotation is not None:
+        X = r.tool_placement
+        lines.append(
+            f"measured frame in the calibrated tool frame (written into the URDF's tool joint): "
+            f"xyz [{', '.join(f'{v:.6f}' for v in X[:3, 3])}] m, "
+            f"rpy [{', '.join(f'{v:.6f}' for v in pin.rpy.matrixToRpy(X[:3, :3]))}] rad"
+        )
+    for name, mk in zip(r.marker_links, r.urdf_markers, strict=True):
+        lines.append(
+            f"marker {name} in the URDF's tool frame: [{', '.join(f'{v:.6f}' for v in mk)}] m"
+        )
     lines += [
         f"outlier: row {o.row}, {1e3 * o.error:.3g} mm (median {1e3 * o.median:.3g} mm)"
         for o in r.outliers

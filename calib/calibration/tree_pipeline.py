@@ -21,8 +21,9 @@ from ..tree import Tree
 from ..tree_export import tree_measurement_to_base
 from ..tree_jacobian import tree_parameters
 from ..tree_model import TreeMDH, from_tree
+from ..urdf_links import marker_link_names
 from . import validation
-from .result import ResidualStats, finite
+from .result import REPORT_FORMAT, ResidualStats, finite
 from .solve import Fit, covariance, fit
 from .tree import TreeErrorModel, TreeState, register_tree
 
@@ -105,6 +106,8 @@ class TreeCalibrationResult:
             ]
 
         return {
+            "format_version": REPORT_FORMAT,
+            "deprecated": {},
             "robot": self.tree.name,
             "urdf": str(self.tree.urdf_path),
             "base_frame": self.tree.base_frame,
@@ -131,6 +134,7 @@ class TreeCalibrationResult:
                 for n, v, s in zip(self.names, self.estimate, self.std, strict=True)
             ],
             "markers": {t: self.state.markers[k].tolist() for k, t in enumerate(tools)},
+            "marker_links": {t: marker_link_names(t, 1)[0] for t in tools},
             "measurement_to_base": (
                 self.state.frame @ tree_measurement_to_base(self.nominal, self.state.mdh)
             ).tolist(),

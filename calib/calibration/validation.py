@@ -8,7 +8,9 @@ A calibrated model is written only if it passes every check:
 3. the measured configurations identify every fitted parameter (the weighted Jacobian at
    the solution has full column rank);
 4. on held-out configurations (``--validate`` or ``--holdout``), its RMS error is no larger
-   than the registration's.
+   than the registration's;
+5. with joint compliance fitted, the calibrated URDF alone (geometry, frame and markers,
+   compliance left out) passes checks 2 and 4 too (:func:`urdf_refusal`).
 """
 
 from __future__ import annotations
@@ -107,4 +109,26 @@ def refusal(
             f"alone ({1e3 * held[1].position_rms:.3g} mm vs {1e3 * held[0].position_rms:.3g} mm "
             f"RMS): it would make the robot less accurate"
         )
+    return None
+
+
+def urdf_refusal(
+    fitted: tuple[ResidualStats, ResidualStats],
+    held: tuple[ResidualStats, ResidualStats] | None,
+) -> str | None:
+    """Why the URDF alone (compliance left out) must not be written, or None.
+
+    Args:
+        fitted: Errors of the registration and of the URDF alone on the fitted data.
+        held: The same on held-out data, or None.
+    """
+    checks = [("the fitted data", fitted)] + ([] if held is None else [("held-out rows", held)])
+    for label, (reg, urdf) in checks:
+        if urdf.position_rms > reg.position_rms * (1 + SAME):
+            return (
+                f"on {label} the calibrated URDF alone (without the fitted joint compliance) "
+                f"is worse than the registration alone ({1e3 * urdf.position_rms:.3g} mm vs "
+                f"{1e3 * reg.position_rms:.3g} mm RMS): a user of the URDF would get a less "
+                f"accurate robot"
+            )
     return None

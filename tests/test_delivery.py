@@ -1,0 +1,493 @@
+"""What a user takes home: the calibrated URDF (tool frame, marker links, world link), the
+compliance file with calib.load_calibrated and `calib predict`, scored independently with
+Pinocchio on the written files (pinocchio.buildModelFromUrdf + framesForwardKinematics).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from calib import InvalidArgumentError, complete_parameters, from_chain, load_calibrated, load_chain
+from calib.calibration.model import State
+from calib.cli import main
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+class PinURDF:
+    """Forward kinematics of a written URDF by Pinocchio alone, joints set by name."""
+
+    def __init__(self, path: Path):
+        self.model = pin.buildModelFromUrdf(str(path))
+        self.data = self.model.createData()
+
+    def q(self, joints: dict[str, float]) -> np.ndarray:
+        q = pin.neutral(self.model)
+        for name, v in joints.items():
+            joint = self.model.joints[self.model.getJointId(name)]
+            if joint.nq == 2:
+                q[joint.idx_q : joint.idx_q + 2] = (np.cos(v), np.sin(v))
+            else:
+                q[joint.idx_q] = v
+        return q
+
+    def placements(self, rows: list[dict[str, float]], frm: str, to: str) -> np.ndarray:
+        """Pose of frame ``to`` in frame ``frm`` at each row ``(m, 4, 4)``."""
+        a, b = self.model.getFrameId(frm), self.model.getFrameId(to)
+        out = []
+        for row in rows:
+            pin.framesForwardKinematics(self.model, self.data, self.q(row))
+            out.append(self.data.oMf[a].actInv(self.data.oMf[b]).homogeneous)
+        return np.array(out)
+
+
+def joint_rows(rows, names) -> list[dict[str, float]]:
+    return [{n: float(r[n]) for n in names} for r in rows]
+
+
+def points(rows, k: int = 1) -> np.ndarray:
+    cols = ("x", "y", "z") if "x" in rows[0] else (f"x{k}", f"y{k}", f"z{k}")
+    return np.array([[float(r[c]) for c in cols] for r in rows])
+
+
+def test_pose_data_urdf_tool_frame_is_the_measured_frame(tmp_path, capsys):
+    m, urdf, rep = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
+    args = ["--measure", "pose", "--error-mm", "1", "--error-mrad", "1", "--noise-mm", "0"]
+    assert run(capsys, "simulate", "ur5", *args, "--out", str(m))[0] == 0
+    code, out, _ = run(
+        capsys, "calibrate", "ur5", "--data", str(m), "--out", str(urdf), "--report", str(rep),
+        "--params", "complete",
+    )  # fmt: skip
+    assert code == 0, out
+    report = json.loads(rep.read_text())
+    rows = read_csv(m)
+    chain = load_chain("ur5")
+    T = np.array(report["measurement_to_base"]["matrix"])
+    P = T @ PinURDF(urdf).placements(joint_rows(rows, chain.joint_names), "base_link", "tool0")
+    assert np.max(np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)) < 1e-6
+    quat = np.array([[float(r[c]) for c in ("qx", "qy", "qz", "qw")] for r in rows])
+    for (x, y, z, w), Rp in zip(quat, P[:, :3, :3], strict=True):
+        Rm = pin.Quaternion(w, x, y, z).toRotationMatrix()
+        assert np.linalg.norm(pin.log3(Rm @ Rp.T)) < 1e-6
+    # The fitted measured frame was not the tool frame (the old URDF was 1.2 mm off), and
+    # the marker link sits at the tool frame's origin.
+    assert np.linalg.norm(report["measured_frame"]["xyz"]) > 1e-4
+    assert report["markers"] == [[0.0, 0.0, 0.0]] and report["marker_links"] == ["tool0_marker1"]
+
+
+def test_marker_links_and_world_link_give_the_measured_points(tmp_path, capsys):
+    m, urdf, rep = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
+    sim = ["--measure", "position", "--marker", "0.01", "0.02", "0.05", "--noise-mm", "0"]
+    assert run(capsys, "simulate", "ur5", *sim, "--out", str(m))[0] == 0
+    cal = ["calibrate", "ur5", "--data", str(m), "--params", "complete", "--report", str(rep)]
+    code, out, _ = run(capsys, *cal, "--out", str(urdf), "--world-link", "tracker")
+    assert code == 0, out
+    report = json.loads(rep.read_text())
+    assert report["world_link"] == "tracker"
+    rows = read_csv(m)
+    q = joint_rows(rows, load_chain("ur5").joint_names)
+    model = PinURDF(urdf)
+    T = np.array(report["measurement_to_base"]["matrix"])
+    mk = T @ model.placements(q, "base_link", "tool0_marker1")
+    assert np.max(np.abs(mk[:, :3, 3] - points(rows))) < 1e-9
+    assert np.allclose(mk[:, :3, :3], (T @ model.placements(q, "base_link", "tool0"))[:, :3, :3])
+    direct = model.placements(q, "tracker", "tool0_marker1")  # from the world link, no T
+    assert np.max(np.abs(direct[:, :3, 3] - points(rows))) < 1e-9
+    assert np.allclose(report["markers"], [[0.01, 0.02, 0.05]], atol=5e-3)
+    # The marker link is the calibrated model's prediction (Python API, same data).
+    from calib import calibrate, read_measurements
+
+    chain = load_chain("ur5")
+    res = calibrate(chain, read_measurements(m, chain), params="complete")
+    assert (
+        np.max(np.abs(res.points(np.array([list(r.values()) for r in q]))[:, 0] - mk[:, :3, 3]))
+        < 1e-9
+    )
+
+    # Calibrated again, the calibrated URDF's marker link is moved, not duplicated.
+    again = tmp_path / "again.urdf"
+    code, out, _ = run(
+        capsys, "calibrate", str(urdf), "--base", "base_link", "--tool", "tool0", "--data",
+        str(m), "--params", "frames", "--out", str(again),
+    )  # fmt: skip
+    assert code == 0, out
+    assert again.read_text().count('<link name="tool0_marker1"') == 1
+    mk2 = PinURDF(again).placements(q, "tracker", "tool0_marker1")
+    assert np.max(np.abs(mk2[:, :3, 3] - points(rows))) < 1e-9
+    # A taken name is a one-line error, exit 2, no file written.
+    for name in ("world", "base_link", "tool0_marker1", "world_joint"):
+        out2 = tmp_path / f"clash_{name}.urdf"
+        code, _, err = run(capsys, *cal, "--out", str(out2), "--world-link", name)
+        assert code == 2 and err.count("\n") == 1 and "--world-link" in err, err
+        assert not out2.exists()
+
+
+def elastic_campaign(chain, m: int, seed: int, noise: float, error: float = 1e-3) -> np.ndarray:
+    """Rows ``(m, n + 3)``: joints and a marker of a robot with geometric errors (``error``
+    [m, rad]) and compliance (c2 = c3 = 1e-5 rad/(N m)) under the URDF's gravity, with
+    noise [m]."""
+    rng = np.random.default_rng(seed)
+    nominal = from_chain(chain)
+    pset = complete_parameters(nominal)
+    scale = np.full(len(pset), error)
+    true = pset.apply(nominal, scale * np.random.default_rng(7).standard_normal(len(pset)))
+    frame = np.eye(4)
+    frame[:3, 3] = (0.5, -0.2, 0.1)
+    c = np.zeros(chain.n)
+    c[1:3] = 1e-5
+    state = State(true, frame, np.array([[0.01, 0.02, 0.05]]), None, c)
+    q = chain.random_configurations(m, seed)
+    pts = state.predict(q, chain.gravity_torques(q))[0][:, 0]
+    return np.hstack([q, pts + noise * rng.standard_normal(pts.shape)])
+
+
+def write_rows(path: Path, chain, rows: np.ndarray) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow([*chain.joint_names, "x", "y", "z"])
+        w.writerows([[repr(float(v)) for v in r] for r in rows])
+
+
+def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
+    chain = load_chain("ur5")
+    train, val = tmp_path / "train.csv", tmp_path / "val.csv"
+    write_rows(train, chain, elastic_campaign(chain, 80, 1, 5e-5))
+    held = elastic_campaign(chain, 40, 2, 5e-5)
+    write_rows(val, chain, held)
+    urdf, rep = tmp_path / "cal.urdf", tmp_path / "r.json"
+    code, out, _ = run(
+        capsys, "calibrate", "ur5", "--data", str(train), "--validate", str(val), "--elastic",
+        "--params", "complete", "--out", str(urdf), "--report", str(rep),
+    )  # fmt: skip
+    assert code == 0, out
+    report = json.loads(rep.read_text())
+    comp = tmp_path / "cal.compliance.json"
+    doc = json.loads(comp.read_text())
+    assert doc["joints"] == list(chain.joint_names)
+    assert np.allclose(doc["compliance"][1:3], 1e-5, rtol=0.05)
+    whole, alone = report["validation"]["calibrated"], report["validation"]["urdf"]
+    assert whole["position_rms"] < 0.5 * alone["position_rms"]  # compliance matters here
+    # Both figures are printed (mm, 3 decimals).
+    for label, st in (("calibrated", whole), ("URDF alone (no compliance)", alone)):
+        line = next(x for x in out.splitlines() if x.startswith(f"held out ({val}), {label}"))
+        rms = float(line.split()[-2])
+        assert abs(rms - 1e3 * st["position_rms"]) < 6e-4
+
+    q, measured = held[:, : chain.n], held[:, chain.n :]
+    # Independent of calib's model: Pinocchio's gravity torques of the nominal URDF (root -z)
+    # and its forward kinematics of the written URDF at the deflected joints.
+    pm, nom = PinURDF(urdf), PinURDF(chain.urdf_path)
+    T = np.array(doc["measurement_to_base"])
+    c = np.array(doc["compliance"])
+    v = [nom.model.joints[nom.model.getJointId(n)].idx_v for n in chain.joint_names]
+    expected = []
+    for row in q:
+        qn = nom.q(dict(zip(chain.joint_names, row, strict=True)))
+        tau = pin.computeGeneralizedGravity(nom.model, nom.data, qn)[v]
+        defl = dict(zip(chain.joint_names, row + c * tau, strict=True))
+        P = pm.placements([defl], "base_link", "tool0_marker1")[0]
+        expected.append((T @ P)[:3, 3])
+    expected = np.array(expected)
+    rms = np.sqrt(np.mean(np.sum((expected - measured) ** 2, axis=1)))
+    assert abs(rms - whole["position_rms"]) < 1e-9
+    for source in (comp, rep):  # the compliance file or the report
+        model = load_calibrated(urdf, source)
+        assert np.max(np.abs(model.points(q)[:, 0] - expected)) < 1e-9
+        target = model.deflected(q)
+        assert np.max(np.abs(model.deflected(model.command(target)) - target)) < 1e-10
+        for bad in ("x", q[:, :3], np.full_like(q, np.nan)):
+            with pytest.raises(InvalidArgumentError):
+                model.points(bad)
+    # calib predict writes the same points and deflected joints.
+    configs, pred = tmp_path / "configs.csv", tmp_path / "pred.csv"
+    write_rows(configs, chain, held)
+    code, out, err = run(
+        capsys, "predict", str(urdf), "--compliance", str(comp), "--configs", str(configs),
+        "--out", str(pred),
+    )  # fmt: skip
+    assert code == 0, err
+    rows = read_csv(pred)
+    assert np.max(np.abs(points(rows) - expected)) < 1e-9
+    defl = np.array([[float(r[f"deflected_{n}"]) for n in chain.joint_names] for r in rows])
+    assert np.allclose(defl, load_calibrated(urdf, comp).deflected(q), atol=1e-12)
+    # Errors: one line, exit 2, no file, inputs never overwritten.
+    before = configs.read_bytes()
+    for argv in (
+        ["--compliance", str(train), "--configs", str(configs), "--out", str(tmp_path / "p2")],
+        ["--compliance", str(comp), "--configs", str(configs), "--out", str(configs)],
+        ["--compliance", str(tmp_path / "no.json"), "--configs", str(configs), "--out", "p3"],
+    ):
+        code, _, err = run(capsys, "predict", str(urdf), *argv)
+        assert code == 2 and err.count("\n") == 1, err
+    assert configs.read_bytes() == before and not (tmp_path / "p2").exists()
+
+
+def test_urdf_alone_worse_than_registration_is_refused(tmp_path, capsys):
+    """Nominal geometry plus compliance: the registration is the best frame and markers for
+    the nominal geometry, so the URDF alone (the frame fitted with the compliance) is worse
+    on the fitted data, and is refused."""
+    chain = load_chain("ur5")
+    train = tmp_path / "train.csv"
+    write_rows(train, chain, elastic_campaign(chain, 60, 3, 0.0, error=0.0))
+    urdf, rep = tmp_path / "cal.urdf", tmp_path / "r.json"
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--data", str(train), "--elastic", "--params", "frames",
+        "--free", "c2", "c3", "--out", str(urdf), "--report", str(rep),
+    )  # fmt: skip
+    report = json.loads(rep.read_text())
+    res = report["residuals"]
+    assert res["urdf"]["position_rms"] > res["registration"]["position_rms"]
+    assert res["calibrated"]["position_rms"] < 1e-9  # the whole model is exact
+    assert code == 2 and "URDF alone" in err and err.count("\n") == 1
+    assert not urdf.exists() and not (tmp_path / "cal.compliance.json").exists()
+    assert "URDF alone" in report["refusal"] and report["accepted"] is False
+
+
+def test_urdf_refusal_on_held_out_rows():
+    from calib.calibration.result import ResidualStats
+    from calib.calibration.validation import urdf_refusal
+
+    def st(rms):
+        return ResidualStats(10, rms, 2 * rms)
+
+    assert urdf_refusal((st(2e-3), st(1e-3)), (st(3e-3), st(2.9e-3))) is None
+    reason = urdf_refusal((st(2e-3), st(1e-3)), (st(3e-3), st(3.1e-3)))
+    assert "held-out" in reason and "3.1 mm vs 3 mm" in reason
+    assert "fitted data" in urdf_refusal((st(2e-3), st(2.1e-3)), None)
+
+
+def point1_csv(src: Path, dst: Path) -> None:
+    rows = read_csv(src)
+    keep = [k for k in rows[0] if not re.fullmatch(r"[xyz][234]", k)]
+    with open(dst, "w", newline="") as f:
+        w = csv.DictWriter(f, keep, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def test_tiago_written_urdf_reproduces_the_printed_held_out_figures(tmp_path, capsys):
+    tiago = REAL / "tiago"
+    train, test = tmp_path / "train.csv", tmp_path / "test.csv"
+    point1_csv(tiago / "qualisys_2021-11-30_static_postures.csv", train)
+    point1_csv(tiago / "qualisys_2021-11-26_static_postures.csv", test)
+    urdf, rep = tmp_path / "tiago_cal.urdf", tmp_path / "r.json"
+    # --no-elastic: the default once compliance is opt-in (issue 18, item 2).
+    code, out, err = run(
+        capsys, "calibrate", str(tiago / "tiago_48_schunk.urdf"), "--base", "base_footprint",
+        "--tool", "wrist_ft_tool_link", "--data", str(train), "--validate", str(test),
+        "--out", str(urdf), "--report", str(rep), "--no-elastic",
+    )  # fmt: skip
+    assert code == 0, err
+    report = json.loads(rep.read_text())
+    rows = read_csv(test)
+    names = [k for k in rows[0] if k.endswith("_joint")]
+    assert len(names) == 8
+    T = np.array(report["measurement_to_base"]["matrix"])
+    P = T @ PinURDF(urdf).placements(
+        joint_rows(rows, names), "base_footprint", "wrist_ft_tool_link_marker1"
+    )
+    err_mm = 1e3 * np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)
+    rms, worst = np.sqrt(np.mean(err_mm**2)), np.max(err_mm)
+    line = next(x for x in out.splitlines() if x.startswith(f"held out ({test}), calibrated"))
+    printed = [float(v) for v in line.split()[-2:]]
+    assert abs(printed[0] - rms) < 0.01 and abs(printed[1] - worst) < 0.01
+    held = report["validation"]["calibrated"]
+    assert abs(1e3 * held["position_rms"] - rms) < 1e-6
+    assert abs(1e3 * held["position_max"] - worst) < 1e-6
+    assert report["validation"]["urdf"] == held
+    assert not any(report["compliance"].values())
+
+
+def key_paths(doc, prefix: str = "", leaves: tuple[str, ...] = ()) -> set[str]:
+    """Every key of a JSON report, nested as ``a.b`` and ``a[].b`` (first item of a list)."""
+    out: set[str] = set()
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            path = f"{prefix}.{k}" if prefix else k
+            out.add(path)
+            if path not in leaves:
+                out |= key_paths(v, path, leaves)
+    elif isinstance(doc, list) and doc and isinstance(doc[0], dict):
+        out |= key_paths(doc[0], prefix + "[]", leaves)
+    return out
+
+
+STATS = ("configs", "position_rms", "position_max", "orientation_rms", "orientation_max")
+POSE = ("xyz", "rpy", "matrix")
+MDH = ("name", "joint", "sigma", "beta", "alpha", "d", "theta", "r", "y")
+
+CHAIN_REPORT_KEYS = {
+    "format_version", "deprecated", "deprecated.marker", "robot", "urdf", "data",
+    "base_frame", "tool_frame", "measure", "markers", "marker", "marker_links",
+    "measured_frame", *(f"measured_frame.{k}" for k in POSE), "world_link", "params",
+    "configs", "accepted", "refusal", "converged", "message", "iterations",
+    "orientation_weight", "residuals",
+    *(f"residuals.{g}" for g in ("registration", "calibrated", "urdf")),
+    *(f"residuals.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
+    "validation", "validation.source", "validation.predicted_std",
+    *(f"validation.{g}" for g in ("registration", "calibrated", "urdf")),
+    *(f"validation.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
+    "selection", "selection.kept", "selection.steps", "selection.steps[].name",
+    "selection.steps[].loo", "selection.prior_strength", "selection.cv_registration",
+    "selection.cv_selection", "selection.guarded",
+    "outliers", "outliers[].row", "outliers[].error", "outliers[].median",
+    "sigma", "condition_number", "predicted_std", "parameters", "parameters[].name",
+    "parameters[].value", "parameters[].std", "parameters[].prior_weight", "compliance",
+    "gravity", "gravity.frame", "gravity.vector", "measurement_to_base",
+    *(f"measurement_to_base.{k}" for k in POSE), "mdh_nominal", "mdh_calibrated",
+    *(f"mdh_{w}[].{k}" for w in ("nominal", "calibrated") for k in MDH),
+    "warnings", "timings_ms",
+    *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
+}  # fmt: skip
+"""The chain report's keys (format 2): a change here is a change of format_version."""
+
+TREE_REPORT_KEYS = {
+    "format_version", "deprecated", "robot", "urdf", "base_frame", "tools", "params", "rows",
+    "accepted", "refusal", "converged", "residuals", "residuals.registration",
+    "residuals.calibrated", *(f"residuals.{g}.{k}" for g in ("registration", "calibrated")
+    for k in STATS), "per_tool", "per_tool[].tool", "per_tool[].registration",
+    "per_tool[].calibrated", *(f"per_tool[].{g}.{k}" for g in ("registration", "calibrated")
+    for k in STATS), "validation", "validation.registration", "validation.calibrated",
+    *(f"validation.{g}.{k}" for g in ("registration", "calibrated") for k in STATS),
+    "validation.per_tool", "validation.per_tool[].tool", "validation.per_tool[].registration",
+    "validation.per_tool[].calibrated", *(f"validation.per_tool[].{g}.{k}"
+    for g in ("registration", "calibrated") for k in STATS), "parameters",
+    "parameters[].name", "parameters[].value", "parameters[].std", "markers",
+    "marker_links", "measurement_to_base",
+}  # fmt: skip
+"""The tree report's keys (format 2)."""
+
+
+def readme_report_table() -> tuple[set[str], set[str]]:
+    """Keys in the first column of the README's "Report JSON" table, and every name in it."""
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    table = text[text.index("**Report JSON**") :].split("\n\n")[1]
+    lines = table.splitlines()[2:]
+    first = {k for line in lines for k in re.findall(r"`([a-z_]+)`", line.split("|")[1])}
+    return first, set(re.findall(r"`([a-z_]+)`", table))
+
+
+def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
+    from calib import calibrate, read_measurements
+
+    chain = load_chain("ur5")
+    rows = elastic_campaign(chain, 40, 5, 1e-4)
+    rows[7, chain.n :] += 0.05  # an outlier row
+    data = tmp_path / "m.csv"
+    write_rows(data, chain, rows)
+    res = calibrate(chain, read_measurements(data, chain), holdout=0.25)
+    report = json.loads(json.dumps(res.to_dict()))
+    assert report["outliers"] and report["selection"] is not None
+    assert report["validation"] is not None
+    assert key_paths(report, leaves=("compliance",)) == CHAIN_REPORT_KEYS
+    assert report["format_version"] == "2"
+    assert report["marker"] == report["markers"][0] and "marker" in report["deprecated"]
+    assert set(report["compliance"]) == set(chain.joint_names)
+    # The tree report (written by `calib calibrate` with several tools).
+    m, rep = tmp_path / "t.csv", tmp_path / "t.json"
+    tools = ["--tool", "wrist_left_ft_tool_link", "--tool", "wrist_right_ft_tool_link"]
+    base = ["talos", "--base", "base_link", *tools]
+    assert run(capsys, "simulate", *base, "--measure", "position", "--out", str(m))[0] == 0
+    code, out, _ = run(
+        capsys, "calibrate", *base, "--data", str(m), "--holdout", "0.25",
+        "--out", str(tmp_path / "t.urdf"), "--report", str(rep),
+    )  # fmt: skip
+    assert code == 0, out
+    tree = json.loads(rep.read_text())
+    assert key_paths(tree, leaves=("markers", "marker_links")) == TREE_REPORT_KEYS
+    assert tree["format_version"] == "2" and tree["deprecated"] == {}
+    # Every key is documented in the README's table (chain and tree reports).
+    rows, names = readme_report_table()
+    top = {k.split(".")[0].split("[")[0] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS}
+    assert top <= rows, top - rows
+    nested = {k.split(".")[-1] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS if "." in k}
+    assert nested <= names, nested - names
+
+
+def test_tree_marker_links_give_the_measured_points(tmp_path, capsys):
+    m, urdf, rep = tmp_path / "t.csv", tmp_path / "t.urdf", tmp_path / "t.json"
+    tools = ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
+    base = ["talos", "--base", "base_link", *(a for t in tools for a in ("--tool", t))]
+    sim = ["--measure", "position", "--marker", "0.05", "0.02", "0.1", "--noise-mm", "0"]
+    assert run(capsys, "simulate", *base, *sim, "--out", str(m))[0] == 0
+    cal = ["calibrate", *base, "--data", str(m), "--report", str(rep)]
+    assert run(capsys, *cal, "--out", str(urdf))[0] == 0
+    report = json.loads(rep.read_text())
+    assert report["marker_links"] == {t: f"{t}_marker1" for t in tools}
+    T = np.array(report["measurement_to_base"])
+    rows = read_csv(m)
+    names = [k for k in rows[0] if k not in ("tool", "x", "y", "z", "x1", "y1", "z1")]
+    model = PinURDF(urdf)
+    for tool in tools:
+        mine = [r for r in rows if r["tool"] == tool]
+        P = T @ model.placements(joint_rows(mine, names), "base_link", f"{tool}_marker1")
+        assert np.max(np.abs(P[:, :3, 3] - points(mine))) < 1e-8
+    # --world-link is for one chain: a one-line error, no file.
+    code, _, err = run(capsys, *cal, "--out", str(tmp_path / "w.urdf"), "--world-link", "w")
+    assert code == 2 and err.count("\n") == 1 and "--world-link" in err
+    assert not (tmp_path / "w.urdf").exists()
+
+
+def test_compliance_file_never_overwrites_an_input(tmp_path, capsys):
+    chain = load_chain("ur5")
+    data = tmp_path / "cal.compliance.json"  # an input named as the compliance file would be
+    write_rows(data, chain, elastic_campaign(chain, 30, 6, 0.0))
+    before = data.read_bytes()
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--data", str(data), "--out", str(tmp_path / "cal.urdf")
+    )
+    assert code == 2 and err.count("\n") == 1 and "compliance file" in err, err
+    assert data.read_bytes() == before and not (tmp_path / "cal.urdf").exists()
+    code, _, err = run(capsys, "calibrate", "ur5", "--data", str(data), "--out", "-", "--elastic")
+    assert code == 2 and err.count("\n") == 1 and "no regular file" in err, err
+
+
+def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path):
+    """--elastic on the TIAGo: the URDF alone is worse than the registration, so calib refuses
+    it; the files it would write still reproduce the whole model's held-out figure."""
+    import warnings
+
+    from calib import DataWarning, calibrate, read_measurements
+    from calib.elastic import compliance_document
+
+    tiago = REAL / "tiago"
+    train, test = tmp_path / "train.csv", tmp_path / "test.csv"
+    point1_csv(tiago / "qualisys_2021-11-30_static_postures.csv", train)
+    point1_csv(tiago / "qualisys_2021-11-26_static_postures.csv", test)
+    chain = load_chain(tiago / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        tr, te = read_measurements(train, chain), read_measurements(test, chain)
+        res = calibrate(chain, tr, validate=te, elastic=True)
+    assert res.elastic and "URDF alone" in res.refusal
+    urdf, comp = tmp_path / "cal.urdf", tmp_path / "cal.compliance.json"
+    urdf.write_bytes(res.urdf("mocap"))
+    comp.write_text(json.dumps(compliance_document(res, str(urdf))))
+    model = load_calibrated(urdf, comp)
+    e = np.linalg.norm(model.points(te.q)[:, 0] - te.points[:, 0], axis=1)
+    assert abs(np.sqrt(np.mean(e**2)) - res.validation.calibrated.position_rms) < 1e-9
+    assert abs(np.max(e) - res.validation.calibrated.position_max) < 1e-9
+    # The URDF alone, scored by Pinocchio from the world link: the refused figure.
+    rows = read_csv(test)
+    names = list(chain.joint_names)
+    P = PinURDF(urdf).placements(joint_rows(rows, names), "mocap", "wrist_ft_tool_link_marker1")
+    e = np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)
+    assert abs(np.sqrt(np.mean(e**2)) - res.validation.urdf.position_rms) < 1e-9
