@@ -357,3 +357,35 @@ def test_orientation_columns_overlapping_others_are_a_usage_error(
     argv = ["calibrate", "ur5", "--data", data, "--out", out, "--orientation", cols[0]]
     assert taken in one_error(*run([*argv, "--orientation-columns", *cols[1:]])[::2])
     assert not out.exists()
+
+
+def test_tree_rows_must_measure_every_tool_and_small_validation_sets_are_scored():
+    tree = load_robot("bolt")
+    data = simulate_tree(tree, 10, markers=MARKER, noise_mm=0.05, seed=1).measurements
+    left = data.subset(np.array([t == "FL_FOOT" for t in data.tool]))
+    with pytest.raises(DataError, match="no row measures the tool FR_FOOT"):
+        calibrate_tree(tree, left)
+    # held-out rows too few to register on their own (one row, one tool): scored, no error
+    other = simulate_tree(tree, 3, markers=MARKER, noise_mm=0.05, seed=9).measurements
+    res = calibrate_tree(tree, data, validate=other.subset(np.arange(1)))
+    assert res.validation is not None and res.validation[0].configs == 1
+
+
+def test_validation_rows_measured_in_another_frame_stop_with_their_cause():
+    """Rows shifted by 0.4 m (the tracker moved): each file registers well on its own."""
+    chain = chain_of("ur5")
+    camp = simulate(chain, configs=60, measure="position", marker=MARKER, seed=8, noise_mm=0.05)
+    train, held = (
+        camp.measurements.subset(np.arange(40)),
+        camp.measurements.subset(np.arange(40, 60)),
+    )
+    assert calibrate(chain, train, validate=held).accepted
+    shifted = dataclasses.replace(held, position=held.position + np.array([0.4, 0.0, 0.0]))
+    with pytest.raises(DataError, match="another measurement frame"):
+        calibrate(chain, train, validate=shifted)
+    tree = load_robot("bolt")
+    data = simulate_tree(tree, 30, markers=MARKER, noise_mm=0.05, seed=8).measurements
+    train, held = data.subset(np.arange(40)), data.subset(np.arange(40, 60))
+    shifted = dataclasses.replace(held, position=held.position + np.array([0.0, 0.4, 0.0]))
+    with pytest.raises(DataError, match="another measurement frame"):
+        calibrate_tree(tree, train, validate=shifted)

@@ -126,19 +126,10 @@ def calibrate(
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
     guess = _marker_guess(marker, train.n_markers)
-    at = _registrations(nominal, train, guess, opts)
-    suspect = _diagnose(chain, nominal, train, guess, opts, at)
-    checked = _diagnose_validation(
-        chain, nominal, held if validate is not None else None, guess, opts
+    checked = held if validate is not None else None
+    opts, reg, train, dropped, notes = _checked_registration(
+        chain, nominal, train, checked, guess, opts
     )
-    opts = _weighted(train, opts, at)
-    notes: list[str] = []
-    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
-    if dropped and not diagnosis.suspect(
-        validation.stats(reg, train, None).position_rms, opts.noise
-    ):
-        suspect = []  # the outliers were the trouble: the rows left are fine
-    notes = suspect + checked + notes
     clock.append(time.perf_counter())
     torque = _torques(chain, opts, train, held)
     model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
@@ -305,6 +296,26 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     return []
 
 
+def _checked_registration(chain, nominal, train, checked, guess, opts):
+    """Diagnosis (data and validation data ``checked``), weight, registration, outliers.
+
+    Returns:
+        The options with the orientation weight, the registration state, the rows kept,
+        the outliers and the notes.
+    """
+    at = _registrations(nominal, train, guess, opts)
+    suspect = _diagnose(chain, nominal, train, guess, opts, at)
+    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
+    opts = _weighted(train, opts, at)
+    notes: list[str] = []
+    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
+    if dropped and not diagnosis.suspect(
+        validation.stats(reg, train, None).position_rms, opts.noise
+    ):
+        suspect = []  # the outliers were the trouble: the rows left are fine
+    return opts, reg, train, dropped, suspect + diagnosed + notes
+
+
 def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
     """The diagnosis of validation data (``held``: (data, label) or None), noted by label."""
     if held is None:
@@ -339,6 +350,9 @@ def _register(nominal, data, guess, opts, notes: list[str], at):
             break
         dropped += found
         data = data.subset(~bad)
+        frames = _frames_model(data, opts)
+        what = "measurement frame and marker parameters once the outliers are set aside"
+        determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
         reg = _registration(nominal, data, guess, opts)
     if dropped:
         notes.append(
@@ -466,6 +480,8 @@ def _assemble(
     m, rows = train.m, fitted.model.rows
     std_train = validation.predicted_std(fitted.J.reshape(m, rows, p), cov, train.n_markers)
     val = None if held is None else _validation(fitted, held, torque[1], cov)
+    if val is not None:
+        validation.check_held_out_errors(before, val.registration, held[0].source)
     checks = (before, after) if val is None else (val.registration, val.calibrated)
     reason = validation.refusal(
         fitted.converged,

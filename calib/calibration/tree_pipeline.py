@@ -237,8 +237,8 @@ def calibrate_tree(
     train, held = _tree_datasets(tree, data, params, validate, holdout, seed)
     nominal = from_tree(tree)
     notes: list[str] = []
-    if held is not None and validate is not None:
-        _diagnose(tree, nominal, held, max_iterations, None)
+    if validate is not None and _registrable(tree, validate):  # validation data are data
+        _diagnose(tree, nominal, validate, max_iterations, None)
     reg = _diagnose(tree, nominal, train, max_iterations, notes)
     reg, train, dropped = _drop_outliers(nominal, reg, train, max_iterations, notes)
     clock.append(time.perf_counter())
@@ -255,6 +255,11 @@ def calibrate_tree(
         warnings=tuple(notes),
         timings_ms={s: 1e3 * (b - a) for s, a, b in zip(stages, clock, clock[1:], strict=False)},
     )
+
+
+def _registrable(tree: Tree, data: Measurements) -> bool:
+    """Whether data can be registered on their own: every tool, more equations than unknowns."""
+    return set(data.tools) == set(tree.tool_frames) and 3 * data.m > 6 + 3 * tree.n_tools
 
 
 def _registration(nominal: TreeMDH, data: Measurements, max_iterations: int) -> Fit:
@@ -304,6 +309,8 @@ def _drop_outliers(nominal, reg: Fit, data: Measurements, max_iterations: int, n
             break
         dropped += found
         data = data.subset(~bad)
+        what = "measurement frame and marker parameters once the outliers are set aside"
+        determined.check_equations(data.m, 3, 6 + 3 * nominal.n_tools, what, data.source)
         reg = _registration(nominal, data, max_iterations)
     if dropped:
         notes.append(
@@ -332,6 +339,13 @@ def _tree_datasets(tree, data, params, validate, holdout, seed):
             raise DataError(
                 d.source, "a tree is calibrated from one point per row (x, y, z and a tool)"
             )
+    missing = [t for t in tree.tool_frames if t not in data.tools]
+    if missing:
+        raise DataError(
+            data.source,
+            f"no row measures the tool {missing[0]}: calibrate the tools the rows measure "
+            f"(--tool for each)",
+        )
     out = round(holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools
     what = "measurement frame and marker parameters"
@@ -395,6 +409,7 @@ def _tree_result(tree, level, train, held, fitted: Fit, reg: TreeState) -> TreeC
     val = None
     if held is not None:
         val = (validation.stats(reg, held, None), validation.stats(fitted.state, held, None))
+        validation.check_held_out_errors(before, val[0], held.source)
     tools = fitted.state.mdh.tool_frames
     reason = validation.refusal(
         fitted.converged,

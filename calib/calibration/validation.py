@@ -19,6 +19,7 @@ import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
 from ..measurements import Measurements
+from .diagnosis import suspect
 from .model import State
 from .result import ResidualStats
 
@@ -91,6 +92,30 @@ def check_held_out(data: Measurements, held: Measurements) -> None:
             f"{int(repeated.sum())} of the {held.m} validation rows are rows of the data "
             f"(row {held.row_of(i)} is row {data.row_of(j)} of {data.source}): held out must "
             f"mean held out",
+        )
+
+
+def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: str) -> None:
+    """Stop on held-out errors far above any geometric error while the data fit well.
+
+    Each file passed the usual-mistake diagnosis on its own registration: held-out rows that
+    the training registration still misses by more than ``diagnosis.SUSPECT`` were measured
+    in another frame or of another robot.
+
+    Args:
+        fitted: Registration errors on the fitted rows.
+        held: Errors of the same registration on the held-out rows.
+        source: The held-out data, for the message.
+
+    Raises:
+        DataError: The held-out error is absurd and the fitted one is not.
+    """
+    if suspect(held.position_rms, None) and not suspect(fitted.position_rms, None):
+        raise DataError(
+            source,
+            f"the validation rows are {1e3 * held.position_rms:.4g} mm RMS from the registered "
+            f"model (the data {1e3 * fitted.position_rms:.4g} mm): they look measured in "
+            f"another measurement frame (the instrument moved?) or on another robot",
         )
 
 
