@@ -389,3 +389,21 @@ def test_validation_rows_measured_in_another_frame_stop_with_their_cause():
     shifted = dataclasses.replace(held, position=held.position + np.array([0.0, 0.4, 0.0]))
     with pytest.raises(DataError, match="another measurement frame"):
         calibrate_tree(tree, train, validate=shifted)
+
+
+def test_tree_model_worse_on_held_out_rows_is_refused_with_its_report(tmp_path):
+    """No geometric error and 2 mm of noise: the complete model can only overfit."""
+    from calib.measurements import measurements_csv
+
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 20, markers=MARKER, error_mm=0, error_mrad=0, noise_mm=2, seed=0)
+    data = tmp_path / "m.csv"
+    data.write_text(measurements_csv(camp.measurements))
+    out, report = tmp_path / "o.urdf", tmp_path / "r.json"
+    argv = ["calibrate", "bolt", "--data", data, "--out", out, "--report", report]
+    line = one_error(*run([*argv, "--holdout", "0.3", "--seed", "1"])[::2])
+    assert line.startswith("calibration refused: on held-out configurations")
+    rep = json.loads(report.read_text())
+    assert not out.exists() and rep["accepted"] is False
+    held = rep["validation"]
+    assert held["calibrated"]["position_rms"] > held["registration"]["position_rms"]
