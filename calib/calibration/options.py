@@ -1,11 +1,14 @@
-"""The options of a calibration and their defaults: constants only, cheap to import.
+"""The options of a calibration, their defaults and their one check: cheap to import.
 
-The command line builds its parser from them without importing the calibration itself.
+The command line builds its parser from them without importing the calibration itself;
+chains and trees check the options they share with :func:`check_run_options`.
 """
 
 from __future__ import annotations
 
 import numbers
+
+from ..exceptions import InvalidArgumentError
 
 LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels: ``frames`` = measurement frame + markers; ``offsets`` adds the joint
@@ -37,8 +40,6 @@ def check_run_options(max_iterations, holdout, seed) -> None:
     Raises:
         InvalidArgumentError: A value out of its range or of the wrong type.
     """
-    from ..exceptions import InvalidArgumentError
-
     if not _integer(max_iterations) or max_iterations < 1:
         raise InvalidArgumentError(
             f"max_iterations must be an integer >= 1, got {max_iterations!r}"
