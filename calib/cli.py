@@ -373,7 +373,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         chain,
         data,
         args.marker,
-        args.params,
+        args.params or DEFAULT_LEVEL,
         validate=check,
         fix=tuple(args.fix),
         free=tuple(args.free),
@@ -494,6 +494,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
     from .calibration.tree_pipeline import TREE_LEVELS, calibrate_tree
     from .tree_export import calibrated_tree_urdf
+    from .urdf_export import check_exportable
 
     given = [k for k, v in CHAIN_ONLY.items() if getattr(args, k) != v]
     if given:
@@ -501,10 +502,25 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
             f"--{given[0].replace('_', '-')} is for one chain; a tree is calibrated with "
             f"--params {'|'.join(TREE_LEVELS)}, --validate, --holdout, --seed, --max-iterations"
         )
-    level = "complete" if args.params == "auto" else args.params
+    if args.params not in (None, *TREE_LEVELS):
+        raise InvalidArgumentError(
+            f"--params {args.params} is for one chain: a tree is calibrated with --params "
+            f"{' or '.join(TREE_LEVELS)} (default: complete)"
+        )
+    if args.measure == "pose":
+        raise InvalidArgumentError(
+            "--measure pose is for one chain: a tree is calibrated from one point per row "
+            "(x, y, z and a tool)"
+        )
+    level = args.params or "complete"
     out, report = _calibration_outputs(args, tree.urdf_path)
+    for chain in tree.chains:  # before the fit: a URDF it cannot be written to is known now
+        check_exportable(chain)
     data = read_measurements(args.data, tree)
     check = read_measurements(args.validate, tree) if args.validate else None
+    if args.measure == "position":
+        data = data.position_only()
+        check = check.position_only() if check is not None else None
     result = calibrate_tree(
         tree,
         data,
@@ -736,9 +752,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--params",
         choices=LEVELS,
-        default=DEFAULT_LEVEL,
+        default=None,
         help="parameter level: auto keeps what the data support (cross-validated); frames = "
-        "measurement frame + markers; offsets adds joint offsets; paper, complete (default: auto)",
+        "measurement frame + markers; offsets adds joint offsets; paper, complete (default: "
+        "auto; a tree takes frames or complete, default complete)",
     )
     p.add_argument(
         "--fix",

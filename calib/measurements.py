@@ -126,6 +126,27 @@ def _unit_quaternions(quat: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
+class Angles:
+    """Orientation columns of a file in an angle format, as read (before any conversion).
+
+    Kept so that the usual mistakes of such columns (degrees, the order of roll, pitch and
+    yaw) can be tried on them (:mod:`calib.calibration.diagnosis`).
+
+    Attributes:
+        format: ``rotvec`` or ``rpy``.
+        values: The three columns ``(m, 3)`` [rad as read].
+    """
+
+    format: str
+    values: np.ndarray
+
+    def quaternions(self) -> np.ndarray:
+        """The orientations they give, quaternions x, y, z, w ``(m, 4)``."""
+        fn = rotation_matrix if self.format == "rotvec" else rpy_to_matrix
+        return matrix_to_quaternion(fn(self.values))
+
+
+@dataclass(frozen=True, eq=False)
 class Measurements:
     """Measured tool points (and orientations) at joint configurations, a value object.
 
@@ -142,6 +163,8 @@ class Measurements:
             only tool.
         coupling: The chain's mimic relation, or None: the CSV then holds the independent
             joints (``coupling.names``) and ``q`` follows from them.
+        angles: The orientation columns as read when they are angles (rpy, rotation
+            vector), or None.
     """
 
     joint_names: tuple[str, ...]
@@ -152,6 +175,7 @@ class Measurements:
     rows: tuple[int, ...] | None = None
     tool: tuple[str, ...] | None = None
     coupling: Coupling | None = None
+    angles: Angles | None = None
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -185,6 +209,10 @@ class Measurements:
                     f"quaternions must have shape ({m}, 4), got {quat.shape}"
                 )
             object.__setattr__(self, "quaternion", _frozen(_unit_quaternions(quat)))
+        if self.angles is not None and (
+            self.quaternion is None or np.shape(self.angles.values) != (m, 3)
+        ):
+            raise InvalidArgumentError(f"angles must give 3 values per orientation ({m})")
         if self.rows is not None and len(self.rows) != m:
             raise InvalidArgumentError(f"rows must give one row number per configuration ({m})")
         if self.tool is not None:
@@ -230,7 +258,7 @@ class Measurements:
 
     def position_only(self) -> Measurements:
         """The same data without the orientations."""
-        return dataclasses.replace(self, quaternion=None)
+        return dataclasses.replace(self, quaternion=None, angles=None)
 
     def subset(self, index: np.ndarray) -> Measurements:
         """The configurations ``index`` (an integer array or a boolean mask)."""
@@ -247,6 +275,7 @@ class Measurements:
             rows,
             tool,
             self.coupling,
+            None if self.angles is None else Angles(self.angles.format, self.angles.values[index]),
         )
 
     @property
@@ -450,6 +479,13 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
         )
     if fmt is not None:
         cols = cols or DEFAULT_ORIENTATION_COLUMNS[fmt]
+        taken = [c for c in cols if c in pos or c in joints]
+        if taken:
+            raise InvalidArgumentError(
+                f"orientation column '{taken[0]}' is also a "
+                f"{'position' if taken[0] in pos else 'joint'} column: name other columns "
+                f"(--orientation-columns)"
+            )
         for c in cols:
             if c not in free:
                 raise DataError(
@@ -605,11 +641,13 @@ def parse_measurements(
             row=lines[i],
             column=pos_cols[j],
         )
-    quat = None
+    quat, angles = None, None
     if fmt == MARKERS:
         position, quat = _marker_set(position, source)
     elif fmt is not None:
-        quat = _orientation(table[:, [col[n] for n in ori_cols]], fmt, source, lines)
+        values = table[:, [col[n] for n in ori_cols]]
+        quat = _orientation(values, fmt, source, lines)
+        angles = Angles(fmt, _frozen(values)) if fmt in ("rotvec", "rpy") else None
     data = Measurements(
         chain.joint_names,
         q,
@@ -619,6 +657,7 @@ def parse_measurements(
         tuple(lines),
         tuple(tools) or None,
         chain.coupling,
+        angles,
     )
     _check_tools(data, tool_frames(chain))
     return data

@@ -227,3 +227,158 @@ def test_mutated_measurements(clean_csv, data):
             assert left in ([], ["report.json"]), left
         if report.exists():
             strict_json(report.read_text())
+
+
+# --------------------------------------------------------------------------------------
+# Trees, validation files, orientation formats and hostile options: calibrate
+# --------------------------------------------------------------------------------------
+
+FEWER = settings(FUZZ, max_examples=max(1, FUZZ.max_examples // 3))
+"""The calibrations below fit a model per example: a third of the examples."""
+
+
+def _calibrate_contract(argv: list[str], inputs: dict[Path, bytes], out_dir: Path) -> None:
+    """Run ``calibrate``; check the contract, the inputs untouched and only complete outputs."""
+    urdf, report = out_dir / "cal.urdf", out_dir / "report.json"
+    code, out, err = run_cli([*argv, "--out", str(urdf), "--report", str(report)])
+    check_contract(code, out, err, lambda text: None)
+    for path, content in inputs.items():
+        assert path.read_bytes() == content
+    left = sorted(p.name for p in out_dir.iterdir())
+    if code == 0:
+        assert left == ["cal.urdf", "report.json"]
+        _valid_urdf(urdf)
+    else:  # a refused model keeps its complete report, never a URDF
+        assert left in ([], ["report.json"]), left
+    if report.exists():
+        strict_json(report.read_text())
+
+
+@pytest.fixture(scope="module")
+def campaigns(tmp_path_factory) -> dict[str, bytes]:
+    """Clean files: a bolt (tree) campaign, ur5 data and validation rows, ur5 poses as rpy."""
+    d = tmp_path_factory.mktemp("campaigns")
+    for name, robot, measure, configs in (
+        ("bolt", "bolt", "position", 12),
+        ("ur5", "ur5", "position", 30),
+        ("pose", "ur5", "pose", 20),
+    ):
+        argv = ["simulate", robot, "--configs", str(configs), "--measure", measure]
+        code, _, err = run_cli([*argv, "--noise-mm", "0.05", "--out", str(d / f"{name}.csv")])
+        assert code == 0, err
+    lines = (d / "ur5.csv").read_bytes().splitlines(keepends=True)
+    files = {"bolt": (d / "bolt.csv").read_bytes()}
+    files["ur5"], files["ur5_val"] = b"".join(lines[:21]), b"".join(lines[:1] + lines[21:])
+    files |= _angle_files(d / "pose.csv")
+    return files
+
+
+def _angle_files(path: Path) -> dict[str, bytes]:
+    """The pose campaign with its quaternions, and as rpy and rotation-vector columns."""
+    from scipy.spatial.transform import Rotation
+
+    rows = csv_rows(path)
+    names = list(rows[0])
+    quat = [[float(r[c]) for c in ("qx", "qy", "qz", "qw")] for r in rows]
+    rot = Rotation.from_quat(quat)
+    files = {"quat": path.read_bytes()}
+    for fmt, cols, values in (
+        ("rpy", "roll,pitch,yaw", rot.as_euler("xyz")),
+        ("rotvec", "rx,ry,rz", rot.as_rotvec()),
+    ):
+        keep = [n for n in names if n not in ("qx", "qy", "qz", "qw")]
+        lines = [",".join(keep) + "," + cols]
+        for r, v in zip(rows, values, strict=True):
+            lines.append(",".join([*(r[n] for n in keep), *(repr(float(x)) for x in v)]))
+        files[fmt] = ("\n".join(lines) + "\n").encode()
+    return files
+
+
+@FEWER
+@given(data=st.data())
+def test_mutated_tree_measurements(campaigns, data):
+    csv_bytes = data.draw(mutated(campaigns["bolt"]), label="csv")
+    with workspace("m.csv", csv_bytes) as (meas, out_dir):
+        _calibrate_contract(["calibrate", "bolt", "--data", str(meas)], {meas: csv_bytes}, out_dir)
+
+
+@FEWER
+@given(data=st.data())
+def test_mutated_validation_file(campaigns, data):
+    val = data.draw(mutated(campaigns["ur5_val"]), label="validation csv")
+    with workspace("v.csv", val) as (val_path, out_dir):
+        train = val_path.parent / "m.csv"
+        train.write_bytes(campaigns["ur5"])
+        argv = ["calibrate", "ur5", "--data", str(train), "--validate", str(val_path)]
+        inputs = {train: campaigns["ur5"], val_path: val}
+        _calibrate_contract([*argv, "--params", "frames"], inputs, out_dir)
+
+
+@FEWER
+@given(data=st.data())
+def test_mutated_orientation_formats(campaigns, data):
+    fmt = data.draw(st.sampled_from(["quat", "rpy", "rotvec"]), label="format")
+    clean = campaigns[fmt]  # clean or mutated: the options alone must not break the contract
+    csv_bytes = data.draw(st.one_of(st.just(clean), mutated(clean)), label="csv")
+    option = data.draw(
+        st.sampled_from(
+            [
+                [],
+                ["--orientation", "auto"],
+                ["--orientation", "rpy"],
+                ["--orientation", "rotvec"],
+                ["--orientation", "quat-wxyz"],
+                ["--orientation", "rotvec", "--orientation-columns", "x", "y", "z"],
+                ["--orientation", "rpy", "--orientation-columns", "yaw", "pitch", "roll"],
+                ["--measure", "pose"],
+                ["--measure", "position"],
+            ]
+        ),
+        label="options",
+    )
+    with workspace("m.csv", csv_bytes) as (meas, out_dir):
+        argv = ["calibrate", "ur5", "--data", str(meas), "--params", "frames", *option]
+        _calibrate_contract(argv, {meas: csv_bytes}, out_dir)
+
+
+HOSTILE_OPTIONS = st.lists(
+    st.sampled_from(
+        [
+            ["--max-iterations", "0"],
+            ["--max-iterations", "-3"],
+            ["--max-iterations", "3"],
+            ["--seed", "-1"],
+            ["--seed", "5"],
+            ["--holdout", "0.2"],
+            ["--holdout", "0.99"],
+            ["--holdout", "1"],
+            ["--holdout", "-0.1"],
+            ["--holdout", "nan"],
+            ["--params", "auto"],
+            ["--params", "frames"],
+            ["--params", "complete"],
+            ["--params", "paper"],
+            ["--measure", "pose"],
+            ["--measure", "position"],
+            ["--validate", "SELF"],
+            ["--validate", "OTHER"],
+        ]
+    ),
+    max_size=3,
+    unique_by=lambda option: option[0],
+)
+
+
+@FEWER
+@given(robot=st.sampled_from(["bolt", "ur5"]), options=HOSTILE_OPTIONS)
+def test_hostile_options_on_chains_and_trees(campaigns, robot, options):
+    """Every option combination: exit 0 or one error line; --validate SELF is always refused."""
+    with workspace("m.csv", campaigns[robot]) as (meas, out_dir):
+        other = meas.parent / "v.csv"
+        other.write_bytes(campaigns["ur5_val"] if robot == "ur5" else campaigns["bolt"][:0])
+        names = {"SELF": str(meas), "OTHER": str(other)}
+        argv = ["calibrate", robot, "--data", str(meas)]
+        argv += [names.get(a, a) for opt in options for a in opt]
+        _calibrate_contract(argv, {meas: campaigns[robot]}, out_dir)
+        if ["--validate", "SELF"] in options:
+            assert not (out_dir / "cal.urdf").exists()

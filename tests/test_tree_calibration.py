@@ -162,7 +162,7 @@ def test_cli_simulates_and_calibrates_a_tree(tmp_path, capsys):
     nominal = from_tree(tree)
     reloaded = load_tree(out, "base_link", HANDS)
     q = tree.random_configurations(20, 3)
-    base = np.array(rep["measurement_to_base"])  # measurement frame <- calibrated URDF base
+    base = np.array(rep["measurement_to_base"]["matrix"])  # measurement frame <- URDF base
     truth = json.loads(data.with_suffix(".truth.json").read_text())
     pset = tree_parameters(nominal, "complete")
     true_mdh = pset.apply(nominal, np.array([truth["errors"][n] for n in pset.names]))

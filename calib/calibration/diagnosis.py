@@ -10,6 +10,11 @@ and the mistake whose correction explains the data (RMS ``EXPLAINS`` times lower
 * joint positions in degrees instead of radians;
 * positions in millimetres instead of metres;
 * quaternions written scalar first (w, x, y, z) in scalar-last columns, or the reverse.
+
+Orientations are diagnosed the same way on the registration's orientation error
+(``ORIENTATION_SUSPECT`` [rad] RMS): the quaternion orders, angles (rpy or rotation vector)
+in degrees instead of radians, and rpy columns holding yaw, pitch, roll (or the rotations
+composed x, y, z instead of URDF's z, y, x).
 """
 
 from __future__ import annotations
@@ -51,15 +56,47 @@ def _mistakes(data, revolute: np.ndarray) -> Iterator[tuple[str, object]]:
         "positions in millimetres, not metres (--units mm)",
         dataclasses.replace(data, position=data.position * 1e-3),
     )
-    if data.quaternion is not None:
-        quat = data.quaternion
+    if data.quaternion is not None:  # wrong orientations distort the points' registration too
+        yield from _orientation_mistakes(data)
+
+
+ORIENTATION_SUSPECT = 0.1
+"""Registration RMS orientation error [rad] above which the orientation mistakes are tried."""
+
+
+def _quaternion_orders(data) -> Iterator[tuple[str, object]]:
+    quat = data.quaternion
+    yield (
+        "quaternions written w, x, y, z (--orientation quat-wxyz)",
+        dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
+    )
+    yield (
+        "quaternions written x, y, z, w (--orientation quat-xyzw)",
+        dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
+    )
+
+
+def _orientation_mistakes(data) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for each usual mistake of the orientation columns."""
+    angles = data.angles
+    if angles is None:
+        yield from _quaternion_orders(data)
+        return
+
+    def read_as(values: np.ndarray):
+        fixed = dataclasses.replace(angles, values=values)
+        return dataclasses.replace(data, quaternion=fixed.quaternions(), angles=fixed)
+
+    kind = "rpy angles" if angles.format == "rpy" else "rotation vectors"
+    yield f"{kind} in degrees, not radians", read_as(np.deg2rad(angles.values))
+    if angles.format == "rpy":
+        yield "rpy columns holding yaw, pitch, roll", read_as(angles.values[:, ::-1])
+        # R = Rx(r) Ry(p) Rz(y) = (Rz(-y) Ry(-p) Rx(-r))^T: the same as a quaternion conjugate
+        flipped = read_as(-angles.values)
+        quat = flipped.quaternion * np.array([-1.0, -1.0, -1.0, 1.0])
         yield (
-            "quaternions written w, x, y, z (--orientation quat-wxyz)",
-            dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
-        )
-        yield (
-            "quaternions written x, y, z, w (--orientation quat-xyzw)",
-            dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
+            "rpy angles composed x, y, z (URDF's rpy is z, y, x: R = Rz(yaw) Ry(pitch) Rx(roll))",
+            dataclasses.replace(flipped, quaternion=quat),
         )
 
 
@@ -70,25 +107,33 @@ def suspect(rms: float, noise: float | None) -> bool:
 
 
 def likely_cause(
-    data, revolute: np.ndarray, registration_rms: Callable[[object], float], before: float
+    data,
+    revolute: np.ndarray,
+    registration_rms: Callable[[object], float],
+    before: float,
+    orientation: bool = False,
 ) -> tuple[str, float] | None:
     """The usual mistake that explains the data, with the RMS error once it is corrected.
 
     Args:
         data: The measurements.
         revolute: Which joint columns are revolute.
-        registration_rms: RMS error per point [m] of the registration of some data.
-        before: That error for ``data`` as they are [m].
+        registration_rms: RMS error per point [m] (or, ``orientation``, RMS orientation
+            error [rad]) of the registration of some data.
+        before: That error for ``data`` as they are [m or rad].
+        orientation: Try the mistakes of the orientation columns.
 
     Returns:
-        (description, RMS [m]) of the best explaining mistake, or None.
+        (description, RMS [m or rad]) of the best explaining mistake, or None.
     """
     best = None
-    for what, fixed in _mistakes(data, revolute):
+    limit = ORIENTATION_SUSPECT if orientation else SUSPECT
+    mistakes = _orientation_mistakes(data) if orientation else _mistakes(data, revolute)
+    for what, fixed in mistakes:
         try:
             rms = registration_rms(fixed)
         except (CalibError, np.linalg.LinAlgError, ValueError):  # no valid data: no explanation
             continue
-        if rms * EXPLAINS < before and rms < SUSPECT and (best is None or rms < best[1]):
+        if rms * EXPLAINS < before and rms < limit and (best is None or rms < best[1]):
             best = (what, rms)
     return best

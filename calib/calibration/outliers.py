@@ -3,7 +3,9 @@
 After the registration, the error of each configuration (the largest of its points) is
 compared with the median over the configurations: one more than ``FACTOR`` times the median
 (and, when the instrument noise is given, more than ``NOISE_FACTOR`` times it) is an outlier
-(a marker swap, a bad reading). Outliers are listed by file row and dropped, and the
+(a marker swap, a bad reading). With pose data, the orientation error of each configuration
+is tested the same way against the median orientation error, so that one bad orientation is
+set aside like one bad point. Outliers are listed by file row and dropped, and the
 registration is repeated without them, until none is left (at most ``PASSES`` times). A
 robust loss (``--loss soft_l1|huber``, scale ``--noise-mm``) further limits the pull of the
 rows that remain.
@@ -31,17 +33,26 @@ class Outlier:
 
     Attributes:
         row: Its row in the data file.
-        error: Its largest point error after the registration [m].
-        median: The median configuration error then [m].
+        error: Its largest point error after the registration [m] (or its orientation
+            error [rad], ``kind`` ``orientation``).
+        median: The median configuration error then [m or rad].
+        kind: ``position`` or ``orientation``: which error set it aside.
     """
 
     row: int
     error: float
     median: float
+    kind: str = "position"
 
     def to_dict(self) -> dict:
-        """JSON-ready form (metres)."""
-        return {"row": self.row, "error": self.error, "median": self.median}
+        """JSON-ready form (metres, or radians for an orientation)."""
+        return {"row": self.row, "error": self.error, "median": self.median, "kind": self.kind}
+
+    def text(self) -> str:
+        """``row 12 (5.3 mm)`` or ``row 12 (orientation 31 deg)``."""
+        if self.kind == "orientation":
+            return f"row {self.row} (orientation {np.degrees(self.error):.3g} deg)"
+        return f"row {self.row} ({1e3 * self.error:.3g} mm)"
 
 
 def configuration_errors(residual: np.ndarray, n_markers: int) -> np.ndarray:
@@ -59,3 +70,35 @@ def find_outliers(errors: np.ndarray, noise: float | None) -> np.ndarray:
     if np.sum(~bad) < max(3, len(errors) // 2):  # not outliers: the data are bad as a whole
         return np.zeros(len(errors), dtype=bool)
     return bad
+
+
+def find_pose_outliers(
+    residual: np.ndarray, n_markers: int, noise: float | None, rows: tuple[int, ...]
+) -> tuple[np.ndarray, list[Outlier]]:
+    """Outliers of residuals ``(m, 3 K [+ 3])``: by point error, and by orientation error.
+
+    Args:
+        residual: Residuals of the registration [m, rad].
+        n_markers: K.
+        noise: Instrument position noise [m], or None.
+        rows: File row of each configuration.
+
+    Returns:
+        The boolean mask of the outliers and the outliers (the point error first where both).
+    """
+    errors = configuration_errors(residual, n_markers)
+    bad = find_outliers(errors, noise)
+    found = [
+        Outlier(rows[i], float(errors[i]), float(np.median(errors))) for i in np.flatnonzero(bad)
+    ]
+    if residual.shape[1] == 3 * n_markers + 3:
+        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+        bad_rot = find_outliers(rot, None) & ~bad
+        median = float(np.median(rot))
+        found += [
+            Outlier(rows[i], float(rot[i]), median, "orientation") for i in np.flatnonzero(bad_rot)
+        ]
+        bad = bad | bad_rot
+    if np.sum(~bad) < max(3, len(errors) // 2):
+        return np.zeros(len(errors), dtype=bool), []
+    return bad, found

@@ -13,18 +13,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..identifiability import independent_columns, preference_order
+from ..identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..mdh import MDHModel, from_chain
 from ..measurements import Measurements, check_against_chain
 from ..parameters import ParameterSet, parameter_set
 from ..robot import Chain
-from . import diagnosis, outliers, validation, weighting
+from ..so3 import matrix_to_quaternion
+from . import determined, diagnosis, outliers, validation, weighting
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,
     LEVELS,
     LOSSES,
+    check_run_options,
 )
 from .registration import register
 from .result import CalibrationResult, ResidualStats, Validation
@@ -65,15 +67,7 @@ class Options:
                 isinstance(value, (int, float)) and math.isfinite(value) and value > 0
             ):
                 raise InvalidArgumentError(f"the {name} must be a finite number > 0, got {value!r}")
-        it = self.max_iterations
-        if isinstance(it, bool) or not isinstance(it, (int, np.integer)) or it < 1:
-            raise InvalidArgumentError(f"max_iterations must be an integer >= 1, got {it!r}")
-        if (
-            isinstance(self.seed, bool)
-            or not isinstance(self.seed, (int, np.integer))
-            or self.seed < 0
-        ):
-            raise InvalidArgumentError(f"the seed must be an integer >= 0, got {self.seed!r}")
+        check_run_options(self.max_iterations, self.holdout, self.seed)
         for opt, names in (("fix", self.fix), ("free", self.free)):
             if len(set(names)) != len(names):
                 raise InvalidArgumentError(f"--{opt} names a parameter twice: {', '.join(names)}")
@@ -132,13 +126,13 @@ def calibrate(
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
     guess = _marker_guess(marker, train.n_markers)
-    at = _registrations(nominal, train, guess, opts)
-    notes = _diagnose(chain, nominal, train, guess, opts, at)
-    opts = _weighted(train, opts, at)
-    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
+    checked = held if validate is not None else None
+    opts, reg, train, dropped, notes = _checked_registration(
+        chain, nominal, train, checked, guess, opts
+    )
     clock.append(time.perf_counter())
     torque = _torques(chain, opts, train, held)
-    model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts)
+    model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
     clock.append(time.perf_counter())
     fitted = fit(
         model,
@@ -170,15 +164,25 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
             f"data must be Measurements (read_measurements), got {type(data).__name__}"
         )
     check_against_chain(data, chain)
+    out = round(opts.holdout * data.m)
+    determined.check_equations(
+        data.m - out,
+        3 * data.n_markers + 3 * (data.quaternion is not None),
+        _frames_model(data, opts).size(),
+        "measurement frame and marker parameters",
+        data.source,
+        held=out,
+    )
     train, held = validation.split(data, opts.holdout, opts.seed)
     if validate is not None:
-        if held is not None:
+        if opts.holdout > 0:
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         check_against_chain(validate, chain)
         if (validate.n_markers, validate.measure) != (data.n_markers, data.measure):
             raise DataError(
                 validate.source, "the validation data measure other points than the data"
             )
+        validation.check_held_out(data, validate)
         return train, (validate, validate.source)
     return train, None if held is None else (held, "holdout")
 
@@ -246,28 +250,81 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     """Raise the likely mistake if the data cannot be registered; a note if none explains it.
 
     It runs at the default orientation weight: an estimated weight would let wrong
-    orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed.
+    orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
+    points are diagnosed first, then the orientations (on the orientation error).
     """
     opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
 
-    def rms(d):
-        return validation.stats(_registration(nominal, d, guess, opts).state, d, None).position_rms
+    def errors(d):
+        return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
 
-    first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None).position_rms
-    if not diagnosis.suspect(first, opts.noise):
-        return []
-    cause = diagnosis.likely_cause(data, chain.sigma == 0, rms, first)
-    if cause is not None:
-        raise DataError(
-            data.source,
-            f"the data look like {cause[0]}: the registration error drops from "
-            f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
+    first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None)
+    revolute = chain.sigma == 0
+    if diagnosis.suspect(first.position_rms, opts.noise):
+        cause = diagnosis.likely_cause(
+            data, revolute, lambda d: errors(d).position_rms, first.position_rms
         )
-    return [
-        f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, "
-        f"and no usual mistake (swapped joint columns, degrees, millimetres, quaternion "
-        f"order) explains it: check the data and the chain"
-    ]
+        if cause is not None:
+            raise DataError(
+                data.source,
+                f"the data look like {cause[0]}: the registration error drops from "
+                f"{1e3 * first.position_rms:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once "
+                f"corrected",
+            )
+        return [
+            f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS, far above "
+            f"geometric errors, and no usual mistake (swapped joint columns, degrees, "
+            f"millimetres, quaternion order) explains it: check the data and the chain"
+        ]
+    rot = first.orientation_rms
+    if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
+        cause = diagnosis.likely_cause(
+            data, revolute, lambda d: errors(d).orientation_rms, rot, orientation=True
+        )
+        if cause is not None:
+            raise DataError(
+                data.source,
+                f"the data look like {cause[0]}: the registration's orientation error drops "
+                f"from {np.degrees(rot):.4g} deg to {np.degrees(cause[1]):.4g} deg RMS once "
+                f"corrected",
+            )
+        return [
+            f"the registration leaves {np.degrees(rot):.4g} deg RMS of orientation error, far "
+            f"above geometric errors, and no usual mistake (quaternion order, degrees, rpy "
+            f"order) explains it: check the orientation columns"
+        ]
+    return []
+
+
+def _checked_registration(chain, nominal, train, checked, guess, opts):
+    """Diagnosis (data and validation data ``checked``), weight, registration, outliers.
+
+    Returns:
+        The options with the orientation weight, the registration state, the rows kept,
+        the outliers and the notes.
+    """
+    at = _registrations(nominal, train, guess, opts)
+    suspect = _diagnose(chain, nominal, train, guess, opts, at)
+    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
+    opts = _weighted(train, opts, at)
+    notes: list[str] = []
+    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
+    if dropped and not diagnosis.suspect(
+        validation.stats(reg, train, None).position_rms, opts.noise
+    ):
+        suspect = []  # the outliers were the trouble: the rows left are fine
+    return opts, reg, train, dropped, suspect + diagnosed + notes
+
+
+def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
+    """The diagnosis of validation data (``held``: (data, label) or None), noted by label."""
+    if held is None:
+        return []
+    frames = _frames_model(held[0], opts)
+    if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
+        return []
+    at = _registrations(nominal, held[0], guess, opts)
+    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, held[0], guess, opts, at)]
 
 
 def _weighted(data, opts: Options, at) -> Options:
@@ -285,20 +342,22 @@ def _register(nominal, data, guess, opts, notes: list[str], at):
     reg = at(opts.orientation_weight)
     dropped: list[outliers.Outlier] = []
     for _ in range(outliers.PASSES):  # one registration per data set
-        errors = outliers.configuration_errors(reg.state.residuals(data), data.n_markers)
-        bad = outliers.find_outliers(errors, opts.noise)
+        rows = data.rows or tuple(range(1, data.m + 1))
+        bad, found = outliers.find_pose_outliers(
+            reg.state.residuals(data), data.n_markers, opts.noise, rows
+        )
         if not np.any(bad):
             break
-        median = float(np.median(errors))
-        dropped += [
-            outliers.Outlier(data.row_of(i), float(errors[i]), median) for i in np.flatnonzero(bad)
-        ]
+        dropped += found
         data = data.subset(~bad)
+        frames = _frames_model(data, opts)
+        what = "measurement frame and marker parameters once the outliers are set aside"
+        determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
         reg = _registration(nominal, data, guess, opts)
     if dropped:
         notes.append(
             f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
-            + ", ".join(f"row {o.row} ({1e3 * o.error:.3g} mm)" for o in dropped)
+            + ", ".join(o.text() for o in dropped)
         )
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
@@ -336,7 +395,7 @@ def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[st
     return pset, [n for n in names if n not in opts.fix]
 
 
-def _choose(chain, nominal, reg: State, data, torque, opts):
+def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
     pset, names = level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
@@ -360,6 +419,14 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
             data.source,
             "the configurations do not even determine the measurement frame and markers",
         )
+    generic = _generic_count(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    if opts.level != "auto":
+        determined.check_rank(len(kept), generic, data.m, wide.rows, opts.level, data.source)
+    elif len(kept) < generic:
+        notes.append(
+            f"the {data.m} configurations determine {len(kept)} of the {generic} parameters "
+            f"generic configurations would: --params auto chooses among those only"
+        )
     if opts.level == "auto":
         Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
         cols = list(range(fixed)) + columns
@@ -378,6 +445,17 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
+
+
+def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> int:
+    """Parameters of ``wide`` determined at random configurations (the same markers)."""
+    q = chain.random_configurations(DEFAULT_CONFIGS, seed)
+    torque = chain.gravity_torques(q) if elastic else None
+    pts, rot = state.predict(q, torque)
+    quat = None if data.quaternion is None else matrix_to_quaternion(rot)
+    generic = Measurements(data.joint_names, q, pts.reshape(len(q), -1), quat)
+    J = wide.jacobian(state, np.zeros(wide.size()), generic, torque) * w[None, :, None]
+    return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
 
 
 def _assemble(
@@ -402,6 +480,8 @@ def _assemble(
     m, rows = train.m, fitted.model.rows
     std_train = validation.predicted_std(fitted.J.reshape(m, rows, p), cov, train.n_markers)
     val = None if held is None else _validation(fitted, held, torque[1], cov)
+    if val is not None:
+        validation.check_held_out_errors(before, val.registration, held[0].source)
     checks = (before, after) if val is None else (val.registration, val.calibrated)
     reason = validation.refusal(
         fitted.converged,

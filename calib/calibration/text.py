@@ -101,7 +101,12 @@ def calibration_text(result: CalibrationResult) -> str:
             f"marker {name} in the URDF's tool frame: [{', '.join(f'{v:.6f}' for v in mk)}] m"
         )
     lines += [
-        f"outlier: row {o.row}, {1e3 * o.error:.3g} mm (median {1e3 * o.median:.3g} mm)"
+        f"outlier: {o.text()}, median "
+        + (
+            f"{math.degrees(o.median):.3g} deg"
+            if o.kind == "orientation"
+            else f"{1e3 * o.median:.3g} mm"
+        )
         for o in r.outliers
     ]
     lines += [f"warning: {w}" for w in r.warnings]

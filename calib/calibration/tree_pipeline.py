@@ -9,12 +9,14 @@ measured configurations), fit, and validate with the checks of a chain.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from ..exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
-from ..identifiability import independent_columns, preference_order
+from ..identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..measurements import Measurements, check_against_chain
 from ..parameters import ParameterSet
 from ..tree import Tree
@@ -22,8 +24,9 @@ from ..tree_export import tree_measurement_to_base
 from ..tree_jacobian import tree_parameters
 from ..tree_model import TreeMDH, from_tree
 from ..urdf_links import marker_link_names
-from . import validation
-from .result import REPORT_FORMAT, ResidualStats, finite
+from . import determined, diagnosis, outliers, validation
+from .options import DEFAULT_MAX_ITERATIONS, check_run_options
+from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
 from .solve import Fit, covariance, fit
 from .tree import TreeErrorModel, TreeState, register_tree
 
@@ -61,6 +64,12 @@ class TreeCalibrationResult:
         converged: The fit converged.
         refusal: Why the model must not be written (None: accepted).
         rows: Number of fitted rows.
+        data: The measurements fitted (outliers and held-out rows removed), or None.
+        outliers: Rows set aside.
+        iterations: Jacobian evaluations of the final fit.
+        message: Solver message of the final fit.
+        warnings: Reasons to be careful with the result.
+        timings_ms: Time of each stage [ms].
     """
 
     tree: Tree
@@ -79,11 +88,22 @@ class TreeCalibrationResult:
     converged: bool
     refusal: str | None
     rows: int = 0
+    data: Measurements | None = None
+    outliers: tuple[outliers.Outlier, ...] = ()
+    iterations: int = 0
+    message: str = ""
+    warnings: tuple[str, ...] = ()
+    timings_ms: dict[str, float] = field(default_factory=dict)
 
     @property
     def accepted(self) -> bool:
         """True when every check passed: the calibrated model may be written."""
         return self.refusal is None
+
+    @property
+    def measurement_to_base(self) -> np.ndarray:
+        """Pose of the calibrated URDF's base frame in the measurement frame ``(4, 4)``."""
+        return self.state.frame @ tree_measurement_to_base(self.nominal, self.state.mdh)
 
     def check(self) -> TreeCalibrationResult:
         """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
@@ -105,18 +125,23 @@ class TreeCalibrationResult:
                 for e in errors
             ]
 
-        return {
+        T = self.measurement_to_base
+        report = {
             "format_version": REPORT_FORMAT,
             "deprecated": {},
             "robot": self.tree.name,
             "urdf": str(self.tree.urdf_path),
+            "data": None if self.data is None else self.data.source,
             "base_frame": self.tree.base_frame,
             "tools": list(tools),
+            "measure": "position",
             "params": self.level,
             "rows": self.rows,
             "accepted": self.accepted,
             "refusal": self.refusal,
             "converged": self.converged,
+            "message": self.message,
+            "iterations": self.iterations,
             "residuals": {
                 "registration": self.before.to_dict(),
                 "calibrated": self.after.to_dict(),
@@ -135,10 +160,16 @@ class TreeCalibrationResult:
             ],
             "markers": {t: self.state.markers[k].tolist() for k, t in enumerate(tools)},
             "marker_links": {t: marker_link_names(t, 1)[0] for t in tools},
-            "measurement_to_base": (
-                self.state.frame @ tree_measurement_to_base(self.nominal, self.state.mdh)
-            ).tolist(),
+            "measurement_to_base": {
+                "xyz": T[:3, 3].tolist(),
+                "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
+                "matrix": T.tolist(),
+            },
+            "outliers": [o.to_dict() for o in self.outliers],
+            "warnings": list(self.warnings),
+            "timings_ms": dict(self.timings_ms),
         }
+        return finite_tree(report)
 
     def text(self) -> str:
         """A terminal summary: errors per tool, then the parameters."""
@@ -167,6 +198,7 @@ class TreeCalibrationResult:
         lines.append("parameters (change from the registration +- std):")
         for n, v, s in zip(self.names, self.estimate, self.std, strict=True):
             lines.append(f"  {n:>28s} = {v:12.6g} +- {s:.4g}")
+        lines += [f"warning: {w}" for w in self.warnings]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)
 
@@ -179,34 +211,119 @@ def calibrate_tree(
     validate: Measurements | None = None,
     holdout: float = 0.0,
     seed: int = 0,
-    max_iterations: int = 100,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> TreeCalibrationResult:
     """Calibrate a tree from measurements of several tools (one point per row and tool).
+
+    The guards of a chain's calibration apply: the options are checked at once, a level the
+    rows cannot determine is refused (:mod:`.determined`), data (and validation data) that
+    match the tree only under a usual mistake are refused naming it (:mod:`.diagnosis`),
+    outlier rows are set aside (:mod:`.outliers`), and a model worse than the registration
+    is refused (:func:`calib.calibration.validation.refusal`).
 
     Args:
         tree: The nominal tree (:func:`calib.tree.load_tree`).
         data: Measurements whose ``tool`` names the tool of each row.
         params: ``complete`` (frame, markers and the tree's base parameters) or ``frames``.
         validate: Measurements of other configurations to score the result on.
-        holdout: Fraction of the rows set aside (seeded) when ``validate`` is not given.
-        seed: Seed of the holdout draw.
+        holdout: Fraction of the rows set aside (seeded); not with ``validate``.
+        seed: Seed of the holdout draw and of the generic configurations of the rank check.
         max_iterations: Most residual evaluations of each solver run.
 
     Raises:
-        DataError: Data of other joints or tools, pose or several-point rows, too few rows.
+        DataError: Data of other joints or tools, pose or several-point rows, too few or
+            too poor rows for the level, a usual mistake (named), validation rows that
+            are training rows.
         InvalidArgumentError: A bad argument.
     """
+    clock = [time.perf_counter()]
+    check_run_options(max_iterations, holdout, seed)
     train, held = _tree_datasets(tree, data, params, validate, holdout, seed)
     nominal = from_tree(tree)
-    frames = TreeErrorModel(ParameterSet("none", ()), (), nominal.n_tools)
-    reg = fit(
-        frames, register_tree(nominal, train), train, None, 1.0, max_iterations=max_iterations
-    )
-    if not reg.converged:
-        raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    model = _tree_model(nominal, reg.state, train) if params == "complete" else frames
+    notes: list[str] = []
+    if validate is not None and _registrable(tree, validate):  # validation data are data
+        _diagnose(tree, nominal, validate, max_iterations, None)
+    reg = _diagnose(tree, nominal, train, max_iterations, notes)
+    reg, train, dropped = _drop_outliers(nominal, reg, train, max_iterations, notes)
+    clock.append(time.perf_counter())
+    model = _tree_model(tree, nominal, reg.state, train, params, seed)
+    clock.append(time.perf_counter())
     fitted = fit(model, reg.state, train, None, 1.0, max_iterations=max_iterations)
-    return _tree_result(tree, params, train, held, fitted, reg.state)
+    clock.append(time.perf_counter())
+    result = _tree_result(tree, params, train, held, fitted, reg.state)
+    clock.append(time.perf_counter())
+    stages = ("registration", "selection", "fit", "validation")
+    return dataclasses.replace(
+        result,
+        outliers=dropped,
+        warnings=tuple(notes),
+        timings_ms={s: 1e3 * (b - a) for s, a, b in zip(stages, clock, clock[1:], strict=False)},
+    )
+
+
+def _registrable(tree: Tree, data: Measurements) -> bool:
+    """Whether data can be registered on their own: every tool, more equations than unknowns."""
+    return set(data.tools) == set(tree.tool_frames) and 3 * data.m > 6 + 3 * tree.n_tools
+
+
+def _registration(nominal: TreeMDH, data: Measurements, max_iterations: int) -> Fit:
+    """Closed-form registration of the frame and markers refined by Levenberg-Marquardt."""
+    frames = TreeErrorModel(ParameterSet("none", ()), (), nominal.n_tools)
+    start = register_tree(nominal, data)
+    return fit(frames, start, data, None, 1.0, max_iterations=max_iterations)
+
+
+def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None) -> Fit:
+    """The registration of ``data``; the likely mistake raised if it cannot be registered.
+
+    ``notes``: where to note data no usual mistake explains (None: validation data, whose
+    registration is only checked).
+    """
+    reg = _registration(nominal, data, max_iterations)
+    first = validation.stats(reg.state, data, None).position_rms
+    if not diagnosis.suspect(first, None):
+        return reg
+
+    def rms(d):  # the closed form only: every swap of two joints is tried
+        return validation.stats(register_tree(nominal, d), d, None).position_rms
+
+    cause = diagnosis.likely_cause(data, tree.sigma == 0, rms, first)
+    if cause is not None:
+        raise DataError(
+            data.source,
+            f"the data look like {cause[0]}: the registration error drops from "
+            f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
+        )
+    if notes is not None:
+        notes.append(
+            f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, "
+            f"and no usual mistake (swapped joint columns, degrees, millimetres) explains it: "
+            f"check the data and the tree"
+        )
+    return reg
+
+
+def _drop_outliers(nominal, reg: Fit, data: Measurements, max_iterations: int, notes):
+    """Rows far from the others set aside (:mod:`.outliers`), the registration redone."""
+    dropped: list[outliers.Outlier] = []
+    for _ in range(outliers.PASSES):
+        rows = data.rows or tuple(range(1, data.m + 1))
+        bad, found = outliers.find_pose_outliers(reg.state.residuals(data), 1, None, rows)
+        if not np.any(bad):
+            break
+        dropped += found
+        data = data.subset(~bad)
+        what = "measurement frame and marker parameters once the outliers are set aside"
+        determined.check_equations(data.m, 3, 6 + 3 * nominal.n_tools, what, data.source)
+        reg = _registration(nominal, data, max_iterations)
+    if dropped:
+        notes.append(
+            f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
+            + ", ".join(o.text() for o in dropped)
+        )
+    if not reg.converged:
+        raise DataError(data.source, f"the registration did not converge ({reg.message})")
+    return reg, data, tuple(dropped)
 
 
 def _tree_datasets(tree, data, params, validate, holdout, seed):
@@ -226,31 +343,60 @@ def _tree_datasets(tree, data, params, validate, holdout, seed):
             raise DataError(
                 d.source, "a tree is calibrated from one point per row (x, y, z and a tool)"
             )
+    missing = [t for t in tree.tool_frames if t not in data.tools]
+    if missing:
+        raise DataError(
+            data.source,
+            f"no row measures the tool {missing[0]}: calibrate the tools the rows measure "
+            f"(--tool for each)",
+        )
+    out = round(holdout * data.m)
+    unknowns = 6 + 3 * tree.n_tools
+    what = "measurement frame and marker parameters"
+    determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
     if validate is not None:
+        if holdout > 0:
+            raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
+        validation.check_held_out(data, validate)
         return data, validate
     return validation.split(data, holdout, seed)
 
 
-def _tree_model(nominal: TreeMDH, reg: TreeState, data: Measurements) -> TreeErrorModel:
-    """Frame, markers and the base parameters of the complete set at the measured q.
+def _tree_model(
+    tree: Tree, nominal: TreeMDH, reg: TreeState, data: Measurements, level: str, seed: int
+) -> TreeErrorModel:
+    """Frame, markers (and, ``complete``, the base parameters of the complete set).
 
     The columns are taken in :func:`~calib.identifiability.preference_order`, as a chain's
     are. Coupled (mimic) joints can make the nominal geometry special (a PR2 fingertip stays
     parallel to the palm), and the set order then kept parameters that miss the errors a
     real robot has (PR2's two fingertips: 0.28 mm left after a noise-free fit of 1 mm /
     1 mrad errors; exact in this order).
+
+    Raises:
+        DataError: The rows do not determine what generic configurations would.
     """
-    pset = tree_parameters(nominal, "complete")
-    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
+    pset = tree_parameters(nominal, "complete") if level == "complete" else ParameterSet("none", ())
+    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset)) if len(pset) else ()
     wide = TreeErrorModel(pset, ordered, nominal.n_tools)
     ideal = dataclasses.replace(reg, mdh=nominal.idealized())
     J = wide.jacobian(ideal, np.zeros(wide.size()), data).reshape(-1, wide.size())
-    fixed = wide.size() - len(pset)
     _, _, kept, _ = independent_columns(J, list(range(J.shape[1])))
-    if len([k for k in kept if k < fixed]) < fixed:
-        raise DataError(data.source, "the rows do not determine the frame and every marker")
+    determined.check_rank(
+        len(kept), _generic_count(tree, wide, ideal, seed), data.m, 3, level, data.source, "rows"
+    )
+    fixed = wide.size() - len(pset)
     base = tuple(ordered[k - fixed] for k in sorted(kept) if k >= fixed)
     return dataclasses.replace(wide, base=base)
+
+
+def _generic_count(tree: Tree, wide: TreeErrorModel, state: TreeState, seed: int) -> int:
+    """Parameters of ``wide`` determined with every tool at random configurations."""
+    q = tree.random_configurations(DEFAULT_CONFIGS, seed)
+    t = tree.n_tools
+    Q, tool = np.repeat(q, t, axis=0), np.tile(np.arange(t), len(q))
+    J = wide.jacobian_at(state, np.zeros(wide.size()), Q, tool).reshape(-1, wide.size())
+    return len(independent_columns(J, list(range(J.shape[1])))[2])
 
 
 def _per_tool(state_a, state_b, data, tools) -> tuple[ToolErrors, ...]:
@@ -274,6 +420,7 @@ def _tree_result(tree, level, train, held, fitted: Fit, reg: TreeState) -> TreeC
     val = None
     if held is not None:
         val = (validation.stats(reg, held, None), validation.stats(fitted.state, held, None))
+        validation.check_held_out_errors(before, val[0], held.source)
     tools = fitted.state.mdh.tool_frames
     reason = validation.refusal(
         fitted.converged,
@@ -302,4 +449,7 @@ def _tree_result(tree, level, train, held, fitted: Fit, reg: TreeState) -> TreeC
         converged=fitted.converged,
         refusal=reason,
         rows=train.m,
+        data=train,
+        iterations=fitted.iterations,
+        message=fitted.message,
     )

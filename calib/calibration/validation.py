@@ -15,10 +15,13 @@ A calibrated model is written only if it passes every check:
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError
 from ..measurements import Measurements
+from .diagnosis import suspect
 from .model import State
 from .result import ResidualStats
 
@@ -41,6 +44,81 @@ def split(
     held = np.zeros(data.m, dtype=bool)
     held[np.random.default_rng([seed, 3]).permutation(data.m)[:n_out]] = True
     return data.subset(~held), data.subset(held)
+
+
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return Path(a).is_file() and Path(b).is_file() and Path(a).samefile(b)
+    except OSError:
+        return False
+
+
+def _values(data: Measurements) -> np.ndarray:
+    """Each row's joint values, points (and quaternion) as one vector."""
+    parts = [data.q, data.position]
+    if data.quaternion is not None:
+        parts.append(data.quaternion)
+    return np.hstack(parts)
+
+
+def check_held_out(data: Measurements, held: Measurements) -> None:
+    """Refuse validation data that are the training data: the file, or any of its rows.
+
+    Raises:
+        DataError: ``held`` comes from the training file, or a row of it is a training row
+            (the same joint values and measurements).
+    """
+    if _same_file(data.source, held.source):
+        raise DataError(
+            held.source,
+            "the validation file is the data file: held out must mean held out (give other "
+            "configurations, or --holdout)",
+        )
+    if data.tool is not None and held.tool is not None:
+        tools = sorted(set(data.tool) | set(held.tool))
+        index = {t: float(i) for i, t in enumerate(tools)}
+        extra = [np.array([[index[t]] for t in d.tool]) for d in (data, held)]
+    else:
+        extra = [np.zeros((d.m, 0)) for d in (data, held)]
+    a, b = np.hstack([_values(data), extra[0]]), np.hstack([_values(held), extra[1]])
+    if a.shape[1] != b.shape[1]:
+        return
+    _, inverse = np.unique(np.vstack([a, b]), axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    repeated = np.isin(inverse[data.m :], inverse[: data.m])
+    if np.any(repeated):
+        i = int(np.argmax(repeated))
+        j = int(np.argmax(inverse[: data.m] == inverse[data.m + i]))
+        raise DataError(
+            held.source,
+            f"{int(repeated.sum())} of the {held.m} validation rows are rows of the data "
+            f"(row {held.row_of(i)} is row {data.row_of(j)} of {data.source}): held out must "
+            f"mean held out",
+        )
+
+
+def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: str) -> None:
+    """Stop on held-out errors far above any geometric error while the data fit well.
+
+    Each file passed the usual-mistake diagnosis on its own registration: held-out rows that
+    the training registration still misses by more than ``diagnosis.SUSPECT`` were measured
+    in another frame or of another robot.
+
+    Args:
+        fitted: Registration errors on the fitted rows.
+        held: Errors of the same registration on the held-out rows.
+        source: The held-out data, for the message.
+
+    Raises:
+        DataError: The held-out error is absurd and the fitted one is not.
+    """
+    if suspect(held.position_rms, None) and not suspect(fitted.position_rms, None):
+        raise DataError(
+            source,
+            f"the validation rows are {1e3 * held.position_rms:.4g} mm RMS from the registered "
+            f"model (the data {1e3 * fitted.position_rms:.4g} mm): they look measured in "
+            f"another measurement frame (the instrument moved?) or on another robot",
+        )
 
 
 def stats(state: State, data: Measurements, torque: np.ndarray | None) -> ResidualStats:

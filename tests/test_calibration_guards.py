@@ -1,0 +1,409 @@
+"""The guards of a calibration, for chains and trees alike (issue 19, behaviours 1-4).
+
+Trees get every guard chains have; no level the rows cannot determine is fitted; validation
+data are data; orientation rows count. Expectations come from outside calib: the mistake a
+test plants (and so the row, columns or unit it must name), theoretical parameter counts,
+the chain's own error text for the same flag, scipy's rotations, Pinocchio's rpy, and the
+process's exit status, stderr and files.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import dataclasses
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import chain_of
+from scipy.spatial.transform import Rotation
+
+from calib import DataError, InvalidArgumentError, calibrate, simulate
+from calib.calibration.tree_pipeline import calibrate_tree
+from calib.cli import main
+from calib.tree import load_robot
+from calib.tree_campaign import simulate_tree
+
+MARKER = (0.05, 0.02, 0.1)
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
+
+
+def one_error(code: int, err: str) -> str:
+    """The one error line of a refused run (exit 2, no traceback), without its prefix."""
+    errors = [e for e in err.splitlines() if not e.startswith("calib: warning: ")]
+    assert code == 2 and "Traceback" not in err and len(errors) == 1, err
+    assert errors[0].startswith("calib: error: ")
+    return errors[0].removeprefix("calib: error: ")
+
+
+def csv_table(path: Path) -> tuple[list[str], list[list[str]]]:
+    rows = list(csv.reader(path.open()))
+    return rows[0], rows[1:]
+
+
+def write_table(path: Path, header: list[str], rows: list[list[str]]) -> Path:
+    with path.open("w", newline="") as f:
+        csv.writer(f).writerows([header, *rows])
+    return path
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Position campaigns of ur5 (chain: training and validation rows) and bolt (a tree)."""
+    d = tmp_path_factory.mktemp("guards")
+    for name, robot, configs in (("ur5_all", "ur5", 60), ("bolt", "bolt", 20)):
+        argv = ["simulate", robot, "--measure", "position", "--configs", configs, "--seed", 2]
+        code, _, err = run([*argv, "--noise-mm", "0.05", "--out", d / f"{name}.csv"])
+        assert code == 0, err
+    header, rows = csv_table(d / "ur5_all.csv")  # one robot: 40 rows fitted, 20 held out
+    write_table(d / "ur5.csv", header, rows[:40])
+    write_table(d / "ur5_val.csv", header, rows[40:])
+    return d
+
+
+# --- behaviour 1: trees get every guard chains have ----------------------------------------
+
+
+@pytest.mark.parametrize(
+    "flags",
+    [["--max-iterations", "0"], ["--seed", "-1", "--holdout", "0.2"], ["--holdout", "1.5"]],
+)
+def test_tree_options_get_the_chains_one_line_errors(files, tmp_path, flags):
+    chain = run(["calibrate", "ur5", "--data", files / "ur5.csv", "--out", tmp_path / "c.urdf"])
+    assert chain[0] == 0  # the data are fine: only the flags differ
+    lines = []
+    for robot in ("ur5", "bolt"):
+        argv = ["calibrate", robot, "--data", files / f"{robot}.csv", "--out", tmp_path / "o.urdf"]
+        lines.append(one_error(*run([*argv, *flags])[::2]))
+    assert lines[0] == lines[1]  # the chain's own message, for the same flag
+    assert not (tmp_path / "o.urdf").exists()
+
+
+@pytest.mark.parametrize(
+    ("flags", "says"),
+    [
+        (["--params", "auto"], "--params auto is for one chain"),
+        (["--measure", "pose"], "--measure pose is for one chain"),
+        (["--validate", "VAL", "--holdout", "0.2"], "not both"),
+    ],
+)
+def test_tree_options_it_cannot_honour_are_refused(files, tmp_path, flags, says):
+    val = write_table(tmp_path / "v.csv", *csv_table(files / "bolt.csv"))
+    flags = [str(val) if f == "VAL" else f for f in flags]
+    out = tmp_path / "o.urdf"
+    code, stdout, err = run(
+        ["calibrate", "bolt", "--data", files / "bolt.csv", "--out", out, *flags]
+    )
+    assert says in one_error(code, err) and stdout == ""
+    assert not out.exists()
+
+
+def test_tree_api_refuses_validation_with_a_holdout_fraction(files):
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 20, markers=MARKER, seed=3)
+    other = simulate_tree(tree, 10, markers=MARKER, seed=4)
+    with pytest.raises(InvalidArgumentError, match="not both"):
+        calibrate_tree(tree, camp.measurements, validate=other.measurements, holdout=0.2)
+    for bad in ({"max_iterations": 0}, {"seed": -1}, {"holdout": 1.0}, {"seed": True}):
+        with pytest.raises(InvalidArgumentError):
+            calibrate_tree(tree, camp.measurements, **bad)
+
+
+def test_tree_report_has_the_documented_schema(files, tmp_path):
+    report = tmp_path / "r.json"
+    argv = ["calibrate", "bolt", "--data", files / "bolt.csv", "--out", tmp_path / "o.urdf"]
+    code, _, err = run([*argv, "--report", report])
+    assert code == 0, err
+    rep = json.loads(report.read_text())
+    for key in ("data", "measure", "warnings", "message", "iterations", "timings_ms", "outliers"):
+        assert key in rep, key
+    assert rep["data"] == str(files / "bolt.csv") and rep["measure"] == "position"
+    T = np.array(rep["measurement_to_base"]["matrix"])
+    assert np.allclose(T[:3, 3], rep["measurement_to_base"]["xyz"])
+    R = pin.rpy.rpyToMatrix(np.array(rep["measurement_to_base"]["rpy"]))
+    assert np.allclose(R, T[:3, :3], atol=1e-12)
+    assert set(rep["timings_ms"]) == {"registration", "selection", "fit", "validation"}
+    assert rep["iterations"] >= 1 and isinstance(rep["message"], str)
+
+
+def test_tree_tool_placement_is_checked_before_the_fit(tmp_path):
+    """A tool carried by a revolute joint: refused before any fit or printed result."""
+    tools = ["--tool", "FL_FOOT", "--tool", "FR_LOWER_LEG"]
+    data = tmp_path / "m.csv"
+    sim = ["simulate", "bolt", *tools, "--measure", "position", "--configs", "20"]
+    assert run([*sim, "--out", data])[0] == 0
+    out, report = tmp_path / "o.urdf", tmp_path / "r.json"
+    code, stdout, err = run(
+        ["calibrate", "bolt", *tools, "--data", data, "--out", out, "--report", report]
+    )
+    assert "not by a fixed joint" in one_error(code, err)
+    assert stdout == "" and not out.exists() and not report.exists()
+
+
+def test_tree_outlier_row_is_set_aside(tmp_path):
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 30, markers=MARKER, noise_mm=0.05, seed=5)
+    pos = camp.measurements.position.copy()
+    pos[13] += [0.03, -0.02, 0.01]  # one reading 37 mm off
+    res = calibrate_tree(tree, dataclasses.replace(camp.measurements, position=pos)).check()
+    assert [o.row for o in res.outliers] == [14]  # no file: rows are numbered from 1
+    assert res.rows == camp.measurements.m - 1
+    assert "row 14" in res.warnings[0]
+
+
+def test_tree_usual_mistakes_are_named(files, tmp_path):
+    header, rows = csv_table(files / "bolt.csv")
+    xyz = [header.index(c) for c in ("x", "y", "z")]
+    mm = [[f"{1e3 * float(c)!r}" if j in xyz else c for j, c in enumerate(r)] for r in rows]
+    write_table(tmp_path / "mm.csv", header, mm)
+    argv = ["calibrate", "bolt", "--data", tmp_path / "mm.csv", "--out", tmp_path / "o.urdf"]
+    assert "millimetres" in one_error(*run(argv)[::2])
+    # two knee columns swapped (both within the continuous joints' range)
+    i, j = header.index("FL_KFE"), header.index("FR_KFE")
+    swapped = [[r[j] if k == i else r[i] if k == j else c for k, c in enumerate(r)] for r in rows]
+    write_table(tmp_path / "sw.csv", header, swapped)
+    argv[3] = tmp_path / "sw.csv"
+    assert "FL_KFE and FR_KFE swapped" in one_error(*run(argv)[::2])
+    assert not (tmp_path / "o.urdf").exists()
+
+
+# --- behaviour 2: no silent overfit ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("keep", [1, 2])
+def test_one_or_two_rows_get_one_line(files, tmp_path, keep):
+    header, rows = csv_table(files / "ur5.csv")
+    data = write_table(tmp_path / "few.csv", header, rows[:keep])
+    code, _, err = run(["calibrate", "ur5", "--data", data, "--out", tmp_path / "o.urdf"])
+    # 6 frame + 3 marker unknowns, 3 equations per configuration: 4 configurations needed
+    assert "it needs at least 4 configurations" in one_error(code, err)
+    tree = run(["calibrate", "bolt", "--data", data, "--out", tmp_path / "o.urdf"])
+    one_error(tree[0], tree[2])  # rows of another robot: refused in one line too
+
+
+def test_holdout_099_gets_the_same_line(files, tmp_path):
+    for robot, need in (("ur5", "4 configurations"), ("bolt", "5 rows")):  # bolt: 6 + 2 x 3
+        argv = ["calibrate", robot, "--data", files / f"{robot}.csv", "--out", tmp_path / "o.urdf"]
+        line = one_error(*run([*argv, "--holdout", "0.99"])[::2])
+        assert f"it needs at least {need}" in line and "held out" in line
+
+
+def test_a_level_the_rows_cannot_determine_is_refused_not_cut(files, tmp_path):
+    """UR5, position: 4 x 6 + 6 - 3 = 27 identifiable parameters (Everett, minus rotation)."""
+    header, rows = csv_table(files / "ur5.csv")
+    data = write_table(tmp_path / "five.csv", header, rows[:5])
+    argv = ["calibrate", "ur5", "--data", data, "--out", tmp_path / "o.urdf", "--params"]
+    line = one_error(*run([*argv, "complete"])[::2])
+    assert "15 equations for the 27 parameters" in line and "at least 10 configurations" in line
+    # a joint that never moves: enough rows, but the level is not determined at them
+    chain = chain_of("ur5")
+    camp = simulate(chain, configs=40, measure="position", marker=MARKER, seed=2)
+    q = camp.measurements.q.copy()
+    q[:, 5] = 0.3
+    pts = camp.truth.true_mdh.forward(q)
+    pts = pts[:, :3, :3] @ np.array(MARKER) + pts[:, :3, 3]
+    still = dataclasses.replace(camp.measurements, q=q, position=pts)
+    with pytest.raises(DataError, match="determine only"):
+        calibrate(chain, still, params="complete")
+    assert calibrate(chain, still, params="frames").accepted  # frames need no joint motion
+
+
+def test_tree_level_the_rows_cannot_determine_is_refused(tmp_path):
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 30, markers=MARKER, seed=6)
+    data = camp.measurements
+    with pytest.raises(DataError, match="parameters of --params complete"):
+        calibrate_tree(tree, data.subset(np.arange(6)))
+    q = data.q.copy()
+    q[:, 2] = 0.4  # FL_KFE never moves
+    still = dataclasses.replace(data, q=q)
+    with pytest.raises(DataError, match="determine only"):
+        calibrate_tree(tree, still)
+
+
+# --- behaviour 3: validation data are data --------------------------------------------------
+
+
+def test_validation_file_that_is_the_data_file_or_holds_its_rows_is_refused(files, tmp_path):
+    header, rows = csv_table(files / "ur5.csv")
+    _, val = csv_table(files / "ur5_val.csv")
+    mixed = write_table(tmp_path / "mixed.csv", header, [*val[:8], rows[3], rows[11]])
+    out = tmp_path / "o.urdf"
+    for robot in ("ur5", "bolt"):
+        data = files / f"{robot}.csv"
+        argv = ["calibrate", robot, "--data", data, "--out", out, "--validate", data]
+        assert "the validation file is the data file" in one_error(*run(argv)[::2])
+    argv = ["calibrate", "ur5", "--data", files / "ur5.csv", "--out", out, "--validate", mixed]
+    line = one_error(*run(argv)[::2])
+    assert "2 of the 10 validation rows are rows of the data" in line
+    assert "row 10 is row 5" in line  # file rows: the header is row 1
+    assert not out.exists()
+
+
+def test_validation_data_get_the_diagnosis(files, tmp_path):
+    header, rows = csv_table(files / "ur5_val.csv")
+    xyz = [header.index(c) for c in ("x", "y", "z")]
+    mm = [[f"{1e3 * float(c)!r}" if j in xyz else c for j, c in enumerate(r)] for r in rows]
+    val = write_table(tmp_path / "val_mm.csv", header, mm)
+    argv = ["calibrate", "ur5", "--data", files / "ur5.csv", "--out", tmp_path / "o.urdf"]
+    line = one_error(*run([*argv, "--validate", val])[::2])
+    assert line.startswith(str(val)) and "millimetres" in line
+    i, j = header.index("wrist_1_joint"), header.index("wrist_2_joint")
+    swapped = [[r[j] if k == i else r[i] if k == j else c for k, c in enumerate(r)] for r in rows]
+    val = write_table(tmp_path / "val_sw.csv", header, swapped)
+    line = one_error(*run([*argv, "--validate", val])[::2])
+    assert line.startswith(str(val)) and "wrist_1_joint and wrist_2_joint swapped" in line
+    good = run([*argv, "--validate", files / "ur5_val.csv"])
+    assert good[0] == 0, good[2]  # the same robot's other configurations: scored, accepted
+
+
+def test_tree_validation_data_get_the_diagnosis(files, tmp_path):
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 40, markers=MARKER, noise_mm=0.05, seed=7)
+    train, held = (
+        camp.measurements.subset(np.arange(60)),
+        camp.measurements.subset(np.arange(60, 80)),
+    )
+    res = calibrate_tree(tree, train, validate=held).check()
+    assert res.validation is not None and res.validation[0].configs == 20
+    with pytest.raises(DataError, match="millimetres"):
+        calibrate_tree(
+            tree, train, validate=dataclasses.replace(held, position=held.position * 1e3)
+        )
+    with pytest.raises(DataError, match="rows of the data"):
+        calibrate_tree(tree, train, validate=train.subset(np.arange(5)))
+
+
+# --- behaviour 4: orientation rows count ----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def pose_campaign():
+    chain = chain_of("ur5")
+    camp = simulate(chain, configs=40, measure="pose", seed=4, noise_mm=0.05, noise_mrad=0.1)
+    return chain, camp
+
+
+def _pose_csv(path: Path, camp, names: str, values: np.ndarray) -> Path:
+    data = camp.measurements
+    lines = [f"{','.join(data.joint_names)},x,y,z,{names}"]
+    for q, p, v in zip(data.q, data.position, values, strict=True):
+        lines.append(",".join(repr(float(x)) for x in (*q, *p, *v)))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("names", "values", "cause"),
+    [
+        ("roll,pitch,yaw", lambda r: np.degrees(r.as_euler("xyz")), "rpy angles in degrees"),
+        ("rx,ry,rz", lambda r: np.degrees(r.as_rotvec()), "rotation vectors in degrees"),
+        ("roll,pitch,yaw", lambda r: r.as_euler("xyz")[:, ::-1], "yaw, pitch, roll"),
+        ("roll,pitch,yaw", lambda r: r.as_euler("XYZ"), "composed x, y, z"),
+    ],
+)
+def test_orientation_mistakes_are_named(pose_campaign, tmp_path, names, values, cause):
+    """scipy writes the mistakes: degrees, yaw-pitch-roll columns, intrinsic x-y-z angles."""
+    _, camp = pose_campaign
+    rot = Rotation.from_quat(camp.measurements.quaternion)
+    data = _pose_csv(tmp_path / "m.csv", camp, names, values(rot))
+    code, _, err = run(["calibrate", "ur5", "--data", data, "--out", tmp_path / "o.urdf"])
+    assert cause in one_error(code, err)
+    right = _pose_csv(tmp_path / "ok.csv", camp, "roll,pitch,yaw", rot.as_euler("xyz"))
+    code, _, err = run(["calibrate", "ur5", "--data", right, "--out", tmp_path / "o.urdf"])
+    assert code == 0, err  # the same rotations written right: accepted
+
+
+def test_one_bad_orientation_is_set_aside_like_one_bad_point(pose_campaign):
+    chain, camp = pose_campaign
+    quat = camp.measurements.quaternion.copy()
+    quat[21] = Rotation.from_rotvec([0.0, 2.0, 0.0]).as_quat()  # one wrong reading
+    res = calibrate(chain, dataclasses.replace(camp.measurements, quaternion=quat)).check()
+    assert [(o.row, o.kind) for o in res.outliers] == [(22, "orientation")]
+    assert res.data.m == camp.measurements.m - 1
+    assert not any("far above" in w for w in res.warnings)  # the outlier explained it
+    q = chain.random_configurations(30, 9)
+    T = camp.truth.true_mdh.forward(q)
+    err = res.points(q)[:, 0] - T[:, :3, 3]  # the measured point: the tool origin
+    assert math.sqrt(np.mean(np.sum(err**2, axis=1))) < 1e-3
+
+
+@pytest.mark.parametrize(
+    ("cols", "taken"),
+    [
+        (["rotvec", "x", "y", "z"], "'x' is also a position column"),
+        (["rpy", "roll", "pitch", "z"], "'z' is also a position column"),
+        (["rotvec", "rx", "ry", "wrist_1_joint"], "'wrist_1_joint' is also a joint column"),
+    ],
+)
+def test_orientation_columns_overlapping_others_are_a_usage_error(
+    pose_campaign, tmp_path, cols, taken
+):
+    _, camp = pose_campaign
+    rot = Rotation.from_quat(camp.measurements.quaternion)
+    data = _pose_csv(tmp_path / "m.csv", camp, "rx,ry,rz", rot.as_rotvec())
+    out = tmp_path / "o.urdf"
+    argv = ["calibrate", "ur5", "--data", data, "--out", out, "--orientation", cols[0]]
+    assert taken in one_error(*run([*argv, "--orientation-columns", *cols[1:]])[::2])
+    assert not out.exists()
+
+
+def test_tree_rows_must_measure_every_tool_and_small_validation_sets_are_scored():
+    tree = load_robot("bolt")
+    data = simulate_tree(tree, 10, markers=MARKER, noise_mm=0.05, seed=1).measurements
+    left = data.subset(np.array([t == "FL_FOOT" for t in data.tool]))
+    with pytest.raises(DataError, match="no row measures the tool FR_FOOT"):
+        calibrate_tree(tree, left)
+    # held-out rows too few to register on their own (one row, one tool): scored, no error
+    other = simulate_tree(tree, 3, markers=MARKER, noise_mm=0.05, seed=9).measurements
+    res = calibrate_tree(tree, data, validate=other.subset(np.arange(1)))
+    assert res.validation is not None and res.validation[0].configs == 1
+
+
+def test_validation_rows_measured_in_another_frame_stop_with_their_cause():
+    """Rows shifted by 0.4 m (the tracker moved): each file registers well on its own."""
+    chain = chain_of("ur5")
+    camp = simulate(chain, configs=60, measure="position", marker=MARKER, seed=8, noise_mm=0.05)
+    train, held = (
+        camp.measurements.subset(np.arange(40)),
+        camp.measurements.subset(np.arange(40, 60)),
+    )
+    assert calibrate(chain, train, validate=held).accepted
+    shifted = dataclasses.replace(held, position=held.position + np.array([0.4, 0.0, 0.0]))
+    with pytest.raises(DataError, match="another measurement frame"):
+        calibrate(chain, train, validate=shifted)
+    tree = load_robot("bolt")
+    data = simulate_tree(tree, 30, markers=MARKER, noise_mm=0.05, seed=8).measurements
+    train, held = data.subset(np.arange(40)), data.subset(np.arange(40, 60))
+    shifted = dataclasses.replace(held, position=held.position + np.array([0.0, 0.4, 0.0]))
+    with pytest.raises(DataError, match="another measurement frame"):
+        calibrate_tree(tree, train, validate=shifted)
+
+
+def test_tree_model_worse_on_held_out_rows_is_refused_with_its_report(tmp_path):
+    """No geometric error and 2 mm of noise: the complete model can only overfit."""
+    from calib.measurements import measurements_csv
+
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 20, markers=MARKER, error_mm=0, error_mrad=0, noise_mm=2, seed=0)
+    data = tmp_path / "m.csv"
+    data.write_text(measurements_csv(camp.measurements))
+    out, report = tmp_path / "o.urdf", tmp_path / "r.json"
+    argv = ["calibrate", "bolt", "--data", data, "--out", out, "--report", report]
+    line = one_error(*run([*argv, "--holdout", "0.3", "--seed", "1"])[::2])
+    assert line.startswith("calibration refused: on held-out configurations")
+    rep = json.loads(report.read_text())
+    assert not out.exists() and rep["accepted"] is False
+    held = rep["validation"]
+    assert held["calibrated"]["position_rms"] > held["registration"]["position_rms"]
