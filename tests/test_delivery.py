@@ -348,7 +348,7 @@ CHAIN_REPORT_KEYS = {
     "selection", "selection.kept", "selection.steps", "selection.steps[].name",
     "selection.steps[].loo", "selection.prior_strength", "selection.cv_registration",
     "selection.cv_selection", "selection.guarded",
-    "outliers", "outliers[].row", "outliers[].error", "outliers[].median",
+    "outliers", "outliers[].row", "outliers[].error", "outliers[].median", "outliers[].kind",
     "sigma", "condition_number", "predicted_std", "parameters", "parameters[].name",
     "parameters[].value", "parameters[].std", "parameters[].prior_weight", "compliance",
     "gravity", "gravity.frame", "gravity.vector", "measurement_to_base",
@@ -371,7 +371,9 @@ TREE_REPORT_KEYS = {
     "validation.per_tool[].calibrated", *(f"validation.per_tool[].{g}.{k}"
     for g in ("registration", "calibrated") for k in STATS), "parameters",
     "parameters[].name", "parameters[].value", "parameters[].std", "markers",
-    "marker_links", "measurement_to_base",
+    "marker_links", "measurement_to_base", *(f"measurement_to_base.{k}" for k in POSE),
+    "data", "measure", "message", "iterations", "outliers", "warnings", "timings_ms",
+    *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
 }  # fmt: skip
 """The tree report's keys (format 2)."""
 
