@@ -434,7 +434,7 @@ def test_tree_marker_links_give_the_measured_points(tmp_path, capsys):
     assert run(capsys, *cal, "--out", str(urdf))[0] == 0
     report = json.loads(rep.read_text())
     assert report["marker_links"] == {t: f"{t}_marker1" for t in tools}
-    T = np.array(report["measurement_to_base"])
+    T = np.array(report["measurement_to_base"]["matrix"])
     rows = read_csv(m)
     names = [k for k in rows[0] if k not in ("tool", "x", "y", "z", "x1", "y1", "z1")]
     model = PinURDF(urdf)

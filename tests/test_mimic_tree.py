@@ -273,7 +273,7 @@ def test_noise_free_tree_calibration_through_mimic_joints_is_exact(case, exporta
     path = tmp_path / "cal.urdf"
     path.write_bytes(calibrated_tree_urdf(tree, res.nominal, state.mdh))
     cal = MimicTree(path, base, tools)
-    to_base = np.array(res.to_dict()["measurement_to_base"])
+    to_base = np.array(res.to_dict()["measurement_to_base"]["matrix"])
     T_cal = cal.poses(tree.variable_names, qv_new)
     assert np.abs(to_base @ T_cal - state.frame @ T).max() < 1e-9
     urdf_pts = T_cal[..., :3, 3] + np.einsum("mtij,tj->mti", T_cal[..., :3, :3], state.markers)
