@@ -259,6 +259,9 @@ def least_i(
         InvalidArgumentError: A bad k, or candidates that cannot identify the parameters.
     """
     k = check_count(k, "the number of configurations")
+    J, L = np.asarray(J, dtype=float), np.asarray(L, dtype=float)
+    if J.ndim != 3 or L.shape != (J.shape[2], J.shape[2]):
+        raise InvalidArgumentError(f"J must be (N, r, b) and L (b, b), got {J.shape}, {L.shape}")
     n, r, b = J.shape
     A = J.reshape(n * r, b)
     w = np.full(n, k / n)
