@@ -29,7 +29,7 @@ import numpy as np
 
 from calib import calibrate, load_chain, residual_stats, simulate
 from calib.calibration.tree_pipeline import calibrate_tree
-from calib.constraints import Constraints
+from calib.constraints import Constraints, filter_candidates
 from calib.design import candidate_configurations, design, least_i
 from calib.observability import reference
 from calib.tree import load_tree
@@ -92,7 +92,8 @@ def payoff_study(robots=("ur5", "panda", "tiago")) -> None:
         designs = {c: design(chain, k, candidates=2000, markers=PAYOFF_MARKER, criterion=c)
                    for c in ("D", "I")}
         model = designs["D"].model
-        q_cand = candidate_configurations(chain, 2000, 0)  # before the collision filter
+        q_cand = candidate_configurations(chain, 2000, 0)  # the design's candidates
+        q_cand = q_cand[filter_candidates(chain, q_cand, [PAYOFF_MARKER], Constraints())[0]]
         errors: dict[tuple[str, str], list[float]] = {}
         pred: dict[str, list[float]] = {"D": [], "I": [], "random": [], "least": []}
         for seed in SEEDS:
