@@ -110,7 +110,7 @@ def payoff_study(robots=("ur5", "panda", "tiago")) -> None:
                     rms = residual_stats(result, truth).position_rms
                     errors.setdefault((set_name, level), []).append(1e3 * rms)
             if seed == 0:
-                pred["least"].append(least_i(model.jacobian(q_cand), L, k))
+                pred["least"].append(least_i(model.jacobian(q_cand), k, L))
         print(f"{name} (b = {model.b}), median held-out RMS error over {len(SEEDS)} seeds [mm]:")
         for level in ("auto", "complete"):
             rand = np.median(errors["random", level])
