@@ -87,9 +87,10 @@ def preference(mdh: MDHModel | TreeMDH, p: Parameter) -> int:
     value = float(getattr(mdh, kind.value)[k])
     if kind in (Kind.D, Kind.R, Kind.B) and abs(value) > 1e-9:
         return 1
-    if kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA) and min(
-        abs(value - a) for a in _SPECIAL_ANGLES
-    ) > 1e-6:
+    if (
+        kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA)
+        and min(abs(value - a) for a in _SPECIAL_ANGLES) > 1e-6
+    ):
         return 2
     return 5
 
@@ -544,7 +545,7 @@ def _checked_arguments(mdh, params, measurement, configs):
     if configs is None:
         raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
     q = joint_positions(configs, mdh.n)
-    check_work(len(q) * len(mdh.tool_rows), mdh.n)
+    check_work(len(q), mdh.n, per_config=len(mdh.tool_rows))
     return measurement, pset, q
 
 
@@ -687,9 +688,7 @@ SNAPPED_CHANGE = 1e-3
 choice of the idealized conversion (a 90-degree offset), not round-off."""
 
 
-def snapped_values(
-    exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH
-) -> tuple[str, ...]:
+def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> tuple[str, ...]:
     """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
 
     Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are
