@@ -355,6 +355,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
     columns = [i for i in kept if i >= fixed]  # kept is in column order
     cand = [wide.names()[i] for i in columns]
+    _check_free(opts.free, cand, wide.names(), J.reshape(-1, J.shape[2]), fixed)
     if len(kept) < fixed:
         raise DataError(
             data.source,
@@ -378,6 +379,33 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
+
+
+def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:
+    """Refuse a ``--free`` parameter the data cannot fit on its own, saying why.
+
+    Args:
+        free: ``--free`` names.
+        cand: The identifiable names (independent columns, in preference order).
+        names: Every column's name; the first ``fixed`` are the frame's and markers'.
+        J: The weighted Jacobian ``(rows, columns)``.
+        fixed: Number of frame and marker columns.
+
+    Raises:
+        InvalidArgumentError: A name whose column the frame and markers carry, or that is
+            regrouped with parameters kept before it.
+    """
+    for name in free:
+        if name in cand or name not in names:
+            continue  # fitted; or a group name (frame, markers, tool)
+        col = names.index(name)
+        _, _, kept, _ = independent_columns(J[:, [*range(fixed), col]], list(range(fixed + 1)))
+        why = (
+            "the measurement frame and markers carry it (they are always fitted)"
+            if fixed not in kept
+            else "it is regrouped with parameters kept before it (not identifiable on its own)"
+        )
+        raise InvalidArgumentError(f"--free {name} cannot be fitted: {why}; drop it from --free")
 
 
 def _assemble(
