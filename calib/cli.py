@@ -390,10 +390,46 @@ def _columns(args: argparse.Namespace):
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report."""
-    chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree):
-        return _calibrate_tree(args, chain)
+    """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report.
+
+    Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
+    the report's ``warnings`` too.
+    """
+    with _recorded_warnings() as recorded:
+        chain = load_robot(args.robot, args.base, tool_arg(args))
+        if isinstance(chain, Tree):
+            return _calibrate_tree(args, chain, recorded)
+        return _calibrate_chain(args, chain, recorded)
+
+
+@contextlib.contextmanager
+def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
+    """The warnings raised inside, in a list that grows as they come; raised again after.
+
+    Raised again on the way out (an error included), so that :func:`main` prints them.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield caught
+        finally:
+            pending = list(caught)
+    for w in pending:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:
+    """The report with the recorded warnings added to its ``warnings`` (each once, in order)."""
+    lines = list(report.get("warnings", []))
+    for w in recorded:
+        text = _one_line(w.message)
+        if issubclass(w.category, UserWarning) and text not in lines:
+            lines.append(text)
+    return {**report, "warnings": lines}
+
+
+def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
+    """`calibrate` with one tool."""
     from .calibration import calibrate  # only this command loads the calibration
     from .calibration.text import calibration_text
     from .urdf_export import calibrated_urdf, check_exportable
@@ -426,7 +462,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     )
     return _write_calibration(
         args,
-        result.to_dict(),
+        _with_warnings(result.to_dict(), recorded),
         lambda: calibration_text(result),
         result.refusal,
         lambda: calibrated_urdf(chain, result.nominal, result.calibrated),
@@ -487,7 +523,7 @@ CHAIN_ONLY = {
 """Options of `calibrate` a tree calibration does not take, at their defaults."""
 
 
-def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
+def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
     from .calibration.tree_pipeline import TREE_LEVELS, calibrate_tree
     from .tree_export import calibrated_tree_urdf
@@ -513,7 +549,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
     )
     return _write_calibration(
         args,
-        result.to_dict(),
+        _with_warnings(result.to_dict(), recorded),
         result.text,
         result.refusal,
         lambda: calibrated_tree_urdf(tree, result.nominal, result.state.mdh),
@@ -950,6 +986,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     Errors are one line on stderr and exit code 2; SIGINT gives 130 and SIGTERM 143, after
     any temporary file is removed.
     """
+    try:
+        with _interrupts_raise():
+            return _main(argv)
+    except KeyboardInterrupt:  # outside a command (parsing, printing the warnings)
+        print("calib: interrupted", file=sys.stderr)
+        return 130
+
+
+@contextlib.contextmanager
+def _interrupts_raise() -> Iterator[None]:
+    """SIGINT raises KeyboardInterrupt inside (main thread only); the old handler is back after.
+
+    The entry point (:mod:`_calib_entry`) installs a handler that exits at once, for the
+    imports; a command needs the exception instead, so that its temporary files go.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

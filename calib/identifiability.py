@@ -87,10 +87,9 @@ def preference(mdh: MDHModel | TreeMDH, p: Parameter) -> int:
     value = float(getattr(mdh, kind.value)[k])
     if kind in (Kind.D, Kind.R, Kind.B) and abs(value) > 1e-9:
         return 1
-    if (
-        kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA)
-        and min(abs(value - a) for a in _SPECIAL_ANGLES) > 1e-6
-    ):
+    if kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA) and min(
+        abs(value - a) for a in _SPECIAL_ANGLES
+    ) > 1e-6:
         return 2
     return 5
 
@@ -688,7 +687,9 @@ SNAPPED_CHANGE = 1e-3
 choice of the idealized conversion (a 90-degree offset), not round-off."""
 
 
-def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> tuple[str, ...]:
+def snapped_values(
+    exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH
+) -> tuple[str, ...]:
     """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
 
     Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are

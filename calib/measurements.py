@@ -624,7 +624,27 @@ def parse_measurements(
         chain.coupling,
     )
     _check_tools(data, tool_frames(chain))
+    _warn_repeats(data)
     return data
+
+
+def _warn_repeats(data: Measurements) -> None:
+    """Warn when rows repeat an earlier row's joint positions (and tool): not independent."""
+    key = data.q
+    if data.tool is not None:
+        key = np.column_stack([key, np.unique(np.array(data.tool), return_inverse=True)[1]])
+    _, first = np.unique(key, axis=0, return_index=True)
+    repeats = data.m - len(first)
+    if repeats:
+        row = int(np.flatnonzero(~np.isin(np.arange(data.m), first))[0])
+        line = data.rows[row] if data.rows else row + 2
+        warnings.warn(
+            f"{data.source}: {repeats} of {data.m} rows repeat the joint positions of an "
+            f"earlier row (first: row {line}): repeated configurations are not independent "
+            f"measurements, the reported uncertainty is overconfident",
+            DataWarning,
+            stacklevel=4,
+        )
 
 
 def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:

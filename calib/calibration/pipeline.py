@@ -256,6 +256,13 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None).position_rms
     if not diagnosis.suspect(first, opts.noise):
         return []
+    still = diagnosis.constant_joints(data)
+    if still:
+        raise DataError(
+            data.source,
+            f"the registration leaves {1e3 * first:.4g} mm RMS and joint column(s) "
+            f"{', '.join(still)} hold one value in every row: were those joints logged?",
+        )
     cause = diagnosis.likely_cause(data, chain.sigma == 0, rms, first)
     if cause is not None:
         raise DataError(

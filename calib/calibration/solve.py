@@ -14,6 +14,7 @@ TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
 
 
+
 @dataclass(frozen=True, eq=False)
 class Fit:
     """A solved fit.
