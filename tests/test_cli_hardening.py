@@ -326,9 +326,7 @@ def test_a_holdout_that_holds_out_no_row_says_so(tmp_path, capsys, campaign):
     assert "holds out no row" in line and f"of {m} rows" in line
 
 
-def test_a_tree_measurement_file_counts_configurations_not_rows(
-    tmp_path, capsys, tree_campaign
-):
+def test_a_tree_measurement_file_counts_configurations_not_rows(tmp_path, capsys, tree_campaign):
     rows = rows_of(tree_campaign)
     tools = len({r["tool"] for r in rows})
     configs = len(rows) // tools
@@ -399,3 +397,30 @@ def test_a_normal_campaign_with_its_noise_gets_no_check_the_data_warning(
     report, printed, out = _report(capsys, campaign, tmp_path, "--noise-mm", "0.05")
     everything = [*printed, *report["warnings"], out]
     assert not any("check the data" in text for text in everything)
+
+
+def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, monkeypatch):
+    """50 markers at 200 configurations (points from Pinocchio's tool placements): --params
+    auto is refused before the selection starts, naming the levels to give instead."""
+    import numpy as np
+
+    import calib.calibration.pipeline as pipeline
+    from calib.robot import load_chain
+
+    chain = load_chain("ur5")
+    q = chain.random_configurations(200, 1)
+    F = chain.tool_placements(q)
+    markers = np.random.default_rng(2).uniform(-0.1, 0.1, (50, 3))
+    points = F[:, None, :3, 3] + np.einsum("mij,kj->mki", F[:, :3, :3], markers)
+    data = tmp_path / "k50.csv"
+    header = [*chain.joint_names, *(f"{a}{k + 1}" for k in range(50) for a in "xyz")]
+    np.savetxt(data, np.c_[q, points.reshape(200, -1)], delimiter=",", header=",".join(header),
+               comments="")  # fmt: skip
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("the selection started")
+
+    monkeypatch.setattr(pipeline, "select", forbidden)
+    line = one_error(capsys, ["calibrate", "ur5", "--data", data, "--out", tmp_path / "c"])
+    assert "--params auto" in line and "--params complete" in line and "200 configurations" in line
+    assert not (tmp_path / "c").exists()

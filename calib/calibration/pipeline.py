@@ -369,6 +369,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
             "the configurations do not even determine the measurement frame and markers",
         )
     if opts.level == "auto":
+        check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
         Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
         cols = list(range(fixed)) + columns
         forced = [cand.index(n) for n in opts.free if n in cand]
@@ -386,6 +387,35 @@ def _choose(chain, nominal, reg: State, data, torque, opts):
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
+
+
+SELECTION_WORK = 1.2e9
+"""Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
+is run on: its leave-one-configuration-out QR factorisations cost about this. Measured on one
+core (benchmarks/bench_calibration.py): a UR5's 20,000 positions (1.1e9) take 45 s; its
+20,000 poses (2.7e9) and 50 markers at 200 configurations (2e10) several minutes."""
+
+
+def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:
+    """Refuse, before it starts, a selection (``--params auto``) too long to wait for.
+
+    Args:
+        m: Configurations.
+        rows: Rows per configuration (3 per marker, 3 more for an orientation).
+        fixed: Frame and marker columns.
+        candidates: Candidate parameters.
+
+    Raises:
+        InvalidArgumentError: The work exceeds :data:`SELECTION_WORK`; says what to do.
+    """
+    work = m * rows * (fixed + candidates) ** 2 * candidates
+    if work > SELECTION_WORK:
+        raise InvalidArgumentError(
+            f"--params auto would cross-validate {candidates} parameters on {m} configurations "
+            f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
+            f"times the work calib runs it on (about a minute on one core); give a level "
+            f"(--params complete, paper, offsets or frames), or fewer configurations or markers"
+        )
 
 
 def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:
