@@ -140,10 +140,11 @@ def catalog_files() -> dict[str, Path]:
 def installed_dirs() -> dict[str, Path]:
     """Folders of installed packages that calib reads, by name: no output may go inside.
 
-    calib's ``models/`` and example-robot-data's ``share/example-robot-data`` (its URDFs,
-    SRDFs and meshes), when it is installed.
+    calib itself, its ``models/`` (installed inside it, or the project's folder) and
+    example-robot-data's ``share/example-robot-data`` (its URDFs, SRDFs and meshes), when it
+    is installed.
     """
-    dirs = {"calib's models": models_dir()}
+    dirs = {"calib": Path(__file__).resolve().parent, "calib's models": models_dir()}
     with contextlib.suppress(CalibError):
         dirs["example-robot-data"] = erd_robots_dir().parent
     return dirs

@@ -27,6 +27,7 @@ from calib.collision import find_srdf
 ROOT = Path(__file__).resolve().parents[1]
 UR5_SRDF = find_srdf(catalog_entry("ur5").path)
 PANDA_SRDF = find_srdf(catalog_entry("panda").path)
+CALIB_DIR = Path(calib.measurements.__file__).resolve().parent
 
 
 def digest(path: Path) -> str:
@@ -107,6 +108,7 @@ def test_no_command_writes_onto_what_it_reads(tmp_path, capsys, campaign, tree_c
         ([*design, "--srdf", srdf, "--out", srdf], srdf),
         ([*design, "--out", UR5_SRDF], UR5_SRDF),  # example-robot-data's own SRDF
         ([*design, "--out", UR5_SRDF.parent / "new.csv"], None),  # inside the package
+        ([*design, "--out", CALIB_DIR / "new.csv"], None),  # inside calib itself
     ]  # fmt: skip
     for argv, target in cases:
         before = {p: digest(p) for p in (data, val, tree, srdf, UR5_SRDF)}
@@ -114,7 +116,7 @@ def test_no_command_writes_onto_what_it_reads(tmp_path, capsys, campaign, tree_c
         assert "--out" in line or "--report" in line or "--truth" in line, line
         assert {p: digest(p) for p in before} == before, argv
         assert target is None or target.exists()
-    assert not (UR5_SRDF.parent / "new.csv").exists()
+    assert not (UR5_SRDF.parent / "new.csv").exists() and not (CALIB_DIR / "new.csv").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.csv", "t.csv", "ur5.srdf", "v.csv"]
 
 
