@@ -408,14 +408,17 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
 
     Raised again on the way out (an error included), so that :func:`main` prints them.
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            yield caught
-        finally:
-            pending = list(caught)
-    for w in pending:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    pending: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                yield caught
+            finally:
+                pending = list(caught)
+    finally:
+        for w in pending:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:

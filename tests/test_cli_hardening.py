@@ -383,14 +383,18 @@ def test_a_constant_joint_column_is_named_as_such(tmp_path, capsys, campaign):
     rows = rows_of(campaign)
     for r in rows:
         r["wrist_1_joint"] = "0.3"
+        r["comment"] = "x"
     data = tmp_path / "const.csv"
     with open(data, "w", newline="") as f:
         writer = csv.DictWriter(f, list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    line = one_error(capsys, ["calibrate", "ur5", "--data", data, "--out", tmp_path / "c"])
-    assert "wrist_1_joint" in line and "one value in every row" in line
+    code, _, err = run(capsys, ["calibrate", "ur5", "--data", data, "--out", tmp_path / "c"])
+    (line,) = [e for e in err.splitlines() if e.startswith("calib: error:")]
+    assert code == 2 and "wrist_1_joint" in line and "one value in every row" in line
     assert "millimetres" not in line
+    # the warning raised before the error is printed too
+    assert any("comment" in w and "ignored" in w for w in warning_lines(err)), err
 
 
 def test_a_normal_campaign_with_its_noise_gets_no_check_the_data_warning(
