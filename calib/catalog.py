@@ -135,3 +135,16 @@ def catalog_files() -> dict[str, Path]:
         if path.is_file():
             labels.setdefault(path, f"the catalog's file {path.name}")
     return {label: path for path, label in labels.items()}
+
+
+def installed_dirs() -> dict[str, Path]:
+    """Folders of installed packages that calib reads, by name: no output may go inside.
+
+    calib itself, its ``models/`` (installed inside it, or the project's folder) and
+    example-robot-data's ``share/example-robot-data`` (its URDFs, SRDFs and meshes), when it
+    is installed.
+    """
+    dirs = {"calib": Path(__file__).resolve().parent, "calib's models": models_dir()}
+    with contextlib.suppress(CalibError):
+        dirs["example-robot-data"] = erd_robots_dir().parent
+    return dirs

@@ -80,23 +80,28 @@ def joint_positions(q, n: int) -> np.ndarray:
     return real_array(q, "joint positions", shape, bound=MAX_JOINT_POSITION).reshape(-1, n)
 
 
-def check_work(m: int, n: int, chain: str | None = None) -> None:
+def check_work(
+    m: int, n: int, chain: str | None = None, per_config: int = 1, what: str = "configurations"
+) -> None:
     """Refuse, before any work, an analysis that would need more than :data:`MAX_WORK_BYTES`.
 
     Args:
-        m: Number of configurations.
-        n: Number of joints of the chain.
+        m: Number of configurations (the user's count).
+        n: Number of joints of the chain or tree.
         chain: How the message names the chain (default: "a chain of n joints").
+        per_config: Tool placements per configuration (a tree's tools): the work of one
+            configuration is that of ``per_config`` chains.
+        what: What ``m`` counts in the message ("configurations", "candidates").
 
     Raises:
-        InvalidArgumentError: The estimate exceeds the budget; the message says how many
-            configurations fit.
+        InvalidArgumentError: The estimate exceeds the budget; the message names ``m`` and
+            how many fit.
     """
-    need = m * max(n, 1) * BYTES_PER_CONFIG_JOINT
+    per = max(n, 1) * max(per_config, 1) * BYTES_PER_CONFIG_JOINT
+    need = m * per
     if need > MAX_WORK_BYTES:
-        fit = MAX_WORK_BYTES // (max(n, 1) * BYTES_PER_CONFIG_JOINT)
         raise InvalidArgumentError(
-            f"{m} configurations of {chain or f'a chain of {n} joints'} need about "
+            f"{m} {what} of {chain or f'a chain of {n} joints'} need about "
             f"{need / 2**30:.3g} GB; calib "
-            f"allows {MAX_WORK_BYTES / 2**30:g} GB: use at most {fit} configurations"
+            f"allows {MAX_WORK_BYTES / 2**30:g} GB: use at most {MAX_WORK_BYTES // per} {what}"
         )

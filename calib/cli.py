@@ -23,7 +23,7 @@ from .calibration.options import (
     LEVELS,
     LOSSES,
 )
-from .catalog import catalog, catalog_files
+from .catalog import catalog, catalog_files, installed_dirs
 from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from .identifiability import DEFAULT_CONFIGS, analyze
@@ -47,17 +47,50 @@ if TYPE_CHECKING:
     import numpy as np
 
 _GIVEN = "_calib_given"
-"""Namespace attribute where :class:`_StoreOnce` notes the options already given."""
+"""Namespace attribute where the actions note the options given (dest: option string);
+:func:`main` moves it to ``args.given``, where a command checks which options were given."""
+
+
+def _note_given(parser, namespace, dest: str, option_string: str | None) -> None:
+    """Record an option as given; the same option (or its opposite) given again is an error."""
+    given = vars(namespace).setdefault(_GIVEN, {})
+    if option_string is not None and dest in given:
+        first = given[dest]
+        what = "given more than once" if first == option_string else f"contradicts {first}"
+        parser.error(f"argument {option_string}: {what} (give it once)")
+    given[dest] = option_string
 
 
 class _StoreOnce(argparse._StoreAction):
     """A value option given twice is an error (argparse would silently keep the last)."""
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
-        given = vars(namespace).setdefault(_GIVEN, set())
-        if option_string is not None and self.dest in given:
-            parser.error(f"argument {option_string}: given more than once (it takes one value)")
-        given.add(self.dest)
+        _note_given(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class _StoreTrueOnce(argparse._StoreTrueAction):
+    """A flag given twice is an error, like a value option."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        _note_given(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class BooleanOnce(argparse.BooleanOptionalAction):
+    """``--x`` / ``--no-x`` given once: both, or one twice, is a usage error."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        """Note the option, then set it."""
+        _note_given(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class _AppendNoted(argparse._AppendAction):
+    """A repeatable option (``--tool``, ``--obstacle``): repeats allowed, noted as given."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        vars(namespace).setdefault(_GIVEN, {})[self.dest] = option_string
         super().__call__(parser, namespace, values, option_string)
 
 
@@ -68,9 +101,28 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self.register("action", None, _StoreOnce)
         self.register("action", "store", _StoreOnce)
+        self.register("action", "store_true", _StoreTrueOnce)
+        self.register("action", "append", _AppendNoted)
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
+
+
+def given_options(args: argparse.Namespace, dests) -> list[str]:
+    """The options among ``dests`` (argparse dests) the user gave, as typed (``--no-x``)."""
+    given = getattr(args, "given", {})
+    return [given[d] for d in dests if given.get(d)]
+
+
+def positive_number(text: str) -> float:
+    """The type of a positive option: a finite number > 0 (else a usage error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got '{text}'")
+    return value
 
 
 def print_json(obj: dict) -> None:
@@ -229,10 +281,11 @@ def check_output_paths(
 ) -> None:
     """Refuse now, in one line, outputs that cannot be written or would overwrite a file.
 
-    The files protected: the command's inputs, the installed catalog's files, the other
+    The files protected: the command's inputs, the installed catalog's files, every file of
+    the installed packages calib reads (:func:`~calib.catalog.installed_dirs`), the other
     outputs.
     """
-    check_outputs(outputs, {**inputs, **catalog_files()})
+    check_outputs(outputs, {**inputs, **catalog_files()}, installed_dirs())
 
 
 def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
@@ -342,10 +395,49 @@ def _columns(args: argparse.Namespace):
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report."""
-    chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree):
-        return _calibrate_tree(args, chain)
+    """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report.
+
+    Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
+    the report's ``warnings`` too.
+    """
+    with _recorded_warnings() as recorded:
+        chain = load_robot(args.robot, args.base, tool_arg(args))
+        if isinstance(chain, Tree):
+            return _calibrate_tree(args, chain, recorded)
+        return _calibrate_chain(args, chain, recorded)
+
+
+@contextlib.contextmanager
+def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
+    """The warnings raised inside, in a list that grows as they come; raised again after.
+
+    Raised again on the way out (an error included), so that :func:`main` prints them.
+    """
+    pending: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                yield caught
+            finally:
+                pending = list(caught)
+    finally:
+        for w in pending:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:
+    """The report with the recorded warnings added to its ``warnings`` (each once, in order)."""
+    lines = list(report.get("warnings", []))
+    for w in recorded:
+        text = _one_line(w.message)
+        if issubclass(w.category, UserWarning) and text not in lines:
+            lines.append(text)
+    return {**report, "warnings": lines}
+
+
+def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
+    """`calibrate` with one tool."""
     from .calibration import calibrate  # only this command loads the calibration
     from .calibration.text import calibration_text
     from .elastic import compliance_document
@@ -399,7 +491,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
     return _write_calibration(
         args,
-        result.to_dict(args.world_link),
+        _with_warnings(result.to_dict(args.world_link), recorded),
         lambda: calibration_text(result),
         result.refusal,
         files,
@@ -490,7 +582,7 @@ CHAIN_ONLY = {
 """Options of `calibrate` a tree calibration does not take, at their defaults."""
 
 
-def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
+def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
     from .calibration.tree_pipeline import TREE_LEVELS, calibrate_tree
     from .tree_export import calibrated_tree_urdf
@@ -532,7 +624,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree) -> int:
     )
     return _write_calibration(
         args,
-        result.to_dict(),
+        _with_warnings(result.to_dict(), recorded),
         result.text,
         result.refusal,
         lambda: {
@@ -767,7 +859,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
     p.add_argument(
         "--elastic",
-        action=argparse.BooleanOptionalAction,
+        action=BooleanOnce,
         default=None,
         help="fit joint compliance under gravity (default: with --params auto, where the URDF "
         "has masses)",
@@ -982,12 +1074,38 @@ def main(argv: Sequence[str] | None = None) -> int:
     Errors are one line on stderr and exit code 2; SIGINT gives 130 and SIGTERM 143, after
     any temporary file is removed.
     """
+    try:
+        with _interrupts_raise():
+            return _main(argv)
+    except KeyboardInterrupt:  # outside a command (parsing, printing the warnings)
+        print("calib: interrupted", file=sys.stderr)
+        return 130
+
+
+@contextlib.contextmanager
+def _interrupts_raise() -> Iterator[None]:
+    """SIGINT raises KeyboardInterrupt inside (main thread only); the old handler is back after.
+
+    The entry point (:mod:`_calib_entry`) installs a handler that exits at once, for the
+    imports; a command needs the exception instead, so that its temporary files go.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # usage error (one line already printed), --help, --version
         return exc.code if isinstance(exc.code, int) else 2
-    vars(args).pop(_GIVEN, None)
+    args.given = dict(vars(args).pop(_GIVEN, {}))
     with warnings.catch_warnings(record=True) as caught, _verbose_logging(args.verbose):
         warnings.simplefilter("always")
         code = _run(args)

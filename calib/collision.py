@@ -30,11 +30,11 @@ import pinocchio as pin
 
 from .catalog import erd_robots_dir
 from .exceptions import CalibError, InvalidArgumentError, URDFError
-from .fileio import read_text_limited
+from .fileio import read_bytes_limited, read_text_limited
 from .robot import Chain
 from .tree import Tree
 from .urdf_model import console_captured
-from .urdf_xml import MAX_URDF_BYTES
+from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
 _LOG = logging.getLogger("calib")
 
@@ -148,6 +148,65 @@ def find_srdf(urdf: Path) -> Path | None:
     return None
 
 
+def _srdf_error(path: Path, reason: str) -> InvalidArgumentError:
+    return InvalidArgumentError(f"SRDF {path}: {reason}")
+
+
+def read_srdf(path: str | Path, robot: Chain | Tree) -> tuple[str, tuple[str, ...]]:
+    """An SRDF's text, read with the URDF's size limit and checked, and notes on it.
+
+    Checked: well-formed XML whose root is ``<robot>`` (without a URDF's links), every
+    ``<disable_collisions>`` with ``link1`` and ``link2``, and at least one pair naming two
+    links of the robot when the file disables any (an SRDF of another robot). Pairs naming
+    other links are skipped, with a note (example-robot-data's SRDFs hold some).
+
+    Raises:
+        InvalidArgumentError: One line naming the file: missing, unreadable, too large,
+            empty, not XML, not an SRDF, or for another robot.
+    """
+    path = Path(path)
+    try:
+        raw = read_bytes_limited(path, MAX_URDF_BYTES)
+    except FileNotFoundError:
+        raise _srdf_error(path, "no such file") from None
+    except OSError as exc:
+        raise _srdf_error(path, f"cannot read the file: {exc.strerror or exc}") from None
+    if not raw.strip():
+        raise _srdf_error(path, "empty file")
+    try:
+        root = parse_xml(raw, str(path))
+        text = raw.decode("utf-8-sig")
+    except (URDFError, UnicodeDecodeError) as exc:
+        reason = exc.reason if isinstance(exc, URDFError) else "not UTF-8 text"
+        raise _srdf_error(path, reason) from None
+    if root.tag != "robot":
+        raise _srdf_error(path, f"the root element is <{root.tag}>, not an SRDF's <robot>")
+    if root.find("link") is not None or root.find("joint") is not None:
+        raise _srdf_error(path, "it has <link> or <joint> elements: a URDF, not an SRDF")
+    pairs = [(p.get("link1"), p.get("link2")) for p in root.iter("disable_collisions")]
+    if any(a is None or b is None for a, b in pairs):
+        raise _srdf_error(path, "a <disable_collisions> element lacks link1 or link2")
+    links = {f.name for f in robot.model.frames if f.type == pin.FrameType.BODY}
+    known = sum(a in links and b in links for a, b in pairs)
+    if pairs and not known:
+        raise _srdf_error(
+            path,
+            f"none of its {len(pairs)} disabled pairs names two links of {robot.name} "
+            f"(first: {pairs[0][0]}, {pairs[0][1]}): the SRDF of another robot?",
+        )
+    notes = (
+        ()
+        if known == len(pairs)
+        else (f"{len(pairs) - known} pair(s) of {path.name} name links not in the URDF: skipped",)
+    )
+    return text, notes
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
 def _package_dirs(urdf: Path) -> list[str]:
     dirs = [str(urdf.parent), str(urdf.parent.parent)]
     with contextlib.suppress(CalibError):
@@ -214,16 +273,20 @@ def _relative_motion(robot: Chain | Tree, a: int, b: int) -> bool:
 def _keep_pairs(robot: Chain | Tree, geom: pin.GeometryModel, srdf: Path | None) -> list[str]:
     """Active pairs: those the robot moves, minus SRDF-disabled and touching at reference."""
     model = robot.model
+    srdf_text, notes = read_srdf(srdf, robot) if srdf is not None else (None, ())
+    notes = list(notes)
     joints = [o.parentJoint for o in geom.geometryObjects]
     for a in range(len(joints)):
         for b in range(a + 1, len(joints)):
             if _relative_motion(robot, joints[a], joints[b]):
                 geom.addCollisionPair(pin.CollisionPair(a, b))
-    notes = []
     before = len(geom.collisionPairs)
     if srdf is not None:
         with console_captured():
-            pin.removeCollisionPairs(model, geom, str(srdf))
+            try:
+                pin.removeCollisionPairsFromXML(model, geom, srdf_text)
+            except (RuntimeError, ValueError) as exc:
+                raise _srdf_error(srdf, f"Pinocchio cannot read it ({_first_line(exc)})") from None
         notes.append(f"{before - len(geom.collisionPairs)} pair(s) disabled by {srdf.name}")
     data, gdata = model.createData(), pin.GeometryData(geom)
     q0 = robot.pin_configurations(reference_configuration(robot))[0]
@@ -252,7 +315,7 @@ def _add_obstacles(robot: Chain | Tree, geom, moving, obstacles, base: np.ndarra
 
 
 def collision_checker(
-    robot: Chain | Tree, srdf: str | Path | None = None, obstacles=()
+    robot: Chain | Tree, srdf: str | Path | None = None, obstacles=(), self_collision: bool = True
 ) -> CollisionChecker:
     """The collision model of a chain or tree, from its URDF's ``<collision>`` geometry.
 
@@ -261,21 +324,24 @@ def collision_checker(
         srdf: SRDF whose ``<disable_collisions>`` pairs are skipped (default: the one
             example-robot-data ships beside the URDF, if any).
         obstacles: Boxes ``(xmin, ymin, zmin, xmax, ymax, zmax)`` in the base frame [m].
+        self_collision: Check the robot against itself; False: only against the obstacles
+            (no SRDF is read).
 
     Returns:
         The checker; without collision geometry it checks nothing and its notes say so.
 
     Raises:
         URDFError: The geometry cannot be loaded (a missing mesh).
-        InvalidArgumentError: A missing SRDF file or a box with min > max.
+        InvalidArgumentError: A missing, unreadable or invalid SRDF (:func:`read_srdf`) or a
+            box with min > max.
     """
     for box in obstacles:
         if len(box) != 6 or not np.all(np.asarray(box[:3]) < np.asarray(box[3:])):
             raise InvalidArgumentError(
                 f"an obstacle box is xmin ymin zmin xmax ymax zmax with min < max, got {box}"
             )
-    if srdf is not None and not Path(srdf).is_file():
-        raise InvalidArgumentError(f"no SRDF file {srdf}")
+    if srdf is not None and self_collision:
+        read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
     srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(robot.urdf_path))
     geom = _geometry(robot)
     model = robot.model
@@ -295,6 +361,8 @@ def collision_checker(
     )
     if not geom.geometryObjects:
         notes = [f"{Path(robot.urdf_path).name} has no collision geometry: collisions not checked"]
+    elif not self_collision:
+        notes = ["self-collisions not checked" + (": obstacles only" if obstacles else "")]
     else:
         notes = _keep_pairs(robot, geom, srdf_path)
     _add_obstacles(robot, geom, moving, obstacles, base)

@@ -6,6 +6,9 @@ ones]. Other columns are ignored, so a measurement CSV is a configurations file 
 lines are skipped; numbers follow the measurement CSV's strict grammar, and a value far
 outside its joint limits is an error naming its row and column (as in
 :mod:`calib.measurements`).
+
+A tree's measurement file (a ``tool`` column) holds one row per tool at each configuration:
+consecutive rows with the same joint positions are one configuration there.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import numpy as np
 
 from .exceptions import DataError
 from .fileio import read_text_limited
-from .measurements import check_limits, csv_records, parse_number
+from .measurements import TOOL_COLUMN, check_limits, csv_records, parse_number
 from .robot import Chain
 
 MAX_CONFIGS_BYTES = 256 << 20
@@ -27,6 +30,8 @@ MAX_CONFIGS_BYTES = 256 << 20
 
 def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.ndarray:
     """Joint positions ``(m, n)`` from CSV text, columns in chain order.
+
+    With a ``tool`` column, consecutive rows of equal joint positions count once.
 
     Raises:
         DataError: A missing or duplicate joint column, a bad cell, a value far outside its
@@ -55,6 +60,8 @@ def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.
         raise DataError(source, "no configuration rows after the header")
     q = np.array(rows)
     check_limits(chain, q, source, np.array(lines), warn=False)
+    if TOOL_COLUMN in header:  # a tree's measurements: one row per tool and configuration
+        q = q[np.r_[True, np.any(q[1:] != q[:-1], axis=1)]]
     return q
 
 

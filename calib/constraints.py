@@ -6,7 +6,8 @@ Each filter keeps a candidate or rejects it, in this order:
    joints have none);
 2. ``workspace``: every measured point inside a box of the base frame (the instrument's
    volume);
-3. ``collision``: no self-collision, no contact with an obstacle box
+3. ``collision``: no self-collision (unless ``collision`` is off), no contact with an
+   obstacle box (always)
    (:mod:`calib.collision`; a URDF without collision geometry is accepted with a note);
 4. ``line_of_sight``: no geometry between the instrument and any measured point.
 """
@@ -35,8 +36,9 @@ class Constraints:
         margin: Distance [rad or m] every joint keeps from its limits.
         workspace: Box ``(xmin, ymin, zmin, xmax, ymax, zmax)`` [m] of the base frame that
             holds every measured point, or None.
-        collision: Reject self-collisions and contacts with ``obstacles``.
-        obstacles: Boxes ``(xmin, ymin, zmin, xmax, ymax, zmax)`` [m] of the base frame.
+        collision: Reject self-collisions.
+        obstacles: Boxes ``(xmin, ymin, zmin, xmax, ymax, zmax)`` [m] of the base frame;
+            candidates touching one are rejected, whatever ``collision`` says.
         srdf: SRDF of the disabled collision pairs (default: found beside the URDF).
         line_of_sight: Instrument position [m] in the base frame: every measured point must
             be in its view, or None.
@@ -187,7 +189,9 @@ def filter_candidates(
     if constraints.collision or constraints.line_of_sight is not None or constraints.obstacles:
         from .collision import collision_checker
 
-        checker = collision_checker(chain, constraints.srdf, constraints.obstacles)
+        checker = collision_checker(
+            chain, constraints.srdf, constraints.obstacles, self_collision=constraints.collision
+        )
         notes += checker.notes
         if constraints.collision or constraints.obstacles:
             idx = np.flatnonzero(keep)

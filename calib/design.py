@@ -118,7 +118,7 @@ def candidate_configurations(
     The independent joints are drawn (mimic joints follow the joint they mimic).
     """
     check_count(n, "the number of candidates")
-    check_work(n, chain.n, chain.name)
+    check_work(n, chain.n, chain.name, len(chain.tool_ids), "candidates")
     lower, upper = variable_bounds(chain, margin)
     rng = np.random.default_rng([check_count(seed, "the seed", 0), 5])
     return chain.joint_values(lower + (upper - lower) * rng.random((n, len(lower))))

@@ -10,7 +10,16 @@ import argparse
 import sys
 from pathlib import Path
 
-from .cli import add_chain_args, check_output_paths, print_json, tool_arg, write_outputs
+from .cli import (
+    BooleanOnce,
+    add_chain_args,
+    check_output_paths,
+    given_options,
+    positive_number,
+    print_json,
+    tool_arg,
+    write_outputs,
+)
 from .configurations import configurations_csv, read_configurations
 from .constraints import Constraints
 from .design import DEFAULT_CANDIDATES, design, design_text, evaluate, indices_table
@@ -20,9 +29,51 @@ from .measurements import CAMPAIGN_MEASURES
 from .observability import CRITERIA, DESIGN_LEVELS
 from .tree import load_robot
 
+CHOOSING = (
+    "configs",
+    "candidates",
+    "candidates_file",
+    "criterion",
+    "out",
+    "margin",
+    "workspace",
+    "line_of_sight",
+    "obstacle",
+    "srdf",
+    "collision",
+    "noise_mm",
+)
+"""Options of the choice of configurations, which ``--evaluate`` does not take."""
+
+
+def check_design_options(args: argparse.Namespace) -> None:
+    """Refuse options the chosen mode would ignore, or that contradict each other.
+
+    Raises:
+        InvalidArgumentError: A choice option with ``--evaluate``, ``--candidates`` with
+            ``--candidates-file``, ``--srdf`` with ``--no-collision``.
+    """
+    if args.evaluate:
+        ignored = given_options(args, CHOOSING)
+        if ignored:
+            raise InvalidArgumentError(
+                f"{ignored[0]} is for choosing configurations; --evaluate takes only --tool, "
+                f"--base, --measure, --marker, --params, --orientation-weight and --seed"
+            )
+    count = given_options(args, ("candidates",))
+    if count and args.candidates_file:
+        raise InvalidArgumentError(
+            f"{count[0]} draws random candidates; --candidates-file gives them: use one"
+        )
+    if args.srdf and not args.collision:
+        raise InvalidArgumentError(
+            "--srdf disables pairs of the self-collision check, which --no-collision turns off"
+        )
+
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    check_design_options(args)
     chain = load_robot(args.robot, args.base, tool_arg(args))
     markers = args.marker
     weight = args.orientation_weight
@@ -190,13 +241,13 @@ def add_design_parser(sub) -> None:
     )
     p.add_argument(
         "--collision",
-        action=argparse.BooleanOptionalAction,
+        action=BooleanOnce,
         default=True,
         help="reject self-colliding candidates (default: yes)",
     )
     p.add_argument(
         "--noise-mm",
-        type=float,
+        type=positive_number,
         default=0.05,
         help="noise for the printed error prediction [mm] (default: 0.05)",
     )

@@ -143,7 +143,9 @@ def same_file(a: PathLike, b: PathLike) -> bool:
 
 
 def check_outputs(
-    outputs: Mapping[str, PathLike | None], inputs: Mapping[str, PathLike | None] | None = None
+    outputs: Mapping[str, PathLike | None],
+    inputs: Mapping[str, PathLike | None] | None = None,
+    protected: Mapping[str, PathLike] | None = None,
 ) -> None:
     """Refuse, before any work, outputs that would overwrite an input or each other.
 
@@ -152,9 +154,12 @@ def check_outputs(
             None for an output not asked for.
         inputs: Input path by what it is (``{"the nominal URDF": path}``); None entries
             are ignored.
+        protected: Folders by what they are (installed packages): no output may resolve
+            to a path inside one.
 
     Raises:
-        InvalidArgumentError: An output is the same file as an input or as another output.
+        InvalidArgumentError: An output is the same file as an input or as another output,
+            or lies in a protected folder.
         OutputError: An output cannot be written: a directory, a missing or read-only
             directory, a socket.
     """
@@ -163,6 +168,7 @@ def check_outputs(
         for what, source in (inputs or {}).items():
             if source is not None and same_file(path, source):
                 raise InvalidArgumentError(f"{option} {os.fspath(path)} would overwrite {what}")
+        _check_not_inside(option, path, protected or {})
     for (opt_a, a), (opt_b, b) in itertools.combinations(given.items(), 2):
         if same_file(a, b):
             raise InvalidArgumentError(
@@ -170,6 +176,20 @@ def check_outputs(
             )
     for path in given.values():
         _check_writable(_target(path))
+
+
+def _check_not_inside(option: str, path: PathLike, protected: Mapping[str, PathLike]) -> None:
+    """Refuse an output whose resolved path lies inside a protected folder."""
+    text = os.fspath(path)
+    if text == STDOUT or os.path.abspath(text).startswith(_DIRECT_TREES):
+        return
+    real = Path(os.path.realpath(text))
+    for what, folder in protected.items():
+        if real.is_relative_to(os.path.realpath(folder)):
+            raise InvalidArgumentError(
+                f"{option} {text} is inside the installed files of {what}: write elsewhere"
+            )
+
 
 READ_CHUNK = 1 << 20
 """Bytes read at a time by :func:`read_bytes_limited` [B]."""

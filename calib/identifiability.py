@@ -544,7 +544,7 @@ def _checked_arguments(mdh, params, measurement, configs):
     if configs is None:
         raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
     q = joint_positions(configs, mdh.n)
-    check_work(len(q) * len(mdh.tool_rows), mdh.n)
+    check_work(len(q), mdh.n, per_config=len(mdh.tool_rows))
     return measurement, pset, q
 
 

@@ -42,7 +42,7 @@ import numpy as np
 
 from . import marker_set
 from .exceptions import DataError, InvalidArgumentError
-from .fileio import write_atomic
+from .fileio import read_text_limited, write_atomic
 from .identifiability import Identifiability, analyze_model
 from .jacobian import Measurement, measured_point
 from .mdh import MDHModel, from_chain
@@ -60,6 +60,9 @@ MAX_COORDINATE = 1e3
 Larger values (a unit mix-up, a corrupt file) are rejected: squared in the residuals they
 would overflow to infinity.
 """
+
+MAX_MEASUREMENTS_BYTES = 256 << 20
+"""Largest measurement or validation CSV read [B] (a million rows of 20 joints and a pose)."""
 
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
 """Columns of the measured orientation, a quaternion with the scalar last."""
@@ -660,7 +663,27 @@ def parse_measurements(
         angles,
     )
     _check_tools(data, tool_frames(chain))
+    _warn_repeats(data)
     return data
+
+
+def _warn_repeats(data: Measurements) -> None:
+    """Warn when rows repeat an earlier row's joint positions (and tool): not independent."""
+    key = data.q
+    if data.tool is not None:
+        key = np.column_stack([key, np.unique(np.array(data.tool), return_inverse=True)[1]])
+    _, first = np.unique(key, axis=0, return_index=True)
+    repeats = data.m - len(first)
+    if repeats:
+        row = int(np.flatnonzero(~np.isin(np.arange(data.m), first))[0])
+        line = data.rows[row] if data.rows else row + 2
+        warnings.warn(
+            f"{data.source}: {repeats} of {data.m} rows repeat the joint positions of an "
+            f"earlier row (first: row {line}): repeated configurations are not independent "
+            f"measurements, the reported uncertainty is overconfident",
+            DataWarning,
+            stacklevel=4,
+        )
 
 
 def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
@@ -692,16 +715,17 @@ def read_measurements(
         The measurements, joints in chain order.
 
     Raises:
-        DataError: The file is missing or unreadable, or its content is invalid (see
+        DataError: The file is missing, unreadable, not UTF-8 or larger than
+            :data:`MAX_MEASUREMENTS_BYTES`, or its content is invalid (see
             :func:`parse_measurements`).
     """
     src = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8-sig")
+        text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
     except FileNotFoundError:
         raise DataError(src, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(src, f"cannot read the file: {exc}") from None
+    except OSError as exc:
+        raise DataError(src, f"cannot read the file: {exc.strerror or exc}") from None
     return parse_measurements(text, chain, src, columns)
 
 

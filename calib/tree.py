@@ -155,7 +155,7 @@ class Tree(JointCounts):
         """
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)
-        check_work(int(m) * self.n_tools, self.n)
+        check_work(int(m), self.n, f"{self.name} ({self.n_tools} tools)", self.n_tools)
         rng = np.random.default_rng(int(seed))
         if self.coupling is None:
             return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))

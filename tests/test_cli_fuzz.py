@@ -2,7 +2,9 @@
 
 The contract, whatever the bytes: exit 0 with valid output, or a non-zero exit with exactly
 one ``calib: error:`` line on stderr and no traceback; the input file is unchanged; the output
-directory holds nothing but complete outputs (no temporary or half-written file).
+directory holds nothing but complete outputs (no temporary or half-written file). The files
+mutated: URDFs, measurement CSVs, and the inputs of ``calib design`` (configurations files for
+``--evaluate`` and ``--candidates-file``, SRDFs).
 """
 
 from __future__ import annotations
@@ -26,6 +28,16 @@ from calib.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 AID = ROOT / "models" / "aid.urdf"
+
+
+def _ur5_srdf() -> bytes:
+    from calib.catalog import catalog_entry
+    from calib.collision import find_srdf
+
+    return find_srdf(catalog_entry("ur5").path).read_bytes()
+
+
+UR5_SRDF_BYTES = _ur5_srdf()
 
 FUZZ = settings(
     max_examples=int(os.environ.get("CALIB_FUZZ_EXAMPLES", "80")),
@@ -382,3 +394,56 @@ def test_hostile_options_on_chains_and_trees(campaigns, robot, options):
         _calibrate_contract(argv, {meas: campaigns[robot]}, out_dir)
         if ["--validate", "SELF"] in options:
             assert not (out_dir / "cal.urdf").exists()
+
+# Design inputs: configurations files (--evaluate, --candidates-file) and SRDFs
+# --------------------------------------------------------------------------------------
+
+DESIGN_FUZZ = settings(FUZZ, max_examples=max(10, FUZZ.max_examples // 4))
+"""Fewer examples: each design filters candidates through the collision model."""
+
+
+@pytest.fixture(scope="module")
+def clean_configs(tmp_path_factory) -> bytes:
+    path = tmp_path_factory.mktemp("configs") / "q.csv"
+    code, _, err = run_cli(
+        ["design", "ur5", "--configs", "12", "--candidates", "60", "--out", str(path)]
+    )
+    assert code == 0, err
+    return path.read_bytes()
+
+
+def _design_outputs(out_dir: Path, code: int, rows: int | None) -> None:
+    left = sorted(p.name for p in out_dir.iterdir())
+    if code == 0:
+        assert left == ["q.csv"]
+        assert rows is None or len(csv_rows(out_dir / "q.csv")) == rows
+    else:
+        assert left == []
+
+
+@FUZZ
+@given(data=st.data())
+def test_mutated_configurations_for_design(clean_configs, data):
+    """--evaluate and --candidates-file read a mutated configurations file."""
+    text = data.draw(mutated(clean_configs), label="configs")
+    with workspace("q.csv", text) as (configs, out_dir):
+        code, out, err = run_cli(["design", "ur5", "--evaluate", str(configs), "--json"])
+        check_contract(code, out, err, strict_json)
+        argv = ["design", "ur5", "--configs", "6", "--candidates-file", str(configs)]
+        code, out, err = run_cli([*argv, "--no-collision", "--out", str(out_dir / "q.csv")])
+        check_contract(code, out, err, lambda _: None)
+        assert configs.read_bytes() == text
+        _design_outputs(out_dir, code, 6)
+
+
+@DESIGN_FUZZ
+@given(srdf=mutated(UR5_SRDF_BYTES))
+def test_mutated_srdf(srdf):
+    with workspace("ur5.srdf", srdf) as (path, out_dir):
+        argv = ["design", "ur5", "--configs", "9", "--candidates", "40", "--srdf", str(path)]
+        code, out, err = run_cli([*argv, "--out", str(out_dir / "q.csv")])
+        check_contract(code, out, err, lambda _: None)
+        assert path.read_bytes() == srdf
+        _design_outputs(out_dir, code, 9)
+        if code != 0 and "SRDF" in err:
+            assert str(path) in err  # an SRDF error names the file

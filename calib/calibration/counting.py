@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import MAX_WORK_BYTES
+from ..exceptions import InvalidArgumentError
 from ..identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..mdh import from_chain
 from ..measurements import Measurements
@@ -38,7 +40,9 @@ def identifiable_parameters(
         Frame, marker (and tool) parameters, then the MDH base parameters.
     """
     k = check_count(n_markers, "the number of markers")
+    check_count(configs, "the number of configurations")
     nominal = from_chain(chain).idealized()
+    check_marker_work(configs, k, len(complete_parameters(nominal)), measure == "pose")
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
     pose = measure == "pose"
@@ -56,4 +60,45 @@ def identifiable_parameters(
     return tuple(all_names[i] for i in sorted(kept))
 
 
-__all__ = ["identifiable_parameters"]
+MARKER_WORK_COPIES = 4
+"""Copies of the identification Jacobian the count holds at once (J, its weighted copy, the
+QR's factors), in the estimate of :func:`check_marker_work`."""
+
+
+def marker_work_bytes(m: int, k: int, n_params: int, pose: bool) -> int:
+    """Memory [B] of counting K markers at m configurations: the Jacobian's copies.
+
+    Rows: ``3 K`` (+ 3 for pose) per configuration; columns: the frame (6), the markers
+    (``3 K``, + 3 for pose) and the ``n_params`` geometric parameters.
+    """
+    rows = m * (3 * k + (3 if pose else 0))
+    cols = 6 + 3 * k + (3 if pose else 0) + n_params
+    return MARKER_WORK_COPIES * 8 * rows * cols
+
+
+def check_marker_work(m: int, k: int, n_params: int, pose: bool) -> None:
+    """Refuse, before any work, K markers whose count would need more than MAX_WORK_BYTES.
+
+    Raises:
+        InvalidArgumentError: Names K, the memory needed and the most markers that fit.
+    """
+    need = marker_work_bytes(m, k, n_params, pose)
+    if need <= MAX_WORK_BYTES:
+        return
+    lo, hi = 0, k  # the most markers that fit: lo fits (or is 0), hi does not
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (
+            (mid, hi) if marker_work_bytes(m, mid, n_params, pose) <= MAX_WORK_BYTES else (lo, mid)
+        )
+    per_config = marker_work_bytes(1, k, n_params, pose)
+    fit = [f"at most {lo} markers"] if lo else []
+    if MAX_WORK_BYTES // per_config:
+        fit.append(f"at most {MAX_WORK_BYTES // per_config} configurations (--configs)")
+    raise InvalidArgumentError(
+        f"{k} markers at {m} configurations need about {need / 2**30:.3g} GB; calib allows "
+        f"{MAX_WORK_BYTES / 2**30:g} GB: use {' or '.join(fit)}"
+    )
+
+
+__all__ = ["check_marker_work", "identifiable_parameters", "marker_work_bytes"]

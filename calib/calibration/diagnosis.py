@@ -15,6 +15,9 @@ Orientations are diagnosed the same way on the registration's orientation error
 (``ORIENTATION_SUSPECT`` [rad] RMS): the quaternion orders, angles (rpy or rotation vector)
 in degrees instead of radians, and rpy columns holding yaw, pitch, roll (or the rotations
 composed x, y, z instead of URDF's z, y, x).
+
+Joint columns that hold one value in every row are named first (a joint not logged): no
+unit or order mistake is looked for then.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ SUSPECT = 0.02
 """Registration RMS error per point [m] above which the usual mistakes are tried."""
 
 NOISE_FACTOR = 20.0
-"""... or above this many times the instrument noise, when given."""
+"""... or above this many times the instrument noise, when given and larger (the registration
+leaves the robot's geometric errors, whatever the noise: a low noise never lowers the bar)."""
 
 EXPLAINS = 5.0
 """A mistake explains the data if correcting it divides the RMS error by this."""
@@ -102,8 +106,16 @@ def _orientation_mistakes(data) -> Iterator[tuple[str, object]]:
 
 def suspect(rms: float, noise: float | None) -> bool:
     """Whether a registration RMS error [m] is too large for geometric errors."""
-    limit = SUSPECT if noise is None else min(SUSPECT, NOISE_FACTOR * noise)
+    limit = SUSPECT if noise is None else max(SUSPECT, NOISE_FACTOR * noise)
     return rms > limit
+
+
+def constant_joints(data) -> list[str]:
+    """Joint columns that hold one value in every row (of data with several rows)."""
+    if data.m < 2:
+        return []
+    same = np.all(data.q == data.q[0], axis=0)
+    return [name for name, s in zip(data.joint_names, same, strict=True) if s]
 
 
 def likely_cause(

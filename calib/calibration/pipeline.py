@@ -261,6 +261,14 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None)
     revolute = chain.sigma == 0
     if diagnosis.suspect(first.position_rms, opts.noise):
+        still = diagnosis.constant_joints(data)
+        if still:
+            raise DataError(
+                data.source,
+                f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS and joint "
+                f"column(s) {', '.join(still)} hold one value in every row: were those joints "
+                f"logged?",
+            )
         cause = diagnosis.likely_cause(
             data, revolute, lambda d: errors(d).position_rms, first.position_rms
         )
@@ -414,6 +422,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
     columns = [i for i in kept if i >= fixed]  # kept is in column order
     cand = [wide.names()[i] for i in columns]
+    _check_free(opts.free, cand, wide.names(), J.reshape(-1, J.shape[2]), fixed)
     if len(kept) < fixed:
         raise DataError(
             data.source,
@@ -428,6 +437,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
             f"generic configurations would: --params auto chooses among those only"
         )
     if opts.level == "auto":
+        check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
         Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
         cols = list(range(fixed)) + columns
         forced = [cand.index(n) for n in opts.free if n in cand]
@@ -456,6 +466,62 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     generic = Measurements(data.joint_names, q, pts.reshape(len(q), -1), quat)
     J = wide.jacobian(state, np.zeros(wide.size()), generic, torque) * w[None, :, None]
     return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
+
+
+SELECTION_WORK = 1.2e9
+"""Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
+is run on: its leave-one-configuration-out QR factorisations cost about this. Measured on one
+core (benchmarks/bench_large_campaigns.py): a UR5's 20,000 positions (1.1e9) take 45 s; its
+20,000 poses (2.7e9) ran past 77 s, 50 markers at 200 configurations (2e10) 420 s."""
+
+
+def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:
+    """Refuse, before it starts, a selection (``--params auto``) too long to wait for.
+
+    Args:
+        m: Configurations.
+        rows: Rows per configuration (3 per marker, 3 more for an orientation).
+        fixed: Frame and marker columns.
+        candidates: Candidate parameters.
+
+    Raises:
+        InvalidArgumentError: The work exceeds :data:`SELECTION_WORK`; says what to do.
+    """
+    work = m * rows * (fixed + candidates) ** 2 * candidates
+    if work > SELECTION_WORK:
+        raise InvalidArgumentError(
+            f"--params auto would cross-validate {candidates} parameters on {m} configurations "
+            f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
+            f"times the work calib runs it on (about a minute on one core); give a level "
+            f"(--params complete, paper, offsets or frames), or fewer configurations or markers"
+        )
+
+
+def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:
+    """Refuse a ``--free`` parameter the data cannot fit on its own, saying why.
+
+    Args:
+        free: ``--free`` names.
+        cand: The identifiable names (independent columns, in preference order).
+        names: Every column's name; the first ``fixed`` are the frame's and markers'.
+        J: The weighted Jacobian ``(rows, columns)``.
+        fixed: Number of frame and marker columns.
+
+    Raises:
+        InvalidArgumentError: A name whose column the frame and markers carry, or that is
+            regrouped with parameters kept before it.
+    """
+    for name in free:
+        if name in cand or name not in names:
+            continue  # fitted; or a group name (frame, markers, tool)
+        col = names.index(name)
+        _, _, kept, _ = independent_columns(J[:, [*range(fixed), col]], list(range(fixed + 1)))
+        why = (
+            "the measurement frame and markers carry it (they are always fitted)"
+            if fixed not in kept
+            else "it is regrouped with parameters kept before it (not identifiable on its own)"
+        )
+        raise InvalidArgumentError(f"--free {name} cannot be fitted: {why}; drop it from --free")
 
 
 def _assemble(

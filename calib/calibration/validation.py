@@ -35,10 +35,19 @@ RANK_TOL = 1e-9
 def split(
     data: Measurements, fraction: float, seed: int
 ) -> tuple[Measurements, Measurements | None]:
-    """Set aside a seeded random ``fraction`` of the configurations (training, held out)."""
+    """Set aside a seeded random ``fraction`` of the configurations (training, held out).
+
+    Raises:
+        InvalidArgumentError: ``fraction`` outside [0, 1), or > 0 but holding out no row.
+    """
     if not (0.0 <= fraction < 1.0):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {fraction!r}")
     n_out = round(fraction * data.m)
+    if n_out == 0 and fraction > 0.0:
+        raise InvalidArgumentError(
+            f"--holdout {fraction:g} of {data.m} rows holds out no row: give at least "
+            f"{1.0 / data.m:.3g} (one row), or 0 for no holdout"
+        )
     if n_out == 0:
         return data, None
     held = np.zeros(data.m, dtype=bool)
