@@ -906,10 +906,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     with warnings.catch_warnings(record=True) as caught, _verbose_logging(args.verbose):
         warnings.simplefilter("always")
         code = _run(args)
-    for w in caught:
-        if issubclass(w.category, UserWarning):
-            print(f"calib: warning: {_one_line(w.message)}", file=sys.stderr)
+    sys.stdout.flush()  # the warnings come after the output
+    for line in warning_lines(caught):
+        print(line, file=sys.stderr)
     return code
+
+
+def warning_lines(caught: Sequence[warnings.WarningMessage]) -> list[str]:
+    """The warnings a user sees, one line each, each distinct message once.
+
+    calib's own warnings and other ``UserWarning`` subclasses, and the ``RuntimeWarning``
+    subclasses of numpy and scipy (overflow, invalid value, an ill-conditioned matrix), which
+    say something about the numbers printed: those name their source. Warnings about the code
+    itself (deprecations, imports, resources) are left out.
+    """
+    seen: dict[str, int] = {}
+    for w in caught:
+        if not issubclass(w.category, UserWarning | RuntimeWarning):
+            continue
+        text = _one_line(w.message)
+        path = os.path.normpath(w.filename or "").split(os.sep)
+        source = next((s for s in ("numpy", "scipy") if s in path), None)
+        if source or not issubclass(w.category, UserWarning):
+            text = f"{w.category.__name__}{f' from {source}' if source else ''}: {text}"
+        seen[text] = seen.get(text, 0) + 1
+    return [
+        f"calib: warning: {text}" + (f" ({count} times)" if count > 1 else "")
+        for text, count in seen.items()
+    ]
 
 
 if __name__ == "__main__":
