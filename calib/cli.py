@@ -23,10 +23,11 @@ from .calibration.options import (
     LEVELS,
     LOSSES,
 )
-from .catalog import catalog, catalog_files
+from .catalog import catalog_files
 from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from .identifiability import DEFAULT_CONFIGS, analyze
+from .launcher import catalog_listing
 from .mdh import from_chain
 from .measurements import (
     CAMPAIGN_MEASURES,
@@ -38,7 +39,7 @@ from .measurements import (
     simulate,
 )
 from .parameters import PARAMETER_SETS
-from .report import analysis_text, coupling_lines, format_table, mdh_table, tree_table
+from .report import analysis_text, coupling_lines, mdh_table, tree_table
 from .robot import Chain, load_chain
 from .tree import Tree, load_robot
 from .tree_model import from_tree
@@ -80,18 +81,7 @@ def print_json(obj: dict) -> None:
 
 def cmd_list(args: argparse.Namespace) -> int:
     """Print the catalog."""
-    rows = [
-        [
-            e.name,
-            f"{e.base} -> {', '.join(e.tools)}",
-            e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
-        ]
-        for e in catalog()
-    ]
-    if args.json:
-        print_json({"robots": [e.__dict__ | {"path": str(e.path)} for e in catalog()]})
-    else:
-        print(format_table(["name", "chain", "description"], rows))
+    print(catalog_listing(args.json))
     return 0
 
 
