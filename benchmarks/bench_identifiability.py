@@ -4,7 +4,7 @@ Also the structural step against FIGAROH 1.0.2's ``calculate_base_kinematics_reg
 measured in the same run: FIGAROH runs in its own venv (``FIGAROH_PYTHON``, default
 ``.figaroh-venv/bin/python``, which ``bash .ci/run bench`` creates), see figaroh_peer.py.
 
-Run: .venv/bin/python benchmarks/bench_identifiability.py [figaroh]   (figaroh: only that part)
+Run: .venv/bin/python benchmarks/bench_identifiability.py [figaroh | startup]   (only that part)
 """
 
 from __future__ import annotations
@@ -151,6 +151,19 @@ def versus_figaroh() -> None:
     print(table(header, rows))
 
 
+def start_up() -> None:
+    """Whole ``calib`` processes (interpreter start and imports included), with the targets."""
+    python = process_ms(["--python"], repeats=9)
+    rows = [
+        ["python -c pass (interpreter start, for reference)", f"{python:.0f}", "-"],
+        ["`calib --version`", f"{process_ms(['--version'], repeats=9):.0f}", "< 100"],
+        ["`calib list`", f"{process_ms(['list'], repeats=9):.0f}", "< 100"],
+        ["`calib analyze ur5`", f"{process_ms(['analyze', 'ur5'], repeats=9):.0f}", "< 250"],
+    ]
+    print("\nWhole processes:")
+    print(table(["command", "median [ms]", "target [ms]"], rows))
+
+
 def random_chain(n: int, seed: int):
     rng = np.random.default_rng(seed)
     points = np.cumsum(rng.uniform(-0.2, 0.2, (n, 3)), axis=0)
@@ -209,8 +222,8 @@ def main() -> None:
             f"{median_ms(lambda: analyze('ur5'), 50):.3f}",
         ]
     )
-    rows.append(["`calib analyze ur5` whole process", f"{process_ms(['analyze', 'ur5']):.0f}"])
     print(table(["case", "median [ms]"], rows))
+    start_up()
 
     print("\nGrowth with m (ur5, pose, W + QR + base set):")
     chain = load_chain("ur5")
@@ -239,5 +252,7 @@ def main() -> None:
 if __name__ == "__main__":
     if sys.argv[1:] == ["figaroh"]:  # only the comparison with FIGAROH
         versus_figaroh()
+    elif sys.argv[1:] == ["startup"]:  # only the whole processes
+        start_up()
     else:
         main()
