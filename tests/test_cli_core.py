@@ -310,3 +310,29 @@ def test_numpy_warnings_reach_the_user_after_the_output(tmp_path):
         check=False,
     ).stdout
     assert merged.index("OUTPUT") < merged.index("divide by zero")
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["list"], ["list", "--json"]])
+def test_the_calib_script_answers_version_and_list_without_numpy(argv):
+    """The installed ``calib`` script (calib.launcher) prints what ``calib.cli`` prints, and
+    does it without importing numpy, pinocchio or scipy."""
+    script = (
+        "import sys\n"
+        "from calib.launcher import main\n"
+        "code = main(sys.argv[1:])\n"
+        "heavy = sorted(m for m in ('numpy', 'pinocchio', 'scipy') if m in sys.modules)\n"
+        "print('HEAVY', heavy, file=sys.stderr)\n"
+        "sys.exit(code)\n"
+    )
+    fast = subprocess.run(
+        [sys.executable, "-c", script, *argv], capture_output=True, text=True, check=False
+    )
+    full = subprocess.run(
+        [sys.executable, "-c", "import sys; from calib.cli import main; sys.exit(main())", *argv],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert fast.returncode == full.returncode == 0
+    assert fast.stdout == full.stdout
+    assert fast.stderr == "HEAVY []\n"
