@@ -4,15 +4,17 @@ Also the structural step against FIGAROH 1.0.2's ``calculate_base_kinematics_reg
 measured in the same run: FIGAROH runs in its own venv (``FIGAROH_PYTHON``, default
 ``.figaroh-venv/bin/python``, which ``bash .ci/run bench`` creates), see figaroh_peer.py.
 
-Run: .venv/bin/python benchmarks/bench_identifiability.py
+Run: .venv/bin/python benchmarks/bench_identifiability.py [figaroh | startup]   (only that part)
 """
 
 from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -53,47 +55,113 @@ def structural_step(chain, mdh, params, measurement):
     return identify_base(mdh, params, identification_jacobian(mdh, params, q, measurement))
 
 
-def figaroh_ms(chains: dict) -> dict | None:
-    """FIGAROH's medians by chain name, or None when its venv is not there."""
+ROUNDS = 20
+"""Alternating pairs of batches (calib's, then FIGAROH's) per chain."""
+
+CALIB_BATCH, PEER_BATCH = 50, 5
+"""Calls per batch: about the same wall time each (calib's step is ~10x to 20x shorter)."""
+
+
+def figaroh_peer(chains: dict) -> subprocess.Popen | None:
+    """FIGAROH's step, running in its own venv and waiting for batches, or None without it."""
     python = Path(os.environ.get("FIGAROH_PYTHON", ROOT / ".figaroh-venv" / "bin" / "python"))
     if not python.exists():
         return None
-    args = [str(python), str(Path(__file__).with_name("figaroh_peer.py")), "30"]
+    args = [str(python), str(Path(__file__).with_name("figaroh_peer.py"))]
     for name, chain in chains.items():
         args += [name, str(chain.urdf_path), chain.tool_frame]
-    run = subprocess.run(args, capture_output=True, text=True, check=True)
-    return json.loads(run.stdout.strip().splitlines()[-1])
+    return subprocess.Popen(
+        args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    )
+
+
+def peer_batch(peer: subprocess.Popen, name: str, repeats: int) -> list[float]:
+    """Times [ms] of ``repeats`` FIGAROH steps on chain ``name``."""
+    peer.stdin.write(f"{name} {repeats}\n")
+    peer.stdin.flush()
+    return json.loads(peer.stdout.readline())
+
+
+def calib_batch(step, repeats: int) -> list[float]:
+    """Times [ms] of ``repeats`` calls of ``step`` after one warm-up call."""
+    step()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        step()
+        times.append(1e3 * (time.perf_counter() - t0))
+    return times
 
 
 def versus_figaroh() -> None:
-    """The structural step, UR5 and Panda, position, m = 100, against FIGAROH 1.0.2."""
+    """The structural step, UR5 and Panda, position, m = 100, against FIGAROH 1.0.2.
+
+    Measured in alternating pairs of batches (calib, FIGAROH, calib, FIGAROH, ...) of about
+    the same wall time, so that both see the same load of a shared machine. The ratio is
+    the median over the pairs of (FIGAROH's batch median / calib's batch median).
+    """
     position = Measurement.of("position")
     chains = {name: load_chain(name) for name in ("ur5", "panda")}
-    ours = {}
+    peer = figaroh_peer(chains)
+    n_peer = json.loads(peer.stdout.readline()) if peer else {}
+    rows = []
     for name, chain in chains.items():
         mdh = from_chain(chain).idealized()
         params = paper_parameters(mdh)
         step = lambda c=chain, m=mdh, p=params: structural_step(c, m, p, position)  # noqa: E731
-        ours[name] = (median_ms(step, 300), len(step()[2]))
-    peer = figaroh_ms(chains)
-    print("\nStructural step (random configurations, W, QR, base set), position, m = 100:")
-    if peer is None:
-        print("FIGAROH not measured: no venv (bash .ci/run bench creates .figaroh-venv)")
-    rows = []
-    for name, (ms, n_base) in ours.items():
-        other = peer[name] if peer else None
+        ours, theirs, ratios = [], [], []
+        for _ in range(ROUNDS if peer else 1):
+            a = calib_batch(step, CALIB_BATCH)
+            ours += a
+            if peer:
+                b = peer_batch(peer, name, PEER_BATCH)
+                theirs += b
+                ratios.append(statistics.median(b) / statistics.median(a))
+        ms = statistics.median(ours)
         rows.append(
             [
                 name,
                 f"{ms:.3f}",
-                n_base,
-                f"{other['median_ms']:.2f}" if other else "-",
-                other["n_base"] if other else "-",
-                f"{other['median_ms'] / ms:.1f}x" if other else "-",
+                len(step()[2]),
+                f"{statistics.median(theirs):.2f}" if peer else "-",
+                n_peer.get(name, "-"),
+                f"{statistics.median(ratios):.1f}x" if peer else "-",
+                f"{min(ratios):.1f}x to {max(ratios):.1f}x" if peer else "-",
             ]
         )
-    header = ["chain", "calib [ms]", "base", "FIGAROH 1.0.2 [ms]", "base", "calib faster"]
+    if peer:
+        peer.stdin.close()
+        peer.wait()
+    print(
+        f"\nStructural step (random configurations, W, QR, base set), position, m = 100; "
+        f"{ROUNDS} alternating pairs of batches ({CALIB_BATCH} calib calls, {PEER_BATCH} "
+        f"FIGAROH calls):"
+    )
+    if peer is None:
+        print("FIGAROH not measured: no venv (bash .ci/run bench creates .figaroh-venv)")
+    header = [
+        "chain",
+        "calib [ms]",
+        "base",
+        "FIGAROH 1.0.2 [ms]",
+        "base",
+        "calib faster (target >= 12x)",
+        "range over pairs",
+    ]
     print(table(header, rows))
+
+
+def start_up() -> None:
+    """Whole ``calib`` processes (interpreter start and imports included), with the targets."""
+    python = process_ms(["--python"], repeats=9)
+    rows = [
+        ["python -c pass (interpreter start, for reference)", f"{python:.0f}", "-"],
+        ["`calib --version`", f"{process_ms(['--version'], repeats=9):.0f}", "< 100"],
+        ["`calib list`", f"{process_ms(['list'], repeats=9):.0f}", "< 100"],
+        ["`calib analyze ur5`", f"{process_ms(['analyze', 'ur5'], repeats=9):.0f}", "< 250"],
+    ]
+    print("\nWhole processes:")
+    print(table(["command", "median [ms]", "target [ms]"], rows))
 
 
 def random_chain(n: int, seed: int):
@@ -154,8 +222,8 @@ def main() -> None:
             f"{median_ms(lambda: analyze('ur5'), 50):.3f}",
         ]
     )
-    rows.append(["`calib analyze ur5` whole process", f"{process_ms(['analyze', 'ur5']):.0f}"])
     print(table(["case", "median [ms]"], rows))
+    start_up()
 
     print("\nGrowth with m (ur5, pose, W + QR + base set):")
     chain = load_chain("ur5")
@@ -182,4 +250,9 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:] == ["figaroh"]:  # only the comparison with FIGAROH
+        versus_figaroh()
+    elif sys.argv[1:] == ["startup"]:  # only the whole processes
+        start_up()
+    else:
+        main()

@@ -33,11 +33,15 @@ def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> float:
 
 
 def process_ms(args: Sequence[str], repeats: int = 5) -> float:
-    """Median wall time of a whole ``calib`` process [ms] (interpreter start included)."""
+    """Median wall time of a whole ``calib`` process [ms] (interpreter start included).
+
+    ``["--python"]`` times the bare interpreter (``python -c pass``) instead, for reference.
+    """
+    command = [sys.executable, "-c", "pass"] if list(args) == ["--python"] else [str(CALIB), *args]
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        subprocess.run([str(CALIB), *args], check=True, capture_output=True)
+        subprocess.run(command, check=True, capture_output=True)
         times.append(time.perf_counter() - t0)
     return 1e3 * statistics.median(times)
 

@@ -2,12 +2,15 @@
 
 Run by ``bench_identifiability.py`` with the Python of a venv holding ``figaroh==1.0.2``:
 
-    python figaroh_peer.py REPEATS NAME URDF TOOL [NAME URDF TOOL ...]
+    python figaroh_peer.py NAME URDF TOOL [NAME URDF TOOL ...]
 
 For each chain (base: the URDF root), ``calculate_base_kinematics_regressor`` draws 100
 random configurations itself, builds the kinematic regressor of the tool position, removes
 the columns without effect and selects the base parameters by QR: the same step calib
-times. Prints one JSON object: name -> {"median_ms", "n_base"}.
+times. The peer stays up so that the benchmark can alternate calib's and FIGAROH's batches:
+it first prints one JSON line, name -> number of base parameters, then reads lines
+``NAME REPEATS`` on stdin, runs the step ``REPEATS`` times (after one warm-up call) and
+answers each with one JSON line: the list of wall times [ms]. End of input ends it.
 """
 
 from __future__ import annotations
@@ -15,7 +18,6 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import statistics
 import sys
 import time
 
@@ -52,19 +54,22 @@ def structural_step(urdf: str, tool: str):
 
 
 def main() -> None:
-    repeats = int(sys.argv[1])
-    out = {}
-    args = sys.argv[2:]
-    for name, urdf, tool in zip(args[::3], args[1::3], args[2::3], strict=True):
-        run = structural_step(urdf, tool)
-        n_base = len(run()[3])
+    args = sys.argv[1:]
+    steps = {
+        name: structural_step(urdf, tool)
+        for name, urdf, tool in zip(args[::3], args[1::3], args[2::3], strict=True)
+    }
+    print(json.dumps({name: len(run()[3]) for name, run in steps.items()}), flush=True)
+    for line in sys.stdin:
+        name, repeats = line.split()
+        run = steps[name]
+        run()
         times = []
-        for _ in range(repeats):
+        for _ in range(int(repeats)):
             t0 = time.perf_counter()
             run()
-            times.append(time.perf_counter() - t0)
-        out[name] = {"median_ms": 1e3 * statistics.median(times), "n_base": n_base}
-    print(json.dumps(out))
+            times.append(1e3 * (time.perf_counter() - t0))
+        print(json.dumps(times), flush=True)
 
 
 if __name__ == "__main__":

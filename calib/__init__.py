@@ -11,7 +11,10 @@ A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func
 :func:`write_calibrated_tree_urdf` calibrate it from rows that name their tool.
 """
 
-from .catalog import CatalogEntry, catalog
+import sys
+import types
+
+from .catalog import CatalogEntry, catalog  # light (the standard library only)
 from .exceptions import (
     AmbiguousFrameError,
     CalibError,
@@ -26,27 +29,43 @@ from .exceptions import (
     UnsupportedJointError,
     URDFError,
 )
-from .identifiability import Identifiability, RankWarning, analyze, analyze_model
-from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .lazy import attributes
-from .mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
-from .measurements import (
-    Campaign,
-    Columns,
-    DataWarning,
-    Measurements,
-    SimulationTruth,
-    read_measurements,
-    simulate,
-    write_measurements,
-)
-from .parameters import Kind, Parameter, ParameterSet, complete_parameters, paper_parameters
-from .robot import Chain, load_chain
-from .tree import Tree, load_robot, load_tree
-from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
-from .tree_model import TreeMDH, from_tree
 
 _LAZY = {
+    "Identifiability": "identifiability",
+    "RankWarning": "identifiability",
+    "analyze": "identifiability",
+    "analyze_model": "identifiability",
+    "Measurement": "jacobian",
+    "complete_jacobian": "jacobian",
+    "identification_jacobian": "jacobian",
+    "PARALLEL_TOL": "mdh",
+    "MDHModel": "mdh",
+    "from_chain": "mdh",
+    "from_lines": "mdh",
+    "Campaign": "measurements",
+    "Columns": "measurements",
+    "DataWarning": "measurements",
+    "Measurements": "measurements",
+    "SimulationTruth": "measurements",
+    "read_measurements": "measurements",
+    "simulate": "measurements",
+    "write_measurements": "measurements",
+    "Kind": "parameters",
+    "Parameter": "parameters",
+    "ParameterSet": "parameters",
+    "complete_parameters": "parameters",
+    "paper_parameters": "parameters",
+    "Chain": "robot",
+    "load_chain": "robot",
+    "Tree": "tree",
+    "load_robot": "tree",
+    "load_tree": "tree",
+    "tree_complete_jacobian": "tree_jacobian",
+    "tree_jacobian": "tree_jacobian",
+    "tree_parameters": "tree_jacobian",
+    "TreeMDH": "tree_model",
+    "from_tree": "tree_model",
     "CalibrationResult": "calibration",
     "ResidualStats": "calibration",
     "calibrate": "calibration",
@@ -63,10 +82,29 @@ _LAZY = {
     "ElasticModel": "elastic",
     "load_calibrated": "elastic",
 }
-"""Names imported when first used, so that ``calib analyze`` does not load the calibration."""
+"""Names imported when first used (all but the light catalog and errors), so that
+``import calib`` loads nothing heavy: ``calib --version`` and ``calib list`` start without
+numpy, Pinocchio or SciPy."""
 
 
 __getattr__ = attributes(__name__, _LAZY)
+
+
+class _Package(types.ModuleType):
+    """calib itself: a function named as its own module (``tree_jacobian``) keeps the name.
+
+    Importing a submodule binds it on its package; eager imports used to rebind the function
+    right after, lazy ones cannot, so the binding of such a submodule is skipped (it stays in
+    ``sys.modules``) and the name resolves to the function (see ``__getattr__``).
+    """
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if isinstance(value, types.ModuleType) and _LAZY.get(name) == name:
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 __version__ = "0.1.0"

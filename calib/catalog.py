@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import importlib.metadata
-import importlib.resources
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,6 +61,8 @@ class CatalogEntry:
 
 def models_dir() -> Path:
     """The folder holding the catalog and the project's own URDFs (installed or in-tree)."""
+    import importlib.resources  # imported when needed: ``calib --version`` goes without
+
     return Path(str(importlib.resources.files("calib.models")))
 
 
@@ -73,6 +73,8 @@ def erd_robots_dir() -> Path:
     Raises:
         CalibError: example-robot-data is not installed or ships no robots folder.
     """
+    import importlib.metadata  # imported when needed (slow): ``calib list`` goes without
+
     try:
         dist = importlib.metadata.distribution("example-robot-data")
     except importlib.metadata.PackageNotFoundError as exc:

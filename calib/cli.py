@@ -23,10 +23,11 @@ from .calibration.options import (
     LEVELS,
     LOSSES,
 )
-from .catalog import catalog, catalog_files, installed_dirs
+from .catalog import catalog_files, installed_dirs
 from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from .identifiability import DEFAULT_CONFIGS, analyze
+from .launcher import catalog_listing
 from .mdh import from_chain
 from .measurements import (
     CAMPAIGN_MEASURES,
@@ -38,7 +39,7 @@ from .measurements import (
     simulate,
 )
 from .parameters import PARAMETER_SETS
-from .report import analysis_text, coupling_lines, format_table, mdh_table, tree_table
+from .report import analysis_text, coupling_lines, mdh_table, tree_table
 from .robot import Chain, load_chain
 from .tree import Tree, load_robot
 from .tree_model import from_tree
@@ -132,18 +133,7 @@ def print_json(obj: dict) -> None:
 
 def cmd_list(args: argparse.Namespace) -> int:
     """Print the catalog."""
-    rows = [
-        [
-            e.name,
-            f"{e.base} -> {', '.join(e.tools)}",
-            e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
-        ]
-        for e in catalog()
-    ]
-    if args.json:
-        print_json({"robots": [e.__dict__ | {"path": str(e.path)} for e in catalog()]})
-    else:
-        print(format_table(["name", "chain", "description"], rows))
+    print(catalog_listing(args.json))
     return 0
 
 
@@ -1086,7 +1076,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _interrupts_raise() -> Iterator[None]:
     """SIGINT raises KeyboardInterrupt inside (main thread only); the old handler is back after.
 
-    The entry point (:mod:`_calib_entry`) installs a handler that exits at once, for the
+    The entry point (:mod:`calib.launcher`) installs a handler that exits at once, for the
     imports; a command needs the exception instead, so that its temporary files go.
     """
     if threading.current_thread() is not threading.main_thread():
@@ -1109,10 +1099,34 @@ def _main(argv: Sequence[str] | None) -> int:
     with warnings.catch_warnings(record=True) as caught, _verbose_logging(args.verbose):
         warnings.simplefilter("always")
         code = _run(args)
-    for w in caught:
-        if issubclass(w.category, UserWarning):
-            print(f"calib: warning: {_one_line(w.message)}", file=sys.stderr)
+    sys.stdout.flush()  # the warnings come after the output
+    for line in warning_lines(caught):
+        print(line, file=sys.stderr)
     return code
+
+
+def warning_lines(caught: Sequence[warnings.WarningMessage]) -> list[str]:
+    """The warnings a user sees, one line each, each distinct message once.
+
+    calib's own warnings and other ``UserWarning`` subclasses, and the ``RuntimeWarning``
+    subclasses of numpy and scipy (overflow, invalid value, an ill-conditioned matrix), which
+    say something about the numbers printed: those name their source. Warnings about the code
+    itself (deprecations, imports, resources) are left out.
+    """
+    seen: dict[str, int] = {}
+    for w in caught:
+        if not issubclass(w.category, UserWarning | RuntimeWarning):
+            continue
+        text = _one_line(w.message)
+        path = os.path.normpath(w.filename or "").split(os.sep)
+        source = next((s for s in ("numpy", "scipy") if s in path), None)
+        if source or not issubclass(w.category, UserWarning):
+            text = f"{w.category.__name__}{f' from {source}' if source else ''}: {text}"
+        seen[text] = seen.get(text, 0) + 1
+    return [
+        f"calib: warning: {text}" + (f" ({count} times)" if count > 1 else "")
+        for text, count in seen.items()
+    ]
 
 
 if __name__ == "__main__":

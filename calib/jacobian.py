@@ -101,12 +101,6 @@ def measured_point(kin: Kinematics, marker: np.ndarray) -> np.ndarray:
     return kin.p[:, -1] + kin.R[:, -1] @ marker
 
 
-def _stack(columns_lin: np.ndarray, columns_ang: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
-    J = np.concatenate([columns_lin, columns_ang], axis=2)  # (m, k, 6)
-    J = np.swapaxes(J, 1, 2)[:, list(rows), :]  # (m, nrows, k)
-    return J.reshape(-1, J.shape[2])
-
-
 def identification_jacobian(
     mdh: MDHModel,
     params: ParameterSet,
@@ -131,32 +125,54 @@ def identification_jacobian(
     if kin is None:
         kin = mdh.kinematics(q)
     plan = params.layout
-    m, k, frames = kin.p.shape[0], len(params), kin.p.shape[1]
-    # One gather per kind of vector: the sources side by side, indexed by source and row.
-    index = np.empty(k, dtype=int)
-    for src, cols, rows in plan.axes:
-        index[cols] = src * frames + rows
-    axes = np.concatenate([kin.y_prev, kin.x_mid, kin.R[:, :, :, 2]], axis=1)[:, index]
-    out = np.empty((m, len(measurement.rows), k))  # only the rows measured
+    # Component-major (row, xyz, configuration): contiguous for :meth:`MDHModel.kinematics`'s
+    # arrays, so that every operation runs along the configurations.
+    y_prev, x_mid, q_mid, p = (
+        a.transpose(1, 2, 0) for a in (kin.y_prev, kin.x_mid, kin.q_mid, kin.p)
+    )
+    z = kin.R[:, :, :, 2].transpose(1, 2, 0)
+    # One gather per kind of vector: each column's axis (k, 3, m), each rotation's point.
+    axes = np.stack([y_prev, x_mid, z])[plan.axis_source, plan.axis_row]
     rot = plan.rotations
+    L = None
     if rot.size:
-        E = measured_point(kin, measurement.marker_array)
-        index = np.empty(rot.size, dtype=int)
-        for src, cols, rows in plan.points:
-            index[cols] = src * frames + rows
-        L = E[:, None, :] - np.concatenate([kin.q_mid, kin.p], axis=1)[:, index]
-        a = axes[:, rot]
-    for i, row in enumerate(measurement.rows):
-        if row < 3:  # a translation moves the point along its axis; a rotation: axis x L
-            out[:, i] = axes[:, :, row]
-            if rot.size:
-                c1, c2 = (row + 1) % 3, (row + 2) % 3
-                out[:, i, rot] = a[:, :, c1] * L[:, :, c2] - a[:, :, c2] * L[:, :, c1]
-        else:  # orientation rows: a rotation turns the tool about its axis
-            out[:, i] = 0.0
-            if rot.size:
-                out[:, i, rot] = a[:, :, row - 3]
-    return out.reshape(-1, k)
+        L = _point(kin, measurement) - np.stack([q_mid, p])[plan.point_source, plan.point_row]
+    return _assemble(axes, rot, L, measurement.rows)
+
+
+def _point(kin: Kinematics, measurement: Measurement) -> np.ndarray:
+    """The measured point in the base frame, component-major ``(3, m)`` [m]."""
+    E = kin.p[:, -1].T
+    if any(measurement.marker):
+        E = E + np.einsum("mij,j->im", kin.R[:, -1], measurement.marker_array)
+    return E
+
+
+def _assemble(
+    axes: np.ndarray, rot: np.ndarray, L: np.ndarray | None, rows: tuple[int, ...]
+) -> np.ndarray:
+    """W from each column's axis ``(k, 3, m)`` and each rotation column's lever ``L``.
+
+    A translation moves the point along its axis; a rotation (columns ``rot``) moves it by
+    axis x L and turns the tool about its axis. Only the measured rows are built.
+
+    Returns:
+        ``W`` ``(m * len(rows), k)``, configuration-major.
+    """
+    k, _, m = axes.shape
+    lin = [r for r in rows if r < 3]  # rows are sorted: position rows first
+    ang = [r - 3 for r in rows if r >= 3]
+    out = np.empty((k, len(rows), m))
+    out[:, : len(lin)] = axes[:, lin]
+    out[:, len(lin) :] = 0.0
+    if rot.size:
+        a = axes[rot]
+        if lin:
+            c1, c2 = [(r + 1) % 3 for r in lin], [(r + 2) % 3 for r in lin]
+            out[rot, : len(lin)] = a[:, c1] * L[:, c2] - a[:, c2] * L[:, c1]
+        if ang:
+            out[rot, len(lin) :] = a[:, ang]
+    return out.transpose(2, 1, 0).reshape(-1, k)
 
 
 def complete_jacobian(
@@ -179,15 +195,15 @@ def complete_jacobian(
     _check_types(mdh, measurement)
     if kin is None:
         kin = mdh.kinematics(q)
-    m = kin.R.shape[0]
-    eye = np.broadcast_to(np.eye(3), (m, 1, 3, 3))
-    R = np.concatenate([eye, kin.R[:, 1 : mdh.n + 1]], axis=1)  # frames -1, 1..n
-    p = np.concatenate([np.zeros((m, 1, 3)), kin.p[:, 1 : mdh.n + 1]], axis=1)
-    axes = np.swapaxes(R, 2, 3).reshape(m, -1, 3)  # rows of R^T = columns of R
-    points = np.repeat(p, 3, axis=1)
-    E = measured_point(kin, measurement.marker_array)
-    rot_lin = np.cross(axes, E[:, None, :] - points)
-    zeros = np.zeros_like(axes)
-    lin = np.concatenate([axes, rot_lin], axis=1)
-    ang = np.concatenate([zeros, axes], axis=1)
-    return _stack(lin, ang, measurement.rows)
+    n, m = mdh.n, kin.R.shape[0]
+    # Component-major frames -1, 1..n: the columns of each rotation are the axes (3 (n+1),
+    # 3, m), each frame's origin the point of its three rotations.
+    R = np.empty((n + 1, 3, 3, m))
+    R[0] = np.eye(3)[:, :, None]
+    R[1:] = kin.R[:, 1 : n + 1].transpose(1, 3, 2, 0)  # (frame, column, xyz, m)
+    axes = R.reshape(-1, 3, m)
+    points = np.zeros((n + 1, 1, 3, m))
+    points[1:, 0] = kin.p[:, 1 : n + 1].transpose(1, 2, 0)
+    L = _point(kin, measurement) - np.broadcast_to(points, (n + 1, 3, 3, m)).reshape(-1, 3, m)
+    rot = np.arange(axes.shape[0], 2 * axes.shape[0])
+    return _assemble(np.concatenate([axes, axes]), rot, L, measurement.rows)

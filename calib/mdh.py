@@ -74,6 +74,9 @@ def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
     return math.atan2(float(np.dot(np.cross(a, b), axis)), float(np.dot(a, b)))
 
 
+_Y_AXIS = np.array([[0.0], [1.0], [0.0]])
+
+
 class Kinematics(NamedTuple):
     """Frames of an MDH model at m configurations, all in the base frame (frame -1).
 
@@ -220,35 +223,48 @@ class MDHModel:
         """
         q = joint_positions(q, self.n)
         m, rows, n = q.shape[0], self.n + 2, self.n
-        revolute = self.sigma[1 : n + 1] == 0
-        angle = np.broadcast_to(self.theta, (m, rows)).copy()
-        angle[:, 1 : n + 1] += q * revolute
-        length = np.broadcast_to(self.r, (m, rows)).copy()
-        length[:, 1 : n + 1] += q * ~revolute
-        C, S = np.cos(angle)[:, :, None], np.sin(angle)[:, :, None]
-        L = length[:, :, None]
-        R = np.empty((m, rows, 3, 3))
-        p = np.empty((m, rows, 3))
-        x_mid = np.empty((m, rows, 3))
-        y_prev = np.empty((m, rows, 3))
-        y_prev[:, 0] = (0.0, 1.0, 0.0)
-        q_mid = np.zeros((m, rows, 3))
-        R_prev = np.broadcast_to(np.eye(3), (m, 3, 3))
-        for k in range(rows):
-            A = (R_prev.reshape(-1, 3) @ self._pre[k]).reshape(m, 3, 3)  # one matrix product
-            a0, a1, a2 = A[:, :, 0], A[:, :, 1], A[:, :, 2]
-            c, sn = C[:, k], S[:, k]
-            R[:, k, :, 0] = c * a0 + sn * a1
-            R[:, k, :, 1] = c * a1 - sn * a0
-            R[:, k, :, 2] = a2
-            if k:
-                y_prev[:, k] = R_prev[:, :, 1]
-                q_mid[:, k] = p[:, k - 1]
-            if self.y[k]:
-                q_mid[:, k] += self.y[k] * y_prev[:, k]
-            p[:, k] = q_mid[:, k] + self.d[k] * a0 + L[:, k] * a2
-            x_mid[:, k] = a0
-            R_prev = R[:, k]
+        # Component-major work arrays (row, ..., configuration): every operation runs along
+        # the m configurations, the innermost (contiguous) axis.
+        revolute = (self.sigma[1 : n + 1] == 0)[:, None]
+        angle = np.repeat(self.theta[:, None], m, axis=1)
+        angle[1 : n + 1] += q.T * revolute
+        length = np.repeat(self.r[:, None], m, axis=1)
+        length[1 : n + 1] += q.T * ~revolute
+        # Frame k = frame k-1 L_k with L_k = Pre_k Rot(z, angle_k) (rows [c p0 + s p1,
+        # c p1 - s p0, p2] of Pre_k's columns p_j), built for all rows at once, then one
+        # product per row along the chain.
+        C, S = np.cos(angle)[:, None], np.sin(angle)[:, None]
+        pre = self._pre[..., None]  # (rows, 3, 3, 1)
+        local = np.empty((rows, 3, 3, m))
+        local[:, :, 0] = C * pre[:, :, 0] + S * pre[:, :, 1]
+        local[:, :, 1] = C * pre[:, :, 1] - S * pre[:, :, 0]
+        local[:, :, 2] = pre[:, :, 2]
+        Rt = np.empty((rows, 3, 3, m))
+        Rt[0] = local[0]
+        for k in range(1, rows):
+            np.einsum("ilm,ljm->ijm", Rt[k - 1], local[k], out=Rt[k])
+        # x_mid_k = R_(k-1) Pre_k e_x: the x axis after beta_k and alpha_k
+        x_mid = np.empty((rows, 3, m))
+        x_mid[0] = self._pre[0][:, 0, None]
+        x_mid[1:] = np.einsum("kilm,kl->kim", Rt[:-1], self._pre[1:, :, 0])
+        y_prev = np.empty((rows, 3, m))
+        y_prev[0] = _Y_AXIS
+        y_prev[1:] = Rt[:-1, :, 1]
+        # p_k = p_(k-1) + y_k y_(k-1) + d_k x_mid_k + (r_k + sigma_k q_k) z_k along the chain
+        step = self.d[:, None, None] * x_mid + length[:, None] * Rt[:, :, 2]
+        has_y = self.y.any()
+        if has_y:
+            step += self.y[:, None, None] * y_prev
+        p = np.cumsum(step, axis=0)
+        q_mid = np.empty((rows, 3, m))
+        q_mid[0] = 0.0
+        q_mid[1:] = p[:-1]
+        if has_y:
+            q_mid += self.y[:, None, None] * y_prev
+        # Views in the documented (configuration, row, ...) order: transposing them back (as
+        # the Jacobians do) gives the contiguous component-major arrays again.
+        R = Rt.transpose(3, 0, 1, 2)
+        p, y_prev, x_mid, q_mid = (a.transpose(2, 0, 1) for a in (p, y_prev, x_mid, q_mid))
         return Kinematics(R, p, y_prev, x_mid, q_mid)
 
     def forward(self, q: np.ndarray) -> np.ndarray:

@@ -12,6 +12,10 @@ CSV format (one header line, then one row per configuration; comma separated):
 * for pose measurements also ``qx, qy, qz, qw``: the orientation of the tool frame in the
   measurement frame as a quaternion, scalar last (normalised on reading).
 
+A joint named like a measurement column (``x``, ``qw``, ``tool``) is written
+``joint:NAME``; on reading, ``joint:NAME`` is joint NAME's column, and a plain ``NAME`` is then
+the measurement column (without ``joint:NAME``, a plain ``NAME`` is the joint's).
+
 Columns may come in any order; blank lines are skipped. Errors name the row the way a
 text editor or spreadsheet numbers it (the header is row 1) and the column by its name.
 
@@ -35,6 +39,7 @@ import itertools
 import math
 import re
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,6 +77,10 @@ ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 [rad], or roll-pitch-yaw [rad] (``R = Rz(yaw) Ry(pitch) Rx(roll)``, Pinocchio's ``rpy``)."""
 
 TOOL_COLUMN = "tool"
+
+JOINT_PREFIX = "joint:"
+"""A header cell ``joint:NAME`` is the column of joint NAME: how a joint named like a
+measurement column (``x``, ``qw``, ``tool``) is told apart from that column."""
 """Column naming the tool frame a row measures (several tools of a tree; optional)."""
 
 MARKERS = "markers"
@@ -300,10 +309,15 @@ class Measurements:
 
     @property
     def columns(self) -> tuple[str, ...]:
-        """CSV header of this data (the ``tool`` column last, if rows name their tool)."""
+        """CSV header of this data (the ``tool`` column last, if rows name their tool).
+
+        A joint named as one of the measurement columns is written ``joint:NAME``.
+        """
         quat = QUATERNION_COLUMNS if self.quaternion is not None else ()
         tool = (TOOL_COLUMN,) if self.tool is not None else ()
-        return (*self.joint_columns, *self.position_columns, *quat, *tool)
+        measured = (*self.position_columns, *quat, *tool)
+        joints = [JOINT_PREFIX + n if n in measured else n for n in self.joint_columns]
+        return (*joints, *measured)
 
     def table(self) -> np.ndarray:
         """The values in the order of :attr:`columns`, ``(m, len(columns))``."""
@@ -443,9 +457,11 @@ class Columns:
 
 
 def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: int):
-    """Position columns (K triples) and the orientation format and columns of a header."""
-    joints = set(chain.variable_names)
-    free = [n for n in names if n not in joints]
+    """Position columns (K triples) and the orientation format and columns of a header.
+
+    ``names``: the cells' meanings, joints prefixed (see :func:`_column_keys`).
+    """
+    free = [n for n in names if not n.startswith(JOINT_PREFIX)]
     if all(f"{a}1" in free for a in POSITION_COLUMNS):
         k = 1
         while all(f"{a}{k + 1}" in free for a in POSITION_COLUMNS):
@@ -482,7 +498,8 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
         )
     if fmt is not None:
         cols = cols or DEFAULT_ORIENTATION_COLUMNS[fmt]
-        taken = [c for c in cols if c in pos or c in joints]
+        joints = set(chain.variable_names)  # a joint column without the prefix: not free
+        taken = [c for c in cols if c in pos or (c in joints and c not in free)]
         if taken:
             raise InvalidArgumentError(
                 f"orientation column '{taken[0]}' is also a "
@@ -516,12 +533,13 @@ def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: in
         if name in seen:
             raise DataError(src, "duplicate column", row=line, column=name)
         seen.add(name)
+    keys = _column_keys(names, chain.variable_names)
     for name in chain.variable_names:
-        if name not in seen:
+        if JOINT_PREFIX + name not in keys:
             raise DataError(src, "missing joint column", row=line, column=name)
-    pos, fmt, ori = _layout(names, chain, columns, src, line)
-    used = {*chain.variable_names, *pos, *ori, TOOL_COLUMN}
-    ignored = [n for n in names if n not in used]
+    pos, fmt, ori = _layout(keys, chain, columns, src, line)
+    used = {*(JOINT_PREFIX + n for n in chain.variable_names), *pos, *ori, TOOL_COLUMN}
+    ignored = [n for n, k in zip(names, keys, strict=True) if k not in used]
     if ignored:
         warnings.warn(
             f"{src}: columns ignored (not joints of the chain, positions, orientation or tool): "
@@ -529,7 +547,24 @@ def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: in
             DataWarning,
             stacklevel=4,
         )
-    return names, pos, fmt, ori
+    return keys, pos, fmt, ori, names
+
+
+def _column_keys(names: list[str], joints: Sequence[str]) -> list[str]:
+    """Each header cell's meaning: ``joint:NAME`` for a joint's column, else the cell.
+
+    A joint's column is ``joint:NAME``, or plain ``NAME`` when the header has no ``joint:NAME``
+    (then a plain ``NAME`` is a measurement column: ``x``, ``qw``, ``tool``).
+    """
+    joints = set(joints)
+    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joints
+    keys = []
+    for n in names:
+        if n in joints and n not in prefixed:
+            keys.append(JOINT_PREFIX + n)
+        else:
+            keys.append(n)
+    return keys
 
 
 def parse_number(cell: str, src: str, line: int, column: str) -> float:
@@ -608,19 +643,19 @@ def parse_measurements(
         if header is None:
             header = _header(cells, chain, columns, source, line)
             continue
-        names = header[0]
-        if len(cells) != len(names):
-            raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=line)
-        used = {*chain.variable_names, *header[1], *header[3]}
-        if TOOL_COLUMN in names and TOOL_COLUMN not in chain.joint_names:
-            tool = cells[names.index(TOOL_COLUMN)].strip()
+        keys, shown = header[0], header[4]
+        if len(cells) != len(keys):
+            raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
+        used = {*(JOINT_PREFIX + n for n in chain.variable_names), *header[1], *header[3]}
+        if TOOL_COLUMN in keys:
+            tool = cells[keys.index(TOOL_COLUMN)].strip()
             if not tool:
                 raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
             tools.append(tool)
         values.append(
             [
-                parse_number(c, source, line, n) if n in used else 0.0
-                for c, n in zip(cells, names, strict=True)
+                parse_number(c, source, line, n) if k in used else 0.0
+                for c, k, n in zip(cells, keys, shown, strict=True)
             ]
         )
         lines.append(line)
@@ -628,10 +663,10 @@ def parse_measurements(
         raise DataError(source, "empty file: expected a header line and measurement rows")
     if not values:
         raise DataError(source, "no measurement rows after the header")
-    names, pos_cols, fmt, ori_cols = header
+    names, pos_cols, fmt, ori_cols, _ = header
     table = np.array(values)
     col = {n: j for j, n in enumerate(names)}
-    q = chain.joint_values(table[:, [col[n] for n in chain.variable_names]])
+    q = chain.joint_values(table[:, [col[JOINT_PREFIX + n] for n in chain.variable_names]])
     check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     far = np.abs(position) > MAX_COORDINATE

@@ -55,15 +55,19 @@ class ColumnLayout:
     """Gather plan of a parameter set's Jacobian columns.
 
     Attributes:
-        axes: ``(source, columns, rows)`` triples: the columns whose axis is source 0
-            (y_{k-1}), 1 (x after beta and alpha) or 2 (z_k), taken at those rows.
-        points: The same for the rotation columns' points: 0 (where beta and alpha act) or
-            1 (the origin of frame k); ``columns`` index into ``rotations``.
+        axis_source: Per column, the vector its axis is: 0 (y_{k-1}), 1 (x after beta and
+            alpha) or 2 (z_k).
+        axis_row: Per column, the row k where that vector is taken.
+        point_source: Per rotation column, the point it turns about: 0 (where beta and alpha
+            act) or 1 (the origin of frame k).
+        point_row: Per rotation column, the row k of that point.
         rotations: Indices of the rotation columns.
     """
 
-    axes: tuple[tuple[int, np.ndarray, np.ndarray], ...]
-    points: tuple[tuple[int, np.ndarray, np.ndarray], ...]
+    axis_source: np.ndarray
+    axis_row: np.ndarray
+    point_source: np.ndarray
+    point_row: np.ndarray
     rotations: np.ndarray
 
 
@@ -94,19 +98,9 @@ class ParameterSet:
         ps = self.parameters
         rows = np.array([p.row for p in ps], dtype=int)
         axis = np.array([axis_of[p.kind] for p in ps], dtype=int)
-        at_origin = np.array([p.kind in (Kind.THETA, Kind.R) for p in ps], dtype=bool)
+        at_origin = np.array([p.kind in (Kind.THETA, Kind.R) for p in ps], dtype=int)
         rot = np.flatnonzero([p.kind.is_rotation for p in ps])
-        axes = tuple(
-            (src, np.flatnonzero(axis == src), rows[axis == src])
-            for src in range(3)
-            if np.any(axis == src)
-        )
-        points = tuple(
-            (src, np.flatnonzero(at_origin[rot] == src), rows[rot][at_origin[rot] == src])
-            for src in (0, 1)
-            if np.any(at_origin[rot] == src)
-        )
-        return ColumnLayout(axes, points, rot)
+        return ColumnLayout(axis, rows, at_origin[rot], rows[rot], rot)
 
     def index(self, name: str) -> int:
         """Position of a parameter by name."""

@@ -8,6 +8,7 @@ from .identifiability import Identifiability
 from .mdh import MDHModel
 from .mimic import MimicJoint
 from .parameters import Kind
+from .table import format_table
 from .tree_model import TreeMDH
 
 _STATUS = {"identifiable": "id", "regrouped": "reg", "zero": "0"}
@@ -17,28 +18,6 @@ def _num(x: float, digits: int = 4) -> str:
     """Fixed-point text without a negative zero."""
     text = f"{x:.{digits}f}"
     return text[1:] if text.startswith("-") and float(text) == 0.0 else text
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def format_table(header: list[str], rows: list[list[str]]) -> str:
-    """Plain-text table: numeric columns right-aligned, text columns left-aligned."""
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
-    right = [all(_is_number(r[i]) or r[i] in ("-", "") for r in rows) for i in range(len(header))]
-
-    def line(cells: list[str]) -> str:
-        out = [
-            c.rjust(w) if rj else c.ljust(w) for c, w, rj in zip(cells, widths, right, strict=True)
-        ]
-        return "  ".join(out).rstrip()
-
-    return "\n".join([line(header), line(["-" * w for w in widths]), *(line(r) for r in rows)])
 
 
 def _row_cells(mdh: MDHModel | TreeMDH, k: int) -> list[str]:

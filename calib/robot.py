@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .catalog import CatalogEntry, catalog_entry
+from .catalog import CatalogEntry, catalog, catalog_entry
 from .checks import check_count, check_work, joint_positions
 from .exceptions import (
     AmbiguousFrameError,
@@ -522,7 +522,11 @@ def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
         )
     text = os.fspath(robot)
     path = Path(text)
-    is_path = isinstance(robot, os.PathLike) or path.is_file() or path.is_dir()
+    # A file wins over a catalog name; a folder never shadows the catalog (a folder that is
+    # no catalog name is a path, which loading refuses: "is a directory").
+    is_path = isinstance(robot, os.PathLike) or path.is_file()
+    if path.is_dir() and not is_path:
+        is_path = all(entry.name != text for entry in catalog())
     if is_path or text.endswith((".urdf", ".xml")) or "/" in text:
         return path.stem, path, None
     entry = catalog_entry(text)

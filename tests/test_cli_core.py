@@ -250,3 +250,89 @@ def test_console_script_reports_an_unknown_robot_without_traceback():
     assert lines[0].startswith("calib: error:")
     assert "nosuchrobot" in lines[0]
     assert proc.stdout == ""
+
+
+# --------------------------------------------------------------------------------------
+# robot names against files and folders of the working directory; warnings
+# --------------------------------------------------------------------------------------
+
+
+def test_folder_named_like_a_catalog_robot_does_not_shadow_it(capsys, tmp_path, monkeypatch):
+    """A folder ``ur5/`` in the working directory: ``calib show ur5`` is the catalog's UR5."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ur5").mkdir()
+    code, out, err = run(capsys, "show", "ur5", "--json")
+    assert code == 0, err
+    shown = json.loads(out)
+    assert shown["urdf"].endswith("ur5_robot.urdf")  # the catalog's file (models/catalog.toml)
+    assert len(shown["variables"]) == 6
+
+
+def test_file_named_like_a_catalog_robot_wins(capsys, tmp_path, monkeypatch):
+    """A URDF file named ``ur5`` (no extension) in the working directory is loaded, not the
+    catalog's UR5: its one joint is what ``show`` prints."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ur5").write_bytes((DATA / "single_joint.urdf").read_bytes())
+    code, out, err = run(capsys, "show", "ur5", "--json")
+    assert code == 0, err
+    shown = json.loads(out)
+    assert Path(shown["urdf"]).resolve() == (tmp_path / "ur5").resolve()
+    assert shown["variables"] == ["j1"]  # single_joint.urdf's one joint
+
+
+def test_numpy_warnings_reach_the_user_after_the_output(tmp_path):
+    """A command whose numbers meet a numpy floating-point warning prints it on stderr after
+    its output; a DeprecationWarning (about code, not results) is not printed."""
+    script = (
+        "import sys, warnings\n"
+        "import numpy as np\n"
+        "import calib.cli as cli\n"
+        "def run(args):\n"
+        "    print('OUTPUT', flush=True)\n"
+        "    np.log(np.zeros(2))\n"
+        "    warnings.warn('old api', DeprecationWarning)\n"
+        "    return 0\n"
+        "cli._run = run\n"
+        "sys.exit(cli.main(['list']))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=tmp_path, check=False
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == "OUTPUT\n"
+    assert proc.stderr == "calib: warning: RuntimeWarning: divide by zero encountered in log\n"
+    merged = subprocess.run(
+        [sys.executable, "-c", script],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=tmp_path,
+        check=False,
+    ).stdout
+    assert merged.index("OUTPUT") < merged.index("divide by zero")
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["list"], ["list", "--json"]])
+def test_the_calib_script_answers_version_and_list_without_numpy(argv):
+    """The installed ``calib`` script (calib.launcher) prints what ``calib.cli`` prints, and
+    does it without importing numpy, pinocchio or scipy."""
+    script = (
+        "import sys\n"
+        "from calib.launcher import main\n"
+        "code = main(sys.argv[1:])\n"
+        "heavy = sorted(m for m in ('numpy', 'pinocchio', 'scipy') if m in sys.modules)\n"
+        "print('HEAVY', heavy, file=sys.stderr)\n"
+        "sys.exit(code)\n"
+    )
+    fast = subprocess.run(
+        [sys.executable, "-c", script, *argv], capture_output=True, text=True, check=False
+    )
+    full = subprocess.run(
+        [sys.executable, "-c", "import sys; from calib.cli import main; sys.exit(main())", *argv],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert fast.returncode == full.returncode == 0
+    assert fast.stdout == full.stdout
+    assert fast.stderr == "HEAVY []\n"

@@ -29,6 +29,7 @@ from calib import (
     identification_jacobian,
     paper_parameters,
 )
+from calib.identifiability import checked_selection, independent_columns, select_by_rank
 
 MARKER = (0.011, 0.023, 0.037)
 
@@ -462,3 +463,38 @@ def test_regrouping_coefficients_are_the_rows_of_b():
                 res.B[i, j] if abs(res.B[i, j]) > 1e-8 else 0.0
             )
     assert coef["theta5"]["d6"] == pytest.approx(-1 / 0.21)  # Table 1: r7 = 0.21 m
+
+
+def _planted(seed: int, n_cols: int = 24, rank: int = 15):
+    """A tall matrix whose columns beyond ``rank`` are exact combinations of a few others,
+    columns shuffled, and a random order of preference."""
+    rng = np.random.default_rng(seed)
+    W = rng.normal(size=(120, n_cols))
+    for j in range(rank, n_cols):
+        picks = rng.choice(rank, size=rng.integers(1, 4), replace=False)
+        W[:, j] = W[:, picks] @ rng.normal(size=len(picks))
+    W = W[:, rng.permutation(n_cols)]
+    return W, [int(i) for i in rng.permutation(n_cols)]
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_base_walk_proved_by_one_qr_matches_the_rank_definition(seed):
+    """The selection (first-QR guess proved by one QR, else the restarting walk) keeps the
+    same columns as the definition: a column is kept when it raises the pivoted-QR rank
+    (select_by_rank, an independent route)."""
+    W, order = _planted(seed)
+    _, tau, kept, R = independent_columns(W, order)
+    assert len(kept) == 15
+    assert kept == select_by_rank(R, order, tau)
+
+
+def test_checked_selection_refuses_a_wrong_guess():
+    """The one-QR check proves only the walk's own result: a kept column dropped, or a
+    dependent one added, is refused (None)."""
+    W, order = _planted(3)
+    _, _, kept, R = independent_columns(W, order)
+    threshold = 1e-6  # inside the gap: the planted columns are dependent to round-off
+    assert checked_selection(R, order, kept, threshold) is not None
+    dependent = next(i for i in order if i not in kept)
+    assert checked_selection(R, order, kept[:-1], threshold) is None
+    assert checked_selection(R, order, [*kept, dependent], threshold) is None

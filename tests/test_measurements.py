@@ -20,6 +20,7 @@ from calib import (
     InvalidArgumentError,
     Measurements,
     analyze_model,
+    load_chain,
     read_measurements,
     simulate,
     so3,
@@ -468,3 +469,86 @@ def test_tool_column_names_each_rows_tool_and_survives_a_round_trip():
     empty = text.replace(f",{chain.tool_frame}\n", ",\n", 1)
     with pytest.raises(DataError, match=r"row 2, column 'tool'\): empty cell"):
         parse_measurements(empty, chain)
+
+
+CLASH_URDF = """<?xml version="1.0"?>
+<robot name="clash">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/>
+  <link name="tip"/>
+  <joint name="x" type="revolute"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="y" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0 0.05 0.2"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="z" type="revolute"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="qw" type="revolute"><parent link="l3"/><child link="l4"/>
+    <origin xyz="0.25 0 0.02"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="fix" type="fixed"><parent link="l4"/><child link="tip"/>
+    <origin xyz="0.1 0.02 0.03"/></joint>
+</robot>
+"""
+
+
+def test_joints_named_like_measurement_columns_round_trip(tmp_path):
+    """Joints x, y, z, qw: simulate writes a CSV that reads back to the same numbers.
+
+    The file is also read with the csv module (not calib's reader) to check the rule: a joint
+    whose name is one of the file's measurement columns is written ``joint:NAME``.
+    """
+    import csv
+
+    urdf = tmp_path / "clash.urdf"
+    urdf.write_text(CLASH_URDF)
+    chain = load_chain(urdf)
+    assert chain.joint_names == ("x", "y", "z", "qw")
+    data = simulate(chain, configs=9, measure="pose", seed=2, noise_mm=0.1).measurements
+    path = tmp_path / "m.csv"
+    write_measurements(path, data)
+    rows = list(csv.reader(path.read_text().splitlines()))
+    header = rows[0]
+    assert len(set(header)) == len(header)  # no duplicate column
+    assert header == ["x", "y", "z", "joint:qw", "x1", "y1", "z1", "qx", "qy", "qz", "qw"]
+    table = np.array(rows[1:], dtype=float)
+    np.testing.assert_array_equal(table[:, 3], data.q[:, 3])  # joint:qw is the joint
+    np.testing.assert_array_equal(table[:, 10], data.quaternion[:, 3])  # qw the quaternion
+    back = read_measurements(path, chain)
+    np.testing.assert_array_equal(back.q, data.q)
+    np.testing.assert_array_equal(back.position, data.position)
+    np.testing.assert_allclose(back.quaternion, data.quaternion, rtol=0, atol=1e-15)
+
+
+def test_joint_prefix_is_optional_and_decides_the_plain_column(tmp_path):
+    """Without ``joint:qw`` a plain ``qw`` is the joint; with it, ``qw`` is the quaternion's."""
+    urdf = tmp_path / "clash.urdf"
+    urdf.write_text(CLASH_URDF)
+    chain = load_chain(urdf)
+    plain = parse_measurements("x,y,z,qw,x1,y1,z1\n0.1,0.2,0.3,0.4,1,2,3\n", chain)
+    np.testing.assert_array_equal(plain.q, [[0.1, 0.2, 0.3, 0.4]])
+    assert plain.quaternion is None
+    both = parse_measurements(
+        "joint:x,joint:y,joint:z,joint:qw,x,y,z,qw,qx,qy,qz\n"
+        "0.1,0.2,0.3,0.4,1,2,3,1,0,0,0\n",
+        chain,
+    )
+    np.testing.assert_array_equal(both.q, [[0.1, 0.2, 0.3, 0.4]])
+    np.testing.assert_array_equal(both.position, [[1.0, 2.0, 3.0]])
+    np.testing.assert_array_equal(both.quaternion, [[0.0, 0.0, 0.0, 1.0]])
+
+
+def test_cli_simulate_then_calibrate_with_clashing_joint_names(tmp_path, monkeypatch, capsys):
+    """`calib simulate` then `calib calibrate` on joints x, y, z, qw: both exit 0 and the
+    calibrated URDF is written (the CSV used to be refused: duplicate column 'qw')."""
+    from calib.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    Path("clash.urdf").write_text(CLASH_URDF)
+    assert main(["simulate", "clash.urdf", "--out", "m.csv", "--measure", "pose"]) == 0
+    code = main(["calibrate", "clash.urdf", "--data", "m.csv", "--out", "c.urdf"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "duplicate" not in err
+    assert Path("c.urdf").stat().st_size > 0

@@ -1,0 +1,83 @@
+"""The ``calib`` command's entry point.
+
+``calib --version`` and ``calib list [--json]`` are answered here, from the standard library
+and the catalog file: they start without numpy, Pinocchio or SciPy. Every other command line
+goes to :func:`calib.cli.main`.
+
+Ctrl-C is one line and exit 130 from the first instant: :func:`main` installs a SIGINT
+handler that exits at once before numpy, Pinocchio or calib's modules are imported (an
+interrupt during those imports would otherwise print a traceback). :func:`calib.cli.main`
+raises KeyboardInterrupt again while a command runs (temporary files are then removed) and
+says "calib: interrupted" itself. ``import calib`` itself is lazy: only the catalog and the
+errors are imported before the handler is in place.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+from collections.abc import Sequence
+
+from . import __version__
+from .catalog import catalog
+from .exceptions import CalibError
+from .table import format_table
+
+
+def catalog_listing(as_json: bool) -> str:
+    """What ``calib list`` prints: the catalog as a table, or as JSON."""
+    if as_json:
+        robots = [e.__dict__ | {"path": str(e.path)} for e in catalog()]
+        return json.dumps({"robots": robots}, indent=2)
+    rows = [
+        [
+            e.name,
+            f"{e.base} -> {', '.join(e.tools)}",
+            e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
+        ]
+        for e in catalog()
+    ]
+    return format_table(["name", "chain", "description"], rows)
+
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT)."""
+
+
+def _interrupted(signum, frame) -> None:
+    os.write(2, b"calib: interrupted\n")
+    os._exit(INTERRUPTED)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``calib`` with these arguments (default: the command line); the exit code.
+
+    Run as the command (no ``argv``), Ctrl-C exits at once with "calib: interrupted" until a
+    command's own handling takes over; a caller that passes ``argv`` keeps its handler.
+    """
+    if argv is None:
+        signal.signal(signal.SIGINT, _interrupted)
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args == ["--version"]:
+        print(f"calib {__version__}")
+        return 0
+    if args in (["list"], ["list", "--json"]):
+        try:
+            text = catalog_listing(args == ["list", "--json"])
+        except (CalibError, OSError):
+            pass  # the full command line says it the usual way
+        else:
+            try:
+                print(text, flush=True)
+            except BrokenPipeError:  # `calib list | head`: stop quietly
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 0
+    from .cli import main as full
+
+    return full(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
