@@ -193,14 +193,40 @@ def path(
         C = C[:, live] / norms[live]
         rc = r[:, None] - C * (C.T @ r)
         Cb = C.reshape(m, rows, -1)
-        Cc = np.moveaxis(Cb, 2, 0)  # (c, m, rows)
-        Hc = H[None] + Cc[..., :, None] * Cc[..., None, :]
-        sq = _loo_batch(Hc, np.moveaxis(rc.reshape(m, rows, -1), 2, 0))
+        sq = _added_loo(H, Cb, rc.reshape(m, rows, -1))
         j = int(np.argmin(np.sum(sq, axis=1)))
         order.append(rest.pop(j))
         errors.append(sq[j])
-        Q, r, H = np.column_stack([Q, C[:, j]]), rc[:, j], Hc[j]
+        Q, r = np.column_stack([Q, C[:, j]]), rc[:, j]
+        H = H + Cb[:, :, j, None] * Cb[:, None, :, j]
     return order, np.array(errors)
+
+
+def _added_loo(H: np.ndarray, Cb: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Squared left-out errors ``(c, m)`` of the fit with each orthonormal column added.
+
+    With ``M_i = I - H_ii`` and the added column's block ``q_i``, Sherman-Morrison gives
+    ``(M_i - q_i q_i^T)^-1 r_i = b + a (q^T b) / (1 - q^T a)``, ``a = M_i^-1 q_i``,
+    ``b = M_i^-1 r_i``: one inverse per configuration serves every candidate.
+
+    Args:
+        H: Hat blocks of the current fit ``(m, rows, rows)``.
+        Cb: Candidate columns, orthonormal to the fit, by configuration ``(m, rows, c)``.
+        Rb: Residuals after adding each candidate ``(m, rows, c)``.
+    """
+    rows = H.shape[1]
+    try:
+        Minv = np.linalg.inv(np.eye(rows) - H)
+    except np.linalg.LinAlgError:  # a configuration of leverage 1 already: solve each
+        Hc = H[None] + np.moveaxis(Cb[:, :, None, :] * Cb[:, None, :, :], 3, 0)
+        return _loo_batch(Hc, np.moveaxis(Rb, 2, 0))
+    a, b = Minv @ Cb, Minv @ Rb
+    denom = 1.0 - np.sum(Cb * a, axis=1)  # (m, c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        loo = b + a * (np.sum(Cb * b, axis=1) / denom)[:, None, :]
+    sq = np.sum(loo**2, axis=1).T
+    sq[(denom <= 1e-12).T | ~np.isfinite(sq)] = np.inf
+    return sq
 
 
 def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.ndarray, float]:
