@@ -851,8 +851,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--elastic",
         action=BooleanOnce,
         default=None,
-        help="fit joint compliance under gravity (default: with --params auto, where the URDF "
-        "has masses)",
+        help="fit joint compliance under gravity, which the URDF cannot hold (default: no; "
+        "needs the URDF's masses)",
     )
     p.add_argument(
         "--validate", help="measurement CSV of other configurations: score the result on it"

@@ -105,9 +105,10 @@ def calibrate(
         params: Parameter level, one of ``LEVELS``.
         validate: Measurements of other configurations to score the result on (never fitted).
         **options: ``fix``, ``free`` (parameter names, or ``frame``, ``markers``, ``tool``),
-            ``elastic`` (fit joint compliance; default: in ``auto`` where the URDF has
-            masses), ``loss``, ``noise_mm`` [mm], ``orientation_weight`` [m/rad] (default:
-            estimated from the data, :mod:`calib.calibration.weighting`),
+            ``elastic`` (fit joint compliance under gravity, which the URDF cannot hold;
+            default: no, unless ``free`` names a compliance), ``loss``, ``noise_mm`` [mm],
+            ``orientation_weight`` [m/rad] (default: estimated from the data,
+            :mod:`calib.calibration.weighting`),
             ``max_iterations``, ``holdout`` (fraction of rows set aside), ``seed``.
 
     Returns:
@@ -373,12 +374,15 @@ def _register(nominal, data, guess, opts, notes: list[str], at):
 
 
 def _torques(chain, opts, train, held):
-    """Gravity torques of the training and held-out configurations, if compliance may be fitted."""
-    if opts.elastic is False or (opts.elastic is None and opts.level != "auto"):
+    """Gravity torques of the training and held-out configurations, if compliance may be fitted.
+
+    Compliance is opt-in (``elastic=True``, or a compliance named in ``free``): the URDF
+    cannot hold it, so by default every level chooses among what the URDF holds.
+    """
+    forced = any(n[:1] == "c" and n[1:].isdigit() for n in opts.free)
+    if not (opts.elastic or (opts.elastic is None and forced)):
         return None, None
     tau = chain.gravity_torques(train.q)
-    if not np.any(tau) and opts.elastic is None:
-        return None, None
     return tau, None if held is None else chain.gravity_torques(held[0].q)
 
 
