@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -173,11 +174,31 @@ def resolve_frame(model: pin.Model, name: str) -> int:
     raise AmbiguousFrameError(bare, found)
 
 
+_MARKER_LINK = re.compile(r"(?P<tool>.+)_marker\d+(_joint)?")
+"""Names of the marker links (and their joints) a calibrated URDF adds under its tool."""
+
+
+def _calib_marker(model: pin.Model, frame) -> bool:
+    """True for a marker link calib wrote (``<tool>_markerK``) or its joint, on its tool."""
+    match = _MARKER_LINK.fullmatch(frame.name)
+    if match is None or not model.existFrame(match["tool"]):
+        return False
+    return model.frames[model.getFrameId(match["tool"])].parentJoint == frame.parentJoint
+
+
 def _default_tool(model: pin.Model) -> int:
-    """The frame at the tip of the deepest joint path (last such frame in model order)."""
+    """The frame at the tip of the deepest joint path (last such frame in model order).
+
+    The marker links of a calibrated URDF (``<tool>_markerK``, fixed under its tool) are
+    passed over: the calibrated URDF keeps the tool its nominal URDF has by default.
+    """
     depth = [len(model.supports[f.parentJoint]) for f in model.frames]
     best = max(depth)
-    return max(i for i, d in enumerate(depth) if d == best)
+    return max(
+        i
+        for i, (d, f) in enumerate(zip(depth, model.frames, strict=True))
+        if d == best and not _calib_marker(model, f)
+    )
 
 
 class JointCounts:

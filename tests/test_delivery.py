@@ -122,6 +122,12 @@ def test_marker_links_and_world_link_give_the_measured_points(tmp_path, capsys):
         < 1e-9
     )
 
+    # Loaded without --tool, the calibrated URDF has its nominal file's default tool: the
+    # marker links under the tool are deeper, yet never the default.
+    nominal_default = load_chain(chain.urdf_path).tool_frame
+    assert nominal_default != "tool0_marker1"
+    assert load_chain(urdf).tool_frame == nominal_default
+
     # Calibrated again, the calibrated URDF's marker link is moved, not duplicated.
     again = tmp_path / "again.urdf"
     code, out, _ = run(
