@@ -28,10 +28,7 @@ from . import determined, diagnosis, outliers, validation
 from .options import DEFAULT_MAX_ITERATIONS, check_run_options
 from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
 from .solve import Fit, covariance, fit
-from .tree import TreeErrorModel, TreeState, register_tree
-
-TREE_LEVELS = ("frames", "complete")
-"""Parameter levels of a tree calibration."""
+from .tree import TREE_LEVELS, TreeErrorModel, TreeState, register_tree
 
 
 @dataclass(frozen=True, eq=False)
