@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
 from .cli import (
     BooleanOnce,
     add_chain_args,
@@ -20,14 +21,7 @@ from .cli import (
     tool_arg,
     write_outputs,
 )
-from .configurations import configurations_csv, read_configurations
-from .constraints import Constraints
-from .design import DEFAULT_CANDIDATES, design, design_text, evaluate, indices_table
 from .exceptions import InvalidArgumentError
-from .exchange import EXCHANGE_CRITERIA
-from .measurements import CAMPAIGN_MEASURES
-from .observability import CRITERIA, DESIGN_LEVELS
-from .tree import load_robot
 
 CHOOSING = (
     "configs",
@@ -73,6 +67,12 @@ def check_design_options(args: argparse.Namespace) -> None:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    from .configurations import configurations_csv, read_configurations
+    from .constraints import Constraints
+    from .design import design, design_text, evaluate, indices_table
+    from .observability import CRITERIA
+    from .tree import load_robot
+
     check_design_options(args)
     chain = load_robot(args.robot, args.base, tool_arg(args))
     markers = args.marker
