@@ -46,6 +46,7 @@ NOT_FOR_ANALYZE = (
     "tqdm",
     "threadpoolctl",  # the launcher sets the one BLAS thread before numpy loads
     "importlib.metadata",  # example-robot-data's RECORD is read directly
+    "importlib.resources",  # the models folder is found beside the package
     "calib.design",
     "calib.observability",
     "calib.exchange",
@@ -130,3 +131,13 @@ def test_the_command_runs_blas_on_one_thread_without_threadpoolctl(env, threadpo
     assert seen["threadpoolctl"] is threadpoolctl
     if not env:
         assert seen["blas"] == [1]
+
+
+def test_the_models_folder_is_the_one_importlib_resources_finds():
+    import importlib.resources
+
+    from calib.catalog import models_dir
+
+    expected = Path(str(importlib.resources.files("calib.models")))
+    assert models_dir().resolve() == expected.resolve()
+    assert (models_dir() / "catalog.toml").is_file()
