@@ -35,15 +35,34 @@ def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> float:
 def process_ms(args: Sequence[str], repeats: int = 5) -> float:
     """Median wall time of a whole ``calib`` process [ms] (interpreter start included).
 
-    ``["--python"]`` times the bare interpreter (``python -c pass``) instead, for reference.
+    ``["--python"]`` times the bare interpreter (``python -c pass``) instead, for reference;
+    ``["--python", CODE]`` times ``python -c CODE``.
     """
-    command = [sys.executable, "-c", "pass"] if list(args) == ["--python"] else [str(CALIB), *args]
+    return 1e3 * statistics.median(process_times(args, repeats))
+
+
+def process_times(args: Sequence[str], repeats: int) -> list[float]:
+    """Wall times [s] of ``repeats`` whole processes (see :func:`process_ms` for ``args``)."""
+    args = list(args)
+    if args[:1] == ["--python"]:
+        command = [sys.executable, "-c", args[1] if len(args) > 1 else "pass"]
+    else:
+        command = [str(CALIB), *args]
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         subprocess.run(command, check=True, capture_output=True)
         times.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(times)
+    return times
+
+
+def compile_calib() -> None:
+    """Write calib's bytecode caches, as an installation does: with ``PYTHONDONTWRITEBYTECODE``
+    set (or before the first run), every start would otherwise compile calib's sources
+    (about 90 ms for ``calib analyze``)."""
+    import compileall
+
+    compileall.compile_dir(ROOT / "calib", quiet=1)
 
 
 def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import tomllib
+import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,8 +61,19 @@ class CatalogEntry:
 
 
 def models_dir() -> Path:
-    """The folder holding the catalog and the project's own URDFs (installed or in-tree)."""
-    import importlib.resources  # imported when needed: ``calib --version`` goes without
+    """The folder holding the catalog and the project's own URDFs (installed or in-tree).
+
+    The ``models/`` folder beside this module (a wheel) or of the source tree (an editable
+    install) when it is there: importing :mod:`importlib.resources` costs a start of ``calib``
+    10 ms or more. Else where :mod:`importlib.resources` finds ``calib.models``.
+    """
+    here = Path(__file__).parent
+    if (here / "models" / "catalog.toml").is_file():
+        return here / "models"
+    tree = here.parent
+    if (tree / "pyproject.toml").is_file() and (tree / "models" / "catalog.toml").is_file():
+        return tree / "models"
+    import importlib.resources
 
     return Path(str(importlib.resources.files("calib.models")))
 
@@ -70,9 +82,16 @@ def models_dir() -> Path:
 def erd_robots_dir() -> Path:
     """Locate example-robot-data's ``robots/`` folder through the installed distribution.
 
+    The distribution's ``RECORD`` is read directly when its ``.dist-info`` folder is found on
+    ``sys.path`` (importing :mod:`importlib.metadata` and listing the files through it costs
+    a start of ``calib analyze`` 50 ms or more); otherwise through :mod:`importlib.metadata`.
+
     Raises:
         CalibError: example-robot-data is not installed or ships no robots folder.
     """
+    found = _erd_robots_from_record()
+    if found is not None:
+        return found
     import importlib.metadata  # imported when needed (slow): ``calib list`` goes without
 
     try:
@@ -87,6 +106,31 @@ def erd_robots_dir() -> Path:
         if i >= 0:
             return Path(str(dist.locate_file(s[: i + len(_ERD_ROBOTS)])))
     raise CalibError("example-robot-data is installed but ships no share/example-robot-data/robots")
+
+
+def _erd_robots_from_record() -> Path | None:
+    """The robots folder of example-robot-data's ``RECORD``, read directly, or None.
+
+    The first ``example_robot_data-*.dist-info`` on ``sys.path``: the distribution
+    :mod:`importlib.metadata` would find.
+    """
+    for entry in sys.path:
+        with contextlib.suppress(OSError):
+            with os.scandir(entry or ".") as it:
+                names = sorted(e.name for e in it if _is_erd_info(e.name))
+            for name in names:
+                text = Path(entry or ".", name, "RECORD").read_text(encoding="utf-8")
+                i = text.find(_ERD_ROBOTS)
+                start = text.rfind("\n", 0, i) + 1
+                if i < 0 or text.startswith('"', start):  # importlib.metadata says why
+                    return None
+                return Path(entry, text[start : i + len(_ERD_ROBOTS)])
+    return None
+
+
+def _is_erd_info(name: str) -> bool:
+    name = name.lower()
+    return name.startswith("example_robot_data-") and name.endswith(".dist-info")
 
 
 def resolve_urdf(spec: str) -> Path:
@@ -106,6 +150,8 @@ def resolve_urdf(spec: str) -> Path:
 @functools.cache
 def catalog() -> tuple[CatalogEntry, ...]:
     """All catalog entries, in file order."""
+    import tomllib  # here: ``calib --version`` goes without (a tenth of its start)
+
     with open(models_dir() / "catalog.toml", "rb") as f:
         data = tomllib.load(f)
     return tuple(CatalogEntry(**row) for row in data["robot"])

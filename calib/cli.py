@@ -24,21 +24,19 @@ from .calibration.options import (
     LOSSES,
 )
 from .catalog import catalog_files, installed_dirs
-from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
-from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
-from .identifiability import DEFAULT_CONFIGS, analyze
-from .launcher import catalog_listing
-from .mdh import from_chain
-from .measurements import (
+from .choices import (
     CAMPAIGN_MEASURES,
+    DEFAULT_CONFIGS,
     MARKERS,
     ORIENTATION_FORMATS,
+    PARAMETER_SETS,
     UNITS,
-    measurements_csv,
-    read_measurements,
-    simulate,
 )
-from .parameters import PARAMETER_SETS
+from .exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
+from .fileio import check_outputs, json_text, write_files_atomic, written_in_place
+from .identifiability import analyze
+from .launcher import catalog_listing
+from .mdh import from_chain
 from .report import analysis_text, coupling_lines, mdh_table, tree_table
 from .robot import Chain, load_chain
 from .tree import Tree, load_robot
@@ -289,6 +287,8 @@ def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
+    from .measurements import measurements_csv, simulate
+
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
@@ -335,6 +335,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
 
     ``configs``: a count or joint positions; ``paths``: ``(--out, --truth)``, checked.
     """
+    from .measurements import measurements_csv
     from .tree_campaign import simulate_tree
 
     out, truth_path = paths
@@ -431,6 +432,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     from .calibration import calibrate  # only this command loads the calibration
     from .calibration.text import calibration_text
     from .elastic import compliance_document
+    from .measurements import read_measurements
 
     out, report = _calibration_outputs(args, chain.urdf_path)
     comp = None if written_in_place(out) else compliance_path(out)
@@ -575,6 +577,7 @@ CHAIN_ONLY = {
 def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
     from .calibration.tree_pipeline import TREE_LEVELS, calibrate_tree
+    from .measurements import read_measurements
     from .tree_export import calibrated_tree_urdf
     from .urdf_export import check_exportable
 

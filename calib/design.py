@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .checks import check_count, check_work
+from .choices import DEFAULT_CANDIDATES
 from .constraints import Constraints, FilterReport, filter_candidates, variable_bounds
 from .exceptions import InvalidArgumentError
 from .exchange import EXCHANGE_CRITERIA, optimal_subset
@@ -35,9 +36,6 @@ from .observability import (
 )
 from .robot import Chain
 from .tree import Tree
-
-DEFAULT_CANDIDATES = 2000
-"""Random candidates drawn by default."""
 
 RANDOM_SETS = 20
 """Random sets of K candidates the design is compared with."""

@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
 from .cli import (
     BooleanOnce,
     add_chain_args,
@@ -20,14 +21,7 @@ from .cli import (
     tool_arg,
     write_outputs,
 )
-from .configurations import configurations_csv, read_configurations
-from .constraints import Constraints
-from .design import DEFAULT_CANDIDATES, design, design_text, evaluate, indices_table
 from .exceptions import InvalidArgumentError
-from .exchange import EXCHANGE_CRITERIA
-from .measurements import CAMPAIGN_MEASURES
-from .observability import CRITERIA, DESIGN_LEVELS
-from .tree import load_robot
 
 CHOOSING = (
     "configs",
@@ -73,22 +67,17 @@ def check_design_options(args: argparse.Namespace) -> None:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    from .configurations import configurations_csv, read_configurations
+    from .constraints import Constraints
+    from .design import design, design_text
+    from .tree import load_robot
+
     check_design_options(args)
     chain = load_robot(args.robot, args.base, tool_arg(args))
     markers = args.marker
     weight = args.orientation_weight
     if args.evaluate:
-        q = read_configurations(args.evaluate, chain)
-        ind = evaluate(chain, q, args.measure, markers, args.params, args.seed, weight)
-        if args.json:
-            print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
-        else:
-            print(
-                f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
-                f"{ind.parameters} parameters, rank {ind.rank}"
-            )
-            print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
-        return 0
+        return _evaluate(args, chain)
     if args.configs is None:
         raise InvalidArgumentError("give --configs K (or --evaluate CONFIGS.csv)")
     out = Path(args.out) if args.out else None
@@ -130,6 +119,27 @@ def cmd_design(args: argparse.Namespace) -> int:
         print(design_text(result, args.noise_mm))
         if out is not None:
             print(f"wrote {out} ({len(result.q)} configurations)")
+    return 0
+
+
+def _evaluate(args: argparse.Namespace, chain) -> int:
+    """``calib design --evaluate``: the indices of a given set of configurations."""
+    from .configurations import read_configurations
+    from .design import evaluate, indices_table
+    from .observability import CRITERIA
+
+    q = read_configurations(args.evaluate, chain)
+    ind = evaluate(
+        chain, q, args.measure, args.marker, args.params, args.seed, args.orientation_weight
+    )
+    if args.json:
+        print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
+    else:
+        print(
+            f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
+            f"{ind.parameters} parameters, rank {ind.rank}"
+        )
+        print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
     return 0
 
 

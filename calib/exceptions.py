@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable, Sequence
 
 
@@ -19,6 +18,8 @@ class RobotNotFoundError(CalibError):
     def __init__(self, name: str, known: Sequence[str]):
         self.name = name
         self.known = tuple(known)
+        import difflib  # here: every start of calib imports this module
+
         close = difflib.get_close_matches(name, self.known, n=3, cutoff=0.5)
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
         super().__init__(
@@ -46,6 +47,8 @@ def closest_first(name: str, candidates: Iterable[str]) -> list[str]:
     Returns:
         The distinct candidates, most similar first (ties in alphabetical order).
     """
+    import difflib
+
     unique = sorted(set(candidates))
     return sorted(
         unique, key=lambda c: -difflib.SequenceMatcher(None, name.lower(), c.lower()).ratio()

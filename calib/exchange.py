@@ -34,10 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .choices import EXCHANGE_CRITERIA
 from .exceptions import InvalidArgumentError
-
-EXCHANGE_CRITERIA = ("D", "A", "I")
-"""Criteria the exchange optimises."""
 
 MIN_IMPROVEMENT = 1e-9
 """Relative improvement of the criterion below which an exchange is not made."""

@@ -15,6 +15,7 @@ import numpy as np
 
 from . import qr
 from .checks import check_count, check_work, joint_positions
+from .choices import DEFAULT_CONFIGS
 from .exceptions import InvalidArgumentError
 from .jacobian import Measurement, complete_jacobian, identification_jacobian
 from .mdh import MDHModel, from_chain
@@ -24,9 +25,6 @@ from .robot import Chain
 from .tree import Tree, load_robot
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 from .tree_model import TreeMDH, from_tree
-
-DEFAULT_CONFIGS = 100
-"""Random configurations drawn by default."""
 
 REGROUP_TOL = 1e-8
 """Regrouping coefficients smaller than this (in absolute value) are printed as zero."""

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from . import marker_set
+from .choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
 from .exceptions import DataError, InvalidArgumentError
 from .fileio import read_text_limited, write_atomic
 from .identifiability import Identifiability, analyze_model
@@ -72,9 +73,6 @@ MAX_MEASUREMENTS_BYTES = 256 << 20
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
 """Columns of the measured orientation, a quaternion with the scalar last."""
 
-ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
-"""How orientation columns are written: quaternion (scalar last or first), rotation vector
-[rad], or roll-pitch-yaw [rad] (``R = Rz(yaw) Ry(pitch) Rx(roll)``, Pinocchio's ``rpy``)."""
 
 TOOL_COLUMN = "tool"
 
@@ -82,9 +80,6 @@ JOINT_PREFIX = "joint:"
 """A header cell ``joint:NAME`` is the column of joint NAME: how a joint named like a
 measurement column (``x``, ``qw``, ``tool``) is told apart from that column."""
 """Column naming the tool frame a row measures (several tools of a tree; optional)."""
-
-MARKERS = "markers"
-"""Orientation format: no columns, the orientation of the K >= 3 measured points."""
 
 DEFAULT_ORIENTATION_COLUMNS = {
     "quat-xyzw": QUATERNION_COLUMNS,
@@ -103,12 +98,6 @@ LIMIT_MARGIN = (0.1, 0.01)
 Real encoders read a little past the limits the URDF gives for motion planning; kinematics
 does not need the limits. Farther out is an error (a wrong column, degrees for radians).
 """
-
-UNITS = {"m": 1.0, "mm": 1e-3}
-"""Position units a file may use, and their size in metres."""
-
-CAMPAIGN_MEASURES = ("pose", "position")
-"""What a campaign can measure."""
 
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 """Strict decimal number grammar of a CSV cell (no ``1_0``, no ``0x10``, no ``nan``)."""

@@ -54,6 +54,7 @@ from .calibration.pipeline import Options, level_names
 from .calibration.solve import row_weights
 from .calibration.tree import TREE_LEVELS, TreeErrorModel, TreeState
 from .checks import check_count, real_array
+from .choices import DESIGN_LEVELS
 from .exceptions import InvalidArgumentError
 from .identifiability import independent_columns, preference_order
 from .mdh import from_chain
@@ -63,10 +64,6 @@ from .robot import Chain
 from .tree import Tree
 from .tree_jacobian import tree_parameters
 from .tree_model import from_tree
-
-DESIGN_LEVELS = ("frames", "offsets", "paper", "complete")
-"""Parameter levels a design can target (``calib calibrate --params``; ``auto`` chooses from
-the data, so a design targets ``complete``, the largest set it may keep)."""
 
 REFERENCE_CONFIGS = 200
 """Reference configurations of the predicted position error (I, G) by default."""

@@ -121,9 +121,6 @@ class ParameterSet:
         return mdh.replace(**arrays)
 
 
-PARAMETER_SETS = ("paper", "complete")
-
-
 def _check_model(mdh, tree: bool = False) -> None:
     if isinstance(mdh, MDHModel) or (tree and isinstance(mdh, TreeMDH)):
         return

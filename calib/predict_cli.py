@@ -9,12 +9,13 @@ import argparse
 from pathlib import Path
 
 from .cli import check_output_paths, write_outputs
-from .configurations import read_configurations
-from .elastic import load_calibrated, predictions_csv
 
 
 def cmd_predict(args: argparse.Namespace) -> int:
     """Predict the measured points and the deflected joints at given configurations."""
+    from .configurations import read_configurations
+    from .elastic import load_calibrated, predictions_csv
+
     out = Path(args.out)
     check_output_paths(
         {"--out": out},

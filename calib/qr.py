@@ -3,15 +3,58 @@
 The same LAPACK routines NumPy and SciPy call (``dgeqrf``, ``dgeqp3``, ``dtrtrs``), so the
 same numbers, without their per-call overhead (checks, copies, ``triu`` of the whole
 result), which dominates for a 30 x 30 triangular factor: 2 us instead of 20 us.
+
+The routines come from SciPy's LAPACK extension (``scipy.linalg._flapack``), loaded by itself:
+importing the ``scipy.linalg`` package costs a start of ``calib analyze`` 0.15 s or more
+(SciPy 1.17 imports its array-API layer, which imports ``numpy.f2py`` and ``numpy.testing``).
+Where the extension cannot be loaded alone, ``scipy.linalg.lapack`` is imported as usual.
 """
 
 from __future__ import annotations
 
 import functools
+import importlib.machinery
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
-import scipy.linalg
-from scipy.linalg import lapack
+
+_FLAPACK = "scipy.linalg._flapack"
+
+
+@functools.cache
+def _lapack() -> ModuleType:
+    """SciPy's LAPACK wrappers (``dgeqrf``, ``dgeqp3``, ``dtrtrs``), loaded once."""
+    if "scipy.linalg" not in sys.modules:
+        try:
+            return _load_flapack()
+        except (ImportError, OSError):
+            pass
+    from scipy.linalg import lapack
+
+    return lapack
+
+
+def _load_flapack() -> ModuleType:
+    """``scipy.linalg._flapack`` without ``scipy.linalg``'s ``__init__`` (ImportError if not)."""
+    if _FLAPACK in sys.modules:
+        return sys.modules[_FLAPACK]
+    spec = importlib.util.find_spec("scipy")  # a top-level package: found, not imported
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("scipy not found")
+    for folder in spec.submodule_search_locations:
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+            path = Path(folder, "linalg", "_flapack" + suffix)
+            if path.is_file():
+                ext = importlib.util.spec_from_file_location(_FLAPACK, path)
+                if ext is None or ext.loader is None:
+                    break
+                module = importlib.util.module_from_spec(ext)
+                ext.loader.exec_module(module)
+                return module
+    raise ImportError(f"{_FLAPACK} not found")
 
 
 def triangular(W: np.ndarray) -> np.ndarray:
@@ -40,7 +83,7 @@ def householder(W: np.ndarray) -> np.ndarray:
 
     ``triangular(W) == triu(householder(W)[:min(r, c)])``; ``W`` must not be empty.
     """
-    qr, _, _, info = lapack.dgeqrf(W)
+    qr, _, _, info = _lapack().dgeqrf(W)
     if info != 0:
         return np.linalg.qr(W, mode="r")
     return qr
@@ -53,8 +96,10 @@ def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
     """
     if min(W.shape) == 0:
         return np.zeros(0)
-    qr, _, _, _, info = lapack.dgeqp3(W)
+    qr, _, _, _, info = _lapack().dgeqp3(W)
     if info != 0:
+        import scipy.linalg
+
         qr = scipy.linalg.qr(W, mode="r", pivoting=True, check_finite=False)[0]
     return np.abs(np.diag(qr))
 
@@ -66,7 +111,9 @@ def solve_upper(R: np.ndarray, B: np.ndarray) -> np.ndarray:
     """
     if R.size == 0 or B.size == 0:
         return np.zeros((R.shape[1], B.shape[1]))
-    x, info = lapack.dtrtrs(R, B, lower=0)
+    x, info = _lapack().dtrtrs(R, B, lower=0)
     if info != 0:  # a zero pivot: SciPy raises the usual error
+        import scipy.linalg
+
         return scipy.linalg.solve_triangular(R, B, check_finite=False)
     return x

@@ -1,0 +1,37 @@
+"""Choices and defaults of the command line's options, in a module without numpy.
+
+:mod:`calib.cli` builds its parser from these constants, so that ``calib --help`` and every
+command start without importing the modules of the other commands (the design, the
+calibration, the measurements). The modules that use them import them from here.
+"""
+
+from __future__ import annotations
+
+DEFAULT_CONFIGS = 100
+"""Random configurations drawn by default."""
+
+PARAMETER_SETS = ("paper", "complete")
+"""Parameter sets of the analysis: the paper's (joint offsets fixed by the model) or complete."""
+
+ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
+"""How orientation columns are written: quaternion (scalar last or first), rotation vector
+[rad], or roll-pitch-yaw [rad] (``R = Rz(yaw) Ry(pitch) Rx(roll)``, Pinocchio's ``rpy``)."""
+
+MARKERS = "markers"
+"""Orientation format: no columns, the orientation of the K >= 3 measured points."""
+
+UNITS = {"m": 1.0, "mm": 1e-3}
+"""Position units a file may use, and their size in metres."""
+
+CAMPAIGN_MEASURES = ("pose", "position")
+"""What a campaign can measure."""
+
+DEFAULT_CANDIDATES = 2000
+"""Random candidates a design draws by default."""
+
+EXCHANGE_CRITERIA = ("D", "A", "I")
+"""Criteria the exchange optimises."""
+
+DESIGN_LEVELS = ("frames", "offsets", "paper", "complete")
+"""Parameter levels a design can target (``calib calibrate --params``; ``auto`` chooses from
+the data, so a design targets ``complete``, the largest set it may keep)."""
