@@ -562,16 +562,19 @@ def _assemble(
         fitted.model.names(),
     )
     urdf_after = _geometry_stats(fitted.state, train)
-    if reason is None and urdf_after is not None:
-        reason = validation.urdf_refusal(
-            (before, urdf_after), None if val is None else (val.registration, val.geometry)
-        )
     notes = list(notes)
     if torque[0] is not None and np.any(fitted.state.compliance):
         notes.append(
             "joint compliance was fitted: the calibrated URDF cannot hold it; it is written "
             "to the compliance file (apply it with calib predict or calib.load_calibrated)"
         )
+    alone = None
+    if urdf_after is not None:
+        alone = validation.urdf_alone_warning(
+            (before, urdf_after), None if val is None else (val.registration, val.geometry)
+        )
+    if alone is not None:
+        notes.append(alone)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         std = np.sqrt(np.diag(cov)) if p else np.zeros(0)

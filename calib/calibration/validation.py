@@ -8,9 +8,13 @@ A calibrated model is written only if it passes every check:
 3. the measured configurations identify every fitted parameter (the weighted Jacobian at
    the solution has full column rank);
 4. on held-out configurations (``--validate`` or ``--holdout``), its RMS error is no larger
-   than the registration's;
-5. with joint compliance fitted, the calibrated URDF alone (geometry, frame and markers,
-   compliance left out) passes checks 2 and 4 too (:func:`urdf_refusal`).
+   than the registration's.
+
+With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
+plus the compliance file, and the checks apply to that whole model. The URDF alone
+(geometry, frame and markers, compliance left out) is scored too; where it is worse than the
+registration, :func:`urdf_alone_warning` says so (the URDF must then be used with its
+compliance file).
 """
 
 from __future__ import annotations
@@ -199,15 +203,18 @@ def refusal(
     return None
 
 
-def urdf_refusal(
+def urdf_alone_warning(
     fitted: tuple[ResidualStats, ResidualStats],
     held: tuple[ResidualStats, ResidualStats] | None,
 ) -> str | None:
-    """Why the URDF alone (compliance left out) must not be written, or None.
+    """Why the URDF alone (compliance left out) must not be used without its compliance file.
 
     Args:
         fitted: Errors of the registration and of the URDF alone on the fitted data.
         held: The same on held-out data, or None.
+
+    Returns:
+        A warning where the URDF alone is worse than the registration, else None.
     """
     checks = [("the fitted data", fitted)] + ([] if held is None else [("held-out rows", held)])
     for label, (reg, urdf) in checks:
@@ -215,7 +222,7 @@ def urdf_refusal(
             return (
                 f"on {label} the calibrated URDF alone (without the fitted joint compliance) "
                 f"is worse than the registration alone ({1e3 * urdf.position_rms:.3g} mm vs "
-                f"{1e3 * reg.position_rms:.3g} mm RMS): a user of the URDF would get a less "
-                f"accurate robot"
+                f"{1e3 * reg.position_rms:.3g} mm RMS): use it only with its compliance file "
+                f"(calib predict, calib.load_calibrated)"
             )
     return None
