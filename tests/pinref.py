@@ -199,6 +199,20 @@ class PinTree:
         return int(np.sum(s > 1e-7 * s[0]))
 
 
+def mimic_tags(root: ET.Element) -> dict[str, tuple[str, float, float]]:
+    """The URDF's mimic tags, read here: joint -> (leader, multiplier, offset)."""
+    tags = {}
+    for joint in root.iter("joint"):
+        tag = joint.find("mimic")
+        if tag is not None:
+            tags[joint.get("name")] = (
+                tag.get("joint").strip(),
+                float(tag.get("multiplier", "1")),
+                float(tag.get("offset", "0")),
+            )
+    return tags
+
+
 class MimicChain:
     """A chain of a URDF with ``<mimic>`` tags, posed by the test from its independent joints.
 
@@ -215,16 +229,7 @@ class MimicChain:
         jb = self.model.frames[self.base].parentJoint
         support = list(self.model.supports[self.model.frames[self.tool].parentJoint])
         self.joints = support[support.index(jb) + 1 :]
-        self.tags = {}
-        if not pin_mimic:
-            for joint in ET.parse(str(path)).getroot().iter("joint"):
-                tag = joint.find("mimic")
-                if tag is not None:
-                    self.tags[joint.get("name")] = (
-                        tag.get("joint").strip(),
-                        float(tag.get("multiplier", "1")),
-                        float(tag.get("offset", "0")),
-                    )
+        self.tags = {} if pin_mimic else mimic_tags(ET.parse(str(path)).getroot())
 
     def _master(self, name: str) -> str:
         while name in self.tags:
@@ -347,18 +352,12 @@ class MimicTree(PinTree):
     def __init__(self, path, base: str, tools):
         model = pin.buildModelFromUrdf(str(path))
         super().__init__(model, pin_frame(model, base), [pin_frame(model, t) for t in tools])
-        self.tags, self.axes = {}, {}
-        for joint in ET.parse(str(path)).getroot().iter("joint"):
+        root = ET.parse(str(path)).getroot()
+        self.tags, self.axes = mimic_tags(root), {}
+        for joint in root.iter("joint"):
             axis = joint.find("axis")
             xyz = "1 0 0" if axis is None else axis.get("xyz", "1 0 0")
             self.axes[joint.get("name")] = np.array([float(v) for v in xyz.split()])
-            tag = joint.find("mimic")
-            if tag is not None:
-                self.tags[joint.get("name")] = (
-                    tag.get("joint").strip(),
-                    float(tag.get("multiplier", "1")),
-                    float(tag.get("offset", "0")),
-                )
 
     def leader(self, name: str) -> str:
         """The independent joint at the end of a joint's mimic tags."""
