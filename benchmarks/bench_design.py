@@ -1,7 +1,7 @@
 """Speed of experiment design (issue 13: 30 configurations from 2,000 candidates of a
 7-joint robot in under 1 s, 100 from 20,000 in under 10 s, one core).
 
-The cases time :func:`calib.design.design` on the Panda (7 joints): candidates drawn, their
+The cases time :func:`calib.design.design.design` on the Panda (7 joints): candidates drawn, their
 Jacobian, greedy start, exchanges, indices of the design and of 20 random sets; the
 collision filter is timed apart (it depends on the meshes, not on the algorithm). Medians of
 wall time and of process CPU time (the machine is shared: CPU time is what one core spends).
@@ -22,9 +22,9 @@ from common import one_core, process_ms, table
 one_core()
 
 from calib import load_chain  # noqa: E402
-from calib.constraints import Constraints, filter_candidates  # noqa: E402
-from calib.design import candidate_configurations, design  # noqa: E402
-from calib.tree import load_tree  # noqa: E402
+from calib.design.constraints import Constraints, filter_candidates  # noqa: E402
+from calib.design.design import candidate_configurations, design  # noqa: E402
+from calib.kinematics.tree import load_tree  # noqa: E402
 
 NO_COLLISION = Constraints(collision=False)
 

@@ -38,7 +38,7 @@ from calib import (  # noqa: E402
     load_tree,
     paper_parameters,
 )
-from calib.identifiability import identify_base  # noqa: E402
+from calib.identification.identifiability import identify_base  # noqa: E402
 
 warnings.simplefilter("ignore")
 

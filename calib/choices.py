@@ -1,6 +1,6 @@
 """Choices and defaults of the command line's options, in a module without numpy.
 
-:mod:`calib.cli` builds its parser from these constants, so that ``calib --help`` and every
+:mod:`calib.cli.commands` builds its parser from these constants, so that ``calib --help`` and every
 command start without importing the modules of the other commands (the design, the
 calibration, the measurements). The modules that use them import them from here.
 """

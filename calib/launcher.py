@@ -2,11 +2,11 @@
 
 ``calib --version`` and ``calib list [--json]`` are answered here, from the standard library
 and the catalog file: they start without numpy, Pinocchio or SciPy. Every other command line
-goes to :func:`calib.cli.main`.
+goes to :func:`calib.cli.commands.main`.
 
 Ctrl-C is one line and exit 130 from the first instant: :func:`main` installs a SIGINT
 handler that exits at once before numpy, Pinocchio or calib's modules are imported (an
-interrupt during those imports would otherwise print a traceback). :func:`calib.cli.main`
+interrupt during those imports would otherwise print a traceback). :func:`calib.cli.commands.main`
 raises KeyboardInterrupt again while a command runs (temporary files are then removed) and
 says "calib: interrupted" itself. ``import calib`` itself is lazy: only the catalog and the
 errors are imported before the handler is in place.
@@ -20,15 +20,15 @@ import sys
 from collections.abc import Sequence
 
 from . import __version__
-from .catalog import catalog
 from .exceptions import CalibError
+from .kinematics.catalog import catalog
 
 
 def catalog_listing(as_json: bool) -> str:
     """What ``calib list`` prints: the catalog as a table, or as JSON."""
     import json
 
-    from .table import format_table
+    from .identification.table import format_table
 
     if as_json:
         robots = [e.__dict__ | {"path": str(e.path)} for e in catalog()]
@@ -58,10 +58,10 @@ _BLAS_ENVS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def _one_blas_thread() -> None:
-    """The command's BLAS on one thread from its start, as :func:`calib.cli.blas_threads` asks.
+    """The command's BLAS on one thread from its start, as :func:`~.cli.commands.blas_threads` asks.
 
     Before numpy is imported, with neither ``CALIB_THREADS`` nor a BLAS thread variable set,
-    ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS`` are set to 1: :mod:`calib.cli` then sees
+    ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS`` are set to 1: :mod:`~.cli.commands` then sees
     the count set and leaves it, which spares the command importing threadpoolctl and
     inspecting the loaded libraries (20 ms of every start).
     """
@@ -96,7 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             except BrokenPipeError:  # `calib list | head`: stop quietly
                 os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 0
-    from .cli import main as full
+    from .cli.commands import main as full
 
     return full(args)
 

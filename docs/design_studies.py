@@ -29,11 +29,11 @@ import numpy as np
 
 from calib import calibrate, load_chain, residual_stats, simulate
 from calib.calibration.tree_pipeline import calibrate_tree
-from calib.constraints import Constraints, filter_candidates
-from calib.design import candidate_configurations, design, least_i
-from calib.observability import reference
-from calib.tree import load_tree
-from calib.tree_campaign import simulate_tree, true_points
+from calib.design.constraints import Constraints, filter_candidates
+from calib.design.design import candidate_configurations, design, least_i
+from calib.design.observability import reference
+from calib.kinematics.tree import load_tree
+from calib.measurements.tree_campaign import simulate_tree, true_points
 
 SEEDS = range(10)
 NO_COLLISION = Constraints(collision=False)

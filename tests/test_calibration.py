@@ -32,9 +32,9 @@ from calib.calibration.model import ErrorModel, selection_lift
 from calib.calibration.registration import register, rigid_fit
 from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, path, ridge_loo
 from calib.calibration.solve import Problem
-from calib.cli import main
-from calib.measurements import measurements_csv
-from calib.parameters import complete_parameters
+from calib.cli.commands import main
+from calib.identification.parameters import complete_parameters
+from calib.measurements.csvfile import measurements_csv
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 MARKER = (0.05, 0.02, 0.1)
@@ -345,7 +345,7 @@ def test_limits_margin_warns_and_far_outside_names_row_and_column(tmp_path):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         calibrate_data = read_measurements(path, chain)
-        from calib.measurements import check_against_chain
+        from calib.measurements.csvfile import check_against_chain
 
         check_against_chain(calibrate_data, chain)
     assert any(

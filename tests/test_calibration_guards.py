@@ -25,9 +25,9 @@ from scipy.spatial.transform import Rotation
 
 from calib import DataError, InvalidArgumentError, calibrate, simulate
 from calib.calibration.tree_pipeline import calibrate_tree
-from calib.cli import main
-from calib.tree import load_robot
-from calib.tree_campaign import simulate_tree
+from calib.cli.commands import main
+from calib.kinematics.tree import load_robot
+from calib.measurements.tree_campaign import simulate_tree
 
 MARKER = (0.05, 0.02, 0.1)
 
@@ -393,7 +393,7 @@ def test_validation_rows_measured_in_another_frame_stop_with_their_cause():
 
 def test_tree_model_worse_on_held_out_rows_is_refused_with_its_report(tmp_path):
     """No geometric error and 2 mm of noise: the complete model can only overfit."""
-    from calib.measurements import measurements_csv
+    from calib.measurements.csvfile import measurements_csv
 
     tree = load_robot("bolt")
     camp = simulate_tree(tree, 20, markers=MARKER, error_mm=0, error_mrad=0, noise_mm=2, seed=0)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from calib.cli import main
+from calib.cli.commands import main
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
@@ -286,7 +286,7 @@ def test_numpy_warnings_reach_the_user_after_the_output(tmp_path):
     script = (
         "import sys, warnings\n"
         "import numpy as np\n"
-        "import calib.cli as cli\n"
+        "import calib.cli.commands as cli\n"
         "def run(args):\n"
         "    print('OUTPUT', flush=True)\n"
         "    np.log(np.zeros(2))\n"

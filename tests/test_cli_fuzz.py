@@ -24,15 +24,15 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from calib.cli import main
+from calib.cli.commands import main
 
 ROOT = Path(__file__).resolve().parents[1]
 AID = ROOT / "models" / "aid.urdf"
 
 
 def _ur5_srdf() -> bytes:
-    from calib.catalog import catalog_entry
-    from calib.collision import find_srdf
+    from calib.design.collision import find_srdf
+    from calib.kinematics.catalog import catalog_entry
 
     return find_srdf(catalog_entry("ur5").path).read_bytes()
 

@@ -19,15 +19,15 @@ from pathlib import Path
 
 import pytest
 
-import calib.measurements
-from calib.catalog import catalog_entry
-from calib.cli import main
-from calib.collision import find_srdf
+import calib.measurements.csvfile
+from calib.cli.commands import main
+from calib.design.collision import find_srdf
+from calib.kinematics.catalog import catalog_entry
 
 ROOT = Path(__file__).resolve().parents[1]
 UR5_SRDF = find_srdf(catalog_entry("ur5").path)
 PANDA_SRDF = find_srdf(catalog_entry("panda").path)
-CALIB_DIR = Path(calib.measurements.__file__).resolve().parent
+CALIB_DIR = Path(calib.measurements.csvfile.__file__).resolve().parents[1]
 
 
 def digest(path: Path) -> str:
@@ -124,7 +124,7 @@ def test_measurement_and_validation_files_are_read_with_a_size_limit(
     tmp_path, capsys, monkeypatch, campaign
 ):
     size = campaign.stat().st_size
-    monkeypatch.setattr(calib.measurements, "MAX_MEASUREMENTS_BYTES", size - 1)
+    monkeypatch.setattr(calib.measurements.csvfile, "MAX_MEASUREMENTS_BYTES", size - 1)
     out = tmp_path / "c.urdf"
     line = one_error(capsys, ["calibrate", "ur5", "--data", campaign, "--out", out])
     assert str(campaign) in line and "larger than" in line
@@ -137,7 +137,7 @@ def test_measurement_and_validation_files_are_read_with_a_size_limit(
 
 
 def test_a_device_as_measurement_file_is_refused_quickly(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(calib.measurements, "MAX_MEASUREMENTS_BYTES", 1 << 20)
+    monkeypatch.setattr(calib.measurements.csvfile, "MAX_MEASUREMENTS_BYTES", 1 << 20)
     start = time.perf_counter()
     line = one_error(capsys, ["calibrate", "ur5", "--data", "/dev/zero", "--out", tmp_path / "c"])
     assert "/dev/zero" in line and time.perf_counter() - start < 30
@@ -198,7 +198,7 @@ def test_markers_beyond_memory_are_refused_naming_the_count(capsys):
 @pytest.mark.parametrize("command", ["analyze", "simulate", "design"])
 def test_a_tree_count_beyond_memory_names_the_users_count(tmp_path, capsys, command):
     """The user's own count, and a maximum that is a count of configurations of this tree."""
-    from calib.tree import load_robot
+    from calib.kinematics.tree import load_robot
 
     argv = [command, "talos", "--configs", "100000000"]
     if command == "simulate":
@@ -411,7 +411,7 @@ def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, 
     import numpy as np
 
     import calib.calibration.pipeline as pipeline
-    from calib.robot import load_chain
+    from calib.kinematics.robot import load_chain
 
     chain = load_chain("ur5")
     q = chain.random_configurations(200, 1)

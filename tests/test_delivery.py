@@ -16,7 +16,7 @@ import pytest
 
 from calib import InvalidArgumentError, complete_parameters, from_chain, load_calibrated, load_chain
 from calib.calibration.model import State
-from calib.cli import main
+from calib.cli.commands import main
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 

@@ -13,14 +13,14 @@ from hypothesis import strategies as st
 from pinref import pair_collides
 
 from calib import InvalidArgumentError, calibrate, residual_stats, simulate
-from calib.catalog import erd_robots_dir
-from calib.cli import main
-from calib.configurations import configurations_csv, parse_configurations
-from calib.constraints import Constraints, filter_candidates
-from calib.design import candidate_configurations, design, evaluate, least_i
+from calib.cli.commands import main
+from calib.design.configurations import configurations_csv, parse_configurations
+from calib.design.constraints import Constraints, filter_candidates
+from calib.design.design import candidate_configurations, design, evaluate, least_i
+from calib.design.exchange import ExchangeState, optimal_subset, solve_blocks
+from calib.design.observability import indices_of, observation_model, reference
 from calib.exceptions import DataError
-from calib.exchange import ExchangeState, optimal_subset, solve_blocks
-from calib.observability import indices_of, observation_model, reference
+from calib.kinematics.catalog import erd_robots_dir
 
 
 @pytest.fixture(scope="module")

@@ -14,17 +14,17 @@ from pinref import MimicChain, pair_collides
 from calib import InvalidArgumentError, analyze
 from calib.calibration.tree import TreeErrorModel, TreeState
 from calib.calibration.tree_pipeline import calibrate_tree
-from calib.catalog import erd_robots_dir, resolve_urdf
-from calib.cli import main
-from calib.collision import collision_checker
-from calib.configurations import parse_configurations
-from calib.constraints import Constraints, filter_candidates, measured_points
-from calib.design import candidate_configurations, design, evaluate
-from calib.observability import observation_model
-from calib.tree import load_tree
-from calib.tree_campaign import simulate_tree, true_points
-from calib.tree_jacobian import tree_parameters
-from calib.tree_model import from_tree
+from calib.cli.commands import main
+from calib.design.collision import collision_checker
+from calib.design.configurations import parse_configurations
+from calib.design.constraints import Constraints, filter_candidates, measured_points
+from calib.design.design import candidate_configurations, design, evaluate
+from calib.design.observability import observation_model
+from calib.identification.tree_jacobian import tree_parameters
+from calib.kinematics.catalog import erd_robots_dir, resolve_urdf
+from calib.kinematics.tree import load_tree
+from calib.kinematics.tree_model import from_tree
+from calib.measurements.tree_campaign import simulate_tree, true_points
 
 HANDS = ("wrist_left_ft_tool_link", "wrist_right_ft_tool_link")
 MARKERS = np.array([[0.05, 0.02, 0.1], [0.03, -0.02, 0.08]])

@@ -11,8 +11,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from calib import InvalidArgumentError
-from calib.design import candidate_configurations
-from calib.exchange import (
+from calib.design.design import candidate_configurations
+from calib.design.exchange import (
     GREEDY_RIDGE,
     MAX_SWEEPS,
     MIN_DET_RATIO,
@@ -21,7 +21,7 @@ from calib.exchange import (
     _best,
     optimal_subset,
 )
-from calib.observability import observation_model, reference
+from calib.design.observability import observation_model, reference
 
 
 def _cost(J, design, L, ridge=0.0):

@@ -19,10 +19,10 @@ from pathlib import Path
 
 import pytest
 
-import calib.cli
+import calib.cli.commands
 import calib.fileio
-import calib.sweep
-from calib.cli import main
+import calib.outputs.sweep
+from calib.cli.commands import main
 from calib.exceptions import CalibError, InvalidArgumentError, OutputError
 from calib.fileio import check_outputs, same_file, write_atomic, write_files_atomic
 
@@ -60,8 +60,8 @@ def no_work(monkeypatch):
         raise AssertionError("the work started before the outputs were checked")
 
     for name in ("simulate", "calibrate", "read_measurements"):
-        monkeypatch.setattr(calib.cli, name, forbidden, raising=False)
-    monkeypatch.setattr(calib.sweep, "sweep", forbidden)
+        monkeypatch.setattr(calib.cli.commands, name, forbidden, raising=False)
+    monkeypatch.setattr(calib.outputs.sweep, "sweep", forbidden)
 
 
 # --------------------------------------------------------------------------------------
@@ -125,7 +125,7 @@ def must_stay(target: Path):
 
 @pytest.mark.parametrize("entry", ["aid.urdf", "catalog.toml"])
 def test_a_file_of_the_installed_catalog_is_never_overwritten(tmp_path, capsys, no_work, entry):
-    from calib.catalog import models_dir
+    from calib.kinematics.catalog import models_dir
 
     target = models_dir() / entry
     with must_stay(target):
@@ -139,7 +139,7 @@ def test_a_file_of_the_installed_catalog_is_never_overwritten(tmp_path, capsys, 
 
 
 def test_the_catalog_urdf_of_a_robot_name_is_protected(tmp_path, capsys, no_work):
-    from calib.catalog import catalog_entry
+    from calib.kinematics.catalog import catalog_entry
 
     target = catalog_entry("ur5").path  # example-robot-data's file
     with must_stay(target):
@@ -381,7 +381,7 @@ SIGTERM_SCRIPT = textwrap.dedent(
     """
     import os, signal, sys
     import calib.fileio
-    from calib.cli import main
+    from calib.cli.commands import main
 
     real = calib.fileio.write_all
 
@@ -440,7 +440,7 @@ def test_sweep_plot_svg_has_svg_bytes(tmp_path, capsys):
     ],
 )
 def test_save_figure_format_follows_the_extension(tmp_path, name, check):
-    from calib.plots import errors_figure, save_figure
+    from calib.outputs.plots import errors_figure, save_figure
 
     save_figure(errors_figure([1e-3, 2e-3], [1e-6, 2e-6]), tmp_path / name)
     assert check((tmp_path / name).read_bytes())
@@ -463,24 +463,24 @@ THREADS_SCRIPT = textwrap.dedent(
     """
     import json, os, sys
     from threadpoolctl import threadpool_info
-    import calib.cli
+    import calib.cli.commands
 
     def blas():
         return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
 
     seen = []
-    real = calib.cli.analyze
+    real = calib.cli.commands.analyze
 
     def spy(*args, **kwargs):
         seen.append(blas())
         return real(*args, **kwargs)
 
-    calib.cli.analyze = spy
+    calib.cli.commands.analyze = spy
     argv = ["analyze", "aid", "--configs", "20"]
     outside = blas()
-    assert calib.cli.main(argv) == 0
+    assert calib.cli.commands.main(argv) == 0
     os.environ["CALIB_THREADS"] = "2"
-    assert calib.cli.main(argv) == 0
+    assert calib.cli.commands.main(argv) == 0
     after = blas()
     print(json.dumps({"outside": outside, "default": seen[0], "two": seen[1], "after": after}),
           file=sys.stderr)
@@ -511,12 +511,12 @@ def test_the_cli_runs_blas_on_one_thread_unless_told_otherwise():
 def test_a_thread_count_the_user_set_is_respected(monkeypatch):
     monkeypatch.delenv("CALIB_THREADS", raising=False)
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")
-    assert calib.cli.blas_threads() is None
+    assert calib.cli.commands.blas_threads() is None
     monkeypatch.setenv("CALIB_THREADS", "2")
-    assert calib.cli.blas_threads() == 2
+    assert calib.cli.commands.blas_threads() == 2
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "CALIB_THREADS"):
         monkeypatch.delenv(var, raising=False)
-    assert calib.cli.blas_threads() == 1
+    assert calib.cli.commands.blas_threads() == 1
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "two", "1.5"])

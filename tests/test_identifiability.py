@@ -29,7 +29,11 @@ from calib import (
     identification_jacobian,
     paper_parameters,
 )
-from calib.identifiability import checked_selection, independent_columns, select_by_rank
+from calib.identification.identifiability import (
+    checked_selection,
+    independent_columns,
+    select_by_rank,
+)
 
 MARKER = (0.011, 0.023, 0.037)
 

@@ -33,9 +33,9 @@ from calib import (
     from_chain,
     load_chain,
 )
-from calib.cli import main
+from calib.cli.commands import main
 from calib.fileio import read_bytes_limited, read_text_limited
-from calib.urdf_xml import MAX_COORDINATE, MAX_URDF_BYTES
+from calib.kinematics.urdf_xml import MAX_COORDINATE, MAX_URDF_BYTES
 
 DATA = Path(__file__).parent / "data"
 
@@ -218,7 +218,7 @@ def long_chain_urdf(n: int) -> str:
 
 _PEAK_SCRIPT = """
 import resource, sys
-from calib.cli import main
+from calib.cli.commands import main
 code = main(sys.argv[1:])
 print(code, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """

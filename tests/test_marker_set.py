@@ -9,9 +9,9 @@ from scipy.spatial.transform import Rotation
 
 from calib import Columns, DataError, DataWarning, calibrate, simulate
 from calib.calibration.weighting import estimate_weight, variance_ratio
-from calib.cli import main
-from calib.marker_set import marker_set_pose
-from calib.measurements import measurements_csv, parse_measurements
+from calib.cli.commands import main
+from calib.measurements.csvfile import measurements_csv, parse_measurements
+from calib.measurements.marker_set import marker_set_pose
 
 PLATE = np.array([[0.0, 0.0, 0.0], [0.15, 0.0, 0.0], [0.15, 0.1, 0.01], [0.0, 0.1, 0.0]])
 

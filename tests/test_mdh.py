@@ -17,7 +17,7 @@ from pinref import own_random_q, pin_frame, rot, trans
 
 import calib
 from calib import PARALLEL_TOL, load_chain
-from calib.cli import main
+from calib.cli.commands import main
 
 DATA = Path(__file__).parent / "data"
 FK_TOL = 1e-10

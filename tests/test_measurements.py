@@ -23,12 +23,12 @@ from calib import (
     load_chain,
     read_measurements,
     simulate,
-    so3,
     write_measurements,
 )
 from calib.fileio import json_text, write_files_atomic
-from calib.jacobian import measured_point
-from calib.measurements import measurements_csv, parse_measurements
+from calib.identification.jacobian import measured_point
+from calib.kinematics import so3
+from calib.measurements.csvfile import measurements_csv, parse_measurements
 
 MARKER = (0.05, 0.02, 0.1)
 
@@ -542,7 +542,7 @@ def test_joint_prefix_is_optional_and_decides_the_plain_column(tmp_path):
 def test_cli_simulate_then_calibrate_with_clashing_joint_names(tmp_path, monkeypatch, capsys):
     """`calib simulate` then `calib calibrate` on joints x, y, z, qw: both exit 0 and the
     calibrated URDF is written (the CSV used to be refused: duplicate column 'qw')."""
-    from calib.cli import main
+    from calib.cli.commands import main
 
     monkeypatch.chdir(tmp_path)
     Path("clash.urdf").write_text(CLASH_URDF)

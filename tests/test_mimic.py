@@ -22,9 +22,9 @@ from pinref import MimicChain
 
 import calib
 from calib import ChainError, DataError, URDFError, analyze, from_chain, load_chain
-from calib.cli import main
-from calib.measurements import measurements_csv, parse_measurements, simulate
-from calib.urdf_export import calibrated_urdf, measurement_to_base
+from calib.cli.commands import main
+from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
+from calib.measurements.csvfile import measurements_csv, parse_measurements, simulate
 
 DATA = Path(__file__).parent / "data"
 NESTED = str(DATA / "mimic_of_mimic.urdf")

@@ -24,11 +24,11 @@ from pinref import MimicTree
 import calib
 from calib import Measurements, analyze, from_tree, load_tree
 from calib.calibration.tree_pipeline import calibrate_tree
-from calib.catalog import resolve_urdf
-from calib.cli import main
-from calib.constraints import Constraints
-from calib.design import design
-from calib.tree_export import calibrated_tree_urdf
+from calib.cli.commands import main
+from calib.design.constraints import Constraints
+from calib.design.design import design
+from calib.kinematics.catalog import resolve_urdf
+from calib.kinematics.tree_export import calibrated_tree_urdf
 
 DATA = Path(__file__).parent / "data"
 PR2 = resolve_urdf("erd:pr2_description/urdf/pr2.urdf")

@@ -1,4 +1,4 @@
-"""calib.qr calls LAPACK directly: the same numbers as NumPy's and SciPy's own wrappers."""
+"""identification.qr calls LAPACK directly: the same numbers as NumPy's and SciPy's own wrappers."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from calib import qr
+from calib.identification import qr
 
 
 def _matrices():

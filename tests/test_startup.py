@@ -41,30 +41,31 @@ def imported_by(*argv: str) -> tuple[set[str], str]:
 
 
 NOT_FOR_ANALYZE = (
-    "scipy",  # the QR factorisations load SciPy's LAPACK extension alone (calib.qr)
+    "scipy",  # the QR factorisations load SciPy's LAPACK extension alone (calib.identification.qr)
     "matplotlib",
     "tqdm",
     "threadpoolctl",  # the launcher sets the one BLAS thread before numpy loads
     "importlib.metadata",  # example-robot-data's RECORD is read directly
     "importlib.resources",  # the models folder is found beside the package
-    "calib.design",
-    "calib.observability",
-    "calib.exchange",
-    "calib.constraints",
-    "calib.configurations",
-    "calib.measurements",
+    "calib.design.design",
+    "calib.design.observability",
+    "calib.design.exchange",
+    "calib.design.constraints",
+    "calib.design.configurations",
+    "calib.measurements.csvfile",
     "calib.calibration.pipeline",
     "calib.calibration.solve",
-    "calib.elastic",
-    "calib.sweep",
-    "calib.plots",
+    "calib.kinematics.elastic",
+    "calib.outputs.sweep",
+    "calib.outputs.plots",
 )
 
 
 def test_analyze_imports_neither_scipy_nor_the_other_commands():
     modules, out = imported_by("analyze", "ur5")
     assert "ur5" in out and "identifiable" in out.lower()
-    assert {"numpy", "pinocchio", "calib.identifiability", "calib.qr"} <= modules
+    identification = {"calib.identification.identifiability", "calib.identification.qr"}
+    assert {"numpy", "pinocchio"} | identification <= modules
     loaded = sorted(
         m for m in modules if any(m == n or m.startswith(n + ".") for n in NOT_FOR_ANALYZE)
     )
@@ -88,7 +89,7 @@ def test_the_robots_folder_is_the_one_importlib_metadata_finds():
     """The direct read of example-robot-data's RECORD against importlib.metadata's files."""
     import importlib.metadata
 
-    from calib.catalog import _erd_robots_from_record
+    from calib.kinematics.catalog import _erd_robots_from_record
 
     marker = "share/example-robot-data/robots/"
     dist = importlib.metadata.distribution("example-robot-data")
@@ -136,7 +137,7 @@ def test_the_command_runs_blas_on_one_thread_without_threadpoolctl(env, threadpo
 def test_the_models_folder_is_the_one_importlib_resources_finds():
     import importlib.resources
 
-    from calib.catalog import models_dir
+    from calib.kinematics.catalog import models_dir
 
     expected = Path(str(importlib.resources.files("calib.models")))
     assert models_dir().resolve() == expected.resolve()

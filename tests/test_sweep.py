@@ -12,9 +12,9 @@ import pytest
 from conftest import COUPLED
 
 from calib import analyze, catalog
-from calib.cli import main
-from calib.plots import counts_figure, errors_figure, spectrum_figure
-from calib.sweep import COLUMNS, rows_to_csv, sweep
+from calib.cli.commands import main
+from calib.outputs.plots import counts_figure, errors_figure, spectrum_figure
+from calib.outputs.sweep import COLUMNS, rows_to_csv, sweep
 
 DATA = Path(__file__).parent / "data"
 EXPECTED_ERRORS = {e.name for e in catalog() if e.expect_error}

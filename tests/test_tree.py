@@ -30,7 +30,7 @@ from calib import (
     tree_jacobian,
     tree_parameters,
 )
-from calib.cli import main
+from calib.cli.commands import main
 
 FK_TOL = 1e-10
 MARKER = (0.011, 0.023, 0.037)

@@ -12,12 +12,12 @@ import pytest
 from calib import DataError, InvalidArgumentError, Measurements, calibrate
 from calib.calibration.tree import TreeErrorModel, TreeState, register_tree
 from calib.calibration.tree_pipeline import calibrate_tree
-from calib.catalog import resolve_urdf
-from calib.tree import load_tree
-from calib.tree_campaign import simulate_tree, true_points
-from calib.tree_export import calibrated_tree_urdf, tree_measurement_to_base
-from calib.tree_jacobian import tree_parameters
-from calib.tree_model import from_tree
+from calib.identification.tree_jacobian import tree_parameters
+from calib.kinematics.catalog import resolve_urdf
+from calib.kinematics.tree import load_tree
+from calib.kinematics.tree_export import calibrated_tree_urdf, tree_measurement_to_base
+from calib.kinematics.tree_model import from_tree
+from calib.measurements.tree_campaign import simulate_tree, true_points
 
 HANDS = ("wrist_left_ft_tool_link", "wrist_right_ft_tool_link")
 MARKERS = np.array([[0.05, 0.02, 0.1], [0.03, -0.02, 0.08]])
@@ -146,7 +146,7 @@ def test_bad_tree_data_is_a_one_line_error():
 
 
 def test_cli_simulates_and_calibrates_a_tree(tmp_path, capsys):
-    from calib.cli import main
+    from calib.cli.commands import main
 
     tools = ["--tool", HANDS[0], "--tool", HANDS[1], "--base", "base_link"]
     data, out, report = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"

@@ -5,6 +5,9 @@ One module per step, in the order :func:`calibrate` runs them: :mod:`.registrati
 :mod:`.outliers` (robust fitting), :mod:`.selection` (which parameters the data support),
 :mod:`.solve` (the nonlinear fit), :mod:`.validation` (held-out errors and the checks), on the
 model of :mod:`.model`; :mod:`.pipeline` chains them and :mod:`.result` holds the outcome.
+
+May import: :mod:`calib.measurements`, :mod:`calib.identification`, :mod:`calib.kinematics`
+and the bottom modules.
 """
 
 from ..lazy import attributes

@@ -11,11 +11,11 @@ import numpy as np
 
 from ..checks import MAX_WORK_BYTES
 from ..exceptions import InvalidArgumentError
-from ..identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
-from ..mdh import from_chain
-from ..measurements import Measurements
-from ..parameters import complete_parameters
-from ..robot import Chain, check_count
+from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
+from ..identification.parameters import complete_parameters
+from ..kinematics.mdh import from_chain
+from ..kinematics.robot import Chain, check_count
+from ..measurements.csvfile import Measurements
 from .model import ErrorModel, registration_state, selection_lift
 from .solve import row_weights
 

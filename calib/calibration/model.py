@@ -28,10 +28,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..jacobian import Measurement, identification_jacobian, measured_point
-from ..mdh import MDHModel
-from ..parameters import Kind, Parameter, ParameterSet
-from ..so3 import inverse_right_jacobian, left_jacobian, rotation_matrix, rotation_vector, skew
+from ..identification.jacobian import Measurement, identification_jacobian, measured_point
+from ..identification.parameters import Kind, Parameter, ParameterSet
+from ..kinematics.mdh import MDHModel
+from ..kinematics.so3 import (
+    inverse_right_jacobian,
+    left_jacobian,
+    rotation_matrix,
+    rotation_vector,
+    skew,
+)
 
 FRAME_NAMES = ("frame.rx", "frame.ry", "frame.rz", "frame.x", "frame.y", "frame.z")
 """Names of the measurement-frame parameters: rotation [rad] then translation [m]."""

@@ -13,12 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
-from ..mdh import MDHModel, from_chain
-from ..measurements import Measurements, check_against_chain
-from ..parameters import ParameterSet, parameter_set
-from ..robot import Chain
-from ..so3 import matrix_to_quaternion
+from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
+from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.robot import Chain
+from ..kinematics.so3 import matrix_to_quaternion
+from ..measurements.csvfile import Measurements, check_against_chain
 from . import determined, diagnosis, outliers, validation, weighting
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import (
@@ -99,7 +99,7 @@ def calibrate(
 
     Args:
         chain: The nominal chain.
-        data: Measurements of it (joints in chain order; see :mod:`calib.measurements`).
+        data: Measurements of it (joints in chain order; see :mod:`calib.measurements.csvfile`).
         marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
             [m] (default: the tool origin); the markers are fitted unless fixed.
         params: Parameter level, one of ``LEVELS``.

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mdh import MDHModel
+from ..kinematics.mdh import MDHModel
 from .model import State, registration_state
 
 ITERATIONS = 50

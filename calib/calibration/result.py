@@ -8,13 +8,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ..elastic import gravity_in_base
 from ..exceptions import CalibrationRefusedError, ConvergenceError
-from ..mdh import MDHModel
-from ..measurements import Measurements
-from ..robot import Chain
-from ..urdf_export import calibrated_urdf, measurement_to_base
-from ..urdf_links import marker_link_names
+from ..kinematics.elastic import gravity_in_base
+from ..kinematics.mdh import MDHModel
+from ..kinematics.robot import Chain
+from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base
+from ..kinematics.urdf_links import marker_link_names
+from ..measurements.csvfile import Measurements
 from .model import ErrorModel, State
 from .outliers import Outlier
 from .selection import Selection
@@ -109,7 +109,7 @@ class CalibrationResult:
 
     Attributes:
         robot: Robot name.
-        chain: The nominal chain (its URDF is what :mod:`calib.urdf_export` edits).
+        chain: The nominal chain (its URDF is what :mod:`calib.kinematics.urdf_export` edits).
         data: The measurements fitted (outliers and held-out rows removed).
         level: Parameter level: ``auto``, ``frames``, ``offsets``, ``paper`` or ``complete``.
         model: The free parameters of the fit.
@@ -227,7 +227,7 @@ class CalibrationResult:
             world_link: Add the measurement frame as this root link (None: not added).
 
         Raises:
-            CalibError: As :func:`calib.urdf_export.calibrated_urdf`.
+            CalibError: As :func:`calib.kinematics.urdf_export.calibrated_urdf`.
         """
         world = None if world_link is None else (world_link, self.measurement_to_base)
         return calibrated_urdf(

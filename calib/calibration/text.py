@@ -6,7 +6,7 @@ import math
 
 import pinocchio as pin
 
-from ..report import format_table
+from ..identification.report import format_table
 from .result import CalibrationResult, ResidualStats
 
 

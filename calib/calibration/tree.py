@@ -2,7 +2,7 @@
 
 Each row of the data measures one point on one tool (the CSV's ``tool`` column). The model
 of row i, measuring tool t, is ``R_f (p_t(q_i) + R_t(q_i) m_t) + t_f``: the tree's geometry
-(Khalil-Kleinfinger notation, :class:`~calib.tree_model.TreeMDH`), one measurement frame for
+(Khalil-Kleinfinger notation, :class:`~.tree_model.TreeMDH`), one measurement frame for
 every tool, and one marker per tool. Steps, as for a chain:
 
 1. registration: the frame by Horn/Umeyama on the nominal points of every tool together,
@@ -11,7 +11,7 @@ every tool, and one marker per tool. Steps, as for a chain:
    complete set at the measured configurations (pivoted QR of the stacked Jacobian, frame
    and markers first), or the frame and markers only (``frames``);
 3. the fit (:func:`calib.calibration.solve.fit`, the analytic Jacobian of
-   :func:`calib.tree_jacobian.tree_jacobian`);
+   :func:`calib.identification.tree_jacobian.tree_jacobian`);
 4. validation and the checks of a chain (:func:`calib.calibration.validation.refusal`),
    with the errors per tool.
 """
@@ -22,12 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..jacobian import Measurement
-from ..measurements import Measurements
-from ..parameters import ParameterSet
-from ..so3 import left_jacobian, rotation_matrix, skew
-from ..tree_jacobian import tree_jacobian
-from ..tree_model import TreeMDH
+from ..identification.jacobian import Measurement
+from ..identification.parameters import ParameterSet
+from ..identification.tree_jacobian import tree_jacobian
+from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..kinematics.tree_model import TreeMDH
+from ..measurements.csvfile import Measurements
 from .model import FRAME_NAMES
 from .registration import rigid_fit
 

@@ -16,14 +16,14 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
-from ..identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
-from ..measurements import Measurements, check_against_chain
-from ..parameters import ParameterSet
-from ..tree import Tree
-from ..tree_export import tree_measurement_to_base
-from ..tree_jacobian import tree_parameters
-from ..tree_model import TreeMDH, from_tree
-from ..urdf_links import marker_link_names
+from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
+from ..identification.parameters import ParameterSet
+from ..identification.tree_jacobian import tree_parameters
+from ..kinematics.tree import Tree
+from ..kinematics.tree_export import tree_measurement_to_base
+from ..kinematics.tree_model import TreeMDH, from_tree
+from ..kinematics.urdf_links import marker_link_names
+from ..measurements.csvfile import Measurements, check_against_chain
 from . import determined, diagnosis, outliers, validation
 from .options import DEFAULT_MAX_ITERATIONS, check_run_options
 from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
@@ -45,7 +45,7 @@ class TreeCalibrationResult:
     """Result of a tree calibration.
 
     Attributes:
-        tree: The nominal tree (its URDF is what :mod:`calib.tree_export` edits).
+        tree: The nominal tree (its URDF is what :mod:`calib.kinematics.tree_export` edits).
         level: ``frames`` or ``complete``.
         names: Free parameters, in the order of ``estimate``.
         nominal: The nominal tree model (URDF base frame).
@@ -219,7 +219,7 @@ def calibrate_tree(
     is refused (:func:`calib.calibration.validation.refusal`).
 
     Args:
-        tree: The nominal tree (:func:`calib.tree.load_tree`).
+        tree: The nominal tree (:func:`calib.kinematics.tree.load_tree`).
         data: Measurements whose ``tool`` names the tool of each row.
         params: ``complete`` (frame, markers and the tree's base parameters) or ``frames``.
         validate: Measurements of other configurations to score the result on.
@@ -364,7 +364,7 @@ def _tree_model(
 ) -> TreeErrorModel:
     """Frame, markers (and, ``complete``, the base parameters of the complete set).
 
-    The columns are taken in :func:`~calib.identifiability.preference_order`, as a chain's
+    The columns are taken in :func:`~.identifiability.preference_order`, as a chain's
     are. Coupled (mimic) joints can make the nominal geometry special (a PR2 fingertip stays
     parallel to the palm), and the set order then kept parameters that miss the errors a
     real robot has (PR2's two fingertips: 0.28 mm left after a noise-free fit of 1 mm /

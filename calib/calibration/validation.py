@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..measurements import Measurements
+from ..measurements.csvfile import Measurements
 from .diagnosis import suspect
 from .model import State
 from .result import ResidualStats

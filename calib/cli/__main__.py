@@ -1,0 +1,7 @@
+"""``python -m calib.cli``: the full command line (as :func:`calib.cli.commands.main`)."""
+
+import sys
+
+from .commands import main
+
+sys.exit(main())

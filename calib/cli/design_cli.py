@@ -1,0 +1,265 @@
+"""The ``calib design`` command: choose the configurations to measure, or evaluate a set.
+
+Kept beside :mod:`calib.cli.commands` (which registers it) so that the command's options and output
+live with the feature.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
+from ..exceptions import InvalidArgumentError
+from .commands import (
+    BooleanOnce,
+    add_chain_args,
+    check_output_paths,
+    given_options,
+    positive_number,
+    print_json,
+    tool_arg,
+    write_outputs,
+)
+
+CHOOSING = (
+    "configs",
+    "candidates",
+    "candidates_file",
+    "criterion",
+    "out",
+    "margin",
+    "workspace",
+    "line_of_sight",
+    "obstacle",
+    "srdf",
+    "collision",
+    "noise_mm",
+)
+"""Options of the choice of configurations, which ``--evaluate`` does not take."""
+
+
+def check_design_options(args: argparse.Namespace) -> None:
+    """Refuse options the chosen mode would ignore, or that contradict each other.
+
+    Raises:
+        InvalidArgumentError: A choice option with ``--evaluate``, ``--candidates`` with
+            ``--candidates-file``, ``--srdf`` with ``--no-collision``.
+    """
+    if args.evaluate:
+        ignored = given_options(args, CHOOSING)
+        if ignored:
+            raise InvalidArgumentError(
+                f"{ignored[0]} is for choosing configurations; --evaluate takes only --tool, "
+                f"--base, --measure, --marker, --params, --orientation-weight and --seed"
+            )
+    count = given_options(args, ("candidates",))
+    if count and args.candidates_file:
+        raise InvalidArgumentError(
+            f"{count[0]} draws random candidates; --candidates-file gives them: use one"
+        )
+    if args.srdf and not args.collision:
+        raise InvalidArgumentError(
+            "--srdf disables pairs of the self-collision check, which --no-collision turns off"
+        )
+
+
+def cmd_design(args: argparse.Namespace) -> int:
+    """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    from ..design.configurations import configurations_csv, read_configurations
+    from ..design.constraints import Constraints
+    from ..design.design import design, design_text
+    from ..kinematics.tree import load_robot
+
+    check_design_options(args)
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    markers = args.marker
+    weight = args.orientation_weight
+    if args.evaluate:
+        return _evaluate(args, chain)
+    if args.configs is None:
+        raise InvalidArgumentError("give --configs K (or --evaluate CONFIGS.csv)")
+    out = Path(args.out) if args.out else None
+    inputs = {
+        "the URDF": chain.urdf_path,
+        "--candidates-file": args.candidates_file,
+        "--srdf": args.srdf,
+    }
+    check_output_paths({"--out": out}, inputs)
+    candidates = args.candidates
+    if args.candidates_file:
+        candidates = read_configurations(args.candidates_file, chain)
+    constraints = Constraints(
+        margin=args.margin,
+        workspace=tuple(args.workspace) if args.workspace else None,
+        collision=args.collision,
+        obstacles=tuple(tuple(b) for b in args.obstacle),
+        srdf=args.srdf,
+        line_of_sight=tuple(args.line_of_sight) if args.line_of_sight else None,
+    )
+    result = design(
+        chain,
+        args.configs,
+        candidates=candidates,
+        criterion=args.criterion,
+        measure=args.measure,
+        markers=markers,
+        params=args.params,
+        orientation_weight=weight,
+        constraints=constraints,
+        seed=args.seed,
+        progress=_progress("calib design"),
+    )
+    if out is not None:
+        write_outputs({out: configurations_csv(chain, result.q)})
+    if args.json:
+        print_json(result.to_dict())
+    else:
+        print(design_text(result, args.noise_mm))
+        if out is not None:
+            print(f"wrote {out} ({len(result.q)} configurations)")
+    return 0
+
+
+def _evaluate(args: argparse.Namespace, chain) -> int:
+    """``calib design --evaluate``: the indices of a given set of configurations."""
+    from ..design.configurations import read_configurations
+    from ..design.design import evaluate, indices_table
+    from ..design.observability import CRITERIA
+
+    q = read_configurations(args.evaluate, chain)
+    ind = evaluate(
+        chain, q, args.measure, args.marker, args.params, args.seed, args.orientation_weight
+    )
+    if args.json:
+        print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
+    else:
+        print(
+            f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
+            f"{ind.parameters} parameters, rank {ind.rank}"
+        )
+        print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
+    return 0
+
+
+def _progress(desc: str):
+    """A tqdm wrapper shown only when stderr is a terminal."""
+    from tqdm import tqdm
+
+    def bar(jobs):
+        return tqdm(jobs, desc=desc, file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
+
+    return bar
+
+
+def add_design_parser(sub) -> None:
+    """The ``design`` subcommand's options."""
+    p = sub.add_parser("design", help="choose the configurations to measure (experiment design)")
+    add_chain_args(p, trees=True)
+    p.add_argument("--configs", type=int, help="number of configurations K to choose")
+    p.add_argument(
+        "--evaluate",
+        metavar="CONFIGS.csv",
+        help="print the observability indices of these configurations instead",
+    )
+    p.add_argument(
+        "--candidates",
+        type=int,
+        default=DEFAULT_CANDIDATES,
+        help=f"random candidates within the joint limits (default: {DEFAULT_CANDIDATES})",
+    )
+    p.add_argument(
+        "--candidates-file", help="CSV of candidate configurations known to be reachable"
+    )
+    p.add_argument(
+        "--criterion",
+        choices=EXCHANGE_CRITERIA,
+        default="D",
+        help="D: log det of the information; A: mean parameter variance; I: mean "
+        "predicted position error (default: D)",
+    )
+    p.add_argument(
+        "--measure",
+        choices=CAMPAIGN_MEASURES,
+        default="position",
+        help="position or pose (default: position)",
+    )
+    p.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        action="append",
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m]; repeat for several markers (a tree: "
+        "one for every tool, or one per tool in --tool order; default: the tool origin)",
+    )
+    p.add_argument(
+        "--orientation-weight",
+        type=float,
+        default=1.0,
+        metavar="W",
+        help="weight of the orientation rows of pose data [m/rad]: position noise / "
+        "orientation noise, e.g. 0.05 mm / 0.1 mrad = 0.5 (default: 1; calibrate "
+        "estimates it from the data)",
+    )
+    p.add_argument(
+        "--params",
+        choices=DESIGN_LEVELS,
+        default="complete",
+        help="what the calibration fits (calibrate --params; a tree: frames or complete; "
+        "default: complete)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the candidates, reference and random sets (default: 0)",
+    )
+    p.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=0.0,
+        help="distance kept from the joint limits [rad or m] (default: 0)",
+    )
+    p.add_argument(
+        "--workspace",
+        nargs=6,
+        type=float,
+        metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+        help="box of the base frame that must hold the measured points [m]",
+    )
+    p.add_argument(
+        "--line-of-sight",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="instrument position in the base frame [m]: points must be in view",
+    )
+    p.add_argument(
+        "--obstacle",
+        nargs=6,
+        type=float,
+        action="append",
+        default=[],
+        metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+        help="box of the environment in the base frame [m] (repeatable)",
+    )
+    p.add_argument(
+        "--srdf", help="SRDF of the disabled collision pairs (default: found beside the URDF)"
+    )
+    p.add_argument(
+        "--collision",
+        action=BooleanOnce,
+        default=True,
+        help="reject self-colliding candidates (default: yes)",
+    )
+    p.add_argument(
+        "--noise-mm",
+        type=positive_number,
+        default=0.05,
+        help="noise for the printed error prediction [mm] (default: 0.05)",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_design)

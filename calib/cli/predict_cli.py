@@ -1,0 +1,58 @@
+"""The ``calib predict`` command: apply a calibrated URDF with its compliance file.
+
+Kept beside :mod:`calib.cli.commands` (which registers it), as ``calib design``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .commands import check_output_paths, write_outputs
+
+
+def cmd_predict(args: argparse.Namespace) -> int:
+    """Predict the measured points and the deflected joints at given configurations."""
+    from ..design.configurations import read_configurations
+    from ..kinematics.elastic import load_calibrated, predictions_csv
+
+    out = Path(args.out)
+    check_output_paths(
+        {"--out": out},
+        {"the URDF": args.urdf, "--compliance": args.compliance, "--configs": args.configs},
+    )
+    model = load_calibrated(args.urdf, args.compliance)
+    q = read_configurations(args.configs, model.chain)
+    write_outputs({out: predictions_csv(model, q)})
+    print(
+        f"{model.chain.name}: {len(q)} configurations, {len(model.markers)} point(s) in the "
+        f"measurement frame and the deflected joints; wrote {out}"
+    )
+    return 0
+
+
+def add_predict_parser(sub) -> None:
+    """The ``predict`` subcommand's options."""
+    p = sub.add_parser(
+        "predict",
+        help="predict measured points and deflected joints with a calibrated URDF + compliance",
+    )
+    p.add_argument("urdf", metavar="URDF", help="calibrated URDF written by calib calibrate")
+    p.add_argument(
+        "--compliance",
+        required=True,
+        metavar="FILE",
+        help="its compliance file (OUT.compliance.json) or its calibration report (--report)",
+    )
+    p.add_argument(
+        "--configs",
+        required=True,
+        metavar="CONFIGS.csv",
+        help="commanded configurations (joint columns, named as in the URDF)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        help="CSV to write: joints, x1,y1,z1,... [m, measurement frame], deflected_<joint>",
+    )
+    p.set_defaults(func=cmd_predict)

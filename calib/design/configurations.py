@@ -1,0 +1,93 @@
+"""Joint configurations as CSV: what ``calib design`` writes and ``--configs-file`` reads.
+
+One header line with the chain's joint names (URDF names, any order), then one row per
+configuration: joint positions [rad for revolute and continuous joints, m for prismatic
+ones]. Other columns are ignored, so a measurement CSV is a configurations file too; blank
+lines are skipped; numbers follow the measurement CSV's strict grammar, and a value far
+outside its joint limits is an error naming its row and column (as in
+:mod:`calib.measurements.csvfile`).
+
+A tree's measurement file (a ``tool`` column) holds one row per tool at each configuration:
+consecutive rows with the same joint positions are one configuration there.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..fileio import read_text_limited
+from ..kinematics.robot import Chain
+from ..measurements.csvfile import TOOL_COLUMN, check_limits, csv_records, parse_number
+
+MAX_CONFIGS_BYTES = 256 << 20
+"""Largest configurations file read [B] (a million configurations of 20 joints fit)."""
+
+
+def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.ndarray:
+    """Joint positions ``(m, n)`` from CSV text, columns in chain order.
+
+    With a ``tool`` column, consecutive rows of equal joint positions count once.
+
+    Raises:
+        DataError: A missing or duplicate joint column, a bad cell, a value far outside its
+            joint limits, or no row.
+    """
+    header: list[str] | None = None
+    rows: list[list[float]] = []
+    lines: list[int] = []
+    for line, cells in csv_records(text, source):
+        if header is None:
+            header = [c.strip() for c in cells]
+            for name in chain.joint_names:
+                if name not in header:
+                    raise DataError(source, "missing joint column", row=line, column=name)
+                if header.count(name) > 1:
+                    raise DataError(source, "duplicate column", row=line, column=name)
+            cols = [header.index(n) for n in chain.joint_names]
+            continue
+        if len(cells) != len(header):
+            raise DataError(source, f"expected {len(header)} cells, found {len(cells)}", row=line)
+        rows.append([parse_number(cells[c], source, line, header[c]) for c in cols])
+        lines.append(line)
+    if header is None:
+        raise DataError(source, "empty file: expected a header line of joint names and rows")
+    if not rows:
+        raise DataError(source, "no configuration rows after the header")
+    q = np.array(rows)
+    check_limits(chain, q, source, np.array(lines), warn=False)
+    if TOOL_COLUMN in header:  # a tree's measurements: one row per tool and configuration
+        q = q[np.r_[True, np.any(q[1:] != q[:-1], axis=1)]]
+    return q
+
+
+def read_configurations(path: str | Path, chain: Chain) -> np.ndarray:
+    """Read a configurations CSV file (see the module docstring).
+
+    Raises:
+        DataError: The file is missing, unreadable or invalid.
+    """
+    try:
+        text = read_text_limited(path, MAX_CONFIGS_BYTES)
+    except FileNotFoundError:
+        raise DataError(str(path), "no such file") from None
+    except OSError as exc:
+        raise DataError(str(path), f"cannot read the file: {exc.strerror or exc}") from None
+    return parse_configurations(text, chain, str(path))
+
+
+def configurations_csv(chain: Chain, q: np.ndarray) -> str:
+    """CSV text of configurations ``(m, n)``: the chain's joint names, full precision."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(chain.joint_names)
+    for row in np.atleast_2d(q):
+        writer.writerow([repr(float(v)) for v in row])
+    return out.getvalue()
+
+
+__all__ = ["configurations_csv", "parse_configurations", "read_configurations"]

@@ -1,0 +1,369 @@
+"""Experiment design: which K configurations to measure for a calibration.
+
+:func:`design` draws candidates within the joint limits (or takes the user's), keeps those
+a campaign can measure (:mod:`calib.design.constraints`), and picks K of them that optimise a
+criterion of the information matrix of the calibration's parameters
+(:mod:`calib.design.observability`) by a greedy start and exchanges with low-rank updates
+(:mod:`calib.design.exchange`). It compares the result with random sets of K of the same
+candidates. :func:`evaluate` gives the indices of a user's set.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..checks import check_count, check_work
+from ..choices import DEFAULT_CANDIDATES
+from ..exceptions import InvalidArgumentError
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree
+from .constraints import Constraints, FilterReport, filter_candidates, variable_bounds
+from .exchange import EXCHANGE_CRITERIA, optimal_subset
+from .observability import (
+    CRITERIA,
+    REFERENCE_CONFIGS,
+    Indices,
+    ObservationModel,
+    Reference,
+    check_model_arguments,
+    indices,
+    indices_of,
+    observation_model,
+    reference,
+    robot_markers,
+)
+
+RANDOM_SETS = 20
+"""Random sets of K candidates the design is compared with."""
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """A designed set of configurations and how it compares with random ones.
+
+    Attributes:
+        robot: Robot name.
+        tools: The measured tool frames (one for a chain).
+        joint_names: The joints of the chain or tree.
+        q: The chosen configurations ``(K, n)`` [rad or m].
+        criterion: ``D``, ``A`` or ``I``.
+        model: The observation model (the calibration's parameters).
+        indices: Indices of the design.
+        greedy: Indices of the greedy start.
+        random: Indices of random sets of K of the same candidates.
+        filters: What the candidate filters did.
+        candidates: Candidates the design chose from (after the filters).
+        exchanges: Exchanges made after the greedy start.
+        sweeps: Sweeps of the exchange.
+        seed: Seed of the candidates, the reference set and the random sets.
+        timings_ms: Time of each stage [ms].
+    """
+
+    robot: str
+    tools: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    criterion: str
+    model: ObservationModel
+    indices: Indices
+    greedy: Indices
+    random: tuple[Indices, ...]
+    filters: FilterReport
+    candidates: int
+    exchanges: int
+    sweeps: int
+    seed: int
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    def random_median(self, name: str) -> float:
+        """Median of an index over the random sets."""
+        return float(np.median([r.value(name) for r in self.random]))
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (radians, metres)."""
+        median = {c: self.random_median(c) for c in CRITERIA}
+        return {
+            "robot": self.robot,
+            "tools": list(self.tools),
+            "criterion": self.criterion,
+            "configs": len(self.q),
+            "candidates": self.candidates,
+            "seed": self.seed,
+            "parameters": list(self.model.names),
+            "characteristic_length": self.model.length,
+            "filters": self.filters.to_dict(),
+            "design": self.indices.to_dict(),
+            "greedy": self.greedy.to_dict(),
+            "random_median": {c: (v if np.isfinite(v) else None) for c, v in median.items()},
+            "random_sets": len(self.random),
+            "exchanges": self.exchanges,
+            "sweeps": self.sweeps,
+            "joint_names": list(self.joint_names),
+            "q": self.q.tolist(),
+            "timings_ms": dict(self.timings_ms),
+        }
+
+
+def candidate_configurations(
+    chain: Chain | Tree, n: int, seed: int, margin: float = 0.0
+) -> np.ndarray:
+    """``n`` configurations ``(n, j)`` drawn uniformly within the joint limits less the margin.
+
+    The independent joints are drawn (mimic joints follow the joint they mimic).
+    """
+    check_count(n, "the number of candidates")
+    check_work(n, chain.n, chain.name, len(chain.tool_ids), "candidates")
+    lower, upper = variable_bounds(chain, margin)
+    rng = np.random.default_rng([check_count(seed, "the seed", 0), 5])
+    return chain.joint_values(lower + (upper - lower) * rng.random((n, len(lower))))
+
+
+def _subset(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
+    return np.sort(rng.choice(n, size=min(n, k), replace=False))
+
+
+def design(
+    chain: Chain | Tree,
+    configs: int,
+    *,
+    candidates: int | np.ndarray = DEFAULT_CANDIDATES,
+    criterion: str = "D",
+    measure: str = "position",
+    markers=None,
+    params: str = "complete",
+    orientation_weight: float = 1.0,
+    constraints: Constraints | None = None,
+    seed: int = 0,
+    random_sets: int = RANDOM_SETS,
+    progress: Callable | None = None,
+) -> Design:
+    """Choose K configurations to measure.
+
+    Args:
+        chain: The chain, or a tree (its tools measured at every configuration).
+        configs: Number of configurations K.
+        candidates: Number of random candidates, or the candidates ``(N, n)`` themselves
+            (configurations known to be reachable).
+        criterion: ``D`` (log det of the information), ``A`` (mean parameter variance) or
+            ``I`` (mean predicted position error on the reference set).
+        measure: ``position`` or ``pose`` (a tree: ``position``).
+        markers: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (a tree: one
+            point for every tool, or one per tool).
+        params: The calibration's parameter level (``DESIGN_LEVELS``; a tree: ``frames`` or
+            ``complete``).
+        orientation_weight: Weight of the orientation rows of pose data [m/rad]: the ratio
+            of the position noise to the orientation noise (``calibrate`` estimates it from
+            the data; 1 by default).
+        constraints: Limits of the campaign (default: self-collision checked, no margin).
+        seed: Seed of the candidates, the reference set and the random sets.
+        random_sets: Random sets of K candidates to compare with.
+        progress: Wraps an iterable to show progress (or None).
+
+    Returns:
+        The design.
+
+    Raises:
+        InvalidArgumentError: A bad argument, too few candidates left, or candidates that
+            cannot identify the parameters.
+    """
+    clock = [time.perf_counter()]
+    k = check_count(configs, "the number of configurations")
+    seed = check_count(seed, "the seed", 0)
+    if criterion not in EXCHANGE_CRITERIA:
+        raise InvalidArgumentError(
+            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
+        )
+    constraints = Constraints() if constraints is None else constraints
+    if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
+        q_all = candidate_configurations(chain, int(candidates), seed, constraints.margin)
+    else:
+        q_all = chain.check_configurations(candidates)
+    check_model_arguments(measure, params, orientation_weight, isinstance(chain, Tree))
+    keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
+    q = q_all[keep]
+    if len(q) < k:
+        raise InvalidArgumentError(
+            f"{len(q)} of {len(q_all)} candidates pass the filters ("
+            + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
+            + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
+            f"constraints"
+        )
+    clock.append(time.perf_counter())
+    rng = np.random.default_rng([seed, 6])
+    model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
+    ref = reference(model, q[_subset(len(q), REFERENCE_CONFIGS, rng)])
+    J = model.jacobian(q)
+    clock.append(time.perf_counter())
+    result = optimal_subset(J, k, criterion, ref.mean, progress)
+    clock.append(time.perf_counter())
+    chosen = np.array(result.design)
+    n_random = check_count(random_sets, "the number of random sets")
+    rand = tuple(_indices_rows(J, _subset(len(q), k, rng), ref) for _ in range(n_random))
+    clock.append(time.perf_counter())
+    stages = ("filters", "jacobian", "exchange", "random")
+    return Design(
+        robot=chain.name,
+        tools=chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,),
+        joint_names=chain.joint_names,
+        q=q[chosen],
+        criterion=criterion,
+        model=model,
+        indices=_indices_rows(J, chosen, ref),
+        greedy=_indices_rows(J, np.array(result.greedy), ref),
+        random=rand,
+        filters=report,
+        candidates=len(q),
+        exchanges=result.exchanges,
+        sweeps=result.sweeps,
+        seed=seed,
+        timings_ms={
+            s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
+        },
+    )
+
+
+def _indices_rows(J: np.ndarray, rows: np.ndarray, ref: Reference) -> Indices:
+    return indices_of(J[rows], ref)
+
+
+def least_i(
+    J: np.ndarray, k: int, L: np.ndarray, tolerance: float = 1e-3, iterations: int = 5000
+) -> float:
+    """A certified lower bound of I over every set of ``k`` of the candidates.
+
+    No design of ``k`` of these candidates predicts a lower error, whatever the algorithm:
+    the bound says how much a design can buy over random sets. Relaxation: weights
+    ``w >= 0`` summing to k, ``M(w) = sum_c w_c J_c^T J_c`` and ``f(w) = trace(L M(w)^-1)``,
+    convex; every set is a 0/1 point of it. Multiplicative updates
+    ``w_c <- w_c sqrt(g_c k / f)`` with ``g_c = -df/dw_c = trace(J_c M^-1 L M^-1 J_c^T)``
+    (``sum_c w_c g_c = f``) lower f; by convexity, ``f(any set) >= 2 f(w) - k max_c g_c``,
+    the certificate kept.
+
+    Args:
+        J: Scaled rows of the candidates ``(N, r, b)`` (:meth:`ObservationModel.jacobian`).
+        k: Set size K.
+        L: Reference information ``(b, b)`` (:attr:`Reference.mean`): I^2 = trace(L M^-1).
+        tolerance: Stop when the certificate is within this fraction of f.
+        iterations: Most updates (the bound is valid, if weaker, when they run out).
+
+    Returns:
+        The bound of I [per unit noise] (0 if no certificate is positive).
+
+    Raises:
+        InvalidArgumentError: A bad k, or candidates that cannot identify the parameters.
+    """
+    k = check_count(k, "the number of configurations")
+    J, L = np.asarray(J, dtype=float), np.asarray(L, dtype=float)
+    if J.ndim != 3 or L.shape != (J.shape[2], J.shape[2]):
+        raise InvalidArgumentError(f"J must be (N, r, b) and L (b, b), got {J.shape}, {L.shape}")
+    n, r, b = J.shape
+    A = J.reshape(n * r, b)
+    w = np.full(n, k / n)
+    best = 0.0
+    for _ in range(check_count(iterations, "the number of iterations")):
+        S = A * np.repeat(np.sqrt(w), r)[:, None]
+        try:
+            Mi = np.linalg.inv(S.T @ S)
+        except np.linalg.LinAlgError:
+            raise InvalidArgumentError("the candidates cannot identify the parameters") from None
+        g = np.sum((A @ (Mi @ L @ Mi)) * A, axis=1).reshape(n, r).sum(axis=1)
+        f = float(w @ g)
+        best = max(best, 2.0 * f - k * float(g.max()))
+        if best >= (1.0 - tolerance) * f:
+            break
+        w = w * np.sqrt(np.maximum(g, 0.0) * k / f)
+        w *= k / w.sum()
+    return float(np.sqrt(best))
+
+
+def evaluate(
+    chain: Chain | Tree,
+    q: np.ndarray,
+    measure: str = "position",
+    markers=None,
+    params: str = "complete",
+    seed: int = 0,
+    orientation_weight: float = 1.0,
+) -> Indices:
+    """Observability indices of a user's configurations ``(K, n)`` of a chain or tree.
+
+    The reference set of I and G: ``REFERENCE_CONFIGS`` random configurations within the
+    joint limits (seed ``seed``); the independent columns are chosen at random
+    configurations too, so that the set's own rank deficiency shows. The other arguments
+    are :func:`design`'s.
+    """
+    q = chain.check_configurations(q)
+    model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
+    ref = reference(model, candidate_configurations(chain, REFERENCE_CONFIGS, seed))
+    return indices(model, q, ref)
+
+
+_LABELS = {
+    "cond": "cond (lower is better)",
+    "O1": "O1 (higher)",
+    "O3": "O3 (higher)",
+    "O4": "O4 (higher)",
+    "D": "D = log det M (higher)",
+    "A": "A = trace M^-1 (lower)",
+    "I": "I [per unit noise] (lower)",
+    "G": "G [per unit noise] (lower)",
+}
+
+
+def indices_table(columns: dict[str, list[float]]) -> str:
+    """A text table of indices: one row per index, one column per set."""
+    from ..identification.report import format_table
+
+    rows = [
+        [_LABELS[c], *(f"{v:.4g}" for v in values)]
+        for c, values in ((c, [col[i] for col in columns.values()]) for i, c in enumerate(CRITERIA))
+    ]
+    return format_table(["index", *columns], rows)
+
+
+def _values(ind: Indices) -> list[float]:
+    return [ind.value(c) for c in CRITERIA]
+
+
+def design_text(d: Design, noise_mm: float = 0.05) -> str:
+    """What ``calib design`` prints."""
+    rejected = ", ".join(f"{n} {name}" for name, n in d.filters.rejected if n)
+    lines = [
+        f"{d.robot}: {len(d.q)} configurations designed from {d.candidates} of "
+        f"{d.filters.candidates} candidates"
+        + (f" (rejected: {rejected})" if rejected else "")
+        + f", criterion {d.criterion}, {d.model.rows} rows per configuration, "
+        f"{d.model.b} parameters",
+        *(f"note: {n}" for n in d.filters.notes),
+        f"greedy start then {d.exchanges} exchange(s) in {d.sweeps} sweep(s); angles scaled by "
+        f"L = {d.model.length:.4g} m",
+        "",
+        indices_table(
+            {
+                "design": _values(d.indices),
+                "greedy": _values(d.greedy),
+                f"random (median of {len(d.random)})": [d.random_median(c) for c in CRITERIA],
+            }
+        ),
+        "",
+        f"predicted RMS position error after calibration at {noise_mm:g} mm noise: "
+        f"design {noise_mm * d.indices.value('I'):.4g} mm, random sets "
+        f"{noise_mm * d.random_median('I'):.4g} mm (median)",
+    ]
+    return "\n".join(lines)
+
+
+__all__ = [
+    "DEFAULT_CANDIDATES",
+    "Design",
+    "candidate_configurations",
+    "design",
+    "design_text",
+    "evaluate",
+    "indices_table",
+    "least_i",
+]

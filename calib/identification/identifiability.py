@@ -1,0 +1,872 @@
+"""Identifiable (base) parameters by QR decomposition, regrouping and completeness."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..checks import check_count, check_work, joint_positions
+from ..choices import DEFAULT_CONFIGS
+from ..exceptions import InvalidArgumentError
+from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.mimic import MimicJoint
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree, load_robot
+from ..kinematics.tree_model import TreeMDH, from_tree
+from . import qr
+from .jacobian import Measurement, complete_jacobian, identification_jacobian
+from .parameters import Kind, Parameter, ParameterSet, parameter_set
+from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
+
+REGROUP_TOL = 1e-8
+"""Regrouping coefficients smaller than this (in absolute value) are printed as zero."""
+
+ON_AXIS_TOL = 1e-9
+"""Distance [m] under which the measured point lies on the last joint axis."""
+
+_SPECIAL_ANGLES = (0.0, math.pi / 2, -math.pi / 2, math.pi, -math.pi)
+
+
+_EPS = float(np.finfo(float).eps)
+
+
+class RankWarning(UserWarning):
+    """The observation matrix is too small, or its rank gap too weak, to trust the rank."""
+
+
+def numerical_rank(diag: np.ndarray, n_rows: int) -> tuple[int, float]:
+    """Rank from the |R_ii| of a pivoted QR: b = #{|R_ii| > tau}, tau = r eps |R_11|.
+
+    Args:
+        diag: |R_ii| in pivoting order (non-increasing).
+        n_rows: Number of rows r of the observation matrix.
+
+    Returns:
+        The rank and the tolerance tau.
+    """
+    if diag.size == 0 or diag[0] == 0.0:
+        return 0, 0.0
+    tau = n_rows * _EPS * float(diag[0])
+    return int((diag > tau).sum()), tau
+
+
+def _triangular(W: np.ndarray) -> np.ndarray:
+    """R factor of a tall W (min(r, c) x c): column norms and angles of W, cheaply."""
+    return qr.triangular(W)
+
+
+def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
+    """|R_ii| of the QR decomposition with column pivoting of W (non-increasing)."""
+    return qr.pivoted_diagonal(_triangular(W))
+
+
+def preference(mdh: MDHModel | TreeMDH, p: Parameter) -> int:
+    """Rank of a parameter in the paper's order of preference (0 = kept first).
+
+    0 joint offsets; 1 distances (d, r, b) with a non-zero nominal value; 2 angles (alpha,
+    theta, gamma) whose nominal value is neither 0 nor 90 degrees (mod 90); 3 base parameters
+    (row 0 and the rows placed from it: row 1 of a chain); 4 tool parameters (row n+1 of a
+    chain, every tool row of a tree); 5 the rest.
+    """
+    k, kind = p.row, p.kind
+    if 1 <= k <= mdh.n and (
+        (kind is Kind.THETA and mdh.sigma[k] == 0) or (kind is Kind.R and mdh.sigma[k] == 1)
+    ):
+        return 0
+    if k == 0 or mdh.antecedent[k] == 0:
+        return 3
+    if k in mdh.tool_rows:
+        return 4
+    value = float(getattr(mdh, kind.value)[k])
+    if kind in (Kind.D, Kind.R, Kind.B) and abs(value) > 1e-9:
+        return 1
+    if kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA) and min(
+        abs(value - a) for a in _SPECIAL_ANGLES
+    ) > 1e-6:
+        return 2
+    return 5
+
+
+def preference_order(mdh: MDHModel | TreeMDH, params: ParameterSet) -> list[int]:
+    """Column indices sorted by :func:`preference` (stable: set order within a class)."""
+    key = (id(mdh), id(params))
+    hit = _ORDERS.get(key)
+    if hit is not None and hit[0] is mdh and hit[1] is params:
+        return list(hit[2])
+    ranks = [preference(mdh, p) for p in params.parameters]
+    order = tuple(sorted(range(len(ranks)), key=ranks.__getitem__))
+    if len(_ORDERS) >= 64:
+        _ORDERS.clear()
+    _ORDERS[key] = (mdh, params, order)  # holding both keeps their ids from being reused
+    return list(order)
+
+
+_ORDERS: dict[tuple[int, int], tuple[MDHModel | TreeMDH, ParameterSet, tuple[int, ...]]] = {}
+"""Orders already computed, by model and set (both immutable): the structural step asks for
+the same pair at every call."""
+
+
+def theoretical_count(
+    chain_or_mdh: Chain | MDHModel | TreeMDH,
+    measurement: Measurement,
+    on_axes: tuple[int, ...] = (),
+) -> int | None:
+    """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
+
+    4R + 2P + 6 for the full pose, 4R + 2P + 3 for the position of one point, 2 fewer when
+    the point lies on the last (revolute) axis. None where the formula says nothing: other
+    row subsets, or a point on a joint axis other than the last (a wrist centre). A tree
+    model gets :func:`tree_theoretical_count`.
+
+    Args:
+        chain_or_mdh: The chain or its model (for sigma).
+        measurement: What is measured.
+        on_axes: Joints whose axis passes through the measured point.
+    """
+    if isinstance(chain_or_mdh, TreeMDH):
+        return tree_theoretical_count(chain_or_mdh, measurement)
+    sigma = np.asarray(chain_or_mdh.sigma)
+    n = int(np.sum(sigma >= 0))
+    R = int(np.sum(sigma == 0))
+    P = int(np.sum(sigma == 1))
+    if measurement.rows == (0, 1, 2, 3, 4, 5):
+        return 4 * R + 2 * P + 6
+    if measurement.rows == (0, 1, 2):
+        if any(k != n for k in on_axes):
+            return None
+        return 4 * R + 2 * P + 3 - (2 if on_axes else 0)
+    return None
+
+
+@functools.lru_cache(maxsize=16)
+def tree_axes(model: TreeMDH, measurement: Measurement) -> tuple[tuple[int, ...], ...]:
+    """Per tool of a tree, the revolute joint rows whose axis passes through its point."""
+    out = []
+    for t in range(model.n_tools):
+        rows = model.path_rows(t)
+        on = axes_through_point(model.path_model(t), measurement)
+        out.append(tuple(int(rows[k]) for k in on))
+    return tuple(out)
+
+
+def tree_theoretical_count(model: TreeMDH, measurement: Measurement) -> int | None:
+    """Independent parameters of a tree's complete model: 4R + 2P + 6T (pose of T tools).
+
+    Each joint is counted once however many tools it carries: the placement of each joint
+    and tool in its antecedent (6 each) and of the base (6), minus 6 for the base (the base
+    link's children absorb it) and, per joint, the errors its motion absorbs (2 revolute,
+    4 prismatic). Position of one point per tool: 3 fewer per tool (rotations about the
+    point), and 2 fewer per joint whose only children are tools with their points on its
+    axis. None for other row subsets or a point on another axis.
+    """
+    R, P, T = int(np.sum(model.sigma == 0)), int(np.sum(model.sigma == 1)), model.n_tools
+    if measurement.rows == (0, 1, 2, 3, 4, 5):
+        return 4 * R + 2 * P + 6 * T
+    if measurement.rows != (0, 1, 2):
+        return None
+    axes = tree_axes(model, measurement)
+    lost = 0
+    for k in sorted({k for rows in axes for k in rows}):
+        children = np.flatnonzero(model.antecedent == k)
+        tools = [t for t, row in enumerate(model.tool_rows) if row in children]
+        if len(tools) < len(children) or any(k not in axes[t] for t in tools):
+            return None
+        lost += 2
+    return 4 * R + 2 * P + 3 * T - lost
+
+
+def axes_through_point(mdh: MDHModel | TreeMDH, measurement: Measurement) -> tuple[int, ...]:
+    """Revolute joints (1..n) whose axis passes through the measured point.
+
+    An axis counts only if it does so at every configuration: it is tested at the zero
+    configuration and four fixed others. For a tree: through the point of a tool it carries.
+    """
+    if isinstance(mdh, TreeMDH):
+        return tuple(sorted({k for rows in tree_axes(mdh, measurement) for k in rows}))
+    q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
+    kin = mdh.kinematics(q)
+    E = kin.p[:, -1] + np.einsum("mij,j->mi", kin.R[:, -1], measurement.marker_array)
+    out = []
+    for k in range(1, mdh.n + 1):
+        if mdh.sigma[k] != 0:
+            continue
+        v = E - kin.p[:, k]
+        z = kin.R[:, k, :, 2]
+        off = v - np.sum(v * z, axis=1)[:, None] * z
+        if np.all(np.linalg.norm(off, axis=1) < ON_AXIS_TOL):
+            out.append(k)
+    return tuple(out)
+
+
+def point_on_last_axis(mdh: MDHModel, measurement: Measurement) -> bool:
+    """Whether the measured point lies on the last joint axis (a revolute one)."""
+    return mdh.n in axes_through_point(mdh, measurement)
+
+
+def _explain(p: Parameter, mdh: MDHModel | TreeMDH) -> str:
+    k, a = p.row, int(mdh.antecedent[p.row])
+    prev = "the base z axis (z_-1)" if a == 0 else f"axis {a}"
+    this = f"axis {k}"
+    if k in mdh.tool_rows:
+        tools = getattr(mdh, "tool_frames", ())
+        this = f"the z axis of tool {tools[mdh.tool_rows.index(k)]}" if tools else "the tool z axis"
+    if p.kind is Kind.BETA:
+        return (
+            f"{p.name}: {prev} is parallel to {this} and the set has no beta there, so a "
+            f"rotation about y_{a} cannot be represented"
+        )
+    return (
+        f"{p.name}: {prev} and {this} lie on one line, so a translation along y_{a} "
+        f"cannot be represented"
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Identifiability:
+    """Result of the identifiability analysis of one chain and measurement set-up.
+
+    Attributes:
+        robot: Robot name.
+        base_frame: Frame -1.
+        tool_frame: Frame n+1.
+        mdh: The nominal MDH model.
+        measurement: What is measured.
+        params: The standard parameter set analysed.
+        n_configs: Number of random configurations m.
+        seed: Seed of the configurations.
+        n_rows: Rows r of the observation matrix.
+        diag: |R_ii| of the pivoted QR, non-increasing.
+        tolerance: tau = r eps |R_11|.
+        base: Base parameters kept, in the order of preference.
+        others: Standard parameters not kept (regrouped or zero), in set order.
+        zero: Parameters with no effect (zero columns).
+        B: Regrouping matrix: base value = kept + B @ others, shape (b, len(others)).
+        n_complete: Rank of the complete reference error model.
+        n_theory: 4R + 2P + 6 (pose) or + 3 (position), or None.
+        on_axes: Revolute joints whose axis passes through the measured point.
+        missing: One sentence per error direction the set cannot represent.
+        warnings: Reasons not to trust the rank.
+        per_tool: For a tree, each tool's chain alone: its name and theoretical count (the
+            tree's count is lower where tools share joints: see :func:`tree_theoretical_count`).
+        snapped: URDF round-off removed before the analysis (by :func:`analyze`), one
+            ``name: value -> snapped`` string per changed parameter.
+        timings_ms: Time of each stage [ms].
+        mimic: The chain's mimic joints (set by :func:`analyze`): the offset of each one's
+            mimic expression, named ``offset<k>`` after its row k, is one parameter with its
+            joint offset (theta_k or r_k) and regroups with it.
+    """
+
+    robot: str
+    base_frame: str
+    tool_frame: str
+    mdh: MDHModel | TreeMDH
+    measurement: Measurement
+    params: ParameterSet
+    n_configs: int
+    seed: int
+    n_rows: int
+    diag: np.ndarray
+    tolerance: float
+    base: tuple[str, ...]
+    others: tuple[str, ...]
+    zero: tuple[str, ...]
+    B: np.ndarray
+    n_complete: int
+    n_theory: int | None
+    on_axes: tuple[int, ...]
+    missing: tuple[str, ...]
+    warnings: tuple[str, ...]
+    snapped: tuple[str, ...] = ()
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    per_tool: tuple[tuple[str, int | None], ...] = ()
+    mimic: tuple[MimicJoint, ...] = ()
+
+    @property
+    def n_standard(self) -> int:
+        """Number of standard parameters."""
+        return len(self.params)
+
+    @property
+    def n_base(self) -> int:
+        """Number of base (identifiable) parameters: the rank."""
+        return len(self.base)
+
+    @property
+    def tool_frames(self) -> tuple[str, ...]:
+        """The tool frames: one for a chain, several for a tree."""
+        return getattr(self.mdh, "tool_frames", (self.tool_frame,))
+
+    @property
+    def on_last_axis(self) -> bool:
+        """The measured point lies on the last joint axis (of some tool, for a tree)."""
+        return any(int(self.mdh.antecedent[t]) in self.on_axes for t in self.mdh.tool_rows)
+
+    @property
+    def missing_parameters(self) -> tuple[str, ...]:
+        """Names of the complete set's extras that the set lacks (see ``missing``)."""
+        return tuple(m.split(":", 1)[0] for m in self.missing if ":" in m)
+
+    @property
+    def rank(self) -> int:
+        """Numerical rank: #{|R_ii| > tau} of the pivoted QR."""
+        return numerical_rank(self.diag, self.n_rows)[0]
+
+    def regrouping_coefficients(
+        self, threshold: float = REGROUP_TOL
+    ) -> dict[str, dict[str, float]]:
+        """Each base parameter's regrouped parameters and their coefficients (B's rows).
+
+        A mimic joint's offset (``offset<k>``, see :attr:`mimic`) enters wherever its joint
+        offset does, with the same coefficient: their columns are equal.
+        """
+        out = {
+            name: {
+                o: float(c)
+                for o, c in zip(self.others, self.B[i], strict=True)
+                if abs(c) > threshold
+            }
+            for i, name in enumerate(self.base)
+        }
+        for k, joint_offset in self.mimic_offsets().items():
+            for name, terms in out.items():
+                c = 1.0 if name == joint_offset else terms.get(joint_offset)
+                if c is not None:
+                    terms[f"offset{k}"] = c
+        return out
+
+    def mimic_offsets(self) -> dict[int, str]:
+        """The joint offset parameter (theta_k or r_k) of each mimic joint's row k."""
+        out = {}
+        for mj in self.mimic:
+            k = mj.joint + 1
+            out[k] = f"{'theta' if self.mdh.sigma[k] == 0 else 'r'}{k}"
+        return out
+
+    @property
+    def gap(self) -> tuple[float, float | None]:
+        """|R_bb| and |R_(b+1)(b+1)|: the smallest kept and largest dropped pivots."""
+        b = self.rank
+        last = float(self.diag[b - 1]) if b else 0.0
+        nxt = float(self.diag[b]) if b < len(self.diag) else None
+        return last, nxt
+
+    def regrouping(self, threshold: float = REGROUP_TOL) -> dict[str, str]:
+        """Each base parameter as the expression it stands for, e.g. ``theta5 - 4.762 d6``."""
+        out = {}
+        for name, terms in self.regrouping_coefficients(threshold).items():
+            expr = name
+            for other, c in terms.items():
+                sign = "-" if c < 0 else "+"
+                coef = "" if abs(abs(c) - 1.0) < 1e-9 else f"{abs(c):.4g} "
+                expr += f" {sign} {coef}{other}"
+            out[name] = expr
+        return out
+
+    def status(self, name: str) -> str:
+        """``identifiable``, ``regrouped`` (eliminated into base parameters) or ``zero``."""
+        if name in self.base:
+            return "identifiable"
+        if name in self.zero:
+            return "zero"
+        if name in self.params.names:
+            return "regrouped"
+        raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary."""
+        last, nxt = self.gap
+        return {
+            "robot": self.robot,
+            "base_frame": self.base_frame,
+            "tool_frame": self.tool_frame,
+            "tool_frames": list(self.tool_frames),
+            "measure": self.measurement.label,
+            "marker": list(self.measurement.marker),
+            "params": self.params.label,
+            "joints": {
+                "revolute": int(np.sum(self.mdh.sigma == 0)),
+                "prismatic": int(np.sum(self.mdh.sigma == 1)),
+            },
+            "configs": self.n_configs,
+            "seed": self.seed,
+            "n_standard": self.n_standard,
+            "n_base": self.n_base,
+            "n_complete": self.n_complete,
+            "n_theory": self.n_theory,
+            "per_tool_theory": {name: count for name, count in self.per_tool},
+            "point_on_last_axis": self.on_last_axis,
+            "point_on_axes": list(self.on_axes),
+            "standard_parameters": list(self.params.names),
+            "base_parameters": list(self.base),
+            "nonidentifiable": list(self.zero),
+            "regrouped": [n for n in self.others if n not in self.zero],
+            "regrouping": self.regrouping(),
+            "missing": list(self.missing),
+            "missing_parameters": list(self.missing_parameters),
+            "tolerance": self.tolerance,
+            "gap": {"last_kept": last, "first_dropped": nxt},
+            "warnings": list(self.warnings),
+            "snapped": list(self.snapped),
+            "timings_ms": dict(self.timings_ms),
+            "mimic": [
+                {
+                    "row": mj.joint + 1,
+                    "joint": mj.name,
+                    "master": mj.master,
+                    "multiplier": mj.multiplier,
+                    "offset": mj.offset,
+                    "offset_parameter": f"offset{mj.joint + 1}",
+                    "regroups_with": self.mimic_offsets()[mj.joint + 1],
+                }
+                for mj in self.mimic
+            ],
+        }
+
+
+VERIFY_MARGIN = 2.0
+"""Factor by which a column must clear the threshold for :func:`select_independent`'s one-QR
+check to decide it (kept: distance above twice the threshold, dropped: under half of it).
+The threshold is at least tau, ten times the round-off of a distance, so two ways of
+computing a distance cannot disagree across this band; a column inside it takes the
+restarting walk."""
+
+
+def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]:
+    """Walk the columns in ``order`` and keep each one that is independent of those kept.
+
+    A column is kept when its distance to the span of the kept ones exceeds ``tau``: this
+    is what deleting the columns with |R_ii| <= tau of an unpivoted QR means. Householder
+    QR stops revealing it after an exactly dependent column (that column's row is left
+    unused), so after each dependent column the QR restarts on the residual block, which is
+    an orthogonal image of the remaining columns' components orthogonal to the kept ones.
+
+    The first QR's verdicts are tried first: they are the walk's result when one QR of the
+    kept columns and the others (:func:`checked_selection`) proves it, which spares the
+    restarts.
+
+    Args:
+        R: Triangular factor (or any matrix with the same column geometry as W).
+        order: Column indices, most preferred first.
+        tau: Distance under which a column is dependent.
+
+    Returns:
+        The kept column indices, in ``order``.
+    """
+    return _select(R, order, tau)[0]
+
+
+def _select(
+    R: np.ndarray, order: list[int], tau: float, first: np.ndarray | None = None
+) -> tuple[list[int], np.ndarray | None]:
+    """:func:`select_independent`, and the factor of :func:`checked_selection` (or None).
+
+    ``first``: |diagonal| of an unpivoted QR of the columns in ``order`` (of W itself: its
+    many rows leave more room to the round-off of dependent columns than R's), for the guess.
+    """
+    idx = list(order)
+    if not idx or R.shape[0] == 0:
+        return [], None
+    T = None
+    if first is None:
+        T = qr.householder(R[:, idx])  # R on and above the diagonal, the reflectors below it
+        first = np.abs(T.diagonal())
+    guess = [idx[j] for j in np.flatnonzero(first > tau)]
+    Rk = checked_selection(R, idx, guess, tau)
+    if Rk is not None:
+        return guess, Rk
+    if T is None:
+        T = qr.householder(R[:, idx])
+    d = np.abs(T.diagonal())
+    kept: list[int] = []
+    while True:
+        small = np.flatnonzero(d <= tau)
+        j = int(small[0]) if small.size else len(d)
+        kept += idx[:j]
+        if j == len(d):  # all kept, or the rows are exhausted: the rest depends on the kept
+            return kept, None
+        # Column j depends on the kept ones; the rows j.. of the columns after it hold their
+        # components orthogonal to the kept columns.
+        idx = idx[j + 1 :]
+        M = qr.upper(T[j:, j + 1 :], -1)  # R's part of that block (it starts below the diagonal)
+        if not idx or M.shape[0] == 0:
+            return kept, None
+        T = qr.householder(M)
+        d = np.abs(T.diagonal())
+
+
+def checked_selection(
+    R: np.ndarray, order: list[int], kept: list[int], tau: float
+) -> np.ndarray | None:
+    """Whether ``kept`` is the walk of :func:`select_independent`, by one QR.
+
+    With the kept columns first (in ``order``), then the others (in index order), the
+    triangular factor holds each kept column's distance to the kept ones before it (its
+    diagonal) and, in each other column, its components along the kept columns and beyond:
+    its distance to the kept columns met before it in ``order`` is the norm of the entries
+    from that count down. The selection is proved when every kept distance exceeds ``tau``
+    and every other one is under it, each by :data:`VERIFY_MARGIN`.
+
+    Returns:
+        The triangular factor of ``R[:, kept + others]``, or None if not proved.
+    """
+    chosen = set(kept)
+    others = [i for i in range(R.shape[1]) if i not in chosen]
+    if len(kept) > min(R.shape) or len(order) != R.shape[1]:
+        return None
+    Rk = qr.triangular(R[:, kept + others])
+    b = len(kept)
+    if (np.abs(Rk.diagonal()[:b]) <= VERIFY_MARGIN * tau).any():
+        return None
+    if others:
+        count, before = 0, {}  # kept columns met before each other one
+        for i in order:
+            if i in chosen:
+                count += 1
+            else:
+                before[i] = count
+        start = np.array([before[i] for i in others])
+        tail = np.where(np.arange(Rk.shape[0])[:, None] >= start, Rk[:, b:], 0.0)
+        if (np.einsum("ij,ij->j", tail, tail) >= (tau / VERIFY_MARGIN) ** 2).any():
+            return None
+    return Rk
+
+
+def select_by_rank(R: np.ndarray, order: list[int], tau: float) -> list[int]:
+    """Keep each column, in ``order``, whose addition raises the numerical rank (slow, robust)."""
+    kept: list[int] = []
+    for i in order:
+        cols = [*kept, i]
+        if int(np.sum(pivoted_diagonal(R[:, cols]) > tau)) > len(kept):
+            kept = cols
+    return kept
+
+
+def independent_columns(
+    W: np.ndarray, order: list[int], n_rows: int | None = None
+) -> tuple[np.ndarray, float, list[int], np.ndarray]:
+    """Rank of W and the independent columns met first in an order of preference.
+
+    Args:
+        W: Observation matrix ``(r, c)``, or a smaller matrix with its column geometry.
+        order: Column indices, most preferred first.
+        n_rows: Rows r of the observation matrix (default: W's).
+
+    Returns:
+        |R_ii| of the pivoted QR, tau, the kept column indices (in ``order``) and a factor
+        with W's column geometry: the triangular factor of W's columns in ``order``, its
+        columns put back in W's order.
+    """
+    diag, tau, kept, R, _ = _independent_columns(W, order, n_rows)
+    return diag, tau, kept, R
+
+
+def _independent_columns(W: np.ndarray, order: list[int], n_rows: int | None):
+    """:func:`independent_columns`, and the factor of :func:`checked_selection` (or None)."""
+    if not np.isfinite(W).all():
+        raise InvalidArgumentError(
+            "the observation matrix has non-finite entries: check the marker and the configurations"
+        )
+    first = None
+    if sorted(order) == list(range(W.shape[1])) and min(W.shape) > 0:
+        # One QR of W's columns in order: its diagonal is the walk's first guess, and its
+        # factor, columns put back, has W's column geometry.
+        T = qr.householder(W[:, order])
+        k = min(W.shape)
+        first = np.abs(T.diagonal())
+        R = np.empty((k, W.shape[1]))
+        R[:, order] = qr.upper(T[:k])
+    else:
+        R = _triangular(W)
+    diag = qr.pivoted_diagonal(R)
+    rank, tau = numerical_rank(diag, W.shape[0] if n_rows is None else n_rows)
+    # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
+    # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
+    # the order in which the columns are visited.
+    threshold = tau if rank in (0, len(diag)) else max(tau, math.sqrt(diag[rank - 1] * diag[rank]))
+    kept, Rk = _select(R, order, threshold, first)
+    if len(kept) != rank:
+        # Nearly dependent columns (small tilts) amplify round-off in the residuals; fall back
+        # to the definition: keep a column when it raises the pivoted-QR rank.
+        kept, Rk = select_by_rank(R, order, tau), None
+    return diag, tau, kept, R, Rk
+
+
+def identify_base(
+    mdh: MDHModel | TreeMDH, params: ParameterSet, W: np.ndarray, n_rows: int | None = None
+) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
+    """Rank, base columns and regrouping of an observation matrix (docs/method.md section 3).
+
+    Args:
+        mdh: Nominal model (for the order of preference).
+        params: The parameters of W's columns.
+        W: Observation matrix ``(r, c)``, or a smaller matrix with its column geometry.
+        n_rows: Rows r of the observation matrix (default: W's).
+
+    Returns:
+        |R_ii| of the pivoted QR, tau, the kept column indices (preference order), the other
+        column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
+    """
+    diag, tau, kept, R, Rk = _independent_columns(W, preference_order(mdh, params), n_rows)
+    chosen = set(kept)
+    others = [i for i in range(len(params)) if i not in chosen]
+    if Rk is None:
+        Rk = qr.triangular(R[:, kept + others])
+    b = len(kept)
+    B = qr.solve_upper(Rk[:b, :b], Rk[:b, b:])
+    return diag, tau, kept, others, B
+
+
+def _checked_arguments(mdh, params, measurement, configs):
+    """Checked arguments of :func:`analyze_model`: measurement, parameter set, ``(m, n)``."""
+    if not isinstance(mdh, MDHModel | TreeMDH):
+        raise InvalidArgumentError(
+            f"mdh must be an MDHModel or a TreeMDH (see from_chain, from_tree), got {mdh!r:.60}"
+        )
+    measurement = Measurement.of("pose") if measurement is None else measurement
+    if not isinstance(measurement, Measurement):
+        raise InvalidArgumentError(
+            f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
+        )
+    if isinstance(params, str):
+        pset = _set_of(mdh, params)
+    elif isinstance(params, ParameterSet) and all(
+        isinstance(p, Parameter) and 0 <= p.row < len(mdh.sigma) for p in params.parameters
+    ):
+        pset = params
+    else:
+        raise InvalidArgumentError(
+            f"params must be 'paper', 'complete' or a ParameterSet of this model's rows, "
+            f"got {params!r:.60}"
+        )
+    if configs is None:
+        raise InvalidArgumentError("analyze_model needs the configurations (m, n) to analyse")
+    q = joint_positions(configs, mdh.n)
+    check_work(len(q), mdh.n, per_config=len(mdh.tool_rows))
+    return measurement, pset, q
+
+
+def _set_of(mdh: MDHModel | TreeMDH, label: str) -> ParameterSet:
+    """The ``paper`` or ``complete`` set of a chain or tree model."""
+    return tree_parameters(mdh, label) if isinstance(mdh, TreeMDH) else parameter_set(mdh, label)
+
+
+def _matrices(mdh: MDHModel | TreeMDH, params: ParameterSet, q: np.ndarray, measurement):
+    """W of a set (for a tree: its small factor), W's rows, and the complete model's W."""
+    if isinstance(mdh, TreeMDH):
+        F = tree_jacobian(mdh, params, q, measurement, factor=True)
+        rows = len(q) * mdh.n_tools * len(measurement.rows)
+        return F, rows, lambda: tree_complete_jacobian(mdh, q, measurement, factor=True)
+    kin = mdh.kinematics(q)
+    W = identification_jacobian(mdh, params, q, measurement, kin=kin)
+    return W, W.shape[0], lambda: complete_jacobian(mdh, q, measurement, kin=kin)
+
+
+def per_tool_theory(mdh: TreeMDH, measurement: Measurement) -> tuple[tuple[str, int | None], ...]:
+    """Each tool's chain alone: its name and theoretical count (see :func:`theoretical_count`)."""
+    out = []
+    axes = tree_axes(mdh, measurement)
+    for t, name in enumerate(mdh.tool_frames):
+        rows = list(mdh.path_rows(t))
+        on = tuple(rows.index(k) for k in axes[t])
+        out.append((name, theoretical_count(mdh.path_model(t), measurement, on)))
+    return tuple(out)
+
+
+def analyze_model(
+    mdh: MDHModel | TreeMDH,
+    params: str | ParameterSet = "paper",
+    measurement: Measurement | None = None,
+    configs: np.ndarray | None = None,
+    robot: str = "",
+    seed: int = 0,
+) -> Identifiability:
+    """Identifiability of an MDH model (chain or tree) at given configurations.
+
+    Args:
+        mdh: Nominal model: a chain's, or a tree's (every tool measured at each configuration).
+        params: ``paper``, ``complete`` or an explicit set.
+        measurement: What is measured (default: the full pose at the tool origin).
+        configs: Joint positions ``(m, n)``.
+        robot: Name for reports.
+        seed: Seed that drew ``configs`` (reported only).
+
+    Returns:
+        The analysis.
+
+    Raises:
+        InvalidArgumentError: A bad argument: configurations of the wrong shape, with NaN,
+            or too many to fit in memory (:data:`~calib.checks.MAX_WORK_BYTES`).
+    """
+    measurement, pset, q = _checked_arguments(mdh, params, measurement, configs)
+    check_count(seed, "the seed", minimum=0)
+    names = pset.names
+    extras = [p for p in _set_of(mdh, "complete").parameters if p.name not in names]
+    t0 = time.perf_counter()
+    # One Jacobian for the set and the complete set's extras; ranks of column subsets come
+    # from the small triangular factor, which keeps W's column geometry.
+    all_params = ParameterSet(pset.label, (*pset.parameters, *extras))
+    W_all, n_rows, complete = _matrices(mdh, all_params, q, measurement)
+    W = W_all[:, : len(pset)]
+    t1 = time.perf_counter()
+    diag, tau, kept, others, B = identify_base(mdh, pset, W, n_rows)
+    col_norm = np.linalg.norm(W, axis=0)
+    zero = tuple(names[i] for i in others if col_norm[i] <= tau)
+    t2 = time.perf_counter()
+    Wc = complete()
+    n_complete, _ = numerical_rank(pivoted_diagonal(Wc), n_rows)
+    on_axes = axes_through_point(mdh, measurement)
+    missing: list[str] = []
+    if len(kept) < n_complete:
+        R_all = _triangular(W_all)
+        for j, p in enumerate(extras):
+            cols = [*kept, len(pset) + j]
+            r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), n_rows)
+            if r_x > len(kept):
+                missing.append(_explain(p, mdh))
+        if not missing:
+            missing.append(
+                f"the set reaches {len(kept)} of the {n_complete} independent errors for a "
+                f"reason calib does not diagnose"
+            )
+    t3 = time.perf_counter()
+    notes = []
+    rank, _ = numerical_rank(diag, n_rows)
+    if len(kept) != rank:
+        notes.append(
+            f"{len(kept)} independent columns were selected for a numerical rank of {rank}: "
+            f"the rank is ill-defined at this geometry"
+        )
+    if n_rows < len(pset):
+        notes.append(
+            f"only {n_rows} measurement rows for {len(pset)} parameters: the rank cannot "
+            f"exceed {n_rows}; draw more configurations"
+        )
+    b = rank
+    if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
+        notes.append(
+            f"weak rank gap: |R_bb| = {diag[b - 1]:.3g} vs |R_b+1| = {diag[b]:.3g}; the "
+            f"rank may change with more or other configurations"
+        )
+    for note in notes:
+        warnings.warn(note, RankWarning, stacklevel=2)
+    return Identifiability(
+        robot=robot,
+        base_frame=mdh.base_frame,
+        tool_frame=mdh.tool_frame,
+        mdh=mdh,
+        measurement=measurement,
+        params=pset,
+        n_configs=len(q),
+        seed=seed,
+        n_rows=n_rows,
+        diag=diag,
+        tolerance=tau,
+        base=tuple(names[i] for i in kept),
+        others=tuple(names[i] for i in others),
+        zero=zero,
+        B=B,
+        n_complete=n_complete,
+        n_theory=theoretical_count(mdh, measurement, on_axes),
+        on_axes=on_axes,
+        per_tool=per_tool_theory(mdh, measurement) if isinstance(mdh, TreeMDH) else (),
+        missing=tuple(missing),
+        warnings=tuple(notes),
+        timings_ms={
+            "jacobian": 1e3 * (t1 - t0),
+            "qr": 1e3 * (t2 - t1),
+            "complete": 1e3 * (t3 - t2),
+        },
+    )
+
+
+SNAPPED_CHANGE = 1e-3
+"""Largest change [rad or m] :func:`snapped_values` lists: a larger one is a different frame
+choice of the idealized conversion (a 90-degree offset), not round-off."""
+
+
+def snapped_values(
+    exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH
+) -> tuple[str, ...]:
+    """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
+
+    Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are
+    not listed; angles are compared modulo 2 pi.
+    """
+    out = []
+    for kind in Kind:
+        if not hasattr(exact, kind.value):  # gamma and b: trees only
+            continue
+        a, b = getattr(exact, kind.value), getattr(idealized, kind.value)
+        diff = b - a
+        if kind.is_rotation:
+            diff = (diff + math.pi) % (2 * math.pi) - math.pi
+        unit = "rad" if kind.is_rotation else "m"
+        for k in np.flatnonzero((np.abs(diff) > 1e-14) & (np.abs(diff) <= SNAPPED_CHANGE)):
+            out.append(f"{kind.value}{k}: {a[k]:.7g} {unit} -> {b[k]:.7g}")
+    return tuple(out)
+
+
+def analyze(
+    robot: str | Path | Chain | Tree,
+    base: str | None = None,
+    tool: str | Sequence[str] | None = None,
+    measure: str = "pose",
+    marker=None,
+    params: str = "paper",
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+) -> Identifiability:
+    """Load a robot and analyse the identifiability of its geometric parameters.
+
+    Args:
+        robot: Catalog name, URDF path, or an already loaded chain or tree.
+        base: Base frame (default: the catalog's or the URDF root).
+        tool: Tool frame (default: the catalog's or the deepest tip), or several: the tree of
+            their chains, every tool measured at each configuration (see :func:`load_robot`).
+        measure: ``pose``, ``position`` or comma-separated rows (``x,y,z,rx``).
+        marker: Measured point in the tool frame, 3 numbers [m].
+        params: ``paper`` or ``complete``.
+        configs: Number of random configurations m (>= 1).
+        seed: Seed of the configurations.
+
+    The analysis runs on the nominal geometry with URDF round-off removed
+    (:meth:`MDHModel.idealized`); the result's ``snapped`` lists what that changed.
+
+    Returns:
+        The analysis, with load/convert/jacobian/qr timings.
+    """
+    measurement = Measurement.of(measure, marker)
+    check_count(configs, "the number of configurations")
+    check_count(seed, "the seed", minimum=0)
+    if params not in ("paper", "complete"):
+        raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
+    t0 = time.perf_counter()
+    chain = load_robot(robot, base, tool)
+    t1 = time.perf_counter()
+    exact = from_tree(chain) if isinstance(chain, Tree) else from_chain(chain)
+    mdh = exact.idealized()
+    t2 = time.perf_counter()
+    q = chain.random_configurations(int(configs), seed)
+    result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
+    timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
+    result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
+    if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
+        per_tool = result.per_tool
+        if isinstance(chain, Tree):  # so it is for each tool's chain through mimic joints
+            pairs = zip(per_tool, chain.chains, strict=True)
+            per_tool = tuple((t, None if c.coupling else n) for (t, n), c in pairs)
+        result = dataclasses.replace(
+            result, n_theory=None, mimic=chain.coupling.mimic, per_tool=per_tool
+        )
+    return result
+
+
+__all__ = ["Identifiability", "RankWarning", "analyze", "analyze_model"]

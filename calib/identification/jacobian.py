@@ -1,0 +1,209 @@
+"""The analytic identification Jacobian and the complete reference error model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..kinematics.mdh import Kinematics, MDHModel
+from .parameters import ParameterSet
+
+MAX_MARKER = 1e3
+"""Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
+
+ROW_NAMES = ("x", "y", "z", "rx", "ry", "rz")
+"""The six rows of a pose error: position [m] then orientation [rad], in the base frame."""
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What is measured: some rows of the tool pose error, at a point of the tool.
+
+    Attributes:
+        rows: Indices into ``(x, y, z, rx, ry, rz)``.
+        marker: Measured point in the tool frame ``(3,)`` [m].
+        label: ``pose``, ``position`` or the row names.
+    """
+
+    rows: tuple[int, ...]
+    marker: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    label: str = "pose"
+
+    @staticmethod
+    def of(measure: str = "pose", marker=None) -> Measurement:
+        """Build from ``pose``, ``position`` or comma-separated row names (``x,y,rz``).
+
+        Raises:
+            InvalidArgumentError: Unknown measure or a marker that is not 3 finite numbers.
+        """
+        if measure == "pose":
+            rows = (0, 1, 2, 3, 4, 5)
+        elif measure == "position":
+            rows = (0, 1, 2)
+        else:
+            names = [s.strip() for s in str(measure).split(",") if s.strip()]
+            if not names or any(s not in ROW_NAMES for s in names):
+                raise InvalidArgumentError(
+                    f"unknown measure '{measure}': choose pose, position or rows among "
+                    f"{', '.join(ROW_NAMES)}"
+                )
+            rows = tuple(sorted({ROW_NAMES.index(s) for s in names}))
+        if marker is None:
+            marker = (0.0, 0.0, 0.0)
+        mk = np.asarray(marker, dtype=float).ravel() if _numeric(marker) else None
+        if (
+            mk is None
+            or mk.shape != (3,)
+            or not np.all(np.isfinite(mk))
+            or np.max(np.abs(mk)) > MAX_MARKER
+        ):
+            raise InvalidArgumentError(
+                f"a marker is 3 finite numbers (x y z in metres, each within {MAX_MARKER:g} m), "
+                f"got {marker!r}"
+            )
+        return Measurement(rows, (float(mk[0]), float(mk[1]), float(mk[2])), measure)
+
+    @property
+    def marker_array(self) -> np.ndarray:
+        """The marker as an array [m]."""
+        return np.array(self.marker)
+
+
+def _numeric(value) -> bool:
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _check_types(mdh: MDHModel, measurement: Measurement, params=None) -> None:
+    """Raise InvalidArgumentError for arguments of the wrong kind (not for their values)."""
+    if not isinstance(mdh, MDHModel):
+        raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
+    if not isinstance(measurement, Measurement):
+        raise InvalidArgumentError(
+            f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
+        )
+    last = mdh.n + 1
+    if params is not None and not (
+        isinstance(params, ParameterSet) and all(0 <= p.row <= last for p in params.parameters)
+    ):
+        raise InvalidArgumentError(
+            f"params must be a ParameterSet of this model's rows, got {params!r:.60}"
+        )
+
+
+def measured_point(kin: Kinematics, marker: np.ndarray) -> np.ndarray:
+    """Measured point in the base frame at every configuration ``(m, 3)`` [m]."""
+    return kin.p[:, -1] + kin.R[:, -1] @ marker
+
+
+def identification_jacobian(
+    mdh: MDHModel,
+    params: ParameterSet,
+    q: np.ndarray,
+    measurement: Measurement = Measurement((0, 1, 2, 3, 4, 5)),
+    kin: Kinematics | None = None,
+) -> np.ndarray:
+    """Observation matrix W: stacked identification Jacobians, analytic (docs/method.md eq. 2).
+
+    Args:
+        mdh: Nominal (or current) model.
+        params: Parameters whose errors are the columns.
+        q: Joint positions ``(m, n)`` [rad or m].
+        measurement: Measured rows and marker.
+        kin: Kinematics of ``mdh`` at ``q`` if already computed.
+
+    Returns:
+        ``W`` of shape ``(m * len(rows), len(params))``: configuration-major, so rows
+        ``i*len(rows):(i+1)*len(rows)`` belong to configuration i.
+    """
+    _check_types(mdh, measurement, params)
+    if kin is None:
+        kin = mdh.kinematics(q)
+    plan = params.layout
+    # Component-major (row, xyz, configuration): contiguous for :meth:`MDHModel.kinematics`'s
+    # arrays, so that every operation runs along the configurations.
+    y_prev, x_mid, q_mid, p = (
+        a.transpose(1, 2, 0) for a in (kin.y_prev, kin.x_mid, kin.q_mid, kin.p)
+    )
+    z = kin.R[:, :, :, 2].transpose(1, 2, 0)
+    # One gather per kind of vector: each column's axis (k, 3, m), each rotation's point.
+    axes = np.stack([y_prev, x_mid, z])[plan.axis_source, plan.axis_row]
+    rot = plan.rotations
+    L = None
+    if rot.size:
+        L = _point(kin, measurement) - np.stack([q_mid, p])[plan.point_source, plan.point_row]
+    return _assemble(axes, rot, L, measurement.rows)
+
+
+def _point(kin: Kinematics, measurement: Measurement) -> np.ndarray:
+    """The measured point in the base frame, component-major ``(3, m)`` [m]."""
+    E = kin.p[:, -1].T
+    if any(measurement.marker):
+        E = E + np.einsum("mij,j->im", kin.R[:, -1], measurement.marker_array)
+    return E
+
+
+def _assemble(
+    axes: np.ndarray, rot: np.ndarray, L: np.ndarray | None, rows: tuple[int, ...]
+) -> np.ndarray:
+    """W from each column's axis ``(k, 3, m)`` and each rotation column's lever ``L``.
+
+    A translation moves the point along its axis; a rotation (columns ``rot``) moves it by
+    axis x L and turns the tool about its axis. Only the measured rows are built.
+
+    Returns:
+        ``W`` ``(m * len(rows), k)``, configuration-major.
+    """
+    k, _, m = axes.shape
+    lin = [r for r in rows if r < 3]  # rows are sorted: position rows first
+    ang = [r - 3 for r in rows if r >= 3]
+    out = np.empty((k, len(rows), m))
+    out[:, : len(lin)] = axes[:, lin]
+    out[:, len(lin) :] = 0.0
+    if rot.size:
+        a = axes[rot]
+        if lin:
+            c1, c2 = [(r + 1) % 3 for r in lin], [(r + 2) % 3 for r in lin]
+            out[rot, : len(lin)] = a[:, c1] * L[:, c2] - a[:, c2] * L[:, c1]
+        if ang:
+            out[rot, len(lin) :] = a[:, ang]
+    return out.transpose(2, 1, 0).reshape(-1, k)
+
+
+def complete_jacobian(
+    mdh: MDHModel,
+    q: np.ndarray,
+    measurement: Measurement = Measurement((0, 1, 2, 3, 4, 5)),
+    kin: Kinematics | None = None,
+) -> np.ndarray:
+    """Observation matrix of the complete reference error model.
+
+    A generic 6-DOF error (3 translations, 3 rotations about the frame's own axes) on the
+    base and on every link carrying a joint placement or the tool, i.e. on frames -1, 1..n.
+    Any frame fixed to a link gives the same column space, so the placement of joint k+1 and
+    the tool placement are covered by link k's frame. Its rank is the number of independent
+    geometric errors the measurement can see, whatever the parameterisation.
+
+    Returns:
+        ``W`` of shape ``(m * len(rows), 6 (n + 1))``.
+    """
+    _check_types(mdh, measurement)
+    if kin is None:
+        kin = mdh.kinematics(q)
+    n, m = mdh.n, kin.R.shape[0]
+    # Component-major frames -1, 1..n: the columns of each rotation are the axes (3 (n+1),
+    # 3, m), each frame's origin the point of its three rotations.
+    R = np.empty((n + 1, 3, 3, m))
+    R[0] = np.eye(3)[:, :, None]
+    R[1:] = kin.R[:, 1 : n + 1].transpose(1, 3, 2, 0)  # (frame, column, xyz, m)
+    axes = R.reshape(-1, 3, m)
+    points = np.zeros((n + 1, 1, 3, m))
+    points[1:, 0] = kin.p[:, 1 : n + 1].transpose(1, 2, 0)
+    L = _point(kin, measurement) - np.broadcast_to(points, (n + 1, 3, 3, m)).reshape(-1, 3, m)
+    rot = np.arange(axes.shape[0], 2 * axes.shape[0])
+    return _assemble(np.concatenate([axes, axes]), rot, L, measurement.rows)

@@ -1,0 +1,201 @@
+"""Human-readable text for the CLI and notebooks: MDH tables and identifiability reports."""
+
+from __future__ import annotations
+
+import math
+
+from ..kinematics.mdh import MDHModel
+from ..kinematics.mimic import MimicJoint
+from ..kinematics.tree_model import TreeMDH
+from .identifiability import Identifiability
+from .parameters import Kind
+from .table import format_table
+
+_STATUS = {"identifiable": "id", "regrouped": "reg", "zero": "0"}
+
+
+def _num(x: float, digits: int = 4) -> str:
+    """Fixed-point text without a negative zero."""
+    text = f"{x:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
+def _row_cells(mdh: MDHModel | TreeMDH, k: int) -> list[str]:
+    """beta, alpha, d, theta, r of row k; the joint variable q_k shown where it acts."""
+    s = int(mdh.sigma[k])
+    theta = _num(math.degrees(mdh.theta[k]), 3)
+    r = _num(mdh.r[k])
+    if s == 0:
+        theta = (
+            f"q{k}" if abs(mdh.theta[k]) < 5e-7 else f"q{k}{'+' if mdh.theta[k] > 0 else ''}{theta}"
+        )
+    elif s == 1:
+        r = f"q{k}" if abs(mdh.r[k]) < 5e-7 else f"q{k}{'+' if mdh.r[k] > 0 else ''}{r}"
+    beta, alpha = _num(math.degrees(mdh.beta[k]), 3), _num(math.degrees(mdh.alpha[k]), 3)
+    return [beta, alpha, _num(mdh.d[k]), theta, r]
+
+
+def mdh_table(mdh: MDHModel) -> str:
+    """The MDH rows in degrees and metres, frame 0 to frame n+1."""
+    header = ["j", "joint", "sigma", "beta[deg]", "alpha[deg]", "d[m]", "theta[deg]", "r[m]"]
+    rows = []
+    for k in range(mdh.n + 2):
+        s = int(mdh.sigma[k])
+        name = mdh.joint_names[k] or ("(base)" if k == 0 else "(tool)")
+        rows.append([str(k), name, "fixed" if s < 0 else str(s), *_row_cells(mdh, k)])
+    return format_table(header, rows)
+
+
+def tree_table(model: TreeMDH) -> str:
+    """The rows of a tree in degrees and metres: antecedent, gamma and b, then a chain's."""
+    header = ["j", "a(j)", "joint", "sigma", "gamma[deg]", "b[m]"]
+    header += ["beta[deg]", "alpha[deg]", "d[m]", "theta[deg]", "r[m]"]
+    tools = dict(zip(model.tool_rows, model.tool_frames, strict=False))
+    rows = []
+    for k in range(len(model.sigma)):
+        s = int(model.sigma[k])
+        name = model.joint_names[k] or ("(base)" if k == 0 else f"(tool {tools.get(k, '')})")
+        gamma, b = _num(math.degrees(model.gamma[k]), 3), _num(model.b[k])
+        fixed = "fixed" if s < 0 else str(s)
+        rows.append([str(k), str(int(model.antecedent[k])), name, fixed, gamma, b])
+        rows[-1] += _row_cells(model, k)
+    return format_table(header, rows)
+
+
+def status_table(res: Identifiability) -> str:
+    """Table-2 style: per frame and parameter, id / reg / 0 (- where not in the set)."""
+    kinds = [
+        k
+        for k in (Kind.GAMMA, Kind.B, Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA, Kind.R, Kind.Y)
+        if any(p.kind is k for p in res.params.parameters)
+    ]
+    names = set(res.params.names)
+    rows = []
+    for k in range(len(res.mdh.sigma)):
+        row = [str(k)]
+        for kind in kinds:
+            name = f"{kind.value}{k}"
+            row.append(_STATUS[res.status(name)] if name in names else "-")
+        rows.append(row)
+    return format_table(["j", *[k.value for k in kinds]], rows)
+
+
+def analysis_text(res: Identifiability) -> str:
+    """The full human report of ``calib analyze``."""
+    d = res.to_dict()
+    j = d["joints"]
+    lines = [
+        f"{res.robot}: {res.base_frame} -> {res.tool_frame}, {j['revolute']}R {j['prismatic']}P, "
+        f"measure {res.measurement.label}"
+        + (f" at marker {tuple(res.measurement.marker)} m" if any(res.measurement.marker) else "")
+        + f", {res.params.label} set, {res.n_configs} configurations (seed {res.seed})",
+        "",
+        "Status of the standard parameters"
+        " (id identifiable, reg regrouped/eliminated, 0 no effect):",
+        status_table(res),
+        "",
+        f"Base parameters ({res.n_base}) and what they stand for:",
+    ]
+    for name, expr in res.regrouping().items():
+        lines.append(f"  {name:>8} = {expr}")
+    last, nxt = res.gap
+    gap = (
+        f"|R_bb| = {last:.3g}, next {nxt:.3g}"
+        if nxt is not None
+        else f"|R_bb| = {last:.3g}, full rank"
+    )
+    lines += [
+        "",
+        f"standard {res.n_standard}, base {res.n_base}, complete model {res.n_complete}, "
+        f"theory {res.n_theory if res.n_theory is not None else 'n/a'}" + _axes_note(res),
+        f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
+        *tree_theory_lines(res),
+    ]
+    if res.snapped:
+        lines.append(f"URDF round-off removed before the analysis: {'; '.join(res.snapped)}")
+    lines += mimic_lines(res)
+    if res.zero:
+        lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
+    if res.missing:
+        lines.append(
+            f"incomplete: the {res.params.label} set misses {res.n_complete - res.n_base} "
+            f"error direction(s) a complete model has:"
+        )
+        lines += [f"  - {m}" for m in res.missing]
+    else:
+        lines.append("complete: the set represents every error direction the measurement can see")
+    return "\n".join(lines)
+
+
+def tree_theory_lines(res: Identifiability) -> list[str]:
+    """For a tree: the theory's terms, each tool's chain alone, what sharing joints removes."""
+    if not res.per_tool:
+        return []
+    sigma = res.mdh.sigma
+    R, P, T = int(sum(sigma == 0)), int(sum(sigma == 1)), len(res.per_tool)
+    per = 6 if res.measurement.rows == (0, 1, 2, 3, 4, 5) else 3
+    theory = (
+        f"4R + 2P + {per}T = {4 * R + 2 * P + per * T} for R={R}, P={P}, T={T}"
+        + (", before points on axes" if res.on_axes and per == 3 else "")
+        if not res.mimic
+        else f"4R + 2P + {per}T is for independent joints: n/a with coupled joints"
+    )
+    lines = [
+        f"tree of {T} tools: every joint counted once, each tool {per} ({theory})",
+        "  each tool's chain alone: "
+        + ", ".join(f"{name} {'n/a' if c is None else c}" for name, c in res.per_tool),
+    ]
+    counts = [c for _, c in res.per_tool]
+    if res.n_theory is not None and None not in counts:
+        total = sum(counts)  # type: ignore[arg-type]
+        lines.append(
+            f"  the chains alone sum to {total}; the tree has {total - res.n_theory} fewer: a "
+            f"joint shared by k tools is counted k times in the sum (4 per revolute, 2 per "
+            f"prismatic joint), once in the tree"
+        )
+    return lines
+
+
+def mimic_expression(mj: MimicJoint) -> str:
+    """``joint3 = -1 joint2 + 0.1``: how a mimic joint follows its master."""
+    sign = "-" if mj.offset < 0 else "+"
+    return f"{mj.name} = {mj.multiplier:g} {mj.master} {sign} {abs(mj.offset):g}"
+
+
+def coupling_lines(mimic: tuple[MimicJoint, ...]) -> list[str]:
+    """The mimic joints of a chain, one line each (none for a chain without them)."""
+    if not mimic:
+        return []
+    return [
+        "coupled joints (URDF <mimic>): their positions are computed, q_k of row k:",
+        *(f"  row {mj.joint + 1}: {mimic_expression(mj)}" for mj in mimic),
+    ]
+
+
+def mimic_lines(res: Identifiability) -> list[str]:
+    """What the analysis says about coupled joints (none for a chain without mimic joints)."""
+    if not res.mimic:
+        return []
+    out = [
+        "coupled joints (URDF <mimic>; the theory is for independent joints): the offset of "
+        "each mimic expression and the joint offset of its row are one parameter"
+    ]
+    offsets = res.mimic_offsets()
+    for mj in res.mimic:
+        k = mj.joint + 1
+        with_ = f"no effect, as {offsets[k]}" if offsets[k] in res.zero else offsets[k]
+        out.append(f"  offset{k} of {mimic_expression(mj)}: with {with_}")
+    return out
+
+
+def _axes_note(res: Identifiability) -> str:
+    if res.measurement.rows != (0, 1, 2) or not res.on_axes:
+        return ""
+    if res.per_tool:
+        if res.n_theory is None:
+            return " (points on joint axes the formula does not cover)"
+        return " (points on the last axis of their tools: 2 fewer per such joint)"
+    if res.on_axes == (res.mdh.n,):
+        return " (point on the last axis: 2 fewer)"
+    axes = ", ".join(str(k) for k in res.on_axes)
+    return f" (point on axes {axes}: the formula covers the last axis only)"

@@ -1,0 +1,310 @@
+"""The calibrated URDF plus joint compliance: a model a user applies outside calib.
+
+A URDF holds geometry only. When a calibration fits joint compliance (``--elastic``), the
+whole model is the calibrated URDF whose joints see
+
+    q' = q + c * tau(q)
+
+``c`` the compliance of each chain joint [rad/(N m) or m/N] and ``tau(q)`` the gravity torque
+it carries [N m or N], as in the fit: the URDF's masses on the nominal joint placements (the
+file records them: ``nominal_origins``), the other joints at their neutral position,
+gravity as recorded (a vector in the base frame). calib writes ``c`` and the gravity next to
+the URDF (:func:`compliance_document`, ``<out>.compliance.json``); :func:`load_calibrated`
+reads the URDF with that file (or the report) back as an :class:`ElasticModel`, which
+predicts measured points and gives the deflected or the compensating joint positions.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..exceptions import DataError, InvalidArgumentError, URDFError
+from ..fileio import read_text_limited
+from .mdh import MDHModel, from_chain
+from .robot import (
+    Chain,
+    frame_placement,
+    joint_placements,
+    load_chain,
+    pin_configurations,
+    resolve_frame,
+)
+from .urdf_model import build_model, read_urdf_file
+from .urdf_xml import URDFInfo, kinematic_xml
+
+COMPLIANCE_FORMAT = "1"
+"""Version of the compliance file's layout (its ``format_version``)."""
+
+MAX_JSON_BYTES = 64 << 20
+"""Largest report or compliance file read [B]."""
+
+COMMAND_ITERATIONS = 50
+"""Most fixed-point iterations of :meth:`ElasticModel.command`."""
+
+
+def gravity_in_base(chain: Chain) -> np.ndarray:
+    """Gravity ``(3,)`` [m/s^2] in the chain's base frame (Pinocchio's, -z of the URDF root).
+
+    The base frame is placed with every joint at its reference position (``q_ref``).
+    """
+    model = chain.model
+    q0 = chain.pin_configurations(np.zeros((1, chain.n)))[0]
+    oMb = frame_placement(model, joint_placements(model, q0), chain.base_id)
+    return np.array(oMb.rotation.T @ model.gravity.linear)
+
+
+@dataclass(frozen=True, eq=False)
+class ElasticModel:
+    """A calibrated URDF with joint compliance under gravity, in the measurement frame.
+
+    Attributes:
+        chain: The calibrated URDF's chain (base and tool frames of the calibration).
+        measurement_to_base: Pose of the base frame in the measurement frame ``(4, 4)``.
+        markers: Measured points in the URDF's tool frame ``(K, 3)`` [m].
+        compliance: Compliance of each chain joint ``(n,)`` [rad/(N m) or m/N].
+        gravity: Gravity in the base frame ``(3,)`` [m/s^2].
+        mdh: The URDF's geometry as an MDH model (base to tool; vectorised kinematics).
+    """
+
+    chain: Chain
+    measurement_to_base: np.ndarray
+    markers: np.ndarray
+    compliance: np.ndarray
+    gravity: np.ndarray
+    mdh: MDHModel
+    torque_model: pin.Model
+
+    def torques(self, q: np.ndarray) -> np.ndarray:
+        """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``.
+
+        As in the fit: the URDF's masses on the nominal joint placements (``torque_model``,
+        whose gravity is set from ``gravity``), the other joints at their neutral position.
+        """
+        model = self.torque_model
+        ids = tuple(model.getJointId(name) for name in self.chain.joint_names)
+        q = self.chain.check_configurations(q)
+        data = model.createData()
+        idx = [model.joints[j].idx_v for j in ids]
+        qp = pin_configurations(model, pin.neutral(model), ids, q)
+        tau = [pin.computeGeneralizedGravity(model, data, row)[idx] for row in qp]
+        return np.array(tau).reshape(-1, self.chain.n)
+
+    def deflected(self, q: np.ndarray) -> np.ndarray:
+        """Joint positions the geometry sees at commanded ``q`` ``(m, n)``: ``q + c tau(q)``."""
+        q = self.chain.check_configurations(q)
+        return q + self.compliance * self.torques(q)
+
+    def command(self, target: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+        """The commanded positions whose deflected positions are ``target`` ``(m, n)``.
+
+        Fixed-point iteration ``q <- target - c tau(q)`` (a contraction: ``c`` dtau/dq is
+        small), stopped at ``tol`` [rad or m].
+
+        Raises:
+            InvalidArgumentError: It does not settle in ``COMMAND_ITERATIONS`` iterations.
+        """
+        target = self.chain.check_configurations(target)
+        q = target.copy()
+        for _ in range(COMMAND_ITERATIONS):
+            new = target - self.compliance * self.torques(q)
+            if np.max(np.abs(new - q), initial=0.0) <= tol:
+                return new
+            q = new
+        raise InvalidArgumentError("the compensating joint positions do not settle")
+
+    def tool_placements(self, q: np.ndarray) -> np.ndarray:
+        """Tool frame in the measurement frame ``(m, 4, 4)`` at commanded ``q`` ``(m, n)``."""
+        kin = self.mdh.kinematics(self.deflected(q))
+        T = np.zeros((len(kin.p), 4, 4))
+        T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
+        return self.measurement_to_base @ T
+
+    def points(self, q: np.ndarray) -> np.ndarray:
+        """Measured points predicted at commanded ``q`` ``(m, K, 3)`` [m, measurement frame]."""
+        T = self.tool_placements(q)
+        return T[:, None, :3, 3] + np.einsum("mij,kj->mki", T[:, :3, :3], self.markers)
+
+
+def compliance_document(result, urdf: str) -> dict:
+    """The compliance file of a calibration result (JSON-ready).
+
+    Args:
+        result: A :class:`~calib.calibration.CalibrationResult`.
+        urdf: The calibrated URDF it goes with (as written).
+    """
+    chain = result.chain
+    units = ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma]
+    return {
+        "format_version": COMPLIANCE_FORMAT,
+        "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
+        "torques of the URDF's masses (other joints at their neutral position)",
+        "robot": result.robot,
+        "urdf": urdf,
+        "base_frame": chain.base_frame,
+        "tool_frame": chain.tool_frame,
+        "joints": list(chain.joint_names),
+        "compliance": result.state.compliance.tolist(),
+        "units": units,
+        "gravity": {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()},
+        "measurement_to_base": np.asarray(result.measurement_to_base).tolist(),
+        "markers": result.urdf_markers.tolist(),
+        "marker_links": list(result.marker_links),
+        "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
+    }
+
+
+def nominal_origins(info: URDFInfo) -> dict[str, dict[str, list[float]]]:
+    """Every joint's ``<origin>`` in a URDF: name -> ``{xyz [m], rpy [rad]}``."""
+    return {j.name: {"xyz": list(j.xyz), "rpy": list(j.rpy)} for j in info.joints}
+
+
+def torque_model(urdf: str | Path, origins: dict, base: str, gravity: np.ndarray) -> pin.Model:
+    """The gravity model of a fit: the calibrated URDF's masses on the nominal placements.
+
+    Args:
+        urdf: The calibrated URDF.
+        origins: Nominal joint origins (:func:`nominal_origins`); joints it does not name
+            (the added marker and world links) keep theirs.
+        base: The base frame (``gravity`` is given in it).
+        gravity: Gravity in the base frame ``(3,)`` [m/s^2].
+    """
+    info = read_urdf_file(urdf)
+    joints = []
+    for j in info.joints:
+        o = origins.get(j.name)
+        if o is not None:
+            j = dataclasses.replace(j, xyz=tuple(o["xyz"]), rpy=tuple(o["rpy"]))
+        joints.append(j)
+    model = build_model(kinematic_xml(dataclasses.replace(info, joints=tuple(joints))), str(urdf))
+    oMi = joint_placements(model, pin.neutral(model))
+    oMb = frame_placement(model, oMi, resolve_frame(model, base))
+    model.gravity = pin.Motion(np.r_[oMb.rotation @ gravity, np.zeros(3)])
+    return model
+
+
+def _origins(doc: dict, src: str) -> dict:
+    """The nominal joint origins of a compliance file, or of a report's nominal URDF."""
+    origins = doc.get("nominal_origins")
+    if origins is None and isinstance(doc.get("urdf"), str):  # a report
+        try:
+            return nominal_origins(read_urdf_file(doc["urdf"]))
+        except URDFError as exc:
+            raise DataError(
+                src, f"its nominal URDF (the gravity model) cannot be read: {exc}"
+            ) from None
+    ok = isinstance(origins, dict) and all(
+        isinstance(o, dict)
+        and all(
+            isinstance(o.get(k), list)
+            and len(o[k]) == 3
+            and all(isinstance(v, (int, float)) and math.isfinite(v) for v in o[k])
+            for k in ("xyz", "rpy")
+        )
+        for o in origins.values()
+    )
+    if not ok:
+        raise DataError(src, "'nominal_origins' is missing or not {joint: {xyz, rpy}}")
+    return origins
+
+
+def _read_json(path: str | Path) -> dict:
+    try:
+        doc = json.loads(read_text_limited(path, MAX_JSON_BYTES))
+    except FileNotFoundError:
+        raise DataError(str(path), "no such file") from None
+    except OSError as exc:
+        raise DataError(str(path), f"cannot read the file: {exc.strerror or exc}") from None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise DataError(str(path), f"not a JSON file: {exc}") from None
+    if not isinstance(doc, dict):
+        raise DataError(str(path), "not a calib report or compliance file")
+    return doc
+
+
+def _numbers(doc: dict, key: str, shape: tuple[int, ...], src: str) -> np.ndarray:
+    value = doc.get(key)
+    if isinstance(value, dict) and "matrix" in value:  # a report's pose
+        value = value["matrix"]
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.ndim != len(shape) or any(s >= 0 and s != d for s, d in zip(shape, a.shape, strict=True)):
+        raise DataError(src, f"'{key}' is missing or not {shape} numbers")
+    if not np.all(np.isfinite(a)):
+        raise DataError(src, f"'{key}' holds a number that is not finite")
+    return a
+
+
+def _fields(doc: dict, src: str) -> tuple[str, str, list[str], np.ndarray]:
+    """Base and tool frames, joint names and compliances of a report or compliance file."""
+    comp = doc.get("compliance")
+    if isinstance(comp, dict):  # a report: joint -> compliance
+        joints, values = list(comp), list(comp.values())
+    else:
+        joints, values = doc.get("joints"), comp
+    frames = (doc.get("base_frame"), doc.get("tool_frame"))
+    if not all(isinstance(f, str) for f in frames) or not isinstance(joints, list):
+        raise DataError(src, "not a calib report or compliance file (base_frame, tool_frame)")
+    c = _numbers({"compliance": values}, "compliance", (len(joints),), src)
+    return frames[0], frames[1], [str(j) for j in joints], c
+
+
+def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
+    """The calibrated URDF with its compliance file or its calibration report.
+
+    Args:
+        urdf: The calibrated URDF (as ``calib calibrate`` wrote it).
+        compliance: Its ``.compliance.json``, or the report (``--report``).
+
+    Raises:
+        DataError: The file is not a report or compliance file, or does not match the URDF.
+        CalibError: The URDF cannot be loaded with the recorded frames.
+    """
+    src = str(compliance)
+    doc = _read_json(compliance)
+    base, tool, joints, c = _fields(doc, src)
+    chain = load_chain(urdf, base, tool)
+    if tuple(joints) != tuple(chain.joint_names):
+        raise DataError(
+            src,
+            f"its joints ({', '.join(joints)}) are not the chain's of {urdf} "
+            f"({', '.join(chain.joint_names)})",
+        )
+    gravity = doc.get("gravity")
+    vec = _numbers(gravity if isinstance(gravity, dict) else {}, "vector", (3,), src)
+    if isinstance(gravity, dict) and gravity.get("frame") not in (None, base):
+        raise DataError(src, f"the gravity is given in '{gravity.get('frame')}', not the base")
+    T = _numbers(doc, "measurement_to_base", (4, 4), src)
+    markers = _numbers(doc, "markers", (-1, 3), src)
+    model = torque_model(urdf, _origins(doc, src), base, vec)
+    return ElasticModel(chain, T, markers, c, vec, from_chain(chain), model)
+
+
+def predictions_csv(model: ElasticModel, q: np.ndarray) -> str:
+    """CSV of predictions at configurations ``(m, n)``.
+
+    Columns: the commanded joints, the predicted points ``x1, y1, z1, ...`` [m, measurement
+    frame], and the deflected joints ``deflected_<joint>`` (``q + c tau(q)``).
+    """
+    names = list(model.chain.joint_names)
+    k = len(model.markers)
+    header = names + [f"{a}{i + 1}" for i in range(k) for a in "xyz"]
+    header += [f"deflected_{n}" for n in names]
+    pts = model.points(q).reshape(len(q), -1)
+    rows = np.hstack([q, pts, model.deflected(q)])
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(header)
+    for row in rows:
+        writer.writerow([repr(float(v)) if math.isfinite(v) else "nan" for v in row])
+    return out.getvalue()

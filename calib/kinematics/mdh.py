@@ -1,0 +1,483 @@
+"""Khalil-Kleinfinger modified Denavit-Hartenberg model of a chain, with Hayati's beta.
+
+Frame -1 is the chosen base frame, frame 0 is fixed to it, frames 1..n follow the joints
+and frame n+1 is the chosen tool frame. Row k (k = 0..n+1) places frame k in frame k-1:
+
+    T(k-1, k) = Trans(y, y_k) Rot(y, beta_k) Rot(x, alpha_k) Trans(x, d_k)
+                Rot(z, theta_k + (1 - sigma_k) q_k) Trans(z, r_k + sigma_k q_k)
+
+``y_k`` is zero in every converted model; it only exists as an error parameter of the
+complete set, where two consecutive lines coincide.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from ..checks import joint_positions, real_array
+from ..exceptions import InvalidArgumentError
+from . import urdf_xml
+from .robot import Chain
+
+PARALLEL_TOL = 0.01
+"""Angle [rad] under which two consecutive axes are treated as parallel (Hayati's beta).
+
+Between parallel axes the common normal is not unique and, for nearly parallel ones, lies
+far away: a 6e-6 rad tilt over 0.4 m puts it kilometres off. Rounded URDF angles
+(1.5708, 1.57) tilt axes by up to 1e-3 rad, so the tolerance is ten times that.
+"""
+
+FREE_DIRECTION_TOL = 1e-10
+"""Length [m] under which a perpendicular has no direction (the x axis is then free)."""
+
+COINCIDENT_TOL = 1e-6
+"""Distance [m] under which two parallel lines are coincident (the complete set adds y)."""
+
+SNAP_ANGLE = urdf_xml.SNAP_ANGLE
+"""Angle [rad] within which :meth:`MDHModel.idealized` snaps to a multiple of 90 degrees.
+
+URDF files round pi/2 to 1.5708 (3.7e-6 rad off), 1.57079 or 1.57079632679 (5e-12 off).
+"""
+
+SNAP_LENGTH = urdf_xml.SNAP_LENGTH
+"""Length [m] under which :meth:`MDHModel.idealized` snaps a distance to zero."""
+
+
+def snap_angle(a: np.ndarray, tol: float) -> np.ndarray:
+    """Angles [rad] within ``tol`` of a multiple of 90 degrees, snapped to it."""
+    quarter = math.pi / 2
+    target = np.round(a / quarter) * quarter + 0.0  # no negative zero
+    return np.where(np.abs(a - target) < tol, target, a)
+
+
+def snap_length(v: np.ndarray, tol: float) -> np.ndarray:
+    """Lengths [m] under ``tol`` in absolute value, snapped to zero."""
+    return np.where(np.abs(v) < tol, 0.0, v)
+
+
+def _rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_y(b: float) -> np.ndarray:
+    c, s = math.cos(b), math.sin(b)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
+    """Angle [rad] from unit vector a to unit vector b about ``axis`` (both orthogonal to it)."""
+    return math.atan2(float(np.dot(np.cross(a, b), axis)), float(np.dot(a, b)))
+
+
+_Y_AXIS = np.array([[0.0], [1.0], [0.0]])
+
+
+class Kinematics(NamedTuple):
+    """Frames of an MDH model at m configurations, all in the base frame (frame -1).
+
+    Attributes:
+        R: Rotation of frame k, shape ``(m, n+2, 3, 3)``.
+        p: Origin of frame k, ``(m, n+2, 3)`` [m].
+        y_prev: y axis of frame k-1, ``(m, n+2, 3)``: axis of ``y_k`` and ``beta_k``.
+        x_mid: x axis after ``Rot(y, beta_k) Rot(x, alpha_k)``, ``(m, n+2, 3)``: axis of
+            ``alpha_k`` and ``d_k``.
+        q_mid: Point where ``beta_k`` and ``alpha_k`` rotate, ``(m, n+2, 3)`` [m].
+    """
+
+    R: np.ndarray
+    p: np.ndarray
+    y_prev: np.ndarray
+    x_mid: np.ndarray
+    q_mid: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class MDHModel:
+    """Modified-DH rows of a chain (frames 0..n+1), a value object.
+
+    Attributes:
+        sigma: 0 revolute, 1 prismatic, -1 fixed row, shape ``(n+2,)``.
+        beta: Hayati angle about y_{k-1} [rad].
+        alpha: Angle about x_{k-1} [rad].
+        d: Distance along x_{k-1} [m].
+        theta: Angle about z_k [rad] (joint offset for a revolute row).
+        r: Distance along z_k [m] (joint offset for a prismatic row).
+        y: Translation along y_{k-1} [m] (zero for a converted model).
+        joint_names: URDF joint of each row, None for the fixed rows 0 and n+1.
+        parallel: Row k whose axis is parallel to the previous one (beta convention).
+        coincident: Row k whose axis lies on the previous one (parallel and through it).
+        base_frame: Name of frame -1.
+        tool_frame: Name of frame n+1.
+        source: The chain a model was converted from and the parallel tolerance of the
+            conversion (set by :func:`from_chain`): :meth:`idealized` then converts the
+            chain's URDF with round-off removed. None for other models.
+    """
+
+    sigma: np.ndarray
+    beta: np.ndarray
+    alpha: np.ndarray
+    d: np.ndarray
+    theta: np.ndarray
+    r: np.ndarray
+    y: np.ndarray
+    joint_names: tuple[str | None, ...]
+    parallel: np.ndarray
+    coincident: np.ndarray
+    base_frame: str = ""
+    tool_frame: str = ""
+    source: tuple[Chain, float] | None = field(default=None, repr=False)
+    _pre: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("sigma", "beta", "alpha", "d", "theta", "r", "y", "parallel", "coincident"):
+            a = np.array(getattr(self, name))  # a private, read-only copy: a value object
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+        pre = np.array([_rot_y(b) @ _rot_x(a) for b, a in zip(self.beta, self.alpha, strict=True)])
+        object.__setattr__(self, "_pre", pre)
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return len(self.sigma) - 2
+
+    def replace(self, **changes: np.ndarray) -> MDHModel:
+        """A copy with some arrays replaced (the model itself is never mutated)."""
+        fields = {
+            name: getattr(self, name)
+            for name in (
+                "sigma",
+                "beta",
+                "alpha",
+                "d",
+                "theta",
+                "r",
+                "y",
+                "joint_names",
+                "parallel",
+                "coincident",
+                "base_frame",
+                "tool_frame",
+            )
+        }
+        fields.update(changes)
+        return MDHModel(**fields)
+
+    def idealized(self, angle_tol: float = SNAP_ANGLE, length_tol: float = SNAP_LENGTH) -> MDHModel:
+        """A copy with URDF round-off removed, for structural (rank) analysis.
+
+        A model converted from a URDF chain (:func:`from_chain`) starts from the conversion
+        of the URDF geometry itself with round-off removed (each ``rpy`` angle within
+        ``SNAP_ANGLE`` of a multiple of 90 degrees snapped to it, each ``xyz`` coordinate and
+        axis component under ``SNAP_LENGTH`` / ``SNAP_ANGLE`` to zero): the lengths that a
+        rounded angle induces (a tool 1e-6 m off the last axis) vanish with the angle. Then, and
+        for any other model, angles within ``angle_tol`` of a multiple of 90 degrees are snapped
+        to it and distances under ``length_tol`` to zero. A rounded ``rpy`` otherwise leaves a
+        tool 4e-13 m off the last axis, and the rank counts directions that only round-off
+        creates. The forward kinematics moves by at most ``angle_tol`` times the reach plus
+        ``length_tol`` per row: use the exact model for calibration.
+        """
+        source = self
+        if self.source is not None and (angle_tol, length_tol) == (SNAP_ANGLE, SNAP_LENGTH):
+            chain, parallel_tol = self.source
+            if chain.ideal_model is not None:
+                source = converted_chain(chain.idealized(), parallel_tol)
+        return source.replace(
+            beta=snap_angle(source.beta, angle_tol),
+            alpha=snap_angle(source.alpha, angle_tol),
+            theta=snap_angle(source.theta, angle_tol),
+            d=snap_length(source.d, length_tol),
+            r=snap_length(source.r, length_tol),
+            y=snap_length(source.y, length_tol),
+            base_frame=self.base_frame,
+            tool_frame=self.tool_frame,
+        )
+
+    @property
+    def antecedent(self) -> np.ndarray:
+        """Row each row is placed from: ``k - 1`` (-1 for row 0), as a tree's antecedents."""
+        return np.arange(-1, self.n + 1)
+
+    @property
+    def tool_rows(self) -> tuple[int, ...]:
+        """Rows of the tool frames: ``(n + 1,)``."""
+        return (self.n + 1,)
+
+    def kinematics(self, q: np.ndarray) -> Kinematics:
+        """Every frame at every configuration, vectorised over configurations.
+
+        Args:
+            q: Joint positions ``(m, n)`` or ``(n,)`` [rad or m].
+
+        Returns:
+            The frames (see :class:`Kinematics`).
+
+        Raises:
+            InvalidArgumentError: ``q`` has the wrong shape, NaN or values beyond
+                :data:`~calib.checks.MAX_JOINT_POSITION`.
+        """
+        q = joint_positions(q, self.n)
+        m, rows, n = q.shape[0], self.n + 2, self.n
+        # Component-major work arrays (row, ..., configuration): every operation runs along
+        # the m configurations, the innermost (contiguous) axis.
+        revolute = (self.sigma[1 : n + 1] == 0)[:, None]
+        angle = np.repeat(self.theta[:, None], m, axis=1)
+        angle[1 : n + 1] += q.T * revolute
+        length = np.repeat(self.r[:, None], m, axis=1)
+        length[1 : n + 1] += q.T * ~revolute
+        # Frame k = frame k-1 L_k with L_k = Pre_k Rot(z, angle_k) (rows [c p0 + s p1,
+        # c p1 - s p0, p2] of Pre_k's columns p_j), built for all rows at once, then one
+        # product per row along the chain.
+        C, S = np.cos(angle)[:, None], np.sin(angle)[:, None]
+        pre = self._pre[..., None]  # (rows, 3, 3, 1)
+        local = np.empty((rows, 3, 3, m))
+        local[:, :, 0] = C * pre[:, :, 0] + S * pre[:, :, 1]
+        local[:, :, 1] = C * pre[:, :, 1] - S * pre[:, :, 0]
+        local[:, :, 2] = pre[:, :, 2]
+        Rt = np.empty((rows, 3, 3, m))
+        Rt[0] = local[0]
+        for k in range(1, rows):
+            np.einsum("ilm,ljm->ijm", Rt[k - 1], local[k], out=Rt[k])
+        # x_mid_k = R_(k-1) Pre_k e_x: the x axis after beta_k and alpha_k
+        x_mid = np.empty((rows, 3, m))
+        x_mid[0] = self._pre[0][:, 0, None]
+        x_mid[1:] = np.einsum("kilm,kl->kim", Rt[:-1], self._pre[1:, :, 0])
+        y_prev = np.empty((rows, 3, m))
+        y_prev[0] = _Y_AXIS
+        y_prev[1:] = Rt[:-1, :, 1]
+        # p_k = p_(k-1) + y_k y_(k-1) + d_k x_mid_k + (r_k + sigma_k q_k) z_k along the chain
+        step = self.d[:, None, None] * x_mid + length[:, None] * Rt[:, :, 2]
+        has_y = self.y.any()
+        if has_y:
+            step += self.y[:, None, None] * y_prev
+        p = np.cumsum(step, axis=0)
+        q_mid = np.empty((rows, 3, m))
+        q_mid[0] = 0.0
+        q_mid[1:] = p[:-1]
+        if has_y:
+            q_mid += self.y[:, None, None] * y_prev
+        # Views in the documented (configuration, row, ...) order: transposing them back (as
+        # the Jacobians do) gives the contiguous component-major arrays again.
+        R = Rt.transpose(3, 0, 1, 2)
+        p, y_prev, x_mid, q_mid = (a.transpose(2, 0, 1) for a in (p, y_prev, x_mid, q_mid))
+        return Kinematics(R, p, y_prev, x_mid, q_mid)
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Tool frame in the base frame, homogeneous, shape ``(m, 4, 4)``."""
+        kin = self.kinematics(q)
+        T = np.zeros((kin.R.shape[0], 4, 4))
+        T[:, :3, :3] = kin.R[:, -1]
+        T[:, :3, 3] = kin.p[:, -1]
+        T[:, 3, 3] = 1.0
+        return T
+
+    def rows(self) -> list[dict]:
+        """The rows as JSON-ready dictionaries (radians, metres), from base to tool.
+
+        ``y`` is zero in a converted model; a calibrated one may carry y1 or y_{n+1}.
+        """
+        out = []
+        for k in range(self.n + 2):
+            s = int(self.sigma[k])
+            out.append(
+                {
+                    "name": str(k),
+                    "joint": self.joint_names[k],
+                    "sigma": None if s < 0 else s,
+                    "beta": float(self.beta[k]),
+                    "alpha": float(self.alpha[k]),
+                    "d": float(self.d[k]),
+                    "theta": float(self.theta[k]),
+                    "r": float(self.r[k]),
+                    "y": float(self.y[k]),
+                }
+            )
+        return out
+
+
+def _sign_towards(x: np.ndarray, x_ref: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Choose +x or -x so that the angle from x_ref to it about z lies in (-90, 90] degrees."""
+    dot = float(np.dot(x, x_ref))
+    if abs(dot) > 1e-9:
+        return x if dot > 0 else -x
+    return x if float(np.dot(np.cross(x_ref, x), z)) > 0 else -x
+
+
+def _closest_points(p1, u1, p2, u2) -> tuple[float, float]:
+    """Parameters t, s of the closest points p1 + t u1 and p2 + s u2 of two skew lines."""
+    w0 = p1 - p2
+    b = float(np.dot(u1, u2))
+    dd, e = float(np.dot(u1, w0)), float(np.dot(u2, w0))
+    den = 1.0 - b * b
+    return (b * e - dd) / den, (e - b * dd) / den
+
+
+RIGID_TOL = 1e-6
+"""Largest deviation of a tool rotation from orthonormality accepted by :func:`from_lines`."""
+
+
+def _checked_lines(points, directions, sigma, tool):
+    """The inputs of :func:`from_lines` as checked arrays (unit directions)."""
+    s = real_array(sigma, "sigma", (None,))
+    n = len(s)
+    if not np.all((s == 0) | (s == 1)):
+        raise InvalidArgumentError(f"sigma holds 0 (revolute) or 1 (prismatic), got {s.tolist()}")
+    bound = urdf_xml.MAX_COORDINATE
+    p = real_array(points, "joint points", (n, 3), bound=bound).reshape(n, 3)
+    u = real_array(directions, "joint directions", (n, 3)).reshape(n, 3)
+    scale = np.max(np.abs(u), axis=1) if n else np.ones(0)
+    zero = np.flatnonzero(scale < urdf_xml.MIN_AXIS_NORM)
+    if zero.size:
+        raise InvalidArgumentError(f"joint direction {int(zero[0]) + 1} is zero: no axis")
+    u = u / scale[:, None]
+    u = u / np.linalg.norm(u, axis=1)[:, None]
+    T = real_array(tool, "the tool pose", (4, 4))
+    R = T[:3, :3]
+    rigid = np.allclose(R.T @ R, np.eye(3), atol=RIGID_TOL, rtol=0) and np.linalg.det(R) > 0
+    if not rigid or not np.allclose(T[3], (0.0, 0.0, 0.0, 1.0)):
+        raise InvalidArgumentError("the tool pose must be a rigid homogeneous transform (4, 4)")
+    if np.max(np.abs(T[:3, 3])) > bound:
+        raise InvalidArgumentError(f"the tool position must be within {bound:g} m")
+    return p, u, s.astype(int), T
+
+
+def from_lines(
+    points: np.ndarray,
+    directions: np.ndarray,
+    sigma: np.ndarray,
+    tool: np.ndarray,
+    joint_names: tuple[str, ...] | None = None,
+    parallel_tol: float = PARALLEL_TOL,
+) -> MDHModel:
+    """Convert joint lines and a tool pose (all in the base frame) to MDH rows.
+
+    Frame choices (documented in the README):
+        * z_k is the joint axis, oriented so that theta (or r) grows with the joint position;
+        * x_k is along the common normal to the next axis; its sign makes the offset theta_k
+          lie in (-90, 90] degrees, so d may be negative (as in Franka's table);
+        * where the next axis is parallel (within ``parallel_tol``), Hayati's beta is used,
+          the origin is the foot of the perpendicular from the previous origin (r_k = 0)
+          and, where the two lines coincide, x_k keeps the previous direction (theta_k = 0);
+        * frame 0 shares z with the base frame (z_{-1}) and frame n+1 is the tool frame.
+
+    Args:
+        points: A point of each joint axis ``(n, 3)`` [m].
+        directions: Unit direction of each joint axis ``(n, 3)``.
+        sigma: 0 revolute, 1 prismatic ``(n,)``.
+        tool: Tool pose ``(4, 4)`` in the base frame.
+        joint_names: Names for the joint rows.
+        parallel_tol: Parallel-axis tolerance [rad].
+
+    Returns:
+        The model; its forward kinematics equals the input geometry.
+
+    Raises:
+        InvalidArgumentError: Arrays of the wrong shape, not finite, coordinates beyond
+            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma not 0 or 1, a tool
+            that is not a rigid transform, or a tolerance outside (0, pi/4).
+    """
+    points, directions, sigma, tool = _checked_lines(points, directions, sigma, tool)
+    n = len(sigma)
+    if n == 0:
+        raise InvalidArgumentError("a chain has at least one joint: sigma is empty")
+    if joint_names is not None and (
+        len(joint_names) != n or not all(isinstance(x, str) for x in joint_names)
+    ):
+        raise InvalidArgumentError(f"joint_names must be {n} strings, got {joint_names!r:.60}")
+    if not (isinstance(parallel_tol, int | float) and 0.0 < parallel_tol < math.pi / 4):
+        raise InvalidArgumentError(f"parallel_tol must be in (0, pi/4) rad, got {parallel_tol!r}")
+    line_p = [np.zeros(3), *points, tool[:3, 3]]
+    line_u = [np.array([0.0, 0.0, 1.0])]
+    line_u += [u / np.linalg.norm(u) for u in directions]
+    line_u += [tool[:3, 2]]
+    rows = n + 2
+    beta, alpha, d, theta, r = (np.zeros(rows) for _ in range(5))
+    parallel = np.zeros(rows, dtype=bool)
+    coincident = np.zeros(rows, dtype=bool)
+
+    # State of frame k-1 while row k is built: its z axis, the point where row k-1 lands on
+    # its line (r_{k-1} measured from there), its x axis at zero offset, and its full rotation
+    # once x is chosen.
+    z = line_u[0]
+    entry = np.zeros(3)
+    x_zero = np.array([1.0, 0.0, 0.0])
+    for k in range(1, rows):
+        pk, uk = line_p[k], line_u[k]
+        cos_angle = float(np.clip(np.dot(z, uk), -1.0, 1.0))
+        is_parallel = math.acos(abs(cos_angle)) < parallel_tol
+        if not is_parallel:
+            t, s = _closest_points(entry, z, pk, uk)
+            origin = entry + t * z
+            foot_next = pk + s * uk
+            x = _sign_towards(np.cross(z, uk) / np.linalg.norm(np.cross(z, uk)), x_zero, z)
+        else:
+            origin = entry
+            v = pk - origin
+            w = v - np.dot(v, uk) * uk
+            wp = w - np.dot(w, z) * z
+            if np.linalg.norm(wp) > FREE_DIRECTION_TOL:
+                x = _sign_towards(wp / np.linalg.norm(wp), x_zero, z)
+            else:
+                x = x_zero
+            coincident[k] = np.linalg.norm(w) < COINCIDENT_TOL
+        parallel[k] = is_parallel
+        # Close row k-1: its offset theta and its distance r along z_{k-1}.
+        theta[k - 1] = _signed_angle(x_zero, x, z)
+        r[k - 1] = float(np.dot(origin - entry, z))
+        R_prev = np.column_stack([x, np.cross(z, x), z])
+        u_loc = R_prev.T @ uk
+        if is_parallel:
+            sgn = 1.0 if u_loc[2] >= 0 else -1.0
+            alpha[k] = math.atan2(-u_loc[1], sgn * math.hypot(u_loc[0], u_loc[2]))
+            beta[k] = math.atan2(sgn * u_loc[0], sgn * u_loc[2])
+            x_mid = R_prev @ _rot_y(beta[k])[:, 0]
+            d[k] = float(np.dot(w, x_mid))
+            foot_next = origin + d[k] * x_mid
+        else:
+            alpha[k] = _signed_angle(z, uk, x)
+            x_mid = x
+            d[k] = float(np.dot(foot_next - origin, x))
+        z, entry, x_zero = uk, foot_next, x_mid
+    # Row n+1 lands on the tool z line; the tool frame fixes its x axis and origin.
+    theta[-1] = _signed_angle(x_zero, tool[:3, 0], z)
+    r[-1] = float(np.dot(tool[:3, 3] - entry, z))
+    sig = np.concatenate([[-1], np.asarray(sigma, dtype=int), [-1]])
+    names = (None, *(joint_names or tuple(str(i + 1) for i in range(n))), None)
+    return MDHModel(sig, beta, alpha, d, theta, r, np.zeros(rows), names, parallel, coincident)
+
+
+def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
+    """Convert a Pinocchio chain to its MDH model (base frame = frame -1).
+
+    Args:
+        chain: The serial chain.
+        parallel_tol: Parallel-axis tolerance [rad].
+
+    Returns:
+        The MDH model, whose forward kinematics equals Pinocchio's.
+    """
+    if not isinstance(chain, Chain):
+        raise InvalidArgumentError(
+            f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
+        )
+    return converted_chain(chain, parallel_tol).replace(source=(chain, parallel_tol))
+
+
+def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
+    """The MDH model of a chain from its joint lines (no idealisation, no cache)."""
+    points, dirs, tool = chain.joint_lines()
+    model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
+    return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)
+
+
+def frames_at_zero(mdh: MDHModel) -> np.ndarray:
+    """Pose of every MDH frame 0..n+1 in frame -1 at the zero configuration ``(n+2, 4, 4)``."""
+    kin = mdh.kinematics(np.zeros((1, mdh.n)))
+    T = np.zeros((mdh.n + 2, 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[0], kin.p[0], 1.0
+    return T

@@ -1,0 +1,596 @@
+"""Load a robot from a URDF (a file or a catalog name) and extract a serial chain with Pinocchio."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..checks import check_count, check_work, joint_positions
+from ..exceptions import (
+    AmbiguousFrameError,
+    ChainError,
+    FrameNotFoundError,
+    InvalidArgumentError,
+    UnsupportedJointError,
+)
+from .catalog import CatalogEntry, catalog, catalog_entry
+from .mimic import Coupling, chain_coupling
+from .urdf_model import build_model, read_urdf_file
+from .urdf_xml import URDFInfo, kinematic_xml
+
+PLACEMENT_TOL = 1e-12
+"""Two same-named frames closer than this [m, rotation entries] are the same place."""
+
+DEFAULT_PRISMATIC_RANGE = 0.1
+"""Half-range [m] sampled for a prismatic joint whose URDF gives no usable limits."""
+
+_KIND_PREFIX = {
+    "link": (pin.FrameType.BODY,),
+    "joint": (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT),
+}
+
+
+def _joint_kind(shortname: str) -> str | None:
+    """'revolute', 'prismatic' or None for a Pinocchio joint model short name."""
+    if shortname.startswith("JointModelRevoluteUnaligned") or shortname.startswith(
+        "JointModelRevoluteUnboundedUnaligned"
+    ):
+        return "revolute"
+    if shortname.startswith("JointModelPrismaticUnaligned"):
+        return "prismatic"
+    if shortname in ("JointModelRX", "JointModelRY", "JointModelRZ") or shortname.startswith(
+        "JointModelRUB"
+    ):
+        return "revolute"
+    if shortname in ("JointModelPX", "JointModelPY", "JointModelPZ"):
+        return "prismatic"
+    return None
+
+
+def _describe_joint(shortname: str) -> str:
+    names = {
+        "JointModelPlanar": "a planar joint",
+        "JointModelFreeFlyer": "a floating joint",
+        "JointModelSpherical": "a spherical joint",
+        "JointModelSphericalZYX": "a spherical joint",
+        "JointModelTranslation": "a 3-DOF translation joint",
+        "JointModelComposite": "a composite joint",
+    }
+    if shortname.startswith("JointModelHelical"):
+        return "a helical joint"
+    return names.get(shortname, f"of unsupported type {shortname}")
+
+
+def joint_placements(model: pin.Model, q: np.ndarray, last: int | None = None) -> dict:
+    """Placements ``oMi`` of the joints at a Pinocchio configuration, without ``pin.Data``.
+
+    ``pin.Data`` holds tensors whose size grows as the cube of the number of joints (1.8 GB
+    for 300 joints): calib walks the tree itself, with Pinocchio's joint models.
+
+    Args:
+        model: Pinocchio model.
+        q: Configuration ``(nq,)``.
+        last: Only this joint and its ancestors (default: every joint).
+
+    Returns:
+        ``pin.SE3`` placement in the world by joint index.
+    """
+    joints = range(1, model.njoints) if last is None else list(model.supports[last])[1:]
+    neutral = pin.neutral(model)
+    out = {0: pin.SE3.Identity()}
+    for jid in joints:
+        joint = model.joints[jid]
+        span = slice(joint.idx_q, joint.idx_q + joint.nq)
+        motion = pin.SE3.Identity()
+        if not np.array_equal(q[span], neutral[span]):
+            motion = _joint_motion(model.names[jid], joint, q[span])
+        out[jid] = out[model.parents[jid]] * model.jointPlacements[jid] * motion
+    return out
+
+
+def motion_axis(joint) -> np.ndarray:
+    """Motion subspace ``(6,)`` (linear, angular) of a 1-DOF joint model, in its own frame."""
+    jdata = joint.createData()
+    q = np.zeros(joint.nq)
+    q[0] = 1.0 if joint.nq == 2 else 0.0  # continuous joints: (cos, sin) = (1, 0)
+    joint.calc(jdata, q)
+    return np.reshape(np.array(jdata.S), (6, -1))[:, 0]
+
+
+def _joint_motion(name: str, joint, qj: np.ndarray) -> pin.SE3:
+    """Transform of a revolute, continuous or prismatic joint at its position ``qj``."""
+    if _joint_kind(joint.shortname()) is None or joint.nv != 1:
+        raise InvalidArgumentError(f"joint '{name}' ({joint.shortname()}) can only stay neutral")
+    value = math.atan2(qj[1], qj[0]) if joint.nq == 2 else float(qj[0])
+    return pin.exp6(pin.Motion(motion_axis(joint) * value))
+
+
+def frame_placement(model: pin.Model, oMi: dict, fid: int) -> pin.SE3:
+    """Placement of frame ``fid`` in the world, from :func:`joint_placements`."""
+    frame = model.frames[fid]
+    return oMi[frame.parentJoint] * frame.placement
+
+
+def resolve_frame(model: pin.Model, name: str) -> int:
+    """Find a frame by name; ``link:NAME`` or ``joint:NAME`` pick a kind.
+
+    Frames that share a name but sit at the same place on the same body (a link and the
+    fixed joint that carries it) are one frame; otherwise the name is ambiguous.
+
+    Args:
+        model: Pinocchio model.
+        name: Frame name, optionally prefixed by ``link:`` or ``joint:``.
+
+    Returns:
+        Index of the frame in ``model.frames``.
+
+    Raises:
+        FrameNotFoundError: No frame has that name.
+        AmbiguousFrameError: Several frames of that name are at different places.
+    """
+    kinds = None
+    bare = name
+    prefix, sep, rest = name.partition(":")
+    if sep and prefix in _KIND_PREFIX:
+        kinds, bare = _KIND_PREFIX[prefix], rest
+    ids = [
+        i
+        for i, f in enumerate(model.frames)
+        if f.name == bare and (kinds is None or f.type in kinds)
+    ]
+    if not ids:
+        raise FrameNotFoundError(
+            name, [f.name for f in model.frames if f.name != "universe"], ranked_as=bare
+        )
+    if len(ids) == 1:
+        return ids[0]
+    oMi = joint_placements(model, pin.neutral(model))
+    first = frame_placement(model, oMi, ids[0])
+    same = all(
+        model.frames[i].parentJoint == model.frames[ids[0]].parentJoint
+        and np.allclose(
+            frame_placement(model, oMi, i).homogeneous,
+            first.homogeneous,
+            atol=PLACEMENT_TOL,
+            rtol=0,
+        )
+        for i in ids
+    )
+    if same:
+        bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
+        return bodies[0] if bodies else ids[0]
+    found = []
+    for i in ids:
+        kind = "link" if model.frames[i].type == pin.FrameType.BODY else "joint"
+        if kind not in found:
+            found.append(kind)
+    raise AmbiguousFrameError(bare, found)
+
+
+_MARKER_LINK = re.compile(r"(?P<tool>.+)_marker\d+(_joint)?")
+"""Names of the marker links (and their joints) a calibrated URDF adds under its tool."""
+
+
+def _calib_marker(model: pin.Model, frame) -> bool:
+    """True for a marker link calib wrote (``<tool>_markerK``) or its joint, on its tool."""
+    match = _MARKER_LINK.fullmatch(frame.name)
+    if match is None or not model.existFrame(match["tool"]):
+        return False
+    return model.frames[model.getFrameId(match["tool"])].parentJoint == frame.parentJoint
+
+
+def _default_tool(model: pin.Model) -> int:
+    """The frame at the tip of the deepest joint path (last such frame in model order).
+
+    The marker links of a calibrated URDF (``<tool>_markerK``, fixed under its tool) are
+    passed over: the calibrated URDF keeps the tool its nominal URDF has by default.
+    """
+    depth = [len(model.supports[f.parentJoint]) for f in model.frames]
+    best = max(depth)
+    return max(
+        i
+        for i, (d, f) in enumerate(zip(depth, model.frames, strict=True))
+        if d == best and not _calib_marker(model, f)
+    )
+
+
+class JointCounts:
+    """Revolute and prismatic joint counts of anything with a ``sigma`` array (0 or 1)."""
+
+    sigma: np.ndarray
+
+    @property
+    def n_revolute(self) -> int:
+        """Number of revolute (and continuous) joints."""
+        return int(np.sum(self.sigma == 0))
+
+    @property
+    def n_prismatic(self) -> int:
+        """Number of prismatic joints."""
+        return int(np.sum(self.sigma == 1))
+
+
+def pin_configurations(
+    model: pin.Model, q_ref: np.ndarray, joint_ids: tuple[int, ...], q: np.ndarray
+) -> np.ndarray:
+    """Pinocchio configurations ``(m, nq)``: ``q_ref`` with the joints ``joint_ids`` set.
+
+    Args:
+        model: The Pinocchio model.
+        q_ref: Configuration of the other joints ``(nq,)``.
+        joint_ids: Pinocchio joint indices.
+        q: Their URDF positions ``(m, n)`` [rad or m] (a continuous joint's two numbers in
+            Pinocchio are ``cos`` and ``sin``).
+    """
+    out = np.repeat(np.asarray(q_ref, dtype=float)[None, :], len(q), axis=0)
+    for k, jid in enumerate(joint_ids):
+        joint = model.joints[jid]
+        if joint.nq == 2:  # continuous joint: (cos, sin)
+            out[:, joint.idx_q] = np.cos(q[:, k])
+            out[:, joint.idx_q + 1] = np.sin(q[:, k])
+        else:
+            out[:, joint.idx_q] = q[:, k]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Chain(JointCounts):
+    """A serial chain between a base frame and a tool frame of a Pinocchio model.
+
+    Joint positions are *URDF* positions, one number per chain joint (radians for revolute
+    and continuous joints, metres for prismatic ones). Joints outside the chain stay at the
+    reference configuration ``q_ref``; they cannot move the tool relative to the base.
+
+    Attributes:
+        name: Robot name (catalog name or URDF file stem).
+        urdf_path: The URDF file.
+        model: Pinocchio model (never mutated by calib).
+        base_frame: Name of the base frame (frame -1).
+        tool_frame: Name of the tool frame (frame n+1).
+        base_id: Index of the base frame in ``model.frames``.
+        tool_id: Index of the tool frame in ``model.frames``.
+        joint_ids: Pinocchio joint indices of the chain, from base to tool.
+        joint_names: URDF names of those joints.
+        sigma: 0 for revolute, 1 for prismatic, per chain joint.
+        continuous: True for joints without limits (continuous joints).
+        lower: Lower sampling bound per joint [rad or m].
+        upper: Upper sampling bound per joint [rad or m].
+        q_ref: Pinocchio configuration of the joints outside the chain.
+        ideal_model: The same model built from the URDF with round-off removed (see
+            :meth:`idealized`), or None.
+        coupling: How mimic joints follow the independent joints (:mod:`calib.kinematics.mimic`), or
+            None when no chain joint has a ``<mimic>`` tag.
+    """
+
+    name: str
+    urdf_path: Path
+    model: pin.Model
+    base_frame: str
+    tool_frame: str
+    base_id: int
+    tool_id: int
+    joint_ids: tuple[int, ...]
+    joint_names: tuple[str, ...]
+    sigma: np.ndarray
+    continuous: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    q_ref: np.ndarray
+    ideal_model: pin.Model | None = field(default=None, repr=False)
+    coupling: Coupling | None = field(default=None, repr=False)
+
+    def idealized(self) -> Chain:
+        """The chain on its URDF with round-off removed, for structural analysis.
+
+        The model is built from :func:`~.urdf_xml.kinematic_xml` with ``snap``; a chain
+        without such a model returns itself.
+        """
+        if self.ideal_model is None:
+            return self
+        return dataclasses.replace(self, model=self.ideal_model, ideal_model=None)
+
+    @property
+    def n(self) -> int:
+        """Number of joints in the chain."""
+        return len(self.joint_ids)
+
+    @property
+    def tool_ids(self) -> tuple[int, ...]:
+        """The tool frame's index in ``model.frames``, as a one-tool tree has it."""
+        return (self.tool_id,)
+
+    def check_configurations(self, q: np.ndarray) -> np.ndarray:
+        """Validate and reshape joint positions to ``(m, n)``.
+
+        Raises:
+            InvalidArgumentError: Wrong shape, or values that are not finite or beyond
+                :data:`~calib.checks.MAX_JOINT_POSITION`.
+        """
+        return joint_positions(q, self.n)
+
+    def pin_configurations(self, q: np.ndarray) -> np.ndarray:
+        """Map URDF joint positions ``(m, n)`` to Pinocchio configurations ``(m, nq)``."""
+        return pin_configurations(
+            self.model, self.q_ref, self.joint_ids, self.check_configurations(q)
+        )
+
+    def random_configurations(self, m: int, seed: int) -> np.ndarray:
+        """Draw ``m`` configurations uniformly inside the joint limits (continuous: full turn).
+
+        With mimic joints, the independent joints are drawn and the mimic joints follow.
+
+        Args:
+            m: Number of configurations.
+            seed: Seed of the random generator.
+
+        Returns:
+            Joint positions, shape ``(m, n)`` [rad or m].
+
+        Raises:
+            InvalidArgumentError: Bad count or seed, or an analysis of that many
+                configurations would not fit in :data:`~calib.checks.MAX_WORK_BYTES`.
+        """
+        check_count(m, "the number of configurations")
+        check_count(seed, "the seed", minimum=0)
+        check_work(int(m), self.n)
+        rng = np.random.default_rng(int(seed))
+        if self.coupling is None:
+            return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
+        lo, hi = self.coupling.lower, self.coupling.upper
+        return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
+
+    @property
+    def variable_names(self) -> tuple[str, ...]:
+        """The independent joints: a configuration is given for these (see :mod:`.mimic`).
+
+        The chain's joints, less its mimic joints, plus the masters of those outside the chain.
+        """
+        return self.joint_names if self.coupling is None else self.coupling.names
+
+    def joint_values(self, variables: np.ndarray) -> np.ndarray:
+        """Positions of the chain joints ``(m, n)`` from the independent joints' ``(m, v)``."""
+        if self.coupling is None:
+            return self.check_configurations(variables)
+        return self.coupling.joint_values(variables)
+
+    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
+        """Gravity torque each chain joint carries ``(m, n)`` [N m or N] (URDF masses).
+
+        The generalized gravity of Pinocchio's model (joints outside the chain at
+        ``q_ref``, gravity along -z of the URDF root); zero for a URDF without masses.
+        """
+        data = self.model.createData()
+        idx = [self.model.joints[j].idx_v for j in self.joint_ids]
+        return np.array(
+            [
+                pin.computeGeneralizedGravity(self.model, data, qp)[idx]
+                for qp in self.pin_configurations(q)
+            ]
+        ).reshape(-1, self.n)
+
+    def tool_placements(self, q: np.ndarray) -> np.ndarray:
+        """Tool frame in the base frame, from Pinocchio's joint models, shape ``(m, 4, 4)``.
+
+        A reference implementation for tests and checks (one tree walk per row).
+        """
+        out = []
+        tool_joint = self.model.frames[self.tool_id].parentJoint
+        for qp in self.pin_configurations(q):
+            oMi = joint_placements(self.model, qp, last=tool_joint)
+            oMb = frame_placement(self.model, oMi, self.base_id)
+            out.append(oMb.actInv(frame_placement(self.model, oMi, self.tool_id)).homogeneous)
+        return np.array(out).reshape(-1, 4, 4)
+
+    def joint_lines(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint axes at the zero configuration, in the base frame.
+
+        Returns:
+            points ``(n, 3)`` [m] on each axis (the joint frame origin), unit directions
+            ``(n, 3)`` such that a positive joint motion turns (or slides) along ``+u``, and the
+            tool placement ``(4, 4)`` in the base frame.
+        """
+        model = self.model
+        q0 = self.pin_configurations(np.zeros(self.n))[0]
+        oMi = joint_placements(model, q0, last=model.frames[self.tool_id].parentJoint)
+        oMb = frame_placement(model, oMi, self.base_id)
+        points, dirs = [], []
+        for jid, s in zip(self.joint_ids, self.sigma, strict=True):
+            S = motion_axis(model.joints[jid])  # in the joint frame
+            local = S[:3] if s == 1 else S[3:]
+            bMj = oMb.actInv(oMi[jid])
+            u = bMj.rotation @ local
+            points.append(bMj.translation.copy())
+            dirs.append(u / np.linalg.norm(u))
+        tool = oMb.actInv(frame_placement(model, oMi, self.tool_id)).homogeneous
+        return np.array(points).reshape(-1, 3), np.array(dirs).reshape(-1, 3), tool
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+def check_frame_name(option: str, frame) -> None:
+    """Refuse a frame option that is not a non-empty string (None means the default)."""
+    if frame is not None and not isinstance(frame, str):
+        raise InvalidArgumentError(
+            f"the {option} frame is a name (a string), got {type(frame).__name__} {frame!r}"
+        )
+    if frame is not None and not frame.strip():
+        raise InvalidArgumentError(f"the {option} frame name is empty")
+
+
+@dataclass(frozen=True, eq=False)
+class RobotModels:
+    """A URDF read once: its Pinocchio model and the model with round-off removed.
+
+    Attributes:
+        name: Robot name (catalog name or URDF file stem).
+        path: The URDF file.
+        info: What calib read from the URDF itself (root link, mimic joints, ...).
+        model: Pinocchio model of the kinematic URDF.
+        ideal_model: The same with round-off removed (see :meth:`Chain.idealized`).
+    """
+
+    name: str
+    path: Path
+    info: URDFInfo
+    model: pin.Model
+    ideal_model: pin.Model
+
+    @staticmethod
+    def build(name: str, path: Path, info: URDFInfo) -> RobotModels:
+        """Build both Pinocchio models of a URDF."""
+        return RobotModels(
+            name,
+            path,
+            info,
+            build_model(kinematic_xml(info), str(path)),
+            build_model(kinematic_xml(info, snap=True), str(path)),
+        )
+
+
+def _chain_from_model(
+    name: str, path: Path, info: URDFInfo, base: str | None, tool: str | None
+) -> Chain:
+    for option, frame in (("base", base), ("tool", tool)):
+        check_frame_name(option, frame)
+    return chain_between(RobotModels.build(name, path, info), base, tool)
+
+
+def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Chain:
+    """The serial chain between two frames of a robot read once (None: the default frame).
+
+    Raises:
+        CalibError: Unknown or ambiguous frame, no serial chain, unsupported joint.
+    """
+    name, path, info, model = robot.name, robot.path, robot.info, robot.model
+    base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
+    tool_id = resolve_frame(model, tool) if tool else _default_tool(model)
+    base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
+    jb, jt = model.frames[base_id].parentJoint, model.frames[tool_id].parentJoint
+    support = list(model.supports[jt])
+    if jb not in support:
+        if jt in model.supports[jb]:
+            raise ChainError(
+                f"tool frame '{tool_name}' is between the root and base frame '{base_name}': "
+                f"swap --base and --tool"
+            )
+        raise ChainError(
+            f"frames '{base_name}' and '{tool_name}' are not on one serial chain "
+            f"(neither is an ancestor of the other)"
+        )
+    joint_ids = tuple(support[support.index(jb) + 1 :])
+    if not joint_ids:
+        raise ChainError(f"no joint between base frame '{base_name}' and tool frame '{tool_name}'")
+    sigma, cont, lower, upper = [], [], [], []
+    for jid in joint_ids:
+        joint, jname = model.joints[jid], model.names[jid]
+        short = joint.shortname()
+        kind = _joint_kind(short)
+        if kind is None or joint.nv != 1:
+            raise UnsupportedJointError(jname, _describe_joint(short))
+        sigma.append(1 if kind == "prismatic" else 0)
+        cont.append(joint.nq == 2)
+        lo, hi = _sampling_bounds(model, jid)
+        lower.append(lo)
+        upper.append(hi)
+    joint_names = tuple(model.names[j] for j in joint_ids)
+    coupling = None
+    if info.mimic_joints & set(joint_names):
+        bounds = {
+            model.names[j]: _sampling_bounds(model, j)
+            for j in range(1, model.njoints)
+            if _joint_kind(model.joints[j].shortname()) and model.joints[j].nv == 1
+        }
+        coupling = chain_coupling(info, joint_names, bounds)
+    return Chain(
+        name=name,
+        urdf_path=path,
+        model=model,
+        base_frame=base_name,
+        tool_frame=tool_name,
+        base_id=base_id,
+        tool_id=tool_id,
+        joint_ids=joint_ids,
+        joint_names=joint_names,
+        sigma=_frozen(np.array(sigma, dtype=int)),
+        continuous=_frozen(np.array(cont, dtype=bool)),
+        lower=_frozen(np.array(lower)),
+        upper=_frozen(np.array(upper)),
+        q_ref=_frozen(pin.neutral(model)),
+        ideal_model=robot.ideal_model,
+        coupling=coupling,
+    )
+
+
+def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
+    """Name, URDF path and catalog entry (None for a file) of a robot argument.
+
+    Raises:
+        CalibError: Not a name or path, or an unknown catalog name.
+    """
+    if not isinstance(robot, str | os.PathLike):
+        raise InvalidArgumentError(
+            f"the robot is a catalog name or a URDF path, got {type(robot).__name__} {robot!r}"
+        )
+    text = os.fspath(robot)
+    path = Path(text)
+    # A file wins over a catalog name; a folder never shadows the catalog (a folder that is
+    # no catalog name is a path, which loading refuses: "is a directory").
+    is_path = isinstance(robot, os.PathLike) or path.is_file()
+    if path.is_dir() and not is_path:
+        is_path = all(entry.name != text for entry in catalog())
+    if is_path or text.endswith((".urdf", ".xml")) or "/" in text:
+        return path.stem, path, None
+    entry = catalog_entry(text)
+    return entry.name, entry.path, entry
+
+
+def _sampling_bounds(model: pin.Model, jid: int) -> tuple[float, float]:
+    """Sampling bounds of a 1-DOF joint [rad or m]: its limits, else a default range."""
+    joint = model.joints[jid]
+    if joint.nq == 2:  # continuous
+        return -math.pi, math.pi
+    lo = float(model.lowerPositionLimit[joint.idx_q])
+    hi = float(model.upperPositionLimit[joint.idx_q])
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        prismatic = _joint_kind(joint.shortname()) == "prismatic"
+        half = DEFAULT_PRISMATIC_RANGE if prismatic else math.pi
+        return -half, half
+    return lo, hi
+
+
+def load_chain(robot: str | Path, base: str | None = None, tool: str | None = None) -> Chain:
+    """Load a serial chain from a catalog name or a URDF path.
+
+    Args:
+        robot: Catalog name (``ur5``) or path to a URDF file.
+        base: Base frame; default: the catalog's, or the URDF root link.
+        tool: Tool frame; default: the catalog's, or the tip of the deepest branch.
+
+    Returns:
+        The chain.
+
+    Raises:
+        CalibError: Unknown robot, bad URDF, unknown or ambiguous frame, no serial chain,
+            unsupported joint in the chain, a catalog tree without a tool.
+    """
+    name, path, entry = robot_source(robot)
+    if entry is not None:
+        if entry.is_tree and tool is None:
+            raise ChainError(
+                f"'{entry.name}' is a tree of {len(entry.tools)} tools "
+                f"({', '.join(entry.tools)}): name one of them as the tool, or analyse the "
+                f"tree (load_tree, `calib analyze {entry.name}`)"
+            )
+        base = entry.base if base is None else base
+        tool = entry.tool if tool is None else tool
+    return _chain_from_model(name, path, read_urdf_file(path), base, tool)

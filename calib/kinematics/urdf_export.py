@@ -1,0 +1,357 @@
+"""Write a calibrated model back as a URDF that changes only what calibration changed.
+
+Only the ``<origin xyz rpy>`` of chain joints 2..n and of the fixed joint that carries the
+tool frame are rewritten; everything else of the original file is kept (comments, limits,
+mimic tags, transmissions, mesh paths, other branches). Joint 1 keeps its nominal placement
+in the base link: the base part of the calibration is the measurement-frame -> base
+transform (:func:`measurement_to_base`). On request the file gains links
+(:mod:`.urdf_links`): the markers under the tool link, and the measurement frame as a
+new root link; pose data's measured frame is folded into the tool's fixed joint.
+
+For chain joint k the constant ``C_k = T_mdh_k_nom(0)^-1 T_urdf_joint_k_nom(0)`` maps the MDH
+frame onto the URDF joint frame (it keeps the joint axis); the calibrated joint frame is
+``T_mdh_k_cal(0) C_k``. A link rigidly carried by joint k-1 (the parent link of joint k,
+possibly behind fixed joints) moves with joint k-1's frame, so the fixed joints in between
+keep their placements, and the new origin is ``T_parent_new^-1 T_joint_new``. The same holds
+for the tool: frame n+1 of the MDH model is the tool frame.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import xml.etree.ElementTree as ET
+import xml.parsers.expat
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..exceptions import CalibError, InvalidArgumentError, URDFError
+from ..fileio import check_outputs, read_bytes_limited, write_atomic
+from .mdh import MDHModel, frames_at_zero
+from .robot import Chain, frame_placement, joint_placements
+from .urdf_links import add_marker_links, add_world_link
+from .urdf_xml import MAX_URDF_BYTES, parse_xml
+
+
+def xml_layout(raw: bytes, src: str) -> tuple[int, int]:
+    """Byte offsets of the root element: where it starts and where it ends."""
+    parser = xml.parsers.expat.ParserCreate()  # no namespace processing, as parse_xml
+    state = {"depth": 0, "start": -1, "end": -1}
+
+    def start(name, attrs):
+        if state["depth"] == 0 and state["start"] < 0:
+            state["start"] = parser.CurrentByteIndex
+        state["depth"] += 1
+
+    def end(name):
+        state["depth"] -= 1
+        if state["depth"] == 0:
+            state["end"] = parser.CurrentByteIndex
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    try:
+        parser.Parse(raw, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise URDFError(src, f"malformed XML: {exc}") from None
+    stop = raw.index(b">", state["end"]) + 1
+    if raw[state["end"] : state["end"] + 2] != b"</":  # a self-closing root element
+        stop = raw.index(b"/>", state["start"]) + 2
+    return state["start"], stop
+
+
+def spliced(raw: bytes, root: ET.Element, start: int, stop: int) -> bytes:
+    """The file with its root element (bytes ``start:stop``) replaced by the edited ``root``."""
+    body = io.BytesIO()
+    ET.ElementTree(root).write(body, encoding="utf-8", xml_declaration=False)
+    return raw[:start] + body.getvalue() + raw[stop:]
+
+
+def _homogeneous(se3: pin.SE3) -> np.ndarray:
+    return np.array(se3.homogeneous)
+
+
+class NominalPoses:
+    """Poses of URDF joint frames and links in the base frame, chain at zero."""
+
+    def __init__(self, chain: Chain):
+        model = chain.model
+        self.model = model
+        q0 = chain.pin_configurations(np.zeros((1, chain.n)))[0]
+        self.oMi = joint_placements(model, q0)
+        self.bMo = frame_placement(model, self.oMi, chain.base_id).inverse()
+
+    def joint(self, jid: int) -> np.ndarray:
+        """URDF joint frame of Pinocchio joint ``jid``."""
+        return _homogeneous(self.bMo * self.oMi[jid])
+
+    def link(self, name: str) -> np.ndarray:
+        """Frame of a link."""
+        if not self.model.existBodyName(name):
+            raise CalibError(f"link '{name}' of the URDF is not in the Pinocchio model")
+        fid = self.model.getFrameId(name, pin.FrameType.BODY)
+        return _homogeneous(self.bMo * frame_placement(self.model, self.oMi, fid))
+
+
+def child_link(joint: ET.Element) -> str:
+    """The ``<child link>`` of a URDF joint element ('' without one)."""
+    child = joint.find("child")
+    return "" if child is None else child.get("link", "")
+
+
+def parent_link(joint: ET.Element) -> str:
+    """The ``<parent link>`` of a URDF joint element ('' without one)."""
+    parent = joint.find("parent")
+    return "" if parent is None else parent.get("link", "")
+
+
+def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
+    """The fixed joint whose child link is the tool frame (or which is the tool frame)."""
+    frame = chain.model.frames[chain.tool_id]
+    joints = root.findall("joint")
+    if frame.type in (pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT):
+        found = [j for j in joints if j.get("name") == chain.tool_frame]
+    else:
+        found = [j for j in joints if child_link(j) == chain.tool_frame]
+    if not found:
+        raise CalibError(f"no URDF joint carries the tool frame '{chain.tool_frame}'")
+    joint = found[0]
+    kind = joint.get("type", "")
+    if kind != "fixed":
+        raise CalibError(
+            f"the tool frame '{chain.tool_frame}' is carried by the {kind} joint "
+            f"'{joint.get('name')}', not by a fixed joint: the calibrated tool placement has "
+            f"nowhere to go in the URDF (attach a tool link with a fixed joint and use it "
+            f"as --tool)"
+        )
+    return joint
+
+
+def set_origin(joint: ET.Element, T: np.ndarray) -> None:
+    """Set a joint element's ``<origin xyz rpy>`` to the pose ``T`` ``(4, 4)`` (added if none)."""
+    origin = joint.find("origin")
+    if origin is None:
+        origin = ET.Element("origin")
+        origin.tail = joint.text
+        joint.insert(0, origin)
+    origin.set("xyz", " ".join(repr(float(v)) for v in T[:3, 3]))
+    origin.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(T[:3, :3])))
+
+
+def read_urdf_source(chain: Chain) -> tuple[bytes, ET.Element]:
+    """The URDF file's bytes and its element tree (comments and processing instructions kept)."""
+    src = str(chain.urdf_path)
+    try:
+        raw = read_bytes_limited(chain.urdf_path, MAX_URDF_BYTES)
+    except OSError as exc:
+        raise URDFError(src, f"cannot read: {exc.strerror or exc}") from None
+    return raw, parse_xml(raw, src)
+
+
+def edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element], ET.Element]:
+    """The chain's joint elements by name and the tool's fixed joint."""
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
+    missing = [name for name in chain.joint_names if name not in joints]
+    if missing:
+        raise CalibError(f"{chain.urdf_path}: no <joint name='{missing[0]}'> (a chain joint)")
+    return joints, _tool_joint(root, chain)
+
+
+def check_exportable(chain: Chain) -> None:
+    """Raise now what :func:`calibrated_urdf` would raise about the chain's URDF.
+
+    Raises:
+        URDFError: The file cannot be read.
+        CalibError: The tool frame is not carried by a fixed joint, or a joint is missing.
+    """
+    edited_joints(read_urdf_source(chain)[1], chain)
+
+
+def measurement_to_base(nominal: MDHModel, calibrated: MDHModel) -> np.ndarray:
+    """Pose of the calibrated URDF's base frame in frame -1 of ``calibrated`` ``(4, 4)``.
+
+    The calibrated URDF keeps the nominal placement of joint 1 in its base link, so the base
+    part of a calibrated model (rows 0 and 1) becomes this transform:
+    ``T @ FK_urdf_calibrated(q) == calibrated.forward(q)``.
+
+    Raises:
+        InvalidArgumentError: Not two MDH models of the same joints.
+    """
+    if not (isinstance(nominal, MDHModel) and isinstance(calibrated, MDHModel)) or not (
+        np.array_equal(nominal.sigma, calibrated.sigma)
+    ):
+        raise InvalidArgumentError("measurement_to_base takes two MDH models of one chain")
+    return frames_at_zero(calibrated)[1] @ np.linalg.inv(frames_at_zero(nominal)[1])
+
+
+def _check_models(chain: Chain, nominal: MDHModel, calibrated: MDHModel) -> None:
+    if not isinstance(chain, Chain):
+        raise InvalidArgumentError(f"chain must be a Chain (see load_chain), got {chain!r:.60}")
+    for what, model in (("nominal", nominal), ("calibrated", calibrated)):
+        if not isinstance(model, MDHModel):
+            raise InvalidArgumentError(f"the {what} model must be an MDHModel, got {model!r:.60}")
+        if not np.array_equal(model.sigma[1:-1], chain.sigma):
+            raise InvalidArgumentError(
+                f"the {what} model has joints {model.sigma[1:-1].tolist()} (0 revolute, "
+                f"1 prismatic), the chain {chain.sigma.tolist()}: not a model of this chain"
+            )
+
+
+def calibrated_urdf(
+    chain: Chain,
+    nominal: MDHModel,
+    calibrated: MDHModel,
+    *,
+    tool: np.ndarray | None = None,
+    markers: np.ndarray | None = None,
+    world: tuple[str, np.ndarray] | None = None,
+) -> bytes:
+    """The chain's URDF file with the calibrated joint and tool placements.
+
+    Args:
+        chain: The nominal chain (its ``urdf_path`` is edited).
+        nominal: The nominal MDH model of the chain (``from_chain(chain)``).
+        calibrated: The calibrated model (same rows; frame -1 = the measurement frame).
+        tool: Pose of the measured frame in the calibrated tool frame ``(4, 4)`` (pose data:
+            the fitted marker 1 and measured-frame rotation), written into the tool's fixed
+            joint so that the URDF's tool frame is the measured frame; the links fixed to
+            the tool link keep their calibrated place. Default: identity.
+        markers: Measured points in the written tool frame ``(K, 3)`` [m], each written as a
+            fixed link ``<tool>_marker<k>`` under the tool link (default: none).
+        world: ``(name, T)``: add the link ``name`` as the parent of the URDF's root link,
+            ``T`` ``(4, 4)`` the pose of the base frame in it (``measurement_to_base``), so
+            that forward kinematics from ``name`` gives measured coordinates.
+
+    Returns:
+        The new file content (UTF-8). Loaded with the same base and tool frames, its forward
+        kinematics T satisfies ``measurement_to_base(nominal, calibrated) @ T(q) ==
+        calibrated.forward(q) @ tool``.
+
+    Raises:
+        InvalidArgumentError: The models are not models of the chain, or a new link's name
+            is taken.
+        URDFError: The original file cannot be read.
+        CalibError: The tool frame is not carried by a fixed joint, or the file does not
+            match the chain.
+    """
+    _check_models(chain, nominal, calibrated)
+    X = np.eye(4) if tool is None else _array(tool, (4, 4), "tool")
+    if not np.allclose(X[:3, :3] @ X[:3, :3].T, np.eye(3), atol=1e-9):
+        raise InvalidArgumentError("tool must be a rigid transform (4, 4)")
+    if markers is not None:
+        markers = _array(markers, (-1, 3), "markers")
+    if world is not None and not (
+        isinstance(world, tuple) and len(world) == 2 and isinstance(world[0], str)
+    ):
+        raise InvalidArgumentError("world must be (link name, pose (4, 4))")
+    if world is not None:
+        world = (world[0], _array(world[1], (4, 4), "the world pose"))
+    raw, root = read_urdf_source(chain)
+    joints, tool_joint = edited_joints(root, chain)
+    start, stop = xml_layout(raw, str(chain.urdf_path))
+
+    poses = NominalPoses(chain)
+    n = chain.n
+    # T_mdh_cal(0) T_mdh_nom(0)^-1 per MDH frame: applied to a nominal pose (base frame) that
+    # frame carries, it gives the calibrated pose (measurement frame).
+    moved = frames_at_zero(calibrated) @ np.linalg.inv(frames_at_zero(nominal))
+    nom_joint = [poses.joint(jid) for jid in chain.joint_ids]
+    new_joint = [moved[k + 1] @ T for k, T in enumerate(nom_joint)]
+
+    def carried(k: int, link: str) -> np.ndarray:
+        """New pose of a link rigidly carried by chain joint k (0-based)."""
+        return new_joint[k] @ np.linalg.inv(nom_joint[k]) @ poses.link(link)
+
+    for k in range(1, n):
+        joint = joints[chain.joint_names[k]]
+        parent = carried(k - 1, parent_link(joint))
+        set_origin(joint, np.linalg.inv(parent) @ new_joint[k])
+    tool_child = child_link(tool_joint)
+    tool_new = moved[n + 1] @ poses.link(tool_child) @ X
+    parent = carried(n - 1, parent_link(tool_joint))
+    set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
+    _keep_tool_children(root, tool_child, X)
+    if markers is not None:
+        add_marker_links(root, chain.tool_frame, tool_child, markers)
+    if world is not None:
+        add_world_link(root, world[0], world[1] @ base_to_root(chain, poses))
+    return spliced(raw, root, start, stop)
+
+
+def _array(value, shape: tuple[int, int], what: str) -> np.ndarray:
+    """``value`` as finite numbers of ``shape`` (-1: any count), else InvalidArgumentError."""
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    ok = a.ndim == 2 and all(s in (-1, d) for s, d in zip(shape, a.shape, strict=True))
+    if not ok or not np.all(np.isfinite(a)):
+        raise InvalidArgumentError(f"{what} must be finite numbers of shape {shape}")
+    return a
+
+
+def origin_of(joint: ET.Element) -> np.ndarray:
+    """A joint element's ``<origin xyz rpy>`` as a pose ``(4, 4)`` (identity if none)."""
+    origin = joint.find("origin")
+    T = np.eye(4)
+    if origin is None:
+        return T
+    xyz = [float(v) for v in origin.get("xyz", "0 0 0").split()]
+    rpy = [float(v) for v in origin.get("rpy", "0 0 0").split()]
+    T[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
+    T[:3, 3] = xyz
+    return T
+
+
+def _keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
+    """Joints fixed to the tool link keep their place when its frame moves by ``X``."""
+    if np.array_equal(X, np.eye(4)):
+        return
+    for joint in root.findall("joint"):
+        if parent_link(joint) == tool_link:
+            set_origin(joint, np.linalg.inv(X) @ origin_of(joint))
+
+
+def check_base_fixed(chain: Chain) -> None:
+    """Raise if the base frame moves relative to the URDF's root link (``--world-link``).
+
+    Raises:
+        CalibError: A joint lies between the root link and the base frame.
+    """
+    if chain.model.frames[chain.base_id].parentJoint != 0:
+        raise CalibError(
+            f"--world-link: the base frame '{chain.base_frame}' is moved by a joint relative "
+            f"to the URDF's root link: the measurement frame cannot be fixed to the root"
+        )
+
+
+def base_to_root(chain: Chain, poses: NominalPoses) -> np.ndarray:
+    """Pose of the URDF's root link in the base frame ``(4, 4)``.
+
+    Raises:
+        CalibError: The base frame moves relative to the root link (a joint between them).
+    """
+    check_base_fixed(chain)
+    return _homogeneous(poses.bMo)
+
+
+def write_calibrated_urdf(
+    path: str | Path, chain: Chain, nominal: MDHModel, calibrated: MDHModel, **links
+) -> None:
+    """Write :func:`calibrated_urdf` to ``path`` atomically (complete or not at all).
+
+    ``links``: ``tool``, ``markers``, ``world`` of :func:`calibrated_urdf`.
+
+    Raises:
+        InvalidArgumentError: ``path`` is not a path, or is the nominal URDF
+            (``chain.urdf_path``).
+        CalibError: As :func:`calibrated_urdf`.
+        OutputError: The file cannot be written (a missing directory, no permission, a full
+            disk; the message names the file).
+    """
+    if not isinstance(path, str | os.PathLike):
+        raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
+    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
+    write_atomic(path, calibrated_urdf(chain, nominal, calibrated, **links))

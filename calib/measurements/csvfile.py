@@ -1,0 +1,970 @@
+"""Measurement campaigns: the CSV format, its validation, and simulated campaigns.
+
+CSV format (one header line, then one row per configuration; comma separated):
+
+* one column per joint of the chain, named as the URDF joint, holding the URDF joint
+  position [rad for revolute and continuous joints, m for prismatic ones]; a chain with
+  mimic joints has one column per *independent* joint (:attr:`Chain.variable_names`: a
+  mimic joint's position is computed from its master's, whose column it needs, in the
+  chain or not);
+* ``x, y, z``: the measured point in the measurement frame [m], each within
+  ``MAX_COORDINATE`` (1 km) of its origin;
+* for pose measurements also ``qx, qy, qz, qw``: the orientation of the tool frame in the
+  measurement frame as a quaternion, scalar last (normalised on reading).
+
+A joint named like a measurement column (``x``, ``qw``, ``tool``) is written
+``joint:NAME``; on reading, ``joint:NAME`` is joint NAME's column, and a plain ``NAME`` is then
+the measurement column (without ``joint:NAME``, a plain ``NAME`` is the joint's).
+
+Columns may come in any order; blank lines are skipped. Errors name the row the way a
+text editor or spreadsheet numbers it (the header is row 1) and the column by its name.
+
+Simulated campaigns (:func:`simulate`): a "true" robot is the nominal MDH model with every
+standard parameter of the chosen set perturbed by a seeded normal error (standard deviation
+``error_mm`` [mm] for lengths, ``error_mrad`` [mrad] for angles); rows 0 and 1 carry the
+base error (the measurement frame is frame -1 of the true model) and row n+1 the tool error.
+The measured point (and tool orientation) of the true robot are recorded at seeded random
+configurations within the joint limits, then noise is added: isotropic Gaussian of standard
+deviation ``noise_mm`` [mm] on x, y, z and, for poses, a rotation vector of standard
+deviation ``noise_mrad`` [mrad] per axis (base frame), left-multiplied onto the true
+orientation.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import itertools
+import math
+import re
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..exceptions import DataError, InvalidArgumentError
+from ..fileio import read_text_limited, write_atomic
+from ..identification.identifiability import Identifiability, analyze_model
+from ..identification.jacobian import Measurement, measured_point
+from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.mimic import Coupling
+from ..kinematics.robot import Chain
+from ..kinematics.so3 import (
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    rotation_matrix,
+    rpy_to_matrix,
+)
+from . import marker_set
+
+POSITION_COLUMNS = ("x", "y", "z")
+"""Columns of the measured point [m] (one marker); markers 1..K use ``x1, y1, z1, ...``."""
+
+MAX_COORDINATE = 1e3
+"""Largest magnitude [m] of a measured coordinate: a point near a robot, not a kilometre away.
+
+Larger values (a unit mix-up, a corrupt file) are rejected: squared in the residuals they
+would overflow to infinity.
+"""
+
+MAX_MEASUREMENTS_BYTES = 256 << 20
+"""Largest measurement or validation CSV read [B] (a million rows of 20 joints and a pose)."""
+
+QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
+"""Columns of the measured orientation, a quaternion with the scalar last."""
+
+
+TOOL_COLUMN = "tool"
+
+JOINT_PREFIX = "joint:"
+"""A header cell ``joint:NAME`` is the column of joint NAME: how a joint named like a
+measurement column (``x``, ``qw``, ``tool``) is told apart from that column."""
+"""Column naming the tool frame a row measures (several tools of a tree; optional)."""
+
+DEFAULT_ORIENTATION_COLUMNS = {
+    "quat-xyzw": QUATERNION_COLUMNS,
+    "quat-wxyz": ("qw", "qx", "qy", "qz"),
+    "rotvec": ("rx", "ry", "rz"),
+    "rpy": ("roll", "pitch", "yaw"),
+}
+"""Column names of each orientation format, in the order the format reads them."""
+
+LIMIT_TOL = 1e-9
+"""Slack [rad or m] allowed beyond a joint limit (values written at the limit, rounded)."""
+
+LIMIT_MARGIN = (0.1, 0.01)
+"""Margin [rad, m] beyond a joint limit that a reading may have with only a warning.
+
+Real encoders read a little past the limits the URDF gives for motion planning; kinematics
+does not need the limits. Farther out is an error (a wrong column, degrees for radians).
+"""
+
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+"""Strict decimal number grammar of a CSV cell (no ``1_0``, no ``0x10``, no ``nan``)."""
+
+
+class DataWarning(UserWarning):
+    """Data that are usable but unusual (readings past a joint limit, ignored columns)."""
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _unit_quaternions(quat: np.ndarray) -> np.ndarray:
+    """Normalised quaternions; raise on a zero or non-finite one (overflow-safe norm)."""
+    if not np.all(np.isfinite(quat)):
+        raise InvalidArgumentError("quaternions must be finite and non-zero")
+    # The norm of the quaternion scaled by its largest component first: (1e300, 0, 0,
+    # 1e300) is a rotation too, and its plain norm overflows.
+    big = np.max(np.abs(quat), axis=1)
+    unit = quat / np.where(big > 0, big, 1.0)[:, None]
+    if np.any(big * np.linalg.norm(unit, axis=1) < 1e-12):
+        raise InvalidArgumentError("quaternions must be finite and non-zero")
+    return unit / np.linalg.norm(unit, axis=1)[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class Angles:
+    """Orientation columns of a file in an angle format, as read (before any conversion).
+
+    Kept so that the usual mistakes of such columns (degrees, the order of roll, pitch and
+    yaw) can be tried on them (:mod:`calib.calibration.diagnosis`).
+
+    Attributes:
+        format: ``rotvec`` or ``rpy``.
+        values: The three columns ``(m, 3)`` [rad as read].
+    """
+
+    format: str
+    values: np.ndarray
+
+    def quaternions(self) -> np.ndarray:
+        """The orientations they give, quaternions x, y, z, w ``(m, 4)``."""
+        fn = rotation_matrix if self.format == "rotvec" else rpy_to_matrix
+        return matrix_to_quaternion(fn(self.values))
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """Measured tool points (and orientations) at joint configurations, a value object.
+
+    Attributes:
+        joint_names: URDF joint of each column of ``q``, base to tool.
+        q: Joint positions ``(m, n)`` [rad or m].
+        position: Measured points in the measurement frame ``(m, 3 K)`` [m]: x, y, z of
+            marker 1, then of marker 2, ...; every coordinate within ``MAX_COORDINATE``.
+        quaternion: Measured tool orientation ``(m, 4)`` (qx, qy, qz, qw; unit norm), or
+            None for position-only data.
+        source: Where the data came from (a file path), for messages.
+        rows: Row of each configuration in the source file (the header is row 1), or None.
+        tool: The tool frame each row measures (the CSV's ``tool`` column), or None: the
+            only tool.
+        coupling: The chain's mimic relation, or None: the CSV then holds the independent
+            joints (``coupling.names``) and ``q`` follows from them.
+        angles: The orientation columns as read when they are angles (rpy, rotation
+            vector), or None.
+    """
+
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray | None = None
+    source: str = "<measurements>"
+    rows: tuple[int, ...] | None = None
+    tool: tuple[str, ...] | None = None
+    coupling: Coupling | None = None
+    angles: Angles | None = None
+
+    def __post_init__(self) -> None:
+        q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        m = q.shape[0]
+        pos = np.asarray(self.position, dtype=float)
+        if q.ndim != 2 or q.shape[1] != len(self.joint_names) or m == 0:
+            raise InvalidArgumentError(
+                f"joint positions must have shape (m >= 1, {len(self.joint_names)}), got "
+                f"{np.shape(self.q)}"
+            )
+        if pos.ndim == 3 and pos.shape[0] == m and pos.shape[2] == 3:
+            pos = pos.reshape(m, -1)
+        if pos.ndim != 2 or pos.shape[0] != m or pos.shape[1] % 3 or pos.shape[1] == 0:
+            raise InvalidArgumentError(
+                f"positions must have shape ({m}, 3 K) or ({m}, K, 3), got "
+                f"{np.shape(self.position)}"
+            )
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(pos))):
+            raise InvalidArgumentError("measurements contain NaN or infinity")
+        if np.any(np.abs(pos) > MAX_COORDINATE):
+            i, j = (int(v) for v in np.argwhere(np.abs(pos) > MAX_COORDINATE)[0])
+            raise InvalidArgumentError(
+                f"measured {POSITION_COLUMNS[j % 3]} = {pos[i, j]:.9g} (configuration {i + 1}) "
+                f"is not a plausible measurement in metres: coordinates are within "
+                f"{MAX_COORDINATE:g} m"
+            )
+        if self.quaternion is not None:
+            quat = np.asarray(self.quaternion, dtype=float)
+            if quat.shape != (m, 4):
+                raise InvalidArgumentError(
+                    f"quaternions must have shape ({m}, 4), got {quat.shape}"
+                )
+            object.__setattr__(self, "quaternion", _frozen(_unit_quaternions(quat)))
+        if self.angles is not None and (
+            self.quaternion is None or np.shape(self.angles.values) != (m, 3)
+        ):
+            raise InvalidArgumentError(f"angles must give 3 values per orientation ({m})")
+        if self.rows is not None and len(self.rows) != m:
+            raise InvalidArgumentError(f"rows must give one row number per configuration ({m})")
+        if self.tool is not None:
+            if len(self.tool) != m or not all(isinstance(t, str) and t for t in self.tool):
+                raise InvalidArgumentError(f"tool must give one tool frame name per row ({m})")
+            object.__setattr__(self, "tool", tuple(self.tool))
+        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        object.__setattr__(self, "q", _frozen(q))
+        object.__setattr__(self, "position", _frozen(pos))
+        if self.rows is not None:
+            object.__setattr__(self, "rows", tuple(int(r) for r in self.rows))
+
+    @property
+    def m(self) -> int:
+        """Number of configurations (rows)."""
+        return self.q.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        """Number of points K measured per configuration."""
+        return self.position.shape[1] // 3
+
+    @property
+    def points(self) -> np.ndarray:
+        """The measured points as ``(m, K, 3)`` [m]."""
+        return self.position.reshape(self.m, self.n_markers, 3)
+
+    @property
+    def measure(self) -> str:
+        """``pose`` when orientations are present, else ``position``."""
+        return "position" if self.quaternion is None else "pose"
+
+    @property
+    def rotations(self) -> np.ndarray | None:
+        """Measured tool orientations as rotation matrices ``(m, 3, 3)``, or None."""
+        if self.quaternion is None:
+            return None
+        return quaternion_to_matrix(self.quaternion)
+
+    def row_of(self, i: int) -> int:
+        """Row of configuration i in the source (file row, or i + 1 without a file)."""
+        return self.rows[i] if self.rows is not None else i + 1
+
+    def position_only(self) -> Measurements:
+        """The same data without the orientations."""
+        return dataclasses.replace(self, quaternion=None, angles=None)
+
+    def subset(self, index: np.ndarray) -> Measurements:
+        """The configurations ``index`` (an integer array or a boolean mask)."""
+        index = np.arange(self.m)[index]
+        quat = None if self.quaternion is None else self.quaternion[index]
+        rows = tuple(self.row_of(int(i)) for i in index)
+        tool = None if self.tool is None else tuple(self.tool[int(i)] for i in index)
+        return Measurements(
+            self.joint_names,
+            self.q[index],
+            self.position[index],
+            quat,
+            self.source,
+            rows,
+            tool,
+            self.coupling,
+            None if self.angles is None else Angles(self.angles.format, self.angles.values[index]),
+        )
+
+    @property
+    def tools(self) -> tuple[str, ...]:
+        """The tool frames the rows measure, in order of first appearance (() if not named)."""
+        return () if self.tool is None else tuple(dict.fromkeys(self.tool))
+
+    @property
+    def joint_columns(self) -> tuple[str, ...]:
+        """Names of the joint columns: the joints, or the independent ones (mimic joints)."""
+        return self.joint_names if self.coupling is None else self.coupling.names
+
+    @property
+    def position_columns(self) -> tuple[str, ...]:
+        """Names of the position columns: ``x, y, z`` or ``x1, y1, z1, ..., zK``."""
+        if self.n_markers == 1 and not set(POSITION_COLUMNS) & set(self.joint_columns):
+            return POSITION_COLUMNS
+        return tuple(f"{a}{k + 1}" for k in range(self.n_markers) for a in POSITION_COLUMNS)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """CSV header of this data (the ``tool`` column last, if rows name their tool).
+
+        A joint named as one of the measurement columns is written ``joint:NAME``.
+        """
+        quat = QUATERNION_COLUMNS if self.quaternion is not None else ()
+        tool = (TOOL_COLUMN,) if self.tool is not None else ()
+        measured = (*self.position_columns, *quat, *tool)
+        joints = [JOINT_PREFIX + n if n in measured else n for n in self.joint_columns]
+        return (*joints, *measured)
+
+    def table(self) -> np.ndarray:
+        """The values in the order of :attr:`columns`, ``(m, len(columns))``."""
+        q = self.q if self.coupling is None else self.coupling.variables(self.q)
+        parts = [q, self.position]
+        if self.quaternion is not None:
+            parts.append(self.quaternion)
+        return np.hstack(parts)
+
+
+def joint_bounds(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
+    """Limits a measured joint position must respect [rad or m]: infinite for continuous joints."""
+    lower = np.where(chain.continuous, -np.inf, chain.lower)
+    upper = np.where(chain.continuous, np.inf, chain.upper)
+    return lower, upper
+
+
+def _unit(sigma: int) -> str:
+    return "m" if sigma == 1 else "rad"
+
+
+def check_against_chain(data: Measurements, chain: Chain) -> None:
+    """Check that measurements belong to a chain: same joints, values near the limits.
+
+    A reading past a joint limit by at most ``LIMIT_MARGIN`` gives a :class:`DataWarning`.
+
+    Raises:
+        DataError: Other joints, or a joint value farther outside its limits (naming the
+            row and the column).
+    """
+    if data.joint_names != chain.joint_names:
+        raise DataError(
+            data.source,
+            f"joints {', '.join(data.joint_names)} do not match the chain's "
+            f"{', '.join(chain.joint_names)}",
+        )
+    _check_tools(data, tool_frames(chain))
+    check_limits(chain, data.q, data.source, np.array([data.row_of(i) for i in range(data.m)]))
+
+
+def tool_frames(chain) -> tuple[str, ...]:
+    """The tool frames of a chain (one) or of a tree (several)."""
+    return tuple(chain.tool_frames) if hasattr(chain, "tool_frames") else (chain.tool_frame,)
+
+
+def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:
+    """Every row's tool is one of the model's; several tools need the ``tool`` column."""
+    if data.tool is None:
+        if len(tools) > 1:
+            raise DataError(
+                data.source,
+                f"the model has {len(tools)} tools ({', '.join(tools)}): a '{TOOL_COLUMN}' "
+                f"column must name the one each row measures",
+            )
+        return
+    for i, name in enumerate(data.tool):
+        if name not in tools:
+            raise DataError(
+                data.source,
+                f"unknown tool '{name}': the model's tools are {', '.join(tools)}",
+                row=data.row_of(i),
+                column=TOOL_COLUMN,
+            )
+
+
+def check_limits(
+    chain: Chain, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
+) -> None:
+    """Raise a DataError naming the first joint value far outside its limits; warn on others."""
+    lower, upper = joint_bounds(chain)
+    margin = np.where(chain.sigma == 1, LIMIT_MARGIN[1], LIMIT_MARGIN[0])
+    past = np.maximum(lower - q, q - upper)
+    if chain.coupling is not None:  # a mimic joint's position is computed, not read
+        past[:, [mj.joint for mj in chain.coupling.mimic]] = -np.inf
+    far = past > margin + LIMIT_TOL
+    if np.any(far):
+        i, k = (int(v) for v in np.argwhere(far)[0])
+        unit = _unit(int(chain.sigma[k]))
+        raise DataError(
+            source,
+            f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
+            f"[{chain.lower[k]:.9g}, {chain.upper[k]:.9g}] {unit} by more than "
+            f"{margin[k]:g} {unit} (a wrong column, or degrees for radians?)",
+            row=int(rows[i]),
+            column=chain.joint_names[k],
+        )
+    near = past > LIMIT_TOL
+    if warn and np.any(near):
+        worst = [
+            f"{chain.joint_names[k]} by up to {np.max(past[:, k]):.3g} {_unit(int(chain.sigma[k]))}"
+            for k in np.flatnonzero(np.any(near, axis=0))
+        ]
+        warnings.warn(
+            f"{source}: {int(np.sum(np.any(near, axis=1)))} rows read past the URDF joint limits "
+            f"({'; '.join(worst)}): accepted (kinematics does not need the limits)",
+            DataWarning,
+            stacklevel=3,
+        )
+
+
+@dataclass(frozen=True)
+class Columns:
+    """How a measurement CSV is read.
+
+    Attributes:
+        orientation: ``auto`` (from the column names: qx..qw, rx..rz or roll, pitch, yaw;
+            none: position only), one of ``ORIENTATION_FORMATS``, or ``markers``: K >= 3
+            points of one rigid set read as a pose, marker 1's position and the set's
+            orientation (:mod:`calib.measurements.marker_set`).
+        orientation_columns: Column names of the orientation, in the format's order
+            (default: the format's names, see ``DEFAULT_ORIENTATION_COLUMNS``).
+        units: Unit of the position columns, ``m`` or ``mm``.
+    """
+
+    orientation: str = "auto"
+    orientation_columns: tuple[str, ...] | None = None
+    units: str = "m"
+
+    def __post_init__(self) -> None:
+        if self.orientation not in ("auto", MARKERS, *ORIENTATION_FORMATS):
+            raise InvalidArgumentError(
+                f"unknown orientation format '{self.orientation}': choose auto, markers or "
+                f"{', '.join(ORIENTATION_FORMATS)}"
+            )
+        if self.units not in UNITS:
+            raise InvalidArgumentError(f"unknown units '{self.units}': choose m or mm")
+        cols = self.orientation_columns
+        if cols is not None:
+            if self.orientation in ("auto", MARKERS):
+                raise InvalidArgumentError("orientation columns need an orientation format")
+            want = len(DEFAULT_ORIENTATION_COLUMNS[self.orientation])
+            if len(cols) != want or len(set(cols)) != len(cols):
+                raise InvalidArgumentError(
+                    f"{self.orientation} needs {want} distinct orientation columns, got "
+                    f"{', '.join(cols)}"
+                )
+
+
+def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: int):
+    """Position columns (K triples) and the orientation format and columns of a header.
+
+    ``names``: the cells' meanings, joints prefixed (see :func:`_column_keys`).
+    """
+    free = [n for n in names if not n.startswith(JOINT_PREFIX)]
+    if all(f"{a}1" in free for a in POSITION_COLUMNS):
+        k = 1
+        while all(f"{a}{k + 1}" in free for a in POSITION_COLUMNS):
+            k += 1
+        pos = [f"{a}{i + 1}" for i in range(k) for a in POSITION_COLUMNS]
+    elif all(a in free for a in POSITION_COLUMNS):
+        pos = list(POSITION_COLUMNS)
+    else:
+        missing = next(a for a in POSITION_COLUMNS if a not in free)
+        raise DataError(
+            src,
+            "missing position column: expected x, y, z (one marker) or x1, y1, z1, ..., xK, yK, zK",
+            row=line,
+            column=missing,
+        )
+    fmt, cols = columns.orientation, columns.orientation_columns
+    if fmt == MARKERS:
+        if len(pos) < 3 * marker_set.MIN_MARKERS:
+            raise DataError(
+                src,
+                f"--orientation markers needs x1..z{marker_set.MIN_MARKERS} or more points "
+                f"of one rigid set, the header has {len(pos) // 3}",
+                row=line,
+            )
+        return pos, fmt, ()
+    if fmt == "auto":
+        fmt = next(
+            (
+                f
+                for f in ("quat-xyzw", "rotvec", "rpy")
+                if any(c in free for c in DEFAULT_ORIENTATION_COLUMNS[f])
+            ),
+            None,
+        )
+    if fmt is not None:
+        cols = cols or DEFAULT_ORIENTATION_COLUMNS[fmt]
+        joints = set(chain.variable_names)  # a joint column without the prefix: not free
+        taken = [c for c in cols if c in pos or (c in joints and c not in free)]
+        if taken:
+            raise InvalidArgumentError(
+                f"orientation column '{taken[0]}' is also a "
+                f"{'position' if taken[0] in pos else 'joint'} column: name other columns "
+                f"(--orientation-columns)"
+            )
+        for c in cols:
+            if c not in free:
+                raise DataError(
+                    src,
+                    f"missing orientation column ({fmt}: {', '.join(cols)})",
+                    row=line,
+                    column=c,
+                )
+    return pos, fmt, tuple(cols or ())
+
+
+def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: int):
+    """Validate the header: column names, position columns, orientation format and columns."""
+    names = [c.strip() for c in cells]
+    if len(names) == 1 and ";" in names[0]:
+        raise DataError(
+            src, "the header has one column containing ';': write the CSV comma-separated", row=line
+        )
+    seen: set[str] = set()
+    for j, name in enumerate(names):
+        if not name:
+            raise DataError(
+                src, f"header cell {j + 1} is empty: every column needs a name", row=line
+            )
+        if name in seen:
+            raise DataError(src, "duplicate column", row=line, column=name)
+        seen.add(name)
+    keys = _column_keys(names, chain.variable_names)
+    for name in chain.variable_names:
+        if JOINT_PREFIX + name not in keys:
+            raise DataError(src, "missing joint column", row=line, column=name)
+    pos, fmt, ori = _layout(keys, chain, columns, src, line)
+    used = {*(JOINT_PREFIX + n for n in chain.variable_names), *pos, *ori, TOOL_COLUMN}
+    ignored = [n for n, k in zip(names, keys, strict=True) if k not in used]
+    if ignored:
+        warnings.warn(
+            f"{src}: columns ignored (not joints of the chain, positions, orientation or tool): "
+            f"{', '.join(ignored)}",
+            DataWarning,
+            stacklevel=4,
+        )
+    return keys, pos, fmt, ori, names
+
+
+def _column_keys(names: list[str], joints: Sequence[str]) -> list[str]:
+    """Each header cell's meaning: ``joint:NAME`` for a joint's column, else the cell.
+
+    A joint's column is ``joint:NAME``, or plain ``NAME`` when the header has no ``joint:NAME``
+    (then a plain ``NAME`` is a measurement column: ``x``, ``qw``, ``tool``).
+    """
+    joints = set(joints)
+    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joints
+    keys = []
+    for n in names:
+        if n in joints and n not in prefixed:
+            keys.append(JOINT_PREFIX + n)
+        else:
+            keys.append(n)
+    return keys
+
+
+def parse_number(cell: str, src: str, line: int, column: str) -> float:
+    """A finite number from a CSV cell (strict grammar); DataError naming its row and column."""
+    text = cell.strip()
+    if not text:
+        raise DataError(src, "empty cell", row=line, column=column)
+    if not _NUMBER.fullmatch(text):
+        raise DataError(src, f"not a number: {text!r}", row=line, column=column)
+    value = float(text)
+    if not math.isfinite(value):
+        raise DataError(src, f"{text!r} is not a finite number", row=line, column=column)
+    return value
+
+
+def csv_records(text: str, src: str):
+    """(first line, cells) of each non-blank CSV record; malformed CSV names its row."""
+    reader = csv.reader(io.StringIO(text), strict=True)
+    start = 1
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise DataError(src, f"malformed CSV: {exc}", row=start) from None
+        if any(c.strip() for c in cells):
+            if any("\n" in c or "\r" in c for c in cells):
+                raise DataError(src, "a quoted cell spans several lines", row=start)
+            yield start, cells
+        start = reader.line_num + 1
+
+
+def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:
+    """Quaternions (x, y, z, w) from orientation columns in a format."""
+    if fmt in ("quat-xyzw", "quat-wxyz"):
+        quat = values if fmt == "quat-xyzw" else values[:, [1, 2, 3, 0]]
+        big = np.max(np.abs(quat), axis=1)
+        zero = big * np.linalg.norm(quat / np.where(big > 0, big, 1.0)[:, None], axis=1) < 1e-12
+        if np.any(zero):
+            raise DataError(src, "the quaternion has zero norm", row=lines[int(np.argmax(zero))])
+        return quat
+    if np.any(np.abs(values) > 1e3):
+        i = int(np.argmax(np.any(np.abs(values) > 1e3, axis=1)))
+        raise DataError(src, "an orientation angle beyond 1000 rad", row=lines[i])
+    R = rotation_matrix(values) if fmt == "rotvec" else rpy_to_matrix(values)
+    return matrix_to_quaternion(R)
+
+
+def parse_measurements(
+    text: str, chain: Chain, source: str = "<text>", columns: Columns | None = None
+) -> Measurements:
+    """Parse and validate CSV text (see the module docstring for the format).
+
+    Args:
+        text: The CSV content.
+        chain: The chain the data belongs to (joint names and limits).
+        source: Name of the data in messages (a file path).
+        columns: How to read positions and orientations (default: metres, orientation
+            format from the column names).
+
+    Returns:
+        The measurements, joints in chain order, positions in metres.
+
+    Raises:
+        DataError: Missing or duplicate column, a row of the wrong length, an empty,
+            non-numeric or non-finite cell, a joint value far outside its limits, a measured
+            coordinate beyond ``MAX_COORDINATE`` [m], a zero quaternion, or no data row.
+    """
+    columns = columns or Columns()
+    header = None
+    values: list[list[float]] = []
+    lines: list[int] = []
+    tools: list[str] = []
+    for line, cells in csv_records(text, source):
+        if header is None:
+            header = _header(cells, chain, columns, source, line)
+            continue
+        keys, shown = header[0], header[4]
+        if len(cells) != len(keys):
+            raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
+        used = {*(JOINT_PREFIX + n for n in chain.variable_names), *header[1], *header[3]}
+        if TOOL_COLUMN in keys:
+            tool = cells[keys.index(TOOL_COLUMN)].strip()
+            if not tool:
+                raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
+            tools.append(tool)
+        values.append(
+            [
+                parse_number(c, source, line, n) if k in used else 0.0
+                for c, k, n in zip(cells, keys, shown, strict=True)
+            ]
+        )
+        lines.append(line)
+    if header is None:
+        raise DataError(source, "empty file: expected a header line and measurement rows")
+    if not values:
+        raise DataError(source, "no measurement rows after the header")
+    names, pos_cols, fmt, ori_cols, _ = header
+    table = np.array(values)
+    col = {n: j for j, n in enumerate(names)}
+    q = chain.joint_values(table[:, [col[JOINT_PREFIX + n] for n in chain.variable_names]])
+    check_limits(chain, q, source, np.array(lines), warn=False)
+    position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
+    far = np.abs(position) > MAX_COORDINATE
+    if np.any(far):
+        i, j = (int(v) for v in np.argwhere(far)[0])
+        raise DataError(
+            source,
+            f"{position[i, j]:.9g} m is not a plausible measurement (coordinates are within "
+            f"{MAX_COORDINATE:g} m)",
+            row=lines[i],
+            column=pos_cols[j],
+        )
+    quat, angles = None, None
+    if fmt == MARKERS:
+        position, quat = _marker_set(position, source)
+    elif fmt is not None:
+        values = table[:, [col[n] for n in ori_cols]]
+        quat = _orientation(values, fmt, source, lines)
+        angles = Angles(fmt, _frozen(values)) if fmt in ("rotvec", "rpy") else None
+    data = Measurements(
+        chain.joint_names,
+        q,
+        position,
+        quat,
+        source,
+        tuple(lines),
+        tuple(tools) or None,
+        chain.coupling,
+        angles,
+    )
+    _check_tools(data, tool_frames(chain))
+    _warn_repeats(data)
+    return data
+
+
+def _warn_repeats(data: Measurements) -> None:
+    """Warn when rows repeat an earlier row's joint positions (and tool): not independent."""
+    key = data.q
+    if data.tool is not None:
+        key = np.column_stack([key, np.unique(np.array(data.tool), return_inverse=True)[1]])
+    _, first = np.unique(key, axis=0, return_index=True)
+    repeats = data.m - len(first)
+    if repeats:
+        row = int(np.flatnonzero(~np.isin(np.arange(data.m), first))[0])
+        line = data.rows[row] if data.rows else row + 2
+        warnings.warn(
+            f"{data.source}: {repeats} of {data.m} rows repeat the joint positions of an "
+            f"earlier row (first: row {line}): repeated configurations are not independent "
+            f"measurements, the reported uncertainty is overconfident",
+            DataWarning,
+            stacklevel=4,
+        )
+
+
+def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """Marker 1's position and the orientation of a rigid set of K >= 3 markers."""
+    pose = marker_set.marker_set_pose(position.reshape(len(position), -1, 3))
+    if pose.flat < marker_set.MIN_FLATNESS:
+        raise DataError(src, "the markers lie on a line: their set has no orientation")
+    if pose.spread > marker_set.SPREAD_WARNING:
+        warnings.warn(
+            f"{src}: the markers move up to {1e3 * pose.spread:.3g} mm relative to each "
+            f"other: they are not one rigid set, its orientation is a least-squares fit",
+            DataWarning,
+            stacklevel=4,
+        )
+    return position[:, :3], matrix_to_quaternion(pose.rotations)
+
+
+def read_measurements(
+    path: str | Path, chain: Chain, columns: Columns | None = None
+) -> Measurements:
+    """Read and validate a measurement CSV file (see the module docstring for the format).
+
+    Args:
+        path: The CSV file.
+        chain: The chain the data belongs to (joint names and limits).
+        columns: How to read positions and orientations (see :class:`Columns`).
+
+    Returns:
+        The measurements, joints in chain order.
+
+    Raises:
+        DataError: The file is missing, unreadable, not UTF-8 or larger than
+            :data:`MAX_MEASUREMENTS_BYTES`, or its content is invalid (see
+            :func:`parse_measurements`).
+    """
+    src = str(path)
+    try:
+        text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
+    except FileNotFoundError:
+        raise DataError(src, "no such file") from None
+    except OSError as exc:
+        raise DataError(src, f"cannot read the file: {exc.strerror or exc}") from None
+    return parse_measurements(text, chain, src, columns)
+
+
+def measurements_csv(data: Measurements) -> str:
+    """The CSV text of measurements, full precision (``repr`` of every float)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(data.columns)
+    tools = data.tool or ()
+    for row, tool in itertools.zip_longest(data.table(), tools):
+        writer.writerow([repr(float(v)) for v in row] + ([tool] if tool is not None else []))
+    return out.getvalue()
+
+
+def write_measurements(path: str | Path, data: Measurements) -> None:
+    """Write measurements as CSV atomically (the file is complete or not written at all)."""
+    write_atomic(path, measurements_csv(data))
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationTruth:
+    """What a simulated campaign hides from the calibration: the true robot and errors.
+
+    Attributes:
+        robot: Robot name.
+        base_frame: Frame -1 of the nominal model (the true model's is the measurement frame).
+        tool_frame: Frame n+1.
+        params: The standard parameter set that was perturbed.
+        errors: True error of every parameter of ``params`` [rad or m].
+        true_mdh: The true MDH model (nominal + errors).
+        measurement: What was measured (rows and marker).
+        analysis: Identifiability of the nominal model (URDF round-off removed, as in
+            :func:`calib.analyze`) at the campaign's configurations.
+        base_values: True value of each base parameter, ``dX1 + B dX2`` [rad or m], in the
+            order of ``analysis.base`` (first order: exact where the regrouping is exact).
+        seed: Seed of the configurations, the errors and the noise.
+        error_mm: Standard deviation of the length errors [mm].
+        error_mrad: Standard deviation of the angle errors [mrad].
+        noise_mm: Standard deviation of the position noise per axis [mm].
+        noise_mrad: Standard deviation of the orientation noise per axis [mrad].
+    """
+
+    robot: str
+    base_frame: str
+    tool_frame: str
+    params: ParameterSet
+    errors: np.ndarray
+    true_mdh: MDHModel
+    measurement: Measurement
+    analysis: Identifiability
+    base_values: np.ndarray
+    seed: int
+    error_mm: float
+    error_mrad: float
+    noise_mm: float
+    noise_mrad: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready record of the truth (radians, metres)."""
+        return {
+            "robot": self.robot,
+            "base_frame": self.base_frame,
+            "tool_frame": self.tool_frame,
+            "measure": self.measurement.label,
+            "marker": list(self.measurement.marker),
+            "params": self.params.label,
+            "configs": self.analysis.n_configs,
+            "seed": self.seed,
+            "error_mm": self.error_mm,
+            "error_mrad": self.error_mrad,
+            "noise_mm": self.noise_mm,
+            "noise_mrad": self.noise_mrad,
+            "parameter_names": list(self.params.names),
+            "errors": {n: float(v) for n, v in zip(self.params.names, self.errors, strict=True)},
+            "base_parameters": {
+                n: float(v) for n, v in zip(self.analysis.base, self.base_values, strict=True)
+            },
+            "regrouping": self.analysis.regrouping(),
+            "true_mdh": self.true_mdh.rows(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Campaign:
+    """A simulated measurement campaign: the data and the truth behind it.
+
+    Attributes:
+        measurements: What a calibration gets to see.
+        truth: The true robot and errors, for checking.
+    """
+
+    measurements: Measurements
+    truth: SimulationTruth
+
+
+def _integer(what: str, value, minimum: int) -> int:
+    """``value`` as an int, if it is an integer (not a bool) >= ``minimum``.
+
+    Raises:
+        InvalidArgumentError: None, a bool, a float, a string or a smaller integer.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _non_negative(name: str, value: float) -> float:
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, bool
+    )
+    if not number or not math.isfinite(float(value)) or float(value) < 0:
+        raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
+def simulate(
+    chain: Chain,
+    configs: int | np.ndarray = 100,
+    measure: str = "pose",
+    marker=None,
+    error_mm: float = 1.0,
+    error_mrad: float = 1.0,
+    noise_mm: float = 0.0,
+    noise_mrad: float | None = None,
+    seed: int = 0,
+    params: str = "complete",
+) -> Campaign:
+    """Simulate a measurement campaign on a perturbed ("true") copy of a chain.
+
+    The configurations are those ``calib analyze --seed SEED`` draws (uniform within the
+    joint limits); the errors and the noise come from two further streams of the same seed.
+
+    Args:
+        chain: The nominal chain.
+        configs: Number of configurations m (an integer >= 1), or the configurations
+            themselves ``(m, n)`` [rad or m] (a designed set).
+        measure: ``pose`` or ``position``.
+        marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
+        error_mm: Standard deviation of every length error [mm].
+        error_mrad: Standard deviation of every angle error [mrad].
+        noise_mm: Standard deviation of the position noise per axis [mm].
+        noise_mrad: Standard deviation of the orientation noise per axis [mrad] (default:
+            the number given as ``noise_mm``, so that 1 mrad weighs like 1 mm).
+        seed: Seed (an integer >= 0; not None, a bool or a float).
+        params: Parameter set perturbed: ``complete`` (default) or ``paper``.
+
+    Returns:
+        The campaign.
+
+    Raises:
+        InvalidArgumentError: A bad argument.
+    """
+    if measure not in CAMPAIGN_MEASURES:
+        raise InvalidArgumentError(f"unknown measure '{measure}': choose pose or position")
+    given = isinstance(configs, np.ndarray | list | tuple)
+    m = 0 if given else _integer("the number of configurations", configs, 1)
+    seed = _integer("the seed", seed, 0)
+    error_mm = _non_negative("error_mm", error_mm)
+    error_mrad = _non_negative("error_mrad", error_mrad)
+    noise_mm = _non_negative("noise_mm", noise_mm)
+    noise_mrad = noise_mm if noise_mrad is None else _non_negative("noise_mrad", noise_mrad)
+    measurement = Measurement.of(measure, marker)
+    nominal = from_chain(chain)
+    pset = parameter_set(nominal, params)
+
+    q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
+    m = len(q)
+    rng_errors = np.random.default_rng([seed, 1])
+    rng_noise = np.random.default_rng([seed, 2])
+    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
+    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
+    errors = scale * rng_errors.standard_normal(len(pset))
+    true_mdh = pset.apply(nominal, errors)
+
+    kin = true_mdh.kinematics(q)
+    position = measured_point(kin, measurement.marker_array)
+    position = position + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
+    quat = None
+    if measure == "pose":
+        noise = 1e-3 * noise_mrad * rng_noise.standard_normal((m, 3))
+        quat = matrix_to_quaternion(rotation_matrix(noise) @ kin.R[:, -1])
+
+    analysis = analyze_model(nominal.idealized(), pset, measurement, q, robot=chain.name, seed=seed)
+    index = {n: i for i, n in enumerate(pset.names)}
+    kept = errors[[index[n] for n in analysis.base]]
+    others = errors[[index[n] for n in analysis.others]]
+    base_values = kept + analysis.B @ others if others.size else kept
+
+    data = Measurements(
+        chain.joint_names,
+        q,
+        position,
+        quat,
+        f"<simulated {chain.name}>",
+        coupling=chain.coupling,
+    )
+    truth = SimulationTruth(
+        robot=chain.name,
+        base_frame=chain.base_frame,
+        tool_frame=chain.tool_frame,
+        params=pset,
+        errors=_frozen(errors),
+        true_mdh=true_mdh,
+        measurement=measurement,
+        analysis=analysis,
+        base_values=_frozen(base_values),
+        seed=seed,
+        error_mm=error_mm,
+        error_mrad=error_mrad,
+        noise_mm=noise_mm,
+        noise_mrad=noise_mrad,
+    )
+    return Campaign(data, truth)

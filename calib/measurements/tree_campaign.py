@@ -1,0 +1,108 @@
+"""Simulated measurement campaigns of a tree: every tool measured at each configuration.
+
+As for a chain (:func:`.csvfile.simulate`): the "true" tree is the nominal one with
+every parameter of its standard set perturbed by a seeded normal error (``error_mm`` [mm]
+for lengths, ``error_mrad`` [mrad] for angles); a point on each tool (``markers``, in the
+tool's frame) is recorded at seeded random configurations, one row per configuration and
+tool (the ``tool`` column names it), and isotropic Gaussian noise of ``noise_mm`` [mm] is
+added. The measurement frame is the true tree's frame -1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..identification.parameters import ParameterSet
+from ..identification.tree_jacobian import tree_parameters
+from ..kinematics.tree import Tree
+from ..kinematics.tree_model import TreeMDH, from_tree
+from .csvfile import Measurements
+
+
+@dataclass(frozen=True, eq=False)
+class TreeCampaign:
+    """A simulated campaign of a tree and the truth behind it.
+
+    Attributes:
+        measurements: One row per configuration and tool (configuration-major).
+        params: The perturbed standard set.
+        errors: The true error of each of its parameters [rad or m].
+        true_mdh: The true tree.
+        markers: The true point on each tool ``(T, 3)`` [m].
+    """
+
+    measurements: Measurements
+    params: ParameterSet
+    errors: np.ndarray
+    true_mdh: TreeMDH
+    markers: np.ndarray
+
+
+def true_points(mdh: TreeMDH, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """The point of every tool at each configuration ``(m, T, 3)`` [m], base frame."""
+    T = mdh.forward(q)
+    return T[..., :3, 3] + np.einsum("mtij,tj->mti", T[..., :3, :3], markers)
+
+
+def simulate_tree(
+    tree: Tree,
+    configs: int | np.ndarray = 100,
+    markers=None,
+    error_mm: float = 1.0,
+    error_mrad: float = 1.0,
+    noise_mm: float = 0.0,
+    seed: int = 0,
+    params: str = "complete",
+) -> TreeCampaign:
+    """Simulate a campaign measuring every tool of a tree at random configurations.
+
+    Args:
+        tree: The nominal tree.
+        configs: Number of random configurations m (the data has m T rows), or the joint
+            positions themselves ``(m, n)`` (a designed campaign).
+        markers: Point on each tool ``(T, 3)`` or one for all ``(3,)`` [m] (default: origins).
+        error_mm: Std of the length errors [mm].
+        error_mrad: Std of the angle errors [mrad].
+        noise_mm: Std of the measurement noise per axis [mm].
+        seed: Seed of every draw.
+        params: Standard set to perturb (``paper`` or ``complete``).
+
+    Raises:
+        InvalidArgumentError: A bad argument.
+    """
+    if not isinstance(tree, Tree):
+        raise InvalidArgumentError(f"tree must be a Tree (see load_tree), got {tree!r:.60}")
+    n_tools = tree.n_tools
+    mk = np.zeros((n_tools, 3)) if markers is None else np.array(markers, dtype=float)
+    mk = np.broadcast_to(mk, (n_tools, 3)).copy() if mk.shape == (3,) else mk
+    if mk.shape != (n_tools, 3) or not np.all(np.isfinite(mk)):
+        raise InvalidArgumentError(f"markers must be (3,) or ({n_tools}, 3) finite numbers [m]")
+    for name, value in (("error_mm", error_mm), ("error_mrad", error_mrad), ("noise_mm", noise_mm)):
+        if not (isinstance(value, int | float) and np.isfinite(value) and value >= 0):
+            raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
+    nominal = from_tree(tree)
+    pset = tree_parameters(nominal, params)
+    if isinstance(configs, int | np.integer) and not isinstance(configs, bool):
+        q = tree.random_configurations(int(configs), seed)
+    else:
+        q = tree.check_configurations(configs)
+    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
+    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
+    errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))
+    true_mdh = pset.apply(nominal, errors)
+    points = true_points(true_mdh, q, mk).reshape(-1, 3)
+    points = points + 1e-3 * noise_mm * np.random.default_rng([seed, 2]).standard_normal(
+        points.shape
+    )
+    data = Measurements(
+        tree.joint_names,
+        np.repeat(q, n_tools, axis=0),
+        points,
+        source=f"<simulated {tree.name}>",
+        tool=tree.tool_frames * len(q),
+        coupling=tree.coupling,
+    )
+    return TreeCampaign(data, pset, errors, true_mdh, mk)

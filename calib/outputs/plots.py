@@ -1,0 +1,134 @@
+"""Matplotlib figures: counts across robots, the |R_ii| spectrum, calibration errors.
+
+Every function returns a ``matplotlib.figure.Figure``; notebooks show it inline and the CLI
+saves it with :func:`save_figure`.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..exceptions import InvalidArgumentError
+from ..fileio import write_atomic
+from ..identification.identifiability import Identifiability
+from .sweep import SweepRow
+
+
+def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
+    """Base-parameter counts per robot (paper and complete sets) against the theory."""
+    ok = [r for r in rows if r.error is None]
+    fig = Figure(figsize=(max(6.0, 0.28 * len(ok) + 2.0), 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    x = np.arange(len(ok))
+    ax.bar(x - 0.2, [r.n_base_paper for r in ok], 0.4, label="paper set")
+    ax.bar(x + 0.2, [r.n_base_complete for r in ok], 0.4, label="complete set")
+    ax.scatter(
+        x,
+        [r.n_theory for r in ok],
+        marker="_",
+        s=160,
+        color="k",
+        zorder=3,
+        label="theory (4R+2P+6 or +3)",
+    )
+    ax.set_xticks(x, [r.robot for r in ok], rotation=90, fontsize=7)
+    ax.set_ylabel("base parameters")
+    ax.set_title(title or "Identifiable parameters per chain")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def spectrum_figure(res: Identifiability) -> Figure:
+    """|R_ii| of the pivoted QR on a log scale, with tau and the rank gap."""
+    fig = Figure(figsize=(6.0, 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    diag = np.maximum(res.diag, np.finfo(float).tiny)
+    i = np.arange(1, len(diag) + 1)
+    ax.semilogy(i[: res.n_base], diag[: res.n_base], "o", label=f"kept ({res.n_base})")
+    ax.semilogy(
+        i[res.n_base :], diag[res.n_base :], "x", label=f"dropped ({len(diag) - res.n_base})"
+    )
+    ax.axhline(res.tolerance, color="k", ls="--", lw=1, label=r"$\tau = r\,\epsilon\,|R_{11}|$")
+    ax.set_xlabel("i (pivot order)")
+    ax.set_ylabel(r"$|R_{ii}|$")
+    ax.set_title(f"{res.robot}: {res.params.label} set, {res.measurement.label}")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Figure:
+    """Position error per configuration before and after calibration [mm]."""
+    fig = Figure(figsize=(6.0, 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    before = 1e3 * np.asarray(before)
+    after = 1e3 * np.asarray(after)
+    bins = np.linspace(0.0, max(float(before.max(initial=0.0)), 1e-9), 30)
+    ax.hist(
+        before, bins=bins, alpha=0.6, label=f"nominal (RMS {np.sqrt(np.mean(before**2)):.3g} mm)"
+    )
+    ax.hist(
+        after, bins=bins, alpha=0.8, label=f"calibrated (RMS {np.sqrt(np.mean(after**2)):.3g} mm)"
+    )
+    ax.set_xlabel("position error [mm]")
+    ax.set_ylabel("configurations")
+    ax.set_title(title or "Calibration")
+    ax.legend(fontsize=8)
+    return fig
+
+
+FIGURE_FORMATS = ("png", "svg", "pdf")
+"""File formats a figure is saved in, chosen by the file's extension."""
+
+
+def figure_format(path: str | Path, option: str = "the figure file") -> str:
+    """The format a figure file is written in, from its extension (``.png``, ``.svg``, ``.pdf``).
+
+    Args:
+        path: The file the figure goes to.
+        option: What names the file in the error (``--plot``).
+
+    Raises:
+        InvalidArgumentError: The extension is missing or not one of :data:`FIGURE_FORMATS`.
+    """
+    ext = Path(path).suffix.lower().lstrip(".")
+    if ext not in FIGURE_FORMATS:
+        given = f"extension '.{ext}'" if ext else "no extension"
+        raise InvalidArgumentError(
+            f"{option} {path}: {given}; give a file ending in "
+            + ", ".join(f".{f}" for f in FIGURE_FORMATS)
+        )
+    return ext
+
+
+def figure_bytes(fig: Figure, fmt: str = "png") -> bytes:
+    """The figure as the bytes of a PNG (120 dpi), SVG or PDF file (no date: reproducible).
+
+    Raises:
+        InvalidArgumentError: ``fmt`` is not one of :data:`FIGURE_FORMATS`.
+    """
+    if fmt not in FIGURE_FORMATS:
+        raise InvalidArgumentError(f"figure format '{fmt}': expected one of {FIGURE_FORMATS}")
+    metadata = {} if fmt == "png" else {"Date": None} if fmt == "svg" else {"CreationDate": None}
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=120, metadata=metadata)
+    return buf.getvalue()
+
+
+def figure_png(fig: Figure) -> bytes:
+    """The figure as PNG bytes (120 dpi)."""
+    return figure_bytes(fig, "png")
+
+
+def save_figure(fig: Figure, path: str | Path) -> None:
+    """Save in the format of the extension (png, svg, pdf); no partial file is ever left.
+
+    Raises:
+        InvalidArgumentError: Unknown or missing extension.
+        OutputError: The file cannot be written.
+    """
+    write_atomic(path, figure_bytes(fig, figure_format(path)))

@@ -1,0 +1,229 @@
+"""Survey of identifiable sets across many chains and trees (the catalog and extra URDFs)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from ..checks import check_count, check_work
+from ..exceptions import CalibError, InvalidArgumentError
+from ..identification.identifiability import DEFAULT_CONFIGS, analyze
+from ..identification.jacobian import Measurement
+from ..kinematics.catalog import catalog
+from ..kinematics.tree import Tree, load_robot
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One chain (or tree) of a sweep.
+
+    Attributes:
+        robot: Catalog name or URDF path.
+        chain: ``base -> tool`` (a tree: ``base -> tool1, tool2, ...``).
+        revolute: Number R of revolute joints (shared joints of a tree once).
+        prismatic: Number P of prismatic joints.
+        tools: Number T of tools (1 for a chain).
+        n_standard: Standard parameters of the paper set.
+        n_base_paper: Base parameters of the paper set.
+        n_base_complete: Base parameters of the complete set.
+        n_complete: Rank of the complete reference model.
+        n_theory: 4R + 2P + 6T (pose) or + 3T (position; 2 fewer on the last axis).
+        verdict: ``complete`` or ``misses N`` (for the set the sweep was asked about), or
+            ``error``.
+        time_ms: Time to load and analyse the chain with both sets [ms].
+        error: Why the chain could not be analysed, else None.
+        note: What else a reader should know (point on joint axes, rank warnings).
+    """
+
+    robot: str
+    chain: str
+    revolute: int | None = None
+    prismatic: int | None = None
+    tools: int | None = None
+    n_standard: int | None = None
+    n_base_paper: int | None = None
+    n_base_complete: int | None = None
+    n_complete: int | None = None
+    n_theory: int | None = None
+    verdict: str = "error"
+    time_ms: float = 0.0
+    error: str | None = None
+    note: str = ""
+
+
+def sweep_one(
+    robot: str,
+    base: str | None,
+    tool: str | tuple[str, ...] | None,
+    measurement: Measurement,
+    configs: int,
+    seed: int,
+    params: str = "paper",
+) -> SweepRow:
+    """Analyse one chain or tree with the paper and the complete sets; errors become a row."""
+    t0 = time.perf_counter()
+    tools = (tool,) if tool is None or isinstance(tool, str) else tool
+    label = f"{base or '?'} -> {', '.join(t or '?' for t in tools)}"
+    try:
+        chain = load_robot(robot, base, tool)
+        tools = chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,)
+        label = f"{chain.base_frame} -> {', '.join(tools)}"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
+            kw = {
+                "measure": measurement.label,
+                "marker": measurement.marker,
+                "configs": configs,
+                "seed": seed,
+            }
+            paper = analyze(chain, params="paper", **kw)
+            full = analyze(chain, params="complete", **kw)
+    except CalibError as exc:
+        return SweepRow(str(robot), label, time_ms=1e3 * (time.perf_counter() - t0), error=str(exc))
+    missing = full.n_complete - (paper if params == "paper" else full).n_base
+    on_axes = full.on_axes if measurement.rows == (0, 1, 2) else ()
+    notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
+    if full.mimic:  # the formula is for independent joints
+        notes.append(f"{len(full.mimic)} coupled (mimic) joint(s): no theory")
+    notes += list(dict.fromkeys(paper.warnings + full.warnings))
+    return SweepRow(
+        robot=str(robot),
+        chain=label,
+        revolute=chain.n_revolute,
+        prismatic=chain.n_prismatic,
+        tools=len(tools),
+        n_standard=paper.n_standard,
+        n_base_paper=paper.n_base,
+        n_base_complete=full.n_base,
+        n_complete=full.n_complete,
+        n_theory=full.n_theory,
+        verdict="complete" if missing <= 0 else f"misses {missing}",
+        time_ms=1e3 * (time.perf_counter() - t0),
+        note="; ".join(notes),
+    )
+
+
+def sweep(
+    robots: Iterable[str] | None = None,
+    extra: Sequence[str] = (),
+    measure: str = "pose",
+    marker=None,
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+    progress: Callable[[Iterable], Iterable] | None = None,
+    params: str = "paper",
+) -> list[SweepRow]:
+    """Analyse every catalog chain and tree (or the given names) and extra URDF files.
+
+    A chain that cannot be analysed is a row with its reason, never skipped.
+
+    Args:
+        robots: Catalog names (default: the whole catalog).
+        extra: URDF paths (default frames) analysed after the catalog.
+        measure: ``pose`` or ``position`` (or rows).
+        marker: Measured point in the tool frame [m].
+        configs: Random configurations per chain.
+        seed: Seed of the configurations.
+        progress: Wraps the iterable of jobs (e.g. a progress bar).
+        params: Set the verdict is about: ``paper`` or ``complete``.
+
+    Returns:
+        One row per chain, in order.
+    """
+    measurement = Measurement.of(measure, marker)
+    check_count(configs, "the number of configurations")
+    check_count(seed, "the seed", minimum=0)
+    check_work(configs, 1, "even a 1-joint chain")  # what no chain can afford
+    if params not in ("paper", "complete"):
+        raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
+    entries = {e.name: e for e in catalog()}
+    jobs: list[tuple[str, str | None, str | tuple[str, ...] | None]] = []
+    for name in robots if robots is not None else entries:
+        e = entries.get(name)
+        jobs.append((name, e.base, e.tool) if e else (name, None, None))
+    jobs += [(str(Path(p)), None, None) for p in extra]
+    it = progress(jobs) if progress else jobs
+    return [sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
+
+
+COLUMNS = (
+    "robot",
+    "chain",
+    "revolute",
+    "prismatic",
+    "tools",
+    "n_standard",
+    "n_base_paper",
+    "n_base_complete",
+    "n_complete",
+    "n_theory",
+    "verdict",
+    "time_ms",
+    "error",
+    "note",
+)
+
+
+def rows_to_csv(rows: Sequence[SweepRow]) -> str:
+    """The rows as CSV text (one header line)."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        d = asdict(row)
+        d["time_ms"] = f"{row.time_ms:.1f}"
+        writer.writerow(d)
+    return buf.getvalue()
+
+
+def rows_table(rows: Sequence[SweepRow]) -> str:
+    """The rows as a plain-text table (errors and notes in the last column)."""
+    from ..identification.report import format_table
+
+    def num(v: int | None) -> str:
+        return "-" if v is None else str(v)
+
+    def chain(r: SweepRow) -> str:
+        if r.tools is None or r.tools < 2:
+            return r.chain
+        return f"{r.chain.split(' -> ')[0]} -> {r.tools} tools"  # the list: CSV, JSON, `list`
+
+    body = [
+        [
+            r.robot,
+            chain(r),
+            num(r.revolute),
+            num(r.prismatic),
+            num(r.tools),
+            num(r.n_standard),
+            num(r.n_base_paper),
+            num(r.n_base_complete),
+            num(r.n_complete),
+            num(r.n_theory),
+            r.verdict,
+            f"{r.time_ms:.0f}",
+            r.error or r.note,
+        ]
+        for r in rows
+    ]
+    header = [
+        "robot",
+        "chain",
+        "R",
+        "P",
+        "T",
+        "std",
+        "paper",
+        "complete",
+        "model",
+        "theory",
+        "verdict",
+        "ms",
+        "note",
+    ]
+    return format_table(header, body)
