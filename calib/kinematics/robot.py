@@ -217,6 +217,46 @@ class JointCounts:
         return int(np.sum(self.sigma == 1))
 
 
+class CoupledJoints(JointCounts):
+    """Joints some of which may follow others (mimic): what a chain and a tree share.
+
+    A subclass has ``joint_names``, ``lower``, ``upper``, ``coupling`` (None without mimic
+    joints), ``n`` and ``check_configurations``.
+    """
+
+    joint_names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    coupling: Coupling | None
+    n: int
+
+    def check_configurations(self, q: np.ndarray) -> np.ndarray:  # pragma: no cover
+        """Validate and reshape joint positions to ``(m, n)`` (a subclass's)."""
+        raise NotImplementedError
+
+    @property
+    def variable_names(self) -> tuple[str, ...]:
+        """The independent joints: a configuration is given for these (see :mod:`.mimic`).
+
+        The joints, less the mimic joints, plus the masters of those outside the chain or tree.
+        """
+        return self.joint_names if self.coupling is None else self.coupling.names
+
+    def joint_values(self, variables: np.ndarray) -> np.ndarray:
+        """Positions of the joints ``(m, n)`` from the independent joints' ``(m, v)``."""
+        if self.coupling is None:
+            return self.check_configurations(variables)
+        return self.coupling.joint_values(variables)
+
+    def _uniform(self, m: int, seed: int) -> np.ndarray:
+        """``m`` configurations drawn uniformly inside the limits (mimic joints follow)."""
+        rng = np.random.default_rng(int(seed))
+        if self.coupling is None:
+            return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
+        lo, hi = self.coupling.lower, self.coupling.upper
+        return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
+
+
 def pin_configurations(
     model: pin.Model, q_ref: np.ndarray, joint_ids: tuple[int, ...], q: np.ndarray
 ) -> np.ndarray:
@@ -241,7 +281,7 @@ def pin_configurations(
 
 
 @dataclass(frozen=True, eq=False)
-class Chain(JointCounts):
+class Chain(CoupledJoints):
     """A serial chain between a base frame and a tool frame of a Pinocchio model.
 
     Joint positions are *URDF* positions, one number per chain joint (radians for revolute
@@ -340,25 +380,7 @@ class Chain(JointCounts):
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)
         check_work(int(m), self.n)
-        rng = np.random.default_rng(int(seed))
-        if self.coupling is None:
-            return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
-        lo, hi = self.coupling.lower, self.coupling.upper
-        return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
-
-    @property
-    def variable_names(self) -> tuple[str, ...]:
-        """The independent joints: a configuration is given for these (see :mod:`.mimic`).
-
-        The chain's joints, less its mimic joints, plus the masters of those outside the chain.
-        """
-        return self.joint_names if self.coupling is None else self.coupling.names
-
-    def joint_values(self, variables: np.ndarray) -> np.ndarray:
-        """Positions of the chain joints ``(m, n)`` from the independent joints' ``(m, v)``."""
-        if self.coupling is None:
-            return self.check_configurations(variables)
-        return self.coupling.joint_values(variables)
+        return self._uniform(m, seed)
 
     def gravity_torques(self, q: np.ndarray) -> np.ndarray:
         """Gravity torque each chain joint carries ``(m, n)`` [N m or N] (URDF masses).

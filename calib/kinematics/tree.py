@@ -20,7 +20,7 @@ from ..exceptions import InvalidArgumentError
 from .mimic import Coupling, tree_coupling
 from .robot import (
     Chain,
-    JointCounts,
+    CoupledJoints,
     RobotModels,
     chain_between,
     check_frame_name,
@@ -37,7 +37,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class Tree(JointCounts):
+class Tree(CoupledJoints):
     """The union of the chains from one base frame to several tool frames.
 
     Attributes:
@@ -94,20 +94,6 @@ class Tree(JointCounts):
         return tuple(c.tool_frame for c in self.chains)
 
     @property
-    def variable_names(self) -> tuple[str, ...]:
-        """The independent joints: a configuration is given for these (see :mod:`.mimic`).
-
-        The tree's joints, less its mimic joints, plus the masters of those outside the tree.
-        """
-        return self.joint_names if self.coupling is None else self.coupling.names
-
-    def joint_values(self, variables: np.ndarray) -> np.ndarray:
-        """Positions of the tree joints ``(m, n)`` from the independent joints' ``(m, v)``."""
-        if self.coupling is None:
-            return self.check_configurations(variables)
-        return self.coupling.joint_values(variables)
-
-    @property
     def continuous(self) -> np.ndarray:
         """True for joints without limits (continuous joints), per tree joint."""
         out = np.zeros(self.n, dtype=bool)
@@ -156,11 +142,7 @@ class Tree(JointCounts):
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)
         check_work(int(m), self.n, f"{self.name} ({self.n_tools} tools)", self.n_tools)
-        rng = np.random.default_rng(int(seed))
-        if self.coupling is None:
-            return self.lower + (self.upper - self.lower) * rng.random((int(m), self.n))
-        lo, hi = self.coupling.lower, self.coupling.upper
-        return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
+        return self._uniform(m, seed)
 
     def tool_placements(self, q: np.ndarray) -> np.ndarray:
         """Every tool frame in the base frame, from Pinocchio, shape ``(m, T, 4, 4)``.
