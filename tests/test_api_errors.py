@@ -108,6 +108,8 @@ def _cases():
         "measurement_to_base models": lambda: calib.measurement_to_base(None, MDH),
         "residual_stats result": lambda: calib.residual_stats(None, None),
         "calibrate chain": lambda: calib.calibrate("ur5", None),
+        "calibrate level=": lambda: calib.calibrate(CHAIN, None, level="paper"),
+        "calibrate unknown option": lambda: calib.calibrate(CHAIN, None, levl="paper"),
         "write_calibrated_urdf path": lambda: calib.write_calibrated_urdf(3.5, CHAIN, MDH, MDH),
         "calibrate_tree chain": lambda: calib.calibrate_tree(CHAIN, None),
         "calibrate_tree level": lambda: calib.calibrate_tree(TREE, None, "auto"),

@@ -119,9 +119,11 @@ def calibrate(
             a usual mistake (which is named).
         InvalidArgumentError: A bad argument.
     """
-    unknown = set(options) - {f.name for f in dataclasses.fields(Options)} - {"level"}
+    known = {f.name for f in dataclasses.fields(Options)} - {"level"}  # level is params
+    unknown = set(options) - known
     if unknown:
-        raise InvalidArgumentError(f"unknown option(s): {', '.join(sorted(unknown))}")
+        hint = " (the parameter level is the argument params)" if "level" in unknown else ""
+        raise InvalidArgumentError(f"unknown option(s): {', '.join(sorted(unknown))}{hint}")
     opts = Options(level=params, **options)
     clock = [time.perf_counter()]
     train, held = _datasets(chain, data, validate, opts)
