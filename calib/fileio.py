@@ -228,6 +228,13 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
     raise OSError(errno.EFBIG, f"file larger than {_human_size(limit)}", str(target))
 
 
+def read_failure(exc: OSError) -> str:
+    """Why a file could not be read, as an error's reason: "no such file" or the OS's words."""
+    if isinstance(exc, FileNotFoundError):
+        return "no such file"
+    return f"cannot read the file: {exc.strerror or exc}"
+
+
 def read_text_limited(path: str | Path, limit: int) -> str:
     """Read a UTF-8 text file (a BOM is dropped) of at most ``limit`` bytes.
 

@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import CalibError, InvalidArgumentError, URDFError
-from ..fileio import read_bytes_limited, read_text_limited
+from ..fileio import read_bytes_limited, read_failure, read_text_limited
 from ..kinematics.catalog import erd_robots_dir
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
@@ -167,10 +167,8 @@ def read_srdf(path: str | Path, robot: Chain | Tree) -> tuple[str, tuple[str, ..
     path = Path(path)
     try:
         raw = read_bytes_limited(path, MAX_URDF_BYTES)
-    except FileNotFoundError:
-        raise _srdf_error(path, "no such file") from None
     except OSError as exc:
-        raise _srdf_error(path, f"cannot read the file: {exc.strerror or exc}") from None
+        raise _srdf_error(path, read_failure(exc)) from None
     if not raw.strip():
         raise _srdf_error(path, "empty file")
     try:

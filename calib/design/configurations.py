@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError
-from ..fileio import read_text_limited
+from ..fileio import read_failure, read_text_limited
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import TOOL_COLUMN, check_limits, csv_records, parse_number
 
@@ -73,10 +73,8 @@ def read_configurations(path: str | Path, chain: Chain) -> np.ndarray:
     """
     try:
         text = read_text_limited(path, MAX_CONFIGS_BYTES)
-    except FileNotFoundError:
-        raise DataError(str(path), "no such file") from None
     except OSError as exc:
-        raise DataError(str(path), f"cannot read the file: {exc.strerror or exc}") from None
+        raise DataError(str(path), read_failure(exc)) from None
     return parse_configurations(text, chain, str(path))
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import DataError, InvalidArgumentError, URDFError
-from ..fileio import read_text_limited
+from ..fileio import read_failure, read_text_limited
 from .mdh import MDHModel, from_chain
 from .robot import (
     Chain,
@@ -219,10 +219,8 @@ def _origins(doc: dict, src: str) -> dict:
 def _read_json(path: str | Path) -> dict:
     try:
         doc = json.loads(read_text_limited(path, MAX_JSON_BYTES))
-    except FileNotFoundError:
-        raise DataError(str(path), "no such file") from None
     except OSError as exc:
-        raise DataError(str(path), f"cannot read the file: {exc.strerror or exc}") from None
+        raise DataError(str(path), read_failure(exc)) from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise DataError(str(path), f"not a JSON file: {exc}") from None
     if not isinstance(doc, dict):

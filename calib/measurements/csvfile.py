@@ -47,7 +47,7 @@ import numpy as np
 
 from ..choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
 from ..exceptions import DataError, InvalidArgumentError
-from ..fileio import read_text_limited, write_atomic
+from ..fileio import read_failure, read_text_limited, write_atomic
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import Measurement, measured_point
 from ..identification.parameters import ParameterSet, parameter_set
@@ -751,10 +751,8 @@ def read_measurements(
     src = str(path)
     try:
         text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
-    except FileNotFoundError:
-        raise DataError(src, "no such file") from None
     except OSError as exc:
-        raise DataError(src, f"cannot read the file: {exc.strerror or exc}") from None
+        raise DataError(src, read_failure(exc)) from None
     return parse_measurements(text, chain, src, columns)
 
 
