@@ -74,7 +74,9 @@ def simulated_rows() -> list[list[str]]:
             chain, configs=100, measure=measure, marker=MARKER, seed=0, noise_mm=0.1
         ).measurements
         for level in ("auto", "complete"):
-            ms = median_ms(lambda d=data, lv=level, c=chain: calibrate(c, d, MARKER, lv), 7, 1)
+            ms = median_ms(
+                lambda d=data, lv=level, c=chain: calibrate(c, d, marker=MARKER, params=lv), 7, 1
+            )
             rows.append([f"{robot}, m=100, {measure}, --params {level}", f"{ms:.0f}", ""])
     return rows
 

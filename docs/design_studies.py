@@ -106,7 +106,7 @@ def payoff_study(robots=("ur5", "panda", "tiago")) -> None:
                 data = simulate(chain, q, "position", PAYOFF_MARKER, noise_mm=noise, seed=seed)
                 pred[set_name].append(heldout_i(model, q, L))
                 for level in ("auto", "complete"):
-                    result = calibrate(chain, data.measurements, PAYOFF_MARKER, level)
+                    result = calibrate(chain, data.measurements, marker=PAYOFF_MARKER, params=level)
                     rms = residual_stats(result, truth).position_rms
                     errors.setdefault((set_name, level), []).append(1e3 * rms)
             if seed == 0:

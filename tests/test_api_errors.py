@@ -112,7 +112,7 @@ def _cases():
         "calibrate unknown option": lambda: calib.calibrate(CHAIN, None, levl="paper"),
         "write_calibrated_urdf path": lambda: calib.write_calibrated_urdf(3.5, CHAIN, MDH, MDH),
         "calibrate_tree chain": lambda: calib.calibrate_tree(CHAIN, None),
-        "calibrate_tree level": lambda: calib.calibrate_tree(TREE, None, "auto"),
+        "calibrate_tree level": lambda: calib.calibrate_tree(TREE, None, params="auto"),
         "simulate_tree chain": lambda: calib.simulate_tree(CHAIN),
         "simulate_tree markers": lambda: calib.simulate_tree(TREE, markers=[1, 2]),
         "simulate_tree noise": lambda: calib.simulate_tree(TREE, noise_mm=-1),

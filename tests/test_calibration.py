@@ -34,6 +34,7 @@ from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, path,
 from calib.calibration.solve import Problem
 from calib.cli.commands import main
 from calib.identification.parameters import complete_parameters
+from calib.kinematics.mdh import from_chain
 from calib.measurements.csvfile import measurements_csv
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
@@ -67,7 +68,7 @@ def true_points(campaign, q, marker=MARKER) -> np.ndarray:
 @pytest.mark.parametrize("measure", ["position", "pose"])
 def test_jacobian_matches_finite_differences(measure):
     chain = chain_of("panda")
-    nominal = calibrate.__globals__["from_chain"](chain)
+    nominal = from_chain(chain)
     data = simulate(chain, configs=15, measure=measure, seed=3, marker=MARKER).measurements
     start = register(nominal, data.q, data.points, data.rotations)
     pset = complete_parameters(nominal)
@@ -206,7 +207,7 @@ def overfitting_campaign(chain):
 def test_noise_free_complete_fit_reproduces_the_true_robot(robot, measure):
     chain = chain_of(robot)
     campaign = simulate(chain, configs=60, measure=measure, marker=MARKER, seed=4)
-    res = calibrate(chain, campaign.measurements, MARKER, "complete").check()
+    res = calibrate(chain, campaign.measurements, marker=MARKER, params="complete").check()
     q = chain.random_configurations(100, 99)
     assert np.abs(res.points(q)[:, 0] - true_points(campaign, q)).max() < 1e-9
     if measure == "pose":

@@ -1,12 +1,21 @@
-"""The options of a calibration, their defaults and their one check: cheap to import.
+"""The options of a calibration, chain or tree: one value, one check; cheap to import.
 
-The command line builds its parser from them without importing the calibration itself;
-chains and trees check the options they share with :func:`check_run_options`.
+The command line builds its parser from the constants here without importing the
+calibration itself. :func:`~calib.calibration.pipeline.calibrate` and
+:func:`~calib.calibration.tree_pipeline.calibrate_tree` take the same keyword-only
+arguments and turn them into one :class:`Options`, checked once when it is made; a tree
+refuses (:meth:`Options.for_tree`) what only a chain's calibration can honour.
 """
 
 from __future__ import annotations
 
+import functools
+import inspect
+import math
 import numbers
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import ParamSpec, TypeVar
 
 from ..exceptions import InvalidArgumentError
 
@@ -17,11 +26,19 @@ default) keeps the ones the data support (:mod:`calib.calibration.selection`).""
 
 DEFAULT_LEVEL = "auto"
 
+TREE_LEVELS = ("frames", "complete")
+"""Parameter levels of a tree calibration."""
+
+DEFAULT_TREE_LEVEL = "complete"
+
 DEFAULT_MAX_ITERATIONS = 100
 """Most residual evaluations of each solver run."""
 
 LOSSES = ("linear", "soft_l1", "huber")
 """Losses of the fit: least squares, or a robust loss (scipy's, scale ``--noise-mm``)."""
+
+CHAIN_ONLY = ("fix", "free", "elastic", "loss", "noise_mm", "orientation_weight")
+"""Options a tree calibration does not take: it refuses them away from their defaults."""
 
 
 def _integer(value) -> bool:
@@ -52,3 +69,143 @@ def check_run_options(max_iterations, holdout, seed) -> None:
         or not (0.0 <= holdout < 1.0)
     ):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
+
+
+def _names(option: str, names: str | Iterable[str]) -> tuple[str, ...]:
+    """``fix`` or ``free`` as a tuple of names (one name may be given alone)."""
+    if isinstance(names, str):
+        names = (names,)
+    try:
+        out = tuple(names)
+    except TypeError:
+        raise InvalidArgumentError(f"{option} takes parameter names, got {names!r:.60}") from None
+    if not all(isinstance(n, str) for n in out):
+        raise InvalidArgumentError(f"{option} takes parameter names, got {out!r:.60}")
+    if len(set(out)) != len(out):
+        raise InvalidArgumentError(f"{option} names a parameter twice: {', '.join(out)}")
+    return out
+
+
+@dataclass(frozen=True)
+class Options:
+    """The options of a calibration, chain or tree, checked when made.
+
+    Attributes:
+        level: Parameter level, one of :data:`LEVELS` (a tree: :data:`TREE_LEVELS`).
+        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
+        free: Parameter names always fitted.
+        elastic: Fit joint compliance under gravity (None: only if ``free`` names one).
+        loss: One of :data:`LOSSES`.
+        noise_mm: Instrument noise [mm], or None.
+        orientation_weight: Weight of the orientation rows [m/rad], or None: estimated.
+        max_iterations: Most residual evaluations of each solver run.
+        holdout: Fraction of the rows set aside, in [0, 1).
+        seed: Seed of the holdout draw and of the generic configurations.
+
+    Raises:
+        InvalidArgumentError: A value out of its range or of the wrong type, a name given
+            twice, or both fixed and free.
+    """
+
+    level: str = DEFAULT_LEVEL
+    fix: tuple[str, ...] = ()
+    free: tuple[str, ...] = ()
+    elastic: bool | None = None
+    loss: str = "linear"
+    noise_mm: float | None = None
+    orientation_weight: float | None = None
+    max_iterations: int = DEFAULT_MAX_ITERATIONS
+    holdout: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.level, str) or self.level not in LEVELS:
+            raise InvalidArgumentError(
+                f"unknown parameter level '{self.level}': choose {', '.join(LEVELS)}"
+            )
+        if not isinstance(self.loss, str) or self.loss not in LOSSES:
+            raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
+        if self.elastic not in (None, True, False):
+            raise InvalidArgumentError(f"elastic is True, False or None, got {self.elastic!r}")
+        for name, value in (
+            ("orientation weight", self.orientation_weight),
+            ("noise", self.noise_mm),
+        ):
+            if value is not None and not (
+                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+            ):
+                raise InvalidArgumentError(f"the {name} must be a finite number > 0, got {value!r}")
+        check_run_options(self.max_iterations, self.holdout, self.seed)
+        object.__setattr__(self, "fix", _names("fix", self.fix))
+        object.__setattr__(self, "free", _names("free", self.free))
+        both = set(self.fix) & set(self.free)
+        if both:
+            raise InvalidArgumentError(f"{', '.join(sorted(both))} both fixed and free")
+
+    @property
+    def noise(self) -> float | None:
+        """Instrument noise [m], or None."""
+        return None if self.noise_mm is None else 1e-3 * self.noise_mm
+
+    def for_tree(self) -> Options:
+        """These options, checked for a tree's calibration (which takes fewer).
+
+        Raises:
+            InvalidArgumentError: A level other than :data:`TREE_LEVELS`, or a
+                :data:`CHAIN_ONLY` option away from its default.
+        """
+        if self.level not in TREE_LEVELS:
+            raise InvalidArgumentError(
+                f"unknown parameter level '{self.level}' for a tree: choose "
+                f"{', '.join(TREE_LEVELS)}"
+            )
+        default = Options()
+        for name in CHAIN_ONLY:
+            if getattr(self, name) != getattr(default, name):
+                raise InvalidArgumentError(
+                    f"{name} is for one chain: a tree is calibrated with params "
+                    f"({' or '.join(TREE_LEVELS)}), validate, holdout, seed and max_iterations"
+                )
+        return self
+
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+_RENAMED = {"level": "params", "chain": "robot", "tree": "robot", "markers": "marker"}
+"""Keywords users reach for, and the argument that takes what they mean."""
+
+
+def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
+    """A calibration entry point whose wrong arguments are a one-line InvalidArgumentError.
+
+    Python would raise a bare TypeError for an unknown keyword or an option given by
+    position; the wrapped function names the argument instead (and the one meant, for a
+    usual slip such as ``level=`` for ``params=``).
+    """
+    signature = inspect.signature(function)
+
+    @functools.wraps(function)
+    def checked(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            signature.bind(*args, **kwargs)
+        except TypeError as exc:
+            message = _argument_error(function.__name__, signature, kwargs, exc)
+            raise InvalidArgumentError(message) from None
+        return function(*args, **kwargs)
+
+    return checked
+
+
+def _argument_error(name: str, signature: inspect.Signature, kwargs, exc: TypeError) -> str:
+    unknown = sorted(set(kwargs) - set(signature.parameters))
+    if unknown:
+        hints = [f"{u} is called {_RENAMED[u]} here" for u in unknown if u in _RENAMED]
+        hint = f" ({'; '.join(hints)})" if hints else ""
+        return f"{name}: unknown argument(s) {', '.join(unknown)}{hint}"
+    if "positional" in str(exc):
+        return (
+            f"{name} takes the robot and the data by position and every other argument by "
+            f"name (e.g. params='complete'): {exc}"
+        )
+    return f"{name}: {exc}"

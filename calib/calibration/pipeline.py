@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,100 +14,68 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, Robot
 from ..kinematics.so3 import matrix_to_quaternion
+from ..kinematics.tree import Tree
 from ..measurements.csvfile import Measurements, check_against_chain
 from . import determined, diagnosis, outliers, validation, weighting
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
-from .options import (
-    DEFAULT_LEVEL,
-    DEFAULT_MAX_ITERATIONS,
-    LEVELS,
-    LOSSES,
-    check_run_options,
-)
+from .options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .registration import register
 from .result import CalibrationResult, ResidualStats, Validation
 from .selection import Selection, select
 from .solve import Fit, condition, covariance, fit, row_weights
+from .tree_pipeline import TreeCalibrationResult, calibrate_tree
 
 GROUPS = ("frame", "markers", "tool")
 """Names ``--fix`` takes for whole groups (besides single parameters)."""
 
 
-@dataclass(frozen=True)
-class Options:
-    """Validated options of :func:`calibrate` (see there)."""
-
-    level: str = DEFAULT_LEVEL
-    fix: tuple[str, ...] = ()
-    free: tuple[str, ...] = ()
-    elastic: bool | None = None
-    loss: str = "linear"
-    noise_mm: float | None = None
-    orientation_weight: float | None = None
-    max_iterations: int = DEFAULT_MAX_ITERATIONS
-    holdout: float = 0.0
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        if self.level not in LEVELS:
-            raise InvalidArgumentError(
-                f"unknown parameter level '{self.level}': choose {', '.join(LEVELS)}"
-            )
-        if self.loss not in LOSSES:
-            raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
-        for name, value in (
-            ("orientation weight", self.orientation_weight),
-            ("noise", self.noise_mm),
-        ):
-            if value is not None and not (
-                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-            ):
-                raise InvalidArgumentError(f"the {name} must be a finite number > 0, got {value!r}")
-        check_run_options(self.max_iterations, self.holdout, self.seed)
-        for opt, names in (("fix", self.fix), ("free", self.free)):
-            if len(set(names)) != len(names):
-                raise InvalidArgumentError(f"--{opt} names a parameter twice: {', '.join(names)}")
-        both = set(self.fix) & set(self.free)
-        if both:
-            raise InvalidArgumentError(f"{', '.join(sorted(both))} both fixed and free")
-
-    @property
-    def noise(self) -> float | None:
-        """Instrument noise [m], or None."""
-        return None if self.noise_mm is None else 1e-3 * self.noise_mm
-
-
+@checked_arguments
 def calibrate(
-    chain: Chain,
+    robot: Chain | Tree,
     data: Measurements,
-    marker=None,
-    params: str = DEFAULT_LEVEL,
     *,
+    params: str | None = None,
+    marker=None,
     validate: Measurements | None = None,
-    **options,
-) -> CalibrationResult:
-    """Calibrate a chain from measurements: a model that predicts unseen configurations.
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+) -> CalibrationResult | TreeCalibrationResult:
+    """Calibrate a chain (or a tree) from measurements: a model that predicts unseen configurations.
 
     Steps: check the data, set rows aside (``holdout``), register the measurement frame and
     the markers in closed form (naming a likely mistake if the data cannot be registered,
     setting outlier rows aside), choose the free parameters (``params``), fit them, and
-    validate the result on held-out rows.
+    validate the result on held-out rows. A tree is calibrated by
+    :func:`~calib.calibration.tree_pipeline.calibrate_tree`, which takes the same arguments.
 
     Args:
-        chain: The nominal chain.
+        robot: The nominal chain (or tree).
         data: Measurements of it (joints in chain order; see :mod:`calib.measurements.csvfile`).
+        params: Parameter level, one of ``LEVELS`` (default ``auto``; a tree:
+            ``TREE_LEVELS``, default ``complete``).
         marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
             [m] (default: the tool origin); the markers are fitted unless fixed.
-        params: Parameter level, one of ``LEVELS``.
         validate: Measurements of other configurations to score the result on (never fitted).
-        **options: ``fix``, ``free`` (parameter names, or ``frame``, ``markers``, ``tool``),
-            ``elastic`` (fit joint compliance under gravity, which the URDF cannot hold;
-            default: no, unless ``free`` names a compliance), ``loss``, ``noise_mm`` [mm],
-            ``orientation_weight`` [m/rad] (default: estimated from the data,
-            :mod:`calib.calibration.weighting`),
-            ``max_iterations``, ``holdout`` (fraction of rows set aside), ``seed``.
+        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
+        free: Parameter names (a compliance ``c1``.. included) always fitted.
+        elastic: Fit joint compliance under gravity, which the URDF cannot hold (default:
+            no, unless ``free`` names a compliance).
+        loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
+        noise_mm: Instrument noise [mm] (default: unknown).
+        orientation_weight: Weight of the orientation rows [m/rad] (default: estimated from
+            the data, :mod:`calib.calibration.weighting`).
+        max_iterations: Most residual evaluations of each solver run.
+        holdout: Fraction of the rows set aside (seeded); not with ``validate``.
+        seed: Seed of the holdout draw and of the generic configurations of the rank check.
 
     Returns:
         The result: check ``accepted`` (or call :meth:`CalibrationResult.check`).
@@ -117,14 +83,43 @@ def calibrate(
     Raises:
         DataError: The data do not belong to the chain, are too few, or match it only under
             a usual mistake (which is named).
-        InvalidArgumentError: A bad argument.
+        InvalidArgumentError: A bad argument (:class:`~.options.Options`), an unknown one, or
+            one given by position after ``data``.
     """
-    known = {f.name for f in dataclasses.fields(Options)} - {"level"}  # level is params
-    unknown = set(options) - known
-    if unknown:
-        hint = " (the parameter level is the argument params)" if "level" in unknown else ""
-        raise InvalidArgumentError(f"unknown option(s): {', '.join(sorted(unknown))}{hint}")
-    opts = Options(level=params, **options)
+    if isinstance(robot, Robot) and robot.is_tree:
+        return calibrate_tree(
+            robot,
+            data,
+            params=params,
+            marker=marker,
+            validate=validate,
+            fix=fix,
+            free=free,
+            elastic=elastic,
+            loss=loss,
+            noise_mm=noise_mm,
+            orientation_weight=orientation_weight,
+            max_iterations=max_iterations,
+            holdout=holdout,
+            seed=seed,
+        )
+    opts = Options(
+        level=DEFAULT_LEVEL if params is None else params,
+        fix=fix,
+        free=free,
+        elastic=elastic,
+        loss=loss,
+        noise_mm=noise_mm,
+        orientation_weight=orientation_weight,
+        max_iterations=max_iterations,
+        holdout=holdout,
+        seed=seed,
+    )
+    return _calibrate_chain(robot, data, marker, validate, opts)
+
+
+def _calibrate_chain(chain, data, marker, validate, opts: Options) -> CalibrationResult:
+    """:func:`calibrate` of a chain, its options checked."""
     clock = [time.perf_counter()]
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
@@ -161,7 +156,9 @@ def calibrate(
 def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
     """Check the data; the training set and the held-out set (with its label)."""
     if not isinstance(chain, Chain):
-        raise InvalidArgumentError(f"chain must be a Chain (see load_chain), got {chain!r:.60}")
+        raise InvalidArgumentError(
+            f"the robot must be a Chain or a Tree (see load_robot), got {chain!r:.60}"
+        )
     if not isinstance(data, Measurements):
         raise InvalidArgumentError(
             f"data must be Measurements (read_measurements), got {type(data).__name__}"

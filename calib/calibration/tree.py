@@ -31,9 +31,6 @@ from ..measurements.csvfile import Measurements
 from .model import FRAME_NAMES
 from .registration import rigid_fit
 
-TREE_LEVELS = ("frames", "complete")
-"""Parameter levels of a tree calibration."""
-
 REGISTRATION_ITERATIONS = 50
 """Most alternations of the closed-form registration (frame, then markers)."""
 

@@ -25,10 +25,10 @@ from ..kinematics.tree_model import TreeMDH, from_tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.csvfile import Measurements, check_against_chain
 from . import determined, diagnosis, outliers, validation
-from .options import DEFAULT_MAX_ITERATIONS, check_run_options
+from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, Options, checked_arguments
 from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
 from .solve import Fit, covariance, fit
-from .tree import TREE_LEVELS, TreeErrorModel, TreeState, register_tree
+from .tree import TreeErrorModel, TreeState, register_tree
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,42 +200,84 @@ class TreeCalibrationResult:
         return "\n".join(lines)
 
 
+@checked_arguments
 def calibrate_tree(
     tree: Tree,
     data: Measurements,
-    params: str = "complete",
     *,
+    params: str | None = None,
+    marker=None,
     validate: Measurements | None = None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> TreeCalibrationResult:
     """Calibrate a tree from measurements of several tools (one point per row and tool).
 
-    The guards of a chain's calibration apply: the options are checked at once, a level the
-    rows cannot determine is refused (:mod:`.determined`), data (and validation data) that
-    match the tree only under a usual mistake are refused naming it (:mod:`.diagnosis`),
-    outlier rows are set aside (:mod:`.outliers`), and a model worse than the registration
-    is refused (:func:`calib.calibration.validation.refusal`).
+    It takes the arguments of :func:`~calib.calibration.pipeline.calibrate` (which calls it
+    for a tree), checked as one :class:`~.options.Options`; those a tree cannot honour
+    (``marker`` and :data:`~.options.CHAIN_ONLY`) are refused unless left at their defaults.
+    The guards of a chain's calibration apply: a level the rows cannot determine is refused
+    (:mod:`.determined`), data (and validation data) that match the tree only under a usual
+    mistake are refused naming it (:mod:`.diagnosis`), outlier rows are set aside
+    (:mod:`.outliers`), and a model worse than the registration is refused
+    (:func:`calib.calibration.validation.refusal`).
 
     Args:
         tree: The nominal tree (:func:`calib.kinematics.tree.load_tree`).
         data: Measurements whose ``tool`` names the tool of each row.
-        params: ``complete`` (frame, markers and the tree's base parameters) or ``frames``.
+        params: ``complete`` (frame, markers and the tree's base parameters, the default) or
+            ``frames``.
+        marker: Not for a tree (its markers are registered in closed form): None.
         validate: Measurements of other configurations to score the result on.
+        fix: Not for a tree: ``()``.
+        free: Not for a tree: ``()``.
+        elastic: Not for a tree: None.
+        loss: Not for a tree: ``linear``.
+        noise_mm: Not for a tree: None.
+        orientation_weight: Not for a tree: None.
+        max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
-        max_iterations: Most residual evaluations of each solver run.
 
     Raises:
         DataError: Data of other joints or tools, pose or several-point rows, too few or
             too poor rows for the level, a usual mistake (named), validation rows that
             are training rows.
-        InvalidArgumentError: A bad argument.
+        InvalidArgumentError: A bad argument, or one only a chain's calibration takes.
     """
+    opts = Options(
+        level=DEFAULT_TREE_LEVEL if params is None else params,
+        fix=fix,
+        free=free,
+        elastic=elastic,
+        loss=loss,
+        noise_mm=noise_mm,
+        orientation_weight=orientation_weight,
+        max_iterations=max_iterations,
+        holdout=holdout,
+        seed=seed,
+    )
+    if not isinstance(tree, Tree):
+        raise InvalidArgumentError(f"tree must be a Tree (see load_tree), got {tree!r:.60}")
+    if marker is not None:
+        raise InvalidArgumentError(
+            "marker is for one chain: a tree's markers are registered in closed form"
+        )
+    return _calibrate_tree(tree, data, validate, opts.for_tree())
+
+
+def _calibrate_tree(tree: Tree, data, validate, opts: Options) -> TreeCalibrationResult:
+    """:func:`calibrate_tree` with its options checked."""
     clock = [time.perf_counter()]
-    check_run_options(max_iterations, holdout, seed)
-    train, held = _tree_datasets(tree, data, params, validate, holdout, seed)
+    max_iterations = opts.max_iterations
+    train, held = _tree_datasets(tree, data, validate, opts)
     nominal = from_tree(tree)
     notes: list[str] = []
     if validate is not None and _registrable(tree, validate):  # validation data are data
@@ -243,11 +285,11 @@ def calibrate_tree(
     reg = _diagnose(tree, nominal, train, max_iterations, notes)
     reg, train, dropped = _drop_outliers(nominal, reg, train, max_iterations, notes)
     clock.append(time.perf_counter())
-    model = _tree_model(tree, nominal, reg.state, train, params, seed)
+    model = _tree_model(tree, nominal, reg.state, train, opts.level, opts.seed)
     clock.append(time.perf_counter())
     fitted = fit(model, reg.state, train, None, 1.0, max_iterations=max_iterations)
     clock.append(time.perf_counter())
-    result = _tree_result(tree, params, train, held, fitted, reg.state)
+    result = _tree_result(tree, opts.level, train, held, fitted, reg.state)
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
     return dataclasses.replace(
@@ -323,13 +365,8 @@ def _drop_outliers(nominal, reg: Fit, data: Measurements, max_iterations: int, n
     return reg, data, tuple(dropped)
 
 
-def _tree_datasets(tree, data, params, validate, holdout, seed):
-    if not isinstance(tree, Tree):
-        raise InvalidArgumentError(f"tree must be a Tree (see load_tree), got {tree!r:.60}")
-    if params not in TREE_LEVELS:
-        raise InvalidArgumentError(
-            f"unknown parameter level '{params}' for a tree: choose {', '.join(TREE_LEVELS)}"
-        )
+def _tree_datasets(tree, data, validate, opts: Options):
+    """Check the data; the training set and the held-out set."""
     for d in (data, validate):
         if d is None:
             continue
@@ -347,16 +384,16 @@ def _tree_datasets(tree, data, params, validate, holdout, seed):
             f"no row measures the tool {missing[0]}: calibrate the tools the rows measure "
             f"(--tool for each)",
         )
-    out = round(holdout * data.m)
+    out = round(opts.holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools
     what = "measurement frame and marker parameters"
     determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
     if validate is not None:
-        if holdout > 0:
+        if opts.holdout > 0:
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         validation.check_held_out(data, validate)
         return data, validate
-    return validation.split(data, holdout, seed)
+    return validation.split(data, opts.holdout, opts.seed)
 
 
 def _tree_model(

@@ -145,7 +145,7 @@ def tool_arg(args: argparse.Namespace) -> str | tuple[str, ...] | None:
 def cmd_show(args: argparse.Namespace) -> int:
     """Print the MDH table of a chain or tree."""
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree):
+    if chain.is_tree:
         return _show_tree(chain, args.json)
     mdh = from_chain(chain)
     mimic = () if chain.coupling is None else chain.coupling.mimic
@@ -224,7 +224,7 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     if args.measure not in CAMPAIGN_MEASURES:
         raise InvalidArgumentError("--markers takes --measure position or pose")
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree):
+    if chain.is_tree:
         raise InvalidArgumentError("--markers counts for one chain: give one --tool")
     names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
     if args.json:
@@ -294,14 +294,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree) and args.measure != "position":
+    if chain.is_tree and args.measure != "position":
         raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
     check_output_paths(
         {"--out": out, "--truth": truth_path},
         {"the URDF": chain.urdf_path, "--configs-file": args.configs_file},
     )
     configs = _configs(args, chain)
-    if isinstance(chain, Tree):
+    if chain.is_tree:
         return _simulate_tree(args, chain, configs, (out, truth_path))
     campaign = simulate(
         chain,
@@ -393,7 +393,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """
     with _recorded_warnings() as recorded:
         chain = load_robot(args.robot, args.base, tool_arg(args))
-        if isinstance(chain, Tree):
+        if chain.is_tree:
             return _calibrate_tree(args, chain, recorded)
         return _calibrate_chain(args, chain, recorded)
 
@@ -456,8 +456,8 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     result = calibrate(
         chain,
         data,
-        args.marker,
-        args.params or DEFAULT_LEVEL,
+        params=args.params or DEFAULT_LEVEL,
+        marker=args.marker,
         validate=check,
         fix=tuple(args.fix),
         free=tuple(args.free),
@@ -576,7 +576,8 @@ CHAIN_ONLY = {
 
 def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
-    from ..calibration.tree_pipeline import TREE_LEVELS, calibrate_tree
+    from ..calibration.options import TREE_LEVELS
+    from ..calibration.tree_pipeline import calibrate_tree
     from ..kinematics.tree_export import calibrated_tree_urdf
     from ..kinematics.urdf_export import check_exportable
     from ..measurements.csvfile import read_measurements
@@ -609,7 +610,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     result = calibrate_tree(
         tree,
         data,
-        level,
+        params=level,
         validate=check,
         holdout=args.holdout,
         seed=args.seed,

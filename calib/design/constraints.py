@@ -148,7 +148,7 @@ def measured_points(robot: Chain | Tree, q: np.ndarray, markers: np.ndarray) -> 
         q: Joint positions ``(m, n)``.
         markers: Markers in their tool's frame ``(K, 3)`` [m].
     """
-    if isinstance(robot, Tree):
+    if robot.is_tree:
         F = from_tree(robot).forward(q)
         return F[..., :3, 3] + np.einsum("mtij,tj->mti", F[..., :3, :3], markers)
     kin = from_chain(robot).kinematics(q)

@@ -182,7 +182,7 @@ def design(
         q_all = candidate_configurations(chain, int(candidates), seed, constraints.margin)
     else:
         q_all = chain.check_configurations(candidates)
-    check_model_arguments(measure, params, orientation_weight, isinstance(chain, Tree))
+    check_model_arguments(measure, params, orientation_weight, chain.is_tree)
     keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
     q = q_all[keep]
     if len(q) < k:
@@ -207,7 +207,7 @@ def design(
     stages = ("filters", "jacobian", "exchange", "random")
     return Design(
         robot=chain.name,
-        tools=chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,),
+        tools=chain.tool_frames,
         joint_names=chain.joint_names,
         q=q[chosen],
         criterion=criterion,

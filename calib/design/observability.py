@@ -50,9 +50,10 @@ from ..calibration.model import (
     registration_state,
     selection_lift,
 )
-from ..calibration.pipeline import Options, level_names
+from ..calibration.options import TREE_LEVELS, Options
+from ..calibration.pipeline import level_names
 from ..calibration.solve import row_weights
-from ..calibration.tree import TREE_LEVELS, TreeErrorModel, TreeState
+from ..calibration.tree import TreeErrorModel, TreeState
 from ..checks import check_count, real_array
 from ..choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
@@ -227,7 +228,7 @@ def observation_model(
     Raises:
         InvalidArgumentError: A bad argument.
     """
-    if isinstance(chain, Tree):
+    if chain.is_tree:
         return _tree_observation_model(chain, measure, markers, params, structure_q, seed)
     check_model_arguments(measure, params, orientation_weight)
     mk = marker_array(markers)
@@ -278,7 +279,7 @@ def robot_markers(robot: Chain | Tree, markers) -> np.ndarray:
         InvalidArgumentError: Bad numbers, or a tree given another number of markers.
     """
     mk = marker_array(markers)
-    if not isinstance(robot, Tree):
+    if not robot.is_tree:
         return mk
     tree = robot
     if len(mk) == 1:

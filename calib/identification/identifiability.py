@@ -851,7 +851,7 @@ def analyze(
     t0 = time.perf_counter()
     chain = load_robot(robot, base, tool)
     t1 = time.perf_counter()
-    exact = from_tree(chain) if isinstance(chain, Tree) else from_chain(chain)
+    exact = from_tree(chain) if chain.is_tree else from_chain(chain)
     mdh = exact.idealized()
     t2 = time.perf_counter()
     q = chain.random_configurations(int(configs), seed)
@@ -860,7 +860,7 @@ def analyze(
     result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
     if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
         per_tool = result.per_tool
-        if isinstance(chain, Tree):  # so it is for each tool's chain through mimic joints
+        if chain.is_tree:  # so it is for each tool's chain through mimic joints
             pairs = zip(per_tool, chain.chains, strict=True)
             per_tool = tuple((t, None if c.coupling else n) for (t, n), c in pairs)
         result = dataclasses.replace(

@@ -146,8 +146,17 @@ class MDHModel:
         """Number of joints."""
         return len(self.sigma) - 2
 
-    def replace(self, **changes: np.ndarray) -> MDHModel:
-        """A copy with some arrays replaced (the model itself is never mutated)."""
+    def replace(self, **changes) -> MDHModel:
+        """A copy with some fields replaced (the model itself is never mutated).
+
+        ``source`` (the chain the model was converted from, which :meth:`idealized` converts
+        again without round-off) is kept when only the frame names change
+        (``base_frame``, ``tool_frame``). Any other change (a row's geometry, the joints)
+        makes the model another robot's than the chain's, whose idealization would drop the
+        change: ``source`` is then None, unless ``changes`` gives it.
+        """
+        if "source" not in changes and changes.keys() <= {"base_frame", "tool_frame"}:
+            changes = {**changes, "source": self.source}
         fields = {
             name: getattr(self, name)
             for name in (

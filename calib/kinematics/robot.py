@@ -8,6 +8,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -257,6 +258,42 @@ class CoupledJoints(JointCounts):
         return self.coupling.joint_values(lo + (hi - lo) * rng.random((int(m), len(lo))))
 
 
+class Robot(CoupledJoints):
+    """The contract a chain and a tree keep: what calib asks of a robot.
+
+    :class:`Chain` and :class:`~calib.kinematics.tree.Tree` derive from it. A chain is a
+    tree with one tool: ``tool_frames``, ``tool_ids``, ``n_tools`` and ``chains`` mean the
+    same for both. ``is_tree`` tells the places where each keeps its own implementation (a
+    chain's MDH model and a tree's model, and what is built on them: calibration,
+    campaigns, export, the command line's output); calib asks it rather than the robot's
+    class. A subclass has ``name``, ``urdf_path``, ``model``, ``base_frame``, ``base_id``,
+    the members of :class:`CoupledJoints` and the properties below.
+    """
+
+    is_tree: ClassVar[bool] = False
+    """True for a tree (of any number of tools), False for a chain."""
+
+    name: str
+    urdf_path: Path
+    chains: tuple[Chain, ...]
+    """The chain to each tool, in tool order."""
+
+    @property
+    def tool_frames(self) -> tuple[str, ...]:  # pragma: no cover
+        """Names of the tool frames, in tool order (a subclass's)."""
+        raise NotImplementedError
+
+    @property
+    def tool_ids(self) -> tuple[int, ...]:  # pragma: no cover
+        """Indices of the tool frames in ``model.frames``, in tool order (a subclass's)."""
+        raise NotImplementedError
+
+    @property
+    def n_tools(self) -> int:
+        """Number of tools."""
+        return len(self.tool_ids)
+
+
 def pin_configurations(
     model: pin.Model, q_ref: np.ndarray, joint_ids: tuple[int, ...], q: np.ndarray
 ) -> np.ndarray:
@@ -281,7 +318,7 @@ def pin_configurations(
 
 
 @dataclass(frozen=True, eq=False)
-class Chain(CoupledJoints):
+class Chain(Robot):
     """A serial chain between a base frame and a tool frame of a Pinocchio model.
 
     Joint positions are *URDF* positions, one number per chain joint (radians for revolute
@@ -345,6 +382,16 @@ class Chain(CoupledJoints):
     def tool_ids(self) -> tuple[int, ...]:
         """The tool frame's index in ``model.frames``, as a one-tool tree has it."""
         return (self.tool_id,)
+
+    @property
+    def tool_frames(self) -> tuple[str, ...]:
+        """The tool frame's name, as a one-tool tree has it."""
+        return (self.tool_frame,)
+
+    @property
+    def chains(self) -> tuple[Chain, ...]:
+        """The chain itself, as a one-tool tree has it."""
+        return (self,)
 
     def check_configurations(self, q: np.ndarray) -> np.ndarray:
         """Validate and reshape joint positions to ``(m, n)``.

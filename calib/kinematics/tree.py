@@ -11,6 +11,7 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -20,7 +21,7 @@ from ..exceptions import InvalidArgumentError
 from .mimic import Coupling, tree_coupling
 from .robot import (
     Chain,
-    CoupledJoints,
+    Robot,
     RobotModels,
     chain_between,
     check_frame_name,
@@ -37,7 +38,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class Tree(CoupledJoints):
+class Tree(Robot):
     """The union of the chains from one base frame to several tool frames.
 
     Attributes:
@@ -67,6 +68,7 @@ class Tree(CoupledJoints):
     lower: np.ndarray
     upper: np.ndarray
     coupling: Coupling | None = field(default=None, repr=False)
+    is_tree: ClassVar[bool] = True
 
     @property
     def model(self) -> pin.Model:
@@ -245,7 +247,7 @@ def load_robot(
     Raises:
         CalibError: See :func:`~calib.kinematics.robot.load_chain` and :func:`load_tree`.
     """
-    if isinstance(robot, Chain | Tree):
+    if isinstance(robot, Robot):
         return robot
     tools = (tool,) if tool is None or isinstance(tool, str) else tool
     if not isinstance(tools, list | tuple) or not tools:

@@ -158,7 +158,14 @@ class TreeMDH:
         )
 
     def replace(self, **changes) -> TreeMDH:
-        """A copy with some fields replaced (the model itself is never mutated)."""
+        """A copy with some fields replaced (the model itself is never mutated).
+
+        ``source`` is kept when only the frame names change (``base_frame``,
+        ``tool_frames``), as :meth:`MDHModel.replace` keeps it; any other change sets it to
+        None unless ``changes`` gives it.
+        """
+        if "source" not in changes and changes.keys() <= {"base_frame", "tool_frames"}:
+            changes = {**changes, "source": self.source}
         fields = {name: getattr(self, name) for name in _FIELDS}
         fields.update(changes)
         return TreeMDH(**fields)

@@ -354,7 +354,7 @@ def check_against_chain(data: Measurements, chain: Chain) -> None:
 
 def tool_frames(chain) -> tuple[str, ...]:
     """The tool frames of a chain (one) or of a tree (several)."""
-    return tuple(chain.tool_frames) if hasattr(chain, "tool_frames") else (chain.tool_frame,)
+    return tuple(chain.tool_frames)
 
 
 def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:

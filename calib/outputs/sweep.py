@@ -15,7 +15,7 @@ from ..exceptions import CalibError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.jacobian import Measurement
 from ..kinematics.catalog import catalog
-from ..kinematics.tree import Tree, load_robot
+from ..kinematics.tree import load_robot
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,7 @@ def sweep_one(
     label = f"{base or '?'} -> {', '.join(t or '?' for t in tools)}"
     try:
         chain = load_robot(robot, base, tool)
-        tools = chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,)
+        tools = chain.tool_frames
         label = f"{chain.base_frame} -> {', '.join(tools)}"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
