@@ -7,6 +7,7 @@ import functools
 import time
 import warnings
 from collections.abc import Callable
+from typing import overload
 
 import numpy as np
 
@@ -29,6 +30,46 @@ from .tree_pipeline import TreeCalibrationResult, calibrate_tree
 
 GROUPS = ("frame", "markers", "tool")
 """Names ``--fix`` takes for whole groups (besides single parameters)."""
+
+
+@overload
+def calibrate(
+    robot: Chain,
+    data: Measurements,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate: Measurements | None = None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+) -> CalibrationResult: ...
+
+
+@overload
+def calibrate(
+    robot: Tree,
+    data: Measurements,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate: Measurements | None = None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+) -> TreeCalibrationResult: ...
 
 
 @checked_arguments
@@ -118,8 +159,8 @@ def calibrate(
     return _calibrate_chain(robot, data, marker, validate, opts)
 
 
-def _calibrate_chain(chain, data, marker, validate, opts: Options) -> CalibrationResult:
-    """:func:`calibrate` of a chain, its options checked."""
+def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
+    """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
     clock = [time.perf_counter()]
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)

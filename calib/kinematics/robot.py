@@ -8,7 +8,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -275,8 +275,13 @@ class Robot(CoupledJoints):
 
     name: str
     urdf_path: Path
-    chains: tuple[Chain, ...]
-    """The chain to each tool, in tool order."""
+
+    if TYPE_CHECKING:  # a Tree's field, a Chain's property: no class attribute at run time
+
+        @property
+        def chains(self) -> tuple[Chain, ...]:
+            """The chain to each tool, in tool order."""
+            ...
 
     @property
     def tool_frames(self) -> tuple[str, ...]:  # pragma: no cover
@@ -362,6 +367,7 @@ class Chain(Robot):
     q_ref: np.ndarray
     ideal_model: pin.Model | None = field(default=None, repr=False)
     coupling: Coupling | None = field(default=None, repr=False)
+    is_tree: ClassVar[Literal[False]] = False
 
     def idealized(self) -> Chain:
         """The chain on its URDF with round-off removed, for structural analysis.

@@ -11,7 +11,7 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -68,7 +68,7 @@ class Tree(Robot):
     lower: np.ndarray
     upper: np.ndarray
     coupling: Coupling | None = field(default=None, repr=False)
-    is_tree: ClassVar[bool] = True
+    is_tree: ClassVar[Literal[True]] = True
 
     @property
     def model(self) -> pin.Model:
