@@ -222,7 +222,7 @@ class CoupledJoints(JointCounts):
     """Joints some of which may follow others (mimic): what a chain and a tree share.
 
     A subclass has ``joint_names``, ``lower``, ``upper``, ``coupling`` (None without mimic
-    joints), ``n`` and ``check_configurations``.
+    joints) and ``n``.
     """
 
     joint_names: tuple[str, ...]
@@ -231,9 +231,14 @@ class CoupledJoints(JointCounts):
     coupling: Coupling | None
     n: int
 
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:  # pragma: no cover
-        """Validate and reshape joint positions to ``(m, n)`` (a subclass's)."""
-        raise NotImplementedError
+    def check_configurations(self, q: np.ndarray) -> np.ndarray:
+        """Validate and reshape joint positions to ``(m, n)``.
+
+        Raises:
+            InvalidArgumentError: Wrong shape, or values that are not finite or beyond
+                :data:`~calib.checks.MAX_JOINT_POSITION`.
+        """
+        return joint_positions(q, self.n)
 
     @property
     def variable_names(self) -> tuple[str, ...]:
@@ -398,15 +403,6 @@ class Chain(Robot):
     def chains(self) -> tuple[Chain, ...]:
         """The chain itself, as a one-tool tree has it."""
         return (self,)
-
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:
-        """Validate and reshape joint positions to ``(m, n)``.
-
-        Raises:
-            InvalidArgumentError: Wrong shape, or values that are not finite or beyond
-                :data:`~calib.checks.MAX_JOINT_POSITION`.
-        """
-        return joint_positions(q, self.n)
 
     def pin_configurations(self, q: np.ndarray) -> np.ndarray:
         """Map URDF joint positions ``(m, n)`` to Pinocchio configurations ``(m, nq)``."""

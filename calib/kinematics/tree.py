@@ -16,7 +16,7 @@ from typing import ClassVar, Literal
 import numpy as np
 import pinocchio as pin
 
-from ..checks import check_count, check_work, joint_positions
+from ..checks import check_count, check_work
 from ..exceptions import InvalidArgumentError
 from .mimic import Coupling, tree_coupling
 from .robot import (
@@ -116,14 +116,6 @@ class Tree(Robot):
     def idealized(self) -> Tree:
         """The tree on its URDF with round-off removed (see :meth:`Chain.idealized`)."""
         return dataclasses.replace(self, chains=tuple(c.idealized() for c in self.chains))
-
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:
-        """Validate and reshape joint positions to ``(m, n)``.
-
-        Raises:
-            InvalidArgumentError: Wrong shape, not finite or beyond the position bound.
-        """
-        return joint_positions(q, self.n)
 
     def pin_configurations(self, q: np.ndarray) -> np.ndarray:
         """Map URDF joint positions ``(m, n)`` to Pinocchio configurations ``(m, nq)``."""
