@@ -211,7 +211,7 @@ def _origins(doc: dict, src: str) -> dict:
         )
         for o in origins.values()
     )
-    if not ok:
+    if not ok or not isinstance(origins, dict):
         raise DataError(src, "'nominal_origins' is missing or not {joint: {xyz, rpy}}")
     return origins
 
@@ -246,15 +246,17 @@ def _numbers(doc: dict, key: str, shape: tuple[int, ...], src: str) -> np.ndarra
 def _fields(doc: dict, src: str) -> tuple[str, str, list[str], np.ndarray]:
     """Base and tool frames, joint names and compliances of a report or compliance file."""
     comp = doc.get("compliance")
+    joints: object
+    values: object
     if isinstance(comp, dict):  # a report: joint -> compliance
         joints, values = list(comp), list(comp.values())
     else:
         joints, values = doc.get("joints"), comp
-    frames = (doc.get("base_frame"), doc.get("tool_frame"))
-    if not all(isinstance(f, str) for f in frames) or not isinstance(joints, list):
+    base, tool = doc.get("base_frame"), doc.get("tool_frame")
+    if not isinstance(base, str) or not isinstance(tool, str) or not isinstance(joints, list):
         raise DataError(src, "not a calib report or compliance file (base_frame, tool_frame)")
     c = _numbers({"compliance": values}, "compliance", (len(joints),), src)
-    return frames[0], frames[1], [str(j) for j in joints], c
+    return base, tool, [str(j) for j in joints], c
 
 
 def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:

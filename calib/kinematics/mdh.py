@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -146,7 +146,7 @@ class MDHModel:
         """Number of joints."""
         return len(self.sigma) - 2
 
-    def replace(self, **changes: np.ndarray) -> MDHModel:
+    def replace(self, **changes: Any) -> MDHModel:
         """A copy with some arrays replaced (the model itself is never mutated)."""
         fields = {
             name: getattr(self, name)

@@ -228,7 +228,11 @@ class CoupledJoints(JointCounts):
     lower: np.ndarray
     upper: np.ndarray
     coupling: Coupling | None
-    n: int
+
+    @property
+    def n(self) -> int:  # pragma: no cover
+        """Number of joints (a subclass's)."""
+        raise NotImplementedError
 
     def check_configurations(self, q: np.ndarray) -> np.ndarray:  # pragma: no cover
         """Validate and reshape joint positions to ``(m, n)`` (a subclass's)."""
@@ -614,5 +618,5 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
                 f"tree (load_tree, `calib analyze {entry.name}`)"
             )
         base = entry.base if base is None else base
-        tool = entry.tool if tool is None else tool
+        tool = entry.tools[0] if tool is None else tool
     return _chain_from_model(name, path, read_urdf_file(path), base, tool)

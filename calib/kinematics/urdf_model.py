@@ -24,7 +24,7 @@ from .urdf_xml import MAX_URDF_BYTES, URDFInfo, kinematic_xml, read_urdf_info
 _LOG = logging.getLogger("calib")
 
 
-def _pinocchio_failure(exc: Exception, messages: str) -> str:
+def _pinocchio_failure(exc: Exception | None, messages: str) -> str:
     """The cause of a failed build: urdfdom's first error line, else the exception's."""
     for line in messages.splitlines():
         text = line.strip()
