@@ -85,7 +85,7 @@ def householder(W: np.ndarray) -> np.ndarray:
     """
     qr, _, _, info = _lapack().dgeqrf(W)
     if info != 0:
-        return np.linalg.qr(W, mode="r")
+        return np.linalg.qr(W, mode="r")  # type: ignore[return-value]  # numpy's stubs: QRResult
     return qr
 
 

@@ -157,7 +157,8 @@ def _factor(blocks, k: int, mask) -> np.ndarray:
     for t, cols, Wt in blocks:
         rows = Wt if mask is None else Wt[mask[:, t]]
         if rows.size:
-            Rt = np.linalg.qr(rows.reshape(-1, len(cols)), mode="r")
+            # numpy's stubs type qr(mode="r") as QRResult; it returns the R array.
+            Rt: np.ndarray = np.linalg.qr(rows.reshape(-1, len(cols)), mode="r")  # type: ignore[assignment]
             F = np.zeros((Rt.shape[0], k))
             F[:, cols] = Rt
             out.append(F)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..checks import check_count, check_work, joint_positions
 from ..exceptions import (
@@ -234,7 +235,7 @@ class CoupledJoints(JointCounts):
         """Number of joints (a subclass's)."""
         raise NotImplementedError
 
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:  # pragma: no cover
+    def check_configurations(self, q: ArrayLike) -> np.ndarray:  # pragma: no cover
         """Validate and reshape joint positions to ``(m, n)`` (a subclass's)."""
         raise NotImplementedError
 
@@ -350,7 +351,7 @@ class Chain(CoupledJoints):
         """The tool frame's index in ``model.frames``, as a one-tool tree has it."""
         return (self.tool_id,)
 
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:
+    def check_configurations(self, q: ArrayLike) -> np.ndarray:
         """Validate and reshape joint positions to ``(m, n)``.
 
         Raises:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..checks import check_count, check_work, joint_positions
 from ..exceptions import InvalidArgumentError
@@ -115,7 +116,7 @@ class Tree(CoupledJoints):
         """The tree on its URDF with round-off removed (see :meth:`Chain.idealized`)."""
         return dataclasses.replace(self, chains=tuple(c.idealized() for c in self.chains))
 
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:
+    def check_configurations(self, q: ArrayLike) -> np.ndarray:
         """Validate and reshape joint positions to ``(m, n)``.
 
         Raises:

@@ -471,6 +471,7 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
             row=line,
             column=missing,
         )
+    fmt: str | None
     fmt, cols = columns.orientation, columns.orientation_columns
     if fmt == MARKERS:
         if len(pos) < 3 * marker_set.MIN_MARKERS:
@@ -550,11 +551,11 @@ def _column_keys(names: list[str], joints: Sequence[str]) -> list[str]:
     A joint's column is ``joint:NAME``, or plain ``NAME`` when the header has no ``joint:NAME``
     (then a plain ``NAME`` is a measurement column: ``x``, ``qw``, ``tool``).
     """
-    joints = set(joints)
-    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joints
+    joint_set = set(joints)
+    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joint_set
     keys = []
     for n in names:
-        if n in joints and n not in prefixed:
+        if n in joint_set and n not in prefixed:
             keys.append(JOINT_PREFIX + n)
         else:
             keys.append(n)
@@ -677,9 +678,9 @@ def parse_measurements(
     if fmt == MARKERS:
         position, quat = _marker_set(position, source)
     elif fmt is not None:
-        values = table[:, [col[n] for n in ori_cols]]
-        quat = _orientation(values, fmt, source, lines)
-        angles = Angles(fmt, _frozen(values)) if fmt in ("rotvec", "rpy") else None
+        ori = table[:, [col[n] for n in ori_cols]]
+        quat = _orientation(ori, fmt, source, lines)
+        angles = Angles(fmt, _frozen(ori)) if fmt in ("rotvec", "rpy") else None
     data = Measurements(
         chain.joint_names,
         q,
