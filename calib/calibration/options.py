@@ -49,6 +49,6 @@ def check_run_options(max_iterations, holdout, seed) -> None:
     if (
         isinstance(holdout, bool)
         or not isinstance(holdout, numbers.Real)
-        or not (0.0 <= holdout < 1.0)
+        or not (0.0 <= float(holdout) < 1.0)
     ):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")

@@ -156,7 +156,7 @@ def _rms(sq: np.ndarray, rows: int) -> np.ndarray:
 
 def path(
     A: np.ndarray, e: np.ndarray, rows: int, start: list[int], candidates: list[int]
-) -> tuple[list[int], list[float]]:
+) -> tuple[list[int], np.ndarray]:
     """The greedy forward path: each step adds the candidate of least leave-one-out error.
 
     The fit of the columns in is kept as an orthonormal basis Q, its residuals and its hat

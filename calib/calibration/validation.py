@@ -26,8 +26,8 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..measurements.csvfile import Measurements
 from .diagnosis import suspect
-from .model import State
 from .result import ResidualStats
+from .solve import FitState
 
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
@@ -90,7 +90,7 @@ def check_held_out(data: Measurements, held: Measurements) -> None:
     if data.tool is not None and held.tool is not None:
         tools = sorted(set(data.tool) | set(held.tool))
         index = {t: float(i) for i, t in enumerate(tools)}
-        extra = [np.array([[index[t]] for t in d.tool]) for d in (data, held)]
+        extra = [np.array([[index[t]] for t in tool]) for tool in (data.tool, held.tool)]
     else:
         extra = [np.zeros((d.m, 0)) for d in (data, held)]
     a, b = np.hstack([_values(data), extra[0]]), np.hstack([_values(held), extra[1]])
@@ -134,7 +134,7 @@ def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: st
         )
 
 
-def stats(state: State, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
+def stats(state: FitState, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
     """Errors measured - model of a state on some data."""
     return ResidualStats.of(state.residuals(data, torque), data.n_markers)
 

@@ -271,8 +271,8 @@ def _relative_motion(robot: Chain | Tree, a: int, b: int) -> bool:
 def _keep_pairs(robot: Chain | Tree, geom: pin.GeometryModel, srdf: Path | None) -> list[str]:
     """Active pairs: those the robot moves, minus SRDF-disabled and touching at reference."""
     model = robot.model
-    srdf_text, notes = read_srdf(srdf, robot) if srdf is not None else (None, ())
-    notes = list(notes)
+    srdf_text, srdf_notes = read_srdf(srdf, robot) if srdf is not None else (None, ())
+    notes = list(srdf_notes)
     joints = [o.parentJoint for o in geom.geometryObjects]
     for a in range(len(joints)):
         for b in range(a + 1, len(joints)):
