@@ -32,6 +32,7 @@ import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 from .exceptions import InvalidArgumentError, OutputError
 
@@ -42,6 +43,7 @@ _DIRECT_TREES = ("/dev/", "/proc/")
 """Paths under these folders are written directly (``/dev/stdout`` is a link into /proc)."""
 
 PathLike = str | os.PathLike[str]
+_AnyPath = TypeVar("_AnyPath", bound=PathLike)  # a mapping of Path keys is no mapping of PathLike
 
 
 class _Kind(enum.Enum):
@@ -284,7 +286,7 @@ def written_in_place(path: PathLike) -> bool:
     return _target(path).kind is not _Kind.RENAME
 
 
-def write_files_atomic(files: Mapping[PathLike, str | bytes]) -> None:
+def write_files_atomic(files: Mapping[_AnyPath, str | bytes]) -> None:
     """Write several files so that no regular file is ever left half-written.
 
     Regular (and new) files are first written in full to temporary files in their target

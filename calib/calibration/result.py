@@ -341,7 +341,7 @@ def gravity_dict(chain: Chain) -> dict:
     return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
 
 
-def finite(x: float | None) -> float | None:
+def finite(x: float | np.floating | None) -> float | None:
     """``float(x)``, or None for None, an infinity or NaN."""
     return float(x) if x is not None and math.isfinite(x) else None
 

@@ -558,7 +558,7 @@ def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
     return 0
 
 
-CHAIN_ONLY = {
+CHAIN_ONLY: dict[str, object] = {
     "fix": [],
     "free": [],
     "elastic": None,
@@ -660,7 +660,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     files: dict[Path, str | bytes] = {}
     if args.csv:
         files[Path(args.csv)] = rows_to_csv(rows)
-    if args.plot:
+    if plot_format is not None:  # --plot given
         title = f"Base parameters per chain, {args.measure} measurement"
         files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
     write_outputs(files)

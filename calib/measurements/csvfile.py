@@ -60,6 +60,7 @@ from ..kinematics.so3 import (
     rotation_matrix,
     rpy_to_matrix,
 )
+from ..kinematics.tree import Tree
 from . import marker_set
 
 POSITION_COLUMNS = ("x", "y", "z")
@@ -322,7 +323,7 @@ class Measurements:
         return np.hstack(parts)
 
 
-def joint_bounds(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
+def joint_bounds(chain: Chain | Tree) -> tuple[np.ndarray, np.ndarray]:
     """Limits a measured joint position must respect [rad or m]: infinite for continuous joints."""
     lower = np.where(chain.continuous, -np.inf, chain.lower)
     upper = np.where(chain.continuous, np.inf, chain.upper)
@@ -333,7 +334,7 @@ def _unit(sigma: int) -> str:
     return "m" if sigma == 1 else "rad"
 
 
-def check_against_chain(data: Measurements, chain: Chain) -> None:
+def check_against_chain(data: Measurements, chain: Chain | Tree) -> None:
     """Check that measurements belong to a chain: same joints, values near the limits.
 
     A reading past a joint limit by at most ``LIMIT_MARGIN`` gives a :class:`DataWarning`.
@@ -378,7 +379,7 @@ def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:
 
 
 def check_limits(
-    chain: Chain, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
+    chain: Chain | Tree, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
 ) -> None:
     """Raise a DataError naming the first joint value far outside its limits; warn on others."""
     lower, upper = joint_bounds(chain)
@@ -450,7 +451,7 @@ class Columns:
                 )
 
 
-def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: int):
+def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Position columns (K triples) and the orientation format and columns of a header.
 
     ``names``: the cells' meanings, joints prefixed (see :func:`_column_keys`).
@@ -512,7 +513,7 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
     return pos, fmt, tuple(cols or ())
 
 
-def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: int):
+def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
     names = [c.strip() for c in cells]
     if len(names) == 1 and ";" in names[0]:
@@ -610,7 +611,7 @@ def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np
 
 
 def parse_measurements(
-    text: str, chain: Chain, source: str = "<text>", columns: Columns | None = None
+    text: str, chain: Chain | Tree, source: str = "<text>", columns: Columns | None = None
 ) -> Measurements:
     """Parse and validate CSV text (see the module docstring for the format).
 
@@ -732,7 +733,7 @@ def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]
 
 
 def read_measurements(
-    path: str | Path, chain: Chain, columns: Columns | None = None
+    path: str | Path, chain: Chain | Tree, columns: Columns | None = None
 ) -> Measurements:
     """Read and validate a measurement CSV file (see the module docstring for the format).
 

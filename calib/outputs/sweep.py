@@ -9,6 +9,7 @@ import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 from ..checks import check_count, check_work
 from ..exceptions import CalibError, InvalidArgumentError
@@ -75,7 +76,7 @@ def sweep_one(
         label = f"{chain.base_frame} -> {', '.join(tools)}"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
-            kw = {
+            kw: dict[str, Any] = {
                 "measure": measurement.label,
                 "marker": measurement.marker,
                 "configs": configs,
