@@ -36,6 +36,22 @@ from typing import TypeVar
 
 from .exceptions import InvalidArgumentError, OutputError
 
+__all__ = [
+    "READ_CHUNK",
+    "STDOUT",
+    "PathLike",
+    "check_outputs",
+    "json_text",
+    "read_bytes_limited",
+    "read_failure",
+    "read_text_limited",
+    "same_file",
+    "write_all",
+    "write_atomic",
+    "write_files_atomic",
+    "written_in_place",
+]
+
 STDOUT = "-"
 """The output name that means standard output."""
 

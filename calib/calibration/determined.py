@@ -17,8 +17,10 @@ from __future__ import annotations
 
 from ..exceptions import DataError
 
+__all__ = ["check_equations", "check_rank"]
 
-def configs_needed(unknowns: int, rows: int) -> int:
+
+def _configs_needed(unknowns: int, rows: int) -> int:
     """Fewest configurations of ``rows`` equations each with more equations than ``unknowns``."""
     return unknowns // rows + 1
 
@@ -51,7 +53,7 @@ def check_equations(
     raise DataError(
         source,
         f"{_fitted(m, held, unit)} give {m * rows} equations for the {unknowns} {what}: it "
-        f"needs at least {configs_needed(unknowns, rows)} {unit} (more equations than "
+        f"needs at least {_configs_needed(unknowns, rows)} {unit} (more equations than "
         f"unknowns)",
     )
 
@@ -81,6 +83,6 @@ def check_rank(
         source,
         f"the {m} {unit} determine only {determined} of the {generic} parameters of --params "
         f"{level} (rank of the identification Jacobian): measure at least "
-        f"{configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
+        f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
         f"level or --fix parameters",
     )

@@ -29,6 +29,16 @@ import numpy as np
 
 from ..exceptions import CalibError
 
+__all__ = [
+    "EXPLAINS",
+    "NOISE_FACTOR",
+    "ORIENTATION_SUSPECT",
+    "SUSPECT",
+    "constant_joints",
+    "likely_cause",
+    "suspect",
+]
+
 SUSPECT = 0.02
 """Registration RMS error per point [m] above which the usual mistakes are tried."""
 

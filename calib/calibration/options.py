@@ -10,6 +10,14 @@ import numbers
 
 from ..exceptions import InvalidArgumentError
 
+__all__ = [
+    "DEFAULT_LEVEL",
+    "DEFAULT_MAX_ITERATIONS",
+    "LEVELS",
+    "LOSSES",
+    "check_run_options",
+]
+
 LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels: ``frames`` = measurement frame + markers; ``offsets`` adds the joint
 offsets; ``paper`` and ``complete`` add the base parameters of those sets; ``auto`` (the

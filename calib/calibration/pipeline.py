@@ -33,6 +33,15 @@ from .result import CalibrationResult, ResidualStats, Validation
 from .selection import Selection, select
 from .solve import Fit, condition, covariance, fit, row_weights
 
+__all__ = [
+    "GROUPS",
+    "SELECTION_WORK",
+    "Options",
+    "calibrate",
+    "level_names",
+    "residual_stats",
+]
+
 GROUPS = ("frame", "markers", "tool")
 """Names ``--fix`` takes for whole groups (besides single parameters)."""
 

@@ -39,6 +39,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = [
+    "DEPENDENT",
+    "MIN_GAIN",
+    "OUTER_FOLDS",
+    "STRENGTHS",
+    "Selection",
+    "Step",
+    "best_prefix",
+    "block_loo",
+    "forward",
+    "path",
+    "ridge_loo",
+    "select",
+    "shrinkage",
+]
+
 MIN_GAIN = 0.02
 """Relative decrease of the leave-one-out error a longer prefix of the path must bring."""
 

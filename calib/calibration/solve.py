@@ -11,6 +11,18 @@ import scipy.linalg
 
 from .model import ErrorModel
 
+__all__ = [
+    "TOLERANCE",
+    "Fit",
+    "FitModel",
+    "FitState",
+    "Problem",
+    "condition",
+    "covariance",
+    "fit",
+    "row_weights",
+]
+
 TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
 

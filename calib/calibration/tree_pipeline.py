@@ -30,6 +30,13 @@ from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
 from .solve import Fit, covariance, fit
 from .tree import TREE_LEVELS, TreeErrorModel, TreeState, register_tree
 
+__all__ = [
+    "TREE_LEVELS",
+    "ToolErrors",
+    "TreeCalibrationResult",
+    "calibrate_tree",
+]
+
 
 @dataclass(frozen=True, eq=False)
 class ToolErrors:

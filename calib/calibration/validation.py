@@ -29,6 +29,19 @@ from .diagnosis import suspect
 from .result import ResidualStats
 from .solve import FitState
 
+__all__ = [
+    "RANK_TOL",
+    "SAME",
+    "check_held_out",
+    "check_held_out_errors",
+    "full_rank",
+    "predicted_std",
+    "refusal",
+    "split",
+    "stats",
+    "urdf_alone_warning",
+]
+
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
 

@@ -42,6 +42,31 @@ from ..kinematics.tree import Tree, load_robot
 from ..kinematics.tree_model import from_tree
 from ..launcher import catalog_listing
 
+__all__ = [
+    "CHAIN_ONLY",
+    "THREADS_ENV",
+    "BooleanOnce",
+    "add_chain_args",
+    "blas_threads",
+    "build_parser",
+    "check_output_paths",
+    "cmd_analyze",
+    "cmd_calibrate",
+    "cmd_demo",
+    "cmd_list",
+    "cmd_show",
+    "cmd_simulate",
+    "cmd_sweep",
+    "compliance_path",
+    "given_options",
+    "main",
+    "positive_number",
+    "print_json",
+    "tool_arg",
+    "warning_lines",
+    "write_outputs",
+]
+
 if TYPE_CHECKING:
     import numpy as np
 

@@ -462,6 +462,7 @@ def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None
 __all__ = [
     "CRITERIA",
     "DESIGN_LEVELS",
+    "REFERENCE_CONFIGS",
     "Indices",
     "ObservationModel",
     "Reference",

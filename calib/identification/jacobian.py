@@ -10,6 +10,15 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import Kinematics, MDHModel
 from .parameters import ParameterSet
 
+__all__ = [
+    "MAX_MARKER",
+    "ROW_NAMES",
+    "Measurement",
+    "complete_jacobian",
+    "identification_jacobian",
+    "measured_point",
+]
+
 MAX_MARKER = 1e3
 """Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
 

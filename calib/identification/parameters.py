@@ -14,6 +14,16 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH
 
+__all__ = [
+    "ColumnLayout",
+    "Kind",
+    "Parameter",
+    "ParameterSet",
+    "complete_parameters",
+    "paper_parameters",
+    "parameter_set",
+]
+
 #: A chain's or a tree's MDH model: :meth:`ParameterSet.apply` returns the kind it is given.
 _Model = TypeVar("_Model", MDHModel, TreeMDH)
 

@@ -21,6 +21,14 @@ from types import ModuleType
 
 import numpy as np
 
+__all__ = [
+    "householder",
+    "pivoted_diagonal",
+    "solve_upper",
+    "triangular",
+    "upper",
+]
+
 _FLAPACK = "scipy.linalg._flapack"
 
 

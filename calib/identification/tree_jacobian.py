@@ -19,6 +19,8 @@ from ..kinematics.tree_model import TreeMDH
 from .jacobian import Measurement, identification_jacobian, measured_point
 from .parameters import Kind, Parameter, ParameterSet
 
+__all__ = ["tree_complete_jacobian", "tree_jacobian", "tree_parameters"]
+
 _POSE = Measurement((0, 1, 2, 3, 4, 5))
 _ORDER = (Kind.GAMMA, Kind.B, Kind.Y, Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA, Kind.R)
 

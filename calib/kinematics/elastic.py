@@ -41,6 +41,18 @@ from .robot import (
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 
+__all__ = [
+    "COMMAND_ITERATIONS",
+    "COMPLIANCE_FORMAT",
+    "MAX_JSON_BYTES",
+    "ElasticModel",
+    "compliance_document",
+    "gravity_in_base",
+    "load_calibrated",
+    "nominal_origins",
+    "predictions_csv",
+]
+
 COMPLIANCE_FORMAT = "1"
 """Version of the compliance file's layout (its ``format_version``)."""
 

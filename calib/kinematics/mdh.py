@@ -23,6 +23,23 @@ from ..exceptions import InvalidArgumentError
 from . import urdf_xml
 from .robot import Chain
 
+__all__ = [
+    "COINCIDENT_TOL",
+    "FREE_DIRECTION_TOL",
+    "PARALLEL_TOL",
+    "RIGID_TOL",
+    "SNAP_ANGLE",
+    "SNAP_LENGTH",
+    "Kinematics",
+    "MDHModel",
+    "converted_chain",
+    "frames_at_zero",
+    "from_chain",
+    "from_lines",
+    "snap_angle",
+    "snap_length",
+]
+
 PARALLEL_TOL = 0.01
 """Angle [rad] under which two consecutive axes are treated as parallel (Hayati's beta).
 

@@ -26,6 +26,24 @@ from .mimic import Coupling, chain_coupling
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 
+__all__ = [
+    "DEFAULT_PRISMATIC_RANGE",
+    "PLACEMENT_TOL",
+    "Chain",
+    "CoupledJoints",
+    "JointCounts",
+    "RobotModels",
+    "chain_between",
+    "check_count",
+    "check_frame_name",
+    "frame_placement",
+    "joint_placements",
+    "load_chain",
+    "pin_configurations",
+    "resolve_frame",
+    "robot_source",
+]
+
 PLACEMENT_TOL = 1e-12
 """Two same-named frames closer than this [m, rotation entries] are the same place."""
 

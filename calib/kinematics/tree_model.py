@@ -36,6 +36,8 @@ from .mdh import (
 )
 from .tree import Tree
 
+__all__ = ["ROW_ARRAYS", "TreeMDH", "from_tree"]
+
 ROW_ARRAYS = ("gamma", "b", "beta", "alpha", "d", "theta", "r", "y")
 """The geometric arrays of a row: angles [rad] and lengths [m]."""
 

@@ -34,6 +34,22 @@ from .robot import Chain, frame_placement, joint_placements
 from .urdf_links import add_marker_links, add_world_link
 from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
+__all__ = [
+    "NominalPoses",
+    "calibrated_urdf",
+    "check_base_fixed",
+    "check_exportable",
+    "child_link",
+    "edited_joints",
+    "measurement_to_base",
+    "parent_link",
+    "read_urdf_source",
+    "set_origin",
+    "spliced",
+    "write_calibrated_urdf",
+    "xml_layout",
+]
+
 
 def xml_layout(raw: bytes, src: str) -> tuple[int, int]:
     """Byte offsets of the root element: where it starts and where it ends."""

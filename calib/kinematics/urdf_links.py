@@ -15,6 +15,15 @@ import numpy as np
 
 from ..exceptions import CalibError, InvalidArgumentError
 
+__all__ = [
+    "add_marker_links",
+    "add_world_link",
+    "check_new_names",
+    "marker_joints",
+    "marker_link_names",
+    "root_link",
+]
+
 
 def marker_link_names(tool: str, k: int) -> tuple[str, ...]:
     """Names of the links of ``k`` markers on ``tool``: ``<tool>_marker1``, ..."""

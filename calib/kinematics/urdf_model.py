@@ -21,6 +21,13 @@ from ..exceptions import URDFError
 from ..fileio import read_bytes_limited
 from .urdf_xml import MAX_URDF_BYTES, URDFInfo, kinematic_xml, read_urdf_info
 
+__all__ = [
+    "MAX_CAPTURED_BYTES",
+    "build_model",
+    "console_captured",
+    "read_urdf_file",
+]
+
 _LOG = logging.getLogger("calib")
 
 

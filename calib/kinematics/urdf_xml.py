@@ -20,6 +20,22 @@ from dataclasses import dataclass
 
 from ..exceptions import URDFError
 
+__all__ = [
+    "JOINT_TYPES",
+    "MAX_ANGLE",
+    "MAX_COORDINATE",
+    "MAX_URDF_BYTES",
+    "MIN_AXIS_NORM",
+    "SNAP_ANGLE",
+    "SNAP_LENGTH",
+    "URDFInfo",
+    "URDFJoint",
+    "URDFMimic",
+    "kinematic_xml",
+    "parse_xml",
+    "read_urdf_info",
+]
+
 MAX_URDF_BYTES = 64 << 20
 """Largest URDF file calib reads [B] (64 MB; real robot descriptions are under 1 MB)."""
 

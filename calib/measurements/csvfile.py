@@ -63,6 +63,36 @@ from ..kinematics.so3 import (
 from ..kinematics.tree import Tree
 from . import marker_set
 
+__all__ = [
+    "CAMPAIGN_MEASURES",
+    "DEFAULT_ORIENTATION_COLUMNS",
+    "JOINT_PREFIX",
+    "LIMIT_MARGIN",
+    "LIMIT_TOL",
+    "MAX_COORDINATE",
+    "MAX_MEASUREMENTS_BYTES",
+    "POSITION_COLUMNS",
+    "QUATERNION_COLUMNS",
+    "TOOL_COLUMN",
+    "Angles",
+    "Campaign",
+    "Columns",
+    "DataWarning",
+    "Measurements",
+    "SimulationTruth",
+    "check_against_chain",
+    "check_limits",
+    "csv_records",
+    "joint_bounds",
+    "measurements_csv",
+    "parse_measurements",
+    "parse_number",
+    "read_measurements",
+    "simulate",
+    "tool_frames",
+    "write_measurements",
+]
+
 POSITION_COLUMNS = ("x", "y", "z")
 """Columns of the measured point [m] (one marker); markers 1..K use ``x1, y1, z1, ...``."""
 

@@ -18,6 +18,16 @@ from ..fileio import write_atomic
 from ..identification.identifiability import Identifiability
 from .sweep import SweepRow
 
+__all__ = [
+    "FIGURE_FORMATS",
+    "counts_figure",
+    "errors_figure",
+    "figure_bytes",
+    "figure_format",
+    "save_figure",
+    "spectrum_figure",
+]
+
 
 def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
     """Base-parameter counts per robot (paper and complete sets) against the theory."""

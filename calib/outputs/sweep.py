@@ -18,6 +18,14 @@ from ..identification.jacobian import Measurement
 from ..kinematics.catalog import catalog
 from ..kinematics.tree import Tree, load_robot
 
+__all__ = [
+    "COLUMNS",
+    "SweepRow",
+    "rows_table",
+    "rows_to_csv",
+    "sweep",
+]
+
 
 @dataclass(frozen=True)
 class SweepRow:
@@ -57,7 +65,7 @@ class SweepRow:
     note: str = ""
 
 
-def sweep_one(
+def _sweep_one(
     robot: str,
     base: str | None,
     tool: str | tuple[str, ...] | None,
@@ -149,7 +157,7 @@ def sweep(
         jobs.append((name, e.base, e.tool) if e else (name, None, None))
     jobs += [(str(Path(p)), None, None) for p in extra]
     it = progress(jobs) if progress else jobs
-    return [sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
+    return [_sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
 
 
 COLUMNS = (
