@@ -39,7 +39,7 @@ def check_equations(
         m: Configurations (or, for a tree, rows of the file) fitted.
         rows: Equations each gives.
         unknowns: Parameters fitted.
-        what: The parameters, for the message (e.g. ``parameters of --params complete``).
+        what: The parameters, for the message (e.g. ``parameters of params 'complete'``).
         source: The data, for the message.
         held: Configurations held out (``holdout``), for the message.
         unit: What ``m`` counts (default: configurations).
@@ -75,14 +75,14 @@ def check_rank(
     Raises:
         DataError: ``determined < generic`` or too few equations.
     """
-    check_equations(m, rows, generic, f"parameters of --params {level}", source, unit=unit)
+    check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
     if determined >= generic:
         return
     unit = unit or "configurations"
     raise DataError(
         source,
-        f"the {m} {unit} determine only {determined} of the {generic} parameters of --params "
-        f"{level} (rank of the identification Jacobian): measure at least "
+        f"the {m} {unit} determine only {determined} of the {generic} parameters of params "
+        f"{level!r} (rank of the identification Jacobian): measure at least "
         f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
-        f"level or --fix parameters",
+        f"level or fix parameters",
     )

@@ -352,7 +352,7 @@ def _tree_datasets(tree, data, params, validate, holdout, seed):
         raise DataError(
             data.source,
             f"no row measures the tool {missing[0]}: calibrate the tools the rows measure "
-            f"(--tool for each)",
+            f"(a tool for each)",
         )
     out = round(holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools

@@ -62,7 +62,7 @@ def split(
     n_out = round(fraction * data.m)
     if n_out == 0 and fraction > 0.0:
         raise InvalidArgumentError(
-            f"--holdout {fraction:g} of {data.m} rows holds out no row: give at least "
+            f"holdout {fraction:g} of {data.m} rows holds out no row: give at least "
             f"{1.0 / data.m:.3g} (one row), or 0 for no holdout"
         )
     if n_out == 0:
@@ -98,7 +98,7 @@ def check_held_out(data: Measurements, held: Measurements) -> None:
         raise DataError(
             held.source,
             "the validation file is the data file: held out must mean held out (give other "
-            "configurations, or --holdout)",
+            "configurations, or a holdout fraction)",
         )
     if data.tool is not None and held.tool is not None:
         tools = sorted(set(data.tool) | set(held.tool))

@@ -526,7 +526,7 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
         if jt in model.supports[jb]:
             raise ChainError(
                 f"tool frame '{tool_name}' is between the root and base frame '{base_name}': "
-                f"swap --base and --tool"
+                f"swap base and tool"
             )
         raise ChainError(
             f"frames '{base_name}' and '{tool_name}' are not on one serial chain "

@@ -149,7 +149,7 @@ def add_world_link(root: ET.Element, name: str, world_to_root: np.ndarray) -> No
         InvalidArgumentError: ``name`` (or ``name_joint``) is taken.
         CalibError: The URDF has no single root link.
     """
-    check_new_names(root, (name,), "--world-link")
+    check_new_names(root, (name,), "world_link")
     old = root_link(root)
     _append(
         root,

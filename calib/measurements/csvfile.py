@@ -508,7 +508,7 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
         if len(pos) < 3 * marker_set.MIN_MARKERS:
             raise DataError(
                 src,
-                f"--orientation markers needs x1..z{marker_set.MIN_MARKERS} or more points "
+                f"orientation 'markers' needs x1..z{marker_set.MIN_MARKERS} or more points "
                 f"of one rigid set, the header has {len(pos) // 3}",
                 row=line,
             )
@@ -530,7 +530,7 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
             raise InvalidArgumentError(
                 f"orientation column '{taken[0]}' is also a "
                 f"{'position' if taken[0] in pos else 'joint'} column: name other columns "
-                f"(--orientation-columns)"
+                f"(orientation_columns)"
             )
         for c in cols:
             if c not in free:
