@@ -428,5 +428,5 @@ def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, 
 
     monkeypatch.setattr(pipeline, "select", forbidden)
     line = one_error(capsys, ["calibrate", "ur5", "--data", data, "--out", tmp_path / "c"])
-    assert "--params auto" in line and "--params complete" in line and "200 configurations" in line
+    assert "params 'auto'" in line and "params complete" in line and "200 configurations" in line
     assert not (tmp_path / "c").exists()

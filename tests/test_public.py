@@ -157,3 +157,35 @@ def test_the_flag_check_catches_a_flag():
     assert not FLAG.search("fix names a parameter twice")
     assert not FLAG.search("x1..z3 -- and more")
     assert sum(1 for _ in library_messages()) > 100  # the walk sees the raise sites
+
+
+def test_the_command_line_says_the_flag_where_the_library_says_the_keyword(tmp_path, capsys):
+    """A base frame moved by a joint cannot take --world-link: calibrated_urdf's check names
+    ``world_link`` (a keyword), ``calib calibrate`` names its flag; no file is written."""
+    from calib.cli.commands import main
+    from calib.exceptions import CalibError
+    from calib.kinematics.robot import load_chain
+    from calib.kinematics.urdf_export import check_base_fixed
+
+    with pytest.raises(CalibError, match=r"^world_link: the base frame 'shoulder_link'"):
+        check_base_fixed(load_chain("ur5", base="shoulder_link"))
+    data, out = tmp_path / "m.csv", tmp_path / "c.urdf"
+    chain = ["ur5", "--base", "shoulder_link"]
+    assert main(["simulate", *chain, "--configs", "30", "--out", str(data)]) == 0
+    capsys.readouterr()
+    code = main(["calibrate", *chain, "--data", str(data), "--out", str(out), "--world-link", "w"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("calib: error: --world-link: the base frame 'shoulder_link' is moved")
+    assert not out.exists()
+
+
+def test_a_library_error_names_the_keyword(tmp_path):
+    """calibrate(holdout=...) that holds out no row says ``holdout``, not ``--holdout``."""
+    from calib import calibrate, load_chain, simulate
+    from calib.exceptions import InvalidArgumentError
+
+    chain = load_chain("ur5")
+    data = simulate(chain, 20, seed=3).measurements
+    with pytest.raises(InvalidArgumentError, match=r"^holdout 0.01 of 20 rows holds out no row"):
+        calibrate(chain, data, holdout=0.01)

@@ -496,7 +496,13 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     )
 
     def files() -> dict[Path, str | bytes]:
-        urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+        try:
+            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+        except InvalidArgumentError as exc:  # the library names the keyword: say the flag
+            text = str(exc)
+            if not text.startswith("world_link:"):
+                raise
+            raise InvalidArgumentError(f"--world-link{text.removeprefix('world_link')}") from None
         if result.elastic:
             if comp is None:
                 raise InvalidArgumentError(
@@ -540,7 +546,10 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
     check_new_names(root, tuple(n for n in names if n not in kept), "marker links")
     if world_link is not None:
         check_new_names(root, (world_link,), "--world-link")
-        check_base_fixed(chain)
+        try:
+            check_base_fixed(chain)
+        except CalibError as exc:  # the library names the keyword: say the flag
+            raise CalibError(f"--world-link{str(exc).removeprefix('world_link')}") from None
 
 
 def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:
