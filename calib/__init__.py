@@ -89,6 +89,39 @@ numpy, Pinocchio or SciPy."""
 
 __getattr__ = attributes(__name__, _LAZY)
 
+TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
+if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
+    from .calibration import CalibrationResult, ResidualStats, calibrate, residual_stats
+    from .calibration.tree_pipeline import TreeCalibrationResult, calibrate_tree
+    from .identification.identifiability import Identifiability, RankWarning, analyze, analyze_model
+    from .identification.jacobian import Measurement, complete_jacobian, identification_jacobian
+    from .identification.parameters import (
+        Kind,
+        Parameter,
+        ParameterSet,
+        complete_parameters,
+        paper_parameters,
+    )
+    from .identification.tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
+    from .kinematics.elastic import ElasticModel, load_calibrated
+    from .kinematics.mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
+    from .kinematics.robot import Chain, load_chain
+    from .kinematics.tree import Tree, load_robot, load_tree
+    from .kinematics.tree_export import calibrated_tree_urdf, write_calibrated_tree_urdf
+    from .kinematics.tree_model import TreeMDH, from_tree
+    from .kinematics.urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
+    from .measurements.csvfile import (
+        Campaign,
+        Columns,
+        DataWarning,
+        Measurements,
+        SimulationTruth,
+        read_measurements,
+        simulate,
+        write_measurements,
+    )
+    from .measurements.tree_campaign import TreeCampaign, simulate_tree
+
 
 class _Package(types.ModuleType):
     """calib itself: a function named as its own module (``tree_jacobian``) keeps the name.

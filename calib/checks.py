@@ -6,6 +6,16 @@ import numpy as np
 
 from .exceptions import InvalidArgumentError
 
+__all__ = [
+    "BYTES_PER_CONFIG_JOINT",
+    "MAX_JOINT_POSITION",
+    "MAX_WORK_BYTES",
+    "check_count",
+    "check_work",
+    "joint_positions",
+    "real_array",
+]
+
 MAX_JOINT_POSITION = 1e4
 """Largest joint position accepted [rad or m]; beyond it a value is not a robot's motion."""
 

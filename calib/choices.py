@@ -7,6 +7,18 @@ calibration, the measurements). The modules that use them import them from here.
 
 from __future__ import annotations
 
+__all__ = [
+    "CAMPAIGN_MEASURES",
+    "DEFAULT_CANDIDATES",
+    "DEFAULT_CONFIGS",
+    "DESIGN_LEVELS",
+    "EXCHANGE_CRITERIA",
+    "MARKERS",
+    "ORIENTATION_FORMATS",
+    "PARAMETER_SETS",
+    "UNITS",
+]
+
 DEFAULT_CONFIGS = 100
 """Random configurations drawn by default."""
 

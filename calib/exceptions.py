@@ -4,6 +4,21 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+__all__ = [
+    "AmbiguousFrameError",
+    "CalibError",
+    "CalibrationRefusedError",
+    "ChainError",
+    "ConvergenceError",
+    "DataError",
+    "FrameNotFoundError",
+    "InvalidArgumentError",
+    "OutputError",
+    "RobotNotFoundError",
+    "URDFError",
+    "UnsupportedJointError",
+]
+
 
 class CalibError(Exception):
     """Base class of every error calib raises on bad input.
@@ -37,7 +52,7 @@ class URDFError(CalibError):
         super().__init__(f"cannot load URDF '{path}': {reason}")
 
 
-def closest_first(name: str, candidates: Iterable[str]) -> list[str]:
+def _closest_first(name: str, candidates: Iterable[str]) -> list[str]:
     """Sort candidate names by similarity to ``name``, most similar first.
 
     Args:
@@ -62,7 +77,7 @@ class FrameNotFoundError(CalibError):
         self, name: str, available: Iterable[str], limit: int = 8, ranked_as: str | None = None
     ):
         self.name = name
-        self.available = tuple(closest_first(ranked_as or name, available))
+        self.available = tuple(_closest_first(ranked_as or name, available))
         shown = ", ".join(self.available[:limit])
         more = f", ... ({len(self.available)} in all)" if len(self.available) > limit else ""
         super().__init__(

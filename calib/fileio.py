@@ -32,8 +32,25 @@ import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 from .exceptions import InvalidArgumentError, OutputError
+
+__all__ = [
+    "READ_CHUNK",
+    "STDOUT",
+    "PathLike",
+    "check_outputs",
+    "json_text",
+    "read_bytes_limited",
+    "read_failure",
+    "read_text_limited",
+    "same_file",
+    "write_all",
+    "write_atomic",
+    "write_files_atomic",
+    "written_in_place",
+]
 
 STDOUT = "-"
 """The output name that means standard output."""
@@ -42,6 +59,7 @@ _DIRECT_TREES = ("/dev/", "/proc/")
 """Paths under these folders are written directly (``/dev/stdout`` is a link into /proc)."""
 
 PathLike = str | os.PathLike[str]
+_AnyPath = TypeVar("_AnyPath", bound=PathLike)  # a mapping of Path keys is no mapping of PathLike
 
 
 class _Kind(enum.Enum):
@@ -284,7 +302,7 @@ def written_in_place(path: PathLike) -> bool:
     return _target(path).kind is not _Kind.RENAME
 
 
-def write_files_atomic(files: Mapping[PathLike, str | bytes]) -> None:
+def write_files_atomic(files: Mapping[_AnyPath, str | bytes]) -> None:
     """Write several files so that no regular file is ever left half-written.
 
     Regular (and new) files are first written in full to temporary files in their target

@@ -23,6 +23,8 @@ from . import __version__
 from .exceptions import CalibError
 from .kinematics.catalog import catalog
 
+__all__ = ["INTERRUPTED", "catalog_listing", "main"]
+
 
 def catalog_listing(as_json: bool) -> str:
     """What ``calib list`` prints: the catalog as a table, or as JSON."""

@@ -6,6 +6,8 @@ import importlib
 import sys
 from collections.abc import Callable, Mapping
 
+__all__ = ["attributes"]
+
 
 def attributes(package: str, table: Mapping[str, str]) -> Callable[[str], object]:
     """A module ``__getattr__`` that imports ``package.<table[name]>`` when ``name`` is used.

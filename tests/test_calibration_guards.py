@@ -223,7 +223,7 @@ def test_tree_level_the_rows_cannot_determine_is_refused(tmp_path):
     tree = load_robot("bolt")
     camp = simulate_tree(tree, 30, markers=MARKER, seed=6)
     data = camp.measurements
-    with pytest.raises(DataError, match="parameters of --params complete"):
+    with pytest.raises(DataError, match="parameters of params 'complete'"):
         calibrate_tree(tree, data.subset(np.arange(6)))
     q = data.q.copy()
     q[:, 2] = 0.4  # FL_KFE never moves

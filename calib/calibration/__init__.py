@@ -35,6 +35,14 @@ _LAZY = {
 
 __getattr__ = attributes(__name__, _LAZY)
 
+TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
+if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
+    from .model import ErrorModel, State
+    from .outliers import Outlier
+    from .pipeline import calibrate, residual_stats
+    from .result import CalibrationResult, ResidualStats, Validation
+    from .selection import Selection, Step
+
 
 __all__ = [
     "DEFAULT_LEVEL",

@@ -94,7 +94,7 @@ def check_marker_work(m: int, k: int, n_params: int, pose: bool) -> None:
     per_config = marker_work_bytes(1, k, n_params, pose)
     fit = [f"at most {lo} markers"] if lo else []
     if MAX_WORK_BYTES // per_config:
-        fit.append(f"at most {MAX_WORK_BYTES // per_config} configurations (--configs)")
+        fit.append(f"at most {MAX_WORK_BYTES // per_config} configurations (configs)")
     raise InvalidArgumentError(
         f"{k} markers at {m} configurations need about {need / 2**30:.3g} GB; calib allows "
         f"{MAX_WORK_BYTES / 2**30:g} GB: use {' or '.join(fit)}"

@@ -17,8 +17,10 @@ from __future__ import annotations
 
 from ..exceptions import DataError
 
+__all__ = ["check_equations", "check_rank"]
 
-def configs_needed(unknowns: int, rows: int) -> int:
+
+def _configs_needed(unknowns: int, rows: int) -> int:
     """Fewest configurations of ``rows`` equations each with more equations than ``unknowns``."""
     return unknowns // rows + 1
 
@@ -37,7 +39,7 @@ def check_equations(
         m: Configurations (or, for a tree, rows of the file) fitted.
         rows: Equations each gives.
         unknowns: Parameters fitted.
-        what: The parameters, for the message (e.g. ``parameters of --params complete``).
+        what: The parameters, for the message (e.g. ``parameters of params 'complete'``).
         source: The data, for the message.
         held: Configurations held out (``holdout``), for the message.
         unit: What ``m`` counts (default: configurations).
@@ -51,7 +53,7 @@ def check_equations(
     raise DataError(
         source,
         f"{_fitted(m, held, unit)} give {m * rows} equations for the {unknowns} {what}: it "
-        f"needs at least {configs_needed(unknowns, rows)} {unit} (more equations than "
+        f"needs at least {_configs_needed(unknowns, rows)} {unit} (more equations than "
         f"unknowns)",
     )
 
@@ -73,14 +75,14 @@ def check_rank(
     Raises:
         DataError: ``determined < generic`` or too few equations.
     """
-    check_equations(m, rows, generic, f"parameters of --params {level}", source, unit=unit)
+    check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
     if determined >= generic:
         return
     unit = unit or "configurations"
     raise DataError(
         source,
-        f"the {m} {unit} determine only {determined} of the {generic} parameters of --params "
-        f"{level} (rank of the identification Jacobian): measure at least "
-        f"{configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
-        f"level or --fix parameters",
+        f"the {m} {unit} determine only {determined} of the {generic} parameters of params "
+        f"{level!r} (rank of the identification Jacobian): measure at least "
+        f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
+        f"level or fix parameters",
     )

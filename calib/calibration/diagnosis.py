@@ -29,6 +29,16 @@ import numpy as np
 
 from ..exceptions import CalibError
 
+__all__ = [
+    "EXPLAINS",
+    "NOISE_FACTOR",
+    "ORIENTATION_SUSPECT",
+    "SUSPECT",
+    "constant_joints",
+    "likely_cause",
+    "suspect",
+]
+
 SUSPECT = 0.02
 """Registration RMS error per point [m] above which the usual mistakes are tried."""
 
@@ -57,7 +67,7 @@ def _mistakes(data, revolute: np.ndarray) -> Iterator[tuple[str, object]]:
         q[:, revolute] = np.deg2rad(q[:, revolute])
         yield "revolute joint positions in degrees, not radians", dataclasses.replace(data, q=q)
     yield (
-        "positions in millimetres, not metres (--units mm)",
+        "positions in millimetres, not metres (units mm)",
         dataclasses.replace(data, position=data.position * 1e-3),
     )
     if data.quaternion is not None:  # wrong orientations distort the points' registration too
@@ -71,11 +81,11 @@ ORIENTATION_SUSPECT = 0.1
 def _quaternion_orders(data) -> Iterator[tuple[str, object]]:
     quat = data.quaternion
     yield (
-        "quaternions written w, x, y, z (--orientation quat-wxyz)",
+        "quaternions written w, x, y, z (orientation quat-wxyz)",
         dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
     )
     yield (
-        "quaternions written x, y, z, w (--orientation quat-xyzw)",
+        "quaternions written x, y, z, w (orientation quat-xyzw)",
         dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
     )
 

@@ -39,6 +39,17 @@ from ..kinematics.so3 import (
     skew,
 )
 
+__all__ = [
+    "FRAME_NAMES",
+    "TOOL_NAMES",
+    "ErrorModel",
+    "State",
+    "compliance_name",
+    "offset_parameter",
+    "registration_state",
+    "selection_lift",
+]
+
 FRAME_NAMES = ("frame.rx", "frame.ry", "frame.rz", "frame.x", "frame.y", "frame.z")
 """Names of the measurement-frame parameters: rotation [rad] then translation [m]."""
 
@@ -46,7 +57,7 @@ TOOL_NAMES = ("tool.rx", "tool.ry", "tool.rz")
 """Names of the measured frame's rotation in the tool frame [rad] (pose data)."""
 
 
-def marker_names(k: int) -> tuple[str, str, str]:
+def _marker_names(k: int) -> tuple[str, str, str]:
     """Names of marker k's coordinates (1-based) in the tool frame [m]."""
     return (f"marker{k}.x", f"marker{k}.y", f"marker{k}.z")
 
@@ -143,7 +154,7 @@ class ErrorModel:
         """Names of the free parameters, in the order of x."""
         out: list[str] = list(FRAME_NAMES) if self.frame else []
         if self.markers:
-            out += [n for k in range(self.n_markers) for n in marker_names(k + 1)]
+            out += [n for k in range(self.n_markers) for n in _marker_names(k + 1)]
         if self.pose and self.tool:
             out += TOOL_NAMES
         out += self.base

@@ -19,6 +19,19 @@ from typing import ParamSpec, TypeVar
 
 from ..exceptions import InvalidArgumentError
 
+__all__ = [
+    "CHAIN_ONLY",
+    "DEFAULT_LEVEL",
+    "DEFAULT_MAX_ITERATIONS",
+    "DEFAULT_TREE_LEVEL",
+    "LEVELS",
+    "LOSSES",
+    "TREE_LEVELS",
+    "Options",
+    "check_run_options",
+    "checked_arguments",
+]
+
 LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels: ``frames`` = measurement frame + markers; ``offsets`` adds the joint
 offsets; ``paper`` and ``complete`` add the base parameters of those sets; ``auto`` (the
@@ -66,7 +79,7 @@ def check_run_options(max_iterations, holdout, seed) -> None:
     if (
         isinstance(holdout, bool)
         or not isinstance(holdout, numbers.Real)
-        or not (0.0 <= holdout < 1.0)
+        or not (0.0 <= float(holdout) < 1.0)
     ):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
 

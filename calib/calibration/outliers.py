@@ -17,6 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = [
+    "FACTOR",
+    "NOISE_FACTOR",
+    "PASSES",
+    "Outlier",
+    "find_pose_outliers",
+]
+
 FACTOR = 5.0
 """An outlier's error is more than this many times the median configuration error."""
 
@@ -55,13 +63,13 @@ class Outlier:
         return f"row {self.row} ({1e3 * self.error:.3g} mm)"
 
 
-def configuration_errors(residual: np.ndarray, n_markers: int) -> np.ndarray:
+def _configuration_errors(residual: np.ndarray, n_markers: int) -> np.ndarray:
     """Largest point error of each configuration ``(m,)`` [m] from residuals ``(m, rows)``."""
     pts = residual[:, : 3 * n_markers].reshape(len(residual), n_markers, 3)
     return np.max(np.linalg.norm(pts, axis=2), axis=1)
 
 
-def find_outliers(errors: np.ndarray, noise: float | None) -> np.ndarray:
+def _find_outliers(errors: np.ndarray, noise: float | None) -> np.ndarray:
     """Boolean mask of the outliers among configuration errors [m]."""
     median = float(np.median(errors))
     bad = errors > FACTOR * median
@@ -86,14 +94,14 @@ def find_pose_outliers(
     Returns:
         The boolean mask of the outliers and the outliers (the point error first where both).
     """
-    errors = configuration_errors(residual, n_markers)
-    bad = find_outliers(errors, noise)
+    errors = _configuration_errors(residual, n_markers)
+    bad = _find_outliers(errors, noise)
     found = [
         Outlier(rows[i], float(errors[i]), float(np.median(errors))) for i in np.flatnonzero(bad)
     ]
     if residual.shape[1] == 3 * n_markers + 3:
         rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-        bad_rot = find_outliers(rot, None) & ~bad
+        bad_rot = _find_outliers(rot, None) & ~bad
         median = float(np.median(rot))
         found += [
             Outlier(rows[i], float(rot[i]), median, "orientation") for i in np.flatnonzero(bad_rot)

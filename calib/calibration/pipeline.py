@@ -28,6 +28,15 @@ from .selection import Selection, select
 from .solve import Fit, condition, covariance, fit, row_weights
 from .tree_pipeline import TreeCalibrationResult, calibrate_tree
 
+__all__ = [
+    "GROUPS",
+    "SELECTION_WORK",
+    "Options",
+    "calibrate",
+    "level_names",
+    "residual_stats",
+]
+
 GROUPS = ("frame", "markers", "tool")
 """Names ``--fix`` takes for whole groups (besides single parameters)."""
 
@@ -439,7 +448,7 @@ def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[st
     for name in (*opts.fix, *opts.free):
         if name not in valid:
             raise InvalidArgumentError(
-                f"unknown parameter '{name}' for --fix/--free: give frame, markers, tool, a "
+                f"unknown parameter '{name}' for fix/free: give frame, markers, tool, a "
                 f"parameter of the {pset.label} set (e.g. {', '.join(pset.names[2:5])}) or a "
                 f"compliance c1..c{nominal.n}"
             )
@@ -478,7 +487,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     elif len(kept) < generic:
         notes.append(
             f"the {data.m} configurations determine {len(kept)} of the {generic} parameters "
-            f"generic configurations would: --params auto chooses among those only"
+            f"generic configurations would: params 'auto' chooses among those only"
         )
     if opts.level == "auto":
         check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
@@ -534,10 +543,10 @@ def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None
     work = m * rows * (fixed + candidates) ** 2 * candidates
     if work > SELECTION_WORK:
         raise InvalidArgumentError(
-            f"--params auto would cross-validate {candidates} parameters on {m} configurations "
+            f"params 'auto' would cross-validate {candidates} parameters on {m} configurations "
             f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
             f"times the work calib runs it on (about a minute on one core); give a level "
-            f"(--params complete, paper, offsets or frames), or fewer configurations or markers"
+            f"(params complete, paper, offsets or frames), or fewer configurations or markers"
         )
 
 
@@ -565,7 +574,7 @@ def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:
             if fixed not in kept
             else "it is regrouped with parameters kept before it (not identifiable on its own)"
         )
-        raise InvalidArgumentError(f"--free {name} cannot be fitted: {why}; drop it from --free")
+        raise InvalidArgumentError(f"free {name} cannot be fitted: {why}; drop it from free")
 
 
 def _assemble(

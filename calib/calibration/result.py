@@ -19,6 +19,16 @@ from .model import ErrorModel, State
 from .outliers import Outlier
 from .selection import Selection
 
+__all__ = [
+    "DEPRECATED",
+    "REPORT_FORMAT",
+    "CalibrationResult",
+    "ResidualStats",
+    "Validation",
+    "finite",
+    "finite_tree",
+]
+
 
 @dataclass(frozen=True)
 class ResidualStats:
@@ -278,7 +288,7 @@ class CalibrationResult:
             "markers": self.urdf_markers.tolist(),
             "marker": self.urdf_markers[0].tolist(),
             "marker_links": list(self.marker_links),
-            "measured_frame": pose_dict(self.tool_placement),
+            "measured_frame": _pose_dict(self.tool_placement),
             "world_link": world_link,
             "params": self.level,
             "configs": self.data.m,
@@ -306,8 +316,8 @@ class CalibrationResult:
             "compliance": dict(
                 zip(self.nominal.joint_names[1:-1], self.state.compliance.tolist(), strict=True)
             ),
-            "gravity": gravity_dict(self.chain),
-            "measurement_to_base": pose_dict(T),
+            "gravity": _gravity_dict(self.chain),
+            "measurement_to_base": _pose_dict(T),
             "mdh_nominal": self.nominal.rows(),
             "mdh_calibrated": self.calibrated.rows(),
             "warnings": list(self.warnings),
@@ -326,7 +336,7 @@ DEPRECATED = {
 """Keys written under an old name for one more format, and why (the report's ``deprecated``)."""
 
 
-def pose_dict(T: np.ndarray) -> dict:
+def _pose_dict(T: np.ndarray) -> dict:
     """A pose ``(4, 4)`` as ``{xyz [m], rpy [rad], matrix}`` (JSON-ready)."""
     T = np.asarray(T, dtype=float)
     return {
@@ -336,12 +346,12 @@ def pose_dict(T: np.ndarray) -> dict:
     }
 
 
-def gravity_dict(chain: Chain) -> dict:
+def _gravity_dict(chain: Chain) -> dict:
     """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
     return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
 
 
-def finite(x: float | None) -> float | None:
+def finite(x: float | np.floating | None) -> float | None:
     """``float(x)``, or None for None, an infinity or NaN."""
     return float(x) if x is not None and math.isfinite(x) else None
 

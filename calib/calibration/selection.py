@@ -39,6 +39,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = [
+    "DEPENDENT",
+    "MIN_GAIN",
+    "OUTER_FOLDS",
+    "STRENGTHS",
+    "Selection",
+    "Step",
+    "best_prefix",
+    "block_loo",
+    "forward",
+    "path",
+    "ridge_loo",
+    "select",
+    "shrinkage",
+]
+
 MIN_GAIN = 0.02
 """Relative decrease of the leave-one-out error a longer prefix of the path must bring."""
 
@@ -156,7 +172,7 @@ def _rms(sq: np.ndarray, rows: int) -> np.ndarray:
 
 def path(
     A: np.ndarray, e: np.ndarray, rows: int, start: list[int], candidates: list[int]
-) -> tuple[list[int], list[float]]:
+) -> tuple[list[int], np.ndarray]:
     """The greedy forward path: each step adds the candidate of least leave-one-out error.
 
     The fit of the columns in is kept as an orthonormal basis Q, its residuals and its hat

@@ -4,19 +4,73 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 import scipy.linalg
 
-from .model import ErrorModel, State
+from .model import ErrorModel
+
+__all__ = [
+    "TOLERANCE",
+    "Fit",
+    "FitModel",
+    "FitState",
+    "Problem",
+    "condition",
+    "covariance",
+    "fit",
+    "row_weights",
+]
 
 TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
 
 
+class FitState(Protocol):
+    """What a fit needs of a state (a chain's :class:`State` or a tree's ``TreeState``)."""
+
+    def residuals(self, data: Any, torque: np.ndarray | None = None) -> np.ndarray:
+        """Measured - model per configuration ``(m, rows)`` [m, rad]."""
+        ...
+
+
+_State = TypeVar("_State", bound=FitState)
+
+
+class FitModel(Protocol[_State]):
+    """What a fit needs of an error model (a chain's :class:`ErrorModel` or a tree's)."""
+
+    @property
+    def n_markers(self) -> int:
+        """Points per configuration."""
+        ...
+
+    @property
+    def pose(self) -> bool:
+        """Orientation rows are fitted."""
+        ...
+
+    def size(self) -> int:
+        """Number of free parameters."""
+        ...
+
+    def apply(self, start: _State, x: np.ndarray) -> _State:
+        """The state at parameters x (x = 0 is ``start``)."""
+        ...
+
+    def jacobian(
+        self, start: _State, x: np.ndarray, data: Any, torque: np.ndarray | None
+    ) -> np.ndarray:
+        """d(model)/dx ``(m, rows, size)``."""
+        ...
+
+
+_Model = TypeVar("_Model", bound=FitModel[Any])
+
 
 @dataclass(frozen=True, eq=False)
-class Fit:
+class Fit(Generic[_Model, _State]):
     """A solved fit.
 
     Attributes:
@@ -33,9 +87,9 @@ class Fit:
         evaluations: Residual evaluations.
     """
 
-    model: ErrorModel
-    start: State
-    state: State
+    model: _Model
+    start: _State
+    state: _State
     x: np.ndarray
     J: np.ndarray
     f: np.ndarray
@@ -81,8 +135,8 @@ class Problem:
 
 
 def fit(
-    model: ErrorModel,
-    start: State,
+    model: _Model,
+    start: _State,
     data,
     torque: np.ndarray | None,
     weight: float,
@@ -91,7 +145,7 @@ def fit(
     loss: str = "linear",
     scale: float = 1e-3,
     max_iterations: int = 100,
-) -> Fit:
+) -> Fit[_Model, _State]:
     """Levenberg-Marquardt (least squares) or trust-region (robust loss) from x = 0.
 
     Args:

@@ -9,6 +9,8 @@ import pinocchio as pin
 from ..identification.report import format_table
 from .result import CalibrationResult, ResidualStats
 
+__all__ = ["calibration_text"]
+
 
 def _mm(x: float | None) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}"

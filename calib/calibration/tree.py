@@ -31,11 +31,18 @@ from ..measurements.csvfile import Measurements
 from .model import FRAME_NAMES
 from .registration import rigid_fit
 
+__all__ = [
+    "REGISTRATION_ITERATIONS",
+    "TreeErrorModel",
+    "TreeState",
+    "register_tree",
+]
+
 REGISTRATION_ITERATIONS = 50
 """Most alternations of the closed-form registration (frame, then markers)."""
 
 
-def tool_marker_names(tool: str) -> tuple[str, str, str]:
+def _tool_marker_names(tool: str) -> tuple[str, str, str]:
     """Names of the marker coordinates on a tool [m]: ``<tool>.x``, ``.y``, ``.z``."""
     return (f"{tool}.x", f"{tool}.y", f"{tool}.z")
 
@@ -70,11 +77,11 @@ class TreeState:
 
     def residuals(self, data: Measurements, torque=None) -> np.ndarray:
         """Measured - model per row ``(m, 3)`` [m] (``torque`` is not used)."""
-        pts = self.base_points(data.q, tool_indices(self.mdh, data))
+        pts = self.base_points(data.q, _tool_indices(self.mdh, data))
         return data.position - (pts @ self.frame[:3, :3].T + self.frame[:3, 3])
 
 
-def tool_indices(mdh: TreeMDH, data: Measurements) -> np.ndarray:
+def _tool_indices(mdh: TreeMDH, data: Measurements) -> np.ndarray:
     """Index of each row's tool among the model's tools."""
     if data.tool is None:
         return np.zeros(data.m, dtype=int)
@@ -107,7 +114,7 @@ class TreeErrorModel:
         """Names of the free parameters, in the order of x."""
         out = list(FRAME_NAMES) if self.frame else []
         if self.markers:
-            out += [n for t in tools for n in tool_marker_names(t)]
+            out += [n for t in tools for n in _tool_marker_names(t)]
         return (*out, *self.base)
 
     def _sizes(self) -> tuple[int, int, int]:
@@ -141,7 +148,7 @@ class TreeErrorModel:
 
     def jacobian(self, start: TreeState, x: np.ndarray, data, torque=None) -> np.ndarray:
         """d(model)/dx, ``(m, 3, size)`` (rows in the data's order)."""
-        return self.jacobian_at(start, x, data.q, tool_indices(start.mdh, data))
+        return self.jacobian_at(start, x, data.q, _tool_indices(start.mdh, data))
 
     def jacobian_at(
         self, start: TreeState, x: np.ndarray, q: np.ndarray, tool: np.ndarray
@@ -183,7 +190,7 @@ class TreeErrorModel:
 
 def register_tree(nominal: TreeMDH, data: Measurements) -> TreeState:
     """The measurement frame and the markers in closed form, from the nominal tree."""
-    tool = tool_indices(nominal, data)
+    tool = _tool_indices(nominal, data)
     R, p = TreeState(nominal, np.eye(4), np.zeros((nominal.n_tools, 3))).tool_placements(
         data.q, tool
     )

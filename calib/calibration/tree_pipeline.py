@@ -30,6 +30,12 @@ from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
 from .solve import Fit, covariance, fit
 from .tree import TreeErrorModel, TreeState, register_tree
 
+__all__ = [
+    "ToolErrors",
+    "TreeCalibrationResult",
+    "calibrate_tree",
+]
+
 
 @dataclass(frozen=True, eq=False)
 class ToolErrors:
@@ -382,7 +388,7 @@ def _tree_datasets(tree, data, validate, opts: Options):
         raise DataError(
             data.source,
             f"no row measures the tool {missing[0]}: calibrate the tools the rows measure "
-            f"(--tool for each)",
+            f"(a tool for each)",
         )
     out = round(opts.holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools

@@ -26,8 +26,21 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..measurements.csvfile import Measurements
 from .diagnosis import suspect
-from .model import State
 from .result import ResidualStats
+from .solve import FitState
+
+__all__ = [
+    "RANK_TOL",
+    "SAME",
+    "check_held_out",
+    "check_held_out_errors",
+    "full_rank",
+    "predicted_std",
+    "refusal",
+    "split",
+    "stats",
+    "urdf_alone_warning",
+]
 
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
@@ -49,7 +62,7 @@ def split(
     n_out = round(fraction * data.m)
     if n_out == 0 and fraction > 0.0:
         raise InvalidArgumentError(
-            f"--holdout {fraction:g} of {data.m} rows holds out no row: give at least "
+            f"holdout {fraction:g} of {data.m} rows holds out no row: give at least "
             f"{1.0 / data.m:.3g} (one row), or 0 for no holdout"
         )
     if n_out == 0:
@@ -85,12 +98,12 @@ def check_held_out(data: Measurements, held: Measurements) -> None:
         raise DataError(
             held.source,
             "the validation file is the data file: held out must mean held out (give other "
-            "configurations, or --holdout)",
+            "configurations, or a holdout fraction)",
         )
     if data.tool is not None and held.tool is not None:
         tools = sorted(set(data.tool) | set(held.tool))
         index = {t: float(i) for i, t in enumerate(tools)}
-        extra = [np.array([[index[t]] for t in d.tool]) for d in (data, held)]
+        extra = [np.array([[index[t]] for t in tool]) for tool in (data.tool, held.tool)]
     else:
         extra = [np.zeros((d.m, 0)) for d in (data, held)]
     a, b = np.hstack([_values(data), extra[0]]), np.hstack([_values(held), extra[1]])
@@ -134,7 +147,7 @@ def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: st
         )
 
 
-def stats(state: State, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
+def stats(state: FitState, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
     """Errors measured - model of a state on some data."""
     return ResidualStats.of(state.residuals(data, torque), data.n_markers)
 

@@ -18,6 +18,16 @@ from collections.abc import Callable
 
 import numpy as np
 
+__all__ = [
+    "BOUNDS",
+    "DEFAULT_WEIGHT",
+    "ITERATIONS",
+    "TINY",
+    "TOLERANCE",
+    "estimate_weight",
+    "variance_ratio",
+]
+
 DEFAULT_WEIGHT = 1.0
 """Starting weight [m/rad] (1 mrad counts as 1 mm), kept when the data cannot tell."""
 

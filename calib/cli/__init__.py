@@ -16,4 +16,8 @@ _LAZY = {"main": "commands"}
 
 __getattr__ = attributes(__name__, _LAZY)
 
+TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
+if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
+    from .commands import main
+
 __all__ = ["main"]

@@ -42,6 +42,31 @@ from ..kinematics.tree import Tree, load_robot
 from ..kinematics.tree_model import from_tree
 from ..launcher import catalog_listing
 
+__all__ = [
+    "CHAIN_ONLY",
+    "THREADS_ENV",
+    "BooleanOnce",
+    "add_chain_args",
+    "blas_threads",
+    "build_parser",
+    "check_output_paths",
+    "cmd_analyze",
+    "cmd_calibrate",
+    "cmd_demo",
+    "cmd_list",
+    "cmd_show",
+    "cmd_simulate",
+    "cmd_sweep",
+    "compliance_path",
+    "given_options",
+    "main",
+    "positive_number",
+    "print_json",
+    "tool_arg",
+    "warning_lines",
+    "write_outputs",
+]
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -471,7 +496,13 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     )
 
     def files() -> dict[Path, str | bytes]:
-        urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+        try:
+            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+        except InvalidArgumentError as exc:  # the library names the keyword: say the flag
+            text = str(exc)
+            if not text.startswith("world_link:"):
+                raise
+            raise InvalidArgumentError(f"--world-link{text.removeprefix('world_link')}") from None
         if result.elastic:
             if comp is None:
                 raise InvalidArgumentError(
@@ -515,7 +546,10 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
     check_new_names(root, tuple(n for n in names if n not in kept), "marker links")
     if world_link is not None:
         check_new_names(root, (world_link,), "--world-link")
-        check_base_fixed(chain)
+        try:
+            check_base_fixed(chain)
+        except CalibError as exc:  # the library names the keyword: say the flag
+            raise CalibError(f"--world-link{str(exc).removeprefix('world_link')}") from None
 
 
 def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:
@@ -558,7 +592,7 @@ def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
     return 0
 
 
-CHAIN_ONLY = {
+CHAIN_ONLY: dict[str, object] = {
     "fix": [],
     "free": [],
     "elastic": None,
@@ -661,7 +695,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     files: dict[Path, str | bytes] = {}
     if args.csv:
         files[Path(args.csv)] = rows_to_csv(rows)
-    if args.plot:
+    if plot_format is not None:  # --plot given
         title = f"Base parameters per chain, {args.measure} measurement"
         files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
     write_outputs(files)

@@ -23,6 +23,8 @@ from .commands import (
     write_outputs,
 )
 
+__all__ = ["CHOOSING", "add_design_parser", "cmd_design"]
+
 CHOOSING = (
     "configs",
     "candidates",
@@ -40,7 +42,7 @@ CHOOSING = (
 """Options of the choice of configurations, which ``--evaluate`` does not take."""
 
 
-def check_design_options(args: argparse.Namespace) -> None:
+def _check_design_options(args: argparse.Namespace) -> None:
     """Refuse options the chosen mode would ignore, or that contradict each other.
 
     Raises:
@@ -72,7 +74,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     from ..design.design import design, design_text
     from ..kinematics.tree import load_robot
 
-    check_design_options(args)
+    _check_design_options(args)
     chain = load_robot(args.robot, args.base, tool_arg(args))
     markers = args.marker
     weight = args.orientation_weight

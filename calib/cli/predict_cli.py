@@ -10,6 +10,8 @@ from pathlib import Path
 
 from .commands import check_output_paths, write_outputs
 
+__all__ = ["add_predict_parser", "cmd_predict"]
+
 
 def cmd_predict(args: argparse.Namespace) -> int:
     """Predict the measured points and the deflected joints at given configurations."""

@@ -7,3 +7,5 @@
 May import: :mod:`calib.calibration`, :mod:`calib.measurements`, :mod:`calib.identification`,
 :mod:`calib.kinematics` and the bottom modules.
 """
+
+__all__: list[str] = []

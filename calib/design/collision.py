@@ -152,7 +152,7 @@ def _srdf_error(path: Path, reason: str) -> InvalidArgumentError:
     return InvalidArgumentError(f"SRDF {path}: {reason}")
 
 
-def read_srdf(path: str | Path, robot: Chain | Tree) -> tuple[str, tuple[str, ...]]:
+def _read_srdf(path: str | Path, robot: Chain | Tree) -> tuple[str, tuple[str, ...]]:
     """An SRDF's text, read with the URDF's size limit and checked, and notes on it.
 
     Checked: well-formed XML whose root is ``<robot>`` (without a URDF's links), every
@@ -271,8 +271,8 @@ def _relative_motion(robot: Chain | Tree, a: int, b: int) -> bool:
 def _keep_pairs(robot: Chain | Tree, geom: pin.GeometryModel, srdf: Path | None) -> list[str]:
     """Active pairs: those the robot moves, minus SRDF-disabled and touching at reference."""
     model = robot.model
-    srdf_text, notes = read_srdf(srdf, robot) if srdf is not None else (None, ())
-    notes = list(notes)
+    srdf_text, srdf_notes = _read_srdf(srdf, robot) if srdf is not None else (None, ())
+    notes = list(srdf_notes)
     joints = [o.parentJoint for o in geom.geometryObjects]
     for a in range(len(joints)):
         for b in range(a + 1, len(joints)):
@@ -330,7 +330,7 @@ def collision_checker(
 
     Raises:
         URDFError: The geometry cannot be loaded (a missing mesh).
-        InvalidArgumentError: A missing, unreadable or invalid SRDF (:func:`read_srdf`) or a
+        InvalidArgumentError: A missing, unreadable or invalid SRDF (:func:`_read_srdf`) or a
             box with min > max.
     """
     for box in obstacles:
@@ -339,7 +339,7 @@ def collision_checker(
                 f"an obstacle box is xmin ymin zmin xmax ymax zmax with min < max, got {box}"
             )
     if srdf is not None and self_collision:
-        read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
+        _read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
     srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(robot.urdf_path))
     geom = _geometry(robot)
     model = robot.model

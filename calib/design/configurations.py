@@ -22,13 +22,14 @@ import numpy as np
 from ..exceptions import DataError
 from ..fileio import read_failure, read_text_limited
 from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree
 from ..measurements.csvfile import TOOL_COLUMN, check_limits, csv_records, parse_number
 
 MAX_CONFIGS_BYTES = 256 << 20
 """Largest configurations file read [B] (a million configurations of 20 joints fit)."""
 
 
-def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.ndarray:
+def parse_configurations(text: str, chain: Chain | Tree, source: str = "<text>") -> np.ndarray:
     """Joint positions ``(m, n)`` from CSV text, columns in chain order.
 
     With a ``tool`` column, consecutive rows of equal joint positions count once.
@@ -65,7 +66,7 @@ def parse_configurations(text: str, chain: Chain, source: str = "<text>") -> np.
     return q
 
 
-def read_configurations(path: str | Path, chain: Chain) -> np.ndarray:
+def read_configurations(path: str | Path, chain: Chain | Tree) -> np.ndarray:
     """Read a configurations CSV file (see the module docstring).
 
     Raises:
@@ -78,7 +79,7 @@ def read_configurations(path: str | Path, chain: Chain) -> np.ndarray:
     return parse_configurations(text, chain, str(path))
 
 
-def configurations_csv(chain: Chain, q: np.ndarray) -> str:
+def configurations_csv(chain: Chain | Tree, q: np.ndarray) -> str:
     """CSV text of configurations ``(m, n)``: the chain's joint names, full precision."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")

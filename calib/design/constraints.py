@@ -197,7 +197,7 @@ def filter_candidates(
         if constraints.collision or constraints.obstacles:
             idx = np.flatnonzero(keep)
             apply("collision", ~checker.colliding(q[idx]), idx)
-        if constraints.line_of_sight is not None:
+        if constraints.line_of_sight is not None and points is not None:  # (points: given)
             idx = np.flatnonzero(keep)
             eye = np.asarray(constraints.line_of_sight)
             apply("line_of_sight", ~checker.blocked(q[idx], points[idx], eye), idx)

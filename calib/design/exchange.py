@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -167,7 +168,7 @@ class ExchangeState:
         Minv = np.linalg.inv(M)
         self.Minv = 0.5 * (Minv + Minv.T)
         self.logdet = float(logdet)
-        self._removed = (None, None)
+        self._removed: tuple[int | None, Any] = (None, None)
         G = self.Minv @ self.Jt  # M^-1 J_c^T of every candidate
         self.trS = _dot(G, self.Jt, self.J.shape[1])
         self.trP = None if self.L is None else _dot(self.L @ G, G, self.J.shape[1])
@@ -222,7 +223,7 @@ class ExchangeState:
         Gj, W, lw, Pj = removal
         r = self.J.shape[1]
         lj = float(np.max(np.linalg.eigvalsh(Gj @ self.J[j].T)))
-        if self.L is None:
+        if self.L is None or self.trP is None:  # D (trP is None exactly when L is)
             return lw + r * np.log1p(self.trS / (r * (1.0 - lj)))
         w = float(np.max(np.linalg.eigvalsh(W @ Pj @ W)))
         cross = np.sqrt(np.maximum(w * lj * self.trS, 0.0))
@@ -250,7 +251,7 @@ class ExchangeState:
             return np.full(len(self.trS[every]), -np.inf)
         Gj, W, lw, Pj = removal
         r = self.J.shape[1]
-        if self.L is None:
+        if self.L is None or self.trP is None:  # D (trP is None exactly when L is)
             Y = self._products(np.linalg.cholesky(W).T @ Gj, subset)  # R S_cj^T
             return lw + r * np.log1p((self.trS[every] + _dot(Y, Y, r)) / r)
         e, U = np.linalg.eigh(Pj)
@@ -398,7 +399,8 @@ def greedy_start(J: np.ndarray, k: int, progress: Callable | None = None) -> lis
         bound = state.add_bounds()
         bound[state.design] = -np.inf
         best = _best(bound, lambda subset: state.gains(None, subset), -np.inf)
-        state.apply(int(best), None)  # found: adding never lowers det M (finite J)
+        # found (never None): adding never lowers det M (finite J)
+        state.apply(int(best), None)  # type: ignore[arg-type]
     return state.design
 
 

@@ -431,10 +431,10 @@ def indices_of(J: np.ndarray, ref: Reference | None = None) -> Indices:
     rank = int(np.sum(s > max(W.shape) * np.finfo(float).eps * s[0])) if s[0] > 0 else 0
     if rank < b:
         inf = math.inf
-        i_g = (inf, inf) if ref is not None else (None, None)
+        i_g: tuple[float | None, float | None] = (inf, inf) if ref is not None else (None, None)
         o1 = 0.0
         return Indices(K, b, rank, inf, o1, float(s[-1]), 0.0, -inf, inf, *i_g)
-    i_g: tuple[float | None, float | None] = (None, None)
+    i_g = (None, None)
     if ref is not None:
         V = Vt.T / s  # M^-1 = V V^T
         per_point = np.sum((ref.points @ V) ** 2, axis=(1, 2))
@@ -463,6 +463,7 @@ def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None
 __all__ = [
     "CRITERIA",
     "DESIGN_LEVELS",
+    "REFERENCE_CONFIGS",
     "Indices",
     "ObservationModel",
     "Reference",

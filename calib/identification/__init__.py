@@ -6,3 +6,5 @@ base parameters, :mod:`.report` and :mod:`.table` print them.
 
 May import: :mod:`calib.kinematics` and the bottom modules.
 """
+
+__all__: list[str] = []

@@ -869,4 +869,12 @@ def analyze(
     return result
 
 
-__all__ = ["Identifiability", "RankWarning", "analyze", "analyze_model"]
+__all__ = [
+    "DEFAULT_CONFIGS",
+    "Identifiability",
+    "RankWarning",
+    "analyze",
+    "analyze_model",
+    "independent_columns",
+    "preference_order",
+]

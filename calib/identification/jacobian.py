@@ -10,6 +10,15 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import Kinematics, MDHModel
 from .parameters import ParameterSet
 
+__all__ = [
+    "MAX_MARKER",
+    "ROW_NAMES",
+    "Measurement",
+    "complete_jacobian",
+    "identification_jacobian",
+    "measured_point",
+]
+
 MAX_MARKER = 1e3
 """Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
 
@@ -38,6 +47,7 @@ class Measurement:
         Raises:
             InvalidArgumentError: Unknown measure or a marker that is not 3 finite numbers.
         """
+        rows: tuple[int, ...]
         if measure == "pose":
             rows = (0, 1, 2, 3, 4, 5)
         elif measure == "position":
@@ -165,7 +175,7 @@ def _assemble(
     out = np.empty((k, len(rows), m))
     out[:, : len(lin)] = axes[:, lin]
     out[:, len(lin) :] = 0.0
-    if rot.size:
+    if rot.size and L is not None:  # L is given whenever there are rotation columns
         a = axes[rot]
         if lin:
             c1, c2 = [(r + 1) % 3 for r in lin], [(r + 2) % 3 for r in lin]

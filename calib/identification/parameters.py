@@ -5,6 +5,7 @@ from __future__ import annotations
 import enum
 import functools
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -12,6 +13,19 @@ from ..checks import real_array
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH
+
+__all__ = [
+    "ColumnLayout",
+    "Kind",
+    "Parameter",
+    "ParameterSet",
+    "complete_parameters",
+    "paper_parameters",
+    "parameter_set",
+]
+
+#: A chain's or a tree's MDH model: :meth:`ParameterSet.apply` returns the kind it is given.
+_Model = TypeVar("_Model", MDHModel, TreeMDH)
 
 
 class Kind(enum.Enum):
@@ -111,7 +125,7 @@ class ParameterSet:
         _check_model(mdh, tree=True)
         return np.array([getattr(mdh, p.kind.value)[p.row] for p in self.parameters])
 
-    def apply(self, mdh: MDHModel | TreeMDH, delta: np.ndarray) -> MDHModel | TreeMDH:
+    def apply(self, mdh: _Model, delta: np.ndarray) -> _Model:
         """A new model (chain or tree) whose parameters are shifted by ``delta`` (set order)."""
         _check_model(mdh, tree=True)
         delta = real_array(delta, "delta", (len(self),))

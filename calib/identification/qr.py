@@ -21,6 +21,14 @@ from types import ModuleType
 
 import numpy as np
 
+__all__ = [
+    "householder",
+    "pivoted_diagonal",
+    "solve_upper",
+    "triangular",
+    "upper",
+]
+
 _FLAPACK = "scipy.linalg._flapack"
 
 
@@ -85,7 +93,7 @@ def householder(W: np.ndarray) -> np.ndarray:
     """
     qr, _, _, info = _lapack().dgeqrf(W)
     if info != 0:
-        return np.linalg.qr(W, mode="r")
+        return np.linalg.qr(W, mode="r")  # type: ignore[return-value]  # numpy's stubs: QRResult
     return qr
 
 

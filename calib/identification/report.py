@@ -11,6 +11,14 @@ from .identifiability import Identifiability
 from .parameters import Kind
 from .table import format_table
 
+__all__ = [
+    "analysis_text",
+    "coupling_lines",
+    "format_table",
+    "mdh_table",
+    "tree_table",
+]
+
 _STATUS = {"identifiable": "id", "regrouped": "reg", "zero": "0"}
 
 
@@ -62,7 +70,7 @@ def tree_table(model: TreeMDH) -> str:
     return format_table(header, rows)
 
 
-def status_table(res: Identifiability) -> str:
+def _status_table(res: Identifiability) -> str:
     """Table-2 style: per frame and parameter, id / reg / 0 (- where not in the set)."""
     kinds = [
         k
@@ -92,7 +100,7 @@ def analysis_text(res: Identifiability) -> str:
         "",
         "Status of the standard parameters"
         " (id identifiable, reg regrouped/eliminated, 0 no effect):",
-        status_table(res),
+        _status_table(res),
         "",
         f"Base parameters ({res.n_base}) and what they stand for:",
     ]
@@ -109,11 +117,11 @@ def analysis_text(res: Identifiability) -> str:
         f"standard {res.n_standard}, base {res.n_base}, complete model {res.n_complete}, "
         f"theory {res.n_theory if res.n_theory is not None else 'n/a'}" + _axes_note(res),
         f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
-        *tree_theory_lines(res),
+        *_tree_theory_lines(res),
     ]
     if res.snapped:
         lines.append(f"URDF round-off removed before the analysis: {'; '.join(res.snapped)}")
-    lines += mimic_lines(res)
+    lines += _mimic_lines(res)
     if res.zero:
         lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
     if res.missing:
@@ -127,7 +135,7 @@ def analysis_text(res: Identifiability) -> str:
     return "\n".join(lines)
 
 
-def tree_theory_lines(res: Identifiability) -> list[str]:
+def _tree_theory_lines(res: Identifiability) -> list[str]:
     """For a tree: the theory's terms, each tool's chain alone, what sharing joints removes."""
     if not res.per_tool:
         return []
@@ -156,7 +164,7 @@ def tree_theory_lines(res: Identifiability) -> list[str]:
     return lines
 
 
-def mimic_expression(mj: MimicJoint) -> str:
+def _mimic_expression(mj: MimicJoint) -> str:
     """``joint3 = -1 joint2 + 0.1``: how a mimic joint follows its master."""
     sign = "-" if mj.offset < 0 else "+"
     return f"{mj.name} = {mj.multiplier:g} {mj.master} {sign} {abs(mj.offset):g}"
@@ -168,11 +176,11 @@ def coupling_lines(mimic: tuple[MimicJoint, ...]) -> list[str]:
         return []
     return [
         "coupled joints (URDF <mimic>): their positions are computed, q_k of row k:",
-        *(f"  row {mj.joint + 1}: {mimic_expression(mj)}" for mj in mimic),
+        *(f"  row {mj.joint + 1}: {_mimic_expression(mj)}" for mj in mimic),
     ]
 
 
-def mimic_lines(res: Identifiability) -> list[str]:
+def _mimic_lines(res: Identifiability) -> list[str]:
     """What the analysis says about coupled joints (none for a chain without mimic joints)."""
     if not res.mimic:
         return []
@@ -184,7 +192,7 @@ def mimic_lines(res: Identifiability) -> list[str]:
     for mj in res.mimic:
         k = mj.joint + 1
         with_ = f"no effect, as {offsets[k]}" if offsets[k] in res.zero else offsets[k]
-        out.append(f"  offset{k} of {mimic_expression(mj)}: with {with_}")
+        out.append(f"  offset{k} of {_mimic_expression(mj)}: with {with_}")
     return out
 
 

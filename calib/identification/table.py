@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+__all__ = ["format_table"]
+
 
 def _is_number(text: str) -> bool:
     try:

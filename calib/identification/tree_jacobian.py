@@ -19,6 +19,8 @@ from ..kinematics.tree_model import TreeMDH
 from .jacobian import Measurement, identification_jacobian, measured_point
 from .parameters import Kind, Parameter, ParameterSet
 
+__all__ = ["tree_complete_jacobian", "tree_jacobian", "tree_parameters"]
+
 _POSE = Measurement((0, 1, 2, 3, 4, 5))
 _ORDER = (Kind.GAMMA, Kind.B, Kind.Y, Kind.BETA, Kind.ALPHA, Kind.D, Kind.THETA, Kind.R)
 
@@ -157,7 +159,8 @@ def _factor(blocks, k: int, mask) -> np.ndarray:
     for t, cols, Wt in blocks:
         rows = Wt if mask is None else Wt[mask[:, t]]
         if rows.size:
-            Rt = np.linalg.qr(rows.reshape(-1, len(cols)), mode="r")
+            # numpy's stubs type qr(mode="r") as QRResult; it returns the R array.
+            Rt: np.ndarray = np.linalg.qr(rows.reshape(-1, len(cols)), mode="r")  # type: ignore[assignment]
             F = np.zeros((Rt.shape[0], k))
             F[:, cols] = Rt
             out.append(F)

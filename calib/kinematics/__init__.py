@@ -8,3 +8,5 @@ joint compliance of :mod:`.elastic`). :mod:`.catalog` lists the robots calib shi
 May import: only the bottom modules (:mod:`calib.checks`, :mod:`calib.choices`,
 :mod:`calib.exceptions`, :mod:`calib.fileio`, :mod:`calib.lazy`).
 """
+
+__all__: list[str] = []

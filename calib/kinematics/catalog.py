@@ -11,6 +11,18 @@ from pathlib import Path
 
 from ..exceptions import CalibError, RobotNotFoundError
 
+__all__ = [
+    "ERD_PREFIX",
+    "CatalogEntry",
+    "catalog",
+    "catalog_entry",
+    "catalog_files",
+    "erd_robots_dir",
+    "installed_dirs",
+    "models_dir",
+    "resolve_urdf",
+]
+
 ERD_PREFIX = "erd:"
 """Prefix of a catalog URDF that lives in example-robot-data's ``robots/`` folder."""
 

@@ -41,6 +41,18 @@ from .robot import (
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 
+__all__ = [
+    "COMMAND_ITERATIONS",
+    "COMPLIANCE_FORMAT",
+    "MAX_JSON_BYTES",
+    "ElasticModel",
+    "compliance_document",
+    "gravity_in_base",
+    "load_calibrated",
+    "nominal_origins",
+    "predictions_csv",
+]
+
 COMPLIANCE_FORMAT = "1"
 """Version of the compliance file's layout (its ``format_version``)."""
 
@@ -211,7 +223,7 @@ def _origins(doc: dict, src: str) -> dict:
         )
         for o in origins.values()
     )
-    if not ok:
+    if not ok or not isinstance(origins, dict):
         raise DataError(src, "'nominal_origins' is missing or not {joint: {xyz, rpy}}")
     return origins
 
@@ -246,15 +258,17 @@ def _numbers(doc: dict, key: str, shape: tuple[int, ...], src: str) -> np.ndarra
 def _fields(doc: dict, src: str) -> tuple[str, str, list[str], np.ndarray]:
     """Base and tool frames, joint names and compliances of a report or compliance file."""
     comp = doc.get("compliance")
+    joints: object
+    values: object
     if isinstance(comp, dict):  # a report: joint -> compliance
         joints, values = list(comp), list(comp.values())
     else:
         joints, values = doc.get("joints"), comp
-    frames = (doc.get("base_frame"), doc.get("tool_frame"))
-    if not all(isinstance(f, str) for f in frames) or not isinstance(joints, list):
+    base, tool = doc.get("base_frame"), doc.get("tool_frame")
+    if not isinstance(base, str) or not isinstance(tool, str) or not isinstance(joints, list):
         raise DataError(src, "not a calib report or compliance file (base_frame, tool_frame)")
     c = _numbers({"compliance": values}, "compliance", (len(joints),), src)
-    return frames[0], frames[1], [str(j) for j in joints], c
+    return base, tool, [str(j) for j in joints], c
 
 
 def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -22,6 +22,23 @@ from ..checks import joint_positions, real_array
 from ..exceptions import InvalidArgumentError
 from . import urdf_xml
 from .robot import Chain
+
+__all__ = [
+    "COINCIDENT_TOL",
+    "FREE_DIRECTION_TOL",
+    "PARALLEL_TOL",
+    "RIGID_TOL",
+    "SNAP_ANGLE",
+    "SNAP_LENGTH",
+    "Kinematics",
+    "MDHModel",
+    "converted_chain",
+    "frames_at_zero",
+    "from_chain",
+    "from_lines",
+    "snap_angle",
+    "snap_length",
+]
 
 PARALLEL_TOL = 0.01
 """Angle [rad] under which two consecutive axes are treated as parallel (Hayati's beta).
@@ -146,7 +163,7 @@ class MDHModel:
         """Number of joints."""
         return len(self.sigma) - 2
 
-    def replace(self, **changes) -> MDHModel:
+    def replace(self, **changes: Any) -> MDHModel:
         """A copy with some fields replaced (the model itself is never mutated).
 
         ``source`` (the chain the model was converted from, which :meth:`idealized` converts

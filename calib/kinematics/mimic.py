@@ -21,6 +21,14 @@ from ..checks import joint_positions
 from ..exceptions import ChainError
 from .urdf_xml import URDFInfo
 
+__all__ = [
+    "MAX_MIMIC_DEPTH",
+    "Coupling",
+    "MimicJoint",
+    "chain_coupling",
+    "tree_coupling",
+]
+
 MAX_MIMIC_DEPTH = 64
 """Longest chain of mimic tags followed (a longer one is a cycle)."""
 

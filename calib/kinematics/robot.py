@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..checks import check_count, check_work, joint_positions
 from ..exceptions import (
@@ -25,6 +26,25 @@ from .catalog import CatalogEntry, catalog, catalog_entry
 from .mimic import Coupling, chain_coupling
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
+
+__all__ = [
+    "DEFAULT_PRISMATIC_RANGE",
+    "PLACEMENT_TOL",
+    "Chain",
+    "CoupledJoints",
+    "JointCounts",
+    "Robot",
+    "RobotModels",
+    "chain_between",
+    "check_count",
+    "check_frame_name",
+    "frame_placement",
+    "joint_placements",
+    "load_chain",
+    "pin_configurations",
+    "resolve_frame",
+    "robot_source",
+]
 
 PLACEMENT_TOL = 1e-12
 """Two same-named frames closer than this [m, rotation entries] are the same place."""
@@ -229,9 +249,13 @@ class CoupledJoints(JointCounts):
     lower: np.ndarray
     upper: np.ndarray
     coupling: Coupling | None
-    n: int
 
-    def check_configurations(self, q: np.ndarray) -> np.ndarray:
+    @property
+    def n(self) -> int:  # pragma: no cover
+        """Number of joints (a subclass's)."""
+        raise NotImplementedError
+
+    def check_configurations(self, q: ArrayLike) -> np.ndarray:
         """Validate and reshape joint positions to ``(m, n)``.
 
         Raises:
@@ -552,7 +576,7 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
         if jt in model.supports[jb]:
             raise ChainError(
                 f"tool frame '{tool_name}' is between the root and base frame '{base_name}': "
-                f"swap --base and --tool"
+                f"swap base and tool"
             )
         raise ChainError(
             f"frames '{base_name}' and '{tool_name}' are not on one serial chain "
@@ -663,5 +687,5 @@ def load_chain(robot: str | Path, base: str | None = None, tool: str | None = No
                 f"tree (load_tree, `calib analyze {entry.name}`)"
             )
         base = entry.base if base is None else base
-        tool = entry.tool if tool is None else tool
+        tool = entry.tools[0] if tool is None else tool
     return _chain_from_model(name, path, read_urdf_file(path), base, tool)

@@ -9,6 +9,18 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = [
+    "SMALL_ANGLE",
+    "inverse_right_jacobian",
+    "left_jacobian",
+    "matrix_to_quaternion",
+    "quaternion_to_matrix",
+    "rotation_matrix",
+    "rotation_vector",
+    "rpy_to_matrix",
+    "skew",
+]
+
 SMALL_ANGLE = 1e-4
 """Angle [rad] under which series expansions replace the closed forms."""
 

@@ -31,6 +31,8 @@ from .robot import (
 )
 from .urdf_model import read_urdf_file
 
+__all__ = ["Tree", "load_robot", "load_tree"]
+
 
 def _frozen(a: np.ndarray) -> np.ndarray:
     a.flags.writeable = False

@@ -34,6 +34,8 @@ from .urdf_export import (
 )
 from .urdf_links import add_marker_links
 
+__all__ = ["calibrated_tree_urdf", "tree_measurement_to_base", "write_calibrated_tree_urdf"]
+
 
 def moved_frames(nominal: TreeMDH, calibrated: TreeMDH) -> dict[int, np.ndarray]:
     """``T_k_cal(0) T_k_nom(0)^-1`` of every row k of a tree (frame -1 = base)."""

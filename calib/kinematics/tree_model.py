@@ -19,6 +19,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +35,8 @@ from .mdh import (
     snap_length,
 )
 from .tree import Tree
+
+__all__ = ["ROW_ARRAYS", "TreeMDH", "from_tree"]
 
 ROW_ARRAYS = ("gamma", "b", "beta", "alpha", "d", "theta", "r", "y")
 """The geometric arrays of a row: angles [rad] and lengths [m]."""
@@ -279,10 +282,10 @@ def _converted_tree(tree: Tree, parallel_tol: float) -> TreeMDH:
     paths = [np.concatenate([[0], 1 + p, [n + 1 + t]]) for t, p in enumerate(tree.paths)]
     antecedent = np.concatenate([[-1], 1 + tree.parent, [p[-2] for p in paths]])
     rows = 1 + n + T
-    values = {k: np.zeros(rows) for k in ROW_ARRAYS}
-    flags = {k: np.zeros(rows, dtype=bool) for k in ("parallel", "coincident")}
+    values: dict[str, Any] = {k: np.zeros(rows) for k in ROW_ARRAYS}
+    flags: dict[str, Any] = {k: np.zeros(rows, dtype=bool) for k in ("parallel", "coincident")}
     # where[k]: (path, position) of the first path through row k
-    where = {}
+    where: dict[int, tuple[int, int]] = {}
     for t, p in enumerate(paths):
         for i, k in enumerate(p):
             where.setdefault(int(k), (t, i))
@@ -292,7 +295,7 @@ def _converted_tree(tree: Tree, parallel_tol: float) -> TreeMDH:
             values[name][k] = getattr(models[t], name)[i]
         for name in flags:
             flags[name][k] = getattr(models[t], name)[i]
-    first = {}
+    first: dict[int, int] = {}
     for k in range(1, rows):
         first.setdefault(int(antecedent[k]), k)
     for k in range(rows):  # theta, r of a row close on its first child's path (tools: own)

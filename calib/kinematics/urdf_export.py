@@ -34,6 +34,22 @@ from .robot import Chain, frame_placement, joint_placements
 from .urdf_links import add_marker_links, add_world_link
 from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
+__all__ = [
+    "NominalPoses",
+    "calibrated_urdf",
+    "check_base_fixed",
+    "check_exportable",
+    "child_link",
+    "edited_joints",
+    "measurement_to_base",
+    "parent_link",
+    "read_urdf_source",
+    "set_origin",
+    "spliced",
+    "write_calibrated_urdf",
+    "xml_layout",
+]
+
 
 def xml_layout(raw: bytes, src: str) -> tuple[int, int]:
     """Byte offsets of the root element: where it starts and where it ends."""
@@ -124,7 +140,7 @@ def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
             f"the tool frame '{chain.tool_frame}' is carried by the {kind} joint "
             f"'{joint.get('name')}', not by a fixed joint: the calibrated tool placement has "
             f"nowhere to go in the URDF (attach a tool link with a fixed joint and use it "
-            f"as --tool)"
+            f"as the tool)"
         )
     return joint
 
@@ -322,7 +338,7 @@ def check_base_fixed(chain: Chain) -> None:
     """
     if chain.model.frames[chain.base_id].parentJoint != 0:
         raise CalibError(
-            f"--world-link: the base frame '{chain.base_frame}' is moved by a joint relative "
+            f"world_link: the base frame '{chain.base_frame}' is moved by a joint relative "
             f"to the URDF's root link: the measurement frame cannot be fixed to the root"
         )
 

@@ -15,6 +15,15 @@ import numpy as np
 
 from ..exceptions import CalibError, InvalidArgumentError
 
+__all__ = [
+    "add_marker_links",
+    "add_world_link",
+    "check_new_names",
+    "marker_joints",
+    "marker_link_names",
+    "root_link",
+]
+
 
 def marker_link_names(tool: str, k: int) -> tuple[str, ...]:
     """Names of the links of ``k`` markers on ``tool``: ``<tool>_marker1``, ..."""
@@ -140,7 +149,7 @@ def add_world_link(root: ET.Element, name: str, world_to_root: np.ndarray) -> No
         InvalidArgumentError: ``name`` (or ``name_joint``) is taken.
         CalibError: The URDF has no single root link.
     """
-    check_new_names(root, (name,), "--world-link")
+    check_new_names(root, (name,), "world_link")
     old = root_link(root)
     _append(
         root,

@@ -21,10 +21,17 @@ from ..exceptions import URDFError
 from ..fileio import read_bytes_limited
 from .urdf_xml import MAX_URDF_BYTES, URDFInfo, kinematic_xml, read_urdf_info
 
+__all__ = [
+    "MAX_CAPTURED_BYTES",
+    "build_model",
+    "console_captured",
+    "read_urdf_file",
+]
+
 _LOG = logging.getLogger("calib")
 
 
-def _pinocchio_failure(exc: Exception, messages: str) -> str:
+def _pinocchio_failure(exc: Exception | None, messages: str) -> str:
     """The cause of a failed build: urdfdom's first error line, else the exception's."""
     for line in messages.splitlines():
         text = line.strip()

@@ -20,6 +20,22 @@ from dataclasses import dataclass
 
 from ..exceptions import URDFError
 
+__all__ = [
+    "JOINT_TYPES",
+    "MAX_ANGLE",
+    "MAX_COORDINATE",
+    "MAX_URDF_BYTES",
+    "MIN_AXIS_NORM",
+    "SNAP_ANGLE",
+    "SNAP_LENGTH",
+    "URDFInfo",
+    "URDFJoint",
+    "URDFMimic",
+    "kinematic_xml",
+    "parse_xml",
+    "read_urdf_info",
+]
+
 MAX_URDF_BYTES = 64 << 20
 """Largest URDF file calib reads [B] (64 MB; real robot descriptions are under 1 MB)."""
 
@@ -272,7 +288,7 @@ def read_urdf_info(raw: bytes, src: str) -> URDFInfo:
     root = parse_xml(raw, src)
     if root.tag != "robot":
         raise URDFError(src, f"root element is <{root.tag}>, not <robot>")
-    links = [e.get("name") for e in root.findall("link")]
+    links = [e.get("name", "") for e in root.findall("link")]
     if not links:
         raise URDFError(src, "no <link> element")
     if not all(links):
@@ -303,7 +319,7 @@ def _mass(link: ET.Element) -> tuple[str, float, tuple[float, float, float]] | N
         return None
     if not (0.0 < mass < 1e6) or max(map(abs, com)) > 1e3:
         return None
-    return link.get("name"), mass, com
+    return link.get("name", ""), mass, com
 
 
 def _snap_angle(a: float) -> float:
@@ -354,6 +370,8 @@ def kinematic_xml(info: URDFInfo, snap: bool = False) -> str:
             ET.SubElement(inertial, "mass", {"value": repr(masses[link][0])})
             zero = dict.fromkeys(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), "0")
             ET.SubElement(inertial, "inertia", zero)
+    xyz: tuple[float, ...]
+    rpy: tuple[float, ...]
     for j in info.joints:
         xyz, rpy, axis = j.xyz, j.rpy, j.axis
         if snap:

@@ -41,4 +41,35 @@ _LAZY = {
 
 __getattr__ = attributes(__name__, _LAZY)
 
+TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
+if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
+    from .csvfile import (  # noqa: F401 (exported: __all__ is sorted(_LAZY))
+        DEFAULT_ORIENTATION_COLUMNS,
+        JOINT_PREFIX,
+        LIMIT_MARGIN,
+        LIMIT_TOL,
+        MAX_COORDINATE,
+        MAX_MEASUREMENTS_BYTES,
+        POSITION_COLUMNS,
+        QUATERNION_COLUMNS,
+        TOOL_COLUMN,
+        Angles,
+        Campaign,
+        Columns,
+        DataWarning,
+        Measurements,
+        SimulationTruth,
+        check_against_chain,
+        check_limits,
+        csv_records,
+        joint_bounds,
+        measurements_csv,
+        parse_measurements,
+        parse_number,
+        read_measurements,
+        simulate,
+        tool_frames,
+        write_measurements,
+    )
+
 __all__ = sorted(_LAZY)

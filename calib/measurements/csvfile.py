@@ -60,7 +60,38 @@ from ..kinematics.so3 import (
     rotation_matrix,
     rpy_to_matrix,
 )
+from ..kinematics.tree import Tree
 from . import marker_set
+
+__all__ = [
+    "CAMPAIGN_MEASURES",
+    "DEFAULT_ORIENTATION_COLUMNS",
+    "JOINT_PREFIX",
+    "LIMIT_MARGIN",
+    "LIMIT_TOL",
+    "MAX_COORDINATE",
+    "MAX_MEASUREMENTS_BYTES",
+    "POSITION_COLUMNS",
+    "QUATERNION_COLUMNS",
+    "TOOL_COLUMN",
+    "Angles",
+    "Campaign",
+    "Columns",
+    "DataWarning",
+    "Measurements",
+    "SimulationTruth",
+    "check_against_chain",
+    "check_limits",
+    "csv_records",
+    "joint_bounds",
+    "measurements_csv",
+    "parse_measurements",
+    "parse_number",
+    "read_measurements",
+    "simulate",
+    "tool_frames",
+    "write_measurements",
+]
 
 POSITION_COLUMNS = ("x", "y", "z")
 """Columns of the measured point [m] (one marker); markers 1..K use ``x1, y1, z1, ...``."""
@@ -322,7 +353,7 @@ class Measurements:
         return np.hstack(parts)
 
 
-def joint_bounds(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
+def joint_bounds(chain: Chain | Tree) -> tuple[np.ndarray, np.ndarray]:
     """Limits a measured joint position must respect [rad or m]: infinite for continuous joints."""
     lower = np.where(chain.continuous, -np.inf, chain.lower)
     upper = np.where(chain.continuous, np.inf, chain.upper)
@@ -333,7 +364,7 @@ def _unit(sigma: int) -> str:
     return "m" if sigma == 1 else "rad"
 
 
-def check_against_chain(data: Measurements, chain: Chain) -> None:
+def check_against_chain(data: Measurements, chain: Chain | Tree) -> None:
     """Check that measurements belong to a chain: same joints, values near the limits.
 
     A reading past a joint limit by at most ``LIMIT_MARGIN`` gives a :class:`DataWarning`.
@@ -378,7 +409,7 @@ def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:
 
 
 def check_limits(
-    chain: Chain, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
+    chain: Chain | Tree, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
 ) -> None:
     """Raise a DataError naming the first joint value far outside its limits; warn on others."""
     lower, upper = joint_bounds(chain)
@@ -450,7 +481,7 @@ class Columns:
                 )
 
 
-def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: int):
+def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Position columns (K triples) and the orientation format and columns of a header.
 
     ``names``: the cells' meanings, joints prefixed (see :func:`_column_keys`).
@@ -471,12 +502,13 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
             row=line,
             column=missing,
         )
+    fmt: str | None
     fmt, cols = columns.orientation, columns.orientation_columns
     if fmt == MARKERS:
         if len(pos) < 3 * marker_set.MIN_MARKERS:
             raise DataError(
                 src,
-                f"--orientation markers needs x1..z{marker_set.MIN_MARKERS} or more points "
+                f"orientation 'markers' needs x1..z{marker_set.MIN_MARKERS} or more points "
                 f"of one rigid set, the header has {len(pos) // 3}",
                 row=line,
             )
@@ -498,7 +530,7 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
             raise InvalidArgumentError(
                 f"orientation column '{taken[0]}' is also a "
                 f"{'position' if taken[0] in pos else 'joint'} column: name other columns "
-                f"(--orientation-columns)"
+                f"(orientation_columns)"
             )
         for c in cols:
             if c not in free:
@@ -511,7 +543,7 @@ def _layout(names: list[str], chain: Chain, columns: Columns, src: str, line: in
     return pos, fmt, tuple(cols or ())
 
 
-def _header(cells: list[str], chain: Chain, columns: Columns, src: str, line: int):
+def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
     names = [c.strip() for c in cells]
     if len(names) == 1 and ";" in names[0]:
@@ -550,11 +582,11 @@ def _column_keys(names: list[str], joints: Sequence[str]) -> list[str]:
     A joint's column is ``joint:NAME``, or plain ``NAME`` when the header has no ``joint:NAME``
     (then a plain ``NAME`` is a measurement column: ``x``, ``qw``, ``tool``).
     """
-    joints = set(joints)
-    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joints
+    joint_set = set(joints)
+    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joint_set
     keys = []
     for n in names:
-        if n in joints and n not in prefixed:
+        if n in joint_set and n not in prefixed:
             keys.append(JOINT_PREFIX + n)
         else:
             keys.append(n)
@@ -609,7 +641,7 @@ def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np
 
 
 def parse_measurements(
-    text: str, chain: Chain, source: str = "<text>", columns: Columns | None = None
+    text: str, chain: Chain | Tree, source: str = "<text>", columns: Columns | None = None
 ) -> Measurements:
     """Parse and validate CSV text (see the module docstring for the format).
 
@@ -677,9 +709,9 @@ def parse_measurements(
     if fmt == MARKERS:
         position, quat = _marker_set(position, source)
     elif fmt is not None:
-        values = table[:, [col[n] for n in ori_cols]]
-        quat = _orientation(values, fmt, source, lines)
-        angles = Angles(fmt, _frozen(values)) if fmt in ("rotvec", "rpy") else None
+        ori = table[:, [col[n] for n in ori_cols]]
+        quat = _orientation(ori, fmt, source, lines)
+        angles = Angles(fmt, _frozen(ori)) if fmt in ("rotvec", "rpy") else None
     data = Measurements(
         chain.joint_names,
         q,
@@ -731,7 +763,7 @@ def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]
 
 
 def read_measurements(
-    path: str | Path, chain: Chain, columns: Columns | None = None
+    path: str | Path, chain: Chain | Tree, columns: Columns | None = None
 ) -> Measurements:
     """Read and validate a measurement CSV file (see the module docstring for the format).
 

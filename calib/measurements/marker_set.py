@@ -22,6 +22,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = [
+    "ITERATIONS",
+    "MIN_FLATNESS",
+    "MIN_MARKERS",
+    "SPREAD_WARNING",
+    "MarkerSetPose",
+    "marker_set_pose",
+]
+
 MIN_MARKERS = 3
 """Points a set needs to have an orientation."""
 

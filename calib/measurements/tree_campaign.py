@@ -21,6 +21,8 @@ from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
 from .csvfile import Measurements
 
+__all__ = ["TreeCampaign", "simulate_tree", "true_points"]
+
 
 @dataclass(frozen=True, eq=False)
 class TreeCampaign:

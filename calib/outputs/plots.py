@@ -18,6 +18,16 @@ from ..fileio import write_atomic
 from ..identification.identifiability import Identifiability
 from .sweep import SweepRow
 
+__all__ = [
+    "FIGURE_FORMATS",
+    "counts_figure",
+    "errors_figure",
+    "figure_bytes",
+    "figure_format",
+    "save_figure",
+    "spectrum_figure",
+]
+
 
 def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
     """Base-parameter counts per robot (paper and complete sets) against the theory."""
@@ -25,11 +35,13 @@ def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
     fig = Figure(figsize=(max(6.0, 0.28 * len(ok) + 2.0), 4.2), layout="constrained")
     ax = fig.add_subplot()
     x = np.arange(len(ok))
-    ax.bar(x - 0.2, [r.n_base_paper for r in ok], 0.4, label="paper set")
-    ax.bar(x + 0.2, [r.n_base_complete for r in ok], 0.4, label="complete set")
+    ax.bar(x - 0.2, np.array([r.n_base_paper for r in ok], dtype=float), 0.4, label="paper set")
+    ax.bar(
+        x + 0.2, np.array([r.n_base_complete for r in ok], dtype=float), 0.4, label="complete set"
+    )
     ax.scatter(
         x,
-        [r.n_theory for r in ok],
+        np.array([r.n_theory for r in ok], dtype=float),
         marker="_",
         s=160,
         color="k",
@@ -67,7 +79,7 @@ def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Fig
     ax = fig.add_subplot()
     before = 1e3 * np.asarray(before)
     after = 1e3 * np.asarray(after)
-    bins = np.linspace(0.0, max(float(before.max(initial=0.0)), 1e-9), 30)
+    bins = np.linspace(0.0, max(float(before.max(initial=0.0)), 1e-9), 30).tolist()
     ax.hist(
         before, bins=bins, alpha=0.6, label=f"nominal (RMS {np.sqrt(np.mean(before**2)):.3g} mm)"
     )

@@ -9,6 +9,7 @@ import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 from ..checks import check_count, check_work
 from ..exceptions import CalibError, InvalidArgumentError
@@ -16,6 +17,14 @@ from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.jacobian import Measurement
 from ..kinematics.catalog import catalog
 from ..kinematics.tree import load_robot
+
+__all__ = [
+    "COLUMNS",
+    "SweepRow",
+    "rows_table",
+    "rows_to_csv",
+    "sweep",
+]
 
 
 @dataclass(frozen=True)
@@ -56,7 +65,7 @@ class SweepRow:
     note: str = ""
 
 
-def sweep_one(
+def _sweep_one(
     robot: str,
     base: str | None,
     tool: str | tuple[str, ...] | None,
@@ -75,7 +84,7 @@ def sweep_one(
         label = f"{chain.base_frame} -> {', '.join(tools)}"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
-            kw = {
+            kw: dict[str, Any] = {
                 "measure": measurement.label,
                 "marker": measurement.marker,
                 "configs": configs,
@@ -148,7 +157,7 @@ def sweep(
         jobs.append((name, e.base, e.tool) if e else (name, None, None))
     jobs += [(str(Path(p)), None, None) for p in extra]
     it = progress(jobs) if progress else jobs
-    return [sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
+    return [_sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
 
 
 COLUMNS = (

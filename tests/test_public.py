@@ -1,0 +1,191 @@
+"""The public line of calib/: every module says what it exports, and keeps to it.
+
+- every module has ``__all__``, and every name in it exists;
+- a module imports from another calib module only names of that module's ``__all__``;
+- the lazy packages name their lazy names for type checkers too (``if TYPE_CHECKING:``);
+- the library's errors speak of keyword arguments, not command-line flags (``--fix``): the
+  command line (calib/cli/) words its own.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+import calib
+
+PACKAGE = Path(calib.__file__).parent
+MODULES = sorted(PACKAGE.rglob("*.py"))
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def tree_of(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(encoding="utf-8"))
+
+
+def declared_all(path: Path) -> list[str] | None:
+    """The literal ``__all__`` of a module's source, or None without one."""
+    for node in tree_of(path).body:
+        targets = (
+            node.targets
+            if isinstance(node, ast.Assign)
+            else [node.target]
+            if isinstance(node, ast.AnnAssign)
+            else []
+        )
+        if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets):
+            try:
+                return list(ast.literal_eval(node.value))
+            except ValueError:  # computed (sorted(_LAZY)): the imported module tells
+                return list(importlib.import_module(module_name(path)).__all__)
+    return None
+
+
+def test_the_walk_sees_every_wing():
+    names = {module_name(p) for p in MODULES}
+    assert {"calib", "calib.cli.__main__", "calib.kinematics.robot", "calib.fileio"} <= names
+    assert len(MODULES) > 50
+
+
+@pytest.mark.parametrize("path", MODULES, ids=module_name)
+def test_every_module_declares_all_and_every_name_exists(path):
+    names = declared_all(path)
+    assert names is not None, f"{module_name(path)} has no __all__"
+    assert all(isinstance(n, str) for n in names)
+    assert len(set(names)) == len(names), f"{module_name(path)}: a name twice in __all__"
+    assert not [n for n in names if n.startswith("_")], "an internal name in __all__"
+    if path.name == "__main__.py":  # running it is the command line
+        assert names == []
+        return
+    module = importlib.import_module(module_name(path))
+    missing = [n for n in names if not hasattr(module, n)]
+    assert not missing, f"{module_name(path)}.__all__ names what it lacks: {missing}"
+
+
+def imported_names(path: Path):
+    """(source module, name) of each ``from ... import name`` of a calib module."""
+    me = module_name(path)
+    package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+    for node in ast.walk(tree_of(path)):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = package.split(".")[: len(package.split(".")) - node.level + 1]
+            source = ".".join(base + ([node.module] if node.module else []))
+        else:
+            source = node.module or ""
+        if source == "calib" or source.startswith("calib."):
+            for alias in node.names:
+                yield source, alias.name
+
+
+def test_modules_import_only_public_names_of_each_other():
+    modules = {module_name(p): p for p in MODULES}
+    exported = {name: declared_all(p) or [] for name, p in modules.items()}
+    crossing = []
+    for path in MODULES:
+        for source, name in imported_names(path):
+            if f"{source}.{name}" in modules or (name.startswith("__") and name.endswith("__")):
+                continue  # a submodule, or a dunder (__version__)
+            if name not in exported[source]:
+                crossing.append(f"{module_name(path)} imports {source}.{name}")
+    assert not crossing, "\n".join(crossing)
+
+
+def test_the_check_sees_a_private_import(tmp_path):
+    """The walk above finds ``from .x import _y`` (not a test that cannot fail)."""
+    path = PACKAGE / "calibration" / "model.py"
+    found = list(imported_names(path))
+    assert ("calib.calibration.options", "_integer") not in found
+    assert ("calib.identification.parameters", "ParameterSet") in found
+    fake = ast.parse("from ..options import _integer\n")
+    node = fake.body[0]
+    assert isinstance(node, ast.ImportFrom) and node.level == 2
+
+
+LAZY_PACKAGES = ["calib", "calib.calibration", "calib.measurements", "calib.cli"]
+
+
+@pytest.mark.parametrize("package", LAZY_PACKAGES)
+def test_lazy_names_are_typed(package):
+    """``_LAZY`` (imported when first used) and the TYPE_CHECKING imports name the same."""
+    module = importlib.import_module(package)
+    path = Path(module.__file__)
+    typed = {}
+    for node in tree_of(path).body:
+        if isinstance(node, ast.If) and getattr(node.test, "id", None) == "TYPE_CHECKING":
+            for imp in node.body:
+                assert isinstance(imp, ast.ImportFrom) and imp.level == 1
+                typed.update({a.name: imp.module for a in imp.names})
+    assert typed == dict(module._LAZY)
+    for name in module._LAZY:
+        assert name in module.__all__
+
+
+# ``raise SomeError("... --flag ...")`` outside calib/cli/: a library error naming a flag.
+FLAG = re.compile(r"(^|[\s('\"`])--[a-z][a-z-]*")
+
+
+def library_messages():
+    """(module, line, text) of every string in a ``raise`` outside calib/cli/."""
+    for path in MODULES:
+        if "cli" in path.relative_to(PACKAGE).parts:
+            continue
+        for node in ast.walk(tree_of(path)):
+            if isinstance(node, ast.Raise) and node.exc is not None:
+                for part in ast.walk(node.exc):
+                    if isinstance(part, ast.Constant) and isinstance(part.value, str):
+                        yield module_name(path), part.lineno, part.value
+
+
+def test_library_errors_name_no_command_line_flag():
+    flagged = [f"{m}:{line}: {text!r}" for m, line, text in library_messages() if FLAG.search(text)]
+    assert not flagged, "\n".join(flagged)
+
+
+def test_the_flag_check_catches_a_flag():
+    assert FLAG.search("--fix names a parameter twice")
+    assert FLAG.search("measure fewer (--holdout)")
+    assert not FLAG.search("fix names a parameter twice")
+    assert not FLAG.search("x1..z3 -- and more")
+    assert sum(1 for _ in library_messages()) > 100  # the walk sees the raise sites
+
+
+def test_the_command_line_says_the_flag_where_the_library_says_the_keyword(tmp_path, capsys):
+    """A base frame moved by a joint cannot take --world-link: calibrated_urdf's check names
+    ``world_link`` (a keyword), ``calib calibrate`` names its flag; no file is written."""
+    from calib.cli.commands import main
+    from calib.exceptions import CalibError
+    from calib.kinematics.robot import load_chain
+    from calib.kinematics.urdf_export import check_base_fixed
+
+    with pytest.raises(CalibError, match=r"^world_link: the base frame 'shoulder_link'"):
+        check_base_fixed(load_chain("ur5", base="shoulder_link"))
+    data, out = tmp_path / "m.csv", tmp_path / "c.urdf"
+    chain = ["ur5", "--base", "shoulder_link"]
+    assert main(["simulate", *chain, "--configs", "30", "--out", str(data)]) == 0
+    capsys.readouterr()
+    code = main(["calibrate", *chain, "--data", str(data), "--out", str(out), "--world-link", "w"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("calib: error: --world-link: the base frame 'shoulder_link' is moved")
+    assert not out.exists()
+
+
+def test_a_library_error_names_the_keyword(tmp_path):
+    """calibrate(holdout=...) that holds out no row says ``holdout``, not ``--holdout``."""
+    from calib import calibrate, load_chain, simulate
+    from calib.exceptions import InvalidArgumentError
+
+    chain = load_chain("ur5")
+    data = simulate(chain, 20, seed=3).measurements
+    with pytest.raises(InvalidArgumentError, match=r"^holdout 0.01 of 20 rows holds out no row"):
+        calibrate(chain, data, holdout=0.01)
