@@ -721,7 +721,8 @@ def _add_measure_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--measure",
         default="pose",
-        help="pose, position, or comma-separated rows among x,y,z,rx,ry,rz (default: pose)",
+        help="pose, position, comma-separated rows among x,y,z,rx,ry,rz, or a contact: plane, "
+        "plane-point, fixed-point, fixed-pose (default: pose)",
     )
     _add_marker_arg(p)
 
