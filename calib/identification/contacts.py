@@ -86,7 +86,8 @@ class PlaneContact(Contact):
     """The contact frame flush on an unknown plane: height and two tilts (3 rows).
 
     The plane brings 3 unknowns (its height and tilts; its in-plane placement is invisible).
-    Closed form of the identifiable count: 4R + 2P - 1 (see docs/method.md).
+    Closed form of the identifiable count: 4R + 2P - 1, 4R - 2 without a prismatic joint
+    (see docs/method.md), for 4 joints or more.
     """
 
     label: str = "plane"
@@ -136,8 +137,8 @@ class PlaneContact(Contact):
         None where calib has no proved formula: a prismatic joint first or last, or the
         contact origin on a joint axis.
         """
-        revolute, prismatic, _ = count_joints(sigma)
-        if on_axes or (prismatic and (sigma[0] == 1 or sigma[-1] == 1)):
+        revolute, prismatic, n = count_joints(sigma)
+        if n <= 3 or on_axes or (prismatic and (sigma[0] == 1 or sigma[-1] == 1)):
             return None
         return 4 * revolute + 2 * prismatic - (1 if prismatic else 2)
 
@@ -180,10 +181,10 @@ class PlanePointContact(Contact):
     def theoretical_count(self, sigma, on_axes) -> int | None:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
-        None with a prismatic first joint or the tip on another axis.
+        None with a prismatic first joint, the tip on another axis, or one joint.
         """
         revolute, prismatic, n = count_joints(sigma)
-        if any(k != n for k in on_axes) or sigma[0] == 1:
+        if n <= 1 or any(k != n for k in on_axes) or sigma[0] == 1:
             return None
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
@@ -227,10 +228,10 @@ class FixedPointContact(Contact):
     def theoretical_count(self, sigma, on_axes) -> int | None:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
-        None with the tip on another axis.
+        None with the tip on another axis, or 3 joints or fewer (the tip cannot move).
         """
         revolute, prismatic, n = count_joints(sigma)
-        if any(k != n for k in on_axes):
+        if n <= 3 or any(k != n for k in on_axes):
             return None
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
