@@ -220,8 +220,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 def _analyze_markers(args: argparse.Namespace) -> int:
     """What a calibration with K measured points (and free frame and markers) identifies."""
     from ..calibration.counting import identifiable_parameters
+    from ..identification.kinds import kind_of
 
-    if args.measure not in CAMPAIGN_MEASURES:
+    kind = kind_of(args.measure)
+    if not getattr(kind, "is_campaign", False):
         raise InvalidArgumentError("--markers takes --measure position or pose")
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if isinstance(chain, Tree):
@@ -287,14 +289,17 @@ def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
-    from ..measurements.csvfile import measurements_csv, simulate
+    from ..identification.kinds import campaign_kind
+    from ..measurements.csvfile import measurements_csv
+    from ..measurements.simulation import simulate
 
+    kind = campaign_kind(args.measure)
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree) and args.measure != "position":
+    if isinstance(chain, Tree) and not kind.is_position:
         raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
     check_output_paths(
         {"--out": out, "--truth": truth_path},
@@ -306,7 +311,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     campaign = simulate(
         chain,
         configs,
-        args.measure,
+        kind,
         args.marker,
         args.error_mm,
         args.error_mrad,
@@ -323,7 +328,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"{chain.name}: {campaign.measurements.m} configurations, measure {args.measure}, "
         f"{len(truth.params)} {truth.params.label} parameters perturbed "
         f"({truth.error_mm:g} mm, {truth.error_mrad:g} mrad), noise {truth.noise_mm:g} mm"
-        + (f", {truth.noise_mrad:g} mrad" if args.measure == "pose" else "")
+        + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
         + f", seed {truth.seed}"
     )
     print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
