@@ -249,6 +249,13 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _data_kind(args: argparse.Namespace):
+    """The kind ``--measure`` asks a calibration to use, or None for ``auto`` (the data's)."""
+    from ..identification.kinds import campaign_kind
+
+    return None if args.measure == "auto" else campaign_kind(args.measure)
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """The main job on embedded defaults: the paper's robot and a UR5."""
     print("== The paper's AID robot (Khalil & Gautier 1991), position measurement ==")
@@ -453,10 +460,11 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     data = read_measurements(args.data, chain, columns)
     _check_links(chain, data.n_markers, args.world_link)  # before the fit
     check = read_measurements(args.validate, chain, columns) if args.validate else None
-    if args.measure == "position":
+    kind = _data_kind(args)
+    if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
-    elif args.measure == "pose" and data.quaternion is None:
+    elif kind is not None and kind.is_pose and data.quaternion is None:
         raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
     result = calibrate(
         chain,
@@ -597,7 +605,8 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
             f"--params {args.params} is for one chain: a tree is calibrated with --params "
             f"{' or '.join(TREE_LEVELS)} (default: complete)"
         )
-    if args.measure == "pose":
+    kind = _data_kind(args)
+    if kind is not None and kind.is_pose:
         raise InvalidArgumentError(
             "--measure pose is for one chain: a tree is calibrated from one point per row "
             "(x, y, z and a tool)"
@@ -608,7 +617,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
         check_exportable(chain)
     data = read_measurements(args.data, tree)
     check = read_measurements(args.validate, tree) if args.validate else None
-    if args.measure == "position":
+    if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
     result = calibrate_tree(
