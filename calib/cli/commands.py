@@ -25,6 +25,7 @@ from ..calibration.options import (
 )
 from ..choices import (
     CAMPAIGN_MEASURES,
+    CONTACT_MEASURES,
     DEFAULT_CONFIGS,
     MARKERS,
     ORIENTATION_FORMATS,
@@ -256,6 +257,51 @@ def _data_kind(args: argparse.Namespace):
     return None if args.measure == "auto" else campaign_kind(args.measure)
 
 
+def _simulate_contacts(args: argparse.Namespace) -> int:
+    """``calib simulate --measure plane|...``: touches of the true robot, joints only."""
+    from ..measurements.contact_campaign import contacts_csv, simulate_contacts
+
+    for given, option in (
+        (args.marker is not None, "--marker"),
+        (args.configs_file is not None, "--configs-file"),
+        (args.noise_mm != 0.0, "--noise-mm"),
+    ):
+        if given:
+            raise InvalidArgumentError(
+                f"{option} is for measured campaigns: a contact records the joints alone "
+                f"(--noise-mrad: the joints' noise)"
+            )
+    out = Path(args.out)
+    if args.truth is None and written_in_place(out):
+        raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    if isinstance(chain, Tree):
+        raise InvalidArgumentError("a contact campaign is simulated on one chain: one --tool")
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    campaign = simulate_contacts(
+        chain,
+        args.configs,
+        args.measure,
+        contacts=args.contacts,
+        error_mm=args.error_mm,
+        error_mrad=args.error_mrad,
+        noise_mrad=args.noise_mrad or 0.0,
+        seed=args.seed,
+        params=args.params,
+    )
+    truth = campaign.truth
+    write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
+    print(
+        f"{chain.name}: {campaign.data.m} touches, measure {args.measure}, "
+        f"{len(campaign.data.contacts)} {campaign.data.id_column}(s), {len(truth.params)} "
+        f"{truth.params.label} parameters perturbed ({truth.error_mm:g} mm, "
+        f"{truth.error_mrad:g} mrad), joint noise {truth.noise_mrad:g} mrad, seed {truth.seed}"
+    )
+    print(f"wrote {out} and {truth_path} (true errors and {campaign.data.id_column}s)")
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """The main job on embedded defaults: the paper's robot and a UR5."""
     print("== The paper's AID robot (Khalil & Gautier 1991), position measurement ==")
@@ -300,6 +346,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from ..measurements.csvfile import measurements_csv
     from ..measurements.simulation import simulate
 
+    if args.measure in CONTACT_MEASURES:
+        return _simulate_contacts(args)
     kind = campaign_kind(args.measure)
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
@@ -794,11 +842,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--measure",
-        choices=CAMPAIGN_MEASURES,
+        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES),
         default="pose",
-        help="pose (point + orientation) or position (default: pose)",
+        help="pose (point + orientation), position, or a contact: touches recorded by the "
+        "joints alone, on the true robot (default: pose)",
     )
     _add_marker_arg(p)
+    p.add_argument(
+        "--contacts",
+        type=int,
+        default=1,
+        help="planes or points the touches share, with --measure plane|... (default: 1)",
+    )
     p.add_argument(
         "--params",
         choices=PARAMETER_SETS,

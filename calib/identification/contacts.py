@@ -337,12 +337,14 @@ def joint_offsets(mdh: MDHModel) -> ParameterSet:
 
 
 def project(
-    mdh: MDHModel, kind: Contact, q: np.ndarray, steps: int = NEWTON_STEPS
+    mdh: MDHModel, kind: Contact, q: np.ndarray, steps: int = NEWTON_STEPS, bounds=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Newton-project configurations onto the contact (gap 0), all at once.
 
     Each step moves q by the least-norm solution of ``J dq = -gap`` (the kind's Jacobian rows
-    of the joint offsets' columns), lightly damped.
+    of the joint offsets' columns), lightly damped, then clips it into ``bounds`` (lower and
+    upper joint positions ``(n,)`` each [rad or m]; revolute joints are otherwise wrapped into
+    [-pi, pi)).
 
     Returns:
         The projected configurations ``(m, n)`` and the largest gap of each ``(m,)``.
@@ -352,6 +354,8 @@ def project(
     alive = np.ones(len(q), dtype=bool)  # rows still bounded (a diverging one is dropped)
     c = kind.n_rows
     for _ in range(steps):
+        if not alive.any():
+            break
         qa = q[alive]
         kin = mdh.kinematics(qa)
         gap = kind.residual(kin.R[:, -1], kin.p[:, -1])
@@ -359,8 +363,11 @@ def project(
         JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(c)
         q[alive] = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
         alive &= np.isfinite(q).all(axis=1) & (np.abs(q) < MAX_STEP_Q).all(axis=1)
-        revolute = mdh.sigma[1 : mdh.n + 1] == 0
-        q[:, revolute] = (q[:, revolute] + np.pi) % (2 * np.pi) - np.pi  # the same postures
+        if bounds is not None:
+            q = np.clip(q, bounds[0], bounds[1])
+        else:
+            revolute = mdh.sigma[1 : mdh.n + 1] == 0
+            q[:, revolute] = (q[:, revolute] + np.pi) % (2 * np.pi) - np.pi  # the same postures
     gaps = np.full(len(q), np.inf)
     if alive.any():
         kin = mdh.kinematics(q[alive])
@@ -370,7 +377,7 @@ def project(
 
 
 def contact_postures(
-    mdh: MDHModel, kind: Contact, draw, m: int, rounds: int = 8
+    mdh: MDHModel, kind: Contact, draw, m: int, rounds: int = 8, bounds=None
 ) -> np.ndarray:
     """``m`` configurations where the contact holds (gap under :data:`CONTACT_TOL`).
 
@@ -380,6 +387,8 @@ def contact_postures(
         draw: ``draw(count, round)`` returns ``(count, n)`` starting configurations (seeded).
         m: Configurations wanted.
         rounds: Draws tried before giving up.
+        bounds: Lower and upper joint positions ``(n,)`` each [rad or m] the postures stay
+            within (the joint limits), or None.
 
     Raises:
         InvalidArgumentError: Too few starting configurations reach the contact.
@@ -387,15 +396,16 @@ def contact_postures(
     found: list[np.ndarray] = []
     total = 0
     for r in range(rounds):
-        q, gap = project(mdh, kind, draw(2 * m, r))
+        q, gap = project(mdh, kind, draw(2 * m, r), bounds=bounds)
         good = q[gap < CONTACT_TOL]
         found.append(good)
         total += len(good)
         if total >= m:
             return np.concatenate(found)[:m]
     raise InvalidArgumentError(
-        f"only {total} of {2 * m * rounds} postures reached the {kind.label} contact: the "
-        f"contact cannot hold at enough postures"
+        f"only {total} of {2 * m * rounds} postures reached the {kind.label} contact"
+        + (" within the joint limits" if bounds is not None else "")
+        + f": the contact cannot hold at {m} postures"
     )
 
 

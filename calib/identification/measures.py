@@ -17,6 +17,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from ..choices import CONTACT_MEASURES
 from ..exceptions import InvalidArgumentError
 from ..kinematics.so3 import rotation_vector
 
@@ -237,7 +238,7 @@ def _numeric(value) -> bool:
     return True
 
 
-CONTACT_NAMES = ("plane", "plane-point", "fixed-point", "fixed-pose")
+CONTACT_NAMES = CONTACT_MEASURES
 """The contact kinds' names (:mod:`calib.identification.contacts`)."""
 
 
