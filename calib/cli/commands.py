@@ -348,7 +348,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     if args.measure in CONTACT_MEASURES:
         return _simulate_contacts(args)
-    kind = campaign_kind(args.measure)
+    kind = campaign_kind(args.measure, args.marker)
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
@@ -367,7 +367,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         chain,
         configs,
         kind,
-        args.marker,
+        None,
         args.error_mm,
         args.error_mrad,
         args.noise_mm,
