@@ -352,22 +352,30 @@ def project(
     offsets = joint_offsets(mdh)
     q = np.array(q, dtype=float)
     alive = np.ones(len(q), dtype=bool)  # rows still bounded (a diverging one is dropped)
+    moving = np.ones(len(q), dtype=bool)  # rows not yet on the contact
+    revolute = mdh.sigma[1 : mdh.n + 1] == 0
     c = kind.n_rows
     for _ in range(steps):
-        if not alive.any():
+        rows = np.flatnonzero(alive & moving)
+        if not rows.size:
             break
-        qa = q[alive]
+        qa = q[rows]
         kin = mdh.kinematics(qa)
         gap = kind.residual(kin.R[:, -1], kin.p[:, -1])
-        J = identification_jacobian(mdh, offsets, qa, kind, kin=kin).reshape(len(qa), c, -1)
+        there = np.abs(gap).max(axis=1) < 1e-3 * CONTACT_TOL
+        moving[rows[there]] = False  # on the contact: no further step
+        rows, qa, gap = rows[~there], qa[~there], gap[~there]
+        if not rows.size:
+            break
+        J = identification_jacobian(mdh, offsets, qa, kind).reshape(len(qa), c, -1)
         JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(c)
-        q[alive] = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
-        alive &= np.isfinite(q).all(axis=1) & (np.abs(q) < MAX_STEP_Q).all(axis=1)
+        step = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
         if bounds is not None:
-            q = np.clip(q, bounds[0], bounds[1])
-        else:
-            revolute = mdh.sigma[1 : mdh.n + 1] == 0
-            q[:, revolute] = (q[:, revolute] + np.pi) % (2 * np.pi) - np.pi  # the same postures
+            step = np.clip(step, bounds[0], bounds[1])
+        else:  # the same postures
+            step[:, revolute] = (step[:, revolute] + np.pi) % (2 * np.pi) - np.pi
+        q[rows] = step
+        alive[rows] = np.isfinite(step).all(axis=1) & (np.abs(step) < MAX_STEP_Q).all(axis=1)
     gaps = np.full(len(q), np.inf)
     if alive.any():
         kin = mdh.kinematics(q[alive])

@@ -877,8 +877,11 @@ def analyze(
         )
     else:
         q = chain.random_configurations(int(configs), seed)
+    t3 = time.perf_counter()
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
     timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
+    if measurement.is_contact:
+        timings["contact"] = 1e3 * (t3 - t2)  # the postures where the contact holds
     result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
     if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
         per_tool = result.per_tool

@@ -297,26 +297,11 @@ def simulate_contacts(
     scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
     errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))
     true_mdh = pset.apply(nominal, errors)
-    lower, upper = joint_bounds(chain)
-    column = ID_COLUMNS[kind.label]
     frames, ids, qs = {}, [], []
     for j in range(int(contacts)):
-        start = int(np.random.default_rng([seed, 3, j]).integers(2**31))
-        q0 = chain.random_configurations(1, start)[0]
-        name = f"{'table' if column == 'plane' else 'point'}{j + 1}"
-        frames[name] = true_mdh.forward(q0[None])[0]
-        model = contact_model(true_mdh, q0, name)
         count = int(configs) // int(contacts) + (1 if j < int(configs) % int(contacts) else 0)
-        if count == 0:
-            continue
-        q = contact_postures(
-            model,
-            kind,
-            lambda c, r, s=start: chain.random_configurations(c, s + 1 + r),
-            count,
-            rounds=SIMULATION_ROUNDS,
-            bounds=(lower, upper),
-        )
+        name, frame, q = _touches(chain, true_mdh, kind, j, count, seed)
+        frames[name] = frame
         qs.append(q)
         ids += [name] * len(q)
     q = np.concatenate(qs)
@@ -329,6 +314,27 @@ def simulate_contacts(
         noise_mrad,
     )
     return ContactCampaign(data, truth)
+
+
+def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, j: int, count: int, seed: int):
+    """Contact j of a simulation: its name, its frame in the base frame and its touches."""
+    lower, upper = joint_bounds(chain)
+    column = ID_COLUMNS[kind.label]
+    start = int(np.random.default_rng([seed, 3, j]).integers(2**31))
+    q0 = chain.random_configurations(1, start)[0]
+    name = f"{'table' if column == 'plane' else 'point'}{j + 1}"
+    frame = true_mdh.forward(q0[None])[0]
+    if count == 0:
+        return name, frame, np.zeros((0, chain.n))
+    q = contact_postures(
+        contact_model(true_mdh, q0, name),
+        kind,
+        lambda c, r: chain.random_configurations(c, start + 1 + r),
+        count,
+        rounds=SIMULATION_ROUNDS,
+        bounds=(lower, upper),
+    )
+    return name, frame, q
 
 
 def write_contacts(path: str | Path, data: ContactData) -> None:
