@@ -43,13 +43,13 @@ _LAZY = {
     "MDHModel": "kinematics.mdh",
     "from_chain": "kinematics.mdh",
     "from_lines": "kinematics.mdh",
-    "Campaign": "measurements.csvfile",
+    "Campaign": "measurements.simulation",
     "Columns": "measurements.csvfile",
     "DataWarning": "measurements.csvfile",
     "Measurements": "measurements.csvfile",
-    "SimulationTruth": "measurements.csvfile",
+    "SimulationTruth": "measurements.simulation",
     "read_measurements": "measurements.csvfile",
-    "simulate": "measurements.csvfile",
+    "simulate": "measurements.simulation",
     "write_measurements": "measurements.csvfile",
     "Kind": "identification.parameters",
     "Parameter": "identification.parameters",
@@ -111,15 +111,13 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .kinematics.tree_model import TreeMDH, from_tree
     from .kinematics.urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
     from .measurements.csvfile import (
-        Campaign,
         Columns,
         DataWarning,
         Measurements,
-        SimulationTruth,
         read_measurements,
-        simulate,
         write_measurements,
     )
+    from .measurements.simulation import Campaign, SimulationTruth, simulate
     from .measurements.tree_campaign import TreeCampaign, simulate_tree
 
 

@@ -13,6 +13,7 @@ __all__ = [
     "check_count",
     "check_work",
     "joint_positions",
+    "read_only",
     "real_array",
 ]
 
@@ -115,3 +116,10 @@ def check_work(
             f"{need / 2**30:.3g} GB; calib "
             f"allows {MAX_WORK_BYTES / 2**30:g} GB: use at most {MAX_WORK_BYTES // per} {what}"
         )
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A float copy of ``a`` that cannot be written (the arrays of frozen values)."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 __all__ = [
     "CAMPAIGN_MEASURES",
+    "CONTACT_MEASURES",
     "DEFAULT_CANDIDATES",
     "DEFAULT_CONFIGS",
     "DESIGN_LEVELS",
@@ -37,6 +38,9 @@ UNITS = {"m": 1.0, "mm": 1e-3}
 
 CAMPAIGN_MEASURES = ("pose", "position")
 """What a campaign can measure."""
+
+CONTACT_MEASURES = ("plane", "plane-point", "fixed-point", "fixed-pose")
+"""Contacts: what a touch without an instrument says (:mod:`calib.identification.contacts`)."""
 
 DEFAULT_CANDIDATES = 2000
 """Random candidates a design draws by default."""

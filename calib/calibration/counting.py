@@ -12,6 +12,7 @@ import numpy as np
 from ..checks import MAX_WORK_BYTES
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
+from ..identification.kinds import campaign_kind
 from ..identification.parameters import complete_parameters
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain, check_count
@@ -42,10 +43,10 @@ def identifiable_parameters(
     k = check_count(n_markers, "the number of markers")
     check_count(configs, "the number of configurations")
     nominal = from_chain(chain).idealized()
-    check_marker_work(configs, k, len(complete_parameters(nominal)), measure == "pose")
+    pose = campaign_kind(measure).is_pose
+    check_marker_work(configs, k, len(complete_parameters(nominal)), pose)
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
-    pose = measure == "pose"
     state = registration_state(nominal, np.eye(4), markers, np.eye(3) if pose else None)
     pts, _ = state.predict(q)
     quat = np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1)) if pose else None

@@ -25,6 +25,7 @@ from ..calibration.options import (
 )
 from ..choices import (
     CAMPAIGN_MEASURES,
+    CONTACT_MEASURES,
     DEFAULT_CONFIGS,
     MARKERS,
     ORIENTATION_FORMATS,
@@ -245,8 +246,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 def _analyze_markers(args: argparse.Namespace) -> int:
     """What a calibration with K measured points (and free frame and markers) identifies."""
     from ..calibration.counting import identifiable_parameters
+    from ..identification.kinds import kind_of
 
-    if args.measure not in CAMPAIGN_MEASURES:
+    kind = kind_of(args.measure)
+    if not getattr(kind, "is_campaign", False):
         raise InvalidArgumentError("--markers takes --measure position or pose")
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if chain.is_tree:
@@ -269,6 +272,58 @@ def _analyze_markers(args: argparse.Namespace) -> int:
             f"markers free)"
         )
         print("  " + ", ".join(names))
+    return 0
+
+
+def _data_kind(args: argparse.Namespace):
+    """The kind ``--measure`` asks a calibration to use, or None for ``auto`` (the data's)."""
+    from ..identification.kinds import campaign_kind
+
+    return None if args.measure == "auto" else campaign_kind(args.measure)
+
+
+def _simulate_contacts(args: argparse.Namespace) -> int:
+    """``calib simulate --measure plane|...``: touches of the true robot, joints only."""
+    from ..measurements.contact_campaign import contacts_csv, simulate_contacts
+
+    for given, option in (
+        (args.marker is not None, "--marker"),
+        (args.configs_file is not None, "--configs-file"),
+        (args.noise_mm != 0.0, "--noise-mm"),
+    ):
+        if given:
+            raise InvalidArgumentError(
+                f"{option} is for measured campaigns: a contact records the joints alone "
+                f"(--noise-mrad: the joints' noise)"
+            )
+    out = Path(args.out)
+    if args.truth is None and written_in_place(out):
+        raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    if isinstance(chain, Tree):
+        raise InvalidArgumentError("a contact campaign is simulated on one chain: one --tool")
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    campaign = simulate_contacts(
+        chain,
+        args.configs,
+        args.measure,
+        contacts=args.contacts,
+        error_mm=args.error_mm,
+        error_mrad=args.error_mrad,
+        noise_mrad=args.noise_mrad or 0.0,
+        seed=args.seed,
+        params=args.params,
+    )
+    truth = campaign.truth
+    write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
+    print(
+        f"{chain.name}: {campaign.data.m} touches, measure {args.measure}, "
+        f"{len(campaign.data.contacts)} {campaign.data.id_column}(s), {len(truth.params)} "
+        f"{truth.params.label} parameters perturbed ({truth.error_mm:g} mm, "
+        f"{truth.error_mrad:g} mrad), joint noise {truth.noise_mrad:g} mrad, seed {truth.seed}"
+    )
+    print(f"wrote {out} and {truth_path} (true errors and {campaign.data.id_column}s)")
     return 0
 
 
@@ -312,14 +367,19 @@ def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
-    from ..measurements.csvfile import measurements_csv, simulate
+    from ..identification.kinds import campaign_kind
+    from ..measurements.csvfile import measurements_csv
+    from ..measurements.simulation import simulate
 
+    if args.measure in CONTACT_MEASURES:
+        return _simulate_contacts(args)
+    kind = campaign_kind(args.measure, args.marker)
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if chain.is_tree and args.measure != "position":
+    if chain.is_tree and not kind.is_position:
         raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
     check_output_paths(
         {"--out": out, "--truth": truth_path},
@@ -331,8 +391,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     campaign = simulate(
         chain,
         configs,
-        args.measure,
-        args.marker,
+        kind,
+        None,
         args.error_mm,
         args.error_mrad,
         args.noise_mm,
@@ -348,7 +408,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"{chain.name}: {campaign.measurements.m} configurations, measure {args.measure}, "
         f"{len(truth.params)} {truth.params.label} parameters perturbed "
         f"({truth.error_mm:g} mm, {truth.error_mrad:g} mrad), noise {truth.noise_mm:g} mm"
-        + (f", {truth.noise_mrad:g} mrad" if args.measure == "pose" else "")
+        + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
         + f", seed {truth.seed}"
     )
     print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
@@ -473,10 +533,11 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     data = read_measurements(args.data, chain, columns)
     _check_links(chain, data.n_markers, args.world_link)  # before the fit
     check = read_measurements(args.validate, chain, columns) if args.validate else None
-    if args.measure == "position":
+    kind = _data_kind(args)
+    if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
-    elif args.measure == "pose" and data.quaternion is None:
+    elif kind is not None and kind.is_pose and data.quaternion is None:
         raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
     result = calibrate(
         chain,
@@ -627,7 +688,8 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
             f"--params {args.params} is for one chain: a tree is calibrated with --params "
             f"{' or '.join(TREE_LEVELS)} (default: complete)"
         )
-    if args.measure == "pose":
+    kind = _data_kind(args)
+    if kind is not None and kind.is_pose:
         raise InvalidArgumentError(
             "--measure pose is for one chain: a tree is calibrated from one point per row "
             "(x, y, z and a tool)"
@@ -638,7 +700,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
         check_exportable(chain)
     data = read_measurements(args.data, tree)
     check = read_measurements(args.validate, tree) if args.validate else None
-    if args.measure == "position":
+    if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
     result = calibrate_tree(
@@ -756,7 +818,8 @@ def _add_measure_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--measure",
         default="pose",
-        help="pose, position, or comma-separated rows among x,y,z,rx,ry,rz (default: pose)",
+        help="pose, position, comma-separated rows among x,y,z,rx,ry,rz, or a contact: plane, "
+        "plane-point, fixed-point, fixed-pose (default: pose)",
     )
     _add_marker_arg(p)
 
@@ -814,11 +877,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--measure",
-        choices=CAMPAIGN_MEASURES,
+        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES),
         default="pose",
-        help="pose (point + orientation) or position (default: pose)",
+        help="pose (point + orientation), position, or a contact: touches recorded by the "
+        "joints alone, on the true robot (default: pose)",
     )
     _add_marker_arg(p)
+    p.add_argument(
+        "--contacts",
+        type=int,
+        default=1,
+        help="planes or points the touches share, with --measure plane|... (default: 1)",
+    )
     p.add_argument(
         "--params",
         choices=PARAMETER_SETS,

@@ -58,13 +58,14 @@ from ..checks import check_count, real_array
 from ..choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import independent_columns, preference_order
+from ..identification.kinds import campaign_kind
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
-from ..measurements.csvfile import CAMPAIGN_MEASURES, Measurements
+from ..measurements.csvfile import Measurements
 
 REFERENCE_CONFIGS = 200
 """Reference configurations of the predicted position error (I, G) by default."""
@@ -177,9 +178,8 @@ def check_model_arguments(
     Raises:
         InvalidArgumentError: One of them is not accepted.
     """
-    if measure not in CAMPAIGN_MEASURES:
-        raise InvalidArgumentError(f"unknown measure '{measure}': choose pose or position")
-    if tree and measure != "position":
+    kind = campaign_kind(measure)
+    if tree and not kind.is_position:
         raise InvalidArgumentError("a tree is calibrated from positions: use measure position")
     if tree and params not in TREE_LEVELS:
         raise InvalidArgumentError(
@@ -232,7 +232,7 @@ def observation_model(
         return _tree_observation_model(chain, measure, markers, params, structure_q, seed)
     check_model_arguments(measure, params, orientation_weight)
     mk = marker_array(markers)
-    pose = measure == "pose"
+    pose = campaign_kind(measure).is_pose
     nominal = from_chain(chain).idealized()
     pset, names = level_names(nominal, Options(level=params))
     ordered = tuple(

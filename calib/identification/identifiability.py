@@ -22,7 +22,10 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from ..kinematics.tree_model import TreeMDH, from_tree
 from . import qr
-from .jacobian import Measurement, complete_jacobian, identification_jacobian
+from .contacts import Contact, contact_configurations
+from .jacobian import complete_jacobian, identification_jacobian
+from .kinds import kind_of
+from .measures import MeasureKind, Measurement
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 
@@ -116,15 +119,15 @@ the same pair at every call."""
 
 def theoretical_count(
     chain_or_mdh: Chain | MDHModel | TreeMDH,
-    measurement: Measurement,
+    measurement: MeasureKind,
     on_axes: tuple[int, ...] = (),
 ) -> int | None:
     """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
 
-    4R + 2P + 6 for the full pose, 4R + 2P + 3 for the position of one point, 2 fewer when
-    the point lies on the last (revolute) axis. None where the formula says nothing: other
-    row subsets, or a point on a joint axis other than the last (a wrist centre). A tree
-    model gets :func:`tree_theoretical_count`.
+    The kind's own formula (:meth:`Measurement.theoretical_count`: 4R + 2P + 6 for the full
+    pose, 4R + 2P + 3 for the position of one point, 2 fewer when the point lies on the last
+    (revolute) axis; the contacts' in :mod:`calib.identification.contacts`). None where the
+    formula says nothing. A tree model gets :func:`tree_theoretical_count`.
 
     Args:
         chain_or_mdh: The chain or its model (for sigma).
@@ -134,20 +137,11 @@ def theoretical_count(
     if isinstance(chain_or_mdh, TreeMDH):
         return tree_theoretical_count(chain_or_mdh, measurement)
     sigma = np.asarray(chain_or_mdh.sigma)
-    n = int(np.sum(sigma >= 0))
-    R = int(np.sum(sigma == 0))
-    P = int(np.sum(sigma == 1))
-    if measurement.rows == (0, 1, 2, 3, 4, 5):
-        return 4 * R + 2 * P + 6
-    if measurement.rows == (0, 1, 2):
-        if any(k != n for k in on_axes):
-            return None
-        return 4 * R + 2 * P + 3 - (2 if on_axes else 0)
-    return None
+    return measurement.theoretical_count(sigma[sigma >= 0], tuple(on_axes))
 
 
 @functools.lru_cache(maxsize=16)
-def tree_axes(model: TreeMDH, measurement: Measurement) -> tuple[tuple[int, ...], ...]:
+def tree_axes(model: TreeMDH, measurement: MeasureKind) -> tuple[tuple[int, ...], ...]:
     """Per tool of a tree, the revolute joint rows whose axis passes through its point."""
     out = []
     for t in range(model.n_tools):
@@ -157,7 +151,7 @@ def tree_axes(model: TreeMDH, measurement: Measurement) -> tuple[tuple[int, ...]
     return tuple(out)
 
 
-def tree_theoretical_count(model: TreeMDH, measurement: Measurement) -> int | None:
+def tree_theoretical_count(model: TreeMDH, measurement: MeasureKind) -> int | None:
     """Independent parameters of a tree's complete model: 4R + 2P + 6T (pose of T tools).
 
     Each joint is counted once however many tools it carries: the placement of each joint
@@ -168,9 +162,11 @@ def tree_theoretical_count(model: TreeMDH, measurement: Measurement) -> int | No
     axis. None for other row subsets or a point on another axis.
     """
     R, P, T = int(np.sum(model.sigma == 0)), int(np.sum(model.sigma == 1)), model.n_tools
-    if measurement.rows == (0, 1, 2, 3, 4, 5):
+    if not isinstance(measurement, Measurement):
+        return None
+    if measurement.is_pose:
         return 4 * R + 2 * P + 6 * T
-    if measurement.rows != (0, 1, 2):
+    if not measurement.is_position:
         return None
     axes = tree_axes(model, measurement)
     lost = 0
@@ -183,7 +179,7 @@ def tree_theoretical_count(model: TreeMDH, measurement: Measurement) -> int | No
     return 4 * R + 2 * P + 3 * T - lost
 
 
-def axes_through_point(mdh: MDHModel | TreeMDH, measurement: Measurement) -> tuple[int, ...]:
+def axes_through_point(mdh: MDHModel | TreeMDH, measurement: MeasureKind) -> tuple[int, ...]:
     """Revolute joints (1..n) whose axis passes through the measured point.
 
     An axis counts only if it does so at every configuration: it is tested at the zero
@@ -193,7 +189,7 @@ def axes_through_point(mdh: MDHModel | TreeMDH, measurement: Measurement) -> tup
         return tuple(sorted({k for rows in tree_axes(mdh, measurement) for k in rows}))
     q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
     kin = mdh.kinematics(q)
-    E = kin.p[:, -1] + np.einsum("mij,j->mi", kin.R[:, -1], measurement.marker_array)
+    E = kin.p[:, -1] + np.einsum("mij,j->mi", kin.R[:, -1], np.array(measurement.marker))
     out = []
     for k in range(1, mdh.n + 1):
         if mdh.sigma[k] != 0:
@@ -206,7 +202,7 @@ def axes_through_point(mdh: MDHModel | TreeMDH, measurement: Measurement) -> tup
     return tuple(out)
 
 
-def point_on_last_axis(mdh: MDHModel, measurement: Measurement) -> bool:
+def point_on_last_axis(mdh: MDHModel, measurement: MeasureKind) -> bool:
     """Whether the measured point lies on the last joint axis (a revolute one)."""
     return mdh.n in axes_through_point(mdh, measurement)
 
@@ -268,7 +264,7 @@ class Identifiability:
     base_frame: str
     tool_frame: str
     mdh: MDHModel | TreeMDH
-    measurement: Measurement
+    measurement: MeasureKind
     params: ParameterSet
     n_configs: int
     seed: int
@@ -381,7 +377,14 @@ class Identifiability:
         raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
 
     def to_dict(self) -> dict:
-        """JSON-ready summary."""
+        """JSON-ready summary (a contact adds its rows and what it can never identify)."""
+        out = self._summary()
+        if self.measurement.is_contact:
+            out["rows"] = list(self.measurement.row_names)
+            out["unseen"] = list(getattr(self.measurement, "unseen", ()))
+        return out
+
+    def _summary(self) -> dict:
         last, nxt = self.gap
         return {
             "robot": self.robot,
@@ -630,10 +633,15 @@ def _checked_arguments(mdh, params, measurement, configs):
         raise InvalidArgumentError(
             f"mdh must be an MDHModel or a TreeMDH (see from_chain, from_tree), got {mdh!r:.60}"
         )
-    measurement = Measurement.of("pose") if measurement is None else measurement
-    if not isinstance(measurement, Measurement):
+    measurement = kind_of("pose") if measurement is None else measurement
+    if not isinstance(measurement, MeasureKind) or isinstance(measurement, str):
         raise InvalidArgumentError(
-            f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
+            f"measurement must be a measurement kind (see kind_of, Measurement.of), got "
+            f"{measurement!r:.60}"
+        )
+    if isinstance(mdh, TreeMDH) and not isinstance(measurement, Measurement):
+        raise InvalidArgumentError(
+            f"a tree is analysed with measured poses or points, not {measurement.label}"
         )
     if isinstance(params, str):
         pset = _set_of(mdh, params)
@@ -662,14 +670,14 @@ def _matrices(mdh: MDHModel | TreeMDH, params: ParameterSet, q: np.ndarray, meas
     """W of a set (for a tree: its small factor), W's rows, and the complete model's W."""
     if isinstance(mdh, TreeMDH):
         F = tree_jacobian(mdh, params, q, measurement, factor=True)
-        rows = len(q) * mdh.n_tools * len(measurement.rows)
+        rows = len(q) * mdh.n_tools * measurement.n_rows
         return F, rows, lambda: tree_complete_jacobian(mdh, q, measurement, factor=True)
     kin = mdh.kinematics(q)
     W = identification_jacobian(mdh, params, q, measurement, kin=kin)
     return W, W.shape[0], lambda: complete_jacobian(mdh, q, measurement, kin=kin)
 
 
-def per_tool_theory(mdh: TreeMDH, measurement: Measurement) -> tuple[tuple[str, int | None], ...]:
+def per_tool_theory(mdh: TreeMDH, measurement: MeasureKind) -> tuple[tuple[str, int | None], ...]:
     """Each tool's chain alone: its name and theoretical count (see :func:`theoretical_count`)."""
     out = []
     axes = tree_axes(mdh, measurement)
@@ -683,7 +691,7 @@ def per_tool_theory(mdh: TreeMDH, measurement: Measurement) -> tuple[tuple[str, 
 def analyze_model(
     mdh: MDHModel | TreeMDH,
     params: str | ParameterSet = "paper",
-    measurement: Measurement | None = None,
+    measurement: MeasureKind | None = None,
     configs: np.ndarray | None = None,
     robot: str = "",
     seed: int = 0,
@@ -831,19 +839,24 @@ def analyze(
         base: Base frame (default: the catalog's or the URDF root).
         tool: Tool frame (default: the catalog's or the deepest tip), or several: the tree of
             their chains, every tool measured at each configuration (see :func:`load_robot`).
-        measure: ``pose``, ``position`` or comma-separated rows (``x,y,z,rx``).
+        measure: ``pose``, ``position``, comma-separated rows (``x,y,z,rx``), a contact
+            (``plane``, ``plane-point``, ``fixed-point``, ``fixed-pose``) or a kind.
         marker: Measured point in the tool frame, 3 numbers [m].
         params: ``paper`` or ``complete``.
         configs: Number of random configurations m (>= 1).
         seed: Seed of the configurations.
 
     The analysis runs on the nominal geometry with URDF round-off removed
-    (:meth:`MDHModel.idealized`); the result's ``snapped`` lists what that changed.
+    (:meth:`MDHModel.idealized`); the result's ``snapped`` lists what that changed. A contact
+    is analysed at postures where it holds: the plane, point or pose is the tool frame's
+    placement at a first random configuration and becomes frame -1 (the base frame, whose
+    complete parameters stand for its unknown placement); the other configurations are
+    projected onto the contact (:func:`~calib.identification.contacts.contact_configurations`).
 
     Returns:
         The analysis, with load/convert/jacobian/qr timings.
     """
-    measurement = Measurement.of(measure, marker)
+    measurement = kind_of(measure, marker)
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
     if params not in ("paper", "complete"):
@@ -854,9 +867,25 @@ def analyze(
     exact = from_tree(chain) if chain.is_tree else from_chain(chain)
     mdh = exact.idealized()
     t2 = time.perf_counter()
-    q = chain.random_configurations(int(configs), seed)
+    if measurement.is_contact:
+        if (
+            not isinstance(mdh, MDHModel)
+            or not isinstance(measurement, Contact)
+            or chain.coupling is not None
+        ):
+            raise InvalidArgumentError(
+                f"a {measurement.label} contact is analysed on one chain without mimic joints"
+            )
+        mdh, q = contact_configurations(
+            mdh, measurement, lambda c, r: chain.random_configurations(c, seed + r), int(configs)
+        )
+    else:
+        q = chain.random_configurations(int(configs), seed)
+    t3 = time.perf_counter()
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
     timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
+    if measurement.is_contact:
+        timings["contact"] = 1e3 * (t3 - t2)  # the postures where the contact holds
     result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
     if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
         per_tool = result.per_tool

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import Kinematics, MDHModel
+from .measures import MAX_MARKER, POSE, POSE_ROWS, ROW_NAMES, MeasureKind, Measurement
 from .parameters import ParameterSet
 
 __all__ = [
@@ -19,83 +18,14 @@ __all__ = [
     "measured_point",
 ]
 
-MAX_MARKER = 1e3
-"""Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
-
-ROW_NAMES = ("x", "y", "z", "rx", "ry", "rz")
-"""The six rows of a pose error: position [m] then orientation [rad], in the base frame."""
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """What is measured: some rows of the tool pose error, at a point of the tool.
-
-    Attributes:
-        rows: Indices into ``(x, y, z, rx, ry, rz)``.
-        marker: Measured point in the tool frame ``(3,)`` [m].
-        label: ``pose``, ``position`` or the row names.
-    """
-
-    rows: tuple[int, ...]
-    marker: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    label: str = "pose"
-
-    @staticmethod
-    def of(measure: str = "pose", marker=None) -> Measurement:
-        """Build from ``pose``, ``position`` or comma-separated row names (``x,y,rz``).
-
-        Raises:
-            InvalidArgumentError: Unknown measure or a marker that is not 3 finite numbers.
-        """
-        rows: tuple[int, ...]
-        if measure == "pose":
-            rows = (0, 1, 2, 3, 4, 5)
-        elif measure == "position":
-            rows = (0, 1, 2)
-        else:
-            names = [s.strip() for s in str(measure).split(",") if s.strip()]
-            if not names or any(s not in ROW_NAMES for s in names):
-                raise InvalidArgumentError(
-                    f"unknown measure '{measure}': choose pose, position or rows among "
-                    f"{', '.join(ROW_NAMES)}"
-                )
-            rows = tuple(sorted({ROW_NAMES.index(s) for s in names}))
-        if marker is None:
-            marker = (0.0, 0.0, 0.0)
-        mk = np.asarray(marker, dtype=float).ravel() if _numeric(marker) else None
-        if (
-            mk is None
-            or mk.shape != (3,)
-            or not np.all(np.isfinite(mk))
-            or np.max(np.abs(mk)) > MAX_MARKER
-        ):
-            raise InvalidArgumentError(
-                f"a marker is 3 finite numbers (x y z in metres, each within {MAX_MARKER:g} m), "
-                f"got {marker!r}"
-            )
-        return Measurement(rows, (float(mk[0]), float(mk[1]), float(mk[2])), measure)
-
-    @property
-    def marker_array(self) -> np.ndarray:
-        """The marker as an array [m]."""
-        return np.array(self.marker)
-
-
-def _numeric(value) -> bool:
-    try:
-        np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        return False
-    return True
-
-
-def _check_types(mdh: MDHModel, measurement: Measurement, params=None) -> None:
+def _check_types(mdh: MDHModel, measurement: MeasureKind, params=None) -> None:
     """Raise InvalidArgumentError for arguments of the wrong kind (not for their values)."""
     if not isinstance(mdh, MDHModel):
         raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
-    if not isinstance(measurement, Measurement):
+    if not isinstance(measurement, MeasureKind):
         raise InvalidArgumentError(
-            f"measurement must be a Measurement (see Measurement.of), got {measurement!r:.60}"
+            f"measurement must be a measurement kind (see kind_of, Measurement.of), got "
+            f"{measurement!r:.60}"
         )
     last = mdh.n + 1
     if params is not None and not (
@@ -115,7 +45,7 @@ def identification_jacobian(
     mdh: MDHModel,
     params: ParameterSet,
     q: np.ndarray,
-    measurement: Measurement = Measurement((0, 1, 2, 3, 4, 5)),
+    measurement: MeasureKind = POSE,
     kin: Kinematics | None = None,
 ) -> np.ndarray:
     """Observation matrix W: stacked identification Jacobians, analytic (docs/method.md eq. 2).
@@ -124,12 +54,12 @@ def identification_jacobian(
         mdh: Nominal (or current) model.
         params: Parameters whose errors are the columns.
         q: Joint positions ``(m, n)`` [rad or m].
-        measurement: Measured rows and marker.
+        measurement: The measurement kind (its rows; a measured point: its marker).
         kin: Kinematics of ``mdh`` at ``q`` if already computed.
 
     Returns:
-        ``W`` of shape ``(m * len(rows), len(params))``: configuration-major, so rows
-        ``i*len(rows):(i+1)*len(rows)`` belong to configuration i.
+        ``W`` of shape ``(m * rows, len(params))`` (``rows = measurement.n_rows``):
+        configuration-major, so rows ``i*rows:(i+1)*rows`` belong to configuration i.
     """
     _check_types(mdh, measurement, params)
     if kin is None:
@@ -147,14 +77,24 @@ def identification_jacobian(
     L = None
     if rot.size:
         L = _point(kin, measurement) - np.stack([q_mid, p])[plan.point_source, plan.point_row]
-    return _assemble(axes, rot, L, measurement.rows)
+    return _measured_rows(axes, rot, L, measurement, kin)
 
 
-def _point(kin: Kinematics, measurement: Measurement) -> np.ndarray:
+def _measured_rows(axes, rot, L, measurement: MeasureKind, kin: Kinematics) -> np.ndarray:
+    """W of a kind: an instrument's rows directly, other kinds from the pose-error rows."""
+    if isinstance(measurement, Measurement):
+        return _assemble(axes, rot, L, measurement.rows)
+    W6 = _assemble(axes, rot, L, POSE_ROWS)
+    m, k = kin.R.shape[0], axes.shape[0]
+    rows = measurement.jacobian_rows(W6.reshape(m, 6, k), kin.R[:, -1])
+    return rows.reshape(-1, k)
+
+
+def _point(kin: Kinematics, measurement: MeasureKind) -> np.ndarray:
     """The measured point in the base frame, component-major ``(3, m)`` [m]."""
     E = kin.p[:, -1].T
     if any(measurement.marker):
-        E = E + np.einsum("mij,j->im", kin.R[:, -1], measurement.marker_array)
+        E = E + np.einsum("mij,j->im", kin.R[:, -1], np.array(measurement.marker))
     return E
 
 
@@ -188,7 +128,7 @@ def _assemble(
 def complete_jacobian(
     mdh: MDHModel,
     q: np.ndarray,
-    measurement: Measurement = Measurement((0, 1, 2, 3, 4, 5)),
+    measurement: MeasureKind = POSE,
     kin: Kinematics | None = None,
 ) -> np.ndarray:
     """Observation matrix of the complete reference error model.
@@ -200,7 +140,7 @@ def complete_jacobian(
     geometric errors the measurement can see, whatever the parameterisation.
 
     Returns:
-        ``W`` of shape ``(m * len(rows), 6 (n + 1))``.
+        ``W`` of shape ``(m * measurement.n_rows, 6 (n + 1))``.
     """
     _check_types(mdh, measurement)
     if kin is None:
@@ -216,4 +156,14 @@ def complete_jacobian(
     points[1:, 0] = kin.p[:, 1 : n + 1].transpose(1, 2, 0)
     L = _point(kin, measurement) - np.broadcast_to(points, (n + 1, 3, 3, m)).reshape(-1, 3, m)
     rot = np.arange(axes.shape[0], 2 * axes.shape[0])
-    return _assemble(np.concatenate([axes, axes]), rot, L, measurement.rows)
+    return _measured_rows(np.concatenate([axes, axes]), rot, L, measurement, kin)
+
+
+__all__ = [
+    "MAX_MARKER",
+    "ROW_NAMES",
+    "Measurement",
+    "complete_jacobian",
+    "identification_jacobian",
+    "measured_point",
+]

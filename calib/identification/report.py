@@ -122,6 +122,10 @@ def analysis_text(res: Identifiability) -> str:
     if res.snapped:
         lines.append(f"URDF round-off removed before the analysis: {'; '.join(res.snapped)}")
     lines += _mimic_lines(res)
+    unseen = getattr(res.measurement, "unseen", ())
+    if unseen:
+        lines.append(f"a {res.measurement.label} contact can never identify:")
+        lines += [f"  - {u}" for u in unseen]
     if res.zero:
         lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
     if res.missing:
@@ -141,7 +145,7 @@ def _tree_theory_lines(res: Identifiability) -> list[str]:
         return []
     sigma = res.mdh.sigma
     R, P, T = int(sum(sigma == 0)), int(sum(sigma == 1)), len(res.per_tool)
-    per = 6 if res.measurement.rows == (0, 1, 2, 3, 4, 5) else 3
+    per = 6 if res.measurement.n_rows == 6 else 3
     theory = (
         f"4R + 2P + {per}T = {4 * R + 2 * P + per * T} for R={R}, P={P}, T={T}"
         + (", before points on axes" if res.on_axes and per == 3 else "")
@@ -197,7 +201,7 @@ def _mimic_lines(res: Identifiability) -> list[str]:
 
 
 def _axes_note(res: Identifiability) -> str:
-    if res.measurement.rows != (0, 1, 2) or not res.on_axes:
+    if res.measurement.row_names != ("x", "y", "z") or not res.on_axes:
         return ""
     if res.per_tool:
         if res.n_theory is None:

@@ -1,9 +1,9 @@
 """Measurements: the CSV of measured campaigns, simulated campaigns, marker sets.
 
-:mod:`.csvfile` reads, checks and writes the measurement CSV and simulates chain campaigns
-(its names are re-exported here, imported when first used: ``from calib.measurements import
-read_measurements`` works); :mod:`.tree_campaign` simulates tree campaigns, :mod:`.marker_set`
-reads the markers of a pose measurement.
+:mod:`.csvfile` reads, checks and writes the measurement CSV, :mod:`.simulation` simulates
+chain campaigns (their names are re-exported here, imported when first used:
+``from calib.measurements import read_measurements`` works); :mod:`.tree_campaign`
+simulates tree campaigns, :mod:`.marker_set` reads the markers of a pose measurement.
 
 May import: :mod:`calib.identification`, :mod:`calib.kinematics` and the bottom modules.
 """
@@ -12,7 +12,7 @@ from ..lazy import attributes
 
 _LAZY = {
     "Angles": "csvfile",
-    "Campaign": "csvfile",
+    "Campaign": "simulation",
     "Columns": "csvfile",
     "DEFAULT_ORIENTATION_COLUMNS": "csvfile",
     "DataWarning": "csvfile",
@@ -24,7 +24,7 @@ _LAZY = {
     "Measurements": "csvfile",
     "POSITION_COLUMNS": "csvfile",
     "QUATERNION_COLUMNS": "csvfile",
-    "SimulationTruth": "csvfile",
+    "SimulationTruth": "simulation",
     "TOOL_COLUMN": "csvfile",
     "check_against_chain": "csvfile",
     "check_limits": "csvfile",
@@ -34,7 +34,7 @@ _LAZY = {
     "parse_measurements": "csvfile",
     "parse_number": "csvfile",
     "read_measurements": "csvfile",
-    "simulate": "csvfile",
+    "simulate": "simulation",
     "tool_frames": "csvfile",
     "write_measurements": "csvfile",
 }
@@ -54,11 +54,9 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
         QUATERNION_COLUMNS,
         TOOL_COLUMN,
         Angles,
-        Campaign,
         Columns,
         DataWarning,
         Measurements,
-        SimulationTruth,
         check_against_chain,
         check_limits,
         csv_records,
@@ -67,9 +65,9 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
         parse_measurements,
         parse_number,
         read_measurements,
-        simulate,
         tool_frames,
         write_measurements,
     )
+    from .simulation import Campaign, SimulationTruth, simulate  # noqa: F401
 
 __all__ = sorted(_LAZY)

@@ -1,4 +1,4 @@
-"""Measurement campaigns: the CSV format, its validation, and simulated campaigns.
+"""Measurement campaigns: the CSV format and its validation (simulation: :mod:`.simulation`).
 
 CSV format (one header line, then one row per configuration; comma separated):
 
@@ -18,16 +18,6 @@ the measurement column (without ``joint:NAME``, a plain ``NAME`` is the joint's)
 
 Columns may come in any order; blank lines are skipped. Errors name the row the way a
 text editor or spreadsheet numbers it (the header is row 1) and the column by its name.
-
-Simulated campaigns (:func:`simulate`): a "true" robot is the nominal MDH model with every
-standard parameter of the chosen set perturbed by a seeded normal error (standard deviation
-``error_mm`` [mm] for lengths, ``error_mrad`` [mrad] for angles); rows 0 and 1 carry the
-base error (the measurement frame is frame -1 of the true model) and row n+1 the tool error.
-The measured point (and tool orientation) of the true robot are recorded at seeded random
-configurations within the joint limits, then noise is added: isotropic Gaussian of standard
-deviation ``noise_mm`` [mm] on x, y, z and, for poses, a rotation vector of standard
-deviation ``noise_mrad`` [mrad] per axis (base frame), left-multiplied onto the true
-orientation.
 """
 
 from __future__ import annotations
@@ -45,13 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..checks import read_only
+from ..choices import MARKERS, ORIENTATION_FORMATS, UNITS
 from ..exceptions import DataError, InvalidArgumentError
 from ..fileio import read_failure, read_text_limited, write_atomic
-from ..identification.identifiability import Identifiability, analyze_model
-from ..identification.jacobian import Measurement, measured_point
-from ..identification.parameters import ParameterSet, parameter_set
-from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.mimic import Coupling
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import (
@@ -64,7 +51,6 @@ from ..kinematics.tree import Tree
 from . import marker_set
 
 __all__ = [
-    "CAMPAIGN_MEASURES",
     "DEFAULT_ORIENTATION_COLUMNS",
     "JOINT_PREFIX",
     "LIMIT_MARGIN",
@@ -75,11 +61,9 @@ __all__ = [
     "QUATERNION_COLUMNS",
     "TOOL_COLUMN",
     "Angles",
-    "Campaign",
     "Columns",
     "DataWarning",
     "Measurements",
-    "SimulationTruth",
     "check_against_chain",
     "check_limits",
     "csv_records",
@@ -88,7 +72,6 @@ __all__ = [
     "parse_measurements",
     "parse_number",
     "read_measurements",
-    "simulate",
     "tool_frames",
     "write_measurements",
 ]
@@ -141,12 +124,6 @@ _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 class DataWarning(UserWarning):
     """Data that are usable but unusual (readings past a joint limit, ignored columns)."""
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
 
 
 def _unit_quaternions(quat: np.ndarray) -> np.ndarray:
@@ -245,7 +222,7 @@ class Measurements:
                 raise InvalidArgumentError(
                     f"quaternions must have shape ({m}, 4), got {quat.shape}"
                 )
-            object.__setattr__(self, "quaternion", _frozen(_unit_quaternions(quat)))
+            object.__setattr__(self, "quaternion", read_only(_unit_quaternions(quat)))
         if self.angles is not None and (
             self.quaternion is None or np.shape(self.angles.values) != (m, 3)
         ):
@@ -257,8 +234,8 @@ class Measurements:
                 raise InvalidArgumentError(f"tool must give one tool frame name per row ({m})")
             object.__setattr__(self, "tool", tuple(self.tool))
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
-        object.__setattr__(self, "q", _frozen(q))
-        object.__setattr__(self, "position", _frozen(pos))
+        object.__setattr__(self, "q", read_only(q))
+        object.__setattr__(self, "position", read_only(pos))
         if self.rows is not None:
             object.__setattr__(self, "rows", tuple(int(r) for r in self.rows))
 
@@ -711,7 +688,7 @@ def parse_measurements(
     elif fmt is not None:
         ori = table[:, [col[n] for n in ori_cols]]
         quat = _orientation(ori, fmt, source, lines)
-        angles = Angles(fmt, _frozen(ori)) if fmt in ("rotvec", "rpy") else None
+        angles = Angles(fmt, read_only(ori)) if fmt in ("rotvec", "rpy") else None
     data = Measurements(
         chain.joint_names,
         q,
@@ -788,6 +765,18 @@ def read_measurements(
     return parse_measurements(text, chain, src, columns)
 
 
+_SIMULATION = ("Campaign", "SimulationTruth", "simulate")
+"""Names that moved to :mod:`.simulation`, still found here (imported when asked for)."""
+
+
+def __getattr__(name: str):
+    if name in _SIMULATION:
+        from . import simulation  # only when asked: reading a CSV does not need it
+
+        return getattr(simulation, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def measurements_csv(data: Measurements) -> str:
     """The CSV text of measurements, full precision (``repr`` of every float)."""
     out = io.StringIO()
@@ -802,199 +791,3 @@ def measurements_csv(data: Measurements) -> str:
 def write_measurements(path: str | Path, data: Measurements) -> None:
     """Write measurements as CSV atomically (the file is complete or not written at all)."""
     write_atomic(path, measurements_csv(data))
-
-
-@dataclass(frozen=True, eq=False)
-class SimulationTruth:
-    """What a simulated campaign hides from the calibration: the true robot and errors.
-
-    Attributes:
-        robot: Robot name.
-        base_frame: Frame -1 of the nominal model (the true model's is the measurement frame).
-        tool_frame: Frame n+1.
-        params: The standard parameter set that was perturbed.
-        errors: True error of every parameter of ``params`` [rad or m].
-        true_mdh: The true MDH model (nominal + errors).
-        measurement: What was measured (rows and marker).
-        analysis: Identifiability of the nominal model (URDF round-off removed, as in
-            :func:`calib.analyze`) at the campaign's configurations.
-        base_values: True value of each base parameter, ``dX1 + B dX2`` [rad or m], in the
-            order of ``analysis.base`` (first order: exact where the regrouping is exact).
-        seed: Seed of the configurations, the errors and the noise.
-        error_mm: Standard deviation of the length errors [mm].
-        error_mrad: Standard deviation of the angle errors [mrad].
-        noise_mm: Standard deviation of the position noise per axis [mm].
-        noise_mrad: Standard deviation of the orientation noise per axis [mrad].
-    """
-
-    robot: str
-    base_frame: str
-    tool_frame: str
-    params: ParameterSet
-    errors: np.ndarray
-    true_mdh: MDHModel
-    measurement: Measurement
-    analysis: Identifiability
-    base_values: np.ndarray
-    seed: int
-    error_mm: float
-    error_mrad: float
-    noise_mm: float
-    noise_mrad: float
-
-    def to_dict(self) -> dict:
-        """JSON-ready record of the truth (radians, metres)."""
-        return {
-            "robot": self.robot,
-            "base_frame": self.base_frame,
-            "tool_frame": self.tool_frame,
-            "measure": self.measurement.label,
-            "marker": list(self.measurement.marker),
-            "params": self.params.label,
-            "configs": self.analysis.n_configs,
-            "seed": self.seed,
-            "error_mm": self.error_mm,
-            "error_mrad": self.error_mrad,
-            "noise_mm": self.noise_mm,
-            "noise_mrad": self.noise_mrad,
-            "parameter_names": list(self.params.names),
-            "errors": {n: float(v) for n, v in zip(self.params.names, self.errors, strict=True)},
-            "base_parameters": {
-                n: float(v) for n, v in zip(self.analysis.base, self.base_values, strict=True)
-            },
-            "regrouping": self.analysis.regrouping(),
-            "true_mdh": self.true_mdh.rows(),
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class Campaign:
-    """A simulated measurement campaign: the data and the truth behind it.
-
-    Attributes:
-        measurements: What a calibration gets to see.
-        truth: The true robot and errors, for checking.
-    """
-
-    measurements: Measurements
-    truth: SimulationTruth
-
-
-def _integer(what: str, value, minimum: int) -> int:
-    """``value`` as an int, if it is an integer (not a bool) >= ``minimum``.
-
-    Raises:
-        InvalidArgumentError: None, a bool, a float, a string or a smaller integer.
-    """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _non_negative(name: str, value: float) -> float:
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, bool
-    )
-    if not number or not math.isfinite(float(value)) or float(value) < 0:
-        raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
-    return float(value)
-
-
-def simulate(
-    chain: Chain,
-    configs: int | np.ndarray = 100,
-    measure: str = "pose",
-    marker=None,
-    error_mm: float = 1.0,
-    error_mrad: float = 1.0,
-    noise_mm: float = 0.0,
-    noise_mrad: float | None = None,
-    seed: int = 0,
-    params: str = "complete",
-) -> Campaign:
-    """Simulate a measurement campaign on a perturbed ("true") copy of a chain.
-
-    The configurations are those ``calib analyze --seed SEED`` draws (uniform within the
-    joint limits); the errors and the noise come from two further streams of the same seed.
-
-    Args:
-        chain: The nominal chain.
-        configs: Number of configurations m (an integer >= 1), or the configurations
-            themselves ``(m, n)`` [rad or m] (a designed set).
-        measure: ``pose`` or ``position``.
-        marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
-        error_mm: Standard deviation of every length error [mm].
-        error_mrad: Standard deviation of every angle error [mrad].
-        noise_mm: Standard deviation of the position noise per axis [mm].
-        noise_mrad: Standard deviation of the orientation noise per axis [mrad] (default:
-            the number given as ``noise_mm``, so that 1 mrad weighs like 1 mm).
-        seed: Seed (an integer >= 0; not None, a bool or a float).
-        params: Parameter set perturbed: ``complete`` (default) or ``paper``.
-
-    Returns:
-        The campaign.
-
-    Raises:
-        InvalidArgumentError: A bad argument.
-    """
-    if measure not in CAMPAIGN_MEASURES:
-        raise InvalidArgumentError(f"unknown measure '{measure}': choose pose or position")
-    given = isinstance(configs, np.ndarray | list | tuple)
-    m = 0 if given else _integer("the number of configurations", configs, 1)
-    seed = _integer("the seed", seed, 0)
-    error_mm = _non_negative("error_mm", error_mm)
-    error_mrad = _non_negative("error_mrad", error_mrad)
-    noise_mm = _non_negative("noise_mm", noise_mm)
-    noise_mrad = noise_mm if noise_mrad is None else _non_negative("noise_mrad", noise_mrad)
-    measurement = Measurement.of(measure, marker)
-    nominal = from_chain(chain)
-    pset = parameter_set(nominal, params)
-
-    q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
-    m = len(q)
-    rng_errors = np.random.default_rng([seed, 1])
-    rng_noise = np.random.default_rng([seed, 2])
-    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
-    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
-    errors = scale * rng_errors.standard_normal(len(pset))
-    true_mdh = pset.apply(nominal, errors)
-
-    kin = true_mdh.kinematics(q)
-    position = measured_point(kin, measurement.marker_array)
-    position = position + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
-    quat = None
-    if measure == "pose":
-        noise = 1e-3 * noise_mrad * rng_noise.standard_normal((m, 3))
-        quat = matrix_to_quaternion(rotation_matrix(noise) @ kin.R[:, -1])
-
-    analysis = analyze_model(nominal.idealized(), pset, measurement, q, robot=chain.name, seed=seed)
-    index = {n: i for i, n in enumerate(pset.names)}
-    kept = errors[[index[n] for n in analysis.base]]
-    others = errors[[index[n] for n in analysis.others]]
-    base_values = kept + analysis.B @ others if others.size else kept
-
-    data = Measurements(
-        chain.joint_names,
-        q,
-        position,
-        quat,
-        f"<simulated {chain.name}>",
-        coupling=chain.coupling,
-    )
-    truth = SimulationTruth(
-        robot=chain.name,
-        base_frame=chain.base_frame,
-        tool_frame=chain.tool_frame,
-        params=pset,
-        errors=_frozen(errors),
-        true_mdh=true_mdh,
-        measurement=measurement,
-        analysis=analysis,
-        base_values=_frozen(base_values),
-        seed=seed,
-        error_mm=error_mm,
-        error_mrad=error_mrad,
-        noise_mm=noise_mm,
-        noise_mrad=noise_mrad,
-    )
-    return Campaign(data, truth)

@@ -1,6 +1,6 @@
 """Simulated measurement campaigns of a tree: every tool measured at each configuration.
 
-As for a chain (:func:`.csvfile.simulate`): the "true" tree is the nominal one with
+As for a chain (:func:`.simulation.simulate`): the "true" tree is the nominal one with
 every parameter of its standard set perturbed by a seeded normal error (``error_mm`` [mm]
 for lengths, ``error_mrad`` [mrad] for angles); a point on each tool (``markers``, in the
 tool's frame) is recorded at seeded random configurations, one row per configuration and

@@ -95,7 +95,7 @@ def _sweep_one(
     except CalibError as exc:
         return SweepRow(str(robot), label, time_ms=1e3 * (time.perf_counter() - t0), error=str(exc))
     missing = full.n_complete - (paper if params == "paper" else full).n_base
-    on_axes = full.on_axes if measurement.rows == (0, 1, 2) else ()
+    on_axes = full.on_axes if measurement.is_position else ()
     notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
     if full.mimic:  # the formula is for independent joints
         notes.append(f"{len(full.mimic)} coupled (mimic) joint(s): no theory")

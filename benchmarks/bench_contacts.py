@@ -1,0 +1,55 @@
+"""Speed of the identifiability analysis of contacts (``calib analyze --measure plane|...``).
+
+Medians of in-process calls on preloaded chains, 100 postures (the default): the whole
+``analyze`` (conversion, projection of random configurations onto the contact, Jacobian,
+QR) and its projection step alone.
+
+Run: .venv/bin/python benchmarks/bench_contacts.py
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import median_ms, one_core, table
+
+one_core()
+
+from calib import analyze, from_chain, load_chain  # noqa: E402
+from calib.identification.contacts import contact_configurations, contact_kind  # noqa: E402
+
+warnings.simplefilter("ignore")
+
+ROBOTS = ("ur5", "panda", "tiago")
+KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")
+REPEATS = 7
+
+
+def projection_ms(chain, mdh, kind: str) -> float:
+    """Median time of the projection of 100 postures onto the contact [ms]."""
+    contact = contact_kind(kind)
+
+    def run():
+        return contact_configurations(
+            mdh, contact, lambda count, r: chain.random_configurations(count, r), 100
+        )
+
+    return median_ms(run, REPEATS, 1)
+
+
+def main() -> None:
+    rows = []
+    for name in ROBOTS:
+        chain = load_chain(name)
+        mdh = from_chain(chain).idealized()
+        for kind in KINDS:
+            whole = median_ms(lambda c=chain, k=kind: analyze(c, measure=k), REPEATS, 1)
+            rows.append((name, kind, f"{whole:.1f}", f"{projection_ms(chain, mdh, kind):.1f}"))
+    print(table(["robot", "measure", "analyze [ms]", "projection [ms]"], rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,355 @@
+"""Contact campaigns: touches recorded by the joint encoders alone.
+
+CSV format (one header line, then one row per touch): an id column naming what each touch
+touches, ``plane`` for the plane kinds (``plane``, ``plane-point``) or ``point`` for the
+point kinds (``fixed-point``, ``fixed-pose``), several ids per file; one column per joint of
+the chain [rad or m]. Other columns (the robot's other joints, a spot id) are ignored, with
+one note. A contact file has no coordinates: an ``x``, ``y``, ``z`` or quaternion column is
+an error, and so is an id column that does not match the kind.
+
+:func:`simulate_contacts` makes such a campaign on a perturbed ("true") copy of a chain, as
+:func:`calib.simulate` does for measured ones: every touch satisfies the true contact (Newton
+projection onto it, :func:`calib.identification.contacts.contact_postures`), within the joint
+limits.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import DataError, InvalidArgumentError
+from ..fileio import read_failure, read_text_limited, write_atomic
+from ..identification.contacts import Contact, contact_model, contact_postures
+from ..identification.kinds import kind_of
+from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.robot import Chain
+from .csvfile import (
+    MAX_MEASUREMENTS_BYTES,
+    DataWarning,
+    check_limits,
+    csv_records,
+    joint_bounds,
+    parse_number,
+)
+
+ID_COLUMNS = {
+    "plane": "plane",
+    "plane-point": "plane",
+    "fixed-point": "point",
+    "fixed-pose": "point",
+}
+"""The id column of each contact kind."""
+
+SIMULATION_ROUNDS = 24
+"""Draws of starting configurations :func:`simulate_contacts` tries per contact."""
+
+_COORDINATE = re.compile(r"([xyz]|q[xyzw])\d*")
+"""A measured coordinate's column (``x``, ``y2``, ``qw``): not in a contact file."""
+
+
+@dataclass(frozen=True, eq=False)
+class ContactData:
+    """Touches of one contact kind: joint positions and what each touch touches.
+
+    Attributes:
+        joint_names: The chain's joints, in chain order.
+        q: Joint positions per touch ``(m, n)`` [rad or m].
+        ids: The plane or point each touch touches ``(m,)``.
+        kind: The contact kind.
+        source: File name (or a description) for messages.
+        rows: The file row of each touch, or None.
+    """
+
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    ids: tuple[str, ...]
+    kind: Contact
+    source: str = "<contacts>"
+    rows: tuple[int, ...] | None = None
+
+    @property
+    def m(self) -> int:
+        """Number of touches."""
+        return len(self.q)
+
+    @property
+    def id_column(self) -> str:
+        """``plane`` or ``point``."""
+        return ID_COLUMNS[self.kind.label]
+
+    @property
+    def contacts(self) -> tuple[str, ...]:
+        """The planes or points, in order of first appearance."""
+        return tuple(dict.fromkeys(self.ids))
+
+
+def _contact(measure) -> Contact:
+    kind = kind_of(measure)
+    if not isinstance(kind, Contact):
+        raise InvalidArgumentError(
+            f"'{kind.label}' is not a contact: choose {', '.join(ID_COLUMNS)}"
+        )
+    return kind
+
+
+def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> dict[str, int]:
+    """Column index of the id and of every chain joint; DataError for a wrong layout."""
+    names = [c.strip() for c in cells]
+    for name in names:
+        if _COORDINATE.fullmatch(name) and name not in chain.joint_names:
+            raise DataError(
+                src,
+                f"a contact file has no coordinates, found '{name}': the joints alone record a "
+                f"touch",
+                row=1,
+            )
+    want = ID_COLUMNS[kind.label]
+    other = "point" if want == "plane" else "plane"
+    if want not in names:
+        kinds = ", ".join(k for k, c in ID_COLUMNS.items() if c == other)
+        hint = f": it names {other}s, for {kinds}" if other in names else ""
+        raise DataError(src, f"a {kind.label} contact needs a '{want}' column{hint}", row=1)
+    if other in names:
+        raise DataError(src, f"both 'plane' and 'point' columns for a {kind.label} contact", row=1)
+    if len(set(names)) != len(names):
+        raise DataError(src, "a column name appears twice", row=1)
+    missing = [j for j in chain.joint_names if j not in names]
+    if missing:
+        raise DataError(src, f"no column for joint {missing[0]} of the chain", row=1)
+    index = {n: i for i, n in enumerate(names)}
+    ignored = [n for n in names if n != want and n not in chain.joint_names]
+    if ignored:
+        warnings.warn(
+            f"{src}: {len(ignored)} columns not on the chain ignored ({', '.join(ignored[:6])}"
+            + (", ..." if len(ignored) > 6 else "")
+            + ")",
+            DataWarning,
+            stacklevel=4,
+        )
+    return {"id": index[want], **{j: index[j] for j in chain.joint_names}}
+
+
+def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>") -> ContactData:
+    """Parse a contact CSV for a chain and a contact kind.
+
+    Raises:
+        DataError: Coordinates, an id column that does not match the kind, a missing joint,
+            an empty id, a non-numeric cell or a joint value far outside its limits.
+        InvalidArgumentError: Not a contact kind, or a chain with mimic joints.
+    """
+    kind = _contact(measure)
+    if chain.coupling is not None:
+        raise InvalidArgumentError("contact files are read for chains without mimic joints")
+    records = list(csv_records(text, source))
+    if not records:
+        raise DataError(source, "empty file: expected a header line and touches")
+    if len(records) == 1:
+        raise DataError(source, "no touches after the header")
+    cols = _checked_header(records[0][1], chain, kind, source)
+    ids, q, rows = [], [], []
+    for line, cells in records[1:]:
+        if len(cells) != len(records[0][1]):
+            raise DataError(source, f"{len(cells)} cells for {len(records[0][1])} columns", line)
+        name = cells[cols["id"]].strip()
+        if not name:
+            raise DataError(source, "empty id", row=line, column=ID_COLUMNS[kind.label])
+        ids.append(name)
+        q.append([parse_number(cells[cols[j]], source, line, j) for j in chain.joint_names])
+        rows.append(line)
+    qa = np.array(q, dtype=float)
+    check_limits(chain, qa, source, np.array(rows))
+    qa.setflags(write=False)
+    return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows))
+
+
+def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
+    """Read and check a contact CSV file (see the module docstring for the format)."""
+    src = str(path)
+    try:
+        text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
+    except OSError as exc:
+        raise DataError(src, read_failure(exc)) from None
+    return parse_contacts(text, chain, measure, src)
+
+
+def contacts_csv(data: ContactData) -> str:
+    """The CSV text of touches, full precision."""
+    lines = [",".join((data.id_column, *data.joint_names))]
+    for name, qi in zip(data.ids, data.q, strict=True):
+        lines.append(",".join((name, *(repr(float(v)) for v in qi))))
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True, eq=False)
+class ContactTruth:
+    """What a simulated contact campaign hides: the true robot and the true planes or points.
+
+    Attributes:
+        robot: Robot name.
+        kind: The contact kind.
+        params: The parameter set that was perturbed.
+        errors: True error of every parameter [rad or m].
+        true_mdh: The true MDH model (frame -1: the chain's base frame).
+        frames: Each plane's or point's frame in the base frame ``(4, 4)``, by id (z: the
+            plane's normal; the contact frame coincides with it at the reference touch).
+        seed: Seed of everything drawn.
+        error_mm: Standard deviation of the length errors [mm].
+        error_mrad: Standard deviation of the angle errors [mrad].
+        noise_mrad: Standard deviation of the joint noise [mrad, or mm for a prismatic joint].
+    """
+
+    robot: str
+    kind: Contact
+    params: ParameterSet
+    errors: np.ndarray
+    true_mdh: MDHModel
+    frames: dict[str, np.ndarray]
+    seed: int
+    error_mm: float
+    error_mrad: float
+    noise_mrad: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready record (radians, metres)."""
+        key = "planes" if ID_COLUMNS[self.kind.label] == "plane" else "points"
+        return {
+            "robot": self.robot,
+            "measure": self.kind.label,
+            "params": self.params.label,
+            "seed": self.seed,
+            "error_mm": self.error_mm,
+            "error_mrad": self.error_mrad,
+            "noise_mrad": self.noise_mrad,
+            "errors": {n: float(v) for n, v in zip(self.params.names, self.errors, strict=True)},
+            key: {name: T.tolist() for name, T in self.frames.items()},
+            "true_mdh": self.true_mdh.rows(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ContactCampaign:
+    """A simulated contact campaign: the touches and the truth behind them."""
+
+    data: ContactData
+    truth: ContactTruth
+
+
+def _finite(name: str, value, minimum: float = 0.0) -> float:
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+    if not ok or not math.isfinite(float(value)) or float(value) < minimum:
+        raise InvalidArgumentError(f"{name} must be a finite number >= {minimum:g}, got {value!r}")
+    return float(value)
+
+
+def simulate_contacts(
+    chain: Chain,
+    configs: int = 100,
+    measure: str = "plane",
+    *,
+    contacts: int = 1,
+    error_mm: float = 1.0,
+    error_mrad: float = 1.0,
+    noise_mrad: float = 0.0,
+    seed: int = 0,
+    params: str = "complete",
+) -> ContactCampaign:
+    """Simulate touches of a perturbed ("true") copy of a chain on planes or points.
+
+    Each plane (point, pose) is the true contact frame's placement at a seeded random
+    configuration; ``configs`` touches are shared between them (in turn), each a random
+    configuration projected onto its contact on the true model, kept within the joint limits.
+
+    Args:
+        chain: The nominal chain (no mimic joints).
+        configs: Number of touches (>= 1).
+        measure: ``plane``, ``plane-point``, ``fixed-point`` or ``fixed-pose``.
+        contacts: Number of planes or points (>= 1).
+        error_mm: Standard deviation of every length error [mm].
+        error_mrad: Standard deviation of every angle error [mrad].
+        noise_mrad: Standard deviation of the recorded joints' noise [mrad; mm for prismatic].
+        seed: Seed (an integer >= 0).
+        params: Parameter set perturbed: ``complete`` or ``paper``.
+
+    Raises:
+        InvalidArgumentError: A bad argument, or a contact the chain cannot hold often enough
+            within its limits.
+    """
+    kind = _contact(measure)
+    if chain.coupling is not None:
+        raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
+    for name, value in (("configs", configs), ("contacts", contacts), ("seed", seed)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < (
+            0 if name == "seed" else 1
+        ):
+            raise InvalidArgumentError(f"{name} must be an integer >= {0 if name == 'seed' else 1}")
+    error_mm, error_mrad = _finite("error_mm", error_mm), _finite("error_mrad", error_mrad)
+    noise_mrad = _finite("noise_mrad", noise_mrad)
+    nominal = from_chain(chain)
+    pset = parameter_set(nominal, params)
+    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
+    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
+    errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))
+    true_mdh = pset.apply(nominal, errors)
+    frames, ids, qs = {}, [], []
+    for j in range(int(contacts)):
+        count = int(configs) // int(contacts) + (1 if j < int(configs) % int(contacts) else 0)
+        name, frame, q = _touches(chain, true_mdh, kind, j, count, seed)
+        frames[name] = frame
+        qs.append(q)
+        ids += [name] * len(q)
+    q = np.concatenate(qs)
+    q = q + 1e-3 * noise_mrad * np.random.default_rng([seed, 2]).standard_normal(q.shape)
+    q.setflags(write=False)
+    data = ContactData(chain.joint_names, q, tuple(ids), kind, f"<simulated {chain.name}>")
+    errors.setflags(write=False)
+    truth = ContactTruth(
+        chain.name, kind, pset, errors, true_mdh, frames, int(seed), error_mm, error_mrad,
+        noise_mrad,
+    )
+    return ContactCampaign(data, truth)
+
+
+def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, j: int, count: int, seed: int):
+    """Contact j of a simulation: its name, its frame in the base frame and its touches."""
+    lower, upper = joint_bounds(chain)
+    column = ID_COLUMNS[kind.label]
+    start = int(np.random.default_rng([seed, 3, j]).integers(2**31))
+    q0 = chain.random_configurations(1, start)[0]
+    name = f"{'table' if column == 'plane' else 'point'}{j + 1}"
+    frame = true_mdh.forward(q0[None])[0]
+    if count == 0:
+        return name, frame, np.zeros((0, chain.n))
+    q = contact_postures(
+        contact_model(true_mdh, q0, name),
+        kind,
+        lambda c, r: chain.random_configurations(c, start + 1 + r),
+        count,
+        rounds=SIMULATION_ROUNDS,
+        bounds=(lower, upper),
+    )
+    return name, frame, q
+
+
+def write_contacts(path: str | Path, data: ContactData) -> None:
+    """Write touches as CSV atomically."""
+    write_atomic(path, contacts_csv(data))
+
+
+__all__ = [
+    "ID_COLUMNS",
+    "ContactCampaign",
+    "ContactData",
+    "ContactTruth",
+    "contacts_csv",
+    "parse_contacts",
+    "read_contacts",
+    "simulate_contacts",
+    "write_contacts",
+]

@@ -1,0 +1,231 @@
+"""Simulated measurement campaigns of a chain: a perturbed ("true") copy, measured.
+
+The campaign is measured at seeded configurations. It lives apart from :mod:`.csvfile`, so
+that reading a CSV does not import the identifiability analysis.
+
+Simulated campaigns (:func:`simulate`): a "true" robot is the
+nominal MDH model with every standard parameter of the chosen set perturbed by a seeded normal
+error (standard deviation ``error_mm`` [mm] for lengths, ``error_mrad`` [mrad] for angles);
+rows 0 and 1 carry the base error (the measurement frame is frame -1 of the true model) and row
+n+1 the tool error. The measured point (and tool orientation) of the true robot are recorded at
+seeded random configurations within the joint limits, then noise is added: isotropic Gaussian
+of standard deviation ``noise_mm`` [mm] on x, y, z and, for poses, a rotation vector of
+standard deviation ``noise_mrad`` [mrad] per axis (base frame), left-multiplied onto the true
+orientation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..checks import read_only
+from ..exceptions import InvalidArgumentError
+from ..identification.identifiability import Identifiability, analyze_model
+from ..identification.jacobian import measured_point
+from ..identification.kinds import campaign_kind
+from ..identification.measures import MeasureKind
+from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.robot import Chain
+from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
+from .csvfile import Measurements
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationTruth:
+    """What a simulated campaign hides from the calibration: the true robot and errors.
+
+    Attributes:
+        robot: Robot name.
+        base_frame: Frame -1 of the nominal model (the true model's is the measurement frame).
+        tool_frame: Frame n+1.
+        params: The standard parameter set that was perturbed.
+        errors: True error of every parameter of ``params`` [rad or m].
+        true_mdh: The true MDH model (nominal + errors).
+        measurement: What was measured (rows and marker).
+        analysis: Identifiability of the nominal model (URDF round-off removed, as in
+            :func:`calib.analyze`) at the campaign's configurations.
+        base_values: True value of each base parameter, ``dX1 + B dX2`` [rad or m], in the
+            order of ``analysis.base`` (first order: exact where the regrouping is exact).
+        seed: Seed of the configurations, the errors and the noise.
+        error_mm: Standard deviation of the length errors [mm].
+        error_mrad: Standard deviation of the angle errors [mrad].
+        noise_mm: Standard deviation of the position noise per axis [mm].
+        noise_mrad: Standard deviation of the orientation noise per axis [mrad].
+    """
+
+    robot: str
+    base_frame: str
+    tool_frame: str
+    params: ParameterSet
+    errors: np.ndarray
+    true_mdh: MDHModel
+    measurement: MeasureKind
+    analysis: Identifiability
+    base_values: np.ndarray
+    seed: int
+    error_mm: float
+    error_mrad: float
+    noise_mm: float
+    noise_mrad: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready record of the truth (radians, metres)."""
+        return {
+            "robot": self.robot,
+            "base_frame": self.base_frame,
+            "tool_frame": self.tool_frame,
+            "measure": self.measurement.label,
+            "marker": list(self.measurement.marker),
+            "params": self.params.label,
+            "configs": self.analysis.n_configs,
+            "seed": self.seed,
+            "error_mm": self.error_mm,
+            "error_mrad": self.error_mrad,
+            "noise_mm": self.noise_mm,
+            "noise_mrad": self.noise_mrad,
+            "parameter_names": list(self.params.names),
+            "errors": {n: float(v) for n, v in zip(self.params.names, self.errors, strict=True)},
+            "base_parameters": {
+                n: float(v) for n, v in zip(self.analysis.base, self.base_values, strict=True)
+            },
+            "regrouping": self.analysis.regrouping(),
+            "true_mdh": self.true_mdh.rows(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Campaign:
+    """A simulated measurement campaign: the data and the truth behind it.
+
+    Attributes:
+        measurements: What a calibration gets to see.
+        truth: The true robot and errors, for checking.
+    """
+
+    measurements: Measurements
+    truth: SimulationTruth
+
+
+def _integer(what: str, value, minimum: int) -> int:
+    """``value`` as an int, if it is an integer (not a bool) >= ``minimum``.
+
+    Raises:
+        InvalidArgumentError: None, a bool, a float, a string or a smaller integer.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _non_negative(name: str, value: float) -> float:
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, bool
+    )
+    if not number or not math.isfinite(float(value)) or float(value) < 0:
+        raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
+def simulate(
+    chain: Chain,
+    configs: int | np.ndarray = 100,
+    measure: str | MeasureKind = "pose",
+    marker=None,
+    error_mm: float = 1.0,
+    error_mrad: float = 1.0,
+    noise_mm: float = 0.0,
+    noise_mrad: float | None = None,
+    seed: int = 0,
+    params: str = "complete",
+) -> Campaign:
+    """Simulate a measurement campaign on a perturbed ("true") copy of a chain.
+
+    The configurations are those ``calib analyze --seed SEED`` draws (uniform within the
+    joint limits); the errors and the noise come from two further streams of the same seed.
+
+    Args:
+        chain: The nominal chain.
+        configs: Number of configurations m (an integer >= 1), or the configurations
+            themselves ``(m, n)`` [rad or m] (a designed set).
+        measure: ``pose`` or ``position`` (a name or the kind).
+        marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
+        error_mm: Standard deviation of every length error [mm].
+        error_mrad: Standard deviation of every angle error [mrad].
+        noise_mm: Standard deviation of the position noise per axis [mm].
+        noise_mrad: Standard deviation of the orientation noise per axis [mrad] (default:
+            the number given as ``noise_mm``, so that 1 mrad weighs like 1 mm).
+        seed: Seed (an integer >= 0; not None, a bool or a float).
+        params: Parameter set perturbed: ``complete`` (default) or ``paper``.
+
+    Returns:
+        The campaign.
+
+    Raises:
+        InvalidArgumentError: A bad argument.
+    """
+    measurement = campaign_kind(measure, marker)
+    given = isinstance(configs, np.ndarray | list | tuple)
+    m = 0 if given else _integer("the number of configurations", configs, 1)
+    seed = _integer("the seed", seed, 0)
+    error_mm = _non_negative("error_mm", error_mm)
+    error_mrad = _non_negative("error_mrad", error_mrad)
+    noise_mm = _non_negative("noise_mm", noise_mm)
+    noise_mrad = noise_mm if noise_mrad is None else _non_negative("noise_mrad", noise_mrad)
+    nominal = from_chain(chain)
+    pset = parameter_set(nominal, params)
+
+    q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
+    m = len(q)
+    rng_errors = np.random.default_rng([seed, 1])
+    rng_noise = np.random.default_rng([seed, 2])
+    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
+    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
+    errors = scale * rng_errors.standard_normal(len(pset))
+    true_mdh = pset.apply(nominal, errors)
+
+    kin = true_mdh.kinematics(q)
+    position = measured_point(kin, measurement.marker_array)
+    position = position + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
+    quat = None
+    if measurement.is_pose:
+        noise = 1e-3 * noise_mrad * rng_noise.standard_normal((m, 3))
+        quat = matrix_to_quaternion(rotation_matrix(noise) @ kin.R[:, -1])
+
+    analysis = analyze_model(nominal.idealized(), pset, measurement, q, robot=chain.name, seed=seed)
+    index = {n: i for i, n in enumerate(pset.names)}
+    kept = errors[[index[n] for n in analysis.base]]
+    others = errors[[index[n] for n in analysis.others]]
+    base_values = kept + analysis.B @ others if others.size else kept
+
+    data = Measurements(
+        chain.joint_names,
+        q,
+        position,
+        quat,
+        f"<simulated {chain.name}>",
+        coupling=chain.coupling,
+    )
+    truth = SimulationTruth(
+        robot=chain.name,
+        base_frame=chain.base_frame,
+        tool_frame=chain.tool_frame,
+        params=pset,
+        errors=read_only(errors),
+        true_mdh=true_mdh,
+        measurement=measurement,
+        analysis=analysis,
+        base_values=read_only(base_values),
+        seed=seed,
+        error_mm=error_mm,
+        error_mrad=error_mrad,
+        noise_mm=noise_mm,
+        noise_mrad=noise_mrad,
+    )
+    return Campaign(data, truth)
+
+
+__all__ = ["Campaign", "SimulationTruth", "simulate"]

@@ -1,0 +1,158 @@
+"""Contact campaigns: CSV with an id column and joints only; simulated touches on a true robot.
+
+Independent route: the true robot is written as a URDF (calib's export) and its placements
+come from Pinocchio; the gaps of the touches in the true planes and points are computed here
+from their definitions.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from calib import DataError, InvalidArgumentError, from_chain, load_chain
+from calib.cli.commands import main
+from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
+from calib.measurements.contact_campaign import (
+    parse_contacts,
+    read_contacts,
+    simulate_contacts,
+    write_contacts,
+)
+from calib.measurements.csvfile import DataWarning
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
+
+
+def pin_gap(kind: str, T: np.ndarray) -> np.ndarray:
+    p, R = T[:3, 3], T[:3, :3]
+    if kind == "plane":
+        return np.array([p[2], -R[1, 2], R[0, 2]])
+    if kind == "plane-point":
+        return p[2:3]
+    if kind == "fixed-point":
+        return p
+    return np.concatenate([p, pin.log3(R)])
+
+
+def true_placements(chain, true_mdh, q: np.ndarray) -> np.ndarray:
+    """The true tool in the base frame, from Pinocchio on the true robot's URDF."""
+    nominal = from_chain(chain)
+    world = ("true_base", measurement_to_base(nominal, true_mdh))
+    model = pin.buildModelFromXML(calibrated_urdf(chain, nominal, true_mdh, world=world).decode())
+    data = model.createData()
+    b, t = model.getFrameId("true_base"), model.getFrameId(chain.tool_frame)
+    out = []
+    for qi in q:
+        qp = pin.neutral(model)
+        for name, v in zip(chain.joint_names, qi, strict=True):
+            qp[model.joints[model.getJointId(name)].idx_q] = v
+        pin.framesForwardKinematics(model, data, qp)
+        out.append(data.oMf[b].actInv(data.oMf[t]).homogeneous)
+    return np.array(out)
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"),
+    [
+        ("ur5", "plane"),
+        ("ur5", "plane-point"),
+        ("ur5", "fixed-point"),
+        ("panda", "plane"),
+        ("panda", "fixed-point"),
+        ("panda", "fixed-pose"),
+    ],
+)
+def test_simulated_touches_hold_on_the_true_robot_and_round_trip(tmp_path, name, kind):
+    chain = load_chain(name)
+    camp = simulate_contacts(chain, 12, kind, contacts=2, seed=4)
+    data, truth = camp.data, camp.truth
+    assert data.m == 12 and len(data.contacts) == 2
+    path = tmp_path / "touches.csv"
+    write_contacts(path, data)
+    back = read_contacts(path, chain, kind)
+    np.testing.assert_array_equal(back.q, data.q)
+    assert back.ids == data.ids
+    assert np.all((data.q >= chain.lower - 1e-12) & (data.q <= chain.upper + 1e-12))
+    T = true_placements(chain, truth.true_mdh, data.q)
+    for i, contact in enumerate(data.ids):
+        gap = pin_gap(kind, np.linalg.inv(truth.frames[contact]) @ T[i])
+        assert np.abs(gap).max() < 1e-9
+    # the nominal robot does not hold the contacts: the errors are there to find
+    nominal = from_chain(chain).forward(data.q)
+    worst = max(
+        np.abs(pin_gap(kind, np.linalg.inv(truth.frames[c]) @ nominal[i])).max()
+        for i, c in enumerate(data.ids)
+    )
+    assert worst > 1e-5
+
+
+def test_seeded(tmp_path):
+    chain = load_chain("ur5")
+    a = simulate_contacts(chain, 6, "plane", seed=1).data
+    b = simulate_contacts(chain, 6, "plane", seed=1).data
+    np.testing.assert_array_equal(a.q, b.q)
+
+
+def _csv(header: str, row: str) -> str:
+    return f"{header}\n{row}\n"
+
+
+JOINTS = ",".join(load_chain("ur5").joint_names)  # ... wrist_3_joint last
+ROW = "0.1,0.2,0.3,0.4,0.5,0.6"
+
+
+@pytest.mark.parametrize(
+    ("header", "row", "kind", "match"),
+    [
+        (f"plane,{JOINTS},x", f"t,{ROW},1.0", "plane", "no coordinates, found 'x'"),
+        (f"plane,{JOINTS},qw", f"t,{ROW},1.0", "plane", "no coordinates"),
+        (f"point,{JOINTS}", f"p,{ROW}", "plane", "needs a 'plane' column: it names points"),
+        (f"plane,{JOINTS}", f"t,{ROW}", "fixed-point", "needs a 'point' column: it names planes"),
+        (f"plane,point,{JOINTS}", f"t,p,{ROW}", "plane", "both 'plane' and 'point'"),
+        (f"plane,{JOINTS[:-14]}", f"t,{ROW[:-4]}", "plane", "no column for joint wrist_3_joint"),
+        (f"plane,{JOINTS}", f",{ROW}", "plane", "empty id"),
+        (f"plane,{JOINTS}", f"t,{ROW[:-4]},abc", "plane", "not a number"),
+    ],
+)
+def test_bad_contact_files(header, row, kind, match):
+    with pytest.raises(DataError, match=match):
+        parse_contacts(_csv(header, row), load_chain("ur5"), kind, "f.csv")
+
+
+def test_a_kind_that_is_no_contact_is_refused():
+    with pytest.raises(InvalidArgumentError, match="not a contact"):
+        parse_contacts(_csv(f"plane,{JOINTS}", f"t,{ROW}"), load_chain("ur5"), "pose")
+
+
+def test_the_real_talos_file_reads_with_one_note():
+    chain = load_chain("talos_left_arm_full")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        data = read_contacts(REAL / "left_train.csv", chain, "plane")
+    notes = [w for w in caught if issubclass(w.category, DataWarning)]
+    assert len(notes) == 1 and "spot" in str(notes[0].message)
+    assert data.m == 21 and data.contacts == ("table",)
+    assert data.joint_names == chain.joint_names
+
+
+def test_cli_simulate_contacts(tmp_path, capsys):
+    out = tmp_path / "c.csv"
+    args = ["simulate", "panda", "--measure", "fixed-point", "--configs", "8", "--out", str(out)]
+    assert main([*args, "--contacts", "2", "--seed", "3"]) == 0
+    header = out.read_text().splitlines()[0].split(",")
+    assert header == ["point", *load_chain("panda").joint_names]
+    truth = json.loads(out.with_suffix(".truth.json").read_text())
+    assert set(truth["points"]) == {"point1", "point2"} and truth["measure"] == "fixed-point"
+    assert "8 touches" in capsys.readouterr().out
+    bad = tmp_path / "d.csv"
+    argv = ["simulate", "panda", "--measure", "plane", "--marker", "0", "0", "1", "--out", str(bad)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--marker is for measured campaigns" in err and "Traceback" not in err
+    assert not bad.exists()
