@@ -374,7 +374,7 @@ def test_noise_free_round_trip_from_the_foot_to_the_hand(measure, tmp_path):
     chain = load_chain("talos", "left_sole_link", "gripper_left_base_link")
     marker = None if measure == "pose" else np.array([0.02, -0.03, 0.08])
     campaign = simulate(chain, configs=120, measure=measure, marker=marker, seed=6)
-    res = calibrate(chain, campaign.measurements, marker=marker, params="complete")
+    res = calibrate(chain, campaign.measurements, marker=marker)  # default options
     assert res.accepted
     path = tmp_path / "cal.urdf"
     path.write_bytes(res.urdf())

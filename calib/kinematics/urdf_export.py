@@ -294,7 +294,7 @@ def calibrated_urdf(
 
 
 @dataclass(frozen=True)
-class LinkMotions:
+class _LinkMotions:
     """How calibration moves the links of a chain's bodies, at the zero configuration.
 
     A link's new pose (base frame of the written URDF) is ``frame[link] @ nominal pose``;
@@ -308,8 +308,8 @@ class LinkMotions:
     body: dict[str, np.ndarray]
 
 
-def _link_motions(chain: Chain, moved: np.ndarray, joints: dict[str, ET.Element]) -> LinkMotions:
-    """The motions of the links on the chain's bodies (see :class:`LinkMotions`).
+def _link_motions(chain: Chain, moved: np.ndarray, joints: dict[str, ET.Element]) -> _LinkMotions:
+    """The motions of the links on the chain's bodies (see :class:`_LinkMotions`).
 
     Body k (between chain joints k and k+1; body 0 holds the base frame, body n the tool)
     carries MDH frame k and moves by ``moved[k]``, body 0 by ``moved[1]`` (the URDF keeps
@@ -329,7 +329,7 @@ def _link_motions(chain: Chain, moved: np.ndarray, joints: dict[str, ET.Element]
     frame = dict(body)
     for k, name in enumerate(chain.joint_names, start=1):
         frame[child_link(joints[name])] = moved[k]
-    return LinkMotions(frame, body)
+    return _LinkMotions(frame, body)
 
 
 def _write_path(
@@ -337,7 +337,7 @@ def _write_path(
     chain: Chain,
     poses: NominalPoses,
     moved: np.ndarray,
-    links: LinkMotions,
+    links: _LinkMotions,
     tool_joint: ET.Element,
 ) -> None:
     """Rewrite the origins that calibration changes, except the tool joint's.
