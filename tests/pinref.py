@@ -385,3 +385,121 @@ class MimicTree(PinTree):
     def configs(self, names, q: np.ndarray) -> list[np.ndarray]:
         """Pinocchio configurations from independent joint positions (columns ``names``)."""
         return super().configs(self.joint_names, self.values(names, q))
+
+
+class PathRef:
+    """Pinocchio alone, on a URDF file: two frames anywhere in the tree and the joints between.
+
+    The joints are those of the two frames' supports that are not shared (the path through
+    their common ancestor), found here from Pinocchio's ``supports``; positions are URDF
+    positions given by joint name, so that the order of the path does not matter.
+    """
+
+    def __init__(self, path, base: str, tool: str):
+        self.model = pin.buildModelFromUrdf(str(path))
+        self.data = self.model.createData()
+        self.base, self.tool = pin_frame(self.model, base), pin_frame(self.model, tool)
+        jb = self.model.frames[self.base].parentJoint
+        jt = self.model.frames[self.tool].parentJoint
+        up, down = set(self.model.supports[jb]), set(self.model.supports[jt])
+        self.up = sorted(up - down)  # the base side (traversed backwards)
+        self.down = sorted(down - up)  # the tool side
+        self.joint_ids = self.up + self.down
+
+    @property
+    def names(self) -> set[str]:
+        """Names of the joints on the path."""
+        return {self.model.names[j] for j in self.joint_ids}
+
+    def config(self, names, q: np.ndarray) -> np.ndarray:
+        """Pinocchio configuration with the named joints at URDF positions q."""
+        ids = [self.model.getJointId(n) for n in names]
+        return pin_config(self.model, ids, q)
+
+    def relative(self, qp: np.ndarray) -> pin.SE3:
+        """``oMf[base]^-1 oMf[tool]`` at a Pinocchio configuration."""
+        pin.framesForwardKinematics(self.model, self.data, qp)
+        return self.data.oMf[self.base].actInv(self.data.oMf[self.tool])
+
+    def placements(self, names, q: np.ndarray) -> np.ndarray:
+        """The tool in the base frame ``(m, 4, 4)`` at URDF positions ``q`` (columns ``names``)."""
+        return np.array([self.relative(self.config(names, qi)).homogeneous for qi in q])
+
+    def relative_jacobian(self, names, q: np.ndarray, marker=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """d(tool pose in base)/dq by Pinocchio's frame Jacobians: ``(m * 6, len(names))``.
+
+        Rows: velocity of the marker (on the tool) relative to the base frame, then the
+        relative angular velocity, both in the base frame; the base frame's own motion (the
+        joints on its side move it) is subtracted.
+        """
+        model, data = self.model, self.data
+        cols = [model.joints[model.getJointId(n)].idx_v for n in names]
+        out = []
+        for qi in q:
+            qp = self.config(names, qi)
+            pin.computeJointJacobians(model, data, qp)
+            pin.updateFramePlacements(model, data)
+            Jt, Jb = (
+                np.reshape(pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED), (6, -1))
+                for f in (self.tool, self.base)
+            )
+            Jt, Jb = Jt[:, cols], Jb[:, cols]
+            ob, ot = data.oMf[self.base], data.oMf[self.tool]
+            point = ot.translation + ot.rotation @ np.asarray(marker, dtype=float)
+            w_rel = Jt[3:] - Jb[3:]
+            lever_t, lever_b = point - ot.translation, point - ob.translation
+            v_point = Jt[:3] + np.cross(Jt[3:].T, lever_t).T  # the marker, moved with the tool
+            v_base = Jb[:3] + np.cross(Jb[3:].T, lever_b).T  # the same point, moved with the base
+            # p_b = R_b^T (P - o_b): d p_b = R_b^T (dP - d o_b - w_b x (P - o_b))
+            R = ob.rotation.T
+            out.append(np.vstack([R @ (v_point - v_base), R @ w_rel]))
+        return np.vstack(out)
+
+    def error_rank(
+        self, names, q: np.ndarray, rows=(0, 1, 2, 3, 4, 5), marker=(0.0, 0.0, 0.0), h=1e-6
+    ) -> int:
+        """Rank of a generic 6-DOF error on every path joint placement, the base and the tool.
+
+        Central finite differences of the marker position and the tool rotation in the base
+        frame (rows among x, y, z, rx, ry, rz) at URDF positions ``q`` (columns ``names``).
+        """
+        model = self.model
+        qps = [self.config(names, qi) for qi in q]
+        mk = np.append(np.asarray(marker, dtype=float), 1.0)
+
+        def poses() -> list[pin.SE3]:
+            return [self.relative(qp) for qp in qps]
+
+        def place(kind: str, i: int, M: pin.SE3) -> None:
+            if kind == "joint":
+                model.jointPlacements[i] = M
+            else:
+                frame = model.frames[i]
+                frame.placement = M
+                model.frames[i] = frame
+
+        places = [("joint", j, model.jointPlacements[j].copy()) for j in self.joint_ids]
+        places += [("frame", f, model.frames[f].placement.copy()) for f in (self.base, self.tool)]
+        cols = []
+        for kind, i, nominal in places:
+            for a in range(6):
+                step = np.zeros(6)
+                step[a] = h
+                place(kind, i, nominal * pin.exp6(pin.Motion(step)))
+                plus = poses()
+                place(kind, i, nominal * pin.exp6(pin.Motion(-step)))
+                minus = poses()
+                place(kind, i, nominal)
+                col = [
+                    np.hstack(
+                        [
+                            (p.homogeneous @ mk - n.homogeneous @ mk)[:3],
+                            pin.log3(p.rotation @ n.rotation.T),
+                        ]
+                    )[list(rows)]
+                    / (2 * h)
+                    for p, n in zip(plus, minus, strict=True)
+                ]
+                cols.append(np.concatenate(col))
+        s = np.linalg.svd(np.array(cols).T, compute_uv=False)
+        return int(np.sum(s > 1e-8 * s[0]))

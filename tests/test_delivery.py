@@ -346,7 +346,7 @@ def key_paths(doc, prefix: str = "", leaves: tuple[str, ...] = ()) -> set[str]:
 
 STATS = ("configs", "position_rms", "position_max", "orientation_rms", "orientation_max")
 POSE = ("xyz", "rpy", "matrix")
-MDH = ("name", "joint", "sigma", "beta", "alpha", "d", "theta", "r", "y")
+MDH = ("name", "joint", "sigma", "sign", "beta", "alpha", "d", "theta", "r", "y")
 
 CHAIN_REPORT_KEYS = {
     "format_version", "deprecated", "deprecated.marker", "robot", "urdf", "data",

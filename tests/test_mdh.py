@@ -81,13 +81,13 @@ def pin_of(chain) -> PinChain:
 
 def rows_forward(rows: list[dict], q: np.ndarray) -> np.ndarray:
     """The JSON contract: product of Rot(y,beta) Rot(x,alpha) Trans(x,d)
-    Rot(z, theta + (1-sigma) q) Trans(z, r + sigma q), fixed rows without q."""
+    Rot(z, theta + (1-sigma) sign q) Trans(z, r + sigma sign q), fixed rows without q."""
     T = np.eye(4)
     k = 0
     for row in rows:
         theta, r = row["theta"], row["r"]
         if row["sigma"] is not None:
-            qk = q[k]
+            qk = row["sign"] * q[k]
             k += 1
             theta += (1 - row["sigma"]) * qk
             r += row["sigma"] * qk

@@ -268,8 +268,10 @@ class ErrorModel:
         out = []
         if self.base:
             out.append(cols[:, :, :p] @ self.lift)
-        if self.compliance:
-            out.append(cols[:, :, p:] * torque[:, None, list(self.compliance)])
+        if self.compliance:  # d/dc_j = tau_j d/dq_j = tau_j sign_j d(offset_j)
+            joints = list(self.compliance)
+            gain = torque[:, None, joints] * state.mdh.sign[1:-1][joints]
+            out.append(cols[:, :, p:] * gain)
         return out
 
     def with_(self, **changes) -> ErrorModel:

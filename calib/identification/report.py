@@ -29,16 +29,18 @@ def _num(x: float, digits: int = 4) -> str:
 
 
 def _row_cells(mdh: MDHModel | TreeMDH, k: int) -> list[str]:
-    """beta, alpha, d, theta, r of row k; the joint variable q_k shown where it acts."""
+    """beta, alpha, d, theta, r of row k; the joint variable q_k shown where it acts.
+
+    A joint traversed backwards (sign -1) shows ``-qk``.
+    """
     s = int(mdh.sigma[k])
     theta = _num(math.degrees(mdh.theta[k]), 3)
     r = _num(mdh.r[k])
+    q = f"-q{k}" if isinstance(mdh, MDHModel) and mdh.sign[k] < 0 else f"q{k}"
     if s == 0:
-        theta = (
-            f"q{k}" if abs(mdh.theta[k]) < 5e-7 else f"q{k}{'+' if mdh.theta[k] > 0 else ''}{theta}"
-        )
+        theta = q if abs(mdh.theta[k]) < 5e-7 else f"{q}{'+' if mdh.theta[k] > 0 else ''}{theta}"
     elif s == 1:
-        r = f"q{k}" if abs(mdh.r[k]) < 5e-7 else f"q{k}{'+' if mdh.r[k] > 0 else ''}{r}"
+        r = q if abs(mdh.r[k]) < 5e-7 else f"{q}{'+' if mdh.r[k] > 0 else ''}{r}"
     beta, alpha = _num(math.degrees(mdh.beta[k]), 3), _num(math.degrees(mdh.alpha[k]), 3)
     return [beta, alpha, _num(mdh.d[k]), theta, r]
 

@@ -4,7 +4,13 @@ Frame -1 is the chosen base frame, frame 0 is fixed to it, frames 1..n follow th
 and frame n+1 is the chosen tool frame. Row k (k = 0..n+1) places frame k in frame k-1:
 
     T(k-1, k) = Trans(y, y_k) Rot(y, beta_k) Rot(x, alpha_k) Trans(x, d_k)
-                Rot(z, theta_k + (1 - sigma_k) q_k) Trans(z, r_k + sigma_k q_k)
+                Rot(z, theta_k + (1 - sigma_k) s_k q_k) Trans(z, r_k + sigma_k s_k q_k)
+
+``q_k`` is the URDF position of the joint and ``s_k`` (``sign``) is +1, or -1 for a joint the
+chain traverses backwards, from its child link to its parent link (a chain from a foot to a
+hand goes up the leg). z_k is the URDF axis of the joint in both cases: a positive position
+turns the child link about +z_k relative to the parent link, so the frames after a reversed
+joint (its parent's side) turn by -q_k about z_k. Fixed rows have ``s_k`` = +1.
 
 ``y_k`` is zero in every converted model; it only exists as an error parameter of the
 complete set, where two consecutive lines coincide.
@@ -93,6 +99,9 @@ def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
 
 _Y_AXIS = np.array([[0.0], [1.0], [0.0]])
 
+_ARRAYS = ("sigma", "beta", "alpha", "d", "theta", "r", "y", "parallel", "coincident", "sign")
+"""The array fields of :class:`MDHModel` (stored as private read-only copies)."""
+
 
 class Kinematics(NamedTuple):
     """Frames of an MDH model at m configurations, all in the base frame (frame -1).
@@ -130,6 +139,8 @@ class MDHModel:
         coincident: Row k whose axis lies on the previous one (parallel and through it).
         base_frame: Name of frame -1.
         tool_frame: Name of frame n+1.
+        sign: +1, or -1 for a joint traversed backwards (its URDF position enters its row
+            negated), shape ``(n+2,)``; +1 for the fixed rows. Default: all +1.
         source: The chain a model was converted from and the parallel tolerance of the
             conversion (set by :func:`from_chain`): :meth:`idealized` then converts the
             chain's URDF with round-off removed. None for other models.
@@ -147,16 +158,31 @@ class MDHModel:
     coincident: np.ndarray
     base_frame: str = ""
     tool_frame: str = ""
+    sign: np.ndarray = None  # type: ignore[assignment]
     source: tuple[Chain, float] | None = field(default=None, repr=False)
     _pre: np.ndarray = field(init=False, repr=False)
+    _gain: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        for name in ("sigma", "beta", "alpha", "d", "theta", "r", "y", "parallel", "coincident"):
+        if self.sign is None:
+            object.__setattr__(self, "sign", np.ones(len(self.sigma), dtype=int))
+        for name in _ARRAYS:
             a = np.array(getattr(self, name))  # a private, read-only copy: a value object
             a.flags.writeable = False
             object.__setattr__(self, name, a)
+        if self.sign.shape != self.sigma.shape or not np.all(np.abs(self.sign) == 1):
+            raise InvalidArgumentError(
+                f"sign holds +1 or -1 per row ({len(self.sigma)}), got {self.sign.tolist()}"
+            )
         pre = np.array([_rot_y(b) @ _rot_x(a) for b, a in zip(self.beta, self.alpha, strict=True)])
         object.__setattr__(self, "_pre", pre)
+        # What q_k adds to each joint row's angle (row 0) and length (row 1): (1 - sigma) s
+        # and sigma s.
+        joints = slice(1, len(self.sigma) - 1)
+        s, sig = self.sign[joints].astype(float), self.sigma[joints]
+        gain = np.stack([(sig == 0) * s, (sig == 1) * s])[:, :, None]
+        gain.flags.writeable = False
+        object.__setattr__(self, "_gain", gain)
 
     @property
     def n(self) -> int:
@@ -189,6 +215,7 @@ class MDHModel:
                 "coincident",
                 "base_frame",
                 "tool_frame",
+                "sign",
             )
         }
         fields.update(changes)
@@ -251,11 +278,10 @@ class MDHModel:
         m, rows, n = q.shape[0], self.n + 2, self.n
         # Component-major work arrays (row, ..., configuration): every operation runs along
         # the m configurations, the innermost (contiguous) axis.
-        revolute = (self.sigma[1 : n + 1] == 0)[:, None]
         angle = np.repeat(self.theta[:, None], m, axis=1)
-        angle[1 : n + 1] += q.T * revolute
+        angle[1 : n + 1] += q.T * self._gain[0]
         length = np.repeat(self.r[:, None], m, axis=1)
-        length[1 : n + 1] += q.T * ~revolute
+        length[1 : n + 1] += q.T * self._gain[1]
         # Frame k = frame k-1 L_k with L_k = Pre_k Rot(z, angle_k) (rows [c p0 + s p1,
         # c p1 - s p0, p2] of Pre_k's columns p_j), built for all rows at once, then one
         # product per row along the chain.
@@ -306,6 +332,7 @@ class MDHModel:
         """The rows as JSON-ready dictionaries (radians, metres), from base to tool.
 
         ``y`` is zero in a converted model; a calibrated one may carry y1 or y_{n+1}.
+        ``sign`` is -1 for a joint traversed backwards, else +1 (fixed rows too).
         """
         out = []
         for k in range(self.n + 2):
@@ -315,6 +342,7 @@ class MDHModel:
                     "name": str(k),
                     "joint": self.joint_names[k],
                     "sigma": None if s < 0 else s,
+                    "sign": int(self.sign[k]),
                     "beta": float(self.beta[k]),
                     "alpha": float(self.alpha[k]),
                     "d": float(self.d[k]),
@@ -379,11 +407,13 @@ def from_lines(
     tool: np.ndarray,
     joint_names: tuple[str, ...] | None = None,
     parallel_tol: float = PARALLEL_TOL,
+    sign: np.ndarray | None = None,
 ) -> MDHModel:
     """Convert joint lines and a tool pose (all in the base frame) to MDH rows.
 
     Frame choices (documented in the README):
-        * z_k is the joint axis, oriented so that theta (or r) grows with the joint position;
+        * z_k is the joint axis as given, so that theta (or r) grows with ``sign_k`` times
+          the joint position;
         * x_k is along the common normal to the next axis; its sign makes the offset theta_k
           lie in (-90, 90] degrees, so d may be negative (as in Franka's table);
         * where the next axis is parallel (within ``parallel_tol``), Hayati's beta is used,
@@ -398,19 +428,25 @@ def from_lines(
         tool: Tool pose ``(4, 4)`` in the base frame.
         joint_names: Names for the joint rows.
         parallel_tol: Parallel-axis tolerance [rad].
+        sign: Per joint, +1 (default) for a joint whose position moves the tool side along
+            its direction, -1 for a joint traversed backwards (the tool side moves against
+            it); the rows carry it (:attr:`MDHModel.sign`), the geometry does not depend on it.
 
     Returns:
         The model; its forward kinematics equals the input geometry.
 
     Raises:
         InvalidArgumentError: Arrays of the wrong shape, not finite, coordinates beyond
-            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma not 0 or 1, a tool
-            that is not a rigid transform, or a tolerance outside (0, pi/4).
+            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma not 0 or 1, a sign not
+            +1 or -1, a tool that is not a rigid transform, or a tolerance outside (0, pi/4).
     """
     points, directions, sigma, tool = _checked_lines(points, directions, sigma, tool)
     n = len(sigma)
     if n == 0:
         raise InvalidArgumentError("a chain has at least one joint: sigma is empty")
+    signs = np.ones(n) if sign is None else real_array(sign, "sign", (n,)).reshape(n)
+    if not np.all(np.abs(signs) == 1):
+        raise InvalidArgumentError(f"sign holds +1 or -1 per joint, got {signs.tolist()}")
     if joint_names is not None and (
         len(joint_names) != n or not all(isinstance(x, str) for x in joint_names)
     ):
@@ -474,7 +510,10 @@ def from_lines(
     r[-1] = float(np.dot(tool[:3, 3] - entry, z))
     sig = np.concatenate([[-1], np.asarray(sigma, dtype=int), [-1]])
     names = (None, *(joint_names or tuple(str(i + 1) for i in range(n))), None)
-    return MDHModel(sig, beta, alpha, d, theta, r, np.zeros(rows), names, parallel, coincident)
+    row_sign = np.concatenate([[1], signs.astype(int), [1]])
+    return MDHModel(
+        sig, beta, alpha, d, theta, r, np.zeros(rows), names, parallel, coincident, sign=row_sign
+    )
 
 
 def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
@@ -497,7 +536,7 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
 def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
     """The MDH model of a chain from its joint lines (no idealisation, no cache)."""
     points, dirs, tool = chain.joint_lines()
-    model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol)
+    model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol, chain.sign)
     return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)
 
 

@@ -89,7 +89,9 @@ def _describe_joint(shortname: str) -> str:
     return names.get(shortname, f"of unsupported type {shortname}")
 
 
-def joint_placements(model: pin.Model, q: np.ndarray, last: int | None = None) -> dict:
+def joint_placements(
+    model: pin.Model, q: np.ndarray, last: int | tuple[int, ...] | None = None
+) -> dict:
     """Placements ``oMi`` of the joints at a Pinocchio configuration, without ``pin.Data``.
 
     ``pin.Data`` holds tensors whose size grows as the cube of the number of joints (1.8 GB
@@ -98,12 +100,17 @@ def joint_placements(model: pin.Model, q: np.ndarray, last: int | None = None) -
     Args:
         model: Pinocchio model.
         q: Configuration ``(nq,)``.
-        last: Only this joint and its ancestors (default: every joint).
+        last: Only this joint (or these joints) and its ancestors (default: every joint).
 
     Returns:
         ``pin.SE3`` placement in the world by joint index.
     """
-    joints = range(1, model.njoints) if last is None else list(model.supports[last])[1:]
+    if last is None:
+        joints: list[int] | range = range(1, model.njoints)
+    elif isinstance(last, tuple):  # Pinocchio numbers a parent before its children
+        joints = sorted({j for one in last for j in model.supports[one]} - {0})
+    else:
+        joints = list(model.supports[last])[1:]
     neutral = pin.neutral(model)
     out = {0: pin.SE3.Identity()}
     for jid in joints:
@@ -359,6 +366,12 @@ class Chain(Robot):
     and continuous joints, metres for prismatic ones). Joints outside the chain stay at the
     reference configuration ``q_ref``; they cannot move the tool relative to the base.
 
+    The chain runs from the base frame up the URDF tree to the deepest common ancestor of
+    the two frames, then down to the tool frame. The joints of the first part (none when the
+    base is an ancestor of the tool) are traversed backwards, from child to parent: their
+    ``sign`` is -1, and a positive URDF position moves the tool side by the opposite motion
+    (see :mod:`calib.kinematics.mdh`).
+
     Attributes:
         name: Robot name (catalog name or URDF file stem).
         urdf_path: The URDF file.
@@ -369,6 +382,8 @@ class Chain(Robot):
         tool_id: Index of the tool frame in ``model.frames``.
         joint_ids: Pinocchio joint indices of the chain, from base to tool.
         joint_names: URDF names of those joints.
+        sign: +1 for a joint traversed from parent to child, -1 for one traversed backwards
+            (between the base frame and the common ancestor), per chain joint.
         sigma: 0 for revolute, 1 for prismatic, per chain joint.
         continuous: True for joints without limits (continuous joints).
         lower: Lower sampling bound per joint [rad or m].
@@ -397,6 +412,19 @@ class Chain(Robot):
     ideal_model: pin.Model | None = field(default=None, repr=False)
     coupling: Coupling | None = field(default=None, repr=False)
     is_tree: ClassVar[Literal[False]] = False
+    sign: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment,arg-type]  # None: all +1 (post_init)
+
+    def __post_init__(self) -> None:
+        sign = np.ones(len(self.joint_ids), dtype=int) if self.sign is None else self.sign
+        sign = np.array(sign, dtype=int)
+        if sign.shape != (len(self.joint_ids),) or not np.all(np.abs(sign) == 1):
+            raise InvalidArgumentError(f"a chain's signs are +1 or -1 per joint, got {sign}")
+        object.__setattr__(self, "sign", _frozen(sign))
+
+    @property
+    def reversed_joints(self) -> int:
+        """Number of joints traversed backwards (from the base up to the common ancestor)."""
+        return int(np.sum(self.sign < 0))
 
     def idealized(self) -> Chain:
         """The chain on its URDF with round-off removed, for structural analysis.
@@ -476,24 +504,30 @@ class Chain(Robot):
         A reference implementation for tests and checks (one tree walk per row).
         """
         out = []
-        tool_joint = self.model.frames[self.tool_id].parentJoint
+        path = self._path_joints()
         for qp in self.pin_configurations(q):
-            oMi = joint_placements(self.model, qp, last=tool_joint)
+            oMi = joint_placements(self.model, qp, last=path)
             oMb = frame_placement(self.model, oMi, self.base_id)
             out.append(oMb.actInv(frame_placement(self.model, oMi, self.tool_id)).homogeneous)
         return np.array(out).reshape(-1, 4, 4)
+
+    def _path_joints(self) -> tuple[int, int]:
+        """The joints of the base and tool frames: their ancestors hold the chain."""
+        frames = self.model.frames
+        return (frames[self.base_id].parentJoint, frames[self.tool_id].parentJoint)
 
     def joint_lines(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint axes at the zero configuration, in the base frame.
 
         Returns:
             points ``(n, 3)`` [m] on each axis (the joint frame origin), unit directions
-            ``(n, 3)`` such that a positive joint motion turns (or slides) along ``+u``, and the
-            tool placement ``(4, 4)`` in the base frame.
+            ``(n, 3)`` of the URDF axes, such that a positive joint position turns (or slides)
+            the joint's child link along ``+u`` relative to its parent link (the tool side
+            along ``sign * u``), and the tool placement ``(4, 4)`` in the base frame.
         """
         model = self.model
         q0 = self.pin_configurations(np.zeros(self.n))[0]
-        oMi = joint_placements(model, q0, last=model.frames[self.tool_id].parentJoint)
+        oMi = joint_placements(model, q0, last=self._path_joints())
         oMb = frame_placement(model, oMi, self.base_id)
         points, dirs = [], []
         for jid, s in zip(self.joint_ids, self.sigma, strict=True):
@@ -563,26 +597,20 @@ def _chain_from_model(
 def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Chain:
     """The serial chain between two frames of a robot read once (None: the default frame).
 
+    The frames may lie on different branches (a foot and a hand): the chain then runs up from
+    the base to their common ancestor, its joints traversed backwards (``sign`` -1), and
+    down to the tool.
+
     Raises:
-        CalibError: Unknown or ambiguous frame, no serial chain, unsupported joint.
+        CalibError: Unknown or ambiguous frame, no joint between the frames, unsupported
+            joint.
     """
     name, path, info, model = robot.name, robot.path, robot.info, robot.model
     base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
     tool_id = resolve_frame(model, tool) if tool else _default_tool(model)
     base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
-    jb, jt = model.frames[base_id].parentJoint, model.frames[tool_id].parentJoint
-    support = list(model.supports[jt])
-    if jb not in support:
-        if jt in model.supports[jb]:
-            raise ChainError(
-                f"tool frame '{tool_name}' is between the root and base frame '{base_name}': "
-                f"swap base and tool"
-            )
-        raise ChainError(
-            f"frames '{base_name}' and '{tool_name}' are not on one serial chain "
-            f"(neither is an ancestor of the other)"
-        )
-    joint_ids = tuple(support[support.index(jb) + 1 :])
+    frames = model.frames
+    joint_ids, signs = path_joints(model, frames[base_id].parentJoint, frames[tool_id].parentJoint)
     if not joint_ids:
         raise ChainError(f"no joint between base frame '{base_name}' and tool frame '{tool_name}'")
     sigma, cont, lower, upper = [], [], [], []
@@ -623,7 +651,29 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
         q_ref=_frozen(pin.neutral(model)),
         ideal_model=robot.ideal_model,
         coupling=coupling,
+        sign=_frozen(np.array(signs, dtype=int)),
     )
+
+
+def path_joints(model: pin.Model, jb: int, jt: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The joints between two joints' bodies, in order, and their signs.
+
+    Args:
+        model: Pinocchio model.
+        jb: The joint whose body holds the base frame.
+        jt: The joint whose body holds the tool frame.
+
+    Returns:
+        The joints from ``jb`` up to (not including) the common ancestor, each traversed
+        backwards (sign -1), then those from the common ancestor down to ``jt`` (sign +1).
+    """
+    up, down = list(model.supports[jb]), list(model.supports[jt])
+    common = 0
+    while common < min(len(up), len(down)) and up[common] == down[common]:
+        common += 1
+    backwards = tuple(reversed(up[common:]))
+    forwards = tuple(down[common:])
+    return backwards + forwards, (-1,) * len(backwards) + (1,) * len(forwards)
 
 
 def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:

@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..checks import check_count, check_work
-from ..exceptions import InvalidArgumentError
+from ..exceptions import ChainError, InvalidArgumentError
 from .mimic import Coupling, tree_coupling
 from .robot import (
     Chain,
@@ -158,6 +158,7 @@ def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
 
     Raises:
         InvalidArgumentError: A tool given twice, or chains from different base frames.
+        ChainError: A tool that is not below the base (a chain with reversed joints).
     """
     tools = [c.tool_id for c in chains]
     for i, c in enumerate(chains):
@@ -165,6 +166,12 @@ def tree_of_chains(name: str, path: Path, chains: tuple[Chain, ...]) -> Tree:
             raise InvalidArgumentError(f"tool frame '{c.tool_frame}' is given twice")
         if c.base_id != chains[0].base_id:
             raise InvalidArgumentError("the chains of a tree start from one base frame")
+        if c.reversed_joints:
+            raise ChainError(
+                f"tool frame '{c.tool_frame}' is not below base frame '{c.base_frame}': the "
+                f"tools of a tree hang from its base (one tool gives the chain through their "
+                f"common ancestor)"
+            )
     joint_ids = tuple(sorted({j for c in chains for j in c.joint_ids}))
     index = {j: i for i, j in enumerate(joint_ids)}
     model = chains[0].model

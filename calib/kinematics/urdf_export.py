@@ -14,6 +14,15 @@ frame onto the URDF joint frame (it keeps the joint axis); the calibrated joint 
 possibly behind fixed joints) moves with joint k-1's frame, so the fixed joints in between
 keep their placements, and the new origin is ``T_parent_new^-1 T_joint_new``. The same holds
 for the tool: frame n+1 of the MDH model is the tool frame.
+
+A chain that runs up the tree first (from a foot to a hand: joints traversed backwards,
+``Chain.sign`` -1) keeps the URDF's tree and root. Its body k still carries MDH frame k,
+but a backwards joint k+1 hangs body k from its *child* link, whose frame is joint k+1's
+frame: that link's frame moves with joint k+1's calibrated axis, and the origins of what
+hangs from it (the next joint down the chain, its fixed links and other branches) are written
+from there, so the fitted placement of body k in body k+1 lands in the URDF inverted. Its
+visuals, collisions and inertia are placed back where the body carries them. Nothing else
+changes: a forward chain's file is edited as before.
 """
 
 from __future__ import annotations
@@ -22,6 +31,7 @@ import io
 import os
 import xml.etree.ElementTree as ET
 import xml.parsers.expat
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -172,7 +182,20 @@ def edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element]
     missing = [name for name in chain.joint_names if name not in joints]
     if missing:
         raise CalibError(f"{chain.urdf_path}: no <joint name='{missing[0]}'> (a chain joint)")
-    return joints, _tool_joint(root, chain)
+    tool_joint = _tool_joint(root, chain)
+    parents = {child_link(j): parent_link(j) for j in joints.values()}
+    for name in chain.joint_names:  # a tool above the chain: its origin would move the chain
+        link, seen = parent_link(joints[name]), set()
+        while link and link not in seen:
+            if link == child_link(tool_joint):
+                raise CalibError(
+                    f"the tool frame '{chain.tool_frame}' is carried by a link above joint "
+                    f"'{name}' in the URDF: its calibrated placement would move the chain "
+                    f"(use a tool link that no chain joint hangs from)"
+                )
+            seen.add(link)
+            link = parents.get(link, "")
+    return joints, tool_joint
 
 
 def check_exportable(chain: Chain) -> None:
@@ -269,31 +292,104 @@ def calibrated_urdf(
     start, stop = xml_layout(raw, str(chain.urdf_path))
 
     poses = NominalPoses(chain)
-    n = chain.n
     # T_mdh_cal(0) T_mdh_nom(0)^-1 per MDH frame: applied to a nominal pose (base frame) that
     # frame carries, it gives the calibrated pose (measurement frame).
     moved = frames_at_zero(calibrated) @ np.linalg.inv(frames_at_zero(nominal))
-    nom_joint = [poses.joint(jid) for jid in chain.joint_ids]
-    new_joint = [moved[k + 1] @ T for k, T in enumerate(nom_joint)]
-
-    def carried(k: int, link: str) -> np.ndarray:
-        """New pose of a link rigidly carried by chain joint k (0-based)."""
-        return new_joint[k] @ np.linalg.inv(nom_joint[k]) @ poses.link(link)
-
-    for k in range(1, n):
-        joint = joints[chain.joint_names[k]]
-        parent = carried(k - 1, parent_link(joint))
-        set_origin(joint, np.linalg.inv(parent) @ new_joint[k])
+    links = _link_motions(chain, moved, joints)
+    _write_path(root, chain, poses, moved, links, tool_joint)
     tool_child = child_link(tool_joint)
-    tool_new = moved[n + 1] @ poses.link(tool_child) @ X
-    parent = carried(n - 1, parent_link(tool_joint))
-    set_origin(tool_joint, np.linalg.inv(parent) @ tool_new)
+    tool_new = moved[chain.n + 1] @ poses.link(tool_child) @ X
+    parent = parent_link(tool_joint)
+    set_origin(tool_joint, np.linalg.inv(links.frame[parent] @ poses.link(parent)) @ tool_new)
     _keep_tool_children(root, tool_child, X)
     if markers is not None:
         add_marker_links(root, chain.tool_frame, tool_child, markers)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, poses))
     return spliced(raw, root, start, stop)
+
+
+@dataclass(frozen=True)
+class _LinkMotions:
+    """How calibration moves the links of a chain's bodies, at the zero configuration.
+
+    A link's new pose (base frame of the written URDF) is ``frame[link] @ nominal pose``;
+    whatever is fixed to the link's body (its fixed children, the joints of other branches,
+    its visuals and inertia) moves by ``body[link]``. The two differ only for the child link
+    of a joint traversed backwards: its frame is that joint's frame, which moves with the
+    joint's axis, while the body carries the previous MDH frame.
+    """
+
+    frame: dict[str, np.ndarray]
+    body: dict[str, np.ndarray]
+
+
+def _link_motions(chain: Chain, moved: np.ndarray, joints: dict[str, ET.Element]) -> _LinkMotions:
+    """The motions of the links on the chain's bodies (see :class:`_LinkMotions`).
+
+    Body k (between chain joints k and k+1; body 0 holds the base frame, body n the tool)
+    carries MDH frame k and moves by ``moved[k]``, body 0 by ``moved[1]`` (the URDF keeps
+    joint 1's placement: the base part is :func:`measurement_to_base`). The child link of
+    the joint of row j has that joint's frame and moves by ``moved[j]``.
+    """
+    model = chain.model
+    bodies = [model.frames[chain.base_id].parentJoint]
+    for jid, s in zip(chain.joint_ids, chain.sign, strict=True):
+        bodies.append(jid if s > 0 else model.parents[jid])
+    motion = {jid: moved[max(k, 1)] for k, jid in enumerate(bodies)}
+    body = {
+        f.name: motion[f.parentJoint]
+        for f in model.frames
+        if f.type == pin.FrameType.BODY and f.parentJoint in motion
+    }
+    frame = dict(body)
+    for k, name in enumerate(chain.joint_names, start=1):
+        frame[child_link(joints[name])] = moved[k]
+    return _LinkMotions(frame, body)
+
+
+def _write_path(
+    root: ET.Element,
+    chain: Chain,
+    poses: NominalPoses,
+    moved: np.ndarray,
+    links: _LinkMotions,
+    tool_joint: ET.Element,
+) -> None:
+    """Rewrite the origins that calibration changes, except the tool joint's.
+
+    A joint whose parent link is on the chain gets the origin that places its new frame in
+    its parent's new frame: a chain joint's new frame is ``moved[row]`` applied to its
+    nominal one; another joint's follows its child link (a link of the chain) or else the
+    parent link's body. Origins whose parent and frame move alike are left as written, and
+    so is everything under the tool link (:func:`_keep_tool_children`). The visuals,
+    collisions and inertia of a link whose frame moves within its body are placed back on
+    the body.
+    """
+    rows = {name: k for k, name in enumerate(chain.joint_names, start=1)}
+    tool_link = child_link(tool_joint)
+    for joint in root.findall("joint"):
+        parent, child, name = parent_link(joint), child_link(joint), joint.get("name", "")
+        if parent not in links.frame or parent == tool_link or joint is tool_joint:
+            continue
+        if name in rows:
+            motion = moved[rows[name]]
+            nominal = poses.joint(chain.joint_ids[rows[name] - 1])
+        else:
+            motion = links.frame.get(child, links.body[parent])
+            nominal = poses.link(parent) @ origin_of(joint)
+        if np.array_equal(motion, links.frame[parent]):
+            continue
+        new_parent = links.frame[parent] @ poses.link(parent)
+        set_origin(joint, np.linalg.inv(new_parent) @ motion @ nominal)
+    for link in root.findall("link"):
+        name = link.get("name", "")
+        if name in links.frame and not np.array_equal(links.frame[name], links.body[name]):
+            nominal = poses.link(name)
+            shift = np.linalg.inv(links.frame[name] @ nominal) @ links.body[name] @ nominal
+            for part in link:
+                if part.tag in ("inertial", "visual", "collision"):
+                    set_origin(part, shift @ origin_of(part))
 
 
 def _array(value, shape: tuple[int, int], what: str) -> np.ndarray:
