@@ -151,5 +151,9 @@ class ConvergenceError(CalibError):
     """An iterative fit did not converge."""
 
 
+class ContactGeometryError(CalibError):
+    """Contact touches cannot fix a plane, point or pose (too few, or a degenerate geometry)."""
+
+
 class CalibrationRefusedError(CalibError):
     """A calibration failed a check (worse than its start, not identified by the data, ...)."""

@@ -1,0 +1,422 @@
+"""Registration of contacts: planes, fixed points and fixed poses on the nominal model.
+
+The contact kinds measure nothing outside the robot: a touch only says that a contact frame,
+fixed to the tool, meets an unknown object. Before any robot parameter is fitted, the objects
+and the contact frame are estimated from the tool placements of the nominal model (``R_t``,
+``p_t``: the tool frame in the chain's base frame, one per touch), as the registration of
+measured data estimates the instrument's frame:
+
+- **plane** (the contact frame flush with a plane; 3 rows per touch: its height ``z`` and its
+  two tilts, roll and pitch, in the plane's frame, with ``R = Rz(yaw) Ry(pitch) Rx(roll)``
+  the contact's rotation in the plane's frame). A closed-form start and Gauss-Newton steps
+  (the exact least squares has no closed form: the tilts are angles of unit vectors):
+
+  1. start: with ``M_k = sum R_t^T`` over the touches of plane ``k``, the contact normal in
+     the tool frame ``a`` and the plane normals ``n_k`` maximising ``sum a^T M_k n_k`` (the
+     chordal fit of ``R_t^T n_k = a``: the top left singular vector of ``[M_1 ... M_K]``,
+     then ``n_k = M_k^T a / |M_k^T a|``), or the normal of the contact points (smallest
+     singular vector of the centred points) when that costs less (touches at one
+     orientation); each height is the mean of ``n_k . x_t``;
+  2. Gauss-Newton on ``sum z^2 + w^2 (roll^2 + pitch^2)`` (analytic Jacobian) until the step
+     is under ``STEP_TOLERANCE``.
+
+  What a flush contact can see: the plane's normal and height, and the contact's normal in
+  the tool frame. Its offset along its own normal regroups with the plane's height (moving
+  the contact by ``d`` along ``z`` is moving the plane by ``d``), and its offsets along its
+  own ``x``, ``y`` and its yaw change no residual at a perfect fit: they keep their guess
+  (the gauge), the contact frame is tilted about its own ``x`` and ``y`` axes only.
+- **fixed point** (a tip at an unknown fixed point ``y_k``; 3 rows ``p_t + R_t x - y_k``):
+  the tip ``x`` in the tool frame and the points by linear least squares, in closed form
+  (the points eliminated: ``y_k`` is the mean of ``p_t + R_t x`` over its touches). The
+  contact frame's rotation keeps its guess (a point has no orientation).
+- **fixed pose** (the contact frame at an unknown fixed pose ``F_k``; 6 rows: the contact's
+  position and rotation vector in ``F_k``): ``F_k`` is the mean pose, the position in closed
+  form, the rotation by the chordal mean then Gauss-Newton steps (the Karcher mean). The
+  contact frame is invisible (only ``F_k C^-1`` is) and keeps its guess.
+
+Every plane, point or pose is named by an id; the contact frame is shared by all.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import ContactGeometryError, InvalidArgumentError
+from ..kinematics.so3 import (
+    inverse_right_jacobian,
+    left_jacobian,
+    rotation_matrix,
+    rotation_vector,
+    skew,
+)
+from .registration import nearest_rotation
+from .weighting import DEFAULT_WEIGHT
+
+MIN_TOUCHES = 3
+"""Fewest touches of one plane, point or pose."""
+
+ITERATIONS = 50
+"""Most Gauss-Newton steps."""
+
+STEP_TOLERANCE = 1e-13
+"""Largest parameter step [m or rad] at which Gauss-Newton stops."""
+
+CONDITION_LIMIT = 1e-9
+"""Smallest singular value of the plane fit's Jacobian, relative to the largest, accepted."""
+
+MIN_SPREAD = 1e-6
+"""Smallest RMS spread of the tool's orientations about any axis [rad] for a fixed point."""
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneRegistration:
+    """Planes and contact frame fitted to flush touches.
+
+    Attributes:
+        ids: The planes' ids, in order of first appearance.
+        planes: The planes ``(K, 4, 4)`` in the base frame (z = normal, origin: the contact
+            points' centroid projected on the plane, x: the base's x (or y) projected).
+        contact: The contact frame in the tool frame ``(4, 4)``.
+        residuals: Height [m], roll and pitch [rad] of each touch ``(m, 3)``.
+        weight: Weight of the tilt rows [m/rad].
+        iterations: Gauss-Newton steps taken.
+    """
+
+    ids: tuple[str, ...]
+    planes: np.ndarray
+    contact: np.ndarray
+    residuals: np.ndarray
+    weight: float
+    iterations: int
+
+    def plane(self, plane_id: str) -> np.ndarray:
+        """The plane ``(4, 4)`` of an id, in the base frame."""
+        return self.planes[self.ids.index(plane_id)]
+
+
+@dataclass(frozen=True, eq=False)
+class PointRegistration:
+    """Fixed points and tip fitted to touches.
+
+    Attributes:
+        ids: The points' ids, in order of first appearance.
+        points: The points ``(K, 3)`` [m] in the base frame.
+        contact: The contact frame in the tool frame ``(4, 4)`` (origin: the tip).
+        residuals: ``p_t + R_t x - y`` of each touch ``(m, 3)`` [m], base frame.
+    """
+
+    ids: tuple[str, ...]
+    points: np.ndarray
+    contact: np.ndarray
+    residuals: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class PoseRegistration:
+    """Fixed poses fitted to touches (the contact frame keeps its guess).
+
+    Attributes:
+        ids: The poses' ids, in order of first appearance.
+        poses: The poses ``(K, 4, 4)`` in the base frame.
+        contact: The contact frame in the tool frame ``(4, 4)``.
+        residuals: Position [m] and rotation vector [rad] of the contact in its pose ``(m, 6)``.
+        iterations: Gauss-Newton steps of the rotation mean (the most over the ids).
+    """
+
+    ids: tuple[str, ...]
+    poses: np.ndarray
+    contact: np.ndarray
+    residuals: np.ndarray
+    iterations: int
+
+
+def tilts(normals: np.ndarray) -> np.ndarray:
+    """Roll and pitch ``(..., 2)`` [rad] of a frame whose ``R^T e_z`` is ``normals`` ``(..., 3)``.
+
+    With ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the last row of ``R`` is
+    ``(-sin pitch, cos pitch sin roll, cos pitch cos roll)``: the plane's normal seen from the
+    contact frame.
+    """
+    roll = np.arctan2(normals[..., 1], normals[..., 2])
+    pitch = -np.arcsin(np.clip(normals[..., 0], -1.0, 1.0))
+    return np.stack([roll, pitch], axis=-1)
+
+
+def tilt_derivatives(normals: np.ndarray) -> np.ndarray:
+    """Derivatives ``(..., 2, 3)`` of :func:`tilts` with respect to the normal's components."""
+    x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+    D = np.zeros((*normals.shape[:-1], 2, 3))
+    yz = y**2 + z**2
+    D[..., 0, 1], D[..., 0, 2] = z / yz, -y / yz
+    D[..., 1, 0] = -1.0 / np.sqrt(np.maximum(1.0 - x**2, 1e-300))
+    return D
+
+
+def plane_residuals(
+    rotations: np.ndarray, positions: np.ndarray, contact: np.ndarray, planes: np.ndarray
+) -> np.ndarray:
+    """Height [m], roll and pitch [rad] ``(m, 3)`` of the contact frame in its plane's frame.
+
+    Args:
+        rotations: Tool rotations in the base frame ``(m, 3, 3)``.
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        contact: Contact frame in the tool frame ``(4, 4)``.
+        planes: Plane of each touch in the base frame ``(m, 4, 4)`` (or one ``(4, 4)``).
+    """
+    planes = np.broadcast_to(planes, (len(positions), 4, 4))
+    normal = planes[:, :3, 2]
+    x = positions + rotations @ contact[:3, 3]
+    height = np.einsum("mi,mi->m", normal, x - planes[:, :3, 3])
+    seen = np.einsum("mji,mj->mi", rotations @ contact[:3, :3], normal)
+    return np.column_stack([height, tilts(seen)])
+
+
+def _groups(ids: Sequence[str], m: int) -> tuple[tuple[str, ...], np.ndarray]:
+    """The distinct ids in order of appearance and each touch's index among them."""
+    if len(ids) != m:
+        raise InvalidArgumentError(f"{len(ids)} ids for {m} touches")
+    names = tuple(dict.fromkeys(str(i) for i in ids))
+    index = np.array([names.index(str(i)) for i in ids], dtype=int)
+    counts = np.bincount(index, minlength=len(names))
+    for name, count in zip(names, counts, strict=True):
+        if count < MIN_TOUCHES:
+            raise ContactGeometryError(
+                f"'{name}' has {count} touch(es): at least {MIN_TOUCHES} are needed to fit it"
+            )
+    return names, index
+
+
+def _check_inputs(rotations, positions, contact) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    R = np.asarray(rotations, dtype=float)
+    p = np.asarray(positions, dtype=float)
+    C = np.asarray(contact, dtype=float)
+    if R.ndim != 3 or R.shape[1:] != (3, 3) or p.shape != (len(R), 3) or C.shape != (4, 4):
+        raise InvalidArgumentError(
+            "contact registration takes rotations (m, 3, 3), positions (m, 3), contact (4, 4)"
+        )
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(p)) and np.all(np.isfinite(C))):
+        raise InvalidArgumentError("contact registration: non-finite tool placement or contact")
+    return R, p, C
+
+
+def _tangent(n: np.ndarray) -> np.ndarray:
+    """Orthonormal bases ``(..., 3, 2)`` of the planes orthogonal to unit vectors ``(..., 3)``."""
+    helper = np.where(np.abs(n[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+    return np.stack([e1, np.cross(n, e1)], axis=-1)
+
+
+def _tilt_to(b: np.ndarray) -> np.ndarray:
+    """Rotation vector about an axis orthogonal to z that takes e_z to the unit vector b."""
+    axis = np.array([-b[1], b[0], 0.0])
+    s = np.linalg.norm(axis)
+    return np.zeros(2) if s < 1e-300 else (axis * np.arctan2(s, b[2]) / s)[:2]
+
+
+@dataclass(frozen=True, eq=False)
+class _PlaneState:
+    phi: np.ndarray  # contact tilt about its guess's x and y [rad]
+    normals: np.ndarray  # (K, 3)
+    heights: np.ndarray  # (K,) [m]
+
+    def contact(self, guess: np.ndarray) -> np.ndarray:
+        C = guess.copy()
+        C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*self.phi, 0.0]))
+        return C
+
+
+def _plane_rows(R, p, guess, index, state: _PlaneState, w: float):
+    """Weighted residuals ``(m, 3)`` and their Jacobian ``(m, 3, 2 + 3 K)``."""
+    K, m = len(state.heights), len(p)
+    C = state.contact(guess)
+    n = state.normals[index]
+    x = p + R @ C[:3, 3]
+    seen = np.einsum("mji,mj->mi", R @ C[:3, :3], n)
+    r = np.column_stack([np.einsum("mi,mi->m", n, x) - state.heights[index], w * tilts(seen)])
+    J = np.zeros((m, 3, 2 + 3 * K))
+    D = w * tilt_derivatives(seen)
+    Jr = left_jacobian(-np.array([*state.phi, 0.0]))[:, :2]
+    J[:, 1:, :2] = D @ skew(seen) @ Jr
+    B = _tangent(state.normals)[index]  # (m, 3, 2)
+    cols = 2 + 3 * index[:, None] + np.arange(2)
+    rows = np.arange(m)[:, None]
+    J[rows, 0, cols] = np.einsum("mi,mik->mk", x, B)
+    J[rows[:, :, None], np.arange(1, 3)[None, :, None], cols[:, None, :]] = (
+        D @ np.swapaxes(R @ C[:3, :3], 1, 2) @ B
+    )
+    J[np.arange(m), 0, 2 + 3 * index + 2] = -1.0
+    return r, J
+
+
+def _plane_start(R, p, guess, index, K, w) -> _PlaneState:
+    """The closed-form start: the chordal fit of the normals, or the contact points' planes."""
+    M = np.stack([np.sum(np.swapaxes(R[index == k], 1, 2), axis=0) for k in range(K)])
+    U = np.linalg.svd(np.concatenate(list(M), axis=1))[0]
+    z0 = guess[:3, 2]
+    a = U[:, 0] if U[:, 0] @ z0 >= 0 else -U[:, 0]
+    x = p + R @ guess[:3, 3]
+    by_points = []
+    for k in range(K):
+        centred = x[index == k] - x[index == k].mean(axis=0)
+        nk = np.linalg.svd(centred)[2][-1]
+        by_points.append(nk if nk @ (R[index == k] @ z0).sum(axis=0) >= 0 else -nk)
+    by_points = np.array(by_points)
+    candidates = []
+    for normals in (np.einsum("kji,j->ki", M, a), by_points):
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        ak = np.einsum("kij,kj->i", M, normals)
+        ak = ak / np.linalg.norm(ak)
+        heights = np.array([np.mean(x[index == k] @ normals[k]) for k in range(K)])
+        state = _PlaneState(_tilt_to(guess[:3, :3].T @ ak), normals, heights)
+        cost = float(np.sum(_plane_rows(R, p, guess, index, state, w)[0] ** 2))
+        candidates.append((cost, state))
+    return min(candidates, key=lambda c: c[0])[1]
+
+
+def register_planes(
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    ids: Sequence[str],
+    contact: np.ndarray,
+    weight: float = DEFAULT_WEIGHT,
+) -> PlaneRegistration:
+    """Planes and the contact frame's tilt fitted to flush touches (see the module's text).
+
+    Args:
+        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        ids: Plane id of each touch ``(m,)``.
+        contact: Guess of the contact frame in the tool frame ``(4, 4)``.
+        weight: Weight of the tilt rows [m/rad] (1 mrad counts as ``weight`` mm).
+
+    Returns:
+        The planes, the contact frame and the residuals at the least-squares minimum.
+
+    Raises:
+        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a plane, or touches that do
+            not fix the fit (e.g. one orientation and spots on a line).
+    """
+    R, p, guess = _check_inputs(rotations, positions, contact)
+    names, index = _groups(ids, len(p))
+    if not (np.isfinite(weight) and weight > 0):
+        raise InvalidArgumentError(f"weight must be positive and finite, got {weight}")
+    K = len(names)
+    state = _plane_start(R, p, guess, index, K, weight)
+    steps = 0
+    while steps < ITERATIONS:
+        steps += 1
+        r, J = _plane_rows(R, p, guess, index, state, weight)
+        A = J.reshape(-1, 2 + 3 * K)
+        s = np.linalg.svd(A, compute_uv=False)
+        if s[-1] <= CONDITION_LIMIT * s[0]:
+            raise ContactGeometryError(
+                "the touches do not fix the plane(s) and the contact normal: touch at several "
+                "orientations, or at spots that span each plane"
+            )
+        step = np.linalg.lstsq(A, -r.ravel(), rcond=None)[0]
+        d = step[2:].reshape(K, 3)
+        normals = state.normals + np.einsum("kij,kj->ki", _tangent(state.normals), d[:, :2])
+        state = _PlaneState(
+            state.phi + step[:2],
+            normals / np.linalg.norm(normals, axis=1, keepdims=True),
+            state.heights + d[:, 2],
+        )
+        if np.max(np.abs(step)) < STEP_TOLERANCE:
+            break
+    C = state.contact(guess)
+    planes = _plane_frames(state.normals, state.heights, p + R @ C[:3, 3], index)
+    return PlaneRegistration(
+        names, planes, C, plane_residuals(R, p, C, planes[index]), float(weight), steps
+    )
+
+
+def _plane_frames(normals, heights, x, index) -> np.ndarray:
+    """Planes ``(K, 4, 4)``: z = normal, origin the projected centroid, x the base's x or y."""
+    planes = np.tile(np.eye(4), (len(heights), 1, 1))
+    for k, (n, h) in enumerate(zip(normals, heights, strict=True)):
+        c = x[index == k].mean(axis=0)
+        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        ex = helper - (helper @ n) * n
+        ex /= np.linalg.norm(ex)
+        planes[k, :3, :3] = np.column_stack([ex, np.cross(n, ex), n])
+        planes[k, :3, 3] = c - (n @ c - h) * n
+    return planes
+
+
+def register_points(
+    rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
+) -> PointRegistration:
+    """Fixed points and the tip, by linear least squares in closed form.
+
+    Args:
+        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        ids: Point id of each touch ``(m,)``.
+        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (its rotation is kept).
+
+    Raises:
+        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a point, or orientations
+            that do not fix the tip (one orientation, or rotations about one axis only).
+    """
+    R, p, guess = _check_inputs(rotations, positions, contact)
+    names, index = _groups(ids, len(p))
+    K = len(names)
+    count = np.bincount(index, minlength=K)[:, None]
+    Rbar = np.zeros((K, 3, 3))
+    np.add.at(Rbar, index, R)
+    pbar = np.zeros((K, 3))
+    np.add.at(pbar, index, p)
+    Rbar, pbar = Rbar / count[:, :, None], pbar / count
+    A = (R - Rbar[index]).reshape(-1, 3)
+    s = np.linalg.svd(A, compute_uv=False)
+    if s[-1] < MIN_SPREAD * np.sqrt(len(p)):
+        raise ContactGeometryError(
+            "the touches do not fix the tip: touch each point at orientations about several axes"
+        )
+    tip = np.linalg.lstsq(A, -(p - pbar[index]).ravel(), rcond=None)[0]
+    points = pbar + Rbar @ tip
+    C = guess.copy()
+    C[:3, 3] = tip
+    return PointRegistration(names, points, C, p + R @ tip - points[index])
+
+
+def register_poses(
+    rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
+) -> PoseRegistration:
+    """Fixed poses: the mean pose of the contact frame per id (the contact keeps its guess).
+
+    Args:
+        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        ids: Pose id of each touch ``(m,)``.
+        contact: The contact frame in the tool frame ``(4, 4)``.
+
+    Raises:
+        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a pose.
+    """
+    R, p, C = _check_inputs(rotations, positions, contact)
+    names, index = _groups(ids, len(p))
+    Q = R @ C[:3, :3]
+    x = p + R @ C[:3, 3]
+    poses = np.tile(np.eye(4), (len(names), 1, 1))
+    most = 0
+    for k in range(len(names)):
+        Qk = Q[index == k]
+        Rf = nearest_rotation(Qk.sum(axis=0))
+        for step in range(1, ITERATIONS + 1):
+            r = rotation_vector(np.swapaxes(Rf, 0, 1) @ Qk)
+            A = inverse_right_jacobian(-r)  # d r / d eta = -A for Rf <- Rf Exp(eta)
+            eta = np.linalg.solve(np.einsum("mji,mjk->ik", A, A), np.einsum("mji,mj->i", A, r))
+            Rf = Rf @ rotation_matrix(eta)
+            most = max(most, step)
+            if np.max(np.abs(eta)) < STEP_TOLERANCE:
+                break
+        poses[k, :3, :3], poses[k, :3, 3] = Rf, x[index == k].mean(axis=0)
+    F = poses[index]
+    local = np.einsum("mji,mj->mi", F[:, :3, :3], x - F[:, :3, 3])
+    rotvec = rotation_vector(np.swapaxes(F[:, :3, :3], 1, 2) @ Q)
+    return PoseRegistration(names, poses, C, np.column_stack([local, rotvec]), most)
