@@ -9,6 +9,7 @@ __all__ = [
     "CalibError",
     "CalibrationRefusedError",
     "ChainError",
+    "ContactGeometryError",
     "ConvergenceError",
     "DataError",
     "FrameNotFoundError",

@@ -55,6 +55,23 @@ from ..kinematics.so3 import (
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
 
+__all__ = [
+    "CONDITION_LIMIT",
+    "ITERATIONS",
+    "MIN_SPREAD",
+    "MIN_TOUCHES",
+    "STEP_TOLERANCE",
+    "PlaneRegistration",
+    "PointRegistration",
+    "PoseRegistration",
+    "plane_residuals",
+    "register_planes",
+    "register_points",
+    "register_poses",
+    "tilt_derivatives",
+    "tilts",
+]
+
 MIN_TOUCHES = 3
 """Fewest touches of one plane, point or pose."""
 
@@ -259,12 +276,12 @@ def _plane_start(R, p, guess, index, K, w) -> _PlaneState:
     z0 = guess[:3, 2]
     a = U[:, 0] if U[:, 0] @ z0 >= 0 else -U[:, 0]
     x = p + R @ guess[:3, 3]
-    by_points = []
+    point_normals = []
     for k in range(K):
         centred = x[index == k] - x[index == k].mean(axis=0)
         nk = np.linalg.svd(centred)[2][-1]
-        by_points.append(nk if nk @ (R[index == k] @ z0).sum(axis=0) >= 0 else -nk)
-    by_points = np.array(by_points)
+        point_normals.append(nk if nk @ (R[index == k] @ z0).sum(axis=0) >= 0 else -nk)
+    by_points = np.array(point_normals)
     candidates = []
     for normals in (np.einsum("kji,j->ki", M, a), by_points):
         normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)

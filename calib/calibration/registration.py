@@ -28,7 +28,7 @@ import numpy as np
 from ..kinematics.mdh import MDHModel
 from .model import State, registration_state
 
-__all__ = ["ITERATIONS", "register", "rigid_fit"]
+__all__ = ["ITERATIONS", "nearest_rotation", "register", "rigid_fit"]
 
 ITERATIONS = 50
 """Most alternations between the frame and the markers."""
@@ -44,7 +44,7 @@ def rigid_fit(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return R, cb - R @ ca
 
 
-def _nearest_rotation(M: np.ndarray) -> np.ndarray:
+def nearest_rotation(M: np.ndarray) -> np.ndarray:
     """The rotation nearest to a 3x3 matrix in the Frobenius norm."""
     U, _, Vt = np.linalg.svd(M)
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
@@ -90,5 +90,5 @@ def register(
     frame[:3, :3], frame[:3, 3] = R, t
     tool = None
     if rotations is not None:
-        tool = _nearest_rotation(np.sum(np.swapaxes(Rt, 1, 2) @ R.T @ rotations, axis=0))
+        tool = nearest_rotation(np.sum(np.swapaxes(Rt, 1, 2) @ R.T @ rotations, axis=0))
     return registration_state(mdh, frame, mk, tool)
