@@ -32,7 +32,14 @@ def kind_of(measure: str | MeasureKind = "pose", marker=None) -> MeasureKind:
         return contact_kind(measure)
     if not isinstance(measure, str):
         raise InvalidArgumentError(f"a measure is a name or a kind, got {measure!r:.60}")
-    return Measurement.of(measure, marker)
+    try:
+        return Measurement.of(measure, marker)
+    except InvalidArgumentError as exc:
+        if str(exc).startswith("unknown measure"):
+            raise InvalidArgumentError(
+                f"{exc}, or a contact ({', '.join(CONTACT_NAMES)})"
+            ) from None
+        raise
 
 
 def campaign_kind(measure: str | MeasureKind, marker=None) -> Measurement:

@@ -105,8 +105,8 @@ class Measurement:
             names = [s.strip() for s in str(measure).split(",") if s.strip()]
             if not names or any(s not in ROW_NAMES for s in names):
                 raise InvalidArgumentError(
-                    f"unknown measure '{measure}': choose pose, position, rows among "
-                    f"{', '.join(ROW_NAMES)} or a contact ({', '.join(CONTACT_NAMES)})"
+                    f"unknown measure '{measure}': choose pose, position or rows among "
+                    f"{', '.join(ROW_NAMES)}"
                 )
             rows = tuple(sorted({ROW_NAMES.index(s) for s in names}))
         return Measurement(rows, checked_marker(marker), measure)
