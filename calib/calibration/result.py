@@ -327,7 +327,8 @@ class CalibrationResult:
 
 
 REPORT_FORMAT = "2"
-"""Version of the report's layout (``format_version``): raised when a key changes."""
+"""Version of the report's layout (``format_version``): raised when a key is renamed or
+removed (an added key keeps it)."""
 
 DEPRECATED = {
     "marker": "format 2 renamed it 'markers' (one point per marker, in the URDF's tool frame); "
