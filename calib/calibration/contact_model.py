@@ -34,7 +34,7 @@ PLANE_COLUMNS = 5
 
 
 def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.ndarray:
-    """The plane ``(4, 4)``: z = normal, origin the projected ``centre`` [m], x the base's x (or y)."""
+    """The plane ``(4, 4)``: z = normal, origin the projected ``centre`` [m], x the base x."""
     n = np.asarray(normal, dtype=float)
     helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     ex = helper - (helper @ n) * n

@@ -22,7 +22,6 @@ the base frame) and the contact frame (any tilt in the tool frame) take their vi
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
