@@ -26,10 +26,10 @@ import time
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import PlaneContact, joint_offsets
+from ..identification.contacts import CONTACT_TOL, PlaneContact, joint_offsets, project
 from ..identification.identifiability import independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
-from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from .contact_model import PLANE_COLUMNS, ContactModel, ContactState
@@ -38,9 +38,9 @@ from .contact_result import ContactCalibration, GapStats, gap_stats
 from .options import Options
 from .selection import Selection, select
 from .solve import fit
-from .weighting import DEFAULT_WEIGHT
+from .weighting import BOUNDS, DEFAULT_WEIGHT
 
-__all__ = ["calibrate_contacts", "contact_frame", "split_contacts"]
+__all__ = ["calibrate_contacts", "contact_frame", "flush_postures", "split_contacts", "tilt_weight"]
 
 
 def contact_frame(contact) -> np.ndarray:
@@ -123,9 +123,33 @@ def _check(chain, data, validate, opts: Options) -> None:
         raise InvalidArgumentError("fix, free and robust losses are not available for contacts")
 
 
-def _register(nominal: MDHModel, data: ContactData, guess: np.ndarray, w: float) -> ContactState:
+WEIGHT_ROUNDS = 5
+"""Registrations of the tilt weight's estimate."""
+
+
+def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray) -> float:
+    """Weight of the tilt rows [m/rad]: RMS height / RMS tilt of the registration, settled.
+
+    Each round registers with the weight of the previous one (from ``DEFAULT_WEIGHT``); the
+    result is clipped to ``BOUNDS``.
+    """
+    w = DEFAULT_WEIGHT
+    for _ in range(WEIGHT_ROUNDS):
+        r = register_planes(R, p, ids, guess, w).residuals
+        tilt = float(np.sqrt(np.mean(r[:, 1:] ** 2)))
+        if tilt <= 0:
+            break
+        w = float(np.clip(np.sqrt(np.mean(r[:, 0] ** 2)) / tilt, *BOUNDS))
+    return w
+
+
+def _register(
+    nominal: MDHModel, data: ContactData, guess: np.ndarray, w: float | None
+) -> ContactState:
     """The nominal robot with the plane and contact fitted in closed form."""
     kin = nominal.kinematics(data.q)
+    if w is None:
+        w = tilt_weight(kin.R[:, -1], kin.p[:, -1], data.ids, guess)
     reg = register_planes(kin.R[:, -1], kin.p[:, -1], data.ids, guess, w)
     P = reg.planes[0]
     return ContactState(nominal, reg.contact, P[:3, 2].copy(), float(P[:3, 2] @ P[:3, 3]), w)
@@ -147,13 +171,50 @@ def _tangent(n: np.ndarray) -> np.ndarray:
     return np.linalg.svd(n[None, :])[2][1:].T
 
 
+def flush_postures(start: ContactState, q: np.ndarray) -> np.ndarray:
+    """Postures near ``q`` where the contact of ``start`` is exactly flush with its plane.
+
+    The model re-expressed in the plane's frame with the contact as its tool, each posture
+    Newton-projected onto the plane (:func:`~calib.identification.contacts.project`); those
+    that do not reach it are dropped.
+    """
+    mdh, n = start.mdh, start.mdh.n
+    T = frames_at_zero(mdh)
+    Pinv = np.linalg.inv(start.plane())
+    joints = Pinv @ T[1 : n + 1]
+    model = from_lines(
+        joints[:, :3, 3],
+        joints[:, :3, 2],
+        mdh.sigma[1 : n + 1],
+        Pinv @ T[-1] @ start.contact,
+        tuple(str(x) for x in mdh.joint_names[1 : n + 1]),
+        sign=mdh.sign[1 : n + 1],
+    )
+    qf, gaps = project(model, PlaneContact(), q)
+    return qf[gaps < CONTACT_TOL]
+
+
+def _structural(wide: ContactModel, start: ContactState, train: ContactData) -> list[int]:
+    """The columns the touches determine, from the Jacobian at flush postures near them.
+
+    At the registration the contact is not quite flush, and the directions no flush contact
+    can see (the scale without a prismatic joint, ...) have small columns a rank test would
+    keep; at flush postures they vanish.
+    """
+    qf = flush_postures(start, train.q)
+    if len(qf) < len(train.q):  # what could not be projected is judged at the data
+        qf = np.concatenate([qf, train.q[len(qf) :]])
+    flush = ContactData(train.joint_names, qf, train.ids, train.kind, train.source)
+    A = wide.jacobian(start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
+    return independent_columns(A, list(range(A.shape[1])))[2]
+
+
 def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[str]):
     """The model (free parameters), the selection (auto) and the prior weights."""
     offered = _candidates(start.mdh, opts.level)
     wide = ContactModel(offered, _tangent(start.normal))
     J = wide.jacobian(start, np.zeros(wide.size()), train)
-    A = J.reshape(-1, J.shape[2])
-    kept = independent_columns(A, list(range(A.shape[1])))[2]
+    kept = _structural(wide, start, train)
     if kept[:PLANE_COLUMNS] != list(range(PLANE_COLUMNS)):
         raise DataError(train.source, "the touches do not determine the plane and the contact")
     columns = sorted(kept[PLANE_COLUMNS:])
@@ -195,7 +256,7 @@ def calibrate_contacts(
         params: ``auto`` (default), ``frames`` (the registration only), ``offsets``,
             ``paper`` or ``complete``.
         validate: Touches of other postures to score the result on (never fitted).
-        orientation_weight: Weight of the tilt rows [m/rad] (default 1: 1 mrad = 1 mm).
+        orientation_weight: Weight of the tilt rows [m/rad] (default: :func:`tilt_weight`).
         elastic: Joint compliance (not available for contacts: True is an error).
         max_iterations: Most residual evaluations of the solver.
         holdout: Fraction of each plane's touches set aside (seeded).
@@ -219,7 +280,7 @@ def calibrate_contacts(
     _check(chain, data, validate, opts)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
-    w = DEFAULT_WEIGHT if orientation_weight is None else float(orientation_weight)
+    w = None if orientation_weight is None else float(orientation_weight)
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
     nominal = from_chain(chain)
