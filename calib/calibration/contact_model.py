@@ -131,9 +131,7 @@ class ContactModel:
         J[:, 1:, 3:5] = D @ skew(seen) @ Jr
         if len(self.params):
             marker = Measurement.of("pose", tuple(s.contact[:3, 3]))
-            W6 = identification_jacobian(s.mdh, self.params, q, marker, kin).reshape(
-                len(q), 6, -1
-            )
+            W6 = identification_jacobian(s.mdh, self.params, q, marker, kin).reshape(len(q), 6, -1)
             J[:, 0, PLANE_COLUMNS:] = np.einsum("i,mik->mk", s.normal, W6[:, :3])
             turn = np.swapaxes(RC, 1, 2) @ skew(s.normal)
             J[:, 1:, PLANE_COLUMNS:] = D @ turn @ W6[:, 3:]

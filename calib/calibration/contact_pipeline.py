@@ -40,7 +40,15 @@ from .selection import Selection, select
 from .solve import fit
 from .weighting import BOUNDS, DEFAULT_WEIGHT
 
-__all__ = ["calibrate_contacts", "contact_frame", "flush_postures", "split_contacts", "tilt_weight"]
+__all__ = [
+    "WEIGHT_ROUNDS",
+    "WORSE",
+    "calibrate_contacts",
+    "contact_frame",
+    "flush_postures",
+    "split_contacts",
+    "tilt_weight",
+]
 
 
 def contact_frame(contact) -> np.ndarray:
@@ -329,5 +337,10 @@ def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> Con
     )
 
 
+WORSE = 1e-9
+"""Relative excess of the held-out weighted RMS over the registration's that refuses a model
+(the same model refitted differs by round-off)."""
+
+
 def _worse(fitted: GapStats, registration: GapStats) -> bool:
-    return fitted.weighted_mm > registration.weighted_mm
+    return fitted.weighted_mm > registration.weighted_mm * (1.0 + WORSE)
