@@ -337,7 +337,7 @@ def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> Con
     )
 
 
-WORSE = 1e-9
+WORSE = 1e-6
 """Relative excess of the held-out weighted RMS over the registration's that refuses a model
 (the same model refitted differs by round-off)."""
 
