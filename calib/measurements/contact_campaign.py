@@ -47,11 +47,6 @@ ID_COLUMNS = {
 }
 """The id column of each contact kind."""
 
-CONTACT_LIMIT_MARGIN = (0.3, 0.03)
-"""Margin [rad, m] past a joint limit a touch may read with only a warning: wider than
-measured data's, as a robot pressed on a table strays further (TALOS's right arm reads 0.18 rad
-past its URDF limit in data/realdata/talos_contact); degrees for radians still fail."""
-
 SIMULATION_ROUNDS = 24
 """Draws of starting configurations :func:`simulate_contacts` tries per contact."""
 
@@ -169,7 +164,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         q.append([parse_number(cells[cols[j]], source, line, j) for j in chain.joint_names])
         rows.append(line)
     qa = np.array(q, dtype=float)
-    check_limits(chain, qa, source, np.array(rows), limit_margin=CONTACT_LIMIT_MARGIN)
+    check_limits(chain, qa, source, np.array(rows))
     qa.setflags(write=False)
     return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows))
 
@@ -348,7 +343,6 @@ def write_contacts(path: str | Path, data: ContactData) -> None:
 
 
 __all__ = [
-    "CONTACT_LIMIT_MARGIN",
     "ID_COLUMNS",
     "ContactCampaign",
     "ContactData",

@@ -386,19 +386,11 @@ def _check_tools(data: Measurements, tools: tuple[str, ...]) -> None:
 
 
 def check_limits(
-    chain: Chain | Tree,
-    q: np.ndarray,
-    source: str,
-    rows: np.ndarray,
-    warn: bool = True,
-    limit_margin: tuple[float, float] = LIMIT_MARGIN,
+    chain: Chain | Tree, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
 ) -> None:
-    """Raise a DataError naming the first joint value far outside its limits; warn on others.
-
-    ``limit_margin``: how far past a limit [rad, m] a reading is accepted with a warning.
-    """
+    """Raise a DataError naming the first joint value far outside its limits; warn on others."""
     lower, upper = joint_bounds(chain)
-    margin = np.where(chain.sigma == 1, limit_margin[1], limit_margin[0])
+    margin = np.where(chain.sigma == 1, LIMIT_MARGIN[1], LIMIT_MARGIN[0])
     past = np.maximum(lower - q, q - upper)
     if chain.coupling is not None:  # a mimic joint's position is computed, not read
         past[:, [mj.joint for mj in chain.coupling.mimic]] = -np.inf
