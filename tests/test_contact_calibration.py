@@ -181,3 +181,17 @@ def test_talos_simulation_is_near_the_nominal():
     data = simulate_contacts(chain, 30, "plane", seed=3).data
     r = calibrate_contacts(chain, data, params="frames")
     assert r.stats["train_registration"].height_max_mm < 20
+
+
+def test_calibrate_dispatches_contact_data():
+    from calib.calibration import calibrate
+
+    chain = load_robot("panda")
+    data = simulate_contacts(chain, 40, "plane", seed=4).data
+    guess = [0.0, 0.0, 0.05]
+    a = calibrate(chain, data, marker=guess, params="offsets", holdout=0.25)
+    b = calibrate_contacts(chain, data, contact=guess, params="offsets", holdout=0.25)
+    assert np.allclose(a.contact, b.contact) and a.free == b.free
+    assert a.stats["held_out"] == b.stats["held_out"]
+    with pytest.raises(InvalidArgumentError, match="not available for contacts"):
+        calibrate(chain, data, fix=("theta1",))

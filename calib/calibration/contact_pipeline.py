@@ -43,6 +43,7 @@ from .weighting import BOUNDS, DEFAULT_WEIGHT
 __all__ = [
     "WEIGHT_ROUNDS",
     "WORSE",
+    "calibrate_contact_data",
     "calibrate_contacts",
     "contact_frame",
     "flush_postures",
@@ -300,6 +301,29 @@ def calibrate_contacts(
     fitted = fit(model, start, train, None, 1.0, prior=prior, max_iterations=opts.max_iterations)
     clock.append(time.perf_counter())
     return _assemble(chain, train, held, start, fitted, selection, notes, clock)
+
+
+def calibrate_contact_data(
+    robot,
+    data: ContactData,
+    *,
+    marker=None,
+    fix=(),
+    free=(),
+    loss="linear",
+    noise_mm=None,
+    **kwargs,
+) -> ContactCalibration:
+    """:func:`calibrate_contacts` for :func:`~calib.calibration.pipeline.calibrate`.
+
+    ``marker`` is the contact frame's guess; ``fix``, ``free``, ``loss`` and ``noise_mm``
+    are not available for contacts (an error unless left at their defaults).
+    """
+    if fix or free or loss != "linear" or noise_mm is not None:
+        raise InvalidArgumentError(
+            "fix, free, robust losses and noise_mm are not available for contacts"
+        )
+    return calibrate_contacts(robot, data, contact=marker, **kwargs)
 
 
 def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> ContactCalibration:
