@@ -127,7 +127,7 @@ def _check(chain, data, validate, opts: Options) -> None:
     if validate is not None and opts.holdout > 0:
         raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
     if opts.elastic:
-        raise InvalidArgumentError("--elastic is not available for contacts yet")
+        raise InvalidArgumentError("elastic (joint compliance) is not available for contacts yet")
     if opts.fix or opts.free or opts.loss != "linear":
         raise InvalidArgumentError("fix, free and robust losses are not available for contacts")
 
