@@ -18,8 +18,11 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain, Robot
 from ..kinematics.so3 import matrix_to_quaternion
 from ..kinematics.tree import Tree
+from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
 from . import determined, diagnosis, outliers, validation, weighting
+from .contact_pipeline import calibrate_contact_data
+from .contact_result import ContactCalibration
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .registration import register
@@ -81,14 +84,14 @@ def calibrate(
 ) -> TreeCalibrationResult: ...
 
 
-@checked_arguments
+@overload
 def calibrate(
-    robot: Chain | Tree,
-    data: Measurements,
+    robot: Chain,
+    data: ContactData,
     *,
     params: str | None = None,
     marker=None,
-    validate: Measurements | None = None,
+    validate: ContactData | None = None,
     fix: tuple[str, ...] = (),
     free: tuple[str, ...] = (),
     elastic: bool | None = None,
@@ -98,7 +101,27 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
-) -> CalibrationResult | TreeCalibrationResult:
+) -> ContactCalibration: ...
+
+
+@checked_arguments
+def calibrate(
+    robot: Chain | Tree,
+    data: Measurements | ContactData,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate=None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+) -> CalibrationResult | TreeCalibrationResult | ContactCalibration:
     """Calibrate a chain (or a tree) from measurements: a model that predicts unseen configurations.
 
     Steps: check the data, set rows aside (``holdout``), register the measurement frame and
@@ -109,7 +132,10 @@ def calibrate(
 
     Args:
         robot: The nominal chain (or tree).
-        data: Measurements of it (joints in chain order; see :mod:`calib.measurements.csvfile`).
+        data: Measurements of it (joints in chain order; see :mod:`calib.measurements.csvfile`),
+            or touches (:class:`~calib.measurements.contact_campaign.ContactData`: calibrated
+            by :func:`~calib.calibration.contact_pipeline.calibrate_contacts`, ``marker`` the
+            contact frame's guess).
         params: Parameter level, one of ``LEVELS`` (default ``auto``; a tree:
             ``TREE_LEVELS``, default ``complete``).
         marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
@@ -136,6 +162,12 @@ def calibrate(
         InvalidArgumentError: A bad argument (:class:`~.options.Options`), an unknown one, or
             one given by position after ``data``.
     """
+    if isinstance(data, ContactData):  # touches (no instrument): one plane, one chain
+        return calibrate_contact_data(
+            robot, data, marker=marker, validate=validate, params=params, fix=fix, free=free,
+            elastic=elastic, loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
+            max_iterations=max_iterations, holdout=holdout, seed=seed,
+        )
     if isinstance(robot, Robot) and robot.is_tree:
         return calibrate_tree(
             robot,

@@ -35,6 +35,7 @@ from ..choices import (
 from ..exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from ..fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from ..identification.identifiability import analyze
+from ..identification.measures import CONTACT_NAMES
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
 from ..kinematics.catalog import catalog_files, installed_dirs
 from ..kinematics.mdh import from_chain
@@ -42,6 +43,7 @@ from ..kinematics.robot import Chain, load_chain
 from ..kinematics.tree import Tree, load_robot
 from ..kinematics.tree_model import from_tree
 from ..launcher import catalog_listing
+from . import contact_cli
 
 __all__ = [
     "CHAIN_ONLY",
@@ -478,6 +480,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """
     with _recorded_warnings() as recorded:
         chain = load_robot(args.robot, args.base, tool_arg(args))
+        if contact_cli.is_contact_run(args):
+            return contact_cli.calibrate_contacts_command(args, chain)
         if chain.is_tree:
             return _calibrate_tree(args, chain, recorded)
         return _calibrate_chain(args, chain, recorded)
@@ -935,10 +939,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--measure",
-        choices=("auto", *CAMPAIGN_MEASURES),
+        choices=("auto", *CAMPAIGN_MEASURES, *CONTACT_NAMES),
         default="auto",
-        help="auto: pose when the CSV has orientation columns, else position (default: auto)",
+        help="auto: pose when the CSV has orientation columns, else position; or a contact "
+        "(no coordinates in the CSV) (default: auto)",
     )
+    contact_cli.add_contact_arguments(p)
     p.add_argument(
         "--params",
         choices=LEVELS,

@@ -339,6 +339,7 @@ def contact_model(mdh: MDHModel, q0: np.ndarray, frame: str = "") -> MDHModel:
         mdh.sigma[1 : mdh.n + 1],
         Pinv @ T[-1],
         tuple(str(x) for x in mdh.joint_names[1 : mdh.n + 1]),
+        sign=mdh.sign[1 : mdh.n + 1],  # a reversed joint stays reversed
     )
     return model.replace(base_frame=frame or "contact", tool_frame=mdh.tool_frame)
 
@@ -384,6 +385,7 @@ def project(
         if not rows.size:
             break
         J = identification_jacobian(mdh, offsets, qa, kind).reshape(len(qa), c, -1)
+        J = J * mdh.sign[1 : mdh.n + 1]  # d offset / dq: -1 for a reversed joint
         JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(c)
         step = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
         if bounds is not None:

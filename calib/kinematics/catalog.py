@@ -21,6 +21,7 @@ __all__ = [
     "installed_dirs",
     "models_dir",
     "resolve_urdf",
+    "shipped_urdf",
 ]
 
 ERD_PREFIX = "erd:"
@@ -157,6 +158,18 @@ def resolve_urdf(spec: str) -> Path:
     if spec.startswith(ERD_PREFIX):
         return erd_robots_dir() / spec[len(ERD_PREFIX) :]
     return models_dir() / spec
+
+
+def shipped_urdf(name: str) -> Path | None:
+    """A URDF of that file name in ``models/`` or example-robot-data's robots, or None."""
+    local = models_dir() / name
+    if local.is_file():
+        return local
+    try:
+        found = sorted(erd_robots_dir().glob(f"*/robots/{name}"))
+    except CalibError:
+        return None
+    return found[0] if found else None
 
 
 @functools.cache

@@ -22,7 +22,7 @@ from ..exceptions import (
     InvalidArgumentError,
     UnsupportedJointError,
 )
-from .catalog import CatalogEntry, catalog, catalog_entry
+from .catalog import CatalogEntry, catalog, catalog_entry, shipped_urdf
 from .mimic import Coupling, chain_coupling
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
@@ -693,6 +693,10 @@ def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
     is_path = isinstance(robot, os.PathLike) or path.is_file()
     if path.is_dir() and not is_path:
         is_path = all(entry.name != text for entry in catalog())
+    if not is_path and text.endswith(".urdf") and os.sep not in text and "/" not in text:
+        found = shipped_urdf(text)  # a bare file name that is no local file
+        if found is not None:
+            return path.stem, found, None
     if is_path or text.endswith((".urdf", ".xml")) or "/" in text:
         return path.stem, path, None
     entry = catalog_entry(text)

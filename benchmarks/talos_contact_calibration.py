@@ -1,0 +1,95 @@
+"""TALOS flush contacts: 5-fold cross-validated held-out gaps of `calibrate_contacts`.
+
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/talos_contact_calibration.py``
+
+For each side (left, right) and each parameter level, the touches are split into 5 folds
+(seeded, within the plane); each fold is held out in turn, the calibration runs on the
+other four (``validate=`` the held fold), and the held fold's gaps are pooled: RMS height [mm],
+roll and pitch [deg] of the calibrated model (``fit``), of what calib delivers (the
+registration when the model is refused, ``delivered``) and of the registration alone (the
+nominal robot with its own plane and contact, ``baseline``). Then the median time of the
+default calibration on all touches (target < 1 s).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from calib import load_robot
+from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.measurements.contact_campaign import ContactData, read_contacts
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
+URDF = "talos_full_v2.urdf"
+CONTACT = (0.0, 0.0, -0.12)
+FOLDS = 5
+SEED = 0
+
+
+def _take(data: ContactData, rows: np.ndarray) -> ContactData:
+    return ContactData(
+        data.joint_names, data.q[rows], tuple(data.ids[i] for i in rows), data.kind, data.source
+    )
+
+
+def _pooled(parts: list[tuple[int, float, float, float]]) -> tuple[float, float, float]:
+    m = sum(p[0] for p in parts)
+    return tuple(  # type: ignore[return-value]
+        float(np.sqrt(sum(p[0] * p[k] ** 2 for p in parts) / m)) for k in (1, 2, 3)
+    )
+
+
+def cross_validate(chain, data: ContactData, params: str | None):
+    """Pooled held-out (fit, delivered, baseline) RMS and the number of refused folds."""
+    folds = np.array_split(np.random.default_rng(SEED).permutation(data.m), FOLDS)
+    fit, delivered, base, refused = [], [], [], 0
+    for f in range(FOLDS):
+        train = np.setdiff1d(np.arange(data.m), folds[f])
+        r = calibrate_contacts(
+            chain,
+            _take(data, train),
+            contact=CONTACT,
+            params=params,
+            validate=_take(data, folds[f]),
+            seed=SEED,
+        )
+        h, b = r.stats["held_out"], r.stats["held_out_registration"]
+        row = (h.m, h.height_rms_mm, h.roll_rms_deg, h.pitch_rms_deg)
+        brow = (b.m, b.height_rms_mm, b.roll_rms_deg, b.pitch_rms_deg)
+        fit.append(row)
+        base.append(brow)
+        delivered.append(row if r.accepted else brow)
+        refused += not r.accepted
+    return _pooled(fit), _pooled(delivered), _pooled(base), refused
+
+
+def main() -> None:
+    warnings.simplefilter("ignore")
+    for side in ("left", "right"):
+        chain = load_robot(URDF, f"{side}_sole_link", f"gripper_{side}_base_link")
+        data = read_contacts(DATA / f"{side}_train.csv", chain, "plane")
+        for params in (None, "offsets", "frames"):
+            fit, dlv, base, refused = cross_validate(chain, data, params)
+            print(
+                f"{side:5s} {params or 'auto (default)':15s} fit {fit[0]:6.2f} mm {fit[1]:.2f} "
+                f"{fit[2]:.2f} deg | delivered {dlv[0]:6.2f} {dlv[1]:.2f} {dlv[2]:.2f} | "
+                f"baseline {base[0]:6.2f} {base[1]:.2f} {base[2]:.2f} | refused {refused}/5"
+            )
+        times = []
+        for _ in range(5):
+            t = time.perf_counter()
+            calibrate_contacts(chain, data, contact=CONTACT)
+            times.append(time.perf_counter() - t)
+        print(
+            f"{side:5s} default calibration on {data.m} touches: median "
+            f"{1e3 * statistics.median(times):.0f} ms"
+        )
+
+
+if __name__ == "__main__":
+    main()

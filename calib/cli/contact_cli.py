@@ -1,0 +1,123 @@
+"""`calib calibrate --measure plane`: calibration from contacts (touches, no instrument)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
+from ..fileio import check_outputs, json_text, write_files_atomic
+from ..identification.measures import CONTACT_NAMES
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree
+
+__all__ = ["add_contact_arguments", "calibrate_contacts_command", "is_contact_run"]
+
+
+def add_contact_arguments(p: argparse.ArgumentParser) -> None:
+    """The ``--contact`` flag of ``calibrate``."""
+    p.add_argument(
+        "--contact",
+        nargs="+",
+        type=float,
+        metavar="X",
+        help="contacts: guess of the contact frame in the tool frame, X Y Z [RX RY RZ] "
+        "[m, rad] (default: the tool frame)",
+    )
+
+
+def is_contact_run(args: argparse.Namespace) -> bool:
+    """Whether ``calibrate`` was asked for a contact kind (``--contact`` alone is an error).
+
+    Raises:
+        InvalidArgumentError: ``--contact`` with a measured kind.
+    """
+    if args.measure in CONTACT_NAMES:
+        return True
+    if getattr(args, "contact", None) is not None:
+        raise InvalidArgumentError(
+            f"--contact is for contact kinds ({', '.join(CONTACT_NAMES)}), not --measure "
+            f"{args.measure}"
+        )
+    return False
+
+
+_MEASURED_ONLY: dict[str, object] = {
+    "marker": None,
+    "fix": [],
+    "free": [],
+    "loss": "linear",
+    "noise_mm": None,
+    "world_link": None,
+}
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    for name, default in _MEASURED_ONLY.items():
+        if getattr(args, name, default) not in (default, None, []):
+            flag = "--" + name.replace("_", "-")
+            raise InvalidArgumentError(f"{flag} is not available with --measure {args.measure}")
+    if args.contact is not None and len(args.contact) not in (3, 6):
+        raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
+
+
+def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) -> int:
+    """Calibrate from a contact CSV; write the URDF (if accepted) and the report.
+
+    Raises:
+        CalibrationRefusedError: The model was refused (the report only is written).
+    """
+    from ..calibration.contact_pipeline import calibrate_contacts
+    from ..measurements.contact_campaign import read_contacts
+
+    if not isinstance(chain, Chain) or chain.is_tree:
+        raise InvalidArgumentError("contacts are calibrated on one chain: give one --tool")
+    _check_args(args)
+    out, report = Path(args.out), Path(args.report) if args.report else None
+    inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
+    if args.validate:
+        inputs["the validation data (--validate)"] = args.validate
+    check_outputs({"--out": out, "--report": report}, inputs)
+    data = read_contacts(args.data, chain, args.measure)
+    check = read_contacts(args.validate, chain, args.measure) if args.validate else None
+    weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
+    result = calibrate_contacts(
+        chain,
+        data,
+        contact=args.contact,
+        params=args.params,
+        validate=check,
+        orientation_weight=weight,
+        elastic=args.elastic,
+        max_iterations=args.max_iterations,
+        holdout=args.holdout,
+        seed=args.seed,
+    )
+    doc = json_text(result.to_dict())
+    print(doc if args.json else _text(result), end="" if args.json else "\n")
+    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
+    if result.refusal is not None:
+        write_files_atomic(files)
+        raise CalibrationRefusedError(f"calibration refused: {result.refusal}: no URDF written")
+    from ..kinematics.urdf_export import calibrated_urdf
+
+    files[out] = calibrated_urdf(chain, result.nominal, result.calibrated)
+    write_files_atomic(files)
+    if not args.json:
+        print(f"wrote {', '.join(str(p) for p in files)}")
+    return 0
+
+
+def _text(result) -> str:
+    lines = [
+        f"{result.chain.name}: {result.chain.base_frame} -> {result.chain.tool_frame}, "
+        f"plane '{result.plane_id}', {len(result.free)} robot parameters fitted",
+        "gaps (RMS): height [mm]  roll [deg]  pitch [deg]",
+    ]
+    for key, s in result.stats.items():
+        lines.append(
+            f"  {key:22s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  {s.pitch_rms_deg:8.3f}"
+            f"  ({s.m} touches)"
+        )
+    lines += [f"note: {n}" for n in result.notes]
+    return "\n".join(lines)

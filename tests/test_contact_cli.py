@@ -1,0 +1,143 @@
+"""`calib calibrate --measure plane`: the issue's command line, outputs and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from contact_scorer import plane_gaps, read_joints
+
+from calib import load_robot
+from calib.cli.commands import main
+from calib.measurements.contact_campaign import simulate_contacts, write_contacts
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
+LEFT = ["--base", "left_sole_link", "--tool", "gripper_left_base_link"]
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_issue_command_line_works_as_written(capsys, tmp_path, monkeypatch):
+    """From any folder: the URDF's bare file name, the report's contact frames, the URDF."""
+    shutil.copy(REAL / "left_train.csv", tmp_path)
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(
+        capsys,
+        "calibrate",
+        "talos_full_v2.urdf",
+        *LEFT,
+        "--data",
+        "left_train.csv",
+        "--measure",
+        "plane",
+        "--contact",
+        "0",
+        "0",
+        "-0.12",
+        "--out",
+        "cal.urdf",
+        "--report",
+        "r.json",
+    )
+    assert code == 0, err
+    report = json.loads((tmp_path / "r.json").read_text())
+    plane = report["contact"]["planes"]["table"]
+    assert plane["frame"] == "left_sole_link"
+    P = np.array(plane["matrix"])
+    C = np.array(report["contact"]["frames"]["gripper_left_base_link"]["matrix"])
+    assert np.allclose(P[:3, :3] @ P[:3, :3].T, np.eye(3)) and np.allclose(P[3], [0, 0, 0, 1])
+    assert abs(C[2, 3] + 0.12) < 1e-12  # the contact's origin keeps its guess (a gauge)
+    # the written URDF, scored by Pinocchio, gives the report's training gaps
+    _, joints = read_joints(tmp_path / "left_train.csv")
+    g = plane_gaps(tmp_path / "cal.urdf", "left_sole_link", "gripper_left_base_link", C, P, joints)
+    train = report["gaps"]["train"]
+    assert abs(1e3 * np.sqrt(np.mean(g[:, 0] ** 2)) - train["height_rms_mm"]) < 1e-6
+    assert train["height_rms_mm"] < report["gaps"]["train_registration"]["height_rms_mm"]
+
+
+def _campaign(tmp_path: Path, measure="plane") -> Path:
+    chain = load_robot("ur5")
+    path = tmp_path / f"{measure}.csv"
+    write_contacts(path, simulate_contacts(chain, 30, measure, seed=0).data)
+    return path
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--measure", "pose", "--contact", "0", "0", "0.1"], "--contact is for contact kinds"),
+        (["--measure", "plane", "--contact", "0", "0"], "3 or 6 numbers"),
+        (["--measure", "plane", "--elastic"], "elastic"),
+        (["--measure", "plane", "--marker", "0", "0", "0"], "--marker is not available"),
+        (["--measure", "fixed-point"], "point"),
+    ],
+)
+def test_errors_one_line_exit_2_no_output(capsys, tmp_path, extra, message):
+    data = _campaign(tmp_path)
+    out = tmp_path / "cal.urdf"
+    code, _, err = run(
+        capsys,
+        "calibrate",
+        "ur5",
+        "--data",
+        str(data),
+        "--out",
+        str(out),
+        "--report",
+        str(tmp_path / "r.json"),
+        *extra,
+    )
+    assert code == 2
+    assert message in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists() and not (tmp_path / "r.json").exists()
+
+
+def test_coordinates_in_a_contact_file_are_an_error(capsys, tmp_path):
+    data = _campaign(tmp_path)
+    lines = data.read_text().splitlines()
+    lines = [lines[0] + ",x"] + [line + ",0.5" for line in lines[1:]]
+    data.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal.urdf"
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--data", str(data), "--out", str(out), "--measure", "plane"
+    )
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_refused_model_writes_the_report_only(capsys, tmp_path):
+    chain = load_robot("ur5")
+    data = tmp_path / "few.csv"
+    write_contacts(
+        data,
+        simulate_contacts(
+            chain, 14, "plane", seed=5, noise_mrad=3.0, error_mm=0.0, error_mrad=0.0
+        ).data,
+    )
+    out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
+    code, _, err = run(
+        capsys,
+        "calibrate",
+        "ur5",
+        "--data",
+        str(data),
+        "--out",
+        str(out),
+        "--report",
+        str(report),
+        "--measure",
+        "plane",
+        "--params",
+        "complete",
+        "--holdout",
+        "0.4",
+    )
+    assert code == 2 and "refused" in err
+    assert not out.exists() and json.loads(report.read_text())["accepted"] is False
