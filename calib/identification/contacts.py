@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_lines
+from ..kinematics.mdh import Kinematics, MDHModel, frames_at_zero, from_lines
 from ..kinematics.so3 import inverse_right_jacobian, rotation_vector
 from .jacobian import identification_jacobian
 from .measures import CONTACT_NAMES, count_joints
@@ -339,6 +339,7 @@ def contact_model(mdh: MDHModel, q0: np.ndarray, frame: str = "") -> MDHModel:
         mdh.sigma[1 : mdh.n + 1],
         Pinv @ T[-1],
         tuple(str(x) for x in mdh.joint_names[1 : mdh.n + 1]),
+        sign=mdh.sign[1 : mdh.n + 1],
     )
     return model.replace(base_frame=frame or "contact", tool_frame=mdh.tool_frame)
 
@@ -370,6 +371,7 @@ def project(
     alive = np.ones(len(q), dtype=bool)  # rows still bounded (a diverging one is dropped)
     moving = np.ones(len(q), dtype=bool)  # rows not yet on the contact
     revolute = mdh.sigma[1 : mdh.n + 1] == 0
+    signs = mdh.sign[1 : mdh.n + 1].astype(float)
     c = kind.n_rows
     for _ in range(steps):
         rows = np.flatnonzero(alive & moving)
@@ -383,7 +385,10 @@ def project(
         rows, qa, gap = rows[~there], qa[~there], gap[~there]
         if not rows.size:
             break
-        J = identification_jacobian(mdh, offsets, qa, kind).reshape(len(qa), c, -1)
+        kin = Kinematics(*(a[~there] for a in kin))
+        # d gap / dq: a joint traversed backwards turns its row by -q (sign -1)
+        J = identification_jacobian(mdh, offsets, qa, kind, kin=kin).reshape(len(qa), c, -1)
+        J = J * signs
         JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(c)
         step = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
         if bounds is not None:
