@@ -20,7 +20,11 @@ from test_contacts import pin_gap
 import calib
 from calib import analyze, from_chain, load_chain
 from calib.cli.commands import main
-from calib.identification.contacts import contact_configurations, contact_kind
+from calib.identification.contacts import (
+    contact_configurations,
+    contact_kind,
+    joint_jacobian,
+)
 from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
 from calib.measurements.contact_campaign import read_contacts, simulate_contacts
 
@@ -161,3 +165,41 @@ def test_simulated_touches_from_the_foot_hold_on_the_true_robot(tmp_path, capsys
     T = true_placements(chain, again.truth.true_mdh, back.q, tmp_path)
     frame = np.linalg.inv(again.truth.frames[back.ids[0]])
     assert np.abs([pin_gap("plane", frame @ t) for t in T]).max() < 1e-9
+
+
+@pytest.mark.parametrize(("base", "tool"), PAIRS)
+def test_joint_jacobian_is_pinocchios_relative_frame_jacobian(base, tool):
+    """The Newton step's d(tool pose)/dq, signs included, against Pinocchio's frame Jacobians."""
+    chain = load_chain("talos", base, tool)
+    mdh = from_chain(chain)
+    q = chain.random_configurations(6, 7)
+    W6 = joint_jacobian(mdh, mdh.kinematics(q))
+    ref = PathRef(chain.urdf_path, base, tool).relative_jacobian(chain.joint_names, q)
+    np.testing.assert_allclose(W6.reshape(-1, chain.n), ref, atol=1e-10)
+
+
+def test_plane_newton_system_is_its_own_derivative_and_vanishes_on_one_side_only():
+    """The plane's Newton residual: its rows are its central differences, and a frame
+    upside down on the plane (gap 0) is far from its zero."""
+    chain = load_chain("talos", "left_sole_link", "gripper_left_base_link")
+    mdh = from_chain(chain)
+    kind = contact_kind("plane")
+    q = chain.random_configurations(4, 9)
+
+    def system(qq):
+        kin = mdh.kinematics(qq)
+        return kind.newton_system(joint_jacobian(mdh, kin), kin.R[:, -1], kin.p[:, -1])
+
+    _, J = system(q)
+    h = 1e-6
+    for j in range(chain.n):
+        e = np.zeros(chain.n)
+        e[j] = h
+        num = (system(q + e)[0] - system(q - e)[0]) / (2 * h)
+        np.testing.assert_allclose(J[:, :, j], num, atol=1e-7)
+    tilt = pin.exp3(np.array([1e-3, 0.0, 0.0]))
+    for R, far in ((tilt, False), (np.diag([1.0, -1.0, -1.0]) @ tilt, True)):
+        gap = kind.residual(R[None], np.zeros((1, 3)))
+        newton, _ = kind.newton_system(np.zeros((1, 6, 1)), R[None], np.zeros((1, 3)))
+        assert np.abs(gap).max() < 2e-3  # the gap cannot tell the sides apart
+        assert (np.abs(newton).max() > 1e3) if far else (np.abs(newton).max() < 1e-3)
