@@ -403,6 +403,12 @@ def joint_jacobian(mdh: MDHModel, kin: Kinematics) -> np.ndarray:
     return np.concatenate([lin, ang], axis=2).transpose(0, 2, 1) * mdh.sign[joints]
 
 
+def _newton_step(J: np.ndarray, gap: np.ndarray) -> np.ndarray:
+    """Least-norm, lightly damped solutions of ``J dq = -gap`` ``(m, n)``."""
+    JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(J.shape[1])
+    return -(np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+
+
 def project(
     mdh: MDHModel, kind: Contact, q: np.ndarray, steps: int = NEWTON_STEPS, bounds=None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -412,7 +418,9 @@ def project(
     :meth:`Contact.newton_system` of :func:`joint_jacobian`), lightly damped, then clips it
     into ``bounds`` (lower and upper joint positions ``(n,)`` each [rad or m]; revolute joints
     are otherwise wrapped into [-pi, pi)). A configuration stops when its gap is under
-    :data:`CONTACT_TOL` / 1000, or under :data:`CONTACT_TOL` and no longer halving (round-off).
+    :data:`CONTACT_TOL` / 1000, or under :data:`CONTACT_TOL` and no longer halving
+    (round-off). Joints a step would push out of ``bounds`` are held for that step (their
+    columns dropped, the step solved again), so that the others keep Newton's pace.
 
     Returns:
         The projected configurations ``(m, n)`` and the largest gap of each ``(m,)``.
@@ -422,7 +430,6 @@ def project(
     moving = np.ones(len(q), dtype=bool)  # rows not yet on the contact
     last = np.full(len(q), np.inf)  # each row's previous gap
     revolute = mdh.sigma[1 : mdh.n + 1] == 0
-    c = kind.n_rows
     for _ in range(steps):
         rows = np.flatnonzero(alive & moving)
         if not rows.size:
@@ -437,9 +444,11 @@ def project(
         rows, qa, gap, J = rows[~there], qa[~there], gap[~there], J[~there]
         if not rows.size:
             break
-        JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(c)
-        step = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+        step = qa + _newton_step(J, gap)
         if bounds is not None:
+            out = (step < bounds[0]) | (step > bounds[1])
+            if out.any():
+                step = qa + _newton_step(J * ~out[:, None, :], gap)
             step = np.clip(step, bounds[0], bounds[1])
         else:  # the same postures
             step[:, revolute] = (step[:, revolute] + np.pi) % (2 * np.pi) - np.pi
