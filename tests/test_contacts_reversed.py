@@ -203,3 +203,27 @@ def test_plane_newton_system_is_its_own_derivative_and_vanishes_on_one_side_only
         newton, _ = kind.newton_system(np.zeros((1, 6, 1)), R[None], np.zeros((1, 3)))
         assert np.abs(gap).max() < 2e-3  # the gap cannot tell the sides apart
         assert (np.abs(newton).max() > 1e3) if far else (np.abs(newton).max() < 1e-3)
+
+
+SILENT = {  # where the closed form says nothing, and why (README table)
+    ("ur5", "plane"),  # the contact origin on the last axis
+    ("panda", "plane"),  # likewise
+    ("tiago", "plane"),  # a prismatic first joint
+    ("tiago", "plane-point"),  # likewise
+    ("ur5", "fixed-pose"),  # a 6-joint loop cannot move
+}
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("robot", ["ur5", "panda", "tiago"])
+def test_forward_chains_counts_are_the_closed_form_where_it_speaks(robot, kind):
+    chain = load_chain(robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", calib.RankWarning)
+        res = analyze(robot, measure=kind, params="complete")
+    if (robot, kind) in SILENT:
+        assert res.n_theory is None
+        return
+    on_axis = 2 if res.on_axes and kind in ("plane-point", "fixed-point") else 0
+    expected = closed_form(kind, chain.n_revolute, chain.n_prismatic) - on_axis
+    assert res.n_theory == res.n_base == res.n_complete == expected
