@@ -2,7 +2,9 @@
 
 Medians of in-process calls on preloaded chains, 100 postures (the default): the whole
 ``analyze`` (conversion, projection of random configurations onto the contact, Jacobian,
-QR) and its projection step alone.
+QR) and its projection step alone. The chains: UR5, Panda, TIAGo's arm, and TALOS from the
+left foot up the leg backwards to the left gripper (15 joints; issue 21's target: ``plane``
+under 50 ms) and to the right foot (12 joints, the closed loop of two feet).
 
 Run: .venv/bin/python benchmarks/bench_contacts.py
 """
@@ -23,9 +25,15 @@ from calib.identification.contacts import contact_configurations, contact_kind  
 
 warnings.simplefilter("ignore")
 
-ROBOTS = ("ur5", "panda", "tiago")
+ROBOTS = (
+    ("ur5", None, None),
+    ("panda", None, None),
+    ("tiago", None, None),
+    ("talos", "left_sole_link", "gripper_left_base_link"),
+    ("talos", "left_sole_link", "right_sole_link"),
+)
 KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")
-REPEATS = 7
+REPEATS = 11
 
 
 def projection_ms(chain, mdh, kind: str) -> float:
@@ -42,13 +50,14 @@ def projection_ms(chain, mdh, kind: str) -> float:
 
 def main() -> None:
     rows = []
-    for name in ROBOTS:
-        chain = load_chain(name)
+    for name, base, tool in ROBOTS:
+        chain = load_chain(name, base, tool)
         mdh = from_chain(chain).idealized()
+        label = name if tool is None else f"{name} {base} -> {tool}"
         for kind in KINDS:
             whole = median_ms(lambda c=chain, k=kind: analyze(c, measure=k), REPEATS, 1)
-            rows.append((name, kind, f"{whole:.1f}", f"{projection_ms(chain, mdh, kind):.1f}"))
-    print(table(["robot", "measure", "analyze [ms]", "projection [ms]"], rows))
+            rows.append((label, kind, f"{whole:.1f}", f"{projection_ms(chain, mdh, kind):.1f}"))
+    print(table(["chain", "measure", "analyze [ms]", "projection [ms]"], rows))
 
 
 if __name__ == "__main__":

@@ -10,7 +10,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
+from ..choices import (
+    CAMPAIGN_MEASURES,
+    CONTACT_MEASURES,
+    DEFAULT_CANDIDATES,
+    DESIGN_LEVELS,
+    EXCHANGE_CRITERIA,
+)
 from ..exceptions import InvalidArgumentError
 from .commands import (
     BooleanOnce,
@@ -183,9 +189,9 @@ def add_design_parser(sub) -> None:
     )
     p.add_argument(
         "--measure",
-        choices=CAMPAIGN_MEASURES,
+        choices=CAMPAIGN_MEASURES + CONTACT_MEASURES,
         default="position",
-        help="position or pose (default: position)",
+        help="position or pose (default: position), or a contact: postures on it",
     )
     p.add_argument(
         "--marker",

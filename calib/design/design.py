@@ -17,11 +17,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..checks import check_count, check_work
-from ..choices import DEFAULT_CANDIDATES
+from ..choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
 from ..exceptions import InvalidArgumentError
+from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .constraints import Constraints, FilterReport, filter_candidates, variable_bounds
+from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
 from .exchange import EXCHANGE_CRITERIA, optimal_subset
 from .observability import (
     CRITERIA,
@@ -61,6 +63,8 @@ class Design:
         sweeps: Sweeps of the exchange.
         seed: Seed of the candidates, the reference set and the random sets.
         timings_ms: Time of each stage [ms].
+        contact: For a contact campaign, the plane, point or pose its postures hold, in the
+            base frame ``(4, 4)`` (the nominal contact frame at the first candidate); else None.
     """
 
     robot: str
@@ -78,6 +82,7 @@ class Design:
     sweeps: int
     seed: int
     timings_ms: dict[str, float] = field(default_factory=dict)
+    contact: np.ndarray | None = None
 
     def random_median(self, name: str) -> float:
         """Median of an index over the random sets."""
@@ -105,7 +110,7 @@ class Design:
             "joint_names": list(self.joint_names),
             "q": self.q.tolist(),
             "timings_ms": dict(self.timings_ms),
-        }
+        } | ({} if self.contact is None else {"contact": self.contact.tolist()})
 
 
 def candidate_configurations(
@@ -150,11 +155,13 @@ def design(
             (configurations known to be reachable).
         criterion: ``D`` (log det of the information), ``A`` (mean parameter variance) or
             ``I`` (mean predicted position error on the reference set).
-        measure: ``position`` or ``pose`` (a tree: ``position``).
+        measure: ``position`` or ``pose`` (a tree: ``position``), or a contact (``plane``,
+            ``plane-point``, ``fixed-point``, ``fixed-pose``; a chain): the candidates are
+            then postures on the contact (:mod:`calib.design.contact_design`).
         markers: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (a tree: one
-            point for every tool, or one per tool).
+            point for every tool, or one per tool; a contact: none).
         params: The calibration's parameter level (``DESIGN_LEVELS``; a tree: ``frames`` or
-            ``complete``).
+            ``complete``; a contact: ``complete``).
         orientation_weight: Weight of the orientation rows of pose data [m/rad]: the ratio
             of the position noise to the orientation noise (``calibrate`` estimates it from
             the data; 1 by default).
@@ -178,11 +185,18 @@ def design(
             f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
         )
     constraints = Constraints() if constraints is None else constraints
-    if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
+    contact = _contact_of(measure)
+    cands = None
+    if contact is not None:
+        chain = checked_contact_chain(chain, contact, markers, params)
+        cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
+        q_all = cands.q
+    elif isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
         q_all = candidate_configurations(chain, int(candidates), seed, constraints.margin)
     else:
         q_all = chain.check_configurations(candidates)
-    check_model_arguments(measure, params, orientation_weight, chain.is_tree)
+    if contact is None:
+        check_model_arguments(measure, params, orientation_weight, chain.is_tree)
     keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
     q = q_all[keep]
     if len(q) < k:
@@ -194,7 +208,10 @@ def design(
         )
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
-    model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
+    if cands is not None and isinstance(chain, Chain) and contact is not None:
+        model = contact_observation_model(chain, cands, contact)
+    else:
+        model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
     ref = reference(model, q[_subset(len(q), REFERENCE_CONFIGS, rng)])
     J = model.jacobian(q)
     clock.append(time.perf_counter())
@@ -223,7 +240,15 @@ def design(
         timings_ms={
             s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
         },
+        contact=None if cands is None else cands.frame,
     )
+
+
+def _contact_of(measure) -> Contact | None:
+    """The contact kind a measure names, or None for an instrument's measure."""
+    if isinstance(measure, str) and measure in CONTACT_MEASURES:
+        return contact_kind(measure)
+    return measure if isinstance(measure, Contact) else None
 
 
 def _indices_rows(J: np.ndarray, rows: np.ndarray, ref: Reference) -> Indices:
@@ -350,10 +375,18 @@ def design_text(d: Design, noise_mm: float = 0.05) -> str:
             }
         ),
         "",
-        f"predicted RMS position error after calibration at {noise_mm:g} mm noise: "
+        f"predicted RMS {'gap' if d.contact is not None else 'position'} error after "
+        f"calibration at {noise_mm:g} mm noise: "
         f"design {noise_mm * d.indices.value('I'):.4g} mm, random sets "
         f"{noise_mm * d.random_median('I'):.4g} mm (median)",
     ]
+    if d.contact is not None:
+        where = np.array2string(d.contact[:3, 3], precision=4, separator=", ")
+        lines.insert(
+            1,
+            f"every posture holds the contact, placed at {where} m in the base frame (the "
+            f"nominal contact frame at the first candidate; z its normal); rows: the gap",
+        )
     return "\n".join(lines)
 
 

@@ -94,8 +94,10 @@ class ObservationModel:
         names: The b parameters (columns of ``W_b``).
         angular: True for the angle parameters [rad] ``(b,)``.
         length: Characteristic length L [m]: angle columns are divided by it.
-        rows: Rows per configuration (3 per marker, then 3 orientation rows for poses).
-        n_markers: Number of measured points K per configuration.
+        rows: Rows per configuration (3 per marker, then 3 orientation rows for poses; a
+            contact's gap rows).
+        n_markers: Number of measured points K per configuration (0 for a contact: I and G
+            then predict the error of the gap, all its rows).
         joint_names: The joints of a configuration, in order.
         jacobian_of: Returns the weighted, unscaled Jacobian ``(m, rows, c)`` of all the
             calibration's parameters at joint positions ``(m, n)``.
@@ -127,7 +129,12 @@ class ObservationModel:
         return np.ascontiguousarray(self.jacobian_of(q)[:, :, self.columns] / self.scale)
 
     def point_jacobian(self, J: np.ndarray) -> np.ndarray:
-        """The position rows of each point ``(m K, 3, b)`` from :meth:`jacobian`'s output."""
+        """The position rows of each point ``(m K, 3, b)`` from :meth:`jacobian`'s output.
+
+        A contact (no marker): the gap rows of each configuration ``(m, rows, b)``.
+        """
+        if self.n_markers == 0:
+            return J
         m = J.shape[0]
         return J[:, : 3 * self.n_markers].reshape(m * self.n_markers, 3, -1)
 
@@ -467,6 +474,7 @@ __all__ = [
     "Indices",
     "ObservationModel",
     "Reference",
+    "characteristic_length",
     "check_model_arguments",
     "indices",
     "indices_of",

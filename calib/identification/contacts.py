@@ -25,9 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_lines
+from ..kinematics.mdh import Kinematics, MDHModel, frames_at_zero, from_lines
 from ..kinematics.so3 import inverse_right_jacobian, rotation_vector
-from .jacobian import identification_jacobian
 from .measures import CONTACT_NAMES, count_joints
 from .parameters import Kind, Parameter, ParameterSet
 
@@ -96,6 +95,22 @@ class Contact:
         """Closed-form identifiable count (every kind below defines it)."""
         raise NotImplementedError  # pragma: no cover
 
+    def newton_system(
+        self, W6: np.ndarray, R: np.ndarray, p: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """What :func:`project` drives to zero and its rows: the gap, unless a kind says more.
+
+        Args:
+            W6: Pose-error Jacobian of the contact frame in the constraint's frame
+                ``(m, 6, k)``.
+            R: Contact frame rotations ``(m, 3, 3)``.
+            p: Contact frame origins ``(m, 3)`` [m].
+
+        Returns:
+            The residual ``(m, r)`` and its Jacobian rows ``(m, r, k)``.
+        """
+        return self.residual(R, p), self.jacobian_rows(W6, R)
+
 
 @dataclass(frozen=True)
 class PlaneContact(Contact):
@@ -146,6 +161,22 @@ class PlaneContact(Contact):
         tilt_x = n[:, 2] * W6[:, 3] - n[:, 0] * W6[:, 5]
         tilt_y = n[:, 2] * W6[:, 4] - n[:, 1] * W6[:, 5]
         return np.stack([W6[:, 2], tilt_x, tilt_y], axis=1)
+
+    def newton_system(self, W6, R, p) -> tuple[np.ndarray, np.ndarray]:
+        """Height and the tilts over ``(1 + n_z)``: ``tan(angle / 2)`` times the tilt axis.
+
+        Zero on the plane only, not on its flipped side (the gap's tilts vanish there too and
+        Newton steps on them would land a random start upside down half the time).
+        """
+        gap, J = self.residual(R, p), self.jacobian_rows(W6, R)
+        n = R[:, :, 2]
+        s = 1.0 / np.maximum(1.0 + n[:, 2], 1e-9)
+        dn_z = n[:, 1, None] * W6[:, 3] - n[:, 0, None] * W6[:, 4]  # (dphi x n)_z
+        J[:, 1:] = s[:, None, None] * J[:, 1:] - (s**2)[:, None, None] * gap[:, 1:, None] * (
+            dn_z[:, None, :]
+        )
+        gap[:, 1:] *= s[:, None]
+        return gap, J
 
     def theoretical_count(self, sigma, on_axes) -> int | None:
         """4R + 2P - 1 with a prismatic joint, 4R - 2 without (see docs/method.md).
@@ -339,7 +370,7 @@ def contact_model(mdh: MDHModel, q0: np.ndarray, frame: str = "") -> MDHModel:
         mdh.sigma[1 : mdh.n + 1],
         Pinv @ T[-1],
         tuple(str(x) for x in mdh.joint_names[1 : mdh.n + 1]),
-        sign=mdh.sign[1 : mdh.n + 1],  # a reversed joint stays reversed
+        sign=mdh.sign[1 : mdh.n + 1],
     )
     return model.replace(base_frame=frame or "contact", tool_frame=mdh.tool_frame)
 
@@ -353,42 +384,71 @@ def joint_offsets(mdh: MDHModel) -> ParameterSet:
     )
 
 
+def joint_jacobian(mdh: MDHModel, kin: Kinematics) -> np.ndarray:
+    """The pose-error Jacobian of the joints ``(m, 6, n)``: d (tool pose) / dq.
+
+    Rows: displacement of the tool origin [m] then rotation [rad], in the base frame; one
+    column per joint, in URDF units (a joint traversed backwards, ``sign`` -1, turns its
+    row by -q).
+
+    Args:
+        mdh: The model.
+        kin: Its kinematics at the configurations (:meth:`MDHModel.kinematics`).
+    """
+    joints = slice(1, mdh.n + 1)
+    z = kin.R[:, joints, :, 2]
+    revolute = (mdh.sigma[joints] == 0)[None, :, None]
+    lin = np.where(revolute, np.cross(z, kin.p[:, -1, None] - kin.p[:, joints]), z)
+    ang = np.where(revolute, z, 0.0)
+    return np.concatenate([lin, ang], axis=2).transpose(0, 2, 1) * mdh.sign[joints]
+
+
+def _newton_step(J: np.ndarray, gap: np.ndarray) -> np.ndarray:
+    """Least-norm, lightly damped solutions of ``J dq = -gap`` ``(m, n)``."""
+    JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(J.shape[1])
+    return -(np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+
+
 def project(
     mdh: MDHModel, kind: Contact, q: np.ndarray, steps: int = NEWTON_STEPS, bounds=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Newton-project configurations onto the contact (gap 0), all at once.
 
-    Each step moves q by the least-norm solution of ``J dq = -gap`` (the kind's Jacobian rows
-    of the joint offsets' columns), lightly damped, then clips it into ``bounds`` (lower and
-    upper joint positions ``(n,)`` each [rad or m]; revolute joints are otherwise wrapped into
-    [-pi, pi)).
+    Each step moves q by the least-norm solution of ``J dq = -gap`` (the kind's
+    :meth:`Contact.newton_system` of :func:`joint_jacobian`), lightly damped, then clips it
+    into ``bounds`` (lower and upper joint positions ``(n,)`` each [rad or m]; revolute joints
+    are otherwise wrapped into [-pi, pi)). A configuration stops when its gap is under
+    :data:`CONTACT_TOL` / 1000, or under :data:`CONTACT_TOL` and no longer halving
+    (round-off). Joints a step would push out of ``bounds`` are held for that step (their
+    columns dropped, the step solved again), so that the others keep Newton's pace.
 
     Returns:
         The projected configurations ``(m, n)`` and the largest gap of each ``(m,)``.
     """
-    offsets = joint_offsets(mdh)
     q = np.array(q, dtype=float)
     alive = np.ones(len(q), dtype=bool)  # rows still bounded (a diverging one is dropped)
     moving = np.ones(len(q), dtype=bool)  # rows not yet on the contact
+    last = np.full(len(q), np.inf)  # each row's previous gap
     revolute = mdh.sigma[1 : mdh.n + 1] == 0
-    c = kind.n_rows
     for _ in range(steps):
         rows = np.flatnonzero(alive & moving)
         if not rows.size:
             break
         qa = q[rows]
         kin = mdh.kinematics(qa)
-        gap = kind.residual(kin.R[:, -1], kin.p[:, -1])
-        there = np.abs(gap).max(axis=1) < 1e-3 * CONTACT_TOL
+        gap, J = kind.newton_system(joint_jacobian(mdh, kin), kin.R[:, -1], kin.p[:, -1])
+        size = np.abs(gap).max(axis=1)
+        there = (size < 1e-3 * CONTACT_TOL) | ((size < CONTACT_TOL) & (size > 0.5 * last[rows]))
+        last[rows] = size
         moving[rows[there]] = False  # on the contact: no further step
-        rows, qa, gap = rows[~there], qa[~there], gap[~there]
+        rows, qa, gap, J = rows[~there], qa[~there], gap[~there], J[~there]
         if not rows.size:
             break
-        J = identification_jacobian(mdh, offsets, qa, kind).reshape(len(qa), c, -1)
-        J = J * mdh.sign[1 : mdh.n + 1]  # d offset / dq: -1 for a reversed joint
-        JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(c)
-        step = qa - (np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+        step = qa + _newton_step(J, gap)
         if bounds is not None:
+            out = (step < bounds[0]) | (step > bounds[1])
+            if out.any():
+                step = qa + _newton_step(J * ~out[:, None, :], gap)
             step = np.clip(step, bounds[0], bounds[1])
         else:  # the same postures
             step[:, revolute] = (step[:, revolute] + np.pi) % (2 * np.pi) - np.pi
@@ -466,6 +526,7 @@ __all__ = [
     "contact_kind",
     "contact_model",
     "contact_postures",
+    "joint_jacobian",
     "joint_offsets",
     "project",
 ]

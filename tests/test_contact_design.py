@@ -1,0 +1,88 @@
+"""calib design with contact kinds: every designed posture holds the contact (Pinocchio on the
+URDF, the gap written here from the kind's definition), within the joint limits, and the
+design identifies as many parameters as calib analyze counts for the contact."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+from pinref import PathRef
+from test_contacts import pin_gap
+
+import calib
+from calib import InvalidArgumentError, analyze, load_chain
+from calib.cli.commands import main
+from calib.design.configurations import read_configurations
+from calib.design.constraints import Constraints
+from calib.design.design import design
+
+CASES = (
+    pytest.param("ur5", None, None, "plane", id="ur5-plane"),
+    pytest.param("panda", None, None, "fixed-point", id="panda-fixed-point"),
+    pytest.param("talos", "left_sole_link", "gripper_left_base_link", "plane", id="talos-hand"),
+    pytest.param("talos", "left_sole_link", "gripper_left_base_link", "plane-point", id="talos-pp"),
+    pytest.param("talos", "left_sole_link", "right_sole_link", "fixed-pose", id="talos-feet"),
+)
+
+
+def gaps(chain, frame: np.ndarray, kind: str, q: np.ndarray) -> np.ndarray:
+    """The gap of every posture in the contact's frame, from Pinocchio's placements."""
+    ref = PathRef(chain.urdf_path, chain.base_frame, chain.tool_frame)
+    T = np.linalg.inv(frame) @ ref.placements(chain.joint_names, q)
+    return np.array([pin_gap(kind, t) for t in T])
+
+
+@pytest.mark.parametrize(("robot", "base", "tool", "kind"), CASES)
+def test_designed_postures_hold_the_contact_and_identify_analyzes_count(robot, base, tool, kind):
+    chain = load_chain(robot, base, tool)
+    k = 70 if kind == "plane-point" else 30
+    d = design(
+        chain, k, candidates=300, measure=kind, constraints=Constraints(collision=False),
+        seed=3, random_sets=3,
+    )
+    assert d.q.shape == (k, chain.n) and d.contact is not None
+    assert np.abs(gaps(chain, d.contact, kind, d.q)).max() < 1e-9
+    assert np.all((d.q >= chain.lower - 1e-12) & (d.q <= chain.upper + 1e-12))
+    if kind == "plane":
+        ref = PathRef(chain.urdf_path, chain.base_frame, chain.tool_frame)
+        T = np.linalg.inv(d.contact) @ ref.placements(chain.joint_names, d.q)
+        assert (T[:, 2, 2] > 0.99).all()  # flush, not upside down
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", calib.RankWarning)
+        count = analyze(robot, base, tool, kind, params="complete").n_base
+    assert d.model.b == count
+    assert d.indices.rank == count  # the chosen postures identify all of them
+    assert d.indices.value("D") >= d.random_median("D")
+
+
+def test_cli_design_plane_from_the_foot(tmp_path, capsys):
+    base, tool = "left_sole_link", "gripper_left_base_link"
+    out = tmp_path / "touches.csv"
+    argv = ["design", "talos", "--base", base, "--tool", tool, "--measure", "plane"]
+    argv += ["--configs", "30", "--candidates", "300", "--no-collision", "--seed", "1"]
+    assert main([*argv, "--out", str(out), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    chain = load_chain("talos", base, tool)
+    q = read_configurations(out, chain)
+    assert q.shape == (30, chain.n)
+    assert np.abs(gaps(chain, np.array(result["contact"]), "plane", q)).max() < 1e-9
+    assert result["design"]["rank"] == result["design"]["parameters"] == 58
+
+
+def test_contact_design_errors(tmp_path, capsys):
+    chain = load_chain("ur5")
+    with pytest.raises(InvalidArgumentError, match="measures no point"):
+        design(chain, 10, measure="plane", markers=(0.0, 0.0, 0.1))
+    with pytest.raises(InvalidArgumentError, match="complete model"):
+        design(chain, 10, measure="plane", params="joints")
+    tree = calib.load_tree("talos", None, ["gripper_left_base_link", "gripper_right_base_link"])
+    with pytest.raises(InvalidArgumentError, match="one chain"):
+        design(tree, 10, measure="plane")
+    out = tmp_path / "c.csv"
+    argv = ["design", "ur5", "--measure", "plane", "--configs", "5", "--marker", "0", "0", "1"]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "measures no point" in err and "Traceback" not in err and not out.exists()
