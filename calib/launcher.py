@@ -20,30 +20,10 @@ import sys
 from collections.abc import Sequence
 
 from . import __version__
+from .cli.listing import catalog_listing
 from .exceptions import CalibError
-from .kinematics.catalog import catalog
 
-__all__ = ["INTERRUPTED", "catalog_listing", "main"]
-
-
-def catalog_listing(as_json: bool) -> str:
-    """What ``calib list`` prints: the catalog as a table, or as JSON."""
-    import json
-
-    from .identification.table import format_table
-
-    if as_json:
-        robots = [e.__dict__ | {"path": str(e.path)} for e in catalog()]
-        return json.dumps({"robots": robots}, indent=2)
-    rows = [
-        [
-            e.name,
-            f"{e.base} -> {', '.join(e.tools)}",
-            e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
-        ]
-        for e in catalog()
-    ]
-    return format_table(["name", "chain", "description"], rows)
+__all__ = ["INTERRUPTED", "main"]
 
 
 INTERRUPTED = 130

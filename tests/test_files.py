@@ -463,19 +463,20 @@ THREADS_SCRIPT = textwrap.dedent(
     """
     import json, os, sys
     from threadpoolctl import threadpool_info
+    import calib.cli.analysis_cli
     import calib.cli.commands
 
     def blas():
         return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
 
     seen = []
-    real = calib.cli.commands.analyze
+    real = calib.cli.analysis_cli.analyze
 
     def spy(*args, **kwargs):
         seen.append(blas())
         return real(*args, **kwargs)
 
-    calib.cli.commands.analyze = spy
+    calib.cli.analysis_cli.analyze = spy
     argv = ["analyze", "aid", "--configs", "20"]
     outside = blas()
     assert calib.cli.commands.main(argv) == 0

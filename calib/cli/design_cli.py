@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
 from ..exceptions import InvalidArgumentError
-from .commands import (
+from .common import (
     BooleanOnce,
     add_chain_args,
     check_output_paths,
