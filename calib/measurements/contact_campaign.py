@@ -30,14 +30,9 @@ from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
-from .csvfile import (
-    MAX_MEASUREMENTS_BYTES,
-    DataWarning,
-    check_limits,
-    csv_records,
-    joint_bounds,
-    parse_number,
-)
+from .csvfile import MAX_MEASUREMENTS_BYTES, csv_records, parse_number
+from .data import DataWarning
+from .limits import check_limits, joint_bounds
 
 ID_COLUMNS = {
     "plane": "plane",

@@ -31,7 +31,7 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
-from .csvfile import Measurements
+from .data import Measurements
 
 
 @dataclass(frozen=True, eq=False)
