@@ -14,6 +14,7 @@ A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func
 import sys
 import types
 
+from .core.lazy import attributes
 from .exceptions import (
     AmbiguousFrameError,
     CalibError,
@@ -29,7 +30,6 @@ from .exceptions import (
     URDFError,
 )
 from .kinematics.catalog import CatalogEntry, catalog  # light (the standard library only)
-from .lazy import attributes
 
 _LAZY = {
     "Identifiability": "identification.identifiability",

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import MAX_WORK_BYTES
-from ..choices import DEFAULT_CONFIGS
+from ..core.checks import MAX_WORK_BYTES
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
 from ..identification.kinds import campaign_kind

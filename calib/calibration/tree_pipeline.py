@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ..choices import DEFAULT_CONFIGS
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
 from ..identification.parameters import ParameterSet

@@ -5,15 +5,15 @@ keeps working); one module per command group adds its commands to it: :mod:`.ana
 (``list``, ``show``, ``analyze``, ``sweep``, ``demo``), :mod:`.simulate_cli`,
 :mod:`.calibrate_cli`, :mod:`.design_cli` (``design``, ``evaluate``) and :mod:`.predict_cli`.
 What they share is in :mod:`.common` (and :mod:`.listing`, light: the catalog table); the
-command modules do not import each other. The entry point is :func:`calib.launcher.main`,
-which starts light and calls ``main``.
+command modules do not import each other. The entry point is :func:`.launcher.main`, which
+starts light (``--version`` and ``list`` without numpy) and calls ``main``.
 
 May import: every wing below (:mod:`calib.outputs`, :mod:`calib.design`,
 :mod:`calib.calibration`, :mod:`calib.measurements`, :mod:`calib.identification`,
 :mod:`calib.kinematics`) and the bottom modules.
 """
 
-from ..lazy import attributes
+from ..core.lazy import attributes
 
 _LAZY = {"main": "commands"}
 

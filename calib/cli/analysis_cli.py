@@ -10,7 +10,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from ..choices import PARAMETER_SETS
+from ..core.choices import PARAMETER_SETS
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import analyze
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table

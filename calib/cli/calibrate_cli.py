@@ -12,9 +12,9 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
-from ..choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.fileio import json_text, written_in_place
 from ..exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
-from ..fileio import json_text, written_in_place
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from .common import (

@@ -180,7 +180,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _interrupts_raise() -> Iterator[None]:
     """SIGINT raises KeyboardInterrupt inside (main thread only); the old handler is back after.
 
-    The entry point (:mod:`calib.launcher`) installs a handler that exits at once, for the
+    The entry point (:mod:`calib.cli.launcher`) installs a handler that exits at once, for the
     imports; a command needs the exception instead, so that its temporary files go.
     """
     if threading.current_thread() is not threading.main_thread():

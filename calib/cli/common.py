@@ -16,8 +16,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from ..choices import DEFAULT_CONFIGS
-from ..fileio import check_outputs, write_files_atomic
+from ..core.choices import DEFAULT_CONFIGS
+from ..core.fileio import check_outputs, write_files_atomic
 from ..kinematics.catalog import catalog_files, installed_dirs
 
 __all__ = [

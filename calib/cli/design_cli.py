@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
+from ..core.choices import CAMPAIGN_MEASURES, DEFAULT_CANDIDATES, DESIGN_LEVELS, EXCHANGE_CRITERIA
 from ..exceptions import InvalidArgumentError
 from .common import (
     BooleanOnce,

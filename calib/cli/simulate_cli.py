@@ -9,9 +9,9 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..choices import CAMPAIGN_MEASURES, CONTACT_MEASURES, DEFAULT_CONFIGS, PARAMETER_SETS
+from ..core.choices import CAMPAIGN_MEASURES, CONTACT_MEASURES, DEFAULT_CONFIGS, PARAMETER_SETS
+from ..core.fileio import json_text, written_in_place
 from ..exceptions import InvalidArgumentError
-from ..fileio import json_text, written_in_place
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from .common import add_chain_args, add_marker_arg, check_output_paths, tool_arg, write_outputs

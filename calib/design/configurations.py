@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import read_failure, read_text_limited
 from ..exceptions import DataError
-from ..fileio import read_failure, read_text_limited
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.csvfile import csv_records, parse_number

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import check_count, check_work
-from ..choices import DEFAULT_CANDIDATES
+from ..core.checks import check_count, check_work
+from ..core.choices import DEFAULT_CANDIDATES
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree

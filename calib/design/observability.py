@@ -54,8 +54,8 @@ from ..calibration.options import TREE_LEVELS, Options
 from ..calibration.pipeline import level_names
 from ..calibration.solve import row_weights
 from ..calibration.tree import TreeErrorModel, TreeState
-from ..checks import check_count, real_array
-from ..choices import DESIGN_LEVELS
+from ..core.checks import check_count, real_array
+from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
 from ..identification.kinds import campaign_kind

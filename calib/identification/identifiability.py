@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_count, check_work, joint_positions
-from ..choices import DEFAULT_CONFIGS
+from ..core.checks import check_count, check_work, joint_positions
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.mimic import MimicJoint
@@ -347,7 +347,7 @@ def analyze_model(
 
     Raises:
         InvalidArgumentError: A bad argument: configurations of the wrong shape, with NaN,
-            or too many to fit in memory (:data:`~calib.checks.MAX_WORK_BYTES`).
+            or too many to fit in memory (:data:`~calib.core.checks.MAX_WORK_BYTES`).
     """
     measurement, pset, q = _checked_arguments(mdh, params, measurement, configs)
     check_count(seed, "the seed", minimum=0)

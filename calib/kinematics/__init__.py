@@ -6,8 +6,8 @@ them to modified DH (:mod:`.mdh`, :mod:`.tree_model`), and writes a calibrated U
 (:mod:`.urdf_export`, :mod:`.urdf_links`, :mod:`.tree_export`, with the joint compliance of
 :mod:`.elastic`). :mod:`.catalog` lists the robots calib ships.
 
-May import: only the bottom modules (:mod:`calib.checks`, :mod:`calib.choices`,
-:mod:`calib.exceptions`, :mod:`calib.fileio`, :mod:`calib.lazy`).
+May import: only the bottom modules (:mod:`calib.core`: checks, choices, fileio, lazy; and
+:mod:`calib.exceptions`).
 """
 
 __all__: list[str] = []

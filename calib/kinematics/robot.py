@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from ..checks import check_count, check_work, joint_positions
+from ..core.checks import check_count, check_work, joint_positions
 from ..exceptions import (
     ChainError,
     InvalidArgumentError,
@@ -94,7 +94,7 @@ class CoupledJoints(JointCounts):
 
         Raises:
             InvalidArgumentError: Wrong shape, or values that are not finite or beyond
-                :data:`~calib.checks.MAX_JOINT_POSITION`.
+                :data:`~calib.core.checks.MAX_JOINT_POSITION`.
         """
         return joint_positions(q, self.n)
 
@@ -303,7 +303,7 @@ class Chain(Robot):
 
         Raises:
             InvalidArgumentError: Bad count or seed, or an analysis of that many
-                configurations would not fit in :data:`~calib.checks.MAX_WORK_BYTES`.
+                configurations would not fit in :data:`~calib.core.checks.MAX_WORK_BYTES`.
         """
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)

@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..core.fileio import check_outputs, read_bytes_limited, write_atomic
 from ..exceptions import CalibError, InvalidArgumentError, URDFError
-from ..fileio import check_outputs, read_bytes_limited, write_atomic
 from .frames import frame_placement, joint_placements
 from .mdh import MDHModel, frames_at_zero
 from .robot import Chain

@@ -9,7 +9,7 @@ simulates tree campaigns, :mod:`.marker_set` reads the markers of a pose measure
 May import: :mod:`calib.identification`, :mod:`calib.kinematics` and the bottom modules.
 """
 
-from ..lazy import attributes
+from ..core.lazy import attributes
 
 _LAZY = {
     "Angles": "data",

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError
-from ..fileio import read_failure, read_text_limited, write_atomic
 from ..identification.contacts import Contact, contact_model, contact_postures
 from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set

@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import read_only
-from ..choices import MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.checks import read_only
+from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError
-from ..fileio import read_failure, read_text_limited, write_atomic
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import (
     matrix_to_quaternion,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import read_only
+from ..core.checks import read_only
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mimic import Coupling
 from ..kinematics.so3 import (

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import read_only
+from ..core.checks import read_only
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point

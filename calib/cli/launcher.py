@@ -19,9 +19,9 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from . import __version__
-from .cli.listing import catalog_listing
-from .exceptions import CalibError
+from .. import __version__
+from ..exceptions import CalibError
+from .listing import catalog_listing
 
 __all__ = ["INTERRUPTED", "main"]
 
@@ -78,7 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             except BrokenPipeError:  # `calib list | head`: stop quietly
                 os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 0
-    from .cli.commands import main as full
+    from .commands import main as full
 
     return full(args)
 
