@@ -14,6 +14,7 @@ A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func
 import sys
 import types
 
+from .core.lazy import attributes
 from .exceptions import (
     AmbiguousFrameError,
     CalibError,
@@ -29,7 +30,6 @@ from .exceptions import (
     URDFError,
 )
 from .kinematics.catalog import CatalogEntry, catalog  # light (the standard library only)
-from .lazy import attributes
 
 _LAZY = {
     "Identifiability": "identification.identifiability",
@@ -45,8 +45,8 @@ _LAZY = {
     "from_lines": "kinematics.mdh",
     "Campaign": "measurements.simulation",
     "Columns": "measurements.csvfile",
-    "DataWarning": "measurements.csvfile",
-    "Measurements": "measurements.csvfile",
+    "DataWarning": "measurements.data",
+    "Measurements": "measurements.data",
     "SimulationTruth": "measurements.simulation",
     "read_measurements": "measurements.csvfile",
     "simulate": "measurements.simulation",
@@ -110,13 +110,8 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .kinematics.tree_export import calibrated_tree_urdf, write_calibrated_tree_urdf
     from .kinematics.tree_model import TreeMDH, from_tree
     from .kinematics.urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
-    from .measurements.csvfile import (
-        Columns,
-        DataWarning,
-        Measurements,
-        read_measurements,
-        write_measurements,
-    )
+    from .measurements.csvfile import Columns, read_measurements, write_measurements
+    from .measurements.data import DataWarning, Measurements
     from .measurements.simulation import Campaign, SimulationTruth, simulate
     from .measurements.tree_campaign import TreeCampaign, simulate_tree
 

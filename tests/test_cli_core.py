@@ -313,11 +313,11 @@ def test_numpy_warnings_reach_the_user_after_the_output(tmp_path):
 
 @pytest.mark.parametrize("argv", [["--version"], ["list"], ["list", "--json"]])
 def test_the_calib_script_answers_version_and_list_without_numpy(argv):
-    """The installed ``calib`` script (calib.launcher) prints what ``calib.cli`` prints, and
+    """The installed ``calib`` script (calib.cli.launcher) prints what ``calib.cli`` prints, and
     does it without importing numpy, pinocchio or scipy."""
     script = (
         "import sys\n"
-        "from calib.launcher import main\n"
+        "from calib.cli.launcher import main\n"
         "code = main(sys.argv[1:])\n"
         "heavy = sorted(m for m in ('numpy', 'pinocchio', 'scipy') if m in sys.modules)\n"
         "print('HEAVY', heavy, file=sys.stderr)\n"

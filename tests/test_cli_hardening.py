@@ -237,7 +237,7 @@ def test_ctrl_c_at_any_time_is_one_line_and_130(tmp_path, library, delay):
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)}
     argv = ["simulate", "ur5", "--configs", "100000", "--out", str(tmp_path / "m.csv")]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "calib.launcher", *argv],
+        [sys.executable, "-m", "calib.cli.launcher", *argv],
         cwd=tmp_path,
         env=env,
         stdout=subprocess.DEVNULL,

@@ -20,11 +20,11 @@ from pathlib import Path
 import pytest
 
 import calib.cli.commands
-import calib.fileio
+import calib.core.fileio
 import calib.outputs.sweep
 from calib.cli.commands import main
+from calib.core.fileio import check_outputs, same_file, write_atomic, write_files_atomic
 from calib.exceptions import CalibError, InvalidArgumentError, OutputError
-from calib.fileio import check_outputs, same_file, write_atomic, write_files_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 AID = ROOT / "models" / "aid.urdf"
@@ -255,7 +255,7 @@ def test_standard_output_after_what_was_printed(capsys):
 
 STD_STREAMS_SCRIPT = textwrap.dedent(
     """
-    from calib.fileio import write_atomic
+    from calib.core.fileio import write_atomic
 
     print("before", flush=True)
     write_atomic("/dev/stdout", "written\\n")
@@ -310,7 +310,7 @@ def test_full_disk_while_writing_keeps_the_old_file_and_leaves_no_temporary(
         os.write(fd, bytes(data)[:10])  # a part goes out, then the disk is full
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(calib.fileio, "write_all", full)
+    monkeypatch.setattr(calib.core.fileio, "write_all", full)
     with pytest.raises(OutputError) as info:
         write_files_atomic({old: "new content", tmp_path / "t.json": "{}"})
     assert str(info.value) == f"cannot write {old}: {os.strerror(errno.ENOSPC)}"
@@ -380,17 +380,17 @@ def test_sockets_and_directories_are_refused(tmp_path):
 SIGTERM_SCRIPT = textwrap.dedent(
     """
     import os, signal, sys
-    import calib.fileio
+    import calib.core.fileio
     from calib.cli.commands import main
 
-    real = calib.fileio.write_all
+    real = calib.core.fileio.write_all
 
     def write_then_terminated(fd, data):
         real(fd, bytes(data)[: len(data) // 2])
         os.kill(os.getpid(), signal.SIGTERM)  # a real signal, in the middle of the write
         real(fd, bytes(data)[len(data) // 2 :])
 
-    calib.fileio.write_all = write_then_terminated
+    calib.core.fileio.write_all = write_then_terminated
     code = main(sys.argv[1:])
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL, "handler not restored"
     sys.exit(code)
@@ -463,19 +463,20 @@ THREADS_SCRIPT = textwrap.dedent(
     """
     import json, os, sys
     from threadpoolctl import threadpool_info
+    import calib.cli.analysis_cli
     import calib.cli.commands
 
     def blas():
         return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
 
     seen = []
-    real = calib.cli.commands.analyze
+    real = calib.cli.analysis_cli.analyze
 
     def spy(*args, **kwargs):
         seen.append(blas())
         return real(*args, **kwargs)
 
-    calib.cli.commands.analyze = spy
+    calib.cli.analysis_cli.analyze = spy
     argv = ["analyze", "aid", "--configs", "20"]
     outside = blas()
     assert calib.cli.commands.main(argv) == 0

@@ -34,7 +34,7 @@ from calib import (
     load_chain,
 )
 from calib.cli.commands import main
-from calib.fileio import read_bytes_limited, read_text_limited
+from calib.core.fileio import read_bytes_limited, read_text_limited
 from calib.kinematics.urdf_xml import MAX_COORDINATE, MAX_URDF_BYTES
 
 DATA = Path(__file__).parent / "data"
@@ -248,7 +248,7 @@ def test_memory_estimate_of_an_analysis_is_an_upper_bound(tmp_path):
     m = 20000
     code, kb = peak_kb("analyze", "ur5", "--configs", str(m))
     assert base_code == code == 0
-    estimate_kb = m * 6 * calib.checks.BYTES_PER_CONFIG_JOINT / 1024
+    estimate_kb = m * 6 * calib.core.checks.BYTES_PER_CONFIG_JOINT / 1024
     assert kb - base_kb <= estimate_kb, (kb - base_kb, estimate_kb)
 
 

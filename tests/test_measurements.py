@@ -25,7 +25,7 @@ from calib import (
     simulate,
     write_measurements,
 )
-from calib.fileio import json_text, write_files_atomic
+from calib.core.fileio import json_text, write_files_atomic
 from calib.identification.jacobian import measured_point
 from calib.kinematics import so3
 from calib.measurements.csvfile import measurements_csv, parse_measurements
@@ -424,12 +424,12 @@ def test_inverse_right_jacobian_against_finite_differences():
 
 
 def test_atomic_write_leaves_nothing_behind_on_failure(tmp_path, monkeypatch, ur5_pose):
-    import calib.fileio
+    import calib.core.fileio
 
     def broken(src, dst):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(calib.fileio.os, "replace", broken)
+    monkeypatch.setattr(calib.core.fileio.os, "replace", broken)
     target = tmp_path / "meas.csv"
     with pytest.raises(OSError):
         write_measurements(target, ur5_pose.measurements)

@@ -51,7 +51,7 @@ def declared_all(path: Path) -> list[str] | None:
 
 def test_the_walk_sees_every_wing():
     names = {module_name(p) for p in MODULES}
-    assert {"calib", "calib.cli.__main__", "calib.kinematics.robot", "calib.fileio"} <= names
+    assert {"calib", "calib.cli.__main__", "calib.kinematics.robot", "calib.core.fileio"} <= names
     assert len(MODULES) > 50
 
 

@@ -36,7 +36,7 @@ def imported_by(*argv: str) -> tuple[set[str], str]:
         for line in proc.stderr.splitlines()
         if line.startswith("import time:") and line.count("|") == 2
     }
-    assert "calib.launcher" in modules  # the report is there and lists calib's own modules
+    assert "calib.cli.launcher" in modules  # the report is there and lists calib's own modules
     return modules, proc.stdout
 
 
@@ -104,7 +104,7 @@ def test_the_robots_folder_is_the_one_importlib_metadata_finds():
 BLAS_SCRIPT = textwrap.dedent(
     """
     import json, sys
-    from calib.launcher import main
+    from calib.cli.launcher import main
     sys.argv = ["calib", *sys.argv[1:]]
     code = main()
     tpc = "threadpoolctl" in sys.modules

@@ -221,7 +221,7 @@ def test_tool_without_fixed_joint_is_refused_and_nothing_written(tmp_path):
 
 
 def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):
-    import calib.fileio
+    import calib.core.fileio
 
     chain = chain_of("ur5")
     nominal, calibrated = perturbed(chain, seed=0)
@@ -229,7 +229,7 @@ def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):
     def broken(src, dst):
         raise OSError(5, "Input/output error")
 
-    monkeypatch.setattr(calib.fileio.os, "replace", broken)
+    monkeypatch.setattr(calib.core.fileio.os, "replace", broken)
     with pytest.raises(CalibError, match="Input/output error"):
         write_calibrated_urdf(tmp_path / "cal.urdf", chain, nominal, calibrated)
     assert list(tmp_path.iterdir()) == []

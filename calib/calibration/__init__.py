@@ -10,7 +10,7 @@ May import: :mod:`calib.measurements`, :mod:`calib.identification`, :mod:`calib.
 and the bottom modules.
 """
 
-from ..lazy import attributes
+from ..core.lazy import attributes
 from .options import (
     DEFAULT_LEVEL,
     DEFAULT_MAX_ITERATIONS,

@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import MAX_WORK_BYTES
+from ..core.checks import MAX_WORK_BYTES
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import InvalidArgumentError
-from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
+from ..identification.base_columns import independent_columns, preference_order
 from ..identification.kinds import campaign_kind
 from ..identification.parameters import complete_parameters
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain, check_count
-from ..measurements.csvfile import Measurements
+from ..measurements.data import Measurements
 from .model import ErrorModel, registration_state, selection_lift
 from .solve import row_weights
 

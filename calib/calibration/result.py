@@ -14,7 +14,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base
 from ..kinematics.urdf_links import marker_link_names
-from ..measurements.csvfile import Measurements
+from ..measurements.data import Measurements
 from .model import ErrorModel, State
 from .outliers import Outlier
 from .selection import Selection

@@ -27,7 +27,7 @@ from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_jacobian
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..kinematics.tree_model import TreeMDH
-from ..measurements.csvfile import Measurements
+from ..measurements.data import Measurements
 from .model import FRAME_NAMES
 from .registration import rigid_fit
 

@@ -15,15 +15,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
-from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
+from ..identification.base_columns import independent_columns, preference_order
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
 from ..kinematics.tree_export import tree_measurement_to_base
 from ..kinematics.tree_model import TreeMDH, from_tree
 from ..kinematics.urdf_links import marker_link_names
-from ..measurements.csvfile import Measurements, check_against_chain
+from ..measurements.data import Measurements
+from ..measurements.limits import check_against_chain
 from . import determined, diagnosis, outliers, validation
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, Options, checked_arguments
 from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
@@ -407,7 +409,7 @@ def _tree_model(
 ) -> TreeErrorModel:
     """Frame, markers (and, ``complete``, the base parameters of the complete set).
 
-    The columns are taken in :func:`~.identifiability.preference_order`, as a chain's
+    The columns are taken in :func:`~.base_columns.preference_order`, as a chain's
     are. Coupled (mimic) joints can make the nominal geometry special (a PR2 fingertip stays
     parallel to the palm), and the set order then kept parameters that miss the errors a
     real robot has (PR2's two fingertips: 0.28 mm left after a noise-free fit of 1 mm /

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..measurements.csvfile import Measurements
+from ..measurements.data import Measurements
 from .diagnosis import suspect
 from .result import ResidualStats
 from .solve import FitState

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..choices import (
+from ..core.choices import (
     CAMPAIGN_MEASURES,
     CONTACT_MEASURES,
     DEFAULT_CANDIDATES,
@@ -18,7 +18,7 @@ from ..choices import (
     EXCHANGE_CRITERIA,
 )
 from ..exceptions import InvalidArgumentError
-from .commands import (
+from .common import (
     BooleanOnce,
     add_chain_args,
     check_output_paths,

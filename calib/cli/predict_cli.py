@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .commands import check_output_paths, write_outputs
+from .common import check_output_paths, write_outputs
 
 __all__ = ["add_predict_parser", "cmd_predict"]
 

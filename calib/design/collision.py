@@ -28,8 +28,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from ..core.fileio import read_bytes_limited, read_failure, read_text_limited
 from ..exceptions import CalibError, InvalidArgumentError, URDFError
-from ..fileio import read_bytes_limited, read_failure, read_text_limited
 from ..kinematics.catalog import erd_robots_dir
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree

@@ -19,11 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import read_failure, read_text_limited
 from ..exceptions import DataError
-from ..fileio import read_failure, read_text_limited
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
-from ..measurements.csvfile import TOOL_COLUMN, check_limits, csv_records, parse_number
+from ..measurements.csvfile import csv_records, parse_number
+from ..measurements.data import TOOL_COLUMN
+from ..measurements.limits import check_limits
 
 MAX_CONFIGS_BYTES = 256 << 20
 """Largest configurations file read [B] (a million configurations of 20 joints fit)."""

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import real_array
+from ..core.checks import real_array
 from ..exceptions import InvalidArgumentError
 from ..identification.jacobian import measured_point
 from ..kinematics.mdh import from_chain

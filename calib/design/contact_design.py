@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_count, check_work
+from ..core.checks import check_count, check_work
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import CONTACT_TOL, Contact, contact_model, contact_postures, project
 from ..identification.identifiability import independent_columns, preference_order

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import check_count, check_work
-from ..choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
+from ..core.checks import check_count, check_work
+from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from ..choices import EXCHANGE_CRITERIA
+from ..core.choices import EXCHANGE_CRITERIA
 from ..exceptions import InvalidArgumentError
 
 MIN_IMPROVEMENT = 1e-9

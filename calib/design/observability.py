@@ -54,10 +54,10 @@ from ..calibration.options import TREE_LEVELS, Options
 from ..calibration.pipeline import level_names
 from ..calibration.solve import row_weights
 from ..calibration.tree import TreeErrorModel, TreeState
-from ..checks import check_count, real_array
-from ..choices import DESIGN_LEVELS
+from ..core.checks import check_count, real_array
+from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
-from ..identification.identifiability import independent_columns, preference_order
+from ..identification.base_columns import independent_columns, preference_order
 from ..identification.kinds import campaign_kind
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
@@ -65,7 +65,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
-from ..measurements.csvfile import Measurements
+from ..measurements.data import Measurements
 
 REFERENCE_CONFIGS = 200
 """Reference configurations of the predicted position error (I, G) by default."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 import warnings
@@ -13,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_count, check_work, joint_positions
-from ..choices import DEFAULT_CONFIGS
+from ..core.checks import check_count, check_work, joint_positions
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.mimic import MimicJoint
@@ -22,189 +21,30 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from ..kinematics.tree_model import TreeMDH, from_tree
 from . import qr
+from .base_columns import (
+    checked_selection,
+    identify_base,
+    independent_columns,
+    numerical_rank,
+    pivoted_diagonal,
+    preference_order,
+    select_by_rank,
+    select_independent,
+)
 from .contacts import Contact, contact_configurations
 from .jacobian import complete_jacobian, identification_jacobian
 from .kinds import kind_of
 from .measures import MeasureKind, Measurement
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
+from .theory import axes_through_point, per_tool_theory, theoretical_count
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 
 REGROUP_TOL = 1e-8
 """Regrouping coefficients smaller than this (in absolute value) are printed as zero."""
 
-ON_AXIS_TOL = 1e-9
-"""Distance [m] under which the measured point lies on the last joint axis."""
-
-_SPECIAL_ANGLES = (0.0, math.pi / 2, -math.pi / 2, math.pi, -math.pi)
-
-
-_EPS = float(np.finfo(float).eps)
-
 
 class RankWarning(UserWarning):
     """The observation matrix is too small, or its rank gap too weak, to trust the rank."""
-
-
-def numerical_rank(diag: np.ndarray, n_rows: int) -> tuple[int, float]:
-    """Rank from the |R_ii| of a pivoted QR: b = #{|R_ii| > tau}, tau = r eps |R_11|.
-
-    Args:
-        diag: |R_ii| in pivoting order (non-increasing).
-        n_rows: Number of rows r of the observation matrix.
-
-    Returns:
-        The rank and the tolerance tau.
-    """
-    if diag.size == 0 or diag[0] == 0.0:
-        return 0, 0.0
-    tau = n_rows * _EPS * float(diag[0])
-    return int((diag > tau).sum()), tau
-
-
-def _triangular(W: np.ndarray) -> np.ndarray:
-    """R factor of a tall W (min(r, c) x c): column norms and angles of W, cheaply."""
-    return qr.triangular(W)
-
-
-def pivoted_diagonal(W: np.ndarray) -> np.ndarray:
-    """|R_ii| of the QR decomposition with column pivoting of W (non-increasing)."""
-    return qr.pivoted_diagonal(_triangular(W))
-
-
-def preference(mdh: MDHModel | TreeMDH, p: Parameter) -> int:
-    """Rank of a parameter in the paper's order of preference (0 = kept first).
-
-    0 joint offsets; 1 distances (d, r, b) with a non-zero nominal value; 2 angles (alpha,
-    theta, gamma) whose nominal value is neither 0 nor 90 degrees (mod 90); 3 base parameters
-    (row 0 and the rows placed from it: row 1 of a chain); 4 tool parameters (row n+1 of a
-    chain, every tool row of a tree); 5 the rest.
-    """
-    k, kind = p.row, p.kind
-    if 1 <= k <= mdh.n and (
-        (kind is Kind.THETA and mdh.sigma[k] == 0) or (kind is Kind.R and mdh.sigma[k] == 1)
-    ):
-        return 0
-    if k == 0 or mdh.antecedent[k] == 0:
-        return 3
-    if k in mdh.tool_rows:
-        return 4
-    value = float(getattr(mdh, kind.value)[k])
-    if kind in (Kind.D, Kind.R, Kind.B) and abs(value) > 1e-9:
-        return 1
-    if kind in (Kind.ALPHA, Kind.THETA, Kind.GAMMA) and min(
-        abs(value - a) for a in _SPECIAL_ANGLES
-    ) > 1e-6:
-        return 2
-    return 5
-
-
-def preference_order(mdh: MDHModel | TreeMDH, params: ParameterSet) -> list[int]:
-    """Column indices sorted by :func:`preference` (stable: set order within a class)."""
-    key = (id(mdh), id(params))
-    hit = _ORDERS.get(key)
-    if hit is not None and hit[0] is mdh and hit[1] is params:
-        return list(hit[2])
-    ranks = [preference(mdh, p) for p in params.parameters]
-    order = tuple(sorted(range(len(ranks)), key=ranks.__getitem__))
-    if len(_ORDERS) >= 64:
-        _ORDERS.clear()
-    _ORDERS[key] = (mdh, params, order)  # holding both keeps their ids from being reused
-    return list(order)
-
-
-_ORDERS: dict[tuple[int, int], tuple[MDHModel | TreeMDH, ParameterSet, tuple[int, ...]]] = {}
-"""Orders already computed, by model and set (both immutable): the structural step asks for
-the same pair at every call."""
-
-
-def theoretical_count(
-    chain_or_mdh: Chain | MDHModel | TreeMDH,
-    measurement: MeasureKind,
-    on_axes: tuple[int, ...] = (),
-) -> int | None:
-    """Independent parameters of a complete minimal model (Everett, Driels, Mooring 1987).
-
-    The kind's own formula (:meth:`Measurement.theoretical_count`: 4R + 2P + 6 for the full
-    pose, 4R + 2P + 3 for the position of one point, 2 fewer when the point lies on the last
-    (revolute) axis; the contacts' in :mod:`calib.identification.contacts`). None where the
-    formula says nothing. A tree model gets :func:`tree_theoretical_count`.
-
-    Args:
-        chain_or_mdh: The chain or its model (for sigma).
-        measurement: What is measured.
-        on_axes: Joints whose axis passes through the measured point.
-    """
-    if isinstance(chain_or_mdh, TreeMDH):
-        return tree_theoretical_count(chain_or_mdh, measurement)
-    sigma = np.asarray(chain_or_mdh.sigma)
-    return measurement.theoretical_count(sigma[sigma >= 0], tuple(on_axes))
-
-
-@functools.lru_cache(maxsize=16)
-def tree_axes(model: TreeMDH, measurement: MeasureKind) -> tuple[tuple[int, ...], ...]:
-    """Per tool of a tree, the revolute joint rows whose axis passes through its point."""
-    out = []
-    for t in range(model.n_tools):
-        rows = model.path_rows(t)
-        on = axes_through_point(model.path_model(t), measurement)
-        out.append(tuple(int(rows[k]) for k in on))
-    return tuple(out)
-
-
-def tree_theoretical_count(model: TreeMDH, measurement: MeasureKind) -> int | None:
-    """Independent parameters of a tree's complete model: 4R + 2P + 6T (pose of T tools).
-
-    Each joint is counted once however many tools it carries: the placement of each joint
-    and tool in its antecedent (6 each) and of the base (6), minus 6 for the base (the base
-    link's children absorb it) and, per joint, the errors its motion absorbs (2 revolute,
-    4 prismatic). Position of one point per tool: 3 fewer per tool (rotations about the
-    point), and 2 fewer per joint whose only children are tools with their points on its
-    axis. None for other row subsets or a point on another axis.
-    """
-    R, P, T = int(np.sum(model.sigma == 0)), int(np.sum(model.sigma == 1)), model.n_tools
-    if not isinstance(measurement, Measurement):
-        return None
-    if measurement.is_pose:
-        return 4 * R + 2 * P + 6 * T
-    if not measurement.is_position:
-        return None
-    axes = tree_axes(model, measurement)
-    lost = 0
-    for k in sorted({k for rows in axes for k in rows}):
-        children = np.flatnonzero(model.antecedent == k)
-        tools = [t for t, row in enumerate(model.tool_rows) if row in children]
-        if len(tools) < len(children) or any(k not in axes[t] for t in tools):
-            return None
-        lost += 2
-    return 4 * R + 2 * P + 3 * T - lost
-
-
-def axes_through_point(mdh: MDHModel | TreeMDH, measurement: MeasureKind) -> tuple[int, ...]:
-    """Revolute joints (1..n) whose axis passes through the measured point.
-
-    An axis counts only if it does so at every configuration: it is tested at the zero
-    configuration and four fixed others. For a tree: through the point of a tool it carries.
-    """
-    if isinstance(mdh, TreeMDH):
-        return tuple(sorted({k for rows in tree_axes(mdh, measurement) for k in rows}))
-    q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
-    kin = mdh.kinematics(q)
-    E = kin.p[:, -1] + np.einsum("mij,j->mi", kin.R[:, -1], np.array(measurement.marker))
-    out = []
-    for k in range(1, mdh.n + 1):
-        if mdh.sigma[k] != 0:
-            continue
-        v = E - kin.p[:, k]
-        z = kin.R[:, k, :, 2]
-        off = v - np.sum(v * z, axis=1)[:, None] * z
-        if np.all(np.linalg.norm(off, axis=1) < ON_AXIS_TOL):
-            out.append(k)
-    return tuple(out)
-
-
-def point_on_last_axis(mdh: MDHModel, measurement: MeasureKind) -> bool:
-    """Whether the measured point lies on the last joint axis (a revolute one)."""
-    return mdh.n in axes_through_point(mdh, measurement)
 
 
 def _explain(p: Parameter, mdh: MDHModel | TreeMDH) -> str:
@@ -434,199 +274,6 @@ class Identifiability:
         }
 
 
-VERIFY_MARGIN = 2.0
-"""Factor by which a column must clear the threshold for :func:`select_independent`'s one-QR
-check to decide it (kept: distance above twice the threshold, dropped: under half of it).
-The threshold is at least tau, ten times the round-off of a distance, so two ways of
-computing a distance cannot disagree across this band; a column inside it takes the
-restarting walk."""
-
-
-def select_independent(R: np.ndarray, order: list[int], tau: float) -> list[int]:
-    """Walk the columns in ``order`` and keep each one that is independent of those kept.
-
-    A column is kept when its distance to the span of the kept ones exceeds ``tau``: this
-    is what deleting the columns with |R_ii| <= tau of an unpivoted QR means. Householder
-    QR stops revealing it after an exactly dependent column (that column's row is left
-    unused), so after each dependent column the QR restarts on the residual block, which is
-    an orthogonal image of the remaining columns' components orthogonal to the kept ones.
-
-    The first QR's verdicts are tried first: they are the walk's result when one QR of the
-    kept columns and the others (:func:`checked_selection`) proves it, which spares the
-    restarts.
-
-    Args:
-        R: Triangular factor (or any matrix with the same column geometry as W).
-        order: Column indices, most preferred first.
-        tau: Distance under which a column is dependent.
-
-    Returns:
-        The kept column indices, in ``order``.
-    """
-    return _select(R, order, tau)[0]
-
-
-def _select(
-    R: np.ndarray, order: list[int], tau: float, first: np.ndarray | None = None
-) -> tuple[list[int], np.ndarray | None]:
-    """:func:`select_independent`, and the factor of :func:`checked_selection` (or None).
-
-    ``first``: |diagonal| of an unpivoted QR of the columns in ``order`` (of W itself: its
-    many rows leave more room to the round-off of dependent columns than R's), for the guess.
-    """
-    idx = list(order)
-    if not idx or R.shape[0] == 0:
-        return [], None
-    T = None
-    if first is None:
-        T = qr.householder(R[:, idx])  # R on and above the diagonal, the reflectors below it
-        first = np.abs(T.diagonal())
-    guess = [idx[j] for j in np.flatnonzero(first > tau)]
-    Rk = checked_selection(R, idx, guess, tau)
-    if Rk is not None:
-        return guess, Rk
-    if T is None:
-        T = qr.householder(R[:, idx])
-    d = np.abs(T.diagonal())
-    kept: list[int] = []
-    while True:
-        small = np.flatnonzero(d <= tau)
-        j = int(small[0]) if small.size else len(d)
-        kept += idx[:j]
-        if j == len(d):  # all kept, or the rows are exhausted: the rest depends on the kept
-            return kept, None
-        # Column j depends on the kept ones; the rows j.. of the columns after it hold their
-        # components orthogonal to the kept columns.
-        idx = idx[j + 1 :]
-        M = qr.upper(T[j:, j + 1 :], -1)  # R's part of that block (it starts below the diagonal)
-        if not idx or M.shape[0] == 0:
-            return kept, None
-        T = qr.householder(M)
-        d = np.abs(T.diagonal())
-
-
-def checked_selection(
-    R: np.ndarray, order: list[int], kept: list[int], tau: float
-) -> np.ndarray | None:
-    """Whether ``kept`` is the walk of :func:`select_independent`, by one QR.
-
-    With the kept columns first (in ``order``), then the others (in index order), the
-    triangular factor holds each kept column's distance to the kept ones before it (its
-    diagonal) and, in each other column, its components along the kept columns and beyond:
-    its distance to the kept columns met before it in ``order`` is the norm of the entries
-    from that count down. The selection is proved when every kept distance exceeds ``tau``
-    and every other one is under it, each by :data:`VERIFY_MARGIN`.
-
-    Returns:
-        The triangular factor of ``R[:, kept + others]``, or None if not proved.
-    """
-    chosen = set(kept)
-    others = [i for i in range(R.shape[1]) if i not in chosen]
-    if len(kept) > min(R.shape) or len(order) != R.shape[1]:
-        return None
-    Rk = qr.triangular(R[:, kept + others])
-    b = len(kept)
-    if (np.abs(Rk.diagonal()[:b]) <= VERIFY_MARGIN * tau).any():
-        return None
-    if others:
-        count, before = 0, {}  # kept columns met before each other one
-        for i in order:
-            if i in chosen:
-                count += 1
-            else:
-                before[i] = count
-        start = np.array([before[i] for i in others])
-        tail = np.where(np.arange(Rk.shape[0])[:, None] >= start, Rk[:, b:], 0.0)
-        if (np.einsum("ij,ij->j", tail, tail) >= (tau / VERIFY_MARGIN) ** 2).any():
-            return None
-    return Rk
-
-
-def select_by_rank(R: np.ndarray, order: list[int], tau: float) -> list[int]:
-    """Keep each column, in ``order``, whose addition raises the numerical rank (slow, robust)."""
-    kept: list[int] = []
-    for i in order:
-        cols = [*kept, i]
-        if int(np.sum(pivoted_diagonal(R[:, cols]) > tau)) > len(kept):
-            kept = cols
-    return kept
-
-
-def independent_columns(
-    W: np.ndarray, order: list[int], n_rows: int | None = None
-) -> tuple[np.ndarray, float, list[int], np.ndarray]:
-    """Rank of W and the independent columns met first in an order of preference.
-
-    Args:
-        W: Observation matrix ``(r, c)``, or a smaller matrix with its column geometry.
-        order: Column indices, most preferred first.
-        n_rows: Rows r of the observation matrix (default: W's).
-
-    Returns:
-        |R_ii| of the pivoted QR, tau, the kept column indices (in ``order``) and a factor
-        with W's column geometry: the triangular factor of W's columns in ``order``, its
-        columns put back in W's order.
-    """
-    diag, tau, kept, R, _ = _independent_columns(W, order, n_rows)
-    return diag, tau, kept, R
-
-
-def _independent_columns(W: np.ndarray, order: list[int], n_rows: int | None):
-    """:func:`independent_columns`, and the factor of :func:`checked_selection` (or None)."""
-    if not np.isfinite(W).all():
-        raise InvalidArgumentError(
-            "the observation matrix has non-finite entries: check the marker and the configurations"
-        )
-    first = None
-    if sorted(order) == list(range(W.shape[1])) and min(W.shape) > 0:
-        # One QR of W's columns in order: its diagonal is the walk's first guess, and its
-        # factor, columns put back, has W's column geometry.
-        T = qr.householder(W[:, order])
-        k = min(W.shape)
-        first = np.abs(T.diagonal())
-        R = np.empty((k, W.shape[1]))
-        R[:, order] = qr.upper(T[:k])
-    else:
-        R = _triangular(W)
-    diag = qr.pivoted_diagonal(R)
-    rank, tau = numerical_rank(diag, W.shape[0] if n_rows is None else n_rows)
-    # Select with a threshold in the middle of the gap between the two clusters of |R_ii|:
-    # dependencies that hold only to round-off of the URDF (1e-13) stay dependent whatever
-    # the order in which the columns are visited.
-    threshold = tau if rank in (0, len(diag)) else max(tau, math.sqrt(diag[rank - 1] * diag[rank]))
-    kept, Rk = _select(R, order, threshold, first)
-    if len(kept) != rank:
-        # Nearly dependent columns (small tilts) amplify round-off in the residuals; fall back
-        # to the definition: keep a column when it raises the pivoted-QR rank.
-        kept, Rk = select_by_rank(R, order, tau), None
-    return diag, tau, kept, R, Rk
-
-
-def identify_base(
-    mdh: MDHModel | TreeMDH, params: ParameterSet, W: np.ndarray, n_rows: int | None = None
-) -> tuple[np.ndarray, float, list[int], list[int], np.ndarray]:
-    """Rank, base columns and regrouping of an observation matrix (docs/method.md section 3).
-
-    Args:
-        mdh: Nominal model (for the order of preference).
-        params: The parameters of W's columns.
-        W: Observation matrix ``(r, c)``, or a smaller matrix with its column geometry.
-        n_rows: Rows r of the observation matrix (default: W's).
-
-    Returns:
-        |R_ii| of the pivoted QR, tau, the kept column indices (preference order), the other
-        column indices (set order), and B = R1^-1 R2 with base = kept + B @ others.
-    """
-    diag, tau, kept, R, Rk = _independent_columns(W, preference_order(mdh, params), n_rows)
-    chosen = set(kept)
-    others = [i for i in range(len(params)) if i not in chosen]
-    if Rk is None:
-        Rk = qr.triangular(R[:, kept + others])
-    b = len(kept)
-    B = qr.solve_upper(Rk[:b, :b], Rk[:b, b:])
-    return diag, tau, kept, others, B
-
-
 def _checked_arguments(mdh, params, measurement, configs):
     """Checked arguments of :func:`analyze_model`: measurement, parameter set, ``(m, n)``."""
     if not isinstance(mdh, MDHModel | TreeMDH):
@@ -677,17 +324,6 @@ def _matrices(mdh: MDHModel | TreeMDH, params: ParameterSet, q: np.ndarray, meas
     return W, W.shape[0], lambda: complete_jacobian(mdh, q, measurement, kin=kin)
 
 
-def per_tool_theory(mdh: TreeMDH, measurement: MeasureKind) -> tuple[tuple[str, int | None], ...]:
-    """Each tool's chain alone: its name and theoretical count (see :func:`theoretical_count`)."""
-    out = []
-    axes = tree_axes(mdh, measurement)
-    for t, name in enumerate(mdh.tool_frames):
-        rows = list(mdh.path_rows(t))
-        on = tuple(rows.index(k) for k in axes[t])
-        out.append((name, theoretical_count(mdh.path_model(t), measurement, on)))
-    return tuple(out)
-
-
 def analyze_model(
     mdh: MDHModel | TreeMDH,
     params: str | ParameterSet = "paper",
@@ -711,7 +347,7 @@ def analyze_model(
 
     Raises:
         InvalidArgumentError: A bad argument: configurations of the wrong shape, with NaN,
-            or too many to fit in memory (:data:`~calib.checks.MAX_WORK_BYTES`).
+            or too many to fit in memory (:data:`~calib.core.checks.MAX_WORK_BYTES`).
     """
     measurement, pset, q = _checked_arguments(mdh, params, measurement, configs)
     check_count(seed, "the seed", minimum=0)
@@ -733,7 +369,7 @@ def analyze_model(
     on_axes = axes_through_point(mdh, measurement)
     missing: list[str] = []
     if len(kept) < n_complete:
-        R_all = _triangular(W_all)
+        R_all = qr.triangular(W_all)
         for j, p in enumerate(extras):
             cols = [*kept, len(pset) + j]
             r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), n_rows)
@@ -800,9 +436,7 @@ SNAPPED_CHANGE = 1e-3
 choice of the idealized conversion (a 90-degree offset), not round-off."""
 
 
-def snapped_values(
-    exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH
-) -> tuple[str, ...]:
+def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> tuple[str, ...]:
     """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
 
     Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are
@@ -904,6 +538,11 @@ __all__ = [
     "RankWarning",
     "analyze",
     "analyze_model",
+    # Re-exported from .base_columns (their home), where they were imported from before:
+    "checked_selection",
+    "identify_base",
     "independent_columns",
     "preference_order",
+    "select_by_rank",
+    "select_independent",
 ]

@@ -17,7 +17,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ..choices import CONTACT_MEASURES
+from ..core.choices import CONTACT_MEASURES
 from ..exceptions import InvalidArgumentError
 from ..kinematics.so3 import rotation_vector
 

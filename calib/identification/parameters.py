@@ -9,7 +9,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from ..checks import real_array
+from ..core.checks import real_array
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH

@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from ..checks import joint_positions
+from ..core.checks import joint_positions
 from ..exceptions import InvalidArgumentError
 from ..kinematics.tree_model import TreeMDH
 from .jacobian import Measurement, identification_jacobian, measured_point

@@ -27,17 +27,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..core.fileio import read_failure, read_text_limited
 from ..exceptions import DataError, InvalidArgumentError, URDFError
-from ..fileio import read_failure, read_text_limited
+from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
-from .robot import (
-    Chain,
-    frame_placement,
-    joint_placements,
-    load_chain,
-    pin_configurations,
-    resolve_frame,
-)
+from .robot import Chain, load_chain, pin_configurations
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 

@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..checks import joint_positions, real_array
+from ..core.checks import joint_positions, real_array
 from ..exceptions import InvalidArgumentError
 from . import urdf_xml
 from .robot import Chain
@@ -272,7 +272,7 @@ class MDHModel:
 
         Raises:
             InvalidArgumentError: ``q`` has the wrong shape, NaN or values beyond
-                :data:`~calib.checks.MAX_JOINT_POSITION`.
+                :data:`~calib.core.checks.MAX_JOINT_POSITION`.
         """
         q = joint_positions(q, self.n)
         m, rows, n = q.shape[0], self.n + 2, self.n

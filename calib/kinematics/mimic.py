@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import joint_positions
+from ..core.checks import joint_positions
 from ..exceptions import ChainError
 from .urdf_xml import URDFInfo
 
@@ -89,7 +89,7 @@ class Coupling:
 
         Raises:
             InvalidArgumentError: Wrong shape, NaN, or values beyond
-                :data:`~calib.checks.MAX_JOINT_POSITION`.
+                :data:`~calib.core.checks.MAX_JOINT_POSITION`.
         """
         qv = joint_positions(variables, self.n_variables)
         return qv @ self.matrix.T + self.offset

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar, Literal
@@ -14,15 +12,26 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from ..checks import check_count, check_work, joint_positions
+from ..core.checks import check_count, check_work, joint_positions
 from ..exceptions import (
-    AmbiguousFrameError,
     ChainError,
-    FrameNotFoundError,
     InvalidArgumentError,
     UnsupportedJointError,
 )
 from .catalog import CatalogEntry, catalog, catalog_entry, shipped_urdf
+from .frames import (
+    DEFAULT_PRISMATIC_RANGE,
+    PLACEMENT_TOL,
+    default_tool,
+    describe_joint,
+    frame_placement,
+    joint_kind,
+    joint_placements,
+    motion_axis,
+    path_joints,
+    resolve_frame,
+    sampling_bounds,
+)
 from .mimic import Coupling, chain_coupling
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
@@ -45,188 +54,6 @@ __all__ = [
     "resolve_frame",
     "robot_source",
 ]
-
-PLACEMENT_TOL = 1e-12
-"""Two same-named frames closer than this [m, rotation entries] are the same place."""
-
-DEFAULT_PRISMATIC_RANGE = 0.1
-"""Half-range [m] sampled for a prismatic joint whose URDF gives no usable limits."""
-
-_KIND_PREFIX = {
-    "link": (pin.FrameType.BODY,),
-    "joint": (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT),
-}
-
-
-def _joint_kind(shortname: str) -> str | None:
-    """'revolute', 'prismatic' or None for a Pinocchio joint model short name."""
-    if shortname.startswith("JointModelRevoluteUnaligned") or shortname.startswith(
-        "JointModelRevoluteUnboundedUnaligned"
-    ):
-        return "revolute"
-    if shortname.startswith("JointModelPrismaticUnaligned"):
-        return "prismatic"
-    if shortname in ("JointModelRX", "JointModelRY", "JointModelRZ") or shortname.startswith(
-        "JointModelRUB"
-    ):
-        return "revolute"
-    if shortname in ("JointModelPX", "JointModelPY", "JointModelPZ"):
-        return "prismatic"
-    return None
-
-
-def _describe_joint(shortname: str) -> str:
-    names = {
-        "JointModelPlanar": "a planar joint",
-        "JointModelFreeFlyer": "a floating joint",
-        "JointModelSpherical": "a spherical joint",
-        "JointModelSphericalZYX": "a spherical joint",
-        "JointModelTranslation": "a 3-DOF translation joint",
-        "JointModelComposite": "a composite joint",
-    }
-    if shortname.startswith("JointModelHelical"):
-        return "a helical joint"
-    return names.get(shortname, f"of unsupported type {shortname}")
-
-
-def joint_placements(
-    model: pin.Model, q: np.ndarray, last: int | tuple[int, ...] | None = None
-) -> dict:
-    """Placements ``oMi`` of the joints at a Pinocchio configuration, without ``pin.Data``.
-
-    ``pin.Data`` holds tensors whose size grows as the cube of the number of joints (1.8 GB
-    for 300 joints): calib walks the tree itself, with Pinocchio's joint models.
-
-    Args:
-        model: Pinocchio model.
-        q: Configuration ``(nq,)``.
-        last: Only this joint (or these joints) and its ancestors (default: every joint).
-
-    Returns:
-        ``pin.SE3`` placement in the world by joint index.
-    """
-    if last is None:
-        joints: list[int] | range = range(1, model.njoints)
-    elif isinstance(last, tuple):  # Pinocchio numbers a parent before its children
-        joints = sorted({j for one in last for j in model.supports[one]} - {0})
-    else:
-        joints = list(model.supports[last])[1:]
-    neutral = pin.neutral(model)
-    out = {0: pin.SE3.Identity()}
-    for jid in joints:
-        joint = model.joints[jid]
-        span = slice(joint.idx_q, joint.idx_q + joint.nq)
-        motion = pin.SE3.Identity()
-        if not np.array_equal(q[span], neutral[span]):
-            motion = _joint_motion(model.names[jid], joint, q[span])
-        out[jid] = out[model.parents[jid]] * model.jointPlacements[jid] * motion
-    return out
-
-
-def motion_axis(joint) -> np.ndarray:
-    """Motion subspace ``(6,)`` (linear, angular) of a 1-DOF joint model, in its own frame."""
-    jdata = joint.createData()
-    q = np.zeros(joint.nq)
-    q[0] = 1.0 if joint.nq == 2 else 0.0  # continuous joints: (cos, sin) = (1, 0)
-    joint.calc(jdata, q)
-    return np.reshape(np.array(jdata.S), (6, -1))[:, 0]
-
-
-def _joint_motion(name: str, joint, qj: np.ndarray) -> pin.SE3:
-    """Transform of a revolute, continuous or prismatic joint at its position ``qj``."""
-    if _joint_kind(joint.shortname()) is None or joint.nv != 1:
-        raise InvalidArgumentError(f"joint '{name}' ({joint.shortname()}) can only stay neutral")
-    value = math.atan2(qj[1], qj[0]) if joint.nq == 2 else float(qj[0])
-    return pin.exp6(pin.Motion(motion_axis(joint) * value))
-
-
-def frame_placement(model: pin.Model, oMi: dict, fid: int) -> pin.SE3:
-    """Placement of frame ``fid`` in the world, from :func:`joint_placements`."""
-    frame = model.frames[fid]
-    return oMi[frame.parentJoint] * frame.placement
-
-
-def resolve_frame(model: pin.Model, name: str) -> int:
-    """Find a frame by name; ``link:NAME`` or ``joint:NAME`` pick a kind.
-
-    Frames that share a name but sit at the same place on the same body (a link and the
-    fixed joint that carries it) are one frame; otherwise the name is ambiguous.
-
-    Args:
-        model: Pinocchio model.
-        name: Frame name, optionally prefixed by ``link:`` or ``joint:``.
-
-    Returns:
-        Index of the frame in ``model.frames``.
-
-    Raises:
-        FrameNotFoundError: No frame has that name.
-        AmbiguousFrameError: Several frames of that name are at different places.
-    """
-    kinds = None
-    bare = name
-    prefix, sep, rest = name.partition(":")
-    if sep and prefix in _KIND_PREFIX:
-        kinds, bare = _KIND_PREFIX[prefix], rest
-    ids = [
-        i
-        for i, f in enumerate(model.frames)
-        if f.name == bare and (kinds is None or f.type in kinds)
-    ]
-    if not ids:
-        raise FrameNotFoundError(
-            name, [f.name for f in model.frames if f.name != "universe"], ranked_as=bare
-        )
-    if len(ids) == 1:
-        return ids[0]
-    oMi = joint_placements(model, pin.neutral(model))
-    first = frame_placement(model, oMi, ids[0])
-    same = all(
-        model.frames[i].parentJoint == model.frames[ids[0]].parentJoint
-        and np.allclose(
-            frame_placement(model, oMi, i).homogeneous,
-            first.homogeneous,
-            atol=PLACEMENT_TOL,
-            rtol=0,
-        )
-        for i in ids
-    )
-    if same:
-        bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
-        return bodies[0] if bodies else ids[0]
-    found = []
-    for i in ids:
-        kind = "link" if model.frames[i].type == pin.FrameType.BODY else "joint"
-        if kind not in found:
-            found.append(kind)
-    raise AmbiguousFrameError(bare, found)
-
-
-_MARKER_LINK = re.compile(r"(?P<tool>.+)_marker\d+(_joint)?")
-"""Names of the marker links (and their joints) a calibrated URDF adds under its tool."""
-
-
-def _calib_marker(model: pin.Model, frame) -> bool:
-    """True for a marker link calib wrote (``<tool>_markerK``) or its joint, on its tool."""
-    match = _MARKER_LINK.fullmatch(frame.name)
-    if match is None or not model.existFrame(match["tool"]):
-        return False
-    return model.frames[model.getFrameId(match["tool"])].parentJoint == frame.parentJoint
-
-
-def _default_tool(model: pin.Model) -> int:
-    """The frame at the tip of the deepest joint path (last such frame in model order).
-
-    The marker links of a calibrated URDF (``<tool>_markerK``, fixed under its tool) are
-    passed over: the calibrated URDF keeps the tool its nominal URDF has by default.
-    """
-    depth = [len(model.supports[f.parentJoint]) for f in model.frames]
-    best = max(depth)
-    return max(
-        i
-        for i, (d, f) in enumerate(zip(depth, model.frames, strict=True))
-        if d == best and not _calib_marker(model, f)
-    )
 
 
 class JointCounts:
@@ -267,7 +94,7 @@ class CoupledJoints(JointCounts):
 
         Raises:
             InvalidArgumentError: Wrong shape, or values that are not finite or beyond
-                :data:`~calib.checks.MAX_JOINT_POSITION`.
+                :data:`~calib.core.checks.MAX_JOINT_POSITION`.
         """
         return joint_positions(q, self.n)
 
@@ -476,7 +303,7 @@ class Chain(Robot):
 
         Raises:
             InvalidArgumentError: Bad count or seed, or an analysis of that many
-                configurations would not fit in :data:`~calib.checks.MAX_WORK_BYTES`.
+                configurations would not fit in :data:`~calib.core.checks.MAX_WORK_BYTES`.
         """
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)
@@ -607,7 +434,7 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
     """
     name, path, info, model = robot.name, robot.path, robot.info, robot.model
     base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
-    tool_id = resolve_frame(model, tool) if tool else _default_tool(model)
+    tool_id = resolve_frame(model, tool) if tool else default_tool(model)
     base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
     frames = model.frames
     joint_ids, signs = path_joints(model, frames[base_id].parentJoint, frames[tool_id].parentJoint)
@@ -617,21 +444,21 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
     for jid in joint_ids:
         joint, jname = model.joints[jid], model.names[jid]
         short = joint.shortname()
-        kind = _joint_kind(short)
+        kind = joint_kind(short)
         if kind is None or joint.nv != 1:
-            raise UnsupportedJointError(jname, _describe_joint(short))
+            raise UnsupportedJointError(jname, describe_joint(short))
         sigma.append(1 if kind == "prismatic" else 0)
         cont.append(joint.nq == 2)
-        lo, hi = _sampling_bounds(model, jid)
+        lo, hi = sampling_bounds(model, jid)
         lower.append(lo)
         upper.append(hi)
     joint_names = tuple(model.names[j] for j in joint_ids)
     coupling = None
     if info.mimic_joints & set(joint_names):
         bounds = {
-            model.names[j]: _sampling_bounds(model, j)
+            model.names[j]: sampling_bounds(model, j)
             for j in range(1, model.njoints)
-            if _joint_kind(model.joints[j].shortname()) and model.joints[j].nv == 1
+            if joint_kind(model.joints[j].shortname()) and model.joints[j].nv == 1
         }
         coupling = chain_coupling(info, joint_names, bounds)
     return Chain(
@@ -653,27 +480,6 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
         coupling=coupling,
         sign=_frozen(np.array(signs, dtype=int)),
     )
-
-
-def path_joints(model: pin.Model, jb: int, jt: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """The joints between two joints' bodies, in order, and their signs.
-
-    Args:
-        model: Pinocchio model.
-        jb: The joint whose body holds the base frame.
-        jt: The joint whose body holds the tool frame.
-
-    Returns:
-        The joints from ``jb`` up to (not including) the common ancestor, each traversed
-        backwards (sign -1), then those from the common ancestor down to ``jt`` (sign +1).
-    """
-    up, down = list(model.supports[jb]), list(model.supports[jt])
-    common = 0
-    while common < min(len(up), len(down)) and up[common] == down[common]:
-        common += 1
-    backwards = tuple(reversed(up[common:]))
-    forwards = tuple(down[common:])
-    return backwards + forwards, (-1,) * len(backwards) + (1,) * len(forwards)
 
 
 def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
@@ -701,20 +507,6 @@ def robot_source(robot: str | Path) -> tuple[str, Path, CatalogEntry | None]:
         return path.stem, path, None
     entry = catalog_entry(text)
     return entry.name, entry.path, entry
-
-
-def _sampling_bounds(model: pin.Model, jid: int) -> tuple[float, float]:
-    """Sampling bounds of a 1-DOF joint [rad or m]: its limits, else a default range."""
-    joint = model.joints[jid]
-    if joint.nq == 2:  # continuous
-        return -math.pi, math.pi
-    lo = float(model.lowerPositionLimit[joint.idx_q])
-    hi = float(model.upperPositionLimit[joint.idx_q])
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        prismatic = _joint_kind(joint.shortname()) == "prismatic"
-        half = DEFAULT_PRISMATIC_RANGE if prismatic else math.pi
-        return -half, half
-    return lo, hi
 
 
 def load_chain(robot: str | Path, base: str | None = None, tool: str | None = None) -> Chain:

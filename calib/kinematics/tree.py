@@ -16,7 +16,7 @@ from typing import ClassVar, Literal
 import numpy as np
 import pinocchio as pin
 
-from ..checks import check_count, check_work
+from ..core.checks import check_count, check_work
 from ..exceptions import ChainError, InvalidArgumentError
 from .mimic import Coupling, tree_coupling
 from .robot import (

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import check_outputs, write_atomic
 from ..exceptions import InvalidArgumentError
-from ..fileio import check_outputs, write_atomic
 from .mdh import frames_at_zero
 from .tree import Tree
 from .tree_model import TreeMDH

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import joint_positions
+from ..core.checks import joint_positions
 from ..exceptions import InvalidArgumentError
 from .mdh import (
     PARALLEL_TOL,

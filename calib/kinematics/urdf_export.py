@@ -37,10 +37,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..core.fileio import check_outputs, read_bytes_limited, write_atomic
 from ..exceptions import CalibError, InvalidArgumentError, URDFError
-from ..fileio import check_outputs, read_bytes_limited, write_atomic
+from .frames import frame_placement, joint_placements
 from .mdh import MDHModel, frames_at_zero
-from .robot import Chain, frame_placement, joint_placements
+from .robot import Chain
 from .urdf_links import add_marker_links, add_world_link
 from .urdf_xml import MAX_URDF_BYTES, parse_xml
 

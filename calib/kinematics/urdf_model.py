@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pinocchio as pin
 
+from ..core.fileio import read_bytes_limited
 from ..exceptions import URDFError
-from ..fileio import read_bytes_limited
 from .urdf_xml import MAX_URDF_BYTES, URDFInfo, kinematic_xml, read_urdf_info
 
 __all__ = [

@@ -1,6 +1,7 @@
 """Measurements: the CSV of measured campaigns, simulated campaigns, marker sets.
 
-:mod:`.csvfile` reads, checks and writes the measurement CSV, :mod:`.simulation` simulates
+:mod:`.data` holds the measurements (one value), :mod:`.csvfile` reads and writes them as
+CSV, :mod:`.limits` checks them against their chain or tree, :mod:`.simulation` simulates
 chain campaigns (their names are re-exported here, imported when first used:
 ``from calib.measurements import read_measurements`` works); :mod:`.tree_campaign`
 simulates tree campaigns, :mod:`.marker_set` reads the markers of a pose measurement.
@@ -8,34 +9,34 @@ simulates tree campaigns, :mod:`.marker_set` reads the markers of a pose measure
 May import: :mod:`calib.identification`, :mod:`calib.kinematics` and the bottom modules.
 """
 
-from ..lazy import attributes
+from ..core.lazy import attributes
 
 _LAZY = {
-    "Angles": "csvfile",
+    "Angles": "data",
     "Campaign": "simulation",
     "Columns": "csvfile",
     "DEFAULT_ORIENTATION_COLUMNS": "csvfile",
-    "DataWarning": "csvfile",
-    "JOINT_PREFIX": "csvfile",
-    "LIMIT_MARGIN": "csvfile",
-    "LIMIT_TOL": "csvfile",
-    "MAX_COORDINATE": "csvfile",
+    "DataWarning": "data",
+    "JOINT_PREFIX": "data",
+    "LIMIT_MARGIN": "limits",
+    "LIMIT_TOL": "limits",
+    "MAX_COORDINATE": "data",
     "MAX_MEASUREMENTS_BYTES": "csvfile",
-    "Measurements": "csvfile",
-    "POSITION_COLUMNS": "csvfile",
-    "QUATERNION_COLUMNS": "csvfile",
+    "Measurements": "data",
+    "POSITION_COLUMNS": "data",
+    "QUATERNION_COLUMNS": "data",
     "SimulationTruth": "simulation",
-    "TOOL_COLUMN": "csvfile",
-    "check_against_chain": "csvfile",
-    "check_limits": "csvfile",
+    "TOOL_COLUMN": "data",
+    "check_against_chain": "limits",
+    "check_limits": "limits",
     "csv_records": "csvfile",
-    "joint_bounds": "csvfile",
+    "joint_bounds": "limits",
     "measurements_csv": "csvfile",
     "parse_measurements": "csvfile",
     "parse_number": "csvfile",
     "read_measurements": "csvfile",
     "simulate": "simulation",
-    "tool_frames": "csvfile",
+    "tool_frames": "limits",
     "write_measurements": "csvfile",
 }
 
@@ -45,28 +46,32 @@ TYPE_CHECKING = False  # True for type checkers; importing typing would cost sta
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
     from .csvfile import (  # noqa: F401 (exported: __all__ is sorted(_LAZY))
         DEFAULT_ORIENTATION_COLUMNS,
-        JOINT_PREFIX,
-        LIMIT_MARGIN,
-        LIMIT_TOL,
-        MAX_COORDINATE,
         MAX_MEASUREMENTS_BYTES,
-        POSITION_COLUMNS,
-        QUATERNION_COLUMNS,
-        TOOL_COLUMN,
-        Angles,
         Columns,
-        DataWarning,
-        Measurements,
-        check_against_chain,
-        check_limits,
         csv_records,
-        joint_bounds,
         measurements_csv,
         parse_measurements,
         parse_number,
         read_measurements,
-        tool_frames,
         write_measurements,
+    )
+    from .data import (  # noqa: F401
+        JOINT_PREFIX,
+        MAX_COORDINATE,
+        POSITION_COLUMNS,
+        QUATERNION_COLUMNS,
+        TOOL_COLUMN,
+        Angles,
+        DataWarning,
+        Measurements,
+    )
+    from .limits import (  # noqa: F401
+        LIMIT_MARGIN,
+        LIMIT_TOL,
+        check_against_chain,
+        check_limits,
+        joint_bounds,
+        tool_frames,
     )
     from .simulation import Campaign, SimulationTruth, simulate  # noqa: F401
 

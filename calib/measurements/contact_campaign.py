@@ -23,21 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError
-from ..fileio import read_failure, read_text_limited, write_atomic
 from ..identification.contacts import Contact, contact_model, contact_postures
 from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
-from .csvfile import (
-    MAX_MEASUREMENTS_BYTES,
-    DataWarning,
-    check_limits,
-    csv_records,
-    joint_bounds,
-    parse_number,
-)
+from .csvfile import MAX_MEASUREMENTS_BYTES, csv_records, parse_number
+from .data import DataWarning
+from .limits import check_limits, joint_bounds
 
 ID_COLUMNS = {
     "plane": "plane",

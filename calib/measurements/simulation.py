@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import read_only
+from ..core.checks import read_only
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point
@@ -31,7 +31,7 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
-from .csvfile import Measurements
+from .data import Measurements
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
-from .csvfile import Measurements
+from .data import Measurements
 
 __all__ = ["TreeCampaign", "simulate_tree", "true_points"]
 

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.fileio import write_atomic
 from ..exceptions import InvalidArgumentError
-from ..fileio import write_atomic
 from ..identification.identifiability import Identifiability
 from .sweep import SweepRow
 

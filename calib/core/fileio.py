@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
-from .exceptions import InvalidArgumentError, OutputError
+from ..exceptions import InvalidArgumentError, OutputError
 
 __all__ = [
     "READ_CHUNK",

@@ -19,31 +19,11 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from . import __version__
-from .exceptions import CalibError
-from .kinematics.catalog import catalog
+from .. import __version__
+from ..exceptions import CalibError
+from .listing import catalog_listing
 
-__all__ = ["INTERRUPTED", "catalog_listing", "main"]
-
-
-def catalog_listing(as_json: bool) -> str:
-    """What ``calib list`` prints: the catalog as a table, or as JSON."""
-    import json
-
-    from .identification.table import format_table
-
-    if as_json:
-        robots = [e.__dict__ | {"path": str(e.path)} for e in catalog()]
-        return json.dumps({"robots": robots}, indent=2)
-    rows = [
-        [
-            e.name,
-            f"{e.base} -> {', '.join(e.tools)}",
-            e.description + (f" [{e.expect_error}]" if e.expect_error else ""),
-        ]
-        for e in catalog()
-    ]
-    return format_table(["name", "chain", "description"], rows)
+__all__ = ["INTERRUPTED", "main"]
 
 
 INTERRUPTED = 130
@@ -98,7 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             except BrokenPipeError:  # `calib list | head`: stop quietly
                 os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 0
-    from .cli.commands import main as full
+    from .commands import main as full
 
     return full(args)
 

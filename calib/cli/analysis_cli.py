@@ -1,0 +1,273 @@
+"""``calib list``, ``show``, ``analyze``, ``sweep`` and ``demo``: chains, trees, identifiability.
+
+What a chain or tree is and which of its parameters are identifiable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+from ..core.choices import PARAMETER_SETS
+from ..exceptions import InvalidArgumentError
+from ..identification.identifiability import analyze
+from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
+from ..kinematics.mdh import from_chain
+from ..kinematics.robot import load_chain
+from ..kinematics.tree import Tree, load_robot
+from ..kinematics.tree_model import from_tree
+from .common import (
+    add_chain_args,
+    add_measure_args,
+    add_sampling_args,
+    check_output_paths,
+    print_json,
+    tool_arg,
+    write_outputs,
+)
+from .listing import catalog_listing
+
+__all__ = [
+    "add_analysis_parsers",
+    "add_demo_parser",
+    "add_sweep_parser",
+    "cmd_analyze",
+    "cmd_demo",
+    "cmd_list",
+    "cmd_show",
+    "cmd_sweep",
+]
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    """Print the catalog."""
+    print(catalog_listing(args.json))
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    """Print the MDH table of a chain or tree."""
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    if chain.is_tree:
+        return _show_tree(chain, args.json)
+    mdh = from_chain(chain)
+    mimic = () if chain.coupling is None else chain.coupling.mimic
+    if args.json:
+        print_json(
+            {
+                "robot": chain.name,
+                "base": chain.base_frame,
+                "tool": chain.tool_frame,
+                "urdf": str(chain.urdf_path),
+                "frames": mdh.rows(),
+                "variables": list(chain.variable_names),
+                "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
+            }
+        )
+    else:
+        print(f"{chain.name}: {chain.base_frame} -> {chain.tool_frame} ({chain.urdf_path})")
+        print(mdh_table(mdh))
+        for line in coupling_lines(mimic):
+            print(line)
+    return 0
+
+
+def _show_tree(tree: Tree, as_json: bool) -> int:
+    model = from_tree(tree)
+    mimic = () if tree.coupling is None else tree.coupling.mimic
+    if as_json:
+        print_json(
+            {
+                "robot": tree.name,
+                "base": tree.base_frame,
+                "tools": list(tree.tool_frames),
+                "urdf": str(tree.urdf_path),
+                "frames": model.rows(),
+                "variables": list(tree.variable_names),
+                "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
+            }
+        )
+    else:
+        print(f"{tree.name}: {tree.base_frame} -> {model.tool_frame} ({tree.urdf_path})")
+        print(tree_table(model))
+        for line in coupling_lines(mimic):
+            print(line)
+    return 0
+
+
+def _analyze(args: argparse.Namespace):
+    return analyze(
+        args.robot,
+        args.base,
+        tool_arg(args),
+        args.measure,
+        args.marker,
+        args.params,
+        args.configs,
+        args.seed,
+    )
+
+
+def cmd_analyze(args: argparse.Namespace) -> int:
+    """Identifiable parameters of one chain."""
+    if args.markers is not None:
+        return _analyze_markers(args)
+    res = _analyze(args)
+    if args.json:
+        print_json(res.to_dict())
+    else:
+        print(analysis_text(res))
+    return 0
+
+
+def _analyze_markers(args: argparse.Namespace) -> int:
+    """What a calibration with K measured points (and free frame and markers) identifies."""
+    from ..calibration.counting import identifiable_parameters
+    from ..identification.kinds import kind_of
+
+    kind = kind_of(args.measure)
+    if not getattr(kind, "is_campaign", False):
+        raise InvalidArgumentError("--markers takes --measure position or pose")
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    if chain.is_tree:
+        raise InvalidArgumentError("--markers counts for one chain: give one --tool")
+    names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
+    if args.json:
+        print_json(
+            {
+                "robot": chain.name,
+                "markers": args.markers,
+                "measure": args.measure,
+                "n_identifiable": len(names),
+                "parameters": list(names),
+            }
+        )
+    else:
+        print(
+            f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
+            f"{args.measure}: {len(names)} identifiable parameters (measurement frame and "
+            f"markers free)"
+        )
+        print("  " + ", ".join(names))
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The main job on embedded defaults: the paper's robot and a UR5."""
+    print("== The paper's AID robot (Khalil & Gautier 1991), position measurement ==")
+    print(mdh_table(from_chain(load_chain("aid"))))
+    print()
+    print(analysis_text(analyze("aid", measure="position", params="paper")))
+    print()
+    print("== UR5, full pose measurement, complete parameter set ==")
+    print(analysis_text(analyze("ur5", measure="pose", params="complete")))
+    return 0
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Analyse every catalog chain and tree (and extra URDFs) and print one table."""
+    from tqdm import tqdm
+
+    from ..outputs.plots import counts_figure, figure_bytes, figure_format
+    from ..outputs.sweep import rows_table, rows_to_csv, sweep
+
+    def bar(jobs):
+        return tqdm(
+            jobs,
+            desc="calib sweep",
+            unit="chain",
+            file=sys.stderr,
+            leave=False,
+            disable=not sys.stderr.isatty(),
+        )
+
+    plot_format = figure_format(args.plot, "--plot") if args.plot else None
+    check_output_paths(
+        {"--csv": args.csv, "--plot": args.plot}, {f"the URDF {u}": u for u in args.urdf}
+    )
+    rows = sweep(
+        extra=args.urdf,
+        measure=args.measure,
+        marker=args.marker,
+        configs=args.configs,
+        seed=args.seed,
+        progress=bar,
+        params=args.params,
+    )
+    files: dict[Path, str | bytes] = {}
+    if args.csv:
+        files[Path(args.csv)] = rows_to_csv(rows)
+    if plot_format is not None:  # --plot given
+        title = f"Base parameters per chain, {args.measure} measurement"
+        files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
+    write_outputs(files)
+    if args.json:
+        print_json(
+            {
+                "measure": args.measure,
+                "params": args.params,
+                "rows": [dataclasses.asdict(r) for r in rows],
+            }
+        )
+    else:
+        print(rows_table(rows))
+        bad = sum(r.error is not None for r in rows)
+        print(
+            f"\n{len(rows)} chains and trees, {len(rows) - bad} analysed, {bad} with an error "
+            f"(reason in the last column); {args.measure}, verdict for the {args.params} set"
+        )
+    return 0
+
+
+def add_analysis_parsers(sub) -> None:
+    """``list``, ``show`` and ``analyze``."""
+    p = sub.add_parser("list", help="robots of the catalog")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_list)
+    p = sub.add_parser("show", help="modified-DH table of a chain or tree")
+    add_chain_args(p, trees=True)
+    p.add_argument("--json", action="store_true", help="print JSON (radians, metres)")
+    p.set_defaults(func=cmd_show)
+    p = sub.add_parser("analyze", help="identifiable (base) parameters of a chain or tree")
+    add_chain_args(p, trees=True)
+    add_measure_args(p)
+    p.add_argument(
+        "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
+    )
+    add_sampling_args(p, "m")
+    p.add_argument(
+        "--markers",
+        type=int,
+        help="count what a calibration identifies with K points measured per configuration "
+        "(frame and markers free)",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_analyze)
+
+
+def add_sweep_parser(sub) -> None:
+    """``sweep``."""
+    p = sub.add_parser(
+        "sweep", help="analyse every catalog chain and tree (and extra URDFs): one table"
+    )
+    p.add_argument("urdf", nargs="*", help="extra URDF files analysed after the catalog")
+    add_measure_args(p)
+    p.add_argument(
+        "--params",
+        default="paper",
+        choices=PARAMETER_SETS,
+        help="set the verdict is about (default: paper)",
+    )
+    add_sampling_args(p, "per chain")
+    p.add_argument("--csv", help="also write the table as CSV to this file ('-': stdout)")
+    p.add_argument("--plot", help="also save the counts plot to this .png, .svg or .pdf file")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_sweep)
+
+
+def add_demo_parser(sub) -> None:
+    """``demo``."""
+    p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
+    p.set_defaults(func=cmd_demo)

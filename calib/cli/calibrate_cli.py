@@ -1,0 +1,426 @@
+"""``calib calibrate``: calibration from a measurement CSV.
+
+Writes a calibrated URDF and a report (only the report for a refused model).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import warnings
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
+from ..core.choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.fileio import json_text, written_in_place
+from ..exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
+from ..identification.measures import CONTACT_NAMES
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree, load_robot
+from . import contact_cli
+from .common import (
+    BooleanOnce,
+    add_chain_args,
+    check_output_paths,
+    one_line,
+    tool_arg,
+    write_outputs,
+)
+
+__all__ = [
+    "CHAIN_ONLY",
+    "add_calibrate_parser",
+    "cmd_calibrate",
+    "compliance_path",
+]
+
+
+def _data_kind(args: argparse.Namespace):
+    """The kind ``--measure`` asks a calibration to use, or None for ``auto`` (the data's)."""
+    from ..identification.kinds import campaign_kind
+
+    return None if args.measure == "auto" else campaign_kind(args.measure)
+
+
+def _weight(text: str) -> float | None:
+    """``--orientation-weight``: a number [m/rad] or ``auto`` (None)."""
+    if text == "auto":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or auto, got '{text}'") from None
+
+
+def _columns(args: argparse.Namespace):
+    from ..measurements.csvfile import Columns
+
+    cols = tuple(args.orientation_columns) if args.orientation_columns else None
+    return Columns(args.orientation, cols, args.units)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report.
+
+    Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
+    the report's ``warnings`` too.
+    """
+    with _recorded_warnings() as recorded:
+        chain = load_robot(args.robot, args.base, tool_arg(args))
+        if contact_cli.is_contact_run(args):
+            return contact_cli.calibrate_contacts_command(args, chain)
+        if chain.is_tree:
+            return _calibrate_tree(args, chain, recorded)
+        return _calibrate_chain(args, chain, recorded)
+
+
+@contextlib.contextmanager
+def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
+    """The warnings raised inside, in a list that grows as they come; raised again after.
+
+    Raised again on the way out (an error included), so that :func:`main` prints them.
+    """
+    pending: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                yield caught
+            finally:
+                pending = list(caught)
+    finally:
+        for w in pending:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:
+    """The report with the recorded warnings added to its ``warnings`` (each once, in order)."""
+    lines = list(report.get("warnings", []))
+    for w in recorded:
+        text = one_line(w.message)
+        if issubclass(w.category, UserWarning) and text not in lines:
+            lines.append(text)
+    return {**report, "warnings": lines}
+
+
+def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
+    """`calibrate` with one tool."""
+    from ..calibration import calibrate  # only this command loads the calibration
+    from ..calibration.text import calibration_text
+    from ..kinematics.elastic import compliance_document
+    from ..measurements.csvfile import read_measurements
+
+    out, report = _calibration_outputs(args, chain.urdf_path)
+    comp = None if written_in_place(out) else compliance_path(out)
+    if comp is None and args.elastic:
+        raise InvalidArgumentError(
+            f"--out {out} is no regular file: --elastic writes the compliance file next to it"
+        )
+    check_output_paths(
+        {"--out": out, "--report": report, "the compliance file": comp},
+        {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
+    )
+    columns = _columns(args)
+    data = read_measurements(args.data, chain, columns)
+    _check_links(chain, data.n_markers, args.world_link)  # before the fit
+    check = read_measurements(args.validate, chain, columns) if args.validate else None
+    kind = _data_kind(args)
+    if kind is not None and kind.is_position:
+        data = data.position_only()
+        check = check.position_only() if check is not None else None
+    elif kind is not None and kind.is_pose and data.quaternion is None:
+        raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
+    result = calibrate(
+        chain,
+        data,
+        params=args.params or DEFAULT_LEVEL,
+        marker=args.marker,
+        validate=check,
+        fix=tuple(args.fix),
+        free=tuple(args.free),
+        elastic=args.elastic,
+        loss=args.loss,
+        noise_mm=args.noise_mm,
+        orientation_weight=args.orientation_weight,
+        max_iterations=args.max_iterations,
+        holdout=args.holdout,
+        seed=args.seed,
+    )
+
+    def files() -> dict[Path, str | bytes]:
+        try:
+            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+        except InvalidArgumentError as exc:  # the library names the keyword: say the flag
+            text = str(exc)
+            if not text.startswith("world_link:"):
+                raise
+            raise InvalidArgumentError(f"--world-link{text.removeprefix('world_link')}") from None
+        if result.elastic:
+            if comp is None:
+                raise InvalidArgumentError(
+                    f"--out {out} is no regular file: the fitted compliance cannot be written "
+                    f"next to it (give a file, or --no-elastic)"
+                )
+            urdf[comp] = json_text(compliance_document(result, str(out)))
+        return urdf
+
+    return _write_calibration(
+        args,
+        _with_warnings(result.to_dict(args.world_link), recorded),
+        lambda: calibration_text(result),
+        result.refusal,
+        files,
+        (out, report),
+    )
+
+
+def compliance_path(out: Path) -> Path:
+    """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
+    return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
+
+
+def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
+    """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
+    from ..kinematics.urdf_export import (
+        check_base_fixed,
+        check_exportable,
+        child_link,
+        edited_joints,
+        read_urdf_source,
+    )
+    from ..kinematics.urdf_links import check_new_names, marker_joints, marker_link_names
+
+    check_exportable(chain)
+    root = read_urdf_source(chain)[1]
+    tool_link = child_link(edited_joints(root, chain)[1])
+    kept = marker_joints(root, chain.tool_frame, tool_link, n_markers)
+    names = marker_link_names(chain.tool_frame, n_markers)
+    check_new_names(root, tuple(n for n in names if n not in kept), "marker links")
+    if world_link is not None:
+        check_new_names(root, (world_link,), "--world-link")
+        try:
+            check_base_fixed(chain)
+        except CalibError as exc:  # the library names the keyword: say the flag
+            raise CalibError(f"--world-link{str(exc).removeprefix('world_link')}") from None
+
+
+def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:
+    """``--out`` and ``--report``, refused now if they cannot be written or are inputs."""
+    out, report = Path(args.out), Path(args.report) if args.report else None
+    inputs = {"the nominal URDF": urdf, "the data (--data)": args.data}
+    if args.validate:
+        inputs["the validation data (--validate)"] = args.validate
+    check_output_paths({"--out": out, "--report": report}, inputs)
+    return out, report
+
+
+def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
+    """Print the result; write the URDF and report, or only the report of a refused model.
+
+    Args:
+        args: The command's arguments (``--json``).
+        report_dict: The JSON report.
+        text: Returns the text printed without ``--json``.
+        refusal: Why the model must not be written, or None.
+        urdf: Returns the files of an accepted model: the calibrated URDF (and the
+            compliance file) by path (called only for an accepted model).
+        paths: ``(--out, --report or None)``.
+
+    Raises:
+        CalibrationRefusedError: The model was refused (no URDF is written).
+    """
+    report = paths[1]
+    doc = json_text(report_dict)
+    print(doc if args.json else text(), end="" if args.json else "\n")
+    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
+    if refusal is not None:
+        write_outputs(files)
+        kept = f"; report written to {report}" if report is not None else ""
+        raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
+    written = {**urdf(), **files}
+    write_outputs(written)
+    if not args.json:
+        print(f"wrote {', '.join(str(p) for p in written)}")
+    return 0
+
+
+CHAIN_ONLY: dict[str, object] = {
+    "fix": [],
+    "free": [],
+    "elastic": None,
+    "loss": "linear",
+    "noise_mm": None,
+    "orientation_weight": None,
+    "marker": None,
+    "units": "m",
+    "orientation": "auto",
+    "orientation_columns": None,
+    "world_link": None,
+}
+"""Options of `calibrate` a tree calibration does not take, at their defaults."""
+
+
+def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
+    """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
+    from ..calibration.options import TREE_LEVELS
+    from ..calibration.tree_pipeline import calibrate_tree
+    from ..kinematics.tree_export import calibrated_tree_urdf
+    from ..kinematics.urdf_export import check_exportable
+    from ..measurements.csvfile import read_measurements
+
+    given = [k for k, v in CHAIN_ONLY.items() if getattr(args, k) != v]
+    if given:
+        raise InvalidArgumentError(
+            f"--{given[0].replace('_', '-')} is for one chain; a tree is calibrated with "
+            f"--params {'|'.join(TREE_LEVELS)}, --validate, --holdout, --seed, --max-iterations"
+        )
+    if args.params not in (None, *TREE_LEVELS):
+        raise InvalidArgumentError(
+            f"--params {args.params} is for one chain: a tree is calibrated with --params "
+            f"{' or '.join(TREE_LEVELS)} (default: complete)"
+        )
+    kind = _data_kind(args)
+    if kind is not None and kind.is_pose:
+        raise InvalidArgumentError(
+            "--measure pose is for one chain: a tree is calibrated from one point per row "
+            "(x, y, z and a tool)"
+        )
+    level = args.params or "complete"
+    out, report = _calibration_outputs(args, tree.urdf_path)
+    for chain in tree.chains:  # before the fit: a URDF it cannot be written to is known now
+        check_exportable(chain)
+    data = read_measurements(args.data, tree)
+    check = read_measurements(args.validate, tree) if args.validate else None
+    if kind is not None and kind.is_position:
+        data = data.position_only()
+        check = check.position_only() if check is not None else None
+    result = calibrate_tree(
+        tree,
+        data,
+        params=level,
+        validate=check,
+        holdout=args.holdout,
+        seed=args.seed,
+        max_iterations=args.max_iterations,
+    )
+    return _write_calibration(
+        args,
+        _with_warnings(result.to_dict(), recorded),
+        result.text,
+        result.refusal,
+        lambda: {
+            out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh, result.state.markers)
+        },
+        (out, report),
+    )
+
+
+def add_calibrate_parser(sub) -> None:
+    """``calibrate``."""
+    p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
+    add_chain_args(p, trees=True)
+    p.add_argument("--data", required=True, help="measurement CSV (joints, x y z or x1..zK, ...)")
+    p.add_argument("--out", required=True, help="calibrated URDF to write")
+    p.add_argument("--report", help="JSON report to write (also when the model is refused)")
+    p.add_argument(
+        "--marker",
+        nargs="+",
+        type=float,
+        metavar="X",
+        help="guess of the marker(s) in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
+    )
+    p.add_argument(
+        "--measure",
+        choices=("auto", *CAMPAIGN_MEASURES, *CONTACT_NAMES),
+        default="auto",
+        help="auto: pose when the CSV has orientation columns, else position; or a contact "
+        "(no coordinates in the CSV) (default: auto)",
+    )
+    contact_cli.add_contact_arguments(p)
+    p.add_argument(
+        "--params",
+        choices=LEVELS,
+        default=None,
+        help="parameter level: auto keeps what the data support (cross-validated); frames = "
+        "measurement frame + markers; offsets adds joint offsets; paper, complete (default: "
+        "auto; a tree takes frames or complete, default complete)",
+    )
+    p.add_argument(
+        "--fix",
+        nargs="+",
+        default=[],
+        metavar="NAME",
+        help="parameters (or frame, markers, tool) held at their start",
+    )
+    p.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
+    p.add_argument(
+        "--elastic",
+        action=BooleanOnce,
+        default=None,
+        help="fit joint compliance under gravity, which the URDF cannot hold (default: no; "
+        "needs the URDF's masses)",
+    )
+    p.add_argument(
+        "--validate", help="measurement CSV of other configurations: score the result on it"
+    )
+    p.add_argument(
+        "--holdout",
+        type=float,
+        default=0.0,
+        help="fraction of the rows set aside for validation (default: 0)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    p.add_argument(
+        "--loss",
+        choices=LOSSES,
+        default="linear",
+        help="linear, or a robust loss (default: linear)",
+    )
+    p.add_argument(
+        "--noise-mm",
+        type=float,
+        help="instrument noise [mm]: scale of the robust loss and of the outlier test",
+    )
+    p.add_argument(
+        "--units",
+        choices=tuple(UNITS),
+        default="m",
+        help="unit of the position columns (default: m)",
+    )
+    p.add_argument(
+        "--orientation",
+        choices=("auto", MARKERS, *ORIENTATION_FORMATS),
+        default="auto",
+        help="orientation columns: quaternion (xyzw or wxyz), rotation vector or rpy; "
+        "markers: the x1..zK points (K >= 3) of one rigid set read as marker 1's position "
+        "and the set's orientation (default: from the column names)",
+    )
+    p.add_argument(
+        "--orientation-columns",
+        nargs="+",
+        metavar="COL",
+        help="names of the orientation columns, in the format's order",
+    )
+    p.add_argument(
+        "--orientation-weight",
+        type=_weight,
+        default=None,
+        metavar="W|auto",
+        help="weight of the orientation rows [m/rad] (default: auto, the ratio of the "
+        "position and orientation errors of the registration, estimated until it settles)",
+    )
+    p.add_argument(
+        "--max-iterations",
+        type=int,
+        default=DEFAULT_MAX_ITERATIONS,
+        help=f"most residual evaluations of each fit (default: {DEFAULT_MAX_ITERATIONS})",
+    )
+    p.add_argument(
+        "--world-link",
+        metavar="NAME",
+        help="also write the measurement frame as link NAME, the new root of the URDF: forward "
+        "kinematics from NAME gives measured coordinates",
+    )
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(func=cmd_calibrate)

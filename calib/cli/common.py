@@ -1,0 +1,225 @@
+"""What the command modules share.
+
+The parser and its actions (an option given once), the argument builders, output checks and
+writing, JSON printing and the warning lines.
+
+Imports none of the command modules.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import NoReturn
+
+from ..core.choices import DEFAULT_CONFIGS
+from ..core.fileio import check_outputs, write_files_atomic
+from ..kinematics.catalog import catalog_files, installed_dirs
+
+__all__ = [
+    "GIVEN",
+    "BooleanOnce",
+    "Parser",
+    "add_chain_args",
+    "add_marker_arg",
+    "add_measure_args",
+    "add_sampling_args",
+    "check_output_paths",
+    "given_options",
+    "one_line",
+    "positive_number",
+    "print_json",
+    "tool_arg",
+    "warning_lines",
+    "write_outputs",
+]
+
+
+GIVEN = "_calib_given"
+"""Namespace attribute where the actions note the options given (dest: option string);
+:func:`main` moves it to ``args.given``, where a command checks which options were given."""
+
+
+def _note_given(parser, namespace, dest: str, option_string: str | None) -> None:
+    """Record an option as given; the same option (or its opposite) given again is an error."""
+    given = vars(namespace).setdefault(GIVEN, {})
+    if option_string is not None and dest in given:
+        first = given[dest]
+        what = "given more than once" if first == option_string else f"contradicts {first}"
+        parser.error(f"argument {option_string}: {what} (give it once)")
+    given[dest] = option_string
+
+
+class _StoreOnce(argparse._StoreAction):
+    """A value option given twice is an error (argparse would silently keep the last)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        _note_given(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class _StoreTrueOnce(argparse._StoreTrueAction):
+    """A flag given twice is an error, like a value option."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        _note_given(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class BooleanOnce(argparse.BooleanOptionalAction):
+    """``--x`` / ``--no-x`` given once: both, or one twice, is a usage error."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        """Note the option, then set it."""
+        _note_given(parser, namespace, self.dest, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class _AppendNoted(argparse._AppendAction):
+    """A repeatable option (``--tool``, ``--obstacle``): repeats allowed, noted as given."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        vars(namespace).setdefault(GIVEN, {})[self.dest] = option_string
+        super().__call__(parser, namespace, values, option_string)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (like every other calib error), no repeated value."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.register("action", None, _StoreOnce)
+        self.register("action", "store", _StoreOnce)
+        self.register("action", "store_true", _StoreTrueOnce)
+        self.register("action", "append", _AppendNoted)
+
+    def error(self, message: str) -> NoReturn:
+        """Exit with one usage line (exit status 2)."""
+        self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
+
+
+def given_options(args: argparse.Namespace, dests) -> list[str]:
+    """The options among ``dests`` (argparse dests) the user gave, as typed (``--no-x``)."""
+    given = getattr(args, "given", {})
+    return [given[d] for d in dests if given.get(d)]
+
+
+def positive_number(text: str) -> float:
+    """The type of a positive option: a finite number > 0 (else a usage error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got '{text}'")
+    return value
+
+
+def print_json(obj: dict) -> None:
+    """Print a JSON document (indented)."""
+    print(json.dumps(obj, indent=2))
+
+
+def tool_arg(args: argparse.Namespace) -> str | tuple[str, ...] | None:
+    """``--tool`` of a command that takes several: None, one name, or several (a tree)."""
+    if args.tool is None or isinstance(args.tool, str):
+        return args.tool
+    return args.tool[0] if len(args.tool) == 1 else tuple(args.tool)
+
+
+def write_outputs(files: dict[Path, str | bytes]) -> None:
+    """Write output files (atomically for regular files; one-line OutputError on failure)."""
+    write_files_atomic(files)
+
+
+def check_output_paths(
+    outputs: Mapping[str, Path | str | None], inputs: Mapping[str, Path | str | None]
+) -> None:
+    """Refuse now, in one line, outputs that cannot be written or would overwrite a file.
+
+    The files protected: the command's inputs, the installed catalog's files, every file of
+    the installed packages calib reads (:func:`~calib.kinematics.catalog.installed_dirs`), the other
+    outputs.
+    """
+    check_outputs(outputs, {**inputs, **catalog_files()}, installed_dirs())
+
+
+def add_chain_args(p: argparse.ArgumentParser, trees: bool = False) -> None:
+    """The robot, ``--base`` and ``--tool`` options (``--tool`` repeatable with ``trees``)."""
+    p.add_argument("robot", help="catalog name (see `calib list`) or path to a URDF file")
+    p.add_argument("--base", help="base frame (default: the catalog's, or the URDF root link)")
+    if trees:
+        p.add_argument(
+            "--tool",
+            action="append",
+            help="tool frame; give it several times for a tree: the chains to each tool, "
+            "shared joints once (default: the catalog's tool or tools, or the deepest tip)",
+        )
+    else:
+        p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
+
+
+def add_marker_arg(p: argparse.ArgumentParser) -> None:
+    """The ``--marker X Y Z`` option."""
+    p.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m] (default: the tool origin)",
+    )
+
+
+def add_sampling_args(p: argparse.ArgumentParser, what: str) -> None:
+    """The ``--configs`` and ``--seed`` options of random configurations."""
+    p.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations {what} (default: {DEFAULT_CONFIGS})",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
+
+
+def add_measure_args(p: argparse.ArgumentParser) -> None:
+    """The ``--measure`` and ``--marker`` options."""
+    p.add_argument(
+        "--measure",
+        default="pose",
+        help="pose, position, comma-separated rows among x,y,z,rx,ry,rz, or a contact: plane, "
+        "plane-point, fixed-point, fixed-pose (default: pose)",
+    )
+    add_marker_arg(p)
+
+
+def one_line(message: object) -> str:
+    """A message on one line: control characters (line breaks included) shown escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(message))
+
+
+def warning_lines(caught: Sequence[warnings.WarningMessage]) -> list[str]:
+    """The warnings a user sees, one line each, each distinct message once.
+
+    calib's own warnings and other ``UserWarning`` subclasses, and the ``RuntimeWarning``
+    subclasses of numpy and scipy (overflow, invalid value, an ill-conditioned matrix), which
+    say something about the numbers printed: those name their source. Warnings about the code
+    itself (deprecations, imports, resources) are left out.
+    """
+    seen: dict[str, int] = {}
+    for w in caught:
+        if not issubclass(w.category, UserWarning | RuntimeWarning):
+            continue
+        text = one_line(w.message)
+        path = os.path.normpath(w.filename or "").split(os.sep)
+        source = next((s for s in ("numpy", "scipy") if s in path), None)
+        if source or not issubclass(w.category, UserWarning):
+            text = f"{w.category.__name__}{f' from {source}' if source else ''}: {text}"
+        seen[text] = seen.get(text, 0) + 1
+    return [
+        f"calib: warning: {text}" + (f" ({count} times)" if count > 1 else "")
+        for text, count in seen.items()
+    ]

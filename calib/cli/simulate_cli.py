@@ -1,0 +1,233 @@
+"""``calib simulate``: a simulated measurement campaign (CSV and true errors).
+
+Of a chain, a tree, or contacts (joints only).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..core.choices import CAMPAIGN_MEASURES, CONTACT_MEASURES, DEFAULT_CONFIGS, PARAMETER_SETS
+from ..core.fileio import json_text, written_in_place
+from ..exceptions import InvalidArgumentError
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree, load_robot
+from .common import add_chain_args, add_marker_arg, check_output_paths, tool_arg, write_outputs
+
+if TYPE_CHECKING:
+    import numpy as np
+
+__all__ = [
+    "add_simulate_parser",
+    "cmd_simulate",
+]
+
+
+def _simulate_contacts(args: argparse.Namespace) -> int:
+    """``calib simulate --measure plane|...``: touches of the true robot, joints only."""
+    from ..measurements.contact_campaign import contacts_csv, simulate_contacts
+
+    for given, option in (
+        (args.marker is not None, "--marker"),
+        (args.configs_file is not None, "--configs-file"),
+        (args.noise_mm != 0.0, "--noise-mm"),
+    ):
+        if given:
+            raise InvalidArgumentError(
+                f"{option} is for measured campaigns: a contact records the joints alone "
+                f"(--noise-mrad: the joints' noise)"
+            )
+    out = Path(args.out)
+    if args.truth is None and written_in_place(out):
+        raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    if chain.is_tree:
+        raise InvalidArgumentError("a contact campaign is simulated on one chain: one --tool")
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    campaign = simulate_contacts(
+        chain,
+        args.configs,
+        args.measure,
+        contacts=args.contacts,
+        error_mm=args.error_mm,
+        error_mrad=args.error_mrad,
+        noise_mrad=args.noise_mrad or 0.0,
+        seed=args.seed,
+        params=args.params,
+    )
+    truth = campaign.truth
+    write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
+    print(
+        f"{chain.name}: {campaign.data.m} touches, measure {args.measure}, "
+        f"{len(campaign.data.contacts)} {campaign.data.id_column}(s), {len(truth.params)} "
+        f"{truth.params.label} parameters perturbed ({truth.error_mm:g} mm, "
+        f"{truth.error_mrad:g} mrad), joint noise {truth.noise_mrad:g} mrad, seed {truth.seed}"
+    )
+    print(f"wrote {out} and {truth_path} (true errors and {campaign.data.id_column}s)")
+    return 0
+
+
+def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
+    """``simulate``'s configurations: ``--configs`` random ones, or ``--configs-file``'s."""
+    if not args.configs_file:
+        return args.configs
+    from ..design.configurations import read_configurations
+
+    return read_configurations(args.configs_file, robot)
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
+    from ..identification.kinds import campaign_kind
+    from ..measurements.csvfile import measurements_csv
+    from ..measurements.simulation import simulate
+
+    if args.measure in CONTACT_MEASURES:
+        return _simulate_contacts(args)
+    kind = campaign_kind(args.measure, args.marker)
+    out = Path(args.out)
+    if args.truth is None and written_in_place(out):
+        raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    chain = load_robot(args.robot, args.base, tool_arg(args))
+    if chain.is_tree and not kind.is_position:
+        raise InvalidArgumentError("a tree campaign measures positions: add --measure position")
+    check_output_paths(
+        {"--out": out, "--truth": truth_path},
+        {"the URDF": chain.urdf_path, "--configs-file": args.configs_file},
+    )
+    configs = _configs(args, chain)
+    if chain.is_tree:
+        return _simulate_tree(args, chain, configs, (out, truth_path))
+    campaign = simulate(
+        chain,
+        configs,
+        kind,
+        None,
+        args.error_mm,
+        args.error_mrad,
+        args.noise_mm,
+        args.noise_mrad,
+        args.seed,
+        args.params,
+    )
+    truth = campaign.truth
+    write_outputs(
+        {out: measurements_csv(campaign.measurements), truth_path: json_text(truth.to_dict())}
+    )
+    print(
+        f"{chain.name}: {campaign.measurements.m} configurations, measure {args.measure}, "
+        f"{len(truth.params)} {truth.params.label} parameters perturbed "
+        f"({truth.error_mm:g} mm, {truth.error_mrad:g} mrad), noise {truth.noise_mm:g} mm"
+        + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
+        + f", seed {truth.seed}"
+    )
+    print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
+    return 0
+
+
+def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
+    """`simulate` with several tools: every tool at each configuration, a ``tool`` column.
+
+    ``configs``: a count or joint positions; ``paths``: ``(--out, --truth)``, checked.
+    """
+    from ..measurements.csvfile import measurements_csv
+    from ..measurements.tree_campaign import simulate_tree
+
+    out, truth_path = paths
+    camp = simulate_tree(
+        tree,
+        configs,
+        args.marker,
+        args.error_mm,
+        args.error_mrad,
+        args.noise_mm,
+        args.seed,
+        args.params,
+    )
+    truth = {
+        "robot": tree.name,
+        "base_frame": tree.base_frame,
+        "tools": list(tree.tool_frames),
+        "params": camp.params.label,
+        "errors": dict(zip(camp.params.names, camp.errors.tolist(), strict=True)),
+        "markers": camp.markers.tolist(),
+        "seed": args.seed,
+    }
+    write_outputs({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
+    print(
+        f"{tree.name}: {camp.measurements.m // tree.n_tools} configurations x {tree.n_tools} tools "
+        f"({', '.join(tree.tool_frames)}), {len(camp.params)} {camp.params.label} parameters "
+        f"perturbed ({args.error_mm:g} mm, {args.error_mrad:g} mrad), noise {args.noise_mm:g} mm"
+    )
+    print(f"wrote {out} and {truth_path}")
+    return 0
+
+
+def add_simulate_parser(sub) -> None:
+    """``simulate``."""
+    p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
+    add_chain_args(p, trees=True)
+    p.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
+    p.add_argument(
+        "--truth",
+        help="JSON of the true errors (default: OUT with .truth.json; needed if OUT is '-')",
+    )
+    p.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations m (default: {DEFAULT_CONFIGS})",
+    )
+    p.add_argument(
+        "--configs-file",
+        help="CSV of the configurations to simulate (joint columns, e.g. from calib design)",
+    )
+    p.add_argument(
+        "--measure",
+        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES),
+        default="pose",
+        help="pose (point + orientation), position, or a contact: touches recorded by the "
+        "joints alone, on the true robot (default: pose)",
+    )
+    add_marker_arg(p)
+    p.add_argument(
+        "--contacts",
+        type=int,
+        default=1,
+        help="planes or points the touches share, with --measure plane|... (default: 1)",
+    )
+    p.add_argument(
+        "--params",
+        choices=PARAMETER_SETS,
+        default="complete",
+        help="parameter set perturbed (default: complete)",
+    )
+    p.add_argument(
+        "--error-mm", type=float, default=1.0, help="std of every length error [mm] (default: 1)"
+    )
+    p.add_argument(
+        "--error-mrad", type=float, default=1.0, help="std of every angle error [mrad] (default: 1)"
+    )
+    p.add_argument(
+        "--noise-mm",
+        type=float,
+        default=0.0,
+        help="std of the position noise per axis [mm] (default: 0)",
+    )
+    p.add_argument(
+        "--noise-mrad",
+        type=float,
+        default=None,
+        help="std of the orientation noise per axis [mrad] (default: NOISE_MM)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the configurations, errors and noise (default: 0)",
+    )
+    p.set_defaults(func=cmd_simulate)
