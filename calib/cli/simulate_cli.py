@@ -44,7 +44,7 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    if isinstance(chain, Tree):
+    if chain.is_tree:
         raise InvalidArgumentError("a contact campaign is simulated on one chain: one --tool")
     check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
     campaign = simulate_contacts(
