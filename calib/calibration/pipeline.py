@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import time
 import warnings
-from collections.abc import Callable
 from typing import overload
 
 import numpy as np
@@ -20,12 +18,12 @@ from ..kinematics.so3 import matrix_to_quaternion
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
-from . import determined, diagnosis, outliers, validation, weighting
+from . import determined, validation
+from .chain_registration import checked_registration, frames_model
 from .contact_pipeline import calibrate_contact_data
 from .contact_result import ContactCalibration
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, Options, checked_arguments
-from .registration import register
 from .result import CalibrationResult, ResidualStats, Validation
 from .selection import Selection, select
 from .solve import Fit, condition, covariance, fit, row_weights
@@ -207,7 +205,7 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
     nominal = from_chain(chain)
     guess = _marker_guess(marker, train.n_markers)
     checked = held if validate is not None else None
-    opts, reg, train, dropped, notes = _checked_registration(
+    opts, reg, train, dropped, notes = checked_registration(
         chain, nominal, train, checked, guess, opts
     )
     clock.append(time.perf_counter())
@@ -250,7 +248,7 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
     determined.check_equations(
         data.m - out,
         3 * data.n_markers + 3 * (data.quaternion is not None),
-        _frames_model(data, opts).size(),
+        frames_model(data, opts).size(),
         "measurement frame and marker parameters",
         data.source,
         held=out,
@@ -283,175 +281,6 @@ def _marker_guess(marker, k: int) -> np.ndarray:
     if len(mk) != k:
         raise InvalidArgumentError(f"{len(mk)} marker guesses for {k} measured points")
     return mk
-
-
-def _frames_model(data: Measurements, opts: Options) -> ErrorModel:
-    """The registration's free parameters: frame, markers (and measured-frame rotation)."""
-    return ErrorModel(
-        ParameterSet("none", ()),
-        (),
-        np.zeros((0, 0)),
-        (),
-        frame="frame" not in opts.fix,
-        markers="markers" not in opts.fix,
-        tool="tool" not in opts.fix,
-        n_markers=data.n_markers,
-        pose=data.quaternion is not None,
-    )
-
-
-def _registration(nominal, data, guess, opts) -> Fit:
-    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only)."""
-    start = register(nominal, data.q, data.points, data.rotations, guess)
-    if "frame" in opts.fix:
-        start = dataclasses.replace(start, frame=np.eye(4))
-    if "markers" in opts.fix:
-        start = dataclasses.replace(start, markers=guess)
-    return fit(
-        _frames_model(data, opts),
-        start,
-        data,
-        None,
-        opts.orientation_weight,
-        max_iterations=opts.max_iterations,
-    )
-
-
-def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
-    """The registration of one data set at an orientation weight, each weight run once."""
-
-    @functools.cache
-    def at(weight: float) -> Fit:
-        w_opts = dataclasses.replace(opts, orientation_weight=weight)
-        return _registration(nominal, data, guess, w_opts)
-
-    return at
-
-
-def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
-    """Raise the likely mistake if the data cannot be registered; a note if none explains it.
-
-    It runs at the default orientation weight: an estimated weight would let wrong
-    orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
-    points are diagnosed first, then the orientations (on the orientation error).
-    """
-    opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
-
-    def errors(d):
-        return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
-
-    first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None)
-    revolute = chain.sigma == 0
-    if diagnosis.suspect(first.position_rms, opts.noise):
-        still = diagnosis.constant_joints(data)
-        if still:
-            raise DataError(
-                data.source,
-                f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS and joint "
-                f"column(s) {', '.join(still)} hold one value in every row: were those joints "
-                f"logged?",
-            )
-        cause = diagnosis.likely_cause(
-            data, revolute, lambda d: errors(d).position_rms, first.position_rms
-        )
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration error drops from "
-                f"{1e3 * first.position_rms:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once "
-                f"corrected",
-            )
-        return [
-            f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS, far above "
-            f"geometric errors, and no usual mistake (swapped joint columns, degrees, "
-            f"millimetres, quaternion order) explains it: check the data and the chain"
-        ]
-    rot = first.orientation_rms
-    if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
-        cause = diagnosis.likely_cause(
-            data, revolute, lambda d: errors(d).orientation_rms, rot, orientation=True
-        )
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration's orientation error drops "
-                f"from {np.degrees(rot):.4g} deg to {np.degrees(cause[1]):.4g} deg RMS once "
-                f"corrected",
-            )
-        return [
-            f"the registration leaves {np.degrees(rot):.4g} deg RMS of orientation error, far "
-            f"above geometric errors, and no usual mistake (quaternion order, degrees, rpy "
-            f"order) explains it: check the orientation columns"
-        ]
-    return []
-
-
-def _checked_registration(chain, nominal, train, checked, guess, opts):
-    """Diagnosis (data and validation data ``checked``), weight, registration, outliers.
-
-    Returns:
-        The options with the orientation weight, the registration state, the rows kept,
-        the outliers and the notes.
-    """
-    at = _registrations(nominal, train, guess, opts)
-    suspect = _diagnose(chain, nominal, train, guess, opts, at)
-    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
-    opts = _weighted(train, opts, at)
-    notes: list[str] = []
-    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
-    if dropped and not diagnosis.suspect(
-        validation.stats(reg, train, None).position_rms, opts.noise
-    ):
-        suspect = []  # the outliers were the trouble: the rows left are fine
-    return opts, reg, train, dropped, suspect + diagnosed + notes
-
-
-def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
-    """The diagnosis of validation data (``held``: (data, label) or None), noted by label."""
-    if held is None:
-        return []
-    frames = _frames_model(held[0], opts)
-    if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
-        return []
-    at = _registrations(nominal, held[0], guess, opts)
-    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, held[0], guess, opts, at)]
-
-
-def _weighted(data, opts: Options, at) -> Options:
-    """The options with the orientation weight: given, or estimated from the registration."""
-    if opts.orientation_weight is not None:
-        return opts
-    weight = weighting.DEFAULT_WEIGHT
-    if data.quaternion is not None:
-        weight = weighting.estimate_weight(lambda w: at(w).state.residuals(data), data.n_markers)
-    return dataclasses.replace(opts, orientation_weight=weight)
-
-
-def _register(nominal, data, guess, opts, notes: list[str], at):
-    """Registration (``at``: the data set's registrations by weight), outlier rows set aside."""
-    reg = at(opts.orientation_weight)
-    dropped: list[outliers.Outlier] = []
-    for _ in range(outliers.PASSES):  # one registration per data set
-        rows = data.rows or tuple(range(1, data.m + 1))
-        bad, found = outliers.find_pose_outliers(
-            reg.state.residuals(data), data.n_markers, opts.noise, rows
-        )
-        if not np.any(bad):
-            break
-        dropped += found
-        data = data.subset(~bad)
-        frames = _frames_model(data, opts)
-        what = "measurement frame and marker parameters once the outliers are set aside"
-        determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
-        reg = _registration(nominal, data, guess, opts)
-    if dropped:
-        notes.append(
-            f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
-            + ", ".join(o.text() for o in dropped)
-        )
-    if not reg.converged:
-        raise DataError(data.source, f"the registration did not converge ({reg.message})")
-    return reg.state, data, tuple(dropped)
 
 
 def _torques(chain, opts, train, held):
@@ -493,7 +322,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     pset, names = level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
     joints = [j for j in joints if compliance_name(j) not in opts.fix]
-    base = _frames_model(data, opts)
+    base = frames_model(data, opts)
     ordered = tuple(
         pset.names[i] for i in preference_order(nominal, pset) if pset.names[i] in names
     )

@@ -1,0 +1,195 @@
+"""A chain calibration's registration: the measurement frame and markers on the nominal model.
+
+The registration is the closed-form fit refined by Levenberg-Marquardt (frame and markers only),
+preceded by the diagnosis of the usual mistakes in the data (swapped joint columns, degrees,
+millimetres, quaternion order) and followed by the outlier rows set aside. The orientation
+weight is estimated from it when not given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Callable
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..identification.parameters import ParameterSet
+from ..measurements.csvfile import Measurements
+from . import determined, diagnosis, outliers, validation, weighting
+from .model import ErrorModel
+from .options import Options
+from .registration import register
+from .solve import Fit, fit
+
+__all__ = ["checked_registration", "frames_model"]
+
+
+def frames_model(data: Measurements, opts: Options) -> ErrorModel:
+    """The registration's free parameters: frame, markers (and measured-frame rotation)."""
+    return ErrorModel(
+        ParameterSet("none", ()),
+        (),
+        np.zeros((0, 0)),
+        (),
+        frame="frame" not in opts.fix,
+        markers="markers" not in opts.fix,
+        tool="tool" not in opts.fix,
+        n_markers=data.n_markers,
+        pose=data.quaternion is not None,
+    )
+
+
+def _registration(nominal, data, guess, opts) -> Fit:
+    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only)."""
+    start = register(nominal, data.q, data.points, data.rotations, guess)
+    if "frame" in opts.fix:
+        start = dataclasses.replace(start, frame=np.eye(4))
+    if "markers" in opts.fix:
+        start = dataclasses.replace(start, markers=guess)
+    return fit(
+        frames_model(data, opts),
+        start,
+        data,
+        None,
+        opts.orientation_weight,
+        max_iterations=opts.max_iterations,
+    )
+
+
+def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
+    """The registration of one data set at an orientation weight, each weight run once."""
+
+    @functools.cache
+    def at(weight: float) -> Fit:
+        w_opts = dataclasses.replace(opts, orientation_weight=weight)
+        return _registration(nominal, data, guess, w_opts)
+
+    return at
+
+
+def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
+    """Raise the likely mistake if the data cannot be registered; a note if none explains it.
+
+    It runs at the default orientation weight: an estimated weight would let wrong
+    orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
+    points are diagnosed first, then the orientations (on the orientation error).
+    """
+    opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
+
+    def errors(d):
+        return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
+
+    first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None)
+    revolute = chain.sigma == 0
+    if diagnosis.suspect(first.position_rms, opts.noise):
+        still = diagnosis.constant_joints(data)
+        if still:
+            raise DataError(
+                data.source,
+                f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS and joint "
+                f"column(s) {', '.join(still)} hold one value in every row: were those joints "
+                f"logged?",
+            )
+        cause = diagnosis.likely_cause(
+            data, revolute, lambda d: errors(d).position_rms, first.position_rms
+        )
+        if cause is not None:
+            raise DataError(
+                data.source,
+                f"the data look like {cause[0]}: the registration error drops from "
+                f"{1e3 * first.position_rms:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once "
+                f"corrected",
+            )
+        return [
+            f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS, far above "
+            f"geometric errors, and no usual mistake (swapped joint columns, degrees, "
+            f"millimetres, quaternion order) explains it: check the data and the chain"
+        ]
+    rot = first.orientation_rms
+    if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
+        cause = diagnosis.likely_cause(
+            data, revolute, lambda d: errors(d).orientation_rms, rot, orientation=True
+        )
+        if cause is not None:
+            raise DataError(
+                data.source,
+                f"the data look like {cause[0]}: the registration's orientation error drops "
+                f"from {np.degrees(rot):.4g} deg to {np.degrees(cause[1]):.4g} deg RMS once "
+                f"corrected",
+            )
+        return [
+            f"the registration leaves {np.degrees(rot):.4g} deg RMS of orientation error, far "
+            f"above geometric errors, and no usual mistake (quaternion order, degrees, rpy "
+            f"order) explains it: check the orientation columns"
+        ]
+    return []
+
+
+def checked_registration(chain, nominal, train, checked, guess, opts):
+    """Diagnosis (data and validation data ``checked``), weight, registration, outliers.
+
+    Returns:
+        The options with the orientation weight, the registration state, the rows kept,
+        the outliers and the notes.
+    """
+    at = _registrations(nominal, train, guess, opts)
+    suspect = _diagnose(chain, nominal, train, guess, opts, at)
+    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
+    opts = _weighted(train, opts, at)
+    notes: list[str] = []
+    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
+    if dropped and not diagnosis.suspect(
+        validation.stats(reg, train, None).position_rms, opts.noise
+    ):
+        suspect = []  # the outliers were the trouble: the rows left are fine
+    return opts, reg, train, dropped, suspect + diagnosed + notes
+
+
+def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
+    """The diagnosis of validation data (``held``: (data, label) or None), noted by label."""
+    if held is None:
+        return []
+    frames = frames_model(held[0], opts)
+    if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
+        return []
+    at = _registrations(nominal, held[0], guess, opts)
+    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, held[0], guess, opts, at)]
+
+
+def _weighted(data, opts: Options, at) -> Options:
+    """The options with the orientation weight: given, or estimated from the registration."""
+    if opts.orientation_weight is not None:
+        return opts
+    weight = weighting.DEFAULT_WEIGHT
+    if data.quaternion is not None:
+        weight = weighting.estimate_weight(lambda w: at(w).state.residuals(data), data.n_markers)
+    return dataclasses.replace(opts, orientation_weight=weight)
+
+
+def _register(nominal, data, guess, opts, notes: list[str], at):
+    """Registration (``at``: the data set's registrations by weight), outlier rows set aside."""
+    reg = at(opts.orientation_weight)
+    dropped: list[outliers.Outlier] = []
+    for _ in range(outliers.PASSES):  # one registration per data set
+        rows = data.rows or tuple(range(1, data.m + 1))
+        bad, found = outliers.find_pose_outliers(
+            reg.state.residuals(data), data.n_markers, opts.noise, rows
+        )
+        if not np.any(bad):
+            break
+        dropped += found
+        data = data.subset(~bad)
+        frames = frames_model(data, opts)
+        what = "measurement frame and marker parameters once the outliers are set aside"
+        determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
+        reg = _registration(nominal, data, guess, opts)
+    if dropped:
+        notes.append(
+            f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
+            + ", ".join(o.text() for o in dropped)
+        )
+    if not reg.converged:
+        raise DataError(data.source, f"the registration did not converge ({reg.message})")
+    return reg.state, data, tuple(dropped)
