@@ -4,14 +4,18 @@ Medians of in-process calls on preloaded chains, 100 postures (the default): the
 ``analyze`` (conversion, projection of random configurations onto the contact, Jacobian,
 QR) and its projection step alone. The chains: UR5, Panda, TIAGo's arm, and TALOS from the
 left foot up the leg backwards to the left gripper (15 joints; issue 21's target: ``plane``
-under 50 ms) and to the right foot (12 joints, the closed loop of two feet).
+under 50 ms) and to the right foot (12 joints, the closed loop of two feet). The machine is
+shared: the CPU time of the process (``time.process_time``, one BLAS thread) is reported beside
+the wall time, which other processes inflate.
 
 Run: .venv/bin/python benchmarks/bench_contacts.py
 """
 
 from __future__ import annotations
 
+import statistics
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -48,6 +52,17 @@ def projection_ms(chain, mdh, kind: str) -> float:
     return median_ms(run, REPEATS, 1)
 
 
+def cpu_ms(fn, repeats: int) -> float:
+    """Median CPU time of ``fn()`` over ``repeats`` calls [ms], after one warm-up."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        fn()
+        times.append(time.process_time() - c0)
+    return 1e3 * statistics.median(times)
+
+
 def main() -> None:
     rows = []
     for name, base, tool in ROBOTS:
@@ -55,9 +70,12 @@ def main() -> None:
         mdh = from_chain(chain).idealized()
         label = name if tool is None else f"{name} {base} -> {tool}"
         for kind in KINDS:
-            whole = median_ms(lambda c=chain, k=kind: analyze(c, measure=k), REPEATS, 1)
-            rows.append((label, kind, f"{whole:.1f}", f"{projection_ms(chain, mdh, kind):.1f}"))
-    print(table(["chain", "measure", "analyze [ms]", "projection [ms]"], rows))
+            run = lambda c=chain, k=kind: analyze(c, measure=k)  # noqa: E731
+            whole, cpu = median_ms(run, REPEATS, 1), cpu_ms(run, REPEATS)
+            projection = projection_ms(chain, mdh, kind)
+            rows.append((label, kind, f"{whole:.1f}", f"{cpu:.1f}", f"{projection:.1f}"))
+    heads = ["chain", "measure", "analyze wall [ms]", "analyze CPU [ms]", "projection [ms]"]
+    print(table(heads, rows))
 
 
 if __name__ == "__main__":
