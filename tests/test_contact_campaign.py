@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_contacts import pin_gap
 
 from calib import DataError, InvalidArgumentError, from_chain, load_chain
 from calib.cli.commands import main
@@ -27,17 +28,6 @@ from calib.measurements.contact_campaign import (
 from calib.measurements.csvfile import DataWarning
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
-
-
-def pin_gap(kind: str, T: np.ndarray) -> np.ndarray:
-    p, R = T[:3, 3], T[:3, :3]
-    if kind == "plane":
-        return np.array([p[2], -R[1, 2], R[0, 2]])
-    if kind == "plane-point":
-        return p[2:3]
-    if kind == "fixed-point":
-        return p
-    return np.concatenate([p, pin.log3(R)])
 
 
 def true_placements(chain, true_mdh, q: np.ndarray) -> np.ndarray:

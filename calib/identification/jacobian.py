@@ -157,13 +157,3 @@ def complete_jacobian(
     L = _point(kin, measurement) - np.broadcast_to(points, (n + 1, 3, 3, m)).reshape(-1, 3, m)
     rot = np.arange(axes.shape[0], 2 * axes.shape[0])
     return _measured_rows(np.concatenate([axes, axes]), rot, L, measurement, kin)
-
-
-__all__ = [
-    "MAX_MARKER",
-    "ROW_NAMES",
-    "Measurement",
-    "complete_jacobian",
-    "identification_jacobian",
-    "measured_point",
-]
