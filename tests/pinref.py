@@ -455,6 +455,22 @@ class PathRef:
             out.append(np.vstack([R @ (v_point - v_base), R @ w_rel]))
         return np.vstack(out)
 
+    def nominal_places(self) -> list[tuple[str, int, pin.SE3]]:
+        """Every placement a path's error moves: its joints', then the base and tool frames'."""
+        model = self.model
+        places = [("joint", j, model.jointPlacements[j].copy()) for j in self.joint_ids]
+        places += [("frame", f, model.frames[f].placement.copy()) for f in (self.base, self.tool)]
+        return places
+
+    def place(self, kind: str, i: int, M: pin.SE3) -> None:
+        """Set joint ``i``'s placement or frame ``i``'s (``kind``: ``joint`` or ``frame``)."""
+        if kind == "joint":
+            self.model.jointPlacements[i] = M
+        else:
+            frame = self.model.frames[i]
+            frame.placement = M
+            self.model.frames[i] = frame
+
     def error_rank(
         self, names, q: np.ndarray, rows=(0, 1, 2, 3, 4, 5), marker=(0.0, 0.0, 0.0), h=1e-6
     ) -> int:
@@ -463,33 +479,22 @@ class PathRef:
         Central finite differences of the marker position and the tool rotation in the base
         frame (rows among x, y, z, rx, ry, rz) at URDF positions ``q`` (columns ``names``).
         """
-        model = self.model
         qps = [self.config(names, qi) for qi in q]
         mk = np.append(np.asarray(marker, dtype=float), 1.0)
 
         def poses() -> list[pin.SE3]:
             return [self.relative(qp) for qp in qps]
 
-        def place(kind: str, i: int, M: pin.SE3) -> None:
-            if kind == "joint":
-                model.jointPlacements[i] = M
-            else:
-                frame = model.frames[i]
-                frame.placement = M
-                model.frames[i] = frame
-
-        places = [("joint", j, model.jointPlacements[j].copy()) for j in self.joint_ids]
-        places += [("frame", f, model.frames[f].placement.copy()) for f in (self.base, self.tool)]
         cols = []
-        for kind, i, nominal in places:
+        for kind, i, nominal in self.nominal_places():
             for a in range(6):
                 step = np.zeros(6)
                 step[a] = h
-                place(kind, i, nominal * pin.exp6(pin.Motion(step)))
+                self.place(kind, i, nominal * pin.exp6(pin.Motion(step)))
                 plus = poses()
-                place(kind, i, nominal * pin.exp6(pin.Motion(-step)))
+                self.place(kind, i, nominal * pin.exp6(pin.Motion(-step)))
                 minus = poses()
-                place(kind, i, nominal)
+                self.place(kind, i, nominal)
                 col = [
                     np.hstack(
                         [

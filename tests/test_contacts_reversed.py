@@ -61,33 +61,23 @@ def contact_frame(chain, ref: PathRef, seed: int = 0) -> np.ndarray:
 def contact_rank(chain, ref: PathRef, kind: str, q: np.ndarray, h: float = 1e-6) -> int:
     """Rank of the gaps' central differences under 6-DOF errors of every joint placement of
     the path, the base and tool frames, and the plane, point or pose (Pinocchio only)."""
-    model = ref.model
     P0 = contact_frame(chain, ref)
     qps = [ref.config(chain.joint_names, qi) for qi in q]
 
     def gaps(P: np.ndarray) -> np.ndarray:
         return np.concatenate([pin_gap(kind, P @ ref.relative(qp).homogeneous) for qp in qps])
 
-    def place(what: str, i: int, M: pin.SE3) -> None:
-        if what == "joint":
-            model.jointPlacements[i] = M
-        else:
-            frame = model.frames[i]
-            frame.placement = M
-            model.frames[i] = frame
-
-    places = [("joint", j, model.jointPlacements[j].copy()) for j in ref.joint_ids]
-    places += [("frame", f, model.frames[f].placement.copy()) for f in (ref.base, ref.tool)]
+    places = ref.nominal_places()
     cols = []
     for a in range(6):
         d = np.zeros(6)
         d[a] = h
         for what, i, nominal in places:
-            place(what, i, nominal * pin.exp6(pin.Motion(d)))
+            ref.place(what, i, nominal * pin.exp6(pin.Motion(d)))
             plus = gaps(P0)
-            place(what, i, nominal * pin.exp6(pin.Motion(-d)))
+            ref.place(what, i, nominal * pin.exp6(pin.Motion(-d)))
             minus = gaps(P0)
-            place(what, i, nominal)
+            ref.place(what, i, nominal)
             cols.append((plus - minus) / (2 * h))
         plus = gaps(pin.exp6(pin.Motion(d)).homogeneous @ P0)
         minus = gaps(pin.exp6(pin.Motion(-d)).homogeneous @ P0)
