@@ -8,6 +8,7 @@ calib projected onto the contact. The closed forms are checked on random generic
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 
@@ -274,3 +275,65 @@ def test_closed_form_on_random_chains(kind, data):
     }[kind]
     assert theory == expected
     assert count == expected
+
+
+# --------------------------------------------------------------------------------------
+# Closed forms with the contact on, or turning about, the last axis
+# --------------------------------------------------------------------------------------
+
+
+def _expected_on_last_axis(kind: str, n: int, P: int, tool_kind: str, along: bool):
+    """The rule stated in docs/method.md §6, or None where it is silent."""
+    R = n - P
+    scale = 0 if P else 1
+    if kind == "plane":
+        # origin on the last axis changes nothing; the last axis along the normal hides 2
+        blind = 1 if along else 0
+        seen = n - blind
+        if seen <= 3 or (blind and P and seen == n // 2 + 1):  # a prismatic joint last seen
+            return None
+        return 4 * R + 2 * P - 1 - scale - 2 * blind
+    moving = n - 1  # the tip on the last axis: the last joint does not move it
+    if moving <= {"plane-point": 1, "fixed-point": 3}[kind]:
+        return None
+    if kind == "plane-point" and moving == 2 and P:
+        return None
+    return 4 * R + 2 * P - scale - 2
+
+
+@settings(CI, max_examples=10, deadline=None)
+@pytest.mark.parametrize("kind", ("plane", "plane-point", "fixed-point"))
+@pytest.mark.parametrize("tool_kind", ("origin_on_last_axis", "along_last_axis", "normal_only"))
+@given(data=st.data())
+def test_closed_form_with_the_contact_on_the_last_axis(kind, tool_kind, data):
+    if kind != "plane" and tool_kind == "normal_only":
+        return  # the normal means nothing to a point
+    n = data.draw(st.integers(2 if kind == "plane-point" else 4, 7))
+    sigma = [0] * n
+    if data.draw(st.booleans()) and n >= 3:
+        sigma[n // 2] = 1  # a prismatic joint inside the chain
+    seed = data.draw(st.integers(0, 2**32 - 1))
+    built = "along_last_axis" if tool_kind == "normal_only" else tool_kind
+    ch = build_chain(seed, ["generic"] * n, sigma, built, -4.0)
+    if tool_kind == "normal_only":  # the normal along the last axis, the origin off it
+        tool = ch.tool.copy()
+        tool[:3, 3] += np.random.default_rng(seed).uniform(0.1, 0.3, 3)
+        ch = dataclasses.replace(ch, tool=tool)
+    try:
+        count, theory = _count(ch, kind)
+    except InvalidArgumentError:  # the contact cannot hold often enough on this chain
+        return
+    along = tool_kind != "origin_on_last_axis"
+    expected = _expected_on_last_axis(kind, n, sum(sigma), tool_kind, along)
+    assert theory == expected
+    if expected is not None:
+        assert count == expected
+
+
+@pytest.mark.parametrize(("name", "revolute"), [("ur5", 6), ("panda", 7)])
+def test_flange_on_a_plane_hides_the_last_joint(name, revolute):
+    """The flange's z is the last axis: the plane sees one joint fewer (docs/method.md §6)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", calib.RankWarning)
+        res = analyze(name, measure="plane", params="complete")
+    assert res.n_theory == res.n_complete == 4 * revolute - 4

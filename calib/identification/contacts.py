@@ -91,7 +91,9 @@ class Contact:
         """Jacobian rows of the gap (every kind below defines it)."""
         raise NotImplementedError  # pragma: no cover
 
-    def theoretical_count(self, sigma: np.ndarray, on_axes: tuple[int, ...]) -> int | None:
+    def theoretical_count(
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+    ) -> int | None:
         """Closed-form identifiable count (every kind below defines it)."""
         raise NotImplementedError  # pragma: no cover
 
@@ -178,16 +180,25 @@ class PlaneContact(Contact):
         gap[:, 1:] *= s[:, None]
         return gap, J
 
-    def theoretical_count(self, sigma, on_axes) -> int | None:
+    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
         """4R + 2P - 1 with a prismatic joint, 4R - 2 without (see docs/method.md).
 
-        None where calib has no proved formula: a prismatic joint first or last, or the
-        contact origin on a joint axis.
+        2 fewer when the last joint is revolute about the contact's normal: its motion turns
+        and slides the contact within the plane, which the plane cannot see. The contact
+        origin on the last axis changes nothing.
+
+        None where calib has no proved formula: a prismatic joint first or last among the
+        joints the plane sees, the contact origin on another joint axis, another axis along
+        the normal, fewer than 4 joints that the plane sees, or ``along`` unknown.
         """
         revolute, prismatic, n = count_joints(sigma)
-        if n <= 3 or on_axes or (prismatic and (sigma[0] == 1 or sigma[-1] == 1)):
+        if along is None or any(k != n for k in (*on_axes, *along)):
             return None
-        return 4 * revolute + 2 * prismatic - (1 if prismatic else 2)
+        blind = 1 if n in along else 0
+        seen = sigma[: n - blind]  # the joints the plane sees
+        if len(seen) <= 3 or (prismatic and (seen[0] == 1 or seen[-1] == 1)):
+            return None
+        return 4 * revolute + 2 * prismatic - (1 if prismatic else 2) - 2 * blind
 
 
 @dataclass(frozen=True)
@@ -225,14 +236,19 @@ class PlanePointContact(Contact):
         """The z row of the tip's displacement."""
         return W6[:, 2:3]
 
-    def theoretical_count(self, sigma, on_axes) -> int | None:
+    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
-        None with a prismatic first joint, the tip on another axis, or one joint.
+        None with a prismatic first joint, the tip on another axis, fewer than 2 joints that
+        move the tip (the last one does not when the tip is on its axis), or a prismatic
+        one among 2 such joints.
         """
         revolute, prismatic, n = count_joints(sigma)
-        if n <= 1 or any(k != n for k in on_axes) or sigma[0] == 1:
+        moving = n - (n in on_axes)
+        if moving <= 1 or any(k != n for k in on_axes) or sigma[0] == 1:
             return None
+        if moving < n and moving <= 2 and prismatic:
+            return None  # R then P moving a tip on the last axis: no proved formula
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
 
@@ -272,13 +288,14 @@ class FixedPointContact(Contact):
         """The position rows of the tip's displacement."""
         return W6[:, :3]
 
-    def theoretical_count(self, sigma, on_axes) -> int | None:
+    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
-        None with the tip on another axis, or 3 joints or fewer (the tip cannot move).
+        None with the tip on another axis, or 3 joints or fewer that move the tip (the last
+        one does not when the tip is on its axis): the tip cannot stay on the point and move.
         """
         revolute, prismatic, n = count_joints(sigma)
-        if n <= 3 or any(k != n for k in on_axes):
+        if n - (n in on_axes) <= 3 or any(k != n for k in on_axes):
             return None
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
@@ -319,7 +336,7 @@ class FixedPoseContact(Contact):
         inv = inverse_right_jacobian(-rotation_vector(R))  # Jl^-1(phi) = Jr^-1(-phi)
         return np.concatenate([W6[:, :3], inv @ W6[:, 3:]], axis=1)
 
-    def theoretical_count(self, sigma, on_axes) -> int | None:
+    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
         """4R + 2P (4R - 1 without a prismatic joint) where the loop can move (n >= 7).
 
         None for a loop of 6 joints or fewer (it cannot move: finitely many postures).

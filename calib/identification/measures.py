@@ -71,7 +71,7 @@ class MeasureKind(Protocol):
     def jacobian_rows(self, W6: np.ndarray, R: np.ndarray) -> np.ndarray: ...  # noqa: D102
 
     def theoretical_count(  # noqa: D102
-        self, sigma: np.ndarray, on_axes: tuple[int, ...]
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
     ) -> int | None: ...
 
 
@@ -181,7 +181,9 @@ class Measurement:
         """The measured rows of the pose-error Jacobian ``W6`` ``(m, 6, k)`` at the marker."""
         return W6[:, list(self.rows)]
 
-    def theoretical_count(self, sigma: np.ndarray, on_axes: tuple[int, ...]) -> int | None:
+    def theoretical_count(
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+    ) -> int | None:
         """4R + 2P + 6 for the pose, 4R + 2P + 3 for a point (2 fewer on the last axis).
 
         None where the formula says nothing: other row subsets, or a point on a joint axis
@@ -190,6 +192,7 @@ class Measurement:
         Args:
             sigma: The joints' types (0 revolute, 1 prismatic) in chain order ``(n,)``.
             on_axes: Joint rows (1..n) whose axis passes through the measured point.
+            along: Revolute joint rows whose axis lies along the tool's z axis (unused here).
         """
         revolute, prismatic, n = count_joints(sigma)
         if self.is_pose:

@@ -17,6 +17,7 @@ from .measures import MeasureKind, Measurement
 
 __all__ = [
     "ON_AXIS_TOL",
+    "axes_along_tool_z",
     "axes_through_point",
     "per_tool_theory",
     "point_on_last_axis",
@@ -46,11 +47,16 @@ def theoretical_count(
         chain_or_mdh: The chain or its model (for sigma).
         measurement: What is measured.
         on_axes: Joints whose axis passes through the measured point.
+
+    A model also gives the joints whose axis lies along the tool's z axis
+    (:func:`axes_along_tool_z`): a plane contact cannot see a last joint that turns about its
+    normal. A chain does not (contact kinds then say nothing).
     """
     if isinstance(chain_or_mdh, TreeMDH):
         return tree_theoretical_count(chain_or_mdh, measurement)
     sigma = np.asarray(chain_or_mdh.sigma)
-    return measurement.theoretical_count(sigma[sigma >= 0], tuple(on_axes))
+    along = axes_along_tool_z(chain_or_mdh) if isinstance(chain_or_mdh, MDHModel) else None
+    return measurement.theoretical_count(sigma[sigma >= 0], tuple(on_axes), along)
 
 
 @functools.lru_cache(maxsize=16)
@@ -112,6 +118,23 @@ def axes_through_point(mdh: MDHModel | TreeMDH, measurement: MeasureKind) -> tup
         off = v - np.sum(v * z, axis=1)[:, None] * z
         if np.all(np.linalg.norm(off, axis=1) < ON_AXIS_TOL):
             out.append(k)
+    return tuple(out)
+
+
+def axes_along_tool_z(mdh: MDHModel) -> tuple[int, ...]:
+    """Revolute joints (1..n) whose axis lies along the tool frame's z axis, at every posture.
+
+    Tested like :func:`axes_through_point`: at the zero configuration and four fixed others.
+    """
+    q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
+    kin = mdh.kinematics(q)
+    zt = kin.R[:, -1, :, 2]
+    out = []
+    for k in range(1, mdh.n + 1):
+        if mdh.sigma[k] == 0:
+            cross = np.cross(kin.R[:, k, :, 2], zt)
+            if np.all(np.linalg.norm(cross, axis=1) < ON_AXIS_TOL):
+                out.append(k)
     return tuple(out)
 
 
