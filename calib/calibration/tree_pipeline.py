@@ -181,7 +181,7 @@ class TreeCalibrationResult:
         mm = 1e3
         lines = [
             f"{self.tree.name}: {self.tree.base_frame} -> {', '.join(self.state.mdh.tool_frames)}"
-            f" ({self.tree.n} joints), {self.rows} rows, --params {self.level}: "
+            f" ({self.tree.n} joints), {self.rows} rows, level {self.level}: "
             f"{len(self.names)} parameters",
             f"fitted rows, position RMS / max [mm]: registration "
             f"{mm * self.before.position_rms:.4g} / {mm * self.before.position_max:.4g}, "
