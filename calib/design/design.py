@@ -191,21 +191,10 @@ def design(
         chain = checked_contact_chain(chain, contact, markers, params)
         cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
         q_all = cands.q
-    elif isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
-        q_all = candidate_configurations(chain, int(candidates), seed, constraints.margin)
     else:
-        q_all = chain.check_configurations(candidates)
-    if contact is None:
+        q_all = _instrument_candidates(chain, candidates, seed, constraints.margin)
         check_model_arguments(measure, params, orientation_weight, chain.is_tree)
-    keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
-    q = q_all[keep]
-    if len(q) < k:
-        raise InvalidArgumentError(
-            f"{len(q)} of {len(q_all)} candidates pass the filters ("
-            + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
-            + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
-            f"constraints"
-        )
+    q, report = _filtered(chain, q_all, markers, constraints, k)
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
     if cands is not None and isinstance(chain, Chain) and contact is not None:
@@ -242,6 +231,26 @@ def design(
         },
         contact=None if cands is None else cands.frame,
     )
+
+
+def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: float):
+    """Random candidates within the limits, or the user's ``(N, n)`` checked."""
+    if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
+        return candidate_configurations(chain, int(candidates), seed, margin)
+    return chain.check_configurations(candidates)
+
+
+def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: int):
+    """The candidates the filters keep ``(N, n)`` and their report; at least ``k`` of them."""
+    keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
+    if int(np.count_nonzero(keep)) < k:
+        raise InvalidArgumentError(
+            f"{int(np.count_nonzero(keep))} of {len(q_all)} candidates pass the filters ("
+            + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
+            + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
+            f"constraints"
+        )
+    return q_all[keep], report
 
 
 def _contact_of(measure) -> Contact | None:
