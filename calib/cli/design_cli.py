@@ -180,6 +180,20 @@ def add_design_parser(sub) -> None:
     p.add_argument(
         "--candidates-file", help="CSV of candidate configurations known to be reachable"
     )
+    _add_model_args(p)
+    _add_limit_args(p)
+    p.add_argument(
+        "--noise-mm",
+        type=positive_number,
+        default=0.05,
+        help="noise for the printed error prediction [mm] (default: 0.05)",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=cmd_design)
+
+
+def _add_model_args(p) -> None:
+    """What is measured and fitted: criterion, measure, markers, level, seed, output."""
     p.add_argument(
         "--criterion",
         choices=EXCHANGE_CRITERIA,
@@ -225,6 +239,10 @@ def add_design_parser(sub) -> None:
         help="seed of the candidates, reference and random sets (default: 0)",
     )
     p.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
+
+
+def _add_limit_args(p) -> None:
+    """Limits of the campaign: margin, workspace, line of sight, obstacles, collisions."""
     p.add_argument(
         "--margin",
         type=float,
@@ -263,11 +281,3 @@ def add_design_parser(sub) -> None:
         default=True,
         help="reject self-colliding candidates (default: yes)",
     )
-    p.add_argument(
-        "--noise-mm",
-        type=positive_number,
-        default=0.05,
-        help="noise for the printed error prediction [mm] (default: 0.05)",
-    )
-    p.add_argument("--json", action="store_true", help="print JSON")
-    p.set_defaults(func=cmd_design)
