@@ -300,3 +300,18 @@ def test_support_needs_elastic():
     data = read_contacts(REAL / "left_train.csv", chain, "plane")
     with pytest.raises(InvalidArgumentError, match="elastic"):
         calibrate_contacts(chain, data, support=Support("right_sole_link"))
+
+
+def test_elastic_needs_masses(tmp_path):
+    """A URDF without any ``<inertial>``: a one-line error, not a fit of nothing."""
+    import re
+
+    src = Path(__file__).resolve().parents[1] / "models" / "stanford.urdf"
+    text = re.sub(r"<inertial>.*?</inertial>", "", src.read_text(), flags=re.S)
+    urdf = tmp_path / "massless.urdf"
+    urdf.write_text(text)
+    chain = load_robot(urdf)
+    data = simulate_contacts(load_robot(src), 30, "plane", seed=0).data
+    with pytest.raises(InvalidArgumentError, match="no masses"):
+        calibrate_contacts(chain, data, elastic=True)
+    assert any(standing_load(load_robot(src)).torques(data.q).ravel())

@@ -40,7 +40,7 @@ from ..exceptions import InvalidArgumentError
 from .frames import motion_axis, resolve_frame
 from .robot import Chain
 
-__all__ = ["StandingLoad", "Support", "standing_gravity", "standing_load"]
+__all__ = ["StandingLoad", "Support", "standing_load"]
 
 
 @dataclass(frozen=True)
@@ -78,19 +78,6 @@ class Support:
         return {"foot": self.foot, "share": self.share}
 
 
-def standing_gravity(model: pin.Model, q: np.ndarray, base_id: int) -> np.ndarray:
-    """Gravity ``(3,)`` [m/s^2] in Pinocchio's world: ``-|g|`` along z of the base frame.
-
-    Args:
-        model: The Pinocchio model (its gravity's magnitude is used).
-        q: A Pinocchio configuration ``(nq,)``.
-        base_id: The base frame's index in ``model.frames``.
-    """
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    return -float(np.linalg.norm(model.gravity.linear)) * data.oMf[base_id].rotation[:, 2]
-
-
 @dataclass(frozen=True, eq=False)
 class StandingLoad:
     """Gravity torques of a chain's joints for the robot standing on the chain's base frame.
@@ -111,65 +98,61 @@ class StandingLoad:
 
     def torques(self, q: np.ndarray) -> np.ndarray:
         """Gravity torque of each chain joint ``(m, n)`` [N m or N] at URDF positions ``(m, n)``."""
-        Q = self.chain.pin_configurations(q)
-        return np.array([self._one(row) for row in Q]).reshape(-1, self.chain.n)
-
-    def _one(self, qp: np.ndarray) -> np.ndarray:
         model, chain = self.model, self.chain
+        axes = []
+        for jid, sigma in zip(chain.joint_ids, chain.sigma, strict=True):
+            S = motion_axis(model.joints[jid])
+            axes.append(S[3:] if sigma == 0 else S[:3])
+        # per chain joint: does the far side hold the other foot, or the other leg?
+        foot = model.frames[self.foot_id].parentJoint if self.foot_id >= 0 else -1
+        e = self.excluded
+        flags = [
+            (
+                (foot >= 0 and self._descends(foot, j)) == (s > 0),
+                bool(e) and (self._descends(e, j) if s > 0 else not self._descends(j, e)),
+            )
+            for j, s in zip(chain.joint_ids, chain.sign, strict=True)
+        ]
         data = model.createData()
-        pin.framesForwardKinematics(model, data, qp)
-        pin.centerOfMass(model, data, qp, True)
-        # subtree centres of mass: Pinocchio gives them in each joint's frame
-        com = [data.oMi[j].act(data.com[j]) for j in range(model.njoints)]
-        g = standing_gravity(model, qp, chain.base_id)
-        total = data.mass[0] * g  # force [N]
-        moment0 = data.mass[0] * com[0]  # first moment [kg m]
-        force_pt, force = np.zeros(3), np.zeros(3)
-        if self.excluded:
-            e = self.excluded
-            total = total - data.mass[e] * g
-            moment0 = moment0 - data.mass[e] * com[e]
+        rows = [self._one(data, row, axes, flags) for row in chain.pin_configurations(q)]
+        return np.array(rows).reshape(-1, chain.n)
+
+    def _one(self, data, qp: np.ndarray, axes: list, flags: list) -> np.ndarray:
+        model, chain, e = self.model, self.chain, self.excluded
+        pin.centerOfMass(model, data, qp, True)  # the joint placements too
+        pin.updateFramePlacements(model, data)
+        g = -float(np.linalg.norm(model.gravity.linear)) * data.oMf[chain.base_id].rotation[:, 2]
+
+        def load(j: int) -> tuple[np.ndarray, np.ndarray]:  # weight [N], first moment [kg m]
+            # Pinocchio gives a subtree's centre of mass in its joint's frame
+            return data.mass[j] * g, data.mass[j] * data.oMi[j].act(data.com[j])
+
+        total = load(0)
+        other = load(e) if e else (np.zeros(3), np.zeros(3))
+        force, force_pt = np.zeros(3), np.zeros(3)
         if self.foot_id >= 0 and self.support.share is not None:
             force = -self.support.share * data.mass[0] * g
             force_pt = data.oMf[self.foot_id].translation
-        out = np.zeros(chain.n)
+        n = chain.n
+        W, F, P, A = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         for k, (jid, s) in enumerate(zip(chain.joint_ids, chain.sign, strict=True)):
-            sub = self._subtree_load(data, com, jid, g)
-            if s > 0:
-                weight, first, holds = sub[0], sub[1], self._in_subtree(jid)
-            else:
-                weight, first, holds = total - sub[0], moment0 - sub[1], not self._in_subtree(jid)
-            o = data.oMi[jid].translation
-            S = motion_axis(model.joints[jid])
-            a = data.oMi[jid].rotation @ (S[3:] if chain.sigma[k] == 0 else S[:3])
-            if chain.sigma[k] == 0:
-                wrench = np.cross(first, g) - np.cross(o, weight)
-                if holds:
-                    wrench = wrench + np.cross(force_pt - o, force)
-            else:
-                wrench = weight + (force if holds else 0.0)
-            out[k] = -s * float(a @ wrench)
-        return out
-
-    def _subtree_load(self, data, com, jid: int, g) -> tuple[np.ndarray, np.ndarray]:
-        """Weight [N] and first moment of mass [kg m] of a joint's subtree, the other leg out."""
-        weight, first = data.mass[jid] * g, data.mass[jid] * com[jid]
-        e = self.excluded
-        if e and self._descends(e, jid):
-            weight = weight - data.mass[e] * g
-            first = first - data.mass[e] * com[e]
-        return weight, first
+            weight, first = load(jid)
+            if s < 0:  # the far side: the rest of the robot
+                weight, first = total[0] - weight, total[1] - first
+            if flags[k][1]:  # the other leg stands on its own foot
+                weight, first = weight - other[0], first - other[1]
+            W[k], F[k], P[k] = weight, first, data.oMi[jid].translation
+            A[k] = data.oMi[jid].rotation @ axes[k]
+        holds = np.array([f[0] for f in flags], dtype=float)[:, None]
+        turn = np.cross(F, g) - np.cross(P, W) + holds * np.cross(force_pt - P, force)
+        wrench = np.where(chain.sigma[:, None] == 0, turn, W + holds * force)
+        return -chain.sign * np.einsum("ki,ki->k", A, wrench)
 
     def _descends(self, j: int, ancestor: int) -> bool:
+        """Whether joint ``j`` is ``ancestor`` or in its subtree."""
         while j > ancestor:
             j = self.model.parents[j]
         return j == ancestor
-
-    def _in_subtree(self, jid: int) -> bool:
-        """Whether the other foot (where its force acts) is in the joint's subtree."""
-        if self.foot_id < 0:
-            return False
-        return self._descends(self.model.frames[self.foot_id].parentJoint, jid)
 
 
 def _ancestors(model: pin.Model, j: int) -> list[int]:
@@ -188,11 +171,16 @@ def standing_load(chain: Chain, support: Support | None = None) -> StandingLoad:
         support: The load split with a second foot (default: the base foot carries all).
 
     Raises:
-        InvalidArgumentError: The other foot is unknown, on the chain's path, or its leg holds
-            a joint of the chain.
+        InvalidArgumentError: The URDF has no masses, or the other foot is on the chain's
+            path.
+        FrameNotFoundError: The other foot's frame does not exist.
     """
     support = Support() if support is None else support
     model = chain.model
+    if sum(model.inertias[j].mass for j in range(1, model.njoints)) <= 0:
+        raise InvalidArgumentError(
+            f"{chain.urdf_path.name} has no masses: no gravity torques for joint compliance"
+        )
     if support.foot is None:
         return StandingLoad(model, chain, support, 0, -1)
     fid = resolve_frame(model, support.foot)
