@@ -315,3 +315,52 @@ def test_elastic_needs_masses(tmp_path):
     with pytest.raises(InvalidArgumentError, match="no masses"):
         calibrate_contacts(chain, data, elastic=True)
     assert any(standing_load(load_robot(src)).torques(data.q).ravel())
+
+
+def test_predict_gives_the_contact_and_the_joint_correction(talos_elastic):
+    """``calib predict`` with the compliance file: deflected joints and the contact origin."""
+    import csv
+
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    pred = out / "pred.csv"
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "calib.cli.launcher",
+            "predict",
+            str(out / "cal.urdf"),
+            "--compliance",
+            str(out / "cal.compliance.json"),
+            "--configs",
+            str(REAL / "right_train.csv"),
+            "--out",
+            str(pred),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    with open(pred, newline="") as f:
+        rows = list(csv.DictReader(f))
+    model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
+    names = model.chain.joint_names
+    q = np.array([[float(r[n]) for n in names] for r in rows])
+    deflected = np.array([[float(r[f"deflected_{n}"]) for n in names] for r in rows])
+    assert np.max(np.abs(deflected - model.deflected(q))) < 1e-12
+    assert np.max(np.abs(deflected - q)) > 1e-4  # the correction is not nothing
+    # the contact origin by Pinocchio on the written URDF at the deflected joints
+    from contact_scorer import relative_placements
+
+    _ids, joints = read_joints(REAL / "right_train.csv")
+    for k, n in enumerate(names):
+        joints[n] = deflected[:, k]
+    report = json.loads((out / "r.json").read_text())
+    C = np.array(report["contact"]["frames"][model.chain.tool_frame]["matrix"])
+    chain = model.chain
+    T = relative_placements(out / "cal.urdf", chain.base_frame, chain.tool_frame, joints)
+    want = np.array([t.act(C[:3, 3]) for t in T])
+    got = np.array([[float(r[a]) for a in ("x1", "y1", "z1")] for r in rows])
+    assert np.max(np.abs(got - want)) < 1e-9

@@ -124,13 +124,17 @@ def _text(result) -> str:
         f"plane '{result.plane_id}', {len(result.free)} robot parameters fitted",
         "gaps (RMS): height [mm]  roll [deg]  pitch [deg]",
     ]
-    for key, s in result.stats.items():
+    labels = {}
+    for key in result.stats:
         label = key.replace("_urdf", ", URDF alone (no compliance)")
         if result.elastic and not key.endswith(("_urdf", "_registration")):
             label += ", whole model (URDF + compliance)"
+        labels[key] = label
+    width = max(map(len, labels.values()))
+    for key, s in result.stats.items():
         lines.append(
-            f"  {label:22s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  {s.pitch_rms_deg:8.3f}"
-            f"  ({s.m} touches)"
+            f"  {labels[key]:{width}s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  "
+            f"{s.pitch_rms_deg:8.3f}  ({s.m} touches)"
         )
     lines += [f"note: {n}" for n in result.notes]
     return "\n".join(lines)
