@@ -364,3 +364,26 @@ def test_predict_gives_the_contact_and_the_joint_correction(talos_elastic):
     want = np.array([t.act(C[:3, 3]) for t in T])
     got = np.array([[float(r[a]) for a in ("x1", "y1", "z1")] for r in rows])
     assert np.max(np.abs(got - want)) < 1e-9
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"load": {"kind": "hanging", "support": {}}}, "'load' is not"),
+        ({"load": {"kind": "standing", "support": {"foot": "no_such_frame"}}}, "does not fit"),
+        ({"contact": [1, 2]}, "'contact' is not"),
+        ({"contact": {"frame": [[1]], "plane": [[1]]}}, "'frame'"),
+        ({"nominal_masses": {"base_link": {"mass": -1, "com": [0, 0, 0]}}}, "nominal_masses"),
+    ],
+)
+def test_bad_compliance_file_is_one_data_error(talos_elastic, tmp_path, change, message):
+    from calib.exceptions import DataError
+
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((out / "cal.compliance.json").read_text())
+    doc.update(change)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(DataError, match=message):
+        load_calibrated(out / "cal.urdf", bad)

@@ -34,7 +34,13 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.fileio import read_failure, read_text_limited
-from ..exceptions import DataError, InvalidArgumentError, URDFError
+from ..exceptions import (
+    AmbiguousFrameError,
+    DataError,
+    FrameNotFoundError,
+    InvalidArgumentError,
+    URDFError,
+)
 from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
 from .robot import Chain, load_chain, pin_configurations
@@ -398,7 +404,7 @@ def _standing(load, chain: Chain, model: pin.Model, src: str) -> StandingLoad | 
             dataclasses.replace(chain, model=model),
             Support(support.get("foot"), support.get("share")),
         )
-    except InvalidArgumentError as exc:
+    except (InvalidArgumentError, FrameNotFoundError, AmbiguousFrameError) as exc:
         raise DataError(src, f"its load does not fit the URDF: {exc}") from None
 
 
