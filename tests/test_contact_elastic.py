@@ -211,6 +211,7 @@ def test_cli_writes_the_compliance_file_and_prints_both(talos_elastic):
     assert run.returncode == 0, run.stderr
     assert "URDF alone (no compliance)" in run.stdout
     assert "whole model (URDF + compliance)" in run.stdout
+    assert "the base foot carries the whole robot" in run.stdout
     # here the URDF alone is worse than the registration: it comes with its compliance file
     assert "use it only with its compliance file" in run.stdout
     doc = json.loads((out / "cal.compliance.json").read_text())

@@ -136,5 +136,12 @@ def _text(result) -> str:
             f"  {labels[key]:{width}s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  "
             f"{s.pitch_rms_deg:8.3f}  ({s.m} touches)"
         )
+    if result.load is not None:
+        lines.append(
+            f"joint compliance under gravity, standing on {result.chain.base_frame} "
+            f"({result.load.support.label()}): "
+            + ", ".join(f"{k} {v:.3g}" for k, v in result.to_dict()["compliance"].items() if v)
+            + " [rad/(N m)]"
+        )
     lines += [f"note: {n}" for n in result.notes]
     return "\n".join(lines)
