@@ -9,6 +9,13 @@ roll and pitch [deg] of the calibrated model (``fit``), of what calib delivers (
 registration when the model is refused, ``delivered``) and of the registration alone (the
 nominal robot with its own plane and contact, ``baseline``). Then the median time of the
 default calibration on all touches (target < 1 s).
+
+``elastic`` rows add the joint compliances (``elastic=True``: gravity torques of the robot
+standing on the chain's sole, :mod:`calib.kinematics.standing`), under three assumptions on
+the load split with the other foot: ``single`` (the standing foot carries the whole robot,
+the default), ``own-leg`` (the other foot carries its own leg) and ``half`` (the other foot
+pushes up with half the robot's weight at its sole). Their ``urdf`` column scores the
+calibrated URDF alone (compliance left out) on the same held-out touches.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import numpy as np
 
 from calib import load_robot
 from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.kinematics.standing import Support
 from calib.measurements.contact_campaign import ContactData, read_contacts
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
@@ -44,10 +52,14 @@ def _pooled(parts: list[tuple[int, float, float, float]]) -> tuple[float, float,
     )
 
 
-def cross_validate(chain, data: ContactData, params: str | None):
-    """Pooled held-out (fit, delivered, baseline) RMS and the number of refused folds."""
+def _row(s) -> tuple[int, float, float, float]:
+    return (s.m, s.height_rms_mm, s.roll_rms_deg, s.pitch_rms_deg)
+
+
+def cross_validate(chain, data: ContactData, params: str | None, **elastic):
+    """Pooled held-out (fit, delivered, baseline, URDF alone) RMS and the refused folds."""
     folds = np.array_split(np.random.default_rng(SEED).permutation(data.m), FOLDS)
-    fit, delivered, base, refused = [], [], [], 0
+    fit, delivered, base, alone, refused = [], [], [], [], 0
     for f in range(FOLDS):
         train = np.setdiff1d(np.arange(data.m), folds[f])
         r = calibrate_contacts(
@@ -57,15 +69,27 @@ def cross_validate(chain, data: ContactData, params: str | None):
             params=params,
             validate=_take(data, folds[f]),
             seed=SEED,
+            **elastic,
         )
         h, b = r.stats["held_out"], r.stats["held_out_registration"]
-        row = (h.m, h.height_rms_mm, h.roll_rms_deg, h.pitch_rms_deg)
-        brow = (b.m, b.height_rms_mm, b.roll_rms_deg, b.pitch_rms_deg)
+        row, brow = _row(h), _row(b)
         fit.append(row)
         base.append(brow)
+        alone.append(_row(r.stats.get("held_out_urdf", h)))
         delivered.append(row if r.accepted else brow)
         refused += not r.accepted
-    return _pooled(fit), _pooled(delivered), _pooled(base), refused
+    return _pooled(fit), _pooled(delivered), _pooled(base), _pooled(alone), refused
+
+
+def _variants(side: str) -> dict[str, dict]:
+    """The ``calibrate_contacts`` arguments of each row: rigid, then elastic load splits."""
+    other = f"{'right' if side == 'left' else 'left'}_sole_link"
+    return {
+        "": {},
+        " elastic single": {"elastic": True},
+        " elastic own-leg": {"elastic": True, "support": Support(other)},
+        " elastic half": {"elastic": True, "support": Support(other, 0.5)},
+    }
 
 
 def main() -> None:
@@ -74,21 +98,28 @@ def main() -> None:
         chain = load_robot(URDF, f"{side}_sole_link", f"gripper_{side}_base_link")
         data = read_contacts(DATA / f"{side}_train.csv", chain, "plane")
         for params in (None, "offsets", "frames"):
-            fit, dlv, base, refused = cross_validate(chain, data, params)
+            for label, elastic in _variants(side).items():
+                if params == "frames" and elastic:
+                    continue
+                fit, dlv, base, alone, refused = cross_validate(chain, data, params, **elastic)
+                name = (params or "auto") + label
+                print(
+                    f"{side:5s} {name:24s} fit {fit[0]:6.2f} mm {fit[1]:.2f} {fit[2]:.2f} deg"
+                    f" | delivered {dlv[0]:6.2f} {dlv[1]:.2f} {dlv[2]:.2f}"
+                    f" | urdf {alone[0]:6.2f} {alone[1]:.2f} {alone[2]:.2f}"
+                    f" | baseline {base[0]:6.2f} {base[1]:.2f} {base[2]:.2f} | refused {refused}/5",
+                    flush=True,
+                )
+        for elastic in (False, True):
+            times = []
+            for _ in range(5):
+                t = time.perf_counter()
+                calibrate_contacts(chain, data, contact=CONTACT, elastic=elastic)
+                times.append(time.perf_counter() - t)
             print(
-                f"{side:5s} {params or 'auto (default)':15s} fit {fit[0]:6.2f} mm {fit[1]:.2f} "
-                f"{fit[2]:.2f} deg | delivered {dlv[0]:6.2f} {dlv[1]:.2f} {dlv[2]:.2f} | "
-                f"baseline {base[0]:6.2f} {base[1]:.2f} {base[2]:.2f} | refused {refused}/5"
+                f"{side:5s} {'elastic' if elastic else 'default'} calibration on {data.m} "
+                f"touches: median {1e3 * statistics.median(times):.0f} ms"
             )
-        times = []
-        for _ in range(5):
-            t = time.perf_counter()
-            calibrate_contacts(chain, data, contact=CONTACT)
-            times.append(time.perf_counter() - t)
-        print(
-            f"{side:5s} default calibration on {data.m} touches: median "
-            f"{1e3 * statistics.median(times):.0f} ms"
-        )
 
 
 if __name__ == "__main__":

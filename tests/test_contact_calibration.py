@@ -155,8 +155,6 @@ def test_bad_arguments():
     with pytest.raises(InvalidArgumentError):
         calibrate_contacts(chain, data, contact=[1, 2])
     with pytest.raises(InvalidArgumentError):
-        calibrate_contacts(chain, data, elastic=True)
-    with pytest.raises(InvalidArgumentError):
         calibrate_contacts(chain, data, params="wild")
     point = simulate_contacts(chain, 20, "fixed-point", seed=0).data
     with pytest.raises(InvalidArgumentError, match="plane only"):

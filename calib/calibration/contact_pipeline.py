@@ -15,12 +15,20 @@ the joint encoders alone (:class:`~calib.measurements.contact_campaign.ContactDa
 5. refusal of a model whose held-out weighted RMS gap ``sqrt(z^2 + w^2 (roll^2 + pitch^2))``
    is worse than the registration's (the nominal robot with its own plane and contact).
 
+With ``elastic=True`` the joint compliances are candidates too (``q' = q + c tau``), ``tau``
+the gravity torques of the robot standing on the chain's base frame
+(:mod:`calib.kinematics.standing`, the load split with a second foot as ``support`` says).
+The URDF cannot hold them: the checks apply to the whole model (URDF and compliances), the
+URDF alone is scored too (``train_urdf``, ``held_out_urdf``), and a note says so where it is
+worse than the registration (use it only with its compliance file).
+
 The base frame's and the tool frame's own rows are not fitted: the plane (any placement in
 the base frame) and the contact frame (any tilt in the tool frame) take their visible part.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -31,6 +39,7 @@ from ..identification.identifiability import independent_columns, preference_ord
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.robot import Chain
+from ..kinematics.standing import StandingLoad, Support, standing_load
 from ..measurements.contact_campaign import ContactData
 from .contact_model import PLANE_COLUMNS, ContactModel, ContactState
 from .contact_registration import MIN_TOUCHES, register_planes
@@ -126,8 +135,6 @@ def _check(chain, data, validate, opts: Options) -> None:
             )
     if validate is not None and opts.holdout > 0:
         raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
-    if opts.elastic:
-        raise InvalidArgumentError("elastic (joint compliance) is not available for contacts yet")
     if opts.fix or opts.free or opts.loss != "linear":
         raise InvalidArgumentError("fix, free and robust losses are not available for contacts")
 
@@ -203,7 +210,9 @@ def flush_postures(start: ContactState, q: np.ndarray) -> np.ndarray:
     return qf[gaps < CONTACT_TOL]
 
 
-def _structural(wide: ContactModel, start: ContactState, train: ContactData) -> list[int]:
+def _structural(
+    wide: ContactModel, start: ContactState, train: ContactData, load: StandingLoad | None
+) -> list[int]:
     """The columns the touches determine, from the Jacobian at flush postures near them.
 
     At the registration the contact is not quite flush, and the directions no flush contact
@@ -214,32 +223,43 @@ def _structural(wide: ContactModel, start: ContactState, train: ContactData) -> 
     if len(qf) < len(train.q):  # what could not be projected is judged at the data
         qf = np.concatenate([qf, train.q[len(qf) :]])
     flush = ContactData(train.joint_names, qf, train.ids, train.kind, train.source)
-    A = wide.jacobian(start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
+    torque = None if load is None or not wide.compliance else load.torques(qf)
+    A = wide.jacobian(start, np.zeros(wide.size()), flush, torque).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[str]):
-    """The model (free parameters), the selection (auto) and the prior weights."""
+def _choose(start, train, opts: Options, notes: list[str], load, torque):
+    """The model (free parameters and compliances), the selection (auto), the prior weights."""
     offered = _candidates(start.mdh, opts.level)
-    wide = ContactModel(offered, _tangent(start.normal))
-    J = wide.jacobian(start, np.zeros(wide.size()), train)
-    kept = _structural(wide, start, train)
+    comp = tuple(range(start.mdh.n)) if load is not None else ()
+    wide = ContactModel(offered, _tangent(start.normal), comp)
+    J = wide.jacobian(start, np.zeros(wide.size()), train, torque)
+    kept = _structural(wide, start, train, load)
     if kept[:PLANE_COLUMNS] != list(range(PLANE_COLUMNS)):
         raise DataError(train.source, "the touches do not determine the plane and the contact")
     columns = sorted(kept[PLANE_COLUMNS:])
-    cand = tuple(offered.parameters[c - PLANE_COLUMNS] for c in columns)
-    if len(cand) < len(offered):
-        notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
+    names = wide.names()
+    if len(columns) < len(offered) + len(comp):
+        notes.append(
+            f"the touches determine {len(columns)} of the {len(offered) + len(comp)} "
+            "parameters offered"
+        )
+    weights: dict[str, float] = {}
     selection: Selection | None = None
-    prior = None
-    if opts.level == "auto" and cand:
+    if opts.level == "auto" and columns:
         cols = list(range(PLANE_COLUMNS)) + columns
-        names = tuple(wide.names()[c] for c in columns)
-        selection, weights = select(J[:, :, cols], start.residuals(train), PLANE_COLUMNS, names)
-        chosen = [names.index(k) for k in selection.kept]
-        cand = tuple(cand[i] for i in chosen)
-        prior = np.r_[np.zeros(PLANE_COLUMNS), weights] if np.any(weights) else None
-    return ContactModel(ParameterSet("free", cand), wide.tangent), selection, prior
+        cand = tuple(names[c] for c in columns)
+        selection, w = select(J[:, :, cols], start.residuals(train, torque), PLANE_COLUMNS, cand)
+        weights = dict(zip(selection.kept, w, strict=True))
+        columns = [c for c in columns if names[c] in weights]
+    split = PLANE_COLUMNS + len(offered)
+    params = tuple(offered.parameters[c - PLANE_COLUMNS] for c in columns if c < split)
+    joints = tuple(comp[c - split] for c in columns if c >= split)
+    model = ContactModel(ParameterSet("free", params), wide.tangent, joints)
+    prior = None
+    if any(weights.values()):
+        prior = np.r_[np.zeros(PLANE_COLUMNS), [weights[k] for k in model.names()[PLANE_COLUMNS:]]]
+    return model, selection, prior
 
 
 def calibrate_contacts(
@@ -251,6 +271,7 @@ def calibrate_contacts(
     validate: ContactData | None = None,
     orientation_weight: float | None = None,
     elastic: bool | None = None,
+    support: Support | None = None,
     max_iterations: int = 100,
     holdout: float = 0.0,
     seed: int = 0,
@@ -266,7 +287,10 @@ def calibrate_contacts(
             ``paper`` or ``complete``.
         validate: Touches of other postures to score the result on (never fitted).
         orientation_weight: Weight of the tilt rows [m/rad] (default: :func:`tilt_weight`).
-        elastic: Joint compliance (not available for contacts: True is an error).
+        elastic: Fit joint compliances too, under the gravity torques of the robot standing on
+            the chain's base frame (opt-in; the URDF cannot hold them).
+        support: With ``elastic``: the load split with a second foot
+            (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
         max_iterations: Most residual evaluations of the solver.
         holdout: Fraction of each plane's touches set aside (seeded).
         seed: Seed of the holdout draw.
@@ -287,20 +311,31 @@ def calibrate_contacts(
         seed=seed,
     )
     _check(chain, data, validate, opts)
+    if support is not None and not isinstance(support, Support):
+        raise InvalidArgumentError(f"support must be a Support, got {type(support).__name__}")
+    if support is not None and not opts.elastic:
+        raise InvalidArgumentError("support (the load split between feet) needs elastic=True")
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
+    load = standing_load(chain, support) if opts.elastic else None
+    torque = (
+        None if load is None else load.torques(train.q),
+        None if load is None or held is None else load.torques(held.q),
+    )
     nominal = from_chain(chain)
     start = _register(nominal, train, guess, w)
     clock.append(time.perf_counter())
     notes: list[str] = []
-    model, selection, prior = _choose(start, train, opts, notes)
+    model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
     clock.append(time.perf_counter())
-    fitted = fit(model, start, train, None, 1.0, prior=prior, max_iterations=opts.max_iterations)
+    fitted = fit(
+        model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
+    )
     clock.append(time.perf_counter())
-    return _assemble(chain, train, held, start, fitted, selection, notes, clock)
+    return _assemble(chain, (train, held), torque, start, fitted, selection, notes, clock, load)
 
 
 def calibrate_contact_data(
@@ -326,12 +361,16 @@ def calibrate_contact_data(
     return calibrate_contacts(robot, data, contact=marker, **kwargs)
 
 
-def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> ContactCalibration:
+def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load):
+    train, held = sets
     state = fitted.state
-    stats = {"train": gap_stats(state, train.q), "train_registration": gap_stats(start, train.q)}
+    stats = {
+        "train": gap_stats(state, train.q, torque[0]),
+        "train_registration": gap_stats(start, train.q),
+    }
     refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
     if held is not None:
-        stats["held_out"] = gap_stats(state, held.q)
+        stats["held_out"] = gap_stats(state, held.q, torque[1])
         stats["held_out_registration"] = gap_stats(start, held.q)
         if refusal is None and _worse(stats["held_out"], stats["held_out_registration"]):
             refusal = (
@@ -339,7 +378,12 @@ def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> Con
                 f"({stats['held_out'].weighted_mm:.3f} > "
                 f"{stats['held_out_registration'].weighted_mm:.3f} mm weighted RMS)"
             )
-    kin = state.mdh.kinematics(train.q)
+    elastic = state.compliance is not None and bool(np.any(state.compliance))
+    if elastic:
+        _urdf_alone(state, start, (train, held), stats, notes)
+    elif load is not None:
+        notes.append("elastic: no joint compliance was kept; the URDF is the whole model")
+    kin = state.mdh.kinematics(state.joints(train.q, torque[0]))
     centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3], axis=0)
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
@@ -351,14 +395,37 @@ def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> Con
         contact=state.contact,
         plane=state.plane(centre),
         plane_id=train.contacts[0],
-        free=fitted.model.params.names,
+        free=fitted.model.names()[PLANE_COLUMNS:],
         selection=selection,
         stats=stats,
         refusal=refusal,
         notes=tuple(notes),
         weight=state.weight,
         timings_ms=timings,
+        compliance=state.compliance if elastic else None,
+        load=load if elastic else None,
     )
+
+
+def _urdf_alone(state, start, sets, stats, notes) -> None:
+    """Score the URDF alone (compliance left out) and note where it is worse than registration."""
+    rigid = dataclasses.replace(state, compliance=None)
+    notes.append(
+        "joint compliance was fitted: the calibrated URDF cannot hold it; it is written to the "
+        "compliance file (apply it with calib predict or calib.load_calibrated)"
+    )
+    for label, key, d in (("the fitted", "train", sets[0]), ("held-out", "held_out", sets[1])):
+        if d is None:
+            continue
+        stats[f"{key}_urdf"] = gap_stats(rigid, d.q)
+        if _worse(stats[f"{key}_urdf"], stats[f"{key}_registration"]):
+            notes.append(
+                f"on {label} touches the calibrated URDF alone (without the fitted joint "
+                f"compliance) is worse than the registration alone "
+                f"({stats[f'{key}_urdf'].weighted_mm:.3f} > "
+                f"{stats[f'{key}_registration'].weighted_mm:.3f} mm weighted RMS): use it only "
+                "with its compliance file"
+            )
 
 
 WORSE = 1e-6

@@ -9,9 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import CalibrationRefusedError
+from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
+from ..kinematics.standing import StandingLoad
 from ..kinematics.urdf_export import write_calibrated_urdf
+from ..kinematics.urdf_model import read_urdf_file
 from .selection import Selection
 
 __all__ = ["ContactCalibration", "GapStats", "gap_stats"]
@@ -42,9 +45,12 @@ class GapStats:
         return dict(self.__dict__)
 
 
-def gap_stats(state, q: np.ndarray) -> GapStats:
-    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at postures ``q``."""
-    g = state.gaps(q)
+def gap_stats(state, q: np.ndarray, torque: np.ndarray | None = None) -> GapStats:
+    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at postures ``q``.
+
+    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None).
+    """
+    g = state.gaps(q, torque)
     w = np.array([1.0, state.weight, state.weight])
     rms = np.sqrt(np.mean(g**2, axis=0))
     top = np.max(np.abs(g), axis=0)
@@ -74,11 +80,14 @@ class ContactCalibration:
         free: The robot parameters fitted.
         selection: The automatic choice (``auto``), or None.
         stats: ``train``, ``train_registration`` and, with held-out touches, ``held_out``
-            and ``held_out_registration`` (the nominal robot with its own plane and contact).
+            and ``held_out_registration`` (the nominal robot with its own plane and contact);
+            with compliance, ``train_urdf`` and ``held_out_urdf``: the URDF alone.
         refusal: Why the model must not be used, or None.
         notes: Remarks for the user.
         weight: Weight of the tilt rows [m/rad].
         timings_ms: Stage timings [ms].
+        compliance: Fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
+        load: The gravity load the compliance acts under, or None.
     """
 
     chain: Chain
@@ -94,6 +103,13 @@ class ContactCalibration:
     notes: tuple[str, ...]
     weight: float
     timings_ms: dict[str, float]
+    compliance: np.ndarray | None = None
+    load: StandingLoad | None = None
+
+    @property
+    def elastic(self) -> bool:
+        """Joint compliance was fitted: the URDF alone is not the whole model."""
+        return self.compliance is not None
 
     @property
     def accepted(self) -> bool:
@@ -119,9 +135,58 @@ class ContactCalibration:
                 "frames": {self.chain.tool_frame: {"matrix": self.contact.tolist()}},
             },
             "gaps": {k: v.to_dict() for k, v in self.stats.items()},
+            "compliance": {
+                j: float(c)
+                for j, c in zip(
+                    self.chain.joint_names,
+                    np.zeros(self.chain.n) if self.compliance is None else self.compliance,
+                    strict=True,
+                )
+            },
+            "load": None
+            if self.load is None
+            else {"kind": "standing", "support": self.load.support.to_dict()},
             "calibrated_mdh": self.calibrated.rows(),
             "notes": list(self.notes),
             "timings_ms": dict(self.timings_ms),
+        }
+
+    def compliance_document(self, urdf: str) -> dict:
+        """The compliance file of the calibrated URDF ``urdf`` (JSON-ready).
+
+        :func:`calib.kinematics.elastic.load_calibrated` reads it back with the URDF.
+
+        Raises:
+            CalibrationRefusedError: No compliance was fitted.
+        """
+        if self.compliance is None or self.load is None:
+            raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")
+        chain = self.chain
+        g = float(np.linalg.norm(chain.model.gravity.linear))
+        return {
+            "format_version": COMPLIANCE_FORMAT,
+            "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
+            "torques of the URDF's masses, the robot standing on the base frame (gravity along "
+            "its -z; load), other joints at their neutral position",
+            "robot": chain.name,
+            "urdf": urdf,
+            "base_frame": chain.base_frame,
+            "tool_frame": chain.tool_frame,
+            "joints": list(chain.joint_names),
+            "compliance": self.compliance.tolist(),
+            "units": ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma],
+            "gravity": {"frame": chain.base_frame, "vector": [0.0, 0.0, -g]},
+            "load": {"kind": "standing", "support": self.load.support.to_dict()},
+            "contact": {
+                "plane_id": self.plane_id,
+                "frame": self.contact.tolist(),
+                "plane": self.plane.tolist(),
+            },
+            "measurement_to_base": np.eye(4).tolist(),
+            "markers": [self.contact[:3, 3].tolist()],
+            "marker_links": [],
+            "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
+            "nominal_masses": nominal_masses(read_urdf_file(chain.urdf_path)),
         }
 
     def write_urdf(self, path: str | Path) -> None:

@@ -23,6 +23,7 @@ from .common import (
     BooleanOnce,
     add_chain_args,
     check_output_paths,
+    compliance_path,
     one_line,
     tool_arg,
     write_outputs,
@@ -173,11 +174,6 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         files,
         (out, report),
     )
-
-
-def compliance_path(out: Path) -> Path:
-    """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
-    return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
 
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:

@@ -29,6 +29,7 @@ __all__ = [
     "add_measure_args",
     "add_sampling_args",
     "check_output_paths",
+    "compliance_path",
     "given_options",
     "one_line",
     "positive_number",
@@ -223,3 +224,8 @@ def warning_lines(caught: Sequence[warnings.WarningMessage]) -> list[str]:
         f"calib: warning: {text}" + (f" ({count} times)" if count > 1 else "")
         for text, count in seen.items()
     ]
+
+
+def compliance_path(out: Path) -> Path:
+    """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
+    return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")

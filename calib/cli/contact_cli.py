@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..core.fileio import check_outputs, json_text, write_files_atomic
+from ..core.fileio import check_outputs, json_text, write_files_atomic, written_in_place
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
+from .common import compliance_path
 
 __all__ = ["add_contact_arguments", "calibrate_contacts_command", "is_contact_run"]
 
@@ -74,10 +75,17 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) ->
         raise InvalidArgumentError("contacts are calibrated on one chain: give one --tool")
     _check_args(args)
     out, report = Path(args.out), Path(args.report) if args.report else None
+    comp = None
+    if args.elastic:
+        if written_in_place(out):
+            raise InvalidArgumentError(
+                f"--out {out} is no regular file: --elastic writes the compliance file next to it"
+            )
+        comp = compliance_path(out)
     inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
     if args.validate:
         inputs["the validation data (--validate)"] = args.validate
-    check_outputs({"--out": out, "--report": report}, inputs)
+    check_outputs({"--out": out, "--report": report, "the compliance file": comp}, inputs)
     data = read_contacts(args.data, chain, args.measure)
     check = read_contacts(args.validate, chain, args.measure) if args.validate else None
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
@@ -102,6 +110,8 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) ->
     from ..kinematics.urdf_export import calibrated_urdf
 
     files[out] = calibrated_urdf(chain, result.nominal, result.calibrated)
+    if comp is not None and result.elastic:
+        files[comp] = json_text(result.compliance_document(str(out)))
     write_files_atomic(files)
     if not args.json:
         print(f"wrote {', '.join(str(p) for p in files)}")
@@ -114,10 +124,24 @@ def _text(result) -> str:
         f"plane '{result.plane_id}', {len(result.free)} robot parameters fitted",
         "gaps (RMS): height [mm]  roll [deg]  pitch [deg]",
     ]
+    labels = {}
+    for key in result.stats:
+        label = key.replace("_urdf", ", URDF alone (no compliance)")
+        if result.elastic and not key.endswith(("_urdf", "_registration")):
+            label += ", whole model (URDF + compliance)"
+        labels[key] = label
+    width = max(map(len, labels.values()))
     for key, s in result.stats.items():
         lines.append(
-            f"  {key:22s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  {s.pitch_rms_deg:8.3f}"
-            f"  ({s.m} touches)"
+            f"  {labels[key]:{width}s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  "
+            f"{s.pitch_rms_deg:8.3f}  ({s.m} touches)"
+        )
+    if result.load is not None:
+        lines.append(
+            f"joint compliance under gravity, standing on {result.chain.base_frame} "
+            f"({result.load.support.label()}): "
+            + ", ".join(f"{k} {v:.3g}" for k, v in result.to_dict()["compliance"].items() if v)
+            + " [rad/(N m)]"
         )
     lines += [f"note: {n}" for n in result.notes]
     return "\n".join(lines)

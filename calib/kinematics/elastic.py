@@ -12,6 +12,12 @@ gravity as recorded (a vector in the base frame). calib writes ``c`` and the gra
 the URDF (:func:`compliance_document`, ``<out>.compliance.json``); :func:`load_calibrated`
 reads the URDF with that file (or the report) back as an :class:`ElasticModel`, which
 predicts measured points and gives the deflected or the compensating joint positions.
+
+A calibration from contacts of a robot standing on its base frame (a sole) records its load
+too (``load``: ``{"kind": "standing", "support": {...}}``, :mod:`.standing`): the torques are
+then those of the robot standing on the base frame, gravity along ``-z`` of it; and its
+contact frame and plane (``contact``: ``{"frame", "plane"}``), which
+:meth:`ElasticModel.contact_placements` uses.
 """
 
 from __future__ import annotations
@@ -28,10 +34,17 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.fileio import read_failure, read_text_limited
-from ..exceptions import DataError, InvalidArgumentError, URDFError
+from ..exceptions import (
+    AmbiguousFrameError,
+    DataError,
+    FrameNotFoundError,
+    InvalidArgumentError,
+    URDFError,
+)
 from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
 from .robot import Chain, load_chain, pin_configurations
+from .standing import StandingLoad, Support, standing_load
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 
@@ -43,6 +56,7 @@ __all__ = [
     "compliance_document",
     "gravity_in_base",
     "load_calibrated",
+    "nominal_masses",
     "nominal_origins",
     "predictions_csv",
 ]
@@ -79,6 +93,11 @@ class ElasticModel:
         compliance: Compliance of each chain joint ``(n,)`` [rad/(N m) or m/N].
         gravity: Gravity in the base frame ``(3,)`` [m/s^2].
         mdh: The URDF's geometry as an MDH model (base to tool; vectorised kinematics).
+        torque_model: The gravity model (the URDF's masses on the nominal placements).
+        load: The standing load (contacts of a standing robot), or None: the chain hangs
+            from its base frame.
+        contact: The contact frame in the tool frame ``(4, 4)`` (contacts), or None.
+        plane: The contact plane in the base frame ``(4, 4)``, z its normal, or None.
     """
 
     chain: Chain
@@ -88,13 +107,19 @@ class ElasticModel:
     gravity: np.ndarray
     mdh: MDHModel
     torque_model: pin.Model
+    load: StandingLoad | None = None
+    contact: np.ndarray | None = None
+    plane: np.ndarray | None = None
 
     def torques(self, q: np.ndarray) -> np.ndarray:
         """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``.
 
         As in the fit: the URDF's masses on the nominal joint placements (``torque_model``,
-        whose gravity is set from ``gravity``), the other joints at their neutral position.
+        whose gravity is set from ``gravity``), the other joints at their neutral position;
+        standing on the base frame if ``load`` says so.
         """
+        if self.load is not None:
+            return self.load.torques(q)
         model = self.torque_model
         ids = tuple(model.getJointId(name) for name in self.chain.joint_names)
         q = self.chain.check_configurations(q)
@@ -134,6 +159,21 @@ class ElasticModel:
         T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
         return self.measurement_to_base @ T
 
+    def contact_placements(self, q: np.ndarray) -> np.ndarray:
+        """The contact frame in the plane's frame ``(m, 4, 4)`` at commanded ``q`` ``(m, n)``.
+
+        Flush: its height ``[:, 2, 3]`` [m] and its z axis's tilt from the normal are zero.
+
+        Raises:
+            InvalidArgumentError: The model holds no contact (not from a contact calibration).
+        """
+        if self.contact is None or self.plane is None:
+            raise InvalidArgumentError("this calibrated model holds no contact frame and plane")
+        kin = self.mdh.kinematics(self.deflected(q))
+        T = np.zeros((len(kin.p), 4, 4))
+        T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
+        return np.linalg.inv(self.plane) @ T @ self.contact
+
     def points(self, q: np.ndarray) -> np.ndarray:
         """Measured points predicted at commanded ``q`` ``(m, K, 3)`` [m, measurement frame]."""
         T = self.tool_placements(q)
@@ -165,6 +205,7 @@ def compliance_document(result, urdf: str) -> dict:
         "markers": result.urdf_markers.tolist(),
         "marker_links": list(result.marker_links),
         "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
+        "nominal_masses": nominal_masses(read_urdf_file(chain.urdf_path)),
     }
 
 
@@ -173,8 +214,19 @@ def nominal_origins(info: URDFInfo) -> dict[str, dict[str, list[float]]]:
     return {j.name: {"xyz": list(j.xyz), "rpy": list(j.rpy)} for j in info.joints}
 
 
-def torque_model(urdf: str | Path, origins: dict, base: str, gravity: np.ndarray) -> pin.Model:
-    """The gravity model of a fit: the calibrated URDF's masses on the nominal placements.
+def nominal_masses(info: URDFInfo) -> dict[str, dict]:
+    """Every link's mass and centre of mass in a URDF: name -> ``{mass [kg], com [m]}``.
+
+    The calibrated URDF may move a link's frame (a segment traversed backwards is written
+    inverted) and its ``<inertial>`` with it; the gravity model restores the nominal ones.
+    """
+    return {name: {"mass": mass, "com": list(com)} for name, mass, com in info.masses}
+
+
+def torque_model(
+    urdf: str | Path, origins: dict, base: str, gravity: np.ndarray, masses: dict | None = None
+) -> pin.Model:
+    """The gravity model of a fit: the URDF's masses on the nominal placements.
 
     Args:
         urdf: The calibrated URDF.
@@ -182,8 +234,13 @@ def torque_model(urdf: str | Path, origins: dict, base: str, gravity: np.ndarray
             (the added marker and world links) keep theirs.
         base: The base frame (``gravity`` is given in it).
         gravity: Gravity in the base frame ``(3,)`` [m/s^2].
+        masses: Nominal link masses (:func:`nominal_masses`), or None: the calibrated URDF's.
     """
     info = read_urdf_file(urdf)
+    if masses is not None:
+        kept = tuple(m for m in info.masses if m[0] not in masses)
+        nominal = tuple((k, float(v["mass"]), tuple(v["com"])) for k, v in masses.items())
+        info = dataclasses.replace(info, masses=kept + nominal)
     joints = []
     for j in info.joints:
         o = origins.get(j.name)
@@ -220,6 +277,26 @@ def _origins(doc: dict, src: str) -> dict:
     if not ok or not isinstance(origins, dict):
         raise DataError(src, "'nominal_origins' is missing or not {joint: {xyz, rpy}}")
     return origins
+
+
+def _masses(doc: dict, src: str) -> dict | None:
+    """The nominal link masses of a compliance file (None where it has none: older files)."""
+    masses = doc.get("nominal_masses")
+    if masses is None:
+        return None
+    ok = isinstance(masses, dict) and all(
+        isinstance(v, dict)
+        and isinstance(v.get("mass"), (int, float))
+        and math.isfinite(v["mass"])
+        and v["mass"] > 0
+        and isinstance(v.get("com"), list)
+        and len(v["com"]) == 3
+        and all(isinstance(c, (int, float)) and math.isfinite(c) for c in v["com"])
+        for v in masses.values()
+    )
+    if not ok:
+        raise DataError(src, "'nominal_masses' is not {link: {mass, com}}")
+    return masses
 
 
 def _read_json(path: str | Path) -> dict:
@@ -292,8 +369,43 @@ def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
         raise DataError(src, f"the gravity is given in '{gravity.get('frame')}', not the base")
     T = _numbers(doc, "measurement_to_base", (4, 4), src)
     markers = _numbers(doc, "markers", (-1, 3), src)
-    model = torque_model(urdf, _origins(doc, src), base, vec)
-    return ElasticModel(chain, T, markers, c, vec, from_chain(chain), model)
+    model = torque_model(urdf, _origins(doc, src), base, vec, _masses(doc, src))
+    load = _standing(doc.get("load"), chain, model, src)
+    contact = doc.get("contact")
+    frames: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+    if contact is not None:
+        if not isinstance(contact, dict):
+            raise DataError(src, "'contact' is not {frame, plane}")
+        frames = (
+            _numbers(contact, "frame", (4, 4), src),
+            _numbers(contact, "plane", (4, 4), src),
+        )
+    return ElasticModel(chain, T, markers, c, vec, from_chain(chain), model, load, *frames)
+
+
+def _standing(load, chain: Chain, model: pin.Model, src: str) -> StandingLoad | None:
+    """The standing load a compliance file records (``load``), on the gravity model."""
+    if load is None:
+        return None
+    support = load.get("support") if isinstance(load, dict) else None
+    if (
+        not isinstance(load, dict)
+        or load.get("kind") != "standing"
+        or not isinstance(support, dict)
+    ):
+        raise DataError(src, "'load' is not {kind: standing, support: {foot, share}}")
+    same = [model.names[j] for j in chain.joint_ids] == list(chain.joint_names) and [
+        model.frames[f].name for f in (chain.base_id, chain.tool_id)
+    ] == [chain.base_frame, chain.tool_frame]
+    if not same:
+        raise DataError(src, "the gravity model's joints and frames are not the URDF's")
+    try:
+        return standing_load(
+            dataclasses.replace(chain, model=model),
+            Support(support.get("foot"), support.get("share")),
+        )
+    except (InvalidArgumentError, FrameNotFoundError, AmbiguousFrameError) as exc:
+        raise DataError(src, f"its load does not fit the URDF: {exc}") from None
 
 
 def predictions_csv(model: ElasticModel, q: np.ndarray) -> str:

@@ -1,0 +1,390 @@
+"""Joint compliance for contacts (``elastic``): standing gravity torques, columns, round trip.
+
+Independent routes: Pinocchio's generalized gravity (a chain hanging from the URDF root),
+central differences of the potential energy summed body by body (the robot standing on the
+chain's base frame), central differences of the contact residuals, a simulated robot whose
+joints deflect, and the written URDF scored by Pinocchio (``contact_scorer``) at the joint
+positions the compliance file's API gives.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from contact_scorer import plane_gaps, read_joints
+
+from calib import load_calibrated, load_robot
+from calib.calibration.contact_model import ContactModel, ContactState
+from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.exceptions import InvalidArgumentError
+from calib.identification.contacts import joint_offsets
+from calib.kinematics.mdh import from_chain
+from calib.kinematics.so3 import rotation_matrix
+from calib.kinematics.standing import Support, standing_load
+from calib.measurements.contact_campaign import ContactData, read_contacts, simulate_contacts
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
+TALOS = ("talos_full_v2.urdf", "left_sole_link", "gripper_left_base_link")
+SUPPORTS = (Support(), Support("right_sole_link"), Support("right_sole_link", 0.5))
+
+
+def _energy(chain, q: np.ndarray, support: Support) -> float:
+    """Potential energy [J] of the robot standing on the base frame, body by body.
+
+    Each joint's body (``model.inertias``) at its Pinocchio placement, heights along z of the
+    base frame; the other leg's bodies left out (``own leg``) or the other foot's push as
+    the potential of a constant vertical force (``share``).
+    """
+    model = chain.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, chain.pin_configurations(q[None])[0])
+    oMb = data.oMf[chain.base_id]
+    g = float(np.linalg.norm(model.gravity.linear))
+    names = [f.name for f in model.frames]
+    leg = set()
+    if support.foot is not None and support.share is None:
+        j = model.frames[names.index(support.foot)].parentJoint
+        while model.names[j] != "leg_right_1_joint":
+            leg.add(j)
+            j = model.parents[j]
+        leg.add(j)
+    V = 0.0
+    for j in range(1, model.njoints):
+        if j in leg:
+            continue
+        c = oMb.actInv(data.oMi[j].act(model.inertias[j].lever))
+        V += model.inertias[j].mass * g * c[2]
+    if support.share is not None:
+        foot = oMb.actInv(data.oMf[names.index(support.foot)]).translation
+        total = sum(model.inertias[j].mass for j in range(1, model.njoints))
+        V -= support.share * total * g * foot[2]
+    return V
+
+
+@pytest.mark.parametrize("support", SUPPORTS, ids=["single", "own-leg", "share"])
+def test_standing_torques_are_the_energy_gradient(support):
+    """tau = dV/dq with the sole held fixed: central differences of the energy."""
+    chain = load_robot(*TALOS)
+    q = chain.random_configurations(3, 1)
+    tau = standing_load(chain, support).torques(q)
+    h = 1e-6
+    E = np.eye(chain.n)
+    fd = np.array(
+        [
+            [(_energy(chain, r + h * e, support) - _energy(chain, r - h * e, support)) / (2 * h)]
+            for r in q
+            for e in E
+        ]
+    ).reshape(q.shape)
+    assert np.max(np.abs(tau)) > 100.0  # a leg carries the robot
+    assert np.max(np.abs(tau - fd)) < 1e-5
+
+
+def test_standing_on_the_root_is_pinocchio_gravity():
+    """Base = the URDF root (every joint forwards): Pinocchio's generalized gravity."""
+    chain = load_robot("talos_full_v2.urdf", "base_link", "gripper_left_base_link")
+    q = chain.random_configurations(4, 2)
+    tau = standing_load(chain).torques(q)
+    model = chain.model
+    data = model.createData()
+    idx = [model.joints[j].idx_v for j in chain.joint_ids]
+    want = [pin.computeGeneralizedGravity(model, data, r)[idx] for r in chain.pin_configurations(q)]
+    assert np.max(np.abs(tau - np.array(want))) < 1e-9
+    assert np.max(np.abs(tau)) > 1.0
+
+
+def test_support_checks():
+    chain = load_robot(*TALOS)
+    with pytest.raises(InvalidArgumentError, match="other foot"):
+        Support(None, 0.5)
+    with pytest.raises(InvalidArgumentError, match=r"\[0, 1\]"):
+        Support("right_sole_link", 1.5)
+    with pytest.raises(InvalidArgumentError, match="on the chain's path"):
+        standing_load(chain, Support("gripper_left_base_link"))
+    assert standing_load(chain, Support("right_sole_link")).excluded == chain.model.getJointId(
+        "leg_right_1_joint"
+    )
+
+
+def test_compliance_columns_match_central_differences():
+    """The compliance columns (reversed leg joints included) against central differences."""
+    chain = load_robot(*TALOS)
+    mdh = from_chain(chain)
+    C = np.eye(4)
+    C[:3, :3], C[:3, 3] = rotation_matrix(np.array([0.1, 0.2, 0.3])), [0.01, 0.02, -0.12]
+    n = np.array([0.1, 0.2, 1.0]) / np.linalg.norm([0.1, 0.2, 1.0])
+    start = ContactState(mdh, C, n, 0.9, 0.3, 1e-4 * np.arange(chain.n))
+    model = ContactModel(joint_offsets(mdh), np.linalg.svd(n[None])[2][1:].T, (0, 2, 5, 9, 14))
+    q = chain.random_configurations(6, 4)
+    data = ContactData(chain.joint_names, q, ("t",) * 6, read_kind())
+    torque = standing_load(chain).torques(q)
+    x = 1e-3 * np.random.default_rng(0).standard_normal(model.size())
+    x[-5:] *= 0.1
+    J = model.jacobian(start, x, data, torque)
+
+    def f(v):
+        return -model.apply(start, v).residuals(data, torque)
+
+    h = 1e-7
+    num = np.stack([(f(x + h * e) - f(x - h * e)) / (2 * h) for e in np.eye(model.size())], -1)
+    assert np.max(np.abs(J[:, :, -5:])) > 1.0  # compliance columns: metres per rad/(N m)
+    assert np.max(np.abs(J - num) / np.maximum(1.0, np.abs(num))) < 1e-6
+
+
+def read_kind():
+    from calib.identification.contacts import PlaneContact
+
+    return PlaneContact()
+
+
+def _deflected_campaign(chain, compliance: np.ndarray, m: int, seed: int):
+    """Touches whose commanded joints, deflected by ``c tau``, are flush on the true robot."""
+    camp = simulate_contacts(chain, m, "plane", seed=seed)
+    load = standing_load(chain)
+    target = camp.data.q
+    q = target.copy()
+    for _ in range(200):
+        q = target - compliance * load.torques(q)
+    assert np.max(np.abs(q + compliance * load.torques(q) - target)) < 1e-14
+    return ContactData(chain.joint_names, q, camp.data.ids, camp.data.kind, "sim")
+
+
+def test_noise_free_round_trip_recovers_compliance():
+    """Deflected joints, every geometric error: held-out < 1e-9 and the compliances back."""
+    chain = load_robot(*TALOS)
+    truth = np.zeros(chain.n)
+    truth[:6] = 2e-4 * np.array([1.0, -0.5, 0.8, 1.2, -0.7, 0.4])  # the standing leg [rad/N m]
+    truth[[7, 10]] = (3e-4, -2e-4)
+    data = _deflected_campaign(chain, truth, 90, 5)
+    r = calibrate_contacts(chain, data, params="complete", holdout=0.3, seed=1, elastic=True)
+    assert r.accepted and r.elastic
+    held = r.stats["held_out"]
+    assert held.height_max_mm < 1e-6  # 1e-9 m
+    assert max(held.roll_max_deg, held.pitch_max_deg) < math.degrees(1e-9)
+    assert np.max(np.abs(r.compliance - truth)) < 1e-9
+    assert r.stats["held_out_urdf"].height_rms_mm > 1e-3  # the URDF alone is not the model
+
+
+@pytest.fixture(scope="module")
+def talos_elastic(tmp_path_factory):
+    """``calib calibrate --elastic`` on the right TALOS touches, a quarter held out."""
+    out = tmp_path_factory.mktemp("elastic")
+    cmd = [
+        sys.executable,
+        "-m",
+        "calib.cli.launcher",
+        "calibrate",
+        "talos_full_v2.urdf",
+        "--base",
+        "right_sole_link",
+        "--tool",
+        "gripper_right_base_link",
+        "--data",
+        str(REAL / "right_train.csv"),
+        "--measure",
+        "plane",
+        "--contact",
+        "0",
+        "0",
+        "-0.12",
+        "--holdout",
+        "0.25",
+        "--elastic",
+        "--out",
+        str(out / "cal.urdf"),
+        "--report",
+        str(out / "r.json"),
+    ]
+    run = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    return out, run
+
+
+def test_cli_writes_the_compliance_file_and_prints_both(talos_elastic):
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    assert "URDF alone (no compliance)" in run.stdout
+    assert "whole model (URDF + compliance)" in run.stdout
+    assert "the base foot carries the whole robot" in run.stdout
+    # here the URDF alone is worse than the registration: it comes with its compliance file
+    assert "use it only with its compliance file" in run.stdout
+    doc = json.loads((out / "cal.compliance.json").read_text())
+    report = json.loads((out / "r.json").read_text())
+    assert doc["load"] == {"kind": "standing", "support": {"foot": None, "share": None}}
+    assert doc["compliance"] == list(report["compliance"].values())
+    assert any(doc["compliance"])
+    assert set(report["gaps"]) >= {"held_out", "held_out_urdf", "held_out_registration"}
+
+
+def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
+    """load_calibrated's deflected joints, scored by Pinocchio on the written URDF."""
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "r.json").read_text())
+    model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
+    chain = model.chain
+    data = read_contacts(REAL / "right_train.csv", chain, "plane")
+    from calib.calibration.contact_pipeline import split_contacts
+
+    held = split_contacts(data, 0.25, 0)[1]
+    _ids, joints = read_joints(REAL / "right_train.csv")
+    q = model.deflected(held.q)
+    rows = [int(np.flatnonzero(np.all(np.isclose(data.q, h), axis=1))[0]) for h in held.q]
+    moved = {k: v[rows] for k, v in joints.items()}
+    for k, name in enumerate(chain.joint_names):
+        moved[name] = q[:, k]
+    contact = np.array(report["contact"]["frames"][chain.tool_frame]["matrix"])
+    plane = np.array(report["contact"]["planes"]["table"]["matrix"])
+    g = plane_gaps(out / "cal.urdf", chain.base_frame, chain.tool_frame, contact, plane, moved)
+    want = report["gaps"]["held_out"]
+    rms = np.sqrt(np.mean(g**2, axis=0))
+    assert abs(1e3 * rms[0] - want["height_rms_mm"]) < 1e-6
+    assert abs(math.degrees(rms[1]) - want["roll_rms_deg"]) < 1e-6
+    assert abs(math.degrees(rms[2]) - want["pitch_rms_deg"]) < 1e-6
+    # the URDF alone at the commanded joints: the report's URDF-alone figure
+    rigid = plane_gaps(
+        out / "cal.urdf",
+        chain.base_frame,
+        chain.tool_frame,
+        contact,
+        plane,
+        {k: v[rows] for k, v in joints.items()},
+    )
+    alone = report["gaps"]["held_out_urdf"]["height_rms_mm"]
+    assert abs(1e3 * np.sqrt(np.mean(rigid[:, 0] ** 2)) - alone) < 1e-6
+    # the contact frame's placement in the plane by the API: the same heights
+    T = model.contact_placements(held.q)
+    assert np.max(np.abs(T[:, 2, 3] - g[:, 0])) < 1e-9
+    # the commanded joints that reach given deflected ones
+    assert np.max(np.abs(model.deflected(model.command(q)) - q)) < 1e-10
+
+
+def test_elastic_needs_a_file_beside_the_urdf(tmp_path):
+    """``--elastic`` with an output that is no regular file: exit 2, one line, nothing."""
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "calib.cli.launcher",
+            "calibrate",
+            "talos_full_v2.urdf",
+            "--base",
+            "left_sole_link",
+            "--tool",
+            "gripper_left_base_link",
+            "--data",
+            str(REAL / "left_train.csv"),
+            "--measure",
+            "plane",
+            "--elastic",
+            "--out",
+            "-",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 2
+    assert "compliance file" in run.stderr and "Traceback" not in run.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_support_needs_elastic():
+    chain = load_robot(*TALOS)
+    data = read_contacts(REAL / "left_train.csv", chain, "plane")
+    with pytest.raises(InvalidArgumentError, match="elastic"):
+        calibrate_contacts(chain, data, support=Support("right_sole_link"))
+
+
+def test_elastic_needs_masses(tmp_path):
+    """A URDF without any ``<inertial>``: a one-line error, not a fit of nothing."""
+    import re
+
+    src = Path(__file__).resolve().parents[1] / "models" / "stanford.urdf"
+    text = re.sub(r"<inertial>.*?</inertial>", "", src.read_text(), flags=re.S)
+    urdf = tmp_path / "massless.urdf"
+    urdf.write_text(text)
+    chain = load_robot(urdf)
+    data = simulate_contacts(load_robot(src), 30, "plane", seed=0).data
+    with pytest.raises(InvalidArgumentError, match="no masses"):
+        calibrate_contacts(chain, data, elastic=True)
+    assert any(standing_load(load_robot(src)).torques(data.q).ravel())
+
+
+def test_predict_gives_the_contact_and_the_joint_correction(talos_elastic):
+    """``calib predict`` with the compliance file: deflected joints and the contact origin."""
+    import csv
+
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    pred = out / "pred.csv"
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "calib.cli.launcher",
+            "predict",
+            str(out / "cal.urdf"),
+            "--compliance",
+            str(out / "cal.compliance.json"),
+            "--configs",
+            str(REAL / "right_train.csv"),
+            "--out",
+            str(pred),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    with open(pred, newline="") as f:
+        rows = list(csv.DictReader(f))
+    model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
+    names = model.chain.joint_names
+    q = np.array([[float(r[n]) for n in names] for r in rows])
+    deflected = np.array([[float(r[f"deflected_{n}"]) for n in names] for r in rows])
+    assert np.max(np.abs(deflected - model.deflected(q))) < 1e-12
+    assert np.max(np.abs(deflected - q)) > 1e-4  # the correction is not nothing
+    # the contact origin by Pinocchio on the written URDF at the deflected joints
+    from contact_scorer import relative_placements
+
+    _ids, joints = read_joints(REAL / "right_train.csv")
+    for k, n in enumerate(names):
+        joints[n] = deflected[:, k]
+    report = json.loads((out / "r.json").read_text())
+    C = np.array(report["contact"]["frames"][model.chain.tool_frame]["matrix"])
+    chain = model.chain
+    T = relative_placements(out / "cal.urdf", chain.base_frame, chain.tool_frame, joints)
+    want = np.array([t.act(C[:3, 3]) for t in T])
+    got = np.array([[float(r[a]) for a in ("x1", "y1", "z1")] for r in rows])
+    assert np.max(np.abs(got - want)) < 1e-9
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"load": {"kind": "hanging", "support": {}}}, "'load' is not"),
+        ({"load": {"kind": "standing", "support": {"foot": "no_such_frame"}}}, "does not fit"),
+        ({"contact": [1, 2]}, "'contact' is not"),
+        ({"contact": {"frame": [[1]], "plane": [[1]]}}, "'frame'"),
+        ({"nominal_masses": {"base_link": {"mass": -1, "com": [0, 0, 0]}}}, "nominal_masses"),
+    ],
+)
+def test_bad_compliance_file_is_one_data_error(talos_elastic, tmp_path, change, message):
+    from calib.exceptions import DataError
+
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((out / "cal.compliance.json").read_text())
+    doc.update(change)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(DataError, match=message):
+        load_calibrated(out / "cal.urdf", bad)
