@@ -46,7 +46,7 @@ from .placements import COMPONENTS, Placements, offset_component
 from .selection import Selection, select
 from .solve import fit
 
-__all__ = ["CHAIN_LEVELS", "calibrate_contact_chains"]
+__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
 
 CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
 """Parameter levels of several chains (``paper`` is a chain's MDH set)."""
@@ -138,15 +138,17 @@ def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> 
     start = ChainsState(tuple(chains), placements, tuple(states), frames)
     if len(set(plane_of)) == len(plane_of):
         return start
-    frames = _model(start, plane_of, (), placements.names())
-    reg = fit(frames, start, ChainsData(tuple(train)), None, 1.0, max_iterations=max_iterations)
-    if not reg.converged:
+    only_frames = _model(start, plane_of, (), placements.names())
+    refined = fit(
+        only_frames, start, ChainsData(tuple(train)), None, 1.0, max_iterations=max_iterations
+    )
+    if not refined.converged:
         raise DataError(
             train[0].source,
-            f"the registration of the shared plane did not converge ({reg.message})",
+            f"the registration of the shared plane did not converge ({refined.message})",
         )
     notes.append("a plane touched by several chains is fitted once (shared planes)")
-    return reg.state
+    return refined.state
 
 
 def _model(state: ChainsState, plane_of, free, names) -> ChainsModel:
@@ -273,7 +275,7 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     model, wide, selection, prior = _choose(start, train, plane_of, level, notes)
     clock.append(time.perf_counter())
-    fitted, polished = _fit(model, wide, start, train, prior, max_iterations)
+    fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} components offered (composed with the fit "
@@ -283,30 +285,38 @@ def calibrate_contact_chains(
     return _assemble(start, fitted, model, train, held, plane_of, selection, notes, clock)
 
 
-def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, max_iterations):
-    """Least squares; without a prior, polished from its result with every component offered.
+POLISH_GAIN = 1e-2
+"""A polish is kept when it leaves less than this fraction of the fit's cost (see ``_fit``)."""
+
+
+def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, level, iters):
+    """Least squares; at ``complete`` and ``offsets``, polished from its result.
 
     The rank test at the nominal robot keeps the components that span what the touches
     see *there*; a robot off the nominal shows a little more (TALOS's arms, mirror images
     of each other, see one combination of the torso's placements less together than apart
-    at the nominal geometry, and it grows with the errors). A fit from the registration
-    then leaves gaps of the order of the squared errors (1 um for 1 mm and 1 mrad). From the
-    fitted robot, every component the level offers (``wide``, dependent ones included:
-    Levenberg-Marquardt's damping keeps their steps small) is fitted again, the errors
-    composed with the first fit's, and kept if the cost drops by more than 0.1 %. With a
-    prior (``auto``) the fit is biased toward the registration anyway: no polish.
+    at the nominal geometry). A fit from the registration then leaves gaps of the order of
+    the squared errors (1 um for 1 mm and 1 mrad). From the fitted robot, every component
+    the level offers (``wide``, dependent ones included: Levenberg-Marquardt's damping keeps
+    their steps small) is fitted again, the errors composed with the first fit's. The polish
+    is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
+    fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
+    selection, a prior) is not polished.
 
     Returns:
         The fit, and whether it was polished.
     """
     data = ChainsData(tuple(train))
-    fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=max_iterations)
-    if prior is not None or not model.free or not fitted.converged:
+    fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
+    rows = 3 * data.m
+    if level not in ("complete", "offsets") or not model.free or rows < wide.size():
+        return fitted, False
+    if not fitted.converged:
         return fitted, False
     again = dataclasses.replace(fitted.state, placements=fitted.state.placements.rebased())
-    better = fit(wide, again, data, None, 1.0, max_iterations=max_iterations)
+    better = fit(wide, again, data, None, 1.0, max_iterations=iters)
     cost = float(fitted.f @ fitted.f)
-    if better.converged and float(better.f @ better.f) < cost * (1.0 - 1e-3):
+    if better.converged and float(better.f @ better.f) < POLISH_GAIN * cost:
         return better, True
     return fitted, False
 

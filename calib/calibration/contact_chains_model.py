@@ -189,8 +189,7 @@ class ChainsModel:
         full = np.zeros((d.m, 6, len(joints), len(COMPONENTS)))
         full[:, :3, columns] = np.moveaxis(moving, 1, 2)
         full[:, 3:, columns] = np.moveaxis(ang, 1, 2)
-        full = full.reshape(d.m, 6, -1)
-        W6 = full[:, :, list(self.free)]
+        W6 = full.reshape(d.m, 6, -1)[:, :, list(self.free)]
         seen = np.einsum("mji,j->mi", RC, s.normal)
         D = tilt_derivatives(seen)
         out = np.zeros((d.m, 3, len(self.free)))

@@ -32,6 +32,8 @@ def moved_origins_urdf(chain: Chain, errors: dict[str, np.ndarray]) -> bytes:
         CalibError: A joint the file does not have, or a file that cannot be read.
     """
     raw, root = read_urdf_source(chain)
+    if not errors:
+        return raw
     start, stop = xml_layout(raw, str(chain.urdf_path))
     joints = {j.get("name", ""): j for j in root.findall("joint")}
     for name, E in errors.items():
