@@ -211,18 +211,19 @@ def _read(chain, path):
 
 
 def test_worse_on_one_chain_is_refused(capsys, tmp_path):
-    """Few noisy touches, every component: worse held out than the registration: refused."""
+    """Few noisy touches, every offset: better held out on the left, worse on the right:
+    the whole model is refused (one URDF holds both chains)."""
     chains = _chains()
     data = [
-        simulate_contacts(c, 12, "plane", seed=5, noise_mrad=3.0, error_mm=0.0, error_mrad=0.0).data
+        simulate_contacts(c, 20, "plane", seed=5, noise_mrad=3.0, error_mm=0.0, error_mrad=0.0).data
         for c in chains
     ]
-    r = calibrate_contact_chains(chains, data, params="complete", holdout=0.4, seed=0)
+    r = calibrate_contact_chains(chains, data, params="offsets", holdout=0.4, seed=0)
     assert not r.accepted and "worse than the registration" in r.refusal
-    assert any(
-        p.stats["held_out"].weighted_mm > p.stats["held_out_registration"].weighted_mm
-        for p in r.chains
-    )
+    assert "right_sole_link -> gripper_right_base_link" in r.refusal
+    left, right = (p.stats for p in r.chains)
+    assert left["held_out"].weighted_mm < left["held_out_registration"].weighted_mm
+    assert right["held_out"].weighted_mm > right["held_out_registration"].weighted_mm
     with pytest.raises(CalibrationRefusedError):
         r.write_urdf(tmp_path / "x.urdf")
     assert not (tmp_path / "x.urdf").exists()
@@ -230,7 +231,7 @@ def test_worse_on_one_chain_is_refused(capsys, tmp_path):
     for k, d in enumerate(data):
         files.append(tmp_path / f"c{k}.csv")
         write_contacts(files[-1], d)
-    argv = ["calibrate", URDF, "--measure", "plane", "--params", "complete", "--holdout", "0.4"]
+    argv = ["calibrate", URDF, "--measure", "plane", "--params", "offsets", "--holdout", "0.4"]
     for (base, tool), f in zip(PAIRS, files, strict=True):
         argv += ["--chain", base, tool, str(f)]
     code = main([*argv, "--out", str(tmp_path / "x.urdf"), "--report", str(tmp_path / "r.json")])
@@ -299,3 +300,45 @@ def test_bad_arguments():
     point = simulate_contacts(chains[0], 12, "fixed-point", seed=0).data
     with pytest.raises(InvalidArgumentError, match="'plane' contacts"):
         calibrate_contact_chains(chains, [point, data[1]])
+
+
+@pytest.mark.filterwarnings("ignore")
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_one_chain_offsets_equal_the_single_chain_pipeline(side):
+    """Joint offsets of one chain: the placement model and the MDH pipeline agree."""
+    from calib.calibration.contact_pipeline import calibrate_contacts
+    from calib.measurements.contact_campaign import read_contacts
+
+    chain = load_robot(URDF, f"{side}_sole_link", f"gripper_{side}_base_link")
+    data = read_contacts(REAL / f"{side}_train.csv", chain, "plane")
+    kw = {"contact": (0.0, 0.0, -0.12), "params": "offsets", "holdout": 0.25, "seed": 0}
+    mine = calibrate_contact_chains([chain], [data], **kw).chains[0].stats
+    theirs = calibrate_contacts(chain, data, **kw).stats
+    for key in ("train", "held_out", "held_out_registration"):
+        a, b = mine[key], theirs[key]
+        assert a.m == b.m
+        assert abs(a.height_rms_mm - b.height_rms_mm) < 1e-6
+        assert abs(a.roll_rms_deg - b.roll_rms_deg) < 1e-6
+        assert abs(a.pitch_rms_deg - b.pitch_rms_deg) < 1e-6
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_shared_plane_is_one_plane():
+    """Both sessions from the left sole, --shared-planes: one table in the report."""
+    from calib.measurements.contact_campaign import read_contacts
+
+    chains = [load_robot(URDF, "left_sole_link", tool) for _, tool in PAIRS]
+    data = [
+        read_contacts(REAL / f"{side}_train.csv", c, "plane")
+        for c, side in zip(chains, ("left", "right"), strict=True)
+    ]
+    r = calibrate_contact_chains(
+        chains, data, contact=(0, 0, -0.12), params="frames", shared_planes=True
+    )
+    assert r.planes == 1 and r.accepted
+    a, b = (c.plane for c in r.chains)
+    assert np.allclose(a[:3, 2], b[:3, 2], atol=1e-12)
+    assert abs(a[:3, 2] @ (a[:3, 3] - b[:3, 3])) < 1e-12  # one height
+    own = calibrate_contact_chains(chains, data, contact=(0, 0, -0.12), params="frames")
+    assert own.planes == 2
+    assert not np.allclose(own.chains[0].plane[:3, 2], own.chains[1].plane[:3, 2], atol=1e-4)

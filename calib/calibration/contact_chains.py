@@ -42,7 +42,7 @@ from .contact_model import ContactState
 from .contact_pipeline import WORSE, contact_frame, flush_postures, split_contacts, tilt_weight
 from .contact_registration import register_planes
 from .contact_result import gap_stats
-from .placements import COMPONENTS, Placements, offset_component
+from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import fit
 
@@ -151,28 +151,40 @@ def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> 
     return refined.state
 
 
-def _model(state: ChainsState, plane_of, free, names) -> ChainsModel:
+def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
     owners = [plane_of.index(p) for p in sorted(set(plane_of))]
     tangents = tuple(np.linalg.svd(state.states[c].normal[None, :])[2][1:].T for c in owners)
-    return ChainsModel(tuple(plane_of), tangents, tuple(free), tuple(names))
+    return ChainsModel(tuple(plane_of), tangents, tuple(free), tuple(names), directions)
 
 
-def _candidates(placements: Placements, level: str) -> list[int]:
-    """Placement components a level offers, in order of preference.
+def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
+    """Directions a level offers: (directions or None for components, names, indices).
 
-    Offsets first, then the tilts and shifts of each axis (x, y, rx, ry), then the rest
-    (a revolute joint's slide along its axis, a prismatic joint's turn about it); joints in
-    the order of the chains.
+    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
+    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
+    single-chain pipeline offers them, turned into directions of joint placement errors
+    (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
+    offers (a shared joint's) once.
     """
+    pl = start.placements
     if level == "frames":
-        return []
-    classes: list[list[int]] = [[], [], []]
-    for j, jid in enumerate(placements.ids):
-        offset = offset_component(placements.model, jid)
-        for k, comp in enumerate(COMPONENTS):
-            rank = 0 if comp == offset else (1 if comp in ("x", "y", "rx", "ry") else 2)
-            classes[rank].append(6 * j + k)
-    return classes[0] if level == "offsets" else classes[0] + classes[1] + classes[2]
+        return None, pl.names(), []
+    if level == "offsets":
+        offsets = [
+            6 * j + COMPONENTS.index(offset_component(pl.model, jid))
+            for j, jid in enumerate(pl.ids)
+        ]
+        return None, pl.names(), offsets
+    rows: list[np.ndarray] = []
+    names: list[str] = []
+    for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
+        D, labels = mdh_directions(pl, chain, s.mdh, frames)
+        for d, label in zip(D, labels, strict=True):
+            unit = d / np.linalg.norm(d)
+            if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):
+                rows.append(d)
+                names.append(label)
+    return np.array(rows), tuple(names), list(range(len(rows)))
 
 
 def _structural(wide: ChainsModel, start: ChainsState, train) -> list[int]:
@@ -190,9 +202,8 @@ def _structural(wide: ChainsModel, start: ChainsState, train) -> list[int]:
 
 def _choose(start: ChainsState, train, plane_of, level: str, notes: list[str]):
     """The model (free components), the selection (``auto``) and the prior weights."""
-    names = start.placements.names()
-    offered = _candidates(start.placements, level)
-    wide = _model(start, plane_of, offered, names)
+    directions, names, offered = _offered(start, level)
+    wide = _model(start, plane_of, offered, names, directions)
     fixed = wide.fixed
     kept = _structural(wide, start, train) if offered else list(range(fixed))
     if sorted(kept[:fixed]) != list(range(fixed)):
@@ -200,9 +211,7 @@ def _choose(start: ChainsState, train, plane_of, level: str, notes: list[str]):
     columns = sorted(kept[fixed:])
     cand = [offered[c - fixed] for c in columns]
     if len(cand) < len(offered):
-        notes.append(
-            f"the touches determine {len(cand)} of the {len(offered)} placement components offered"
-        )
+        notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
     selection: Selection | None = None
     prior = None
     if level == "auto" and cand:
@@ -273,13 +282,15 @@ def calibrate_contact_chains(
     notes: list[str] = []
     start = _register(chains, train, guess, w, plane_of, notes, max_iterations)
     clock.append(time.perf_counter())
-    model, wide, selection, prior = _choose(start, train, plane_of, level, notes)
+    model, _, selection, prior = _choose(start, train, plane_of, level, notes)
+    names = start.placements.names()
+    wide = _model(start, plane_of, range(len(names)), names)
     clock.append(time.perf_counter())
     fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
     if polished:
         notes.append(
-            f"polished with all {len(wide.free)} components offered (composed with the fit "
-            f"of the {len(model.free)} determined at the nominal robot)"
+            f"polished with all {len(wide.free)} joint placement components (composed with "
+            f"the fit of the {len(model.free)} parameters determined at the nominal robot)"
         )
     clock.append(time.perf_counter())
     return _assemble(start, fitted, model, train, held, plane_of, selection, notes, clock)
@@ -290,18 +301,18 @@ POLISH_GAIN = 1e-2
 
 
 def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, level, iters):
-    """Least squares; at ``complete`` and ``offsets``, polished from its result.
+    """Least squares; at ``complete``, polished from its result.
 
-    The rank test at the nominal robot keeps the components that span what the touches
+    The rank test at the nominal robot keeps the parameters that span what the touches
     see *there*; a robot off the nominal shows a little more (TALOS's arms, mirror images
     of each other, see one combination of the torso's placements less together than apart
     at the nominal geometry). A fit from the registration then leaves gaps of the order of
-    the squared errors (1 um for 1 mm and 1 mrad). From the fitted robot, every component
-    the level offers (``wide``, dependent ones included: Levenberg-Marquardt's damping keeps
-    their steps small) is fitted again, the errors composed with the first fit's. The polish
+    the squared errors (1 um for 1 mm and 1 mrad). From the fitted robot, every joint
+    placement component (``wide``, dependent ones included: Levenberg-Marquardt's damping
+    keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
-    selection, a prior) is not polished.
+    selection, a prior) and ``offsets`` are not polished.
 
     Returns:
         The fit, and whether it was polished.
@@ -309,7 +320,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     data = ChainsData(tuple(train))
     fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
     rows = 3 * data.m
-    if level not in ("complete", "offsets") or not model.free or rows < wide.size():
+    if level != "complete" or not model.free or rows < wide.size():
         return fitted, False
     if not fitted.converged:
         return fitted, False

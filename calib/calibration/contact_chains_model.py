@@ -83,14 +83,18 @@ class ChainsModel:
     Attributes:
         plane_of: Index of each chain's plane.
         tangents: Each plane's start normal's tangent plane ``(3, 2)``.
-        free: Free components, as indices into ``Placements.names()``.
-        names_all: ``Placements.names()``.
+        free: The free directions, as indices into ``names_all``.
+        names_all: Names of the directions offered.
+        directions: The directions offered ``(D, 6 J)``, each a combination of the joint
+            placement components (``Placements.names()`` order); None: each component alone
+            (``names_all`` is then ``Placements.names()``).
     """
 
     plane_of: tuple[int, ...]
     tangents: tuple[np.ndarray, ...]
     free: tuple[int, ...]
     names_all: tuple[str, ...]
+    directions: np.ndarray | None = None
     _last: dict = field(default_factory=dict, compare=False, repr=False)
 
     n_markers = 1
@@ -118,6 +122,12 @@ class ChainsModel:
         """The same planes and contacts, other free components."""
         return dataclasses.replace(self, free=tuple(free), _last={})
 
+    def _lift(self) -> np.ndarray:
+        """The free directions ``(free, 6 J)``."""
+        if self.directions is None:
+            return np.eye(len(self.names_all))[list(self.free)]
+        return self.directions[list(self.free)]
+
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
         p = self.plane_of[c]
         t = PLANE_ROWS * len(self.tangents) + TILT_COLUMNS * c
@@ -143,8 +153,7 @@ class ChainsModel:
         return state
 
     def _apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
-        dy = np.zeros(len(self.names_all))
-        dy[list(self.free)] = x[self.fixed :]
+        dy = self._lift().T @ x[self.fixed :]
         if len(self.free):
             placements = start.placements.shifted(dy)
             models, frames = placements.chain_geometry(start.chains)
@@ -189,7 +198,7 @@ class ChainsModel:
         full = np.zeros((d.m, 6, len(joints), len(COMPONENTS)))
         full[:, :3, columns] = np.moveaxis(moving, 1, 2)
         full[:, 3:, columns] = np.moveaxis(ang, 1, 2)
-        W6 = full.reshape(d.m, 6, -1)[:, :, list(self.free)]
+        W6 = full.reshape(d.m, 6, -1) @ self._lift().T
         seen = np.einsum("mji,j->mi", RC, s.normal)
         D = tilt_derivatives(seen)
         out = np.zeros((d.m, 3, len(self.free)))

@@ -23,6 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..identification.base_columns import preference_order
+from ..identification.jacobian import identification_jacobian
+from ..identification.measures import Measurement
+from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.frames import joint_placements, motion_axis
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain
 from ..kinematics.robot import Chain
@@ -30,9 +34,11 @@ from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
 __all__ = [
     "COMPONENTS",
+    "DIRECTION_CONFIGS",
     "Placements",
     "axis_basis",
     "joint_twists",
+    "mdh_directions",
     "offset_component",
     "placement_error",
 ]
@@ -214,3 +220,59 @@ def joint_twists(
         lin[:, i, :, :3] = s * RF @ body_v
         lin[:, i, :, 3:] = skew(pF) @ wv
     return ang, lin
+
+
+DIRECTION_CONFIGS = 12
+"""Random configurations at which an MDH parameter's motion is matched to a joint's errors."""
+
+
+def mdh_directions(
+    placements: Placements, chain: Chain, mdh: MDHModel, frames: np.ndarray, seed: int = 0
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The chain's MDH parameters of joint rows 1..n as directions of joint placement errors.
+
+    An MDH parameter of row k moves everything on the tool side of one link rigidly: it is
+    an error of the placement of joint k (of joint k-1 for a row traversed backwards, whose
+    link lies on the base side). Its direction is the combination of that joint's six
+    components that moves the tool as the parameter does, at ``DIRECTION_CONFIGS`` random
+    configurations (exactly, or the parameter is not offered: a row-1 tilt backwards moves
+    the base frame's own fixed joint, which the plane takes). The parameters come in the
+    single-chain pipeline's order of preference.
+
+    Args:
+        placements: The (zero) placement errors of the robot.
+        chain: The chain.
+        mdh: Its MDH model on the robot of ``placements``.
+        frames: Its joint frames at q = 0 (:meth:`Placements.chain_geometry`).
+        seed: Seed of the configurations.
+
+    Returns:
+        Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
+        ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
+    """
+    pset = parameter_set(mdh, "complete")
+    chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
+    params = ParameterSet("complete", tuple(p for p in chosen if 1 <= p.row <= mdh.n))
+    q = chain.random_configurations(DIRECTION_CONFIGS, seed)
+    kin = mdh.kinematics(q)
+    pose = Measurement.of("pose", (0.0, 0.0, 0.0))
+    W = identification_jacobian(mdh, params, q, pose, kin).reshape(len(q), 6, -1)
+    columns = np.array([placements.joints.index(n) for n in chain.joint_names])
+    ang, lin = joint_twists(placements, chain, mdh, frames, kin, columns)
+    vel = lin - skew(kin.p[:, -1])[:, None] @ ang  # the tool origin's velocity
+    A = np.concatenate([vel, ang], axis=2)  # (m, n, 6, 6)
+    out, names = [], []
+    for k, p in enumerate(params.parameters):
+        w = W[:, :, k].reshape(-1)
+        for i in (p.row - 1, p.row - 2, p.row):
+            if not 0 <= i < chain.n:
+                continue
+            Ai = A[:, i].reshape(-1, 6)
+            c = np.linalg.lstsq(Ai, w, rcond=None)[0]
+            if np.linalg.norm(Ai @ c - w) <= 1e-8 * max(np.linalg.norm(w), 1e-300):
+                d = np.zeros(6 * len(placements.joints))
+                d[6 * columns[i] : 6 * columns[i] + 6] = c
+                out.append(d)
+                names.append(f"{chain.joint_names[i]}:{p.name}")
+                break
+    return np.array(out).reshape(-1, 6 * len(placements.joints)), tuple(names)
