@@ -269,7 +269,8 @@ def mdh_directions(
                 continue
             Ai = A[:, i].reshape(-1, 6)
             c = np.linalg.lstsq(Ai, w, rcond=None)[0]
-            if np.linalg.norm(Ai @ c - w) <= 1e-8 * max(np.linalg.norm(w), 1e-300):
+            scale = float(np.linalg.norm(w))
+            if float(np.linalg.norm(Ai @ c - w)) <= 1e-8 * scale and scale > 0:
                 d = np.zeros(6 * len(placements.joints))
                 d[6 * columns[i] : 6 * columns[i] + 6] = c
                 out.append(d)
