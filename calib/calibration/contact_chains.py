@@ -42,6 +42,7 @@ from .contact_model import ContactState
 from .contact_pipeline import WORSE, contact_frame, flush_postures, split_contacts, tilt_weight
 from .contact_registration import register_planes
 from .contact_result import gap_stats
+from .options import check_run_options
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import fit
@@ -72,9 +73,7 @@ def _check(chains, data, validate, params, holdout) -> None:
     ):
         raise InvalidArgumentError("give one validation set (or None) per chain")
     for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
-        for part in (d, v):
-            if part is None:
-                continue
+        for part in (d, v) if v is not None else (d,):
             if not isinstance(part, ContactData):
                 raise InvalidArgumentError(
                     f"touches must be ContactData, got {type(part).__name__}"
@@ -97,8 +96,6 @@ def _check(chains, data, validate, params, holdout) -> None:
         )
     if validate is not None and any(v is not None for v in validate) and holdout > 0:
         raise InvalidArgumentError("give validation touches or a holdout fraction, not both")
-    if not (isinstance(holdout, int | float) and 0 <= holdout < 1):
-        raise InvalidArgumentError(f"holdout must be a fraction in [0, 1), got {holdout!r:.40}")
 
 
 def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
@@ -266,6 +263,7 @@ def calibrate_contact_chains(
         DataError: Touches that do not belong to their chain or determine too little.
     """
     level = "auto" if params is None else params
+    check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
