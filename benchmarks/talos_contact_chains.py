@@ -13,6 +13,8 @@ and the held folds' gaps pooled: RMS height [mm], roll and pitch [deg] per chain
   the left leg and the torso shared;
 * ``alone``: the same function on one chain;
 * ``single``: the single-chain pipeline :func:`calibrate_contacts` (MDH parameters);
+* ``offsets``: the same at ``params="offsets"`` (alone: equal to the single-chain
+  pipeline's offsets);
 * ``baseline``: the registration (the nominal robot with its own plane and contact).
 
 ``fit`` is the calibrated model; ``delivered`` is what calib hands over (the registration
@@ -93,7 +95,7 @@ class Pool:
         )
 
 
-def cross_validate(chains, data, shared_planes: bool = False) -> list[Pool]:
+def cross_validate(chains, data, shared_planes: bool = False, params=None) -> list[Pool]:
     """Pools per chain of the joint fit of ``chains`` (folds of every chain held out together)."""
     folds = [_folds(d) for d in data]
     pools = [Pool() for _ in chains]
@@ -103,7 +105,12 @@ def cross_validate(chains, data, shared_planes: bool = False) -> list[Pool]:
         ]
         held = [_take(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
         r = calibrate_contact_chains(
-            chains, train, contact=CONTACT, validate=held, shared_planes=shared_planes
+            chains,
+            train,
+            contact=CONTACT,
+            validate=held,
+            shared_planes=shared_planes,
+            params=params,
         )
         for pool, part in zip(pools, r.chains, strict=True):
             pool.add(part.stats, r.accepted)
@@ -134,12 +141,16 @@ def main() -> None:
         for s, c in zip(SIDES, from_left, strict=True)
     ]
     left_sole = cross_validate(from_left, moved)
+    both_offsets = cross_validate(chains, data, params="offsets")
     for k, side in enumerate(SIDES):
         alone = cross_validate([chains[k]], [data[k]])[0]
         print(both[k].line(f"{side} both"))
         print(left_sole[k].line(f"{side} both, left sole"))
         print(alone.line(f"{side} alone"))
         print(single_chain(chains[k], data[k]).line(f"{side} single"))
+        offsets = cross_validate([chains[k]], [data[k]], params="offsets")[0]
+        print(both_offsets[k].line(f"{side} both, offsets"))
+        print(offsets.line(f"{side} alone, offsets"))
         for what, anchor in FIGAROH.items():
             h, r, p = anchor[side]
             print(f"{side:5s} FIGAROH {what:6s} {h:6.2f} mm {r:.2f} {p:.2f} deg")
