@@ -47,11 +47,6 @@ class ChainsData:
         """Touches of all chains."""
         return sum(d.m for d in self.parts)
 
-    @property
-    def q(self) -> np.ndarray:
-        """Not one array: the chains have their own joints (rows are per chain)."""
-        raise AttributeError("touches of several chains have no single q")
-
 
 @dataclass(frozen=True, eq=False)
 class ChainsState:
