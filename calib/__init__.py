@@ -74,6 +74,8 @@ _LAZY = {
     "measurement_to_base": "kinematics.urdf_export",
     "write_calibrated_urdf": "kinematics.urdf_export",
     "TreeCalibrationResult": "calibration.tree_pipeline",
+    "ContactChainsCalibration": "calibration.contact_chains_result",
+    "calibrate_contact_chains": "calibration.contact_chains",
     "calibrate_tree": "calibration.tree_pipeline",
     "TreeCampaign": "measurements.tree_campaign",
     "simulate_tree": "measurements.tree_campaign",
@@ -92,6 +94,8 @@ __getattr__ = attributes(__name__, _LAZY)
 TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
     from .calibration import CalibrationResult, ResidualStats, calibrate, residual_stats
+    from .calibration.contact_chains import calibrate_contact_chains
+    from .calibration.contact_chains_result import ContactChainsCalibration
     from .calibration.tree_pipeline import TreeCalibrationResult, calibrate_tree
     from .identification.identifiability import Identifiability, RankWarning, analyze, analyze_model
     from .identification.jacobian import Measurement, complete_jacobian, identification_jacobian
@@ -146,6 +150,7 @@ __all__ = [
     "Chain",
     "ChainError",
     "Columns",
+    "ContactChainsCalibration",
     "ConvergenceError",
     "DataError",
     "DataWarning",
@@ -173,6 +178,7 @@ __all__ = [
     "analyze",
     "analyze_model",
     "calibrate",
+    "calibrate_contact_chains",
     "calibrate_tree",
     "calibrated_tree_urdf",
     "calibrated_urdf",

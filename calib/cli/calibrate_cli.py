@@ -18,7 +18,7 @@ from ..exceptions import CalibError, CalibrationRefusedError, DataError, Invalid
 from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
-from . import contact_cli
+from . import contact_chains_cli, contact_cli
 from .common import (
     BooleanOnce,
     add_chain_args,
@@ -68,6 +68,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     the report's ``warnings`` too.
     """
     with _recorded_warnings() as recorded:
+        if args.chain is not None:
+            return contact_chains_cli.calibrate_chains_command(args)
+        if args.data is None:
+            raise InvalidArgumentError(
+                "--data is required (or --chain BASE TOOL DATA, once per chain, for contacts)"
+            )
         chain = load_robot(args.robot, args.base, tool_arg(args))
         if contact_cli.is_contact_run(args):
             return contact_cli.calibrate_contacts_command(args, chain)
@@ -316,7 +322,7 @@ def add_calibrate_parser(sub) -> None:
     """``calibrate``."""
     p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
     add_chain_args(p, trees=True)
-    p.add_argument("--data", required=True, help="measurement CSV (joints, x y z or x1..zK, ...)")
+    p.add_argument("--data", help="measurement CSV (joints, x y z or x1..zK, ...) (required)")
     p.add_argument("--out", required=True, help="calibrated URDF to write")
     p.add_argument("--report", help="JSON report to write (also when the model is refused)")
     p.add_argument(
@@ -334,6 +340,7 @@ def add_calibrate_parser(sub) -> None:
         "(no coordinates in the CSV) (default: auto)",
     )
     contact_cli.add_contact_arguments(p)
+    contact_chains_cli.add_chain_arguments(p)
     p.add_argument(
         "--params",
         choices=LEVELS,

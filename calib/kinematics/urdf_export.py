@@ -53,6 +53,7 @@ __all__ = [
     "child_link",
     "edited_joints",
     "measurement_to_base",
+    "origin_of",
     "parent_link",
     "read_urdf_source",
     "set_origin",

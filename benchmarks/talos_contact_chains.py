@@ -1,0 +1,175 @@
+"""TALOS flush contacts, both arms in one fit: 5-fold cross-validated held-out gaps.
+
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/talos_contact_chains.py``
+
+The left chain (``left_sole_link`` -> ``gripper_left_base_link``, ``left_train.csv``) and the
+right one (``right_sole_link`` -> ``gripper_right_base_link``, ``right_train.csv``) share the
+torso joints. Each chain's touches are split into 5 folds (seeded 0, as
+``talos_contact_calibration.py``); fold f of both chains is held out together, the rest fitted,
+and the held folds' gaps pooled: RMS height [mm], roll and pitch [deg] per chain, for
+
+* ``both``: :func:`calibrate_contact_chains` on the two chains (shared torso, a plane each);
+  ``both, left sole``: the right chain from ``left_sole_link`` too (all joints are recorded):
+  the left leg and the torso shared;
+* ``alone``: the same function on one chain;
+* ``single``: the single-chain pipeline :func:`calibrate_contacts` (MDH parameters);
+* ``offsets``: the same at ``params="offsets"`` (alone: equal to the single-chain
+  pipeline's offsets);
+* ``baseline``: the registration (the nominal robot with its own plane and contact).
+
+``fit`` is the calibrated model; ``delivered`` is what calib hands over (the registration
+when the model is refused). Then the plane question: the two sessions, both expressed from
+``left_sole_link`` (all joints are recorded), fitted with one shared table or a table each.
+Last, the median time of the default joint fit on all touches (target ~2 s): CPU time of
+this process (one thread), which a machine shared with other jobs does not inflate, and the
+wall-clock time.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from calib import calibrate_contact_chains, load_robot
+from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.measurements.contact_campaign import ContactData, read_contacts
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
+URDF = "talos_full_v2.urdf"
+CONTACT = (0.0, 0.0, -0.12)
+FOLDS = 5
+SEED = 0
+SIDES = ("left", "right")
+FIGAROH = {
+    "single": {"left": (9.26, 0.75, 0.52), "right": (8.03, 0.98, 0.59)},
+    "both": {"left": (4.86, 0.44, 0.50), "right": (7.91, 0.98, 0.59)},
+}
+"""FIGAROH's published held-out RMS (height mm, roll deg, pitch deg), sessions of another day."""
+
+
+def _take(data: ContactData, rows: np.ndarray) -> ContactData:
+    return ContactData(
+        data.joint_names, data.q[rows], tuple(data.ids[i] for i in rows), data.kind, data.source
+    )
+
+
+def _folds(data: ContactData) -> list[np.ndarray]:
+    return np.array_split(np.random.default_rng(SEED).permutation(data.m), FOLDS)
+
+
+class Pool:
+    """Held-out gaps pooled over folds: fit, delivered, baseline; refused folds."""
+
+    def __init__(self) -> None:
+        self.fit: list[tuple] = []
+        self.delivered: list[tuple] = []
+        self.base: list[tuple] = []
+        self.refused = 0
+
+    def add(self, stats: dict, accepted: bool) -> None:
+        h, b = stats["held_out"], stats["held_out_registration"]
+        row = (h.m, h.height_rms_mm, h.roll_rms_deg, h.pitch_rms_deg)
+        brow = (b.m, b.height_rms_mm, b.roll_rms_deg, b.pitch_rms_deg)
+        self.fit.append(row)
+        self.base.append(brow)
+        self.delivered.append(row if accepted else brow)
+        self.refused += not accepted
+
+    @staticmethod
+    def rms(parts: list[tuple]) -> tuple[float, float, float]:
+        m = sum(p[0] for p in parts)
+        return tuple(  # type: ignore[return-value]
+            float(np.sqrt(sum(p[0] * p[k] ** 2 for p in parts) / m)) for k in (1, 2, 3)
+        )
+
+    def line(self, label: str) -> str:
+        f, d, b = self.rms(self.fit), self.rms(self.delivered), self.rms(self.base)
+        return (
+            f"{label:22s} fit {f[0]:6.2f} mm {f[1]:.2f} {f[2]:.2f} deg | delivered {d[0]:6.2f} "
+            f"{d[1]:.2f} {d[2]:.2f} | baseline {b[0]:6.2f} {b[1]:.2f} {b[2]:.2f} | "
+            f"refused {self.refused}/{FOLDS}"
+        )
+
+
+def cross_validate(chains, data, shared_planes: bool = False, params=None) -> list[Pool]:
+    """Pools per chain of the joint fit of ``chains`` (folds of every chain held out together)."""
+    folds = [_folds(d) for d in data]
+    pools = [Pool() for _ in chains]
+    for f in range(FOLDS):
+        train = [
+            _take(d, np.setdiff1d(np.arange(d.m), fo[f])) for d, fo in zip(data, folds, strict=True)
+        ]
+        held = [_take(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
+        r = calibrate_contact_chains(
+            chains,
+            train,
+            contact=CONTACT,
+            validate=held,
+            shared_planes=shared_planes,
+            params=params,
+        )
+        for pool, part in zip(pools, r.chains, strict=True):
+            pool.add(part.stats, r.accepted)
+    return pools
+
+
+def single_chain(chain, data) -> Pool:
+    """The single-chain pipeline on the same folds."""
+    pool = Pool()
+    for fold in _folds(data):
+        train = _take(data, np.setdiff1d(np.arange(data.m), fold))
+        r = calibrate_contacts(chain, train, contact=CONTACT, validate=_take(data, fold))
+        pool.add(r.stats, r.accepted)
+    return pool
+
+
+def main() -> None:
+    warnings.simplefilter("ignore")
+    chains = [load_robot(URDF, f"{s}_sole_link", f"gripper_{s}_base_link") for s in SIDES]
+    data = [
+        read_contacts(DATA / f"{s}_train.csv", c, "plane")
+        for s, c in zip(SIDES, chains, strict=True)
+    ]
+    both = cross_validate(chains, data)
+    from_left = [load_robot(URDF, "left_sole_link", f"gripper_{s}_base_link") for s in SIDES]
+    moved = [
+        read_contacts(DATA / f"{s}_train.csv", c, "plane")
+        for s, c in zip(SIDES, from_left, strict=True)
+    ]
+    left_sole = cross_validate(from_left, moved)
+    both_offsets = cross_validate(chains, data, params="offsets")
+    for k, side in enumerate(SIDES):
+        alone = cross_validate([chains[k]], [data[k]])[0]
+        print(both[k].line(f"{side} both"))
+        print(left_sole[k].line(f"{side} both, left sole"))
+        print(alone.line(f"{side} alone"))
+        print(single_chain(chains[k], data[k]).line(f"{side} single"))
+        offsets = cross_validate([chains[k]], [data[k]], params="offsets")[0]
+        print(both_offsets[k].line(f"{side} both, offsets"))
+        print(offsets.line(f"{side} alone, offsets"))
+        for what, anchor in FIGAROH.items():
+            h, r, p = anchor[side]
+            print(f"{side:5s} FIGAROH {what:6s} {h:6.2f} mm {r:.2f} {p:.2f} deg")
+    # the plane question: both sessions from the left sole, one table for both (a table
+    # each is "both, left sole" above)
+    shared = cross_validate(from_left, moved, shared_planes=True)
+    for side, pool in zip(SIDES, shared, strict=True):
+        print(pool.line(f"{side} one table"))
+    wall, cpu = [], []
+    for _ in range(5):
+        t, c = time.perf_counter(), time.process_time()
+        calibrate_contact_chains(chains, data, contact=CONTACT)
+        wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    print(
+        f"both chains, default calibration on {sum(d.m for d in data)} touches: median "
+        f"{1e3 * statistics.median(cpu):.0f} ms CPU ({1e3 * statistics.median(wall):.0f} ms wall)"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,383 @@
+"""Several chains of one robot calibrated together from flush contacts: shared joints once.
+
+A humanoid's two arms, each calibrated from its foot (``left_sole_link`` to the left
+gripper, ``right_sole_link`` to the right one), share the torso joints. Fitted one at a
+time, each chain gets its own torso, and no single URDF holds both. Fitted together
+(:func:`calibrate_contact_chains`), every URDF joint has one placement error
+(:mod:`.placements`) that every chain through it sees, and the result is one URDF of the
+whole robot. The steps are those of one chain (:mod:`.contact_pipeline`):
+
+1. touches set aside per chain (``holdout``, seeded) or a validation set per chain;
+2. the registration: each chain's plane and contact tilts in closed form on the nominal
+   robot (a plane shared by chains of one base frame: then refined together by least
+   squares);
+3. the free placement components: those the touches determine beside the planes and
+   contacts (pivoted QR at flush postures, in the order offsets, then the axes' tilts and
+   shifts, then the rest), and for ``auto`` the cross-validated forward selection with a
+   prior (:func:`~.selection.select`) on all chains' touches together;
+4. least squares (:func:`~.solve.fit`);
+5. refusal of a model whose held-out weighted RMS gap is worse than the registration's on
+   any chain.
+
+Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
+recorded on different days see the table from wherever the robot stood.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..exceptions import DataError, InvalidArgumentError
+from ..identification.contacts import PlaneContact
+from ..identification.identifiability import independent_columns
+from ..kinematics.robot import Chain
+from ..measurements.contact_campaign import ContactData
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .contact_model import ContactState
+from .contact_pipeline import WORSE, contact_frame, flush_postures, split_contacts, tilt_weight
+from .contact_registration import register_planes
+from .contact_result import gap_stats
+from .options import check_run_options
+from .placements import COMPONENTS, Placements, mdh_directions, offset_component
+from .selection import Selection, select
+from .solve import fit
+
+__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
+
+CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
+"""Parameter levels of several chains (``paper`` is a chain's MDH set)."""
+
+
+def _check(chains, data, validate, params, holdout) -> None:
+    if not isinstance(chains, Sequence) or not chains:
+        raise InvalidArgumentError("give the chains as a non-empty list of Chain")
+    for c in chains:
+        if not isinstance(c, Chain):
+            raise InvalidArgumentError(f"contacts are calibrated on Chains, got {c!r:.60}")
+    first = chains[0]
+    for c in chains[1:]:
+        if c.urdf_path != first.urdf_path or tuple(c.model.names) != tuple(first.model.names):
+            raise InvalidArgumentError("the chains must be chains of one robot (one URDF)")
+    pairs = [(c.base_frame, c.tool_frame) for c in chains]
+    if len(set(pairs)) != len(pairs):
+        raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
+    if not isinstance(data, Sequence) or len(data) != len(chains):
+        raise InvalidArgumentError("give one set of touches per chain")
+    if validate is not None and (
+        not isinstance(validate, Sequence) or len(validate) != len(chains)
+    ):
+        raise InvalidArgumentError("give one validation set (or None) per chain")
+    for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
+        for part in (d, v) if v is not None else (d,):
+            if not isinstance(part, ContactData):
+                raise InvalidArgumentError(
+                    f"touches must be ContactData, got {type(part).__name__}"
+                )
+            if part.joint_names != c.joint_names:
+                raise DataError(
+                    part.source, f"the touches' joints are not those of {c.tool_frame}'s chain"
+                )
+            if not isinstance(part.kind, PlaneContact):
+                raise InvalidArgumentError(
+                    f"several chains are calibrated from 'plane' contacts, got '{part.kind.label}'"
+                )
+            if len(part.contacts) != 1:
+                raise InvalidArgumentError(
+                    f"{part.source}: one plane per chain, got {len(part.contacts)}"
+                )
+    if params not in CHAIN_LEVELS:
+        raise InvalidArgumentError(
+            f"params must be one of {', '.join(CHAIN_LEVELS)}, got {params!r:.40}"
+        )
+    if validate is not None and any(v is not None for v in validate) and holdout > 0:
+        raise InvalidArgumentError("give validation touches or a holdout fraction, not both")
+
+
+def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
+    """Index of each chain's plane: one per chain, or shared by base frame and plane id."""
+    if not shared:
+        return tuple(range(len(chains)))
+    keys = [(c.base_frame, d.contacts[0]) for c, d in zip(chains, data, strict=True)]
+    if len(set(keys)) == len(keys):
+        raise InvalidArgumentError(
+            "shared planes: no two chains touch one plane (same plane id) from one base frame"
+        )
+    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    return tuple(index[k] for k in keys)
+
+
+def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> ChainsState:
+    """Each chain's plane and contact in closed form on the nominal robot (shared: refined)."""
+    placements = Placements.of(tuple(chains))
+    models, frames = placements.chain_geometry(tuple(chains))
+    states: list[ContactState] = []
+    for mdh, d in zip(models, train, strict=True):
+        kin = mdh.kinematics(d.q)
+        R, p = kin.R[:, -1], kin.p[:, -1]
+        w = tilt_weight(R, p, d.ids, guess) if weight is None else weight
+        reg = register_planes(R, p, d.ids, guess, w)
+        P = reg.planes[0]
+        states.append(
+            ContactState(mdh, reg.contact, P[:3, 2].copy(), float(P[:3, 2] @ P[:3, 3]), w)
+        )
+    for c, p in enumerate(plane_of):  # a shared plane starts from its first chain's
+        owner = plane_of.index(p)
+        if owner != c:
+            s0 = states[owner]
+            states[c] = ContactState(
+                states[c].mdh, states[c].contact, s0.normal, s0.height, states[c].weight
+            )
+    start = ChainsState(tuple(chains), placements, tuple(states), frames)
+    if len(set(plane_of)) == len(plane_of):
+        return start
+    only_frames = _model(start, plane_of, (), placements.names())
+    refined = fit(
+        only_frames, start, ChainsData(tuple(train)), None, 1.0, max_iterations=max_iterations
+    )
+    if not refined.converged:
+        raise DataError(
+            train[0].source,
+            f"the registration of the shared plane did not converge ({refined.message})",
+        )
+    notes.append("a plane touched by several chains is fitted once (shared planes)")
+    return refined.state
+
+
+def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
+    owners = [plane_of.index(p) for p in sorted(set(plane_of))]
+    tangents = tuple(np.linalg.svd(state.states[c].normal[None, :])[2][1:].T for c in owners)
+    return ChainsModel(tuple(plane_of), tangents, tuple(free), tuple(names), directions)
+
+
+def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
+    """Directions a level offers: (directions or None for components, names, indices).
+
+    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
+    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
+    single-chain pipeline offers them, turned into directions of joint placement errors
+    (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
+    offers (a shared joint's) once.
+    """
+    pl = start.placements
+    if level == "frames":
+        return None, pl.names(), []
+    if level == "offsets":
+        offsets = [
+            6 * j + COMPONENTS.index(offset_component(pl.model, jid))
+            for j, jid in enumerate(pl.ids)
+        ]
+        return None, pl.names(), offsets
+    rows: list[np.ndarray] = []
+    names: list[str] = []
+    for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
+        D, labels = mdh_directions(pl, chain, s.mdh, frames)
+        for d, label in zip(D, labels, strict=True):
+            unit = d / np.linalg.norm(d)
+            if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):
+                rows.append(d)
+                names.append(label)
+    return np.array(rows), tuple(names), list(range(len(rows)))
+
+
+def _structural(wide: ChainsModel, start: ChainsState, train) -> list[int]:
+    """The columns the touches determine, from the Jacobian at flush postures near them."""
+    parts = []
+    for s, d in zip(start.states, train, strict=True):
+        qf = flush_postures(s, d.q)
+        if len(qf) < d.m:  # what could not be projected is judged at the data
+            qf = np.concatenate([qf, d.q[len(qf) :]])
+        parts.append(ContactData(d.joint_names, qf, d.ids, d.kind, d.source))
+    A = wide.jacobian(start, np.zeros(wide.size()), ChainsData(tuple(parts)))
+    A = A.reshape(-1, wide.size())
+    return independent_columns(A, list(range(A.shape[1])))[2]
+
+
+def _choose(start: ChainsState, train, plane_of, level: str, notes: list[str]):
+    """The model (free components), the selection (``auto``) and the prior weights."""
+    directions, names, offered = _offered(start, level)
+    wide = _model(start, plane_of, offered, names, directions)
+    fixed = wide.fixed
+    kept = _structural(wide, start, train) if offered else list(range(fixed))
+    if sorted(kept[:fixed]) != list(range(fixed)):
+        raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
+    columns = sorted(kept[fixed:])
+    cand = [offered[c - fixed] for c in columns]
+    if len(cand) < len(offered):
+        notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
+    selection: Selection | None = None
+    prior = None
+    if level == "auto" and cand:
+        data = ChainsData(tuple(train))
+        J = wide.jacobian(start, np.zeros(wide.size()), data)
+        cols = list(range(fixed)) + columns
+        cand_names = tuple(names[k] for k in cand)
+        selection, weights = select(J[:, :, cols], start.residuals(data), fixed, cand_names)
+        cand = [cand[cand_names.index(k)] for k in selection.kept]
+        prior = np.r_[np.zeros(fixed), weights] if np.any(weights) else None
+    return wide.with_free(tuple(cand)), wide, selection, prior
+
+
+def calibrate_contact_chains(
+    chains: Sequence[Chain],
+    data: Sequence[ContactData],
+    *,
+    contact=None,
+    params: str | None = None,
+    validate: Sequence[ContactData | None] | None = None,
+    orientation_weight: float | None = None,
+    shared_planes: bool = False,
+    max_iterations: int = 100,
+    holdout: float = 0.0,
+    seed: int = 0,
+) -> ContactChainsCalibration:
+    """Calibrate several chains of one robot from flush touches, together (module text).
+
+    Args:
+        chains: The nominal chains (one URDF; each base: where its plane is expressed;
+            each tool: its contact's).
+        data: Each chain's touches of one plane
+            (:func:`~calib.measurements.contact_campaign.read_contacts`).
+        contact: Guess of every contact frame in its tool frame: ``(4, 4)`` or
+            ``X Y Z [RX RY RZ]`` [m, rad] (default: the tool frame).
+        params: ``auto`` (default), ``frames`` (the registration only), ``offsets`` or
+            ``complete``.
+        validate: Per chain, touches of other postures to score the result on, or None.
+        orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
+            :func:`~.contact_pipeline.tilt_weight`).
+        shared_planes: Chains of one base frame whose touches name the same plane touch one
+            plane (default: each chain its own plane).
+        max_iterations: Most residual evaluations of the solver.
+        holdout: Fraction of each chain's touches set aside (seeded).
+        seed: Seed of the holdout draw.
+
+    Returns:
+        The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
+
+    Raises:
+        InvalidArgumentError: A bad argument.
+        DataError: Touches that do not belong to their chain or determine too little.
+    """
+    level = "auto" if params is None else params
+    check_run_options(max_iterations, holdout, seed)
+    _check(chains, data, validate, level, holdout)
+    clock = [time.perf_counter()]
+    guess = contact_frame(contact)
+    w = None if orientation_weight is None else float(orientation_weight)
+    if w is not None and not (np.isfinite(w) and w > 0):
+        raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
+    splits = [split_contacts(d, holdout, seed) for d in data]
+    train = [s[0] for s in splits]
+    held = [
+        v if v is not None else s[1]
+        for s, v in zip(splits, validate or [None] * len(data), strict=True)
+    ]
+    plane_of = _plane_groups(chains, data, shared_planes)
+    notes: list[str] = []
+    start = _register(chains, train, guess, w, plane_of, notes, max_iterations)
+    clock.append(time.perf_counter())
+    model, _, selection, prior = _choose(start, train, plane_of, level, notes)
+    names = start.placements.names()
+    wide = _model(start, plane_of, range(len(names)), names)
+    clock.append(time.perf_counter())
+    fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
+    if polished:
+        notes.append(
+            f"polished with all {len(wide.free)} joint placement components (composed with "
+            f"the fit of the {len(model.free)} parameters determined at the nominal robot)"
+        )
+    clock.append(time.perf_counter())
+    return _assemble(start, fitted, model, train, held, plane_of, selection, notes, clock)
+
+
+POLISH_GAIN = 1e-2
+"""A polish is kept when it leaves less than this fraction of the fit's cost (see ``_fit``)."""
+
+
+def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, level, iters):
+    """Least squares; at ``complete``, polished from its result.
+
+    The rank test at the nominal robot keeps the parameters that span what the touches
+    see *there*; a robot off the nominal shows a little more (TALOS's arms, mirror images
+    of each other, see one combination of the torso's placements less together than apart
+    at the nominal geometry). A fit from the registration then leaves gaps of the order of
+    the squared errors (1 um for 1 mm and 1 mrad). From the fitted robot, every joint
+    placement component (``wide``, dependent ones included: Levenberg-Marquardt's damping
+    keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
+    is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
+    fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
+    selection, a prior) and ``offsets`` are not polished.
+
+    Returns:
+        The fit, and whether it was polished.
+    """
+    data = ChainsData(tuple(train))
+    fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
+    rows = 3 * data.m
+    if level != "complete" or not model.free or rows < wide.size():
+        return fitted, False
+    if not fitted.converged:
+        return fitted, False
+    again = dataclasses.replace(fitted.state, placements=fitted.state.placements.rebased())
+    better = fit(wide, again, data, None, 1.0, max_iterations=iters)
+    cost = float(fitted.f @ fitted.f)
+    if better.converged and float(better.f @ better.f) < POLISH_GAIN * cost:
+        return better, True
+    return fitted, False
+
+
+def _assemble(
+    start, fitted, model, train, held, plane_of, selection, notes, clock
+) -> ContactChainsCalibration:
+    state: ChainsState = fitted.state
+    refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
+    parts = []
+    for c, chain in enumerate(state.chains):
+        s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
+        stats = {"train": gap_stats(s, d.q), "train_registration": gap_stats(s0, d.q)}
+        if h is not None:
+            stats["held_out"] = gap_stats(s, h.q)
+            stats["held_out_registration"] = gap_stats(s0, h.q)
+            got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
+            if refusal is None and got > base * (1.0 + WORSE):
+                refusal = (
+                    f"the calibrated model's held-out gaps on {chain.base_frame} -> "
+                    f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "
+                    f"{base:.3f} mm weighted RMS)"
+                )
+        kin = s.mdh.kinematics(d.q)
+        centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ s.contact[:3, 3], axis=0)
+        parts.append(
+            ChainContacts(
+                chain,
+                d.source,
+                d.contacts[0],
+                s.plane(centre),
+                s.contact,
+                s0.mdh,
+                s.mdh,
+                s.weight,
+                stats,
+            )
+        )
+    joints = [name for c in state.chains for name in c.joint_names]
+    shared = tuple(n for n in dict.fromkeys(joints) if joints.count(n) > 1)
+    clock.append(time.perf_counter())
+    stages = ("registration", "selection", "fit", "validation")
+    return ContactChainsCalibration(
+        chains=tuple(parts),
+        placements=state.placements,
+        shared=shared,
+        planes=len(set(plane_of)),
+        free=tuple(model.names()[model.fixed :]),
+        selection=selection,
+        refusal=refusal,
+        notes=tuple(notes),
+        timings_ms={
+            k: 1e3 * (b - a) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
+        },
+    )

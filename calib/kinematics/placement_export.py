@@ -1,0 +1,55 @@
+"""Write a URDF whose joint origins are moved by given rigid errors: ``O_j -> O_j E_j``.
+
+The calibration of several chains of one robot (:mod:`calib.calibration.contact_chains`)
+fits one error per URDF joint, shared by every chain through it; its URDF is the nominal
+file with those joints' ``<origin>`` edited, nothing else (joints without error keep their
+bytes).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..core.fileio import check_outputs, write_atomic
+from ..exceptions import CalibError, InvalidArgumentError
+from .robot import Chain
+from .urdf_export import origin_of, read_urdf_source, set_origin, spliced, xml_layout
+
+__all__ = ["moved_origins_urdf", "write_moved_origins_urdf"]
+
+
+def moved_origins_urdf(chain: Chain, errors: dict[str, np.ndarray]) -> bytes:
+    """The URDF of ``chain`` with the origin of each joint named in ``errors`` right-multiplied.
+
+    Args:
+        chain: Any chain of the robot (its ``urdf_path`` is read).
+        errors: ``E_j`` ``(4, 4)`` by URDF joint name, in the joint's frame.
+
+    Raises:
+        CalibError: A joint the file does not have, or a file that cannot be read.
+    """
+    raw, root = read_urdf_source(chain)
+    if not errors:
+        return raw
+    start, stop = xml_layout(raw, str(chain.urdf_path))
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
+    for name, E in errors.items():
+        if name not in joints:
+            raise CalibError(f"{chain.urdf_path}: no <joint name='{name}'>")
+        E = np.asarray(E, dtype=float)
+        if E.shape != (4, 4) or not np.all(np.isfinite(E)):
+            raise InvalidArgumentError(f"the error of joint {name} must be a finite (4, 4) pose")
+        if not np.array_equal(E, np.eye(4)):
+            set_origin(joints[name], origin_of(joints[name]) @ E)
+    return spliced(raw, root, start, stop)
+
+
+def write_moved_origins_urdf(path: str | Path, chain: Chain, errors: dict[str, np.ndarray]) -> None:
+    """Write :func:`moved_origins_urdf` atomically (never over the nominal URDF)."""
+    if not isinstance(path, str | os.PathLike):
+        raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
+    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
+    write_atomic(path, moved_origins_urdf(chain, errors))
