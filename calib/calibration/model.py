@@ -345,4 +345,3 @@ def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarr
     pts, rot = state.predict(q)
     quat = None if rot is None else np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1))
     return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)
-
