@@ -210,10 +210,6 @@ class ErrorModel:
         compliance[list(self.compliance)] += xc
         return State(mdh, frame, markers, tool, compliance)
 
-    def row_weights(self, weight: float) -> np.ndarray:
-        """Weight of each row of a configuration: 1 for positions, ``weight`` [m/rad] else."""
-        return self.kind.row_weights(self.n_markers, weight)
-
     def jacobian(self, start: State, x: np.ndarray, data, torque: np.ndarray | None) -> np.ndarray:
         """d(model)/dx, ``(m, rows, size)``: the kind's rows (3 K point rows, 3 rotation rows).
 

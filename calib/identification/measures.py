@@ -13,6 +13,7 @@ command line accept (``pose``, ``position``, ``x,y,rz``, ``plane``, ...) into a 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -179,15 +180,20 @@ class Measurement:
         """
         return 6 + 3 * int(n_markers) + (3 if self.is_pose else 0)
 
-    @property
+    @cached_property
     def position_rows(self) -> tuple[int, ...]:
         """The measured position rows (0 x, 1 y, 2 z), per marker."""
         return tuple(r for r in self.rows if r < 3)
 
-    @property
+    @cached_property
     def rotation_rows(self) -> tuple[int, ...]:
         """The measured orientation rows (0 rx, 1 ry, 2 rz)."""
         return tuple(r - 3 for r in self.rows if r >= 3)
+
+    @cached_property
+    def _all_rows(self) -> bool:
+        """The rows are those of the pose error, or of a point, all of them."""
+        return self.position_rows == _XYZ and self.rotation_rows in ((), _XYZ)
 
     def rows_of(self, n_markers: int = 1) -> int:
         """Rows per configuration when ``n_markers`` points are measured at once."""
@@ -199,16 +205,10 @@ class Measurement:
 
     def row_index(self, n_markers: int = 1) -> list[int] | None:
         """The measured rows among :meth:`full_rows` (None: all of them)."""
-        if self.position_rows == _XYZ and self.rotation_rows in ((), _XYZ):
+        if self._all_rows:
             return None
         lin = [3 * k + r for k in range(n_markers) for r in self.position_rows]
         return lin + [3 * n_markers + r for r in self.rotation_rows]
-
-    def row_weights(self, n_markers: int, weight: float) -> np.ndarray:
-        """Weight of each row of a configuration: 1 for positions, ``weight`` [m/rad] else."""
-        return np.r_[
-            np.ones(n_markers * len(self.position_rows)), np.full(len(self.rotation_rows), weight)
-        ]
 
     def predict(
         self,
