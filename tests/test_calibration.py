@@ -33,6 +33,7 @@ from calib.calibration.registration import register, rigid_fit
 from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, path, ridge_loo
 from calib.calibration.solve import Problem
 from calib.cli.commands import main
+from calib.identification.kinds import kind_of
 from calib.identification.parameters import complete_parameters
 from calib.kinematics.mdh import from_chain
 from calib.measurements.csvfile import measurements_csv
@@ -73,7 +74,7 @@ def test_jacobian_matches_finite_differences(measure):
     start = register(nominal, data.q, data.points, data.rotations)
     pset = complete_parameters(nominal)
     model = ErrorModel(
-        pset, pset.names, selection_lift(pset, pset.names), (0, 3, 6), pose=measure == "pose"
+        pset, pset.names, selection_lift(pset, pset.names), (0, 3, 6), kind=kind_of(measure)
     )
     torque = np.random.default_rng(0).normal(size=data.q.shape)
     problem = Problem(model, start, data, torque, 0.7)

@@ -41,6 +41,7 @@ from calib.calibration.model import ErrorModel, selection_lift
 from calib.calibration.registration import register
 from calib.calibration.solve import Problem
 from calib.cli.commands import main
+from calib.identification.measures import POSE
 from calib.kinematics.catalog import catalog_entry
 
 FK_TOL = 1e-10
@@ -235,7 +236,7 @@ def test_compliance_columns_carry_the_sign():
     data = simulate(chain, configs=12, measure="pose", seed=3).measurements
     start = register(nominal, data.q, data.points, data.rotations)
     pset = complete_parameters(nominal)
-    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), (0, 2, 5, 8), pose=True)
+    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), (0, 2, 5, 8), kind=POSE)
     torque = np.random.default_rng(0).normal(size=data.q.shape)
     problem = Problem(model, start, data, torque, 0.7)
     x = 1e-3 * np.random.default_rng(1).normal(size=model.size())

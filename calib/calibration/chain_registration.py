@@ -37,7 +37,7 @@ def frames_model(data: Measurements, opts: Options) -> ErrorModel:
         markers="markers" not in opts.fix,
         tool="tool" not in opts.fix,
         n_markers=data.n_markers,
-        pose=data.quaternion is not None,
+        kind=data.kind,
     )
 
 

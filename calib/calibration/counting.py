@@ -14,11 +14,11 @@ from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
 from ..identification.kinds import campaign_kind
+from ..identification.measures import Measurement
 from ..identification.parameters import complete_parameters
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain, check_count
-from ..measurements.data import Measurements
-from .model import ErrorModel, registration_state, selection_lift
+from .model import ErrorModel, generic_measurements, nominal_state, selection_lift
 from .solve import row_weights
 
 
@@ -44,17 +44,15 @@ def identifiable_parameters(
     k = check_count(n_markers, "the number of markers")
     check_count(configs, "the number of configurations")
     nominal = from_chain(chain).idealized()
-    pose = campaign_kind(measure).is_pose
-    check_marker_work(configs, k, len(complete_parameters(nominal)), pose)
+    kind = campaign_kind(measure)
+    check_marker_work(configs, k, len(complete_parameters(nominal)), kind)
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
-    state = registration_state(nominal, np.eye(4), markers, np.eye(3) if pose else None)
-    pts, _ = state.predict(q)
-    quat = np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1)) if pose else None
-    data = Measurements(chain.joint_names, q, pts.reshape(len(q), -1), quat)
+    state = nominal_state(nominal, markers, kind)
+    data = generic_measurements(state, chain.joint_names, q)
     pset = complete_parameters(nominal)
     names = tuple(np.array(pset.names)[preference_order(nominal, pset)])
-    model = ErrorModel(pset, names, selection_lift(pset, names), (), n_markers=k, pose=pose)
+    model = ErrorModel(pset, names, selection_lift(pset, names), (), n_markers=k, kind=kind)
     J = model.jacobian(state, np.zeros(model.size()), data, None)
     J = J * row_weights(model, 1.0)[None, :, None]
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
@@ -67,33 +65,34 @@ MARKER_WORK_COPIES = 4
 QR's factors), in the estimate of :func:`check_marker_work`."""
 
 
-def marker_work_bytes(m: int, k: int, n_params: int, pose: bool) -> int:
+def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
     """Memory [B] of counting K markers at m configurations: the Jacobian's copies.
 
-    Rows: ``3 K`` (+ 3 for pose) per configuration; columns: the frame (6), the markers
-    (``3 K``, + 3 for pose) and the ``n_params`` geometric parameters.
+    Rows: the kind's rows at K markers per configuration (``3 K``, + 3 for pose); columns:
+    the kind's unknown constants (the frame 6, the markers ``3 K``, + 3 for pose) and the
+    ``n_params`` geometric parameters.
     """
-    rows = m * (3 * k + (3 if pose else 0))
-    cols = 6 + 3 * k + (3 if pose else 0) + n_params
+    rows = m * kind.rows_of(k)
+    cols = kind.unknown_constants(k) + n_params
     return MARKER_WORK_COPIES * 8 * rows * cols
 
 
-def check_marker_work(m: int, k: int, n_params: int, pose: bool) -> None:
+def check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
     """Refuse, before any work, K markers whose count would need more than MAX_WORK_BYTES.
 
     Raises:
         InvalidArgumentError: Names K, the memory needed and the most markers that fit.
     """
-    need = marker_work_bytes(m, k, n_params, pose)
+    need = marker_work_bytes(m, k, n_params, kind)
     if need <= MAX_WORK_BYTES:
         return
     lo, hi = 0, k  # the most markers that fit: lo fits (or is 0), hi does not
     while hi - lo > 1:
         mid = (lo + hi) // 2
         lo, hi = (
-            (mid, hi) if marker_work_bytes(m, mid, n_params, pose) <= MAX_WORK_BYTES else (lo, mid)
+            (mid, hi) if marker_work_bytes(m, mid, n_params, kind) <= MAX_WORK_BYTES else (lo, mid)
         )
-    per_config = marker_work_bytes(1, k, n_params, pose)
+    per_config = marker_work_bytes(1, k, n_params, kind)
     fit = [f"at most {lo} markers"] if lo else []
     if MAX_WORK_BYTES // per_config:
         fit.append(f"at most {MAX_WORK_BYTES // per_config} configurations (configs)")

@@ -28,16 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..identification.jacobian import Measurement, identification_jacobian, measured_point
+from ..identification.jacobian import identification_jacobian, measured_point
+from ..identification.measures import POSE, POSITION, ROTATION_ROWS, Measurement
 from ..identification.parameters import Kind, Parameter, ParameterSet
 from ..kinematics.mdh import MDHModel
-from ..kinematics.so3 import (
-    inverse_right_jacobian,
-    left_jacobian,
-    rotation_matrix,
-    rotation_vector,
-    skew,
-)
+from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..measurements.data import Measurements
 
 __all__ = [
     "FRAME_NAMES",
@@ -45,6 +41,8 @@ __all__ = [
     "ErrorModel",
     "State",
     "compliance_name",
+    "generic_measurements",
+    "nominal_state",
     "offset_parameter",
     "registration_state",
     "selection_lift",
@@ -55,6 +53,10 @@ FRAME_NAMES = ("frame.rx", "frame.ry", "frame.rz", "frame.x", "frame.y", "frame.
 
 TOOL_NAMES = ("tool.rx", "tool.ry", "tool.rz")
 """Names of the measured frame's rotation in the tool frame [rad] (pose data)."""
+
+
+_TURN = Measurement(ROTATION_ROWS, label="rx,ry,rz")
+"""The rotation rows of the tool's pose error: the orientation rows of every kind."""
 
 
 def _marker_names(k: int) -> tuple[str, str, str]:
@@ -103,24 +105,28 @@ class State:
             return q
         return q + torque * self.compliance
 
+    @property
+    def kind(self) -> Measurement:
+        """What the state predicts: a measured frame's pose (with a tool rotation) or points."""
+        return POSITION if self.tool_rotation is None else POSE
+
     def predict(self, q: np.ndarray, torque: np.ndarray | None = None):
         """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None)."""
         kin = self.mdh.kinematics(self.joints(q, torque))
-        R, t = self.frame[:3, :3], self.frame[:3, 3]
-        pts = kin.p[:, -1][:, None, :] + np.einsum("mij,kj->mki", kin.R[:, -1], self.markers)
-        rot = None
-        if self.tool_rotation is not None:
-            rot = R @ kin.R[:, -1] @ self.tool_rotation
-        return pts @ R.T + t, rot
+        return self.kind.predict(
+            kin.R[:, -1], kin.p[:, -1], self.markers, self.frame, self.tool_rotation
+        )
 
     def residuals(self, data, torque: np.ndarray | None = None) -> np.ndarray:
-        """Measured - model per configuration ``(m, 3 K [+ 3])`` [m, rad]."""
-        pts, rot = self.predict(data.q, torque)
-        e = data.points - pts
-        parts = [e.reshape(data.m, -1)]
-        if rot is not None and data.quaternion is not None:
-            parts.append(rotation_vector(data.rotations @ np.swapaxes(rot, 1, 2)))
-        return np.hstack(parts)
+        """Measured - model per configuration ``(m, 3 K [+ 3])`` [m, rad].
+
+        The rows of the data's kind (the state's points only if it has no tool rotation).
+        """
+        kind = data.kind if self.tool_rotation is not None else POSITION
+        kin = self.mdh.kinematics(self.joints(data.q, torque))
+        return kind.residual(
+            kin.R[:, -1], kin.p[:, -1], data.observed, self.markers, self.frame, self.tool_rotation
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,9 +141,10 @@ class ErrorModel:
         compliance: Joints (0-based) whose compliance is free.
         frame: The measurement frame is free.
         markers: The markers are free.
-        tool: The measured frame's rotation is free (pose data).
+        tool: The measured frame's rotation is free (a kind with orientation rows).
         n_markers: Number of markers K.
-        pose: Orientation rows are fitted.
+        kind: What is measured (its rows, residual and Jacobian rows): the position of the
+            markers (default) or the pose.
     """
 
     params: ParameterSet
@@ -148,14 +155,23 @@ class ErrorModel:
     markers: bool = True
     tool: bool = True
     n_markers: int = 1
-    pose: bool = False
+    kind: Measurement = POSITION
+
+    @property
+    def pose(self) -> bool:
+        """Orientation rows are fitted."""
+        return bool(self.kind.rotation_rows)
+
+    @property
+    def _tool_free(self) -> bool:
+        return self.tool and self.pose
 
     def names(self) -> tuple[str, ...]:
         """Names of the free parameters, in the order of x."""
         out: list[str] = list(FRAME_NAMES) if self.frame else []
         if self.markers:
             out += [n for k in range(self.n_markers) for n in _marker_names(k + 1)]
-        if self.pose and self.tool:
+        if self._tool_free:
             out += TOOL_NAMES
         out += self.base
         out += [compliance_name(j) for j in self.compliance]
@@ -165,7 +181,7 @@ class ErrorModel:
         return (
             6 * self.frame,
             3 * self.n_markers * self.markers,
-            3 * (self.pose and self.tool),
+            3 * self._tool_free,
             len(self.base),
             len(self.compliance),
         )
@@ -195,7 +211,7 @@ class ErrorModel:
         return State(mdh, frame, markers, tool, compliance)
 
     def jacobian(self, start: State, x: np.ndarray, data, torque: np.ndarray | None) -> np.ndarray:
-        """d(model)/dx, ``(m, rows, size)``: rows are 3 K point rows then 3 rotation rows.
+        """d(model)/dx, ``(m, rows, size)``: the kind's rows (3 K point rows, 3 rotation rows).
 
         The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
         whole Jacobian is that of model - measured).
@@ -206,7 +222,9 @@ class ErrorModel:
         kin = state.mdh.kinematics(q)
         m, K = data.m, state.n_markers
         R = state.frame[:3, :3]
-        pts, rot = state.predict(data.q, torque)
+        pts, rot = self.kind.predict(
+            kin.R[:, -1], kin.p[:, -1], state.markers, state.frame, state.tool_rotation
+        )
         blocks = []
         if self.frame:
             blocks.append(self._frame_block(pts - state.frame[:3, 3], xf))
@@ -216,26 +234,25 @@ class ErrorModel:
             for k in range(K):
                 blk[:, k, :, 3 * k : 3 * k + 3] = Rt
             blocks.append(self._stack(blk, np.zeros((m, 3, 3 * K))))
-        if self.pose and self.tool:
+        if self._tool_free:
             ang = rot @ left_jacobian(xt).T  # right perturbation: R_model Jr(psi)
             blocks.append(self._stack(np.zeros((m, K, 3, 3)), ang))
         blocks += self._mdh_blocks(state, q, kin, torque)
-        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((m, self.rows, 0))
-        if self.pose:
-            res = state.residuals(data, torque)[:, 3 * K :]
-            J[:, 3 * K :] = inverse_right_jacobian(res) @ J[:, 3 * K :]
-        return J
+        full = self.kind.full_rows(K)
+        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((m, full, 0))
+        error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
+        return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K)
 
     @property
     def rows(self) -> int:
         """Residual rows per configuration."""
-        return 3 * self.n_markers + 3 * self.pose
+        return self.kind.rows_of(self.n_markers)
 
     def _stack(self, point: np.ndarray, ang: np.ndarray) -> np.ndarray:
-        """(m, K, 3, c) point rows and (m, 3, c) rotation rows as (m, rows, c)."""
+        """(m, K, 3, c) point rows and (m, 3, c) rotation rows as the kind's full rows."""
         m = point.shape[0]
         out = point.reshape(m, -1, point.shape[-1])
-        return np.concatenate([out, ang], axis=1) if self.pose else out
+        return np.concatenate([out, ang], axis=1) if self.kind.rotation_rows else out
 
     def _frame_block(self, lever: np.ndarray, xf: np.ndarray) -> np.ndarray:
         m, K = lever.shape[:2]
@@ -256,12 +273,12 @@ class ErrorModel:
         m, K = q.shape[0], state.n_markers
         point = np.empty((m, K, 3, len(pset)))
         for k in range(K):
-            meas = Measurement((0, 1, 2), tuple(state.markers[k]), "position")
+            meas = dataclasses.replace(POSITION, marker=tuple(state.markers[k]))
             W = identification_jacobian(state.mdh, pset, q, meas, kin=kin)
             point[:, k] = R @ W.reshape(m, 3, -1)
         ang = np.zeros((m, 3, len(pset)))
         if self.pose:
-            W = identification_jacobian(state.mdh, pset, q, Measurement((3, 4, 5)), kin=kin)
+            W = identification_jacobian(state.mdh, pset, q, _TURN, kin=kin)
             ang = R @ W.reshape(m, 3, -1)
         cols = self._stack(point, ang)
         p = len(self.params)
@@ -304,3 +321,23 @@ def tool_points(mdh: MDHModel, q: np.ndarray, markers: np.ndarray) -> np.ndarray
     """Markers in the URDF base frame ``(m, K, 3)`` [m] (no measurement frame)."""
     kin = mdh.kinematics(q)
     return np.stack([measured_point(kin, mk) for mk in np.atleast_2d(markers)], axis=1)
+
+
+def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> State:
+    """A registration state in the instrument's own frame, for a kind's generic counts.
+
+    The measured frame is the tool frame when the kind measures orientation rows.
+    """
+    tool = np.eye(3) if kind.rotation_rows else None
+    return registration_state(mdh, np.eye(4), markers, tool)
+
+
+def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarray):
+    """What a state measures at q: its own points and, with a tool rotation, the identity.
+
+    The data the counts of :mod:`~.counting` and the design's Jacobians are evaluated on:
+    the points are exact, the orientations are the identity (not the state's own).
+    """
+    pts, rot = state.predict(q)
+    quat = None if rot is None else np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1))
+    return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)

@@ -247,7 +247,7 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
     out = round(opts.holdout * data.m)
     determined.check_equations(
         data.m - out,
-        3 * data.n_markers + 3 * (data.quaternion is not None),
+        data.kind.rows_of(data.n_markers),
         frames_model(data, opts).size(),
         "measurement frame and marker parameters",
         data.source,

@@ -18,11 +18,12 @@ every tool, and one marker per tool. Steps, as for a chain:
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..identification.jacobian import Measurement
+from ..identification.measures import POSITION, Measurement
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_jacobian
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
@@ -75,10 +76,17 @@ class TreeState:
         R, p = self.tool_placements(q, tool)
         return p + np.einsum("mij,mj->mi", R, self.markers[tool])
 
+    @property
+    def kind(self) -> Measurement:
+        """What each row measures: the position of its tool's marker."""
+        return POSITION
+
     def residuals(self, data: Measurements, torque=None) -> np.ndarray:
         """Measured - model per row ``(m, 3)`` [m] (``torque`` is not used)."""
-        pts = self.base_points(data.q, _tool_indices(self.mdh, data))
-        return data.position - (pts @ self.frame[:3, :3].T + self.frame[:3, 3])
+        tool = _tool_indices(self.mdh, data)
+        R, p = self.tool_placements(data.q, tool)
+        markers = self.markers[tool][:, None, :]
+        return self.kind.residual(R, p, data.observed, markers, self.frame)
 
 
 def _tool_indices(mdh: TreeMDH, data: Measurements) -> np.ndarray:
@@ -107,8 +115,21 @@ class TreeErrorModel:
     frame: bool = True
     markers: bool = True
     n_markers: int = 1  # points per row (the interface of calib.calibration.solve)
-    pose: bool = False
-    rows: int = 3
+
+    @property
+    def kind(self) -> Measurement:
+        """What each row measures: the position of its tool's marker."""
+        return POSITION
+
+    @property
+    def pose(self) -> bool:
+        """Orientation rows are fitted (never: a tree's rows are points)."""
+        return bool(self.kind.rotation_rows)
+
+    @property
+    def rows(self) -> int:
+        """Residual rows per row of the data."""
+        return self.kind.rows_of(self.n_markers)
 
     def names(self, tools: tuple[str, ...]) -> tuple[str, ...]:
         """Names of the free parameters, in the order of x."""
@@ -173,7 +194,8 @@ class TreeErrorModel:
             blocks.append(blk)
         if self.base:
             blocks.append(self._geometry_block(state, q, tool) @ self.lift())
-        return np.concatenate(blocks, axis=2) if blocks else np.zeros((len(q), 3, 0))
+        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((len(q), 3, 0))
+        return self.kind.jacobian_rows(J, n_markers=self.n_markers)
 
     def _geometry_block(self, state: TreeState, q: np.ndarray, tool: np.ndarray) -> np.ndarray:
         """Columns of the standard parameters, ``(m, 3, len(params))``."""
@@ -182,7 +204,7 @@ class TreeErrorModel:
             rows = tool == t
             measured = np.zeros((int(rows.sum()), self.n_tools), dtype=bool)
             measured[:, t] = True
-            meas = Measurement((0, 1, 2), tuple(state.markers[t]), "position")
+            meas = dataclasses.replace(self.kind, marker=tuple(state.markers[t]))
             W = tree_jacobian(state.mdh, self.params, q[rows], meas, measured)
             out[rows] = state.frame[:3, :3] @ W.reshape(-1, 3, len(self.params))
         return out

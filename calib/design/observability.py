@@ -47,7 +47,8 @@ from ..calibration.model import (
     FRAME_NAMES,
     TOOL_NAMES,
     ErrorModel,
-    registration_state,
+    generic_measurements,
+    nominal_state,
     selection_lift,
 )
 from ..calibration.options import TREE_LEVELS, Options
@@ -65,7 +66,6 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
-from ..measurements.data import Measurements
 
 REFERENCE_CONFIGS = 200
 """Reference configurations of the predicted position error (I, G) by default."""
@@ -239,21 +239,19 @@ def observation_model(
         return _tree_observation_model(chain, measure, markers, params, structure_q, seed)
     check_model_arguments(measure, params, orientation_weight)
     mk = marker_array(markers)
-    pose = campaign_kind(measure).is_pose
+    kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
     pset, names = level_names(nominal, Options(level=params))
     ordered = tuple(
         pset.names[i] for i in preference_order(nominal, pset) if pset.names[i] in names
     )
     lift = selection_lift(pset, ordered)
-    model = ErrorModel(pset, ordered, lift, (), n_markers=len(mk), pose=pose)
-    state = registration_state(nominal, np.eye(4), mk, np.eye(3) if pose else None)
+    model = ErrorModel(pset, ordered, lift, (), n_markers=len(mk), kind=kind)
+    state = nominal_state(nominal, mk, kind)
     weights = row_weights(model, float(orientation_weight))
 
     def jacobian_of(q: np.ndarray) -> np.ndarray:
-        pts, _ = state.predict(q)
-        quat = np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1)) if pose else None
-        data = Measurements(chain.joint_names, q, pts.reshape(len(q), -1), quat)
+        data = generic_measurements(state, chain.joint_names, q)
         return model.jacobian(state, np.zeros(model.size()), data, None) * weights[:, None]
 
     if structure_q is None:

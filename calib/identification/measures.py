@@ -13,13 +13,14 @@ command line accept (``pose``, ``position``, ``x,y,rz``, ``plane``, ...) into a 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ..core.choices import CONTACT_MEASURES
 from ..exceptions import InvalidArgumentError
-from ..kinematics.so3 import rotation_vector
+from ..kinematics.so3 import inverse_right_jacobian, rotation_vector
 
 MAX_MARKER = 1e3
 """Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
@@ -32,6 +33,11 @@ POSE_ROWS = (0, 1, 2, 3, 4, 5)
 
 POSITION_ROWS = (0, 1, 2)
 """Rows of a measured point."""
+
+ROTATION_ROWS = (3, 4, 5)
+"""Rows of a measured orientation."""
+
+_XYZ = (0, 1, 2)
 
 
 @runtime_checkable
@@ -73,6 +79,26 @@ class MeasureKind(Protocol):
     def theoretical_count(  # noqa: D102
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
     ) -> int | None: ...
+
+
+@dataclass(frozen=True, eq=False)
+class Observed:
+    """What an instrument reported at each configuration, in its own frame.
+
+    Attributes:
+        points: Measured points ``(m, K, 3)`` [m].
+        rotations: Measured orientations of the measured frame ``(m, 3, 3)``, or None.
+    """
+
+    points: np.ndarray
+    rotations: np.ndarray | None = None
+
+    @staticmethod
+    def of_poses(poses: np.ndarray, markers: np.ndarray) -> Observed:
+        """What measured tool poses ``(m, 4, 4)`` show of markers ``(K, 3)`` [m]."""
+        M = np.asarray(poses, dtype=float)
+        pts = M[:, None, :3, 3] + np.einsum("mij,kj->mki", M[:, :3, :3], markers)
+        return Observed(pts, M[:, :3, :3])
 
 
 @dataclass(frozen=True)
@@ -154,32 +180,148 @@ class Measurement:
         """
         return 6 + 3 * int(n_markers) + (3 if self.is_pose else 0)
 
+    @cached_property
+    def position_rows(self) -> tuple[int, ...]:
+        """The measured position rows (0 x, 1 y, 2 z), per marker."""
+        return tuple(r for r in self.rows if r < 3)
+
+    @cached_property
+    def rotation_rows(self) -> tuple[int, ...]:
+        """The measured orientation rows (0 rx, 1 ry, 2 rz)."""
+        return tuple(r - 3 for r in self.rows if r >= 3)
+
+    @cached_property
+    def _all_rows(self) -> bool:
+        """The rows are those of the pose error, or of a point, all of them."""
+        return self.position_rows == _XYZ and self.rotation_rows in ((), _XYZ)
+
+    def rows_of(self, n_markers: int = 1) -> int:
+        """Rows per configuration when ``n_markers`` points are measured at once."""
+        return n_markers * len(self.position_rows) + len(self.rotation_rows)
+
+    def full_rows(self, n_markers: int = 1) -> int:
+        """Rows of the pose error the kind's rows are taken from: 3 per marker, 3 turning."""
+        return 3 * n_markers + (3 if self.rotation_rows else 0)
+
+    def row_index(self, n_markers: int = 1) -> list[int] | None:
+        """The measured rows among :meth:`full_rows` (None: all of them)."""
+        if self._all_rows:
+            return None
+        lin = [3 * k + r for k in range(n_markers) for r in self.position_rows]
+        return lin + [3 * n_markers + r for r in self.rotation_rows]
+
+    def predict(
+        self,
+        R: np.ndarray,
+        p: np.ndarray,
+        markers: np.ndarray | None = None,
+        frame: np.ndarray | None = None,
+        tool_rotation: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """What the instrument should see: the markers and the measured frame's orientation.
+
+        Args:
+            R: Tool rotations in the base frame ``(m, 3, 3)``.
+            p: Tool origins in the base frame ``(m, 3)`` [m].
+            markers: Points in the tool frame, ``(K, 3)`` shared or ``(m, K, 3)`` per
+                configuration [m] (default: this kind's marker).
+            frame: Pose of the base frame in the instrument's frame ``(4, 4)`` (default: the
+                base frame).
+            tool_rotation: Orientation of the measured frame in the tool frame ``(3, 3)``
+                (default: the tool frame).
+
+        Returns:
+            The points ``(m, K, 3)`` [m] and, if orientation rows are measured, the measured
+            frame's orientation ``(m, 3, 3)`` (else None), in the instrument's frame.
+        """
+        mk = self.marker_array[None] if markers is None else markers
+        path = "mij,kj->mki" if mk.ndim == 2 else "mij,mkj->mki"
+        pts = p[:, None, :] + np.einsum(path, R, mk)
+        rot = None
+        if frame is not None:
+            pts = pts @ frame[:3, :3].T + frame[:3, 3]
+        if self.rotation_rows:
+            rot = R if frame is None else frame[:3, :3] @ R
+            rot = rot if tool_rotation is None else rot @ tool_rotation
+        return pts, rot
+
     def residual(
-        self, R: np.ndarray, p: np.ndarray, measured: np.ndarray | None = None
+        self,
+        R: np.ndarray,
+        p: np.ndarray,
+        measured: np.ndarray | Observed | None = None,
+        markers: np.ndarray | None = None,
+        frame: np.ndarray | None = None,
+        tool_rotation: np.ndarray | None = None,
     ) -> np.ndarray:
         """Measured minus predicted, on the measured rows.
 
         Args:
             R: Predicted tool rotations in the base frame ``(m, 3, 3)``.
             p: Predicted tool origins in the base frame ``(m, 3)`` [m].
-            measured: Measured pose per configuration ``(m, 4, 4)`` in the base frame.
+            measured: What was measured (:class:`Observed`), or the measured pose of the
+                tool per configuration ``(m, 4, 4)`` in the instrument's frame.
+            markers: The points of :meth:`predict` (default: this kind's marker).
+            frame: The instrument's frame of :meth:`predict`.
+            tool_rotation: The measured frame of :meth:`predict`.
 
         Returns:
-            ``(m, n_rows)``: the point's displacement [m] and the rotation vector of
-            ``R_measured R^T`` [rad] (in the base frame), on the measured rows.
+            ``(m, rows_of(K))``: each marker's displacement [m] on the position rows, then
+            the rotation vector of ``R_measured R_predicted^T`` [rad] (in the instrument's
+            frame) on the orientation rows.
         """
         if measured is None:
             raise InvalidArgumentError("a measured kind's residual needs the measured poses")
-        M = np.asarray(measured, dtype=float)
-        mk = self.marker_array
-        point = p + np.einsum("mij,j->mi", R, mk)
-        dp = M[:, :3, 3] + np.einsum("mij,j->mi", M[:, :3, :3], mk) - point
-        dphi = rotation_vector(M[:, :3, :3] @ np.swapaxes(R, 1, 2))
-        return np.concatenate([dp, dphi], axis=1)[:, list(self.rows)]
+        mk = self.marker_array[None] if markers is None else np.asarray(markers, dtype=float)
+        if not isinstance(measured, Observed):
+            measured = Observed.of_poses(measured, mk)
+        pts, rot = self.predict(R, p, mk, frame, tool_rotation)
+        e = measured.points - pts
+        parts = [e.reshape(len(p), -1)]
+        if rot is not None:
+            parts.append(self.rotation_error(measured, rot))
+        full = np.hstack(parts)
+        index = self.row_index(pts.shape[1])
+        return full if index is None else full[:, index]
 
-    def jacobian_rows(self, W6: np.ndarray, R: np.ndarray) -> np.ndarray:
-        """The measured rows of the pose-error Jacobian ``W6`` ``(m, 6, k)`` at the marker."""
-        return W6[:, list(self.rows)]
+    def rotation_error(self, measured: Observed, rot: np.ndarray) -> np.ndarray:
+        """All three rows of the orientation error ``Log(R_measured rot^T)`` ``(m, 3)`` [rad].
+
+        Raises:
+            InvalidArgumentError: Nothing measured the orientation.
+        """
+        if measured.rotations is None:
+            raise InvalidArgumentError(f"a {self.label} measurement needs measured orientations")
+        return rotation_vector(measured.rotations @ np.swapaxes(rot, 1, 2))
+
+    def jacobian_rows(
+        self,
+        W6: np.ndarray,
+        R: np.ndarray | None = None,
+        rotation_error: np.ndarray | None = None,
+        n_markers: int = 1,
+    ) -> np.ndarray:
+        """The measured rows of the pose-error Jacobian at the markers.
+
+        Args:
+            W6: ``(m, full_rows(K), k)``: the displacement of each marker [m], then the
+                rotation [rad] (rows of :meth:`full_rows`; at one marker the pose-error
+                Jacobian ``(m, 6, k)``), all in the instrument's frame.
+            R: Not used (the tool rotations; the protocol's).
+            rotation_error: :meth:`rotation_error` at the prediction ``(m, 3)``, or None: the
+                linearisation at zero error. Given, the rotation rows become those of
+                ``-Log(R_measured R_model^T)``: ``Jr^-1(error)`` times the rotation rows.
+            n_markers: K.
+
+        Returns:
+            ``(m, rows_of(K), k)``, the rows of :meth:`residual`.
+        """
+        W = W6
+        if rotation_error is not None:
+            W = W6.copy()
+            W[:, 3 * n_markers :] = inverse_right_jacobian(rotation_error) @ W6[:, 3 * n_markers :]
+        index = self.row_index(n_markers)
+        return W if index is None else W[:, index]
 
     def theoretical_count(
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
@@ -213,6 +355,9 @@ def count_joints(sigma: np.ndarray) -> tuple[int, int, int]:
 
 POSE = Measurement(POSE_ROWS)
 """The full pose at the tool origin."""
+
+POSITION = Measurement(POSITION_ROWS, label="position")
+"""The position of the tool origin."""
 
 
 def checked_marker(marker) -> tuple[float, float, float]:
@@ -254,10 +399,13 @@ __all__ = [
     "MAX_MARKER",
     "POSE",
     "POSE_ROWS",
+    "POSITION",
     "POSITION_ROWS",
+    "ROTATION_ROWS",
     "ROW_NAMES",
     "MeasureKind",
     "Measurement",
+    "Observed",
     "checked_marker",
     "count_joints",
 ]

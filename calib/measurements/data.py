@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core.checks import read_only
 from ..exceptions import InvalidArgumentError
+from ..identification.measures import POSE, POSITION, Measurement, Observed
 from ..kinematics.mimic import Coupling
 from ..kinematics.so3 import (
     matrix_to_quaternion,
@@ -191,9 +192,19 @@ class Measurements:
         return self.position.reshape(self.m, self.n_markers, 3)
 
     @property
+    def kind(self) -> Measurement:
+        """What was measured: the pose when orientations are present, else the position."""
+        return POSITION if self.quaternion is None else POSE
+
+    @property
     def measure(self) -> str:
         """``pose`` when orientations are present, else ``position``."""
-        return "position" if self.quaternion is None else "pose"
+        return self.kind.label
+
+    @property
+    def observed(self) -> Observed:
+        """The measured points and orientations, as a measurement kind compares them."""
+        return Observed(self.points, self.rotations)
 
     @property
     def rotations(self) -> np.ndarray | None:

@@ -1,0 +1,139 @@
+"""Measured data through the measurement kind: the calibration's residual and Jacobian rows.
+
+The kind (:class:`calib.Measurement`) holds the one implementation of a measured residual
+(K markers, the measurement frame, the measured frame's rotation) and of its Jacobian rows;
+the calibration's :class:`~calib.calibration.model.State` and
+:class:`~calib.calibration.model.ErrorModel` use it. Checked against Pinocchio's forward
+kinematics of the URDF file and against finite differences.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from pinref import file_chain_poses
+
+from calib import Measurement, Measurements, from_chain, load_chain
+from calib.calibration.counting import MARKER_WORK_COPIES, marker_work_bytes
+from calib.calibration.model import ErrorModel, registration_state, selection_lift
+from calib.identification.kinds import kind_of
+from calib.identification.measures import POSE, POSITION, Observed
+from calib.identification.parameters import complete_parameters
+from calib.kinematics.so3 import matrix_to_quaternion
+
+M = 12
+
+
+def _setup(seed: int, pose: bool):
+    """A UR5 state (frame, 2 markers, measured-frame rotation) and noisy data of it."""
+    rng = np.random.default_rng(seed)
+    chain = load_chain("ur5")
+    q = chain.random_configurations(M, seed)
+    frame = np.eye(4)
+    frame[:3, :3], frame[:3, 3] = pin.exp3(rng.normal(size=3)), rng.normal(size=3)
+    markers = 0.1 * rng.normal(size=(2, 3))
+    tool = pin.exp3(0.3 * rng.normal(size=3)) if pose else None
+    state = registration_state(from_chain(chain), frame, markers, tool)
+    # Pinocchio's tool placement in the chain's base frame, from the URDF file
+    poses = [
+        T for _, T, _ in file_chain_poses(chain.urdf_path, chain.base_frame, chain.tool_frame, q)
+    ]
+    Rt = np.array([T.rotation for T in poses])
+    pt = np.array([T.translation for T in poses])
+    true_pts = (
+        np.einsum("ij,mkj->mki", frame[:3, :3], pt[:, None] + np.einsum("mij,kj->mki", Rt, markers))
+        + frame[:3, 3]
+    )
+    measured = true_pts + 1e-3 * rng.normal(size=true_pts.shape)
+    quat, true_rot, meas_rot = None, None, None
+    if pose:
+        true_rot = frame[:3, :3] @ Rt @ tool
+        meas_rot = np.array([pin.exp3(1e-2 * rng.normal(size=3)) for _ in range(M)]) @ true_rot
+        quat = matrix_to_quaternion(meas_rot)
+    data = Measurements(chain.joint_names, q, measured.reshape(M, -1), quat)
+    expected = [(measured - true_pts).reshape(M, -1)]
+    if pose:
+        expected.append(
+            np.array([pin.log3(a @ b.T) for a, b in zip(meas_rot, true_rot, strict=True)])
+        )
+    return chain, state, data, np.hstack(expected)
+
+
+@pytest.mark.parametrize("pose", [False, True])
+def test_state_residuals_are_pinocchio_measured_minus_predicted(pose):
+    _, state, data, expected = _setup(5, pose)
+    assert data.kind == (POSE if pose else POSITION)
+    np.testing.assert_allclose(state.residuals(data), expected, rtol=0, atol=1e-12)
+
+
+def test_row_subset_residual_is_its_rows_of_the_pose_residual():
+    _, state, data, expected = _setup(6, True)
+    kind = kind_of("x,z,ry")
+    kin = state.mdh.kinematics(data.q)
+    out = kind.residual(
+        kin.R[:, -1], kin.p[:, -1], data.observed, state.markers, state.frame, state.tool_rotation
+    )
+    # x, z of marker 1, x, z of marker 2, then ry: columns of (x1 y1 z1 x2 y2 z2 rx ry rz)
+    np.testing.assert_allclose(out, expected[:, [0, 2, 3, 5, 7]], rtol=0, atol=1e-12)
+    assert kind.rows_of(2) == 5 and kind.full_rows(2) == 9
+
+
+def test_measured_poses_of_two_markers():
+    rng = np.random.default_rng(2)
+    R = np.array([pin.exp3(rng.normal(size=3)) for _ in range(4)])
+    p = rng.normal(size=(4, 3))
+    markers = rng.normal(size=(2, 3))
+    dphi, dp = 1e-3 * rng.normal(size=(4, 3)), 1e-3 * rng.normal(size=(4, 3))
+    Mpose = np.zeros((4, 4, 4))
+    Mpose[:, :3, :3] = np.array([pin.exp3(a) for a in dphi]) @ R
+    Mpose[:, :3, 3], Mpose[:, 3, 3] = p + dp, 1.0
+    out = POSE.residual(R, p, Mpose, markers)
+    for k in range(2):  # each marker: the measured pose moves it by dp + dphi x (R m_k)
+        seen = Mpose[:, :3, 3] + Mpose[:, :3, :3] @ markers[k]
+        np.testing.assert_allclose(
+            out[:, 3 * k : 3 * k + 3], seen - (p + R @ markers[k]), atol=1e-14
+        )
+    np.testing.assert_allclose(out[:, 6:], dphi, atol=1e-14)
+    obs = Observed.of_poses(Mpose, markers)
+    assert obs.points.shape == (4, 2, 3)
+
+
+@pytest.mark.parametrize("measure", ["x,z,ry", "pose", "position", "y,rx,rz"])
+def test_error_model_jacobian_of_a_kind_matches_finite_differences(measure):
+    _, start, data, _ = _setup(7, True)
+    kind = kind_of(measure)
+    if not kind.rotation_rows:
+        start = registration_state(start.mdh, start.frame, start.markers, None)
+    pset = complete_parameters(start.mdh)
+    model = ErrorModel(
+        pset, pset.names, selection_lift(pset, pset.names), (1, 4), n_markers=2, kind=kind
+    )
+    torque = np.random.default_rng(1).normal(size=data.q.shape)
+
+    def model_minus_measured(x):
+        s = model.apply(start, x)
+        kin = s.mdh.kinematics(s.joints(data.q, torque))
+        return -kind.residual(
+            kin.R[:, -1], kin.p[:, -1], data.observed, s.markers, s.frame, s.tool_rotation
+        )
+
+    x = 1e-2 * np.random.default_rng(3).normal(size=model.size())
+    J = model.jacobian(start, x, data, torque)
+    assert J.shape == (M, kind.rows_of(2), model.size()) and model.rows == kind.rows_of(2)
+    h = 1e-7
+    fd = np.stack(
+        [
+            (model_minus_measured(x + h * e) - model_minus_measured(x - h * e)) / (2 * h)
+            for e in np.eye(model.size())
+        ],
+        axis=2,
+    )
+    assert np.abs(J - fd).max() < 1e-6 * max(1.0, np.abs(J).max())
+
+
+def test_marker_work_counts_the_kinds_rows_and_constants():
+    # pose at 2 markers: 3 x 2 + 3 rows; frame 6 + markers 6 + measured frame 3 columns
+    assert marker_work_bytes(10, 2, 30, POSE) == MARKER_WORK_COPIES * 8 * (10 * 9) * (15 + 30)
+    assert marker_work_bytes(10, 2, 30, POSITION) == MARKER_WORK_COPIES * 8 * 60 * (12 + 30)
+    assert isinstance(POSE, Measurement)
