@@ -137,3 +137,41 @@ def test_marker_work_counts_the_kinds_rows_and_constants():
     assert marker_work_bytes(10, 2, 30, POSE) == MARKER_WORK_COPIES * 8 * (10 * 9) * (15 + 30)
     assert marker_work_bytes(10, 2, 30, POSITION) == MARKER_WORK_COPIES * 8 * 60 * (12 + 30)
     assert isinstance(POSE, Measurement)
+
+
+def test_design_data_linearise_at_zero_residual():
+    """The counts' and designs' data: the Jacobian is the plain linearisation of the pose.
+
+    Rotation rows: the derivative of ``Log(R(x) R(0)^T)`` at x = 0 (pin.log3), not scaled by
+    the rotation error to an arbitrary measured orientation.
+    """
+    from calib.calibration.model import generic_measurements
+
+    chain, start, _, _ = _setup(5, True)
+    pset = complete_parameters(start.mdh)
+    model = ErrorModel(
+        pset, pset.names, selection_lift(pset, pset.names), (), n_markers=2, kind=POSE
+    )
+    q = chain.random_configurations(6, 2)
+    data = generic_measurements(start, chain.joint_names, q)
+    J = model.jacobian(start, np.zeros(model.size()), data, None)
+    _, R0 = start.predict(q)
+    h = 1e-6
+
+    def rot(x):
+        return model.apply(start, x).predict(q)[1]
+
+    fd = np.stack(
+        [
+            np.array(
+                [
+                    pin.log3(a @ b.T) - pin.log3(c @ b.T)
+                    for a, b, c in zip(rot(h * e), R0, rot(-h * e), strict=True)
+                ]
+            )
+            / (2 * h)
+            for e in np.eye(model.size())
+        ],
+        axis=2,
+    )
+    assert np.abs(J[:, -3:] - fd).max() < 1e-6 * max(1.0, np.abs(fd).max())

@@ -32,7 +32,7 @@ from ..identification.jacobian import identification_jacobian, measured_point
 from ..identification.measures import POSE, POSITION, ROTATION_ROWS, Measurement
 from ..identification.parameters import Kind, Parameter, ParameterSet
 from ..kinematics.mdh import MDHModel
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..kinematics.so3 import left_jacobian, matrix_to_quaternion, rotation_matrix, skew
 from ..measurements.data import Measurements
 
 __all__ = [
@@ -333,11 +333,12 @@ def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> Stat
 
 
 def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarray):
-    """What a state measures at q: its own points and, with a tool rotation, the identity.
+    """What a state measures at q: its own points and, with a tool rotation, orientations.
 
     The data the counts of :mod:`~.counting` and the design's Jacobians are evaluated on:
-    the points are exact, the orientations are the identity (not the state's own).
+    exact, so the residual is zero and the Jacobian is the plain linearisation (measured
+    identity orientations would scale the rotation rows by ``Jr^-1`` of the tool's rotation).
     """
     pts, rot = state.predict(q)
-    quat = None if rot is None else np.tile([0.0, 0.0, 0.0, 1.0], (len(q), 1))
+    quat = None if rot is None else matrix_to_quaternion(rot)
     return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)
