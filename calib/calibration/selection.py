@@ -239,6 +239,7 @@ def paths(
     errors = [_loo_batch(H, r.reshape(b, m, rows))]
     Minv = _inverse(H)
     alive = np.ones(C.shape[::2], dtype=bool)
+    index = np.arange(len(candidates))  # candidates still alive in some subset
     chosen = []
     for _ in candidates:
         norms = np.linalg.norm(C, axis=1)
@@ -246,6 +247,15 @@ def paths(
         active = np.any(alive, axis=1)
         if not np.any(active):
             break
+        some = np.any(alive, axis=0)
+        if not np.all(some):  # drop the columns no subset can add any more
+            C, floor, alive, norms, index = (
+                C[:, :, some],
+                floor[:, some],
+                alive[:, some],
+                norms[:, some],
+                index[some],
+            )
         Cn = C * (alive / np.where(alive, norms, 1.0))[:, None, :]
         coef = np.einsum("bnk,bn->bk", Cn, r)
         a, denom, sq = _candidate_errors(H, Minv, Cn.reshape(b, m, rows, -1), coef, r)
@@ -258,7 +268,7 @@ def paths(
         C = C - q[:, :, None] * np.einsum("bn,bnk->bk", q, C)[:, None, :]
         Minv = _updated_inverse(Minv, H, a, denom, pick, active)
         alive[pick] = False
-        chosen.append(np.where(active, j, -1))
+        chosen.append(np.where(active, index[j], -1))
         errors.append(sq[pick])
     return _split_paths(candidates, chosen, errors, train)
 
