@@ -179,6 +179,30 @@ def test_batched_paths_are_each_subsets_greedy_refits():
             assert np.allclose(errors[step], refit_loo(As[:, cols], es, rows), rtol=1e-9)
 
 
+def test_path_through_a_configuration_of_leverage_one():
+    """A column that only one configuration sees cannot be predicted without it: its error
+    there is infinite from the step it enters, the path adds it only when nothing else is
+    left, and the other configurations' errors stay those of brute-force refits."""
+    rng = np.random.default_rng(11)
+    m, rows, fixed, cand = 10, 3, 3, 5
+    A = rng.normal(size=(m * rows, fixed + cand))
+    for col, config in ((fixed, 0), (fixed + 1, 1)):  # two columns each seen by one config
+        A[:, col] = 0.0
+        A[rows * config : rows * (config + 1), col] = rng.normal(size=rows)
+    A /= np.linalg.norm(A, axis=0)
+    e = rng.normal(size=m * rows)
+    order, errors = path(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)))
+    assert order[-2:] == [fixed, fixed + 1]  # never chosen while a finite choice is left
+    cols = list(range(fixed))
+    for step, added in enumerate(order, start=1):
+        cols.append(added)
+        lost = [c for c in (0, 1) if fixed + c in cols]
+        assert np.all(np.isinf(errors[step, lost]))
+        rest = [i for i in range(m) if i not in lost]
+        want = refit_loo(A[:, cols], e, rows)[rest]
+        assert np.allclose(errors[step, rest], want, rtol=1e-9)
+
+
 def test_ridge_loo_is_the_best_strength_of_the_refits():
     rng = np.random.default_rng(3)
     m, rows, fixed, p = 12, 3, 3, 8

@@ -227,50 +227,99 @@ def paths(
         Per subset: the columns in the order added, and the squared left-out error of each of
         its configurations before the first and after each addition ``(steps + 1, m_subset)``.
     """
-    b, m = train.shape
-    w = np.repeat(train, rows, axis=1).astype(float)
-    Q = np.linalg.qr(A[:, start] * w[:, :, None])[0]
-    r = _residual(Q, e * w)
-    H = _hat_blocks(Q, m, rows)
-    C = A[:, candidates] * w[:, :, None]
-    floor = DEPENDENT * np.linalg.norm(C, axis=1)
-    for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
-        C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
-    errors = [_loo_batch(H, r.reshape(b, m, rows))]
-    Minv = _inverse(H)
-    alive = np.ones(C.shape[::2], dtype=bool)
-    index = np.arange(len(candidates))  # candidates still alive in some subset
-    chosen = []
+    state = _Batch(A, e, rows, start, candidates, train)
+    errors, chosen = [state.start_errors()], []
     for _ in candidates:
-        norms = np.linalg.norm(C, axis=1)
-        alive &= norms > floor
-        active = np.any(alive, axis=1)
+        active = state.prune()
         if not np.any(active):
             break
-        some = np.any(alive, axis=0)
-        if not np.all(some):  # drop the columns no subset can add any more
-            C, floor, alive, norms, index = (
-                C[:, :, some],
-                floor[:, some],
-                alive[:, some],
-                norms[:, some],
-                index[some],
-            )
-        Cn = C * (alive / np.where(alive, norms, 1.0))[:, None, :]
-        coef = np.einsum("bnk,bn->bk", Cn, r)
-        a, denom, sq = _candidate_errors(H, Minv, Cn.reshape(b, m, rows, -1), coef, r)
-        j = _pick(np.sum(sq, axis=2), alive)
-        pick = np.arange(b), j
-        q = Cn[pick[0], :, j] * active[:, None]  # a finished subset adds nothing
-        r = r - q * coef[pick][:, None]
-        qb = q.reshape(b, m, rows)
-        H = H + qb[:, :, :, None] * qb[:, :, None, :]
-        C = C - q[:, :, None] * np.einsum("bn,bnk->bk", q, C)[:, None, :]
-        Minv = _updated_inverse(Minv, H, a, denom, pick, active)
-        alive[pick] = False
-        chosen.append(np.where(active, index[j], -1))
-        errors.append(sq[pick])
+        Cn, coef, a, denom, sq = state.candidate_errors()
+        j = _pick(np.sum(sq, axis=2), state.alive)
+        state.add(Cn, coef, a, denom, j, active)
+        chosen.append(np.where(active, state.index[j], -1))
+        errors.append(sq[np.arange(len(j)), j])
     return _split_paths(candidates, chosen, errors, train)
+
+
+class _Batch:
+    """Working state of :func:`paths`: every subset's fit as the columns are added.
+
+    Attributes:
+        m, rows: Configurations and rows per configuration.
+        r: Residuals of each subset's fit ``(b, m rows)``.
+        H: Hat blocks ``(b, m, rows, rows)``; ``Minv`` their ``(I - H_ii)^-1`` (None while
+            one is singular).
+        C: Candidates orthogonal to each fit ``(b, m rows, k)``; ``floor`` the norm under
+            which one is dependent, ``alive`` those a subset may still add, ``index`` their
+            positions in the candidate list (columns no subset can add are dropped).
+        lost: Configurations of each subset that reached a leverage of 1 ``(b, m)``: their
+            left-out error is infinite from then on (their blocks are left out of ``Minv``).
+    """
+
+    def __init__(self, A, e, rows, start, candidates, train):
+        b, self.m = train.shape
+        self.rows = rows
+        w = np.repeat(train, rows, axis=1).astype(float)
+        Q = np.linalg.qr(A[:, start] * w[:, :, None])[0]
+        self.r = _residual(Q, e * w)
+        self.H = _hat_blocks(Q, self.m, rows)
+        C = A[:, candidates] * w[:, :, None]
+        self.floor = DEPENDENT * np.linalg.norm(C, axis=1)
+        for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
+            C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
+        self.C, self.Minv = C, _inverse(self.H)
+        self.alive = np.ones((b, len(candidates)), dtype=bool)
+        self.index = np.arange(len(candidates))
+        self.lost = np.zeros((b, self.m), dtype=bool)
+        self.norms = np.zeros_like(self.floor)
+
+    def start_errors(self) -> np.ndarray:
+        """Squared left-out errors of the start ``(b, m)``."""
+        return _loo_batch(self.H, self.r.reshape(len(self.r), self.m, self.rows))
+
+    def prune(self) -> np.ndarray:
+        """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
+        self.norms = np.linalg.norm(self.C, axis=1)
+        self.alive &= self.norms > self.floor
+        some = np.any(self.alive, axis=0)
+        if not np.all(some):  # drop the columns no subset can add any more
+            self.C, self.floor = self.C[:, :, some], self.floor[:, some]
+            self.alive, self.norms, self.index = (
+                self.alive[:, some],
+                self.norms[:, some],
+                self.index[some],
+            )
+        return np.any(self.alive, axis=1)
+
+    def candidate_errors(self):
+        """Unit candidates, their coefficients ``q^T r`` and :func:`_candidate_errors`."""
+        Cn = self.C * (self.alive / np.where(self.alive, self.norms, 1.0))[:, None, :]
+        coef = np.einsum("bnk,bn->bk", Cn, self.r)
+        Cb = Cn.reshape(len(Cn), self.m, self.rows, -1)
+        a, denom, sq = _candidate_errors(self.H, self.Minv, Cb, coef, self.r)
+        sq[np.broadcast_to(self.lost[:, None, :], sq.shape)] = np.inf
+        return Cn, coef, a, denom, sq
+
+    def add(self, Cn, coef, a, denom, j, active) -> None:
+        """Add candidate ``j[s]`` to each active subset s: rank-one updates of everything."""
+        pick = np.arange(len(j)), j
+        q = Cn[pick[0], :, j] * active[:, None]  # a finished subset adds nothing
+        self.r = self.r - q * coef[pick][:, None]
+        qb = q.reshape(len(q), self.m, self.rows)
+        self.H = self.H + qb[:, :, :, None] * qb[:, :, None, :]
+        self.C = self.C - q[:, :, None] * np.einsum("bn,bnk->bk", q, self.C)[:, None, :]
+        self.alive[pick] = False
+        if self.Minv is None or denom is None:
+            self.Minv = _inverse(self.H)
+            return
+        dj = denom[pick[0], :, j]  # (b, m): 1 - the leverage the column adds, by configuration
+        newly = active[:, None] & (dj <= 1e-12) & ~self.lost
+        self.lost |= newly
+        if np.any(newly) or np.min(np.where(self.lost, 1.0, dj)) <= REFRESH:
+            self.Minv = _inverse(self.H * ~self.lost[:, :, None, None])
+            return
+        aj = a[pick[0], :, :, j] * (active[:, None] & ~self.lost)[:, :, None]
+        self.Minv = self.Minv + aj[..., :, None] * (aj / dj[..., None])[..., None, :]
 
 
 def _candidate_errors(H, Minv, Cb, coef, r):
@@ -305,17 +354,6 @@ def _candidate_errors(H, Minv, Cb, coef, r):
         sq = np.einsum("bmik,bmik->bkm", loo, loo)
     sq[np.swapaxes(denom <= 1e-12, 1, 2) | ~np.isfinite(sq)] = np.inf
     return a, denom, sq
-
-
-def _updated_inverse(Minv, H, a, denom, pick, active):
-    """``(I - H_ii)^-1`` after the column ``pick`` (subset, candidate) was added to ``H``.
-
-    A Sherman-Morrison update, or a fresh inverse near a leverage of 1 (see ``REFRESH``).
-    """
-    if Minv is None or np.min(denom[pick[0], :, pick[1]]) <= REFRESH:
-        return _inverse(H)
-    aj = a[pick[0], :, :, pick[1]] * active[:, None, None]
-    return Minv + aj[..., :, None] * (aj / denom[pick[0], :, pick[1]][..., None])[..., None, :]
 
 
 def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
