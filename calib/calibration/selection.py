@@ -233,9 +233,9 @@ def paths(
         active = state.prune()
         if not np.any(active):
             break
-        Cn, coef, a, denom, sq = state.candidate_errors()
+        Cn, coef, denom, sq = state.candidate_errors()
         j = _pick(np.sum(sq, axis=2), state.alive)
-        state.add(Cn, coef, a, denom, j, active)
+        state.add(Cn, coef, denom, j, active)
         chosen.append(np.where(active, state.index[j], -1))
         errors.append(sq[np.arange(len(j)), j])
     return _split_paths(candidates, chosen, errors, train)
@@ -279,7 +279,7 @@ class _Batch:
 
     def prune(self) -> np.ndarray:
         """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
-        self.norms = np.linalg.norm(self.C, axis=1)
+        self.norms = np.sqrt(np.einsum("bnk,bnk->bk", self.C, self.C))
         self.alive &= self.norms > self.floor
         some = np.any(self.alive, axis=0)
         if not np.all(some):  # drop the columns no subset can add any more
@@ -296,18 +296,18 @@ class _Batch:
         Cn = self.C * (self.alive / np.where(self.alive, self.norms, 1.0))[:, None, :]
         coef = np.einsum("bnk,bn->bk", Cn, self.r)
         Cb = Cn.reshape(len(Cn), self.m, self.rows, -1)
-        a, denom, sq = _candidate_errors(self.H, self.Minv, Cb, coef, self.r)
+        denom, sq = _candidate_errors(self.H, self.Minv, Cb, coef, self.r)
         sq[np.broadcast_to(self.lost[:, None, :], sq.shape)] = np.inf
-        return Cn, coef, a, denom, sq
+        return Cn, coef, denom, sq
 
-    def add(self, Cn, coef, a, denom, j, active) -> None:
+    def add(self, Cn, coef, denom, j, active) -> None:
         """Add candidate ``j[s]`` to each active subset s: rank-one updates of everything."""
         pick = np.arange(len(j)), j
         q = Cn[pick[0], :, j] * active[:, None]  # a finished subset adds nothing
         self.r = self.r - q * coef[pick][:, None]
         qb = q.reshape(len(q), self.m, self.rows)
         self.H = self.H + qb[:, :, :, None] * qb[:, :, None, :]
-        self.C = self.C - q[:, :, None] * np.einsum("bn,bnk->bk", q, self.C)[:, None, :]
+        self.C -= q[:, :, None] * np.einsum("bn,bnk->bk", q, self.C)[:, None, :]
         self.alive[pick] = False
         if self.Minv is None or denom is None:
             self.Minv = _inverse(self.H)
@@ -318,7 +318,7 @@ class _Batch:
         if np.any(newly) or np.min(np.where(self.lost, 1.0, dj)) <= REFRESH:
             self.Minv = _inverse(self.H * ~self.lost[:, :, None, None])
             return
-        aj = a[pick[0], :, :, j] * (active[:, None] & ~self.lost)[:, :, None]
+        aj = np.einsum("bmij,bmj->bmi", self.Minv, qb * (active[:, None] & ~self.lost)[:, :, None])
         self.Minv = self.Minv + aj[..., :, None] * (aj / dj[..., None])[..., None, :]
 
 
@@ -337,23 +337,23 @@ def _candidate_errors(H, Minv, Cb, coef, r):
         r: Residuals of the current fits ``(b, m rows)``.
 
     Returns:
-        ``a`` ``(b, m, rows, c)`` and ``1 - g`` ``(b, m, c)`` (None without ``Minv``), and the
-        squared left-out errors ``(b, c, m)``: inf where a configuration alone would
-        determine the added column.
+        ``1 - g`` ``(b, m, c)`` (None without ``Minv``), and the squared left-out errors
+        ``(b, c, m)``: inf where a configuration alone would determine the added column.
     """
     b, m, rows, _ = Cb.shape
     if Minv is None:  # a configuration of leverage 1 in some subset: each on its own
         Rb = r.reshape(b, m, rows, 1) - Cb * coef[:, None, None, :]
-        return None, None, np.stack([_added_loo(H[k], Cb[k], Rb[k]) for k in range(b)])
+        return None, np.stack([_added_loo(H[k], Cb[k], Rb[k]) for k in range(b)])
     v = np.einsum("bmij,bmj->bmi", Minv, r.reshape(b, m, rows))
-    a = Minv @ Cb
-    denom = 1.0 - np.einsum("bmik,bmik->bmk", Cb, a)
+    loo = Minv @ Cb  # a, then the left-out errors in place
+    denom = 1.0 - np.einsum("bmik,bmik->bmk", Cb, loo)
     with np.errstate(divide="ignore", invalid="ignore"):
         s = (np.einsum("bmik,bmi->bmk", Cb, v) - coef[:, None, :]) / denom
-        loo = v[..., None] + a * s[:, :, None, :]
+        loo *= s[:, :, None, :]
+        loo += v[..., None]
         sq = np.einsum("bmik,bmik->bkm", loo, loo)
     sq[np.swapaxes(denom <= 1e-12, 1, 2) | ~np.isfinite(sq)] = np.inf
-    return a, denom, sq
+    return denom, sq
 
 
 def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -468,7 +468,8 @@ def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.n
     strengths = np.r_[0.0, STRENGTHS]
     w = sv**2 / (sv**2 + strengths[:, None])  # (strengths, k)
     Ub = U.reshape(m, rows, -1)
-    H = H0[None] + (Ub[None] * w[:, None, None, :]) @ np.swapaxes(Ub, 1, 2)[None]
+    outer = (Ub[:, :, None, :] * Ub[:, None, :, :]).reshape(-1, Ub.shape[2])  # (m rows^2, k)
+    H = H0[None] + (outer @ w.T).T.reshape(len(w), m, rows, rows)
     res = r[None] - (w * (U.T @ r)) @ U.T
     sq = _loo_batch(H, res.reshape(-1, m, rows))
     best = int(np.argmin(np.sum(sq, axis=1)))
