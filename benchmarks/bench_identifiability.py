@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import ROOT, compile_calib, median_ms, one_core, process_times, table
+from common import ROOT, compile_calib, median_ms, one_core, process_cpu_times, table
 
 one_core()
 
@@ -155,6 +155,16 @@ STARTS = (
     ("python -c pass (interpreter start, for reference)", ["--python"], "-"),
     ("python -c 'import numpy' (reference)", ["--python", "import numpy"], "-"),
     ("python -c 'import pinocchio' (reference: numpy too)", ["--python", "import pinocchio"], "-"),
+    (
+        "python -c 'import pinocchio, numpy.random' (reference)",
+        ["--python", "import pinocchio, numpy.random"],
+        "-",
+    ),
+    (
+        "the same and calib's CLI modules (every import of `calib analyze`)",
+        ["--python", "import pinocchio, numpy.random, calib.cli.commands"],
+        "-",
+    ),
     ("`calib --version`", ["--version"], "< 100"),
     ("`calib list`", ["list"], "< 100"),
     ("`calib analyze ur5`", ["analyze", "ur5"], "< 250"),
@@ -166,24 +176,44 @@ def start_up(rounds: int = 15) -> None:
     """Whole ``calib`` processes (interpreter start and imports included), with the targets.
 
     Taken in rounds (one process of each command per round, so that a busy spell of the
-    machine weighs on all alike), after calib's bytecode caches are written.
+    machine weighs on all alike), after calib's bytecode caches are written. Wall and CPU
+    medians; then where the CPU time of ``calib analyze ur5`` goes (differences of the
+    references' medians).
     """
     compile_calib()
-    times: dict[str, list[float]] = {label: [] for label, _, _ in STARTS}
+    times: dict[str, list[tuple[float, float]]] = {label: [] for label, _, _ in STARTS}
     for _ in range(rounds):
         for label, args, _ in STARTS:
-            times[label] += process_times(args, 1)
+            times[label] += process_cpu_times(args, 1)
+    wall = {k: 1e3 * statistics.median(w for w, _ in v) for k, v in times.items()}
+    cpu = {k: 1e3 * statistics.median(c for _, c in v) for k, v in times.items()}
     rows = [
         [
             label,
-            f"{1e3 * statistics.median(times[label]):.0f}",
-            f"{1e3 * min(times[label]):.0f}",
+            f"{wall[label]:.0f}",
+            f"{1e3 * min(w for w, _ in times[label]):.0f}",
+            f"{cpu[label]:.0f}",
             target,
         ]
         for label, _, target in STARTS
     ]
     print(f"\nWhole processes ({rounds} rounds):")
-    print(table(["command", "median [ms]", "min [ms]", "target [ms]"], rows))
+    print(table(["command", "median [ms]", "min [ms]", "cpu median [ms]", "target [ms]"], rows))
+    steps = [label for label, _, _ in STARTS]
+    order = [steps[0], steps[1], steps[2], steps[3], steps[4], steps[-1]]
+    parts = [
+        "interpreter",
+        "numpy",
+        "pinocchio (beyond numpy)",
+        "numpy.random",
+        "calib's modules (and the standard library they import)",
+        "the command: parser, catalog, URDF load, analysis, output",
+    ]
+    split = [[parts[0], f"{cpu[order[0]]:.0f}"]]
+    pairs = zip(parts[1:], order[:-1], order[1:], strict=True)
+    split += [[p, f"{cpu[b] - cpu[a]:.0f}"] for p, a, b in pairs]
+    print("\nWhere the CPU time of `calib analyze ur5` goes (differences of medians):")
+    print(table(["part", "cpu [ms]"], split))
 
 
 def random_chain(n: int, seed: int):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -32,6 +33,20 @@ def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> float:
     return 1e3 * statistics.median(times)
 
 
+def median_times_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> tuple[float, float]:
+    """Median wall and process CPU times of ``fn()`` over ``repeats`` calls [ms], after a
+    warm-up (on a busy machine the CPU time is the steadier)."""
+    for _ in range(warmup):
+        fn()
+    wall, cpu = [], []
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return 1e3 * statistics.median(wall), 1e3 * statistics.median(cpu)
+
+
 def process_ms(args: Sequence[str], repeats: int = 5) -> float:
     """Median wall time of a whole ``calib`` process [ms] (interpreter start included).
 
@@ -53,6 +68,26 @@ def process_times(args: Sequence[str], repeats: int) -> list[float]:
         t0 = time.perf_counter()
         subprocess.run(command, check=True, capture_output=True)
         times.append(time.perf_counter() - t0)
+    return times
+
+
+def process_cpu_times(args: Sequence[str], repeats: int) -> list[tuple[float, float]]:
+    """Wall and CPU (user + system) times [s] of ``repeats`` whole processes (``args`` as in
+    :func:`process_ms`): on a busy machine the CPU time is the steadier of the two."""
+    args = list(args)
+    if args[:1] == ["--python"]:
+        command = [sys.executable, "-c", args[1] if len(args) > 1 else "pass"]
+    else:
+        command = [str(CALIB), *args]
+    times = []
+    for _ in range(repeats):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        subprocess.run(command, check=True, capture_output=True)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+        times.append((wall, cpu))
     return times
 
 

@@ -30,7 +30,7 @@ from calib import (
 )
 from calib.calibration.model import ErrorModel, selection_lift
 from calib.calibration.registration import register, rigid_fit
-from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, path, ridge_loo
+from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, path, paths, ridge_loo
 from calib.calibration.solve import Problem
 from calib.cli.commands import main
 from calib.identification.kinds import kind_of
@@ -152,6 +152,56 @@ def test_forward_path_equals_greedy_refits(rows):
         assert added == min(sse, key=sse.get)
         cols.append(added)
         assert np.allclose(errors[step], refit_loo(A[:, cols], e, rows), rtol=1e-9)
+
+
+def test_batched_paths_are_each_subsets_greedy_refits():
+    """The guard's folds run in one batch (held-out rows zeroed): each subset's path adds the
+    column whose brute-force refits on that subset's configurations alone predict best."""
+    rng = np.random.default_rng(7)
+    m, rows, fixed, cand = 13, 3, 3, 5
+    A = rng.normal(size=(m * rows, fixed + cand))
+    A /= np.linalg.norm(A, axis=0)
+    e = A[:, [0, 4, 6]] @ np.array([1.0, 0.5, -0.2]) + 0.2 * rng.normal(size=m * rows)
+    train = np.ones((3, m), dtype=bool)
+    train[1, ::4] = False
+    train[2, [0, 1, 2, 5, 11]] = False
+    out = paths(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)), train)
+    for mask, (order, errors) in zip(train, out, strict=True):
+        keep = np.repeat(mask, rows)
+        As, es = A[keep], e[keep]
+        assert errors.shape == (cand + 1, mask.sum())
+        cols = list(range(fixed))
+        assert np.allclose(errors[0], refit_loo(As[:, cols], es, rows), rtol=1e-9)
+        for step, added in enumerate(order, start=1):
+            rest = [c for c in range(fixed, fixed + cand) if c not in cols]
+            sse = {c: refit_loo(As[:, [*cols, c]], es, rows).sum() for c in rest}
+            assert added == min(sse, key=sse.get)
+            cols.append(added)
+            assert np.allclose(errors[step], refit_loo(As[:, cols], es, rows), rtol=1e-9)
+
+
+def test_path_through_a_configuration_of_leverage_one():
+    """A column that only one configuration sees cannot be predicted without it: its error
+    there is infinite from the step it enters, the path adds it only when nothing else is
+    left, and the other configurations' errors stay those of brute-force refits."""
+    rng = np.random.default_rng(11)
+    m, rows, fixed, cand = 10, 3, 3, 5
+    A = rng.normal(size=(m * rows, fixed + cand))
+    for col, config in ((fixed, 0), (fixed + 1, 1)):  # two columns each seen by one config
+        A[:, col] = 0.0
+        A[rows * config : rows * (config + 1), col] = rng.normal(size=rows)
+    A /= np.linalg.norm(A, axis=0)
+    e = rng.normal(size=m * rows)
+    order, errors = path(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)))
+    assert order[-2:] == [fixed, fixed + 1]  # never chosen while a finite choice is left
+    cols = list(range(fixed))
+    for step, added in enumerate(order, start=1):
+        cols.append(added)
+        lost = [c for c in (0, 1) if fixed + c in cols]
+        assert np.all(np.isinf(errors[step, lost]))
+        rest = [i for i in range(m) if i not in lost]
+        want = refit_loo(A[:, cols], e, rows)[rest]
+        assert np.allclose(errors[step, rest], want, rtol=1e-9)
 
 
 def test_ridge_loo_is_the_best_strength_of_the_refits():

@@ -29,7 +29,9 @@ closed form.
   the held-out folds no better than the registration alone, the registration is kept. Ten
   folds rather than five: each fold's procedure sees 90 % of the configurations, closer to
   the final fit (with 80 %, a fold that loses the only postures pinning a parameter down
-  judges the procedure by an extrapolation the final fit does not make).
+  judges the procedure by an extrapolation the final fit does not make). The folds' forward
+  paths run in one batch with the whole data's (:func:`paths`: each fold is the whole
+  problem with its held-out rows zeroed), step by step.
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ __all__ = [
     "DEPENDENT",
     "MIN_GAIN",
     "OUTER_FOLDS",
+    "REFRESH",
     "STRENGTHS",
     "Selection",
     "Step",
@@ -50,6 +53,7 @@ __all__ = [
     "block_loo",
     "forward",
     "path",
+    "paths",
     "ridge_loo",
     "select",
     "shrinkage",
@@ -60,6 +64,11 @@ MIN_GAIN = 0.02
 
 DEPENDENT = 1e-8
 """A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
+
+REFRESH = 0.1
+"""The inverse hat blocks ``(I - H_ii)^-1`` follow each step by Sherman-Morrison while every
+``1 - q_i^T (I - H_ii)^-1 q_i`` of the added column exceeds this; otherwise (a leverage
+near 1, where the update would lose digits) they are inverted afresh."""
 
 OUTER_FOLDS = 10
 """Folds of the guard's cross-validation (configuration i goes to fold i mod OUTER_FOLDS)."""
@@ -175,10 +184,6 @@ def path(
 ) -> tuple[list[int], np.ndarray]:
     """The greedy forward path: each step adds the candidate of least leave-one-out error.
 
-    The fit of the columns in is kept as an orthonormal basis Q, its residuals and its hat
-    blocks; a candidate's part orthogonal to Q updates all three by rank one, so a step costs
-    one batched solve of ``rows x rows`` systems and no refactorisation.
-
     Args:
         A: Columns, configuration-major rows ``(m rows, p)``.
         e: Residuals to explain ``(m rows,)``.
@@ -190,32 +195,207 @@ def path(
         The columns in the order added, and the squared left-out error of each configuration
         before the first and after each addition ``(len(order) + 1, m)``.
     """
-    m = e.size // rows
-    Q = np.linalg.qr(A[:, start])[0]
-    r = e - Q @ (Q.T @ e)
-    Qb = Q.reshape(m, rows, -1)
-    H = Qb @ np.swapaxes(Qb, 1, 2)
-    errors = [_loo_batch(H[None], r.reshape(1, m, rows))[0]]
-    rest, order = list(candidates), []
-    while rest:
-        C = A[:, rest]
-        for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
-            C = C - Q @ (Q.T @ C)
-        norms = np.linalg.norm(C, axis=0)
-        live = norms > DEPENDENT * np.linalg.norm(A[:, rest], axis=0)
-        if not np.any(live):
+    return paths(A, e, rows, start, candidates, np.ones((1, e.size // rows), dtype=bool))[0]
+
+
+def paths(
+    A: np.ndarray,
+    e: np.ndarray,
+    rows: int,
+    start: list[int],
+    candidates: list[int],
+    train: np.ndarray,
+) -> list[tuple[list[int], np.ndarray]]:
+    """The forward paths (:func:`path`) of several subsets of the configurations at once.
+
+    Each subset is the whole problem with the rows of the other configurations zeroed (a
+    zero row changes neither the fit nor the hat blocks of the others), so every subset's
+    path runs in the same batched arrays. The fit of the columns in is kept as an orthonormal
+    basis, its residuals and its hat blocks; the candidates are kept orthogonal to it. Adding
+    a column updates all of them by rank one: a step costs one batched inverse of
+    ``rows x rows`` blocks and no refactorisation.
+
+    Args:
+        A: Columns, configuration-major rows ``(m rows, p)``.
+        e: Residuals to explain ``(m rows,)``.
+        rows: Rows per configuration.
+        start: Columns always in.
+        candidates: Columns to add, until none is left or independent of those in.
+        train: Configurations of each subset ``(subsets, m)`` [bool].
+
+    Returns:
+        Per subset: the columns in the order added, and the squared left-out error of each of
+        its configurations before the first and after each addition ``(steps + 1, m_subset)``.
+    """
+    state = _Batch(A, e, rows, start, candidates, train)
+    errors, chosen = [state.start_errors()], []
+    for _ in candidates:
+        active = state.prune()
+        if not np.any(active):
             break
-        rest = [u for u, keep in zip(rest, live, strict=True) if keep]
-        C = C[:, live] / norms[live]
-        rc = r[:, None] - C * (C.T @ r)
-        Cb = C.reshape(m, rows, -1)
-        sq = _added_loo(H, Cb, rc.reshape(m, rows, -1))
-        j = int(np.argmin(np.sum(sq, axis=1)))
-        order.append(rest.pop(j))
-        errors.append(sq[j])
-        Q, r = np.column_stack([Q, C[:, j]]), rc[:, j]
-        H = H + Cb[:, :, j, None] * Cb[:, None, :, j]
-    return order, np.array(errors)
+        Cn, coef, denom, sq = state.candidate_errors()
+        j = _pick(np.sum(sq, axis=2), state.alive)
+        state.add(Cn, coef, denom, j, active)
+        chosen.append(np.where(active, state.index[j], -1))
+        errors.append(sq[np.arange(len(j)), j])
+    return _split_paths(candidates, chosen, errors, train)
+
+
+class _Batch:
+    """Working state of :func:`paths`: every subset's fit as the columns are added.
+
+    Attributes:
+        m, rows: Configurations and rows per configuration.
+        r: Residuals of each subset's fit ``(b, m rows)``.
+        H: Hat blocks ``(b, m, rows, rows)``; ``Minv`` their ``(I - H_ii)^-1`` (None while
+            one is singular).
+        C: Candidates orthogonal to each fit ``(b, m rows, k)``; ``floor`` the norm under
+            which one is dependent, ``alive`` those a subset may still add, ``index`` their
+            positions in the candidate list (columns no subset can add are dropped).
+        lost: Configurations of each subset that reached a leverage of 1 ``(b, m)``: their
+            left-out error is infinite from then on (their blocks are left out of ``Minv``).
+    """
+
+    def __init__(self, A, e, rows, start, candidates, train):
+        b, self.m = train.shape
+        self.rows = rows
+        w = np.repeat(train, rows, axis=1).astype(float)
+        Q = np.linalg.qr(A[:, start] * w[:, :, None])[0]
+        self.r = _residual(Q, e * w)
+        self.H = _hat_blocks(Q, self.m, rows)
+        C = A[:, candidates] * w[:, :, None]
+        self.floor = DEPENDENT * np.linalg.norm(C, axis=1)
+        for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
+            C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
+        self.C, self.Minv = C, _inverse(self.H)
+        self.alive = np.ones((b, len(candidates)), dtype=bool)
+        self.index = np.arange(len(candidates))
+        self.lost = np.zeros((b, self.m), dtype=bool)
+        self.norms = np.zeros_like(self.floor)
+
+    def start_errors(self) -> np.ndarray:
+        """Squared left-out errors of the start ``(b, m)``."""
+        return _loo_batch(self.H, self.r.reshape(len(self.r), self.m, self.rows))
+
+    def prune(self) -> np.ndarray:
+        """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
+        self.norms = np.sqrt(np.einsum("bnk,bnk->bk", self.C, self.C))
+        self.alive &= self.norms > self.floor
+        some = np.any(self.alive, axis=0)
+        if not np.all(some):  # drop the columns no subset can add any more
+            self.C, self.floor = self.C[:, :, some], self.floor[:, some]
+            self.alive, self.norms, self.index = (
+                self.alive[:, some],
+                self.norms[:, some],
+                self.index[some],
+            )
+        return np.any(self.alive, axis=1)
+
+    def candidate_errors(self):
+        """Unit candidates, their coefficients ``q^T r`` and :func:`_candidate_errors`."""
+        Cn = self.C * (self.alive / np.where(self.alive, self.norms, 1.0))[:, None, :]
+        coef = np.einsum("bnk,bn->bk", Cn, self.r)
+        Cb = Cn.reshape(len(Cn), self.m, self.rows, -1)
+        denom, sq = _candidate_errors(self.H, self.Minv, Cb, coef, self.r)
+        sq[np.broadcast_to(self.lost[:, None, :], sq.shape)] = np.inf
+        return Cn, coef, denom, sq
+
+    def add(self, Cn, coef, denom, j, active) -> None:
+        """Add candidate ``j[s]`` to each active subset s: rank-one updates of everything."""
+        pick = np.arange(len(j)), j
+        q = Cn[pick[0], :, j] * active[:, None]  # a finished subset adds nothing
+        self.r = self.r - q * coef[pick][:, None]
+        qb = q.reshape(len(q), self.m, self.rows)
+        self.H = self.H + qb[:, :, :, None] * qb[:, :, None, :]
+        self.C -= q[:, :, None] * np.einsum("bn,bnk->bk", q, self.C)[:, None, :]
+        self.alive[pick] = False
+        if self.Minv is None or denom is None:
+            self.Minv = _inverse(self.H)
+            return
+        dj = denom[pick[0], :, j]  # (b, m): 1 - the leverage the column adds, by configuration
+        newly = active[:, None] & (dj <= 1e-12) & ~self.lost
+        self.lost |= newly
+        if np.any(newly) or np.min(np.where(self.lost, 1.0, dj)) <= REFRESH:
+            self.Minv = _inverse(self.H * ~self.lost[:, :, None, None])
+            return
+        aj = np.einsum("bmij,bmj->bmi", self.Minv, qb * (active[:, None] & ~self.lost)[:, :, None])
+        self.Minv = self.Minv + aj[..., :, None] * (aj / dj[..., None])[..., None, :]
+
+
+def _candidate_errors(H, Minv, Cb, coef, r):
+    """Squared left-out errors of each subset's fit with each candidate added.
+
+    With ``v_i = M_i^-1 r_i``, ``a_i = M_i^-1 q_i`` and ``g_i = q_i^T a_i``, the left-out error
+    of configuration i after adding the orthonormal column q (coefficient ``q^T r``) is
+    ``v_i + a_i (q_i^T v_i - q^T r) / (1 - g_i)`` (Sherman-Morrison, see :func:`_added_loo`).
+
+    Args:
+        H: Hat blocks of the current fits ``(b, m, rows, rows)``.
+        Minv: Their ``(I - H_ii)^-1`` (None if one is singular).
+        Cb: Candidate columns, orthonormal to the fits, by configuration ``(b, m, rows, c)``.
+        coef: ``q^T r`` of each candidate ``(b, c)``.
+        r: Residuals of the current fits ``(b, m rows)``.
+
+    Returns:
+        ``1 - g`` ``(b, m, c)`` (None without ``Minv``), and the squared left-out errors
+        ``(b, c, m)``: inf where a configuration alone would determine the added column.
+    """
+    b, m, rows, _ = Cb.shape
+    if Minv is None:  # a configuration of leverage 1 in some subset: each on its own
+        Rb = r.reshape(b, m, rows, 1) - Cb * coef[:, None, None, :]
+        return None, np.stack([_added_loo(H[k], Cb[k], Rb[k]) for k in range(b)])
+    v = np.einsum("bmij,bmj->bmi", Minv, r.reshape(b, m, rows))
+    loo = Minv @ Cb  # a, then the left-out errors in place
+    denom = 1.0 - np.einsum("bmik,bmik->bmk", Cb, loo)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (np.einsum("bmik,bmi->bmk", Cb, v) - coef[:, None, :]) / denom
+        loo *= s[:, :, None, :]
+        loo += v[..., None]
+        sq = np.einsum("bmik,bmik->bkm", loo, loo)
+    sq[np.swapaxes(denom <= 1e-12, 1, 2) | ~np.isfinite(sq)] = np.inf
+    return denom, sq
+
+
+def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``e - Q Q^T e`` of a stack of orthonormal bases ``(b, n, s)`` and vectors ``(b, n)``."""
+    return e - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e))
+
+
+def _hat_blocks(Q: np.ndarray, m: int, rows: int) -> np.ndarray:
+    """Diagonal blocks of ``Q Q^T`` per configuration ``(b, m, rows, rows)``."""
+    Qb = Q.reshape(Q.shape[0], m, rows, -1)
+    return Qb @ np.swapaxes(Qb, 2, 3)
+
+
+def _pick(total: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    """Per subset, the live candidate of least total error ``(b,)``.
+
+    The first live one when every live error is infinite (as :func:`numpy.argmin` of the live
+    candidates alone would).
+    """
+    key = np.where(alive, total, np.inf)
+    j = np.argmin(key, axis=1)
+    stuck = np.isinf(key[np.arange(len(j)), j])
+    return np.where(stuck, np.argmax(alive, axis=1), j)
+
+
+def _split_paths(candidates, chosen, errors, train) -> list[tuple[list[int], np.ndarray]]:
+    """Each subset's order (candidate columns) and errors on its own configurations."""
+    steps = np.array(chosen, dtype=int).reshape(-1, train.shape[0])
+    errs = np.array(errors)
+    out = []
+    for k, mask in enumerate(train):
+        picked = [candidates[j] for j in steps[:, k] if j >= 0]
+        out.append((picked, errs[: len(picked) + 1, k][:, mask]))
+    return out
+
+
+def _inverse(H: np.ndarray) -> np.ndarray | None:
+    """``(I - H)^-1`` of each hat block, None if one is singular (a leverage of 1)."""
+    try:
+        return np.linalg.inv(np.eye(H.shape[-1]) - H)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def _added_loo(H: np.ndarray, Cb: np.ndarray, Rb: np.ndarray) -> np.ndarray:
@@ -236,13 +416,26 @@ def _added_loo(H: np.ndarray, Cb: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:  # a configuration of leverage 1 already: solve each
         Hc = H[None] + np.moveaxis(Cb[:, :, None, :] * Cb[:, None, :, :], 3, 0)
         return _loo_batch(Hc, np.moveaxis(Rb, 2, 0))
+    return _sherman_morrison(Minv, Cb, Rb)[2]
+
+
+def _sherman_morrison(
+    Minv: np.ndarray, Cb: np.ndarray, Rb: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Left-out errors from the ``M^-1`` blocks ``(..., m, rows, rows)`` (:func:`_added_loo`).
+
+    Returns:
+        ``a = M^-1 q`` ``(..., m, rows, c)``, ``1 - q^T a`` ``(..., m, c)``, and the squared
+        left-out errors ``(..., c, m)``: inf where a configuration alone would determine
+        the added column.
+    """
     a, b = Minv @ Cb, Minv @ Rb
-    denom = 1.0 - np.sum(Cb * a, axis=1)  # (m, c)
+    denom = 1.0 - np.sum(Cb * a, axis=-2)  # (..., m, c)
     with np.errstate(divide="ignore", invalid="ignore"):
-        loo = b + a * (np.sum(Cb * b, axis=1) / denom)[:, None, :]
-    sq = np.sum(loo**2, axis=1).T
-    sq[(denom <= 1e-12).T | ~np.isfinite(sq)] = np.inf
-    return sq
+        loo = b + a * (np.sum(Cb * b, axis=-2) / denom)[..., None, :]
+    sq = np.sum(loo**2, axis=-2)
+    sq[(denom <= 1e-12) | ~np.isfinite(sq)] = np.inf
+    return a, denom, np.swapaxes(sq, -1, -2)
 
 
 def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.ndarray, float]:
@@ -275,7 +468,8 @@ def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.n
     strengths = np.r_[0.0, STRENGTHS]
     w = sv**2 / (sv**2 + strengths[:, None])  # (strengths, k)
     Ub = U.reshape(m, rows, -1)
-    H = H0[None] + (Ub[None] * w[:, None, None, :]) @ np.swapaxes(Ub, 1, 2)[None]
+    outer = (Ub[:, :, None, :] * Ub[:, None, :, :]).reshape(-1, Ub.shape[2])  # (m rows^2, k)
+    H = H0[None] + (outer @ w.T).T.reshape(len(w), m, rows, rows)
     res = r[None] - (w * (U.T @ r)) @ U.T
     sq = _loo_batch(H, res.reshape(-1, m, rows))
     best = int(np.argmin(np.sum(sq, axis=1)))
@@ -290,16 +484,16 @@ def best_prefix(sq: np.ndarray) -> int:
     (the standard error of the mean difference over configurations, paired): the minimum of
     a long path is partly chance, and a difference smaller than its own noise is not kept.
     """
-    mean = np.mean(sq, axis=1)
+    root = np.sqrt(np.mean(sq, axis=1)).tolist()
     best = 0
-    for k in range(len(mean)):
-        if np.sqrt(mean[k]) < (1.0 - MIN_GAIN) * np.sqrt(mean[best]):
+    for k, value in enumerate(root):
+        if value < (1.0 - MIN_GAIN) * root[best]:
             best = k
-    for k in range(best):
-        d = sq[k] - sq[best]
-        if np.all(np.isfinite(d)) and np.mean(d) <= np.std(d, ddof=1) / np.sqrt(d.size):
-            return k
-    return best
+    d = sq[:best] - sq[best]
+    with np.errstate(invalid="ignore"):
+        se = np.std(d, axis=1, ddof=1) / np.sqrt(sq.shape[1])
+        close = np.all(np.isfinite(d), axis=1) & (np.mean(d, axis=1) <= se)
+    return int(np.argmax(close)) if np.any(close) else best
 
 
 def forward(
@@ -319,16 +513,26 @@ def forward(
         The kept indices (into ``names``) in the order added, the steps kept (each with its
         leave-one-out error), and the prior strength of the kept parameters.
     """
+    train = np.ones((1, e.size // rows), dtype=bool)
+    return _forwards(A, e, rows, fixed, names, forced, train)[0]
+
+
+def _forwards(A, e, rows, fixed, names, forced, train) -> list[tuple[list[int], list[Step], float]]:
+    """:func:`forward` on each subset of the configurations ``train`` ``(subsets, m)``."""
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
-    order, errors = path(A, e, rows, start, rest)
-    k = best_prefix(errors)
-    loo = [float(v) for v in _rms(errors[: k + 1], rows)]
-    steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
-    steps += [Step(names[c - fixed], v) for c, v in zip(order[:k], loo[1:], strict=True)]
-    strength = ridge_loo(A[:, start + order[:k]], e, rows, fixed)[1]
-    return sel + [c - fixed for c in order[:k]], steps, strength
+    Ab, eb = A.reshape(train.shape[1], rows, -1), e.reshape(train.shape[1], rows)
+    out = []
+    for mask, (order, errors) in zip(train, paths(A, e, rows, start, rest, train), strict=True):
+        k = best_prefix(errors)
+        loo = [float(v) for v in _rms(errors[: k + 1], rows)]
+        steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
+        steps += [Step(names[c - fixed], v) for c, v in zip(order[:k], loo[1:], strict=True)]
+        At = Ab[mask].reshape(-1, A.shape[1])
+        strength = ridge_loo(At[:, start + order[:k]], eb[mask].ravel(), rows, fixed)[1]
+        out.append((sel + [c - fixed for c in order[:k]], steps, strength))
+    return out
 
 
 def shrinkage(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> float:
@@ -336,29 +540,39 @@ def shrinkage(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> float:
     return ridge_loo(A, e, rows, fixed)[1]
 
 
-def _procedure(A, e, rows, fixed, names, forced):
-    """Selection and shrinkage: kept indices, steps, strength."""
-    return forward(A, e, rows, fixed, names, forced)
-
-
 def _solve(A, e, fixed, strength):
     lam = np.r_[np.zeros(fixed), np.full(A.shape[1] - fixed, strength)]
     return np.linalg.lstsq(A.T @ A + np.diag(lam), A.T @ e, rcond=None)[0]
 
 
-def _outer_cv(A, e, rows, fixed, names, forced) -> tuple[float, float]:
-    """Pooled RMS error per point over the guard's held-out folds: registration, selection."""
+def _guard_folds(m: int) -> np.ndarray:
+    """Training configurations of the guard's folds ``(folds, m)``.
+
+    Fold f leaves out the configurations i with i mod ``OUTER_FOLDS`` = f.
+    """
+    folds = np.arange(min(OUTER_FOLDS, m))
+    return (np.arange(m) % OUTER_FOLDS)[None, :] != folds[:, None]
+
+
+def _outer_cv(A, e, rows, fixed, train, outcomes) -> tuple[float, float]:
+    """Pooled RMS error per point over the guard's held-out folds: registration, selection.
+
+    Args:
+        A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.
+        e: Residuals to explain.
+        rows: Rows per configuration.
+        fixed: Number of columns always in (frame, markers).
+        train: Training configurations of each fold ``(folds, m)``.
+        outcomes: Each fold's procedure (:func:`forward` on its training configurations).
+    """
     m = e.size // rows
     Ab, eb = A.reshape(m, rows, -1), e.reshape(m, rows)
     sse_reg = sse_sel = 0.0
-    for f in range(min(OUTER_FOLDS, m)):
-        test = np.arange(f, m, OUTER_FOLDS)
-        train = np.setdiff1d(np.arange(m), test)
-        At, et = Ab[train].reshape(-1, A.shape[1]), eb[train].ravel()
-        Av, ev = Ab[test].reshape(-1, A.shape[1]), eb[test].ravel()
+    for mask, (sel, _, strength) in zip(train, outcomes, strict=True):
+        At, et = Ab[mask].reshape(-1, A.shape[1]), eb[mask].ravel()
+        Av, ev = Ab[~mask].reshape(-1, A.shape[1]), eb[~mask].ravel()
         x0 = _solve(At[:, :fixed], et, fixed, 0.0)
         sse_reg += float(np.sum((ev - Av[:, :fixed] @ x0) ** 2))
-        sel, _, strength = _procedure(At, et, rows, fixed, names, forced)
         cols = list(range(fixed)) + [fixed + s for s in sel]
         x = _solve(At[:, cols], et, fixed, strength)
         sse_sel += float(np.sum((ev - Av[:, cols] @ x) ** 2))
@@ -388,8 +602,11 @@ def select(
     norms = np.linalg.norm(A, axis=0)
     A = A / np.where(norms > 0, norms, 1.0)
     ev = e.ravel()
-    sel, steps, strength = _procedure(A, ev, rows, fixed, names, forced)
-    reg_cv, sel_cv = _outer_cv(A, ev, rows, fixed, names, forced)
+    folds = _guard_folds(m)
+    train = np.vstack([np.ones((1, m), dtype=bool), folds])  # the whole data, then each fold
+    outcomes = _forwards(A, ev, rows, fixed, names, forced, train)
+    sel, steps, strength = outcomes[0]
+    reg_cv, sel_cv = _outer_cv(A, ev, rows, fixed, folds, outcomes[1:])
     guarded = bool(sel) and sel_cv >= reg_cv and not forced
     if guarded:
         sel, strength = [], 0.0

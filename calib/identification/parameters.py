@@ -100,9 +100,9 @@ class ParameterSet:
     def __len__(self) -> int:
         return len(self.parameters)
 
-    @property
+    @functools.cached_property
     def names(self) -> tuple[str, ...]:
-        """Parameter names, e.g. ``('theta0', 'r0', 'alpha1', ...)``."""
+        """Parameter names, e.g. ``('theta0', 'r0', 'alpha1', ...)`` (computed once per set)."""
         return tuple(p.name for p in self.parameters)
 
     @functools.cached_property
