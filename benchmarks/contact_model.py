@@ -183,18 +183,22 @@ def torques(chain: Chain, Q: np.ndarray, other_leg: str | None) -> np.ndarray:
         pin.framesForwardKinematics(model, data, q)
         pin.centerOfMass(model, data, q, True)
         g = -9.81 * data.oMf[chain.base].rotation[:, 2]
-        total_m, total_mc = data.mass[0], data.mass[0] * data.com[0]
+
+        def com(j: int) -> np.ndarray:  # Pinocchio 3: a subtree's centre in its joint's frame
+            return data.com[0] if j == 0 else data.oMi[j].act(data.com[j])
+
+        total_m, total_mc = data.mass[0], data.mass[0] * com(0)
         if skip is not None:
             total_m = total_m - data.mass[skip]
-            total_mc = total_mc - data.mass[skip] * data.com[skip]
+            total_mc = total_mc - data.mass[skip] * com(skip)
         for k, name in enumerate(chain.joints):
             j = model.getJointId(name)
             o, a = data.oMi[j].translation, data.oMi[j].rotation @ chain.axes[k]
             if chain.reversed[k]:
-                mass, mc = total_m - data.mass[j], total_mc - data.mass[j] * data.com[j]
+                mass, mc = total_m - data.mass[j], total_mc - data.mass[j] * com(j)
                 out[i, k] = -a @ np.cross(mc / mass - o, mass * g)
             else:
-                out[i, k] = a @ np.cross(data.com[j] - o, data.mass[j] * g)
+                out[i, k] = a @ np.cross(com(j) - o, data.mass[j] * g)
     return out
 
 
