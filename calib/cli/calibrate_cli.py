@@ -349,6 +349,20 @@ def add_calibrate_parser(sub) -> None:
         "measurement frame + markers; offsets adds joint offsets; paper, complete (default: "
         "auto; a tree takes frames or complete, default complete)",
     )
+    _add_model_args(p)
+    _add_data_args(p)
+    p.add_argument(
+        "--world-link",
+        metavar="NAME",
+        help="also write the measurement frame as link NAME, the new root of the URDF: forward "
+        "kinematics from NAME gives measured coordinates",
+    )
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(func=cmd_calibrate)
+
+
+def _add_model_args(p) -> None:
+    """What is fitted and how it is checked: fixed, free, elastic, validation, holdout."""
     p.add_argument(
         "--fix",
         nargs="+",
@@ -374,6 +388,10 @@ def add_calibrate_parser(sub) -> None:
         help="fraction of the rows set aside for validation (default: 0)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+
+
+def _add_data_args(p) -> None:
+    """How the data are read and weighed: loss, noise, units, orientation, iterations."""
     p.add_argument(
         "--loss",
         choices=LOSSES,
@@ -419,11 +437,3 @@ def add_calibrate_parser(sub) -> None:
         default=DEFAULT_MAX_ITERATIONS,
         help=f"most residual evaluations of each fit (default: {DEFAULT_MAX_ITERATIONS})",
     )
-    p.add_argument(
-        "--world-link",
-        metavar="NAME",
-        help="also write the measurement frame as link NAME, the new root of the URDF: forward "
-        "kinematics from NAME gives measured coordinates",
-    )
-    p.add_argument("--json", action="store_true", help="print the report as JSON")
-    p.set_defaults(func=cmd_calibrate)
