@@ -1,22 +1,27 @@
-"""Calibration from flush contacts with one plane: registration, selection, fit, refusal.
+"""Calibration from contacts of any kind: registration, selection, fit, refusal.
 
 The same steps as measured data (:mod:`calib.calibration.pipeline`), for touches recorded by
-the joint encoders alone (:class:`~calib.measurements.contact_campaign.ContactData`):
+the joint encoders alone (:class:`~calib.measurements.contact_campaign.ContactData`), of any
+contact kind (``plane``, ``plane-point``, ``fixed-point``, ``fixed-pose``) and any number of
+objects (planes, points, poses: the ids of the file):
 
-1. rows set aside (``holdout``, within each plane, at least ``MIN_TOUCHES`` kept) or a
+1. touches set aside (``holdout``, within each object, at least ``MIN_TOUCHES`` kept) or a
    validation campaign;
-2. the registration: the plane and the contact frame's tilts fitted in closed form on the
-   nominal robot (:func:`~calib.calibration.contact_registration.register_planes`);
+2. the registration: the objects and the contact frame fitted in closed form on the nominal
+   robot, the usual mistakes diagnosed and the outlier touches set aside
+   (:func:`~calib.calibration.contact_checks.checked_registration`);
 3. the free robot parameters: those of joint rows 1..n of the parameter set that the touches
-   determine beside the plane and the contact (pivoted QR with those 5 columns first), then
-   for ``auto`` the cross-validated forward selection with a prior
-   (:func:`~calib.calibration.selection.select`, the plane and contact as the fixed block);
-4. least squares (:func:`~calib.calibration.solve.fit`);
-5. refusal of a model whose held-out weighted RMS gap ``sqrt(z^2 + w^2 (roll^2 + pitch^2))``
-   is worse than the registration's (the nominal robot with its own plane and contact).
+   determine beside the objects and the contact (pivoted QR, those columns first, at the
+   touches projected onto the registered contact), then for ``auto`` the cross-validated
+   forward selection with a prior (:func:`~calib.calibration.selection.select`, the objects
+   and the contact as the fixed block);
+4. least squares (:func:`~calib.calibration.solve.fit`) of the kind's own gap;
+5. refusal (:func:`~calib.calibration.contact_checks.refusal`), e.g. of a model whose
+   held-out weighted RMS gap (lengths, and angles times the orientation weight) is worse
+   than the registration's (the nominal robot with its own objects and contact).
 
-The base frame's and the tool frame's own rows are not fitted: the plane (any placement in
-the base frame) and the contact frame (any tilt in the tool frame) take their visible part.
+The base frame's and the tool frame's own rows are not fitted: the objects (any placement in
+the base frame) and the contact frame (in the tool frame) take their visible part.
 """
 
 from __future__ import annotations
@@ -26,19 +31,20 @@ import time
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import CONTACT_TOL, PlaneContact, joint_offsets, project
+from ..identification.contacts import CONTACT_TOL, joint_offsets, project
 from ..identification.identifiability import independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
-from .contact_model import PLANE_COLUMNS, ContactModel, ContactState
-from .contact_registration import MIN_TOUCHES, register_planes
-from .contact_result import ContactCalibration, GapStats, gap_stats
+from . import contact_checks, validation
+from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
+from .contact_model import ContactModel, ContactState, plane_frame
+from .contact_registration import MIN_TOUCHES
+from .contact_result import ContactCalibration, gap_stats
 from .options import Options
 from .selection import Selection, select
 from .solve import fit
-from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
     "WEIGHT_ROUNDS",
@@ -49,6 +55,7 @@ __all__ = [
     "flush_postures",
     "split_contacts",
     "tilt_weight",
+    "touching_postures",
 ]
 
 
@@ -61,7 +68,10 @@ def contact_frame(contact) -> np.ndarray:
 
     if contact is None:
         return np.eye(4)
-    C = np.asarray(contact, dtype=float)
+    try:
+        C = np.asarray(contact, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError("the contact frame takes X Y Z [RX RY RZ] (m, rad)") from None
     if C.shape == (4, 4):
         if not np.allclose(C[:3, :3] @ C[:3, :3].T, np.eye(3), atol=1e-9):
             raise InvalidArgumentError("the contact frame must be a rigid transform (4, 4)")
@@ -78,7 +88,9 @@ def contact_frame(contact) -> np.ndarray:
 def split_contacts(
     data: ContactData, holdout: float, seed: int
 ) -> tuple[ContactData, ContactData | None]:
-    """Training and held-out touches: ``holdout`` of each plane's, seeded, >= MIN_TOUCHES kept."""
+    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept."""
+    if not (0.0 <= holdout < 1.0):
+        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
     if holdout <= 0:
         return data, None
     rng = np.random.default_rng([seed, 21])
@@ -91,23 +103,11 @@ def split_contacts(
             held[rng.permutation(rows)[:out]] = True
     if not held.any():
         raise DataError(data.source, f"too few touches to hold {holdout:g} of them out")
-    return _subset(data, ~held), _subset(data, held)
-
-
-def _subset(data: ContactData, rows: np.ndarray) -> ContactData:
-    keep = np.flatnonzero(rows)
-    return ContactData(
-        data.joint_names,
-        data.q[keep],
-        tuple(data.ids[i] for i in keep),
-        data.kind,
-        data.source,
-        None if data.rows is None else tuple(data.rows[i] for i in keep),
-    )
+    return subset(data, ~held), subset(data, held)
 
 
 def _check(chain, data, validate, opts: Options) -> None:
-    if not isinstance(chain, Chain):
+    if not isinstance(chain, Chain) or chain.is_tree:
         raise InvalidArgumentError(f"contacts are calibrated on one Chain, got {chain!r:.60}")
     for d in (data, validate):
         if d is None:
@@ -116,52 +116,28 @@ def _check(chain, data, validate, opts: Options) -> None:
             raise InvalidArgumentError(f"contact data must be ContactData, got {type(d).__name__}")
         if d.joint_names != chain.joint_names:
             raise DataError(d.source, "the touches' joints are not the chain's")
-        if not isinstance(d.kind, PlaneContact):
-            raise InvalidArgumentError(
-                f"calibration from '{d.kind.label}' contacts is not available yet: plane only"
+    if validate is not None:
+        if opts.holdout > 0:
+            raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
+        if validate.kind != data.kind:
+            raise DataError(
+                validate.source,
+                f"validation touches of kind '{validate.kind.label}' for '{data.kind.label}' data",
             )
-        if len(d.contacts) != 1:
-            raise InvalidArgumentError(
-                f"{d.source}: one plane per calibration for now, got {len(d.contacts)}"
-            )
-    if validate is not None and opts.holdout > 0:
-        raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
     if opts.elastic:
         raise InvalidArgumentError("elastic (joint compliance) is not available for contacts yet")
     if opts.fix or opts.free or opts.loss != "linear":
         raise InvalidArgumentError("fix, free and robust losses are not available for contacts")
 
 
-WEIGHT_ROUNDS = 5
-"""Registrations of the tilt weight's estimate."""
+def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray, kind=None) -> float:
+    """Weight of the angle rows [m/rad] of a registration (default kind: ``plane``).
 
-
-def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray) -> float:
-    """Weight of the tilt rows [m/rad]: RMS height / RMS tilt of the registration, settled.
-
-    Each round registers with the weight of the previous one (from ``DEFAULT_WEIGHT``); the
-    result is clipped to ``BOUNDS``.
+    See :func:`~calib.calibration.contact_checks.estimate_weight`.
     """
-    w = DEFAULT_WEIGHT
-    for _ in range(WEIGHT_ROUNDS):
-        r = register_planes(R, p, ids, guess, w).residuals
-        tilt = float(np.sqrt(np.mean(r[:, 1:] ** 2)))
-        if tilt <= 0:
-            break
-        w = float(np.clip(np.sqrt(np.mean(r[:, 0] ** 2)) / tilt, *BOUNDS))
-    return w
+    from ..identification.contacts import PlaneContact
 
-
-def _register(
-    nominal: MDHModel, data: ContactData, guess: np.ndarray, w: float | None
-) -> ContactState:
-    """The nominal robot with the plane and contact fitted in closed form."""
-    kin = nominal.kinematics(data.q)
-    if w is None:
-        w = tilt_weight(kin.R[:, -1], kin.p[:, -1], data.ids, guess)
-    reg = register_planes(kin.R[:, -1], kin.p[:, -1], data.ids, guess, w)
-    P = reg.planes[0]
-    return ContactState(nominal, reg.contact, P[:3, 2].copy(), float(P[:3, 2] @ P[:3, 3]), w)
+    return contact_checks.estimate_weight(kind or PlaneContact(), R, p, ids, guess)
 
 
 def _candidates(nominal: MDHModel, level: str) -> ParameterSet:
@@ -176,70 +152,89 @@ def _candidates(nominal: MDHModel, level: str) -> ParameterSet:
     return ParameterSet(pset.label, tuple(chosen))
 
 
-def _tangent(n: np.ndarray) -> np.ndarray:
-    return np.linalg.svd(n[None, :])[2][1:].T
-
-
-def flush_postures(start: ContactState, q: np.ndarray) -> np.ndarray:
-    """Postures near ``q`` where the contact of ``start`` is exactly flush with its plane.
-
-    The model re-expressed in the plane's frame with the contact as its tool, each posture
-    Newton-projected onto the plane (:func:`~calib.identification.contacts.project`); those
-    that do not reach it are dropped.
-    """
-    mdh, n = start.mdh, start.mdh.n
+def _in_object(mdh: MDHModel, F: np.ndarray, C: np.ndarray) -> MDHModel:
+    """The model in an object's frame ``F``, its tool the contact frame ``C``."""
+    n = mdh.n
     T = frames_at_zero(mdh)
-    Pinv = np.linalg.inv(start.plane())
-    joints = Pinv @ T[1 : n + 1]
-    model = from_lines(
+    Finv = np.linalg.inv(F)
+    joints = Finv @ T[1 : n + 1]
+    return from_lines(
         joints[:, :3, 3],
         joints[:, :3, 2],
         mdh.sigma[1 : n + 1],
-        Pinv @ T[-1] @ start.contact,
+        Finv @ T[-1] @ C,
         tuple(str(x) for x in mdh.joint_names[1 : n + 1]),
         sign=mdh.sign[1 : n + 1],
     )
-    qf, gaps = project(model, PlaneContact(), q)
-    return qf[gaps < CONTACT_TOL]
+
+
+def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarray, np.ndarray]:
+    """Postures near ``q`` where the contact of ``start`` holds on each touch's object.
+
+    Each object's touches are Newton-projected onto it, the model re-expressed in its frame
+    with the contact as its tool (:func:`~calib.identification.contacts.project`).
+
+    Returns:
+        The postures ``(m, n)`` (the given one where the projection failed) and which
+        reached the contact ``(m,)``.
+    """
+    q = np.asarray(q, dtype=float)
+    index = start.frames.index(ids)
+    out, reached = q.copy(), np.zeros(len(q), dtype=bool)
+    for k, F in enumerate(start.frames.objects):
+        rows = np.flatnonzero(index == k)
+        if not rows.size:
+            continue
+        qf, gaps = project(_in_object(start.mdh, F, start.contact), start.kind, q[rows])
+        good = gaps < CONTACT_TOL
+        out[rows[good]], reached[rows[good]] = qf[good], True
+    return out, reached
+
+
+def flush_postures(start: ContactState, q: np.ndarray, ids=None) -> np.ndarray:
+    """Postures near ``q`` where the contact of ``start`` holds (those that reach it)."""
+    ids = [start.frames.ids[0]] * len(q) if ids is None else ids
+    out, reached = touching_postures(start, q, ids)
+    return out[reached]
 
 
 def _structural(wide: ContactModel, start: ContactState, train: ContactData) -> list[int]:
-    """The columns the touches determine, from the Jacobian at flush postures near them.
+    """The columns the touches determine, from the Jacobian at touching postures near them.
 
-    At the registration the contact is not quite flush, and the directions no flush contact
-    can see (the scale without a prismatic joint, ...) have small columns a rank test would
-    keep; at flush postures they vanish.
+    At the registration the contact does not quite hold, and the directions no contact can
+    see (the scale without a prismatic joint, ...) have small columns a rank test would
+    keep; where the contact holds they vanish.
     """
-    qf = flush_postures(start, train.q)
-    if len(qf) < len(train.q):  # what could not be projected is judged at the data
-        qf = np.concatenate([qf, train.q[len(qf) :]])
-    flush = ContactData(train.joint_names, qf, train.ids, train.kind, train.source)
-    A = wide.jacobian(start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
+    qf, _ = touching_postures(start, train.q, train.ids)
+    held = ContactData(train.joint_names, qf, train.ids, train.kind, train.source)
+    A = wide.jacobian(start, np.zeros(wide.size()), held).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
 def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[str]):
     """The model (free parameters), the selection (auto) and the prior weights."""
     offered = _candidates(start.mdh, opts.level)
-    wide = ContactModel(offered, _tangent(start.normal))
-    J = wide.jacobian(start, np.zeros(wide.size()), train)
+    wide = ContactModel(offered, start.frames)
+    fixed = wide.fixed
     kept = _structural(wide, start, train)
-    if kept[:PLANE_COLUMNS] != list(range(PLANE_COLUMNS)):
-        raise DataError(train.source, "the touches do not determine the plane and the contact")
-    columns = sorted(kept[PLANE_COLUMNS:])
-    cand = tuple(offered.parameters[c - PLANE_COLUMNS] for c in columns)
+    if kept[:fixed] != list(range(fixed)):
+        what = start.kind.object_name
+        raise DataError(train.source, f"the touches do not determine the {what}(s) and the contact")
+    columns = sorted(kept[fixed:])
+    cand = tuple(offered.parameters[c - fixed] for c in columns)
     if len(cand) < len(offered):
         notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
     selection: Selection | None = None
     prior = None
     if opts.level == "auto" and cand:
-        cols = list(range(PLANE_COLUMNS)) + columns
+        J = wide.jacobian(start, np.zeros(wide.size()), train)
+        cols = list(range(fixed)) + columns
         names = tuple(wide.names()[c] for c in columns)
-        selection, weights = select(J[:, :, cols], start.residuals(train), PLANE_COLUMNS, names)
+        selection, weights = select(J[:, :, cols], start.residuals(train), fixed, names)
         chosen = [names.index(k) for k in selection.kept]
         cand = tuple(cand[i] for i in chosen)
-        prior = np.r_[np.zeros(PLANE_COLUMNS), weights] if np.any(weights) else None
-    return ContactModel(ParameterSet("free", cand), wide.tangent), selection, prior
+        prior = np.r_[np.zeros(fixed), weights] if np.any(weights) else None
+    return ContactModel(ParameterSet("free", cand), start.frames), selection, prior
 
 
 def calibrate_contacts(
@@ -255,20 +250,21 @@ def calibrate_contacts(
     holdout: float = 0.0,
     seed: int = 0,
 ) -> ContactCalibration:
-    """Calibrate a chain from flush touches of one plane (see the module's text).
+    """Calibrate a chain from touches of any contact kind (see the module's text).
 
     Args:
-        chain: The nominal chain (base: where the plane is expressed; tool: the contact's).
+        chain: The nominal chain (base: where the objects are expressed; tool: the contact's).
         data: The touches (:func:`~calib.measurements.contact_campaign.read_contacts`).
         contact: Guess of the contact frame in the tool frame: ``(4, 4)`` or ``X Y Z [RX RY
             RZ]`` [m, rad] (default: the tool frame).
         params: ``auto`` (default), ``frames`` (the registration only), ``offsets``,
             ``paper`` or ``complete``.
         validate: Touches of other postures to score the result on (never fitted).
-        orientation_weight: Weight of the tilt rows [m/rad] (default: :func:`tilt_weight`).
+        orientation_weight: Weight of the angle rows [m/rad] (default: estimated,
+            :func:`~calib.calibration.contact_checks.estimate_weight`).
         elastic: Joint compliance (not available for contacts: True is an error).
         max_iterations: Most residual evaluations of the solver.
-        holdout: Fraction of each plane's touches set aside (seeded).
+        holdout: Fraction of each object's touches set aside (seeded).
         seed: Seed of the holdout draw.
 
     Returns:
@@ -276,7 +272,9 @@ def calibrate_contacts(
 
     Raises:
         InvalidArgumentError: A bad argument, or what is not available yet.
-        DataError: Touches that do not belong to the chain or determine too little.
+        DataError: Touches that do not belong to the chain, determine too little, or look
+            like a usual mistake (which is named).
+        ContactGeometryError: Touches that cannot fix an object or the contact frame.
     """
     opts = Options(
         level="auto" if params is None else params,
@@ -289,18 +287,22 @@ def calibrate_contacts(
     _check(chain, data, validate, opts)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
-    w = None if orientation_weight is None else float(orientation_weight)
+    w = opts.orientation_weight
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
     nominal = from_chain(chain)
-    start = _register(nominal, train, guess, w)
+    start, train, dropped, notes = contact_checks.checked_registration(
+        chain, nominal, train, validate, guess, w
+    )
+    if held is not None:
+        start.frames.index(held.ids, held.source)  # every held-out object was fitted
     clock.append(time.perf_counter())
-    notes: list[str] = []
     model, selection, prior = _choose(start, train, opts, notes)
     clock.append(time.perf_counter())
     fitted = fit(model, start, train, None, 1.0, prior=prior, max_iterations=opts.max_iterations)
     clock.append(time.perf_counter())
-    return _assemble(chain, train, held, start, fitted, selection, notes, clock)
+    result = _assemble(chain, train, held, start, fitted, selection, notes, clock)
+    return _with_outliers(result, dropped)
 
 
 def calibrate_contact_data(
@@ -326,31 +328,53 @@ def calibrate_contact_data(
     return calibrate_contacts(robot, data, contact=marker, **kwargs)
 
 
+def _with_outliers(result: ContactCalibration, dropped) -> ContactCalibration:
+    import dataclasses
+
+    return dataclasses.replace(result, outliers=tuple(dropped))
+
+
+def _objects(state: ContactState, train: ContactData) -> dict[str, np.ndarray]:
+    """The objects by id; a plane's origin at its touches' contact points, projected."""
+    frames = state.frames
+    if frames.kind.object_name != "plane":
+        return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
+    kin = state.mdh.kinematics(train.q)
+    x = kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3]
+    index = frames.index(train.ids)
+    out = {}
+    for i, k in enumerate(frames.ids):
+        n = frames.objects[i, :3, 2]
+        out[k] = plane_frame(n, float(n @ frames.objects[i, :3, 3]), x[index == i].mean(axis=0))
+    return out
+
+
 def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> ContactCalibration:
     state = fitted.state
-    stats = {"train": gap_stats(state, train.q), "train_registration": gap_stats(start, train.q)}
-    refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
+    stats = {
+        "train": gap_stats(state, train.q, train.ids),
+        "train_registration": gap_stats(start, train.q, train.ids),
+    }
     if held is not None:
-        stats["held_out"] = gap_stats(state, held.q)
-        stats["held_out_registration"] = gap_stats(start, held.q)
-        if refusal is None and _worse(stats["held_out"], stats["held_out_registration"]):
-            refusal = (
-                "the calibrated model's held-out gaps are worse than the registration's "
-                f"({stats['held_out'].weighted_mm:.3f} > "
-                f"{stats['held_out_registration'].weighted_mm:.3f} mm weighted RMS)"
-            )
-    kin = state.mdh.kinematics(train.q)
-    centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3], axis=0)
+        stats["held_out"] = gap_stats(state, held.q, held.ids)
+        stats["held_out_registration"] = gap_stats(start, held.q, held.ids)
+        _check_held_out(stats, held.source)
+    refusal = contact_checks.refusal(
+        None if fitted.converged else fitted.message,
+        stats,
+        validation.full_rank(fitted.J[:, fitted.model.fixed :]),
+        len(fitted.model.params),
+    )
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
     timings = {s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
     return ContactCalibration(
         chain=chain,
+        kind=train.kind,
         nominal=start.mdh,
         calibrated=state.mdh,
         contact=state.contact,
-        plane=state.plane(centre),
-        plane_id=train.contacts[0],
+        objects=_objects(state, train),
         free=fitted.model.params.names,
         selection=selection,
         stats=stats,
@@ -361,10 +385,15 @@ def _assemble(chain, train, held, start, fitted, selection, notes, clock) -> Con
     )
 
 
-WORSE = 1e-6
-"""Relative excess of the held-out weighted RMS over the registration's that refuses a model
-(the same model refitted differs by round-off)."""
+def _check_held_out(stats, source: str) -> None:
+    """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
+    from .diagnosis import suspect
 
-
-def _worse(fitted: GapStats, registration: GapStats) -> bool:
-    return fitted.weighted_mm > registration.weighted_mm * (1.0 + WORSE)
+    held, fitted = stats["held_out_registration"], stats["train_registration"]
+    far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
+    if suspect(far, None) and not suspect(near, None):
+        raise DataError(
+            source,
+            f"the held-out touches are {1e3 * far:.4g} mm RMS from the registered contact (the "
+            f"data {1e3 * near:.4g} mm): touched another object, or on another robot?",
+        )
