@@ -108,7 +108,7 @@ def _rms(values: np.ndarray) -> float:
 def _diagnose(chain, nominal: MDHModel, data: ContactData, guess) -> list[str]:
     """Raise the usual mistake that explains absurd gaps; a note if none does."""
 
-    def gap(d: ContactData) -> float:
+    def gap(d) -> float:  # d: the touches, or a corrected copy
         return _rms(length_errors(registration(nominal, d, guess, DEFAULT_WEIGHT), d)[0])
 
     first = gap(data)

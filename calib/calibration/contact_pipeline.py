@@ -37,7 +37,7 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
-from . import contact_checks, validation
+from . import contact_checks, determined, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
 from .contact_model import ContactModel, ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
@@ -224,6 +224,15 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
     cand = tuple(offered.parameters[c - fixed] for c in columns)
     if len(cand) < len(offered):
         notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
+    equations = train.m * start.kind.n_rows
+    if opts.level != "auto":
+        what = f"parameters of params '{opts.level}' (with the contact's unknowns)"
+        determined.check_equations(train.m, start.kind.n_rows, fixed + len(cand), what,
+                                   train.source, unit="touches")  # fmt: skip
+    elif fixed + len(cand) >= equations:  # the selection's cross-validation needs spare rows
+        cand = cand[: max(0, equations - fixed - 1)]
+        columns = columns[: len(cand)]
+        notes.append(f"{train.m} touches: params 'auto' chooses among {len(cand)} parameters")
     selection: Selection | None = None
     prior = None
     if opts.level == "auto" and cand:
@@ -294,6 +303,9 @@ def calibrate_contacts(
     start, train, dropped, notes = contact_checks.checked_registration(
         chain, nominal, train, validate, guess, w
     )
+    what = f"unknowns of the {data.kind.object_name}(s) and the contact frame"
+    determined.check_equations(train.m, data.kind.n_rows, start.frames.size, what, train.source,
+                               held=0 if held is None else held.m, unit="touches")  # fmt: skip
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
     clock.append(time.perf_counter())
