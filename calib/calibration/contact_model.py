@@ -31,7 +31,7 @@ from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel
 from .contact_frames import ContactFrames, row_weights
 
-__all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame"]
+__all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame", "plane_state"]
 
 PLANE_COLUMNS = 5
 """Columns of one plane (its height and 2 tilts) and of a flush contact's tilts (2)."""
@@ -120,6 +120,21 @@ class ContactState:
     def residuals(self, data, torque: np.ndarray | None = None) -> np.ndarray:
         """Weighted ``0 - gap`` ``(m, rows)`` of contact data (lengths [m], weighted angles)."""
         return -self.gaps(data.q, data.ids, torque) * self.row_weights()
+
+
+def plane_state(
+    mdh: MDHModel,
+    contact: np.ndarray,
+    normal: np.ndarray,
+    height: float,
+    weight: float,
+    plane_id: str = "table",
+) -> ContactState:
+    """A state of one plane (``plane`` kind) from its unit normal and height [m]."""
+    from ..identification.contacts import PlaneContact
+
+    plane = plane_frame(normal, height, np.zeros(3))[None]
+    return ContactState(mdh, ContactFrames(PlaneContact(), contact, plane, (plane_id,)), weight)
 
 
 @dataclass(frozen=True, eq=False)

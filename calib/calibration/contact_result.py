@@ -92,8 +92,11 @@ class GapStats:
         return out
 
 
-def gap_stats(state, q: np.ndarray, ids) -> GapStats:
-    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at touches ``q`` of ``ids``."""
+def gap_stats(state, q: np.ndarray, ids=None) -> GapStats:
+    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at touches ``q`` of ``ids``.
+
+    ``ids`` may be left out when the state has one object.
+    """
     g = state.gaps(q, ids)
     kind = state.kind
     scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
