@@ -237,3 +237,21 @@ def test_bad_input_one_line_exit_2_no_output(capsys, tmp_path, extra, message):
     assert code == 2 and message in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert not out.exists() and not rep.exists()
+
+
+def test_validation_file_of_few_touches_scores_the_fit():
+    """A validation campaign of two touches per object is scored, not registered on its own."""
+    chain = load_robot("panda")
+    camp = simulate_contacts(chain, 64, "fixed-point", contacts=2, seed=2)
+    ids = np.array(camp.data.ids)
+    few = np.concatenate([np.flatnonzero(ids == k)[:2] for k in camp.data.contacts])
+    rest = np.setdiff1d(np.arange(camp.data.m), few)
+
+    def take(rows):
+        return dataclasses.replace(
+            camp.data, q=camp.data.q[rows], ids=tuple(camp.data.ids[i] for i in rows)
+        )
+
+    r = calibrate_contacts(chain, take(rest), validate=take(few), params="complete")
+    assert r.accepted and r.stats["held_out"].m == 4
+    assert max(r.stats["held_out"].max) < 1e-6  # mm: noise-free

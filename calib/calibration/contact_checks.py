@@ -150,6 +150,15 @@ def _drop_outliers(nominal, train: ContactData, guess, weight, start: ContactSta
     return start, train, tuple(dropped)
 
 
+def _registrable(data: ContactData) -> bool:
+    """Enough touches of every object, and equations, to register them on their own."""
+    ids = np.array(data.ids)
+    per = min(int(np.sum(ids == k)) for k in data.contacts)
+    kind = data.kind
+    unknowns = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
+    return per >= MIN_TOUCHES and data.m * kind.n_rows > unknowns
+
+
 def checked_registration(
     chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None
 ):
@@ -159,7 +168,7 @@ def checked_registration(
         The registration state, the touches kept, the outliers and the notes.
     """
     notes = _diagnose(chain, nominal, train, guess)
-    if validate is not None:
+    if validate is not None and _registrable(validate):
         notes += [f"{validate.source}: {n}" for n in _diagnose(chain, nominal, validate, guess)]
     start = registration(nominal, train, guess, weight)
     start, train, dropped = _drop_outliers(nominal, train, guess, weight, start)

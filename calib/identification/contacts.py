@@ -104,8 +104,8 @@ class Contact:
         return np.ones(len(R), dtype=bool)
 
     def unknown_constants(self, n_markers: int = 1) -> int:
-        """Unknowns of the plane, point or pose (every kind below defines it)."""
-        raise NotImplementedError  # pragma: no cover
+        """Unknowns of one plane, point or pose: as many as its :attr:`object_dofs`."""
+        return len(self.object_dofs)
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap of each touch ``(m, n_rows)`` (every kind below defines it)."""
@@ -147,7 +147,7 @@ class PlaneContact(Contact):
 
     label: str = "plane"
     object_name = "plane"
-    object_dofs = (2, 3, 4)
+    object_dofs = (2, 3, 4)  # its height and two tilts
     contact_dofs = (3, 4)
 
     @property
@@ -173,10 +173,6 @@ class PlaneContact(Contact):
             "without a prismatic joint, the scale: a robot and a plane scaled about a point of "
             "the plane touch it at the same joint positions",
         )
-
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """3 per plane: its height and two tilts."""
-        return 3
 
     def same_side(self, R: np.ndarray) -> np.ndarray:
         """The contact frame's z axis along the plane's normal, not against it."""
@@ -261,10 +257,6 @@ class PlanePointContact(Contact):
             "without a prismatic joint, the scale about a point of the plane",
         )
 
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """3 per plane: its height and two tilts."""
-        return 3
-
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap ``(m, 1)``: the tip's height."""
         return p[:, 2:3].copy()
@@ -293,7 +285,7 @@ class FixedPointContact(Contact):
 
     label: str = "fixed-point"
     object_name = "point"
-    object_dofs = (0, 1, 2)
+    object_dofs = (0, 1, 2)  # its position
     contact_dofs = (0, 1, 2)
 
     @property
@@ -315,10 +307,6 @@ class FixedPointContact(Contact):
             "the tip's orientation: only the tip point is constrained",
             "without a prismatic joint, the scale about the point",
         )
-
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """3 per point: its position."""
-        return 3
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap ``(m, 3)``: the tip's position in the point's frame."""
@@ -348,7 +336,7 @@ class FixedPoseContact(Contact):
 
     label: str = "fixed-pose"
     object_name = "pose"
-    object_dofs = (0, 1, 2, 3, 4, 5)
+    object_dofs = (0, 1, 2, 3, 4, 5)  # all six
     contact_dofs = ()
 
     @property
@@ -369,10 +357,6 @@ class FixedPoseContact(Contact):
             "is seen",
             "without a prismatic joint, the scale about the fixed frame's origin",
         )
-
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """6 per pose."""
-        return 6
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap ``(m, 6)``: position and rotation vector ``log R``."""
