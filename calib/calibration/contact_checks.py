@@ -63,18 +63,21 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
     )
 
 
-def estimate_weight(kind: Contact, R, p, ids, guess: np.ndarray) -> float:
+def estimate_weight(kind: Contact, R, p, ids, guess: np.ndarray, first=None) -> float:
     """Weight of the angle rows [m/rad]: RMS length gap / RMS angle gap of the registration.
 
-    Each round registers with the weight of the previous one (from ``DEFAULT_WEIGHT``); the
-    result is clipped to ``BOUNDS``. A kind without both lengths and angles: the default.
+    Each round registers with the weight of the previous one (from ``DEFAULT_WEIGHT``; its
+    registration may be given, ``first``); the result is clipped to ``BOUNDS``. A kind
+    without both lengths and angles: the default.
     """
     angle = np.array(kind.angular)
     w = DEFAULT_WEIGHT
     if angle.all() or not angle.any():
         return w
-    for _ in range(WEIGHT_ROUNDS):
-        frames = register_contacts(kind, R, p, ids, guess, w)
+    for k in range(WEIGHT_ROUNDS):
+        if k or first is None:
+            first = register_contacts(kind, R, p, ids, guess, w)
+        frames = first
         g = frames.gaps(R, p, frames.index(ids))
         tilt = float(np.sqrt(np.mean(g[:, angle] ** 2)))
         if tilt <= 0:
@@ -84,12 +87,17 @@ def estimate_weight(kind: Contact, R, p, ids, guess: np.ndarray) -> float:
 
 
 def registration(
-    nominal: MDHModel, data: ContactData, guess: np.ndarray, weight: float | None
+    nominal: MDHModel, data: ContactData, guess: np.ndarray, weight: float | None, first=None
 ) -> ContactState:
-    """The nominal robot with the objects and the contact frame registered (closed form)."""
+    """The nominal robot with the objects and the contact frame registered (closed form).
+
+    ``weight`` None: estimated (:func:`estimate_weight`, ``first`` its first registration).
+    """
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
-    w = estimate_weight(data.kind, R, p, data.ids, guess) if weight is None else weight
+    if weight is None:
+        weight = estimate_weight(data.kind, R, p, data.ids, guess, first)
+    w = weight
     return ContactState(nominal, register_contacts(data.kind, R, p, data.ids, guess, w), w)
 
 
@@ -105,13 +113,17 @@ def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(values**2)))
 
 
-def _diagnose(chain, nominal: MDHModel, data: ContactData, guess) -> list[str]:
-    """Raise the usual mistake that explains absurd gaps; a note if none does."""
+def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) -> list[str]:
+    """Raise the usual mistake that explains absurd gaps; a note if none does.
+
+    ``start``: the registration of ``data`` at ``DEFAULT_WEIGHT``, if already made.
+    """
 
     def gap(d) -> float:  # d: the touches, or a corrected copy
         return _rms(length_errors(registration(nominal, d, guess, DEFAULT_WEIGHT), d)[0])
 
-    first = gap(data)
+    start = start or registration(nominal, data, guess, DEFAULT_WEIGHT)
+    first = _rms(length_errors(start, data)[0])
     if not diagnosis.suspect(first, None):
         return []
     still = diagnosis.constant_joints(data)
@@ -167,10 +179,11 @@ def checked_registration(
     Returns:
         The registration state, the touches kept, the outliers and the notes.
     """
-    notes = _diagnose(chain, nominal, train, guess)
+    default = registration(nominal, train, guess, DEFAULT_WEIGHT)
+    notes = _diagnose(chain, nominal, train, guess, default)
     if validate is not None and _registrable(validate):
         notes += [f"{validate.source}: {n}" for n in _diagnose(chain, nominal, validate, guess)]
-    start = registration(nominal, train, guess, weight)
+    start = registration(nominal, train, guess, weight, default.frames)
     start, train, dropped = _drop_outliers(nominal, train, guess, weight, start)
     if dropped:
         notes.append(
