@@ -115,17 +115,22 @@ def _cli(capsys, *argv: str) -> tuple[int, str]:
 
 
 @pytest.mark.filterwarnings("ignore")
-@pytest.mark.parametrize("kind", KINDS)
-def test_written_urdf_scored_by_pinocchio_reproduces_the_report(capsys, tmp_path, kind):
+@pytest.mark.parametrize(
+    ("robot", "kind"),
+    [("panda", k) for k in KINDS] + [("talos", "fixed-point"), ("talos", "fixed-pose")],
+)
+def test_written_urdf_scored_by_pinocchio_reproduces_the_report(capsys, tmp_path, robot, kind):
     """Noisy touches of two objects through the command line: Pinocchio, reading the URDF and
     the report's matrices, gives the report's held-out and training gaps row by row."""
-    chain = load_robot("panda")
+    chain = load_robot(*CHAINS[robot])
+    base, tool = chain.base_frame, chain.tool_frame
+    where = [CHAINS[robot][0]] + (["--base", base, "--tool", tool] if robot == "talos" else [])
     camp = simulate_contacts(chain, 70, kind, contacts=2, seed=5, noise_mrad=0.3)
     csv, out, rep = tmp_path / "t.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
     write_contacts(csv, camp.data)
     guess = ["0", "0", "0.01"] + (["0.01", "-0.02", "0.03"] if kind == "plane-point" else [])
     code, err = _cli(
-        capsys, "calibrate", "panda", "--data", str(csv), "--measure", kind, "--contact",
+        capsys, "calibrate", *where, "--data", str(csv), "--measure", kind, "--contact",
         *guess, "--out", str(out), "--report", str(rep), "--holdout", "0.3", "--seed", "2",
     )  # fmt: skip
     assert code == 0, err
@@ -133,15 +138,15 @@ def test_written_urdf_scored_by_pinocchio_reproduces_the_report(capsys, tmp_path
     group = {"plane": "planes", "plane-point": "planes", "fixed-point": "points"}.get(kind, "poses")
     objects = report["contact"][group]
     assert set(report["contact"]) == {group, "frames"} and set(objects) == set(camp.truth.frames)
-    assert all(o["frame"] == "panda_link0" for o in objects.values())
-    C = np.array(report["contact"]["frames"]["panda_hand"]["matrix"])
+    assert all(o["frame"] == base for o in objects.values())
+    C = np.array(report["contact"]["frames"][tool]["matrix"])
     data = dataclasses.replace(camp.data, rows=tuple(range(2, camp.data.m + 2)))
     train, held = split_contacts(data, 0.3, 2)
     ids, joints = read_joints(csv)
     for label, part in (("held_out", held), ("train", train)):
         rows = [i - 2 for i in part.rows]
         g = contact_gaps(
-            kind, out, "panda_link0", "panda_hand", C,
+            kind, out, base, tool, C,
             [np.array(objects[ids[i]]["matrix"]) for i in rows],
             {k: v[rows] for k, v in joints.items()},
         )  # fmt: skip
