@@ -9,6 +9,7 @@ positions the compliance file's API gives.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -21,7 +22,7 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import load_calibrated, load_robot
-from calib.calibration.contact_model import ContactModel, ContactState
+from calib.calibration.contact_model import ContactModel, plane_state
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import joint_offsets
@@ -120,8 +121,10 @@ def test_compliance_columns_match_central_differences():
     C = np.eye(4)
     C[:3, :3], C[:3, 3] = rotation_matrix(np.array([0.1, 0.2, 0.3])), [0.01, 0.02, -0.12]
     n = np.array([0.1, 0.2, 1.0]) / np.linalg.norm([0.1, 0.2, 1.0])
-    start = ContactState(mdh, C, n, 0.9, 0.3, 1e-4 * np.arange(chain.n))
-    model = ContactModel(joint_offsets(mdh), np.linalg.svd(n[None])[2][1:].T, (0, 2, 5, 9, 14))
+    start = dataclasses.replace(
+        plane_state(mdh, C, n, 0.9, 0.3, "t"), compliance=1e-4 * np.arange(chain.n)
+    )
+    model = ContactModel(joint_offsets(mdh), start.frames, (0, 2, 5, 9, 14))
     q = chain.random_configurations(6, 4)
     data = ContactData(chain.joint_names, q, ("t",) * 6, read_kind())
     torque = standing_load(chain).torques(q)
