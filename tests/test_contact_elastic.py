@@ -147,9 +147,9 @@ def read_kind():
     return PlaneContact()
 
 
-def _deflected_campaign(chain, compliance: np.ndarray, m: int, seed: int):
+def _deflected_campaign(chain, compliance: np.ndarray, m: int, seed: int, planes: int = 1):
     """Touches whose commanded joints, deflected by ``c tau``, are flush on the true robot."""
-    camp = simulate_contacts(chain, m, "plane", seed=seed)
+    camp = simulate_contacts(chain, m, "plane", contacts=planes, seed=seed)
     load = standing_load(chain)
     target = camp.data.q
     q = target.copy()
@@ -173,6 +173,40 @@ def test_noise_free_round_trip_recovers_compliance():
     assert max(held.roll_max_deg, held.pitch_max_deg) < math.degrees(1e-9)
     assert np.max(np.abs(r.compliance - truth)) < 1e-9
     assert r.stats["held_out_urdf"].height_rms_mm > 1e-3  # the URDF alone is not the model
+
+
+def test_two_planes_round_trip_recovers_compliance():
+    """Two planes in one file (the contact kinds' objects) with deflected joints."""
+    chain = load_robot(*TALOS)
+    truth = np.zeros(chain.n)
+    truth[[1, 3, 8]] = (4e-5, -2e-5, 6e-5)
+    data = _deflected_campaign(chain, truth, 90, 6, planes=2)
+    assert len(data.contacts) == 2
+    r = calibrate_contacts(chain, data, params="complete", holdout=0.3, seed=1, elastic=True)
+    assert r.accepted and r.elastic and len(r.objects) == 2
+    assert r.stats["held_out"].height_max_mm < 1e-6  # 1e-9 m
+    assert np.max(np.abs(r.compliance - truth)) < 1e-9
+
+
+@pytest.mark.parametrize("kind", ["plane-point", "fixed-point", "fixed-pose"])
+def test_elastic_with_another_kind_is_one_error(kind, tmp_path):
+    """Compliance is fitted for plane contacts only: the API and the CLI say so in one line."""
+    chain = load_robot(*TALOS)
+    data = simulate_contacts(chain, 40, kind, seed=0).data
+    with pytest.raises(InvalidArgumentError, match=f"plane contacts only, not '{kind}'"):
+        calibrate_contacts(chain, data, elastic=True)
+    from calib.measurements.contact_campaign import write_contacts
+
+    write_contacts(tmp_path / "t.csv", data)
+    cli = [sys.executable, "-m", "calib.cli.launcher", "calibrate", TALOS[0]]
+    run = subprocess.run(
+        [*cli, "--base", TALOS[1], "--tool", TALOS[2], "--data", "t.csv", "--measure", kind,
+         "--elastic", "--out", "cal.urdf"],
+        capture_output=True, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1 and "plane contacts only" in run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
 
 
 @pytest.fixture(scope="module")

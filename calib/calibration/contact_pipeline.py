@@ -238,8 +238,8 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
         what = f"parameters of params '{opts.level}' (with the contact's unknowns)"
         determined.check_equations(train.m, start.kind.n_rows, fixed + len(columns), what,
                                    train.source, unit="touches")  # fmt: skip
-    elif fixed + len(columns) >= equations:  # the selection's cross-validation needs spare rows
-        columns = columns[: max(0, equations - fixed - 1)]
+    elif fixed + len(columns) > equations:  # the selection's cross-validation needs spare rows
+        columns = _fewer(columns, fixed + len(offered), max(0, equations - fixed - 1))
         notes.append(f"{train.m} touches: params 'auto' chooses among {len(columns)} parameters")
     names = wide.names()
     weights: dict[str, float] = {}
@@ -259,6 +259,19 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
     if any(weights.values()):
         prior = np.r_[np.zeros(fixed), [weights[k] for k in model.names()[fixed:]]]
     return model, selection, prior
+
+
+def _fewer(columns: list[int], split: int, keep: int) -> list[int]:
+    """``keep`` of the candidate columns: the least preferred robot parameters dropped first.
+
+    Robot parameters (columns below ``split``) come in preference order; the compliances
+    (from ``split``) are dropped only when no robot parameter is left.
+    """
+    params = [c for c in columns if c < split]
+    comp = [c for c in columns if c >= split]
+    cut = max(0, len(columns) - keep)
+    params = params[: max(0, len(params) - cut)]
+    return (params + comp)[:keep]
 
 
 def calibrate_contacts(
