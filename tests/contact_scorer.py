@@ -1,9 +1,16 @@
-"""Independent scorer of flush contacts: Pinocchio placements and Pinocchio's roll-pitch-yaw.
+"""Independent scorer of contacts: Pinocchio placements, Pinocchio's roll-pitch-yaw and log.
 
 Uses nothing of calib: the URDF read by Pinocchio, ``oMf[base]^-1 oMf[tool]`` per
-configuration, the contact frame and the plane as given, and ``pin.rpy.matrixToRpy`` of the
-contact's rotation in the plane's frame. A calibration result is checked by this route, which
-shares neither calib's MDH rows nor its residual code.
+configuration, the contact frame and the objects as given, and the contact frame's placement
+in its object's frame ``F^-1 T C``, read per kind from its definition:
+
+* ``plane``: height (z), roll and pitch (``pin.rpy.matrixToRpy``);
+* ``plane-point``: height;
+* ``fixed-point``: position;
+* ``fixed-pose``: position and rotation vector (``pin.log3``).
+
+A calibration result is checked by this route, which shares neither calib's MDH rows nor its
+residual code.
 """
 
 from __future__ import annotations
@@ -18,10 +25,10 @@ import pinocchio as pin
 
 
 def read_joints(path: Path) -> tuple[list[str], dict[str, np.ndarray]]:
-    """Plane ids and joint readings [rad] by URDF joint name, from a contact CSV."""
+    """Plane (or point) ids and joint readings [rad] by URDF joint name, from a contact CSV."""
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
-    ids = [r["plane"] for r in rows]
+    ids = [r["plane"] if "plane" in r else r["point"] for r in rows]
     names = [k for k in rows[0] if k not in ("plane", "spot", "point", "pose")]
     return ids, {k: np.array([float(r[k]) for r in rows]) for k in names}
 
@@ -86,6 +93,47 @@ def plane_gaps(
         roll, pitch, _ = pin.rpy.matrixToRpy(rel.rotation)
         gaps.append((rel.translation[2], roll, pitch))
     return np.array(gaps)
+
+
+def gaps_of(kind: str, rel: pin.SE3) -> np.ndarray:
+    """The gap of a contact frame placed at ``rel`` in its object's frame, by definition."""
+    p = rel.translation
+    if kind == "plane":
+        return np.r_[p[2], pin.rpy.matrixToRpy(rel.rotation)[:2]]
+    if kind == "plane-point":
+        return p[2:3].copy()
+    if kind == "fixed-point":
+        return p.copy()
+    if kind == "fixed-pose":
+        return np.r_[p, pin.log3(rel.rotation)]
+    raise KeyError(kind)
+
+
+def contact_gaps(
+    kind: str,
+    urdf: Path,
+    base: str,
+    tool: str,
+    contact: np.ndarray,
+    objects: list[np.ndarray],
+    joints: Mapping[str, np.ndarray],
+) -> np.ndarray:
+    """Gaps ``(m, rows)`` [m, rad] of touches, each of its own object ``objects[i]`` (4x4).
+
+    Args:
+        kind: ``plane``, ``plane-point``, ``fixed-point`` or ``fixed-pose``.
+        urdf: The robot's URDF.
+        base: The chain's base frame (the objects are expressed in it).
+        tool: The tool frame (the contact frame is expressed in it).
+        contact: Contact frame in the tool frame ``(4, 4)``.
+        objects: The object of each touch in the base frame, ``(4, 4)`` each.
+        joints: Joint readings [rad] by URDF joint name, each ``(m,)``.
+    """
+    C = pin.SE3(np.asarray(contact))
+    out = []
+    for T, F in zip(relative_placements(urdf, base, tool, joints), objects, strict=True):
+        out.append(gaps_of(kind, pin.SE3(np.asarray(F)).actInv(T * C)))
+    return np.array(out)
 
 
 def rms(gaps: np.ndarray) -> tuple[float, float, float]:

@@ -10,9 +10,10 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import load_robot
+from calib.calibration.contact_frames import ContactFrames
 from calib.calibration.contact_model import ContactModel, ContactState
 from calib.calibration.contact_pipeline import calibrate_contacts, flush_postures
-from calib.exceptions import CalibrationRefusedError, InvalidArgumentError
+from calib.exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
 from calib.identification.contacts import PlaneContact
 from calib.identification.parameters import ParameterSet, parameter_set
 from calib.kinematics.mdh import from_chain
@@ -65,18 +66,23 @@ def test_identifiable_count_is_theory(name):
     assert 5 + len(r.free) == 4 * chain.n - 2
 
 
-def test_jacobian_matches_central_differences():
-    chain = load_robot("ur5")
+@pytest.mark.parametrize("kind", ["plane", "plane-point", "fixed-point", "fixed-pose"])
+def test_jacobian_matches_central_differences(kind):
+    """Every kind, two objects, away from x = 0: the model's Jacobian is d(residual)/dx."""
+    chain = load_robot("panda")
     mdh = from_chain(chain)
     ps = parameter_set(mdh, "complete")
     sub = ParameterSet("x", tuple(p for p in ps.parameters if 1 <= p.row <= mdh.n))
     C = np.eye(4)
     C[:3, :3], C[:3, 3] = rotation_matrix(np.array([0.1, 0.2, 0.3])), [0.01, 0.02, 0.1]
-    n = np.array([0.1, 0.2, 1.0]) / np.linalg.norm([0.1, 0.2, 1.0])
-    start = ContactState(mdh, C, n, 0.3, 0.7)
-    model = ContactModel(sub, np.linalg.svd(n[None])[2][1:].T)
-    x = 0.01 * np.random.default_rng(0).standard_normal(model.size())
-    data = simulate_contacts(chain, 5, "plane", seed=0).data
+    data = simulate_contacts(chain, 8, kind, contacts=2, seed=0).data
+    objects = np.array(
+        [_pose([0.1, -0.2, 0.3], [0.3, 0.1, 0.5]), _pose([1.2, 0.1, 0], [0, 0.4, 0.2])]
+    )
+    frames = ContactFrames(data.kind, C, objects, data.contacts)
+    start = ContactState(mdh, frames, 0.7)
+    model = ContactModel(sub, frames)
+    x = 0.05 * np.random.default_rng(0).standard_normal(model.size())
     J = model.jacobian(start, x, data)
 
     def f(v):
@@ -84,14 +90,22 @@ def test_jacobian_matches_central_differences():
 
     h = 1e-6
     num = np.stack([(f(x + h * e) - f(x - h * e)) / (2 * h) for e in np.eye(model.size())], -1)
+    assert J.shape == (8, data.kind.n_rows, model.size())
     assert np.max(np.abs(J - num)) < 1e-7
+
+
+def _pose(rotvec, t) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = rotation_matrix(np.array(rotvec, dtype=float)), t
+    return T
 
 
 def test_flush_postures_hold_the_contact():
     chain = load_robot(*CHAINS["talos"])
     data = read_contacts(REAL / "left_train.csv", chain, "plane")
     r = calibrate_contacts(chain, data, contact=[0, 0, -0.12], params="frames")
-    state = ContactState(r.nominal, r.contact, r.plane[:3, 2], r.plane[:3, 2] @ r.plane[:3, 3], 1)
+    frames = ContactFrames(PlaneContact(), r.contact, r.plane[None], (r.plane_id,))
+    state = ContactState(r.nominal, frames, 1.0)
     qf = flush_postures(state, data.q)
     assert len(qf) == data.m
     assert np.max(np.abs(state.gaps(qf))) < 1e-10
@@ -157,8 +171,10 @@ def test_bad_arguments():
     with pytest.raises(InvalidArgumentError):
         calibrate_contacts(chain, data, params="wild")
     point = simulate_contacts(chain, 20, "fixed-point", seed=0).data
-    with pytest.raises(InvalidArgumentError, match="plane only"):
-        calibrate_contacts(chain, point)
+    with pytest.raises(DataError, match="kind 'fixed-point' for 'plane'"):
+        calibrate_contacts(chain, data, validate=point)
+    with pytest.raises(InvalidArgumentError, match="holdout"):
+        calibrate_contacts(chain, data, holdout=1.5)
 
 
 def test_contact_model_keeps_reversed_joints():

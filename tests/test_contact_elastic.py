@@ -9,6 +9,7 @@ positions the compliance file's API gives.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -21,7 +22,7 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import load_calibrated, load_robot
-from calib.calibration.contact_model import ContactModel, ContactState
+from calib.calibration.contact_model import ContactModel, plane_state
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import joint_offsets
@@ -120,8 +121,10 @@ def test_compliance_columns_match_central_differences():
     C = np.eye(4)
     C[:3, :3], C[:3, 3] = rotation_matrix(np.array([0.1, 0.2, 0.3])), [0.01, 0.02, -0.12]
     n = np.array([0.1, 0.2, 1.0]) / np.linalg.norm([0.1, 0.2, 1.0])
-    start = ContactState(mdh, C, n, 0.9, 0.3, 1e-4 * np.arange(chain.n))
-    model = ContactModel(joint_offsets(mdh), np.linalg.svd(n[None])[2][1:].T, (0, 2, 5, 9, 14))
+    start = dataclasses.replace(
+        plane_state(mdh, C, n, 0.9, 0.3, "t"), compliance=1e-4 * np.arange(chain.n)
+    )
+    model = ContactModel(joint_offsets(mdh), start.frames, (0, 2, 5, 9, 14))
     q = chain.random_configurations(6, 4)
     data = ContactData(chain.joint_names, q, ("t",) * 6, read_kind())
     torque = standing_load(chain).torques(q)
@@ -144,9 +147,9 @@ def read_kind():
     return PlaneContact()
 
 
-def _deflected_campaign(chain, compliance: np.ndarray, m: int, seed: int):
+def _deflected_campaign(chain, compliance: np.ndarray, m: int, seed: int, planes: int = 1):
     """Touches whose commanded joints, deflected by ``c tau``, are flush on the true robot."""
-    camp = simulate_contacts(chain, m, "plane", seed=seed)
+    camp = simulate_contacts(chain, m, "plane", contacts=planes, seed=seed)
     load = standing_load(chain)
     target = camp.data.q
     q = target.copy()
@@ -170,6 +173,40 @@ def test_noise_free_round_trip_recovers_compliance():
     assert max(held.roll_max_deg, held.pitch_max_deg) < math.degrees(1e-9)
     assert np.max(np.abs(r.compliance - truth)) < 1e-9
     assert r.stats["held_out_urdf"].height_rms_mm > 1e-3  # the URDF alone is not the model
+
+
+def test_two_planes_round_trip_recovers_compliance():
+    """Two planes in one file (the contact kinds' objects) with deflected joints."""
+    chain = load_robot(*TALOS)
+    truth = np.zeros(chain.n)
+    truth[[1, 3, 8]] = (4e-5, -2e-5, 6e-5)
+    data = _deflected_campaign(chain, truth, 90, 6, planes=2)
+    assert len(data.contacts) == 2
+    r = calibrate_contacts(chain, data, params="complete", holdout=0.3, seed=1, elastic=True)
+    assert r.accepted and r.elastic and len(r.objects) == 2
+    assert r.stats["held_out"].height_max_mm < 1e-6  # 1e-9 m
+    assert np.max(np.abs(r.compliance - truth)) < 1e-9
+
+
+@pytest.mark.parametrize("kind", ["plane-point", "fixed-point", "fixed-pose"])
+def test_elastic_with_another_kind_is_one_error(kind, tmp_path):
+    """Compliance is fitted for plane contacts only: the API and the CLI say so in one line."""
+    chain = load_robot(*TALOS)
+    data = simulate_contacts(chain, 40, kind, seed=0).data
+    with pytest.raises(InvalidArgumentError, match=f"plane contacts only, not '{kind}'"):
+        calibrate_contacts(chain, data, elastic=True)
+    from calib.measurements.contact_campaign import write_contacts
+
+    write_contacts(tmp_path / "t.csv", data)
+    cli = [sys.executable, "-m", "calib.cli.launcher", "calibrate", TALOS[0]]
+    run = subprocess.run(
+        [*cli, "--base", TALOS[1], "--tool", TALOS[2], "--data", "t.csv", "--measure", kind,
+         "--elastic", "--out", "cal.urdf"],
+        capture_output=True, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1 and "plane contacts only" in run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
 
 
 @pytest.fixture(scope="module")

@@ -175,32 +175,6 @@ def test_fixed_pose_is_the_geodesic_mean():
     np.testing.assert_allclose(again.poses[0], F, atol=1e-9)
 
 
-def test_plane_jacobian_matches_central_differences():
-    from calib.calibration.contact_registration import _plane_rows, _PlaneState, _tangent
-
-    R, p, ids = _two_planes()
-    index = np.array([0 if k == "table" else 1 for k in ids])
-    normals = np.array([[0.1, 0.2, 0.97], [0.9, -0.1, 0.3]])
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    state = _PlaneState(np.array([0.3, -0.2]), normals, np.array([0.8, 0.4]))
-    _, J = _plane_rows(R, p, GUESS, index, state, 0.7)
-    h = 1e-6
-    for j in range(J.shape[2]):
-        rows = []
-        for sign in (1, -1):
-            step = np.zeros(J.shape[2])
-            step[j] = sign * h
-            d = step[2:].reshape(2, 3)
-            n = normals + np.einsum("kij,kj->ki", _tangent(normals), d[:, :2])
-            moved = _PlaneState(
-                state.phi + step[:2],
-                n / np.linalg.norm(n, axis=1, keepdims=True),
-                state.heights + d[:, 2],
-            )
-            rows.append(_plane_rows(R, p, GUESS, index, moved, 0.7)[0])
-        np.testing.assert_allclose(J[:, :, j], (rows[0] - rows[1]) / (2 * h), atol=1e-8)
-
-
 def test_independent_scorer_agrees_with_the_registration_on_talos():
     ids, joints = read_joints(REAL / "left_train.csv")
     T = relative_placements(TALOS, "left_sole_link", "gripper_left_base_link", joints)

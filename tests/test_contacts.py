@@ -39,8 +39,8 @@ ROBOTS = ("ur5", "panda", "tiago")
 def pin_gap(kind: str, T: np.ndarray) -> np.ndarray:
     """The gap of a contact frame T (4x4, in the contact's frame), written from its definition."""
     p, R = T[:3, 3], T[:3, :3]
-    if kind == "plane":
-        return np.array([p[2], -R[1, 2], R[0, 2]])
+    if kind == "plane":  # height, then Pinocchio's roll and pitch (R = Rz Ry Rx)
+        return np.r_[p[2], pin.rpy.matrixToRpy(R)[:2]]
     if kind == "plane-point":
         return p[2:3]
     if kind == "fixed-point":
@@ -188,7 +188,7 @@ def test_cli_prints_the_counts_and_what_a_plane_cannot_see(capsys):
     assert main(["analyze", "ur5", "--measure", "plane", "--params", "complete", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["measure"] == "plane" and d["base_frame"] == "plane"
-    assert d["rows"] == ["z", "tilt_x", "tilt_y"]
+    assert d["rows"] == ["height", "roll", "pitch"]
     assert d["n_base"] == EXPECTED[("ur5", "plane")]
     assert any("height" in u for u in d["unseen"])
     assert main(["analyze", "panda", "--measure", "fixed-point"]) == 0

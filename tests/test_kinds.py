@@ -40,8 +40,8 @@ def test_kind_of_instrument_names(name, rows):
 @pytest.mark.parametrize(
     ("name", "cls", "rows", "constants"),
     [
-        ("plane", PlaneContact, ("z", "tilt_x", "tilt_y"), 3),
-        ("plane-point", PlanePointContact, ("z",), 3),
+        ("plane", PlaneContact, ("height", "roll", "pitch"), 3),
+        ("plane-point", PlanePointContact, ("height",), 3),
         ("fixed-point", FixedPointContact, ("x", "y", "z"), 3),
         ("fixed-pose", FixedPoseContact, ("x", "y", "z", "rx", "ry", "rz"), 6),
     ],

@@ -40,7 +40,7 @@ from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_model import ContactState
 from .contact_pipeline import WORSE, contact_frame, flush_postures, split_contacts, tilt_weight
-from .contact_registration import register_planes
+from .contact_registration import register_contacts
 from .contact_result import gap_stats
 from .options import check_run_options
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
@@ -120,18 +120,13 @@ def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> 
         kin = mdh.kinematics(d.q)
         R, p = kin.R[:, -1], kin.p[:, -1]
         w = tilt_weight(R, p, d.ids, guess) if weight is None else weight
-        reg = register_planes(R, p, d.ids, guess, w)
-        P = reg.planes[0]
-        states.append(
-            ContactState(mdh, reg.contact, P[:3, 2].copy(), float(P[:3, 2] @ P[:3, 3]), w)
-        )
+        registered = register_contacts(PlaneContact(), R, p, d.ids, guess, w)
+        states.append(ContactState(mdh, registered, w))
     for c, p in enumerate(plane_of):  # a shared plane starts from its first chain's
         owner = plane_of.index(p)
         if owner != c:
-            s0 = states[owner]
-            states[c] = ContactState(
-                states[c].mdh, states[c].contact, s0.normal, s0.height, states[c].weight
-            )
+            shared = dataclasses.replace(states[c].frames, objects=states[owner].frames.objects)
+            states[c] = dataclasses.replace(states[c], frames=shared)
     start = ChainsState(tuple(chains), placements, tuple(states), frames)
     if len(set(plane_of)) == len(plane_of):
         return start
@@ -149,9 +144,7 @@ def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> 
 
 
 def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
-    owners = [plane_of.index(p) for p in sorted(set(plane_of))]
-    tangents = tuple(np.linalg.svd(state.states[c].normal[None, :])[2][1:].T for c in owners)
-    return ChainsModel(tuple(plane_of), tangents, tuple(free), tuple(names), directions)
+    return ChainsModel(tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions)
 
 
 def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:

@@ -3,13 +3,16 @@
 A state is the robot's joint placement errors (:class:`~.placements.Placements`, one error
 per URDF joint, whatever chains it is on) and, per chain, its
 :class:`~.contact_model.ContactState` (its MDH model on the perturbed robot, its contact
-frame, its plane and its tilt weight). The parameters x: for each plane its two normal steps
-and its height, for each chain its contact's two tilts, then components of joint placement
-errors (``<joint>:x`` ... ``:rz``). A plane touched by several chains is one plane (their
-chains share the base frame); each chain has its own contact frame.
+frame and plane, :class:`~.contact_frames.ContactFrames`, and its tilt weight). The
+parameters x: for each plane the ``plane`` kind's object unknowns (its height and two tilts),
+for each chain its contact's (two tilts), then components of joint placement errors
+(``<joint>:x`` ... ``:rz``). A plane touched by several chains is one plane (their chains
+share the base frame); each chain has its own contact frame.
 
-The rows: each chain's touches, in chain order, each 3 rows (height [m] and weighted tilts),
-as a single chain's (:class:`~.contact_model.ContactModel`).
+The rows: each chain's touches, in chain order, each the kind's 3 rows (height [m] and
+weighted roll and pitch), as a single chain's (:class:`~.contact_model.ContactModel`): the
+plane and contact columns are that model's, the robot's the kind's rows
+(``kind.jacobian_rows``) of the contact frame's displacement in its plane's frame.
 """
 
 from __future__ import annotations
@@ -19,20 +22,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..identification.contacts import PlaneContact
 from ..identification.parameters import ParameterSet
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import skew
 from ..measurements.contact_campaign import ContactData
+from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
-from .contact_registration import tilt_derivatives
 from .placements import COMPONENTS, Placements, joint_twists
 
 __all__ = ["PLANE_ROWS", "TILT_COLUMNS", "ChainsData", "ChainsModel", "ChainsState"]
 
-PLANE_ROWS = 3
-"""Columns of one plane: two normal steps and the height."""
+PLANE_ROWS = len(PlaneContact.object_dofs)
+"""Columns of one plane: its height and two tilts (the ``plane`` kind's object unknowns)."""
 
-TILT_COLUMNS = 2
+TILT_COLUMNS = len(PlaneContact.contact_dofs)
 """Columns of one contact frame: its tilts about its x and y axes."""
 
 
@@ -77,7 +81,7 @@ class ChainsModel:
 
     Attributes:
         plane_of: Index of each chain's plane.
-        tangents: Each plane's start normal's tangent plane ``(3, 2)``.
+        planes: Number of planes.
         free: The free directions, as indices into ``names_all``.
         names_all: Names of the directions offered.
         directions: The directions offered ``(D, 6 J)``, each a combination of the joint
@@ -86,7 +90,7 @@ class ChainsModel:
     """
 
     plane_of: tuple[int, ...]
-    tangents: tuple[np.ndarray, ...]
+    planes: int
     free: tuple[int, ...]
     names_all: tuple[str, ...]
     directions: np.ndarray | None = None
@@ -98,7 +102,7 @@ class ChainsModel:
     @property
     def fixed(self) -> int:
         """Columns of the planes and contacts (always free)."""
-        return PLANE_ROWS * len(self.tangents) + TILT_COLUMNS * len(self.plane_of)
+        return PLANE_ROWS * self.planes + TILT_COLUMNS * len(self.plane_of)
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -107,10 +111,10 @@ class ChainsModel:
     def names(self) -> tuple[str, ...]:
         """Column names."""
         out = []
-        for p in range(len(self.tangents)):
-            out += [f"plane{p + 1}_nx", f"plane{p + 1}_ny", f"plane{p + 1}_h"]
+        for p in range(self.planes):
+            out += [f"plane{p + 1}_{DOF_NAMES[d]}" for d in PlaneContact.object_dofs]
         for c in range(len(self.plane_of)):
-            out += [f"contact{c + 1}_rx", f"contact{c + 1}_ry"]
+            out += [f"contact{c + 1}_{DOF_NAMES[d]}" for d in PlaneContact.contact_dofs]
         return (*out, *(self.names_all[k] for k in self.free))
 
     def with_free(self, free: tuple[int, ...]) -> ChainsModel:
@@ -125,11 +129,13 @@ class ChainsModel:
 
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
         p = self.plane_of[c]
-        t = PLANE_ROWS * len(self.tangents) + TILT_COLUMNS * c
+        t = PLANE_ROWS * self.planes + TILT_COLUMNS * c
         return np.r_[x[PLANE_ROWS * p : PLANE_ROWS * p + PLANE_ROWS], x[t : t + TILT_COLUMNS]]
 
-    def _contact_model(self, c: int) -> ContactModel:
-        return ContactModel(ParameterSet("none", ()), self.tangents[self.plane_of[c]])
+    @staticmethod
+    def _contact_model(state: ContactState) -> ContactModel:
+        """The single-chain model of a chain's plane and contact (no robot parameter)."""
+        return ContactModel(ParameterSet("none", ()), state.frames)
 
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
         """The state at parameters x (x = 0 is ``start``).
@@ -156,7 +162,7 @@ class ChainsModel:
             placements, frames = start.placements, start.frames
             models = tuple(s.mdh for s in start.states)
         states = tuple(
-            dataclasses.replace(self._contact_model(c).apply(s, self._chain_x(x, c)), mdh=mdh)
+            dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
             for c, (s, mdh) in enumerate(zip(start.states, models, strict=True))
         )
         return ChainsState(start.chains, placements, states, frames)
@@ -168,10 +174,10 @@ class ChainsModel:
         for c, (s, d) in enumerate(zip(state.states, data.parts, strict=True)):
             J = np.zeros((d.m, 3, self.size()))
             base = dataclasses.replace(start.states[c], mdh=s.mdh)
-            J5 = self._contact_model(c).jacobian(base, self._chain_x(x, c), d)
+            J5 = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
             p = self.plane_of[c]
             J[:, :, PLANE_ROWS * p : PLANE_ROWS * p + PLANE_ROWS] = J5[:, :, :PLANE_ROWS]
-            t = PLANE_ROWS * len(self.tangents) + TILT_COLUMNS * c
+            t = PLANE_ROWS * self.planes + TILT_COLUMNS * c
             J[:, :, t : t + TILT_COLUMNS] = J5[:, :, PLANE_ROWS:]
             if self.free:
                 J[:, :, self.fixed :] = self._robot_columns(state, c, d)
@@ -186,7 +192,6 @@ class ChainsModel:
         kin = s.mdh.kinematics(np.asarray(d.q, dtype=float))
         ang, lin = joint_twists(state.placements, chain, s.mdh, state.frames[c], kin, columns)
         R, p = kin.R[:, -1], kin.p[:, -1]
-        RC = R @ s.contact[:3, :3]
         point = p + R @ s.contact[:3, 3]
         # every component of every joint on the chain, ordered as Placements.names()
         moving = lin - skew(point)[:, None] @ ang  # velocity of the contact point
@@ -194,9 +199,7 @@ class ChainsModel:
         full[:, :3, columns] = np.moveaxis(moving, 1, 2)
         full[:, 3:, columns] = np.moveaxis(ang, 1, 2)
         W6 = full.reshape(d.m, 6, -1) @ self._lift().T
-        seen = np.einsum("mji,j->mi", RC, s.normal)
-        D = tilt_derivatives(seen)
-        out = np.zeros((d.m, 3, len(self.free)))
-        out[:, 0] = np.einsum("i,mik->mk", s.normal, W6[:, :3])
-        out[:, 1:] = D @ (np.swapaxes(RC, 1, 2) @ skew(s.normal)) @ W6[:, 3:]
-        return out * np.array([1.0, s.weight, s.weight])[None, :, None]
+        index = s.frames.index(d.ids, d.source)
+        Rc, _ = s.frames.relative(R, p, index)
+        out = s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc)
+        return out * s.row_weights()[None, :, None]

@@ -1,40 +1,44 @@
-"""The error model of flush contacts: one plane, the contact frame's tilts, robot parameters.
+"""The error model of contacts: the objects touched, the contact frame, robot parameters.
 
 A state is the robot's MDH model (frame -1: the chain's base frame), the contact frame in the
-tool frame and the plane (unit normal ``n`` and height ``h``: the points x with ``n . x = h``)
-in the base frame. A touch's gap is the contact frame's height [m] and its roll and pitch
-[rad] in the plane's frame (:func:`~calib.calibration.contact_registration.plane_residuals`).
+tool frame and the objects (planes, points or poses, by id) in the base frame
+(:class:`~calib.calibration.contact_frames.ContactFrames`). A touch's gap is the contact
+kind's own (``kind.residual`` of the contact frame in its object's frame), for every kind:
+a plane's height, roll and pitch; a plane-point's height; a fixed point's position; a fixed
+pose's position and rotation vector.
 
-The parameters x of :class:`ContactModel`: the plane's normal (two steps in the tangent plane
-of its start) and height, the contact's tilts about its own x and y axes (its origin and yaw
-are invisible or regroup with the height), then shifts of robot parameters, then the joint
-compliances asked for (``elastic``: the geometry sees ``q' = q + c tau``, ``tau`` the gravity
-torques given with the data, :mod:`calib.kinematics.standing`). The analytic
-Jacobian: a displacement ``dx`` of the contact origin moves the height by ``n . dx``; a
-rotation ``dphi`` of the tool (base frame) moves the normal seen from the contact frame,
-``s = (R C)^T n``, by ``(R C)^T [n]x dphi``; a compliance column is its joint's offset column
+The parameters x of :class:`ContactModel`: the objects' and the contact's unknowns
+(:attr:`~calib.identification.contacts.Contact.object_dofs`, ``contact_dofs``), then shifts
+of robot parameters. Their Jacobian is the kind's rows (``kind.jacobian_rows``) of the
+contact frame's pose-error Jacobian in its object's frame: the frames' columns
+(:meth:`ContactFrames.columns`) and the robot's (the identification Jacobian of the contact
+origin, turned into each object's frame), then the joint compliances asked for
+(``elastic``: the geometry sees ``q' = q + c tau``, ``tau`` the gravity torques given with the
+data, :mod:`calib.kinematics.standing`); a compliance column is its joint's offset column
 times ``tau_j`` (times the joint's sign on a reversed chain).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..exceptions import InvalidArgumentError
+from ..identification.contacts import Contact
 from ..identification.jacobian import identification_jacobian
 from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet
-from ..kinematics.mdh import MDHModel
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
-from .contact_registration import plane_residuals, tilt_derivatives
+from ..kinematics.mdh import Kinematics, MDHModel
+from .contact_frames import ContactFrames, row_weights
 from .model import compliance_name, offset_parameter
 
-__all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame"]
+__all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame", "plane_state"]
 
 PLANE_COLUMNS = 5
-"""Columns of the plane (2 normal steps and the height) and the contact's tilts (2)."""
+"""Columns of one plane (its height and 2 tilts) and of a flush contact's tilts (2)."""
 
 
 def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.ndarray:
@@ -51,23 +55,43 @@ def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.nda
 
 @dataclass(frozen=True, eq=False)
 class ContactState:
-    """The robot, the contact frame and the plane.
+    """The robot, the contact frame and the objects touched.
 
     Attributes:
         mdh: The robot's MDH model (frame -1: the chain's base frame).
-        contact: The contact frame in the tool frame ``(4, 4)``.
-        normal: The plane's unit normal in the base frame ``(3,)``.
-        height: The plane's height along its normal [m].
-        weight: Weight of the tilt rows [m/rad].
+        frames: The contact frame (tool frame) and the objects (base frame).
+        weight: Weight of the angle rows [m/rad].
         compliance: Joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid joints).
     """
 
     mdh: MDHModel
-    contact: np.ndarray
-    normal: np.ndarray
-    height: float
+    frames: ContactFrames
     weight: float
     compliance: np.ndarray | None = None
+
+    @property
+    def kind(self) -> Contact:
+        """The contact kind."""
+        return self.frames.kind
+
+    @property
+    def contact(self) -> np.ndarray:
+        """The contact frame in the tool frame ``(4, 4)``."""
+        return self.frames.contact
+
+    @property
+    def normal(self) -> np.ndarray:
+        """The first object's z axis ``(3,)`` (a plane's normal) in the base frame."""
+        return self.frames.objects[0, :3, 2].copy()
+
+    @property
+    def height(self) -> float:
+        """The first object's origin along its z axis [m] (a plane's height)."""
+        return float(self.normal @ self.frames.objects[0, :3, 3])
+
+    def plane(self, centre: np.ndarray | None = None) -> np.ndarray:
+        """The first plane ``(4, 4)`` in the base frame (origin: ``centre`` projected, or 0)."""
+        return plane_frame(self.normal, self.height, np.zeros(3) if centre is None else centre)
 
     def joints(self, q: np.ndarray, torque: np.ndarray | None = None) -> np.ndarray:
         """Joint positions the geometry sees: ``q + c * tau`` [rad or m] (``q`` without torque)."""
@@ -76,97 +100,109 @@ class ContactState:
             return q
         return q + np.asarray(torque, dtype=float) * self.compliance
 
-    def plane(self, centre: np.ndarray | None = None) -> np.ndarray:
-        """The plane ``(4, 4)`` in the base frame (origin: ``centre`` projected, default 0)."""
-        return plane_frame(self.normal, self.height, np.zeros(3) if centre is None else centre)
+    def kinematics(self, q: np.ndarray, torque: np.ndarray | None = None) -> Kinematics:
+        """The robot's frames at configurations ``q`` ``(m, n)``.
 
-    def gaps(self, q: np.ndarray, torque: np.ndarray | None = None) -> np.ndarray:
-        """Height [m], roll and pitch [rad] ``(m, 3)`` of the contact frame in the plane's frame.
-
-        ``torque``: gravity torques ``(m, n)`` [N m or N] that deflect the joints (compliance).
+        ``torque`` (gravity torques ``(m, n)`` [N m or N]) deflects compliant joints
+        (:meth:`joints`); a rigid state ignores it.
         """
-        kin = self.mdh.kinematics(self.joints(q, torque))
-        return plane_residuals(kin.R[:, -1], kin.p[:, -1], self.contact, self.plane())
+        return self.mdh.kinematics(self.joints(q, torque))
+
+    def gaps(
+        self, q: np.ndarray, ids: Sequence[str] | None = None, torque: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The kind's gap ``(m, rows)`` [m, rad] of touches ``q`` of objects ``ids``.
+
+        ``ids`` may be left out with one object.
+        """
+        kin = self.kinematics(q, torque)
+        index = self._index(ids, len(kin.p))
+        return self.frames.gaps(kin.R[:, -1], kin.p[:, -1], index)
+
+    def _index(self, ids: Sequence[str] | None, m: int, source: str = "<contacts>") -> np.ndarray:
+        if ids is None:
+            if len(self.frames.ids) != 1:
+                raise InvalidArgumentError("give the touches' ids: there are several objects")
+            return np.zeros(m, dtype=int)
+        return self.frames.index(ids, source)
+
+    def row_weights(self) -> np.ndarray:
+        """Weight of each gap row: 1 for a length, :attr:`weight` for an angle."""
+        return row_weights(self.kind, self.weight)
 
     def residuals(self, data, torque: np.ndarray | None = None) -> np.ndarray:
-        """Weighted ``0 - gap`` ``(m, 3)``: height [m], ``weight`` x roll and pitch."""
-        return -self.gaps(data.q, torque) * np.array([1.0, self.weight, self.weight])
+        """Weighted ``0 - gap`` ``(m, rows)`` of contact data (lengths [m], weighted angles)."""
+        return -self.gaps(data.q, data.ids, torque) * self.row_weights()
+
+
+def plane_state(
+    mdh: MDHModel,
+    contact: np.ndarray,
+    normal: np.ndarray,
+    height: float,
+    weight: float,
+    plane_id: str = "table",
+) -> ContactState:
+    """A state of one plane (``plane`` kind) from its unit normal and height [m]."""
+    from ..identification.contacts import PlaneContact
+
+    plane = plane_frame(normal, height, np.zeros(3))[None]
+    return ContactState(mdh, ContactFrames(PlaneContact(), contact, plane, (plane_id,)), weight)
 
 
 @dataclass(frozen=True, eq=False)
 class ContactModel:
-    """What is free: the plane, the contact's tilts, robot parameters, joint compliances.
+    """What is free: the objects', the contact's unknowns, robot parameters, compliances.
 
-    Its rows come weighted (``n_markers`` 1, no pose rows: :func:`~.solve.fit` weighs them 1).
+    Its rows come weighted (``n_markers`` 0, no pose rows: :func:`~.solve.fit` weighs them 1).
 
     Attributes:
         params: The free robot parameters.
-        tangent: The start normal's tangent plane ``(3, 2)``.
+        frames: The frames' layout (kind and ids) the unknowns of x refer to.
         compliance: Joints (0-based) whose compliance is free.
     """
 
     params: ParameterSet
-    tangent: np.ndarray
+    frames: ContactFrames
     compliance: tuple[int, ...] = ()
 
-    n_markers = 1
+    n_markers = 0
     pose = False
+
+    @property
+    def fixed(self) -> int:
+        """Columns of the objects and the contact (always free)."""
+        return self.frames.size
 
     def size(self) -> int:
         """Number of free parameters."""
-        return PLANE_COLUMNS + len(self.params) + len(self.compliance)
+        return self.fixed + len(self.params) + len(self.compliance)
 
     def names(self) -> tuple[str, ...]:
         """Column names (a compliance: ``c<row>``, e.g. ``c3``)."""
         comp = tuple(compliance_name(j) for j in self.compliance)
-        return (
-            "plane_nx",
-            "plane_ny",
-            "plane_h",
-            "contact_rx",
-            "contact_ry",
-            *self.params.names,
-            *comp,
-        )
+        return (*self.frames.names(), *self.params.names, *comp)
 
     def apply(self, start: ContactState, x: np.ndarray) -> ContactState:
         """The state at parameters x (x = 0 is ``start``)."""
-        n = start.normal + self.tangent @ x[:2]
-        C = start.contact.copy()
-        C[:3, :3] = start.contact[:3, :3] @ rotation_matrix(np.array([x[3], x[4], 0.0]))
-        p = PLANE_COLUMNS + len(self.params)
-        mdh = self.params.apply(start.mdh, x[PLANE_COLUMNS:p]) if len(self.params) else start.mdh
+        x = np.asarray(x, dtype=float)
+        p = self.fixed + len(self.params)
+        mdh = self.params.apply(start.mdh, x[self.fixed : p]) if len(self.params) else start.mdh
         c = start.compliance
         if self.compliance:
             c = np.zeros(start.mdh.n) if c is None else np.array(c, dtype=float)
             c[list(self.compliance)] += x[p:]
-        return dataclasses.replace(
-            start,
-            mdh=mdh,
-            contact=C,
-            normal=n / np.linalg.norm(n),
-            height=start.height + float(x[2]),
-            compliance=c,
-        )
+        frames = start.frames.moved(x[: self.fixed])
+        return dataclasses.replace(start, mdh=mdh, frames=frames, compliance=c)
 
     def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None) -> np.ndarray:
-        """Weighted d(gap)/dx ``(m, 3, size)``."""
+        """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``."""
         s = self.apply(start, x)
         q = s.joints(data.q, torque)
         kin = s.mdh.kinematics(q)
-        R, p = kin.R[:, -1], kin.p[:, -1]
-        RC = R @ s.contact[:3, :3]
-        point = p + R @ s.contact[:3, 3]
-        seen = np.einsum("mji,j->mi", RC, s.normal)
-        D = tilt_derivatives(seen)  # (m, 2, 3)
-        J = np.zeros((len(q), 3, self.size()))
-        raw = start.normal + self.tangent @ x[:2]
-        dn = (np.eye(3) - np.outer(s.normal, s.normal)) @ self.tangent / np.linalg.norm(raw)
-        J[:, 0, :2] = point @ dn
-        J[:, 1:, :2] = D @ np.swapaxes(RC, 1, 2) @ dn
-        J[:, 0, 2] = -1.0
-        Jr = left_jacobian(-np.array([x[3], x[4], 0.0]))[:, :2]
-        J[:, 1:, 3:5] = D @ skew(seen) @ Jr
+        index = s._index(data.ids, len(q), data.source)
+        R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
+        W = [s.frames.columns(R, p, index, x[: self.fixed])]
         if len(self.params) or self.compliance:
             offsets = tuple(offset_parameter(s.mdh, j) for j in self.compliance)
             pset = ParameterSet("columns", (*self.params.parameters, *offsets))
@@ -176,7 +212,6 @@ class ContactModel:
                 joints = list(self.compliance)
                 gain = np.asarray(torque, dtype=float)[:, joints] * s.mdh.sign[1:-1][joints]
                 W6[:, :, len(self.params) :] *= gain[:, None, :]
-            J[:, 0, PLANE_COLUMNS:] = np.einsum("i,mik->mk", s.normal, W6[:, :3])
-            turn = np.swapaxes(RC, 1, 2) @ skew(s.normal)
-            J[:, 1:, PLANE_COLUMNS:] = D @ turn @ W6[:, 3:]
-        return J * np.array([1.0, s.weight, s.weight])[None, :, None]
+            W.append(s.frames.rotate(W6, index))
+        J = s.kind.jacobian_rows(np.concatenate(W, axis=2), R)
+        return J * s.row_weights()[None, :, None]

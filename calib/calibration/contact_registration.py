@@ -17,14 +17,19 @@ measured data estimates the instrument's frame:
      then ``n_k = M_k^T a / |M_k^T a|``), or the normal of the contact points (smallest
      singular vector of the centred points) when that costs less (touches at one
      orientation); each height is the mean of ``n_k . x_t``;
-  2. Gauss-Newton on ``sum z^2 + w^2 (roll^2 + pitch^2)`` (analytic Jacobian) until the step
-     is under ``STEP_TOLERANCE``.
+  2. Gauss-Newton on ``sum z^2 + w^2 (roll^2 + pitch^2)`` until the step is under
+     ``STEP_TOLERANCE`` (:func:`refine`: the gap and its rows are the kind's own,
+     :class:`~calib.identification.contacts.PlaneContact`, through
+     :class:`~calib.calibration.contact_frames.ContactFrames`).
 
   What a flush contact can see: the plane's normal and height, and the contact's normal in
   the tool frame. Its offset along its own normal regroups with the plane's height (moving
   the contact by ``d`` along ``z`` is moving the plane by ``d``), and its offsets along its
   own ``x``, ``y`` and its yaw change no residual at a perfect fit: they keep their guess
   (the gauge), the contact frame is tilted about its own ``x`` and ``y`` axes only.
+- **plane-point** (a tip on a plane; 1 row, its height): each plane through the tip's points
+  at the guessed tip (the smallest singular vector of the centred points), then Gauss-Newton
+  on the planes and the tip (:func:`refine`).
 - **fixed point** (a tip at an unknown fixed point ``y_k``; 3 rows ``p_t + R_t x - y_k``):
   the tip ``x`` in the tool frame and the points by linear least squares, in closed form
   (the points eliminated: ``y_k`` is the mean of ``p_t + R_t x`` over its touches). The
@@ -35,6 +40,9 @@ measured data estimates the instrument's frame:
   contact frame is invisible (only ``F_k C^-1`` is) and keeps its guess.
 
 Every plane, point or pose is named by an id; the contact frame is shared by all.
+:func:`register_contacts` registers any kind, as the
+:class:`~calib.calibration.contact_frames.ContactFrames` the calibration starts from: the
+closed form of its kind, then :func:`refine` (Gauss-Newton on the kind's own gap).
 """
 
 from __future__ import annotations
@@ -45,13 +53,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import ContactGeometryError, InvalidArgumentError
-from ..kinematics.so3 import (
-    inverse_right_jacobian,
-    left_jacobian,
-    rotation_matrix,
-    rotation_vector,
-    skew,
+from ..identification.contacts import (
+    Contact,
+    FixedPointContact,
+    FixedPoseContact,
+    PlaneContact,
+    PlanePointContact,
 )
+from ..kinematics.so3 import rotation_matrix, tilt_derivatives, tilts
+from .contact_frames import ContactFrames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
 
@@ -65,6 +75,9 @@ __all__ = [
     "PointRegistration",
     "PoseRegistration",
     "plane_residuals",
+    "refine",
+    "register_contacts",
+    "register_plane_points",
     "register_planes",
     "register_points",
     "register_poses",
@@ -150,32 +163,12 @@ class PoseRegistration:
     iterations: int
 
 
-def tilts(normals: np.ndarray) -> np.ndarray:
-    """Roll and pitch ``(..., 2)`` [rad] of a frame whose ``R^T e_z`` is ``normals`` ``(..., 3)``.
-
-    With ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the last row of ``R`` is
-    ``(-sin pitch, cos pitch sin roll, cos pitch cos roll)``: the plane's normal seen from the
-    contact frame.
-    """
-    roll = np.arctan2(normals[..., 1], normals[..., 2])
-    pitch = -np.arcsin(np.clip(normals[..., 0], -1.0, 1.0))
-    return np.stack([roll, pitch], axis=-1)
-
-
-def tilt_derivatives(normals: np.ndarray) -> np.ndarray:
-    """Derivatives ``(..., 2, 3)`` of :func:`tilts` with respect to the normal's components."""
-    x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
-    D = np.zeros((*normals.shape[:-1], 2, 3))
-    yz = y**2 + z**2
-    D[..., 0, 1], D[..., 0, 2] = z / yz, -y / yz
-    D[..., 1, 0] = -1.0 / np.sqrt(np.maximum(1.0 - x**2, 1e-300))
-    return D
-
-
 def plane_residuals(
     rotations: np.ndarray, positions: np.ndarray, contact: np.ndarray, planes: np.ndarray
 ) -> np.ndarray:
     """Height [m], roll and pitch [rad] ``(m, 3)`` of the contact frame in its plane's frame.
+
+    The gap of :class:`~calib.identification.contacts.PlaneContact` (its one definition).
 
     Args:
         rotations: Tool rotations in the base frame ``(m, 3, 3)``.
@@ -184,11 +177,8 @@ def plane_residuals(
         planes: Plane of each touch in the base frame ``(m, 4, 4)`` (or one ``(4, 4)``).
     """
     planes = np.broadcast_to(planes, (len(positions), 4, 4))
-    normal = planes[:, :3, 2]
-    x = positions + rotations @ contact[:3, 3]
-    height = np.einsum("mi,mi->m", normal, x - planes[:, :3, 3])
-    seen = np.einsum("mji,mj->mi", rotations @ contact[:3, :3], normal)
-    return np.column_stack([height, tilts(seen)])
+    frames = ContactFrames(PlaneContact(), np.asarray(contact, dtype=float), planes, ())
+    return frames.gaps(rotations, positions, np.arange(len(positions)))
 
 
 def _groups(ids: Sequence[str], m: int) -> tuple[tuple[str, ...], np.ndarray]:
@@ -219,14 +209,6 @@ def _check_inputs(rotations, positions, contact) -> tuple[np.ndarray, np.ndarray
     return R, p, C
 
 
-def _tangent(n: np.ndarray) -> np.ndarray:
-    """Orthonormal bases ``(..., 3, 2)`` of the planes orthogonal to unit vectors ``(..., 3)``."""
-    helper = np.where(np.abs(n[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    e1 = np.cross(n, helper)
-    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
-    return np.stack([e1, np.cross(n, e1)], axis=-1)
-
-
 def _tilt_to(b: np.ndarray) -> np.ndarray:
     """Rotation vector about an axis orthogonal to z that takes e_z to the unit vector b."""
     axis = np.array([-b[1], b[0], 0.0])
@@ -234,43 +216,75 @@ def _tilt_to(b: np.ndarray) -> np.ndarray:
     return np.zeros(2) if s < 1e-300 else (axis * np.arctan2(s, b[2]) / s)[:2]
 
 
-@dataclass(frozen=True, eq=False)
-class _PlaneState:
-    phi: np.ndarray  # contact tilt about its guess's x and y [rad]
-    normals: np.ndarray  # (K, 3)
-    heights: np.ndarray  # (K,) [m]
-
-    def contact(self, guess: np.ndarray) -> np.ndarray:
-        C = guess.copy()
-        C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*self.phi, 0.0]))
-        return C
-
-
-def _plane_rows(R, p, guess, index, state: _PlaneState, w: float):
-    """Weighted residuals ``(m, 3)`` and their Jacobian ``(m, 3, 2 + 3 K)``."""
-    K, m = len(state.heights), len(p)
-    C = state.contact(guess)
-    n = state.normals[index]
-    x = p + R @ C[:3, 3]
-    seen = np.einsum("mji,mj->mi", R @ C[:3, :3], n)
-    r = np.column_stack([np.einsum("mi,mi->m", n, x) - state.heights[index], w * tilts(seen)])
-    J = np.zeros((m, 3, 2 + 3 * K))
-    D = w * tilt_derivatives(seen)
-    Jr = left_jacobian(-np.array([*state.phi, 0.0]))[:, :2]
-    J[:, 1:, :2] = D @ skew(seen) @ Jr
-    B = _tangent(state.normals)[index]  # (m, 3, 2)
-    cols = 2 + 3 * index[:, None] + np.arange(2)
-    rows = np.arange(m)[:, None]
-    J[rows, 0, cols] = np.einsum("mi,mik->mk", x, B)
-    J[rows[:, :, None], np.arange(1, 3)[None, :, None], cols[:, None, :]] = (
-        D @ np.swapaxes(R @ C[:3, :3], 1, 2) @ B
-    )
-    J[np.arange(m), 0, 2 + 3 * index + 2] = -1.0
-    return r, J
+def _plane_frames(normals, heights, x, index) -> np.ndarray:
+    """Planes ``(K, 4, 4)``: z = normal, origin the projected centroid, x the base's x or y."""
+    planes = np.tile(np.eye(4), (len(heights), 1, 1))
+    for k, (n, h) in enumerate(zip(normals, heights, strict=True)):
+        c = x[index == k].mean(axis=0)
+        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        ex = helper - (helper @ n) * n
+        ex /= np.linalg.norm(ex)
+        planes[k, :3, :3] = np.column_stack([ex, np.cross(n, ex), n])
+        planes[k, :3, 3] = c - (n @ c - h) * n
+    return planes
 
 
-def _plane_start(R, p, guess, index, K, w) -> _PlaneState:
+def _cost(frames: ContactFrames, R, p, index, weight: float) -> float:
+    g = frames.gaps(R, p, index) * row_weights(frames.kind, weight)
+    return float(np.sum(g**2))
+
+
+def refine(
+    frames: ContactFrames,
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    index: np.ndarray,
+    weight: float = DEFAULT_WEIGHT,
+) -> tuple[ContactFrames, int]:
+    """Gauss-Newton on the unknowns of ``frames`` (the tool placements held), from them.
+
+    The weighted gap is the kind's (``kind.residual``, rows ``kind.jacobian_rows``).
+
+    Args:
+        frames: The start (a closed form).
+        rotations: Tool rotations in the base frame ``(m, 3, 3)``.
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        index: The object of each touch ``(m,)``.
+        weight: Weight of the angle rows [m/rad].
+
+    Returns:
+        The frames at the least-squares minimum and the steps taken.
+
+    Raises:
+        ContactGeometryError: Touches that do not fix the unknowns.
+    """
+    w = row_weights(frames.kind, weight)
+    x = np.zeros(frames.size)
+    steps = 0
+    while steps < ITERATIONS:
+        steps += 1
+        cur = frames.moved(x)
+        R, p = cur.relative(rotations, positions, index)
+        r = frames.kind.residual(R, p) * w
+        J = frames.kind.jacobian_rows(cur.columns(R, p, index, x), R) * w[None, :, None]
+        A = J.reshape(-1, frames.size)
+        sv = np.linalg.svd(A, compute_uv=False)
+        if sv[-1] <= CONDITION_LIMIT * sv[0]:
+            raise ContactGeometryError(
+                f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame: "
+                f"touch at several orientations, or at spots that span each "
+                f"{frames.kind.object_name}"
+            )
+        step = np.linalg.lstsq(A, -r.ravel(), rcond=None)[0]
+        x = x + step
+        if np.max(np.abs(step)) < STEP_TOLERANCE:
+            break
+    return frames.moved(x), steps
+
+
+def _plane_start(R, p, guess, index, names, w) -> ContactFrames:
     """The closed-form start: the chordal fit of the normals, or the contact points' planes."""
+    K = len(names)
     M = np.stack([np.sum(np.swapaxes(R[index == k], 1, 2), axis=0) for k in range(K)])
     U = np.linalg.svd(np.concatenate(list(M), axis=1))[0]
     z0 = guess[:3, 2]
@@ -288,10 +302,20 @@ def _plane_start(R, p, guess, index, K, w) -> _PlaneState:
         ak = np.einsum("kij,kj->i", M, normals)
         ak = ak / np.linalg.norm(ak)
         heights = np.array([np.mean(x[index == k] @ normals[k]) for k in range(K)])
-        state = _PlaneState(_tilt_to(guess[:3, :3].T @ ak), normals, heights)
-        cost = float(np.sum(_plane_rows(R, p, guess, index, state, w)[0] ** 2))
-        candidates.append((cost, state))
+        C = guess.copy()
+        C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*_tilt_to(guess[:3, :3].T @ ak), 0]))
+        planes = _plane_frames(normals, heights, p + R @ C[:3, 3], index)
+        frames = ContactFrames(PlaneContact(), C, planes, names)
+        candidates.append((_cost(frames, R, p, index, w), frames))
     return min(candidates, key=lambda c: c[0])[1]
+
+
+def _recentred(frames: ContactFrames, R, p, index) -> np.ndarray:
+    """The planes with their origin at the contact points' centroid projected."""
+    C = frames.contact
+    normals = frames.objects[:, :3, 2]
+    heights = np.einsum("ki,ki->k", normals, frames.objects[:, :3, 3])
+    return _plane_frames(normals, heights, p + R @ C[:3, 3], index)
 
 
 def register_planes(
@@ -321,47 +345,45 @@ def register_planes(
     names, index = _groups(ids, len(p))
     if not (np.isfinite(weight) and weight > 0):
         raise InvalidArgumentError(f"weight must be positive and finite, got {weight}")
-    K = len(names)
-    state = _plane_start(R, p, guess, index, K, weight)
-    steps = 0
-    while steps < ITERATIONS:
-        steps += 1
-        r, J = _plane_rows(R, p, guess, index, state, weight)
-        A = J.reshape(-1, 2 + 3 * K)
-        s = np.linalg.svd(A, compute_uv=False)
-        if s[-1] <= CONDITION_LIMIT * s[0]:
-            raise ContactGeometryError(
-                "the touches do not fix the plane(s) and the contact normal: touch at several "
-                "orientations, or at spots that span each plane"
-            )
-        step = np.linalg.lstsq(A, -r.ravel(), rcond=None)[0]
-        d = step[2:].reshape(K, 3)
-        normals = state.normals + np.einsum("kij,kj->ki", _tangent(state.normals), d[:, :2])
-        state = _PlaneState(
-            state.phi + step[:2],
-            normals / np.linalg.norm(normals, axis=1, keepdims=True),
-            state.heights + d[:, 2],
-        )
-        if np.max(np.abs(step)) < STEP_TOLERANCE:
-            break
-    C = state.contact(guess)
-    planes = _plane_frames(state.normals, state.heights, p + R @ C[:3, 3], index)
+    start = _plane_start(R, p, guess, index, names, weight)
+    frames, steps = refine(start, R, p, index, weight)
+    planes = _recentred(frames, R, p, index)
+    C = frames.contact
     return PlaneRegistration(
         names, planes, C, plane_residuals(R, p, C, planes[index]), float(weight), steps
     )
 
 
-def _plane_frames(normals, heights, x, index) -> np.ndarray:
-    """Planes ``(K, 4, 4)``: z = normal, origin the projected centroid, x the base's x or y."""
-    planes = np.tile(np.eye(4), (len(heights), 1, 1))
-    for k, (n, h) in enumerate(zip(normals, heights, strict=True)):
-        c = x[index == k].mean(axis=0)
-        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        ex = helper - (helper @ n) * n
-        ex /= np.linalg.norm(ex)
-        planes[k, :3, :3] = np.column_stack([ex, np.cross(n, ex), n])
-        planes[k, :3, 3] = c - (n @ c - h) * n
-    return planes
+def register_plane_points(
+    rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
+) -> PlaneRegistration:
+    """Planes and the tip fitted to the tip's touches (heights only; see the module's text).
+
+    Args:
+        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        ids: Plane id of each touch ``(m,)``.
+        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (its rotation kept).
+
+    Raises:
+        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a plane, or touches that do
+            not fix the planes and the tip (one orientation, spots on a line).
+    """
+    R, p, guess = _check_inputs(rotations, positions, contact)
+    names, index = _groups(ids, len(p))
+    x = p + R @ guess[:3, 3]
+    normals, heights = [], []
+    for k in range(len(names)):
+        centred = x[index == k] - x[index == k].mean(axis=0)
+        n = np.linalg.svd(centred)[2][-1]
+        n = n if n[2] >= 0 else -n
+        normals.append(n)
+        heights.append(float(np.mean(x[index == k] @ n)))
+    planes = _plane_frames(np.array(normals), np.array(heights), x, index)
+    frames, steps = refine(ContactFrames(PlanePointContact(), guess, planes, names), R, p, index)
+    planes = _recentred(frames, R, p, index)
+    final = ContactFrames(PlanePointContact(), frames.contact, planes, names)
+    return PlaneRegistration(names, planes, frames.contact, final.gaps(R, p, index), 1.0, steps)
 
 
 def register_points(
@@ -398,13 +420,19 @@ def register_points(
     points = pbar + Rbar @ tip
     C = guess.copy()
     C[:3, 3] = tip
-    return PointRegistration(names, points, C, p + R @ tip - points[index])
+    frames = np.tile(np.eye(4), (K, 1, 1))
+    frames[:, :3, 3] = points
+    gaps = ContactFrames(FixedPointContact(), C, frames, names).gaps(R, p, index)
+    return PointRegistration(names, points, C, gaps)
 
 
 def register_poses(
     rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
 ) -> PoseRegistration:
     """Fixed poses: the mean pose of the contact frame per id (the contact keeps its guess).
+
+    The position is the mean, the rotation the chordal mean refined by :func:`refine` (the
+    geodesic, Karcher, mean: the least squares of the rotation vectors).
 
     Args:
         rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
@@ -420,20 +448,67 @@ def register_poses(
     Q = R @ C[:3, :3]
     x = p + R @ C[:3, 3]
     poses = np.tile(np.eye(4), (len(names), 1, 1))
-    most = 0
     for k in range(len(names)):
-        Qk = Q[index == k]
-        Rf = nearest_rotation(Qk.sum(axis=0))
-        for step in range(1, ITERATIONS + 1):
-            r = rotation_vector(np.swapaxes(Rf, 0, 1) @ Qk)
-            A = inverse_right_jacobian(-r)  # d r / d eta = -A for Rf <- Rf Exp(eta)
-            eta = np.linalg.solve(np.einsum("mji,mjk->ik", A, A), np.einsum("mji,mj->i", A, r))
-            Rf = Rf @ rotation_matrix(eta)
-            most = max(most, step)
-            if np.max(np.abs(eta)) < STEP_TOLERANCE:
-                break
-        poses[k, :3, :3], poses[k, :3, 3] = Rf, x[index == k].mean(axis=0)
-    F = poses[index]
-    local = np.einsum("mji,mj->mi", F[:, :3, :3], x - F[:, :3, 3])
-    rotvec = rotation_vector(np.swapaxes(F[:, :3, :3], 1, 2) @ Q)
-    return PoseRegistration(names, poses, C, np.column_stack([local, rotvec]), most)
+        poses[k, :3, :3] = nearest_rotation(Q[index == k].sum(axis=0))
+        poses[k, :3, 3] = x[index == k].mean(axis=0)
+    frames, steps = refine(ContactFrames(FixedPoseContact(), C, poses, names), R, p, index)
+    return PoseRegistration(names, frames.objects, C, frames.gaps(R, p, index), steps)
+
+
+def register_contacts(
+    kind: Contact,
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    ids: Sequence[str],
+    contact: np.ndarray,
+    weight: float = DEFAULT_WEIGHT,
+) -> ContactFrames:
+    """The objects and the contact frame of any kind, registered (closed form, then refined).
+
+    Args:
+        kind: The contact kind.
+        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
+        positions: Tool positions in the base frame ``(m, 3)`` [m].
+        ids: Object id of each touch ``(m,)``.
+        contact: Guess of the contact frame in the tool frame ``(4, 4)``.
+        weight: Weight of the angle rows [m/rad].
+
+    Raises:
+        ContactGeometryError: Too few touches of an object, or a geometry that fixes nothing.
+        InvalidArgumentError: A kind calib cannot register.
+    """
+    register = _REGISTRATIONS.get(type(kind))
+    if register is None:
+        raise InvalidArgumentError(f"no registration for contacts of kind {kind.label!r}")
+    return register(kind, rotations, positions, ids, contact, weight)
+
+
+def _planes(kind, R, p, ids, contact, weight) -> ContactFrames:
+    reg = register_planes(R, p, ids, contact, weight)
+    return ContactFrames(kind, reg.contact, reg.planes, reg.ids)
+
+
+def _plane_points(kind, R, p, ids, contact, weight) -> ContactFrames:
+    reg = register_plane_points(R, p, ids, contact)
+    return ContactFrames(kind, reg.contact, reg.planes, reg.ids)
+
+
+def _points(kind, R, p, ids, contact, weight) -> ContactFrames:
+    pts = register_points(R, p, ids, contact)
+    objects = np.tile(np.eye(4), (len(pts.ids), 1, 1))
+    objects[:, :3, 3] = pts.points
+    return ContactFrames(kind, pts.contact, objects, pts.ids)
+
+
+def _poses(kind, R, p, ids, contact, weight) -> ContactFrames:
+    poses = register_poses(R, p, ids, contact)
+    return ContactFrames(kind, poses.contact, poses.poses, poses.ids)
+
+
+_REGISTRATIONS = {
+    PlaneContact: _planes,
+    PlanePointContact: _plane_points,
+    FixedPointContact: _points,
+    FixedPoseContact: _poses,
+}
+"""The closed form of each kind (its refinement is the kind's own gap, :func:`refine`)."""

@@ -1,4 +1,24 @@
-"""The result of a calibration from flush contacts: gaps, plane, contact frame, report."""
+"""The result of a calibration from contacts: gaps, objects, contact frame, report.
+
+The report (:meth:`ContactCalibration.to_dict`) holds, under ``contact``:
+
+* ``planes.<id>`` (``plane``, ``plane-point``): ``{"frame": BASE, "matrix": 4x4}``, the plane
+  in the chain's base frame, z its normal, origin the touches' centroid projected on it;
+* ``points.<id>`` (``fixed-point``): ``{"frame": BASE, "matrix": 4x4}``, the point as the
+  origin, the base frame's axes (a point has no orientation);
+* ``poses.<id>`` (``fixed-pose``): ``{"frame": BASE, "matrix": 4x4}``, the fixed frame the
+  contact frame is held on;
+* ``frames.<tool>``: ``{"matrix": 4x4}``, the contact frame in the tool frame.
+
+Under ``gaps``, for ``train``, ``train_registration`` and, with held-out touches,
+``held_out`` and ``held_out_registration``: ``m``, then for each row of the kind
+``<row>_rms_<unit>`` and ``<row>_max_<unit>`` (``mm`` for a length, ``deg`` for an angle;
+e.g. ``height_rms_mm``, ``roll_max_deg``, ``x_rms_mm``, ``rz_rms_deg``), and
+``weighted_mm``; with joint compliance (``elastic``), ``train_urdf`` and ``held_out_urdf``:
+the URDF alone. ``compliance`` (by joint, 0 where none was fitted) and ``load`` (the standing
+load, or None) describe the compliance; :meth:`ContactCalibration.compliance_document` is
+its file.
+"""
 
 from __future__ import annotations
 
@@ -9,12 +29,14 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import CalibrationRefusedError
+from ..identification.contacts import Contact
 from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from ..kinematics.urdf_export import write_calibrated_urdf
 from ..kinematics.urdf_model import read_urdf_file
+from .outliers import Outlier
 from .selection import Selection
 
 __all__ = ["ContactCalibration", "GapStats", "gap_stats"]
@@ -22,47 +44,79 @@ __all__ = ["ContactCalibration", "GapStats", "gap_stats"]
 
 @dataclass(frozen=True)
 class GapStats:
-    """Gaps of touches: the contact frame's height and tilts in the plane's frame.
+    """Gaps of touches: the kind's rows (lengths in mm, angles in degrees).
 
     Attributes:
         m: Touches.
-        height_rms_mm, height_max_mm: RMS and largest |height| [mm].
-        roll_rms_deg, roll_max_deg, pitch_rms_deg, pitch_max_deg: The tilts [deg].
-        weighted_mm: RMS of ``sqrt(z^2 + w^2 (roll^2 + pitch^2))`` [mm] (w: the tilt weight).
+        names: The kind's row names.
+        angular: Whether each row is an angle.
+        rms: RMS of each row [mm or deg].
+        max: Largest absolute value of each row [mm or deg].
+        weighted_mm: RMS over touches of the weighted gap's norm [mm] (angles times the
+            orientation weight).
+
+    Each row's figures also read as attributes: ``height_rms_mm``, ``roll_max_deg``, ...
     """
 
     m: int
-    height_rms_mm: float
-    height_max_mm: float
-    roll_rms_deg: float
-    roll_max_deg: float
-    pitch_rms_deg: float
-    pitch_max_deg: float
+    names: tuple[str, ...]
+    angular: tuple[bool, ...]
+    rms: tuple[float, ...]
+    max: tuple[float, ...]
     weighted_mm: float
 
+    def figures(self) -> tuple[str, ...]:
+        """``<row>_rms_<unit>`` and ``<row>_max_<unit>`` of every row, in row order."""
+        out = []
+        for name, angle in zip(self.names, self.angular, strict=True):
+            unit = "deg" if angle else "mm"
+            out += [f"{name}_rms_{unit}", f"{name}_max_{unit}"]
+        return tuple(out)
+
+    def __getattr__(self, key: str) -> float:
+        """A row's figure by its key (:meth:`figures`), e.g. ``height_rms_mm``."""
+        if key.startswith("__") or key in ("names", "angular", "rms", "max", "figures"):
+            raise AttributeError(key)
+        keys = self.figures()
+        if key not in keys:
+            raise AttributeError(f"GapStats has no {key!r}: {', '.join(keys)}")
+        i = keys.index(key)
+        return (self.max if i % 2 else self.rms)[i // 2]
+
+    @property
+    def length_rms_mm(self) -> float:
+        """RMS over touches of the norm of the length rows [mm]."""
+        lengths = [r for r, a in zip(self.rms, self.angular, strict=True) if not a]
+        return math.sqrt(sum(v**2 for v in lengths))
+
     def to_dict(self) -> dict:
-        """JSON-ready form."""
-        return dict(self.__dict__)
+        """JSON-ready form: ``m``, each row's RMS and largest value, ``weighted_mm``."""
+        out: dict = {"m": self.m}
+        for key in self.figures():
+            out[key] = getattr(self, key)
+        out["weighted_mm"] = self.weighted_mm
+        return out
 
 
-def gap_stats(state, q: np.ndarray, torque: np.ndarray | None = None) -> GapStats:
-    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at postures ``q``.
+def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) -> GapStats:
+    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at touches ``q`` of ``ids``.
 
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None).
+    ``ids`` may be left out when the state has one object. ``torque``: the gravity torques
+    ``(m, n)`` that deflect compliant joints (or None).
     """
-    g = state.gaps(q, torque)
-    w = np.array([1.0, state.weight, state.weight])
-    rms = np.sqrt(np.mean(g**2, axis=0))
-    top = np.max(np.abs(g), axis=0)
+    g = state.gaps(q, ids, torque)
+    kind = state.kind
+    scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
+    rms = np.sqrt(np.mean(g**2, axis=0)) * scale
+    top = np.max(np.abs(g), axis=0) * scale
+    weighted = g * state.row_weights()
     return GapStats(
         len(g),
-        1e3 * float(rms[0]),
-        1e3 * float(top[0]),
-        math.degrees(float(rms[1])),
-        math.degrees(float(top[1])),
-        math.degrees(float(rms[2])),
-        math.degrees(float(top[2])),
-        1e3 * float(np.sqrt(np.mean(np.sum((g * w) ** 2, axis=1)))),
+        kind.row_names,
+        kind.angular,
+        tuple(float(v) for v in rms),
+        tuple(float(v) for v in top),
+        1e3 * float(np.sqrt(np.mean(np.sum(weighted**2, axis=1)))),
     )
 
 
@@ -72,30 +126,32 @@ class ContactCalibration:
 
     Attributes:
         chain: The nominal chain.
+        kind: The contact kind.
         nominal: Its MDH model.
         calibrated: The calibrated MDH model (frame -1: the chain's base frame).
         contact: The contact frame in the tool frame ``(4, 4)``.
-        plane: The plane in the base frame ``(4, 4)``, z = normal.
-        plane_id: The plane's id.
+        objects: Each plane, point or pose in the base frame ``(4, 4)``, by id (see the
+            module's text).
         free: The robot parameters fitted.
         selection: The automatic choice (``auto``), or None.
         stats: ``train``, ``train_registration`` and, with held-out touches, ``held_out``
-            and ``held_out_registration`` (the nominal robot with its own plane and contact);
-            with compliance, ``train_urdf`` and ``held_out_urdf``: the URDF alone.
+            and ``held_out_registration`` (the nominal robot with its own objects and
+            contact); with compliance, ``train_urdf`` and ``held_out_urdf``: the URDF alone.
         refusal: Why the model must not be used, or None.
         notes: Remarks for the user.
-        weight: Weight of the tilt rows [m/rad].
+        weight: Weight of the angle rows [m/rad].
         timings_ms: Stage timings [ms].
+        outliers: Touches set aside after the registration.
         compliance: Fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
         load: The gravity load the compliance acts under, or None.
     """
 
     chain: Chain
+    kind: Contact
     nominal: MDHModel
     calibrated: MDHModel
     contact: np.ndarray
-    plane: np.ndarray
-    plane_id: str
+    objects: dict[str, np.ndarray]
     free: tuple[str, ...]
     selection: Selection | None
     stats: dict[str, GapStats]
@@ -103,6 +159,7 @@ class ContactCalibration:
     notes: tuple[str, ...]
     weight: float
     timings_ms: dict[str, float]
+    outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
     load: StandingLoad | None = None
 
@@ -116,25 +173,38 @@ class ContactCalibration:
         """The model may be used (not refused)."""
         return self.refusal is None
 
+    @property
+    def plane_id(self) -> str:
+        """The first object's id."""
+        return next(iter(self.objects))
+
+    @property
+    def plane(self) -> np.ndarray:
+        """The first object ``(4, 4)`` in the base frame (a plane: z = normal)."""
+        return self.objects[self.plane_id]
+
     def to_dict(self) -> dict:
         """The JSON report (metres, radians; gaps in mm and degrees)."""
+        base = self.chain.base_frame
+        angles = any(self.kind.angular)
         return {
             "robot": self.chain.name,
-            "base": self.chain.base_frame,
+            "base": base,
             "tool": self.chain.tool_frame,
-            "measure": "plane",
+            "measure": self.kind.label,
             "accepted": self.accepted,
             "refusal": self.refusal,
             "free": list(self.free),
             "selection": None if self.selection is None else self.selection.to_dict(),
-            "tilt_weight": self.weight,
+            "tilt_weight": self.weight if angles else None,
             "contact": {
-                "planes": {
-                    self.plane_id: {"frame": self.chain.base_frame, "matrix": self.plane.tolist()}
+                f"{self.kind.object_name}s": {
+                    k: {"frame": base, "matrix": T.tolist()} for k, T in self.objects.items()
                 },
                 "frames": {self.chain.tool_frame: {"matrix": self.contact.tolist()}},
             },
             "gaps": {k: v.to_dict() for k, v in self.stats.items()},
+            "outliers": [o.to_dict() for o in self.outliers],
             "compliance": {
                 j: float(c)
                 for j, c in zip(

@@ -59,13 +59,15 @@ def _swaps(data) -> Iterator[tuple[str, object]]:
             yield f"joint columns {names[i]} and {names[j]} swapped", dataclasses.replace(data, q=q)
 
 
-def _mistakes(data, revolute: np.ndarray) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for each usual mistake."""
+def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
     yield from _swaps(data)
     if np.any(revolute):
         q = data.q.copy()
         q[:, revolute] = np.deg2rad(q[:, revolute])
         yield "revolute joint positions in degrees, not radians", dataclasses.replace(data, q=q)
+    if joints_only:
+        return
     yield (
         "positions in millimetres, not metres (units mm)",
         dataclasses.replace(data, position=data.position * 1e-3),
@@ -134,6 +136,7 @@ def likely_cause(
     registration_rms: Callable[[object], float],
     before: float,
     orientation: bool = False,
+    joints_only: bool = False,
 ) -> tuple[str, float] | None:
     """The usual mistake that explains the data, with the RMS error once it is corrected.
 
@@ -144,13 +147,17 @@ def likely_cause(
             error [rad]) of the registration of some data.
         before: That error for ``data`` as they are [m or rad].
         orientation: Try the mistakes of the orientation columns.
+        joints_only: Try the mistakes of the joint columns only (data that record the
+            joints alone: contacts).
 
     Returns:
         (description, RMS [m or rad]) of the best explaining mistake, or None.
     """
     best = None
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT
-    mistakes = _orientation_mistakes(data) if orientation else _mistakes(data, revolute)
+    mistakes = (
+        _orientation_mistakes(data) if orientation else _mistakes(data, revolute, joints_only)
+    )
     for what, fixed in mistakes:
         try:
             rms = registration_rms(fixed)

@@ -22,6 +22,7 @@ __all__ = [
     "NOISE_FACTOR",
     "PASSES",
     "Outlier",
+    "find_outliers",
     "find_pose_outliers",
 ]
 
@@ -94,17 +95,37 @@ def find_pose_outliers(
     Returns:
         The boolean mask of the outliers and the outliers (the point error first where both).
     """
-    errors = _configuration_errors(residual, n_markers)
+    rot = None
+    if residual.shape[1] == 3 * n_markers + 3:
+        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+    return find_outliers(_configuration_errors(residual, n_markers), rot, noise, rows)
+
+
+def find_outliers(
+    errors: np.ndarray, orientation: np.ndarray | None, noise: float | None, rows: tuple[int, ...]
+) -> tuple[np.ndarray, list[Outlier]]:
+    """Outliers of per-configuration errors: by position error, and by orientation error.
+
+    Args:
+        errors: Position error of each configuration ``(m,)`` [m].
+        orientation: Orientation error of each ``(m,)`` [rad], or None.
+        noise: Instrument position noise [m], or None.
+        rows: File row of each configuration.
+
+    Returns:
+        The boolean mask of the outliers and the outliers (the position error first where
+        both).
+    """
     bad = _find_outliers(errors, noise)
     found = [
         Outlier(rows[i], float(errors[i]), float(np.median(errors))) for i in np.flatnonzero(bad)
     ]
-    if residual.shape[1] == 3 * n_markers + 3:
-        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-        bad_rot = _find_outliers(rot, None) & ~bad
-        median = float(np.median(rot))
+    if orientation is not None:
+        bad_rot = _find_outliers(orientation, None) & ~bad
+        median = float(np.median(orientation))
         found += [
-            Outlier(rows[i], float(rot[i]), median, "orientation") for i in np.flatnonzero(bad_rot)
+            Outlier(rows[i], float(orientation[i]), median, "orientation")
+            for i in np.flatnonzero(bad_rot)
         ]
         bad = bad | bad_rot
     if np.sum(~bad) < max(3, len(errors) // 2):

@@ -160,7 +160,7 @@ def calibrate(
         InvalidArgumentError: A bad argument (:class:`~.options.Options`), an unknown one, or
             one given by position after ``data``.
     """
-    if isinstance(data, ContactData):  # touches (no instrument): one plane, one chain
+    if isinstance(data, ContactData):  # touches (no instrument): any contact kind, one chain
         return calibrate_contact_data(
             robot, data, marker=marker, validate=validate, params=params, fix=fix, free=free,
             elastic=elastic, loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,

@@ -101,7 +101,12 @@ class Fit(Generic[_Model, _State]):
 
 
 def row_weights(model: ErrorModel, weight: float) -> np.ndarray:
-    """Weight of each residual row of a configuration: 1 for points, ``weight`` [m/rad] else."""
+    """Weight of each residual row of a configuration: 1 for points, ``weight`` [m/rad] else.
+
+    A model of no point and no orientation row (contacts: their rows come weighted) gets 1.
+    """
+    if model.n_markers == 0 and not model.pose:
+        return np.ones(1)
     return np.r_[np.ones(3 * model.n_markers), np.full(3 * model.pose, weight)]
 
 

@@ -1,4 +1,4 @@
-"""`calib calibrate --measure plane`: calibration from contacts (touches, no instrument)."""
+"""`calib calibrate --measure plane|plane-point|fixed-point|fixed-pose`: from contacts."""
 
 from __future__ import annotations
 
@@ -119,10 +119,15 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) ->
 
 
 def _text(result) -> str:
+    kind = result.kind
+    ids = ", ".join(f"'{k}'" for k in result.objects)
+    units = ["deg" if a else "mm" for a in kind.angular]
     lines = [
         f"{result.chain.name}: {result.chain.base_frame} -> {result.chain.tool_frame}, "
-        f"plane '{result.plane_id}', {len(result.free)} robot parameters fitted",
-        "gaps (RMS): height [mm]  roll [deg]  pitch [deg]",
+        f"{kind.label} contact, {kind.object_name}(s) {ids}, {len(result.free)} robot "
+        f"parameters fitted",
+        "gaps (RMS): "
+        + "  ".join(f"{n} [{u}]" for n, u in zip(kind.row_names, units, strict=True)),
     ]
     labels = {}
     for key in result.stats:
@@ -132,10 +137,8 @@ def _text(result) -> str:
         labels[key] = label
     width = max(map(len, labels.values()))
     for key, s in result.stats.items():
-        lines.append(
-            f"  {labels[key]:{width}s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  "
-            f"{s.pitch_rms_deg:8.3f}  ({s.m} touches)"
-        )
+        values = "  ".join(f"{v:8.3f}" for v in s.rms)
+        lines.append(f"  {labels[key]:{width}s} {values}  ({s.m} touches)")
     if result.load is not None:
         lines.append(
             f"joint compliance under gravity, standing on {result.chain.base_frame} "

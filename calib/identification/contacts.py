@@ -6,10 +6,12 @@ n+1): a touch's residual is the gap of the contact frame's placement ``(R, p)`` 
 frame, and its Jacobian rows come from the tool's pose-error Jacobian in the base frame
 (``W6``: displacement of the contact origin [m], then rotation [rad], both in the base frame).
 
-* ``plane``: the contact frame lies flush on the plane z = 0: gap (z, tilt_x, tilt_y), the
-  height of its origin and the tilts of its z axis ``n``: ``(-n_y, n_x)``; its yaw and its
-  position in the plane are free.
-* ``plane-point``: a probe tip on the plane: gap z.
+* ``plane``: the contact frame lies flush on the plane z = 0: gap (height, roll, pitch), the
+  height of its origin and its two tilts about its own x and y axes, read from the plane's
+  normal seen from the contact frame (:func:`tilts`; with the contact's rotation
+  ``Rz(yaw) Ry(pitch) Rx(roll)`` in the plane's frame, the roll and pitch of that
+  decomposition, whatever the yaw); its yaw and its position in the plane are free.
+* ``plane-point``: a probe tip on the plane: gap height.
 * ``fixed-point``: the tip at the point's origin: gap (x, y, z).
 * ``fixed-pose``: the contact frame on the fixed frame: gap (x, y, z, rotation vector).
 
@@ -21,12 +23,18 @@ the frame of its constraint (the plane, point or pose at frame -1).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import Kinematics, MDHModel, frames_at_zero, from_lines
-from ..kinematics.so3 import inverse_right_jacobian, rotation_vector
+from ..kinematics.so3 import (
+    inverse_right_jacobian,
+    rotation_vector,
+    tilt_derivatives,
+    tilts,
+)
 from .measures import CONTACT_NAMES, count_joints
 from .parameters import Kind, Parameter, ParameterSet
 
@@ -49,6 +57,22 @@ class Contact:
     """
 
     label: str
+
+    object_name: ClassVar[str] = "contact"
+    """What a touch touches (``plane``, ``point``, ``pose``): the report's group."""
+
+    object_dofs: ClassVar[tuple[int, ...]] = ()
+    """The object's unknowns: components of a twist in its own frame (0-2 translation [m],
+    3-5 rotation [rad]) that the touches see; as many as :meth:`unknown_constants`."""
+
+    contact_dofs: ClassVar[tuple[int, ...]] = ()
+    """The contact frame's unknowns: components of a twist in its own frame that the touches
+    see beside the object's (the others are invisible or regroup with the object's)."""
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """Whether each gap row is an angle [rad] (else a length [m])."""
+        raise NotImplementedError  # pragma: no cover (every kind below defines it)
 
     @property
     def marker(self) -> tuple[float, float, float]:
@@ -80,8 +104,8 @@ class Contact:
         return np.ones(len(R), dtype=bool)
 
     def unknown_constants(self, n_markers: int = 1) -> int:
-        """Unknowns of the plane, point or pose (every kind below defines it)."""
-        raise NotImplementedError  # pragma: no cover
+        """Unknowns of one plane, point or pose: as many as its :attr:`object_dofs`."""
+        return len(self.object_dofs)
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap of each touch ``(m, n_rows)`` (every kind below defines it)."""
@@ -124,11 +148,19 @@ class PlaneContact(Contact):
     """
 
     label: str = "plane"
+    object_name = "plane"
+    object_dofs = (2, 3, 4)  # its height and two tilts
+    contact_dofs = (3, 4)
 
     @property
     def row_names(self) -> tuple[str, ...]:
-        """Height [m] and the tilts about the plane's x and y [rad]."""
-        return ("z", "tilt_x", "tilt_y")
+        """Height [m], roll and pitch [rad] of the contact frame in the plane's frame."""
+        return ("height", "roll", "pitch")
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """The height is a length, roll and pitch angles."""
+        return (False, True, True)
 
     @property
     def unseen(self) -> tuple[str, ...]:
@@ -144,34 +176,38 @@ class PlaneContact(Contact):
             "the plane touch it at the same joint positions",
         )
 
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """3 per plane: its height and two tilts."""
-        return 3
-
     def same_side(self, R: np.ndarray) -> np.ndarray:
         """The contact frame's z axis along the plane's normal, not against it."""
         return R[:, 2, 2] > 0
 
     def residual(self, R, p, measured=None) -> np.ndarray:
-        """Gap ``(m, 3)``: ``(p_z, -n_y, n_x)`` with n the contact frame's z axis."""
-        n = R[:, :, 2]
-        return np.stack([p[:, 2], -n[:, 1], n[:, 0]], axis=1)
+        """Gap ``(m, 3)``: the height ``p_z`` and :func:`tilts` of ``s = R^T e_z``."""
+        return np.column_stack([p[:, 2], tilts(R[:, 2, :])])
 
     def jacobian_rows(self, W6: np.ndarray, R: np.ndarray) -> np.ndarray:
-        """The gap's rows: a rotation dphi turns n by dphi x n (exact at any posture)."""
-        n = R[:, :, 2, None]
-        tilt_x = n[:, 2] * W6[:, 3] - n[:, 0] * W6[:, 5]
-        tilt_y = n[:, 2] * W6[:, 4] - n[:, 1] * W6[:, 5]
-        return np.stack([W6[:, 2], tilt_x, tilt_y], axis=1)
+        """The gap's rows: a rotation dphi turns ``s`` by ``R^T (e_z x dphi)`` (exact)."""
+        ez_cross = np.stack([-W6[:, 4], W6[:, 3], np.zeros_like(W6[:, 3])], axis=1)
+        ds = np.swapaxes(R, 1, 2) @ ez_cross
+        return np.concatenate([W6[:, 2:3], tilt_derivatives(R[:, 2, :]) @ ds], axis=1)
 
     def newton_system(self, W6, R, p) -> tuple[np.ndarray, np.ndarray]:
         """Height and the tilts over ``(1 + n_z)``: ``tan(angle / 2)`` times the tilt axis.
 
-        Zero on the plane only, not on its flipped side (the gap's tilts vanish there too and
-        Newton steps on them would land a random start upside down half the time).
+        The tilts are those of the contact's normal ``n`` (third column of R), ``(-n_y, n_x)``,
+        scaled: zero on the plane only, not on its flipped side (Newton steps on unscaled
+        tilts would land a random start upside down half the time). Newton's system only:
+        the gap is :meth:`residual`.
         """
-        gap, J = self.residual(R, p), self.jacobian_rows(W6, R)
-        n = R[:, :, 2]
+        n = R[:, :, 2]  # the contact's normal; its tilts (-n_y, n_x) vanish with the gap's
+        gap = np.stack([p[:, 2], -n[:, 1], n[:, 0]], axis=1)
+        J = np.stack(
+            [
+                W6[:, 2],
+                n[:, 2, None] * W6[:, 3] - n[:, 0, None] * W6[:, 5],
+                n[:, 2, None] * W6[:, 4] - n[:, 1, None] * W6[:, 5],
+            ],
+            axis=1,
+        )
         s = 1.0 / np.maximum(1.0 + n[:, 2], 1e-9)
         dn_z = n[:, 1, None] * W6[:, 3] - n[:, 0, None] * W6[:, 4]  # (dphi x n)_z
         J[:, 1:] = s[:, None, None] * J[:, 1:] - (s**2)[:, None, None] * gap[:, 1:, None] * (
@@ -209,11 +245,19 @@ class PlanePointContact(Contact):
     """
 
     label: str = "plane-point"
+    object_name = "plane"
+    object_dofs = (2, 3, 4)
+    contact_dofs = (0, 1, 2)
 
     @property
     def row_names(self) -> tuple[str, ...]:
         """The tip's height [m]."""
-        return ("z",)
+        return ("height",)
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """A length."""
+        return (False,)
 
     @property
     def unseen(self) -> tuple[str, ...]:
@@ -223,10 +267,6 @@ class PlanePointContact(Contact):
             "the tip's orientation: only the tip point is constrained",
             "without a prismatic joint, the scale about a point of the plane",
         )
-
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """3 per plane: its height and two tilts."""
-        return 3
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap ``(m, 1)``: the tip's height."""
@@ -260,11 +300,19 @@ class FixedPointContact(Contact):
     """
 
     label: str = "fixed-point"
+    object_name = "point"
+    object_dofs = (0, 1, 2)  # its position
+    contact_dofs = (0, 1, 2)
 
     @property
     def row_names(self) -> tuple[str, ...]:
         """The tip's position [m]."""
         return ("x", "y", "z")
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """Lengths."""
+        return (False, False, False)
 
     @property
     def unseen(self) -> tuple[str, ...]:
@@ -275,10 +323,6 @@ class FixedPointContact(Contact):
             "the tip's orientation: only the tip point is constrained",
             "without a prismatic joint, the scale about the point",
         )
-
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """3 per point: its position."""
-        return 3
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap ``(m, 3)``: the tip's position in the point's frame."""
@@ -308,11 +352,19 @@ class FixedPoseContact(Contact):
     """
 
     label: str = "fixed-pose"
+    object_name = "pose"
+    object_dofs = (0, 1, 2, 3, 4, 5)  # all six
+    contact_dofs = ()
 
     @property
     def row_names(self) -> tuple[str, ...]:
         """Position [m] and rotation vector [rad] of the contact frame in the fixed frame."""
         return ("x", "y", "z", "rx", "ry", "rz")
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """Lengths, then angles."""
+        return (False, False, False, True, True, True)
 
     @property
     def unseen(self) -> tuple[str, ...]:
@@ -322,10 +374,6 @@ class FixedPoseContact(Contact):
             "is seen",
             "without a prismatic joint, the scale about the fixed frame's origin",
         )
-
-    def unknown_constants(self, n_markers: int = 1) -> int:
-        """6 per pose."""
-        return 6
 
     def residual(self, R, p, measured=None) -> np.ndarray:
         """Gap ``(m, 6)``: position and rotation vector ``log R``."""

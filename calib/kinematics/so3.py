@@ -19,6 +19,8 @@ __all__ = [
     "rotation_vector",
     "rpy_to_matrix",
     "skew",
+    "tilt_derivatives",
+    "tilts",
 ]
 
 SMALL_ANGLE = 1e-4
@@ -160,3 +162,26 @@ def left_jacobian(phi: np.ndarray) -> np.ndarray:
     b = np.where(small, 1.0 / 6.0 - theta**2 / 120.0, (t - np.sin(t)) / t**3)
     S = skew(phi)
     return np.eye(3) + a[..., None, None] * S + b[..., None, None] * (S @ S)
+
+
+def tilts(normals: np.ndarray) -> np.ndarray:
+    """Roll and pitch ``(..., 2)`` [rad] of a frame whose ``R^T e_z`` is ``normals`` ``(..., 3)``.
+
+    With ``R = Rz(yaw) Ry(pitch) Rx(roll)``, the last row of ``R`` is
+    ``(-sin pitch, cos pitch sin roll, cos pitch cos roll)``: the plane's normal seen from the
+    contact frame (a flush contact's gap, :class:`calib.identification.contacts.PlaneContact`).
+    Both are zero only where the normal is the contact's z (not its -z).
+    """
+    roll = np.arctan2(normals[..., 1], normals[..., 2])
+    pitch = -np.arcsin(np.clip(normals[..., 0], -1.0, 1.0))
+    return np.stack([roll, pitch], axis=-1)
+
+
+def tilt_derivatives(normals: np.ndarray) -> np.ndarray:
+    """Derivatives ``(..., 2, 3)`` of :func:`tilts` with respect to the normal's components."""
+    x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+    D = np.zeros((*normals.shape[:-1], 2, 3))
+    yz = y**2 + z**2
+    D[..., 0, 1], D[..., 0, 2] = z / yz, -y / yz
+    D[..., 1, 0] = -1.0 / np.sqrt(np.maximum(1.0 - x**2, 1e-300))
+    return D

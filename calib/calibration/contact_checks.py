@@ -1,0 +1,227 @@
+"""A contact calibration's registration and checks: usual mistakes, outliers, refusal.
+
+The same checks as measured data (:mod:`calib.calibration.chain_registration`,
+:mod:`calib.calibration.validation`), on the kind's gaps:
+
+* the registration (:func:`registration`): the objects and the contact frame on the nominal
+  robot (:func:`~calib.calibration.contact_registration.register_contacts`), the weight of
+  the angle rows estimated from it when not given (:func:`estimate_weight`);
+* the usual mistakes (:mod:`calib.calibration.diagnosis`): when the registration leaves a
+  length gap (RMS over touches of the length rows' norm) above ``diagnosis.SUSPECT``, joint
+  columns holding one value are named, then swapped joint columns and degrees are tried, and
+  the mistake whose correction explains the touches is named (a ``DataError``);
+* outliers (:func:`~calib.calibration.outliers.find_outliers`): touches whose length gap
+  (or angle gap) after the registration is more than ``outliers.FACTOR`` times the median
+  are set aside and the registration repeated (each object keeps ``MIN_TOUCHES``);
+* refusal (:func:`refusal`): a fit that did not converge, fits the touches worse than the
+  registration, leaves a rank-deficient Jacobian, or is worse than the registration on
+  held-out touches (weighted RMS gap) is not delivered.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..identification.contacts import Contact
+from ..kinematics.mdh import MDHModel
+from ..measurements.contact_campaign import ContactData
+from . import diagnosis, outliers, validation
+from .contact_model import ContactState
+from .contact_registration import MIN_TOUCHES, register_contacts
+from .contact_result import GapStats
+from .weighting import BOUNDS, DEFAULT_WEIGHT
+
+__all__ = [
+    "WEIGHT_ROUNDS",
+    "WORSE",
+    "checked_registration",
+    "estimate_weight",
+    "length_errors",
+    "refusal",
+    "registration",
+    "subset",
+]
+
+WEIGHT_ROUNDS = 5
+"""Registrations of the angle weight's estimate."""
+
+WORSE = validation.SAME
+"""Relative excess of a weighted RMS gap over the registration's that refuses a model."""
+
+
+def subset(data: ContactData, keep: np.ndarray) -> ContactData:
+    """The touches of a boolean mask (or of indices)."""
+    rows = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep)
+    return dataclasses.replace(
+        data,
+        q=data.q[rows],
+        ids=tuple(data.ids[i] for i in rows),
+        rows=None if data.rows is None else tuple(data.rows[i] for i in rows),
+    )
+
+
+def estimate_weight(kind: Contact, R, p, ids, guess: np.ndarray, first=None) -> float:
+    """Weight of the angle rows [m/rad]: RMS length gap / RMS angle gap of the registration.
+
+    Each round registers with the weight of the previous one (from ``DEFAULT_WEIGHT``; its
+    registration may be given, ``first``); the result is clipped to ``BOUNDS``. A kind
+    without both lengths and angles: the default.
+    """
+    angle = np.array(kind.angular)
+    w = DEFAULT_WEIGHT
+    if angle.all() or not angle.any():
+        return w
+    for k in range(WEIGHT_ROUNDS):
+        if k or first is None:
+            first = register_contacts(kind, R, p, ids, guess, w)
+        frames = first
+        g = frames.gaps(R, p, frames.index(ids))
+        tilt = float(np.sqrt(np.mean(g[:, angle] ** 2)))
+        if tilt <= 0:
+            break
+        w = float(np.clip(np.sqrt(np.mean(g[:, ~angle] ** 2)) / tilt, *BOUNDS))
+    return w
+
+
+def registration(
+    nominal: MDHModel, data: ContactData, guess: np.ndarray, weight: float | None, first=None
+) -> ContactState:
+    """The nominal robot with the objects and the contact frame registered (closed form).
+
+    ``weight`` None: estimated (:func:`estimate_weight`, ``first`` its first registration).
+    """
+    kin = nominal.kinematics(data.q)
+    R, p = kin.R[:, -1], kin.p[:, -1]
+    if weight is None:
+        weight = estimate_weight(data.kind, R, p, data.ids, guess, first)
+    w = weight
+    return ContactState(nominal, register_contacts(data.kind, R, p, data.ids, guess, w), w)
+
+
+def length_errors(state: ContactState, data: ContactData) -> tuple[np.ndarray, np.ndarray | None]:
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows)."""
+    g = state.gaps(data.q, data.ids)
+    angle = np.array(state.kind.angular)
+    rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
+    return np.linalg.norm(g[:, ~angle], axis=1), rot
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values**2)))
+
+
+def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) -> list[str]:
+    """Raise the usual mistake that explains absurd gaps; a note if none does.
+
+    ``start``: the registration of ``data`` at ``DEFAULT_WEIGHT``, if already made.
+    """
+
+    def gap(d) -> float:  # d: the touches, or a corrected copy
+        return _rms(length_errors(registration(nominal, d, guess, DEFAULT_WEIGHT), d)[0])
+
+    start = start or registration(nominal, data, guess, DEFAULT_WEIGHT)
+    first = _rms(length_errors(start, data)[0])
+    if not diagnosis.suspect(first, None):
+        return []
+    still = diagnosis.constant_joints(data)
+    if still:
+        raise DataError(
+            data.source,
+            f"the registration leaves {1e3 * first:.4g} mm RMS and joint column(s) "
+            f"{', '.join(still)} hold one value in every touch: were those joints logged?",
+        )
+    cause = diagnosis.likely_cause(data, chain.sigma == 0, gap, first, joints_only=True)
+    if cause is not None:
+        raise DataError(
+            data.source,
+            f"the touches look like {cause[0]}: the registration's gap drops from "
+            f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
+        )
+    return [
+        f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, and no "
+        f"usual mistake (swapped joint columns, degrees) explains it: check the touches, the "
+        f"chain and the contact frame's guess"
+    ]
+
+
+def _drop_outliers(nominal, train: ContactData, guess, weight, start: ContactState):
+    dropped: list[outliers.Outlier] = []
+    for _ in range(outliers.PASSES):
+        rows = train.rows or tuple(range(1, train.m + 1))
+        lengths, angles = length_errors(start, train)
+        bad, found = outliers.find_outliers(lengths, angles, None, rows)
+        kept = np.array(train.ids)[~bad]
+        if not bad.any() or any(np.sum(kept == k) < MIN_TOUCHES for k in train.contacts):
+            break
+        dropped += found
+        train = subset(train, ~bad)
+        start = registration(nominal, train, guess, weight)
+    return start, train, tuple(dropped)
+
+
+def _registrable(data: ContactData) -> bool:
+    """Enough touches of every object, and equations, to register them on their own."""
+    ids = np.array(data.ids)
+    per = min(int(np.sum(ids == k)) for k in data.contacts)
+    kind = data.kind
+    unknowns = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
+    return per >= MIN_TOUCHES and data.m * kind.n_rows > unknowns
+
+
+def checked_registration(
+    chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None
+):
+    """Diagnosis (the touches, and validation touches), registration, outliers set aside.
+
+    Returns:
+        The registration state, the touches kept, the outliers and the notes.
+    """
+    default = registration(nominal, train, guess, DEFAULT_WEIGHT)
+    notes = _diagnose(chain, nominal, train, guess, default)
+    if validate is not None and _registrable(validate):
+        notes += [f"{validate.source}: {n}" for n in _diagnose(chain, nominal, validate, guess)]
+    start = registration(nominal, train, guess, weight, default.frames)
+    start, train, dropped = _drop_outliers(nominal, train, guess, weight, start)
+    if dropped:
+        notes.append(
+            f"{len(dropped)} outlier touch(es) set aside (gap > {outliers.FACTOR:g} x the "
+            "median): " + ", ".join(o.text() for o in dropped)
+        )
+    return start, train, dropped, notes
+
+
+def refusal(
+    converged: str | None, stats: dict[str, GapStats], identified: bool, free: int
+) -> str | None:
+    """The first check a calibration fails, as a sentence (None: every check passed).
+
+    Args:
+        converged: None, or why the solver did not converge.
+        stats: The gap statistics (``train``, ``train_registration``, ``held_out``, ...).
+        identified: The Jacobian at the solution has full column rank.
+        free: Number of parameters fitted.
+    """
+    if converged is not None:
+        return f"the solver did not converge ({converged})"
+    train, before = stats["train"], stats["train_registration"]
+    if train.weighted_mm > before.weighted_mm * (1.0 + WORSE):
+        return (
+            "the calibrated model fits the touches worse than the registration alone "
+            f"({train.weighted_mm:.3f} > {before.weighted_mm:.3f} mm weighted RMS)"
+        )
+    if not identified:
+        return (
+            f"the touches do not identify the {free} fitted parameters (rank-deficient "
+            "Jacobian): touch in more varied postures or fit fewer parameters"
+        )
+    if "held_out" in stats:
+        held, reg = stats["held_out"], stats["held_out_registration"]
+        if held.weighted_mm > reg.weighted_mm * (1.0 + WORSE):
+            return (
+                "the calibrated model's held-out gaps are worse than the registration's "
+                f"({held.weighted_mm:.3f} > {reg.weighted_mm:.3f} mm weighted RMS)"
+            )
+    return None

@@ -1,0 +1,98 @@
+"""Joint compliance in a calibration from contacts (``elastic``): load, torques, URDF alone.
+
+With ``elastic=True`` the joint compliances are candidates of the fit beside the robot
+parameters (``q' = q + c tau``, :class:`~calib.calibration.contact_model.ContactModel`),
+``tau`` the gravity torques of the robot standing on the chain's base frame
+(:mod:`calib.kinematics.standing`, the load split with a second foot as ``support`` says).
+The URDF cannot hold them: the checks apply to the whole model (URDF and compliances), the
+URDF alone is scored too (``train_urdf``, ``held_out_urdf``), and a note says so where it is
+worse than the registration (use it only with its compliance file).
+
+Available for the ``plane`` kind (its compliance file records the contact frame and the
+plane).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..identification.contacts import Contact, PlaneContact
+from ..kinematics.robot import Chain
+from ..kinematics.standing import StandingLoad, Support, standing_load
+from ..measurements.contact_campaign import ContactData
+from .contact_checks import WORSE
+from .contact_model import ContactState
+from .contact_result import gap_stats
+
+__all__ = ["fitted_compliance", "standing", "torques"]
+
+
+def standing(
+    chain: Chain, kind: Contact, elastic: bool | None, support: Support | None
+) -> StandingLoad | None:
+    """The standing load compliance acts under (None: rigid joints).
+
+    Raises:
+        InvalidArgumentError: ``support`` without ``elastic``, or ``elastic`` for a kind other
+            than ``plane``.
+    """
+    if support is not None and not isinstance(support, Support):
+        raise InvalidArgumentError(f"support must be a Support, got {type(support).__name__}")
+    if support is not None and not elastic:
+        raise InvalidArgumentError("support (the load split between feet) needs elastic=True")
+    if not elastic:
+        return None
+    if not isinstance(kind, PlaneContact):
+        raise InvalidArgumentError(
+            f"elastic (joint compliance) is available for plane contacts only, not '{kind.label}'"
+        )
+    return standing_load(chain, support)
+
+
+def torques(
+    load: StandingLoad | None, train: ContactData, held: ContactData | None
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid)."""
+    return (
+        None if load is None else load.torques(train.q),
+        None if load is None or held is None else load.torques(held.q),
+    )
+
+
+def fitted_compliance(
+    state: ContactState, start: ContactState, sets, stats: dict, notes: list[str], load
+) -> np.ndarray | None:
+    """The fitted compliance ``(n,)`` (None: none kept); the URDF alone scored into ``stats``.
+
+    Args:
+        state: The fitted state.
+        start: The registration.
+        sets: The training and held-out touches (or None).
+        stats: The gap statistics, completed with ``train_urdf`` and ``held_out_urdf``.
+        notes: Remarks for the user, completed.
+        load: The standing load, or None (rigid fit).
+    """
+    if state.compliance is None or not np.any(state.compliance):
+        if load is not None:
+            notes.append("elastic: no joint compliance was kept; the URDF is the whole model")
+        return None
+    rigid = dataclasses.replace(state, compliance=None)
+    notes.append(
+        "joint compliance was fitted: the calibrated URDF cannot hold it; it is written to the "
+        "compliance file (apply it with calib predict or calib.load_calibrated)"
+    )
+    for label, key, d in (("the fitted", "train", sets[0]), ("held-out", "held_out", sets[1])):
+        if d is None:
+            continue
+        alone, reg = gap_stats(rigid, d.q, d.ids), stats[f"{key}_registration"]
+        stats[f"{key}_urdf"] = alone
+        if alone.weighted_mm > reg.weighted_mm * (1.0 + WORSE):
+            notes.append(
+                f"on {label} touches the calibrated URDF alone (without the fitted joint "
+                f"compliance) is worse than the registration alone ({alone.weighted_mm:.3f} > "
+                f"{reg.weighted_mm:.3f} mm weighted RMS): use it only with its compliance file"
+            )
+    return state.compliance

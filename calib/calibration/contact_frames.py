@@ -1,0 +1,174 @@
+"""The unknown constants of contacts: the objects touched and the contact frame, and the gaps.
+
+A touch is the tool's placement ``(R_t, p_t)`` in the chain's base frame. The contact frame
+``C`` is fixed to the tool (in the tool frame); the object ``F_k`` it touches (a plane, point
+or pose, named by an id) is fixed in the base frame. The contact frame's placement in the
+object's frame, ``(R, p) = F_k^-1 [R_t, p_t] C``, goes to the contact kind
+(:mod:`calib.identification.contacts`), which alone defines the gap
+(``kind.residual(R, p)``) and its rows (``kind.jacobian_rows(W6, R)``, ``W6`` the
+displacement of the contact origin [m] and the rotation [rad] in the object's frame): every
+gap calib fits, registers, reports or refuses on is evaluated here, from the kind.
+
+The unknowns: each object moves as ``F' = F [Exp(r), t]`` and the contact frame as
+``C' = C [Exp(r), t]``, the 6-vector ``(t, r)`` in their own frames zero except at the kind's
+``object_dofs`` and ``contact_dofs`` (what the touches see: a plane's height and tilts, a
+point's position, a pose's six; a flush contact's tilts, a tip's position).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import DataError, InvalidArgumentError
+from ..identification.contacts import Contact
+from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+
+__all__ = ["DOF_NAMES", "ContactFrames", "moved", "row_weights", "twist_map"]
+
+DOF_NAMES = ("x", "y", "z", "rx", "ry", "rz")
+"""Names of a twist's components in a frame's own axes: translation [m], rotation [rad]."""
+
+
+def _twist(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
+    v = np.zeros((*x.shape[:-1], 6))
+    v[..., list(dofs)] = x
+    return v
+
+
+def moved(T: np.ndarray, dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
+    """Frames ``T [Exp(r), t]`` ``(..., 4, 4)``: ``(t, r)`` zero but at ``dofs``, there ``x``."""
+    v = _twist(dofs, np.asarray(x, dtype=float))
+    out = np.array(T, dtype=float, copy=True)
+    out[..., :3, :3] = T[..., :3, :3] @ rotation_matrix(v[..., 3:])
+    out[..., :3, 3] = T[..., :3, 3] + (T[..., :3, :3] @ v[..., :3, None])[..., 0]
+    return out
+
+
+def twist_map(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
+    """Local twist of :func:`moved` per unit of ``x`` ``(..., 6, len(dofs))``, exact at any x.
+
+    The moved frame turns by ``Jr(r) dr`` about its own axes and its origin moves by
+    ``Exp(-r) dt`` in them.
+    """
+    v = _twist(dofs, np.asarray(x, dtype=float))
+    A = np.zeros((*v.shape[:-1], 6, 6))
+    A[..., :3, :3] = rotation_matrix(-v[..., 3:])
+    A[..., 3:, 3:] = left_jacobian(-v[..., 3:])  # Jr(r) = Jl(-r)
+    return A[..., list(dofs)]
+
+
+@dataclass(frozen=True, eq=False)
+class ContactFrames:
+    """The contact frame and the objects of a contact kind.
+
+    Attributes:
+        kind: The contact kind.
+        contact: The contact frame in the tool frame ``(4, 4)``.
+        objects: The planes, points or poses in the base frame ``(K, 4, 4)`` (a plane's z:
+            its normal; a point: its origin, base axes).
+        ids: The objects' ids ``(K,)``.
+    """
+
+    kind: Contact
+    contact: np.ndarray
+    objects: np.ndarray
+    ids: tuple[str, ...]
+
+    @property
+    def size(self) -> int:
+        """Unknowns: the objects' then the contact's."""
+        return len(self.ids) * len(self.kind.object_dofs) + len(self.kind.contact_dofs)
+
+    def names(self) -> tuple[str, ...]:
+        """Column names, e.g. ``plane_table_z``, ``contact_rx``."""
+        obj = tuple(
+            f"{self.kind.object_name}_{name}_{DOF_NAMES[d]}"
+            for name in self.ids
+            for d in self.kind.object_dofs
+        )
+        return obj + tuple(f"contact_{DOF_NAMES[d]}" for d in self.kind.contact_dofs)
+
+    def index(self, ids: Sequence[str], source: str = "<contacts>") -> np.ndarray:
+        """The object of each touch ``(m,)``.
+
+        Raises:
+            DataError: A touch of an object these frames do not hold.
+        """
+        where = {name: k for k, name in enumerate(self.ids)}
+        unknown = [i for i in dict.fromkeys(ids) if i not in where]
+        if unknown:
+            raise DataError(
+                source,
+                f"touches of '{unknown[0]}', which the fitted touches do not touch: each "
+                f"{self.kind.object_name} is fitted from its own touches",
+            )
+        return np.array([where[i] for i in ids], dtype=int)
+
+    def moved(self, x: np.ndarray) -> ContactFrames:
+        """The frames at unknowns x (:attr:`size`; x = 0 is these frames)."""
+        x = np.asarray(x, dtype=float)
+        o, K = len(self.kind.object_dofs), len(self.ids)
+        objects = moved(self.objects, self.kind.object_dofs, x[: K * o].reshape(K, o))
+        contact = moved(self.contact, self.kind.contact_dofs, x[K * o :])
+        return ContactFrames(self.kind, contact, objects, self.ids)
+
+    def relative(
+        self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The contact frame in its object's frame: rotations ``(m, 3, 3)``, origins ``(m, 3)``.
+
+        Args:
+            Rt: Tool rotations in the base frame ``(m, 3, 3)``.
+            pt: Tool positions in the base frame ``(m, 3)`` [m].
+            index: The object of each touch ``(m,)`` (:meth:`index`).
+        """
+        F = self.objects[index]
+        FRt = np.swapaxes(F[:, :3, :3], 1, 2)
+        R = FRt @ Rt @ self.contact[:3, :3]
+        x = pt + Rt @ self.contact[:3, 3]
+        return R, (FRt @ (x - F[:, :3, 3])[:, :, None])[:, :, 0]
+
+    def gaps(self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """The kind's gap of each touch ``(m, rows)`` [m, rad]."""
+        return self.kind.residual(*self.relative(Rt, pt, index))
+
+    def columns(self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray):
+        """Pose-error Jacobian ``(m, 6, size)`` of the contact frame in its object's frame.
+
+        Columns: the unknowns of these frames moved by ``x`` from a start (:meth:`moved`),
+        at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames.
+        """
+        m, o, K = len(p), len(self.kind.object_dofs), len(self.ids)
+        x = np.asarray(x, dtype=float)
+        W = np.zeros((m, 6, self.size))
+        if o:
+            # F -> F exp(d): the contact seen from F moves by exp(-d): dp = -dt + [p]x dr
+            E = np.zeros((m, 6, 6))
+            E[:, :3, :3] = -np.eye(3)
+            E[:, :3, 3:] = skew(p)
+            E[:, 3:, 3:] = -np.eye(3)
+            A = twist_map(self.kind.object_dofs, x[: K * o].reshape(K, o))[index]
+            cols = o * index[:, None] + np.arange(o)
+            W[np.arange(m)[:, None, None], np.arange(6)[None, :, None], cols[:, None, :]] = E @ A
+        if self.kind.contact_dofs:
+            # C -> C exp(d): the contact moves by R dt and turns by R dr in F
+            E = np.zeros((m, 6, 6))
+            E[:, :3, :3] = R
+            E[:, 3:, 3:] = R
+            W[:, :, K * o :] = E @ twist_map(self.kind.contact_dofs, x[K * o :])
+        return W
+
+    def rotate(self, W6_base: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """A pose-error Jacobian in the base frame ``(m, 6, k)`` seen in each touch's object."""
+        FRt = np.swapaxes(self.objects[index, :3, :3], 1, 2)
+        return np.concatenate([FRt @ W6_base[:, :3], FRt @ W6_base[:, 3:]], axis=1)
+
+
+def row_weights(kind: Contact, weight: float) -> np.ndarray:
+    """Weight of each gap row: 1 for a length, ``weight`` [m/rad] for an angle."""
+    if not (np.isfinite(weight) and weight > 0):
+        raise InvalidArgumentError(f"the orientation weight must be positive, got {weight}")
+    return np.where(np.array(kind.angular), float(weight), 1.0)
