@@ -62,8 +62,13 @@ def design_rows() -> list[list[str]]:
         )
         stages = ", ".join(f"{s} {v:.0f}" for s, v in d.timings_ms.items())
         rows.append(
-            [f"Panda, {k} from {n}, {measure}, {crit}", f"{wall:.2f}", f"{cpu:.2f}", target,
-             f"{d.exchanges} exchanges, {d.sweeps} sweeps; ms: {stages}"]
+            [
+                f"Panda, {k} from {n}, {measure}, {crit}",
+                f"{wall:.2f}",
+                f"{cpu:.2f}",
+                target,
+                f"{d.exchanges} exchanges, {d.sweeps} sweeps; ms: {stages}",
+            ]
         )
     return rows
 
@@ -78,8 +83,13 @@ def tree_rows() -> list[list[str]]:
         )
         stages = ", ".join(f"{s} {v:.0f}" for s, v in d.timings_ms.items())
         rows.append(
-            [f"TALOS hands (tree), {k} from {n}, position, D", f"{wall:.2f}", f"{cpu:.2f}", "",
-             f"{d.model.b} parameters; ms: {stages}"]
+            [
+                f"TALOS hands (tree), {k} from {n}, position, D",
+                f"{wall:.2f}",
+                f"{cpu:.2f}",
+                "",
+                f"{d.model.b} parameters; ms: {stages}",
+            ]
         )
     return rows
 
@@ -93,8 +103,13 @@ def collision_rows() -> list[list[str]]:
             lambda c=chain, q=q: filter_candidates(c, q, [[0.0, 0.0, 0.0]], Constraints()), 3
         )
         rows.append(
-            [f"{name}: collision filter, 2000 candidates", f"{wall:.2f}", f"{cpu:.2f}", "",
-             f"{report.kept} kept, {len(q) - report.kept} rejected"]
+            [
+                f"{name}: collision filter, 2000 candidates",
+                f"{wall:.2f}",
+                f"{cpu:.2f}",
+                "",
+                f"{report.kept} kept, {len(q) - report.kept} rejected",
+            ]
         )
     return rows
 

@@ -46,8 +46,15 @@ def tree_study() -> None:
     q_ref = tree.random_configurations(100, 99)
     errors: dict[str, list[float]] = {"designed": [], "random": []}
     for seed in SEEDS:
-        d = design(tree, 40, candidates=800, markers=markers, seed=seed, random_sets=10,
-                   constraints=NO_COLLISION)
+        d = design(
+            tree,
+            40,
+            candidates=800,
+            markers=markers,
+            seed=seed,
+            random_sets=10,
+            constraints=NO_COLLISION,
+        )
         sets = {"designed": d.q, "random": candidate_configurations(tree, 40, 100 + seed)}
         for name, q in sets.items():
             camp = simulate_tree(tree, q, markers, 1.0, 1.0, 0.05, seed)
@@ -66,8 +73,16 @@ def weight_study() -> None:
     for weight in (0.1, 1.0):
         errors = []
         for seed in SEEDS:
-            d = design(chain, 30, candidates=1000, measure="pose", orientation_weight=weight,
-                       seed=seed, random_sets=1, constraints=NO_COLLISION)
+            d = design(
+                chain,
+                30,
+                candidates=1000,
+                measure="pose",
+                orientation_weight=weight,
+                seed=seed,
+                random_sets=1,
+                constraints=NO_COLLISION,
+            )
             data = simulate(chain, d.q, "pose", noise_mm=0.05, noise_mrad=0.5, seed=seed)
             truth = simulate(chain, q_ref, "position", noise_mm=0.0, seed=seed)
             result = calibrate(chain, data.measurements, params="complete")
@@ -89,8 +104,10 @@ def payoff_study(robots=("ur5", "panda", "tiago")) -> None:
     k, noise = 30, 0.05
     for name in robots:
         chain = load_chain(name)
-        designs = {c: design(chain, k, candidates=2000, markers=PAYOFF_MARKER, criterion=c)
-                   for c in ("D", "I")}
+        designs = {
+            c: design(chain, k, candidates=2000, markers=PAYOFF_MARKER, criterion=c)
+            for c in ("D", "I")
+        }
         model = designs["D"].model
         q_cand = candidate_configurations(chain, 2000, 0)  # the design's candidates
         q_cand = q_cand[filter_candidates(chain, q_cand, [PAYOFF_MARKER], Constraints())[0]]
@@ -121,10 +138,12 @@ def payoff_study(robots=("ur5", "panda", "tiago")) -> None:
             ]
             print(f"  {level:8s}: " + ", ".join(cells))
         r = np.median(pred["random"])
-        print(f"  predicted x noise: random {noise * r:.4f}, D {noise * np.median(pred['D']):.4f}, "
-              f"I {noise * np.median(pred['I']):.4f}; no set of {k} of the candidates below "
-              f"{noise * pred['least'][0]:.4f} mm: the gain is at most "
-              f"{100 * (1 - pred['least'][0] / r):.0f} %")
+        print(
+            f"  predicted x noise: random {noise * r:.4f}, D {noise * np.median(pred['D']):.4f}, "
+            f"I {noise * np.median(pred['I']):.4f}; no set of {k} of the candidates below "
+            f"{noise * pred['least'][0]:.4f} mm: the gain is at most "
+            f"{100 * (1 - pred['least'][0] / r):.0f} %"
+        )
 
 
 STUDIES = {"tree": tree_study, "weight": weight_study, "payoff": payoff_study}

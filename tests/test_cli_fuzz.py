@@ -395,6 +395,7 @@ def test_hostile_options_on_chains_and_trees(campaigns, robot, options):
         if ["--validate", "SELF"] in options:
             assert not (out_dir / "cal.urdf").exists()
 
+
 # Design inputs: configurations files (--evaluate, --candidates-file) and SRDFs
 # --------------------------------------------------------------------------------------
 

@@ -40,8 +40,13 @@ def test_designed_postures_hold_the_contact_and_identify_analyzes_count(robot, b
     chain = load_chain(robot, base, tool)
     k = 70 if kind == "plane-point" else 30
     d = design(
-        chain, k, candidates=300, measure=kind, constraints=Constraints(collision=False),
-        seed=3, random_sets=3,
+        chain,
+        k,
+        candidates=300,
+        measure=kind,
+        constraints=Constraints(collision=False),
+        seed=3,
+        random_sets=3,
     )
     assert d.q.shape == (k, chain.n) and d.contact is not None
     assert np.abs(gaps(chain, d.contact, kind, d.q)).max() < 1e-9

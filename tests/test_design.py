@@ -81,8 +81,9 @@ def test_scaling_moves_angles_only():
     lengths = [0.089159, 0.425, math.hypot(0.39225, 0.10915), 0.09465, 0.0823]
     assert model.length == pytest.approx(sum(lengths) + 0.1, rel=1e-9)
     assert set(np.array(model.names)[model.angular]) >= {"frame.rx", "frame.ry", "frame.rz"}
-    assert not any(n.startswith(("d", "r", "marker", "frame.x")) for n in
-                   np.array(model.names)[model.angular])
+    assert not any(
+        n.startswith(("d", "r", "marker", "frame.x")) for n in np.array(model.names)[model.angular]
+    )
 
 
 # --- low-rank updates -----------------------------------------------------------------
@@ -90,8 +91,18 @@ def test_scaling_moves_angles_only():
 
 def _fresh(J, design, L):
     ind = indices_of(J[design], None)
-    return -ind.d if L is None else float(np.trace(L @ np.linalg.inv(
-        J[design].reshape(-1, J.shape[2]).T @ J[design].reshape(-1, J.shape[2]))))
+    return (
+        -ind.d
+        if L is None
+        else float(
+            np.trace(
+                L
+                @ np.linalg.inv(
+                    J[design].reshape(-1, J.shape[2]).T @ J[design].reshape(-1, J.shape[2])
+                )
+            )
+        )
+    )
 
 
 @pytest.mark.parametrize("criterion", ["D", "A", "I"])
@@ -162,6 +173,7 @@ def test_least_i_bounds_every_subset_and_is_tight():
     C = rng.standard_normal((5, 5))
     L = C @ C.T
     k = 4
+
     def i_of(rows):
         W = J[list(rows)].reshape(-1, 5)
         return math.sqrt(np.trace(L @ np.linalg.inv(W.T @ W)))
@@ -185,8 +197,14 @@ def test_least_i_bounds_every_subset_and_is_tight():
 
 @pytest.mark.parametrize("criterion", ["D", "A", "I"])
 def test_design_beats_random_sets(criterion):
-    d = design(chain_of("panda"), 30, candidates=1000, criterion=criterion, seed=4,
-               constraints=Constraints(collision=False))
+    d = design(
+        chain_of("panda"),
+        30,
+        candidates=1000,
+        criterion=criterion,
+        seed=4,
+        constraints=Constraints(collision=False),
+    )
     for name in ("D", "A", "I", "cond"):
         worse = [d.indices.better(r, name) for r in d.random]
         assert np.mean(worse) >= 0.9, name  # better than 90 % of the random sets
@@ -207,8 +225,14 @@ def test_designed_set_calibrates_better_than_random_sets():
     q_ref = candidate_configurations(chain, 200, seed=99)
     designed, randoms = [], []
     for seed in range(5):
-        d = design(chain, k, candidates=1000, seed=seed, random_sets=1,
-                   constraints=Constraints(collision=False))
+        d = design(
+            chain,
+            k,
+            candidates=1000,
+            seed=seed,
+            random_sets=1,
+            constraints=Constraints(collision=False),
+        )
         q_rand = candidate_configurations(chain, k, seed=100 + seed)
         designed.append(_heldout_rms(chain, d.q, q_ref, seed))
         randoms.append(_heldout_rms(chain, q_rand, q_ref, seed))
@@ -257,13 +281,15 @@ def test_workspace_and_margin_filters_against_pinocchio():
     chain = chain_of("ur5")
     q = candidate_configurations(chain, 300, seed=5)
     box = (-0.5, -0.5, 0.0, 0.5, 0.5, 0.8)
-    keep, _ = filter_candidates(chain, q, np.zeros((1, 3)),
-                                Constraints(workspace=box, collision=False))
+    keep, _ = filter_candidates(
+        chain, q, np.zeros((1, 3)), Constraints(workspace=box, collision=False)
+    )
     tool = chain.tool_placements(q)[:, :3, 3]  # Pinocchio's forward kinematics
     inside = np.all((tool >= box[:3]) & (tool <= box[3:]), axis=1)
     assert keep.tolist() == inside.tolist() and 0 < inside.sum() < len(q)
-    keep, _ = filter_candidates(chain, q, np.zeros((1, 3)), Constraints(margin=1.0,
-                                collision=False))
+    keep, _ = filter_candidates(
+        chain, q, np.zeros((1, 3)), Constraints(margin=1.0, collision=False)
+    )
     near = np.any((q < chain.lower + 1.0) | (q > chain.upper - 1.0), axis=1)
     assert keep.tolist() == (~near).tolist()
 
@@ -278,8 +304,12 @@ def test_line_of_sight_blocked_by_a_wall():
         chain, q, np.zeros((1, 3)), Constraints(line_of_sight=eye, obstacles=(wall,))
     )
     assert free.sum() > 0 and walled.sum() == 0
-    assert dict(report.rejected)["collision"] == dict(
-        filter_candidates(chain, q, np.zeros((1, 3)), Constraints())[1].rejected)["collision"]
+    assert (
+        dict(report.rejected)["collision"]
+        == dict(filter_candidates(chain, q, np.zeros((1, 3)), Constraints())[1].rejected)[
+            "collision"
+        ]
+    )
 
 
 # --- files and CLI --------------------------------------------------------------------
@@ -290,8 +320,12 @@ def test_configurations_csv_round_trip_and_errors():
     q = candidate_configurations(chain, 5, seed=0)
     text = configurations_csv(chain, q)
     np.testing.assert_array_equal(parse_configurations(text, chain), q)
-    shuffled = "x," + ",".join(reversed(chain.joint_names)) + "\n" + "\n".join(
-        "1.0," + ",".join(repr(float(v)) for v in row[::-1]) for row in q)
+    shuffled = (
+        "x,"
+        + ",".join(reversed(chain.joint_names))
+        + "\n"
+        + "\n".join("1.0," + ",".join(repr(float(v)) for v in row[::-1]) for row in q)
+    )
     np.testing.assert_array_equal(parse_configurations(shuffled, chain), q)
     with pytest.raises(DataError, match="missing joint column"):
         parse_configurations("a,b\n1,2\n", chain)
@@ -302,16 +336,28 @@ def test_configurations_csv_round_trip_and_errors():
 
 def test_cli_design_simulate_evaluate(tmp_path, capsys):
     out = tmp_path / "configs.csv"
-    assert main(["design", "ur5", "--configs", "30", "--candidates", "500", "--out",
-                 str(out)]) == 0
+    assert main(["design", "ur5", "--configs", "30", "--candidates", "500", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "random (median of 20)" in text and f"wrote {out}" in text
     chain = chain_of("ur5")
     q = parse_configurations(out.read_text(), chain)
     assert q.shape == (30, 6)
     meas = tmp_path / "meas.csv"
-    assert main(["simulate", "ur5", "--configs-file", str(out), "--out", str(meas),
-                 "--measure", "position"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "ur5",
+                "--configs-file",
+                str(out),
+                "--out",
+                str(meas),
+                "--measure",
+                "position",
+            ]
+        )
+        == 0
+    )
     lines = meas.read_text().splitlines()
     assert len(lines) == 31 and lines[1].startswith(repr(float(q[0, 0])))
     capsys.readouterr()
@@ -329,14 +375,36 @@ def test_cli_design_errors_leave_no_output(tmp_path, capsys):
     cand = tmp_path / "cand.csv"
     cand.write_text(configurations_csv(chain_of("ur5"), np.zeros((40, 6))))
     before = cand.read_text()
-    assert main(["design", "ur5", "--configs", "10", "--candidates-file", str(cand), "--out",
-                 str(cand)]) == 2
+    assert (
+        main(
+            ["design", "ur5", "--configs", "10", "--candidates-file", str(cand), "--out", str(cand)]
+        )
+        == 2
+    )
     assert "would overwrite" in capsys.readouterr().err and cand.read_text() == before
     assert main(["design", "ur5", "--configs", "10", "--candidates-file", str(cand)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "do not identify" in err  # 40 copies of one pose
-    assert main(["design", "ur5", "--configs", "30", "--workspace", "5", "5", "5", "6", "6",
-                 "6", "--out", str(out)]) == 2
+    assert (
+        main(
+            [
+                "design",
+                "ur5",
+                "--configs",
+                "30",
+                "--workspace",
+                "5",
+                "5",
+                "5",
+                "6",
+                "6",
+                "6",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     assert "workspace rejects 2000" in capsys.readouterr().err and not out.exists()
 
 

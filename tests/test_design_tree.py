@@ -85,8 +85,15 @@ def test_tree_design_beats_random_sets_and_calibrates_better():
     q_ref = tree.random_configurations(100, 99)
     designed, randoms = [], []
     for seed in range(4):
-        d = design(tree, k, candidates=800, markers=MARKERS, seed=seed, random_sets=10,
-                   constraints=NO_COLLISION)
+        d = design(
+            tree,
+            k,
+            candidates=800,
+            markers=MARKERS,
+            seed=seed,
+            random_sets=10,
+            constraints=NO_COLLISION,
+        )
         assert d.q.shape == (k, tree.n)
         for name in ("D", "I"):
             assert np.mean([d.indices.better(r, name) for r in d.random]) >= 0.9, name
@@ -102,8 +109,24 @@ def test_tree_design_beats_random_sets_and_calibrates_better():
     assert np.median(designed) < np.median(randoms)
 
 
-CROSSED = [0, 0, -0.75, 0.38, -0.07, -1.74, 0.7, -0.74, -0.55,
-           1.34, -0.76, -0.1, -1.8, -0.15, 0.33, -0.28]  # hand-made: the wrists cross
+CROSSED = [
+    0,
+    0,
+    -0.75,
+    0.38,
+    -0.07,
+    -1.74,
+    0.7,
+    -0.74,
+    -0.55,
+    1.34,
+    -0.76,
+    -0.1,
+    -1.8,
+    -0.15,
+    0.33,
+    -0.28,
+]  # hand-made: the wrists cross
 
 
 def _pinocchio_wrists_collide(tree, q) -> bool:
@@ -121,8 +144,7 @@ def test_tree_collision_filter_sees_both_arms_move():
     rest = q.copy()
     rest[tree.paths[1][2:]] = 0.0  # the right arm at rest
     assert not _pinocchio_wrists_collide(tree, rest)
-    keep, report = filter_candidates(tree, np.array([q, np.zeros(tree.n)]), MARKERS,
-                                     Constraints())
+    keep, report = filter_candidates(tree, np.array([q, np.zeros(tree.n)]), MARKERS, Constraints())
     assert keep.tolist() == [False, True] and dict(report.rejected)["collision"] == 1
     for chain, path in zip(tree.chains, tree.paths, strict=True):
         assert not collision_checker(chain).colliding(q[None, path])[0]
@@ -154,15 +176,44 @@ def test_cli_tree_design_simulate_calibrate(tmp_path, capsys):
     """calib design with two tools writes the tree's joints; simulate takes them."""
     out, meas = tmp_path / "configs.csv", tmp_path / "meas.csv"
     tools = ["--tool", HANDS[0], "--tool", HANDS[1]]
-    assert main(["design", "talos", *tools, "--configs", "40", "--candidates", "600",
-                 "--no-collision", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "design",
+                "talos",
+                *tools,
+                "--configs",
+                "40",
+                "--candidates",
+                "600",
+                "--no-collision",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "6 rows per configuration" in text and f"wrote {out}" in text
     tree = hands()
     q = parse_configurations(out.read_text(), tree)
     assert q.shape == (40, tree.n)
-    assert main(["simulate", "talos", *tools, "--configs-file", str(out), "--measure",
-                 "position", "--out", str(meas)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "talos",
+                *tools,
+                "--configs-file",
+                str(out),
+                "--measure",
+                "position",
+                "--out",
+                str(meas),
+            ]
+        )
+        == 0
+    )
     lines = meas.read_text().splitlines()
     assert len(lines) == 1 + 2 * 40
     header = lines[0].split(",")
@@ -171,8 +222,22 @@ def test_cli_tree_design_simulate_calibrate(tmp_path, capsys):
     capsys.readouterr()
     assert main(["design", "talos", *tools, "--evaluate", str(out), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["rank"] == 70
-    assert main(["design", "talos", *tools, "--configs", "40", "--candidates", "300",
-                 "--no-collision", "--json"]) == 0
+    assert (
+        main(
+            [
+                "design",
+                "talos",
+                *tools,
+                "--configs",
+                "40",
+                "--candidates",
+                "300",
+                "--no-collision",
+                "--json",
+            ]
+        )
+        == 0
+    )
     assert json.loads(capsys.readouterr().out)["tools"] == list(HANDS)
     assert main(["design", "talos", *tools, "--configs", "40", "--measure", "pose"]) == 2
     assert "positions" in capsys.readouterr().err
@@ -208,8 +273,9 @@ def test_orientation_weight_scales_the_orientation_rows_only():
     assert np.allclose(J2[:, :3], J1[:, :3], rtol=0, atol=1e-15)
     assert np.allclose(J2[:, 3:], 0.5 * J1[:, 3:], rtol=1e-12, atol=1e-15)
     ind = evaluate(chain, q, "pose", orientation_weight=0.5)
-    assert ind.d == pytest.approx(np.linalg.slogdet(
-        J2.reshape(-1, half.b).T @ J2.reshape(-1, half.b))[1], rel=1e-9)
+    assert ind.d == pytest.approx(
+        np.linalg.slogdet(J2.reshape(-1, half.b).T @ J2.reshape(-1, half.b))[1], rel=1e-9
+    )
     with pytest.raises(InvalidArgumentError, match="orientation weight"):
         design(chain, 30, measure="pose", orientation_weight=-1.0)
 

@@ -74,8 +74,9 @@ def test_bounds_never_below_the_gain_of_any_exchange(seed, r, b):
                 assert np.all(gains == -np.inf) and np.all(bound == -np.inf)
                 assert np.all(coarse == -np.inf)
                 continue
-            np.testing.assert_allclose(state.bounds(j, others[::2]), bound[others[::2]],
-                                       rtol=1e-9, atol=tol)  # rows gathered: same bounds
+            np.testing.assert_allclose(
+                state.bounds(j, others[::2]), bound[others[::2]], rtol=1e-9, atol=tol
+            )  # rows gathered: same bounds
             assert np.all(coarse >= bound - tol)
             for c in others:
                 fresh = cost - _cost(J, _swap(design, j, c), L)
@@ -155,8 +156,10 @@ def _plain_optimal_subset(J, k, L):
         for j in list(design):
             cost = _cost(J, design, L)
             need = MIN_IMPROVEMENT * max(abs(cost), 1.0)
-            gains = [-np.inf if c in design else cost - _cost(J, _swap(design, j, c), L)
-                     for c in range(n)]
+            gains = [
+                -np.inf if c in design else cost - _cost(J, _swap(design, j, c), L)
+                for c in range(n)
+            ]
             best = int(np.argmax(gains))
             if gains[best] > need:
                 design, made = _swap(design, j, best), made + 1
@@ -193,7 +196,8 @@ def test_design_equals_the_plain_exchange_on_random_instances(seed, criterion):
     weight = {"D": None, "A": np.eye(6), "I": L}[criterion]
     res = optimal_subset(J, 5, criterion, L)
     assert (res.design, res.greedy, res.exchanges, res.sweeps) == _plain_optimal_subset(
-        J, 5, weight)
+        J, 5, weight
+    )
 
 
 def test_candidates_without_a_finite_gain_are_refused():

@@ -53,11 +53,23 @@ def two_joint_urdf(
 ) -> str:
     """base -> j1 (z) -> j2 -> fixed tool: a small chain whose second joint is varied."""
     j1 = JOINT.format(
-        name="j1", type="revolute", parent="base", child="l1", xyz="0 0 0.1", rpy="0 0 0",
-        axis="0 0 1", limit=LIMIT,
+        name="j1",
+        type="revolute",
+        parent="base",
+        child="l1",
+        xyz="0 0 0.1",
+        rpy="0 0 0",
+        axis="0 0 1",
+        limit=LIMIT,
     )
     j2 = JOINT.format(
-        name="j2", type="revolute", parent="l1", child="l2", xyz=xyz2, rpy=rpy2, axis=axis2,
+        name="j2",
+        type="revolute",
+        parent="l1",
+        child="l2",
+        xyz=xyz2,
+        rpy=rpy2,
+        axis=axis2,
         limit=limit2,
     )
     tool = (
@@ -328,7 +340,7 @@ def test_undeclared_namespace_prefix_is_read_as_pinocchio_reads_it(tmp_path):
 
 
 def test_calibrated_export_of_a_file_with_undeclared_prefixes(tmp_path):
-    head = '<!-- a comment before the root -->\n'
+    head = "<!-- a comment before the root -->\n"
     path = write(tmp_path, two_joint_urdf(extra=GAZEBO, head=head))
     chain = load_chain(path, tool="tool")
     nominal = from_chain(chain)

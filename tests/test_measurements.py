@@ -530,8 +530,7 @@ def test_joint_prefix_is_optional_and_decides_the_plain_column(tmp_path):
     np.testing.assert_array_equal(plain.q, [[0.1, 0.2, 0.3, 0.4]])
     assert plain.quaternion is None
     both = parse_measurements(
-        "joint:x,joint:y,joint:z,joint:qw,x,y,z,qw,qx,qy,qz\n"
-        "0.1,0.2,0.3,0.4,1,2,3,1,0,0,0\n",
+        "joint:x,joint:y,joint:z,joint:qw,x,y,z,qw,qx,qy,qz\n0.1,0.2,0.3,0.4,1,2,3,1,0,0,0\n",
         chain,
     )
     np.testing.assert_array_equal(both.q, [[0.1, 0.2, 0.3, 0.4]])

@@ -162,9 +162,20 @@ def calibrate(
     """
     if isinstance(data, ContactData):  # touches (no instrument): any contact kind, one chain
         return calibrate_contact_data(
-            robot, data, marker=marker, validate=validate, params=params, fix=fix, free=free,
-            elastic=elastic, loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
-            max_iterations=max_iterations, holdout=holdout, seed=seed,
+            robot,
+            data,
+            marker=marker,
+            validate=validate,
+            params=params,
+            fix=fix,
+            free=free,
+            elastic=elastic,
+            loss=loss,
+            noise_mm=noise_mm,
+            orientation_weight=orientation_weight,
+            max_iterations=max_iterations,
+            holdout=holdout,
+            seed=seed,
         )
     if isinstance(robot, Robot) and robot.is_tree:
         return calibrate_tree(

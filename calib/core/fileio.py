@@ -271,9 +271,7 @@ def read_text_limited(path: str | Path, limit: int) -> str:
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise OSError(
-            errno.EILSEQ, f"not UTF-8 text (byte {exc.start})", str(Path(path))
-        ) from None
+        raise OSError(errno.EILSEQ, f"not UTF-8 text (byte {exc.start})", str(Path(path))) from None
 
 
 def _human_size(n: int) -> str:

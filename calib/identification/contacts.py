@@ -210,8 +210,9 @@ class PlaneContact(Contact):
         )
         s = 1.0 / np.maximum(1.0 + n[:, 2], 1e-9)
         dn_z = n[:, 1, None] * W6[:, 3] - n[:, 0, None] * W6[:, 4]  # (dphi x n)_z
-        J[:, 1:] = s[:, None, None] * J[:, 1:] - (s**2)[:, None, None] * gap[:, 1:, None] * (
-            dn_z[:, None, :]
+        J[:, 1:] = (
+            s[:, None, None] * J[:, 1:]
+            - (s**2)[:, None, None] * gap[:, 1:, None] * (dn_z[:, None, :])
         )
         gap[:, 1:] *= s[:, None]
         return gap, J
@@ -318,8 +319,7 @@ class FixedPointContact(Contact):
     def unseen(self) -> tuple[str, ...]:
         """What these contacts can never identify."""
         return (
-            "the point frame's orientation (rx, ry, rz of frame -1): the tip is held at its "
-            "origin",
+            "the point frame's orientation (rx, ry, rz of frame -1): the tip is held at its origin",
             "the tip's orientation: only the tip point is constrained",
             "without a prismatic joint, the scale about the point",
         )
@@ -408,9 +408,7 @@ def contact_kind(name: str) -> Contact:
         InvalidArgumentError: Not a contact's name.
     """
     if name not in _KINDS:
-        raise InvalidArgumentError(
-            f"unknown contact '{name}': choose {', '.join(CONTACT_NAMES)}"
-        )
+        raise InvalidArgumentError(f"unknown contact '{name}': choose {', '.join(CONTACT_NAMES)}")
     return _KINDS[name]
 
 

@@ -18,6 +18,7 @@ __all__ = [
     "measured_point",
 ]
 
+
 def _check_types(mdh: MDHModel, measurement: MeasureKind, params=None) -> None:
     """Raise InvalidArgumentError for arguments of the wrong kind (not for their values)."""
     if not isinstance(mdh, MDHModel):

@@ -280,8 +280,10 @@ def simulate_contacts(
     if chain.coupling is not None:
         raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
     for name, value in (("configs", configs), ("contacts", contacts), ("seed", seed)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < (
-            0 if name == "seed" else 1
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | np.integer)
+            or value < (0 if name == "seed" else 1)
         ):
             raise InvalidArgumentError(f"{name} must be an integer >= {0 if name == 'seed' else 1}")
     error_mm, error_mrad = _finite("error_mm", error_mm), _finite("error_mrad", error_mrad)
@@ -305,7 +307,15 @@ def simulate_contacts(
     data = ContactData(chain.joint_names, q, tuple(ids), kind, f"<simulated {chain.name}>")
     errors.setflags(write=False)
     truth = ContactTruth(
-        chain.name, kind, pset, errors, true_mdh, frames, int(seed), error_mm, error_mrad,
+        chain.name,
+        kind,
+        pset,
+        errors,
+        true_mdh,
+        frames,
+        int(seed),
+        error_mm,
+        error_mrad,
         noise_mrad,
     )
     return ContactCampaign(data, truth)
