@@ -381,6 +381,7 @@ def test_predict_gives_the_contact_and_the_joint_correction(talos_elastic):
         check=False,
     )
     assert done.returncode == 0, done.stderr
+    assert "the contact's origin in the base frame" in done.stdout
     with open(pred, newline="") as f:
         rows = list(csv.DictReader(f))
     model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")

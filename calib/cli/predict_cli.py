@@ -26,10 +26,13 @@ def cmd_predict(args: argparse.Namespace) -> int:
     model = load_calibrated(args.urdf, args.compliance)
     q = read_configurations(args.configs, model.chain)
     write_outputs({out: predictions_csv(model, q)})
-    print(
-        f"{model.chain.name}: {len(q)} configurations, {len(model.markers)} point(s) in the "
-        f"measurement frame and the deflected joints; wrote {out}"
+    where = (
+        "the contact's origin in the base frame"
+        if model.contact is not None
+        else f"{len(model.markers)} point(s) in the measurement frame"
     )
+    name = model.chain.name
+    print(f"{name}: {len(q)} configurations, {where} and the deflected joints; wrote {out}")
     return 0
 
 
