@@ -19,9 +19,11 @@ and the held folds' gaps pooled: RMS height [mm], roll and pitch [deg] per chain
 
 * ``left sole + soles' loop``: both arms from the left sole with the closed loop
   ``left_sole_link`` -> ``right_sole_link`` (both soles flat on the ground: one fixed pose,
-  a ``fixed-pose`` chain whose touches are the postures of both files,
-  :func:`~calib.measurements.contact_loops.read_loop`); fold f of the loop is the postures of
-  fold f of the arms, held out with them; its rows weighted ``pose_weight`` 1, 10 and 100.
+  a ``fixed-pose`` chain whose touches are the postures of both files, one pose per file:
+  the feet stood elsewhere ten days apart, :func:`~calib.measurements.contact_loops.read_loop`);
+  fold f of the loop is the postures of fold f of the arms, held out with them; its rows
+  weighted ``pose_weight`` 1, 10 and 100; ``left sole, offsets``: the same arms at
+  ``offsets`` without the loop.
 
 ``fit`` is the calibrated model; ``delivered`` is what calib hands over (the registration
 when the model is refused). Then the plane question: the two sessions, both expressed from
@@ -167,7 +169,7 @@ def loop_line(pool: Pool, label: str) -> str:
 def loop_study(from_left, moved) -> None:
     """Both arms from the left sole with the soles' loop, and at ``offsets`` without it."""
     loop = load_robot(URDF, "left_sole_link", "right_sole_link")
-    loops = [read_loop(DATA / f"{s}_train.csv", loop, "soles") for s in SIDES]
+    loops = [read_loop(DATA / f"{s}_train.csv", loop, s) for s in SIDES]  # a pose per session
     for params in (None, "offsets"):
         for weight in (1.0, 10.0, 100.0):
             pools = with_loop(from_left, moved, loop, loops, params, weight)
