@@ -17,6 +17,14 @@ and the held folds' gaps pooled: RMS height [mm], roll and pitch [deg] per chain
   pipeline's offsets);
 * ``baseline``: the registration (the nominal robot with its own plane and contact).
 
+* ``left sole + soles' loop``: both arms from the left sole with the closed loop
+  ``left_sole_link`` -> ``right_sole_link`` (both soles flat on the ground: one fixed pose,
+  a ``fixed-pose`` chain whose touches are the postures of both files, one pose per file:
+  the feet stood elsewhere ten days apart, :func:`~calib.measurements.contact_loops.read_loop`);
+  fold f of the loop is the postures of fold f of the arms, held out with them; its rows
+  weighted ``pose_weight`` 1, 10 and 100; ``left sole, offsets``: the same arms at
+  ``offsets`` without the loop.
+
 ``fit`` is the calibrated model; ``delivered`` is what calib hands over (the registration
 when the model is refused). Then the plane question: the two sessions, both expressed from
 ``left_sole_link`` (all joints are recorded), fitted with one shared table or a table each.
@@ -37,6 +45,7 @@ import numpy as np
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.measurements.contact_campaign import ContactData, read_contacts
+from calib.measurements.contact_loops import join_loops, read_loop
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
 URDF = "talos_full_v2.urdf"
@@ -69,9 +78,15 @@ class Pool:
         self.delivered: list[tuple] = []
         self.base: list[tuple] = []
         self.refused = 0
+        self.loop: list[tuple] = []
 
     def add(self, stats: dict, accepted: bool) -> None:
         h, b = stats["held_out"], stats["held_out_registration"]
+        self.loop.append((h.m, h.weighted_mm, b.weighted_mm))
+        if "height" not in h.names:  # a loop: its weighted gaps only
+            self.fit.append((h.m, 0.0, 0.0, 0.0))
+            self.refused += not accepted
+            return
         row = (h.m, h.height_rms_mm, h.roll_rms_deg, h.pitch_rms_deg)
         brow = (b.m, b.height_rms_mm, b.roll_rms_deg, b.pitch_rms_deg)
         self.fit.append(row)
@@ -117,6 +132,56 @@ def cross_validate(chains, data, shared_planes: bool = False, params=None) -> li
     return pools
 
 
+def with_loop(chains, data, loop, loops, params=None, pose_weight=1.0) -> list[Pool]:
+    """Pools per chain (the arms', then the loop's): the arms' folds, the loop's the same rows.
+
+    ``loops[k]``: the loop's touches from the postures of ``data[k]`` (same rows, same order).
+    """
+    folds = [_folds(d) for d in data]
+    pools = [Pool() for _ in range(len(chains) + 1)]
+    for f in range(FOLDS):
+        keep = [np.setdiff1d(np.arange(d.m), fo[f]) for d, fo in zip(data, folds, strict=True)]
+        train = [_take(d, k) for d, k in zip(data, keep, strict=True)]
+        held = [_take(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
+        train.append(join_loops([_take(lp, k) for lp, k in zip(loops, keep, strict=True)]))
+        held.append(join_loops([_take(lp, fo[f]) for lp, fo in zip(loops, folds, strict=True)]))
+        r = calibrate_contact_chains(
+            [*chains, loop],
+            train,
+            contact=CONTACT,
+            validate=held,
+            params=params,
+            pose_weight=pose_weight,
+        )
+        for pool, part in zip(pools, r.chains, strict=True):
+            pool.add(part.stats, r.accepted)
+    return pools
+
+
+def loop_line(pool: Pool, label: str) -> str:
+    """The loop's pooled held-out weighted gap [mm] (fit and registration)."""
+    m = sum(p[0] for p in pool.fit)
+    fit = float(np.sqrt(sum(p[0] * p[1] ** 2 for p in pool.loop) / m))
+    base = float(np.sqrt(sum(p[0] * p[2] ** 2 for p in pool.loop) / m))
+    return f"{label:22s} loop held-out weighted {fit:.3f} mm (registration {base:.3f})"
+
+
+def loop_study(from_left, moved) -> None:
+    """Both arms from the left sole with the soles' loop, and at ``offsets`` without it."""
+    loop = load_robot(URDF, "left_sole_link", "right_sole_link")
+    loops = [read_loop(DATA / f"{s}_train.csv", loop, s) for s in SIDES]  # a pose per session
+    for params in (None, "offsets"):
+        for weight in (1.0, 10.0, 100.0):
+            pools = with_loop(from_left, moved, loop, loops, params, weight)
+            label = f"+ loop w{weight:g} {params or 'auto'}"
+            for side, pool in zip(SIDES, pools[:-1], strict=True):
+                print(pool.line(f"{side} {label}"))
+            print(loop_line(pools[-1], label), flush=True)
+    left_offsets = cross_validate(from_left, moved, params="offsets")
+    for side, pool in zip(SIDES, left_offsets, strict=True):
+        print(pool.line(f"{side} left sole, offsets"))
+
+
 def single_chain(chain, data) -> Pool:
     """The single-chain pipeline on the same folds."""
     pool = Pool()
@@ -141,6 +206,7 @@ def main() -> None:
         for s, c in zip(SIDES, from_left, strict=True)
     ]
     left_sole = cross_validate(from_left, moved)
+    loop_study(from_left, moved)
     both_offsets = cross_validate(chains, data, params="offsets")
     for k, side in enumerate(SIDES):
         alone = cross_validate([chains[k]], [data[k]])[0]

@@ -303,7 +303,7 @@ def test_bad_arguments():
     with pytest.raises(DataError, match="joints"):
         calibrate_contact_chains(chains, data[::-1])
     point = simulate_contacts(chains[0], 12, "fixed-point", seed=0).data
-    with pytest.raises(InvalidArgumentError, match="'plane' contacts"):
+    with pytest.raises(InvalidArgumentError, match="'plane' or 'fixed-pose' contacts"):
         calibrate_contact_chains(chains, [point, data[1]])
 
 

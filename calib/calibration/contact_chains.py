@@ -21,6 +21,14 @@ whole robot. The steps are those of one chain (:mod:`.contact_pipeline`):
 
 Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
 recorded on different days see the table from wherever the robot stood.
+
+A chain's kind is its touches': ``plane`` or ``fixed-pose``. A ``fixed-pose`` chain is a
+closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
+flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
+one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
+recorded postures of the plane touches). Its registration is ``register_contacts`` of that kind, its
+contact frame the tool frame (only the relative placement of pose and contact is seen), and
+it constrains the joints it shares with the plane chains (the legs) together with them.
 """
 
 from __future__ import annotations
@@ -32,14 +40,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import PlaneContact
+from ..identification.contacts import FixedPoseContact, PlaneContact
 from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_model import ContactState
-from .contact_pipeline import WORSE, contact_frame, flush_postures, split_contacts, tilt_weight
+from .contact_pipeline import WORSE, contact_frame, split_contacts, tilt_weight, touching_postures
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
 from .options import check_run_options
@@ -47,7 +55,10 @@ from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import fit
 
-__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
+__all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
+
+CHAIN_KINDS = (PlaneContact, FixedPoseContact)
+"""The contact kinds a chain of a joint fit may have."""
 
 CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
 """Parameter levels of several chains (``paper`` is a chain's MDH set)."""
@@ -82,13 +93,19 @@ def _check(chains, data, validate, params, holdout) -> None:
                 raise DataError(
                     part.source, f"the touches' joints are not those of {c.tool_frame}'s chain"
                 )
-            if not isinstance(part.kind, PlaneContact):
+            if not isinstance(part.kind, CHAIN_KINDS):
                 raise InvalidArgumentError(
-                    f"several chains are calibrated from 'plane' contacts, got '{part.kind.label}'"
+                    "several chains are calibrated from 'plane' or 'fixed-pose' contacts, got "
+                    f"'{part.kind.label}'"
                 )
-            if len(part.contacts) != 1:
+            if type(part.kind) is not type(d.kind):
                 raise InvalidArgumentError(
-                    f"{part.source}: one plane per chain, got {len(part.contacts)}"
+                    f"{part.source}: validation touches of another kind than the chain's"
+                )
+            if isinstance(part.kind, PlaneContact) and len(part.contacts) != 1:
+                raise InvalidArgumentError(
+                    f"{part.source}: one {part.kind.object_name} per chain, got "
+                    f"{len(part.contacts)}"
                 )
     if params not in CHAIN_LEVELS:
         raise InvalidArgumentError(
@@ -102,7 +119,10 @@ def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     """Index of each chain's plane: one per chain, or shared by base frame and plane id."""
     if not shared:
         return tuple(range(len(chains)))
-    keys = [(c.base_frame, d.contacts[0]) for c, d in zip(chains, data, strict=True)]
+    keys = [
+        (c.base_frame, d.contacts[0]) if isinstance(d.kind, PlaneContact) else (k,)
+        for k, (c, d) in enumerate(zip(chains, data, strict=True))
+    ]
     if len(set(keys)) == len(keys):
         raise InvalidArgumentError(
             "shared planes: no two chains touch one plane (same plane id) from one base frame"
@@ -111,7 +131,9 @@ def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     return tuple(index[k] for k in keys)
 
 
-def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> ChainsState:
+def _register(
+    chains, train, guess, weight, plane_of, notes, max_iterations, pose_weight=1.0
+) -> ChainsState:
     """Each chain's plane and contact in closed form on the nominal robot (shared: refined)."""
     placements = Placements.of(tuple(chains))
     models, frames = placements.chain_geometry(tuple(chains))
@@ -119,15 +141,17 @@ def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> 
     for mdh, d in zip(models, train, strict=True):
         kin = mdh.kinematics(d.q)
         R, p = kin.R[:, -1], kin.p[:, -1]
-        w = tilt_weight(R, p, d.ids, guess) if weight is None else weight
-        registered = register_contacts(PlaneContact(), R, p, d.ids, guess, w)
+        g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)  # a pose: the tool frame
+        w = tilt_weight(R, p, d.ids, g, d.kind) if weight is None else weight
+        registered = register_contacts(d.kind, R, p, d.ids, g, w)
         states.append(ContactState(mdh, registered, w))
     for c, p in enumerate(plane_of):  # a shared plane starts from its first chain's
         owner = plane_of.index(p)
         if owner != c:
             shared = dataclasses.replace(states[c].frames, objects=states[owner].frames.objects)
             states[c] = dataclasses.replace(states[c], frames=shared)
-    start = ChainsState(tuple(chains), placements, tuple(states), frames)
+    scales = tuple(1.0 if isinstance(d.kind, PlaneContact) else pose_weight for d in train)
+    start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):
         return start
     only_frames = _model(start, plane_of, (), placements.names())
@@ -144,7 +168,11 @@ def _register(chains, train, guess, weight, plane_of, notes, max_iterations) -> 
 
 
 def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
-    return ChainsModel(tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions)
+    kinds = tuple(s.kind for s in state.states)
+    counts = tuple(len(s.frames.ids) for s in state.states)
+    return ChainsModel(
+        tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions, kinds, counts
+    )
 
 
 def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
@@ -181,9 +209,7 @@ def _structural(wide: ChainsModel, start: ChainsState, train) -> list[int]:
     """The columns the touches determine, from the Jacobian at flush postures near them."""
     parts = []
     for s, d in zip(start.states, train, strict=True):
-        qf = flush_postures(s, d.q)
-        if len(qf) < d.m:  # what could not be projected is judged at the data
-            qf = np.concatenate([qf, d.q[len(qf) :]])
+        qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
         parts.append(ContactData(d.joint_names, qf, d.ids, d.kind, d.source))
     A = wide.jacobian(start, np.zeros(wide.size()), ChainsData(tuple(parts)))
     A = A.reshape(-1, wide.size())
@@ -224,6 +250,7 @@ def calibrate_contact_chains(
     validate: Sequence[ContactData | None] | None = None,
     orientation_weight: float | None = None,
     shared_planes: bool = False,
+    pose_weight: float = 1.0,
     max_iterations: int = 100,
     holdout: float = 0.0,
     seed: int = 0,
@@ -233,10 +260,14 @@ def calibrate_contact_chains(
     Args:
         chains: The nominal chains (one URDF; each base: where its plane is expressed;
             each tool: its contact's).
-        data: Each chain's touches of one plane
-            (:func:`~calib.measurements.contact_campaign.read_contacts`).
-        contact: Guess of every contact frame in its tool frame: ``(4, 4)`` or
-            ``X Y Z [RX RY RZ]`` [m, rad] (default: the tool frame).
+        data: Each chain's touches of one plane (``plane`` kind,
+            :func:`~calib.measurements.contact_campaign.read_contacts`) or of one fixed pose
+            (``fixed-pose`` kind, a closed loop:
+            :func:`~calib.measurements.contact_loops.read_loop`); a chain's kind is its
+            touches'.
+        contact: Guess of every plane chain's contact frame in its tool frame: ``(4, 4)``
+            or ``X Y Z [RX RY RZ]`` [m, rad] (default: the tool frame; a fixed-pose chain's
+            is its tool frame).
         params: ``auto`` (default), ``frames`` (the registration only), ``offsets`` or
             ``complete``.
         validate: Per chain, touches of other postures to score the result on, or None.
@@ -244,6 +275,9 @@ def calibrate_contact_chains(
             :func:`~.contact_pipeline.tilt_weight`).
         shared_planes: Chains of one base frame whose touches name the same plane touch one
             plane (default: each chain its own plane).
+        pose_weight: Factor of the ``fixed-pose`` chains' rows against the plane chains'
+            (default 1: metres against metres; a loop that closes far better than the table
+            is touched may weigh more, a near-hard constraint).
         max_iterations: Most residual evaluations of the solver.
         holdout: Fraction of each chain's touches set aside (seeded).
         seed: Seed of the holdout draw.
@@ -270,8 +304,10 @@ def calibrate_contact_chains(
         for s, v in zip(splits, validate or [None] * len(data), strict=True)
     ]
     plane_of = _plane_groups(chains, data, shared_planes)
+    if not (isinstance(pose_weight, int | float) and np.isfinite(pose_weight) and pose_weight > 0):
+        raise InvalidArgumentError(f"pose_weight must be a positive number, got {pose_weight!r}")
     notes: list[str] = []
-    start = _register(chains, train, guess, w, plane_of, notes, max_iterations)
+    start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     model, _, selection, prior = _choose(start, train, plane_of, level, notes)
     names = start.placements.names()
@@ -310,7 +346,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     """
     data = ChainsData(tuple(train))
     fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
-    rows = 3 * data.m
+    rows = sum(d.m * len(d.kind.row_names) for d in data.parts)
     if level != "complete" or not model.free or rows < wide.size():
         return fitted, False
     if not fitted.converged:
@@ -331,10 +367,13 @@ def _assemble(
     parts = []
     for c, chain in enumerate(state.chains):
         s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
-        stats = {"train": gap_stats(s, d.q), "train_registration": gap_stats(s0, d.q)}
+        stats = {
+            "train": gap_stats(s, d.q, d.ids),
+            "train_registration": gap_stats(s0, d.q, d.ids),
+        }
         if h is not None:
-            stats["held_out"] = gap_stats(s, h.q)
-            stats["held_out_registration"] = gap_stats(s0, h.q)
+            stats["held_out"] = gap_stats(s, h.q, h.ids)
+            stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
             if refusal is None and got > base * (1.0 + WORSE):
                 refusal = (
@@ -344,17 +383,20 @@ def _assemble(
                 )
         kin = s.mdh.kinematics(d.q)
         centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ s.contact[:3, 3], axis=0)
+        plane = s.plane(centre) if isinstance(s.kind, PlaneContact) else s.frames.objects[0]
         parts.append(
             ChainContacts(
                 chain,
                 d.source,
                 d.contacts[0],
-                s.plane(centre),
+                plane.copy(),
                 s.contact,
                 s0.mdh,
                 s.mdh,
                 s.weight,
                 stats,
+                s.kind,
+                s.frames,
             )
         )
     joints = [name for c in state.chains for name in c.joint_names]

@@ -4,15 +4,22 @@ A state is the robot's joint placement errors (:class:`~.placements.Placements`,
 per URDF joint, whatever chains it is on) and, per chain, its
 :class:`~.contact_model.ContactState` (its MDH model on the perturbed robot, its contact
 frame and plane, :class:`~.contact_frames.ContactFrames`, and its tilt weight). The
-parameters x: for each plane the ``plane`` kind's object unknowns (its height and two tilts),
-for each chain its contact's (two tilts), then components of joint placement errors
+parameters x: for each object (a plane, or a ``fixed-pose`` chain's pose) its kind's object
+unknowns (a plane's height and two tilts, a pose's six), for each chain its contact's (a flush
+contact's two tilts, none for a fixed pose), then components of joint placement errors
 (``<joint>:x`` ... ``:rz``). A plane touched by several chains is one plane (their chains
 share the base frame); each chain has its own contact frame.
 
-The rows: each chain's touches, in chain order, each the kind's 3 rows (height [m] and
-weighted roll and pitch), as a single chain's (:class:`~.contact_model.ContactModel`): the
-plane and contact columns are that model's, the robot's the kind's rows
-(``kind.jacobian_rows``) of the contact frame's displacement in its plane's frame.
+Each chain's kind is its touches' (:attr:`ContactData.kind`): ``plane`` (flush touches of a
+table) or ``fixed-pose`` (a closed loop, e.g. a humanoid's two soles flat on the ground:
+``left_sole_link`` to ``right_sole_link`` is one fixed pose at every touch).
+
+The rows: each chain's touches, in chain order, each its kind's rows (a plane's height [m]
+and weighted roll and pitch; a pose's position [m] and weighted rotation vector), as a single
+chain's (:class:`~.contact_model.ContactModel`), padded with zero rows to the most rows of a
+kind in the fit (zero rows change no least-squares solution): the object and contact columns
+are that model's, the robot's the kind's rows (``kind.jacobian_rows``) of the contact frame's
+displacement in its object's frame.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..identification.contacts import PlaneContact
+from ..identification.contacts import Contact, PlaneContact
 from ..identification.parameters import ParameterSet
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import skew
@@ -31,13 +38,34 @@ from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
 from .placements import COMPONENTS, Placements, joint_twists
 
-__all__ = ["PLANE_ROWS", "TILT_COLUMNS", "ChainsData", "ChainsModel", "ChainsState"]
+__all__ = [
+    "PLANE_ROWS",
+    "TILT_COLUMNS",
+    "ChainsData",
+    "ChainsModel",
+    "ChainsState",
+    "padded",
+    "row_count",
+]
 
 PLANE_ROWS = len(PlaneContact.object_dofs)
 """Columns of one plane: its height and two tilts (the ``plane`` kind's object unknowns)."""
 
 TILT_COLUMNS = len(PlaneContact.contact_dofs)
 """Columns of one contact frame: its tilts about its x and y axes."""
+
+
+def row_count(kinds) -> int:
+    """Rows per touch of a fit of chains of these kinds: the most of any kind."""
+    return max(len(k.row_names) for k in kinds)
+
+
+def padded(a: np.ndarray, rows: int) -> np.ndarray:
+    """``a`` ``(m, r, ...)`` with zero rows appended to ``(m, rows, ...)``."""
+    if a.shape[1] == rows:
+        return a
+    pad = np.zeros((a.shape[0], rows - a.shape[1], *a.shape[2:]))
+    return np.concatenate([a, pad], axis=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,32 +89,46 @@ class ChainsState:
         placements: The joint placement errors.
         states: Each chain's state (its MDH model on the perturbed robot).
         frames: Each chain's joint frames at q = 0 on the perturbed robot ``(n, 4, 4)``.
+        scales: Factor of each chain's weighted rows in the fit (None: 1 each): a loop's
+            rows may weigh more than a table's (``pose_weight``).
     """
 
     chains: tuple[Chain, ...]
     placements: Placements
     states: tuple[ContactState, ...]
     frames: tuple[np.ndarray, ...]
+    scales: tuple[float, ...] | None = None
+
+    def scale(self, c: int) -> float:
+        """Factor of chain c's rows."""
+        return 1.0 if self.scales is None else float(self.scales[c])
 
     def residuals(self, data: ChainsData, torque=None) -> np.ndarray:
-        """Weighted ``0 - gap`` of every touch ``(m, 3)``, chain after chain."""
+        """Weighted ``0 - gap`` of every touch ``(m, rows)``, chain after chain (padded)."""
+        rows = row_count(s.kind for s in self.states)
         return np.concatenate(
-            [s.residuals(d) for s, d in zip(self.states, data.parts, strict=True)]
+            [
+                padded(self.scale(c) * s.residuals(d), rows)
+                for c, (s, d) in enumerate(zip(self.states, data.parts, strict=True))
+            ]
         )
 
 
 @dataclass(frozen=True, eq=False)
 class ChainsModel:
-    """What is free: the planes, the contacts' tilts and joint placement components.
+    """What is free: the objects, the contacts' unknowns and joint placement components.
 
     Attributes:
-        plane_of: Index of each chain's plane.
-        planes: Number of planes.
+        plane_of: Index of each chain's object (a plane, or a fixed pose).
+        planes: Number of objects.
         free: The free directions, as indices into ``names_all``.
         names_all: Names of the directions offered.
         directions: The directions offered ``(D, 6 J)``, each a combination of the joint
             placement components (``Placements.names()`` order); None: each component alone
             (``names_all`` is then ``Placements.names()``).
+        kinds: Each chain's contact kind (None: all ``plane``).
+        counts: Each chain's number of objects (None: one each; a ``fixed-pose`` chain may
+            hold several poses, e.g. one per session: the feet stood elsewhere).
     """
 
     plane_of: tuple[int, ...]
@@ -94,15 +136,38 @@ class ChainsModel:
     free: tuple[int, ...]
     names_all: tuple[str, ...]
     directions: np.ndarray | None = None
+    kinds: tuple[Contact, ...] | None = None
+    counts: tuple[int, ...] | None = None
     _last: dict = field(default_factory=dict, compare=False, repr=False)
 
-    n_markers = 1
+    n_markers = 0  # its rows come weighted (solve.row_weights: 1)
     pose = False
+
+    def chain_kinds(self) -> tuple[Contact, ...]:
+        """Each chain's contact kind."""
+        return self.kinds if self.kinds is not None else (PlaneContact(),) * len(self.plane_of)
+
+    def object_kinds(self) -> tuple[Contact, ...]:
+        """Each object's kind (that of its first chain)."""
+        kinds = self.chain_kinds()
+        return tuple(kinds[self.plane_of.index(p)] for p in range(self.planes))
+
+    def _count(self, p: int) -> int:
+        """Objects of group p."""
+        return 1 if self.counts is None else self.counts[self.plane_of.index(p)]
+
+    def _object_start(self, p: int) -> int:
+        kinds = self.object_kinds()
+        return sum(self._count(g) * len(kinds[g].object_dofs) for g in range(p))
+
+    def _contact_start(self, c: int) -> int:
+        objects = self._object_start(self.planes)
+        return objects + sum(len(k.contact_dofs) for k in self.chain_kinds()[:c])
 
     @property
     def fixed(self) -> int:
-        """Columns of the planes and contacts (always free)."""
-        return PLANE_ROWS * self.planes + TILT_COLUMNS * len(self.plane_of)
+        """Columns of the objects and contacts (always free)."""
+        return self._contact_start(len(self.plane_of))
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -111,10 +176,12 @@ class ChainsModel:
     def names(self) -> tuple[str, ...]:
         """Column names."""
         out = []
-        for p in range(self.planes):
-            out += [f"plane{p + 1}_{DOF_NAMES[d]}" for d in PlaneContact.object_dofs]
-        for c in range(len(self.plane_of)):
-            out += [f"contact{c + 1}_{DOF_NAMES[d]}" for d in PlaneContact.contact_dofs]
+        for p, kind in enumerate(self.object_kinds()):
+            for k in range(self._count(p)):
+                tag = f"{kind.object_name}{p + 1}" + (f".{k + 1}" if self._count(p) > 1 else "")
+                out += [f"{tag}_{DOF_NAMES[d]}" for d in kind.object_dofs]
+        for c, kind in enumerate(self.chain_kinds()):
+            out += [f"contact{c + 1}_{DOF_NAMES[d]}" for d in kind.contact_dofs]
         return (*out, *(self.names_all[k] for k in self.free))
 
     def with_free(self, free: tuple[int, ...]) -> ChainsModel:
@@ -127,10 +194,19 @@ class ChainsModel:
             return np.eye(len(self.names_all))[list(self.free)]
         return self.directions[list(self.free)]
 
-    def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
+    def _chain_columns(self, c: int) -> tuple[slice, slice]:
+        """Chain c's object columns and contact columns in x."""
+        kind = self.chain_kinds()[c]
         p = self.plane_of[c]
-        t = PLANE_ROWS * self.planes + TILT_COLUMNS * c
-        return np.r_[x[PLANE_ROWS * p : PLANE_ROWS * p + PLANE_ROWS], x[t : t + TILT_COLUMNS]]
+        o, t = self._object_start(p), self._contact_start(c)
+        return (
+            slice(o, o + self._count(p) * len(kind.object_dofs)),
+            slice(t, t + len(kind.contact_dofs)),
+        )
+
+    def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
+        obj, con = self._chain_columns(c)
+        return np.r_[x[obj], x[con]]
 
     @staticmethod
     def _contact_model(state: ContactState) -> ContactModel:
@@ -165,27 +241,28 @@ class ChainsModel:
             dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
             for c, (s, mdh) in enumerate(zip(start.states, models, strict=True))
         )
-        return ChainsState(start.chains, placements, states, frames)
+        return ChainsState(start.chains, placements, states, frames, start.scales)
 
     def jacobian(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
-        """Weighted d(gap)/dx ``(m, 3, size)``, chain after chain."""
+        """Weighted d(gap)/dx ``(m, rows, size)``, chain after chain (padded rows)."""
         state = self.apply(start, x)
+        rows = row_count(self.chain_kinds())
         blocks = []
         for c, (s, d) in enumerate(zip(state.states, data.parts, strict=True)):
-            J = np.zeros((d.m, 3, self.size()))
+            J = np.zeros((d.m, len(s.kind.row_names), self.size()))
             base = dataclasses.replace(start.states[c], mdh=s.mdh)
-            J5 = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
-            p = self.plane_of[c]
-            J[:, :, PLANE_ROWS * p : PLANE_ROWS * p + PLANE_ROWS] = J5[:, :, :PLANE_ROWS]
-            t = PLANE_ROWS * self.planes + TILT_COLUMNS * c
-            J[:, :, t : t + TILT_COLUMNS] = J5[:, :, PLANE_ROWS:]
+            Jc = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
+            obj, con = self._chain_columns(c)
+            split = obj.stop - obj.start
+            J[:, :, obj] = Jc[:, :, :split]
+            J[:, :, con] = Jc[:, :, split:]
             if self.free:
                 J[:, :, self.fixed :] = self._robot_columns(state, c, d)
-            blocks.append(J)
+            blocks.append(padded(start.scale(c) * J, rows))
         return np.concatenate(blocks)
 
     def _robot_columns(self, state: ChainsState, c: int, d: ContactData) -> np.ndarray:
-        """Weighted gap rows of the free placement components for chain c ``(m, 3, free)``."""
+        """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
         chain, s = state.chains[c], state.states[c]
         joints = state.placements.joints
         columns = np.array([joints.index(name) for name in chain.joint_names])

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from ..exceptions import CalibrationRefusedError
+from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import moved_origins_urdf, write_moved_origins_urdf
 from ..kinematics.robot import Chain
+from .contact_frames import ContactFrames
 from .contact_result import GapStats
 from .placements import Placements
 from .selection import Selection
@@ -26,14 +28,18 @@ class ChainContacts:
     Attributes:
         chain: The nominal chain.
         source: Its touches' file (or description).
-        plane_id: The plane's id.
-        plane: The plane in the chain's base frame ``(4, 4)``, z = normal.
+        plane_id: The plane's (or the fixed pose's) id.
+        plane: The plane in the chain's base frame ``(4, 4)``, z = normal (a
+            ``fixed-pose`` chain: the fixed pose of its contact frame).
         contact: The contact frame in the tool frame ``(4, 4)``.
         nominal: The chain's nominal MDH model.
         calibrated: Its MDH model on the calibrated robot.
         weight: Weight of its tilt rows [m/rad].
         stats: ``train``, ``train_registration`` and, with held-out touches, ``held_out``
             and ``held_out_registration``.
+        kind: The chain's contact kind (``plane`` or ``fixed-pose``).
+        frames: Its fitted objects and contact frame (a ``fixed-pose`` chain's poses by
+            id), or None.
     """
 
     chain: Chain
@@ -45,6 +51,14 @@ class ChainContacts:
     calibrated: MDHModel
     weight: float
     stats: dict[str, GapStats]
+    kind: Contact = field(default_factory=PlaneContact)
+    frames: ContactFrames | None = None
+
+    def objects(self) -> dict[str, np.ndarray]:
+        """Each object (the plane, or each fixed pose) in the base frame ``(4, 4)``, by id."""
+        if self.frames is None or isinstance(self.kind, PlaneContact):
+            return {self.plane_id: self.plane}
+        return {i: F.copy() for i, F in zip(self.frames.ids, self.frames.objects, strict=True)}
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; gaps in mm and degrees)."""
@@ -52,10 +66,12 @@ class ChainContacts:
             "base": self.chain.base_frame,
             "tool": self.chain.tool_frame,
             "data": self.source,
+            "kind": self.kind.label,
             "tilt_weight": self.weight,
             "contact": {
-                "planes": {
-                    self.plane_id: {"frame": self.chain.base_frame, "matrix": self.plane.tolist()}
+                f"{self.kind.object_name}s": {
+                    i: {"frame": self.chain.base_frame, "matrix": F.tolist()}
+                    for i, F in self.objects().items()
                 },
                 "frames": {self.chain.tool_frame: {"matrix": self.contact.tolist()}},
             },
@@ -71,7 +87,8 @@ class ContactChainsCalibration:
         chains: Each chain's part, in the order given.
         placements: The fitted joint placement errors (one per URDF joint on any chain).
         shared: Joints on two chains or more (fitted once for all of them).
-        planes: Planes fitted (a plane shared by chains counts once).
+        planes: Objects fitted: planes (a plane shared by chains counts once) and the
+            fixed poses of ``fixed-pose`` chains.
         free: The placement components fitted (``<joint>:x`` ... ``:rz``).
         selection: The automatic choice (``auto``), or None.
         refusal: Why the model must not be used, or None.
@@ -124,21 +141,35 @@ class ContactChainsCalibration:
             "timings_ms": dict(self.timings_ms),
         }
 
+    def _objects(self) -> str:
+        """``2 plane(s)``, or ``1 plane(s) and 1 pose(s)`` with loops."""
+        loops = [c for c in self.chains if not isinstance(c.kind, PlaneContact)]
+        poses = sum(len(c.objects()) for c in loops)
+        return f"{self.planes - len(loops)} plane(s)" + (f" and {poses} pose(s)" if poses else "")
+
     def text(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
         lines = [
-            f"{self.chains[0].chain.name}: {len(self.chains)} chains, {self.planes} plane(s), "
+            f"{self.chains[0].chain.name}: {len(self.chains)} chains, {self._objects()}, "
             f"{len(self.free)} joint placement components fitted"
             + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
             "gaps (RMS): height [mm]  roll [deg]  pitch [deg]",
         ]
         for c in self.chains:
-            lines.append(f"{c.chain.base_frame} -> {c.chain.tool_frame}, plane '{c.plane_id}':")
+            head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
+            if not isinstance(c.kind, PlaneContact):
+                units = [
+                    f"{n} [{'deg' if a else 'mm'}]"
+                    for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
+                ]
+                ids = ", ".join(f"'{i}'" for i in c.objects())
+                head += f" {ids} (gaps: {', '.join(units)})"
+                lines.append(head + ":")
+            else:
+                lines.append(f"{head} '{c.plane_id}':")
             for key, s in c.stats.items():
-                lines.append(
-                    f"  {key:22s} {s.height_rms_mm:8.3f}  {s.roll_rms_deg:8.3f}  "
-                    f"{s.pitch_rms_deg:8.3f}  ({s.m} touches)"
-                )
+                rms = "  ".join(f"{v:8.3f}" for v in s.rms)
+                lines.append(f"  {key:22s} {rms}  ({s.m} touches)")
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)

@@ -68,7 +68,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     the report's ``warnings`` too.
     """
     with _recorded_warnings() as recorded:
-        if args.chain is not None:
+        if args.chain is not None or args.loop is not None:
             return contact_chains_cli.calibrate_chains_command(args)
         if args.data is None:
             raise InvalidArgumentError(

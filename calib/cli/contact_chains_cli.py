@@ -1,8 +1,12 @@
 """`calib calibrate --measure plane --chain BASE TOOL DATA ...`: several contact chains, one fit.
 
 Each ``--chain`` names a chain of the robot and its touches (and optionally touches to
-validate on): ``--chain left_sole_link gripper_left_base_link left.csv``. Joints on several
-chains (a humanoid's torso) are fitted once; one URDF of the whole robot is written.
+validate on): ``--chain left_sole_link gripper_left_base_link left.csv``. Each ``--loop``
+names a closed loop, a ``fixed-pose`` chain, and the file of its postures (a plane contact CSV
+that records its joints, or a ``fixed-pose`` one; every row a touch of one pose,
+:func:`~calib.measurements.contact_loops.read_loop`): ``--loop left_sole_link right_sole_link
+left.csv``. Joints on several chains (a humanoid's torso) are fitted once; one URDF of the
+whole robot is written.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ __all__ = ["add_chain_arguments", "calibrate_chains_command"]
 
 
 def add_chain_arguments(p: argparse.ArgumentParser) -> None:
-    """The ``--chain`` and ``--shared-planes`` flags of ``calibrate``."""
+    """The ``--chain``, ``--loop`` and ``--shared-planes`` flags of ``calibrate``."""
     p.add_argument(
         "--chain",
         action="append",
@@ -27,6 +31,22 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
         metavar="ARG",
         help="contacts on several chains fitted together (joints they share fitted once, one "
         "URDF): BASE TOOL DATA [VALIDATION], once per chain, instead of --base, --tool, --data",
+    )
+    p.add_argument(
+        "--loop",
+        action="append",
+        nargs="+",
+        metavar="ARG",
+        help="with --chain: a closed loop (a fixed pose of TOOL in BASE at every touch, e.g. "
+        "both soles on the ground) fitted with the chains: BASE TOOL DATA [VALIDATION], DATA "
+        "a contact CSV recording its joints (every row a touch of the one pose)",
+    )
+    p.add_argument(
+        "--pose-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help="with --loop: factor of the loops' rows against the chains' (default 1)",
     )
     p.add_argument(
         "--shared-planes",
@@ -50,8 +70,12 @@ _EXCLUDED = {
 }
 
 
-def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None]]:
-    """The chains asked for: (base, tool, data, validation or None)."""
+def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None, bool]]:
+    """The chains asked for: (base, tool, data, validation or None, is a loop)."""
+    if not args.chain:
+        raise InvalidArgumentError("--loop is fitted with plane chains: give --chain too")
+    if args.pose_weight is not None and not args.loop:
+        raise InvalidArgumentError("--pose-weight weighs the rows of --loop: give --loop too")
     if args.measure != "plane":
         raise InvalidArgumentError("--chain takes --measure plane")
     for dest, flag in _EXCLUDED.items():
@@ -64,12 +88,14 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None]]:
     if args.contact is not None and len(args.contact) not in (3, 6):
         raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
     out = []
-    for items in args.chain:
-        if len(items) not in (3, 4):
-            raise InvalidArgumentError(
-                f"--chain takes BASE TOOL DATA [VALIDATION], got {len(items)} values"
-            )
-        out.append((items[0], items[1], items[2], items[3] if len(items) == 4 else None))
+    for flag, given in (("--chain", args.chain), ("--loop", getattr(args, "loop", None) or [])):
+        for items in given:
+            if len(items) not in (3, 4):
+                raise InvalidArgumentError(
+                    f"{flag} takes BASE TOOL DATA [VALIDATION], got {len(items)} values"
+                )
+            check = items[3] if len(items) == 4 else None
+            out.append((items[0], items[1], items[2], check, flag == "--loop"))
     return out
 
 
@@ -81,25 +107,29 @@ def calibrate_chains_command(args: argparse.Namespace) -> int:
     """
     from ..calibration.contact_chains import calibrate_contact_chains
     from ..measurements.contact_campaign import read_contacts
+    from ..measurements.contact_loops import read_loop
 
     asked = _check(args)
     chains: list[Chain] = []
-    for base, tool, _, _ in asked:
+    for base, tool, _, _, _ in asked:
         robot = load_robot(args.robot, base, tool)
         if not isinstance(robot, Chain) or robot.is_tree:
             raise InvalidArgumentError("--chain names one base and one tool per chain")
         chains.append(robot)
     out, report = Path(args.out), Path(args.report) if args.report else None
     inputs: dict[str, str | Path] = {"the nominal URDF": chains[0].urdf_path}
-    for k, (_, _, path, check) in enumerate(asked):
+    for k, (_, _, path, check, _) in enumerate(asked):
         inputs[f"the data of chain {k + 1}"] = path
         if check:
             inputs[f"the validation data of chain {k + 1}"] = check
     check_outputs({"--out": out, "--report": report}, inputs)
-    data = [read_contacts(d, c, "plane") for c, (_, _, d, _) in zip(chains, asked, strict=True)]
+
+    def read(path, chain, loop):
+        return read_loop(path, chain) if loop else read_contacts(path, chain, "plane")
+
+    data = [read(d, c, loop) for c, (_, _, d, _, loop) in zip(chains, asked, strict=True)]
     checks = [
-        read_contacts(v, c, "plane") if v else None
-        for c, (_, _, _, v) in zip(chains, asked, strict=True)
+        read(v, c, loop) if v else None for c, (_, _, _, v, loop) in zip(chains, asked, strict=True)
     ]
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
     result = calibrate_contact_chains(
@@ -110,6 +140,7 @@ def calibrate_chains_command(args: argparse.Namespace) -> int:
         validate=checks if any(v is not None for v in checks) else None,
         orientation_weight=weight,
         shared_planes=args.shared_planes,
+        pose_weight=1.0 if args.pose_weight is None else args.pose_weight,
         max_iterations=args.max_iterations,
         holdout=args.holdout,
         seed=args.seed,
