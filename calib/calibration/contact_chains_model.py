@@ -39,21 +39,12 @@ from .contact_model import ContactModel, ContactState
 from .placements import COMPONENTS, Placements, joint_twists
 
 __all__ = [
-    "PLANE_ROWS",
-    "TILT_COLUMNS",
     "ChainsData",
     "ChainsModel",
     "ChainsState",
     "padded",
     "row_count",
 ]
-
-PLANE_ROWS = len(PlaneContact.object_dofs)
-"""Columns of one plane: its height and two tilts (the ``plane`` kind's object unknowns)."""
-
-TILT_COLUMNS = len(PlaneContact.contact_dofs)
-"""Columns of one contact frame: its tilts about its x and y axes."""
-
 
 def row_count(kinds) -> int:
     """Rows per touch of a fit of chains of these kinds: the most of any kind."""
