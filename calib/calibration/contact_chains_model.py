@@ -46,6 +46,7 @@ __all__ = [
     "row_count",
 ]
 
+
 def row_count(kinds) -> int:
     """Rows per touch of a fit of chains of these kinds: the most of any kind."""
     return max(len(k.row_names) for k in kinds)
