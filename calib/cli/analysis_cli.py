@@ -16,7 +16,7 @@ from ..identification.identifiability import analyze
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import load_chain
-from ..kinematics.tree import Tree, load_robot
+from ..kinematics.tree import load_robot
 from ..kinematics.tree_model import from_tree
 from .common import (
     add_chain_args,
@@ -49,52 +49,36 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def cmd_show(args: argparse.Namespace) -> int:
     """Print the MDH table of a chain or tree."""
-    chain = load_robot(args.robot, args.base, tool_arg(args))
-    if chain.is_tree:
-        return _show_tree(chain, args.json)
-    mdh = from_chain(chain)
-    mimic = () if chain.coupling is None else chain.coupling.mimic
+    robot = load_robot(args.robot, args.base, tool_arg(args))
+    model, table = _model_and_table(robot)
+    mimic = () if robot.coupling is None else robot.coupling.mimic
     if args.json:
+        tools = {"tools": list(robot.tool_frames)} if robot.is_tree else {"tool": model.tool_frame}
         print_json(
-            {
-                "robot": chain.name,
-                "base": chain.base_frame,
-                "tool": chain.tool_frame,
-                "urdf": str(chain.urdf_path),
-                "frames": mdh.rows(),
-                "variables": list(chain.variable_names),
-                "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
-            }
-        )
-    else:
-        print(f"{chain.name}: {chain.base_frame} -> {chain.tool_frame} ({chain.urdf_path})")
-        print(mdh_table(mdh))
-        for line in coupling_lines(mimic):
-            print(line)
-    return 0
-
-
-def _show_tree(tree: Tree, as_json: bool) -> int:
-    model = from_tree(tree)
-    mimic = () if tree.coupling is None else tree.coupling.mimic
-    if as_json:
-        print_json(
-            {
-                "robot": tree.name,
-                "base": tree.base_frame,
-                "tools": list(tree.tool_frames),
-                "urdf": str(tree.urdf_path),
+            {"robot": robot.name, "base": robot.base_frame}
+            | tools
+            | {
+                "urdf": str(robot.urdf_path),
                 "frames": model.rows(),
-                "variables": list(tree.variable_names),
+                "variables": list(robot.variable_names),
                 "mimic": [dataclasses.asdict(mj) | {"row": mj.joint + 1} for mj in mimic],
             }
         )
     else:
-        print(f"{tree.name}: {tree.base_frame} -> {model.tool_frame} ({tree.urdf_path})")
-        print(tree_table(model))
+        print(f"{robot.name}: {robot.base_frame} -> {model.tool_frame} ({robot.urdf_path})")
+        print(table)
         for line in coupling_lines(mimic):
             print(line)
     return 0
+
+
+def _model_and_table(robot):
+    """The MDH model of a chain or tree, and its text table."""
+    if robot.is_tree:
+        tree_model = from_tree(robot)
+        return tree_model, tree_table(tree_model)
+    mdh = from_chain(robot)
+    return mdh, mdh_table(mdh)
 
 
 def _analyze(args: argparse.Namespace):
