@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import chain_of
+from test_round_off import MINIMAL  # one joint, a tool whose rpy is RPY
 
 import calib
 from calib import InvalidArgumentError, calibrate, calibrate_tree, simulate
@@ -198,20 +199,6 @@ def test_no_chain_or_tree_dispatch_by_class():
 
 # --- bugs -------------------------------------------------------------------------------------
 
-ROUNDED = """<?xml version="1.0"?>
-<robot name="rounded">
-  <link name="base"/><link name="l1"/><link name="tool"/>
-  <joint name="j1" type="revolute">
-    <parent link="base"/><child link="l1"/>
-    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2" upper="2" effort="1" velocity="1"/>
-  </joint>
-  <joint name="t" type="fixed">
-    <parent link="l1"/><child link="tool"/>
-    <origin xyz="0 0 0.2" rpy="RPY"/>
-  </joint>
-</robot>
-"""
 
 GEOMETRY = ("beta", "alpha", "d", "theta", "r", "y")
 
@@ -220,8 +207,8 @@ def test_mdh_replace_keeps_source_unless_the_geometry_changes(tmp_path):
     """``idealized`` of a renamed model is the conversion of the exact URDF (a half-turn
     rounded to 3.1416 in the file, pi in the reference); a changed row keeps its change."""
     rounded, exact = tmp_path / "rounded.urdf", tmp_path / "exact.urdf"
-    rounded.write_text(ROUNDED.replace("RPY", "3.1416 0 0"))
-    exact.write_text(ROUNDED.replace("RPY", "3.141592653589793 0 0"))
+    rounded.write_text(MINIMAL.replace("RPY", "3.1416 0 0"))
+    exact.write_text(MINIMAL.replace("RPY", "3.141592653589793 0 0"))
     model = calib.from_chain(load_robot(rounded, "base", "tool"))
     reference = calib.from_chain(load_robot(exact, "base", "tool"))
     renamed = model.replace(tool_frame="flange", base_frame="world")
