@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from contact_scorer import contact_gaps
+from test_contact_chains import central_differences
 
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
@@ -73,14 +74,7 @@ def test_jacobian_matches_central_differences():
     J = model.jacobian(start, x, data)
     assert J.shape == (9, 6, model.size())
     assert not np.any(J[:5, 3:])  # the plane chain's padding rows
-    h = 1e-5
-    num = np.zeros_like(J)
-    for k in range(model.size()):
-        e = np.zeros(model.size())
-        e[k] = h
-        up = -model.apply(start, x + e).residuals(data)
-        down = -model.apply(start, x - e).residuals(data)
-        num[:, :, k] = (up - down) / (2 * h)
+    num = central_differences(model, start, x, data)
     assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
     loop_cols = np.abs(J[5:, :, model.fixed :]).max(
         axis=(0, 1)
