@@ -75,15 +75,21 @@ def test_jacobian_matches_central_differences():
     assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
 
 
+def true_robot(folder, nominal):
+    """The URDF of a true robot: every joint origin of the chains moved by ~1 mm / 1 mrad."""
+    pl = Placements.of(tuple(nominal))
+    truth = pl.shifted(1e-3 * np.random.default_rng(7).standard_normal(pl.y.size))
+    true_urdf = folder / "true.urdf"
+    true_urdf.write_bytes(moved_origins_urdf(nominal[0], truth.errors()))
+    return true_urdf
+
+
 @pytest.fixture(scope="module")
 def round_trip(tmp_path_factory):
     """A true TALOS (every joint origin of both chains moved by ~1 mm / 1 mrad), touches."""
     folder = tmp_path_factory.mktemp("truth")
     nominal = _chains()
-    pl = Placements.of(tuple(nominal))
-    truth = pl.shifted(1e-3 * np.random.default_rng(7).standard_normal(pl.y.size))
-    true_urdf = folder / "true.urdf"
-    true_urdf.write_bytes(moved_origins_urdf(nominal[0], truth.errors()))
+    true_urdf = true_robot(folder, nominal)
     camps = [
         simulate_contacts(c, 150, "plane", error_mm=0.0, error_mrad=0.0, seed=1)
         for c in _chains(true_urdf)

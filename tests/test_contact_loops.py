@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from contact_scorer import contact_gaps
-from test_contact_chains import central_differences
+from test_contact_chains import central_differences, true_robot
 
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
@@ -26,7 +26,6 @@ from calib.calibration.placements import Placements
 from calib.cli.commands import main
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import FixedPointContact, FixedPoseContact, PlaneContact
-from calib.kinematics.placement_export import moved_origins_urdf
 from calib.measurements.contact_campaign import ContactData, read_contacts, simulate_contacts
 from calib.measurements.contact_loops import as_loop, join_loops, read_loop
 
@@ -87,10 +86,7 @@ def round_trip(tmp_path_factory):
     """A true TALOS (every joint origin of both chains moved ~1 mm / 1 mrad), touches."""
     folder = tmp_path_factory.mktemp("truth")
     nominal = _chains()
-    pl = Placements.of(tuple(nominal))
-    truth = pl.shifted(1e-3 * np.random.default_rng(7).standard_normal(pl.y.size))
-    true_urdf = folder / "true.urdf"
-    true_urdf.write_bytes(moved_origins_urdf(nominal[0], truth.errors()))
+    true_urdf = true_robot(folder, nominal)
     arm, loop = _chains(true_urdf)
     data = [
         simulate_contacts(arm, 150, "plane", error_mm=0.0, error_mrad=0.0, seed=1).data,
