@@ -186,10 +186,7 @@ def _register(nominal, data, guess, opts, notes: list[str], at):
         determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
         reg = _registration(nominal, data, guess, opts)
     if dropped:
-        notes.append(
-            f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
-            + ", ".join(o.text() for o in dropped)
-        )
+        notes.append(outliers.set_aside_note(dropped))
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
     return reg.state, data, tuple(dropped)

@@ -186,10 +186,7 @@ def checked_registration(
     start = registration(nominal, train, guess, weight, default.frames)
     start, train, dropped = _drop_outliers(nominal, train, guess, weight, start)
     if dropped:
-        notes.append(
-            f"{len(dropped)} outlier touch(es) set aside (gap > {outliers.FACTOR:g} x the "
-            "median): " + ", ".join(o.text() for o in dropped)
-        )
+        notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
     return start, train, dropped, notes
 
 

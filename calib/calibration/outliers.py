@@ -24,6 +24,7 @@ __all__ = [
     "Outlier",
     "find_outliers",
     "find_pose_outliers",
+    "set_aside_note",
 ]
 
 FACTOR = 5.0
@@ -62,6 +63,22 @@ class Outlier:
         if self.kind == "orientation":
             return f"row {self.row} (orientation {np.degrees(self.error):.3g} deg)"
         return f"row {self.row} ({1e3 * self.error:.3g} mm)"
+
+
+def set_aside_note(dropped, unit: str = "row(s)", gap: str = "error") -> str:
+    """The note listing the outliers set aside (one line).
+
+    For example ``2 outlier row(s) set aside (error > 5 x the median): row 4 (5.3 mm), row 9
+    (6.1 mm)``.
+
+    Args:
+        dropped: The outliers (:class:`Outlier`).
+        unit: What one is: ``row(s)`` of measurements, ``touch(es)`` of contacts.
+        gap: What exceeded the bound: ``error`` (measurements) or ``gap`` (contacts).
+    """
+    return f"{len(dropped)} outlier {unit} set aside ({gap} > {FACTOR:g} x the median): " + (
+        ", ".join(o.text() for o in dropped)
+    )
 
 
 def _configuration_errors(residual: np.ndarray, n_markers: int) -> np.ndarray:

@@ -364,10 +364,7 @@ def _drop_outliers(nominal, reg: Fit, data: Measurements, max_iterations: int, n
         determined.check_equations(data.m, 3, 6 + 3 * nominal.n_tools, what, data.source)
         reg = _registration(nominal, data, max_iterations)
     if dropped:
-        notes.append(
-            f"{len(dropped)} outlier row(s) set aside (error > {outliers.FACTOR:g} x the median): "
-            + ", ".join(o.text() for o in dropped)
-        )
+        notes.append(outliers.set_aside_note(dropped))
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
     return reg, data, tuple(dropped)
