@@ -14,7 +14,7 @@ from pathlib import Path
 from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
 from ..core.choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
 from ..core.fileio import json_text, written_in_place
-from ..exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
+from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
@@ -26,7 +26,7 @@ from .common import (
     compliance_path,
     one_line,
     tool_arg,
-    write_outputs,
+    write_calibration,
 )
 
 __all__ = [
@@ -172,7 +172,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
             urdf[comp] = json_text(compliance_document(result, str(out)))
         return urdf
 
-    return _write_calibration(
+    return write_calibration(
         args,
         _with_warnings(result.to_dict(args.world_link), recorded),
         lambda: calibration_text(result),
@@ -215,36 +215,6 @@ def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Pa
         inputs["the validation data (--validate)"] = args.validate
     check_output_paths({"--out": out, "--report": report}, inputs)
     return out, report
-
-
-def _write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
-    """Print the result; write the URDF and report, or only the report of a refused model.
-
-    Args:
-        args: The command's arguments (``--json``).
-        report_dict: The JSON report.
-        text: Returns the text printed without ``--json``.
-        refusal: Why the model must not be written, or None.
-        urdf: Returns the files of an accepted model: the calibrated URDF (and the
-            compliance file) by path (called only for an accepted model).
-        paths: ``(--out, --report or None)``.
-
-    Raises:
-        CalibrationRefusedError: The model was refused (no URDF is written).
-    """
-    report = paths[1]
-    doc = json_text(report_dict)
-    print(doc if args.json else text(), end="" if args.json else "\n")
-    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
-    if refusal is not None:
-        write_outputs(files)
-        kept = f"; report written to {report}" if report is not None else ""
-        raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
-    written = {**urdf(), **files}
-    write_outputs(written)
-    if not args.json:
-        print(f"wrote {', '.join(str(p) for p in written)}")
-    return 0
 
 
 CHAIN_ONLY: dict[str, object] = {
@@ -306,7 +276,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
         seed=args.seed,
         max_iterations=args.max_iterations,
     )
-    return _write_calibration(
+    return write_calibration(
         args,
         _with_warnings(result.to_dict(), recorded),
         result.text,

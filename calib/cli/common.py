@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import NoReturn
 
 from ..core.choices import DEFAULT_CONFIGS
-from ..core.fileio import check_outputs, write_files_atomic
+from ..core.fileio import check_outputs, json_text, write_files_atomic
+from ..exceptions import CalibrationRefusedError
 from ..kinematics.catalog import catalog_files, installed_dirs
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "print_json",
     "tool_arg",
     "warning_lines",
+    "write_calibration",
     "write_outputs",
 ]
 
@@ -229,3 +231,33 @@ def warning_lines(caught: Sequence[warnings.WarningMessage]) -> list[str]:
 def compliance_path(out: Path) -> Path:
     """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
+
+
+def write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
+    """Print the result; write the URDF and report, or only the report of a refused model.
+
+    Args:
+        args: The command's arguments (``--json``).
+        report_dict: The JSON report.
+        text: Returns the text printed without ``--json``.
+        refusal: Why the model must not be written, or None.
+        urdf: Returns the files of an accepted model: the calibrated URDF (and the
+            compliance file) by path (called only for an accepted model).
+        paths: ``(--out, --report or None)``.
+
+    Raises:
+        CalibrationRefusedError: The model was refused (no URDF is written).
+    """
+    report = paths[1]
+    doc = json_text(report_dict)
+    print(doc if args.json else text(), end="" if args.json else "\n")
+    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
+    if refusal is not None:
+        write_outputs(files)
+        kept = f"; report written to {report}" if report is not None else ""
+        raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
+    written = {**urdf(), **files}
+    write_outputs(written)
+    if not args.json:
+        print(f"wrote {', '.join(str(p) for p in written)}")
+    return 0

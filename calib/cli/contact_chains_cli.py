@@ -14,10 +14,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..core.fileio import check_outputs, json_text, write_files_atomic
-from ..exceptions import CalibrationRefusedError, InvalidArgumentError
+from ..core.fileio import check_outputs
+from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
+from .common import write_calibration
 
 __all__ = ["add_chain_arguments", "calibrate_chains_command"]
 
@@ -145,14 +146,11 @@ def calibrate_chains_command(args: argparse.Namespace) -> int:
         holdout=args.holdout,
         seed=args.seed,
     )
-    doc = json_text(result.to_dict())
-    print(doc if args.json else result.text(), end="" if args.json else "\n")
-    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
-    if result.refusal is not None:
-        write_files_atomic(files)
-        raise CalibrationRefusedError(f"calibration refused: {result.refusal}: no URDF written")
-    files[out] = result.urdf()
-    write_files_atomic(files)
-    if not args.json:
-        print(f"wrote {', '.join(str(p) for p in files)}")
-    return 0
+    return write_calibration(
+        args,
+        result.to_dict(),
+        result.text,
+        result.refusal,
+        lambda: {out: result.urdf()},
+        (out, report),
+    )

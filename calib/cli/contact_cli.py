@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..core.fileio import check_outputs, json_text, write_files_atomic, written_in_place
-from ..exceptions import CalibrationRefusedError, InvalidArgumentError
+from ..core.fileio import check_outputs, json_text, written_in_place
+from ..exceptions import InvalidArgumentError
 from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
-from .common import compliance_path
+from .common import compliance_path, write_calibration
 
 __all__ = ["add_contact_arguments", "calibrate_contacts_command", "is_contact_run"]
 
@@ -101,21 +101,20 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) ->
         holdout=args.holdout,
         seed=args.seed,
     )
-    doc = json_text(result.to_dict())
-    print(doc if args.json else _text(result), end="" if args.json else "\n")
-    files: dict[Path, str | bytes] = {} if report is None else {report: doc}
-    if result.refusal is not None:
-        write_files_atomic(files)
-        raise CalibrationRefusedError(f"calibration refused: {result.refusal}: no URDF written")
-    from ..kinematics.urdf_export import calibrated_urdf
 
-    files[out] = calibrated_urdf(chain, result.nominal, result.calibrated)
-    if comp is not None and result.elastic:
-        files[comp] = json_text(result.compliance_document(str(out)))
-    write_files_atomic(files)
-    if not args.json:
-        print(f"wrote {', '.join(str(p) for p in files)}")
-    return 0
+    def urdf() -> dict[Path, str | bytes]:
+        from ..kinematics.urdf_export import calibrated_urdf
+
+        files: dict[Path, str | bytes] = {
+            out: calibrated_urdf(chain, result.nominal, result.calibrated)
+        }
+        if comp is not None and result.elastic:
+            files[comp] = json_text(result.compliance_document(str(out)))
+        return files
+
+    return write_calibration(
+        args, result.to_dict(), lambda: _text(result), result.refusal, urdf, (out, report)
+    )
 
 
 def _text(result) -> str:
