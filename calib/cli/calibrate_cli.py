@@ -116,7 +116,6 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     from ..calibration import calibrate  # only this command loads the calibration
     from ..calibration.text import calibration_text
     from ..kinematics.elastic import compliance_document
-    from ..measurements.csvfile import read_measurements
 
     out, report = _calibration_outputs(args, chain.urdf_path)
     comp = None if written_in_place(out) else compliance_path(out)
@@ -128,16 +127,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         {"--out": out, "--report": report, "the compliance file": comp},
         {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
     )
-    columns = _columns(args)
-    data = read_measurements(args.data, chain, columns)
-    _check_links(chain, data.n_markers, args.world_link)  # before the fit
-    check = read_measurements(args.validate, chain, columns) if args.validate else None
-    kind = _data_kind(args)
-    if kind is not None and kind.is_position:
-        data = data.position_only()
-        check = check.position_only() if check is not None else None
-    elif kind is not None and kind.is_pose and data.quaternion is None:
-        raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
+    data, check = _chain_data(args, chain)
     result = calibrate(
         chain,
         data,
@@ -180,6 +170,23 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         files,
         (out, report),
     )
+
+
+def _chain_data(args: argparse.Namespace, chain: Chain):
+    """The data and validation data of a one-tool calibration, read as ``--measure`` says."""
+    from ..measurements.csvfile import read_measurements
+
+    columns = _columns(args)
+    data = read_measurements(args.data, chain, columns)
+    _check_links(chain, data.n_markers, args.world_link)  # before the fit
+    check = read_measurements(args.validate, chain, columns) if args.validate else None
+    kind = _data_kind(args)
+    if kind is not None and kind.is_position:
+        data = data.position_only()
+        check = check.position_only() if check is not None else None
+    elif kind is not None and kind.is_pose and data.quaternion is None:
+        raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
+    return data, check
 
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:

@@ -367,38 +367,9 @@ def analyze_model(
     Wc = complete()
     n_complete, _ = numerical_rank(pivoted_diagonal(Wc), n_rows)
     on_axes = axes_through_point(mdh, measurement)
-    missing: list[str] = []
-    if len(kept) < n_complete:
-        R_all = qr.triangular(W_all)
-        for j, p in enumerate(extras):
-            cols = [*kept, len(pset) + j]
-            r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), n_rows)
-            if r_x > len(kept):
-                missing.append(_explain(p, mdh))
-        if not missing:
-            missing.append(
-                f"the set reaches {len(kept)} of the {n_complete} independent errors for a "
-                f"reason calib does not diagnose"
-            )
+    missing = _missing(mdh, W_all, pset, extras, kept, n_complete, n_rows)
     t3 = time.perf_counter()
-    notes = []
-    rank, _ = numerical_rank(diag, n_rows)
-    if len(kept) != rank:
-        notes.append(
-            f"{len(kept)} independent columns were selected for a numerical rank of {rank}: "
-            f"the rank is ill-defined at this geometry"
-        )
-    if n_rows < len(pset):
-        notes.append(
-            f"only {n_rows} measurement rows for {len(pset)} parameters: the rank cannot "
-            f"exceed {n_rows}; draw more configurations"
-        )
-    b = rank
-    if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
-        notes.append(
-            f"weak rank gap: |R_bb| = {diag[b - 1]:.3g} vs |R_b+1| = {diag[b]:.3g}; the "
-            f"rank may change with more or other configurations"
-        )
+    notes = _rank_notes(diag, n_rows, len(kept), len(pset))
     for note in notes:
         warnings.warn(note, RankWarning, stacklevel=2)
     return Identifiability(
@@ -429,6 +400,46 @@ def analyze_model(
             "complete": 1e3 * (t3 - t2),
         },
     )
+
+
+def _missing(mdh, W_all, pset, extras, kept, n_complete: int, n_rows: int) -> list[str]:
+    """Why the set reaches fewer independent errors than the complete set (one line each)."""
+    if len(kept) >= n_complete:
+        return []
+    R_all = qr.triangular(W_all)
+    missing = []
+    for j, p in enumerate(extras):
+        cols = [*kept, len(pset) + j]
+        r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), n_rows)
+        if r_x > len(kept):
+            missing.append(_explain(p, mdh))
+    return missing or [
+        f"the set reaches {len(kept)} of the {n_complete} independent errors for a "
+        f"reason calib does not diagnose"
+    ]
+
+
+def _rank_notes(diag: np.ndarray, n_rows: int, n_kept: int, n_params: int) -> list[str]:
+    """Warnings about the rank: ill-defined, too few rows, a weak gap."""
+    notes = []
+    rank, _ = numerical_rank(diag, n_rows)
+    if n_kept != rank:
+        notes.append(
+            f"{n_kept} independent columns were selected for a numerical rank of {rank}: "
+            f"the rank is ill-defined at this geometry"
+        )
+    if n_rows < n_params:
+        notes.append(
+            f"only {n_rows} measurement rows for {n_params} parameters: the rank cannot "
+            f"exceed {n_rows}; draw more configurations"
+        )
+    b = rank
+    if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
+        notes.append(
+            f"weak rank gap: |R_bb| = {diag[b - 1]:.3g} vs |R_b+1| = {diag[b]:.3g}; the "
+            f"rank may change with more or other configurations"
+        )
+    return notes
 
 
 SNAPPED_CHANGE = 1e-3

@@ -331,6 +331,39 @@ def parse_measurements(
             coordinate beyond ``MAX_COORDINATE`` [m], a zero quaternion, or no data row.
     """
     columns = columns or Columns()
+    header, values, lines, tools = _read_rows(text, chain, columns, source)
+    names, pos_cols, fmt, ori_cols, _ = header
+    table = np.array(values)
+    col = {n: j for j, n in enumerate(names)}
+    q = chain.joint_values(table[:, [col[JOINT_PREFIX + n] for n in chain.variable_names]])
+    check_limits(chain, q, source, np.array(lines), warn=False)
+    position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
+    _check_coordinates(position, pos_cols, lines, source)
+    quat, angles = None, None
+    if fmt == MARKERS:
+        position, quat = _marker_set(position, source)
+    elif fmt is not None:
+        ori = table[:, [col[n] for n in ori_cols]]
+        quat = _orientation(ori, fmt, source, lines)
+        angles = Angles(fmt, read_only(ori)) if fmt in ("rotvec", "rpy") else None
+    data = Measurements(
+        chain.joint_names,
+        q,
+        position,
+        quat,
+        source,
+        tuple(lines),
+        tuple(tools) or None,
+        chain.coupling,
+        angles,
+    )
+    check_tools(data, tool_frames(chain))
+    _warn_repeats(data)
+    return data
+
+
+def _read_rows(text: str, chain: Chain | Tree, columns: Columns, source: str):
+    """The header, the rows' numbers, their line numbers and tool names (if a tool column)."""
     header = None
     values: list[list[float]] = []
     lines: list[int] = []
@@ -359,12 +392,11 @@ def parse_measurements(
         raise DataError(source, "empty file: expected a header line and measurement rows")
     if not values:
         raise DataError(source, "no measurement rows after the header")
-    names, pos_cols, fmt, ori_cols, _ = header
-    table = np.array(values)
-    col = {n: j for j, n in enumerate(names)}
-    q = chain.joint_values(table[:, [col[JOINT_PREFIX + n] for n in chain.variable_names]])
-    check_limits(chain, q, source, np.array(lines), warn=False)
-    position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
+    return header, values, lines, tools
+
+
+def _check_coordinates(position: np.ndarray, names, lines: list[int], source: str) -> None:
+    """Refuse a measured coordinate beyond :data:`MAX_COORDINATE` [m] (its row and column)."""
     far = np.abs(position) > MAX_COORDINATE
     if np.any(far):
         i, j = (int(v) for v in np.argwhere(far)[0])
@@ -373,29 +405,8 @@ def parse_measurements(
             f"{position[i, j]:.9g} m is not a plausible measurement (coordinates are within "
             f"{MAX_COORDINATE:g} m)",
             row=lines[i],
-            column=pos_cols[j],
+            column=names[j],
         )
-    quat, angles = None, None
-    if fmt == MARKERS:
-        position, quat = _marker_set(position, source)
-    elif fmt is not None:
-        ori = table[:, [col[n] for n in ori_cols]]
-        quat = _orientation(ori, fmt, source, lines)
-        angles = Angles(fmt, read_only(ori)) if fmt in ("rotvec", "rpy") else None
-    data = Measurements(
-        chain.joint_names,
-        q,
-        position,
-        quat,
-        source,
-        tuple(lines),
-        tuple(tools) or None,
-        chain.coupling,
-        angles,
-    )
-    check_tools(data, tool_frames(chain))
-    _warn_repeats(data)
-    return data
 
 
 def _warn_repeats(data: Measurements) -> None:
