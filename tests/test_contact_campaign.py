@@ -146,3 +146,14 @@ def test_cli_simulate_contacts(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--marker is for measured campaigns" in err and "Traceback" not in err
     assert not bad.exists()
+
+
+def test_fixed_pose_truth_names_its_objects_poses_as_the_report(tmp_path):
+    out = tmp_path / "c.csv"
+    args = ["simulate", "panda", "--measure", "fixed-pose", "--configs", "6", "--out", str(out)]
+    assert main([*args, "--seed", "1"]) == 0
+    truth = json.loads(out.with_suffix(".truth.json").read_text())
+    assert set(truth["poses"]) == {"point1"} and truth["points"] == truth["poses"]
+    assert set(truth["deprecated"]) == {"points"}
+    T = np.array(truth["poses"]["point1"])
+    assert T.shape == (4, 4) and np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)

@@ -42,6 +42,12 @@ ID_COLUMNS = {
 }
 """The id column of each contact kind."""
 
+TRUTH_POINTS_NOTE = (
+    "a fixed-pose campaign's objects are 'poses', as in the calibration report; 'points' is "
+    "written too until the next format"
+)
+"""Why a fixed-pose truth also holds ``points`` (the deprecated name of its ``poses``)."""
+
 SIMULATION_ROUNDS = 24
 """Draws of starting configurations :func:`simulate_contacts` tries per contact."""
 
@@ -213,7 +219,9 @@ class ContactTruth:
 
     def to_dict(self) -> dict:
         """JSON-ready record (radians, metres)."""
-        key = "planes" if ID_COLUMNS[self.kind.label] == "plane" else "points"
+        key = f"{self.kind.object_name}s"
+        objects = {name: T.tolist() for name, T in self.frames.items()}
+        old = {"points": objects} if key == "poses" else {}  # the name before format 2
         return {
             "robot": self.robot,
             "measure": self.kind.label,
@@ -223,7 +231,9 @@ class ContactTruth:
             "error_mrad": self.error_mrad,
             "noise_mrad": self.noise_mrad,
             "errors": {n: float(v) for n, v in zip(self.params.names, self.errors, strict=True)},
-            key: {name: T.tolist() for name, T in self.frames.items()},
+            key: objects,
+            **old,
+            "deprecated": {"points": TRUTH_POINTS_NOTE} if old else {},
             "true_mdh": self.true_mdh.rows(),
         }
 
