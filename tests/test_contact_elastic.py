@@ -426,3 +426,43 @@ def test_bad_compliance_file_is_one_data_error(talos_elastic, tmp_path, change, 
     bad.write_text(json.dumps(doc))
     with pytest.raises(DataError, match=message):
         load_calibrated(out / "cal.urdf", bad)
+
+
+def test_cli_other_foot_splits_the_load(tmp_path, capsys):
+    """``--other-foot FRAME SHARE``: recorded in both files; the API's torques are that load's."""
+    from calib.cli.commands import main
+
+    right = (TALOS[0], "right_sole_link", "gripper_right_base_link")
+    args = ["calibrate", right[0], "--base", right[1], "--tool", right[2]]
+    args += ["--data", str(REAL / "right_train.csv"), "--measure", "plane"]
+    args += ["--contact", "0", "0", "-0.12", "--holdout", "0.25", "--elastic"]
+    out = tmp_path / "cal.urdf"
+    ok = [*args, "--other-foot", "left_sole_link", "0.5", "--out", str(out)]
+    assert main([*ok, "--report", str(tmp_path / "r.json")]) == 0, capsys.readouterr().err
+    assert "left_sole_link carries 0.5 of the weight" in capsys.readouterr().out
+    split = {"kind": "standing", "support": {"foot": "left_sole_link", "share": 0.5}}
+    assert json.loads((tmp_path / "r.json").read_text())["load"] == split
+    assert json.loads((tmp_path / "cal.compliance.json").read_text())["load"] == split
+    model = load_calibrated(out, tmp_path / "cal.compliance.json")
+    q = read_contacts(REAL / "right_train.csv", model.chain, "plane").q
+    chain = load_robot(*right)
+    expect = standing_load(chain, Support("left_sole_link", 0.5)).torques(q)
+    assert not np.allclose(expect, standing_load(chain, Support()).torques(q))
+    assert np.allclose(model.torques(q), expect, rtol=1e-9, atol=1e-9)
+    for bad, says in (
+        ([*args[:-1], "--other-foot", "left_sole_link"], "give --elastic too"),
+        ([*args, "--other-foot", "left_sole_link", "half"], "a number from 0 to 1"),
+        ([*args, "--other-foot", "left_sole_link", "1.5"], "[0, 1]"),
+        ([*args, "--other-foot", "a", "0.5", "x"], "FRAME [SHARE]"),
+        ([*args, "--other-foot", "no_such_frame"], "no_such_frame"),
+    ):
+        assert main([*bad, "--out", str(tmp_path / "x.urdf")]) == 2
+        err = capsys.readouterr().err
+        assert says in err and "Traceback" not in err, err
+    measured = ["calibrate", "ur5", "--data", "d.csv", "--other-foot", "x", "--out", "y.urdf"]
+    assert main(measured) == 2 and "--other-foot is for contact kinds" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "cal.compliance.json",
+        "cal.urdf",
+        "r.json",
+    ]

@@ -66,6 +66,7 @@ _EXCLUDED = {
     "fix": "--fix",
     "free": "--free",
     "elastic": "--elastic",
+    "other_foot": "--other-foot",
     "noise_mm": "--noise-mm",
     "world_link": "--world-link",
 }

@@ -25,6 +25,13 @@ def add_contact_arguments(p: argparse.ArgumentParser) -> None:
         help="contacts: guess of the contact frame in the tool frame, X Y Z [RX RY RZ] "
         "[m, rad] (default: the tool frame)",
     )
+    p.add_argument(
+        "--other-foot",
+        nargs="+",
+        metavar="ARG",
+        help="with --elastic: a second foot on the ground, FRAME [SHARE]: it carries its own "
+        "leg, or SHARE (0 to 1) of the robot's weight (default: the base foot carries all)",
+    )
 
 
 def is_contact_run(args: argparse.Namespace) -> bool:
@@ -35,6 +42,10 @@ def is_contact_run(args: argparse.Namespace) -> bool:
     """
     if args.measure in CONTACT_NAMES:
         return True
+    if getattr(args, "other_foot", None) is not None:
+        raise InvalidArgumentError(
+            f"--other-foot is for contact kinds, not --measure {args.measure}"
+        )
     if getattr(args, "contact", None) is not None:
         raise InvalidArgumentError(
             f"--contact is for contact kinds ({', '.join(CONTACT_NAMES)}), not --measure "
@@ -60,6 +71,28 @@ def _check_args(args: argparse.Namespace) -> None:
             raise InvalidArgumentError(f"{flag} is not available with --measure {args.measure}")
     if args.contact is not None and len(args.contact) not in (3, 6):
         raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
+
+
+def _support(args: argparse.Namespace):
+    """``--other-foot FRAME [SHARE]`` as a :class:`~calib.kinematics.standing.Support`."""
+    from ..kinematics.standing import Support
+
+    given = getattr(args, "other_foot", None)
+    if given is None:
+        return None
+    if not args.elastic:
+        raise InvalidArgumentError("--other-foot splits the load of --elastic: give --elastic too")
+    if len(given) > 2:
+        raise InvalidArgumentError("--other-foot takes FRAME [SHARE] (a frame, then 0 to 1)")
+    share = None
+    if len(given) == 2:
+        try:
+            share = float(given[1])
+        except ValueError:
+            raise InvalidArgumentError(
+                f"--other-foot's share is a number from 0 to 1, got '{given[1]}'"
+            ) from None
+    return Support(given[0], share)
 
 
 def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) -> int:
@@ -97,6 +130,7 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) ->
         validate=check,
         orientation_weight=weight,
         elastic=args.elastic,
+        support=_support(args),
         max_iterations=args.max_iterations,
         holdout=args.holdout,
         seed=args.seed,
