@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from calib import load_robot
+from calib.calibration.contact_checks import subset
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.kinematics.standing import Support
 from calib.measurements.contact_campaign import ContactData, read_contacts
@@ -40,9 +41,7 @@ SEED = 0
 
 
 def _take(data: ContactData, rows: np.ndarray) -> ContactData:
-    return ContactData(
-        data.joint_names, data.q[rows], tuple(data.ids[i] for i in rows), data.kind, data.source
-    )
+    return subset(data, rows)  # the other joints' readings too
 
 
 def _pooled(parts: list[tuple[int, float, float, float]]) -> tuple[float, float, float]:

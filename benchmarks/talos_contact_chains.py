@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from calib import calibrate_contact_chains, load_robot
+from calib.calibration.contact_checks import subset
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.measurements.contact_campaign import ContactData, read_contacts
 from calib.measurements.contact_loops import join_loops, read_loop
@@ -61,9 +62,7 @@ FIGAROH = {
 
 
 def _take(data: ContactData, rows: np.ndarray) -> ContactData:
-    return ContactData(
-        data.joint_names, data.q[rows], tuple(data.ids[i] for i in rows), data.kind, data.source
-    )
+    return subset(data, rows)  # the other joints' readings too
 
 
 def _folds(data: ContactData) -> list[np.ndarray]:

@@ -7,6 +7,7 @@ from their definitions.
 
 from __future__ import annotations
 
+import csv
 import json
 import warnings
 from pathlib import Path
@@ -20,6 +21,7 @@ from calib import DataError, InvalidArgumentError, from_chain, load_chain
 from calib.cli.commands import main
 from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
 from calib.measurements.contact_campaign import (
+    contacts_csv,
     parse_contacts,
     read_contacts,
     simulate_contacts,
@@ -126,9 +128,24 @@ def test_the_real_talos_file_reads_with_one_note():
         warnings.simplefilter("always")
         data = read_contacts(REAL / "left_train.csv", chain, "plane")
     notes = [w for w in caught if issubclass(w.category, DataWarning)]
-    assert len(notes) == 1 and "spot" in str(notes[0].message)
+    assert len(notes) == 1 and "1 ignored (spot)" in str(notes[0].message)
     assert data.m == 21 and data.contacts == ("table",)
     assert data.joint_names == chain.joint_names
+    # the other joints' readings: the header's URDF joints off the chain, as the file has them
+    with open(REAL / "left_train.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    urdf = set(chain.model.names)
+    others = [c for c in rows[0] if c in urdf and c not in chain.joint_names]
+    assert data.readings is not None and data.readings.names == tuple(others)
+    assert f"{len(others)} other joints" in str(notes[0].message)
+    want = np.array([[float(r[c]) for c in others] for r in rows])
+    assert np.array_equal(data.readings.values, want)
+    again = parse_contacts(contacts_csv(data), chain, "plane")
+    assert again.readings.names == data.readings.names
+    assert np.array_equal(again.readings.values, data.readings.values)
+    text = contacts_csv(data).replace(repr(float(want[3, 2])), "up", 1)
+    with pytest.raises(DataError, match=others[2]):
+        parse_contacts(text, chain, "plane")
 
 
 def test_cli_simulate_contacts(tmp_path, capsys):

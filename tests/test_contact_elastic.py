@@ -28,24 +28,29 @@ from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import joint_offsets
 from calib.kinematics.mdh import from_chain
 from calib.kinematics.so3 import rotation_matrix
-from calib.kinematics.standing import Support, standing_load
+from calib.kinematics.standing import JointReadings, Support, standing_load
 from calib.measurements.contact_campaign import ContactData, read_contacts, simulate_contacts
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
 TALOS = ("talos_full_v2.urdf", "left_sole_link", "gripper_left_base_link")
+RIGHT = ("talos_full_v2.urdf", "right_sole_link", "gripper_right_base_link")
 SUPPORTS = (Support(), Support("right_sole_link"), Support("right_sole_link", 0.5))
 
 
-def _energy(chain, q: np.ndarray, support: Support) -> float:
+def _energy(chain, q: np.ndarray, support: Support, others: dict | None = None) -> float:
     """Potential energy [J] of the robot standing on the base frame, body by body.
 
     Each joint's body (``model.inertias``) at its Pinocchio placement, heights along z of the
     base frame; the other leg's bodies left out (``own leg``) or the other foot's push as
-    the potential of a constant vertical force (``share``).
+    the potential of a constant vertical force (``share``); ``others``: joints off the chain
+    set by name (each one Pinocchio coordinate).
     """
     model = chain.model
     data = model.createData()
-    pin.framesForwardKinematics(model, data, chain.pin_configurations(q[None])[0])
+    config = chain.pin_configurations(q[None])[0]
+    for name, value in (others or {}).items():
+        config[model.joints[model.getJointId(name)].idx_q] = value
+    pin.framesForwardKinematics(model, data, config)
     oMb = data.oMf[chain.base_id]
     g = float(np.linalg.norm(model.gravity.linear))
     names = [f.name for f in model.frames]
@@ -86,6 +91,33 @@ def test_standing_torques_are_the_energy_gradient(support):
     ).reshape(q.shape)
     assert np.max(np.abs(tau)) > 100.0  # a leg carries the robot
     assert np.max(np.abs(tau - fd)) < 1e-5
+
+
+@pytest.mark.parametrize("support", SUPPORTS[:2], ids=["single", "own-leg"])
+def test_standing_torques_with_recorded_joints_off_the_chain(support):
+    """The other arm and leg as read move the load: still the gradient of the energy."""
+    chain = load_robot(*TALOS)
+    q = chain.random_configurations(2, 4)
+    names = ("arm_right_1_joint", "arm_right_2_joint", "arm_right_4_joint", "leg_right_3_joint")
+    values = np.array([[0.9, -1.2, -1.5, -0.8], [-0.4, -0.3, -2.0, -1.1]])
+    tau = standing_load(chain, support).torques(q, JointReadings(names, values))
+    h, E = 1e-6, np.eye(chain.n)
+    fd = [
+        (
+            _energy(chain, r + h * e, support, dict(zip(names, v, strict=True)))
+            - _energy(chain, r - h * e, support, dict(zip(names, v, strict=True)))
+        )
+        / (2 * h)
+        for r, v in zip(q, values, strict=True)
+        for e in E
+    ]
+    assert np.max(np.abs(tau - np.reshape(fd, q.shape))) < 1e-5
+    moved = np.abs(tau - standing_load(chain, support).torques(q))
+    assert np.max(moved) > 1.0  # an arm raised on the other side loads the standing leg
+    with pytest.raises(InvalidArgumentError, match="off the chain"):
+        standing_load(chain).torques(q, JointReadings(("arm_left_1_joint",), values[:, :1]))
+    with pytest.raises(InvalidArgumentError, match="shape"):
+        standing_load(chain).torques(q, JointReadings(names[:1], values[:1, :1]))
 
 
 def test_standing_on_the_root_is_pinocchio_gravity():
@@ -209,6 +241,13 @@ def test_elastic_with_another_kind_is_one_error(kind, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
 
 
+def _file_readings(path: Path, chain) -> JointReadings:
+    """The other joints of a contact file, read with the csv module (not calib's reader)."""
+    _ids, joints = read_joints(path)
+    names = tuple(n for n in joints if n not in chain.joint_names)
+    return JointReadings(names, np.column_stack([joints[n] for n in names]))
+
+
 @pytest.fixture(scope="module")
 def talos_elastic(tmp_path_factory):
     """``calib calibrate --elastic`` on the right TALOS touches, a quarter held out."""
@@ -253,7 +292,11 @@ def test_cli_writes_the_compliance_file_and_prints_both(talos_elastic):
     assert "use it only with its compliance file" in run.stdout
     doc = json.loads((out / "cal.compliance.json").read_text())
     report = json.loads((out / "r.json").read_text())
-    assert doc["load"] == {"kind": "standing", "support": {"foot": None, "share": None}}
+    others = _file_readings(REAL / "right_train.csv", load_robot(*RIGHT)).names
+    assert len(others) == 17  # the left arm and leg, the head, the grippers...
+    single = {"foot": None, "share": None}
+    assert doc["load"] == {"kind": "standing", "support": single, "readings": list(others)}
+    assert report["load"] == doc["load"]
     assert doc["compliance"] == list(report["compliance"].values())
     assert any(doc["compliance"])
     assert set(report["gaps"]) >= {"held_out", "held_out_urdf", "held_out_registration"}
@@ -271,8 +314,9 @@ def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
 
     held = split_contacts(data, 0.25, 0)[1]
     _ids, joints = read_joints(REAL / "right_train.csv")
-    q = model.deflected(held.q)
     rows = [int(np.flatnonzero(np.all(np.isclose(data.q, h), axis=1))[0]) for h in held.q]
+    readings = _file_readings(REAL / "right_train.csv", chain).take(rows)
+    q = model.deflected(held.q, readings)
     moved = {k: v[rows] for k, v in joints.items()}
     for k, name in enumerate(chain.joint_names):
         moved[name] = q[:, k]
@@ -296,10 +340,15 @@ def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
     alone = report["gaps"]["held_out_urdf"]["height_rms_mm"]
     assert abs(1e3 * np.sqrt(np.mean(rigid[:, 0] ** 2)) - alone) < 1e-6
     # the contact frame's placement in the plane by the API: the same heights
-    T = model.contact_placements(held.q)
+    T = model.contact_placements(held.q, readings)
     assert np.max(np.abs(T[:, 2, 3] - g[:, 0])) < 1e-9
     # the commanded joints that reach given deflected ones
-    assert np.max(np.abs(model.deflected(model.command(q)) - q)) < 1e-10
+    command = model.command(q, readings=readings)
+    assert np.max(np.abs(model.deflected(command, readings) - q)) < 1e-10
+    # without the other joints' readings: a warning, and not the figure calib printed
+    with pytest.warns(UserWarning, match="17 joints off the chain"):
+        elsewhere = model.deflected(held.q)
+    assert np.max(np.abs(elsewhere - q)) > 1e-4
 
 
 def test_elastic_needs_a_file_beside_the_urdf(tmp_path):
@@ -382,13 +431,15 @@ def test_predict_gives_the_contact_and_the_joint_correction(talos_elastic):
     )
     assert done.returncode == 0, done.stderr
     assert "the contact's origin in the base frame" in done.stdout
+    assert "17 joints off the chain as read" in done.stdout
     with open(pred, newline="") as f:
         rows = list(csv.DictReader(f))
     model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
     names = model.chain.joint_names
     q = np.array([[float(r[n]) for n in names] for r in rows])
     deflected = np.array([[float(r[f"deflected_{n}"]) for n in names] for r in rows])
-    assert np.max(np.abs(deflected - model.deflected(q))) < 1e-12
+    readings = _file_readings(REAL / "right_train.csv", model.chain)
+    assert np.max(np.abs(deflected - model.deflected(q, readings))) < 1e-12
     assert np.max(np.abs(deflected - q)) > 1e-4  # the correction is not nothing
     # the contact origin by Pinocchio on the written URDF at the deflected joints
     from contact_scorer import relative_placements
@@ -440,15 +491,16 @@ def test_cli_other_foot_splits_the_load(tmp_path, capsys):
     ok = [*args, "--other-foot", "left_sole_link", "0.5", "--out", str(out)]
     assert main([*ok, "--report", str(tmp_path / "r.json")]) == 0, capsys.readouterr().err
     assert "left_sole_link carries 0.5 of the weight" in capsys.readouterr().out
-    split = {"kind": "standing", "support": {"foot": "left_sole_link", "share": 0.5}}
-    assert json.loads((tmp_path / "r.json").read_text())["load"] == split
-    assert json.loads((tmp_path / "cal.compliance.json").read_text())["load"] == split
+    split = {"foot": "left_sole_link", "share": 0.5}
+    assert json.loads((tmp_path / "r.json").read_text())["load"]["support"] == split
+    assert json.loads((tmp_path / "cal.compliance.json").read_text())["load"]["support"] == split
     model = load_calibrated(out, tmp_path / "cal.compliance.json")
     q = read_contacts(REAL / "right_train.csv", model.chain, "plane").q
     chain = load_robot(*right)
-    expect = standing_load(chain, Support("left_sole_link", 0.5)).torques(q)
-    assert not np.allclose(expect, standing_load(chain, Support()).torques(q))
-    assert np.allclose(model.torques(q), expect, rtol=1e-9, atol=1e-9)
+    readings = _file_readings(REAL / "right_train.csv", chain)
+    expect = standing_load(chain, Support("left_sole_link", 0.5)).torques(q, readings)
+    assert not np.allclose(expect, standing_load(chain, Support()).torques(q, readings))
+    assert np.allclose(model.torques(q, readings), expect, rtol=1e-9, atol=1e-9)
     for bad, says in (
         ([*args[:-1], "--other-foot", "left_sole_link"], "give --elastic too"),
         ([*args, "--other-foot", "left_sole_link", "half"], "a number from 0 to 1"),

@@ -60,6 +60,7 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
         q=data.q[rows],
         ids=tuple(data.ids[i] for i in rows),
         rows=None if data.rows is None else tuple(data.rows[i] for i in rows),
+        readings=None if data.readings is None else data.readings.take(rows),
     )
 
 

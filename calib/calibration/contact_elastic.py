@@ -3,7 +3,9 @@
 With ``elastic=True`` the joint compliances are candidates of the fit beside the robot
 parameters (``q' = q + c tau``, :class:`~calib.calibration.contact_model.ContactModel`),
 ``tau`` the gravity torques of the robot standing on the chain's base frame
-(:mod:`calib.kinematics.standing`, the load split with a second foot as ``support`` says).
+(:mod:`calib.kinematics.standing`, the load split with a second foot as ``support`` says,
+the joints off the chain at their recorded positions where the touches have them:
+``ContactData.readings``).
 The URDF cannot hold them: the checks apply to the whole model (URDF and compliances), the
 URDF alone is scored too (``train_urdf``, ``held_out_urdf``), and a note says so where it is
 worse than the registration (use it only with its compliance file).
@@ -55,10 +57,13 @@ def standing(
 def torques(
     load: StandingLoad | None, train: ContactData, held: ContactData | None
 ) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid)."""
+    """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid).
+
+    The joints off the chain are at their recorded positions where the touches have them.
+    """
     return (
-        None if load is None else load.torques(train.q),
-        None if load is None or held is None else load.torques(held.q),
+        None if load is None else load.torques(train.q, train.readings),
+        None if load is None or held is None else load.torques(held.q, held.readings),
     )
 
 

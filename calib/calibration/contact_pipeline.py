@@ -30,6 +30,7 @@ the base frame) and the contact frame (in the tool frame) take their visible par
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -211,8 +212,8 @@ def _structural(
     keep; where the contact holds they vanish.
     """
     qf, _ = touching_postures(start, train.q, train.ids)
-    held = ContactData(train.joint_names, qf, train.ids, train.kind, train.source)
-    torque = None if load is None or not wide.compliance else load.torques(qf)
+    held = dataclasses.replace(train, q=qf)
+    torque = None if load is None or not wide.compliance else load.torques(qf, train.readings)
     A = wide.jacobian(start, np.zeros(wide.size()), held, torque).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
@@ -434,6 +435,7 @@ def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load)
         timings_ms=timings,
         compliance=compliance,
         load=None if compliance is None else load,
+        readings=() if compliance is None or train.readings is None else train.readings.names,
     )
 
 

@@ -144,6 +144,7 @@ class ContactCalibration:
         outliers: Touches set aside after the registration.
         compliance: Fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
         load: The gravity load the compliance acts under, or None.
+        readings: The joints off the chain the load takes at their recorded positions.
     """
 
     chain: Chain
@@ -162,6 +163,7 @@ class ContactCalibration:
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
     load: StandingLoad | None = None
+    readings: tuple[str, ...] = ()
 
     @property
     def elastic(self) -> bool:
@@ -213,13 +215,18 @@ class ContactCalibration:
                     strict=True,
                 )
             },
-            "load": None
-            if self.load is None
-            else {"kind": "standing", "support": self.load.support.to_dict()},
+            "load": None if self.load is None else self._load(),
             "calibrated_mdh": self.calibrated.rows(),
             "notes": list(self.notes),
             "timings_ms": dict(self.timings_ms),
         }
+
+    def _load(self) -> dict:
+        """The load's record: standing, its support, the joints read off the chain."""
+        if self.load is None:
+            raise CalibrationRefusedError("no joint compliance was fitted: no load")
+        support = self.load.support.to_dict()
+        return {"kind": "standing", "support": support, "readings": list(self.readings)}
 
     def compliance_document(self, urdf: str) -> dict:
         """The compliance file of the calibrated URDF ``urdf`` (JSON-ready).
@@ -237,7 +244,8 @@ class ContactCalibration:
             "format_version": COMPLIANCE_FORMAT,
             "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
             "torques of the URDF's masses, the robot standing on the base frame (gravity along "
-            "its -z; load), other joints at their neutral position",
+            "its -z; load), the joints off the chain at their recorded positions (load."
+            "readings; the others at their neutral position)",
             "robot": chain.name,
             "urdf": urdf,
             "base_frame": chain.base_frame,
@@ -246,7 +254,7 @@ class ContactCalibration:
             "compliance": self.compliance.tolist(),
             "units": ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma],
             "gravity": {"frame": chain.base_frame, "vector": [0.0, 0.0, -g]},
-            "load": {"kind": "standing", "support": self.load.support.to_dict()},
+            "load": self._load(),
             "contact": {
                 "plane_id": self.plane_id,
                 "frame": self.contact.tolist(),

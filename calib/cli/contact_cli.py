@@ -175,7 +175,9 @@ def _text(result) -> str:
     if result.load is not None:
         lines.append(
             f"joint compliance under gravity, standing on {result.chain.base_frame} "
-            f"({result.load.support.label()}): "
+            f"({result.load.support.label()}"
+            + (f"; {len(result.readings)} joints off the chain as read" if result.readings else "")
+            + "): "
             + ", ".join(f"{k} {v:.3g}" for k, v in result.to_dict()["compliance"].items() if v)
             + " [rad/(N m)]"
         )

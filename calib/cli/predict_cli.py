@@ -15,7 +15,7 @@ __all__ = ["add_predict_parser", "cmd_predict"]
 
 def cmd_predict(args: argparse.Namespace) -> int:
     """Predict the measured points and the deflected joints at given configurations."""
-    from ..design.configurations import read_configurations
+    from ..design.configurations import read_configurations, read_readings
     from ..kinematics.elastic import load_calibrated, predictions_csv
 
     out = Path(args.out)
@@ -25,12 +25,15 @@ def cmd_predict(args: argparse.Namespace) -> int:
     )
     model = load_calibrated(args.urdf, args.compliance)
     q = read_configurations(args.configs, model.chain)
-    write_outputs({out: predictions_csv(model, q)})
+    readings = read_readings(args.configs, model.readings) if model.readings else None
+    write_outputs({out: predictions_csv(model, q, readings)})
     where = (
         "the contact's origin in the base frame"
         if model.contact is not None
         else f"{len(model.markers)} point(s) in the measurement frame"
     )
+    if readings is not None:
+        where += f", the load with {len(readings.names)} joints off the chain as read"
     name = model.chain.name
     print(f"{name}: {len(q)} configurations, {where} and the deflected joints; wrote {out}")
     return 0

@@ -22,6 +22,7 @@ import numpy as np
 from ..core.fileio import read_failure, read_text_limited
 from ..exceptions import DataError
 from ..kinematics.robot import Chain
+from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..measurements.csvfile import csv_records, parse_number
 from ..measurements.data import TOOL_COLUMN
@@ -81,6 +82,31 @@ def read_configurations(path: str | Path, chain: Chain | Tree) -> np.ndarray:
     return parse_configurations(text, chain, str(path))
 
 
+def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | None:
+    """The columns of ``names`` (joints off the chain) a configurations file has, or None.
+
+    Raises:
+        DataError: The file is unreadable, or a cell of those columns is not a number.
+    """
+    src = str(path)
+    try:
+        text = read_text_limited(path, MAX_CONFIGS_BYTES)
+    except OSError as exc:
+        raise DataError(src, read_failure(exc)) from None
+    records = list(csv_records(text, src))
+    header = [c.strip() for c in records[0][1]] if records else []
+    found = tuple(n for n in names if header.count(n) == 1)
+    if not found:
+        return None
+    cols = [header.index(n) for n in found]
+    values = [
+        [parse_number(cells[c], src, line, header[c]) for c in cols]
+        for line, cells in records[1:]
+        if len(cells) == len(header)
+    ]
+    return JointReadings(found, np.array(values, dtype=float).reshape(-1, len(found)))
+
+
 def configurations_csv(chain: Chain | Tree, q: np.ndarray) -> str:
     """CSV text of configurations ``(m, n)``: the chain's joint names, full precision."""
     out = io.StringIO()
@@ -91,4 +117,4 @@ def configurations_csv(chain: Chain | Tree, q: np.ndarray) -> str:
     return out.getvalue()
 
 
-__all__ = ["configurations_csv", "parse_configurations", "read_configurations"]
+__all__ = ["configurations_csv", "parse_configurations", "read_configurations", "read_readings"]

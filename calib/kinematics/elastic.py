@@ -27,6 +27,7 @@ import dataclasses
 import io
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,12 +45,13 @@ from ..exceptions import (
 from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
 from .robot import Chain, load_chain, pin_configurations
-from .standing import StandingLoad, Support, standing_load
+from .standing import JointReadings, StandingLoad, Support, standing_load
 from .urdf_model import build_model, read_urdf_file
 from .urdf_xml import URDFInfo, kinematic_xml
 
 __all__ = [
     "COMMAND_ITERATIONS",
+    "COMMAND_STEP",
     "COMPLIANCE_FORMAT",
     "MAX_JSON_BYTES",
     "ElasticModel",
@@ -68,7 +70,10 @@ MAX_JSON_BYTES = 64 << 20
 """Largest report or compliance file read [B]."""
 
 COMMAND_ITERATIONS = 50
-"""Most fixed-point iterations of :meth:`ElasticModel.command`."""
+"""Most Newton steps :meth:`ElasticModel.command` takes."""
+
+COMMAND_STEP = 1e-6
+"""Step of the central differences of the torques in :meth:`ElasticModel.command` [rad or m]."""
 
 
 def gravity_in_base(chain: Chain) -> np.ndarray:
@@ -98,6 +103,9 @@ class ElasticModel:
             from its base frame.
         contact: The contact frame in the tool frame ``(4, 4)`` (contacts), or None.
         plane: The contact plane in the base frame ``(4, 4)``, z its normal, or None.
+        readings: The joints off the chain the standing load took at their recorded positions
+            in the fit: pass their readings (:class:`~calib.kinematics.standing.JointReadings`)
+            to reproduce it.
     """
 
     chain: Chain
@@ -110,16 +118,37 @@ class ElasticModel:
     load: StandingLoad | None = None
     contact: np.ndarray | None = None
     plane: np.ndarray | None = None
+    readings: tuple[str, ...] = ()
 
-    def torques(self, q: np.ndarray) -> np.ndarray:
+    def torques(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
         """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``.
 
         As in the fit: the URDF's masses on the nominal joint placements (``torque_model``,
-        whose gravity is set from ``gravity``), the other joints at their neutral position;
-        standing on the base frame if ``load`` says so.
+        whose gravity is set from ``gravity``), the other joints at their neutral position or,
+        standing on the base frame (``load``), at ``readings`` where given (a warning when the
+        fit had readings and none are given).
+
+        Raises:
+            InvalidArgumentError: ``readings`` for a hanging chain (no standing load).
         """
+        self._check_readings(readings)
+        return self._torques(q, readings)
+
+    def _check_readings(self, readings: JointReadings | None) -> None:
+        if self.load is None and readings is not None:
+            raise InvalidArgumentError("joint readings load a standing robot (contacts) only")
+        if self.load is not None and self.readings and readings is None:
+            warnings.warn(
+                f"the fit took {len(self.readings)} joints off the chain at their recorded "
+                f"positions ({', '.join(self.readings[:3])}, ...); without readings they are "
+                f"at their neutral positions",
+                UserWarning,
+                stacklevel=3,
+            )
+
+    def _torques(self, q: np.ndarray, readings: JointReadings | None) -> np.ndarray:
         if self.load is not None:
-            return self.load.torques(q)
+            return self.load.torques(q, readings)
         model = self.torque_model
         ids = tuple(model.getJointId(name) for name in self.chain.joint_names)
         q = self.chain.check_configurations(q)
@@ -129,54 +158,81 @@ class ElasticModel:
         tau = [pin.computeGeneralizedGravity(model, data, row)[idx] for row in qp]
         return np.array(tau).reshape(-1, self.chain.n)
 
-    def deflected(self, q: np.ndarray) -> np.ndarray:
-        """Joint positions the geometry sees at commanded ``q`` ``(m, n)``: ``q + c tau(q)``."""
-        q = self.chain.check_configurations(q)
-        return q + self.compliance * self.torques(q)
+    def deflected(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
+        """Joint positions the geometry sees at commanded ``q`` ``(m, n)``: ``q + c tau(q)``.
 
-    def command(self, target: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+        ``readings``: the joints off the chain, as :meth:`torques` takes them.
+        """
+        self._check_readings(readings)
+        q = self.chain.check_configurations(q)
+        return q + self.compliance * self._torques(q, readings)
+
+    def command(
+        self, target: np.ndarray, tol: float = 1e-12, readings: JointReadings | None = None
+    ) -> np.ndarray:
         """The commanded positions whose deflected positions are ``target`` ``(m, n)``.
 
-        Fixed-point iteration ``q <- target - c tau(q)`` (a contraction: ``c`` dtau/dq is
-        small), stopped at ``tol`` [rad or m].
+        Newton's method on ``q + c tau(q) = target`` from ``q = target``, ``d tau / dq`` by
+        central differences, stopped at ``tol`` [rad or m]; ``readings`` as :meth:`torques`
+        takes them.
 
         Raises:
             InvalidArgumentError: It does not settle in ``COMMAND_ITERATIONS`` iterations.
         """
+        self._check_readings(readings)
         target = self.chain.check_configurations(target)
         q = target.copy()
         for _ in range(COMMAND_ITERATIONS):
-            new = target - self.compliance * self.torques(q)
-            if np.max(np.abs(new - q), initial=0.0) <= tol:
-                return new
-            q = new
+            r = q + self.compliance * self._torques(q, readings) - target
+            if np.max(np.abs(r), initial=0.0) <= tol:
+                return q
+            q = q - np.linalg.solve(self._deflection_jacobian(q, readings), r[..., None])[..., 0]
         raise InvalidArgumentError("the compensating joint positions do not settle")
 
-    def tool_placements(self, q: np.ndarray) -> np.ndarray:
-        """Tool frame in the measurement frame ``(m, 4, 4)`` at commanded ``q`` ``(m, n)``."""
-        kin = self.mdh.kinematics(self.deflected(q))
+    def _deflection_jacobian(self, q: np.ndarray, readings) -> np.ndarray:
+        """``d(q + c tau(q))/dq`` ``(m, n, n)`` by central differences of the torques."""
+        n, h = self.chain.n, COMMAND_STEP
+        J = np.repeat(np.eye(n)[None], len(q), axis=0)
+        for j in range(n):
+            step = h * np.eye(n)[j]
+            dtau = self._torques(q + step, readings) - self._torques(q - step, readings)
+            J[:, :, j] += self.compliance * dtau / (2 * h)
+        return J
+
+    def tool_placements(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
+        """Tool frame in the measurement frame ``(m, 4, 4)`` at commanded ``q`` ``(m, n)``.
+
+        ``readings``: the joints off the chain, as :meth:`torques` takes them.
+        """
+        kin = self.mdh.kinematics(self.deflected(q, readings))
         T = np.zeros((len(kin.p), 4, 4))
         T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
         return self.measurement_to_base @ T
 
-    def contact_placements(self, q: np.ndarray) -> np.ndarray:
+    def contact_placements(
+        self, q: np.ndarray, readings: JointReadings | None = None
+    ) -> np.ndarray:
         """The contact frame in the plane's frame ``(m, 4, 4)`` at commanded ``q`` ``(m, n)``.
 
         Flush: its height ``[:, 2, 3]`` [m] and its z axis's tilt from the normal are zero.
+        ``readings``: the joints off the chain, as :meth:`torques` takes them.
 
         Raises:
             InvalidArgumentError: The model holds no contact (not from a contact calibration).
         """
         if self.contact is None or self.plane is None:
             raise InvalidArgumentError("this calibrated model holds no contact frame and plane")
-        kin = self.mdh.kinematics(self.deflected(q))
+        kin = self.mdh.kinematics(self.deflected(q, readings))
         T = np.zeros((len(kin.p), 4, 4))
         T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
         return np.linalg.inv(self.plane) @ T @ self.contact
 
-    def points(self, q: np.ndarray) -> np.ndarray:
-        """Measured points predicted at commanded ``q`` ``(m, K, 3)`` [m, measurement frame]."""
-        T = self.tool_placements(q)
+    def points(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
+        """Measured points predicted at commanded ``q`` ``(m, K, 3)`` [m, measurement frame].
+
+        ``readings``: the joints off the chain, as :meth:`torques` takes them.
+        """
+        T = self.tool_placements(q, readings)
         return T[:, None, :3, 3] + np.einsum("mij,kj->mki", T[:, :3, :3], self.markers)
 
 
@@ -371,6 +427,7 @@ def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
     markers = _numbers(doc, "markers", (-1, 3), src)
     model = torque_model(urdf, _origins(doc, src), base, vec, _masses(doc, src))
     load = _standing(doc.get("load"), chain, model, src)
+    readings = _readings(doc.get("load"), src)
     contact = doc.get("contact")
     frames: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
     if contact is not None:
@@ -380,7 +437,17 @@ def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
             _numbers(contact, "frame", (4, 4), src),
             _numbers(contact, "plane", (4, 4), src),
         )
-    return ElasticModel(chain, T, markers, c, vec, from_chain(chain), model, load, *frames)
+    return ElasticModel(
+        chain, T, markers, c, vec, from_chain(chain), model, load, *frames, readings=readings
+    )
+
+
+def _readings(load, src: str) -> tuple[str, ...]:
+    """The joints a compliance file's load read off the chain (none in older files)."""
+    names = load.get("readings", []) if isinstance(load, dict) else []
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise DataError(src, "'load.readings' is not a list of joint names")
+    return tuple(names)
 
 
 def _standing(load, chain: Chain, model: pin.Model, src: str) -> StandingLoad | None:
@@ -408,18 +475,21 @@ def _standing(load, chain: Chain, model: pin.Model, src: str) -> StandingLoad | 
         raise DataError(src, f"its load does not fit the URDF: {exc}") from None
 
 
-def predictions_csv(model: ElasticModel, q: np.ndarray) -> str:
+def predictions_csv(
+    model: ElasticModel, q: np.ndarray, readings: JointReadings | None = None
+) -> str:
     """CSV of predictions at configurations ``(m, n)``.
 
     Columns: the commanded joints, the predicted points ``x1, y1, z1, ...`` [m, measurement
-    frame], and the deflected joints ``deflected_<joint>`` (``q + c tau(q)``).
+    frame], and the deflected joints ``deflected_<joint>`` (``q + c tau(q)``); ``readings``:
+    the joints off the chain, as :meth:`ElasticModel.torques` takes them.
     """
     names = list(model.chain.joint_names)
     k = len(model.markers)
     header = names + [f"{a}{i + 1}" for i in range(k) for a in "xyz"]
     header += [f"deflected_{n}" for n in names]
-    pts = model.points(q).reshape(len(q), -1)
-    rows = np.hstack([q, pts, model.deflected(q)])
+    pts = model.points(q, readings).reshape(len(q), -1)
+    rows = np.hstack([q, pts, model.deflected(q, readings)])
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(header)

@@ -169,12 +169,12 @@ def pin_configurations(
 
     Args:
         model: The Pinocchio model.
-        q_ref: Configuration of the other joints ``(nq,)``.
+        q_ref: Configuration of the other joints ``(nq,)``, or one per row ``(m, nq)``.
         joint_ids: Pinocchio joint indices.
         q: Their URDF positions ``(m, n)`` [rad or m] (a continuous joint's two numbers in
             Pinocchio are ``cos`` and ``sin``).
     """
-    out = np.repeat(np.asarray(q_ref, dtype=float)[None, :], len(q), axis=0)
+    out = np.array(np.broadcast_to(q_ref, (len(q), model.nq)), dtype=float)
     for k, jid in enumerate(joint_ids):
         joint = model.joints[jid]
         if joint.nq == 2:  # continuous joint: (cos, sin)

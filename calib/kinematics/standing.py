@@ -26,7 +26,10 @@ With both feet on the ground the load split between the feet is statically indet
 * ``foot=F, share=s``: the other foot pushes up with ``s`` times the robot's weight, a
   vertical force at ``F``'s origin.
 
-Joints outside the chain are at the chain's reference configuration (``q_ref``).
+Joints outside the chain do not move the tool, but they move the load (an arm raised on the
+other side): they are at their recorded positions where the touches give them
+(:class:`JointReadings`, a contact file's other joint columns), else at the chain's reference
+configuration (``q_ref``).
 """
 
 from __future__ import annotations
@@ -38,9 +41,50 @@ import pinocchio as pin
 
 from ..exceptions import InvalidArgumentError
 from .frames import motion_axis, resolve_frame
-from .robot import Chain
+from .robot import Chain, pin_configurations
 
-__all__ = ["StandingLoad", "Support", "standing_load"]
+__all__ = ["JointReadings", "StandingLoad", "Support", "standing_load"]
+
+
+@dataclass(frozen=True, eq=False)
+class JointReadings:
+    """Recorded positions of joints off a chain: they load its joints but do not move its tool.
+
+    Attributes:
+        names: The joints (URDF names), one degree of freedom each, none on the chain.
+        values: Their positions ``(m, k)`` [rad or m], a row per configuration.
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+
+    def take(self, rows) -> JointReadings:
+        """The readings of some configurations (indices or a boolean mask)."""
+        return JointReadings(self.names, self.values[rows])
+
+    def configurations(self, chain: Chain, q: np.ndarray) -> np.ndarray:
+        """Pinocchio configurations ``(m, nq)``: the chain at ``q``, these joints as read.
+
+        Raises:
+            InvalidArgumentError: A joint that is not in the URDF, is on the chain or has
+                more than one degree of freedom, or a row count that is not ``q``'s.
+        """
+        model = chain.model
+        ids = []
+        for name in self.names:
+            jid = model.getJointId(name) if model.existJointName(name) else 0
+            if jid == 0 or name in chain.joint_names or model.joints[jid].nv != 1:
+                raise InvalidArgumentError(
+                    f"joint reading '{name}' is not a one-degree-of-freedom joint off the chain"
+                )
+            ids.append(jid)
+        configs = chain.pin_configurations(q)
+        if self.values.shape != (len(configs), len(ids)):
+            raise InvalidArgumentError(
+                f"joint readings of shape {self.values.shape} for {len(configs)} "
+                f"configurations of {len(ids)} joints"
+            )
+        return pin_configurations(model, configs, tuple(ids), self.values)
 
 
 @dataclass(frozen=True)
@@ -96,8 +140,12 @@ class StandingLoad:
     excluded: int
     foot_id: int
 
-    def torques(self, q: np.ndarray) -> np.ndarray:
-        """Gravity torque of each chain joint ``(m, n)`` [N m or N] at URDF positions ``(m, n)``."""
+    def torques(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
+        """Gravity torque of each chain joint ``(m, n)`` [N m or N] at URDF positions ``(m, n)``.
+
+        ``readings``: the recorded positions of joints off the chain (default: the others at
+        the reference configuration).
+        """
         model, chain = self.model, self.chain
         axes = []
         for jid, sigma in zip(chain.joint_ids, chain.sigma, strict=True):
@@ -114,7 +162,10 @@ class StandingLoad:
             for j, s in zip(chain.joint_ids, chain.sign, strict=True)
         ]
         data = model.createData()
-        rows = [self._one(data, row, axes, flags) for row in chain.pin_configurations(q)]
+        configs = (
+            chain.pin_configurations(q) if readings is None else readings.configurations(chain, q)
+        )
+        rows = [self._one(data, row, axes, flags) for row in configs]
         return np.array(rows).reshape(-1, chain.n)
 
     def _one(self, data, qp: np.ndarray, axes: list, flags: list) -> np.ndarray:

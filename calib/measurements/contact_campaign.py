@@ -3,9 +3,12 @@
 CSV format (one header line, then one row per touch): an id column naming what each touch
 touches, ``plane`` for the plane kinds (``plane``, ``plane-point``) or ``point`` for the
 point kinds (``fixed-point``, ``fixed-pose``), several ids per file; one column per joint of
-the chain [rad or m]. Other columns (the robot's other joints, a spot id) are ignored, with
-one note. A contact file has no coordinates: an ``x``, ``y``, ``z`` or quaternion column is
-an error, and so is an id column that does not match the kind.
+the chain [rad or m]. The robot's other joints (one degree of freedom each) are read too:
+they do not move the tool, but they load its joints, and a calibration with joint compliance
+(``elastic``) takes them at their recorded positions
+(:class:`~calib.kinematics.standing.JointReadings`). Other columns (a spot id) are ignored,
+with one note. A contact file has no coordinates: an ``x``, ``y``, ``z`` or quaternion column
+is an error, and so is an id column that does not match the kind.
 
 :func:`simulate_contacts` makes such a campaign on a perturbed ("true") copy of a chain, as
 :func:`calib.simulate` does for measured ones: every touch satisfies the true contact (Newton
@@ -30,6 +33,7 @@ from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
+from ..kinematics.standing import JointReadings
 from .csvfile import MAX_MEASUREMENTS_BYTES, csv_records, parse_number
 from .data import DataWarning
 from .limits import check_limits, joint_bounds
@@ -66,6 +70,7 @@ class ContactData:
         kind: The contact kind.
         source: File name (or a description) for messages.
         rows: The file row of each touch, or None.
+        readings: Recorded positions of the robot's joints off the chain, or None.
     """
 
     joint_names: tuple[str, ...]
@@ -74,6 +79,7 @@ class ContactData:
     kind: Contact
     source: str = "<contacts>"
     rows: tuple[int, ...] | None = None
+    readings: JointReadings | None = None
 
     @property
     def m(self) -> int:
@@ -125,16 +131,29 @@ def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> 
     if missing:
         raise DataError(src, f"no column for joint {missing[0]} of the chain", row=1)
     index = {n: i for i, n in enumerate(names)}
-    ignored = [n for n in names if n != want and n not in chain.joint_names]
-    if ignored:
+    off = [n for n in names if n != want and n not in chain.joint_names]
+    joints = [n for n in off if _is_other_joint(chain, n)]
+    ignored = [n for n in off if n not in joints]
+    if off:
+        read = f"{len(joints)} other joints ({_listed(joints)}), read for the gravity load of "
+        read += "elastic only" + ("; " if ignored else "")
         warnings.warn(
-            f"{src}: {len(ignored)} columns not on the chain ignored ({', '.join(ignored[:6])}"
-            + (", ..." if len(ignored) > 6 else "")
-            + ")",
+            f"{src}: {len(off)} columns not on the chain: {read if joints else ''}"
+            + (f"{len(ignored)} ignored ({_listed(ignored)})" if ignored else ""),
             DataWarning,
             stacklevel=4,
         )
-    return {"id": index[want], **{j: index[j] for j in chain.joint_names}}
+    return {"id": index[want], **{j: index[j] for j in (*chain.joint_names, *joints)}}
+
+
+def _is_other_joint(chain: Chain, name: str) -> bool:
+    """Whether a column names a one-degree-of-freedom joint of the robot off the chain."""
+    model = chain.model
+    return bool(model.existJointName(name)) and model.joints[model.getJointId(name)].nv == 1
+
+
+def _listed(names: list[str]) -> str:
+    return ", ".join(names[:6]) + (", ..." if len(names) > 6 else "")
 
 
 def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>") -> ContactData:
@@ -154,6 +173,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
     if len(records) == 1:
         raise DataError(source, "no touches after the header")
     cols = _checked_header(records[0][1], chain, kind, source)
+    others = tuple(n for n in cols if n != "id" and n not in chain.joint_names)
     ids, q, rows = [], [], []
     for line, cells in records[1:]:
         if len(cells) != len(records[0][1]):
@@ -162,12 +182,17 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         if not name:
             raise DataError(source, "empty id", row=line, column=ID_COLUMNS[kind.label])
         ids.append(name)
-        q.append([parse_number(cells[cols[j]], source, line, j) for j in chain.joint_names])
+        q.append(
+            [parse_number(cells[cols[j]], source, line, j) for j in (*chain.joint_names, *others)]
+        )
         rows.append(line)
     qa = np.array(q, dtype=float)
+    qa, read = qa[:, : chain.n], qa[:, chain.n :]
     check_limits(chain, qa, source, np.array(rows))
     qa.setflags(write=False)
-    return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows))
+    read.setflags(write=False)
+    readings = JointReadings(others, read) if others else None
+    return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows), readings)
 
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
@@ -181,9 +206,11 @@ def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
 
 
 def contacts_csv(data: ContactData) -> str:
-    """The CSV text of touches, full precision."""
-    lines = [",".join((data.id_column, *data.joint_names))]
-    for name, qi in zip(data.ids, data.q, strict=True):
+    """The CSV text of touches, full precision (the other joints' readings after the chain's)."""
+    extra = () if data.readings is None else data.readings.names
+    values = data.q if data.readings is None else np.hstack([data.q, data.readings.values])
+    lines = [",".join((data.id_column, *data.joint_names, *extra))]
+    for name, qi in zip(data.ids, values, strict=True):
         lines.append(",".join((name, *(repr(float(v)) for v in qi))))
     return "\n".join(lines) + "\n"
 
