@@ -19,12 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.fileio import read_failure, read_text_limited
 from ..exceptions import DataError
 from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
-from ..measurements.csvfile import csv_records, parse_number
+from ..measurements.csvfile import csv_records, parse_number, read_data_text
 from ..measurements.data import TOOL_COLUMN
 from ..measurements.limits import check_limits
 
@@ -75,11 +74,7 @@ def read_configurations(path: str | Path, chain: Chain | Tree) -> np.ndarray:
     Raises:
         DataError: The file is missing, unreadable or invalid.
     """
-    try:
-        text = read_text_limited(path, MAX_CONFIGS_BYTES)
-    except OSError as exc:
-        raise DataError(str(path), read_failure(exc)) from None
-    return parse_configurations(text, chain, str(path))
+    return parse_configurations(read_data_text(path, MAX_CONFIGS_BYTES), chain, str(path))
 
 
 def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | None:
@@ -89,11 +84,7 @@ def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | N
         DataError: The file is unreadable, or a cell of those columns is not a number.
     """
     src = str(path)
-    try:
-        text = read_text_limited(path, MAX_CONFIGS_BYTES)
-    except OSError as exc:
-        raise DataError(src, read_failure(exc)) from None
-    records = list(csv_records(text, src))
+    records = list(csv_records(read_data_text(path, MAX_CONFIGS_BYTES), src))
     header = [c.strip() for c in records[0][1]] if records else []
     found = tuple(n for n in names if header.count(n) == 1)
     if not found:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.fileio import read_failure, read_text_limited, write_atomic
+from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, contact_model, contact_postures
 from ..identification.kinds import kind_of
@@ -34,7 +34,7 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
-from .csvfile import MAX_MEASUREMENTS_BYTES, csv_records, parse_number
+from .csvfile import csv_records, parse_number, read_data_text
 from .data import DataWarning
 from .limits import check_limits, joint_bounds
 
@@ -197,12 +197,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
     """Read and check a contact CSV file (see the module docstring for the format)."""
-    src = str(path)
-    try:
-        text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
-    except OSError as exc:
-        raise DataError(src, read_failure(exc)) from None
-    return parse_contacts(text, chain, measure, src)
+    return parse_contacts(read_data_text(path), chain, measure, str(path))
 
 
 def contacts_csv(data: ContactData) -> str:

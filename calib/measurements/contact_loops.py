@@ -19,12 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.fileio import read_failure, read_text_limited
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact
 from ..kinematics.robot import Chain
 from .contact_campaign import ID_COLUMNS, ContactData, parse_contacts
-from .csvfile import MAX_MEASUREMENTS_BYTES, csv_records
+from .csvfile import csv_records, read_data_text
 
 __all__ = ["LOOP_ID", "as_loop", "join_loops", "read_loop"]
 
@@ -86,10 +85,7 @@ def read_loop(path: str | Path, chain: Chain, pose_id: str = LOOP_ID) -> Contact
         DataError: An unreadable file, no id column, or a bad cell (as ``read_contacts``).
     """
     src = str(path)
-    try:
-        text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
-    except OSError as exc:
-        raise DataError(src, read_failure(exc)) from None
+    text = read_data_text(path)
     records = list(csv_records(text, src))
     header = [c.strip() for c in records[0][1]] if records else []
     if ID_COLUMNS["plane"] in header or len(records) < 2:  # (an empty file: its own error)

@@ -90,6 +90,7 @@ __all__ = [
     "measurements_csv",
     "parse_measurements",
     "parse_number",
+    "read_data_text",
     "read_measurements",
     "tool_frames",
     "write_measurements",
@@ -461,12 +462,19 @@ def read_measurements(
             :data:`MAX_MEASUREMENTS_BYTES`, or its content is invalid (see
             :func:`parse_measurements`).
     """
-    src = str(path)
+    return parse_measurements(read_data_text(path), chain, str(path), columns)
+
+
+def read_data_text(path: str | Path, limit: int = MAX_MEASUREMENTS_BYTES) -> str:
+    """A data file's text, at most ``limit`` bytes [B].
+
+    Raises:
+        DataError: The file is missing, unreadable, not UTF-8 or larger than ``limit``.
+    """
     try:
-        text = read_text_limited(path, MAX_MEASUREMENTS_BYTES)
+        return read_text_limited(path, limit)
     except OSError as exc:
-        raise DataError(src, read_failure(exc)) from None
-    return parse_measurements(text, chain, src, columns)
+        raise DataError(str(path), read_failure(exc)) from None
 
 
 _SIMULATION = ("Campaign", "SimulationTruth", "simulate")
