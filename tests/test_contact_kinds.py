@@ -260,3 +260,36 @@ def test_validation_file_of_few_touches_scores_the_fit():
     r = calibrate_contacts(chain, take(rest), validate=take(few), params="complete")
     assert r.accepted and r.stats["held_out"].m == 4
     assert max(r.stats["held_out"].max) < 1e-6  # mm: noise-free
+
+
+def _distinct(q: np.ndarray, tol: float = 0.01) -> list[int]:
+    """Cluster label of each configuration: joints within ``tol`` rad modulo a turn."""
+    labels: list[int] = []
+    for i, row in enumerate(q):
+        near = [j for j in range(i) if np.max(np.abs(np.angle(np.exp(1j * (q[j] - row))))) < tol]
+        labels.append(labels[near[0]] if near else i)
+    return labels
+
+
+def test_a_six_joint_arm_holding_a_fixed_pose_is_noted_not_silent():
+    """A UR5 (6 joints) holding a fixed pose (6 conditions) cannot move: the touches repeat
+    its inverse-kinematics branches; a note says how many and that the held-out ones repeat."""
+    chain = load_robot("ur5")
+    data = simulate_contacts(chain, 20, "fixed-pose", seed=2, noise_mrad=0.1).data
+    result = calibrate_contacts(chain, data, holdout=0.25, seed=0)
+    train, held = split_contacts(data, 0.25, 0)
+    labels = _distinct(np.vstack([train.q, held.q]))
+    fitted = set(labels[: train.m])
+    repeats = sum(label in fitted for label in labels[train.m :])
+    note = [n for n in result.notes if "finitely many postures" in n]
+    assert len(set(labels)) <= 8  # a UR5 has at most 8 inverse-kinematics branches
+    assert note == [
+        f"a 6-joint chain holding a fixed-pose contact (6 conditions) has finitely many "
+        f"postures: the touches sit at {len(set(labels))} distinct postures, and {repeats} of "
+        f"the {held.m} held-out touches repeat a fitted one: the model is checked at those "
+        f"postures only"
+    ]
+    panda = load_robot("panda")
+    moving = simulate_contacts(panda, 20, "fixed-pose", seed=2, noise_mrad=0.1).data
+    notes = calibrate_contacts(panda, moving, holdout=0.25, seed=0).notes
+    assert not any("finitely many postures" in n for n in notes)

@@ -27,6 +27,7 @@ import numpy as np
 from ..exceptions import DataError
 from ..identification.contacts import Contact
 from ..kinematics.mdh import MDHModel
+from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from . import diagnosis, outliers, validation
 from .contact_model import ContactState
@@ -39,6 +40,7 @@ __all__ = [
     "WORSE",
     "checked_registration",
     "estimate_weight",
+    "isolated_postures",
     "length_errors",
     "refusal",
     "registration",
@@ -62,6 +64,40 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
         rows=None if data.rows is None else tuple(data.rows[i] for i in rows),
         readings=None if data.readings is None else data.readings.take(rows),
     )
+
+
+POSTURE_TOL = 1e-2
+"""Postures whose joints agree within this [rad or m] (angles modulo a turn) are one posture."""
+
+
+def isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
+    """A note when the contact leaves the chain finitely many postures (None otherwise).
+
+    A chain with no more joints than the contact has conditions (a 6-joint arm holding a fixed
+    pose) cannot move while the contact holds: its touches repeat its inverse-kinematics
+    branches, and held-out touches at the fitted postures check nothing else.
+    """
+    kind = train.kind
+    if chain.n > kind.n_rows:
+        return None
+    fitted = set(_posture_keys(chain, train.q))
+    tested = [] if held is None else _posture_keys(chain, held.q)
+    again = sum(k in fitted for k in tested)
+    seen = len(fitted.union(tested))
+    text = (
+        f"a {chain.n}-joint chain holding a {kind.label} contact ({kind.n_rows} conditions) has "
+        f"finitely many postures: the touches sit at {seen} distinct postures"
+    )
+    if held is not None:
+        text += f", and {again} of the {held.m} held-out touches repeat a fitted one"
+    return text + ": the model is checked at those postures only"
+
+
+def _posture_keys(chain: Chain, q: np.ndarray) -> list[tuple[int, ...]]:
+    """Each configuration's posture, rounded to :data:`POSTURE_TOL` (angles by cos and sin)."""
+    turning = chain.sigma == 0
+    parts = np.hstack([np.cos(q[:, turning]), np.sin(q[:, turning]), q[:, ~turning]])
+    return [tuple(k) for k in np.round(parts / POSTURE_TOL).astype(int)]
 
 
 def estimate_weight(kind: Contact, R, p, ids, guess: np.ndarray, first=None) -> float:

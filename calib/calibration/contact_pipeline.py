@@ -342,6 +342,7 @@ def calibrate_contacts(
                                held=0 if held is None else held.m, unit="touches")  # fmt: skip
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
+    notes += filter(None, [contact_checks.isolated_postures(chain, train, held)])
     torque = contact_elastic.torques(load, train, held)
     clock.append(time.perf_counter())
     model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
