@@ -465,14 +465,14 @@ def read_measurements(
     return parse_measurements(read_data_text(path), chain, str(path), columns)
 
 
-def read_data_text(path: str | Path, limit: int = MAX_MEASUREMENTS_BYTES) -> str:
-    """A data file's text, at most ``limit`` bytes [B].
+def read_data_text(path: str | Path, limit: int | None = None) -> str:
+    """A data file's text, at most ``limit`` bytes [B] (default: :data:`MAX_MEASUREMENTS_BYTES`).
 
     Raises:
         DataError: The file is missing, unreadable, not UTF-8 or larger than ``limit``.
     """
     try:
-        return read_text_limited(path, limit)
+        return read_text_limited(path, MAX_MEASUREMENTS_BYTES if limit is None else limit)
     except OSError as exc:
         raise DataError(str(path), read_failure(exc)) from None
 
