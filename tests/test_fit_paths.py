@@ -134,9 +134,12 @@ def test_jacobian_of_several_markers_matches_finite_differences(measure):
 
 
 @pytest.mark.parametrize("prior", [None, 0.1])
-def test_problem_keeps_evaluations_without_mixing_them(prior):
+@pytest.mark.parametrize("frames", [False, True])
+def test_problem_keeps_evaluations_without_mixing_them(prior, frames):
     nominal, state, data = _campaign("pose", m=10)
     model = _model(nominal, "pose")
+    if frames:  # x moves no geometry: the kinematics are shared by every x
+        model = model.with_(base=(), lift=np.zeros((len(model.params), 0)), compliance=())
     torque = np.random.default_rng(3).normal(size=data.q.shape)
     rng = np.random.default_rng(6)
     xs = [1e-2 * rng.normal(size=model.size()) for _ in range(3)]

@@ -115,7 +115,8 @@ class Problem:
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
     at the solution: the state at the last two x (for a chain's :class:`ErrorModel`, with its
-    kinematics) and their Jacobians are kept.
+    kinematics, reused while x moves no geometry: the frame and markers) and their
+    Jacobians are kept.
     """
 
     def __init__(self, model, start, data, torque, weight, prior=None):
@@ -135,7 +136,11 @@ class Problem:
             if np.array_equal(kept[0], x):
                 return kept
         state = self.model.apply(self.start, x)
-        kin = state.kinematics(self.data.q, self.torque) if self._chain else None
+        kin = None
+        if self._chain:
+            kin = next((k[2] for k in self._kept if _same_geometry(k[1], state)), None)
+            if kin is None:
+                kin = state.kinematics(self.data.q, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
         return self._kept[0]
 
@@ -167,6 +172,11 @@ class Problem:
         """Jacobian of :meth:`fun` (a copy: SciPy scales it in place for a robust loss)."""
         J = self.data_jac(x)
         return J.copy() if self.prior is None else np.vstack([J, np.diag(self.prior)])
+
+
+def _same_geometry(a, b) -> bool:
+    """Two chain states whose kinematics at the same data are the same (x moved no geometry)."""
+    return a.mdh is b.mdh and np.array_equal(a.compliance, b.compliance)
 
 
 def fit(
