@@ -270,21 +270,26 @@ class ErrorModel:
         pts, rot = self.kind.predict(
             kin.R[:, -1], kin.p[:, -1], state.markers, state.frame, state.tool_rotation
         )
-        blocks = []
-        if self.frame:
-            blocks.append(self._frame_block(pts - state.frame[:3, 3], xf))
+        J = np.zeros((m, self.kind.full_rows(K), self.size()))  # 3 K point rows, 3 turning
+        P, c = 3 * K, 0
+        if self.frame:  # d(R p)/dphi = -[R p]x Jl(phi) with R = Exp(phi) R0, then translation
+            Jl = left_jacobian(xf[:3])
+            J[:, :P, :3] = (-skew(pts - state.frame[:3, 3]) @ Jl).reshape(m, P, 3)
+            J[:, :P, 3:6] = np.tile(np.eye(3), (K, 1))
+            if self.kind.rotation_rows:
+                J[:, P:, :3] = Jl
+            c = 6
         if self.markers:
             Rt = R @ kin.R[:, -1]
-            blk = np.zeros((m, K, 3, 3 * K))
             for k in range(K):
-                blk[:, k, :, 3 * k : 3 * k + 3] = Rt
-            blocks.append(self._stack(blk, np.zeros((m, 3, 3 * K))))
+                J[:, 3 * k : 3 * k + 3, c + 3 * k : c + 3 * k + 3] = Rt
+            c += P
         if self._tool_free:
-            ang = rot @ left_jacobian(xt).T  # right perturbation: R_model Jr(psi)
-            blocks.append(self._stack(np.zeros((m, K, 3, 3)), ang))
-        blocks += self._mdh_blocks(state, q, kin, torque)
-        full = self.kind.full_rows(K)
-        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((m, full, 0))
+            J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
+            c += 3
+        for block in self._mdh_blocks(state, q, kin, torque):
+            J[:, :, c : c + block.shape[2]] = block
+            c += block.shape[2]
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
         return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K)
 
@@ -298,15 +303,6 @@ class ErrorModel:
         m = point.shape[0]
         out = point.reshape(m, -1, point.shape[-1])
         return np.concatenate([out, ang], axis=1) if self.kind.rotation_rows else out
-
-    def _frame_block(self, lever: np.ndarray, xf: np.ndarray) -> np.ndarray:
-        m, K = lever.shape[:2]
-        Jl = left_jacobian(xf[:3])
-        rot = -skew(lever) @ Jl  # d(R p)/dphi with R = Exp(phi) R0
-        trans = np.broadcast_to(np.eye(3), (m, K, 3, 3))
-        point = np.concatenate([rot, trans], axis=3)
-        ang = np.concatenate([np.broadcast_to(Jl, (m, 3, 3)), np.zeros((m, 3, 3))], axis=2)
-        return self._stack(point, ang)
 
     def _mdh_blocks(self, state: State, q: np.ndarray, kin, torque) -> list[np.ndarray]:
         """Columns of the base values (through the lift) and of the compliances."""
