@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 from calib.calibration.model import ErrorModel, generic_measurements, registration_state
 from calib.calibration.registration import ITERATIONS, register, rigid_fit
 from calib.calibration.solve import Problem
+from calib.exceptions import InvalidArgumentError
 from calib.identification.kinds import kind_of
 from calib.identification.parameters import complete_parameters
 from calib.kinematics.mdh import from_chain
@@ -108,6 +109,9 @@ def test_apply_lifts_the_base_values_as_the_parameter_set():
     for kind in ("beta", "alpha", "d", "theta", "r", "y"):
         assert np.abs(getattr(got, kind) - getattr(ref, kind)).max() < 1e-15
     assert model.apply(state, np.zeros(model.size())).mdh is nominal
+    x[-3] = np.nan  # a base value: refused as ParameterSet.apply refuses it
+    with pytest.raises(InvalidArgumentError, match="NaN"):
+        model.apply(state, x)
 
 
 @pytest.mark.parametrize("measure", ["position", "pose"])

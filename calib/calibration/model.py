@@ -229,10 +229,12 @@ class ErrorModel:
         if not np.any(xb):
             return mdh
         delta = self.lift @ xb
+        if not np.all(np.isfinite(delta)):
+            return self.params.apply(mdh, delta)  # its error on NaN or infinity
         arrays = {}
         for kind, rows, columns in self._scatter:
             arrays[kind] = getattr(mdh, kind).copy()
-            arrays[kind][rows] += delta[columns]
+            np.add.at(arrays[kind], rows, delta[columns])  # a row named twice adds twice
         return mdh.replace(**arrays)
 
     @functools.cached_property
