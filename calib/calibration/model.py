@@ -24,14 +24,15 @@ through the SO(3) left Jacobian, so it is exact at any x).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..identification.jacobian import identification_jacobian, measured_point
-from ..identification.measures import POSE, POSITION, ROTATION_ROWS, Measurement
+from ..identification.measures import POSE, POSITION, Measurement
 from ..identification.parameters import Kind, Parameter, ParameterSet
-from ..kinematics.mdh import MDHModel
+from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import left_jacobian, matrix_to_quaternion, rotation_matrix, skew
 from ..measurements.data import Measurements
 
@@ -53,10 +54,6 @@ FRAME_NAMES = ("frame.rx", "frame.ry", "frame.rz", "frame.x", "frame.y", "frame.
 
 TOOL_NAMES = ("tool.rx", "tool.ry", "tool.rz")
 """Names of the measured frame's rotation in the tool frame [rad] (pose data)."""
-
-
-_TURN = Measurement(ROTATION_ROWS, label="rx,ry,rz")
-"""The rotation rows of the tool's pose error: the orientation rows of every kind."""
 
 
 def _marker_names(k: int) -> tuple[str, str, str]:
@@ -110,20 +107,34 @@ class State:
         """What the state predicts: a measured frame's pose (with a tool rotation) or points."""
         return POSITION if self.tool_rotation is None else POSE
 
-    def predict(self, q: np.ndarray, torque: np.ndarray | None = None):
-        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None)."""
-        kin = self.mdh.kinematics(self.joints(q, torque))
+    def predict(
+        self, q: np.ndarray, torque: np.ndarray | None = None, kin: Kinematics | None = None
+    ):
+        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None).
+
+        ``kin``: :meth:`kinematics` at q, if already computed.
+        """
+        if kin is None:
+            kin = self.kinematics(q, torque)
         return self.kind.predict(
             kin.R[:, -1], kin.p[:, -1], self.markers, self.frame, self.tool_rotation
         )
 
-    def residuals(self, data, torque: np.ndarray | None = None) -> np.ndarray:
+    def kinematics(self, q: np.ndarray, torque: np.ndarray | None = None) -> Kinematics:
+        """The geometry's frames at the joints it sees (:meth:`joints`)."""
+        return self.mdh.kinematics(self.joints(q, torque))
+
+    def residuals(
+        self, data, torque: np.ndarray | None = None, kin: Kinematics | None = None
+    ) -> np.ndarray:
         """Measured - model per configuration ``(m, 3 K [+ 3])`` [m, rad].
 
-        The rows of the data's kind (the state's points only if it has no tool rotation).
+        The rows of the data's kind (the state's points only if it has no tool rotation);
+        ``kin``: :meth:`kinematics` at the data's joints, if already computed.
         """
         kind = data.kind if self.tool_rotation is not None else POSITION
-        kin = self.mdh.kinematics(self.joints(data.q, torque))
+        if kin is None:
+            kin = self.kinematics(data.q, torque)
         return kind.residual(
             kin.R[:, -1], kin.p[:, -1], data.observed, self.markers, self.frame, self.tool_rotation
         )
@@ -205,41 +216,82 @@ class ErrorModel:
         tool = start.tool_rotation
         if xt.size:
             tool = tool @ rotation_matrix(xt)
-        mdh = self.params.apply(start.mdh, self.lift @ xb) if xb.size else start.mdh
+        mdh = self._moved(start.mdh, xb)
         compliance = start.compliance.copy()
         compliance[list(self.compliance)] += xc
         return State(mdh, frame, markers, tool, compliance)
 
-    def jacobian(self, start: State, x: np.ndarray, data, torque: np.ndarray | None) -> np.ndarray:
+    def _moved(self, mdh: MDHModel, xb: np.ndarray) -> MDHModel:
+        """The geometry with the base values xb lifted onto its standard parameters.
+
+        What ``params.apply(mdh, lift @ xb)`` gives, one array per kind of parameter.
+        """
+        if not np.any(xb):
+            return mdh
+        delta = self.lift @ xb
+        if not np.all(np.isfinite(delta)):
+            return self.params.apply(mdh, delta)  # its error on NaN or infinity
+        arrays = {}
+        for kind, rows, columns in self._scatter:
+            arrays[kind] = getattr(mdh, kind).copy()
+            np.add.at(arrays[kind], rows, delta[columns])  # a row named twice adds twice
+        return mdh.replace(**arrays)
+
+    @functools.cached_property
+    def _scatter(self) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
+        """Per kind of standard parameter: its name, the rows and the positions in the set."""
+        kinds: dict[str, list[int]] = {}
+        for i, p in enumerate(self.params.parameters):
+            kinds.setdefault(p.kind.value, []).append(i)
+        rows = np.array([p.row for p in self.params.parameters], dtype=int)
+        return tuple((k, rows[i], np.array(i)) for k, i in kinds.items())
+
+    def jacobian(
+        self,
+        start: State,
+        x: np.ndarray,
+        data,
+        torque: np.ndarray | None,
+        state: State | None = None,
+        kin: Kinematics | None = None,
+    ) -> np.ndarray:
         """d(model)/dx, ``(m, rows, size)``: the kind's rows (3 K point rows, 3 rotation rows).
 
         The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
-        whole Jacobian is that of model - measured).
+        whole Jacobian is that of model - measured). ``state`` (``apply(start, x)``) and
+        ``kin`` (its :meth:`State.kinematics` at the data's joints): if already computed.
         """
-        state = self.apply(start, x)
+        if state is None:
+            state = self.apply(start, x)
         xf, _, xt, _, _ = self.split(x)
         q = state.joints(data.q, torque)
-        kin = state.mdh.kinematics(q)
+        if kin is None:
+            kin = state.mdh.kinematics(q)
         m, K = data.m, state.n_markers
         R = state.frame[:3, :3]
         pts, rot = self.kind.predict(
             kin.R[:, -1], kin.p[:, -1], state.markers, state.frame, state.tool_rotation
         )
-        blocks = []
-        if self.frame:
-            blocks.append(self._frame_block(pts - state.frame[:3, 3], xf))
+        J = np.zeros((m, self.kind.full_rows(K), self.size()))  # 3 K point rows, 3 turning
+        P, c = 3 * K, 0
+        if self.frame:  # d(R p)/dphi = -[R p]x Jl(phi) with R = Exp(phi) R0, then translation
+            Jl = left_jacobian(xf[:3])
+            J[:, :P, :3] = (-skew(pts - state.frame[:3, 3]) @ Jl).reshape(m, P, 3)
+            J[:, :P, 3:6] = np.tile(np.eye(3), (K, 1))
+            if self.kind.rotation_rows:
+                J[:, P:, :3] = Jl
+            c = 6
         if self.markers:
             Rt = R @ kin.R[:, -1]
-            blk = np.zeros((m, K, 3, 3 * K))
             for k in range(K):
-                blk[:, k, :, 3 * k : 3 * k + 3] = Rt
-            blocks.append(self._stack(blk, np.zeros((m, 3, 3 * K))))
+                J[:, 3 * k : 3 * k + 3, c + 3 * k : c + 3 * k + 3] = Rt
+            c += P
         if self._tool_free:
-            ang = rot @ left_jacobian(xt).T  # right perturbation: R_model Jr(psi)
-            blocks.append(self._stack(np.zeros((m, K, 3, 3)), ang))
-        blocks += self._mdh_blocks(state, q, kin, torque)
-        full = self.kind.full_rows(K)
-        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((m, full, 0))
+            J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
+            c += 3
+        for block in self._mdh_blocks(state, q, kin, torque):
+            J[:, :, c : c + block.shape[2]] = block
+            c += block.shape[2]
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
         return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K)
 
@@ -254,32 +306,24 @@ class ErrorModel:
         out = point.reshape(m, -1, point.shape[-1])
         return np.concatenate([out, ang], axis=1) if self.kind.rotation_rows else out
 
-    def _frame_block(self, lever: np.ndarray, xf: np.ndarray) -> np.ndarray:
-        m, K = lever.shape[:2]
-        Jl = left_jacobian(xf[:3])
-        rot = -skew(lever) @ Jl  # d(R p)/dphi with R = Exp(phi) R0
-        trans = np.broadcast_to(np.eye(3), (m, K, 3, 3))
-        point = np.concatenate([rot, trans], axis=3)
-        ang = np.concatenate([np.broadcast_to(Jl, (m, 3, 3)), np.zeros((m, 3, 3))], axis=2)
-        return self._stack(point, ang)
-
     def _mdh_blocks(self, state: State, q: np.ndarray, kin, torque) -> list[np.ndarray]:
         """Columns of the base values (through the lift) and of the compliances."""
         if not self.base and not self.compliance:
             return []
-        offsets = [offset_parameter(state.mdh, j) for j in self.compliance]
-        pset = ParameterSet("columns", (*self.params.parameters, *offsets))
+        pset = self._columns(state.mdh)
         R = state.frame[:3, :3]
         m, K = q.shape[0], state.n_markers
-        point = np.empty((m, K, 3, len(pset)))
-        for k in range(K):
-            meas = dataclasses.replace(POSITION, marker=tuple(state.markers[k]))
-            W = identification_jacobian(state.mdh, pset, q, meas, kin=kin)
-            point[:, k] = R @ W.reshape(m, 3, -1)
         ang = np.zeros((m, 3, len(pset)))
-        if self.pose:
-            W = identification_jacobian(state.mdh, pset, q, _TURN, kin=kin)
-            ang = R @ W.reshape(m, 3, -1)
+        if K == 1 and not self.pose:
+            meas = dataclasses.replace(POSITION, marker=tuple(state.markers[0]))
+            W = identification_jacobian(state.mdh, pset, q, meas, kin=kin)
+            point = (R @ W.reshape(m, 3, -1))[:, None]
+        else:  # each marker from the tool's pose rows: d(p + R_t m_k) = dp - [R_t m_k]x dphi
+            W6 = identification_jacobian(state.mdh, pset, q, POSE, kin=kin).reshape(m, 6, -1)
+            lever = np.einsum("mij,kj->mki", kin.R[:, -1], state.markers)
+            point = R @ (W6[:, None, :3] - skew(lever) @ W6[:, None, 3:])
+            if self.pose:
+                ang = R @ W6[:, 3:]
         cols = self._stack(point, ang)
         p = len(self.params)
         out = []
@@ -290,6 +334,18 @@ class ErrorModel:
             gain = torque[:, None, joints] * state.mdh.sign[1:-1][joints]
             out.append(cols[:, :, p:] * gain)
         return out
+
+    def _columns(self, mdh: MDHModel) -> ParameterSet:
+        """The standard parameters, then the offsets of the free compliances' joints."""
+        offsets = tuple(offset_parameter(mdh, j) for j in self.compliance)
+        known = self._column_sets
+        if offsets not in known:  # one set per kind of joints (its layout computed once)
+            known[offsets] = ParameterSet("columns", (*self.params.parameters, *offsets))
+        return known[offsets]
+
+    @functools.cached_property
+    def _column_sets(self) -> dict[tuple[Parameter, ...], ParameterSet]:
+        return {}
 
     def with_(self, **changes) -> ErrorModel:
         """A copy with some fields replaced."""

@@ -363,11 +363,12 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
         )
     if opts.level == "auto":
         check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
-        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque) * w[None, :, None]
+        kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
+        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin) * w[None, :, None]
         cols = list(range(fixed)) + columns
         forced = [cand.index(n) for n in opts.free if n in cand]
         selection, weights = select(
-            Jr[:, :, cols], reg.residuals(data) * w, fixed, tuple(cand), forced
+            Jr[:, :, cols], reg.residuals(data, kin=kin) * w, fixed, tuple(cand), forced
         )
         cand = list(selection.kept)
     else:
@@ -386,10 +387,12 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     """Parameters of ``wide`` determined at random configurations (the same markers)."""
     q = chain.random_configurations(DEFAULT_CONFIGS, seed)
     torque = chain.gravity_torques(q) if elastic else None
-    pts, rot = state.predict(q, torque)
+    kin = state.kinematics(q, torque)  # x = 0 is the state
+    pts, rot = state.predict(q, torque, kin)
     quat = None if data.quaternion is None else matrix_to_quaternion(rot)
     generic = Measurements(data.joint_names, q, pts.reshape(len(q), -1), quat)
-    J = wide.jacobian(state, np.zeros(wide.size()), generic, torque) * w[None, :, None]
+    J = wide.jacobian(state, np.zeros(wide.size()), generic, torque, state, kin)
+    J = J * w[None, :, None]
     return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
 
 

@@ -111,17 +111,45 @@ def row_weights(model: ErrorModel, weight: float) -> np.ndarray:
 
 
 class Problem:
-    """Weighted residuals model - measured (and prior rows) and their Jacobian, of x."""
+    """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
+
+    SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
+    at the solution: the state at the last two x (for a chain's :class:`ErrorModel`, with its
+    kinematics, reused while x moves no geometry: the frame and markers) and their
+    Jacobians are kept.
+    """
 
     def __init__(self, model, start, data, torque, weight, prior=None):
         self.model, self.start, self.data, self.torque = model, start, data, torque
         self.w = row_weights(model, weight)
         self.prior = prior  # (p,) weights of x in the prior rows, or None
+        self._chain = isinstance(model, ErrorModel)
+        self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
+
+    def state(self, x: np.ndarray):
+        """The model's state at x."""
+        return self._at(x)[1]
+
+    def _at(self, x: np.ndarray) -> list:
+        """[x, state, kinematics at the data's joints or None, Jacobian], once per x."""
+        for kept in self._kept:
+            if np.array_equal(kept[0], x):
+                return kept
+        state = self.model.apply(self.start, x)
+        kin = None
+        if self._chain:
+            kin = next((k[2] for k in self._kept if _same_geometry(k[1], state)), None)
+            if kin is None:
+                kin = state.kinematics(self.data.q, self.torque)
+        self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
+        return self._kept[0]
 
     def data_rows(self, x: np.ndarray) -> np.ndarray:
         """Weighted model - measured of the data, configuration-major ``(m rows,)``."""
-        state = self.model.apply(self.start, x)
-        return (-state.residuals(self.data, self.torque) * self.w).ravel()
+        _, state, kin, _ = self._at(x)
+        if kin is None:
+            return (-state.residuals(self.data, self.torque) * self.w).ravel()
+        return (-state.residuals(self.data, self.torque, kin) * self.w).ravel()
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         """Data rows, then the prior rows ``prior * x``."""
@@ -129,14 +157,26 @@ class Problem:
         return f if self.prior is None else np.r_[f, self.prior * x]
 
     def data_jac(self, x: np.ndarray) -> np.ndarray:
-        """Jacobian of :meth:`data_rows`, ``(m rows, p)``."""
-        J = self.model.jacobian(self.start, x, self.data, self.torque)
-        return (J * self.w[None, :, None]).reshape(-1, J.shape[2])
+        """Jacobian of :meth:`data_rows`, ``(m rows, p)`` (not to be written to)."""
+        kept = self._at(x)
+        if kept[3] is None:
+            _, state, kin, _ = kept
+            if kin is None:
+                J = self.model.jacobian(self.start, x, self.data, self.torque)
+            else:
+                J = self.model.jacobian(self.start, x, self.data, self.torque, state, kin)
+            kept[3] = (J * self.w[None, :, None]).reshape(-1, J.shape[2])
+        return kept[3]
 
     def jac(self, x: np.ndarray) -> np.ndarray:
-        """Jacobian of :meth:`fun`."""
+        """Jacobian of :meth:`fun` (a copy: SciPy scales it in place for a robust loss)."""
         J = self.data_jac(x)
-        return J if self.prior is None else np.vstack([J, np.diag(self.prior)])
+        return J.copy() if self.prior is None else np.vstack([J, np.diag(self.prior)])
+
+
+def _same_geometry(a, b) -> bool:
+    """Two chain states whose kinematics at the same data are the same (x moved no geometry)."""
+    return a.mdh is b.mdh and np.array_equal(a.compliance, b.compliance)
 
 
 def fit(
@@ -194,7 +234,7 @@ def fit(
     return Fit(
         model,
         start,
-        model.apply(start, x),
+        problem.state(x),
         x,
         J,
         f,
