@@ -217,10 +217,9 @@ class MDHModel:
         object.__setattr__(self, "_pre", _pre_rotations(self.beta, self.alpha))
         # What q_k adds to each joint row's angle (row 0) and length (row 1): (1 - sigma) s
         # and sigma s.
-        joints = slice(1, len(self.sigma) - 1)
-        s, sig = self.sign[joints].astype(float), self.sigma[joints]
-        gain = np.stack([(sig == 0) * s, (sig == 1) * s])[:, :, None]
-        offsets = np.stack([self.theta, self.r])[:, :, None]  # theta_k and r_k, (2, rows, 1)
+        s, sig = self.sign[1:-1].astype(float), self.sigma[1:-1]
+        gain = np.array([(sig == 0) * s, (sig == 1) * s])[:, :, None]
+        offsets = np.array([self.theta, self.r])[:, :, None]  # theta_k and r_k, (2, rows, 1)
         for name, a in (("_gain", gain), ("_offsets", offsets)):
             a.flags.writeable = False
             object.__setattr__(self, name, a)
@@ -591,12 +590,15 @@ def _converted_lines(
     signs = _checked_options(n, joint_names, parallel_tol, sign)
     # The directions once more divided by their norm, as the conversion always did.
     directions = directions / np.linalg.norm(directions, axis=1)[:, None]
-    *geometry, parallel, coincident = _line_rows(points, directions, tool, parallel_tol)
+    beta, alpha, d, theta, r, parallel, coincident = _line_rows(
+        points, directions, tool, parallel_tol
+    )
     sig = np.concatenate([[-1], sigma, [-1]])
     names = (None, *(joint_names or tuple(str(i + 1) for i in range(n))), None)
     row_sign = np.concatenate([[1], signs.astype(int), [1]])
+    y = np.zeros(n + 2)
     return MDHModel(
-        sig, *geometry, np.zeros(n + 2), names, parallel, coincident, sign=row_sign, **fields
+        sig, beta, alpha, d, theta, r, y, names, parallel, coincident, sign=row_sign, **fields
     )
 
 
