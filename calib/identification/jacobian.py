@@ -23,18 +23,22 @@ def _check_types(mdh: MDHModel, measurement: MeasureKind, params=None) -> None:
     """Raise InvalidArgumentError for arguments of the wrong kind (not for their values)."""
     if not isinstance(mdh, MDHModel):
         raise InvalidArgumentError(f"mdh must be an MDHModel (see from_chain), got {mdh!r:.60}")
-    if not isinstance(measurement, MeasureKind):
+    # Measurement first (tried in order): the protocol's check inspects every member (slow).
+    if not isinstance(measurement, (Measurement, MeasureKind)):
         raise InvalidArgumentError(
             f"measurement must be a measurement kind (see kind_of, Measurement.of), got "
             f"{measurement!r:.60}"
         )
-    last = mdh.n + 1
     if params is not None and not (
-        isinstance(params, ParameterSet) and all(0 <= p.row <= last for p in params.parameters)
+        isinstance(params, ParameterSet) and _rows_within(params.layout.axis_row, mdh.n + 1)
     ):
         raise InvalidArgumentError(
             f"params must be a ParameterSet of this model's rows, got {params!r:.60}"
         )
+
+
+def _rows_within(rows: np.ndarray, last: int) -> bool:
+    return not rows.size or (int(rows.min()) >= 0 and int(rows.max()) <= last)
 
 
 def measured_point(kin: Kinematics, marker: np.ndarray) -> np.ndarray:
@@ -113,17 +117,32 @@ def _assemble(
     k, _, m = axes.shape
     lin = [r for r in rows if r < 3]  # rows are sorted: position rows first
     ang = [r - 3 for r in rows if r >= 3]
+    n_lin = len(lin)
     out = np.empty((k, len(rows), m))
-    out[:, : len(lin)] = axes[:, lin]
-    out[:, len(lin) :] = 0.0
+    out[:, :n_lin] = _components(axes, lin)
+    out[:, n_lin:] = 0.0
     if rot.size and L is not None:  # L is given whenever there are rotation columns
         a = axes[rot]
         if lin:
-            c1, c2 = [(r + 1) % 3 for r in lin], [(r + 2) % 3 for r in lin]
-            out[rot, : len(lin)] = a[:, c1] * L[:, c2] - a[:, c2] * L[:, c1]
+            out[rot, :n_lin] = _cross_rows(a, L, lin)
         if ang:
-            out[rot, len(lin) :] = a[:, ang]
+            out[rot, n_lin:] = _components(a, ang)
     return out.transpose(2, 1, 0).reshape(-1, k)
+
+
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
+def _cross_rows(a: np.ndarray, L: np.ndarray, lin: list[int]) -> np.ndarray:
+    """Components ``lin`` of a x L for vectors ``(k, 3, m)`` (np.take: a[:, list] is slower)."""
+    c1, c2 = _NEXT[lin], _AFTER[lin]
+    a1, a2 = np.take(a, c1, axis=1), np.take(a, c2, axis=1)
+    return a1 * np.take(L, c2, axis=1) - a2 * np.take(L, c1, axis=1)
+
+
+def _components(v: np.ndarray, which: list[int]) -> np.ndarray:
+    """Components ``which`` of vectors ``(k, 3, m)``: a view when they are all three."""
+    return v if which == [0, 1, 2] else np.take(v, which, axis=1)
 
 
 def complete_jacobian(

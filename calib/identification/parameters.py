@@ -43,7 +43,23 @@ class Kind(enum.Enum):
     @property
     def is_rotation(self) -> bool:
         """True for angles [rad], False for lengths [m]."""
-        return self in (Kind.GAMMA, Kind.BETA, Kind.ALPHA, Kind.THETA)
+        return self in _ROTATIONS
+
+
+_ROTATIONS = frozenset((Kind.GAMMA, Kind.BETA, Kind.ALPHA, Kind.THETA))
+
+_COLUMN_OF = {
+    "y": (0, 0, 0),
+    "beta": (0, 0, 1),
+    "alpha": (1, 0, 1),
+    "d": (1, 0, 0),
+    "theta": (2, 1, 1),
+    "r": (2, 1, 0),
+}
+"""Per kind of a chain's row (by value: an enum's own hash is slow): the vector its column's
+axis is (0 y_{k-1}, 1 x after beta and alpha, 2 z_k), the point a rotation turns about (0
+where beta and alpha act, 1 the origin of frame k; see :class:`ColumnLayout`), and 1 for a
+rotation."""
 
 
 @dataclass(frozen=True)
@@ -108,12 +124,9 @@ class ParameterSet:
     @functools.cached_property
     def layout(self) -> ColumnLayout:
         """How the Jacobian gathers each column's axis and point (computed once per set)."""
-        axis_of = {Kind.Y: 0, Kind.BETA: 0, Kind.ALPHA: 1, Kind.D: 1, Kind.THETA: 2, Kind.R: 2}
-        ps = self.parameters
-        rows = np.array([p.row for p in ps], dtype=int)
-        axis = np.array([axis_of[p.kind] for p in ps], dtype=int)
-        at_origin = np.array([p.kind in (Kind.THETA, Kind.R) for p in ps], dtype=int)
-        rot = np.flatnonzero([p.kind.is_rotation for p in ps])
+        plan = [(p.row, *_COLUMN_OF[p.kind._value_]) for p in self.parameters]
+        rows, axis, at_origin, rotation = np.array(plan, dtype=int).reshape(-1, 4).T.copy()
+        rot = np.flatnonzero(rotation)
         return ColumnLayout(axis, rows, at_origin[rot], rows[rot], rot)
 
     def index(self, name: str) -> int:
@@ -129,10 +142,21 @@ class ParameterSet:
         """A new model (chain or tree) whose parameters are shifted by ``delta`` (set order)."""
         _check_model(mdh, tree=True)
         delta = real_array(delta, "delta", (len(self),))
-        arrays = {p.kind.value: getattr(mdh, p.kind.value).copy() for p in self.parameters}
-        for p, dx in zip(self.parameters, delta, strict=True):
-            arrays[p.kind.value][p.row] += dx
+        arrays = {}
+        for field, rows, where in self._shifts:
+            a = getattr(mdh, field).copy()
+            np.add.at(a, rows, delta[where])  # in set order, repeated parameters too
+            arrays[field] = a
         return mdh.replace(**arrays)
+
+    @functools.cached_property
+    def _shifts(self) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
+        """Per field of the model the set shifts: its rows and their places in the set."""
+        fields: dict[str, list[int]] = {}
+        for i, p in enumerate(self.parameters):
+            fields.setdefault(p.kind._value_, []).append(i)
+        rows = np.array([p.row for p in self.parameters], dtype=int)
+        return tuple((f, rows[i], np.array(i)) for f, i in fields.items())
 
 
 def _check_model(mdh, tree: bool = False) -> None:

@@ -27,6 +27,7 @@ import numpy as np
 from ..core.checks import joint_positions, real_array
 from ..exceptions import InvalidArgumentError
 from . import urdf_xml
+from .mdh_rows import COINCIDENT_TOL, FREE_DIRECTION_TOL, line_rows
 from .robot import Chain
 
 __all__ = [
@@ -54,12 +55,6 @@ far away: a 6e-6 rad tilt over 0.4 m puts it kilometres off. Rounded URDF angles
 (1.5708, 1.57) tilt axes by up to 1e-3 rad, so the tolerance is ten times that.
 """
 
-FREE_DIRECTION_TOL = 1e-10
-"""Length [m] under which a perpendicular has no direction (the x axis is then free)."""
-
-COINCIDENT_TOL = 1e-6
-"""Distance [m] under which two parallel lines are coincident (the complete set adds y)."""
-
 SNAP_ANGLE = urdf_xml.SNAP_ANGLE
 """Angle [rad] within which :meth:`MDHModel.idealized` snaps to a multiple of 90 degrees.
 
@@ -82,25 +77,27 @@ def snap_length(v: np.ndarray, tol: float) -> np.ndarray:
     return np.where(np.abs(v) < tol, 0.0, v)
 
 
-def _rot_x(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _rot_y(b: float) -> np.ndarray:
-    c, s = math.cos(b), math.sin(b)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
-    """Angle [rad] from unit vector a to unit vector b about ``axis`` (both orthogonal to it)."""
-    return math.atan2(float(np.dot(np.cross(a, b), axis)), float(np.dot(a, b)))
-
-
 _Y_AXIS = np.array([[0.0], [1.0], [0.0]])
 
 _ARRAYS = ("sigma", "beta", "alpha", "d", "theta", "r", "y", "parallel", "coincident", "sign")
 """The array fields of :class:`MDHModel` (stored as private read-only copies)."""
+
+
+def _pre_rotations(beta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """``Rot(y, beta_k) Rot(x, alpha_k)`` of every row ``(rows, 3, 3)``, entry by entry.
+
+    Each entry is the one term of the matrix product that is not zero, from +0.0 as the
+    product sums (no -0.0).
+    """
+    out = []
+    for b, a in zip(beta.tolist(), alpha.tolist(), strict=True):
+        cb, sb, ca, sa = math.cos(b), math.sin(b), math.cos(a), math.sin(a)
+        out.append((cb, 0.0 + sb * sa, 0.0 + sb * ca))
+        out.append((0.0, ca, 0.0 - sa))
+        out.append((0.0 - sb, 0.0 + cb * sa, 0.0 + cb * ca))
+    pre = np.array(out).reshape(-1, 3, 3)
+    pre.flags.writeable = False
+    return pre
 
 
 class Kinematics(NamedTuple):
@@ -162,6 +159,7 @@ class MDHModel:
     source: tuple[Chain, float] | None = field(default=None, repr=False)
     _pre: np.ndarray = field(init=False, repr=False)
     _gain: np.ndarray = field(init=False, repr=False)
+    _offsets: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.sign is None:
@@ -174,15 +172,15 @@ class MDHModel:
             raise InvalidArgumentError(
                 f"sign holds +1 or -1 per row ({len(self.sigma)}), got {self.sign.tolist()}"
             )
-        pre = np.array([_rot_y(b) @ _rot_x(a) for b, a in zip(self.beta, self.alpha, strict=True)])
-        object.__setattr__(self, "_pre", pre)
+        object.__setattr__(self, "_pre", _pre_rotations(self.beta, self.alpha))
         # What q_k adds to each joint row's angle (row 0) and length (row 1): (1 - sigma) s
         # and sigma s.
-        joints = slice(1, len(self.sigma) - 1)
-        s, sig = self.sign[joints].astype(float), self.sigma[joints]
-        gain = np.stack([(sig == 0) * s, (sig == 1) * s])[:, :, None]
-        gain.flags.writeable = False
-        object.__setattr__(self, "_gain", gain)
+        s, sig = self.sign[1:-1].astype(float), self.sigma[1:-1]
+        gain = np.array([(sig == 0) * s, (sig == 1) * s])[:, :, None]
+        offsets = np.array([self.theta, self.r])[:, :, None]  # theta_k and r_k, (2, rows, 1)
+        for name, a in (("_gain", gain), ("_offsets", offsets)):
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
 
     @property
     def n(self) -> int:
@@ -278,10 +276,8 @@ class MDHModel:
         m, rows, n = q.shape[0], self.n + 2, self.n
         # Component-major work arrays (row, ..., configuration): every operation runs along
         # the m configurations, the innermost (contiguous) axis.
-        angle = np.repeat(self.theta[:, None], m, axis=1)
-        angle[1 : n + 1] += q.T * self._gain[0]
-        length = np.repeat(self.r[:, None], m, axis=1)
-        length[1 : n + 1] += q.T * self._gain[1]
+        angle, length = offsets = np.repeat(self._offsets, m, axis=2)  # theta_k, r_k
+        offsets[:, 1 : n + 1] += q.T * self._gain
         # Frame k = frame k-1 L_k with L_k = Pre_k Rot(z, angle_k) (rows [c p0 + s p1,
         # c p1 - s p0, p2] of Pre_k's columns p_j), built for all rows at once, then one
         # product per row along the chain.
@@ -298,7 +294,7 @@ class MDHModel:
         # x_mid_k = R_(k-1) Pre_k e_x: the x axis after beta_k and alpha_k
         x_mid = np.empty((rows, 3, m))
         x_mid[0] = self._pre[0][:, 0, None]
-        x_mid[1:] = np.einsum("kilm,kl->kim", Rt[:-1], self._pre[1:, :, 0])
+        np.einsum("kilm,kl->kim", Rt[:-1], self._pre[1:, :, 0], out=x_mid[1:])
         y_prev = np.empty((rows, 3, m))
         y_prev[0] = _Y_AXIS
         y_prev[1:] = Rt[:-1, :, 1]
@@ -307,7 +303,7 @@ class MDHModel:
         has_y = self.y.any()
         if has_y:
             step += self.y[:, None, None] * y_prev
-        p = np.cumsum(step, axis=0)
+        p = np.cumsum(step, axis=0, out=step)
         q_mid = np.empty((rows, 3, m))
         q_mid[0] = 0.0
         q_mid[1:] = p[:-1]
@@ -354,23 +350,6 @@ class MDHModel:
         return out
 
 
-def _sign_towards(x: np.ndarray, x_ref: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Choose +x or -x so that the angle from x_ref to it about z lies in (-90, 90] degrees."""
-    dot = float(np.dot(x, x_ref))
-    if abs(dot) > 1e-9:
-        return x if dot > 0 else -x
-    return x if float(np.dot(np.cross(x_ref, x), z)) > 0 else -x
-
-
-def _closest_points(p1, u1, p2, u2) -> tuple[float, float]:
-    """Parameters t, s of the closest points p1 + t u1 and p2 + s u2 of two skew lines."""
-    w0 = p1 - p2
-    b = float(np.dot(u1, u2))
-    dd, e = float(np.dot(u1, w0)), float(np.dot(u2, w0))
-    den = 1.0 - b * b
-    return (b * e - dd) / den, (e - b * dd) / den
-
-
 RIGID_TOL = 1e-6
 """Largest deviation of a tool rotation from orthonormality accepted by :func:`from_lines`."""
 
@@ -392,12 +371,33 @@ def _checked_lines(points, directions, sigma, tool):
     u = u / np.linalg.norm(u, axis=1)[:, None]
     T = real_array(tool, "the tool pose", (4, 4))
     R = T[:3, :3]
-    rigid = np.allclose(R.T @ R, np.eye(3), atol=RIGID_TOL, rtol=0) and np.linalg.det(R) > 0
-    if not rigid or not np.allclose(T[3], (0.0, 0.0, 0.0, 1.0)):
+    # np.allclose's tests, written out (the values are finite): |R^T R - I| <= RIGID_TOL, and
+    # the last row within 1e-8 + 1e-5 |(0, 0, 0, 1)|.
+    rigid = np.abs(R.T @ R - np.eye(3)).max() <= RIGID_TOL and np.linalg.det(R) > 0
+    if not rigid or not np.all(np.abs(T[3] - _LAST_ROW) <= 1e-8 + 1e-5 * _LAST_ROW):
         raise InvalidArgumentError("the tool pose must be a rigid homogeneous transform (4, 4)")
     if np.max(np.abs(T[:3, 3])) > bound:
         raise InvalidArgumentError(f"the tool position must be within {bound:g} m")
     return p, u, s.astype(int), T
+
+
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def _checked_options(n: int, joint_names, parallel_tol, sign) -> np.ndarray:
+    """Check :func:`from_lines`'s options for n joints; the signs ``(n,)`` (default +1)."""
+    if n == 0:
+        raise InvalidArgumentError("a chain has at least one joint: sigma is empty")
+    signs = np.ones(n) if sign is None else real_array(sign, "sign", (n,)).reshape(n)
+    if not np.all(np.abs(signs) == 1):
+        raise InvalidArgumentError(f"sign holds +1 or -1 per joint, got {signs.tolist()}")
+    if joint_names is not None and (
+        len(joint_names) != n or not all(isinstance(x, str) for x in joint_names)
+    ):
+        raise InvalidArgumentError(f"joint_names must be {n} strings, got {joint_names!r:.60}")
+    if not (isinstance(parallel_tol, int | float) and 0.0 < parallel_tol < math.pi / 4):
+        raise InvalidArgumentError(f"parallel_tol must be in (0, pi/4) rad, got {parallel_tol!r}")
+    return signs
 
 
 def from_lines(
@@ -440,79 +440,27 @@ def from_lines(
             :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma not 0 or 1, a sign not
             +1 or -1, a tool that is not a rigid transform, or a tolerance outside (0, pi/4).
     """
+    return _converted_lines(points, directions, sigma, tool, joint_names, parallel_tol, sign)
+
+
+def _converted_lines(
+    points, directions, sigma, tool, joint_names, parallel_tol, sign, **fields
+) -> MDHModel:
+    """:func:`from_lines`, with other fields of the model (frame names, source) given."""
     points, directions, sigma, tool = _checked_lines(points, directions, sigma, tool)
     n = len(sigma)
-    if n == 0:
-        raise InvalidArgumentError("a chain has at least one joint: sigma is empty")
-    signs = np.ones(n) if sign is None else real_array(sign, "sign", (n,)).reshape(n)
-    if not np.all(np.abs(signs) == 1):
-        raise InvalidArgumentError(f"sign holds +1 or -1 per joint, got {signs.tolist()}")
-    if joint_names is not None and (
-        len(joint_names) != n or not all(isinstance(x, str) for x in joint_names)
-    ):
-        raise InvalidArgumentError(f"joint_names must be {n} strings, got {joint_names!r:.60}")
-    if not (isinstance(parallel_tol, int | float) and 0.0 < parallel_tol < math.pi / 4):
-        raise InvalidArgumentError(f"parallel_tol must be in (0, pi/4) rad, got {parallel_tol!r}")
-    line_p = [np.zeros(3), *points, tool[:3, 3]]
-    line_u = [np.array([0.0, 0.0, 1.0])]
-    line_u += [u / np.linalg.norm(u) for u in directions]
-    line_u += [tool[:3, 2]]
-    rows = n + 2
-    beta, alpha, d, theta, r = (np.zeros(rows) for _ in range(5))
-    parallel = np.zeros(rows, dtype=bool)
-    coincident = np.zeros(rows, dtype=bool)
-
-    # State of frame k-1 while row k is built: its z axis, the point where row k-1 lands on
-    # its line (r_{k-1} measured from there), its x axis at zero offset, and its full rotation
-    # once x is chosen.
-    z = line_u[0]
-    entry = np.zeros(3)
-    x_zero = np.array([1.0, 0.0, 0.0])
-    for k in range(1, rows):
-        pk, uk = line_p[k], line_u[k]
-        cos_angle = float(np.clip(np.dot(z, uk), -1.0, 1.0))
-        is_parallel = math.acos(abs(cos_angle)) < parallel_tol
-        if not is_parallel:
-            t, s = _closest_points(entry, z, pk, uk)
-            origin = entry + t * z
-            foot_next = pk + s * uk
-            x = _sign_towards(np.cross(z, uk) / np.linalg.norm(np.cross(z, uk)), x_zero, z)
-        else:
-            origin = entry
-            v = pk - origin
-            w = v - np.dot(v, uk) * uk
-            wp = w - np.dot(w, z) * z
-            if np.linalg.norm(wp) > FREE_DIRECTION_TOL:
-                x = _sign_towards(wp / np.linalg.norm(wp), x_zero, z)
-            else:
-                x = x_zero
-            coincident[k] = np.linalg.norm(w) < COINCIDENT_TOL
-        parallel[k] = is_parallel
-        # Close row k-1: its offset theta and its distance r along z_{k-1}.
-        theta[k - 1] = _signed_angle(x_zero, x, z)
-        r[k - 1] = float(np.dot(origin - entry, z))
-        R_prev = np.column_stack([x, np.cross(z, x), z])
-        u_loc = R_prev.T @ uk
-        if is_parallel:
-            sgn = 1.0 if u_loc[2] >= 0 else -1.0
-            alpha[k] = math.atan2(-u_loc[1], sgn * math.hypot(u_loc[0], u_loc[2]))
-            beta[k] = math.atan2(sgn * u_loc[0], sgn * u_loc[2])
-            x_mid = R_prev @ _rot_y(beta[k])[:, 0]
-            d[k] = float(np.dot(w, x_mid))
-            foot_next = origin + d[k] * x_mid
-        else:
-            alpha[k] = _signed_angle(z, uk, x)
-            x_mid = x
-            d[k] = float(np.dot(foot_next - origin, x))
-        z, entry, x_zero = uk, foot_next, x_mid
-    # Row n+1 lands on the tool z line; the tool frame fixes its x axis and origin.
-    theta[-1] = _signed_angle(x_zero, tool[:3, 0], z)
-    r[-1] = float(np.dot(tool[:3, 3] - entry, z))
-    sig = np.concatenate([[-1], np.asarray(sigma, dtype=int), [-1]])
+    signs = _checked_options(n, joint_names, parallel_tol, sign)
+    # The directions once more divided by their norm, as the conversion always did.
+    directions = directions / np.linalg.norm(directions, axis=1)[:, None]
+    beta, alpha, d, theta, r, parallel, coincident = line_rows(
+        points, directions, tool, parallel_tol
+    )
+    sig = np.concatenate([[-1], sigma, [-1]])
     names = (None, *(joint_names or tuple(str(i + 1) for i in range(n))), None)
     row_sign = np.concatenate([[1], signs.astype(int), [1]])
+    y = np.zeros(n + 2)
     return MDHModel(
-        sig, beta, alpha, d, theta, r, np.zeros(rows), names, parallel, coincident, sign=row_sign
+        sig, beta, alpha, d, theta, r, y, names, parallel, coincident, sign=row_sign, **fields
     )
 
 
@@ -530,14 +478,21 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
         raise InvalidArgumentError(
             f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
         )
-    return converted_chain(chain, parallel_tol).replace(source=(chain, parallel_tol))
+    return _chain_model(chain, parallel_tol, source=(chain, parallel_tol))
 
 
 def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
     """The MDH model of a chain from its joint lines (no idealisation, no cache)."""
+    return _chain_model(chain, parallel_tol)
+
+
+def _chain_model(chain: Chain, parallel_tol: float, **fields) -> MDHModel:
+    """:func:`converted_chain`, with other fields of the model (``source``) given."""
     points, dirs, tool = chain.joint_lines()
-    model = from_lines(points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol, chain.sign)
-    return model.replace(base_frame=chain.base_frame, tool_frame=chain.tool_frame)
+    frames = {"base_frame": chain.base_frame, "tool_frame": chain.tool_frame, **fields}
+    return _converted_lines(
+        points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol, chain.sign, **frames
+    )
 
 
 def frames_at_zero(mdh: MDHModel) -> np.ndarray:
