@@ -26,7 +26,7 @@ import contextlib
 
 import numpy as np
 
-__all__ = ["DEPENDENT", "REFRESH", "SHRINK", "loo_errors", "path", "paths"]
+__all__ = ["DEPENDENT", "REFRESH", "SHRINK", "SMALL", "loo_errors", "path", "paths", "spd_solve"]
 
 DEPENDENT = 1e-8
 """A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
@@ -35,6 +35,9 @@ REFRESH = 0.1
 """The inverse hat blocks ``(I - H_ii)^-1`` follow each step by Sherman-Morrison while every
 ``1 - q_i^T (I - H_ii)^-1 q_i`` of the added column exceeds this; otherwise (a leverage
 near 1, where the update would lose digits) they are inverted afresh."""
+
+SMALL = 8
+"""Blocks of at most this many rows are solved by :func:`spd_solve` (larger: LAPACK)."""
 
 SHRINK = 1e-2
 """A candidate's sums follow the steps by rank-one updates while its squared norm (outside
@@ -54,7 +57,12 @@ def loo_errors(H: np.ndarray, r: np.ndarray) -> np.ndarray:
     """
     c, m, rows = r.shape
     M = np.eye(rows) - H
-    try:
+    if rows <= SMALL:
+        x = spd_solve(np.moveaxis(M.reshape(-1, rows, rows), 0, 2), r.reshape(-1, rows).T)
+        sq = np.sum(x * x, axis=0).reshape(c, m)
+        if np.isfinite(sq).all():
+            return sq
+    try:  # a leverage of 1 or near it: LAPACK's LU (with pivoting) tells
         loo = np.linalg.solve(M, r[..., None])
     except np.linalg.LinAlgError:
         loo = np.full((c, m, rows, 1), np.inf)
@@ -62,6 +70,35 @@ def loo_errors(H: np.ndarray, r: np.ndarray) -> np.ndarray:
             with contextlib.suppress(np.linalg.LinAlgError):
                 loo[k] = np.linalg.solve(M[k], r[k, ..., None])
     return np.sum(loo**2, axis=(2, 3))
+
+
+def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    """Solutions of many small symmetric positive definite systems, component-major.
+
+    Gaussian elimination without pivoting (stable for positive definite matrices), vectorised
+    over the systems: one array operation per step of the elimination instead of a LAPACK
+    call per system. A singular system gives inf or nan.
+
+    Args:
+        M: Matrices ``(n, n, systems)``.
+        y: Right-hand sides ``(n, systems)``.
+        overwrite: M may be overwritten (else it is copied; y is always copied).
+
+    Returns:
+        ``x`` ``(n, systems)``.
+    """
+    n = len(y)
+    a, x = M if overwrite else np.array(M, order="C"), np.array(y, order="C")
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for p in range(n - 1):
+            f = a[p + 1 :, p] / a[p, p]
+            a[p + 1 :, p + 1 :] -= f[:, None] * a[p, p + 1 :]
+            x[p + 1 :] -= f * x[p]
+        x[n - 1] /= a[n - 1, n - 1]
+        for p in range(n - 2, -1, -1):
+            x[p] -= np.einsum("js,js->s", a[p, p + 1 :], x[p + 1 :])
+            x[p] /= a[p, p]
+    return x
 
 
 def path(
@@ -112,8 +149,8 @@ def paths(
             active = state.prune()
             if not active.any():
                 break
-            j = _pick(state.totals(), state.alive)
-            errors.append(state.errors_of(j))
+            j, stuck = _pick(state.totals(), state.alive)
+            errors.append(state.errors_of(j, stuck))
             state.add(j, active)
             chosen.append(np.where(active, state.index[j], -1))
     return _split_paths(candidates, chosen, errors, train)
@@ -129,15 +166,19 @@ class _Batch:
     Attributes:
         m, rows: Configurations and rows per configuration.
         r: Residuals of each subset's fit ``(b, rows, m)``.
-        H: Hat blocks ``(b, rows, rows, m)``; ``Minv`` their ``(I - H_ii)^-1`` (None while
-            one is singular); ``v`` the left-out errors ``M r``, ``vv`` their squares
-            ``(b, m)``.
-        C: Candidates orthogonal to each fit ``(k, b, rows, m)``; ``floor`` the norm under
-            which one is dependent ``(k, b)``, ``alive`` those a subset may still add,
+        H0, added: Hat blocks of the start ``(b, rows, rows, m)`` and the unit columns added
+            since (the hat blocks, :meth:`hat`, are only needed to invert them afresh).
+        Minv: ``(I - H_ii)^-1`` (None while one is singular); ``v`` the left-out errors
+            ``M r``, ``vv`` their squares ``(b, m)``.
+        C: Candidates orthogonal to each fit ``(k, b, rows, m)``; ``floor2`` the squared norm
+            under which one is dependent ``(k, b)``, ``alive`` those a subset may still add,
             ``index`` their positions in the candidate list (columns no subset can add are
-            dropped); ``nu2`` their squared norms.
-        S: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K`` and ``2 L``, each ``(k, b, m)`` (None
-            until computed afresh); ``ref2`` the squared norms they were computed afresh at.
+            dropped); ``nu2`` their squared norms (``|c|^2 - beta^2`` after a step, computed
+            afresh with the sums).
+        S: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K`` and ``2 L``, each ``(k, b, m)`` (None:
+            to compute afresh, with the norms); ``lim`` the squared norm under which a live
+            candidate's sums and norm are computed afresh (at least twice ``floor2``: the
+            dependence test reads fresh norms only).
         lost: Configurations of each subset that reached a leverage of 1 ``(b, m)``: their
             left-out error is infinite from then on (their blocks are left out of ``Minv``).
     """
@@ -151,18 +192,25 @@ class _Batch:
         self.r = _residual(Q, np.swapaxes(e.reshape(m, rows), 0, 1).ravel() * w)
         self.r = self.r.reshape(b, rows, m)
         Qb = Q.reshape(b, rows, m, -1)
-        self.H = np.einsum("bims,bjms->bijm", Qb, Qb)
+        self.H0, self.added = np.einsum("bims,bjms->bijm", Qb, Qb), []
         C = Ap[:, candidates] * w[:, :, None]
-        self.floor = DEPENDENT * np.linalg.norm(C, axis=1).T
+        self.floor2 = DEPENDENT**2 * np.einsum("bnk,bnk->kb", C, C)
         for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
             C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
         self.C = np.ascontiguousarray(np.transpose(C, (2, 0, 1))).reshape(-1, b, rows, m)
-        self.Minv = _inverse(self.H)
+        self.Minv = _inverse(self.H0)
         self.alive = np.ones((len(candidates), b), dtype=bool)
         self.index = np.arange(len(candidates))
-        self.lost = np.zeros((b, m), dtype=bool)
-        self.S = self.ref2 = None
+        self.lost, self.any_lost = np.zeros((b, m), dtype=bool), False
+        self.S = self.nu2 = self.lim = None
         self._set_v()
+
+    def hat(self) -> np.ndarray:
+        """Hat blocks of the current fits ``(b, rows, rows, m)``."""
+        if not self.added:
+            return self.H0
+        q = np.stack(self.added)
+        return self.H0 + np.einsum("sbim,sbjm->bijm", q, q)
 
     def _set_v(self) -> None:
         """``v = M r`` and its squares by configuration (None without ``Minv``)."""
@@ -175,20 +223,21 @@ class _Batch:
     def start_errors(self) -> np.ndarray:
         """Squared left-out errors of the start ``(b, m)``."""
         if self.v is None:
-            return loo_errors(np.moveaxis(self.H, 3, 1), np.swapaxes(self.r, 1, 2))
-        return self.vv
+            return loo_errors(np.moveaxis(self.H0, 3, 1), np.swapaxes(self.r, 1, 2))
+        return self.vv.copy()  # vv follows the steps in place
 
     def prune(self) -> np.ndarray:
         """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
-        Cf = self.C.reshape(len(self.C), len(self.b), -1)
-        self.nu2 = np.einsum("kbn,kbn->kb", Cf, Cf)
-        self.alive &= np.sqrt(self.nu2) > self.floor
+        if self.S is None or (self.nu2 < self.lim).any():
+            Cf = self.C.reshape(len(self.C), len(self.b), -1)
+            self.nu2, self.S = np.einsum("kbn,kbn->kb", Cf, Cf), None
+            self.alive &= self.nu2 > self.floor2
         some = self.alive.any(axis=1)
         if not some.all():  # drop the columns no subset can add any more
-            self.C, self.floor = self.C[some], self.floor[some]
+            self.C, self.floor2 = self.C[some], self.floor2[some]
             self.alive, self.nu2, self.index = self.alive[some], self.nu2[some], self.index[some]
             if self.S is not None:
-                self.S, self.ref2 = [x[some] for x in self.S], self.ref2[some]
+                self.S, self.lim = [x[some] for x in self.S], self.lim[some]
         return self.alive.any(axis=0)
 
     def totals(self) -> np.ndarray:
@@ -196,40 +245,45 @@ class _Batch:
 
         With the unit candidate ``q = c / |c|``, ``D = |c|^2 - G`` and ``U = N / D``, the
         squared error of configuration i is ``|v_i|^2 + U (2 L + U K)`` (``|v_i + a_i s|^2``
-        expanded, ``s = |c| U``). Inf where a configuration alone would determine the column
-        (``1 - q_i^T a_i = D / |c|^2`` <= 1e-12), has already determined one (``lost``), or
-        the sum is not finite.
+        expanded, ``s = |c| U``). Inf where the candidate is dead, a configuration alone would
+        determine it (``1 - q_i^T a_i = D / |c|^2`` <= 1e-12) or has already determined one
+        (``lost``), or the sum is not finite.
         """
         if self.Minv is None:
             self.sq = self._errors_without_inverse()
             self.sq[:, self.lost] = np.inf
-            self.total = self.sq.sum(axis=2)
-            return self.total
-        if self.S is None or (self.alive & (self.nu2 < SHRINK * self.ref2)).any():
-            self._fresh()
-        D, N, K, L2 = self.S
-        U = N / D
-        P = U * K
-        P += L2
-        P *= U
-        total = P.sum(axis=2)
-        total += self.vv.sum(axis=1)
-        bad = D.min(axis=2) <= 1e-12 * self.nu2
-        bad |= ~np.isfinite(total)
-        if self.lost.any():
-            bad |= self.lost.any(axis=1)
-        total[bad] = np.inf
-        self.P, self.total = P, total
-        return total
+            total = self.sq.sum(axis=2)
+        else:
+            if self.S is None:
+                self._fresh()
+            D, N, K, L2 = self.S
+            P = N / D
+            U = P * K
+            U += L2
+            P *= U
+            P += self.vv
+            self.sq = P
+            total = np.einsum("kbm->kb", P)
+            single = (1e-12 * self.nu2)[:, :, None] >= D
+            if single.any():
+                P[single] = np.inf
+                total[single.any(axis=2)] = np.inf
+            if self.any_lost:
+                P[:, self.lost] = np.inf
+                total[:, self.lost.any(axis=1)] = np.inf
+        ok = np.isfinite(total)
+        ok &= self.alive
+        return np.where(ok, total, np.inf)
 
-    def errors_of(self, j: np.ndarray) -> np.ndarray:
-        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added."""
-        if self.Minv is None:
-            return self.sq[j, self.b]
-        sq = self.vv + self.P[j, self.b]
-        if not np.isfinite(self.total[j, self.b]).all():
-            bad = self.S[0][j, self.b] <= 1e-12 * self.nu2[j, self.b][:, None]
-            sq[bad | ~np.isfinite(sq) | self.lost] = np.inf
+    def errors_of(self, j: np.ndarray, stuck: bool) -> np.ndarray:
+        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added.
+
+        ``stuck``: some subset's candidate has an infinite total (else every configuration's
+        error is finite).
+        """
+        sq = self.sq[j, self.b]
+        if stuck:
+            sq[~np.isfinite(sq)] = np.inf
         return sq
 
     def _fresh(self) -> None:
@@ -242,7 +296,8 @@ class _Batch:
             np.einsum("kbim,kbim->kbm", MC, MC),
             2.0 * np.einsum("bim,kbim->kbm", self.v, MC),
         ]
-        self.ref2 = self.nu2
+        lim = np.maximum(SHRINK * self.nu2, 2.0 * self.floor2)
+        self.lim = np.where(self.alive, lim, -np.inf)
 
     def _errors_without_inverse(self) -> np.ndarray:
         """Squared errors ``(k, b, m)`` while a hat block is singular (each subset alone)."""
@@ -251,69 +306,76 @@ class _Batch:
         coef = np.einsum("kbim,bim->bk", Cn, self.r)
         Cb = np.transpose(Cn, (1, 3, 2, 0))  # (b, m, rows, k)
         Rb = np.swapaxes(self.r, 1, 2)[..., None] - Cb * coef[:, None, None, :]
-        H = np.moveaxis(self.H, 3, 1)
+        H = np.moveaxis(self.hat(), 3, 1)
         sq = np.stack([_added_loo(H[s], Cb[s], Rb[s]) for s in self.b])
         return np.swapaxes(sq, 0, 1)
 
     def add(self, j: np.ndarray, active: np.ndarray) -> None:
         """Add candidate ``j[s]`` to each active subset s: rank-one updates of everything."""
         b = self.b
-        nu = np.sqrt(self.nu2[j, b])
-        scale = np.divide(1.0, nu, out=np.zeros_like(nu), where=active)  # finished: nothing
-        q = self.C[j, b] * scale[:, None, None]
+        q = self.C[j, b]
+        q *= (active / np.sqrt(np.einsum("bim,bim->b", q, q) + ~active))[:, None, None]
         kappa = np.einsum("bim,bim->b", q, self.r)
         Cf = self.C.reshape(len(self.C), len(b), -1)
         beta = (np.swapaxes(Cf, 0, 1) @ q.reshape(len(b), -1, 1))[:, :, 0].T  # q^T c (k, b)
         self.alive[j, b] = False
-        self.H += q[:, :, None] * q[:, None]
+        self.added.append(q)
         if self.Minv is None:
             self._update_columns(q, kappa, beta)
-            self.Minv, self.S = _inverse(self.H), None
+            self.Minv, self.S = _inverse(self.hat()), None
             self._set_v()
             return
         a = np.einsum("bijm,bjm->bim", self.Minv, q)
-        dj = 1.0 - np.einsum("bim,bim->bm", q, a)  # 1 - the leverage the column adds
-        if dj.min() <= REFRESH or self.lost.any():
-            newly = active[:, None] & (dj <= 1e-12) & ~self.lost
+        d = 1.0 - np.einsum("bim,bim->bm", q, a)  # 1 - the leverage the column adds
+        if self.any_lost or d.min() <= REFRESH:
+            newly = active[:, None] & (d <= 1e-12) & ~self.lost
             self.lost |= newly
-            if newly.any() or np.where(self.lost, 1.0, dj).min() <= REFRESH:
+            self.any_lost = self.lost.any()
+            if newly.any() or np.where(self.lost, 1.0, d).min() <= REFRESH:
                 self._update_columns(q, kappa, beta)
-                self.Minv, self.S = _inverse(self.H * ~self.lost[:, None, None, :]), None
+                self.Minv, self.S = _inverse(self.hat() * ~self.lost[:, None, None, :]), None
                 self._set_v()
                 return
             a *= ~self.lost[:, None, :]
-            dj[self.lost] = 1.0
-        if self.S is not None:
-            self._update_sums(a, dj, kappa, beta)
+            d[self.lost] = 1.0
+        h, ar, av = (np.stack((a, self.r, self.v)) * a).sum(axis=2)
+        psi = ar - kappa[:, None]
+        psi /= d
+        self.lim[j, b] = -np.inf
+        self._update_sums(a, d, h, psi, av, beta)
+        self.nu2 -= beta * beta
         self._update_columns(q, kappa, beta)
-        self.Minv += a[:, :, None] * (a / dj[:, None])[:, None]
-        self._set_v()
+        self.Minv += a[:, :, None] * (a / d[:, None])[:, None]
+        if self.any_lost:
+            self._set_v()
+        else:  # v' = M' r' = v + psi a
+            self.v += psi[:, None] * a
+            av += av
+            h *= psi
+            av += h
+            av *= psi
+            self.vv += av
 
     def _update_columns(self, q: np.ndarray, kappa: np.ndarray, beta: np.ndarray) -> None:
         """Residuals and candidates made orthogonal to the added unit columns ``q``."""
         self.r -= q * kappa[:, None, None]
         self.C -= beta[:, :, None, None] * q
 
-    def _update_sums(self, a, d, kappa, beta) -> None:
+    def _update_sums(self, a, d, h, psi, av, beta) -> None:
         """The sums ``S`` after the columns q are added (before ``C``, ``r`` and ``M``).
 
-        With ``a = M q``, ``d = 1 - q^T a`` by configuration, ``beta = q^T c``,
-        ``X = a^T c``, ``Y = a^T M c``, ``W = X - beta`` and ``phi = W / d``: the update
-        ``c' = c - beta q``, ``r' = r - kappa q``, ``M' = M + a a^T / d`` gives
-        ``v' = v + psi a`` (``psi = (a^T r - kappa) / d``), ``M' c' = M c + phi a``, and so
-        ``D' = D - W phi``, ``N' = N + psi W``, ``K' = K + phi (2 Y + phi |a|^2)``,
-        ``L' = L + psi Y + phi (a^T v + psi |a|^2)`` (``|c'|^2 = |c|^2 - beta^2``,
+        With ``a = M q``, ``d = 1 - q^T a``, ``h = |a|^2`` and ``psi = (a^T r - kappa) / d``
+        by configuration, ``beta = q^T c``, ``X = a^T c``, ``Y = a^T M c``, ``W = X - beta``
+        and ``phi = W / d``: the update ``c' = c - beta q``, ``r' = r - kappa q``,
+        ``M' = M + a a^T / d`` gives ``v' = v + psi a``, ``M' c' = M c + phi a``, and so
+        ``D' = D - W phi``, ``N' = N + psi W``, ``K' = K + phi (2 Y + phi h)``,
+        ``L' = L + psi Y + phi (a^T v + psi h)`` (``|c'|^2 = |c|^2 - beta^2``,
         ``c'^T r' = c^T r - kappa beta``).
         """
-        Ma2 = np.einsum("bjim,bjm->bim", self.Minv, a)  # M^T a, doubled below
-        Ma2 += Ma2
+        Y = np.einsum("bim,kbim->kbm", np.einsum("bjim,bjm->bim", self.Minv, a), self.C)
         W = np.einsum("bim,kbim->kbm", a, self.C)
-        Y2 = np.einsum("bim,kbim->kbm", Ma2, self.C)
-        h, ar, av = np.einsum("pbim,bim->pbm", np.stack((a, self.r, self.v)), a)
-        psi = (ar - kappa[:, None]) / d
-        mu2 = psi * h
-        mu2 += av
-        mu2 += mu2
+        mu = psi * h
+        mu += av
         D, N, K, L2 = self.S
         W -= beta[:, :, None]
         phi = W / d
@@ -321,13 +383,15 @@ class _Batch:
         W *= phi
         D -= W
         t = phi * h
-        t += Y2
+        t += Y
+        t += Y
         t *= phi
         K += t
-        Y2 *= psi
-        phi *= mu2
-        Y2 += phi
-        L2 += Y2
+        Y *= psi
+        phi *= mu
+        Y += phi
+        Y += Y
+        L2 += Y
 
 
 def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -335,16 +399,18 @@ def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
     return e - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e))
 
 
-def _pick(total: np.ndarray, alive: np.ndarray) -> np.ndarray:
-    """Per subset, the live candidate of least total error ``(b,)`` (arrays ``(k, b)``).
+def _pick(total: np.ndarray, alive: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Per subset, the candidate of least total (inf when dead) ``(b,)`` (arrays ``(k, b)``).
 
-    The first live one when every live error is infinite (as :func:`numpy.argmin` of the live
-    candidates alone would).
+    The first live one when every live total is infinite (as :func:`numpy.argmin` of the live
+    candidates alone would); and whether that happened.
     """
-    key = np.where(alive, total, np.inf)
-    j = key.argmin(axis=0)
-    stuck = np.isinf(key[j, np.arange(len(j))])
-    return np.where(stuck, alive.argmax(axis=0), j) if stuck.any() else j
+    b = np.arange(total.shape[1])
+    j = total.argmin(axis=0)
+    stuck = np.isinf(total[j, b])
+    if not stuck.any():
+        return j, False
+    return np.where(stuck, alive.argmax(axis=0), j), True
 
 
 def _split_paths(candidates, chosen, errors, train) -> list[tuple[list[int], np.ndarray]]:

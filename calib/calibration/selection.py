@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .forward_paths import loo_errors, paths
+from .forward_paths import SMALL, loo_errors, paths, spd_solve
 
 __all__ = [
     "MIN_GAIN",
@@ -52,6 +52,7 @@ __all__ = [
     "block_loo",
     "forward",
     "ridge_loo",
+    "ridge_strengths",
     "select",
     "shrinkage",
 ]
@@ -148,10 +149,8 @@ def _rms(sq: np.ndarray, rows: int) -> np.ndarray:
 def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.ndarray, float]:
     """Leave-one-out errors at the best prior strength (0 or one of ``STRENGTHS``), and it.
 
-    The prior acts on the columns after the first ``fixed``. With those columns made
-    orthogonal to the fixed ones (``B``, residuals ``r``) and ``B = U S V^T``, the hat matrix
-    at strength ``s`` is ``P_fixed + U diag(S^2 / (S^2 + s)) U^T``: one SVD serves every
-    strength (equal to :func:`block_loo` with ``lam = s`` on those columns).
+    The prior acts on the columns after the first ``fixed`` (:func:`ridge_strengths` on the
+    whole data).
 
     Args:
         A: Unit-norm columns ``(m rows, p)``, the first ``fixed`` free of prior.
@@ -163,24 +162,80 @@ def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.n
         The squared left-out error of each configuration at the strength of least RMS error,
         and that strength (0: none; the smallest of equal errors).
     """
-    m = e.size // rows
-    Q = np.linalg.qr(A[:, :fixed])[0]
-    B = A[:, fixed:] - Q @ (Q.T @ A[:, fixed:])
-    r = e - Q @ (Q.T @ e)
-    Qb = Q.reshape(m, rows, -1)
-    H0 = Qb @ np.swapaxes(Qb, 1, 2)
-    if B.shape[1] == 0:
-        return loo_errors(H0[None], r.reshape(1, m, rows))[0], 0.0
-    U, sv, _ = np.linalg.svd(B, full_matrices=False)
-    strengths = np.r_[0.0, STRENGTHS]
-    w = sv**2 / (sv**2 + strengths[:, None])  # (strengths, k)
-    Ub = U.reshape(m, rows, -1)
-    outer = (Ub[:, :, None, :] * Ub[:, None, :, :]).reshape(-1, Ub.shape[2])  # (m rows^2, k)
-    H = H0[None] + (outer @ w.T).T.reshape(len(w), m, rows, rows)
-    res = r[None] - (w * (U.T @ r)) @ U.T
-    sq = loo_errors(H, res.reshape(-1, m, rows))
-    best = int(np.argmin(np.sum(sq, axis=1)))
-    return sq[best], float(strengths[best])
+    train = np.ones((1, e.size // rows), dtype=bool)
+    sq, strength = ridge_strengths(A, e, rows, fixed, train, [list(range(fixed, A.shape[1]))])
+    return sq[0], float(strength[0])
+
+
+def ridge_strengths(
+    A: np.ndarray, e: np.ndarray, rows: int, fixed: int, train: np.ndarray, cols: list[list[int]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ridge_loo` of several subsets of the configurations, each with its own columns.
+
+    Subset s fits the first ``fixed`` columns free and ``cols[s]`` under the prior, on its
+    configurations ``train[s]`` (the others' rows zeroed, which changes neither the fit nor
+    its own hat blocks). With the prior's columns made orthogonal to the fixed ones (``B``,
+    residuals ``r``) and ``B = U S V^T``, the hat matrix at strength ``s`` is
+    ``P_fixed + U diag(S^2 / (S^2 + s)) U^T``: one SVD per subset serves every strength
+    (equal to :func:`block_loo` with ``lam = s`` on those columns), and the left-out errors of
+    every subset at every strength are one batch of small solves.
+
+    Args:
+        A: Unit-norm columns ``(m rows, p)``, the first ``fixed`` free of prior.
+        e: Residuals to explain.
+        rows: Rows per configuration.
+        fixed: Columns without prior.
+        train: Configurations of each subset ``(subsets, m)`` [bool].
+        cols: Columns under the prior of each subset.
+
+    Returns:
+        Each subset's squared left-out errors at its strength of least RMS error ``(b, m)``
+        (zero on the configurations it leaves out), and those strengths ``(b,)`` (0: none;
+        the smallest of equal errors).
+    """
+    b = len(train)
+    w = np.repeat(train, rows, axis=1).astype(float)
+    Q = np.linalg.qr(A[:, :fixed] * w[:, :, None])[0]
+    r = e * w - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e * w))
+    B, real = _padded(A, cols)  # zero columns pad: their singular values are 0, unused
+    B *= w[:, :, None]
+    B -= Q @ (np.swapaxes(Q, 1, 2) @ B)
+    U, sv = np.linalg.svd(B, full_matrices=False)[:2]
+    width, strengths = B.shape[2], np.r_[0.0, STRENGTHS]
+    s2 = np.broadcast_to(sv[:, None, :] ** 2, (b, len(strengths), width))
+    with np.errstate(invalid="ignore"):  # 0 / 0 where a column is dependent, as it should
+        wt = np.divide(s2, s2 + strengths[:, None], out=np.zeros(s2.shape), where=real[:, None])
+    sq = _ridge_errors(Q, U, wt, r, rows)
+    best = np.argmin(np.sum(sq, axis=2), axis=1)
+    return sq[np.arange(b), best], strengths[best]
+
+
+def _ridge_errors(Q, U, wt, r, rows) -> np.ndarray:
+    """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
+
+    Args:
+        Q: Fixed columns' orthonormal basis ``(b, n, fixed)``.
+        U: Prior columns' left singular vectors ``(b, n, width)``.
+        wt: Their weights at each strength ``(b, strengths, width)``.
+        r: Residuals of the fixed columns' fit ``(b, n)``.
+        rows: Rows per configuration.
+    """
+    b, n, width = U.shape
+    m, S = n // rows, wt.shape[1]
+    Uc = np.ascontiguousarray(np.transpose(U.reshape(b, m, rows, width), (2, 0, 3, 1)))
+    Qc = np.transpose(Q.reshape(b, m, rows, -1), (2, 0, 1, 3))
+    M = -(wt @ (Uc[:, None] * Uc[None]))  # (rows, rows, b, strengths, m): component-major
+    M -= np.einsum("ibms,jbms->ijbm", Qc, Qc)[:, :, :, None]
+    M[np.arange(rows), np.arange(rows)] += 1.0
+    fitted = (wt * np.einsum("bnk,bn->bk", U, r)[:, None]) @ np.swapaxes(U, 1, 2)
+    y = np.moveaxis((r[:, None] - fitted).reshape(b, S, m, rows), 3, 0)
+    if rows <= SMALL:
+        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1), overwrite=True)
+        sq = np.einsum("is,is->s", x, x).reshape(b, S, m)
+        if np.isfinite(sq).all():
+            return sq
+    H = np.eye(rows) - np.moveaxis(M.reshape(rows, rows, b * S, m), (0, 1), (2, 3))
+    return loo_errors(H, np.moveaxis(y.reshape(rows, b * S, m), 0, 2)).reshape(b, S, m)
 
 
 def best_prefix(sq: np.ndarray) -> int:
@@ -191,16 +246,20 @@ def best_prefix(sq: np.ndarray) -> int:
     (the standard error of the mean difference over configurations, paired): the minimum of
     a long path is partly chance, and a difference smaller than its own noise is not kept.
     """
-    root = np.sqrt(np.mean(sq, axis=1)).tolist()
+    root = np.sqrt(sq.mean(axis=1)).tolist()
     best = 0
     for k, value in enumerate(root):
         if value < (1.0 - MIN_GAIN) * root[best]:
             best = k
+    if best == 0:
+        return 0
     d = sq[:best] - sq[best]
-    with np.errstate(invalid="ignore"):
-        se = np.std(d, axis=1, ddof=1) / np.sqrt(sq.shape[1])
-        close = np.all(np.isfinite(d), axis=1) & (np.mean(d, axis=1) <= se)
-    return int(np.argmax(close)) if np.any(close) else best
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = d.mean(axis=1)
+        dev = d - mean[:, None]
+        se = np.sqrt(np.einsum("kn,kn->k", dev, dev) / (d.shape[1] - 1) / d.shape[1])
+        close = np.isfinite(d).all(axis=1) & (mean <= se)
+    return int(np.argmax(close)) if close.any() else best
 
 
 def forward(
@@ -229,27 +288,21 @@ def _forwards(A, e, rows, fixed, names, forced, train) -> list[tuple[list[int], 
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
-    Ab, eb = A.reshape(train.shape[1], rows, -1), e.reshape(train.shape[1], rows)
-    out = []
-    for mask, (order, errors) in zip(train, paths(A, e, rows, start, rest, train), strict=True):
+    kept, out = [], []
+    for order, errors in paths(A, e, rows, start, rest, train):
         k = best_prefix(errors)
         loo = [float(v) for v in _rms(errors[: k + 1], rows)]
         steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
         steps += [Step(names[c - fixed], v) for c, v in zip(order[:k], loo[1:], strict=True)]
-        At = Ab[mask].reshape(-1, A.shape[1])
-        strength = ridge_loo(At[:, start + order[:k]], eb[mask].ravel(), rows, fixed)[1]
-        out.append((sel + [c - fixed for c in order[:k]], steps, strength))
-    return out
+        kept.append(order[:k])
+        out.append((sel + [c - fixed for c in order[:k]], steps))
+    strengths = ridge_strengths(A, e, rows, fixed, train, [start[fixed:] + o for o in kept])[1]
+    return [(*o, float(s)) for o, s in zip(out, strengths, strict=True)]
 
 
 def shrinkage(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> float:
     """Prior strength (0 or one of ``STRENGTHS``) of least leave-one-out error."""
     return ridge_loo(A, e, rows, fixed)[1]
-
-
-def _solve(A, e, fixed, strength):
-    lam = np.r_[np.zeros(fixed), np.full(A.shape[1] - fixed, strength)]
-    return np.linalg.lstsq(A.T @ A + np.diag(lam), A.T @ e, rcond=None)[0]
 
 
 def _guard_folds(m: int) -> np.ndarray:
@@ -272,19 +325,57 @@ def _outer_cv(A, e, rows, fixed, train, outcomes) -> tuple[float, float]:
         train: Training configurations of each fold ``(folds, m)``.
         outcomes: Each fold's procedure (:func:`forward` on its training configurations).
     """
-    m = e.size // rows
-    Ab, eb = A.reshape(m, rows, -1), e.reshape(m, rows)
-    sse_reg = sse_sel = 0.0
-    for mask, (sel, _, strength) in zip(train, outcomes, strict=True):
-        At, et = Ab[mask].reshape(-1, A.shape[1]), eb[mask].ravel()
-        Av, ev = Ab[~mask].reshape(-1, A.shape[1]), eb[~mask].ravel()
-        x0 = _solve(At[:, :fixed], et, fixed, 0.0)
-        sse_reg += float(np.sum((ev - Av[:, :fixed] @ x0) ** 2))
-        cols = list(range(fixed)) + [fixed + s for s in sel]
-        x = _solve(At[:, cols], et, fixed, strength)
-        sse_sel += float(np.sum((ev - Av[:, cols] @ x) ** 2))
-    points = m * rows / 3
-    return float(np.sqrt(sse_reg / points)), float(np.sqrt(sse_sel / points))
+    f = len(train)
+    w = np.repeat(train, rows, axis=1).astype(float)
+    cols = [list(range(fixed)) + [fixed + s for s in sel] for sel, _, _ in outcomes]
+    X, real = _padded(A, [list(range(fixed))] * f + cols)  # registration's fits, selection's
+    lam = np.zeros(real.shape)
+    for i, (_, _, strength) in enumerate(outcomes):
+        lam[f + i, fixed : len(cols[i])] = strength
+    sse = _held_out_sse(X, e, np.concatenate([w, w]), lam, real.sum(axis=1))
+    points = e.size / 3
+    return float(np.sqrt(sse[:f].sum() / points)), float(np.sqrt(sse[f:].sum() / points))
+
+
+def _held_out_sse(A, e, w, lam, p) -> np.ndarray:
+    """Squared error on its held-out rows of each fold's ridge fit on its training rows.
+
+    Args:
+        A: Each fold's columns ``(folds, n, width)`` (zero columns pad).
+        e: Residuals to explain ``(n,)``.
+        w: Training rows of each fold ``(folds, n)`` [0 or 1].
+        lam: Ridge penalty per fold and column ``(folds, width)``.
+        p: Columns of each fold (the others pad).
+
+    Returns:
+        ``(folds,)``. The fit solves the normal equations in the least-squares sense, as
+        :func:`numpy.linalg.lstsq` (singular values under ``eps p`` times the largest
+        dropped; those of the padding are 0).
+    """
+    Aw = np.swapaxes(A * w[:, :, None], 1, 2)
+    N = Aw @ A
+    diag = np.arange(A.shape[2])
+    N[:, diag, diag] += lam
+    ev, V = np.linalg.eigh(N)  # symmetric: singular values |ev|, vectors V
+    ev_abs = np.abs(ev)
+    keep = ev_abs > np.finfo(float).eps * p[:, None] * ev_abs.max(axis=1, keepdims=True)
+    y = np.einsum("fji,fj->fi", V, Aw @ e)
+    x = np.einsum("fij,fj->fi", V, np.divide(y, ev, out=np.zeros_like(y), where=keep))
+    res = e - np.einsum("fnp,fp->fn", A, x)
+    return np.einsum("fn,fn->f", res * (1.0 - w), res)
+
+
+def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Each list's columns of A, zero columns padding to the longest ``(lists, n, width)``.
+
+    Returns:
+        The columns, and which are real ``(lists, width)``.
+    """
+    width = max(map(len, cols))
+    out = np.zeros((len(cols), A.shape[0], width))
+    for s, c in enumerate(cols):
+        out[s, :, : len(c)] = A[:, c]
+    return out, np.arange(width) < np.array([len(c) for c in cols])[:, None]
 
 
 def select(
