@@ -175,7 +175,7 @@ class _Batch:
             ``index`` their positions in the candidate list (columns no subset can add are
             dropped); ``nu2`` their squared norms (``|c|^2 - beta^2`` after a step, computed
             afresh with the sums).
-        S: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K`` and ``2 L``, each ``(k, b, m)`` (None:
+        S: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K`` and ``2 L``, each ``(k, b, m)`` (empty:
             to compute afresh, with the norms); ``lim`` the squared norm under which a live
             candidate's sums and norm are computed afresh (at least twice ``floor2``: the
             dependence test reads fresh norms only).
@@ -202,7 +202,9 @@ class _Batch:
         self.alive = np.ones((len(candidates), b), dtype=bool)
         self.index = np.arange(len(candidates))
         self.lost, self.any_lost = np.zeros((b, m), dtype=bool), False
-        self.S = self.nu2 = self.lim = None
+        self.S: list[np.ndarray] = []  # empty: to compute afresh
+        self.nu2 = self.lim = np.zeros(self.alive.shape)
+        self.v = self.vv = self.sq = np.zeros(0)
         self._set_v()
 
     def hat(self) -> np.ndarray:
@@ -215,30 +217,28 @@ class _Batch:
     def _set_v(self) -> None:
         """``v = M r`` and its squares by configuration (None without ``Minv``)."""
         if self.Minv is None:
-            self.v = None
             return
         self.v = np.einsum("bijm,bjm->bim", self.Minv, self.r)
         self.vv = np.einsum("bim,bim->bm", self.v, self.v)
 
     def start_errors(self) -> np.ndarray:
         """Squared left-out errors of the start ``(b, m)``."""
-        if self.v is None:
+        if self.Minv is None:
             return loo_errors(np.moveaxis(self.H0, 3, 1), np.swapaxes(self.r, 1, 2))
         return self.vv.copy()  # vv follows the steps in place
 
     def prune(self) -> np.ndarray:
         """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
-        if self.S is None or (self.nu2 < self.lim).any():
+        if not self.S or (self.nu2 < self.lim).any():
             Cf = self.C.reshape(len(self.C), len(self.b), -1)
-            self.nu2, self.S = np.einsum("kbn,kbn->kb", Cf, Cf), None
+            self.nu2, self.S = np.einsum("kbn,kbn->kb", Cf, Cf), []
             self.alive &= self.nu2 > self.floor2
         some = self.alive.any(axis=1)
         if not some.all():  # drop the columns no subset can add any more
             self.C, self.floor2 = self.C[some], self.floor2[some]
             self.alive, self.nu2, self.index = self.alive[some], self.nu2[some], self.index[some]
-            if self.S is not None:
-                self.S, self.lim = [x[some] for x in self.S], self.lim[some]
-        return self.alive.any(axis=0)
+            self.S, self.lim = [x[some] for x in self.S], self.lim[some]
+        return np.asarray(self.alive.any(axis=0))
 
     def totals(self) -> np.ndarray:
         """Summed squared left-out errors of each subset's fit with each candidate ``(k, b)``.
@@ -254,8 +254,8 @@ class _Batch:
             self.sq[:, self.lost] = np.inf
             total = self.sq.sum(axis=2)
         else:
-            if self.S is None:
-                self._fresh()
+            if not self.S:
+                self._fresh(self.Minv)
             D, N, K, L2 = self.S
             P = N / D
             U = P * K
@@ -286,9 +286,9 @@ class _Batch:
             sq[~np.isfinite(sq)] = np.inf
         return sq
 
-    def _fresh(self) -> None:
+    def _fresh(self, Minv: np.ndarray) -> None:
         """The sums ``S`` computed afresh from ``M``, the candidates and ``v``."""
-        MC = np.einsum("bijm,kbjm->kbim", self.Minv, self.C)
+        MC = np.einsum("bijm,kbjm->kbim", Minv, self.C)
         rho = np.einsum("kbim,bim->kb", self.C, self.r)
         self.S = [
             self.nu2[:, :, None] - np.einsum("kbim,kbim->kbm", self.C, MC),
@@ -322,7 +322,7 @@ class _Batch:
         self.added.append(q)
         if self.Minv is None:
             self._update_columns(q, kappa, beta)
-            self.Minv, self.S = _inverse(self.hat()), None
+            self.Minv, self.S = _inverse(self.hat()), []
             self._set_v()
             return
         a = np.einsum("bijm,bjm->bim", self.Minv, q)
@@ -330,10 +330,10 @@ class _Batch:
         if self.any_lost or d.min() <= REFRESH:
             newly = active[:, None] & (d <= 1e-12) & ~self.lost
             self.lost |= newly
-            self.any_lost = self.lost.any()
+            self.any_lost = bool(self.lost.any())
             if newly.any() or np.where(self.lost, 1.0, d).min() <= REFRESH:
                 self._update_columns(q, kappa, beta)
-                self.Minv, self.S = _inverse(self.hat() * ~self.lost[:, None, None, :]), None
+                self.Minv, self.S = _inverse(self.hat() * ~self.lost[:, None, None, :]), []
                 self._set_v()
                 return
             a *= ~self.lost[:, None, :]
@@ -342,7 +342,7 @@ class _Batch:
         psi = ar - kappa[:, None]
         psi /= d
         self.lim[j, b] = -np.inf
-        self._update_sums(a, d, h, psi, av, beta)
+        self._update_sums(self.Minv, a, d, h, psi, av, beta)
         self.nu2 -= beta * beta
         self._update_columns(q, kappa, beta)
         self.Minv += a[:, :, None] * (a / d[:, None])[:, None]
@@ -361,7 +361,7 @@ class _Batch:
         self.r -= q * kappa[:, None, None]
         self.C -= beta[:, :, None, None] * q
 
-    def _update_sums(self, a, d, h, psi, av, beta) -> None:
+    def _update_sums(self, Minv, a, d, h, psi, av, beta) -> None:
         """The sums ``S`` after the columns q are added (before ``C``, ``r`` and ``M``).
 
         With ``a = M q``, ``d = 1 - q^T a``, ``h = |a|^2`` and ``psi = (a^T r - kappa) / d``
@@ -372,7 +372,7 @@ class _Batch:
         ``L' = L + psi Y + phi (a^T v + psi h)`` (``|c'|^2 = |c|^2 - beta^2``,
         ``c'^T r' = c^T r - kappa beta``).
         """
-        Y = np.einsum("bim,kbim->kbm", np.einsum("bjim,bjm->bim", self.Minv, a), self.C)
+        Y = np.einsum("bim,kbim->kbm", np.einsum("bjim,bjm->bim", Minv, a), self.C)
         W = np.einsum("bim,kbim->kbm", a, self.C)
         mu = psi * h
         mu += av
