@@ -205,7 +205,7 @@ def ridge_strengths(
     s2 = np.broadcast_to(sv[:, None, :] ** 2, (b, len(strengths), width))
     with np.errstate(invalid="ignore"):  # 0 / 0 where a column is dependent, as it should
         wt = np.divide(s2, s2 + strengths[:, None], out=np.zeros(s2.shape), where=real[:, None])
-    sq = _ridge_errors(Q, U, wt, r, rows)
+    sq = _ridge_errors(Q, U, wt, r, rows) * train[:, None, :]  # held out: round-off only
     best = np.argmin(np.sum(sq, axis=2), axis=1)
     return sq[np.arange(b), best], strengths[best]
 
