@@ -28,9 +28,10 @@ from calib import (
     read_measurements,
     simulate,
 )
+from calib.calibration.forward_paths import path, paths
 from calib.calibration.model import ErrorModel, selection_lift
 from calib.calibration.registration import register, rigid_fit
-from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, path, paths, ridge_loo
+from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, ridge_loo
 from calib.calibration.solve import Problem
 from calib.cli.commands import main
 from calib.identification.kinds import kind_of

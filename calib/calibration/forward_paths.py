@@ -1,0 +1,460 @@
+"""Forward paths of the selection (:mod:`calib.calibration.selection`), batched over subsets.
+
+The path of a set of configurations adds, one at a time, the candidate column whose
+leave-one-configuration-out error (block PRESS, see :func:`loo_errors`) is least, until every
+candidate is in. :func:`paths` runs the paths of several subsets of the configurations at once
+(the selection's whole data and its guard's folds): a subset is the whole problem with the
+rows of its other configurations zeroed, which changes neither its fit nor the hat blocks of
+its own configurations, so a step of every path is one set of array operations.
+
+Each subset's fit is kept as its residuals ``r``, its hat blocks ``H_i`` and their
+``M_i = (I - H_i)^-1``; the candidates are kept orthogonal to it (``c``, unit ``q = c/|c|``).
+Adding the unit column q (coefficient ``q^T r``) changes configuration i's left-out error to
+``v_i + a_i (q_i^T v_i - q^T r) / (1 - q_i^T a_i)`` (``v = M r``, ``a = M q``: Sherman-Morrison).
+Its square needs four sums per configuration and candidate: ``G = c^T M c``, ``T = c^T M r``,
+``K = |M c|^2`` and ``L = (M c)^T (M r)``. They are computed afresh once, then follow each
+step by rank-one updates (the column added changes c, r and M by rank one): a step reads the
+candidates twice (two dot products per configuration), not through a product by every
+``M_i``. A candidate's sums are computed afresh when its norm falls by more than ``SHRINK``
+(an update's round-off is relative to the norm before it), and all of them when the ``M_i``
+are.
+"""
+
+from __future__ import annotations
+
+import contextlib
+
+import numpy as np
+
+__all__ = ["DEPENDENT", "REFRESH", "SHRINK", "SMALL", "loo_errors", "path", "paths", "spd_solve"]
+
+DEPENDENT = 1e-8
+"""A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
+
+REFRESH = 0.1
+"""The inverse hat blocks ``(I - H_ii)^-1`` follow each step by Sherman-Morrison while every
+``1 - q_i^T (I - H_ii)^-1 q_i`` of the added column exceeds this; otherwise (a leverage
+near 1, where the update would lose digits) they are inverted afresh."""
+
+SMALL = 8
+"""Blocks of at most this many rows are solved by :func:`spd_solve` (larger: LAPACK)."""
+
+SHRINK = 1e-2
+"""A candidate's sums follow the steps by rank-one updates while its squared norm (outside
+the fit) stays above this fraction of what it was when they were last computed afresh."""
+
+
+def loo_errors(H: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Squared leave-one-configuration-out errors of several fits at once.
+
+    Args:
+        H: Hat-matrix blocks of each fit's configurations ``(c, m, rows, rows)``.
+        r: Residuals of each fit ``(c, m, rows)``.
+
+    Returns:
+        ``(c, m)`` squared left-out error of each configuration; inf where a configuration
+        alone determines a parameter (leverage 1).
+    """
+    c, m, rows = r.shape
+    M = np.eye(rows) - H
+    if rows <= SMALL:
+        x = spd_solve(np.moveaxis(M.reshape(-1, rows, rows), 0, 2), r.reshape(-1, rows).T)
+        sq = np.sum(x * x, axis=0).reshape(c, m)
+        if np.isfinite(sq).all():
+            return sq
+    try:  # a leverage of 1 or near it: LAPACK's LU (with pivoting) tells
+        loo = np.linalg.solve(M, r[..., None])
+    except np.linalg.LinAlgError:
+        loo = np.full((c, m, rows, 1), np.inf)
+        for k in range(c):  # rare: find the singular fits one by one
+            with contextlib.suppress(np.linalg.LinAlgError):
+                loo[k] = np.linalg.solve(M[k], r[k, ..., None])
+    return np.sum(loo**2, axis=(2, 3))
+
+
+def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    """Solutions of many small symmetric positive definite systems, component-major.
+
+    Gaussian elimination without pivoting (stable for positive definite matrices), vectorised
+    over the systems: one array operation per step of the elimination instead of a LAPACK
+    call per system. A singular system gives inf or nan.
+
+    Args:
+        M: Matrices ``(n, n, systems)``.
+        y: Right-hand sides ``(n, systems)``.
+        overwrite: M may be overwritten (else it is copied; y is always copied).
+
+    Returns:
+        ``x`` ``(n, systems)``.
+    """
+    n = len(y)
+    a, x = M if overwrite else np.array(M, order="C"), np.array(y, order="C")
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for p in range(n - 1):
+            f = a[p + 1 :, p] / a[p, p]
+            a[p + 1 :, p + 1 :] -= f[:, None] * a[p, p + 1 :]
+            x[p + 1 :] -= f * x[p]
+        x[n - 1] /= a[n - 1, n - 1]
+        for p in range(n - 2, -1, -1):
+            x[p] -= np.einsum("js,js->s", a[p, p + 1 :], x[p + 1 :])
+            x[p] /= a[p, p]
+    return x
+
+
+def path(
+    A: np.ndarray, e: np.ndarray, rows: int, start: list[int], candidates: list[int]
+) -> tuple[list[int], np.ndarray]:
+    """The greedy forward path: each step adds the candidate of least leave-one-out error.
+
+    Args:
+        A: Columns, configuration-major rows ``(m rows, p)``.
+        e: Residuals to explain ``(m rows,)``.
+        rows: Rows per configuration.
+        start: Columns always in.
+        candidates: Columns to add, until none is left or independent of those in.
+
+    Returns:
+        The columns in the order added, and the squared left-out error of each configuration
+        before the first and after each addition ``(len(order) + 1, m)``.
+    """
+    return paths(A, e, rows, start, candidates, np.ones((1, e.size // rows), dtype=bool))[0]
+
+
+def paths(
+    A: np.ndarray,
+    e: np.ndarray,
+    rows: int,
+    start: list[int],
+    candidates: list[int],
+    train: np.ndarray,
+) -> list[tuple[list[int], np.ndarray]]:
+    """The forward paths (:func:`path`) of several subsets of the configurations at once.
+
+    Args:
+        A: Columns, configuration-major rows ``(m rows, p)``.
+        e: Residuals to explain ``(m rows,)``.
+        rows: Rows per configuration.
+        start: Columns always in.
+        candidates: Columns to add, until none is left or independent of those in.
+        train: Configurations of each subset ``(subsets, m)`` [bool].
+
+    Returns:
+        Per subset: the columns in the order added, and the squared left-out error of each of
+        its configurations before the first and after each addition ``(steps + 1, m_subset)``.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        state = _Batch(A, e, rows, start, candidates, train)
+        errors, chosen = [state.start_errors()], []
+        for _ in candidates:
+            active = state.prune()
+            if not active.any():
+                break
+            j, stuck = _pick(state.totals(), state.alive)
+            errors.append(state.errors_of(j, stuck))
+            state.add(j, active)
+            chosen.append(np.where(active, state.index[j], -1))
+    return _split_paths(candidates, chosen, errors, train)
+
+
+class _Batch:
+    """Working state of :func:`paths`: every subset's fit as the columns are added.
+
+    Rows are held component-major within each subset (row ``r m + i`` is component r of
+    configuration i): the arrays by configuration end with the configurations, vectors
+    ``(b, rows, m)`` and blocks ``(b, rows, rows, m)``.
+
+    Attributes:
+        m, rows: Configurations and rows per configuration.
+        r: Residuals of each subset's fit ``(b, rows, m)``.
+        H0, added: Hat blocks of the start ``(b, rows, rows, m)`` and the unit columns added
+            since (the hat blocks, :meth:`hat`, are only needed to invert them afresh).
+        Minv: ``(I - H_ii)^-1`` (None while one is singular); ``v`` the left-out errors
+            ``M r``, ``vv`` their squares ``(b, m)``.
+        C: Candidates orthogonal to each fit ``(k, b, rows, m)``; ``floor2`` the squared norm
+            under which one is dependent ``(k, b)``, ``alive`` those a subset may still add,
+            ``index`` their positions in the candidate list (columns no subset can add are
+            dropped); ``nu2`` their squared norms (``|c|^2 - beta^2`` after a step, computed
+            afresh with the sums).
+        S: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K`` and ``2 L``, each ``(k, b, m)`` (empty:
+            to compute afresh, with the norms); ``lim`` the squared norm under which a live
+            candidate's sums and norm are computed afresh (at least twice ``floor2``: the
+            dependence test reads fresh norms only).
+        lost: Configurations of each subset that reached a leverage of 1 ``(b, m)``: their
+            left-out error is infinite from then on (their blocks are left out of ``Minv``).
+    """
+
+    def __init__(self, A, e, rows, start, candidates, train):
+        b, m = train.shape
+        self.m, self.rows, self.b = m, rows, np.arange(b)
+        Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)
+        w = np.tile(train, rows).astype(float)
+        Q = np.linalg.qr(Ap[:, start] * w[:, :, None])[0]
+        self.r = _residual(Q, np.swapaxes(e.reshape(m, rows), 0, 1).ravel() * w)
+        self.r = self.r.reshape(b, rows, m)
+        Qb = Q.reshape(b, rows, m, -1)
+        self.H0, self.added = np.einsum("bims,bjms->bijm", Qb, Qb), []
+        C = Ap[:, candidates] * w[:, :, None]
+        self.floor2 = DEPENDENT**2 * np.einsum("bnk,bnk->kb", C, C)
+        for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
+            C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
+        self.C = np.ascontiguousarray(np.transpose(C, (2, 0, 1))).reshape(-1, b, rows, m)
+        self.Minv = _inverse(self.H0)
+        self.alive = np.ones((len(candidates), b), dtype=bool)
+        self.index = np.arange(len(candidates))
+        self.lost, self.any_lost = np.zeros((b, m), dtype=bool), False
+        self.S: list[np.ndarray] = []  # empty: to compute afresh
+        self.nu2 = self.lim = np.zeros(self.alive.shape)
+        self.v = self.vv = self.sq = np.zeros(0)
+        self._set_v()
+
+    def hat(self) -> np.ndarray:
+        """Hat blocks of the current fits ``(b, rows, rows, m)``."""
+        if not self.added:
+            return self.H0
+        q = np.stack(self.added)
+        return self.H0 + np.einsum("sbim,sbjm->bijm", q, q)
+
+    def _set_v(self) -> None:
+        """``v = M r`` and its squares by configuration (None without ``Minv``)."""
+        if self.Minv is None:
+            return
+        self.v = np.einsum("bijm,bjm->bim", self.Minv, self.r)
+        self.vv = np.einsum("bim,bim->bm", self.v, self.v)
+
+    def start_errors(self) -> np.ndarray:
+        """Squared left-out errors of the start ``(b, m)``."""
+        if self.Minv is None:
+            return loo_errors(np.moveaxis(self.H0, 3, 1), np.swapaxes(self.r, 1, 2))
+        return self.vv.copy()  # vv follows the steps in place
+
+    def prune(self) -> np.ndarray:
+        """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
+        if not self.S or (self.nu2 < self.lim).any():
+            Cf = self.C.reshape(len(self.C), len(self.b), -1)
+            self.nu2, self.S = np.einsum("kbn,kbn->kb", Cf, Cf), []
+            self.alive &= self.nu2 > self.floor2
+        some = self.alive.any(axis=1)
+        if not some.all():  # drop the columns no subset can add any more
+            self.C, self.floor2 = self.C[some], self.floor2[some]
+            self.alive, self.nu2, self.index = self.alive[some], self.nu2[some], self.index[some]
+            self.S, self.lim = [x[some] for x in self.S], self.lim[some]
+        return np.asarray(self.alive.any(axis=0))
+
+    def totals(self) -> np.ndarray:
+        """Summed squared left-out errors of each subset's fit with each candidate ``(k, b)``.
+
+        With the unit candidate ``q = c / |c|``, ``D = |c|^2 - G`` and ``U = N / D``, the
+        squared error of configuration i is ``|v_i|^2 + U (2 L + U K)`` (``|v_i + a_i s|^2``
+        expanded, ``s = |c| U``). Inf where the candidate is dead, a configuration alone would
+        determine it (``1 - q_i^T a_i = D / |c|^2`` <= 1e-12) or has already determined one
+        (``lost``), or the sum is not finite.
+        """
+        if self.Minv is None:
+            self.sq = self._errors_without_inverse()
+            self.sq[:, self.lost] = np.inf
+            total = self.sq.sum(axis=2)
+        else:
+            if not self.S:
+                self._fresh(self.Minv)
+            D, N, K, L2 = self.S
+            P = N / D
+            U = P * K
+            U += L2
+            P *= U
+            P += self.vv
+            self.sq = P
+            total = np.einsum("kbm->kb", P)
+            single = (1e-12 * self.nu2)[:, :, None] >= D
+            if single.any():
+                P[single] = np.inf
+                total[single.any(axis=2)] = np.inf
+            if self.any_lost:
+                P[:, self.lost] = np.inf
+                total[:, self.lost.any(axis=1)] = np.inf
+        ok = np.isfinite(total)
+        ok &= self.alive
+        return np.where(ok, total, np.inf)
+
+    def errors_of(self, j: np.ndarray, stuck: bool) -> np.ndarray:
+        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added.
+
+        ``stuck``: some subset's candidate has an infinite total (else every configuration's
+        error is finite).
+        """
+        sq = self.sq[j, self.b]
+        if stuck:
+            sq[~np.isfinite(sq)] = np.inf
+        return sq
+
+    def _fresh(self, Minv: np.ndarray) -> None:
+        """The sums ``S`` computed afresh from ``M``, the candidates and ``v``."""
+        MC = np.einsum("bijm,kbjm->kbim", Minv, self.C)
+        rho = np.einsum("kbim,bim->kb", self.C, self.r)
+        self.S = [
+            self.nu2[:, :, None] - np.einsum("kbim,kbim->kbm", self.C, MC),
+            np.einsum("bim,kbim->kbm", self.v, self.C) - rho[:, :, None],
+            np.einsum("kbim,kbim->kbm", MC, MC),
+            2.0 * np.einsum("bim,kbim->kbm", self.v, MC),
+        ]
+        lim = np.maximum(SHRINK * self.nu2, 2.0 * self.floor2)
+        self.lim = np.where(self.alive, lim, -np.inf)
+
+    def _errors_without_inverse(self) -> np.ndarray:
+        """Squared errors ``(k, b, m)`` while a hat block is singular (each subset alone)."""
+        scale = self.alive / np.where(self.alive, np.sqrt(self.nu2), 1.0)
+        Cn = self.C * scale[:, :, None, None]
+        coef = np.einsum("kbim,bim->bk", Cn, self.r)
+        Cb = np.transpose(Cn, (1, 3, 2, 0))  # (b, m, rows, k)
+        Rb = np.swapaxes(self.r, 1, 2)[..., None] - Cb * coef[:, None, None, :]
+        H = np.moveaxis(self.hat(), 3, 1)
+        sq = np.stack([_added_loo(H[s], Cb[s], Rb[s]) for s in self.b])
+        return np.swapaxes(sq, 0, 1)
+
+    def add(self, j: np.ndarray, active: np.ndarray) -> None:
+        """Add candidate ``j[s]`` to each active subset s: rank-one updates of everything."""
+        b = self.b
+        q = self.C[j, b]
+        q *= (active / np.sqrt(np.einsum("bim,bim->b", q, q) + ~active))[:, None, None]
+        kappa = np.einsum("bim,bim->b", q, self.r)
+        Cf = self.C.reshape(len(self.C), len(b), -1)
+        beta = (np.swapaxes(Cf, 0, 1) @ q.reshape(len(b), -1, 1))[:, :, 0].T  # q^T c (k, b)
+        self.alive[j, b] = False
+        self.added.append(q)
+        if self.Minv is None:
+            self._update_columns(q, kappa, beta)
+            self.Minv, self.S = _inverse(self.hat()), []
+            self._set_v()
+            return
+        a = np.einsum("bijm,bjm->bim", self.Minv, q)
+        d = 1.0 - np.einsum("bim,bim->bm", q, a)  # 1 - the leverage the column adds
+        if self.any_lost or d.min() <= REFRESH:
+            newly = active[:, None] & (d <= 1e-12) & ~self.lost
+            self.lost |= newly
+            self.any_lost = bool(self.lost.any())
+            if newly.any() or np.where(self.lost, 1.0, d).min() <= REFRESH:
+                self._update_columns(q, kappa, beta)
+                self.Minv, self.S = _inverse(self.hat() * ~self.lost[:, None, None, :]), []
+                self._set_v()
+                return
+            a *= ~self.lost[:, None, :]
+            d[self.lost] = 1.0
+        h, ar, av = (np.stack((a, self.r, self.v)) * a).sum(axis=2)
+        psi = ar - kappa[:, None]
+        psi /= d
+        self.lim[j, b] = -np.inf
+        self._update_sums(self.Minv, a, d, h, psi, av, beta)
+        self.nu2 -= beta * beta
+        self._update_columns(q, kappa, beta)
+        self.Minv += a[:, :, None] * (a / d[:, None])[:, None]
+        if self.any_lost:
+            self._set_v()
+        else:  # v' = M' r' = v + psi a
+            self.v += psi[:, None] * a
+            av += av
+            h *= psi
+            av += h
+            av *= psi
+            self.vv += av
+
+    def _update_columns(self, q: np.ndarray, kappa: np.ndarray, beta: np.ndarray) -> None:
+        """Residuals and candidates made orthogonal to the added unit columns ``q``."""
+        self.r -= q * kappa[:, None, None]
+        self.C -= beta[:, :, None, None] * q
+
+    def _update_sums(self, Minv, a, d, h, psi, av, beta) -> None:
+        """The sums ``S`` after the columns q are added (before ``C``, ``r`` and ``M``).
+
+        With ``a = M q``, ``d = 1 - q^T a``, ``h = |a|^2`` and ``psi = (a^T r - kappa) / d``
+        by configuration, ``beta = q^T c``, ``X = a^T c``, ``Y = a^T M c``, ``W = X - beta``
+        and ``phi = W / d``: the update ``c' = c - beta q``, ``r' = r - kappa q``,
+        ``M' = M + a a^T / d`` gives ``v' = v + psi a``, ``M' c' = M c + phi a``, and so
+        ``D' = D - W phi``, ``N' = N + psi W``, ``K' = K + phi (2 Y + phi h)``,
+        ``L' = L + psi Y + phi (a^T v + psi h)`` (``|c'|^2 = |c|^2 - beta^2``,
+        ``c'^T r' = c^T r - kappa beta``).
+        """
+        Y = np.einsum("bim,kbim->kbm", np.einsum("bjim,bjm->bim", Minv, a), self.C)
+        W = np.einsum("bim,kbim->kbm", a, self.C)
+        mu = psi * h
+        mu += av
+        D, N, K, L2 = self.S
+        W -= beta[:, :, None]
+        phi = W / d
+        N += psi * W
+        W *= phi
+        D -= W
+        t = phi * h
+        t += Y
+        t += Y
+        t *= phi
+        K += t
+        Y *= psi
+        phi *= mu
+        Y += phi
+        Y += Y
+        L2 += Y
+
+
+def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``e - Q Q^T e`` of a stack of orthonormal bases ``(b, n, s)`` and vectors ``(b, n)``."""
+    return e - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e))
+
+
+def _pick(total: np.ndarray, alive: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Per subset, the candidate of least total (inf when dead) ``(b,)`` (arrays ``(k, b)``).
+
+    The first live one when every live total is infinite (as :func:`numpy.argmin` of the live
+    candidates alone would); and whether that happened.
+    """
+    b = np.arange(total.shape[1])
+    j = total.argmin(axis=0)
+    stuck = np.isinf(total[j, b])
+    if not stuck.any():
+        return j, False
+    return np.where(stuck, alive.argmax(axis=0), j), True
+
+
+def _split_paths(candidates, chosen, errors, train) -> list[tuple[list[int], np.ndarray]]:
+    """Each subset's order (candidate columns) and errors on its own configurations."""
+    steps = np.array(chosen, dtype=int).reshape(-1, train.shape[0])
+    errs = np.array(errors)
+    out = []
+    for k, mask in enumerate(train):
+        picked = [candidates[j] for j in steps[:, k] if j >= 0]
+        out.append((picked, errs[: len(picked) + 1, k][:, mask]))
+    return out
+
+
+def _inverse(H: np.ndarray) -> np.ndarray | None:
+    """``(I - H)^-1`` of each hat block ``(b, rows, rows, m)``, None if one is singular."""
+    try:
+        inv = np.linalg.inv(np.eye(H.shape[1]) - np.moveaxis(H, 3, 1))
+    except np.linalg.LinAlgError:  # a leverage of 1
+        return None
+    return np.ascontiguousarray(np.moveaxis(inv, 1, 3))
+
+
+def _added_loo(H: np.ndarray, Cb: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Squared left-out errors ``(c, m)`` of the fit with each orthonormal column added.
+
+    With ``M_i = I - H_ii`` and the added column's block ``q_i``, Sherman-Morrison gives
+    ``(M_i - q_i q_i^T)^-1 r_i = b + a (q^T b) / (1 - q^T a)``, ``a = M_i^-1 q_i``,
+    ``b = M_i^-1 r_i``: one inverse per configuration serves every candidate.
+
+    Args:
+        H: Hat blocks of the current fit ``(m, rows, rows)``.
+        Cb: Candidate columns, orthonormal to the fit, by configuration ``(m, rows, c)``.
+        Rb: Residuals after adding each candidate ``(m, rows, c)``.
+    """
+    rows = H.shape[1]
+    try:
+        Minv = np.linalg.inv(np.eye(rows) - H)
+    except np.linalg.LinAlgError:  # a configuration of leverage 1 already: solve each
+        Hc = H[None] + np.moveaxis(Cb[:, :, None, :] * Cb[:, None, :, :], 3, 0)
+        return loo_errors(Hc, np.moveaxis(Rb, 2, 0))
+    a, b = Minv @ Cb, Minv @ Rb
+    denom = 1.0 - np.sum(Cb * a, axis=-2)  # (m, c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        loo = b + a * (np.sum(Cb * b, axis=-2) / denom)[..., None, :]
+    sq = np.sum(loo**2, axis=-2)
+    sq[(denom <= 1e-12) | ~np.isfinite(sq)] = np.inf
+    return sq.T

@@ -1,0 +1,188 @@
+"""The selection's fast paths (issue 22) against brute force.
+
+Every expected value is recomputed by refits from scratch (:func:`numpy.linalg.lstsq` with the
+held-out rows removed), or by LAPACK: the forward paths with their rank-one updated sums
+(including the steps that recompute them afresh), the batched prior strengths, the batched
+guard and the vectorised block solver.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import calib.calibration.forward_paths as fp
+from calib.calibration.forward_paths import loo_errors, path, paths, spd_solve
+from calib.calibration.selection import OUTER_FOLDS, STRENGTHS, forward, ridge_strengths, select
+
+
+def refits(A: np.ndarray, e: np.ndarray, rows: int, lam=None) -> np.ndarray:
+    """Squared error of each configuration predicted by a refit without it."""
+    m = e.size // rows
+    lam = np.zeros(A.shape[1]) if lam is None else lam
+    out = np.zeros(m)
+    for i in range(m):
+        keep = np.ones(m * rows, dtype=bool)
+        keep[i * rows : (i + 1) * rows] = False
+        aug = np.vstack([A[keep], np.diag(np.sqrt(lam))])
+        x = np.linalg.lstsq(aug, np.r_[e[keep], np.zeros(len(lam))], rcond=None)[0]
+        out[i] = float(np.sum((e[~keep] - A[~keep] @ x) ** 2))
+    return out
+
+
+def greedy_check(A, e, rows, fixed, order, errors, mask=None):
+    """Each step adds the column of least brute-force error, and the errors are the refits'."""
+    if mask is not None:
+        keep = np.repeat(mask, rows)
+        A, e = A[keep], e[keep]
+    cols = list(range(fixed))
+    assert np.allclose(errors[0], refits(A[:, cols], e, rows), rtol=1e-9)
+    for step, added in enumerate(order, start=1):
+        rest = [c for c in range(fixed, A.shape[1]) if c not in cols]
+        sse = {c: refits(A[:, [*cols, c]], e, rows).sum() for c in rest}
+        assert added == min(sse, key=sse.get)
+        cols.append(added)
+        assert np.allclose(errors[step], refits(A[:, cols], e, rows), rtol=1e-9)
+
+
+def count_calls(monkeypatch, name):
+    """Count the calls of a method of the paths' state."""
+    calls = []
+    method = getattr(fp._Batch, name)
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return method(*args, **kwargs)
+
+    monkeypatch.setattr(fp._Batch, name, counted)
+    return calls
+
+
+def test_paths_through_nearly_collinear_candidates(monkeypatch):
+    """Candidates nearly carried by others shrink by orders of magnitude as those enter:
+    their sums are computed afresh (SHRINK), and the path is still the brute-force one."""
+    rng = np.random.default_rng(5)
+    m, rows, fixed = 16, 3, 3
+    base = rng.normal(size=(m * rows, fixed + 4))
+    near = base[:, [3, 4]] @ np.array([[1.0, 0.3], [0.5, 1.0]]) + 1e-3 * rng.normal(
+        size=(m * rows, 2)
+    )
+    A = np.hstack([base, near])
+    A /= np.linalg.norm(A, axis=0)
+    e = A[:, [0, 3, 7]] @ np.array([1.0, 0.5, -0.4]) + 0.05 * rng.normal(size=m * rows)
+    fresh = count_calls(monkeypatch, "_fresh")
+    order, errors = path(A, e, rows, list(range(fixed)), list(range(fixed, A.shape[1])))
+    assert len(fresh) > 1  # the premise: the shrinking candidates were recomputed
+    greedy_check(A, e, rows, fixed, order, errors)
+
+
+def test_paths_through_a_configuration_of_high_leverage(monkeypatch):
+    """A column mostly seen by one configuration drives its leverage near 1: the inverse
+    blocks are inverted afresh (REFRESH) and the path is still the brute-force one."""
+    rng = np.random.default_rng(8)
+    m, rows, fixed, cand = 12, 3, 3, 5
+    A = rng.normal(size=(m * rows, fixed + cand))
+    A[:, fixed] *= 0.02
+    A[0:rows, fixed] = rng.normal(size=rows)  # column `fixed`: almost only configuration 0
+    A /= np.linalg.norm(A, axis=0)
+    e = A[:, [0, fixed, fixed + 2]] @ np.array([1.0, 0.8, 0.3]) + 0.1 * rng.normal(size=m * rows)
+    refreshed = count_calls(monkeypatch, "_set_v")
+    order, errors = path(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)))
+    assert len(refreshed) > 1  # the premise: M was inverted afresh after the start
+    greedy_check(A, e, rows, fixed, order, errors)
+
+
+def test_paths_of_twelve_rows_and_of_folds_with_forced_columns():
+    """Four points (12 rows: LAPACK blocks) and subsets with two start columns beyond the
+    fixed ones: each subset's path is its brute-force greedy path."""
+    rng = np.random.default_rng(2)
+    m, rows, fixed, cand = 9, 12, 4, 5
+    A = rng.normal(size=(m * rows, fixed + cand))
+    A /= np.linalg.norm(A, axis=0)
+    e = A[:, [1, 5, 7]] @ np.array([1.0, -0.5, 0.2]) + 0.1 * rng.normal(size=m * rows)
+    train = np.ones((3, m), dtype=bool)
+    train[1, ::3] = False
+    train[2, [1, 2, 6]] = False
+    out = paths(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)), train)
+    for mask, (order, errors) in zip(train, out, strict=True):
+        assert errors.shape == (cand + 1, mask.sum())
+        greedy_check(A, e, rows, fixed, order, errors, mask)
+
+
+def test_ridge_strengths_are_each_subsets_best_refits():
+    """Each subset's prior strength, on its own configurations and columns (some none), is
+    the one of least brute-force left-out error."""
+    rng = np.random.default_rng(4)
+    m, rows, fixed, p = 12, 3, 3, 9
+    A = rng.normal(size=(m * rows, p))
+    A /= np.linalg.norm(A, axis=0)
+    e = A @ (0.1 * rng.normal(size=p)) + rng.normal(size=m * rows)
+    train = np.ones((4, m), dtype=bool)
+    train[1, ::4] = False
+    train[2, [0, 5, 7]] = False
+    cols = [[3, 4, 5, 6, 7, 8], [5, 3], [], [8, 6, 4]]
+    sq, strengths = ridge_strengths(A, e, rows, fixed, train, cols)
+    for s, (mask, c) in enumerate(zip(train, cols, strict=True)):
+        keep = np.repeat(mask, rows)
+        At = A[keep][:, list(range(fixed)) + c]
+        brute = {
+            t: refits(At, e[keep], rows, np.r_[np.zeros(fixed), np.full(len(c), t)])
+            for t in (0.0, *STRENGTHS)
+        }
+        best = min(brute, key=lambda t: brute[t].sum())
+        assert strengths[s] == best
+        assert np.allclose(sq[s, mask], brute[best], rtol=1e-9)
+        assert np.all(sq[s, ~mask] == 0.0)
+
+
+def test_guard_errors_are_refits_of_each_folds_procedure():
+    """select()'s two cross-validated errors: each fold runs forward() on its own
+    configurations, its ridge fit (and the registration's) predicts the held-out ones."""
+    rng = np.random.default_rng(9)
+    m, rows, fixed, cand = 23, 3, 3, 6
+    J = rng.normal(size=(m, rows, fixed + cand)) * rng.uniform(0.5, 3.0, size=fixed + cand)
+    x = np.r_[rng.normal(size=fixed), 0.6, 0.0, -0.4, 0.0, 0.2, 0.0]
+    e = J @ x + 0.3 * rng.normal(size=(m, rows))
+    names = tuple(f"p{i}" for i in range(cand))
+    selection, _ = select(J, e, fixed, names)
+    A = J.reshape(m * rows, -1)
+    A = A / np.linalg.norm(A, axis=0)
+    ev = e.ravel()
+    sse_reg = sse_sel = 0.0
+    for f in range(OUTER_FOLDS):
+        held = np.repeat(np.arange(m) % OUTER_FOLDS == f, rows)
+        At, et, Av = A[~held], ev[~held], A[held]
+        x0 = np.linalg.lstsq(At[:, :fixed], et, rcond=None)[0]
+        sse_reg += np.sum((ev[held] - Av[:, :fixed] @ x0) ** 2)
+        kept, _, strength = forward(At, et, rows, fixed, names)
+        cols = list(range(fixed)) + [fixed + k for k in kept]
+        lam = np.r_[np.zeros(fixed), np.full(len(kept), strength)]
+        aug = np.vstack([At[:, cols], np.diag(np.sqrt(lam))])
+        xs = np.linalg.lstsq(aug, np.r_[et, np.zeros(len(cols))], rcond=None)[0]
+        sse_sel += np.sum((ev[held] - Av[:, cols] @ xs) ** 2)
+    assert np.isclose(selection.registration_cv, np.sqrt(sse_reg / m), rtol=1e-9)
+    assert np.isclose(selection.selection_cv, np.sqrt(sse_sel / m), rtol=1e-9)
+
+
+@pytest.mark.parametrize("n", [3, 6])
+def test_spd_solve_equals_lapack(n):
+    rng = np.random.default_rng(n)
+    X = rng.normal(size=(50, n, 2 * n))
+    M = np.eye(n) + X @ np.swapaxes(X, 1, 2) / n
+    y = rng.normal(size=(50, n))
+    want = np.linalg.solve(M, y[..., None])[..., 0]
+    got = spd_solve(np.moveaxis(M, 0, 2), y.T)
+    assert np.allclose(got.T, want, rtol=1e-12, atol=0)
+
+
+def test_loo_errors_of_a_singular_block_are_infinite_for_its_fit():
+    """A configuration of leverage exactly 1 makes its fit's errors infinite (as LAPACK's
+    singular solve said before); the other fits keep their exact errors."""
+    rng = np.random.default_rng(1)
+    H = np.zeros((2, 4, 3, 3))
+    H[:, :] = 0.2 * np.eye(3)
+    H[1, 2] = np.diag([1.0, 0.0, 0.0])  # fit 1, configuration 2: leverage 1 along x
+    r = rng.normal(size=(2, 4, 3))
+    sq = loo_errors(H, r)
+    assert np.all(np.isinf(sq[1]))
+    assert np.allclose(sq[0], np.sum((r[0] / 0.8) ** 2, axis=1), rtol=1e-12)
