@@ -452,6 +452,22 @@ def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:
         raise InvalidArgumentError(f"free {name} cannot be fitted: {why}; drop it from free")
 
 
+def _compliance_notes(fitted: Fit, torque, before, urdf_after, val) -> list[str]:
+    """Where compliance was fitted: it is not in the URDF, and when the URDF alone is worse."""
+    notes = []
+    if torque[0] is not None and np.any(fitted.state.compliance):
+        notes.append(
+            "joint compliance was fitted: the calibrated URDF cannot hold it; it is written "
+            "to the compliance file (apply it with calib predict or calib.load_calibrated)"
+        )
+    if urdf_after is not None:
+        alone = validation.urdf_alone_warning(
+            (before, urdf_after), None if val is None else (val.registration, val.geometry)
+        )
+        notes += [alone] if alone is not None else []
+    return notes
+
+
 def _assemble(
     chain,
     nominal,
@@ -486,19 +502,7 @@ def _assemble(
         fitted.model.names(),
     )
     urdf_after = _geometry_stats(fitted.state, train)
-    notes = list(notes)
-    if torque[0] is not None and np.any(fitted.state.compliance):
-        notes.append(
-            "joint compliance was fitted: the calibrated URDF cannot hold it; it is written "
-            "to the compliance file (apply it with calib predict or calib.load_calibrated)"
-        )
-    alone = None
-    if urdf_after is not None:
-        alone = validation.urdf_alone_warning(
-            (before, urdf_after), None if val is None else (val.registration, val.geometry)
-        )
-    if alone is not None:
-        notes.append(alone)
+    notes = [*notes, *_compliance_notes(fitted, torque, before, urdf_after, val)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
