@@ -13,14 +13,12 @@ Run: .venv/bin/python benchmarks/bench_contacts.py
 
 from __future__ import annotations
 
-import statistics
 import sys
-import time
 import warnings
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import median_ms, one_core, table
+from common import cpu_median_ns, median_ms, one_core, table
 
 one_core()
 
@@ -54,13 +52,7 @@ def projection_ms(chain, mdh, kind: str) -> float:
 
 def cpu_ms(fn, repeats: int) -> float:
     """Median CPU time of ``fn()`` over ``repeats`` calls [ms], after one warm-up."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        c0 = time.process_time()
-        fn()
-        times.append(time.process_time() - c0)
-    return 1e3 * statistics.median(times)
+    return cpu_median_ns(fn, repeats) / 1e6
 
 
 def main() -> None:

@@ -24,6 +24,9 @@ from pathlib import Path
 
 ROOT = Path(sys.argv[1] if len(sys.argv) > 1 else ".").resolve()
 sys.path.insert(0, str(ROOT))
+
+from common import cpu_median_ns  # noqa: E402 (the benchmarks' folder, not ROOT)
+
 warnings.simplefilter("ignore")
 
 import calib  # noqa: E402
@@ -39,13 +42,7 @@ STAGES = ("checked_registration", "fit", "_choose", "select", "_generic_count", 
 
 def cpu_ms(fn, repeats: int) -> float:
     """Median process CPU time of ``fn()`` [ms], after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.process_time_ns()
-        fn()
-        times.append(time.process_time_ns() - t0)
-    return sorted(times)[repeats // 2] / 1e6
+    return cpu_median_ns(fn, repeats) / 1e6
 
 
 def timed(name: str, spent: dict[str, list[int]]) -> None:

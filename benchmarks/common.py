@@ -21,6 +21,17 @@ def one_core() -> None:
         os.environ.setdefault(var, "1")
 
 
+def cpu_median_ns(fn: Callable[[], object], repeats: int) -> float:
+    """Median process CPU time of ``fn()`` over ``repeats`` calls [ns], after one warm-up."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.process_time_ns()
+        fn()
+        times.append(time.process_time_ns() - t0)
+    return float(statistics.median(times))
+
+
 def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> float:
     """Median wall time of ``fn()`` over ``repeats`` calls [ms], after a warm-up."""
     for _ in range(warmup):

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-import time
 import warnings
 from pathlib import Path
 
 ROOT = Path(sys.argv[1] if len(sys.argv) > 1 else ".").resolve()
 sys.path.insert(0, str(ROOT))
+
+from common import cpu_median_ns  # noqa: E402 (the benchmarks' folder, not ROOT)
+
 warnings.simplefilter("ignore")
 
 import calib  # noqa: E402
@@ -44,13 +46,7 @@ TIAGO = Path(__file__).resolve().parent.parent / "data" / "realdata" / "tiago"
 
 def cpu_ms(fn, repeats: int) -> float:
     """Median process CPU time of ``fn()`` [ms], after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.process_time_ns()
-        fn()
-        times.append(time.process_time_ns() - t0)
-    return sorted(times)[repeats // 2] / 1e6
+    return cpu_median_ns(fn, repeats) / 1e6
 
 
 def structural() -> list[float]:

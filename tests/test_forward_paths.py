@@ -10,24 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_calibration import refit_loo
 
 import calib.calibration.forward_paths as fp
 from calib.calibration.forward_paths import loo_errors, path, paths, spd_solve
 from calib.calibration.selection import OUTER_FOLDS, STRENGTHS, forward, ridge_strengths, select
-
-
-def refits(A: np.ndarray, e: np.ndarray, rows: int, lam=None) -> np.ndarray:
-    """Squared error of each configuration predicted by a refit without it."""
-    m = e.size // rows
-    lam = np.zeros(A.shape[1]) if lam is None else lam
-    out = np.zeros(m)
-    for i in range(m):
-        keep = np.ones(m * rows, dtype=bool)
-        keep[i * rows : (i + 1) * rows] = False
-        aug = np.vstack([A[keep], np.diag(np.sqrt(lam))])
-        x = np.linalg.lstsq(aug, np.r_[e[keep], np.zeros(len(lam))], rcond=None)[0]
-        out[i] = float(np.sum((e[~keep] - A[~keep] @ x) ** 2))
-    return out
 
 
 def greedy_check(A, e, rows, fixed, order, errors, mask=None):
@@ -36,13 +23,13 @@ def greedy_check(A, e, rows, fixed, order, errors, mask=None):
         keep = np.repeat(mask, rows)
         A, e = A[keep], e[keep]
     cols = list(range(fixed))
-    assert np.allclose(errors[0], refits(A[:, cols], e, rows), rtol=1e-9)
+    assert np.allclose(errors[0], refit_loo(A[:, cols], e, rows), rtol=1e-9)
     for step, added in enumerate(order, start=1):
         rest = [c for c in range(fixed, A.shape[1]) if c not in cols]
-        sse = {c: refits(A[:, [*cols, c]], e, rows).sum() for c in rest}
+        sse = {c: refit_loo(A[:, [*cols, c]], e, rows).sum() for c in rest}
         assert added == min(sse, key=sse.get)
         cols.append(added)
-        assert np.allclose(errors[step], refits(A[:, cols], e, rows), rtol=1e-9)
+        assert np.allclose(errors[step], refit_loo(A[:, cols], e, rows), rtol=1e-9)
 
 
 def count_calls(monkeypatch, name):
@@ -109,7 +96,7 @@ def test_paths_of_twelve_rows_and_of_folds_with_forced_columns():
         greedy_check(A, e, rows, fixed, order, errors, mask)
 
 
-def test_ridge_strengths_are_each_subsets_best_refits():
+def test_ridge_strengths_are_each_subsets_best_refit_loo():
     """Each subset's prior strength, on its own configurations and columns (some none), is
     the one of least brute-force left-out error."""
     rng = np.random.default_rng(4)
@@ -126,7 +113,7 @@ def test_ridge_strengths_are_each_subsets_best_refits():
         keep = np.repeat(mask, rows)
         At = A[keep][:, list(range(fixed)) + c]
         brute = {
-            t: refits(At, e[keep], rows, np.r_[np.zeros(fixed), np.full(len(c), t)])
+            t: refit_loo(At, e[keep], rows, np.r_[np.zeros(fixed), np.full(len(c), t)])
             for t in (0.0, *STRENGTHS)
         }
         best = min(brute, key=lambda t: brute[t].sum())
