@@ -518,3 +518,20 @@ def test_cli_other_foot_splits_the_load(tmp_path, capsys):
         "cal.urdf",
         "r.json",
     ]
+
+
+def test_held_out_touches_without_the_other_joints_are_noted():
+    """A validation file lacking the joints off the chain: their load is at neutral, said."""
+    from calib.calibration.contact_pipeline import split_contacts
+
+    chain = load_robot(*RIGHT)
+    data = read_contacts(REAL / "right_train.csv", chain, "plane")
+    train, held = split_contacts(data, 0.25, 0)
+    bare = dataclasses.replace(held, readings=None)
+    notes = calibrate_contacts(
+        chain, train, contact=(0, 0, -0.12), validate=bare, elastic=True
+    ).notes
+    assert any("the held-out touches record 0 joints off the chain, the fitted ones 17" in n
+               for n in notes)  # fmt: skip
+    same = calibrate_contacts(chain, train, contact=(0, 0, -0.12), validate=held, elastic=True)
+    assert not any("joints off the chain" in n for n in same.notes)

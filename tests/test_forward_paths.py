@@ -173,3 +173,24 @@ def test_loo_errors_of_a_singular_block_are_infinite_for_its_fit():
     sq = loo_errors(H, r)
     assert np.all(np.isinf(sq[1]))
     assert np.allclose(sq[0], np.sum((r[0] / 0.8) ** 2, axis=1), rtol=1e-12)
+
+
+def test_ridge_strengths_with_columns_seen_by_one_configuration():
+    """Two prior columns each seen by one configuration's single row: the vectorised solve
+    meets a singular block and LAPACK takes over on the untouched matrices (it once took
+    over on matrices the first solve had overwritten, and every error came out NaN)."""
+    rng = np.random.default_rng(6)
+    m, rows, fixed, p = 10, 3, 2, 6
+    A = rng.standard_normal((m * rows, p))
+    A[:, 5], A[:, 4] = 0.0, 0.0
+    A[rows * 6, 5], A[rows * 6 + 1, 4] = 1.0, 1.0
+    e = A @ rng.standard_normal(p) * 1e-3 + 1e-4 * rng.standard_normal(m * rows)
+    sq, strength = ridge_strengths(
+        A, e, rows, fixed, np.ones((1, m), dtype=bool), [list(range(fixed, p))]
+    )
+    assert np.isfinite(sq).all() and strength[0] > 0
+    brute = {
+        t: refit_loo(A, e, rows, np.r_[np.zeros(fixed), np.full(p - fixed, t)]) for t in STRENGTHS
+    }
+    assert strength[0] == min(brute, key=lambda t: brute[t].sum())
+    assert np.allclose(sq[0], brute[strength[0]], rtol=1e-9)

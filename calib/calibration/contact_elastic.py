@@ -29,7 +29,7 @@ from .contact_checks import WORSE
 from .contact_model import ContactState
 from .contact_result import gap_stats
 
-__all__ = ["fitted_compliance", "standing", "torques"]
+__all__ = ["fitted_compliance", "readings_note", "standing", "torques"]
 
 
 def standing(
@@ -64,6 +64,19 @@ def torques(
     return (
         None if load is None else load.torques(train.q, train.readings),
         None if load is None or held is None else load.torques(held.q, held.readings),
+    )
+
+
+def readings_note(load, train: ContactData, held: ContactData | None) -> str | None:
+    """A note when the held-out touches record other joints off the chain than the training."""
+    if load is None or held is None:
+        return None
+    names = [() if d.readings is None else d.readings.names for d in (train, held)]
+    if names[0] == names[1]:
+        return None
+    return (
+        f"elastic: the held-out touches record {len(names[1])} joints off the chain, the "
+        f"fitted ones {len(names[0])}: the load puts those a file lacks at neutral"
     )
 
 

@@ -344,6 +344,7 @@ def calibrate_contacts(
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
     notes += filter(None, [contact_checks.isolated_postures(chain, train, held)])
     torque = contact_elastic.torques(load, train, held)
+    notes += filter(None, [contact_elastic.readings_note(load, train, held)])
     clock.append(time.perf_counter())
     model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
     clock.append(time.perf_counter())

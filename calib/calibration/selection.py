@@ -230,7 +230,7 @@ def _ridge_errors(Q, U, wt, r, rows) -> np.ndarray:
     fitted = (wt * np.einsum("bnk,bn->bk", U, r)[:, None]) @ np.swapaxes(U, 1, 2)
     y = np.moveaxis((r[:, None] - fitted).reshape(b, S, m, rows), 3, 0)
     if rows <= SMALL:
-        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1), overwrite=True)
+        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1))  # M kept for LAPACK
         sq = np.einsum("is,is->s", x, x).reshape(b, S, m)
         if np.isfinite(sq).all():
             return sq

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import io
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..measurements.csvfile import csv_records, parse_number, read_data_text
-from ..measurements.data import TOOL_COLUMN
+from ..measurements.data import TOOL_COLUMN, DataWarning
 from ..measurements.limits import check_limits
 
 MAX_CONFIGS_BYTES = 256 << 20
@@ -87,6 +88,15 @@ def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | N
     records = list(csv_records(read_data_text(path, MAX_CONFIGS_BYTES), src))
     header = [c.strip() for c in records[0][1]] if records else []
     found = tuple(n for n in names if header.count(n) == 1)
+    if 0 < len(found) < len(names):  # none: the model's own warning says so
+        missing = [n for n in names if n not in found]
+        warnings.warn(
+            f"{src}: no column for {len(missing)} of the {len(names)} joints off the chain the "
+            f"fit read ({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}): they are "
+            f"at their neutral positions",
+            DataWarning,
+            stacklevel=2,
+        )
     if not found:
         return None
     cols = [header.index(n) for n in found]

@@ -186,7 +186,11 @@ class ElasticModel:
             r = q + self.compliance * self._torques(q, readings) - target
             if np.max(np.abs(r), initial=0.0) <= tol:
                 return q
-            q = q - np.linalg.solve(self._deflection_jacobian(q, readings), r[..., None])[..., 0]
+            try:
+                step = np.linalg.solve(self._deflection_jacobian(q, readings), r[..., None])
+            except np.linalg.LinAlgError:
+                break  # a deflection that no commanded position undoes locally
+            q = q - step[..., 0]
         raise InvalidArgumentError("the compensating joint positions do not settle")
 
     def _deflection_jacobian(self, q: np.ndarray, readings) -> np.ndarray:
@@ -488,8 +492,11 @@ def predictions_csv(
     k = len(model.markers)
     header = names + [f"{a}{i + 1}" for i in range(k) for a in "xyz"]
     header += [f"deflected_{n}" for n in names]
-    pts = model.points(q, readings).reshape(len(q), -1)
-    rows = np.hstack([q, pts, model.deflected(q, readings)])
+    deflected = model.deflected(q, readings)
+    with warnings.catch_warnings():  # the same note as deflected's, once is enough
+        warnings.simplefilter("ignore", UserWarning)
+        pts = model.points(q, readings).reshape(len(q), -1)
+    rows = np.hstack([q, pts, deflected])
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(header)

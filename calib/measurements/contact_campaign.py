@@ -182,17 +182,43 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         if not name:
             raise DataError(source, "empty id", row=line, column=ID_COLUMNS[kind.label])
         ids.append(name)
-        q.append(
-            [parse_number(cells[cols[j]], source, line, j) for j in (*chain.joint_names, *others)]
-        )
+        q.append([parse_number(cells[cols[j]], source, line, j) for j in chain.joint_names])
         rows.append(line)
     qa = np.array(q, dtype=float)
-    qa, read = qa[:, : chain.n], qa[:, chain.n :]
     check_limits(chain, qa, source, np.array(rows))
     qa.setflags(write=False)
-    read.setflags(write=False)
-    readings = JointReadings(others, read) if others else None
+    readings = _readings(records[1:], others, cols, source)
     return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows), readings)
+
+
+def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str):
+    """The other joints' readings: the columns with a number in every row.
+
+    A note names the others, which are left out (they only load the joints of ``elastic``).
+    """
+    kept, values = [], []
+    for name in names:
+        try:
+            column = [
+                parse_number(cells[cols[name]], source, line, name) for line, cells in records
+            ]
+        except DataError:
+            continue
+        kept.append(name)
+        values.append(column)
+    if len(kept) < len(names):
+        left = [n for n in names if n not in kept]
+        warnings.warn(
+            f"{source}: {len(left)} joint columns off the chain hold a cell that is not a "
+            f"number ({_listed(left)}): not read (their joints stay at neutral under elastic)",
+            DataWarning,
+            stacklevel=4,
+        )
+    if not kept:
+        return None
+    read = np.array(values, dtype=float).T
+    read.setflags(write=False)
+    return JointReadings(tuple(kept), read)
 
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
