@@ -15,14 +15,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from contact_scorer import contact_gaps
-from test_contact_chains import central_differences, true_robot
+from test_contact_chains import central_differences, moved_chains, true_robot
 
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_frames import ContactFrames
 from calib.calibration.contact_model import ContactState, plane_state
 from calib.calibration.contact_pipeline import split_contacts
-from calib.calibration.placements import Placements
 from calib.cli.commands import main
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import FixedPointContact, FixedPoseContact, PlaneContact
@@ -44,12 +43,7 @@ def test_jacobian_matches_central_differences():
     the loop's rows weighted 3."""
     chains = tuple(_chains())
     rng = np.random.default_rng(3)
-    pl = Placements.of(chains)
-    pl = pl.shifted(1e-2 * rng.standard_normal(pl.y.size))
-    models, frames = pl.chain_geometry(chains)
-    C = np.eye(4)
-    C[2, 3] = -0.12
-    n = np.array([0.01, 0.02, 1.0]) / np.linalg.norm([0.01, 0.02, 1.0])
+    pl, models, frames, C, n = moved_chains(chains, rng)
     plane = plane_state(models[0], C, n, 0.7, 0.3, "t")
     F = np.repeat(np.eye(4)[None], 2, axis=0)  # two poses (two sessions)
     F[:, :3, 3] = [(0.01, -0.2, 0.02), (0.03, -0.18, 0.0)]
