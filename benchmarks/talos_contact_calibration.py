@@ -40,10 +40,6 @@ FOLDS = 5
 SEED = 0
 
 
-def _take(data: ContactData, rows: np.ndarray) -> ContactData:
-    return subset(data, rows)  # the other joints' readings too
-
-
 def _pooled(parts: list[tuple[int, float, float, float]]) -> tuple[float, float, float]:
     m = sum(p[0] for p in parts)
     return tuple(  # type: ignore[return-value]
@@ -63,10 +59,10 @@ def cross_validate(chain, data: ContactData, params: str | None, **elastic):
         train = np.setdiff1d(np.arange(data.m), folds[f])
         r = calibrate_contacts(
             chain,
-            _take(data, train),
+            subset(data, train),
             contact=CONTACT,
             params=params,
-            validate=_take(data, folds[f]),
+            validate=subset(data, folds[f]),
             seed=SEED,
             **elastic,
         )

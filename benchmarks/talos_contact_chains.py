@@ -61,10 +61,6 @@ FIGAROH = {
 """FIGAROH's published held-out RMS (height mm, roll deg, pitch deg), sessions of another day."""
 
 
-def _take(data: ContactData, rows: np.ndarray) -> ContactData:
-    return subset(data, rows)  # the other joints' readings too
-
-
 def _folds(data: ContactData) -> list[np.ndarray]:
     return np.array_split(np.random.default_rng(SEED).permutation(data.m), FOLDS)
 
@@ -115,9 +111,10 @@ def cross_validate(chains, data, shared_planes: bool = False, params=None) -> li
     pools = [Pool() for _ in chains]
     for f in range(FOLDS):
         train = [
-            _take(d, np.setdiff1d(np.arange(d.m), fo[f])) for d, fo in zip(data, folds, strict=True)
+            subset(d, np.setdiff1d(np.arange(d.m), fo[f]))
+            for d, fo in zip(data, folds, strict=True)
         ]
-        held = [_take(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
+        held = [subset(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
         r = calibrate_contact_chains(
             chains,
             train,
@@ -140,10 +137,10 @@ def with_loop(chains, data, loop, loops, params=None, pose_weight=1.0) -> list[P
     pools = [Pool() for _ in range(len(chains) + 1)]
     for f in range(FOLDS):
         keep = [np.setdiff1d(np.arange(d.m), fo[f]) for d, fo in zip(data, folds, strict=True)]
-        train = [_take(d, k) for d, k in zip(data, keep, strict=True)]
-        held = [_take(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
-        train.append(join_loops([_take(lp, k) for lp, k in zip(loops, keep, strict=True)]))
-        held.append(join_loops([_take(lp, fo[f]) for lp, fo in zip(loops, folds, strict=True)]))
+        train = [subset(d, k) for d, k in zip(data, keep, strict=True)]
+        held = [subset(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
+        train.append(join_loops([subset(lp, k) for lp, k in zip(loops, keep, strict=True)]))
+        held.append(join_loops([subset(lp, fo[f]) for lp, fo in zip(loops, folds, strict=True)]))
         r = calibrate_contact_chains(
             [*chains, loop],
             train,
@@ -185,8 +182,8 @@ def single_chain(chain, data) -> Pool:
     """The single-chain pipeline on the same folds."""
     pool = Pool()
     for fold in _folds(data):
-        train = _take(data, np.setdiff1d(np.arange(data.m), fold))
-        r = calibrate_contacts(chain, train, contact=CONTACT, validate=_take(data, fold))
+        train = subset(data, np.setdiff1d(np.arange(data.m), fold))
+        r = calibrate_contacts(chain, train, contact=CONTACT, validate=subset(data, fold))
         pool.add(r.stats, r.accepted)
     return pool
 
