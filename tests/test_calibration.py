@@ -134,6 +134,21 @@ def refit_loo(A: np.ndarray, e: np.ndarray, rows: int, lam=None) -> np.ndarray:
     return out
 
 
+def greedy_check(A, e, rows, fixed, order, errors, mask=None):
+    """Each step adds the column of least brute-force error, and the errors are the refits'."""
+    if mask is not None:
+        keep = np.repeat(mask, rows)
+        A, e = A[keep], e[keep]
+    cols = list(range(fixed))
+    assert np.allclose(errors[0], refit_loo(A[:, cols], e, rows), rtol=1e-9)
+    for step, added in enumerate(order, start=1):
+        rest = [c for c in range(fixed, A.shape[1]) if c not in cols]
+        sse = {c: refit_loo(A[:, [*cols, c]], e, rows).sum() for c in rest}
+        assert added == min(sse, key=sse.get)
+        cols.append(added)
+        assert np.allclose(errors[step], refit_loo(A[:, cols], e, rows), rtol=1e-9)
+
+
 @pytest.mark.parametrize("rows", [3, 6])
 def test_forward_path_equals_greedy_refits(rows):
     """Each step of the path adds the column whose brute-force refits predict best, and its
@@ -145,14 +160,7 @@ def test_forward_path_equals_greedy_refits(rows):
     e = A[:, [0, 5, 7]] @ np.array([1.0, 0.4, -0.3]) + 0.2 * rng.normal(size=m * rows)
     order, errors = path(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)))
     assert sorted(order) == list(range(fixed, fixed + cand))
-    cols = list(range(fixed))
-    assert np.allclose(errors[0], refit_loo(A[:, cols], e, rows), rtol=1e-9)
-    for step, added in enumerate(order, start=1):
-        rest = [c for c in range(fixed, fixed + cand) if c not in cols]
-        sse = {c: refit_loo(A[:, [*cols, c]], e, rows).sum() for c in rest}
-        assert added == min(sse, key=sse.get)
-        cols.append(added)
-        assert np.allclose(errors[step], refit_loo(A[:, cols], e, rows), rtol=1e-9)
+    greedy_check(A, e, rows, fixed, order, errors)
 
 
 def test_batched_paths_are_each_subsets_greedy_refits():
@@ -168,17 +176,8 @@ def test_batched_paths_are_each_subsets_greedy_refits():
     train[2, [0, 1, 2, 5, 11]] = False
     out = paths(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)), train)
     for mask, (order, errors) in zip(train, out, strict=True):
-        keep = np.repeat(mask, rows)
-        As, es = A[keep], e[keep]
         assert errors.shape == (cand + 1, mask.sum())
-        cols = list(range(fixed))
-        assert np.allclose(errors[0], refit_loo(As[:, cols], es, rows), rtol=1e-9)
-        for step, added in enumerate(order, start=1):
-            rest = [c for c in range(fixed, fixed + cand) if c not in cols]
-            sse = {c: refit_loo(As[:, [*cols, c]], es, rows).sum() for c in rest}
-            assert added == min(sse, key=sse.get)
-            cols.append(added)
-            assert np.allclose(errors[step], refit_loo(As[:, cols], es, rows), rtol=1e-9)
+        greedy_check(A, e, rows, fixed, order, errors, mask)
 
 
 def test_path_through_a_configuration_of_leverage_one():

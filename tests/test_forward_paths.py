@@ -10,26 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_calibration import refit_loo
+from test_calibration import greedy_check, refit_loo
 
 import calib.calibration.forward_paths as fp
 from calib.calibration.forward_paths import loo_errors, path, paths, spd_solve
 from calib.calibration.selection import OUTER_FOLDS, STRENGTHS, forward, ridge_strengths, select
-
-
-def greedy_check(A, e, rows, fixed, order, errors, mask=None):
-    """Each step adds the column of least brute-force error, and the errors are the refits'."""
-    if mask is not None:
-        keep = np.repeat(mask, rows)
-        A, e = A[keep], e[keep]
-    cols = list(range(fixed))
-    assert np.allclose(errors[0], refit_loo(A[:, cols], e, rows), rtol=1e-9)
-    for step, added in enumerate(order, start=1):
-        rest = [c for c in range(fixed, A.shape[1]) if c not in cols]
-        sse = {c: refit_loo(A[:, [*cols, c]], e, rows).sum() for c in rest}
-        assert added == min(sse, key=sse.get)
-        cols.append(added)
-        assert np.allclose(errors[step], refit_loo(A[:, cols], e, rows), rtol=1e-9)
 
 
 def count_calls(monkeypatch, name):
