@@ -69,27 +69,21 @@ def process_ms(args: Sequence[str], repeats: int = 5) -> float:
 
 def process_times(args: Sequence[str], repeats: int) -> list[float]:
     """Wall times [s] of ``repeats`` whole processes (see :func:`process_ms` for ``args``)."""
+    return [wall for wall, _ in process_cpu_times(args, repeats)]
+
+
+def _command(args: Sequence[str]) -> list[str]:
+    """The process :func:`process_ms` describes: ``calib ARGS``, or ``python -c CODE``."""
     args = list(args)
     if args[:1] == ["--python"]:
-        command = [sys.executable, "-c", args[1] if len(args) > 1 else "pass"]
-    else:
-        command = [str(CALIB), *args]
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        subprocess.run(command, check=True, capture_output=True)
-        times.append(time.perf_counter() - t0)
-    return times
+        return [sys.executable, "-c", args[1] if len(args) > 1 else "pass"]
+    return [str(CALIB), *args]
 
 
 def process_cpu_times(args: Sequence[str], repeats: int) -> list[tuple[float, float]]:
     """Wall and CPU (user + system) times [s] of ``repeats`` whole processes (``args`` as in
     :func:`process_ms`): on a busy machine the CPU time is the steadier of the two."""
-    args = list(args)
-    if args[:1] == ["--python"]:
-        command = [sys.executable, "-c", args[1] if len(args) > 1 else "pass"]
-    else:
-        command = [str(CALIB), *args]
+    command = _command(args)
     times = []
     for _ in range(repeats):
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
