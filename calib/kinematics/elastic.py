@@ -208,10 +208,14 @@ class ElasticModel:
 
         ``readings``: the joints off the chain, as :meth:`torques` takes them.
         """
-        kin = self.mdh.kinematics(self.deflected(q, readings))
+        return self.measurement_to_base @ self._tool_in_base(self.deflected(q, readings))
+
+    def _tool_in_base(self, deflected: np.ndarray) -> np.ndarray:
+        """Tool frame in the base frame ``(m, 4, 4)`` at the joints the geometry sees."""
+        kin = self.mdh.kinematics(deflected)
         T = np.zeros((len(kin.p), 4, 4))
         T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
-        return self.measurement_to_base @ T
+        return T
 
     def contact_placements(
         self, q: np.ndarray, readings: JointReadings | None = None
@@ -226,9 +230,7 @@ class ElasticModel:
         """
         if self.contact is None or self.plane is None:
             raise InvalidArgumentError("this calibrated model holds no contact frame and plane")
-        kin = self.mdh.kinematics(self.deflected(q, readings))
-        T = np.zeros((len(kin.p), 4, 4))
-        T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[:, -1], kin.p[:, -1], 1.0
+        T = self._tool_in_base(self.deflected(q, readings))
         return np.linalg.inv(self.plane) @ T @ self.contact
 
     def points(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
@@ -236,7 +238,10 @@ class ElasticModel:
 
         ``readings``: the joints off the chain, as :meth:`torques` takes them.
         """
-        T = self.tool_placements(q, readings)
+        return self._points(self.tool_placements(q, readings))
+
+    def _points(self, T: np.ndarray) -> np.ndarray:
+        """The markers ``(m, K, 3)`` [m] on tool frames ``T`` ``(m, 4, 4)`` (measurement frame)."""
         return T[:, None, :3, 3] + np.einsum("mij,kj->mki", T[:, :3, :3], self.markers)
 
 
@@ -492,10 +497,9 @@ def predictions_csv(
     k = len(model.markers)
     header = names + [f"{a}{i + 1}" for i in range(k) for a in "xyz"]
     header += [f"deflected_{n}" for n in names]
-    deflected = model.deflected(q, readings)
-    with warnings.catch_warnings():  # the same note as deflected's, once is enough
-        warnings.simplefilter("ignore", UserWarning)
-        pts = model.points(q, readings).reshape(len(q), -1)
+    deflected = model.deflected(q, readings)  # the torques once, for both
+    T = model.measurement_to_base @ model._tool_in_base(deflected)
+    pts = model._points(T).reshape(len(q), -1)
     rows = np.hstack([q, pts, deflected])
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
