@@ -258,8 +258,8 @@ def test_worse_on_one_chain_is_refused(capsys, tmp_path):
 
 BAD = [
     (["--chain", "left_sole_link", "gripper_left_base_link"], "BASE TOOL DATA"),
-    (["--chain", *PAIRS[0], "DATA", "--data", "DATA"], "--data is not available"),
-    (["--chain", *PAIRS[0], "DATA", "--base", "x"], "--base is not available"),
+    (["--chain", *PAIRS[0], "DATA", "--data", "DATA"], "--data is for one chain measured"),
+    (["--chain", *PAIRS[0], "DATA", "--base", "x"], "--base is for one chain measured"),
     (["--chain", *PAIRS[0], "DATA", "--measure", "fixed-point"], "--measure plane"),
     (["--chain", *PAIRS[0], "DATA", "--params", "paper"], "paper"),
     (["--chain", *PAIRS[0], "DATA", "--chain", *PAIRS[0], "DATA"], "given twice"),

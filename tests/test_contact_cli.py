@@ -75,7 +75,10 @@ def _campaign(tmp_path: Path, measure="plane") -> Path:
     [
         (["--measure", "pose", "--contact", "0", "0", "0.1"], "--contact is for contact kinds"),
         (["--measure", "plane", "--contact", "0", "0"], "3 or 6 numbers"),
-        (["--measure", "plane", "--marker", "0", "0", "0"], "--marker is not available"),
+        (
+            ["--measure", "plane", "--marker", "0", "0", "0"],
+            "--marker is for one chain measured",
+        ),
         (["--measure", "fixed-point"], "point"),
     ],
 )

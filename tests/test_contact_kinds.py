@@ -214,9 +214,8 @@ def test_usual_mistakes_and_outliers_in_touches():
 def test_validation_touches_of_an_unfitted_object_are_refused():
     chain = load_robot("panda")
     camp = simulate_contacts(chain, 40, "plane", contacts=2, seed=1)
-    one = dataclasses.replace(
-        camp.data, ids=tuple("other" if i == "table2" else i for i in camp.data.ids)
-    )
+    held = simulate_contacts(chain, 40, "plane", contacts=2, seed=2).data  # other touches
+    one = dataclasses.replace(held, ids=tuple("other" if i == "table2" else i for i in held.ids))
     with pytest.raises(DataError, match="'other'"):
         calibrate_contacts(chain, camp.data, validate=one, params="offsets")
 

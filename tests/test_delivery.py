@@ -345,51 +345,67 @@ def key_paths(doc, prefix: str = "", leaves: tuple[str, ...] = ()) -> set[str]:
 
 
 STATS = ("configs", "position_rms", "position_max", "orientation_rms", "orientation_max")
+STATS_MM = (
+    "configs", "position_rms_mm", "position_max_mm", "orientation_rms_deg", "orientation_max_deg"
+)  # fmt: skip
 POSE = ("xyz", "rpy", "matrix")
 MDH = ("name", "joint", "sigma", "sign", "beta", "alpha", "d", "theta", "r", "y")
+GROUPS = ("registration", "calibrated", "urdf")
+
+FORMAT3_KEYS = {
+    "format_version", "deprecated", "robot", "urdf", "shape", "terms", "params", "accepted",
+    "refusal", "converged", "message", "iterations", "parameters", "errors", "frames",
+    "objects", "fit", "model_choice", "outliers", "compliance", "model", "warnings",
+    "timings_ms",
+}  # fmt: skip
+"""Every report's top-level keys (format 3), whatever the shape and kind."""
 
 CHAIN_REPORT_KEYS = {
-    "format_version", "deprecated", "deprecated.marker", "robot", "urdf", "data",
-    "base_frame", "tool_frame", "measure", "markers", "marker", "marker_links",
-    "measured_frame", *(f"measured_frame.{k}" for k in POSE), "world_link", "params",
-    "configs", "accepted", "refusal", "converged", "message", "iterations",
-    "orientation_weight", "residuals",
-    *(f"residuals.{g}" for g in ("registration", "calibrated", "urdf")),
-    *(f"residuals.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
-    "validation", "validation.source", "validation.predicted_std",
-    *(f"validation.{g}" for g in ("registration", "calibrated", "urdf")),
-    *(f"validation.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
-    "selection", "selection.kept", "selection.steps", "selection.steps[].name",
-    "selection.steps[].loo", "selection.prior_strength", "selection.cv_registration",
-    "selection.cv_selection", "selection.guarded",
-    "outliers", "outliers[].row", "outliers[].error", "outliers[].median", "outliers[].kind",
-    "sigma", "condition_number", "predicted_std", "parameters", "parameters[].name",
-    "parameters[].value", "parameters[].std", "parameters[].prior_weight", "compliance",
-    "gravity", "gravity.frame", "gravity.vector", "measurement_to_base",
-    *(f"measurement_to_base.{k}" for k in POSE), "mdh_nominal", "mdh_calibrated",
-    *(f"mdh_{w}[].{k}" for w in ("nominal", "calibrated") for k in MDH),
-    "warnings", "timings_ms",
+    *FORMAT3_KEYS,
+    *(f"terms[].{k}" for k in ("base", "tool", "kind", "data", "configs")),
+    *(f"parameters[].{k}" for k in ("name", "joint", "value", "std", "unit", "prior_weight")),
+    *(f"errors.{p}" for p in ("train", "held_out", "terms")), "errors.held_out.source",
+    "errors.held_out.predicted_std_mm", "errors.terms[].train", "errors.terms[].held_out",
+    "errors.terms[].held_out.source", "errors.terms[].held_out.predicted_std_mm",
+    *(f"{p}.{g}" for p in ("errors.train", "errors.held_out", "errors.terms[].train",
+      "errors.terms[].held_out") for g in GROUPS),
+    *(f"{p}.{g}.{k}" for p in ("errors.train", "errors.held_out", "errors.terms[].train",
+      "errors.terms[].held_out") for g in GROUPS for k in STATS_MM),
+    *(f"frames.{k}" for k in ("measurement", "measured", "markers", "contacts", "world_link",
+      "tool_link", "on_robot")),
+    *(f"frames.{f}.{k}" for f in ("measurement", "measured") for k in POSE),
+    *(f"fit.{k}" for k in ("sigma", "condition_number", "predicted_std_mm",
+      "orientation_weight")),
+    "model_choice.kept", "model_choice.steps", "model_choice.steps[].name",
+    "model_choice.steps[].loo_mm", "model_choice.prior_strength",
+    "model_choice.cv_registration_mm", "model_choice.cv_selection_mm", "model_choice.guarded",
+    *(f"outliers[].{k}" for k in ("row", "kind", "error_mm", "median_mm")),
+    "model.mdh_nominal", "model.mdh_calibrated", "model.gravity", "model.gravity.frame",
+    "model.gravity.vector", *(f"model.mdh_{w}[].{k}" for w in ("nominal", "calibrated")
+    for k in MDH),
     *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
 }  # fmt: skip
-"""The chain report's keys (format 2): a change here is a change of format_version."""
+"""The chain report's format 3 keys (``deprecated`` ones aside): a change here is a change
+of format_version."""
 
-TREE_REPORT_KEYS = {
-    "format_version", "deprecated", "robot", "urdf", "base_frame", "tools", "params", "rows",
-    "accepted", "refusal", "converged", "residuals", "residuals.registration",
-    "residuals.calibrated", *(f"residuals.{g}.{k}" for g in ("registration", "calibrated")
-    for k in STATS), "per_tool", "per_tool[].tool", "per_tool[].registration",
-    "per_tool[].calibrated", *(f"per_tool[].{g}.{k}" for g in ("registration", "calibrated")
-    for k in STATS), "validation", "validation.registration", "validation.calibrated",
-    *(f"validation.{g}.{k}" for g in ("registration", "calibrated") for k in STATS),
-    "validation.per_tool", "validation.per_tool[].tool", "validation.per_tool[].registration",
-    "validation.per_tool[].calibrated", *(f"validation.per_tool[].{g}.{k}"
-    for g in ("registration", "calibrated") for k in STATS), "parameters",
-    "parameters[].name", "parameters[].value", "parameters[].std", "markers",
-    "marker_links", "measurement_to_base", *(f"measurement_to_base.{k}" for k in POSE),
-    "data", "measure", "message", "iterations", "outliers", "warnings", "timings_ms",
-    *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
+CHAIN_DEPRECATED = {
+    "data", "base_frame", "tool_frame", "measure", "markers", "marker_links", "measured_frame",
+    "world_link", "configs", "orientation_weight", "residuals", "validation", "selection",
+    "sigma", "condition_number", "predicted_std", "gravity", "measurement_to_base",
+    "mdh_nominal", "mdh_calibrated",
 }  # fmt: skip
-"""The tree report's keys (format 2)."""
+"""Format 2's keys a chain report still writes (until format 4)."""
+
+TREE_DEPRECATED = {
+    "data", "base_frame", "tools", "measure", "rows", "residuals", "per_tool", "validation",
+    "markers", "marker_links", "measurement_to_base",
+}  # fmt: skip
+
+
+def format3_paths(report: dict, leaves: tuple[str, ...]) -> set[str]:
+    """The key paths of a report without its deprecated (format 2) keys."""
+    kept = {k: v for k, v in report.items() if k not in report["deprecated"]}
+    return key_paths(kept, leaves=leaves)
 
 
 def readme_report_table() -> tuple[set[str], set[str]]:
@@ -411,11 +427,14 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     write_rows(data, chain, rows)
     res = calibrate(chain, read_measurements(data, chain), holdout=0.25)
     report = json.loads(json.dumps(res.to_dict()))
-    assert report["outliers"] and report["selection"] is not None
-    assert report["validation"] is not None
-    assert key_paths(report, leaves=("compliance",)) == CHAIN_REPORT_KEYS
-    assert report["format_version"] == "2"
-    assert report["marker"] == report["markers"][0] and "marker" in report["deprecated"]
+    assert report["outliers"] and report["model_choice"] is not None
+    assert report["errors"]["held_out"] is not None
+    leaves = ("deprecated", "compliance", "frames.markers", "frames.contacts", "objects")
+    assert format3_paths(report, leaves) == CHAIN_REPORT_KEYS
+    assert report["format_version"] == "3"
+    assert set(report["deprecated"]) == CHAIN_DEPRECATED
+    assert "marker" not in report  # written until format 3, as format 2 said
+    assert next(iter(report["frames"]["markers"].values())) == report["markers"][0]
     assert set(report["compliance"]) == set(chain.joint_names)
     # The tree report (written by `calib calibrate` with several tools).
     m, rep = tmp_path / "t.csv", tmp_path / "t.json"
@@ -428,14 +447,15 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     )  # fmt: skip
     assert code == 0, out
     tree = json.loads(rep.read_text())
-    assert key_paths(tree, leaves=("markers", "marker_links")) == TREE_REPORT_KEYS
-    assert tree["format_version"] == "2" and tree["deprecated"] == {}
-    # Every key is documented in the README's table (chain and tree reports).
+    assert set(tree) - set(tree["deprecated"]) == FORMAT3_KEYS
+    assert tree["format_version"] == "3" and set(tree["deprecated"]) == TREE_DEPRECATED
+    assert [t["tool"] for t in tree["terms"]] == tools[1::2]
+    # Every key is documented in the README's table (format 3 and the deprecated ones).
     rows, names = readme_report_table()
-    top = {k.split(".")[0].split("[")[0] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS}
-    assert top <= rows, top - rows
-    nested = {k.split(".")[-1] for k in CHAIN_REPORT_KEYS | TREE_REPORT_KEYS if "." in k}
+    assert rows >= FORMAT3_KEYS, FORMAT3_KEYS - rows
+    nested = {k.split(".")[-1].split("[")[0] for k in CHAIN_REPORT_KEYS if "." in k}
     assert nested <= names, nested - names
+    assert names >= (CHAIN_DEPRECATED | TREE_DEPRECATED)
 
 
 def test_tree_marker_links_give_the_measured_points(tmp_path, capsys):

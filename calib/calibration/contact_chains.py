@@ -44,16 +44,24 @@ from ..identification.contacts import FixedPoseContact, PlaneContact
 from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
+from . import validation
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_model import ContactState
-from .contact_pipeline import WORSE, contact_frame, split_contacts, tilt_weight, touching_postures
+from .contact_pipeline import (
+    WORSE,
+    check_held_out_gaps,
+    contact_frame,
+    split_contacts,
+    tilt_weight,
+    touching_postures,
+)
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
 from .options import check_run_options
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
-from .solve import fit
+from .solve import fit, fitted_values
 
 __all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
 
@@ -113,6 +121,9 @@ def _check(chains, data, validate, params, holdout) -> None:
         )
     if validate is not None and any(v is not None for v in validate) and holdout > 0:
         raise InvalidArgumentError("give validation touches or a holdout fraction, not both")
+    for d, v in zip(data, validate or [None] * len(chains), strict=True):
+        if v is not None:
+            validation.check_held_out(d, v)
 
 
 def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
@@ -320,7 +331,16 @@ def calibrate_contact_chains(
             f"the fit of the {len(model.free)} parameters determined at the nominal robot)"
         )
     clock.append(time.perf_counter())
-    return _assemble(start, fitted, model, train, held, plane_of, selection, notes, clock)
+    result = _assemble(start, fitted, model, train, held, plane_of, selection, notes, clock)
+    labels = [None if h is None else "holdout" for h in held]
+    if validate is not None:
+        labels = [lab if v is None else v.source for lab, v in zip(labels, validate, strict=True)]
+    parts = tuple(
+        dataclasses.replace(c, held_source=lab)
+        for c, lab in zip(result.chains, labels, strict=True)
+    )
+    values = fitted_values(fitted, None if polished else prior)
+    return dataclasses.replace(result, chains=parts, params=level, **values)
 
 
 POLISH_GAIN = 1e-2
@@ -374,6 +394,7 @@ def _assemble(
         if h is not None:
             stats["held_out"] = gap_stats(s, h.q, h.ids)
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
+            check_held_out_gaps(stats, h.source)
             got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
             if refusal is None and got > base * (1.0 + WORSE):
                 refusal = (

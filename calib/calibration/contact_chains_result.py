@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from ..exceptions import CalibrationRefusedError
 from ..identification.contacts import Contact, PlaneContact
@@ -16,9 +15,26 @@ from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats
 from .placements import Placements
+from .report import (
+    FORMAT2_MOVED,
+    build_report,
+    fit_dict,
+    model_choice,
+    parameter_entries,
+    parameter_lines,
+    pose_dict,
+    term_dict,
+    verdict,
+)
 from .selection import Selection
 
 __all__ = ["ChainContacts", "ContactChainsCalibration"]
+
+
+def _gaps(stats: dict[str, GapStats], part: str) -> dict:
+    """``registration``, ``calibrated`` and ``urdf`` gaps of ``part`` (mm, deg)."""
+    cal = stats[part].in_mm()
+    return {"registration": stats[f"{part}_registration"].in_mm(), "calibrated": cal, "urdf": cal}
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,6 +56,8 @@ class ChainContacts:
         kind: The chain's contact kind (``plane`` or ``fixed-pose``).
         frames: Its fitted objects and contact frame (a ``fixed-pose`` chain's poses by
             id), or None.
+        held_source: Its held-out touches' source (``holdout`` or the validation file), or
+            None.
     """
 
     chain: Chain
@@ -53,6 +71,7 @@ class ChainContacts:
     stats: dict[str, GapStats]
     kind: Contact = field(default_factory=PlaneContact)
     frames: ContactFrames | None = None
+    held_source: str | None = None
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (the plane, or each fixed pose) in the base frame ``(4, 4)``, by id."""
@@ -60,8 +79,15 @@ class ChainContacts:
             return {self.plane_id: self.plane}
         return {i: F.copy() for i, F in zip(self.frames.ids, self.frames.objects, strict=True)}
 
+    def errors(self) -> dict:
+        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` gaps (format 3)."""
+        out: dict = {"train": _gaps(self.stats, "train"), "held_out": None}
+        if "held_out" in self.stats:
+            out["held_out"] = {"source": self.held_source, **_gaps(self.stats, "held_out")}
+        return out
+
     def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; gaps in mm and degrees)."""
+        """JSON-ready form (metres, radians; gaps in mm and degrees; format 2's)."""
         return {
             "base": self.chain.base_frame,
             "tool": self.chain.tool_frame,
@@ -94,6 +120,11 @@ class ContactChainsCalibration:
         refusal: Why the model must not be used, or None.
         notes: Remarks for the user.
         timings_ms: Stage timings [ms].
+        params: The parameter level.
+        estimate: The fitted components' values, in the order of ``fitted`` [m, rad].
+        std: Their standard deviations (NaN where undefined).
+        fitted: The names of ``estimate`` (``free``, or every component after a polish).
+        solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
     """
 
     chains: tuple[ChainContacts, ...]
@@ -105,6 +136,11 @@ class ContactChainsCalibration:
     refusal: str | None
     notes: tuple[str, ...]
     timings_ms: dict[str, float]
+    params: str = "auto"
+    estimate: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    fitted: tuple[str, ...] = ()
+    solver: tuple[bool, str, int] = (True, "", 0)
 
     @property
     def accepted(self) -> bool:
@@ -116,29 +152,77 @@ class ContactChainsCalibration:
         return self.placements.errors()
 
     def to_dict(self) -> dict:
-        """The JSON report (metres, radians; gaps in mm and degrees)."""
+        """The JSON report (format 3, :mod:`calib.calibration.report`).
+
+        ``errors.train`` and ``errors.held_out`` are None: each chain's gaps are its own rows
+        (``errors.terms``, in the order of ``terms``).
+        """
         first = self.chains[0].chain
-        return {
+        names = tuple(first.model.names)
+        fields = {
             "robot": first.name,
             "urdf": str(first.urdf_path),
+            "shape": "chains",
+            "terms": [
+                term_dict(
+                    c.chain.base_frame,
+                    c.chain.tool_frame,
+                    c.kind.label,
+                    c.source,
+                    c.stats["train"].m,
+                )
+                for c in self.chains
+            ],
+            **verdict(self.params, self.refusal, self.solver),
+            "parameters": parameter_entries(self.fitted, self.estimate, self.std, names),
+            "errors": {
+                "train": None,
+                "held_out": None,
+                "terms": [c.errors() for c in self.chains],
+            },
+            "frames": {
+                "measurement": None,
+                "measured": None,
+                "markers": {},
+                "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self.chains},
+                "world_link": None,
+                "tool_link": None,
+                "on_robot": False,
+            },
+            "objects": self._object_poses(),
+            "fit": fit_dict(),
+            "model_choice": model_choice(self.selection),
+            "outliers": [],
+            "compliance": {},
+            "model": {
+                "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},
+                "shared_joints": list(self.shared),
+            },
+            "warnings": list(self.notes),
+            "timings_ms": dict(self.timings_ms),
+        }
+        return build_report(fields, self._format2(), FORMAT2_MOVED)
+
+    def _object_poses(self) -> dict:
+        """Planes and poses by id, each in its chain's base frame (format 3's ``objects``)."""
+        out: dict[str, dict] = {}
+        for c in self.chains:
+            group = out.setdefault(f"{c.kind.object_name}s", {})
+            for i, F in c.objects().items():
+                group[i] = {"frame": c.chain.base_frame, **(pose_dict(F) or {})}
+        return out
+
+    def _format2(self) -> dict:
+        """Format 2's keys that format 3 replaced (written until format 4)."""
+        return {
             "measure": "plane",
-            "accepted": self.accepted,
-            "refusal": self.refusal,
             "chains": [c.to_dict() for c in self.chains],
             "shared_joints": list(self.shared),
             "planes": self.planes,
             "free": list(self.free),
             "selection": None if self.selection is None else self.selection.to_dict(),
-            "joint_origins": {
-                name: {
-                    "xyz": E[:3, 3].tolist(),
-                    "rpy": pin.rpy.matrixToRpy(E[:3, :3]).tolist(),
-                    "matrix": E.tolist(),
-                }
-                for name, E in self.joint_errors().items()
-            },
+            "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},
             "notes": list(self.notes),
-            "timings_ms": dict(self.timings_ms),
         }
 
     def _objects(self) -> str:
@@ -170,6 +254,8 @@ class ContactChainsCalibration:
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
                 lines.append(f"  {key:22s} {rms}  ({s.m} touches)")
+        names = tuple(self.chains[0].chain.model.names)
+        lines += parameter_lines(parameter_entries(self.fitted, self.estimate, self.std, names))
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)

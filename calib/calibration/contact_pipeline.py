@@ -50,13 +50,14 @@ from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
 from .options import Options
 from .selection import Selection, select
-from .solve import fit
+from .solve import fit, fitted_values
 
 __all__ = [
     "WEIGHT_ROUNDS",
     "WORSE",
     "calibrate_contact_data",
     "calibrate_contacts",
+    "check_held_out_gaps",
     "contact_frame",
     "flush_postures",
     "split_contacts",
@@ -130,6 +131,7 @@ def _check(chain, data, validate, opts: Options) -> None:
                 validate.source,
                 f"validation touches of kind '{validate.kind.label}' for '{data.kind.label}' data",
             )
+        validation.check_held_out(data, validate)
     if opts.fix or opts.free or opts.loss != "linear":
         raise InvalidArgumentError("fix, free and robust losses are not available for contacts")
 
@@ -353,7 +355,13 @@ def calibrate_contacts(
     )
     clock.append(time.perf_counter())
     result = _assemble(chain, (train, held), torque, start, fitted, selection, notes, clock, load)
-    return _with_outliers(result, dropped)
+    return dataclasses.replace(
+        result,
+        outliers=tuple(dropped),
+        params=opts.level,
+        sources=(train.source, _held_label(held, validate)),
+        **{k: v for k, v in fitted_values(fitted, prior).items() if k != "fitted"},
+    )
 
 
 def calibrate_contact_data(
@@ -379,10 +387,11 @@ def calibrate_contact_data(
     return calibrate_contacts(robot, data, contact=marker, **kwargs)
 
 
-def _with_outliers(result: ContactCalibration, dropped) -> ContactCalibration:
-    import dataclasses
-
-    return dataclasses.replace(result, outliers=tuple(dropped))
+def _held_label(held, validate) -> str | None:
+    """``holdout``, the validation file, or None without held-out touches."""
+    if held is None:
+        return None
+    return "holdout" if validate is None else validate.source
 
 
 def _objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:
@@ -410,7 +419,7 @@ def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load)
     if held is not None:
         stats["held_out"] = gap_stats(state, held.q, held.ids, torque[1])
         stats["held_out_registration"] = gap_stats(start, held.q, held.ids)
-        _check_held_out(stats, held.source)
+        check_held_out_gaps(stats, held.source)
     refusal = contact_checks.refusal(
         None if fitted.converged else fitted.message,
         stats,
@@ -441,7 +450,7 @@ def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load)
     )
 
 
-def _check_held_out(stats, source: str) -> None:
+def check_held_out_gaps(stats, source: str) -> None:
     """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
     from .diagnosis import suspect
 

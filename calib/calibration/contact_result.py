@@ -37,6 +37,17 @@ from ..kinematics.standing import StandingLoad
 from ..kinematics.urdf_export import write_calibrated_urdf
 from ..kinematics.urdf_model import read_urdf_file
 from .outliers import Outlier
+from .report import (
+    FORMAT2_MOVED,
+    build_report,
+    fit_dict,
+    model_choice,
+    outlier_dict,
+    parameter_entries,
+    pose_dict,
+    term_dict,
+    verdict,
+)
 from .selection import Selection
 
 __all__ = ["ContactCalibration", "GapStats", "gap_stats"]
@@ -89,6 +100,10 @@ class GapStats:
         lengths = [r for r, a in zip(self.rms, self.angular, strict=True) if not a]
         return math.sqrt(sum(v**2 for v in lengths))
 
+    def in_mm(self) -> dict:
+        """The report's form (format 3): ``configs``, each row's figures, ``weighted_mm``."""
+        return {"configs": self.m, **{k: v for k, v in self.to_dict().items() if k != "m"}}
+
     def to_dict(self) -> dict:
         """JSON-ready form: ``m``, each row's RMS and largest value, ``weighted_mm``."""
         out: dict = {"m": self.m}
@@ -96,6 +111,16 @@ class GapStats:
             out[key] = getattr(self, key)
         out["weighted_mm"] = self.weighted_mm
         return out
+
+
+def _gap_errors(stats: dict[str, GapStats], part: str) -> dict:
+    """``registration``, ``calibrated`` and ``urdf`` (no compliance) gaps of ``part``."""
+    cal = stats[part]
+    return {
+        "registration": stats[f"{part}_registration"].in_mm(),
+        "calibrated": cal.in_mm(),
+        "urdf": stats.get(f"{part}_urdf", cal).in_mm(),
+    }
 
 
 def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) -> GapStats:
@@ -141,10 +166,17 @@ class ContactCalibration:
         notes: Remarks for the user.
         weight: Weight of the angle rows [m/rad].
         timings_ms: Stage timings [ms].
+        params: The parameter level (``auto``, ``frames``, ``offsets``, ``paper``,
+            ``complete``).
         outliers: Touches set aside after the registration.
         compliance: Fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
         load: The gravity load the compliance acts under, or None.
         readings: The joints off the chain the load takes at their recorded positions.
+        estimate: The fitted robot parameters' values (changes from the registration, in the
+            order of ``free``) [rad, m, rad/(N m)], or None.
+        std: Their standard deviations (NaN where undefined), or None.
+        solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
+        sources: The touches' source and the held-out touches' (None without any).
     """
 
     chain: Chain
@@ -160,10 +192,15 @@ class ContactCalibration:
     notes: tuple[str, ...]
     weight: float
     timings_ms: dict[str, float]
+    params: str = "auto"
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
     load: StandingLoad | None = None
     readings: tuple[str, ...] = ()
+    estimate: np.ndarray | None = None
+    std: np.ndarray | None = None
+    solver: tuple[bool, str, int] = (True, "", 0)
+    sources: tuple[str, str | None] = ("", None)
 
     @property
     def elastic(self) -> bool:
@@ -186,16 +223,81 @@ class ContactCalibration:
         return self.objects[self.plane_id]
 
     def to_dict(self) -> dict:
-        """The JSON report (metres, radians; gaps in mm and degrees)."""
+        """The JSON report (format 3, :mod:`calib.calibration.report`)."""
+        chain, mdh = self.chain, self.nominal
+        n = len(self.free)
+        estimate = np.full(n, np.nan) if self.estimate is None else self.estimate
+        std = np.full(n, np.nan) if self.std is None else self.std
+        held = None
+        if "held_out" in self.stats:
+            held = {"source": self.sources[1], **_gap_errors(self.stats, "held_out")}
+        train = _gap_errors(self.stats, "train")
+        fields = {
+            "robot": chain.name,
+            "urdf": str(chain.urdf_path),
+            "shape": "contacts",
+            "terms": [
+                term_dict(
+                    chain.base_frame,
+                    chain.tool_frame,
+                    self.kind.label,
+                    self.sources[0],
+                    self.stats["train"].m,
+                )
+            ],
+            **verdict(self.params, self.refusal, self.solver),
+            "parameters": parameter_entries(self.free, estimate, std, mdh.joint_names, mdh.sigma),
+            "errors": {
+                "train": train,
+                "held_out": held,
+                "terms": [{"train": train, "held_out": held}],
+            },
+            "frames": {
+                "measurement": None,
+                "measured": None,
+                "markers": {},
+                "contacts": {chain.tool_frame: pose_dict(self.contact)},
+                "world_link": None,
+                "tool_link": chain.tool_frame,
+                "on_robot": False,
+            },
+            "objects": self._objects(),
+            "fit": fit_dict(orientation_weight=self.weight if any(self.kind.angular) else None),
+            "model_choice": model_choice(self.selection),
+            "outliers": [outlier_dict(o) for o in self.outliers],
+            "compliance": self._compliance(),
+            "model": {
+                "mdh_nominal": mdh.rows(),
+                "mdh_calibrated": self.calibrated.rows(),
+                "load": None if self.load is None else self._load(),
+            },
+            "warnings": list(self.notes),
+            "timings_ms": dict(self.timings_ms),
+        }
+        return build_report(fields, self._format2(), FORMAT2_MOVED)
+
+    def _objects(self) -> dict:
+        """The report's ``objects``: ``planes``, ``points`` or ``poses`` by id, in the base."""
+        base = self.chain.base_frame
+        return {
+            f"{self.kind.object_name}s": {
+                k: {"frame": base, **(pose_dict(T) or {})} for k, T in self.objects.items()
+            }
+        }
+
+    def _compliance(self) -> dict:
+        """Joint -> fitted compliance (0 where none was fitted)."""
+        c = np.zeros(self.chain.n) if self.compliance is None else self.compliance
+        return {j: float(v) for j, v in zip(self.chain.joint_names, c, strict=True)}
+
+    def _format2(self) -> dict:
+        """Format 2's keys that format 3 replaced (written until format 4)."""
         base = self.chain.base_frame
         angles = any(self.kind.angular)
         return {
-            "robot": self.chain.name,
             "base": base,
             "tool": self.chain.tool_frame,
             "measure": self.kind.label,
-            "accepted": self.accepted,
-            "refusal": self.refusal,
             "free": list(self.free),
             "selection": None if self.selection is None else self.selection.to_dict(),
             "tilt_weight": self.weight if angles else None,
@@ -206,19 +308,9 @@ class ContactCalibration:
                 "frames": {self.chain.tool_frame: {"matrix": self.contact.tolist()}},
             },
             "gaps": {k: v.to_dict() for k, v in self.stats.items()},
-            "outliers": [o.to_dict() for o in self.outliers],
-            "compliance": {
-                j: float(c)
-                for j, c in zip(
-                    self.chain.joint_names,
-                    np.zeros(self.chain.n) if self.compliance is None else self.compliance,
-                    strict=True,
-                )
-            },
             "load": None if self.load is None else self._load(),
             "calibrated_mdh": self.calibrated.rows(),
             "notes": list(self.notes),
-            "timings_ms": dict(self.timings_ms),
         }
 
     def _load(self) -> dict:

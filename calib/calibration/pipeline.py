@@ -332,6 +332,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
     pset, names = level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
+    _check_compliance(chain, torque, joints, opts)
     joints = [j for j in joints if compliance_name(j) not in opts.fix]
     base = frames_model(data, opts)
     ordered = tuple(
@@ -381,6 +382,28 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
+
+
+def _check_compliance(chain, torque, loaded: list[int], opts: Options) -> None:
+    """Refuse compliance asked for where gravity loads no joint (no masses) or not the one named.
+
+    Raises:
+        InvalidArgumentError: ``elastic`` (or a compliance in ``free``) on a chain whose URDF
+            gives its joints no gravity torque, or ``free`` naming an unloaded joint's.
+    """
+    if torque is None:
+        return
+    if not loaded:
+        raise InvalidArgumentError(
+            f"elastic (or a compliance in free) needs gravity torques, and {chain.urdf_path} "
+            f"gives none on the chain (no masses beyond it): drop elastic and the compliances"
+        )
+    for name in opts.free:
+        if name[:1] == "c" and name[1:].isdigit() and int(name[1:]) - 1 not in loaded:
+            raise InvalidArgumentError(
+                f"free {name} cannot be fitted: gravity loads joint {name[1:]} at none of the "
+                f"configurations (a compliance only shows under a torque); drop it from free"
+            )
 
 
 def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> int:

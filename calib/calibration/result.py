@@ -6,21 +6,33 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import pinocchio as pin
 
 from ..exceptions import CalibrationRefusedError, ConvergenceError
 from ..kinematics.elastic import gravity_in_base
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
-from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base
+from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from .model import ErrorModel, State
 from .outliers import Outlier
+from .report import (
+    FORMAT2_MOVED,
+    REPORT_FORMAT,
+    build_report,
+    finite,
+    finite_tree,
+    fit_dict,
+    model_choice,
+    outlier_dict,
+    parameter_entries,
+    pose_dict,
+    term_dict,
+    verdict,
+)
 from .selection import Selection
 
 __all__ = [
-    "DEPRECATED",
     "REPORT_FORMAT",
     "CalibrationResult",
     "ResidualStats",
@@ -65,8 +77,20 @@ class ResidualStats:
             orientation_max=None if rot is None else float(np.max(rot)),
         )
 
+    def in_mm(self) -> dict:
+        """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
+        deg = math.degrees(1.0)
+        rot = (self.orientation_rms, self.orientation_max)
+        return {
+            "configs": self.configs,
+            "position_rms_mm": finite(1e3 * self.position_rms),
+            "position_max_mm": finite(1e3 * self.position_max),
+            "orientation_rms_deg": None if rot[0] is None else finite(deg * rot[0]),
+            "orientation_max_deg": None if rot[1] is None else finite(deg * rot[1]),
+        }
+
     def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians)."""
+        """JSON-ready form (metres, radians; format 2's)."""
         return {
             "configs": self.configs,
             "position_rms": finite(self.position_rms),
@@ -102,8 +126,18 @@ class Validation:
         """Errors of the calibrated URDF alone (no compliance; ``calibrated`` without any)."""
         return self.calibrated if self.urdf is None else self.urdf
 
+    def in_mm(self) -> dict:
+        """The report's ``errors.held_out`` (format 3): mm and degrees."""
+        return {
+            "source": self.source,
+            "registration": self.registration.in_mm(),
+            "calibrated": self.calibrated.in_mm(),
+            "urdf": self.geometry.in_mm(),
+            "predicted_std_mm": finite(1e3 * self.predicted_std),
+        }
+
     def to_dict(self) -> dict:
-        """JSON-ready form."""
+        """JSON-ready form (format 2's)."""
         return {
             "source": self.source,
             "registration": self.registration.to_dict(),
@@ -226,15 +260,25 @@ class CalibrationResult:
         return (self.state.markers - T[:3, 3]) @ T[:3, :3]
 
     @property
+    def urdf_tool_frame(self) -> str:
+        """The written URDF's frame of the calibrated tool (the measured frame, the markers').
+
+        The tool frame, or ``<tool>_calibrated`` where the tool link is the last joint's.
+        """
+        return urdf_tool_frame(self.chain)
+
+    @property
     def marker_links(self) -> tuple[str, ...]:
         """Names of the marker links of the written URDF."""
         return marker_link_names(self.chain.tool_frame, self.state.n_markers)
 
-    def urdf(self, world_link: str | None = None) -> bytes:
+    def urdf(self, world_link: str | None = None, on_robot: bool = False) -> bytes:
         """The calibrated URDF: joints, tool (measured frame), marker links, world link.
 
         Args:
             world_link: Add the measurement frame as this root link (None: not added).
+            on_robot: The instrument is the base frame, on the robot (a head camera): its
+                fitted placement is written into the base frame's fixed joint.
 
         Raises:
             CalibError: As :func:`calib.kinematics.urdf_export.calibrated_urdf`.
@@ -247,6 +291,7 @@ class CalibrationResult:
             tool=self.tool_placement,
             markers=self.urdf_markers,
             world=world,
+            on_robot=self.measurement_to_base if on_robot else None,
         )
 
     def check(self) -> CalibrationResult:
@@ -269,34 +314,83 @@ class CalibrationResult:
         """
         return self.state.predict(np.atleast_2d(q))[0]
 
-    def to_dict(self, world_link: str | None = None) -> dict:
-        """JSON-ready report (radians, metres); undefined or infinite numbers are None.
+    def to_dict(self, world_link: str | None = None, on_robot: bool = False) -> dict:
+        """The JSON report (format 3, :mod:`calib.calibration.report`).
 
         Args:
             world_link: The ``--world-link`` the URDF was written with (None: none).
+            on_robot: The URDF was written with the instrument on the robot (its base frame's
+                placement calibrated: ``frames.measurement`` is in the URDF).
         """
-        T = self.measurement_to_base
-        report = {
-            "format_version": REPORT_FORMAT,
-            "deprecated": dict(DEPRECATED),
+        chain, mdh = self.chain, self.nominal
+        train = {
+            "registration": self.before.in_mm(),
+            "calibrated": self.after.in_mm(),
+            "urdf": (self.after if self.urdf_after is None else self.urdf_after).in_mm(),
+        }
+        held = None if self.validation is None else self.validation.in_mm()
+        fields = {
             "robot": self.robot,
-            "urdf": str(self.chain.urdf_path),
+            "urdf": str(chain.urdf_path),
+            "shape": "chain",
+            "terms": [
+                term_dict(
+                    chain.base_frame,
+                    chain.tool_frame,
+                    self.data.measure,
+                    self.data.source,
+                    self.data.m,
+                )
+            ],
+            **verdict(self.level, self.refusal, (self.converged, self.message, self.iterations)),
+            "parameters": parameter_entries(
+                self.names, self.estimate, self.std, mdh.joint_names, mdh.sigma, self.prior
+            ),
+            "errors": {
+                "train": train,
+                "held_out": held,
+                "terms": [{"train": train, "held_out": held}],
+            },
+            "frames": {
+                "measurement": pose_dict(self.measurement_to_base),
+                "measured": pose_dict(self.tool_placement),
+                "markers": dict(zip(self.marker_links, self.urdf_markers.tolist(), strict=True)),
+                "contacts": {},
+                "world_link": world_link,
+                "tool_link": self.urdf_tool_frame,
+                "on_robot": on_robot,
+            },
+            "objects": {},
+            "fit": fit_dict(
+                self.sigma, self.condition, self.predicted_std, self.orientation_weight
+            ),
+            "model_choice": model_choice(self.selection),
+            "outliers": [outlier_dict(o) for o in self.outliers],
+            "compliance": dict(
+                zip(mdh.joint_names[1:-1], self.state.compliance.tolist(), strict=True)
+            ),
+            "model": {
+                "mdh_nominal": mdh.rows(),
+                "mdh_calibrated": self.calibrated.rows(),
+                "gravity": _gravity_dict(chain),
+            },
+            "warnings": list(self.warnings),
+            "timings_ms": dict(self.timings_ms),
+        }
+        return build_report(fields, self._format2(world_link), FORMAT2_MOVED)
+
+    def _format2(self, world_link: str | None) -> dict:
+        """Format 2's keys that format 3 replaced (written until format 4)."""
+        return {
             "data": self.data.source,
             "base_frame": self.chain.base_frame,
             "tool_frame": self.chain.tool_frame,
             "measure": self.data.measure,
             "markers": self.urdf_markers.tolist(),
-            "marker": self.urdf_markers[0].tolist(),
             "marker_links": list(self.marker_links),
-            "measured_frame": _pose_dict(self.tool_placement),
+            "measured_frame": pose_dict(self.tool_placement),
             "world_link": world_link,
-            "params": self.level,
             "configs": self.data.m,
-            "accepted": self.accepted,
-            "refusal": self.refusal,
-            "converged": self.converged,
-            "message": self.message,
-            "iterations": self.iterations,
             "orientation_weight": self.orientation_weight,
             "residuals": {
                 "registration": self.before.to_dict(),
@@ -305,64 +399,16 @@ class CalibrationResult:
             },
             "validation": None if self.validation is None else self.validation.to_dict(),
             "selection": None if self.selection is None else self.selection.to_dict(),
-            "outliers": [o.to_dict() for o in self.outliers],
-            "sigma": finite(self.sigma),
-            "condition_number": finite(self.condition),
-            "predicted_std": finite(self.predicted_std),
-            "parameters": [
-                {"name": n, "value": v, "std": s, "prior_weight": p}
-                for n, v, s, p in zip(self.names, self.estimate, self.std, self.prior, strict=True)
-            ],
-            "compliance": dict(
-                zip(self.nominal.joint_names[1:-1], self.state.compliance.tolist(), strict=True)
-            ),
+            "sigma": self.sigma,
+            "condition_number": self.condition,
+            "predicted_std": self.predicted_std,
             "gravity": _gravity_dict(self.chain),
-            "measurement_to_base": _pose_dict(T),
+            "measurement_to_base": pose_dict(self.measurement_to_base),
             "mdh_nominal": self.nominal.rows(),
             "mdh_calibrated": self.calibrated.rows(),
-            "warnings": list(self.warnings),
-            "timings_ms": dict(self.timings_ms),
         }
-        return finite_tree(report)
-
-
-REPORT_FORMAT = "2"
-"""Version of the report's layout (``format_version``): raised when a key is renamed or
-removed (an added key keeps it)."""
-
-DEPRECATED = {
-    "marker": "format 2 renamed it 'markers' (one point per marker, in the URDF's tool frame); "
-    "'marker' (marker 1) is written until format 3",
-}
-"""Keys written under an old name for one more format, and why (the report's ``deprecated``)."""
-
-
-def _pose_dict(T: np.ndarray) -> dict:
-    """A pose ``(4, 4)`` as ``{xyz [m], rpy [rad], matrix}`` (JSON-ready)."""
-    T = np.asarray(T, dtype=float)
-    return {
-        "xyz": T[:3, 3].tolist(),
-        "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
-        "matrix": T.tolist(),
-    }
 
 
 def _gravity_dict(chain: Chain) -> dict:
     """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
     return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
-
-
-def finite(x: float | np.floating | None) -> float | None:
-    """``float(x)``, or None for None, an infinity or NaN."""
-    return float(x) if x is not None and math.isfinite(x) else None
-
-
-def finite_tree(value):
-    """A copy of a JSON-ready tree with every non-finite float replaced by None."""
-    if isinstance(value, dict):
-        return {k: finite_tree(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [finite_tree(v) for v in value]
-    if isinstance(value, (float, np.floating)):
-        return finite(value)
-    return value

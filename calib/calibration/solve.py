@@ -20,6 +20,7 @@ __all__ = [
     "condition",
     "covariance",
     "fit",
+    "fitted_values",
     "row_weights",
 ]
 
@@ -272,3 +273,26 @@ def condition(J: np.ndarray) -> float:
         return math.inf
     s = np.linalg.svd(J / norms, compute_uv=False)
     return float(s[0] / s[-1]) if s[-1] > 0 else math.inf
+
+
+def fitted_values(fitted: Fit, prior: np.ndarray | None) -> dict:
+    """A fit's free robot parameters for a result: names, values, std and the solver's outcome.
+
+    Args:
+        fitted: The fit (its first ``model.fixed`` columns are frames and objects).
+        prior: The prior weights it was fitted with (None: none).
+
+    Returns:
+        ``fitted`` (names), ``estimate``, ``std`` (NaN where undefined) and ``solver``
+        ``(converged, message, Jacobian evaluations)``.
+    """
+    fixed = fitted.model.fixed
+    cov, _ = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
+    with np.errstate(invalid="ignore"):
+        std = np.sqrt(np.diag(cov))[fixed:] if fitted.x.size else np.zeros(0)
+    return {
+        "fitted": tuple(fitted.model.names()[fixed:]),
+        "estimate": fitted.x[fixed:].copy(),
+        "std": std,
+        "solver": (fitted.converged, fitted.message, fitted.iterations),
+    }

@@ -7,6 +7,7 @@ import math
 import pinocchio as pin
 
 from ..identification.report import format_table
+from .report import parameter_entries, parameter_lines
 from .result import CalibrationResult, ResidualStats
 
 __all__ = ["calibration_text"]
@@ -56,13 +57,6 @@ def _selection(r: CalibrationResult) -> list[str]:
     return lines
 
 
-def _unit(name: str) -> tuple[float, str]:
-    if name.startswith("c"):
-        return 1.0, ""
-    angle = name.split(".")[-1] in ("rx", "ry", "rz") or name.startswith(("alpha", "beta", "theta"))
-    return 1e3, "mrad" if angle else "mm"
-
-
 def calibration_text(result: CalibrationResult) -> str:
     """Summary: level and selection, errors before/after, parameters, frame, markers, verdict."""
     r = result
@@ -78,13 +72,11 @@ def calibration_text(result: CalibrationResult) -> str:
         f"predicted position std (parameter uncertainty): {_mm(r.predicted_std)} mm at the fitted "
         f"configurations"
         + (f", {_mm(r.validation.predicted_std)} mm held out" if r.validation is not None else ""),
-        "parameters (change from the registration +- std):",
     ]
-    width = max((len(n) for n in r.names), default=0)
-    for name, v, s in zip(r.names, r.estimate, r.std, strict=True):
-        f, unit = _unit(name)
-        sd = f"{f * s:.4g}" if math.isfinite(s) else "-"
-        lines.append(f"  {name:>{width}} = {f * v:>10.4g} +- {sd:<9} {unit}")
+    mdh = r.nominal
+    lines += parameter_lines(
+        parameter_entries(r.names, r.estimate, r.std, mdh.joint_names, mdh.sigma)
+    )
     T = r.measurement_to_base
     rpy = pin.rpy.matrixToRpy(T[:3, :3])
     lines.append(
@@ -93,14 +85,22 @@ def calibration_text(result: CalibrationResult) -> str:
     )
     if r.state.tool_rotation is not None:
         X = r.tool_placement
+        where = (
+            "the URDF's tool joint"
+            if r.urdf_tool_frame == r.chain.tool_frame
+            else f"link {r.urdf_tool_frame} fixed to the tool link"
+        )
         lines.append(
-            f"measured frame in the calibrated tool frame (written into the URDF's tool joint): "
+            f"measured frame in the calibrated tool frame (written into {where}): "
             f"xyz [{', '.join(f'{v:.6f}' for v in X[:3, 3])}] m, "
             f"rpy [{', '.join(f'{v:.6f}' for v in pin.rpy.matrixToRpy(X[:3, :3]))}] rad"
         )
+    same = r.urdf_tool_frame == r.chain.tool_frame
+    moved = "" if same else f" ({r.urdf_tool_frame})"
     for name, mk in zip(r.marker_links, r.urdf_markers, strict=True):
         lines.append(
-            f"marker {name} in the URDF's tool frame: [{', '.join(f'{v:.6f}' for v in mk)}] m"
+            f"marker {name} in the URDF's tool frame{moved}: "
+            f"[{', '.join(f'{v:.6f}' for v in mk)}] m"
         )
     lines += [
         f"outlier: {o.text()}, median "

@@ -13,7 +13,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import pinocchio as pin
 
 from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
@@ -28,7 +27,18 @@ from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from . import determined, diagnosis, outliers, validation
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, Options, checked_arguments
-from .result import REPORT_FORMAT, ResidualStats, finite, finite_tree
+from .report import (
+    FORMAT2_MOVED,
+    build_report,
+    fit_dict,
+    outlier_dict,
+    parameter_entries,
+    parameter_lines,
+    pose_dict,
+    term_dict,
+    verdict,
+)
+from .result import ResidualStats
 from .solve import Fit, covariance, fit
 from .tree import TreeErrorModel, TreeState, register_tree
 
@@ -75,6 +85,7 @@ class TreeCalibrationResult:
         message: Solver message of the final fit.
         warnings: Reasons to be careful with the result.
         timings_ms: Time of each stage [ms].
+        held_source: The held-out rows' source (``holdout`` or the validation file), or None.
     """
 
     tree: Tree
@@ -99,6 +110,7 @@ class TreeCalibrationResult:
     message: str = ""
     warnings: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
+    held_source: str | None = None
 
     @property
     def accepted(self) -> bool:
@@ -117,7 +129,61 @@ class TreeCalibrationResult:
         return self
 
     def to_dict(self) -> dict:
-        """JSON-ready report (metres, radians)."""
+        """The JSON report (format 3, :mod:`calib.calibration.report`)."""
+        tools, mdh = self.state.mdh.tool_frames, self.nominal
+        data = self.data
+        train = _errors(self.before, self.after)
+        held = None
+        if self.validation is not None:
+            held = {"source": self.held_source, **_errors(*self.validation)}
+        held_by_tool = {e.tool: e for e in self.held_per_tool}
+        terms, per_term = [], []
+        for e in self.per_tool:
+            rows = sum(t == e.tool for t in data.tool) if data is not None and data.tool else 0
+            source = None if data is None else data.source
+            terms.append(term_dict(self.tree.base_frame, e.tool, "position", source, rows))
+            h = held_by_tool.get(e.tool)
+            per_term.append(
+                {
+                    "train": _errors(e.registration, e.calibrated),
+                    "held_out": None
+                    if h is None
+                    else {"source": self.held_source, **_errors(h.registration, h.calibrated)},
+                }
+            )
+        links = {t: marker_link_names(t, 1)[0] for t in tools}
+        fields = {
+            "robot": self.tree.name,
+            "urdf": str(self.tree.urdf_path),
+            "shape": "tree",
+            "terms": terms,
+            **verdict(self.level, self.refusal, (self.converged, self.message, self.iterations)),
+            "parameters": parameter_entries(
+                self.names, self.estimate, self.std, mdh.joint_names, mdh.sigma
+            ),
+            "errors": {"train": train, "held_out": held, "terms": per_term},
+            "frames": {
+                "measurement": pose_dict(self.measurement_to_base),
+                "measured": None,
+                "markers": {links[t]: self.state.markers[k].tolist() for k, t in enumerate(tools)},
+                "contacts": {},
+                "world_link": None,
+                "tool_link": None,
+                "on_robot": False,
+            },
+            "objects": {},
+            "fit": fit_dict(),
+            "model_choice": None,
+            "outliers": [outlier_dict(o) for o in self.outliers],
+            "compliance": {},
+            "model": {"mdh_nominal": mdh.rows(), "mdh_calibrated": self.state.mdh.rows()},
+            "warnings": list(self.warnings),
+            "timings_ms": dict(self.timings_ms),
+        }
+        return build_report(fields, self._format2(), FORMAT2_MOVED)
+
+    def _format2(self) -> dict:
+        """Format 2's keys that format 3 replaced (written until format 4)."""
         tools = self.state.mdh.tool_frames
 
         def per_tool(errors):
@@ -130,23 +196,12 @@ class TreeCalibrationResult:
                 for e in errors
             ]
 
-        T = self.measurement_to_base
-        report = {
-            "format_version": REPORT_FORMAT,
-            "deprecated": {},
-            "robot": self.tree.name,
-            "urdf": str(self.tree.urdf_path),
+        return {
             "data": None if self.data is None else self.data.source,
             "base_frame": self.tree.base_frame,
             "tools": list(tools),
             "measure": "position",
-            "params": self.level,
             "rows": self.rows,
-            "accepted": self.accepted,
-            "refusal": self.refusal,
-            "converged": self.converged,
-            "message": self.message,
-            "iterations": self.iterations,
             "residuals": {
                 "registration": self.before.to_dict(),
                 "calibrated": self.after.to_dict(),
@@ -159,22 +214,10 @@ class TreeCalibrationResult:
                 "calibrated": self.validation[1].to_dict(),
                 "per_tool": per_tool(self.held_per_tool),
             },
-            "parameters": [
-                {"name": n, "value": float(v), "std": finite(s)}
-                for n, v, s in zip(self.names, self.estimate, self.std, strict=True)
-            ],
             "markers": {t: self.state.markers[k].tolist() for k, t in enumerate(tools)},
             "marker_links": {t: marker_link_names(t, 1)[0] for t in tools},
-            "measurement_to_base": {
-                "xyz": T[:3, 3].tolist(),
-                "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
-                "matrix": T.tolist(),
-            },
-            "outliers": [o.to_dict() for o in self.outliers],
-            "warnings": list(self.warnings),
-            "timings_ms": dict(self.timings_ms),
+            "measurement_to_base": pose_dict(self.measurement_to_base),
         }
-        return finite_tree(report)
 
     def text(self) -> str:
         """A terminal summary: errors per tool, then the parameters."""
@@ -200,9 +243,10 @@ class TreeCalibrationResult:
                     f"  {label:8s} {e.tool}: {mm * e.registration.position_rms:.4g} -> "
                     f"{mm * e.calibrated.position_rms:.4g} mm RMS"
                 )
-        lines.append("parameters (change from the registration +- std):")
-        for n, v, s in zip(self.names, self.estimate, self.std, strict=True):
-            lines.append(f"  {n:>28s} = {v:12.6g} +- {s:.4g}")
+        mdh = self.nominal
+        lines += parameter_lines(
+            parameter_entries(self.names, self.estimate, self.std, mdh.joint_names, mdh.sigma)
+        )
         lines += [f"warning: {w}" for w in self.warnings]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)
@@ -438,6 +482,12 @@ def _generic_count(tree: Tree, wide: TreeErrorModel, state: TreeState, seed: int
     return len(independent_columns(J, list(range(J.shape[1])))[2])
 
 
+def _errors(registration: ResidualStats, calibrated: ResidualStats) -> dict:
+    """``registration``, ``calibrated`` and ``urdf`` (the calibrated model: no compliance)."""
+    cal = calibrated.in_mm()
+    return {"registration": registration.in_mm(), "calibrated": cal, "urdf": cal}
+
+
 def _per_tool(state_a, state_b, data, tools) -> tuple[ToolErrors, ...]:
     out = []
     for name in tools:
@@ -485,6 +535,7 @@ def _tree_result(tree, level, train, held, fitted: Fit, reg: TreeState) -> TreeC
         per_tool=_per_tool(reg, fitted.state, train, tools),
         validation=val,
         held_per_tool=() if held is None else _per_tool(reg, fitted.state, held, tools),
+        held_source=None if held is None else held.source,
         converged=fitted.converged,
         refusal=reason,
         rows=train.m,

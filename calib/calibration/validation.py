@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
+from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .diagnosis import suspect
 from .result import ResidualStats
@@ -79,20 +80,29 @@ def _same_file(a: str, b: str) -> bool:
         return False
 
 
-def _values(data: Measurements) -> np.ndarray:
-    """Each row's joint values, points (and quaternion) as one vector."""
+def _values(data) -> tuple[np.ndarray, tuple[str, ...] | None]:
+    """Each row's numbers (joints, points, quaternion) and its label (tool, or touched id)."""
+    if isinstance(data, ContactData):
+        return data.q, data.ids
     parts = [data.q, data.position]
     if data.quaternion is not None:
         parts.append(data.quaternion)
-    return np.hstack(parts)
+    return np.hstack(parts), data.tool
 
 
-def check_held_out(data: Measurements, held: Measurements) -> None:
+def _row(data, i: int) -> int:
+    """Row of configuration (or touch) i in its source (i + 1 without a file)."""
+    return data.rows[i] if data.rows is not None else i + 1
+
+
+def check_held_out(data: Measurements | ContactData, held: Measurements | ContactData) -> None:
     """Refuse validation data that are the training data: the file, or any of its rows.
 
+    Measurements and touches alike (any kind): a validation row that is a training row (the
+    same joint values, and the same measurements, tool or touched object) is refused.
+
     Raises:
-        DataError: ``held`` comes from the training file, or a row of it is a training row
-            (the same joint values and measurements).
+        DataError: ``held`` comes from the training file, or a row of it is a training row.
     """
     if _same_file(data.source, held.source):
         raise DataError(
@@ -100,13 +110,11 @@ def check_held_out(data: Measurements, held: Measurements) -> None:
             "the validation file is the data file: held out must mean held out (give other "
             "configurations, or a holdout fraction)",
         )
-    if data.tool is not None and held.tool is not None:
-        tools = sorted(set(data.tool) | set(held.tool))
-        index = {t: float(i) for i, t in enumerate(tools)}
-        extra = [np.array([[index[t]] for t in tool]) for tool in (data.tool, held.tool)]
-    else:
-        extra = [np.zeros((d.m, 0)) for d in (data, held)]
-    a, b = np.hstack([_values(data), extra[0]]), np.hstack([_values(held), extra[1]])
+    (a, la), (b, lb) = _values(data), _values(held)
+    if la is not None and lb is not None:
+        index = {t: float(i) for i, t in enumerate(sorted(set(la) | set(lb)))}
+        a = np.hstack([a, [[index[t]] for t in la]])
+        b = np.hstack([b, [[index[t]] for t in lb]])
     if a.shape[1] != b.shape[1]:
         return
     _, inverse = np.unique(np.vstack([a, b]), axis=0, return_inverse=True)
@@ -118,7 +126,7 @@ def check_held_out(data: Measurements, held: Measurements) -> None:
         raise DataError(
             held.source,
             f"{int(repeated.sum())} of the {held.m} validation rows are rows of the data "
-            f"(row {held.row_of(i)} is row {data.row_of(j)} of {data.source}): held out must "
+            f"(row {_row(held, i)} is row {_row(data, j)} of {data.source}): held out must "
             f"mean held out",
         )
 
@@ -213,7 +221,24 @@ def refusal(
             f"alone ({1e3 * held[1].position_rms:.3g} mm vs {1e3 * held[0].position_rms:.3g} mm "
             f"RMS): it would make the robot less accurate"
         )
+    rotation = None if held is None else _worse_orientation(*held)
+    if rotation is not None:
+        return (
+            f"on held-out configurations the calibrated model's orientation is worse than the "
+            f"registration alone's ({1e3 * rotation[1]:.3g} mrad vs {1e3 * rotation[0]:.3g} "
+            f"mrad RMS): it would make the robot less accurate"
+        )
     return None
+
+
+def _worse_orientation(
+    registration: ResidualStats, calibrated: ResidualStats
+) -> tuple[float, float] | None:
+    """The orientation RMS [rad] of both where the calibrated model's is the worse, else None."""
+    reg, cal = registration.orientation_rms, calibrated.orientation_rms
+    if reg is None or cal is None or cal <= reg * (1 + SAME):
+        return None
+    return reg, cal
 
 
 def urdf_alone_warning(

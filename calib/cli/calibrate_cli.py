@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 
 from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
@@ -22,15 +22,14 @@ from . import contact_chains_cli, contact_cli
 from .common import (
     BooleanOnce,
     add_chain_args,
+    check_applicable,
     check_output_paths,
     compliance_path,
-    one_line,
     tool_arg,
     write_calibration,
 )
 
 __all__ = [
-    "CHAIN_ONLY",
     "add_calibrate_parser",
     "cmd_calibrate",
     "compliance_path",
@@ -69,14 +68,17 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """
     with _recorded_warnings() as recorded:
         if args.chain is not None or args.loop is not None:
-            return contact_chains_cli.calibrate_chains_command(args)
+            check_applicable(args, "chains")
+            return contact_chains_cli.calibrate_chains_command(args, recorded)
         if args.data is None:
             raise InvalidArgumentError(
                 "--data is required (or --chain BASE TOOL DATA, once per chain, for contacts)"
             )
         chain = load_robot(args.robot, args.base, tool_arg(args))
-        if contact_cli.is_contact_run(args):
-            return contact_cli.calibrate_contacts_command(args, chain)
+        if args.measure in CONTACT_NAMES:
+            check_applicable(args, "contacts")
+            return contact_cli.calibrate_contacts_command(args, chain, recorded)
+        check_applicable(args, "tree" if chain.is_tree else "chain")
         if chain.is_tree:
             return _calibrate_tree(args, chain, recorded)
         return _calibrate_chain(args, chain, recorded)
@@ -99,16 +101,6 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
     finally:
         for w in pending:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-
-
-def _with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:
-    """The report with the recorded warnings added to its ``warnings`` (each once, in order)."""
-    lines = list(report.get("warnings", []))
-    for w in recorded:
-        text = one_line(w.message)
-        if issubclass(w.category, UserWarning) and text not in lines:
-            lines.append(text)
-    return {**report, "warnings": lines}
 
 
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
@@ -147,7 +139,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
 
     def files() -> dict[Path, str | bytes]:
         try:
-            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link)}
+            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link, args.on_robot)}
         except InvalidArgumentError as exc:  # the library names the keyword: say the flag
             text = str(exc)
             if not text.startswith("world_link:"):
@@ -159,16 +151,17 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
                     f"--out {out} is no regular file: the fitted compliance cannot be written "
                     f"next to it (give a file, or --no-elastic)"
                 )
-            urdf[comp] = json_text(compliance_document(result, str(out)))
+            urdf[comp] = json_text(compliance_document(result, str(out), args.on_robot))
         return urdf
 
     return write_calibration(
         args,
-        _with_warnings(result.to_dict(args.world_link), recorded),
+        result.to_dict(args.world_link, args.on_robot),
         lambda: calibration_text(result),
         result.refusal,
         files,
         (out, report),
+        recorded,
     )
 
 
@@ -178,7 +171,7 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
 
     columns = _columns(args)
     data = read_measurements(args.data, chain, columns)
-    _check_links(chain, data.n_markers, args.world_link)  # before the fit
+    _check_links(chain, data.n_markers, args.world_link, args.on_robot)  # before the fit
     check = read_measurements(args.validate, chain, columns) if args.validate else None
     kind = _data_kind(args)
     if kind is not None and kind.is_position:
@@ -189,9 +182,10 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
     return data, check
 
 
-def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
+def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot: bool) -> None:
     """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
     from ..kinematics.urdf_export import (
+        base_joint,
         check_base_fixed,
         check_exportable,
         child_link,
@@ -206,6 +200,15 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None) -> None:
     kept = marker_joints(root, chain.tool_frame, tool_link, n_markers)
     names = marker_link_names(chain.tool_frame, n_markers)
     check_new_names(root, tuple(n for n in names if n not in kept), "marker links")
+    if on_robot:
+        if world_link is not None:
+            raise InvalidArgumentError(
+                "--on-robot and --world-link: the instrument is on the robot or in the world"
+            )
+        try:
+            base_joint(root, chain)
+        except CalibError as exc:  # the library names the keyword: say the flag
+            raise CalibError(f"--on-robot{str(exc).removeprefix('on_robot')}") from None
     if world_link is not None:
         check_new_names(root, (world_link,), "--world-link")
         try:
@@ -224,22 +227,6 @@ def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Pa
     return out, report
 
 
-CHAIN_ONLY: dict[str, object] = {
-    "fix": [],
-    "free": [],
-    "elastic": None,
-    "loss": "linear",
-    "noise_mm": None,
-    "orientation_weight": None,
-    "marker": None,
-    "units": "m",
-    "orientation": "auto",
-    "orientation_columns": None,
-    "world_link": None,
-}
-"""Options of `calibrate` a tree calibration does not take, at their defaults."""
-
-
 def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
     from ..calibration.options import TREE_LEVELS
@@ -248,12 +235,6 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     from ..kinematics.urdf_export import check_exportable
     from ..measurements.csvfile import read_measurements
 
-    given = [k for k, v in CHAIN_ONLY.items() if getattr(args, k) != v]
-    if given:
-        raise InvalidArgumentError(
-            f"--{given[0].replace('_', '-')} is for one chain; a tree is calibrated with "
-            f"--params {'|'.join(TREE_LEVELS)}, --validate, --holdout, --seed, --max-iterations"
-        )
     if args.params not in (None, *TREE_LEVELS):
         raise InvalidArgumentError(
             f"--params {args.params} is for one chain: a tree is calibrated with --params "
@@ -285,13 +266,14 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     )
     return write_calibration(
         args,
-        _with_warnings(result.to_dict(), recorded),
+        result.to_dict(),
         result.text,
         result.refusal,
         lambda: {
             out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh, result.state.markers)
         },
         (out, report),
+        recorded,
     )
 
 
@@ -333,6 +315,12 @@ def add_calibrate_parser(sub) -> None:
         metavar="NAME",
         help="also write the measurement frame as link NAME, the new root of the URDF: forward "
         "kinematics from NAME gives measured coordinates",
+    )
+    p.add_argument(
+        "--on-robot",
+        action="store_true",
+        help="the instrument is the base frame itself, on the robot (a head camera measuring "
+        "the hand): its calibrated placement is written into the base frame's fixed joint",
     )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_calibrate)

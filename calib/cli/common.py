@@ -18,17 +18,20 @@ from typing import NoReturn
 
 from ..core.choices import DEFAULT_CONFIGS
 from ..core.fileio import check_outputs, json_text, write_files_atomic
-from ..exceptions import CalibrationRefusedError
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..kinematics.catalog import catalog_files, installed_dirs
 
 __all__ = [
+    "APPLIES",
     "GIVEN",
+    "SHAPE_LABELS",
     "BooleanOnce",
     "Parser",
     "add_chain_args",
     "add_marker_arg",
     "add_measure_args",
     "add_sampling_args",
+    "check_applicable",
     "check_output_paths",
     "compliance_path",
     "given_options",
@@ -37,6 +40,7 @@ __all__ = [
     "print_json",
     "tool_arg",
     "warning_lines",
+    "with_warnings",
     "write_calibration",
     "write_outputs",
 ]
@@ -109,6 +113,61 @@ def given_options(args: argparse.Namespace, dests) -> list[str]:
     """The options among ``dests`` (argparse dests) the user gave, as typed (``--no-x``)."""
     given = getattr(args, "given", {})
     return [given[d] for d in dests if given.get(d)]
+
+
+SHAPE_LABELS = {
+    "chain": "one chain measured by an instrument",
+    "tree": "a tree (several --tool)",
+    "contacts": "contact kinds (--measure plane|plane-point|fixed-point|fixed-pose)",
+    "chains": "several contact chains (--chain/--loop)",
+}
+"""What ``calibrate`` builds, by shape, in the words of its messages."""
+
+APPLIES: dict[str, tuple[str, ...]] = {
+    "marker": ("chain",),
+    "fix": ("chain",),
+    "free": ("chain",),
+    "loss": ("chain",),
+    "noise_mm": ("chain",),
+    "units": ("chain", "tree"),
+    "orientation": ("chain",),
+    "orientation_columns": ("chain",),
+    "world_link": ("chain",),
+    "on_robot": ("chain",),
+    "elastic": ("chain", "contacts"),
+    "orientation_weight": ("chain", "contacts", "chains"),
+    "contact": ("contacts", "chains"),
+    "other_foot": ("contacts",),
+    "pose_weight": ("chains",),
+    "shared_planes": ("chains",),
+    "base": ("chain", "tree", "contacts"),
+    "tool": ("chain", "tree", "contacts"),
+    "data": ("chain", "tree", "contacts"),
+    "validate": ("chain", "tree", "contacts"),
+}
+"""The one table of ``calib calibrate``'s options that apply to some shapes only: option
+(argparse dest) -> the shapes it applies to. Every other option applies to every shape; one
+given where it does not apply is an error (:func:`check_applicable`)."""
+
+
+def check_applicable(args: argparse.Namespace, shape: str) -> None:
+    """Refuse an option of :data:`APPLIES` given where it does not apply.
+
+    Args:
+        args: ``calibrate``'s arguments (with ``given``, the options typed).
+        shape: ``chain``, ``tree``, ``contacts`` or ``chains``.
+
+    Raises:
+        InvalidArgumentError: The first such option, saying what it is for.
+    """
+    for dest, shapes in APPLIES.items():
+        typed = given_options(args, (dest,))
+        if shape in shapes or not typed:
+            continue
+        flag = typed[0]
+        labels = [SHAPE_LABELS[s] for s in shapes]
+        where = labels[0] if len(labels) == 1 else f"{', '.join(labels[:-1])} or {labels[-1]}"
+        raise InvalidArgumentError(f"{flag} is for {where}, not {SHAPE_LABELS[shape]}")
 
 
 def positive_number(text: str) -> float:
@@ -233,23 +292,35 @@ def compliance_path(out: Path) -> Path:
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
 
 
-def write_calibration(args, report_dict, text, refusal, urdf, paths) -> int:
+def with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:
+    """The report with the recorded warnings added to its ``warnings`` (each once, in order)."""
+    lines = list(report.get("warnings", []))
+    for w in recorded:
+        text = one_line(w.message)
+        if issubclass(w.category, UserWarning) and text not in lines:
+            lines.append(text)
+    return {**report, "warnings": lines}
+
+
+def write_calibration(args, report_dict, text, refusal, urdf, paths, recorded=()) -> int:
     """Print the result; write the URDF and report, or only the report of a refused model.
 
     Args:
         args: The command's arguments (``--json``).
-        report_dict: The JSON report.
+        report_dict: The JSON report (the ``recorded`` warnings are added to its
+            ``warnings``).
         text: Returns the text printed without ``--json``.
         refusal: Why the model must not be written, or None.
         urdf: Returns the files of an accepted model: the calibrated URDF (and the
             compliance file) by path (called only for an accepted model).
         paths: ``(--out, --report or None)``.
+        recorded: Warnings raised on the way (the data's, the fit's).
 
     Raises:
         CalibrationRefusedError: The model was refused (no URDF is written).
     """
     report = paths[1]
-    doc = json_text(report_dict)
+    doc = json_text(with_warnings(report_dict, recorded))
     print(doc if args.json else text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:

@@ -57,21 +57,6 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-_EXCLUDED = {
-    "base": "--base",
-    "tool": "--tool",
-    "data": "--data",
-    "validate": "--validate",
-    "marker": "--marker",
-    "fix": "--fix",
-    "free": "--free",
-    "elastic": "--elastic",
-    "other_foot": "--other-foot",
-    "noise_mm": "--noise-mm",
-    "world_link": "--world-link",
-}
-
-
 def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None, bool]]:
     """The chains asked for: (base, tool, data, validation or None, is a loop)."""
     if not args.chain:
@@ -80,11 +65,6 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None, bo
         raise InvalidArgumentError("--pose-weight weighs the rows of --loop: give --loop too")
     if args.measure != "plane":
         raise InvalidArgumentError("--chain takes --measure plane")
-    for dest, flag in _EXCLUDED.items():
-        if getattr(args, dest, None) not in (None, [], False):
-            raise InvalidArgumentError(f"{flag} is not available with --chain")
-    if args.loss != "linear":
-        raise InvalidArgumentError("--loss is not available with --chain")
     if args.params == "paper":
         raise InvalidArgumentError("--params paper is a chain's MDH set: not with --chain")
     if args.contact is not None and len(args.contact) not in (3, 6):
@@ -101,8 +81,10 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None, bo
     return out
 
 
-def calibrate_chains_command(args: argparse.Namespace) -> int:
+def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     """Calibrate several chains from contact CSVs; write the URDF (if accepted) and the report.
+
+    ``recorded``: the warnings raised on the way, for the report's ``warnings``.
 
     Raises:
         CalibrationRefusedError: The model was refused (the report only is written).
@@ -154,4 +136,5 @@ def calibrate_chains_command(args: argparse.Namespace) -> int:
         result.refusal,
         lambda: {out: result.urdf()},
         (out, report),
+        recorded,
     )

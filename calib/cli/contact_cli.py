@@ -7,12 +7,11 @@ from pathlib import Path
 
 from ..core.fileio import check_outputs, json_text, written_in_place
 from ..exceptions import InvalidArgumentError
-from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .common import compliance_path, write_calibration
 
-__all__ = ["add_contact_arguments", "calibrate_contacts_command", "is_contact_run"]
+__all__ = ["add_contact_arguments", "calibrate_contacts_command"]
 
 
 def add_contact_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,41 +33,7 @@ def add_contact_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def is_contact_run(args: argparse.Namespace) -> bool:
-    """Whether ``calibrate`` was asked for a contact kind (``--contact`` alone is an error).
-
-    Raises:
-        InvalidArgumentError: ``--contact`` with a measured kind.
-    """
-    if args.measure in CONTACT_NAMES:
-        return True
-    if getattr(args, "other_foot", None) is not None:
-        raise InvalidArgumentError(
-            f"--other-foot is for contact kinds, not --measure {args.measure}"
-        )
-    if getattr(args, "contact", None) is not None:
-        raise InvalidArgumentError(
-            f"--contact is for contact kinds ({', '.join(CONTACT_NAMES)}), not --measure "
-            f"{args.measure}"
-        )
-    return False
-
-
-_MEASURED_ONLY: dict[str, object] = {
-    "marker": None,
-    "fix": [],
-    "free": [],
-    "loss": "linear",
-    "noise_mm": None,
-    "world_link": None,
-}
-
-
 def _check_args(args: argparse.Namespace) -> None:
-    for name, default in _MEASURED_ONLY.items():
-        if getattr(args, name, default) not in (default, None, []):
-            flag = "--" + name.replace("_", "-")
-            raise InvalidArgumentError(f"{flag} is not available with --measure {args.measure}")
     if args.contact is not None and len(args.contact) not in (3, 6):
         raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
 
@@ -95,8 +60,10 @@ def _support(args: argparse.Namespace):
     return Support(given[0], share)
 
 
-def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) -> int:
+def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, recorded=()) -> int:
     """Calibrate from a contact CSV; write the URDF (if accepted) and the report.
+
+    ``recorded``: the warnings raised on the way, for the report's ``warnings``.
 
     Raises:
         CalibrationRefusedError: The model was refused (the report only is written).
@@ -147,11 +114,13 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree) ->
         return files
 
     return write_calibration(
-        args, result.to_dict(), lambda: _text(result), result.refusal, urdf, (out, report)
+        args, result.to_dict(), lambda: _text(result), result.refusal, urdf, (out, report), recorded
     )
 
 
 def _text(result) -> str:
+    from ..calibration.report import parameter_lines
+
     kind = result.kind
     ids = ", ".join(f"'{k}'" for k in result.objects)
     units = ["deg" if a else "mm" for a in kind.angular]
@@ -181,5 +150,6 @@ def _text(result) -> str:
             + ", ".join(f"{k} {v:.3g}" for k, v in result.to_dict()["compliance"].items() if v)
             + " [rad/(N m)]"
         )
+    lines += parameter_lines(result.to_dict()["parameters"])
     lines += [f"note: {n}" for n in result.notes]
     return "\n".join(lines)

@@ -44,6 +44,7 @@ from ..exceptions import (
 )
 from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
+from .report_view import compliance_fields
 from .robot import Chain, load_chain, pin_configurations
 from .standing import JointReadings, StandingLoad, Support, standing_load
 from .urdf_model import build_model, read_urdf_file
@@ -245,12 +246,14 @@ class ElasticModel:
         return T[:, None, :3, 3] + np.einsum("mij,kj->mki", T[:, :3, :3], self.markers)
 
 
-def compliance_document(result, urdf: str) -> dict:
+def compliance_document(result, urdf: str, on_robot: bool = False) -> dict:
     """The compliance file of a calibration result (JSON-ready).
 
     Args:
         result: A :class:`~calib.calibration.CalibrationResult`.
         urdf: The calibrated URDF it goes with (as written).
+        on_robot: The URDF holds the instrument's placement (its base frame's fixed joint):
+            the measurement frame is then the base frame.
     """
     chain = result.chain
     units = ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma]
@@ -261,12 +264,14 @@ def compliance_document(result, urdf: str) -> dict:
         "robot": result.robot,
         "urdf": urdf,
         "base_frame": chain.base_frame,
-        "tool_frame": chain.tool_frame,
+        "tool_frame": result.urdf_tool_frame,
         "joints": list(chain.joint_names),
         "compliance": result.state.compliance.tolist(),
         "units": units,
         "gravity": {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()},
-        "measurement_to_base": np.asarray(result.measurement_to_base).tolist(),
+        "measurement_to_base": (
+            np.eye(4) if on_robot else np.asarray(result.measurement_to_base)
+        ).tolist(),
         "markers": result.urdf_markers.tolist(),
         "marker_links": list(result.marker_links),
         "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
@@ -419,7 +424,7 @@ def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
         CalibError: The URDF cannot be loaded with the recorded frames.
     """
     src = str(compliance)
-    doc = _read_json(compliance)
+    doc = compliance_fields(_read_json(compliance), src)
     base, tool, joints, c = _fields(doc, src)
     chain = load_chain(urdf, base, tool)
     if tuple(joints) != tuple(chain.joint_names):

@@ -42,11 +42,12 @@ from ..exceptions import CalibError, InvalidArgumentError, URDFError
 from .frames import frame_placement, joint_placements
 from .mdh import MDHModel, frames_at_zero
 from .robot import Chain
-from .urdf_links import add_marker_links, add_world_link
+from .urdf_links import add_marker_links, add_world_link, calibrated_tool_name, set_fixed_link
 from .urdf_xml import MAX_URDF_BYTES, parse_xml
 
 __all__ = [
     "NominalPoses",
+    "base_joint",
     "calibrated_urdf",
     "check_base_fixed",
     "check_exportable",
@@ -58,6 +59,8 @@ __all__ = [
     "read_urdf_source",
     "set_origin",
     "spliced",
+    "tool_on_moving_joint",
+    "urdf_tool_frame",
     "write_calibrated_urdf",
     "xml_layout",
 ]
@@ -135,26 +138,67 @@ def parent_link(joint: ET.Element) -> str:
     return "" if parent is None else parent.get("link", "")
 
 
-def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
-    """The fixed joint whose child link is the tool frame (or which is the tool frame)."""
-    frame = chain.model.frames[chain.tool_id]
+def _joints_carrying(root: ET.Element, chain: Chain, frame_id: int) -> list[ET.Element]:
+    """The URDF joints that carry a frame: its joint (a joint frame), or its link's parents."""
+    frame = chain.model.frames[frame_id]
     joints = root.findall("joint")
     if frame.type in (pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT):
-        found = [j for j in joints if j.get("name") == chain.tool_frame]
-    else:
-        found = [j for j in joints if child_link(j) == chain.tool_frame]
+        return [j for j in joints if j.get("name") == frame.name]
+    return [j for j in joints if child_link(j) == frame.name]
+
+
+def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
+    """The fixed joint whose child link is the tool frame (or which is the tool frame)."""
+    found = _joints_carrying(root, chain, chain.tool_id)
     if not found:
         raise CalibError(f"no URDF joint carries the tool frame '{chain.tool_frame}'")
     joint = found[0]
-    kind = joint.get("type", "")
-    if kind != "fixed":
+    if joint.get("type", "") != "fixed" and joint.get("name") != chain.joint_names[-1]:
         raise CalibError(
-            f"the tool frame '{chain.tool_frame}' is carried by the {kind} joint "
-            f"'{joint.get('name')}', not by a fixed joint: the calibrated tool placement has "
-            f"nowhere to go in the URDF (attach a tool link with a fixed joint and use it "
-            f"as the tool)"
+            f"the tool frame '{chain.tool_frame}' is carried by the {joint.get('type')} joint "
+            f"'{joint.get('name')}', which is not the chain's last joint"
         )
     return joint
+
+
+def base_joint(root: ET.Element, chain: Chain) -> ET.Element:
+    """The fixed joint that places the base frame on its link (an instrument on the robot).
+
+    Raises:
+        CalibError: The base frame is the root link or a link a joint moves: its calibrated
+            placement has nowhere to go in the URDF.
+    """
+    found = _joints_carrying(root, chain, chain.base_id)
+    if not found or found[0].get("type") != "fixed":
+        raise CalibError(
+            f"on_robot: the base frame '{chain.base_frame}' is not fixed to a link of the robot "
+            f"by a fixed joint (it is the root link, or a joint moves it): the instrument's "
+            f"calibrated placement has nowhere to go in the URDF"
+        )
+    return found[0]
+
+
+def tool_on_moving_joint(chain: Chain) -> bool:
+    """Whether the tool frame is the link of the chain's last joint (no fixed tool joint).
+
+    Then the calibrated URDF adds the calibrated tool (the measured frame, the markers'
+    frame) as a link ``<tool>_calibrated`` fixed to it (:func:`calibrated_urdf`).
+    """
+    model = chain.model
+    frame = model.frames[chain.tool_id]
+    if frame.type == pin.FrameType.JOINT:
+        return True
+    return (
+        frame.type == pin.FrameType.BODY
+        and model.frames[frame.parentFrame].type == pin.FrameType.JOINT
+    )
+
+
+def urdf_tool_frame(chain: Chain) -> str:
+    """The frame of the calibrated URDF that holds the calibrated tool and its markers."""
+    return (
+        calibrated_tool_name(chain.tool_frame) if tool_on_moving_joint(chain) else chain.tool_frame
+    )
 
 
 def set_origin(joint: ET.Element, T: np.ndarray) -> None:
@@ -248,6 +292,7 @@ def calibrated_urdf(
     tool: np.ndarray | None = None,
     markers: np.ndarray | None = None,
     world: tuple[str, np.ndarray] | None = None,
+    on_robot: np.ndarray | None = None,
 ) -> bytes:
     """The chain's URDF file with the calibrated joint and tool placements.
 
@@ -264,6 +309,10 @@ def calibrated_urdf(
         world: ``(name, T)``: add the link ``name`` as the parent of the URDF's root link,
             ``T`` ``(4, 4)`` the pose of the base frame in it (``measurement_to_base``), so
             that forward kinematics from ``name`` gives measured coordinates.
+        on_robot: The instrument is the base frame itself, on the robot (a head camera): its
+            fixed joint's origin is moved by ``measurement_to_base`` ``(4, 4)`` (this
+            argument), so that forward kinematics from the base frame gives measured
+            coordinates (not with ``world``).
 
     Returns:
         The new file content (UTF-8). Loaded with the same base and tool frames, its forward
@@ -289,6 +338,10 @@ def calibrated_urdf(
         raise InvalidArgumentError("world must be (link name, pose (4, 4))")
     if world is not None:
         world = (world[0], _array(world[1], (4, 4), "the world pose"))
+    if on_robot is not None:
+        if world is not None:
+            raise InvalidArgumentError("on_robot and world: the instrument is one or the other")
+        on_robot = _array(on_robot, (4, 4), "on_robot")
     raw, root = read_urdf_source(chain)
     joints, tool_joint = edited_joints(root, chain)
     start, stop = xml_layout(raw, str(chain.urdf_path))
@@ -298,16 +351,26 @@ def calibrated_urdf(
     # frame carries, it gives the calibrated pose (measurement frame).
     moved = frames_at_zero(calibrated) @ np.linalg.inv(frames_at_zero(nominal))
     links = _link_motions(chain, moved, joints)
-    _write_path(root, chain, poses, moved, links, tool_joint)
+    moving = tool_on_moving_joint(chain)
+    _write_path(root, chain, poses, moved, links, child_link(tool_joint), moving or tool_joint)
     tool_child = child_link(tool_joint)
     tool_new = moved[chain.n + 1] @ poses.link(tool_child) @ X
-    parent = parent_link(tool_joint)
-    set_origin(tool_joint, np.linalg.inv(links.frame[parent] @ poses.link(parent)) @ tool_new)
-    _keep_tool_children(root, tool_child, X)
+    if moving:  # the tool link is the last joint's: the calibrated tool is a link fixed to it
+        where = links.frame[tool_child] @ poses.link(tool_child)
+        tool_child = calibrated_tool_name(chain.tool_frame)
+        set_fixed_link(root, tool_child, child_link(tool_joint), np.linalg.inv(where) @ tool_new)
+    else:
+        parent = parent_link(tool_joint)
+        where = links.frame[parent] @ poses.link(parent)
+        set_origin(tool_joint, np.linalg.inv(where) @ tool_new)
+        _keep_tool_children(root, tool_child, X)
     if markers is not None:
         add_marker_links(root, chain.tool_frame, tool_child, markers)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, poses))
+    if on_robot is not None:
+        joint = base_joint(root, chain)
+        set_origin(joint, origin_of(joint) @ np.linalg.inv(on_robot))
     return spliced(raw, root, start, stop)
 
 
@@ -356,7 +419,8 @@ def _write_path(
     poses: NominalPoses,
     moved: np.ndarray,
     links: _LinkMotions,
-    tool_joint: ET.Element,
+    tool_link: str,
+    tool_joint: ET.Element | bool,
 ) -> None:
     """Rewrite the origins that calibration changes, except the tool joint's.
 
@@ -364,12 +428,13 @@ def _write_path(
     its parent's new frame: a chain joint's new frame is ``moved[row]`` applied to its
     nominal one; another joint's follows its child link (a link of the chain) or else the
     parent link's body. Origins whose parent and frame move alike are left as written, and
-    so is everything under the tool link (:func:`_keep_tool_children`). The visuals,
+    so is everything under the tool link (:func:`_keep_tool_children`); ``tool_joint`` is
+    the tool's fixed joint (its origin is written apart), or True where the tool link is the
+    last chain joint's (that joint is written like the others). The visuals,
     collisions and inertia of a link whose frame moves within its body are placed back on
     the body.
     """
     rows = {name: k for k, name in enumerate(chain.joint_names, start=1)}
-    tool_link = child_link(tool_joint)
     for joint in root.findall("joint"):
         parent, child, name = parent_link(joint), child_link(joint), joint.get("name", "")
         if parent not in links.frame or parent == tool_link or joint is tool_joint:

@@ -18,10 +18,12 @@ from ..exceptions import CalibError, InvalidArgumentError
 __all__ = [
     "add_marker_links",
     "add_world_link",
+    "calibrated_tool_name",
     "check_new_names",
     "marker_joints",
     "marker_link_names",
     "root_link",
+    "set_fixed_link",
 ]
 
 
@@ -119,6 +121,34 @@ def add_marker_links(root: ET.Element, tool: str, tool_link: str, markers: np.nd
         elements.append(_fixed_joint(f"{name}_joint", tool_link, name, T, "  "))
     if elements:
         _append(root, elements)
+
+
+def calibrated_tool_name(tool: str) -> str:
+    """The link added for a tool frame carried by a moving joint: ``<tool>_calibrated``."""
+    return f"{tool}_calibrated"
+
+
+def set_fixed_link(root: ET.Element, name: str, parent: str, T: np.ndarray) -> None:
+    """Place link ``name`` on ``parent`` by a fixed joint ``<name>_joint`` at ``T`` ``(4, 4)``.
+
+    A link of that name already fixed to ``parent`` (a calibrated URDF calibrated again) is
+    moved; a new one is added.
+
+    Raises:
+        InvalidArgumentError: A link or joint of that name exists elsewhere.
+    """
+    from .urdf_export import child_link, parent_link, set_origin
+
+    for joint in root.findall("joint"):
+        placed = child_link(joint) == name and parent_link(joint) == parent
+        if placed and joint.get("type") == "fixed":
+            set_origin(joint, T)
+            return
+    check_new_names(root, (name,), "the calibrated tool link")
+    _append(
+        root,
+        [_element("link", "", "", name=name), _fixed_joint(f"{name}_joint", parent, name, T, "  ")],
+    )
 
 
 def marker_joints(root: ET.Element, tool: str, tool_link: str, k: int) -> dict[str, ET.Element]:

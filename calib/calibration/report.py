@@ -1,0 +1,354 @@
+"""One report for every calibration: format 3, the same top-level keys for every shape and kind.
+
+A calibration of a chain measured by an instrument, of a tree of several tools, of one chain
+from contacts or of several chains joined by contacts writes the keys of :data:`REPORT_KEYS`,
+in that order; what is specific to a shape or a kind lives inside them:
+
+* ``terms``: one entry per chain and kind the fit used (``base``, ``tool``, ``kind``,
+  ``data``, ``configs``);
+* ``parameters``: every fitted parameter with ``name``, ``joint`` (the URDF joint it belongs
+  to, or None for a frame, marker or object), ``value`` (change from the registration),
+  ``std``, ``unit`` and ``prior_weight``;
+* ``errors``: ``train`` and ``held_out`` (None without held-out rows), each with
+  ``registration``, ``calibrated`` and ``urdf`` (the written URDF alone), and ``terms`` (the
+  same per term); lengths in mm and angles in degrees, the unit in each key's name
+  (``position_rms_mm``, ``orientation_max_deg``, ``height_rms_mm``, ``roll_rms_deg``);
+* ``frames``: the fitted frames (``measurement``: the URDF base in the measurement frame,
+  ``measured``: the measured frame in the tool frame, ``markers``: marker link -> point,
+  ``contacts``: tool -> contact frame); ``objects``: planes, points or poses touched;
+* ``fit``: ``sigma`` [m], ``condition_number``, ``predicted_std_mm``, ``orientation_weight``
+  [m/rad]; ``model_choice``: the automatic choice (``params auto``) or None.
+
+Format 2's keys that differ (``base_frame``, ``measurement_to_base``, ``markers``,
+``contact``, ``selection``, ``residuals``, ``gaps``, ``notes``, ...) are written beside them
+for one more format and listed in ``deprecated`` with the key that replaces each
+(:data:`FORMAT2_MOVED`); format 2's ``marker`` is gone, as announced.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = [
+    "FORMAT2_MOVED",
+    "REPORT_FORMAT",
+    "REPORT_KEYS",
+    "build_report",
+    "finite",
+    "finite_tree",
+    "fit_dict",
+    "model_choice",
+    "outlier_dict",
+    "parameter_entries",
+    "parameter_joint",
+    "parameter_lines",
+    "parameter_unit",
+    "pose_dict",
+    "term_dict",
+    "verdict",
+]
+
+REPORT_FORMAT = "3"
+"""Version of the report's layout (``format_version``): raised when a key is renamed or
+removed (an added key keeps it)."""
+
+REPORT_KEYS = (
+    "format_version",
+    "deprecated",
+    "robot",
+    "urdf",
+    "shape",
+    "terms",
+    "params",
+    "accepted",
+    "refusal",
+    "converged",
+    "message",
+    "iterations",
+    "parameters",
+    "errors",
+    "frames",
+    "objects",
+    "fit",
+    "model_choice",
+    "outliers",
+    "compliance",
+    "model",
+    "warnings",
+    "timings_ms",
+)
+"""The top-level keys of every report (format 3), in order."""
+
+SHAPES = ("chain", "tree", "contacts", "chains")
+"""What a report's ``shape`` says: a measured chain, a measured tree, one chain touching,
+several chains touching."""
+
+_ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
+_PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz])")
+_ANGLES = ("alpha", "beta", "gamma", "theta")
+
+
+def parameter_joint(name: str, joint_names: Sequence[str | None]) -> str | None:
+    """The URDF joint a parameter belongs to, or None for a frame, marker or object.
+
+    An MDH row's parameter (``theta6``, ``d3``, ``beta2``, a mimic ``offset4``) and a
+    compliance (``c6``) belong to the joint of their row; a joint placement component
+    (``arm_5_joint:rz``) to its joint; rows 0 and n+1 (base and tool frames) to none.
+
+    Args:
+        name: The parameter's name.
+        joint_names: The URDF joint of each row (None for the frame rows), as
+            ``MDHModel.joint_names``.
+    """
+    row = _ROW_NAME.fullmatch(name)
+    if row is not None:
+        k = int(row.group(2))
+        return joint_names[k] if 0 <= k < len(joint_names) else None
+    placement = _PLACEMENT_NAME.fullmatch(name)
+    return None if placement is None else placement.group(1)
+
+
+def parameter_unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
+    """The unit of a parameter's value: ``rad``, ``m``, ``rad/(N m)`` or ``m/N``.
+
+    Args:
+        name: The parameter's name.
+        sigma: Each row's joint type (0 revolute, 1 prismatic), for a joint offset
+            (``offset<k>``) and a compliance (``c<k>``).
+    """
+    row = _ROW_NAME.fullmatch(name)
+    if row is not None:
+        kind, k = row.group(1), int(row.group(2))
+        prismatic = sigma is not None and 0 <= k < len(sigma) and sigma[k] == 1
+        if kind == "c":
+            return "m/N" if prismatic else "rad/(N m)"
+        if kind == "offset":
+            return "m" if prismatic else "rad"
+        return "rad" if kind in _ANGLES else "m"
+    axis = re.split(r"[.:]", name)[-1]
+    return "rad" if axis in ("rx", "ry", "rz") else "m"
+
+
+def parameter_entries(
+    names: Sequence[str],
+    values: Sequence[float] | np.ndarray,
+    stds: Sequence[float] | np.ndarray,
+    joint_names: Sequence[str | None],
+    sigma: Sequence[int] | np.ndarray | None = None,
+    priors: Sequence[float] | np.ndarray | None = None,
+) -> list[dict]:
+    """The report's ``parameters``: ``name``, ``joint``, ``value``, ``std``, ``unit``, prior.
+
+    Args:
+        names: Fitted parameters' names.
+        values: Their values (changes from the registration) [``unit``].
+        stds: Their standard deviations [``unit``] (NaN where undefined).
+        joint_names: The URDF joint of each row (see :func:`parameter_joint`).
+        sigma: Each row's joint type (see :func:`parameter_unit`).
+        priors: Prior weight of each in the fit (None: zeros).
+    """
+    weights = [0.0] * len(names) if priors is None else priors
+    return [
+        {
+            "name": n,
+            "joint": parameter_joint(n, joint_names),
+            "value": finite(v),
+            "std": finite(s),
+            "unit": parameter_unit(n, sigma),
+            "prior_weight": finite(p),
+        }
+        for n, v, s, p in zip(names, values, stds, weights, strict=True)
+    ]
+
+
+FORMAT2_MOVED = {
+    "data": "terms[].data",
+    "base_frame": "terms[].base",
+    "tool_frame": "terms[].tool",
+    "base": "terms[].base",
+    "tool": "terms[].tool",
+    "tools": "terms[].tool",
+    "measure": "terms[].kind",
+    "configs": "terms[].configs",
+    "rows": "terms[].configs",
+    "markers": "frames.markers",
+    "marker_links": "frames.markers",
+    "measured_frame": "frames.measured",
+    "world_link": "frames.world_link",
+    "measurement_to_base": "frames.measurement",
+    "contact": "frames.contacts and objects",
+    "orientation_weight": "fit.orientation_weight",
+    "tilt_weight": "fit.orientation_weight",
+    "sigma": "fit.sigma",
+    "condition_number": "fit.condition_number",
+    "predicted_std": "fit.predicted_std_mm",
+    "residuals": "errors.train (mm, deg)",
+    "gaps": "errors (mm, deg)",
+    "validation": "errors.held_out (mm, deg)",
+    "per_tool": "errors.terms",
+    "chains": "terms and errors.terms",
+    "selection": "model_choice",
+    "free": "parameters[].name",
+    "gravity": "model.gravity",
+    "load": "model.load",
+    "mdh_nominal": "model.mdh_nominal",
+    "mdh_calibrated": "model.mdh_calibrated",
+    "calibrated_mdh": "model.mdh_calibrated",
+    "joint_origins": "model.joint_origins",
+    "shared_joints": "model.shared_joints",
+    "planes": "objects",
+    "notes": "warnings",
+}
+"""Each format 2 key that format 3 replaced, and the key that replaces it."""
+
+
+def term_dict(base: str, tool: str, kind: str, source: str | None, configs: int) -> dict:
+    """One entry of ``terms``: a chain, its kind, its data's source and fitted rows."""
+    return {"base": base, "tool": tool, "kind": kind, "data": source, "configs": int(configs)}
+
+
+def model_choice(selection) -> dict | None:
+    """The report's ``model_choice``: the selection's record, errors in mm (None: none)."""
+    if selection is None:
+        return None
+    out = dict(selection.to_dict())
+    out["steps"] = [
+        {"name": s["name"], "loo_mm": finite(1e3 * s["loo"])} for s in out.get("steps", [])
+    ]
+    for key in ("cv_registration", "cv_selection"):
+        if key in out:
+            value = out.pop(key)
+            out[f"{key}_mm"] = None if value is None else finite(1e3 * value)
+    return out
+
+
+def outlier_dict(outlier) -> dict:
+    """One entry of ``outliers``: ``row``, ``kind``, its error and the median [mm or deg]."""
+    angle = outlier.kind == "orientation"
+    unit, scale = ("deg", math.degrees(1.0)) if angle else ("mm", 1e3)
+    return {
+        "row": outlier.row,
+        "kind": outlier.kind,
+        f"error_{unit}": finite(scale * outlier.error),
+        f"median_{unit}": finite(scale * outlier.median),
+    }
+
+
+_DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
+"""How the printed table shows a unit: lengths in mm, angles in mrad."""
+
+
+def parameter_lines(entries: Sequence[Mapping]) -> list[str]:
+    """The printed parameter table: name, the URDF joint it belongs to, value +- std.
+
+    Args:
+        entries: The report's ``parameters`` (:func:`parameter_entries`).
+    """
+    if not entries:
+        return ["parameters: none fitted"]
+    lines = ["parameters (change from the registration +- std), with their URDF joint:"]
+    width = max(len(e["name"]) for e in entries)
+    jw = max(len(e["joint"] or "-") for e in entries)
+    for e in entries:
+        scale, unit = _DISPLAY.get(e["unit"], (1.0, e["unit"]))
+        value = "-" if e["value"] is None else f"{scale * e['value']:.4g}"
+        sd = "-" if e["std"] is None else f"{scale * e['std']:.4g}"
+        lines.append(
+            f"  {e['name']:>{width}} {e['joint'] or '-':<{jw}} = {value:>10} +- {sd:<9} {unit}"
+        )
+    return lines
+
+
+def pose_dict(T: np.ndarray | None) -> dict | None:
+    """A pose ``(4, 4)`` as ``{xyz [m], rpy [rad], matrix}`` (None stays None)."""
+    if T is None:
+        return None
+    T = np.asarray(T, dtype=float)
+    return {
+        "xyz": T[:3, 3].tolist(),
+        "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
+        "matrix": T.tolist(),
+    }
+
+
+def verdict(params: str, refusal: str | None, solver: tuple[bool, str, int]) -> dict:
+    """The report's level, verdict and solver outcome (six keys, ``params`` to ``iterations``).
+
+    ``solver``: ``(converged, message, Jacobian evaluations)`` of the final fit.
+    """
+    return {
+        "params": params,
+        "accepted": refusal is None,
+        "refusal": refusal,
+        "converged": bool(solver[0]),
+        "message": solver[1],
+        "iterations": int(solver[2]),
+    }
+
+
+def fit_dict(
+    sigma: float | None = None,
+    condition: float | None = None,
+    predicted_std: float | None = None,
+    orientation_weight: float | None = None,
+) -> dict:
+    """The report's ``fit``: noise [m], condition number, predicted std [mm], weight [m/rad]."""
+    return {
+        "sigma": finite(sigma),
+        "condition_number": finite(condition),
+        "predicted_std_mm": None if predicted_std is None else finite(1e3 * predicted_std),
+        "orientation_weight": finite(orientation_weight),
+    }
+
+
+def build_report(
+    fields: Mapping[str, object],
+    legacy: Mapping[str, object],
+    moved: Mapping[str, str],
+) -> dict:
+    """A format-3 report: ``fields`` in the order of :data:`REPORT_KEYS`, then format 2's keys.
+
+    Args:
+        fields: Every key of :data:`REPORT_KEYS` but ``format_version`` and ``deprecated``.
+        legacy: Format 2's keys of this shape that format 3 replaced, written for one more
+            format.
+        moved: For each of them, the key that replaces it (listed under ``deprecated``).
+
+    Raises:
+        KeyError: A key of :data:`REPORT_KEYS` is missing, or a legacy key has no
+            replacement (a programming error: tests pin the layout).
+    """
+    deprecated = {
+        key: f"format 3 moved it to '{moved[key]}'; written until format 4" for key in legacy
+    }
+    report: dict[str, object] = {"format_version": REPORT_FORMAT, "deprecated": deprecated}
+    report.update({key: fields[key] for key in REPORT_KEYS[2:]})
+    unexpected = set(fields) - set(REPORT_KEYS)
+    if unexpected:
+        raise KeyError(f"not a report key: {sorted(unexpected)}")
+    for key, value in legacy.items():
+        if key in report:
+            raise KeyError(f"legacy key '{key}' is a format 3 key")
+        report[key] = value
+    return finite_tree(report)
+
+
+def finite(x: float | np.floating | None) -> float | None:
+    """``float(x)``, or None for None, an infinity or NaN."""
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def finite_tree(value):
+    """A copy of a JSON-ready tree with every non-finite float replaced by None."""
+    if isinstance(value, dict):
+        return {k: finite_tree(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_tree(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return finite(value)
+    return value

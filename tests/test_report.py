@@ -1,0 +1,317 @@
+"""One report for every calibration (format 3): the same top-level keys for every shape and
+kind, every parameter named with its URDF joint, errors in mm and degrees.
+
+The expected layout is written out here (not imported from calib), the joints are checked
+against ``calib show --json`` (the conversion's own record of each row's joint, computed
+without the calibration), and the errors against the format 2 figures in metres.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calib import (
+    DataWarning,
+    calibrate,
+    calibrate_contact_chains,
+    load_chain,
+    load_robot,
+    read_measurements,
+    simulate,
+    simulate_tree,
+)
+from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.cli.commands import main
+from calib.measurements.contact_campaign import simulate_contacts
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
+
+TOP = [
+    "format_version", "deprecated", "robot", "urdf", "shape", "terms", "params", "accepted",
+    "refusal", "converged", "message", "iterations", "parameters", "errors", "frames",
+    "objects", "fit", "model_choice", "outliers", "compliance", "model", "warnings",
+    "timings_ms",
+]  # fmt: skip
+"""Format 3's top-level keys, in order, for every shape and kind."""
+
+PARAMETER = {"name", "joint", "value", "std", "unit", "prior_weight"}
+TERM = {"base", "tool", "kind", "data", "configs"}
+FRAMES = {"measurement", "measured", "markers", "contacts", "world_link", "tool_link", "on_robot"}
+FIT = {"sigma", "condition_number", "predicted_std_mm", "orientation_weight"}
+UNITS = {"m", "rad", "rad/(N m)", "m/N"}
+
+
+def _chain_report():
+    chain = load_chain("ur5")
+    camp = simulate(chain, 40, noise_mm=0.05, seed=1)
+    q = camp.measurements
+    position = q.position.copy()
+    position[7] += 0.05  # a gross outlier: set aside
+    data = dataclasses.replace(q, position=position)
+    return calibrate(chain, data, holdout=0.25, seed=0).to_dict()
+
+
+def _tree_report():
+    tree = load_robot("talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
+    camp = simulate_tree(tree, 40, noise_mm=0.05, seed=2)
+    return calibrate(tree, camp.measurements, holdout=0.25).to_dict()
+
+
+def _contact_report(kind: str):
+    chain = load_robot("talos_full_v2.urdf", "left_sole_link", "gripper_left_base_link")
+    data = simulate_contacts(chain, 60, kind, seed=2).data
+    return calibrate_contacts(chain, data, holdout=0.25, seed=1).to_dict()
+
+
+def _chains_report():
+    pairs = (
+        ("left_sole_link", "gripper_left_base_link"),
+        ("right_sole_link", "gripper_right_base_link"),
+    )
+    chains = [load_robot("talos_full_v2.urdf", b, t) for b, t in pairs]
+    data = [simulate_contacts(c, 40, "plane", seed=4).data for c in chains]
+    return calibrate_contact_chains(chains, data, params="offsets", holdout=0.25).to_dict()
+
+
+SHAPES = {
+    "chain": _chain_report,
+    "tree": _tree_report,
+    "contacts-plane": lambda: _contact_report("plane"),
+    "contacts-fixed-point": lambda: _contact_report("fixed-point"),
+    "chains": _chains_report,
+}
+
+
+@pytest.fixture(scope="module")
+def reports():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return {name: json.loads(json.dumps(make())) for name, make in SHAPES.items()}
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_every_shape_has_format_3_keys(reports, shape):
+    """The same top-level keys in the same order (format 2's, listed in ``deprecated``,
+    after them), the same keys inside ``terms``, ``parameters``, ``frames`` and ``fit``."""
+    r = reports[shape]
+    assert r["format_version"] == "3"
+    assert list(r)[: len(TOP)] == TOP
+    assert set(r) - set(TOP) == set(r["deprecated"])
+    assert all("format 3 moved it to" in why for why in r["deprecated"].values())
+    assert "marker" not in r  # format 2 announced its end at format 3
+    assert r["terms"] and all(set(t) == TERM for t in r["terms"])
+    assert r["parameters"] and all(set(p) == PARAMETER for p in r["parameters"])
+    assert {p["unit"] for p in r["parameters"]} <= UNITS
+    assert set(r["frames"]) == FRAMES and set(r["fit"]) == FIT
+    assert isinstance(r["warnings"], list)
+    assert len(r["errors"]["terms"]) == len(r["terms"])
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_errors_are_in_mm_and_degrees_with_the_unit_in_the_key(reports, shape):
+    keys = set()
+    for part in reports[shape]["errors"]["terms"]:
+        for group in (part["train"], part["held_out"] or {}):
+            for stats in group.values():
+                if isinstance(stats, dict):
+                    keys |= set(stats)
+    assert keys
+    assert all(re.fullmatch(r"configs|\w+_(mm|deg)", k) for k in keys), keys
+
+
+def test_chain_errors_are_the_format_2_figures_in_mm(reports):
+    r = reports["chain"]
+    for new, old in (
+        (r["errors"]["train"], r["residuals"]),
+        (r["errors"]["held_out"], r["validation"]),
+    ):
+        for group in ("registration", "calibrated", "urdf"):
+            a, b = new[group], old[group]
+            assert a["configs"] == b["configs"]
+            assert math.isclose(a["position_rms_mm"], 1e3 * b["position_rms"], rel_tol=1e-12)
+            assert math.isclose(a["orientation_max_deg"], math.degrees(b["orientation_max"]))
+    assert r["outliers"] and r["outliers"][0]["row"] == 7 + 1  # rows count from 1 (no file)
+    assert r["outliers"][0]["error_mm"] > 10 * r["outliers"][0]["median_mm"]
+    assert r["model_choice"]["kept"] == r["selection"]["kept"]
+
+
+def test_contact_errors_are_the_gaps(reports):
+    r = reports["contacts-plane"]
+    gaps = r["gaps"]
+    assert r["errors"]["train"]["calibrated"]["height_rms_mm"] == gaps["train"]["height_rms_mm"]
+    held = r["errors"]["held_out"]
+    assert held["source"] == "holdout"
+    assert held["registration"]["roll_max_deg"] == gaps["held_out_registration"]["roll_max_deg"]
+    assert held["calibrated"]["configs"] == gaps["held_out"]["m"]
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_parameters_name_their_joint(reports, shape):
+    """A joint parameter names a joint of the URDF; frames, markers and objects name none."""
+    r = reports[shape]
+    for p in r["parameters"]:
+        frame = p["name"].startswith(("frame.", "marker", "tool.")) or "." in p["name"]
+        assert (p["joint"] is None) == frame, p
+    chains_fit = shape == "chains"
+    if chains_fit:  # joint placement components: <joint>:<component>
+        assert all(p["joint"] == p["name"].split(":")[0] for p in r["parameters"])
+
+
+def test_tiago_report_names_each_rows_joint_as_calib_show(tmp_path, capsys):
+    """On the TIAGo data: every MDH row parameter's joint is its row's in ``calib show``."""
+    tiago = REAL / "tiago"
+    chain = load_chain(tiago / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        data = read_measurements(tiago / "qualisys_2021-11-30_static_postures.csv", chain)
+    point1 = tmp_path / "train.csv"
+    cols = [*chain.joint_names, "x1", "y1", "z1"]
+    q, x = data.q, data.position[:, :3]
+    rows = [",".join(cols)] + [
+        ",".join(repr(float(v)) for v in (*a, *b)) for a, b in zip(q, x, strict=True)
+    ]
+    point1.write_text("\n".join(rows) + "\n")
+    urdf = str(tiago / "tiago_48_schunk.urdf")
+    frames = ["--base", "base_footprint", "--tool", "wrist_ft_tool_link"]
+    report = tmp_path / "r.json"
+    code = main(
+        ["calibrate", urdf, *frames, "--data", str(point1), "--out", str(tmp_path / "c.urdf"),
+         "--report", str(report)]
+    )  # fmt: skip
+    assert code == 0
+    printed = capsys.readouterr().out  # the printed table names the joint too
+    assert re.search(r"theta6 arm_5_joint\s+=", printed), printed
+    assert main(["show", urdf, *frames, "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)["frames"]
+    params = json.loads(report.read_text())["parameters"]
+    rows = [p for p in params if re.fullmatch(r"[a-z]+\d+", p["name"])]
+    assert rows
+    for p in rows:
+        k = int(re.search(r"\d+$", p["name"]).group())
+        assert p["joint"] == shown[k]["joint"], p
+    names = {p["name"]: p["joint"] for p in rows}
+    assert names.get("theta6") == "arm_5_joint"
+
+
+def test_values_and_units_match_the_calibrated_model(reports):
+    """A contact fit's MDH parameters: value = calibrated - nominal, in the unit it says."""
+    r = reports["contacts-plane"]
+    nominal = {row["name"]: row for row in r["model"]["mdh_nominal"]}
+    calibrated = {row["name"]: row for row in r["model"]["mdh_calibrated"]}
+    checked = 0
+    for p in r["parameters"]:
+        m = re.fullmatch(r"(alpha|d|theta|r|beta)(\d+)", p["name"])
+        if m is None:
+            continue
+        kind, k = m.groups()
+        change = calibrated[k][kind] - nominal[k][kind]
+        assert p["unit"] == ("rad" if kind in ("alpha", "theta", "beta") else "m")
+        assert abs(change - p["value"]) < 1e-9 + 1e-3 * abs(change), p
+        assert p["std"] is None or p["std"] > 0
+        checked += 1
+    assert checked
+    assert np.isfinite([p["value"] for p in r["parameters"]]).all()
+
+
+# --- reading every kind's report back: load_calibrated and calib predict ----------------
+
+
+def _pin_tool(urdf: Path, base: str, tool: str, names, q: np.ndarray) -> np.ndarray:
+    """``oMf[base]^-1 oMf[tool]`` of the written URDF by Pinocchio alone ``(m, 4, 4)``."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(urdf))
+    data = model.createData()
+    out = []
+    for row in q:
+        x = pin.neutral(model)
+        for name, v in zip(names, row, strict=True):
+            joint = model.joints[model.getJointId(name)]
+            x[joint.idx_q] = v
+        pin.framesForwardKinematics(model, data, x)
+        oMb, oMt = (data.oMf[model.getFrameId(f)] for f in (base, tool))
+        out.append((oMb.inverse() * oMt).homogeneous)
+    return np.array(out)
+
+
+def test_load_calibrated_reads_a_chain_report_of_format_3_and_2(tmp_path):
+    """The points predicted from the report are Pinocchio's on the written URDF (the
+    measurement frame and markers from the report); a format 2 view gives the same."""
+    from calib import load_calibrated
+
+    chain = load_chain("ur5")
+    camp = simulate(chain, 30, noise_mm=0.05, seed=3)
+    res = calibrate(chain, camp.measurements).check()
+    urdf, report = tmp_path / "c.urdf", tmp_path / "r.json"
+    urdf.write_bytes(res.urdf())
+    doc = res.to_dict()
+    report.write_text(json.dumps(doc))
+    q = chain.random_configurations(5, 7)
+    model = load_calibrated(urdf, report)
+    T = _pin_tool(urdf, chain.base_frame, chain.tool_frame, chain.joint_names, q)
+    M = np.array(doc["frames"]["measurement"]["matrix"])
+    marker = np.array(next(iter(doc["frames"]["markers"].values())))
+    expected = (M @ T)[:, :3, 3] + np.einsum("mij,j->mi", (M @ T)[:, :3, :3], marker)
+    assert np.allclose(model.points(q)[:, 0], expected, atol=1e-9)
+    old = {k: v for k, v in doc.items() if k in doc["deprecated"] or k not in TOP}
+    old.update(format_version="2", compliance=doc["compliance"], urdf=doc["urdf"])
+    two = tmp_path / "r2.json"
+    two.write_text(json.dumps(old))
+    assert np.allclose(load_calibrated(urdf, two).points(q), model.points(q), atol=1e-12)
+
+
+def test_load_calibrated_and_predict_read_a_contact_report(tmp_path, capsys):
+    """A contact calibration's report (format 3) is read: the contact's placement in its
+    plane is Pinocchio's on the written URDF with the report's contact frame and plane."""
+    from calib import load_calibrated
+    from calib.measurements.contact_campaign import write_contacts
+
+    urdf = "talos_full_v2.urdf"
+    base, tool = "left_sole_link", "gripper_left_base_link"
+    chain = load_robot(urdf, base, tool)
+    camp = simulate_contacts(chain, 40, "plane", seed=2)
+    data = tmp_path / "touch.csv"
+    write_contacts(data, camp.data)
+    out, report = tmp_path / "c.urdf", tmp_path / "r.json"
+    code = main(
+        ["calibrate", urdf, "--base", base, "--tool", tool, "--measure", "plane",
+         "--data", str(data), "--out", str(out), "--report", str(report)]
+    )  # fmt: skip
+    assert code == 0
+    doc = json.loads(report.read_text())
+    model = load_calibrated(out, report)
+    q = camp.data.q[:6]
+    T = _pin_tool(out, base, tool, chain.joint_names, q)
+    C = np.array(doc["frames"]["contacts"][tool]["matrix"])
+    P = np.array(next(iter(doc["objects"]["planes"].values()))["matrix"])
+    expected = np.linalg.inv(P) @ T @ C
+    assert np.allclose(model.contact_placements(q), expected, atol=1e-9)
+    assert np.max(np.abs(expected[:, 2, 3])) < 5e-3  # flush: within the touches' noise
+    configs = tmp_path / "q.csv"
+    configs.write_text(
+        ",".join(chain.joint_names)
+        + "\n"
+        + "\n".join(",".join(repr(float(v)) for v in row) for row in q)
+        + "\n"
+    )
+    capsys.readouterr()
+    code = main(["predict", str(out), "--compliance", str(report), "--configs", str(configs),
+                 "--out", str(tmp_path / "p.csv")])  # fmt: skip
+    assert code == 0 and (tmp_path / "p.csv").exists()
+
+
+def test_a_tree_report_is_refused_by_load_calibrated_in_one_line(tmp_path, reports):
+    from calib import DataError, load_calibrated
+
+    report = tmp_path / "t.json"
+    report.write_text(json.dumps(reports["tree"]))
+    with pytest.raises(DataError, match="the calibrated URDF is the whole model"):
+        load_calibrated(load_chain("ur5").urdf_path, report)
