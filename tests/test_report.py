@@ -315,3 +315,64 @@ def test_a_tree_report_is_refused_by_load_calibrated_in_one_line(tmp_path, repor
     report.write_text(json.dumps(reports["tree"]))
     with pytest.raises(DataError, match="the calibrated URDF is the whole model"):
         load_calibrated(load_chain("ur5").urdf_path, report)
+
+
+# --- one interface: summary, urdf, write, repr -------------------------------------------
+
+
+def _results():
+    """One result of every shape (the fixtures' fits, as objects)."""
+    chain = load_chain("ur5")
+    tree = load_robot("talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
+    left = load_robot("talos_full_v2.urdf", "left_sole_link", "gripper_left_base_link")
+    right = load_robot("talos_full_v2.urdf", "right_sole_link", "gripper_right_base_link")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return {
+            "chain": calibrate(chain, simulate(chain, 30, noise_mm=0.05, seed=1).measurements),
+            "tree": calibrate(tree, simulate_tree(tree, 30, noise_mm=0.05, seed=2).measurements),
+            "contacts": calibrate_contacts(left, simulate_contacts(left, 40, "plane", seed=2).data),
+            "chains": calibrate_contact_chains(
+                [left, right],
+                [simulate_contacts(c, 30, "plane", seed=4).data for c in (left, right)],
+                params="offsets",
+            ),
+        }
+
+
+@pytest.fixture(scope="module")
+def results():
+    return _results()
+
+
+@pytest.mark.parametrize("shape", ["chain", "tree", "contacts", "chains"])
+def test_every_result_writes_its_urdf_and_report_the_same_way(results, shape, tmp_path):
+    """``write(out, report=)`` writes what ``urdf()`` and ``to_dict()`` give; the summary ends
+    on the verdict; the repr is one short line naming the shape."""
+    r = results[shape]
+    assert r.accepted, r.refusal
+    out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
+    r.write(out, report=report)
+    assert out.read_bytes() == r.urdf()
+    assert json.loads(report.read_text()) == json.loads(json.dumps(r.to_dict()))
+    pin_model = __import__("pinocchio").buildModelFromUrdf(str(out))  # a URDF Pinocchio reads
+    assert pin_model.nq > 0
+    assert r.summary().splitlines()[-1] == "accepted"
+    text = repr(r)
+    assert "\n" not in text and len(text) < 300 and f" {r.to_dict()['shape']}: " in text
+
+
+def test_write_never_overwrites_the_nominal_urdf_and_refuses_a_refused_model(results, tmp_path):
+    from calib import CalibrationRefusedError, InvalidArgumentError
+
+    r = results["contacts"]
+    nominal = Path(r.to_dict()["urdf"])
+    before = nominal.read_bytes()
+    with pytest.raises(InvalidArgumentError):
+        r.write(nominal)
+    assert nominal.read_bytes() == before
+    refused = dataclasses.replace(r, refusal="a test refusal")
+    out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
+    with pytest.raises(CalibrationRefusedError, match="a test refusal"):
+        refused.write(out, report=report)
+    assert not out.exists() and json.loads(report.read_text())["accepted"] is False

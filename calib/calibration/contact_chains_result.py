@@ -14,6 +14,7 @@ from ..kinematics.placement_export import moved_origins_urdf, write_moved_origin
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats
+from .delivery import Delivered
 from .placements import Placements
 from .report import (
     FORMAT2_MOVED,
@@ -105,8 +106,8 @@ class ChainContacts:
         }
 
 
-@dataclass(frozen=True, eq=False)
-class ContactChainsCalibration:
+@dataclass(frozen=True, eq=False, repr=False)
+class ContactChainsCalibration(Delivered):
     """A calibration of several chains of one robot from flush contacts.
 
     Attributes:
@@ -231,7 +232,7 @@ class ContactChainsCalibration:
         poses = sum(len(c.objects()) for c in loops)
         return f"{self.planes - len(loops)} plane(s)" + (f" and {poses} pose(s)" if poses else "")
 
-    def text(self) -> str:
+    def summary(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
         lines = [
             f"{self.chains[0].chain.name}: {len(self.chains)} chains, {self._objects()}, "

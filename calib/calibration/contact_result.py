@@ -28,14 +28,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import json_text
 from ..exceptions import CalibrationRefusedError
 from ..identification.contacts import Contact
 from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
-from ..kinematics.urdf_export import write_calibrated_urdf
+from ..kinematics.urdf_export import calibrated_urdf, write_calibrated_urdf
 from ..kinematics.urdf_model import read_urdf_file
+from .delivery import Delivered, compliance_path
 from .outliers import Outlier
 from .report import (
     FORMAT2_MOVED,
@@ -44,6 +46,7 @@ from .report import (
     model_choice,
     outlier_dict,
     parameter_entries,
+    parameter_lines,
     pose_dict,
     term_dict,
     verdict,
@@ -145,8 +148,8 @@ def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) 
     )
 
 
-@dataclass(frozen=True, eq=False)
-class ContactCalibration:
+@dataclass(frozen=True, eq=False, repr=False)
+class ContactCalibration(Delivered):
     """A calibration from contacts.
 
     Attributes:
@@ -358,6 +361,50 @@ class ContactCalibration:
             "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
             "nominal_masses": nominal_masses(read_urdf_file(chain.urdf_path)),
         }
+
+    def summary(self) -> str:
+        """The text ``calib calibrate`` prints: the gaps, compliance, parameters, verdict."""
+        kind, chain = self.kind, self.chain
+        ids = ", ".join(f"'{k}'" for k in self.objects)
+        units = ["deg" if a else "mm" for a in kind.angular]
+        lines = [
+            f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {kind.label} contact, "
+            f"{kind.object_name}(s) {ids}, {len(self.free)} robot parameters fitted",
+            "gaps (RMS): "
+            + "  ".join(f"{n} [{u}]" for n, u in zip(kind.row_names, units, strict=True)),
+        ]
+        labels = {}
+        for key in self.stats:
+            label = key.replace("_urdf", ", URDF alone (no compliance)")
+            if self.elastic and not key.endswith(("_urdf", "_registration")):
+                label += ", whole model (URDF + compliance)"
+            labels[key] = label
+        width = max(map(len, labels.values()))
+        for key, st in self.stats.items():
+            values = "  ".join(f"{v:8.3f}" for v in st.rms)
+            lines.append(f"  {labels[key]:{width}s} {values}  ({st.m} touches)")
+        report = self.to_dict()
+        if self.load is not None:
+            read = f"; {len(self.readings)} joints off the chain as read" if self.readings else ""
+            fitted = ", ".join(f"{k} {v:.3g}" for k, v in report["compliance"].items() if v)
+            lines.append(
+                f"joint compliance under gravity, standing on {chain.base_frame} "
+                f"({self.load.support.label()}{read}): {fitted} [rad/(N m)]"
+            )
+        lines += parameter_lines(report["parameters"])
+        lines += [f"note: {n}" for n in self.notes]
+        lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
+        return "\n".join(lines)
+
+    def urdf(self) -> bytes:
+        """The calibrated URDF (the tool frame stays the chain's tool frame)."""
+        return calibrated_urdf(self.chain, self.nominal, self.calibrated)
+
+    def compliance_files(self, out: Path) -> dict[Path, str]:
+        """With fitted compliance, its file beside the URDF ``out`` (see :meth:`write`)."""
+        if not self.elastic:
+            return {}
+        return {compliance_path(out): json_text(self.compliance_document(str(out)))}
 
     def write_urdf(self, path: str | Path) -> None:
         """Write the calibrated URDF (the tool frame stays the chain's tool frame).

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import json_text
 from ..exceptions import CalibrationRefusedError, ConvergenceError
-from ..kinematics.elastic import gravity_in_base
+from ..kinematics.elastic import compliance_document, gravity_in_base
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
+from .delivery import Delivered, compliance_path
 from .model import ErrorModel, State
 from .outliers import Outlier
 from .report import (
@@ -147,8 +150,8 @@ class Validation:
         }
 
 
-@dataclass(frozen=True, eq=False)
-class CalibrationResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class CalibrationResult(Delivered):
     """Result of a calibration.
 
     Attributes:
@@ -293,6 +296,18 @@ class CalibrationResult:
             world=world,
             on_robot=self.measurement_to_base if on_robot else None,
         )
+
+    def summary(self) -> str:
+        """The text ``calib calibrate`` prints (:func:`~.text.calibration_text`)."""
+        from .text import calibration_text  # the text reads the result
+
+        return calibration_text(self)
+
+    def compliance_files(self, out: Path) -> dict[Path, str]:
+        """With fitted compliance, its file beside the URDF ``out`` (see :meth:`write`)."""
+        if not self.elastic:
+            return {}
+        return {compliance_path(out): json_text(compliance_document(self, str(out)))}
 
     def check(self) -> CalibrationResult:
         """Return self if the model may be written.

@@ -20,12 +20,13 @@ from ..identification.base_columns import independent_columns, preference_order
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
-from ..kinematics.tree_export import tree_measurement_to_base
+from ..kinematics.tree_export import calibrated_tree_urdf, tree_measurement_to_base
 from ..kinematics.tree_model import TreeMDH, from_tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from . import determined, diagnosis, outliers, validation
+from .delivery import Delivered
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, Options, checked_arguments
 from .report import (
     FORMAT2_MOVED,
@@ -58,8 +59,8 @@ class ToolErrors:
     calibrated: ResidualStats
 
 
-@dataclass(frozen=True, eq=False)
-class TreeCalibrationResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class TreeCalibrationResult(Delivered):
     """Result of a tree calibration.
 
     Attributes:
@@ -219,7 +220,11 @@ class TreeCalibrationResult:
             "measurement_to_base": pose_dict(self.measurement_to_base),
         }
 
-    def text(self) -> str:
+    def urdf(self) -> bytes:
+        """The calibrated URDF of every branch, with each tool's marker link."""
+        return calibrated_tree_urdf(self.tree, self.nominal, self.state.mdh, self.state.markers)
+
+    def summary(self) -> str:
         """A terminal summary: errors per tool, then the parameters."""
         mm = 1e3
         lines = [

@@ -267,7 +267,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     return write_calibration(
         args,
         result.to_dict(),
-        result.text,
+        result.summary,
         result.refusal,
         lambda: {
             out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh, result.state.markers)

@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from ..calibration.delivery import compliance_path
 from ..core.choices import DEFAULT_CONFIGS
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
@@ -285,11 +286,6 @@ def warning_lines(caught: Sequence[warnings.WarningMessage]) -> list[str]:
         f"calib: warning: {text}" + (f" ({count} times)" if count > 1 else "")
         for text, count in seen.items()
     ]
-
-
-def compliance_path(out: Path) -> Path:
-    """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
-    return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
 
 
 def with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> dict:

@@ -132,7 +132,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     return write_calibration(
         args,
         result.to_dict(),
-        result.text,
+        result.summary,
         result.refusal,
         lambda: {out: result.urdf()},
         (out, report),

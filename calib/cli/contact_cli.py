@@ -114,42 +114,5 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
         return files
 
     return write_calibration(
-        args, result.to_dict(), lambda: _text(result), result.refusal, urdf, (out, report), recorded
+        args, result.to_dict(), result.summary, result.refusal, urdf, (out, report), recorded
     )
-
-
-def _text(result) -> str:
-    from ..calibration.report import parameter_lines
-
-    kind = result.kind
-    ids = ", ".join(f"'{k}'" for k in result.objects)
-    units = ["deg" if a else "mm" for a in kind.angular]
-    lines = [
-        f"{result.chain.name}: {result.chain.base_frame} -> {result.chain.tool_frame}, "
-        f"{kind.label} contact, {kind.object_name}(s) {ids}, {len(result.free)} robot "
-        f"parameters fitted",
-        "gaps (RMS): "
-        + "  ".join(f"{n} [{u}]" for n, u in zip(kind.row_names, units, strict=True)),
-    ]
-    labels = {}
-    for key in result.stats:
-        label = key.replace("_urdf", ", URDF alone (no compliance)")
-        if result.elastic and not key.endswith(("_urdf", "_registration")):
-            label += ", whole model (URDF + compliance)"
-        labels[key] = label
-    width = max(map(len, labels.values()))
-    for key, s in result.stats.items():
-        values = "  ".join(f"{v:8.3f}" for v in s.rms)
-        lines.append(f"  {labels[key]:{width}s} {values}  ({s.m} touches)")
-    if result.load is not None:
-        lines.append(
-            f"joint compliance under gravity, standing on {result.chain.base_frame} "
-            f"({result.load.support.label()}"
-            + (f"; {len(result.readings)} joints off the chain as read" if result.readings else "")
-            + "): "
-            + ", ".join(f"{k} {v:.3g}" for k, v in result.to_dict()["compliance"].items() if v)
-            + " [rad/(N m)]"
-        )
-    lines += parameter_lines(result.to_dict()["parameters"])
-    lines += [f"note: {n}" for n in result.notes]
-    return "\n".join(lines)

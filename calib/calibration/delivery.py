@@ -1,0 +1,86 @@
+"""What every calibration result offers, whatever the shape: ``summary``, ``write``, ``repr``.
+
+A result (a chain measured by an instrument, a tree, one chain touching, several chains)
+provides ``to_dict()`` (its format 3 report), ``urdf()`` (the calibrated URDF), ``summary()``
+(the text ``calib calibrate`` prints), ``refusal`` and, with fitted compliance, its
+compliance file (``compliance_files``). :class:`Delivered` builds the rest on those:
+``write(out, report=...)`` writes the URDF, its compliance file and the report at once
+(complete or not at all, never over an input), and a short ``repr``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..core.fileio import check_outputs, json_text, write_files_atomic
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
+
+__all__ = ["Delivered", "compliance_path"]
+
+
+def compliance_path(out: Path) -> Path:
+    """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
+    return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
+
+
+class Delivered:
+    """``write`` and ``repr`` of a calibration result, from its report and URDF."""
+
+    refusal: str | None
+
+    def to_dict(self) -> dict:
+        """The JSON report (format 3)."""
+        raise NotImplementedError
+
+    def urdf(self) -> bytes:
+        """The calibrated URDF."""
+        raise NotImplementedError
+
+    def summary(self) -> str:
+        """The text ``calib calibrate`` prints."""
+        raise NotImplementedError
+
+    def compliance_files(self, out: Path) -> dict[Path, str]:
+        """Files written beside the URDF ``out`` (the compliance file; none by default)."""
+        del out
+        return {}
+
+    def write(self, out: str | Path, report: str | Path | None = None) -> None:
+        """Write the calibrated URDF (and compliance file) and the report, all or none.
+
+        A refused model writes the report only, then raises. The outputs are checked before
+        anything is written: never an input (the nominal URDF), never two the same.
+
+        Args:
+            out: The calibrated URDF to write.
+            report: The JSON report to write, or None.
+
+        Raises:
+            CalibrationRefusedError: The model was refused (only the report is written).
+            InvalidArgumentError: A path is not a path, or is an input.
+            OutputError: A file cannot be written.
+        """
+        for what, path in (("out", out), ("report", report)):
+            if path is not None and not isinstance(path, str | Path):
+                raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
+        out = Path(out)
+        doc = self.to_dict()
+        files: dict[Path, str | bytes] = {} if report is None else {Path(report): json_text(doc)}
+        extra = {} if self.refusal is not None else self.compliance_files(out)
+        outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
+        check_outputs(outputs, {"the nominal URDF": doc.get("urdf")})
+        if self.refusal is not None:
+            write_files_atomic(files)
+            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        write_files_atomic({out: self.urdf(), **extra, **files})
+
+    def __repr__(self) -> str:
+        doc = self.to_dict()
+        terms = doc["terms"]
+        what = ", ".join(f"{t['base']} -> {t['tool']} ({t['kind']})" for t in terms[:2])
+        what += f" and {len(terms) - 2} more" if len(terms) > 2 else ""
+        verdict = "accepted" if doc["accepted"] else f"REFUSED: {doc['refusal']}"
+        return (
+            f"<{type(self).__name__} {doc['robot']} {doc['shape']}: {what}, "
+            f"{len(doc['parameters'])} parameters, {verdict}>"
+        )
