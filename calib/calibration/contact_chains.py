@@ -42,9 +42,10 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact, PlaneContact
 from ..identification.identifiability import independent_columns
+from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
-from . import validation
+from . import contact_checks, determined, validation
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_model import ContactState
@@ -140,6 +141,32 @@ def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
         )
     index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
     return tuple(index[k] for k in keys)
+
+
+def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
+    """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
+
+    The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
+    the touches kept must determine the chain's objects and contact frame.
+
+    Returns:
+        Each chain's touches kept, and each chain's outliers.
+    """
+    kept, dropped = [], []
+    for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
+        v = None if validate is None else validate[c]
+        g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)
+        start, d, out, more = contact_checks.checked_registration(
+            chain, from_chain(chain), d, v, g, weight
+        )
+        what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
+        out_m = 0 if held[c] is None else held[c].m
+        rows, size = len(d.kind.row_names), start.frames.size
+        determined.check_equations(d.m, rows, size, what, d.source, held=out_m, unit="touches")
+        notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
+        kept.append(d)
+        dropped.append(tuple(out))
+    return kept, dropped
 
 
 def _register(
@@ -318,6 +345,7 @@ def calibrate_contact_chains(
     if not (isinstance(pose_weight, int | float) and np.isfinite(pose_weight) and pose_weight > 0):
         raise InvalidArgumentError(f"pose_weight must be a positive number, got {pose_weight!r}")
     notes: list[str] = []
+    train, dropped = _checked(chains, train, validate, guess, w, held, notes)
     start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     model, _, selection, prior = _choose(start, train, plane_of, level, notes)
@@ -335,10 +363,8 @@ def calibrate_contact_chains(
     labels = [None if h is None else "holdout" for h in held]
     if validate is not None:
         labels = [lab if v is None else v.source for lab, v in zip(labels, validate, strict=True)]
-    parts = tuple(
-        dataclasses.replace(c, held_source=lab)
-        for c, lab in zip(result.chains, labels, strict=True)
-    )
+    pairs = zip(result.chains, labels, dropped, strict=True)
+    parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
     return dataclasses.replace(result, chains=parts, params=level, **values)
 

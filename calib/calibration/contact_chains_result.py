@@ -15,12 +15,14 @@ from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats
 from .delivery import Delivered
+from .outliers import Outlier
 from .placements import Placements
 from .report import (
     FORMAT2_MOVED,
     build_report,
     fit_dict,
     model_choice,
+    outlier_dict,
     parameter_entries,
     parameter_lines,
     pose_dict,
@@ -59,6 +61,7 @@ class ChainContacts:
             id), or None.
         held_source: Its held-out touches' source (``holdout`` or the validation file), or
             None.
+        outliers: Its touches set aside after its registration.
     """
 
     chain: Chain
@@ -73,6 +76,7 @@ class ChainContacts:
     kind: Contact = field(default_factory=PlaneContact)
     frames: ContactFrames | None = None
     held_source: str | None = None
+    outliers: tuple[Outlier, ...] = ()
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (the plane, or each fixed pose) in the base frame ``(4, 4)``, by id."""
@@ -193,7 +197,9 @@ class ContactChainsCalibration(Delivered):
             "objects": self._object_poses(),
             "fit": fit_dict(),
             "model_choice": model_choice(self.selection),
-            "outliers": [],
+            "outliers": [
+                outlier_dict(o, term) for term, c in enumerate(self.chains) for o in c.outliers
+            ],
             "compliance": {},
             "model": {
                 "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},

@@ -227,11 +227,15 @@ def model_choice(selection) -> dict | None:
     return out
 
 
-def outlier_dict(outlier) -> dict:
-    """One entry of ``outliers``: ``row``, ``kind``, its error and the median [mm or deg]."""
+def outlier_dict(outlier, term: int = 0) -> dict:
+    """One entry of ``outliers``: ``term``, ``row``, ``kind``, error and median [mm or deg].
+
+    ``term`` is the index in ``terms`` of the data it is a row of.
+    """
     angle = outlier.kind == "orientation"
     unit, scale = ("deg", math.degrees(1.0)) if angle else ("mm", 1e3)
     return {
+        "term": term,
         "row": outlier.row,
         "kind": outlier.kind,
         f"error_{unit}": finite(scale * outlier.error),
