@@ -18,6 +18,7 @@ from ..kinematics.so3 import matrix_to_quaternion
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
+from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import determined, validation
 from .chain_registration import checked_registration, frames_model
@@ -256,9 +257,10 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
             f"data must be Measurements (read_measurements), got {type(data).__name__}"
         )
     check_against_chain(data, chain)
-    out = round(opts.holdout * data.m)
+    postures = count_postures(data.q, data.tool)
+    out = round(opts.holdout * postures)
     determined.check_equations(
-        data.m - out,
+        postures - out,
         data.kind.rows_of(data.n_markers),
         frames_model(data, opts).size(),
         "measurement frame and marker parameters",
@@ -355,8 +357,9 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
             "the configurations do not even determine the measurement frame and markers",
         )
     generic = _generic_count(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    postures = count_postures(data.q, data.tool)
     if opts.level != "auto":
-        determined.check_rank(len(kept), generic, data.m, wide.rows, opts.level, data.source)
+        determined.check_rank(len(kept), generic, postures, wide.rows, opts.level, data.source)
     elif len(kept) < generic:
         notes.append(
             f"the {data.m} configurations determine {len(kept)} of the {generic} parameters "
