@@ -14,9 +14,9 @@ from test_calibration import refit_loo
 
 from calib import DataError, load_chain, simulate
 from calib.calibration import calibrate
-from calib.calibration.contact_pipeline import calibrate_contacts, split_contacts
 from calib.calibration.contact_checks import subset
-from calib.calibration.selection import OUTER_FOLDS, STRENGTHS, select
+from calib.calibration.contact_pipeline import calibrate_contacts, split_contacts
+from calib.calibration.selection import OUTER_FOLDS, RICH, STRENGTHS, select
 from calib.calibration.validation import split
 from calib.kinematics.urdf_export import write_calibrated_urdf
 from calib.measurements.contact_campaign import simulate_contacts
@@ -103,9 +103,11 @@ def test_touches_twice_give_the_selection_of_the_touches_once():
 
 def test_complete_candidate_error_is_each_folds_ridge_refit():
     """select()'s cross-validated error of the complete fit: each fold's prior strength is
-    its own brute-force best, and its ridge fit predicts the held-out configurations."""
+    its own brute-force best, and its ridge fit predicts the held-out configurations (31
+    configurations: over RICH equations per parameter, the complete fit is a candidate)."""
     rng = np.random.default_rng(9)
-    m, rows, fixed, cand = 23, 3, 3, 6
+    m, rows, fixed, cand = 31, 3, 3, 6
+    assert m * rows >= RICH * (fixed + cand)
     J = rng.normal(size=(m, rows, fixed + cand)) * rng.uniform(0.5, 3.0, size=fixed + cand)
     e = J @ np.r_[rng.normal(size=fixed), 0.2 * rng.normal(size=cand)]
     e += 0.3 * rng.normal(size=(m, rows))

@@ -403,7 +403,7 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
 
 
-SELECTION_WORK = 1.2e9
+SELECTION_WORK = 1.2e12
 """Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
 is run on: its leave-one-configuration-out QR factorisations cost about this. Measured on one
 core (benchmarks/bench_large_campaigns.py): a UR5's 20,000 positions (1.1e9) take 45 s; its

@@ -63,13 +63,11 @@ MIN_GAIN = 0.02
 OUTER_FOLDS = 10
 """Folds of the guard's cross-validation (configuration i goes to fold i mod OUTER_FOLDS)."""
 
-COMPLETE_T = 3.0
-"""With few equations, the complete fit replaces the selection only when its cross-validated
-error is lower by more than this many standard errors (paired over the guard's folds)."""
-
 RICH = 10
-"""Equations per parameter of the complete fit from which the lower cross-validated error
-alone chooses between it and the selection."""
+"""Equations (distinct postures times rows) per parameter of the complete fit from which the
+complete fit with its cross-validated prior is a candidate: the lower cross-validated error
+then chooses between it and the selection (with fewer, a fold's error is that of a few
+postures, and the selection stays as careful as it was)."""
 
 STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 """Prior strengths tried (on unit-norm columns), besides zero."""
@@ -344,11 +342,17 @@ def forward(
 
 def _forwards(A, e, rows, fixed, names, forced, train) -> list[tuple[list[int], list[Step], float]]:
     """:func:`forward` on each subset of the configurations ``train`` ``(subsets, m)``."""
-    return [o[:3] for o in _paths_of(A, e, rows, fixed, names, forced, train, None)]
+    found = _paths_of(A, e, rows, fixed, names, forced, train, None)
+    lists = [[fixed + u for u in o[0]] for o in found]
+    strengths = ridge_strengths(A, e, rows, fixed, train, lists)[1]
+    return [(o[0], o[1], float(s)) for o, s in zip(found, strengths, strict=True)]
 
 
 def _paths_of(A, e, rows, fixed, names, forced, train, repeats):
-    """:func:`_forwards`, each outcome with the whole path's order and steps too.
+    """:func:`_forwards` without the prior strengths.
+
+    Each subset's kept candidates (into ``names``) and steps, and the whole path's order
+    (all it reached) and steps.
 
     ``repeats``: each posture's spread, the squared errors every model leaves on it (added
     to its left-out errors), and its rows in the file (:func:`_by_posture`); or None.
@@ -357,7 +361,7 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats):
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
     spread, count = (np.zeros(train.shape[1]), None) if repeats is None else repeats
-    kept, out = [], []
+    out = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
     found = [
         p
@@ -370,11 +374,9 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats):
         loo = [float(v) for v in _rms(errors, rows, None if count is None else count[mask])]
         steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
         steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
-        kept.append(order[:k])
         whole = sel + [c - fixed for c in order]
         out.append((sel + [c - fixed for c in order[:k]], steps[: k + 1], whole, steps))
-    strengths = ridge_strengths(A, e, rows, fixed, train, [start[fixed:] + o for o in kept])[1]
-    return [(a, b, float(s), c, d) for (a, b, c, d), s in zip(out, strengths, strict=True)]
+    return out
 
 
 def shrinkage(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> float:
@@ -413,31 +415,53 @@ def _outer_cv(A, e, rows, fixed, train, models) -> np.ndarray:
     x_all = np.linalg.lstsq(A, e, rcond=None)[0]
     ec = e - A @ x_all
     G, g = A.T @ A, A.T @ ec
-    sse = np.zeros((len(models), len(train)))
-    for f, mask in enumerate(train):
+    moments = []
+    for mask in train:
         held = np.repeat(~mask, rows)
         Ah, eh = A[held], ec[held]
-        Gh, gh = Ah.T @ Ah, Ah.T @ eh
-        Gt, gt = G - Gh, g - gh + (G - Gh) @ x_all  # training moments, about 0
-        for c, model in enumerate(models):
-            cols, strength = model[f]
-            lam = np.r_[np.zeros(fixed), np.full(len(cols) - fixed, strength)]
-            d = -x_all
-            d[cols] += _solve(Gt[np.ix_(cols, cols)] + np.diag(lam), gt[cols])
-            sse[c, f] = float(eh @ eh - 2.0 * d @ gh + d @ Gh @ d)
+        moments.append((Ah.T @ Ah, Ah.T @ eh, eh @ eh))
+    Gh = np.array([h[0] for h in moments])
+    gh = np.array([h[1] for h in moments])
+    Gt = G - Gh
+    gt = g - gh + Gt @ x_all  # training moments, about 0
+    p = A.shape[1]
+    use = np.zeros((len(models), len(train), p), dtype=bool)
+    lam = np.zeros(use.shape)
+    for c, model in enumerate(models):
+        for f, (cols, strength) in enumerate(model):
+            use[c, f, cols] = True
+            lam[c, f, cols[fixed:]] = strength
+    d = _solve(Gt, gt, use, lam) - x_all
+    quad = np.einsum("cfi,fij,cfj->cf", d, Gh, d)
+    sse = np.array([h[2] for h in moments]) - 2.0 * np.einsum("cfi,fi->cf", d, gh) + quad
     return np.maximum(sse, 0.0)
 
 
-def _solve(N: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Normal equations solved in the least-squares sense, as :func:`numpy.linalg.lstsq`.
+def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
 
-    Eigenvalues under ``eps p`` times the largest are dropped.
+    Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
+
+    Args:
+        N: Normal matrices of each fold ``(folds, p, p)``.
+        b: Their right-hand sides ``(folds, p)``.
+        use: The columns of each candidate's fit in each fold ``(candidates, folds, p)``.
+        lam: The prior on each column ``(candidates, folds, p)``.
+
+    Returns:
+        ``(candidates, folds, p)`` solutions, zero off their columns.
     """
-    ev, V = np.linalg.eigh(N)
+    both = use[..., :, None] & use[..., None, :]
+    M = np.where(both, N[None], 0.0)
+    diag = np.arange(N.shape[1])
+    top = np.max(np.abs(M[..., diag, diag]), axis=-1, keepdims=True)
+    M[..., diag, diag] += lam + np.where(use, 0.0, top)  # the padding: eigenvalue top, no rhs
+    ev, V = np.linalg.eigh(M)
     ev_abs = np.abs(ev)
-    keep = ev_abs > np.finfo(float).eps * len(b) * ev_abs.max(initial=0.0)
-    y = V.T @ b
-    return V @ np.divide(y, ev, out=np.zeros_like(y), where=keep)
+    tol = np.finfo(float).eps * use.sum(axis=-1, keepdims=True) * ev_abs.max(axis=-1, keepdims=True)
+    y = np.einsum("cfji,cfj->cfi", V, np.where(use, b[None], 0.0))
+    y = np.divide(y, ev, out=np.zeros_like(y), where=ev_abs > tol)
+    return np.einsum("cfij,cfj->cfi", V, y)
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
@@ -484,25 +508,6 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
     return Js, es, (spread, count)
 
 
-def _complete_wins(a: np.ndarray, b: np.ndarray, equations: int, p: int) -> bool:
-    """Whether the complete fit's held-out errors ``b`` (per fold) beat the selection's ``a``.
-
-    With at least ``RICH`` equations per parameter of the complete fit, a lower pooled error
-    is enough (the rule then converges to the better of the two); with fewer, the
-    difference must exceed ``COMPLETE_T`` standard errors of its mean, paired over the
-    folds (few postures: a fold's error is one or two postures', and the selection stays).
-    """
-    if np.sum(b) >= np.sum(a):
-        return False
-    if equations >= RICH * p:
-        return True
-    d = a - b
-    if len(d) < 2:
-        return False
-    se = np.std(d, ddof=1) / np.sqrt(len(d))
-    return bool(np.mean(d) > COMPLETE_T * se)
-
-
 def _complete(names, order: list[int]) -> list[int]:
     """Every candidate: the path's order, then those it never reached."""
     return order + [u for u in range(len(names)) if u not in order]
@@ -543,27 +548,26 @@ def select(
     folds = _guard_folds(m)
     train = np.vstack([np.ones((1, m), dtype=bool), folds])  # the whole data, then each fold
     outcomes = _paths_of(A, ev, rows, fixed, names, forced, train, repeats)
-    every = [_complete(names, o[3]) for o in outcomes]
-    complete = ridge_strengths(A, ev, rows, fixed, train, [[fixed + u for u in c] for c in every])
+    rich = m * rows >= RICH * p  # else the complete fit is no candidate (as careful as before)
+    every = [_complete(names, o[2]) for o in outcomes] if rich else []
+    lists = [[fixed + u for u in c] for c in [o[0] for o in outcomes] + every]
+    subsets = np.vstack([train] * (2 if rich else 1))
+    both = ridge_strengths(A, ev, rows, fixed, subsets, lists)[1].tolist()
+    strengths, complete = both[: len(train)], both[len(train) :]
     frame = list(range(fixed))
     models = [
         [(frame, 0.0)] * len(folds),
-        [(frame + [fixed + u for u in o[0]], o[2]) for o in outcomes[1:]],
-        [
-            (frame + [fixed + u for u in c], float(s))
-            for c, s in zip(every[1:], complete[1][1:], strict=True)
-        ],
+        [(frame + c, s) for c, s in zip(lists[1 : len(train)], strengths[1:], strict=True)],
+        [(frame + c, s) for c, s in zip(lists[len(train) + 1 :], complete[1:], strict=True)],
     ]
-    folded = _outer_cv(A, ev, rows, fixed, folds, models)
-    sse = folded.sum(axis=1) + repeats[0].sum()
-    reg_cv, sel_cv, full_cv = np.sqrt(sse / points).tolist()
-    sel, steps, strength, _, path_steps = outcomes[0]
-    winner = "selection"
-    if _complete_wins(folded[1], folded[2], m * rows, p):
-        winner = "complete"
-    if winner == "complete":
-        sel, steps, strength = every[0], path_steps, float(complete[1][0])
-    guarded = bool(sel) and not forced and min(sel_cv, full_cv) >= reg_cv
+    folded = _outer_cv(A, ev, rows, fixed, folds, models[: 3 if rich else 2])
+    cv = [*np.sqrt((folded.sum(axis=1) + repeats[0].sum()) / points).tolist(), float("nan")]
+    reg_cv, sel_cv, full_cv = cv[:3]
+    sel, steps, _, path_steps = outcomes[0]
+    strength, winner = strengths[0], "selection"
+    if rich and full_cv < sel_cv:
+        sel, steps, strength, winner = every[0], path_steps, complete[0], "complete"
+    guarded = bool(sel) and not forced and min(cv[1 : 2 + rich]) >= reg_cv
     if guarded or not sel:
         winner, sel, strength = "registration", [], 0.0
     kept = tuple(names[s] for s in sel)
