@@ -1,10 +1,11 @@
 """Time and peak memory of the default calibration on large simulated campaigns (issue 31).
 
-Each case runs in a fresh process (one BLAS thread): a UR5 measured in position (marker at
-(10, 20, 50) mm) or in pose, 0.05 mm noise, default options (``params='auto'``). Printed:
-the median wall time of the calibration, the process's peak resident memory (ru_maxrss) and
-that of a process that only simulates the campaign (the difference is the calibration's),
-and the memory slope per configuration between sizes.
+Each case runs in a fresh process (one BLAS thread) that reads a CSV written beforehand: a
+UR5 measured in position (marker at (10, 20, 50) mm) or in pose, 0.05 mm noise, default
+options (``params='auto'``). Printed: the median wall time of the calibration, the process's
+peak resident memory (ru_maxrss), that of a process that only reads the file (the
+difference is the calibration's), the winner of the selection, and the slope of the
+calibration's memory per configuration between sizes.
 
 Run: .venv/bin/python benchmarks/bench_selection_memory.py [m ...]   (CALIB_BENCH_REPEATS, 1)
 """
@@ -16,6 +17,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -23,14 +25,16 @@ from common import one_core
 
 one_core()
 
+from calib import load_chain, simulate, write_measurements  # noqa: E402
+
 REPEATS = int(os.environ.get("CALIB_BENCH_REPEATS", "1"))
 CHILD = """
 import json, resource, sys, time
-from calib import load_chain, simulate
+from calib import load_chain, read_measurements
 from calib.calibration import calibrate
-measure, m, run = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
+path, run = sys.argv[1], sys.argv[2] == "1"
 chain = load_chain("ur5")
-data = simulate(chain, m, measure, (0.01, 0.02, 0.05), noise_mm=0.05, seed=0).measurements
+data = read_measurements(path, chain)
 t0 = time.perf_counter()
 kept = calibrate(chain, data).selection.winner if run else ""
 wall = time.perf_counter() - t0
@@ -38,10 +42,10 @@ print(json.dumps([wall, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, kept
 """
 
 
-def child(measure: str, m: int, run: bool) -> tuple[float, float, str]:
+def child(path: Path, run: bool) -> tuple[float, float, str]:
     """Wall time [s], peak RSS [MiB] and the winner of one process."""
     out = subprocess.run(
-        [sys.executable, "-c", CHILD, measure, str(m), "1" if run else "0"],
+        [sys.executable, "-c", CHILD, str(path), "1" if run else "0"],
         capture_output=True, text=True, check=True, env=os.environ,
     )  # fmt: skip
     wall, rss, winner = json.loads(out.stdout.strip().splitlines()[-1])
@@ -51,13 +55,19 @@ def child(measure: str, m: int, run: bool) -> tuple[float, float, str]:
 def main() -> None:
     sizes = [int(a) for a in sys.argv[1:]] or [1000, 10_000, 100_000]
     print("measure       m   time [s]  peak [MiB]  data only [MiB]  winner")
+    chain = load_chain("ur5")
     for measure in ("position", "pose"):
         prev = None
         for m in sizes:
-            runs = [child(measure, m, True) for _ in range(REPEATS)]
+            with tempfile.TemporaryDirectory() as tmp:
+                path = Path(tmp) / "campaign.csv"
+                camp = simulate(chain, m, measure, (0.01, 0.02, 0.05), noise_mm=0.05, seed=0)
+                write_measurements(path, camp.measurements)
+                del camp
+                runs = [child(path, True) for _ in range(REPEATS)]
+                base = child(path, False)[1]
             wall = statistics.median(r[0] for r in runs)
             peak = statistics.median(r[1] for r in runs)
-            base = child(measure, m, False)[1]
             print(f"{measure:8s} {m:7d} {wall:9.2f} {peak:11.0f} {base:16.0f}  {runs[0][2]}")
             if prev is not None:
                 slope = (peak - base - prev[1]) * 1024.0 / (m - prev[0])

@@ -361,7 +361,7 @@ CHAIN_REPORT_KEYS = {
     *(f"validation.{g}.{k}" for g in ("registration", "calibrated", "urdf") for k in STATS),
     "selection", "selection.kept", "selection.steps", "selection.steps[].name",
     "selection.steps[].loo", "selection.prior_strength", "selection.cv_registration",
-    "selection.cv_selection", "selection.guarded",
+    "selection.cv_selection", "selection.guarded", "selection.cv_complete", "selection.winner",
     "outliers", "outliers[].row", "outliers[].error", "outliers[].median", "outliers[].kind",
     "sigma", "condition_number", "predicted_std", "parameters", "parameters[].name",
     "parameters[].value", "parameters[].std", "parameters[].prior_weight", "compliance",

@@ -120,7 +120,7 @@ class Selection:
             "cv_registration": self.registration_cv,
             "cv_selection": self.selection_cv,
             "guarded": self.guarded,
-            "cv_complete": self.complete_cv,
+            "cv_complete": None if np.isnan(self.complete_cv) else self.complete_cv,
             "winner": self.winner,
         }
 
