@@ -3,11 +3,13 @@
 Each case runs in a fresh process (one BLAS thread) that reads a CSV written beforehand: a
 UR5 measured in position (marker at (10, 20, 50) mm) or in pose, 0.05 mm noise, default
 options (``params='auto'``). Printed: the median wall time of the calibration, the process's
-peak resident memory (ru_maxrss), that of a process that only reads the file (the
+peak resident memory (VmHWM: ru_maxrss would carry the parent's over the fork), that of a
+process that only reads the file (the
 difference is the calibration's), the winner of the selection, and the slope of the
 calibration's memory per configuration between sizes.
 
-Run: .venv/bin/python benchmarks/bench_selection_memory.py [m ...]   (CALIB_BENCH_REPEATS, 1)
+Run: .venv/bin/python benchmarks/bench_selection_memory.py [m ...]   (CALIB_BENCH_REPEATS, default 1;
+CALIB_BENCH_MEASURES, default position,pose)
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from calib import load_chain, simulate, write_measurements  # noqa: E402
 
 REPEATS = int(os.environ.get("CALIB_BENCH_REPEATS", "1"))
 CHILD = """
-import json, resource, sys, time
+import json, sys, time
 from calib import load_chain, read_measurements
 from calib.calibration import calibrate
 path, run = sys.argv[1], sys.argv[2] == "1"
@@ -38,7 +40,8 @@ data = read_measurements(path, chain)
 t0 = time.perf_counter()
 kept = calibrate(chain, data).selection.winner if run else ""
 wall = time.perf_counter() - t0
-print(json.dumps([wall, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, kept]))
+peak = [int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM")]
+print(json.dumps([wall, peak[0], kept]))
 """
 
 
@@ -56,7 +59,7 @@ def main() -> None:
     sizes = [int(a) for a in sys.argv[1:]] or [1000, 10_000, 100_000]
     print("measure       m   time [s]  peak [MiB]  data only [MiB]  winner")
     chain = load_chain("ur5")
-    for measure in ("position", "pose"):
+    for measure in os.environ.get("CALIB_BENCH_MEASURES", "position,pose").split(","):
         prev = None
         for m in sizes:
             with tempfile.TemporaryDirectory() as tmp:

@@ -403,11 +403,12 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
 
 
-SELECTION_WORK = 1.2e12
+SELECTION_WORK = 4e9
 """Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
-is run on: its leave-one-configuration-out QR factorisations cost about this. Measured on one
-core (benchmarks/bench_large_campaigns.py): a UR5's 20,000 positions (1.1e9) take 45 s; its
-20,000 poses (2.7e9) ran past 77 s, 50 markers at 200 configurations (2e10) 420 s."""
+is run on (its forward paths cost about this). Measured on one core under a load of 8 to 12
+on 2 cores (benchmarks/bench_selection_memory.py): a UR5's 10,000 positions (3.9e8) take 3.5
+to 18 s, its 10,000 poses (1.1e9) 22 s, its 100,000 positions (3.9e9) 118 s. Before issue 30
+(1.2e9; QR factorisations per fold) 20,000 positions took 45 s."""
 
 
 def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:

@@ -26,7 +26,19 @@ closed form.
   (zero allowed).
 * **Guard** against selection bias: the whole procedure is cross-validated once more, by
   ``OUTER_FOLDS`` folds (configuration i in fold i mod 10: no random draw); if it predicts
-  the held-out folds no better than the registration alone, the registration is kept. Ten
+  the held-out folds no better than the registration alone, the registration is kept.
+* **The complete fit as a candidate**: with at least ``RICH`` equations per parameter of
+  the complete fit, the guard's folds also fit every candidate with a prior strength chosen
+  by each fold's leave-one-out error, and the lower cross-validated error of the two
+  (selection, complete) is delivered. The selection's thresholds (``MIN_GAIN``, one
+  standard error) shrink slower with the number of configurations m than the cost of one
+  more parameter (about noise^2 / m): alone, it kept dropping parameters the data
+  determine. Below ``RICH`` (a fold's error is that of a few postures) the selection is
+  delivered as before. The guard's errors come from the moments of each fold's held-out rows
+  (:func:`_outer_cv`), the prior strengths in blocks of configurations
+  (:func:`ridge_strengths`): the memory is linear in the data with a small constant.
+* **Postures**: the configurations of one posture (its repeats, ``groups``) enter as one
+  (:func:`_by_posture`), so that its repeats leave together and buy no parameter. Ten
   folds rather than five: each fold's procedure sees 90 % of the configurations, closer to
   the final fit (with 80 %, a fold that loses the only postures pinning a parameter down
   judges the procedure by an extrapolation the final fit does not make). The folds' forward
