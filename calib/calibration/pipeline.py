@@ -368,15 +368,15 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
         )
     if opts.level == "auto":
         check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
+        del J  # memory: the selection's arrays are the campaign's largest
         kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
-        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin) * w[None, :, None]
         cols = list(range(fixed)) + columns
+        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
+        Jr *= w[None, :, None]
         forced = [cand.index(n) for n in opts.free if n in cand]
-        e = explained(
-            wide, reg, data, torque, Jr[:, :, cols], cols, reg.residuals(data, kin=kin) * w, w
-        )
+        e = explained(wide, reg, data, torque, Jr, cols, reg.residuals(data, kin=kin) * w, w)
         groups = posture_groups(data.q, data.tool)
-        selection, weights = select(Jr[:, :, cols], e, fixed, tuple(cand), forced, groups)
+        selection, weights = select(Jr, e, fixed, tuple(cand), forced, groups)
         cand = list(selection.kept)
     else:
         selection, weights = None, np.zeros(len(cand))
