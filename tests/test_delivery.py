@@ -379,6 +379,7 @@ CHAIN_REPORT_KEYS = {
     "model_choice.kept", "model_choice.steps", "model_choice.steps[].name",
     "model_choice.steps[].loo_mm", "model_choice.prior_strength",
     "model_choice.cv_registration_mm", "model_choice.cv_selection_mm", "model_choice.guarded",
+    "model_choice.cv_complete_mm", "model_choice.winner",
     *(f"outliers[].{k}" for k in ("term", "row", "kind", "error_mm", "median_mm")),
     "model.mdh_nominal", "model.mdh_calibrated", "model.gravity", "model.gravity.frame",
     "model.gravity.vector", *(f"model.mdh_{w}[].{k}" for w in ("nominal", "calibrated")

@@ -43,6 +43,8 @@ from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support
 from ..measurements.contact_campaign import ContactData
+from ..measurements.postures import count as count_postures
+from ..measurements.postures import posture_groups
 from . import contact_checks, contact_elastic, determined, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
 from .contact_model import ContactModel, ContactState, plane_frame
@@ -95,19 +97,23 @@ def contact_frame(contact) -> np.ndarray:
 def split_contacts(
     data: ContactData, holdout: float, seed: int
 ) -> tuple[ContactData, ContactData | None]:
-    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept."""
+    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
+
+    A touch recorded several times (the same posture on the same object) is held out whole.
+    """
     if not (0.0 <= holdout < 1.0):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
     if holdout <= 0:
         return data, None
     rng = np.random.default_rng([seed, 21])
     ids = np.array(data.ids)
+    groups = posture_groups(data.q, data.ids)  # a touch repeated is held out whole
     held = np.zeros(data.m, dtype=bool)
     for name in data.contacts:
-        rows = np.flatnonzero(ids == name)
-        out = min(round(holdout * len(rows)), len(rows) - MIN_TOUCHES)
+        touches = np.unique(groups[ids == name])  # in order of first appearance
+        out = min(round(holdout * len(touches)), len(touches) - MIN_TOUCHES)
         if out > 0:
-            held[rng.permutation(rows)[:out]] = True
+            held[np.isin(groups, touches[rng.permutation(len(touches))[:out]])] = True
     if not held.any():
         raise DataError(data.source, f"too few touches to hold {holdout:g} of them out")
     return subset(data, ~held), subset(data, held)
@@ -236,14 +242,16 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
             f"the touches determine {len(columns)} of the {len(offered) + len(comp)} "
             "parameters offered"
         )
-    equations = train.m * start.kind.n_rows
+    groups = posture_groups(train.q, train.ids)
+    touches = int(groups.max(initial=-1)) + 1  # distinct: a repeated touch counts once
+    equations = touches * start.kind.n_rows
     if opts.level != "auto":
         what = f"parameters of params '{opts.level}' (with the contact's unknowns)"
-        determined.check_equations(train.m, start.kind.n_rows, fixed + len(columns), what,
+        determined.check_equations(touches, start.kind.n_rows, fixed + len(columns), what,
                                    train.source, unit="touches")  # fmt: skip
     elif fixed + len(columns) > equations:  # the selection's cross-validation needs spare rows
         columns = _fewer(columns, fixed + len(offered), max(0, equations - fixed - 1))
-        notes.append(f"{train.m} touches: params 'auto' chooses among {len(columns)} parameters")
+        notes.append(f"{touches} touches: params 'auto' chooses among {len(columns)} parameters")
     names = wide.names()
     weights: dict[str, float] = {}
     selection: Selection | None = None
@@ -251,7 +259,8 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
         J = wide.jacobian(start, np.zeros(wide.size()), train, torque)
         cols = list(range(fixed)) + columns
         cand = tuple(names[c] for c in columns)
-        selection, w = select(J[:, :, cols], start.residuals(train, torque), fixed, cand)
+        residuals = start.residuals(train, torque)
+        selection, w = select(J[:, :, cols], residuals, fixed, cand, groups=groups)
         weights = dict(zip(selection.kept, w, strict=True))
         columns = [c for c in columns if names[c] in weights]
     split = fixed + len(offered)
@@ -340,7 +349,8 @@ def calibrate_contacts(
         chain, nominal, train, validate, guess, w
     )
     what = f"unknowns of the {data.kind.object_name}(s) and the contact frame"
-    determined.check_equations(train.m, data.kind.n_rows, start.frames.size, what, train.source,
+    determined.check_equations(count_postures(train.q, train.ids), data.kind.n_rows,
+                               start.frames.size, what, train.source,
                                held=0 if held is None else held.m, unit="touches")  # fmt: skip
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted

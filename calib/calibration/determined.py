@@ -15,9 +15,9 @@ it needs; calib never silently cuts the level down to what the rows can carry.
 
 from __future__ import annotations
 
-from ..exceptions import DataError
+from ..exceptions import DataError, InvalidArgumentError
 
-__all__ = ["check_equations", "check_rank"]
+__all__ = ["SELECTION_WORK", "check_equations", "check_rank", "check_selection_work"]
 
 
 def _configs_needed(unknowns: int, rows: int) -> int:
@@ -86,3 +86,33 @@ def check_rank(
         f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
         f"level or fix parameters",
     )
+
+
+SELECTION_WORK = 4e9
+"""Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
+is run on (its forward paths cost about this). Measured on one core under a load of 8 to 12
+on 2 cores (benchmarks/bench_selection_memory.py): a UR5's 10,000 positions (3.9e8) take 3.5
+to 18 s, its 10,000 poses (1.1e9) 22 s, its 100,000 positions (3.9e9) 118 s. Before issue 30
+(1.2e9; QR factorisations per fold) 20,000 positions took 45 s."""
+
+
+def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:
+    """Refuse, before it starts, a selection (``--params auto``) too long to wait for.
+
+    Args:
+        m: Configurations.
+        rows: Rows per configuration (3 per marker, 3 more for an orientation).
+        fixed: Frame and marker columns.
+        candidates: Candidate parameters.
+
+    Raises:
+        InvalidArgumentError: The work exceeds :data:`SELECTION_WORK`; says what to do.
+    """
+    work = m * rows * (fixed + candidates) ** 2 * candidates
+    if work > SELECTION_WORK:
+        raise InvalidArgumentError(
+            f"params 'auto' would cross-validate {candidates} parameters on {m} configurations "
+            f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
+            f"times the work calib runs it on (about a minute on one core); give a level "
+            f"(params complete, paper, offsets or frames), or fewer configurations or markers"
+        )

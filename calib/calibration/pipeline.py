@@ -18,10 +18,13 @@ from ..kinematics.so3 import matrix_to_quaternion
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
+from ..measurements.postures import count as count_postures
+from ..measurements.postures import posture_groups
 from . import determined, validation
 from .chain_registration import checked_registration, frames_model
 from .contact_pipeline import calibrate_contact_data
 from .contact_result import ContactCalibration
+from .expansion import explained
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .result import CalibrationResult, ResidualStats, Validation
@@ -31,7 +34,6 @@ from .tree_pipeline import TreeCalibrationResult, calibrate_tree
 
 __all__ = [
     "GROUPS",
-    "SELECTION_WORK",
     "Options",
     "calibrate",
     "level_names",
@@ -255,9 +257,10 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
             f"data must be Measurements (read_measurements), got {type(data).__name__}"
         )
     check_against_chain(data, chain)
-    out = round(opts.holdout * data.m)
+    postures = count_postures(data.q, data.tool)
+    out = round(opts.holdout * postures)
     determined.check_equations(
-        data.m - out,
+        postures - out,
         data.kind.rows_of(data.n_markers),
         frames_model(data, opts).size(),
         "measurement frame and marker parameters",
@@ -355,22 +358,25 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
             "the configurations do not even determine the measurement frame and markers",
         )
     generic = _generic_count(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    postures = count_postures(data.q, data.tool)
     if opts.level != "auto":
-        determined.check_rank(len(kept), generic, data.m, wide.rows, opts.level, data.source)
+        determined.check_rank(len(kept), generic, postures, wide.rows, opts.level, data.source)
     elif len(kept) < generic:
         notes.append(
             f"the {data.m} configurations determine {len(kept)} of the {generic} parameters "
             f"generic configurations would: params 'auto' chooses among those only"
         )
     if opts.level == "auto":
-        check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
+        determined.check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
+        del J  # memory: the selection's arrays are the campaign's largest
         kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
-        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin) * w[None, :, None]
         cols = list(range(fixed)) + columns
+        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
+        Jr *= w[None, :, None]
         forced = [cand.index(n) for n in opts.free if n in cand]
-        selection, weights = select(
-            Jr[:, :, cols], reg.residuals(data, kin=kin) * w, fixed, tuple(cand), forced
-        )
+        e = explained(wide, reg, data, torque, Jr, cols, reg.residuals(data, kin=kin) * w, w)
+        groups = posture_groups(data.q, data.tool)
+        selection, weights = select(Jr, e, fixed, tuple(cand), forced, groups)
         cand = list(selection.kept)
     else:
         selection, weights = None, np.zeros(len(cand))
@@ -417,35 +423,6 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     J = wide.jacobian(state, np.zeros(wide.size()), generic, torque, state, kin)
     J = J * w[None, :, None]
     return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
-
-
-SELECTION_WORK = 1.2e9
-"""Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
-is run on: its leave-one-configuration-out QR factorisations cost about this. Measured on one
-core (benchmarks/bench_large_campaigns.py): a UR5's 20,000 positions (1.1e9) take 45 s; its
-20,000 poses (2.7e9) ran past 77 s, 50 markers at 200 configurations (2e10) 420 s."""
-
-
-def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:
-    """Refuse, before it starts, a selection (``--params auto``) too long to wait for.
-
-    Args:
-        m: Configurations.
-        rows: Rows per configuration (3 per marker, 3 more for an orientation).
-        fixed: Frame and marker columns.
-        candidates: Candidate parameters.
-
-    Raises:
-        InvalidArgumentError: The work exceeds :data:`SELECTION_WORK`; says what to do.
-    """
-    work = m * rows * (fixed + candidates) ** 2 * candidates
-    if work > SELECTION_WORK:
-        raise InvalidArgumentError(
-            f"params 'auto' would cross-validate {candidates} parameters on {m} configurations "
-            f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
-            f"times the work calib runs it on (about a minute on one core); give a level "
-            f"(params complete, paper, offsets or frames), or fewer configurations or markers"
-        )
 
 
 def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:

@@ -220,10 +220,9 @@ def model_choice(selection) -> dict | None:
     out["steps"] = [
         {"name": s["name"], "loo_mm": finite(1e3 * s["loo"])} for s in out.get("steps", [])
     ]
-    for key in ("cv_registration", "cv_selection"):
-        if key in out:
-            value = out.pop(key)
-            out[f"{key}_mm"] = None if value is None else finite(1e3 * value)
+    for key in [k for k in out if k.startswith("cv_")]:  # cross-validated errors [m]
+        value = out.pop(key)
+        out[f"{key}_mm"] = None if value is None else finite(1e3 * value)
     return out
 
 

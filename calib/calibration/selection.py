@@ -26,7 +26,19 @@ closed form.
   (zero allowed).
 * **Guard** against selection bias: the whole procedure is cross-validated once more, by
   ``OUTER_FOLDS`` folds (configuration i in fold i mod 10: no random draw); if it predicts
-  the held-out folds no better than the registration alone, the registration is kept. Ten
+  the held-out folds no better than the registration alone, the registration is kept.
+* **The complete fit as a candidate**: with at least ``RICH`` equations per parameter of
+  the complete fit, the guard's folds also fit every candidate with a prior strength chosen
+  by each fold's leave-one-out error, and the lower cross-validated error of the two
+  (selection, complete) is delivered. The selection's thresholds (``MIN_GAIN``, one
+  standard error) shrink slower with the number of configurations m than the cost of one
+  more parameter (about noise^2 / m): alone, it kept dropping parameters the data
+  determine. Below ``RICH`` (a fold's error is that of a few postures) the selection is
+  delivered as before. The guard's errors come from the moments of each fold's held-out rows
+  (:func:`_outer_cv`), the prior strengths in blocks of configurations
+  (:func:`ridge_strengths`): the memory is linear in the data with a small constant.
+* **Postures**: the configurations of one posture (its repeats, ``groups``) enter as one
+  (:func:`_by_posture`), so that its repeats leave together and buy no parameter. Ten
   folds rather than five: each fold's procedure sees 90 % of the configurations, closer to
   the final fit (with 80 %, a fold that loses the only postures pinning a parameter down
   judges the procedure by an extrapolation the final fit does not make). The folds' forward
@@ -63,6 +75,12 @@ MIN_GAIN = 0.02
 OUTER_FOLDS = 10
 """Folds of the guard's cross-validation (configuration i goes to fold i mod OUTER_FOLDS)."""
 
+RICH = 10
+"""Equations (distinct postures times rows) per parameter of the complete fit from which the
+complete fit with its cross-validated prior is a candidate: the lower cross-validated error
+then chooses between it and the selection (with fewer, a fold's error is that of a few
+postures, and the selection stays as careful as it was)."""
+
 STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 """Prior strengths tried (on unit-norm columns), besides zero."""
 
@@ -91,6 +109,9 @@ class Selection:
         registration_cv: Cross-validated RMS error per point of the registration alone [m].
         selection_cv: The same for the whole selection procedure [m].
         guarded: The guard rejected the selection (the registration is kept).
+        complete_cv: The same for the complete fit (every candidate) with its prior strength
+            chosen by the leave-one-out error [m].
+        winner: The model delivered: ``registration``, ``selection`` or ``complete``.
     """
 
     kept: tuple[str, ...]
@@ -99,6 +120,8 @@ class Selection:
     registration_cv: float
     selection_cv: float
     guarded: bool
+    complete_cv: float = float("nan")
+    winner: str = "selection"
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres)."""
@@ -109,6 +132,8 @@ class Selection:
             "cv_registration": self.registration_cv,
             "cv_selection": self.selection_cv,
             "guarded": self.guarded,
+            "cv_complete": None if np.isnan(self.complete_cv) else self.complete_cv,
+            "winner": self.winner,
         }
 
 
@@ -141,9 +166,13 @@ def block_loo(A: np.ndarray, e: np.ndarray, rows: int, lam: np.ndarray | None = 
     return float(np.sqrt(np.sum(loo**2) / (m * rows / 3)))
 
 
-def _rms(sq: np.ndarray, rows: int) -> np.ndarray:
-    """RMS error per point of squared errors per configuration ``(..., m)``."""
-    return np.sqrt(np.sum(sq, axis=-1) / (sq.shape[-1] * rows / 3))
+def _rms(sq: np.ndarray, rows: int, count: np.ndarray | None = None) -> np.ndarray:
+    """RMS error per point of squared errors per configuration ``(..., m)``.
+
+    ``count``: the configurations of the file each stands for (default one).
+    """
+    n = sq.shape[-1] if count is None else float(np.sum(count))
+    return np.sqrt(np.sum(sq, axis=-1) / (n * rows / 3))
 
 
 def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.ndarray, float]:
@@ -178,7 +207,9 @@ def ridge_strengths(
     residuals ``r``) and ``B = U S V^T``, the hat matrix at strength ``s`` is
     ``P_fixed + U diag(S^2 / (S^2 + s)) U^T``: one SVD per subset serves every strength
     (equal to :func:`block_loo` with ``lam = s`` on those columns), and the left-out errors of
-    every subset at every strength are one batch of small solves.
+    every subset at every strength are one batch of small solves. The subsets are taken a
+    few at a time, and their configurations in blocks (:data:`BLOCK`): the memory is linear
+    in the data.
 
     Args:
         A: Unit-norm columns ``(m rows, p)``, the first ``fixed`` free of prior.
@@ -193,6 +224,26 @@ def ridge_strengths(
         (zero on the configurations it leaves out), and those strengths ``(b,)`` (0: none;
         the smallest of equal errors).
     """
+    per = _per_batch(A.shape[0] * A.shape[1], len(train))
+    parts = [
+        _ridge_batch(A, e, rows, fixed, train[i : i + per], cols[i : i + per])
+        for i in range(0, len(train), per)
+    ]
+    return np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts])
+
+
+BLOCK = 2_000_000
+"""Numbers a batch of subsets (or a block of configurations) may hold in one working array:
+the selection's memory is a few times ``8 BLOCK`` bytes beyond the data's own arrays."""
+
+
+def _per_batch(size: int, subsets: int) -> int:
+    """Subsets taken together when each holds ``size`` numbers (at least one)."""
+    return max(1, min(subsets, BLOCK // max(size, 1)))
+
+
+def _ridge_batch(A, e, rows, fixed, train, cols) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ridge_strengths` of a few subsets at once."""
     b = len(train)
     w = np.repeat(train, rows, axis=1).astype(float)
     Q = np.linalg.qr(A[:, :fixed] * w[:, :, None])[0]
@@ -201,7 +252,8 @@ def ridge_strengths(
     B *= w[:, :, None]
     B -= Q @ (np.swapaxes(Q, 1, 2) @ B)
     U, sv = np.linalg.svd(B, full_matrices=False)[:2]
-    width, strengths = B.shape[2], np.r_[0.0, STRENGTHS]
+    del B
+    width, strengths = U.shape[2], np.r_[0.0, STRENGTHS]
     s2 = np.broadcast_to(sv[:, None, :] ** 2, (b, len(strengths), width))
     with np.errstate(invalid="ignore"):  # 0 / 0 where a column is dependent, as it should
         wt = np.divide(s2, s2 + strengths[:, None], out=np.zeros(s2.shape), where=real[:, None])
@@ -213,6 +265,9 @@ def ridge_strengths(
 def _ridge_errors(Q, U, wt, r, rows) -> np.ndarray:
     """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
 
+    The configurations are taken in blocks (:data:`BLOCK`): each one's error needs its own
+    rows and the fits' coefficients ``wt U^T r`` only.
+
     Args:
         Q: Fixed columns' orthonormal basis ``(b, n, fixed)``.
         U: Prior columns' left singular vectors ``(b, n, width)``.
@@ -222,13 +277,27 @@ def _ridge_errors(Q, U, wt, r, rows) -> np.ndarray:
     """
     b, n, width = U.shape
     m, S = n // rows, wt.shape[1]
-    Uc = np.ascontiguousarray(np.transpose(U.reshape(b, m, rows, width), (2, 0, 3, 1)))
-    Qc = np.transpose(Q.reshape(b, m, rows, -1), (2, 0, 1, 3))
+    coef = wt * np.einsum("bnk,bn->bk", U, r)[:, None]  # (b, strengths, width)
+    Ub, Qb, rb = U.reshape(b, m, rows, width), Q.reshape(b, m, rows, -1), r.reshape(b, m, rows)
+    step = max(1, BLOCK // (rows * b * (rows * S + width + Q.shape[2])))
+    out = np.empty((b, S, m))
+    for c in range(0, m, step):
+        part = slice(c, c + step)
+        out[:, :, part] = _ridge_block(Qb[:, part], Ub[:, part], wt, coef, rb[:, part], rows)
+    return out
+
+
+def _ridge_block(Qb, Ub, wt, coef, rb, rows) -> np.ndarray:
+    """:func:`_ridge_errors` of a block of configurations (arrays by configuration)."""
+    b, m = Ub.shape[:2]
+    S = wt.shape[1]
+    Uc = np.ascontiguousarray(np.transpose(Ub, (2, 0, 3, 1)))  # (rows, b, width, m)
+    Qc = np.transpose(Qb, (2, 0, 1, 3))
     M = -(wt @ (Uc[:, None] * Uc[None]))  # (rows, rows, b, strengths, m): component-major
     M -= np.einsum("ibms,jbms->ijbm", Qc, Qc)[:, :, :, None]
     M[np.arange(rows), np.arange(rows)] += 1.0
-    fitted = (wt * np.einsum("bnk,bn->bk", U, r)[:, None]) @ np.swapaxes(U, 1, 2)
-    y = np.moveaxis((r[:, None] - fitted).reshape(b, S, m, rows), 3, 0)
+    fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
+    y = np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
     if rows <= SMALL:
         x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1))  # M kept for LAPACK
         sq = np.einsum("is,is->s", x, x).reshape(b, S, m)
@@ -285,19 +354,41 @@ def forward(
 
 def _forwards(A, e, rows, fixed, names, forced, train) -> list[tuple[list[int], list[Step], float]]:
     """:func:`forward` on each subset of the configurations ``train`` ``(subsets, m)``."""
+    found = _paths_of(A, e, rows, fixed, names, forced, train, None)
+    lists = [[fixed + u for u in o[0]] for o in found]
+    strengths = ridge_strengths(A, e, rows, fixed, train, lists)[1]
+    return [(o[0], o[1], float(s)) for o, s in zip(found, strengths, strict=True)]
+
+
+def _paths_of(A, e, rows, fixed, names, forced, train, repeats):
+    """:func:`_forwards` without the prior strengths.
+
+    Each subset's kept candidates (into ``names``) and steps, and the whole path's order
+    (all it reached) and steps.
+
+    ``repeats``: each posture's spread, the squared errors every model leaves on it (added
+    to its left-out errors), and its rows in the file (:func:`_by_posture`); or None.
+    """
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
-    kept, out = [], []
-    for order, errors in paths(A, e, rows, start, rest, train):
+    spread, count = (np.zeros(train.shape[1]), None) if repeats is None else repeats
+    out = []
+    per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
+    found = [
+        p
+        for i in range(0, len(train), per)
+        for p in paths(A, e, rows, start, rest, train[i : i + per])
+    ]
+    for (order, errors), mask in zip(found, train, strict=True):
+        errors = errors + spread[mask]
         k = best_prefix(errors)
-        loo = [float(v) for v in _rms(errors[: k + 1], rows)]
+        loo = [float(v) for v in _rms(errors, rows, None if count is None else count[mask])]
         steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
-        steps += [Step(names[c - fixed], v) for c, v in zip(order[:k], loo[1:], strict=True)]
-        kept.append(order[:k])
-        out.append((sel + [c - fixed for c in order[:k]], steps))
-    strengths = ridge_strengths(A, e, rows, fixed, train, [start[fixed:] + o for o in kept])[1]
-    return [(*o, float(s)) for o, s in zip(out, strengths, strict=True)]
+        steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
+        whole = sel + [c - fixed for c in order]
+        out.append((sel + [c - fixed for c in order[:k]], steps[: k + 1], whole, steps))
+    return out
 
 
 def shrinkage(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> float:
@@ -314,8 +405,13 @@ def _guard_folds(m: int) -> np.ndarray:
     return (np.arange(m) % OUTER_FOLDS)[None, :] != folds[:, None]
 
 
-def _outer_cv(A, e, rows, fixed, train, outcomes) -> tuple[float, float]:
-    """Pooled RMS error per point over the guard's held-out folds: registration, selection.
+def _outer_cv(A, e, rows, fixed, train, models) -> np.ndarray:
+    """Held-out squared error of each candidate model's fits, pooled over the guard's folds.
+
+    Each fold's fit is the ridge fit of the candidate's columns on its training rows; its
+    error on the held-out rows comes from the moments of the held-out rows (``A_h^T A_h``,
+    ``A_h^T e_h``, ``|e_h|^2``), about the whole data's least-squares fit (whose residuals
+    are small: the moments keep their digits), so that no array larger than the data is made.
 
     Args:
         A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.
@@ -323,46 +419,61 @@ def _outer_cv(A, e, rows, fixed, train, outcomes) -> tuple[float, float]:
         rows: Rows per configuration.
         fixed: Number of columns always in (frame, markers).
         train: Training configurations of each fold ``(folds, m)``.
-        outcomes: Each fold's procedure (:func:`forward` on its training configurations).
-    """
-    f = len(train)
-    w = np.repeat(train, rows, axis=1).astype(float)
-    cols = [list(range(fixed)) + [fixed + s for s in sel] for sel, _, _ in outcomes]
-    X, real = _padded(A, [list(range(fixed))] * f + cols)  # registration's fits, selection's
-    lam = np.zeros(real.shape)
-    for i, (_, _, strength) in enumerate(outcomes):
-        lam[f + i, fixed : len(cols[i])] = strength
-    sse = _held_out_sse(X, e, np.concatenate([w, w]), lam, real.sum(axis=1))
-    points = e.size / 3
-    return float(np.sqrt(sse[:f].sum() / points)), float(np.sqrt(sse[f:].sum() / points))
-
-
-def _held_out_sse(A, e, w, lam, p) -> np.ndarray:
-    """Squared error on its held-out rows of each fold's ridge fit on its training rows.
-
-    Args:
-        A: Each fold's columns ``(folds, n, width)`` (zero columns pad).
-        e: Residuals to explain ``(n,)``.
-        w: Training rows of each fold ``(folds, n)`` [0 or 1].
-        lam: Ridge penalty per fold and column ``(folds, width)``.
-        p: Columns of each fold (the others pad).
+        models: Per candidate, per fold: its columns and prior strength.
 
     Returns:
-        ``(folds,)``. The fit solves the normal equations in the least-squares sense, as
-        :func:`numpy.linalg.lstsq` (singular values under ``eps p`` times the largest
-        dropped; those of the padding are 0).
+        ``(candidates, folds)`` summed squared held-out errors [units of e squared].
     """
-    Aw = np.swapaxes(A * w[:, :, None], 1, 2)
-    N = Aw @ A
-    diag = np.arange(A.shape[2])
-    N[:, diag, diag] += lam
-    ev, V = np.linalg.eigh(N)  # symmetric: singular values |ev|, vectors V
+    x_all = np.linalg.lstsq(A, e, rcond=None)[0]
+    ec = e - A @ x_all
+    G, g = A.T @ A, A.T @ ec
+    moments = []
+    for mask in train:
+        held = np.repeat(~mask, rows)
+        Ah, eh = A[held], ec[held]
+        moments.append((Ah.T @ Ah, Ah.T @ eh, eh @ eh))
+    Gh = np.array([h[0] for h in moments])
+    gh = np.array([h[1] for h in moments])
+    Gt = G - Gh
+    gt = g - gh + Gt @ x_all  # training moments, about 0
+    p = A.shape[1]
+    use = np.zeros((len(models), len(train), p), dtype=bool)
+    lam = np.zeros(use.shape)
+    for c, model in enumerate(models):
+        for f, (cols, strength) in enumerate(model):
+            use[c, f, cols] = True
+            lam[c, f, cols[fixed:]] = strength
+    d = _solve(Gt, gt, use, lam) - x_all
+    quad = np.einsum("cfi,fij,cfj->cf", d, Gh, d)
+    sse = np.array([h[2] for h in moments]) - 2.0 * np.einsum("cfi,fi->cf", d, gh) + quad
+    return np.maximum(sse, 0.0)
+
+
+def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
+
+    Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
+
+    Args:
+        N: Normal matrices of each fold ``(folds, p, p)``.
+        b: Their right-hand sides ``(folds, p)``.
+        use: The columns of each candidate's fit in each fold ``(candidates, folds, p)``.
+        lam: The prior on each column ``(candidates, folds, p)``.
+
+    Returns:
+        ``(candidates, folds, p)`` solutions, zero off their columns.
+    """
+    both = use[..., :, None] & use[..., None, :]
+    M = np.where(both, N[None], 0.0)
+    diag = np.arange(N.shape[1])
+    top = np.max(np.abs(M[..., diag, diag]), axis=-1, keepdims=True)
+    M[..., diag, diag] += lam + np.where(use, 0.0, top)  # the padding: eigenvalue top, no rhs
+    ev, V = np.linalg.eigh(M)
     ev_abs = np.abs(ev)
-    keep = ev_abs > np.finfo(float).eps * p[:, None] * ev_abs.max(axis=1, keepdims=True)
-    y = np.einsum("fji,fj->fi", V, Aw @ e)
-    x = np.einsum("fij,fj->fi", V, np.divide(y, ev, out=np.zeros_like(y), where=keep))
-    res = e - np.einsum("fnp,fp->fn", A, x)
-    return np.einsum("fn,fn->f", res * (1.0 - w), res)
+    tol = np.finfo(float).eps * use.sum(axis=-1, keepdims=True) * ev_abs.max(axis=-1, keepdims=True)
+    y = np.einsum("cfji,cfj->cfi", V, np.where(use, b[None], 0.0))
+    y = np.divide(y, ev, out=np.zeros_like(y), where=ev_abs > tol)
+    return np.einsum("cfij,cfj->cfi", V, y)
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
@@ -378,8 +489,49 @@ def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarra
     return out, np.arange(width) < np.array([len(c) for c in cols])[:, None]
 
 
+def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The rows of each posture once: its repeats' mean, times the square root of their count.
+
+    For the linear model the fit and every left-out error of a posture are those of its
+    repeats (a posture held out leaves with all of them), but for the spread of the repeats
+    about their mean, which no model explains: it is returned, to be added to the errors.
+
+    Args:
+        J: Columns ``(m, rows, p)``.
+        e: Residuals ``(m, rows)``.
+        groups: Posture of each configuration ``(m,)`` (numbered from 0), or None.
+
+    Returns:
+        Columns ``(postures, rows, p)``, residuals ``(postures, rows)``, and the spread of each
+        posture's residuals (summed squares) with its count of configurations.
+    """
+    m = len(e)
+    if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
+        return J, e, (np.zeros(m), np.ones(m))  # numbered by first appearance: same order
+    count = np.bincount(groups).astype(float)
+    root = np.sqrt(count)
+    Js, es = np.zeros((len(count), *J.shape[1:])), np.zeros((len(count), e.shape[1]))
+    np.add.at(Js, groups, J)
+    np.add.at(es, groups, e)
+    Js /= root[:, None, None]
+    es /= root[:, None]
+    spread = np.zeros(len(count))
+    np.add.at(spread, groups, np.sum((e - (es / root[:, None])[groups]) ** 2, axis=1))
+    return Js, es, (spread, count)
+
+
+def _complete(names, order: list[int]) -> list[int]:
+    """Every candidate: the path's order, then those it never reached."""
+    return order + [u for u in range(len(names)) if u not in order]
+
+
 def select(
-    J: np.ndarray, e: np.ndarray, fixed: int, names: tuple[str, ...], forced=()
+    J: np.ndarray,
+    e: np.ndarray,
+    fixed: int,
+    names: tuple[str, ...],
+    forced=(),
+    groups: np.ndarray | None = None,
 ) -> tuple[Selection, np.ndarray]:
     """Choose the parameters the data support (see the module docstring).
 
@@ -390,11 +542,16 @@ def select(
         fixed: Number of always-free columns (frame, markers).
         names: Candidate names.
         forced: Indices into ``names`` kept whatever the data say.
+        groups: Posture of each configuration (:func:`~calib.measurements.postures.
+            posture_groups`): the repeats of a posture count once (None: every
+            configuration is a posture).
 
     Returns:
         The selection, and the prior weight of each kept parameter (in the units of x:
         ``sqrt(strength) * |column|``).
     """
+    points = e.size / 3
+    J, e, repeats = _by_posture(J, e, groups)
     m, rows, p = J.shape
     A = J.reshape(m * rows, p)
     norms = np.linalg.norm(A, axis=0)
@@ -402,12 +559,30 @@ def select(
     ev = e.ravel()
     folds = _guard_folds(m)
     train = np.vstack([np.ones((1, m), dtype=bool), folds])  # the whole data, then each fold
-    outcomes = _forwards(A, ev, rows, fixed, names, forced, train)
-    sel, steps, strength = outcomes[0]
-    reg_cv, sel_cv = _outer_cv(A, ev, rows, fixed, folds, outcomes[1:])
-    guarded = bool(sel) and sel_cv >= reg_cv and not forced
-    if guarded:
-        sel, strength = [], 0.0
+    outcomes = _paths_of(A, ev, rows, fixed, names, forced, train, repeats)
+    rich = m * rows >= RICH * p  # else the complete fit is no candidate (as careful as before)
+    every = [_complete(names, o[2]) for o in outcomes] if rich else []
+    lists = [[fixed + u for u in c] for c in [o[0] for o in outcomes] + every]
+    subsets = np.vstack([train] * (2 if rich else 1))
+    both = ridge_strengths(A, ev, rows, fixed, subsets, lists)[1].tolist()
+    strengths, complete = both[: len(train)], both[len(train) :]
+    frame = list(range(fixed))
+    models = [
+        [(frame, 0.0)] * len(folds),
+        [(frame + c, s) for c, s in zip(lists[1 : len(train)], strengths[1:], strict=True)],
+        [(frame + c, s) for c, s in zip(lists[len(train) + 1 :], complete[1:], strict=True)],
+    ]
+    folded = _outer_cv(A, ev, rows, fixed, folds, models[: 3 if rich else 2])
+    cv = [*np.sqrt((folded.sum(axis=1) + repeats[0].sum()) / points).tolist(), float("nan")]
+    reg_cv, sel_cv, full_cv = cv[:3]
+    sel, steps, _, path_steps = outcomes[0]
+    strength, winner = strengths[0], "selection"
+    if rich and full_cv < sel_cv:
+        sel, steps, strength, winner = every[0], path_steps, complete[0], "complete"
+    guarded = bool(sel) and not forced and min(cv[1 : 2 + rich]) >= reg_cv
+    if guarded or not sel:
+        winner, sel, strength = "registration", [], 0.0
     kept = tuple(names[s] for s in sel)
     prior = np.sqrt(strength) * norms[[fixed + s for s in sel]]
-    return Selection(kept, tuple(steps), strength, reg_cv, sel_cv, guarded), prior
+    out = Selection(kept, tuple(steps), strength, reg_cv, sel_cv, guarded, full_cv, winner)
+    return out, prior

@@ -49,9 +49,11 @@ def _selection(r: CalibrationResult) -> list[str]:
     steps = ", ".join(f"{st.name} {1e3 * st.loo:.3f}" for st in s.steps)
     lines = [f"selection (leave-one-configuration-out RMS per point [mm] after each step): {steps}"]
     verdict = "kept the registration alone" if s.guarded else f"kept {len(s.kept)} parameters"
+    verdict += " (the complete fit)" if s.winner == "complete" else ""
+    full = f", complete {1e3 * s.complete_cv:.3f} mm" if s.complete_cv == s.complete_cv else ""
     lines.append(
         f"cross-validated check: registration alone {1e3 * s.registration_cv:.3f} mm, "
-        f"selection {1e3 * s.selection_cv:.3f} mm: {verdict}"
+        f"selection {1e3 * s.selection_cv:.3f} mm{full}: {verdict}"
         + (f"; prior strength {s.strength:.3g}" if s.strength else "")
     )
     return lines

@@ -26,6 +26,7 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .result import ResidualStats
 from .solve import FitState
@@ -53,23 +54,29 @@ RANK_TOL = 1e-9
 def split(
     data: Measurements, fraction: float, seed: int
 ) -> tuple[Measurements, Measurements | None]:
-    """Set aside a seeded random ``fraction`` of the configurations (training, held out).
+    """Set aside a seeded random ``fraction`` of the postures (training, held out).
+
+    A posture recorded several times (:func:`~calib.measurements.postures.posture_groups`)
+    is held out with all its rows: none of its repeats is left to train on.
 
     Raises:
         InvalidArgumentError: ``fraction`` outside [0, 1), or > 0 but holding out no row.
     """
     if not (0.0 <= fraction < 1.0):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {fraction!r}")
-    n_out = round(fraction * data.m)
+    groups = posture_groups(data.q, data.tool)
+    postures = int(groups.max(initial=-1)) + 1
+    n_out = round(fraction * postures)
     if n_out == 0 and fraction > 0.0:
+        distinct = f" ({postures} postures)" if postures < data.m else ""
         raise InvalidArgumentError(
-            f"holdout {fraction:g} of {data.m} rows holds out no row: give at least "
-            f"{1.0 / data.m:.3g} (one row), or 0 for no holdout"
+            f"holdout {fraction:g} of {data.m} rows{distinct} holds out no row: give at least "
+            f"{1.0 / postures:.3g} (one {'posture' if distinct else 'row'}), or 0 for no holdout"
         )
     if n_out == 0:
         return data, None
-    held = np.zeros(data.m, dtype=bool)
-    held[np.random.default_rng([seed, 3]).permutation(data.m)[:n_out]] = True
+    out = np.random.default_rng([seed, 3]).permutation(postures)[:n_out]
+    held = np.isin(groups, out)
     return data.subset(~held), data.subset(held)
 
 

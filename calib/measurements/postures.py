@@ -1,0 +1,45 @@
+"""Postures: the rows of a campaign recorded at the same joint values count once.
+
+A posture recorded several times (the same configuration measured twice, a touch repeated)
+adds rows but no new information about the geometry: only its noise averages. Whatever
+counts or splits configurations (the selection's cross-validation folds, the holdout, the
+equation counts of :mod:`calib.calibration.determined`) counts postures, so that a file whose
+rows repeat is treated as if each posture were there once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["POSTURE_TOL", "count", "posture_groups"]
+
+POSTURE_TOL = 1e-6
+"""Rows whose joint values agree to this [rad or m] (after rounding to its multiples) are one
+posture: well below any encoder's resolution, well above a CSV's round-off."""
+
+
+def posture_groups(q: np.ndarray, key=None, tol: float = POSTURE_TOL) -> np.ndarray:
+    """The posture of each row, numbered 0, 1, ... in order of first appearance.
+
+    Args:
+        q: Joint values ``(m, n)`` [rad or m].
+        key: What else a row's posture is (``(m,)``, e.g. the plane a touch touches, or the
+            tool a row measures), or None.
+        tol: Joint values equal once rounded to multiples of this are the same [rad or m].
+
+    Returns:
+        ``(m,)`` posture index of each row; ``max + 1`` is the number of postures.
+    """
+    q = np.asarray(q, dtype=float).reshape(len(q), -1)
+    cells = np.round(q / tol)
+    if key is not None:
+        _, codes = np.unique(np.asarray(key), return_inverse=True)
+        cells = np.c_[cells, codes.reshape(-1)]
+    _, first, inverse = np.unique(cells, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(np.argsort(first))  # group numbers in order of first appearance
+    return order[inverse.reshape(-1)]
+
+
+def count(q: np.ndarray, key=None) -> int:
+    """Number of distinct postures among the rows (:func:`posture_groups`)."""
+    return int(posture_groups(q, key).max(initial=-1)) + 1
