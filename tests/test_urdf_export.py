@@ -211,13 +211,38 @@ def test_nominal_export_keeps_the_geometry():
             assert np.allclose(a, b, atol=1e-12), (joint, key)
 
 
-def test_tool_without_fixed_joint_is_refused_and_nothing_written(tmp_path):
-    chain = load_chain(DATA / "fixed_middle.urdf")  # tool is the child of continuous j3
+def test_tool_without_fixed_joint_gets_a_calibrated_tool_link(tmp_path):
+    """The tool link is the child of the last joint (continuous j3): the calibrated tool is a
+    link ``<tool>_calibrated`` fixed to it, and Pinocchio's kinematics of the written file to
+    it is the calibrated model; a tree's tool there is still refused (its fixed joint is
+    where a tree writes each tool)."""
+    import pinocchio as pin
+
+    from calib.kinematics.urdf_export import check_exportable
+
+    chain = load_chain(DATA / "fixed_middle.urdf")
     nominal, calibrated = perturbed(chain, seed=0)
     path = tmp_path / "out.urdf"
+    write_calibrated_urdf(path, chain, nominal, calibrated)
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    q = np.random.default_rng(3).uniform(-3.0, 3.0, (10, chain.n))
+    T = measurement_to_base(nominal, calibrated)
+    base = model.getFrameId(chain.base_frame)
+    tool = model.getFrameId(f"{chain.tool_frame}_calibrated")
+    for qi, expected in zip(q, calibrated.forward(q), strict=True):
+        x = pin.neutral(model)
+        for name, v in zip(chain.joint_names, qi, strict=True):
+            joint = model.joints[model.getJointId(name)]
+            if joint.nq == 2:
+                x[joint.idx_q : joint.idx_q + 2] = np.cos(v), np.sin(v)
+            else:
+                x[joint.idx_q] = v
+        pin.framesForwardKinematics(model, data, x)
+        got = T @ (data.oMf[base].inverse() * data.oMf[tool]).homogeneous
+        assert np.abs(got - expected).max() < 1e-9
     with pytest.raises(CalibError, match="continuous joint 'j3', not by a fixed joint"):
-        write_calibrated_urdf(path, chain, nominal, calibrated)
-    assert list(tmp_path.iterdir()) == []
+        check_exportable(chain)  # as a tree's tool
 
 
 def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):

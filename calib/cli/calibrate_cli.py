@@ -191,12 +191,16 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot:
         child_link,
         edited_joints,
         read_urdf_source,
+        tool_on_moving_joint,
+        urdf_tool_frame,
     )
     from ..kinematics.urdf_links import check_new_names, marker_joints, marker_link_names
 
-    check_exportable(chain)
+    check_exportable(chain, moving=True)
     root = read_urdf_source(chain)[1]
-    tool_link = child_link(edited_joints(root, chain)[1])
+    tool_link = child_link(edited_joints(root, chain, moving=True)[1])
+    if tool_on_moving_joint(chain):  # the markers hang from the calibrated tool's link
+        tool_link = urdf_tool_frame(chain)
     kept = marker_joints(root, chain.tool_frame, tool_link, n_markers)
     names = marker_link_names(chain.tool_frame, n_markers)
     check_new_names(root, tuple(n for n in names if n not in kept), "marker links")

@@ -147,16 +147,23 @@ def _joints_carrying(root: ET.Element, chain: Chain, frame_id: int) -> list[ET.E
     return [j for j in joints if child_link(j) == frame.name]
 
 
-def _tool_joint(root: ET.Element, chain: Chain) -> ET.Element:
-    """The fixed joint whose child link is the tool frame (or which is the tool frame)."""
+def _tool_joint(root: ET.Element, chain: Chain, moving: bool = False) -> ET.Element:
+    """The fixed joint whose child link is the tool frame (or which is the tool frame).
+
+    ``moving``: a tool link carried by the chain's last joint is allowed (that joint is
+    returned; :func:`calibrated_urdf` adds the calibrated tool as a link fixed to it).
+    """
     found = _joints_carrying(root, chain, chain.tool_id)
     if not found:
         raise CalibError(f"no URDF joint carries the tool frame '{chain.tool_frame}'")
     joint = found[0]
-    if joint.get("type", "") != "fixed" and joint.get("name") != chain.joint_names[-1]:
+    kind = joint.get("type", "")
+    if kind != "fixed" and not (moving and joint.get("name") == chain.joint_names[-1]):
         raise CalibError(
-            f"the tool frame '{chain.tool_frame}' is carried by the {joint.get('type')} joint "
-            f"'{joint.get('name')}', which is not the chain's last joint"
+            f"the tool frame '{chain.tool_frame}' is carried by the {kind} joint "
+            f"'{joint.get('name')}', not by a fixed joint: the calibrated tool placement has "
+            f"nowhere to go in the URDF (attach a tool link with a fixed joint and use it "
+            f"as the tool)"
         )
     return joint
 
@@ -222,13 +229,19 @@ def read_urdf_source(chain: Chain) -> tuple[bytes, ET.Element]:
     return raw, parse_xml(raw, src)
 
 
-def edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element], ET.Element]:
-    """The chain's joint elements by name and the tool's fixed joint."""
+def edited_joints(
+    root: ET.Element, chain: Chain, moving: bool = False
+) -> tuple[dict[str, ET.Element], ET.Element]:
+    """The chain's joint elements by name and the tool's fixed joint.
+
+    ``moving``: a tool link carried by the chain's last joint is allowed (a chain's URDF; a
+    tree's tools need their fixed joints).
+    """
     joints = {j.get("name", ""): j for j in root.findall("joint")}
     missing = [name for name in chain.joint_names if name not in joints]
     if missing:
         raise CalibError(f"{chain.urdf_path}: no <joint name='{missing[0]}'> (a chain joint)")
-    tool_joint = _tool_joint(root, chain)
+    tool_joint = _tool_joint(root, chain, moving)
     parents = {child_link(j): parent_link(j) for j in joints.values()}
     for name in chain.joint_names:  # a tool above the chain: its origin would move the chain
         link, seen = parent_link(joints[name]), set()
@@ -244,14 +257,16 @@ def edited_joints(root: ET.Element, chain: Chain) -> tuple[dict[str, ET.Element]
     return joints, tool_joint
 
 
-def check_exportable(chain: Chain) -> None:
+def check_exportable(chain: Chain, moving: bool = False) -> None:
     """Raise now what :func:`calibrated_urdf` would raise about the chain's URDF.
+
+    ``moving``: a tool link carried by the last joint is allowed (a chain's calibration).
 
     Raises:
         URDFError: The file cannot be read.
         CalibError: The tool frame is not carried by a fixed joint, or a joint is missing.
     """
-    edited_joints(read_urdf_source(chain)[1], chain)
+    edited_joints(read_urdf_source(chain)[1], chain, moving)
 
 
 def measurement_to_base(nominal: MDHModel, calibrated: MDHModel) -> np.ndarray:
@@ -343,7 +358,7 @@ def calibrated_urdf(
             raise InvalidArgumentError("on_robot and world: the instrument is one or the other")
         on_robot = _array(on_robot, (4, 4), "on_robot")
     raw, root = read_urdf_source(chain)
-    joints, tool_joint = edited_joints(root, chain)
+    joints, tool_joint = edited_joints(root, chain, moving=True)
     start, stop = xml_layout(raw, str(chain.urdf_path))
 
     poses = NominalPoses(chain)
