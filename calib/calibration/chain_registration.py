@@ -23,7 +23,7 @@ from .options import Options
 from .registration import register
 from .solve import Fit, fit
 
-__all__ = ["checked_registration", "frames_model"]
+__all__ = ["checked_registration", "frames_model", "registration"]
 
 
 def frames_model(data: Measurements, opts: Options) -> ErrorModel:
@@ -93,7 +93,11 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
                 f"logged?",
             )
         cause = diagnosis.likely_cause(
-            data, revolute, lambda d: errors(d).position_rms, first.position_rms
+            data,
+            revolute,
+            lambda d: errors(d).position_rms,
+            first.position_rms,
+            postures=diagnosis.chain_postures(nominal),
         )
         if cause is not None:
             raise DataError(
@@ -128,23 +132,25 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
 
 
 def checked_registration(chain, nominal, train, checked, guess, opts):
-    """Diagnosis (data and validation data ``checked``), weight, registration, outliers.
+    """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
+
+    The outliers are set aside before any diagnosis: one bad row is not a mistake of the
+    whole file.
 
     Returns:
-        The options with the orientation weight, the registration state, the rows kept,
-        the outliers and the notes.
+        The options with the orientation weight, the registration state, the mask of the
+        outlier rows of ``train`` and the notes.
     """
     at = _registrations(nominal, train, guess, opts)
-    suspect = _diagnose(chain, nominal, train, guess, opts, at)
-    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
     opts = _weighted(train, opts, at)
-    notes: list[str] = []
-    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
-    if dropped and not diagnosis.suspect(
-        validation.stats(reg, train, None).position_rms, opts.noise
-    ):
-        suspect = []  # the outliers were the trouble: the rows left are fine
-    return opts, reg, train, dropped, suspect + diagnosed + notes
+    reg, bad = _register(nominal, train, guess, opts, at)
+    kept = train.subset(~bad) if bad.any() else train
+    same = at if kept is train else _registrations(nominal, kept, guess, opts)
+    suspect = _diagnose(chain, nominal, kept, guess, opts, same)
+    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
+    if not reg.converged:
+        raise DataError(train.source, f"the registration did not converge ({reg.message})")
+    return opts, reg.state, bad, suspect + diagnosed
 
 
 def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
@@ -155,7 +161,10 @@ def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts)
-    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, held[0], guess, opts, at)]
+    _, bad = _register(nominal, held[0], guess, opts, at, frames)
+    data = held[0].subset(~bad) if bad.any() else held[0]
+    at = at if data is held[0] else _registrations(nominal, data, guess, opts)
+    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, data, guess, opts, at)]
 
 
 def _weighted(data, opts: Options, at) -> Options:
@@ -168,25 +177,36 @@ def _weighted(data, opts: Options, at) -> Options:
     return dataclasses.replace(opts, orientation_weight=weight)
 
 
-def _register(nominal, data, guess, opts, notes: list[str], at):
-    """Registration (``at``: the data set's registrations by weight), outlier rows set aside."""
-    reg = at(opts.orientation_weight)
-    dropped: list[outliers.Outlier] = []
-    for _ in range(outliers.PASSES):  # one registration per data set
-        rows = data.rows or tuple(range(1, data.m + 1))
-        bad, found = outliers.find_pose_outliers(
-            reg.state.residuals(data), data.n_markers, opts.noise, rows
-        )
-        if not np.any(bad):
-            break
-        dropped += found
-        data = data.subset(~bad)
-        frames = frames_model(data, opts)
+def _register(nominal, data, guess, opts, at, frames=None) -> tuple[Fit, np.ndarray]:
+    """The registration (``at``: the data set's by weight) without the outlier rows (a mask).
+
+    ``frames``: the registration's model, when the outliers may not leave fewer equations
+    than its unknowns (validation data: no error, the outliers stay); else that is an error.
+    """
+
+    def refit(keep: np.ndarray) -> Fit:
+        if keep.all():
+            return at(opts.orientation_weight)
+        sub = data.subset(keep)
+        frames = frames_model(sub, opts)
         what = "measurement frame and marker parameters once the outliers are set aside"
-        determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
-        reg = _registration(nominal, data, guess, opts)
-    if dropped:
-        notes.append(outliers.set_aside_note(dropped))
+        determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
+        return _registration(nominal, sub, guess, opts)
+
+    def errors(reg: Fit) -> outliers.Errors:
+        return outliers.point_errors(reg.state.residuals(data), data.n_markers)
+
+    def allowed(bad: np.ndarray) -> bool:
+        return frames is None or int(np.sum(~bad)) * frames.rows > frames.size()
+
+    rows = data.rows or tuple(range(1, data.m + 1))
+    reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
+    return reg, bad
+
+
+def registration(nominal, data, guess, opts):
+    """The registration state of some rows at the options' weight (converged, or an error)."""
+    reg = _registration(nominal, data, guess, opts)
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
-    return reg.state, data, tuple(dropped)
+    return reg.state

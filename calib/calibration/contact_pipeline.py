@@ -43,14 +43,14 @@ from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support
 from ..measurements.contact_campaign import ContactData
-from . import contact_checks, contact_elastic, determined, validation
+from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
 from .contact_model import ContactModel, ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
 from .options import Options
 from .selection import Selection, select
-from .solve import fit
+from .solve import Fit, fit
 
 __all__ = [
     "WEIGHT_ROUNDS",
@@ -334,26 +334,84 @@ def calibrate_contacts(
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
     nominal = from_chain(chain)
-    start, train, dropped, notes = contact_checks.checked_registration(
+    first, bad, notes = contact_checks.checked_registration(
         chain, nominal, train, validate, guess, w
     )
-    what = f"unknowns of the {data.kind.object_name}(s) and the contact frame"
-    determined.check_equations(train.m, data.kind.n_rows, start.frames.size, what, train.source,
+    clock.append(time.perf_counter())
+    full = contact_elastic.torques(load, train, None)[0]
+
+    def refit(keep: np.ndarray) -> _Round:
+        reg = first if np.array_equal(keep, ~bad) else None
+        return _round(chain, nominal, subset(train, keep), held, guess, opts, load, reg)
+
+    def errors(rnd: _Round):
+        return contact_checks.length_errors(rnd.fitted.state, train, full)
+
+    rows = train.rows or tuple(range(1, train.m + 1))
+    start = bad | _proposals(first, train, opts)
+    rnd, _, dropped = outliers.until_stable(
+        refit, errors, None, rows, start, contact_checks.enough_touches(train)
+    )
+    notes = [*notes, *rnd.notes]
+    if dropped:
+        notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
+    clock.append(time.perf_counter() - 1e-3 * rnd.fit_ms)  # the selections, then the last fit
+    clock.append(time.perf_counter())
+    sets = (rnd.train, held)
+    result = _assemble(chain, sets, rnd.torque, rnd.start, rnd.fitted, rnd.selection, notes,
+                       clock, load)  # fmt: skip
+    return _with_outliers(result, dropped)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Round:
+    """One fit of the touches an outlier mask keeps: registration, choice, least squares."""
+
+    train: ContactData
+    start: ContactState
+    torque: tuple
+    fitted: Fit
+    selection: Selection | None
+    notes: tuple[str, ...]
+    fit_ms: float
+
+
+def _round(chain, nominal, train, held, guess, opts, load, start=None) -> _Round:
+    """Register (unless ``start`` is given), check, choose and fit some touches."""
+    if start is None:
+        start = contact_checks.registration(nominal, train, guess, opts.orientation_weight)
+    kind = train.kind
+    what = f"unknowns of the {kind.object_name}(s) and the contact frame"
+    determined.check_equations(train.m, kind.n_rows, start.frames.size, what, train.source,
                                held=0 if held is None else held.m, unit="touches")  # fmt: skip
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
-    notes += filter(None, [contact_checks.isolated_postures(chain, train, held)])
+    notes = list(filter(None, [contact_checks.isolated_postures(chain, train, held)]))
     torque = contact_elastic.torques(load, train, held)
     notes += filter(None, [contact_elastic.readings_note(load, train, held)])
-    clock.append(time.perf_counter())
     model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
-    clock.append(time.perf_counter())
+    tic = time.perf_counter()
     fitted = fit(
         model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
     )
-    clock.append(time.perf_counter())
-    result = _assemble(chain, (train, held), torque, start, fitted, selection, notes, clock, load)
-    return _with_outliers(result, dropped)
+    ms = 1e3 * (time.perf_counter() - tic)
+    return _Round(train, start, torque, fitted, selection, tuple(notes), ms)
+
+
+def _proposals(start: ContactState, train: ContactData, opts: Options) -> np.ndarray:
+    """Touches a robust fit of every offered parameter, linearised, finds outlying."""
+    offered = _candidates(start.mdh, "complete")
+    wide = ContactModel(offered, start.frames, ())
+    J = wide.jacobian(start, np.zeros(wide.size()), train)
+    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
+    rows = train.rows or tuple(range(1, train.m + 1))
+    return outliers.robust_proposals(
+        J[:, :, sorted(kept)],
+        start.residuals(train),
+        lambda g: contact_checks.gap_errors(g, start.kind),
+        None,
+        rows,
+    )
 
 
 def calibrate_contact_data(

@@ -18,8 +18,8 @@ from ..kinematics.so3 import matrix_to_quaternion
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
-from . import determined, validation
-from .chain_registration import checked_registration, frames_model
+from . import determined, outliers, validation
+from .chain_registration import checked_registration, frames_model, registration
 from .contact_pipeline import calibrate_contact_data
 from .contact_result import ContactCalibration
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
@@ -209,20 +209,29 @@ def calibrate(
     return _calibrate_chain(robot, data, marker, validate, opts)
 
 
-def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
-    """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
-    clock = [time.perf_counter()]
-    train, held = _datasets(chain, data, validate, opts)
-    nominal = from_chain(chain)
-    guess = _marker_guess(marker, train.n_markers)
-    checked = held if validate is not None else None
-    opts, reg, train, dropped, notes = checked_registration(
-        chain, nominal, train, checked, guess, opts
-    )
-    clock.append(time.perf_counter())
+@dataclasses.dataclass(frozen=True)
+class _Round:
+    """One fit of the rows an outlier mask keeps: registration, choice, least squares."""
+
+    train: Measurements
+    reg: State
+    torque: tuple
+    model: ErrorModel
+    selection: Selection | None
+    prior: np.ndarray | None
+    fitted: Fit
+    notes: tuple[str, ...]
+    fit_ms: float
+
+
+def _round(chain, nominal, data, keep, guess, opts, held, reg=None) -> _Round:
+    """Register (unless ``reg`` is given), choose and fit the rows ``keep`` of ``data``."""
+    train = data if keep.all() else data.subset(keep)
+    reg = registration(nominal, train, guess, opts) if reg is None else reg
     torque = _torques(chain, opts, train, held)
+    notes: list[str] = []
     model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
-    clock.append(time.perf_counter())
+    tic = time.perf_counter()
     fitted = fit(
         model,
         reg,
@@ -234,9 +243,70 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
         scale=opts.noise or 1e-3,
         max_iterations=opts.max_iterations,
     )
+    ms = 1e3 * (time.perf_counter() - tic)
+    return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
+
+
+def _proposals(nominal, reg: State, data: Measurements, opts) -> np.ndarray:
+    """Rows a robust fit of every identifiable parameter, linearised, finds outlying."""
+    pset = parameter_set(nominal, "complete")
+    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
+    wide = frames_model(data, opts).with_(
+        params=pset, base=ordered, lift=selection_lift(pset, ordered)
+    )
+    w = row_weights(wide, opts.orientation_weight)
+    J = wide.jacobian(reg, np.zeros(wide.size()), data, None) * w[None, :, None]
+    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
+    rows = data.rows or tuple(range(1, data.m + 1))
+    return outliers.robust_proposals(
+        J[:, :, sorted(kept)],
+        reg.residuals(data) * w,
+        lambda r: outliers.point_errors(r, data.n_markers),
+        opts.noise,
+        rows,
+    )
+
+
+def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
+    """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
+    clock = [time.perf_counter()]
+    train, held = _datasets(chain, data, validate, opts)
+    nominal = from_chain(chain)
+    guess = _marker_guess(marker, train.n_markers)
+    checked = held if validate is not None else None
+    opts, reg, bad, notes = checked_registration(chain, nominal, train, checked, guess, opts)
+    clock.append(time.perf_counter())
+    first = ~bad
+    all_torque = _torques(chain, opts, train, None)[0]
+
+    def refit(keep: np.ndarray) -> _Round:
+        same = np.array_equal(keep, first)
+        return _round(chain, nominal, train, keep, guess, opts, held, reg if same else None)
+
+    def errors(rnd: _Round) -> outliers.Errors:
+        residual = rnd.fitted.state.residuals(train, all_torque)
+        return outliers.point_errors(residual, train.n_markers)
+
+    rows = train.rows or tuple(range(1, train.m + 1))
+    start = bad | _proposals(nominal, reg, train, opts)
+    rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
+    notes = [*notes, *rnd.notes]
+    if dropped:
+        notes.append(outliers.set_aside_note(dropped))
+    clock.append(time.perf_counter() - 1e-3 * rnd.fit_ms)  # the selections, then the last fit
     clock.append(time.perf_counter())
     result = _assemble(
-        chain, nominal, train, held, torque, fitted, prior, selection, dropped, notes, opts
+        chain,
+        nominal,
+        rnd.train,
+        held,
+        rnd.torque,
+        rnd.fitted,
+        rnd.prior,
+        rnd.selection,
+        dropped,
+        notes,
+        opts,
     )
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
