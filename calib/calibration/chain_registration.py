@@ -97,7 +97,6 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
             revolute,
             lambda d: errors(d).position_rms,
             first.position_rms,
-            postures=diagnosis.chain_postures(nominal),
         )
         if cause is not None:
             raise DataError(

@@ -149,7 +149,8 @@ def length_errors(
 
 def gap_errors(g: np.ndarray, kind: Contact) -> outliers.Errors:
     """Each touch's length gap [m] and angle gap [rad] (None without angle rows) from gaps
-    ``(m, rows)`` (angle rows weighted or not: their norm is tested against its median)."""
+    ``(m, rows)`` (angle rows weighted or not: their norm is tested against its median).
+    """
     angle = np.array(kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
     dims = (int(np.sum(~angle)), int(np.sum(angle)))
@@ -186,7 +187,6 @@ def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) ->
         gap,
         first,
         joints_only=True,
-        postures=diagnosis.chain_postures(nominal),
     )
     if cause is not None:
         raise DataError(

@@ -337,6 +337,7 @@ def calibrate_contacts(
     first, bad, notes = contact_checks.checked_registration(
         chain, nominal, train, validate, guess, w
     )
+    held = _held_out_outliers(first, train, held, notes)
     clock.append(time.perf_counter())
     full = contact_elastic.torques(load, train, None)[0]
 
@@ -374,6 +375,24 @@ class _Round:
     selection: Selection | None
     notes: tuple[str, ...]
     fit_ms: float
+
+
+def _held_out_outliers(start: ContactState, train, held, notes: list[str]):
+    """The held-out touches without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    start.frames.index(held.ids, held.source)  # every held-out object was fitted
+    rows = held.rows or tuple(range(1, held.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        contact_checks.length_errors(start, train),
+        contact_checks.length_errors(start, held),
+        None,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped, "touch(es)", "gap"))
+    return subset(held, ~bad)
 
 
 def _round(chain, nominal, train, held, guess, opts, load, start=None) -> _Round:

@@ -19,15 +19,14 @@ composed x, y, z instead of URDF's z, y, x).
 Joint columns that hold one value in every row are named first (a joint not logged): no
 unit or order mistake is looked for then.
 
-A mistake is named only where its correction fits well at many distinct postures
-(:func:`distinct_postures`): dividing the joints by 57.3 brings every row to nearly one
-posture, where any frame or plane fits, so a fit of the corrected rows proves nothing unless
-they still sit at ``MIN_POSTURES`` distinct postures, and at half as many as the rows as given
-(counted up to ``POSTURE_CAP``). Postures are distinct when some frame of the nominal robot (or
-a point ``LEVER`` along an axis of its tool) lies more than ``SUSPECT`` from where it is in
-the other: within that distance any fit under ``SUSPECT`` says nothing. The outliers are set
-aside before any diagnosis (:mod:`calib.calibration.outliers`), so one bad row cannot be
-explained away by a mistake of the whole file.
+A mistake is named only where its correction fits well at many distinct postures: dividing
+the joints by 57.3 brings every row to nearly one posture, where any frame or plane fits (one
+wild reading, two tables under one id, another arm's file would all "look like degrees").
+So the correction is applied to the rows with each joint column shuffled across them too
+(seeded): a correction that explains those as well (their RMS under ``EXPLAINS`` times its
+own) explains nothing about the postures, and is not named. The outliers are set aside before
+any diagnosis (:mod:`calib.calibration.outliers`), so one bad row is not a mistake of the
+whole file.
 """
 
 from __future__ import annotations
@@ -41,17 +40,12 @@ from ..exceptions import CalibError
 
 __all__ = [
     "EXPLAINS",
-    "LEVER",
-    "MIN_POSTURES",
-    "POSTURE_CAP",
     "NOISE_FACTOR",
     "ORIENTATION_SUSPECT",
+    "SHUFFLE_SEED",
     "SUSPECT",
-    "chain_postures",
     "constant_joints",
-    "distinct_postures",
     "likely_cause",
-    "posture_points",
     "suspect",
 ]
 
@@ -66,65 +60,15 @@ EXPLAINS = 5.0
 """A mistake explains the data if correcting it divides the RMS error by this."""
 
 
-MIN_POSTURES = 6
-"""Fewest distinct postures at which a corrected data set must fit (or all it has)."""
-
-POSTURE_CAP = 40
-"""Distinct postures counted at most (a campaign of thousands of rows is not clustered)."""
-
-LEVER = 1.0
-"""Distance [m] along the tool's axes of the points that make orientations count as lengths."""
+SHUFFLE_SEED = 29
+"""Seed of the shuffle of the joint columns that a correction must not explain too."""
 
 
-def posture_points(kin_p: np.ndarray, tool_R: np.ndarray, tool_p: np.ndarray) -> np.ndarray:
-    """The points that place a posture: every frame's origin, and the tool's axes ``LEVER`` out.
-
-    Args:
-        kin_p: Origins of the robot's frames ``(m, F, 3)`` [m].
-        tool_R: Rotation of the tool frame ``(m, 3, 3)``.
-        tool_p: Origin of the tool frame ``(m, 3)`` [m].
-
-    Returns:
-        The points ``(m, F + 3, 3)`` [m].
-    """
-    axes = tool_p[:, None, :] + LEVER * np.swapaxes(tool_R, 1, 2)
-    return np.concatenate([kin_p, axes], axis=1)
-
-
-def chain_postures(nominal) -> Callable[[np.ndarray], np.ndarray]:
-    """The posture points of joint positions ``(m, n)`` on a nominal chain (an MDH model)."""
-
-    def points(q: np.ndarray) -> np.ndarray:
-        kin = nominal.kinematics(q)
-        return posture_points(kin.p, kin.R[:, -1], kin.p[:, -1])
-
-    return points
-
-
-def distinct_postures(points: np.ndarray, tol: float = SUSPECT, cap: int = POSTURE_CAP) -> int:
-    """How many postures, ``tol`` apart, rows whose posture points are ``points`` sit at.
-
-    Greedy clustering: a row starts a new posture when, for every posture found so far, some
-    point lies more than ``tol`` from that posture's first row's. Counting stops at ``cap``.
-
-    Args:
-        points: The points of each row ``(m, P, 3)`` [m] (:func:`posture_points`).
-        tol: Distance [m] under which two rows are one posture.
-        cap: Most postures counted.
-    """
-    centres = np.empty((0,) + points.shape[1:])
-    for row in points:
-        if len(centres) and np.any(np.max(np.linalg.norm(centres - row, axis=2), axis=1) <= tol):
-            continue
-        centres = np.concatenate([centres, row[None]])
-        if len(centres) >= cap:
-            break
-    return len(centres)
-
-
-def _needed(given: int) -> int:
-    """Distinct postures a corrected data set must keep, the rows as given at ``given``."""
-    return min(given, max(MIN_POSTURES, given // 2))
+def _shuffled(data):
+    """The rows with each joint column permuted across them (seeded): no posture kept."""
+    rng = np.random.default_rng(SHUFFLE_SEED)
+    q = np.column_stack([rng.permutation(col) for col in data.q.T])
+    return dataclasses.replace(data, q=q)
 
 
 def _swaps(data) -> Iterator[tuple[str, object]]:
@@ -207,6 +151,15 @@ def constant_joints(data) -> list[str]:
     return [name for name, s in zip(data.joint_names, same, strict=True) if s]
 
 
+def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
+    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled."""
+    try:
+        null = registration_rms(_shuffled(fixed))
+    except (CalibError, np.linalg.LinAlgError, ValueError):  # shuffled rows cannot be fitted
+        return True
+    return bool(rms * EXPLAINS < null)
+
+
 def likely_cause(
     data,
     revolute: np.ndarray,
@@ -214,7 +167,7 @@ def likely_cause(
     before: float,
     orientation: bool = False,
     joints_only: bool = False,
-    postures: Callable[[np.ndarray], np.ndarray] | None = None,
+    shuffle: bool = True,
 ) -> tuple[str, float] | None:
     """The usual mistake that explains the data, with the RMS error once it is corrected.
 
@@ -227,15 +180,13 @@ def likely_cause(
         orientation: Try the mistakes of the orientation columns.
         joints_only: Try the mistakes of the joint columns only (data that record the
             joints alone: contacts).
-        postures: The posture points ``(m, P, 3)`` [m] of joint positions ``(m, n)``
-            (:func:`posture_points`): a correction must keep the corrected rows at many
-            distinct postures (see the module's text). None: not checked.
+        shuffle: A correction must not explain the rows with their joint columns shuffled
+            (see the module's text).
 
     Returns:
         (description, RMS [m or rad]) of the best explaining mistake, or None.
     """
     best = None
-    needed = 0 if postures is None else _needed(distinct_postures(postures(data.q)))
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT
     mistakes = (
         _orientation_mistakes(data) if orientation else _mistakes(data, revolute, joints_only)
@@ -246,7 +197,7 @@ def likely_cause(
         except (CalibError, np.linalg.LinAlgError, ValueError):  # no valid data: no explanation
             continue
         if rms * EXPLAINS < before and rms < limit and (best is None or rms < best[1]):
-            if needed and distinct_postures(postures(fixed.q), cap=needed) < needed:
+            if shuffle and not _beats_shuffle(registration_rms, fixed, rms):
                 continue  # nearly one posture: any fit there explains nothing
             best = (what, rms)
     return best

@@ -267,6 +267,25 @@ def _proposals(nominal, reg: State, data: Measurements, opts) -> np.ndarray:
     )
 
 
+def _held_out_outliers(reg: State, train, held, opts, notes: list[str]):
+    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    data, label = held
+    k = train.n_markers
+    rows = data.rows or tuple(range(1, data.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        outliers.point_errors(reg.residuals(train), k),
+        outliers.point_errors(reg.residuals(data), k),
+        opts.noise,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped))
+    return data.subset(~bad), label
+
+
 def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
     """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
     clock = [time.perf_counter()]
@@ -275,6 +294,7 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
     guess = _marker_guess(marker, train.n_markers)
     checked = held if validate is not None else None
     opts, reg, bad, notes = checked_registration(chain, nominal, train, checked, guess, opts)
+    held = _held_out_outliers(reg, train, held, opts, notes)
     clock.append(time.perf_counter())
     first = ~bad
     all_torque = _torques(chain, opts, train, None)[0]

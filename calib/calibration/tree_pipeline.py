@@ -340,7 +340,7 @@ def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None, reg=
     def rms(d):  # the closed form only: every swap of two joints is tried
         return validation.stats(register_tree(nominal, d), d, None).position_rms
 
-    cause = diagnosis.likely_cause(data, tree.sigma == 0, rms, first, postures=_postures(nominal))
+    cause = diagnosis.likely_cause(data, tree.sigma == 0, rms, first)
     if cause is not None:
         raise DataError(
             data.source,
@@ -354,19 +354,6 @@ def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None, reg=
             f"check the data and the tree"
         )
     return reg
-
-
-def _postures(nominal: TreeMDH):
-    """The posture points of a tree's joint positions: every tool's path (:mod:`.diagnosis`)."""
-
-    def points(q: np.ndarray) -> np.ndarray:
-        out = []
-        for t in range(nominal.n_tools):
-            kin = nominal.path_model(t).kinematics(q[:, nominal.path_joints(t)])
-            out.append(diagnosis.posture_points(kin.p, kin.R[:, -1], kin.p[:, -1]))
-        return np.concatenate(out, axis=1)
-
-    return points
 
 
 def _drop_outliers(tree, nominal, data: Measurements, max_iterations: int):
