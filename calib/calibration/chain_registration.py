@@ -15,15 +15,22 @@ from collections.abc import Callable
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.parameters import ParameterSet
+from ..identification.identifiability import independent_columns, preference_order
+from ..identification.parameters import ParameterSet, parameter_set
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, validation, weighting
-from .model import ErrorModel
+from .model import ErrorModel, selection_lift
 from .options import Options
 from .registration import register
-from .solve import Fit, fit
+from .solve import Fit, fit, row_weights
 
-__all__ = ["checked_registration", "frames_model", "registration"]
+__all__ = [
+    "checked_registration",
+    "frames_model",
+    "held_out_outliers",
+    "proposals",
+    "registration",
+]
 
 
 def frames_model(data: Measurements, opts: Options) -> ErrorModel:
@@ -209,3 +216,42 @@ def registration(nominal, data, guess, opts):
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
     return reg.state
+
+
+def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
+    """Rows a robust fit of every identifiable parameter, linearised, finds outlying."""
+    pset = parameter_set(nominal, "complete")
+    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
+    wide = frames_model(data, opts).with_(
+        params=pset, base=ordered, lift=selection_lift(pset, ordered)
+    )
+    w = row_weights(wide, opts.orientation_weight)
+    J = wide.jacobian(reg, np.zeros(wide.size()), data, None) * w[None, :, None]
+    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
+    rows = data.rows or tuple(range(1, data.m + 1))
+    return outliers.robust_proposals(
+        J[:, :, sorted(kept)],
+        reg.residuals(data) * w,
+        lambda r: outliers.point_errors(r, data.n_markers),
+        opts.noise,
+        rows,
+    )
+
+
+def held_out_outliers(reg, train, held, opts, notes: list[str]):
+    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    data, label = held
+    k = train.n_markers
+    rows = data.rows or tuple(range(1, data.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        outliers.point_errors(reg.residuals(train), k),
+        outliers.point_errors(reg.residuals(data), k),
+        opts.noise,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped))
+    return data.subset(~bad), label

@@ -148,8 +148,10 @@ def length_errors(
 
 
 def gap_errors(g: np.ndarray, kind: Contact) -> outliers.Errors:
-    """Each touch's length gap [m] and angle gap [rad] (None without angle rows) from gaps
-    ``(m, rows)`` (angle rows weighted or not: their norm is tested against its median).
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows).
+
+    From gaps ``(m, rows)``, angle rows weighted or not: their norm is tested against its
+    median.
     """
     angle = np.array(kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None

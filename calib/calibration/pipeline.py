@@ -19,7 +19,13 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
 from . import determined, outliers, validation
-from .chain_registration import checked_registration, frames_model, registration
+from .chain_registration import (
+    checked_registration,
+    frames_model,
+    held_out_outliers,
+    proposals,
+    registration,
+)
 from .contact_pipeline import calibrate_contact_data
 from .contact_result import ContactCalibration
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
@@ -247,45 +253,6 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None) -> _Round:
     return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
 
 
-def _proposals(nominal, reg: State, data: Measurements, opts) -> np.ndarray:
-    """Rows a robust fit of every identifiable parameter, linearised, finds outlying."""
-    pset = parameter_set(nominal, "complete")
-    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
-    wide = frames_model(data, opts).with_(
-        params=pset, base=ordered, lift=selection_lift(pset, ordered)
-    )
-    w = row_weights(wide, opts.orientation_weight)
-    J = wide.jacobian(reg, np.zeros(wide.size()), data, None) * w[None, :, None]
-    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
-    rows = data.rows or tuple(range(1, data.m + 1))
-    return outliers.robust_proposals(
-        J[:, :, sorted(kept)],
-        reg.residuals(data) * w,
-        lambda r: outliers.point_errors(r, data.n_markers),
-        opts.noise,
-        rows,
-    )
-
-
-def _held_out_outliers(reg: State, train, held, opts, notes: list[str]):
-    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
-    if held is None:
-        return None
-    data, label = held
-    k = train.n_markers
-    rows = data.rows or tuple(range(1, data.m + 1))
-    bad, dropped = outliers.held_out_outliers(
-        outliers.point_errors(reg.residuals(train), k),
-        outliers.point_errors(reg.residuals(data), k),
-        opts.noise,
-        rows,
-    )
-    if not dropped:
-        return held
-    notes.append(outliers.held_out_note(dropped))
-    return data.subset(~bad), label
-
-
 def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
     """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
     clock = [time.perf_counter()]
@@ -294,7 +261,7 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
     guess = _marker_guess(marker, train.n_markers)
     checked = held if validate is not None else None
     opts, reg, bad, notes = checked_registration(chain, nominal, train, checked, guess, opts)
-    held = _held_out_outliers(reg, train, held, opts, notes)
+    held = held_out_outliers(reg, train, held, opts, notes)
     clock.append(time.perf_counter())
     first = ~bad
     all_torque = _torques(chain, opts, train, None)[0]
@@ -308,7 +275,7 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
         return outliers.point_errors(residual, train.n_markers)
 
     rows = train.rows or tuple(range(1, train.m + 1))
-    start = bad | _proposals(nominal, reg, train, opts)
+    start = bad | proposals(nominal, reg, train, opts)
     rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
     notes = [*notes, *rnd.notes]
     if dropped:

@@ -326,8 +326,7 @@ def _registration(nominal: TreeMDH, data: Measurements, max_iterations: int) -> 
 
 
 def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None, reg=None) -> Fit:
-    """The registration of ``data`` (unless given); the likely mistake raised if it cannot
-    be registered.
+    """The registration of ``data`` (unless given); the likely mistake if it cannot be.
 
     ``notes``: where to note data no usual mistake explains (None: validation data, whose
     registration is only checked).
