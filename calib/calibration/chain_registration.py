@@ -15,8 +15,13 @@ from collections.abc import Callable
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.identifiability import independent_columns, preference_order
+from ..identification.identifiability import (
+    DEFAULT_CONFIGS,
+    independent_columns,
+    preference_order,
+)
 from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.so3 import matrix_to_quaternion
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, validation, weighting
 from .model import ErrorModel, selection_lift
@@ -28,6 +33,7 @@ __all__ = [
     "checked_registration",
     "frames_model",
     "held_out_outliers",
+    "ill_posed",
     "proposals",
     "registration",
 ]
@@ -255,3 +261,39 @@ def held_out_outliers(reg, train, held, opts, notes: list[str]):
         return held
     notes.append(outliers.held_out_note(dropped))
     return data.subset(~bad), label
+
+
+def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) -> str | None:
+    """The refusal's sentence for unknowns the rows cannot separate (None: none).
+
+    It names the posture, among random ones within the joint limits, that separates them
+    best (:func:`~calib.calibration.determined.separating_posture`).
+    """
+    names = fitted.model.names()
+    found = determined.ill_posed(fitted.J, names)
+    if not found:
+        return None
+    w = row_weights(fitted.model, opts.orientation_weight)
+    elastic = bool(fitted.model.compliance)
+
+    def jacobian_at(q: np.ndarray) -> np.ndarray:
+        torque = chain.gravity_torques(q) if elastic else None
+        pts, rot = fitted.state.predict(q, torque)
+        quat = None if train.quaternion is None else matrix_to_quaternion(rot)
+        data = Measurements(train.joint_names, q, pts.reshape(len(q), -1), quat)
+        return fitted.model.jacobian(fitted.start, fitted.x, data, torque) * w[None, :, None]
+
+    d = found[0]
+    v = np.zeros(len(names))
+    v[[names.index(n) for n in d.names]] = d.weights
+    q, cond = determined.separating_posture(
+        jacobian_at, chain.random_configurations(DEFAULT_CONFIGS, opts.seed), v
+    )
+    joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(chain.joint_names, q, strict=True))
+    where = (
+        f"postures such as {joints} [rad or m] separate them (random configurations within "
+        f"the joint limits: condition {cond:.3g})"
+        if cond < determined.ILL_CONDITION
+        else None
+    )
+    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)

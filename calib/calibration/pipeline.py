@@ -23,6 +23,7 @@ from .chain_registration import (
     checked_registration,
     frames_model,
     held_out_outliers,
+    ill_posed,
     proposals,
     registration,
 )
@@ -550,6 +551,9 @@ def _assemble(
     if val is not None:
         validation.check_held_out_errors(before, val.registration, held[0].source)
     checks = (before, after) if val is None else (val.registration, val.calibrated)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
     reason = validation.refusal(
         fitted.converged,
         before,
@@ -557,12 +561,10 @@ def _assemble(
         validation.full_rank(fitted.J),
         None if val is None else checks,
         fitted.model.names(),
+        ill_posed(chain, fitted, train, opts, std),
     )
     urdf_after = _geometry_stats(fitted.state, train)
     notes = [*notes, *_compliance_notes(fitted, torque, before, urdf_after, val)]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
     return CalibrationResult(
         robot=chain.name,
         chain=chain,
