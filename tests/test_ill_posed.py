@@ -87,3 +87,21 @@ def test_ill_posed_names_a_pair_of_equal_columns():
     assert abs(abs(found[0].weights[0]) - np.sqrt(0.5)) < 1e-6
     assert found[0].weights[0] * found[0].weights[1] < 0  # b - d is what the data miss
     assert ill_posed(rng.normal(size=(30, 4)), ("a", "b", "c", "d")) == []
+
+
+def test_a_ceiling_touched_with_the_tool_up_names_the_tip_and_the_height():
+    """Contacts: a drill tip on a ceiling (plane-point), the tool always pointing up: the tip's
+    offset along the tool and the ceiling's height are one sum (and the tip's x, y unseen)."""
+    from calib.exceptions import ContactGeometryError
+    from calib.calibration.contact_registration import register_contacts
+    from calib.identification.contacts import PlanePointContact
+
+    rng = np.random.default_rng(0)
+    m = 20
+    R = np.tile(np.eye(3), (m, 1, 1))
+    p = np.column_stack([rng.uniform(-0.5, 0.5, (m, 2)), np.full(m, 2.0)])
+    guess = np.eye(4)
+    guess[2, 3] = 0.1
+    with pytest.raises(ContactGeometryError) as info:
+        register_contacts(PlanePointContact(), R, p, ["ceiling"] * m, guess)
+    assert "cannot separate plane_ceiling_z, contact_x, contact_y, contact_z" in str(info.value)

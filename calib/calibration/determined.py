@@ -153,7 +153,7 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
 
     Returns:
         One :class:`Direction` per singular value of the unit-norm columns under
-        ``1 / ILL_CONDITION`` times the largest (a column of zeros: its unknown alone).
+        ``1 / ILL_CONDITION`` times the largest, the weakest first.
     """
     if J.shape[1] == 0:
         return []
@@ -161,7 +161,7 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
     scaled = J / np.where(norms > 0, norms, 1.0)
     _, s, vt = np.linalg.svd(scaled, full_matrices=False)
     out = []
-    for k in np.flatnonzero(s < s[0] / ILL_CONDITION):
+    for k in np.flatnonzero(s < s[0] / ILL_CONDITION)[::-1]:  # the weakest first
         v = vt[k] * (1.0 if vt[k][np.argmax(np.abs(vt[k]))] > 0 else -1.0)
         named = np.flatnonzero(np.abs(v) >= NAMED)
         cond = float(s[0] / s[k]) if s[k] > 0 else float("inf")
