@@ -121,3 +121,20 @@ def test_a_bad_held_out_touch_is_set_aside():
                                  holdout=0.3, seed=1)  # fmt: skip
     assert res.stats["held_out"].m == held_m - 1
     assert any(f"row {wild + 2} (" in n and "held-out statistics" in n for n in res.notes)
+
+
+def test_a_bad_held_out_tree_row_is_set_aside():
+    """Item 3 for trees: one wild held-out row refused the run ('another frame')."""
+    from calib import calibrate_tree
+    from calib.measurements.tree_campaign import simulate_tree
+
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 30, markers=(0.0, 0.0, 0.02), noise_mm=0.05, seed=5)
+    data = dataclasses.replace(camp.measurements, rows=tuple(range(2, camp.measurements.m + 2)))
+    _, held = split(data, 0.3, 1)
+    wild = held.rows[1]
+    pos = data.position.copy()
+    pos[wild - 2] += [0.5, 0.0, 0.0]
+    res = calibrate_tree(tree, dataclasses.replace(data, position=pos), holdout=0.3, seed=1)
+    assert res.validation[1].configs == held.m - 1
+    assert any(f"row {wild} (" in w and "held-out statistics" in w for w in res.warnings)

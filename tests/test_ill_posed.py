@@ -92,8 +92,8 @@ def test_ill_posed_names_a_pair_of_equal_columns():
 def test_a_ceiling_touched_with_the_tool_up_names_the_tip_and_the_height():
     """Contacts: a drill tip on a ceiling (plane-point), the tool always pointing up: the tip's
     offset along the tool and the ceiling's height are one sum (and the tip's x, y unseen)."""
-    from calib.exceptions import ContactGeometryError
     from calib.calibration.contact_registration import register_contacts
+    from calib.exceptions import ContactGeometryError
     from calib.identification.contacts import PlanePointContact
 
     rng = np.random.default_rng(0)

@@ -297,6 +297,7 @@ def _calibrate_tree(tree: Tree, data, validate, opts: Options) -> TreeCalibratio
         notes.append(outliers.set_aside_note(dropped))
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
+    held = _held_out_outliers(reg.state, train, held, notes)
     clock.append(time.perf_counter())
     model = _tree_model(tree, nominal, reg.state, train, opts.level, opts.seed)
     clock.append(time.perf_counter())
@@ -353,6 +354,23 @@ def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None, reg=
             f"check the data and the tree"
         )
     return reg
+
+
+def _held_out_outliers(reg: TreeState, train, held, notes: list[str]):
+    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    rows = held.rows or tuple(range(1, held.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        outliers.point_errors(reg.residuals(train), 1),
+        outliers.point_errors(reg.residuals(held), 1),
+        None,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped))
+    return held.subset(~bad)
 
 
 def _drop_outliers(tree, nominal, data: Measurements, max_iterations: int):
