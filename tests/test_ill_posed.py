@@ -105,3 +105,13 @@ def test_a_ceiling_touched_with_the_tool_up_names_the_tip_and_the_height():
     with pytest.raises(ContactGeometryError) as info:
         register_contacts(PlanePointContact(), R, p, ["ceiling"] * m, guess)
     assert "cannot separate plane_ceiling_z, contact_x, contact_y, contact_z" in str(info.value)
+
+
+def test_a_level_the_rows_cannot_determine_names_what_they_cannot_separate():
+    """`complete` on the tool-up campaign is refused before the fit: it names the pair."""
+    from calib import DataError
+
+    chain = chain_of("ur5")
+    campaign = simulate(chain, _tool_up(chain, 40, 1), "position", marker=PRISM, seed=1)
+    with pytest.raises(DataError, match=r"cannot separate frame\.z, marker1\.z"):
+        calibrate(chain, campaign.measurements, params="complete", marker=PRISM)

@@ -83,7 +83,14 @@ def check_equations(
 
 
 def check_rank(
-    determined: int, generic: int, m: int, rows: int, level: str, source: str, unit: str = ""
+    determined: int,
+    generic: int,
+    m: int,
+    rows: int,
+    level: str,
+    source: str,
+    unit: str = "",
+    lost: tuple[str, ...] = (),
 ) -> None:
     """Refuse a level the measured configurations do not determine (rank of W_b there).
 
@@ -95,6 +102,8 @@ def check_rank(
         level: The parameter level.
         source: The data, for the message.
         unit: What ``m`` counts (default: configurations).
+        lost: The unknowns that generic configurations separate and the measured ones do
+            not (named in the message).
 
     Raises:
         DataError: ``determined < generic`` or too few equations.
@@ -103,10 +112,11 @@ def check_rank(
     if determined >= generic:
         return
     unit = unit or "configurations"
+    which = f": they cannot separate {', '.join(lost)}" if lost else ""
     raise DataError(
         source,
         f"the {m} {unit} determine only {determined} of the {generic} parameters of params "
-        f"{level!r} (rank of the identification Jacobian): measure at least "
+        f"{level!r} (rank of the identification Jacobian){which}: measure at least "
         f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
         f"level or fix parameters",
     )

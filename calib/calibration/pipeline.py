@@ -411,9 +411,15 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
             data.source,
             "the configurations do not even determine the measurement frame and markers",
         )
-    generic = _generic_count(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    separated = _generic_kept(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    generic = len(separated)
     if opts.level != "auto":
-        determined.check_rank(len(kept), generic, data.m, wide.rows, opts.level, data.source)
+        flat = J.reshape(-1, J.shape[2])[:, separated]
+        found = determined.ill_posed(flat, tuple(wide.names()[i] for i in separated))
+        lost = tuple(dict.fromkeys(n for d in found for n in d.names))
+        determined.check_rank(
+            len(kept), generic, data.m, wide.rows, opts.level, data.source, lost=lost
+        )
     elif len(kept) < generic:
         notes.append(
             f"the {data.m} configurations determine {len(kept)} of the {generic} parameters "
@@ -441,8 +447,8 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     return model, selection, prior if np.any(prior) else None
 
 
-def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> int:
-    """Parameters of ``wide`` determined at random configurations (the same markers)."""
+def _generic_kept(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> list[int]:
+    """Columns of ``wide`` determined at random configurations (the same markers)."""
     q = chain.random_configurations(DEFAULT_CONFIGS, seed)
     torque = chain.gravity_torques(q) if elastic else None
     kin = state.kinematics(q, torque)  # x = 0 is the state
@@ -451,7 +457,7 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     generic = Measurements(data.joint_names, q, pts.reshape(len(q), -1), quat)
     J = wide.jacobian(state, np.zeros(wide.size()), generic, torque, state, kin)
     J = J * w[None, :, None]
-    return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
+    return sorted(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
 
 
 SELECTION_WORK = 1.2e9
