@@ -146,12 +146,12 @@ class Direction:
     condition: float
 
     def text(self) -> str:
-        """``frame.z - marker1.z`` style: the combination the data do not see."""
-        terms = [
-            f"{'-' if w < 0 else '+'} {abs(w):.2g} {n}"
-            for n, w in zip(self.names, self.weights, strict=True)
-        ]
-        return " ".join(terms).lstrip("+ ")
+        """``-0.71 frame.z + 0.71 marker1.z``: the combination the data do not see."""
+        text = ""
+        for n, w in zip(self.names, self.weights, strict=True):
+            sign = ("-" if w < 0 else "") if not text else (" - " if w < 0 else " + ")
+            text += f"{sign}{abs(w):.2g} {n}"
+        return text
 
 
 def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
