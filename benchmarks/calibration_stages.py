@@ -9,7 +9,7 @@ Run it on two trees alternately (the machine's load drifts):
 
 One line per run [ms of process CPU time, medians]: the TIAGo session (37 postures, point 1,
 ``auto``) whole and by stage (``checked_registration``, the final ``fit``, ``_choose`` and
-within it ``select`` and ``_generic_count``, ``_assemble``), then point 1 ``complete``, the
+within it ``select`` and ``_generic_kept``, ``_assemble``), then point 1 ``complete``, the
 four points and the plate's pose (``auto``), the UR10 with ``holdout=0.25`` and the TALOS
 left contact calibration (default).
 """
@@ -37,7 +37,7 @@ from calib.measurements.contact_campaign import read_contacts  # noqa: E402
 from calib.measurements.csvfile import Columns  # noqa: E402
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "realdata"
-STAGES = ("checked_registration", "fit", "_choose", "select", "_generic_count", "_assemble")
+STAGES = ("checked_registration", "fit", "_choose", "select", "_generic_kept", "_assemble")
 
 
 def cpu_ms(fn, repeats: int) -> float:

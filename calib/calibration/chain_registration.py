@@ -15,15 +15,28 @@ from collections.abc import Callable
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.parameters import ParameterSet
+from ..identification.identifiability import (
+    DEFAULT_CONFIGS,
+    independent_columns,
+    preference_order,
+)
+from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.so3 import matrix_to_quaternion
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, validation, weighting
-from .model import ErrorModel
+from .model import ErrorModel, selection_lift
 from .options import Options
 from .registration import register
-from .solve import Fit, fit
+from .solve import Fit, fit, row_weights
 
-__all__ = ["checked_registration", "frames_model"]
+__all__ = [
+    "checked_registration",
+    "frames_model",
+    "held_out_outliers",
+    "ill_posed",
+    "proposals",
+    "registration",
+]
 
 
 def frames_model(data: Measurements, opts: Options) -> ErrorModel:
@@ -93,7 +106,10 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
                 f"logged?",
             )
         cause = diagnosis.likely_cause(
-            data, revolute, lambda d: errors(d).position_rms, first.position_rms
+            data,
+            revolute,
+            lambda d: errors(d).position_rms,
+            first.position_rms,
         )
         if cause is not None:
             raise DataError(
@@ -128,23 +144,25 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
 
 
 def checked_registration(chain, nominal, train, checked, guess, opts):
-    """Diagnosis (data and validation data ``checked``), weight, registration, outliers.
+    """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
+
+    The outliers are set aside before any diagnosis: one bad row is not a mistake of the
+    whole file.
 
     Returns:
-        The options with the orientation weight, the registration state, the rows kept,
-        the outliers and the notes.
+        The options with the orientation weight, the registration state, the mask of the
+        outlier rows of ``train`` and the notes.
     """
     at = _registrations(nominal, train, guess, opts)
-    suspect = _diagnose(chain, nominal, train, guess, opts, at)
-    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
     opts = _weighted(train, opts, at)
-    notes: list[str] = []
-    reg, train, dropped = _register(nominal, train, guess, opts, notes, at)
-    if dropped and not diagnosis.suspect(
-        validation.stats(reg, train, None).position_rms, opts.noise
-    ):
-        suspect = []  # the outliers were the trouble: the rows left are fine
-    return opts, reg, train, dropped, suspect + diagnosed + notes
+    reg, bad = _register(nominal, train, guess, opts, at)
+    kept = train.subset(~bad) if bad.any() else train
+    same = at if kept is train else _registrations(nominal, kept, guess, opts)
+    suspect = _diagnose(chain, nominal, kept, guess, opts, same)
+    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
+    if not reg.converged:
+        raise DataError(train.source, f"the registration did not converge ({reg.message})")
+    return opts, reg.state, bad, suspect + diagnosed
 
 
 def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
@@ -155,7 +173,10 @@ def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts)
-    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, held[0], guess, opts, at)]
+    _, bad = _register(nominal, held[0], guess, opts, at, frames)
+    data = held[0].subset(~bad) if bad.any() else held[0]
+    at = at if data is held[0] else _registrations(nominal, data, guess, opts)
+    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, data, guess, opts, at)]
 
 
 def _weighted(data, opts: Options, at) -> Options:
@@ -168,25 +189,111 @@ def _weighted(data, opts: Options, at) -> Options:
     return dataclasses.replace(opts, orientation_weight=weight)
 
 
-def _register(nominal, data, guess, opts, notes: list[str], at):
-    """Registration (``at``: the data set's registrations by weight), outlier rows set aside."""
-    reg = at(opts.orientation_weight)
-    dropped: list[outliers.Outlier] = []
-    for _ in range(outliers.PASSES):  # one registration per data set
-        rows = data.rows or tuple(range(1, data.m + 1))
-        bad, found = outliers.find_pose_outliers(
-            reg.state.residuals(data), data.n_markers, opts.noise, rows
-        )
-        if not np.any(bad):
-            break
-        dropped += found
-        data = data.subset(~bad)
-        frames = frames_model(data, opts)
+def _register(nominal, data, guess, opts, at, frames=None) -> tuple[Fit, np.ndarray]:
+    """The registration (``at``: the data set's by weight) without the outlier rows (a mask).
+
+    ``frames``: the registration's model, when the outliers may not leave fewer equations
+    than its unknowns (validation data: no error, the outliers stay); else that is an error.
+    """
+
+    def refit(keep: np.ndarray) -> Fit:
+        if keep.all():
+            return at(opts.orientation_weight)
+        sub = data.subset(keep)
+        frames = frames_model(sub, opts)
         what = "measurement frame and marker parameters once the outliers are set aside"
-        determined.check_equations(data.m, frames.rows, frames.size(), what, data.source)
-        reg = _registration(nominal, data, guess, opts)
-    if dropped:
-        notes.append(outliers.set_aside_note(dropped))
+        determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
+        return _registration(nominal, sub, guess, opts)
+
+    def errors(reg: Fit) -> outliers.Errors:
+        return outliers.point_errors(reg.state.residuals(data), data.n_markers)
+
+    def allowed(bad: np.ndarray) -> bool:
+        return frames is None or int(np.sum(~bad)) * frames.rows > frames.size()
+
+    rows = data.rows or tuple(range(1, data.m + 1))
+    reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
+    return reg, bad
+
+
+def registration(nominal, data, guess, opts):
+    """The registration state of some rows at the options' weight (converged, or an error)."""
+    reg = _registration(nominal, data, guess, opts)
     if not reg.converged:
         raise DataError(data.source, f"the registration did not converge ({reg.message})")
-    return reg.state, data, tuple(dropped)
+    return reg.state
+
+
+def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
+    """Rows a robust fit of every identifiable parameter, linearised, finds outlying."""
+    pset = parameter_set(nominal, "complete")
+    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
+    wide = frames_model(data, opts).with_(
+        params=pset, base=ordered, lift=selection_lift(pset, ordered)
+    )
+    w = row_weights(wide, opts.orientation_weight)
+    J = wide.jacobian(reg, np.zeros(wide.size()), data, None) * w[None, :, None]
+    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
+    rows = data.rows or tuple(range(1, data.m + 1))
+    return outliers.robust_proposals(
+        J[:, :, sorted(kept)],
+        reg.residuals(data) * w,
+        lambda r: outliers.point_errors(r, data.n_markers),
+        opts.noise,
+        rows,
+    )
+
+
+def held_out_outliers(reg, train, held, opts, notes: list[str]):
+    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    data, label = held
+    k = train.n_markers
+    rows = data.rows or tuple(range(1, data.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        outliers.point_errors(reg.residuals(train), k),
+        outliers.point_errors(reg.residuals(data), k),
+        opts.noise,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped))
+    return data.subset(~bad), label
+
+
+def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) -> str | None:
+    """The refusal's sentence for unknowns the rows cannot separate (None: none).
+
+    It names the posture, among random ones within the joint limits, that separates them
+    best (:func:`~calib.calibration.determined.separating_posture`).
+    """
+    names = fitted.model.names()
+    found = determined.ill_posed(fitted.J, names)
+    if not found:
+        return None
+    w = row_weights(fitted.model, opts.orientation_weight)
+    elastic = bool(fitted.model.compliance)
+
+    def jacobian_at(q: np.ndarray) -> np.ndarray:
+        torque = chain.gravity_torques(q) if elastic else None
+        pts, rot = fitted.state.predict(q, torque)
+        quat = None if train.quaternion is None else matrix_to_quaternion(rot)
+        data = Measurements(train.joint_names, q, pts.reshape(len(q), -1), quat)
+        return fitted.model.jacobian(fitted.start, fitted.x, data, torque) * w[None, :, None]
+
+    d = found[0]
+    v = np.zeros(len(names))
+    v[[names.index(n) for n in d.names]] = d.weights
+    q, cond = determined.separating_posture(
+        jacobian_at, chain.random_configurations(DEFAULT_CONFIGS, opts.seed), v
+    )
+    joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(chain.joint_names, q, strict=True))
+    where = (
+        f"postures such as {joints} [rad or m] separate them (random configurations within "
+        f"the joint limits: condition {cond:.3g})"
+        if cond < determined.ILL_CONDITION
+        else None
+    )
+    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)

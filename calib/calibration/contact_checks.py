@@ -39,7 +39,9 @@ __all__ = [
     "WEIGHT_ROUNDS",
     "WORSE",
     "checked_registration",
+    "enough_touches",
     "estimate_weight",
+    "gap_errors",
     "isolated_postures",
     "length_errors",
     "refusal",
@@ -138,12 +140,23 @@ def registration(
     return ContactState(nominal, register_contacts(data.kind, R, p, data.ids, guess, w), w)
 
 
-def length_errors(state: ContactState, data: ContactData) -> tuple[np.ndarray, np.ndarray | None]:
+def length_errors(
+    state: ContactState, data: ContactData, torque: np.ndarray | None = None
+) -> outliers.Errors:
     """Each touch's length gap [m] and angle gap [rad] (None without angle rows)."""
-    g = state.gaps(data.q, data.ids)
-    angle = np.array(state.kind.angular)
+    return gap_errors(state.gaps(data.q, data.ids, torque), state.kind)
+
+
+def gap_errors(g: np.ndarray, kind: Contact) -> outliers.Errors:
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows).
+
+    From gaps ``(m, rows)``, angle rows weighted or not: their norm is tested against its
+    median.
+    """
+    angle = np.array(kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
-    return np.linalg.norm(g[:, ~angle], axis=1), rot
+    dims = (int(np.sum(~angle)), int(np.sum(angle)))
+    return outliers.Errors(np.linalg.norm(g[:, ~angle], axis=1), rot, dims)
 
 
 def _rms(values: np.ndarray) -> float:
@@ -170,7 +183,13 @@ def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) ->
             f"the registration leaves {1e3 * first:.4g} mm RMS and joint column(s) "
             f"{', '.join(still)} hold one value in every touch: were those joints logged?",
         )
-    cause = diagnosis.likely_cause(data, chain.sigma == 0, gap, first, joints_only=True)
+    cause = diagnosis.likely_cause(
+        data,
+        chain.sigma == 0,
+        gap,
+        first,
+        joints_only=True,
+    )
     if cause is not None:
         raise DataError(
             data.source,
@@ -184,19 +203,27 @@ def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) ->
     ]
 
 
+def enough_touches(data: ContactData):
+    """Whether an outlier mask leaves every object ``MIN_TOUCHES`` touches."""
+    ids = np.array(data.ids)
+
+    def allowed(bad: np.ndarray) -> bool:
+        return all(np.sum(ids[~bad] == k) >= MIN_TOUCHES for k in data.contacts)
+
+    return allowed
+
+
 def _drop_outliers(nominal, train: ContactData, guess, weight, start: ContactState):
-    dropped: list[outliers.Outlier] = []
-    for _ in range(outliers.PASSES):
-        rows = train.rows or tuple(range(1, train.m + 1))
-        lengths, angles = length_errors(start, train)
-        bad, found = outliers.find_outliers(lengths, angles, None, rows)
-        kept = np.array(train.ids)[~bad]
-        if not bad.any() or any(np.sum(kept == k) < MIN_TOUCHES for k in train.contacts):
-            break
-        dropped += found
-        train = subset(train, ~bad)
-        start = registration(nominal, train, guess, weight)
-    return start, train, tuple(dropped)
+    """The registration without the outlier touches (:mod:`.outliers`), and their mask."""
+
+    def refit(keep: np.ndarray) -> ContactState:
+        return start if keep.all() else registration(nominal, subset(train, keep), guess, weight)
+
+    rows = train.rows or tuple(range(1, train.m + 1))
+    state, bad, _ = outliers.until_stable(
+        refit, lambda s: length_errors(s, train), None, rows, allowed=enough_touches(train)
+    )
+    return state, bad
 
 
 def _registrable(data: ContactData) -> bool:
@@ -211,20 +238,25 @@ def _registrable(data: ContactData) -> bool:
 def checked_registration(
     chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None
 ):
-    """Diagnosis (the touches, and validation touches), registration, outliers set aside.
+    """Outliers set aside, diagnosis (the touches, and validation touches), registration.
+
+    The outlier touches are set aside first (at the default weight), so that one bad touch
+    is not a mistake of the whole file; the diagnosis reads the touches kept.
 
     Returns:
-        The registration state, the touches kept, the outliers and the notes.
+        The registration state of the touches kept, the mask of the outliers and the notes.
     """
     default = registration(nominal, train, guess, DEFAULT_WEIGHT)
-    notes = _diagnose(chain, nominal, train, guess, default)
+    default, bad = _drop_outliers(nominal, train, guess, DEFAULT_WEIGHT, default)
+    kept = subset(train, ~bad) if bad.any() else train
+    notes = _diagnose(chain, nominal, kept, guess, default)
     if validate is not None and _registrable(validate):
-        notes += [f"{validate.source}: {n}" for n in _diagnose(chain, nominal, validate, guess)]
-    start = registration(nominal, train, guess, weight, default.frames)
-    start, train, dropped = _drop_outliers(nominal, train, guess, weight, start)
-    if dropped:
-        notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
-    return start, train, dropped, notes
+        first = registration(nominal, validate, guess, DEFAULT_WEIGHT)
+        _, out = _drop_outliers(nominal, validate, guess, DEFAULT_WEIGHT, first)
+        checked = subset(validate, ~out) if out.any() else validate
+        notes += [f"{validate.source}: {n}" for n in _diagnose(chain, nominal, checked, guess)]
+    start = registration(nominal, kept, guess, weight, default.frames)
+    return start, bad, notes
 
 
 def refusal(

@@ -45,14 +45,14 @@ from ..kinematics.standing import StandingLoad, Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
-from . import contact_checks, contact_elastic, determined, validation
+from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
 from .contact_model import ContactModel, ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
 from .options import Options
 from .selection import Selection, select
-from .solve import fit, fitted_values
+from .solve import Fit, fit, fitted_values
 
 __all__ = [
     "WEIGHT_ROUNDS",
@@ -345,32 +345,110 @@ def calibrate_contacts(
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
     nominal = from_chain(chain)
-    start, train, dropped, notes = contact_checks.checked_registration(
+    first, bad, notes = contact_checks.checked_registration(
         chain, nominal, train, validate, guess, w
     )
-    what = f"unknowns of the {data.kind.object_name}(s) and the contact frame"
-    determined.check_equations(count_postures(train.q, train.ids), data.kind.n_rows,
-                               start.frames.size, what, train.source,
-                               held=0 if held is None else held.m, unit="touches")  # fmt: skip
-    if held is not None:
-        start.frames.index(held.ids, held.source)  # every held-out object was fitted
-    notes += filter(None, [contact_checks.isolated_postures(chain, train, held)])
-    torque = contact_elastic.torques(load, train, held)
-    notes += filter(None, [contact_elastic.readings_note(load, train, held)])
+    held = _held_out_outliers(first, train, held, notes)
     clock.append(time.perf_counter())
-    model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
-    clock.append(time.perf_counter())
-    fitted = fit(
-        model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
+    full = contact_elastic.torques(load, train, None)[0]
+
+    def refit(keep: np.ndarray) -> _Round:
+        reg = first if np.array_equal(keep, ~bad) else None
+        return _round(chain, nominal, subset(train, keep), held, guess, opts, load, reg)
+
+    def errors(rnd: _Round):
+        return contact_checks.length_errors(rnd.fitted.state, train, full)
+
+    rows = train.rows or tuple(range(1, train.m + 1))
+    start = bad | _proposals(first, train, opts)
+    rnd, _, dropped = outliers.until_stable(
+        refit, errors, None, rows, start, contact_checks.enough_touches(train)
     )
+    notes = [*notes, *rnd.notes]
+    if dropped:
+        notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
+    clock.append(time.perf_counter() - 1e-3 * rnd.fit_ms)  # the selections, then the last fit
     clock.append(time.perf_counter())
-    result = _assemble(chain, (train, held), torque, start, fitted, selection, notes, clock, load)
+    sets = (rnd.train, held)
+    result = _assemble(chain, sets, rnd.torque, rnd.start, rnd.fitted, rnd.selection, notes,
+                       clock, load)  # fmt: skip
     return dataclasses.replace(
         result,
         outliers=tuple(dropped),
         params=opts.level,
         sources=(train.source, _held_label(held, validate)),
-        **{k: v for k, v in fitted_values(fitted, prior).items() if k != "fitted"},
+        **{k: v for k, v in fitted_values(rnd.fitted, rnd.prior).items() if k != "fitted"},
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class _Round:
+    """One fit of the touches an outlier mask keeps: registration, choice, least squares."""
+
+    train: ContactData
+    start: ContactState
+    torque: tuple
+    fitted: Fit
+    selection: Selection | None
+    notes: tuple[str, ...]
+    fit_ms: float
+    prior: np.ndarray | None = None
+
+
+def _held_out_outliers(start: ContactState, train, held, notes: list[str]):
+    """The held-out touches without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    start.frames.index(held.ids, held.source)  # every held-out object was fitted
+    rows = held.rows or tuple(range(1, held.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        contact_checks.length_errors(start, train),
+        contact_checks.length_errors(start, held),
+        None,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped, "touch(es)", "gap"))
+    return subset(held, ~bad)
+
+
+def _round(chain, nominal, train, held, guess, opts, load, start=None) -> _Round:
+    """Register (unless ``start`` is given), check, choose and fit some touches."""
+    if start is None:
+        start = contact_checks.registration(nominal, train, guess, opts.orientation_weight)
+    kind = train.kind
+    what = f"unknowns of the {kind.object_name}(s) and the contact frame"
+    determined.check_equations(count_postures(train.q, train.ids), kind.n_rows,
+                               start.frames.size, what, train.source,
+                               held=0 if held is None else held.m, unit="touches")  # fmt: skip
+    if held is not None:
+        start.frames.index(held.ids, held.source)  # every held-out object was fitted
+    notes = list(filter(None, [contact_checks.isolated_postures(chain, train, held)]))
+    torque = contact_elastic.torques(load, train, held)
+    notes += filter(None, [contact_elastic.readings_note(load, train, held)])
+    model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
+    tic = time.perf_counter()
+    fitted = fit(
+        model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
+    )
+    ms = 1e3 * (time.perf_counter() - tic)
+    return _Round(train, start, torque, fitted, selection, tuple(notes), ms, prior)
+
+
+def _proposals(start: ContactState, train: ContactData, opts: Options) -> np.ndarray:
+    """Touches a robust fit of every offered parameter, linearised, finds outlying."""
+    offered = _candidates(start.mdh, "complete")
+    wide = ContactModel(offered, start.frames, ())
+    J = wide.jacobian(start, np.zeros(wide.size()), train)
+    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
+    rows = train.rows or tuple(range(1, train.m + 1))
+    return outliers.robust_proposals(
+        J[:, :, sorted(kept)],
+        start.residuals(train),
+        lambda g: contact_checks.gap_errors(g, start.kind),
+        None,
+        rows,
     )
 
 

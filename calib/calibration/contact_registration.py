@@ -271,15 +271,24 @@ def refine(
         sv = np.linalg.svd(A, compute_uv=False)
         if sv[-1] <= CONDITION_LIMIT * sv[0]:
             raise ContactGeometryError(
-                f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame: "
-                f"touch at several orientations, or at spots that span each "
-                f"{frames.kind.object_name}"
+                f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame"
+                f"{_undetermined(A, frames.names())}: touch at several orientations, or at "
+                f"spots that span each {frames.kind.object_name}"
             )
         step = np.linalg.lstsq(A, -r.ravel(), rcond=None)[0]
         x = x + step
         if np.max(np.abs(step)) < STEP_TOLERANCE:
             break
     return frames.moved(x), steps
+
+
+def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
+    """`` (they cannot separate ...)``: the unknowns of the undetermined directions of ``A``."""
+    from .determined import ill_posed
+
+    found = [d for d in ill_posed(A, names) if d.condition >= 1.0 / CONDITION_LIMIT]
+    named = sorted({n for d in found for n in d.names}, key=names.index)
+    return f" (they cannot separate {', '.join(named)})" if named else ""
 
 
 def _plane_start(R, p, guess, index, names, w) -> ContactFrames:

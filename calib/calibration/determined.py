@@ -11,13 +11,39 @@ Before any fit, two counts are compared (chains and trees alike):
 
 A level the rows cannot determine is refused in one line that says how many configurations
 it needs; calib never silently cuts the level down to what the rows can carry.
+
+3. conditioning: after the fit, the unknowns it fitted (frame, markers, contact and objects,
+   robot parameters) must all be determined: a combination of them whose singular value (of
+   the unit-norm columns of the Jacobian at the solution) is under ``1 / ILL_CONDITION``
+   times the largest (:func:`ill_posed`) has an arbitrary fitted value, metres where the
+   data cannot tell (a total station's prism offset along a tool that always points up and
+   the instrument frame's height are one sum). The model is then refused, the sentence names
+   the unknowns, their combination, its condition and their standard deviations, and the
+   posture among random ones within the joint limits that separates them best
+   (:func:`separating_posture`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
 from ..exceptions import DataError, InvalidArgumentError
 
-__all__ = ["SELECTION_WORK", "check_equations", "check_rank", "check_selection_work"]
+__all__ = [
+    "ILL_CONDITION",
+    "NAMED",
+    "SELECTION_WORK",
+    "Direction",
+    "check_equations",
+    "check_rank",
+    "check_selection_work",
+    "ill_posed",
+    "ill_posed_text",
+    "separating_posture",
+]
 
 
 def _configs_needed(unknowns: int, rows: int) -> int:
@@ -59,7 +85,14 @@ def check_equations(
 
 
 def check_rank(
-    determined: int, generic: int, m: int, rows: int, level: str, source: str, unit: str = ""
+    determined: int,
+    generic: int,
+    m: int,
+    rows: int,
+    level: str,
+    source: str,
+    unit: str = "",
+    lost: tuple[str, ...] = (),
 ) -> None:
     """Refuse a level the measured configurations do not determine (rank of W_b there).
 
@@ -71,6 +104,8 @@ def check_rank(
         level: The parameter level.
         source: The data, for the message.
         unit: What ``m`` counts (default: configurations).
+        lost: The unknowns that generic configurations separate and the measured ones do
+            not (named in the message).
 
     Raises:
         DataError: ``determined < generic`` or too few equations.
@@ -79,10 +114,11 @@ def check_rank(
     if determined >= generic:
         return
     unit = unit or "configurations"
+    which = f": they cannot separate {', '.join(lost)}" if lost else ""
     raise DataError(
         source,
         f"the {m} {unit} determine only {determined} of the {generic} parameters of params "
-        f"{level!r} (rank of the identification Jacobian): measure at least "
+        f"{level!r} (rank of the identification Jacobian){which}: measure at least "
         f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
         f"level or fix parameters",
     )
@@ -116,3 +152,109 @@ def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None
             f"times the work calib runs it on (about a minute on one core); give a level "
             f"(params complete, paper, offsets or frames), or fewer configurations or markers"
         )
+
+
+ILL_CONDITION = 1e3
+"""Singular value, relative to the largest, of the unit-norm columns of the fitted unknowns
+under which a direction of them is undetermined (campaigns that determine their unknowns
+give a condition of 10 to 300: the TIAGo's and UR10's, simulated UR5s)."""
+
+NAMED = 0.3
+"""Smallest component, in an undetermined unit direction, of an unknown it names."""
+
+
+@dataclass(frozen=True)
+class Direction:
+    """A combination of fitted unknowns the data cannot determine.
+
+    Attributes:
+        names: The unknowns it moves (components of at least ``NAMED``).
+        weights: Their components in the unit direction (of the unit-norm columns).
+        condition: Largest singular value over this direction's.
+    """
+
+    names: tuple[str, ...]
+    weights: tuple[float, ...]
+    condition: float
+
+    def text(self) -> str:
+        """``-0.71 frame.z + 0.71 marker1.z``: the combination the data do not see."""
+        text = ""
+        for n, w in zip(self.names, self.weights, strict=True):
+            sign = ("-" if w < 0 else "") if not text else (" - " if w < 0 else " + ")
+            text += f"{sign}{abs(w):.2g} {n}"
+        return text
+
+
+def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
+    """Directions of the unknowns (columns of ``J``) the rows do not determine.
+
+    Args:
+        J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
+        names: The unknowns.
+
+    Returns:
+        One :class:`Direction` per singular value of the unit-norm columns under
+        ``1 / ILL_CONDITION`` times the largest, the weakest first.
+    """
+    if J.shape[1] == 0:
+        return []
+    norms = np.linalg.norm(J, axis=0)
+    scaled = J / np.where(norms > 0, norms, 1.0)
+    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
+    out = []
+    for k in np.flatnonzero(s < s[0] / ILL_CONDITION)[::-1]:  # the weakest first
+        v = vt[k] * (1.0 if vt[k][np.argmax(np.abs(vt[k]))] > 0 else -1.0)
+        named = np.flatnonzero(np.abs(v) >= NAMED)
+        cond = float(s[0] / s[k]) if s[k] > 0 else float("inf")
+        out.append(Direction(tuple(names[i] for i in named), tuple(v[named]), cond))
+    return out
+
+
+def separating_posture(
+    jacobian_at: Callable[[np.ndarray], np.ndarray], q: np.ndarray, direction: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """The configuration of ``q`` where a direction of the unknowns moves the rows most.
+
+    Args:
+        jacobian_at: Jacobian ``(m, rows, p)`` of the unknowns at configurations ``(m, n)``.
+        q: Candidate configurations ``(m, n)`` (random ones within the joint limits).
+        direction: The direction ``(p,)`` in the unknowns (unit-norm columns' scale).
+
+    Returns:
+        That configuration, and the condition of the unknowns at all of ``q``.
+    """
+    J = jacobian_at(q)
+    flat = J.reshape(-1, J.shape[2])
+    norms = np.linalg.norm(flat, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    seen = np.linalg.norm(J @ (direction / norms), axis=1) / np.linalg.norm(J / norms, axis=(1, 2))
+    s = np.linalg.svd(flat / norms, compute_uv=False)
+    return q[int(np.argmax(seen))], float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def ill_posed_text(
+    found: list[Direction], std: dict[str, float], posture: str | None = None
+) -> str | None:
+    """The refusal's sentence for undetermined directions (None: there are none).
+
+    Args:
+        found: The undetermined directions (:func:`ill_posed`).
+        std: Standard deviation of each fitted unknown [m or rad].
+        posture: What postures would separate them, or None.
+    """
+    if not found:
+        return None
+    d = found[0]
+    stds = ", ".join(f"{n} +- {std.get(n, float('inf')):.3g}" for n in d.names)
+    text = (
+        f"the data cannot separate {' and '.join(d.names)}: the combination {d.text()} is "
+        f"undetermined (condition {d.condition:.3g} of the fitted unknowns, over "
+        f"{ILL_CONDITION:g}; standard deviations {stds} [m or rad]), so their fitted values "
+        f"would be arbitrary"
+    )
+    if len(found) > 1:
+        text += f" ({len(found) - 1} more such combination(s))"
+    return text + (
+        f"; {posture}" if posture else "; fix one of them or measure more varied postures"
+    )

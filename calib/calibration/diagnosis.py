@@ -18,6 +18,15 @@ composed x, y, z instead of URDF's z, y, x).
 
 Joint columns that hold one value in every row are named first (a joint not logged): no
 unit or order mistake is looked for then.
+
+A mistake is named only where its correction fits well at many distinct postures: dividing
+the joints by 57.3 brings every row to nearly one posture, where any frame or plane fits (one
+wild reading, two tables under one id, another arm's file would all "look like degrees").
+So the correction is applied to the rows with each joint column shuffled across them too
+(seeded): a correction that explains those as well (their RMS under ``EXPLAINS`` times its
+own) explains nothing about the postures, and is not named. The outliers are set aside before
+any diagnosis (:mod:`calib.calibration.outliers`), so one bad row is not a mistake of the
+whole file.
 """
 
 from __future__ import annotations
@@ -33,6 +42,7 @@ __all__ = [
     "EXPLAINS",
     "NOISE_FACTOR",
     "ORIENTATION_SUSPECT",
+    "SHUFFLE_SEED",
     "SUSPECT",
     "constant_joints",
     "likely_cause",
@@ -48,6 +58,17 @@ leaves the robot's geometric errors, whatever the noise: a low noise never lower
 
 EXPLAINS = 5.0
 """A mistake explains the data if correcting it divides the RMS error by this."""
+
+
+SHUFFLE_SEED = 29
+"""Seed of the shuffle of the joint columns that a correction must not explain too."""
+
+
+def _shuffled(data):
+    """The rows with each joint column permuted across them (seeded): no posture kept."""
+    rng = np.random.default_rng(SHUFFLE_SEED)
+    q = np.column_stack([rng.permutation(col) for col in data.q.T])
+    return dataclasses.replace(data, q=q)
 
 
 def _swaps(data) -> Iterator[tuple[str, object]]:
@@ -130,6 +151,15 @@ def constant_joints(data) -> list[str]:
     return [name for name, s in zip(data.joint_names, same, strict=True) if s]
 
 
+def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
+    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled."""
+    try:
+        null = registration_rms(_shuffled(fixed))
+    except (CalibError, np.linalg.LinAlgError, ValueError):  # shuffled rows cannot be fitted
+        return True
+    return bool(rms * EXPLAINS < null)
+
+
 def likely_cause(
     data,
     revolute: np.ndarray,
@@ -137,6 +167,7 @@ def likely_cause(
     before: float,
     orientation: bool = False,
     joints_only: bool = False,
+    shuffle: bool = True,
 ) -> tuple[str, float] | None:
     """The usual mistake that explains the data, with the RMS error once it is corrected.
 
@@ -149,6 +180,8 @@ def likely_cause(
         orientation: Try the mistakes of the orientation columns.
         joints_only: Try the mistakes of the joint columns only (data that record the
             joints alone: contacts).
+        shuffle: A correction must not explain the rows with their joint columns shuffled
+            (see the module's text).
 
     Returns:
         (description, RMS [m or rad]) of the best explaining mistake, or None.
@@ -164,5 +197,7 @@ def likely_cause(
         except (CalibError, np.linalg.LinAlgError, ValueError):  # no valid data: no explanation
             continue
         if rms * EXPLAINS < before and rms < limit and (best is None or rms < best[1]):
+            if shuffle and not _beats_shuffle(registration_rms, fixed, rms):
+                continue  # nearly one posture: any fit there explains nothing
             best = (what, rms)
     return best

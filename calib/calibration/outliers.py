@@ -1,40 +1,84 @@
 """Robust fitting: configurations whose error is far from the others' are set aside.
 
-After the registration, the error of each configuration (the largest of its points) is
-compared with the median over the configurations: one more than ``FACTOR`` times the median
-(and, when the instrument noise is given, more than ``NOISE_FACTOR`` times it) is an outlier
-(a marker swap, a bad reading). With pose data, the orientation error of each configuration
-is tested the same way against the median orientation error, so that one bad orientation is
-set aside like one bad point. Outliers are listed by file row and dropped, and the
-registration is repeated without them, until none is left (at most ``PASSES`` times). A
-robust loss (``--loss soft_l1|huber``, scale ``--noise-mm``) further limits the pull of the
-rows that remain.
+The rule (:func:`find_outliers`): the error of each configuration (the largest of its points)
+is compared with the median over the configurations: one more than ``FACTOR`` times the
+median (and, when the instrument noise is given, more than ``NOISE_FACTOR`` times it) is an
+outlier (a marker swap, a bad reading). With pose data, the orientation error of each
+configuration is tested the same way against the median orientation error, so that one bad
+orientation is set aside like one bad point. Outliers are listed by file row.
+
+The step is iterated until it is stable (:func:`until_stable`): the model is refitted without
+the outliers, every row (those set aside too) is tested again against the refit, and the set
+changes until a refit leaves it as it was (at most ``ROUNDS`` refits). It runs on the
+registration, then on the calibration itself: the registration leaves the robot's geometric
+errors, several millimetres, beside which a 20 mm outlier is not five times the median; the
+calibration leaves the noise. So that several outliers cannot hide each other by pulling
+the first fit (:func:`robust_proposals`), the loop starts from the rows a robust fit
+(iteratively reweighted least squares of the model linearised at the registration, every
+identifiable parameter free) finds outlying; the loop keeps them only if the calibration
+confirms them. The unit tested is a configuration (a row, or a touch); the functions take
+per-unit errors, so a unit of several rows (a posture) takes its largest error. A robust loss
+(``--loss soft_l1|huber``, scale ``--noise-mm``) further limits the pull of the rows that
+remain.
 """
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple, TypeVar
 
 import numpy as np
+from scipy.stats import chi
+
+from ..exceptions import DataError
 
 __all__ = [
     "FACTOR",
+    "IRLS_ROUNDS",
     "NOISE_FACTOR",
-    "PASSES",
+    "ROUNDS",
     "Outlier",
     "find_outliers",
     "find_pose_outliers",
+    "held_out_outliers",
+    "point_errors",
+    "robust_proposals",
     "set_aside_note",
+    "until_stable",
 ]
 
+T = TypeVar("T")
+
+
+class Errors(NamedTuple):
+    """Each unit's errors, and how many components each is the norm of.
+
+    Attributes:
+        position: Position (length) error ``(m,)`` [m].
+        orientation: Orientation (angle) error ``(m,)`` [rad], or None.
+        dims: Components of each (3 for a point or a rotation vector; a plane's height: 1).
+    """
+
+    position: np.ndarray
+    orientation: np.ndarray | None = None
+    dims: tuple[int, int] = (3, 3)
+
+
 FACTOR = 5.0
-"""An outlier's error is more than this many times the median configuration error."""
+"""An outlier's error is more than this many times the median configuration error (errors of
+3 components, a point's; for k components, the factor of the same Gaussian tail probability,
+:func:`factor`: 10.6 for a plane's height alone, 6.3 for its two tilts)."""
 
 NOISE_FACTOR = 6.0
 """... and more than this many times the instrument noise, when it is given."""
 
-PASSES = 3
-"""Most rounds of outlier removal."""
+ROUNDS = 10
+"""Most refits of the outlier loop (:func:`until_stable`); it keeps the last set."""
+
+IRLS_ROUNDS = 60
+"""Most reweightings of the robust fit of :func:`robust_proposals`."""
 
 
 @dataclass(frozen=True)
@@ -43,8 +87,9 @@ class Outlier:
 
     Attributes:
         row: Its row in the data file.
-        error: Its largest point error after the registration [m] (or its orientation
-            error [rad], ``kind`` ``orientation``).
+        error: Its largest point error [m] (or its orientation error [rad], ``kind``
+            ``orientation``) under the model that set it aside (the registration, or the
+            calibration fitted without it).
         median: The median configuration error then [m or rad].
         kind: ``position`` or ``orientation``: which error set it aside.
     """
@@ -87,10 +132,38 @@ def _configuration_errors(residual: np.ndarray, n_markers: int) -> np.ndarray:
     return np.max(np.linalg.norm(pts, axis=2), axis=1)
 
 
-def _find_outliers(errors: np.ndarray, noise: float | None) -> np.ndarray:
+def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
+    """Each configuration's largest point error [m] and orientation error [rad] (or None).
+
+    Args:
+        residual: Residuals ``(m, 3 K [+ 3])`` [m, rad] (the orientation rows last).
+        n_markers: K.
+    """
+    rot = None
+    if residual.shape[1] == 3 * n_markers + 3:
+        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+    return Errors(_configuration_errors(residual, n_markers), rot)
+
+
+@functools.cache
+def factor(dims: int) -> float:
+    """The outlier factor for errors that are norms of ``dims`` components.
+
+    ``FACTOR`` times the median of the norm of 3 Gaussian components is exceeded with some
+    probability; this is the multiple of the median that the norm of ``dims`` components
+    exceeds with the same probability (the chi distribution), so that the rule sets noise
+    aside as rarely whatever the error's components.
+    """
+    if dims == 3:
+        return FACTOR
+    tail = chi.sf(FACTOR * chi.median(3), 3)
+    return float(chi.isf(tail, dims) / chi.median(dims))
+
+
+def _find_outliers(errors: np.ndarray, noise: float | None, dims: int = 3) -> np.ndarray:
     """Boolean mask of the outliers among configuration errors [m]."""
     median = float(np.median(errors))
-    bad = errors > FACTOR * median
+    bad = errors > factor(dims) * median
     if noise is not None:
         bad &= errors > NOISE_FACTOR * noise
     if np.sum(~bad) < max(3, len(errors) // 2):  # not outliers: the data are bad as a whole
@@ -112,14 +185,16 @@ def find_pose_outliers(
     Returns:
         The boolean mask of the outliers and the outliers (the point error first where both).
     """
-    rot = None
-    if residual.shape[1] == 3 * n_markers + 3:
-        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-    return find_outliers(_configuration_errors(residual, n_markers), rot, noise, rows)
+    pos, rot, _ = point_errors(residual, n_markers)
+    return find_outliers(pos, rot, noise, rows)
 
 
 def find_outliers(
-    errors: np.ndarray, orientation: np.ndarray | None, noise: float | None, rows: tuple[int, ...]
+    errors: np.ndarray,
+    orientation: np.ndarray | None,
+    noise: float | None,
+    rows: tuple[int, ...],
+    dims: tuple[int, int] = (3, 3),
 ) -> tuple[np.ndarray, list[Outlier]]:
     """Outliers of per-configuration errors: by position error, and by orientation error.
 
@@ -128,17 +203,18 @@ def find_outliers(
         orientation: Orientation error of each ``(m,)`` [rad], or None.
         noise: Instrument position noise [m], or None.
         rows: File row of each configuration.
+        dims: Components of the position and of the orientation errors (:func:`factor`).
 
     Returns:
         The boolean mask of the outliers and the outliers (the position error first where
         both).
     """
-    bad = _find_outliers(errors, noise)
+    bad = _find_outliers(errors, noise, dims[0])
     found = [
         Outlier(rows[i], float(errors[i]), float(np.median(errors))) for i in np.flatnonzero(bad)
     ]
     if orientation is not None:
-        bad_rot = _find_outliers(orientation, None) & ~bad
+        bad_rot = _find_outliers(orientation, None, dims[1]) & ~bad
         median = float(np.median(orientation))
         found += [
             Outlier(rows[i], float(orientation[i]), median, "orientation")
@@ -148,3 +224,143 @@ def find_outliers(
     if np.sum(~bad) < max(3, len(errors) // 2):
         return np.zeros(len(errors), dtype=bool), []
     return bad, found
+
+
+def until_stable(
+    refit: Callable[[np.ndarray], T],
+    errors: Callable[[T], Errors],
+    noise: float | None,
+    rows: tuple[int, ...],
+    start: np.ndarray | None = None,
+    allowed: Callable[[np.ndarray], bool] | None = None,
+) -> tuple[T, np.ndarray, list[Outlier]]:
+    """Refit without the outliers and test every unit again, until the set stops changing.
+
+    Args:
+        refit: The fit of the units a boolean mask keeps.
+        errors: Every unit's errors under a fit (those set aside too: predicted).
+        noise: Instrument position noise [m], or None.
+        rows: File row of each unit.
+        start: The units set aside at first (default: none).
+        allowed: Whether a set of outliers (a mask) may be set aside (e.g. each plane keeps
+            enough touches); a set that may not, or whose refit raises a ``DataError``
+            (too few rows left), leaves the last one in place.
+
+    Returns:
+        The last fit, the mask of the outliers it was fitted without, and the outliers.
+    """
+    bad = np.zeros(len(rows), dtype=bool) if start is None else start.copy()
+    result = refit(~bad)
+    for _ in range(ROUNDS):
+        found = errors(result)
+        new = find_outliers(found.position, found.orientation, noise, rows, found.dims)[0]
+        if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
+            break
+        try:
+            result, bad = refit(~new), new
+        except DataError:  # too few rows left for the model: the last set stays
+            break
+    return result, bad, _records(errors(result), bad, rows)
+
+
+def _records(found: Errors, bad: np.ndarray, rows: tuple[int, ...]) -> list[Outlier]:
+    """The outliers a mask sets aside, with their errors (position first, as the rule)."""
+    pos, rot, dims = found
+    median = float(np.median(pos))
+    out = []
+    for i in np.flatnonzero(bad):
+        if rot is None or pos[i] > factor(dims[0]) * median:
+            out.append(Outlier(rows[i], float(pos[i]), median))
+        else:
+            out.append(Outlier(rows[i], float(rot[i]), float(np.median(rot)), "orientation"))
+    return out
+
+
+def robust_proposals(
+    J: np.ndarray,
+    residual: np.ndarray,
+    errors: Callable[[np.ndarray], Errors],
+    noise: float | None,
+    rows: tuple[int, ...],
+) -> np.ndarray:
+    """The units a robust fit of a linearised model finds outlying (a boolean mask).
+
+    None where the units give fewer than twice as many equations as the model's unknowns.
+
+    Iteratively reweighted least squares: each unit weighs ``min(1, median / error)`` (the
+    larger of its position and orientation ratios), reweighted until the weights settle (at
+    most ``IRLS_ROUNDS``); the rule (:func:`find_outliers`) is then applied to its errors.
+
+    Args:
+        J: Jacobian of the model at its start ``(m, rows, p)`` (rows weighted).
+        residual: Residuals at its start ``(m, rows)`` (weighted alike).
+        errors: Each unit's errors from residuals ``(m, rows)``.
+        noise: Instrument position noise [m], or None.
+        rows: File row of each unit.
+    """
+    m, rows_each, p = J.shape
+    if m * rows_each < 2 * p:  # nearly interpolated: no robust fit tells anything
+        return np.zeros(m, dtype=bool)
+    w = np.ones(m)
+    fitted = residual
+    for _ in range(IRLS_ROUNDS):
+        s = np.sqrt(w)[:, None]
+        x = np.linalg.lstsq((J * s[:, :, None]).reshape(-1, p), (residual * s).ravel(), rcond=None)[
+            0
+        ]
+        fitted = residual - J @ x
+        pos, rot, _ = errors(fitted)
+        ratio = _ratio(pos) if rot is None else np.maximum(_ratio(pos), _ratio(rot))
+        new = np.minimum(1.0, 1.0 / np.maximum(ratio, 1e-300))
+        if np.allclose(new, w, rtol=1e-6, atol=1e-9):
+            break
+        w = new
+    final = errors(fitted)
+    return find_outliers(final.position, final.orientation, noise, rows, final.dims)[0]
+
+
+def _ratio(errors: np.ndarray) -> np.ndarray:
+    """Each error over their median (1 where the median is 0)."""
+    median = float(np.median(errors))
+    return errors / median if median > 0 else np.ones_like(errors)
+
+
+def held_out_outliers(
+    fitted: Errors, held: Errors, noise: float | None, rows: tuple[int, ...]
+) -> tuple[np.ndarray, list[Outlier]]:
+    """Held-out units set aside by the training rule (a mask of the held-out units).
+
+    The rule (:func:`find_outliers`) on the errors of the fitted and the held-out units
+    together under one model (the registration), so that the median is the same one; only
+    held-out units are set aside, and none when that would be half of them or more (then
+    they are not outliers: measured in another frame, or of another robot).
+
+    Args:
+        fitted: Errors of the fitted units.
+        held: Errors of the held-out units.
+        noise: Instrument position noise [m], or None.
+        rows: File row of each held-out unit.
+    """
+    m = len(fitted.position)
+    rot = None
+    if fitted.orientation is not None and held.orientation is not None:
+        rot = np.concatenate([fitted.orientation, held.orientation])
+    pooled = Errors(np.concatenate([fitted.position, held.position]), rot, fitted.dims)
+    bad = find_outliers(pooled.position, pooled.orientation, noise, (0,) * m + rows, pooled.dims)[0]
+    mask = bad[m:]
+    if 2 * int(mask.sum()) >= len(mask):
+        return np.zeros(len(mask), dtype=bool), []
+    return mask, [
+        o
+        for o in _records(pooled, bad, (0,) * m + rows)
+        if o.row in set(rows[i] for i in np.flatnonzero(mask))
+    ]
+
+
+def held_out_note(dropped: list[Outlier], unit: str = "row(s)", gap: str = "error") -> str:
+    """The note naming the held-out outliers, left out of the held-out statistics."""
+    return (
+        "held out: "
+        + set_aside_note(dropped, unit, gap)
+        + "; the held-out statistics leave them out"
+    )

@@ -20,8 +20,15 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
-from . import determined, validation
-from .chain_registration import checked_registration, frames_model
+from . import determined, freedoms, outliers, validation
+from .chain_registration import (
+    checked_registration,
+    frames_model,
+    held_out_outliers,
+    ill_posed,
+    proposals,
+    registration,
+)
 from .contact_pipeline import calibrate_contact_data
 from .contact_result import ContactCalibration
 from .expansion import explained
@@ -211,20 +218,29 @@ def calibrate(
     return _calibrate_chain(robot, data, marker, validate, opts)
 
 
-def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
-    """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
-    clock = [time.perf_counter()]
-    train, held = _datasets(chain, data, validate, opts)
-    nominal = from_chain(chain)
-    guess = _marker_guess(marker, train.n_markers)
-    checked = held if validate is not None else None
-    opts, reg, train, dropped, notes = checked_registration(
-        chain, nominal, train, checked, guess, opts
-    )
-    clock.append(time.perf_counter())
+@dataclasses.dataclass(frozen=True)
+class _Round:
+    """One fit of the rows an outlier mask keeps: registration, choice, least squares."""
+
+    train: Measurements
+    reg: State
+    torque: tuple
+    model: ErrorModel
+    selection: Selection | None
+    prior: np.ndarray | None
+    fitted: Fit
+    notes: tuple[str, ...]
+    fit_ms: float
+
+
+def _round(chain, nominal, data, keep, guess, opts, held, reg=None) -> _Round:
+    """Register (unless ``reg`` is given), choose and fit the rows ``keep`` of ``data``."""
+    train = data if keep.all() else data.subset(keep)
+    reg = registration(nominal, train, guess, opts) if reg is None else reg
     torque = _torques(chain, opts, train, held)
+    notes: list[str] = []
     model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
-    clock.append(time.perf_counter())
+    tic = time.perf_counter()
     fitted = fit(
         model,
         reg,
@@ -236,9 +252,51 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
         scale=opts.noise or 1e-3,
         max_iterations=opts.max_iterations,
     )
+    ms = 1e3 * (time.perf_counter() - tic)
+    return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
+
+
+def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
+    """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
+    clock = [time.perf_counter()]
+    train, held = _datasets(chain, data, validate, opts)
+    nominal = from_chain(chain)
+    guess = freedoms.marker_guess(marker, train.n_markers)
+    checked = held if validate is not None else None
+    opts, reg, bad, notes = checked_registration(chain, nominal, train, checked, guess, opts)
+    held = held_out_outliers(reg, train, held, opts, notes)
+    clock.append(time.perf_counter())
+    first = ~bad
+    all_torque = _torques(chain, opts, train, None)[0]
+
+    def refit(keep: np.ndarray) -> _Round:
+        same = np.array_equal(keep, first)
+        return _round(chain, nominal, train, keep, guess, opts, held, reg if same else None)
+
+    def errors(rnd: _Round) -> outliers.Errors:
+        residual = rnd.fitted.state.residuals(train, all_torque)
+        return outliers.point_errors(residual, train.n_markers)
+
+    rows = train.rows or tuple(range(1, train.m + 1))
+    start = bad | proposals(nominal, reg, train, opts)
+    rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
+    notes = [*notes, *rnd.notes]
+    if dropped:
+        notes.append(outliers.set_aside_note(dropped))
+    clock.append(time.perf_counter() - 1e-3 * rnd.fit_ms)  # the selections, then the last fit
     clock.append(time.perf_counter())
     result = _assemble(
-        chain, nominal, train, held, torque, fitted, prior, selection, dropped, notes, opts
+        chain,
+        nominal,
+        rnd.train,
+        held,
+        rnd.torque,
+        rnd.fitted,
+        rnd.prior,
+        rnd.selection,
+        dropped,
+        notes,
+        opts,
     )
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
@@ -281,22 +339,6 @@ def _datasets(chain, data, validate, opts) -> tuple[Measurements, tuple | None]:
     return train, None if held is None else (held, "holdout")
 
 
-def _marker_guess(marker, k: int) -> np.ndarray:
-    if marker is None:
-        return np.zeros((k, 3))
-    try:
-        mk = np.array(marker, dtype=float).reshape(-1, 3)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"a marker is 3 numbers [m], got {marker!r}") from None
-    if not np.all(np.isfinite(mk)) or np.max(np.abs(mk)) > 1e3:
-        raise InvalidArgumentError(f"a marker is 3 finite numbers within 1000 m, got {marker!r}")
-    if len(mk) == 1:
-        mk = np.repeat(mk, k, axis=0)
-    if len(mk) != k:
-        raise InvalidArgumentError(f"{len(mk)} marker guesses for {k} measured points")
-    return mk
-
-
 def _torques(chain, opts, train, held):
     """Gravity torques of the training and held-out configurations, if compliance may be fitted.
 
@@ -335,7 +377,7 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
     pset, names = level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
-    _check_compliance(chain, torque, joints, opts)
+    freedoms.check_compliance(chain, torque, joints, opts)
     joints = [j for j in joints if compliance_name(j) not in opts.fix]
     base = frames_model(data, opts)
     ordered = tuple(
@@ -351,16 +393,22 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
     columns = [i for i in kept if i >= fixed]  # kept is in column order
     cand = [wide.names()[i] for i in columns]
-    _check_free(opts.free, cand, wide.names(), J.reshape(-1, J.shape[2]), fixed)
+    freedoms.check_free(opts.free, cand, wide.names(), J.reshape(-1, J.shape[2]), fixed)
     if len(kept) < fixed:
         raise DataError(
             data.source,
             "the configurations do not even determine the measurement frame and markers",
         )
-    generic = _generic_count(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    separated = _generic_kept(chain, wide, ideal, data, w, torque is not None, opts.seed)
+    generic = len(separated)
     postures = count_postures(data.q, data.tool)
     if opts.level != "auto":
-        determined.check_rank(len(kept), generic, postures, wide.rows, opts.level, data.source)
+        flat = J.reshape(-1, J.shape[2])[:, separated]
+        found = determined.ill_posed(flat, tuple(wide.names()[i] for i in separated))
+        lost = tuple(dict.fromkeys(n for d in found for n in d.names))
+        determined.check_rank(
+            len(kept), generic, postures, wide.rows, opts.level, data.source, lost=lost
+        )
     elif len(kept) < generic:
         notes.append(
             f"the {data.m} configurations determine {len(kept)} of the {generic} parameters "
@@ -390,30 +438,8 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     return model, selection, prior if np.any(prior) else None
 
 
-def _check_compliance(chain, torque, loaded: list[int], opts: Options) -> None:
-    """Refuse compliance asked for where gravity loads no joint (no masses) or not the one named.
-
-    Raises:
-        InvalidArgumentError: ``elastic`` (or a compliance in ``free``) on a chain whose URDF
-            gives its joints no gravity torque, or ``free`` naming an unloaded joint's.
-    """
-    if torque is None:
-        return
-    if not loaded:
-        raise InvalidArgumentError(
-            f"elastic (or a compliance in free) needs gravity torques, and {chain.urdf_path} "
-            f"gives none on the chain (no masses beyond it): drop elastic and the compliances"
-        )
-    for name in opts.free:
-        if name[:1] == "c" and name[1:].isdigit() and int(name[1:]) - 1 not in loaded:
-            raise InvalidArgumentError(
-                f"free {name} cannot be fitted: gravity loads joint {name[1:]} at none of the "
-                f"configurations (a compliance only shows under a torque); drop it from free"
-            )
-
-
-def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> int:
-    """Parameters of ``wide`` determined at random configurations (the same markers)."""
+def _generic_kept(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> list[int]:
+    """Columns of ``wide`` determined at random configurations (the same markers)."""
     q = chain.random_configurations(DEFAULT_CONFIGS, seed)
     torque = chain.gravity_torques(q) if elastic else None
     kin = state.kinematics(q, torque)  # x = 0 is the state
@@ -422,34 +448,7 @@ def _generic_count(chain, wide: ErrorModel, state: State, data, w, elastic: bool
     generic = Measurements(data.joint_names, q, pts.reshape(len(q), -1), quat)
     J = wide.jacobian(state, np.zeros(wide.size()), generic, torque, state, kin)
     J = J * w[None, :, None]
-    return len(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
-
-
-def _check_free(free, cand, names, J: np.ndarray, fixed: int) -> None:
-    """Refuse a ``--free`` parameter the data cannot fit on its own, saying why.
-
-    Args:
-        free: ``--free`` names.
-        cand: The identifiable names (independent columns, in preference order).
-        names: Every column's name; the first ``fixed`` are the frame's and markers'.
-        J: The weighted Jacobian ``(rows, columns)``.
-        fixed: Number of frame and marker columns.
-
-    Raises:
-        InvalidArgumentError: A name whose column the frame and markers carry, or that is
-            regrouped with parameters kept before it.
-    """
-    for name in free:
-        if name in cand or name not in names:
-            continue  # fitted; or a group name (frame, markers, tool)
-        col = names.index(name)
-        _, _, kept, _ = independent_columns(J[:, [*range(fixed), col]], list(range(fixed + 1)))
-        why = (
-            "the measurement frame and markers carry it (they are always fitted)"
-            if fixed not in kept
-            else "it is regrouped with parameters kept before it (not identifiable on its own)"
-        )
-        raise InvalidArgumentError(f"free {name} cannot be fitted: {why}; drop it from free")
+    return sorted(independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2])
 
 
 def _compliance_notes(fitted: Fit, torque, before, urdf_after, val) -> list[str]:
@@ -493,6 +492,9 @@ def _assemble(
     if val is not None:
         validation.check_held_out_errors(before, val.registration, held[0].source)
     checks = (before, after) if val is None else (val.registration, val.calibrated)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
     reason = validation.refusal(
         fitted.converged,
         before,
@@ -500,12 +502,10 @@ def _assemble(
         validation.full_rank(fitted.J),
         None if val is None else checks,
         fitted.model.names(),
+        ill_posed(chain, fitted, train, opts, std),
     )
     urdf_after = _geometry_stats(fitted.state, train)
     notes = [*notes, *_compliance_notes(fitted, torque, before, urdf_after, val)]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        std = np.sqrt(np.diag(cov)) if p else np.zeros(0)
     return CalibrationResult(
         robot=chain.name,
         chain=chain,

@@ -338,9 +338,15 @@ def _calibrate_tree(tree: Tree, data, validate, opts: Options) -> TreeCalibratio
     nominal = from_tree(tree)
     notes: list[str] = []
     if validate is not None and _registrable(tree, validate):  # validation data are data
-        _diagnose(tree, nominal, validate, max_iterations, None)
-    reg = _diagnose(tree, nominal, train, max_iterations, notes)
-    reg, train, dropped = _drop_outliers(nominal, reg, train, max_iterations, notes)
+        _, kept, _ = _drop_outliers(tree, nominal, validate, max_iterations)
+        _diagnose(tree, nominal, kept, max_iterations, None)
+    reg, train, dropped = _drop_outliers(tree, nominal, train, max_iterations)
+    _diagnose(tree, nominal, train, max_iterations, notes, reg)
+    if dropped:
+        notes.append(outliers.set_aside_note(dropped))
+    if not reg.converged:
+        raise DataError(train.source, f"the registration did not converge ({reg.message})")
+    held = _held_out_outliers(reg.state, train, held, notes)
     clock.append(time.perf_counter())
     model = _tree_model(tree, nominal, reg.state, train, opts.level, opts.seed)
     clock.append(time.perf_counter())
@@ -369,13 +375,13 @@ def _registration(nominal: TreeMDH, data: Measurements, max_iterations: int) -> 
     return fit(frames, start, data, None, 1.0, max_iterations=max_iterations)
 
 
-def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None) -> Fit:
-    """The registration of ``data``; the likely mistake raised if it cannot be registered.
+def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None, reg=None) -> Fit:
+    """The registration of ``data`` (unless given); the likely mistake if it cannot be.
 
     ``notes``: where to note data no usual mistake explains (None: validation data, whose
     registration is only checked).
     """
-    reg = _registration(nominal, data, max_iterations)
+    reg = _registration(nominal, data, max_iterations) if reg is None else reg
     first = validation.stats(reg.state, data, None).position_rms
     if not diagnosis.suspect(first, None):
         return reg
@@ -399,24 +405,40 @@ def _diagnose(tree, nominal, data, max_iterations, notes: list[str] | None) -> F
     return reg
 
 
-def _drop_outliers(nominal, reg: Fit, data: Measurements, max_iterations: int, notes):
-    """Rows far from the others set aside (:mod:`.outliers`), the registration redone."""
-    dropped: list[outliers.Outlier] = []
-    for _ in range(outliers.PASSES):
-        rows = data.rows or tuple(range(1, data.m + 1))
-        bad, found = outliers.find_pose_outliers(reg.state.residuals(data), 1, None, rows)
-        if not np.any(bad):
-            break
-        dropped += found
-        data = data.subset(~bad)
-        what = "measurement frame and marker parameters once the outliers are set aside"
-        determined.check_equations(data.m, 3, 6 + 3 * nominal.n_tools, what, data.source)
-        reg = _registration(nominal, data, max_iterations)
-    if dropped:
-        notes.append(outliers.set_aside_note(dropped))
-    if not reg.converged:
-        raise DataError(data.source, f"the registration did not converge ({reg.message})")
-    return reg, data, tuple(dropped)
+def _held_out_outliers(reg: TreeState, train, held, notes: list[str]):
+    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
+    if held is None:
+        return None
+    rows = held.rows or tuple(range(1, held.m + 1))
+    bad, dropped = outliers.held_out_outliers(
+        outliers.point_errors(reg.residuals(train), 1),
+        outliers.point_errors(reg.residuals(held), 1),
+        None,
+        rows,
+    )
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped))
+    return held.subset(~bad)
+
+
+def _drop_outliers(tree, nominal, data: Measurements, max_iterations: int):
+    """The registration without the rows far from the others (:mod:`.outliers`)."""
+    unknowns = 6 + 3 * nominal.n_tools
+
+    def refit(keep: np.ndarray) -> Fit:
+        return _registration(nominal, data if keep.all() else data.subset(keep), max_iterations)
+
+    def errors(reg: Fit) -> outliers.Errors:
+        return outliers.point_errors(reg.state.residuals(data), 1)
+
+    def allowed(bad: np.ndarray) -> bool:  # every tool, more equations than unknowns
+        kept = data.subset(~bad)
+        return _registrable(tree, kept) and 3 * kept.m > unknowns
+
+    rows = data.rows or tuple(range(1, data.m + 1))
+    reg, bad, dropped = outliers.until_stable(refit, errors, None, rows, allowed=allowed)
+    return reg, data.subset(~bad) if bad.any() else data, tuple(dropped)
 
 
 def _tree_datasets(tree, data, validate, opts: Options):

@@ -210,8 +210,13 @@ def refusal(
     identified: bool,
     held: tuple[ResidualStats, ResidualStats] | None,
     names: tuple[str, ...],
+    ill: str | None = None,
 ) -> str | None:
-    """The first check a calibration fails, as a sentence (None: every check passed)."""
+    """The first check a calibration fails, as a sentence (None: every check passed).
+
+    ``ill``: the sentence naming unknowns the data cannot separate
+    (:func:`~calib.calibration.determined.ill_posed_text`), or None.
+    """
     if not converged:
         return "the fit did not converge"
     if after.position_rms > before.position_rms * (1 + SAME):
@@ -219,6 +224,8 @@ def refusal(
             f"the calibrated model fits the data worse than the registration alone "
             f"({1e3 * after.position_rms:.3g} mm vs {1e3 * before.position_rms:.3g} mm RMS)"
         )
+    if ill is not None:
+        return ill
     if not identified:
         return (
             f"the measured configurations do not identify the {len(names)} fitted parameters "
