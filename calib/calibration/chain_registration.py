@@ -270,7 +270,12 @@ def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) ->
     best (:func:`~calib.calibration.determined.separating_posture`).
     """
     names = fitted.model.names()
-    found = determined.ill_posed(fitted.J, names)
+    spread = dict(zip(names, std, strict=True))
+    found = [
+        d
+        for d in determined.ill_posed(fitted.J, names)
+        if not all(spread[n] <= determined.ILL_STD for n in d.names)  # NaN: undetermined
+    ]
     if not found:
         return None
     w = row_weights(fitted.model, opts.orientation_weight)

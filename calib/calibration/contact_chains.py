@@ -45,9 +45,10 @@ from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
-from . import contact_checks, determined, validation
+from . import contact_checks, determined, outliers, validation
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .contact_checks import subset
 from .contact_model import ContactState
 from .contact_pipeline import (
     WORSE,
@@ -60,6 +61,7 @@ from .contact_pipeline import (
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
 from .options import check_run_options
+from .outliers import Outlier
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import fit, fitted_values
@@ -156,9 +158,13 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
         g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)
-        start, d, out, more = contact_checks.checked_registration(
+        start, bad, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
         )
+        out = _set_aside(start, d, bad)
+        if out:
+            more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
+            d = subset(d, ~bad)
         what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
         out_m = 0 if held[c] is None else held[c].m
         rows, size = len(d.kind.row_names), start.frames.size
@@ -167,6 +173,16 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
         kept.append(d)
         dropped.append(tuple(out))
     return kept, dropped
+
+
+def _set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[Outlier]:
+    """The touches ``bad`` as outliers: each one's length gap and the median [m]."""
+    if not bad.any():
+        return []
+    lengths = contact_checks.length_errors(start, data)[0]
+    rows = data.rows or tuple(range(1, data.m + 1))
+    median = float(np.median(lengths[~bad]))
+    return [Outlier(rows[i], float(lengths[i]), median) for i in np.flatnonzero(bad)]
 
 
 def _register(

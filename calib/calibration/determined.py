@@ -34,6 +34,7 @@ from ..exceptions import DataError, InvalidArgumentError
 
 __all__ = [
     "ILL_CONDITION",
+    "ILL_STD",
     "NAMED",
     "SELECTION_WORK",
     "Direction",
@@ -184,6 +185,11 @@ class Direction:
             sign = ("-" if w < 0 else "") if not text else (" - " if w < 0 else " + ")
             text += f"{sign}{abs(w):.2g} {n}"
         return text
+
+
+ILL_STD = 1e-4
+"""A weak direction whose unknowns all have standard deviations under this [m or rad] is
+determined all the same (noise-free or very precise data): it is not refused."""
 
 
 def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
