@@ -43,6 +43,7 @@ __all__ = [
     "check_outputs",
     "json_text",
     "read_bytes_limited",
+    "input_path",
     "read_failure",
     "read_text_limited",
     "same_file",
@@ -214,10 +215,11 @@ READ_CHUNK = 1 << 20
 
 
 def read_bytes_limited(path: str | Path, limit: int) -> bytes:
-    """Read a whole file, refusing one larger than ``limit`` bytes before reading it all.
+    """Read a whole regular file, refusing one larger than ``limit`` bytes before reading it all.
 
-    The size is checked while reading, so a device (``/dev/zero``), a FIFO or a file that
-    grows is refused after at most ``limit + 1`` bytes, in well under a second.
+    Anything else is refused before a byte is read: a FIFO (whose ``open`` would wait for a
+    writer forever), a device (``/dev/zero`` never ends), a directory, a socket. The size is
+    checked while reading, so a file that grows is refused after at most ``limit + 1`` bytes.
 
     Args:
         path: File to read.
@@ -228,15 +230,16 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
 
     Raises:
         OSError: The file is missing (``FileNotFoundError``), a directory
-            (``IsADirectoryError``), unreadable, or larger than ``limit`` (``errno.EFBIG``);
-            the error names the file and its ``strerror`` is a one-line reason.
+            (``IsADirectoryError``), no regular file (``errno.EINVAL``), unreadable, or larger
+            than ``limit`` (``errno.EFBIG``); the error names the file and its ``strerror``
+            is a one-line reason.
+        InvalidArgumentError: ``path`` is not a path (None, a number, empty).
     """
-    target = Path(path)
-    if target.is_dir():
-        raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", str(target))
+    target = Path(input_path(path))
+    fd = _open_regular(target)
     chunks: list[bytes] = []
     size = 0
-    with open(target, "rb") as f:
+    with open(fd, "rb") as f:
         while size <= limit:
             chunk = f.read(min(READ_CHUNK, limit + 1 - size))
             if not chunk:
@@ -244,6 +247,56 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
             chunks.append(chunk)
             size += len(chunk)
     raise OSError(errno.EFBIG, f"file larger than {_human_size(limit)}", str(target))
+
+
+_NOT_REGULAR = (
+    (stat.S_ISDIR, errno.EISDIR, "is a directory, not a file"),
+    (stat.S_ISFIFO, errno.EINVAL, "a FIFO (named pipe), not a regular file: it may never end"),
+    (stat.S_ISCHR, errno.EINVAL, "a character device, not a regular file: it may never end"),
+    (stat.S_ISBLK, errno.EINVAL, "a block device, not a regular file"),
+    (stat.S_ISSOCK, errno.EINVAL, "a socket, not a regular file"),
+)
+"""What an input that is no regular file is, and the reason its refusal gives."""
+
+
+def input_path(path: object) -> str:
+    """The text of an input file's path: a ``str`` or ``os.PathLike`` naming something.
+
+    Raises:
+        InvalidArgumentError: None, a number, bytes or an empty path.
+    """
+    text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
+    if not isinstance(text, str) or not text:
+        raise InvalidArgumentError(f"a file path must be a non-empty str or Path, got {path!r:.60}")
+    return text
+
+
+def _open_regular(target: Path) -> int:
+    """A read descriptor of a regular file; never waits on a FIFO or reads a device.
+
+    The file is checked before it is opened (a FIFO's ``open`` waits for a writer) and
+    again once open without blocking (it may have been replaced in between).
+
+    Raises:
+        OSError: Missing, unreadable, or not a regular file (a directory, a FIFO, a
+            device, a socket); the error names the file.
+    """
+    _refuse_irregular(target, os.stat(target).st_mode)
+    fd = os.open(target, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        _refuse_irregular(target, os.fstat(fd).st_mode)
+        os.set_blocking(fd, True)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _refuse_irregular(target: Path, mode: int) -> None:
+    """Raise OSError naming ``target`` unless ``mode`` is a regular file's."""
+    for test, code, reason in _NOT_REGULAR:
+        if test(mode):
+            raise OSError(code, reason, str(target))
 
 
 def read_failure(exc: OSError) -> str:

@@ -389,14 +389,17 @@ def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, j: int, count: int
     frame = true_mdh.forward(q0[None])[0]
     if count == 0:
         return name, frame, np.zeros((0, chain.n))
-    q = contact_postures(
-        contact_model(true_mdh, q0, name),
-        kind,
-        lambda c, r: chain.random_configurations(c, start + 1 + r),
-        count,
-        rounds=SIMULATION_ROUNDS,
-        bounds=(lower, upper),
-    )
+    try:
+        q = contact_postures(
+            contact_model(true_mdh, q0, name),
+            kind,
+            lambda c, r: chain.random_configurations(c, start + 1 + r),
+            count,
+            rounds=SIMULATION_ROUNDS,
+            bounds=(lower, upper),
+        )
+    except InvalidArgumentError as exc:
+        raise InvalidArgumentError(f"{ID_COLUMNS[kind.label]} {name}: {exc}") from None
     return name, frame, q
 
 

@@ -1,0 +1,185 @@
+"""The command line, third round (issue 29, items 6-11): numbers out of range, files that
+never end, mimic joints and clashing joint names through every reader, every listed choice,
+inputs found rather than given.
+
+Every expectation comes from outside calib: the exit status and the lines on stderr, the
+bytes of files before and after, the URDFs the tests write, counts made here.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import os
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import calib
+from calib.cli.commands import main
+
+ROOT = Path(__file__).resolve().parents[1]
+MIMIC_TREE = ROOT / "tests" / "data" / "mimic_tree.urdf"
+
+
+def digest(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def run(capsys, argv) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    return code, out, err
+
+
+def one_error(capsys, argv) -> str:
+    """Exit 2 and exactly one ``calib: error:`` line (warnings aside); the line."""
+    code, out, err = run(capsys, argv)
+    errors = [line for line in err.splitlines() if not line.startswith("calib: warning:")]
+    assert code == 2, (argv, out, err)
+    assert len(errors) == 1 and errors[0].startswith("calib: error: "), err
+    return errors[0]
+
+
+def rows_of(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory) -> Path:
+    """20 configurations of a UR5 measured by position."""
+    path = tmp_path_factory.mktemp("campaign") / "m.csv"
+    argv = ["simulate", "ur5", "--configs", "20", "--measure", "position", "--out", str(path)]
+    assert main(argv) == 0
+    return path
+
+
+# Item 7: files that never end ------------------------------------------------------------
+
+
+def _error_within(capsys, argv, fifo: Path, seconds: float = 20.0) -> str:
+    """The one error line of ``argv``, which must come within ``seconds``.
+
+    A command that waits on the FIFO is released (a writer opens and closes it) and the test
+    fails instead of hanging.
+    """
+    outcome: list = []
+    thread = threading.Thread(target=lambda: outcome.append(main([str(a) for a in argv])))
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))  # EOF for a waiting reader
+        thread.join()
+        pytest.fail(f"{argv} waited on the FIFO")
+    out, err = capsys.readouterr()
+    errors = [line for line in err.splitlines() if not line.startswith("calib: warning:")]
+    assert outcome == [2] and len(errors) == 1, (out, err)
+    assert "Traceback" not in err
+    return errors[0]
+
+
+def _fifo_commands(fifo: Path, data: Path, out: Path) -> dict[str, list]:
+    return {
+        "--data": ["calibrate", "ur5", "--data", fifo, "--out", out],
+        "--validate": ["calibrate", "ur5", "--data", data, "--validate", fifo, "--out", out],
+        "contact --data": ["calibrate", "ur5", "--measure", "plane", "--data", fifo, "--out", out],
+        "design --evaluate": ["design", "ur5", "--evaluate", fifo],
+        "design --candidates-file": ["design", "ur5", "--configs", "5", "--candidates-file", fifo],
+        "design --srdf": ["design", "ur5", "--configs", "5", "--candidates", "50", "--srdf", fifo],
+        "simulate --configs-file": ["simulate", "ur5", "--configs-file", fifo, "--out", out],
+        "predict --compliance": [
+            "predict",
+            "ur5",
+            "--compliance",
+            fifo,
+            "--configs",
+            data,
+            "--out",
+            out,
+        ],
+        "the URDF": ["analyze", fifo.with_suffix(".urdf")],
+    }
+
+
+@pytest.mark.parametrize(
+    "option",
+    [
+        "--data",
+        "--validate",
+        "contact --data",
+        "design --evaluate",
+        "design --candidates-file",
+        "design --srdf",
+        "simulate --configs-file",
+        "predict --compliance",
+        "the URDF",
+    ],
+)
+def test_a_fifo_given_as_an_input_is_one_line_never_a_hang(tmp_path, capsys, campaign, option):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    os.mkfifo(fifo.with_suffix(".urdf"))
+    argv = _fifo_commands(fifo, campaign, tmp_path / "out.csv")[option]
+    line = _error_within(capsys, argv, fifo.with_suffix(".urdf") if option == "the URDF" else fifo)
+    assert "FIFO" in line and "pipe" in line, line
+    assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize("option", ["--data", "design --evaluate", "simulate --configs-file"])
+def test_a_device_given_as_an_input_is_refused_before_reading(tmp_path, capsys, campaign, option):
+    zero = Path("/dev/zero")
+    argv = _fifo_commands(zero, campaign, tmp_path / "out.csv")[option]
+    line = one_error(capsys, argv)
+    assert "/dev/zero" in line and "character device" in line, line
+
+
+# Item 10: every listed choice works --------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["plane", "plane-point", "fixed-point", "fixed-pose"])
+def test_sweep_takes_every_measure_its_help_lists(tmp_path, capsys, monkeypatch, kind):
+    """``calib sweep --measure KIND`` (the catalog cut to the UR5 and a tree): the UR5's
+    counts are analyze's, the tree is a row with its reason (contacts are one chain's)."""
+    import calib.outputs.sweep as sweep_module
+
+    keep = [e for e in sweep_module.catalog() if e.name in ("ur5", "bolt")]
+    monkeypatch.setattr(sweep_module, "catalog", lambda: keep)
+    table = tmp_path / "sweep.csv"
+    code, _, err = run(capsys, ["sweep", "--measure", kind, "--configs", "40", "--csv", table])
+    assert code == 0, err
+    rows = {r["robot"]: r for r in rows_of(table)}
+    assert set(rows) == {"ur5", "bolt"}
+    assert rows["bolt"]["verdict"] == "error" and "one chain" in rows["bolt"]["error"]
+    for params, column in (("paper", "n_base_paper"), ("complete", "n_base_complete")):
+        res = calib.analyze("ur5", measure=kind, params=params, configs=40, seed=0)
+        assert int(rows["ur5"][column]) == res.n_base > 0
+
+
+def test_simulating_many_planes_never_stops_on_a_singular_newton_step(tmp_path, capsys):
+    """The Allegro index finger meets a posture where the Newton system is singular (10
+    planes, seed 0): the touches are still simulated, each on its true plane."""
+    out = tmp_path / "c.csv"
+    argv = ["simulate", "allegro_index", "--measure", "plane", "--contacts", "10"]
+    code, _, err = run(capsys, [*argv, "--configs", "10", "--out", out])
+    assert code == 0, err
+    assert len(rows_of(out)) == 10
+
+
+def test_the_singular_step_is_the_least_norm_least_squares_one():
+    from calib.identification.contacts import _newton_step
+
+    J = np.array([[[1e8, 2e8, 0.0], [1e8, 2e8, 0.0]]])  # J J^T singular in floating point
+    gap = np.array([[1.0, 3.0]])
+    expected = np.linalg.lstsq(J[0], -gap[0], rcond=None)[0]  # least norm of the mean
+    assert np.allclose(_newton_step(J, gap)[0], expected, rtol=1e-9, atol=0)
+
+
+def test_a_contact_that_cannot_be_reached_is_named(capsys):
+    """The 65th plane of a two-joint arm (seed 0) is out of its reach: the error names it."""
+    argv = ["simulate", "twodof", "--measure", "plane", "--contacts", "65", "--configs", "65"]
+    line = one_error(capsys, [*argv, "--out", "-", "--truth", "/dev/null"])
+    assert "plane table65: only 0 of" in line, line
