@@ -58,6 +58,70 @@ def campaign(tmp_path_factory) -> Path:
     return path
 
 
+# Item 6: numbers out of range ---------------------------------------------------------------
+
+OUT_OF_RANGE = [
+    # (command, option, value, words the error line has)
+    ("calibrate", "--max-iterations", "3000000000", "1000000"),
+    ("calibrate", "--max-iterations", "0", "max_iterations"),
+    ("calibrate", "--noise-mm", "nan", "noise"),
+    ("calibrate", "--noise-mm", "1e300", "at most 1000"),
+    ("calibrate", "--orientation-weight", "inf", "orientation weight"),
+    ("calibrate", "--orientation-weight", "1e300", "at most 10000"),
+    ("calibrate", "--holdout", "nan", "holdout"),
+    ("calibrate", "--seed", "-1", "seed"),
+    ("simulate", "--configs", "-3", "configurations"),
+    ("simulate", "--configs", "3000000000", "use at most"),
+    ("simulate", "--error-mm", "1e300", "at most 1000"),
+    ("simulate", "--error-mrad", "1e30", "at most 1000"),
+    ("simulate", "--noise-mm", "1e5", "at most 1000"),
+    ("simulate", "--noise-mrad", "-2", "noise_mrad"),
+    ("simulate", "--contacts", "-1", "--contacts"),
+    ("simulate plane", "--contacts", "3000000000", "[1, 20]"),
+    ("simulate plane", "--contacts", "0", "contacts"),
+    ("simulate plane", "--noise-mrad", "1e9", "at most 1000"),
+    ("simulate plane", "--error-mm", "nan", "error_mm"),
+    ("design", "--noise-mm", "1e300", "at most 1000"),
+    ("design", "--noise-mm", "-1", "--noise-mm"),
+    ("design", "--orientation-weight", "1e300", "at most 10000"),
+    ("design", "--candidates", "3000000000", "use at most"),
+    ("design", "--margin", "nan", "margin"),
+    ("analyze", "--configs", "3000000000", "use at most"),
+    ("analyze", "--markers", "-1", "markers"),
+    ("analyze", "--seed", "-1", "seed"),
+    ("sweep", "--configs", "0", "configurations"),
+]
+
+
+@pytest.mark.parametrize(("command", "option", "value", "words"), OUT_OF_RANGE)
+def test_numbers_out_of_range_are_one_line(
+    tmp_path, capsys, campaign, command, option, value, words
+):
+    out = tmp_path / "out"
+    base = {
+        "calibrate": ["calibrate", "ur5", "--data", campaign, "--out", out],
+        "simulate": ["simulate", "ur5", "--configs", "20", "--out", out],
+        "simulate plane": [
+            "simulate",
+            "ur5",
+            "--measure",
+            "plane",
+            "--configs",
+            "20",
+            "--out",
+            out,
+        ],
+        "design": ["design", "ur5", "--configs", "10", "--candidates", "100", "--out", out],
+        "analyze": ["analyze", "ur5"],
+        "sweep": ["sweep", "--csv", out],
+    }[command]
+    if option in base:
+        base = base[: base.index(option)] + base[base.index(option) + 2 :]
+    line = one_error(capsys, [*base, option, value])
+    assert words in line, line
+    assert not out.exists()
+
+
 # Item 7: files that never end ------------------------------------------------------------
 
 

@@ -18,7 +18,6 @@ limits.
 
 from __future__ import annotations
 
-import math
 import re
 import warnings
 from dataclasses import dataclass
@@ -26,13 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.checks import angle_mrad, check_count, length_mm
 from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, contact_model, contact_postures
 from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import JointReadings
 from .csvfile import csv_records, parse_number, read_data_text
 from .data import DataWarning
@@ -294,13 +294,6 @@ class ContactCampaign:
     truth: ContactTruth
 
 
-def _finite(name: str, value, minimum: float = 0.0) -> float:
-    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
-    if not ok or not math.isfinite(float(value)) or float(value) < minimum:
-        raise InvalidArgumentError(f"{name} must be a finite number >= {minimum:g}, got {value!r}")
-    return float(value)
-
-
 def simulate_contacts(
     chain: Chain,
     configs: int = 100,
@@ -323,7 +316,7 @@ def simulate_contacts(
         chain: The nominal chain (no mimic joints).
         configs: Number of touches (>= 1).
         measure: ``plane``, ``plane-point``, ``fixed-point`` or ``fixed-pose``.
-        contacts: Number of planes or points (>= 1).
+        contacts: Number of planes or points (>= 1, at most ``configs``: each is touched).
         error_mm: Standard deviation of every length error [mm].
         error_mrad: Standard deviation of every angle error [mrad].
         noise_mrad: Standard deviation of the recorded joints' noise [mrad; mm for prismatic].
@@ -335,17 +328,13 @@ def simulate_contacts(
             within its limits.
     """
     kind = _contact(measure)
+    check_chain(chain, "contacts are simulated on")
     if chain.coupling is not None:
         raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
-    for name, value in (("configs", configs), ("contacts", contacts), ("seed", seed)):
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | np.integer)
-            or value < (0 if name == "seed" else 1)
-        ):
-            raise InvalidArgumentError(f"{name} must be an integer >= {0 if name == 'seed' else 1}")
-    error_mm, error_mrad = _finite("error_mm", error_mm), _finite("error_mrad", error_mrad)
-    noise_mrad = _finite("noise_mrad", noise_mrad)
+    configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)
+    contacts = check_count(contacts, "contacts", 1, configs)  # each touched at least once
+    error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
+    noise_mrad = angle_mrad(noise_mrad, "noise_mrad")
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])
