@@ -201,6 +201,54 @@ def test_a_device_given_as_an_input_is_refused_before_reading(tmp_path, capsys, 
     assert "/dev/zero" in line and "character device" in line, line
 
 
+# Item 11: inputs found, not given --------------------------------------------------------
+
+
+@pytest.fixture()
+def ur5_with_srdf(tmp_path) -> tuple[Path, Path]:
+    """A copy of example-robot-data's UR5 layout: urdf/ur5_robot.urdf and srdf/ur5.srdf."""
+    from calib.design.collision import find_srdf
+    from calib.kinematics.catalog import catalog_entry
+
+    urdf = catalog_entry("ur5").path
+    srdf = find_srdf(urdf)
+    assert srdf is not None
+    (tmp_path / "urdf").mkdir()
+    (tmp_path / "srdf").mkdir()
+    copy = tmp_path / "urdf" / urdf.name
+    copy.write_bytes(urdf.read_bytes())
+    found = tmp_path / "srdf" / srdf.name
+    found.write_bytes(srdf.read_bytes())
+    return copy, found
+
+
+def test_design_never_overwrites_the_srdf_it_found(capsys, ur5_with_srdf):
+    urdf, srdf = ur5_with_srdf
+    before = digest(srdf)
+    argv = ["design", urdf, "--configs", "8", "--candidates", "60"]
+    line = one_error(capsys, [*argv, "--out", srdf.parent / ".." / "srdf" / srdf.name])
+    assert "SRDF found beside the URDF" in line, line
+    assert digest(srdf) == before
+
+
+def test_no_output_is_a_file_the_command_read(tmp_path):
+    """The net under every command: a file read within the block is never written."""
+    from calib.core.fileio import inputs_recorded, read_text_limited, write_files_atomic
+    from calib.exceptions import InvalidArgumentError
+
+    found = tmp_path / "found.txt"
+    found.write_text("read\n")
+    link = tmp_path / "link.txt"
+    link.symlink_to(found)
+    with inputs_recorded():
+        read_text_limited(found, 100)
+        with pytest.raises(InvalidArgumentError, match="which this command read"):
+            write_files_atomic({link: "new", tmp_path / "other.txt": "x"})
+    assert found.read_text() == "read\n" and not (tmp_path / "other.txt").exists()
+    write_files_atomic({found: "rewritten\n"})  # the API outside a command may
+    assert found.read_text() == "rewritten\n"
+
+
 # Item 10: every listed choice works --------------------------------------------------------
 
 

@@ -29,7 +29,7 @@ import os
 import stat
 import sys
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
@@ -42,6 +42,7 @@ __all__ = [
     "PathLike",
     "check_outputs",
     "input_path",
+    "inputs_recorded",
     "json_text",
     "read_bytes_limited",
     "read_failure",
@@ -177,13 +178,16 @@ def check_outputs(
             to a path inside one.
 
     Raises:
-        InvalidArgumentError: An output is the same file as an input or as another output,
-            or lies in a protected folder.
+        InvalidArgumentError: An output is the same file as an input, as a file read so far
+            within :func:`inputs_recorded`, or as another output, or lies in a protected
+            folder.
         OutputError: An output cannot be written: a directory, a missing or read-only
             directory, a socket.
     """
     given = {option: path for option, path in outputs.items() if path is not None}
     for option, path in given.items():
+        if os.fspath(path) != STDOUT:
+            _refuse_read(path)
         for what, source in (inputs or {}).items():
             if source is not None and same_file(path, source):
                 raise InvalidArgumentError(f"{option} {os.fspath(path)} would overwrite {what}")
@@ -207,6 +211,36 @@ def _check_not_inside(option: str, path: PathLike, protected: Mapping[str, PathL
         if real.is_relative_to(os.path.realpath(folder)):
             raise InvalidArgumentError(
                 f"{option} {text} is inside the installed files of {what}: write elsewhere"
+            )
+
+
+_READ: list[list[str]] = []
+"""The files read within each :func:`inputs_recorded` block, innermost last."""
+
+
+@contextlib.contextmanager
+def inputs_recorded() -> Iterator[None]:
+    """Within the block, no output may be a file read in it (every command runs in one).
+
+    Every file :func:`read_bytes_limited` reads is noted, the ones found rather than given
+    included (the SRDF beside a URDF); :func:`check_outputs` and :func:`write_files_atomic`
+    then refuse an output that is one of them. Outside a block (the Python API) a program
+    may rewrite what it read.
+    """
+    _READ.append([])
+    try:
+        yield
+    finally:
+        _READ.pop()
+
+
+def _refuse_read(path: PathLike) -> None:
+    """InvalidArgumentError if ``path`` is a file read in the current block."""
+    for read in _READ[-1] if _READ else ():
+        if same_file(path, read):
+            raise InvalidArgumentError(
+                f"{os.fspath(path)} is {read}, which this command read: calib never "
+                f"overwrites its inputs (write elsewhere)"
             )
 
 
@@ -237,6 +271,8 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
     """
     target = Path(input_path(path))
     fd = _open_regular(target)
+    if _READ:
+        _READ[-1].append(str(target))
     chunks: list[bytes] = []
     size = 0
     with open(fd, "rb") as f:
@@ -372,6 +408,8 @@ def write_files_atomic(files: Mapping[_AnyPath, str | bytes]) -> None:
     """
     jobs = [(_target(path), _to_bytes(content)) for path, content in files.items()]
     for target, _ in jobs:
+        if target.kind is not _Kind.STDOUT:
+            _refuse_read(target.path)
         _check_writable(target)
     staged: list[str] = []
     try:
