@@ -186,11 +186,11 @@ def check_outputs(
     """
     given = {option: path for option, path in outputs.items() if path is not None}
     for option, path in given.items():
-        if os.fspath(path) != STDOUT:
-            _refuse_read(path)
         for what, source in (inputs or {}).items():
             if source is not None and same_file(path, source):
                 raise InvalidArgumentError(f"{option} {os.fspath(path)} would overwrite {what}")
+        if os.fspath(path) != STDOUT:
+            _refuse_read(path)
         _check_not_inside(option, path, protected or {})
     for (opt_a, a), (opt_b, b) in itertools.combinations(given.items(), 2):
         if same_file(a, b):
