@@ -249,6 +249,196 @@ def test_no_output_is_a_file_the_command_read(tmp_path):
     assert found.read_text() == "rewritten\n"
 
 
+# Item 8: mimic joints round-trip ------------------------------------------------------------
+
+
+def _mimic_relation(path: Path) -> dict[str, tuple[str, float, float]]:
+    """follower: (leader, multiplier, offset), read from the URDF's tags here."""
+    import xml.etree.ElementTree as ET
+
+    tags = {}
+    for joint in ET.parse(path).getroot().iter("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            tags[joint.get("name")] = (
+                mimic.get("joint"),
+                float(mimic.get("multiplier", 1)),
+                float(mimic.get("offset", 0)),
+            )
+    return tags
+
+
+MIMIC_ROBOTS = {
+    "chain": ["mimic_arm"],
+    "tree": [MIMIC_TREE, "--tool", "tool_a", "--tool", "tool_b"],
+}
+
+
+@pytest.mark.parametrize("robot", sorted(MIMIC_ROBOTS))
+@pytest.mark.parametrize("reader", ["design --evaluate", "simulate --configs-file"])
+def test_what_simulate_writes_through_mimic_joints_is_read_everywhere(
+    tmp_path, capsys, robot, reader
+):
+    argv = MIMIC_ROBOTS[robot]
+    data = tmp_path / "m.csv"
+    code, _, err = run(
+        capsys, ["simulate", *argv, "--configs", "12", "--measure", "position", "--out", data]
+    )
+    assert code == 0, err
+    if reader == "design --evaluate":
+        code, _, err = run(capsys, ["design", *argv, "--evaluate", data])
+    else:
+        again = tmp_path / "again.csv"
+        code, _, err = run(
+            capsys,
+            ["simulate", *argv, "--configs-file", data, "--measure", "position", "--out", again],
+        )
+        if code == 0:  # the same configurations, row for row
+            joints = [c for c in rows_of(data)[0] if c not in ("x", "y", "z", "tool")]
+            first = [[r[c] for c in joints] for r in rows_of(data)]
+            assert [[r[c] for c in joints] for r in rows_of(again)] == first
+    assert code == 0, err
+
+
+def _with_followers(tmp_path: Path, shift: float) -> tuple[Path, Path]:
+    """mimic_arm's 12 configurations with the followers' columns (computed here from the
+    URDF's tags), one of them moved by ``shift``; and the URDF."""
+    from calib.kinematics.catalog import catalog_entry
+
+    urdf = catalog_entry("mimic_arm").path
+    rng = np.random.default_rng(4)
+    leaders = {n: rng.uniform(-1.0, 1.0, 12) for n in ("joint1", "joint2", "joint4", "joint6")}
+    columns = dict(leaders)
+    for follower, (leader, k, offset) in _mimic_relation(urdf).items():
+        columns[follower] = k * leaders[leader] + offset
+    columns["joint3"] = columns["joint3"] + np.r_[0.0, 0.0, shift, np.zeros(9)]
+    path = tmp_path / "q.csv"
+    names = sorted(columns)
+    lines = [",".join(names)] + [
+        ",".join(repr(float(columns[n][i])) for n in names) for i in range(12)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    return path, urdf
+
+
+@pytest.mark.parametrize("reader", ["design --evaluate", "simulate --configs-file"])
+def test_follower_columns_are_checked_against_their_leaders(tmp_path, capsys, reader):
+    good, _ = _with_followers(tmp_path, 0.0)
+    argv = {
+        "design --evaluate": ["design", "mimic_arm", "--evaluate"],
+        "simulate --configs-file": [
+            "simulate",
+            "mimic_arm",
+            "--out",
+            tmp_path / "o.csv",
+            "--configs-file",
+        ],
+    }[reader]
+    code, _, err = run(capsys, [*argv, good])
+    assert code == 0, err
+    bad, _ = _with_followers(tmp_path, 0.01)
+    line = one_error(capsys, [*argv, bad])
+    assert "row 4, column 'joint3'" in line and "does not follow joint2" in line, line
+
+
+def test_a_measurement_file_with_follower_columns_is_checked_too(tmp_path, capsys):
+    data = tmp_path / "m.csv"
+    run(
+        capsys, ["simulate", "mimic_arm", "--configs", "12", "--measure", "position", "--out", data]
+    )
+    rows = rows_of(data)
+    for row in rows:  # the follower from its leader, by the URDF's tag: -joint2 + 0.1
+        row["joint3"] = repr(-float(row["joint2"]) + 0.1)
+    rows[5]["joint3"] = repr(float(rows[5]["joint3"]) + 1e-3)
+    with open(data, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    line = one_error(capsys, ["calibrate", "mimic_arm", "--data", data, "--out", tmp_path / "c"])
+    assert "row 7, column 'joint3'" in line and "does not follow" in line, line
+
+
+# Item 9: names that clash ---------------------------------------------------------------------
+
+
+def clash_urdf(tmp_path: Path, names: tuple[str, ...]) -> Path:
+    """A 6R arm (axes z, y, y, x, y, z, offsets not parallel) whose joints have ``names``."""
+    axes = ["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "0 0 1"]
+    origins = ["0 0 0.1", "0 0.1 0.2", "0.3 0 0.05", "0.25 0.05 0", "0.1 0 0.04", "0 0.08 0.1"]
+    parts = ['<?xml version="1.0"?>', '<robot name="clash">', '<link name="base"/>']
+    for i, name in enumerate(names):
+        parent = "base" if i == 0 else f"l{i}"
+        parts += [
+            f'<link name="l{i + 1}"/>',
+            f'<joint name="{name}" type="revolute"><parent link="{parent}"/>'
+            f'<child link="l{i + 1}"/><origin xyz="{origins[i]}" rpy="0.1 0 0"/>'
+            f'<axis xyz="{axes[i]}"/><limit lower="-3" upper="3" effort="1" velocity="1"/>'
+            f"</joint>",
+        ]
+    parts += [
+        '<link name="tool"/>',
+        f'<joint name="tool_joint" type="fixed"><parent link="l{len(names)}"/>'
+        '<child link="tool"/><origin xyz="0 0 0.1"/></joint>',
+        "</robot>",
+    ]
+    path = tmp_path / "clash.urdf"
+    path.write_text("\n".join(parts) + "\n")
+    return path
+
+
+CLASHING = ("plane", "point", "x", "y", "z", "qw")
+
+
+@pytest.mark.parametrize("kind", ["plane", "plane-point", "fixed-point", "fixed-pose"])
+def test_joints_named_plane_or_point_round_trip_through_contacts(tmp_path, capsys, kind):
+    from calib.measurements.contact_campaign import read_contacts, simulate_contacts
+
+    urdf = clash_urdf(tmp_path, CLASHING)
+    data = tmp_path / "touches.csv"
+    code, _, err = run(
+        capsys, ["simulate", urdf, "--measure", kind, "--configs", "40", "--out", data]
+    )
+    assert code == 0, err
+    chain = calib.load_chain(urdf)
+    truth = simulate_contacts(chain, 40, kind, seed=0).data  # what simulate wrote
+    rows = rows_of(data)
+    for j, name in enumerate(CLASHING):
+        column = f"joint:{name}" if name in ("plane", "point") else name
+        assert [float(r[column]) for r in rows] == truth.q[:, j].tolist()
+    assert np.array_equal(read_contacts(data, chain, kind).q, truth.q)
+    code, _, err = run(
+        capsys, ["calibrate", urdf, "--measure", kind, "--data", data, "--out", tmp_path / "c.urdf"]
+    )
+    assert code == 0, err
+
+
+@pytest.mark.parametrize("reader", ["design --evaluate", "simulate --configs-file"])
+def test_joint_prefix_columns_are_joints_wherever_configurations_are_read(tmp_path, capsys, reader):
+    """A pose campaign of joints named x, y, z, qw: ``joint:qw`` is the joint, ``qw`` the
+    quaternion; the configurations read are the joint columns (checked here by evaluating
+    the same configurations from a file of joint columns only)."""
+    urdf = clash_urdf(tmp_path, ("a", "b", "x", "y", "z", "qw"))
+    data = tmp_path / "pose.csv"
+    assert run(capsys, ["simulate", urdf, "--configs", "30", "--out", data])[0] == 0
+    rows = rows_of(data)
+    assert "joint:qw" in rows[0] and "qw" in rows[0]
+    plain = tmp_path / "plain.csv"
+    names = ("a", "b", "x", "y", "z", "qw")
+    keys = ("a", "b", "x", "y", "z", "joint:qw")
+    plain.write_text(
+        ",".join(names) + "\n" + "".join(",".join(r[k] for k in keys) + "\n" for r in rows)
+    )
+    if reader == "design --evaluate":
+        outs = [run(capsys, ["design", urdf, "--evaluate", f, "--json"]) for f in (data, plain)]
+        assert outs[0][0] == outs[1][0] == 0
+        assert outs[0][1].replace(str(data), str(plain)) == outs[1][1]
+    else:
+        a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+        for source, out in ((data, a), (plain, b)):
+            assert run(capsys, ["simulate", urdf, "--configs-file", source, "--out", out])[0] == 0
+        assert a.read_bytes() == b.read_bytes()
+
+
 # Item 10: every listed choice works --------------------------------------------------------
 
 

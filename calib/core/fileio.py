@@ -41,9 +41,9 @@ __all__ = [
     "STDOUT",
     "PathLike",
     "check_outputs",
-    "input_path",
     "inputs_recorded",
     "json_text",
+    "path_text",
     "read_bytes_limited",
     "read_failure",
     "read_text_limited",
@@ -93,7 +93,7 @@ def _target(path: PathLike) -> _Target:
     Raises:
         OutputError: A directory, a socket or block device, or a missing parent directory.
     """
-    text = os.fspath(path)
+    text = path_text(path)
     if text == STDOUT:
         return _Target(text, text, _Kind.STDOUT)
     if os.path.abspath(text).startswith(_DIRECT_TREES):
@@ -269,7 +269,7 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
             is a one-line reason.
         InvalidArgumentError: ``path`` is not a path (None, a number, empty).
     """
-    target = Path(input_path(path))
+    target = Path(path_text(path))
     fd = _open_regular(target)
     if _READ:
         _READ[-1].append(str(target))
@@ -295,8 +295,8 @@ _NOT_REGULAR = (
 """What an input that is no regular file is, and the reason its refusal gives."""
 
 
-def input_path(path: object) -> str:
-    """The text of an input file's path: a ``str`` or ``os.PathLike`` naming something.
+def path_text(path: object) -> str:
+    """The text of a file path (an input or an output): a ``str`` or ``os.PathLike``.
 
     Raises:
         InvalidArgumentError: None, a number, bytes or an empty path.

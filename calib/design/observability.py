@@ -459,7 +459,18 @@ def indices_of(J: np.ndarray, ref: Reference | None = None) -> Indices:
 
 
 def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None) -> Indices:
-    """Observability indices of configurations ``q`` ``(K, n)`` under a model."""
+    """Observability indices of configurations ``q`` ``(K, n)`` under a model.
+
+    Raises:
+        InvalidArgumentError: ``model`` is no :class:`ObservationModel`, ``ref`` no
+            :class:`Reference`, or ``q`` not configurations of the model's robot.
+    """
+    if not isinstance(model, ObservationModel):
+        raise InvalidArgumentError(
+            f"model must be an ObservationModel (observation_model), got {model!r:.60}"
+        )
+    if ref is not None and not isinstance(ref, Reference):
+        raise InvalidArgumentError(f"ref must be a Reference (reference) or None, got {ref!r:.60}")
     return indices_of(model.jacobian(q), ref)
 
 

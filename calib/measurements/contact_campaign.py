@@ -35,7 +35,8 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import JointReadings
 from .csvfile import csv_records, parse_number, read_data_text
-from .data import DataWarning
+from .data import JOINT_PREFIX, DataWarning
+from .joint_columns import column_keys
 from .limits import check_limits, joint_bounds
 
 ID_COLUMNS = {
@@ -45,6 +46,9 @@ ID_COLUMNS = {
     "fixed-pose": "point",
 }
 """The id column of each contact kind."""
+
+_ID_NAMES = frozenset(ID_COLUMNS.values())
+"""A joint named like an id column is written ``joint:NAME``."""
 
 TRUTH_POINTS_NOTE = (
     "a fixed-pose campaign's objects are 'poses', as in the calibration report; 'points' is "
@@ -107,33 +111,43 @@ def _contact(measure) -> Contact:
 
 
 def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> dict[str, int]:
-    """Column index of the id and of every chain joint; DataError for a wrong layout."""
+    """Column index of the id and of every chain joint; DataError for a wrong layout.
+
+    Joint columns are read as in every calib file (``joint:NAME`` for a joint named like the
+    id column, :func:`~.joint_columns.column_keys`): the chain's joints and the robot's
+    other one-degree-of-freedom joints.
+    """
     names = [c.strip() for c in cells]
-    for name in names:
-        if _COORDINATE.fullmatch(name) and name not in chain.joint_names:
+    model = chain.model
+    robot_joints = [n for j, n in enumerate(model.names) if j and model.joints[j].nv == 1]
+    keys = column_keys(names, (*chain.joint_names, *robot_joints))
+    for key in keys:
+        if _COORDINATE.fullmatch(key):
             raise DataError(
                 src,
-                f"a contact file has no coordinates, found '{name}': the joints alone record a "
+                f"a contact file has no coordinates, found '{key}': the joints alone record a "
                 f"touch",
                 row=1,
             )
     want = ID_COLUMNS[kind.label]
     other = "point" if want == "plane" else "plane"
-    if want not in names:
+    if want not in keys:
         kinds = ", ".join(k for k, c in ID_COLUMNS.items() if c == other)
-        hint = f": it names {other}s, for {kinds}" if other in names else ""
+        hint = f": it names {other}s, for {kinds}" if other in keys else ""
         raise DataError(src, f"a {kind.label} contact needs a '{want}' column{hint}", row=1)
-    if other in names:
+    if other in keys:
         raise DataError(src, f"both 'plane' and 'point' columns for a {kind.label} contact", row=1)
-    if len(set(names)) != len(names):
+    if len(set(keys)) != len(keys):
         raise DataError(src, "a column name appears twice", row=1)
-    missing = [j for j in chain.joint_names if j not in names]
+    missing = [j for j in chain.joint_names if JOINT_PREFIX + j not in keys]
     if missing:
         raise DataError(src, f"no column for joint {missing[0]} of the chain", row=1)
-    index = {n: i for i, n in enumerate(names)}
-    off = [n for n in names if n != want and n not in chain.joint_names]
-    joints = [n for n in off if _is_other_joint(chain, n)]
-    ignored = [n for n in off if n not in joints]
+    index = {k.removeprefix(JOINT_PREFIX): i for i, k in enumerate(keys)}
+    off = [k for k in keys if k != want and k.removeprefix(JOINT_PREFIX) not in chain.joint_names]
+    joints = [k.removeprefix(JOINT_PREFIX) for k in off if k.startswith(JOINT_PREFIX)]
+    ignored = [
+        n for n, k in zip(names, keys, strict=True) if k in off and not k.startswith(JOINT_PREFIX)
+    ]
     if off:
         read = f"{len(joints)} other joints ({_listed(joints)}), read for the gravity load of "
         read += "elastic only" + ("; " if ignored else "")
@@ -143,13 +157,7 @@ def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> 
             DataWarning,
             stacklevel=4,
         )
-    return {"id": index[want], **{j: index[j] for j in (*chain.joint_names, *joints)}}
-
-
-def _is_other_joint(chain: Chain, name: str) -> bool:
-    """Whether a column names a one-degree-of-freedom joint of the robot off the chain."""
-    model = chain.model
-    return bool(model.existJointName(name)) and model.joints[model.getJointId(name)].nv == 1
+    return {"id": keys.index(want), **{j: index[j] for j in (*chain.joint_names, *joints)}}
 
 
 def _listed(names: list[str]) -> str:
@@ -165,7 +173,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         InvalidArgumentError: Not a contact kind, or a chain with mimic joints.
     """
     kind = _contact(measure)
-    if chain.coupling is not None:
+    if check_chain(chain, "chain").coupling is not None:
         raise InvalidArgumentError("contact files are read for chains without mimic joints")
     records = list(csv_records(text, source))
     if not records:
@@ -228,9 +236,12 @@ def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
 
 def contacts_csv(data: ContactData) -> str:
     """The CSV text of touches, full precision (the other joints' readings after the chain's)."""
+    if not isinstance(data, ContactData):
+        raise InvalidArgumentError(f"data must be ContactData, got {data!r:.60}")
     extra = () if data.readings is None else data.readings.names
     values = data.q if data.readings is None else np.hstack([data.q, data.readings.values])
-    lines = [",".join((data.id_column, *data.joint_names, *extra))]
+    joints = [JOINT_PREFIX + n if n in _ID_NAMES else n for n in (*data.joint_names, *extra)]
+    lines = [",".join((data.id_column, *joints))]
     for name, qi in zip(data.ids, values, strict=True):
         lines.append(",".join((name, *(repr(float(v)) for v in qi))))
     return "\n".join(lines) + "\n"
