@@ -9,13 +9,13 @@ bytes of files before and after, the URDFs the tests write, counts made here.
 from __future__ import annotations
 
 import csv
-import hashlib
 import os
 import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
+from test_cli_hardening import digest, one_error, rows_of, run
 
 import calib
 from calib.cli.commands import main
@@ -24,37 +24,12 @@ ROOT = Path(__file__).resolve().parents[1]
 MIMIC_TREE = ROOT / "tests" / "data" / "mimic_tree.urdf"
 
 
-def digest(path: Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def run(capsys, argv) -> tuple[int, str, str]:
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    assert "Traceback" not in err
-    return code, out, err
-
-
-def one_error(capsys, argv) -> str:
-    """Exit 2 and exactly one ``calib: error:`` line (warnings aside); the line."""
-    code, out, err = run(capsys, argv)
-    errors = [line for line in err.splitlines() if not line.startswith("calib: warning:")]
-    assert code == 2, (argv, out, err)
-    assert len(errors) == 1 and errors[0].startswith("calib: error: "), err
-    return errors[0]
-
-
-def rows_of(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory) -> Path:
-    """20 configurations of a UR5 measured by position."""
+    """20 configurations of a UR5 measured by position (through the API)."""
+    data = calib.simulate(calib.load_chain("ur5"), 20, measure="position").measurements
     path = tmp_path_factory.mktemp("campaign") / "m.csv"
-    argv = ["simulate", "ur5", "--configs", "20", "--measure", "position", "--out", str(path)]
-    assert main(argv) == 0
+    calib.write_measurements(path, data)
     return path
 
 
