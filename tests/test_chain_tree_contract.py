@@ -104,7 +104,8 @@ def test_options_are_checked_when_made():
         ({"loss": "cauchy"}, "unknown loss"),
         ({"elastic": "yes"}, "elastic is True, False or None"),
         ({"noise_mm": -1.0}, "noise must be a finite number > 0"),
-        ({"max_iterations": 0}, "max_iterations must be an integer >= 1"),
+        ({"max_iterations": 0}, "max_iterations must be an integer in [1, 1000000]"),
+        ({"max_iterations": 3_000_000_000}, "max_iterations must be an integer in [1, 1000000]"),
         ({"seed": -1}, "seed must be an integer >= 0"),
         ({"holdout": 1.0}, "holdout fraction must be in [0, 1)"),
     ):

@@ -186,7 +186,7 @@ def test_least_i_bounds_every_subset_and_is_tight():
     assert i_of(optimal_subset(J, k, "I", L).design) == pytest.approx(exact, rel=1e-9)
     with pytest.raises(InvalidArgumentError):
         least_i(J, 0, L)
-    with pytest.raises(InvalidArgumentError, match="must be"):
+    with pytest.raises(InvalidArgumentError, match="must have shape"):
         least_i(J, k, L[:4, :4])
     with pytest.raises(InvalidArgumentError, match="identify"):
         least_i(np.zeros((11, 3, 5)), k, L)

@@ -286,10 +286,16 @@ def test_analyze_refuses_configs_beyond_the_memory_budget():
 
 def test_reading_is_size_limited(tmp_path):
     t0 = time.perf_counter()
+    sparse = tmp_path / "sparse.csv"
+    with open(sparse, "wb") as f:
+        f.truncate(300 << 20)
     with pytest.raises(OSError) as info:
-        read_bytes_limited("/dev/zero", 1 << 20)
+        read_bytes_limited(sparse, 1 << 20)
     assert info.value.errno == errno.EFBIG and "1 MB" in info.value.strerror
     assert time.perf_counter() - t0 < 5
+    with pytest.raises(OSError) as info:  # a device is not read at all (issue 29, item 7)
+        read_bytes_limited("/dev/zero", 1 << 20)
+    assert "character device" in info.value.strerror
     small = write(tmp_path, "a,b\n1,2\n", "d.csv")
     assert read_text_limited(small, 8) == "a,b\n1,2\n"
     with pytest.raises(OSError) as info:
@@ -310,11 +316,11 @@ def test_a_huge_urdf_is_refused_quickly(tmp_path, capfd):
         f.write(b'<?xml version="1.0"?>\n<robot name="big"><!-- ')
         f.truncate(300 << 20)
     assert big.stat().st_size > MAX_URDF_BYTES
-    for robot in (str(big), "/dev/zero"):
+    for robot, says in ((str(big), "larger than 64 MB"), ("/dev/zero", "character device")):
         t0 = time.perf_counter()
         code, out, err = run_cli(capfd, "show", robot)
         assert time.perf_counter() - t0 < 10
-        assert_one_error_line(code, out, err, robot, "larger than 64 MB")
+        assert_one_error_line(code, out, err, robot, says)
 
 
 # --------------------------------------------------------------------------------------

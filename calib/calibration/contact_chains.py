@@ -39,6 +39,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..core.checks import MAX_WEIGHT, check_number
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact, PlaneContact
 from ..identification.identifiability import independent_columns
@@ -358,8 +359,7 @@ def calibrate_contact_chains(
         for s, v in zip(splits, validate or [None] * len(data), strict=True)
     ]
     plane_of = _plane_groups(chains, data, shared_planes)
-    if not (isinstance(pose_weight, int | float) and np.isfinite(pose_weight) and pose_weight > 0):
-        raise InvalidArgumentError(f"pose_weight must be a positive number, got {pose_weight!r}")
+    check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     train, dropped = _checked(chains, train, validate, guess, w, held, notes)
     start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)

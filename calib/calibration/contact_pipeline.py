@@ -129,6 +129,8 @@ def _check(chain, data, validate, opts: Options) -> None:
             raise InvalidArgumentError(f"contact data must be ContactData, got {type(d).__name__}")
         if d.joint_names != chain.joint_names:
             raise DataError(d.source, "the touches' joints are not the chain's")
+        if not d.m:
+            raise DataError(d.source, "no touches: an empty contact set")
     if validate is not None:
         if opts.holdout > 0:
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import functools
 import inspect
-import math
 import numbers
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ __all__ = [
     "DEFAULT_TREE_LEVEL",
     "LEVELS",
     "LOSSES",
+    "MAX_ITERATIONS",
     "TREE_LEVELS",
     "Options",
     "check_run_options",
@@ -47,6 +47,10 @@ DEFAULT_TREE_LEVEL = "complete"
 DEFAULT_MAX_ITERATIONS = 100
 """Most residual evaluations of each solver run."""
 
+MAX_ITERATIONS = 1_000_000
+"""Most residual evaluations a fit may be given (hours of fitting; the solver's counter is a
+C int, which a larger count overflows)."""
+
 LOSSES = ("linear", "soft_l1", "huber")
 """Losses of the fit: least squares, or a robust loss (scipy's, scale ``--noise-mm``)."""
 
@@ -54,28 +58,22 @@ CHAIN_ONLY = ("fix", "free", "elastic", "loss", "noise_mm", "orientation_weight"
 """Options a tree calibration does not take: it refuses them away from their defaults."""
 
 
-def _integer(value) -> bool:
-    """An integer that is not a bool (numpy integers included)."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
-
-
 def check_run_options(max_iterations, holdout, seed) -> None:
     """The options every calibration takes, chain or tree: one check, one-line errors.
 
     Args:
-        max_iterations: Most residual evaluations of each solver run (an integer >= 1).
+        max_iterations: Most residual evaluations of each solver run (an integer in
+            [1, :data:`MAX_ITERATIONS`]).
         holdout: Fraction of the rows set aside, in [0, 1).
         seed: Seed of the holdout draw (an integer >= 0).
 
     Raises:
         InvalidArgumentError: A value out of its range or of the wrong type.
     """
-    if not _integer(max_iterations) or max_iterations < 1:
-        raise InvalidArgumentError(
-            f"max_iterations must be an integer >= 1, got {max_iterations!r}"
-        )
-    if not _integer(seed) or seed < 0:
-        raise InvalidArgumentError(f"the seed must be an integer >= 0, got {seed!r}")
+    from ..core.checks import check_count  # numpy: not when the parser is built
+
+    check_count(max_iterations, "max_iterations", 1, MAX_ITERATIONS)
+    check_count(seed, "the seed", 0)
     if (
         isinstance(holdout, bool)
         or not isinstance(holdout, numbers.Real)
@@ -140,14 +138,14 @@ class Options:
             raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
         if self.elastic not in (None, True, False):
             raise InvalidArgumentError(f"elastic is True, False or None, got {self.elastic!r}")
-        for name, value in (
-            ("orientation weight", self.orientation_weight),
-            ("noise", self.noise_mm),
+        from ..core.checks import MAX_ERROR_MM, MAX_WEIGHT, check_number
+
+        for name, value, top in (
+            ("orientation weight", self.orientation_weight, MAX_WEIGHT),
+            ("noise", self.noise_mm, MAX_ERROR_MM),
         ):
-            if value is not None and not (
-                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-            ):
-                raise InvalidArgumentError(f"the {name} must be a finite number > 0, got {value!r}")
+            if value is not None:
+                check_number(value, f"the {name}", 0.0, top, above=True)
         check_run_options(self.max_iterations, self.holdout, self.seed)
         object.__setattr__(self, "fix", _names("fix", self.fix))
         object.__setattr__(self, "free", _names("free", self.free))

@@ -22,6 +22,7 @@ from collections.abc import Iterator, Sequence
 from typing import NoReturn
 
 from .. import __version__
+from ..core.fileio import inputs_recorded
 from ..exceptions import CalibError, InvalidArgumentError
 from .analysis_cli import add_analysis_parsers, add_demo_parser, add_sweep_parser
 from .calibrate_cli import add_calibrate_parser
@@ -200,7 +201,11 @@ def _main(argv: Sequence[str] | None) -> int:
     except SystemExit as exc:  # usage error (one line already printed), --help, --version
         return exc.code if isinstance(exc.code, int) else 2
     args.given = dict(vars(args).pop(GIVEN, {}))
-    with warnings.catch_warnings(record=True) as caught, _verbose_logging(args.verbose):
+    with (
+        warnings.catch_warnings(record=True) as caught,
+        _verbose_logging(args.verbose),
+        inputs_recorded(),
+    ):
         warnings.simplefilter("always")
         code = _run(args)
     sys.stdout.flush()  # the warnings come after the output

@@ -172,13 +172,17 @@ def check_applicable(args: argparse.Namespace, shape: str) -> None:
 
 
 def positive_number(text: str) -> float:
-    """The type of a positive option: a finite number > 0 (else a usage error)."""
+    """The type of a noise option [mm]: a finite number > 0, at most 1 m (else a usage error)."""
+    from ..core.checks import MAX_ERROR_MM  # numpy: only when the option is given
+
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not (value > 0.0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got '{text}'")
+    if not (value > 0.0 and value <= MAX_ERROR_MM):
+        raise argparse.ArgumentTypeError(
+            f"expected a positive number at most {MAX_ERROR_MM:g}, got '{text}'"
+        )
     return value
 
 

@@ -75,6 +75,7 @@ def _check_design_options(args: argparse.Namespace) -> None:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    from ..design.collision import find_srdf
     from ..design.configurations import configurations_csv, read_configurations
     from ..design.constraints import Constraints
     from ..design.design import design, design_text
@@ -93,6 +94,7 @@ def cmd_design(args: argparse.Namespace) -> int:
         "the URDF": chain.urdf_path,
         "--candidates-file": args.candidates_file,
         "--srdf": args.srdf,
+        "the SRDF found beside the URDF": find_srdf(chain.urdf_path) if args.collision else None,
     }
     check_output_paths({"--out": out}, inputs)
     candidates = args.candidates

@@ -14,7 +14,14 @@ from ..core.fileio import json_text, written_in_place
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
-from .common import add_chain_args, add_marker_arg, check_output_paths, tool_arg, write_outputs
+from .common import (
+    add_chain_args,
+    add_marker_arg,
+    check_output_paths,
+    given_options,
+    tool_arg,
+    write_outputs,
+)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -88,6 +95,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.measure in CONTACT_MEASURES:
         return _simulate_contacts(args)
     kind = campaign_kind(args.measure, args.marker)
+    if given_options(args, ["contacts"]):
+        raise InvalidArgumentError(
+            f"--contacts counts the planes or points of a contact campaign, not of --measure "
+            f"{args.measure}"
+        )
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")

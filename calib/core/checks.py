@@ -2,17 +2,25 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
 
 __all__ = [
     "BYTES_PER_CONFIG_JOINT",
+    "MAX_ERROR_MM",
+    "MAX_ERROR_MRAD",
     "MAX_JOINT_POSITION",
+    "MAX_WEIGHT",
     "MAX_WORK_BYTES",
+    "angle_mrad",
     "check_count",
+    "check_number",
     "check_work",
     "joint_positions",
+    "length_mm",
     "read_only",
     "real_array",
 ]
@@ -23,6 +31,17 @@ MAX_JOINT_POSITION = 1e4
 MAX_WORK_BYTES = 2 << 30
 """Most memory [B] an analysis or a simulation may need (2 GB); larger ones are refused."""
 
+MAX_ERROR_MM = 1000.0
+"""Largest length error, noise or noise scale accepted [mm] (1 m): beyond it the first-order
+model and a simulated robot mean nothing, and points leave the 1 km measurement range."""
+
+MAX_ERROR_MRAD = 1000.0
+"""Largest angle error or noise accepted [mrad] (1 rad)."""
+
+MAX_WEIGHT = 1e4
+"""Largest orientation or pose weight accepted [m/rad, or a factor]: 1 mm of noise against
+0.1 urad; beyond it the squared weights lose the position rows to round-off."""
+
 BYTES_PER_CONFIG_JOINT = 3000
 """Memory [B] the analysis needs per configuration and joint (Jacobians of the paper, complete
 and reference sets, their QR copies and the kinematics), with a margin: the measured peak is
@@ -30,16 +49,76 @@ and reference sets, their QR copies and the kinematics), with a margin: the meas
 checks that the estimate covers a real run."""
 
 
-def check_count(value, what: str, minimum: int = 1) -> int:
+def check_count(value, what: str, minimum: int = 1, maximum: int | None = None) -> int:
     """Validate an integer argument (a count or a seed).
 
+    Args:
+        value: The argument.
+        what: How the message names it ("the seed").
+        minimum: Smallest accepted value.
+        maximum: Largest accepted value, or None.
+
     Raises:
-        InvalidArgumentError: Not an integer, a bool, or below ``minimum``.
+        InvalidArgumentError: Not an integer, a bool, or outside ``[minimum, maximum]``.
     """
     ok = isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= minimum
-    if not ok:
-        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r:.60}")
+    if not ok or (maximum is not None and value > maximum):
+        span = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+        raise InvalidArgumentError(f"{what} must be an integer {span}, got {value!r:.60}")
     return int(value)
+
+
+def check_number(
+    value,
+    what: str,
+    minimum: float = 0.0,
+    maximum: float | None = None,
+    *,
+    above: bool = False,
+) -> float:
+    """Validate a real argument (a noise, an error size, a weight): a finite number in range.
+
+    Args:
+        value: The argument (an int or a float, NumPy's included; not a bool or a string).
+        what: How the message names it ("noise_mm").
+        minimum: Smallest accepted value (excluded with ``above``).
+        maximum: Largest accepted value, or None.
+        above: The value must be strictly greater than ``minimum``.
+
+    Returns:
+        The value as a float.
+
+    Raises:
+        InvalidArgumentError: Not a number, NaN or infinite, or out of range.
+    """
+    number = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+    x = float(value) if number else math.nan
+    low_ok = x > minimum if above else x >= minimum
+    if not (math.isfinite(x) and low_ok and (maximum is None or x <= maximum)):
+        span = f"{'>' if above else '>='} {minimum:g}"
+        span += "" if maximum is None else f" and at most {maximum:g}"
+        raise InvalidArgumentError(f"{what} must be a finite number {span}, got {value!r:.60}")
+    return x
+
+
+def length_mm(value, what: str) -> float:
+    """A length error or noise [mm]: a finite number in [0, :data:`MAX_ERROR_MM`].
+
+    Raises:
+        InvalidArgumentError: Not a number, NaN, infinite, negative or too large.
+    """
+    return check_number(value, what, 0.0, MAX_ERROR_MM)
+
+
+def angle_mrad(value, what: str) -> float:
+    """An angle error or noise [mrad]: a finite number in [0, :data:`MAX_ERROR_MRAD`].
+
+    Raises:
+        InvalidArgumentError: Not a number, NaN, infinite, negative or too large.
+    """
+    return check_number(value, what, 0.0, MAX_ERROR_MRAD)
 
 
 def real_array(

@@ -29,7 +29,7 @@ import os
 import stat
 import sys
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
@@ -41,7 +41,9 @@ __all__ = [
     "STDOUT",
     "PathLike",
     "check_outputs",
+    "inputs_recorded",
     "json_text",
+    "path_text",
     "read_bytes_limited",
     "read_failure",
     "read_text_limited",
@@ -91,7 +93,7 @@ def _target(path: PathLike) -> _Target:
     Raises:
         OutputError: A directory, a socket or block device, or a missing parent directory.
     """
-    text = os.fspath(path)
+    text = path_text(path)
     if text == STDOUT:
         return _Target(text, text, _Kind.STDOUT)
     if os.path.abspath(text).startswith(_DIRECT_TREES):
@@ -176,8 +178,9 @@ def check_outputs(
             to a path inside one.
 
     Raises:
-        InvalidArgumentError: An output is the same file as an input or as another output,
-            or lies in a protected folder.
+        InvalidArgumentError: An output is the same file as an input, as a file read so far
+            within :func:`inputs_recorded`, or as another output, or lies in a protected
+            folder.
         OutputError: An output cannot be written: a directory, a missing or read-only
             directory, a socket.
     """
@@ -186,6 +189,8 @@ def check_outputs(
         for what, source in (inputs or {}).items():
             if source is not None and same_file(path, source):
                 raise InvalidArgumentError(f"{option} {os.fspath(path)} would overwrite {what}")
+        if os.fspath(path) != STDOUT:
+            _refuse_read(path)
         _check_not_inside(option, path, protected or {})
     for (opt_a, a), (opt_b, b) in itertools.combinations(given.items(), 2):
         if same_file(a, b):
@@ -209,15 +214,46 @@ def _check_not_inside(option: str, path: PathLike, protected: Mapping[str, PathL
             )
 
 
+_READ: list[list[str]] = []
+"""The files read within each :func:`inputs_recorded` block, innermost last."""
+
+
+@contextlib.contextmanager
+def inputs_recorded() -> Iterator[None]:
+    """Within the block, no output may be a file read in it (every command runs in one).
+
+    Every file :func:`read_bytes_limited` reads is noted, the ones found rather than given
+    included (the SRDF beside a URDF); :func:`check_outputs` and :func:`write_files_atomic`
+    then refuse an output that is one of them. Outside a block (the Python API) a program
+    may rewrite what it read.
+    """
+    _READ.append([])
+    try:
+        yield
+    finally:
+        _READ.pop()
+
+
+def _refuse_read(path: PathLike) -> None:
+    """InvalidArgumentError if ``path`` is a file read in the current block."""
+    for read in _READ[-1] if _READ else ():
+        if same_file(path, read):
+            raise InvalidArgumentError(
+                f"{os.fspath(path)} is {read}, which this command read: calib never "
+                f"overwrites its inputs (write elsewhere)"
+            )
+
+
 READ_CHUNK = 1 << 20
 """Bytes read at a time by :func:`read_bytes_limited` [B]."""
 
 
 def read_bytes_limited(path: str | Path, limit: int) -> bytes:
-    """Read a whole file, refusing one larger than ``limit`` bytes before reading it all.
+    """Read a whole regular file, refusing one larger than ``limit`` bytes before reading it all.
 
-    The size is checked while reading, so a device (``/dev/zero``), a FIFO or a file that
-    grows is refused after at most ``limit + 1`` bytes, in well under a second.
+    Anything else is refused before a byte is read: a FIFO (whose ``open`` would wait for a
+    writer forever), a device (``/dev/zero`` never ends), a directory, a socket. The size is
+    checked while reading, so a file that grows is refused after at most ``limit + 1`` bytes.
 
     Args:
         path: File to read.
@@ -228,15 +264,18 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
 
     Raises:
         OSError: The file is missing (``FileNotFoundError``), a directory
-            (``IsADirectoryError``), unreadable, or larger than ``limit`` (``errno.EFBIG``);
-            the error names the file and its ``strerror`` is a one-line reason.
+            (``IsADirectoryError``), no regular file (``errno.EINVAL``), unreadable, or larger
+            than ``limit`` (``errno.EFBIG``); the error names the file and its ``strerror``
+            is a one-line reason.
+        InvalidArgumentError: ``path`` is not a path (None, a number, empty).
     """
-    target = Path(path)
-    if target.is_dir():
-        raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", str(target))
+    target = Path(path_text(path))
+    fd = _open_regular(target)
+    if _READ:
+        _READ[-1].append(str(target))
     chunks: list[bytes] = []
     size = 0
-    with open(target, "rb") as f:
+    with open(fd, "rb") as f:
         while size <= limit:
             chunk = f.read(min(READ_CHUNK, limit + 1 - size))
             if not chunk:
@@ -244,6 +283,56 @@ def read_bytes_limited(path: str | Path, limit: int) -> bytes:
             chunks.append(chunk)
             size += len(chunk)
     raise OSError(errno.EFBIG, f"file larger than {_human_size(limit)}", str(target))
+
+
+_NOT_REGULAR = (
+    (stat.S_ISDIR, errno.EISDIR, "is a directory, not a file"),
+    (stat.S_ISFIFO, errno.EINVAL, "a FIFO (named pipe), not a regular file: it may never end"),
+    (stat.S_ISCHR, errno.EINVAL, "a character device, not a regular file: it may never end"),
+    (stat.S_ISBLK, errno.EINVAL, "a block device, not a regular file"),
+    (stat.S_ISSOCK, errno.EINVAL, "a socket, not a regular file"),
+)
+"""What an input that is no regular file is, and the reason its refusal gives."""
+
+
+def path_text(path: object) -> str:
+    """The text of a file path (an input or an output): a ``str`` or ``os.PathLike``.
+
+    Raises:
+        InvalidArgumentError: None, a number, bytes or an empty path.
+    """
+    text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
+    if not isinstance(text, str) or not text:
+        raise InvalidArgumentError(f"a file path must be a non-empty str or Path, got {path!r:.60}")
+    return text
+
+
+def _open_regular(target: Path) -> int:
+    """A read descriptor of a regular file; never waits on a FIFO or reads a device.
+
+    The file is checked before it is opened (a FIFO's ``open`` waits for a writer) and
+    again once open without blocking (it may have been replaced in between).
+
+    Raises:
+        OSError: Missing, unreadable, or not a regular file (a directory, a FIFO, a
+            device, a socket); the error names the file.
+    """
+    _refuse_irregular(target, os.stat(target).st_mode)
+    fd = os.open(target, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        _refuse_irregular(target, os.fstat(fd).st_mode)
+        os.set_blocking(fd, True)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _refuse_irregular(target: Path, mode: int) -> None:
+    """Raise OSError naming ``target`` unless ``mode`` is a regular file's."""
+    for test, code, reason in _NOT_REGULAR:
+        if test(mode):
+            raise OSError(code, reason, str(target))
 
 
 def read_failure(exc: OSError) -> str:
@@ -319,6 +408,8 @@ def write_files_atomic(files: Mapping[_AnyPath, str | bytes]) -> None:
     """
     jobs = [(_target(path), _to_bytes(content)) for path, content in files.items()]
     for target, _ in jobs:
+        if target.kind is not _Kind.STDOUT:
+            _refuse_read(target.path)
         _check_writable(target)
     staged: list[str] = []
     try:

@@ -1,10 +1,12 @@
 """Joint configurations as CSV: what ``calib design`` writes and ``--configs-file`` reads.
 
-One header line with the chain's joint names (URDF names, any order), then one row per
-configuration: joint positions [rad for revolute and continuous joints, m for prismatic
-ones]. Other columns are ignored, so a measurement CSV is a configurations file too; blank
-lines are skipped; numbers follow the measurement CSV's strict grammar, and a value far
-outside its joint limits is an error naming its row and column (as in
+One header line with the chain's joint names (URDF names, any order; ``joint:NAME`` for a joint
+named like another column; a chain through mimic joints needs its independent joints, and
+its followers' columns, if there, must follow them: :mod:`calib.measurements.joint_columns`),
+then one row per configuration: joint positions [rad for revolute and continuous joints, m
+for prismatic ones]. Other columns are ignored, so a measurement CSV is a configurations
+file too; blank lines are skipped; numbers follow the measurement CSV's strict grammar, and a
+value far outside its joint limits is an error naming its row and column (as in
 :mod:`calib.measurements.csvfile`).
 
 A tree's measurement file (a ``tool`` column) holds one row per tool at each configuration:
@@ -25,7 +27,8 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..measurements.csvfile import csv_records, parse_number, read_data_text
-from ..measurements.data import TOOL_COLUMN, DataWarning
+from ..measurements.data import JOINT_PREFIX, TOOL_COLUMN, DataWarning
+from ..measurements.joint_columns import check_followers, column_keys, follower_names
 from ..measurements.limits import check_limits
 
 MAX_CONFIGS_BYTES = 256 << 20
@@ -35,38 +38,68 @@ MAX_CONFIGS_BYTES = 256 << 20
 def parse_configurations(text: str, chain: Chain | Tree, source: str = "<text>") -> np.ndarray:
     """Joint positions ``(m, n)`` from CSV text, columns in chain order.
 
-    With a ``tool`` column, consecutive rows of equal joint positions count once.
+    The joint columns are read as in every calib file
+    (:mod:`calib.measurements.joint_columns`): ``joint:NAME`` for a joint named like another
+    column, the independent joints of a robot through mimic joints, and its followers' columns
+    (optional) checked against their leaders. With a ``tool`` column, consecutive rows of equal
+    joint positions count once.
 
     Raises:
-        DataError: A missing or duplicate joint column, a bad cell, a value far outside its
-            joint limits, or no row.
+        DataError: A missing or duplicate joint column, a bad cell, a follower that does not
+            follow, a value far outside its joint limits, or no row.
     """
-    header: list[str] | None = None
+    records = csv_records(text, source)
+    first = next(records, None)
+    if first is None:
+        raise DataError(source, "empty file: expected a header line of joint names and rows")
+    line, cells = first
+    header = [c.strip() for c in cells]
+    keys = column_keys(header, (*chain.variable_names, *follower_names(chain)))
+    for name in (*chain.variable_names, *follower_names(chain)):
+        if keys.count(JOINT_PREFIX + name) > 1:
+            raise DataError(source, "duplicate column", row=line, column=name)
+    leaders = _leaders(chain, keys)
+    for name in leaders:
+        if JOINT_PREFIX + name not in keys:
+            raise DataError(source, "missing joint column", row=line, column=name)
+    read = [*leaders, *(n for n in follower_names(chain) if JOINT_PREFIX + n in keys)]
+    read = list(dict.fromkeys(read))
+    cols = [keys.index(JOINT_PREFIX + n) for n in read]
     rows: list[list[float]] = []
     lines: list[int] = []
-    for line, cells in csv_records(text, source):
-        if header is None:
-            header = [c.strip() for c in cells]
-            for name in chain.joint_names:
-                if name not in header:
-                    raise DataError(source, "missing joint column", row=line, column=name)
-                if header.count(name) > 1:
-                    raise DataError(source, "duplicate column", row=line, column=name)
-            cols = [header.index(n) for n in chain.joint_names]
-            continue
+    for line, cells in records:
         if len(cells) != len(header):
             raise DataError(source, f"expected {len(header)} cells, found {len(cells)}", row=line)
         rows.append([parse_number(cells[c], source, line, header[c]) for c in cols])
         lines.append(line)
-    if header is None:
-        raise DataError(source, "empty file: expected a header line of joint names and rows")
     if not rows:
         raise DataError(source, "no configuration rows after the header")
-    q = np.array(rows)
+    table = np.array(rows)
+    v = len(leaders)
+    leading = table[:, :v]
+    if leaders == chain.joint_names and chain.coupling is not None:
+        leading = chain.coupling.variables(leading)  # each variable from a joint it drives
+    q = chain.joint_values(leading)
+    given = dict(zip(read, table.T, strict=True))
+    check_followers(
+        chain, q, {n: given[n] for n in follower_names(chain) if n in given}, source, lines
+    )
     check_limits(chain, q, source, np.array(lines), warn=False)
     if TOOL_COLUMN in header:  # a tree's measurements: one row per tool and configuration
         q = q[np.r_[True, np.any(q[1:] != q[:-1], axis=1)]]
     return q
+
+
+def _leaders(chain: Chain | Tree, keys: list[str]) -> tuple[str, ...]:
+    """The joints whose columns give a configuration.
+
+    Every joint when the file has them all (``calib design`` writes those; a master outside
+    the chain is then read from a joint it drives), else the independent joints (``calib
+    simulate`` writes those).
+    """
+    if all(JOINT_PREFIX + n in keys for n in chain.joint_names):
+        return tuple(chain.joint_names)
+    return tuple(chain.variable_names)
 
 
 def read_configurations(path: str | Path, chain: Chain | Tree) -> np.ndarray:

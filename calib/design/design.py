@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.checks import check_count, check_work
+from ..core.checks import check_count, check_work, real_array
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
 from .constraints import Constraints, FilterReport, filter_candidates, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
@@ -178,6 +178,7 @@ def design(
             cannot identify the parameters.
     """
     clock = [time.perf_counter()]
+    check_robot(chain, "chain")
     k = check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
     if criterion not in EXCHANGE_CRITERIA:
@@ -291,9 +292,10 @@ def least_i(
         InvalidArgumentError: A bad k, or candidates that cannot identify the parameters.
     """
     k = check_count(k, "the number of configurations")
-    J, L = np.asarray(J, dtype=float), np.asarray(L, dtype=float)
-    if J.ndim != 3 or L.shape != (J.shape[2], J.shape[2]):
-        raise InvalidArgumentError(f"J must be (N, r, b) and L (b, b), got {J.shape}, {L.shape}")
+    J = real_array(J, "the candidates' rows J", (None, None, None))
+    L = real_array(L, "the reference information L", (J.shape[2], J.shape[2]))
+    if not len(J):
+        raise InvalidArgumentError("J has no candidate")
     n, r, b = J.shape
     A = J.reshape(n * r, b)
     w = np.full(n, k / n)
@@ -330,7 +332,9 @@ def evaluate(
     configurations too, so that the set's own rank deficiency shows. The other arguments
     are :func:`design`'s.
     """
-    q = chain.check_configurations(q)
+    q = check_robot(chain, "chain").check_configurations(q)
+    if not len(q):
+        raise InvalidArgumentError("no configuration to evaluate: q has no row")
     model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
     ref = reference(model, candidate_configurations(chain, REFERENCE_CONFIGS, seed))
     return indices(model, q, ref)

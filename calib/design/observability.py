@@ -55,7 +55,7 @@ from ..calibration.options import TREE_LEVELS, Options
 from ..calibration.pipeline import level_names
 from ..calibration.solve import row_weights
 from ..calibration.tree import TreeErrorModel, TreeState
-from ..core.checks import check_count, real_array
+from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array
 from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
@@ -196,9 +196,7 @@ def check_model_arguments(
         raise InvalidArgumentError(
             f"unknown parameter level '{params}' for a design: choose {', '.join(DESIGN_LEVELS)}"
         )
-    ok = isinstance(orientation_weight, int | float) and not isinstance(orientation_weight, bool)
-    if not ok or not (0 < orientation_weight < np.inf):
-        raise InvalidArgumentError("the orientation weight must be a finite number > 0")
+    check_number(orientation_weight, "the orientation weight", 0.0, MAX_WEIGHT, above=True)
 
 
 def observation_model(
@@ -461,7 +459,18 @@ def indices_of(J: np.ndarray, ref: Reference | None = None) -> Indices:
 
 
 def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None) -> Indices:
-    """Observability indices of configurations ``q`` ``(K, n)`` under a model."""
+    """Observability indices of configurations ``q`` ``(K, n)`` under a model.
+
+    Raises:
+        InvalidArgumentError: ``model`` is no :class:`ObservationModel`, ``ref`` no
+            :class:`Reference`, or ``q`` not configurations of the model's robot.
+    """
+    if not isinstance(model, ObservationModel):
+        raise InvalidArgumentError(
+            f"model must be an ObservationModel (observation_model), got {model!r:.60}"
+        )
+    if ref is not None and not isinstance(ref, Reference):
+        raise InvalidArgumentError(f"ref must be a Reference (reference) or None, got {ref!r:.60}")
     return indices_of(model.jacobian(q), ref)
 
 

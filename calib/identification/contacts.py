@@ -467,9 +467,18 @@ def joint_jacobian(mdh: MDHModel, kin: Kinematics) -> np.ndarray:
 
 
 def _newton_step(J: np.ndarray, gap: np.ndarray) -> np.ndarray:
-    """Least-norm, lightly damped solutions of ``J dq = -gap`` ``(m, n)``."""
+    """Least-norm, lightly damped solutions of ``J dq = -gap`` ``(m, n)``.
+
+    When a configuration's ``J J^T`` is singular to working precision (a singular posture,
+    or joints held at their limits leaving too few), the batch takes the pseudo-inverse's
+    least-squares, least-norm step instead; that configuration then stays off the contact
+    and another start is drawn (:func:`contact_postures`).
+    """
     JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(J.shape[1])
-    return -(np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+    try:
+        return -(np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+    except np.linalg.LinAlgError:
+        return -(np.linalg.pinv(J) @ gap[:, :, None])[:, :, 0]
 
 
 def project(

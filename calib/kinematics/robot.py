@@ -45,8 +45,10 @@ __all__ = [
     "Robot",
     "RobotModels",
     "chain_between",
+    "check_chain",
     "check_count",
     "check_frame_name",
+    "check_robot",
     "frame_placement",
     "joint_placements",
     "load_chain",
@@ -366,6 +368,30 @@ class Chain(Robot):
             dirs.append(u / np.linalg.norm(u))
         tool = oMb.actInv(frame_placement(model, oMi, self.tool_id)).homogeneous
         return np.array(points).reshape(-1, 3), np.array(dirs).reshape(-1, 3), tool
+
+
+def check_chain(value, what: str = "the robot") -> Chain:
+    """``value`` if it is a :class:`Chain`.
+
+    Raises:
+        InvalidArgumentError: Anything else (a catalog name, a path, a tree), named.
+    """
+    if not isinstance(value, Chain):
+        raise InvalidArgumentError(f"{what} must be a Chain (see load_chain), got {value!r:.60}")
+    return value
+
+
+def check_robot(value, what: str = "the robot") -> Robot:
+    """``value`` if it is a chain or a tree (a :class:`Robot`).
+
+    Raises:
+        InvalidArgumentError: Anything else (a catalog name, a path), named.
+    """
+    if not isinstance(value, Robot):
+        raise InvalidArgumentError(
+            f"{what} must be a Chain or a Tree (see load_robot), got {value!r:.60}"
+        )
+    return value
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -18,7 +18,6 @@ limits.
 
 from __future__ import annotations
 
-import math
 import re
 import warnings
 from dataclasses import dataclass
@@ -26,16 +25,18 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.checks import angle_mrad, check_count, length_mm
 from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, contact_model, contact_postures
 from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import JointReadings
 from .csvfile import csv_records, parse_number, read_data_text
-from .data import DataWarning
+from .data import JOINT_PREFIX, DataWarning
+from .joint_columns import column_keys
 from .limits import check_limits, joint_bounds
 
 ID_COLUMNS = {
@@ -45,6 +46,9 @@ ID_COLUMNS = {
     "fixed-pose": "point",
 }
 """The id column of each contact kind."""
+
+_ID_NAMES = frozenset(ID_COLUMNS.values())
+"""A joint named like an id column is written ``joint:NAME``."""
 
 TRUTH_POINTS_NOTE = (
     "a fixed-pose campaign's objects are 'poses', as in the calibration report; 'points' is "
@@ -107,33 +111,43 @@ def _contact(measure) -> Contact:
 
 
 def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> dict[str, int]:
-    """Column index of the id and of every chain joint; DataError for a wrong layout."""
+    """Column index of the id and of every chain joint; DataError for a wrong layout.
+
+    Joint columns are read as in every calib file (``joint:NAME`` for a joint named like the
+    id column, :func:`~.joint_columns.column_keys`): the chain's joints and the robot's
+    other one-degree-of-freedom joints.
+    """
     names = [c.strip() for c in cells]
-    for name in names:
-        if _COORDINATE.fullmatch(name) and name not in chain.joint_names:
+    model = chain.model
+    robot_joints = [n for j, n in enumerate(model.names) if j and model.joints[j].nv == 1]
+    keys = column_keys(names, (*chain.joint_names, *robot_joints))
+    for key in keys:
+        if _COORDINATE.fullmatch(key):
             raise DataError(
                 src,
-                f"a contact file has no coordinates, found '{name}': the joints alone record a "
+                f"a contact file has no coordinates, found '{key}': the joints alone record a "
                 f"touch",
                 row=1,
             )
     want = ID_COLUMNS[kind.label]
     other = "point" if want == "plane" else "plane"
-    if want not in names:
+    if want not in keys:
         kinds = ", ".join(k for k, c in ID_COLUMNS.items() if c == other)
-        hint = f": it names {other}s, for {kinds}" if other in names else ""
+        hint = f": it names {other}s, for {kinds}" if other in keys else ""
         raise DataError(src, f"a {kind.label} contact needs a '{want}' column{hint}", row=1)
-    if other in names:
+    if other in keys:
         raise DataError(src, f"both 'plane' and 'point' columns for a {kind.label} contact", row=1)
-    if len(set(names)) != len(names):
+    if len(set(keys)) != len(keys):
         raise DataError(src, "a column name appears twice", row=1)
-    missing = [j for j in chain.joint_names if j not in names]
+    missing = [j for j in chain.joint_names if JOINT_PREFIX + j not in keys]
     if missing:
         raise DataError(src, f"no column for joint {missing[0]} of the chain", row=1)
-    index = {n: i for i, n in enumerate(names)}
-    off = [n for n in names if n != want and n not in chain.joint_names]
-    joints = [n for n in off if _is_other_joint(chain, n)]
-    ignored = [n for n in off if n not in joints]
+    index = {k.removeprefix(JOINT_PREFIX): i for i, k in enumerate(keys)}
+    off = [k for k in keys if k != want and k.removeprefix(JOINT_PREFIX) not in chain.joint_names]
+    joints = [k.removeprefix(JOINT_PREFIX) for k in off if k.startswith(JOINT_PREFIX)]
+    ignored = [
+        n for n, k in zip(names, keys, strict=True) if k in off and not k.startswith(JOINT_PREFIX)
+    ]
     if off:
         read = f"{len(joints)} other joints ({_listed(joints)}), read for the gravity load of "
         read += "elastic only" + ("; " if ignored else "")
@@ -143,13 +157,7 @@ def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> 
             DataWarning,
             stacklevel=4,
         )
-    return {"id": index[want], **{j: index[j] for j in (*chain.joint_names, *joints)}}
-
-
-def _is_other_joint(chain: Chain, name: str) -> bool:
-    """Whether a column names a one-degree-of-freedom joint of the robot off the chain."""
-    model = chain.model
-    return bool(model.existJointName(name)) and model.joints[model.getJointId(name)].nv == 1
+    return {"id": keys.index(want), **{j: index[j] for j in (*chain.joint_names, *joints)}}
 
 
 def _listed(names: list[str]) -> str:
@@ -165,7 +173,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         InvalidArgumentError: Not a contact kind, or a chain with mimic joints.
     """
     kind = _contact(measure)
-    if chain.coupling is not None:
+    if check_chain(chain, "chain").coupling is not None:
         raise InvalidArgumentError("contact files are read for chains without mimic joints")
     records = list(csv_records(text, source))
     if not records:
@@ -228,9 +236,12 @@ def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
 
 def contacts_csv(data: ContactData) -> str:
     """The CSV text of touches, full precision (the other joints' readings after the chain's)."""
+    if not isinstance(data, ContactData):
+        raise InvalidArgumentError(f"data must be ContactData, got {data!r:.60}")
     extra = () if data.readings is None else data.readings.names
     values = data.q if data.readings is None else np.hstack([data.q, data.readings.values])
-    lines = [",".join((data.id_column, *data.joint_names, *extra))]
+    joints = [JOINT_PREFIX + n if n in _ID_NAMES else n for n in (*data.joint_names, *extra)]
+    lines = [",".join((data.id_column, *joints))]
     for name, qi in zip(data.ids, values, strict=True):
         lines.append(",".join((name, *(repr(float(v)) for v in qi))))
     return "\n".join(lines) + "\n"
@@ -294,13 +305,6 @@ class ContactCampaign:
     truth: ContactTruth
 
 
-def _finite(name: str, value, minimum: float = 0.0) -> float:
-    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
-    if not ok or not math.isfinite(float(value)) or float(value) < minimum:
-        raise InvalidArgumentError(f"{name} must be a finite number >= {minimum:g}, got {value!r}")
-    return float(value)
-
-
 def simulate_contacts(
     chain: Chain,
     configs: int = 100,
@@ -323,7 +327,7 @@ def simulate_contacts(
         chain: The nominal chain (no mimic joints).
         configs: Number of touches (>= 1).
         measure: ``plane``, ``plane-point``, ``fixed-point`` or ``fixed-pose``.
-        contacts: Number of planes or points (>= 1).
+        contacts: Number of planes or points (>= 1, at most ``configs``: each is touched).
         error_mm: Standard deviation of every length error [mm].
         error_mrad: Standard deviation of every angle error [mrad].
         noise_mrad: Standard deviation of the recorded joints' noise [mrad; mm for prismatic].
@@ -335,17 +339,13 @@ def simulate_contacts(
             within its limits.
     """
     kind = _contact(measure)
+    check_chain(chain, "contacts are simulated on")
     if chain.coupling is not None:
         raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
-    for name, value in (("configs", configs), ("contacts", contacts), ("seed", seed)):
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | np.integer)
-            or value < (0 if name == "seed" else 1)
-        ):
-            raise InvalidArgumentError(f"{name} must be an integer >= {0 if name == 'seed' else 1}")
-    error_mm, error_mrad = _finite("error_mm", error_mm), _finite("error_mrad", error_mrad)
-    noise_mrad = _finite("noise_mrad", noise_mrad)
+    configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)
+    contacts = check_count(contacts, "contacts", 1, configs)  # each touched at least once
+    error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
+    noise_mrad = angle_mrad(noise_mrad, "noise_mrad")
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])
@@ -389,14 +389,17 @@ def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, j: int, count: int
     frame = true_mdh.forward(q0[None])[0]
     if count == 0:
         return name, frame, np.zeros((0, chain.n))
-    q = contact_postures(
-        contact_model(true_mdh, q0, name),
-        kind,
-        lambda c, r: chain.random_configurations(c, start + 1 + r),
-        count,
-        rounds=SIMULATION_ROUNDS,
-        bounds=(lower, upper),
-    )
+    try:
+        q = contact_postures(
+            contact_model(true_mdh, q0, name),
+            kind,
+            lambda c, r: chain.random_configurations(c, start + 1 + r),
+            count,
+            rounds=SIMULATION_ROUNDS,
+            bounds=(lower, upper),
+        )
+    except InvalidArgumentError as exc:
+        raise InvalidArgumentError(f"{ID_COLUMNS[kind.label]} {name}: {exc}") from None
     return name, frame, q
 
 

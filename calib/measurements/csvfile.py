@@ -9,7 +9,8 @@ CSV format (one header line, then one row per configuration; comma separated):
   position [rad for revolute and continuous joints, m for prismatic ones]; a chain with
   mimic joints has one column per *independent* joint (:attr:`Chain.variable_names`: a
   mimic joint's position is computed from its master's, whose column it needs, in the
-  chain or not);
+  chain or not; a mimic joint's own column may be there too, and must follow its master:
+  :mod:`.joint_columns`);
 * ``x, y, z``: the measured point in the measurement frame [m], each within
   ``MAX_COORDINATE`` (1 km) of its origin;
 * for pose measurements also ``qx, qy, qz, qw``: the orientation of the tool frame in the
@@ -31,7 +32,6 @@ import itertools
 import math
 import re
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,7 +41,7 @@ from ..core.checks import read_only
 from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS
 from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, check_robot
 from ..kinematics.so3 import (
     matrix_to_quaternion,
     rotation_matrix,
@@ -59,6 +59,7 @@ from .data import (
     DataWarning,
     Measurements,
 )
+from .joint_columns import check_followers, column_keys, follower_names
 from .limits import (
     LIMIT_MARGIN,
     LIMIT_TOL,
@@ -155,7 +156,7 @@ class Columns:
 def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Position columns (K triples) and the orientation format and columns of a header.
 
-    ``names``: the cells' meanings, joints prefixed (see :func:`_column_keys`).
+    ``names``: the cells' meanings, joints prefixed (see :func:`.joint_columns.column_keys`).
     """
     free = [n for n in names if not n.startswith(JOINT_PREFIX)]
     if all(f"{a}1" in free for a in POSITION_COLUMNS):
@@ -214,6 +215,11 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     return pos, fmt, tuple(cols or ())
 
 
+def _joint_keys(chain: Chain | Tree) -> set[str]:
+    """The keys of the joint columns read: the independent joints' and the followers'."""
+    return {JOINT_PREFIX + n for n in (*chain.variable_names, *follower_names(chain))}
+
+
 def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
     names = [c.strip() for c in cells]
@@ -230,12 +236,12 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
         if name in seen:
             raise DataError(src, "duplicate column", row=line, column=name)
         seen.add(name)
-    keys = _column_keys(names, chain.variable_names)
+    keys = column_keys(names, (*chain.variable_names, *follower_names(chain)))
     for name in chain.variable_names:
         if JOINT_PREFIX + name not in keys:
             raise DataError(src, "missing joint column", row=line, column=name)
     pos, fmt, ori = _layout(keys, chain, columns, src, line)
-    used = {*(JOINT_PREFIX + n for n in chain.variable_names), *pos, *ori, TOOL_COLUMN}
+    used = {*_joint_keys(chain), *pos, *ori, TOOL_COLUMN}
     ignored = [n for n, k in zip(names, keys, strict=True) if k not in used]
     if ignored:
         warnings.warn(
@@ -245,23 +251,6 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
             stacklevel=4,
         )
     return keys, pos, fmt, ori, names
-
-
-def _column_keys(names: list[str], joints: Sequence[str]) -> list[str]:
-    """Each header cell's meaning: ``joint:NAME`` for a joint's column, else the cell.
-
-    A joint's column is ``joint:NAME``, or plain ``NAME`` when the header has no ``joint:NAME``
-    (then a plain ``NAME`` is a measurement column: ``x``, ``qw``, ``tool``).
-    """
-    joint_set = set(joints)
-    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joint_set
-    keys = []
-    for n in names:
-        if n in joint_set and n not in prefixed:
-            keys.append(JOINT_PREFIX + n)
-        else:
-            keys.append(n)
-    return keys
 
 
 def parse_number(cell: str, src: str, line: int, column: str) -> float:
@@ -331,12 +320,19 @@ def parse_measurements(
             non-numeric or non-finite cell, a joint value far outside its limits, a measured
             coordinate beyond ``MAX_COORDINATE`` [m], a zero quaternion, or no data row.
     """
-    columns = columns or Columns()
+    check_robot(chain, "chain")
+    columns = Columns() if columns is None else columns
+    if not isinstance(columns, Columns):
+        raise InvalidArgumentError(f"columns must be a Columns (or None), got {columns!r:.60}")
     header, values, lines, tools = _read_rows(text, chain, columns, source)
     names, pos_cols, fmt, ori_cols, _ = header
     table = np.array(values)
     col = {n: j for j, n in enumerate(names)}
     q = chain.joint_values(table[:, [col[JOINT_PREFIX + n] for n in chain.variable_names]])
+    followers = {
+        n: table[:, col[JOINT_PREFIX + n]] for n in follower_names(chain) if JOINT_PREFIX + n in col
+    }
+    check_followers(chain, q, followers, source, lines)
     check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     _check_coordinates(position, pos_cols, lines, source)
@@ -376,7 +372,7 @@ def _read_rows(text: str, chain: Chain | Tree, columns: Columns, source: str):
         keys, shown = header[0], header[4]
         if len(cells) != len(keys):
             raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
-        used = {*(JOINT_PREFIX + n for n in chain.variable_names), *header[1], *header[3]}
+        used = {*_joint_keys(chain), *header[1], *header[3]}
         if TOOL_COLUMN in keys:
             tool = cells[keys.index(TOOL_COLUMN)].strip()
             if not tool:
@@ -501,5 +497,12 @@ def measurements_csv(data: Measurements) -> str:
 
 
 def write_measurements(path: str | Path, data: Measurements) -> None:
-    """Write measurements as CSV atomically (the file is complete or not written at all)."""
+    """Write measurements as CSV atomically (the file is complete or not written at all).
+
+    Raises:
+        InvalidArgumentError: ``data`` is no :class:`Measurements`, or ``path`` no path.
+        OutputError: The file cannot be written.
+    """
+    if not isinstance(data, Measurements):
+        raise InvalidArgumentError(f"data must be Measurements, got {data!r:.60}")
     write_atomic(path, measurements_csv(data))

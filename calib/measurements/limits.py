@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import DataError
+from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .data import TOOL_COLUMN, DataWarning, Measurements
@@ -51,9 +52,15 @@ def check_against_chain(data: Measurements, chain: Chain | Tree) -> None:
     A reading past a joint limit by at most ``LIMIT_MARGIN`` gives a :class:`DataWarning`.
 
     Raises:
+        InvalidArgumentError: ``data`` is no :class:`Measurements` (a path, touches).
         DataError: Other joints, or a joint value farther outside its limits (naming the
             row and the column).
     """
+    if not isinstance(data, Measurements):
+        hint = ": read the file with read_measurements" if isinstance(data, str | Path) else ""
+        raise InvalidArgumentError(
+            f"measurements must be Measurements, got {type(data).__name__} {data!r:.40}{hint}"
+        )
     if data.joint_names != chain.joint_names:
         raise DataError(
             data.source,

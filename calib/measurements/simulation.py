@@ -16,13 +16,11 @@ orientation.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.checks import read_only
-from ..exceptions import InvalidArgumentError
+from ..core.checks import angle_mrad, check_count, length_mm, read_only
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point
 from ..identification.kinds import campaign_kind
@@ -110,26 +108,6 @@ class Campaign:
     truth: SimulationTruth
 
 
-def _integer(what: str, value, minimum: int) -> int:
-    """``value`` as an int, if it is an integer (not a bool) >= ``minimum``.
-
-    Raises:
-        InvalidArgumentError: None, a bool, a float, a string or a smaller integer.
-    """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise InvalidArgumentError(f"{what} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _non_negative(name: str, value: float) -> float:
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, bool
-    )
-    if not number or not math.isfinite(float(value)) or float(value) < 0:
-        raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
-    return float(value)
-
-
 def simulate(
     chain: Chain,
     configs: int | np.ndarray = 100,
@@ -169,12 +147,11 @@ def simulate(
     """
     measurement = campaign_kind(measure, marker)
     given = isinstance(configs, np.ndarray | list | tuple)
-    m = 0 if given else _integer("the number of configurations", configs, 1)
-    seed = _integer("the seed", seed, 0)
-    error_mm = _non_negative("error_mm", error_mm)
-    error_mrad = _non_negative("error_mrad", error_mrad)
-    noise_mm = _non_negative("noise_mm", noise_mm)
-    noise_mrad = noise_mm if noise_mrad is None else _non_negative("noise_mrad", noise_mrad)
+    m = 0 if given else check_count(configs, "the number of configurations")
+    seed = check_count(seed, "the seed", 0)
+    error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
+    noise_mm = length_mm(noise_mm, "noise_mm")
+    noise_mrad = noise_mm if noise_mrad is None else angle_mrad(noise_mrad, "noise_mrad")
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.checks import angle_mrad, length_mm
 from ..exceptions import InvalidArgumentError
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
@@ -82,9 +83,8 @@ def simulate_tree(
     mk = np.broadcast_to(mk, (n_tools, 3)).copy() if mk.shape == (3,) else mk
     if mk.shape != (n_tools, 3) or not np.all(np.isfinite(mk)):
         raise InvalidArgumentError(f"markers must be (3,) or ({n_tools}, 3) finite numbers [m]")
-    for name, value in (("error_mm", error_mm), ("error_mrad", error_mrad), ("noise_mm", noise_mm)):
-        if not (isinstance(value, int | float) and np.isfinite(value) and value >= 0):
-            raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
+    error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
+    noise_mm = length_mm(noise_mm, "noise_mm")
     nominal = from_tree(tree)
     pset = tree_parameters(nominal, params)
     if isinstance(configs, int | np.integer) and not isinstance(configs, bool):

@@ -14,7 +14,8 @@ from typing import Any
 from ..core.checks import check_count, check_work
 from ..exceptions import CalibError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
-from ..identification.jacobian import Measurement
+from ..identification.kinds import kind_of
+from ..identification.measures import MeasureKind, Measurement
 from ..kinematics.catalog import catalog
 from ..kinematics.tree import load_robot
 
@@ -69,7 +70,7 @@ def _sweep_one(
     robot: str,
     base: str | None,
     tool: str | tuple[str, ...] | None,
-    measurement: Measurement,
+    measurement: MeasureKind,
     configs: int,
     seed: int,
     params: str = "paper",
@@ -85,8 +86,7 @@ def _sweep_one(
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # kept in the results' .warnings, shown as a note
             kw: dict[str, Any] = {
-                "measure": measurement.label,
-                "marker": measurement.marker,
+                "measure": measurement,
                 "configs": configs,
                 "seed": seed,
             }
@@ -95,7 +95,9 @@ def _sweep_one(
     except CalibError as exc:
         return SweepRow(str(robot), label, time_ms=1e3 * (time.perf_counter() - t0), error=str(exc))
     missing = full.n_complete - (paper if params == "paper" else full).n_base
-    on_axes = full.on_axes if measurement.is_position else ()
+    on_axes = (
+        full.on_axes if isinstance(measurement, Measurement) and measurement.is_position else ()
+    )
     notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
     if full.mimic:  # the formula is for independent joints
         notes.append(f"{len(full.mimic)} coupled (mimic) joint(s): no theory")
@@ -134,7 +136,9 @@ def sweep(
     Args:
         robots: Catalog names (default: the whole catalog).
         extra: URDF paths (default frames) analysed after the catalog.
-        measure: ``pose`` or ``position`` (or rows).
+        measure: ``pose``, ``position``, rows (``x,y,rz``) or a contact (``plane``,
+            ``plane-point``, ``fixed-point``, ``fixed-pose``; a tree or a chain through mimic
+            joints is then a row with its reason).
         marker: Measured point in the tool frame [m].
         configs: Random configurations per chain.
         seed: Seed of the configurations.
@@ -144,7 +148,7 @@ def sweep(
     Returns:
         One row per chain, in order.
     """
-    measurement = Measurement.of(measure, marker)
+    measurement = kind_of(measure, marker)
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
     check_work(configs, 1, "even a 1-joint chain")  # what no chain can afford

@@ -1,0 +1,84 @@
+"""Which columns of a CSV header hold a robot's joints: the one reading every file shares.
+
+Measurement, contact and configuration files name their joint columns alike:
+
+* a joint named like another column of the file (``x``, ``qw``, ``tool``, ``plane``,
+  ``point``) is written ``joint:NAME``; on reading, ``joint:NAME`` is joint NAME's column and a
+  plain ``NAME`` is then the other column (without ``joint:NAME``, a plain ``NAME`` is the
+  joint's);
+* a robot through mimic joints needs the columns of its independent joints
+  (:attr:`~calib.kinematics.robot.CoupledJoints.variable_names`, what ``calib simulate``
+  writes); a follower's column may be there too (``calib design`` writes every joint), and
+  each of its values must then be what its mimic tag gives from its leader, within
+  :data:`FOLLOWER_TOL`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..kinematics.robot import CoupledJoints
+from .data import JOINT_PREFIX
+
+__all__ = ["FOLLOWER_TOL", "check_followers", "column_keys", "follower_names"]
+
+FOLLOWER_TOL = 1e-6
+"""Largest difference between a follower's column and its mimic relation [rad or m] (the
+files calib writes hold them to round-off)."""
+
+
+def column_keys(names: Sequence[str], joints: Sequence[str]) -> list[str]:
+    """Each header cell's meaning: ``joint:NAME`` for a joint's column, else the cell.
+
+    A joint's column is ``joint:NAME``, or plain ``NAME`` when the header has no ``joint:NAME``
+    (then a plain ``NAME`` is another column: ``x``, ``qw``, ``tool``, ``plane``).
+    """
+    joint_set = set(joints)
+    prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joint_set
+    return [JOINT_PREFIX + n if n in joint_set and n not in prefixed else n for n in names]
+
+
+def follower_names(robot: CoupledJoints) -> tuple[str, ...]:
+    """The joints that follow another (mimic), whose columns are optional."""
+    return () if robot.coupling is None else tuple(m.name for m in robot.coupling.mimic)
+
+
+def check_followers(
+    robot: CoupledJoints,
+    q: np.ndarray,
+    given: dict[str, np.ndarray],
+    source: str,
+    lines: Sequence[int],
+) -> None:
+    """Refuse a follower's column that does not follow its leader.
+
+    Args:
+        robot: The chain or tree.
+        q: Joint positions ``(m, n)`` computed from the independent joints.
+        given: The follower columns the file has, by joint name ``(m,)`` each.
+        source: The file, for messages.
+        lines: Each row's line number in the file.
+
+    Raises:
+        DataError: A value farther than :data:`FOLLOWER_TOL` from its mimic relation,
+            naming its row and column and the relation.
+    """
+    if robot.coupling is None:
+        return
+    for mimic in robot.coupling.mimic:
+        if mimic.name not in given:
+            continue
+        off = np.abs(given[mimic.name] - q[:, mimic.joint])
+        if np.any(off > FOLLOWER_TOL):
+            i = int(np.argmax(off))
+            raise DataError(
+                source,
+                f"joint {mimic.name} = {given[mimic.name][i]:.9g} does not follow "
+                f"{mimic.master}: its mimic tag gives {mimic.multiplier:g} * {mimic.master} + "
+                f"{mimic.offset:g} = {q[i, mimic.joint]:.9g}",
+                row=lines[i],
+                column=mimic.name,
+            )
