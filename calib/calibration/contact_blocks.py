@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BlockSolution", "block_lstsq", "block_factors"]
+__all__ = ["BlockSolution", "block_factors", "block_lstsq"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,7 +83,9 @@ def block_factors(
         mine = np.flatnonzero(local[index] >= 0)
         stack = np.zeros((len(objects), int(size), rows, w))
         stack[local[index[mine]], position[mine]] = blocks[mine]
-        R = np.linalg.qr(stack.reshape(len(objects), int(size) * rows, w), mode="r")
+        R: np.ndarray = np.linalg.qr(  # type: ignore[assignment]
+            stack.reshape(len(objects), int(size) * rows, w), mode="r"
+        )
         factors[objects, : R.shape[1]] = R
     return factors, counts
 

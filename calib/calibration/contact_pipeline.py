@@ -35,6 +35,7 @@ import time
 
 import numpy as np
 
+from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import CONTACT_TOL, joint_offsets, project
 from ..identification.identifiability import independent_columns, preference_order
@@ -288,6 +289,7 @@ def calibrate_contacts(
     max_iterations: int = 100,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> ContactCalibration:
     """Calibrate a chain from touches of any contact kind (see the module's text).
 
@@ -308,6 +310,8 @@ def calibrate_contacts(
         max_iterations: Most residual evaluations of the solver.
         holdout: Fraction of each object's touches set aside (seeded).
         seed: Seed of the holdout draw.
+        progress: Progress bars of the registration, the selection and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
     Returns:
         The result: check ``accepted``.
@@ -334,9 +338,10 @@ def calibrate_contacts(
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
     nominal = from_chain(chain)
-    start, train, dropped, notes = contact_checks.checked_registration(
-        chain, nominal, train, validate, guess, w
-    )
+    with phase(progress, f"calibrate: registration ({train.m} touches)"):
+        start, train, dropped, notes = contact_checks.checked_registration(
+            chain, nominal, train, validate, guess, w
+        )
     what = f"unknowns of the {data.kind.object_name}(s) and the contact frame"
     determined.check_equations(train.m, data.kind.n_rows, start.frames.size, what, train.source,
                                held=0 if held is None else held.m, unit="touches")  # fmt: skip
@@ -346,11 +351,13 @@ def calibrate_contacts(
     torque = contact_elastic.torques(load, train, held)
     notes += filter(None, [contact_elastic.readings_note(load, train, held)])
     clock.append(time.perf_counter())
-    model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
+    with phase(progress, "calibrate: selection"):
+        model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
     clock.append(time.perf_counter())
-    fitted = fit(
-        model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
-    )
+    with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
+        fitted = fit(
+            model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
+        )
     clock.append(time.perf_counter())
     result = _assemble(chain, (train, held), torque, start, fitted, selection, notes, clock, load)
     return _with_outliers(result, dropped)

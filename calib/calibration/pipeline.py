@@ -9,6 +9,7 @@ from typing import overload
 
 import numpy as np
 
+from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
@@ -59,6 +60,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> CalibrationResult: ...
 
 
@@ -79,6 +81,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> TreeCalibrationResult: ...
 
 
@@ -99,6 +102,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> ContactCalibration: ...
 
 
@@ -119,6 +123,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> CalibrationResult | TreeCalibrationResult | ContactCalibration:
     """Calibrate a chain (or a tree) from measurements: a model that predicts unseen configurations.
 
@@ -150,6 +155,8 @@ def calibrate(
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
+        progress: Progress bars of the registration, the selection and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``) of a chain or contacts, or None.
 
     Returns:
         The result: check ``accepted`` (or call :meth:`CalibrationResult.check`).
@@ -176,6 +183,7 @@ def calibrate(
             max_iterations=max_iterations,
             holdout=holdout,
             seed=seed,
+            progress=progress,
         )
     if isinstance(robot, Robot) and robot.is_tree:
         return calibrate_tree(
@@ -206,34 +214,37 @@ def calibrate(
         holdout=holdout,
         seed=seed,
     )
-    return _calibrate_chain(robot, data, marker, validate, opts)
+    return _calibrate_chain(robot, data, marker, validate, opts, progress)
 
 
-def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
+def _calibrate_chain(chain, data, marker, validate, opts, progress=None) -> CalibrationResult:
     """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
     clock = [time.perf_counter()]
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
     guess = _marker_guess(marker, train.n_markers)
     checked = held if validate is not None else None
-    opts, reg, train, dropped, notes = checked_registration(
-        chain, nominal, train, checked, guess, opts
-    )
+    with phase(progress, f"calibrate: registration ({train.m} rows)"):
+        opts, reg, train, dropped, notes = checked_registration(
+            chain, nominal, train, checked, guess, opts
+        )
     clock.append(time.perf_counter())
     torque = _torques(chain, opts, train, held)
-    model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
+    with phase(progress, "calibrate: selection"):
+        model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
     clock.append(time.perf_counter())
-    fitted = fit(
-        model,
-        reg,
-        train,
-        torque[0],
-        opts.orientation_weight,
-        prior=prior,
-        loss=opts.loss,
-        scale=opts.noise or 1e-3,
-        max_iterations=opts.max_iterations,
-    )
+    with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
+        fitted = fit(
+            model,
+            reg,
+            train,
+            torque[0],
+            opts.orientation_weight,
+            prior=prior,
+            loss=opts.loss,
+            scale=opts.noise or 1e-3,
+            max_iterations=opts.max_iterations,
+        )
     clock.append(time.perf_counter())
     result = _assemble(
         chain, nominal, train, held, torque, fitted, prior, selection, dropped, notes, opts
