@@ -51,8 +51,13 @@ def _buckets(counts: np.ndarray, least: int) -> np.ndarray:
 
 
 def block_factors(
-    Jo: np.ndarray, Js: np.ndarray, r: np.ndarray, index: np.ndarray, K: int
-) -> tuple[np.ndarray, np.ndarray]:
+    Jo: np.ndarray,
+    Js: np.ndarray,
+    r: np.ndarray,
+    index: np.ndarray,
+    K: int,
+    damping: np.ndarray | None = None,
+) -> np.ndarray:
     """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
 
     Args:
@@ -61,9 +66,11 @@ def block_factors(
         r: Residual rows of each touch ``(m, rows)``.
         index: The object of each touch ``(m,)`` (each object has touches).
         K: Number of objects.
+        damping: Extra rows ``diag(damping[k])`` (zero residual) of each object's unknowns
+            ``(K, o)``, or None.
 
     Returns:
-        The factors (rows beyond an object's own rank are zero) and the touches per object.
+        The factors (rows beyond an object's own rank are zero).
     """
     m, rows, o = Jo.shape
     s = Js.shape[2]
@@ -83,15 +90,24 @@ def block_factors(
         mine = np.flatnonzero(local[index] >= 0)
         stack = np.zeros((len(objects), int(size), rows, w))
         stack[local[index[mine]], position[mine]] = blocks[mine]
-        R: np.ndarray = np.linalg.qr(  # type: ignore[assignment]
-            stack.reshape(len(objects), int(size) * rows, w), mode="r"
-        )
+        A = stack.reshape(len(objects), int(size) * rows, w)
+        if damping is not None:
+            extra = np.zeros((len(objects), o, w))
+            extra[:, np.arange(o), np.arange(o)] = damping[objects]
+            A = np.concatenate([A, extra], axis=1)
+        R: np.ndarray = np.linalg.qr(A, mode="r")  # type: ignore[assignment]
         factors[objects, : R.shape[1]] = R
-    return factors, counts
+    return factors
 
 
 def block_lstsq(
-    Jo: np.ndarray, Js: np.ndarray, r: np.ndarray, index: np.ndarray, K: int
+    Jo: np.ndarray,
+    Js: np.ndarray,
+    r: np.ndarray,
+    index: np.ndarray,
+    K: int,
+    damping: np.ndarray | None = None,
+    shared_rows: np.ndarray | None = None,
 ) -> BlockSolution:
     """``min |A x_o + B x_s + r|`` with A block diagonal by object (see the module's text).
 
@@ -101,14 +117,19 @@ def block_lstsq(
         r: Residual rows of each touch ``(m, rows)``.
         index: The object of each touch ``(m,)``.
         K: Number of objects.
+        damping: Extra rows ``diag(damping[k])`` on each object's unknowns ``(K, o)``.
+        shared_rows: Extra rows ``[C | c]`` on the shared unknowns alone ``(n, s + 1)``
+            (``min |C x_s + c|`` joins the sum), or None.
 
     Returns:
         The solution (the least-norm one in the shared unknowns if they are undetermined).
     """
     o, s = Jo.shape[2], Js.shape[2]
-    F, _ = block_factors(Jo, Js, r, index, K)
+    F = block_factors(Jo, Js, r, index, K, damping)
     R, S, y = F[:, :o, :o], F[:, :o, o : o + s], F[:, :o, -1]
     reduced = F[:, o:, o:].reshape(-1, s + 1)
+    if shared_rows is not None:
+        reduced = np.vstack([reduced, shared_rows])
     sv = [np.linalg.svd(R, compute_uv=False).ravel()] if o else []
     shared = np.zeros(s)
     if s:

@@ -46,6 +46,7 @@ from ..kinematics.standing import StandingLoad, Support
 from ..measurements.contact_campaign import ContactData
 from . import contact_checks, contact_elastic, determined, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
+from .contact_fit import block_fit, block_structural, by_block
 from .contact_model import ContactModel, ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
@@ -215,6 +216,8 @@ def _structural(
     qf, _ = touching_postures(start, train.q, train.ids)
     held = dataclasses.replace(train, q=qf)
     torque = None if load is None or not wide.compliance else load.torques(qf, train.readings)
+    if by_block(wide):
+        return block_structural(wide, start, held, torque)
     A = wide.jacobian(start, np.zeros(wide.size()), held, torque).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
@@ -355,9 +358,14 @@ def calibrate_contacts(
         model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
     clock.append(time.perf_counter())
     with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
-        fitted = fit(
-            model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
-        )
+        if by_block(model):
+            fitted = block_fit(
+                model, start, train, torque[0], prior=prior, max_iterations=opts.max_iterations
+            )
+        else:
+            fitted = fit(
+                model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
+            )
     clock.append(time.perf_counter())
     result = _assemble(chain, (train, held), torque, start, fitted, selection, notes, clock, load)
     return _with_outliers(result, dropped)

@@ -1,0 +1,103 @@
+"""Contacts of many objects: the objects' unknowns eliminated object by object."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from calib import load_chain
+from calib.calibration import contact_checks, contact_fit, contact_pipeline
+from calib.calibration.contact_blocks import block_lstsq
+from calib.calibration.contact_fit import block_fit, block_structural
+from calib.calibration.contact_model import ContactModel
+from calib.calibration.solve import fit
+from calib.identification.parameters import ParameterSet
+from calib.kinematics.mdh import from_chain
+from calib.measurements.contact_campaign import simulate_contacts
+
+
+def _dense(Jo, Js, index, K):
+    """The whole Jacobian ``(m rows, K o + s)``, every object's columns (zero off its own)."""
+    m, rows, o = Jo.shape
+    A = np.zeros((m, rows, K * o + Js.shape[2]))
+    for t in range(m):
+        A[t, :, o * index[t] : o * index[t] + o] = Jo[t]
+    A[:, :, K * o :] = Js
+    return A.reshape(m * rows, -1)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_block_least_squares_is_the_dense_least_squares(seed):
+    """Objects of 1 to 40 touches (several padded sizes), damping and extra shared rows:
+    the same solution as numpy's dense least squares of the whole system."""
+    rng = np.random.default_rng(seed)
+    K, rows, o, s = 7, 3, 3, 5
+    counts = rng.integers(1, 40, K)
+    index = rng.permutation(np.repeat(np.arange(K), counts))
+    m = len(index)
+    Jo, Js = rng.standard_normal((m, rows, o)), rng.standard_normal((m, rows, s))
+    r = rng.standard_normal((m, rows))
+    damping = rng.uniform(0.1, 1.0, (K, o))
+    extra = rng.standard_normal((4, s + 1))
+    sol = block_lstsq(Jo, Js, r, index, K, damping, extra)
+    A = np.vstack(
+        [
+            _dense(Jo, Js, index, K),
+            np.c_[np.diag(damping.ravel()), np.zeros((K * o, s))],
+            np.c_[np.zeros((4, K * o)), extra[:, :s]],
+        ]
+    )
+    b = -np.r_[r.ravel(), np.zeros(K * o), extra[:, s]]
+    x = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert np.allclose(np.r_[sol.objects.ravel(), sol.shared], x, atol=1e-10, rtol=0)
+    plain = block_lstsq(Jo, Js, r, index, K)
+    x0 = np.linalg.lstsq(_dense(Jo, Js, index, K), -r.ravel(), rcond=None)[0]
+    assert np.allclose(np.r_[plain.objects.ravel(), plain.shared], x0, atol=1e-10, rtol=0)
+
+
+@pytest.fixture(scope="module")
+def forty_planes():
+    """TALOS sole to gripper touching 40 planes (6 touches each), registered."""
+    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
+    data = simulate_contacts(chain, 240, "plane", contacts=40, noise_mrad=0.01, seed=1).data
+    nominal = from_chain(chain)
+    start, train, _, _ = contact_checks.checked_registration(
+        chain, nominal, data, None, np.eye(4), None
+    )
+    return nominal, start, train
+
+
+def test_block_structural_check_keeps_the_dense_check_columns(forty_planes, monkeypatch):
+    nominal, start, train = forty_planes
+    wide = ContactModel(contact_pipeline._candidates(nominal, "complete"), start.frames, ())
+    assert contact_fit.by_block(wide)
+    qf, _ = contact_pipeline.touching_postures(start, train.q, train.ids)
+    held = dataclasses.replace(train, q=qf)
+    blocks = block_structural(wide, start, held, None)
+    monkeypatch.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route
+    dense = contact_pipeline._structural(wide, start, train, None)
+    assert sorted(blocks) == sorted(dense) and len(dense) < wide.size()
+
+
+@pytest.mark.parametrize("with_prior", [False, True])
+def test_block_fit_reaches_minpacks_minimum(forty_planes, with_prior):
+    """Levenberg-Marquardt by block against SciPy's MINPACK on the dense Jacobian (the
+    parameters the touches determine, as the pipeline frees them)."""
+    nominal, start, train = forty_planes
+    offered = contact_pipeline._candidates(nominal, "complete")
+    wide = ContactModel(offered, start.frames, ())
+    kept = contact_pipeline._structural(wide, start, train, None)[wide.fixed :]
+    params = tuple(offered.parameters[c - wide.fixed] for c in sorted(kept))
+    model = ContactModel(ParameterSet("free", params), start.frames, ())
+    prior = None
+    if with_prior:
+        rng = np.random.default_rng(0)
+        prior = np.r_[np.zeros(model.fixed), rng.uniform(0.0, 0.1, model.size() - model.fixed)]
+    dense = fit(model, start, train, None, 1.0, prior=prior)
+    blocks = block_fit(model, start, train, None, prior=prior)
+    assert dense.converged and blocks.converged
+    assert np.allclose(blocks.x, dense.x, atol=1e-9, rtol=0)
+    assert np.allclose(blocks.f, dense.f, atol=1e-11, rtol=0)  # 1e-8 mm
+    assert np.allclose(blocks.J, dense.J, atol=1e-9, rtol=0)
