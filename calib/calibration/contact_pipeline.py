@@ -35,6 +35,7 @@ import time
 
 import numpy as np
 
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import CONTACT_TOL, joint_offsets, project
@@ -124,6 +125,8 @@ def _check(chain, data, validate, opts: Options) -> None:
             raise InvalidArgumentError(f"contact data must be ContactData, got {type(d).__name__}")
         if d.joint_names != chain.joint_names:
             raise DataError(d.source, "the touches' joints are not the chain's")
+        check_size(d.m, MAX_TOUCHES, "touches", d.source)
+        check_size(len(d.contacts), MAX_OBJECTS, f"{d.id_column}s", d.source)
     if validate is not None:
         if opts.holdout > 0:
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")

@@ -9,6 +9,7 @@ from typing import overload
 
 import numpy as np
 
+from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
@@ -167,6 +168,8 @@ def calibrate(
         InvalidArgumentError: A bad argument (:class:`~.options.Options`), an unknown one, or
             one given by position after ``data``.
     """
+    if isinstance(data, Measurements):
+        check_size(data.m, MAX_ROWS, "rows", data.source)
     if isinstance(data, ContactData):  # touches (no instrument): any contact kind, one chain
         return calibrate_contact_data(
             robot,

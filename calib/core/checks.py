@@ -9,8 +9,12 @@ from ..exceptions import InvalidArgumentError
 __all__ = [
     "BYTES_PER_CONFIG_JOINT",
     "MAX_JOINT_POSITION",
+    "MAX_OBJECTS",
+    "MAX_ROWS",
+    "MAX_TOUCHES",
     "MAX_WORK_BYTES",
     "check_count",
+    "check_size",
     "check_work",
     "joint_positions",
     "read_only",
@@ -28,6 +32,36 @@ BYTES_PER_CONFIG_JOINT = 3000
 and reference sets, their QR copies and the kinematics), with a margin: the measured peak is
 1.9 kB (UR5, 50000 configurations) and 1.6 kB (100 joints, 2000 configurations); a test
 checks that the estimate covers a real run."""
+
+
+MAX_ROWS = 100_000
+"""Most configurations (rows) of measured data calib reads or calibrates on."""
+
+MAX_TOUCHES = 50_000
+"""Most touches of contact data calib reads or calibrates on."""
+
+MAX_OBJECTS = 2_000
+"""Most planes, points or poses of contact data (each brings its own unknowns)."""
+
+
+def check_size(count: int, limit: int, what: str, where: str | None = None) -> None:
+    """Refuse, before any work, more than ``limit`` rows, touches or objects.
+
+    Args:
+        count: How many there are.
+        limit: The stated maximum (:data:`MAX_ROWS`, :data:`MAX_TOUCHES`, :data:`MAX_OBJECTS`).
+        what: What is counted, plural ("touches").
+        where: The data's source, for the message, or None.
+
+    Raises:
+        InvalidArgumentError: ``count`` exceeds ``limit``.
+    """
+    if count > limit:
+        place = f"{where}: " if where else ""
+        raise InvalidArgumentError(
+            f"{place}{count} {what}: calib handles at most {limit} (split the campaign, or "
+            f"keep a subset)"
+        )
 
 
 def check_count(value, what: str, minimum: int = 1) -> int:

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, contact_model, contact_postures
@@ -172,6 +173,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         raise DataError(source, "empty file: expected a header line and touches")
     if len(records) == 1:
         raise DataError(source, "no touches after the header")
+    check_size(len(records) - 1, MAX_TOUCHES, "touches", source)
     cols = _checked_header(records[0][1], chain, kind, source)
     others = tuple(n for n in cols if n != "id" and n not in chain.joint_names)
     ids, q, rows = [], [], []
@@ -184,6 +186,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         ids.append(name)
         q.append([parse_number(cells[cols[j]], source, line, j) for j in chain.joint_names])
         rows.append(line)
+    check_size(len(set(ids)), MAX_OBJECTS, f"{ID_COLUMNS[kind.label]}s", source)
     qa = np.array(q, dtype=float)
     check_limits(chain, qa, source, np.array(rows))
     qa.setflags(write=False)
@@ -344,6 +347,8 @@ def simulate_contacts(
             or value < (0 if name == "seed" else 1)
         ):
             raise InvalidArgumentError(f"{name} must be an integer >= {0 if name == 'seed' else 1}")
+    check_size(int(configs), MAX_TOUCHES, "touches")
+    check_size(int(contacts), MAX_OBJECTS, f"{ID_COLUMNS[kind.label]}s")
     error_mm, error_mrad = _finite("error_mm", error_mm), _finite("error_mrad", error_mrad)
     noise_mrad = _finite("noise_mrad", noise_mrad)
     nominal = from_chain(chain)
