@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
 from ..core.checks import check_count, check_work
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
 from ..core.progress import phase, steps
@@ -122,7 +123,7 @@ def candidate_configurations(
     The independent joints are drawn (mimic joints follow the joint they mimic).
     """
     check_count(n, "the number of candidates")
-    check_work(n, chain.n, chain.name, len(chain.tool_ids), "candidates")
+    check_work(n, chain.n, chain.name, len(chain.tool_ids), "candidates", DESIGN_PER_JOINT)
     lower, upper = variable_bounds(chain, margin)
     rng = np.random.default_rng([check_count(seed, "the seed", 0), 5])
     return chain.joint_values(lower + (upper - lower) * rng.random((n, len(lower))))
