@@ -35,8 +35,9 @@ and reference sets, their QR copies and the kinematics), with a margin: the meas
 checks that the estimate covers a real run."""
 
 
-MAX_ROWS = 100_000
-"""Most configurations (rows) of measured data calib reads or calibrates on."""
+MAX_ROWS = 50_000
+"""Most configurations (rows) of measured data calib reads or calibrates on (a UR5's 100,000
+poses peaked at 1.9 GB with ``--params complete``)."""
 
 MAX_TOUCHES = 50_000
 """Most touches of contact data calib reads or calibrates on."""
