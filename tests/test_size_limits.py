@@ -12,6 +12,7 @@ from calib import InvalidArgumentError, load_chain, simulate
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.cli.commands import main
 from calib.core.checks import MAX_OBJECTS, MAX_ROWS, MAX_TOUCHES, check_size
+from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import contacts_csv, simulate_contacts
 from calib.measurements.csvfile import measurements_csv
 
@@ -63,3 +64,17 @@ def test_too_many_rows_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(pipeline, "MAX_ROWS", 29)
     with pytest.raises(InvalidArgumentError, match="30 rows"):
         pipeline.calibrate(chain, data)
+
+
+def test_a_contact_selection_too_big_for_memory_is_refused_up_front(monkeypatch):
+    """params 'auto' on too many touches x columns: one line naming the way out, before the
+    registration (no work); a level is accepted on the same touches."""
+    chain = load_chain("ur5")
+    data = simulate_contacts(chain, 40, "plane", contacts=2, seed=0).data
+    columns = 2 * 3 + 2 + len(contact_pipeline._candidates(from_chain(chain), "auto"))
+    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", 2**31 // (40 * columns) + 1)
+    with pytest.raises(InvalidArgumentError, match="give a level") as err:
+        calibrate_contacts(chain, data)
+    assert f"{columns} columns (8 of the plane(s) and the contact) on 40 touches" in str(err.value)
+    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", 2**31 // (40 * columns))
+    assert calibrate_contacts(chain, data).selection is not None  # at the bound: selected

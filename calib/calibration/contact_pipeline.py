@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, MAX_WORK_BYTES, check_size
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import CONTACT_TOL, joint_offsets, project
@@ -113,6 +113,35 @@ def split_contacts(
     if not held.any():
         raise DataError(data.source, f"too few touches to hold {holdout:g} of them out")
     return subset(data, ~held), subset(data, held)
+
+
+SELECTION_BYTES = 2000
+"""Memory [B] of ``params auto``'s selection per touch and column (objects', contact's and
+candidates'), with a margin: measured 1.85 kB (TALOS sole to gripper, 20,000 touches of one
+plane: 2.4 GB) and 1.2 kB (2,000 touches of 500 planes: 3.8 GB and past 5 minutes)."""
+
+
+def check_selection_memory(data: ContactData, nominal: MDHModel, opts: Options, comp: int) -> None:
+    """Refuse, before any work, a selection (``params auto``) that needs more than 2 GB.
+
+    Raises:
+        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES` per touch and column)
+            exceeds ``MAX_WORK_BYTES``; says what to do.
+    """
+    if opts.level != "auto":
+        return
+    kind = data.kind
+    fixed = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
+    columns = fixed + len(_candidates(nominal, "auto")) + comp
+    need = data.m * columns * SELECTION_BYTES
+    if need > MAX_WORK_BYTES:
+        raise InvalidArgumentError(
+            f"params 'auto' would cross-validate {columns} columns ({fixed} of the "
+            f"{kind.object_name}(s) and the contact) on {data.m} touches: about "
+            f"{need / 2**30:.3g} GB, calib allows {MAX_WORK_BYTES / 2**30:g} GB; give a level "
+            f"(params complete, paper, offsets or frames), or fewer touches or "
+            f"{kind.object_name}s"
+        )
 
 
 def _check(chain, data, validate, opts: Options) -> None:
@@ -338,12 +367,13 @@ def calibrate_contacts(
     )
     _check(chain, data, validate, opts)
     load = contact_elastic.standing(chain, data.kind, opts.elastic, support)
+    nominal = from_chain(chain)
+    check_selection_memory(data, nominal, opts, 0 if load is None else chain.n)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = opts.orientation_weight
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
-    nominal = from_chain(chain)
     with phase(progress, f"calibrate: registration ({train.m} touches)"):
         start, train, dropped, notes = contact_checks.checked_registration(
             chain, nominal, train, validate, guess, w
