@@ -182,11 +182,7 @@ def cheap_filters(
 ) -> tuple[np.ndarray, LazyChecks]:
     """The margin and workspace filters applied, the costly ones (:class:`LazyChecks`) not.
 
-    Args:
-        chain: The chain or tree.
-        q: Candidate joint positions ``(N, n)``.
-        markers: Measured points in the tool frame ``(K, 3)`` [m] (a tree: one per tool).
-        constraints: The limits.
+    The arguments are :func:`filter_candidates`'s.
 
     Returns:
         A mask of the candidates the margin and the workspace keep ``(N,)``, and the checks
