@@ -8,7 +8,7 @@ from conftest import chain_of
 
 from calib import InvalidArgumentError
 from calib.design.constraints import Constraints, filter_candidates
-from calib.design.design import _draw, candidate_configurations, design
+from calib.design.design import RANDOM_POOL, _draw, _random_sets, candidate_configurations, design
 from calib.design.exchange import optimal_subset
 
 
@@ -65,6 +65,20 @@ def test_random_sets_hold_only_candidates_the_check_accepts():
     assert len(rows) == 20 and ok[rows].all() and len(set(rows.tolist())) == 20
     few = _draw(10, 20, np.random.default_rng(1), lambda idx: ok[idx])
     assert sorted(few.tolist()) == np.flatnonzero(ok[:10]).tolist()
+
+
+def test_random_sets_come_from_a_checked_pool():
+    ok = np.arange(5000) % 4 != 0
+    asked: list[int] = []
+
+    def check(idx):
+        asked.extend(idx.tolist())
+        return ok[idx]
+
+    sets = list(_random_sets(5000, 30, np.random.default_rng(2), check, range(20)))
+    assert len(sets) == 20 and all(len(set(r.tolist())) == 30 and ok[r].all() for r in sets)
+    assert len(set(np.concatenate(sets).tolist())) > 30  # not one set repeated
+    assert len(asked) < 2 * RANDOM_POOL * 30  # the pool's checks, not 20 sets' apart
 
 
 def test_too_few_collision_free_candidates_is_one_error():

@@ -11,7 +11,7 @@ candidates. :func:`evaluate` gives the indices of a user's set.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,6 +43,11 @@ from .observability import (
 
 RANDOM_SETS = 20
 """Random sets of K candidates the design is compared with."""
+
+RANDOM_POOL = 10
+"""With collision checks, the random sets are drawn from a pool of this many times K
+candidates drawn and checked first (each set a uniform random K of the collision-free
+candidates all the same, at half the checks of 20 sets drawn apart)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,7 +226,7 @@ def design(
     chosen = np.array(result.design)
     n_random = check_count(random_sets, "the number of random sets")
     sets = steps(progress, range(n_random), "design: random sets", n_random)
-    rand = tuple(_indices_rows(J, _draw(len(q), k, rng, check), ref) for _ in sets)
+    rand = tuple(_indices_rows(J, rows, ref) for rows in _random_sets(len(q), k, rng, check, sets))
     clock.append(time.perf_counter())
     report = lazy.report()
     stages = ("filters", "jacobian", "exchange", "random")
@@ -278,6 +283,22 @@ def _too_few(report: FilterReport, k: int) -> InvalidArgumentError:
 def _lazily_rejected(report: FilterReport) -> int:
     """Candidates the collision and line-of-sight checks rejected."""
     return sum(n for name, n in report.rejected if name in ("collision", "line_of_sight"))
+
+
+def _random_sets(n: int, k: int, rng: np.random.Generator, check, sets) -> Iterator[np.ndarray]:
+    """Random sets of ``k`` of ``n`` candidates, one per item of ``sets``.
+
+    Without a check, each drawn apart; with one, each a random k of a pool of
+    ``RANDOM_POOL k`` candidates the check accepts (drawn once, at the first set).
+    """
+    pool = None
+    for _ in sets:
+        if check is None:
+            yield _subset(n, k, rng)
+            continue
+        if pool is None:
+            pool = _draw(n, RANDOM_POOL * k, rng, check)
+        yield pool[_subset(len(pool), k, rng)]
 
 
 def _draw(n: int, k: int, rng: np.random.Generator, check) -> np.ndarray:
