@@ -204,6 +204,7 @@ def calibrate(
             max_iterations=max_iterations,
             holdout=holdout,
             seed=seed,
+            progress=progress,
         )
     opts = Options(
         level=DEFAULT_LEVEL if params is None else params,
