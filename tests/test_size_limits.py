@@ -6,6 +6,7 @@ import pytest
 
 import calib.calibration.contact_pipeline as contact_pipeline
 import calib.calibration.pipeline as pipeline
+import calib.core.checks
 import calib.measurements.contact_campaign as contact_campaign
 import calib.measurements.csvfile as csvfile
 from calib import InvalidArgumentError, load_chain, simulate
@@ -66,15 +67,23 @@ def test_too_many_rows_is_one_line(tmp_path, capsys, monkeypatch):
         pipeline.calibrate(chain, data)
 
 
+def test_the_selection_bound_of_the_measured_cases():
+    """The estimate covers the two measured peaks (2.4 GB and 3.8 GB) and refuses both."""
+    per_touch, per_column = contact_pipeline.SELECTION_BYTES
+    for m, columns, peak in ((20000, 65, 2.4e9), (2000, 1562, 3.8e9)):
+        need = m * (per_touch + columns * per_column)
+        assert peak <= need <= 1.2 * peak and need > calib.core.checks.MAX_WORK_BYTES
+
+
 def test_a_contact_selection_too_big_for_memory_is_refused_up_front(monkeypatch):
     """params 'auto' on too many touches x columns: one line naming the way out, before the
-    registration (no work); a level is accepted on the same touches."""
+    registration (no work); at the bound, the selection runs."""
     chain = load_chain("ur5")
     data = simulate_contacts(chain, 40, "plane", contacts=2, seed=0).data
     columns = 2 * 3 + 2 + len(contact_pipeline._candidates(from_chain(chain), "auto"))
-    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", 2**31 // (40 * columns) + 1)
+    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", (0, 2**31 // (40 * columns) + 1))
     with pytest.raises(InvalidArgumentError, match="give a level") as err:
         calibrate_contacts(chain, data)
     assert f"{columns} columns (8 of the plane(s) and the contact) on 40 touches" in str(err.value)
-    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", 2**31 // (40 * columns))
+    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", (0, 2**31 // (40 * columns)))
     assert calibrate_contacts(chain, data).selection is not None  # at the bound: selected

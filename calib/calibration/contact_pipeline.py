@@ -115,25 +115,27 @@ def split_contacts(
     return subset(data, ~held), subset(data, held)
 
 
-SELECTION_BYTES = 2000
-"""Memory [B] of ``params auto``'s selection per touch and column (objects', contact's and
-candidates'), with a margin: measured 1.85 kB (TALOS sole to gripper, 20,000 touches of one
-plane: 2.4 GB) and 1.2 kB (2,000 touches of 500 planes: 3.8 GB and past 5 minutes)."""
+SELECTION_BYTES = (48_000, 1_300)
+"""Memory [B] of ``params auto``'s selection per touch, and per touch and column (objects',
+contact's and candidates'), with a margin of about 10 %: fitted to the peaks measured on TALOS
+sole to gripper, 20,000 touches of one plane (65 columns: 2.4 GB) and 2,000 touches of 500
+planes (1,562 columns: 3.8 GB, past 5 minutes)."""
 
 
 def check_selection_memory(data: ContactData, nominal: MDHModel, opts: Options, comp: int) -> None:
     """Refuse, before any work, a selection (``params auto``) that needs more than 2 GB.
 
     Raises:
-        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES` per touch and column)
-            exceeds ``MAX_WORK_BYTES``; says what to do.
+        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES`) exceeds
+            ``MAX_WORK_BYTES``; says what to do.
     """
     if opts.level != "auto":
         return
     kind = data.kind
     fixed = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
     columns = fixed + len(_candidates(nominal, "auto")) + comp
-    need = data.m * columns * SELECTION_BYTES
+    per_touch, per_column = SELECTION_BYTES
+    need = data.m * (per_touch + columns * per_column)
     if need > MAX_WORK_BYTES:
         raise InvalidArgumentError(
             f"params 'auto' would cross-validate {columns} columns ({fixed} of the "
