@@ -101,3 +101,24 @@ def test_block_fit_reaches_minpacks_minimum(forty_planes, with_prior):
     assert np.allclose(blocks.x, dense.x, atol=1e-9, rtol=0)
     assert np.allclose(blocks.f, dense.f, atol=1e-11, rtol=0)  # 1e-8 mm
     assert np.allclose(blocks.J, dense.J, atol=1e-9, rtol=0)
+
+
+def test_a_long_recording_of_one_plane_needs_no_touches_by_touches_matrix():
+    """6,000 noise-free touches of one plane: registered (the plane recovered) with a peak of
+    memory far below one 6,000 x 6,000 matrix (288 MB; the plane's start once built it)."""
+    import tracemalloc
+
+    from test_contact_registration import CONTACT, GUESS, PLANES, _flush_touches
+
+    from calib.calibration.contact_registration import register_planes
+
+    R, p = _flush_touches(PLANES["table"], CONTACT, 6000, 0)
+    tracemalloc.start()
+    try:
+        reg = register_planes(R, p, ["table"] * 6000, GUESS)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 60e6, peak
+    assert np.allclose(reg.planes[0, :3, 2], PLANES["table"][:3, 2], atol=1e-9)
+    assert np.max(np.abs(reg.residuals)) < 1e-9
