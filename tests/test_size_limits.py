@@ -68,11 +68,11 @@ def test_too_many_rows_is_one_line(tmp_path, capsys, monkeypatch):
 
 
 def test_the_selection_bound_of_the_measured_cases():
-    """The estimate covers the two measured peaks (2.4 GB and 3.8 GB) and refuses both."""
+    """The estimate covers the measured peaks (and refuses them: each is above 2 GB)."""
     per_touch, per_column = contact_pipeline.SELECTION_BYTES
-    for m, columns, peak in ((20000, 65, 2.4e9), (2000, 1562, 3.8e9)):
+    for m, columns, peak in ((20000, 65, 2.48e9), (1200, 1262, 2.19e9), (2000, 1562, 4.07e9)):
         need = m * (per_touch + columns * per_column)
-        assert peak <= need <= 1.2 * peak and need > calib.core.checks.MAX_WORK_BYTES
+        assert peak <= need <= 1.25 * peak and need > calib.core.checks.MAX_WORK_BYTES
 
 
 def test_a_contact_selection_too_big_for_memory_is_refused_up_front(monkeypatch):
