@@ -9,7 +9,7 @@ import pytest
 
 from calib import load_chain
 from calib.calibration import contact_checks, contact_fit, contact_pipeline
-from calib.calibration.contact_blocks import block_lstsq
+from calib.calibration.contact_blocks import BlockSystem, block_lstsq
 from calib.calibration.contact_fit import block_fit, block_structural
 from calib.calibration.contact_model import ContactModel
 from calib.calibration.solve import fit
@@ -41,7 +41,7 @@ def test_block_least_squares_is_the_dense_least_squares(seed):
     r = rng.standard_normal((m, rows))
     damping = rng.uniform(0.1, 1.0, (K, o))
     extra = rng.standard_normal((4, s + 1))
-    sol = block_lstsq(Jo, Js, r, index, K, damping, extra)
+    sol = block_lstsq(BlockSystem(Jo, Js, r, index, K), damping, extra)
     A = np.vstack(
         [
             _dense(Jo, Js, index, K),
@@ -52,7 +52,7 @@ def test_block_least_squares_is_the_dense_least_squares(seed):
     b = -np.r_[r.ravel(), np.zeros(K * o), extra[:, s]]
     x = np.linalg.lstsq(A, b, rcond=None)[0]
     assert np.allclose(np.r_[sol.objects.ravel(), sol.shared], x, atol=1e-10, rtol=0)
-    plain = block_lstsq(Jo, Js, r, index, K)
+    plain = block_lstsq(BlockSystem(Jo, Js, r, index, K))
     x0 = np.linalg.lstsq(_dense(Jo, Js, index, K), -r.ravel(), rcond=None)[0]
     assert np.allclose(np.r_[plain.objects.ravel(), plain.shared], x0, atol=1e-10, rtol=0)
 

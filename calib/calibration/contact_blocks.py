@@ -23,7 +23,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BlockSolution", "block_factors", "block_lstsq"]
+__all__ = ["BlockSolution", "BlockSystem", "block_factors", "block_lstsq"]
+
+
+@dataclass(frozen=True, eq=False)
+class BlockSystem:
+    """``min |A x_o + B x_s + r|``, A block diagonal by object, given touch by touch.
+
+    Attributes:
+        own: Rows of each touch on its own object's unknowns ``(m, rows, o)``.
+        shared: Rows of each touch on the shared unknowns ``(m, rows, s)``.
+        residual: Residual rows of each touch ``(m, rows)``.
+        index: The object of each touch ``(m,)`` (each object has touches).
+        objects: Number of objects K.
+    """
+
+    own: np.ndarray
+    shared: np.ndarray
+    residual: np.ndarray
+    index: np.ndarray
+    objects: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,28 +69,20 @@ def _buckets(counts: np.ndarray, least: int) -> np.ndarray:
     return (2 ** np.ceil(np.log2(np.maximum(size, 1)))).astype(int)
 
 
-def block_factors(
-    Jo: np.ndarray,
-    Js: np.ndarray,
-    r: np.ndarray,
-    index: np.ndarray,
-    K: int,
-    damping: np.ndarray | None = None,
-) -> np.ndarray:
+def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.ndarray:
     """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
 
     Args:
-        Jo: Rows of each touch on its object's unknowns ``(m, rows, o)``.
-        Js: Rows of each touch on the shared unknowns ``(m, rows, s)``.
-        r: Residual rows of each touch ``(m, rows)``.
-        index: The object of each touch ``(m,)`` (each object has touches).
-        K: Number of objects.
+        system: The rows.
         damping: Extra rows ``diag(damping[k])`` (zero residual) of each object's unknowns
             ``(K, o)``, or None.
 
     Returns:
         The factors (rows beyond an object's own rank are zero).
     """
+    Jo, Js, r, index, K = (
+        system.own, system.shared, system.residual, system.index, system.objects
+    )  # fmt: skip
     m, rows, o = Jo.shape
     s = Js.shape[2]
     w = o + s + 1
@@ -101,22 +112,12 @@ def block_factors(
 
 
 def block_lstsq(
-    Jo: np.ndarray,
-    Js: np.ndarray,
-    r: np.ndarray,
-    index: np.ndarray,
-    K: int,
-    damping: np.ndarray | None = None,
-    shared_rows: np.ndarray | None = None,
+    system: BlockSystem, damping: np.ndarray | None = None, shared_rows: np.ndarray | None = None
 ) -> BlockSolution:
-    """``min |A x_o + B x_s + r|`` with A block diagonal by object (see the module's text).
+    """The least squares of ``system`` (see the module's text).
 
     Args:
-        Jo: Rows of each touch on its object's unknowns ``(m, rows, o)``.
-        Js: Rows of each touch on the shared unknowns ``(m, rows, s)``.
-        r: Residual rows of each touch ``(m, rows)``.
-        index: The object of each touch ``(m,)``.
-        K: Number of objects.
+        system: The rows.
         damping: Extra rows ``diag(damping[k])`` on each object's unknowns ``(K, o)``.
         shared_rows: Extra rows ``[C | c]`` on the shared unknowns alone ``(n, s + 1)``
             (``min |C x_s + c|`` joins the sum), or None.
@@ -124,8 +125,8 @@ def block_lstsq(
     Returns:
         The solution (the least-norm one in the shared unknowns if they are undetermined).
     """
-    o, s = Jo.shape[2], Js.shape[2]
-    F = block_factors(Jo, Js, r, index, K, damping)
+    o, s, K = system.own.shape[2], system.shared.shape[2], system.objects
+    F = block_factors(system, damping)
     R, S, y = F[:, :o, :o], F[:, :o, o : o + s], F[:, :o, -1]
     reduced = F[:, o:, o:].reshape(-1, s + 1)
     if shared_rows is not None:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..identification.base_columns import independent_columns
-from .contact_blocks import block_factors, block_lstsq
+from .contact_blocks import BlockSystem, block_factors, block_lstsq
 from .contact_model import ContactModel, ContactState
 from .solve import TOLERANCE, Fit
 
@@ -97,7 +97,8 @@ def block_fit(
             extra = [np.c_[np.sqrt(lam) * np.diag(Ds), np.zeros(len(Ds))]]
             if prior_s is not None:
                 extra.append(np.c_[np.diag(prior_s), prior_s * x[split:]])
-            sol = block_lstsq(own, shared, f, index, K, np.sqrt(lam) * Do, np.vstack(extra))
+            system = BlockSystem(own, shared, f, index, K)
+            sol = block_lstsq(system, np.sqrt(lam) * Do, np.vstack(extra))
             step = np.r_[sol.objects.ravel(), sol.shared]
             linear = f + np.einsum("mro,mo->mr", own, sol.objects[index]) + shared @ sol.shared
             predicted = cost - _cost(linear, prior, x + step)
@@ -154,7 +155,7 @@ def block_structural(model: ContactModel, start: ContactState, data, torque) -> 
     """
     K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
     own, shared, index = model.blocks(start, np.zeros(model.size()), data, torque)
-    F = block_factors(own, shared, np.zeros(own.shape[:2]), index, K)
+    F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))
     R = F[:, :o, :o]
     diag = np.abs(np.diagonal(R, axis1=1, axis2=2))
     scale = max(float(np.max(np.abs(F))), 1e-300)

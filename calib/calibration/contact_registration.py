@@ -61,7 +61,7 @@ from ..identification.contacts import (
     PlanePointContact,
 )
 from ..kinematics.so3 import rotation_matrix, tilt_derivatives, tilts
-from .contact_blocks import block_lstsq
+from .contact_blocks import BlockSystem, block_lstsq
 from .contact_frames import ContactFrames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
@@ -272,7 +272,7 @@ def refine(
         rows = w[None, :, None]
         Jo = frames.kind.jacobian_rows(own, R) * rows
         Jc = frames.kind.jacobian_rows(shared, R) * rows
-        sol = block_lstsq(Jo, Jc, r, index, K)
+        sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
         if not sol.smallest > CONDITION_LIMIT * sol.largest:
             raise ContactGeometryError(
                 f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame: "
