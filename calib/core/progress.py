@@ -42,9 +42,10 @@ def terminal(quiet: bool = False, stream=None) -> Progress | None:
     from tqdm import tqdm
 
     def bar(iterable=None, desc: str | None = None, total: int | None = None):
+        shape = "{desc}: {elapsed}" if iterable is None and total is None else None  # a phase
         return tqdm(
             iterable, desc=desc, total=total, file=out, leave=False, delay=PHASE_DELAY,
-            dynamic_ncols=True,
+            dynamic_ncols=True, bar_format=shape,
         )  # fmt: skip
 
     return bar
