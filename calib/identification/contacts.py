@@ -469,7 +469,12 @@ def joint_jacobian(mdh: MDHModel, kin: Kinematics) -> np.ndarray:
 def _newton_step(J: np.ndarray, gap: np.ndarray) -> np.ndarray:
     """Least-norm, lightly damped solutions of ``J dq = -gap`` ``(m, n)``."""
     JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(J.shape[1])
-    return -(np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
+    try:
+        x = np.linalg.solve(JJ, gap[:, :, None])
+    except np.linalg.LinAlgError:  # numerically singular (huge rows near the flipped side)
+        finite = np.nan_to_num(JJ, nan=0.0, posinf=0.0, neginf=0.0)
+        x = np.linalg.pinv(finite) @ gap[:, :, None]
+    return -(np.swapaxes(J, 1, 2) @ x)[:, :, 0]
 
 
 def project(
