@@ -122,3 +122,29 @@ def test_a_long_recording_of_one_plane_needs_no_touches_by_touches_matrix():
     assert peak < 60e6, peak
     assert np.allclose(reg.planes[0, :3, 2], PLANES["table"][:3, 2], atol=1e-9)
     assert np.max(np.abs(reg.residuals)) < 1e-9
+
+
+def test_block_fit_of_compliances_reaches_minpacks_minimum(forty_planes):
+    """With the joint compliances too (standing torques): the same minimum as MINPACK's, the
+    cost no higher (MINPACK stops a little earlier on these scales)."""
+    from calib.calibration import contact_elastic
+
+    nominal, start, train = forty_planes
+    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
+    load = contact_elastic.standing(chain, train.kind, True, None)
+    torque = contact_elastic.torques(load, train, None)[0]
+    offered = contact_pipeline._candidates(nominal, "offsets")
+    comp = tuple(range(nominal.n))
+    wide = ContactModel(offered, start.frames, comp)
+    kept = contact_pipeline._structural(wide, start, train, load)
+    split = wide.fixed + len(offered)
+    params = tuple(offered.parameters[c - wide.fixed] for c in kept if wide.fixed <= c < split)
+    joints = tuple(comp[c - split] for c in kept if c >= split)
+    assert joints  # compliances are fitted
+    model = ContactModel(ParameterSet("free", params), start.frames, joints)
+    dense = fit(model, start, train, torque, 1.0)
+    blocks = block_fit(model, start, train, torque)
+    assert dense.converged and blocks.converged
+    assert np.allclose(blocks.x, dense.x, atol=1e-7, rtol=0)
+    assert np.allclose(blocks.f, dense.f, atol=1e-9, rtol=0)  # 1e-6 mm
+    assert np.sum(blocks.f**2) <= np.sum(dense.f**2) * (1 + 1e-12)
