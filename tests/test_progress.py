@@ -87,3 +87,24 @@ def test_quiet_is_accepted_before_and_after_the_command(quiet, capsys):
 
     argv = ["--quiet", "list"] if quiet else ["list", "--quiet"]
     assert main(argv) == 0
+
+
+def test_contact_calibration_tells_its_phases():
+    from calib import load_chain
+    from calib.calibration.contact_pipeline import calibrate_contacts
+    from calib.measurements.contact_campaign import simulate_contacts
+
+    chain = load_chain("ur5")
+    data = simulate_contacts(chain, 30, "plane", contacts=2, seed=0).data
+    seen: list[str] = []
+
+    def progress(iterable=None, desc=None, total=None):
+        seen.append(desc)
+        return iterable
+
+    calibrate_contacts(chain, data, progress=progress)
+    assert [d.split(" (")[0] for d in seen] == [
+        "calibrate: registration",
+        "calibrate: selection",
+        "calibrate: fit",
+    ]
