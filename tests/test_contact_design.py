@@ -91,3 +91,17 @@ def test_contact_design_errors(tmp_path, capsys):
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "measures no point" in err and "Traceback" not in err and not out.exists()
+
+
+def test_a_numerically_singular_newton_system_takes_the_least_norm_step():
+    """Rows so large that the damping is lost in round-off (near the flipped side): the
+    step is the least-norm one (numpy's lstsq), not a LinAlgError; a UR5 plane design
+    that met one completes."""
+    from calib.identification.contacts import _newton_step
+
+    J = np.array([[[1e9, 0.0, 0.0], [1e9, 0.0, 0.0]]])  # two equal rows: J J^T singular
+    gap = np.array([[2e9, 2e9]])
+    expected = -np.linalg.lstsq(J[0], gap[0], rcond=None)[0]
+    assert np.allclose(_newton_step(J, gap)[0], expected, rtol=1e-9, atol=0)
+    d = design(load_chain("ur5"), 20, candidates=300, measure="plane")
+    assert len(d.q) == 20

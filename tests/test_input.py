@@ -264,6 +264,17 @@ def test_memory_estimate_of_an_analysis_is_an_upper_bound(tmp_path):
     assert kb - base_kb <= estimate_kb, (kb - base_kb, estimate_kb)
 
 
+def test_memory_estimate_of_a_design_is_an_upper_bound():
+    """The design's own estimate (smaller than an analysis's) covers its real peak."""
+    argv = ["design", "tiago", "--configs", "30", "--no-collision", "--quiet", "--candidates"]
+    base_code, base_kb = peak_kb(*argv, "200")
+    m = 20000
+    code, kb = peak_kb(*argv, str(m))
+    assert base_code == code == 0
+    estimate_kb = m * 8 * calib.core.checks.DESIGN_BYTES_PER_CANDIDATE_JOINT / 1024
+    assert kb - base_kb <= estimate_kb, (kb - base_kb, estimate_kb)
+
+
 @pytest.mark.parametrize("configs", ["1e12", "1000000000000", "100000000"])
 @pytest.mark.parametrize("command", ["analyze", "simulate", "sweep"])
 def test_huge_configs_are_refused_at_once(tmp_path, capfd, command, configs):

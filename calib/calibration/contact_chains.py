@@ -40,6 +40,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..core.checks import MAX_WEIGHT, check_number
+from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact, PlaneContact
 from ..identification.identifiability import independent_columns
@@ -309,6 +310,7 @@ def calibrate_contact_chains(
     max_iterations: int = 100,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -336,6 +338,8 @@ def calibrate_contact_chains(
         max_iterations: Most residual evaluations of the solver.
         holdout: Fraction of each chain's touches set aside (seeded).
         seed: Seed of the holdout draw.
+        progress: Progress bars of the registration, the selection and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -362,13 +366,17 @@ def calibrate_contact_chains(
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     train, dropped = _checked(chains, train, validate, guess, w, held, notes)
-    start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)
+    touches = sum(d.m for d in train)
+    with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
+        start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
-    model, _, selection, prior = _choose(start, train, plane_of, level, notes)
+    with phase(progress, "calibrate: selection"):
+        model, _, selection, prior = _choose(start, train, plane_of, level, notes)
     names = start.placements.names()
     wide = _model(start, plane_of, range(len(names)), names)
     clock.append(time.perf_counter())
-    fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
+    with phase(progress, "calibrate: fit"):
+        fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "

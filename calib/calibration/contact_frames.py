@@ -142,24 +142,40 @@ class ContactFrames:
         at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames.
         """
         m, o, K = len(p), len(self.kind.object_dofs), len(self.ids)
-        x = np.asarray(x, dtype=float)
+        own, shared = self.parts(R, p, index, x)
         W = np.zeros((m, 6, self.size))
+        if o:
+            cols = o * index[:, None] + np.arange(o)
+            W[np.arange(m)[:, None, None], np.arange(6)[None, :, None], cols[:, None, :]] = own
+        W[:, :, K * o :] = shared
+        return W
+
+    def parts(
+        self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`columns` by block: each touch's own object's ``(m, 6, o)``, the contact's.
+
+        The object's columns of a touch are those of its own object (the others are zero);
+        the contact's ``(m, 6, len(contact_dofs))`` are shared by every touch.
+        """
+        m, o, K = len(p), len(self.kind.object_dofs), len(self.ids)
+        x = np.asarray(x, dtype=float)
+        own = np.zeros((m, 6, o))
         if o:
             # F -> F exp(d): the contact seen from F moves by exp(-d): dp = -dt + [p]x dr
             E = np.zeros((m, 6, 6))
             E[:, :3, :3] = -np.eye(3)
             E[:, :3, 3:] = skew(p)
             E[:, 3:, 3:] = -np.eye(3)
-            A = twist_map(self.kind.object_dofs, x[: K * o].reshape(K, o))[index]
-            cols = o * index[:, None] + np.arange(o)
-            W[np.arange(m)[:, None, None], np.arange(6)[None, :, None], cols[:, None, :]] = E @ A
+            own = E @ twist_map(self.kind.object_dofs, x[: K * o].reshape(K, o))[index]
+        shared = np.zeros((m, 6, len(self.kind.contact_dofs)))
         if self.kind.contact_dofs:
             # C -> C exp(d): the contact moves by R dt and turns by R dr in F
             E = np.zeros((m, 6, 6))
             E[:, :3, :3] = R
             E[:, 3:, 3:] = R
-            W[:, :, K * o :] = E @ twist_map(self.kind.contact_dofs, x[K * o :])
-        return W
+            shared = E @ twist_map(self.kind.contact_dofs, x[K * o :])
+        return own, shared
 
     def rotate(self, W6_base: np.ndarray, index: np.ndarray) -> np.ndarray:
         """A pose-error Jacobian in the base frame ``(m, 6, k)`` seen in each touch's object."""

@@ -197,12 +197,32 @@ class ContactModel:
 
     def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None) -> np.ndarray:
         """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``."""
+        own, shared, index = self.blocks(start, x, data, torque)
+        m, rows, o = own.shape
+        J = np.zeros((m, rows, self.size()))
+        if o:
+            cols = o * index[:, None] + np.arange(o)
+            J[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = own
+        J[:, :, len(self.frames.ids) * o :] = shared
+        return J
+
+    def blocks(
+        self, start: ContactState, x: np.ndarray, data, torque=None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`jacobian` by block: each touch's own object's columns, the shared ones.
+
+        Returns:
+            The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
+            other objects' are zero), on the shared unknowns (the contact's, the robot's,
+            the compliances) ``(m, rows, size - K o)``, and the object of each touch.
+        """
         s = self.apply(start, x)
         q = s.joints(data.q, torque)
         kin = s.mdh.kinematics(q)
         index = s._index(data.ids, len(q), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
-        W = [s.frames.columns(R, p, index, x[: self.fixed])]
+        own, shared = s.frames.parts(R, p, index, x[: self.fixed])
+        W = [shared]
         if len(self.params) or self.compliance:
             offsets = tuple(offset_parameter(s.mdh, j) for j in self.compliance)
             pset = ParameterSet("columns", (*self.params.parameters, *offsets))
@@ -213,5 +233,6 @@ class ContactModel:
                 gain = np.asarray(torque, dtype=float)[:, joints] * s.mdh.sign[1:-1][joints]
                 W6[:, :, len(self.params) :] *= gain[:, None, :]
             W.append(s.frames.rotate(W6, index))
-        J = s.kind.jacobian_rows(np.concatenate(W, axis=2), R)
-        return J * s.row_weights()[None, :, None]
+        w = s.row_weights()[None, :, None]
+        own = s.kind.jacobian_rows(own, R) * w
+        return own, s.kind.jacobian_rows(np.concatenate(W, axis=2), R) * w, index

@@ -35,6 +35,8 @@ import time
 
 import numpy as np
 
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, MAX_WORK_BYTES, check_size
+from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import CONTACT_TOL, joint_offsets, project
 from ..identification.identifiability import independent_columns, preference_order
@@ -47,6 +49,7 @@ from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
+from .contact_fit import block_fit, block_structural, by_block
 from .contact_model import ContactModel, ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
@@ -119,6 +122,38 @@ def split_contacts(
     return subset(data, ~held), subset(data, held)
 
 
+SELECTION_BYTES = (35_000, 1_560)
+"""Memory [B] of ``params auto``'s selection per touch, and per touch and column (objects',
+contact's and candidates'), with a margin of about 10 %: fitted to the peaks measured on TALOS
+sole to gripper, 20,000 touches of one plane (65 columns: 2.48 GB) and 1,200 touches of 400
+planes (1,262 columns: 2.19 GB); 2,000 touches of 500 planes (1,562 columns) passed 4.07 GB
+and 5 minutes."""
+
+
+def check_selection_memory(data: ContactData, nominal: MDHModel, opts: Options, comp: int) -> None:
+    """Refuse, before any work, a selection (``params auto``) that needs more than 2 GB.
+
+    Raises:
+        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES`) exceeds
+            ``MAX_WORK_BYTES``; says what to do.
+    """
+    if opts.level != "auto":
+        return
+    kind = data.kind
+    fixed = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
+    columns = fixed + len(_candidates(nominal, "auto")) + comp
+    per_touch, per_column = SELECTION_BYTES
+    need = data.m * (per_touch + columns * per_column)
+    if need > MAX_WORK_BYTES:
+        raise InvalidArgumentError(
+            f"params 'auto' would cross-validate {columns} columns ({fixed} of the "
+            f"{kind.object_name}(s) and the contact) on {data.m} touches: about "
+            f"{need / 2**30:.3g} GB, calib allows {MAX_WORK_BYTES / 2**30:g} GB; give a level "
+            f"(params complete, paper, offsets or frames), or fewer touches or "
+            f"{kind.object_name}s"
+        )
+
+
 def _check(chain, data, validate, opts: Options) -> None:
     if not isinstance(chain, Chain) or chain.is_tree:
         raise InvalidArgumentError(f"contacts are calibrated on one Chain, got {chain!r:.60}")
@@ -131,6 +166,8 @@ def _check(chain, data, validate, opts: Options) -> None:
             raise DataError(d.source, "the touches' joints are not the chain's")
         if not d.m:
             raise DataError(d.source, "no touches: an empty contact set")
+        check_size(d.m, MAX_TOUCHES, "touches", d.source)
+        check_size(len(d.contacts), MAX_OBJECTS, f"{d.id_column}s", d.source)
     if validate is not None:
         if opts.holdout > 0:
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
@@ -224,6 +261,8 @@ def _structural(
     qf, _ = touching_postures(start, train.q, train.ids)
     held = dataclasses.replace(train, q=qf)
     torque = None if load is None or not wide.compliance else load.torques(qf, train.readings)
+    if by_block(wide):
+        return block_structural(wide, start, held, torque)
     A = wide.jacobian(start, np.zeros(wide.size()), held, torque).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
@@ -301,6 +340,7 @@ def calibrate_contacts(
     max_iterations: int = 100,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> ContactCalibration:
     """Calibrate a chain from touches of any contact kind (see the module's text).
 
@@ -321,6 +361,8 @@ def calibrate_contacts(
         max_iterations: Most residual evaluations of the solver.
         holdout: Fraction of each object's touches set aside (seeded).
         seed: Seed of the holdout draw.
+        progress: Progress bars of the registration, the selection and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
     Returns:
         The result: check ``accepted``.
@@ -341,16 +383,18 @@ def calibrate_contacts(
     )
     _check(chain, data, validate, opts)
     load = contact_elastic.standing(chain, data.kind, opts.elastic, support)
+    nominal = from_chain(chain)
+    check_selection_memory(data, nominal, opts, 0 if load is None else chain.n)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = opts.orientation_weight
     train, held = split_contacts(data, opts.holdout, opts.seed)
     held = validate if validate is not None else held
-    nominal = from_chain(chain)
-    first, bad, notes = contact_checks.checked_registration(
-        chain, nominal, train, validate, guess, w
-    )
-    held = _held_out_outliers(first, train, held, notes)
+    with phase(progress, f"calibrate: registration ({train.m} touches)"):
+        first, bad, notes = contact_checks.checked_registration(
+            chain, nominal, train, validate, guess, w
+        )
+        held = _held_out_outliers(first, train, held, notes)
     clock.append(time.perf_counter())
     full = contact_elastic.torques(load, train, None)[0]
 
@@ -363,9 +407,10 @@ def calibrate_contacts(
 
     rows = train.rows or tuple(range(1, train.m + 1))
     start = bad | _proposals(first, train, opts)
-    rnd, _, dropped = outliers.until_stable(
-        refit, errors, None, rows, start, contact_checks.enough_touches(train)
-    )
+    with phase(progress, "calibrate: selection and fit"):
+        rnd, _, dropped = outliers.until_stable(
+            refit, errors, None, rows, start, contact_checks.enough_touches(train)
+        )
     notes = [*notes, *rnd.notes]
     if dropped:
         notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
@@ -431,9 +476,14 @@ def _round(chain, nominal, train, held, guess, opts, load, start=None) -> _Round
     notes += filter(None, [contact_elastic.readings_note(load, train, held)])
     model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
     tic = time.perf_counter()
-    fitted = fit(
-        model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
-    )
+    if by_block(model):  # many objects: their unknowns eliminated per object
+        fitted = block_fit(
+            model, start, train, torque[0], prior=prior, max_iterations=opts.max_iterations
+        )
+    else:
+        fitted = fit(
+            model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
+        )
     ms = 1e3 * (time.perf_counter() - tic)
     return _Round(train, start, torque, fitted, selection, tuple(notes), ms, prior)
 

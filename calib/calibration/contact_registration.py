@@ -61,6 +61,7 @@ from ..identification.contacts import (
     PlanePointContact,
 )
 from ..kinematics.so3 import rotation_matrix, tilt_derivatives, tilts
+from .contact_blocks import BlockSystem, block_lstsq
 from .contact_frames import ContactFrames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
@@ -260,26 +261,44 @@ def refine(
     """
     w = row_weights(frames.kind, weight)
     x = np.zeros(frames.size)
+    K = len(frames.ids)
     steps = 0
     while steps < ITERATIONS:
         steps += 1
         cur = frames.moved(x)
         R, p = cur.relative(rotations, positions, index)
         r = frames.kind.residual(R, p) * w
-        J = frames.kind.jacobian_rows(cur.columns(R, p, index, x), R) * w[None, :, None]
-        A = J.reshape(-1, frames.size)
-        sv = np.linalg.svd(A, compute_uv=False)
-        if sv[-1] <= CONDITION_LIMIT * sv[0]:
+        own, shared = cur.parts(R, p, index, x)
+        rows = w[None, :, None]
+        Jo = frames.kind.jacobian_rows(own, R) * rows
+        Jc = frames.kind.jacobian_rows(shared, R) * rows
+        sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
+        if not sol.smallest > CONDITION_LIMIT * sol.largest:
             raise ContactGeometryError(
                 f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame"
-                f"{_undetermined(A, frames.names())}: touch at several orientations, or at "
+                f"{_undetermined(_dense(Jo, Jc, index, K), frames.names())}: touch at several "
+                f"orientations, or at "
                 f"spots that span each {frames.kind.object_name}"
             )
-        step = np.linalg.lstsq(A, -r.ravel(), rcond=None)[0]
+        step = np.r_[sol.objects.ravel(), sol.shared]
         x = x + step
         if np.max(np.abs(step)) < STEP_TOLERANCE:
             break
     return frames.moved(x), steps
+
+
+def _dense(Jo: np.ndarray, Jc: np.ndarray, index: np.ndarray, K: int) -> np.ndarray:
+    """The dense Jacobian ``(m rows, K d + c)`` of the blocks (for an error message only).
+
+    ``Jo`` ``(m, rows, d)``: touch i's columns of its object ``index[i]``; ``Jc``: the shared
+    columns.
+    """
+    m, rows, d = Jo.shape
+    A = np.zeros((m, rows, K * d + Jc.shape[2]))
+    cols = np.asarray(index)[:, None] * d + np.arange(d)[None, :]
+    A[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = Jo
+    A[:, :, K * d :] = Jc
+    return A.reshape(m * rows, -1)
 
 
 def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
@@ -295,14 +314,14 @@ def _plane_start(R, p, guess, index, names, w) -> ContactFrames:
     """The closed-form start: the chordal fit of the normals, or the contact points' planes."""
     K = len(names)
     M = np.stack([np.sum(np.swapaxes(R[index == k], 1, 2), axis=0) for k in range(K)])
-    U = np.linalg.svd(np.concatenate(list(M), axis=1))[0]
+    U = np.linalg.svd(np.concatenate(list(M), axis=1), full_matrices=False)[0]
     z0 = guess[:3, 2]
     a = U[:, 0] if U[:, 0] @ z0 >= 0 else -U[:, 0]
     x = p + R @ guess[:3, 3]
     point_normals = []
     for k in range(K):
         centred = x[index == k] - x[index == k].mean(axis=0)
-        nk = np.linalg.svd(centred)[2][-1]
+        nk = np.linalg.svd(centred, full_matrices=False)[2][-1]
         point_normals.append(nk if nk @ (R[index == k] @ z0).sum(axis=0) >= 0 else -nk)
     by_points = np.array(point_normals)
     candidates = []
@@ -384,7 +403,7 @@ def register_plane_points(
     normals, heights = [], []
     for k in range(len(names)):
         centred = x[index == k] - x[index == k].mean(axis=0)
-        n = np.linalg.svd(centred)[2][-1]
+        n = np.linalg.svd(centred, full_matrices=False)[2][-1]
         n = n if n[2] >= 0 else -n
         normals.append(n)
         heights.append(float(np.mean(x[index == k] @ n)))

@@ -9,6 +9,8 @@ from typing import overload
 
 import numpy as np
 
+from ..core.checks import MAX_ROWS, check_size
+from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
@@ -68,6 +70,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> CalibrationResult: ...
 
 
@@ -88,6 +91,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> TreeCalibrationResult: ...
 
 
@@ -108,6 +112,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> ContactCalibration: ...
 
 
@@ -128,6 +133,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> CalibrationResult | TreeCalibrationResult | ContactCalibration:
     """Calibrate a chain (or a tree) from measurements: a model that predicts unseen configurations.
 
@@ -159,6 +165,8 @@ def calibrate(
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
+        progress: Progress bars of the registration, the selection and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``) of a chain or contacts, or None.
 
     Returns:
         The result: check ``accepted`` (or call :meth:`CalibrationResult.check`).
@@ -169,6 +177,8 @@ def calibrate(
         InvalidArgumentError: A bad argument (:class:`~.options.Options`), an unknown one, or
             one given by position after ``data``.
     """
+    if isinstance(data, Measurements):
+        check_size(data.m, MAX_ROWS, "rows", data.source)
     if isinstance(data, ContactData):  # touches (no instrument): any contact kind, one chain
         return calibrate_contact_data(
             robot,
@@ -185,6 +195,7 @@ def calibrate(
             max_iterations=max_iterations,
             holdout=holdout,
             seed=seed,
+            progress=progress,
         )
     if isinstance(robot, Robot) and robot.is_tree:
         return calibrate_tree(
@@ -202,6 +213,7 @@ def calibrate(
             max_iterations=max_iterations,
             holdout=holdout,
             seed=seed,
+            progress=progress,
         )
     opts = Options(
         level=DEFAULT_LEVEL if params is None else params,
@@ -215,7 +227,7 @@ def calibrate(
         holdout=holdout,
         seed=seed,
     )
-    return _calibrate_chain(robot, data, marker, validate, opts)
+    return _calibrate_chain(robot, data, marker, validate, opts, progress)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -256,15 +268,16 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None) -> _Round:
     return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
 
 
-def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
+def _calibrate_chain(chain, data, marker, validate, opts, progress=None) -> CalibrationResult:
     """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
     clock = [time.perf_counter()]
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)
     guess = freedoms.marker_guess(marker, train.n_markers)
     checked = held if validate is not None else None
-    opts, reg, bad, notes = checked_registration(chain, nominal, train, checked, guess, opts)
-    held = held_out_outliers(reg, train, held, opts, notes)
+    with phase(progress, f"calibrate: registration ({train.m} rows)"):
+        opts, reg, bad, notes = checked_registration(chain, nominal, train, checked, guess, opts)
+        held = held_out_outliers(reg, train, held, opts, notes)
     clock.append(time.perf_counter())
     first = ~bad
     all_torque = _torques(chain, opts, train, None)[0]
@@ -279,7 +292,8 @@ def _calibrate_chain(chain, data, marker, validate, opts) -> CalibrationResult:
 
     rows = train.rows or tuple(range(1, train.m + 1))
     start = bad | proposals(nominal, reg, train, opts)
-    rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
+    with phase(progress, "calibrate: selection and fit"):
+        rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
     notes = [*notes, *rnd.notes]
     if dropped:
         notes.append(outliers.set_aside_note(dropped))

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.choices import DEFAULT_CONFIGS
+from ..core.progress import Progress, phase
 from ..exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
 from ..identification.parameters import ParameterSet
@@ -274,6 +275,7 @@ def calibrate_tree(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    progress: Progress | None = None,
 ) -> TreeCalibrationResult:
     """Calibrate a tree from measurements of several tools (one point per row and tool).
 
@@ -302,6 +304,8 @@ def calibrate_tree(
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
+        progress: Progress bars of the registration, the model's choice and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
     Raises:
         DataError: Data of other joints or tools, pose or several-point rows, too few or
@@ -327,30 +331,35 @@ def calibrate_tree(
         raise InvalidArgumentError(
             "marker is for one chain: a tree's markers are registered in closed form"
         )
-    return _calibrate_tree(tree, data, validate, opts.for_tree())
+    return _calibrate_tree(tree, data, validate, opts.for_tree(), progress)
 
 
-def _calibrate_tree(tree: Tree, data, validate, opts: Options) -> TreeCalibrationResult:
+def _calibrate_tree(
+    tree: Tree, data, validate, opts: Options, progress: Progress | None = None
+) -> TreeCalibrationResult:
     """:func:`calibrate_tree` with its options checked."""
     clock = [time.perf_counter()]
     max_iterations = opts.max_iterations
     train, held = _tree_datasets(tree, data, validate, opts)
     nominal = from_tree(tree)
     notes: list[str] = []
-    if validate is not None and _registrable(tree, validate):  # validation data are data
-        _, kept, _ = _drop_outliers(tree, nominal, validate, max_iterations)
-        _diagnose(tree, nominal, kept, max_iterations, None)
-    reg, train, dropped = _drop_outliers(tree, nominal, train, max_iterations)
-    _diagnose(tree, nominal, train, max_iterations, notes, reg)
-    if dropped:
-        notes.append(outliers.set_aside_note(dropped))
-    if not reg.converged:
-        raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    held = _held_out_outliers(reg.state, train, held, notes)
+    with phase(progress, f"calibrate: registration ({train.m} rows)"):
+        if validate is not None and _registrable(tree, validate):  # validation data are data
+            _, kept, _ = _drop_outliers(tree, nominal, validate, max_iterations)
+            _diagnose(tree, nominal, kept, max_iterations, None)
+        reg, train, dropped = _drop_outliers(tree, nominal, train, max_iterations)
+        _diagnose(tree, nominal, train, max_iterations, notes, reg)
+        if dropped:
+            notes.append(outliers.set_aside_note(dropped))
+        if not reg.converged:
+            raise DataError(train.source, f"the registration did not converge ({reg.message})")
+        held = _held_out_outliers(reg.state, train, held, notes)
     clock.append(time.perf_counter())
-    model = _tree_model(tree, nominal, reg.state, train, opts.level, opts.seed)
+    with phase(progress, "calibrate: selection"):
+        model = _tree_model(tree, nominal, reg.state, train, opts.level, opts.seed)
     clock.append(time.perf_counter())
-    fitted = fit(model, reg.state, train, None, 1.0, max_iterations=max_iterations)
+    with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
+        fitted = fit(model, reg.state, train, None, 1.0, max_iterations=max_iterations)
     clock.append(time.perf_counter())
     result = _tree_result(tree, opts.level, train, held, fitted, reg.state)
     clock.append(time.perf_counter())

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 from pathlib import Path
 
 from ..core.choices import PARAMETER_SETS
+from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import analyze
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
@@ -152,20 +152,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """Analyse every catalog chain and tree (and extra URDFs) and print one table."""
-    from tqdm import tqdm
-
     from ..outputs.plots import counts_figure, figure_bytes, figure_format
     from ..outputs.sweep import rows_table, rows_to_csv, sweep
-
-    def bar(jobs):
-        return tqdm(
-            jobs,
-            desc="calib sweep",
-            unit="chain",
-            file=sys.stderr,
-            leave=False,
-            disable=not sys.stderr.isatty(),
-        )
 
     plot_format = figure_format(args.plot, "--plot") if args.plot else None
     check_output_paths(
@@ -177,7 +165,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         marker=args.marker,
         configs=args.configs,
         seed=args.seed,
-        progress=bar,
+        progress=terminal(args.quiet),
         params=args.params,
     )
     files: dict[Path, str | bytes] = {}

@@ -14,6 +14,7 @@ from pathlib import Path
 from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
 from ..core.choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
 from ..core.fileio import json_text, written_in_place
+from ..core.progress import terminal
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
@@ -135,6 +136,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         max_iterations=args.max_iterations,
         holdout=args.holdout,
         seed=args.seed,
+        progress=terminal(args.quiet),
     )
 
     def files() -> dict[Path, str | bytes]:

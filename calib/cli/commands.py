@@ -55,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_predict_parser(sub)
     add_demo_parser(sub)
     _add_verbose(parser, sub)
+    _add_quiet(parser, sub)
     return parser
 
 
@@ -142,6 +143,14 @@ def _add_verbose(parser: argparse.ArgumentParser, sub) -> None:
     parser.add_argument("--verbose", action="store_true", help=text)
     for p in sub.choices.values():
         p.add_argument("--verbose", action="store_true", default=argparse.SUPPRESS, help=text)
+
+
+def _add_quiet(parser: argparse.ArgumentParser, sub) -> None:
+    """``--quiet`` before or after the command: no progress bars, even on a terminal."""
+    text = "no progress bars (shown on a terminal for phases longer than a second)"
+    parser.add_argument("--quiet", action="store_true", help=text)
+    for p in sub.choices.values():
+        p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=text)
 
 
 @contextlib.contextmanager

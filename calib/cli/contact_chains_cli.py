@@ -15,6 +15,7 @@ import argparse
 from pathlib import Path
 
 from ..core.fileio import check_outputs
+from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
@@ -128,6 +129,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         max_iterations=args.max_iterations,
         holdout=args.holdout,
         seed=args.seed,
+        progress=terminal(args.quiet),
     )
     return write_calibration(
         args,

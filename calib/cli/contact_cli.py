@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..core.fileio import check_outputs, json_text, written_in_place
+from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
@@ -101,6 +102,7 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
         max_iterations=args.max_iterations,
         holdout=args.holdout,
         seed=args.seed,
+        progress=terminal(args.quiet),
     )
 
     def urdf() -> dict[Path, str | bytes]:

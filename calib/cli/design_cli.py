@@ -7,7 +7,6 @@ live with the feature.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..core.choices import (
@@ -17,6 +16,7 @@ from ..core.choices import (
     DESIGN_LEVELS,
     EXCHANGE_CRITERIA,
 )
+from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from .common import (
     BooleanOnce,
@@ -119,7 +119,7 @@ def cmd_design(args: argparse.Namespace) -> int:
         orientation_weight=weight,
         constraints=constraints,
         seed=args.seed,
-        progress=_progress("calib design"),
+        progress=terminal(args.quiet),
     )
     if out is not None:
         write_outputs({out: configurations_csv(chain, result.q)})
@@ -151,16 +151,6 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
         )
         print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
     return 0
-
-
-def _progress(desc: str):
-    """A tqdm wrapper shown only when stderr is a terminal."""
-    from tqdm import tqdm
-
-    def bar(jobs):
-        return tqdm(jobs, desc=desc, file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
-
-    return bar
 
 
 def add_design_parser(sub) -> None:

@@ -10,14 +10,19 @@ from ..exceptions import InvalidArgumentError
 
 __all__ = [
     "BYTES_PER_CONFIG_JOINT",
+    "DESIGN_BYTES_PER_CANDIDATE_JOINT",
     "MAX_ERROR_MM",
     "MAX_ERROR_MRAD",
     "MAX_JOINT_POSITION",
+    "MAX_OBJECTS",
+    "MAX_ROWS",
+    "MAX_TOUCHES",
     "MAX_WEIGHT",
     "MAX_WORK_BYTES",
     "angle_mrad",
     "check_count",
     "check_number",
+    "check_size",
     "check_work",
     "joint_positions",
     "length_mm",
@@ -47,6 +52,37 @@ BYTES_PER_CONFIG_JOINT = 3000
 and reference sets, their QR copies and the kinematics), with a margin: the measured peak is
 1.9 kB (UR5, 50000 configurations) and 1.6 kB (100 joints, 2000 configurations); a test
 checks that the estimate covers a real run."""
+
+
+MAX_ROWS = 50_000
+"""Most configurations (rows) of measured data calib reads or calibrates on (a UR5's 100,000
+poses peaked at 1.9 GB with ``--params complete``)."""
+
+MAX_TOUCHES = 50_000
+"""Most touches of contact data calib reads or calibrates on."""
+
+MAX_OBJECTS = 2_000
+"""Most planes, points or poses of contact data (each brings its own unknowns)."""
+
+
+def check_size(count: int, limit: int, what: str, where: str | None = None) -> None:
+    """Refuse, before any work, more than ``limit`` rows, touches or objects.
+
+    Args:
+        count: How many there are.
+        limit: The stated maximum (:data:`MAX_ROWS`, :data:`MAX_TOUCHES`, :data:`MAX_OBJECTS`).
+        what: What is counted, plural ("touches").
+        where: The data's source, for the message, or None.
+
+    Raises:
+        InvalidArgumentError: ``count`` exceeds ``limit``.
+    """
+    if count > limit:
+        place = f"{where}: " if where else ""
+        raise InvalidArgumentError(
+            f"{place}{count} {what}: calib handles at most {limit} (split the campaign, or "
+            f"keep a subset)"
+        )
 
 
 def check_count(value, what: str, minimum: int = 1, maximum: int | None = None) -> int:
@@ -170,8 +206,20 @@ def joint_positions(q, n: int) -> np.ndarray:
     return real_array(q, "joint positions", shape, bound=MAX_JOINT_POSITION).reshape(-1, n)
 
 
+DESIGN_BYTES_PER_CANDIDATE_JOINT = 1500
+"""Memory [B] a design needs per candidate and joint (the candidates' Jacobian rows, kept
+twice by the exchange, and the Jacobians they come from), with a margin: the measured peak is
+1.2 kB (TIAGo, 8 joints, 100,000 candidates: 941 MB); a test checks that the estimate covers a
+real run."""
+
+
 def check_work(
-    m: int, n: int, chain: str | None = None, per_config: int = 1, what: str = "configurations"
+    m: int,
+    n: int,
+    chain: str | None = None,
+    per_config: int = 1,
+    what: str = "configurations",
+    per_joint: int = BYTES_PER_CONFIG_JOINT,
 ) -> None:
     """Refuse, before any work, an analysis that would need more than :data:`MAX_WORK_BYTES`.
 
@@ -182,12 +230,13 @@ def check_work(
         per_config: Tool placements per configuration (a tree's tools): the work of one
             configuration is that of ``per_config`` chains.
         what: What ``m`` counts in the message ("configurations", "candidates").
+        per_joint: Memory [B] per configuration and joint (default: an analysis's).
 
     Raises:
         InvalidArgumentError: The estimate exceeds the budget; the message names ``m`` and
             how many fit.
     """
-    per = max(n, 1) * max(per_config, 1) * BYTES_PER_CONFIG_JOINT
+    per = max(n, 1) * max(per_config, 1) * per_joint
     need = m * per
     if need > MAX_WORK_BYTES:
         raise InvalidArgumentError(

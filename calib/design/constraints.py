@@ -80,11 +80,14 @@ class FilterReport:
         candidates: Candidates given.
         rejected: ``(filter, count)`` per filter applied, in order.
         notes: Remarks (collision pairs disabled, no geometry, ...).
+        checked: Candidates the collision and line-of-sight checks looked at (a design
+            checks those it considers, :class:`LazyChecks`), or None (no such check).
     """
 
     candidates: int
     rejected: tuple[tuple[str, int], ...] = ()
     notes: tuple[str, ...] = field(default=())
+    checked: int | None = None
 
     @property
     def kept(self) -> int:
@@ -98,7 +101,7 @@ class FilterReport:
             "kept": self.kept,
             "rejected": dict(self.rejected),
             "notes": list(self.notes),
-        }
+        } | ({} if self.checked is None else {"checked": self.checked})
 
 
 def _shrunk(lower, upper, continuous, names, margin: float) -> tuple[np.ndarray, np.ndarray]:
@@ -158,7 +161,7 @@ def measured_points(robot: Chain | Tree, q: np.ndarray, markers: np.ndarray) -> 
 def filter_candidates(
     chain: Chain | Tree, q: np.ndarray, markers: np.ndarray, constraints: Constraints
 ) -> tuple[np.ndarray, FilterReport]:
-    """Keep the candidate configurations a campaign can measure.
+    """Keep the candidate configurations a campaign can measure (every filter, every one).
 
     Args:
         chain: The chain or tree.
@@ -169,9 +172,25 @@ def filter_candidates(
     Returns:
         A mask of the kept candidates ``(N,)`` and the report.
     """
+    keep, lazy = cheap_filters(chain, q, markers, constraints)
+    keep[np.flatnonzero(keep)] = lazy.ok(np.arange(int(np.count_nonzero(keep))))
+    return keep, lazy.report()
+
+
+def cheap_filters(
+    chain: Chain | Tree, q: np.ndarray, markers: np.ndarray, constraints: Constraints
+) -> tuple[np.ndarray, LazyChecks]:
+    """The margin and workspace filters applied, the costly ones (:class:`LazyChecks`) not.
+
+    The arguments are :func:`filter_candidates`'s.
+
+    Returns:
+        A mask of the candidates the margin and the workspace keep ``(N,)``, and the checks
+        of collisions and lines of sight of those candidates (indexed among them), made on
+        demand.
+    """
     keep = np.ones(len(q), dtype=bool)
     rejected: list[tuple[str, int]] = []
-    notes: list[str] = []
 
     def apply(name: str, ok: np.ndarray, where: np.ndarray) -> None:
         before = int(np.sum(keep))
@@ -187,26 +206,89 @@ def filter_candidates(
         box = np.asarray(constraints.workspace)
         ok = np.all((points >= box[:3]) & (points <= box[3:]), axis=(1, 2))
         apply("workspace", ok[keep], np.flatnonzero(keep))
-    if constraints.collision or constraints.line_of_sight is not None or constraints.obstacles:
-        from .collision import collision_checker
+    points = None if points is None else points[keep]
+    return keep, LazyChecks(chain, q[keep], points, constraints, len(q), tuple(rejected))
 
-        checker = collision_checker(
-            chain, constraints.srdf, constraints.obstacles, self_collision=constraints.collision
-        )
-        notes += checker.notes
-        if constraints.collision or constraints.obstacles:
-            idx = np.flatnonzero(keep)
-            apply("collision", ~checker.colliding(q[idx]), idx)
-        if constraints.line_of_sight is not None and points is not None:  # (points: given)
-            idx = np.flatnonzero(keep)
-            eye = np.asarray(constraints.line_of_sight)
-            apply("line_of_sight", ~checker.blocked(q[idx], points[idx], eye), idx)
-    return keep, FilterReport(len(q), tuple(rejected), tuple(notes))
+
+class LazyChecks:
+    """The costly filters (collision, line of sight), checked on demand and remembered.
+
+    A candidate is checked once, when :meth:`ok` is first asked about it: collisions first,
+    then (if it passes) the line of sight. :meth:`report` counts the candidates checked and
+    those each filter rejected.
+
+    Args:
+        chain: The chain or tree.
+        q: The candidates to check ``(N, n)``.
+        points: Measured points of those candidates ``(N, K, 3)`` [m], or None (no line of
+            sight).
+        constraints: The limits.
+        total: Candidates given.
+        rejected: ``(filter, count)`` of the filters already applied (margin, workspace).
+    """
+
+    def __init__(self, chain, q, points, constraints: Constraints, total, rejected) -> None:
+        self.q, self.points, self.total, self.cheap = q, points, total, rejected
+        self.collision = bool(constraints.collision or constraints.obstacles)
+        self.eye = constraints.line_of_sight
+        self.status = np.zeros(len(q), dtype=np.int8)  # 0 unchecked, 1 kept, -1 collision, -2 sight
+        self.checker = None
+        self.notes: tuple[str, ...] = ()
+        if self.collision or self.eye is not None:
+            from .collision import collision_checker
+
+            self.checker = collision_checker(
+                chain, constraints.srdf, constraints.obstacles, self_collision=constraints.collision
+            )
+            self.notes = tuple(self.checker.notes)
+
+    @property
+    def active(self) -> bool:
+        """Whether there is anything to check."""
+        return self.checker is not None
+
+    @property
+    def checked(self) -> int:
+        """Candidates checked so far."""
+        return int(np.count_nonzero(self.status))
+
+    def ok(self, idx: np.ndarray) -> np.ndarray:
+        """Whether each candidate of ``idx`` passes the checks ``(len(idx),)``."""
+        idx = np.asarray(idx, dtype=int)
+        todo = np.unique(idx[self.status[idx] == 0])
+        checker = self.checker
+        if todo.size and checker is None:
+            self.status[todo] = 1
+        elif todo.size and checker is not None:
+            bad = np.zeros(todo.size, dtype=bool)
+            if self.collision:
+                bad = checker.colliding(self.q[todo])
+            self.status[todo[bad]] = -1
+            rest = todo[~bad]
+            if self.eye is not None and rest.size and self.points is not None:
+                eye = np.asarray(self.eye)
+                hidden = checker.blocked(self.q[rest], self.points[rest], eye)
+                self.status[rest[hidden]] = -2
+                rest = rest[~hidden]
+            self.status[rest] = 1
+        return self.status[idx] > 0
+
+    def report(self) -> FilterReport:
+        """What the filters did: the cheap ones on every candidate, these on those checked."""
+        rejected = list(self.cheap)
+        if self.collision:
+            rejected.append(("collision", int(np.count_nonzero(self.status == -1))))
+        if self.eye is not None:
+            rejected.append(("line_of_sight", int(np.count_nonzero(self.status == -2))))
+        checked = self.checked if self.active else None
+        return FilterReport(self.total, tuple(rejected), self.notes, checked)
 
 
 __all__ = [
     "Constraints",
     "FilterReport",
+    "LazyChecks",
+    "cheap_filters",
     "filter_candidates",
     "margin_bounds",
     "measured_points",

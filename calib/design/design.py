@@ -11,20 +11,22 @@ candidates. :func:`evaluate` gives the indices of a user's set.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
 from ..core.checks import check_count, check_work, real_array
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
+from ..core.progress import phase, steps
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
-from .constraints import Constraints, FilterReport, filter_candidates, variable_bounds
+from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
-from .exchange import EXCHANGE_CRITERIA, optimal_subset
+from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, optimal_subset
 from .observability import (
     CRITERIA,
     REFERENCE_CONFIGS,
@@ -41,6 +43,11 @@ from .observability import (
 
 RANDOM_SETS = 20
 """Random sets of K candidates the design is compared with."""
+
+RANDOM_POOL = 10
+"""With collision checks, the random sets are drawn from a pool of this many times K
+candidates drawn and checked first (each set a uniform random K of the collision-free
+candidates all the same, at half the checks of 20 sets drawn apart)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,7 +128,7 @@ def candidate_configurations(
     The independent joints are drawn (mimic joints follow the joint they mimic).
     """
     check_count(n, "the number of candidates")
-    check_work(n, chain.n, chain.name, len(chain.tool_ids), "candidates")
+    check_work(n, chain.n, chain.name, len(chain.tool_ids), "candidates", DESIGN_PER_JOINT)
     lower, upper = variable_bounds(chain, margin)
     rng = np.random.default_rng([check_count(seed, "the seed", 0), 5])
     return chain.joint_values(lower + (upper - lower) * rng.random((n, len(lower))))
@@ -168,7 +175,8 @@ def design(
         constraints: Limits of the campaign (default: self-collision checked, no margin).
         seed: Seed of the candidates, the reference set and the random sets.
         random_sets: Random sets of K candidates to compare with.
-        progress: Wraps an iterable to show progress (or None).
+        progress: Progress bars of the phases (:mod:`calib.core.progress`; e.g.
+            ``tqdm.tqdm``), or None.
 
     Returns:
         The design.
@@ -190,27 +198,38 @@ def design(
     cands = None
     if contact is not None:
         chain = checked_contact_chain(chain, contact, markers, params)
-        cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
+        with phase(progress, "design: candidates on the contact"):
+            cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
         q_all = cands.q
     else:
         q_all = _instrument_candidates(chain, candidates, seed, constraints.margin)
         check_model_arguments(measure, params, orientation_weight, chain.is_tree)
-    q, report = _filtered(chain, q_all, markers, constraints, k)
+    q, lazy = _filtered(chain, q_all, markers, constraints, k)
+    check = lazy.ok if lazy.active else None
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
     if cands is not None and isinstance(chain, Chain) and contact is not None:
         model = contact_observation_model(chain, cands, contact)
     else:
         model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
-    ref = reference(model, q[_subset(len(q), REFERENCE_CONFIGS, rng)])
-    J = model.jacobian(q)
+    rows = _draw(len(q), REFERENCE_CONFIGS, rng, check)
+    if len(rows) < min(k, REFERENCE_CONFIGS):  # every candidate checked: too few pass
+        raise _too_few(lazy.report(), k)
+    ref = reference(model, q[rows])
+    with phase(progress, f"design: Jacobians of {len(q)} candidates"):
+        J = model.jacobian(q)
     clock.append(time.perf_counter())
-    result = optimal_subset(J, k, criterion, ref.mean, progress)
+    try:
+        result = optimal_subset(J, k, criterion, ref.mean, progress, check)
+    except CandidatesExhaustedError:
+        raise _too_few(lazy.report(), k) from None
     clock.append(time.perf_counter())
     chosen = np.array(result.design)
     n_random = check_count(random_sets, "the number of random sets")
-    rand = tuple(_indices_rows(J, _subset(len(q), k, rng), ref) for _ in range(n_random))
+    sets = steps(progress, range(n_random), "design: random sets", n_random)
+    rand = tuple(_indices_rows(J, rows, ref) for rows in _random_sets(len(q), k, rng, check, sets))
     clock.append(time.perf_counter())
+    report = lazy.report()
     stages = ("filters", "jacobian", "exchange", "random")
     return Design(
         robot=chain.name,
@@ -223,7 +242,7 @@ def design(
         greedy=_indices_rows(J, np.array(result.greedy), ref),
         random=rand,
         filters=report,
-        candidates=len(q),
+        candidates=len(q) - _lazily_rejected(report),
         exchanges=result.exchanges,
         sweeps=result.sweeps,
         seed=seed,
@@ -242,16 +261,64 @@ def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: f
 
 
 def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: int):
-    """The candidates the filters keep ``(N, n)`` and their report; at least ``k`` of them."""
-    keep, report = filter_candidates(chain, q_all, robot_markers(chain, markers), constraints)
+    """The candidates the margin and workspace keep ``(N, n)`` (at least ``k``), the checks.
+
+    The checks (collision, line of sight) are made on the candidates the design considers.
+    """
+    keep, lazy = cheap_filters(chain, q_all, robot_markers(chain, markers), constraints)
     if int(np.count_nonzero(keep)) < k:
-        raise InvalidArgumentError(
-            f"{int(np.count_nonzero(keep))} of {len(q_all)} candidates pass the filters ("
-            + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
-            + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
-            f"constraints"
-        )
-    return q_all[keep], report
+        raise _too_few(lazy.report(), k)
+    return q_all[keep], lazy
+
+
+def _too_few(report: FilterReport, k: int) -> InvalidArgumentError:
+    """The error of filters that leave fewer than k candidates."""
+    return InvalidArgumentError(
+        f"{report.kept} of {report.candidates} candidates pass the filters ("
+        + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
+        + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
+        f"constraints"
+    )
+
+
+def _lazily_rejected(report: FilterReport) -> int:
+    """Candidates the collision and line-of-sight checks rejected."""
+    return sum(n for name, n in report.rejected if name in ("collision", "line_of_sight"))
+
+
+def _random_sets(n: int, k: int, rng: np.random.Generator, check, sets) -> Iterator[np.ndarray]:
+    """Random sets of ``k`` of ``n`` candidates, one per item of ``sets``.
+
+    Without a check, each drawn apart; with one, each a random k of a pool of
+    ``RANDOM_POOL k`` candidates the check accepts (drawn once, at the first set).
+    """
+    pool = None
+    for _ in sets:
+        if check is None:
+            yield _subset(n, k, rng)
+            continue
+        if pool is None:
+            pool = _draw(n, RANDOM_POOL * k, rng, check)
+        yield pool[_subset(len(pool), k, rng)]
+
+
+def _draw(n: int, k: int, rng: np.random.Generator, check) -> np.ndarray:
+    """``min(n, k)`` random candidates (sorted); with ``check``, those it accepts.
+
+    With a check, the candidates are checked in a random order until k pass (fewer if the
+    candidates run out).
+    """
+    if check is None:
+        return _subset(n, k, rng)
+    order = rng.permutation(n)
+    kept: list[np.ndarray] = []
+    got, start = 0, 0
+    while got < k and start < n:
+        chunk = order[start : start + (k - got)]
+        good = chunk[check(chunk)]
+        kept.append(good)
+        got, start = got + len(good), start + len(chunk)
+    return np.sort(np.concatenate(kept)) if kept else np.zeros(0, dtype=int)
 
 
 def _contact_of(measure) -> Contact | None:
@@ -370,6 +437,8 @@ def _values(ind: Indices) -> list[float]:
 def design_text(d: Design, noise_mm: float = 0.05) -> str:
     """What ``calib design`` prints."""
     rejected = ", ".join(f"{n} {name}" for name, n in d.filters.rejected if n)
+    if d.filters.checked is not None:
+        rejected = f"{rejected or 'none'} of the {d.filters.checked} checked for collisions"
     lines = [
         f"{d.robot}: {len(d.q)} configurations designed from {d.candidates} of "
         f"{d.filters.candidates} candidates"

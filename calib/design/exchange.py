@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ..core.choices import EXCHANGE_CRITERIA
+from ..core.progress import steps
 from ..exceptions import InvalidArgumentError
 
 MIN_IMPROVEMENT = 1e-9
@@ -155,6 +156,7 @@ class ExchangeState:
         self.L = L
         self.ridge = ridge
         self.design = [int(i) for i in design]
+        self.excluded = np.zeros(len(self.J), dtype=bool)  # rejected by the checks
         self.refresh()
 
     def refresh(self) -> None:
@@ -378,7 +380,30 @@ class ExchangeResult:
     sweeps: int
 
 
-def greedy_start(J: np.ndarray, k: int, progress: Callable | None = None) -> list[int]:
+Check = Callable[[np.ndarray], np.ndarray]
+"""Whether each candidate of an index array may be measured (e.g. collision-free)."""
+
+
+class CandidatesExhaustedError(InvalidArgumentError):
+    """Every candidate left was rejected by the checks before the design was complete."""
+
+
+def _checked(state: ExchangeState, pick: Callable[[], int | None], check: Check | None):
+    """The best candidate ``pick`` finds that passes ``check``, or None.
+
+    A rejected candidate is excluded from the state for good and the next best is sought:
+    the candidates are checked in order of merit, and only those picked.
+    """
+    while True:
+        best = pick()
+        if best is None or check is None or bool(check(np.array([best]))[0]):
+            return best
+        state.excluded[best] = True
+
+
+def greedy_start(
+    J: np.ndarray, k: int, progress: Callable | None = None, check: Check | None = None
+) -> list[int]:
     """K candidates chosen one by one, each maximising ``log det M`` (with a small ridge).
 
     Each step evaluates only the candidates whose :meth:`ExchangeState.add_bounds` exceed
@@ -387,37 +412,50 @@ def greedy_start(J: np.ndarray, k: int, progress: Callable | None = None) -> lis
     Args:
         J: Candidate blocks ``(N, r, b)``.
         k: Number to choose (at most N).
-        progress: Wraps an iterable to show progress (or None).
+        progress: Progress bars (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
+        check: Whether candidates may be measured (or None: all may); only those picked are
+            asked, best first, a rejected one replaced by the next best.
 
     Returns:
         Candidate indices, in the order chosen.
+
+    Raises:
+        CandidatesExhaustedError: The checks leave fewer than k candidates.
     """
     scale = float(np.mean(np.einsum("nrb,nrb->n", J, J))) / J.shape[2]
     state = ExchangeState(J, [], None, GREEDY_RIDGE * max(scale, 1e-300))
-    steps = range(k) if progress is None else progress(range(k))
-    for _ in steps:
+    picks = steps(progress, range(k), "design: greedy start", k)
+
+    def pick() -> int | None:
         bound = state.add_bounds()
         bound[state.design] = -np.inf
-        best = _best(bound, lambda subset: state.gains(None, subset), -np.inf)
-        # found (never None): adding never lowers det M (finite J)
-        state.apply(int(best), None)  # type: ignore[arg-type]
+        bound[state.excluded] = -np.inf
+        return _best(bound, lambda subset: state.gains(None, subset), -np.inf)
+
+    for _ in picks:
+        best = _checked(state, pick, check)  # None: every candidate left rejected
+        if best is None:
+            raise CandidatesExhaustedError(f"the checks leave fewer than {k} candidates")
+        state.apply(int(best), None)
     return state.design
 
 
-def _sweep(state: ExchangeState, progress: Callable | None) -> int:
+def _sweep(
+    state: ExchangeState, progress: Callable | None, check: Check | None = None, sweep: int = 1
+) -> int:
     """One pass over the design points; returns the number of exchanges made.
 
     For each design point, only the candidates whose :meth:`ExchangeState.bounds` exceed the
     best gain found so far are evaluated (:func:`_best`): the exchange made is the best one
-    all the same.
+    all the same (among those ``check`` accepts).
     """
     made = 0
     order = list(state.design)
-    for j in order if progress is None else progress(order):
+    for j in steps(progress, order, f"design: exchange, sweep {sweep}", len(order)):
         if j not in state.design:
             continue
         need = MIN_IMPROVEMENT * max(abs(state.value()), 1.0)
-        best = _best_exchange(state, j, need)
+        best = _checked(state, lambda: _best_exchange(state, j, need), check)  # noqa: B023
         if best is not None:
             state.apply(best, j)
             made += 1
@@ -432,6 +470,7 @@ def _best_exchange(state: ExchangeState, j: int, need: float) -> int | None:
     """
     coarse = state.coarse_bounds(j)
     coarse[state.design] = -np.inf
+    coarse[state.excluded] = -np.inf
     live = np.flatnonzero(coarse > need)
     if not live.size:
         return None
@@ -481,6 +520,7 @@ def optimal_subset(
     criterion: str = "D",
     L: np.ndarray | None = None,
     progress: Callable | None = None,
+    check: Check | None = None,
 ) -> ExchangeResult:
     """Choose K of N candidates optimising a criterion: greedy start, then exchanges.
 
@@ -489,7 +529,11 @@ def optimal_subset(
         k: Design size K (``K r >= b``, K <= N).
         criterion: ``D``, ``A`` or ``I``.
         L: For ``I``: the reference information ``(b, b)``.
-        progress: Wraps an iterable to show progress (or None).
+        progress: Progress bars (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
+        check: Whether candidates may be measured (or None): asked only about the
+            candidates the greedy start or an exchange picks, best first (a rejected one is
+            excluded and the next best taken); the result is the design of the candidates
+            it accepts.
 
     Returns:
         The chosen candidates and counts.
@@ -497,6 +541,7 @@ def optimal_subset(
     Raises:
         InvalidArgumentError: A bad criterion or size, or candidates that cannot identify
             every parameter.
+        CandidatesExhaustedError: The checks leave fewer than k candidates.
     """
     N, r, b = J.shape
     if criterion not in EXCHANGE_CRITERIA:
@@ -514,7 +559,7 @@ def optimal_subset(
         raise InvalidArgumentError("criterion I needs the reference information matrix")
     if not np.all(np.isfinite(J)):
         raise InvalidArgumentError("the candidates' Jacobian is not finite")
-    greedy = greedy_start(J, k, progress)
+    greedy = greedy_start(J, k, progress, check)
     weight = {"D": None, "A": np.eye(b), "I": L}[criterion]
     if np.linalg.cond(J[greedy].reshape(-1, b)) > MAX_CONDITION:
         raise InvalidArgumentError(
@@ -525,7 +570,7 @@ def optimal_subset(
     exchanges = sweeps = 0
     while sweeps < MAX_SWEEPS:
         sweeps += 1
-        made = _sweep(state, progress)
+        made = _sweep(state, progress, check, sweeps)
         exchanges += made
         state.refresh()
         if not made:
@@ -533,4 +578,12 @@ def optimal_subset(
     return ExchangeResult(tuple(state.design), tuple(greedy), exchanges, sweeps)
 
 
-__all__ = ["EXCHANGE_CRITERIA", "ExchangeResult", "ExchangeState", "greedy_start", "optimal_subset"]
+__all__ = [
+    "EXCHANGE_CRITERIA",
+    "CandidatesExhaustedError",
+    "Check",
+    "ExchangeResult",
+    "ExchangeState",
+    "greedy_start",
+    "optimal_subset",
+]

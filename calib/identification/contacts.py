@@ -476,9 +476,11 @@ def _newton_step(J: np.ndarray, gap: np.ndarray) -> np.ndarray:
     """
     JJ = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(J.shape[1])
     try:
-        return -(np.swapaxes(J, 1, 2) @ np.linalg.solve(JJ, gap[:, :, None]))[:, :, 0]
-    except np.linalg.LinAlgError:
-        return -(np.linalg.pinv(J) @ gap[:, :, None])[:, :, 0]
+        x = np.linalg.solve(JJ, gap[:, :, None])
+    except np.linalg.LinAlgError:  # numerically singular (huge rows near the flipped side)
+        finite = np.nan_to_num(JJ, nan=0.0, posinf=0.0, neginf=0.0)
+        x = np.linalg.pinv(finite) @ gap[:, :, None]
+    return -(np.swapaxes(J, 1, 2) @ x)[:, :, 0]
 
 
 def project(

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.checks import angle_mrad, check_count, length_mm
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, angle_mrad, check_count, check_size, length_mm
 from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, contact_model, contact_postures
@@ -180,6 +180,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         raise DataError(source, "empty file: expected a header line and touches")
     if len(records) == 1:
         raise DataError(source, "no touches after the header")
+    check_size(len(records) - 1, MAX_TOUCHES, "touches", source)
     cols = _checked_header(records[0][1], chain, kind, source)
     others = tuple(n for n in cols if n != "id" and n not in chain.joint_names)
     ids, q, rows = [], [], []
@@ -192,6 +193,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
         ids.append(name)
         q.append([parse_number(cells[cols[j]], source, line, j) for j in chain.joint_names])
         rows.append(line)
+    check_size(len(set(ids)), MAX_OBJECTS, f"{ID_COLUMNS[kind.label]}s", source)
     qa = np.array(q, dtype=float)
     check_limits(chain, qa, source, np.array(rows))
     qa.setflags(write=False)
@@ -344,6 +346,8 @@ def simulate_contacts(
         raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
     configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)
     contacts = check_count(contacts, "contacts", 1, configs)  # each touched at least once
+    check_size(int(configs), MAX_TOUCHES, "touches")
+    check_size(int(contacts), MAX_OBJECTS, f"{ID_COLUMNS[kind.label]}s")
     error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
     noise_mrad = angle_mrad(noise_mrad, "noise_mrad")
     nominal = from_chain(chain)

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.checks import read_only
+from ..core.checks import MAX_ROWS, check_size, read_only
 from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS
 from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError
@@ -325,6 +325,7 @@ def parse_measurements(
     if not isinstance(columns, Columns):
         raise InvalidArgumentError(f"columns must be a Columns (or None), got {columns!r:.60}")
     header, values, lines, tools = _read_rows(text, chain, columns, source)
+    check_size(len(values), MAX_ROWS, "rows", source)
     names, pos_cols, fmt, ori_cols, _ = header
     table = np.array(values)
     col = {n: j for j, n in enumerate(names)}

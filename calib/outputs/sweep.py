@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.checks import check_count, check_work
+from ..core.progress import steps
 from ..exceptions import CalibError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.kinds import kind_of
@@ -160,7 +161,7 @@ def sweep(
         e = entries.get(name)
         jobs.append((name, e.base, e.tool) if e else (name, None, None))
     jobs += [(str(Path(p)), None, None) for p in extra]
-    it = progress(jobs) if progress else jobs
+    it = steps(progress, jobs, "calib sweep", len(jobs))
     return [_sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
 
 

@@ -1,0 +1,145 @@
+"""Linear least squares of contacts with the objects' unknowns eliminated object by object.
+
+The unknowns of contacts are each object's own (a plane's height and tilts, a point's
+position, ...) and shared ones (the contact frame's, the robot's parameters). A touch's rows
+depend on its own object's unknowns and on the shared ones only: the Jacobian is block
+structured, ``[diag(A_k) | B]`` with ``A_k`` the rows of object k's touches. The least
+squares ``min |A x_o + B x_s + r|`` is solved without forming that matrix:
+
+1. per object, the QR factor of its rows ``[A_k | B_k | r_k]`` (orthogonal, as a dense QR
+   of the whole system is): ``[[R_k, S_k, y_k], [0, T_k, z_k]]``, the objects grouped by
+   their number of touches (padded with zero rows to a power of two) and factored together;
+2. the shared unknowns from the stacked ``[T_k | z_k]`` of every object
+   (``min |T x_s + z|``, a small dense system: as many columns as shared unknowns);
+3. each object's unknowns by back-substitution, ``x_k = -R_k^-1 (y_k + S_k x_s)``.
+
+Time and memory grow linearly with the touches and the objects (no matrix of touches by
+touches, nor of objects by objects), and the solution is the dense least squares'.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["BlockSolution", "BlockSystem", "block_factors", "block_lstsq"]
+
+
+@dataclass(frozen=True, eq=False)
+class BlockSystem:
+    """``min |A x_o + B x_s + r|``, A block diagonal by object, given touch by touch.
+
+    Attributes:
+        own: Rows of each touch on its own object's unknowns ``(m, rows, o)``.
+        shared: Rows of each touch on the shared unknowns ``(m, rows, s)``.
+        residual: Residual rows of each touch ``(m, rows)``.
+        index: The object of each touch ``(m,)`` (each object has touches).
+        objects: Number of objects K.
+    """
+
+    own: np.ndarray
+    shared: np.ndarray
+    residual: np.ndarray
+    index: np.ndarray
+    objects: int
+
+
+@dataclass(frozen=True, eq=False)
+class BlockSolution:
+    """The least-squares solution and what says whether it is determined.
+
+    Attributes:
+        objects: Each object's unknowns ``(K, o)``.
+        shared: The shared unknowns ``(s,)``.
+        smallest: Smallest singular value of the objects' triangular factors and of the
+            shared system (0 when something is undetermined).
+        largest: Largest of the same singular values.
+    """
+
+    objects: np.ndarray
+    shared: np.ndarray
+    smallest: float
+    largest: float
+
+
+def _buckets(counts: np.ndarray, least: int) -> np.ndarray:
+    """Each object's padded number of touches: a power of two, at least ``least``."""
+    size = np.maximum(counts, least)
+    return (2 ** np.ceil(np.log2(np.maximum(size, 1)))).astype(int)
+
+
+def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.ndarray:
+    """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
+
+    Args:
+        system: The rows.
+        damping: Extra rows ``diag(damping[k])`` (zero residual) of each object's unknowns
+            ``(K, o)``, or None.
+
+    Returns:
+        The factors (rows beyond an object's own rank are zero).
+    """
+    Jo, Js, r, index, K = (
+        system.own, system.shared, system.residual, system.index, system.objects
+    )  # fmt: skip
+    m, rows, o = Jo.shape
+    s = Js.shape[2]
+    w = o + s + 1
+    blocks = np.concatenate([Jo, Js, r[:, :, None]], axis=2)  # (m, rows, w)
+    counts = np.bincount(index, minlength=K)
+    order = np.argsort(index, kind="stable")
+    first = np.r_[0, np.cumsum(counts)[:-1]]
+    position = np.empty(m, dtype=int)
+    position[order] = np.arange(m) - first[index[order]]  # the touch's rank in its object
+    padded = _buckets(counts, -(-w // rows))
+    factors = np.zeros((K, w, w))
+    for size in np.unique(padded):
+        objects = np.flatnonzero(padded == size)
+        local = np.full(K, -1)
+        local[objects] = np.arange(len(objects))
+        mine = np.flatnonzero(local[index] >= 0)
+        stack = np.zeros((len(objects), int(size), rows, w))
+        stack[local[index[mine]], position[mine]] = blocks[mine]
+        A = stack.reshape(len(objects), int(size) * rows, w)
+        if damping is not None:
+            extra = np.zeros((len(objects), o, w))
+            extra[:, np.arange(o), np.arange(o)] = damping[objects]
+            A = np.concatenate([A, extra], axis=1)
+        R: np.ndarray = np.linalg.qr(A, mode="r")  # type: ignore[assignment]
+        factors[objects, : R.shape[1]] = R
+    return factors
+
+
+def block_lstsq(
+    system: BlockSystem, damping: np.ndarray | None = None, shared_rows: np.ndarray | None = None
+) -> BlockSolution:
+    """The least squares of ``system`` (see the module's text).
+
+    Args:
+        system: The rows.
+        damping: Extra rows ``diag(damping[k])`` on each object's unknowns ``(K, o)``.
+        shared_rows: Extra rows ``[C | c]`` on the shared unknowns alone ``(n, s + 1)``
+            (``min |C x_s + c|`` joins the sum), or None.
+
+    Returns:
+        The solution (the least-norm one in the shared unknowns if they are undetermined).
+    """
+    o, s, K = system.own.shape[2], system.shared.shape[2], system.objects
+    F = block_factors(system, damping)
+    R, S, y = F[:, :o, :o], F[:, :o, o : o + s], F[:, :o, -1]
+    reduced = F[:, o:, o:].reshape(-1, s + 1)
+    if shared_rows is not None:
+        reduced = np.vstack([reduced, shared_rows])
+    sv = [np.linalg.svd(R, compute_uv=False).ravel()] if o else []
+    shared = np.zeros(s)
+    if s:
+        shared = np.linalg.lstsq(reduced[:, :s], -reduced[:, s], rcond=None)[0]
+        sv.append(np.linalg.svd(reduced[:, :s], compute_uv=False))
+    values = np.concatenate(sv) if sv else np.ones(1)
+    smallest, largest = float(np.min(values)), float(np.max(values))
+    objects = np.zeros((K, o))
+    if o and smallest > 0:
+        rhs = -(y + S @ shared)
+        objects = np.linalg.solve(R, rhs[:, :, None])[:, :, 0]
+    return BlockSolution(objects, shared, smallest, largest)

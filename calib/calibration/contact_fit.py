@@ -1,0 +1,167 @@
+"""The fit and the structural check of contacts of many objects, object by object.
+
+A contact calibration's unknowns are each object's (a plane's height and tilts, ...), the
+contact frame's and the robot's. With many objects (``BLOCK_UNKNOWNS`` objects' unknowns or
+more) the dense least squares of :func:`~calib.calibration.solve.fit` (MINPACK's QR of every
+column) and the dense rank test grow as the cube of the objects; here the objects' unknowns
+are eliminated object by object (:func:`~calib.calibration.contact_blocks.block_lstsq`), and
+time grows linearly with the touches and the objects:
+
+* :func:`block_fit`: Levenberg-Marquardt on the same cost (the weighted gaps and the prior
+  rows), each step the damped least squares solved by block (damping ``lambda |D dx|^2``
+  with ``D`` the column norms, as MINPACK scales its steps; Nielsen's update of lambda), and
+  MINPACK's tests of convergence (relative reduction of the cost, actual and predicted,
+  under ``TOLERANCE``; or a step under ``TOLERANCE`` of x). It reaches the same minimum.
+* :func:`block_structural`: each object's own columns independent (its triangular factor
+  of full rank), then the pivoted QR (:func:`~calib.identification.base_columns.
+  independent_columns`) of the shared columns with the objects eliminated.
+
+Fewer objects keep the dense route (a few columns: the same results as always).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..identification.base_columns import independent_columns
+from .contact_blocks import BlockSystem, block_factors, block_lstsq
+from .contact_model import ContactModel, ContactState
+from .solve import TOLERANCE, Fit
+
+__all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
+
+BLOCK_UNKNOWNS = 90
+"""Objects' unknowns (30 planes) from which the fit and the structural check go by block."""
+
+ACCEPT = 1e-4
+"""Smallest ratio of the actual to the predicted reduction of an accepted step."""
+
+
+def by_block(model: ContactModel) -> bool:
+    """Whether a contact model has enough objects' unknowns to be solved by block."""
+    return len(model.frames.ids) * len(model.frames.kind.object_dofs) >= BLOCK_UNKNOWNS
+
+
+def _cost(f: np.ndarray, prior: np.ndarray | None, x: np.ndarray) -> float:
+    return float(np.sum(f**2) + (0.0 if prior is None else np.sum((prior * x) ** 2)))
+
+
+def _scales(own, shared, index, K, prior_s) -> tuple[np.ndarray, np.ndarray]:
+    """Column norms of the objects' ``(K, o)`` and the shared unknowns (1 for a zero one)."""
+    Do = np.zeros((K, own.shape[2]))
+    np.add.at(Do, index, np.sum(own**2, axis=1))
+    Ds = np.sum(shared**2, axis=(0, 1)) + (0.0 if prior_s is None else prior_s**2)
+    Do, Ds = np.sqrt(Do), np.sqrt(Ds)
+    return np.where(Do > 0, Do, 1.0), np.where(Ds > 0, Ds, 1.0)
+
+
+def block_fit(
+    model: ContactModel,
+    start: ContactState,
+    data,
+    torque: np.ndarray | None,
+    *,
+    prior: np.ndarray | None = None,
+    max_iterations: int = 100,
+) -> Fit:
+    """Levenberg-Marquardt from x = 0 with the objects eliminated by block (module's text).
+
+    Args:
+        model: The free parameters (objects, contact, robot, compliances).
+        start: The state at x = 0.
+        data: The touches.
+        torque: Gravity torques ``(m, n)`` for compliances, or None.
+        prior: Weights of x in extra rows ``prior * x`` (zero on the objects and the
+            contact), or None.
+        max_iterations: Most evaluations of the gaps.
+
+    Returns:
+        The fit (``J``: the dense weighted Jacobian at the solution).
+    """
+    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    split = K * o
+    prior_s = None if prior is None else prior[split:]
+
+    def gaps(x: np.ndarray) -> np.ndarray:
+        return -model.apply(start, x).residuals(data, torque)
+
+    x = np.zeros(model.size())
+    f = gaps(x)
+    cost, lam, nu = _cost(f, prior, x), 1e-3, 2.0
+    evals, jacobians, status = 1, 0, 0
+    while evals < max_iterations and status == 0:
+        own, shared, index = model.blocks(start, x, data, torque)
+        jacobians += 1
+        Do, Ds = _scales(own, shared, index, K, prior_s)
+        while evals < max_iterations:
+            extra = [np.c_[np.sqrt(lam) * np.diag(Ds), np.zeros(len(Ds))]]
+            if prior_s is not None:
+                extra.append(np.c_[np.diag(prior_s), prior_s * x[split:]])
+            system = BlockSystem(own, shared, f, index, K)
+            sol = block_lstsq(system, np.sqrt(lam) * Do, np.vstack(extra))
+            step = np.r_[sol.objects.ravel(), sol.shared]
+            linear = f + np.einsum("mro,mo->mr", own, sol.objects[index]) + shared @ sol.shared
+            predicted = cost - _cost(linear, prior, x + step)
+            trial = gaps(x + step)
+            evals += 1
+            new = _cost(trial, prior, x + step)
+            scaled = np.linalg.norm(np.r_[(Do.ravel() * step[:split]), Ds * step[split:]])
+            size = np.linalg.norm(np.r_[(Do.ravel() * x[:split]), Ds * x[split:]])
+            if predicted > 0 and (cost - new) / predicted > ACCEPT and np.isfinite(new):
+                rho = (cost - new) / predicted
+                small = cost - new <= TOLERANCE * cost and predicted <= TOLERANCE * cost
+                x, f, cost = x + step, trial, new
+                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                nu = 2.0
+                status = 2 if scaled <= TOLERANCE * size else (1 if small else 0)
+                break
+            if scaled <= TOLERANCE * size or predicted <= TOLERANCE * cost:
+                status = 2  # no smaller step lowers the cost: a minimum
+                break
+            lam, nu = lam * nu, nu * 2.0
+    return _result(model, start, data, torque, x, f, status, (jacobians, evals))
+
+
+def _result(model, start, data, torque, x, f, status, counts) -> Fit:
+    """The :class:`~calib.calibration.solve.Fit` of :func:`block_fit`."""
+    J = model.jacobian(start, x, data, torque).reshape(len(f.ravel()), -1)
+    finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
+    messages = {
+        0: "the number of evaluations exceeded max_iterations",
+        1: "both actual and predicted relative reductions are at most the tolerance",
+        2: "the relative step is at most the tolerance",
+    }
+    return Fit(
+        model,
+        start,
+        model.apply(start, x),
+        x,
+        J,
+        f.ravel(),
+        status > 0 and finite,
+        status,
+        messages[status] if finite else "non-finite parameters or residuals",
+        counts[0],
+        counts[1],
+    )
+
+
+def block_structural(model: ContactModel, start: ContactState, data, torque) -> list[int]:
+    """The columns the touches determine (:func:`~.contact_pipeline._structural`), by block.
+
+    Every object's columns are kept when each object's own triangular factor has full rank
+    (else none of them, which the pipeline refuses); the shared columns are those the
+    pivoted QR of the shared system, objects eliminated, keeps (contact columns first).
+    """
+    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    own, shared, index = model.blocks(start, np.zeros(model.size()), data, torque)
+    F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))
+    R = F[:, :o, :o]
+    diag = np.abs(np.diagonal(R, axis1=1, axis2=2))
+    scale = max(float(np.max(np.abs(F))), 1e-300)
+    if o and np.min(diag) <= 1e-10 * scale:
+        return []
+    reduced = F[:, o:-1, o:-1].reshape(-1, shared.shape[2])
+    rows = own.shape[0] * own.shape[1]
+    kept = independent_columns(reduced, list(range(shared.shape[2])), rows)[2]
+    return list(range(K * o)) + [K * o + c for c in kept]

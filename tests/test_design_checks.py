@@ -1,0 +1,88 @@
+"""Design's lazy collision checks: only the candidates the design considers are checked."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import chain_of
+
+from calib import InvalidArgumentError
+from calib.design.constraints import Constraints, filter_candidates
+from calib.design.design import RANDOM_POOL, _draw, _random_sets, candidate_configurations, design
+from calib.design.exchange import optimal_subset
+
+
+def _same_rows(a: np.ndarray, b: np.ndarray) -> bool:
+    return sorted(map(tuple, np.round(a, 12).tolist())) == sorted(
+        map(tuple, np.round(b, 12).tolist())
+    )
+
+
+def test_lazy_checks_pick_the_design_of_the_collision_free_candidates():
+    """Checking every candidate first (brute force, then a design among the collision-free
+    ones) and checking only those the design considers pick the same configurations; fewer
+    are checked, and every configuration picked is collision-free."""
+    chain = chain_of("tiago")
+    q = candidate_configurations(chain, 1500, seed=3)
+    keep, report = filter_candidates(chain, q, np.zeros((1, 3)), Constraints())
+    assert dict(report.rejected)["collision"] > 0  # the check has something to reject
+    first = design(chain, 20, candidates=q[keep], seed=3,
+                   constraints=Constraints(collision=False))  # fmt: skip
+    lazy = design(chain, 20, candidates=q, seed=3)
+    assert _same_rows(first.q, lazy.q)
+    assert lazy.filters.checked is not None and lazy.filters.checked < len(q)
+    assert filter_candidates(chain, lazy.q, np.zeros((1, 3)), Constraints())[0].all()
+    rejected = dict(lazy.filters.rejected)["collision"]
+    assert lazy.candidates == len(q) - rejected
+    assert lazy.filters.to_dict()["checked"] == lazy.filters.checked
+
+
+def test_a_rejected_candidate_is_replaced_by_the_next_best():
+    """A check that rejects the unchecked design's picks: the design avoids them and equals
+    the design of the candidates without them (brute force)."""
+    rng = np.random.default_rng(0)
+    J = rng.standard_normal((300, 3, 9))
+    plain = optimal_subset(J, 6)
+    banned = np.zeros(len(J), dtype=bool)
+    banned[list(plain.design)[:3]] = True
+    asked: list[int] = []
+
+    def check(idx):
+        asked.extend(idx.tolist())
+        return ~banned[idx]
+
+    lazy = optimal_subset(J, 6, check=check)
+    kept = np.flatnonzero(~banned)
+    first = optimal_subset(J[kept], 6)
+    assert not banned[list(lazy.design)].any()
+    assert sorted(lazy.design) == sorted(kept[list(first.design)].tolist())
+    assert set(asked) < set(range(len(J)))
+
+
+def test_random_sets_hold_only_candidates_the_check_accepts():
+    ok = np.arange(100) % 3 != 0
+    rows = _draw(100, 20, np.random.default_rng(1), lambda idx: ok[idx])
+    assert len(rows) == 20 and ok[rows].all() and len(set(rows.tolist())) == 20
+    few = _draw(10, 20, np.random.default_rng(1), lambda idx: ok[idx])
+    assert sorted(few.tolist()) == np.flatnonzero(ok[:10]).tolist()
+
+
+def test_random_sets_come_from_a_checked_pool():
+    ok = np.arange(5000) % 4 != 0
+    asked: list[int] = []
+
+    def check(idx):
+        asked.extend(idx.tolist())
+        return ok[idx]
+
+    sets = list(_random_sets(5000, 30, np.random.default_rng(2), check, range(20)))
+    assert len(sets) == 20 and all(len(set(r.tolist())) == 30 and ok[r].all() for r in sets)
+    assert len(set(np.concatenate(sets).tolist())) > 30  # not one set repeated
+    assert len(asked) < 2 * RANDOM_POOL * 30  # the pool's checks, not 20 sets' apart
+
+
+def test_too_few_collision_free_candidates_is_one_error():
+    chain = chain_of("ur5")
+    box = (-3.0, -3.0, -3.0, 3.0, 3.0, 3.0)  # around the whole robot: every candidate touches it
+    with pytest.raises(InvalidArgumentError, match="collision rejects 40"):
+        design(chain, 10, candidates=40, constraints=Constraints(obstacles=(box,)))
