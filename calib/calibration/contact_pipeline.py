@@ -400,17 +400,16 @@ def calibrate_contacts(
 
     def refit(keep: np.ndarray) -> _Round:
         reg = first if np.array_equal(keep, ~bad) else None
-        return _round(chain, nominal, subset(train, keep), held, guess, opts, load, reg)
+        return _round(chain, nominal, subset(train, keep), held, guess, opts, load, reg, progress)
 
     def errors(rnd: _Round):
         return contact_checks.length_errors(rnd.fitted.state, train, full)
 
     rows = train.rows or tuple(range(1, train.m + 1))
     start = bad | _proposals(first, train, opts)
-    with phase(progress, "calibrate: selection and fit"):
-        rnd, _, dropped = outliers.until_stable(
-            refit, errors, None, rows, start, contact_checks.enough_touches(train)
-        )
+    rnd, _, dropped = outliers.until_stable(
+        refit, errors, None, rows, start, contact_checks.enough_touches(train)
+    )
     notes = [*notes, *rnd.notes]
     if dropped:
         notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
@@ -460,7 +459,7 @@ def _held_out_outliers(start: ContactState, train, held, notes: list[str]):
     return subset(held, ~bad)
 
 
-def _round(chain, nominal, train, held, guess, opts, load, start=None) -> _Round:
+def _round(chain, nominal, train, held, guess, opts, load, start=None, progress=None) -> _Round:
     """Register (unless ``start`` is given), check, choose and fit some touches."""
     if start is None:
         start = contact_checks.registration(nominal, train, guess, opts.orientation_weight)
@@ -474,18 +473,22 @@ def _round(chain, nominal, train, held, guess, opts, load, start=None) -> _Round
     notes = list(filter(None, [contact_checks.isolated_postures(chain, train, held)]))
     torque = contact_elastic.torques(load, train, held)
     notes += filter(None, [contact_elastic.readings_note(load, train, held)])
-    model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
+    with phase(progress, "calibrate: selection"):
+        model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
     tic = time.perf_counter()
-    if by_block(model):  # many objects: their unknowns eliminated per object
-        fitted = block_fit(
-            model, start, train, torque[0], prior=prior, max_iterations=opts.max_iterations
-        )
-    else:
-        fitted = fit(
-            model, start, train, torque[0], 1.0, prior=prior, max_iterations=opts.max_iterations
-        )
+    with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
+        fitted = _fit(model, start, train, torque[0], prior, opts)
     ms = 1e3 * (time.perf_counter() - tic)
     return _Round(train, start, torque, fitted, selection, tuple(notes), ms, prior)
+
+
+def _fit(model, start, train, torque, prior, opts: Options):
+    """Least squares of the touches; with many objects, their unknowns eliminated per object."""
+    if by_block(model):
+        return block_fit(
+            model, start, train, torque, prior=prior, max_iterations=opts.max_iterations
+        )
+    return fit(model, start, train, torque, 1.0, prior=prior, max_iterations=opts.max_iterations)
 
 
 def _proposals(start: ContactState, train: ContactData, opts: Options) -> np.ndarray:

@@ -245,25 +245,27 @@ class _Round:
     fit_ms: float
 
 
-def _round(chain, nominal, data, keep, guess, opts, held, reg=None) -> _Round:
+def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=None) -> _Round:
     """Register (unless ``reg`` is given), choose and fit the rows ``keep`` of ``data``."""
     train = data if keep.all() else data.subset(keep)
     reg = registration(nominal, train, guess, opts) if reg is None else reg
     torque = _torques(chain, opts, train, held)
     notes: list[str] = []
-    model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
+    with phase(progress, "calibrate: selection"):
+        model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
     tic = time.perf_counter()
-    fitted = fit(
-        model,
-        reg,
-        train,
-        torque[0],
-        opts.orientation_weight,
-        prior=prior,
-        loss=opts.loss,
-        scale=opts.noise or 1e-3,
-        max_iterations=opts.max_iterations,
-    )
+    with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
+        fitted = fit(
+            model,
+            reg,
+            train,
+            torque[0],
+            opts.orientation_weight,
+            prior=prior,
+            loss=opts.loss,
+            scale=opts.noise or 1e-3,
+            max_iterations=opts.max_iterations,
+        )
     ms = 1e3 * (time.perf_counter() - tic)
     return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
 
@@ -284,7 +286,9 @@ def _calibrate_chain(chain, data, marker, validate, opts, progress=None) -> Cali
 
     def refit(keep: np.ndarray) -> _Round:
         same = np.array_equal(keep, first)
-        return _round(chain, nominal, train, keep, guess, opts, held, reg if same else None)
+        return _round(
+            chain, nominal, train, keep, guess, opts, held, reg if same else None, progress
+        )
 
     def errors(rnd: _Round) -> outliers.Errors:
         residual = rnd.fitted.state.residuals(train, all_torque)
@@ -292,8 +296,7 @@ def _calibrate_chain(chain, data, marker, validate, opts, progress=None) -> Cali
 
     rows = train.rows or tuple(range(1, train.m + 1))
     start = bad | proposals(nominal, reg, train, opts)
-    with phase(progress, "calibrate: selection and fit"):
-        rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
+    rnd, _, dropped = outliers.until_stable(refit, errors, opts.noise, rows, start)
     notes = [*notes, *rnd.notes]
     if dropped:
         notes.append(outliers.set_aside_note(dropped))

@@ -111,10 +111,10 @@ def check_held_out(data: Measurements | ContactData, held: Measurements | Contac
     Raises:
         DataError: ``held`` comes from the training file, or a row of it is a training row.
     """
-    disjoint = (
-        data.rows is not None and held.rows is not None and not set(data.rows) & set(held.rows)
-    )  # rows of one file split by the caller (cross-validation folds) are held out
-    if _same_file(data.source, held.source) and not disjoint:
+    # rows of one file split by the caller (cross-validation folds) are held out; without row
+    # numbers the rows themselves are compared (below)
+    shared = set(data.rows or ()) & set(held.rows or ())
+    if shared and _same_file(data.source, held.source):
         raise DataError(
             held.source,
             "the validation file is the data file: held out must mean held out (give other "
