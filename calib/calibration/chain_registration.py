@@ -225,7 +225,13 @@ def registration(nominal, data, guess, opts):
 
 
 def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
-    """Rows a robust fit of every identifiable parameter, linearised, finds outlying."""
+    """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
+
+    None where no row of the registration is far from the others
+    (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
+    """
+    if not outliers.spread_out(outliers.point_errors(reg.residuals(data), data.n_markers)):
+        return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
     ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
     wide = frames_model(data, opts).with_(
