@@ -62,6 +62,14 @@ def _fd_rank(urdf: str, names, q: np.ndarray, marker: np.ndarray) -> int:
     def positions() -> np.ndarray:
         return (_camera_to_hand(model, names, q) @ point)[:, :3].ravel()
 
+    def place(kind: str, index: int, M: pin.SE3) -> None:
+        if kind == "joint":
+            model.jointPlacements[index] = M
+        else:
+            frame = model.frames[index]
+            frame.placement = M
+            model.frames[index] = frame
+
     cols, eps = [], 1e-6
     for kind, index in [("joint", j) for j in joints] + [("frame", f) for f in frames]:
         nominal = (
@@ -74,20 +82,9 @@ def _fd_rank(urdf: str, names, q: np.ndarray, marker: np.ndarray) -> int:
             for sign in (1.0, -1.0):
                 xi = np.zeros(6)
                 xi[i] = sign * eps
-                moved = nominal * pin.exp6(pin.Motion(xi))
-                if kind == "joint":
-                    model.jointPlacements[index] = moved
-                else:
-                    frame = model.frames[index]
-                    frame.placement = moved
-                    model.frames[index] = frame
+                place(kind, index, nominal * pin.exp6(pin.Motion(xi)))
                 steps.append(positions())
-            if kind == "joint":
-                model.jointPlacements[index] = nominal
-            else:
-                frame = model.frames[index]
-                frame.placement = nominal
-                model.frames[index] = frame
+            place(kind, index, nominal)
             cols.append((steps[0] - steps[1]) / (2 * eps))
     s = np.linalg.svd(np.array(cols).T, compute_uv=False)
     return int(np.sum(s > 1e-7 * s[0]))

@@ -13,7 +13,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import moved_origins_urdf, write_moved_origins_urdf
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
-from .contact_result import GapStats
+from .contact_result import GapStats, gap_errors_mm
 from .delivery import Delivered
 from .outliers import Outlier
 from .placements import Placements
@@ -32,12 +32,6 @@ from .report import (
 from .selection import Selection
 
 __all__ = ["ChainContacts", "ContactChainsCalibration"]
-
-
-def _gaps(stats: dict[str, GapStats], part: str) -> dict:
-    """``registration``, ``calibrated`` and ``urdf`` gaps of ``part`` (mm, deg)."""
-    cal = stats[part].in_mm()
-    return {"registration": stats[f"{part}_registration"].in_mm(), "calibrated": cal, "urdf": cal}
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,9 +80,9 @@ class ChainContacts:
 
     def errors(self) -> dict:
         """The report's ``errors.terms`` entry: ``train`` and ``held_out`` gaps (format 3)."""
-        out: dict = {"train": _gaps(self.stats, "train"), "held_out": None}
+        out: dict = {"train": gap_errors_mm(self.stats, "train"), "held_out": None}
         if "held_out" in self.stats:
-            out["held_out"] = {"source": self.held_source, **_gaps(self.stats, "held_out")}
+            out["held_out"] = {"source": self.held_source, **gap_errors_mm(self.stats, "held_out")}
         return out
 
     def to_dict(self) -> dict:

@@ -53,7 +53,7 @@ from .report import (
 )
 from .selection import Selection
 
-__all__ = ["ContactCalibration", "GapStats", "gap_stats"]
+__all__ = ["ContactCalibration", "GapStats", "gap_errors_mm", "gap_stats"]
 
 
 @dataclass(frozen=True)
@@ -116,7 +116,7 @@ class GapStats:
         return out
 
 
-def _gap_errors(stats: dict[str, GapStats], part: str) -> dict:
+def gap_errors_mm(stats: dict[str, GapStats], part: str) -> dict:
     """``registration``, ``calibrated`` and ``urdf`` (no compliance) gaps of ``part``."""
     cal = stats[part]
     return {
@@ -233,8 +233,8 @@ class ContactCalibration(Delivered):
         std = np.full(n, np.nan) if self.std is None else self.std
         held = None
         if "held_out" in self.stats:
-            held = {"source": self.sources[1], **_gap_errors(self.stats, "held_out")}
-        train = _gap_errors(self.stats, "train")
+            held = {"source": self.sources[1], **gap_errors_mm(self.stats, "held_out")}
+        train = gap_errors_mm(self.stats, "train")
         fields = {
             "robot": chain.name,
             "urdf": str(chain.urdf_path),

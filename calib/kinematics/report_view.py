@@ -19,6 +19,10 @@ STANDING_GRAVITY = 9.81
 base frame, gravity along its -z): it enters no prediction, as every compliance is zero."""
 
 
+_IDENTITY = [[float(i == j) for j in range(4)] for i in range(4)]
+"""The measurement frame of a report whose instrument is in the URDF (on the robot, contacts)."""
+
+
 def compliance_fields(doc: dict, src: str) -> dict:
     """The compliance file's fields of a report of format 3 (others: ``doc`` itself).
 
@@ -58,11 +62,10 @@ def compliance_fields(doc: dict, src: str) -> dict:
     if shape == "contacts":
         return {**out, **_contact_fields(doc, frames, term, src)}
     markers = frames.get("markers")
-    identity = [[float(i == j) for j in range(4)] for i in range(4)]
     return {
         **out,
         "gravity": model.get("gravity"),
-        "measurement_to_base": identity if frames.get("on_robot") else frames.get("measurement"),
+        "measurement_to_base": _IDENTITY if frames.get("on_robot") else frames.get("measurement"),
         "markers": list(markers.values()) if isinstance(markers, dict) else markers,
     }
 
@@ -77,10 +80,9 @@ def _contact_fields(doc: dict, frames: dict, term: dict, src: str) -> dict:
         first = next(iter(groups[0].values())) if groups else None
     if not isinstance(contact, dict) or not isinstance(first, dict):
         raise DataError(src, "'frames.contacts' or 'objects' is missing or malformed")
-    identity = [[float(i == j) for j in range(4)] for i in range(4)]
     return {
         "gravity": {"frame": term.get("base"), "vector": [0.0, 0.0, -STANDING_GRAVITY]},
-        "measurement_to_base": identity,
+        "measurement_to_base": _IDENTITY,
         "markers": [[row[3] for row in contact.get("matrix", [])[:3]]],
         "contact": {"frame": contact.get("matrix"), "plane": first.get("matrix")},
     }

@@ -367,18 +367,9 @@ def calibrated_urdf(
     moved = frames_at_zero(calibrated) @ np.linalg.inv(frames_at_zero(nominal))
     links = _link_motions(chain, moved, joints)
     moving = tool_on_moving_joint(chain)
-    _write_path(root, chain, poses, moved, links, child_link(tool_joint), moving or tool_joint)
-    tool_child = child_link(tool_joint)
-    tool_new = moved[chain.n + 1] @ poses.link(tool_child) @ X
-    if moving:  # the tool link is the last joint's: the calibrated tool is a link fixed to it
-        where = links.frame[tool_child] @ poses.link(tool_child)
-        tool_child = calibrated_tool_name(chain.tool_frame)
-        set_fixed_link(root, tool_child, child_link(tool_joint), np.linalg.inv(where) @ tool_new)
-    else:
-        parent = parent_link(tool_joint)
-        where = links.frame[parent] @ poses.link(parent)
-        set_origin(tool_joint, np.linalg.inv(where) @ tool_new)
-        _keep_tool_children(root, tool_child, X)
+    fixed_tool = None if moving else tool_joint
+    _write_path(root, chain, poses, moved, links, child_link(tool_joint), fixed_tool)
+    tool_child = _write_tool(root, chain, poses, moved, links, tool_joint, X, moving)
     if markers is not None:
         add_marker_links(root, chain.tool_frame, tool_child, markers)
     if world is not None:
@@ -387,6 +378,26 @@ def calibrated_urdf(
         joint = base_joint(root, chain)
         set_origin(joint, origin_of(joint) @ np.linalg.inv(on_robot))
     return spliced(raw, root, start, stop)
+
+
+def _write_tool(root, chain, poses, moved, links, tool_joint, X, moving: bool) -> str:
+    """Write the calibrated tool (the measured frame ``X`` in it); the link holding it.
+
+    The tool's fixed joint takes it; a tool link carried by the chain's last joint (``moving``)
+    keeps its place and a link ``<tool>_calibrated`` fixed to it takes it.
+    """
+    tool_child = child_link(tool_joint)
+    tool_new = moved[chain.n + 1] @ poses.link(tool_child) @ X
+    if moving:
+        where = links.frame[tool_child] @ poses.link(tool_child)
+        held = calibrated_tool_name(chain.tool_frame)
+        set_fixed_link(root, held, tool_child, np.linalg.inv(where) @ tool_new)
+        return held
+    parent = parent_link(tool_joint)
+    where = links.frame[parent] @ poses.link(parent)
+    set_origin(tool_joint, np.linalg.inv(where) @ tool_new)
+    _keep_tool_children(root, tool_child, X)
+    return tool_child
 
 
 @dataclass(frozen=True)
@@ -435,7 +446,7 @@ def _write_path(
     moved: np.ndarray,
     links: _LinkMotions,
     tool_link: str,
-    tool_joint: ET.Element | bool,
+    tool_joint: ET.Element | None,
 ) -> None:
     """Rewrite the origins that calibration changes, except the tool joint's.
 
@@ -444,7 +455,7 @@ def _write_path(
     nominal one; another joint's follows its child link (a link of the chain) or else the
     parent link's body. Origins whose parent and frame move alike are left as written, and
     so is everything under the tool link (:func:`_keep_tool_children`); ``tool_joint`` is
-    the tool's fixed joint (its origin is written apart), or True where the tool link is the
+    the tool's fixed joint (its origin is written apart), or None where the tool link is the
     last chain joint's (that joint is written like the others). The visuals,
     collisions and inertia of a link whose frame moves within its body are placed back on
     the body.
