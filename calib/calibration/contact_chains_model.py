@@ -34,8 +34,10 @@ from ..identification.parameters import ParameterSet
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import skew
 from ..measurements.contact_campaign import ContactData
+from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
+from .measured_term import MeasuredKind, MeasuredState, measured_columns
 from .placements import COMPONENTS, Placements, joint_twists
 
 __all__ = [
@@ -64,7 +66,7 @@ def padded(a: np.ndarray, rows: int) -> np.ndarray:
 class ChainsData:
     """Touches of each chain (one :class:`ContactData` per chain, in chain order)."""
 
-    parts: tuple[ContactData, ...]
+    parts: tuple[ContactData | Measurements, ...]
 
     @property
     def m(self) -> int:
@@ -87,7 +89,7 @@ class ChainsState:
 
     chains: tuple[Chain, ...]
     placements: Placements
-    states: tuple[ContactState, ...]
+    states: tuple[ContactState | MeasuredState, ...]
     frames: tuple[np.ndarray, ...]
     scales: tuple[float, ...] | None = None
 
@@ -128,7 +130,7 @@ class ChainsModel:
     free: tuple[int, ...]
     names_all: tuple[str, ...]
     directions: np.ndarray | None = None
-    kinds: tuple[Contact, ...] | None = None
+    kinds: tuple[Contact | MeasuredKind, ...] | None = None
     counts: tuple[int, ...] | None = None
     _last: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -169,6 +171,9 @@ class ChainsModel:
         """Column names."""
         out = []
         for p, kind in enumerate(self.object_kinds()):
+            if isinstance(kind, MeasuredKind):  # a measured term's own unknowns
+                out += [f"term{p + 1}.{n}" for n in kind.names()]
+                continue
             for k in range(self._count(p)):
                 tag = f"{kind.object_name}{p + 1}" + (f".{k + 1}" if self._count(p) > 1 else "")
                 out += [f"{tag}_{DOF_NAMES[d]}" for d in kind.object_dofs]
@@ -230,7 +235,9 @@ class ChainsModel:
             placements, frames = start.placements, start.frames
             models = tuple(s.mdh for s in start.states)
         states = tuple(
-            dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
+            s.moved(mdh, self._chain_x(x, c))
+            if isinstance(s, MeasuredState)
+            else dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
             for c, (s, mdh) in enumerate(zip(start.states, models, strict=True))
         )
         return ChainsState(start.chains, placements, states, frames, start.scales)
@@ -242,9 +249,17 @@ class ChainsModel:
         blocks = []
         for c, (s, d) in enumerate(zip(state.states, data.parts, strict=True)):
             J = np.zeros((d.m, len(s.kind.row_names), self.size()))
+            obj, con = self._chain_columns(c)
+            if isinstance(s, MeasuredState):
+                J[:, :, obj] = start.states[c].own_jacobian(s.mdh, self._chain_x(x, c), d)
+                if self.free:
+                    J[:, :, self.fixed :] = measured_columns(
+                        state.placements, state.chains[c], s, state.frames[c], d, self._lift()
+                    )
+                blocks.append(padded(start.scale(c) * J, rows))
+                continue
             base = dataclasses.replace(start.states[c], mdh=s.mdh)
             Jc = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
-            obj, con = self._chain_columns(c)
             split = obj.stop - obj.start
             J[:, :, obj] = Jc[:, :, :split]
             J[:, :, con] = Jc[:, :, split:]

@@ -1,0 +1,217 @@
+"""A measured term among several chains: a frame (on the robot, or an instrument) measures a tool.
+
+The robot measuring itself: a head camera (TIAGo's ``xtion_optical_frame``, TALOS's
+``rgbd_optical_frame``) measures points on the hand (position, several markers) or the
+hand's pose, in its own frame. The chain runs from that frame down the head and torso (joints
+traversed backwards) and up the arm; it is the chain's *base* frame, and the data are
+:class:`~calib.measurements.data.Measurements` in it. In a fit of several chains
+(:func:`~.contact_chains.calibrate_contact_chains`) such a chain is one term among the
+contact chains: it shares every joint placement error (:mod:`.placements`) with them.
+
+Its unknowns are a single chain's (:class:`~.model.State`, :class:`~.model.ErrorModel`
+without MDH parameters): the measuring frame's placement correction (``frame.rx`` ...
+``frame.z``: the pose of the nominal base frame in the true measuring frame, 6), the markers in
+the tool frame (3 each) and, for pose data, the measured frame's rotation in the tool frame
+(3). They are registered in closed form (Horn/Umeyama, :func:`~.registration.register`) on
+the nominal robot, then refined jointly with the joint placements.
+
+Rows: the measured minus predicted points [m] and, for pose data, the rotation error times the
+orientation weight [m/rad] (the chain pipeline's weighting: the variance ratio of the
+registration's residuals, 1 m/rad when the data cannot tell). The placement columns: the
+motion of each marker (and the tool's rotation) per unit placement error, from
+:func:`~.placements.joint_twists`, turned into the measuring frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..identification.measures import POSE, POSITION
+from ..identification.parameters import ParameterSet
+from ..kinematics.so3 import skew
+from ..measurements.data import Measurements
+from .contact_result import GapStats
+from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
+from .placements import joint_twists
+from .registration import register
+from .weighting import DEFAULT_WEIGHT, variance_ratio
+
+__all__ = [
+    "MeasuredKind",
+    "MeasuredState",
+    "measured_columns",
+    "measured_stats",
+    "own_model",
+    "register_measured",
+]
+
+
+@dataclass(frozen=True)
+class MeasuredKind:
+    """The layout of a measured term: its unknowns and rows (as a contact kind's are read).
+
+    Attributes:
+        n_markers: Points measured per configuration K.
+        pose: The measured frame's orientation is measured too (pose data).
+    """
+
+    n_markers: int
+    pose: bool
+
+    object_name = "frame"
+    contact_dofs: tuple[int, ...] = ()
+
+    @property
+    def label(self) -> str:
+        """``pose`` or ``position`` (the report's term kind)."""
+        return "pose" if self.pose else "position"
+
+    def names(self) -> tuple[str, ...]:
+        """The term's unknowns: the frame's 6, each marker's 3, the tool rotation's 3 (pose)."""
+        markers = [f"marker{k + 1}.{a}" for k in range(self.n_markers) for a in "xyz"]
+        return (*FRAME_NAMES, *markers, *(TOOL_NAMES if self.pose else ()))
+
+    @property
+    def object_dofs(self) -> tuple[int, ...]:
+        """One index per unknown (the term's columns of a joint fit)."""
+        return tuple(range(len(self.names())))
+
+    @property
+    def row_names(self) -> tuple[str, ...]:
+        """``x y z`` per marker (numbered with several), then ``rx ry rz`` (pose)."""
+        tag = [""] if self.n_markers == 1 else [str(k + 1) for k in range(self.n_markers)]
+        rows = [f"{a}{t}" for t in tag for a in "xyz"]
+        return (*rows, *(("rx", "ry", "rz") if self.pose else ()))
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """Whether each row is an angle."""
+        return (False,) * (3 * self.n_markers) + (True,) * (3 * self.pose)
+
+
+def own_model(kind: MeasuredKind) -> ErrorModel:
+    """The term's own unknowns as a chain's error model (no MDH parameter)."""
+    return ErrorModel(
+        ParameterSet("none", ()),
+        (),
+        np.zeros((0, 0)),
+        (),
+        n_markers=kind.n_markers,
+        kind=POSE if kind.pose else POSITION,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredState:
+    """A measured term's state: its chain's model on the robot, frame, markers and weight.
+
+    Attributes:
+        inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
+            ``frame`` the pose of the nominal base frame in the measuring frame).
+        weight: Weight of the rotation rows [m/rad].
+    """
+
+    inner: State
+    weight: float
+
+    @property
+    def kind(self) -> MeasuredKind:
+        """The term's layout."""
+        return MeasuredKind(self.inner.n_markers, self.inner.tool_rotation is not None)
+
+    @property
+    def mdh(self):
+        """The chain's MDH model on the perturbed robot."""
+        return self.inner.mdh
+
+    def row_weights(self) -> np.ndarray:
+        """1 on the point rows, :attr:`weight` on the rotation rows."""
+        return np.where(np.array(self.kind.angular), self.weight, 1.0)
+
+    def residuals(self, data: Measurements, torque=None) -> np.ndarray:
+        """Weighted measured - predicted ``(m, rows)`` [m]."""
+        return self.inner.residuals(data) * self.row_weights()
+
+    def moved(self, mdh, x: np.ndarray) -> MeasuredState:
+        """The state on the chain model ``mdh`` with its own unknowns moved by ``x``."""
+        inner = dataclasses.replace(self.inner, mdh=mdh)
+        return dataclasses.replace(self, inner=own_model(self.kind).apply(inner, x))
+
+    def own_jacobian(self, mdh, x: np.ndarray, data: Measurements) -> np.ndarray:
+        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``."""
+        inner = dataclasses.replace(self.inner, mdh=mdh)
+        J = own_model(self.kind).jacobian(inner, x, data, None)
+        return J * self.row_weights()[None, :, None]
+
+
+def measured_columns(placements, chain, state: MeasuredState, frames, data, lift) -> np.ndarray:
+    """Weighted d(prediction)/d(free placement directions) ``(m, rows, free)``.
+
+    Args:
+        placements: The current joint placement errors.
+        chain: The term's nominal chain.
+        state: Its state on the robot of ``placements``.
+        frames: Its joint frames at q = 0 (:meth:`~.placements.Placements.chain_geometry`).
+        data: Its measurements.
+        lift: The free directions ``(free, 6 J)``.
+    """
+    s = state.inner
+    joints = placements.joints
+    columns = np.array([joints.index(name) for name in chain.joint_names])
+    q = np.asarray(data.q, dtype=float)
+    kin = s.mdh.kinematics(q)
+    ang, lin = joint_twists(placements, chain, s.mdh, frames, kin, columns)
+    R, p = kin.R[:, -1], kin.p[:, -1]
+    K, m = s.n_markers, data.m
+    Rf = s.frame[:3, :3]
+    full = np.zeros((m, s.kind.full_rows(K), len(joints), 6))
+    for k in range(K):
+        point = p + R @ s.markers[k]
+        moving = lin - skew(point)[:, None] @ ang  # (m, n, 3, 6)
+        full[:, 3 * k : 3 * k + 3, columns] = np.moveaxis(Rf @ moving, 1, 2)
+    if s.tool_rotation is not None:
+        full[:, 3 * K :, columns] = np.moveaxis(Rf @ ang, 1, 2)
+    W = full.reshape(m, full.shape[1], -1) @ lift.T
+    error = None
+    if s.tool_rotation is not None:
+        rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+        error = s.kind.rotation_error(data.observed, rot)
+    out = s.kind.jacobian_rows(W, rotation_error=error, n_markers=K)
+    return out * state.row_weights()[None, :, None]
+
+
+def register_measured(mdh, data: Measurements, weight: float | None) -> MeasuredState:
+    """The measuring frame, markers (and tool rotation) in closed form on the nominal chain.
+
+    Args:
+        mdh: The term's chain model on the nominal robot.
+        data: Its measurements.
+        weight: Orientation weight [m/rad], or None: the variance ratio of the
+            registration's residuals (:func:`~.weighting.variance_ratio`; 1 m/rad if the
+            data cannot tell).
+    """
+    inner = register(mdh, data.q, data.points, data.rotations)
+    if weight is None and inner.tool_rotation is not None:
+        ratio = variance_ratio(inner.residuals(data), inner.n_markers)
+        weight = DEFAULT_WEIGHT if ratio is None else ratio
+    return MeasuredState(inner, DEFAULT_WEIGHT if weight is None else float(weight))
+
+
+def measured_stats(state: MeasuredState, data: Measurements) -> GapStats:
+    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`."""
+    e = state.inner.residuals(data)
+    kind = state.kind
+    scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
+    weighted = e * state.row_weights()
+    return GapStats(
+        len(e),
+        kind.row_names,
+        kind.angular,
+        tuple(float(v) for v in np.sqrt(np.mean(e**2, axis=0)) * scale),
+        tuple(float(v) for v in np.max(np.abs(e), axis=0) * scale),
+        1e3 * math.sqrt(float(np.mean(np.sum(weighted**2, axis=1)))),
+    )
