@@ -47,9 +47,15 @@ from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
+from ..measurements.data import Measurements
 from . import contact_checks, determined, outliers, validation
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .contact_chains_result import (
+    ChainContacts,
+    ContactChainsCalibration,
+    MeasuredChain,
+    measured_part,
+)
 from .contact_checks import subset
 from .contact_model import ContactState
 from .contact_pipeline import (
@@ -62,11 +68,12 @@ from .contact_pipeline import (
 )
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
+from .measured_term import MeasuredState, check_measured, measured_kind, register_measured
 from .options import check_run_options
 from .outliers import Outlier
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
-from .solve import fit, fitted_values
+from .solve import covariance, fit, fitted_values
 
 __all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
 
@@ -97,10 +104,14 @@ def _check(chains, data, validate, params, holdout) -> None:
     ):
         raise InvalidArgumentError("give one validation set (or None) per chain")
     for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
+        if isinstance(d, Measurements):
+            check_measured(c, d, v)
+            continue
         for part in (d, v) if v is not None else (d,):
             if not isinstance(part, ContactData):
                 raise InvalidArgumentError(
-                    f"touches must be ContactData, got {type(part).__name__}"
+                    "a chain's data must be touches (ContactData) or measurements "
+                    f"(Measurements), got {type(part).__name__}"
                 )
             if part.joint_names != c.joint_names:
                 raise DataError(
@@ -158,6 +169,14 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
     """
     kept, dropped = [], []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
+        if isinstance(d, Measurements):
+            out_m = 0 if held[c] is None else held[c].m
+            rows, size = d.kind.rows_of(d.n_markers), len(measured_kind(d).names())
+            what = f"unknowns of {chain.base_frame}'s placement and the markers"
+            determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
+            kept.append(d)
+            dropped.append(())
+            continue
         v = None if validate is None else validate[c]
         g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)
         start, bad, more = contact_checks.checked_registration(
@@ -193,8 +212,11 @@ def _register(
     """Each chain's plane and contact in closed form on the nominal robot (shared: refined)."""
     placements = Placements.of(tuple(chains))
     models, frames = placements.chain_geometry(tuple(chains))
-    states: list[ContactState] = []
+    states: list[ContactState | MeasuredState] = []
     for mdh, d in zip(models, train, strict=True):
+        if isinstance(d, Measurements):
+            states.append(register_measured(mdh, d, weight))
+            continue
         kin = mdh.kinematics(d.q)
         R, p = kin.R[:, -1], kin.p[:, -1]
         g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)  # a pose: the tool frame
@@ -206,7 +228,7 @@ def _register(
         if owner != c:
             shared = dataclasses.replace(states[c].frames, objects=states[owner].frames.objects)
             states[c] = dataclasses.replace(states[c], frames=shared)
-    scales = tuple(1.0 if isinstance(d.kind, PlaneContact) else pose_weight for d in train)
+    scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
     start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):
         return start
@@ -225,7 +247,7 @@ def _register(
 
 def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
     kinds = tuple(s.kind for s in state.states)
-    counts = tuple(len(s.frames.ids) for s in state.states)
+    counts = tuple(1 if isinstance(s, MeasuredState) else len(s.frames.ids) for s in state.states)
     return ChainsModel(
         tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions, kinds, counts
     )
@@ -265,6 +287,9 @@ def _structural(wide: ChainsModel, start: ChainsState, train) -> list[int]:
     """The columns the touches determine, from the Jacobian at flush postures near them."""
     parts = []
     for s, d in zip(start.states, train, strict=True):
+        if isinstance(s, MeasuredState):
+            parts.append(d)
+            continue
         qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
         parts.append(ContactData(d.joint_names, qf, d.ids, d.kind, d.source))
     A = wide.jacobian(start, np.zeros(wide.size()), ChainsData(tuple(parts)))
@@ -356,7 +381,12 @@ def calibrate_contact_chains(
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
-    splits = [split_contacts(d, holdout, seed) for d in data]
+    splits = [
+        validation.split(d, holdout, seed)
+        if isinstance(d, Measurements)
+        else split_contacts(d, holdout, seed)
+        for d in data
+    ]
     train = [s[0] for s in splits]
     held = [
         v if v is not None else s[1]
@@ -383,7 +413,10 @@ def calibrate_contact_chains(
             f"the fit of the {len(model.free)} parameters determined at the nominal robot)"
         )
     clock.append(time.perf_counter())
-    result = _assemble(start, fitted, model, train, held, plane_of, selection, notes, clock)
+    kept_prior = None if polished else prior
+    result = _assemble(
+        start, fitted, model, kept_prior, train, held, plane_of, selection, notes, clock
+    )
     labels = [None if h is None else "holdout" for h in held]
     if validate is not None:
         labels = [lab if v is None else v.source for lab, v in zip(labels, validate, strict=True)]
@@ -416,7 +449,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     """
     data = ChainsData(tuple(train))
     fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
-    rows = sum(d.m * len(d.kind.row_names) for d in data.parts)
+    rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     if level != "complete" or not model.free or rows < wide.size():
         return fitted, False
     if not fitted.converged:
@@ -429,14 +462,35 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     return fitted, False
 
 
+def _refused(stats, chain: Chain, what: str) -> str | None:
+    """Why a term's held-out errors refuse the model (worse than the registration's), or None."""
+    got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
+    if got > base * (1.0 + WORSE):
+        return (
+            f"the calibrated model's held-out {what} on {chain.base_frame} -> "
+            f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "
+            f"{base:.3f} mm weighted RMS)"
+        )
+    return None
+
+
 def _assemble(
-    start, fitted, model, train, held, plane_of, selection, notes, clock
+    start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state
     refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
-    parts = []
+    parts: list[ChainContacts | MeasuredChain] = []
+    cov = None
     for c, chain in enumerate(state.chains):
         s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
+        if isinstance(s, MeasuredState):
+            if cov is None:
+                cov = covariance(fitted.J, float(fitted.f @ fitted.f), prior)[0]
+            std = np.sqrt(np.diag(cov))[fitted.model.own_columns(c)]
+            part = measured_part(chain, d, h, s0, s, std, c + 1)
+            refusal = refusal or (None if h is None else _refused(part.stats, chain, "errors"))
+            parts.append(part)
+            continue
         stats = {
             "train": gap_stats(s, d.q, d.ids),
             "train_registration": gap_stats(s0, d.q, d.ids),
@@ -445,13 +499,7 @@ def _assemble(
             stats["held_out"] = gap_stats(s, h.q, h.ids)
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
-            got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
-            if refusal is None and got > base * (1.0 + WORSE):
-                refusal = (
-                    f"the calibrated model's held-out gaps on {chain.base_frame} -> "
-                    f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "
-                    f"{base:.3f} mm weighted RMS)"
-                )
+            refusal = refusal or _refused(stats, chain, "gaps")
         kin = s.mdh.kinematics(d.q)
         centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ s.contact[:3, 3], axis=0)
         plane = s.plane(centre) if isinstance(s.kind, PlaneContact) else s.frames.objects[0]
@@ -478,7 +526,13 @@ def _assemble(
         chains=tuple(parts),
         placements=state.placements,
         shared=shared,
-        planes=len(set(plane_of)),
+        planes=len(
+            {
+                p
+                for p, s in zip(plane_of, state.states, strict=True)
+                if not isinstance(s, MeasuredState)
+            }
+        ),
         free=tuple(model.names()[model.fixed :]),
         selection=selection,
         refusal=refusal,

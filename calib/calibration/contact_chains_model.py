@@ -201,6 +201,10 @@ class ChainsModel:
             slice(t, t + len(kind.contact_dofs)),
         )
 
+    def own_columns(self, c: int) -> slice:
+        """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
+        return self._chain_columns(c)[0]
+
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
         obj, con = self._chain_columns(c)
         return np.r_[x[obj], x[con]]

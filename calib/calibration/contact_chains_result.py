@@ -15,6 +15,7 @@ from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm
 from .delivery import Delivered
+from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
 from .placements import Placements
 from .report import (
@@ -31,7 +32,21 @@ from .report import (
 )
 from .selection import Selection
 
-__all__ = ["ChainContacts", "ContactChainsCalibration"]
+__all__ = [
+    "ChainContacts",
+    "ContactChainsCalibration",
+    "MeasuredChain",
+    "measured_part",
+    "term_errors",
+]
+
+
+def term_errors(stats: dict[str, GapStats], held_source: str | None) -> dict:
+    """A term's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
+    out: dict = {"train": gap_errors_mm(stats, "train"), "held_out": None}
+    if "held_out" in stats:
+        out["held_out"] = {"source": held_source, **gap_errors_mm(stats, "held_out")}
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,10 +95,7 @@ class ChainContacts:
 
     def errors(self) -> dict:
         """The report's ``errors.terms`` entry: ``train`` and ``held_out`` gaps (format 3)."""
-        out: dict = {"train": gap_errors_mm(self.stats, "train"), "held_out": None}
-        if "held_out" in self.stats:
-            out["held_out"] = {"source": self.held_source, **gap_errors_mm(self.stats, "held_out")}
-        return out
+        return term_errors(self.stats, self.held_source)
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; gaps in mm and degrees; format 2's)."""
@@ -102,6 +114,88 @@ class ChainContacts:
             },
             "gaps": {k: v.to_dict() for k, v in self.stats.items()},
         }
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredChain:
+    """A measured term's part of the result (a frame on the robot measuring its tool).
+
+    Attributes:
+        chain: The nominal chain (its base frame: the measuring frame).
+        source: Its measurements' file (or description).
+        joint: The fixed joint that places the measuring frame on its link.
+        registered: Its registration on the nominal robot.
+        state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
+            frame; markers and measured-frame rotation in the tool frame).
+        stats: Errors (mm, degrees) of ``train``, ``train_registration`` and, with held-out
+            rows, ``held_out`` and ``held_out_registration``.
+        parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
+        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
+        outliers: Its rows set aside (none: a measured term's rows are all fitted).
+    """
+
+    chain: Chain
+    source: str
+    joint: str
+    registered: MeasuredState
+    state: MeasuredState
+    stats: dict[str, GapStats]
+    parameters: tuple[dict, ...] = ()
+    held_source: str | None = None
+    outliers: tuple[Outlier, ...] = ()
+
+    @property
+    def kind(self):
+        """The term's layout (:class:`~.measured_term.MeasuredKind`)."""
+        return self.state.kind
+
+    def placement_error(self) -> np.ndarray:
+        """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
+        return np.linalg.inv(self.state.inner.frame)
+
+    def errors(self) -> dict:
+        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
+        return term_errors(self.stats, self.held_source)
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (metres, radians; errors in mm and degrees)."""
+        s = self.state.inner
+        return {
+            "base": self.chain.base_frame,
+            "tool": self.chain.tool_frame,
+            "data": self.source,
+            "kind": self.kind.label,
+            "orientation_weight": self.state.weight,
+            "measurement_to_base": s.frame.tolist(),
+            "joint": self.joint,
+            "markers": s.markers.tolist(),
+            "errors": {k: v.to_dict() for k, v in self.stats.items()},
+        }
+
+
+def measured_part(chain, train, held, registered, state, std, term: int) -> MeasuredChain:
+    """A measured term's part: its errors, and its unknowns' report entries.
+
+    Args:
+        chain: The term's chain.
+        train: Its fitted measurements.
+        held: Its held-out measurements, or None.
+        registered: Its registration (nominal robot).
+        state: Its fitted state.
+        std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
+        term: The term's number (1-based, in the order given), in its unknowns' names.
+    """
+    stats = {"train": measured_stats(state, train), "train_registration": measured_stats(
+        registered, train)}  # fmt: skip
+    if held is not None:
+        stats["held_out"] = measured_stats(state, held)
+        stats["held_out_registration"] = measured_stats(registered, held)
+    joint = measuring_joint(chain)
+    names = [f"term{term}.{n}" for n in state.kind.names()]
+    entries = parameter_entries(names, own_change(registered, state), std, ())
+    for e in entries:
+        e["joint"] = joint if ".frame." in e["name"] else None
+    return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -126,7 +220,7 @@ class ContactChainsCalibration(Delivered):
         solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
     """
 
-    chains: tuple[ChainContacts, ...]
+    chains: tuple[ChainContacts | MeasuredChain, ...]
     placements: Placements
     shared: tuple[str, ...]
     planes: int
@@ -147,8 +241,39 @@ class ContactChainsCalibration(Delivered):
         return self.refusal is None
 
     def joint_errors(self) -> dict[str, np.ndarray]:
-        """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``)."""
-        return self.placements.errors()
+        """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
+
+        A measured term's measuring frame moves its fixed joint (:class:`MeasuredChain`).
+        """
+        out = self.placements.errors()
+        for c in self._measured():
+            out[c.joint] = c.placement_error()
+        return out
+
+    def _measured(self) -> tuple[MeasuredChain, ...]:
+        return tuple(c for c in self.chains if isinstance(c, MeasuredChain))
+
+    def _contacts(self) -> tuple[ChainContacts, ...]:
+        return tuple(c for c in self.chains if isinstance(c, ChainContacts))
+
+    def _frames(self) -> dict:
+        """The report's ``frames``: contact frames, and each measuring frame's placement."""
+        measured = self._measured()
+        return {
+            "measurement": {c.chain.base_frame: pose_dict(c.state.inner.frame) for c in measured}
+            or None,
+            "measured": {
+                c.chain.tool_frame: pose_dict(_rotation(c.state.inner.tool_rotation))
+                for c in measured
+                if c.state.inner.tool_rotation is not None
+            }
+            or None,
+            "markers": {c.chain.tool_frame: c.state.inner.markers.tolist() for c in measured},
+            "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._contacts()},
+            "world_link": None,
+            "tool_link": None,
+            "on_robot": bool(measured),
+        }
 
     def to_dict(self) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
@@ -173,21 +298,16 @@ class ContactChainsCalibration(Delivered):
                 for c in self.chains
             ],
             **verdict(self.params, self.refusal, self.solver),
-            "parameters": parameter_entries(self.fitted, self.estimate, self.std, names),
+            "parameters": [
+                *(p for c in self._measured() for p in c.parameters),
+                *parameter_entries(self.fitted, self.estimate, self.std, names),
+            ],
             "errors": {
                 "train": None,
                 "held_out": None,
                 "terms": [c.errors() for c in self.chains],
             },
-            "frames": {
-                "measurement": None,
-                "measured": None,
-                "markers": {},
-                "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self.chains},
-                "world_link": None,
-                "tool_link": None,
-                "on_robot": False,
-            },
+            "frames": self._frames(),
             "objects": self._object_poses(),
             "fit": fit_dict(),
             "model_choice": model_choice(self.selection),
@@ -207,7 +327,7 @@ class ContactChainsCalibration(Delivered):
     def _object_poses(self) -> dict:
         """Planes and poses by id, each in its chain's base frame (format 3's ``objects``)."""
         out: dict[str, dict] = {}
-        for c in self.chains:
+        for c in self._contacts():
             group = out.setdefault(f"{c.kind.object_name}s", {})
             for i, F in c.objects().items():
                 group[i] = {"frame": c.chain.base_frame, **(pose_dict(F) or {})}
@@ -228,7 +348,7 @@ class ContactChainsCalibration(Delivered):
 
     def _objects(self) -> str:
         """``2 plane(s)``, or ``1 plane(s) and 1 pose(s)`` with loops."""
-        loops = [c for c in self.chains if not isinstance(c.kind, PlaneContact)]
+        loops = [c for c in self._contacts() if not isinstance(c.kind, PlaneContact)]
         poses = sum(len(c.objects()) for c in loops)
         return f"{self.planes - len(loops)} plane(s)" + (f" and {poses} pose(s)" if poses else "")
 
@@ -242,7 +362,16 @@ class ContactChainsCalibration(Delivered):
         ]
         for c in self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
-            if not isinstance(c.kind, PlaneContact):
+            if isinstance(c, MeasuredChain):
+                units = [
+                    f"{n} [{'deg' if a else 'mm'}]"
+                    for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
+                ]
+                lines.append(
+                    f"{c.chain.base_frame} -> {c.chain.tool_frame}, measured {c.kind.label} "
+                    f"(errors: {', '.join(units)}; the measuring frame in joint '{c.joint}'):"
+                )
+            elif not isinstance(c.kind, PlaneContact):
                 units = [
                     f"{n} [{'deg' if a else 'mm'}]"
                     for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
@@ -254,7 +383,8 @@ class ContactChainsCalibration(Delivered):
                 lines.append(f"{head} '{c.plane_id}':")
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
-                lines.append(f"  {key:22s} {rms}  ({s.m} touches)")
+                rows = "configurations" if isinstance(c, MeasuredChain) else "touches"
+                lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
         names = tuple(self.chains[0].chain.model.names)
         lines += parameter_lines(parameter_entries(self.fitted, self.estimate, self.std, names))
         lines += [f"note: {n}" for n in self.notes]
@@ -270,6 +400,13 @@ class ContactChainsCalibration(Delivered):
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
+
+
+def _rotation(R: np.ndarray) -> np.ndarray:
+    """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    return T
 
     def write_urdf(self, path: str | Path) -> None:
         """Write :meth:`urdf` atomically (never over the nominal URDF).

@@ -30,9 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
 from ..identification.parameters import ParameterSet
-from ..kinematics.so3 import skew
+from ..kinematics.robot import Chain
+from ..kinematics.so3 import rotation_vector, skew
+from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from .contact_result import GapStats
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
@@ -43,8 +46,12 @@ from .weighting import DEFAULT_WEIGHT, variance_ratio
 __all__ = [
     "MeasuredKind",
     "MeasuredState",
+    "check_measured",
     "measured_columns",
+    "measured_kind",
     "measured_stats",
+    "measuring_joint",
+    "own_change",
     "own_model",
     "register_measured",
 ]
@@ -91,6 +98,62 @@ class MeasuredKind:
     def angular(self) -> tuple[bool, ...]:
         """Whether each row is an angle."""
         return (False,) * (3 * self.n_markers) + (True,) * (3 * self.pose)
+
+
+def measured_kind(data: Measurements) -> MeasuredKind:
+    """The layout of a measured term of these measurements."""
+    return MeasuredKind(data.n_markers, data.quaternion is not None)
+
+
+def measuring_joint(chain: Chain) -> str:
+    """The fixed joint that places the chain's base frame (the measuring frame) on the robot.
+
+    Raises:
+        InvalidArgumentError: The base frame is not fixed to a link by a fixed joint (the root
+            link, or a frame a joint moves): not on the robot, its placement has nowhere to go
+            in the URDF.
+    """
+    _, root = read_urdf_source(chain)
+    try:
+        return base_joint(root, chain).get("name", "")
+    except CalibError:
+        raise InvalidArgumentError(
+            f"a measured term's base frame '{chain.base_frame}' is not on the robot (not fixed "
+            f"to a link by a fixed joint): measure from a frame on the robot (a head camera), "
+            f"or calibrate an instrument outside it with calib.calibrate(chain, measurements)"
+        ) from None
+
+
+def check_measured(chain: Chain, data: Measurements, held) -> None:
+    """A measured term's data: its chain's joints, one tool, held-out rows of its kind.
+
+    Raises:
+        InvalidArgumentError: The base frame is not on the robot, validation rows of another
+            kind (touches, pose against position, other markers), or several tools.
+        DataError: The measurements' joints are not the chain's.
+    """
+    measuring_joint(chain)
+    for part in (data, held) if held is not None else (data,):
+        if not isinstance(part, Measurements):
+            raise InvalidArgumentError(
+                f"{chain.base_frame} -> {chain.tool_frame}: validation rows must be "
+                f"Measurements like its data, got {type(part).__name__}"
+            )
+        if part.joint_names != chain.joint_names:
+            raise DataError(
+                part.source, f"the measurements' joints are not those of {chain.tool_frame}'s chain"
+            )
+        if part.tool is not None and set(part.tool) != {chain.tool_frame}:
+            raise InvalidArgumentError(
+                f"{part.source}: a measured term measures its chain's tool "
+                f"'{chain.tool_frame}' only, got rows of {', '.join(sorted(set(part.tool)))}"
+            )
+        if measured_kind(part) != measured_kind(data):
+            raise InvalidArgumentError(
+                f"{part.source}: validation rows of another kind than the term's "
+                f"({measured_kind(part).label}, {part.n_markers} marker(s) against "
+                f"{measured_kind(data).label}, {data.n_markers})"
+            )
 
 
 def own_model(kind: MeasuredKind) -> ErrorModel:
@@ -215,3 +278,20 @@ def measured_stats(state: MeasuredState, data: Measurements) -> GapStats:
         tuple(float(v) for v in np.max(np.abs(e), axis=0) * scale),
         1e3 * math.sqrt(float(np.mean(np.sum(weighted**2, axis=1)))),
     )
+
+
+def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
+    """The term's unknowns from the registration to ``state``, as x of :func:`own_model`.
+
+    The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
+    changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).
+    """
+    a, b = registered.inner, state.inner
+    parts = [
+        rotation_vector((b.frame[:3, :3] @ a.frame[:3, :3].T)[None])[0],
+        b.frame[:3, 3] - a.frame[:3, 3],
+        (b.markers - a.markers).ravel(),
+    ]
+    if a.tool_rotation is not None and b.tool_rotation is not None:
+        parts.append(rotation_vector((a.tool_rotation.T @ b.tool_rotation)[None])[0])
+    return np.concatenate(parts)
