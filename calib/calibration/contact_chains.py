@@ -534,6 +534,7 @@ def _assemble(
             }
         ),
         free=tuple(model.names()[model.fixed :]),
+        unknowns=model.size(),
         selection=selection,
         refusal=refusal,
         notes=tuple(notes),

@@ -173,6 +173,13 @@ class MeasuredChain:
         }
 
 
+def _rotation(R: np.ndarray) -> np.ndarray:
+    """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    return T
+
+
 def measured_part(chain, train, held, registered, state, std, term: int) -> MeasuredChain:
     """A measured term's part: its errors, and its unknowns' report entries.
 
@@ -218,6 +225,9 @@ class ContactChainsCalibration(Delivered):
         std: Their standard deviations (NaN where undefined).
         fitted: The names of ``estimate`` (``free``, or every component after a polish).
         solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
+        unknowns: The unknowns the data determine (the structural rank at the nominal
+            robot): the objects', contacts' and measured terms' own, and the joint placement
+            directions kept (``free``).
     """
 
     chains: tuple[ChainContacts | MeasuredChain, ...]
@@ -234,6 +244,7 @@ class ContactChainsCalibration(Delivered):
     std: np.ndarray = field(default_factory=lambda: np.zeros(0))
     fitted: tuple[str, ...] = ()
     solver: tuple[bool, str, int] = (True, "", 0)
+    unknowns: int = 0
 
     @property
     def accepted(self) -> bool:
@@ -400,13 +411,6 @@ class ContactChainsCalibration(Delivered):
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
-
-
-def _rotation(R: np.ndarray) -> np.ndarray:
-    """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
-    T = np.eye(4)
-    T[:3, :3] = R
-    return T
 
     def write_urdf(self, path: str | Path) -> None:
         """Write :meth:`urdf` atomically (never over the nominal URDF).

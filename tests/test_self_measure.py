@@ -1,0 +1,148 @@
+"""The robot measuring itself as one term among others: a head camera measures the hand.
+
+A measured term of :func:`calib.calibrate_contact_chains` (``Measurements`` in the chain's
+base frame, a frame on the robot) fitted with contact chains: one truth, one fit, one URDF.
+Checked by routes that share nothing with the fit: central differences of the rows, Pinocchio's
+forward kinematics of the written URDF, and the rank of central differences of Pinocchio's
+placements under a small twist of every joint placement, of the camera frame's placement, of
+the planes and contact frames (Pinocchio alone).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from contact_scorer import plane_gaps, relative_placements
+from test_contact_chains import central_differences, moved_chains
+
+from calib import calibrate_contact_chains, load_robot, simulate
+from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
+from calib.calibration.contact_chains_result import MeasuredChain
+from calib.calibration.contact_model import plane_state
+from calib.calibration.measured_term import MeasuredState
+from calib.calibration.model import registration_state
+from calib.calibration.report import REPORT_KEYS
+from calib.identification.contacts import PlaneContact
+from calib.kinematics.so3 import matrix_to_quaternion, rotation_matrix
+from calib.measurements.contact_campaign import ContactData, simulate_contacts
+from calib.measurements.data import Measurements
+from calib.measurements.true_robot import true_robot
+
+URDF = "talos_full_v2.urdf"
+PAIRS = (
+    ("left_sole_link", "gripper_left_base_link"),
+    ("right_sole_link", "gripper_right_base_link"),
+)
+CAMERA = ("rgbd_optical_frame", "gripper_left_base_link")
+MARKER = (0.02, 0.01, 0.05)
+
+
+def _talos(urdf=URDF):
+    return [load_robot(urdf, *p) for p in (*PAIRS, CAMERA)]
+
+
+@pytest.mark.parametrize("pose", [False, True])
+def test_jacobian_matches_central_differences(pose):
+    """Every column: a plane chain's, the camera term's own (frame, 2 markers, tool rotation)
+    and every joint's six placement components, at a moved robot and off the solution."""
+    chains = (load_robot(URDF, *PAIRS[0]), load_robot(URDF, *CAMERA))
+    rng = np.random.default_rng(1)
+    pl, models, frames, C, n = moved_chains(chains, rng)
+    F = np.eye(4)
+    F[:3, :3], F[:3, 3] = rotation_matrix([0.1, -0.2, 0.05]), [0.02, -0.01, 0.03]
+    tool = rotation_matrix([0.2, 0.1, -0.3]) if pose else None
+    markers = np.array([[0.01, 0.02, 0.1], [-0.03, 0.0, 0.05]])
+    term = MeasuredState(registration_state(models[1], F, markers, tool), 0.3)
+    start = ChainsState(chains, pl, (plane_state(models[0], C, n, 0.7, 0.3, "t"), term), frames)
+    q = [c.random_configurations(k, 3 + k) for c, k in zip(chains, (5, 6), strict=True)]
+    quat = None
+    if pose:
+        quat = matrix_to_quaternion(rotation_matrix(rng.normal(size=(6, 3))))
+    data = ChainsData(
+        (
+            ContactData(chains[0].joint_names, q[0], ("t",) * 5, PlaneContact()),
+            Measurements(chains[1].joint_names, q[1], rng.normal(size=(6, 2, 3)), quat),
+        )
+    )
+    kinds = (PlaneContact(), term.kind)
+    model = ChainsModel((0, 1), 2, tuple(range(pl.y.size)), pl.names(), None, kinds, (1, 1))
+    assert model.size() == 3 + 2 + 6 + 6 + 3 * pose + pl.y.size
+    x = 1e-3 * rng.standard_normal(model.size())
+    J = model.jacobian(start, x, data)
+    num = central_differences(model, start, x, data)
+    assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
+
+
+@pytest.fixture(scope="module")
+def joint_fit(tmp_path_factory):
+    """One true TALOS (every joint of the three chains and the camera's placement moved by
+    ~1 mm / 1 mrad): both arms' table touches from the soles and the head camera's points on
+    the left hand, fitted together."""
+    folder = tmp_path_factory.mktemp("self")
+    nominal = _talos()
+    truth = true_robot(nominal, folder / "true.urdf", measuring=nominal[2:], seed=3)
+    true = _talos(str(truth.urdf))
+    zero = {"error_mm": 0.0, "error_mrad": 0.0}
+    data = [simulate_contacts(c, 40, "plane", seed=1, **zero).data for c in true[:2]]
+    data.append(simulate(true[2], 40, "position", marker=MARKER, seed=2, **zero).measurements)
+    r = calibrate_contact_chains(nominal, data, params="complete", holdout=0.25, seed=0)
+    out = folder / "cal.urdf"
+    r.write_urdf(out)
+    return nominal, data, truth, r, out
+
+
+def test_joint_round_trip_on_the_written_urdf(joint_fit):
+    """Pinocchio on the written URDF: the camera's measurements (every row, held out too) to
+    1e-9 m, and both arms' touches flush on the fitted planes to 1e-9."""
+    nominal, data, truth, r, out = joint_fit
+    assert r.accepted
+    camera = r.chains[2]
+    assert isinstance(camera, MeasuredChain) and camera.joint == "rgbd_optical_joint"
+    assert camera.stats["held_out"].m == 10
+    assert camera.stats["held_out_registration"].length_rms_mm > 1.0  # something to fix
+    d = data[2]
+    joints = {n: d.q[:, k] for k, n in enumerate(nominal[2].joint_names)}
+    T = relative_placements(out, *CAMERA, joints)
+    marker = camera.state.inner.markers[0]
+    seen = np.array([M.rotation @ marker + M.translation for M in T])
+    assert np.max(np.abs(seen - d.position)) < 1e-9
+    before = relative_placements(nominal[0].urdf_path, *CAMERA, joints)
+    assert np.max(np.abs([a.translation - b.translation for a, b in zip(T, before)])) > 1e-3
+    for chain, d, part in zip(nominal[:2], data[:2], r.chains[:2], strict=True):
+        joints = {n: d.q[:, k] for k, n in enumerate(chain.joint_names)}
+        g = plane_gaps(out, chain.base_frame, chain.tool_frame, part.contact, part.plane, joints)
+        assert np.max(np.abs(g)) < 1e-9
+
+
+def test_the_camera_joint_is_what_moved(joint_fit):
+    """The camera's fixed joint takes the measuring frame's correction (E = frame^-1); every
+    other edited joint is a joint of the chains (the camera alone is not told apart from the
+    head joints' placements: its joint need not be the truth's, the camera -> hand path is)."""
+    nominal, _, _, r, out = joint_fit
+    urdf = pin.buildModelFromUrdf(str(out))
+    start = pin.buildModelFromUrdf(str(nominal[0].urdf_path))
+    fid = [i for i, f in enumerate(urdf.frames) if f.name == "rgbd_optical_joint"][0]
+    got, was = urdf.frames[fid].placement.homogeneous, start.frames[fid].placement.homogeneous
+    E = np.linalg.inv(r.chains[2].state.inner.frame)
+    assert np.allclose(got, was @ E, atol=1e-12) and not np.allclose(got, was, atol=1e-5)
+    moved = set(r.joint_errors())
+    assert "rgbd_optical_joint" in moved
+    assert moved - {"rgbd_optical_joint"} <= {n for c in nominal for n in c.joint_names}
+
+
+def test_report_lists_the_term(joint_fit):
+    _, _, _, r, _ = joint_fit
+    doc = json.loads(json.dumps(r.to_dict()))
+    assert list(doc)[: len(REPORT_KEYS)] == list(REPORT_KEYS) and doc["format_version"] == "3"
+    assert [t["kind"] for t in doc["terms"]] == ["plane", "plane", "position"]
+    frame = [p for p in doc["parameters"] if p["name"].startswith("term3.frame.")]
+    assert len(frame) == 6 and {p["joint"] for p in frame} == {"rgbd_optical_joint"}
+    markers = [p for p in doc["parameters"] if p["name"].startswith("term3.marker1.")]
+    assert len(markers) == 3 and {p["joint"] for p in markers} == {None}
+    held = doc["errors"]["terms"][2]["held_out"]
+    assert held["calibrated"]["x_rms_mm"] < 1e-6 and held["registration"]["x_rms_mm"] > 0.1
+    assert doc["frames"]["on_robot"] is True
+    assert "rgbd_optical_joint" in doc["model"]["joint_origins"]
