@@ -97,7 +97,7 @@ def joint_fit(tmp_path_factory):
 def test_joint_round_trip_on_the_written_urdf(joint_fit):
     """Pinocchio on the written URDF: the camera's measurements (every row, held out too) to
     1e-9 m, and both arms' touches flush on the fitted planes to 1e-9."""
-    nominal, data, truth, r, out = joint_fit
+    nominal, data, _, r, out = joint_fit
     assert r.accepted
     camera = r.chains[2]
     assert isinstance(camera, MeasuredChain) and camera.joint == "rgbd_optical_joint"
@@ -110,7 +110,10 @@ def test_joint_round_trip_on_the_written_urdf(joint_fit):
     seen = np.array([M.rotation @ marker + M.translation for M in T])
     assert np.max(np.abs(seen - d.position)) < 1e-9
     before = relative_placements(nominal[0].urdf_path, *CAMERA, joints)
-    assert np.max(np.abs([a.translation - b.translation for a, b in zip(T, before)])) > 1e-3
+    assert (
+        np.max(np.abs([a.translation - b.translation for a, b in zip(T, before, strict=True)]))
+        > 1e-3
+    )
     for chain, d, part in zip(nominal[:2], data[:2], r.chains[:2], strict=True):
         joints = {n: d.q[:, k] for k, n in enumerate(chain.joint_names)}
         g = plane_gaps(out, chain.base_frame, chain.tool_frame, part.contact, part.plane, joints)
@@ -124,7 +127,7 @@ def test_the_camera_joint_is_what_moved(joint_fit):
     nominal, _, _, r, out = joint_fit
     urdf = pin.buildModelFromUrdf(str(out))
     start = pin.buildModelFromUrdf(str(nominal[0].urdf_path))
-    fid = [i for i, f in enumerate(urdf.frames) if f.name == "rgbd_optical_joint"][0]
+    fid = next(i for i, f in enumerate(urdf.frames) if f.name == "rgbd_optical_joint")
     got, was = urdf.frames[fid].placement.homogeneous, start.frames[fid].placement.homogeneous
     E = np.linalg.inv(r.chains[2].state.inner.frame)
     assert np.allclose(got, was @ E, atol=1e-12) and not np.allclose(got, was, atol=1e-5)
