@@ -167,7 +167,8 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
     Returns:
         Each chain's touches kept, and each chain's outliers.
     """
-    kept, dropped = [], []
+    kept: list[ContactData | Measurements] = []
+    dropped: list[tuple[Outlier, ...]] = []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         if isinstance(d, Measurements):
             out_m = 0 if held[c] is None else held[c].m
@@ -224,10 +225,10 @@ def _register(
         registered = register_contacts(d.kind, R, p, d.ids, g, w)
         states.append(ContactState(mdh, registered, w))
     for c, p in enumerate(plane_of):  # a shared plane starts from its first chain's
-        owner = plane_of.index(p)
-        if owner != c:
-            shared = dataclasses.replace(states[c].frames, objects=states[owner].frames.objects)
-            states[c] = dataclasses.replace(states[c], frames=shared)
+        mine, owner = states[c], states[plane_of.index(p)]
+        if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
+            shared = dataclasses.replace(mine.frames, objects=owner.frames.objects)
+            states[c] = dataclasses.replace(mine, frames=shared)
     scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
     start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..identification.parameters import ParameterSet
 from ..kinematics.robot import Chain
@@ -137,11 +138,11 @@ class ChainsModel:
     n_markers = 0  # its rows come weighted (solve.row_weights: 1)
     pose = False
 
-    def chain_kinds(self) -> tuple[Contact, ...]:
+    def chain_kinds(self) -> tuple[Contact | MeasuredKind, ...]:
         """Each chain's contact kind."""
         return self.kinds if self.kinds is not None else (PlaneContact(),) * len(self.plane_of)
 
-    def object_kinds(self) -> tuple[Contact, ...]:
+    def object_kinds(self) -> tuple[Contact | MeasuredKind, ...]:
         """Each object's kind (that of its first chain)."""
         kinds = self.chain_kinds()
         return tuple(kinds[self.plane_of.index(p)] for p in range(self.planes))
@@ -250,31 +251,40 @@ class ChainsModel:
         """Weighted d(gap)/dx ``(m, rows, size)``, chain after chain (padded rows)."""
         state = self.apply(start, x)
         rows = row_count(self.chain_kinds())
-        blocks = []
-        for c, (s, d) in enumerate(zip(state.states, data.parts, strict=True)):
-            J = np.zeros((d.m, len(s.kind.row_names), self.size()))
-            obj, con = self._chain_columns(c)
-            if isinstance(s, MeasuredState):
-                J[:, :, obj] = start.states[c].own_jacobian(s.mdh, self._chain_x(x, c), d)
-                if self.free:
-                    J[:, :, self.fixed :] = measured_columns(
-                        state.placements, state.chains[c], s, state.frames[c], d, self._lift()
-                    )
-                blocks.append(padded(start.scale(c) * J, rows))
-                continue
-            base = dataclasses.replace(start.states[c], mdh=s.mdh)
-            Jc = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
-            split = obj.stop - obj.start
-            J[:, :, obj] = Jc[:, :, :split]
-            J[:, :, con] = Jc[:, :, split:]
-            if self.free:
-                J[:, :, self.fixed :] = self._robot_columns(state, c, d)
-            blocks.append(padded(start.scale(c) * J, rows))
+        blocks = [
+            padded(start.scale(c) * self._block(start, state, x, c, d), rows)
+            for c, d in enumerate(data.parts)
+        ]
         return np.concatenate(blocks)
 
-    def _robot_columns(self, state: ChainsState, c: int, d: ContactData) -> np.ndarray:
+    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d):
+        """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded)."""
+        s, s0 = state.states[c], start.states[c]
+        J = np.zeros((d.m, len(s.kind.row_names), self.size()))
+        obj, con = self._chain_columns(c)
+        if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
+            J[:, :, obj] = s0.own_jacobian(s.mdh, self._chain_x(x, c), d)
+            if self.free:
+                J[:, :, self.fixed :] = measured_columns(
+                    state.placements, state.chains[c], s, state.frames[c], d, self._lift()
+                )
+            return J
+        if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
+            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
+        base = dataclasses.replace(s0, mdh=s.mdh)
+        Jc = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
+        split = obj.stop - obj.start
+        J[:, :, obj] = Jc[:, :, :split]
+        J[:, :, con] = Jc[:, :, split:]
+        if self.free:
+            J[:, :, self.fixed :] = self._robot_columns(state, c, s, d)
+        return J
+
+    def _robot_columns(
+        self, state: ChainsState, c: int, s: ContactState, d: ContactData
+    ) -> np.ndarray:
         """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
-        chain, s = state.chains[c], state.states[c]
+        chain = state.chains[c]
         joints = state.placements.joints
         columns = np.array([joints.index(name) for name in chain.joint_names])
         kin = s.mdh.kinematics(np.asarray(d.q, dtype=float))

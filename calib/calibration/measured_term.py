@@ -195,7 +195,7 @@ class MeasuredState:
         """1 on the point rows, :attr:`weight` on the rotation rows."""
         return np.where(np.array(self.kind.angular), self.weight, 1.0)
 
-    def residuals(self, data: Measurements, torque=None) -> np.ndarray:
+    def residuals(self, data, torque=None) -> np.ndarray:
         """Weighted measured - predicted ``(m, rows)`` [m]."""
         return self.inner.residuals(data) * self.row_weights()
 
@@ -239,10 +239,8 @@ def measured_columns(placements, chain, state: MeasuredState, frames, data, lift
     if s.tool_rotation is not None:
         full[:, 3 * K :, columns] = np.moveaxis(Rf @ ang, 1, 2)
     W = full.reshape(m, full.shape[1], -1) @ lift.T
-    error = None
-    if s.tool_rotation is not None:
-        rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
-        error = s.kind.rotation_error(data.observed, rot)
+    rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+    error = None if rot is None else s.kind.rotation_error(data.observed, rot)
     out = s.kind.jacobian_rows(W, rotation_error=error, n_markers=K)
     return out * state.row_weights()[None, :, None]
 

@@ -86,5 +86,5 @@ def true_robot(
         E[:3, :3] = rotation_matrix(sd_rad * rng.standard_normal(3))
         E[:3, 3] = sd_m * rng.standard_normal(3)
         errors[name] = E
-    write_moved_origins_urdf(path, chains[0], errors)
+    write_moved_origins_urdf(Path(path), chains[0], errors)
     return TrueRobot(Path(path), errors)
