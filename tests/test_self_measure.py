@@ -15,10 +15,10 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
-from contact_scorer import plane_gaps, relative_placements
+from contact_scorer import configurations, plane_gaps, relative_placements
 from test_contact_chains import central_differences, moved_chains
 
-from calib import calibrate_contact_chains, load_robot, simulate
+from calib import calibrate_contact_chains, load_chain, load_robot, simulate
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_chains_result import MeasuredChain
 from calib.calibration.contact_model import plane_state
@@ -149,3 +149,130 @@ def test_report_lists_the_term(joint_fit):
     assert held["calibrated"]["x_rms_mm"] < 1e-6 and held["registration"]["x_rms_mm"] > 0.1
     assert doc["frames"]["on_robot"] is True
     assert "rgbd_optical_joint" in doc["model"]["joint_origins"]
+
+
+def _frame(model: pin.Model, name: str) -> int:
+    ids = [i for i, f in enumerate(model.frames) if f.name == name]
+    bodies = [i for i in ids if model.frames[i].type == pin.FrameType.BODY]
+    return bodies[0] if bodies else ids[0]
+
+
+class _Robot:
+    """A Pinocchio model whose joint and frame placements, planes, contact frames and marker
+    take small twists, and every term's rows at given configurations (Pinocchio alone)."""
+
+    def __init__(self, urdf, terms):
+        self.model = pin.buildModelFromUrdf(str(urdf))
+        self.data = self.model.createData()
+        self.terms = terms  # (base, tool, joints {name: values}, kind)
+        self.extra = {}  # plane k / contact k -> pin.SE3, "marker" -> (3,)
+
+    def rel(self, base, tool, joints):
+        Q = configurations(self.model, joints)
+        b, t = _frame(self.model, base), _frame(self.model, tool)
+        out = []
+        for q in Q:
+            pin.framesForwardKinematics(self.model, self.data, q)
+            out.append(self.data.oMf[b].inverse() * self.data.oMf[t])
+        return out
+
+    def rows(self) -> np.ndarray:
+        out = []
+        for k, (base, tool, joints, kind) in enumerate(self.terms):
+            for M in self.rel(base, tool, joints):
+                if kind == "position":
+                    out.append(M.rotation @ self.extra["marker"] + M.translation)
+                else:  # a plane touch: height, roll, pitch of the contact in the plane
+                    G = self.extra[("plane", k)].inverse() * M * self.extra[("contact", k)]
+                    out.append(np.r_[G.translation[2], pin.rpy.matrixToRpy(G.rotation)[:2]])
+        return np.concatenate(out)
+
+    def handles(self, joint_names, frames):
+        """(get, set) of every placement perturbed: joints, frames, planes, contacts."""
+        m = self.model
+        out = []
+        for j in dict.fromkeys(m.getJointId(n) for n in joint_names):
+            out.append((lambda j=j: m.jointPlacements[j].copy(),
+                        lambda M, j=j: m.jointPlacements.__setitem__(j, M)))  # fmt: skip
+        for f in frames:
+
+            def put(M, f=f):
+                frame = m.frames[f]
+                frame.placement = M
+                m.frames[f] = frame
+
+            out.append((lambda f=f: m.frames[f].placement.copy(), put))
+        for key in [k for k in self.extra if k != "marker"]:
+            out.append((lambda key=key: self.extra[key].copy(),
+                        lambda M, key=key: self.extra.__setitem__(key, M)))  # fmt: skip
+        return out
+
+    def rank(self, joint_names, frames, eps=1e-6, tol=1e-7) -> int:
+        """Rank of the central differences of every row under a twist of every placement
+        (6 each) and a shift of the marker (3), singular values above ``tol`` of the largest."""
+        cols = []
+        for get, put in self.handles(joint_names, frames):
+            nominal = get()
+            for i in range(6):
+                steps = []
+                for sign in (1.0, -1.0):
+                    put(nominal * pin.exp6(pin.Motion(sign * eps * np.eye(6)[i])))
+                    steps.append(self.rows())
+                put(nominal)
+                cols.append((steps[0] - steps[1]) / (2 * eps))
+        if "marker" in self.extra:
+            marker = self.extra["marker"].copy()
+            for i in range(3):
+                steps = []
+                for sign in (1.0, -1.0):
+                    self.extra["marker"] = marker + sign * eps * np.eye(3)[i]
+                    steps.append(self.rows())
+                self.extra["marker"] = marker
+                cols.append((steps[0] - steps[1]) / (2 * eps))
+        s = np.linalg.svd(np.array(cols).T, compute_uv=False)
+        return int(np.sum(s > tol * s[0]))
+
+
+def _joints(chain, q):
+    return {n: q[:, k] for k, n in enumerate(chain.joint_names)}
+
+
+def test_tiago_head_to_hand_count_equals_a_pinocchio_rank():
+    """TIAGo's camera measuring a point on the hand, alone through the joint engine: the
+    unknowns it determines (camera 6, marker 3, joint placement directions) are the rank of
+    Pinocchio's finite differences (singular values above 1e-7 of the largest: the same from
+    1e-5 to 1e-9)."""
+    chain = load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
+    data = simulate(chain, 40, "position", marker=MARKER, seed=5).measurements
+    r = calibrate_contact_chains([chain], [data], params="complete")
+    robot = _Robot(chain.urdf_path, [("xtion_optical_frame", "arm_tool_link",
+                                      _joints(chain, data.q), "position")])  # fmt: skip
+    robot.extra["marker"] = np.array(MARKER)
+    camera = _frame(robot.model, "xtion_optical_frame")
+    assert r.unknowns == r.identifiable == robot.rank(chain.joint_names, [camera])
+    assert r.unknowns == 4 * chain.n + 3  # Everett: 4R + 2P + 3 (the marker off the last axis)
+
+
+def test_talos_head_and_contacts_count_equals_a_pinocchio_rank():
+    """TALOS's camera on the left hand and both arms' table touches (flush on the nominal
+    robot), one problem: its determined unknowns (planes, contact tilts, camera, marker, joint
+    placement directions) are the rank of Pinocchio's finite differences of every term's rows."""
+    nominal = _talos()
+    zero = {"error_mm": 0.0, "error_mrad": 0.0}
+    data = [simulate_contacts(c, 24, "plane", seed=1, **zero).data for c in nominal[:2]]
+    data.append(simulate(nominal[2], 24, "position", marker=MARKER, seed=2, **zero).measurements)
+    r = calibrate_contact_chains(nominal, data, params="complete")
+    terms = [(c.base_frame, c.tool_frame, _joints(c, d.q), "plane" if k < 2 else "position")
+             for k, (c, d) in enumerate(zip(nominal, data, strict=True))]  # fmt: skip
+    robot = _Robot(nominal[0].urdf_path, terms)
+    for k in range(2):
+        first = {n: v[:1] for n, v in terms[k][2].items()}
+        robot.extra[("plane", k)] = robot.rel(*terms[k][:2], first)[0]  # touches flush on it
+        robot.extra[("contact", k)] = pin.SE3.Identity()
+    robot.extra["marker"] = np.array(MARKER)
+    assert np.max(np.abs(robot.rows()[: 3 * 48])) < 1e-9  # flush: the planes are right
+    names = [n for c in nominal for n in c.joint_names]
+    assert r.identifiable == robot.rank(names, [_frame(robot.model, CAMERA[0])])
+    # the complete level's offer (each chain's MDH rows) names fewer combinations of the
+    # shared joints than the data determine; the polish fits them (the round trip is exact)
+    assert r.unknowns <= r.identifiable

@@ -75,7 +75,7 @@ from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import covariance, fit, fitted_values
 
-__all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "calibrate_contact_chains"]
+__all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
 
 CHAIN_KINDS = (PlaneContact, FixedPoseContact)
 """The contact kinds a chain of a joint fit may have."""
@@ -403,8 +403,9 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         model, _, selection, prior = _choose(start, train, plane_of, level, notes)
-    names = start.placements.names()
-    wide = _model(start, plane_of, range(len(names)), names)
+        names = start.placements.names()
+        wide = _model(start, plane_of, range(len(names)), names)
+        identifiable = len(_structural(wide, start, train))
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
         fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
@@ -424,11 +425,16 @@ def calibrate_contact_chains(
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
-    return dataclasses.replace(result, chains=parts, params=level, **values)
+    return dataclasses.replace(
+        result, chains=parts, params=level, identifiable=identifiable, **values
+    )
 
 
 POLISH_GAIN = 1e-2
 """A polish is kept when it leaves less than this fraction of the fit's cost (see ``_fit``)."""
+
+ROUND_OFF = 1e-12
+"""RMS row [m] of a fit already exact: not polished (nothing is left to remove)."""
 
 
 def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, level, iters):
@@ -443,7 +449,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
-    selection, a prior) and ``offsets`` are not polished.
+    selection, a prior) and ``offsets`` are not polished, nor a fit already exact (RMS row
+    under ``ROUND_OFF``: the undetermined components would only wander), and a polish that
+    wanders to no robot (its chain models refused) is dropped.
 
     Returns:
         The fit, and whether it was polished.
@@ -453,11 +461,14 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     if level != "complete" or not model.free or rows < wide.size():
         return fitted, False
-    if not fitted.converged:
+    cost = float(fitted.f @ fitted.f)
+    if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:
         return fitted, False
     again = dataclasses.replace(fitted.state, placements=fitted.state.placements.rebased())
-    better = fit(wide, again, data, None, 1.0, max_iterations=iters)
-    cost = float(fitted.f @ fitted.f)
+    try:
+        better = fit(wide, again, data, None, 1.0, max_iterations=iters)
+    except InvalidArgumentError:  # it wandered along undetermined components to no robot
+        return fitted, False
     if better.converged and float(better.f @ better.f) < POLISH_GAIN * cost:
         return better, True
     return fitted, False

@@ -228,6 +228,11 @@ class ContactChainsCalibration(Delivered):
         unknowns: The unknowns the data determine (the structural rank at the nominal
             robot): the objects', contacts' and measured terms' own, and the joint placement
             directions kept (``free``).
+        identifiable: The rank of the rows' Jacobian over every unknown and every joint
+            placement component, at the nominal robot (flush touches): what the data
+            determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
+            combinations of shared joints that no chain's MDH rows name: the polish finds
+            them).
     """
 
     chains: tuple[ChainContacts | MeasuredChain, ...]
@@ -245,6 +250,7 @@ class ContactChainsCalibration(Delivered):
     fitted: tuple[str, ...] = ()
     solver: tuple[bool, str, int] = (True, "", 0)
     unknowns: int = 0
+    identifiable: int = 0
 
     @property
     def accepted(self) -> bool:
