@@ -25,6 +25,7 @@ from calib.calibration.contact_model import plane_state
 from calib.calibration.measured_term import MeasuredState
 from calib.calibration.model import registration_state
 from calib.calibration.report import REPORT_KEYS
+from calib.exceptions import CalibError, CalibrationRefusedError, DataError, InvalidArgumentError
 from calib.identification.contacts import PlaneContact
 from calib.kinematics.so3 import matrix_to_quaternion, rotation_matrix
 from calib.measurements.contact_campaign import ContactData, simulate_contacts
@@ -276,3 +277,66 @@ def test_talos_head_and_contacts_count_equals_a_pinocchio_rank():
     # the complete level's offer (each chain's MDH rows) names fewer combinations of the
     # shared joints than the data determine; the polish fits them (the round trip is exact)
     assert r.unknowns <= r.identifiable
+
+
+@pytest.fixture(scope="module")
+def talos_data():
+    """Noise-free touches of both arms and the camera's points, on the nominal TALOS."""
+    nominal = _talos()
+    zero = {"error_mm": 0.0, "error_mrad": 0.0}
+    data = [simulate_contacts(c, 24, "plane", seed=1, **zero).data for c in nominal[:2]]
+    data.append(simulate(nominal[2], 24, "position", marker=MARKER, seed=2, **zero).measurements)
+    return nominal, data
+
+
+def _one_line_error(error, match, *args, **kwargs):
+    with pytest.raises(error, match=match) as info:
+        calibrate_contact_chains(*args, **kwargs)
+    assert isinstance(info.value, CalibError) and "\n" not in str(info.value)
+
+
+def test_a_measured_term_must_measure_from_the_robot(talos_data):
+    """An instrument frame that is not fixed to a link (the root link) beside contacts."""
+    nominal, data = talos_data
+    off = load_robot(URDF, "base_link", CAMERA[1])
+    rows = simulate(off, 12, "position", seed=1).measurements
+    what = "base frame 'base_link' is not on the robot"
+    _one_line_error(InvalidArgumentError, what, [*nominal[:2], off], [*data[:2], rows])
+
+
+def test_rows_of_the_wrong_kind_are_refused(talos_data):
+    nominal, data = talos_data
+    camera = nominal[2]
+    pose = simulate(camera, 12, "pose", seed=3).measurements
+    touches = simulate_contacts(nominal[0], 12, "plane", seed=3).data
+    other = simulate(nominal[0], 12, "position", seed=3).measurements  # the sole's joints
+    cases = [
+        ({"validate": [None, None, pose]}, data, InvalidArgumentError, "another kind"),
+        ({"validate": [None, None, touches]}, data, InvalidArgumentError, "must be Measurements"),
+        ({}, [*data[:2], other], DataError, "joints are not those"),
+        ({"validate": [pose, None, None]}, data, InvalidArgumentError, "validation rows must"),
+        ({}, [data[0], data[1], "rows.csv"], InvalidArgumentError, "data must be touches"),
+    ]
+    for kwargs, rows, error, match in cases:
+        _one_line_error(error, match, nominal, rows, **kwargs)
+
+
+def test_a_term_worse_than_its_registration_is_refused(tmp_path):
+    """The camera's validation rows taken on the nominal robot (the fit learnt another one,
+    moved by ~3 mm / 3 mrad): its held-out errors grow, the model is refused, and no URDF is
+    written, though both arms' touches fit."""
+    nominal = _talos()
+    truth = true_robot(nominal, tmp_path / "t.urdf", measuring=nominal[2:], seed=3,
+                       error_mm=3.0, error_mrad=3.0)  # fmt: skip
+    true = _talos(str(truth.urdf))
+    zero = {"error_mm": 0.0, "error_mrad": 0.0}
+    data = [simulate_contacts(c, 30, "plane", seed=1, **zero).data for c in true[:2]]
+    data.append(simulate(true[2], 30, "position", marker=MARKER, seed=2, **zero).measurements)
+    held = simulate(nominal[2], 30, "position", marker=MARKER, seed=9, **zero).measurements
+    r = calibrate_contact_chains(nominal, data, params="complete", validate=[None, None, held])
+    stats = r.chains[2].stats
+    assert stats["held_out"].weighted_mm > stats["held_out_registration"].weighted_mm
+    assert not r.accepted and "rgbd_optical_frame -> gripper_left_base_link" in r.refusal
+    with pytest.raises(CalibrationRefusedError):
+        r.write_urdf(tmp_path / "cal.urdf")
+    assert not (tmp_path / "cal.urdf").exists()

@@ -109,9 +109,11 @@ def _check(chains, data, validate, params, holdout) -> None:
             continue
         for part in (d, v) if v is not None else (d,):
             if not isinstance(part, ContactData):
+                what = "validation rows" if part is v else "data"
                 raise InvalidArgumentError(
-                    "a chain's data must be touches (ContactData) or measurements "
-                    f"(Measurements), got {type(part).__name__}"
+                    f"{c.base_frame} -> {c.tool_frame}: a chain's {what} must be touches "
+                    f"(ContactData) or measurements (Measurements) like its data, got "
+                    f"{type(part).__name__}"
                 )
             if part.joint_names != c.joint_names:
                 raise DataError(
