@@ -38,6 +38,7 @@ PAIRS = (
     ("right_sole_link", "gripper_right_base_link"),
 )
 CAMERA = ("rgbd_optical_frame", "gripper_left_base_link")
+CAMERA_TIAGO = ("xtion_optical_frame", "arm_tool_link")
 MARKER = (0.02, 0.01, 0.05)
 
 
@@ -340,3 +341,57 @@ def test_a_term_worse_than_its_registration_is_refused(tmp_path):
     with pytest.raises(CalibrationRefusedError):
         r.write_urdf(tmp_path / "cal.urdf")
     assert not (tmp_path / "cal.urdf").exists()
+
+
+def _camera_rows(urdf, chain, q, markers, pose: bool) -> Measurements:
+    """What the camera of a URDF sees (Pinocchio alone): markers ``(K, 3)`` on the hand and,
+    for pose data, the hand frame's orientation."""
+    T = relative_placements(urdf, chain.base_frame, chain.tool_frame, _joints(chain, q))
+    points = np.array([[M.rotation @ mk + M.translation for mk in markers] for M in T])
+    quat = matrix_to_quaternion(np.array([M.rotation for M in T])) if pose else None
+    return Measurements(chain.joint_names, q, points, quat)
+
+
+@pytest.mark.parametrize("pose", [False, True])
+def test_two_markers_or_a_pose_round_trip(pose, tmp_path):
+    """TIAGo's camera sees two markers on the hand (or the hand's pose) on a true robot
+    (joints and camera moved): the written URDF reproduces every row to 1e-9 (Pinocchio), the
+    markers (or the measured frame) in the hand frame as fitted."""
+    chain = load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
+    truth = true_robot([chain], tmp_path / "t.urdf", measuring=[chain], seed=4)
+    markers = np.array([[0.03, -0.02, 0.05], [-0.01, 0.04, 0.02]])[: 1 if pose else 2]
+    q = chain.random_configurations(50, 6)
+    data = _camera_rows(truth.urdf, chain, q, markers, pose)
+    r = calibrate_contact_chains([chain], [data], params="complete", holdout=0.2, seed=1)
+    assert r.accepted and r.chains[0].stats["held_out_registration"].length_rms_mm > 0.5
+    r.write_urdf(tmp_path / "cal.urdf")
+    s = r.chains[0].state.inner
+    seen = _camera_rows(tmp_path / "cal.urdf", chain, q, s.markers, pose)
+    assert np.max(np.abs(seen.points - data.points)) < 1e-9
+    if pose:  # the measured frame's rotation in the written hand frame
+        T = relative_placements(tmp_path / "cal.urdf", *CAMERA_TIAGO, _joints(chain, q))
+        R = np.array([M.rotation @ s.tool_rotation for M in T])
+        want = np.array([pin.Quaternion(*c[[3, 0, 1, 2]]).matrix() for c in data.quaternion])
+        assert np.max(np.abs(R - want)) < 1e-9
+
+
+def test_the_chain_pipeline_moves_the_camera_joint_on_robot(tmp_path):
+    """One chain (``calibrate(..., on_robot)``): the written URDF edits the camera's fixed
+    joint, the chain's joints and the tool's fixed joint, nothing else (and adds the marker's
+    link)."""
+    import xml.etree.ElementTree as ET
+
+    from calib import calibrate
+    from calib.kinematics.urdf_export import origin_of
+
+    chain = load_chain("tiago", *CAMERA_TIAGO)
+    data = simulate(chain, 60, "position", params="complete", seed=4).measurements
+    res = calibrate(chain, data, params="complete")
+    raw = res.urdf(on_robot=True)
+    before = {j.get("name"): j for j in ET.parse(chain.urdf_path).getroot().findall("joint")}
+    after = {j.get("name"): j for j in ET.fromstring(raw).findall("joint")}
+    assert set(after) - set(before) == {f"{CAMERA_TIAGO[1]}_marker1_joint"}  # the marker
+    changed = {n for n in before if not np.array_equal(origin_of(before[n]), origin_of(after[n]))}
+    assert "xtion_optical_joint" in changed
+    tool = next(n for n, j in after.items() if j.find("child").get("link") == CAMERA_TIAGO[1])
+    assert changed <= {*chain.joint_names, "xtion_optical_joint", tool}
