@@ -53,7 +53,7 @@ from .report import (
 )
 from .selection import Selection
 
-__all__ = ["ContactCalibration", "GapStats", "gap_errors_mm", "gap_stats"]
+__all__ = ["ContactCalibration", "GapStats", "gap_errors_mm", "gap_stats", "row_stats"]
 
 
 @dataclass(frozen=True)
@@ -132,12 +132,19 @@ def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) 
     ``ids`` may be left out when the state has one object. ``torque``: the gravity torques
     ``(m, n)`` that deflect compliant joints (or None).
     """
-    g = state.gaps(q, ids, torque)
-    kind = state.kind
+    return row_stats(state.gaps(q, ids, torque), state.kind, state.row_weights())
+
+
+def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
+    """:class:`GapStats` of rows ``g`` ``(m, rows)`` [m, rad] of a kind.
+
+    ``kind``: its ``row_names`` and ``angular``; ``weights`` ``(rows,)`` [1, m/rad]: the
+    rows' weights in ``weighted_mm``.
+    """
     scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
     rms = np.sqrt(np.mean(g**2, axis=0)) * scale
     top = np.max(np.abs(g), axis=0) * scale
-    weighted = g * state.row_weights()
+    weighted = g * weights
     return GapStats(
         len(g),
         kind.row_names,

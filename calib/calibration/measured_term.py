@@ -25,7 +25,6 @@ motion of each marker (and the tool's rotation) per unit placement error, from
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,7 +36,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
-from .contact_result import GapStats
+from .contact_result import GapStats, row_stats
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .placements import joint_twists
 from .registration import register
@@ -264,18 +263,7 @@ def register_measured(mdh, data: Measurements, weight: float | None) -> Measured
 
 def measured_stats(state: MeasuredState, data: Measurements) -> GapStats:
     """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`."""
-    e = state.inner.residuals(data)
-    kind = state.kind
-    scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
-    weighted = e * state.row_weights()
-    return GapStats(
-        len(e),
-        kind.row_names,
-        kind.angular,
-        tuple(float(v) for v in np.sqrt(np.mean(e**2, axis=0)) * scale),
-        tuple(float(v) for v in np.max(np.abs(e), axis=0) * scale),
-        1e3 * math.sqrt(float(np.mean(np.sum(weighted**2, axis=1)))),
-    )
+    return row_stats(state.inner.residuals(data), state.kind, state.row_weights())
 
 
 def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
