@@ -286,26 +286,31 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     return np.array(rows), tuple(names), list(range(len(rows)))
 
 
-def _structural(wide: ChainsModel, start: ChainsState, train) -> list[int]:
-    """The columns the touches determine, from the Jacobian at flush postures near them."""
-    parts = []
+def _flush(start: ChainsState, train) -> ChainsData:
+    """Each chain's touches at flush postures near them (a measured term's rows as they are)."""
+    parts: list[ContactData | Measurements] = []
     for s, d in zip(start.states, train, strict=True):
         if isinstance(s, MeasuredState):
             parts.append(d)
             continue
         qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
         parts.append(ContactData(d.joint_names, qf, d.ids, d.kind, d.source))
-    A = wide.jacobian(start, np.zeros(wide.size()), ChainsData(tuple(parts)))
+    return ChainsData(tuple(parts))
+
+
+def _structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list[int]:
+    """The columns the touches determine, from the Jacobian at flush postures (``_flush``)."""
+    A = wide.jacobian(start, np.zeros(wide.size()), flush)
     A = A.reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def _choose(start: ChainsState, train, plane_of, level: str, notes: list[str]):
+def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[str]):
     """The model (free components), the selection (``auto``) and the prior weights."""
     directions, names, offered = _offered(start, level)
     wide = _model(start, plane_of, offered, names, directions)
     fixed = wide.fixed
-    kept = _structural(wide, start, train) if offered else list(range(fixed))
+    kept = _structural(wide, start, flush) if offered else list(range(fixed))
     if sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = sorted(kept[fixed:])
@@ -404,10 +409,11 @@ def calibrate_contact_chains(
         start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
-        model, _, selection, prior = _choose(start, train, plane_of, level, notes)
+        flush = _flush(start, train)
+        model, _, selection, prior = _choose(start, train, flush, plane_of, level, notes)
         names = start.placements.names()
         wide = _model(start, plane_of, range(len(names)), names)
-        identifiable = len(_structural(wide, start, train))
+        identifiable = len(_structural(wide, start, flush))
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
         fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
