@@ -21,6 +21,7 @@ import calib
 from calib import CalibError, Measurement
 
 CHAIN = chain_of("ur5")
+ROOTED = calib.load_chain("ur5", base="world")  # measured from the URDF's root link
 MDH = mdh_of("ur5")
 PSET = calib.paper_parameters(MDH)
 Q = np.zeros((4, 6))
@@ -158,6 +159,7 @@ def _third_round_cases():
         write_contacts,
     )
     from calib.measurements.contact_loops import read_loop
+    from calib.measurements.true_robot import true_robot
 
     data = calib.simulate(CHAIN, 12, measure="position", seed=0).measurements
     touches = simulate_contacts(CHAIN, 12, "plane", seed=0).data
@@ -219,6 +221,22 @@ def _third_round_cases():
         "contact_campaign.write_contacts data=str": lambda: write_contacts("x.csv", "abc"),
         "contact_loops.read_loop chain=str": lambda: read_loop(touches_csv, "ur5"),
         "contact_loops.read_loop path=None": lambda: read_loop(None, CHAIN),
+        "true_robot.true_robot chains=str": lambda: true_robot("ur5", folder / "t.urdf"),
+        "true_robot.true_robot path=None": lambda: true_robot([CHAIN], None),
+        "true_robot.true_robot measuring=None": lambda: true_robot(
+            [CHAIN], folder / "t.urdf", measuring=None
+        ),
+        "true_robot.true_robot error_mm=nan": lambda: true_robot(
+            [CHAIN], folder / "t.urdf", error_mm=float("nan")
+        ),
+        "true_robot.true_robot seed=-1": lambda: true_robot([CHAIN], folder / "t.urdf", seed=-1),
+        "true_robot.true_robot measuring from the root": lambda: true_robot(
+            [CHAIN], folder / "t.urdf", measuring=[ROOTED]
+        ),
+        "true_robot.true_robot over the nominal": lambda: true_robot([CHAIN], CHAIN.urdf_path),
+        "calibrate_contact_chains measured from the root": lambda: calib.calibrate_contact_chains(
+            [ROOTED], [calib.simulate(ROOTED, 12, measure="position", seed=0).measurements]
+        ),
     }
 
 

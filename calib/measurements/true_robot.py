@@ -11,7 +11,6 @@ frame given (a camera's placement on its link). :func:`~.simulation.simulate` (w
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +43,7 @@ class TrueRobot:
 
 def true_robot(
     chains: Sequence[Chain],
-    path: str | os.PathLike,
+    path: str | Path,
     *,
     measuring: Sequence[Chain] = (),
     error_mm: float = 1.0,
@@ -66,7 +65,9 @@ def true_robot(
         InvalidArgumentError: No chain, chains of several robots, or a bad number.
         CalibError: A measuring frame not fixed to a link by a fixed joint.
     """
-    if not chains or not all(isinstance(c, Chain) for c in (*chains, *measuring)):
+    if not isinstance(chains, Sequence) or not isinstance(measuring, Sequence) or not chains:
+        raise InvalidArgumentError("give the true robot's chains as a non-empty list of Chain")
+    if not all(isinstance(c, Chain) for c in (*chains, *measuring)):
         raise InvalidArgumentError("give the true robot's chains as a non-empty list of Chain")
     if len({str(c.urdf_path) for c in (*chains, *measuring)}) != 1:
         raise InvalidArgumentError("the chains of a true robot must be chains of one URDF")
@@ -86,5 +87,5 @@ def true_robot(
         E[:3, :3] = rotation_matrix(sd_rad * rng.standard_normal(3))
         E[:3, 3] = sd_m * rng.standard_normal(3)
         errors[name] = E
-    write_moved_origins_urdf(Path(path), chains[0], errors)
+    write_moved_origins_urdf(path, chains[0], errors)
     return TrueRobot(Path(path), errors)
