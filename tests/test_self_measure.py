@@ -395,3 +395,23 @@ def test_the_chain_pipeline_moves_the_camera_joint_on_robot(tmp_path):
     assert "xtion_optical_joint" in changed
     tool = next(n for n, j in after.items() if j.find("child").get("link") == CAMERA_TIAGO[1])
     assert changed <= {*chain.joint_names, "xtion_optical_joint", tool}
+
+
+def test_a_measured_term_gets_a_chains_checks(talos_data):
+    """The camera's rows are checked as one chain's: a gross outlier (50 mm on row 8) is set
+    aside and named in the report with its term; joints in degrees, or two joint columns
+    swapped, are one-line DataErrors naming the mistake."""
+    nominal, data = talos_data
+    cam = simulate(nominal[2], 30, "position", marker=MARKER, seed=2).measurements
+    pos = cam.position.copy()
+    pos[7, 0] += 0.05
+    bad = Measurements(cam.joint_names, cam.q, pos, None, "cam.csv")
+    r = calibrate_contact_chains(nominal, [*data[:2], bad], params="complete")
+    assert [o.row for o in r.chains[2].outliers] == [8]
+    assert [(o["term"], o["row"]) for o in r.to_dict()["outliers"]] == [(2, 8)]
+    q = cam.q.copy()
+    q[:, [3, 4]] = q[:, [4, 3]]
+    cases = [(np.degrees(cam.q), "in degrees"), (q, "arm_left_2_joint and arm_left_3_joint")]
+    for joints, what in cases:
+        wrong = Measurements(cam.joint_names, joints, cam.position, None, "wrong.csv")
+        _one_line_error(DataError, what, nominal, [*data[:2], wrong])

@@ -68,7 +68,7 @@ from .contact_pipeline import (
 )
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
-from .measured_term import MeasuredState, check_measured, measured_kind, register_measured
+from .measured_term import MeasuredState, check_measured, checked_measured, measured_kind
 from .options import check_run_options
 from .outliers import Outlier
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
@@ -160,27 +160,37 @@ def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     return tuple(index[k] for k in keys)
 
 
-def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
+def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations: int):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
     the touches kept must determine the chain's objects and contact frame.
 
+    A measured term's rows are checked as a single chain's (:func:`checked_measured`), its
+    registration kept.
+
     Returns:
-        Each chain's touches kept, and each chain's outliers.
+        Each chain's touches (rows) kept, each chain's outliers, and each measured term's
+        registration (None for a contact chain).
     """
     kept: list[ContactData | Measurements] = []
     dropped: list[tuple[Outlier, ...]] = []
+    registered: list[MeasuredState | None] = []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
+        v = None if validate is None else validate[c]
         if isinstance(d, Measurements):
             out_m = 0 if held[c] is None else held[c].m
             rows, size = d.kind.rows_of(d.n_markers), len(measured_kind(d).names())
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
             determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
-            kept.append(d)
-            dropped.append(())
+            state, bad, found, more = checked_measured(chain, d, v, weight, iterations)
+            if found:
+                more.append(outliers.set_aside_note(found))
+            notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
+            kept.append(d.subset(~bad) if bad.any() else d)
+            dropped.append(tuple(found))
+            registered.append(state)
             continue
-        v = None if validate is None else validate[c]
         g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)
         start, bad, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
@@ -196,7 +206,8 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str]):
         notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
         kept.append(d)
         dropped.append(tuple(out))
-    return kept, dropped
+        registered.append(None)
+    return kept, dropped, registered
 
 
 def _set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[Outlier]:
@@ -210,15 +221,18 @@ def _set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[
 
 
 def _register(
-    chains, train, guess, weight, plane_of, notes, max_iterations, pose_weight=1.0
+    chains, train, measured, guess, weight, plane_of, notes, max_iterations, pose_weight=1.0
 ) -> ChainsState:
-    """Each chain's plane and contact in closed form on the nominal robot (shared: refined)."""
+    """Each chain's plane and contact in closed form on the nominal robot (shared: refined).
+
+    ``measured``: each measured term's registration (``_checked``), None for a contact chain.
+    """
     placements = Placements.of(tuple(chains))
     models, frames = placements.chain_geometry(tuple(chains))
     states: list[ContactState | MeasuredState] = []
-    for mdh, d in zip(models, train, strict=True):
-        if isinstance(d, Measurements):
-            states.append(register_measured(mdh, d, weight))
+    for mdh, d, reg in zip(models, train, measured, strict=True):
+        if reg is not None:  # a measured term: its registration on the nominal chain
+            states.append(dataclasses.replace(reg, inner=dataclasses.replace(reg.inner, mdh=mdh)))
             continue
         kin = mdh.kinematics(d.q)
         R, p = kin.R[:, -1], kin.p[:, -1]
@@ -403,10 +417,14 @@ def calibrate_contact_chains(
     plane_of = _plane_groups(chains, data, shared_planes)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
-    train, dropped = _checked(chains, train, validate, guess, w, held, notes)
+    train, dropped, measured = _checked(
+        chains, train, validate, guess, w, held, notes, max_iterations
+    )
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
-        start = _register(chains, train, guess, w, plane_of, notes, max_iterations, pose_weight)
+        start = _register(
+            chains, train, measured, guess, w, plane_of, notes, max_iterations, pose_weight
+        )
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = _flush(start, train)

@@ -16,7 +16,7 @@ the tool frame (3 each) and, for pose data, the measured frame's rotation in the
 the nominal robot, then refined jointly with the joint placements.
 
 Rows: the measured minus predicted points [m] and, for pose data, the rotation error times the
-orientation weight [m/rad] (the chain pipeline's weighting: the variance ratio of the
+orientation weight [m/rad] (the chain pipeline's weighting: the settled variance ratio of the
 registration's residuals, 1 m/rad when the data cannot tell). The placement columns: the
 motion of each marker (and the tool's rotation) per unit placement error, from
 :func:`~.placements.joint_twists`, turned into the measuring frame.
@@ -32,27 +32,30 @@ import numpy as np
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
 from ..identification.parameters import ParameterSet
+from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
+from .chain_registration import checked_registration
 from .contact_result import GapStats, row_stats
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
+from .options import Options
+from .outliers import point_errors, records
 from .placements import joint_twists
-from .registration import register
-from .weighting import DEFAULT_WEIGHT, variance_ratio
+from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
     "MeasuredKind",
     "MeasuredState",
     "check_measured",
+    "checked_measured",
     "measured_columns",
     "measured_kind",
     "measured_stats",
     "measuring_joint",
     "own_change",
     "own_model",
-    "register_measured",
 ]
 
 
@@ -244,21 +247,34 @@ def measured_columns(placements, chain, state: MeasuredState, frames, data, lift
     return out * state.row_weights()[None, :, None]
 
 
-def register_measured(mdh, data: Measurements, weight: float | None) -> MeasuredState:
-    """The measuring frame, markers (and tool rotation) in closed form on the nominal chain.
+def checked_measured(chain: Chain, data: Measurements, held, weight, max_iterations: int):
+    """A measured term's rows checked as one chain's are, and its registration.
+
+    The chain pipeline's registration (:func:`~.chain_registration.checked_registration`:
+    Horn/Umeyama in closed form, refined by Levenberg-Marquardt, the orientation weight
+    estimated unless given, outliers set aside until stable, then the usual mistakes
+    diagnosed in the data and in ``held``) on the nominal chain.
 
     Args:
-        mdh: The term's chain model on the nominal robot.
+        chain: The term's chain.
         data: Its measurements.
-        weight: Orientation weight [m/rad], or None: the variance ratio of the
-            registration's residuals (:func:`~.weighting.variance_ratio`; 1 m/rad if the
-            data cannot tell).
+        held: Its validation measurements (diagnosed too), or None.
+        weight: Orientation weight [m/rad], or None: estimated.
+        max_iterations: Most residual evaluations of the registration's solver.
+
+    Returns:
+        Its registered state, the mask of its outlier rows, the outliers and the notes.
     """
-    inner = register(mdh, data.q, data.points, data.rotations)
-    if weight is None and inner.tool_rotation is not None:
-        ratio = variance_ratio(inner.residuals(data), inner.n_markers)
-        weight = DEFAULT_WEIGHT if ratio is None else ratio
-    return MeasuredState(inner, DEFAULT_WEIGHT if weight is None else float(weight))
+    opts = Options(orientation_weight=weight, max_iterations=max_iterations)
+    checked = None if held is None else (held, held.source)
+    guess = np.zeros((data.n_markers, 3))
+    opts, reg, bad, notes = checked_registration(
+        chain, from_chain(chain), data, checked, guess, opts
+    )
+    rows = data.rows or tuple(range(1, data.m + 1))
+    found = records(point_errors(reg.residuals(data), data.n_markers), bad, rows)
+    state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
+    return state, bad, found, notes
 
 
 def measured_stats(state: MeasuredState, data: Measurements) -> GapStats:

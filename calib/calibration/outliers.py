@@ -45,6 +45,7 @@ __all__ = [
     "find_pose_outliers",
     "held_out_outliers",
     "point_errors",
+    "records",
     "robust_proposals",
     "set_aside_note",
     "spread_out",
@@ -262,10 +263,10 @@ def until_stable(
             result, bad = refit(~new), new
         except DataError:  # too few rows left for the model: the last set stays
             break
-    return result, bad, _records(errors(result), bad, rows)
+    return result, bad, records(errors(result), bad, rows)
 
 
-def _records(found: Errors, bad: np.ndarray, rows: tuple[int, ...]) -> list[Outlier]:
+def records(found: Errors, bad: np.ndarray, rows: tuple[int, ...]) -> list[Outlier]:
     """The outliers a mask sets aside, with their errors (position first, as the rule)."""
     pos, rot, dims = found
     median = float(np.median(pos))
@@ -370,7 +371,7 @@ def held_out_outliers(
         return np.zeros(len(mask), dtype=bool), []
     return mask, [
         o
-        for o in _records(pooled, bad, (0,) * m + rows)
+        for o in records(pooled, bad, (0,) * m + rows)
         if o.row in set(rows[i] for i in np.flatnonzero(mask))
     ]
 
