@@ -415,3 +415,10 @@ def test_a_measured_term_gets_a_chains_checks(talos_data):
     for joints, what in cases:
         wrong = Measurements(cam.joint_names, joints, cam.position, None, "wrong.csv")
         _one_line_error(DataError, what, nominal, [*data[:2], wrong])
+
+
+def test_summary_names_the_measured_term(joint_fit):
+    text = joint_fit[3].summary()
+    assert "2 plane(s), 1 measured term(s)" in text.splitlines()[0]
+    assert "rgbd_optical_frame -> gripper_left_base_link, measured position" in text
+    assert "the measuring frame in joint 'rgbd_optical_joint'" in text

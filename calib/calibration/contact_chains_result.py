@@ -364,10 +364,15 @@ class ContactChainsCalibration(Delivered):
         }
 
     def _objects(self) -> str:
-        """``2 plane(s)``, or ``1 plane(s) and 1 pose(s)`` with loops."""
+        """``2 plane(s)``, ``1 plane(s) and 1 pose(s)`` with loops, ``, 1 measured term(s)``."""
         loops = [c for c in self._contacts() if not isinstance(c.kind, PlaneContact)]
         poses = sum(len(c.objects()) for c in loops)
-        return f"{self.planes - len(loops)} plane(s)" + (f" and {poses} pose(s)" if poses else "")
+        measured = len(self._measured())
+        return (
+            f"{self.planes - len(loops)} plane(s)"
+            + (f" and {poses} pose(s)" if poses else "")
+            + (f", {measured} measured term(s)" if measured else "")
+        )
 
     def summary(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
@@ -375,8 +380,9 @@ class ContactChainsCalibration(Delivered):
             f"{self.chains[0].chain.name}: {len(self.chains)} chains, {self._objects()}, "
             f"{len(self.free)} joint placement components fitted"
             + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
-            "gaps (RMS): height [mm]  roll [deg]  pitch [deg]",
         ]
+        if self._contacts():
+            lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         for c in self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
             if isinstance(c, MeasuredChain):
