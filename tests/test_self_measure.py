@@ -409,6 +409,13 @@ def test_a_measured_term_gets_a_chains_checks(talos_data):
     r = calibrate_contact_chains(nominal, [*data[:2], bad], params="complete")
     assert [o.row for o in r.chains[2].outliers] == [8]
     assert [(o["term"], o["row"]) for o in r.to_dict()["outliers"]] == [(2, 8)]
+    held = simulate(nominal[2], 20, "position", marker=MARKER, seed=7).measurements
+    pos = held.position.copy()
+    pos[3, 1] -= 0.05
+    held = Measurements(held.joint_names, held.q, pos, None, "held.csv")
+    r = calibrate_contact_chains(nominal, [*data[:2], bad], validate=[None, None, held])
+    assert r.chains[2].stats["held_out"].m == 19  # its outlier set aside, as a chain's
+    assert any("held" in n and "row 4" in n for n in r.notes), r.notes
     q = cam.q.copy()
     q[:, [3, 4]] = q[:, [4, 3]]
     cases = [(np.degrees(cam.q), "in degrees"), (q, "arm_left_2_joint and arm_left_3_joint")]

@@ -167,7 +167,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     the touches kept must determine the chain's objects and contact frame.
 
     A measured term's rows are checked as a single chain's (:func:`checked_measured`), its
-    registration kept.
+    registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
 
     Returns:
         Each chain's touches (rows) kept, each chain's outliers, and each measured term's
@@ -183,7 +183,9 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             rows, size = d.kind.rows_of(d.n_markers), len(measured_kind(d).names())
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
             determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
-            state, bad, found, more = checked_measured(chain, d, v, weight, iterations)
+            state, bad, found, more, held[c] = checked_measured(
+                chain, d, v, held[c], weight, iterations
+            )
             if found:
                 more.append(outliers.set_aside_note(found))
             notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]

@@ -37,7 +37,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
-from .chain_registration import checked_registration
+from .chain_registration import checked_registration, held_out_outliers
 from .contact_result import GapStats, row_stats
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
@@ -247,26 +247,29 @@ def measured_columns(placements, chain, state: MeasuredState, frames, data, lift
     return out * state.row_weights()[None, :, None]
 
 
-def checked_measured(chain: Chain, data: Measurements, held, weight, max_iterations: int):
+def checked_measured(chain: Chain, data: Measurements, validate, held, weight, max_iterations: int):
     """A measured term's rows checked as one chain's are, and its registration.
 
     The chain pipeline's registration (:func:`~.chain_registration.checked_registration`:
     Horn/Umeyama in closed form, refined by Levenberg-Marquardt, the orientation weight
     estimated unless given, outliers set aside until stable, then the usual mistakes
-    diagnosed in the data and in ``held``) on the nominal chain.
+    diagnosed in the data and in ``validate``) on the nominal chain; then the held-out rows'
+    outliers set aside by the same rule (:func:`~.chain_registration.held_out_outliers`).
 
     Args:
         chain: The term's chain.
         data: Its measurements.
-        held: Its validation measurements (diagnosed too), or None.
+        validate: Its validation measurements (diagnosed too), or None.
+        held: Its held-out rows (validation or holdout), or None.
         weight: Orientation weight [m/rad], or None: estimated.
         max_iterations: Most residual evaluations of the registration's solver.
 
     Returns:
-        Its registered state, the mask of its outlier rows, the outliers and the notes.
+        Its registered state, the mask of its outlier rows, the outliers, the notes and its
+        held-out rows without their outliers (or None).
     """
     opts = Options(orientation_weight=weight, max_iterations=max_iterations)
-    checked = None if held is None else (held, held.source)
+    checked = None if validate is None else (validate, validate.source)
     guess = np.zeros((data.n_markers, 3))
     opts, reg, bad, notes = checked_registration(
         chain, from_chain(chain), data, checked, guess, opts
@@ -274,7 +277,10 @@ def checked_measured(chain: Chain, data: Measurements, held, weight, max_iterati
     rows = data.rows or tuple(range(1, data.m + 1))
     found = records(point_errors(reg.residuals(data), data.n_markers), bad, rows)
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
-    return state, bad, found, notes
+    kept = data.subset(~bad) if bad.any() else data
+    if held is not None:
+        held = held_out_outliers(reg, kept, (held, held.source), opts, notes)[0]
+    return state, bad, found, notes, held
 
 
 def measured_stats(state: MeasuredState, data: Measurements) -> GapStats:
