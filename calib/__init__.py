@@ -1,14 +1,15 @@
-"""calib: identifiable geometric parameters and calibration of serial robots from URDF.
+"""calib: identifiable geometric parameters and calibration of robots from URDF.
 
-Load a chain with :func:`load_chain`, convert it to modified DH with :func:`from_chain`,
-and ask :func:`analyze` which parameters can be identified. Then :func:`simulate` or
-:func:`read_measurements` a campaign, :func:`calibrate` the base parameters from it and
-:func:`write_calibrated_urdf`.
+Load a robot with :func:`load_robot` (a chain between two frames, or a tree of several
+tools), ask :func:`analyze` which parameters can be identified, :func:`design` the postures to
+measure, :func:`simulate` (or :func:`simulate_contacts`) a campaign or read one
+(:func:`read_measurements`, :func:`read_contacts`), then :func:`calibrate` a :class:`Problem`
+of one or more :class:`Term` (a chain and what was recorded on it): the :class:`Result` writes
+the calibrated URDF. :func:`load_calibrated` reads it back with its report.
 
-A whole robot (several tools sharing joints) is a tree: :func:`load_tree`, :func:`from_tree`
-(Khalil-Kleinfinger's tree notation), :func:`tree_parameters`, :func:`tree_jacobian`;
-:func:`analyze` takes a tree too; :func:`simulate_tree`, :func:`calibrate_tree` and
-:func:`write_calibrated_tree_urdf` calibrate it from rows that name their tool.
+``calib.__all__`` (and ``dir(calib)``) is the public face; the names calib had before it
+(``calibrate_tree``, ``tree_jacobian``, ...) are still attributes of ``calib``, and every
+module has its own ``__all__``.
 """
 
 import sys
@@ -67,6 +68,13 @@ _LAZY = {
     "TreeMDH": "kinematics.tree_model",
     "from_tree": "kinematics.tree_model",
     "CalibrationResult": "calibration",
+    "Problem": "calibration.problem",
+    "Term": "calibration.problem",
+    "Result": "calibration.delivery",
+    "ContactData": "measurements.contact_campaign",
+    "read_contacts": "measurements.contact_campaign",
+    "simulate_contacts": "measurements.contact_campaign",
+    "design": "design.design",
     "ResidualStats": "calibration",
     "calibrate": "calibration",
     "residual_stats": "calibration",
@@ -89,14 +97,27 @@ _LAZY = {
 numpy, Pinocchio or SciPy."""
 
 
-__getattr__ = attributes(__name__, _LAZY)
+_lazy = attributes(__name__, _LAZY)
+
+
+def __getattr__(name: str) -> object:
+    """The lazy names; ``design`` is the (callable) package :mod:`calib.design`."""
+    if name == "design":
+        import importlib
+
+        return importlib.import_module(".design", __name__)
+    return _lazy(name)
+
 
 TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
     from .calibration import CalibrationResult, ResidualStats, calibrate, residual_stats
     from .calibration.contact_chains import calibrate_contact_chains
     from .calibration.contact_chains_result import ContactChainsCalibration
+    from .calibration.delivery import Result
+    from .calibration.problem import Problem, Term
     from .calibration.tree_pipeline import TreeCalibrationResult, calibrate_tree
+    from .design.design import design
     from .identification.identifiability import Identifiability, RankWarning, analyze, analyze_model
     from .identification.jacobian import Measurement, complete_jacobian, identification_jacobian
     from .identification.parameters import (
@@ -114,6 +135,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .kinematics.tree_export import calibrated_tree_urdf, write_calibrated_tree_urdf
     from .kinematics.tree_model import TreeMDH, from_tree
     from .kinematics.urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
+    from .measurements.contact_campaign import ContactData, read_contacts, simulate_contacts
     from .measurements.csvfile import Columns, read_measurements, write_measurements
     from .measurements.data import DataWarning, Measurements
     from .measurements.simulation import Campaign, SimulationTruth, simulate
@@ -140,69 +162,48 @@ sys.modules[__name__].__class__ = _Package
 __version__ = "0.1.0"
 
 __all__ = [
-    "PARALLEL_TOL",
     "AmbiguousFrameError",
     "CalibError",
     "CalibrationRefusedError",
-    "CalibrationResult",
-    "Campaign",
-    "CatalogEntry",
     "Chain",
     "ChainError",
-    "Columns",
-    "ContactChainsCalibration",
+    "ContactData",
     "ConvergenceError",
     "DataError",
     "DataWarning",
-    "ElasticModel",
     "FrameNotFoundError",
     "Identifiability",
     "InvalidArgumentError",
-    "Kind",
     "MDHModel",
     "Measurement",
     "Measurements",
     "OutputError",
-    "Parameter",
-    "ParameterSet",
+    "Problem",
     "RankWarning",
-    "ResidualStats",
+    "Result",
     "RobotNotFoundError",
-    "SimulationTruth",
+    "Term",
     "Tree",
-    "TreeCalibrationResult",
-    "TreeCampaign",
-    "TreeMDH",
     "URDFError",
     "UnsupportedJointError",
     "analyze",
-    "analyze_model",
     "calibrate",
-    "calibrate_contact_chains",
-    "calibrate_tree",
-    "calibrated_tree_urdf",
-    "calibrated_urdf",
     "catalog",
-    "complete_jacobian",
-    "complete_parameters",
+    "design",
     "from_chain",
-    "from_lines",
     "from_tree",
-    "identification_jacobian",
     "load_calibrated",
     "load_chain",
     "load_robot",
     "load_tree",
-    "measurement_to_base",
-    "paper_parameters",
+    "read_contacts",
     "read_measurements",
-    "residual_stats",
     "simulate",
-    "simulate_tree",
-    "tree_complete_jacobian",
-    "tree_jacobian",
-    "tree_parameters",
-    "write_calibrated_tree_urdf",
-    "write_calibrated_urdf",
+    "simulate_contacts",
     "write_measurements",
 ]
+
+
+def __dir__() -> list[str]:
+    """The public face (``__all__``): what ``dir(calib)`` and tab completion list."""
+    return sorted([*__all__, "__version__"])

@@ -203,6 +203,17 @@ def _third_round_cases():
         "calibrate_contact_chains empty set": lambda: calib.calibrate_contact_chains(
             [CHAIN], [no_touches]
         ),
+        "design chain=str": lambda: calib.design("ur5", 5),
+        "design configs=0": lambda: calib.design(CHAIN, 0),
+        "read_contacts chain=str": lambda: calib.read_contacts(touches_csv, "ur5", "plane"),
+        "read_contacts measure=pose": lambda: calib.read_contacts(touches_csv, CHAIN, "pose"),
+        "simulate_contacts configs=str": lambda: calib.simulate_contacts(CHAIN, "abc"),
+        "simulate_contacts measure=pose": lambda: calib.simulate_contacts(CHAIN, 5, "pose"),
+        "Problem terms=()": lambda: calib.Problem(()),
+        "Term robot=str": lambda: calib.Term("ur5", data),
+        "calibrate problem and data": lambda: calib.calibrate(
+            calib.Problem((calib.Term(CHAIN, data),)), data
+        ),
         "design.design chain=str": lambda: design("ur5", 5),
         "design.design configs=str": lambda: design(CHAIN, "abc"),
         "design.evaluate chain=str": lambda: evaluate("ur5", Q),

@@ -207,5 +207,5 @@ def test_calibrate_dispatches_contact_data():
     b = calibrate_contacts(chain, data, contact=guess, params="offsets", holdout=0.25)
     assert np.allclose(a.contact, b.contact) and a.free == b.free
     assert a.stats["held_out"] == b.stats["held_out"]
-    with pytest.raises(InvalidArgumentError, match="not available for contacts"):
+    with pytest.raises(InvalidArgumentError, match="fix is for one chain measured"):
         calibrate(chain, data, fix=("theta1",))

@@ -265,7 +265,7 @@ BAD = [
     (["--chain", *PAIRS[0], "DATA", "--chain", *PAIRS[0], "DATA"], "given twice"),
     (["--chain", "left_sole_link", "nowhere_link", "DATA"], "nowhere_link"),
     (["--chain", *PAIRS[0], "missing.csv"], "missing.csv"),
-    (["--chain", *PAIRS[0], "DATA", "--shared-planes"], "no two chains touch one plane"),
+    (["--chain", *PAIRS[0], "DATA", "--shared-planes"], "--shared-planes is for several terms"),
     (["--chain", *PAIRS[0], "DATA", "--contact", "1", "2"], "--contact"),
 ]
 

@@ -1,4 +1,5 @@
-"""Every check for every shape and kind: one test per check, parametrised over the shapes.
+"""Every check for every shape and kind: one test per check, parametrised over the shapes,
+each fitted through the one entry (``calibrate(robot, data)`` or ``calibrate(Problem(...))``).
 
 Shapes: a chain measured by an instrument, a tree (two tools), one chain touching (each contact
 kind), several chains touching (TALOS's two arms) and the robot measuring itself (the TIAGo's
@@ -22,15 +23,15 @@ import pytest
 from calib import (
     CalibError,
     DataError,
+    Problem,
+    Term,
     calibrate,
-    calibrate_contact_chains,
     load_chain,
     load_robot,
     simulate,
+    simulate_contacts,
     simulate_tree,
 )
-from calib.calibration.contact_pipeline import calibrate_contacts
-from calib.measurements.contact_campaign import simulate_contacts
 
 TALOS = "talos_full_v2.urdf"
 CONTACT_KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")
@@ -71,7 +72,7 @@ def _contact(kind: str) -> Shape:
     data = simulate_contacts(chain, 40, kind, seed=3).data
     return Shape(
         data,
-        lambda d, v: calibrate_contacts(chain, d, validate=v, params="offsets"),
+        lambda d, v: calibrate(chain, d, validate=v, params="offsets"),
         _one,
         lambda d, parts: parts[0],
     )
@@ -81,9 +82,10 @@ def _chains() -> Shape:
     chains = [load_robot(TALOS, *pair) for pair in (LEFT, RIGHT)]
     data = [simulate_contacts(c, 40, "plane", seed=4).data for c in chains]
 
-    def run(d, v):
-        checks = None if v is None else [v, None]
-        return calibrate_contact_chains(chains, d, validate=checks, params="offsets")
+    def run(d, v):  # the first term validated on v
+        checks = [v, *[None] * (len(d) - 1)]
+        terms = zip(chains, d, checks, strict=True)
+        return calibrate(Problem(tuple(Term(*t) for t in terms), params="offsets"))
 
     return Shape(data, run, list, lambda d, parts: [parts[0], *d[1:]])
 

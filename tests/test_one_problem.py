@@ -163,7 +163,7 @@ def test_an_option_that_does_not_apply_is_an_error_for_several_chains(extra, cap
             str(REAL / "left_train.csv"), "--chain", LEFT[0], RIGHT[1],
             str(REAL / "right_train.csv"), "--out", "/nonexistent/c.urdf", *extra]  # fmt: skip
     assert main(args) == 2
-    assert "not several contact chains" in capsys.readouterr().err
+    assert "not several terms in one fit" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("free", [["--elastic"], ["--free", "c2"]])

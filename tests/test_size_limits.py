@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 import calib.calibration.contact_pipeline as contact_pipeline
-import calib.calibration.pipeline as pipeline
+import calib.calibration.entry as entry
 import calib.core.checks
 import calib.measurements.contact_campaign as contact_campaign
 import calib.measurements.csvfile as csvfile
@@ -62,9 +62,9 @@ def test_too_many_rows_is_one_line(tmp_path, capsys, monkeypatch):
     argv = ["calibrate", "ur5", "--data", path, "--out", tmp_path / "o"]
     assert "30 rows: calib handles at most 29" in _one_error(capsys, argv)
     assert not (tmp_path / "o").exists()
-    monkeypatch.setattr(pipeline, "MAX_ROWS", 29)
+    monkeypatch.setattr(entry, "MAX_ROWS", 29)
     with pytest.raises(InvalidArgumentError, match="30 rows"):
-        pipeline.calibrate(chain, data)
+        calib.calibrate(chain, data)
 
 
 def test_the_selection_bound_of_the_measured_cases():

@@ -22,7 +22,9 @@ _LAZY = {
     "ErrorModel": "model",
     "State": "model",
     "Outlier": "outliers",
-    "calibrate": "pipeline",
+    "calibrate": "entry",
+    "Problem": "problem",
+    "Term": "problem",
     "residual_stats": "pipeline",
     "CalibrationResult": "result",
     "ResidualStats": "result",
@@ -37,9 +39,11 @@ __getattr__ = attributes(__name__, _LAZY)
 
 TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
+    from .entry import calibrate
     from .model import ErrorModel, State
     from .outliers import Outlier
-    from .pipeline import calibrate, residual_stats
+    from .pipeline import residual_stats
+    from .problem import Problem, Term
     from .result import CalibrationResult, ResidualStats, Validation
     from .selection import Selection, Step
 
@@ -52,10 +56,12 @@ __all__ = [
     "CalibrationResult",
     "ErrorModel",
     "Outlier",
+    "Problem",
     "ResidualStats",
     "Selection",
     "State",
     "Step",
+    "Term",
     "Validation",
     "calibrate",
     "residual_stats",

@@ -15,7 +15,7 @@ from pathlib import Path
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 
-__all__ = ["Delivered", "compliance_path"]
+__all__ = ["Delivered", "Result", "compliance_path"]
 
 
 def compliance_path(out: Path) -> Path:
@@ -23,8 +23,14 @@ def compliance_path(out: Path) -> Path:
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
 
 
-class Delivered:
-    """``write`` and ``repr`` of a calibration result, from its report and URDF."""
+class Result:
+    """A calibration's result, whatever the problem: its report, URDF, text, ``write``, ``repr``.
+
+    Every problem's result is one (:func:`~calib.calibration.entry.calibrate`): a chain
+    measured (:class:`~.result.CalibrationResult`), a tree, one chain touching, several terms.
+    Each provides ``to_dict``, ``urdf``, ``summary``, ``refusal`` and ``accepted``; this class
+    builds ``write`` and ``repr`` on them.
+    """
 
     refusal: str | None
 
@@ -84,3 +90,7 @@ class Delivered:
             f"<{type(self).__name__} {doc['robot']} {doc['shape']}: {what}, "
             f"{len(doc['parameters'])} parameters, {verdict}>"
         )
+
+
+Delivered = Result
+"""The former name of :class:`Result`."""

@@ -2,7 +2,7 @@
 
 ``fix`` and ``free`` name parameters, ``elastic`` asks for joint compliance and ``marker``
 guesses the measured points: each is checked here before the fit, in one line that says why
-(:func:`~calib.calibration.pipeline.calibrate`).
+(:func:`~calib.calibration.entry.calibrate`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The options of a calibration, chain or tree: one value, one check; cheap to import.
 
 The command line builds its parser from the constants here without importing the
-calibration itself. :func:`~calib.calibration.pipeline.calibrate` and
+calibration itself. :func:`~calib.calibration.entry.calibrate` and
 :func:`~calib.calibration.tree_pipeline.calibrate_tree` take the same keyword-only
 arguments and turn them into one :class:`Options`, checked once when it is made; a tree
 refuses (:meth:`Options.for_tree`) what only a chain's calibration can honour.
@@ -19,6 +19,7 @@ from typing import ParamSpec, TypeVar
 from ..exceptions import InvalidArgumentError
 
 __all__ = [
+    "APPLIES",
     "CHAIN_ONLY",
     "DEFAULT_LEVEL",
     "DEFAULT_MAX_ITERATIONS",
@@ -26,6 +27,7 @@ __all__ = [
     "LEVELS",
     "LOSSES",
     "MAX_ITERATIONS",
+    "SHAPE_LABELS",
     "TREE_LEVELS",
     "Options",
     "check_run_options",
@@ -53,6 +55,29 @@ C int, which a larger count overflows)."""
 
 LOSSES = ("linear", "soft_l1", "huber")
 """Losses of the fit: least squares, or a robust loss (scipy's, scale ``--noise-mm``)."""
+
+SHAPE_LABELS = {
+    "chain": "one chain measured by an instrument",
+    "tree": "a tree (several tools)",
+    "contacts": "contact kinds (plane, plane-point, fixed-point, fixed-pose)",
+    "chains": "several terms in one fit",
+}
+"""What a calibration problem is, by shape (:attr:`~.problem.Problem.shape`), in the words of
+the messages."""
+
+APPLIES: dict[str, tuple[str, ...]] = {
+    "fix": ("chain",),
+    "free": ("chain",),
+    "loss": ("chain",),
+    "noise_mm": ("chain",),
+    "elastic": ("chain", "contacts"),
+    "orientation_weight": ("chain", "contacts", "chains"),
+    "pose_weight": ("chains",),
+    "shared_planes": ("chains",),
+}
+"""The one table of the options that apply to some shapes only: option -> the shapes it
+applies to. Every other option applies to every shape; one given where it does not apply is
+an error (:class:`~.problem.Problem`; the command line adds its own flags to it)."""
 
 CHAIN_ONLY = ("fix", "free", "elastic", "loss", "noise_mm", "orientation_weight")
 """Options a tree calibration does not take: it refuses them away from their defaults."""

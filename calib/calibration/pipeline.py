@@ -1,24 +1,20 @@
-"""``calibrate``: registration, model choice, fit, validation, as a short pipeline."""
+"""A chain measured by an instrument: registration, model choice, fit, validation."""
 
 from __future__ import annotations
 
 import dataclasses
 import time
 import warnings
-from typing import overload
 
 import numpy as np
 
-from ..core.checks import MAX_ROWS, check_size
-from ..core.progress import Progress, phase
+from ..core.progress import phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
-from ..kinematics.robot import Chain, Robot
+from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion
-from ..kinematics.tree import Tree
-from ..measurements.contact_campaign import ContactData
 from ..measurements.csvfile import Measurements, check_against_chain
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
@@ -31,203 +27,23 @@ from .chain_registration import (
     proposals,
     registration,
 )
-from .contact_pipeline import calibrate_contact_data
-from .contact_result import ContactCalibration
 from .expansion import explained
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
-from .options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, Options, checked_arguments
+from .options import Options
 from .result import CalibrationResult, ResidualStats, Validation
 from .selection import Selection, select
 from .solve import Fit, condition, covariance, fit, row_weights
-from .tree_pipeline import TreeCalibrationResult, calibrate_tree
 
 __all__ = [
     "GROUPS",
     "Options",
-    "calibrate",
+    "calibrate_chain",
     "level_names",
     "residual_stats",
 ]
 
 GROUPS = ("frame", "markers", "tool")
 """Names ``--fix`` takes for whole groups (besides single parameters)."""
-
-
-@overload
-def calibrate(
-    robot: Chain,
-    data: Measurements,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate: Measurements | None = None,
-    fix: tuple[str, ...] = (),
-    free: tuple[str, ...] = (),
-    elastic: bool | None = None,
-    loss: str = "linear",
-    noise_mm: float | None = None,
-    orientation_weight: float | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> CalibrationResult: ...
-
-
-@overload
-def calibrate(
-    robot: Tree,
-    data: Measurements,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate: Measurements | None = None,
-    fix: tuple[str, ...] = (),
-    free: tuple[str, ...] = (),
-    elastic: bool | None = None,
-    loss: str = "linear",
-    noise_mm: float | None = None,
-    orientation_weight: float | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> TreeCalibrationResult: ...
-
-
-@overload
-def calibrate(
-    robot: Chain,
-    data: ContactData,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate: ContactData | None = None,
-    fix: tuple[str, ...] = (),
-    free: tuple[str, ...] = (),
-    elastic: bool | None = None,
-    loss: str = "linear",
-    noise_mm: float | None = None,
-    orientation_weight: float | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> ContactCalibration: ...
-
-
-@checked_arguments
-def calibrate(
-    robot: Chain | Tree,
-    data: Measurements | ContactData,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate=None,
-    fix: tuple[str, ...] = (),
-    free: tuple[str, ...] = (),
-    elastic: bool | None = None,
-    loss: str = "linear",
-    noise_mm: float | None = None,
-    orientation_weight: float | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> CalibrationResult | TreeCalibrationResult | ContactCalibration:
-    """Calibrate a chain (or a tree) from measurements: a model that predicts unseen configurations.
-
-    Steps: check the data, set rows aside (``holdout``), register the measurement frame and
-    the markers in closed form (naming a likely mistake if the data cannot be registered,
-    setting outlier rows aside), choose the free parameters (``params``), fit them, and
-    validate the result on held-out rows. A tree is calibrated by
-    :func:`~calib.calibration.tree_pipeline.calibrate_tree`, which takes the same arguments.
-
-    Args:
-        robot: The nominal chain (or tree).
-        data: Measurements of it (joints in chain order; see :mod:`calib.measurements.csvfile`),
-            or touches (:class:`~calib.measurements.contact_campaign.ContactData`: calibrated
-            by :func:`~calib.calibration.contact_pipeline.calibrate_contacts`, ``marker`` the
-            contact frame's guess).
-        params: Parameter level, one of ``LEVELS`` (default ``auto``; a tree:
-            ``TREE_LEVELS``, default ``complete``).
-        marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
-            [m] (default: the tool origin); the markers are fitted unless fixed.
-        validate: Measurements of other configurations to score the result on (never fitted).
-        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
-        free: Parameter names (a compliance ``c1``.. included) always fitted.
-        elastic: Fit joint compliance under gravity, which the URDF cannot hold (default:
-            no, unless ``free`` names a compliance).
-        loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
-        noise_mm: Instrument noise [mm] (default: unknown).
-        orientation_weight: Weight of the orientation rows [m/rad] (default: estimated from
-            the data, :mod:`calib.calibration.weighting`).
-        max_iterations: Most residual evaluations of each solver run.
-        holdout: Fraction of the rows set aside (seeded); not with ``validate``.
-        seed: Seed of the holdout draw and of the generic configurations of the rank check.
-        progress: Progress bars of the registration, the selection and the fit
-            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``) of a chain or contacts, or None.
-
-    Returns:
-        The result: check ``accepted`` (or call :meth:`CalibrationResult.check`).
-
-    Raises:
-        DataError: The data do not belong to the chain, are too few, or match it only under
-            a usual mistake (which is named).
-        InvalidArgumentError: A bad argument (:class:`~.options.Options`), an unknown one, or
-            one given by position after ``data``.
-    """
-    if isinstance(data, Measurements):
-        check_size(data.m, MAX_ROWS, "rows", data.source)
-    if isinstance(data, ContactData):  # touches (no instrument): any contact kind, one chain
-        return calibrate_contact_data(
-            robot,
-            data,
-            marker=marker,
-            validate=validate,
-            params=params,
-            fix=fix,
-            free=free,
-            elastic=elastic,
-            loss=loss,
-            noise_mm=noise_mm,
-            orientation_weight=orientation_weight,
-            max_iterations=max_iterations,
-            holdout=holdout,
-            seed=seed,
-            progress=progress,
-        )
-    if isinstance(robot, Robot) and robot.is_tree:
-        return calibrate_tree(
-            robot,
-            data,
-            params=params,
-            marker=marker,
-            validate=validate,
-            fix=fix,
-            free=free,
-            elastic=elastic,
-            loss=loss,
-            noise_mm=noise_mm,
-            orientation_weight=orientation_weight,
-            max_iterations=max_iterations,
-            holdout=holdout,
-            seed=seed,
-            progress=progress,
-        )
-    opts = Options(
-        level=DEFAULT_LEVEL if params is None else params,
-        fix=fix,
-        free=free,
-        elastic=elastic,
-        loss=loss,
-        noise_mm=noise_mm,
-        orientation_weight=orientation_weight,
-        max_iterations=max_iterations,
-        holdout=holdout,
-        seed=seed,
-    )
-    return _calibrate_chain(robot, data, marker, validate, opts, progress)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,8 +86,8 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=Non
     return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
 
 
-def _calibrate_chain(chain, data, marker, validate, opts, progress=None) -> CalibrationResult:
-    """:func:`calibrate` of a chain, its :class:`Options` checked (``opts``)."""
+def calibrate_chain(chain, data, marker, validate, opts, progress=None) -> CalibrationResult:
+    """:func:`~.entry.calibrate` of a chain measured, its :class:`Options` checked (``opts``)."""
     clock = [time.perf_counter()]
     train, held = _datasets(chain, data, validate, opts)
     nominal = from_chain(chain)

@@ -279,7 +279,7 @@ def calibrate_tree(
 ) -> TreeCalibrationResult:
     """Calibrate a tree from measurements of several tools (one point per row and tool).
 
-    It takes the arguments of :func:`~calib.calibration.pipeline.calibrate` (which calls it
+    It takes the arguments of :func:`~calib.calibration.entry.calibrate` (which calls it
     for a tree), checked as one :class:`~.options.Options`; those a tree cannot honour
     (``marker`` and :data:`~.options.CHAIN_ONLY`) are refused unless left at their defaults.
     The guards of a chain's calibration apply: a level the rows cannot determine is refused

@@ -68,7 +68,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     the report's ``warnings`` too.
     """
     with _recorded_warnings() as recorded:
-        if args.chain is not None or args.loop is not None:
+        if args.term is not None or args.chain is not None or args.loop is not None:
             check_applicable(args, "chains")
             return contact_chains_cli.calibrate_chains_command(args, recorded)
         if args.data is None:

@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from ..calibration import options
 from ..calibration.delivery import compliance_path
 from ..core.choices import DEFAULT_CONFIGS
 from ..core.fileio import check_outputs, json_text, write_files_atomic
@@ -117,38 +118,32 @@ def given_options(args: argparse.Namespace, dests) -> list[str]:
 
 
 SHAPE_LABELS = {
-    "chain": "one chain measured by an instrument",
+    **options.SHAPE_LABELS,
     "tree": "a tree (several --tool)",
     "contacts": "contact kinds (--measure plane|plane-point|fixed-point|fixed-pose)",
-    "chains": "several contact chains (--chain/--loop)",
+    "chains": "several terms in one fit (--term, --chain, --loop)",
 }
 """What ``calibrate`` builds, by shape, in the words of its messages."""
 
 APPLIES: dict[str, tuple[str, ...]] = {
+    **options.APPLIES,
     "marker": ("chain",),
-    "fix": ("chain",),
-    "free": ("chain",),
-    "loss": ("chain",),
-    "noise_mm": ("chain",),
     "units": ("chain", "tree"),
     "orientation": ("chain",),
     "orientation_columns": ("chain",),
     "world_link": ("chain",),
     "on_robot": ("chain",),
-    "elastic": ("chain", "contacts"),
-    "orientation_weight": ("chain", "contacts", "chains"),
     "contact": ("contacts", "chains"),
     "other_foot": ("contacts",),
-    "pose_weight": ("chains",),
-    "shared_planes": ("chains",),
     "base": ("chain", "tree", "contacts"),
     "tool": ("chain", "tree", "contacts"),
     "data": ("chain", "tree", "contacts"),
     "validate": ("chain", "tree", "contacts"),
 }
-"""The one table of ``calib calibrate``'s options that apply to some shapes only: option
-(argparse dest) -> the shapes it applies to. Every other option applies to every shape; one
-given where it does not apply is an error (:func:`check_applicable`)."""
+"""The table of ``calib calibrate``'s options that apply to some shapes only: the library's
+(:data:`calib.calibration.options.APPLIES`) and the command line's own flags, argparse dest ->
+the shapes it applies to. One given where it does not apply is an error
+(:func:`check_applicable`)."""
 
 
 def check_applicable(args: argparse.Namespace, shape: str) -> None:

@@ -1,12 +1,14 @@
-"""`calib calibrate --measure plane --chain BASE TOOL DATA ...`: several contact chains, one fit.
+"""`calib calibrate --term KIND BASE TOOL DATA ...`: several terms of one robot, one fit.
 
-Each ``--chain`` names a chain of the robot and its touches (and optionally touches to
-validate on): ``--chain left_sole_link gripper_left_base_link left.csv``. Each ``--loop``
-names a closed loop, a ``fixed-pose`` chain, and the file of its postures (a plane contact CSV
-that records its joints, or a ``fixed-pose`` one; every row a touch of one pose,
-:func:`~calib.measurements.contact_loops.read_loop`): ``--loop left_sole_link right_sole_link
-left.csv``. Joints on several chains (a humanoid's torso) are fitted once; one URDF of the
-whole robot is written.
+Each ``--term`` names a kind, a chain of the robot and its data (and optionally data to
+validate on): ``--term plane left_sole_link gripper_left_base_link left.csv`` (touches of a
+plane), ``--term loop left_sole_link right_sole_link left.csv`` (a closed loop, a
+``fixed-pose`` chain: a plane contact CSV that records its joints, or a ``fixed-pose`` one;
+every row a touch of one pose, :func:`~calib.measurements.contact_loops.read_loop`).
+``--chain BASE TOOL DATA`` (with ``--measure plane``) is ``--term plane ...`` and ``--loop``
+is ``--term loop ...``. Joints on several chains (a humanoid's torso) are fitted once; one URDF
+of the whole robot is written. The terms make a :class:`~calib.calibration.problem.Problem`,
+fitted by :func:`~calib.calibration.entry.calibrate`.
 """
 
 from __future__ import annotations
@@ -24,8 +26,21 @@ from .common import write_calibration
 __all__ = ["add_chain_arguments", "calibrate_chains_command"]
 
 
+TERM_KINDS = ("plane", "loop")
+"""Kinds a ``--term`` may name."""
+
+
 def add_chain_arguments(p: argparse.ArgumentParser) -> None:
-    """The ``--chain``, ``--loop`` and ``--shared-planes`` flags of ``calibrate``."""
+    """The ``--term``, ``--chain``, ``--loop`` and ``--shared-planes`` flags of ``calibrate``."""
+    p.add_argument(
+        "--term",
+        action="append",
+        nargs="+",
+        metavar="ARG",
+        help="one term of a joint fit (joints the terms share fitted once, one URDF): KIND "
+        f"BASE TOOL DATA [VALIDATION], KIND one of {', '.join(TERM_KINDS)}; once per term, "
+        "at least two, instead of --base, --tool, --data",
+    )
     p.add_argument(
         "--chain",
         action="append",
@@ -58,28 +73,44 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str | None, bool]]:
-    """The chains asked for: (base, tool, data, validation or None, is a loop)."""
-    if not args.chain:
-        raise InvalidArgumentError("--loop is fitted with plane chains: give --chain too")
-    if args.pose_weight is not None and not args.loop:
-        raise InvalidArgumentError("--pose-weight weighs the rows of --loop: give --loop too")
-    if args.measure != "plane":
+def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | None]]:
+    """The terms asked for: (kind, base, tool, data, validation or None)."""
+    terms = [_term(items, "--term") for items in args.term or []]
+    terms += [_term(["plane", *items], "--chain") for items in args.chain or []]
+    terms += [_term(["loop", *items], "--loop") for items in args.loop or []]
+    kinds = {t[0] for t in terms}
+    if args.chain and args.measure != "plane":
         raise InvalidArgumentError("--chain takes --measure plane")
+    if "plane" not in kinds:
+        raise InvalidArgumentError("--loop is fitted with plane chains: give --chain too")
+    if len(terms) < 2 and not args.chain:
+        raise InvalidArgumentError(
+            "a joint fit has two terms or more (one term: --base, --tool and --data)"
+        )
+    if args.pose_weight is not None and "loop" not in kinds:
+        raise InvalidArgumentError("--pose-weight weighs the rows of --loop: give --loop too")
     if args.params == "paper":
         raise InvalidArgumentError("--params paper is a chain's MDH set: not with --chain")
+    if args.shared_planes and len(terms) < 2:
+        raise InvalidArgumentError("--shared-planes is for several terms: give two or more")
     if args.contact is not None and len(args.contact) not in (3, 6):
         raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
-    out = []
-    for flag, given in (("--chain", args.chain), ("--loop", getattr(args, "loop", None) or [])):
-        for items in given:
-            if len(items) not in (3, 4):
-                raise InvalidArgumentError(
-                    f"{flag} takes BASE TOOL DATA [VALIDATION], got {len(items)} values"
-                )
-            check = items[3] if len(items) == 4 else None
-            out.append((items[0], items[1], items[2], check, flag == "--loop"))
-    return out
+    return terms
+
+
+def _term(items: list[str], flag: str) -> tuple[str, str, str, str, str | None]:
+    """One term's (kind, base, tool, data, validation or None), checked."""
+    if items[0] not in TERM_KINDS:
+        raise InvalidArgumentError(
+            f"{flag} takes KIND BASE TOOL DATA [VALIDATION], KIND one of "
+            f"{', '.join(TERM_KINDS)}: got '{items[0]}'"
+        )
+    if len(items) not in (4, 5):
+        what = "KIND BASE TOOL DATA" if flag == "--term" else "BASE TOOL DATA"
+        raise InvalidArgumentError(
+            f"{flag} takes {what} [VALIDATION], got {len(items) - (flag != '--term')} values"
+        )
+    return items[0], items[1], items[2], items[3], items[4] if len(items) == 5 else None
 
 
 def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
@@ -90,47 +121,41 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     Raises:
         CalibrationRefusedError: The model was refused (the report only is written).
     """
-    from ..calibration.contact_chains import calibrate_contact_chains
-    from ..measurements.contact_campaign import read_contacts
-    from ..measurements.contact_loops import read_loop
+    from ..calibration.entry import calibrate
+    from ..calibration.problem import Problem, Term
 
     asked = _check(args)
     chains: list[Chain] = []
-    for base, tool, _, _, _ in asked:
+    for _, base, tool, _, _ in asked:
         robot = load_robot(args.robot, base, tool)
         if not isinstance(robot, Chain) or robot.is_tree:
-            raise InvalidArgumentError("--chain names one base and one tool per chain")
+            raise InvalidArgumentError("a term names one base and one tool (a chain)")
         chains.append(robot)
     out, report = Path(args.out), Path(args.report) if args.report else None
     inputs: dict[str, str | Path] = {"the nominal URDF": chains[0].urdf_path}
-    for k, (_, _, path, check, _) in enumerate(asked):
-        inputs[f"the data of chain {k + 1}"] = path
+    for k, (_, _, _, path, check) in enumerate(asked):
+        inputs[f"the data of term {k + 1}"] = path
         if check:
-            inputs[f"the validation data of chain {k + 1}"] = check
+            inputs[f"the validation data of term {k + 1}"] = check
     check_outputs({"--out": out, "--report": report}, inputs)
-
-    def read(path, chain, loop):
-        return read_loop(path, chain) if loop else read_contacts(path, chain, "plane")
-
-    data = [read(d, c, loop) for c, (_, _, d, _, loop) in zip(chains, asked, strict=True)]
-    checks = [
-        read(v, c, loop) if v else None for c, (_, _, _, v, loop) in zip(chains, asked, strict=True)
-    ]
+    terms = []
+    for chain, (kind, _, _, path, check) in zip(chains, asked, strict=True):
+        data = _read(kind, path, chain)
+        validate = _read(kind, check, chain) if check else None
+        guess = args.contact if kind == "plane" else None
+        terms.append(Term(chain, data, validate, guess))
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
-    result = calibrate_contact_chains(
-        chains,
-        data,
-        contact=args.contact,
+    problem = Problem(
+        tuple(terms),
         params=args.params,
-        validate=checks if any(v is not None for v in checks) else None,
         orientation_weight=weight,
         shared_planes=args.shared_planes,
         pose_weight=1.0 if args.pose_weight is None else args.pose_weight,
         max_iterations=args.max_iterations,
         holdout=args.holdout,
         seed=args.seed,
-        progress=terminal(args.quiet),
     )
+    result = calibrate(problem, progress=terminal(args.quiet))
     return write_calibration(
         args,
         result.to_dict(),
@@ -140,3 +165,11 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         (out, report),
         recorded,
     )
+
+
+def _read(kind: str, path: str, chain: Chain):
+    """A term's data of its kind, read from a file."""
+    from ..measurements.contact_campaign import read_contacts
+    from ..measurements.contact_loops import read_loop
+
+    return read_loop(path, chain) if kind == "loop" else read_contacts(path, chain, kind)

@@ -91,6 +91,10 @@ class Design:
     timings_ms: dict[str, float] = field(default_factory=dict)
     contact: np.ndarray | None = None
 
+    def summary(self, noise_mm: float = 0.05) -> str:
+        """The text ``calib design`` prints (:func:`design_text`; ``noise_mm`` [mm])."""
+        return design_text(self, noise_mm)
+
     def random_median(self, name: str) -> float:
         """Median of an index over the random sets."""
         return float(np.median([r.value(name) for r in self.random]))

@@ -1,0 +1,245 @@
+"""``calibrate``: one entry for every problem, whatever the robot's shape and the data's kind.
+
+``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
+is the problem of one term. The problem's shape picks the model that fits it: one chain
+measured (:func:`~.pipeline.calibrate_chain`, the MDH chart with its registration moments),
+a tree (:func:`~.tree_pipeline.calibrate_tree`), one chain touching
+(:func:`~.contact_pipeline.calibrate_contacts`) or several terms whose joints are shared
+(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements). Each takes the
+steps of every calibration: prepare (checks, held-out rows, validation data that are the
+training data refused), register, set outliers aside, diagnose usual mistakes, choose the
+parameters, fit, assess (a model worse than its start on held-out data is refused) and
+deliver a result with ``summary()``, ``to_dict()`` (report format 3), ``urdf()`` and
+``write()``.
+"""
+
+from __future__ import annotations
+
+from typing import cast, overload
+
+from ..core.checks import MAX_ROWS, check_size
+from ..core.progress import Progress
+from ..exceptions import InvalidArgumentError
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree
+from ..measurements.contact_campaign import ContactData
+from ..measurements.data import Measurements
+from .contact_chains import calibrate_contact_chains
+from .contact_pipeline import calibrate_contacts
+from .contact_result import ContactCalibration
+from .delivery import Result
+from .options import DEFAULT_MAX_ITERATIONS, checked_arguments
+from .pipeline import calibrate_chain
+from .problem import Problem, Term
+from .result import CalibrationResult
+from .tree_pipeline import TreeCalibrationResult, calibrate_tree
+
+__all__ = ["calibrate"]
+
+
+@overload
+def calibrate(robot: Problem, data: None = None, *, progress: Progress | None = None) -> Result: ...
+
+
+@overload
+def calibrate(
+    robot: Chain,
+    data: Measurements,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate: Measurements | None = None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> CalibrationResult: ...
+
+
+@overload
+def calibrate(
+    robot: Tree,
+    data: Measurements,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate: Measurements | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> TreeCalibrationResult: ...
+
+
+@overload
+def calibrate(
+    robot: Chain,
+    data: ContactData,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate: ContactData | None = None,
+    elastic: bool | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> ContactCalibration: ...
+
+
+@checked_arguments
+def calibrate(
+    robot: Problem | Chain | Tree,
+    data: Measurements | ContactData | None = None,
+    *,
+    params: str | None = None,
+    marker=None,
+    validate=None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
+    elastic: bool | None = None,
+    loss: str = "linear",
+    noise_mm: float | None = None,
+    orientation_weight: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> Result:
+    """Calibrate a robot from what was recorded on it: a model that predicts unseen postures.
+
+    Steps: check the data, set rows aside (``holdout``), register the measurement frame and
+    the markers (or the objects touched) in closed form (naming a likely mistake if the data
+    cannot be registered, setting outlier rows aside), choose the free parameters
+    (``params``), fit them, and validate the result on held-out rows.
+
+    Args:
+        robot: A :class:`~.problem.Problem` (its options inside it; no ``data``), or the
+            nominal chain or tree of a problem of one term.
+        data: What was recorded on ``robot``: measurements (joints in chain order; see
+            :mod:`calib.measurements.csvfile`) or touches
+            (:class:`~calib.measurements.contact_campaign.ContactData`).
+        params: Parameter level, one of ``LEVELS`` (default ``auto``; a tree:
+            ``TREE_LEVELS``, default ``complete``).
+        marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
+            [m], or of a contact frame (:attr:`~.problem.Term.guess`; default: the tool
+            origin).
+        validate: Data of other postures to score the result on (never fitted).
+        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
+        free: Parameter names (a compliance ``c1``.. included) always fitted.
+        elastic: Fit joint compliance under gravity, which the URDF cannot hold (default:
+            no, unless ``free`` names a compliance).
+        loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
+        noise_mm: Instrument noise [mm] (default: unknown).
+        orientation_weight: Weight of the orientation rows [m/rad] (default: estimated from
+            the data, :mod:`calib.calibration.weighting`).
+        max_iterations: Most residual evaluations of each solver run.
+        holdout: Fraction of the rows set aside (seeded); not with ``validate``.
+        seed: Seed of the holdout draw and of the generic configurations of the rank check.
+        progress: Progress bars of the registration, the selection and the fit
+            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
+
+    Returns:
+        The result: check ``accepted`` (or call its ``check()``).
+
+    Raises:
+        DataError: The data do not belong to the robot, are too few, or match it only under
+            a usual mistake (which is named).
+        InvalidArgumentError: A bad argument, one that does not apply to the problem's shape
+            (:data:`~.options.APPLIES`), an unknown one, or one given by position after
+            ``data``.
+    """
+    if isinstance(robot, Problem):
+        if data is not None or any(v is not None for v in (marker, validate, params)):
+            raise InvalidArgumentError(
+                "calibrate(problem) takes the problem alone: its data and options are in it"
+            )
+        return solve(robot, progress)
+    if data is None:
+        raise InvalidArgumentError(
+            "calibrate takes a Problem, or a robot and its data: missing a required argument: "
+            "'data'"
+        )
+    term = Term(robot, data, validate, marker)
+    problem = Problem(
+        (term,),
+        params=params,
+        fix=fix,
+        free=free,
+        elastic=elastic,
+        loss=loss,
+        noise_mm=noise_mm,
+        orientation_weight=orientation_weight,
+        max_iterations=max_iterations,
+        holdout=holdout,
+        seed=seed,
+    )
+    return solve(problem, progress)
+
+
+def solve(problem: Problem, progress: Progress | None = None) -> Result:
+    """Fit a problem with the model of its shape (module text)."""
+    for t in problem.terms:
+        if isinstance(t.data, Measurements):
+            check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
+    p, shape = problem, problem.shape
+    if shape == "chains":
+        return calibrate_contact_chains(
+            [cast(Chain, t.robot) for t in p.terms],
+            [cast(ContactData, t.data) for t in p.terms],
+            contact=next((t.guess for t in p.terms if t.guess is not None), None),
+            params=p.params,
+            validate=[cast(ContactData | None, t.validate) for t in p.terms]
+            if _validated(p)
+            else None,
+            orientation_weight=p.orientation_weight,
+            shared_planes=p.shared_planes,
+            pose_weight=p.pose_weight,
+            max_iterations=p.max_iterations,
+            holdout=p.holdout,
+            seed=p.seed,
+            progress=progress,
+        )
+    term = p.terms[0]  # its robot's and data's types are the shape's (Problem checks them)
+    if shape == "contacts":
+        return calibrate_contacts(
+            cast(Chain, term.robot),
+            cast(ContactData, term.data),
+            contact=term.guess,
+            params=p.params,
+            validate=cast(ContactData | None, term.validate),
+            elastic=p.elastic,
+            orientation_weight=p.orientation_weight,
+            max_iterations=p.max_iterations,
+            holdout=p.holdout,
+            seed=p.seed,
+            progress=progress,
+        )
+    if shape == "tree":
+        if term.guess is not None:
+            raise InvalidArgumentError(
+                "marker is for one chain: a tree's markers are registered in closed form"
+            )
+        return calibrate_tree(
+            cast(Tree, term.robot),
+            cast(Measurements, term.data),
+            params=p.params,
+            validate=cast(Measurements | None, term.validate),
+            max_iterations=p.max_iterations,
+            holdout=p.holdout,
+            seed=p.seed,
+            progress=progress,
+        )
+    return calibrate_chain(term.robot, term.data, term.guess, term.validate, p.options(), progress)
+
+
+def _validated(problem: Problem) -> bool:
+    """Whether any term of a problem has validation data."""
+    return any(t.validate is not None for t in problem.terms)

@@ -1,0 +1,221 @@
+"""A calibration problem: a robot, the terms recorded on it, and the options of one fit.
+
+A *term* is a chain (or a tree) between two frames of one URDF and what was recorded on
+it: measurements by an instrument or by a frame of the robot itself (``Measurements``: the
+chain's base frame is what measures), or touches (``ContactData``: a plane, a plane-point, a
+fixed point, a fixed pose). The robot's joint placements are shared by every term that runs
+through them. :func:`~calib.calibration.entry.calibrate` takes a problem::
+
+    problem = Problem((Term(left_arm, left_touches), Term(right_arm, right_touches)))
+    result = calibrate(problem)
+
+and ``calibrate(chain, data, **options)`` is the problem of one term. The problem's *shape*
+says which of calib's models fits it: ``chain`` (one chain measured), ``tree`` (several tools
+measured in one file), ``contacts`` (one chain touching) or ``chains`` (several terms, joints
+shared). Which options apply to which shape is one table, :data:`~.options.APPLIES`; an
+option that does not apply is an error, here and on the command line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree
+from ..measurements.contact_campaign import ContactData
+from ..measurements.data import Measurements
+from .options import APPLIES, DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, SHAPE_LABELS, Options
+
+__all__ = ["Problem", "Term"]
+
+
+@dataclass(frozen=True, eq=False)
+class Term:
+    """One chain (or tree) of the robot and what was recorded on it.
+
+    Attributes:
+        robot: The nominal chain or tree (:func:`~calib.kinematics.tree.load_robot`); its
+            base frame is where the data are expressed (an instrument's frame is registered,
+            a frame of the robot measures itself), its tool what is measured or touches.
+        data: Measurements (position, pose, several markers) or touches
+            (:class:`~calib.measurements.contact_campaign.ContactData`, any contact kind).
+        validate: Data of the same kind at other postures, scored and never fitted, or None.
+        guess: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)`` [m]
+            (measurements), or of the contact frame in the tool frame, ``(4, 4)`` or
+            ``X Y Z [RX RY RZ]`` [m, rad] (touches); None: the tool frame.
+    """
+
+    robot: Chain | Tree
+    data: Measurements | ContactData
+    validate: Measurements | ContactData | None = None
+    guess: object = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.robot, Chain | Tree):
+            raise InvalidArgumentError(
+                f"a term's robot must be a chain or a tree (load_robot), got {self.robot!r:.60}"
+            )
+        if not isinstance(self.data, Measurements | ContactData):
+            raise InvalidArgumentError(
+                "a term's data must be Measurements or ContactData (read_measurements, "
+                f"read_contacts), got {type(self.data).__name__}"
+            )
+        if isinstance(self.data, ContactData) and self.robot.is_tree:
+            raise InvalidArgumentError(
+                "touches are recorded on a chain (one base, one tool), got a tree: give one "
+                "term per chain"
+            )
+        if self.validate is not None and type(self.validate) is not type(self.data):
+            raise InvalidArgumentError(
+                f"a term's validation data must be {type(self.data).__name__} like its data, "
+                f"got {type(self.validate).__name__}"
+            )
+
+    @property
+    def touches(self) -> bool:
+        """Whether the term's data are touches (no instrument: the joints alone)."""
+        return isinstance(self.data, ContactData)
+
+    @property
+    def kind(self) -> str:
+        """The data's kind: ``position``, ``pose``, ``markers``, or a contact kind's label."""
+        if isinstance(self.data, ContactData):
+            return self.data.kind.label
+        if self.data.quaternion is not None:
+            return "pose"
+        return "position" if self.data.position.shape[1] == 3 else "markers"
+
+    def __repr__(self) -> str:
+        r = self.robot
+        tools = ", ".join(r.tool_frames)
+        return f"Term({r.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """Terms of one robot fitted together, and the options of the fit.
+
+    Attributes:
+        terms: One or more :class:`Term` of one URDF.
+        params: Parameter level (``auto``, ``frames``, ``offsets``, ``paper``, ``complete``;
+            default: ``auto``, a tree's ``complete``).
+        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
+        free: Parameter names (a compliance ``c1``.. included) always fitted.
+        elastic: Fit joint compliance under gravity (default: no, unless ``free`` names
+            one).
+        loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
+        noise_mm: Instrument noise [mm] (default: unknown).
+        orientation_weight: Weight of the orientation rows [m/rad] (default: estimated).
+        shared_planes: Terms of one base frame whose touches name the same plane touch one
+            plane (default: a plane per term).
+        pose_weight: Factor of the fixed-pose (closed loop) terms' rows against the others'.
+        max_iterations: Most residual evaluations of each solver run.
+        holdout: Fraction of each term's rows set aside (seeded); not with validation data.
+        seed: Seed of the holdout draw and of the generic configurations of the rank checks.
+    """
+
+    terms: tuple[Term, ...]
+    params: str | None = None
+    fix: tuple[str, ...] = ()
+    free: tuple[str, ...] = ()
+    elastic: bool | None = None
+    loss: str = "linear"
+    noise_mm: float | None = None
+    orientation_weight: float | None = None
+    shared_planes: bool = False
+    pose_weight: float = 1.0
+    max_iterations: int = DEFAULT_MAX_ITERATIONS
+    holdout: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        terms = self.terms
+        if isinstance(terms, Term):
+            terms = (terms,)
+        if not isinstance(terms, tuple | list) or not terms:
+            raise InvalidArgumentError("a problem needs at least one Term")
+        bad = [t for t in terms if not isinstance(t, Term)]
+        if bad:
+            raise InvalidArgumentError(f"a problem's terms must be Term, got {bad[0]!r:.60}")
+        object.__setattr__(self, "terms", tuple(terms))
+        urdfs = {str(t.robot.urdf_path) for t in self.terms}
+        if len(urdfs) > 1:
+            raise InvalidArgumentError(
+                f"the terms of one problem are chains of one URDF, got {len(urdfs)}: "
+                f"{', '.join(sorted(urdfs))}"
+            )
+        self.options()  # the values, checked once (the level by the model of the shape)
+        self._check_applicable()
+
+    def options(self) -> Options:
+        """The problem's options as one checked value (a chain's level unless given).
+
+        Raises:
+            InvalidArgumentError: A value out of its range or of the wrong type.
+        """
+        return Options(
+            level=DEFAULT_LEVEL if self.params is None else self.params,
+            fix=self.fix,
+            free=self.free,
+            elastic=self.elastic,
+            loss=self.loss,
+            noise_mm=self.noise_mm,
+            orientation_weight=self.orientation_weight,
+            max_iterations=self.max_iterations,
+            holdout=self.holdout,
+            seed=self.seed,
+        )
+
+    @property
+    def shape(self) -> str:
+        """``chain``, ``tree``, ``contacts`` (one term each) or ``chains`` (several terms)."""
+        if len(self.terms) > 1:
+            return "chains"
+        term = self.terms[0]
+        if term.touches:
+            return "contacts"
+        return "tree" if term.robot.is_tree else "chain"
+
+    def _check_applicable(self) -> None:
+        """Refuse an option of :data:`~.options.APPLIES` given where it does not apply."""
+        shape = self.shape
+        defaults = {f.name: f.default for f in fields(self)}
+        for name, shapes in APPLIES.items():
+            if shape in shapes or name not in defaults:
+                continue
+            value = getattr(self, name)
+            if value is None or value is False or _same(value, defaults[name]):
+                continue
+            where = " or ".join(SHAPE_LABELS[s] for s in shapes)
+            raise InvalidArgumentError(f"{name} is for {where}, not {SHAPE_LABELS[shape]}")
+        if shape == "chains":
+            self._check_terms()
+
+    def _check_terms(self) -> None:
+        """Several terms: chains (no tree), and one contact guess for the touching ones."""
+        for t in self.terms:
+            if t.robot.is_tree:
+                raise InvalidArgumentError(
+                    "the terms of a joint fit are chains (one base, one tool each), got a tree"
+                )
+        guesses = [t.guess for t in self.terms if t.touches and t.guess is not None]
+        if any(not _same(g, guesses[0]) for g in guesses[1:]):
+            raise InvalidArgumentError(
+                "the touching terms of a joint fit share one contact frame guess: give the same "
+                "guess to each (or none)"
+            )
+        if any(t.guess is not None for t in self.terms if not t.touches):
+            raise InvalidArgumentError(
+                "a measured term of a joint fit takes no guess: its markers are registered"
+            )
+
+
+def _same(a, b) -> bool:
+    """Whether two option values are equal (numbers, tuples, arrays)."""
+    try:
+        return bool(np.array_equal(np.asarray(a, dtype=object), np.asarray(b, dtype=object)))
+    except ValueError:  # ragged
+        return a == b

@@ -1,0 +1,143 @@
+"""One calibration problem: terms of one robot, one entry (``calibrate(problem)``), one table
+of the options that apply to each shape.
+
+The fits themselves are checked by independent routes elsewhere (Pinocchio on the written
+URDFs); here: a problem of several terms, built by hand, is the noise-free truth again on
+the written URDF (simulated touches on a URDF whose joint origins were moved, Pinocchio's
+gaps), and every shape refuses, in one line, what does not apply to it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from contact_scorer import plane_gaps
+
+import calib
+from calib import InvalidArgumentError, Problem, Term, calibrate, load_robot, simulate
+from calib.calibration.options import APPLIES
+from calib.calibration.placements import Placements
+from calib.kinematics.placement_export import moved_origins_urdf
+from calib.measurements.contact_campaign import simulate_contacts
+
+URDF = "talos_full_v2.urdf"
+PAIRS = (
+    ("left_sole_link", "gripper_left_base_link"),
+    ("right_sole_link", "gripper_right_base_link"),
+)
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    """One problem's terms of every shape (data small: no fit runs)."""
+    ur5 = load_robot("ur5")
+    measured = simulate(ur5, 12, "position", seed=0).measurements
+    arms = [load_robot(URDF, b, t) for b, t in PAIRS]
+    touches = [simulate_contacts(c, 12, "plane", seed=1).data for c in arms]
+    tree = load_robot("ur5", tool=("wrist_2_link", "tool0"))
+    return {
+        "chain": (Term(ur5, measured),),
+        "tree": (Term(tree, measured),),
+        "contacts": (Term(arms[0], touches[0]),),
+        "chains": tuple(Term(c, d) for c, d in zip(arms, touches, strict=True)),
+    }
+
+
+VALUES = {
+    "fix": ("frame",),
+    "free": ("theta2",),
+    "loss": "huber",
+    "noise_mm": 0.1,
+    "elastic": True,
+    "orientation_weight": 0.5,
+    "pose_weight": 2.0,
+    "shared_planes": True,
+}
+
+
+def test_each_problem_has_the_shape_of_its_terms(shapes):
+    assert {name: Problem(terms).shape for name, terms in shapes.items()} == {
+        name: name for name in shapes
+    }
+
+
+@pytest.mark.parametrize("option", sorted(APPLIES))
+@pytest.mark.parametrize("shape", ["chain", "tree", "contacts", "chains"])
+def test_an_option_applies_where_the_table_says_and_is_refused_elsewhere(shapes, option, shape):
+    assert set(VALUES) == set(APPLIES)  # every option of the table is tried
+    if shape in APPLIES[option]:
+        assert Problem(shapes[shape], **{option: VALUES[option]}).shape == shape
+        return
+    with pytest.raises(InvalidArgumentError) as info:
+        Problem(shapes[shape], **{option: VALUES[option]})
+    message = str(info.value)
+    assert message.startswith(f"{option} is for ") and "\n" not in message
+
+
+def test_a_default_value_given_is_not_refused(shapes):
+    problem = Problem(shapes["tree"], loss="linear", elastic=False, fix=(), pose_weight=1.0)
+    assert problem.shape == "tree"
+
+
+def _guessed(terms, heights):
+    """The terms, each with a contact frame guess ``(0, 0, height)``."""
+    pairs = zip(terms, heights, strict=True)
+    return tuple(Term(t.robot, t.data, guess=(0, 0, h)) for t, h in pairs)
+
+
+@pytest.mark.parametrize(
+    ("build", "says"),
+    [
+        (lambda s: Problem(()), "at least one Term"),
+        (lambda s: Problem(("x",)), "must be Term"),
+        (lambda s: Problem((*s["chains"], *s["chain"])), "one URDF"),
+        (lambda s: Term("ur5", s["chain"][0].data), "chain or a tree"),
+        (lambda s: Term(s["chain"][0].robot, np.zeros((3, 6))), "Measurements or ContactData"),
+        (lambda s: Term(s["chain"][0].robot, s["chain"][0].data, s["contacts"][0].data), "like"),
+        (lambda s: Problem(s["chain"], loss="x"), "unknown loss"),
+        (lambda s: Problem(s["chains"], holdout=1.5), "holdout"),
+        (lambda s: Problem(_guessed(s["chains"], (0.1, 0.2))), "one contact frame guess"),
+        (lambda s: calibrate(Problem(s["chain"]), s["chain"][0].data), "the problem alone"),
+        (lambda s: calibrate(Problem(s["chain"]), params="complete"), "the problem alone"),
+    ],
+)
+def test_a_bad_problem_is_one_line(shapes, build, says):
+    with pytest.raises(InvalidArgumentError) as info:
+        build(shapes)
+    assert says in str(info.value) and "\n" not in str(info.value)
+
+
+def test_the_terms_and_problem_are_public_and_listed():
+    assert {"Problem", "Term", "calibrate"} <= set(calib.__all__)
+    assert {"Problem", "Term", "calibrate"} <= set(dir(calib))
+
+
+def test_a_problem_of_two_terms_finds_the_truth_on_the_written_urdf(tmp_path):
+    """Both arms' touches of a TALOS whose joint origins were moved (~1 mm, 1 mrad), and
+    touches of other postures to validate on: one problem, one URDF; Pinocchio sees every
+    validation touch flush on the written URDF (the report's planes and contact frames)."""
+    nominal = [load_robot(URDF, b, t) for b, t in PAIRS]
+    pl = Placements.of(tuple(nominal))
+    truth = pl.shifted(1e-3 * np.random.default_rng(3).standard_normal(pl.y.size))
+    true_urdf = tmp_path / "true.urdf"
+    true_urdf.write_bytes(moved_origins_urdf(nominal[0], truth.errors()))
+    true_chains = [load_robot(true_urdf, b, t) for b, t in PAIRS]
+
+    def split(c, k):  # the first k touches to fit, the others to validate on
+        d = simulate_contacts(c, 150, "plane", error_mm=0, error_mrad=0, seed=5).data
+        return [dataclasses.replace(d, q=d.q[s], ids=d.ids[s]) for s in (slice(k), slice(k, None))]
+
+    terms = [Term(c, *split(t, 120)) for c, t in zip(nominal, true_chains, strict=True)]
+    problem = Problem(tuple(terms), params="complete")
+    result = calibrate(problem)
+    assert result.accepted and result.to_dict()["shape"] == "chains"
+    out = tmp_path / "cal.urdf"
+    result.write(out)
+    for term, part in zip(problem.terms, result.chains, strict=True):
+        v, chain = term.validate, term.robot
+        joints = {name: v.q[:, k] for k, name in enumerate(chain.joint_names)}
+        g = plane_gaps(out, chain.base_frame, chain.tool_frame, part.contact, part.plane, joints)
+        assert np.abs(g[:, 0]).max() < 1e-9 and np.abs(g[:, 1:]).max() < 1e-9  # [m], [rad]
+        assert part.stats["held_out_registration"].height_rms_mm > 1.0  # something to fix
