@@ -429,3 +429,16 @@ def test_summary_names_the_measured_term(joint_fit):
     assert "2 plane(s), 1 measured term(s)" in text.splitlines()[0]
     assert "rgbd_optical_frame -> gripper_left_base_link, measured position" in text
     assert "the measuring frame in joint 'rgbd_optical_joint'" in text
+
+
+def test_the_one_entry_takes_a_measured_term(joint_fit):
+    """``calib.calibrate(Problem(...))``: the head camera's term beside both arms' touches
+    gives the joint fit's result (the same function underneath)."""
+    from calib import Problem, Term, calibrate
+
+    nominal, data, _, direct, _ = joint_fit
+    terms = tuple(Term(c, d) for c, d in zip(nominal, data, strict=True))
+    r = calibrate(Problem(terms, params="complete", holdout=0.25, seed=0))
+    assert r.accepted and isinstance(r.chains[2], MeasuredChain)
+    assert r.chains[2].stats["held_out"].length_rms_mm < 1e-6
+    assert np.array_equal(r.estimate, direct.estimate)
