@@ -399,8 +399,9 @@ def test_the_chain_pipeline_moves_the_camera_joint_on_robot(tmp_path):
 
 def test_a_measured_term_gets_a_chains_checks(talos_data):
     """The camera's rows are checked as one chain's: a gross outlier (50 mm on row 8) is set
-    aside and named in the report with its term; joints in degrees, or two joint columns
-    swapped, are one-line DataErrors naming the mistake."""
+    aside and named in the report with its term, a held-out one too; joints in degrees, two
+    joint columns swapped, validation rows that are the data, too few rows: one-line
+    DataErrors naming the mistake."""
     nominal, data = talos_data
     cam = simulate(nominal[2], 30, "position", marker=MARKER, seed=2).measurements
     pos = cam.position.copy()
@@ -422,6 +423,16 @@ def test_a_measured_term_gets_a_chains_checks(talos_data):
     for joints, what in cases:
         wrong = Measurements(cam.joint_names, joints, cam.position, None, "wrong.csv")
         _one_line_error(DataError, what, nominal, [*data[:2], wrong])
+    # validation rows that are the data; too few rows for the camera's 9 unknowns
+    _one_line_error(
+        DataError,
+        "held out must mean held out",
+        nominal,
+        [*data[:2], cam],
+        validate=[None, None, cam],
+    )
+    few = cam.subset(np.arange(3))
+    _one_line_error(DataError, "equations", nominal, [*data[:2], few])
 
 
 def test_summary_names_the_measured_term(joint_fit):
