@@ -141,3 +141,28 @@ def test_a_problem_of_two_terms_finds_the_truth_on_the_written_urdf(tmp_path):
         g = plane_gaps(out, chain.base_frame, chain.tool_frame, part.contact, part.plane, joints)
         assert np.abs(g[:, 0]).max() < 1e-9 and np.abs(g[:, 1:]).max() < 1e-9  # [m], [rad]
         assert part.stats["held_out_registration"].height_rms_mm > 1.0  # something to fix
+
+
+def test_a_noise_free_fit_of_the_nominal_robot_is_not_refused_on_round_off():
+    """Touches of the nominal TALOS itself: nothing to fix, every error round-off (1e-13 mm);
+    the model is accepted, not refused as '0.000 > 0.000 mm' worse than its registration."""
+    arms = [load_robot(URDF, b, t) for b, t in PAIRS]
+    data = [simulate_contacts(c, 60, "plane", error_mm=0, error_mrad=0, seed=8).data for c in arms]
+    result = calibrate(Problem(tuple(Term(c, d) for c, d in zip(arms, data, strict=True)),
+                               params="complete", holdout=0.25))  # fmt: skip
+    assert result.accepted, result.refusal
+    for part in result.chains:
+        assert part.stats["held_out"].weighted_mm < 1e-6
+
+
+def test_two_measured_terms_of_one_camera_are_refused_in_one_line():
+    """Each term would fit its own correction of the camera, and the URDF holds one."""
+    camera = "rgbd_optical_frame"
+    hands = [
+        load_robot(URDF, camera, t) for t in ("gripper_left_base_link", "gripper_right_base_link")
+    ]
+    data = [simulate(h, 20, "position", seed=k).measurements for k, h in enumerate(hands)]
+    with pytest.raises(InvalidArgumentError) as info:
+        calibrate(Problem(tuple(Term(h, d) for h, d in zip(hands, data, strict=True))))
+    assert f"two measured terms measure from '{camera}'" in str(info.value)
+    assert "\n" not in str(info.value)

@@ -453,3 +453,33 @@ def test_the_one_entry_takes_a_measured_term(joint_fit):
     assert r.accepted and isinstance(r.chains[2], MeasuredChain)
     assert r.chains[2].stats["held_out"].length_rms_mm < 1e-6
     assert np.array_equal(r.estimate, direct.estimate)
+
+
+def test_the_command_line_takes_the_measured_term(joint_fit, tmp_path, capsys):
+    """``--term plane ... --term position CAMERA HAND head.csv``: one problem of three terms;
+    Pinocchio sees the camera's rows on the written URDF (the report's marker) to 1e-9."""
+    from calib import write_measurements
+    from calib.cli.commands import main
+    from calib.measurements.contact_campaign import write_contacts
+
+    nominal, data, _, _, _ = joint_fit
+    files = [tmp_path / name for name in ("left.csv", "right.csv", "head.csv")]
+    write_contacts(files[0], data[0])
+    write_contacts(files[1], data[1])
+    write_measurements(files[2], data[2])
+    argv = ["calibrate", URDF, "--params", "complete", "--holdout", "0.25"]
+    for kind, chain, path in zip(("plane", "plane", "position"), nominal, files, strict=True):
+        argv += ["--term", kind, chain.base_frame, chain.tool_frame, str(path)]
+    cli = tmp_path / "cli.urdf"
+    code = main([*argv, "--out", str(cli), "--report", str(tmp_path / "r.json")])
+    assert code == 0, capsys.readouterr().err
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert [t["kind"] for t in report["terms"]] == ["plane", "plane", "position"]
+    d = data[2]
+    joints = {n: d.q[:, k] for k, n in enumerate(nominal[2].joint_names)}
+    T = relative_placements(cli, *CAMERA, joints)
+    marker = np.array(report["frames"]["markers"][CAMERA[1]][0])  # [m], in the hand's frame
+    seen = np.array([M.rotation @ marker + M.translation for M in T])
+    assert np.max(np.abs(seen - d.position)) < 1e-9  # every row, held out too [m]
+    names = [p["name"] for p in report["parameters"] if p["name"].startswith("term3.")]
+    assert names[:6] == [f"term3.frame.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]

@@ -59,7 +59,6 @@ from .contact_chains_result import (
 from .contact_checks import subset
 from .contact_model import ContactState
 from .contact_pipeline import (
-    WORSE,
     check_held_out_gaps,
     contact_frame,
     split_contacts,
@@ -84,6 +83,19 @@ CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
 """Parameter levels of several chains (``paper`` is a chain's MDH set)."""
 
 
+def _one_term_per_frame(chains, data) -> None:
+    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it)."""
+    measuring = [
+        c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
+    ]
+    shared = sorted({f for f in measuring if measuring.count(f) > 1})
+    if shared:
+        raise InvalidArgumentError(
+            f"two measured terms measure from '{shared[0]}': one fit takes one measured term per "
+            "measuring frame (fit the other tool's rows apart)"
+        )
+
+
 def _check(chains, data, validate, params, holdout) -> None:
     if not isinstance(chains, Sequence) or not chains:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
@@ -99,6 +111,7 @@ def _check(chains, data, validate, params, holdout) -> None:
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
     if not isinstance(data, Sequence) or len(data) != len(chains):
         raise InvalidArgumentError("give one set of touches per chain")
+    _one_term_per_frame(chains, data)
     if validate is not None and (
         not isinstance(validate, Sequence) or len(validate) != len(chains)
     ):
@@ -348,11 +361,11 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
 
 def calibrate_contact_chains(
     chains: Sequence[Chain],
-    data: Sequence[ContactData],
+    data: Sequence[ContactData | Measurements],
     *,
     contact=None,
     params: str | None = None,
-    validate: Sequence[ContactData | None] | None = None,
+    validate: Sequence[ContactData | Measurements | None] | None = None,
     orientation_weight: float | None = None,
     shared_planes: bool = False,
     pose_weight: float = 1.0,
@@ -458,6 +471,10 @@ def calibrate_contact_chains(
     )
 
 
+PIN = 1e-6
+"""Weight [m per m or rad] of the polish's pull toward the first fit: the undetermined components
+stay put (one solution, whatever the round-off), the determined ones are not held back."""
+
 POLISH_GAIN = 1e-2
 """A polish is kept when it leaves less than this fraction of the fit's cost (see ``_fit``)."""
 
@@ -494,7 +511,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
         return fitted, False
     again = dataclasses.replace(fitted.state, placements=fitted.state.placements.rebased())
     try:
-        better = fit(wide, again, data, None, 1.0, max_iterations=iters)
+        better = fit(
+            wide, again, data, None, 1.0, prior=PIN * np.ones(wide.size()), max_iterations=iters
+        )
     except InvalidArgumentError:  # it wandered along undetermined components to no robot
         return fitted, False
     if better.converged and float(better.f @ better.f) < POLISH_GAIN * cost:
@@ -505,7 +524,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
 def _refused(stats, chain: Chain, what: str) -> str | None:
     """Why a term's held-out errors refuse the model (worse than the registration's), or None."""
     got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
-    if got > base * (1.0 + WORSE):
+    if validation.worse(got, base, 1e-3):
         return (
             f"the calibrated model's held-out {what} on {chain.base_frame} -> "
             f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "

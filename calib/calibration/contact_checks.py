@@ -273,7 +273,7 @@ def refusal(
     if converged is not None:
         return f"the solver did not converge ({converged})"
     train, before = stats["train"], stats["train_registration"]
-    if train.weighted_mm > before.weighted_mm * (1.0 + WORSE):
+    if validation.worse(train.weighted_mm, before.weighted_mm, 1e-3):
         return (
             "the calibrated model fits the touches worse than the registration alone "
             f"({train.weighted_mm:.3f} > {before.weighted_mm:.3f} mm weighted RMS)"
@@ -285,7 +285,7 @@ def refusal(
         )
     if "held_out" in stats:
         held, reg = stats["held_out"], stats["held_out_registration"]
-        if held.weighted_mm > reg.weighted_mm * (1.0 + WORSE):
+        if validation.worse(held.weighted_mm, reg.weighted_mm, 1e-3):
             return (
                 "the calibrated model's held-out gaps are worse than the registration's "
                 f"({held.weighted_mm:.3f} > {reg.weighted_mm:.3f} mm weighted RMS)"

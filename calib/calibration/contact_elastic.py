@@ -25,7 +25,7 @@ from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support, standing_load
 from ..measurements.contact_campaign import ContactData
-from .contact_checks import WORSE
+from . import validation
 from .contact_model import ContactState
 from .contact_result import gap_stats
 
@@ -107,7 +107,7 @@ def fitted_compliance(
             continue
         alone, reg = gap_stats(rigid, d.q, d.ids), stats[f"{key}_registration"]
         stats[f"{key}_urdf"] = alone
-        if alone.weighted_mm > reg.weighted_mm * (1.0 + WORSE):
+        if validation.worse(alone.weighted_mm, reg.weighted_mm, 1e-3):
             notes.append(
                 f"on {label} touches the calibrated URDF alone (without the fitted joint "
                 f"compliance) is worse than the registration alone ({alone.weighted_mm:.3f} > "

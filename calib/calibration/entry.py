@@ -193,12 +193,10 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
     if shape == "chains":
         return calibrate_contact_chains(
             [cast(Chain, t.robot) for t in p.terms],
-            [cast(ContactData, t.data) for t in p.terms],
+            [t.data for t in p.terms],
             contact=next((t.guess for t in p.terms if t.guess is not None), None),
             params=p.params,
-            validate=[cast(ContactData | None, t.validate) for t in p.terms]
-            if _validated(p)
-            else None,
+            validate=[t.validate for t in p.terms] if _validated(p) else None,
             orientation_weight=p.orientation_weight,
             shared_planes=p.shared_planes,
             pose_weight=p.pose_weight,

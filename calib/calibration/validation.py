@@ -33,6 +33,7 @@ from .solve import FitState
 
 __all__ = [
     "RANK_TOL",
+    "ROUND_OFF",
     "SAME",
     "check_held_out",
     "check_held_out_errors",
@@ -42,10 +43,27 @@ __all__ = [
     "split",
     "stats",
     "urdf_alone_warning",
+    "worse",
 ]
 
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
+
+ROUND_OFF = 1e-12
+"""Absolute difference [m, rad] under which two RMS errors are the same: a noise-free fit's
+errors (a few 1e-13) are round-off, not a worse model."""
+
+
+def worse(after: float, before: float, unit: float = 1.0) -> bool:
+    """Whether an RMS error is worse than another beyond round-off (the one refusal rule).
+
+    Args:
+        after: The calibrated model's error.
+        before: The registration's (the nominal model's) error.
+        unit: The errors' unit in metres or radians (1e-3 for mm or mrad).
+    """
+    return after > before * (1 + SAME) + ROUND_OFF / unit
+
 
 RANK_TOL = 1e-9
 """Smallest singular value, relative to the largest, of the unit-norm columns of a fit."""
@@ -219,7 +237,7 @@ def refusal(
     """
     if not converged:
         return "the fit did not converge"
-    if after.position_rms > before.position_rms * (1 + SAME):
+    if worse(after.position_rms, before.position_rms):
         return (
             f"the calibrated model fits the data worse than the registration alone "
             f"({1e3 * after.position_rms:.3g} mm vs {1e3 * before.position_rms:.3g} mm RMS)"
@@ -232,7 +250,7 @@ def refusal(
             f"(rank-deficient Jacobian): measure more varied configurations or fit fewer "
             f"parameters"
         )
-    if held is not None and held[1].position_rms > held[0].position_rms * (1 + SAME):
+    if held is not None and worse(held[1].position_rms, held[0].position_rms):
         return (
             f"on held-out configurations the calibrated model is worse than the registration "
             f"alone ({1e3 * held[1].position_rms:.3g} mm vs {1e3 * held[0].position_rms:.3g} mm "
@@ -253,7 +271,7 @@ def _worse_orientation(
 ) -> tuple[float, float] | None:
     """The orientation RMS [rad] of both where the calibrated model's is the worse, else None."""
     reg, cal = registration.orientation_rms, calibrated.orientation_rms
-    if reg is None or cal is None or cal <= reg * (1 + SAME):
+    if reg is None or cal is None or not worse(cal, reg):
         return None
     return reg, cal
 
@@ -273,7 +291,7 @@ def urdf_alone_warning(
     """
     checks = [("the fitted data", fitted)] + ([] if held is None else [("held-out rows", held)])
     for label, (reg, urdf) in checks:
-        if urdf.position_rms > reg.position_rms * (1 + SAME):
+        if worse(urdf.position_rms, reg.position_rms):
             return (
                 f"on {label} the calibrated URDF alone (without the fitted joint compliance) "
                 f"is worse than the registration alone ({1e3 * urdf.position_rms:.3g} mm vs "

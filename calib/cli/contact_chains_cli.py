@@ -4,7 +4,9 @@ Each ``--term`` names a kind, a chain of the robot and its data (and optionally 
 validate on): ``--term plane left_sole_link gripper_left_base_link left.csv`` (touches of a
 plane), ``--term loop left_sole_link right_sole_link left.csv`` (a closed loop, a
 ``fixed-pose`` chain: a plane contact CSV that records its joints, or a ``fixed-pose`` one;
-every row a touch of one pose, :func:`~calib.measurements.contact_loops.read_loop`).
+every row a touch of one pose, :func:`~calib.measurements.contact_loops.read_loop`),
+``--term position rgbd_optical_frame gripper_left_base_link head.csv`` (a measurement CSV of
+points measured in BASE, a frame of the robot: a head camera; ``pose`` with its orientations).
 ``--chain BASE TOOL DATA`` (with ``--measure plane``) is ``--term plane ...`` and ``--loop``
 is ``--term loop ...``. Joints on several chains (a humanoid's torso) are fitted once; one URDF
 of the whole robot is written. The terms make a :class:`~calib.calibration.problem.Problem`,
@@ -18,7 +20,7 @@ from pathlib import Path
 
 from ..core.fileio import check_outputs
 from ..core.progress import terminal
-from ..exceptions import InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from .common import write_calibration
@@ -26,7 +28,7 @@ from .common import write_calibration
 __all__ = ["add_chain_arguments", "calibrate_chains_command"]
 
 
-TERM_KINDS = ("plane", "loop")
+TERM_KINDS = ("plane", "loop", "position", "pose")
 """Kinds a ``--term`` may name."""
 
 
@@ -81,8 +83,10 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
     kinds = {t[0] for t in terms}
     if args.chain and args.measure != "plane":
         raise InvalidArgumentError("--chain takes --measure plane")
-    if "plane" not in kinds:
-        raise InvalidArgumentError("--loop is fitted with plane chains: give --chain too")
+    if kinds <= {"loop"}:
+        raise InvalidArgumentError(
+            "--loop is fitted with other terms: give --chain too (or --term plane|position|pose)"
+        )
     if len(terms) < 2 and not args.chain:
         raise InvalidArgumentError(
             "a joint fit has two terms or more (one term: --base, --tool and --data)"
@@ -171,5 +175,15 @@ def _read(kind: str, path: str, chain: Chain):
     """A term's data of its kind, read from a file."""
     from ..measurements.contact_campaign import read_contacts
     from ..measurements.contact_loops import read_loop
+    from ..measurements.csvfile import read_measurements
 
-    return read_loop(path, chain) if kind == "loop" else read_contacts(path, chain, kind)
+    if kind == "loop":
+        return read_loop(path, chain)
+    if kind not in ("position", "pose"):
+        return read_contacts(path, chain, kind)
+    data = read_measurements(path, chain)
+    if kind == "position":
+        return data.position_only()
+    if data.quaternion is None:
+        raise DataError(path, "--term pose needs orientation columns (qx, qy, qz, qw, ...)")
+    return data
