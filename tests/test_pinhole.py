@@ -69,7 +69,7 @@ def test_pixels_are_opencvs(k):
 
 
 def central(f, x: np.ndarray, h: float) -> np.ndarray:
-    """Central differences of ``f`` (pixels ``(m, 2)``) over each entry of ``x`` -> ``(m, 2, n)``."""
+    """Central differences of ``f`` (pixels ``(m, 2)``) by each entry of ``x``: ``(m, 2, n)``."""
     cols = []
     for j in range(len(x)):
         step = np.zeros_like(x)
