@@ -139,9 +139,11 @@ def test_points_at_or_behind_the_camera_are_flagged_not_projected():
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        ((0.0, 600.0, 320.0, 240.0), "focal lengths"),
-        ((600.0, -1.0, 320.0, 240.0), "focal lengths"),
-        ((600.0, float("nan"), 320.0, 240.0), "NaN"),
+        ((0.0, 600.0, 320.0, 240.0), "fx must be a finite number > 0"),
+        ((600.0, -1.0, 320.0, 240.0), "fy must be a finite number > 0"),
+        ((600.0, float("nan"), 320.0, 240.0), "fy must be a finite number"),
+        ((600.0, 600.0, "320", 240.0), "cx must be a finite number"),
+        ((600.0, 600.0, 320.0, 1e300), "cy must be a finite number"),
         ((600.0, 600.0, 320.0, 240.0, np.zeros(6)), "4, 5, 8, 12 or 14 coefficients, got 6"),
         ((600.0, 600.0, 320.0, 240.0, [0, 0, 0, np.inf]), "NaN or infinity"),
         ((600.0, 600.0, 320.0, 240.0, np.zeros((1, 5))), "shape"),

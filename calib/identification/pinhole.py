@@ -29,12 +29,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.checks import real_array
+from ..core.checks import check_number, real_array
 from ..exceptions import InvalidArgumentError
 
 __all__ = [
     "DISTORTION_COUNTS",
     "DISTORTION_NAMES",
+    "MAX_PIXELS",
     "MIN_DEPTH",
     "Pinhole",
     "Projection",
@@ -60,6 +61,9 @@ DISTORTION_NAMES = (
     "ty",
 )
 """The distortion coefficients in OpenCV's order (``tx``, ``ty``: the sensor's tilt [rad])."""
+
+MAX_PIXELS = 1e7
+"""Largest focal length and principal point coordinate [px] (an image is at most 1e5 px wide)."""
 
 MIN_DEPTH = 1e-9
 """Smallest depth ``Z`` of a point in front of the camera [m]; nearer points have no pixel."""
@@ -92,10 +96,10 @@ class Pinhole:
     """A pinhole camera with OpenCV's distortion model (the module docstring has it).
 
     Attributes:
-        fx: Focal length along the columns [px], positive.
-        fy: Focal length along the rows [px], positive.
-        cx: Column of the principal point [px].
-        cy: Row of the principal point [px].
+        fx: Focal length along the columns [px], positive, at most :data:`MAX_PIXELS`.
+        fy: Focal length along the rows [px], positive, at most :data:`MAX_PIXELS`.
+        cx: Column of the principal point [px], within :data:`MAX_PIXELS` of 0.
+        cy: Row of the principal point [px], within :data:`MAX_PIXELS` of 0.
         distortion: The distortion coefficients in OpenCV's order, 4, 5, 8, 12 or 14 of
             them (``tx``, ``ty`` [rad]; the others have no unit).
     """
@@ -107,19 +111,18 @@ class Pinhole:
     distortion: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(4))
 
     def __post_init__(self) -> None:
-        values = real_array([self.fx, self.fy, self.cx, self.cy], "fx, fy, cx, cy", (4,))
-        if values[0] <= 0 or values[1] <= 0:
-            raise InvalidArgumentError(
-                f"the focal lengths fx, fy must be positive [px], got {values[0]:g}, {values[1]:g}"
-            )
+        for name in ("fx", "fy"):  # numbers, not text that reads as one
+            check_number(getattr(self, name), name, 0.0, MAX_PIXELS, above=True)
+        for name in ("cx", "cy"):
+            check_number(getattr(self, name), name, -MAX_PIXELS, MAX_PIXELS)
         dist = real_array(self.distortion, "distortion coefficients", (None,))
         if len(dist) not in DISTORTION_COUNTS:
             raise InvalidArgumentError(
                 f"OpenCV's distortion model takes 4, 5, 8, 12 or 14 coefficients, got {len(dist)}"
             )
         dist.flags.writeable = False
-        for name, value in zip(("fx", "fy", "cx", "cy"), values, strict=True):
-            object.__setattr__(self, name, float(value))
+        for name in ("fx", "fy", "cx", "cy"):
+            object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "distortion", dist)
 
     @property

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.checks import real_array
 from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.pinhole import DISTORTION_COUNTS, Pinhole
@@ -105,8 +106,11 @@ class Intrinsics:
         """Whether pixels ``(m, 2)`` [px] fall on the image (pixel centres at whole numbers).
 
         The image spans ``[-0.5, width - 0.5] x [-0.5, height - 0.5]``.
+
+        Raises:
+            InvalidArgumentError: Pixels not ``(m, 2)`` finite numbers.
         """
-        uv = np.asarray(pixels, dtype=float).reshape(-1, 2)
+        uv = real_array(pixels, "pixels", (None, 2))
         return (
             (uv[:, 0] >= -0.5)
             & (uv[:, 0] <= self.width - 0.5)
@@ -141,6 +145,8 @@ def parse_intrinsics(text: str, source: str = "<text>") -> Intrinsics:
             model for, a number that is not finite, a focal length not positive, an image
             size that is no whole number of pixels, a fisheye model.
     """
+    if not isinstance(text, str):
+        raise InvalidArgumentError(f"text must be the file's content (str), got {text!r:.60}")
     keys = _mapping(text, source)
     _check_model(keys, source)
     width, height = (_side(keys, k, source) for k in ("image_width", "image_height"))
