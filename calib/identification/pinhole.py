@@ -186,24 +186,31 @@ class Pinhole:
         dist = np.zeros(_FULL)
         dist[: len(self.distortion)] = self.distortion
         model = _Distorted(a, b, dist)
-        xy, tilt_d = _tilted(model.xy, dist[12:] if len(self.distortion) == _FULL else None)
+        tilt = dist[12:] if len(self.distortion) == _FULL else None
         f = np.array([self.fx, self.fy])
-        pixels = xy * f + np.array([self.cx, self.cy])
         if not derivatives:
-            return Projection(pixels, in_front)
-        d_norm = f[None, :, None] * (tilt_d.d_xy @ model.d_ab)  # (m, 2, 2): d(u, v)/d(a, b)
-        d_ab_point = np.zeros((len(p), 2, 3))
-        d_ab_point[:, 0, 0] = d_ab_point[:, 1, 1] = 1.0 / z
-        d_ab_point[:, 0, 2] = -a / z
-        d_ab_point[:, 1, 2] = -b / z
-        d_dist = tilt_d.d_xy @ model.d_coefficients  # (m, 2, 14): through the tilt
-        d_dist[:, :, 12:] = tilt_d.d_tilt
-        d_params = np.zeros((len(p), 2, 4 + len(self.distortion)))
+            xy = model.xy if tilt is None else _tilt_only(model.xy, tilt)
+            return Projection(xy * f + np.array([self.cx, self.cy]), in_front)
+        k = len(self.distortion)
+        xy, d_ab, d_dist = model.xy, model.d_ab(), model.d_coefficients(k)
+        if tilt is not None:  # through the tilt
+            xy, tilt_d = _tilted(model.xy, tilt)
+            d_ab, d_dist = _times(tilt_d.d_xy, d_ab), _times(tilt_d.d_xy, d_dist)
+            d_dist[:, :, 12:] = tilt_d.d_tilt
+        d_norm = f[None, :, None] * d_ab  # (m, 2, 2): d(u, v)/d(a, b)
+        d_point = np.empty((len(p), 2, 3))  # d(a, b)/d(X, Y, Z) = [[1, 0, -a], [0, 1, -b]] / Z
+        d_point[:, :, 0] = d_norm[:, :, 0] / z[:, None]
+        d_point[:, :, 1] = d_norm[:, :, 1] / z[:, None]
+        d_point[:, :, 2] = (
+            -(d_norm[:, :, 0] * a[:, None] + d_norm[:, :, 1] * b[:, None]) / z[:, None]
+        )
+        d_params = np.zeros((len(p), 2, 4 + k))
         d_params[:, 0, 0] = xy[:, 0]
         d_params[:, 1, 1] = xy[:, 1]
         d_params[:, 0, 2] = d_params[:, 1, 3] = 1.0
-        d_params[:, :, 4:] = f[None, :, None] * d_dist[:, :, : len(self.distortion)]
-        return Projection(pixels, in_front, d_norm @ d_ab_point, d_params)
+        d_params[:, :, 4:] = f[None, :, None] * d_dist
+        pixels = xy * f + np.array([self.cx, self.cy])
+        return Projection(pixels, in_front, d_point, d_params)
 
 
 class _Distorted:
@@ -211,54 +218,59 @@ class _Distorted:
 
     Attributes:
         xy: ``(x, y)`` ``(m, 2)``.
-        d_ab: Their derivative with respect to ``(a, b)`` ``(m, 2, 2)``.
-        d_coefficients: Their derivative with respect to the 14 coefficients ``(m, 2, 14)``
-            (zero for the tilt's: it comes after).
     """
 
     def __init__(self, a: np.ndarray, b: np.ndarray, c: np.ndarray):
+        self.a, self.b, self.c = a, b, c
         k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = c[:12]
         r2 = a * a + b * b
-        r4, r6 = r2 * r2, r2 * r2 * r2
-        num = 1 + k1 * r2 + k2 * r4 + k3 * r6
-        den = 1 + k4 * r2 + k5 * r4 + k6 * r6
-        radial = num / den
-        d_radial = (
-            (k1 + 2 * k2 * r2 + 3 * k3 * r4) - radial * (k4 + 2 * k5 * r2 + 3 * k6 * r4)
-        ) / den
+        self.r = (r2, r2 * r2, r2 * r2 * r2)
+        r4, r6 = self.r[1:]
+        self.den = 1 + k4 * r2 + k5 * r4 + k6 * r6
+        self.radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / self.den
         ab = a * b
         self.xy = np.column_stack(
             [
-                a * radial + 2 * p1 * ab + p2 * (r2 + 2 * a * a) + s1 * r2 + s2 * r4,
-                b * radial + p1 * (r2 + 2 * b * b) + 2 * p2 * ab + s3 * r2 + s4 * r4,
+                a * self.radial + 2 * p1 * ab + p2 * (r2 + 2 * a * a) + s1 * r2 + s2 * r4,
+                b * self.radial + p1 * (r2 + 2 * b * b) + 2 * p2 * ab + s3 * r2 + s4 * r4,
             ]
         )
+
+    def d_ab(self) -> np.ndarray:
+        """The derivative of ``xy`` with respect to ``(a, b)`` ``(m, 2, 2)``."""
+        a, b, radial = self.a, self.b, self.radial
+        k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self.c[:12]
+        r2, r4 = self.r[:2]
+        d_radial = (
+            (k1 + 2 * k2 * r2 + 3 * k3 * r4) - radial * (k4 + 2 * k5 * r2 + 3 * k6 * r4)
+        ) / self.den
         sx, sy = s1 + 2 * s2 * r2, s3 + 2 * s4 * r2  # the thin prism's d/d(r2)
         d = np.empty((len(a), 2, 2))
         d[:, 0, 0] = radial + 2 * a * a * d_radial + 2 * p1 * b + 6 * p2 * a + 2 * a * sx
         d[:, 0, 1] = 2 * a * b * d_radial + 2 * p1 * a + 2 * p2 * b + 2 * b * sx
         d[:, 1, 0] = 2 * a * b * d_radial + 2 * p1 * a + 2 * p2 * b + 2 * a * sy
         d[:, 1, 1] = radial + 2 * b * b * d_radial + 6 * p1 * b + 2 * p2 * a + 2 * b * sy
-        self.d_ab = d
-        zero = np.zeros_like(a)
-        per_radial = np.stack([r2, r4, r6, -radial * r2, -radial * r4, -radial * r6]) / den
-        radial_rows = [  # k1, k2, k3, k4, k5, k6 move the radial factor
-            np.stack([a * g, b * g]) for g in per_radial
-        ]
-        columns = [
-            radial_rows[0],
-            radial_rows[1],
-            np.stack([2 * ab, r2 + 2 * b * b]),  # p1
-            np.stack([r2 + 2 * a * a, 2 * ab]),  # p2
-            *radial_rows[2:],
-            np.stack([r2, zero]),  # s1
-            np.stack([r4, zero]),  # s2
-            np.stack([zero, r2]),  # s3
-            np.stack([zero, r4]),  # s4
-            np.stack([zero, zero]),  # tx (after the tilt)
-            np.stack([zero, zero]),  # ty
-        ]
-        self.d_coefficients = np.stack(columns, axis=-1).transpose(1, 0, 2)
+        return d
+
+    def d_coefficients(self, count: int) -> np.ndarray:
+        """The derivative of ``xy`` by the first ``count`` coefficients ``(m, 2, count)``.
+
+        The tilt's columns are zero: the tilt comes after.
+        """
+        a, b, radial = self.a, self.b, self.radial
+        r2, r4, r6 = self.r
+        out = np.zeros((len(a), 2, _FULL))
+        # k1, k2, k3 (columns 0, 1, 4) and k4, k5, k6 (5, 6, 7) move the radial factor
+        factors = (r2, r4, r6, -radial * r2, -radial * r4, -radial * r6)
+        for j, g in zip((0, 1, 4, 5, 6, 7), factors, strict=True):
+            if j < count:
+                out[:, 0, j] = a * g / self.den
+                out[:, 1, j] = b * g / self.den
+        out[:, 0, 2] = out[:, 1, 3] = 2 * a * b  # p1, p2
+        out[:, 1, 2] = r2 + 2 * b * b
+        out[:, 0, 3] = r2 + 2 * a * a
+        out[:, 0, 8], out[:, 0, 9], out[:, 1, 10], out[:, 1, 11] = r2, r4, r2, r4  # s1..s4
+        return out[:, :, :count]  # tx, ty (12, 13) act after: zero here
 
 
 @dataclass(frozen=True)
@@ -294,15 +306,24 @@ def _tilt_matrix(tx: float, ty: float) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return full @ r, derivatives[0], derivatives[1]
 
 
-def _tilted(xy: np.ndarray, tilt: np.ndarray | None) -> tuple[np.ndarray, _TiltDerivatives]:
+def _times(left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """The products of ``(m, 2, 2)`` and ``(m, 2, n)`` matrices ``(m, 2, n)``."""
+    return left[:, :, 0:1] * right[:, None, 0, :] + left[:, :, 1:2] * right[:, None, 1, :]
+
+
+def _tilt_only(xy: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """The tilted sensor's coordinates of ``xy`` ``(m, 2)`` (``tilt``: ``(tx, ty)`` [rad])."""
+    t = _tilt_matrix(float(tilt[0]), float(tilt[1]))[0]
+    w = xy @ t[:, :2].T + t[:, 2]
+    return w[:, :2] / w[:, 2:]
+
+
+def _tilted(xy: np.ndarray, tilt: np.ndarray) -> tuple[np.ndarray, _TiltDerivatives]:
     """The tilted sensor's coordinates of ``xy`` ``(m, 2)`` and their derivatives.
 
-    ``tilt``: ``(tx, ty)`` [rad], or None for a model without them (14 coefficients have them).
+    ``tilt``: ``(tx, ty)`` [rad].
     """
     m = len(xy)
-    if tilt is None:
-        eye = np.broadcast_to(np.eye(2), (m, 2, 2)).copy()
-        return xy, _TiltDerivatives(eye, np.zeros((m, 2, 2)))
     t, dt_x, dt_y = _tilt_matrix(float(tilt[0]), float(tilt[1]))
     h = np.column_stack([xy, np.ones(m)])
     w = h @ t.T  # (m, 3)
