@@ -298,3 +298,29 @@ i:
     assert got["d"] == {"e": [1, {"f": "g"}], "h": None}
     assert got["i"] == {"j": ["k"], "l": 3}
     assert list(got) == ["a", "b", "c", "d", "i"]
+
+
+def test_opencvs_other_structures_beside_the_keys_are_read(tmp_path):
+    path = tmp_path / "cam.yaml"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_points", np.zeros((3, 1, 2), np.float32))  # dt: "2f"
+    fs.startWriteStruct("views", cv2.FileNode_SEQ)
+    fs.startWriteStruct("", cv2.FileNode_MAP | cv2.FileNode_FLOW)
+    fs.write("x", 41)
+    fs.write("name", "a b")
+    fs.endWriteStruct()
+    fs.write("", 3)
+    fs.endWriteStruct()
+    fs.startWriteStruct("board", cv2.FileNode_MAP)
+    fs.write("square", 0.025)
+    fs.endWriteStruct()
+    fs.release()
+    text = path.read_text()
+    assert "{ x:41, name:a b }" in text  # OpenCV's flow mapping, no space after the colon
+    got = parse_yaml(text, "cam.yaml")
+    assert got["views"] == [{"x": 41, "name": "a b"}, 3] and got["board"] == {"square": 0.025}
+    assert got["image_points"]["dt"] == "2f" and got["image_points"]["data"] == [0.0] * 6
+    tagged = text.replace("!!opencv-matrix", "!!opencv-nd-matrix")
+    assert parse_yaml(tagged, "cam.yaml")["image_points"]["rows"] == 3
+    with pytest.raises(DataError, match=r"row 3.*an !!opencv- tag is on a block of keys"):
+        parse_yaml("%YAML:1.0\n---\nk: !!opencv-matrix 3\n", "cam.yaml")

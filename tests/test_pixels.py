@@ -3,6 +3,8 @@ files refused with one line naming the row."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -220,3 +222,17 @@ def test_api_errors_are_one_line_calib_errors(case):
     with pytest.raises(CalibError) as caught:
         API_ERRORS[case]()
     assert str(caught.value).strip() and "\n" not in str(caught.value)
+
+
+def test_the_camera_modules_need_no_opencv():
+    # OpenCV is a test extra: with cv2 unimportable, calib's camera modules still work
+    code = (
+        "import sys; sys.modules['cv2'] = None\n"
+        "from calib.identification.pinhole import Pinhole\n"
+        "from calib.measurements import parse_intrinsics, parse_target\n"
+        "print(Pinhole(1.0, 1.0, 0.0, 0.0).project([[0.0, 0.0, 1.0]]).tolist())\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
+    )
+    assert out.stdout.strip() == "[[0.0, 0.0]]"

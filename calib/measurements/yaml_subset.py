@@ -9,7 +9,7 @@ calib needs no YAML library (PyYAML is not among its dependencies, and it refuse
 * flow sequences and mappings (``[1, 2]``, ``{rows: 3}``), also over several lines;
 * plain and quoted scalars: numbers (``1``, ``0.``, ``-2.5e-01``, ``.nan``, ``.inf``) are
   read as numbers, ``true``/``false`` as booleans, ``null``/``~`` as None, the rest as text;
-* OpenCV's ``!!opencv-matrix`` tag on a mapping (its ``rows``, ``cols``, ``dt``, ``data``).
+* OpenCV's tags on a mapping (``!!opencv-matrix``: its ``rows``, ``cols``, ``dt``, ``data``).
 
 Anything else (anchors, other tags, multi-line text, several documents, tabs) is refused with
 one :class:`~calib.exceptions.DataError` naming the line.
@@ -29,8 +29,8 @@ _FLOAT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 _SPECIAL = {".nan": float("nan"), ".inf": float("inf"), "+.inf": float("inf")}
 _SPECIAL["-.inf"] = float("-inf")
 _WORDS = {"true": True, "false": False, "null": None, "~": None}
-_TAGS = ("!!opencv-matrix",)
-"""The tags read (on a mapping; the tag itself is dropped)."""
+_TAG = re.compile(r"!!opencv-[a-z-]+(\s|$)")
+"""OpenCV's tags (``!!opencv-matrix``, ``!!opencv-nd-matrix``): read on a mapping, dropped."""
 
 
 @dataclass(frozen=True)
@@ -156,10 +156,10 @@ class _Block:
             self.pos += 1
             rest, tagged = _untagged(rest)
             if rest and tagged:
-                raise self.fail("!!opencv-matrix tags a block of rows, cols, dt, data", line)
+                raise self.fail("an !!opencv- tag is on a block of keys (rows, cols, ...)", line)
             out[key] = self.inline(rest, line) if rest else self.nested(indent, line)
             if tagged and not isinstance(out[key], dict):
-                raise self.fail("!!opencv-matrix tags a block of rows, cols, dt, data", line)
+                raise self.fail("an !!opencv- tag is on a block of keys (rows, cols, ...)", line)
         return out
 
     def key(self, line: _Line) -> tuple[str, str]:
@@ -204,11 +204,11 @@ def _is_item(text: str) -> bool:
 
 
 def _untagged(rest: str) -> tuple[str, bool]:
-    """The value's text without OpenCV's matrix tag, and whether it had it."""
-    for tag in _TAGS:
-        if rest == tag or rest.startswith(tag + " "):
-            return rest[len(tag) :].strip(), True
-    return rest, False
+    """The value's text without an OpenCV tag (``!!opencv-matrix``, ...), and whether it had one."""
+    match = _TAG.match(rest)
+    if not match:
+        return rest, False
+    return rest[match.end() :].strip(), True
 
 
 def _depth(text: str) -> int:
