@@ -4,7 +4,9 @@
 CSV, :mod:`.limits` checks them against their chain or tree, :mod:`.simulation` simulates
 chain campaigns (their names are re-exported here, imported when first used:
 ``from calib.measurements import read_measurements`` works); :mod:`.tree_campaign`
-simulates tree campaigns, :mod:`.marker_set` reads the markers of a pose measurement.
+simulates tree campaigns, :mod:`.marker_set` reads the markers of a pose measurement;
+:mod:`.intrinsics` reads and writes a camera's intrinsics file, :mod:`.pixels` the pixel
+observations and targets of cameras.
 
 May import: :mod:`calib.identification`, :mod:`calib.kinematics` and the bottom modules.
 """
@@ -17,6 +19,7 @@ _LAZY = {
     "Columns": "csvfile",
     "DEFAULT_ORIENTATION_COLUMNS": "csvfile",
     "DataWarning": "data",
+    "Intrinsics": "intrinsics",
     "JOINT_PREFIX": "data",
     "LIMIT_MARGIN": "limits",
     "LIMIT_TOL": "limits",
@@ -24,20 +27,31 @@ _LAZY = {
     "MAX_MEASUREMENTS_BYTES": "csvfile",
     "Measurements": "data",
     "POSITION_COLUMNS": "data",
+    "PixelObservations": "pixels",
     "QUATERNION_COLUMNS": "data",
     "SimulationTruth": "simulation",
     "TOOL_COLUMN": "data",
+    "Target": "pixels",
     "check_against_chain": "limits",
     "check_limits": "limits",
     "csv_records": "csvfile",
     "joint_bounds": "limits",
     "measurements_csv": "csvfile",
+    "parse_intrinsics": "intrinsics",
     "parse_measurements": "csvfile",
     "parse_number": "csvfile",
+    "parse_observations": "pixels",
+    "parse_target": "pixels",
+    "read_intrinsics": "intrinsics",
     "read_measurements": "csvfile",
+    "read_observations": "pixels",
+    "read_target": "pixels",
     "simulate": "simulation",
     "tool_frames": "limits",
+    "write_intrinsics": "intrinsics",
     "write_measurements": "csvfile",
+    "write_observations": "pixels",
+    "write_target": "pixels",
 }
 
 __getattr__ = attributes(__name__, _LAZY)
@@ -65,6 +79,12 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
         DataWarning,
         Measurements,
     )
+    from .intrinsics import (  # noqa: F401
+        Intrinsics,
+        parse_intrinsics,
+        read_intrinsics,
+        write_intrinsics,
+    )
     from .limits import (  # noqa: F401
         LIMIT_MARGIN,
         LIMIT_TOL,
@@ -72,6 +92,16 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
         check_limits,
         joint_bounds,
         tool_frames,
+    )
+    from .pixels import (  # noqa: F401
+        PixelObservations,
+        Target,
+        parse_observations,
+        parse_target,
+        read_observations,
+        read_target,
+        write_observations,
+        write_target,
     )
     from .simulation import Campaign, SimulationTruth, simulate  # noqa: F401
 
