@@ -1,0 +1,185 @@
+"""Fit a pixel term: the camera's placement (closed form, then least squares), then the robot.
+
+1. The camera's starting placement: given (a ``--camera`` guess or the URDF's optical link),
+   or a closed form of the perspective-n-point problem (:func:`camera_from_rays`: the pixels
+   undistorted into rays, the direct linear transform on normalised points, the rotation
+   projected onto SO(3));
+2. refined by least squares on the camera's 6 unknowns alone, on the nominal robot;
+3. the unknowns the rows determine chosen once (pivoted QR of the Jacobian's scaled columns,
+   :func:`~.pixel_term.free_columns`), then Levenberg-Marquardt on them, each step composed
+   into the robot's placements (the first-order directions stay exact).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..identification.pinhole import Pinhole
+from ..kinematics.robot import Chain
+from .pixel_term import (
+    PixelRows,
+    PixelState,
+    apply_step,
+    check_in_front,
+    column_names,
+    free_columns,
+    pixel_jacobian,
+    target_points,
+)
+from .placements import Placements
+
+__all__ = ["PixelFit", "camera_from_rays", "fit_pixels", "rays", "refine_camera"]
+
+UNDISTORT_ITERATIONS = 20
+"""Newton steps that invert the distortion (each pixel's ray)."""
+
+MAX_STEPS = 60
+"""Most Levenberg-Marquardt steps of a fit."""
+
+
+def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
+    """The normalised coordinates ``(a, b)`` ``(m, 2)`` of the ray of each pixel.
+
+    Newton's method on ``pinhole((a, b, 1)) = pixel`` from the undistorted guess.
+    """
+    ab = (pixels - [camera.cx, camera.cy]) / [camera.fx, camera.fy]
+    for _ in range(UNDISTORT_ITERATIONS):
+        seen = camera.projection(np.column_stack([ab, np.ones(len(ab))]), derivatives=True)
+        J = np.asarray(seen.d_point)[:, :, :2]
+        step = np.linalg.solve(J, (pixels - seen.pixels)[..., None])[..., 0]
+        ab = ab + step
+        if np.max(np.abs(step), initial=0.0) < 1e-15:
+            break
+    return ab
+
+
+def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndarray:
+    """The camera's placement in the points' frame ``(4, 4)`` from their rays, in closed form.
+
+    The direct linear transform of the normalised points (centred, mean distance sqrt(3)),
+    its sign chosen so the points are in front, its rotation the nearest one (SVD).
+
+    Raises:
+        DataError: Fewer than 6 points, or points on one plane or line (no unique solution).
+    """
+    if len(points) < 6:
+        raise DataError(source, f"{len(points)} observations cannot place a camera (at least 6)")
+    centre = points.mean(axis=0)
+    scale = np.sqrt(3) / max(float(np.mean(np.linalg.norm(points - centre, axis=1))), 1e-12)
+    P = np.column_stack([(points - centre) * scale, np.ones(len(points))])
+    A = np.zeros((2 * len(P), 12))
+    A[0::2, 0:4], A[0::2, 8:12] = -P, ab[:, :1] * P
+    A[1::2, 4:8], A[1::2, 8:12] = -P, ab[:, 1:] * P
+    _, s, Vt = np.linalg.svd(A, full_matrices=False)
+    if s[-2] < 1e-6 * s[0]:
+        raise DataError(
+            source, "the points seen lie on one plane or line: give the camera's placement"
+        )
+    normalise = np.eye(4)
+    normalise[:3, :3] *= scale
+    normalise[:3, 3] = -scale * centre
+    M = Vt[-1].reshape(3, 4) @ normalise
+    if np.median(np.column_stack([points, np.ones(len(points))]) @ M[2]) < 0:
+        M = -M
+    U, S, Wt = np.linalg.svd(M[:, :3])
+    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt))]) @ Wt
+    seen = np.eye(4)  # the points' frame in the camera
+    seen[:3, :3], seen[:3, 3] = R, M[:, 3] / S.mean()
+    return np.linalg.inv(seen)
+
+
+def _solve(state, chain, camera, rows, free, refine_targets, steps: int):
+    """Levenberg-Marquardt on the columns ``free``; the state of least squared error."""
+    r, J = pixel_jacobian(state, chain, camera, rows, refine_targets)
+    cost, damping = float(np.sum(r**2)), 1e-6
+    size = J.shape[2]
+    for _ in range(steps):
+        A = J.reshape(-1, size)[:, free]
+        g, H = A.T @ r.ravel(), A.T @ A
+        while True:
+            step = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-30), -g)
+            dx = np.zeros(size)
+            dx[list(free)] = step
+            trial = apply_step(state, dx, refine_targets)
+            r_t = target_residuals(trial, chain, camera, rows)
+            cost_t = float(np.sum(r_t**2)) if np.all(np.isfinite(r_t)) else np.inf
+            if cost_t <= cost or damping > 1e12:
+                break
+            damping *= 10
+        if cost_t > cost:
+            break
+        done = cost - cost_t <= 1e-14 * cost or cost_t < 1e-26 * rows.m
+        state, cost, damping = trial, cost_t, max(damping / 10, 1e-9)
+        if done:
+            break
+        r, J = pixel_jacobian(state, chain, camera, rows, refine_targets)
+    return state
+
+
+def target_residuals(state, chain, camera: Pinhole, rows: PixelRows) -> np.ndarray:
+    """Reprojection errors ``(m, 2)`` [px]."""
+    return camera.projection(target_points(state, chain, rows)[0]).pixels - rows.pixels
+
+
+def refine_camera(state: PixelState, chain: Chain, camera: Pinhole, rows: PixelRows) -> PixelState:
+    """The camera's placement by least squares on the current robot (its 6 unknowns alone)."""
+    return _solve(state, chain, camera, rows, tuple(range(6)), False, MAX_STEPS)
+
+
+@dataclass(frozen=True, eq=False)
+class PixelFit:
+    """A fitted pixel term.
+
+    Attributes:
+        start: The state after the camera's registration (nominal robot).
+        state: The fitted state.
+        free: The columns fitted (indices into :attr:`names`).
+        names: Every column's name.
+    """
+
+    start: PixelState
+    state: PixelState
+    free: tuple[int, ...]
+    names: tuple[str, ...]
+
+
+def fit_pixels(
+    placements: Placements,
+    target: np.ndarray,
+    guess: np.ndarray | None,
+    chain: Chain,
+    camera: Pinhole,
+    rows: PixelRows,
+    refine_targets: bool = False,
+    source: str = "<observations>",
+) -> PixelFit:
+    """Register the camera, choose the determined unknowns, fit them.
+
+    Args:
+        placements: The robot (zero errors on the chain's joints).
+        target: The target points in the tool frame ``(k, 3)`` [m].
+        guess: The camera's optical frame in the chain's base link ``(4, 4)`` [m], or None:
+            placed in closed form (:func:`camera_from_rays`).
+        chain: The camera's link to the target's tool.
+        camera: The camera's intrinsics.
+        rows: The observations.
+        refine_targets: The target points after the first three are unknowns.
+        source: The observations' file, for messages.
+
+    Raises:
+        DataError: Too few observations, or points behind the camera once it is placed.
+    """
+    if guess is None:
+        p_link = target_points(PixelState(placements, np.eye(4), target), chain, rows)[1]
+        guess = camera_from_rays(p_link, rays(camera, rows.pixels), source)
+    state = PixelState(placements, guess, target)
+    check_in_front(target_points(state, chain, rows)[0], rows, source)
+    start = refine_camera(state, chain, camera, rows)
+    J = pixel_jacobian(start, chain, camera, rows, refine_targets)[1]
+    free = free_columns(J.reshape(-1, J.shape[2]), start.placements)
+    names = column_names(start.placements, len(start.target), refine_targets)
+    fitted = _solve(start, chain, camera, rows, free, refine_targets, MAX_STEPS)
+    return PixelFit(start, fitted, free, names)

@@ -1,0 +1,234 @@
+"""The pixel kind: a camera fixed to a link sees target points fixed to a tool, in pixels.
+
+A camera is fixed to a link of the robot (the root link for a camera in the cell, a flange for
+a camera on the wrist, a head link). Its chain runs from that link (the chain's base frame)
+to the tool that carries the target (the root link for a target in the cell: the chain then
+traverses the arm backwards). A target point ``X`` in the tool frame is seen at::
+
+    p = C^-1 T(q) X,    pixel = pinhole(p)
+
+with ``T(q)`` the tool in the link's frame on the robot with its joint placement errors
+(:mod:`.placements`), ``C`` the camera's optical frame (z forward, x right, y down) in the
+link's frame. The residual is the reprojection error ``pixel - observed`` [px].
+
+Unknowns, in this order (the columns of :func:`pixel_jacobian`):
+
+* the camera's placement: ``C -> C [R(w) | v]`` (``v`` [m], ``w`` [rad], in the camera
+  frame), 6;
+* every joint placement error of the chain's joints (``<joint>:x ... :rz``, 6 each);
+* the target's mounting on its link: ``X -> R(w) X + v`` for every point (``v`` [m], ``w``
+  [rad], in the tool frame), 6 (the tool's own placement, which no joint placement holds);
+* with ``refine_targets``, the target points beyond the first three (3 each [m]): moving the
+  whole target rigidly is moving the tool, and its size is the only scale the pixels have,
+  so the first three points stay as given (the gauge).
+
+The intrinsics stay fixed. The Jacobian is analytic: the pinhole's derivative by the point
+(:meth:`~calib.identification.pinhole.Pinhole.projection`) times the point's motion per
+unknown (:func:`~.placements.joint_twists` for the joint placements).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import DataError
+from ..identification.base_columns import independent_columns
+from ..identification.pinhole import Pinhole
+from ..kinematics.robot import Chain
+from ..kinematics.so3 import rotation_matrix, skew
+from .placements import Placements, joint_twists, offset_component
+
+__all__ = [
+    "CAMERA_NAMES",
+    "GAUGE_POINTS",
+    "MOUNT_NAMES",
+    "PixelRows",
+    "PixelState",
+    "apply_step",
+    "check_in_front",
+    "column_names",
+    "free_columns",
+    "pixel_jacobian",
+    "pixel_residuals",
+    "target_points",
+]
+
+CAMERA_NAMES = ("camera.x", "camera.y", "camera.z", "camera.rx", "camera.ry", "camera.rz")
+"""The camera placement's unknowns (in the camera frame)."""
+
+MOUNT_NAMES = ("mount.x", "mount.y", "mount.z", "mount.rx", "mount.ry", "mount.rz")
+"""The target mounting's unknowns (in the tool frame)."""
+
+GAUGE_POINTS = 3
+"""Target points kept as given when the target is refined (the gauge and the scale)."""
+
+
+@dataclass(frozen=True, eq=False)
+class PixelRows:
+    """One camera's observations on one chain, one row per point in an image.
+
+    Attributes:
+        q: The chain's joint positions of each row ``(m, n)`` [rad or m].
+        point: Each row's index into the target ``(m,)``.
+        pixels: The observed ``(u, v)`` ``(m, 2)`` [px].
+        lines: Each row's line in its file, for messages ``(m,)``.
+    """
+
+    q: np.ndarray
+    point: np.ndarray
+    pixels: np.ndarray
+    lines: tuple[int, ...]
+
+    @property
+    def m(self) -> int:
+        """Number of rows."""
+        return len(self.point)
+
+    def subset(self, keep: np.ndarray) -> PixelRows:
+        """The rows where ``keep`` is true."""
+        lines = tuple(n for n, k in zip(self.lines, keep, strict=True) if k)
+        return PixelRows(self.q[keep], self.point[keep], self.pixels[keep], lines)
+
+
+@dataclass(frozen=True, eq=False)
+class PixelState:
+    """The robot, camera and target of a pixel term.
+
+    Attributes:
+        placements: The joint placement errors (their model the robot they act on).
+        camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
+        target: The target points in the tool frame ``(k, 3)`` [m].
+    """
+
+    placements: Placements
+    camera: np.ndarray
+    target: np.ndarray
+
+
+def _chain_kinematics(state: PixelState, chain: Chain, q: np.ndarray):
+    models, frames = state.placements.chain_geometry((chain,))
+    return models[0], frames[0], models[0].kinematics(q)
+
+
+def target_points(state: PixelState, chain: Chain, rows: PixelRows):
+    """The seen points in the camera frame ``(m, 3)`` and in the base link ``(m, 3)`` [m].
+
+    Also the chain's MDH model, joint frames and kinematics (for :func:`pixel_jacobian`).
+    """
+    mdh, frames, kin = _chain_kinematics(state, chain, rows.q)
+    X = state.target[rows.point]
+    p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
+    C = state.camera
+    p_cam = (p_link - C[:3, 3]) @ C[:3, :3]
+    return p_cam, p_link, (mdh, frames, kin)
+
+
+def pixel_residuals(state: PixelState, chain: Chain, camera: Pinhole, rows: PixelRows):
+    """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px] (NaN behind the camera)."""
+    p_cam = target_points(state, chain, rows)[0]
+    return camera.projection(p_cam).pixels - rows.pixels
+
+
+def column_names(placements: Placements, n_points: int, refine_targets: bool) -> tuple[str, ...]:
+    """The names of :func:`pixel_jacobian`'s columns."""
+    points = range(GAUGE_POINTS, n_points) if refine_targets else ()
+    targets = (f"target{k + 1}.{a}" for k in points for a in "xyz")
+    return (*CAMERA_NAMES, *placements.names(), *MOUNT_NAMES, *targets)
+
+
+def pixel_jacobian(
+    state: PixelState, chain: Chain, camera: Pinhole, rows: PixelRows, refine_targets: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
+
+    Columns as :func:`column_names`: the camera's 6, every joint placement component of
+    ``state.placements`` (6 per joint), the target's mounting (6) and, with
+    ``refine_targets``, the target points after the first :data:`GAUGE_POINTS`.
+    """
+    p_cam, p_link, (mdh, frames, kin) = target_points(state, chain, rows)
+    seen = camera.projection(p_cam, derivatives=True)
+    D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
+    RcT = state.camera[:3, :3].T
+    pl = state.placements
+    m = rows.m
+    moving = np.zeros((m, 3, len(pl.joints), 6))  # the point's motion in the base link
+    columns = np.array([pl.joints.index(name) for name in chain.joint_names])
+    ang, lin = joint_twists(pl, chain, mdh, frames, kin, columns)
+    moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
+    by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
+    X = state.target[rows.point]
+    mount = RcT @ kin.R[:, -1]  # d(point in the camera) / d(point in the tool)
+    by_mount = mount @ np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), -skew(X)], axis=2)
+    parts = [D @ by_camera, D @ (RcT @ moving.reshape(m, 3, -1)), D @ by_mount]
+    k = len(state.target)
+    if refine_targets and k > GAUGE_POINTS:
+        by_point = np.zeros((m, 3, k, 3))
+        by_point[np.arange(m), :, rows.point] = mount
+        parts.append(D @ by_point[:, :, GAUGE_POINTS:].reshape(m, 3, -1))
+    return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
+
+
+def apply_step(state: PixelState, dx: np.ndarray, refine_targets: bool) -> PixelState:
+    """The state moved by ``dx`` (every column of :func:`pixel_jacobian`), rebased.
+
+    The camera becomes ``C [R(w) | v]``, the joint errors are composed into the robot's
+    placements (:meth:`~.placements.Placements.rebased`), the target is moved rigidly by its
+    mounting's step, then its free points move.
+    """
+    step = np.eye(4)
+    step[:3, :3], step[:3, 3] = rotation_matrix(dx[3:6]), dx[:3]
+    n = state.placements.y.size
+    placements = state.placements.shifted(dx[6 : 6 + n]).rebased()
+    mount = dx[6 + n : 12 + n]
+    target = state.target @ rotation_matrix(mount[3:]).T + mount[:3]
+    if refine_targets and len(target) > GAUGE_POINTS:
+        target[GAUGE_POINTS:] += dx[12 + n :].reshape(-1, 3)
+    return PixelState(placements, state.camera @ step, target)
+
+
+def _preference(placements: Placements, size: int) -> list[int]:
+    """Columns in order of preference.
+
+    The camera, the target's mounting, the joints' offsets, their other components, the
+    target points (the camera and the mounting absorb what the chain's end joints also
+    explain).
+    """
+    nominal = placements.nominal
+    offsets: list[int] = []
+    others: list[int] = []
+    for j, jid in enumerate(placements.ids):
+        off = ("x", "y", "z", "rx", "ry", "rz").index(offset_component(nominal, jid))
+        for c in range(6):
+            (offsets if c == off else others).append(6 + 6 * j + c)
+    n = 6 + placements.y.size
+    return [*range(6), *range(n, n + 6), *offsets, *others, *range(n + 6, size)]
+
+
+def free_columns(W: np.ndarray, placements: Placements) -> tuple[int, ...]:
+    """The columns of ``W`` ``(r, c)`` the rows determine, in order of preference.
+
+    The columns are scaled to unit length first (metres and radians, pixels per each).
+    """
+    norms = np.linalg.norm(W, axis=0)
+    used = norms > 0
+    scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)
+    order = [c for c in _preference(placements, W.shape[1]) if used[c]]
+    kept = independent_columns(scaled[:, order], list(range(len(order))))[2]
+    return tuple(sorted(order[i] for i in kept))
+
+
+def check_in_front(p_cam: np.ndarray, rows: PixelRows, source: str) -> None:
+    """Refuse rows whose point is at or behind the camera on the starting model.
+
+    Raises:
+        DataError: Naming the first such row's line.
+    """
+    behind = np.flatnonzero(p_cam[:, 2] <= 0)
+    if len(behind):
+        raise DataError(
+            source,
+            f"{len(behind)} observation(s) see a point behind the camera on the starting "
+            f"model (first: row {rows.lines[behind[0]]}): check the camera's link and placement",
+        )

@@ -1,0 +1,85 @@
+"""The pixel kind: residuals and Jacobian against Pinocchio and a textbook pinhole.
+
+The reference (tests/pixel_scorer.py) places the camera and the target with Pinocchio's
+forward kinematics of a model whose joint origins the test moves itself, and projects with
+OpenCV's formula written out in numpy; its central differences are the Jacobian's check.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from pixel_scorer import link_points, moved_model, seen_pixels
+
+from calib import load_chain
+from calib.calibration.pixel_term import PixelRows, PixelState, column_names, pixel_jacobian
+from calib.calibration.placements import Placements
+from calib.identification.pinhole import Pinhole
+
+CAMERA = Pinhole(900.0, 905.0, 640.0, 480.0, np.array([0.1, -0.05, 1e-3, -1e-3, 0.01]))
+SETUPS = {  # robot, camera link, tool: eye-to-hand, eye-in-hand (target in the cell), head
+    "ur5": ("ur5", "world", "tool0"),
+    "panda": ("panda", "panda_hand", "panda_link0"),
+    "tiago": ("tiago", "xtion_rgb_frame", "arm_tool_link"),
+}
+
+
+def _pose(rng, scale: float = 1.0) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = pin.exp3(scale * rng.standard_normal(3)), scale * rng.normal(size=3)
+    return T
+
+
+def _setup(name: str, rng):
+    """A moved robot, a camera 1.5 m in front of the tool's points, rows off the solution."""
+    chain = load_chain(*SETUPS[name][:1], base=SETUPS[name][1], tool=SETUPS[name][2])
+    pl = Placements.of((chain,))
+    pl = pl.shifted(1e-2 * rng.standard_normal(pl.y.size)).rebased()
+    q = chain.random_configurations(8, 2)
+    point = np.arange(8) % 4
+    target = 0.05 * rng.standard_normal((4, 3))
+    return chain, pl, q, point, target
+
+
+def _reference(chain, pl, q, point, target, C, dy, mount, dX):
+    """Pixels of the reference after moves of every unknown (Pinocchio + numpy)."""
+    model = pl.model
+    for j, name in enumerate(pl.joints):
+        model = moved_model(model, name, pl.bases[j], dy[6 * j : 6 * j + 6])
+    X = target @ pin.exp3(mount[3:]).T + mount[:3]
+    X[3:] += dX.reshape(-1, 3)
+    return seen_pixels(
+        model, chain.base_frame, chain.tool_frame, chain.joint_names, q, X[point], C,
+        CAMERA.camera_matrix, CAMERA.distortion,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(SETUPS))
+def test_jacobian_matches_central_differences(name):
+    """Every column (camera 6, every joint's 6 placement components, the mounting's 6, the
+    free target points) equals central differences of Pinocchio + a textbook pinhole."""
+    rng = np.random.default_rng(4)
+    chain, pl, q, point, target = _setup(name, rng)
+    # a camera 1.5 m along the camera's z from the points' centre, looking at them
+    centre = link_points(pl.model, chain.base_frame, chain.tool_frame, chain.joint_names, q,
+                         target[point]).mean(axis=0)  # fmt: skip
+    C = _pose(rng, 0.3)
+    C[:3, 3] = centre - 1.5 * C[:3, 2]
+    rows = PixelRows(q, point, np.zeros((8, 2)), tuple(range(8)))
+    r, J = pixel_jacobian(PixelState(pl, C, target), chain, CAMERA, rows, refine_targets=True)
+    names = column_names(pl, 4, True)
+    assert J.shape == (8, 2, 6 + 6 * chain.n + 6 + 3) == (8, 2, len(names))
+    n = pl.y.size
+
+    def pixels(x):
+        step = np.eye(4)
+        step[:3, :3], step[:3, 3] = pin.exp3(x[3:6]), x[:3]
+        return _reference(chain, pl, q, point, target, C @ step, x[6 : 6 + n],
+                          x[6 + n : 12 + n], x[12 + n :])  # fmt: skip
+
+    x0 = np.zeros(len(names))
+    assert np.max(np.abs(pixels(x0) - r)) < 1e-9  # the residual is the reference's pixels
+    h = 1e-6
+    num = np.stack([(pixels(e) - pixels(-e)) / (2 * h) for e in h * np.eye(len(names))], axis=2)
+    assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
