@@ -16,9 +16,19 @@ import numpy as np
 from ..core.fileio import check_outputs, write_atomic
 from ..exceptions import CalibError, InvalidArgumentError
 from .robot import Chain
-from .urdf_export import origin_of, read_urdf_source, set_origin, spliced, xml_layout
+from .urdf_export import (
+    child_link,
+    origin_of,
+    parent_link,
+    read_urdf_source,
+    set_origin,
+    spliced,
+    xml_layout,
+)
+from .urdf_links import set_fixed_link
+from .urdf_xml import parse_xml
 
-__all__ = ["moved_origins_urdf", "write_moved_origins_urdf"]
+__all__ = ["camera_placement", "camera_urdf", "moved_origins_urdf", "write_moved_origins_urdf"]
 
 
 def moved_origins_urdf(chain: Chain, errors: dict[str, np.ndarray]) -> bytes:
@@ -53,3 +63,47 @@ def write_moved_origins_urdf(path: str | Path, chain: Chain, errors: dict[str, n
         raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
     check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
     write_atomic(path, moved_origins_urdf(chain, errors))
+
+
+def camera_placement(chain: Chain, name: str, link: str) -> np.ndarray | None:
+    """The placement ``(4, 4)`` [m] of link ``name`` fixed to ``link`` in the URDF, or None.
+
+    A robot description's optical frame (TIAGo's ``xtion_optical_frame`` on ``xtion_link``)
+    is a camera's starting placement.
+
+    Raises:
+        InvalidArgumentError: A link ``name`` that is not fixed to ``link`` directly.
+    """
+    _, root = read_urdf_source(chain)
+    for joint in root.findall("joint"):
+        if child_link(joint) == name:
+            if parent_link(joint) != link or joint.get("type") != "fixed":
+                raise InvalidArgumentError(
+                    f"camera {name}: the URDF's link {name} is on {parent_link(joint)} by a "
+                    f"{joint.get('type')} joint, not fixed to {link}: name the camera's link "
+                    f"{parent_link(joint)}, or give the camera another name"
+                )
+            return origin_of(joint)
+    if any(x.get("name") == name for x in root.findall("link")):
+        raise InvalidArgumentError(f"camera {name}: the URDF's root link has that name")
+    return None
+
+
+def camera_urdf(
+    chain: Chain, errors: dict[str, np.ndarray], cameras: tuple[tuple[str, str, np.ndarray], ...]
+) -> bytes:
+    """:func:`moved_origins_urdf` with each camera a link fixed to its link.
+
+    Args:
+        chain: Any chain of the robot (its ``urdf_path`` is read).
+        errors: ``E_j`` ``(4, 4)`` by URDF joint name.
+        cameras: ``(name, link, placement (4, 4) [m])`` of each camera's optical frame: a link
+            ``name`` already fixed to ``link`` is moved, a new one added.
+    """
+    raw = moved_origins_urdf(chain, errors)
+    src = str(chain.urdf_path)
+    start, stop = xml_layout(raw, src)
+    root = parse_xml(raw, src)
+    for name, link, T in cameras:
+        set_fixed_link(root, name, link, T)
+    return spliced(raw, root, start, stop)
