@@ -50,9 +50,16 @@ def _reference(chain, pl, q, point, target, C, dy, mount, dX):
     X = target @ pin.exp3(mount[3:]).T + mount[:3]
     X[3:] += dX.reshape(-1, 3)
     return seen_pixels(
-        model, chain.base_frame, chain.tool_frame, chain.joint_names, q, X[point], C,
-        CAMERA.camera_matrix, CAMERA.distortion,
-    )  # fmt: skip
+        model,
+        chain.base_frame,
+        chain.tool_frame,
+        chain.joint_names,
+        q,
+        X[point],
+        C,
+        CAMERA.camera_matrix,
+        CAMERA.distortion,
+    )
 
 
 @pytest.mark.parametrize("name", sorted(SETUPS))
@@ -62,8 +69,9 @@ def test_jacobian_matches_central_differences(name):
     rng = np.random.default_rng(4)
     chain, pl, q, point, target = _setup(name, rng)
     # a camera 1.5 m along the camera's z from the points' centre, looking at them
-    centre = link_points(pl.model, chain.base_frame, chain.tool_frame, chain.joint_names, q,
-                         target[point]).mean(axis=0)  # fmt: skip
+    centre = link_points(
+        pl.model, chain.base_frame, chain.tool_frame, chain.joint_names, q, target[point]
+    ).mean(axis=0)
     C = _pose(rng, 0.3)
     C[:3, 3] = centre - 1.5 * C[:3, 2]
     rows = PixelRows(q, point, np.zeros((8, 2)), tuple(range(8)))
@@ -75,8 +83,9 @@ def test_jacobian_matches_central_differences(name):
     def pixels(x):
         step = np.eye(4)
         step[:3, :3], step[:3, 3] = pin.exp3(x[3:6]), x[:3]
-        return _reference(chain, pl, q, point, target, C @ step, x[6 : 6 + n],
-                          x[6 + n : 12 + n], x[12 + n :])  # fmt: skip
+        return _reference(
+            chain, pl, q, point, target, C @ step, x[6 : 6 + n], x[6 + n : 12 + n], x[12 + n :]
+        )
 
     x0 = np.zeros(len(names))
     assert np.max(np.abs(pixels(x0) - r)) < 1e-9  # the residual is the reference's pixels

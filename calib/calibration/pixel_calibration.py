@@ -172,6 +172,7 @@ def calibrate_pixels(
     validate: PixelObservations | None = None,
     holdout: float = 0.0,
     refine_targets: bool = False,
+    mount: bool = False,
     seed: int = 0,
 ) -> PixelCalibration:
     """Calibrate the robot and the camera's placement from the camera's pixels.
@@ -184,6 +185,8 @@ def calibrate_pixels(
         validate: Held-out observations, or None.
         holdout: Fraction of the postures held out when there is no ``validate``.
         refine_targets: The target points after the first three are unknowns.
+        mount: The target's mounting on its link is an unknown (``--params complete``; the
+            fitted points are the report's ``targets``).
         seed: Seed of the holdout.
 
     Raises:
@@ -205,7 +208,7 @@ def calibrate_pixels(
     dropped: tuple[int, ...] = ()
     for _ in range(3):
         fit = fit_pixels(
-            placements, target.position, guess, chain, pin, rows, refine_targets, obs.source
+            placements, target.position, guess, chain, pin, rows, refine_targets, obs.source, mount
         )
         bad = _outliers(fit, chain, pin, rows)
         if not bad.any():

@@ -155,6 +155,7 @@ def fit_pixels(
     rows: PixelRows,
     refine_targets: bool = False,
     source: str = "<observations>",
+    mount: bool = False,
 ) -> PixelFit:
     """Register the camera, choose the determined unknowns, fit them.
 
@@ -168,6 +169,7 @@ def fit_pixels(
         rows: The observations.
         refine_targets: The target points after the first three are unknowns.
         source: The observations' file, for messages.
+        mount: The target's mounting on its link is an unknown (6).
 
     Raises:
         DataError: Too few observations, or points behind the camera once it is placed.
@@ -179,7 +181,7 @@ def fit_pixels(
     check_in_front(target_points(state, chain, rows)[0], rows, source)
     start = refine_camera(state, chain, camera, rows)
     J = pixel_jacobian(start, chain, camera, rows, refine_targets)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), start.placements)
+    free = free_columns(J.reshape(-1, J.shape[2]), start.placements, mount)
     names = column_names(start.placements, len(start.target), refine_targets)
     fitted = _solve(start, chain, camera, rows, free, refine_targets, MAX_STEPS)
     return PixelFit(start, fitted, free, names)

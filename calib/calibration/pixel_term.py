@@ -16,8 +16,9 @@ Unknowns, in this order (the columns of :func:`pixel_jacobian`):
 * the camera's placement: ``C -> C [R(w) | v]`` (``v`` [m], ``w`` [rad], in the camera
   frame), 6;
 * every joint placement error of the chain's joints (``<joint>:x ... :rz``, 6 each);
-* the target's mounting on its link: ``X -> R(w) X + v`` for every point (``v`` [m], ``w``
-  [rad], in the tool frame), 6 (the tool's own placement, which no joint placement holds);
+* with ``mount``, the target's mounting on its link: ``X -> R(w) X + v`` for every point
+  (``v`` [m], ``w`` [rad], in the tool frame), 6 (the tool's own placement, which no joint
+  placement holds: ``--params complete``; by default the target file's points are exact);
 * with ``refine_targets``, the target points beyond the first three (3 each [m]): moving the
   whole target rigidly is moving the tool, and its size is the only scale the pixels have,
   so the first three points stay as given (the gauge).
@@ -206,13 +207,17 @@ def _preference(placements: Placements, size: int) -> list[int]:
     return [*range(6), *range(n, n + 6), *offsets, *others, *range(n + 6, size)]
 
 
-def free_columns(W: np.ndarray, placements: Placements) -> tuple[int, ...]:
+def free_columns(W: np.ndarray, placements: Placements, mount: bool) -> tuple[int, ...]:
     """The columns of ``W`` ``(r, c)`` the rows determine, in order of preference.
 
     The columns are scaled to unit length first (metres and radians, pixels per each).
+    Without ``mount``, the target's mounting is known (its columns are never free).
     """
     norms = np.linalg.norm(W, axis=0)
     used = norms > 0
+    if not mount:
+        n = 6 + placements.y.size
+        used[n : n + 6] = False
     scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)
     order = [c for c in _preference(placements, W.shape[1]) if used[c]]
     kept = independent_columns(scaled[:, order], list(range(len(order))))[2]
