@@ -114,6 +114,7 @@ class PixelCalibration:
         rows: The training rows kept.
         held: The held-out rows, or None.
         outliers: Lines of the rows set aside.
+        mount: The target's mounting was an unknown.
     """
 
     chain: Chain
@@ -122,6 +123,7 @@ class PixelCalibration:
     rows: PixelRows
     held: PixelRows | None
     outliers: tuple[int, ...]
+    mount: bool = False
 
     @property
     def count(self) -> int:
@@ -215,7 +217,7 @@ def calibrate_pixels(
             break
         dropped += tuple(n for n, b in zip(rows.lines, bad, strict=True) if b)
         rows = rows.subset(~bad)
-    result = PixelCalibration(chain, camera, fit, rows, held, tuple(sorted(dropped)))
+    result = PixelCalibration(chain, camera, fit, rows, held, tuple(sorted(dropped)), mount)
     if held is not None:
         before = reprojection_errors(fit.start, chain, camera, held)["reprojection_rms_px"]
         after = reprojection_errors(fit.state, chain, camera, held)["reprojection_rms_px"]

@@ -18,6 +18,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import load_chain
 from ..kinematics.tree import load_robot
 from ..kinematics.tree_model import from_tree
+from . import pixels_cli
 from .common import (
     add_chain_args,
     add_measure_args,
@@ -96,6 +97,9 @@ def _analyze(args: argparse.Namespace):
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     """Identifiable parameters of one chain."""
+    if args.measure == "pixels":
+        return pixels_cli.analyze_pixels_command(args)
+    pixels_cli.refuse_pixel_options(args)
     if args.markers is not None:
         return _analyze_markers(args)
     res = _analyze(args)
@@ -215,6 +219,7 @@ def add_analysis_parsers(sub) -> None:
         help="count what a calibration identifies with K points measured per configuration "
         "(frame and markers free)",
     )
+    pixels_cli.add_pixel_arguments(p)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_analyze)
 

@@ -19,7 +19,7 @@ from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import CONTACT_NAMES
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
-from . import contact_chains_cli, contact_cli
+from . import contact_chains_cli, contact_cli, pixels_cli
 from .common import (
     BooleanOnce,
     add_chain_args,
@@ -68,6 +68,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     the report's ``warnings`` too.
     """
     with _recorded_warnings() as recorded:
+        if args.measure == "pixels":
+            return pixels_cli.calibrate_pixels_command(args, recorded)
+        pixels_cli.refuse_pixel_options(args)
         if args.term is not None or args.chain is not None or args.loop is not None:
             check_applicable(args, "chains")
             return contact_chains_cli.calibrate_chains_command(args, recorded)
@@ -299,11 +302,13 @@ def add_calibrate_parser(sub) -> None:
     )
     p.add_argument(
         "--measure",
-        choices=("auto", *CAMPAIGN_MEASURES, *CONTACT_NAMES),
+        choices=("auto", *CAMPAIGN_MEASURES, *CONTACT_NAMES, "pixels"),
         default="auto",
         help="auto: pose when the CSV has orientation columns, else position; or a contact "
-        "(no coordinates in the CSV) (default: auto)",
+        "(no coordinates in the CSV); or pixels: a camera's OBS.csv (--camera, --target) "
+        "(default: auto)",
     )
+    pixels_cli.add_pixel_arguments(p, calibrate=True)
     contact_cli.add_contact_arguments(p)
     contact_chains_cli.add_chain_arguments(p)
     p.add_argument(

@@ -14,6 +14,7 @@ from ..core.fileio import json_text, written_in_place
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
+from . import pixels_cli
 from .common import (
     add_chain_args,
     add_marker_arg,
@@ -92,6 +93,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from ..measurements.csvfile import measurements_csv
     from ..measurements.simulation import simulate
 
+    if args.measure == "pixels":
+        return pixels_cli.simulate_pixels_command(args)
+    pixels_cli.refuse_pixel_options(args)
     if args.measure in CONTACT_MEASURES:
         return _simulate_contacts(args)
     kind = campaign_kind(args.measure, args.marker)
@@ -200,11 +204,13 @@ def add_simulate_parser(sub) -> None:
     )
     p.add_argument(
         "--measure",
-        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES),
+        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES, "pixels"),
         default="pose",
         help="pose (point + orientation), position, or a contact: touches recorded by the "
-        "joints alone, on the true robot (default: pose)",
+        "joints alone, on the true robot; or pixels: what --camera sees of --target "
+        "(default: pose)",
     )
+    pixels_cli.add_pixel_arguments(p)
     add_marker_arg(p)
     p.add_argument(
         "--contacts",

@@ -2,8 +2,8 @@
 
 The robot is the chain's (load it from a true robot's URDF, :func:`~.true_robot.true_robot`,
 for a simulation with a truth); the camera's optical frame is given in the chain's base link.
-A point is kept where it is in front of the camera, inside the image and, when the target has
-normals, facing the camera.
+A point is kept where it is in front of the camera, inside the image (before and after the
+noise) and, when the target has normals, facing the camera.
 """
 
 from __future__ import annotations
@@ -79,8 +79,9 @@ def simulate_pixels(
     if not ok.any():
         raise InvalidArgumentError(f"camera {camera} sees no target point at these postures")
     k = len(target.point)
-    index = np.flatnonzero(ok)
-    pixels = pixels[index] + noise * rng.standard_normal((len(index), 2))
+    pixels = pixels + noise * rng.standard_normal(pixels.shape)
+    index = np.flatnonzero(ok & intrinsics.inside(np.nan_to_num(pixels, nan=-1e9)))
+    pixels = pixels[index]
     return PixelObservations(
         chain.joint_names,
         q[index // k],

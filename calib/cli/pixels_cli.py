@@ -1,0 +1,235 @@
+"""``--measure pixels``: a camera on a link sees a target on a tool (calibrate, simulate, analyze).
+
+``--camera NAME LINK INTRINSICS [X Y Z RX RY RZ]`` names the camera (the ``camera`` column of
+OBS.csv and the calibrated URDF's link of its optical frame), the link it is fixed to and its
+intrinsics file; the six numbers are its placement on LINK [m, rad; roll-pitch-yaw as URDF].
+``--target TARGET.csv`` gives the points in the tool frame ``--tool``. The chain runs from
+LINK to the tool (:mod:`calib.calibration.pixel_calibration`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+from pathlib import Path
+
+from ..core.fileio import json_text
+from ..exceptions import InvalidArgumentError
+from .common import check_output_paths, given_options, print_json, write_outputs
+
+__all__ = [
+    "add_pixel_arguments",
+    "analyze_pixels_command",
+    "calibrate_pixels_command",
+    "simulate_pixels_command",
+]
+
+PIXEL_OPTIONS = ("camera", "target", "noise_px", "refine_targets")
+"""The options of ``--measure pixels`` alone."""
+
+NOT_PIXELS = ("marker", "world_link", "on_robot", "fix", "free", "elastic", "loss", "noise_mm")
+"""``calibrate`` options a pixel calibration does not take."""
+
+
+def add_pixel_arguments(p: argparse.ArgumentParser, calibrate: bool = False) -> None:
+    """``--camera``, ``--target`` (and ``--noise-px`` or ``--refine-targets``)."""
+    p.add_argument(
+        "--camera",
+        nargs="+",
+        action="append",
+        metavar="ARG",
+        help="with --measure pixels: NAME LINK INTRINSICS.yaml [X Y Z RX RY RZ], a camera "
+        "fixed to LINK (its optical frame: z forward, x right, y down) and its placement on "
+        "LINK [m, rad; roll-pitch-yaw as URDF]",
+    )
+    p.add_argument(
+        "--target", metavar="TARGET.csv", help="with --measure pixels: the points on the tool [m]"
+    )
+    if calibrate:
+        p.add_argument(
+            "--refine-targets",
+            action="store_true",
+            help="with --measure pixels: fit the target points after the first three",
+        )
+    else:
+        p.add_argument(
+            "--noise-px",
+            type=float,
+            default=0.0,
+            help="with --measure pixels: noise on u and v [px] (default: 0)",
+        )
+
+
+def refuse_pixel_options(args: argparse.Namespace) -> None:
+    """Refuse ``--camera``/``--target`` without ``--measure pixels``."""
+    typed = given_options(args, PIXEL_OPTIONS)
+    if typed:
+        raise InvalidArgumentError(f"{typed[0]} is for --measure pixels")
+
+
+def _camera(args: argparse.Namespace, placed: bool):
+    """The one camera of ``--camera`` (with its placement when ``placed``)."""
+    from ..calibration.pixel_calibration import PixelCamera
+    from ..kinematics.so3 import rpy_to_matrix
+    from ..measurements.intrinsics import read_intrinsics
+
+    cameras = args.camera or []
+    if len(cameras) != 1:
+        raise InvalidArgumentError(
+            f"--measure pixels takes one --camera NAME LINK INTRINSICS [X Y Z RX RY RZ], got "
+            f"{len(cameras)} (several cameras in one fit: not yet)"
+        )
+    values = cameras[0]
+    if len(values) not in (3, 9) or (placed and len(values) != 9):
+        need = (
+            "NAME LINK INTRINSICS X Y Z RX RY RZ" if placed else "NAME LINK INTRINSICS [6 numbers]"
+        )
+        raise InvalidArgumentError(f"--camera takes {need}, got {len(values)} values")
+    name, link, path = values[:3]
+    placement = None
+    if len(values) == 9:
+        try:
+            numbers = [float(v) for v in values[3:]]
+        except ValueError:
+            numbers = [math.nan]
+        if not all(math.isfinite(v) for v in numbers):
+            raise InvalidArgumentError(f"--camera {name}: X Y Z RX RY RZ must be numbers")
+        import numpy as np
+
+        placement = np.eye(4)
+        placement[:3, :3], placement[:3, 3] = rpy_to_matrix(np.array(numbers[3:])), numbers[:3]
+    return PixelCamera(name, link, read_intrinsics(path), placement)
+
+
+def _chain_and_target(args: argparse.Namespace, camera):
+    from ..kinematics.robot import load_chain
+    from ..measurements.pixels import read_target
+
+    if args.target is None:
+        raise InvalidArgumentError("--measure pixels needs --target TARGET.csv")
+    tool = args.tool[-1] if isinstance(args.tool, list) else args.tool
+    if isinstance(args.tool, list) and len(args.tool) != 1:
+        raise InvalidArgumentError("--measure pixels takes one --tool (the target's link)")
+    target = read_target(args.target)
+    if target.link is not None and set(target.link) != {tool}:
+        raise InvalidArgumentError(
+            f"{args.target}: every point must be on the tool {tool} (targets on several links: "
+            "not yet)"
+        )
+    if args.base is not None:
+        load_chain(args.robot, base=args.base, tool=tool)  # a frame of the robot
+    return load_chain(args.robot, base=camera.link, tool=tool), target
+
+
+def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
+    """``calibrate --measure pixels``: the URDF with the camera's link, and the report."""
+    from ..calibration.pixel_calibration import calibrate_pixels
+    from ..calibration.pixel_report import pixel_report, pixel_summary
+    from ..measurements.pixels import read_observations
+
+    typed = given_options(args, NOT_PIXELS)
+    if typed:
+        raise InvalidArgumentError(f"{typed[0]} is not for --measure pixels")
+    if args.data is None:
+        raise InvalidArgumentError("--measure pixels needs --data OBS.csv")
+    if args.params not in (None, "auto", "complete"):
+        raise InvalidArgumentError(
+            "--measure pixels fits what the pixels determine (--params auto), or also the "
+            f"target's mounting (--params complete), not --params {args.params}"
+        )
+    camera = _camera(args, placed=False)
+    chain, target = _chain_and_target(args, camera)
+    outputs = {"--out": args.out, "--report": args.report}
+    inputs = {"the URDF": chain.urdf_path, "--data": args.data, "--target": args.target}
+    check_output_paths(outputs, {**inputs, "--validate": args.validate})
+    cameras = {camera.name: camera.intrinsics}
+    obs = read_observations(args.data, chain.joint_names, cameras, target)
+    check = None
+    if args.validate:
+        check = read_observations(args.validate, chain.joint_names, cameras, target)
+    result = calibrate_pixels(
+        chain,
+        camera,
+        target,
+        obs,
+        validate=check,
+        holdout=args.holdout,
+        refine_targets=args.refine_targets,
+        mount=args.params == "complete",
+        seed=args.seed,
+    )
+    report = pixel_report(result, [str(w.message) for w in recorded])
+    files: dict[Path, str | bytes] = {Path(args.out): result.urdf()}
+    if args.report:
+        files[Path(args.report)] = json_text(report)
+    write_outputs(files)
+    if args.json:
+        print_json(report)
+    else:
+        print(pixel_summary(result))
+    return 0
+
+
+def simulate_pixels_command(args: argparse.Namespace) -> int:
+    """``simulate --measure pixels``: OBS.csv of the true robot, and the truth (JSON)."""
+    import numpy as np
+
+    from ..kinematics.robot import load_chain
+    from ..measurements.pixel_simulation import simulate_pixels
+    from ..measurements.pixels import observations_csv
+    from ..measurements.true_robot import true_robot
+
+    camera = _camera(args, placed=True)
+    chain, target = _chain_and_target(args, camera)
+    out = Path(args.out)
+    truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "true.urdf"
+        truth = true_robot(
+            [chain], path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
+        )
+        true_chain = load_chain(str(path), base=chain.base_frame, tool=chain.tool_frame)
+        q = chain.random_configurations(args.configs, args.seed)
+        obs = simulate_pixels(
+            true_chain,
+            camera.name,
+            camera.placement,
+            camera.intrinsics,
+            target,
+            q,
+            noise_px=args.noise_px,
+            seed=args.seed,
+        )
+    errors = {name: np.round(E, 15).tolist() for name, E in truth.errors.items()}
+    document = {"camera": camera.name, "link": camera.link, "joint_errors": errors}
+    write_outputs({out: observations_csv(obs), truth_path: json_text(document)})
+    seen = len(np.unique(obs.q, axis=0))
+    print(
+        f"{chain.name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
+        f"{args.configs} postures, camera {camera.name} on {camera.link}, noise "
+        f"{args.noise_px:g} px -> {out}"
+    )
+    return 0
+
+
+def analyze_pixels_command(args: argparse.Namespace) -> int:
+    """``analyze --measure pixels``: the unknowns the camera's pixels determine."""
+    from ..calibration.pixel_report import pixel_count
+
+    camera = _camera(args, placed=True)
+    chain, target = _chain_and_target(args, camera)
+    counted = pixel_count(chain, camera, target, args.configs, args.seed, args.params)
+    if args.json:
+        print_json(counted)
+        return 0
+    print(
+        f"{chain.name}: camera {camera.name} on {camera.link} seeing {len(target.point)} points "
+        f"on {chain.tool_frame} ({counted['rows']} pixels in {counted['postures']} postures)\n"
+        f"unknowns determined: {counted['n_base']} of {counted['n_unknowns']} (camera 6, "
+        f"{chain.n} joints x 6 placement components"
+        + (", target mounting 6" if counted["mount"] else "")
+        + ")"
+    )
+    return 0
