@@ -126,6 +126,11 @@ class PixelCalibration:
     mount: bool = False
 
     @property
+    def n_unknowns(self) -> int:
+        """The unknowns offered (the target's mounting only when it is one)."""
+        return len(self.fit.names) - 6 * (not self.mount)
+
+    @property
     def count(self) -> int:
         """Unknowns the pixels determine (the rank of the rows' Jacobian)."""
         return len(self.fit.free)

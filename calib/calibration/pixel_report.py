@@ -90,7 +90,7 @@ def pixel_report(result: PixelCalibration, warnings: list[str]) -> dict:
         "objects": {"targets": targets},
         "fit": {
             "determined": result.count,
-            "unknowns": len(result.fit.names),
+            "unknowns": result.n_unknowns,
             "free": [result.fit.names[i] for i in result.fit.free],
         },
         "model_choice": None,
@@ -109,7 +109,7 @@ def pixel_summary(result: PixelCalibration) -> str:
     pose = _pose(result.fit.state.camera)
     lines = [
         f"{chain.name}: camera {camera.name} on {camera.link} sees {chain.tool_frame}'s target: "
-        f"{result.rows.m} pixels, {result.count} unknowns determined of {len(result.fit.names)}",
+        f"{result.rows.m} pixels, {result.count} unknowns determined of {result.n_unknowns}",
         f"camera {camera.name} in {camera.link}: xyz "
         + " ".join(f"{v:.6f}" for v in pose["xyz"])
         + " m, rpy "

@@ -1,0 +1,175 @@
+"""``--measure pixels`` on the command line: simulate, calibrate, analyze; bad input.
+
+The written URDF is checked by Pinocchio and a textbook pinhole (tests/pixel_scorer.py): its
+camera link sees every simulated pixel.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from pixel_scorer import seen_pixels
+from pixel_setups import INTRINSICS, grid, look_at
+
+from calib.calibration.report import REPORT_KEYS
+from calib.cli import main
+from calib.measurements.intrinsics import Intrinsics, write_intrinsics
+from calib.measurements.pixels import Target, read_observations, read_target, write_target
+
+K, DIST = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
+UR5_JOINTS = tuple(
+    f"{n}_joint"
+    for n in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
+)
+
+
+def run(capsys, *argv) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _placement_numbers(T: np.ndarray) -> list[str]:
+    return [repr(float(v)) for v in (*T[:3, 3], *pin.rpy.matrixToRpy(T[:3, :3]))]
+
+
+@pytest.fixture(scope="module")
+def ur5(tmp_path_factory):
+    """Intrinsics, a board on tool0 and a noise-free OBS.csv of an eye-to-hand UR5."""
+    folder = tmp_path_factory.mktemp("ur5")
+    write_intrinsics(folder / "intr.yaml", INTRINSICS)
+    write_target(folder / "target.csv", grid(4, 3, 0.03))
+    C = look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3])
+    camera = ["--camera", "cam", "world", folder / "intr.yaml", *_placement_numbers(C)]
+    common = [*camera, "--target", folder / "target.csv", "--tool", "tool0"]
+    code = main(
+        [str(a) for a in ("simulate", "ur5", "--measure", "pixels", *common, "--out",
+                          folder / "obs.csv", "--configs", 120, "--seed", 2)]
+    )  # fmt: skip
+    assert code == 0
+    return folder, common
+
+
+def test_simulate_calibrate_analyze_on_the_command_line(capsys, tmp_path, ur5):
+    """The camera placed from the pixels alone (no numbers); Pinocchio sees every pixel of
+    OBS.csv through the written URDF's camera link; the report has format 3's keys."""
+    folder, common = ur5
+    out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
+    code, text, err = run(
+        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
+        "--camera", "cam", "world", folder / "intr.yaml", "--target", folder / "target.csv",
+        "--base", "world", "--tool", "tool0", "--out", out, "--report", report,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "26 unknowns determined of 42" in text
+    obs = read_observations(folder / "obs.csv", UR5_JOINTS, {"cam": INTRINSICS})
+    target = read_target(folder / "target.csv")
+    X = target.position[[target.index[p] for p in obs.point]]
+    model = pin.buildModelFromUrdf(str(out))
+    seen = seen_pixels(model, "cam", "tool0", UR5_JOINTS, obs.q, X, np.eye(4), K, DIST)
+    assert np.max(np.abs(seen - obs.pixels)) < 1e-9
+    doc = json.loads(report.read_text())
+    assert tuple(doc) == REPORT_KEYS and doc["format_version"] == "3"
+    assert doc["frames"]["cameras"]["cam"]["link"] == "world"
+    assert doc["errors"]["train"]["calibrated"]["reprojection_rms_px"] < 1e-9
+    assert doc["errors"]["train"]["registration"]["reprojection_rms_px"] > 0.3
+    code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json")
+    assert json.loads(text)["n_base"] == 26  # the count of tests/test_pixel_calibration.py
+    code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json",
+                        "--params", "complete")  # fmt: skip
+    assert json.loads(text)["n_base"] == 30
+
+
+def test_tiago_optical_frame_is_the_start_and_is_moved_in_place(capsys, tmp_path):
+    """TIAGo's xtion_optical_frame on xtion_link: no numbers needed, no second link written."""
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    nominal = ["0", "0", "0", "-1.57079632679", "0.0", "-1.57079632679"]  # the URDF's origin
+    camera = ["--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml"]
+    common = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
+    code, _, err = run(
+        capsys, "simulate", "tiago", "--measure", "pixels", *camera, *nominal, *common,
+        "--out", tmp_path / "obs.csv", "--configs", 600, "--seed", 1,
+    )  # fmt: skip
+    assert code == 0, err
+    out = tmp_path / "cal.urdf"
+    code, text, err = run(
+        capsys, "calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv",
+        *camera, *common, "--out", out,
+    )  # fmt: skip
+    assert code == 0, err
+    written = out.read_text()
+    assert written.count('<link name="xtion_optical_frame"') == 1
+    assert "xtion_optical_frame_joint" not in written
+    joint = written[written.index('<joint name="xtion_optical_joint"') :]
+    assert 'rpy="-1.57079632679 0.0 -1.57079632679"' not in joint[: joint.index("</joint>")]
+    assert "38 unknowns determined" in text  # the count of tests/test_pixel_calibration.py
+
+
+def _bad_files(folder: Path, case: str) -> tuple[list, Path]:
+    """(extra arguments, observations file) of a bad-input case."""
+    intr, target, obs = folder / "intr.yaml", folder / "target.csv", folder / "obs.csv"
+    if case == "target in mm":
+        t = read_target(target)
+        write_target(folder / "mm.csv", Target(t.point, 1000 * t.position))
+        target = folder / "mm.csv"
+    if case == "normalised pixels":
+        text = obs.read_text().splitlines()
+        rows = [text[0]]
+        for line in text[1:]:
+            cells = line.split(",")
+            u, v = float(cells[-2]), float(cells[-1])
+            cells[-2:] = [repr((u - 640) / 900), repr((v - 480) / 905)]
+            rows.append(",".join(cells))
+        obs = folder / "normalised.csv"
+        obs.write_text("\n".join(rows) + "\n")
+    if case == "wrong image size":
+        small = Intrinsics(640, 480, INTRINSICS.camera)
+        write_intrinsics(folder / "small.yaml", small)
+        intr = folder / "small.yaml"
+    name = "other" if case == "unknown camera" else "cam"
+    numbers = []
+    if case == "behind the camera":  # the camera turned away from the robot
+        numbers = _placement_numbers(look_at(np.array([1.6, 0.3, 0.8]), [3.2, 0.6, 1.3]))
+    camera = ["--camera", name, "world", intr, *numbers]
+    if case == "camera numbers":
+        camera = ["--camera", "cam", "world", intr, "1", "2"]
+    extra = ["--params", "offsets"] if case == "params" else []
+    return [*camera, "--target", target, "--tool", "tool0", *extra], obs
+
+
+BAD = {
+    "unknown camera": "unknown camera 'cam'",
+    "target in mm": "millimetres",
+    "normalised pixels": "normalised",
+    "wrong image size": "outside the 640x480 image",
+    "behind the camera": "behind the camera",
+    "camera numbers": "--camera takes",
+    "params": "not --params offsets",
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_one_line_no_output(capsys, tmp_path, ur5, case):
+    folder, _ = ur5
+    args, obs = _bad_files(folder, case)
+    out = tmp_path / "cal.urdf"
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", obs, *args, "--out", out
+    )
+    assert code != 0 and not out.exists()
+    errors = [line for line in err.splitlines() if line.startswith("calib: error:")]
+    assert len(errors) == 1 and "Traceback" not in err
+    assert BAD[case] in errors[0], errors[0]
+    if case == "wrong image size":  # the intrinsics' principal point is warned about too
+        assert "far from the centre (320, 240) px" in err
+
+
+def test_pixel_options_without_measure_pixels_are_refused(capsys, ur5):
+    common = ur5[1]
+    code, _, err = run(capsys, "analyze", "ur5", *common)
+    assert code != 0 and "--camera is for --measure pixels" in err
