@@ -31,7 +31,14 @@ from .pixel_term import (
 )
 from .placements import Placements
 
-__all__ = ["PixelFit", "camera_from_rays", "fit_pixels", "rays", "refine_camera"]
+__all__ = [
+    "PixelFit",
+    "camera_from_rays",
+    "fit_pixels",
+    "rays",
+    "refine_camera",
+    "target_residuals",
+]
 
 UNDISTORT_ITERATIONS = 20
 """Newton steps that invert the distortion (each pixel's ray)."""
