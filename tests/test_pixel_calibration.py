@@ -14,6 +14,7 @@ from pixel_scorer import link_points, moved_model, numerical_rank, seen_pixels
 from pixel_setups import INTRINSICS, SETUPS, setup
 
 from calib.calibration.pixel_calibration import PixelCamera, calibrate_pixels, pixel_rows
+from calib.calibration.pixel_term import Unknowns
 from calib.measurements.pixel_simulation import simulate_pixels
 
 K, DIST = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
@@ -31,7 +32,7 @@ def case(request, tmp_path_factory):
     held = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q[HELD])
     camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
     fits = [
-        calibrate_pixels(s.nominal, camera, s.target, obs, validate=held, mount=mount)
+        calibrate_pixels(s.nominal, camera, s.target, obs, validate=held, what=Unknowns(mount))
         for mount in (False, True)
     ]
     return s, obs, held, fits

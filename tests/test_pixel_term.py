@@ -13,7 +13,13 @@ import pytest
 from pixel_scorer import link_points, moved_model, seen_pixels
 
 from calib import load_chain
-from calib.calibration.pixel_term import PixelRows, PixelState, column_names, pixel_jacobian
+from calib.calibration.pixel_term import (
+    PixelRows,
+    PixelState,
+    Unknowns,
+    column_names,
+    pixel_jacobian,
+)
 from calib.calibration.placements import Placements
 from calib.identification.pinhole import Pinhole
 
@@ -42,8 +48,9 @@ def _setup(name: str, rng):
     return chain, pl, q, point, target
 
 
-def _reference(chain, pl, q, point, target, C, dy, mount, dX):
-    """Pixels of the reference after moves of every unknown (Pinocchio + numpy)."""
+def _reference(chain, pl, q, point, target, C, dy, mount, dX, lens):
+    """Pixels of the reference after moves of every unknown (Pinocchio + numpy); ``lens``:
+    fx, fy, cx, cy, k1, k2, p1, p2, k3."""
     model = pl.model
     for j, name in enumerate(pl.joints):
         model = moved_model(model, name, pl.bases[j], dy[6 * j : 6 * j + 6])
@@ -57,15 +64,16 @@ def _reference(chain, pl, q, point, target, C, dy, mount, dX):
         q,
         X[point],
         C,
-        CAMERA.camera_matrix,
-        CAMERA.distortion,
+        np.array([[lens[0], 0, lens[2]], [0, lens[1], lens[3]], [0, 0, 1]]),
+        lens[4:],
     )
 
 
 @pytest.mark.parametrize("name", sorted(SETUPS))
 def test_jacobian_matches_central_differences(name):
     """Every column (camera 6, every joint's 6 placement components, the mounting's 6, the
-    free target points) equals central differences of Pinocchio + a textbook pinhole."""
+    free target points, the intrinsics) equals central differences of Pinocchio + a
+    textbook pinhole."""
     rng = np.random.default_rng(4)
     chain, pl, q, point, target = _setup(name, rng)
     # a camera 1.5 m along the camera's z from the points' centre, looking at them
@@ -75,17 +83,18 @@ def test_jacobian_matches_central_differences(name):
     C = _pose(rng, 0.3)
     C[:3, 3] = centre - 1.5 * C[:3, 2]
     rows = PixelRows(q, point, np.zeros((8, 2)), tuple(range(8)))
-    r, J = pixel_jacobian(PixelState(pl, C, target), chain, CAMERA, rows, refine_targets=True)
-    names = column_names(pl, 4, True)
-    assert J.shape == (8, 2, 6 + 6 * chain.n + 6 + 3) == (8, 2, len(names))
+    state, every = PixelState(pl, C, target, CAMERA), Unknowns(True, True, True)
+    r, J = pixel_jacobian(state, chain, rows, every)
+    names = column_names(state, every)
+    assert J.shape == (8, 2, 6 + 6 * chain.n + 6 + 3 + 9) == (8, 2, len(names))
     n = pl.y.size
+    lens = CAMERA.parameters
 
     def pixels(x):
         step = np.eye(4)
         step[:3, :3], step[:3, 3] = pin.exp3(x[3:6]), x[:3]
-        return _reference(
-            chain, pl, q, point, target, C @ step, x[6 : 6 + n], x[6 + n : 12 + n], x[12 + n :]
-        )
+        parts = x[6 : 6 + n], x[6 + n : 12 + n], x[12 + n : 15 + n], lens + x[15 + n :]
+        return _reference(chain, pl, q, point, target, C @ step, *parts)
 
     x0 = np.zeros(len(names))
     assert np.max(np.abs(pixels(x0) - r)) < 1e-9  # the residual is the reference's pixels

@@ -173,3 +173,29 @@ def test_pixel_options_without_measure_pixels_are_refused(capsys, ur5):
     common = ur5[1]
     code, _, err = run(capsys, "analyze", "ur5", *common)
     assert code != 0 and "--camera is for --measure pixels" in err
+
+
+def test_refine_intrinsics_recovers_a_swapped_principal_point(capsys, tmp_path, ur5):
+    """The intrinsics file gives (cx, cy) = (480, 640) for a 1280x960 image (the true point is
+    (640, 480)): warned about (width and height swapped?), and --refine-intrinsics fits the
+    true principal point back from noise-free pixels; without it 17 px RMS remain."""
+    folder, _ = ur5
+    lens = INTRINSICS.camera.with_parameters([900.0, 905.0, 480.0, 640.0, *DIST])
+    write_intrinsics(tmp_path / "wrong.yaml", Intrinsics(1280, 960, lens))
+    out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
+    args = [
+        "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
+        "--camera", "cam", "world", tmp_path / "wrong.yaml", "--target", folder / "target.csv",
+        "--tool", "tool0", "--report", report,
+    ]  # fmt: skip
+    code, _, err = run(capsys, *args, "--out", out, "--refine-intrinsics")
+    assert code == 0, err
+    assert "swapped" in err
+    doc = json.loads(report.read_text())
+    fitted = doc["frames"]["cameras"]["cam"]["intrinsics"]
+    assert abs(fitted["cx"] - 640.0) < 1e-6 and abs(fitted["cy"] - 480.0) < 1e-6
+    assert doc["errors"]["train"]["calibrated"]["reprojection_rms_px"] < 1e-9
+    code, _, err = run(capsys, *args, "--out", tmp_path / "fixed.urdf")
+    assert code == 0, err
+    fixed = json.loads(report.read_text())
+    assert fixed["errors"]["train"]["calibrated"]["reprojection_rms_px"] > 10

@@ -21,7 +21,7 @@ from ..kinematics.robot import Chain
 from ..measurements.intrinsics import Intrinsics
 from ..measurements.pixels import PixelObservations, Target
 from .pixel_fit import PixelFit, fit_pixels, target_residuals
-from .pixel_term import PixelRows, PixelState, target_points
+from .pixel_term import KNOWN, PixelRows, PixelState, Unknowns, target_points
 from .placements import Placements
 
 __all__ = [
@@ -91,8 +91,8 @@ def reprojection_errors(state: PixelState, chain, camera: PixelCamera, rows: Pix
 
     The millimetres are each row's error times its depth over the mean focal length.
     """
-    pin = camera.intrinsics.camera
-    r = np.linalg.norm(target_residuals(state, chain, pin, rows), axis=1)
+    pin = state.lens
+    r = np.linalg.norm(target_residuals(state, chain, rows), axis=1)
     depth = target_points(state, chain, rows)[0][:, 2]
     mm = 1e3 * r * depth / (0.5 * (pin.fx + pin.fy))
     return {
@@ -114,7 +114,7 @@ class PixelCalibration:
         rows: The training rows kept.
         held: The held-out rows, or None.
         outliers: Lines of the rows set aside.
-        mount: The target's mounting was an unknown.
+        what: The optional unknowns fitted.
     """
 
     chain: Chain
@@ -123,12 +123,12 @@ class PixelCalibration:
     rows: PixelRows
     held: PixelRows | None
     outliers: tuple[int, ...]
-    mount: bool = False
+    what: Unknowns = KNOWN
 
     @property
     def n_unknowns(self) -> int:
         """The unknowns offered (the target's mounting only when it is one)."""
-        return len(self.fit.names) - 6 * (not self.mount)
+        return len(self.fit.names) - 6 * (not self.what.mount)
 
     @property
     def count(self) -> int:
@@ -166,7 +166,7 @@ def _held_out(rows: PixelRows, holdout: float, seed: int) -> tuple[PixelRows, Pi
 
 
 def _outliers(fit: PixelFit, chain, camera, rows: PixelRows) -> np.ndarray:
-    r = np.linalg.norm(target_residuals(fit.state, chain, camera, rows), axis=1)
+    r = np.linalg.norm(target_residuals(fit.state, chain, rows), axis=1)
     return (r > OUTLIER_FACTOR * 1.4826 * np.median(r)) & (r > 1.0)
 
 
@@ -178,8 +178,7 @@ def calibrate_pixels(
     *,
     validate: PixelObservations | None = None,
     holdout: float = 0.0,
-    refine_targets: bool = False,
-    mount: bool = False,
+    what: Unknowns = KNOWN,
     seed: int = 0,
 ) -> PixelCalibration:
     """Calibrate the robot and the camera's placement from the camera's pixels.
@@ -191,9 +190,10 @@ def calibrate_pixels(
         obs: The observations (the camera's rows are used).
         validate: Held-out observations, or None.
         holdout: Fraction of the postures held out when there is no ``validate``.
-        refine_targets: The target points after the first three are unknowns.
-        mount: The target's mounting on its link is an unknown (``--params complete``; the
-            fitted points are the report's ``targets``).
+        what: The optional unknowns: the target's mounting on its link (``--params
+            complete``; the fitted points are the report's ``targets``), the target points
+            after the first three (``--refine-targets``), the intrinsics
+            (``--refine-intrinsics``).
         seed: Seed of the holdout.
 
     Raises:
@@ -214,15 +214,13 @@ def calibrate_pixels(
     placements = Placements.of((chain,))
     dropped: tuple[int, ...] = ()
     for _ in range(3):
-        fit = fit_pixels(
-            placements, target.position, guess, chain, pin, rows, refine_targets, obs.source, mount
-        )
+        fit = fit_pixels(placements, target.position, guess, chain, pin, rows, what, obs.source)
         bad = _outliers(fit, chain, pin, rows)
         if not bad.any():
             break
         dropped += tuple(n for n, b in zip(rows.lines, bad, strict=True) if b)
         rows = rows.subset(~bad)
-    result = PixelCalibration(chain, camera, fit, rows, held, tuple(sorted(dropped)), mount)
+    result = PixelCalibration(chain, camera, fit, rows, held, tuple(sorted(dropped)), what)
     if held is not None:
         before = reprojection_errors(fit.start, chain, camera, held)["reprojection_rms_px"]
         after = reprojection_errors(fit.state, chain, camera, held)["reprojection_rms_px"]

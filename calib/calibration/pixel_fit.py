@@ -20,13 +20,16 @@ from ..exceptions import DataError
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from .pixel_term import (
+    KNOWN,
     PixelRows,
     PixelState,
+    Unknowns,
     apply_step,
     check_in_front,
     column_names,
     free_columns,
     pixel_jacobian,
+    pixel_residuals,
     target_points,
 )
 from .placements import Placements
@@ -98,9 +101,9 @@ def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndar
     return np.linalg.inv(seen)
 
 
-def _solve(state, chain, camera, rows, free, refine_targets, steps: int):
+def _solve(state: PixelState, chain, rows, free, what: Unknowns, steps: int) -> PixelState:
     """Levenberg-Marquardt on the columns ``free``; the state of least squared error."""
-    r, J = pixel_jacobian(state, chain, camera, rows, refine_targets)
+    r, J = pixel_jacobian(state, chain, rows, what)
     cost, damping = float(np.sum(r**2)), 1e-6
     size = J.shape[2]
     for _ in range(steps):
@@ -110,8 +113,8 @@ def _solve(state, chain, camera, rows, free, refine_targets, steps: int):
             step = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-30), -g)
             dx = np.zeros(size)
             dx[list(free)] = step
-            trial = apply_step(state, dx, refine_targets)
-            r_t = target_residuals(trial, chain, camera, rows)
+            trial = apply_step(state, dx, what)
+            r_t = pixel_residuals(trial, chain, rows)
             cost_t = float(np.sum(r_t**2)) if np.all(np.isfinite(r_t)) else np.inf
             if cost_t <= cost or damping > 1e12:
                 break
@@ -122,18 +125,18 @@ def _solve(state, chain, camera, rows, free, refine_targets, steps: int):
         state, cost, damping = trial, cost_t, max(damping / 10, 1e-9)
         if done:
             break
-        r, J = pixel_jacobian(state, chain, camera, rows, refine_targets)
+        r, J = pixel_jacobian(state, chain, rows, what)
     return state
 
 
-def target_residuals(state, chain, camera: Pinhole, rows: PixelRows) -> np.ndarray:
+def target_residuals(state: PixelState, chain, rows: PixelRows) -> np.ndarray:
     """Reprojection errors ``(m, 2)`` [px]."""
-    return camera.projection(target_points(state, chain, rows)[0]).pixels - rows.pixels
+    return pixel_residuals(state, chain, rows)
 
 
-def refine_camera(state: PixelState, chain: Chain, camera: Pinhole, rows: PixelRows) -> PixelState:
+def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
     """The camera's placement by least squares on the current robot (its 6 unknowns alone)."""
-    return _solve(state, chain, camera, rows, tuple(range(6)), False, MAX_STEPS)
+    return _solve(state, chain, rows, tuple(range(6)), KNOWN, MAX_STEPS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,9 +163,8 @@ def fit_pixels(
     chain: Chain,
     camera: Pinhole,
     rows: PixelRows,
-    refine_targets: bool = False,
+    what: Unknowns = KNOWN,
     source: str = "<observations>",
-    mount: bool = False,
 ) -> PixelFit:
     """Register the camera, choose the determined unknowns, fit them.
 
@@ -172,23 +174,21 @@ def fit_pixels(
         guess: The camera's optical frame in the chain's base link ``(4, 4)`` [m], or None:
             placed in closed form (:func:`camera_from_rays`).
         chain: The camera's link to the target's tool.
-        camera: The camera's intrinsics.
+        camera: The camera's intrinsics (the start, with ``what.intrinsics``).
         rows: The observations.
-        refine_targets: The target points after the first three are unknowns.
+        what: The optional unknowns (mounting, target points, intrinsics).
         source: The observations' file, for messages.
-        mount: The target's mounting on its link is an unknown (6).
 
     Raises:
         DataError: Too few observations, or points behind the camera once it is placed.
     """
     if guess is None:
-        p_link = target_points(PixelState(placements, np.eye(4), target), chain, rows)[1]
+        p_link = target_points(PixelState(placements, np.eye(4), target, camera), chain, rows)[1]
         guess = camera_from_rays(p_link, rays(camera, rows.pixels), source)
-    state = PixelState(placements, guess, target)
+    state = PixelState(placements, guess, target, camera)
     check_in_front(target_points(state, chain, rows)[0], rows, source)
-    start = refine_camera(state, chain, camera, rows)
-    J = pixel_jacobian(start, chain, camera, rows, refine_targets)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), start.placements, mount)
-    names = column_names(start.placements, len(start.target), refine_targets)
-    fitted = _solve(start, chain, camera, rows, free, refine_targets, MAX_STEPS)
-    return PixelFit(start, fitted, free, names)
+    start = refine_camera(state, chain, rows)
+    J = pixel_jacobian(start, chain, rows, what)[1]
+    free = free_columns(J.reshape(-1, J.shape[2]), start.placements, what)
+    fitted = _solve(start, chain, rows, free, what, MAX_STEPS)
+    return PixelFit(start, fitted, free, column_names(start, what))

@@ -2,9 +2,10 @@
 
 The report has every key of :data:`~.report.REPORT_KEYS`; what is the camera's lives inside
 them: ``frames.cameras`` (each camera's link and placement, xyz [m] and rpy [rad] as the URDF
-writes them), ``objects.targets`` (the target points used, fitted with ``--params complete``
-or ``--refine-targets``), ``errors`` (reprojection errors [px] and the position error they
-mean at the target's distance [mm], training and held out, per camera in ``terms``).
+writes them, and its intrinsics [px], fitted with ``--refine-intrinsics``),
+``objects.targets`` (the target points used, fitted with ``--params complete`` or
+``--refine-targets``), ``errors`` (reprojection errors [px] and the position error they mean
+at the target's distance [mm], training and held out, per camera in ``terms``).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import pinocchio as pin
 from ..measurements.pixel_simulation import simulate_pixels
 from ..measurements.pixels import Target
 from .pixel_calibration import PixelCalibration, PixelCamera, pixel_rows
-from .pixel_term import PixelState, free_columns, pixel_jacobian
+from .pixel_term import PixelState, Unknowns, free_columns, pixel_jacobian
 from .placements import COMPONENTS, Placements
 from .report import REPORT_FORMAT, REPORT_KEYS
 
@@ -46,6 +47,18 @@ def _parameters(result: PixelCalibration) -> list[dict]:
                 }
             )
     return out
+
+
+def _camera(result: PixelCalibration) -> dict:
+    """A camera's link, placement and intrinsics (fitted with ``--refine-intrinsics``)."""
+    lens = result.fit.state.lens
+    intrinsics = dict(zip(lens.parameter_names, map(float, lens.parameters), strict=True))
+    return {
+        "link": result.camera.link,
+        **_pose(result.fit.state.camera),
+        "intrinsics": intrinsics,
+        "intrinsics_fitted": result.what.intrinsics,
+    }
 
 
 def _errors(result: PixelCalibration) -> dict:
@@ -86,7 +99,7 @@ def pixel_report(result: PixelCalibration, warnings: list[str]) -> dict:
         "iterations": None,
         "parameters": _parameters(result),
         "errors": _errors(result),
-        "frames": {"cameras": {camera.name: {"link": camera.link, **_pose(state.camera)}}},
+        "frames": {"cameras": {camera.name: _camera(result)}},
         "objects": {"targets": targets},
         "fit": {
             "determined": result.count,
@@ -144,9 +157,10 @@ def pixel_count(
     rows = pixel_rows(chain, obs, target, camera.name)
     placements = Placements.of((chain,))
     mount = params == "complete"
-    state = PixelState(placements, np.asarray(camera.placement), target.position)
-    J = pixel_jacobian(state, chain, camera.intrinsics.camera, rows, False)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), placements, mount)
+    lens = camera.intrinsics.camera
+    state = PixelState(placements, np.asarray(camera.placement), target.position, lens)
+    J = pixel_jacobian(state, chain, rows, Unknowns(mount=mount))[1]
+    free = free_columns(J.reshape(-1, J.shape[2]), placements, Unknowns(mount=mount))
     return {
         "kind": "pixels",
         "camera": camera.name,

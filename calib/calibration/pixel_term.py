@@ -21,9 +21,13 @@ Unknowns, in this order (the columns of :func:`pixel_jacobian`):
   placement holds: ``--params complete``; by default the target file's points are exact);
 * with ``refine_targets``, the target points beyond the first three (3 each [m]): moving the
   whole target rigidly is moving the tool, and its size is the only scale the pixels have,
-  so the first three points stay as given (the gauge).
+  so the first three points stay as given (the gauge);
+* with ``refine_intrinsics``, the camera's intrinsics (``fx, fy, cx, cy`` [px] and the
+  distortion coefficients, :attr:`~calib.identification.pinhole.Pinhole.parameter_names`);
+  otherwise they stay fixed.
 
-The intrinsics stay fixed. The Jacobian is analytic: the pinhole's derivative by the point
+:class:`Unknowns` says which of the optional blocks are unknowns. The Jacobian is analytic:
+the pinhole's derivative by the point
 (:meth:`~calib.identification.pinhole.Pinhole.projection`) times the point's motion per
 unknown (:func:`~.placements.joint_twists` for the joint placements).
 """
@@ -44,9 +48,11 @@ from .placements import Placements, joint_twists, offset_component
 __all__ = [
     "CAMERA_NAMES",
     "GAUGE_POINTS",
+    "KNOWN",
     "MOUNT_NAMES",
     "PixelRows",
     "PixelState",
+    "Unknowns",
     "apply_step",
     "check_in_front",
     "column_names",
@@ -93,6 +99,25 @@ class PixelRows:
         return PixelRows(self.q[keep], self.point[keep], self.pixels[keep], lines)
 
 
+@dataclass(frozen=True)
+class Unknowns:
+    """The optional unknowns of a pixel term.
+
+    Attributes:
+        mount: The target's mounting on its link (6).
+        targets: The target points after the first :data:`GAUGE_POINTS` (3 each).
+        intrinsics: The camera's intrinsics (4 + the distortion coefficients).
+    """
+
+    mount: bool = False
+    targets: bool = False
+    intrinsics: bool = False
+
+
+KNOWN = Unknowns()
+"""No optional unknown: the target and the intrinsics as given."""
+
+
 @dataclass(frozen=True, eq=False)
 class PixelState:
     """The robot, camera and target of a pixel term.
@@ -101,11 +126,13 @@ class PixelState:
         placements: The joint placement errors (their model the robot they act on).
         camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
         target: The target points in the tool frame ``(k, 3)`` [m].
+        lens: The camera's intrinsics.
     """
 
     placements: Placements
     camera: np.ndarray
     target: np.ndarray
+    lens: Pinhole
 
 
 def _chain_kinematics(state: PixelState, chain: Chain, q: np.ndarray):
@@ -126,30 +153,32 @@ def target_points(state: PixelState, chain: Chain, rows: PixelRows):
     return p_cam, p_link, (mdh, frames, kin)
 
 
-def pixel_residuals(state: PixelState, chain: Chain, camera: Pinhole, rows: PixelRows):
+def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndarray:
     """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px] (NaN behind the camera)."""
     p_cam = target_points(state, chain, rows)[0]
-    return camera.projection(p_cam).pixels - rows.pixels
+    return state.lens.projection(p_cam).pixels - rows.pixels
 
 
-def column_names(placements: Placements, n_points: int, refine_targets: bool) -> tuple[str, ...]:
+def column_names(state: PixelState, what: Unknowns) -> tuple[str, ...]:
     """The names of :func:`pixel_jacobian`'s columns."""
-    points = range(GAUGE_POINTS, n_points) if refine_targets else ()
+    points = range(GAUGE_POINTS, len(state.target)) if what.targets else ()
     targets = (f"target{k + 1}.{a}" for k in points for a in "xyz")
-    return (*CAMERA_NAMES, *placements.names(), *MOUNT_NAMES, *targets)
+    lens = (f"camera.{n}" for n in state.lens.parameter_names) if what.intrinsics else ()
+    return (*CAMERA_NAMES, *state.placements.names(), *MOUNT_NAMES, *targets, *lens)
 
 
 def pixel_jacobian(
-    state: PixelState, chain: Chain, camera: Pinhole, rows: PixelRows, refine_targets: bool
+    state: PixelState, chain: Chain, rows: PixelRows, what: Unknowns
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
     Columns as :func:`column_names`: the camera's 6, every joint placement component of
-    ``state.placements`` (6 per joint), the target's mounting (6) and, with
-    ``refine_targets``, the target points after the first :data:`GAUGE_POINTS`.
+    ``state.placements`` (6 per joint), the target's mounting (6), with ``what.targets`` the
+    target points after the first :data:`GAUGE_POINTS`, with ``what.intrinsics`` the
+    camera's intrinsics.
     """
     p_cam, p_link, (mdh, frames, kin) = target_points(state, chain, rows)
-    seen = camera.projection(p_cam, derivatives=True)
+    seen = state.lens.projection(p_cam, derivatives=True)
     D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
     RcT = state.camera[:3, :3].T
     pl = state.placements
@@ -164,19 +193,21 @@ def pixel_jacobian(
     by_mount = mount @ np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), -skew(X)], axis=2)
     parts = [D @ by_camera, D @ (RcT @ moving.reshape(m, 3, -1)), D @ by_mount]
     k = len(state.target)
-    if refine_targets and k > GAUGE_POINTS:
+    if what.targets and k > GAUGE_POINTS:
         by_point = np.zeros((m, 3, k, 3))
         by_point[np.arange(m), :, rows.point] = mount
         parts.append(D @ by_point[:, :, GAUGE_POINTS:].reshape(m, 3, -1))
+    if what.intrinsics:
+        parts.append(np.asarray(seen.d_parameters))
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
 
 
-def apply_step(state: PixelState, dx: np.ndarray, refine_targets: bool) -> PixelState:
+def apply_step(state: PixelState, dx: np.ndarray, what: Unknowns) -> PixelState:
     """The state moved by ``dx`` (every column of :func:`pixel_jacobian`), rebased.
 
     The camera becomes ``C [R(w) | v]``, the joint errors are composed into the robot's
     placements (:meth:`~.placements.Placements.rebased`), the target is moved rigidly by its
-    mounting's step, then its free points move.
+    mounting's step, then its free points move; the intrinsics move.
     """
     step = np.eye(4)
     step[:3, :3], step[:3, 3] = rotation_matrix(dx[3:6]), dx[:3]
@@ -184,17 +215,23 @@ def apply_step(state: PixelState, dx: np.ndarray, refine_targets: bool) -> Pixel
     placements = state.placements.shifted(dx[6 : 6 + n]).rebased()
     mount = dx[6 + n : 12 + n]
     target = state.target @ rotation_matrix(mount[3:]).T + mount[:3]
-    if refine_targets and len(target) > GAUGE_POINTS:
-        target[GAUGE_POINTS:] += dx[12 + n :].reshape(-1, 3)
-    return PixelState(placements, state.camera @ step, target)
+    start = 12 + n
+    if what.targets and len(target) > GAUGE_POINTS:
+        stop = start + 3 * (len(target) - GAUGE_POINTS)
+        target[GAUGE_POINTS:] += dx[start:stop].reshape(-1, 3)
+        start = stop
+    lens = state.lens
+    if what.intrinsics:
+        lens = lens.with_parameters(lens.parameters + dx[start:])
+    return PixelState(placements, state.camera @ step, target, lens)
 
 
 def _preference(placements: Placements, size: int) -> list[int]:
     """Columns in order of preference.
 
     The camera, the target's mounting, the joints' offsets, their other components, the
-    target points (the camera and the mounting absorb what the chain's end joints also
-    explain).
+    target points, the intrinsics (the camera and the mounting absorb what the chain's end
+    joints also explain).
     """
     nominal = placements.nominal
     offsets: list[int] = []
@@ -207,15 +244,15 @@ def _preference(placements: Placements, size: int) -> list[int]:
     return [*range(6), *range(n, n + 6), *offsets, *others, *range(n + 6, size)]
 
 
-def free_columns(W: np.ndarray, placements: Placements, mount: bool) -> tuple[int, ...]:
+def free_columns(W: np.ndarray, placements: Placements, what: Unknowns) -> tuple[int, ...]:
     """The columns of ``W`` ``(r, c)`` the rows determine, in order of preference.
 
     The columns are scaled to unit length first (metres and radians, pixels per each).
-    Without ``mount``, the target's mounting is known (its columns are never free).
+    Without ``what.mount``, the target's mounting is known (its columns are never free).
     """
     norms = np.linalg.norm(W, axis=0)
     used = norms > 0
-    if not mount:
+    if not what.mount:
         n = 6 + placements.y.size
         used[n : n + 6] = False
     scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)

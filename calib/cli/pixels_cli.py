@@ -25,7 +25,7 @@ __all__ = [
     "simulate_pixels_command",
 ]
 
-PIXEL_OPTIONS = ("camera", "target", "noise_px", "refine_targets")
+PIXEL_OPTIONS = ("camera", "target", "noise_px", "refine_targets", "refine_intrinsics")
 """The options of ``--measure pixels`` alone."""
 
 NOT_PIXELS = ("marker", "world_link", "on_robot", "fix", "free", "elastic", "loss", "noise_mm")
@@ -51,6 +51,12 @@ def add_pixel_arguments(p: argparse.ArgumentParser, calibrate: bool = False) -> 
             "--refine-targets",
             action="store_true",
             help="with --measure pixels: fit the target points after the first three",
+        )
+        p.add_argument(
+            "--refine-intrinsics",
+            action="store_true",
+            help="with --measure pixels: fit the camera's intrinsics (focal lengths, principal "
+            "point, distortion) with the rest (the report's frames.cameras.NAME.intrinsics)",
         )
     else:
         p.add_argument(
@@ -126,6 +132,7 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     """``calibrate --measure pixels``: the URDF with the camera's link, and the report."""
     from ..calibration.pixel_calibration import calibrate_pixels
     from ..calibration.pixel_report import pixel_report, pixel_summary
+    from ..calibration.pixel_term import Unknowns
     from ..measurements.pixels import read_observations
 
     typed = given_options(args, NOT_PIXELS)
@@ -155,8 +162,11 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
         obs,
         validate=check,
         holdout=args.holdout,
-        refine_targets=args.refine_targets,
-        mount=args.params == "complete",
+        what=Unknowns(
+            mount=args.params == "complete",
+            targets=args.refine_targets,
+            intrinsics=args.refine_intrinsics,
+        ),
         seed=args.seed,
     )
     report = pixel_report(result, [str(w.message) for w in recorded])
