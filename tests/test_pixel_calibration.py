@@ -16,6 +16,7 @@ from pixel_setups import INTRINSICS, SETUPS, setup
 from calib.calibration.pixel_calibration import PixelCamera, calibrate_pixels, pixel_rows
 from calib.calibration.pixel_term import Unknowns
 from calib.measurements.pixel_simulation import simulate_pixels
+from calib.measurements.pixels import Target
 
 K, DIST = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
 # 4 per revolute joint + 6 (Everett) with the target's mounting unknown; 4 fewer without it
@@ -136,3 +137,21 @@ def test_half_a_pixel_of_noise_held_out_position_at_the_target(case, capsys):
         print(f"\n{s.name}: held-out position at the target, rms {rms:.3f} mm (camera registered")
         print(f"  on the nominal robot: {rms0:.3f} mm)")
     assert np.sqrt(np.mean(err**2)) < 0.5 * np.sqrt(np.mean(err0**2))
+
+
+def test_refine_targets_recovers_the_points_after_the_first_three(tmp_path):
+    """A target file with its points after the first three off by ~2 mm: --refine-targets
+    fits them back (noise-free, the truth's points to 1e-9 m), the first three stay as given."""
+    s = setup("ur5", tmp_path, postures=120)
+    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    wrong = s.target.position.copy()
+    wrong[3:] += 2e-3 * np.random.default_rng(5).standard_normal(wrong[3:].shape)
+    target = Target(s.target.point, wrong)
+    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
+    result = calibrate_pixels(s.nominal, camera, target, obs, what=Unknowns(targets=True))
+    fitted = result.fit.state.target
+    assert np.array_equal(fitted[:3], wrong[:3])
+    assert np.max(np.abs(fitted - s.target.position)) < 1e-9
+    assert result.errors()["train"]["calibrated"]["reprojection_max_px"] < 1e-9
+    plain = calibrate_pixels(s.nominal, camera, target, obs)
+    assert plain.errors()["train"]["calibrated"]["reprojection_rms_px"] > 0.1
