@@ -199,3 +199,24 @@ def test_refine_intrinsics_recovers_a_swapped_principal_point(capsys, tmp_path, 
     assert code == 0, err
     fixed = json.loads(report.read_text())
     assert fixed["errors"]["train"]["calibrated"]["reprojection_rms_px"] > 10
+
+
+def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):
+    """One pixel moved by 40 px: set aside and named by its line, the others fitted exactly."""
+    folder, _ = ur5
+    lines = (folder / "obs.csv").read_text().splitlines()
+    cells = lines[10].split(",")
+    cells[-1] = repr(float(cells[-1]) + 40.0)
+    lines[10] = ",".join(cells)
+    (tmp_path / "obs.csv").write_text("\n".join(lines) + "\n")
+    report = tmp_path / "r.json"
+    code, text, err = run(
+        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", tmp_path / "obs.csv",
+        "--camera", "cam", "world", folder / "intr.yaml", "--target", folder / "target.csv",
+        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", report,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "1 observation(s) set aside as outliers: rows 11" in text  # line 11 of the file
+    doc = json.loads(report.read_text())
+    assert doc["outliers"] == [{"row": 11}]
+    assert doc["errors"]["train"]["calibrated"]["reprojection_max_px"] < 1e-9
