@@ -20,7 +20,7 @@ from ..kinematics.placement_export import camera_placement, camera_urdf
 from ..kinematics.robot import Chain
 from ..measurements.intrinsics import Intrinsics
 from ..measurements.pixels import PixelObservations, Target
-from .pixel_fit import PixelFit, fit_pixels, target_residuals
+from .pixel_fit import PixelFit, PixelView, fit_pixels, target_residuals
 from .pixel_term import KNOWN, PixelRows, PixelState, Unknowns, target_points
 from .placements import Placements
 
@@ -59,8 +59,14 @@ class PixelCamera:
     placement: np.ndarray | None = None
 
 
-def pixel_rows(chain: Chain, obs: PixelObservations, target: Target, camera: str) -> PixelRows:
-    """The camera's rows of the observations, joints in the chain's order.
+def pixel_rows(
+    chain: Chain,
+    obs: PixelObservations,
+    target: Target,
+    camera: str,
+    keep: np.ndarray | None = None,
+) -> PixelRows:
+    """The camera's rows of the observations (where ``keep``), joints in the chain's order.
 
     Raises:
         DataError: A chain joint without a column, a point not in the target, no row of the
@@ -69,9 +75,11 @@ def pixel_rows(chain: Chain, obs: PixelObservations, target: Target, camera: str
     missing = [j for j in chain.joint_names if j not in obs.joint_names]
     if missing:
         raise DataError(obs.source, f"no column for joint {missing[0]} of the camera's chain")
-    keep = np.array([c == camera for c in obs.camera])
-    if not keep.any():
+    mine = np.array([c == camera for c in obs.camera])
+    if not mine.any():
         raise DataError(obs.source, f"no observation of camera {camera}")
+    if keep is not None:
+        mine &= keep
     index = target.index
     lines = obs.rows or tuple(range(2, obs.m + 2))
     for p, line in zip(obs.point, lines, strict=True):
@@ -79,24 +87,31 @@ def pixel_rows(chain: Chain, obs: PixelObservations, target: Target, camera: str
             raise DataError(obs.source, f"point {p!r} is not in the target {target.source}", line)
     columns = [obs.joint_names.index(j) for j in chain.joint_names]
     return PixelRows(
-        np.asarray(obs.q)[keep][:, columns],
-        np.array([index[p] for p in obs.point])[keep],
-        np.asarray(obs.pixels)[keep],
-        tuple(n for n, k in zip(lines, keep, strict=True) if k),
+        np.asarray(obs.q)[mine][:, columns],
+        np.array([index[p] for p in obs.point])[mine],
+        np.asarray(obs.pixels)[mine],
+        tuple(n for n, k in zip(lines, mine, strict=True) if k),
     )
 
 
-def reprojection_errors(state: PixelState, chain, camera: PixelCamera, rows: PixelRows) -> dict:
-    """RMS and largest reprojection error [px] and the position error they mean [mm].
-
-    The millimetres are each row's error times its depth over the mean focal length.
-    """
-    pin = state.lens
+def _row_errors(state: PixelState, chain, rows: PixelRows) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's reprojection error [px] and the position error it means [mm]."""
     r = np.linalg.norm(target_residuals(state, chain, rows), axis=1)
     depth = target_points(state, chain, rows)[0][:, 2]
-    mm = 1e3 * r * depth / (0.5 * (pin.fx + pin.fy))
+    return r, 1e3 * r * depth / (0.5 * (state.lens.fx + state.lens.fy))
+
+
+def reprojection_errors(states, views) -> dict:
+    """RMS and largest reprojection error [px] and the position error they mean [mm].
+
+    Over every camera's rows (``states`` and ``views`` one per camera); the millimetres are
+    each row's error times its depth over the mean focal length.
+    """
+    parts = [_row_errors(s, v.chain, v.rows) for s, v in zip(states, views, strict=True)]
+    r = np.concatenate([p[0] for p in parts])
+    mm = np.concatenate([p[1] for p in parts])
     return {
-        "rows": int(rows.m),
+        "rows": len(r),
         "reprojection_rms_px": float(np.sqrt(np.mean(r**2))),
         "reprojection_max_px": float(np.max(r)),
         "position_rms_mm": float(np.sqrt(np.mean(mm**2))),
@@ -105,25 +120,33 @@ def reprojection_errors(state: PixelState, chain, camera: PixelCamera, rows: Pix
 
 @dataclass(frozen=True, eq=False)
 class PixelCalibration:
-    """A calibrated pixel term.
+    """A calibrated pixel problem: one or several cameras seeing one target.
 
     Attributes:
-        chain: The camera's link to the target's tool (nominal robot).
-        camera: The camera (its starting placement as given).
-        fit: The fit (its ``start``: the camera registered on the nominal robot).
-        rows: The training rows kept.
-        held: The held-out rows, or None.
+        cameras: The cameras (their starting placements as given).
+        views: Each camera's chain (nominal robot) and training rows kept.
+        held: Each camera's held-out rows (None: none).
+        fit: The fit (its ``starts``: the cameras registered on the nominal robot).
         outliers: Lines of the rows set aside.
         what: The optional unknowns fitted.
     """
 
-    chain: Chain
-    camera: PixelCamera
+    cameras: tuple[PixelCamera, ...]
+    views: tuple[PixelView, ...]
+    held: tuple[PixelView | None, ...]
     fit: PixelFit
-    rows: PixelRows
-    held: PixelRows | None
     outliers: tuple[int, ...]
     what: Unknowns = KNOWN
+
+    @property
+    def chain(self) -> Chain:
+        """The first camera's chain."""
+        return self.views[0].chain
+
+    @property
+    def rows(self) -> PixelRows:
+        """The first camera's training rows."""
+        return self.views[0].rows
 
     @property
     def n_unknowns(self) -> int:
@@ -135,44 +158,103 @@ class PixelCalibration:
         """Unknowns the pixels determine (the rank of the rows' Jacobian)."""
         return len(self.fit.free)
 
+    def _held_views(self, which: str) -> tuple[PixelView | None, ...]:
+        return self.views if which == "train" else self.held
+
     def errors(self) -> dict:
-        """Reprojection errors of the registration and of the calibration, train and held out."""
+        """Reprojection errors of the registration and of the calibration, train and held out.
+
+        Over every camera; ``terms``: each camera's, calibrated.
+        """
         out: dict[str, dict | None] = {}
-        for which, rows in (("train", self.rows), ("held_out", self.held)):
-            out[which] = None if rows is None else {
-                "registration": reprojection_errors(self.fit.start, self.chain, self.camera, rows),
-                "calibrated": reprojection_errors(self.fit.state, self.chain, self.camera, rows),
-            }  # fmt: skip
+        for which in ("train", "held_out"):
+            found = [
+                (c.name, a, b, v)
+                for c, a, b, v in zip(
+                    self.cameras, self.fit.starts, self.fit.states, self._held_views(which),
+                    strict=True,
+                )
+                if v is not None
+            ]  # fmt: skip
+            if not found:
+                out[which] = None
+                continue
+            views = [f[3] for f in found]
+            out[which] = {
+                "registration": reprojection_errors([f[1] for f in found], views),
+                "calibrated": reprojection_errors([f[2] for f in found], views),
+                "terms": {f[0]: reprojection_errors([f[2]], [f[3]]) for f in found},
+            }
         return out
 
     def urdf(self) -> bytes:
-        """The URDF: the joints' origins moved, the camera a link fixed to its link."""
+        """The URDF: the joints' origins moved, each camera a link fixed to its link."""
         errors = self.fit.state.placements.errors()
-        camera = (self.camera.name, self.camera.link, self.fit.state.camera)
-        return camera_urdf(self.chain, errors, (camera,))
+        cameras = tuple(
+            (c.name, c.link, s.camera) for c, s in zip(self.cameras, self.fit.states, strict=True)
+        )
+        return camera_urdf(self.chain, errors, cameras)
 
 
-def _held_out(rows: PixelRows, holdout: float, seed: int) -> tuple[PixelRows, PixelRows | None]:
-    """Postures set aside (a seeded fraction of the distinct joint rows)."""
+def _held_postures(obs: PixelObservations, holdout: float, seed: int) -> np.ndarray | None:
+    """The observations' rows of the postures set aside (a seeded fraction), or None."""
     if holdout <= 0:
-        return rows, None
-    postures, which = np.unique(rows.q, axis=0, return_inverse=True)
+        return None
+    postures, which = np.unique(np.asarray(obs.q), axis=0, return_inverse=True)
     rng = np.random.default_rng([seed, 32])
     out = rng.permutation(len(postures))[: round(holdout * len(postures))]
     held = np.isin(which.ravel(), out)
     if not out.size or held.all():
         raise InvalidArgumentError(f"holdout {holdout:g} leaves no posture to fit or to check")
-    return rows.subset(~held), rows.subset(held)
+    return held
 
 
-def _outliers(fit: PixelFit, chain, camera, rows: PixelRows) -> np.ndarray:
-    r = np.linalg.norm(target_residuals(fit.state, chain, rows), axis=1)
-    return (r > OUTLIER_FACTOR * 1.4826 * np.median(r)) & (r > 1.0)
+def _views(chains, cameras, target, obs, validate, holdout, seed):
+    """Each camera's training and held-out views."""
+    held = None if validate is not None else _held_postures(obs, holdout, seed)
+    train, check = [], []
+    for chain, camera in zip(chains, cameras, strict=True):
+        if chain.base_frame != camera.link:
+            raise InvalidArgumentError(
+                f"camera {camera.name}: its chain must start at its link {camera.link}"
+            )
+        keep = None if held is None else ~held
+        train.append(PixelView(chain, pixel_rows(chain, obs, target, camera.name, keep)))
+        rows: PixelRows | None = None
+        if validate is not None:
+            rows = pixel_rows(chain, validate, target, camera.name)
+        elif held is not None:
+            rows = pixel_rows(chain, obs, target, camera.name, held)
+        check.append(None if rows is None or not rows.m else PixelView(chain, rows))
+    return tuple(train), tuple(check)
+
+
+def _outliers(fit: PixelFit, views) -> list[np.ndarray]:
+    out = []
+    for state, view in zip(fit.states, views, strict=True):
+        r = np.linalg.norm(target_residuals(state, view.chain, view.rows), axis=1)
+        out.append((r > OUTLIER_FACTOR * 1.4826 * np.median(r)) & (r > 1.0))
+    return out
+
+
+def _check_held_out(result: PixelCalibration) -> None:
+    """Refuse a camera whose held-out reprojection error is worse than its registration's."""
+    fit = result.fit
+    for camera, a, b, view in zip(result.cameras, fit.starts, fit.states, result.held, strict=True):
+        if view is None:
+            continue
+        before = reprojection_errors([a], [view])["reprojection_rms_px"]
+        after = reprojection_errors([b], [view])["reprojection_rms_px"]
+        if after > before + ROUND_OFF_PX:
+            raise CalibrationRefusedError(
+                f"camera {camera.name}: held-out reprojection error {after:.3f} px is worse than "
+                f"the camera's registration on the nominal robot ({before:.3f} px): no URDF written"
+            )
 
 
 def calibrate_pixels(
-    chain: Chain,
-    camera: PixelCamera,
+    chain: Chain | tuple[Chain, ...],
+    camera: PixelCamera | tuple[PixelCamera, ...],
     target: Target,
     obs: PixelObservations,
     *,
@@ -181,13 +263,16 @@ def calibrate_pixels(
     what: Unknowns = KNOWN,
     seed: int = 0,
 ) -> PixelCalibration:
-    """Calibrate the robot and the camera's placement from the camera's pixels.
+    """Calibrate the robot and the cameras' placements from the cameras' pixels.
+
+    Several cameras (a camera in the cell and one on the head) see one target; every joint
+    placement is shared by the chains through it, fitted once.
 
     Args:
-        chain: From the camera's link to the tool that carries the target.
-        camera: The camera.
+        chain: From each camera's link to the tool that carries the target (one per camera).
+        camera: The camera, or one per chain.
         target: The target points in the tool frame [m].
-        obs: The observations (the camera's rows are used).
+        obs: The observations (each camera's rows are used).
         validate: Held-out observations, or None.
         holdout: Fraction of the postures held out when there is no ``validate``.
         what: The optional unknowns: the target's mounting on its link (``--params
@@ -198,35 +283,34 @@ def calibrate_pixels(
 
     Raises:
         DataError: See :func:`pixel_rows` and :func:`~.pixel_fit.fit_pixels`.
-        CalibrationRefusedError: The held-out reprojection error is worse than the camera's
+        CalibrationRefusedError: A camera's held-out reprojection error is worse than its
             registration's on the nominal robot.
     """
-    if chain.base_frame != camera.link:
-        raise InvalidArgumentError(f"the chain must start at the camera's link {camera.link}")
-    rows = pixel_rows(chain, obs, target, camera.name)
-    held = None if validate is None else pixel_rows(chain, validate, target, camera.name)
-    if held is None:
-        rows, held = _held_out(rows, holdout, seed)
-    guess = camera.placement
-    if guess is None:
-        guess = camera_placement(chain, camera.name, camera.link)
-    pin = camera.intrinsics.camera
-    placements = Placements.of((chain,))
+    chains = chain if isinstance(chain, tuple) else (chain,)
+    cameras = camera if isinstance(camera, tuple) else (camera,)
+    if len(chains) != len(cameras) or len({c.name for c in cameras}) != len(cameras):
+        raise InvalidArgumentError("give one chain per camera, and each camera once")
+    views, held = _views(chains, cameras, target, obs, validate, holdout, seed)
+    guesses = tuple(
+        c.placement if c.placement is not None else camera_placement(ch, c.name, c.link)
+        for ch, c in zip(chains, cameras, strict=True)
+    )
+    lenses = tuple(c.intrinsics.camera for c in cameras)
+    names = tuple(c.name for c in cameras)
+    placements = Placements.of(chains)
     dropped: tuple[int, ...] = ()
     for _ in range(3):
-        fit = fit_pixels(placements, target.position, guess, chain, pin, rows, what, obs.source)
-        bad = _outliers(fit, chain, pin, rows)
-        if not bad.any():
+        fit = fit_pixels(
+            placements, target.position, guesses, views, lenses, names, what, obs.source
+        )
+        bad = _outliers(fit, views)
+        if not any(b.any() for b in bad):
             break
-        dropped += tuple(n for n, b in zip(rows.lines, bad, strict=True) if b)
-        rows = rows.subset(~bad)
-    result = PixelCalibration(chain, camera, fit, rows, held, tuple(sorted(dropped)), what)
-    if held is not None:
-        before = reprojection_errors(fit.start, chain, camera, held)["reprojection_rms_px"]
-        after = reprojection_errors(fit.state, chain, camera, held)["reprojection_rms_px"]
-        if after > before + ROUND_OFF_PX:
-            raise CalibrationRefusedError(
-                f"camera {camera.name}: held-out reprojection error {after:.3f} px is worse than "
-                f"the camera's registration on the nominal robot ({before:.3f} px): no URDF written"
-            )
+        for view, b in zip(views, bad, strict=True):
+            dropped += tuple(n for n, x in zip(view.rows.lines, b, strict=True) if x)
+        views = tuple(
+            PixelView(v.chain, v.rows.subset(~b)) for v, b in zip(views, bad, strict=True)
+        )
+    result = PixelCalibration(cameras, views, held, fit, tuple(sorted(dropped)), what)
+    _check_held_out(result)
     return result

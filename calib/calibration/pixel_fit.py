@@ -20,6 +20,7 @@ from ..exceptions import DataError
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from .pixel_term import (
+    GAUGE_POINTS,
     KNOWN,
     PixelRows,
     PixelState,
@@ -36,6 +37,7 @@ from .placements import Placements
 
 __all__ = [
     "PixelFit",
+    "PixelView",
     "camera_from_rays",
     "fit_pixels",
     "rays",
@@ -101,11 +103,66 @@ def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndar
     return np.linalg.inv(seen)
 
 
-def _solve(state: PixelState, chain, rows, free, what: Unknowns, steps: int) -> PixelState:
-    """Levenberg-Marquardt on the columns ``free``; the state of least squared error."""
-    r, J = pixel_jacobian(state, chain, rows, what)
+@dataclass(frozen=True, eq=False)
+class PixelView:
+    """One camera's rows on its chain (a camera's link to the target's tool).
+
+    Attributes:
+        chain: The camera's link to the tool.
+        rows: Its observations.
+    """
+
+    chain: Chain
+    rows: PixelRows
+
+
+def _layout(states: tuple[PixelState, ...], what: Unknowns) -> tuple[list[np.ndarray], int]:
+    """Each camera's columns (:func:`~.pixel_term.pixel_jacobian`'s) in the joint columns.
+
+    Joint columns: each camera's 6, the joint placements, the mounting, the target points,
+    each camera's intrinsics. Returns the index of each camera's columns and their count.
+    """
+    C, n = len(states), states[0].placements.y.size
+    k = len(states[0].target)
+    shared = np.arange(6 * C, 6 * C + n + 6 + (3 * (k - GAUGE_POINTS) if what.targets else 0))
+    start = int(shared[-1]) + 1
+    out = []
+    for c, state in enumerate(states):
+        lens = 4 + len(state.lens.distortion) if what.intrinsics else 0
+        out.append(np.concatenate([np.arange(6 * c, 6 * c + 6), shared, start + np.arange(lens)]))
+        start += lens
+    return out, start
+
+
+def _stacked(states, views, what: Unknowns):
+    """All cameras' residuals ``(M, 2)`` and joint Jacobian ``(M, 2, size)``."""
+    layout, size = _layout(states, what)
+    rs, Js = [], []
+    for state, view, index in zip(states, views, layout, strict=True):
+        r, J = pixel_jacobian(state, view.chain, view.rows, what)
+        full = np.zeros((len(r), 2, size))
+        full[:, :, index] = J
+        rs.append(r)
+        Js.append(full)
+    return np.concatenate(rs), np.concatenate(Js)
+
+
+def _moved(states, dx: np.ndarray, what: Unknowns) -> tuple[PixelState, ...]:
+    layout = _layout(states, what)[0]
+    return tuple(apply_step(s, dx[i], what) for s, i in zip(states, layout, strict=True))
+
+
+def _residuals(states, views) -> np.ndarray:
+    return np.concatenate(
+        [pixel_residuals(s, v.chain, v.rows) for s, v in zip(states, views, strict=True)]
+    )
+
+
+def _solve(states, views, free, what: Unknowns, steps: int) -> tuple[PixelState, ...]:
+    """Levenberg-Marquardt on the joint columns ``free``; the states of least squared error."""
+    r, J = _stacked(states, views, what)
     cost, damping = float(np.sum(r**2)), 1e-6
-    size = J.shape[2]
+    size, m = J.shape[2], len(r)
     for _ in range(steps):
         A = J.reshape(-1, size)[:, free]
         g, H = A.T @ r.ravel(), A.T @ A
@@ -113,20 +170,20 @@ def _solve(state: PixelState, chain, rows, free, what: Unknowns, steps: int) -> 
             step = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-30), -g)
             dx = np.zeros(size)
             dx[list(free)] = step
-            trial = apply_step(state, dx, what)
-            r_t = pixel_residuals(trial, chain, rows)
+            trial = _moved(states, dx, what)
+            r_t = _residuals(trial, views)
             cost_t = float(np.sum(r_t**2)) if np.all(np.isfinite(r_t)) else np.inf
             if cost_t <= cost or damping > 1e12:
                 break
             damping *= 10
         if cost_t > cost:
             break
-        done = cost - cost_t <= 1e-14 * cost or cost_t < 1e-26 * rows.m
-        state, cost, damping = trial, cost_t, max(damping / 10, 1e-9)
+        done = cost - cost_t <= 1e-14 * cost or cost_t < 1e-26 * m
+        states, cost, damping = trial, cost_t, max(damping / 10, 1e-9)
         if done:
             break
-        r, J = pixel_jacobian(state, chain, rows, what)
-    return state
+        r, J = _stacked(states, views, what)
+    return states
 
 
 def target_residuals(state: PixelState, chain, rows: PixelRows) -> np.ndarray:
@@ -136,59 +193,83 @@ def target_residuals(state: PixelState, chain, rows: PixelRows) -> np.ndarray:
 
 def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
     """The camera's placement by least squares on the current robot (its 6 unknowns alone)."""
-    return _solve(state, chain, rows, tuple(range(6)), KNOWN, MAX_STEPS)
+    return _solve((state,), (PixelView(chain, rows),), tuple(range(6)), KNOWN, MAX_STEPS)[0]
 
 
 @dataclass(frozen=True, eq=False)
 class PixelFit:
-    """A fitted pixel term.
+    """A fitted pixel problem: one or several cameras seeing one target.
 
     Attributes:
-        start: The state after the camera's registration (nominal robot).
-        state: The fitted state.
-        free: The columns fitted (indices into :attr:`names`).
-        names: Every column's name.
+        starts: Each camera's state after its registration (nominal robot).
+        states: Each camera's fitted state (one robot and target: the same in each).
+        free: The joint columns fitted (indices into :attr:`names`).
+        names: Every joint column's name.
     """
 
-    start: PixelState
-    state: PixelState
+    starts: tuple[PixelState, ...]
+    states: tuple[PixelState, ...]
     free: tuple[int, ...]
     names: tuple[str, ...]
+
+    @property
+    def start(self) -> PixelState:
+        """The first camera's registered state."""
+        return self.starts[0]
+
+    @property
+    def state(self) -> PixelState:
+        """The first camera's fitted state."""
+        return self.states[0]
+
+
+def _names(states, cameras: tuple[str, ...], what: Unknowns) -> tuple[str, ...]:
+    """The joint columns' names: each camera's under its name."""
+    layout, size = _layout(states, what)
+    names = [""] * size
+    for state, name, index in zip(states, cameras, layout, strict=True):
+        for i, local in zip(index, column_names(state, what), strict=True):
+            names[i] = local.replace("camera.", f"{name}.", 1)
+    return tuple(names)
 
 
 def fit_pixels(
     placements: Placements,
     target: np.ndarray,
-    guess: np.ndarray | None,
-    chain: Chain,
-    camera: Pinhole,
-    rows: PixelRows,
+    guesses: tuple[np.ndarray | None, ...],
+    views: tuple[PixelView, ...],
+    lenses: tuple[Pinhole, ...],
+    cameras: tuple[str, ...],
     what: Unknowns = KNOWN,
     source: str = "<observations>",
 ) -> PixelFit:
-    """Register the camera, choose the determined unknowns, fit them.
+    """Register each camera, choose the determined unknowns, fit them together.
 
     Args:
-        placements: The robot (zero errors on the chain's joints).
+        placements: The robot (zero errors on every camera chain's joints).
         target: The target points in the tool frame ``(k, 3)`` [m].
-        guess: The camera's optical frame in the chain's base link ``(4, 4)`` [m], or None:
-            placed in closed form (:func:`camera_from_rays`).
-        chain: The camera's link to the target's tool.
-        camera: The camera's intrinsics (the start, with ``what.intrinsics``).
-        rows: The observations.
+        guesses: Each camera's optical frame in its chain's base link ``(4, 4)`` [m], or
+            None: placed in closed form (:func:`camera_from_rays`).
+        views: Each camera's chain and rows.
+        lenses: Each camera's intrinsics (the start, with ``what.intrinsics``).
+        cameras: Each camera's name.
         what: The optional unknowns (mounting, target points, intrinsics).
         source: The observations' file, for messages.
 
     Raises:
-        DataError: Too few observations, or points behind the camera once it is placed.
+        DataError: Too few observations, or points behind a camera once it is placed.
     """
-    if guess is None:
-        p_link = target_points(PixelState(placements, np.eye(4), target, camera), chain, rows)[1]
-        guess = camera_from_rays(p_link, rays(camera, rows.pixels), source)
-    state = PixelState(placements, guess, target, camera)
-    check_in_front(target_points(state, chain, rows)[0], rows, source)
-    start = refine_camera(state, chain, rows)
-    J = pixel_jacobian(start, chain, rows, what)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), start.placements, what)
-    fitted = _solve(start, chain, rows, free, what, MAX_STEPS)
-    return PixelFit(start, fitted, free, column_names(start, what))
+    starts = []
+    for guess, view, lens in zip(guesses, views, lenses, strict=True):
+        chain, rows = view.chain, view.rows
+        if guess is None:
+            state = PixelState(placements, np.eye(4), target, lens)
+            p_link = target_points(state, chain, rows)[1]
+            guess = camera_from_rays(p_link, rays(lens, rows.pixels), source)
+        state = PixelState(placements, guess, target, lens)
+        check_in_front(target_points(state, chain, rows)[0], rows, source)
+        starts.append(refine_camera(state, chain, rows))
+    J = _stacked(tuple(starts), views, what)[1]
+    free = free_columns(J.reshape(-1, J.shape[2]), placements, what, len(views))
+    fitted = _solve(tuple(starts), views, free, what, MAX_STEPS)
+    return PixelFit(tuple(starts), fitted, free, _names(tuple(starts), cameras, what))

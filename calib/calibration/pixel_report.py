@@ -49,57 +49,54 @@ def _parameters(result: PixelCalibration) -> list[dict]:
     return out
 
 
-def _camera(result: PixelCalibration) -> dict:
-    """A camera's link, placement and intrinsics (fitted with ``--refine-intrinsics``)."""
-    lens = result.fit.state.lens
+def _camera(result: PixelCalibration, c: int) -> dict:
+    """Camera c's link, placement and intrinsics (fitted with ``--refine-intrinsics``)."""
+    state = result.fit.states[c]
+    lens = state.lens
     intrinsics = dict(zip(lens.parameter_names, map(float, lens.parameters), strict=True))
     return {
-        "link": result.camera.link,
-        **_pose(result.fit.state.camera),
+        "link": result.cameras[c].link,
+        **_pose(state.camera),
         "intrinsics": intrinsics,
         "intrinsics_fitted": result.what.intrinsics,
     }
 
 
-def _errors(result: PixelCalibration) -> dict:
-    name = result.camera.name
-    out: dict[str, dict | None] = {}
-    for which, errors in result.errors().items():
-        out[which] = None if errors is None else {**errors, "terms": {name: errors["calibrated"]}}
-    return out
+def _terms(result: PixelCalibration) -> list[dict]:
+    return [
+        {
+            "base": camera.link,
+            "tool": view.chain.tool_frame,
+            "kind": "pixels",
+            "camera": camera.name,
+            "configs": len(np.unique(view.rows.q, axis=0)),
+            "rows": int(view.rows.m),
+        }
+        for camera, view in zip(result.cameras, result.views, strict=True)
+    ]
 
 
 def pixel_report(result: PixelCalibration, warnings: list[str]) -> dict:
     """The report of a pixel calibration (the keys of :data:`~.report.REPORT_KEYS`)."""
-    state, chain, camera = result.fit.state, result.chain, result.camera
+    state, chain = result.fit.state, result.chain
     targets = {f"p{i}": [float(v) for v in x] for i, x in enumerate(state.target)}
+    cameras = {c.name: _camera(result, i) for i, c in enumerate(result.cameras)}
     report = {
         "format_version": REPORT_FORMAT,
         "deprecated": {},
         "robot": chain.name,
         "urdf": str(chain.urdf_path),
         "shape": "pixels",
-        "terms": [
-            {
-                "base": camera.link,
-                "tool": chain.tool_frame,
-                "kind": "pixels",
-                "camera": camera.name,
-                "configs": len(np.unique(result.rows.q, axis=0)),
-                "rows": int(result.rows.m),
-            }
-        ],
-        "params": "complete"
-        if "mount.x" in [result.fit.names[i] for i in result.fit.free]
-        else "auto",
+        "terms": _terms(result),
+        "params": "complete" if result.what.mount else "auto",
         "accepted": True,
         "refusal": None,
         "converged": True,
         "message": "",
         "iterations": None,
         "parameters": _parameters(result),
-        "errors": _errors(result),
-        "frames": {"cameras": {camera.name: _camera(result)}},
+        "errors": result.errors(),
+        "frames": {"cameras": cameras},
         "objects": {"targets": targets},
         "fit": {
             "determined": result.count,
@@ -118,17 +115,16 @@ def pixel_report(result: PixelCalibration, warnings: list[str]) -> dict:
 
 def pixel_summary(result: PixelCalibration) -> str:
     """The text ``calibrate --measure pixels`` prints."""
-    camera, chain = result.camera, result.chain
-    pose = _pose(result.fit.state.camera)
+    seen = sum(v.rows.m for v in result.views)
     lines = [
-        f"{chain.name}: camera {camera.name} on {camera.link} sees {chain.tool_frame}'s target: "
-        f"{result.rows.m} pixels, {result.count} unknowns determined of {result.n_unknowns}",
-        f"camera {camera.name} in {camera.link}: xyz "
-        + " ".join(f"{v:.6f}" for v in pose["xyz"])
-        + " m, rpy "
-        + " ".join(f"{v:.6f}" for v in pose["rpy"])
-        + " rad",
+        f"{result.chain.name}: {len(result.cameras)} camera(s) see {result.chain.tool_frame}'s "
+        f"target: {seen} pixels, {result.count} unknowns determined of {result.n_unknowns}"
     ]
+    for camera, state in zip(result.cameras, result.fit.states, strict=True):
+        pose = _pose(state.camera)
+        xyz = " ".join(f"{v:.6f}" for v in pose["xyz"])
+        rpy = " ".join(f"{v:.6f}" for v in pose["rpy"])
+        lines.append(f"camera {camera.name} in {camera.link}: xyz {xyz} m, rpy {rpy} rad")
     for which, errors in result.errors().items():
         if errors is None:
             continue
@@ -139,8 +135,8 @@ def pixel_summary(result: PixelCalibration) -> str:
             f"{b['position_rms_mm']:.3f} mm at the target)"
         )
     if result.outliers:
-        rows = ", ".join(str(n) for n in result.outliers[:10])
-        lines.append(f"{len(result.outliers)} observation(s) set aside as outliers: rows {rows}")
+        named = ", ".join(str(n) for n in result.outliers[:10])
+        lines.append(f"{len(result.outliers)} observation(s) set aside as outliers: rows {named}")
     return "\n".join(lines)
 
 

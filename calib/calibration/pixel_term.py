@@ -226,7 +226,7 @@ def apply_step(state: PixelState, dx: np.ndarray, what: Unknowns) -> PixelState:
     return PixelState(placements, state.camera @ step, target, lens)
 
 
-def _preference(placements: Placements, size: int) -> list[int]:
+def _preference(placements: Placements, size: int, cameras: int) -> list[int]:
     """Columns in order of preference.
 
     The camera, the target's mounting, the joints' offsets, their other components, the
@@ -239,24 +239,28 @@ def _preference(placements: Placements, size: int) -> list[int]:
     for j, jid in enumerate(placements.ids):
         off = ("x", "y", "z", "rx", "ry", "rz").index(offset_component(nominal, jid))
         for c in range(6):
-            (offsets if c == off else others).append(6 + 6 * j + c)
-    n = 6 + placements.y.size
-    return [*range(6), *range(n, n + 6), *offsets, *others, *range(n + 6, size)]
+            (offsets if c == off else others).append(6 * cameras + 6 * j + c)
+    n = 6 * cameras + placements.y.size
+    return [*range(6 * cameras), *range(n, n + 6), *offsets, *others, *range(n + 6, size)]
 
 
-def free_columns(W: np.ndarray, placements: Placements, what: Unknowns) -> tuple[int, ...]:
+def free_columns(
+    W: np.ndarray, placements: Placements, what: Unknowns, cameras: int = 1
+) -> tuple[int, ...]:
     """The columns of ``W`` ``(r, c)`` the rows determine, in order of preference.
 
-    The columns are scaled to unit length first (metres and radians, pixels per each).
-    Without ``what.mount``, the target's mounting is known (its columns are never free).
+    ``W``'s columns: each camera's 6, the joint placements, the mounting, the target points,
+    each camera's intrinsics. They are scaled to unit length first (metres and radians,
+    pixels per each). Without ``what.mount``, the target's mounting is known (its columns
+    are never free).
     """
     norms = np.linalg.norm(W, axis=0)
     used = norms > 0
     if not what.mount:
-        n = 6 + placements.y.size
+        n = 6 * cameras + placements.y.size
         used[n : n + 6] = False
     scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)
-    order = [c for c in _preference(placements, W.shape[1]) if used[c]]
+    order = [c for c in _preference(placements, W.shape[1], cameras) if used[c]]
     kept = independent_columns(scaled[:, order], list(range(len(order))))[2]
     return tuple(sorted(order[i] for i in kept))
 

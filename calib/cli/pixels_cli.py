@@ -41,7 +41,7 @@ def add_pixel_arguments(p: argparse.ArgumentParser, calibrate: bool = False) -> 
         metavar="ARG",
         help="with --measure pixels: NAME LINK INTRINSICS.yaml [X Y Z RX RY RZ], a camera "
         "fixed to LINK (its optical frame: z forward, x right, y down) and its placement on "
-        "LINK [m, rad; roll-pitch-yaw as URDF]",
+        "LINK [m, rad; roll-pitch-yaw as URDF]; calibrate takes it once per camera",
     )
     p.add_argument(
         "--target", metavar="TARGET.csv", help="with --measure pixels: the points on the tool [m]"
@@ -74,23 +74,30 @@ def refuse_pixel_options(args: argparse.Namespace) -> None:
         raise InvalidArgumentError(f"{typed[0]} is for --measure pixels")
 
 
-def _camera(args: argparse.Namespace, placed: bool):
-    """The one camera of ``--camera`` (with its placement when ``placed``)."""
+def _cameras(args: argparse.Namespace, placed: bool, several: bool = False) -> tuple:
+    """The cameras of ``--camera`` (with their placements when ``placed``)."""
+    cameras = args.camera or []
+    if not cameras or (len(cameras) > 1 and not several):
+        raise InvalidArgumentError(
+            f"--measure pixels takes {'one or more' if several else 'one'} --camera NAME LINK "
+            f"INTRINSICS [X Y Z RX RY RZ], got {len(cameras)}"
+        )
+    out = tuple(_camera(values, placed) for values in cameras)
+    names = [c.name for c in out]
+    if len(set(names)) != len(names):
+        raise InvalidArgumentError("a camera is given twice (--camera NAME ...)")
+    return out
+
+
+def _camera(values: list[str], placed: bool):
+    """One ``--camera NAME LINK INTRINSICS [X Y Z RX RY RZ]``."""
     from ..calibration.pixel_calibration import PixelCamera
     from ..kinematics.so3 import rpy_to_matrix
     from ..measurements.intrinsics import read_intrinsics
 
-    cameras = args.camera or []
-    if len(cameras) != 1:
-        raise InvalidArgumentError(
-            f"--measure pixels takes one --camera NAME LINK INTRINSICS [X Y Z RX RY RZ], got "
-            f"{len(cameras)} (several cameras in one fit: not yet)"
-        )
-    values = cameras[0]
     if len(values) not in (3, 9) or (placed and len(values) != 9):
-        need = (
-            "NAME LINK INTRINSICS X Y Z RX RY RZ" if placed else "NAME LINK INTRINSICS [6 numbers]"
-        )
+        need = "NAME LINK INTRINSICS X Y Z RX RY RZ"
+        need = need if placed else "NAME LINK INTRINSICS [6 numbers]"
         raise InvalidArgumentError(f"--camera takes {need}, got {len(values)} values")
     name, link, path = values[:3]
     placement = None
@@ -108,7 +115,7 @@ def _camera(args: argparse.Namespace, placed: bool):
     return PixelCamera(name, link, read_intrinsics(path), placement)
 
 
-def _chain_and_target(args: argparse.Namespace, camera):
+def _chain_and_target(args: argparse.Namespace, camera, target=None):
     from ..kinematics.robot import load_chain
     from ..measurements.pixels import read_target
 
@@ -117,7 +124,7 @@ def _chain_and_target(args: argparse.Namespace, camera):
     tool = args.tool[-1] if isinstance(args.tool, list) else args.tool
     if isinstance(args.tool, list) and len(args.tool) != 1:
         raise InvalidArgumentError("--measure pixels takes one --tool (the target's link)")
-    target = read_target(args.target)
+    target = read_target(args.target) if target is None else target
     if target.link is not None and set(target.link) != {tool}:
         raise InvalidArgumentError(
             f"{args.target}: every point must be on the tool {tool} (targets on several links: "
@@ -145,19 +152,21 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
             "--measure pixels fits what the pixels determine (--params auto), or also the "
             f"target's mounting (--params complete), not --params {args.params}"
         )
-    camera = _camera(args, placed=False)
-    chain, target = _chain_and_target(args, camera)
+    cameras = _cameras(args, placed=False, several=True)
+    chain, target = _chain_and_target(args, cameras[0])
+    chains = (chain, *(_chain_and_target(args, c, target)[0] for c in cameras[1:]))
     outputs = {"--out": args.out, "--report": args.report}
     inputs = {"the URDF": chain.urdf_path, "--data": args.data, "--target": args.target}
     check_output_paths(outputs, {**inputs, "--validate": args.validate})
-    cameras = {camera.name: camera.intrinsics}
-    obs = read_observations(args.data, chain.joint_names, cameras, target)
+    lenses = {c.name: c.intrinsics for c in cameras}
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    obs = read_observations(args.data, joints, lenses, target)
     check = None
     if args.validate:
-        check = read_observations(args.validate, chain.joint_names, cameras, target)
+        check = read_observations(args.validate, joints, lenses, target)
     result = calibrate_pixels(
-        chain,
-        camera,
+        chains,
+        cameras,
         target,
         obs,
         validate=check,
@@ -190,7 +199,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     from ..measurements.pixels import observations_csv
     from ..measurements.true_robot import true_robot
 
-    camera = _camera(args, placed=True)
+    camera = _cameras(args, placed=True)[0]
     chain, target = _chain_and_target(args, camera)
     out = Path(args.out)
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
@@ -228,7 +237,7 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
     """``analyze --measure pixels``: the unknowns the camera's pixels determine."""
     from ..calibration.pixel_report import pixel_count
 
-    camera = _camera(args, placed=True)
+    camera = _cameras(args, placed=True)[0]
     chain, target = _chain_and_target(args, camera)
     counted = pixel_count(chain, camera, target, args.configs, args.seed, args.params)
     if args.json:

@@ -1,0 +1,205 @@
+"""Several cameras in one fit: TIAGo's head camera and a camera in the cell see its hand.
+
+The joint placements are shared (the arm's joints are on both chains, the torso on the cell
+camera's, the head on the head camera's): one fit, one URDF with both camera links. Checked by
+Pinocchio loading the written URDF and by the rank of central differences of Pinocchio's
+placements (tests/pixel_scorer.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from pixel_scorer import moved_model, numerical_rank, seen_pixels
+from pixel_setups import INTRINSICS, grid, look_at
+
+from calib import load_chain
+from calib.calibration.pixel_calibration import PixelCamera, calibrate_pixels, pixel_rows
+from calib.measurements.pixel_simulation import simulate_pixels
+from calib.measurements.pixels import PixelObservations
+from calib.measurements.true_robot import true_robot
+
+K, DIST = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
+TARGET = grid(4, 3, 0.03)
+
+
+def _merged(parts, joints) -> PixelObservations:
+    """Each camera's observations with the union's joint columns."""
+    q, camera, point, pixels = [], [], [], []
+    for obs, full in parts:
+        index = {
+            tuple(row): i
+            for i, row in enumerate(full[:, [joints.index(j) for j in obs.joint_names]])
+        }
+        q.append(full[[index[tuple(row)] for row in np.asarray(obs.q)]])
+        camera += obs.camera
+        point += obs.point
+        pixels.append(obs.pixels)
+    return PixelObservations(
+        joints, np.concatenate(q), tuple(camera), tuple(point), np.concatenate(pixels)
+    )
+
+
+@pytest.fixture(scope="module")
+def two(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("tiago2")
+    head = load_chain("tiago", base="xtion_link", tool="arm_tool_link")
+    cell = load_chain("tiago", base="base_footprint", tool="arm_tool_link")
+    path = folder / "true.urdf"
+    true_robot([head, cell], path, seed=4)
+    truths = [load_chain(str(path), base=c.base_frame, tool="arm_tool_link") for c in (head, cell)]
+    model = head.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    C_head = (
+        data.oMf[model.getFrameId("xtion_link")].inverse()
+        * data.oMf[model.getFrameId("xtion_optical_frame")]
+    ).homogeneous
+    C_cell = look_at(np.array([1.8, -0.6, 1.4]), [0.4, 0.0, 0.8])
+    placements = (C_head, C_cell)
+    joints = tuple(dict.fromkeys((*head.joint_names, *cell.joint_names)))
+    qh, qc = head.random_configurations(3000, 5), cell.random_configurations(3000, 6)
+    full = np.zeros((3000, len(joints)))
+    for chain, q in ((cell, qc), (head, qh)):
+        full[:, [joints.index(j) for j in chain.joint_names]] = q
+    parts = []
+    for name, truth, C in zip(("head", "cell"), truths, placements, strict=True):
+        q = full[:, [joints.index(j) for j in truth.joint_names]]
+        parts.append((simulate_pixels(truth, name, C, INTRINSICS, TARGET, q), full))
+    seen = {tuple(r) for r in np.asarray(parts[0][0].q)}  # postures the head camera sees
+    keep = [
+        i
+        for i, r in enumerate(full[:, [joints.index(j) for j in head.joint_names]])
+        if tuple(r) in seen
+    ][:150]
+    full = full[keep]
+    parts = [
+        (
+            simulate_pixels(
+                t, n, C, INTRINSICS, TARGET, full[:, [joints.index(j) for j in t.joint_names]]
+            ),
+            full,
+        )
+        for n, t, C in zip(("head", "cell"), truths, placements, strict=True)
+    ]
+    obs = _merged(parts, joints)
+    cameras = (
+        PixelCamera("xtion_optical_frame", "xtion_link", INTRINSICS, None),
+        PixelCamera("cell_camera", "base_footprint", INTRINSICS, C_cell),
+    )
+    renamed = PixelObservations(
+        obs.joint_names,
+        obs.q,
+        tuple({"head": "xtion_optical_frame", "cell": "cell_camera"}[c] for c in obs.camera),
+        obs.point,
+        obs.pixels,
+    )
+    result = calibrate_pixels((head, cell), cameras, TARGET, renamed)
+    return head, cell, renamed, result, placements
+
+
+def test_two_cameras_one_urdf_reproduces_every_pixel(two, tmp_path):
+    head, cell, obs, result, _ = two
+    assert {o for o in obs.camera} == {"xtion_optical_frame", "cell_camera"}
+    path = tmp_path / "cal.urdf"
+    path.write_bytes(result.urdf())
+    text = path.read_text()
+    assert text.count('<link name="xtion_optical_frame"') == 1
+    assert text.count('<link name="cell_camera"') == 1
+    model = pin.buildModelFromUrdf(str(path))
+    for name, chain in (("xtion_optical_frame", head), ("cell_camera", cell)):
+        rows = pixel_rows(chain, obs, TARGET, name)
+        assert rows.m > 100
+        seen = seen_pixels(
+            model,
+            name,
+            "arm_tool_link",
+            chain.joint_names,
+            rows.q,
+            TARGET.position[rows.point],
+            np.eye(4),
+            K,
+            DIST,
+        )
+        assert np.max(np.abs(seen - rows.pixels)) < 1e-9
+    errors = result.errors()["train"]
+    assert set(errors["terms"]) == {"xtion_optical_frame", "cell_camera"}
+    assert errors["registration"]["reprojection_rms_px"] > 0.3
+
+
+def test_two_cameras_count_equals_an_independent_rank(two):
+    """Central differences over both cameras' 6 and every joint's 6 on both chains' rows."""
+    head, cell, obs, result, placements = two
+    C = (result.fit.starts[0].camera, placements[1])
+    h = 1e-6
+    rows = [
+        pixel_rows(c, obs, TARGET, n)
+        for c, n in ((head, "xtion_optical_frame"), (cell, "cell_camera"))
+    ]
+    rows = [r.subset(np.arange(r.m) % 6 == 0) for r in rows]
+
+    def px(model=head.model, Cs=C):
+        return np.concatenate(
+            [
+                seen_pixels(
+                    model,
+                    ch.base_frame,
+                    "arm_tool_link",
+                    ch.joint_names,
+                    r.q,
+                    TARGET.position[r.point],
+                    Ci,
+                    K,
+                    DIST,
+                ).ravel()
+                for ch, r, Ci in zip((head, cell), rows, Cs, strict=True)
+            ]
+        )
+
+    cols = []
+    for c in range(2):
+        for e in h * np.eye(6):
+            up, down = [np.array(x) for x in C], [np.array(x) for x in C]
+            up[c] = up[c] @ np.block([[pin.exp3(e[3:]), e[:3, None]], [np.zeros((1, 3)), 1]])
+            down[c] = down[c] @ np.block([[pin.exp3(-e[3:]), -e[:3, None]], [np.zeros((1, 3)), 1]])
+            cols.append((px(Cs=up) - px(Cs=down)) / (2 * h))
+    joints = tuple(dict.fromkeys((*head.joint_names, *cell.joint_names)))
+    for name in joints:
+        for e in h * np.eye(6):
+            cols.append(
+                (
+                    px(model=moved_model(head.model, name, np.eye(3), e))
+                    - px(model=moved_model(head.model, name, np.eye(3), -e))
+                )
+                / (2 * h)
+            )
+    assert numerical_rank(np.column_stack(cols)) == result.count
+    assert result.count > 38  # more than the head camera alone (tests/test_pixel_calibration.py)
+
+
+def test_two_cameras_on_the_command_line(two, tmp_path, capsys):
+    """--camera twice: one URDF with both camera links, the report's cameras and terms."""
+    import json
+
+    from calib.cli import main
+    from calib.measurements.intrinsics import write_intrinsics
+    from calib.measurements.pixels import write_observations, write_target
+
+    _, _, obs, result, placements = two
+    write_observations(tmp_path / "obs.csv", obs)
+    write_target(tmp_path / "target.csv", TARGET)
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    T = placements[1]
+    numbers = [repr(float(v)) for v in (*T[:3, 3], *pin.rpy.matrixToRpy(T[:3, :3]))]
+    argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv",
+            "--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml",
+            "--camera", "cell_camera", "base_footprint", tmp_path / "intr.yaml", *numbers,
+            "--target", tmp_path / "target.csv", "--tool", "arm_tool_link",
+            "--out", tmp_path / "cal.urdf", "--report", tmp_path / "r.json"]  # fmt: skip
+    assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert set(doc["frames"]["cameras"]) == {"xtion_optical_frame", "cell_camera"}
+    assert [t["camera"] for t in doc["terms"]] == ["xtion_optical_frame", "cell_camera"]
+    assert doc["fit"]["determined"] == result.count
+    assert doc["errors"]["train"]["calibrated"]["reprojection_max_px"] < 1e-9
