@@ -35,7 +35,8 @@ __all__ = [
 
 OUTLIER_FACTOR = 6.0
 """A row is an outlier when its reprojection error exceeds this many robust standard
-deviations (1.4826 times the median error) and 1 px."""
+deviations (1.4826 times the median error) and 1 px, or when the target gives normals and the
+point is seen from behind its normal."""
 
 ROUND_OFF_PX = 1e-9
 """Held-out errors within this of the registration's are not worse [px]."""
@@ -229,11 +230,23 @@ def _views(chains, cameras, target, obs, validate, holdout, seed):
     return tuple(train), tuple(check)
 
 
-def _outliers(fit: PixelFit, views) -> list[np.ndarray]:
+def _from_behind(state: PixelState, view: PixelView, normals: np.ndarray) -> np.ndarray:
+    """Rows whose point's outward normal faces away from the camera (seen from behind)."""
+    kin = target_points(state, view.chain, view.rows)
+    p_cam, tool = kin[0], kin[2][2].R[:, -1]
+    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], tool, normals[view.rows.point])
+    return np.einsum("mi,mi->m", n_cam, p_cam) >= 0
+
+
+def _outliers(fit: PixelFit, views, normals: np.ndarray | None) -> list[np.ndarray]:
+    """Each camera's outlier rows: a gross error, or a point seen from behind its normal."""
     out = []
     for state, view in zip(fit.states, views, strict=True):
         r = np.linalg.norm(target_residuals(state, view.chain, view.rows), axis=1)
-        out.append((r > OUTLIER_FACTOR * 1.4826 * np.median(r)) & (r > 1.0))
+        bad = (r > OUTLIER_FACTOR * 1.4826 * np.median(r)) & (r > 1.0)
+        if normals is not None:
+            bad |= _from_behind(state, view, normals)
+        out.append(bad)
     return out
 
 
@@ -303,7 +316,7 @@ def calibrate_pixels(
         fit = fit_pixels(
             placements, target.position, guesses, views, lenses, names, what, obs.source
         )
-        bad = _outliers(fit, views)
+        bad = _outliers(fit, views, target.normal)
         if not any(b.any() for b in bad):
             break
         for view, b in zip(views, bad, strict=True):
