@@ -256,3 +256,28 @@ def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_pat
     lines = np.arange(len(behind)) + 2  # the header is line 1
     assert set(lines[behind > 0.01]) <= named  # (within 1 cm of the plane: either)
     assert not set(lines[behind < -0.01]) & named
+
+
+def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_path, ur5):
+    """Validation pixels of the nominal robot (another robot than the training data's): the
+    calibrated model is worse on them than the camera registered on the nominal robot, so
+    it is refused: exit non-zero, no URDF, the report written with the refusal."""
+    from calib.measurements.pixel_simulation import simulate_pixels
+    from calib.measurements.pixels import write_observations
+
+    folder, _ = ur5
+    nominal = load_chain("ur5", base="world", tool="tool0")
+    C = look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3])
+    q = nominal.random_configurations(60, 9)
+    other = simulate_pixels(nominal, "cam", C, INTRINSICS, read_target(folder / "target.csv"), q)
+    write_observations(tmp_path / "val.csv", other)
+    out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
+        "--validate", tmp_path / "val.csv", "--camera", "cam", "world", folder / "intr.yaml",
+        "--target", folder / "target.csv", "--tool", "tool0", "--out", out, "--report", report,
+    )  # fmt: skip
+    assert code != 0 and not out.exists()
+    assert "calibration refused: camera cam: held-out reprojection error" in err
+    doc = json.loads(report.read_text())
+    assert doc["accepted"] is False and doc["refusal"].startswith("camera cam: held-out")

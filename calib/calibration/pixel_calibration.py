@@ -11,6 +11,7 @@ camera a link fixed to its link (its optical frame).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -130,6 +131,8 @@ class PixelCalibration:
         fit: The fit (its ``starts``: the cameras registered on the nominal robot).
         outliers: Lines of the rows set aside.
         what: The optional unknowns fitted.
+        refusal: Why the model must not be written (a camera's held-out error worse than
+            its registration's), or None.
     """
 
     cameras: tuple[PixelCamera, ...]
@@ -138,6 +141,7 @@ class PixelCalibration:
     fit: PixelFit
     outliers: tuple[int, ...]
     what: Unknowns = KNOWN
+    refusal: str | None = None
 
     @property
     def chain(self) -> Chain:
@@ -250,8 +254,8 @@ def _outliers(fit: PixelFit, views, normals: np.ndarray | None) -> list[np.ndarr
     return out
 
 
-def _check_held_out(result: PixelCalibration) -> None:
-    """Refuse a camera whose held-out reprojection error is worse than its registration's."""
+def _refusal(result: PixelCalibration) -> str | None:
+    """Why a camera's held-out reprojection error refuses the model, or None."""
     fit = result.fit
     for camera, a, b, view in zip(result.cameras, fit.starts, fit.states, result.held, strict=True):
         if view is None:
@@ -259,10 +263,11 @@ def _check_held_out(result: PixelCalibration) -> None:
         before = reprojection_errors([a], [view])["reprojection_rms_px"]
         after = reprojection_errors([b], [view])["reprojection_rms_px"]
         if after > before + ROUND_OFF_PX:
-            raise CalibrationRefusedError(
+            return (
                 f"camera {camera.name}: held-out reprojection error {after:.3f} px is worse than "
-                f"the camera's registration on the nominal robot ({before:.3f} px): no URDF written"
+                f"the camera's registration on the nominal robot ({before:.3f} px)"
             )
+    return None
 
 
 def calibrate_pixels(
@@ -275,6 +280,7 @@ def calibrate_pixels(
     holdout: float = 0.0,
     what: Unknowns = KNOWN,
     seed: int = 0,
+    refuse: bool = True,
 ) -> PixelCalibration:
     """Calibrate the robot and the cameras' placements from the cameras' pixels.
 
@@ -293,11 +299,12 @@ def calibrate_pixels(
             after the first three (``--refine-targets``), the intrinsics
             (``--refine-intrinsics``).
         seed: Seed of the holdout.
+        refuse: Raise on a refused model; False: return it with its ``refusal``.
 
     Raises:
         DataError: See :func:`pixel_rows` and :func:`~.pixel_fit.fit_pixels`.
         CalibrationRefusedError: A camera's held-out reprojection error is worse than its
-            registration's on the nominal robot.
+            registration's on the nominal robot (with ``refuse``).
     """
     chains = chain if isinstance(chain, tuple) else (chain,)
     cameras = camera if isinstance(camera, tuple) else (camera,)
@@ -325,5 +332,7 @@ def calibrate_pixels(
             PixelView(v.chain, v.rows.subset(~b)) for v, b in zip(views, bad, strict=True)
         )
     result = PixelCalibration(cameras, views, held, fit, tuple(sorted(dropped)), what)
-    _check_held_out(result)
-    return result
+    refusal = _refusal(result)
+    if refusal is not None and refuse:
+        raise CalibrationRefusedError(f"{refusal}: no URDF written")
+    return dataclasses.replace(result, refusal=refusal)

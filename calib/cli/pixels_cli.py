@@ -16,7 +16,13 @@ from pathlib import Path
 
 from ..core.fileio import json_text
 from ..exceptions import InvalidArgumentError
-from .common import check_output_paths, given_options, print_json, write_outputs
+from .common import (
+    check_output_paths,
+    given_options,
+    print_json,
+    write_calibration,
+    write_outputs,
+)
 
 __all__ = [
     "add_pixel_arguments",
@@ -177,17 +183,18 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
             intrinsics=args.refine_intrinsics,
         ),
         seed=args.seed,
+        refuse=False,
     )
-    report = pixel_report(result, [str(w.message) for w in recorded])
-    files: dict[Path, str | bytes] = {Path(args.out): result.urdf()}
-    if args.report:
-        files[Path(args.report)] = json_text(report)
-    write_outputs(files)
-    if args.json:
-        print_json(report)
-    else:
-        print(pixel_summary(result))
-    return 0
+    paths = (Path(args.out), Path(args.report) if args.report else None)
+    return write_calibration(
+        args,
+        pixel_report(result, []),
+        lambda: pixel_summary(result),
+        result.refusal,
+        lambda: {paths[0]: result.urdf()},
+        paths,
+        recorded,
+    )
 
 
 def simulate_pixels_command(args: argparse.Namespace) -> int:
