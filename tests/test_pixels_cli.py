@@ -35,6 +35,16 @@ def run(capsys, *argv) -> tuple[int, str, str]:
     return code, out, err
 
 
+def _calibrate_ur5(capsys, folder: Path, data: Path, target: Path, tmp_path: Path, *extra):
+    """``calibrate ur5 --measure pixels`` of camera cam on world (no numbers): code, out, err."""
+    return run(
+        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", data,
+        "--camera", "cam", "world", folder / "intr.yaml", "--target", target,
+        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", tmp_path / "r.json",
+        *extra,
+    )  # fmt: skip
+
+
 def _placement_numbers(T: np.ndarray) -> list[str]:
     return [repr(float(v)) for v in (*T[:3, 3], *pin.rpy.matrixToRpy(T[:3, :3]))]
 
@@ -212,11 +222,9 @@ def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):
     lines[10] = ",".join(cells)
     (tmp_path / "obs.csv").write_text("\n".join(lines) + "\n")
     report = tmp_path / "r.json"
-    code, text, err = run(
-        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", tmp_path / "obs.csv",
-        "--camera", "cam", "world", folder / "intr.yaml", "--target", folder / "target.csv",
-        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", report,
-    )  # fmt: skip
+    code, text, err = _calibrate_ur5(
+        capsys, folder, tmp_path / "obs.csv", folder / "target.csv", tmp_path
+    )
     assert code == 0, err
     assert "1 observation(s) set aside as outliers: rows 11" in text  # line 11 of the file
     doc = json.loads(report.read_text())
@@ -246,11 +254,9 @@ def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_pat
     behind = np.array(behind)  # the camera's signed distance behind the board's plane
     assert np.any(behind > 0.01) and np.any(behind < -0.01)
     report = tmp_path / "r.json"
-    code, _, err = run(
-        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
-        "--camera", "cam", "world", folder / "intr.yaml", "--target", tmp_path / "target.csv",
-        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", report,
-    )  # fmt: skip
+    code, _, err = _calibrate_ur5(
+        capsys, folder, folder / "obs.csv", tmp_path / "target.csv", tmp_path
+    )
     assert code == 0, err
     named = {o["row"] for o in json.loads(report.read_text())["outliers"]}
     lines = np.arange(len(behind)) + 2  # the header is line 1
@@ -272,10 +278,9 @@ def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_pat
     other = simulate_pixels(nominal, "cam", C, INTRINSICS, read_target(folder / "target.csv"), q)
     write_observations(tmp_path / "val.csv", other)
     out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
-    code, _, err = run(
-        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
-        "--validate", tmp_path / "val.csv", "--camera", "cam", "world", folder / "intr.yaml",
-        "--target", folder / "target.csv", "--tool", "tool0", "--out", out, "--report", report,
+    code, _, err = _calibrate_ur5(
+        capsys, folder, folder / "obs.csv", folder / "target.csv", tmp_path,
+        "--validate", tmp_path / "val.csv",
     )  # fmt: skip
     assert code != 0 and not out.exists()
     assert "calibration refused: camera cam: held-out reprojection error" in err

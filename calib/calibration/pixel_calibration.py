@@ -270,6 +270,15 @@ def _refusal(result: PixelCalibration) -> str | None:
     return None
 
 
+def _starts(chains, cameras):
+    """Each camera's starting placement (given, the URDF's link, or None), lens and name."""
+    guesses = tuple(
+        c.placement if c.placement is not None else camera_placement(ch, c.name, c.link)
+        for ch, c in zip(chains, cameras, strict=True)
+    )
+    return guesses, tuple(c.intrinsics.camera for c in cameras), tuple(c.name for c in cameras)
+
+
 def calibrate_pixels(
     chain: Chain | tuple[Chain, ...],
     camera: PixelCamera | tuple[PixelCamera, ...],
@@ -311,18 +320,11 @@ def calibrate_pixels(
     if len(chains) != len(cameras) or len({c.name for c in cameras}) != len(cameras):
         raise InvalidArgumentError("give one chain per camera, and each camera once")
     views, held = _views(chains, cameras, target, obs, validate, holdout, seed)
-    guesses = tuple(
-        c.placement if c.placement is not None else camera_placement(ch, c.name, c.link)
-        for ch, c in zip(chains, cameras, strict=True)
-    )
-    lenses = tuple(c.intrinsics.camera for c in cameras)
-    names = tuple(c.name for c in cameras)
-    placements = Placements.of(chains)
+    guesses, lenses, names = _starts(chains, cameras)
+    start = (Placements.of(chains), target.position, guesses)
     dropped: tuple[int, ...] = ()
     for _ in range(3):
-        fit = fit_pixels(
-            placements, target.position, guesses, views, lenses, names, what, obs.source
-        )
+        fit = fit_pixels(*start, views, lenses, names, what, obs.source)
         bad = _outliers(fit, views, target.normal)
         if not any(b.any() for b in bad):
             break
