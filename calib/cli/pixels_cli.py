@@ -34,8 +34,20 @@ __all__ = [
 PIXEL_OPTIONS = ("camera", "target", "noise_px", "refine_targets", "refine_intrinsics")
 """The options of ``--measure pixels`` alone."""
 
-NOT_PIXELS = ("marker", "world_link", "on_robot", "fix", "free", "elastic", "loss", "noise_mm")
-"""``calibrate`` options a pixel calibration does not take."""
+NOT_PIXELS = (
+    "marker",
+    "world_link",
+    "on_robot",
+    "fix",
+    "free",
+    "elastic",
+    "loss",
+    "noise_mm",
+    "plot",
+    "origins",
+)
+"""``calibrate`` options a pixel calibration does not take (``plot`` and ``origins``: not
+yet for pixels)."""
 
 
 def add_pixel_arguments(p: argparse.ArgumentParser, calibrate: bool = False) -> None:
