@@ -49,10 +49,11 @@ from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
-from .contact_fit import block_fit, block_structural, by_block
+from .contact_fit import block_fit, block_structural, block_weighted_fit, by_block
 from .contact_model import ContactModel, ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
+from .object_columns import ObjectColumns
 from .options import Options
 from .selection import Selection, select
 from .solve import Fit, fit, fitted_values
@@ -297,11 +298,11 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
     weights: dict[str, float] = {}
     selection: Selection | None = None
     if opts.level == "auto" and columns:
-        J = wide.jacobian(start, np.zeros(wide.size()), train, torque)
-        cols = list(range(fixed)) + columns
         cand = tuple(names[c] for c in columns)
+        J, objects = _selection_columns(wide, start, train, torque, columns)
         residuals = start.residuals(train, torque)
-        selection, w = select(J[:, :, cols], residuals, fixed, cand, groups=groups)
+        free = J.shape[2] - len(columns)
+        selection, w = select(J, residuals, free, cand, groups=groups, objects=objects)
         weights = dict(zip(selection.kept, w, strict=True))
         columns = [c for c in columns if names[c] in weights]
     split = fixed + len(offered)
@@ -312,6 +313,22 @@ def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[
     if any(weights.values()):
         prior = np.r_[np.zeros(fixed), [weights[k] for k in model.names()[fixed:]]]
     return model, selection, prior
+
+
+def _selection_columns(wide: ContactModel, start: ContactState, train, torque, columns):
+    """The selection's columns: the objects' and the contact's, then the candidates.
+
+    With many objects (:func:`~.contact_fit.by_block`) the objects' columns come apart, by
+    block (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense.
+    """
+    x = np.zeros(wide.size())
+    if not by_block(wide):
+        J = wide.jacobian(start, x, train, torque)
+        return J[:, :, list(range(wide.fixed)) + columns], None
+    own, shared, index = wide.blocks(start, x, train, torque)
+    split = wide.size() - shared.shape[2]
+    cols = list(range(wide.fixed - split)) + [c - split for c in columns]
+    return shared[:, :, cols], ObjectColumns(own, index, len(wide.frames.ids))
 
 
 def _fewer(columns: list[int], split: int, keep: int) -> list[int]:
@@ -406,10 +423,10 @@ def calibrate_contacts(
         return contact_checks.length_errors(rnd.fitted.state, train, full)
 
     rows = train.rows or tuple(range(1, train.m + 1))
+    enough = contact_checks.enough_touches(train)
     start = bad | _proposals(first, train, opts)
-    rnd, _, dropped = outliers.until_stable(
-        refit, errors, None, rows, start, contact_checks.enough_touches(train)
-    )
+    start = start if enough(start) else bad  # every object keeps enough touches
+    rnd, _, dropped = outliers.until_stable(refit, errors, None, rows, start, enough)
     notes = [*notes, *rnd.notes]
     if dropped:
         notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
@@ -492,18 +509,24 @@ def _fit(model, start, train, torque, prior, opts: Options):
 
 
 def _proposals(start: ContactState, train: ContactData, opts: Options) -> np.ndarray:
-    """Touches a robust fit of every offered parameter, linearised, finds outlying."""
+    """Touches a robust fit of every offered parameter, linearised, finds outlying.
+
+    With many objects (:func:`~.contact_fit.by_block`) the fit goes by block.
+    """
     offered = _candidates(start.mdh, "complete")
     wide = ContactModel(offered, start.frames, ())
-    J = wide.jacobian(start, np.zeros(wide.size()), train)
-    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
     rows = train.rows or tuple(range(1, train.m + 1))
+    residual = start.residuals(train)
+    how: dict = {}
+    if by_block(wide):
+        how["fit"] = block_weighted_fit(wide, start, train, residual)
+        J = None
+    else:
+        J = wide.jacobian(start, np.zeros(wide.size()), train)
+        kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
+        J = J[:, :, sorted(kept)]
     return outliers.robust_proposals(
-        J[:, :, sorted(kept)],
-        start.residuals(train),
-        lambda g: contact_checks.gap_errors(g, start.kind),
-        None,
-        rows,
+        J, residual, lambda g: contact_checks.gap_errors(g, start.kind), None, rows, **how
     )
 
 
