@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_checks, contact_fit, contact_pipeline
+from calib.calibration import contact_checks, contact_choice, contact_fit, contact_pipeline
 from calib.calibration.contact_blocks import BlockSystem, block_lstsq
 from calib.calibration.contact_fit import block_fit, block_structural
 from calib.calibration.contact_model import ContactModel
@@ -70,13 +70,13 @@ def forty_planes():
 
 def test_block_structural_check_keeps_the_dense_check_columns(forty_planes, monkeypatch):
     nominal, start, train = forty_planes
-    wide = ContactModel(contact_pipeline._candidates(nominal, "complete"), start.frames, ())
+    wide = ContactModel(contact_choice.level_candidates(nominal, "complete"), start.frames, ())
     assert contact_fit.by_block(wide)
     qf, _ = contact_pipeline.touching_postures(start, train.q, train.ids)
     held = dataclasses.replace(train, q=qf)
     blocks = block_structural(wide, start, held, None)
     monkeypatch.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route
-    dense = contact_pipeline._structural(wide, start, train, None)
+    dense = contact_choice.structural(wide, start, train, None)
     assert sorted(blocks) == sorted(dense) and len(dense) < wide.size()
 
 
@@ -85,9 +85,9 @@ def test_block_fit_reaches_minpacks_minimum(forty_planes, with_prior):
     """Levenberg-Marquardt by block against SciPy's MINPACK on the dense Jacobian (the
     parameters the touches determine, as the pipeline frees them)."""
     nominal, start, train = forty_planes
-    offered = contact_pipeline._candidates(nominal, "complete")
+    offered = contact_choice.level_candidates(nominal, "complete")
     wide = ContactModel(offered, start.frames, ())
-    kept = contact_pipeline._structural(wide, start, train, None)[wide.fixed :]
+    kept = contact_choice.structural(wide, start, train, None)[wide.fixed :]
     params = tuple(offered.parameters[c - wide.fixed] for c in sorted(kept))
     model = ContactModel(ParameterSet("free", params), start.frames, ())
     prior = None
@@ -132,10 +132,10 @@ def test_block_fit_of_compliances_reaches_minpacks_minimum(forty_planes):
     chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
     load = contact_elastic.standing(chain, train.kind, True, None)
     torque = contact_elastic.torques(load, train, None)[0]
-    offered = contact_pipeline._candidates(nominal, "offsets")
+    offered = contact_choice.level_candidates(nominal, "offsets")
     comp = tuple(range(nominal.n))
     wide = ContactModel(offered, start.frames, comp)
-    kept = contact_pipeline._structural(wide, start, train, load)
+    kept = contact_choice.structural(wide, start, train, load)
     split = wide.fixed + len(offered)
     params = tuple(offered.parameters[c - wide.fixed] for c in kept if wide.fixed <= c < split)
     joints = tuple(comp[c - split] for c in kept if c >= split)
