@@ -17,9 +17,9 @@ from calib.calibration import contact_checks, contact_choice, contact_fit
 from calib.calibration.contact_model import ContactModel
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.calibration.contact_registration import MIN_TOUCHES
+from calib.calibration.forward_paths import paths
 from calib.calibration.object_columns import ObjectColumns
 from calib.calibration.options import Options
-from calib.calibration.forward_paths import paths
 from calib.calibration.selection import block_loo, select
 from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import simulate_contacts

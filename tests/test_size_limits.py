@@ -18,7 +18,6 @@ from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import contacts_csv, simulate_contacts
 from calib.measurements.csvfile import measurements_csv
 
-
 PEAK_ONE_PLANE = 650e6
 """Peak memory [B] of ``calib calibrate`` on 20,000 touches of one plane, params auto
 (``benchmarks/bench_scale.py``)."""
