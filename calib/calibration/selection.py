@@ -408,11 +408,11 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects=None):
     spread, count = (np.zeros(train.shape[1]), None) if repeats is None else repeats
     out = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
-    found = [
+    found = (  # a batch at a time: each path's errors (steps x configurations) then dropped
         p
         for i in range(0, len(train), per)
         for p in paths(A, e, rows, start, rest, train[i : i + per], objects)
-    ]
+    )
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
