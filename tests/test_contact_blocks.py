@@ -8,14 +8,12 @@ import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_checks, contact_choice, contact_fit, contact_pipeline
+from calib.calibration import contact_choice, contact_fit, contact_pipeline
 from calib.calibration.contact_blocks import BlockSystem, block_lstsq
 from calib.calibration.contact_fit import block_fit, block_structural
 from calib.calibration.contact_model import ContactModel
 from calib.calibration.solve import fit
 from calib.identification.parameters import ParameterSet
-from calib.kinematics.mdh import from_chain
-from calib.measurements.contact_campaign import simulate_contacts
 
 
 def _dense(Jo, Js, index, K):
@@ -55,17 +53,6 @@ def test_block_least_squares_is_the_dense_least_squares(seed):
     plain = block_lstsq(BlockSystem(Jo, Js, r, index, K))
     x0 = np.linalg.lstsq(_dense(Jo, Js, index, K), -r.ravel(), rcond=None)[0]
     assert np.allclose(np.r_[plain.objects.ravel(), plain.shared], x0, atol=1e-10, rtol=0)
-
-
-@pytest.fixture(scope="module")
-def forty_planes():
-    """TALOS sole to gripper touching 40 planes (6 touches each), registered."""
-    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
-    data = simulate_contacts(chain, 240, "plane", contacts=40, noise_mrad=0.01, seed=1).data
-    nominal = from_chain(chain)
-    start, bad, _ = contact_checks.checked_registration(chain, nominal, data, None, np.eye(4), None)
-    train = contact_checks.subset(data, ~bad) if bad.any() else data
-    return nominal, start, train
 
 
 def test_block_structural_check_keeps_the_dense_check_columns(forty_planes, monkeypatch):

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_checks, contact_choice, contact_fit
+from calib.calibration import contact_choice, contact_fit
 from calib.calibration.contact_model import ContactModel
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.calibration.contact_registration import MIN_TOUCHES
@@ -21,7 +21,6 @@ from calib.calibration.forward_paths import paths
 from calib.calibration.object_columns import ObjectColumns
 from calib.calibration.options import Options
 from calib.calibration.selection import block_loo, select
-from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import simulate_contacts
 
 
@@ -108,20 +107,11 @@ def test_a_subset_without_an_object_leaves_its_columns_out():
         assert np.sqrt(np.sum(errors[k]) / (np.sum(train) * rows / 3)) == pytest.approx(loo)
 
 
-@pytest.fixture(scope="module")
-def forty_planes():
-    """TALOS sole to gripper touching 40 planes (5 touches each), registered."""
-    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
-    data = simulate_contacts(chain, 200, "plane", contacts=40, noise_mrad=0.01, seed=1).data
-    nominal = from_chain(chain)
-    start, bad, _ = contact_checks.checked_registration(chain, nominal, data, None, np.eye(4), None)
-    return start, contact_checks.subset(data, ~bad) if bad.any() else data
-
-
 def test_the_contact_selection_by_block_is_the_dense_one(forty_planes):
-    """TALOS touching 40 planes: the selection with the planes' columns by block (as the
-    pipeline takes it) chooses what the dense selection of the whole Jacobian chooses."""
-    start, train = forty_planes
+    """TALOS touching 40 planes 6 times each (conftest): the selection with the planes'
+    columns by block (as the pipeline takes it) chooses what the dense selection of the
+    whole Jacobian chooses."""
+    _, start, train = forty_planes
     wide = ContactModel(contact_choice.level_candidates(start.mdh, "auto"), start.frames, ())
     assert contact_fit.by_block(wide)
     columns = list(range(wide.fixed, wide.size()))
@@ -138,7 +128,7 @@ def test_the_contact_selection_by_block_is_the_dense_one(forty_planes):
 def test_the_robust_proposals_by_block_are_the_dense_ones(forty_planes, monkeypatch):
     """Two touches knocked off their plane: the robust fit by block proposes the same
     touches as numpy's dense least squares of every column."""
-    start, train = forty_planes
+    _, start, train = forty_planes
     q = train.q.copy()
     q[5, 3] += 0.05
     q[17, 8] += 0.03
