@@ -45,7 +45,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import contact_checks, contact_elastic, determined, outliers, validation
-from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
+from .contact_checks import WEIGHT_ROUNDS, subset
 from .contact_choice import (
     check_selection_memory,
     choose,
@@ -63,8 +63,6 @@ from .solve import Fit, fit, fitted_values
 
 __all__ = [
     "WEIGHT_ROUNDS",
-    "WORSE",
-    "calibrate_contact_data",
     "calibrate_contacts",
     "check_held_out_gaps",
     "contact_frame",
@@ -325,29 +323,6 @@ def _fit(model, start, train, torque, prior, opts: Options):
             model, start, train, torque, prior=prior, max_iterations=opts.max_iterations
         )
     return fit(model, start, train, torque, 1.0, prior=prior, max_iterations=opts.max_iterations)
-
-
-def calibrate_contact_data(
-    robot,
-    data: ContactData,
-    *,
-    marker=None,
-    fix=(),
-    free=(),
-    loss="linear",
-    noise_mm=None,
-    **kwargs,
-) -> ContactCalibration:
-    """:func:`calibrate_contacts` for :func:`~calib.calibration.pipeline.calibrate`.
-
-    ``marker`` is the contact frame's guess; ``fix``, ``free``, ``loss`` and ``noise_mm``
-    are not available for contacts (an error unless left at their defaults).
-    """
-    if fix or free or loss != "linear" or noise_mm is not None:
-        raise InvalidArgumentError(
-            "fix, free, robust losses and noise_mm are not available for contacts"
-        )
-    return calibrate_contacts(robot, data, contact=marker, **kwargs)
 
 
 def _held_label(held, validate) -> str | None:
