@@ -107,8 +107,12 @@ class Parser(argparse.ArgumentParser):
         self.register("action", "append", _AppendNoted)
 
     def error(self, message: str) -> NoReturn:
-        """Exit with one usage line (exit status 2)."""
-        self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
+        """Exit with one usage line (exit status 2), under the one ``calib: error:`` prefix.
+
+        The command is named in the hint (``see calib calibrate --help``), not in a second
+        prefix.
+        """
+        self.exit(2, f"calib: error: {message} (see {self.prog} --help)\n")
 
 
 def given_options(args: argparse.Namespace, dests) -> list[str]:
