@@ -12,8 +12,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..core.fileio import check_outputs, json_text, write_files_atomic
-from ..exceptions import CalibrationRefusedError, InvalidArgumentError
+from ..core.fileio import check_outputs, json_text, read_bytes_limited, write_files_atomic
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFError
+from ..kinematics.origins import changed_origins, origins_document
+from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
 __all__ = ["Delivered", "Result", "compliance_path"]
 
@@ -50,6 +52,36 @@ class Result:
         """Files written beside the URDF ``out`` (the compliance file; none by default)."""
         del out
         return {}
+
+    def origins(self, urdf: bytes | None = None) -> dict:
+        """The joint origins the calibration moved or added, with the nominal ones beside them.
+
+        What a xacro file reads (``xacro.load_yaml``) to carry the calibration into the
+        robot's own description: ``joints`` maps each joint whose origin changed (and each
+        joint the calibration added: markers, a camera, the world link) to its ``parent``,
+        ``child``, calibrated ``xyz`` [m] and ``rpy`` [rad] as the calibrated URDF writes them,
+        ``nominal_xyz`` and ``nominal_rpy`` (None for an added joint) and ``added``
+        (:func:`calib.kinematics.origins.origins_yaml` writes it as YAML).
+
+        Args:
+            urdf: The calibrated URDF they are read from (default: :meth:`urdf`; give a
+                chain's ``result.urdf(world_link=...)`` to include its world link).
+
+        Raises:
+            CalibrationRefusedError: The model was refused.
+            URDFError: The nominal URDF cannot be read.
+        """
+        if self.refusal is not None:
+            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        doc = self.to_dict()
+        try:
+            nominal = read_bytes_limited(doc["urdf"], MAX_URDF_BYTES)
+        except OSError as exc:
+            raise URDFError(str(doc["urdf"]), f"cannot read: {exc.strerror or exc}") from None
+        calibrated = self.urdf() if urdf is None else urdf
+        return origins_document(
+            doc["robot"], str(doc["urdf"]), changed_origins(nominal, calibrated)
+        )
 
     def write(self, out: str | Path, report: str | Path | None = None) -> None:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
