@@ -10,14 +10,40 @@ compliance file (``compliance_files``). :class:`Delivered` builds the rest on th
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from ..core.fileio import check_outputs, json_text, read_bytes_limited, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFError
 from ..kinematics.origins import changed_origins, origins_document
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Delivered", "Result", "compliance_path"]
+__all__ = ["Delivered", "Result", "RowErrors", "compliance_path", "row_rms_mm"]
+
+
+@dataclass(frozen=True)
+class RowErrors:
+    """The position error of each configuration, before and after calibration.
+
+    Attributes:
+        before: Error of the registration (nominal geometry, fitted frame and markers) at
+            each configuration ``(m,)`` [mm]: the RMS over the row's measured points.
+        after: Error of the calibrated model ``(m,)`` [mm], the same way.
+        held_out: Which rows the fit never saw (``--holdout``, ``--validate``) ``(m,)``.
+    """
+
+    before: np.ndarray
+    after: np.ndarray
+    held_out: np.ndarray
+
+
+def row_rms_mm(residual: np.ndarray, n_markers: int) -> np.ndarray:
+    """Each row's RMS point error [mm] of residuals ``(m, 3 K [+ 3])`` [m] (points first)."""
+    m = len(residual)
+    points = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
+    return 1e3 * np.sqrt(np.mean(points**2, axis=1))
 
 
 def compliance_path(out: Path) -> Path:
@@ -52,6 +78,27 @@ class Result:
         """Files written beside the URDF ``out`` (the compliance file; none by default)."""
         del out
         return {}
+
+    def row_errors(self) -> RowErrors:
+        """The error of each configuration before and after calibration, held-out rows marked.
+
+        Raises:
+            InvalidArgumentError: Not available for this shape of calibration (yet).
+        """
+        shape = self.to_dict()["shape"]
+        raise InvalidArgumentError(
+            f"per-configuration errors of a {shape} calibration are not available yet "
+            f"(a chain's and a tree's are)"
+        )
+
+    def plot(self):
+        """A matplotlib Figure: errors per configuration before and after, and the parameters.
+
+        See :func:`calib.outputs.plots.calibration_figure` (needs matplotlib).
+        """
+        from ..outputs.plots import calibration_figure  # the one upward import (pyproject)
+
+        return calibration_figure(self)
 
     def origins(self, urdf: bytes | None = None) -> dict:
         """The joint origins the calibration moved or added, with the nominal ones beside them.

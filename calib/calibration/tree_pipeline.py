@@ -27,7 +27,7 @@ from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from . import determined, diagnosis, outliers, validation
-from .delivery import Delivered
+from .delivery import Delivered, RowErrors, row_rms_mm
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, Options, checked_arguments
 from .report import (
     FORMAT2_MOVED,
@@ -220,6 +220,14 @@ class TreeCalibrationResult(Delivered):
             "marker_links": {t: marker_link_names(t, 1)[0] for t in tools},
             "measurement_to_base": pose_dict(self.measurement_to_base),
         }
+
+    def row_errors(self) -> RowErrors:
+        """Position error of each fitted row, before and after [mm] (held-out rows: not kept)."""
+        if self.data is None:
+            return super().row_errors()
+        before = row_rms_mm(self.registration.residuals(self.data), 1)
+        after = row_rms_mm(self.state.residuals(self.data), 1)
+        return RowErrors(before, after, np.zeros(len(before), dtype=bool))
 
     def urdf(self) -> bytes:
         """The calibrated URDF of every branch, with each tool's marker link."""

@@ -20,6 +20,7 @@ from .sweep import SweepRow
 
 __all__ = [
     "FIGURE_FORMATS",
+    "calibration_figure",
     "counts_figure",
     "errors_figure",
     "figure_bytes",
@@ -91,6 +92,81 @@ def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Fig
     ax.set_title(title or "Calibration")
     ax.legend(fontsize=8)
     return fig
+
+
+def calibration_figure(result) -> Figure:
+    """A calibration to look at: errors per configuration before and after, and the parameters.
+
+    Top: the position error of every configuration [mm], registration (nominal geometry,
+    fitted frame and markers) and calibrated, fitted rows as dots and held-out rows as
+    crosses after them. Bottom: each fitted parameter's change from the registration with its
+    standard deviation, named with its URDF joint (lengths in mm, angles in mrad).
+
+    Args:
+        result: A calibration result (:class:`calib.Result`: ``row_errors`` and ``to_dict``).
+
+    Raises:
+        InvalidArgumentError: The result has no per-configuration errors (its shape).
+    """
+    rows = result.row_errors()
+    doc = result.to_dict()
+    params = doc["parameters"]
+    fig = Figure(figsize=(8.0, 4.0 + 0.16 * len(params)), layout="constrained")
+    top, bottom = fig.subplots(2, 1, height_ratios=[3.0, max(1.0, 0.12 * len(params))])
+    x = np.arange(len(rows.after))
+    for mask, marker, part in ((~rows.held_out, "o", "fitted"), (rows.held_out, "x", "held out")):
+        if not mask.any():
+            continue
+        top.plot(
+            x[mask],
+            rows.before[mask],
+            marker,
+            ms=4,
+            color="tab:red",
+            label=f"{part}: registration",
+            ls="",
+        )
+        top.plot(
+            x[mask],
+            rows.after[mask],
+            marker,
+            ms=4,
+            color="tab:blue",
+            label=f"{part}: calibrated",
+            ls="",
+        )
+    if rows.held_out.any():
+        top.axvline(x[rows.held_out][0] - 0.5, color="0.5", lw=0.8, ls="--")
+    top.set_xlabel("configuration (fitted rows, then held-out rows)")
+    top.set_ylabel("position error [mm]")
+    top.set_yscale(
+        "log" if rows.before.min(initial=1.0) > 0 and rows.after.min(initial=1.0) > 0 else "linear"
+    )
+    verdict = "accepted" if doc["accepted"] else "REFUSED"
+    top.set_title(f"{doc['robot']} ({doc['shape']}): {verdict}")
+    top.legend(fontsize=7, ncol=2)
+    _parameters_panel(bottom, params)
+    return fig
+
+
+def _parameters_panel(ax, params: list[dict]) -> None:
+    """Each parameter's value +- std, named by its joint (lengths in mm, angles in mrad)."""
+    scale = {"m": 1e3, "rad": 1e3}
+    shown = {"m": "mm", "rad": "mrad"}
+    values = np.array([scale.get(p["unit"], 1.0) * (p["value"] or 0.0) for p in params])
+    stds = np.array([scale.get(p["unit"], 1.0) * (p["std"] or 0.0) for p in params])
+    y = np.arange(len(params))
+    ax.errorbar(values, y, xerr=stds, fmt="o", ms=3, color="k", ecolor="0.4", capsize=2)
+    labels = [
+        f"{p['name']} ({p['joint']}) [{shown.get(p['unit'], p['unit'])}]"
+        if p["joint"]
+        else f"{p['name']} [{shown.get(p['unit'], p['unit'])}]"
+        for p in params
+    ]
+    ax.set_yticks(y, labels, fontsize=6)
+    ax.invert_yaxis()
+    ax.axvline(0.0, color="0.5", lw=0.8)
+    ax.set_xlabel("change from the registration +- std [mm, mrad]")
 
 
 FIGURE_FORMATS = ("png", "svg", "pdf")
