@@ -91,3 +91,13 @@ def test_cli_bad_plot_path_is_one_line_before_the_fit(tmp_path, capsys, name, fa
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("calib: error: ") and fact in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
+
+
+def test_cli_plot_of_contacts_is_refused_before_the_fit(tmp_path, capsys):
+    plot = tmp_path / "c.png"
+    argv = ["calibrate", "talos", "--term", "plane", "base_link", "gripper_left_base_link"]
+    argv += [str(tmp_path / "t.csv"), "--out", str(tmp_path / "c.urdf"), "--plot", str(plot)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--plot is for" in err[0], err
+    assert list(tmp_path.iterdir()) == []
