@@ -14,6 +14,8 @@ import pinocchio as pin
 import pytest
 
 import calib
+from calib.calibration.contact_chains import calibrate_contact_chains
+from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.calibration.tree_pipeline import calibrate_tree
 from calib.cli.commands import main
 from calib.kinematics.origins import origins_yaml
@@ -120,3 +122,27 @@ def test_cli_origins_over_an_input_is_refused_before_the_fit(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("calib: error: ") and "--origins" in err[0], err
     assert data.read_bytes() == before and not (tmp_path / "c.urdf").exists()
+
+
+def test_contact_origins_in_the_xacro_reproduce_the_calibrated_urdf(tmp_path):
+    nominal = expand(tmp_path, None, "yarm.urdf")
+    chain = calib.load_chain(nominal, "base_link", "tool_a")
+    data = calib.simulate_contacts(chain, 40, "plane", seed=3).data
+    result = calibrate_contacts(chain, data, params="complete")
+    (tmp_path / "cal.urdf").write_bytes(result.urdf())
+    doc = result.origins()
+    assert doc["joints"] and not any(j["added"] for j in doc["joints"].values())
+    (tmp_path / "origins.yaml").write_text(origins_yaml(doc))
+    same_kinematics(expand(tmp_path, tmp_path / "origins.yaml", "x.urdf"), tmp_path / "cal.urdf")
+
+
+def test_several_terms_origins_in_the_xacro_reproduce_the_calibrated_urdf(tmp_path):
+    nominal = expand(tmp_path, None, "yarm.urdf")
+    chains = [calib.load_chain(nominal, "base_link", t) for t in ("tool_a", "tool_b")]
+    data = [calib.simulate_contacts(c, 30, "plane", seed=5 + k).data for k, c in enumerate(chains)]
+    result = calibrate_contact_chains(chains, data, params="complete")
+    (tmp_path / "cal.urdf").write_bytes(result.urdf())
+    doc = result.origins()
+    assert {"j4", "k4"} <= set(doc["joints"])  # both branches moved
+    (tmp_path / "origins.yaml").write_text(origins_yaml(doc))
+    same_kinematics(expand(tmp_path, tmp_path / "origins.yaml", "x.urdf"), tmp_path / "cal.urdf")

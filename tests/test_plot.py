@@ -8,11 +8,17 @@ import numpy as np
 import pytest
 
 import calib
+from calib.calibration.contact_chains import calibrate_contact_chains
+from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.calibration.tree_pipeline import calibrate_tree
 from calib.cli.commands import main
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.tree import load_tree
 from calib.measurements.csvfile import write_measurements
+
+TALOS = "talos_full_v2.urdf"
+LEFT = ("left_sole_link", "gripper_left_base_link")
+RIGHT = ("right_sole_link", "gripper_right_base_link")
 
 
 def lines_by_label(ax) -> dict[str, np.ndarray]:
@@ -63,10 +69,11 @@ def test_tree_figure_holds_the_reports_errors():
     urdf = resolve_urdf("erd:talos_data/robots/talos_reduced.urdf")
     tree = load_tree(urdf, "base_link", ("wrist_left_ft_tool_link", "wrist_right_ft_tool_link"))
     campaign = calib.simulate_tree(tree, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=2)
-    result = calibrate_tree(tree, campaign.measurements, params="complete")
+    result = calibrate_tree(tree, campaign.measurements, params="complete", holdout=0.2, seed=1)
     fig = result.plot()
     doc = result.to_dict()
     check_errors(fig, doc["errors"], "train", "fitted")
+    check_errors(fig, doc["errors"], "held_out", "held out")
     check_parameters(fig, doc)
 
 
@@ -93,11 +100,31 @@ def test_cli_bad_plot_path_is_one_line_before_the_fit(tmp_path, capsys, name, fa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv"]
 
 
-def test_cli_plot_of_contacts_is_refused_before_the_fit(tmp_path, capsys):
-    plot = tmp_path / "c.png"
-    argv = ["calibrate", "talos", "--term", "plane", "base_link", "gripper_left_base_link"]
-    argv += [str(tmp_path / "t.csv"), "--out", str(tmp_path / "c.urdf"), "--plot", str(plot)]
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--plot is for" in err[0], err
-    assert list(tmp_path.iterdir()) == []
+def check_gaps(fig, errors: dict, label: str) -> None:
+    """The plotted touches of ``label`` give the report's weighted gap RMS [mm]."""
+    lines = lines_by_label(fig.axes[0])
+    for part, name in (("train", "fitted"), ("held_out", "held out")):
+        for stage in ("registration", "calibrated"):
+            y = lines[f"{label} {name}: {stage}".strip()]
+            assert rms(y) == pytest.approx(errors[part][stage]["weighted_mm"], rel=1e-9)
+
+
+def test_contacts_figure_holds_the_reports_gaps():
+    chain = calib.load_chain(TALOS, *LEFT)
+    data = calib.simulate_contacts(chain, 40, "plane", seed=3).data
+    result = calibrate_contacts(chain, data, holdout=0.25, seed=2)
+    fig = result.plot()
+    doc = result.to_dict()
+    check_gaps(fig, doc["errors"], "")
+    check_parameters(fig, doc)
+
+
+def test_several_terms_figure_holds_each_terms_errors():
+    chains = [calib.load_chain(TALOS, *pair) for pair in (LEFT, RIGHT)]
+    data = [calib.simulate_contacts(c, 24, "plane", seed=4 + k).data for k, c in enumerate(chains)]
+    result = calibrate_contact_chains(chains, data, holdout=0.25, seed=1)
+    fig = result.plot()
+    doc = result.to_dict()
+    for k, (term, chain) in enumerate(zip(doc["errors"]["terms"], chains, strict=True)):
+        check_gaps(fig, term, f"{k + 1}: {chain.tool_frame} (plane)")
+    check_parameters(fig, doc)

@@ -25,18 +25,48 @@ __all__ = ["Delivered", "Result", "RowErrors", "compliance_path", "row_rms_mm"]
 
 @dataclass(frozen=True)
 class RowErrors:
-    """The position error of each configuration, before and after calibration.
+    """The error of each configuration, before and after calibration.
+
+    A measured row's error is the RMS over its measured points (the report's
+    ``position_rms_mm`` is the RMS of these); a touch's is its weighted gap norm (the
+    report's ``weighted_mm`` is their RMS).
 
     Attributes:
-        before: Error of the registration (nominal geometry, fitted frame and markers) at
-            each configuration ``(m,)`` [mm]: the RMS over the row's measured points.
+        before: Error of the registration (nominal geometry, fitted frame, markers and
+            objects) at each configuration ``(m,)`` [mm].
         after: Error of the calibrated model ``(m,)`` [mm], the same way.
         held_out: Which rows the fit never saw (``--holdout``, ``--validate``) ``(m,)``.
+        term: Each row's term (index into ``names``) ``(m,)``, or None: one term.
+        names: The terms' names (several terms), or empty.
+        name: The one term's name, when built for a term (see :meth:`join`).
     """
 
     before: np.ndarray
     after: np.ndarray
     held_out: np.ndarray
+    term: np.ndarray | None = None
+    names: tuple[str, ...] = ()
+    name: str = ""
+
+    @staticmethod
+    def join(parts: list[RowErrors]) -> RowErrors:
+        """The rows of several terms, term after term (each term named by its ``name``)."""
+        if len(parts) == 1:
+            return parts[0]
+        term = np.concatenate([np.full(len(p.after), k) for k, p in enumerate(parts)])
+        return RowErrors(
+            np.concatenate([p.before for p in parts]),
+            np.concatenate([p.after for p in parts]),
+            np.concatenate([p.held_out for p in parts]),
+            term,
+            tuple(p.name for p in parts),
+        )
+
+    def series(self) -> list[tuple[str, np.ndarray]]:
+        """``(term name, row mask)`` of each term (one with an empty name for one term)."""
+        if self.term is None:
+            return [("", np.ones(len(self.after), dtype=bool))]
+        return [(name, self.term == k) for k, name in enumerate(self.names)]
 
 
 def row_rms_mm(residual: np.ndarray, n_markers: int) -> np.ndarray:
@@ -85,11 +115,7 @@ class Result:
         Raises:
             InvalidArgumentError: Not available for this shape of calibration (yet).
         """
-        shape = self.to_dict()["shape"]
-        raise InvalidArgumentError(
-            f"per-configuration errors of a {shape} calibration are not available yet "
-            f"(a chain's and a tree's are)"
-        )
+        raise InvalidArgumentError(f"{type(self).__name__} keeps no per-configuration errors")
 
     def plot(self):
         """A matplotlib Figure: errors per configuration before and after, and the parameters.

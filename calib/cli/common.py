@@ -145,7 +145,6 @@ APPLIES: dict[str, tuple[str, ...]] = {
     "tool": ("chain", "tree", "contacts"),
     "data": ("chain", "tree", "contacts"),
     "validate": ("chain", "tree", "contacts"),
-    "plot": ("chain", "tree"),  # contacts' errors per configuration: not yet
 }
 """The table of ``calib calibrate``'s options that apply to some shapes only: the library's
 (:data:`calib.calibration.options.APPLIES`) and the command line's own flags, argparse dest ->

@@ -97,54 +97,52 @@ def errors_figure(before: np.ndarray, after: np.ndarray, title: str = "") -> Fig
 def calibration_figure(result) -> Figure:
     """A calibration to look at: errors per configuration before and after, and the parameters.
 
-    Top: the position error of every configuration [mm], registration (nominal geometry,
-    fitted frame and markers) and calibrated, fitted rows as dots and held-out rows as
-    crosses after them. Bottom: each fitted parameter's change from the registration with its
-    standard deviation, named with its URDF joint (lengths in mm, angles in mrad).
+    Top: the error of every configuration [mm] (a measured row's RMS point error, a touch's
+    weighted gap), registration (nominal geometry, fitted frame, markers and objects) in red
+    and calibrated in blue, fitted rows as dots and held-out rows as crosses after them, term
+    after term (each series labelled ``[term name ]fitted|held out: registration|calibrated``).
+    Bottom: each fitted parameter's change from the registration with its standard
+    deviation, named with its URDF joint (lengths in mm, angles in mrad).
 
     Args:
         result: A calibration result (:class:`calib.Result`: ``row_errors`` and ``to_dict``).
 
     Raises:
-        InvalidArgumentError: The result has no per-configuration errors (its shape).
+        InvalidArgumentError: The result keeps no per-configuration errors.
     """
     rows = result.row_errors()
     doc = result.to_dict()
     params = doc["parameters"]
     fig = Figure(figsize=(8.0, 4.0 + 0.16 * len(params)), layout="constrained")
     top, bottom = fig.subplots(2, 1, height_ratios=[3.0, max(1.0, 0.12 * len(params))])
-    x = np.arange(len(rows.after))
-    for mask, marker, part in ((~rows.held_out, "o", "fitted"), (rows.held_out, "x", "held out")):
-        if not mask.any():
-            continue
-        top.plot(
-            x[mask],
-            rows.before[mask],
-            marker,
-            ms=4,
-            color="tab:red",
-            label=f"{part}: registration",
-            ls="",
-        )
-        top.plot(
-            x[mask],
-            rows.after[mask],
-            marker,
-            ms=4,
-            color="tab:blue",
-            label=f"{part}: calibrated",
-            ls="",
-        )
-    if rows.held_out.any():
-        top.axvline(x[rows.held_out][0] - 0.5, color="0.5", lw=0.8, ls="--")
-    top.set_xlabel("configuration (fitted rows, then held-out rows)")
-    top.set_ylabel("position error [mm]")
-    top.set_yscale(
-        "log" if rows.before.min(initial=1.0) > 0 and rows.after.min(initial=1.0) > 0 else "linear"
+    start = 0
+    for name, rows_of_term in rows.series():
+        for part, marker, mask in (
+            ("fitted", "o", ~rows.held_out),
+            ("held out", "x", rows.held_out),
+        ):
+            mask = mask & rows_of_term
+            x = start + np.arange(int(mask.sum()))
+            start += len(x)
+            for stage, values, color in (
+                ("registration", rows.before, "tab:red"),
+                ("calibrated", rows.after, "tab:blue"),
+            ):
+                label = f"{name} {part}: {stage}".strip()
+                if len(x):
+                    top.plot(x, values[mask], marker, ms=4, color=color, ls="", label=label)
+        if name:
+            top.axvline(start - 0.5, color="0.5", lw=0.8, ls="--")
+    positive = rows.before.min(initial=1.0) > 0 and rows.after.min(initial=1.0) > 0
+    top.set_yscale("log" if positive else "linear")
+    top.set_xlabel(
+        "configuration (fitted rows, then held-out rows"
+        + (", term by term)" if rows.names else ")")
     )
+    top.set_ylabel("error [mm]")
     verdict = "accepted" if doc["accepted"] else "REFUSED"
     top.set_title(f"{doc['robot']} ({doc['shape']}): {verdict}")
-    top.legend(fontsize=7, ncol=2)
+    top.legend(fontsize=6, ncol=2)
     _parameters_panel(bottom, params)
     return fig
 
