@@ -30,30 +30,57 @@ __all__ = [
 ]
 
 
+OTHER_GROUP = "other URDF files"
+"""The group of sweep rows that are no catalog entry (``calib sweep --urdf``)."""
+
+
+def _groups(rows: Sequence[SweepRow]) -> dict[str, list[SweepRow]]:
+    """The rows by kind of robot (the catalog's sections, in file order; others last)."""
+    from ..kinematics.catalog import catalog_groups
+
+    of = catalog_groups()
+    out: dict[str, list[SweepRow]] = {g: [] for g in dict.fromkeys(of.values())}
+    for r in rows:
+        out.setdefault(of.get(r.robot, OTHER_GROUP), []).append(r)
+    return {g: rs for g, rs in out.items() if rs}
+
+
 def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
-    """Base-parameter counts per robot (paper and complete sets) against the theory."""
-    ok = [r for r in rows if r.error is None]
-    fig = Figure(figsize=(max(6.0, 0.28 * len(ok) + 2.0), 4.2), layout="constrained")
-    ax = fig.add_subplot()
-    x = np.arange(len(ok))
-    ax.bar(x - 0.2, np.array([r.n_base_paper for r in ok], dtype=float), 0.4, label="paper set")
-    ax.bar(
-        x + 0.2, np.array([r.n_base_complete for r in ok], dtype=float), 0.4, label="complete set"
+    """Base-parameter counts per robot (paper and complete sets) against the theory.
+
+    One panel per kind of robot (the catalog's sections: arms, arms of humanoids, legs,
+    trees, ...; rows of other URDF files last), two panels a row, so that the names stay
+    readable (the whole catalog: about 1,400 pixels wide at 120 dpi, not one row of 3,000).
+    """
+    groups = _groups([r for r in rows if r.error is None]) or {"": []}
+    ncols = 2 if len(groups) > 1 else 1
+    nrows = -(-len(groups) // ncols)
+    widest = max(len(rs) for rs in groups.values())
+    fig = Figure(
+        figsize=(max(6.0, ncols * (0.2 * widest + 1.2)), 3.0 * nrows + 0.6), layout="constrained"
     )
-    ax.scatter(
-        x,
-        np.array([r.n_theory for r in ok], dtype=float),
-        marker="_",
-        s=160,
-        color="k",
-        zorder=3,
-        label="theory (4R+2P+6 or +3)",
-    )
-    ax.set_xticks(x, [r.robot for r in ok], rotation=90, fontsize=7)
-    ax.set_ylabel("base parameters")
-    ax.set_title(title or "Identifiable parameters per chain")
-    ax.legend(fontsize=8)
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax, (group, rs) in zip(axes, groups.items(), strict=False):
+        _counts_panel(ax, rs, widest)
+        ax.set_title(f"{group} ({len(rs)})" if group else "", fontsize=9)
+    for ax in axes[len(groups) :]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title or "Identifiable parameters per chain")
     return fig
+
+
+def _counts_panel(ax, rows: Sequence[SweepRow], width: int) -> None:
+    """One kind's bars: the paper and complete sets' base parameters, and the theory."""
+    x = np.arange(len(rows))
+    ax.bar(x - 0.2, np.array([r.n_base_paper for r in rows], dtype=float), 0.4, label="paper set")
+    complete = np.array([r.n_base_complete for r in rows], dtype=float)
+    ax.bar(x + 0.2, complete, 0.4, label="complete set")
+    theory = np.array([np.nan if r.n_theory is None else r.n_theory for r in rows], dtype=float)
+    ax.scatter(x, theory, marker="_", s=120, color="k", zorder=3, label="theory (4R+2P+6 or +3)")
+    ax.set_xticks(x, [r.robot for r in rows], rotation=90, fontsize=6)
+    ax.set_xlim(-0.6, max(width, 1) - 0.4)  # every panel at the same scale per robot
+    ax.set_ylabel("base parameters", fontsize=8)
 
 
 def spectrum_figure(res: Identifiability) -> Figure:
