@@ -128,3 +128,19 @@ def test_several_terms_figure_holds_each_terms_errors():
     for k, (term, chain) in enumerate(zip(doc["errors"]["terms"], chains, strict=True)):
         check_gaps(fig, term, f"{k + 1}: {chain.tool_frame} (plane)")
     check_parameters(fig, doc)
+
+
+def test_refused_model_writes_its_report_and_plot_but_no_urdf_nor_origins(tmp_path, capsys):
+    """No geometric error and 2 mm of noise: the complete tree model only overfits (refused)."""
+    tree = calib.load_robot("bolt")
+    camp = calib.simulate_tree(tree, 20, markers=[0.01, 0, 0.02], error_mm=0, error_mrad=0,
+                               noise_mm=2, seed=0)  # fmt: skip
+    data = tmp_path / "m.csv"
+    write_measurements(data, camp.measurements)
+    out, report, plot, origins = (tmp_path / n for n in ("o.urdf", "r.json", "p.png", "o.yaml"))
+    argv = ["calibrate", "bolt", "--data", str(data), "--out", str(out), "--report", str(report)]
+    argv += ["--plot", str(plot), "--origins", str(origins), "--holdout", "0.3", "--seed", "1"]
+    assert main(argv) == 2
+    assert "calibration refused" in capsys.readouterr().err
+    assert plot.read_bytes().startswith(b"\x89PNG") and report.exists()
+    assert not out.exists() and not origins.exists()
