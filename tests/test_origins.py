@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-import pytest
+import xacro  # the test extra installs it (the registry package, no ROS)
 
 import calib
 from calib.calibration.contact_chains import calibrate_contact_chains
@@ -21,8 +21,6 @@ from calib.cli.commands import main
 from calib.kinematics.origins import origins_yaml
 from calib.kinematics.tree import load_tree
 from calib.measurements.csvfile import write_measurements
-
-xacro = pytest.importorskip("xacro")  # the test extra installs it
 
 XACRO = Path(__file__).parent / "data" / "yarm.urdf.xacro"
 

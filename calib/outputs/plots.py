@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..calibration.delivery import Result
 from ..core.fileio import write_atomic
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import Identifiability
@@ -135,8 +136,13 @@ def calibration_figure(result) -> Figure:
         result: A calibration result (:class:`calib.Result`: ``row_errors`` and ``to_dict``).
 
     Raises:
-        InvalidArgumentError: The result keeps no per-configuration errors.
+        InvalidArgumentError: Not a calibration result, or one that keeps no
+            per-configuration errors.
     """
+    if not isinstance(result, Result):
+        raise InvalidArgumentError(
+            f"calibration_figure takes a calibration result (calib.calibrate's), got {result!r:.60}"
+        )
     rows = result.row_errors()
     doc = result.to_dict()
     params = doc["parameters"]
