@@ -66,3 +66,19 @@ settings.register_profile(
 )
 CI = settings.get_profile(os.environ.get("CALIB_HYPOTHESIS_PROFILE", "calib-ci"))
 """Settings of the property tests (hypothesis)."""
+
+
+@pytest.fixture(scope="session")
+def forty_planes():
+    """TALOS sole to gripper touching 40 planes (6 touches each), registered."""
+    import numpy as np
+
+    from calib.calibration import contact_checks
+    from calib.measurements.contact_campaign import simulate_contacts
+
+    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
+    data = simulate_contacts(chain, 240, "plane", contacts=40, noise_mrad=0.01, seed=1).data
+    nominal = from_chain(chain)
+    start, bad, _ = contact_checks.checked_registration(chain, nominal, data, None, np.eye(4), None)
+    train = contact_checks.subset(data, ~bad) if bad.any() else data
+    return nominal, start, train

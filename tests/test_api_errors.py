@@ -19,6 +19,7 @@ from conftest import chain_of, mdh_of
 
 import calib
 from calib import CalibError, Measurement
+from calib.outputs.plots import calibration_figure
 
 CHAIN = chain_of("ur5")
 ROOTED = calib.load_chain("ur5", base="world")  # measured from the URDF's root link
@@ -114,6 +115,7 @@ def _cases():
         ),
         "measurement_to_base models": lambda: calib.measurement_to_base(None, MDH),
         "residual_stats result": lambda: calib.residual_stats(None, None),
+        "plots.calibration_figure not a result": lambda: calibration_figure("report.json"),
         "calibrate chain": lambda: calib.calibrate("ur5", None),
         "calibrate level=": lambda: calib.calibrate(CHAIN, None, level="paper"),
         "calibrate unknown option": lambda: calib.calibrate(CHAIN, None, levl="paper"),

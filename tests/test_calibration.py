@@ -17,6 +17,7 @@ import pytest
 from conftest import chain_of
 from scipy.spatial.transform import Rotation
 
+import calib.calibration.model
 from calib import (
     CalibrationRefusedError,
     Columns,
@@ -67,8 +68,11 @@ def true_points(campaign, q, marker=MARKER) -> np.ndarray:
 # --- the error model ------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("block", [4096, 4])
 @pytest.mark.parametrize("measure", ["position", "pose"])
-def test_jacobian_matches_finite_differences(measure):
+def test_jacobian_matches_finite_differences(measure, block, monkeypatch):
+    """Also with the robot's columns computed 4 configurations at a time (15: 4 blocks)."""
+    monkeypatch.setattr(calib.calibration.model, "CONFIGURATION_BLOCK", block)
     chain = chain_of("panda")
     nominal = from_chain(chain)
     data = simulate(chain, configs=15, measure=measure, seed=3, marker=MARKER).measurements

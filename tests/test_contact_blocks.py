@@ -8,14 +8,12 @@ import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_checks, contact_fit, contact_pipeline
+from calib.calibration import contact_choice, contact_fit, contact_pipeline
 from calib.calibration.contact_blocks import BlockSystem, block_lstsq
 from calib.calibration.contact_fit import block_fit, block_structural
 from calib.calibration.contact_model import ContactModel
 from calib.calibration.solve import fit
 from calib.identification.parameters import ParameterSet
-from calib.kinematics.mdh import from_chain
-from calib.measurements.contact_campaign import simulate_contacts
 
 
 def _dense(Jo, Js, index, K):
@@ -57,26 +55,15 @@ def test_block_least_squares_is_the_dense_least_squares(seed):
     assert np.allclose(np.r_[plain.objects.ravel(), plain.shared], x0, atol=1e-10, rtol=0)
 
 
-@pytest.fixture(scope="module")
-def forty_planes():
-    """TALOS sole to gripper touching 40 planes (6 touches each), registered."""
-    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
-    data = simulate_contacts(chain, 240, "plane", contacts=40, noise_mrad=0.01, seed=1).data
-    nominal = from_chain(chain)
-    start, bad, _ = contact_checks.checked_registration(chain, nominal, data, None, np.eye(4), None)
-    train = contact_checks.subset(data, ~bad) if bad.any() else data
-    return nominal, start, train
-
-
 def test_block_structural_check_keeps_the_dense_check_columns(forty_planes, monkeypatch):
     nominal, start, train = forty_planes
-    wide = ContactModel(contact_pipeline._candidates(nominal, "complete"), start.frames, ())
+    wide = ContactModel(contact_choice.level_candidates(nominal, "complete"), start.frames, ())
     assert contact_fit.by_block(wide)
     qf, _ = contact_pipeline.touching_postures(start, train.q, train.ids)
     held = dataclasses.replace(train, q=qf)
     blocks = block_structural(wide, start, held, None)
     monkeypatch.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route
-    dense = contact_pipeline._structural(wide, start, train, None)
+    dense = contact_choice.structural(wide, start, train, None)
     assert sorted(blocks) == sorted(dense) and len(dense) < wide.size()
 
 
@@ -85,9 +72,9 @@ def test_block_fit_reaches_minpacks_minimum(forty_planes, with_prior):
     """Levenberg-Marquardt by block against SciPy's MINPACK on the dense Jacobian (the
     parameters the touches determine, as the pipeline frees them)."""
     nominal, start, train = forty_planes
-    offered = contact_pipeline._candidates(nominal, "complete")
+    offered = contact_choice.level_candidates(nominal, "complete")
     wide = ContactModel(offered, start.frames, ())
-    kept = contact_pipeline._structural(wide, start, train, None)[wide.fixed :]
+    kept = contact_choice.structural(wide, start, train, None)[wide.fixed :]
     params = tuple(offered.parameters[c - wide.fixed] for c in sorted(kept))
     model = ContactModel(ParameterSet("free", params), start.frames, ())
     prior = None
@@ -132,10 +119,10 @@ def test_block_fit_of_compliances_reaches_minpacks_minimum(forty_planes):
     chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
     load = contact_elastic.standing(chain, train.kind, True, None)
     torque = contact_elastic.torques(load, train, None)[0]
-    offered = contact_pipeline._candidates(nominal, "offsets")
+    offered = contact_choice.level_candidates(nominal, "offsets")
     comp = tuple(range(nominal.n))
     wide = ContactModel(offered, start.frames, comp)
-    kept = contact_pipeline._structural(wide, start, train, load)
+    kept = contact_choice.structural(wide, start, train, load)
     split = wide.fixed + len(offered)
     params = tuple(offered.parameters[c - wide.fixed] for c in kept if wide.fixed <= c < split)
     joints = tuple(comp[c - split] for c in kept if c >= split)

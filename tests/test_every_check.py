@@ -2,12 +2,14 @@
 each fitted through the one entry (``calibrate(robot, data)`` or ``calibrate(Problem(...))``).
 
 Shapes: a chain measured by an instrument, a tree (two tools), one chain touching (each contact
-kind), several chains touching (TALOS's two arms) and the robot measuring itself (the TIAGo's
-head camera seeing its hand). Checks: validation data that are the data are refused; a
-gross outlier is set aside (and named by its row); swapped joint columns and degrees are
-diagnosed (a one-line DataError naming the mistake); too few rows for the unknowns are
-refused before any fit. None is skipped. The data are simulated with a known truth, and the
-mistakes made by the test on the data it reads (columns swapped, radians turned into degrees).
+kind), several chains touching (TALOS's two arms), the robot measuring itself (the TIAGo's
+head camera seeing its hand) and a measured term among touches (TALOS's head camera seeing
+its left hand, with both arms' table touches, in one fit). Checks: validation data that are
+the data are refused; a gross outlier is set aside (named by its row, and said in the
+report's warnings); swapped joint columns and degrees are diagnosed (a one-line DataError
+naming the mistake); too few rows for the unknowns are refused before any fit. None is
+skipped. The data are simulated with a known truth, and the mistakes made by the test on the
+data it reads (columns swapped, radians turned into degrees).
 """
 
 from __future__ import annotations
@@ -90,6 +92,21 @@ def _chains() -> Shape:
     return Shape(data, run, list, lambda d, parts: [parts[0], *d[1:]])
 
 
+def _camera_and_arms() -> Shape:
+    """TALOS's head camera measuring the left hand, first, with both arms' table touches."""
+    camera = load_robot(TALOS, "rgbd_optical_frame", LEFT[1])
+    chains = [camera, *(load_robot(TALOS, *pair) for pair in (LEFT, RIGHT))]
+    seen = simulate(camera, 40, measure="position", noise_mm=0.05, seed=5).measurements
+    data = [seen, *(simulate_contacts(c, 40, "plane", seed=6).data for c in chains[1:])]
+
+    def run(d, v):  # the first term validated on v
+        checks = [v, *[None] * (len(d) - 1)]
+        terms = zip(chains, d, checks, strict=True)
+        return calibrate(Problem(tuple(Term(*t) for t in terms), params="offsets"))
+
+    return Shape(data, run, list, lambda d, parts: [parts[0], *d[1:]])
+
+
 def _shapes() -> dict[str, Any]:
     ur5 = load_chain("ur5")
     tree = load_robot("talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
@@ -104,6 +121,7 @@ def _shapes() -> dict[str, Any]:
         ),
         **{f"contacts-{k}": (lambda k=k: _contact(k)) for k in CONTACT_KINDS},
         "chains": _chains,
+        "measured-and-touches": _camera_and_arms,
     }
 
 
@@ -152,6 +170,7 @@ def test_a_gross_outlier_is_set_aside(shape):
     report = result.to_dict()
     rows = [o["row"] for o in report["outliers"] if o["term"] == 0]
     assert rows == [12], report["outliers"]  # row 12 of the data (11 + 1: no file)
+    assert any("set aside" in w for w in report["warnings"]), report["warnings"]
 
 
 def test_swapped_joint_columns_are_diagnosed(shape):

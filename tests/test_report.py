@@ -376,3 +376,34 @@ def test_write_never_overwrites_the_nominal_urdf_and_refuses_a_refused_model(res
     with pytest.raises(CalibrationRefusedError, match="a test refusal"):
         refused.write(out, report=report)
     assert not out.exists() and json.loads(report.read_text())["accepted"] is False
+
+
+def test_real_talos_joint_fit_names_each_direction_by_its_joint_and_unit():
+    """Both arms' real touches, ``auto``: the fit offers each chain's MDH rows as directions of
+    joint placement errors (``<joint>:alpha15``). Each names its joint, a joint of the chains
+    (Pinocchio's model); angles are in rad, lengths in m (before: no joint, and 'mm' for
+    angles in the printed table)."""
+    import pinocchio as pin
+
+    from calib import Problem, Term, load_robot, read_contacts
+
+    urdf = "talos_full_v2.urdf"
+    real = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"
+    base = "left_sole_link"
+    pairs = ((base, "gripper_left_base_link"), (base, "gripper_right_base_link"))
+    chains = [load_robot(urdf, *p) for p in pairs]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        files = ("left_train.csv", "right_train.csv")
+        terms = [Term(c, read_contacts(real / f, c, "plane"), guess=(0, 0, -0.12))
+                 for c, f in zip(chains, files, strict=True)]  # fmt: skip
+        result = calibrate(Problem(tuple(terms), holdout=0.25))
+    model = pin.buildModelFromUrdf(str(chains[0].urdf_path))
+    on_chains = {str(model.names[j]) for c in chains for j in c.joint_ids}
+    directions = [p for p in result.to_dict()["parameters"] if ":" in p["name"]]
+    assert any(re.search(r":(alpha|theta)\d+$", p["name"]) for p in directions)
+    for p in directions:
+        joint, what = p["name"].split(":")
+        assert p["joint"] == joint and joint in on_chains, p
+        angle = what in ("rx", "ry", "rz") or re.fullmatch(r"(alpha|beta|theta)\d+", what)
+        assert p["unit"] == ("rad" if angle else "m"), p

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+import calib.calibration.contact_choice as contact_choice
 import calib.calibration.contact_pipeline as contact_pipeline
 import calib.calibration.entry as entry
 import calib.core.checks
@@ -16,6 +17,13 @@ from calib.core.checks import MAX_OBJECTS, MAX_ROWS, MAX_TOUCHES, check_size
 from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import contacts_csv, simulate_contacts
 from calib.measurements.csvfile import measurements_csv
+
+PEAK_ONE_PLANE = 650e6
+"""Peak memory [B] of ``calib calibrate`` on 20,000 touches of one plane, params auto
+(``benchmarks/bench_scale.py``)."""
+
+PEAK_500_PLANES = 438e6
+"""The same on 2,000 touches of 500 planes."""
 
 
 def _one_error(capsys, argv) -> str:
@@ -67,23 +75,35 @@ def test_too_many_rows_is_one_line(tmp_path, capsys, monkeypatch):
         calib.calibrate(chain, data)
 
 
-def test_the_selection_bound_of_the_measured_cases():
-    """The estimate covers the measured peaks (and refuses them: each is above 2 GB)."""
-    per_touch, per_column = contact_pipeline.SELECTION_BYTES
-    for m, columns, peak in ((20000, 65, 2.48e9), (1200, 1262, 2.19e9), (2000, 1562, 4.07e9)):
-        need = m * (per_touch + columns * per_column)
-        assert peak <= need <= 1.25 * peak and need > calib.core.checks.MAX_WORK_BYTES
+def test_the_memory_bound_of_the_measured_cases():
+    """The estimate covers the measured whole-process peaks (TALOS sole to gripper, params
+    auto: 62 columns to select beside the planes' unknowns), which now run; at the stated
+    maxima, 50,000 touches of one plane run and 2,000 planes of 4 touches are refused."""
+    per_touch, per_column, per_object = contact_choice.SELECTION_BYTES
+    limit = calib.core.checks.MAX_WORK_BYTES
+    for m, objects, peak in ((20000, 3, PEAK_ONE_PLANE), (2000, 1500, PEAK_500_PLANES)):
+        need = m * (per_touch + 62 * per_column + objects * per_object)
+        assert peak <= need <= 1.25 * peak and need <= limit
+    assert MAX_TOUCHES * (per_touch + 62 * per_column + 3 * per_object) <= limit
+    assert 8000 * (per_touch + 62 * per_column + 6000 * per_object) > limit
 
 
-def test_a_contact_selection_too_big_for_memory_is_refused_up_front(monkeypatch):
+def test_a_contact_calibration_too_big_for_memory_is_refused_up_front(monkeypatch):
     """params 'auto' on too many touches x columns: one line naming the way out, before the
-    registration (no work); at the bound, the selection runs."""
+    registration (no work); at the bound, the selection runs. The objects' part refuses
+    every level."""
     chain = load_chain("ur5")
     data = simulate_contacts(chain, 40, "plane", contacts=2, seed=0).data
-    columns = 2 * 3 + 2 + len(contact_pipeline._candidates(from_chain(chain), "auto"))
-    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", (0, 2**31 // (40 * columns) + 1))
+    dense = 2 + len(contact_choice.level_candidates(from_chain(chain), "auto"))
+    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense) + 1, 0))
     with pytest.raises(InvalidArgumentError, match="give a level") as err:
         calibrate_contacts(chain, data)
-    assert f"{columns} columns (8 of the plane(s) and the contact) on 40 touches" in str(err.value)
-    monkeypatch.setattr(contact_pipeline, "SELECTION_BYTES", (0, 2**31 // (40 * columns)))
+    assert f"40 touches of 2 plane(s) (6 of their unknowns, {dense} other columns to select)" in (
+        str(err.value)
+    )
+    assert calibrate_contacts(chain, data, params="complete").selection is None  # no selection
+    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense), 0))
     assert calibrate_contacts(chain, data).selection is not None  # at the bound: selected
+    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6) + 1))
+    with pytest.raises(InvalidArgumentError, match=r"GB: fewer touches or planes$"):
+        calibrate_contacts(chain, data, params="complete")

@@ -127,8 +127,8 @@ def test_cli_sweep_unwritable_csv_is_one_line_error(tmp_path, capsys):
 
 def test_figures_have_the_expected_content(pose_rows):
     fig = counts_figure(pose_rows)
-    ax = fig.axes[0]
-    assert len(ax.get_xticklabels()) == len([r for r in pose_rows if r.error is None])
+    shown = [t.get_text() for ax in fig.axes if ax.get_visible() for t in ax.get_xticklabels()]
+    assert sorted(shown) == sorted(r.robot for r in pose_rows if r.error is None)
     res = analyze("aid", measure="position")
     spec = spectrum_figure(res).axes[0]
     kept, dropped = spec.lines[0].get_ydata(), spec.lines[1].get_ydata()
@@ -160,3 +160,27 @@ def test_cli_rejects_bad_numbers_in_one_line(capsys, argv, fact):
     code = main(argv)
     out, err = capsys.readouterr()
     assert code == 2 and out == "" and err.count("\n") == 1 and fact in err, err
+
+
+def test_counts_figure_is_grouped_by_kind_of_robot_and_readable(pose_rows):
+    fig = counts_figure(pose_rows)
+    panels = {ax.get_title(): ax for ax in fig.axes if ax.get_visible()}
+    kinds = [title.rsplit(" (", 1)[0] for title in panels]
+    assert kinds == [
+        "calib's own models", "Arms", "Arms of humanoids", "Mobile and legged/aerial manipulators",
+        "Chains through coupled joints: fingers of grippers and hands", "Legs",
+        "Trees: whole robots, several tools sharing joints",
+    ]  # the catalog file's section headings, in order  # fmt: skip
+    ok = {r.robot: r for r in pose_rows if r.error is None}
+    names = {
+        k: [t.get_text() for t in ax.get_xticklabels()]
+        for k, ax in zip(kinds, panels.values(), strict=True)
+    }
+    assert names["calib's own models"] == ["aid", "stanford", "mimic_arm"]
+    assert "ur5" in names["Arms"] and "solo12_fl" in names["Legs"]
+    assert "talos" in names["Trees: whole robots, several tools sharing joints"]
+    for kind, ax in zip(kinds, panels.values(), strict=True):
+        paper = [bar.get_height() for bar in ax.patches[: len(names[kind])]]
+        assert paper == [ok[n].n_base_paper for n in names[kind]]
+    width, height = fig.get_size_inches() * 120  # figure_bytes' dpi
+    assert width < 1600 and height < 1600, (width, height)  # was 3,230 pixels wide, one row

@@ -67,7 +67,13 @@ from .contact_pipeline import (
 )
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
-from .measured_term import MeasuredState, check_measured, checked_measured, measured_kind
+from .measured_term import (
+    MeasuredState,
+    check_measured,
+    checked_measured,
+    measured_kind,
+    one_term_per_frame,
+)
 from .options import check_run_options
 from .outliers import Outlier
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
@@ -81,19 +87,6 @@ CHAIN_KINDS = (PlaneContact, FixedPoseContact)
 
 CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
 """Parameter levels of several chains (``paper`` is a chain's MDH set)."""
-
-
-def _one_term_per_frame(chains, data) -> None:
-    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it)."""
-    measuring = [
-        c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
-    ]
-    shared = sorted({f for f in measuring if measuring.count(f) > 1})
-    if shared:
-        raise InvalidArgumentError(
-            f"two measured terms measure from '{shared[0]}': one fit takes one measured term per "
-            "measuring frame (fit the other tool's rows apart)"
-        )
 
 
 def _check(chains, data, validate, params, holdout) -> None:
@@ -111,7 +104,7 @@ def _check(chains, data, validate, params, holdout) -> None:
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
     if not isinstance(data, Sequence) or len(data) != len(chains):
         raise InvalidArgumentError("give one set of touches per chain")
-    _one_term_per_frame(chains, data)
+    one_term_per_frame(chains, data)
     if validate is not None and (
         not isinstance(validate, Sequence) or len(validate) != len(chains)
     ):

@@ -13,8 +13,8 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import moved_origins_urdf, write_moved_origins_urdf
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
-from .contact_result import GapStats, gap_errors_mm
-from .delivery import Delivered
+from .contact_result import GapStats, gap_errors_mm, gap_rows
+from .delivery import Delivered, RowErrors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
 from .placements import Placements
@@ -413,6 +413,15 @@ class ContactChainsCalibration(Delivered):
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)
+
+    def row_errors(self) -> RowErrors:
+        """Each term's rows before and after [mm] (touches: weighted gaps), term after term."""
+        return RowErrors.join(
+            [
+                gap_rows(c.stats, f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})")
+                for k, c in enumerate(self.chains)
+            ]
+        )
 
     def urdf(self) -> bytes:
         """The calibrated URDF of the whole robot (the joint origins moved).

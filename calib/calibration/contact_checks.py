@@ -37,7 +37,6 @@ from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
     "WEIGHT_ROUNDS",
-    "WORSE",
     "checked_registration",
     "enough_touches",
     "estimate_weight",
@@ -51,9 +50,6 @@ __all__ = [
 
 WEIGHT_ROUNDS = 5
 """Registrations of the angle weight's estimate."""
-
-WORSE = validation.SAME
-"""Relative excess of a weighted RMS gap over the registration's that refuses a model."""
 
 
 def subset(data: ContactData, keep: np.ndarray) -> ContactData:

@@ -28,7 +28,7 @@ from .contact_blocks import BlockSystem, block_factors, block_lstsq
 from .contact_model import ContactModel, ContactState
 from .solve import TOLERANCE, Fit
 
-__all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
+__all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "block_weighted_fit", "by_block"]
 
 BLOCK_UNKNOWNS = 90
 """Objects' unknowns (30 planes) from which the fit and the structural check go by block."""
@@ -165,3 +165,28 @@ def block_structural(model: ContactModel, start: ContactState, data, torque) -> 
     rows = own.shape[0] * own.shape[1]
     kept = independent_columns(reduced, list(range(shared.shape[2])), rows)[2]
     return list(range(K * o)) + [K * o + c for c in kept]
+
+
+def block_weighted_fit(model: ContactModel, start: ContactState, data, residual: np.ndarray):
+    """The weighted linear least squares of the touches' residuals, by block.
+
+    For :func:`~.outliers.robust_proposals`: the columns the touches determine
+    (:func:`block_structural`), and a function of each touch's weight ``(m,)`` giving the
+    residuals ``(m, rows)`` it leaves.
+
+    Returns:
+        That function and the number of unknowns (none when the objects are undetermined).
+    """
+    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    kept = block_structural(model, start, data, None)
+    if not kept:
+        return (lambda w: residual), 10**9  # undetermined: no proposal
+    own, shared, index = model.blocks(start, np.zeros(model.size()), data, None)
+    shared = shared[:, :, [c - K * o for c in kept[K * o :]]]
+
+    def fitted(w: np.ndarray) -> np.ndarray:
+        s = np.sqrt(w)[:, None, None]
+        sol = block_lstsq(BlockSystem(own * s, shared * s, -residual * s[:, :, 0], index, K))
+        return residual - np.einsum("mro,mo->mr", own, sol.objects[index]) - shared @ sol.shared
+
+    return fitted, len(kept)

@@ -35,32 +35,34 @@ import time
 
 import numpy as np
 
-from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, MAX_WORK_BYTES, check_size
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import CONTACT_TOL, joint_offsets, project
-from ..identification.identifiability import independent_columns, preference_order
-from ..identification.parameters import ParameterSet, parameter_set
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
+from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
-from ..kinematics.standing import StandingLoad, Support
+from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import contact_checks, contact_elastic, determined, outliers, validation
-from .contact_checks import WEIGHT_ROUNDS, WORSE, subset
-from .contact_fit import block_fit, block_structural, by_block
-from .contact_model import ContactModel, ContactState, plane_frame
+from .contact_checks import WEIGHT_ROUNDS, subset
+from .contact_choice import (
+    check_selection_memory,
+    choose,
+    flush_postures,
+    proposals,
+    touching_postures,
+)
+from .contact_fit import block_fit, by_block
+from .contact_model import ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 from .contact_result import ContactCalibration, gap_stats
 from .options import Options
-from .selection import Selection, select
+from .selection import Selection
 from .solve import Fit, fit, fitted_values
 
 __all__ = [
     "WEIGHT_ROUNDS",
-    "WORSE",
-    "calibrate_contact_data",
     "calibrate_contacts",
     "check_held_out_gaps",
     "contact_frame",
@@ -122,38 +124,6 @@ def split_contacts(
     return subset(data, ~held), subset(data, held)
 
 
-SELECTION_BYTES = (35_000, 1_560)
-"""Memory [B] of ``params auto``'s selection per touch, and per touch and column (objects',
-contact's and candidates'), with a margin of about 10 %: fitted to the peaks measured on TALOS
-sole to gripper, 20,000 touches of one plane (65 columns: 2.48 GB) and 1,200 touches of 400
-planes (1,262 columns: 2.19 GB); 2,000 touches of 500 planes (1,562 columns) passed 4.07 GB
-and 5 minutes."""
-
-
-def check_selection_memory(data: ContactData, nominal: MDHModel, opts: Options, comp: int) -> None:
-    """Refuse, before any work, a selection (``params auto``) that needs more than 2 GB.
-
-    Raises:
-        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES`) exceeds
-            ``MAX_WORK_BYTES``; says what to do.
-    """
-    if opts.level != "auto":
-        return
-    kind = data.kind
-    fixed = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
-    columns = fixed + len(_candidates(nominal, "auto")) + comp
-    per_touch, per_column = SELECTION_BYTES
-    need = data.m * (per_touch + columns * per_column)
-    if need > MAX_WORK_BYTES:
-        raise InvalidArgumentError(
-            f"params 'auto' would cross-validate {columns} columns ({fixed} of the "
-            f"{kind.object_name}(s) and the contact) on {data.m} touches: about "
-            f"{need / 2**30:.3g} GB, calib allows {MAX_WORK_BYTES / 2**30:g} GB; give a level "
-            f"(params complete, paper, offsets or frames), or fewer touches or "
-            f"{kind.object_name}s"
-        )
-
-
 def _check(chain, data, validate, opts: Options) -> None:
     if not isinstance(chain, Chain) or chain.is_tree:
         raise InvalidArgumentError(f"contacts are calibrated on one Chain, got {chain!r:.60}")
@@ -189,142 +159,6 @@ def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray, kind=None)
     from ..identification.contacts import PlaneContact
 
     return contact_checks.estimate_weight(kind or PlaneContact(), R, p, ids, guess)
-
-
-def _candidates(nominal: MDHModel, level: str) -> ParameterSet:
-    """The robot parameters a level offers: joint rows 1..n only, in preference order."""
-    if level == "frames":
-        return ParameterSet("none", ())
-    if level == "offsets":
-        return joint_offsets(nominal)
-    pset = parameter_set(nominal, "paper" if level == "paper" else "complete")
-    order = preference_order(nominal, pset)
-    chosen = [pset.parameters[i] for i in order if 1 <= pset.parameters[i].row <= nominal.n]
-    return ParameterSet(pset.label, tuple(chosen))
-
-
-def _in_object(mdh: MDHModel, F: np.ndarray, C: np.ndarray) -> MDHModel:
-    """The model in an object's frame ``F``, its tool the contact frame ``C``."""
-    n = mdh.n
-    T = frames_at_zero(mdh)
-    Finv = np.linalg.inv(F)
-    joints = Finv @ T[1 : n + 1]
-    return from_lines(
-        joints[:, :3, 3],
-        joints[:, :3, 2],
-        mdh.sigma[1 : n + 1],
-        Finv @ T[-1] @ C,
-        tuple(str(x) for x in mdh.joint_names[1 : n + 1]),
-        sign=mdh.sign[1 : n + 1],
-    )
-
-
-def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarray, np.ndarray]:
-    """Postures near ``q`` where the contact of ``start`` holds on each touch's object.
-
-    Each object's touches are Newton-projected onto it, the model re-expressed in its frame
-    with the contact as its tool (:func:`~calib.identification.contacts.project`).
-
-    Returns:
-        The postures ``(m, n)`` (the given one where the projection failed) and which
-        reached the contact ``(m,)``.
-    """
-    q = np.asarray(q, dtype=float)
-    index = start.frames.index(ids)
-    out, reached = q.copy(), np.zeros(len(q), dtype=bool)
-    for k, F in enumerate(start.frames.objects):
-        rows = np.flatnonzero(index == k)
-        if not rows.size:
-            continue
-        qf, gaps = project(_in_object(start.mdh, F, start.contact), start.kind, q[rows])
-        good = gaps < CONTACT_TOL
-        out[rows[good]], reached[rows[good]] = qf[good], True
-    return out, reached
-
-
-def flush_postures(start: ContactState, q: np.ndarray, ids=None) -> np.ndarray:
-    """Postures near ``q`` where the contact of ``start`` holds (those that reach it)."""
-    ids = [start.frames.ids[0]] * len(q) if ids is None else ids
-    out, reached = touching_postures(start, q, ids)
-    return out[reached]
-
-
-def _structural(
-    wide: ContactModel, start: ContactState, train: ContactData, load: StandingLoad | None
-) -> list[int]:
-    """The columns the touches determine, from the Jacobian at touching postures near them.
-
-    At the registration the contact does not quite hold, and the directions no contact can
-    see (the scale without a prismatic joint, ...) have small columns a rank test would
-    keep; where the contact holds they vanish.
-    """
-    qf, _ = touching_postures(start, train.q, train.ids)
-    held = dataclasses.replace(train, q=qf)
-    torque = None if load is None or not wide.compliance else load.torques(qf, train.readings)
-    if by_block(wide):
-        return block_structural(wide, start, held, torque)
-    A = wide.jacobian(start, np.zeros(wide.size()), held, torque).reshape(-1, wide.size())
-    return independent_columns(A, list(range(A.shape[1])))[2]
-
-
-def _choose(start: ContactState, train: ContactData, opts: Options, notes: list[str], load, torque):
-    """The model (free parameters and compliances), the selection (auto), the prior weights."""
-    offered = _candidates(start.mdh, opts.level)
-    comp = tuple(range(start.mdh.n)) if load is not None else ()
-    wide = ContactModel(offered, start.frames, comp)
-    fixed = wide.fixed
-    kept = _structural(wide, start, train, load)
-    if kept[:fixed] != list(range(fixed)):
-        what = start.kind.object_name
-        raise DataError(train.source, f"the touches do not determine the {what}(s) and the contact")
-    columns = sorted(kept[fixed:])
-    if len(columns) < len(offered) + len(comp):
-        notes.append(
-            f"the touches determine {len(columns)} of the {len(offered) + len(comp)} "
-            "parameters offered"
-        )
-    groups = posture_groups(train.q, train.ids)
-    touches = int(groups.max(initial=-1)) + 1  # distinct: a repeated touch counts once
-    equations = touches * start.kind.n_rows
-    if opts.level != "auto":
-        what = f"parameters of params '{opts.level}' (with the contact's unknowns)"
-        determined.check_equations(touches, start.kind.n_rows, fixed + len(columns), what,
-                                   train.source, unit="touches")  # fmt: skip
-    elif fixed + len(columns) > equations:  # the selection's cross-validation needs spare rows
-        columns = _fewer(columns, fixed + len(offered), max(0, equations - fixed - 1))
-        notes.append(f"{touches} touches: params 'auto' chooses among {len(columns)} parameters")
-    names = wide.names()
-    weights: dict[str, float] = {}
-    selection: Selection | None = None
-    if opts.level == "auto" and columns:
-        J = wide.jacobian(start, np.zeros(wide.size()), train, torque)
-        cols = list(range(fixed)) + columns
-        cand = tuple(names[c] for c in columns)
-        residuals = start.residuals(train, torque)
-        selection, w = select(J[:, :, cols], residuals, fixed, cand, groups=groups)
-        weights = dict(zip(selection.kept, w, strict=True))
-        columns = [c for c in columns if names[c] in weights]
-    split = fixed + len(offered)
-    params = tuple(offered.parameters[c - fixed] for c in columns if c < split)
-    joints = tuple(comp[c - split] for c in columns if c >= split)
-    model = ContactModel(ParameterSet("free", params), start.frames, joints)
-    prior = None
-    if any(weights.values()):
-        prior = np.r_[np.zeros(fixed), [weights[k] for k in model.names()[fixed:]]]
-    return model, selection, prior
-
-
-def _fewer(columns: list[int], split: int, keep: int) -> list[int]:
-    """``keep`` of the candidate columns: the least preferred robot parameters dropped first.
-
-    Robot parameters (columns below ``split``) come in preference order; the compliances
-    (from ``split``) are dropped only when no robot parameter is left.
-    """
-    params = [c for c in columns if c < split]
-    comp = [c for c in columns if c >= split]
-    cut = max(0, len(columns) - keep)
-    params = params[: max(0, len(params) - cut)]
-    return (params + comp)[:keep]
 
 
 def calibrate_contacts(
@@ -406,10 +240,10 @@ def calibrate_contacts(
         return contact_checks.length_errors(rnd.fitted.state, train, full)
 
     rows = train.rows or tuple(range(1, train.m + 1))
-    start = bad | _proposals(first, train, opts)
-    rnd, _, dropped = outliers.until_stable(
-        refit, errors, None, rows, start, contact_checks.enough_touches(train)
-    )
+    enough = contact_checks.enough_touches(train)
+    start = bad | proposals(first, train, opts)
+    start = start if enough(start) else bad  # every object keeps enough touches
+    rnd, _, dropped = outliers.until_stable(refit, errors, None, rows, start, enough)
     notes = [*notes, *rnd.notes]
     if dropped:
         notes.append(outliers.set_aside_note(dropped, "touch(es)", "gap"))
@@ -474,7 +308,7 @@ def _round(chain, nominal, train, held, guess, opts, load, start=None, progress=
     torque = contact_elastic.torques(load, train, held)
     notes += filter(None, [contact_elastic.readings_note(load, train, held)])
     with phase(progress, "calibrate: selection"):
-        model, selection, prior = _choose(start, train, opts, notes, load, torque[0])
+        model, selection, prior = choose(start, train, opts, notes, load, torque[0])
     tic = time.perf_counter()
     with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
         fitted = _fit(model, start, train, torque[0], prior, opts)
@@ -489,45 +323,6 @@ def _fit(model, start, train, torque, prior, opts: Options):
             model, start, train, torque, prior=prior, max_iterations=opts.max_iterations
         )
     return fit(model, start, train, torque, 1.0, prior=prior, max_iterations=opts.max_iterations)
-
-
-def _proposals(start: ContactState, train: ContactData, opts: Options) -> np.ndarray:
-    """Touches a robust fit of every offered parameter, linearised, finds outlying."""
-    offered = _candidates(start.mdh, "complete")
-    wide = ContactModel(offered, start.frames, ())
-    J = wide.jacobian(start, np.zeros(wide.size()), train)
-    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
-    rows = train.rows or tuple(range(1, train.m + 1))
-    return outliers.robust_proposals(
-        J[:, :, sorted(kept)],
-        start.residuals(train),
-        lambda g: contact_checks.gap_errors(g, start.kind),
-        None,
-        rows,
-    )
-
-
-def calibrate_contact_data(
-    robot,
-    data: ContactData,
-    *,
-    marker=None,
-    fix=(),
-    free=(),
-    loss="linear",
-    noise_mm=None,
-    **kwargs,
-) -> ContactCalibration:
-    """:func:`calibrate_contacts` for :func:`~calib.calibration.pipeline.calibrate`.
-
-    ``marker`` is the contact frame's guess; ``fix``, ``free``, ``loss`` and ``noise_mm``
-    are not available for contacts (an error unless left at their defaults).
-    """
-    if fix or free or loss != "linear" or noise_mm is not None:
-        raise InvalidArgumentError(
-            "fix, free, robust losses and noise_mm are not available for contacts"
-        )
-    return calibrate_contacts(robot, data, contact=marker, **kwargs)
 
 
 def _held_label(held, validate) -> str | None:

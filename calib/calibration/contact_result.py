@@ -23,13 +23,13 @@ its file.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..core.fileio import json_text
-from ..exceptions import CalibrationRefusedError
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact
 from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
 from ..kinematics.mdh import MDHModel
@@ -37,7 +37,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from ..kinematics.urdf_export import calibrated_urdf, write_calibrated_urdf
 from ..kinematics.urdf_model import read_urdf_file
-from .delivery import Delivered, compliance_path
+from .delivery import Delivered, RowErrors, compliance_path
 from .outliers import Outlier
 from .report import (
     FORMAT2_MOVED,
@@ -53,7 +53,14 @@ from .report import (
 )
 from .selection import Selection
 
-__all__ = ["ContactCalibration", "GapStats", "gap_errors_mm", "gap_stats", "row_stats"]
+__all__ = [
+    "ContactCalibration",
+    "GapStats",
+    "gap_errors_mm",
+    "gap_rows",
+    "gap_stats",
+    "row_stats",
+]
 
 
 @dataclass(frozen=True)
@@ -68,6 +75,8 @@ class GapStats:
         max: Largest absolute value of each row [mm or deg].
         weighted_mm: RMS over touches of the weighted gap's norm [mm] (angles times the
             orientation weight).
+        per_row: Each touch's weighted gap norm ``(m,)`` [mm] (``weighted_mm`` is their
+            RMS), or None.
 
     Each row's figures also read as attributes: ``height_rms_mm``, ``roll_max_deg``, ...
     """
@@ -78,6 +87,7 @@ class GapStats:
     rms: tuple[float, ...]
     max: tuple[float, ...]
     weighted_mm: float
+    per_row: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def figures(self) -> tuple[str, ...]:
         """``<row>_rms_<unit>`` and ``<row>_max_<unit>`` of every row, in row order."""
@@ -89,7 +99,7 @@ class GapStats:
 
     def __getattr__(self, key: str) -> float:
         """A row's figure by its key (:meth:`figures`), e.g. ``height_rms_mm``."""
-        if key.startswith("__") or key in ("names", "angular", "rms", "max", "figures"):
+        if key.startswith("__") or key in ("names", "angular", "rms", "max", "figures", "per_row"):
             raise AttributeError(key)
         keys = self.figures()
         if key not in keys:
@@ -144,15 +154,38 @@ def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
     scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
     rms = np.sqrt(np.mean(g**2, axis=0)) * scale
     top = np.max(np.abs(g), axis=0) * scale
-    weighted = g * weights
+    per_row = 1e3 * np.linalg.norm(g * weights, axis=1)
     return GapStats(
         len(g),
         kind.row_names,
         kind.angular,
         tuple(float(v) for v in rms),
         tuple(float(v) for v in top),
-        1e3 * float(np.sqrt(np.mean(np.sum(weighted**2, axis=1)))),
+        float(np.sqrt(np.mean(per_row**2))),
+        per_row,
     )
+
+
+def gap_rows(stats: dict[str, GapStats], name: str = "") -> RowErrors:
+    """Each touch's weighted gap [mm] before (registration) and after, held-out ones marked.
+
+    Args:
+        stats: ``train``, ``train_registration`` and (optional) ``held_out`` and
+            ``held_out_registration`` (as :attr:`ContactCalibration.stats`).
+        name: The term's name (several terms), or empty.
+    """
+    parts = [p for p in ("train", "held_out") if p in stats]
+    before, after = [], []
+    for part in parts:
+        reg, cal = stats[f"{part}_registration"].per_row, stats[part].per_row
+        if reg is None or cal is None:
+            raise InvalidArgumentError("these gap statistics keep no per-touch gaps")
+        before.append(reg)
+        after.append(cal)
+    held = np.concatenate(
+        [np.full(len(b), p == "held_out") for b, p in zip(before, parts, strict=True)]
+    )
+    return RowErrors(np.concatenate(before), np.concatenate(after), held, name=name)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -402,6 +435,10 @@ class ContactCalibration(Delivered):
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)
+
+    def row_errors(self) -> RowErrors:
+        """Each touch's weighted gap [mm] before and after, held-out touches marked."""
+        return gap_rows(self.stats)
 
     def urdf(self) -> bytes:
         """The calibrated URDF (the tool frame stays the chain's tool frame)."""

@@ -10,12 +10,70 @@ compliance file (``compliance_files``). :class:`Delivered` builds the rest on th
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
-from ..core.fileio import check_outputs, json_text, write_files_atomic
-from ..exceptions import CalibrationRefusedError, InvalidArgumentError
+import numpy as np
 
-__all__ = ["Delivered", "Result", "compliance_path"]
+from ..core.fileio import check_outputs, json_text, read_bytes_limited, write_files_atomic
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFError
+from ..kinematics.origins import changed_origins, origins_document
+from ..kinematics.urdf_xml import MAX_URDF_BYTES
+
+__all__ = ["Delivered", "Result", "RowErrors", "compliance_path", "row_rms_mm"]
+
+
+@dataclass(frozen=True)
+class RowErrors:
+    """The error of each configuration, before and after calibration.
+
+    A measured row's error is the RMS over its measured points (the report's
+    ``position_rms_mm`` is the RMS of these); a touch's is its weighted gap norm (the
+    report's ``weighted_mm`` is their RMS).
+
+    Attributes:
+        before: Error of the registration (nominal geometry, fitted frame, markers and
+            objects) at each configuration ``(m,)`` [mm].
+        after: Error of the calibrated model ``(m,)`` [mm], the same way.
+        held_out: Which rows the fit never saw (``--holdout``, ``--validate``) ``(m,)``.
+        term: Each row's term (index into ``names``) ``(m,)``, or None: one term.
+        names: The terms' names (several terms), or empty.
+        name: The one term's name, when built for a term (see :meth:`join`).
+    """
+
+    before: np.ndarray
+    after: np.ndarray
+    held_out: np.ndarray
+    term: np.ndarray | None = None
+    names: tuple[str, ...] = ()
+    name: str = ""
+
+    @staticmethod
+    def join(parts: list[RowErrors]) -> RowErrors:
+        """The rows of several terms, term after term (each term named by its ``name``)."""
+        if len(parts) == 1:
+            return parts[0]
+        term = np.concatenate([np.full(len(p.after), k) for k, p in enumerate(parts)])
+        return RowErrors(
+            np.concatenate([p.before for p in parts]),
+            np.concatenate([p.after for p in parts]),
+            np.concatenate([p.held_out for p in parts]),
+            term,
+            tuple(p.name for p in parts),
+        )
+
+    def series(self) -> list[tuple[str, np.ndarray]]:
+        """``(term name, row mask)`` of each term (one with an empty name for one term)."""
+        if self.term is None:
+            return [("", np.ones(len(self.after), dtype=bool))]
+        return [(name, self.term == k) for k, name in enumerate(self.names)]
+
+
+def row_rms_mm(residual: np.ndarray, n_markers: int) -> np.ndarray:
+    """Each row's RMS point error [mm] of residuals ``(m, 3 K [+ 3])`` [m] (points first)."""
+    m = len(residual)
+    points = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
+    return 1e3 * np.sqrt(np.mean(points**2, axis=1))
 
 
 def compliance_path(out: Path) -> Path:
@@ -50,6 +108,53 @@ class Result:
         """Files written beside the URDF ``out`` (the compliance file; none by default)."""
         del out
         return {}
+
+    def row_errors(self) -> RowErrors:
+        """The error of each configuration before and after calibration, held-out rows marked.
+
+        Raises:
+            InvalidArgumentError: Not available for this shape of calibration (yet).
+        """
+        raise InvalidArgumentError(f"{type(self).__name__} keeps no per-configuration errors")
+
+    def plot(self):
+        """A matplotlib Figure: errors per configuration before and after, and the parameters.
+
+        See :func:`calib.outputs.plots.calibration_figure` (needs matplotlib).
+        """
+        from ..outputs.plots import calibration_figure  # the one upward import (pyproject)
+
+        return calibration_figure(self)
+
+    def origins(self, urdf: bytes | None = None) -> dict:
+        """The joint origins the calibration moved or added, with the nominal ones beside them.
+
+        What a xacro file reads (``xacro.load_yaml``) to carry the calibration into the
+        robot's own description: ``joints`` maps each joint whose origin changed (and each
+        joint the calibration added: markers, a camera, the world link) to its ``parent``,
+        ``child``, calibrated ``xyz`` [m] and ``rpy`` [rad] as the calibrated URDF writes them,
+        ``nominal_xyz`` and ``nominal_rpy`` (None for an added joint) and ``added``
+        (:func:`calib.kinematics.origins.origins_yaml` writes it as YAML).
+
+        Args:
+            urdf: The calibrated URDF they are read from (default: :meth:`urdf`; give a
+                chain's ``result.urdf(world_link=...)`` to include its world link).
+
+        Raises:
+            CalibrationRefusedError: The model was refused.
+            URDFError: The nominal URDF cannot be read.
+        """
+        if self.refusal is not None:
+            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        doc = self.to_dict()
+        try:
+            nominal = read_bytes_limited(doc["urdf"], MAX_URDF_BYTES)
+        except OSError as exc:
+            raise URDFError(str(doc["urdf"]), f"cannot read: {exc.strerror or exc}") from None
+        calibrated = self.urdf() if urdf is None else urdf
+        return origins_document(
+            doc["robot"], str(doc["urdf"]), changed_origins(nominal, calibrated)
+        )
 
     def write(self, out: str | Path, report: str | Path | None = None) -> None:
         """Write the calibrated URDF (and compliance file) and the report, all or none.

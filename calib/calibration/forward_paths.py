@@ -26,6 +26,8 @@ import contextlib
 
 import numpy as np
 
+from .object_columns import FixedBasis, ObjectColumns
+
 __all__ = ["DEPENDENT", "REFRESH", "SHRINK", "SMALL", "loo_errors", "path", "paths", "spd_solve"]
 
 DEPENDENT = 1e-8
@@ -127,6 +129,7 @@ def paths(
     start: list[int],
     candidates: list[int],
     train: np.ndarray,
+    objects: ObjectColumns | None = None,
 ) -> list[tuple[list[int], np.ndarray]]:
     """The forward paths (:func:`path`) of several subsets of the configurations at once.
 
@@ -137,13 +140,14 @@ def paths(
         start: Columns always in.
         candidates: Columns to add, until none is left or independent of those in.
         train: Configurations of each subset ``(subsets, m)`` [bool].
+        objects: Objects' columns always in too, by block (:mod:`.object_columns`), or None.
 
     Returns:
         Per subset: the columns in the order added, and the squared left-out error of each of
         its configurations before the first and after each addition ``(steps + 1, m_subset)``.
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        state = _Batch(A, e, rows, start, candidates, train)
+        state = _Batch(A, e, rows, start, candidates, train, objects)
         errors, chosen = [state.start_errors()], []
         for _ in candidates:
             active = state.prune()
@@ -183,21 +187,12 @@ class _Batch:
             left-out error is infinite from then on (their blocks are left out of ``Minv``).
     """
 
-    def __init__(self, A, e, rows, start, candidates, train):
+    def __init__(self, A, e, rows, start, candidates, train, objects=None):
         b, m = train.shape
         self.m, self.rows, self.b = m, rows, np.arange(b)
-        Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)
-        w = np.tile(train, rows).astype(float)
-        Q = np.linalg.qr(Ap[:, start] * w[:, :, None])[0]
-        self.r = _residual(Q, np.swapaxes(e.reshape(m, rows), 0, 1).ravel() * w)
-        self.r = self.r.reshape(b, rows, m)
-        Qb = Q.reshape(b, rows, m, -1)
-        self.H0, self.added = np.einsum("bims,bjms->bijm", Qb, Qb), []
-        C = Ap[:, candidates] * w[:, :, None]
-        self.floor2 = DEPENDENT**2 * np.einsum("bnk,bnk->kb", C, C)
-        for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
-            C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
-        self.C = np.ascontiguousarray(np.transpose(C, (2, 0, 1))).reshape(-1, b, rows, m)
+        begin = _start if objects is None else _block_start
+        self.r, self.H0, self.C, self.floor2 = begin(A, e, rows, start, candidates, train, objects)
+        self.added: list[np.ndarray] = []
         self.Minv = _inverse(self.H0)
         self.alive = np.ones((len(candidates), b), dtype=bool)
         self.index = np.arange(len(candidates))
@@ -392,6 +387,42 @@ class _Batch:
         Y += phi
         Y += Y
         L2 += Y
+
+
+def _start(A, e, rows, start, candidates, train, objects=None):
+    """Each subset's fit of the columns ``start`` (rows component-major).
+
+    Returns:
+        Residuals ``(b, rows, m)``, hat blocks ``(b, rows, rows, m)``, the candidates
+        orthogonal to the fit ``(k, b, rows, m)`` and the squared norms under which they are
+        dependent ``(k, b)``.
+    """
+    b, m = train.shape
+    Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)
+    w = np.tile(train, rows).astype(float)
+    Q = np.linalg.qr(Ap[:, start] * w[:, :, None])[0]
+    r = _residual(Q, np.swapaxes(e.reshape(m, rows), 0, 1).ravel() * w).reshape(b, rows, m)
+    Qb = Q.reshape(b, rows, m, -1)
+    C = Ap[:, candidates] * w[:, :, None]
+    floor2 = DEPENDENT**2 * np.einsum("bnk,bnk->kb", C, C)
+    for _ in range(2):  # twice is enough (Gram-Schmidt with reorthogonalisation)
+        C = C - Q @ (np.swapaxes(Q, 1, 2) @ C)
+    C = np.ascontiguousarray(np.transpose(C, (2, 0, 1))).reshape(-1, b, rows, m)
+    return r, np.einsum("bims,bjms->bijm", Qb, Qb), C, floor2
+
+
+def _block_start(A, e, rows, start, candidates, train, objects: ObjectColumns):
+    """:func:`_start` with the objects' columns in too, by block (:class:`FixedBasis`)."""
+    m = train.shape[1]
+    Ab = A.reshape(m, rows, -1)
+    w = train.astype(float)
+    basis = FixedBasis(objects, Ab[:, :, start], w)
+    r = basis.project((e.reshape(m, rows)[None] * w[:, :, None])[..., None])[..., 0]
+    C = Ab[None][:, :, :, candidates] * w[:, :, None, None]
+    floor2 = DEPENDENT**2 * np.einsum("bmrk,bmrk->kb", C, C)
+    C = np.ascontiguousarray(np.transpose(basis.project(C), (3, 0, 2, 1)))
+    H0 = np.ascontiguousarray(np.transpose(basis.hat(), (0, 2, 3, 1)))
+    return np.ascontiguousarray(np.swapaxes(r, 1, 2)), H0, C, floor2
 
 
 def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:

@@ -54,6 +54,7 @@ __all__ = [
     "measured_kind",
     "measured_stats",
     "measuring_joint",
+    "one_term_per_frame",
     "own_change",
     "own_model",
 ]
@@ -303,3 +304,20 @@ def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
     if a.tool_rotation is not None and b.tool_rotation is not None:
         parts.append(rotation_vector((a.tool_rotation.T @ b.tool_rotation)[None])[0])
     return np.concatenate(parts)
+
+
+def one_term_per_frame(chains, data) -> None:
+    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it).
+
+    Raises:
+        InvalidArgumentError: Two terms whose data are measurements share a base frame.
+    """
+    measuring = [
+        c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
+    ]
+    shared = sorted({f for f in measuring if measuring.count(f) > 1})
+    if shared:
+        raise InvalidArgumentError(
+            f"two measured terms measure from '{shared[0]}': one fit takes one measured term per "
+            "measuring frame (fit the other tool's rows apart)"
+        )

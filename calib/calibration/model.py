@@ -72,6 +72,13 @@ def offset_parameter(mdh: MDHModel, joint: int) -> Parameter:
     return Parameter(row, Kind.THETA if mdh.sigma[row] == 0 else Kind.R)
 
 
+CONFIGURATION_BLOCK = 4096
+"""Configurations whose robot-parameter columns :meth:`ErrorModel.jacobian` computes at once:
+the identification Jacobian's temporaries (several arrays of rows x parameters per
+configuration) stay a few MB whatever the campaign's size (100,000 configurations: they
+peaked at about 400 MB beside the Jacobian itself)."""
+
+
 @dataclass(frozen=True, eq=False)
 class State:
     """A complete model of the measurements: geometry, measurement frame, markers, compliance.
@@ -289,9 +296,13 @@ class ErrorModel:
         if self._tool_free:
             J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
             c += 3
-        for block in self._mdh_blocks(state, q, kin, torque):
-            J[:, :, c : c + block.shape[2]] = block
-            c += block.shape[2]
+        for s in range(0, m, CONFIGURATION_BLOCK):  # in blocks: the temporaries stay small
+            part, col = slice(s, s + CONFIGURATION_BLOCK), c
+            load = None if torque is None else torque[part]
+            sub = Kinematics(*(a[part] for a in kin))
+            for block in self._mdh_blocks(state, q[part], sub, load):
+                J[part, :, col : col + block.shape[2]] = block
+                col += block.shape[2]
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
         return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K)
 

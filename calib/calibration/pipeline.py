@@ -391,6 +391,7 @@ def _validation(fitted: Fit, held, torque, cov) -> Validation:
         validation.stats(fitted.state, data, torque),
         validation.predicted_std(J, cov, data.n_markers),
         _geometry_stats(fitted.state, data),
+        data,
     )
 
 

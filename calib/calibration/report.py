@@ -89,7 +89,9 @@ SHAPES = ("chain", "tree", "contacts", "chains")
 several chains touching."""
 
 _ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
-_PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz])")
+_PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz]|(?:alpha|beta|gamma|theta|offset|[dryb])\d+)")
+"""A joint placement component (``arm_5_joint:rz``) or an MDH parameter of a chain's rows as a
+direction of joint placement errors (``arm_5_joint:alpha7``, in that parameter's unit)."""
 _ANGLES = ("alpha", "beta", "gamma", "theta")
 
 
@@ -131,6 +133,9 @@ def parameter_unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -
             return "m" if prismatic else "rad"
         return "rad" if kind in _ANGLES else "m"
     axis = re.split(r"[.:]", name)[-1]
+    direction = _ROW_NAME.fullmatch(axis) if ":" in name else None  # <joint>:<MDH parameter>
+    if direction is not None:
+        return "rad" if direction.group(1) in (*_ANGLES, "offset") else "m"
     return "rad" if axis in ("rx", "ry", "rz") else "m"
 
 

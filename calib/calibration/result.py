@@ -16,7 +16,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
-from .delivery import Delivered, compliance_path
+from .delivery import Delivered, RowErrors, compliance_path, row_rms_mm
 from .model import ErrorModel, State
 from .outliers import Outlier
 from .report import (
@@ -116,6 +116,7 @@ class Validation:
         urdf: Errors of the calibrated URDF alone (the geometry, frame and markers, without
             the joint compliance), or None when no compliance was fitted (then it is
             ``calibrated``).
+        rows: The held-out measurements themselves (for per-configuration errors), or None.
     """
 
     source: str
@@ -123,6 +124,7 @@ class Validation:
     calibrated: ResidualStats
     predicted_std: float
     urdf: ResidualStats | None = None
+    rows: Measurements | None = None
 
     @property
     def geometry(self) -> ResidualStats:
@@ -219,6 +221,21 @@ class CalibrationResult(Delivered):
     warnings: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
     urdf_after: ResidualStats | None = None
+
+    def row_errors(self) -> RowErrors:
+        """Position error of each fitted and held-out configuration, before and after [mm]."""
+        torque = self.chain.gravity_torques(self.data.q) if self.elastic else None
+        parts = [(self.data, torque, False)]
+        if self.validation is not None and self.validation.rows is not None:
+            held = self.validation.rows
+            torque = self.chain.gravity_torques(held.q) if self.elastic else None
+            parts.append((held, torque, True))
+        before, after, mask = [], [], []
+        for data, tau, is_held in parts:
+            before.append(row_rms_mm(self.registration.residuals(data), data.n_markers))
+            after.append(row_rms_mm(self.state.residuals(data, tau), data.n_markers))
+            mask.append(np.full(len(data.q), is_held))
+        return RowErrors(np.concatenate(before), np.concatenate(after), np.concatenate(mask))
 
     @property
     def calibrated(self) -> MDHModel:

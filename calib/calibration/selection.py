@@ -35,7 +35,7 @@ closed form.
   more parameter (about noise^2 / m): alone, it kept dropping parameters the data
   determine. Below ``RICH`` (a fold's error is that of a few postures) the selection is
   delivered as before. The guard's errors come from the moments of each fold's held-out rows
-  (:func:`_outer_cv`), the prior strengths in blocks of configurations
+  (:func:`~.outer_cv.outer_cv`), the prior strengths in blocks of configurations
   (:func:`ridge_strengths`): the memory is linear in the data with a small constant.
 * **Postures**: the configurations of one posture (its repeats, ``groups``) enter as one
   (:func:`_by_posture`), so that its repeats leave together and buy no parameter. Ten
@@ -53,6 +53,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .forward_paths import SMALL, loo_errors, paths, spd_solve
+from .object_columns import FixedBasis, ObjectColumns
+from .outer_cv import outer_cv
 
 __all__ = [
     "MIN_GAIN",
@@ -197,7 +199,13 @@ def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.n
 
 
 def ridge_strengths(
-    A: np.ndarray, e: np.ndarray, rows: int, fixed: int, train: np.ndarray, cols: list[list[int]]
+    A: np.ndarray,
+    e: np.ndarray,
+    rows: int,
+    fixed: int,
+    train: np.ndarray,
+    cols: list[list[int]],
+    objects: ObjectColumns | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`ridge_loo` of several subsets of the configurations, each with its own columns.
 
@@ -218,6 +226,7 @@ def ridge_strengths(
         fixed: Columns without prior.
         train: Configurations of each subset ``(subsets, m)`` [bool].
         cols: Columns under the prior of each subset.
+        objects: Objects' columns free too, by block (:mod:`.object_columns`), or None.
 
     Returns:
         Each subset's squared left-out errors at its strength of least RMS error ``(b, m)``
@@ -226,7 +235,7 @@ def ridge_strengths(
     """
     per = _per_batch(A.shape[0] * A.shape[1], len(train))
     parts = [
-        _ridge_batch(A, e, rows, fixed, train[i : i + per], cols[i : i + per])
+        _ridge_batch(A, e, rows, fixed, train[i : i + per], cols[i : i + per], objects)
         for i in range(0, len(train), per)
     ]
     return np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts])
@@ -242,27 +251,35 @@ def _per_batch(size: int, subsets: int) -> int:
     return max(1, min(subsets, BLOCK // max(size, 1)))
 
 
-def _ridge_batch(A, e, rows, fixed, train, cols) -> tuple[np.ndarray, np.ndarray]:
+def _ridge_batch(A, e, rows, fixed, train, cols, objects=None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`ridge_strengths` of a few subsets at once."""
     b = len(train)
     w = np.repeat(train, rows, axis=1).astype(float)
-    Q = np.linalg.qr(A[:, :fixed] * w[:, :, None])[0]
-    r = e * w - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e * w))
     B, real = _padded(A, cols)  # zero columns pad: their singular values are 0, unused
     B *= w[:, :, None]
-    B -= Q @ (np.swapaxes(Q, 1, 2) @ B)
+    hat = Q = None
+    if objects is None:
+        Q = np.linalg.qr(A[:, :fixed] * w[:, :, None])[0]
+        r = e * w - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e * w))
+        B -= Q @ (np.swapaxes(Q, 1, 2) @ B)
+    else:  # the objects' columns by block
+        m = train.shape[1]
+        basis = FixedBasis(objects, A[:, :fixed].reshape(m, rows, -1), train.astype(float))
+        r = basis.project((e * w).reshape(b, m, rows, 1)).reshape(b, -1)
+        B = basis.project(B.reshape(b, m, rows, -1)).reshape(B.shape)
+        hat = basis.hat()
     U, sv = np.linalg.svd(B, full_matrices=False)[:2]
     del B
     width, strengths = U.shape[2], np.r_[0.0, STRENGTHS]
     s2 = np.broadcast_to(sv[:, None, :] ** 2, (b, len(strengths), width))
     with np.errstate(invalid="ignore"):  # 0 / 0 where a column is dependent, as it should
         wt = np.divide(s2, s2 + strengths[:, None], out=np.zeros(s2.shape), where=real[:, None])
-    sq = _ridge_errors(Q, U, wt, r, rows) * train[:, None, :]  # held out: round-off only
+    sq = _ridge_errors(Q, U, wt, r, rows, hat) * train[:, None, :]  # held out: round-off only
     best = np.argmin(np.sum(sq, axis=2), axis=1)
     return sq[np.arange(b), best], strengths[best]
 
 
-def _ridge_errors(Q, U, wt, r, rows) -> np.ndarray:
+def _ridge_errors(Q, U, wt, r, rows, hat=None) -> np.ndarray:
     """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
 
     The configurations are taken in blocks (:data:`BLOCK`): each one's error needs its own
@@ -274,27 +291,43 @@ def _ridge_errors(Q, U, wt, r, rows) -> np.ndarray:
         wt: Their weights at each strength ``(b, strengths, width)``.
         r: Residuals of the fixed columns' fit ``(b, n)``.
         rows: Rows per configuration.
+        hat: The fixed columns' hat blocks ``(b, m, rows, rows)`` instead of ``Q`` (None).
     """
     b, n, width = U.shape
     m, S = n // rows, wt.shape[1]
     coef = wt * np.einsum("bnk,bn->bk", U, r)[:, None]  # (b, strengths, width)
-    Ub, Qb, rb = U.reshape(b, m, rows, width), Q.reshape(b, m, rows, -1), r.reshape(b, m, rows)
-    step = max(1, BLOCK // (rows * b * (rows * S + width + Q.shape[2])))
+    Ub, rb = U.reshape(b, m, rows, width), r.reshape(b, m, rows)
+    Fb = Q.reshape(b, m, rows, -1) if hat is None else hat  # the fixed columns by configuration
+    step = max(1, BLOCK // (rows * b * (rows * S + width + Fb.shape[3])))
     out = np.empty((b, S, m))
     for c in range(0, m, step):
         part = slice(c, c + step)
-        out[:, :, part] = _ridge_block(Qb[:, part], Ub[:, part], wt, coef, rb[:, part], rows)
+        fixed = _fixed_hat(Fb[:, part], hat is not None)
+        out[:, :, part] = _ridge_block(fixed, Ub[:, part], wt, coef, rb[:, part], rows)
     return out
 
 
-def _ridge_block(Qb, Ub, wt, coef, rb, rows) -> np.ndarray:
-    """:func:`_ridge_errors` of a block of configurations (arrays by configuration)."""
+def _fixed_hat(Fb: np.ndarray, is_hat: bool) -> np.ndarray:
+    """The fixed columns' hat blocks ``(rows, rows, b, m)``.
+
+    From their basis, or their hat blocks, by configuration ``(b, m, rows, .)``.
+    """
+    if is_hat:
+        return np.transpose(Fb, (2, 3, 0, 1))
+    Qc = np.transpose(Fb, (2, 0, 1, 3))
+    return np.einsum("ibms,jbms->ijbm", Qc, Qc)
+
+
+def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
+    """:func:`_ridge_errors` of a block of configurations (arrays by configuration).
+
+    ``fixed``: the fixed columns' hat blocks ``(rows, rows, b, m)``.
+    """
     b, m = Ub.shape[:2]
     S = wt.shape[1]
     Uc = np.ascontiguousarray(np.transpose(Ub, (2, 0, 3, 1)))  # (rows, b, width, m)
-    Qc = np.transpose(Qb, (2, 0, 1, 3))
     M = -(wt @ (Uc[:, None] * Uc[None]))  # (rows, rows, b, strengths, m): component-major
-    M -= np.einsum("ibms,jbms->ijbm", Qc, Qc)[:, :, :, None]
+    M -= fixed[:, :, :, None]
     M[np.arange(rows), np.arange(rows)] += 1.0
     fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
     y = np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
@@ -360,7 +393,7 @@ def _forwards(A, e, rows, fixed, names, forced, train) -> list[tuple[list[int], 
     return [(o[0], o[1], float(s)) for o, s in zip(found, strengths, strict=True)]
 
 
-def _paths_of(A, e, rows, fixed, names, forced, train, repeats):
+def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects=None):
     """:func:`_forwards` without the prior strengths.
 
     Each subset's kept candidates (into ``names``) and steps, and the whole path's order
@@ -375,11 +408,11 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats):
     spread, count = (np.zeros(train.shape[1]), None) if repeats is None else repeats
     out = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
-    found = [
+    found = (  # a batch at a time: each path's errors (steps x configurations) then dropped
         p
         for i in range(0, len(train), per)
-        for p in paths(A, e, rows, start, rest, train[i : i + per])
-    ]
+        for p in paths(A, e, rows, start, rest, train[i : i + per], objects)
+    )
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
@@ -403,77 +436,6 @@ def _guard_folds(m: int) -> np.ndarray:
     """
     folds = np.arange(min(OUTER_FOLDS, m))
     return (np.arange(m) % OUTER_FOLDS)[None, :] != folds[:, None]
-
-
-def _outer_cv(A, e, rows, fixed, train, models) -> np.ndarray:
-    """Held-out squared error of each candidate model's fits, pooled over the guard's folds.
-
-    Each fold's fit is the ridge fit of the candidate's columns on its training rows; its
-    error on the held-out rows comes from the moments of the held-out rows (``A_h^T A_h``,
-    ``A_h^T e_h``, ``|e_h|^2``), about the whole data's least-squares fit (whose residuals
-    are small: the moments keep their digits), so that no array larger than the data is made.
-
-    Args:
-        A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Number of columns always in (frame, markers).
-        train: Training configurations of each fold ``(folds, m)``.
-        models: Per candidate, per fold: its columns and prior strength.
-
-    Returns:
-        ``(candidates, folds)`` summed squared held-out errors [units of e squared].
-    """
-    x_all = np.linalg.lstsq(A, e, rcond=None)[0]
-    ec = e - A @ x_all
-    G, g = A.T @ A, A.T @ ec
-    moments = []
-    for mask in train:
-        held = np.repeat(~mask, rows)
-        Ah, eh = A[held], ec[held]
-        moments.append((Ah.T @ Ah, Ah.T @ eh, eh @ eh))
-    Gh = np.array([h[0] for h in moments])
-    gh = np.array([h[1] for h in moments])
-    Gt = G - Gh
-    gt = g - gh + Gt @ x_all  # training moments, about 0
-    p = A.shape[1]
-    use = np.zeros((len(models), len(train), p), dtype=bool)
-    lam = np.zeros(use.shape)
-    for c, model in enumerate(models):
-        for f, (cols, strength) in enumerate(model):
-            use[c, f, cols] = True
-            lam[c, f, cols[fixed:]] = strength
-    d = _solve(Gt, gt, use, lam) - x_all
-    quad = np.einsum("cfi,fij,cfj->cf", d, Gh, d)
-    sse = np.array([h[2] for h in moments]) - 2.0 * np.einsum("cfi,fi->cf", d, gh) + quad
-    return np.maximum(sse, 0.0)
-
-
-def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
-
-    Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
-
-    Args:
-        N: Normal matrices of each fold ``(folds, p, p)``.
-        b: Their right-hand sides ``(folds, p)``.
-        use: The columns of each candidate's fit in each fold ``(candidates, folds, p)``.
-        lam: The prior on each column ``(candidates, folds, p)``.
-
-    Returns:
-        ``(candidates, folds, p)`` solutions, zero off their columns.
-    """
-    both = use[..., :, None] & use[..., None, :]
-    M = np.where(both, N[None], 0.0)
-    diag = np.arange(N.shape[1])
-    top = np.max(np.abs(M[..., diag, diag]), axis=-1, keepdims=True)
-    M[..., diag, diag] += lam + np.where(use, 0.0, top)  # the padding: eigenvalue top, no rhs
-    ev, V = np.linalg.eigh(M)
-    ev_abs = np.abs(ev)
-    tol = np.finfo(float).eps * use.sum(axis=-1, keepdims=True) * ev_abs.max(axis=-1, keepdims=True)
-    y = np.einsum("cfji,cfj->cfi", V, np.where(use, b[None], 0.0))
-    y = np.divide(y, ev, out=np.zeros_like(y), where=ev_abs > tol)
-    return np.einsum("cfij,cfj->cfi", V, y)
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
@@ -532,6 +494,7 @@ def select(
     names: tuple[str, ...],
     forced=(),
     groups: np.ndarray | None = None,
+    objects: ObjectColumns | None = None,
 ) -> tuple[Selection, np.ndarray]:
     """Choose the parameters the data support (see the module docstring).
 
@@ -545,12 +508,17 @@ def select(
         groups: Posture of each configuration (:func:`~calib.measurements.postures.
             posture_groups`): the repeats of a posture count once (None: every
             configuration is a posture).
+        objects: The objects' columns (contacts: each object's unknowns, on its own
+            touches), always free like the first ``fixed`` of J, kept by block
+            (:mod:`.object_columns`); or None.
 
     Returns:
         The selection, and the prior weight of each kept parameter (in the units of x:
         ``sqrt(strength) * |column|``).
     """
     points = e.size / 3
+    if objects is not None:
+        objects = objects.by_posture(groups, len(e)).unit()
     J, e, repeats = _by_posture(J, e, groups)
     m, rows, p = J.shape
     A = J.reshape(m * rows, p)
@@ -559,12 +527,13 @@ def select(
     ev = e.ravel()
     folds = _guard_folds(m)
     train = np.vstack([np.ones((1, m), dtype=bool), folds])  # the whole data, then each fold
-    outcomes = _paths_of(A, ev, rows, fixed, names, forced, train, repeats)
-    rich = m * rows >= RICH * p  # else the complete fit is no candidate (as careful as before)
+    outcomes = _paths_of(A, ev, rows, fixed, names, forced, train, repeats, objects)
+    unknowns = p + (0 if objects is None else objects.objects * objects.own.shape[2])
+    rich = m * rows >= RICH * unknowns  # else the complete fit is no candidate (as before)
     every = [_complete(names, o[2]) for o in outcomes] if rich else []
     lists = [[fixed + u for u in c] for c in [o[0] for o in outcomes] + every]
     subsets = np.vstack([train] * (2 if rich else 1))
-    both = ridge_strengths(A, ev, rows, fixed, subsets, lists)[1].tolist()
+    both = ridge_strengths(A, ev, rows, fixed, subsets, lists, objects)[1].tolist()
     strengths, complete = both[: len(train)], both[len(train) :]
     frame = list(range(fixed))
     models = [
@@ -572,7 +541,7 @@ def select(
         [(frame + c, s) for c, s in zip(lists[1 : len(train)], strengths[1:], strict=True)],
         [(frame + c, s) for c, s in zip(lists[len(train) + 1 :], complete[1:], strict=True)],
     ]
-    folded = _outer_cv(A, ev, rows, fixed, folds, models[: 3 if rich else 2])
+    folded = outer_cv(A, ev, rows, fixed, folds, models[: 3 if rich else 2], objects)
     cv = [*np.sqrt((folded.sum(axis=1) + repeats[0].sum()) / points).tolist(), float("nan")]
     reg_cv, sel_cv, full_cv = cv[:3]
     sel, steps, _, path_steps = outcomes[0]

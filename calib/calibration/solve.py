@@ -120,10 +120,11 @@ class Problem:
     Jacobians are kept.
     """
 
-    def __init__(self, model, start, data, torque, weight, prior=None):
+    def __init__(self, model, start, data, torque, weight, prior=None, robust=True):
         self.model, self.start, self.data, self.torque = model, start, data, torque
         self.w = row_weights(model, weight)
         self.prior = prior  # (p,) weights of x in the prior rows, or None
+        self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
         self._chain = isinstance(model, ErrorModel)
         self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
 
@@ -166,13 +167,20 @@ class Problem:
                 J = self.model.jacobian(self.start, x, self.data, self.torque)
             else:
                 J = self.model.jacobian(self.start, x, self.data, self.torque, state, kin)
-            kept[3] = (J * self.w[None, :, None]).reshape(-1, J.shape[2])
+            J *= self.w[None, :, None]  # in place: a fresh array (100,000 rows: 65 MB saved)
+            kept[3] = J.reshape(-1, J.shape[2])
         return kept[3]
 
     def jac(self, x: np.ndarray) -> np.ndarray:
-        """Jacobian of :meth:`fun` (a copy: SciPy scales it in place for a robust loss)."""
+        """Jacobian of :meth:`fun`.
+
+        A copy for a robust loss, which SciPy scales in place; MINPACK copies the linear
+        loss's into its own array.
+        """
         J = self.data_jac(x)
-        return J.copy() if self.prior is None else np.vstack([J, np.diag(self.prior)])
+        if self.prior is not None:
+            return np.vstack([J, np.diag(self.prior)])
+        return J.copy() if self.robust else J
 
 
 def _same_geometry(a, b) -> bool:
@@ -208,7 +216,7 @@ def fit(
     """
     import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
 
-    problem = Problem(model, start, data, torque, weight, prior)
+    problem = Problem(model, start, data, torque, weight, prior, robust=loss != "linear")
     p = model.size()
     if p == 0:
         x = np.zeros(0)

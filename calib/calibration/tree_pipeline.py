@@ -27,7 +27,7 @@ from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from . import determined, diagnosis, outliers, validation
-from .delivery import Delivered
+from .delivery import Delivered, RowErrors, row_rms_mm
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, Options, checked_arguments
 from .report import (
     FORMAT2_MOVED,
@@ -88,6 +88,7 @@ class TreeCalibrationResult(Delivered):
         warnings: Reasons to be careful with the result.
         timings_ms: Time of each stage [ms].
         held_source: The held-out rows' source (``holdout`` or the validation file), or None.
+        held: The held-out rows themselves, or None.
     """
 
     tree: Tree
@@ -113,6 +114,7 @@ class TreeCalibrationResult(Delivered):
     warnings: tuple[str, ...] = ()
     timings_ms: dict[str, float] = field(default_factory=dict)
     held_source: str | None = None
+    held: Measurements | None = None
 
     @property
     def accepted(self) -> bool:
@@ -220,6 +222,16 @@ class TreeCalibrationResult(Delivered):
             "marker_links": {t: marker_link_names(t, 1)[0] for t in tools},
             "measurement_to_base": pose_dict(self.measurement_to_base),
         }
+
+    def row_errors(self) -> RowErrors:
+        """Position error of each fitted and held-out row, before and after [mm]."""
+        if self.data is None:
+            return super().row_errors()
+        parts = [(self.data, False)] + ([] if self.held is None else [(self.held, True)])
+        before = [row_rms_mm(self.registration.residuals(d), 1) for d, _ in parts]
+        after = [row_rms_mm(self.state.residuals(d), 1) for d, _ in parts]
+        held = [np.full(len(d.q), h) for d, h in parts]
+        return RowErrors(np.concatenate(before), np.concatenate(after), np.concatenate(held))
 
     def urdf(self) -> bytes:
         """The calibrated URDF of every branch, with each tool's marker link."""
@@ -572,6 +584,7 @@ def _tree_result(tree, level, train, held, fitted: Fit, reg: TreeState) -> TreeC
         validation=val,
         held_per_tool=() if held is None else _per_tool(reg, fitted.state, held, tools),
         held_source=None if held is None else held.source,
+        held=held,
         converged=fitted.converged,
         refusal=reason,
         rows=train.m,

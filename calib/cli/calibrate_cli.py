@@ -23,9 +23,11 @@ from . import contact_chains_cli, contact_cli, pixels_cli
 from .common import (
     BooleanOnce,
     add_chain_args,
+    add_look_args,
     check_applicable,
     check_output_paths,
     compliance_path,
+    look_outputs,
     tool_arg,
     write_calibration,
 )
@@ -120,7 +122,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
             f"--out {out} is no regular file: --elastic writes the compliance file next to it"
         )
     check_output_paths(
-        {"--out": out, "--report": report, "the compliance file": comp},
+        {"--out": out, "--report": report, "the compliance file": comp, **look_outputs(args)},
         {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
     )
     data, check = _chain_data(args, chain)
@@ -167,6 +169,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         files,
         (out, report),
         recorded,
+        result,
     )
 
 
@@ -232,7 +235,7 @@ def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Pa
     inputs = {"the nominal URDF": urdf, "the data (--data)": args.data}
     if args.validate:
         inputs["the validation data (--validate)"] = args.validate
-    check_output_paths({"--out": out, "--report": report}, inputs)
+    check_output_paths({"--out": out, "--report": report, **look_outputs(args)}, inputs)
     return out, report
 
 
@@ -283,6 +286,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
         },
         (out, report),
         recorded,
+        result,
     )
 
 
@@ -334,6 +338,7 @@ def add_calibrate_parser(sub) -> None:
         "the hand): its calibrated placement is written into the base frame's fixed joint",
     )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
+    add_look_args(p)
     p.set_defaults(func=cmd_calibrate)
 
 

@@ -30,6 +30,7 @@ __all__ = [
     "BooleanOnce",
     "Parser",
     "add_chain_args",
+    "add_look_args",
     "add_marker_arg",
     "add_measure_args",
     "add_sampling_args",
@@ -37,6 +38,7 @@ __all__ = [
     "check_output_paths",
     "compliance_path",
     "given_options",
+    "look_outputs",
     "one_line",
     "positive_number",
     "print_json",
@@ -107,8 +109,12 @@ class Parser(argparse.ArgumentParser):
         self.register("action", "append", _AppendNoted)
 
     def error(self, message: str) -> NoReturn:
-        """Exit with one usage line (exit status 2)."""
-        self.exit(2, f"calib: error: {self.prog}: {message} (see --help)\n")
+        """Exit with one usage line (exit status 2), under the one ``calib: error:`` prefix.
+
+        The command is named in the hint (``see calib calibrate --help``), not in a second
+        prefix.
+        """
+        self.exit(2, f"calib: error: {message} (see {self.prog} --help)\n")
 
 
 def given_options(args: argparse.Namespace, dests) -> list[str]:
@@ -297,7 +303,59 @@ def with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> 
     return {**report, "warnings": lines}
 
 
-def write_calibration(args, report_dict, text, refusal, urdf, paths, recorded=()) -> int:
+def add_look_args(p: argparse.ArgumentParser) -> None:
+    """``--plot`` and ``--origins``: a calibration to look at, and to carry into a xacro file."""
+    p.add_argument(
+        "--plot",
+        metavar="FILE",
+        help="also write a figure (.png, .svg or .pdf): errors per configuration before "
+        "(registration) and after calibration, held-out rows marked, and the parameters "
+        "with their uncertainties (written with the report, also for a refused model)",
+    )
+    p.add_argument(
+        "--origins",
+        metavar="FILE.yaml",
+        help="also write the joint origins the calibration moved or added (markers, world "
+        "link), calibrated xyz rpy beside the nominal, as YAML a xacro reads "
+        "(xacro.load_yaml; README: 'Into a xacro description')",
+    )
+
+
+def look_outputs(args: argparse.Namespace) -> dict[str, Path | None]:
+    """``--plot`` and ``--origins`` as outputs to check; a figure's extension checked now.
+
+    Raises:
+        InvalidArgumentError: ``--plot`` does not end in .png, .svg or .pdf.
+    """
+    plot, origins = getattr(args, "plot", None), getattr(args, "origins", None)
+    if plot is not None:
+        from ..outputs.plots import figure_format  # matplotlib: only when asked
+
+        figure_format(plot, "--plot")
+    return {
+        "--plot": None if plot is None else Path(plot),
+        "--origins": None if origins is None else Path(origins),
+    }
+
+
+def _look_files(args, result, urdf: bytes | None) -> dict[Path, str | bytes]:
+    """The ``--plot`` figure and (with a URDF) the ``--origins`` YAML of a result."""
+    files: dict[Path, str | bytes] = {}
+    if getattr(args, "plot", None) is not None:
+        from ..outputs.plots import calibration_figure, figure_bytes, figure_format
+
+        fig = calibration_figure(result)
+        files[Path(args.plot)] = figure_bytes(fig, figure_format(args.plot, "--plot"))
+    if urdf is not None and getattr(args, "origins", None) is not None:
+        from ..kinematics.origins import origins_yaml
+
+        files[Path(args.origins)] = origins_yaml(result.origins(urdf))
+    return files
+
+
+def write_calibration(
+    args, report_dict, text, refusal, urdf, paths, recorded=(), result=None
+) -> int:
     """Print the result; write the URDF and report, or only the report of a refused model.
 
     Args:
@@ -310,6 +368,8 @@ def write_calibration(args, report_dict, text, refusal, urdf, paths, recorded=()
             compliance file) by path (called only for an accepted model).
         paths: ``(--out, --report or None)``.
         recorded: Warnings raised on the way (the data's, the fit's).
+        result: The result (a :class:`~calib.calibration.delivery.Result`): ``--plot`` and
+            ``--origins`` are written from it.
 
     Raises:
         CalibrationRefusedError: The model was refused (no URDF is written).
@@ -319,10 +379,13 @@ def write_calibration(args, report_dict, text, refusal, urdf, paths, recorded=()
     print(doc if args.json else text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:
+        files.update({} if result is None else _look_files(args, result, None))
         write_outputs(files)
         kept = f"; report written to {report}" if report is not None else ""
         raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
     written = {**urdf(), **files}
+    if result is not None:
+        written.update(_look_files(args, result, written[Path(paths[0])]))
     write_outputs(written)
     if not args.json:
         print(f"wrote {', '.join(str(p) for p in written)}")

@@ -23,7 +23,7 @@ from ..core.progress import terminal
 from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
-from .common import write_calibration
+from .common import look_outputs, write_calibration
 
 __all__ = ["add_chain_arguments", "calibrate_chains_command"]
 
@@ -141,7 +141,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         inputs[f"the data of term {k + 1}"] = path
         if check:
             inputs[f"the validation data of term {k + 1}"] = check
-    check_outputs({"--out": out, "--report": report}, inputs)
+    check_outputs({"--out": out, "--report": report, **look_outputs(args)}, inputs)
     terms = []
     for chain, (kind, _, _, path, check) in zip(chains, asked, strict=True):
         data = _read(kind, path, chain)
@@ -168,6 +168,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         lambda: {out: result.urdf()},
         (out, report),
         recorded,
+        result,
     )
 
 

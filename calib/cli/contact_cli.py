@@ -10,7 +10,7 @@ from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
-from .common import compliance_path, write_calibration
+from .common import compliance_path, look_outputs, write_calibration
 
 __all__ = ["add_contact_arguments", "calibrate_contacts_command"]
 
@@ -86,7 +86,8 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
     inputs = {"the nominal URDF": chain.urdf_path, "the data (--data)": args.data}
     if args.validate:
         inputs["the validation data (--validate)"] = args.validate
-    check_outputs({"--out": out, "--report": report, "the compliance file": comp}, inputs)
+    outputs = {"--out": out, "--report": report, "the compliance file": comp}
+    check_outputs({**outputs, **look_outputs(args)}, inputs)
     data = read_contacts(args.data, chain, args.measure)
     check = read_contacts(args.validate, chain, args.measure) if args.validate else None
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
@@ -116,5 +117,12 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
         return files
 
     return write_calibration(
-        args, result.to_dict(), result.summary, result.refusal, urdf, (out, report), recorded
+        args,
+        result.to_dict(),
+        result.summary,
+        result.refusal,
+        urdf,
+        (out, report),
+        recorded,
+        result,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +18,7 @@ __all__ = [
     "catalog",
     "catalog_entry",
     "catalog_files",
+    "catalog_groups",
     "erd_robots_dir",
     "installed_dirs",
     "models_dir",
@@ -180,6 +182,28 @@ def catalog() -> tuple[CatalogEntry, ...]:
     with open(models_dir() / "catalog.toml", "rb") as f:
         data = tomllib.load(f)
     return tuple(CatalogEntry(**row) for row in data["robot"])
+
+
+FIRST_GROUP = "calib's own models"
+"""The group of the catalog entries before the first heading of the catalog file."""
+
+
+def catalog_groups() -> dict[str, str]:
+    """Each catalog entry's group (kind of robot): the catalog file's section heading above it.
+
+    A heading is a comment line between two ``# ====`` lines (``# Arms of humanoids (left
+    arm)``); the group is its text without parentheses (``Arms of humanoids``). Entries
+    before the first heading are :data:`FIRST_GROUP`.
+    """
+    lines = (models_dir() / "catalog.toml").read_text(encoding="utf-8").splitlines()
+    rule = [line.startswith("# ====") for line in lines]
+    group, groups = FIRST_GROUP, []
+    for i, line in enumerate(lines):
+        if 0 < i < len(lines) - 1 and rule[i - 1] and rule[i + 1] and line.startswith("# "):
+            group = re.sub(r"\s*\([^)]*\)", "", line[2:]).strip()
+        elif line.strip() == "[[robot]]":
+            groups.append(group)
+    return {e.name: g for e, g in zip(catalog(), groups, strict=True)}
 
 
 def catalog_entry(name: str) -> CatalogEntry:

@@ -1,0 +1,189 @@
+"""The selection's object columns by block: each object's unknowns eliminated on its touches.
+
+Contacts fit each object's own unknowns (a plane's height and tilts, ...) beside the shared
+ones: a touch's rows depend on its own object's columns only. The selection
+(:mod:`calib.calibration.selection`) keeps those columns always in; dense, they make every
+subset's basis of the fixed columns a matrix of rows by objects (500 planes: 1,500 columns),
+and the guard's normal equations of every fold as wide. Here they stay by block: for each
+subset of the configurations (rows outside it zeroed), the projection onto the objects'
+columns is block diagonal, each object's ``U_k U_k^T`` with ``U_k = F_k W_k`` an orthonormal
+basis of its columns on the subset's rows (``W_k`` the inverse square root of the object's
+Gram matrix, applied twice for orthogonality to round-off); an object without rows in a
+subset, or a direction its rows do not determine, adds nothing (the least-norm fit, as the
+dense solutions take it). Time and memory are linear in the configurations and the objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_cv_moments"]
+
+UNDETERMINED = 1e-14
+"""An object's direction whose Gram eigenvalue is below this fraction of its largest (a
+singular value under 1e-7 of the largest) is not determined by the subset's rows."""
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectColumns:
+    """Each configuration's rows on its own object's unknowns (the others' are zero).
+
+    Attributes:
+        own: The rows ``(m, rows, o)`` (configuration-major, as the selection's).
+        index: The object of each configuration ``(m,)`` (every object has one).
+        objects: Number of objects K.
+    """
+
+    own: np.ndarray
+    index: np.ndarray
+    objects: int
+
+    def by_posture(self, groups: np.ndarray | None, m: int) -> ObjectColumns:
+        """The rows of each posture once, as :func:`~.selection._by_posture` takes them.
+
+        A posture's repeats touch one object: their rows' sum over the root of their count.
+        """
+        if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
+            return self
+        count = np.bincount(groups).astype(float)
+        own = np.zeros((len(count), *self.own.shape[1:]))
+        np.add.at(own, groups, self.own)
+        index = np.zeros(len(count), dtype=int)
+        index[groups] = self.index
+        return ObjectColumns(own / np.sqrt(count)[:, None, None], index, self.objects)
+
+    def unit(self) -> ObjectColumns:
+        """The same columns, each object's of unit norm (a zero column left as it is)."""
+        norms = np.sqrt(self.sums(np.sum(self.own**2, axis=1)[None])[0])  # (K, o)
+        scale = 1.0 / np.where(norms > 0, norms, 1.0)
+        return ObjectColumns(self.own * scale[self.index][:, None, :], self.index, self.objects)
+
+    def sums(self, X: np.ndarray) -> np.ndarray:
+        """Per subset, the sums of ``X`` ``(b, m, ...)`` over each object's: ``(b, K, ...)``."""
+        order = np.argsort(self.index, kind="stable")
+        starts = np.searchsorted(self.index[order], np.arange(self.objects))
+        return np.add.reduceat(X[:, order], starts, axis=1)
+
+    def transform(self, w: np.ndarray) -> np.ndarray:
+        """Each subset's ``W_k``, ``F_k W_k`` an orthonormal basis of object k's columns.
+
+        On the subset's rows; zero columns where a direction is undetermined.
+
+        Args:
+            w: Configurations of each subset ``(b, m)`` (1 in, 0 out).
+
+        Returns:
+            ``(b, K, o, o)``.
+        """
+        o = self.own.shape[2]
+        F = self.own[None] * w[:, :, None, None]
+        W = np.broadcast_to(np.eye(o), (len(w), self.objects, o, o))
+        U = F
+        for _ in range(2):  # twice: orthonormal to round-off (Cholesky QR, twice)
+            G = self.sums(np.einsum("bmri,bmrj->bmij", U, U))  # (b, K, o, o)
+            ev, V = np.linalg.eigh(G)
+            top = ev[..., -1:]
+            keep = ev > UNDETERMINED * np.where(top > 0, top, np.inf)
+            inv = np.divide(
+                1.0, np.sqrt(np.where(keep, ev, 1.0)), where=keep, out=np.zeros(ev.shape)
+            )
+            W = W @ np.einsum("bkij,bkj,bklj->bkil", V, inv, V)
+            U = np.einsum("bmri,bmij->bmrj", F, W[:, self.index])
+        return W
+
+    def basis(self, w: np.ndarray) -> np.ndarray:
+        """Each configuration's rows of its object's basis, per subset ``(b, m, rows, o)``.
+
+        Zero outside the subset (see :meth:`transform`).
+        """
+        W = self.transform(w)[:, self.index]
+        return np.einsum("bmri,bmij->bmrj", self.own[None] * w[:, :, None, None], W)
+
+    def project(self, U: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """``X`` minus its projection onto the objects' basis ``U`` (:meth:`basis`).
+
+        Args:
+            U: The basis ``(b, m, rows, o)``.
+            X: Columns by configuration ``(b, m, rows, k)``.
+        """
+        coef = self.sums(np.einsum("bmro,bmrk->bmok", U, X))  # (b, K, o, k)
+        return X - np.einsum("bmro,bmok->bmrk", U, coef[:, self.index])
+
+
+def object_cv_moments(
+    objects: ObjectColumns, D: np.ndarray, e: np.ndarray, train: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """The guard's moments of each fold with the objects' unknowns eliminated.
+
+    A fold fits the objects on its training rows: ``x_F = K (e_t - D_t y)`` per object
+    (``K = G^+ F_t^T``), so that its training fit of the dense columns ``D`` is that of the
+    projected rows ``(I - P_t) D_t``, ``(I - P_t) e_t``, and its held-out residual is
+    ``e~_h - D~_h y`` with ``D~_h = D_h - F_h K D_t`` (and ``e~_h`` alike).
+
+    Args:
+        objects: The object columns (unit norm).
+        D: The dense columns ``(m, rows, p)`` (configuration-major).
+        e: Residuals to explain ``(m, rows)``.
+        train: Training configurations of each fold ``(folds, m)`` [bool].
+
+    Returns:
+        Per fold: the training normal matrices ``(f, p, p)`` and right-hand sides
+        ``(f, p)``, the held-out moments ``D~_h^T D~_h``, ``D~_h^T e~_h`` and ``|e~_h|^2``.
+    """
+    X = np.concatenate([D, e[:, :, None]], axis=2)
+    out: list[list[np.ndarray]] = [[], [], [], [], []]
+    for mask in train:  # one fold at a time: arrays of the data's size
+        w = mask[None].astype(float)
+        W = objects.transform(w)[0, objects.index]  # (m, o, o)
+        Xt = X * mask[:, None, None]
+        U = np.einsum("mri,mij->mrj", objects.own * mask[:, None, None], W)
+        coef = objects.sums(np.einsum("mro,mrk->mok", U, Xt)[None])[0]  # (K, o, k)
+        fitted = np.einsum("mri,mij,mjk->mrk", objects.own, W, coef[objects.index])
+        Xt = (Xt - fitted * mask[:, None, None]).reshape(-1, X.shape[2])
+        Xh = ((X - fitted) * ~mask[:, None, None]).reshape(-1, X.shape[2])
+        normal, held = Xt.T @ Xt, Xh.T @ Xh
+        for k, v in enumerate((normal[:-1, :-1], normal[:-1, -1], held[:-1, :-1],
+                               held[:-1, -1], held[-1, -1])):  # fmt: skip
+            out[k].append(v)
+    return tuple(np.array(v) for v in out)
+
+
+class FixedBasis:
+    """Each subset's basis of the fixed columns: the objects' (by block), then dense ones.
+
+    The dense fixed columns (the contact's, ...) are made orthogonal to the objects' and
+    factored by QR; the projection onto the fixed columns is the objects' (block diagonal)
+    plus theirs.
+
+    Args:
+        objects: The object columns.
+        D: The dense fixed columns by configuration ``(m, rows, f)``.
+        w: Configurations of each subset ``(b, m)`` (1 in, 0 out).
+    """
+
+    def __init__(self, objects: ObjectColumns, D: np.ndarray, w: np.ndarray) -> None:
+        self.objects = objects
+        self.U = objects.basis(w)
+        b, (m, rows, f) = len(w), D.shape
+        Dw = self._objects_out(D[None] * w[:, :, None, None])
+        self.Q = np.zeros((b, m, rows, 0))
+        if f:
+            self.Q = np.linalg.qr(Dw.reshape(b, m * rows, f))[0].reshape(b, m, rows, f)
+
+    def _objects_out(self, X: np.ndarray) -> np.ndarray:
+        return self.objects.project(self.U, self.objects.project(self.U, X))
+
+    def project(self, X: np.ndarray) -> np.ndarray:
+        """``X`` ``(b, m, rows, k)`` minus its projection onto each subset's fixed columns."""
+        X = self._objects_out(X)
+        for _ in range(2):  # twice (Gram-Schmidt with reorthogonalisation)
+            X = X - np.einsum("bmrf,bfk->bmrk", self.Q, np.einsum("bmrf,bmrk->bfk", self.Q, X))
+        return X
+
+    def hat(self) -> np.ndarray:
+        """Each configuration's hat block of the fixed columns ``(b, m, rows, rows)``."""
+        return np.einsum("bmri,bmsi->bmrs", self.U, self.U) + np.einsum(
+            "bmri,bmsi->bmrs", self.Q, self.Q
+        )

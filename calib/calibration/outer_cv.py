@@ -1,0 +1,107 @@
+"""The selection's guard: cross-validated errors of candidate models by fold, from moments.
+
+Each fold's fit of a candidate model (its columns, its prior strength) is a ridge fit of the
+fold's training rows; its error on the fold's held-out rows comes from the moments of those
+rows (:func:`outer_cv`), so that no array larger than the data is made. Used by
+:func:`~calib.calibration.selection.select`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .object_columns import FixedBasis, ObjectColumns, object_cv_moments
+
+__all__ = ["outer_cv"]
+
+
+def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
+    """Held-out squared error of each candidate model's fits, pooled over the guard's folds.
+
+    Each fold's fit is the ridge fit of the candidate's columns on its training rows; its
+    error on the held-out rows comes from the moments of the held-out rows (``A_h^T A_h``,
+    ``A_h^T e_h``, ``|e_h|^2``), about the whole data's least-squares fit (whose residuals
+    are small: the moments keep their digits), so that no array larger than the data is made.
+
+    Args:
+        A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.
+        e: Residuals to explain.
+        rows: Rows per configuration.
+        fixed: Number of columns always in (frame, markers).
+        train: Training configurations of each fold ``(folds, m)``.
+        models: Per candidate, per fold: its columns and prior strength.
+        objects: Objects' columns free too, by block (:func:`.object_columns.
+            object_cv_moments`), or None.
+
+    Returns:
+        ``(candidates, folds)`` summed squared held-out errors [units of e squared].
+    """
+    if objects is None:
+        x_all = np.linalg.lstsq(A, e, rcond=None)[0]
+        ec = e - A @ x_all
+        G, g = A.T @ A, A.T @ ec
+        moments = []
+        for mask in train:
+            held = np.repeat(~mask, rows)
+            Ah, eh = A[held], ec[held]
+            moments.append((Ah.T @ Ah, Ah.T @ eh, eh @ eh))
+        Gh = np.array([h[0] for h in moments])
+        gh = np.array([h[1] for h in moments])
+        hh = np.array([h[2] for h in moments])
+        Gt = G - Gh
+        gt = g - gh + Gt @ x_all  # training moments, about 0
+    else:
+        x_all, Gt, gt, Gh, gh, hh = _object_moments(A, e, rows, train, objects)
+    p = A.shape[1]
+    use = np.zeros((len(models), len(train), p), dtype=bool)
+    lam = np.zeros(use.shape)
+    for c, model in enumerate(models):
+        for f, (cols, strength) in enumerate(model):
+            use[c, f, cols] = True
+            lam[c, f, cols[fixed:]] = strength
+    d = _solve(Gt, gt, use, lam) - x_all
+    quad = np.einsum("cfi,fij,cfj->cf", d, Gh, d)
+    sse = hh - 2.0 * np.einsum("cfi,fi->cf", d, gh) + quad
+    return np.maximum(sse, 0.0)
+
+
+def _object_moments(A, e, rows, train, objects: ObjectColumns):
+    """:func:`outer_cv`'s moments with the objects' columns eliminated by block.
+
+    About the whole data's least-squares fit of the dense columns (objects eliminated).
+    """
+    m = train.shape[1]
+    D = A.reshape(m, rows, -1)
+    every = FixedBasis(objects, D[:, :, :0], np.ones((1, m)))
+    Dp = every.project(D[None])[0].reshape(m * rows, -1)
+    x_all = np.linalg.lstsq(Dp, every.project(e.reshape(1, m, rows, 1)).ravel(), rcond=None)[0]
+    ec = e.reshape(m, rows) - D @ x_all
+    Gt, gt, Gh, gh, hh = object_cv_moments(objects, D, ec, train)
+    return x_all, Gt, gt + Gt @ x_all, Gh, gh, hh
+
+
+def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
+
+    Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
+
+    Args:
+        N: Normal matrices of each fold ``(folds, p, p)``.
+        b: Their right-hand sides ``(folds, p)``.
+        use: The columns of each candidate's fit in each fold ``(candidates, folds, p)``.
+        lam: The prior on each column ``(candidates, folds, p)``.
+
+    Returns:
+        ``(candidates, folds, p)`` solutions, zero off their columns.
+    """
+    both = use[..., :, None] & use[..., None, :]
+    M = np.where(both, N[None], 0.0)
+    diag = np.arange(N.shape[1])
+    top = np.max(np.abs(M[..., diag, diag]), axis=-1, keepdims=True)
+    M[..., diag, diag] += lam + np.where(use, 0.0, top)  # the padding: eigenvalue top, no rhs
+    ev, V = np.linalg.eigh(M)
+    ev_abs = np.abs(ev)
+    tol = np.finfo(float).eps * use.sum(axis=-1, keepdims=True) * ev_abs.max(axis=-1, keepdims=True)
+    y = np.einsum("cfji,cfj->cfi", V, np.where(use, b[None], 0.0))
+    y = np.divide(y, ev, out=np.zeros_like(y), where=ev_abs > tol)
+    return np.einsum("cfij,cfj->cfi", V, y)
