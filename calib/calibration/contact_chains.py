@@ -76,6 +76,16 @@ from .measured_term import (
 )
 from .options import check_run_options
 from .outliers import Outlier
+from .pixel_chain import (
+    PixelData,
+    PixelPart,
+    PixelTermState,
+    check_pixels,
+    checked_pixels,
+    pixel_parts,
+    split_pixels,
+)
+from .pixel_chain_result import PixelChain, pixel_result
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import covariance, fit, fitted_values
@@ -113,6 +123,9 @@ def _check(chains, data, validate, params, holdout) -> None:
         if isinstance(d, Measurements):
             check_measured(c, d, v)
             continue
+        if isinstance(d, PixelData):
+            check_pixels(c, d, v)
+            continue
         for part in (d, v) if v is not None else (d,):
             if not isinstance(part, ContactData):
                 what = "validation rows" if part is v else "data"
@@ -146,24 +159,8 @@ def _check(chains, data, validate, params, holdout) -> None:
     if validate is not None and any(v is not None for v in validate) and holdout > 0:
         raise InvalidArgumentError("give validation touches or a holdout fraction, not both")
     for d, v in zip(data, validate or [None] * len(chains), strict=True):
-        if v is not None:
+        if v is not None and not isinstance(d, PixelData):
             validation.check_held_out(d, v)
-
-
-def _plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
-    """Index of each chain's plane: one per chain, or shared by base frame and plane id."""
-    if not shared:
-        return tuple(range(len(chains)))
-    keys = [
-        (c.base_frame, d.contacts[0]) if isinstance(d.kind, PlaneContact) else (k,)
-        for k, (c, d) in enumerate(zip(chains, data, strict=True))
-    ]
-    if len(set(keys)) == len(keys):
-        raise InvalidArgumentError(
-            "shared planes: no two chains touch one plane (same plane id) from one base frame"
-        )
-    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
-    return tuple(index[k] for k in keys)
 
 
 def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations: int):
@@ -179,12 +176,14 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
         Each chain's touches (rows) kept, each chain's outliers, and each measured term's
         registration (None for a contact chain).
     """
-    kept: list[ContactData | Measurements] = []
+    kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
-    registered: list[MeasuredState | None] = []
+    registered: list[MeasuredState | PixelTermState | None] = []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
-        if isinstance(d, Measurements):
+        if isinstance(d, PixelPart):
+            state, bad, found, more, held[c] = checked_pixels(chain, d, held[c])
+        elif isinstance(d, Measurements):
             out_m = 0 if held[c] is None else held[c].m
             rows, size = d.kind.rows_of(d.n_markers), len(measured_kind(d).names())
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
@@ -192,6 +191,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             state, bad, found, more, held[c] = checked_measured(
                 chain, d, v, held[c], weight, iterations
             )
+        if isinstance(d, Measurements | PixelPart):
             if found:
                 more.append(outliers.set_aside_note(found))
             notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
@@ -203,7 +203,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
         start, bad, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
         )
-        out = _set_aside(start, d, bad)
+        out = contact_checks.set_aside(start, d, bad)
         if out:
             more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
             d = subset(d, ~bad)
@@ -218,16 +218,6 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     return kept, dropped, registered
 
 
-def _set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[Outlier]:
-    """The touches ``bad`` as outliers: each one's length gap and the median [m]."""
-    if not bad.any():
-        return []
-    lengths = contact_checks.length_errors(start, data)[0]
-    rows = data.rows or tuple(range(1, data.m + 1))
-    median = float(np.median(lengths[~bad]))
-    return [Outlier(rows[i], float(lengths[i]), median) for i in np.flatnonzero(bad)]
-
-
 def _register(
     chains, train, measured, guess, weight, plane_of, notes, max_iterations, pose_weight=1.0
 ) -> ChainsState:
@@ -237,10 +227,13 @@ def _register(
     """
     placements = Placements.of(tuple(chains))
     models, frames = placements.chain_geometry(tuple(chains))
-    states: list[ContactState | MeasuredState] = []
+    states: list[ContactState | MeasuredState | PixelTermState] = []
     for mdh, d, reg in zip(models, train, measured, strict=True):
-        if reg is not None:  # a measured term: its registration on the nominal chain
+        if isinstance(reg, PixelTermState):  # a pixel term: its camera on the nominal chain
+            states.append(dataclasses.replace(reg, mdh=mdh))
+        elif reg is not None:  # a measured term: its registration on the nominal chain
             states.append(dataclasses.replace(reg, inner=dataclasses.replace(reg.inner, mdh=mdh)))
+        if reg is not None:
             continue
         kin = mdh.kinematics(d.q)
         R, p = kin.R[:, -1], kin.p[:, -1]
@@ -272,7 +265,7 @@ def _register(
 
 def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
     kinds = tuple(s.kind for s in state.states)
-    counts = tuple(1 if isinstance(s, MeasuredState) else len(s.frames.ids) for s in state.states)
+    counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
     return ChainsModel(
         tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions, kinds, counts
     )
@@ -310,9 +303,9 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
 
 def _flush(start: ChainsState, train) -> ChainsData:
     """Each chain's touches at flush postures near them (a measured term's rows as they are)."""
-    parts: list[ContactData | Measurements] = []
+    parts: list[ContactData | Measurements | PixelPart] = []
     for s, d in zip(start.states, train, strict=True):
-        if isinstance(s, MeasuredState):
+        if not isinstance(s, ContactState):
             parts.append(d)
             continue
         qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
@@ -406,13 +399,16 @@ def calibrate_contact_chains(
     level = "auto" if params is None else params
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout)
+    data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
     splits = [
-        validation.split(d, holdout, seed)
+        split_pixels(d, holdout, seed)
+        if isinstance(d, PixelPart)
+        else validation.split(d, holdout, seed)
         if isinstance(d, Measurements)
         else split_contacts(d, holdout, seed)
         for d in data
@@ -422,7 +418,7 @@ def calibrate_contact_chains(
         v if v is not None else s[1]
         for s, v in zip(splits, validate or [None] * len(data), strict=True)
     ]
-    plane_of = _plane_groups(chains, data, shared_planes)
+    plane_of = contact_checks.plane_groups(chains, data, shared_planes)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     train, dropped, measured = _checked(
@@ -531,15 +527,20 @@ def _assemble(
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state
     refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
-    parts: list[ChainContacts | MeasuredChain] = []
+    parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     cov = None
     for c, chain in enumerate(state.chains):
         s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
-        if isinstance(s, MeasuredState):
+        if isinstance(s, MeasuredState | PixelTermState):
             if cov is None:
                 cov = covariance(fitted.J, float(fitted.f @ fitted.f), prior)[0]
-            std = np.sqrt(np.diag(cov))[fitted.model.own_columns(c)]
-            part = measured_part(chain, d, h, s0, s, std, c + 1)
+            own = fitted.model.own_columns(c)
+            std = np.sqrt(np.diag(cov))[own]
+            part = (
+                pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
+                if isinstance(s, PixelTermState)
+                else measured_part(chain, d, h, s0, s, std, c + 1)
+            )
             refusal = refusal or (None if h is None else _refused(part.stats, chain, "errors"))
             parts.append(part)
             continue
@@ -579,11 +580,7 @@ def _assemble(
         placements=state.placements,
         shared=shared,
         planes=len(
-            {
-                p
-                for p, s in zip(plane_of, state.states, strict=True)
-                if not isinstance(s, MeasuredState)
-            }
+            {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
         ),
         free=tuple(model.names()[model.fixed :]),
         unknowns=model.size(),

@@ -39,6 +39,7 @@ from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns
+from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import COMPONENTS, Placements, joint_twists
 
 __all__ = [
@@ -67,7 +68,7 @@ def padded(a: np.ndarray, rows: int) -> np.ndarray:
 class ChainsData:
     """Touches of each chain (one :class:`ContactData` per chain, in chain order)."""
 
-    parts: tuple[ContactData | Measurements, ...]
+    parts: tuple[ContactData | Measurements | PixelPart, ...]
 
     @property
     def m(self) -> int:
@@ -90,7 +91,7 @@ class ChainsState:
 
     chains: tuple[Chain, ...]
     placements: Placements
-    states: tuple[ContactState | MeasuredState, ...]
+    states: tuple[ContactState | MeasuredState | PixelTermState, ...]
     frames: tuple[np.ndarray, ...]
     scales: tuple[float, ...] | None = None
 
@@ -131,18 +132,18 @@ class ChainsModel:
     free: tuple[int, ...]
     names_all: tuple[str, ...]
     directions: np.ndarray | None = None
-    kinds: tuple[Contact | MeasuredKind, ...] | None = None
+    kinds: tuple[Contact | MeasuredKind | PixelKind, ...] | None = None
     counts: tuple[int, ...] | None = None
     _last: dict = field(default_factory=dict, compare=False, repr=False)
 
     n_markers = 0  # its rows come weighted (solve.row_weights: 1)
     pose = False
 
-    def chain_kinds(self) -> tuple[Contact | MeasuredKind, ...]:
+    def chain_kinds(self) -> tuple[Contact | MeasuredKind | PixelKind, ...]:
         """Each chain's contact kind."""
         return self.kinds if self.kinds is not None else (PlaneContact(),) * len(self.plane_of)
 
-    def object_kinds(self) -> tuple[Contact | MeasuredKind, ...]:
+    def object_kinds(self) -> tuple[Contact | MeasuredKind | PixelKind, ...]:
         """Each object's kind (that of its first chain)."""
         kinds = self.chain_kinds()
         return tuple(kinds[self.plane_of.index(p)] for p in range(self.planes))
@@ -172,7 +173,7 @@ class ChainsModel:
         """Column names."""
         out = []
         for p, kind in enumerate(self.object_kinds()):
-            if isinstance(kind, MeasuredKind):  # a measured term's own unknowns
+            if isinstance(kind, MeasuredKind | PixelKind):  # a measured or pixel term's own
                 out += [f"term{p + 1}.{n}" for n in kind.names()]
                 continue
             for k in range(self._count(p)):
@@ -241,7 +242,7 @@ class ChainsModel:
             models = tuple(s.mdh for s in start.states)
         states = tuple(
             s.moved(mdh, self._chain_x(x, c))
-            if isinstance(s, MeasuredState)
+            if isinstance(s, MeasuredState | PixelTermState)
             else dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
             for c, (s, mdh) in enumerate(zip(start.states, models, strict=True))
         )
@@ -262,6 +263,12 @@ class ChainsModel:
         s, s0 = state.states[c], start.states[c]
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
         obj, con = self._chain_columns(c)
+        if isinstance(s, PixelTermState) and isinstance(s0, PixelTermState):
+            chain, xc, lift = state.chains[c], self._chain_x(x, c), self._lift()
+            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, xc, d, lift)
+            if self.free:
+                J[:, :, self.fixed :] = robot
+            return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
             J[:, :, obj] = s0.own_jacobian(s.mdh, self._chain_x(x, c), d)
             if self.free:

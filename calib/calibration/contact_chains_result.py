@@ -7,16 +7,18 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import check_outputs, write_atomic
 from ..exceptions import CalibrationRefusedError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
-from ..kinematics.placement_export import moved_origins_urdf, write_moved_origins_urdf
+from ..kinematics.placement_export import camera_urdf, moved_origins_urdf, write_moved_origins_urdf
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
 from .delivery import Delivered, RowErrors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
+from .pixel_chain_result import PixelChain
 from .placements import Placements
 from .report import (
     FORMAT2_MOVED,
@@ -235,7 +237,7 @@ class ContactChainsCalibration(Delivered):
             them).
     """
 
-    chains: tuple[ChainContacts | MeasuredChain, ...]
+    chains: tuple[ChainContacts | MeasuredChain | PixelChain, ...]
     placements: Placements
     shared: tuple[str, ...]
     planes: int
@@ -289,8 +291,16 @@ class ContactChainsCalibration(Delivered):
             "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._contacts()},
             "world_link": None,
             "tool_link": None,
-            "on_robot": bool(measured),
+            "on_robot": bool(measured) or bool(self._cameras()),
+            "cameras": {c.name: c.camera_dict() for c in self._pixels()} or None,
         }
+
+    def _pixels(self) -> tuple[PixelChain, ...]:
+        return tuple(c for c in self.chains if isinstance(c, PixelChain))
+
+    def _cameras(self) -> tuple[tuple[str, str, np.ndarray], ...]:
+        """Each pixel term's camera: name, link, optical frame in the link [m]."""
+        return tuple(c.camera() for c in self._pixels())
 
     def to_dict(self) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
@@ -317,6 +327,7 @@ class ContactChainsCalibration(Delivered):
             **verdict(self.params, self.refusal, self.solver),
             "parameters": [
                 *(p for c in self._measured() for p in c.parameters),
+                *(p for c in self._pixels() for p in c.parameters),
                 *parameter_entries(self.fitted, self.estimate, self.std, names),
             ],
             "errors": {
@@ -367,11 +378,12 @@ class ContactChainsCalibration(Delivered):
         """``2 plane(s)``, ``1 plane(s) and 1 pose(s)`` with loops, ``, 1 measured term(s)``."""
         loops = [c for c in self._contacts() if not isinstance(c.kind, PlaneContact)]
         poses = sum(len(c.objects()) for c in loops)
-        measured = len(self._measured())
+        measured, cameras = len(self._measured()), len(self._pixels())
         return (
             f"{self.planes - len(loops)} plane(s)"
             + (f" and {poses} pose(s)" if poses else "")
             + (f", {measured} measured term(s)" if measured else "")
+            + (f", {cameras} camera(s)" if cameras else "")
         )
 
     def summary(self) -> str:
@@ -385,7 +397,12 @@ class ContactChainsCalibration(Delivered):
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         for c in self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
-            if isinstance(c, MeasuredChain):
+            if isinstance(c, PixelChain):
+                lines.append(
+                    f"{c.chain.base_frame} -> {c.chain.tool_frame}, camera {c.name} (errors: "
+                    f"u [mm], v [mm] at the target; px: {c.pixels['train']})"
+                )
+            elif isinstance(c, MeasuredChain):
                 units = [
                     f"{n} [{'deg' if a else 'mm'}]"
                     for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
@@ -406,7 +423,7 @@ class ContactChainsCalibration(Delivered):
                 lines.append(f"{head} '{c.plane_id}':")
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
-                rows = "configurations" if isinstance(c, MeasuredChain) else "touches"
+                rows = "touches" if isinstance(c, ChainContacts) else "configurations"
                 lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
         names = tuple(self.chains[0].chain.model.names)
         lines += parameter_lines(parameter_entries(self.fitted, self.estimate, self.std, names))
@@ -431,6 +448,8 @@ class ContactChainsCalibration(Delivered):
         """
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        if self._cameras():
+            return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:
@@ -441,4 +460,8 @@ class ContactChainsCalibration(Delivered):
         """
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        if self._cameras():
+            check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
+            write_atomic(path, self.urdf())
+            return
         write_moved_origins_urdf(path, self.chains[0].chain, self.joint_errors())

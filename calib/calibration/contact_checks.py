@@ -24,8 +24,8 @@ import dataclasses
 
 import numpy as np
 
-from ..exceptions import DataError
-from ..identification.contacts import Contact
+from ..exceptions import DataError, InvalidArgumentError
+from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
@@ -43,8 +43,10 @@ __all__ = [
     "gap_errors",
     "isolated_postures",
     "length_errors",
+    "plane_groups",
     "refusal",
     "registration",
+    "set_aside",
     "subset",
 ]
 
@@ -287,3 +289,29 @@ def refusal(
                 f"({held.weighted_mm:.3f} > {reg.weighted_mm:.3f} mm weighted RMS)"
             )
     return None
+
+
+def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
+    """Index of each chain's plane: one per chain, or shared by base frame and plane id."""
+    if not shared:
+        return tuple(range(len(chains)))
+    keys = [
+        (c.base_frame, d.contacts[0]) if isinstance(d.kind, PlaneContact) else (k,)
+        for k, (c, d) in enumerate(zip(chains, data, strict=True))
+    ]
+    if len(set(keys)) == len(keys):
+        raise InvalidArgumentError(
+            "shared planes: no two chains touch one plane (same plane id) from one base frame"
+        )
+    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    return tuple(index[k] for k in keys)
+
+
+def set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[outliers.Outlier]:
+    """The touches ``bad`` as outliers: each one's length gap and the median [m]."""
+    if not bad.any():
+        return []
+    lengths = length_errors(start, data)[0]
+    rows = data.rows or tuple(range(1, data.m + 1))
+    median = float(np.median(lengths[~bad]))
+    return [outliers.Outlier(rows[i], float(lengths[i]), median) for i in np.flatnonzero(bad)]

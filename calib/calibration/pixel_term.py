@@ -57,6 +57,7 @@ __all__ = [
     "check_in_front",
     "column_names",
     "free_columns",
+    "move_own",
     "pixel_jacobian",
     "pixel_residuals",
     "target_points",
@@ -202,28 +203,42 @@ def pixel_jacobian(
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
 
 
+def move_own(camera: np.ndarray, target: np.ndarray, lens: Pinhole, x: np.ndarray, what: Unknowns):
+    """A pixel term's own unknowns at ``x``: the camera, the target and the lens moved.
+
+    ``x``: the camera's step (6: ``C -> C [R(w) | v]``), with ``what.mount`` the mounting's
+    (6: ``X -> R(w) X + v``), with ``what.targets`` the points after the first
+    :data:`GAUGE_POINTS` (3 each), with ``what.intrinsics`` the intrinsics' changes.
+    """
+    step = np.eye(4)
+    step[:3, :3], step[:3, 3] = rotation_matrix(x[3:6]), x[:3]
+    target = np.array(target, dtype=float)
+    start = 6
+    if what.mount:
+        target = target @ rotation_matrix(x[9:12]).T + x[6:9]
+        start = 12
+    if what.targets and len(target) > GAUGE_POINTS:
+        stop = start + 3 * (len(target) - GAUGE_POINTS)
+        target[GAUGE_POINTS:] += x[start:stop].reshape(-1, 3)
+        start = stop
+    if what.intrinsics:
+        lens = lens.with_parameters(lens.parameters + x[start:])
+    return camera @ step, target, lens
+
+
 def apply_step(state: PixelState, dx: np.ndarray, what: Unknowns) -> PixelState:
     """The state moved by ``dx`` (every column of :func:`pixel_jacobian`), rebased.
 
     The camera becomes ``C [R(w) | v]``, the joint errors are composed into the robot's
     placements (:meth:`~.placements.Placements.rebased`), the target is moved rigidly by its
-    mounting's step, then its free points move; the intrinsics move.
+    mounting's step, then its free points move; the intrinsics move (:func:`move_own`).
     """
-    step = np.eye(4)
-    step[:3, :3], step[:3, 3] = rotation_matrix(dx[3:6]), dx[:3]
     n = state.placements.y.size
     placements = state.placements.shifted(dx[6 : 6 + n]).rebased()
-    mount = dx[6 + n : 12 + n]
-    target = state.target @ rotation_matrix(mount[3:]).T + mount[:3]
-    start = 12 + n
-    if what.targets and len(target) > GAUGE_POINTS:
-        stop = start + 3 * (len(target) - GAUGE_POINTS)
-        target[GAUGE_POINTS:] += dx[start:stop].reshape(-1, 3)
-        start = stop
-    lens = state.lens
-    if what.intrinsics:
-        lens = lens.with_parameters(lens.parameters + dx[start:])
-    return PixelState(placements, state.camera @ step, target, lens)
+    own = np.r_[dx[:6], dx[6 + n :]]
+    camera, target, lens = move_own(state.camera, state.target, state.lens, own, Unknowns(
+        True, what.targets, what.intrinsics))  # fmt: skip
+    return PixelState(placements, camera, target, lens)
 
 
 def _preference(placements: Placements, size: int, cameras: int) -> list[int]:

@@ -28,6 +28,7 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .options import APPLIES, DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, SHAPE_LABELS, Options
+from .pixel_chain import PixelData
 
 __all__ = ["Problem", "Term"]
 
@@ -40,8 +41,10 @@ class Term:
         robot: The nominal chain or tree (:func:`~calib.kinematics.tree.load_robot`); its
             base frame is where the data are expressed (an instrument's frame is registered,
             a frame of the robot measures itself), its tool what is measured or touches.
-        data: Measurements (position, pose, several markers) or touches
-            (:class:`~calib.measurements.contact_campaign.ContactData`, any contact kind).
+        data: Measurements (position, pose, several markers), touches
+            (:class:`~calib.measurements.contact_campaign.ContactData`, any contact kind) or
+            a camera's pixels (:class:`~.pixel_chain.PixelData`: always a term of the joint
+            fit, ``shape`` ``chains``, even alone).
         validate: Data of the same kind at other postures, scored and never fitted, or None.
         guess: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)`` [m]
             (measurements), or of the contact frame in the tool frame, ``(4, 4)`` or
@@ -49,8 +52,8 @@ class Term:
     """
 
     robot: Chain | Tree
-    data: Measurements | ContactData
-    validate: Measurements | ContactData | None = None
+    data: Measurements | ContactData | PixelData
+    validate: Measurements | ContactData | PixelData | None = None
     guess: object = None
 
     def __post_init__(self) -> None:
@@ -58,12 +61,12 @@ class Term:
             raise InvalidArgumentError(
                 f"a term's robot must be a chain or a tree (load_robot), got {self.robot!r:.60}"
             )
-        if not isinstance(self.data, Measurements | ContactData):
+        if not isinstance(self.data, Measurements | ContactData | PixelData):
             raise InvalidArgumentError(
-                "a term's data must be Measurements or ContactData (read_measurements, "
-                f"read_contacts), got {type(self.data).__name__}"
+                "a term's data must be Measurements, ContactData or PixelData "
+                f"(read_measurements, read_contacts), got {type(self.data).__name__}"
             )
-        if isinstance(self.data, ContactData) and self.robot.is_tree:
+        if isinstance(self.data, ContactData | PixelData) and self.robot.is_tree:
             raise InvalidArgumentError(
                 "touches are recorded on a chain (one base, one tool), got a tree: give one "
                 "term per chain"
@@ -84,6 +87,8 @@ class Term:
         """The data's kind: ``position``, ``pose``, ``markers``, or a contact kind's label."""
         if isinstance(self.data, ContactData):
             return self.data.kind.label
+        if isinstance(self.data, PixelData):
+            return "pixels"
         if self.data.quaternion is not None:
             return "pose"
         return "position" if self.data.position.shape[1] == 3 else "markers"
@@ -171,8 +176,8 @@ class Problem:
 
     @property
     def shape(self) -> str:
-        """``chain``, ``tree``, ``contacts`` (one term each) or ``chains`` (several terms)."""
-        if len(self.terms) > 1:
+        """``chain``, ``tree``, ``contacts`` (one term each), ``chains`` (several, or pixels)."""
+        if len(self.terms) > 1 or isinstance(self.terms[0].data, PixelData):
             return "chains"
         term = self.terms[0]
         if term.touches:

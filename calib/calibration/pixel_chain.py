@@ -1,0 +1,400 @@
+"""A pixel term among several chains: a camera on a link sees a target on a tool, in pixels.
+
+A kind of term of the joint engine (:func:`~.contact_chains.calibrate_contact_chains`) beside
+``plane``, ``fixed-pose`` and the measured term: its data are :class:`PixelData` (one
+camera's observations, the target and the camera), its chain runs from the camera's link to
+the target's tool (:mod:`.pixel_term`), its rows are the reprojection errors ``u, v`` [px],
+its own unknowns (columns of the joint fit) the camera's placement (6), with ``what.mount``
+the target's mounting (6), with ``what.targets`` the target points after the first three,
+with ``what.intrinsics`` the camera's intrinsics; the joint placement columns are shared with
+every other term through the joints.
+
+Weight: the rows enter the joint fit in metres-equivalent, each pixel times the term's
+:attr:`PixelTermState.weight` [m/px] = the median depth of the target in the camera at the
+registration over the mean focal length (the distance one pixel spans at the target). A
+camera and touches then weigh as their errors at the target would in millimetres: the
+refusal rule (``validation.worse``) and the outlier rule (:func:`~.outliers.find_outliers`)
+read those millimetres, and the report gives both (px and the mm they mean).
+
+Registration: the camera placed on the nominal robot (given, the URDF's link NAME on LINK, or
+in closed form, :func:`~.pixel_fit.camera_from_rays`), refined by least squares on its 6.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import DataError, InvalidArgumentError
+from ..identification.pinhole import Pinhole
+from ..kinematics.mdh import MDHModel
+from ..kinematics.placement_export import camera_placement
+from ..kinematics.robot import Chain
+from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..measurements.pixels import PixelObservations, Target
+from . import determined, outliers
+from .pixel_calibration import PixelCamera, pixel_rows
+from .pixel_fit import PixelView, camera_from_rays, fit_pixels, rays, refine_camera
+from .pixel_term import (
+    CAMERA_NAMES,
+    GAUGE_POINTS,
+    KNOWN,
+    MOUNT_NAMES,
+    PixelRows,
+    PixelState,
+    Unknowns,
+    check_in_front,
+    move_own,
+    pixel_jacobian,
+    pixel_residuals,
+)
+from .placements import Placements
+
+__all__ = [
+    "PixelData",
+    "PixelKind",
+    "PixelPart",
+    "PixelTermState",
+    "check_pixels",
+    "checked_pixels",
+    "pixel_block",
+    "pixel_part",
+    "pixel_parts",
+    "split_pixels",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class PixelData:
+    """A pixel term's data: one camera's observations of a target.
+
+    Attributes:
+        camera: The camera (its name: the ``camera`` column; its link: the chain's base).
+        target: The target points in the chain's tool frame [m].
+        obs: The observations (the camera's rows are used).
+        what: The optional unknowns (target mounting, target points, intrinsics).
+    """
+
+    camera: PixelCamera
+    target: Target
+    obs: PixelObservations
+    what: Unknowns = KNOWN
+
+    @property
+    def source(self) -> str:
+        """The observations' file."""
+        return self.obs.source
+
+    @property
+    def m(self) -> int:
+        """Rows of the camera."""
+        return sum(c == self.camera.name for c in self.obs.camera)
+
+
+@dataclass(frozen=True, eq=False)
+class PixelPart:
+    """A pixel term's rows on its chain (training or held out).
+
+    Attributes:
+        data: The term's data.
+        rows: The rows, joints in the chain's order.
+    """
+
+    data: PixelData
+    rows: PixelRows
+
+    @property
+    def source(self) -> str:
+        """The observations' file."""
+        return self.data.source
+
+    @property
+    def m(self) -> int:
+        """Rows."""
+        return self.rows.m
+
+    @property
+    def kind(self) -> PixelKind:
+        """The term's layout."""
+        lens = len(self.data.camera.intrinsics.camera.parameters)
+        return PixelKind(len(self.data.target.position), lens, self.data.what)
+
+    def subset(self, keep: np.ndarray) -> PixelPart:
+        """The rows where ``keep``."""
+        return PixelPart(self.data, self.rows.subset(keep))
+
+
+@dataclass(frozen=True)
+class PixelKind:
+    """The layout of a pixel term: its unknowns and rows.
+
+    Attributes:
+        points: Target points.
+        lens: Intrinsic parameters of the camera.
+        what: The optional unknowns.
+    """
+
+    points: int
+    lens: int
+    what: Unknowns = KNOWN
+
+    label = "pixels"
+    object_name = "camera"
+    contact_dofs: tuple[int, ...] = ()
+    row_names = ("u", "v")
+    angular = (False, False)
+
+    def names(self) -> tuple[str, ...]:
+        """The camera's 6, the mounting's 6, the free target points, the intrinsics."""
+        points = range(GAUGE_POINTS, self.points) if self.what.targets else ()
+        return (
+            *CAMERA_NAMES,
+            *(MOUNT_NAMES if self.what.mount else ()),
+            *(f"target{k + 1}.{a}" for k in points for a in "xyz"),
+            *(f"camera.p{k + 1}" for k in range(self.lens if self.what.intrinsics else 0)),
+        )
+
+    @property
+    def object_dofs(self) -> tuple[int, ...]:
+        """One index per unknown."""
+        return tuple(range(len(self.names())))
+
+
+@dataclass(frozen=True, eq=False)
+class PixelTermState:
+    """A pixel term's state: its chain on the robot, the camera, the target, the lens.
+
+    Attributes:
+        mdh: The chain's MDH model on the perturbed robot.
+        camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
+        target: The target points in the tool frame ``(k, 3)`` [m].
+        lens: The intrinsics.
+        weight: Metres per pixel at the target (the rows' weight in the joint fit) [m/px].
+        what: The optional unknowns.
+    """
+
+    mdh: MDHModel
+    camera: np.ndarray
+    target: np.ndarray
+    lens: Pinhole
+    weight: float
+    what: Unknowns = KNOWN
+
+    @property
+    def kind(self) -> PixelKind:
+        """The term's layout."""
+        return PixelKind(len(self.target), len(self.lens.parameters), self.what)
+
+    def row_weights(self) -> np.ndarray:
+        """:attr:`weight` on both rows [m/px]."""
+        return np.full(2, self.weight)
+
+    def seen(self, part: PixelPart) -> np.ndarray:
+        """The rows' points in the camera frame ``(m, 3)`` [m]."""
+        kin = self.mdh.kinematics(part.rows.q)
+        X = self.target[part.rows.point]
+        p = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
+        return (p - self.camera[:3, 3]) @ self.camera[:3, :3]
+
+    def pixel_errors(self, part: PixelPart) -> np.ndarray:
+        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px]."""
+        return self.lens.projection(self.seen(part)).pixels - part.rows.pixels
+
+    def residuals(self, part, torque=None) -> np.ndarray:
+        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent]."""
+        return -self.pixel_errors(part) * self.weight
+
+    def moved(self, mdh, x: np.ndarray) -> PixelTermState:
+        """The state on the chain model ``mdh`` with its own unknowns at ``x``."""
+        camera, target, lens = move_own(self.camera, self.target, self.lens, x, self.what)
+        return dataclasses.replace(self, mdh=mdh, camera=camera, target=target, lens=lens)
+
+
+def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
+    """The own unknowns' columns among :func:`~.pixel_term.pixel_jacobian`'s."""
+    mount = range(6 + n, 12 + n) if what.mount else ()
+    return np.r_[0:6, list(mount), 12 + n : total].astype(int)
+
+
+def _exact(J: np.ndarray, start: PixelTermState, x: np.ndarray, n: int, point) -> np.ndarray:
+    """The camera's and mounting's columns by ``x`` itself (not by a step from ``x``).
+
+    ``C = C0 [R(w) | v]``: d/dv is the step's translation column times ``R(w)^T``, d/dw its
+    rotation column times the right Jacobian ``Jl(-w)``. The mounting ``X = R(w) X0 + v``:
+    d/dw is ``(rotation + translation skew(v + d))`` columns times ``Jl(w)``, ``d`` the row's
+    point's own change (``what.targets``) ``point``: each row's target point index.
+    """
+    J = J.copy()
+    w = x[3:6]
+    R = rotation_matrix(w)
+    J[..., 0:3] = J[..., 0:3] @ R.T
+    J[..., 3:6] = J[..., 3:6] @ left_jacobian(-w)
+    if start.what.mount:
+        a, mv = 6 + n, x[6:12]
+        moved = np.zeros_like(start.target)
+        k = len(start.target)
+        if start.what.targets and k > GAUGE_POINTS:
+            moved[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
+        rot = J[..., a + 3 : a + 6] + J[..., a : a + 3] @ skew(mv[:3] + moved[point])
+        J[..., a + 3 : a + 6] = rot @ left_jacobian(mv[3:])
+    return J
+
+
+def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift):
+    """Weighted rows of a pixel term: its own columns and the free placement directions.
+
+    Args:
+        placements: The current joint placement errors.
+        chain: The term's nominal chain.
+        state: Its state at ``x``.
+        start: Its state at x = 0.
+        x: Its own unknowns.
+        part: Its rows.
+        lift: The free directions ``(free, 6 J)``.
+
+    Returns:
+        ``(m, 2, own)`` and ``(m, 2, free)`` [m-equivalent per unit].
+    """
+    pix = PixelState(placements, state.camera, state.target, state.lens)
+    J = pixel_jacobian(pix, chain, part.rows, state.what)[1]
+    n = placements.y.size
+    J = _exact(J, start, x, n, part.rows.point)
+    own = J[:, :, _own_index(n, state.what, J.shape[2])]
+    robot = J[:, :, 6 : 6 + n] @ lift.T
+    return own * state.weight, robot * state.weight
+
+
+def check_pixels(chain: Chain, data: PixelData, validate) -> None:
+    """A pixel term's data: its camera's link is the chain's base, validation rows alike.
+
+    Raises:
+        InvalidArgumentError: Another base, or validation rows that are not PixelData.
+    """
+    if chain.base_frame != data.camera.link:
+        raise InvalidArgumentError(
+            f"camera {data.camera.name}: its chain must start at its link {data.camera.link}, "
+            f"not {chain.base_frame}"
+        )
+    if validate is not None and not isinstance(validate, PixelData):
+        raise InvalidArgumentError(
+            f"{chain.base_frame} -> {chain.tool_frame}: validation rows must be PixelData like "
+            f"its data, got {type(validate).__name__}"
+        )
+
+
+def pixel_part(chain: Chain, data: PixelData) -> PixelPart:
+    """The camera's rows of the data on its chain."""
+    return PixelPart(data, pixel_rows(chain, data.obs, data.target, data.camera.name))
+
+
+def pixel_parts(chains, data) -> list:
+    """The terms' data with each :class:`PixelData` as its rows on its chain (the rest kept)."""
+    return [
+        pixel_part(c, d) if isinstance(d, PixelData) else d
+        for c, d in zip(chains, data, strict=True)
+    ]
+
+
+def split_pixels(part: PixelPart, holdout: float, seed: int):
+    """A seeded fraction of the postures held out with all their rows (training, held out).
+
+    Raises:
+        InvalidArgumentError: ``holdout`` outside [0, 1), or leaving nothing to fit or check.
+    """
+    if not (0.0 <= holdout < 1.0):
+        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
+    if holdout == 0:
+        return part, None
+    postures, which = np.unique(part.rows.q, axis=0, return_inverse=True)
+    out = np.random.default_rng([seed, 32]).permutation(len(postures))
+    held = np.isin(which.ravel(), out[: round(holdout * len(postures))])
+    if not held.any() or held.all():
+        raise InvalidArgumentError(f"holdout {holdout:g} leaves no posture to fit or to check")
+    return part.subset(~held), part.subset(held)
+
+
+def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
+    """The camera placed on the nominal robot (given, the URDF's, or closed form), refined."""
+    cam, rows = part.data.camera, part.rows
+    placements = Placements.of((chain,))
+    guess = cam.placement
+    if guess is None:
+        guess = camera_placement(chain, cam.name, cam.link)
+    lens, target = cam.intrinsics.camera, part.data.target.position
+    if guess is None:
+        state = PixelState(placements, np.eye(4), target, lens)
+        mdh = placements.chain_geometry((chain,))[0][0]
+        p = PixelTermState(mdh, np.eye(4), target, lens, 1.0).seen(part)
+        guess = camera_from_rays(p, rays(lens, rows.pixels), part.source)
+    state = PixelState(placements, guess, target, lens)
+    mdh = placements.chain_geometry((chain,))[0][0]
+    check_in_front(PixelTermState(mdh, guess, target, lens, 1.0).seen(part), rows, part.source)
+    state = refine_camera(state, chain, rows)
+    depth = PixelTermState(mdh, state.camera, target, lens, 1.0).seen(part)[:, 2]
+    weight = float(np.median(depth)) / (0.5 * (lens.fx + lens.fy))
+    return PixelTermState(mdh, state.camera, target, lens, weight, part.data.what)
+
+
+def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
+    """Rows whose point's outward normal (the target's) faces away from the camera."""
+    normals = part.data.target.normal
+    if normals is None:
+        return np.zeros(part.m, dtype=bool)
+    R = state.mdh.kinematics(part.rows.q).R[:, -1]
+    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], R, normals[part.rows.point])
+    return np.einsum("mi,mi->m", n_cam, state.seen(part)) >= 0
+
+
+def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
+    """Each row's error [m at the target] on the term's own fit, and the held-out rows'.
+
+    The term alone fitted (its camera and its chain's joint placements,
+    :func:`~.pixel_fit.fit_pixels`): a camera registered on the nominal robot errs by tens
+    of pixels at far postures, which no outlier rule should read as gross.
+    """
+    cam = part.data.camera
+    own = fit_pixels(Placements.of((chain,)), state.target, (state.camera,),
+                     (PixelView(chain, part.rows),), (state.lens,), (cam.name,),
+                     part.data.what, part.source).state  # fmt: skip
+    errors = [np.linalg.norm(pixel_residuals(own, chain, p.rows), axis=1) * state.weight
+              for p in (part, held) if p is not None]  # fmt: skip
+    return errors[0], (errors[1] if held is not None else None)
+
+
+def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
+    """A pixel term's registration and its outliers (the shared rule, in mm at the target).
+
+    Rows seen from behind their normal, and rows that the shared rule
+    (:func:`~.outliers.find_outliers`) sets aside on the term's own fit (:func:`_judged`),
+    are outliers named by their line; the camera is registered again without them. Held-out
+    rows' outliers: the same rule (:func:`~.outliers.held_out_outliers`).
+
+    Returns:
+        Its registered state, the mask of its outlier rows, the outliers, the notes and its
+        held-out rows without their outliers (or None).
+    """
+    size = len(PixelKind(len(part.data.target.position), 0, part.data.what).names())
+    out_m = 0 if held is None else held.m
+    what = f"unknowns of camera {part.data.camera.name}'s placement"
+    determined.check_equations(part.m, 2, size, what, part.source, held=out_m)
+    state = _registered(chain, part)
+    behind = _from_behind(state, part)
+    errors, e_held = _judged(chain, state, part, held)
+    bad, found = outliers.find_outliers(errors, None, None, part.rows.lines, (2, 3))
+    found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
+              "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
+    bad = bad | behind
+    notes: list[str] = []
+    if bad.any():
+        if part.m - int(bad.sum()) < size:
+            raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")
+        state = _registered(chain, part.subset(~bad))
+    if held is not None and e_held is not None:
+        pair = (outliers.Errors(errors[~bad], None, (2, 3)), outliers.Errors(e_held, None, (2, 3)))
+        mask, dropped = outliers.held_out_outliers(*pair, None, held.rows.lines)
+        if dropped:
+            notes.append(outliers.held_out_note(dropped))
+            held = held.subset(~mask)
+    return state, bad, sorted(found, key=lambda o: o.row), notes, held

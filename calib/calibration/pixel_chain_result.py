@@ -1,0 +1,134 @@
+"""A pixel term's part of a joint fit's result (``ContactChainsCalibration``'s ``chains``).
+
+The camera's placement on its link (the calibrated URDF holds it as link NAME fixed to LINK),
+its intrinsics, the target points used, and the reprojection errors in pixels with the
+millimetres they mean at the target (the term's rows in the joint fit: each pixel times the
+term's weight, the target's median distance over the focal length).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics.robot import Chain
+from .contact_result import GapStats, gap_errors_mm, row_stats
+from .outliers import Outlier
+from .pixel_chain import PixelPart, PixelTermState
+from .report import parameter_entries, pose_dict
+
+__all__ = ["PixelChain", "pixel_result"]
+
+
+def _pixels(state: PixelTermState, part: PixelPart) -> dict:
+    """RMS and largest reprojection error [px]."""
+    r = np.linalg.norm(state.pixel_errors(part), axis=1)
+    return {"reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "reprojection_max_px": float(
+        np.max(r, initial=0.0))}  # fmt: skip
+
+
+def _stats(state: PixelTermState, part: PixelPart) -> GapStats:
+    """The rows' errors in mm at the target (u and v times the weight)."""
+    return row_stats(state.pixel_errors(part) * state.weight, state.kind, np.ones(2))
+
+
+@dataclass(frozen=True, eq=False)
+class PixelChain:
+    """A pixel term's part of the result (a camera on a link seeing a target on a tool).
+
+    Attributes:
+        chain: The nominal chain (its base: the camera's link).
+        source: The observations' file.
+        name: The camera's name (its link in the calibrated URDF).
+        registered: Its registration on the nominal robot.
+        state: Its fitted state (camera, target, lens).
+        stats: Errors in mm at the target of ``train``, ``train_registration`` and, with
+            held-out rows, ``held_out`` and ``held_out_registration``.
+        pixels: The same parts' reprojection errors [px].
+        parameters: Its unknowns' report entries (changes from the registration).
+        held_source: Its held-out rows' source, or None.
+        outliers: Its rows set aside.
+    """
+
+    chain: Chain
+    source: str
+    name: str
+    registered: PixelTermState
+    state: PixelTermState
+    stats: dict[str, GapStats]
+    pixels: dict[str, dict]
+    parameters: tuple[dict, ...] = ()
+    held_source: str | None = None
+    outliers: tuple[Outlier, ...] = ()
+
+    @property
+    def kind(self):
+        """The term's layout (:class:`~.pixel_chain.PixelKind`)."""
+        return self.state.kind
+
+    def camera(self) -> tuple[str, str, np.ndarray]:
+        """``(name, link, optical frame in the link (4, 4) [m])`` for the URDF."""
+        return self.name, self.chain.base_frame, self.state.camera
+
+    def camera_dict(self) -> dict:
+        """The report's ``frames.cameras`` entry: link, pose, intrinsics [px]."""
+        lens = self.state.lens
+        return {
+            "link": self.chain.base_frame,
+            **(pose_dict(self.state.camera) or {}),
+            "intrinsics": dict(zip(lens.parameter_names, map(float, lens.parameters), strict=True)),
+            "weight_m_per_px": self.state.weight,
+        }
+
+    def errors(self) -> dict:
+        """``errors.terms``: train and held out, mm at the target and px (format 3)."""
+        out: dict = {"train": {**gap_errors_mm(self.stats, "train"), **self._px("train")}}
+        out["held_out"] = None
+        if "held_out" in self.stats:
+            held = gap_errors_mm(self.stats, "held_out")
+            out["held_out"] = {"source": self.held_source, **held, **self._px("held_out")}
+        return out
+
+    def _px(self, part: str) -> dict:
+        return {"pixels": {"registration": self.pixels[f"{part}_registration"],
+                           "calibrated": self.pixels[part]}}  # fmt: skip
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (metres, radians; errors in mm and px)."""
+        return {
+            "base": self.chain.base_frame,
+            "tool": self.chain.tool_frame,
+            "data": self.source,
+            "kind": "pixels",
+            "camera": self.name,
+            **self.camera_dict(),
+            "targets": self.state.target.tolist(),
+            "errors": {k: v.to_dict() for k, v in self.stats.items()},
+            "pixels": self.pixels,
+        }
+
+
+def pixel_result(chain, train, held, registered, state, x, std, term: int) -> PixelChain:
+    """A pixel term's part: its errors (mm and px), and its unknowns' report entries.
+
+    Args:
+        chain: The term's chain.
+        train: Its fitted rows.
+        held: Its held-out rows, or None.
+        registered: Its registration (nominal robot).
+        state: Its fitted state.
+        x: Its own unknowns' values in the fit (changes from the registration).
+        std: Their standard deviations.
+        term: The term's number (1-based), in its unknowns' names.
+    """
+    stats, pixels = {}, {}
+    parts = {"train": train} if held is None else {"train": train, "held_out": held}
+    for key, part in parts.items():
+        for suffix, s in (("", state), ("_registration", registered)):
+            stats[key + suffix] = _stats(s, part)
+            pixels[key + suffix] = _pixels(s, part)
+    names = [f"term{term}.{n}" for n in state.kind.names()]
+    entries = parameter_entries(names, x, std, ())
+    name = train.data.camera.name
+    return PixelChain(chain, train.source, name, registered, state, stats, pixels, tuple(entries))

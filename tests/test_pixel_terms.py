@@ -1,0 +1,167 @@
+"""The pixel kind as a term of the one problem (``calibrate_contact_chains``, ``calib.Problem``).
+
+A camera's pixels are a term beside table touches: TALOS's head camera (``rgbd_optical_frame``
+on ``rgbd_link``) sees a grid on the left hand while both arms touch a table from the soles;
+one truth, one fit, one URDF. Checked by routes that share nothing with the fit: Pinocchio
+loading the written URDF (the camera link's pixels through a textbook pinhole,
+tests/pixel_scorer.py; the touches flush on the fitted planes, tests/contact_scorer.py) and
+central differences of the term's rows.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from contact_scorer import plane_gaps
+from pixel_scorer import seen_pixels
+from pixel_setups import INTRINSICS, grid, setup
+from test_contact_chains import central_differences
+
+from calib import Problem, Term, calibrate, calibrate_contact_chains, load_robot
+from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
+from calib.calibration.pixel_calibration import PixelCamera, pixel_rows
+from calib.calibration.pixel_chain import PixelData, checked_pixels, pixel_part
+from calib.calibration.pixel_chain_result import PixelChain
+from calib.calibration.pixel_term import Unknowns
+from calib.calibration.placements import Placements
+from calib.calibration.report import REPORT_KEYS
+from calib.measurements.contact_campaign import simulate_contacts
+from calib.measurements.pixel_simulation import simulate_pixels
+from calib.measurements.true_robot import true_robot
+
+K, DIST = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
+URDF = "talos_full_v2.urdf"
+PAIRS = (
+    ("left_sole_link", "gripper_left_base_link"),
+    ("right_sole_link", "gripper_right_base_link"),
+)
+HEAD = ("rgbd_link", "gripper_left_base_link")
+NAME = "rgbd_optical_frame"
+TARGET = grid(4, 3, 0.03)
+
+
+def _optical(chain) -> np.ndarray:
+    """The URDF's optical frame in ``rgbd_link`` (Pinocchio)."""
+    model = chain.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    a, b = (data.oMf[model.getFrameId(f)] for f in ("rgbd_link", NAME))
+    return (a.inverse() * b).homogeneous
+
+
+def _seen_postures(chain, truth, C, count: int) -> np.ndarray:
+    """Postures of the head chain where the true camera sees at least 8 of the grid's points."""
+    q = chain.random_configurations(4000, 7)
+    obs = simulate_pixels(truth, NAME, C, INTRINSICS, TARGET, q)
+    kept, n = np.unique(np.asarray(obs.q), axis=0, return_counts=True)
+    return kept[n >= 8][:count]
+
+
+@pytest.fixture(scope="module")
+def joint(tmp_path_factory):
+    """One true TALOS (every joint of the three chains moved by ~1 mm / 1 mrad, the camera
+    by 3 mm / 3 mrad): both arms' table touches and the head camera's pixels, fitted together."""
+    folder = tmp_path_factory.mktemp("pixterms")
+    nominal = [load_robot(URDF, *p) for p in (*PAIRS, HEAD)]
+    true = true_robot(nominal, folder / "true.urdf", seed=3)
+    truth = [load_robot(str(true.urdf), *p) for p in (*PAIRS, HEAD)]
+    C = _optical(nominal[2])
+    true_C = C.copy()
+    true_C[:3, 3] += (0.003, -0.002, 0.001)
+    true_C[:3, :3] = true_C[:3, :3] @ pin.exp3(np.array([0.002, -0.001, 0.003]))
+    q = _seen_postures(nominal[2], truth[2], true_C, 60)
+    obs = simulate_pixels(truth[2], NAME, true_C, INTRINSICS, TARGET, q)
+    zero = {"error_mm": 0.0, "error_mrad": 0.0}
+    touches = [simulate_contacts(c, 40, "plane", seed=1, **zero).data for c in truth[:2]]
+    camera = PixelCamera(NAME, "rgbd_link", INTRINSICS, None)
+    data = [*touches, PixelData(camera, TARGET, obs)]
+    r = calibrate_contact_chains(nominal, data, params="complete", holdout=0.25, seed=0)
+    out = folder / "cal.urdf"
+    r.write_urdf(out)
+    return nominal, data, r, out
+
+
+def test_head_camera_and_table_touches_round_trip_on_the_written_urdf(joint):
+    """Noise-free: every pixel (held out too) through the written URDF's camera link to 1e-9 px
+    RMS (5e-9 px the largest: the fit stops at its tolerance, 1e-12 m at the target), and both
+    arms' touches flush on the fitted planes to 1e-9 m."""
+    nominal, data, r, out = joint
+    assert r.accepted, r.refusal
+    term = r.chains[2]
+    assert isinstance(term, PixelChain) and term.held_source == "holdout"
+    assert term.pixels["held_out_registration"]["reprojection_rms_px"] > 0.5  # something to fix
+    model = pin.buildModelFromUrdf(str(out))
+    chain, obs = nominal[2], data[2].obs
+    rows = pixel_rows(chain, obs, TARGET, NAME)
+    X = TARGET.position[rows.point]
+    seen = seen_pixels(model, NAME, chain.tool_frame, chain.joint_names, rows.q, X, np.eye(4),
+                       K, DIST)  # fmt: skip
+    assert rows.m > 300
+    error = np.linalg.norm(seen - rows.pixels, axis=1)
+    assert np.sqrt(np.mean(error**2)) < 1e-9 and np.max(error) < 5e-9
+    assert not term.outliers
+    for c, d, part in zip(nominal[:2], data[:2], r.chains[:2], strict=True):
+        joints = {n: d.q[:, k] for k, n in enumerate(c.joint_names)}
+        g = plane_gaps(out, c.base_frame, c.tool_frame, part.contact, part.plane, joints)
+        assert np.max(np.abs(g)) < 1e-9
+
+
+def test_the_report_holds_the_camera_and_its_pixels(joint):
+    """Format 3's keys; the camera's placement in ``frames.cameras`` (the written URDF's
+    optical link, read by Pinocchio), its errors in px and mm in ``errors.terms``."""
+    _, _, r, out = joint
+    report = r.to_dict()
+    assert tuple(report)[: len(REPORT_KEYS)] == REPORT_KEYS and report["format_version"] == "3"
+    json.dumps(report)
+    cam = report["frames"]["cameras"][NAME]
+    model = pin.buildModelFromUrdf(str(out))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    a, b = (data.oMf[model.getFrameId(f)] for f in ("rgbd_link", NAME))
+    assert np.allclose(cam["xyz"], (a.inverse() * b).translation, atol=1e-12)
+    term = report["errors"]["terms"][2]
+    assert term["held_out"]["pixels"]["calibrated"]["reprojection_rms_px"] < 1e-9
+    assert term["train"]["pixels"]["registration"]["reprojection_rms_px"] > 0.5
+    assert any(p["name"].startswith("term3.camera.") for p in report["parameters"])
+
+
+def test_one_pixel_term_through_the_one_entry(tmp_path):
+    """``calib.calibrate(Problem((Term(chain, PixelData),)))``: the chains' route; UR5 seen
+    from the cell, the written URDF reproduces every pixel to 1e-9 px."""
+    s = setup("ur5", tmp_path, postures=120)
+    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
+    r = calibrate(Problem((Term(s.nominal, PixelData(camera, s.target, obs)),), params="complete"))
+    assert r.accepted and isinstance(r.chains[0], PixelChain)
+    assert r.unknowns == 26  # the count of tests/test_pixel_calibration.py (an FD rank)
+    out = tmp_path / "cal.urdf"
+    r.write_urdf(out)
+    model = pin.buildModelFromUrdf(str(out))
+    rows = pixel_rows(s.nominal, obs, s.target, s.camera)
+    chain = s.nominal
+    seen = seen_pixels(model, s.camera, chain.tool_frame, chain.joint_names, rows.q,
+                       s.target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+    assert np.max(np.abs(seen - rows.pixels)) < 1e-9
+
+
+@pytest.mark.parametrize("what", [Unknowns(), Unknowns(True, True, True)])
+def test_the_terms_jacobian_matches_central_differences(what, tmp_path):
+    """Every column of the term in the engine (camera, mounting, target points, intrinsics,
+    every joint placement component) at x away from 0."""
+    s = setup("tiago", tmp_path, postures=30)
+    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
+    part = pixel_part(s.nominal, PixelData(camera, s.target, obs, what))
+    state = checked_pixels(s.nominal, part, None)[0]
+    pl = Placements.of((s.nominal,))
+    frames = pl.chain_geometry((s.nominal,))[1]
+    start = ChainsState((s.nominal,), pl, (state,), frames)
+    model = ChainsModel((0,), 1, tuple(range(pl.y.size)), pl.names(), None, (state.kind,), (1,))
+    x = 1e-3 * np.random.default_rng(2).standard_normal(model.size())
+    data = ChainsData((part,))
+    J = model.jacobian(start, x, data)
+    num = central_differences(model, start, x, data)
+    assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
