@@ -347,11 +347,11 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
 
 def calibrate_contact_chains(
     chains: Sequence[Chain],
-    data: Sequence[ContactData | Measurements],
+    data: Sequence[ContactData | Measurements | PixelData],
     *,
     contact=None,
     params: str | None = None,
-    validate: Sequence[ContactData | Measurements | None] | None = None,
+    validate: Sequence[ContactData | Measurements | PixelData | None] | None = None,
     orientation_weight: float | None = None,
     shared_planes: bool = False,
     pose_weight: float = 1.0,
@@ -369,7 +369,7 @@ def calibrate_contact_chains(
             :func:`~calib.measurements.contact_campaign.read_contacts`) or of one fixed pose
             (``fixed-pose`` kind, a closed loop:
             :func:`~calib.measurements.contact_loops.read_loop`); a chain's kind is its
-            touches'.
+            touches'; or a camera's pixels (:class:`~.pixel_chain.PixelData`: a pixel term).
         contact: Guess of every plane chain's contact frame in its tool frame: ``(4, 4)``
             or ``X Y Z [RX RY RZ]`` [m, rad] (default: the tool frame; a fixed-pose chain's
             is its tool frame).
