@@ -3,8 +3,9 @@
 Three set-ups of tests/pixel_setups.py (an eye-to-hand UR5, an eye-in-hand Panda seeing a
 board in the cell, TIAGo's head camera seeing its hand), each on its true robot (joint origins
 moved by ~1 mm / 1 mrad), 0.5 px of noise (seed 7), postures drawn until about 20,000 pixels
-are seen; ``calibrate_pixels`` with 20 % of the postures held out: the camera placed in closed
-form, then the joint placements fitted. One BLAS thread; each case ``CALIB_BENCH_REPEATS``
+are seen; ``calib.calibrate`` of a Problem of one pixel term, 20 % of the postures held out:
+the camera placed in closed form, then the joint placements fitted (the joint engine). One
+BLAS thread; each case ``CALIB_BENCH_REPEATS``
 times (default 5) after a warm-up: the median wall and CPU times, and the held-out
 reprojection error.
 
@@ -25,9 +26,9 @@ from common import median_times_ms, one_core, table
 one_core()
 
 import numpy as np  # noqa: E402
-from pixel_setups import INTRINSICS, setup  # noqa: E402
+from pixel_setups import INTRINSICS, calibrated, pixels, setup  # noqa: E402
 
-from calib.calibration.pixel_calibration import PixelCamera, calibrate_pixels  # noqa: E402
+from calib.calibration.pixel_term import PixelCamera  # noqa: E402
 from calib.measurements.pixel_simulation import simulate_pixels  # noqa: E402
 
 REPEATS = int(os.environ.get("CALIB_BENCH_REPEATS", "5"))
@@ -53,13 +54,13 @@ def main() -> None:
             s, obs, camera = case(name, Path(folder))
 
             def run(s=s, obs=obs, camera=camera):
-                return calibrate_pixels(s.nominal, camera, s.target, obs, holdout=0.2, seed=1)
+                return calibrated(s.nominal, camera, s.target, obs, holdout=0.2, seed=1)
 
             result = run()
             wall, cpu = median_times_ms(run, REPEATS)
-            held = result.errors()["held_out"]["calibrated"]
+            held = pixels(result, "held_out")
             rows.append(
-                [name, obs.m, result.count, f"{wall / 1e3:.2f} / {cpu / 1e3:.2f}",
+                [name, obs.m, result.unknowns, f"{wall / 1e3:.2f} / {cpu / 1e3:.2f}",
                  f"{held['reprojection_rms_px']:.3f}"]
             )  # fmt: skip
     print(table(["set-up", "pixels", "determined", "wall / CPU [s]", "held-out rms [px]"], rows))

@@ -122,3 +122,28 @@ def setup(name: str, folder: Path, postures: int = 600) -> Setup:
     kept, count = np.unique(seen.q, axis=0, return_counts=True)
     order = np.sort([np.flatnonzero((q == k).all(axis=1))[0] for k in kept[count >= 6]])
     return Setup(name, camera, link, nominal, truth, path, C, true_C, target, q[order[:postures]])
+
+
+def calibrated(chains, cameras, target, obs, validate=None, what=None, **options):
+    """The joint fit of one pixel term per camera (``calib.calibrate`` of a Problem).
+
+    ``chains`` and ``cameras``: one each, or tuples of one per camera.
+    """
+    from calib import Problem, Term, calibrate
+    from calib.calibration.pixel_chain import PixelData
+    from calib.calibration.pixel_term import Unknowns
+
+    chains = chains if isinstance(chains, tuple) else (chains,)
+    cameras = cameras if isinstance(cameras, tuple) else (cameras,)
+    what = Unknowns() if what is None else what
+    terms = tuple(
+        Term(c, PixelData(cam, target, obs, what), None if validate is None else PixelData(
+            cam, target, validate, what))
+        for c, cam in zip(chains, cameras, strict=True)
+    )  # fmt: skip
+    return calibrate(Problem(terms, params="complete", **options))
+
+
+def pixels(result, part: str = "train", term: int = 0) -> dict:
+    """A pixel term's reprojection errors [px] of ``part`` (``train_registration`` ...)."""
+    return result.chains[term].pixels[part]

@@ -11,10 +11,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from pixel_scorer import link_points, moved_model, numerical_rank, seen_pixels
-from pixel_setups import INTRINSICS, SETUPS, setup
+from pixel_setups import INTRINSICS, SETUPS, calibrated, pixels, setup
 
-from calib.calibration.pixel_calibration import PixelCamera, calibrate_pixels, pixel_rows
-from calib.calibration.pixel_term import Unknowns
+from calib.calibration.pixel_term import PixelCamera, Unknowns, pixel_rows
 from calib.measurements.pixel_simulation import simulate_pixels
 from calib.measurements.pixels import Target
 
@@ -33,7 +32,7 @@ def case(request, tmp_path_factory):
     held = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q[HELD])
     camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
     fits = [
-        calibrate_pixels(s.nominal, camera, s.target, obs, validate=held, what=Unknowns(mount))
+        calibrated(s.nominal, camera, s.target, obs, validate=held, what=Unknowns(mount))
         for mount in (False, True)
     ]
     return s, obs, held, fits
@@ -77,8 +76,8 @@ def test_count_equals_an_independent_finite_difference_rank(case):
     s, obs, _, fits = case
     rows = pixel_rows(s.nominal, obs, s.target, s.camera)
     some = rows.subset(np.arange(rows.m) % max(1, rows.m // 150) == 0)
-    assert _fd_rank(s, some, False) == fits[0].count == EXPECTED[s.name][0]
-    assert _fd_rank(s, some, True) == fits[1].count == EXPECTED[s.name][1]
+    assert _fd_rank(s, some, False) == fits[0].identifiable == EXPECTED[s.name][0]
+    assert _fd_rank(s, some, True) == fits[1].identifiable == EXPECTED[s.name][1]
 
 
 def test_noise_free_round_trip_on_the_written_urdf(case, tmp_path):
@@ -92,7 +91,7 @@ def test_noise_free_round_trip_on_the_written_urdf(case, tmp_path):
         model = pin.buildModelFromUrdf(str(path))
         for data in (obs, held):
             rows = pixel_rows(s.nominal, data, s.target, s.camera)
-            X = result.fit.state.target[rows.point]
+            X = result.chains[0].state.target[rows.point]
             seen = seen_pixels(
                 model,
                 s.camera,
@@ -105,11 +104,11 @@ def test_noise_free_round_trip_on_the_written_urdf(case, tmp_path):
                 DIST,
             )
             assert np.max(np.abs(seen - rows.pixels)) < 1e-9
-        assert result.errors()["train"]["registration"]["reprojection_rms_px"] > 0.3
-    assert np.array_equal(fits[0].fit.state.target, s.target.position)
+        assert pixels(result, "train_registration")["reprojection_rms_px"] > 0.3
+    assert np.array_equal(fits[0].chains[0].state.target, s.target.position)
 
 
-def test_half_a_pixel_of_noise_held_out_position_at_the_target(case, capsys):
+def test_half_a_pixel_of_noise_held_out_position_at_the_target(case, capsys, tmp_path):
     """0.5 px noise: the calibrated model places the held-out target points in the camera
     closer to the truth than the nominal robot with the camera registered (printed)."""
     s, _, _, _ = case
@@ -117,7 +116,7 @@ def test_half_a_pixel_of_noise_held_out_position_at_the_target(case, capsys):
         s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q[TRAIN], noise_px=0.5, seed=7
     )
     camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
-    result = calibrate_pixels(s.nominal, camera, s.target, obs, holdout=0.2, seed=1)
+    result = calibrated(s.nominal, camera, s.target, obs, holdout=0.2, seed=1)
     q = np.repeat(s.q[HELD], len(s.target.point), axis=0)
     X = np.tile(s.target.position, (len(s.q[HELD]), 1))
     chain = s.nominal
@@ -127,10 +126,12 @@ def test_half_a_pixel_of_noise_held_out_position_at_the_target(case, capsys):
         return (p - C[:3, 3]) @ C[:3, :3]
 
     truth = in_camera(s.truth.model, s.true_placement)
-    fitted = result.fit.state
-    calibrated = in_camera(fitted.placements.model, fitted.camera)
-    start = in_camera(chain.model, result.fit.start.camera)
-    err = 1e3 * np.linalg.norm(calibrated - truth, axis=1)
+    path = tmp_path / "cal.urdf"
+    path.write_bytes(result.urdf())
+    model = pin.buildModelFromUrdf(str(path))
+    fitted = in_camera(model, result.chains[0].state.camera)
+    start = in_camera(chain.model, result.chains[0].registered.camera)
+    err = 1e3 * np.linalg.norm(fitted - truth, axis=1)
     err0 = 1e3 * np.linalg.norm(start - truth, axis=1)
     with capsys.disabled():
         rms, rms0 = np.sqrt(np.mean(err**2)), np.sqrt(np.mean(err0**2))
@@ -148,10 +149,10 @@ def test_refine_targets_recovers_the_points_after_the_first_three(tmp_path):
     wrong[3:] += 2e-3 * np.random.default_rng(5).standard_normal(wrong[3:].shape)
     target = Target(s.target.point, wrong)
     camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
-    result = calibrate_pixels(s.nominal, camera, target, obs, what=Unknowns(targets=True))
-    fitted = result.fit.state.target
+    result = calibrated(s.nominal, camera, target, obs, what=Unknowns(targets=True))
+    fitted = result.chains[0].state.target
     assert np.array_equal(fitted[:3], wrong[:3])
     assert np.max(np.abs(fitted - s.target.position)) < 1e-9
-    assert result.errors()["train"]["calibrated"]["reprojection_max_px"] < 1e-9
-    plain = calibrate_pixels(s.nominal, camera, target, obs)
-    assert plain.errors()["train"]["calibrated"]["reprojection_rms_px"] > 0.1
+    assert pixels(result)["reprojection_max_px"] < 1e-9
+    plain = calibrated(s.nominal, camera, target, obs)
+    assert pixels(plain)["reprojection_rms_px"] > 0.1

@@ -12,10 +12,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from pixel_scorer import moved_model, numerical_rank, seen_pixels
-from pixel_setups import INTRINSICS, grid, look_at
+from pixel_setups import INTRINSICS, calibrated, grid, look_at, pixels
 
 from calib import load_chain
-from calib.calibration.pixel_calibration import PixelCamera, calibrate_pixels, pixel_rows
+from calib.calibration.pixel_term import PixelCamera, pixel_rows
 from calib.measurements.pixel_simulation import simulate_pixels
 from calib.measurements.pixels import PixelObservations
 from calib.measurements.true_robot import true_robot
@@ -95,7 +95,7 @@ def two(tmp_path_factory):
         obs.point,
         obs.pixels,
     )
-    result = calibrate_pixels((head, cell), cameras, TARGET, renamed)
+    result = calibrated((head, cell), cameras, TARGET, renamed)
     return head, cell, renamed, result, placements
 
 
@@ -123,15 +123,14 @@ def test_two_cameras_one_urdf_reproduces_every_pixel(two, tmp_path):
             DIST,
         )
         assert np.max(np.abs(seen - rows.pixels)) < 1e-9
-    errors = result.errors()["train"]
-    assert set(errors["terms"]) == {"xtion_optical_frame", "cell_camera"}
-    assert errors["registration"]["reprojection_rms_px"] > 0.3
+    assert [c.name for c in result.chains] == ["xtion_optical_frame", "cell_camera"]
+    assert pixels(result, "train_registration")["reprojection_rms_px"] > 0.3
 
 
 def test_two_cameras_count_equals_an_independent_rank(two):
     """Central differences over both cameras' 6 and every joint's 6 on both chains' rows."""
     head, cell, obs, result, placements = two
-    C = (result.fit.starts[0].camera, placements[1])
+    C = (result.chains[0].registered.camera, placements[1])
     h = 1e-6
     rows = [
         pixel_rows(c, obs, TARGET, n)
@@ -174,8 +173,10 @@ def test_two_cameras_count_equals_an_independent_rank(two):
                 )
                 / (2 * h)
             )
-    assert numerical_rank(np.column_stack(cols)) == result.count
-    assert result.count > 38  # more than the head camera alone (tests/test_pixel_calibration.py)
+    assert numerical_rank(np.column_stack(cols)) == result.identifiable
+    assert (
+        result.identifiable > 38
+    )  # more than the head camera alone (tests/test_pixel_calibration.py)
 
 
 def test_two_cameras_on_the_command_line(two, tmp_path, capsys):
@@ -186,7 +187,7 @@ def test_two_cameras_on_the_command_line(two, tmp_path, capsys):
     from calib.measurements.intrinsics import write_intrinsics
     from calib.measurements.pixels import write_observations, write_target
 
-    _, _, obs, result, placements = two
+    _, _, obs, _, placements = two
     write_observations(tmp_path / "obs.csv", obs)
     write_target(tmp_path / "target.csv", TARGET)
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
@@ -200,6 +201,9 @@ def test_two_cameras_on_the_command_line(two, tmp_path, capsys):
     assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
     doc = json.loads((tmp_path / "r.json").read_text())
     assert set(doc["frames"]["cameras"]) == {"xtion_optical_frame", "cell_camera"}
-    assert [t["camera"] for t in doc["terms"]] == ["xtion_optical_frame", "cell_camera"]
-    assert doc["fit"]["determined"] == result.count
-    assert doc["errors"]["train"]["calibrated"]["reprojection_max_px"] < 1e-9
+    assert [(t["base"], t["kind"]) for t in doc["terms"]] == [
+        ("xtion_link", "pixels"),
+        ("base_footprint", "pixels"),
+    ]
+    for term in doc["errors"]["terms"]:
+        assert term["train"]["pixels"]["calibrated"]["reprojection_max_px"] < 1e-9

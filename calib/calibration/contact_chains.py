@@ -84,6 +84,7 @@ from .pixel_chain import (
     checked_pixels,
     pixel_parts,
     split_pixels,
+    with_tool,
 )
 from .pixel_chain_result import PixelChain, pixel_result
 from .placements import COMPONENTS, Placements, mdh_directions, offset_component
@@ -292,7 +293,7 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     rows: list[np.ndarray] = []
     names: list[str] = []
     for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
-        D, labels = mdh_directions(pl, chain, s.mdh, frames)
+        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
             if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):

@@ -35,13 +35,13 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
 from . import determined, outliers
-from .pixel_calibration import PixelCamera, pixel_rows
 from .pixel_fit import PixelView, camera_from_rays, fit_pixels, rays, refine_camera
 from .pixel_term import (
     CAMERA_NAMES,
     GAUGE_POINTS,
     KNOWN,
     MOUNT_NAMES,
+    PixelCamera,
     PixelRows,
     PixelState,
     Unknowns,
@@ -49,6 +49,7 @@ from .pixel_term import (
     move_own,
     pixel_jacobian,
     pixel_residuals,
+    pixel_rows,
 )
 from .placements import Placements
 
@@ -63,6 +64,7 @@ __all__ = [
     "pixel_part",
     "pixel_parts",
     "split_pixels",
+    "with_tool",
 ]
 
 
@@ -264,6 +266,23 @@ def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState,
     own = J[:, :, _own_index(n, state.what, J.shape[2])]
     robot = J[:, :, 6 : 6 + n] @ lift.T
     return own * state.weight, robot * state.weight
+
+
+def with_tool(placements, chain: Chain, state, D: np.ndarray, labels):
+    """A pixel term's offered directions with its tool's placement (a target known on it).
+
+    A chain's MDH directions cover its joint rows, not the tool's own placement, which a
+    measured or contact term's own unknowns hold. A target known on its link (no mounting
+    unknown) sees it: the six components of the chain's last joint (its origin carries the
+    tool: ``panda_joint1``'s in ``panda_link0`` for a board on the Panda's root) are offered
+    too (the rank test keeps those determined). Other terms: ``D`` and ``labels`` as given.
+    """
+    if not isinstance(state, PixelTermState) or state.what.mount:
+        return D, labels
+    j = placements.joints.index(chain.joint_names[-1])
+    extra = np.eye(D.shape[1])[6 * j : 6 * j + 6]
+    names = placements.names()[6 * j : 6 * j + 6]
+    return np.vstack([D, extra]), (*labels, *names)
 
 
 def check_pixels(chain: Chain, data: PixelData, validate) -> None:

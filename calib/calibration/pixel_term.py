@@ -43,6 +43,8 @@ from ..identification.base_columns import independent_columns
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_matrix, skew
+from ..measurements.intrinsics import Intrinsics
+from ..measurements.pixels import PixelObservations, Target
 from .placements import Placements, joint_twists, offset_component
 
 __all__ = [
@@ -50,6 +52,7 @@ __all__ = [
     "GAUGE_POINTS",
     "KNOWN",
     "MOUNT_NAMES",
+    "PixelCamera",
     "PixelRows",
     "PixelState",
     "Unknowns",
@@ -60,6 +63,7 @@ __all__ = [
     "move_own",
     "pixel_jacobian",
     "pixel_residuals",
+    "pixel_rows",
     "target_points",
 ]
 
@@ -293,3 +297,56 @@ def check_in_front(p_cam: np.ndarray, rows: PixelRows, source: str) -> None:
             f"{len(behind)} observation(s) see a point behind the camera on the starting "
             f"model (first: row {rows.lines[behind[0]]}): check the camera's link and placement",
         )
+
+
+@dataclass(frozen=True, eq=False)
+class PixelCamera:
+    """A camera fixed to a link.
+
+    Attributes:
+        name: Its name (the ``camera`` column; the calibrated URDF's link of its optical frame).
+        link: The link it is fixed to (the robot's root link for a camera in the cell).
+        intrinsics: Its intrinsics and image size.
+        placement: Its optical frame in ``link`` ``(4, 4)`` [m], or None: the URDF's link
+            ``name`` on ``link`` if there is one, else placed from the pixels.
+    """
+
+    name: str
+    link: str
+    intrinsics: Intrinsics
+    placement: np.ndarray | None = None
+
+
+def pixel_rows(
+    chain: Chain,
+    obs: PixelObservations,
+    target: Target,
+    camera: str,
+    keep: np.ndarray | None = None,
+) -> PixelRows:
+    """The camera's rows of the observations (where ``keep``), joints in the chain's order.
+
+    Raises:
+        DataError: A chain joint without a column, a point not in the target, no row of the
+            camera.
+    """
+    missing = [j for j in chain.joint_names if j not in obs.joint_names]
+    if missing:
+        raise DataError(obs.source, f"no column for joint {missing[0]} of the camera's chain")
+    mine = np.array([c == camera for c in obs.camera])
+    if not mine.any():
+        raise DataError(obs.source, f"no observation of camera {camera}")
+    if keep is not None:
+        mine &= keep
+    index = target.index
+    lines = obs.rows or tuple(range(2, obs.m + 2))
+    for p, line in zip(obs.point, lines, strict=True):
+        if p not in index:
+            raise DataError(obs.source, f"point {p!r} is not in the target {target.source}", line)
+    columns = [obs.joint_names.index(j) for j in chain.joint_names]
+    return PixelRows(
+        np.asarray(obs.q)[mine][:, columns],
+        np.array([index[p] for p in obs.point])[mine],
+        np.asarray(obs.pixels)[mine],
+        tuple(n for n, k in zip(lines, mine, strict=True) if k),
+    )

@@ -4,7 +4,7 @@
 OBS.csv and the calibrated URDF's link of its optical frame), the link it is fixed to and its
 intrinsics file; the six numbers are its placement on LINK [m, rad; roll-pitch-yaw as URDF].
 ``--target TARGET.csv`` gives the points in the tool frame ``--tool``. The chain runs from
-LINK to the tool (:mod:`calib.calibration.pixel_calibration`).
+LINK to the tool; each camera is a pixel term of one problem (:mod:`calib.calibration.pixel_chain`).
 """
 
 from __future__ import annotations
@@ -109,7 +109,7 @@ def _cameras(args: argparse.Namespace, placed: bool, several: bool = False) -> t
 
 def _camera(values: list[str], placed: bool):
     """One ``--camera NAME LINK INTRINSICS [X Y Z RX RY RZ]``."""
-    from ..calibration.pixel_calibration import PixelCamera
+    from ..calibration.pixel_term import PixelCamera
     from ..kinematics.so3 import rpy_to_matrix
     from ..measurements.intrinsics import read_intrinsics
 
@@ -154,10 +154,15 @@ def _chain_and_target(args: argparse.Namespace, camera, target=None):
 
 
 def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
-    """``calibrate --measure pixels``: the URDF with the camera's link, and the report."""
-    from ..calibration.pixel_calibration import calibrate_pixels
-    from ..calibration.pixel_report import pixel_report, pixel_summary
+    """``calibrate --measure pixels``: one pixel term per camera, one problem (the joint fit).
+
+    ``--params complete`` makes the target's mounting an unknown; either way every joint
+    placement direction the pixels determine is fitted (the joint fit's ``complete``).
+    """
+    from ..calibration.entry import calibrate
+    from ..calibration.pixel_chain import PixelData
     from ..calibration.pixel_term import Unknowns
+    from ..calibration.problem import Problem, Term
     from ..measurements.pixels import read_observations
 
     typed = given_options(args, NOT_PIXELS)
@@ -182,26 +187,19 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     check = None
     if args.validate:
         check = read_observations(args.validate, joints, lenses, target)
-    result = calibrate_pixels(
-        chains,
-        cameras,
-        target,
-        obs,
-        validate=check,
-        holdout=args.holdout,
-        what=Unknowns(
-            mount=args.params == "complete",
-            targets=args.refine_targets,
-            intrinsics=args.refine_intrinsics,
-        ),
-        seed=args.seed,
-        refuse=False,
-    )
+    what = Unknowns(args.params == "complete", args.refine_targets, args.refine_intrinsics)
+    terms = tuple(
+        Term(c, PixelData(cam, target, obs, what), None if check is None else PixelData(
+            cam, target, check, what))
+        for c, cam in zip(chains, cameras, strict=True)
+    )  # fmt: skip
+    problem = Problem(terms, params="complete", holdout=args.holdout, seed=args.seed)
+    result = calibrate(problem)
     paths = (Path(args.out), Path(args.report) if args.report else None)
     return write_calibration(
         args,
-        pixel_report(result, []),
-        lambda: pixel_summary(result),
+        result.to_dict(),
+        result.summary,
         result.refusal,
         lambda: {paths[0]: result.urdf()},
         paths,
@@ -254,7 +252,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
 
 def analyze_pixels_command(args: argparse.Namespace) -> int:
     """``analyze --measure pixels``: the unknowns the camera's pixels determine."""
-    from ..calibration.pixel_report import pixel_count
+    from ..calibration.pixel_count import pixel_count
 
     camera = _cameras(args, placed=True)[0]
     chain, target = _chain_and_target(args, camera)
