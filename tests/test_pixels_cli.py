@@ -77,7 +77,7 @@ def test_simulate_calibrate_analyze_on_the_command_line(capsys, tmp_path, ur5):
         "--base", "world", "--tool", "tool0", "--out", out, "--report", report,
     )  # fmt: skip
     assert code == 0, err
-    assert "26 unknowns determined of 42" in text
+    assert "26 unknowns determined" in text
     obs = read_observations(folder / "obs.csv", UR5_JOINTS, {"cam": INTRINSICS})
     target = read_target(folder / "target.csv")
     X = target.position[[target.index[p] for p in obs.point]]
@@ -85,10 +85,10 @@ def test_simulate_calibrate_analyze_on_the_command_line(capsys, tmp_path, ur5):
     seen = seen_pixels(model, "cam", "tool0", UR5_JOINTS, obs.q, X, np.eye(4), K, DIST)
     assert np.max(np.abs(seen - obs.pixels)) < 1e-9
     doc = json.loads(report.read_text())
-    assert tuple(doc) == REPORT_KEYS and doc["format_version"] == "3"
+    assert tuple(doc)[: len(REPORT_KEYS)] == REPORT_KEYS and doc["format_version"] == "3"
     assert doc["frames"]["cameras"]["cam"]["link"] == "world"
-    assert doc["errors"]["train"]["calibrated"]["reprojection_rms_px"] < 1e-9
-    assert doc["errors"]["train"]["registration"]["reprojection_rms_px"] > 0.3
+    assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"] < 1e-9
+    assert doc["errors"]["terms"][0]["train"]["pixels"]["registration"]["reprojection_rms_px"] > 0.3
     code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json")
     assert json.loads(text)["n_base"] == 26  # the count of tests/test_pixel_calibration.py
     code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json",
@@ -206,11 +206,11 @@ def test_refine_intrinsics_recovers_a_swapped_principal_point(capsys, tmp_path, 
     doc = json.loads(report.read_text())
     fitted = doc["frames"]["cameras"]["cam"]["intrinsics"]
     assert abs(fitted["cx"] - 640.0) < 1e-6 and abs(fitted["cy"] - 480.0) < 1e-6
-    assert doc["errors"]["train"]["calibrated"]["reprojection_rms_px"] < 1e-9
+    assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"] < 1e-9
     code, _, err = run(capsys, *args, "--out", tmp_path / "fixed.urdf")
     assert code == 0, err
     fixed = json.loads(report.read_text())
-    assert fixed["errors"]["train"]["calibrated"]["reprojection_rms_px"] > 10
+    assert fixed["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"] > 10
 
 
 def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):
@@ -226,10 +226,10 @@ def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):
         capsys, folder, tmp_path / "obs.csv", folder / "target.csv", tmp_path
     )
     assert code == 0, err
-    assert "1 observation(s) set aside as outliers: rows 11" in text  # line 11 of the file
+    assert "1 outlier row(s) set aside" in text and "row 11 (" in text  # line 11 of the file
     doc = json.loads(report.read_text())
-    assert doc["outliers"] == [{"row": 11}]
-    assert doc["errors"]["train"]["calibrated"]["reprojection_max_px"] < 1e-9
+    assert [o["row"] for o in doc["outliers"]] == [11]
+    assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_max_px"] < 1e-9
 
 
 def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_path, ur5):
@@ -283,6 +283,7 @@ def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_pat
         "--validate", tmp_path / "val.csv",
     )  # fmt: skip
     assert code != 0 and not out.exists()
-    assert "calibration refused: camera cam: held-out reprojection error" in err
+    worse = "held-out errors on world -> tool0 are worse than the registration's"
+    assert "calibration refused: the calibrated model's " + worse in err
     doc = json.loads(report.read_text())
-    assert doc["accepted"] is False and doc["refusal"].startswith("camera cam: held-out")
+    assert doc["accepted"] is False and worse in doc["refusal"]

@@ -390,8 +390,8 @@ class ContactChainsCalibration(Delivered):
         """A terminal summary: each chain's gaps, then the shared joints."""
         lines = [
             f"{self.chains[0].chain.name}: {len(self.chains)} chains, {self._objects()}, "
-            f"{len(self.free)} joint placement components fitted"
-            + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
+            f"{len(self.free)} joint placement components fitted, {self.unknowns} unknowns "
+            "determined" + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
         ]
         if self._contacts():
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
