@@ -94,7 +94,10 @@ def _guessed(terms, heights):
         (lambda s: Problem(("x",)), "must be Term"),
         (lambda s: Problem((*s["chains"], *s["chain"])), "one URDF"),
         (lambda s: Term("ur5", s["chain"][0].data), "chain or a tree"),
-        (lambda s: Term(s["chain"][0].robot, np.zeros((3, 6))), "Measurements or ContactData"),
+        (
+            lambda s: Term(s["chain"][0].robot, np.zeros((3, 6))),
+            "Measurements, ContactData or PixelData",
+        ),
         (lambda s: Term(s["chain"][0].robot, s["chain"][0].data, s["contacts"][0].data), "like"),
         (lambda s: Problem(s["chain"], loss="x"), "unknown loss"),
         (lambda s: Problem(s["chains"], holdout=1.5), "holdout"),

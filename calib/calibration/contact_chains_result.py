@@ -276,8 +276,12 @@ class ContactChainsCalibration(Delivered):
         return tuple(c for c in self.chains if isinstance(c, ChainContacts))
 
     def _frames(self) -> dict:
-        """The report's ``frames``: contact frames, and each measuring frame's placement."""
+        """The report's ``frames``: contact frames, each measuring frame's placement.
+
+        With pixel terms, ``cameras``: each camera's link, placement and intrinsics.
+        """
         measured = self._measured()
+        cameras = {c.name: c.camera_dict() for c in self._pixels()}
         return {
             "measurement": {c.chain.base_frame: pose_dict(c.state.inner.frame) for c in measured}
             or None,
@@ -291,8 +295,8 @@ class ContactChainsCalibration(Delivered):
             "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._contacts()},
             "world_link": None,
             "tool_link": None,
-            "on_robot": bool(measured) or bool(self._cameras()),
-            "cameras": {c.name: c.camera_dict() for c in self._pixels()} or None,
+            "on_robot": bool(measured) or bool(cameras),
+            **({"cameras": cameras} if cameras else {}),
         }
 
     def _pixels(self) -> tuple[PixelChain, ...]:
