@@ -15,7 +15,7 @@ import numpy as np
 from ..kinematics.robot import Chain
 from .contact_result import GapStats, gap_errors_mm, row_stats
 from .outliers import Outlier
-from .pixel_chain import PixelPart, PixelTermState
+from .pixel_chain import PixelKind, PixelPart, PixelTermState
 from .report import parameter_entries, pose_dict
 
 __all__ = ["PixelChain", "pixel_result"]
@@ -46,8 +46,8 @@ class PixelChain:
         stats: Errors in mm at the target of ``train``, ``train_registration`` and, with
             held-out rows, ``held_out`` and ``held_out_registration``.
         pixels: The same parts' reprojection errors [px].
-        parameters: Its unknowns' report entries (changes from the registration).
         held_source: Its held-out rows' source, or None.
+        parameters: Its unknowns' report entries (changes from the registration).
         outliers: Its rows set aside.
     """
 
@@ -58,14 +58,9 @@ class PixelChain:
     state: PixelTermState
     stats: dict[str, GapStats]
     pixels: dict[str, dict]
-    parameters: tuple[dict, ...] = ()
     held_source: str | None = None
+    parameters: tuple[dict, ...] = ()
     outliers: tuple[Outlier, ...] = ()
-
-    @property
-    def kind(self):
-        """The term's layout (:class:`~.pixel_chain.PixelKind`)."""
-        return self.state.kind
 
     def camera(self) -> tuple[str, str, np.ndarray]:
         """``(name, link, optical frame in the link (4, 4) [m])`` for the URDF."""
@@ -80,6 +75,11 @@ class PixelChain:
             "intrinsics": dict(zip(lens.parameter_names, map(float, lens.parameters), strict=True)),
             "weight_m_per_px": self.state.weight,
         }
+
+    @property
+    def kind(self) -> PixelKind:
+        """The term's layout (its rows ``u, v``, its unknowns' names)."""
+        return self.state.kind
 
     def errors(self) -> dict:
         """``errors.terms``: train and held out, mm at the target and px (format 3)."""
@@ -113,11 +113,11 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     """A pixel term's part: its errors (mm and px), and its unknowns' report entries.
 
     Args:
-        chain: The term's chain.
-        train: Its fitted rows.
-        held: Its held-out rows, or None.
-        registered: Its registration (nominal robot).
-        state: Its fitted state.
+        chain: From the camera's link to the target's tool.
+        train: The rows fitted (outliers out); ``held``: the held-out ones, or None.
+        held: See ``train``.
+        registered: The camera placed on the nominal robot; ``state``: fitted.
+        state: See ``registered``.
         x: Its own unknowns' values in the fit (changes from the registration).
         std: Their standard deviations.
         term: The term's number (1-based), in its unknowns' names.
@@ -131,4 +131,6 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     names = [f"term{term}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, x, std, ())
     name = train.data.camera.name
-    return PixelChain(chain, train.source, name, registered, state, stats, pixels, tuple(entries))
+    return PixelChain(
+        chain, train.source, name, registered, state, stats, pixels, parameters=tuple(entries)
+    )
