@@ -164,3 +164,55 @@ def test_the_terms_jacobian_matches_central_differences(what, tmp_path):
     J = model.jacobian(start, x, data)
     num = central_differences(model, start, x, data)
     assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
+
+
+def test_the_command_line_takes_a_pixel_term_beside_touches(joint, tmp_path, capsys):
+    """``--term plane ... --term plane ... --term pixels NAME TOOL obs.csv`` with ``--camera``
+    and ``--target``: one problem; Pinocchio sees every pixel through the written URDF's
+    camera link to 1e-9 px RMS."""
+    from calib.cli.commands import main
+    from calib.measurements.contact_campaign import write_contacts
+    from calib.measurements.intrinsics import write_intrinsics
+    from calib.measurements.pixels import write_observations, write_target
+
+    nominal, data, _, _ = joint
+    files = [tmp_path / name for name in ("left.csv", "right.csv", "obs.csv")]
+    write_contacts(files[0], data[0])
+    write_contacts(files[1], data[1])
+    write_observations(files[2], data[2].obs)
+    write_target(tmp_path / "target.csv", TARGET)
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    argv = ["calibrate", URDF, "--params", "complete", "--holdout", "0.25"]
+    for c, path in zip(nominal[:2], files[:2], strict=True):
+        argv += ["--term", "plane", c.base_frame, c.tool_frame, str(path)]
+    argv += ["--term", "pixels", NAME, HEAD[1], str(files[2]),
+             "--camera", NAME, "rgbd_link", str(tmp_path / "intr.yaml"),
+             "--target", str(tmp_path / "target.csv")]  # fmt: skip
+    out = tmp_path / "cli.urdf"
+    code = main([*argv, "--out", str(out), "--report", str(tmp_path / "r.json")])
+    assert code == 0, capsys.readouterr().err
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert [t["kind"] for t in report["terms"]] == ["plane", "plane", "pixels"]
+    model = pin.buildModelFromUrdf(str(out))
+    chain = nominal[2]
+    rows = pixel_rows(chain, data[2].obs, TARGET, NAME)
+    seen = seen_pixels(model, NAME, chain.tool_frame, chain.joint_names, rows.q,
+                       TARGET.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+    error = np.linalg.norm(seen - rows.pixels, axis=1)
+    assert np.sqrt(np.mean(error**2)) < 1e-9
+
+
+def test_a_pixel_term_without_its_camera_is_one_line(tmp_path, capsys):
+    """``--term pixels NAME ...`` without ``--camera NAME ...``: one ``calib: error:`` line."""
+    from calib.cli.commands import main
+    from calib.measurements.intrinsics import write_intrinsics
+
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    argv = ["calibrate", URDF, "--term", "plane", *PAIRS[0], str(tmp_path / "l.csv"),
+            "--term", "pixels", NAME, HEAD[1], str(tmp_path / "obs.csv"),
+            "--camera", "other", "rgbd_link", str(tmp_path / "intr.yaml"),
+            "--out", str(tmp_path / "o.urdf")]  # fmt: skip
+    assert main(argv) != 0
+    err = capsys.readouterr().err
+    assert err.startswith("calib: error: --term pixels rgbd_optical_frame: give --camera")
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "o.urdf").exists()

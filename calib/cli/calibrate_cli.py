@@ -72,7 +72,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     with _recorded_warnings() as recorded:
         if args.measure == "pixels":
             return pixels_cli.calibrate_pixels_command(args, recorded)
-        pixels_cli.refuse_pixel_options(args)
+        if not any(t[0] == "pixels" for t in args.term or []):
+            pixels_cli.refuse_pixel_options(args)
         if args.term is not None or args.chain is not None or args.loop is not None:
             check_applicable(args, "chains")
             return contact_chains_cli.calibrate_chains_command(args, recorded)

@@ -23,12 +23,13 @@ from ..core.progress import terminal
 from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
+from . import pixels_cli
 from .common import look_outputs, write_calibration
 
 __all__ = ["add_chain_arguments", "calibrate_chains_command"]
 
 
-TERM_KINDS = ("plane", "loop", "position", "pose")
+TERM_KINDS = ("plane", "loop", "position", "pose", "pixels")
 """Kinds a ``--term`` may name."""
 
 
@@ -41,7 +42,8 @@ def add_chain_arguments(p: argparse.ArgumentParser) -> None:
         metavar="ARG",
         help="one term of a joint fit (joints the terms share fitted once, one URDF): KIND "
         f"BASE TOOL DATA [VALIDATION], KIND one of {', '.join(TERM_KINDS)}; once per term, "
-        "at least two, instead of --base, --tool, --data",
+        "at least two, instead of --base, --tool, --data; pixels: BASE is the NAME of a "
+        "--camera NAME LINK INTRINSICS (its chain runs from LINK), with --target TARGET.csv",
     )
     p.add_argument(
         "--chain",
@@ -130,8 +132,9 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
 
     asked = _check(args)
     chains: list[Chain] = []
-    for _, base, tool, _, _ in asked:
-        robot = load_robot(args.robot, base, tool)
+    for kind, base, tool, _, _ in asked:  # --term pixels NAME: the camera's link
+        link = pixels_cli.camera_link(args, base) if kind == "pixels" else base
+        robot = load_robot(args.robot, link, tool)
         if not isinstance(robot, Chain) or robot.is_tree:
             raise InvalidArgumentError("a term names one base and one tool (a chain)")
         chains.append(robot)
@@ -143,9 +146,9 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
             inputs[f"the validation data of term {k + 1}"] = check
     check_outputs({"--out": out, "--report": report, **look_outputs(args)}, inputs)
     terms = []
-    for chain, (kind, _, _, path, check) in zip(chains, asked, strict=True):
-        data = _read(kind, path, chain)
-        validate = _read(kind, check, chain) if check else None
+    for chain, (kind, name, _, path, check) in zip(chains, asked, strict=True):
+        data = _read(kind, path, chain, args, name)
+        validate = _read(kind, check, chain, args, name) if check else None
         guess = args.contact if kind == "plane" else None
         terms.append(Term(chain, data, validate, guess))
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
@@ -172,12 +175,14 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     )
 
 
-def _read(kind: str, path: str, chain: Chain):
-    """A term's data of its kind, read from a file."""
+def _read(kind: str, path: str, chain: Chain, args: argparse.Namespace, name: str):
+    """A term's data of its kind, read from a file (``name``: a pixel term's camera)."""
     from ..measurements.contact_campaign import read_contacts
     from ..measurements.contact_loops import read_loop
     from ..measurements.csvfile import read_measurements
 
+    if kind == "pixels":
+        return pixels_cli.pixel_term_data(args, name, chain, path)
     if kind == "loop":
         return read_loop(path, chain)
     if kind not in ("position", "pose"):

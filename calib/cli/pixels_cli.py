@@ -28,6 +28,8 @@ __all__ = [
     "add_pixel_arguments",
     "analyze_pixels_command",
     "calibrate_pixels_command",
+    "camera_link",
+    "pixel_term_data",
     "simulate_pixels_command",
 ]
 
@@ -151,6 +153,36 @@ def _chain_and_target(args: argparse.Namespace, camera, target=None):
     if args.base is not None:
         load_chain(args.robot, base=args.base, tool=tool)  # a frame of the robot
     return load_chain(args.robot, base=camera.link, tool=tool), target
+
+
+def _named(args: argparse.Namespace, name: str):
+    """The ``--camera`` named ``name``."""
+    for camera in _cameras(args, placed=False, several=True):
+        if camera.name == name:
+            return camera
+    raise InvalidArgumentError(f"--term pixels {name}: give --camera {name} LINK INTRINSICS")
+
+
+def camera_link(args: argparse.Namespace, name: str) -> str:
+    """The link of the ``--camera`` named by ``--term pixels NAME ...`` (its chain's base)."""
+    return _named(args, name).link
+
+
+def pixel_term_data(args: argparse.Namespace, name: str, chain, path: str):
+    """``--term pixels NAME TOOL OBS.csv``: the camera's rows of OBS.csv as a pixel term.
+
+    The target (``--target``) is exact on TOOL (no mounting unknown); ``--refine-targets``
+    and ``--refine-intrinsics`` apply.
+    """
+    from ..calibration.pixel_chain import PixelData
+    from ..calibration.pixel_term import Unknowns
+    from ..measurements.pixels import read_observations
+
+    camera = _named(args, name)
+    target = _chain_and_target(args, camera)[1]
+    obs = read_observations(path, chain.joint_names, {camera.name: camera.intrinsics}, target)
+    what = Unknowns(False, args.refine_targets, args.refine_intrinsics)
+    return PixelData(camera, target, obs, what)
 
 
 def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
