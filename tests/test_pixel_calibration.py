@@ -78,6 +78,8 @@ def test_count_equals_an_independent_finite_difference_rank(case):
     some = rows.subset(np.arange(rows.m) % max(1, rows.m // 150) == 0)
     assert _fd_rank(s, some, False) == fits[0].identifiable == EXPECTED[s.name][0]
     assert _fd_rank(s, some, True) == fits[1].identifiable == EXPECTED[s.name][1]
+    # every unknown determined is fitted (the Panda's board on its root: panda_joint1's origin)
+    assert (fits[0].unknowns, fits[1].unknowns) == EXPECTED[s.name]
 
 
 def test_noise_free_round_trip_on_the_written_urdf(case, tmp_path):
