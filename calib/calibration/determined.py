@@ -36,13 +36,14 @@ __all__ = [
     "ILL_CONDITION",
     "ILL_STD",
     "NAMED",
+    "SAMPLE_EQUATIONS",
     "SELECTION_WORK",
     "Direction",
     "check_equations",
     "check_rank",
-    "check_selection_work",
     "ill_posed",
     "ill_posed_text",
+    "selection_configurations",
     "separating_posture",
 ]
 
@@ -130,11 +131,20 @@ SELECTION_WORK = 4e9
 is run on (its forward paths cost about this). Measured on one core under a load of 8 to 12
 on 2 cores (benchmarks/bench_selection_memory.py): a UR5's 10,000 positions (3.9e8) take 3.5
 to 18 s, its 10,000 poses (1.1e9) 22 s, its 100,000 positions (3.9e9) 118 s. Before issue 30
-(1.2e9; QR factorisations per fold) 20,000 positions took 45 s."""
+(1.2e9; QR factorisations per fold) 20,000 positions took 45 s. A larger campaign is chosen
+on a sample of its configurations sized to it (:func:`selection_configurations`)."""
+
+SAMPLE_EQUATIONS = 200
+"""Fewest equations per selection column (frame, markers and candidates) a sample of the
+configurations must keep for the selection to choose on it: its cross-validated choice is
+stable when they are in the hundreds (a UR5's 100,000 poses keep about 6,000)."""
 
 
-def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:
-    """Refuse, before it starts, a selection (``--params auto``) too long to wait for.
+def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> int:
+    """Configurations the selection (``--params auto``) chooses on: all, or a sample's size.
+
+    A campaign within :data:`SELECTION_WORK` is chosen on all its configurations; a larger
+    one on as many as the bound allows (the fit then uses all of them).
 
     Args:
         m: Configurations.
@@ -142,17 +152,26 @@ def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None
         fixed: Frame and marker columns.
         candidates: Candidate parameters.
 
+    Returns:
+        ``m``, or the size of the sample (``< m``).
+
     Raises:
-        InvalidArgumentError: The work exceeds :data:`SELECTION_WORK`; says what to do.
+        InvalidArgumentError: The sample the bound allows would keep fewer than
+            :data:`SAMPLE_EQUATIONS` equations per column; says what to do.
     """
-    work = m * rows * (fixed + candidates) ** 2 * candidates
-    if work > SELECTION_WORK:
+    per_configuration = rows * (fixed + candidates) ** 2 * candidates
+    if m * per_configuration <= SELECTION_WORK:
+        return m
+    sample = int(SELECTION_WORK // per_configuration)
+    if sample * rows < SAMPLE_EQUATIONS * (fixed + candidates):
         raise InvalidArgumentError(
             f"params 'auto' would cross-validate {candidates} parameters on {m} configurations "
-            f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
-            f"times the work calib runs it on (about a minute on one core); give a level "
-            f"(params complete, paper, offsets or frames), or fewer configurations or markers"
+            f"x {rows} rows with {fixed} frame and marker columns: "
+            f"{m * per_configuration / SELECTION_WORK:.3g} times the work calib runs it on "
+            f"(about a minute on one core), and a sample within it too small to choose on; "
+            f"give a level (params complete, paper, offsets or frames), or fewer markers"
         )
+    return sample
 
 
 ILL_CONDITION = 1e3

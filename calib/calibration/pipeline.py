@@ -17,7 +17,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion
 from ..measurements.csvfile import Measurements, check_against_chain
 from ..measurements.postures import count as count_postures
-from ..measurements.postures import posture_groups
+from ..measurements.postures import posture_groups, sample_postures
 from . import determined, freedoms, outliers, validation
 from .chain_registration import (
     checked_registration,
@@ -248,16 +248,12 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
             f"generic configurations would: params 'auto' chooses among those only"
         )
     if opts.level == "auto":
-        determined.check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
+        sample = determined.selection_configurations(J.shape[0], J.shape[1], fixed, len(cand))
         del J  # memory: the selection's arrays are the campaign's largest
-        kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
-        cols = list(range(fixed)) + columns
-        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
-        Jr *= w[None, :, None]
+        if sample < data.m:
+            data, torque = _sample(data, torque, sample, opts.seed, notes)
         forced = [cand.index(n) for n in opts.free if n in cand]
-        e = explained(wide, reg, data, torque, Jr, cols, reg.residuals(data, kin=kin) * w, w)
-        groups = posture_groups(data.q, data.tool)
-        selection, weights = select(Jr, e, fixed, tuple(cand), forced, groups)
+        selection, weights = _select(wide, reg, data, torque, w, fixed, columns, cand, forced)
         cand = list(selection.kept)
     else:
         selection, weights = None, np.zeros(len(cand))
@@ -269,6 +265,33 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
+
+
+def _sample(data: Measurements, torque, size: int, seed: int, notes: list[str]):
+    """A sample of about ``size`` configurations the selection chooses on (a note says so).
+
+    Whole postures drawn with ``seed``, every tool in proportion
+    (:func:`~calib.measurements.postures.sample_postures`); the fit uses every row.
+    """
+    groups = posture_groups(data.q, data.tool)
+    keep = sample_postures(groups, size, seed, data.tool)
+    notes.append(
+        f"params 'auto' chose the parameters on {int(keep.sum())} of the {data.m} "
+        f"configurations (whole postures drawn with seed {seed}, every tool in proportion: "
+        f"the selection's work bound); the fit uses all of them"
+    )
+    return data.subset(keep), None if torque is None else torque[keep]
+
+
+def _select(wide: ErrorModel, reg: State, data, torque, w, fixed, columns, cand, forced):
+    """The selection among the candidates ``cand`` (columns ``columns`` of ``wide``)."""
+    kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
+    cols = list(range(fixed)) + columns
+    Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
+    Jr *= w[None, :, None]
+    e = explained(wide, reg, data, torque, Jr, cols, reg.residuals(data, kin=kin) * w, w)
+    groups = posture_groups(data.q, data.tool)
+    return select(Jr, e, fixed, tuple(cand), forced, groups)
 
 
 def _generic_kept(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> list[int]:
