@@ -49,7 +49,8 @@ def test_auto_beyond_the_work_bound_chooses_on_a_sample(monkeypatch):
     m, rows, fixed, cand = seen[-1]
     assert m == 4000 and not any("chose the parameters on" in w for w in full.warnings)
     per_configuration = rows * (fixed + cand) ** 2 * cand
-    monkeypatch.setattr(determined, "SELECTION_WORK", 2500 * per_configuration + 1)
+    monkeypatch.setattr(determined, "SELECTION_WORK", 3999 * per_configuration)
+    monkeypatch.setattr(determined, "SAMPLE_WORK", 2500 * per_configuration + 1)
     sampled = calibrate(chain, data)
     assert sampled.selection.kept == full.selection.kept
     assert sampled.selection.winner == full.selection.winner

@@ -37,6 +37,7 @@ __all__ = [
     "ILL_STD",
     "NAMED",
     "SAMPLE_EQUATIONS",
+    "SAMPLE_WORK",
     "SELECTION_WORK",
     "Direction",
     "check_equations",
@@ -132,7 +133,13 @@ is run on (its forward paths cost about this). Measured on one core under a load
 on 2 cores (benchmarks/bench_selection_memory.py): a UR5's 10,000 positions (3.9e8) take 3.5
 to 18 s, its 10,000 poses (1.1e9) 22 s, its 100,000 positions (3.9e9) 118 s. Before issue 30
 (1.2e9; QR factorisations per fold) 20,000 positions took 45 s. A larger campaign is chosen
-on a sample of its configurations sized to it (:func:`selection_configurations`)."""
+on a sample of its configurations (:data:`SAMPLE_WORK`, :func:`selection_configurations`)."""
+
+SAMPLE_WORK = 1e9
+"""The work of the sample a campaign beyond :data:`SELECTION_WORK` is chosen on: that of a
+UR5's 10,000 poses (about 1e9; 6 s on one core at a load of 2), some thousand equations per
+selection column. A sample sized to the bound itself (41,000 of 100,000 UR5 poses) took 32 s
+of the selection at a load of 4, and the fit on every row 20 s more."""
 
 SAMPLE_EQUATIONS = 200
 """Fewest equations per selection column (frame, markers and candidates) a sample of the
@@ -144,7 +151,7 @@ def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> 
     """Configurations the selection (``--params auto``) chooses on: all, or a sample's size.
 
     A campaign within :data:`SELECTION_WORK` is chosen on all its configurations; a larger
-    one on as many as the bound allows (the fit then uses all of them).
+    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them).
 
     Args:
         m: Configurations.
@@ -162,7 +169,7 @@ def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> 
     per_configuration = rows * (fixed + candidates) ** 2 * candidates
     if m * per_configuration <= SELECTION_WORK:
         return m
-    sample = int(SELECTION_WORK // per_configuration)
+    sample = int(min(SAMPLE_WORK, SELECTION_WORK) // per_configuration)
     if sample * rows < SAMPLE_EQUATIONS * (fixed + candidates):
         raise InvalidArgumentError(
             f"params 'auto' would cross-validate {candidates} parameters on {m} configurations "
