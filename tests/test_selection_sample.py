@@ -58,6 +58,8 @@ def test_auto_beyond_the_work_bound_chooses_on_a_sample(monkeypatch):
     note = [w for w in sampled.warnings if "chose the parameters on" in w]
     drawn = sample_postures(posture_groups(data.q), 2500, 0)
     assert len(note) == 1 and f"on {drawn.sum()} of the 4000 configurations" in note[0]
+    assert f"warning: {note[0]}" in sampled.summary()  # the report says it
+    assert note[0] in sampled.to_dict()["warnings"]
     q = chain.random_configurations(500, 11)
     _, truth = _campaign(500, q, noise_mm=0.0)
     errors = [residual_stats(r, truth).position_rms for r in (full, sampled)]
