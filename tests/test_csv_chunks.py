@@ -67,3 +67,22 @@ def test_reading_keeps_no_object_per_cell(ur5):
     finally:
         tracemalloc.stop()
     assert peak < 3 * len(text), (peak, len(text))
+
+
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("1,2,3", "f.csv (row 4): expected 10 cells, found 3"),  # short: no tool cell
+        ("0,0,0,0,0,0,0.1,0.2,0.3, ", "f.csv (row 4, column 'tool'): empty cell"),
+    ],
+)
+def test_a_bad_row_beside_a_tool_column_is_named(ur5, monkeypatch, row, message):
+    lines = [f"{line},tool0" for line in _text(ur5, 5, "position").splitlines()]
+    lines[0] = lines[0].replace("tool0", "tool")
+    lines[3] = row
+    monkeypatch.setattr(csvfile, "CHUNK", 2)
+    with pytest.raises(DataError) as error:
+        parse_measurements("\n".join(lines), ur5, "f.csv")
+    assert str(error.value) == message
+    lines[3] = lines[2]
+    assert parse_measurements("\n".join(lines), ur5).tool == ("tool0",) * 5

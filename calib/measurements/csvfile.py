@@ -414,11 +414,11 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
     used = {*_joint_keys(chain), *header[1], *header[3]}
     numbers = [j for j, k in enumerate(keys) if k in used]
     at = keys.index(TOOL_COLUMN) if TOOL_COLUMN in keys else None
-    names = [] if at is None else [cells[at].strip() for _, cells in chunk]
-    texts = [cells[j].strip() for _, cells in chunk if len(cells) == len(keys) for j in numbers]
+    whole = [cells for _, cells in chunk if len(cells) == len(keys)]
+    names = [] if at is None else [cells[at].strip() for cells in whole]
+    texts = [cells[j].strip() for cells in whole for j in numbers]
     values = np.zeros((len(chunk), len(keys)))
-    whole = len(texts) == len(chunk) * len(numbers) and all(names)
-    if whole and all(map(_NUMBER.fullmatch, texts)):
+    if len(whole) == len(chunk) and all(names) and all(map(_NUMBER.fullmatch, texts)):
         parsed = np.fromiter(map(float, texts), dtype=float, count=len(texts))
         if np.all(np.isfinite(parsed)):
             values[:, numbers] = parsed.reshape(len(chunk), len(numbers))
@@ -427,7 +427,7 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
     for i, (line, cells) in enumerate(chunk):  # the first error, named
         if len(cells) != len(keys):
             raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
-        if at is not None and not names[i]:
+        if at is not None and not cells[at].strip():
             raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
         for j in numbers:
             values[i, j] = parse_number(cells[j], source, line, shown[j])
