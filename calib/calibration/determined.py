@@ -218,12 +218,13 @@ ILL_STD = 1e-4
 determined all the same (noise-free or very precise data): it is not refused."""
 
 
-def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
+def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
     """Directions of the unknowns (columns of ``J``) the rows do not determine.
 
     Args:
         J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
         names: The unknowns.
+        overwrite: ``J`` may be written to (its columns scaled in place: no copy of it).
 
     Returns:
         One :class:`Direction` per singular value of the unit-norm columns under
@@ -232,7 +233,9 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
     if J.shape[1] == 0:
         return []
     norms = np.linalg.norm(J, axis=0)
-    scaled = J / np.where(norms > 0, norms, 1.0)
+    if overwrite:
+        J /= np.where(norms > 0, norms, 1.0)
+    scaled = J if overwrite else J / np.where(norms > 0, norms, 1.0)
     _, s, vt = np.linalg.svd(scaled, full_matrices=False)
     out = []
     for k in np.flatnonzero(s < s[0] / ILL_CONDITION)[::-1]:  # the weakest first

@@ -238,7 +238,9 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     postures = count_postures(data.q, data.tool)
     if opts.level != "auto":
         flat = J.reshape(-1, J.shape[2])[:, separated]
-        found = determined.ill_posed(flat, tuple(wide.names()[i] for i in separated))
+        del J  # memory: a level needs no more of it (100,000 poses: 200 MB)
+        unknowns = tuple(wide.names()[i] for i in separated)
+        found = determined.ill_posed(flat, unknowns, overwrite=True)
         lost = tuple(dict.fromkeys(n for d in found for n in d.names))
         determined.check_rank(
             len(kept), generic, postures, wide.rows, opts.level, data.source, lost=lost
