@@ -115,9 +115,10 @@ class Problem:
     """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
-    at the solution: the state at the last two x (for a chain's :class:`ErrorModel`, with its
-    kinematics, reused while x moves no geometry: the frame and markers) are kept, and the
-    Jacobian at the last x it was asked at (100,000 poses: 200 MB each).
+    at the solution: the state at the last two x are kept (for a chain's
+    :class:`ErrorModel`, the last one's kinematics, reused while x moves no geometry: the
+    frame and markers; 77 MB at 100,000 poses), and the Jacobian at the last x it was asked
+    at (200 MB).
     """
 
     def __init__(self, model, start, data, torque, weight, prior=None, robust=True):
@@ -144,6 +145,9 @@ class Problem:
             if kin is None:
                 kin = state.kinematics(self.data.q, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
+        for other in self._kept[1:]:  # another geometry's kinematics: made again if asked
+            if other[2] is not kin:
+                other[2] = None
         return self._kept[0]
 
     def data_rows(self, x: np.ndarray) -> np.ndarray:
