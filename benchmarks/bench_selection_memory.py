@@ -5,7 +5,8 @@ UR5 measured in position (marker at (10, 20, 50) mm) or in pose, 0.05 mm noise, 
 options (``params='auto'``). Printed: the median wall time of the calibration, the process's
 peak resident memory (VmHWM: ru_maxrss would carry the parent's over the fork), that of a
 process that only reads the file (the difference is the calibration's), the winner of the
-selection, and the slope of the calibration's memory per configuration between sizes.
+selection, the whole process's wall time (start-up and reading included), and the slope of
+the calibration's memory per configuration between sizes.
 
 Run: .venv/bin/python benchmarks/bench_selection_memory.py [m ...]
 (CALIB_BENCH_REPEATS, default 1; CALIB_BENCH_MEASURES, default position,pose;
@@ -22,6 +23,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -61,14 +63,16 @@ print(json.dumps([wall, peak[0], kept]))
 """
 
 
-def child(path: Path, run: bool) -> tuple[float, float, str]:
-    """Wall time [s], peak RSS [MiB] and the winner of one process."""
+def child(path: Path, run: bool) -> tuple[float, float, str, float]:
+    """Wall time [s], peak RSS [MiB], the winner and the whole process's wall time [s]."""
+    tic = time.perf_counter()
     out = subprocess.run(
         [sys.executable, "-c", CHILD, str(path), "1" if run else "0"],
         capture_output=True, text=True, check=True, env=os.environ,
     )  # fmt: skip
+    whole = time.perf_counter() - tic
     wall, rss, winner = json.loads(out.stdout.strip().splitlines()[-1])
-    return wall, rss / 1024.0, winner
+    return wall, rss / 1024.0, winner, whole
 
 
 @contextlib.contextmanager
@@ -87,7 +91,7 @@ def _beyond():
 
 def main() -> None:
     sizes = [int(a) for a in sys.argv[1:]] or [1000, 10_000, 100_000]
-    print("measure       m   time [s]  peak [MiB]  data only [MiB]  winner")
+    print("measure       m   time [s]  process [s]  peak [MiB]  data only [MiB]  winner")
     chain = load_chain("ur5")
     for measure in os.environ.get("CALIB_BENCH_MEASURES", "position,pose").split(","):
         prev = None
@@ -101,8 +105,12 @@ def main() -> None:
                 runs = [child(path, True) for _ in range(REPEATS)]
                 base = child(path, False)[1]
             wall = statistics.median(r[0] for r in runs)
+            whole = statistics.median(r[3] for r in runs)
             peak = statistics.median(r[1] for r in runs)
-            print(f"{measure:8s} {m:7d} {wall:9.2f} {peak:11.0f} {base:16.0f}  {runs[0][2]}")
+            print(
+                f"{measure:8s} {m:7d} {wall:9.2f} {whole:12.2f} {peak:11.0f} {base:16.0f}  "
+                f"{runs[0][2]}"
+            )
             if prev is not None:
                 slope = (peak - base - prev[1]) * 1024.0 / (m - prev[0])
                 print(f"   slope of the calibration's memory: {slope:.1f} KiB per configuration")

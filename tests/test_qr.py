@@ -43,3 +43,13 @@ def test_back_substitution_equals_scipy():
     x = qr.solve_upper(R, B)
     assert np.array_equal(x, scipy.linalg.solve_triangular(R, B))
     assert np.allclose(R @ x, B, atol=1e-12)
+
+
+def test_householder_in_place_of_fortran_columns_is_the_copy_s():
+    W = np.random.default_rng(8).normal(size=(500, 9))
+    order = [4, 0, 8, 2, 1, 3, 7, 5, 6]
+    A = qr.fortran_columns(W, order)
+    assert A.flags.f_contiguous and np.array_equal(A, W[:, order])
+    T = qr.householder(A, overwrite=True)
+    assert np.shares_memory(T, A)  # factored in place: no copy
+    assert np.array_equal(T, qr.householder(W[:, order]))  # the same numbers, to the bit

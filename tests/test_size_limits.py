@@ -36,7 +36,7 @@ def _one_error(capsys, argv) -> str:
 
 
 def test_the_stated_maxima():
-    assert (MAX_ROWS, MAX_TOUCHES, MAX_OBJECTS) == (50_000, 50_000, 2_000)
+    assert (MAX_ROWS, MAX_TOUCHES, MAX_OBJECTS) == (100_000, 50_000, 2_000)
     check_size(MAX_TOUCHES, MAX_TOUCHES, "touches")  # at the limit: accepted
     with pytest.raises(InvalidArgumentError, match="50001 touches: calib handles at most 50000"):
         check_size(MAX_TOUCHES + 1, MAX_TOUCHES, "touches")

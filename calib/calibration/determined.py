@@ -36,13 +36,15 @@ __all__ = [
     "ILL_CONDITION",
     "ILL_STD",
     "NAMED",
+    "SAMPLE_EQUATIONS",
+    "SAMPLE_WORK",
     "SELECTION_WORK",
     "Direction",
     "check_equations",
     "check_rank",
-    "check_selection_work",
     "ill_posed",
     "ill_posed_text",
+    "selection_configurations",
     "separating_posture",
 ]
 
@@ -130,11 +132,26 @@ SELECTION_WORK = 4e9
 is run on (its forward paths cost about this). Measured on one core under a load of 8 to 12
 on 2 cores (benchmarks/bench_selection_memory.py): a UR5's 10,000 positions (3.9e8) take 3.5
 to 18 s, its 10,000 poses (1.1e9) 22 s, its 100,000 positions (3.9e9) 118 s. Before issue 30
-(1.2e9; QR factorisations per fold) 20,000 positions took 45 s."""
+(1.2e9; QR factorisations per fold) 20,000 positions took 45 s. A larger campaign is chosen
+on a sample of its configurations (:data:`SAMPLE_WORK`, :func:`selection_configurations`)."""
+
+SAMPLE_WORK = 1e9
+"""The work of the sample a campaign beyond :data:`SELECTION_WORK` is chosen on: that of a
+UR5's 10,000 poses (about 1e9; 6 s on one core at a load of 2), some thousand equations per
+selection column. A sample sized to the bound itself (41,000 of 100,000 UR5 poses) took 32 s
+of the selection at a load of 4, and the fit on every row 20 s more."""
+
+SAMPLE_EQUATIONS = 200
+"""Fewest equations per selection column (frame, markers and candidates) a sample of the
+configurations must keep for the selection to choose on it: its cross-validated choice is
+stable when they are in the hundreds (a UR5's 100,000 poses keep about 6,000)."""
 
 
-def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None:
-    """Refuse, before it starts, a selection (``--params auto``) too long to wait for.
+def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> int:
+    """Configurations the selection (``--params auto``) chooses on: all, or a sample's size.
+
+    A campaign within :data:`SELECTION_WORK` is chosen on all its configurations; a larger
+    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them).
 
     Args:
         m: Configurations.
@@ -142,17 +159,26 @@ def check_selection_work(m: int, rows: int, fixed: int, candidates: int) -> None
         fixed: Frame and marker columns.
         candidates: Candidate parameters.
 
+    Returns:
+        ``m``, or the size of the sample (``< m``).
+
     Raises:
-        InvalidArgumentError: The work exceeds :data:`SELECTION_WORK`; says what to do.
+        InvalidArgumentError: The sample the bound allows would keep fewer than
+            :data:`SAMPLE_EQUATIONS` equations per column; says what to do.
     """
-    work = m * rows * (fixed + candidates) ** 2 * candidates
-    if work > SELECTION_WORK:
+    per_configuration = rows * (fixed + candidates) ** 2 * candidates
+    if m * per_configuration <= SELECTION_WORK:
+        return m
+    sample = int(min(SAMPLE_WORK, SELECTION_WORK) // per_configuration)
+    if sample * rows < SAMPLE_EQUATIONS * (fixed + candidates):
         raise InvalidArgumentError(
             f"params 'auto' would cross-validate {candidates} parameters on {m} configurations "
-            f"x {rows} rows with {fixed} frame and marker columns: {work / SELECTION_WORK:.3g} "
-            f"times the work calib runs it on (about a minute on one core); give a level "
-            f"(params complete, paper, offsets or frames), or fewer configurations or markers"
+            f"x {rows} rows with {fixed} frame and marker columns: "
+            f"{m * per_configuration / SELECTION_WORK:.3g} times the work calib runs it on "
+            f"(about a minute on one core), and a sample within it too small to choose on; "
+            f"give a level (params complete, paper, offsets or frames), or fewer markers"
         )
+    return sample
 
 
 ILL_CONDITION = 1e3
@@ -192,12 +218,13 @@ ILL_STD = 1e-4
 determined all the same (noise-free or very precise data): it is not refused."""
 
 
-def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
+def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
     """Directions of the unknowns (columns of ``J``) the rows do not determine.
 
     Args:
         J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
         names: The unknowns.
+        overwrite: ``J`` may be written to (its columns scaled in place: no copy of it).
 
     Returns:
         One :class:`Direction` per singular value of the unit-norm columns under
@@ -206,7 +233,9 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...]) -> list[Direction]:
     if J.shape[1] == 0:
         return []
     norms = np.linalg.norm(J, axis=0)
-    scaled = J / np.where(norms > 0, norms, 1.0)
+    if overwrite:
+        J /= np.where(norms > 0, norms, 1.0)
+    scaled = J if overwrite else J / np.where(norms > 0, norms, 1.0)
     _, s, vt = np.linalg.svd(scaled, full_matrices=False)
     out = []
     for k in np.flatnonzero(s < s[0] / ILL_CONDITION)[::-1]:  # the weakest first

@@ -304,7 +304,7 @@ class ErrorModel:
                 J[part, :, col : col + block.shape[2]] = block
                 col += block.shape[2]
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
-        return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K)
+        return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
 
     @property
     def rows(self) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import gc
 import time
 import warnings
 
@@ -17,7 +18,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion
 from ..measurements.csvfile import Measurements, check_against_chain
 from ..measurements.postures import count as count_postures
-from ..measurements.postures import posture_groups
+from ..measurements.postures import posture_groups, sample_postures
 from . import determined, freedoms, outliers, validation
 from .chain_registration import (
     checked_registration,
@@ -69,6 +70,7 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=Non
     notes: list[str] = []
     with phase(progress, "calibrate: selection"):
         model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
+    gc.collect()  # the registration's and selection's cycles held 130 MB at 100,000 poses
     tic = time.perf_counter()
     with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
         fitted = fit(
@@ -118,6 +120,7 @@ def calibrate_chain(chain, data, marker, validate, opts, progress=None) -> Calib
         notes.append(outliers.set_aside_note(dropped))
     clock.append(time.perf_counter() - 1e-3 * rnd.fit_ms)  # the selections, then the last fit
     clock.append(time.perf_counter())
+    gc.collect()  # what the rounds left in cycles, before the checks' copies of the Jacobian
     result = _assemble(
         chain,
         nominal,
@@ -221,7 +224,8 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     )
     ideal = dataclasses.replace(reg, mdh=nominal.idealized())
     w = row_weights(wide, opts.orientation_weight)
-    J = wide.jacobian(ideal, np.zeros(wide.size()), data, torque) * w[None, :, None]
+    J = wide.jacobian(ideal, np.zeros(wide.size()), data, torque)
+    J *= w[None, :, None]  # in place: a fresh array (100,000 poses: 200 MB)
     fixed = base.size()
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
     columns = [i for i in kept if i >= fixed]  # kept is in column order
@@ -237,7 +241,9 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     postures = count_postures(data.q, data.tool)
     if opts.level != "auto":
         flat = J.reshape(-1, J.shape[2])[:, separated]
-        found = determined.ill_posed(flat, tuple(wide.names()[i] for i in separated))
+        del J  # memory: a level needs no more of it (100,000 poses: 200 MB)
+        unknowns = tuple(wide.names()[i] for i in separated)
+        found = determined.ill_posed(flat, unknowns, overwrite=True)
         lost = tuple(dict.fromkeys(n for d in found for n in d.names))
         determined.check_rank(
             len(kept), generic, postures, wide.rows, opts.level, data.source, lost=lost
@@ -248,16 +254,12 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
             f"generic configurations would: params 'auto' chooses among those only"
         )
     if opts.level == "auto":
-        determined.check_selection_work(J.shape[0], J.shape[1], fixed, len(cand))
+        sample = determined.selection_configurations(J.shape[0], J.shape[1], fixed, len(cand))
         del J  # memory: the selection's arrays are the campaign's largest
-        kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
-        cols = list(range(fixed)) + columns
-        Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
-        Jr *= w[None, :, None]
+        if sample < data.m:
+            data, torque = _sample(data, torque, sample, opts.seed, notes)
         forced = [cand.index(n) for n in opts.free if n in cand]
-        e = explained(wide, reg, data, torque, Jr, cols, reg.residuals(data, kin=kin) * w, w)
-        groups = posture_groups(data.q, data.tool)
-        selection, weights = select(Jr, e, fixed, tuple(cand), forced, groups)
+        selection, weights = _select(wide, reg, data, torque, w, fixed, columns, cand, forced)
         cand = list(selection.kept)
     else:
         selection, weights = None, np.zeros(len(cand))
@@ -269,6 +271,33 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
     order_w = {c: wt for c, wt in zip(cand, weights, strict=True)}
     prior = np.r_[np.zeros(fixed), [order_w[n] for n in model.names()[fixed:]]]
     return model, selection, prior if np.any(prior) else None
+
+
+def _sample(data: Measurements, torque, size: int, seed: int, notes: list[str]):
+    """A sample of about ``size`` configurations the selection chooses on (a note says so).
+
+    Whole postures drawn with ``seed``, every tool in proportion
+    (:func:`~calib.measurements.postures.sample_postures`); the fit uses every row.
+    """
+    groups = posture_groups(data.q, data.tool)
+    keep = sample_postures(groups, size, seed, data.tool)
+    notes.append(
+        f"params 'auto' chose the parameters on {int(keep.sum())} of the {data.m} "
+        f"configurations (whole postures drawn with seed {seed}, every tool in proportion: "
+        f"the selection's work bound); the fit uses all of them"
+    )
+    return data.subset(keep), None if torque is None else torque[keep]
+
+
+def _select(wide: ErrorModel, reg: State, data, torque, w, fixed, columns, cand, forced):
+    """The selection among the candidates ``cand`` (columns ``columns`` of ``wide``)."""
+    kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
+    cols = list(range(fixed)) + columns
+    Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
+    Jr *= w[None, :, None]
+    e = explained(wide, reg, data, torque, Jr, cols, reg.residuals(data, kin=kin) * w, w)
+    groups = posture_groups(data.q, data.tool)
+    return select(Jr, e, fixed, tuple(cand), forced, groups)
 
 
 def _generic_kept(chain, wide: ErrorModel, state: State, data, w, elastic: bool, seed) -> list[int]:

@@ -115,9 +115,10 @@ class Problem:
     """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
-    at the solution: the state at the last two x (for a chain's :class:`ErrorModel`, with its
-    kinematics, reused while x moves no geometry: the frame and markers) and their
-    Jacobians are kept.
+    at the solution: the state at the last two x are kept (for a chain's
+    :class:`ErrorModel`, the last one's kinematics, reused while x moves no geometry: the
+    frame and markers; 77 MB at 100,000 poses), and the Jacobian at the last x it was asked
+    at (200 MB).
     """
 
     def __init__(self, model, start, data, torque, weight, prior=None, robust=True):
@@ -144,6 +145,9 @@ class Problem:
             if kin is None:
                 kin = state.kinematics(self.data.q, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
+        for other in self._kept[1:]:  # another geometry's kinematics: made again if asked
+            if other[2] is not kin:
+                other[2] = None
         return self._kept[0]
 
     def data_rows(self, x: np.ndarray) -> np.ndarray:
@@ -162,6 +166,9 @@ class Problem:
         """Jacobian of :meth:`data_rows`, ``(m rows, p)`` (not to be written to)."""
         kept = self._at(x)
         if kept[3] is None:
+            for other in self._kept:  # asked for at one x at a time: one Jacobian kept
+                if other is not kept:
+                    other[3] = None
             _, state, kin, _ = kept
             if kin is None:
                 J = self.model.jacobian(self.start, x, self.data, self.torque)
@@ -221,12 +228,14 @@ def fit(
     if p == 0:
         x = np.zeros(0)
         status, message, njev, nfev = 1, "nothing to fit", 0, 1
+    elif loss == "linear":
+        x, status, message, njev, nfev = _levenberg_marquardt(problem, p, max_iterations)
     else:
         sol = scipy.optimize.least_squares(
             problem.fun,
             np.zeros(p),
             jac=problem.jac,
-            method="lm" if loss == "linear" else "trf",
+            method="trf",
             loss=loss,
             f_scale=scale,
             ftol=TOLERANCE,
@@ -253,6 +262,48 @@ def fit(
         njev,
         nfev,
     )
+
+
+_MINPACK_STATUS = {0: -1, 1: 2, 2: 3, 3: 4, 4: 1, 5: 0}
+"""MINPACK's ``info`` as ``scipy.optimize.least_squares``'s status."""
+
+_STATUS_MESSAGES = {
+    -1: "Improper input parameters status returned from `leastsq`",
+    0: "The maximum number of function evaluations is exceeded.",
+    1: "`gtol` termination condition is satisfied.",
+    2: "`ftol` termination condition is satisfied.",
+    3: "`xtol` termination condition is satisfied.",
+    4: "Both `ftol` and `xtol` termination conditions are satisfied.",
+}
+"""``least_squares``'s message of each status (the results read as they did)."""
+
+
+def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
+    """MINPACK's Levenberg-Marquardt on the problem, as ``least_squares(method='lm')`` runs it.
+
+    ``scipy.optimize.leastsq`` calls the same MINPACK routine with the same arguments
+    (``factor`` 100, no ``diag``, no column-major Jacobian), without ``least_squares``'s
+    copies of the Jacobian (one kept from the start, one per evaluation, one at the end:
+    three times 100,000 poses x 6 rows x 40 columns, 190 MB): the same steps, to the bit.
+
+    Returns:
+        x, status and message (``least_squares``'s), Jacobian and residual evaluations.
+    """
+    import scipy.optimize
+
+    x, _, info, _, code = scipy.optimize.leastsq(
+        problem.fun,
+        np.zeros(p),
+        Dfun=problem.jac,
+        full_output=True,
+        ftol=TOLERANCE,
+        xtol=TOLERANCE,
+        gtol=TOLERANCE,
+        maxfev=max_iterations,
+    )
+    status = _MINPACK_STATUS.get(int(code), -1)
+    nfev = int(info["nfev"])
+    return x, status, _STATUS_MESSAGES[status], int(info.get("njev", nfev)), nfev
 
 
 def covariance(J: np.ndarray, rss: float, prior: np.ndarray | None = None):

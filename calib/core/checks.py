@@ -54,9 +54,10 @@ and reference sets, their QR copies and the kinematics), with a margin: the meas
 checks that the estimate covers a real run."""
 
 
-MAX_ROWS = 50_000
-"""Most configurations (rows) of measured data calib reads or calibrates on (a UR5's 100,000
-poses peaked at 1.9 GB with ``--params complete``)."""
+MAX_ROWS = 100_000
+"""Most configurations (rows) of measured data calib reads or calibrates on: a UR5's 100,000
+poses calibrate with the default options in under a minute and 1 GB on one core
+(benchmarks/bench_selection_memory.py)."""
 
 MAX_TOUCHES = 50_000
 """Most touches of contact data calib reads or calibrates on."""

@@ -257,7 +257,7 @@ def _independent_columns(W: np.ndarray, order: list[int], n_rows: int | None):
     if sorted(order) == list(range(W.shape[1])) and min(W.shape) > 0:
         # One QR of W's columns in order: its diagonal is the walk's first guess, and its
         # factor, columns put back, has W's column geometry.
-        T = qr.householder(W[:, order])
+        T = qr.householder(qr.fortran_columns(W, order), overwrite=True)
         k = min(W.shape)
         first = np.abs(T.diagonal())
         R = np.empty((k, W.shape[1]))

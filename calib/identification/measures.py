@@ -40,6 +40,10 @@ ROTATION_ROWS = (3, 4, 5)
 _XYZ = (0, 1, 2)
 
 
+ROWS_BLOCK = 4096
+"""Configurations whose rotation rows :meth:`Measurement.jacobian_rows` turns at once."""
+
+
 @runtime_checkable
 class MeasureKind(Protocol):
     """What every measurement kind provides (see :class:`Measurement` and the contacts).
@@ -300,6 +304,7 @@ class Measurement:
         R: np.ndarray | None = None,
         rotation_error: np.ndarray | None = None,
         n_markers: int = 1,
+        overwrite: bool = False,
     ) -> np.ndarray:
         """The measured rows of the pose-error Jacobian at the markers.
 
@@ -312,14 +317,19 @@ class Measurement:
                 linearisation at zero error. Given, the rotation rows become those of
                 ``-Log(R_measured R_model^T)``: ``Jr^-1(error)`` times the rotation rows.
             n_markers: K.
+            overwrite: ``W6`` may be written to (its rotation rows become the rows of the
+                rotation error: no copy of it).
 
         Returns:
             ``(m, rows_of(K), k)``, the rows of :meth:`residual`.
         """
         W = W6
         if rotation_error is not None:
-            W = W6.copy()
-            W[:, 3 * n_markers :] = inverse_right_jacobian(rotation_error) @ W6[:, 3 * n_markers :]
+            W = W6 if overwrite else W6.copy()
+            inverse = inverse_right_jacobian(rotation_error)
+            for s in range(0, len(W), ROWS_BLOCK):  # in blocks: no temporary of every row
+                part = slice(s, s + ROWS_BLOCK)
+                W[part, 3 * n_markers :] = inverse[part] @ W6[part, 3 * n_markers :]
         index = self.row_index(n_markers)
         return W if index is None else W[:, index]
 

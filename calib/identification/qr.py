@@ -22,6 +22,7 @@ from types import ModuleType
 import numpy as np
 
 __all__ = [
+    "fortran_columns",
     "householder",
     "pivoted_diagonal",
     "solve_upper",
@@ -86,15 +87,29 @@ def _below(shape: tuple[int, int], k: int) -> np.ndarray:
     return ~np.triu(np.ones(shape, dtype=bool), k)
 
 
-def householder(W: np.ndarray) -> np.ndarray:
+def householder(W: np.ndarray, overwrite: bool = False) -> np.ndarray:
     """LAPACK's compact QR of W ``(r, c)``: R on and above the diagonal, reflectors below.
 
     ``triangular(W) == triu(householder(W)[:min(r, c)])``; ``W`` must not be empty.
+    ``overwrite``: W may be factored in place (no copy if it is Fortran-ordered:
+    :func:`fortran_columns`).
     """
-    qr, _, _, info = _lapack().dgeqrf(W)
+    qr, _, _, info = _lapack().dgeqrf(W, overwrite_a=int(overwrite))
     if info != 0:
         return np.linalg.qr(W, mode="r")  # type: ignore[return-value]  # numpy's stubs: QRResult
     return qr
+
+
+def fortran_columns(W: np.ndarray, order: list[int]) -> np.ndarray:
+    """W's columns ``order`` in a new Fortran-ordered array (LAPACK's layout).
+
+    :func:`householder` of it with ``overwrite`` copies nothing more (a 600,000 x 42
+    Jacobian: 200 MB).
+    """
+    out = np.empty((W.shape[0], len(order)), order="F")
+    for k, j in enumerate(order):
+        out[:, k] = W[:, j]
+    return out
 
 
 def pivoted_diagonal(W: np.ndarray) -> np.ndarray:

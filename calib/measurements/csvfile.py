@@ -111,6 +111,9 @@ DEFAULT_ORIENTATION_COLUMNS = {
 """Column names of each orientation format, in the order the format reads them."""
 
 
+CHUNK = 4096
+"""Rows of a measurement file parsed at once."""
+
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 """Strict decimal number grammar of a CSV cell (no ``1_0``, no ``0x10``, no ``nan``)."""
 
@@ -266,9 +269,21 @@ def parse_number(cell: str, src: str, line: int, column: str) -> float:
     return value
 
 
+def _lines(text: str):
+    """The lines of ``text``, each with its newline, as ``io.StringIO`` gives them.
+
+    Without its copy of the text (four bytes per character).
+    """
+    start = 0
+    while start < len(text):
+        end = text.find("\n", start) + 1 or len(text)
+        yield text[start:end]
+        start = end
+
+
 def csv_records(text: str, src: str):
     """(first line, cells) of each non-blank CSV record; malformed CSV names its row."""
-    reader = csv.reader(io.StringIO(text), strict=True)
+    reader = csv.reader(_lines(text), strict=True)
     start = 1
     while True:
         try:
@@ -327,7 +342,7 @@ def parse_measurements(
     header, values, lines, tools = _read_rows(text, chain, columns, source)
     check_size(len(values), MAX_ROWS, "rows", source)
     names, pos_cols, fmt, ori_cols, _ = header
-    table = np.array(values)
+    table = values
     col = {n: j for j, n in enumerate(names)}
     q = chain.joint_values(table[:, [col[JOINT_PREFIX + n] for n in chain.variable_names]])
     followers = {
@@ -361,36 +376,62 @@ def parse_measurements(
 
 
 def _read_rows(text: str, chain: Chain | Tree, columns: Columns, source: str):
-    """The header, the rows' numbers, their line numbers and tool names (if a tool column)."""
+    """The header, the rows' numbers ``(m, cells)``, their line numbers and tool names.
+
+    Rows are parsed :data:`CHUNK` at a time (no Python object per cell is kept).
+    """
     header = None
-    values: list[list[float]] = []
+    table: list[np.ndarray] = []
     lines: list[int] = []
     tools: list[str] = []
+    chunk: list[tuple[int, list[str]]] = []
     for line, cells in csv_records(text, source):
         if header is None:
             header = _header(cells, chain, columns, source, line)
             continue
-        keys, shown = header[0], header[4]
-        if len(cells) != len(keys):
-            raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
-        used = {*_joint_keys(chain), *header[1], *header[3]}
-        if TOOL_COLUMN in keys:
-            tool = cells[keys.index(TOOL_COLUMN)].strip()
-            if not tool:
-                raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
-            tools.append(tool)
-        values.append(
-            [
-                parse_number(c, source, line, n) if k in used else 0.0
-                for c, k, n in zip(cells, keys, shown, strict=True)
-            ]
-        )
-        lines.append(line)
+        chunk.append((line, cells))
+        if len(chunk) == CHUNK:
+            table.append(_chunk_values(chunk, header, chain, source, tools))
+            lines += [n for n, _ in chunk]
+            chunk = []
     if header is None:
         raise DataError(source, "empty file: expected a header line and measurement rows")
-    if not values:
+    if chunk:
+        table.append(_chunk_values(chunk, header, chain, source, tools))
+        lines += [n for n, _ in chunk]
+    if not lines:
         raise DataError(source, "no measurement rows after the header")
-    return header, values, lines, tools
+    return header, np.concatenate(table), lines, tools
+
+
+def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.ndarray:
+    """The numbers of some rows ``(rows, cells)`` (0 in unused cells); their tools appended.
+
+    Valid rows are parsed at once; otherwise row by row, which raises the first row's
+    error (the same error, row and column as if every row were parsed alone).
+    """
+    keys, shown = header[0], header[4]
+    used = {*_joint_keys(chain), *header[1], *header[3]}
+    numbers = [j for j, k in enumerate(keys) if k in used]
+    at = keys.index(TOOL_COLUMN) if TOOL_COLUMN in keys else None
+    whole = [cells for _, cells in chunk if len(cells) == len(keys)]
+    names = [] if at is None else [cells[at].strip() for cells in whole]
+    texts = [cells[j].strip() for cells in whole for j in numbers]
+    values = np.zeros((len(chunk), len(keys)))
+    if len(whole) == len(chunk) and all(names) and all(map(_NUMBER.fullmatch, texts)):
+        parsed = np.fromiter(map(float, texts), dtype=float, count=len(texts))
+        if np.all(np.isfinite(parsed)):
+            values[:, numbers] = parsed.reshape(len(chunk), len(numbers))
+            tools += names
+            return values
+    for i, (line, cells) in enumerate(chunk):  # the first error, named
+        if len(cells) != len(keys):
+            raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
+        if at is not None and not cells[at].strip():
+            raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
+        for j in numbers:
+            values[i, j] = parse_number(cells[j], source, line, shown[j])
+    return values  # not reached: a row above is invalid
 
 
 def _check_coordinates(position: np.ndarray, names, lines: list[int], source: str) -> None:

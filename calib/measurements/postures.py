@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["POSTURE_TOL", "count", "posture_groups"]
+__all__ = ["POSTURE_TOL", "count", "posture_groups", "sample_postures"]
 
 POSTURE_TOL = 1e-6
 """Rows whose joint values agree to this [rad or m] (after rounding to its multiples) are one
@@ -43,3 +43,34 @@ def posture_groups(q: np.ndarray, key=None, tol: float = POSTURE_TOL) -> np.ndar
 def count(q: np.ndarray, key=None) -> int:
     """Number of distinct postures among the rows (:func:`posture_groups`)."""
     return int(posture_groups(q, key).max(initial=-1)) + 1
+
+
+def sample_postures(groups: np.ndarray, count: int, seed: int, strata=None) -> np.ndarray:
+    """Rows of about ``count`` whole postures drawn at random, each stratum in proportion.
+
+    A posture's repeats are drawn together (they are one posture); every stratum (a tool,
+    a plane: ``strata``) gives the same fraction of its rows, at least one posture.
+
+    Args:
+        groups: Posture of each row (:func:`posture_groups`).
+        count: Rows wanted (about: whole postures are drawn).
+        seed: Seed of the draw.
+        strata: What else separates rows (``(m,)``), or None (one stratum).
+
+    Returns:
+        ``(m,)`` mask of the rows drawn, in the data's order.
+    """
+    groups = np.asarray(groups).reshape(-1)
+    rng = np.random.default_rng(seed)
+    codes = np.zeros(len(groups), dtype=int)
+    if strata is not None:
+        codes = np.unique(np.asarray(strata), return_inverse=True)[1].reshape(-1)
+    sizes = np.bincount(groups)
+    keep = np.zeros(len(groups), dtype=bool)
+    for stratum in range(int(codes.max(initial=-1)) + 1):
+        inside = codes == stratum
+        drawn = rng.permutation(np.unique(groups[inside]))
+        want = count * int(inside.sum()) / len(groups)
+        take = max(1, int(np.searchsorted(np.cumsum(sizes[drawn]), want, side="right")))
+        keep |= inside & np.isin(groups, drawn[:take])
+    return keep
