@@ -23,7 +23,8 @@ from common import cpu_median_ns, median_ms, one_core, table
 one_core()
 
 from calib import analyze, from_chain, load_chain  # noqa: E402
-from calib.identification.contacts import contact_configurations, contact_kind  # noqa: E402
+from calib.identification.contact_postures import contact_configurations  # noqa: E402
+from calib.identification.contacts import contact_kind  # noqa: E402
 
 warnings.simplefilter("ignore")
 

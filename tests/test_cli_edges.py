@@ -447,7 +447,7 @@ def test_simulating_many_planes_never_stops_on_a_singular_newton_step(tmp_path, 
 
 
 def test_the_singular_step_is_the_least_norm_least_squares_one():
-    from calib.identification.contacts import _newton_step
+    from calib.identification.contact_postures import _newton_step
 
     J = np.array([[[1e8, 2e8, 0.0], [1e8, 2e8, 0.0]]])  # J J^T singular in floating point
     gap = np.array([[1.0, 3.0]])

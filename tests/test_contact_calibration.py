@@ -179,7 +179,7 @@ def test_bad_arguments():
 
 def test_contact_model_keeps_reversed_joints():
     """The model in a contact's frame moves as the chain does (TALOS: reversed leg joints)."""
-    from calib.identification.contacts import contact_model
+    from calib.identification.contact_postures import contact_model
 
     chain = load_robot(*CHAINS["talos"])
     mdh = from_chain(chain)

@@ -97,7 +97,7 @@ def test_a_numerically_singular_newton_system_takes_the_least_norm_step():
     """Rows so large that the damping is lost in round-off (near the flipped side): the
     step is the least-norm one (numpy's lstsq), not a LinAlgError; a UR5 plane design
     that met one completes."""
-    from calib.identification.contacts import _newton_step
+    from calib.identification.contact_postures import _newton_step
 
     J = np.array([[[1e9, 0.0, 0.0], [1e9, 0.0, 0.0]]])  # two equal rows: J J^T singular
     gap = np.array([[2e9, 2e9]])

@@ -25,7 +25,7 @@ from calib import load_calibrated, load_robot
 from calib.calibration.contact_model import ContactModel, plane_state
 from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.exceptions import InvalidArgumentError
-from calib.identification.contacts import joint_offsets
+from calib.identification.contact_postures import joint_offsets
 from calib.kinematics.mdh import from_chain
 from calib.kinematics.so3 import rotation_matrix
 from calib.kinematics.standing import JointReadings, Support, standing_load

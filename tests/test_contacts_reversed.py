@@ -20,11 +20,8 @@ from test_contacts import pin_gap
 import calib
 from calib import analyze, from_chain, load_chain
 from calib.cli.commands import main
-from calib.identification.contacts import (
-    contact_configurations,
-    contact_kind,
-    joint_jacobian,
-)
+from calib.identification.contact_postures import contact_configurations, joint_jacobian
+from calib.identification.contacts import contact_kind
 from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
 from calib.measurements.contact_campaign import read_contacts, simulate_contacts
 

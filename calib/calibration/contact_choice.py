@@ -15,7 +15,8 @@ import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import CONTACT_TOL, joint_offsets, project
+from ..identification.contact_postures import joint_offsets, project
+from ..identification.contacts import CONTACT_TOL
 from ..identification.identifiability import independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_lines
@@ -108,7 +109,7 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
     """Postures near ``q`` where the contact of ``start`` holds on each touch's object.
 
     Each object's touches are Newton-projected onto it, the model re-expressed in its frame
-    with the contact as its tool (:func:`~calib.identification.contacts.project`).
+    with the contact as its tool (:func:`~calib.identification.contact_postures.project`).
 
     Returns:
         The postures ``(m, n)`` (the given one where the projection failed) and which

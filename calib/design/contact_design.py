@@ -3,7 +3,7 @@
 A contact campaign measures nothing but the joints (:mod:`calib.identification.contacts`):
 each posture must hold the contact, so the candidates are random configurations within the
 joint limits (less the margin) projected onto it by the kind's Newton projection
-(:func:`~calib.identification.contacts.contact_postures`), and those that do not reach it
+(:func:`~calib.identification.contact_postures.contact_postures`), and those that do not reach it
 within the limits are dropped. The plane, point or pose is the nominal contact frame's
 placement at a first seeded posture (given candidates: the first one), as
 :func:`calib.analyze` takes it.
@@ -23,7 +23,8 @@ import numpy as np
 
 from ..core.checks import check_count, check_work
 from ..exceptions import InvalidArgumentError
-from ..identification.contacts import CONTACT_TOL, Contact, contact_model, contact_postures, project
+from ..identification.contact_postures import contact_model, contact_postures, project
+from ..identification.contacts import CONTACT_TOL, Contact
 from ..identification.identifiability import independent_columns, preference_order
 from ..identification.jacobian import identification_jacobian
 from ..identification.parameters import parameter_set

@@ -31,7 +31,8 @@ from .base_columns import (
     select_by_rank,
     select_independent,
 )
-from .contacts import Contact, contact_configurations
+from .contact_postures import contact_configurations
+from .contacts import Contact
 from .jacobian import complete_jacobian, identification_jacobian
 from .kinds import kind_of
 from .measures import MeasureKind, Measurement
@@ -496,7 +497,7 @@ def analyze(
     is analysed at postures where it holds: the plane, point or pose is the tool frame's
     placement at a first random configuration and becomes frame -1 (the base frame, whose
     complete parameters stand for its unknown placement); the other configurations are
-    projected onto the contact (:func:`~calib.identification.contacts.contact_configurations`).
+    projected onto the contact (:func:`~calib.identification.contact_postures.contact_configurations`).
 
     Returns:
         The analysis, with load/convert/jacobian/qr timings.

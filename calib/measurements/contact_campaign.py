@@ -12,7 +12,7 @@ is an error, and so is an id column that does not match the kind.
 
 :func:`simulate_contacts` makes such a campaign on a perturbed ("true") copy of a chain, as
 :func:`calib.simulate` does for measured ones: every touch satisfies the true contact (Newton
-projection onto it, :func:`calib.identification.contacts.contact_postures`), within the joint
+projection onto it, :func:`calib.identification.contact_postures.contact_postures`), within the joint
 limits.
 """
 
@@ -28,7 +28,8 @@ import numpy as np
 from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, angle_mrad, check_count, check_size, length_mm
 from ..core.fileio import write_atomic
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import Contact, contact_model, contact_postures
+from ..identification.contact_postures import contact_model, contact_postures
+from ..identification.contacts import Contact
 from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
