@@ -7,14 +7,16 @@ head camera seeing its hand) and a measured term among touches (TALOS's head cam
 its left hand, with both arms' table touches, in one fit). Checks: validation data that are
 the data are refused; a gross outlier is set aside (named by its row, and said in the
 report's warnings); swapped joint columns and degrees are diagnosed (a one-line DataError
-naming the mistake); too few rows for the unknowns are refused before any fit. None is
-skipped. The data are simulated with a known truth, and the mistakes made by the test on the
-data it reads (columns swapped, radians turned into degrees).
+naming the mistake); too few rows for the unknowns are refused before any fit; a fit worse
+than the registration on held-out rows is refused and writes no URDF. None is skipped. The
+data are simulated with a known truth, and the mistakes made by the test on the data it reads
+(columns swapped, radians turned into degrees).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -24,6 +26,7 @@ import pytest
 
 from calib import (
     CalibError,
+    CalibrationRefusedError,
     DataError,
     Problem,
     Term,
@@ -192,3 +195,60 @@ def test_too_few_rows_are_refused_before_any_fit(shape):
     keep[:2] = True
     with pytest.raises(CalibError, match=r"needs at least|at least \d+ are needed"):
         shape.fit(_rows(shape, keep))
+
+
+NOISE_ONLY = {"error_mm": 0.0, "error_mrad": 0.0}
+"""A campaign on the nominal robot itself: what a fit can learn from it is the noise only."""
+
+
+def _overfit(name: str):
+    """Few noisy rows of the nominal robot, half held out: the fit of every offset (the tree:
+    every parameter) learns the noise, so it is worse than the registration (the truth) on the
+    held-out rows. The problem of ``name``'s shape, fitted."""
+    talos = [load_robot(TALOS, *pair) for pair in (LEFT, RIGHT)]
+    opts = {"params": "offsets", "holdout": 0.5, "seed": 0}
+    if name in ("chain", "on-robot"):
+        chain = (
+            load_chain("ur5")
+            if name == "chain"
+            else load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
+        )
+        kind = "pose" if name == "chain" else "position"
+        data = simulate(chain, 24, kind, noise_mm=1.0, seed=1, **NOISE_ONLY).measurements
+        return calibrate(chain, data, **opts)
+    if name == "tree":
+        tree = load_robot(
+            "talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
+        )
+        data = simulate_tree(tree, 24, noise_mm=1.0, seed=2, **NOISE_ONLY).measurements
+        return calibrate(tree, data, **{**opts, "params": "complete"})
+    if name.startswith("contacts-"):
+        kind = name.removeprefix("contacts-")
+        touches = 40 if kind == "plane-point" else 24  # one equation a touch: more touches
+        data = simulate_contacts(talos[0], touches, kind, seed=3, noise_mrad=3.0, **NOISE_ONLY)
+        return calibrate(talos[0], data.data, **opts)
+    terms = [
+        Term(c, simulate_contacts(c, 24, "plane", seed=4, noise_mrad=3.0, **NOISE_ONLY).data)
+        for c in talos
+    ]
+    if name == "measured-and-touches":
+        camera = load_robot(TALOS, "rgbd_optical_frame", LEFT[1])
+        seen = simulate(camera, 24, "position", noise_mm=1.0, seed=5, **NOISE_ONLY)
+        terms.insert(0, Term(camera, seen.measurements))
+    return calibrate(Problem(tuple(terms), **opts))
+
+
+@pytest.mark.parametrize("name", sorted(SHAPES))
+def test_a_fit_worse_than_the_registration_is_refused(name, tmp_path):
+    """The registration of the nominal robot is the truth here: the fitted model, worse on the
+    held-out rows, is refused: no URDF is written, only the report, which says so."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = _overfit(name)
+    assert not result.accepted
+    assert "worse than the registration" in result.refusal
+    with pytest.raises(CalibrationRefusedError):
+        result.write(tmp_path / "cal.urdf", report=tmp_path / "r.json")
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert "worse than the registration" in report["refusal"]
