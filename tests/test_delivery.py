@@ -410,8 +410,9 @@ def format3_paths(report: dict, leaves: tuple[str, ...]) -> set[str]:
 
 
 def readme_report_table() -> tuple[set[str], set[str]]:
-    """Keys in the first column of the README's "Report JSON" table, and every name in it."""
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    """Keys in the first column of the "Report JSON" table (docs/reference/formats.md), and every
+    name in it."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "reference" / "formats.md").read_text()
     table = text[text.index("**Report JSON**") :].split("\n\n")[1]
     lines = table.splitlines()[2:]
     first = {k for line in lines for k in re.findall(r"`([a-z_]+)`", line.split("|")[1])}
@@ -451,7 +452,7 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     assert set(tree) - set(tree["deprecated"]) == FORMAT3_KEYS
     assert tree["format_version"] == "3" and set(tree["deprecated"]) == TREE_DEPRECATED
     assert [t["tool"] for t in tree["terms"]] == tools[1::2]
-    # Every key is documented in the README's table (format 3 and the deprecated ones).
+    # Every key is documented in the reference's table (format 3 and the deprecated ones).
     rows, names = readme_report_table()
     assert rows >= FORMAT3_KEYS, FORMAT3_KEYS - rows
     nested = {k.split(".")[-1].split("[")[0] for k in CHAIN_REPORT_KEYS if "." in k}

@@ -195,7 +195,7 @@ def test_snippets_not_run_are_few_and_say_why():
 def test_marks_parse():
     text = "```python\nprint('a')\n```\nIt prints `a`\n"
     got = commands("$ calib list \\\n  --json\n...\nx  y\n$ calib demo\n")
-    assert got == [("calib list    --json", ["x  y"]), ("calib demo", [])]
+    assert got == [("calib list  --json", ["x  y"]), ("calib demo", [])]
     assert MARK.match("% test: not run (needs your files)").group("why") == "needs your files"
     assert MARK.match("<!-- test: run -->").group(1) == "run"
     assert PRINTS.findall(text) == ["a"]
