@@ -147,7 +147,7 @@ def run_console(block: Block, page: Path, tmp: Path) -> None:
     calib_exe = Path(sys.executable).parent / "calib"
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
     for cmd, shown in commands(block.text):
-        argv = shlex.split(cmd)
+        argv = shlex.split(cmd, comments=True)
         assert argv[0] == "calib", f"{page.name}:{block.line}: not a calib command: {cmd}"
         cwd = tmp
         if "--points" in argv and not has_points_option():
