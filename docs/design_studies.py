@@ -1,4 +1,4 @@
-"""Two studies of the README's `calib design` section (issue 13), held-out errors.
+"""Two held-out studies of `calib design` (issue 13; docs/howto/design.md, explanation/design.md).
 
 1. Trees: TALOS's two hands (16 joints, 70 parameters, two markers), 40 configurations
    designed from 800 candidates against 40 random ones; simulate (1 mm, 1 mrad errors,

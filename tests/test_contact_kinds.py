@@ -164,7 +164,7 @@ def test_written_urdf_scored_by_pinocchio_reproduces_the_report(capsys, tmp_path
 
 
 def test_report_keys_of_each_kind():
-    """The report's groups, matrices and per-row gap keys (README, report keys)."""
+    """The report's groups, matrices and per-row gap keys (docs: formats.md, report keys)."""
     chain = load_robot("panda")
     want = {
         "plane": ("planes", ["height", "roll", "pitch"], ["mm", "deg", "deg"]),

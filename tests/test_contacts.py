@@ -164,7 +164,7 @@ def test_count_is_the_independent_pinocchio_rank(name, kind):
     assert res.n_base == res.n_complete == perturbed_rank(chain, kind, q)
 
 
-# The counts printed in the README (calib analyze ROBOT --measure KIND --params complete).
+# The counts in docs/howto/identifiable.md (calib analyze ROBOT --measure KIND --params complete).
 EXPECTED = {
     ("ur5", "plane"): 20,
     ("ur5", "plane-point"): 21,

@@ -192,7 +192,7 @@ def test_plane_newton_system_is_its_own_derivative_and_vanishes_on_one_side_only
         assert (np.abs(newton).max() > 1e3) if far else (np.abs(newton).max() < 1e-3)
 
 
-SILENT = {  # where the closed form says nothing, and why (README table)
+SILENT = {  # where the closed form says nothing, and why (docs/howto/identifiable.md table)
     ("tiago", "plane"),  # a prismatic first joint
     ("tiago", "plane-point"),  # likewise
     ("ur5", "fixed-pose"),  # a 6-joint loop cannot move

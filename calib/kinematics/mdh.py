@@ -411,7 +411,7 @@ def from_lines(
 ) -> MDHModel:
     """Convert joint lines and a tool pose (all in the base frame) to MDH rows.
 
-    Frame choices (documented in the README):
+    Frame choices (documented in docs/reference/conventions.md):
         * z_k is the joint axis as given, so that theta (or r) grows with ``sign_k`` times
           the joint position;
         * x_k is along the common normal to the next axis; its sign makes the offset theta_k
