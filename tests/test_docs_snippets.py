@@ -188,8 +188,12 @@ def test_snippets_not_run_are_few_and_say_why():
     """The quickstart and the README run; a Python block left out names its reason."""
     assert any(p.name == "quickstart.md" for p in RUN_PAGES)
     assert ROOT / "README.md" in RUN_PAGES
-    left_out = [b for p in PAGES for b in blocks(p) if b.lang == "python" and b.mark]
-    assert all(MARK.match(f"% test: {b.mark}") for b in left_out)
+    left_out = {
+        (p.name, b.line): b.mark for p in PAGES for b in blocks(p) if b.lang == "python" and b.mark
+    }
+    assert all(m.startswith("not run (") for m in left_out.values()), left_out
+    # The camera sketches (the reader's own camera files); a new one is a deliberate choice.
+    assert len(left_out) <= 3, left_out
 
 
 def test_marks_parse():
