@@ -49,6 +49,7 @@ nb_execution_timeout = 600
 nb_execution_raise_on_error = True
 nb_execution_show_tb = True
 nb_merge_streams = True
+nb_render_markdown_format = "gfm"  # tables in the notebooks' Markdown outputs (IPython Markdown)
 
 # API reference: Google docstrings, types from the annotations, members in source order.
 autodoc_member_order = "bysource"
@@ -73,6 +74,7 @@ _BUILTIN = (
 )
 nitpick_ignore_regex = [(r"py:.*", rf"({_OUTSIDE})(\..*)?"), (r"py:class", rf"({_BUILTIN})")]
 
+smartquotes = False  # "--params" stays two hyphens (option names in prose and notebook outputs)
 html_theme = "furo"
 html_title = f"calib {release}"
 html_static_path: list[str] = []
