@@ -12,7 +12,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
-from ..core.choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.choices import (
+    CAMPAIGN_MEASURES,
+    MARKERS,
+    ORIENTATION_FORMATS,
+    UNITS,
+    checked_points,
+)
 from ..core.fileio import json_text, written_in_place
 from ..core.progress import terminal
 from ..exceptions import CalibError, DataError, InvalidArgumentError
@@ -56,11 +62,25 @@ def _weight(text: str) -> float | None:
         raise argparse.ArgumentTypeError(f"expected a number or auto, got '{text}'") from None
 
 
+def _point_list(text: str) -> tuple[int, ...]:
+    """``--points``: point numbers separated by commas (``1`` or ``1,3``), checked."""
+    cells = [c.strip() for c in text.split(",")]
+    if not all(c.isascii() and c.isdigit() for c in cells):
+        raise argparse.ArgumentTypeError(
+            f"expected point numbers separated by commas (1 for x1, y1, z1; e.g. 1 or 1,3), "
+            f"got '{text}'"
+        )
+    try:
+        return checked_points(int(c) for c in cells)
+    except InvalidArgumentError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _columns(args: argparse.Namespace):
     from ..measurements.csvfile import Columns
 
     cols = tuple(args.orientation_columns) if args.orientation_columns else None
-    return Columns(args.orientation, cols, args.units)
+    return Columns(args.orientation, cols, args.units, args.points)
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
@@ -246,7 +266,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     from ..calibration.tree_pipeline import calibrate_tree
     from ..kinematics.tree_export import calibrated_tree_urdf
     from ..kinematics.urdf_export import check_exportable
-    from ..measurements.csvfile import read_measurements
+    from ..measurements.csvfile import Columns, read_measurements
 
     if args.params not in (None, *TREE_LEVELS):
         raise InvalidArgumentError(
@@ -263,8 +283,9 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     out, report = _calibration_outputs(args, tree.urdf_path)
     for chain in tree.chains:  # before the fit: a URDF it cannot be written to is known now
         check_exportable(chain)
-    data = read_measurements(args.data, tree)
-    check = read_measurements(args.validate, tree) if args.validate else None
+    columns = Columns(points=args.points)
+    data = read_measurements(args.data, tree, columns)
+    check = read_measurements(args.validate, tree, columns) if args.validate else None
     if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
@@ -296,6 +317,13 @@ def add_calibrate_parser(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
     add_chain_args(p, trees=True)
     p.add_argument("--data", help="measurement CSV (joints, x y z or x1..zK, ...) (required)")
+    p.add_argument(
+        "--points",
+        type=_point_list,
+        metavar="LIST",
+        help="the measured points to fit, by their number in the file (1 for x1, y1, z1), "
+        "separated by commas: 1, or 1,3 (default: every point); --validate's too",
+    )
     p.add_argument("--out", required=True, help="calibrated URDF to write")
     p.add_argument("--report", help="JSON report to write (also when the model is refused)")
     p.add_argument(

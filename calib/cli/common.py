@@ -135,6 +135,7 @@ APPLIES: dict[str, tuple[str, ...]] = {
     **options.APPLIES,
     "marker": ("chain",),
     "units": ("chain", "tree"),
+    "points": ("chain", "tree"),
     "orientation": ("chain",),
     "orientation_columns": ("chain",),
     "world_link": ("chain",),

@@ -45,6 +45,7 @@ NOT_PIXELS = (
     "elastic",
     "loss",
     "noise_mm",
+    "points",
     "plot",
     "origins",
 )
