@@ -497,7 +497,8 @@ def analyze(
     is analysed at postures where it holds: the plane, point or pose is the tool frame's
     placement at a first random configuration and becomes frame -1 (the base frame, whose
     complete parameters stand for its unknown placement); the other configurations are
-    projected onto the contact (:func:`~calib.identification.contact_postures.contact_configurations`).
+    projected onto the contact
+    (:func:`~calib.identification.contact_postures.contact_configurations`).
 
     Returns:
         The analysis, with load/convert/jacobian/qr timings.

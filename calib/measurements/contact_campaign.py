@@ -12,8 +12,8 @@ is an error, and so is an id column that does not match the kind.
 
 :func:`simulate_contacts` makes such a campaign on a perturbed ("true") copy of a chain, as
 :func:`calib.simulate` does for measured ones: every touch satisfies the true contact (Newton
-projection onto it, :func:`calib.identification.contact_postures.contact_postures`), within the joint
-limits.
+projection onto it, :func:`calib.identification.contact_postures.contact_postures`), within
+the joint limits.
 """
 
 from __future__ import annotations
