@@ -17,6 +17,8 @@ __all__ = [
     "CONTACT_MEASURES",
     "DEFAULT_CANDIDATES",
     "DEFAULT_CONFIGS",
+    "DEFAULT_MEASURE",
+    "DEFAULT_SET",
     "DESIGN_LEVELS",
     "EXCHANGE_CRITERIA",
     "MARKERS",
@@ -31,6 +33,15 @@ DEFAULT_CONFIGS = 100
 
 PARAMETER_SETS = ("paper", "complete")
 """Parameter sets of the analysis: the paper's (joint offsets fixed by the model) or complete."""
+
+DEFAULT_MEASURE = "position"
+"""What ``analyze``, ``sweep``, ``simulate`` and ``design`` assume is measured unless told:
+the position of a point (a laser tracker, a motion-capture marker), what every instrument
+gives. ``calibrate`` reads it from the data's columns."""
+
+DEFAULT_SET = "complete"
+"""The parameter set ``analyze``, ``sweep``, ``simulate`` and ``design`` default to: the one
+``calibrate --params auto`` (its default) chooses its parameters from."""
 
 ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 """How orientation columns are written: quaternion (scalar last or first), rotation vector
