@@ -263,8 +263,8 @@ def add_sweep_parser(sub) -> None:
         "analyse every catalog chain and tree (and extra URDFs): one table",
         [
             "calib sweep                            # every robot, a point measured",
-            "calib sweep --measure pose --params paper --csv sweep.csv",
-            "calib sweep --plot survey.png my_robot.urdf",
+            "calib sweep --measure pose --csv sweep.csv",
+            "calib sweep --plot survey.png models/mimic_arm.urdf  # and a URDF of yours",
         ],
     )
     p.add_argument_group("robots").add_argument(
@@ -274,9 +274,10 @@ def add_sweep_parser(sub) -> None:
     g = p.add_argument_group("parameters and configurations")
     g.add_argument(
         "--params",
-        default=DEFAULT_SET,
+        default="paper",
         choices=PARAMETER_SETS,
-        help=f"set the verdict is about (default: {DEFAULT_SET}, as analyze)",
+        help="set the verdict column judges (default: paper; the complete set reaches the "
+        "rank on every chain, the counts of both sets are in the table)",
     )
     add_sampling_args(g, "per chain")
     g = p.add_argument_group("outputs")

@@ -46,9 +46,8 @@ def add_predict_parser(sub) -> None:
         "predict",
         "predict measured points and deflected joints with a calibrated URDF + compliance",
         [
-            "calib calibrate ur5 --data meas.csv --elastic --out cal.urdf  # + cal.compliance.json",
-            "calib predict cal.urdf --compliance cal.compliance.json --configs configs.csv "
-            "--out predicted.csv",
+            "calib calibrate ur5 --data meas.csv --elastic --out cal.urdf --report cal.json",
+            "calib predict cal.urdf --compliance cal.json --configs configs.csv --out pred.csv",
         ],
     )
     g = p.add_argument_group("inputs")

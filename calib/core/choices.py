@@ -40,8 +40,9 @@ the position of a point (a laser tracker, a motion-capture marker), what every i
 gives. ``calibrate`` reads it from the data's columns."""
 
 DEFAULT_SET = "complete"
-"""The parameter set ``analyze``, ``sweep``, ``simulate`` and ``design`` default to: the one
-``calibrate --params auto`` (its default) chooses its parameters from."""
+"""The parameter set ``analyze``, ``simulate`` and ``design`` default to: the one
+``calibrate --params auto`` (its default) chooses its parameters from. (``sweep`` prints the
+counts of both sets; its verdict column judges the paper's set by default.)"""
 
 ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 """How orientation columns are written: quaternion (scalar last or first), rotation vector
