@@ -394,7 +394,8 @@ def test_joint_prefix_columns_are_joints_wherever_configurations_are_read(tmp_pa
     the same configurations from a file of joint columns only)."""
     urdf = clash_urdf(tmp_path, ("a", "b", "x", "y", "z", "qw"))
     data = tmp_path / "pose.csv"
-    assert run(capsys, ["simulate", urdf, "--configs", "30", "--out", data])[0] == 0
+    argv = ["simulate", urdf, "--measure", "pose", "--configs", "30", "--out", data]
+    assert run(capsys, argv)[0] == 0  # pose: the default instrument measures positions
     rows = rows_of(data)
     assert "joint:qw" in rows[0] and "qw" in rows[0]
     plain = tmp_path / "plain.csv"

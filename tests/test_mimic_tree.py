@@ -179,7 +179,8 @@ def test_mimic_joints_lose_what_independent_joints_have():
 
 def test_cli_analyze_the_pr2_fingers_through_their_mimic_joints(capsys):
     argv = ["analyze", str(PR2), "--base", "base_footprint", "--tool", FINGERS[0]]
-    argv += ["--tool", FINGERS[1], "--params", "complete", "--json"]
+    argv += ["--tool", FINGERS[1], "--params", "complete", "--measure", "pose"]
+    argv += ["--json"]  # pose: the reference is the placements' Jacobian
     assert main(argv) == 0
     out = json.loads(capsys.readouterr().out)
     tree, ref = tree_of("pr2_arm_gripper"), reference("pr2_arm_gripper")

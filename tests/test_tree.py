@@ -296,6 +296,7 @@ def test_regrouping_identity_on_a_tree():
 def test_cli_analyze_talos_two_hands_text_and_json(capsys):
     argv = ["analyze", "talos", "--tool", "wrist_left_ft_tool_link"]
     argv += ["--tool", "wrist_right_ft_tool_link", "--params", "complete"]
+    argv += ["--measure", "pose"]  # the counts below are pose's (the default is position)
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert out.startswith("talos: base_link -> wrist_left_ft_tool_link, wrist_right_ft_tool_link")
@@ -315,7 +316,10 @@ def test_cli_analyze_catalog_tree_uses_its_tools(capsys):
     assert main(["analyze", "solo12", "--json", "--configs", "40"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["tool_frames"] == list(entry("solo12").tools)
-    assert doc["n_complete"] == 4 * 12 + 6 * 4
+    assert doc["measure"] == "position" and doc["params"] == "complete"  # the defaults
+    assert doc["n_complete"] == 4 * 12 + 3 * 4  # Everett's count for points: 3 per tool
+    assert main(["analyze", "solo12", "--json", "--configs", "40", "--measure", "pose"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_complete"] == 4 * 12 + 6 * 4
 
 
 @pytest.mark.parametrize(

@@ -176,5 +176,6 @@ def test_cli_simulates_and_calibrates_a_tree(tmp_path, capsys):
     capsys.readouterr()
     assert main([*cal, "--out", str(tmp_path / "x.urdf"), "--loss", "huber"]) == 2
     assert "--loss is for one chain" in capsys.readouterr().err
-    assert main([*sim[:-4], "--out", str(tmp_path / "p.csv")]) == 2
+    pose = [*sim[:-4], "--measure", "pose"]  # the default instrument measures positions
+    assert main([*pose, "--out", str(tmp_path / "p.csv")]) == 2
     assert "add --measure position" in capsys.readouterr().err

@@ -9,7 +9,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from ..core.choices import PARAMETER_SETS
+from ..core.choices import DEFAULT_SET, PARAMETER_SETS
 from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import analyze
@@ -24,6 +24,7 @@ from .common import (
     add_measure_args,
     add_sampling_args,
     check_output_paths,
+    command_parser,
     print_json,
     tool_arg,
     write_outputs,
@@ -89,7 +90,7 @@ def _analyze(args: argparse.Namespace):
         tool_arg(args),
         args.measure,
         args.marker,
-        args.params,
+        args.params or DEFAULT_SET,
         args.configs,
         args.seed,
     )
@@ -199,52 +200,96 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def add_analysis_parsers(sub) -> None:
     """``list``, ``show`` and ``analyze``."""
-    p = sub.add_parser("list", help="robots of the catalog")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    p = command_parser(sub, "list", "robots of the catalog", ["calib list", "calib list --json"])
+    p.add_argument_group("output").add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_list)
-    p = sub.add_parser("show", help="modified-DH table of a chain or tree")
-    add_chain_args(p, trees=True)
-    p.add_argument("--json", action="store_true", help="print JSON (radians, metres)")
-    p.set_defaults(func=cmd_show)
-    p = sub.add_parser("analyze", help="identifiable (base) parameters of a chain or tree")
-    add_chain_args(p, trees=True)
-    add_measure_args(p)
-    p.add_argument(
-        "--params", default="paper", choices=PARAMETER_SETS, help="parameter set (default: paper)"
+    p = command_parser(
+        sub,
+        "show",
+        "modified-DH table of a chain or tree",
+        ["calib show ur5", "calib show talos --tool wrist_left_ft_tool_link --json"],
     )
-    add_sampling_args(p, "m")
-    p.add_argument(
+    add_chain_args(p.add_argument_group("robot"), trees=True)
+    p.add_argument_group("output").add_argument(
+        "--json", action="store_true", help="print JSON (radians, metres)"
+    )
+    p.set_defaults(func=cmd_show)
+    _add_analyze_parser(sub)
+
+
+def _add_analyze_parser(sub) -> None:
+    p = command_parser(
+        sub,
+        "analyze",
+        "identifiable (base) parameters of a chain or tree",
+        [
+            "calib analyze ur5                      # a point measured (position), complete set",
+            "calib analyze ur5 --measure pose       # the tool's pose measured",
+            "calib analyze aid --params paper       # the paper's set (Khalil & Gautier 1991)",
+            "calib analyze ur5 --markers 3          # what 3 points per configuration identify",
+            "calib analyze ur5 --measure plane      # touches of a plane, no instrument",
+            "calib analyze talos --tool wrist_left_ft_tool_link --tool wrist_right_ft_tool_link",
+        ],
+    )
+    add_chain_args(p.add_argument_group("robot"), trees=True)
+    g = p.add_argument_group("instrument")
+    add_measure_args(g)
+    g.add_argument(
         "--markers",
         type=int,
         help="count what a calibration identifies with K points measured per configuration "
         "(frame and markers free)",
     )
-    pixels_cli.add_pixel_arguments(p)
-    p.add_argument("--json", action="store_true", help="print JSON")
+    g = p.add_argument_group("parameters and configurations")
+    g.add_argument(
+        "--params",
+        default=None,
+        choices=PARAMETER_SETS,
+        help=f"parameter set: complete (what calibrate chooses from) or paper (the paper's: "
+        f"joint offsets fixed by the model) (default: {DEFAULT_SET}; with --measure pixels, "
+        "calibrate's default: the target's mounting known)",
+    )
+    add_sampling_args(g, "m")
+    pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"))
+    p.add_argument_group("output").add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_analyze)
 
 
 def add_sweep_parser(sub) -> None:
     """``sweep``."""
-    p = sub.add_parser(
-        "sweep", help="analyse every catalog chain and tree (and extra URDFs): one table"
+    p = command_parser(
+        sub,
+        "sweep",
+        "analyse every catalog chain and tree (and extra URDFs): one table",
+        [
+            "calib sweep                            # every robot, a point measured",
+            "calib sweep --measure pose --csv sweep.csv",
+            "calib sweep --plot survey.png models/mimic_arm.urdf  # and a URDF of yours",
+        ],
     )
-    p.add_argument("urdf", nargs="*", help="extra URDF files analysed after the catalog")
-    add_measure_args(p)
-    p.add_argument(
+    p.add_argument_group("robots").add_argument(
+        "urdf", nargs="*", help="extra URDF files analysed after the catalog"
+    )
+    add_measure_args(p.add_argument_group("instrument"))
+    g = p.add_argument_group("parameters and configurations")
+    g.add_argument(
         "--params",
         default="paper",
         choices=PARAMETER_SETS,
-        help="set the verdict is about (default: paper)",
+        help="set the verdict column judges (default: paper; the complete set reaches the "
+        "rank on every chain, the counts of both sets are in the table)",
     )
-    add_sampling_args(p, "per chain")
-    p.add_argument("--csv", help="also write the table as CSV to this file ('-': stdout)")
-    p.add_argument("--plot", help="also save the counts plot to this .png, .svg or .pdf file")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_sampling_args(g, "per chain")
+    g = p.add_argument_group("outputs")
+    g.add_argument("--csv", help="also write the table as CSV to this file ('-': stdout)")
+    g.add_argument("--plot", help="also save the counts plot to this .png, .svg or .pdf file")
+    g.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_sweep)
 
 
 def add_demo_parser(sub) -> None:
     """``demo``."""
-    p = sub.add_parser("demo", help="analyse the paper's robot and a UR5 (no argument needed)")
+    p = command_parser(
+        sub, "demo", "analyse the paper's robot and a UR5 (no argument needed)", ["calib demo"]
+    )
     p.set_defaults(func=cmd_demo)

@@ -12,7 +12,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from ..calibration.options import DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, LEVELS, LOSSES
-from ..core.choices import CAMPAIGN_MEASURES, MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.choices import (
+    CAMPAIGN_MEASURES,
+    MARKERS,
+    ORIENTATION_FORMATS,
+    UNITS,
+    checked_points,
+)
 from ..core.fileio import json_text, written_in_place
 from ..core.progress import terminal
 from ..exceptions import CalibError, DataError, InvalidArgumentError
@@ -22,10 +28,12 @@ from ..kinematics.tree import Tree, load_robot
 from . import contact_chains_cli, contact_cli, pixels_cli
 from .common import (
     BooleanOnce,
+    Group,
     add_chain_args,
     add_look_args,
     check_applicable,
     check_output_paths,
+    command_parser,
     compliance_path,
     look_outputs,
     tool_arg,
@@ -56,11 +64,25 @@ def _weight(text: str) -> float | None:
         raise argparse.ArgumentTypeError(f"expected a number or auto, got '{text}'") from None
 
 
+def _point_list(text: str) -> tuple[int, ...]:
+    """``--points``: point numbers separated by commas (``1`` or ``1,3``), checked."""
+    cells = [c.strip() for c in text.split(",")]
+    if not all(c.isascii() and c.isdigit() for c in cells):
+        raise argparse.ArgumentTypeError(
+            f"expected point numbers separated by commas (1 for x1, y1, z1; e.g. 1 or 1,3), "
+            f"got '{text}'"
+        )
+    try:
+        return checked_points(int(c) for c in cells)
+    except InvalidArgumentError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _columns(args: argparse.Namespace):
     from ..measurements.csvfile import Columns
 
     cols = tuple(args.orientation_columns) if args.orientation_columns else None
-    return Columns(args.orientation, cols, args.units)
+    return Columns(args.orientation, cols, args.units, args.points)
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
@@ -246,7 +268,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     from ..calibration.tree_pipeline import calibrate_tree
     from ..kinematics.tree_export import calibrated_tree_urdf
     from ..kinematics.urdf_export import check_exportable
-    from ..measurements.csvfile import read_measurements
+    from ..measurements.csvfile import Columns, read_measurements
 
     if args.params not in (None, *TREE_LEVELS):
         raise InvalidArgumentError(
@@ -263,8 +285,9 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     out, report = _calibration_outputs(args, tree.urdf_path)
     for chain in tree.chains:  # before the fit: a URDF it cannot be written to is known now
         check_exportable(chain)
-    data = read_measurements(args.data, tree)
-    check = read_measurements(args.validate, tree) if args.validate else None
+    columns = Columns(points=args.points)
+    data = read_measurements(args.data, tree, columns)
+    check = read_measurements(args.validate, tree, columns) if args.validate else None
     if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
@@ -291,21 +314,52 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     )
 
 
+_EXAMPLES = [
+    "calib simulate ur5 --out meas.csv --noise-mm 0.05 --marker 0.01 0.02 0.05",
+    "calib calibrate ur5 --data meas.csv --holdout 0.3 --out ur5_cal.urdf --report report.json",
+    "calib calibrate data/realdata/tiago/tiago_48_schunk.urdf \\\n"
+    "    --base base_footprint --tool wrist_ft_tool_link --points 1 \\\n"
+    "    --data data/realdata/tiago/qualisys_2021-11-30_static_postures.csv \\\n"
+    "    --validate data/realdata/tiago/qualisys_2021-11-26_static_postures.csv \\\n"
+    "    --out tiago_cal.urdf --plot tiago.png",
+    "calib calibrate ur5 --measure plane --data touches.csv --contact 0 0 0.05 --out cal.urdf",
+]
+"""``calibrate --help``'s examples (the TIAGo's: the real data's held-out 2.983 mm RMS)."""
+
+
 def add_calibrate_parser(sub) -> None:
-    """``calibrate``."""
-    p = sub.add_parser("calibrate", help="calibrate from measurements, write a calibrated URDF")
-    add_chain_args(p, trees=True)
-    p.add_argument("--data", help="measurement CSV (joints, x y z or x1..zK, ...) (required)")
-    p.add_argument("--out", required=True, help="calibrated URDF to write")
-    p.add_argument("--report", help="JSON report to write (also when the model is refused)")
-    p.add_argument(
-        "--marker",
-        nargs="+",
-        type=float,
-        metavar="X",
-        help="guess of the marker(s) in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
+    """``calibrate``: its options in groups (robot, data, model, validation, contacts, ...)."""
+    p = command_parser(
+        sub, "calibrate", "calibrate from measurements, write a calibrated URDF", _EXAMPLES
     )
-    p.add_argument(
+    add_chain_args(p.add_argument_group("robot"), trees=True)
+    _add_data_args(p.add_argument_group("data"))
+    _add_model_args(p.add_argument_group("model and parameters"))
+    g = p.add_argument_group("validation")
+    g.add_argument(
+        "--validate", help="measurement CSV of other configurations: score the result on it"
+    )
+    g.add_argument(
+        "--holdout",
+        type=float,
+        default=0.0,
+        help="fraction of the rows set aside for validation (default: 0)",
+    )
+    g.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    g = p.add_argument_group("contacts and several chains (--measure plane|..., --term)")
+    contact_cli.add_contact_arguments(g)
+    contact_chains_cli.add_chain_arguments(g)
+    pixels_cli.add_pixel_arguments(
+        p.add_argument_group("cameras (--measure pixels)"), calibrate=True
+    )
+    _add_output_args(p.add_argument_group("outputs"))
+    p.set_defaults(func=cmd_calibrate)
+
+
+def _add_data_args(g: Group) -> None:
+    """What the data are and how they are read: file, kind, points, units, orientation."""
+    g.add_argument("--data", help="measurement CSV (joints, x y z or x1..zK, ...) (required)")
+    g.add_argument(
         "--measure",
         choices=("auto", *CAMPAIGN_MEASURES, *CONTACT_NAMES, "pixels"),
         default="auto",
@@ -313,85 +367,20 @@ def add_calibrate_parser(sub) -> None:
         "(no coordinates in the CSV); or pixels: a camera's OBS.csv (--camera, --target) "
         "(default: auto)",
     )
-    pixels_cli.add_pixel_arguments(p, calibrate=True)
-    contact_cli.add_contact_arguments(p)
-    contact_chains_cli.add_chain_arguments(p)
-    p.add_argument(
-        "--params",
-        choices=LEVELS,
-        default=None,
-        help="parameter level: auto keeps what the data support (cross-validated); frames = "
-        "measurement frame + markers; offsets adds joint offsets; paper, complete (default: "
-        "auto; a tree takes frames or complete, default complete)",
+    g.add_argument(
+        "--points",
+        type=_point_list,
+        metavar="LIST",
+        help="the measured points to fit, by their number in the file (1 for x1, y1, z1), "
+        "separated by commas: 1, or 1,3 (default: every point); --validate's too",
     )
-    _add_model_args(p)
-    _add_data_args(p)
-    p.add_argument(
-        "--world-link",
-        metavar="NAME",
-        help="also write the measurement frame as link NAME, the new root of the URDF: forward "
-        "kinematics from NAME gives measured coordinates",
-    )
-    p.add_argument(
-        "--on-robot",
-        action="store_true",
-        help="the instrument is the base frame itself, on the robot (a head camera measuring "
-        "the hand): its calibrated placement is written into the base frame's fixed joint",
-    )
-    p.add_argument("--json", action="store_true", help="print the report as JSON")
-    add_look_args(p)
-    p.set_defaults(func=cmd_calibrate)
-
-
-def _add_model_args(p) -> None:
-    """What is fitted and how it is checked: fixed, free, elastic, validation, holdout."""
-    p.add_argument(
-        "--fix",
-        nargs="+",
-        default=[],
-        metavar="NAME",
-        help="parameters (or frame, markers, tool) held at their start",
-    )
-    p.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
-    p.add_argument(
-        "--elastic",
-        action=BooleanOnce,
-        default=None,
-        help="fit joint compliance under gravity, which the URDF cannot hold (default: no; "
-        "needs the URDF's masses)",
-    )
-    p.add_argument(
-        "--validate", help="measurement CSV of other configurations: score the result on it"
-    )
-    p.add_argument(
-        "--holdout",
-        type=float,
-        default=0.0,
-        help="fraction of the rows set aside for validation (default: 0)",
-    )
-    p.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
-
-
-def _add_data_args(p) -> None:
-    """How the data are read and weighed: loss, noise, units, orientation, iterations."""
-    p.add_argument(
-        "--loss",
-        choices=LOSSES,
-        default="linear",
-        help="linear, or a robust loss (default: linear)",
-    )
-    p.add_argument(
-        "--noise-mm",
-        type=float,
-        help="instrument noise [mm]: scale of the robust loss and of the outlier test",
-    )
-    p.add_argument(
+    g.add_argument(
         "--units",
         choices=tuple(UNITS),
         default="m",
         help="unit of the position columns (default: m)",
     )
-    p.add_argument(
+    g.add_argument(
         "--orientation",
         choices=("auto", MARKERS, *ORIENTATION_FORMATS),
         default="auto",
@@ -399,13 +388,58 @@ def _add_data_args(p) -> None:
         "markers: the x1..zK points (K >= 3) of one rigid set read as marker 1's position "
         "and the set's orientation (default: from the column names)",
     )
-    p.add_argument(
+    g.add_argument(
         "--orientation-columns",
         nargs="+",
         metavar="COL",
         help="names of the orientation columns, in the format's order",
     )
-    p.add_argument(
+
+
+def _add_model_args(g: Group) -> None:
+    """What is fitted and how: level, guesses, fixed and free, compliance, loss, weights."""
+    g.add_argument(
+        "--params",
+        choices=LEVELS,
+        default=None,
+        help="parameter level: auto keeps what the data support (cross-validated); frames = "
+        "measurement frame + markers; offsets adds joint offsets; paper, complete (default: "
+        "auto; a tree takes frames or complete, default complete)",
+    )
+    g.add_argument(
+        "--marker",
+        nargs="+",
+        type=float,
+        metavar="X",
+        help="guess of the marker(s) in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
+    )
+    g.add_argument(
+        "--fix",
+        nargs="+",
+        default=[],
+        metavar="NAME",
+        help="parameters (or frame, markers, tool) held at their start",
+    )
+    g.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
+    g.add_argument(
+        "--elastic",
+        action=BooleanOnce,
+        default=None,
+        help="fit joint compliance under gravity, which the URDF cannot hold (default: no; "
+        "needs the URDF's masses)",
+    )
+    g.add_argument(
+        "--loss",
+        choices=LOSSES,
+        default="linear",
+        help="linear, or a robust loss (default: linear)",
+    )
+    g.add_argument(
+        "--noise-mm",
+        type=float,
+        help="instrument noise [mm]: scale of the robust loss and of the outlier test",
+    )
+    g.add_argument(
         "--orientation-weight",
         type=_weight,
         default=None,
@@ -413,9 +447,29 @@ def _add_data_args(p) -> None:
         help="weight of the orientation rows [m/rad] (default: auto, the ratio of the "
         "position and orientation errors of the registration, estimated until it settles)",
     )
-    p.add_argument(
+    g.add_argument(
         "--max-iterations",
         type=int,
         default=DEFAULT_MAX_ITERATIONS,
         help=f"most residual evaluations of each fit (default: {DEFAULT_MAX_ITERATIONS})",
+    )
+
+
+def _add_output_args(g: Group) -> None:
+    """What is written and printed: URDF, report, JSON, figure, origins, the frame's link."""
+    g.add_argument("--out", required=True, help="calibrated URDF to write")
+    g.add_argument("--report", help="JSON report to write (also when the model is refused)")
+    g.add_argument("--json", action="store_true", help="print the report as JSON")
+    add_look_args(g)
+    g.add_argument(
+        "--world-link",
+        metavar="NAME",
+        help="also write the measurement frame as link NAME, the new root of the URDF: forward "
+        "kinematics from NAME gives measured coordinates",
+    )
+    g.add_argument(
+        "--on-robot",
+        action="store_true",
+        help="the instrument is the base frame itself, on the robot (a head camera measuring "
+        "the hand): its calibrated placement is written into the base frame's fixed joint",
     )

@@ -44,6 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="calib",
         description="Identifiable geometric parameters and calibration of serial robots (URDF).",
+        epilog=_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"calib {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -54,9 +56,18 @@ def build_parser() -> argparse.ArgumentParser:
     add_design_parser(sub)
     add_predict_parser(sub)
     add_demo_parser(sub)
-    _add_verbose(parser, sub)
-    _add_quiet(parser, sub)
+    _add_message_flags(parser, sub)
     return parser
+
+
+_EXAMPLES = """\
+examples:
+  calib list                                        # the robots of the catalog
+  calib analyze ur5                                 # what a point on a UR5 identifies
+  calib design ur5 --configs 30 --out configs.csv   # which configurations to measure
+  calib simulate ur5 --configs-file configs.csv --noise-mm 0.05 --out meas.csv
+  calib calibrate ur5 --data meas.csv --holdout 0.3 --out ur5_cal.urdf --plot cal.png
+  calib COMMAND --help                              # a command's options and examples"""
 
 
 THREADS_ENV = "CALIB_THREADS"
@@ -137,20 +148,22 @@ def _run(args: argparse.Namespace) -> int:
         return 2
 
 
-def _add_verbose(parser: argparse.ArgumentParser, sub) -> None:
-    """``--verbose`` before or after the command: show Pinocchio's own messages."""
-    text = "show the messages of Pinocchio's URDF parser (hidden by default)"
-    parser.add_argument("--verbose", action="store_true", help=text)
-    for p in sub.choices.values():
-        p.add_argument("--verbose", action="store_true", default=argparse.SUPPRESS, help=text)
+def _add_message_flags(parser: argparse.ArgumentParser, sub) -> None:
+    """``--verbose`` and ``--quiet``, before or after the command (a command's ``messages``).
 
-
-def _add_quiet(parser: argparse.ArgumentParser, sub) -> None:
-    """``--quiet`` before or after the command: no progress bars, even on a terminal."""
-    text = "no progress bars (shown on a terminal for phases longer than a second)"
-    parser.add_argument("--quiet", action="store_true", help=text)
+    ``--verbose`` shows Pinocchio's own messages; ``--quiet`` no progress bars, even on a
+    terminal.
+    """
+    flags = {
+        "--verbose": "show the messages of Pinocchio's URDF parser (hidden by default)",
+        "--quiet": "no progress bars (shown on a terminal for phases longer than a second)",
+    }
+    for flag, text in flags.items():
+        parser.add_argument(flag, action="store_true", help=text)
     for p in sub.choices.values():
-        p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=text)
+        group = p.add_argument_group("messages")
+        for flag, text in flags.items():
+            group.add_argument(flag, action="store_true", default=argparse.SUPPRESS, help=text)
 
 
 @contextlib.contextmanager

@@ -18,7 +18,7 @@ from typing import NoReturn
 
 from ..calibration import options
 from ..calibration.delivery import compliance_path
-from ..core.choices import DEFAULT_CONFIGS
+from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..kinematics.catalog import catalog_files, installed_dirs
@@ -28,6 +28,7 @@ __all__ = [
     "GIVEN",
     "SHAPE_LABELS",
     "BooleanOnce",
+    "Group",
     "Parser",
     "add_chain_args",
     "add_look_args",
@@ -36,6 +37,7 @@ __all__ = [
     "add_sampling_args",
     "check_applicable",
     "check_output_paths",
+    "command_parser",
     "compliance_path",
     "given_options",
     "look_outputs",
@@ -117,6 +119,28 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"calib: error: {message} (see {self.prog} --help)\n")
 
 
+Group = argparse._ActionsContainer
+"""Where an option is added: a parser or one of its argument groups (``--help``'s sections)."""
+
+
+def command_parser(sub, name: str, summary: str, examples: Sequence[str]) -> Parser:
+    """A command's parser: its summary, and an ``examples:`` section at the end of ``--help``.
+
+    Args:
+        sub: The subparsers of ``calib``.
+        name: The command's name.
+        summary: One line, lower case, no full stop (``calib --help`` lists it).
+        examples: Command lines, each shown on its own line (``calib`` first).
+    """
+    return sub.add_parser(
+        name,
+        help=summary,
+        description=f"{summary[0].upper()}{summary[1:]}.",
+        epilog="examples:\n" + "\n".join(f"  {e}" for e in examples),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
 def given_options(args: argparse.Namespace, dests) -> list[str]:
     """The options among ``dests`` (argparse dests) the user gave, as typed (``--no-x``)."""
     given = getattr(args, "given", {})
@@ -135,6 +159,7 @@ APPLIES: dict[str, tuple[str, ...]] = {
     **options.APPLIES,
     "marker": ("chain",),
     "units": ("chain", "tree"),
+    "points": ("chain", "tree"),
     "orientation": ("chain",),
     "orientation_columns": ("chain",),
     "world_link": ("chain",),
@@ -216,7 +241,7 @@ def check_output_paths(
     check_outputs(outputs, {**inputs, **catalog_files()}, installed_dirs())
 
 
-def add_chain_args(p: argparse.ArgumentParser, trees: bool = False) -> None:
+def add_chain_args(p: Group, trees: bool = False) -> None:
     """The robot, ``--base`` and ``--tool`` options (``--tool`` repeatable with ``trees``)."""
     p.add_argument("robot", help="catalog name (see `calib list`) or path to a URDF file")
     p.add_argument("--base", help="base frame (default: the catalog's, or the URDF root link)")
@@ -231,7 +256,7 @@ def add_chain_args(p: argparse.ArgumentParser, trees: bool = False) -> None:
         p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
 
 
-def add_marker_arg(p: argparse.ArgumentParser) -> None:
+def add_marker_arg(p: Group) -> None:
     """The ``--marker X Y Z`` option."""
     p.add_argument(
         "--marker",
@@ -242,7 +267,7 @@ def add_marker_arg(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_sampling_args(p: argparse.ArgumentParser, what: str) -> None:
+def add_sampling_args(p: Group, what: str) -> None:
     """The ``--configs`` and ``--seed`` options of random configurations."""
     p.add_argument(
         "--configs",
@@ -253,13 +278,14 @@ def add_sampling_args(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the configurations (default: 0)")
 
 
-def add_measure_args(p: argparse.ArgumentParser) -> None:
+def add_measure_args(p: Group) -> None:
     """The ``--measure`` and ``--marker`` options."""
     p.add_argument(
         "--measure",
-        default="pose",
-        help="pose, position, comma-separated rows among x,y,z,rx,ry,rz, or a contact: plane, "
-        "plane-point, fixed-point, fixed-pose (default: pose)",
+        default=DEFAULT_MEASURE,
+        help="position (a point, as a tracker measures it), pose (point and orientation), "
+        "comma-separated rows among x,y,z,rx,ry,rz, or a contact: plane, plane-point, "
+        f"fixed-point, fixed-pose (default: {DEFAULT_MEASURE}, as simulate and design)",
     )
     add_marker_arg(p)
 
@@ -303,7 +329,7 @@ def with_warnings(report: dict, recorded: Sequence[warnings.WarningMessage]) -> 
     return {**report, "warnings": lines}
 
 
-def add_look_args(p: argparse.ArgumentParser) -> None:
+def add_look_args(p: Group) -> None:
     """``--plot`` and ``--origins``: a calibration to look at, and to carry into a xacro file."""
     p.add_argument(
         "--plot",

@@ -33,7 +33,7 @@ TERM_KINDS = ("plane", "loop", "position", "pose", "pixels")
 """Kinds a ``--term`` may name."""
 
 
-def add_chain_arguments(p: argparse.ArgumentParser) -> None:
+def add_chain_arguments(p: argparse._ActionsContainer) -> None:
     """The ``--term``, ``--chain``, ``--loop`` and ``--shared-planes`` flags of ``calibrate``."""
     p.add_argument(
         "--term",

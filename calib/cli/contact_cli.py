@@ -15,7 +15,7 @@ from .common import compliance_path, look_outputs, write_calibration
 __all__ = ["add_contact_arguments", "calibrate_contacts_command"]
 
 
-def add_contact_arguments(p: argparse.ArgumentParser) -> None:
+def add_contact_arguments(p: argparse._ActionsContainer) -> None:
     """The ``--contact`` flag of ``calibrate``."""
     p.add_argument(
         "--contact",

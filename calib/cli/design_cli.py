@@ -13,6 +13,8 @@ from ..core.choices import (
     CAMPAIGN_MEASURES,
     CONTACT_MEASURES,
     DEFAULT_CANDIDATES,
+    DEFAULT_MEASURE,
+    DEFAULT_SET,
     DESIGN_LEVELS,
     EXCHANGE_CRITERIA,
 )
@@ -20,8 +22,10 @@ from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from .common import (
     BooleanOnce,
+    Group,
     add_chain_args,
     check_output_paths,
+    command_parser,
     given_options,
     positive_number,
     print_json,
@@ -155,37 +159,56 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
 
 def add_design_parser(sub) -> None:
     """The ``design`` subcommand's options."""
-    p = sub.add_parser("design", help="choose the configurations to measure (experiment design)")
-    add_chain_args(p, trees=True)
-    p.add_argument("--configs", type=int, help="number of configurations K to choose")
-    p.add_argument(
+    p = command_parser(
+        sub,
+        "design",
+        "choose the configurations to measure (experiment design)",
+        [
+            "calib design panda --configs 30 --out configs.csv",
+            "calib design panda --evaluate configs.csv            # the indices of a given set",
+            "calib design ur5 --configs 20 --measure pose --criterion A",
+            "calib design ur5 --configs 30 --line-of-sight 2 0 1 --workspace -1 -1 0 1 1 1.5",
+        ],
+    )
+    add_chain_args(p.add_argument_group("robot"), trees=True)
+    g = p.add_argument_group("configurations")
+    g.add_argument("--configs", type=int, help="number of configurations K to choose")
+    g.add_argument(
         "--evaluate",
         metavar="CONFIGS.csv",
         help="print the observability indices of these configurations instead",
     )
-    p.add_argument(
+    g.add_argument(
         "--candidates",
         type=int,
         default=DEFAULT_CANDIDATES,
         help=f"random candidates within the joint limits (default: {DEFAULT_CANDIDATES})",
     )
-    p.add_argument(
+    g.add_argument(
         "--candidates-file", help="CSV of candidate configurations known to be reachable"
     )
-    _add_model_args(p)
-    _add_limit_args(p)
-    p.add_argument(
+    g.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the candidates, reference and random sets (default: 0)",
+    )
+    _add_model_args(p.add_argument_group("instrument and model"))
+    _add_limit_args(p.add_argument_group("limits of the campaign"))
+    g = p.add_argument_group("outputs")
+    g.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
+    g.add_argument(
         "--noise-mm",
         type=positive_number,
         default=0.05,
         help="noise for the printed error prediction [mm] (default: 0.05)",
     )
-    p.add_argument("--json", action="store_true", help="print JSON")
+    g.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_design)
 
 
-def _add_model_args(p) -> None:
-    """What is measured and fitted: criterion, measure, markers, level, seed, output."""
+def _add_model_args(p: Group) -> None:
+    """What is measured and fitted: criterion, measure, markers, weight, level."""
     p.add_argument(
         "--criterion",
         choices=EXCHANGE_CRITERIA,
@@ -196,8 +219,9 @@ def _add_model_args(p) -> None:
     p.add_argument(
         "--measure",
         choices=CAMPAIGN_MEASURES + CONTACT_MEASURES,
-        default="position",
-        help="position or pose (default: position), or a contact: postures on it",
+        default=DEFAULT_MEASURE,
+        help=f"position or pose (default: {DEFAULT_MEASURE}, as analyze and simulate), or a "
+        "contact: postures on it",
     )
     p.add_argument(
         "--marker",
@@ -220,20 +244,13 @@ def _add_model_args(p) -> None:
     p.add_argument(
         "--params",
         choices=DESIGN_LEVELS,
-        default="complete",
+        default=DEFAULT_SET,
         help="what the calibration fits (calibrate --params; a tree: frames or complete; "
-        "default: complete)",
+        f"default: {DEFAULT_SET})",
     )
-    p.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="seed of the candidates, reference and random sets (default: 0)",
-    )
-    p.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
 
 
-def _add_limit_args(p) -> None:
+def _add_limit_args(p: Group) -> None:
     """Limits of the campaign: margin, workspace, line of sight, obstacles, collisions."""
     p.add_argument(
         "--margin",

@@ -45,6 +45,7 @@ NOT_PIXELS = (
     "elastic",
     "loss",
     "noise_mm",
+    "points",
     "plot",
     "origins",
 )
@@ -52,7 +53,7 @@ NOT_PIXELS = (
 yet for pixels)."""
 
 
-def add_pixel_arguments(p: argparse.ArgumentParser, calibrate: bool = False) -> None:
+def add_pixel_arguments(p: argparse._ActionsContainer, calibrate: bool = False) -> None:
     """``--camera``, ``--target`` (and ``--noise-px`` or ``--refine-targets``)."""
     p.add_argument(
         "--camera",

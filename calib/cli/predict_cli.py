@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import check_output_paths, write_outputs
+from .common import check_output_paths, command_parser, write_outputs
 
 __all__ = ["add_predict_parser", "cmd_predict"]
 
@@ -41,24 +41,30 @@ def cmd_predict(args: argparse.Namespace) -> int:
 
 def add_predict_parser(sub) -> None:
     """The ``predict`` subcommand's options."""
-    p = sub.add_parser(
+    p = command_parser(
+        sub,
         "predict",
-        help="predict measured points and deflected joints with a calibrated URDF + compliance",
+        "predict measured points and deflected joints with a calibrated URDF + compliance",
+        [
+            "calib calibrate ur5 --data meas.csv --elastic --out cal.urdf --report cal.json",
+            "calib predict cal.urdf --compliance cal.json --configs configs.csv --out pred.csv",
+        ],
     )
-    p.add_argument("urdf", metavar="URDF", help="calibrated URDF written by calib calibrate")
-    p.add_argument(
+    g = p.add_argument_group("inputs")
+    g.add_argument("urdf", metavar="URDF", help="calibrated URDF written by calib calibrate")
+    g.add_argument(
         "--compliance",
         required=True,
         metavar="FILE",
         help="its compliance file (OUT.compliance.json) or its calibration report (--report)",
     )
-    p.add_argument(
+    g.add_argument(
         "--configs",
         required=True,
         metavar="CONFIGS.csv",
         help="commanded configurations (joint columns, named as in the URDF)",
     )
-    p.add_argument(
+    p.add_argument_group("output").add_argument(
         "--out",
         required=True,
         help="CSV to write: joints, x1,y1,z1,... [m, measurement frame], deflected_<joint>",

@@ -9,16 +9,25 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..core.choices import CAMPAIGN_MEASURES, CONTACT_MEASURES, DEFAULT_CONFIGS, PARAMETER_SETS
+from ..core.choices import (
+    CAMPAIGN_MEASURES,
+    CONTACT_MEASURES,
+    DEFAULT_CONFIGS,
+    DEFAULT_MEASURE,
+    DEFAULT_SET,
+    PARAMETER_SETS,
+)
 from ..core.fileio import json_text, written_in_place
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from . import pixels_cli
 from .common import (
+    Group,
     add_chain_args,
     add_marker_arg,
     check_output_paths,
+    command_parser,
     given_options,
     tool_arg,
     write_outputs,
@@ -185,67 +194,85 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
 
 def add_simulate_parser(sub) -> None:
     """``simulate``."""
-    p = sub.add_parser("simulate", help="simulate a measurement campaign (CSV + true errors)")
-    add_chain_args(p, trees=True)
-    p.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
-    p.add_argument(
-        "--truth",
-        help="JSON of the true errors (default: OUT with .truth.json; needed if OUT is '-')",
+    p = command_parser(
+        sub,
+        "simulate",
+        "simulate a measurement campaign (CSV + true errors)",
+        [
+            "calib simulate ur5 --out meas.csv --noise-mm 0.05 --marker 0.01 0.02 0.05",
+            "calib simulate ur5 --measure pose --out poses.csv --noise-mm 0.05 --noise-mrad 0.1",
+            "calib simulate ur5 --configs-file configs.csv --out meas.csv  # from calib design",
+            "calib simulate ur5 --measure plane --contacts 2 --out touches.csv",
+        ],
     )
-    p.add_argument(
-        "--configs",
-        type=int,
-        default=DEFAULT_CONFIGS,
-        help=f"random configurations m (default: {DEFAULT_CONFIGS})",
-    )
-    p.add_argument(
-        "--configs-file",
-        help="CSV of the configurations to simulate (joint columns, e.g. from calib design)",
-    )
-    p.add_argument(
+    add_chain_args(p.add_argument_group("robot"), trees=True)
+    g = p.add_argument_group("instrument")
+    g.add_argument(
         "--measure",
         choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES, "pixels"),
-        default="pose",
-        help="pose (point + orientation), position, or a contact: touches recorded by the "
-        "joints alone, on the true robot; or pixels: what --camera sees of --target "
-        "(default: pose)",
+        default=DEFAULT_MEASURE,
+        help="position (a point), pose (point + orientation), or a contact: touches recorded "
+        "by the joints alone, on the true robot; or pixels: what --camera sees of --target "
+        f"(default: {DEFAULT_MEASURE}, as analyze and design)",
     )
-    pixels_cli.add_pixel_arguments(p)
-    add_marker_arg(p)
-    p.add_argument(
+    add_marker_arg(g)
+    g.add_argument(
         "--contacts",
         type=int,
         default=1,
         help="planes or points the touches share, with --measure plane|... (default: 1)",
     )
-    p.add_argument(
-        "--params",
-        choices=PARAMETER_SETS,
-        default="complete",
-        help="parameter set perturbed (default: complete)",
+    g = p.add_argument_group("configurations")
+    g.add_argument(
+        "--configs",
+        type=int,
+        default=DEFAULT_CONFIGS,
+        help=f"random configurations m (default: {DEFAULT_CONFIGS})",
     )
-    p.add_argument(
-        "--error-mm", type=float, default=1.0, help="std of every length error [mm] (default: 1)"
+    g.add_argument(
+        "--configs-file",
+        help="CSV of the configurations to simulate (joint columns, e.g. from calib design)",
     )
-    p.add_argument(
-        "--error-mrad", type=float, default=1.0, help="std of every angle error [mrad] (default: 1)"
-    )
-    p.add_argument(
-        "--noise-mm",
-        type=float,
-        default=0.0,
-        help="std of the position noise per axis [mm] (default: 0)",
-    )
-    p.add_argument(
-        "--noise-mrad",
-        type=float,
-        default=None,
-        help="std of the orientation noise per axis [mrad] (default: NOISE_MM)",
-    )
-    p.add_argument(
+    g.add_argument(
         "--seed",
         type=int,
         default=0,
         help="seed of the configurations, errors and noise (default: 0)",
     )
+    _add_error_args(p.add_argument_group("errors and noise"))
+    pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"))
+    g = p.add_argument_group("outputs")
+    g.add_argument("--out", required=True, help="measurement CSV to write ('-': stdout)")
+    g.add_argument(
+        "--truth",
+        help="JSON of the true errors (default: OUT with .truth.json; needed if OUT is '-')",
+    )
     p.set_defaults(func=cmd_simulate)
+
+
+def _add_error_args(g: Group) -> None:
+    """The true robot's errors and the instrument's noise."""
+    g.add_argument(
+        "--params",
+        choices=PARAMETER_SETS,
+        default=DEFAULT_SET,
+        help=f"parameter set perturbed (default: {DEFAULT_SET})",
+    )
+    g.add_argument(
+        "--error-mm", type=float, default=1.0, help="std of every length error [mm] (default: 1)"
+    )
+    g.add_argument(
+        "--error-mrad", type=float, default=1.0, help="std of every angle error [mrad] (default: 1)"
+    )
+    g.add_argument(
+        "--noise-mm",
+        type=float,
+        default=0.0,
+        help="std of the position noise per axis [mm] (default: 0)",
+    )
+    g.add_argument(
+        "--noise-mrad",
+        type=float,
+        default=None,
+        help="std of the orientation noise per axis [mrad] (default: NOISE_MM)",
+    )

@@ -7,17 +7,25 @@ calibration, the measurements). The modules that use them import them from here.
 
 from __future__ import annotations
 
+import numbers
+from collections.abc import Iterable
+
+from ..exceptions import InvalidArgumentError
+
 __all__ = [
     "CAMPAIGN_MEASURES",
     "CONTACT_MEASURES",
     "DEFAULT_CANDIDATES",
     "DEFAULT_CONFIGS",
+    "DEFAULT_MEASURE",
+    "DEFAULT_SET",
     "DESIGN_LEVELS",
     "EXCHANGE_CRITERIA",
     "MARKERS",
     "ORIENTATION_FORMATS",
     "PARAMETER_SETS",
     "UNITS",
+    "checked_points",
 ]
 
 DEFAULT_CONFIGS = 100
@@ -25,6 +33,16 @@ DEFAULT_CONFIGS = 100
 
 PARAMETER_SETS = ("paper", "complete")
 """Parameter sets of the analysis: the paper's (joint offsets fixed by the model) or complete."""
+
+DEFAULT_MEASURE = "position"
+"""What ``analyze``, ``sweep``, ``simulate`` and ``design`` assume is measured unless told:
+the position of a point (a laser tracker, a motion-capture marker), what every instrument
+gives. ``calibrate`` reads it from the data's columns."""
+
+DEFAULT_SET = "complete"
+"""The parameter set ``analyze``, ``simulate`` and ``design`` default to: the one
+``calibrate --params auto`` (its default) chooses its parameters from. (``sweep`` prints the
+counts of both sets; its verdict column judges the paper's set by default.)"""
 
 ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 """How orientation columns are written: quaternion (scalar last or first), rotation vector
@@ -51,3 +69,36 @@ EXCHANGE_CRITERIA = ("D", "A", "I")
 DESIGN_LEVELS = ("frames", "offsets", "paper", "complete")
 """Parameter levels a design can target (``calib calibrate --params``; ``auto`` chooses from
 the data, so a design targets ``complete``, the largest set it may keep)."""
+
+
+def checked_points(points: Iterable[int]) -> tuple[int, ...]:
+    """Measured points chosen by their number in a file (1: ``x1, y1, z1``), checked.
+
+    Args:
+        points: Point numbers, 1 or more, each once, in the order they are to be read.
+
+    Returns:
+        The numbers as a tuple.
+
+    Raises:
+        InvalidArgumentError: No number, one that is no integer or below 1, or one given twice.
+    """
+    wrong = f"points must be integers (1 for x1, y1, z1), got {points!r:.60}"
+    if isinstance(points, str | bytes):
+        raise InvalidArgumentError(wrong)
+    try:
+        chosen = tuple(points)
+    except TypeError:
+        raise InvalidArgumentError(wrong) from None
+    if not chosen:
+        raise InvalidArgumentError("points: choose at least one point (1 for x1, y1, z1)")
+    for p in chosen:
+        if isinstance(p, bool) or not isinstance(p, numbers.Integral) or p < 1:
+            raise InvalidArgumentError(
+                f"points are numbered from 1 (1 for x1, y1, z1), got {p!r:.60}"
+            )
+    chosen = tuple(int(p) for p in chosen)
+    twice = next((p for i, p in enumerate(chosen) if p in chosen[:i]), None)
+    if twice is not None:
+        raise InvalidArgumentError(f"point {twice} is chosen twice: give each point once")
+    return chosen

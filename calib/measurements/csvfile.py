@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.checks import MAX_ROWS, check_size, read_only
-from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS
+from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS, checked_points
 from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain, check_robot
@@ -130,13 +130,20 @@ class Columns:
         orientation_columns: Column names of the orientation, in the format's order
             (default: the format's names, see ``DEFAULT_ORIENTATION_COLUMNS``).
         units: Unit of the position columns, ``m`` or ``mm``.
+        points: The measured points to read, by their number in the file (1 for
+            ``x1, y1, z1`` or ``x, y, z``), in this order: ``(1,)`` reads point 1 alone,
+            ``(1, 3)`` points 1 and 3 as markers 1 and 2 (default None: every point). The
+            other points' columns are not read.
     """
 
     orientation: str = "auto"
     orientation_columns: tuple[str, ...] | None = None
     units: str = "m"
+    points: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
+        if self.points is not None:
+            object.__setattr__(self, "points", checked_points(self.points))
         if self.orientation not in ("auto", MARKERS, *ORIENTATION_FORMATS):
             raise InvalidArgumentError(
                 f"unknown orientation format '{self.orientation}': choose auto, markers or "
@@ -156,8 +163,8 @@ class Columns:
                 )
 
 
-def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
-    """Position columns (K triples) and the orientation format and columns of a header.
+def _point_columns(names: list[str], src: str, line: int) -> list[str]:
+    """Every position column of a header: ``x, y, z`` or ``x1, y1, z1, ..., xK, yK, zK``.
 
     ``names``: the cells' meanings, joints prefixed (see :func:`.joint_columns.column_keys`).
     """
@@ -166,17 +173,26 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
         k = 1
         while all(f"{a}{k + 1}" in free for a in POSITION_COLUMNS):
             k += 1
-        pos = [f"{a}{i + 1}" for i in range(k) for a in POSITION_COLUMNS]
-    elif all(a in free for a in POSITION_COLUMNS):
-        pos = list(POSITION_COLUMNS)
-    else:
-        missing = next(a for a in POSITION_COLUMNS if a not in free)
-        raise DataError(
-            src,
-            "missing position column: expected x, y, z (one marker) or x1, y1, z1, ..., xK, yK, zK",
-            row=line,
-            column=missing,
-        )
+        return [f"{a}{i + 1}" for i in range(k) for a in POSITION_COLUMNS]
+    if all(a in free for a in POSITION_COLUMNS):
+        return list(POSITION_COLUMNS)
+    missing = next(a for a in POSITION_COLUMNS if a not in free)
+    raise DataError(
+        src,
+        "missing position column: expected x, y, z (one marker) or x1, y1, z1, ..., xK, yK, zK",
+        row=line,
+        column=missing,
+    )
+
+
+def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
+    """Position columns (K triples) and the orientation format and columns of a header.
+
+    ``names``: the cells' meanings, joints prefixed (see :func:`.joint_columns.column_keys`).
+    The position columns are those of the chosen points (``columns.points``).
+    """
+    free = [n for n in names if not n.startswith(JOINT_PREFIX)]
+    pos = _chosen_points(_point_columns(names, src, line), columns.points, src, line)
     fmt: str | None
     fmt, cols = columns.orientation, columns.orientation_columns
     if fmt == MARKERS:
@@ -184,7 +200,8 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
             raise DataError(
                 src,
                 f"orientation 'markers' needs x1..z{marker_set.MIN_MARKERS} or more points "
-                f"of one rigid set, the header has {len(pos) // 3}",
+                f"of one rigid set, {'the header has' if columns.points is None else 'chosen:'} "
+                f"{len(pos) // 3}",
                 row=line,
             )
         return pos, fmt, ()
@@ -218,6 +235,22 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     return pos, fmt, tuple(cols or ())
 
 
+def _chosen_points(pos: list[str], points: tuple[int, ...] | None, src: str, line: int):
+    """The position columns of the chosen points (all without a choice), in the choice's order.
+
+    Raises:
+        DataError: A chosen point is not in the file.
+    """
+    if points is None:
+        return pos
+    k = len(pos) // 3
+    missing = next((p for p in points if p > k), None)
+    if missing is not None:
+        has = "x, y, z: one point" if k == 1 else f"x1, y1, z1 to x{k}, y{k}, z{k}: {k} points"
+        raise DataError(src, f"point {missing} is not in the file (its header has {has})", row=line)
+    return [pos[3 * (p - 1) + a] for p in points for a in range(3)]
+
+
 def _joint_keys(chain: Chain | Tree) -> set[str]:
     """The keys of the joint columns read: the independent joints' and the followers'."""
     return {JOINT_PREFIX + n for n in (*chain.variable_names, *follower_names(chain))}
@@ -244,7 +277,8 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
         if JOINT_PREFIX + name not in keys:
             raise DataError(src, "missing joint column", row=line, column=name)
     pos, fmt, ori = _layout(keys, chain, columns, src, line)
-    used = {*_joint_keys(chain), *pos, *ori, TOOL_COLUMN}
+    every = _point_columns(keys, src, line)  # the points not chosen are not "ignored"
+    used = {*_joint_keys(chain), *pos, *every, *ori, TOOL_COLUMN}
     ignored = [n for n, k in zip(names, keys, strict=True) if k not in used]
     if ignored:
         warnings.warn(
