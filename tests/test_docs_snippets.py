@@ -16,7 +16,6 @@ directory (holding a link to the repository's ``data/``):
 from __future__ import annotations
 
 import contextlib
-import csv
 import io
 import os
 import re
@@ -107,53 +106,14 @@ def squeeze(line: str) -> str:
     return " ".join(line.split())
 
 
-def has_points_option() -> bool:
-    from calib.cli.commands import build_parser
-
-    sub = next(a for a in build_parser()._actions if a.dest == "command")
-    return "--points" in sub.choices["calibrate"].format_help()
-
-
-def without_points(argv: list[str], tmp: Path) -> tuple[list[str], Path]:
-    """``--points N`` done by hand until the option lands: the files cut to marker N's columns
-    (the route the figures were first measured by), under the same relative paths in a
-    directory of their own, where the command then runs."""
-    k = argv.index("--points")
-    wanted = set(argv[k + 1].split(","))
-    argv = argv[:k] + argv[k + 2 :]
-    cut = tmp / "points"
-    for flag in ("--data", "--validate"):
-        if flag in argv:
-            name = argv[argv.index(flag) + 1]
-            with (tmp / name).open() as f:
-                rows = list(csv.reader(f))
-            keep = [
-                i
-                for i, col in enumerate(rows[0])
-                if not (re.fullmatch(r"[xyz]\d+", col) and col[1:] not in wanted)
-            ]
-            folder = (cut / name).parent
-            if not folder.exists():  # the file's folder, its other files linked
-                folder.mkdir(parents=True)
-                for other in (tmp / name).parent.iterdir():
-                    (folder / other.name).symlink_to(other.resolve())
-            (cut / name).unlink()
-            with (cut / name).open("w", newline="") as f:
-                csv.writer(f).writerows([r[i] for i in keep] for r in rows)
-    return argv, cut
-
-
 def run_console(block: Block, page: Path, tmp: Path) -> None:
     calib_exe = Path(sys.executable).parent / "calib"
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
     for cmd, shown in commands(block.text):
         argv = shlex.split(cmd, comments=True)
         assert argv[0] == "calib", f"{page.name}:{block.line}: not a calib command: {cmd}"
-        cwd = tmp
-        if "--points" in argv and not has_points_option():
-            argv, cwd = without_points(argv, tmp)
         done = subprocess.run(
-            [str(calib_exe), *argv[1:]], cwd=cwd, env=env, capture_output=True, text=True
+            [str(calib_exe), *argv[1:]], cwd=tmp, env=env, capture_output=True, text=True
         )
         printed = {squeeze(x) for x in (done.stdout + done.stderr).splitlines()}
         assert done.returncode == 0, f"{page.name}:{block.line}: {cmd}\n{done.stderr}"

@@ -343,7 +343,7 @@ def add_look_args(p: Group) -> None:
         metavar="FILE.yaml",
         help="also write the joint origins the calibration moved or added (markers, world "
         "link), calibrated xyz rpy beside the nominal, as YAML a xacro reads "
-        "(xacro.load_yaml; README: 'Into a xacro description')",
+        "(xacro.load_yaml; docs/howto/calibrated-urdf.md)",
     )
 
 
