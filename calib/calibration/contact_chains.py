@@ -67,6 +67,7 @@ from .contact_pipeline import (
 )
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
+from .instrument import instrument_groups, shared_frame
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -100,7 +101,7 @@ CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
 """Parameter levels of several chains (``paper`` is a chain's MDH set)."""
 
 
-def _check(chains, data, validate, params, holdout) -> None:
+def _check(chains, data, validate, params, holdout, instrument=False) -> None:
     if not isinstance(chains, Sequence) or not chains:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
     for c in chains:
@@ -115,14 +116,15 @@ def _check(chains, data, validate, params, holdout) -> None:
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
     if not isinstance(data, Sequence) or len(data) != len(chains):
         raise InvalidArgumentError("give one set of touches per chain")
-    one_term_per_frame(chains, data)
+    if not instrument:
+        one_term_per_frame(chains, data)
     if validate is not None and (
         not isinstance(validate, Sequence) or len(validate) != len(chains)
     ):
         raise InvalidArgumentError("give one validation set (or None) per chain")
     for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
         if isinstance(d, Measurements):
-            check_measured(c, d, v)
+            check_measured(c, d, v, instrument)
             continue
         if isinstance(d, PixelData):
             check_pixels(c, d, v)
@@ -164,7 +166,9 @@ def _check(chains, data, validate, params, holdout) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations: int):
+def _checked(
+    chains, train, validate, guess, weight, held, notes: list[str], iterations: int, instrument
+):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
@@ -192,6 +196,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             state, bad, found, more, held[c] = checked_measured(
                 chain, d, v, held[c], weight, iterations
             )
+            state = dataclasses.replace(state, instrument=instrument)
         if isinstance(d, Measurements | PixelPart):
             if found:
                 more.append(outliers.set_aside_note(found))
@@ -248,6 +253,7 @@ def _register(
             shared = dataclasses.replace(mine.frames, objects=owner.frames.objects)
             states[c] = dataclasses.replace(mine, frames=shared)
     scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
+    states = shared_frame(states, train)
     start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):
         return start
@@ -260,7 +266,8 @@ def _register(
             train[0].source,
             f"the registration of the shared plane did not converge ({refined.message})",
         )
-    notes.append("a plane touched by several chains is fitted once (shared planes)")
+    if any(isinstance(s, ContactState) for s in states):
+        notes.append("a plane touched by several chains is fitted once (shared planes)")
     return refined.state
 
 
@@ -360,6 +367,7 @@ def calibrate_contact_chains(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
+    instrument: bool = False,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -389,6 +397,8 @@ def calibrate_contact_chains(
         seed: Seed of the holdout draw.
         progress: Progress bars of the registration, the selection and the fit
             (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
+        instrument: The measured terms are measured by one instrument outside the robot
+            (a tree's tools, :mod:`.instrument`): its frame is one unknown for all of them.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -399,7 +409,7 @@ def calibrate_contact_chains(
     """
     level = "auto" if params is None else params
     check_run_options(max_iterations, holdout, seed)
-    _check(chains, data, validate, level, holdout)
+    _check(chains, data, validate, level, holdout, instrument)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
@@ -420,10 +430,11 @@ def calibrate_contact_chains(
         for s, v in zip(splits, validate or [None] * len(data), strict=True)
     ]
     plane_of = contact_checks.plane_groups(chains, data, shared_planes)
+    plane_of = instrument_groups(plane_of, data, instrument)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     train, dropped, measured = _checked(
-        chains, train, validate, guess, w, held, notes, max_iterations
+        chains, train, validate, guess, w, held, notes, max_iterations, instrument
     )
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):

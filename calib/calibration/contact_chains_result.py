@@ -16,6 +16,7 @@ from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
 from .delivery import Delivered, RowErrors
+from .instrument import instrument_format2
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
@@ -125,7 +126,8 @@ class MeasuredChain:
     Attributes:
         chain: The nominal chain (its base frame: the measuring frame).
         source: Its measurements' file (or description).
-        joint: The fixed joint that places the measuring frame on its link.
+        joint: The fixed joint that places the measuring frame on its link (None: an
+            instrument outside the robot, :mod:`.instrument`).
         registered: Its registration on the nominal robot.
         state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
             frame; markers and measured-frame rotation in the tool frame).
@@ -138,7 +140,7 @@ class MeasuredChain:
 
     chain: Chain
     source: str
-    joint: str
+    joint: str | None
     registered: MeasuredState
     state: MeasuredState
     stats: dict[str, GapStats]
@@ -199,8 +201,9 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
     if held is not None:
         stats["held_out"] = measured_stats(state, held)
         stats["held_out_registration"] = measured_stats(registered, held)
-    joint = measuring_joint(chain)
-    names = [f"term{term}.{n}" for n in state.kind.names()]
+    joint = None if state.instrument else measuring_joint(chain)
+    frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
+    names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
@@ -230,6 +233,8 @@ class ContactChainsCalibration(Delivered):
         unknowns: The unknowns the data determine (the structural rank at the nominal
             robot): the objects', contacts' and measured terms' own, and the joint placement
             directions kept (``free``).
+        shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
+            instrument (:mod:`.instrument`).
         identifiable: The rank of the rows' Jacobian over every unknown and every joint
             placement component, at the nominal robot (flush touches): what the data
             determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
@@ -253,6 +258,7 @@ class ContactChainsCalibration(Delivered):
     solver: tuple[bool, str, int] = (True, "", 0)
     unknowns: int = 0
     identifiable: int = 0
+    shape: str = "chains"
 
     @property
     def accepted(self) -> bool:
@@ -266,7 +272,8 @@ class ContactChainsCalibration(Delivered):
         """
         out = self.placements.errors()
         for c in self._measured():
-            out[c.joint] = c.placement_error()
+            if c.joint is not None:
+                out[c.joint] = c.placement_error()
         return out
 
     def _measured(self) -> tuple[MeasuredChain, ...]:
@@ -295,7 +302,7 @@ class ContactChainsCalibration(Delivered):
             "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._contacts()},
             "world_link": None,
             "tool_link": None,
-            "on_robot": bool(measured) or bool(cameras),
+            "on_robot": any(c.joint is not None for c in measured) or bool(cameras),
             **({"cameras": cameras} if cameras else {}),
         }
 
@@ -317,7 +324,7 @@ class ContactChainsCalibration(Delivered):
         fields = {
             "robot": first.name,
             "urdf": str(first.urdf_path),
-            "shape": "chains",
+            "shape": self.shape,
             "terms": [
                 term_dict(
                     c.chain.base_frame,
@@ -330,7 +337,7 @@ class ContactChainsCalibration(Delivered):
             ],
             **verdict(self.params, self.refusal, self.solver),
             "parameters": [
-                *(p for c in self._measured() for p in c.parameters),
+                *{p["name"]: p for c in self._measured() for p in c.parameters}.values(),
                 *(p for c in self._pixels() for p in c.parameters),
                 *parameter_entries(self.fitted, self.estimate, self.std, names),
             ],
@@ -367,6 +374,7 @@ class ContactChainsCalibration(Delivered):
 
     def _format2(self) -> dict:
         """Format 2's keys that format 3 replaced (written until format 4)."""
+        measured = [c for c in self._measured() if c.joint is None]
         return {
             "measure": "plane",
             "chains": [c.to_dict() for c in self.chains],
@@ -376,6 +384,7 @@ class ContactChainsCalibration(Delivered):
             "selection": None if self.selection is None else self.selection.to_dict(),
             "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},
             "notes": list(self.notes),
+            **(instrument_format2(measured) if measured else {}),
         }
 
     def _objects(self) -> str:
@@ -411,9 +420,14 @@ class ContactChainsCalibration(Delivered):
                     f"{n} [{'deg' if a else 'mm'}]"
                     for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
                 ]
+                where = (
+                    "the instrument"
+                    if c.joint is None
+                    else f"the measuring frame in joint '{c.joint}'"
+                )
                 lines.append(
                     f"{c.chain.base_frame} -> {c.chain.tool_frame}, measured {c.kind.label} "
-                    f"(errors: {', '.join(units)}; the measuring frame in joint '{c.joint}'):"
+                    f"(errors: {', '.join(units)}; {where}):"
                 )
             elif not isinstance(c.kind, PlaneContact):
                 units = [

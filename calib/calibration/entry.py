@@ -15,6 +15,7 @@ deliver a result with ``summary()``, ``to_dict()`` (report format 3), ``urdf()``
 
 from __future__ import annotations
 
+import dataclasses
 from typing import cast, overload
 
 from ..core.checks import MAX_ROWS, check_size
@@ -25,14 +26,15 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_chains import calibrate_contact_chains
+from .contact_chains_result import ContactChainsCalibration
 from .contact_pipeline import calibrate_contacts
 from .contact_result import ContactCalibration
 from .delivery import Result
-from .options import DEFAULT_MAX_ITERATIONS, checked_arguments
+from .instrument import tool_parts
+from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
 from .pipeline import calibrate_chain
 from .problem import Problem, Term
 from .result import CalibrationResult
-from .tree_pipeline import TreeCalibrationResult, calibrate_tree
 
 __all__ = ["calibrate"]
 
@@ -74,7 +76,7 @@ def calibrate(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
-) -> TreeCalibrationResult: ...
+) -> ContactChainsCalibration: ...
 
 
 @overload
@@ -221,21 +223,37 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
             progress=progress,
         )
     if shape == "tree":
-        if term.guess is not None:
-            raise InvalidArgumentError(
-                "marker is for one chain: a tree's markers are registered in closed form"
-            )
-        return calibrate_tree(
-            cast(Tree, term.robot),
-            cast(Measurements, term.data),
-            params=p.params,
-            validate=cast(Measurements | None, term.validate),
-            max_iterations=p.max_iterations,
-            holdout=p.holdout,
-            seed=p.seed,
-            progress=progress,
-        )
+        return _tree(p, term, progress)
     return calibrate_chain(term.robot, term.data, term.guess, term.validate, p.options(), progress)
+
+
+def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
+    """A tree measured by one instrument: a joint fit of one measured term per tool.
+
+    The terms share the instrument's frame and the joints they run through
+    (:mod:`~.instrument`); the level is a tree's (:data:`~.options.TREE_LEVELS`, default
+    ``complete``).
+    """
+    if term.guess is not None:
+        raise InvalidArgumentError(
+            "marker is for one chain: a tree's markers are registered in closed form"
+        )
+    tree = cast(Tree, term.robot)
+    level = DEFAULT_TREE_LEVEL if problem.params is None else problem.params
+    dataclasses.replace(problem.options(), level=level).for_tree()
+    validate = cast(Measurements | None, term.validate)
+    result = calibrate_contact_chains(
+        list(tree.chains),
+        tool_parts(tree, cast(Measurements, term.data)),
+        params=level,
+        validate=None if validate is None else tool_parts(tree, validate),
+        max_iterations=problem.max_iterations,
+        holdout=problem.holdout,
+        seed=problem.seed,
+        progress=progress,
+        instrument=True,
+    )
+    return dataclasses.replace(result, shape="tree")
 
 
 def _validated(problem: Problem) -> bool:
