@@ -279,7 +279,9 @@ def _model(state: ChainsState, plane_of, free, names, directions=None) -> Chains
     )
 
 
-def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
+def _offered(
+    start: ChainsState, level: str, components: bool = False
+) -> tuple[np.ndarray | None, tuple[str, ...], list]:
     """Directions a level offers: (directions or None for components, names, indices).
 
     ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
@@ -291,6 +293,8 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     pl = start.placements
     if level == "frames":
         return None, pl.names(), []
+    if components and level == "complete":  # every component: the rank test keeps a basis
+        return None, pl.names(), list(range(len(pl.names())))
     if level == "offsets":
         offsets = [
             6 * j + COMPONENTS.index(offset_component(pl.model, jid))
@@ -328,9 +332,15 @@ def _structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> lis
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[str]):
-    """The model (free components), the selection (``auto``) and the prior weights."""
-    directions, names, offered = _offered(start, level)
+def _choose(
+    start: ChainsState, train, flush, plane_of, level: str, notes: list[str], components=False
+):
+    """The model (free components), the selection (``auto``) and the prior weights.
+
+    ``components``: ``complete`` offers every joint placement component (a tree measured by
+    an instrument: the rank test keeps a basis of all the rows see), not the chains' MDH rows.
+    """
+    directions, names, offered = _offered(start, level, components)
     wide = _model(start, plane_of, offered, names, directions)
     fixed = wide.fixed
     kept = _structural(wide, start, flush) if offered else list(range(fixed))
@@ -444,7 +454,9 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = _flush(start, train)
-        model, _, selection, prior = _choose(start, train, flush, plane_of, level, notes)
+        model, _, selection, prior = _choose(
+            start, train, flush, plane_of, level, notes, instrument
+        )
         names = start.placements.names()
         wide = _model(start, plane_of, range(len(names)), names)
         identifiable = len(_structural(wide, start, flush))

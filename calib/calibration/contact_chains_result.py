@@ -265,6 +265,12 @@ class ContactChainsCalibration(Delivered):
         """The model may be used (not refused)."""
         return self.refusal is None
 
+    def check(self) -> ContactChainsCalibration:
+        """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
+        if self.refusal is not None:
+            raise CalibrationRefusedError(self.refusal)
+        return self
+
     def joint_errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
 
