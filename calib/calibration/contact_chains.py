@@ -550,7 +550,7 @@ def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state
-    refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
+    refusal = None  # a held-out error worse than the registration's first, then the solver's
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     cov = None
     for c, chain in enumerate(state.chains):
@@ -609,7 +609,8 @@ def _assemble(
         free=tuple(model.names()[model.fixed :]),
         unknowns=model.size(),
         selection=selection,
-        refusal=refusal,
+        refusal=refusal
+        or (None if fitted.converged else f"the solver did not converge ({fitted.message})"),
         notes=tuple(notes),
         timings_ms={
             k: 1e3 * (b - a) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
