@@ -13,7 +13,7 @@ from pinref import MimicChain, pair_collides
 
 from calib import InvalidArgumentError, analyze
 from calib.calibration.tree import TreeErrorModel, TreeState
-from calib.calibration.tree_pipeline import calibrate_tree
+from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.design.collision import collision_checker
 from calib.design.configurations import parse_configurations

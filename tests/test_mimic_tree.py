@@ -23,7 +23,7 @@ from pinref import MimicTree
 
 import calib
 from calib import Measurements, analyze, from_tree, load_tree
-from calib.calibration.tree_pipeline import calibrate_tree
+from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.design.constraints import Constraints
 from calib.design.design import design

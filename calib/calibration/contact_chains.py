@@ -67,7 +67,7 @@ from .contact_pipeline import (
 )
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
-from .instrument import instrument_groups, shared_frame
+from .instrument import check_tree_rank, instrument_groups, shared_frame
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -460,6 +460,8 @@ def calibrate_contact_chains(
         names = start.placements.names()
         wide = _model(start, plane_of, range(len(names)), names)
         identifiable = len(_structural(wide, start, flush))
+        if instrument:
+            check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
         fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)

@@ -16,7 +16,7 @@ from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
 from .delivery import Delivered, RowErrors
-from .instrument import instrument_format2
+from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
@@ -285,6 +285,10 @@ class ContactChainsCalibration(Delivered):
     def _measured(self) -> tuple[MeasuredChain, ...]:
         return tuple(c for c in self.chains if isinstance(c, MeasuredChain))
 
+    def _instrument(self) -> tuple[MeasuredChain, ...]:
+        """The terms measured by an instrument outside the robot (a tree's tools)."""
+        return tuple(c for c in self._measured() if c.joint is None)
+
     def _contacts(self) -> tuple[ChainContacts, ...]:
         return tuple(c for c in self.chains if isinstance(c, ChainContacts))
 
@@ -348,8 +352,7 @@ class ContactChainsCalibration(Delivered):
                 *parameter_entries(self.fitted, self.estimate, self.std, names),
             ],
             "errors": {
-                "train": None,
-                "held_out": None,
+                **instrument_errors(self._instrument()),
                 "terms": [c.errors() for c in self.chains],
             },
             "frames": self._frames(),
@@ -380,7 +383,7 @@ class ContactChainsCalibration(Delivered):
 
     def _format2(self) -> dict:
         """Format 2's keys that format 3 replaced (written until format 4)."""
-        measured = [c for c in self._measured() if c.joint is None]
+        measured = self._instrument()
         return {
             "measure": "plane",
             "chains": [c.to_dict() for c in self.chains],
@@ -449,6 +452,7 @@ class ContactChainsCalibration(Delivered):
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
                 rows = "touches" if isinstance(c, ChainContacts) else "configurations"
                 lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
+        lines += instrument_lines(self._instrument())
         names = tuple(self.chains[0].chain.model.names)
         lines += parameter_lines(parameter_entries(self.fitted, self.estimate, self.std, names))
         lines += [f"note: {n}" for n in self.notes]

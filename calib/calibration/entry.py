@@ -30,11 +30,11 @@ from .contact_chains_result import ContactChainsCalibration
 from .contact_pipeline import calibrate_contacts
 from .contact_result import ContactCalibration
 from .delivery import Result
-from .instrument import tool_parts
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
 from .pipeline import calibrate_chain
 from .problem import Problem, Term
 from .result import CalibrationResult
+from .tree_checks import prepare_tree
 
 __all__ = ["calibrate"]
 
@@ -242,11 +242,12 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
     level = DEFAULT_TREE_LEVEL if problem.params is None else problem.params
     dataclasses.replace(problem.options(), level=level).for_tree()
     validate = cast(Measurements | None, term.validate)
+    data, held = prepare_tree(tree, cast(Measurements, term.data), validate, problem.holdout)
     result = calibrate_contact_chains(
         list(tree.chains),
-        tool_parts(tree, cast(Measurements, term.data)),
+        data,
         params=level,
-        validate=None if validate is None else tool_parts(tree, validate),
+        validate=None if validate is None else held,
         max_iterations=problem.max_iterations,
         holdout=problem.holdout,
         seed=problem.seed,

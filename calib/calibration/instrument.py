@@ -24,18 +24,29 @@ import dataclasses
 
 import numpy as np
 
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError, InvalidArgumentError
-from ..kinematics.tree import Tree
+from ..identification.base_columns import independent_columns
+from ..identification.tree_jacobian import tree_parameters
+from ..kinematics.tree import Tree, tree_of_chains
+from ..kinematics.tree_model import from_tree
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
+from . import determined
 from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
+from .result import ResidualStats
+from .tree import TreeErrorModel, TreeState
 
 __all__ = [
     "REGISTRATION_ITERATIONS",
+    "check_tree_rank",
+    "instrument_errors",
     "instrument_format2",
     "instrument_groups",
+    "instrument_lines",
+    "pooled",
     "shared_frame",
     "tool_parts",
 ]
@@ -44,8 +55,12 @@ REGISTRATION_ITERATIONS = 50
 """Most alternations of the shared closed-form registration (frame, then markers)."""
 
 
-def tool_parts(tree: Tree, data: Measurements | None) -> list[Measurements | None]:
+def tool_parts(
+    tree: Tree, data: Measurements | None, every: bool = True
+) -> list[Measurements | None]:
     """A tree's rows cut by tool: each tool's rows on its chain's joints (None: no data).
+
+    ``every``: each tool must have rows (else a tool without rows gets None).
 
     Raises:
         DataError: Data of other joints, pose or several-point rows, a tool no row measures.
@@ -64,6 +79,9 @@ def tool_parts(tree: Tree, data: Measurements | None) -> list[Measurements | Non
     parts: list[Measurements | None] = []
     for chain, path in zip(tree.chains, tree.paths, strict=True):
         rows = np.flatnonzero(tools == chain.tool_frame)
+        if not rows.size and not every:
+            parts.append(None)
+            continue
         if not rows.size:
             raise DataError(
                 data.source,
@@ -166,10 +184,102 @@ def instrument_format2(measured) -> dict:
         measured: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
     first = measured[0]
+    pairs = {
+        k: (pooled(measured, f"{k}_registration"), pooled(measured, k))
+        for k in ("train", "held_out")
+    }
+    both = {
+        k: None
+        if a is None or b is None
+        else {"registration": a.to_dict(), "calibrated": b.to_dict()}
+        for k, (a, b) in pairs.items()
+    }
     return {
+        "data": first.source,
+        "rows": sum(c.stats["train"].m for c in measured),
+        "residuals": both["train"],
+        "validation": both["held_out"],
         "measure": "position",
         "base_frame": first.chain.base_frame,
         "tools": [c.chain.tool_frame for c in measured],
         "measurement_to_base": pose_dict(first.state.inner.frame),
         "markers": {c.chain.tool_frame: c.state.inner.markers[0].tolist() for c in measured},
     }
+
+
+def pooled(parts, key: str) -> ResidualStats | None:
+    """Position errors of every tool's rows together, or None when no part has them.
+
+    ``key``: ``train``, ``held_out`` or either's ``_registration``.
+
+    Args:
+        parts: The instrument terms' parts (each with ``stats``: :class:`GapStats` whose
+            ``per_row`` are the point errors [mm]).
+        key: Which rows.
+    """
+    rows = [c.stats[key].per_row for c in parts if key in c.stats]
+    if not rows or any(r is None for r in rows):
+        return None
+    e = 1e-3 * np.concatenate(rows)  # [m]
+    return ResidualStats(len(e), float(np.sqrt(np.mean(e**2))), float(np.max(e)))
+
+
+def instrument_errors(parts) -> dict:
+    """The report's ``errors.train`` and ``errors.held_out`` of every tool together (format 3).
+
+    Args:
+        parts: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
+    """
+    out: dict = {"train": None, "held_out": None}
+    for key in out:
+        before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
+        if before is None or after is None:
+            continue
+        cal = after.in_mm()
+        out[key] = {"registration": before.in_mm(), "calibrated": cal, "urdf": cal}
+        if key == "held_out":
+            out[key] = {"source": parts[0].held_source, **out[key]}
+    return out
+
+
+def instrument_lines(parts) -> list[str]:
+    """The summary's lines of every tool together: position RMS / max [mm], fitted, held out."""
+    lines = []
+    for key, label in (("train", "fitted rows"), ("held_out", "held-out rows")):
+        before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
+        if before is None or after is None:
+            continue
+        lines.append(
+            f"{label} of every tool, position RMS / max [mm]: registration "
+            f"{1e3 * before.position_rms:.4g} / {1e3 * before.position_max:.4g}, calibrated "
+            f"{1e3 * after.position_rms:.4g} / {1e3 * after.position_max:.4g}"
+        )
+    return lines
+
+
+def check_tree_rank(chains, identifiable: int, train, level: str, seed: int) -> None:
+    """Refuse a tree's ``complete`` level its rows do not determine, before the fit.
+
+    The unknowns the rows determine (the engine's structural rank, ``identifiable``) are
+    compared with those generic configurations determine: the rank of the tree's own
+    Jacobian (:class:`~.tree.TreeErrorModel`: frame, markers and the tree's complete MDH set)
+    with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random configurations.
+
+    Raises:
+        DataError: Too few equations, or rows that determine fewer unknowns
+            (:func:`~.determined.check_rank`).
+    """
+    if level != "complete":
+        return
+    tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
+    nominal = from_tree(tree)
+    pset = tree_parameters(nominal, "complete")
+    wide = TreeErrorModel(pset, pset.names, tree.n_tools)
+    q = tree.random_configurations(DEFAULT_CONFIGS, seed)
+    T = tree.n_tools
+    Q, tool = np.repeat(q, T, axis=0), np.tile(np.arange(T), len(q))
+    start = TreeState(nominal.idealized(), np.eye(4), np.zeros((T, 3)))
+    J = wide.jacobian_at(start, np.zeros(wide.size()), Q, tool).reshape(-1, wide.size())
+    generic = len(independent_columns(J, list(range(J.shape[1])))[2])
+    rows = sum(d.m for d in train)
+    determined.check_rank(identifiable, generic, rows, 3, level, train[0].source, "rows")
