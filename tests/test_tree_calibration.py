@@ -47,7 +47,7 @@ def _held_out(res, tree, truth, q: np.ndarray, tmp_path) -> np.ndarray:
 
 def _train_max_mm(res) -> float:
     """The largest fitted row error of every tool [mm]."""
-    return max(max(c.stats["train"].max) for c in res.chains)
+    return max(c.stats["train"].per_row.max() for c in res.chains)
 
 
 def test_noise_free_two_arms_and_torso_recover_both_hands(tmp_path):

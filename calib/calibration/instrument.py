@@ -49,6 +49,7 @@ __all__ = [
     "pooled",
     "shared_frame",
     "tool_parts",
+    "tree_points",
 ]
 
 REGISTRATION_ITERATIONS = 50
@@ -283,3 +284,19 @@ def check_tree_rank(chains, identifiable: int, train, level: str, seed: int) -> 
     generic = len(independent_columns(J, list(range(J.shape[1])))[2])
     rows = sum(d.m for d in train)
     determined.check_rank(identifiable, generic, rows, 3, level, train[0].source, "rows")
+
+
+def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
+    """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m].
+
+    Args:
+        parts: The instrument terms' parts, in tool order
+            (``result.chains`` of a tree's calibration).
+        paths: Each tool's joints among the tree's (:attr:`~calib.kinematics.tree.Tree.paths`).
+        q: The tree's joint positions ``(m, n)`` [rad or m].
+    """
+    q = np.asarray(q, dtype=float)
+    return np.stack(
+        [c.state.inner.predict(q[:, path])[0][:, 0] for c, path in zip(parts, paths, strict=True)],
+        axis=1,
+    )
