@@ -464,7 +464,8 @@ def calibrate_contact_chains(
             check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
+        polish = level if not instrument else "components"  # every component offered: done
+        fitted, polished = _fit(model, wide, start, train, prior, polish, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -509,7 +510,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
-    selection, a prior) and ``offsets`` are not polished, nor a fit already exact (RMS row
+    selection, a prior), ``offsets`` and a fit offered every component (``level``
+    ``components``: a tree's ``complete``) are not polished, nor a fit already exact (RMS row
     under ``ROUND_OFF``: the undetermined components would only wander), and a polish that
     wanders to no robot (its chain models refused) is dropped.
 
