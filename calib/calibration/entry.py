@@ -3,9 +3,10 @@
 ``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
 is the problem of one term. The problem's shape picks the model that fits it: one chain
 measured (:func:`~.pipeline.calibrate_chain`, the MDH chart with its registration moments),
-a tree (:func:`~.tree_pipeline.calibrate_tree`), one chain touching
-(:func:`~.contact_pipeline.calibrate_contacts`) or several terms whose joints are shared
-(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements). Each takes the
+one chain touching (:func:`~.contact_pipeline.calibrate_contacts`), or several terms whose
+joints are shared (:func:`~.contact_chains.calibrate_contact_chains`, URDF joint
+placements): a tree measured by one instrument is such a problem, one measured term per tool
+sharing the instrument's frame (:mod:`~.instrument`, :mod:`~.tree_checks`). Each takes the
 steps of every calibration: prepare (checks, held-out rows, validation data that are the
 training data refused), register, set outliers aside, diagnose usual mistakes, choose the
 parameters, fit, assess (a model worse than its start on held-out data is refused) and
@@ -36,7 +37,7 @@ from .problem import Problem, Term
 from .result import CalibrationResult
 from .tree_checks import prepare_tree
 
-__all__ = ["calibrate"]
+__all__ = ["calibrate", "calibrate_tree"]
 
 
 @overload
@@ -227,6 +228,10 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
     return calibrate_chain(term.robot, term.data, term.guess, term.validate, p.options(), progress)
 
 
+calibrate_tree = calibrate
+"""The name :func:`calibrate` had for trees (a tree is one of its problems)."""
+
+
 def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
     """A tree measured by one instrument: a joint fit of one measured term per tool.
 
@@ -242,18 +247,25 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
     level = DEFAULT_TREE_LEVEL if problem.params is None else problem.params
     dataclasses.replace(problem.options(), level=level).for_tree()
     validate = cast(Measurements | None, term.validate)
-    data, held = prepare_tree(tree, cast(Measurements, term.data), validate, problem.holdout)
+    data, held = prepare_tree(
+        tree, cast(Measurements, term.data), validate, problem.holdout, problem.seed
+    )
     result = calibrate_contact_chains(
         list(tree.chains),
         data,
         params=level,
-        validate=None if validate is None else held,
+        validate=held,
         max_iterations=problem.max_iterations,
-        holdout=problem.holdout,
         seed=problem.seed,
         progress=progress,
         instrument=True,
     )
+    if validate is None:  # rows held out of the data: labelled so
+        chains = tuple(
+            c if c.held_source is None else dataclasses.replace(c, held_source="holdout")
+            for c in result.chains
+        )
+        result = dataclasses.replace(result, chains=chains)
     return dataclasses.replace(result, shape="tree")
 
 

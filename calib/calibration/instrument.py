@@ -37,10 +37,9 @@ from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
 from .result import ResidualStats
-from .tree import TreeErrorModel, TreeState
+from .tree import REGISTRATION_ITERATIONS, TreeErrorModel, TreeState
 
 __all__ = [
-    "REGISTRATION_ITERATIONS",
     "check_tree_rank",
     "instrument_errors",
     "instrument_format2",
@@ -51,9 +50,6 @@ __all__ = [
     "tool_parts",
     "tree_points",
 ]
-
-REGISTRATION_ITERATIONS = 50
-"""Most alternations of the shared closed-form registration (frame, then markers)."""
 
 
 def tool_parts(

@@ -25,12 +25,17 @@ from .tree import TreeState, register_tree
 __all__ = ["prepare_tree"]
 
 
-def prepare_tree(tree: Tree, data: Measurements, validate: Measurements | None, holdout: float):
-    """Check a tree's rows (module text); each tool's rows and validation rows.
+def prepare_tree(
+    tree: Tree, data: Measurements, validate: Measurements | None, holdout: float, seed: int
+):
+    """Check a tree's rows (module text); each tool's rows and held-out rows.
+
+    The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
+    together (:func:`~.validation.split`), as the validation rows are given.
 
     Returns:
-        Each tool's rows, and each tool's validation rows (None: none, or a tool without
-        validation rows).
+        Each tool's rows, and each tool's held-out rows (None: none, or a tool without
+        held-out rows).
 
     Raises:
         DataError: Rows of other joints, pose or several-point rows, a tool no row measures,
@@ -38,8 +43,7 @@ def prepare_tree(tree: Tree, data: Measurements, validate: Measurements | None, 
             measured in another frame.
         InvalidArgumentError: Validation rows and a holdout fraction.
     """
-    parts = tool_parts(tree, data)
-    held = tool_parts(tree, validate, every=False)
+    tool_parts(tree, data)
     out = round(holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools
     what = "measurement frame and marker parameters"
@@ -55,7 +59,10 @@ def prepare_tree(tree: Tree, data: Measurements, validate: Measurements | None, 
     if validate is not None:
         fitted, other = (validation.stats(reg, d, None) for d in (data, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
-    return parts, held
+    train, held = (
+        (data, validate) if validate is not None else validation.split(data, holdout, seed)
+    )
+    return tool_parts(tree, train), tool_parts(tree, held, every=False)
 
 
 def _diagnosed(tree: Tree, nominal: TreeMDH, data: Measurements) -> TreeState:
