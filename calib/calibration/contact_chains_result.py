@@ -11,7 +11,12 @@ from ..core.fileio import check_outputs, write_atomic
 from ..exceptions import CalibrationRefusedError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
-from ..kinematics.placement_export import camera_urdf, moved_origins_urdf, write_moved_origins_urdf
+from ..kinematics.placement_export import (
+    camera_urdf,
+    marker_urdf,
+    moved_origins_urdf,
+    write_moved_origins_urdf,
+)
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
@@ -478,6 +483,9 @@ class ContactChainsCalibration(Delivered):
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
             return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
+        if self._instrument():  # each tool's markers as links (a tree's)
+            marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
+            return marker_urdf(self.chains[0].chain, self.joint_errors(), marks)
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:
@@ -488,7 +496,7 @@ class ContactChainsCalibration(Delivered):
         """
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        if self._cameras():
+        if self._cameras() or self._instrument():
             check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
             write_atomic(path, self.urdf())
             return

@@ -30,6 +30,7 @@ from ..identification.base_columns import independent_columns
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree, tree_of_chains
 from ..kinematics.tree_model import from_tree
+from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from . import determined
@@ -201,6 +202,9 @@ def instrument_format2(measured) -> dict:
         "tools": [c.chain.tool_frame for c in measured],
         "measurement_to_base": pose_dict(first.state.inner.frame),
         "markers": {c.chain.tool_frame: c.state.inner.markers[0].tolist() for c in measured},
+        "marker_links": {
+            t: marker_link_names(t, 1)[0] for t in (c.chain.tool_frame for c in measured)
+        },
     }
 
 
