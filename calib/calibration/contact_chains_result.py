@@ -389,6 +389,8 @@ class ContactChainsCalibration(Delivered):
     def _format2(self) -> dict:
         """Format 2's keys that format 3 replaced (written until format 4)."""
         measured = self._instrument()
+        if self.shape == "tree":  # a tree's own keys of format 2
+            return instrument_format2(measured)
         return {
             "measure": "plane",
             "chains": [c.to_dict() for c in self.chains],
@@ -398,7 +400,6 @@ class ContactChainsCalibration(Delivered):
             "selection": None if self.selection is None else self.selection.to_dict(),
             "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},
             "notes": list(self.notes),
-            **(instrument_format2(measured) if measured else {}),
         }
 
     def _objects(self) -> str:

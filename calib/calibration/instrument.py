@@ -196,6 +196,7 @@ def instrument_format2(measured) -> dict:
         "data": first.source,
         "rows": sum(c.stats["train"].m for c in measured),
         "residuals": both["train"],
+        "per_tool": [_tool_errors(c) for c in measured],
         "validation": both["held_out"],
         "measure": "position",
         "base_frame": first.chain.base_frame,
@@ -300,3 +301,13 @@ def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
         [c.state.inner.predict(q[:, path])[0][:, 0] for c, path in zip(parts, paths, strict=True)],
         axis=1,
     )
+
+
+def _tool_errors(part) -> dict:
+    """Format 2's ``per_tool`` entry of one tool: its fitted rows' errors [m]."""
+    errors = {k: pooled([part], key) for k, key in (("registration", "train_registration"),
+              ("calibrated", "train"))}  # fmt: skip
+    return {
+        "tool": part.chain.tool_frame,
+        **{k: None if v is None else v.to_dict() for k, v in errors.items()},
+    }
