@@ -166,9 +166,7 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(
-    chains, train, validate, guess, weight, held, notes: list[str], iterations: int, instrument
-):
+def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations, shared):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
@@ -196,7 +194,7 @@ def _checked(
             state, bad, found, more, held[c] = checked_measured(
                 chain, d, v, held[c], weight, iterations
             )
-            state = dataclasses.replace(state, instrument=instrument)
+            state = dataclasses.replace(state, instrument=shared)
         if isinstance(d, Measurements | PixelPart):
             if found:
                 more.append(outliers.set_aside_note(found))
@@ -279,9 +277,7 @@ def _model(state: ChainsState, plane_of, free, names, directions=None) -> Chains
     )
 
 
-def _offered(
-    start: ChainsState, level: str, components: bool = False
-) -> tuple[np.ndarray | None, tuple[str, ...], list]:
+def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
     """Directions a level offers: (directions or None for components, names, indices).
 
     ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
@@ -293,7 +289,7 @@ def _offered(
     pl = start.placements
     if level == "frames":
         return None, pl.names(), []
-    if components and level == "complete":  # every component: the rank test keeps a basis
+    if level == "components":  # every component (a tree's complete): the rank keeps a basis
         return None, pl.names(), list(range(len(pl.names())))
     if level == "offsets":
         offsets = [
@@ -332,15 +328,9 @@ def _structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> lis
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def _choose(
-    start: ChainsState, train, flush, plane_of, level: str, notes: list[str], components=False
-):
-    """The model (free components), the selection (``auto``) and the prior weights.
-
-    ``components``: ``complete`` offers every joint placement component (a tree measured by
-    an instrument: the rank test keeps a basis of all the rows see), not the chains' MDH rows.
-    """
-    directions, names, offered = _offered(start, level, components)
+def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[str]):
+    """The model (free components), the selection (``auto``) and the prior weights."""
+    directions, names, offered = _offered(start, level)
     wide = _model(start, plane_of, offered, names, directions)
     fixed = wide.fixed
     kept = _structural(wide, start, flush) if offered else list(range(fixed))
@@ -407,8 +397,9 @@ def calibrate_contact_chains(
         seed: Seed of the holdout draw.
         progress: Progress bars of the registration, the selection and the fit
             (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
-        instrument: The measured terms are measured by one instrument outside the robot
-            (a tree's tools, :mod:`.instrument`): its frame is one unknown for all of them.
+        instrument: The measured terms are a tree's tools measured by one instrument outside
+            the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
+            joint placement component.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -454,9 +445,8 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = _flush(start, train)
-        model, _, selection, prior = _choose(
-            start, train, flush, plane_of, level, notes, instrument
-        )
+        offer = "components" if instrument and level == "complete" else level
+        model, _, selection, prior = _choose(start, train, flush, plane_of, offer, notes)
         names = start.placements.names()
         wide = _model(start, plane_of, range(len(names)), names)
         identifiable = len(_structural(wide, start, flush))
@@ -464,8 +454,7 @@ def calibrate_contact_chains(
             check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        polish = level if not instrument else "components"  # every component offered: done
-        fitted, polished = _fit(model, wide, start, train, prior, polish, max_iterations)
+        fitted, polished = _fit(model, wide, start, train, prior, offer, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -510,10 +499,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
-    selection, a prior), ``offsets`` and a fit offered every component (``level``
-    ``components``: a tree's ``complete``) are not polished, nor a fit already exact (RMS row
-    under ``ROUND_OFF``: the undetermined components would only wander), and a polish that
-    wanders to no robot (its chain models refused) is dropped.
+    selection, a prior), ``offsets`` and ``components`` (every component offered) are not
+    polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
+    components would only wander), and a polish that wanders to no robot is dropped.
 
     Returns:
         The fit, and whether it was polished.
@@ -554,7 +542,7 @@ def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state
-    refusal = None  # a held-out error worse than the registration's first, then the solver's
+    refusal = None  # a held-out error worse than the registration's first, then the solver
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     cov = None
     for c, chain in enumerate(state.chains):
