@@ -285,6 +285,24 @@ def test_noise_free_tree_calibration_through_mimic_joints_is_exact(case, exporta
     assert tags[0] == tags[1]
 
 
+@pytest.mark.parametrize("case", ["pr2_arm_gripper", "mimic_tree"])
+def test_tree_calibration_counts_the_rank_of_pinocchio_alone(case, exportable):
+    """The joint fit of a tree (one measured term per tool, the instrument's frame shared)
+    determines as many unknowns as the finite-difference rank of Pinocchio's own model at the
+    measured configurations (every joint, tool and base placement moved), and fits them all."""
+    src, base, tools = exportable[case]
+    tree = load_tree(src, base, tools)
+    true = perturbed(MimicTree(src, base, tools), seed=6, untilted=FINGER_JOINTS)
+    qv, data = campaign(tree, true, 60, seed=7, frame=pin.SE3.Identity())
+    res = calibrate_tree(tree, data).check()
+    W = MimicTree(src, base, tools).placement_jacobian(tree.variable_names, qv, MARKERS[0])
+    keep = np.concatenate([6 * k + np.arange(3) for k in range(len(W) // 6)])
+    s = np.linalg.svd(W[keep], compute_uv=False)
+    rank = int(np.sum(s > 1e-7 * s[0]))
+    assert s[rank] < 1e-9 * s[0]  # a clear gap
+    assert res.identifiable == res.unknowns == rank
+
+
 def test_tilted_finger_axes_add_weak_directions_and_a_second_order_error():
     """The count is taken at the nominal geometry, where each PR2 finger and its tip turn
     about parallel axes by one angle and the tip keeps its orientation. Tilted by ~1 mrad,
