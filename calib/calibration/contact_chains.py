@@ -449,7 +449,8 @@ def calibrate_contact_chains(
         model, _, selection, prior = _choose(start, train, flush, plane_of, offer, notes)
         names = start.placements.names()
         wide = _model(start, plane_of, range(len(names)), names)
-        identifiable = len(_structural(wide, start, flush))
+        every = offer == "components"  # its rank kept a basis of every component: counted
+        identifiable = model.size() if every else len(_structural(wide, start, flush))
         if instrument:
             check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
