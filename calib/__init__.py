@@ -81,10 +81,9 @@ _LAZY = {
     "calibrated_urdf": "kinematics.urdf_export",
     "measurement_to_base": "kinematics.urdf_export",
     "write_calibrated_urdf": "kinematics.urdf_export",
-    "TreeCalibrationResult": "calibration.tree_pipeline",
     "ContactChainsCalibration": "calibration.contact_chains_result",
     "calibrate_contact_chains": "calibration.contact_chains",
-    "calibrate_tree": "calibration.tree_pipeline",
+    "calibrate_tree": "calibration.entry",
     "TreeCampaign": "measurements.tree_campaign",
     "simulate_tree": "measurements.tree_campaign",
     "calibrated_tree_urdf": "kinematics.tree_export",
@@ -115,8 +114,8 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .calibration.contact_chains import calibrate_contact_chains
     from .calibration.contact_chains_result import ContactChainsCalibration
     from .calibration.delivery import Result
+    from .calibration.entry import calibrate_tree
     from .calibration.problem import Problem, Term
-    from .calibration.tree_pipeline import TreeCalibrationResult, calibrate_tree
     from .design.design import design
     from .identification.identifiability import Identifiability, RankWarning, analyze, analyze_model
     from .identification.jacobian import Measurement, complete_jacobian, identification_jacobian

@@ -2,7 +2,7 @@
 
 1. Trees: TALOS's two hands (16 joints, 70 parameters, two markers), 40 configurations
    designed from 800 candidates against 40 random ones; simulate (1 mm, 1 mrad errors,
-   0.05 mm noise) and calibrate_tree; RMS error of both hands at 100 configurations the fit
+   0.05 mm noise) and calibrate; RMS error of both hands at 100 configurations the fit
    never saw, against the true points; 10 seeds.
 2. Orientation weight: UR5 pose campaigns with 0.05 mm and 0.5 mrad of noise (ratio
    0.1 m/rad); 30 configurations designed at 0.1 and at 1 m/rad; calibrate (weight
@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 from calib import calibrate, load_chain, residual_stats, simulate
-from calib.calibration.tree_pipeline import calibrate_tree
+from calib.calibration.instrument import tree_points
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import candidate_configurations, design, least_i
 from calib.design.observability import reference
@@ -58,9 +58,8 @@ def tree_study() -> None:
         sets = {"designed": d.q, "random": candidate_configurations(tree, 40, 100 + seed)}
         for name, q in sets.items():
             camp = simulate_tree(tree, q, markers, 1.0, 1.0, 0.05, seed)
-            state = calibrate_tree(tree, camp.measurements).state
-            pred = true_points(state.mdh, q_ref, state.markers) @ state.frame[:3, :3].T
-            err = pred + state.frame[:3, 3] - true_points(camp.true_mdh, q_ref, markers)
+            parts = calibrate(tree, camp.measurements).chains
+            err = tree_points(parts, tree.paths, q_ref) - true_points(camp.true_mdh, q_ref, markers)
             errors[name].append(1e3 * float(np.sqrt(np.mean(np.sum(err**2, axis=2)))))
     for name, e in errors.items():
         print(f"TALOS hands, {name:8s}: median {np.median(e):.4f} mm  {np.round(e, 4)}")

@@ -24,10 +24,10 @@ from conftest import chain_of
 from scipy.spatial.transform import Rotation
 
 from calib import DataError, InvalidArgumentError, calibrate, simulate
-from calib.calibration.tree_pipeline import calibrate_tree
+from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.kinematics.tree import load_robot
-from calib.measurements.tree_campaign import simulate_tree
+from calib.measurements.tree_campaign import simulate_tree, true_points
 
 MARKER = (0.05, 0.02, 0.1)
 
@@ -157,9 +157,10 @@ def test_tree_outlier_row_is_set_aside(tmp_path):
     pos = camp.measurements.position.copy()
     pos[13] += [0.03, -0.02, 0.01]  # one reading 37 mm off
     res = calibrate_tree(tree, dataclasses.replace(camp.measurements, position=pos)).check()
-    assert [o.row for o in res.outliers] == [14]  # no file: rows are numbered from 1
-    assert res.rows == camp.measurements.m - 1
-    assert "row 14" in res.warnings[0]
+    rep = res.to_dict()
+    assert [o["row"] for o in rep["outliers"]] == [14]  # no file: rows are numbered from 1
+    assert sum(t["configs"] for t in rep["terms"]) == camp.measurements.m - 1
+    assert "row 14" in rep["warnings"][0]
 
 
 def test_tree_usual_mistakes_are_named(files, tmp_path):
@@ -224,10 +225,12 @@ def test_tree_level_the_rows_cannot_determine_is_refused(tmp_path):
     camp = simulate_tree(tree, 30, markers=MARKER, seed=6)
     data = camp.measurements
     with pytest.raises(DataError, match="parameters of params 'complete'"):
-        calibrate_tree(tree, data.subset(np.arange(6)))
+        calibrate_tree(tree, data.subset(np.arange(8)))  # 4 rows a tool: its frame and marker
     q = data.q.copy()
-    q[:, 2] = 0.4  # FL_KFE never moves
-    still = dataclasses.replace(data, q=q)
+    q[:, 2] = 0.4  # FL_KFE never moves (the rows measured so)
+    tool = np.array([tree.tool_frames.index(t) for t in data.tool])
+    pts = true_points(camp.true_mdh, q, camp.markers)[np.arange(data.m), tool]
+    still = dataclasses.replace(data, q=q, position=pts)
     with pytest.raises(DataError, match="determine only"):
         calibrate_tree(tree, still)
 
@@ -276,7 +279,7 @@ def test_tree_validation_data_get_the_diagnosis(files, tmp_path):
         camp.measurements.subset(np.arange(60, 80)),
     )
     res = calibrate_tree(tree, train, validate=held).check()
-    assert res.validation is not None and res.validation[0].configs == 20
+    assert res.to_dict()["errors"]["held_out"]["registration"]["configs"] == 20
     with pytest.raises(DataError, match="millimetres"):
         calibrate_tree(
             tree, train, validate=dataclasses.replace(held, position=held.position * 1e3)
@@ -368,7 +371,7 @@ def test_tree_rows_must_measure_every_tool_and_small_validation_sets_are_scored(
     # held-out rows too few to register on their own (one row, one tool): scored, no error
     other = simulate_tree(tree, 3, markers=MARKER, noise_mm=0.05, seed=9).measurements
     res = calibrate_tree(tree, data, validate=other.subset(np.arange(1)))
-    assert res.validation is not None and res.validation[0].configs == 1
+    assert res.to_dict()["errors"]["held_out"]["registration"]["configs"] == 1
 
 
 def test_validation_rows_measured_in_another_frame_stop_with_their_cause():
@@ -402,7 +405,8 @@ def test_tree_model_worse_on_held_out_rows_is_refused_with_its_report(tmp_path):
     out, report = tmp_path / "o.urdf", tmp_path / "r.json"
     argv = ["calibrate", "bolt", "--data", data, "--out", out, "--report", report]
     line = one_error(*run([*argv, "--holdout", "0.3", "--seed", "1"])[::2])
-    assert line.startswith("calibration refused: on held-out configurations")
+    assert line.startswith("calibration refused: the calibrated model's held-out errors")
+    assert "worse than the registration's" in line
     rep = json.loads(report.read_text())
     assert not out.exists() and rep["accepted"] is False
     held = rep["validation"]

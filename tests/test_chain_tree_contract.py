@@ -156,14 +156,15 @@ def test_calibrate_takes_a_tree_as_calibrate_tree_does(bolt):
     tree, data = bolt
     direct = calibrate_tree(tree, data, holdout=0.25, seed=1).check()
     via = calibrate(tree, data, holdout=0.25, seed=1).check()
-    assert type(via) is type(direct) and via.level == "complete"
-    assert via.names == direct.names
+    assert type(via) is type(direct) and via.params == "complete"
+    assert via.to_dict()["parameters"] == direct.to_dict()["parameters"]
     np.testing.assert_array_equal(via.estimate, direct.estimate)
-    assert via.validation[1].position_rms == direct.validation[1].position_rms
+    held = [r.to_dict()["errors"]["held_out"]["calibrated"] for r in (via, direct)]
+    assert held[0]["position_rms_mm"] == held[1]["position_rms_mm"]
     # the chain-only options at their defaults are accepted (given or not)
     same = calibrate_tree(tree, data, holdout=0.25, seed=1, fix=(), loss="linear", marker=None)
     np.testing.assert_array_equal(same.estimate, direct.estimate)
-    assert calibrate(tree, data, params="frames").level == "frames"
+    assert calibrate(tree, data, params="frames").params == "frames"
     assert set(TREE_LEVELS) == {"frames", "complete"}
 
 

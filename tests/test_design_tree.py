@@ -12,8 +12,9 @@ from conftest import chain_of
 from pinref import MimicChain, pair_collides
 
 from calib import InvalidArgumentError, analyze
+from calib.calibration.entry import calibrate as calibrate_tree
+from calib.calibration.instrument import tree_points
 from calib.calibration.tree import TreeErrorModel, TreeState
-from calib.calibration.tree_pipeline import calibrate_tree
 from calib.cli.commands import main
 from calib.design.collision import collision_checker
 from calib.design.configurations import parse_configurations
@@ -101,9 +102,7 @@ def test_tree_design_beats_random_sets_and_calibrates_better():
         for q, out in ((d.q, designed), (q_rand, randoms)):
             camp = simulate_tree(tree, q, MARKERS, 1.0, 1.0, 0.05, seed)
             res = calibrate_tree(tree, camp.measurements)
-            state = res.state
-            pred = true_points(state.mdh, q_ref, state.markers) @ state.frame[:3, :3].T
-            pred = pred + state.frame[:3, 3]
+            pred = tree_points(res.chains, tree.paths, q_ref)
             err = np.linalg.norm(pred - true_points(camp.true_mdh, q_ref, MARKERS), axis=2)
             out.append(np.sqrt(np.mean(err**2)))
     assert np.median(designed) < np.median(randoms)

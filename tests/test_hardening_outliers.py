@@ -136,5 +136,5 @@ def test_a_bad_held_out_tree_row_is_set_aside():
     pos = data.position.copy()
     pos[wild - 2] += [0.5, 0.0, 0.0]
     res = calibrate_tree(tree, dataclasses.replace(data, position=pos), holdout=0.3, seed=1)
-    assert res.validation[1].configs == held.m - 1
-    assert any(f"row {wild} (" in w and "held-out statistics" in w for w in res.warnings)
+    assert res.to_dict()["errors"]["held_out"]["calibrated"]["configs"] == held.m - 1
+    assert any(f"row {wild} (" in w and "held-out statistics" in w for w in res.notes)

@@ -10,7 +10,7 @@ import pytest
 import calib
 from calib.calibration.contact_chains import calibrate_contact_chains
 from calib.calibration.contact_pipeline import calibrate_contacts
-from calib.calibration.tree_pipeline import calibrate_tree
+from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.tree import load_tree
@@ -72,8 +72,16 @@ def test_tree_figure_holds_the_reports_errors():
     result = calibrate_tree(tree, campaign.measurements, params="complete", holdout=0.2, seed=1)
     fig = result.plot()
     doc = result.to_dict()
-    check_errors(fig, doc["errors"], "train", "fitted")
-    check_errors(fig, doc["errors"], "held_out", "held out")
+    for k, (term, tool) in enumerate(zip(doc["errors"]["terms"], tree.tool_frames, strict=True)):
+        check_gaps(fig, term, f"{k + 1}: {tool} (position)")  # each tool's rows
+    lines = lines_by_label(fig.axes[0])
+    for part, name in (("train", "fitted"), ("held_out", "held out")):  # every tool's together
+        for stage in ("registration", "calibrated"):
+            y = np.concatenate([lines[f"{k + 1}: {t} (position) {name}: {stage}"] for k, t in
+                                enumerate(tree.tool_frames)])  # fmt: skip
+            want = doc["errors"][part][stage]
+            assert rms(y) == pytest.approx(want["position_rms_mm"], rel=1e-9)
+            assert y.max() == pytest.approx(want["position_max_mm"], rel=1e-9)
     check_parameters(fig, doc)
 
 

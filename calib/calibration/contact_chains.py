@@ -67,6 +67,7 @@ from .contact_pipeline import (
 )
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
+from .instrument import check_tree_rank, instrument_groups, shared_frame
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -100,7 +101,7 @@ CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
 """Parameter levels of several chains (``paper`` is a chain's MDH set)."""
 
 
-def _check(chains, data, validate, params, holdout) -> None:
+def _check(chains, data, validate, params, holdout, instrument=False) -> None:
     if not isinstance(chains, Sequence) or not chains:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
     for c in chains:
@@ -115,14 +116,15 @@ def _check(chains, data, validate, params, holdout) -> None:
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
     if not isinstance(data, Sequence) or len(data) != len(chains):
         raise InvalidArgumentError("give one set of touches per chain")
-    one_term_per_frame(chains, data)
+    if not instrument:
+        one_term_per_frame(chains, data)
     if validate is not None and (
         not isinstance(validate, Sequence) or len(validate) != len(chains)
     ):
         raise InvalidArgumentError("give one validation set (or None) per chain")
     for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
         if isinstance(d, Measurements):
-            check_measured(c, d, v)
+            check_measured(c, d, v, instrument)
             continue
         if isinstance(d, PixelData):
             check_pixels(c, d, v)
@@ -164,7 +166,7 @@ def _check(chains, data, validate, params, holdout) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations: int):
+def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations, shared):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
@@ -192,6 +194,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             state, bad, found, more, held[c] = checked_measured(
                 chain, d, v, held[c], weight, iterations
             )
+            state = dataclasses.replace(state, instrument=shared)
         if isinstance(d, Measurements | PixelPart):
             if found:
                 more.append(outliers.set_aside_note(found))
@@ -248,6 +251,7 @@ def _register(
             shared = dataclasses.replace(mine.frames, objects=owner.frames.objects)
             states[c] = dataclasses.replace(mine, frames=shared)
     scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
+    states = shared_frame(states, train)
     start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):
         return start
@@ -260,7 +264,8 @@ def _register(
             train[0].source,
             f"the registration of the shared plane did not converge ({refined.message})",
         )
-    notes.append("a plane touched by several chains is fitted once (shared planes)")
+    if any(isinstance(s, ContactState) for s in states):
+        notes.append("a plane touched by several chains is fitted once (shared planes)")
     return refined.state
 
 
@@ -284,6 +289,8 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     pl = start.placements
     if level == "frames":
         return None, pl.names(), []
+    if level == "components":  # every component (a tree's complete): the rank keeps a basis
+        return None, pl.names(), list(range(len(pl.names())))
     if level == "offsets":
         offsets = [
             6 * j + COMPONENTS.index(offset_component(pl.model, jid))
@@ -360,6 +367,7 @@ def calibrate_contact_chains(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
+    instrument: bool = False,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -389,6 +397,9 @@ def calibrate_contact_chains(
         seed: Seed of the holdout draw.
         progress: Progress bars of the registration, the selection and the fit
             (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
+        instrument: The measured terms are a tree's tools measured by one instrument outside
+            the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
+            joint placement component.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -399,7 +410,7 @@ def calibrate_contact_chains(
     """
     level = "auto" if params is None else params
     check_run_options(max_iterations, holdout, seed)
-    _check(chains, data, validate, level, holdout)
+    _check(chains, data, validate, level, holdout, instrument)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
@@ -420,10 +431,11 @@ def calibrate_contact_chains(
         for s, v in zip(splits, validate or [None] * len(data), strict=True)
     ]
     plane_of = contact_checks.plane_groups(chains, data, shared_planes)
+    plane_of = instrument_groups(plane_of, data, instrument)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     train, dropped, measured = _checked(
-        chains, train, validate, guess, w, held, notes, max_iterations
+        chains, train, validate, guess, w, held, notes, max_iterations, instrument
     )
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
@@ -433,13 +445,17 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = _flush(start, train)
-        model, _, selection, prior = _choose(start, train, flush, plane_of, level, notes)
+        offer = "components" if instrument and level == "complete" else level
+        model, _, selection, prior = _choose(start, train, flush, plane_of, offer, notes)
         names = start.placements.names()
         wide = _model(start, plane_of, range(len(names)), names)
-        identifiable = len(_structural(wide, start, flush))
+        every = offer == "components"  # its rank kept a basis of every component: counted
+        identifiable = model.size() if every else len(_structural(wide, start, flush))
+        if instrument:
+            check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, train, prior, level, max_iterations)
+        fitted, polished = _fit(model, wide, start, train, prior, offer, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -484,9 +500,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
-    selection, a prior) and ``offsets`` are not polished, nor a fit already exact (RMS row
-    under ``ROUND_OFF``: the undetermined components would only wander), and a polish that
-    wanders to no robot (its chain models refused) is dropped.
+    selection, a prior), ``offsets`` and ``components`` (every component offered) are not
+    polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
+    components would only wander), and a polish that wanders to no robot is dropped.
 
     Returns:
         The fit, and whether it was polished.
@@ -527,7 +543,7 @@ def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state
-    refusal = None if fitted.converged else f"the solver did not converge ({fitted.message})"
+    refusal = None  # a held-out error worse than the registration's first, then the solver
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     cov = None
     for c, chain in enumerate(state.chains):
@@ -586,7 +602,8 @@ def _assemble(
         free=tuple(model.names()[model.fixed :]),
         unknowns=model.size(),
         selection=selection,
-        refusal=refusal,
+        refusal=refusal
+        or (None if fitted.converged else f"the solver did not converge ({fitted.message})"),
         notes=tuple(notes),
         timings_ms={
             k: 1e3 * (b - a) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)

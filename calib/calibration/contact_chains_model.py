@@ -174,12 +174,17 @@ class ChainsModel:
         out = []
         for p, kind in enumerate(self.object_kinds()):
             if isinstance(kind, MeasuredKind | PixelKind):  # a measured or pixel term's own
-                out += [f"term{p + 1}.{n}" for n in kind.names()]
+                own = kind.names()[: len(kind.object_dofs)]
+                tag = "instrument" if getattr(kind, "instrument", False) else f"term{p + 1}"
+                out += [f"{tag}.{n}" for n in own]
                 continue
             for k in range(self._count(p)):
                 tag = f"{kind.object_name}{p + 1}" + (f".{k + 1}" if self._count(p) > 1 else "")
                 out += [f"{tag}_{DOF_NAMES[d]}" for d in kind.object_dofs]
         for c, kind in enumerate(self.chain_kinds()):
+            if isinstance(kind, MeasuredKind):  # beside a shared instrument: markers, tool
+                out += [f"term{c + 1}.{n}" for n in kind.names()[len(kind.object_dofs) :]]
+                continue
             out += [f"contact{c + 1}_{DOF_NAMES[d]}" for d in kind.contact_dofs]
         return (*out, *(self.names_all[k] for k in self.free))
 
@@ -203,9 +208,10 @@ class ChainsModel:
             slice(t, t + len(kind.contact_dofs)),
         )
 
-    def own_columns(self, c: int) -> slice:
+    def own_columns(self, c: int) -> np.ndarray:
         """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
-        return self._chain_columns(c)[0]
+        obj, con = self._chain_columns(c)
+        return np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
 
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
         obj, con = self._chain_columns(c)
@@ -270,7 +276,7 @@ class ChainsModel:
                 J[:, :, self.fixed :] = robot
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, obj] = s0.own_jacobian(s.mdh, self._chain_x(x, c), d)
+            J[:, :, self.own_columns(c)] = s0.own_jacobian(s.mdh, self._chain_x(x, c), d)
             if self.free:
                 J[:, :, self.fixed :] = measured_columns(
                     state.placements, state.chains[c], s, state.frames[c], d, self._lift()

@@ -11,11 +11,17 @@ from ..core.fileio import check_outputs, write_atomic
 from ..exceptions import CalibrationRefusedError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
-from ..kinematics.placement_export import camera_urdf, moved_origins_urdf, write_moved_origins_urdf
+from ..kinematics.placement_export import (
+    camera_urdf,
+    marker_urdf,
+    moved_origins_urdf,
+    write_moved_origins_urdf,
+)
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
 from .delivery import Delivered, RowErrors
+from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
@@ -125,7 +131,8 @@ class MeasuredChain:
     Attributes:
         chain: The nominal chain (its base frame: the measuring frame).
         source: Its measurements' file (or description).
-        joint: The fixed joint that places the measuring frame on its link.
+        joint: The fixed joint that places the measuring frame on its link (None: an
+            instrument outside the robot, :mod:`.instrument`).
         registered: Its registration on the nominal robot.
         state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
             frame; markers and measured-frame rotation in the tool frame).
@@ -138,7 +145,7 @@ class MeasuredChain:
 
     chain: Chain
     source: str
-    joint: str
+    joint: str | None
     registered: MeasuredState
     state: MeasuredState
     stats: dict[str, GapStats]
@@ -199,8 +206,9 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
     if held is not None:
         stats["held_out"] = measured_stats(state, held)
         stats["held_out_registration"] = measured_stats(registered, held)
-    joint = measuring_joint(chain)
-    names = [f"term{term}.{n}" for n in state.kind.names()]
+    joint = None if state.instrument else measuring_joint(chain)
+    frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
+    names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
@@ -230,6 +238,8 @@ class ContactChainsCalibration(Delivered):
         unknowns: The unknowns the data determine (the structural rank at the nominal
             robot): the objects', contacts' and measured terms' own, and the joint placement
             directions kept (``free``).
+        shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
+            instrument (:mod:`.instrument`).
         identifiable: The rank of the rows' Jacobian over every unknown and every joint
             placement component, at the nominal robot (flush touches): what the data
             determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
@@ -253,11 +263,18 @@ class ContactChainsCalibration(Delivered):
     solver: tuple[bool, str, int] = (True, "", 0)
     unknowns: int = 0
     identifiable: int = 0
+    shape: str = "chains"
 
     @property
     def accepted(self) -> bool:
         """The model may be used (not refused)."""
         return self.refusal is None
+
+    def check(self) -> ContactChainsCalibration:
+        """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
+        if self.refusal is not None:
+            raise CalibrationRefusedError(self.refusal)
+        return self
 
     def joint_errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
@@ -266,11 +283,16 @@ class ContactChainsCalibration(Delivered):
         """
         out = self.placements.errors()
         for c in self._measured():
-            out[c.joint] = c.placement_error()
+            if c.joint is not None:
+                out[c.joint] = c.placement_error()
         return out
 
     def _measured(self) -> tuple[MeasuredChain, ...]:
         return tuple(c for c in self.chains if isinstance(c, MeasuredChain))
+
+    def _instrument(self) -> tuple[MeasuredChain, ...]:
+        """The terms measured by an instrument outside the robot (a tree's tools)."""
+        return tuple(c for c in self._measured() if c.joint is None)
 
     def _contacts(self) -> tuple[ChainContacts, ...]:
         return tuple(c for c in self.chains if isinstance(c, ChainContacts))
@@ -295,7 +317,7 @@ class ContactChainsCalibration(Delivered):
             "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._contacts()},
             "world_link": None,
             "tool_link": None,
-            "on_robot": bool(measured) or bool(cameras),
+            "on_robot": any(c.joint is not None for c in measured) or bool(cameras),
             **({"cameras": cameras} if cameras else {}),
         }
 
@@ -317,7 +339,7 @@ class ContactChainsCalibration(Delivered):
         fields = {
             "robot": first.name,
             "urdf": str(first.urdf_path),
-            "shape": "chains",
+            "shape": self.shape,
             "terms": [
                 term_dict(
                     c.chain.base_frame,
@@ -330,13 +352,12 @@ class ContactChainsCalibration(Delivered):
             ],
             **verdict(self.params, self.refusal, self.solver),
             "parameters": [
-                *(p for c in self._measured() for p in c.parameters),
+                *{p["name"]: p for c in self._measured() for p in c.parameters}.values(),
                 *(p for c in self._pixels() for p in c.parameters),
                 *parameter_entries(self.fitted, self.estimate, self.std, names),
             ],
             "errors": {
-                "train": None,
-                "held_out": None,
+                **instrument_errors(self._instrument()),
                 "terms": [c.errors() for c in self.chains],
             },
             "frames": self._frames(),
@@ -367,6 +388,9 @@ class ContactChainsCalibration(Delivered):
 
     def _format2(self) -> dict:
         """Format 2's keys that format 3 replaced (written until format 4)."""
+        measured = self._instrument()
+        if self.shape == "tree":  # a tree's own keys of format 2
+            return instrument_format2(measured)
         return {
             "measure": "plane",
             "chains": [c.to_dict() for c in self.chains],
@@ -411,9 +435,14 @@ class ContactChainsCalibration(Delivered):
                     f"{n} [{'deg' if a else 'mm'}]"
                     for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
                 ]
+                where = (
+                    "the instrument"
+                    if c.joint is None
+                    else f"the measuring frame in joint '{c.joint}'"
+                )
                 lines.append(
                     f"{c.chain.base_frame} -> {c.chain.tool_frame}, measured {c.kind.label} "
-                    f"(errors: {', '.join(units)}; the measuring frame in joint '{c.joint}'):"
+                    f"(errors: {', '.join(units)}; {where}):"
                 )
             elif not isinstance(c.kind, PlaneContact):
                 units = [
@@ -429,6 +458,7 @@ class ContactChainsCalibration(Delivered):
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
                 rows = "touches" if isinstance(c, ChainContacts) else "configurations"
                 lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
+        lines += instrument_lines(self._instrument())
         names = tuple(self.chains[0].chain.model.names)
         lines += parameter_lines(parameter_entries(self.fitted, self.estimate, self.std, names))
         lines += [f"note: {n}" for n in self.notes]
@@ -454,6 +484,9 @@ class ContactChainsCalibration(Delivered):
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
             return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
+        if self._instrument():  # each tool's markers as links (a tree's)
+            marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
+            return marker_urdf(self.chains[0].chain, self.joint_errors(), marks)
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:
@@ -464,7 +497,7 @@ class ContactChainsCalibration(Delivered):
         """
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        if self._cameras():
+        if self._cameras() or self._instrument():
             check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
             write_atomic(path, self.urdf())
             return

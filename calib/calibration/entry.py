@@ -3,9 +3,10 @@
 ``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
 is the problem of one term. The problem's shape picks the model that fits it: one chain
 measured (:func:`~.pipeline.calibrate_chain`, the MDH chart with its registration moments),
-a tree (:func:`~.tree_pipeline.calibrate_tree`), one chain touching
-(:func:`~.contact_pipeline.calibrate_contacts`) or several terms whose joints are shared
-(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements). Each takes the
+one chain touching (:func:`~.contact_pipeline.calibrate_contacts`), or several terms whose
+joints are shared (:func:`~.contact_chains.calibrate_contact_chains`, URDF joint
+placements): a tree measured by one instrument is such a problem, one measured term per tool
+sharing the instrument's frame (:mod:`~.instrument`, :mod:`~.tree_checks`). Each takes the
 steps of every calibration: prepare (checks, held-out rows, validation data that are the
 training data refused), register, set outliers aside, diagnose usual mistakes, choose the
 parameters, fit, assess (a model worse than its start on held-out data is refused) and
@@ -15,6 +16,7 @@ deliver a result with ``summary()``, ``to_dict()`` (report format 3), ``urdf()``
 
 from __future__ import annotations
 
+import dataclasses
 from typing import cast, overload
 
 from ..core.checks import MAX_ROWS, check_size
@@ -25,16 +27,17 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_chains import calibrate_contact_chains
+from .contact_chains_result import ContactChainsCalibration
 from .contact_pipeline import calibrate_contacts
 from .contact_result import ContactCalibration
 from .delivery import Result
-from .options import DEFAULT_MAX_ITERATIONS, checked_arguments
+from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
 from .pipeline import calibrate_chain
 from .problem import Problem, Term
 from .result import CalibrationResult
-from .tree_pipeline import TreeCalibrationResult, calibrate_tree
+from .tree_checks import prepare_tree
 
-__all__ = ["calibrate"]
+__all__ = ["calibrate", "calibrate_tree"]
 
 
 @overload
@@ -74,7 +77,7 @@ def calibrate(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
-) -> TreeCalibrationResult: ...
+) -> ContactChainsCalibration: ...
 
 
 @overload
@@ -221,21 +224,49 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
             progress=progress,
         )
     if shape == "tree":
-        if term.guess is not None:
-            raise InvalidArgumentError(
-                "marker is for one chain: a tree's markers are registered in closed form"
-            )
-        return calibrate_tree(
-            cast(Tree, term.robot),
-            cast(Measurements, term.data),
-            params=p.params,
-            validate=cast(Measurements | None, term.validate),
-            max_iterations=p.max_iterations,
-            holdout=p.holdout,
-            seed=p.seed,
-            progress=progress,
-        )
+        return _tree(p, term, progress)
     return calibrate_chain(term.robot, term.data, term.guess, term.validate, p.options(), progress)
+
+
+calibrate_tree = calibrate
+"""The name :func:`calibrate` had for trees (a tree is one of its problems)."""
+
+
+def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
+    """A tree measured by one instrument: a joint fit of one measured term per tool.
+
+    The terms share the instrument's frame and the joints they run through
+    (:mod:`~.instrument`); the level is a tree's (:data:`~.options.TREE_LEVELS`, default
+    ``complete``).
+    """
+    if term.guess is not None:
+        raise InvalidArgumentError(
+            "marker is for one chain: a tree's markers are registered in closed form"
+        )
+    tree = cast(Tree, term.robot)
+    level = DEFAULT_TREE_LEVEL if problem.params is None else problem.params
+    dataclasses.replace(problem.options(), level=level).for_tree()
+    validate = cast(Measurements | None, term.validate)
+    data, held = prepare_tree(
+        tree, cast(Measurements, term.data), validate, problem.holdout, problem.seed
+    )
+    result = calibrate_contact_chains(
+        list(tree.chains),
+        data,
+        params=level,
+        validate=held,
+        max_iterations=problem.max_iterations,
+        seed=problem.seed,
+        progress=progress,
+        instrument=True,
+    )
+    if validate is None:  # rows held out of the data: labelled so
+        chains = tuple(
+            c if c.held_source is None else dataclasses.replace(c, held_source="holdout")
+            for c in result.chains
+        )
+        result = dataclasses.replace(result, chains=chains)
+    return dataclasses.replace(result, shape="tree")
 
 
 def _validated(problem: Problem) -> bool:

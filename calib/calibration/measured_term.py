@@ -67,13 +67,16 @@ class MeasuredKind:
     Attributes:
         n_markers: Points measured per configuration K.
         pose: The measured frame's orientation is measured too (pose data).
+        instrument: Measured by an instrument outside the robot whose frame every such term
+            shares (a tree's tools): the frame's 6 unknowns are the term's object (one for
+            all), its markers and tool rotation its own (the contact's place in a joint fit).
     """
 
     n_markers: int
     pose: bool
+    instrument: bool = False
 
     object_name = "frame"
-    contact_dofs: tuple[int, ...] = ()
 
     @property
     def label(self) -> str:
@@ -87,8 +90,13 @@ class MeasuredKind:
 
     @property
     def object_dofs(self) -> tuple[int, ...]:
-        """One index per unknown (the term's columns of a joint fit)."""
-        return tuple(range(len(self.names())))
+        """One index per unknown of the term's object: all of them, the frame's (instrument)."""
+        return tuple(range(len(FRAME_NAMES) if self.instrument else len(self.names())))
+
+    @property
+    def contact_dofs(self) -> tuple[int, ...]:
+        """The term's own unknowns beside a shared instrument frame (else none)."""
+        return tuple(range(len(self.object_dofs), len(self.names())))
 
     @property
     def row_names(self) -> tuple[str, ...]:
@@ -127,15 +135,19 @@ def measuring_joint(chain: Chain) -> str:
         ) from None
 
 
-def check_measured(chain: Chain, data: Measurements, held) -> None:
+def check_measured(chain: Chain, data: Measurements, held, instrument: bool = False) -> None:
     """A measured term's data: its chain's joints, one tool, held-out rows of its kind.
+
+    ``instrument``: measured by an instrument outside the robot (its base frame need not be
+    on the robot).
 
     Raises:
         InvalidArgumentError: The base frame is not on the robot, validation rows of another
             kind (touches, pose against position, other markers), or several tools.
         DataError: The measurements' joints are not the chain's.
     """
-    measuring_joint(chain)
+    if not instrument:
+        measuring_joint(chain)
     for part in (data, held) if held is not None else (data,):
         if not isinstance(part, Measurements):
             raise InvalidArgumentError(
@@ -179,15 +191,20 @@ class MeasuredState:
         inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
             ``frame`` the pose of the nominal base frame in the measuring frame).
         weight: Weight of the rotation rows [m/rad].
+        instrument: Measured by an instrument outside the robot, shared by every such term
+            (:attr:`MeasuredKind.instrument`).
     """
 
     inner: State
     weight: float
+    instrument: bool = False
 
     @property
     def kind(self) -> MeasuredKind:
         """The term's layout."""
-        return MeasuredKind(self.inner.n_markers, self.inner.tool_rotation is not None)
+        return MeasuredKind(
+            self.inner.n_markers, self.inner.tool_rotation is not None, self.instrument
+        )
 
     @property
     def mdh(self):

@@ -1,10 +1,9 @@
 """The options of a calibration, chain or tree: one value, one check; cheap to import.
 
 The command line builds its parser from the constants here without importing the
-calibration itself. :func:`~calib.calibration.entry.calibrate` and
-:func:`~calib.calibration.tree_pipeline.calibrate_tree` take the same keyword-only
-arguments and turn them into one :class:`Options`, checked once when it is made; a tree
-refuses (:meth:`Options.for_tree`) what only a chain's calibration can honour.
+calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
+arguments for a chain and a tree and turns them into one :class:`Options`, checked once when
+it is made; a tree refuses (:meth:`Options.for_tree`) what only a chain's calibration can honour.
 """
 
 from __future__ import annotations

@@ -264,9 +264,8 @@ def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Pa
 
 def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
+    from ..calibration.entry import calibrate
     from ..calibration.options import TREE_LEVELS
-    from ..calibration.tree_pipeline import calibrate_tree
-    from ..kinematics.tree_export import calibrated_tree_urdf
     from ..kinematics.urdf_export import check_exportable
     from ..measurements.csvfile import Columns, read_measurements
 
@@ -291,7 +290,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
-    result = calibrate_tree(
+    result = calibrate(
         tree,
         data,
         params=level,
@@ -305,9 +304,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
         result.to_dict(),
         result.summary,
         result.refusal,
-        lambda: {
-            out: calibrated_tree_urdf(tree, result.nominal, result.state.mdh, result.state.markers)
-        },
+        lambda: {out: result.urdf()},
         (out, report),
         recorded,
         result,

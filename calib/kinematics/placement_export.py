@@ -18,6 +18,7 @@ from ..exceptions import CalibError, InvalidArgumentError
 from .robot import Chain
 from .urdf_export import (
     child_link,
+    edited_joints,
     origin_of,
     parent_link,
     read_urdf_source,
@@ -25,10 +26,16 @@ from .urdf_export import (
     spliced,
     xml_layout,
 )
-from .urdf_links import set_fixed_link
+from .urdf_links import add_marker_links, set_fixed_link
 from .urdf_xml import parse_xml
 
-__all__ = ["camera_placement", "camera_urdf", "moved_origins_urdf", "write_moved_origins_urdf"]
+__all__ = [
+    "camera_placement",
+    "camera_urdf",
+    "marker_urdf",
+    "moved_origins_urdf",
+    "write_moved_origins_urdf",
+]
 
 
 def moved_origins_urdf(chain: Chain, errors: dict[str, np.ndarray]) -> bytes:
@@ -106,4 +113,29 @@ def camera_urdf(
     root = parse_xml(raw, src)
     for name, link, T in cameras:
         set_fixed_link(root, name, link, T)
+    return spliced(raw, root, start, stop)
+
+
+def marker_urdf(
+    chain: Chain, errors: dict[str, np.ndarray], markers: tuple[tuple[Chain, np.ndarray], ...]
+) -> bytes:
+    """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
+
+    Args:
+        chain: Any chain of the robot (its ``urdf_path`` is read).
+        errors: ``E_j`` ``(4, 4)`` by URDF joint name.
+        markers: ``(chain to the tool, its markers in the tool frame (K, 3) [m])`` of each
+            tool: each marker a link fixed to the tool's link
+            (:func:`~.urdf_links.add_marker_links`).
+
+    Raises:
+        CalibError: A tool not carried by a fixed joint, or a marker link's name taken.
+    """
+    raw = moved_origins_urdf(chain, errors)
+    src = str(chain.urdf_path)
+    start, stop = xml_layout(raw, src)
+    root = parse_xml(raw, src)
+    for tool_chain, points in markers:
+        tool_link = child_link(edited_joints(root, tool_chain)[1])
+        add_marker_links(root, tool_chain.tool_frame, tool_link, points)
     return spliced(raw, root, start, stop)

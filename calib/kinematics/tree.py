@@ -31,7 +31,7 @@ from .robot import (
 )
 from .urdf_model import read_urdf_file
 
-__all__ = ["Tree", "load_robot", "load_tree"]
+__all__ = ["Tree", "load_robot", "load_tree", "tree_of_chains"]
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
