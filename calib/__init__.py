@@ -167,6 +167,7 @@ __all__ = [
     "CalibrationRefusedError",
     "Chain",
     "ChainError",
+    "Columns",
     "ContactData",
     "ConvergenceError",
     "DataError",
