@@ -54,7 +54,8 @@ def heldout_mm(chain, q, measure, seed):
 
 
 def test_one_design_beats_random_sets_on_every_index():
-    one = calib.design(calib.load_chain("panda"), 30, candidates=2000, seed=0)
+    panda = calib.load_chain("panda")
+    one = calib.design(panda, 30, candidates=2000, measure="position", params="complete", seed=0)
     assert all(one.indices.better(r, "D") for r in one.random)
     assert one.indices.i < one.random_median("I") and one.indices.cond < one.random_median("cond")
 
@@ -100,7 +101,9 @@ def test_each_criterion_wins_its_own_index(robots, candidates):
 def test_payoff_after_the_default_calibration(robots):
     ratios = []
     for chain in robots.values():
-        d = calib.design(chain, K, candidates=2000, markers=MARKER)  # the command's design
+        d = calib.design(
+            chain, K, candidates=2000, measure="position", params="complete", markers=MARKER
+        )
         q_cand = candidate_configurations(chain, 2000, seed=0)  # its candidates
         q_cand = q_cand[filter_candidates(chain, q_cand, [MARKER], Constraints())[0]]
         measured, pred = defaultdict(list), defaultdict(list)

@@ -126,13 +126,18 @@ def test_trees_count_4r_2p_6t_and_sharing_removes_the_repeats(pose_rows):
 
 def test_talos_limbs_alone_against_the_whole_tree():
     talos = calib.load_tree("talos")
-    alone = {t: calib.analyze("talos", tool=t, params="complete").n_base for t in talos.tool_frames}
-    whole = calib.analyze("talos", params="complete")
-    arms = calib.analyze("talos", tool=list(talos.tool_frames[:2]), params="complete")
+    alone = {
+        t: calib.analyze("talos", tool=t, measure="pose", params="complete").n_base
+        for t in talos.tool_frames
+    }
+    whole = calib.analyze("talos", measure="pose", params="complete")
+    arms = calib.analyze(
+        "talos", tool=list(talos.tool_frames[:2]), measure="pose", params="complete"
+    )
     assert sum(alone.values()) - whole.n_base == 2 * 2 * 4
     assert alone[talos.tool_frames[0]] + alone[talos.tool_frames[1]] - arms.n_base == 2 * 4
     assert whole.n_base == whole.n_complete == 4 * 30 + 6 * 5 == 150
-    paper = calib.analyze("talos", params="paper")
+    paper = calib.analyze("talos", measure="pose", params="paper")
     assert paper.n_base + len(paper.missing) == whole.n_base
     first_joints = {k for k in range(1, paper.mdh.n + 1) if paper.mdh.antecedent[k] == 0}
     missing_rows = {int(name.lstrip("betay")) for name in paper.missing_parameters}
