@@ -121,8 +121,10 @@ def test_notebook_runs(path: Path, tmp_path: Path):
     outputs = _outputs_of(nb)
     errors = [o for o in outputs if o.output_type == "error"]
     assert not errors, errors
-    # Figures from calib.outputs.plots must show inline as images, not as "<Figure size ...>" text.
-    if "_figure(" in "".join(c.source for c in nb.cells if c.cell_type == "code"):
+    # Figures (calib's plots, ``result.plot()``, matplotlib's) must show inline as images, not
+    # as "<Figure size ...>" text.
+    code = "".join(c.source for c in nb.cells if c.cell_type == "code")
+    if any(k in code for k in ("_figure(", ".plot()", "Figure(")):
         assert any("image/png" in o.get("data", {}) for o in outputs), (
             f"{path.name} builds figures but displays none"
         )
