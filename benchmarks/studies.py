@@ -16,7 +16,8 @@ design study's figure, as the notebooks did.
   problem.
 
 Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/studies.py realdata|design|contacts``
-(realdata about 10 s, design about 60 s, contacts about 20 s at load 2 on 2 cores).
+(realdata about 10 s, contacts about 20 s, design a few minutes; measured at load 10 to 12
+on 2 cores).
 """
 
 from __future__ import annotations
