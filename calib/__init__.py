@@ -166,6 +166,7 @@ __all__ = [
     "CalibrationRefusedError",
     "Chain",
     "ChainError",
+    "Columns",
     "ContactData",
     "ConvergenceError",
     "DataError",

@@ -4,12 +4,15 @@ Each notebook is executed with nbclient in a temporary copy of notebooks/ (nothi
 written into the repository), by a kernel that runs this very interpreter: a private
 kernelspec named ``python3`` whose argv is ``sys.executable``, so a ``python3`` kernelspec
 installed elsewhere (user or system Jupyter) cannot pick another Python without calib.
-The notebooks' own ``assert`` cells check calib's numbers, so a regression fails here.
+The notebooks are tutorials: they carry no test ``assert`` (their figures are checked by
+tests/test_study_*.py), no issue numbers, and import only calib's public face (``import
+calib``; ``calib.__all__`` and ``calib.design``).
 """
 
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -82,6 +85,28 @@ def test_notebook_is_committed_without_outputs(path: Path):
     assert not counted, f"{path.name}: cells {counted} have execution counts"
 
 
+ASSERT = re.compile(r"^\s*assert\b", re.MULTILINE)
+ISSUE = re.compile(r"\bissues?\s+#?\d+", re.IGNORECASE)
+DEEP_IMPORT = re.compile(r"^\s*(from|import)\s+calib\.(?!design\b)", re.MULTILINE)
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_notebook_is_a_tutorial(path: Path):
+    """No test asserts, no issue numbers, only the public API (``import calib``)."""
+    nb = nbformat.read(path, as_version=4)
+    code = "\n".join(c.source for c in nb.cells if c.cell_type == "code")
+    text = "\n".join(c.source for c in nb.cells)
+    assert not ASSERT.findall(code), f"{path.name}: test asserts belong in tests/"
+    assert not ISSUE.findall(text), f"{path.name}: mentions {ISSUE.findall(text)}"
+    deep = [m.group(0).strip() for m in DEEP_IMPORT.finditer(code)]
+    assert not deep, f"{path.name} imports calib's modules: {deep}"
+    names = set(re.findall(r"\bcalib\.((?!__)\w+)", code))  # dunders (__file__) are fine
+    import calib
+
+    private = sorted(names - set(calib.__all__) - {"design"})
+    assert not private, f"{path.name} uses calib names outside calib.__all__: {private}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_notebook_runs(path: Path, tmp_path: Path):
@@ -96,8 +121,10 @@ def test_notebook_runs(path: Path, tmp_path: Path):
     outputs = _outputs_of(nb)
     errors = [o for o in outputs if o.output_type == "error"]
     assert not errors, errors
-    # Figures from calib.outputs.plots must show inline as images, not as "<Figure size ...>" text.
-    if "_figure(" in "".join(c.source for c in nb.cells if c.cell_type == "code"):
+    # Figures (calib's plots, ``result.plot()``, matplotlib's) must show inline as images, not
+    # as "<Figure size ...>" text.
+    code = "".join(c.source for c in nb.cells if c.cell_type == "code")
+    if any(k in code for k in ("_figure(", ".plot()", "Figure(")):
         assert any("image/png" in o.get("data", {}) for o in outputs), (
             f"{path.name} builds figures but displays none"
         )
