@@ -66,7 +66,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     cv2 = opencv()
     joints = read_image_joints(args.joints)
     found = detect_images(images, board, joints, args.camera)
-    files = {Path(args.out): observations_csv(found.observations)}
+    files: dict[Path, str | bytes] = {Path(args.out): observations_csv(found.observations)}
     if args.target:
         files[Path(args.target)] = target_csv(board.target(cv2))
     intrinsics = None

@@ -11,7 +11,7 @@ board's outline), the ``TARGET.csv`` of ``calib calibrate --measure pixels``.
 
 Pixels follow OpenCV: ``u`` the column, ``v`` the row, the centre of the top-left pixel at
 ``(0, 0)``. Corners are refined to a tenth of a pixel or better (``cv2.cornerSubPix`` for a
-checkerboard; the ChArUco interpolation refines its own).
+checkerboard and an ArUco grid's markers; the ChArUco interpolation refines its own).
 
 Ids: a ChArUco corner's id is OpenCV's (row-major from the board's first inner corner); an
 ArUco grid's corner ``M_c`` is corner ``c`` (0..3, clockwise from the marker's top left) of
@@ -171,17 +171,20 @@ class Board:
         return board
 
     def corners(self, cv2: ModuleType) -> tuple[tuple[str, ...], np.ndarray]:
-        """Every corner's id and position in the board's frame ``(k, 3)`` [m]."""
-        board = self.opencv_board(cv2)
-        if board is None:
+        """Every corner's id and position in the board's frame ``(k, 3)`` [m].
+
+        Computed in double precision from the board's lengths (OpenCV's boards hold them in
+        single precision), in OpenCV's order.
+        """
+        if self.kind != "aruco":  # the inner corners, row by row
             inner = [(i, j) for j in range(1, self.rows) for i in range(1, self.columns)]
             xyz = np.array([(i * self.square, j * self.square, 0.0) for i, j in inner])
             return tuple(str(k) for k in range(len(xyz))), xyz
-        if self.kind == "charuco":
-            xyz = np.asarray(board.getChessboardCorners(), float).reshape(-1, 3)
-            return tuple(str(k) for k in range(len(xyz))), xyz
-        ids = np.asarray(board.getIds()).ravel()
-        xyz = np.asarray(board.getObjPoints(), float).reshape(-1, 3)
+        step = self.marker + self.separation
+        quad = np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]) * self.marker
+        ids = np.ravel(self.opencv_board(cv2).getIds())
+        xy = [quad + np.array([i, j]) * step for j in range(self.rows) for i in range(self.columns)]
+        xyz = np.column_stack([np.concatenate(xy), np.zeros(4 * len(xy))])
         return tuple(f"{m}_{c}" for m in ids for c in range(4)), xyz
 
     def target(self, cv2: ModuleType) -> Target:
@@ -243,7 +246,9 @@ def _charuco(gray: np.ndarray, board: Board, cv2: ModuleType) -> Detection:
 
 def _aruco(gray: np.ndarray, board: Board, cv2: ModuleType) -> Detection:
     grid = board.opencv_board(cv2)
-    detector = cv2.aruco.ArucoDetector(grid.getDictionary())
+    parameters = cv2.aruco.DetectorParameters()
+    parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    detector = cv2.aruco.ArucoDetector(grid.getDictionary(), parameters)
     corners, ids, rejected = detector.detectMarkers(gray)
     if ids is not None and len(ids):
         corners, ids = detector.refineDetectedMarkers(gray, grid, corners, ids, rejected)[:2]

@@ -66,9 +66,7 @@ class ImageJoints:
         if not rows:
             raise DataError(self.source, f"no row for image {path} (column '{IMAGE_COLUMN}')")
         if len(rows) > 1:
-            raise DataError(
-                self.source, f"image {path} has several rows", row=self.lines[rows[1]]
-            )
+            raise DataError(self.source, f"image {path} has several rows", row=self.lines[rows[1]])
         return rows[0]
 
 
@@ -101,7 +99,13 @@ def read_image_joints(path: str | Path) -> ImageJoints:
         if not image:
             raise DataError(source, "empty cell", row=line, column=IMAGE_COLUMN)
         images.append(image)
-        q.append([parse_number(c, source, line, n) for c, n in zip(cells, names) if n in joints])
+        q.append(
+            [
+                parse_number(c, source, line, n)
+                for c, n in zip(cells, names, strict=True)
+                if n in joints
+            ]
+        )
         lines.append(line)
     if not images:
         raise DataError(source, "no row: one row per image")
@@ -141,9 +145,7 @@ def _read_image(path: Path, cv2) -> np.ndarray:
     return image
 
 
-def detect_images(
-    paths: list[Path], board: Board, joints: ImageJoints, camera: str
-) -> ImageSet:
+def detect_images(paths: list[Path], board: Board, joints: ImageJoints, camera: str) -> ImageSet:
     """Find the board in each image; its corners with the image's joint readings.
 
     Args:
@@ -175,7 +177,9 @@ def detect_images(
         found.append(detect_board(image, board))
     if not any(d.found for d in found):
         raise DataError(str(paths[0]), f"no {board.kind} board found in any of {len(paths)} images")
-    q = np.concatenate([np.repeat(joints.q[r][None], len(d.point), 0) for r, d in zip(rows, found)])
+    q = np.concatenate(
+        [np.repeat(joints.q[r][None], len(d.point), 0) for r, d in zip(rows, found, strict=True)]
+    )
     obs = PixelObservations(
         joints.joint_names,
         q,
@@ -184,4 +188,5 @@ def detect_images(
         np.concatenate([d.pixels for d in found]),
         source="<detected>",
     )
-    return ImageSet(obs, tuple(found), tuple(paths), int(size[0]), int(size[1]))
+    width, height = size or (0, 0)
+    return ImageSet(obs, tuple(found), tuple(paths), int(width), int(height))
