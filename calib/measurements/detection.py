@@ -117,7 +117,7 @@ class Board:
                     f"got {value!r:.40}"
                 )
         self._check_lengths()
-        if self.kind != "checkerboard" and not self.dictionary.startswith("DICT_"):
+        if not isinstance(self.dictionary, str) or not self.dictionary.startswith("DICT_"):
             raise InvalidArgumentError(
                 f"an ArUco dictionary is named as OpenCV's, e.g. DICT_6X6_250, got "
                 f"{self.dictionary!r:.40}"
@@ -130,9 +130,10 @@ class Board:
             "charuco": ("square", "marker"),
             "aruco": ("marker", "separation"),
         }[self.kind]
-        for name in need:
+        for name in ("square", "marker", "separation"):
             value = getattr(self, name)
-            if not isinstance(value, float | int) or not 0 < value < 1:
+            number = isinstance(value, float | int) and not isinstance(value, bool)
+            if not number or not 0 <= value < 1 or (name in need and value == 0):
                 raise InvalidArgumentError(
                     f"the board's {name} length is in metres, in (0, 1), got {value!r:.40}"
                 )
@@ -223,7 +224,7 @@ def _gray(image: np.ndarray, cv2: ModuleType) -> np.ndarray:
 
 def _checkerboard(gray: np.ndarray, board: Board, cv2: ModuleType) -> Detection:
     pattern = (board.columns - 1, board.rows - 1)
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE + cv2.CALIB_CB_FAST_CHECK
     found, corners = cv2.findChessboardCorners(gray, pattern, flags=flags)
     if not found:
         return Detection((), np.zeros((0, 2)))
