@@ -237,6 +237,16 @@ def test_bad_boards_are_one_line(capsys, tmp_path, options, message):
     assert code == 2 and err.count("\n") == 1 and message in err
 
 
+def test_a_legacy_charuco_board_is_found_only_as_legacy():
+    """OpenCV 4.6 swapped the squares of ChArUco boards with an even number of rows."""
+    legacy = Board("charuco", 5, 6, 0.04, 0.03, legacy=True)
+    current = Board("charuco", 5, 6, 0.04, 0.03)
+    for made, other in ((legacy, current), (current, legacy)):
+        image = made.opencv_board(cv2).generateImage((500, 600), marginSize=40)
+        assert len(detect_board(image, made).point) == 4 * 5
+        assert not detect_board(image, other).found
+
+
 def test_a_board_with_a_length_that_is_no_number_is_refused():
     with pytest.raises(InvalidArgumentError, match="separation length is in metres"):
         Board("charuco", 7, 5, 0.06, 0.045, "DICT_4X4_50")  # type: ignore[arg-type]
