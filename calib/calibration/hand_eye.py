@@ -10,9 +10,11 @@ stay nominal (for a robot already calibrated, or to compare with hand-eye solver
 
 Steps: the camera placed in closed form on the target as given
 (:func:`~.pixel_fit.camera_from_rays`) unless a placement is given, refined alone
-(:func:`~.pixel_fit.refine_camera`), then the pixel fit's Levenberg-Marquardt on the
-camera's and the mounting's 12 columns of the pixel term's analytic Jacobian
-(:func:`~.pixel_term.pixel_jacobian`).
+(:func:`~.pixel_fit.refine_camera`), then Levenberg-Marquardt (``scipy.optimize.least_squares``)
+on the camera's and the mounting's 12 steps composed into the start
+(:func:`~.pixel_term.apply_step`), with the pixel term's analytic Jacobian at the moved state
+(:func:`~.pixel_term.pixel_jacobian`): its columns are the derivatives by a step composed
+there, so the fit's stationary points are those of the reprojection error.
 """
 
 from __future__ import annotations
@@ -24,13 +26,15 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..measurements.pixels import PixelObservations, Target
-from .pixel_fit import MAX_STEPS, PixelView, camera_from_rays, rays, refine_camera
-from .pixel_fit import _solve as solve_columns
+from .pixel_fit import camera_from_rays, rays, refine_camera
 from .pixel_term import (
     PixelCamera,
+    PixelRows,
     PixelState,
     Unknowns,
+    apply_step,
     check_in_front,
+    pixel_jacobian,
     pixel_residuals,
     pixel_rows,
     target_points,
@@ -40,6 +44,9 @@ from .placements import Placements
 __all__ = ["HandEye", "hand_eye"]
 
 _MOUNT = Unknowns(mount=True)
+
+MAX_EVALUATIONS = 200
+"""Most residual evaluations of the fit."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,10 +108,31 @@ def hand_eye(chain: Chain, camera: PixelCamera, target: Target, obs: PixelObserv
     state = PixelState(placements, np.asarray(guess, float), points, lens)
     check_in_front(target_points(state, chain, rows)[0], rows, obs.source)
     state = refine_camera(state, chain, rows)
-    n = placements.y.size  # the joint placement columns, between the camera's and the mount's
-    free = (*range(6), *range(6 + n, 12 + n))
-    view = PixelView(chain, rows)
-    fitted = solve_columns((state,), (view,), free, _MOUNT, MAX_STEPS)[0]
+    fitted = _fit(state, chain, rows)
     r = pixel_residuals(fitted, chain, rows)
     rms = float(np.sqrt(np.mean(r**2)))
     return HandEye(fitted.camera, _rigid(points, fitted.target), fitted.target, rms)
+
+
+def _fit(start: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
+    """Levenberg-Marquardt on the camera's and the mounting's 12 steps from ``start``."""
+    from scipy.optimize import least_squares
+
+    n = start.placements.y.size  # the joint placement columns, between the camera and mount
+    free = np.r_[0:6, 6 + n : 12 + n]
+
+    def moved(x: np.ndarray) -> PixelState:
+        step = np.zeros(12 + n)
+        step[free] = x
+        return apply_step(start, step, _MOUNT)
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return pixel_residuals(moved(x), chain, rows).ravel()
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        J = pixel_jacobian(moved(x), chain, rows, _MOUNT)[1]
+        return J.reshape(-1, J.shape[2])[:, free]
+
+    found = least_squares(residuals, np.zeros(12), jacobian, method="lm", xtol=1e-15,
+                          ftol=1e-15, gtol=1e-15, max_nfev=MAX_EVALUATIONS)  # fmt: skip
+    return moved(found.x)
