@@ -4,7 +4,8 @@
 output).
 
 The commands live in one module per group (:mod:`.analysis_cli`, :mod:`.simulate_cli`,
-:mod:`.calibrate_cli`, :mod:`.design_cli`, :mod:`.predict_cli`); what they share is in
+:mod:`.calibrate_cli`, :mod:`.design_cli`, :mod:`.predict_cli`,
+:mod:`.detect_cli`); what they share is in
 :mod:`.common`.
 """
 
@@ -28,6 +29,7 @@ from .analysis_cli import add_analysis_parsers, add_demo_parser, add_sweep_parse
 from .calibrate_cli import add_calibrate_parser
 from .common import GIVEN, Parser, one_line, warning_lines
 from .design_cli import add_design_parser
+from .detect_cli import add_detect_parser
 from .predict_cli import add_predict_parser
 from .simulate_cli import add_simulate_parser
 
@@ -55,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_sweep_parser(sub)
     add_design_parser(sub)
     add_predict_parser(sub)
+    add_detect_parser(sub)
     add_demo_parser(sub)
     _add_message_flags(parser, sub)
     return parser
