@@ -546,6 +546,7 @@ def _assemble(
                 else measured_part(chain, d, h, s0, s, std, c + 1)
             )
             refusal = refusal or (None if h is None else _refused(part.stats, chain, "errors"))
+            notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
         stats = {
