@@ -127,56 +127,88 @@ def test_two_cameras_one_urdf_reproduces_every_pixel(two, tmp_path):
     assert pixels(result, "train_registration")["reprojection_rms_px"] > 0.3
 
 
+def _fd_rank(chains, names, obs, Cs, every: int) -> int:
+    """Rank of central differences over each camera's 6 and every joint's 6 of the chains, on
+    every ``every``-th row of each camera (Pinocchio + a textbook pinhole; nothing of calib's
+    kinematics or camera)."""
+    h, model = 1e-6, chains[0].model
+    rows = [pixel_rows(c, obs, TARGET, n) for c, n in zip(chains, names, strict=True)]
+    rows = [r.subset(np.arange(r.m) % every == 0) for r in rows]
+
+    def px(model=model, Cs=Cs):
+        return np.concatenate([
+            seen_pixels(model, ch.base_frame, ch.tool_frame, ch.joint_names, r.q,
+                        TARGET.position[r.point], Ci, K, DIST).ravel()
+            for ch, r, Ci in zip(chains, rows, Cs, strict=True)
+        ])  # fmt: skip
+
+    def moved(T, e):
+        return T @ np.block([[pin.exp3(e[3:]), e[:3, None]], [np.zeros((1, 3)), 1]])
+
+    cols = []
+    for c in range(len(Cs)):
+        for e in h * np.eye(6):
+            up = [moved(T, e) if k == c else T for k, T in enumerate(Cs)]
+            down = [moved(T, -e) if k == c else T for k, T in enumerate(Cs)]
+            cols.append((px(Cs=up) - px(Cs=down)) / (2 * h))
+    for name in dict.fromkeys(j for ch in chains for j in ch.joint_names):
+        for e in h * np.eye(6):
+            up, down = (moved_model(model, name, np.eye(3), s * e) for s in (1, -1))
+            cols.append((px(model=up) - px(model=down)) / (2 * h))
+    return numerical_rank(np.column_stack(cols))
+
+
 def test_two_cameras_count_equals_an_independent_rank(two):
     """Central differences over both cameras' 6 and every joint's 6 on both chains' rows."""
     head, cell, obs, result, placements = two
     C = (result.chains[0].registered.camera, placements[1])
-    h = 1e-6
-    rows = [
-        pixel_rows(c, obs, TARGET, n)
-        for c, n in ((head, "xtion_optical_frame"), (cell, "cell_camera"))
-    ]
-    rows = [r.subset(np.arange(r.m) % 6 == 0) for r in rows]
+    rank = _fd_rank((head, cell), ("xtion_optical_frame", "cell_camera"), obs, C, 6)
+    assert rank == result.identifiable
+    assert result.identifiable > 38  # more than the head camera alone (test_pixel_calibration)
 
-    def px(model=head.model, Cs=C):
-        return np.concatenate(
-            [
-                seen_pixels(
-                    model,
-                    ch.base_frame,
-                    "arm_tool_link",
-                    ch.joint_names,
-                    r.q,
-                    TARGET.position[r.point],
-                    Ci,
-                    K,
-                    DIST,
-                ).ravel()
-                for ch, r, Ci in zip((head, cell), rows, Cs, strict=True)
-            ]
-        )
 
-    cols = []
-    for c in range(2):
-        for e in h * np.eye(6):
-            up, down = [np.array(x) for x in C], [np.array(x) for x in C]
-            up[c] = up[c] @ np.block([[pin.exp3(e[3:]), e[:3, None]], [np.zeros((1, 3)), 1]])
-            down[c] = down[c] @ np.block([[pin.exp3(-e[3:]), -e[:3, None]], [np.zeros((1, 3)), 1]])
-            cols.append((px(Cs=up) - px(Cs=down)) / (2 * h))
+def test_simulate_and_analyze_take_two_cameras(two, tmp_path, capsys):
+    """``simulate`` and ``analyze`` with --camera twice (TIAGo's head camera and one in the
+    cell): one OBS.csv with both cameras' rows, every pixel of each seen by Pinocchio on the
+    robot simulated (no error: the nominal one); analyze's count equals the rank of central
+    differences on those rows (its postures: the same seed), more than either camera's."""
+    import json
+
+    from calib.cli import main
+    from calib.measurements.intrinsics import write_intrinsics
+    from calib.measurements.pixels import read_observations, write_target
+
+    head, cell, _, _, placements = two
+    write_target(tmp_path / "target.csv", TARGET)
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    names = ("xtion_optical_frame", "cell_camera")
+    cameras = []
+    for name, chain, T in zip(names, (head, cell), placements, strict=True):
+        numbers = [repr(float(v)) for v in (*T[:3, 3], *pin.rpy.matrixToRpy(T[:3, :3]))]
+        cameras += ["--camera", name, chain.base_frame, tmp_path / "intr.yaml", *numbers]
+    common = [*cameras, "--target", tmp_path / "target.csv", "--tool", "arm_tool_link",
+              "--configs", 1500, "--seed", 3]  # fmt: skip
+    argv = ["simulate", "tiago", "--measure", "pixels", *common, "--out", tmp_path / "obs.csv",
+            "--error-mm", 0, "--error-mrad", 0]  # fmt: skip
+    assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
+    assert "cameras xtion_optical_frame on xtion_link, cell_camera on base_footprint" in (
+        capsys.readouterr().out
+    )
     joints = tuple(dict.fromkeys((*head.joint_names, *cell.joint_names)))
-    for name in joints:
-        for e in h * np.eye(6):
-            cols.append(
-                (
-                    px(model=moved_model(head.model, name, np.eye(3), e))
-                    - px(model=moved_model(head.model, name, np.eye(3), -e))
-                )
-                / (2 * h)
-            )
-    assert numerical_rank(np.column_stack(cols)) == result.identifiable
-    assert (
-        result.identifiable > 38
-    )  # more than the head camera alone (tests/test_pixel_calibration.py)
+    lenses = dict.fromkeys(names, INTRINSICS)
+    obs = read_observations(tmp_path / "obs.csv", joints, lenses, TARGET)
+    for name, chain, T in zip(names, (head, cell), placements, strict=True):
+        rows = pixel_rows(chain, obs, TARGET, name)
+        assert rows.m > 100
+        seen = seen_pixels(chain.model, chain.base_frame, "arm_tool_link", chain.joint_names,
+                           rows.q, TARGET.position[rows.point], T, K, DIST)  # fmt: skip
+        assert np.max(np.abs(seen - rows.pixels)) < 1e-9
+    argv = ["analyze", "tiago", "--measure", "pixels", *common, "--json"]
+    assert main([str(a) for a in argv]) == 0
+    counted = json.loads(capsys.readouterr().out)
+    assert [c["name"] for c in counted["cameras"]] == list(names)
+    rank = _fd_rank((head, cell), names, obs, placements, 8)
+    assert counted["n_base"] == rank and rank > 42  # the head camera alone: 38 (42 mounted)
 
 
 def test_two_cameras_on_the_command_line(two, tmp_path, capsys):

@@ -61,7 +61,7 @@ def add_pixel_arguments(p: argparse.ArgumentParser, calibrate: bool = False) -> 
         metavar="ARG",
         help="with --measure pixels: NAME LINK INTRINSICS.yaml [X Y Z RX RY RZ], a camera "
         "fixed to LINK (its optical frame: z forward, x right, y down) and its placement on "
-        "LINK [m, rad; roll-pitch-yaw as URDF]; calibrate takes it once per camera",
+        "LINK [m, rad; roll-pitch-yaw as URDF]; once per camera (several: repeat it)",
     )
     p.add_argument(
         "--target", metavar="TARGET.csv", help="with --measure pixels: the points on the tool [m]"
@@ -239,64 +239,87 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     )
 
 
+def _postures(chains, configs: int, seed: int):
+    """Random postures of every joint of the chains: each chain's draw (the first's wins)."""
+    import numpy as np
+
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    q = np.zeros((configs, len(joints)))
+    for chain in reversed(chains):
+        q[:, [joints.index(j) for j in chain.joint_names]] = chain.random_configurations(
+            configs, seed
+        )
+    return joints, q
+
+
+def _placed(args: argparse.Namespace, target=None):
+    """The placed cameras, each one's chain to the tool, and the target."""
+    cameras = _cameras(args, placed=True, several=True)
+    chain, target = _chain_and_target(args, cameras[0], target)
+    chains = (chain, *(_chain_and_target(args, c, target)[0] for c in cameras[1:]))
+    return cameras, chains, target
+
+
 def simulate_pixels_command(args: argparse.Namespace) -> int:
-    """``simulate --measure pixels``: OBS.csv of the true robot, and the truth (JSON)."""
+    """``simulate --measure pixels``: OBS.csv of the true robot, and the truth (JSON).
+
+    Every ``--camera`` (placed) sees the target at the same postures: one file, the cameras'
+    rows one after the other, every joint of their chains in each row.
+    """
     import numpy as np
 
     from ..kinematics.robot import load_chain
-    from ..measurements.pixel_simulation import simulate_pixels
+    from ..measurements.pixel_simulation import simulate_cameras
     from ..measurements.pixels import observations_csv
     from ..measurements.true_robot import true_robot
 
-    camera = _cameras(args, placed=True)[0]
-    chain, target = _chain_and_target(args, camera)
+    cameras, chains, target = _placed(args)
     out = Path(args.out)
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chains[0].urdf_path})
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "true.urdf"
         truth = true_robot(
-            [chain], path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
+            list(chains), path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
         )
-        true_chain = load_chain(str(path), base=chain.base_frame, tool=chain.tool_frame)
-        q = chain.random_configurations(args.configs, args.seed)
-        obs = simulate_pixels(
-            true_chain,
-            camera.name,
-            camera.placement,
-            camera.intrinsics,
-            target,
-            q,
-            noise_px=args.noise_px,
-            seed=args.seed,
+        true_chains = [load_chain(str(path), base=c.base_frame, tool=c.tool_frame) for c in chains]
+        joints, q = _postures(chains, args.configs, args.seed)
+        views = [(c.name, c.placement, c.intrinsics) for c in cameras]
+        obs = simulate_cameras(
+            true_chains, views, target, joints, q, noise_px=args.noise_px, seed=args.seed
         )
     errors = {name: np.round(E, 15).tolist() for name, E in truth.errors.items()}
-    document = {"camera": camera.name, "link": camera.link, "joint_errors": errors}
+    document = {"camera": cameras[0].name, "link": cameras[0].link,
+                "cameras": {c.name: c.link for c in cameras}, "joint_errors": errors}  # fmt: skip
     write_outputs({out: observations_csv(obs), truth_path: json_text(document)})
     seen = len(np.unique(obs.q, axis=0))
+    names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
     print(
-        f"{chain.name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
-        f"{args.configs} postures, camera {camera.name} on {camera.link}, noise "
+        f"{chains[0].name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
+        f"{args.configs} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
         f"{args.noise_px:g} px -> {out}"
     )
     return 0
 
 
 def analyze_pixels_command(args: argparse.Namespace) -> int:
-    """``analyze --measure pixels``: the unknowns the camera's pixels determine."""
+    """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
     from ..calibration.pixel_count import pixel_count
 
-    camera = _cameras(args, placed=True)[0]
-    chain, target = _chain_and_target(args, camera)
-    counted = pixel_count(chain, camera, target, args.configs, args.seed, args.params)
+    cameras, chains, target = _placed(args)
+    joints, q = _postures(chains, args.configs, args.seed)
+    counted = pixel_count(chains, cameras, target, joints, q, args.params)
     if args.json:
         print_json(counted)
         return 0
+    names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
+    own = "camera 6" if len(cameras) == 1 else f"cameras {len(cameras)} x 6"
     print(
-        f"{chain.name}: camera {camera.name} on {camera.link} seeing {len(target.point)} points "
-        f"on {chain.tool_frame} ({counted['rows']} pixels in {counted['postures']} postures)\n"
-        f"unknowns determined: {counted['n_base']} of {counted['n_unknowns']} (camera 6, "
-        f"{chain.n} joints x 6 placement components"
+        f"{chains[0].name}: camera{'s' if len(cameras) > 1 else ''} {names} seeing "
+        f"{len(target.point)} points on {chains[0].tool_frame} ({counted['rows']} pixels in "
+        f"{counted['postures']} postures)\n"
+        f"unknowns determined: {counted['n_base']} of {counted['n_unknowns']} ({own}, "
+        f"{len(joints)} joints x 6 placement components"
         + (", target mounting 6" if counted["mount"] else "")
         + ")"
     )
