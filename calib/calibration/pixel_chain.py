@@ -34,7 +34,7 @@ from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
-from . import determined, outliers
+from . import determined, diagnosis, outliers, validation
 from .pixel_fit import PixelView, camera_from_rays, fit_pixels, rays, refine_camera
 from .pixel_term import (
     CAMERA_NAMES,
@@ -290,6 +290,7 @@ def check_pixels(chain: Chain, data: PixelData, validate) -> None:
 
     Raises:
         InvalidArgumentError: Another base, or validation rows that are not PixelData.
+        DataError: Validation rows that are rows of the data (or its file).
     """
     if chain.base_frame != data.camera.link:
         raise InvalidArgumentError(
@@ -301,6 +302,8 @@ def check_pixels(chain: Chain, data: PixelData, validate) -> None:
             f"{chain.base_frame} -> {chain.tool_frame}: validation rows must be PixelData like "
             f"its data, got {type(validate).__name__}"
         )
+    if validate is not None:
+        validation.check_held_out(data.obs, validate.obs)
 
 
 def pixel_part(chain: Chain, data: PixelData) -> PixelPart:
@@ -356,6 +359,68 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
     return PixelTermState(mdh, state.camera, target, lens, weight, part.data.what)
 
 
+@dataclass(frozen=True, eq=False)
+class _Joints:
+    """A pixel term's joint columns, as the usual mistakes (:mod:`.diagnosis`) read them."""
+
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+
+    @property
+    def m(self) -> int:
+        """Rows."""
+        return len(self.q)
+
+
+def _rms_m(state: PixelTermState, part: PixelPart) -> float:
+    """RMS reprojection error of the rows [m at the target]."""
+    return float(np.sqrt(2 * np.mean(state.pixel_errors(part) ** 2)) * state.weight)
+
+
+def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
+    """RMS error [m at the target] of the registration of the rows at joint positions ``q``."""
+    moved = PixelPart(part.data, dataclasses.replace(part.rows, q=q))
+    return _rms_m(_registered(chain, moved), moved)
+
+
+def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
+    """The registration, unless absurd pixels are explained by a usual mistake (named).
+
+    The registration's error at the target above :data:`~.diagnosis.SUSPECT` (or no
+    registration: points behind the camera) tries the joint columns' usual mistakes (swapped
+    columns, degrees; :func:`~.diagnosis.likely_cause`).
+
+    Raises:
+        DataError: A joint column that holds one value, or the mistake that explains them.
+    """
+    source, rows = part.source, part.rows
+    try:
+        state: PixelTermState | None = _registered(chain, part)
+        first = _rms_m(state, part)  # type: ignore[arg-type]
+    except DataError as error:
+        state, first, failure = None, np.inf, error
+    if not diagnosis.suspect(first, None):
+        return state, []  # type: ignore[return-value]
+    joints = _Joints(chain.joint_names, rows.q)
+    still = diagnosis.constant_joints(joints)
+    if still:
+        raise DataError(source, f"joint column(s) {', '.join(still)} hold one value in every "
+                        "row of the pixels: were those joints logged?")  # fmt: skip
+    cause = diagnosis.likely_cause(joints, chain.sigma == 0, lambda j: _error_m(
+        chain, part, j.q), first, joints_only=True)  # fmt: skip
+    if cause is not None:
+        before = f"{1e3 * first:.4g} mm" if state is not None else "no registration"
+        raise DataError(source, f"the pixels look like {cause[0]}: the registration's error "
+                        f"at the target goes from {before} to {1e3 * cause[1]:.4g} mm RMS once "
+                        "corrected")  # fmt: skip
+    if state is None:
+        raise failure
+    return state, [f"camera {part.data.camera.name}: the registration leaves "
+                   f"{1e3 * first:.4g} mm RMS at the target, far above geometric errors, and "
+                   "no usual mistake (swapped joint columns, degrees) explains it: check the "
+                   "pixels, the camera's link and the target"]  # fmt: skip
+
+
 def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
     """Rows whose point's outward normal (the target's) faces away from the camera."""
     normals = part.data.target.normal
@@ -398,14 +463,13 @@ def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
     out_m = 0 if held is None else held.m
     what = f"unknowns of camera {part.data.camera.name}'s placement"
     determined.check_equations(part.m, 2, size, what, part.source, held=out_m)
-    state = _registered(chain, part)
+    state, notes = _diagnosed(chain, part)
     behind = _from_behind(state, part)
     errors, e_held = _judged(chain, state, part, held)
     bad, found = outliers.find_outliers(errors, None, None, part.rows.lines, (2, 3))
     found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
               "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
     bad = bad | behind
-    notes: list[str] = []
     if bad.any():
         if part.m - int(bad.sum()) < size:
             raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")

@@ -339,7 +339,7 @@ def pixel_rows(
     if keep is not None:
         mine &= keep
     index = target.index
-    lines = obs.rows or tuple(range(2, obs.m + 2))
+    lines = obs.rows or tuple(range(1, obs.m + 1))  # without a file: i + 1, as every kind
     for p, line in zip(obs.point, lines, strict=True):
         if p not in index:
             raise DataError(obs.source, f"point {p!r} is not in the target {target.source}", line)
