@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -383,38 +384,50 @@ def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
     return _rms_m(_registered(chain, moved), moved)
 
 
-def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
-    """The registration, unless absurd pixels are explained by a usual mistake (named).
+def _explain(chain: Chain, part: PixelPart, first: float) -> None:
+    """Name the usual mistake (swapped joint columns, degrees) that explains absurd pixels.
 
-    The registration's error at the target above :data:`~.diagnosis.SUSPECT` (or no
-    registration: points behind the camera) tries the joint columns' usual mistakes (swapped
-    columns, degrees; :func:`~.diagnosis.likely_cause`).
+    ``first``: the registration's error at the target [m] (infinite: no registration).
 
     Raises:
         DataError: A joint column that holds one value, or the mistake that explains them.
     """
-    source, rows = part.source, part.rows
-    try:
-        state: PixelTermState | None = _registered(chain, part)
-        first = _rms_m(state, part)  # type: ignore[arg-type]
-    except DataError as error:
-        state, first, failure = None, np.inf, error
-    if not diagnosis.suspect(first, None):
-        return state, []  # type: ignore[return-value]
-    joints = _Joints(chain.joint_names, rows.q)
+    joints = _Joints(chain.joint_names, part.rows.q)
     still = diagnosis.constant_joints(joints)
     if still:
-        raise DataError(source, f"joint column(s) {', '.join(still)} hold one value in every "
-                        "row of the pixels: were those joints logged?")  # fmt: skip
-    cause = diagnosis.likely_cause(joints, chain.sigma == 0, lambda j: _error_m(
-        chain, part, j.q), first, joints_only=True)  # fmt: skip
+        raise DataError(part.source, f"joint column(s) {', '.join(still)} hold one value in "
+                        "every row of the pixels: were those joints logged?")  # fmt: skip
+
+    def error(fixed: object) -> float:
+        return _error_m(chain, part, cast(_Joints, fixed).q)
+
+    cause = diagnosis.likely_cause(joints, chain.sigma == 0, error, first, joints_only=True)
     if cause is not None:
-        before = f"{1e3 * first:.4g} mm" if state is not None else "no registration"
-        raise DataError(source, f"the pixels look like {cause[0]}: the registration's error "
-                        f"at the target goes from {before} to {1e3 * cause[1]:.4g} mm RMS once "
-                        "corrected")  # fmt: skip
-    if state is None:
-        raise failure
+        before = f"{1e3 * first:.4g} mm" if np.isfinite(first) else "no registration"
+        raise DataError(part.source, f"the pixels look like {cause[0]}: the registration's "
+                        f"error at the target goes from {before} to {1e3 * cause[1]:.4g} mm "
+                        "RMS once corrected")  # fmt: skip
+
+
+def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
+    """The registration and its note, unless a usual mistake explains absurd pixels.
+
+    The registration's error at the target above :data:`~.diagnosis.SUSPECT`, or no
+    registration (points behind the camera), tries the joint columns' usual mistakes
+    (:func:`_explain`).
+
+    Raises:
+        DataError: The mistake named, or the registration's own error.
+    """
+    try:
+        state = _registered(chain, part)
+    except DataError:
+        _explain(chain, part, np.inf)
+        raise
+    first = _rms_m(state, part)
+    if not diagnosis.suspect(first, None):
+        return state, []
+    _explain(chain, part, first)
     return state, [f"camera {part.data.camera.name}: the registration leaves "
                    f"{1e3 * first:.4g} mm RMS at the target, far above geometric errors, and "
                    "no usual mistake (swapped joint columns, degrees) explains it: check the "
