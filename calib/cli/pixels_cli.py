@@ -171,8 +171,9 @@ def camera_link(args: argparse.Namespace, name: str) -> str:
 def pixel_term_data(args: argparse.Namespace, name: str, chain, path: str):
     """``--term pixels NAME TOOL OBS.csv``: the camera's rows of OBS.csv as a pixel term.
 
-    The target (``--target``) is exact on TOOL (no mounting unknown); ``--refine-targets``
-    and ``--refine-intrinsics`` apply.
+    The target (``--target``) is on TOOL: with ``--params complete`` its mounting there is an
+    unknown (as ``calibrate --measure pixels --params complete``), else it is exact;
+    ``--refine-targets`` and ``--refine-intrinsics`` apply.
     """
     from ..calibration.pixel_chain import PixelData
     from ..calibration.pixel_term import Unknowns
@@ -181,7 +182,7 @@ def pixel_term_data(args: argparse.Namespace, name: str, chain, path: str):
     camera = _named(args, name)
     target = _chain_and_target(args, camera)[1]
     obs = read_observations(path, chain.joint_names, {camera.name: camera.intrinsics}, target)
-    what = Unknowns(False, args.refine_targets, args.refine_intrinsics)
+    what = Unknowns(args.params == "complete", args.refine_targets, args.refine_intrinsics)
     return PixelData(camera, target, obs, what)
 
 
