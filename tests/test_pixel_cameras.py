@@ -14,10 +14,11 @@ import pytest
 from pixel_scorer import moved_model, numerical_rank, seen_pixels
 from pixel_setups import INTRINSICS, calibrated, grid, look_at, pixels
 
-from calib import load_chain
+from calib import Problem, Term, calibrate, load_chain
+from calib.calibration.pixel_chain import PixelData
 from calib.calibration.pixel_term import PixelCamera, pixel_rows
-from calib.measurements.pixel_simulation import simulate_pixels
-from calib.measurements.pixels import PixelObservations
+from calib.measurements.pixel_simulation import simulate_cameras, simulate_pixels
+from calib.measurements.pixels import PixelObservations, Target
 from calib.measurements.true_robot import true_robot
 
 K, DIST = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
@@ -127,19 +128,20 @@ def test_two_cameras_one_urdf_reproduces_every_pixel(two, tmp_path):
     assert pixels(result, "train_registration")["reprojection_rms_px"] > 0.3
 
 
-def _fd_rank(chains, names, obs, Cs, every: int) -> int:
+def _fd_rank(chains, names, obs, Cs, every: int, target=TARGET, which=None) -> int:
     """Rank of central differences over each camera's 6 and every joint's 6 of the chains, on
-    every ``every``-th row of each camera (Pinocchio + a textbook pinhole; nothing of calib's
-    kinematics or camera)."""
+    every ``every``-th row of each chain (Pinocchio + a textbook pinhole; nothing of calib's
+    kinematics or camera). ``which``: each chain's camera in ``Cs`` (default: its own)."""
     h, model = 1e-6, chains[0].model
-    rows = [pixel_rows(c, obs, TARGET, n) for c, n in zip(chains, names, strict=True)]
+    which = range(len(chains)) if which is None else which
+    rows = [pixel_rows(c, obs, target, n) for c, n in zip(chains, names, strict=True)]
     rows = [r.subset(np.arange(r.m) % every == 0) for r in rows]
 
     def px(model=model, Cs=Cs):
         return np.concatenate([
             seen_pixels(model, ch.base_frame, ch.tool_frame, ch.joint_names, r.q,
-                        TARGET.position[r.point], Ci, K, DIST).ravel()
-            for ch, r, Ci in zip(chains, rows, Cs, strict=True)
+                        target.position[r.point], Cs[i], K, DIST).ravel()
+            for ch, r, i in zip(chains, rows, which, strict=True)
         ])  # fmt: skip
 
     def moved(T, e):
@@ -239,3 +241,77 @@ def test_two_cameras_on_the_command_line(two, tmp_path, capsys):
     ]
     for term in doc["errors"]["terms"]:
         assert term["train"]["pixels"]["calibrated"]["reprojection_max_px"] < 1e-9
+
+
+def _hand_and_base() -> Target:
+    """12 points on TIAGo's hand (arm_tool_link) and 12 on a board fixed to its base
+    (base_footprint, 0.3 m up, in front), one target file's points."""
+    board = grid(4, 3, 0.04, (0.5, -0.05))
+    on_base = board.position + np.array([0.0, 0.0, 0.3])
+    return Target(
+        (*TARGET.point, *(f"b{i}" for i in range(len(board.point)))),
+        np.vstack([TARGET.position, on_base]),
+        ("arm_tool_link",) * len(TARGET.point) + ("base_footprint",) * len(board.point),
+    )
+
+
+@pytest.fixture(scope="module")
+def two_links(tmp_path_factory):
+    """TIAGo's head camera sees its hand and a board on its base: one camera, two terms (one
+    per link: xtion_link -> arm_tool_link, xtion_link -> base_footprint), one truth."""
+    folder = tmp_path_factory.mktemp("links")
+    chains = [load_chain("tiago", base="xtion_link", tool=t)
+              for t in ("arm_tool_link", "base_footprint")]  # fmt: skip
+    true_robot(chains, folder / "true.urdf", seed=6)
+    truths = [load_chain(str(folder / "true.urdf"), base=c.base_frame, tool=c.tool_frame)
+              for c in chains]  # fmt: skip
+    model = chains[0].model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    C = (data.oMf[model.getFrameId("xtion_link")].inverse()
+         * data.oMf[model.getFrameId("xtion_optical_frame")]).homogeneous  # fmt: skip
+    step = pin.SE3(pin.exp3(np.array([0.002, -0.001, 0.003])), np.array([0.003, -0.002, 0.001]))
+    true_C = C @ step.homogeneous
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    q = np.zeros((500, len(joints)))
+    for chain in reversed(chains):
+        q[:, [joints.index(j) for j in chain.joint_names]] = chain.random_configurations(500, 5)
+    target = _hand_and_base()
+    name = "xtion_optical_frame"
+    obs = simulate_cameras(truths, [(name, true_C, INTRINSICS)] * 2, target, joints, q)
+    camera = PixelCamera(name, "xtion_link", INTRINSICS, None)
+    terms = tuple(Term(c, PixelData(camera, target, obs)) for c in chains)
+    result = calibrate(Problem(terms, params="complete"))
+    return chains, target, obs, result, C
+
+
+def test_a_target_on_two_links_round_trip_on_the_written_urdf(two_links, tmp_path):
+    """Noise-free: one camera link in the written URDF; Pinocchio sees every pixel of both
+    links' points through it to 1e-9 px (the camera registered once, on both terms' rows)."""
+    chains, target, obs, result, _ = two_links
+    assert result.accepted, result.refusal
+    path = tmp_path / "cal.urdf"
+    result.write_urdf(path)
+    assert path.read_text().count('<link name="xtion_optical_frame"') == 1
+    model = pin.buildModelFromUrdf(str(path))
+    for chain in chains:
+        rows = pixel_rows(chain, obs, target, "xtion_optical_frame")
+        assert rows.m > 500
+        seen = seen_pixels(model, "xtion_optical_frame", chain.tool_frame, chain.joint_names,
+                           rows.q, target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+        assert np.max(np.linalg.norm(seen - rows.pixels, axis=1)) < 1e-9
+    cameras = [c.state.camera for c in result.chains]
+    assert np.array_equal(cameras[0], cameras[1])
+    assert not any(c.outliers for c in result.chains)  # round-off (1e-12 px) is no outlier
+    assert pixels(result, "train_registration", 1)["reprojection_rms_px"] > 0.3
+
+
+def test_a_target_on_two_links_count_equals_an_independent_rank(two_links):
+    """The unknowns determined = the rank of central differences over the one camera's 6 and
+    every joint's 6 of both chains (the torso's lift seen through the base's board), more than
+    the hand alone (38, tests/test_pixel_calibration.py)."""
+    chains, target, obs, result, C = two_links
+    name = "xtion_optical_frame"
+    rank = _fd_rank(chains, (name, name), obs, [C], 12, target, which=(0, 0))
+    assert rank == result.identifiable == result.unknowns
+    assert rank > 38

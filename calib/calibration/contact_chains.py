@@ -242,11 +242,13 @@ def _register(
         w = tilt_weight(R, p, d.ids, g, d.kind) if weight is None else weight
         registered = register_contacts(d.kind, R, p, d.ids, g, w)
         states.append(ContactState(mdh, registered, w))
-    for c, p in enumerate(plane_of):  # a shared plane starts from its first chain's
+    for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
             shared = dataclasses.replace(mine.frames, objects=owner.frames.objects)
             states[c] = dataclasses.replace(mine, frames=shared)
+        if isinstance(mine, PixelTermState) and isinstance(owner, PixelTermState):
+            states[c] = dataclasses.replace(mine, camera=owner.camera)
     scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
     start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):
@@ -260,7 +262,9 @@ def _register(
             train[0].source,
             f"the registration of the shared plane did not converge ({refined.message})",
         )
-    notes.append("a plane touched by several chains is fitted once (shared planes)")
+    planes = [p for p, s in zip(plane_of, states, strict=True) if isinstance(s, ContactState)]
+    if len(set(planes)) < len(planes):
+        notes.append("a plane touched by several chains is fitted once (shared planes)")
     return refined.state
 
 

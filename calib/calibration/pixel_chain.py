@@ -55,6 +55,7 @@ from .pixel_term import (
 from .placements import Placements
 
 __all__ = [
+    "ROUND_OFF_PX",
     "PixelData",
     "PixelKind",
     "PixelPart",
@@ -67,6 +68,11 @@ __all__ = [
     "split_pixels",
     "with_tool",
 ]
+
+
+ROUND_OFF_PX = 1e-6
+"""Pixel errors below 6 times this [px] are round-off, never outliers (a noise-free fit leaves
+1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -305,6 +311,16 @@ def check_pixels(chain: Chain, data: PixelData, validate) -> None:
         )
     if validate is not None:
         validation.check_held_out(data.obs, validate.obs)
+    links = set(data.target.link or (chain.tool_frame,))
+    if chain.tool_frame not in links:
+        raise InvalidArgumentError(
+            f"camera {data.camera.name}: no target point on {chain.tool_frame} (its chain's tool)"
+        )
+    if len(links) > 1 and (data.what.mount or data.what.targets):
+        raise InvalidArgumentError(
+            f"camera {data.camera.name}: a target on several links takes no mounting or target "
+            "point unknowns (not yet: --params auto, no --refine-targets)"
+        )
 
 
 def pixel_part(chain: Chain, data: PixelData) -> PixelPart:
@@ -479,7 +495,8 @@ def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
     state, notes = _diagnosed(chain, part)
     behind = _from_behind(state, part)
     errors, e_held = _judged(chain, state, part, held)
-    bad, found = outliers.find_outliers(errors, None, None, part.rows.lines, (2, 3))
+    floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
+    bad, found = outliers.find_outliers(errors, None, floor, part.rows.lines, (2, 3))
     found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
               "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
     bad = bad | behind

@@ -17,7 +17,7 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from .intrinsics import Intrinsics
-from .pixels import PixelObservations, Target
+from .pixels import PixelObservations, Target, on_link
 
 __all__ = ["MAX_NOISE_PX", "simulate_cameras", "simulate_pixels"]
 
@@ -112,10 +112,12 @@ def simulate_cameras(
     """What several cameras see of a target at the same postures, in one set of observations.
 
     Args:
-        chains: Each camera's chain (from its link to the target's tool).
+        chains: Each camera's chain (from its link to the target's tool; a target on several
+            links: one chain per link, the camera given once per chain).
         cameras: Each camera's name, optical frame in its chain's base link ``(4, 4)`` [m]
             and intrinsics.
-        target: The target points in the tool frame [m].
+        target: The target points in their link's frame [m] (each chain sees those on its
+            tool, :func:`~.pixels.on_link`).
         joints: The columns of ``q``: every joint of the chains.
         q: Joint positions ``(m, len(joints))`` [rad or m].
         noise_px: Standard deviation of the Gaussian noise on u and v [px].
@@ -134,17 +136,17 @@ def simulate_cameras(
     joints = tuple(joints)
     q = real_array(q, "joint positions", (None, len(joints)))
     rows, names, points, pixels = [], [], [], []
-    k = len(target.point)
     for c, (chain, (name, placement, intrinsics)) in enumerate(zip(chains, cameras, strict=True)):
         missing = [j for j in chain.joint_names if j not in joints]
         if missing:
             raise InvalidArgumentError(f"camera {name}: no column for joint {missing[0]}")
         rng = np.random.default_rng([check_count(seed, "seed", 0), 32, *([c] if c else [])])
         mine = q[:, [joints.index(j) for j in chain.joint_names]]
-        index, seen = _simulated(chain, name, placement, intrinsics, target, mine, noise_px, rng)
-        rows.append(index // k)
+        on = on_link(target, chain.tool_frame)
+        index, seen = _simulated(chain, name, placement, intrinsics, on, mine, noise_px, rng)
+        rows.append(index // len(on.point))
         names += [name] * len(index)
-        points += [target.point[i] for i in index % k]
+        points += [on.point[i] for i in index % len(on.point)]
         pixels.append(seen)
     return PixelObservations(
         joints, q[np.concatenate(rows)], tuple(names), tuple(points), np.concatenate(pixels),
