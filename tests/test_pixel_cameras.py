@@ -315,3 +315,46 @@ def test_a_target_on_two_links_count_equals_an_independent_rank(two_links):
     rank = _fd_rank(chains, (name, name), obs, [C], 12, target, which=(0, 0))
     assert rank == result.identifiable == result.unknowns
     assert rank > 38
+
+
+def test_a_target_on_two_links_on_the_command_line(two_links, tmp_path, capsys):
+    """TARGET.csv with a link column (the hand's and the base's points): simulate, calibrate
+    (one term per link, one camera) and analyze. Pinocchio sees every pixel of OBS.csv
+    through the written URDF's camera link; analyze counts the fit's unknowns (the rank of
+    central differences, test above)."""
+    import json
+
+    from calib.cli import main
+    from calib.measurements.intrinsics import write_intrinsics
+    from calib.measurements.pixels import read_observations, write_target
+
+    chains, target, _, result, C = two_links
+    write_target(tmp_path / "target.csv", target)
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    name = "xtion_optical_frame"
+    numbers = [repr(float(v)) for v in (*C[:3, 3], *pin.rpy.matrixToRpy(C[:3, :3]))]
+    camera = ["--camera", name, "xtion_link", tmp_path / "intr.yaml"]
+    common = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
+    argv = ["simulate", "tiago", "--measure", "pixels", *camera, *numbers, *common,
+            "--configs", 500, "--seed", 5, "--out", tmp_path / "obs.csv"]  # fmt: skip
+    assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
+    out = tmp_path / "cal.urdf"
+    argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv",
+            *camera, *common, "--out", out, "--report", tmp_path / "r.json"]  # fmt: skip
+    assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert [t["tool"] for t in doc["terms"]] == ["arm_tool_link", "base_footprint"]
+    assert list(doc["frames"]["cameras"]) == [name]
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    obs = read_observations(tmp_path / "obs.csv", joints, {name: INTRINSICS}, target)
+    model = pin.buildModelFromUrdf(str(out))
+    for chain in chains:
+        rows = pixel_rows(chain, obs, target, name)
+        seen = seen_pixels(model, name, chain.tool_frame, chain.joint_names, rows.q,
+                           target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+        assert rows.m > 500 and np.max(np.linalg.norm(seen - rows.pixels, axis=1)) < 1e-9
+    capsys.readouterr()
+    argv = ["analyze", "tiago", "--measure", "pixels", *camera, *numbers, *common, "--json"]
+    assert main([str(a) for a in argv]) == 0
+    counted = json.loads(capsys.readouterr().out)
+    assert counted["n_base"] == result.identifiable == 46

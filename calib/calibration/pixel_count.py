@@ -20,14 +20,31 @@ from .placements import Placements
 __all__ = ["pixel_count"]
 
 
+def _one_per_camera(J: np.ndarray, cameras: tuple[PixelCamera, ...]) -> np.ndarray:
+    """The rows' Jacobian ``(r, c)`` with one set of 6 camera columns per camera name.
+
+    A camera with targets on several links (one chain each) has one placement: its chains'
+    columns are added (each row moves with its own chain's copy of it).
+    """
+    names = tuple(dict.fromkeys(c.name for c in cameras))
+    W = J.reshape(-1, J.shape[2])
+    out = np.zeros((W.shape[0], W.shape[1] - 6 * (len(cameras) - len(names))))
+    for k, camera in enumerate(cameras):
+        i = names.index(camera.name)
+        out[:, 6 * i : 6 * i + 6] += W[:, 6 * k : 6 * k + 6]
+    out[:, 6 * len(names) :] = W[:, 6 * len(cameras) :]
+    return out
+
+
 def pixel_count(
     chains, cameras: tuple[PixelCamera, ...], target: Target, joints, q, params: str | None
 ) -> dict:
     """The unknowns cameras' pixels determine at postures where they see the target.
 
     Args:
-        chains: Each camera's chain (its link to the target's tool), one robot.
-        cameras: The cameras, placed.
+        chains: Each camera's chain (its link to the target's tool), one robot; a target on
+            several links: one chain per link, the camera given once per chain.
+        cameras: Each chain's camera, placed.
         target: The target points in the tool frame [m].
         joints: The columns of ``q``: every joint of the chains.
         q: The postures ``(m, len(joints))`` [rad or m].
@@ -47,8 +64,9 @@ def pixel_count(
         for cam in cameras
     )
     views_ = tuple(PixelView(c, r) for c, r in zip(chains, rows, strict=True))
-    J = stacked_rows(states, views_, what)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), placements, what, len(cameras))
+    W = _one_per_camera(stacked_rows(states, views_, what)[1], cameras)
+    names = tuple(dict.fromkeys(c.name for c in cameras))
+    free = free_columns(W, placements, what, len(names))
     first = cameras[0]
     return {
         "kind": "pixels",
@@ -60,6 +78,6 @@ def pixel_count(
         "rows": int(obs.m),
         "postures": len(np.unique(obs.q, axis=0)),
         "mount": what.mount,
-        "n_unknowns": 6 * len(cameras) + placements.y.size + 6 * what.mount,
+        "n_unknowns": 6 * len(names) + placements.y.size + 6 * what.mount,
         "n_base": len(free),
     }  # fmt: skip

@@ -13,6 +13,7 @@ import argparse
 import math
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..core.fileio import json_text
 from ..exceptions import InvalidArgumentError
@@ -23,6 +24,9 @@ from .common import (
     write_calibration,
     write_outputs,
 )
+
+if TYPE_CHECKING:
+    from ..measurements.pixels import Target
 
 __all__ = [
     "add_pixel_arguments",
@@ -135,8 +139,8 @@ def _camera(values: list[str], placed: bool):
     return PixelCamera(name, link, read_intrinsics(path), placement)
 
 
-def _chain_and_target(args: argparse.Namespace, camera, target=None):
-    from ..kinematics.robot import load_chain
+def _target(args: argparse.Namespace) -> tuple[Target, tuple[str, ...]]:
+    """The target of ``--target`` and its links (its ``link`` column's, or the ``--tool``)."""
     from ..measurements.pixels import read_target
 
     if args.target is None:
@@ -144,15 +148,24 @@ def _chain_and_target(args: argparse.Namespace, camera, target=None):
     tool = args.tool[-1] if isinstance(args.tool, list) else args.tool
     if isinstance(args.tool, list) and len(args.tool) != 1:
         raise InvalidArgumentError("--measure pixels takes one --tool (the target's link)")
-    target = read_target(args.target) if target is None else target
-    if target.link is not None and set(target.link) != {tool}:
-        raise InvalidArgumentError(
-            f"{args.target}: every point must be on the tool {tool} (targets on several links: "
-            "not yet)"
-        )
+    target = read_target(args.target)
+    links = tuple(dict.fromkeys(target.link)) if target.link is not None else (tool,)
+    return target, links
+
+
+def _views(args: argparse.Namespace, cameras) -> tuple[tuple, Target]:
+    """Each camera with a chain from its link to each of the target's links, and the target."""
+    from ..kinematics.robot import load_chain
+
+    target, links = _target(args)
     if args.base is not None:
-        load_chain(args.robot, base=args.base, tool=tool)  # a frame of the robot
-    return load_chain(args.robot, base=camera.link, tool=tool), target
+        load_chain(args.robot, base=args.base, tool=links[0])  # a frame of the robot
+    views = tuple(
+        (camera, load_chain(args.robot, base=camera.link, tool=link))
+        for camera in cameras
+        for link in links
+    )
+    return views, target
 
 
 def _named(args: argparse.Namespace, name: str):
@@ -180,7 +193,7 @@ def pixel_term_data(args: argparse.Namespace, name: str, chain, path: str):
     from ..measurements.pixels import read_observations
 
     camera = _named(args, name)
-    target = _chain_and_target(args, camera)[1]
+    target = _target(args)[0]
     obs = read_observations(path, chain.joint_names, {camera.name: camera.intrinsics}, target)
     what = Unknowns(args.params == "complete", args.refine_targets, args.refine_intrinsics)
     return PixelData(camera, target, obs, what)
@@ -208,23 +221,25 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
             "--measure pixels fits what the pixels determine (--params auto), or also the "
             f"target's mounting (--params complete), not --params {args.params}"
         )
-    cameras = _cameras(args, placed=False, several=True)
-    chain, target = _chain_and_target(args, cameras[0])
-    chains = (chain, *(_chain_and_target(args, c, target)[0] for c in cameras[1:]))
+    views, target = _views(args, _cameras(args, placed=False, several=True))
+    chains = tuple(c for _, c in views)
     outputs = {"--out": args.out, "--report": args.report}
-    inputs = {"the URDF": chain.urdf_path, "--data": args.data, "--target": args.target}
+    inputs = {"the URDF": chains[0].urdf_path, "--data": args.data, "--target": args.target}
     check_output_paths(outputs, {**inputs, "--validate": args.validate})
-    lenses = {c.name: c.intrinsics for c in cameras}
+    lenses = {c.name: c.intrinsics for c, _ in views}
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
     obs = read_observations(args.data, joints, lenses, target)
     check = None
     if args.validate:
         check = read_observations(args.validate, joints, lenses, target)
     what = Unknowns(args.params == "complete", args.refine_targets, args.refine_intrinsics)
+    links = target.link or (chains[0].tool_frame,) * len(target.point)
+    link = dict(zip(target.point, links, strict=True))
+    seen = {(c, link[p]) for c, p in zip(obs.camera, obs.point, strict=True)}
     terms = tuple(
         Term(c, PixelData(cam, target, obs, what), None if check is None else PixelData(
             cam, target, check, what))
-        for c, cam in zip(chains, cameras, strict=True)
+        for cam, c in views if (cam.name, c.tool_frame) in seen
     )  # fmt: skip
     problem = Problem(terms, params="complete", holdout=args.holdout, seed=args.seed)
     result = calibrate(problem)
@@ -253,14 +268,6 @@ def _postures(chains, configs: int, seed: int):
     return joints, q
 
 
-def _placed(args: argparse.Namespace, target=None):
-    """The placed cameras, each one's chain to the tool, and the target."""
-    cameras = _cameras(args, placed=True, several=True)
-    chain, target = _chain_and_target(args, cameras[0], target)
-    chains = (chain, *(_chain_and_target(args, c, target)[0] for c in cameras[1:]))
-    return cameras, chains, target
-
-
 def simulate_pixels_command(args: argparse.Namespace) -> int:
     """``simulate --measure pixels``: OBS.csv of the true robot, and the truth (JSON).
 
@@ -274,7 +281,8 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     from ..measurements.pixels import observations_csv
     from ..measurements.true_robot import true_robot
 
-    cameras, chains, target = _placed(args)
+    views, target = _views(args, _cameras(args, placed=True, several=True))
+    cameras, chains = tuple(v[0] for v in views), tuple(v[1] for v in views)
     out = Path(args.out)
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
     check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chains[0].urdf_path})
@@ -285,10 +293,11 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
         )
         true_chains = [load_chain(str(path), base=c.base_frame, tool=c.tool_frame) for c in chains]
         joints, q = _postures(chains, args.configs, args.seed)
-        views = [(c.name, c.placement, c.intrinsics) for c in cameras]
+        lenses = [(c.name, c.placement, c.intrinsics) for c in cameras]
         obs = simulate_cameras(
-            true_chains, views, target, joints, q, noise_px=args.noise_px, seed=args.seed
+            true_chains, lenses, target, joints, q, noise_px=args.noise_px, seed=args.seed
         )
+    cameras = tuple({c.name: c for c in cameras}.values())
     errors = {name: np.round(E, 15).tolist() for name, E in truth.errors.items()}
     document = {"camera": cameras[0].name, "link": cameras[0].link,
                 "cameras": {c.name: c.link for c in cameras}, "joint_errors": errors}  # fmt: skip
@@ -307,9 +316,11 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
     """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
     from ..calibration.pixel_count import pixel_count
 
-    cameras, chains, target = _placed(args)
+    views, target = _views(args, _cameras(args, placed=True, several=True))
+    chains = tuple(c for _, c in views)
     joints, q = _postures(chains, args.configs, args.seed)
-    counted = pixel_count(chains, cameras, target, joints, q, args.params)
+    counted = pixel_count(chains, tuple(c for c, _ in views), target, joints, q, args.params)
+    cameras = tuple({c.name: c for c, _ in views}.values())
     if args.json:
         print_json(counted)
         return 0
