@@ -490,10 +490,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
     selection, a prior) and ``offsets`` are not polished, nor a fit already exact (RMS row
     under ``ROUND_OFF``: the undetermined components would only wander), and a polish that
-    wanders to no robot (its chain models refused) is dropped. A kept polish is finished by
-    Gauss-Newton steps on the data rows alone (:func:`~.solve.gauss_newton_finish`): the
-    polish's pull toward the first fit (``PIN``) leaves a residue of its own (1.8e-9 px at
-    worst for TALOS's head camera with both arms' touches; 4e-12 px finished).
+    wanders to no robot (its chain models refused) is dropped. A kept polish is finished on
+    the data rows alone (:func:`~.solve.gauss_newton_finish`): its pull ``PIN`` leaves a
+    residue (TALOS's head camera with both arms' touches: 1.8e-9 px, 4e-12 px finished).
 
     Returns:
         The fit, and whether it was polished.
