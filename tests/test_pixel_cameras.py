@@ -358,3 +358,48 @@ def test_a_target_on_two_links_on_the_command_line(two_links, tmp_path, capsys):
     assert main([str(a) for a in argv]) == 0
     counted = json.loads(capsys.readouterr().out)
     assert counted["n_base"] == result.identifiable == 46
+
+
+def test_a_target_on_two_links_as_two_pixel_terms(two_links, tmp_path, capsys):
+    """``--term pixels NAME LINK OBS.csv`` once per link of the target, one camera: one
+    placement fitted (frames.cameras once), every pixel through the written URDF to 1e-9 px;
+    at --params complete (the target's mounting an unknown) refused in one line."""
+    import json
+
+    from calib.cli import main
+    from calib.measurements.intrinsics import write_intrinsics
+    from calib.measurements.pixels import write_observations, write_target
+
+    chains, target, obs, _, _ = two_links
+    write_target(tmp_path / "target.csv", target)
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_observations(tmp_path / "obs.csv", obs)
+    name, out = "xtion_optical_frame", tmp_path / "cal.urdf"
+    argv = [
+        "calibrate",
+        "tiago",
+        "--camera",
+        name,
+        "xtion_link",
+        tmp_path / "intr.yaml",
+        "--target",
+        tmp_path / "target.csv",
+        "--out",
+        out,
+        "--report",
+        tmp_path / "r.json",
+    ]
+    for chain in chains:
+        argv += ["--term", "pixels", name, chain.tool_frame, tmp_path / "obs.csv"]
+    assert main([str(a) for a in [*argv, "--params", "complete"]]) != 0 and not out.exists()
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.startswith("calib: error:")]
+    assert len(errors) == 1 and "takes no mounting" in errors[0] and "Traceback" not in err
+    assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
+    assert list(json.loads((tmp_path / "r.json").read_text())["frames"]["cameras"]) == [name]
+    model = pin.buildModelFromUrdf(str(out))
+    for chain in chains:
+        rows = pixel_rows(chain, obs, target, name)
+        seen = seen_pixels(model, name, chain.tool_frame, chain.joint_names, rows.q,
+                           target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+        assert np.max(np.linalg.norm(seen - rows.pixels, axis=1)) < 1e-9
