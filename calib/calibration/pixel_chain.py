@@ -319,7 +319,7 @@ def check_pixels(chain: Chain, data: PixelData, validate) -> None:
     if len(links) > 1 and (data.what.mount or data.what.targets):
         raise InvalidArgumentError(
             f"camera {data.camera.name}: a target on several links takes no mounting or target "
-            "point unknowns (not yet: --params auto, no --refine-targets)"
+            "point unknowns (not yet: its points are taken as given)"
         )
 
 
