@@ -3,8 +3,9 @@ each fitted through the one entry (``calibrate(robot, data)`` or ``calibrate(Pro
 
 Shapes: a chain measured by an instrument, a tree (two tools), one chain touching (each contact
 kind), several chains touching (TALOS's two arms), the robot measuring itself (the TIAGo's
-head camera seeing its hand) and a measured term among touches (TALOS's head camera seeing
-its left hand, with both arms' table touches, in one fit). Checks: validation data that are
+head camera seeing its hand), a measured term among touches (TALOS's head camera seeing
+its left hand, with both arms' table touches, in one fit) and a camera's pixels (a UR5 seen
+from the cell: one pixel term). Checks: validation data that are
 the data are refused; a gross outlier is set aside (named by its row, and said in the
 report's warnings); swapped joint columns and degrees are diagnosed (a one-line DataError
 naming the mistake); too few rows for the unknowns are refused before any fit; a fit worse
@@ -17,8 +18,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import tempfile
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -110,6 +113,42 @@ def _camera_and_arms() -> Shape:
     return Shape(data, run, list, lambda d, parts: [parts[0], *d[1:]])
 
 
+def _ur5_pixels(noise_px: float, postures: int, seed: int, **errors):
+    """A camera in the cell sees a board on a UR5's tool0: the chain, the camera, the data
+    (simulated on a true robot ``errors`` away from the nominal, :func:`calib.simulate`'s
+    default errors unless given)."""
+    from pixel_setups import INTRINSICS, grid, look_at
+
+    from calib.calibration.pixel_chain import PixelData
+    from calib.calibration.pixel_term import PixelCamera
+    from calib.measurements.pixel_simulation import simulate_pixels
+    from calib.measurements.true_robot import true_robot
+
+    chain = load_chain("ur5", base="world", tool="tool0")
+    C, target = look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3]), grid(4, 3, 0.03)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "true.urdf"
+        true_robot([chain], path, seed=seed, **errors)
+        truth = load_chain(str(path), base="world", tool="tool0")
+    q = chain.random_configurations(postures, seed)
+    obs = simulate_pixels(truth, "cam", C, INTRINSICS, target, q, noise_px=noise_px, seed=seed)
+    camera = PixelCamera("cam", "world", INTRINSICS, None)
+    return chain, camera, target, PixelData(camera, target, obs)
+
+
+def _pixels() -> Shape:
+    """A camera's pixels: one pixel term (its rows: each point in an image)."""
+    chain, _, _, data = _ur5_pixels(0.2, 40, 7)
+
+    def run(d, v):  # validation: the same camera's rows
+        v = v if v is None else dataclasses.replace(d, obs=v)
+        return calibrate(Problem((Term(chain, d, v),), params="offsets"))
+
+    return Shape(
+        data, run, lambda d: [d.obs], lambda d, parts: dataclasses.replace(d, obs=parts[0])
+    )
+
+
 def _shapes() -> dict[str, Any]:
     ur5 = load_chain("ur5")
     tree = load_robot("talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
@@ -125,6 +164,7 @@ def _shapes() -> dict[str, Any]:
         **{f"contacts-{k}": (lambda k=k: _contact(k)) for k in CONTACT_KINDS},
         "chains": _chains,
         "measured-and-touches": _camera_and_arms,
+        "pixels": _pixels,
     }
 
 
@@ -142,7 +182,7 @@ def _rows(shape: Shape, keep: np.ndarray):
     """The data with the first term's rows ``keep`` only (a boolean mask)."""
     first = shape.parts(shape.data)[0]
     fields = {"q": first.q[keep]}
-    for name in ("position", "quaternion", "ids", "tool", "rows"):
+    for name in ("position", "quaternion", "ids", "tool", "rows", "camera", "point", "pixels"):
         value = getattr(first, name, None)
         if value is not None:
             fields[name] = (
@@ -233,6 +273,9 @@ def _overfit(name: str):
         Term(c, simulate_contacts(c, 24, "plane", seed=4, noise_mrad=3.0, **NOISE_ONLY).data)
         for c in talos
     ]
+    if name == "pixels":  # few postures, 3 px of noise: the offsets learn the noise
+        chain, _, _, data = _ur5_pixels(3.0, 8, 1, **NOISE_ONLY)
+        return calibrate(Problem((Term(chain, data),), **opts))
     if name == "measured-and-touches":
         camera = load_robot(TALOS, "rgbd_optical_frame", LEFT[1])
         seen = simulate(camera, 24, "position", noise_mm=1.0, seed=5, **NOISE_ONLY)

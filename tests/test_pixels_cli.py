@@ -89,6 +89,7 @@ def test_simulate_calibrate_analyze_on_the_command_line(capsys, tmp_path, ur5):
     assert doc["frames"]["cameras"]["cam"]["link"] == "world"
     assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"] < 1e-9
     assert doc["errors"]["terms"][0]["train"]["pixels"]["registration"]["reprojection_rms_px"] > 0.3
+    assert WRONG_LENS not in text and not any(WRONG_LENS in w for w in doc["warnings"])
     code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json")
     assert json.loads(text)["n_base"] == 26  # the count of tests/test_pixel_calibration.py
     code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json",
@@ -200,17 +201,46 @@ def test_refine_intrinsics_recovers_a_swapped_principal_point(capsys, tmp_path, 
         "--camera", "cam", "world", tmp_path / "wrong.yaml", "--target", folder / "target.csv",
         "--tool", "tool0", "--report", report,
     ]  # fmt: skip
-    code, _, err = run(capsys, *args, "--out", out, "--refine-intrinsics")
+    code, text, err = run(capsys, *args, "--out", out, "--refine-intrinsics")
     assert code == 0, err
     assert "swapped" in err
     doc = json.loads(report.read_text())
     fitted = doc["frames"]["cameras"]["cam"]["intrinsics"]
     assert abs(fitted["cx"] - 640.0) < 1e-6 and abs(fitted["cy"] - 480.0) < 1e-6
     assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"] < 1e-9
-    code, _, err = run(capsys, *args, "--out", tmp_path / "fixed.urdf")
+    assert WRONG_LENS not in text and not any(WRONG_LENS in w for w in doc["warnings"])
+    code, text, err = run(capsys, *args, "--out", tmp_path / "fixed.urdf")
     assert code == 0, err
     fixed = json.loads(report.read_text())
     assert fixed["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"] > 10
+    # the fit without --refine-intrinsics (no held-out rows) is warned about, in both
+    assert f"note: camera cam: {WRONG_LENS}" in text
+    assert any("check its intrinsics" in w for w in fixed["warnings"]), fixed["warnings"]
+
+
+WRONG_LENS = "the calibrated reprojection error is"
+"""The start of the warning of a fit far above a pixel (wrong intrinsics)."""
+
+
+def test_a_wrong_focal_length_is_warned_about(capsys, tmp_path, ur5):
+    """Focal lengths 20 % long (the pixels simulated with fx, fy = 900, 905): the fit moves
+    the camera to make up for them but leaves several pixels (RMS), which the summary and the
+    report's warnings name, with the intrinsics to check."""
+    folder, _ = ur5
+    lens = INTRINSICS.camera.with_parameters([1080.0, 1086.0, 640.0, 480.0, *DIST])
+    write_intrinsics(tmp_path / "long.yaml", Intrinsics(1280, 960, lens))
+    code, text, err = run(
+        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
+        "--camera", "cam", "world", tmp_path / "long.yaml", "--target", folder / "target.csv",
+        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", tmp_path / "r.json",
+    )  # fmt: skip
+    assert code == 0, err
+    doc = json.loads((tmp_path / "r.json").read_text())
+    rms = doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"]
+    assert rms > 3.0
+    warned = [w for w in doc["warnings"] if WRONG_LENS in w]
+    assert len(warned) == 1 and "focal length" in warned[0] and "--refine-intrinsics" in warned[0]
+    assert f"note: {warned[0]}" in text
 
 
 def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):

@@ -325,8 +325,8 @@ class ContactChainsCalibration(Delivered):
         return tuple(c for c in self.chains if isinstance(c, PixelChain))
 
     def _cameras(self) -> tuple[tuple[str, str, np.ndarray], ...]:
-        """Each pixel term's camera: name, link, optical frame in the link [m]."""
-        return tuple(c.camera() for c in self._pixels())
+        """Each camera once (name, link, optical frame in the link [m]), of all its terms."""
+        return tuple({c.name: c.camera() for c in self._pixels()}.values())
 
     def to_dict(self) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).

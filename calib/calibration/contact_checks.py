@@ -33,6 +33,7 @@ from . import diagnosis, outliers, validation
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
 from .contact_result import GapStats
+from .pixel_chain import PixelPart
 from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
@@ -292,14 +293,21 @@ def refusal(
 
 
 def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
-    """Index of each chain's plane: one per chain, or shared by base frame and plane id."""
-    if not shared:
-        return tuple(range(len(chains)))
-    keys = [
-        (c.base_frame, d.contacts[0]) if isinstance(d.kind, PlaneContact) else (k,)
-        for k, (c, d) in enumerate(zip(chains, data, strict=True))
-    ]
-    if len(set(keys)) == len(keys):
+    """Index of each chain's object: one per chain, or shared by base frame and plane id.
+
+    The pixel terms of one camera (its targets on several links: one term per link) share
+    their object, the camera, whatever ``shared``.
+    """
+    keys: list[tuple] = []
+    for k, (c, d) in enumerate(zip(chains, data, strict=True)):
+        if isinstance(d, PixelPart):
+            keys.append(("camera", d.data.camera.name))
+        elif shared and isinstance(d.kind, PlaneContact):
+            keys.append((c.base_frame, d.contacts[0]))
+        else:
+            keys.append((k,))
+    planes = [k for k in keys if len(k) == 2 and k[0] != "camera"]
+    if shared and len(set(planes)) == len(planes):
         raise InvalidArgumentError(
             "shared planes: no two chains touch one plane (same plane id) from one base frame"
         )

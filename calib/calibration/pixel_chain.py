@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -34,7 +35,7 @@ from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
-from . import determined, outliers
+from . import determined, diagnosis, outliers, validation
 from .pixel_fit import PixelView, camera_from_rays, fit_pixels, rays, refine_camera
 from .pixel_term import (
     CAMERA_NAMES,
@@ -54,6 +55,7 @@ from .pixel_term import (
 from .placements import Placements
 
 __all__ = [
+    "ROUND_OFF_PX",
     "PixelData",
     "PixelKind",
     "PixelPart",
@@ -66,6 +68,11 @@ __all__ = [
     "split_pixels",
     "with_tool",
 ]
+
+
+ROUND_OFF_PX = 1e-6
+"""Pixel errors below 6 times this [px] are round-off, never outliers (a noise-free fit leaves
+1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -290,6 +297,7 @@ def check_pixels(chain: Chain, data: PixelData, validate) -> None:
 
     Raises:
         InvalidArgumentError: Another base, or validation rows that are not PixelData.
+        DataError: Validation rows that are rows of the data (or its file).
     """
     if chain.base_frame != data.camera.link:
         raise InvalidArgumentError(
@@ -300,6 +308,18 @@ def check_pixels(chain: Chain, data: PixelData, validate) -> None:
         raise InvalidArgumentError(
             f"{chain.base_frame} -> {chain.tool_frame}: validation rows must be PixelData like "
             f"its data, got {type(validate).__name__}"
+        )
+    if validate is not None:
+        validation.check_held_out(data.obs, validate.obs)
+    links = set(data.target.link or (chain.tool_frame,))
+    if chain.tool_frame not in links:
+        raise InvalidArgumentError(
+            f"camera {data.camera.name}: no target point on {chain.tool_frame} (its chain's tool)"
+        )
+    if len(links) > 1 and (data.what.mount or data.what.targets):
+        raise InvalidArgumentError(
+            f"camera {data.camera.name}: a target on several links takes no mounting or target "
+            "point unknowns (not yet: its points are taken as given)"
         )
 
 
@@ -356,6 +376,80 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
     return PixelTermState(mdh, state.camera, target, lens, weight, part.data.what)
 
 
+@dataclass(frozen=True, eq=False)
+class _Joints:
+    """A pixel term's joint columns, as the usual mistakes (:mod:`.diagnosis`) read them."""
+
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+
+    @property
+    def m(self) -> int:
+        """Rows."""
+        return len(self.q)
+
+
+def _rms_m(state: PixelTermState, part: PixelPart) -> float:
+    """RMS reprojection error of the rows [m at the target]."""
+    return float(np.sqrt(2 * np.mean(state.pixel_errors(part) ** 2)) * state.weight)
+
+
+def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
+    """RMS error [m at the target] of the registration of the rows at joint positions ``q``."""
+    moved = PixelPart(part.data, dataclasses.replace(part.rows, q=q))
+    return _rms_m(_registered(chain, moved), moved)
+
+
+def _explain(chain: Chain, part: PixelPart, first: float) -> None:
+    """Name the usual mistake (swapped joint columns, degrees) that explains absurd pixels.
+
+    ``first``: the registration's error at the target [m] (infinite: no registration).
+
+    Raises:
+        DataError: A joint column that holds one value, or the mistake that explains them.
+    """
+    joints = _Joints(chain.joint_names, part.rows.q)
+    still = diagnosis.constant_joints(joints)
+    if still:
+        raise DataError(part.source, f"joint column(s) {', '.join(still)} hold one value in "
+                        "every row of the pixels: were those joints logged?")  # fmt: skip
+
+    def error(fixed: object) -> float:
+        return _error_m(chain, part, cast(_Joints, fixed).q)
+
+    cause = diagnosis.likely_cause(joints, chain.sigma == 0, error, first, joints_only=True)
+    if cause is not None:
+        before = f"{1e3 * first:.4g} mm" if np.isfinite(first) else "no registration"
+        raise DataError(part.source, f"the pixels look like {cause[0]}: the registration's "
+                        f"error at the target goes from {before} to {1e3 * cause[1]:.4g} mm "
+                        "RMS once corrected")  # fmt: skip
+
+
+def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
+    """The registration and its note, unless a usual mistake explains absurd pixels.
+
+    The registration's error at the target above :data:`~.diagnosis.SUSPECT`, or no
+    registration (points behind the camera), tries the joint columns' usual mistakes
+    (:func:`_explain`).
+
+    Raises:
+        DataError: The mistake named, or the registration's own error.
+    """
+    try:
+        state = _registered(chain, part)
+    except DataError:
+        _explain(chain, part, np.inf)
+        raise
+    first = _rms_m(state, part)
+    if not diagnosis.suspect(first, None):
+        return state, []
+    _explain(chain, part, first)
+    return state, [f"camera {part.data.camera.name}: the registration leaves "
+                   f"{1e3 * first:.4g} mm RMS at the target, far above geometric errors, and "
+                   "no usual mistake (swapped joint columns, degrees) explains it: check the "
+                   "pixels, the camera's link and the target"]  # fmt: skip
+
+
 def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
     """Rows whose point's outward normal (the target's) faces away from the camera."""
     normals = part.data.target.normal
@@ -398,14 +492,14 @@ def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
     out_m = 0 if held is None else held.m
     what = f"unknowns of camera {part.data.camera.name}'s placement"
     determined.check_equations(part.m, 2, size, what, part.source, held=out_m)
-    state = _registered(chain, part)
+    state, notes = _diagnosed(chain, part)
     behind = _from_behind(state, part)
     errors, e_held = _judged(chain, state, part, held)
-    bad, found = outliers.find_outliers(errors, None, None, part.rows.lines, (2, 3))
+    floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
+    bad, found = outliers.find_outliers(errors, None, floor, part.rows.lines, (2, 3))
     found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
               "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
     bad = bad | behind
-    notes: list[str] = []
     if bad.any():
         if part.m - int(bad.sum()) < size:
             raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")

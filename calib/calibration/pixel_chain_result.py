@@ -18,7 +18,13 @@ from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
 from .report import parameter_entries, pose_dict
 
-__all__ = ["PixelChain", "pixel_result"]
+__all__ = ["EXPECTED_PX", "PixelChain", "pixel_result"]
+
+EXPECTED_PX = 3.0
+"""Largest calibrated reprojection error (RMS, training or held out) a camera's pixels are
+expected to leave [px]: a detector's noise is a fraction of a pixel; beyond, the intrinsics
+are most likely wrong (a focal length 10 % off leaves about 4 px on a UR5 seen from the cell,
+a principal point with width and height swapped 17 px), and the fit is warned about."""
 
 
 def _pixels(state: PixelTermState, part: PixelPart) -> dict:
@@ -93,6 +99,21 @@ class PixelChain:
     def _px(self, part: str) -> dict:
         return {"pixels": {"registration": self.pixels[f"{part}_registration"],
                            "calibrated": self.pixels[part]}}  # fmt: skip
+
+    def warnings(self) -> list[str]:
+        """A calibrated reprojection error above :data:`EXPECTED_PX` (RMS), said once."""
+        worst = max((k for k in ("train", "held_out") if k in self.pixels),
+                    key=lambda k: self.pixels[k]["reprojection_rms_px"])  # fmt: skip
+        rms = self.pixels[worst]["reprojection_rms_px"]
+        if not rms > EXPECTED_PX:
+            return []
+        fix = "" if self.state.what.intrinsics else " or fit them (--refine-intrinsics)"
+        return [
+            f"camera {self.name}: the calibrated reprojection error is {rms:.1f} px RMS "
+            f"({worst.replace('_', '-')}), far above a detector's noise (over "
+            f"{EXPECTED_PX:g} px): check its intrinsics (image width and height swapped, the "
+            f"focal length, the principal point){fix}"
+        ]
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; errors in mm and px)."""

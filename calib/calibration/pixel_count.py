@@ -1,47 +1,83 @@
-"""What a camera's pixels determine (``calib analyze --measure pixels``).
+"""What cameras' pixels determine (``calib analyze --measure pixels``).
 
-The rank of the pixel rows' Jacobian (:func:`~.pixel_term.pixel_jacobian`) on the nominal
-robot at random postures where the camera sees the target: the camera's 6, every joint
-placement component of the chain and, with ``--params complete``, the target's mounting.
+The rank of the pixel rows' Jacobian (:func:`~.pixel_fit.stacked_rows`: each camera's 6
+columns, the joint placement components shared by the cameras' chains, the target's
+mounting) on the nominal robot at random postures where the cameras see the target: each
+camera's 6, every joint placement component of the chains and, with ``--params complete``,
+the target's mounting.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..measurements.pixel_simulation import simulate_pixels
+from ..measurements.pixel_simulation import simulate_cameras
 from ..measurements.pixels import Target
-from .pixel_term import PixelCamera, PixelState, Unknowns, free_columns, pixel_jacobian, pixel_rows
+from .pixel_fit import PixelView, stacked_rows
+from .pixel_term import PixelCamera, PixelState, Unknowns, free_columns, pixel_rows
 from .placements import Placements
 
 __all__ = ["pixel_count"]
 
 
-def pixel_count(
-    chain, camera: PixelCamera, target: Target, configs: int, seed: int, params: str | None
-) -> dict:
-    """The unknowns a camera's pixels determine at random postures where it sees the target.
+def _one_per_camera(J: np.ndarray, cameras: tuple[PixelCamera, ...]) -> np.ndarray:
+    """The rows' Jacobian ``(r, c)`` with one set of 6 camera columns per camera name.
 
-    The rank of the rows' Jacobian on the nominal robot (``n_base``), with the target's
-    mounting an unknown when ``params`` is ``complete``.
+    A camera with targets on several links (one chain each) has one placement: its chains'
+    columns are added (each row moves with its own chain's copy of it).
     """
-    q = chain.random_configurations(configs, seed)
-    obs = simulate_pixels(chain, camera.name, camera.placement, camera.intrinsics, target, q)
-    rows = pixel_rows(chain, obs, target, camera.name)
-    placements = Placements.of((chain,))
-    mount = params == "complete"
-    lens = camera.intrinsics.camera
-    state = PixelState(placements, np.asarray(camera.placement), target.position, lens)
-    J = pixel_jacobian(state, chain, rows, Unknowns(mount=mount))[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), placements, Unknowns(mount=mount))
+    names = tuple(dict.fromkeys(c.name for c in cameras))
+    W = J.reshape(-1, J.shape[2])
+    out = np.zeros((W.shape[0], W.shape[1] - 6 * (len(cameras) - len(names))))
+    for k, camera in enumerate(cameras):
+        i = names.index(camera.name)
+        out[:, 6 * i : 6 * i + 6] += W[:, 6 * k : 6 * k + 6]
+    out[:, 6 * len(names) :] = W[:, 6 * len(cameras) :]
+    return out
+
+
+def pixel_count(
+    chains, cameras: tuple[PixelCamera, ...], target: Target, joints, q, params: str | None
+) -> dict:
+    """The unknowns cameras' pixels determine at postures where they see the target.
+
+    Args:
+        chains: Each camera's chain (its link to the target's tool), one robot; a target on
+            several links: one chain per link, the camera given once per chain.
+        cameras: Each chain's camera, placed.
+        target: The target points in the tool frame [m].
+        joints: The columns of ``q``: every joint of the chains.
+        q: The postures ``(m, len(joints))`` [rad or m].
+        params: ``complete``: the target's mounting is an unknown too.
+
+    Returns:
+        ``n_base`` (the rank of the rows' Jacobian on the nominal robot), ``n_unknowns`` and
+        the rows, postures and cameras counted.
+    """
+    views = tuple((camera.name, camera.placement, camera.intrinsics) for camera in cameras)
+    obs = simulate_cameras(chains, views, target, joints, q)
+    placements = Placements.of(tuple(chains))
+    what = Unknowns(mount=params == "complete")
+    rows = [pixel_rows(c, obs, target, cam.name) for c, cam in zip(chains, cameras, strict=True)]
+    states = tuple(
+        PixelState(placements, np.asarray(cam.placement), target.position, cam.intrinsics.camera)
+        for cam in cameras
+    )
+    views_ = tuple(PixelView(c, r) for c, r in zip(chains, rows, strict=True))
+    W = _one_per_camera(stacked_rows(states, views_, what)[1], cameras)
+    names = tuple(dict.fromkeys(c.name for c in cameras))
+    free = free_columns(W, placements, what, len(names))
+    first = cameras[0]
     return {
         "kind": "pixels",
-        "camera": camera.name,
-        "link": camera.link,
-        "tool": chain.tool_frame,
-        "rows": int(rows.m),
-        "postures": len(np.unique(rows.q, axis=0)),
-        "mount": mount,
-        "n_unknowns": 6 + placements.y.size + 6 * mount,
+        "camera": first.name,
+        "link": first.link,
+        "cameras": [{"name": c.name, "link": c.link, "rows": r.m} for c, r in zip(
+            cameras, rows, strict=True)],
+        "tool": chains[0].tool_frame,
+        "rows": int(obs.m),
+        "postures": len(np.unique(obs.q, axis=0)),
+        "mount": what.mount,
+        "n_unknowns": 6 * len(names) + placements.y.size + 6 * what.mount,
         "n_base": len(free),
-    }
+    }  # fmt: skip

@@ -42,6 +42,7 @@ __all__ = [
     "fit_pixels",
     "rays",
     "refine_camera",
+    "stacked_rows",
     "target_residuals",
 ]
 
@@ -134,7 +135,7 @@ def _layout(states: tuple[PixelState, ...], what: Unknowns) -> tuple[list[np.nda
     return out, start
 
 
-def _stacked(states, views, what: Unknowns):
+def stacked_rows(states, views, what: Unknowns):
     """All cameras' residuals ``(M, 2)`` and joint Jacobian ``(M, 2, size)``."""
     layout, size = _layout(states, what)
     rs, Js = [], []
@@ -160,7 +161,7 @@ def _residuals(states, views) -> np.ndarray:
 
 def _solve(states, views, free, what: Unknowns, steps: int) -> tuple[PixelState, ...]:
     """Levenberg-Marquardt on the joint columns ``free``; the states of least squared error."""
-    r, J = _stacked(states, views, what)
+    r, J = stacked_rows(states, views, what)
     cost, damping = float(np.sum(r**2)), 1e-6
     size, m = J.shape[2], len(r)
     for _ in range(steps):
@@ -182,7 +183,7 @@ def _solve(states, views, free, what: Unknowns, steps: int) -> tuple[PixelState,
         states, cost, damping = trial, cost_t, max(damping / 10, 1e-9)
         if done:
             break
-        r, J = _stacked(states, views, what)
+        r, J = stacked_rows(states, views, what)
     return states
 
 
@@ -269,7 +270,7 @@ def fit_pixels(
         state = PixelState(placements, guess, target, lens)
         check_in_front(target_points(state, chain, rows)[0], rows, source)
         starts.append(refine_camera(state, chain, rows))
-    J = _stacked(tuple(starts), views, what)[1]
+    J = stacked_rows(tuple(starts), views, what)[1]
     free = free_columns(J.reshape(-1, J.shape[2]), placements, what, len(views))
     fitted = _solve(tuple(starts), views, free, what, MAX_STEPS)
     return PixelFit(tuple(starts), fitted, free, _names(tuple(starts), cameras, what))

@@ -326,20 +326,28 @@ def pixel_rows(
 ) -> PixelRows:
     """The camera's rows of the observations (where ``keep``), joints in the chain's order.
 
+    A target on several links (its ``link`` column): the rows of the points on the chain's
+    tool only (each link is its own chain, from the camera's link).
+
     Raises:
         DataError: A chain joint without a column, a point not in the target, no row of the
-            camera.
+            camera (of a point on the chain's tool).
     """
     missing = [j for j in chain.joint_names if j not in obs.joint_names]
     if missing:
         raise DataError(obs.source, f"no column for joint {missing[0]} of the camera's chain")
     mine = np.array([c == camera for c in obs.camera])
+    if target.link is not None:
+        tool = chain.tool_frame
+        on = {p for p, link in zip(target.point, target.link, strict=True) if link == tool}
+        mine &= np.array([p in on for p in obs.point])
     if not mine.any():
-        raise DataError(obs.source, f"no observation of camera {camera}")
+        where = "" if target.link is None else f" of a point on {chain.tool_frame}"
+        raise DataError(obs.source, f"no observation of camera {camera}{where}")
     if keep is not None:
         mine &= keep
     index = target.index
-    lines = obs.rows or tuple(range(2, obs.m + 2))
+    lines = obs.rows or tuple(range(1, obs.m + 1))  # without a file: i + 1, as every kind
     for p, line in zip(obs.point, lines, strict=True):
         if p not in index:
             raise DataError(obs.source, f"point {p!r} is not in the target {target.source}", line)

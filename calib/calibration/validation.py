@@ -26,6 +26,7 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from ..measurements.pixels import PixelObservations
 from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .result import ResidualStats
@@ -106,9 +107,12 @@ def _same_file(a: str, b: str) -> bool:
 
 
 def _values(data) -> tuple[np.ndarray, tuple[str, ...] | None]:
-    """Each row's numbers (joints, points, quaternion) and its label (tool, or touched id)."""
+    """Each row's numbers (joints, points, quaternion; pixels) and label (tool, id; camera)."""
     if isinstance(data, ContactData):
         return data.q, data.ids
+    if isinstance(data, PixelObservations):
+        labels = tuple(f"{c}\0{p}" for c, p in zip(data.camera, data.point, strict=True))
+        return np.hstack([data.q, data.pixels]), labels
     parts = [data.q, data.position]
     if data.quaternion is not None:
         parts.append(data.quaternion)
@@ -120,11 +124,13 @@ def _row(data, i: int) -> int:
     return data.rows[i] if data.rows is not None else i + 1
 
 
-def check_held_out(data: Measurements | ContactData, held: Measurements | ContactData) -> None:
+def check_held_out(data, held) -> None:
     """Refuse validation data that are the training data: the file, or any of its rows.
 
-    Measurements and touches alike (any kind): a validation row that is a training row (the
-    same joint values, and the same measurements, tool or touched object) is refused.
+    Measurements, touches and pixels alike (:class:`Measurements`, :class:`ContactData` or
+    :class:`PixelObservations` of any kind): a validation row that is a training row (the
+    same joint values, and the same measurements, tool or touched object; or the same
+    camera, point and pixel) is refused.
 
     Raises:
         DataError: ``held`` comes from the training file, or a row of it is a training row.

@@ -13,6 +13,7 @@ import argparse
 import math
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..core.fileio import json_text
 from ..exceptions import InvalidArgumentError
@@ -23,6 +24,9 @@ from .common import (
     write_calibration,
     write_outputs,
 )
+
+if TYPE_CHECKING:
+    from ..measurements.pixels import Target
 
 __all__ = [
     "add_pixel_arguments",
@@ -62,7 +66,7 @@ def add_pixel_arguments(p: argparse._ActionsContainer, calibrate: bool = False) 
         metavar="ARG",
         help="with --measure pixels: NAME LINK INTRINSICS.yaml [X Y Z RX RY RZ], a camera "
         "fixed to LINK (its optical frame: z forward, x right, y down) and its placement on "
-        "LINK [m, rad; roll-pitch-yaw as URDF]; calibrate takes it once per camera",
+        "LINK [m, rad; roll-pitch-yaw as URDF]; once per camera (several: repeat it)",
     )
     p.add_argument(
         "--target", metavar="TARGET.csv", help="with --measure pixels: the points on the tool [m]"
@@ -136,8 +140,8 @@ def _camera(values: list[str], placed: bool):
     return PixelCamera(name, link, read_intrinsics(path), placement)
 
 
-def _chain_and_target(args: argparse.Namespace, camera, target=None):
-    from ..kinematics.robot import load_chain
+def _target(args: argparse.Namespace) -> tuple[Target, tuple[str, ...]]:
+    """The target of ``--target`` and its links (its ``link`` column's, or the ``--tool``)."""
     from ..measurements.pixels import read_target
 
     if args.target is None:
@@ -145,15 +149,24 @@ def _chain_and_target(args: argparse.Namespace, camera, target=None):
     tool = args.tool[-1] if isinstance(args.tool, list) else args.tool
     if isinstance(args.tool, list) and len(args.tool) != 1:
         raise InvalidArgumentError("--measure pixels takes one --tool (the target's link)")
-    target = read_target(args.target) if target is None else target
-    if target.link is not None and set(target.link) != {tool}:
-        raise InvalidArgumentError(
-            f"{args.target}: every point must be on the tool {tool} (targets on several links: "
-            "not yet)"
-        )
+    target = read_target(args.target)
+    links = tuple(dict.fromkeys(target.link)) if target.link is not None else (tool,)
+    return target, links
+
+
+def _views(args: argparse.Namespace, cameras) -> tuple[tuple, Target]:
+    """Each camera with a chain from its link to each of the target's links, and the target."""
+    from ..kinematics.robot import load_chain
+
+    target, links = _target(args)
     if args.base is not None:
-        load_chain(args.robot, base=args.base, tool=tool)  # a frame of the robot
-    return load_chain(args.robot, base=camera.link, tool=tool), target
+        load_chain(args.robot, base=args.base, tool=links[0])  # a frame of the robot
+    views = tuple(
+        (camera, load_chain(args.robot, base=camera.link, tool=link))
+        for camera in cameras
+        for link in links
+    )
+    return views, target
 
 
 def _named(args: argparse.Namespace, name: str):
@@ -172,17 +185,18 @@ def camera_link(args: argparse.Namespace, name: str) -> str:
 def pixel_term_data(args: argparse.Namespace, name: str, chain, path: str):
     """``--term pixels NAME TOOL OBS.csv``: the camera's rows of OBS.csv as a pixel term.
 
-    The target (``--target``) is exact on TOOL (no mounting unknown); ``--refine-targets``
-    and ``--refine-intrinsics`` apply.
+    The target (``--target``) is on TOOL: with ``--params complete`` its mounting there is an
+    unknown (as ``calibrate --measure pixels --params complete``), else it is exact;
+    ``--refine-targets`` and ``--refine-intrinsics`` apply.
     """
     from ..calibration.pixel_chain import PixelData
     from ..calibration.pixel_term import Unknowns
     from ..measurements.pixels import read_observations
 
     camera = _named(args, name)
-    target = _chain_and_target(args, camera)[1]
+    target = _target(args)[0]
     obs = read_observations(path, chain.joint_names, {camera.name: camera.intrinsics}, target)
-    what = Unknowns(False, args.refine_targets, args.refine_intrinsics)
+    what = Unknowns(args.params == "complete", args.refine_targets, args.refine_intrinsics)
     return PixelData(camera, target, obs, what)
 
 
@@ -208,23 +222,25 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
             "--measure pixels fits what the pixels determine (--params auto), or also the "
             f"target's mounting (--params complete), not --params {args.params}"
         )
-    cameras = _cameras(args, placed=False, several=True)
-    chain, target = _chain_and_target(args, cameras[0])
-    chains = (chain, *(_chain_and_target(args, c, target)[0] for c in cameras[1:]))
+    views, target = _views(args, _cameras(args, placed=False, several=True))
+    chains = tuple(c for _, c in views)
     outputs = {"--out": args.out, "--report": args.report}
-    inputs = {"the URDF": chain.urdf_path, "--data": args.data, "--target": args.target}
+    inputs = {"the URDF": chains[0].urdf_path, "--data": args.data, "--target": args.target}
     check_output_paths(outputs, {**inputs, "--validate": args.validate})
-    lenses = {c.name: c.intrinsics for c in cameras}
+    lenses = {c.name: c.intrinsics for c, _ in views}
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
     obs = read_observations(args.data, joints, lenses, target)
     check = None
     if args.validate:
         check = read_observations(args.validate, joints, lenses, target)
     what = Unknowns(args.params == "complete", args.refine_targets, args.refine_intrinsics)
+    links = target.link or (chains[0].tool_frame,) * len(target.point)
+    link = dict(zip(target.point, links, strict=True))
+    seen = {(c, link[p]) for c, p in zip(obs.camera, obs.point, strict=True)}
     terms = tuple(
         Term(c, PixelData(cam, target, obs, what), None if check is None else PixelData(
             cam, target, check, what))
-        for c, cam in zip(chains, cameras, strict=True)
+        for cam, c in views if (cam.name, c.tool_frame) in seen
     )  # fmt: skip
     problem = Problem(terms, params="complete", holdout=args.holdout, seed=args.seed)
     result = calibrate(problem)
@@ -240,64 +256,83 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     )
 
 
+def _postures(chains, configs: int, seed: int):
+    """Random postures of every joint of the chains: each chain's draw (the first's wins)."""
+    import numpy as np
+
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    q = np.zeros((configs, len(joints)))
+    for chain in reversed(chains):
+        q[:, [joints.index(j) for j in chain.joint_names]] = chain.random_configurations(
+            configs, seed
+        )
+    return joints, q
+
+
 def simulate_pixels_command(args: argparse.Namespace) -> int:
-    """``simulate --measure pixels``: OBS.csv of the true robot, and the truth (JSON)."""
+    """``simulate --measure pixels``: OBS.csv of the true robot, and the truth (JSON).
+
+    Every ``--camera`` (placed) sees the target at the same postures: one file, the cameras'
+    rows one after the other, every joint of their chains in each row.
+    """
     import numpy as np
 
     from ..kinematics.robot import load_chain
-    from ..measurements.pixel_simulation import simulate_pixels
+    from ..measurements.pixel_simulation import simulate_cameras
     from ..measurements.pixels import observations_csv
     from ..measurements.true_robot import true_robot
 
-    camera = _cameras(args, placed=True)[0]
-    chain, target = _chain_and_target(args, camera)
+    views, target = _views(args, _cameras(args, placed=True, several=True))
+    cameras, chains = tuple(v[0] for v in views), tuple(v[1] for v in views)
     out = Path(args.out)
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chain.urdf_path})
+    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chains[0].urdf_path})
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "true.urdf"
         truth = true_robot(
-            [chain], path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
+            list(chains), path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
         )
-        true_chain = load_chain(str(path), base=chain.base_frame, tool=chain.tool_frame)
-        q = chain.random_configurations(args.configs, args.seed)
-        obs = simulate_pixels(
-            true_chain,
-            camera.name,
-            camera.placement,
-            camera.intrinsics,
-            target,
-            q,
-            noise_px=args.noise_px,
-            seed=args.seed,
+        true_chains = [load_chain(str(path), base=c.base_frame, tool=c.tool_frame) for c in chains]
+        joints, q = _postures(chains, args.configs, args.seed)
+        lenses = [(c.name, c.placement, c.intrinsics) for c in cameras]
+        obs = simulate_cameras(
+            true_chains, lenses, target, joints, q, noise_px=args.noise_px, seed=args.seed
         )
+    cameras = tuple({c.name: c for c in cameras}.values())
     errors = {name: np.round(E, 15).tolist() for name, E in truth.errors.items()}
-    document = {"camera": camera.name, "link": camera.link, "joint_errors": errors}
+    document = {"camera": cameras[0].name, "link": cameras[0].link,
+                "cameras": {c.name: c.link for c in cameras}, "joint_errors": errors}  # fmt: skip
     write_outputs({out: observations_csv(obs), truth_path: json_text(document)})
     seen = len(np.unique(obs.q, axis=0))
+    names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
     print(
-        f"{chain.name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
-        f"{args.configs} postures, camera {camera.name} on {camera.link}, noise "
+        f"{chains[0].name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
+        f"{args.configs} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
         f"{args.noise_px:g} px -> {out}"
     )
     return 0
 
 
 def analyze_pixels_command(args: argparse.Namespace) -> int:
-    """``analyze --measure pixels``: the unknowns the camera's pixels determine."""
+    """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
     from ..calibration.pixel_count import pixel_count
 
-    camera = _cameras(args, placed=True)[0]
-    chain, target = _chain_and_target(args, camera)
-    counted = pixel_count(chain, camera, target, args.configs, args.seed, args.params)
+    views, target = _views(args, _cameras(args, placed=True, several=True))
+    chains = tuple(c for _, c in views)
+    joints, q = _postures(chains, args.configs, args.seed)
+    counted = pixel_count(chains, tuple(c for c, _ in views), target, joints, q, args.params)
+    cameras = tuple({c.name: c for c, _ in views}.values())
     if args.json:
         print_json(counted)
         return 0
+    names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
+    own = "camera 6" if len(cameras) == 1 else f"cameras {len(cameras)} x 6"
     print(
-        f"{chain.name}: camera {camera.name} on {camera.link} seeing {len(target.point)} points "
-        f"on {chain.tool_frame} ({counted['rows']} pixels in {counted['postures']} postures)\n"
-        f"unknowns determined: {counted['n_base']} of {counted['n_unknowns']} (camera 6, "
-        f"{chain.n} joints x 6 placement components"
+        f"{chains[0].name}: camera{'s' if len(cameras) > 1 else ''} {names} seeing "
+        f"{len(target.point)} points on {chains[0].tool_frame} ({counted['rows']} pixels in "
+        f"{counted['postures']} postures)\n"
+        f"unknowns determined: {counted['n_base']} of {counted['n_unknowns']} ({own}, "
+        f"{len(joints)} joints x 6 placement components"
         + (", target mounting 6" if counted["mount"] else "")
         + ")"
     )

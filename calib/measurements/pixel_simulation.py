@@ -8,6 +8,8 @@ noise) and, when the target has normals, facing the camera.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..core.checks import check_count, check_number, real_array
@@ -15,9 +17,9 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from .intrinsics import Intrinsics
-from .pixels import PixelObservations, Target
+from .pixels import PixelObservations, Target, on_link
 
-__all__ = ["MAX_NOISE_PX", "simulate_pixels"]
+__all__ = ["MAX_NOISE_PX", "simulate_cameras", "simulate_pixels"]
 
 MAX_NOISE_PX = 1000.0
 """Largest pixel noise a simulation takes [px]."""
@@ -36,6 +38,23 @@ def _seen(chain: Chain, placement: np.ndarray, intr: Intrinsics, target: Target,
         n_cam = np.einsum("ij,mjk,lk->mli", placement[:3, :3].T, R, target.normal)
         ok &= np.einsum("mki,mki->mk", n_cam, p_cam).ravel() < 0
     return seen.pixels, ok
+
+
+def _simulated(chain, camera, placement, intrinsics, target, q, noise_px, rng):
+    """The rows seen: each one's configuration index ``(r,)`` and pixel ``(r, 2)`` [px]."""
+    if not isinstance(chain, Chain) or not isinstance(intrinsics, Intrinsics):
+        raise InvalidArgumentError("simulate pixels of a Chain with a camera's Intrinsics")
+    if not isinstance(target, Target) or not isinstance(camera, str) or not camera:
+        raise InvalidArgumentError("simulate pixels of a Target seen by a named camera")
+    C = real_array(placement, "camera placement", (4, 4))
+    q = chain.check_configurations(q)
+    noise = check_number(noise_px, "noise_px", 0.0, MAX_NOISE_PX)
+    pixels, ok = _seen(chain, C, intrinsics, target, q)
+    if not ok.any():
+        raise InvalidArgumentError(f"camera {camera} sees no target point at these postures")
+    pixels = pixels + noise * rng.standard_normal(pixels.shape)
+    index = np.flatnonzero(ok & intrinsics.inside(np.nan_to_num(pixels, nan=-1e9)))
+    return index, pixels[index]
 
 
 def simulate_pixels(
@@ -67,26 +86,69 @@ def simulate_pixels(
     Raises:
         InvalidArgumentError: Bad arguments, or no point seen at all.
     """
-    if not isinstance(chain, Chain) or not isinstance(intrinsics, Intrinsics):
-        raise InvalidArgumentError("simulate pixels of a Chain with a camera's Intrinsics")
-    if not isinstance(target, Target) or not isinstance(camera, str) or not camera:
-        raise InvalidArgumentError("simulate pixels of a Target seen by a named camera")
-    C = real_array(placement, "camera placement", (4, 4))
-    q = chain.check_configurations(q)
-    noise = check_number(noise_px, "noise_px", 0.0, MAX_NOISE_PX)
     rng = np.random.default_rng([check_count(seed, "seed", 0), 32])
-    pixels, ok = _seen(chain, C, intrinsics, target, q)
-    if not ok.any():
-        raise InvalidArgumentError(f"camera {camera} sees no target point at these postures")
+    index, pixels = _simulated(chain, camera, placement, intrinsics, target, q, noise_px, rng)
     k = len(target.point)
-    pixels = pixels + noise * rng.standard_normal(pixels.shape)
-    index = np.flatnonzero(ok & intrinsics.inside(np.nan_to_num(pixels, nan=-1e9)))
-    pixels = pixels[index]
     return PixelObservations(
         chain.joint_names,
-        q[index // k],
+        np.asarray(q, dtype=float)[index // k],
         (camera,) * len(index),
         tuple(target.point[i] for i in index % k),
         pixels,
         source="<simulated pixels>",
     )
+
+
+def simulate_cameras(
+    chains: Sequence[Chain],
+    cameras: Sequence[tuple[str, np.ndarray | None, Intrinsics]],
+    target: Target,
+    joints: Sequence[str],
+    q,
+    *,
+    noise_px: float = 0.0,
+    seed: int = 0,
+) -> PixelObservations:
+    """What several cameras see of a target at the same postures, in one set of observations.
+
+    Args:
+        chains: Each camera's chain (from its link to the target's tool; a target on several
+            links: one chain per link, the camera given once per chain).
+        cameras: Each camera's name, optical frame in its chain's base link ``(4, 4)`` [m]
+            and intrinsics.
+        target: The target points in their link's frame [m] (each chain sees those on its
+            tool, :func:`~.pixels.on_link`).
+        joints: The columns of ``q``: every joint of the chains.
+        q: Joint positions ``(m, len(joints))`` [rad or m].
+        noise_px: Standard deviation of the Gaussian noise on u and v [px].
+        seed: Seed of the noise (the first camera's draws are :func:`simulate_pixels`').
+
+    Returns:
+        Each camera's rows (camera after camera, then configuration then point order), every
+        joint of ``joints`` in each row.
+
+    Raises:
+        InvalidArgumentError: Bad arguments, a chain joint not in ``joints``, or a camera
+            that sees no point.
+    """
+    if len(chains) != len(cameras) or not chains:
+        raise InvalidArgumentError("simulate cameras: one chain per camera")
+    joints = tuple(joints)
+    q = real_array(q, "joint positions", (None, len(joints)))
+    rows, names, points, pixels = [], [], [], []
+    for c, (chain, (name, placement, intrinsics)) in enumerate(zip(chains, cameras, strict=True)):
+        missing = [j for j in chain.joint_names if j not in joints]
+        if missing:
+            raise InvalidArgumentError(f"camera {name}: no column for joint {missing[0]}")
+        rng = np.random.default_rng([check_count(seed, "seed", 0), 32, *([c] if c else [])])
+        mine = q[:, [joints.index(j) for j in chain.joint_names]]
+        on = on_link(target, chain.tool_frame)
+        index, seen = _simulated(chain, name, placement, intrinsics, on, mine, noise_px, rng)
+        rows.append(index // len(on.point))
+        names += [name] * len(index)
+        points += [on.point[i] for i in index % len(on.point)]
+        pixels.append(seen)
+    return PixelObservations(
+        joints, q[np.concatenate(rows)], tuple(names), tuple(points), np.concatenate(pixels),
+        source="<simulated pixels>",
+    )  # fmt: skip

@@ -53,6 +53,7 @@ __all__ = [
     "PixelObservations",
     "Target",
     "observations_csv",
+    "on_link",
     "parse_observations",
     "parse_target",
     "read_observations",
@@ -189,6 +190,22 @@ class PixelObservations:
     def cameras(self) -> tuple[str, ...]:
         """The cameras, in order of first appearance."""
         return tuple(dict.fromkeys(self.camera))
+
+
+def on_link(target: Target, link: str) -> Target:
+    """The target's points on ``link`` (all of them for a target without a ``link`` column).
+
+    Raises:
+        InvalidArgumentError: No point on ``link``.
+    """
+    if target.link is None:
+        return target
+    keep = [i for i, n in enumerate(target.link) if n == link]
+    if not keep:
+        raise InvalidArgumentError(f"{target.source}: no target point on {link}")
+    normal = None if target.normal is None else target.normal[keep]
+    return Target(tuple(target.point[i] for i in keep), target.position[keep],
+                  (link,) * len(keep), normal, target.source)  # fmt: skip
 
 
 def _checked_text(text: object) -> str:
