@@ -42,7 +42,7 @@ import numpy as np
 from ..core.checks import MAX_WEIGHT, check_number
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import FixedPoseContact, PlaneContact
+from ..identification.contacts import FixedPoseContact
 from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
@@ -57,16 +57,18 @@ from .contact_chains_result import (
     measured_part,
 )
 from .contact_checks import subset
+from .contact_choice import touching_postures
 from .contact_model import ContactState
-from .contact_pipeline import (
-    check_held_out_gaps,
-    contact_frame,
-    split_contacts,
-    tilt_weight,
-    touching_postures,
-)
 from .contact_registration import register_contacts
 from .contact_result import gap_stats
+from .contact_term import (
+    check_held_out_gaps,
+    contact_frame,
+    contact_guess,
+    contact_objects,
+    split_contacts,
+    tilt_weight,
+)
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -91,13 +93,10 @@ from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import covariance, fit, fitted_values
 
-__all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
+__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
 
-CHAIN_KINDS = (PlaneContact, FixedPoseContact)
-"""The contact kinds a chain of a joint fit may have."""
-
-CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
-"""Parameter levels of several chains (``paper`` is a chain's MDH set)."""
+CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
+"""Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
 
 
 def _check(chains, data, validate, params, holdout) -> None:
@@ -139,19 +138,9 @@ def _check(chains, data, validate, params, holdout) -> None:
                 raise DataError(
                     part.source, f"the touches' joints are not those of {c.tool_frame}'s chain"
                 )
-            if not isinstance(part.kind, CHAIN_KINDS):
-                raise InvalidArgumentError(
-                    "several chains are calibrated from 'plane' or 'fixed-pose' contacts, got "
-                    f"'{part.kind.label}'"
-                )
             if type(part.kind) is not type(d.kind):
                 raise InvalidArgumentError(
                     f"{part.source}: validation touches of another kind than the chain's"
-                )
-            if isinstance(part.kind, PlaneContact) and len(part.contacts) != 1:
-                raise InvalidArgumentError(
-                    f"{part.source}: one {part.kind.object_name} per chain, got "
-                    f"{len(part.contacts)}"
                 )
     if params not in CHAIN_LEVELS:
         raise InvalidArgumentError(
@@ -200,7 +189,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             dropped.append(tuple(found))
             registered.append(state)
             continue
-        g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)
+        g = contact_guess(d.kind, guess, len(chains))
         start, bad, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
         )
@@ -238,7 +227,7 @@ def _register(
             continue
         kin = mdh.kinematics(d.q)
         R, p = kin.R[:, -1], kin.p[:, -1]
-        g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)  # a pose: the tool frame
+        g = contact_guess(d.kind, guess, len(chains))
         w = tilt_weight(R, p, d.ids, g, d.kind) if weight is None else weight
         registered = register_contacts(d.kind, R, p, d.ids, g, w)
         states.append(ContactState(mdh, registered, w))
@@ -293,7 +282,8 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     rows: list[np.ndarray] = []
     names: list[str] = []
     for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames))
+        mdh_set = "paper" if level == "paper" else "complete"
+        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
             if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):
@@ -554,15 +544,13 @@ def _assemble(
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
             refusal = refusal or _refused(stats, chain, "gaps")
-        kin = s.mdh.kinematics(d.q)
-        centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ s.contact[:3, 3], axis=0)
-        plane = s.plane(centre) if isinstance(s.kind, PlaneContact) else s.frames.objects[0]
+        objects = contact_objects(s, d)
         parts.append(
             ChainContacts(
                 chain,
                 d.source,
                 d.contacts[0],
-                plane.copy(),
+                objects[d.contacts[0]],
                 s.contact,
                 s0.mdh,
                 s.mdh,
@@ -570,6 +558,7 @@ def _assemble(
                 stats,
                 s.kind,
                 s.frames,
+                placed=objects,
             )
         )
     joints = [name for c in state.chains for name in c.joint_names]

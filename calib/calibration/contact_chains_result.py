@@ -73,6 +73,8 @@ class ChainContacts:
         held_source: Its held-out touches' source (``holdout`` or the validation file), or
             None.
         outliers: Its touches set aside after its registration.
+        placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
+            origin at its touches' contact points, projected), or None: :attr:`plane`.
     """
 
     chain: Chain
@@ -88,9 +90,12 @@ class ChainContacts:
     frames: ContactFrames | None = None
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
+    placed: dict[str, np.ndarray] | None = None
 
     def objects(self) -> dict[str, np.ndarray]:
-        """Each object (the plane, or each fixed pose) in the base frame ``(4, 4)``, by id."""
+        """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
+        if self.placed is not None:
+            return {i: F.copy() for i, F in self.placed.items()}
         if self.frames is None or isinstance(self.kind, PlaneContact):
             return {self.plane_id: self.plane}
         return {i: F.copy() for i, F in zip(self.frames.ids, self.frames.objects, strict=True)}

@@ -295,6 +295,12 @@ def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     """Index of each chain's plane: one per chain, or shared by base frame and plane id."""
     if not shared:
         return tuple(range(len(chains)))
+    several = [d for d in data if isinstance(d, ContactData) and len(d.contacts) != 1]
+    if several:
+        raise InvalidArgumentError(
+            f"shared planes: each chain touches one object, {several[0].source} has "
+            f"{len(several[0].contacts)}"
+        )
     keys = [
         (c.base_frame, d.contacts[0]) if isinstance(d.kind, PlaneContact) else (k,)
         for k, (c, d) in enumerate(zip(chains, data, strict=True))

@@ -227,7 +227,12 @@ DIRECTION_CONFIGS = 12
 
 
 def mdh_directions(
-    placements: Placements, chain: Chain, mdh: MDHModel, frames: np.ndarray, seed: int = 0
+    placements: Placements,
+    chain: Chain,
+    mdh: MDHModel,
+    frames: np.ndarray,
+    seed: int = 0,
+    label: str = "complete",
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """The chain's MDH parameters of joint rows 1..n as directions of joint placement errors.
 
@@ -245,14 +250,15 @@ def mdh_directions(
         mdh: Its MDH model on the robot of ``placements``.
         frames: Its joint frames at q = 0 (:meth:`Placements.chain_geometry`).
         seed: Seed of the configurations.
+        label: The MDH parameter set offered: ``complete`` or ``paper``.
 
     Returns:
         Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
         ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
     """
-    pset = parameter_set(mdh, "complete")
+    pset = parameter_set(mdh, label)
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
-    params = ParameterSet("complete", tuple(p for p in chosen if 1 <= p.row <= mdh.n))
+    params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= mdh.n))
     q = chain.random_configurations(DIRECTION_CONFIGS, seed)
     kin = mdh.kinematics(q)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))
