@@ -63,6 +63,8 @@ from .contact_registration import register_contacts
 from .contact_result import gap_stats
 from .contact_term import (
     check_held_out_gaps,
+    check_level_equations,
+    check_touches,
     contact_frame,
     contact_guess,
     contact_objects,
@@ -134,6 +136,7 @@ def _check(chains, data, validate, params, holdout) -> None:
                     f"(ContactData) or measurements (Measurements) like its data, got "
                     f"{type(part).__name__}"
                 )
+            check_touches(part)
             if part.joint_names != c.joint_names:
                 raise DataError(
                     part.source, f"the touches' joints are not those of {c.tool_frame}'s chain"
@@ -323,6 +326,7 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
     cand = [offered[c - fixed] for c in columns]
     if len(cand) < len(offered):
         notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
+    check_level_equations(train, fixed + len(cand), level)
     selection: Selection | None = None
     prior = None
     if level == "auto" and cand:

@@ -15,6 +15,7 @@ from ..kinematics.placement_export import camera_urdf, moved_origins_urdf, write
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
+from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
@@ -359,7 +360,10 @@ class ContactChainsCalibration(Delivered):
             "warnings": list(self.notes),
             "timings_ms": dict(self.timings_ms),
         }
-        return build_report(fields, self._format2(), FORMAT2_MOVED)
+        legacy = self._format2()
+        if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
+            fields, legacy = single_contact_report(self.chains[0], fields, legacy)
+        return build_report(fields, legacy, FORMAT2_MOVED)
 
     def _object_poses(self) -> dict:
         """Planes and poses by id, each in its chain's base frame (format 3's ``objects``)."""

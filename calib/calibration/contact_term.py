@@ -13,23 +13,71 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, FixedPoseContact
 from ..measurements.contact_campaign import ContactData
+from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
-from . import contact_checks
+from . import contact_checks, determined
 from .contact_checks import subset
 from .contact_model import ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 
 __all__ = [
+    "by_engine",
     "check_held_out_gaps",
+    "check_level_equations",
+    "check_touches",
     "contact_frame",
     "contact_guess",
     "contact_objects",
     "split_contacts",
     "tilt_weight",
 ]
+
+
+def by_engine(data: ContactData, elastic: bool | None) -> bool:
+    """Whether one chain's touches are fitted by the joint engine (:mod:`.contact_chains`).
+
+    Every contact kind and level is; not yet joint compliance (``elastic``) nor many objects
+    (:data:`~.contact_fit.BLOCK_UNKNOWNS` of their unknowns or more, eliminated object by
+    object), which the MDH chart's own steps fit (:mod:`.contact_pipeline`).
+    """
+    from .contact_fit import BLOCK_UNKNOWNS
+
+    objects = len(data.contacts) * len(data.kind.object_dofs)
+    return not elastic and objects < BLOCK_UNKNOWNS
+
+
+def check_level_equations(train, unknowns: int, level: str) -> None:
+    """One chain's touches must give more equations than a level's unknowns (not ``auto``).
+
+    Distinct touches count (a touch recorded again adds no equation); the selection of
+    ``auto`` keeps what the touches support.
+
+    Raises:
+        DataError: Too few touches for the level's parameters and the contact's unknowns.
+    """
+    if level == "auto" or len(train) != 1 or not isinstance(train[0], ContactData):
+        return
+    d = train[0]
+    what = f"parameters of params '{level}' (with the contact's unknowns)"
+    touches = count_postures(d.q, d.ids)
+    determined.check_equations(touches, d.kind.n_rows, unknowns, what, d.source, unit="touches")
+
+
+def check_touches(data: ContactData) -> None:
+    """Touches that are some, and not more than calib takes.
+
+    Raises:
+        DataError: No touches, or more touches or objects than ``MAX_TOUCHES`` and
+            ``MAX_OBJECTS``.
+    """
+    if not data.m:
+        raise DataError(data.source, "no touches: an empty contact set")
+    check_size(data.m, MAX_TOUCHES, "touches", data.source)
+    check_size(len(data.contacts), MAX_OBJECTS, f"{data.id_column}s", data.source)
 
 
 def contact_guess(kind: Contact, guess: np.ndarray, terms: int) -> np.ndarray:

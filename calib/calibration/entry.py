@@ -27,6 +27,7 @@ from ..measurements.data import Measurements
 from .contact_chains import calibrate_contact_chains
 from .contact_pipeline import calibrate_contacts
 from .contact_result import ContactCalibration
+from .contact_term import by_engine
 from .delivery import Result
 from .options import DEFAULT_MAX_ITERATIONS, checked_arguments
 from .pipeline import calibrate_chain
@@ -206,7 +207,20 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
             progress=progress,
         )
     term = p.terms[0]  # its robot's and data's types are the shape's (Problem checks them)
-    if shape == "contacts":
+    if shape == "contacts" and by_engine(cast(ContactData, term.data), p.elastic):
+        return calibrate_contact_chains(
+            [cast(Chain, term.robot)],
+            [term.data],
+            contact=term.guess,
+            params=p.params,
+            validate=[term.validate] if term.validate is not None else None,
+            orientation_weight=p.orientation_weight,
+            max_iterations=p.max_iterations,
+            holdout=p.holdout,
+            seed=p.seed,
+            progress=progress,
+        )
+    if shape == "contacts":  # joint compliance, many objects: the MDH chart's own steps
         return calibrate_contacts(
             cast(Chain, term.robot),
             cast(ContactData, term.data),
