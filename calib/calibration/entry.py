@@ -3,9 +3,11 @@
 ``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
 is the problem of one term. The problem's shape picks the model that fits it: one chain
 measured (:func:`~.pipeline.calibrate_chain`, the MDH chart with its registration moments),
-a tree (:func:`~.tree_pipeline.calibrate_tree`), one chain touching
-(:func:`~.contact_pipeline.calibrate_contacts`) or several terms whose joints are shared
-(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements). Each takes the
+a tree (:func:`~.tree_pipeline.calibrate_tree`), or terms whose joints are shared
+(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements): several terms,
+and one chain touching (any contact kind, any number of objects), but with joint compliance
+(``elastic``) or many objects (:func:`~.contact_term.by_engine`), which the single chain's
+MDH chart still fits (:func:`~.contact_pipeline.calibrate_contacts`). Each takes the
 steps of every calibration: prepare (checks, held-out rows, validation data that are the
 training data refused), register, set outliers aside, diagnose usual mistakes, choose the
 parameters, fit, assess (a model worse than its start on held-out data is refused) and
