@@ -27,6 +27,7 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_chains import calibrate_contact_chains
+from .contact_chains_result import ContactChainsCalibration
 from .contact_pipeline import calibrate_contacts
 from .contact_result import ContactCalibration
 from .contact_term import by_engine
@@ -94,7 +95,7 @@ def calibrate(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
-) -> ContactCalibration: ...
+) -> ContactChainsCalibration | ContactCalibration: ...
 
 
 @checked_arguments
