@@ -59,7 +59,6 @@ from .contact_chains_result import (
 from .contact_checks import subset
 from .contact_choice import touching_postures
 from .contact_model import ContactState
-from .contact_registration import register_contacts
 from .contact_result import gap_stats
 from .contact_term import (
     check_held_out_gaps,
@@ -69,7 +68,6 @@ from .contact_term import (
     contact_guess,
     contact_objects,
     split_contacts,
-    tilt_weight,
 )
 from .measured_term import (
     MeasuredState,
@@ -166,12 +164,12 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
 
     Returns:
-        Each chain's touches (rows) kept, each chain's outliers, and each measured term's
-        registration (None for a contact chain).
+        Each chain's touches (rows) kept, each chain's outliers, and each term's
+        registration on the nominal robot (a contact chain's: of the touches kept).
     """
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
-    registered: list[MeasuredState | PixelTermState | None] = []
+    registered: list[MeasuredState | PixelTermState | ContactState] = []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
         if isinstance(d, PixelPart):
@@ -207,33 +205,26 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
         notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
         kept.append(d)
         dropped.append(tuple(out))
-        registered.append(None)
+        registered.append(start)
     return kept, dropped, registered
 
 
 def _register(
-    chains, train, measured, guess, weight, plane_of, notes, max_iterations, pose_weight=1.0
+    chains, train, measured, plane_of, notes, max_iterations, pose_weight=1.0
 ) -> ChainsState:
-    """Each chain's plane and contact in closed form on the nominal robot (shared: refined).
+    """Each chain's registration on the nominal robot (a plane shared by chains: refined).
 
-    ``measured``: each measured term's registration (``_checked``), None for a contact chain.
+    ``measured``: each term's registration (``_checked``: a contact chain's objects and
+    contact in closed form, a measured term's frames, a pixel term's camera).
     """
     placements = Placements.of(tuple(chains))
     models, frames = placements.chain_geometry(tuple(chains))
     states: list[ContactState | MeasuredState | PixelTermState] = []
-    for mdh, d, reg in zip(models, train, measured, strict=True):
-        if isinstance(reg, PixelTermState):  # a pixel term: its camera on the nominal chain
-            states.append(dataclasses.replace(reg, mdh=mdh))
-        elif reg is not None:  # a measured term: its registration on the nominal chain
+    for mdh, reg in zip(models, measured, strict=True):
+        if isinstance(reg, MeasuredState):  # its registration on the nominal chain
             states.append(dataclasses.replace(reg, inner=dataclasses.replace(reg.inner, mdh=mdh)))
-        if reg is not None:
-            continue
-        kin = mdh.kinematics(d.q)
-        R, p = kin.R[:, -1], kin.p[:, -1]
-        g = contact_guess(d.kind, guess, len(chains))
-        w = tilt_weight(R, p, d.ids, g, d.kind) if weight is None else weight
-        registered = register_contacts(d.kind, R, p, d.ids, g, w)
-        states.append(ContactState(mdh, registered, w))
+        else:
+            states.append(dataclasses.replace(reg, mdh=mdh))
     for c, p in enumerate(plane_of):  # a shared plane starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
@@ -421,9 +412,7 @@ def calibrate_contact_chains(
     )
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
-        start = _register(
-            chains, train, measured, guess, w, plane_of, notes, max_iterations, pose_weight
-        )
+        start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = _flush(start, train)
