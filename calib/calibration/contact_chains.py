@@ -466,7 +466,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     placement component (``wide``, dependent ones included: Levenberg-Marquardt's damping
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
-    fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
+    fit's): on noisy touches, where it would only fit noise, it is dropped. One chain
+    touching is not polished (its MDH directions span what it sees, as the single chain's
+    fit has always assumed; a polish of 20,000 touches took minutes). ``auto`` (a
     selection, a prior) and ``offsets`` are not polished, nor a fit already exact (RMS row
     under ``ROUND_OFF``: the undetermined components would only wander), and a polish that
     wanders to no robot (its chain models refused) is dropped.
@@ -477,7 +479,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     data = ChainsData(tuple(train))
     fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
-    if level != "complete" or not model.free or rows < wide.size():
+    one_contact = len(start.states) == 1 and isinstance(start.states[0], ContactState)
+    if level != "complete" or not model.free or rows < wide.size() or one_contact:
         return fitted, False
     cost = float(fitted.f @ fitted.f)
     if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:
