@@ -22,7 +22,10 @@ whole robot. The steps are those of one chain (:mod:`.contact_pipeline`):
 Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
 recorded on different days see the table from wherever the robot stood.
 
-A chain's kind is its touches': ``plane`` or ``fixed-pose``. A ``fixed-pose`` chain is a
+A chain's kind is its touches', any contact kind (``plane``, ``plane-point``,
+``fixed-point``, ``fixed-pose``), with any number of objects (ids); one chain touching alone
+is a problem of one term (:func:`calib.calibrate` routes it here, but joint compliance and
+many objects: :func:`~.contact_term.by_engine`). A ``fixed-pose`` chain of a joint fit is a
 closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
 flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
 one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
