@@ -48,6 +48,7 @@ def test_every_kind_with_two_objects_round_trips_through_the_engine(kind, params
             fit = _similarity_fit if kind == "fixed-point" else _scale_fit
             s, residual = fit(scaled_g, scaled_t)
             assert residual < 1e-8 and abs(abs(s) - 1) < 0.1
+    assert r.stats is part.stats  # what a single chain's result offered (notebook 06)
     doc = r.to_dict()
     assert doc["shape"] == "contacts" and doc["measure"] == kind
     group = f"{camp.data.kind.object_name}s"
@@ -92,3 +93,6 @@ def test_shared_planes_take_one_object_per_chain():
     one = simulate_contacts(right, 40, "plane", seed=3).data
     with pytest.raises(InvalidArgumentError, match="one object"):
         calibrate(Problem((Term(chain, two), Term(right, one)), shared_planes=True))
+    both = calibrate(Problem((Term(chain, two), Term(right, one)), params="frames"))
+    with pytest.raises(InvalidArgumentError, match=r"chains\[k\]\.stats"):
+        _ = both.stats

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.fileio import check_outputs, write_atomic
-from ..exceptions import CalibrationRefusedError
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import camera_urdf, moved_origins_urdf, write_moved_origins_urdf
@@ -264,6 +264,19 @@ class ContactChainsCalibration(Delivered):
     def accepted(self) -> bool:
         """The model may be used (not refused)."""
         return self.refusal is None
+
+    @property
+    def stats(self) -> dict[str, GapStats]:
+        """A fit of one term: its errors (``chains[0].stats``; a single chain's ``stats``).
+
+        Raises:
+            InvalidArgumentError: Several terms: each has its own (``chains[k].stats``).
+        """
+        if len(self.chains) != 1:
+            raise InvalidArgumentError(
+                f"a fit of {len(self.chains)} terms: each term's errors are chains[k].stats"
+            )
+        return self.chains[0].stats
 
     def joint_errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
