@@ -3,9 +3,9 @@
 Whole ``calib`` processes on one BLAS thread, each case ``CALIB_BENCH_REPEATS`` times (default
 3): the median wall time, the median CPU time (user + system: the steadier on a shared machine)
 and the peak resident memory of the process. The contacts also in process: a fresh Python
-process reads the file, then times :func:`~calib.calibration.contact_pipeline.
-calibrate_contacts` alone (wall and CPU, medians) and prints its peak resident memory (VmHWM)
-and that after reading the file.
+process reads the file, then times :func:`calib.calibrate` alone (one plane: the joint engine;
+500 planes: the single chain's block route; wall and CPU, medians) and prints its peak
+resident memory (VmHWM) and that after reading the file.
 
 - Contacts, TALOS from the left sole to the left gripper touching planes (simulated, 0.01 mrad
   joint noise): 20,000 touches of one plane, and 500 planes of 4 touches, with ``--params
@@ -68,7 +68,7 @@ def contact_file(folder: Path, touches: int, planes: int) -> Path:
 IN_PROCESS = """
 import json, sys, time
 from calib import load_chain
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib import calibrate
 from calib.measurements.contact_campaign import read_contacts
 def hwm():
     return [int(x.split()[1]) for x in open("/proc/self/status") if x.startswith("VmHWM")][0]
@@ -76,7 +76,7 @@ chain = load_chain("talos", "left_sole_link", "gripper_left_base_link")
 data = read_contacts(sys.argv[1], chain, "plane")
 read = hwm()
 t0, c0 = time.perf_counter(), time.process_time()
-result = calibrate_contacts(chain, data, params=sys.argv[2])
+result = calibrate(chain, data, params=sys.argv[2])
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 print(json.dumps([wall, cpu, hwm() / 1024, read / 1024, len(result.free)]))
 """

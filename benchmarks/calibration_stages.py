@@ -11,8 +11,9 @@ One line per run [ms of process CPU time, medians]: the TIAGo session (37 postur
 ``auto``) whole and by stage (``checked_registration``, the final ``fit``, ``_choose`` and
 within it ``select`` and ``_generic_kept``, ``_assemble``), then point 1 ``complete``, the
 four points and the plate's pose (``auto``), the UR10 with ``holdout=0.25``, the TALOS
-left contact calibration (default) and the TALOS hands as a tree (30 simulated
-configurations of both hands, 0.05 mm of noise, ``holdout=0.25``: the README's trees).
+left contact calibration (default, through ``calibrate``) and the TALOS hands as a tree (30
+simulated configurations of both hands, 0.05 mm of noise, ``holdout=0.25``: the README's
+trees).
 """
 
 from __future__ import annotations
@@ -33,7 +34,6 @@ warnings.simplefilter("ignore")
 import calib  # noqa: E402
 import calib.calibration.pipeline as pipeline  # noqa: E402
 from calib import calibrate, load_chain, load_robot, read_measurements  # noqa: E402
-from calib.calibration.contact_pipeline import calibrate_contacts  # noqa: E402
 from calib.measurements.contact_campaign import read_contacts  # noqa: E402
 from calib.measurements.csvfile import Columns  # noqa: E402
 
@@ -85,7 +85,7 @@ def main() -> None:
         cpu_ms(lambda: calibrate(chain, four), 5),
         cpu_ms(lambda: calibrate(chain, plate), 5),
         cpu_ms(lambda: calibrate(ur10, ur10_data, holdout=0.25), 11),
-        cpu_ms(lambda: calibrate_contacts(talos, touches, contact=(0, 0, -0.12)), 5),
+        cpu_ms(lambda: calibrate(talos, touches, marker=(0, 0, -0.12)), 5),
         cpu_ms(lambda: calibrate(hands, seen.measurements, holdout=0.25), 11),
     ]
     print(

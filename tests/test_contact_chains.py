@@ -305,7 +305,7 @@ def test_bad_arguments():
     with pytest.raises(InvalidArgumentError, match="non-empty"):
         calibrate_contact_chains([], [])
     with pytest.raises(InvalidArgumentError, match="params"):
-        calibrate_contact_chains(chains, data, params="paper")
+        calibrate_contact_chains(chains, data, params="some")
     with pytest.raises(InvalidArgumentError, match="not both"):
         calibrate_contact_chains(chains, data, validate=data, holdout=0.2)
     with pytest.raises(InvalidArgumentError, match="seed"):
@@ -319,8 +319,8 @@ def test_bad_arguments():
     with pytest.raises(DataError, match="joints"):
         calibrate_contact_chains(chains, data[::-1])
     point = simulate_contacts(chains[0], 12, "fixed-point", seed=0).data
-    with pytest.raises(InvalidArgumentError, match="'plane' or 'fixed-pose' contacts"):
-        calibrate_contact_chains(chains, [point, data[1]])
+    with pytest.raises(InvalidArgumentError, match="validation touches of another kind"):
+        calibrate_contact_chains(chains, data, validate=[point, None])
 
 
 @pytest.mark.filterwarnings("ignore")

@@ -22,7 +22,10 @@ whole robot. The steps are those of one chain (:mod:`.contact_pipeline`):
 Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
 recorded on different days see the table from wherever the robot stood.
 
-A chain's kind is its touches': ``plane`` or ``fixed-pose``. A ``fixed-pose`` chain is a
+A chain's kind is its touches', any contact kind (``plane``, ``plane-point``,
+``fixed-point``, ``fixed-pose``), with any number of objects (ids); one chain touching alone
+is a problem of one term (:func:`calib.calibrate` routes it here, but joint compliance and
+many objects: :func:`~.contact_term.by_engine`). A ``fixed-pose`` chain of a joint fit is a
 closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
 flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
 one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
@@ -42,7 +45,7 @@ import numpy as np
 from ..core.checks import MAX_WEIGHT, check_number
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import FixedPoseContact, PlaneContact
+from ..identification.contacts import FixedPoseContact
 from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
@@ -57,16 +60,18 @@ from .contact_chains_result import (
     measured_part,
 )
 from .contact_checks import subset
+from .contact_choice import touching_postures
 from .contact_model import ContactState
-from .contact_pipeline import (
-    check_held_out_gaps,
-    contact_frame,
-    split_contacts,
-    tilt_weight,
-    touching_postures,
-)
-from .contact_registration import register_contacts
 from .contact_result import gap_stats
+from .contact_term import (
+    check_held_out_gaps,
+    check_level_equations,
+    check_touches,
+    contact_frame,
+    contact_guess,
+    contact_objects,
+    split_contacts,
+)
 from .instrument import check_tree_rank, instrument_groups, shared_frame
 from .measured_term import (
     MeasuredState,
@@ -92,13 +97,10 @@ from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import covariance, fit, fitted_values, gauss_newton_finish
 
-__all__ = ["CHAIN_KINDS", "CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
+__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
 
-CHAIN_KINDS = (PlaneContact, FixedPoseContact)
-"""The contact kinds a chain of a joint fit may have."""
-
-CHAIN_LEVELS = ("auto", "frames", "offsets", "complete")
-"""Parameter levels of several chains (``paper`` is a chain's MDH set)."""
+CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
+"""Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
 
 
 def _check(chains, data, validate, params, holdout, instrument=False) -> None:
@@ -137,23 +139,14 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
                     f"(ContactData) or measurements (Measurements) like its data, got "
                     f"{type(part).__name__}"
                 )
+            check_touches(part)
             if part.joint_names != c.joint_names:
                 raise DataError(
                     part.source, f"the touches' joints are not those of {c.tool_frame}'s chain"
                 )
-            if not isinstance(part.kind, CHAIN_KINDS):
-                raise InvalidArgumentError(
-                    "several chains are calibrated from 'plane' or 'fixed-pose' contacts, got "
-                    f"'{part.kind.label}'"
-                )
             if type(part.kind) is not type(d.kind):
                 raise InvalidArgumentError(
                     f"{part.source}: validation touches of another kind than the chain's"
-                )
-            if isinstance(part.kind, PlaneContact) and len(part.contacts) != 1:
-                raise InvalidArgumentError(
-                    f"{part.source}: one {part.kind.object_name} per chain, got "
-                    f"{len(part.contacts)}"
                 )
     if params not in CHAIN_LEVELS:
         raise InvalidArgumentError(
@@ -176,12 +169,12 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
 
     Returns:
-        Each chain's touches (rows) kept, each chain's outliers, and each measured term's
-        registration (None for a contact chain).
+        Each chain's touches (rows) kept, each chain's outliers, and each term's
+        registration on the nominal robot (a contact chain's: of the touches kept).
     """
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
-    registered: list[MeasuredState | PixelTermState | None] = []
+    registered: list[MeasuredState | PixelTermState | ContactState] = []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
         if isinstance(d, PixelPart):
@@ -203,7 +196,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             dropped.append(tuple(found))
             registered.append(state)
             continue
-        g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)
+        g = contact_guess(d.kind, guess, len(chains))
         start, bad, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
         )
@@ -218,33 +211,26 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
         notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
         kept.append(d)
         dropped.append(tuple(out))
-        registered.append(None)
+        registered.append(start)
     return kept, dropped, registered
 
 
 def _register(
-    chains, train, measured, guess, weight, plane_of, notes, max_iterations, pose_weight=1.0
+    chains, train, measured, plane_of, notes, max_iterations, pose_weight=1.0
 ) -> ChainsState:
-    """Each chain's plane and contact in closed form on the nominal robot (shared: refined).
+    """Each chain's registration on the nominal robot (a plane shared by chains: refined).
 
-    ``measured``: each measured term's registration (``_checked``), None for a contact chain.
+    ``measured``: each term's registration (``_checked``: a contact chain's objects and
+    contact in closed form, a measured term's frames, a pixel term's camera).
     """
     placements = Placements.of(tuple(chains))
     models, frames = placements.chain_geometry(tuple(chains))
     states: list[ContactState | MeasuredState | PixelTermState] = []
-    for mdh, d, reg in zip(models, train, measured, strict=True):
-        if isinstance(reg, PixelTermState):  # a pixel term: its camera on the nominal chain
-            states.append(dataclasses.replace(reg, mdh=mdh))
-        elif reg is not None:  # a measured term: its registration on the nominal chain
+    for mdh, reg in zip(models, measured, strict=True):
+        if isinstance(reg, MeasuredState):  # its registration on the nominal chain
             states.append(dataclasses.replace(reg, inner=dataclasses.replace(reg.inner, mdh=mdh)))
-        if reg is not None:
-            continue
-        kin = mdh.kinematics(d.q)
-        R, p = kin.R[:, -1], kin.p[:, -1]
-        g = guess if isinstance(d.kind, PlaneContact) else np.eye(4)  # a pose: the tool frame
-        w = tilt_weight(R, p, d.ids, g, d.kind) if weight is None else weight
-        registered = register_contacts(d.kind, R, p, d.ids, g, w)
-        states.append(ContactState(mdh, registered, w))
+        else:
+            states.append(dataclasses.replace(reg, mdh=mdh))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
@@ -303,7 +289,8 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     rows: list[np.ndarray] = []
     names: list[str] = []
     for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames))
+        mdh_set = "paper" if level == "paper" else "complete"
+        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
             if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):
@@ -343,6 +330,7 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
     cand = [offered[c - fixed] for c in columns]
     if len(cand) < len(offered):
         notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
+    check_level_equations(train, fixed + len(cand), level)
     selection: Selection | None = None
     prior = None
     if level == "auto" and cand:
@@ -442,9 +430,7 @@ def calibrate_contact_chains(
     )
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
-        start = _register(
-            chains, train, measured, guess, w, plane_of, notes, max_iterations, pose_weight
-        )
+        start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = _flush(start, train)
@@ -502,7 +488,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     placement component (``wide``, dependent ones included: Levenberg-Marquardt's damping
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
-    fit's): on noisy touches, where it would only fit noise, it is dropped. ``auto`` (a
+    fit's): on noisy touches, where it would only fit noise, it is dropped. One chain
+    touching is not polished (its MDH directions span what it sees, as the single chain's
+    fit has always assumed; a polish of 20,000 touches took minutes). ``auto`` (a
     selection, a prior), ``offsets`` and ``components`` (every component offered) are not
     polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
     components would only wander), and a polish that wanders to no robot (its chain models
@@ -516,7 +504,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     data = ChainsData(tuple(train))
     fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
-    if level != "complete" or not model.free or rows < wide.size():
+    one_contact = len(start.states) == 1 and isinstance(start.states[0], ContactState)
+    if level != "complete" or not model.free or rows < wide.size() or one_contact:
         return fitted, False
     cost = float(fitted.f @ fitted.f)
     if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:
@@ -577,15 +566,13 @@ def _assemble(
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
             refusal = refusal or _refused(stats, chain, "gaps")
-        kin = s.mdh.kinematics(d.q)
-        centre = np.mean(kin.p[:, -1] + kin.R[:, -1] @ s.contact[:3, 3], axis=0)
-        plane = s.plane(centre) if isinstance(s.kind, PlaneContact) else s.frames.objects[0]
+        objects = contact_objects(s, d)
         parts.append(
             ChainContacts(
                 chain,
                 d.source,
                 d.contacts[0],
-                plane.copy(),
+                objects[d.contacts[0]],
                 s.contact,
                 s0.mdh,
                 s.mdh,
@@ -593,6 +580,7 @@ def _assemble(
                 stats,
                 s.kind,
                 s.frames,
+                placed=objects,
             )
         )
     joints = [name for c in state.chains for name in c.joint_names]

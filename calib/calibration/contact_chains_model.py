@@ -304,12 +304,14 @@ class ChainsModel:
         ang, lin = joint_twists(state.placements, chain, s.mdh, state.frames[c], kin, columns)
         R, p = kin.R[:, -1], kin.p[:, -1]
         point = p + R @ s.contact[:3, 3]
-        # every component of every joint on the chain, ordered as Placements.names()
         moving = lin - skew(point)[:, None] @ ang  # velocity of the contact point
-        full = np.zeros((d.m, 6, len(joints), len(COMPONENTS)))
-        full[:, :3, columns] = np.moveaxis(moving, 1, 2)
-        full[:, 3:, columns] = np.moveaxis(ang, 1, 2)
-        W6 = full.reshape(d.m, 6, -1) @ self._lift().T
+        # the free directions on the chain's joints' components (Placements.names() order),
+        # without the (m, 6, 6 J) array of every component of every joint
+        lift = self._lift().reshape(-1, len(joints), len(COMPONENTS))[:, columns]
+        lift = lift.reshape(len(lift), -1).T  # (n 6, free)
+        W6 = np.concatenate(
+            [np.moveaxis(v, 2, 1).reshape(d.m, 3, -1) @ lift for v in (moving, ang)], axis=1
+        )
         index = s.frames.index(d.ids, d.source)
         Rc, _ = s.frames.relative(R, p, index)
         out = s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc)

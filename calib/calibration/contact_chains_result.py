@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.fileio import check_outputs, write_atomic
-from ..exceptions import CalibrationRefusedError
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import (
@@ -20,6 +20,7 @@ from ..kinematics.placement_export import (
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_errors_mm, gap_rows
+from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
@@ -79,6 +80,8 @@ class ChainContacts:
         held_source: Its held-out touches' source (``holdout`` or the validation file), or
             None.
         outliers: Its touches set aside after its registration.
+        placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
+            origin at its touches' contact points, projected), or None: :attr:`plane`.
     """
 
     chain: Chain
@@ -94,9 +97,12 @@ class ChainContacts:
     frames: ContactFrames | None = None
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
+    placed: dict[str, np.ndarray] | None = None
 
     def objects(self) -> dict[str, np.ndarray]:
-        """Each object (the plane, or each fixed pose) in the base frame ``(4, 4)``, by id."""
+        """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
+        if self.placed is not None:
+            return {i: F.copy() for i, F in self.placed.items()}
         if self.frames is None or isinstance(self.kind, PlaneContact):
             return {self.plane_id: self.plane}
         return {i: F.copy() for i, F in zip(self.frames.ids, self.frames.objects, strict=True)}
@@ -276,6 +282,19 @@ class ContactChainsCalibration(Delivered):
             raise CalibrationRefusedError(self.refusal)
         return self
 
+    @property
+    def stats(self) -> dict[str, GapStats]:
+        """A fit of one term: its errors (``chains[0].stats``; a single chain's ``stats``).
+
+        Raises:
+            InvalidArgumentError: Several terms: each has its own (``chains[k].stats``).
+        """
+        if len(self.chains) != 1:
+            raise InvalidArgumentError(
+                f"a fit of {len(self.chains)} terms: each term's errors are chains[k].stats"
+            )
+        return self.chains[0].stats
+
     def joint_errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
 
@@ -375,7 +394,10 @@ class ContactChainsCalibration(Delivered):
             "warnings": list(self.notes),
             "timings_ms": dict(self.timings_ms),
         }
-        return build_report(fields, self._format2(), FORMAT2_MOVED)
+        legacy = self._format2()
+        if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
+            fields, legacy = single_contact_report(self.chains[0], fields, legacy)
+        return build_report(fields, legacy, FORMAT2_MOVED)
 
     def _object_poses(self) -> dict:
         """Planes and poses by id, each in its chain's base frame (format 3's ``objects``)."""

@@ -296,8 +296,14 @@ def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     """Index of each chain's object: one per chain, or shared by base frame and plane id.
 
     The pixel terms of one camera (its targets on several links: one term per link) share
-    their object, the camera, whatever ``shared``.
+    their object, the camera, whatever ``shared``; shared planes need one object per chain.
     """
+    several = [d for d in data if isinstance(d, ContactData) and len(d.contacts) != 1]
+    if shared and several:
+        raise InvalidArgumentError(
+            f"shared planes: each chain touches one object, {several[0].source} has "
+            f"{len(several[0].contacts)}"
+        )
     keys: list[tuple] = []
     for k, (c, d) in enumerate(zip(chains, data, strict=True)):
         if isinstance(d, PixelPart):

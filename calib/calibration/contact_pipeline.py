@@ -43,7 +43,6 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
-from ..measurements.postures import posture_groups
 from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_checks import WEIGHT_ROUNDS, subset
 from .contact_choice import (
@@ -54,9 +53,15 @@ from .contact_choice import (
     touching_postures,
 )
 from .contact_fit import block_fit, by_block
-from .contact_model import ContactState, plane_frame
-from .contact_registration import MIN_TOUCHES
+from .contact_model import ContactState
 from .contact_result import ContactCalibration, gap_stats
+from .contact_term import (
+    check_held_out_gaps,
+    contact_frame,
+    contact_objects,
+    split_contacts,
+    tilt_weight,
+)
 from .options import Options
 from .selection import Selection
 from .solve import Fit, fit, fitted_values
@@ -71,57 +76,6 @@ __all__ = [
     "tilt_weight",
     "touching_postures",
 ]
-
-
-def contact_frame(contact) -> np.ndarray:
-    """The contact frame ``(4, 4)`` in the tool frame from a 4x4, 3 or 6 numbers (m, rad).
-
-    Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame.
-    """
-    from ..kinematics.so3 import rotation_matrix
-
-    if contact is None:
-        return np.eye(4)
-    try:
-        C = np.asarray(contact, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError("the contact frame takes X Y Z [RX RY RZ] (m, rad)") from None
-    if C.shape == (4, 4):
-        if not np.allclose(C[:3, :3] @ C[:3, :3].T, np.eye(3), atol=1e-9):
-            raise InvalidArgumentError("the contact frame must be a rigid transform (4, 4)")
-        return C.copy()
-    if C.shape not in ((3,), (6,)) or not np.all(np.isfinite(C)):
-        raise InvalidArgumentError("the contact frame takes X Y Z [RX RY RZ] (m, rad)")
-    T = np.eye(4)
-    T[:3, 3] = C[:3]
-    if C.shape == (6,):
-        T[:3, :3] = rotation_matrix(C[3:])
-    return T
-
-
-def split_contacts(
-    data: ContactData, holdout: float, seed: int
-) -> tuple[ContactData, ContactData | None]:
-    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
-
-    A touch recorded several times (the same posture on the same object) is held out whole.
-    """
-    if not (0.0 <= holdout < 1.0):
-        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
-    if holdout <= 0:
-        return data, None
-    rng = np.random.default_rng([seed, 21])
-    ids = np.array(data.ids)
-    groups = posture_groups(data.q, data.ids)  # a touch repeated is held out whole
-    held = np.zeros(data.m, dtype=bool)
-    for name in data.contacts:
-        touches = np.unique(groups[ids == name])  # in order of first appearance
-        out = min(round(holdout * len(touches)), len(touches) - MIN_TOUCHES)
-        if out > 0:
-            held[np.isin(groups, touches[rng.permutation(len(touches))[:out]])] = True
-    if not held.any():
-        raise DataError(data.source, f"too few touches to hold {holdout:g} of them out")
-    return subset(data, ~held), subset(data, held)
 
 
 def _check(chain, data, validate, opts: Options) -> None:
@@ -149,16 +103,6 @@ def _check(chain, data, validate, opts: Options) -> None:
         validation.check_held_out(data, validate)
     if opts.fix or opts.free or opts.loss != "linear":
         raise InvalidArgumentError("fix, free and robust losses are not available for contacts")
-
-
-def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray, kind=None) -> float:
-    """Weight of the angle rows [m/rad] of a registration (default kind: ``plane``).
-
-    See :func:`~calib.calibration.contact_checks.estimate_weight`.
-    """
-    from ..identification.contacts import PlaneContact
-
-    return contact_checks.estimate_weight(kind or PlaneContact(), R, p, ids, guess)
 
 
 def calibrate_contacts(
@@ -332,21 +276,6 @@ def _held_label(held, validate) -> str | None:
     return "holdout" if validate is None else validate.source
 
 
-def _objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:
-    """The objects by id; a plane's origin at its touches' contact points, projected."""
-    frames = state.frames
-    if frames.kind.object_name != "plane":
-        return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
-    kin = state.kinematics(train.q, torque)
-    x = kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3]
-    index = frames.index(train.ids)
-    out = {}
-    for i, k in enumerate(frames.ids):
-        n = frames.objects[i, :3, 2]
-        out[k] = plane_frame(n, float(n @ frames.objects[i, :3, 3]), x[index == i].mean(axis=0))
-    return out
-
-
 def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load):
     train, held = sets
     state = fitted.state
@@ -374,7 +303,7 @@ def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load)
         nominal=start.mdh,
         calibrated=state.mdh,
         contact=state.contact,
-        objects=_objects(state, train, torque[0]),
+        objects=contact_objects(state, train, torque[0]),
         free=fitted.model.names()[fitted.model.fixed :],
         selection=selection,
         stats=stats,
@@ -386,17 +315,3 @@ def _assemble(chain, sets, torque, start, fitted, selection, notes, clock, load)
         load=None if compliance is None else load,
         readings=() if compliance is None or train.readings is None else train.readings.names,
     )
-
-
-def check_held_out_gaps(stats, source: str) -> None:
-    """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
-    from .diagnosis import suspect
-
-    held, fitted = stats["held_out_registration"], stats["train_registration"]
-    far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
-    if suspect(far, None) and not suspect(near, None):
-        raise DataError(
-            source,
-            f"the held-out touches are {1e3 * far:.4g} mm RMS from the registered contact (the "
-            f"data {1e3 * near:.4g} mm): touched another object, or on another robot?",
-        )

@@ -206,18 +206,18 @@ def joint_twists(
     m = kin.R.shape[0]
     ang = np.zeros((m, chain.n, 3, 6))
     lin = np.zeros((m, chain.n, 3, 6))
-    for i, (s, col) in enumerate(zip(chain.sign, columns, strict=True)):
+    B = placements.bases[columns]  # (n, 3, 3), every chain joint's at once
+    w = np.einsum("nab,nb->na", B, placements.y[columns, 3:])
+    body_v = np.swapaxes(rotation_matrix(w), 1, 2) @ B  # d(origin) per dv, in F
+    body_w = left_jacobian(-w) @ B  # right Jacobian of R(w), in F
+    for i, s in enumerate(chain.sign):
         a = i if s > 0 else i + 1
         K = np.linalg.inv(T0[a]) @ F0[i]
         RF = kin.R[:, a] @ K[:3, :3]
         pF = kin.p[:, a] + kin.R[:, a] @ K[:3, 3]
-        B, y = placements.bases[col], placements.y[col]
-        w = B @ y[3:]
-        body_v = rotation_matrix(w).T @ B  # (3, 3): d(origin) per dv, in F
-        body_w = left_jacobian(-w) @ B  # right Jacobian of R(w), in F
-        wv = s * RF @ body_w  # (m, 3, 3) angular velocity per d(rx ry rz)
+        wv = s * RF @ body_w[i]  # (m, 3, 3) angular velocity per d(rx ry rz)
         ang[:, i, :, 3:] = wv
-        lin[:, i, :, :3] = s * RF @ body_v
+        lin[:, i, :, :3] = s * RF @ body_v[i]
         lin[:, i, :, 3:] = skew(pF) @ wv
     return ang, lin
 
@@ -227,7 +227,12 @@ DIRECTION_CONFIGS = 12
 
 
 def mdh_directions(
-    placements: Placements, chain: Chain, mdh: MDHModel, frames: np.ndarray, seed: int = 0
+    placements: Placements,
+    chain: Chain,
+    mdh: MDHModel,
+    frames: np.ndarray,
+    seed: int = 0,
+    label: str = "complete",
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """The chain's MDH parameters of joint rows 1..n as directions of joint placement errors.
 
@@ -245,14 +250,15 @@ def mdh_directions(
         mdh: Its MDH model on the robot of ``placements``.
         frames: Its joint frames at q = 0 (:meth:`Placements.chain_geometry`).
         seed: Seed of the configurations.
+        label: The MDH parameter set offered: ``complete`` or ``paper``.
 
     Returns:
         Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
         ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
     """
-    pset = parameter_set(mdh, "complete")
+    pset = parameter_set(mdh, label)
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
-    params = ParameterSet("complete", tuple(p for p in chosen if 1 <= p.row <= mdh.n))
+    params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= mdh.n))
     q = chain.random_configurations(DIRECTION_CONFIGS, seed)
     kin = mdh.kinematics(q)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..core.fileio import check_outputs, json_text, written_in_place
+from ..core.fileio import check_outputs, written_in_place
 from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
@@ -69,7 +69,7 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
     Raises:
         CalibrationRefusedError: The model was refused (the report only is written).
     """
-    from ..calibration.contact_pipeline import calibrate_contacts
+    from ..calibration.contact_term import by_engine
     from ..measurements.contact_campaign import read_contacts
 
     if not isinstance(chain, Chain) or chain.is_tree:
@@ -91,29 +91,14 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
     data = read_contacts(args.data, chain, args.measure)
     check = read_contacts(args.validate, chain, args.measure) if args.validate else None
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
-    result = calibrate_contacts(
-        chain,
-        data,
-        contact=args.contact,
-        params=args.params,
-        validate=check,
-        orientation_weight=weight,
-        elastic=args.elastic,
-        support=_support(args),
-        max_iterations=args.max_iterations,
-        holdout=args.holdout,
-        seed=args.seed,
-        progress=terminal(args.quiet),
-    )
+    support = _support(args)
+    run = _engine if by_engine(data, args.elastic) else _mdh_chart
+    result = run(args, chain, data, check, weight, support)
 
     def urdf() -> dict[Path, str | bytes]:
-        from ..kinematics.urdf_export import calibrated_urdf
-
-        files: dict[Path, str | bytes] = {
-            out: calibrated_urdf(chain, result.nominal, result.calibrated)
-        }
-        if comp is not None and result.elastic:
-            files[comp] = json_text(result.compliance_document(str(out)))
+        files: dict[Path, str | bytes] = {out: result.urdf()}
+        if comp is not None:
+            files.update(result.compliance_files(out))
         return files
 
     return write_calibration(
@@ -125,4 +110,43 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
         (out, report),
         recorded,
         result,
+    )
+
+
+def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support):
+    """One chain's touches fitted by the joint engine (:mod:`calib.calibration.contact_chains`)."""
+    from ..calibration.contact_chains import calibrate_contact_chains
+
+    del support  # only with --elastic, which the engine does not fit yet
+    return calibrate_contact_chains(
+        [chain],
+        [data],
+        contact=args.contact,
+        params=args.params,
+        validate=None if check is None else [check],
+        orientation_weight=weight,
+        max_iterations=args.max_iterations,
+        holdout=args.holdout,
+        seed=args.seed,
+        progress=terminal(args.quiet),
+    )
+
+
+def _mdh_chart(args: argparse.Namespace, chain: Chain, data, check, weight, support):
+    """Joint compliance or many objects: the MDH chart's own steps (``contact_pipeline``)."""
+    from ..calibration.contact_pipeline import calibrate_contacts
+
+    return calibrate_contacts(
+        chain,
+        data,
+        contact=args.contact,
+        params=args.params,
+        validate=check,
+        orientation_weight=weight,
+        elastic=args.elastic,
+        support=support,
+        max_iterations=args.max_iterations,
+        holdout=args.holdout,
+        seed=args.seed,
+        progress=terminal(args.quiet),
     )

@@ -1,0 +1,182 @@
+"""A contact term of the joint engine: its guess, held-out touches, objects and checks.
+
+What a term of touches (:class:`~calib.measurements.contact_campaign.ContactData`, any
+contact kind: ``plane``, ``plane-point``, ``fixed-point``, ``fixed-pose``; any number of
+objects) needs beside the engine's model (:mod:`.contact_chains`): the contact frame's guess
+(:func:`contact_frame`, :func:`contact_guess`), the touches set aside
+(:func:`split_contacts`), the angle rows' weight (:func:`tilt_weight`), the objects as
+reported (:func:`contact_objects`) and the check of held-out touches that are another
+object's (:func:`check_held_out_gaps`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
+from ..exceptions import DataError, InvalidArgumentError
+from ..identification.contacts import Contact, FixedPoseContact
+from ..measurements.contact_campaign import ContactData
+from ..measurements.postures import count as count_postures
+from ..measurements.postures import posture_groups
+from . import contact_checks, determined
+from .contact_checks import subset
+from .contact_model import ContactState, plane_frame
+from .contact_registration import MIN_TOUCHES
+
+__all__ = [
+    "by_engine",
+    "check_held_out_gaps",
+    "check_level_equations",
+    "check_touches",
+    "contact_frame",
+    "contact_guess",
+    "contact_objects",
+    "split_contacts",
+    "tilt_weight",
+]
+
+
+def by_engine(data: ContactData, elastic: bool | None) -> bool:
+    """Whether one chain's touches are fitted by the joint engine (:mod:`.contact_chains`).
+
+    Every contact kind and level is; not yet joint compliance (``elastic``) nor many objects
+    (:data:`~.contact_fit.BLOCK_UNKNOWNS` of their unknowns or more, eliminated object by
+    object), which the MDH chart's own steps fit (:mod:`.contact_pipeline`).
+    """
+    from .contact_fit import BLOCK_UNKNOWNS
+
+    objects = len(data.contacts) * len(data.kind.object_dofs)
+    return not elastic and objects < BLOCK_UNKNOWNS
+
+
+def check_level_equations(train, unknowns: int, level: str) -> None:
+    """One chain's touches must give more equations than a level's unknowns (not ``auto``).
+
+    Distinct touches count (a touch recorded again adds no equation); the selection of
+    ``auto`` keeps what the touches support.
+
+    Raises:
+        DataError: Too few touches for the level's parameters and the contact's unknowns.
+    """
+    if level == "auto" or len(train) != 1 or not isinstance(train[0], ContactData):
+        return
+    d = train[0]
+    what = f"parameters of params '{level}' (with the contact's unknowns)"
+    touches = count_postures(d.q, d.ids)
+    determined.check_equations(touches, d.kind.n_rows, unknowns, what, d.source, unit="touches")
+
+
+def check_touches(data: ContactData) -> None:
+    """Touches that are some, and not more than calib takes.
+
+    Raises:
+        DataError: No touches, or more touches or objects than ``MAX_TOUCHES`` and
+            ``MAX_OBJECTS``.
+    """
+    if not data.m:
+        raise DataError(data.source, "no touches: an empty contact set")
+    check_size(data.m, MAX_TOUCHES, "touches", data.source)
+    check_size(len(data.contacts), MAX_OBJECTS, f"{data.id_column}s", data.source)
+
+
+def contact_guess(kind: Contact, guess: np.ndarray, terms: int) -> np.ndarray:
+    """The contact frame's start of a term of ``kind`` among ``terms`` terms ``(4, 4)``.
+
+    The guess of every kind, but of a ``fixed-pose`` term of a joint fit: a closed loop
+    (TALOS's soles) starts from its tool frame, whatever the arms' guess (only the relative
+    placement of its pose and its contact is seen).
+    """
+    if terms > 1 and isinstance(kind, FixedPoseContact):
+        return np.eye(4)
+    return guess
+
+
+def contact_frame(contact) -> np.ndarray:
+    """The contact frame ``(4, 4)`` in the tool frame from a 4x4, 3 or 6 numbers (m, rad).
+
+    Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame.
+    """
+    from ..kinematics.so3 import rotation_matrix
+
+    if contact is None:
+        return np.eye(4)
+    try:
+        C = np.asarray(contact, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError("the contact frame takes X Y Z [RX RY RZ] (m, rad)") from None
+    if C.shape == (4, 4):
+        if not np.allclose(C[:3, :3] @ C[:3, :3].T, np.eye(3), atol=1e-9):
+            raise InvalidArgumentError("the contact frame must be a rigid transform (4, 4)")
+        return C.copy()
+    if C.shape not in ((3,), (6,)) or not np.all(np.isfinite(C)):
+        raise InvalidArgumentError("the contact frame takes X Y Z [RX RY RZ] (m, rad)")
+    T = np.eye(4)
+    T[:3, 3] = C[:3]
+    if C.shape == (6,):
+        T[:3, :3] = rotation_matrix(C[3:])
+    return T
+
+
+def split_contacts(
+    data: ContactData, holdout: float, seed: int
+) -> tuple[ContactData, ContactData | None]:
+    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
+
+    A touch recorded several times (the same posture on the same object) is held out whole.
+    """
+    if not (0.0 <= holdout < 1.0):
+        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
+    if holdout <= 0:
+        return data, None
+    rng = np.random.default_rng([seed, 21])
+    ids = np.array(data.ids)
+    groups = posture_groups(data.q, data.ids)  # a touch repeated is held out whole
+    held = np.zeros(data.m, dtype=bool)
+    for name in data.contacts:
+        touches = np.unique(groups[ids == name])  # in order of first appearance
+        out = min(round(holdout * len(touches)), len(touches) - MIN_TOUCHES)
+        if out > 0:
+            held[np.isin(groups, touches[rng.permutation(len(touches))[:out]])] = True
+    if not held.any():
+        raise DataError(data.source, f"too few touches to hold {holdout:g} of them out")
+    return subset(data, ~held), subset(data, held)
+
+
+def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray, kind=None) -> float:
+    """Weight of the angle rows [m/rad] of a registration (default kind: ``plane``).
+
+    See :func:`~calib.calibration.contact_checks.estimate_weight`.
+    """
+    from ..identification.contacts import PlaneContact
+
+    return contact_checks.estimate_weight(kind or PlaneContact(), R, p, ids, guess)
+
+
+def contact_objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:
+    """The objects by id; a plane's origin at its touches' contact points, projected."""
+    frames = state.frames
+    if frames.kind.object_name != "plane":
+        return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
+    kin = state.kinematics(train.q, torque)
+    x = kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3]
+    index = frames.index(train.ids)
+    out = {}
+    for i, k in enumerate(frames.ids):
+        n = frames.objects[i, :3, 2]
+        out[k] = plane_frame(n, float(n @ frames.objects[i, :3, 3]), x[index == i].mean(axis=0))
+    return out
+
+
+def check_held_out_gaps(stats, source: str) -> None:
+    """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
+    from .diagnosis import suspect
+
+    held, fitted = stats["held_out_registration"], stats["train_registration"]
+    far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
+    if suspect(far, None) and not suspect(near, None):
+        raise DataError(
+            source,
+            f"the held-out touches are {1e3 * far:.4g} mm RMS from the registered contact (the "
+            f"data {1e3 * near:.4g} mm): touched another object, or on another robot?",
+        )

@@ -1,0 +1,69 @@
+"""The report of one chain touching, fitted by the joint engine: the single chain's layout.
+
+A problem of one contact term (``shape`` ``contacts``) is fitted by the joint engine
+(:func:`~.contact_chains.calibrate_contact_chains`) and its result is a
+:class:`~.contact_chains_result.ContactChainsCalibration` of one part. Its report keeps the
+layout users' scripts, ``calib predict`` and ``load_calibrated`` read for one chain touching
+(:func:`single_contact_report`): ``shape`` ``contacts``, the term's errors as ``errors.train``
+and ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
+joint's compliance (0: the joints are rigid), the chain's nominal and calibrated MDH rows
+under ``model``, and format 2's keys of a contact report (``base``, ``tool``, ``measure``,
+``contact``, ``gaps``, ``tilt_weight``, ``calibrated_mdh``, ...).
+"""
+
+from __future__ import annotations
+
+from .report import fit_dict
+
+__all__ = ["single_contact_report"]
+
+
+def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]:
+    """The report's fields and format 2's keys of one contact term's fit.
+
+    Args:
+        part: The term's :class:`~.contact_chains_result.ChainContacts`.
+        fields: The joint fit's format-3 fields (:data:`~.report.REPORT_KEYS`).
+        legacy: Its format 2's keys.
+
+    Returns:
+        The fields and format 2's keys of the single chain's layout.
+    """
+    chain, kind = part.chain, part.kind
+    errors = part.errors()
+    angles = any(kind.angular)
+    fields = {
+        **fields,
+        "shape": "contacts",
+        "errors": {**errors, "terms": [errors]},
+        "frames": {**fields["frames"], "tool_link": chain.tool_frame},
+        "fit": fit_dict(orientation_weight=part.weight if angles else None),
+        "compliance": {j: 0.0 for j in chain.joint_names},
+        "model": {
+            **fields["model"],
+            "mdh_nominal": part.nominal.rows(),
+            "mdh_calibrated": part.calibrated.rows(),
+            "load": None,
+        },
+    }
+    base = chain.base_frame
+    objects = part.objects()
+    legacy = {
+        "base": base,
+        "tool": chain.tool_frame,
+        "measure": kind.label,
+        "free": legacy["free"],
+        "selection": legacy["selection"],
+        "tilt_weight": part.weight if angles else None,
+        "contact": {
+            f"{kind.object_name}s": {
+                k: {"frame": base, "matrix": T.tolist()} for k, T in objects.items()
+            },
+            "frames": {chain.tool_frame: {"matrix": part.contact.tolist()}},
+        },
+        "gaps": {k: v.to_dict() for k, v in part.stats.items()},
+        "load": None,
+        "calibrated_mdh": part.calibrated.rows(),
+        "notes": legacy["notes"],
+    }
+    return fields, legacy
