@@ -48,6 +48,7 @@ def test_the_commands_are_all_here():
                 "calibrate",
                 "demo",
                 "design",
+                "detect",
                 "list",
                 "predict",
                 "show",

@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import check_output_paths, positive_number, write_outputs
+from .common import check_output_paths, command_parser, positive_number, write_outputs
 
 __all__ = ["add_detect_parser", "cmd_detect"]
 
@@ -83,16 +83,24 @@ def cmd_detect(args: argparse.Namespace) -> int:
 
 def add_detect_parser(sub) -> None:
     """The ``detect`` subcommand's options."""
-    p = sub.add_parser(
+    p = command_parser(
+        sub,
         "detect",
-        help="find a board in images: OBS.csv and TARGET.csv for calibrate --measure pixels "
+        "find a board in images: OBS.csv and TARGET.csv for calibrate --measure pixels "
         "(needs OpenCV: pip install calib[vision])",
+        [
+            "calib detect img/*.png --board charuco --squares 5 7 --square 0.04 --marker 0.03 "
+            "--joints joints.csv --camera cam --out obs.csv --target target.csv",
+            "calib detect img/*.png --board checkerboard --squares 9 6 --square 0.025 "
+            "--joints joints.csv --camera cam --out obs.csv --intrinsics-out cam.yaml",
+        ],
     )
-    p.add_argument("images", nargs="+", metavar="IMAGE", help="the images (any OpenCV reads)")
-    p.add_argument(
+    g = p.add_argument_group("images and board")
+    g.add_argument("images", nargs="+", metavar="IMAGE", help="the images (any OpenCV reads)")
+    g.add_argument(
         "--board", required=True, choices=("charuco", "checkerboard", "aruco"), help="board kind"
     )
-    p.add_argument(
+    g.add_argument(
         "--squares",
         required=True,
         nargs=2,
@@ -100,33 +108,35 @@ def add_detect_parser(sub) -> None:
         metavar=("COLS", "ROWS"),
         help="squares along the board's x and y (markers, for aruco)",
     )
-    p.add_argument("--square", type=positive_number, help="a square's side [m]")
-    p.add_argument("--marker", type=positive_number, help="a marker's side [m] (charuco, aruco)")
-    p.add_argument(
+    g.add_argument("--square", type=positive_number, help="a square's side [m]")
+    g.add_argument("--marker", type=positive_number, help="a marker's side [m] (charuco, aruco)")
+    g.add_argument(
         "--separation", type=positive_number, help="the gap between two markers [m] (aruco)"
     )
-    p.add_argument(
+    g.add_argument(
         "--dictionary",
         default="DICT_6X6_250",
         help="OpenCV's ArUco dictionary (default: DICT_6X6_250)",
     )
-    p.add_argument(
+    g.add_argument(
         "--legacy-charuco",
         action="store_true",
         help="a ChArUco board made by OpenCV before 4.6 (an even number of rows differs)",
     )
-    p.add_argument(
+    g = p.add_argument_group("robot and camera")
+    g.add_argument(
         "--joints",
         required=True,
         metavar="JOINTS.csv",
         help="the joint readings of each image: an 'image' column, then one column per joint",
     )
-    p.add_argument("--camera", required=True, metavar="NAME", help="the camera's name")
-    p.add_argument("--out", required=True, metavar="OBS.csv", help="the observations to write")
-    p.add_argument(
+    g.add_argument("--camera", required=True, metavar="NAME", help="the camera's name")
+    g = p.add_argument_group("outputs")
+    g.add_argument("--out", required=True, metavar="OBS.csv", help="the observations to write")
+    g.add_argument(
         "--target", metavar="TARGET.csv", help="write the board's corners [m, board frame]"
     )
-    p.add_argument(
+    g.add_argument(
         "--intrinsics-out",
         metavar="INTRINSICS.yaml",
         help="calibrate the camera from the images and write its intrinsics (OpenCV's YAML)",
