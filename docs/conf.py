@@ -17,6 +17,30 @@ sys.path.insert(0, str(ROOT))
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+
+def copy_tutorials(source: Path, target: Path) -> None:
+    """Copy the notebooks of ``source`` into ``target``, the tutorials' folder of the site.
+
+    A copy, not a symlink: Sphinx resolves a link's path through symlinks, so the links from
+    one tutorial to another ([...](02_calibrate_from_a_tracker.ipynb)) would point outside the
+    site. An unchanged notebook is not written again (its cached outputs and the incremental
+    build stay valid); one removed from ``source`` is removed here.
+    """
+    if target.is_symlink():  # a checkout from before the copy
+        target.unlink()
+    target.mkdir(exist_ok=True)
+    wanted = {nb.name: nb.read_bytes() for nb in source.glob("*.ipynb")}
+    for old in target.glob("*.ipynb"):
+        if old.name not in wanted:
+            old.unlink()
+    for name, text in wanted.items():
+        copy = target / name
+        if not copy.is_file() or copy.read_bytes() != text:
+            copy.write_bytes(text)
+
+
+copy_tutorials(ROOT / "notebooks", ROOT / "docs" / "tutorials" / "notebooks")
+
 import calib  # noqa: E402
 
 project = "calib"
