@@ -464,12 +464,15 @@ def _converted_lines(
     )
 
 
-def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
+def from_chain(
+    chain: Chain, parallel_tol: float = PARALLEL_TOL, *, zero: tuple | None = None
+) -> MDHModel:
     """Convert a Pinocchio chain to its MDH model (base frame = frame -1).
 
     Args:
         chain: The serial chain.
         parallel_tol: Parallel-axis tolerance [rad].
+        zero: The chain's :meth:`~.robot.Chain.zero_frames`, when already computed.
 
     Returns:
         The MDH model, whose forward kinematics equals Pinocchio's.
@@ -478,7 +481,7 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
         raise InvalidArgumentError(
             f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
         )
-    return _chain_model(chain, parallel_tol, source=(chain, parallel_tol))
+    return _chain_model(chain, parallel_tol, zero, source=(chain, parallel_tol))
 
 
 def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
@@ -486,9 +489,9 @@ def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
     return _chain_model(chain, parallel_tol)
 
 
-def _chain_model(chain: Chain, parallel_tol: float, **fields) -> MDHModel:
+def _chain_model(chain: Chain, parallel_tol: float, zero=None, **fields) -> MDHModel:
     """:func:`converted_chain`, with other fields of the model (``source``) given."""
-    points, dirs, tool = chain.joint_lines()
+    points, dirs, tool = chain.joint_lines(zero)
     frames = {"base_frame": chain.base_frame, "tool_frame": chain.tool_frame, **fields}
     return _converted_lines(
         points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol, chain.sign, **frames
