@@ -60,7 +60,7 @@ from .contact_chains_result import (
     measured_part,
 )
 from .contact_checks import subset
-from .contact_choice import touching_postures
+from .contact_choice import check_selection_memory, touching_postures
 from .contact_model import ContactState
 from .contact_result import gap_stats
 from .contact_term import (
@@ -403,6 +403,9 @@ def calibrate_contact_chains(
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
+    for chain, d in zip(chains, data, strict=True):  # the memory bound, before any work
+        if isinstance(d, ContactData):
+            check_selection_memory(d, from_chain(chain), level, 0)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
@@ -461,8 +464,10 @@ def calibrate_contact_chains(
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
+    rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
+    refusal = result.refusal or rank
     return dataclasses.replace(
-        result, chains=parts, params=level, identifiable=identifiable, **values
+        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal, **values
     )
 
 

@@ -292,6 +292,21 @@ def refusal(
     return None
 
 
+def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
+    """Why a fit with a rank-deficient Jacobian at its solution is refused, or None.
+
+    Args:
+        J: The fit's Jacobian at the solution (prior rows included).
+        fixed: Its first columns not tested (the objects' and contacts' unknowns).
+    """
+    if validation.full_rank(J[:, fixed:]):
+        return None
+    return (
+        f"the data do not determine the {J.shape[1] - fixed} fitted parameters (rank-deficient "
+        "Jacobian at the solution): measure in more varied postures or fit fewer parameters"
+    )
+
+
 def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     """Index of each chain's object: one per chain, or shared by base frame and plane id.
 
