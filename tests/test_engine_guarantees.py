@@ -50,4 +50,3 @@ def test_a_rank_deficient_fit_is_refused(monkeypatch):
     assert not r.accepted
     assert r.refusal.startswith(f"the data do not determine the {len(r.free)} fitted parameters")
     assert "\n" not in r.refusal
-
