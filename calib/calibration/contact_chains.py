@@ -329,8 +329,8 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
     columns = sorted(kept[fixed:])
     cand = [offered[c - fixed] for c in columns]
     if len(cand) < len(offered):
-        data = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
-        notes.append(f"the {data} determine {len(cand)} of the {len(offered)} parameters offered")
+        what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
+        notes.append(f"the {what} determine {len(cand)} of the {len(offered)} parameters offered")
     check_level_equations(train, fixed + len(cand), level)
     selection: Selection | None = None
     prior = None
