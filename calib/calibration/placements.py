@@ -204,24 +204,23 @@ def joint_twists(
         Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
         origin's point moving with the tool side, per component (x y z rx ry rz).
     """
-    F0 = frames
-    T0 = frames_at_zero(mdh)
-    m = kin.R.shape[0]
-    ang = np.zeros((m, chain.n, 3, 6))
-    lin = np.zeros((m, chain.n, 3, 6))
+    sign = np.asarray(chain.sign, dtype=float)
+    a = np.where(sign > 0, np.arange(chain.n), np.arange(chain.n) + 1)  # the carrying frame
+    K = np.linalg.inv(frames_at_zero(mdh)[a]) @ frames  # (n, 4, 4), every joint at once
     B = placements.bases[columns]  # (n, 3, 3), every chain joint's at once
     w = np.einsum("nab,nb->na", B, placements.y[columns, 3:])
     body_v = np.swapaxes(rotation_matrix(w), 1, 2) @ B  # d(origin) per dv, in F
     body_w = left_jacobian(-w) @ B  # right Jacobian of R(w), in F
-    for i, s in enumerate(chain.sign):
-        a = i if s > 0 else i + 1
-        K = np.linalg.inv(T0[a]) @ F0[i]
-        RF = kin.R[:, a] @ K[:3, :3]
-        pF = kin.p[:, a] + kin.R[:, a] @ K[:3, 3]
-        wv = s * RF @ body_w[i]  # (m, 3, 3) angular velocity per d(rx ry rz)
-        ang[:, i, :, 3:] = wv
-        lin[:, i, :, :3] = s * RF @ body_v[i]
-        lin[:, i, :, 3:] = skew(pF) @ wv
+    Ra = kin.R[:, a]  # (m, n, 3, 3)
+    RF = sign[:, None, None] * (Ra @ K[:, :3, :3])
+    pF = kin.p[:, a] + (Ra @ K[:, :3, 3:])[..., 0]
+    wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
+    m = kin.R.shape[0]
+    ang = np.zeros((m, chain.n, 3, 6))
+    lin = np.zeros((m, chain.n, 3, 6))
+    ang[..., 3:] = wv
+    lin[..., :3] = RF @ body_v
+    lin[..., 3:] = skew(pF) @ wv
     return ang, lin
 
 
