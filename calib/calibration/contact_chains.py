@@ -288,12 +288,14 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
         return None, pl.names(), offsets
     rows: list[np.ndarray] = []
     names: list[str] = []
+    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
     for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
         D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
-            if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):
+            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
+                units = np.vstack([units, unit])
                 rows.append(d)
                 names.append(label)
     return np.array(rows), tuple(names), list(range(len(rows)))
