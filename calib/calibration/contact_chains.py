@@ -59,8 +59,8 @@ from .contact_chains_result import (
     MeasuredChain,
     measured_part,
 )
-from .contact_checks import subset
-from .contact_choice import check_selection_memory, touching_postures
+from .contact_checks import held_out_refusal, subset
+from .contact_choice import touching_postures
 from .contact_model import ContactState
 from .contact_result import gap_stats
 from .contact_term import (
@@ -406,9 +406,7 @@ def calibrate_contact_chains(
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
-    for chain, d in zip(chains, data, strict=True):  # the memory bound, before any work
-        if isinstance(d, ContactData):
-            check_selection_memory(d, from_chain(chain), level, 0)
+    contact_checks.check_memory(chains, data, level)  # before any work
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
@@ -530,18 +528,6 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     return fitted, False
 
 
-def _refused(stats, chain: Chain, what: str) -> str | None:
-    """Why a term's held-out errors refuse the model (worse than the registration's), or None."""
-    got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
-    if validation.worse(got, base, 1e-3):
-        return (
-            f"the calibrated model's held-out {what} on {chain.base_frame} -> "
-            f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "
-            f"{base:.3f} mm weighted RMS)"
-        )
-    return None
-
-
 def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
@@ -561,7 +547,8 @@ def _assemble(
                 if isinstance(s, PixelTermState)
                 else measured_part(chain, d, h, s0, s, std, c + 1)
             )
-            refusal = refusal or (None if h is None else _refused(part.stats, chain, "errors"))
+            if h is not None:
+                refusal = refusal or held_out_refusal(part.stats, chain, "errors")
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
@@ -573,7 +560,7 @@ def _assemble(
             stats["held_out"] = gap_stats(s, h.q, h.ids)
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
-            refusal = refusal or _refused(stats, chain, "gaps")
+            refusal = refusal or held_out_refusal(stats, chain, "gaps")
         objects = contact_objects(s, d)
         parts.append(
             ChainContacts(
