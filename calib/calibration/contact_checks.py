@@ -39,13 +39,16 @@ from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
     "WEIGHT_ROUNDS",
+    "check_memory",
     "checked_registration",
     "enough_touches",
     "estimate_weight",
     "gap_errors",
+    "held_out_refusal",
     "isolated_postures",
     "length_errors",
     "plane_groups",
+    "rank_refusal",
     "refusal",
     "registration",
     "set_aside",
