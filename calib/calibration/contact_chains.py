@@ -59,7 +59,7 @@ from .contact_chains_result import (
     MeasuredChain,
     measured_part,
 )
-from .contact_checks import subset
+from .contact_checks import held_out_refusal, subset
 from .contact_choice import touching_postures
 from .contact_model import ContactState
 from .contact_result import gap_stats
@@ -288,12 +288,14 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
         return None, pl.names(), offsets
     rows: list[np.ndarray] = []
     names: list[str] = []
+    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
     for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
         D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
-            if not any(abs(unit @ r) / np.linalg.norm(r) > 1.0 - 1e-12 for r in rows):
+            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
+                units = np.vstack([units, unit])
                 rows.append(d)
                 names.append(label)
     return np.array(rows), tuple(names), list(range(len(rows)))
@@ -329,7 +331,8 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
     columns = sorted(kept[fixed:])
     cand = [offered[c - fixed] for c in columns]
     if len(cand) < len(offered):
-        notes.append(f"the touches determine {len(cand)} of the {len(offered)} parameters offered")
+        what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
+        notes.append(f"the {what} determine {len(cand)} of the {len(offered)} parameters offered")
     check_level_equations(train, fixed + len(cand), level)
     selection: Selection | None = None
     prior = None
@@ -403,6 +406,7 @@ def calibrate_contact_chains(
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
+    contact_checks.check_memory(chains, data, level)  # before any work
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
@@ -461,8 +465,10 @@ def calibrate_contact_chains(
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
+    rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
+    refusal = result.refusal or rank
     return dataclasses.replace(
-        result, chains=parts, params=level, identifiable=identifiable, **values
+        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal, **values
     )
 
 
@@ -522,18 +528,6 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     return fitted, False
 
 
-def _refused(stats, chain: Chain, what: str) -> str | None:
-    """Why a term's held-out errors refuse the model (worse than the registration's), or None."""
-    got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
-    if validation.worse(got, base, 1e-3):
-        return (
-            f"the calibrated model's held-out {what} on {chain.base_frame} -> "
-            f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "
-            f"{base:.3f} mm weighted RMS)"
-        )
-    return None
-
-
 def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
@@ -553,7 +547,8 @@ def _assemble(
                 if isinstance(s, PixelTermState)
                 else measured_part(chain, d, h, s0, s, std, c + 1)
             )
-            refusal = refusal or (None if h is None else _refused(part.stats, chain, "errors"))
+            if h is not None:
+                refusal = refusal or held_out_refusal(part.stats, chain, "errors")
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
@@ -565,7 +560,7 @@ def _assemble(
             stats["held_out"] = gap_stats(s, h.q, h.ids)
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
-            refusal = refusal or _refused(stats, chain, "gaps")
+            refusal = refusal or held_out_refusal(stats, chain, "gaps")
         objects = contact_objects(s, d)
         parts.append(
             ChainContacts(

@@ -438,8 +438,9 @@ class ContactChainsCalibration(Delivered):
 
     def summary(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
+        n = len(self.chains)
         lines = [
-            f"{self.chains[0].chain.name}: {len(self.chains)} chains, {self._objects()}, "
+            f"{self.chains[0].chain.name}: {n} chain{'s' if n != 1 else ''}, {self._objects()}, "
             f"{len(self.free)} joint placement components fitted, {self.unknowns} unknowns "
             "determined" + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
         ]

@@ -26,10 +26,11 @@ import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
-from ..kinematics.mdh import MDHModel
+from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from . import diagnosis, outliers, validation
+from .contact_choice import check_selection_memory
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
 from .contact_result import GapStats
@@ -38,13 +39,16 @@ from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
     "WEIGHT_ROUNDS",
+    "check_memory",
     "checked_registration",
     "enough_touches",
     "estimate_weight",
     "gap_errors",
+    "held_out_refusal",
     "isolated_postures",
     "length_errors",
     "plane_groups",
+    "rank_refusal",
     "refusal",
     "registration",
     "set_aside",
@@ -290,6 +294,45 @@ def refusal(
                 f"({held.weighted_mm:.3f} > {reg.weighted_mm:.3f} mm weighted RMS)"
             )
     return None
+
+
+def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
+    """Why a term's held-out errors refuse the model (worse than the registration's), or None."""
+    got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
+    if validation.worse(got, base, 1e-3):
+        return (
+            f"the calibrated model's held-out {what} on {chain.base_frame} -> "
+            f"{chain.tool_frame} are worse than the registration's ({got:.3f} > "
+            f"{base:.3f} mm weighted RMS)"
+        )
+    return None
+
+
+def check_memory(chains, data, level: str) -> None:
+    """Refuse in one line, before any work, contact terms that would need too much memory.
+
+    Raises:
+        InvalidArgumentError: A term's estimate exceeds ``MAX_WORK_BYTES``
+            (:func:`~.contact_choice.check_selection_memory`).
+    """
+    for chain, d in zip(chains, data, strict=True):
+        if isinstance(d, ContactData):
+            check_selection_memory(d, from_chain(chain), level, 0)
+
+
+def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
+    """Why a fit with a rank-deficient Jacobian at its solution is refused, or None.
+
+    Args:
+        J: The fit's Jacobian at the solution (prior rows included).
+        fixed: Its first columns not tested (the objects' and contacts' unknowns).
+    """
+    if validation.full_rank(J[:, fixed:]):
+        return None
+    return (
+        f"the data do not determine the {J.shape[1] - fixed} fitted parameters (rank-deficient "
+        "Jacobian at the solution): measure in more varied postures or fit fewer parameters"
+    )
 
 
 def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:

@@ -52,8 +52,14 @@ a few %: fitted to the whole-process peaks of ``calib calibrate`` on TALOS sole 
 and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."""
 
 
-def check_selection_memory(data: ContactData, nominal: MDHModel, opts: Options, comp: int) -> None:
+def check_selection_memory(data: ContactData, nominal: MDHModel, level: str, comp: int) -> None:
     """Refuse, before any work, a calibration that would need more than 2 GB.
+
+    Args:
+        data: The touches.
+        nominal: The chain's MDH model.
+        level: The parameter level (``auto`` selects among dense columns).
+        comp: Number of joint compliance columns.
 
     Raises:
         InvalidArgumentError: The estimate (:data:`SELECTION_BYTES`) exceeds
@@ -63,7 +69,7 @@ def check_selection_memory(data: ContactData, nominal: MDHModel, opts: Options, 
     objects = len(data.contacts) * len(kind.object_dofs)
     dense = len(kind.contact_dofs) + len(level_candidates(nominal, "auto")) + comp
     per_touch, per_column, per_object = SELECTION_BYTES
-    auto = opts.level == "auto"
+    auto = level == "auto"
     need = data.m * (per_touch + auto * dense * per_column + objects * per_object)
     if need > MAX_WORK_BYTES:
         way = "fewer touches or " + f"{kind.object_name}s"

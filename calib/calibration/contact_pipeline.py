@@ -162,7 +162,7 @@ def calibrate_contacts(
     _check(chain, data, validate, opts)
     load = contact_elastic.standing(chain, data.kind, opts.elastic, support)
     nominal = from_chain(chain)
-    check_selection_memory(data, nominal, opts, 0 if load is None else chain.n)
+    check_selection_memory(data, nominal, opts.level, 0 if load is None else chain.n)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = opts.orientation_weight

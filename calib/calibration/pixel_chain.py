@@ -491,12 +491,13 @@ def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
     size = len(PixelKind(len(part.data.target.position), 0, part.data.what).names())
     out_m = 0 if held is None else held.m
     what = f"unknowns of camera {part.data.camera.name}'s placement"
-    determined.check_equations(part.m, 2, size, what, part.source, held=out_m)
+    determined.check_equations(part.m, 2, size, what, part.source, held=out_m, unit="observations")
     state, notes = _diagnosed(chain, part)
     behind = _from_behind(state, part)
     errors, e_held = _judged(chain, state, part, held)
     floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
     bad, found = outliers.find_outliers(errors, None, floor, part.rows.lines, (2, 3))
+    found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
     found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
               "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
     bad = bad | behind

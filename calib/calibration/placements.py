@@ -134,11 +134,13 @@ class Placements:
     def perturbed_model(self) -> pin.Model:
         """A copy of the model with the joint placements ``O_j E_j``."""
         model = pin.Model(self.model)
-        for jid, B, y in zip(self.ids, self.bases, self.y, strict=True):
-            if np.any(y != 0):
-                model.jointPlacements[jid] = model.jointPlacements[jid] * pin.SE3(
-                    placement_error(B, y)
-                )
+        moved = np.flatnonzero(np.any(self.y != 0, axis=1))
+        B, y = self.bases[moved], self.y[moved]
+        R = rotation_matrix((B @ y[:, 3:, None])[..., 0])  # every moved joint's at once
+        v = (B @ y[:, :3, None])[..., 0]
+        for k, R_k, v_k in zip(moved, R, v, strict=True):
+            jid = self.ids[k]
+            model.jointPlacements[jid] = model.jointPlacements[jid] * pin.SE3(R_k, v_k)
         return model
 
     def chain_models(self, chains: tuple[Chain, ...]) -> tuple[MDHModel, ...]:
@@ -154,23 +156,24 @@ class Placements:
         ``(n, 4, 4)`` per chain (see :func:`joint_twists`).
         """
         model = self.perturbed_model()
+        moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
         mdh, frames = [], []
-        for c in chains:
-            moved = dataclasses.replace(c, model=model, ideal_model=None)
-            mdh.append(from_chain(moved))
-            frames.append(_joint_frames(model, moved))
+        for c, oMi in zip(moved, _zero_placements(model, moved), strict=True):
+            zero = c.zero_frames(oMi)
+            mdh.append(from_chain(c, zero=zero))
+            frames.append(zero[0])
         return tuple(mdh), tuple(frames)
 
 
-def _joint_frames(model: pin.Model, chain: Chain) -> np.ndarray:
-    """Each chain joint's frame (before its motion) in the base frame, at q = 0 ``(n, 4, 4)``."""
-    q0 = chain.pin_configurations(np.zeros(chain.n))[0]
-    oMi = joint_placements(
-        model, q0, last=(model.frames[chain.base_id].parentJoint, *chain.joint_ids)
-    )
-    frame = model.frames[chain.base_id]
-    bMo = (oMi[frame.parentJoint] * frame.placement).inverse()
-    return np.array([(bMo * oMi[j]).homogeneous for j in chain.joint_ids]).reshape(-1, 4, 4)
+def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
+    """The joint placements at each chain's zero configuration: one walk for equal ones."""
+    q0 = [c.pin_configurations(np.zeros(c.n))[0] for c in chains]
+    ends = [model.frames[f].parentJoint for c in chains for f in (c.base_id, c.tool_id)]
+    if all(np.array_equal(q, q0[0]) for q in q0):
+        return [joint_placements(model, q0[0], last=tuple(ends))] * len(chains)
+    return [
+        joint_placements(model, q, last=tuple(ends[2 * i : 2 * i + 2])) for i, q in enumerate(q0)
+    ]
 
 
 def joint_twists(
@@ -201,24 +204,23 @@ def joint_twists(
         Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
         origin's point moving with the tool side, per component (x y z rx ry rz).
     """
-    F0 = frames
-    T0 = frames_at_zero(mdh)
-    m = kin.R.shape[0]
-    ang = np.zeros((m, chain.n, 3, 6))
-    lin = np.zeros((m, chain.n, 3, 6))
+    sign = np.asarray(chain.sign, dtype=float)
+    a = np.where(sign > 0, np.arange(chain.n), np.arange(chain.n) + 1)  # the carrying frame
+    K = np.linalg.inv(frames_at_zero(mdh)[a]) @ frames  # (n, 4, 4), every joint at once
     B = placements.bases[columns]  # (n, 3, 3), every chain joint's at once
     w = np.einsum("nab,nb->na", B, placements.y[columns, 3:])
     body_v = np.swapaxes(rotation_matrix(w), 1, 2) @ B  # d(origin) per dv, in F
     body_w = left_jacobian(-w) @ B  # right Jacobian of R(w), in F
-    for i, s in enumerate(chain.sign):
-        a = i if s > 0 else i + 1
-        K = np.linalg.inv(T0[a]) @ F0[i]
-        RF = kin.R[:, a] @ K[:3, :3]
-        pF = kin.p[:, a] + kin.R[:, a] @ K[:3, 3]
-        wv = s * RF @ body_w[i]  # (m, 3, 3) angular velocity per d(rx ry rz)
-        ang[:, i, :, 3:] = wv
-        lin[:, i, :, :3] = s * RF @ body_v[i]
-        lin[:, i, :, 3:] = skew(pF) @ wv
+    Ra = kin.R[:, a]  # (m, n, 3, 3)
+    RF = sign[:, None, None] * (Ra @ K[:, :3, :3])
+    pF = kin.p[:, a] + (Ra @ K[:, :3, 3:])[..., 0]
+    wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
+    m = kin.R.shape[0]
+    ang = np.zeros((m, chain.n, 3, 6))
+    lin = np.zeros((m, chain.n, 3, 6))
+    ang[..., 3:] = wv
+    lin[..., :3] = RF @ body_v
+    lin[..., 3:] = skew(pF) @ wv
     return ang, lin
 
 

@@ -160,8 +160,10 @@ class MDHModel:
     _pre: np.ndarray = field(init=False, repr=False)
     _gain: np.ndarray = field(init=False, repr=False)
     _offsets: np.ndarray = field(init=False, repr=False)
+    _last: list = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "_last", [])  # the last kinematics made: see kinematics
         if self.sign is None:
             object.__setattr__(self, "sign", np.ones(len(self.sigma), dtype=int))
         for name in _ARRAYS:
@@ -262,6 +264,9 @@ class MDHModel:
     def kinematics(self, q: np.ndarray) -> Kinematics:
         """Every frame at every configuration, vectorised over configurations.
 
+        The last result is recalled when asked again at the same ``q`` (a residual and then
+        its Jacobian at one state): its arrays are read-only.
+
         Args:
             q: Joint positions ``(m, n)`` or ``(n,)`` [rad or m].
 
@@ -273,6 +278,17 @@ class MDHModel:
                 :data:`~calib.core.checks.MAX_JOINT_POSITION`.
         """
         q = joint_positions(q, self.n)
+        key = q.tobytes()
+        if self._last and self._last[0] == key:
+            return self._last[1]
+        kin = self._kinematics(q)
+        for a in kin:
+            a.flags.writeable = False  # shared by the next call at the same q
+        self._last[:] = [key, kin]
+        return kin
+
+    def _kinematics(self, q: np.ndarray) -> Kinematics:
+        """:meth:`kinematics` at checked joint positions ``(m, n)`` (made, not recalled)."""
         m, rows, n = q.shape[0], self.n + 2, self.n
         # Component-major work arrays (row, ..., configuration): every operation runs along
         # the m configurations, the innermost (contiguous) axis.
@@ -464,12 +480,15 @@ def _converted_lines(
     )
 
 
-def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
+def from_chain(
+    chain: Chain, parallel_tol: float = PARALLEL_TOL, *, zero: tuple | None = None
+) -> MDHModel:
     """Convert a Pinocchio chain to its MDH model (base frame = frame -1).
 
     Args:
         chain: The serial chain.
         parallel_tol: Parallel-axis tolerance [rad].
+        zero: The chain's :meth:`~.robot.Chain.zero_frames`, when already computed.
 
     Returns:
         The MDH model, whose forward kinematics equals Pinocchio's.
@@ -478,7 +497,7 @@ def from_chain(chain: Chain, parallel_tol: float = PARALLEL_TOL) -> MDHModel:
         raise InvalidArgumentError(
             f"from_chain converts a Chain (see load_chain), got {type(chain).__name__}"
         )
-    return _chain_model(chain, parallel_tol, source=(chain, parallel_tol))
+    return _chain_model(chain, parallel_tol, zero, source=(chain, parallel_tol))
 
 
 def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
@@ -486,9 +505,9 @@ def converted_chain(chain: Chain, parallel_tol: float) -> MDHModel:
     return _chain_model(chain, parallel_tol)
 
 
-def _chain_model(chain: Chain, parallel_tol: float, **fields) -> MDHModel:
+def _chain_model(chain: Chain, parallel_tol: float, zero=None, **fields) -> MDHModel:
     """:func:`converted_chain`, with other fields of the model (``source``) given."""
-    points, dirs, tool = chain.joint_lines()
+    points, dirs, tool = chain.joint_lines(zero)
     frames = {"base_frame": chain.base_frame, "tool_frame": chain.tool_frame, **fields}
     return _converted_lines(
         points, dirs, chain.sigma, tool, chain.joint_names, parallel_tol, chain.sign, **frames

@@ -345,8 +345,13 @@ class Chain(Robot):
         frames = self.model.frames
         return (frames[self.base_id].parentJoint, frames[self.tool_id].parentJoint)
 
-    def joint_lines(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def joint_lines(
+        self, zero: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint axes at the zero configuration, in the base frame.
+
+        Args:
+            zero: The chain's :meth:`zero_frames`, when already computed.
 
         Returns:
             points ``(n, 3)`` [m] on each axis (the joint frame origin), unit directions
@@ -354,20 +359,34 @@ class Chain(Robot):
             the joint's child link along ``+u`` relative to its parent link (the tool side
             along ``sign * u``), and the tool placement ``(4, 4)`` in the base frame.
         """
-        model = self.model
-        q0 = self.pin_configurations(np.zeros(self.n))[0]
-        oMi = joint_placements(model, q0, last=self._path_joints())
-        oMb = frame_placement(model, oMi, self.base_id)
+        frames, tool = self.zero_frames() if zero is None else zero
         points, dirs = [], []
-        for jid, s in zip(self.joint_ids, self.sigma, strict=True):
-            S = motion_axis(model.joints[jid])  # in the joint frame
-            local = S[:3] if s == 1 else S[3:]
-            bMj = oMb.actInv(oMi[jid])
-            u = bMj.rotation @ local
-            points.append(bMj.translation.copy())
+        for jid, s, F in zip(self.joint_ids, self.sigma, frames, strict=True):
+            S = motion_axis(self.model.joints[jid])  # in the joint frame
+            u = F[:3, :3] @ (S[:3] if s == 1 else S[3:])
+            points.append(F[:3, 3].copy())
             dirs.append(u / np.linalg.norm(u))
-        tool = oMb.actInv(frame_placement(model, oMi, self.tool_id)).homogeneous
         return np.array(points).reshape(-1, 3), np.array(dirs).reshape(-1, 3), tool
+
+    def zero_frames(self, oMi: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each chain joint's frame (before its motion) and the tool frame at q = 0.
+
+        Args:
+            oMi: The model's :func:`~.frames.joint_placements` at this chain's zero
+                configuration, holding the base and tool frames' joints and their ancestors
+                (default: computed).
+
+        Returns:
+            The joint frames ``(n, 4, 4)`` and the tool frame ``(4, 4)`` in the base frame.
+        """
+        model = self.model
+        if oMi is None:
+            q0 = self.pin_configurations(np.zeros(self.n))[0]
+            oMi = joint_placements(model, q0, last=self._path_joints())
+        oMb = frame_placement(model, oMi, self.base_id)
+        frames = [oMb.actInv(oMi[jid]).homogeneous for jid in self.joint_ids]
+        tool = oMb.actInv(frame_placement(model, oMi, self.tool_id)).homogeneous
+        return np.array(frames).reshape(-1, 4, 4), tool
 
 
 def check_chain(value, what: str = "the robot") -> Chain:
