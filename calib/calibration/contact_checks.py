@@ -30,7 +30,6 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from . import diagnosis, outliers, validation
-from .contact_choice import check_selection_memory
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
 from .contact_result import GapStats
@@ -315,6 +314,8 @@ def check_memory(chains, data, level: str) -> None:
         InvalidArgumentError: A term's estimate exceeds ``MAX_WORK_BYTES``
             (:func:`~.contact_choice.check_selection_memory`).
     """
+    from .contact_choice import check_selection_memory  # contact_choice imports this module
+
     for chain, d in zip(chains, data, strict=True):
         if isinstance(d, ContactData):
             check_selection_memory(d, from_chain(chain), level, 0)

@@ -62,6 +62,17 @@ class _Round:
     fit_ms: float
 
 
+COLLECT_ROWS = 10_000
+"""Configurations from which a calibration frees its reference cycles between its stages (a
+full ``gc.collect`` costs tens of ms in a large process: worth it for memory only at scale)."""
+
+
+def _collect(m: int) -> None:
+    """Free reference cycles (the stages' Jacobians) when the campaign has ``m`` >= COLLECT_ROWS."""
+    if m >= COLLECT_ROWS:
+        gc.collect()
+
+
 def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=None) -> _Round:
     """Register (unless ``reg`` is given), choose and fit the rows ``keep`` of ``data``."""
     train = data if keep.all() else data.subset(keep)
@@ -70,7 +81,7 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=Non
     notes: list[str] = []
     with phase(progress, "calibrate: selection"):
         model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
-    gc.collect()  # the registration's and selection's cycles held 130 MB at 100,000 poses
+    _collect(train.m)  # the registration's and selection's cycles held 130 MB at 100,000 poses
     tic = time.perf_counter()
     with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
         fitted = fit(
@@ -120,7 +131,7 @@ def calibrate_chain(chain, data, marker, validate, opts, progress=None) -> Calib
         notes.append(outliers.set_aside_note(dropped))
     clock.append(time.perf_counter() - 1e-3 * rnd.fit_ms)  # the selections, then the last fit
     clock.append(time.perf_counter())
-    gc.collect()  # what the rounds left in cycles, before the checks' copies of the Jacobian
+    _collect(train.m)  # what the rounds left in cycles, before the checks' copies of the Jacobian
     result = _assemble(
         chain,
         nominal,
