@@ -425,16 +425,16 @@ class ContactChainsCalibration(Delivered):
         }
 
     def _objects(self) -> str:
-        """``2 plane(s)``, ``1 plane(s) and 1 pose(s)`` with loops, ``, 1 measured term(s)``."""
+        """What the terms fit beside the joints: ``2 plane(s)``, ``1 pose(s)``, ``1 camera(s)``."""
         loops = [c for c in self._contacts() if not isinstance(c.kind, PlaneContact)]
         poses = sum(len(c.objects()) for c in loops)
         measured, cameras = len(self._measured()), len(self._pixels())
-        return (
-            f"{self.planes - len(loops)} plane(s)"
-            + (f" and {poses} pose(s)" if poses else "")
-            + (f", {measured} measured term(s)" if measured else "")
-            + (f", {cameras} camera(s)" if cameras else "")
-        )
+        planes = self.planes - len(loops)
+        parts = [f"{planes} plane(s)"] if planes or not (poses or measured or cameras) else []
+        parts += [f"{poses} pose(s)"] if poses else []
+        parts += [f"{measured} measured term(s)"] if measured else []
+        parts += [f"{cameras} camera(s)"] if cameras else []
+        return ", ".join(parts)
 
     def summary(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
@@ -449,9 +449,14 @@ class ContactChainsCalibration(Delivered):
         for c in self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
             if isinstance(c, PixelChain):
+                px = ", ".join(
+                    f"{k.replace('_', ' ')} {c.pixels[k]['reprojection_rms_px']:.3g}"
+                    for k in ("train", "held_out")
+                    if k in c.pixels
+                )
                 lines.append(
                     f"{c.chain.base_frame} -> {c.chain.tool_frame}, camera {c.name} (errors: "
-                    f"u [mm], v [mm] at the target; px: {c.pixels['train']})"
+                    f"u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
                 )
             elif isinstance(c, MeasuredChain):
                 units = [
@@ -479,7 +484,13 @@ class ContactChainsCalibration(Delivered):
                 lines.append(f"{head} '{c.plane_id}':")
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
-                rows = "touches" if isinstance(c, ChainContacts) else "configurations"
+                rows = (
+                    "touches"
+                    if isinstance(c, ChainContacts)
+                    else "pixels"
+                    if isinstance(c, PixelChain)
+                    else "configurations"
+                )
                 lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
         lines += instrument_lines(self._instrument())
         names = tuple(self.chains[0].chain.model.names)
