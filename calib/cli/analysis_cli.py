@@ -84,7 +84,10 @@ def _model_and_table(robot):
 
 
 def _analyze(args: argparse.Namespace):
-    return analyze(
+    """The analysis ``calib.analyze`` gives for a robot (the Python function the CLI calls)."""
+    from ..calibration.analysis import analyze as analyze_robot
+
+    return analyze_robot(
         args.robot,
         args.base,
         tool_arg(args),
