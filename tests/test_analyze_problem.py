@@ -56,7 +56,9 @@ def test_one_chain_touching_counts_the_pinocchio_rank():
 def test_two_arms_touching_count_the_pinocchio_rank_shared_joints_once():
     chains = [calib.load_robot(URDF, *pair) for pair in ARMS]
     data, robot = _touches(chains)
-    res = calib.analyze(calib.Problem(tuple(calib.Term(c, d) for c, d in zip(chains, data))))
+    res = calib.analyze(
+        calib.Problem(tuple(calib.Term(c, d) for c, d in zip(chains, data, strict=True)))
+    )
     names = list(dict.fromkeys(n for c in chains for n in c.joint_names))
     assert res.shape == "chains" and res.n_base == robot.rank(names, [])
     alone = [calib.analyze(calib.Problem(calib.Term(c, d))).n_base for c, d in zip(chains, data)]

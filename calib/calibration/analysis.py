@@ -84,8 +84,10 @@ class ProblemAnalysis:
 
 
 def _count(problem: Problem) -> ProblemAnalysis:
-    """The joint fit's count of a problem's terms (a tree: one measured term per tool; one
-    chain or tree measured: by an instrument, its frame one unknown).
+    """The joint fit's count of a problem's terms (module text).
+
+    A tree is one measured term per tool; one chain or tree measured is measured by an
+    instrument, its frame one unknown.
     """
     terms = problem.terms
     guesses = [t.guess for t in terms if t.touches and t.guess is not None]
