@@ -61,7 +61,8 @@ def test_two_arms_touching_count_the_pinocchio_rank_shared_joints_once():
     )
     names = list(dict.fromkeys(n for c in chains for n in c.joint_names))
     assert res.shape == "chains" and res.n_base == robot.rank(names, [])
-    alone = [calib.analyze(calib.Problem(calib.Term(c, d))).n_base for c, d in zip(chains, data)]
+    pairs = zip(chains, data, strict=True)
+    alone = [calib.analyze(calib.Problem(calib.Term(c, d))).n_base for c, d in pairs]
     assert res.n_base < sum(alone)  # the torso is not counted twice
 
 
