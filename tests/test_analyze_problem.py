@@ -99,3 +99,28 @@ def test_a_problem_takes_no_other_argument():
         calib.analyze(problem, measure="pose")
     with pytest.raises(InvalidArgumentError, match=r"analyze\(problem\) alone"):
         calib.analyze(problem, configs=10)
+
+
+def test_the_command_line_prints_what_the_python_function_counts(tmp_path, capsys):
+    """``calib analyze URDF --term ...`` is ``calib.analyze(problem)`` of the files' terms; the
+    options --term replaces are refused in one line."""
+    import json
+
+    from calib.cli.commands import main
+    from calib.measurements.contact_campaign import write_contacts
+
+    chains = [calib.load_robot(URDF, *pair) for pair in ARMS]
+    data, _ = _touches(chains)
+    argv = ["analyze", URDF]
+    for chain, d, name in zip(chains, data, ("left.csv", "right.csv"), strict=True):
+        write_contacts(tmp_path / name, d)
+        argv += ["--term", "plane", chain.base_frame, chain.tool_frame, str(tmp_path / name)]
+    read = [calib.read_contacts(tmp_path / n, c, "plane") for n, c in zip(
+        ("left.csv", "right.csv"), chains, strict=True)]  # fmt: skip
+    problem = calib.Problem(tuple(calib.Term(c, d) for c, d in zip(chains, read, strict=True)))
+    assert main([*argv, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == calib.analyze(problem).to_dict()
+    for extra in (["--seed", "3"], ["--markers", "2"], ["--tool", "a"], ["--params", "paper"]):
+        assert main([*argv, *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--term" in err, err
