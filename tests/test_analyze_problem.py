@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from contact_scorer import configurations
 from pixel_setups import INTRINSICS, setup
 from test_pixel_calibration import _fd_rank as pixel_rank
 from test_self_measure import _frame, _joints, _Robot
@@ -77,6 +78,58 @@ def test_a_tracker_and_a_head_camera_measuring_the_hand_count_the_pinocchio_rank
         robot.extra["marker"] = np.array(marker)
         res = calib.analyze(calib.Problem(calib.Term(chain, d)))
         assert res.n_base == robot.rank(chain.joint_names, [_frame(robot.model, base)])
+
+
+def _tree_rank(tree, d, markers, eps=1e-6, tol=1e-7) -> int:
+    """Rank of central differences of a tree's rows (each row one tool's marker in the base
+    frame) under a twist of every joint placement and of the base frame, and a shift of each
+    tool's marker (Pinocchio alone)."""
+    robot = _Robot(tree.urdf_path, [])
+    model, data = robot.model, robot.data
+    base = _frame(model, tree.base_frame)
+    frames = [_frame(model, t) for t in d.tool]
+    Q = configurations(model, _joints(tree, d.q))
+    marker = {t: np.array(m, dtype=float) for t, m in zip(tree.tool_frames, markers, strict=True)}
+
+    def rows() -> np.ndarray:
+        out = []
+        for q, f, tool in zip(Q, frames, d.tool, strict=True):
+            pin.framesForwardKinematics(model, data, q)
+            M = data.oMf[base].inverse() * data.oMf[f]
+            out.append(M.rotation @ marker[tool] + M.translation)
+        return np.concatenate(out)
+
+    cols = []
+    for get, put in robot.handles(tree.joint_names, [base]):
+        nominal = get()
+        for e in eps * np.eye(6):
+            steps = []
+            for sign in (1.0, -1.0):
+                put(nominal * pin.exp6(pin.Motion(sign * e)))
+                steps.append(rows())
+            put(nominal)
+            cols.append((steps[0] - steps[1]) / (2 * eps))
+    for tool in tree.tool_frames:
+        start = marker[tool].copy()
+        for e in eps * np.eye(3):
+            marker[tool] = start + e
+            up = rows()
+            marker[tool] = start - e
+            cols.append((up - rows()) / (2 * eps))
+        marker[tool] = start
+    s = np.linalg.svd(np.array(cols).T, compute_uv=False)
+    return int(np.sum(s > tol * s[0]))
+
+
+def test_a_tree_measured_by_one_instrument_counts_the_pinocchio_rank():
+    """TALOS's two hands measured by one tracker (its frame, each hand's marker, every joint
+    placement of both arms and the torso)."""
+    tree = calib.load_robot("talos", tool=["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
+    markers = [(0.02, 0.01, 0.05), (-0.01, 0.03, 0.04)]
+    d = calib.simulate_tree(tree, 30, markers=markers, seed=2, **ZERO).measurements
+    res = calib.analyze(calib.Problem(calib.Term(tree, d)))
+    assert res.shape == "tree"
+    assert res.n_base == _tree_rank(tree, d, markers)
 
 
 def test_a_camera_seeing_a_board_counts_the_pinocchio_rank(tmp_path):
