@@ -4,7 +4,9 @@
 (:func:`~calib.identification.identifiability.analyze`, what ``calib analyze ROBOT`` prints);
 ``analyze(problem)`` counts what a calibration of the problem's terms would determine
 together, at their own rows: every kind (measured, touches, pixels), several terms, a tree.
-The count is the joint fit's (:func:`~.contact_chains.determined_unknowns`): the data
+A robot's analysis imports no more than
+:mod:`~calib.identification.identifiability` (``calib analyze`` starts without SciPy). The
+count is the joint fit's (:func:`~.contact_chains.determined_unknowns`): the data
 checked and registered as a calibration does, then the rank of the Jacobian of every row by
 every unknown (objects, contact, measuring and camera frames, markers, every joint placement
 component) on the nominal robot.
@@ -12,10 +14,11 @@ component) on the nominal robot.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast, overload
+from typing import TYPE_CHECKING, cast, overload
 
 from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE, DEFAULT_SET
 from ..exceptions import InvalidArgumentError
@@ -23,10 +26,9 @@ from ..identification import identifiability
 from ..identification.identifiability import Identifiability
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
-from ..measurements.data import Measurements
-from .contact_chains import determined_unknowns
-from .problem import Problem
-from .tree_checks import prepare_tree
+
+if TYPE_CHECKING:
+    from .problem import Problem
 
 __all__ = ["ProblemAnalysis", "analyze"]
 
@@ -89,6 +91,10 @@ def _count(problem: Problem) -> ProblemAnalysis:
     A tree is one measured term per tool; one chain or tree measured is measured by an
     instrument, its frame one unknown.
     """
+    from ..measurements.data import Measurements
+    from .contact_chains import determined_unknowns
+    from .tree_checks import prepare_tree
+
     terms = problem.terms
     guesses = [t.guess for t in terms if t.touches and t.guess is not None]
     if problem.shape == "tree":
@@ -160,7 +166,8 @@ def analyze(
         InvalidArgumentError: A problem given with other arguments; a bad argument.
         DataError: A problem's rows that cannot be registered (too few, not its chain's).
     """
-    if isinstance(robot, Problem):
+    problem = sys.modules.get(f"{__package__}.problem")  # loaded if a Problem exists
+    if problem is not None and isinstance(robot, problem.Problem):
         given = (base, tool, marker) != (None, None, None) or (measure, params, configs, seed) != (
             DEFAULT_MEASURE,
             DEFAULT_SET,

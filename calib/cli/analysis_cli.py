@@ -9,10 +9,10 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from ..calibration.analysis import analyze
 from ..core.choices import DEFAULT_SET, PARAMETER_SETS
 from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
-from ..identification.identifiability import analyze
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import load_chain
@@ -86,9 +86,7 @@ def _model_and_table(robot):
 
 def _analyze(args: argparse.Namespace):
     """The analysis ``calib.analyze`` gives for a robot (the Python function the CLI calls)."""
-    from ..calibration.analysis import analyze as analyze_robot
-
-    return analyze_robot(
+    return analyze(
         args.robot,
         args.base,
         tool_arg(args),
@@ -123,7 +121,6 @@ TERM_REFUSES = ("base", "tool", "measure", "marker", "markers", "configs", "seed
 
 def _analyze_terms(args: argparse.Namespace) -> int:
     """``analyze --term ...``: what these terms determine together (``calib.analyze(problem)``)."""
-    from ..calibration.analysis import analyze as analyze_problem
     from ..calibration.problem import Problem
 
     typed = given_options(args, TERM_REFUSES)
@@ -135,7 +132,7 @@ def _analyze_terms(args: argparse.Namespace) -> int:
     if args.params is not None and all(t[0] != "pixels" for t in asked):
         raise InvalidArgumentError("--params with --term is for a pixels term (the mounting)")
     chains = contact_chains_cli.term_chains(args, asked)
-    res = analyze_problem(Problem(contact_chains_cli.read_terms(args, asked, chains)))
+    res = analyze(Problem(contact_chains_cli.read_terms(args, asked, chains)))
     if args.json:
         print_json(res.to_dict())
     else:
