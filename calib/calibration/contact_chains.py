@@ -97,7 +97,13 @@ from .placements import COMPONENTS, Placements, mdh_directions, offset_component
 from .selection import Selection, select
 from .solve import covariance, fit, fitted_values, gauss_newton_finish
 
-__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
+__all__ = [
+    "CHAIN_LEVELS",
+    "POLISH_GAIN",
+    "ROUND_OFF",
+    "calibrate_contact_chains",
+    "determined_unknowns",
+]
 
 CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
@@ -345,6 +351,54 @@ def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[
         cand = [cand[cand_names.index(k)] for k in selection.kept]
         prior = np.r_[np.zeros(fixed), weights] if np.any(weights) else None
     return wide.with_free(tuple(cand)), wide, selection, prior
+
+
+def determined_unknowns(
+    chains: Sequence[Chain],
+    data: Sequence[ContactData | Measurements | PixelData],
+    *,
+    contact=None,
+    shared_planes: bool = False,
+    pose_weight: float = 1.0,
+    max_iterations: int = 100,
+    instrument: bool = False,
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """What a joint fit of these terms would determine: the steps before its choice.
+
+    The data are checked, outliers set aside and registered as :func:`calibrate_contact_chains`
+    does (every row fitted: no holdout); the rank of the Jacobian of every row by every unknown
+    (objects, contact frames, measuring frames, markers, and every joint placement component)
+    at flush postures is what the data determine. Arguments as
+    :func:`calibrate_contact_chains`'s.
+
+    Returns:
+        The names of the unknowns determined (a basis, in the columns' order) and of all.
+    """
+    check_run_options(max_iterations, 0.0, 0)
+    _check(chains, data, None, "frames", 0.0, instrument)
+    parts = pixel_parts(chains, data)
+    contact_checks.check_memory(chains, parts, "complete")
+    plane_of = instrument_groups(
+        contact_checks.plane_groups(chains, parts, shared_planes), parts, instrument
+    )
+    check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    held: list = [None] * len(parts)
+    train, _, measured = _checked(
+        chains,
+        list(parts),
+        None,
+        contact_frame(contact),
+        None,
+        held,
+        [],
+        max_iterations,
+        instrument,
+    )
+    start = _register(chains, train, measured, plane_of, [], max_iterations, pose_weight)
+    names = start.placements.names()
+    wide = _model(start, plane_of, range(len(names)), names)
+    every = wide.names()
+    return tuple(every[k] for k in sorted(_structural(wide, start, _flush(start, train)))), every
 
 
 def calibrate_contact_chains(
