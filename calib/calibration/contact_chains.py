@@ -362,6 +362,7 @@ def calibrate_contact_chains(
     seed: int = 0,
     progress: Progress | None = None,
     instrument: bool = False,
+    held_label: str | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -394,6 +395,8 @@ def calibrate_contact_chains(
         instrument: The measured terms are a tree's tools measured by one instrument outside
             the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
             joint placement component.
+        held_label: The label of the rows given as ``validate`` in the result (``holdout``:
+            rows the caller held out of the data, a tree's); None: each one's source.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -461,7 +464,10 @@ def calibrate_contact_chains(
     )
     labels = [None if h is None else "holdout" for h in held]
     if validate is not None:
-        labels = [lab if v is None else v.source for lab, v in zip(labels, validate, strict=True)]
+        labels = [
+            lab if v is None else held_label or v.source
+            for lab, v in zip(labels, validate, strict=True)
+        ]
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
