@@ -74,6 +74,6 @@ def test_a_camera_off_the_chains_base_is_refused():
     obs = simulate_pixels(chain, "cam", look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3]),
                           INTRINSICS, target, chain.random_configurations(200, 1))  # fmt: skip
     with pytest.raises(
-        InvalidArgumentError, match="camera cam is on tool0; the chain starts at world"
+        InvalidArgumentError, match="camera cam: its chain must start at its link tool0, not world"
     ):
         hand_eye(chain, camera, target, obs)
