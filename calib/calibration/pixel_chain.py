@@ -36,7 +36,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
 from . import determined, diagnosis, outliers, validation
-from .pixel_fit import PixelView, camera_from_rays, fit_pixels, rays, refine_camera
+from .pixel_fit import PixelView, camera_from_rays, fit_alone, rays, refine_camera
 from .pixel_term import (
     CAMERA_NAMES,
     GAUGE_POINTS,
@@ -464,13 +464,11 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     """Each row's error [m at the target] on the term's own fit, and the held-out rows'.
 
     The term alone fitted (its camera and its chain's joint placements,
-    :func:`~.pixel_fit.fit_pixels`): a camera registered on the nominal robot errs by tens
+    :func:`~.pixel_fit.fit_alone`): a camera registered on the nominal robot errs by tens
     of pixels at far postures, which no outlier rule should read as gross.
     """
-    cam = part.data.camera
-    own = fit_pixels(Placements.of((chain,)), state.target, (state.camera,),
-                     (PixelView(chain, part.rows),), (state.lens,), (cam.name,),
-                     part.data.what, part.source).state  # fmt: skip
+    start = PixelState(Placements.of((chain,)), state.camera, state.target, state.lens)
+    own = fit_alone(start, PixelView(chain, part.rows), part.data.what)
     errors = [np.linalg.norm(pixel_residuals(own, chain, p.rows), axis=1) * state.weight
               for p in (part, held) if p is not None]  # fmt: skip
     return errors[0], (errors[1] if held is not None else None)
