@@ -46,11 +46,13 @@ from .pixel_term import (
     PixelRows,
     PixelState,
     Unknowns,
+    camera_points,
     check_in_front,
     move_own,
     pixel_jacobian,
     pixel_residuals,
     pixel_rows,
+    target_points,
 )
 from .placements import Placements
 
@@ -203,9 +205,7 @@ class PixelTermState:
     def seen(self, part: PixelPart) -> np.ndarray:
         """The rows' points in the camera frame ``(m, 3)`` [m]."""
         kin = self.mdh.kinematics(part.rows.q)
-        X = self.target[part.rows.point]
-        p = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
-        return (p - self.camera[:3, 3]) @ self.camera[:3, :3]
+        return camera_points(kin, self.camera, self.target[part.rows.point])[0]
 
     def pixel_errors(self, part: PixelPart) -> np.ndarray:
         """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px]."""
@@ -363,16 +363,13 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         guess = camera_placement(chain, cam.name, cam.link)
     lens, target = cam.intrinsics.camera, part.data.target.position
     if guess is None:
-        state = PixelState(placements, np.eye(4), target, lens)
-        mdh = placements.chain_geometry((chain,))[0][0]
-        p = PixelTermState(mdh, np.eye(4), target, lens, 1.0).seen(part)
-        guess = camera_from_rays(p, rays(lens, rows.pixels), part.source)
+        p_link = target_points(PixelState(placements, np.eye(4), target, lens), chain, rows)[1]
+        guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
     state = PixelState(placements, guess, target, lens)
-    mdh = placements.chain_geometry((chain,))[0][0]
-    check_in_front(PixelTermState(mdh, guess, target, lens, 1.0).seen(part), rows, part.source)
+    check_in_front(target_points(state, chain, rows)[0], rows, part.source)
     state = refine_camera(state, chain, rows)
-    depth = PixelTermState(mdh, state.camera, target, lens, 1.0).seen(part)[:, 2]
-    weight = float(np.median(depth)) / (0.5 * (lens.fx + lens.fy))
+    p_cam, _, (mdh, _, _) = target_points(state, chain, rows)
+    weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
     return PixelTermState(mdh, state.camera, target, lens, weight, part.data.what)
 
 

@@ -33,6 +33,7 @@ from .pixel_term import (
     pixel_jacobian,
     pixel_residuals,
 )
+from .registration import nearest_rotation
 from .solve import fit
 
 __all__ = [
@@ -95,10 +96,9 @@ def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndar
     M = Vt[-1].reshape(3, 4) @ normalise
     if np.median(np.column_stack([points, np.ones(len(points))]) @ M[2]) < 0:
         M = -M
-    U, S, Wt = np.linalg.svd(M[:, :3])
-    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt))]) @ Wt
     seen = np.eye(4)  # the points' frame in the camera
-    seen[:3, :3], seen[:3, 3] = R, M[:, 3] / S.mean()
+    seen[:3, :3] = nearest_rotation(M[:, :3])
+    seen[:3, 3] = M[:, 3] / np.linalg.svd(M[:, :3], compute_uv=False).mean()
     return np.linalg.inv(seen)
 
 

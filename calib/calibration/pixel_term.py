@@ -57,6 +57,7 @@ __all__ = [
     "PixelState",
     "Unknowns",
     "apply_step",
+    "camera_points",
     "check_in_front",
     "column_names",
     "free_columns",
@@ -151,11 +152,17 @@ def target_points(state: PixelState, chain: Chain, rows: PixelRows):
     Also the chain's MDH model, joint frames and kinematics (for :func:`pixel_jacobian`).
     """
     mdh, frames, kin = _chain_kinematics(state, chain, rows.q)
-    X = state.target[rows.point]
-    p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
-    C = state.camera
-    p_cam = (p_link - C[:3, 3]) @ C[:3, :3]
+    p_cam, p_link = camera_points(kin, state.camera, state.target[rows.point])
     return p_cam, p_link, (mdh, frames, kin)
+
+
+def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``X`` ``(m, 3)`` of the tool, in the camera ``(m, 3)`` and the base link [m].
+
+    ``kin``: each row's kinematics of the chain; ``camera``: its frame ``(4, 4)`` [m].
+    """
+    p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
+    return (p_link - camera[:3, 3]) @ camera[:3, :3], p_link
 
 
 def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndarray:
