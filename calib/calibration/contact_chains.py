@@ -89,7 +89,6 @@ from .pixel_chain import (
     check_pixels,
     checked_pixels,
     pixel_parts,
-    split_pixels,
     with_tool,
 )
 from .pixel_chain_result import PixelChain, pixel_result
@@ -416,10 +415,8 @@ def calibrate_contact_chains(
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
     splits = [
-        split_pixels(d, holdout, seed)
-        if isinstance(d, PixelPart)
-        else validation.split(d, holdout, seed)
-        if isinstance(d, Measurements)
+        validation.split(d, holdout, seed)
+        if isinstance(d, Measurements | PixelPart)
         else split_contacts(d, holdout, seed)
         for d in data
     ]

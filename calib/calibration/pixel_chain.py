@@ -67,7 +67,6 @@ __all__ = [
     "pixel_block",
     "pixel_part",
     "pixel_parts",
-    "split_pixels",
     "with_tool",
 ]
 
@@ -125,6 +124,13 @@ class PixelPart:
     def m(self) -> int:
         """Rows."""
         return self.rows.m
+
+    tool = None  # one tool: postures are the joints' (validation.split)
+
+    @property
+    def q(self) -> np.ndarray:
+        """The rows' joint positions ``(m, n)`` [rad or m]."""
+        return self.rows.q
 
     @property
     def kind(self) -> PixelKind:
@@ -334,24 +340,6 @@ def pixel_parts(chains, data) -> list:
         pixel_part(c, d) if isinstance(d, PixelData) else d
         for c, d in zip(chains, data, strict=True)
     ]
-
-
-def split_pixels(part: PixelPart, holdout: float, seed: int):
-    """A seeded fraction of the postures held out with all their rows (training, held out).
-
-    Raises:
-        InvalidArgumentError: ``holdout`` outside [0, 1), or leaving nothing to fit or check.
-    """
-    if not (0.0 <= holdout < 1.0):
-        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
-    if holdout == 0:
-        return part, None
-    postures, which = np.unique(part.rows.q, axis=0, return_inverse=True)
-    out = np.random.default_rng([seed, 32]).permutation(len(postures))
-    held = np.isin(which.ravel(), out[: round(holdout * len(postures))])
-    if not held.any() or held.all():
-        raise InvalidArgumentError(f"holdout {holdout:g} leaves no posture to fit or to check")
-    return part.subset(~held), part.subset(held)
 
 
 def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
