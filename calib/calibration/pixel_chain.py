@@ -367,6 +367,7 @@ class _Joints:
 
     joint_names: tuple[str, ...]
     q: np.ndarray
+    source: str
 
     @property
     def m(self) -> int:
@@ -385,37 +386,26 @@ def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
     return _rms_m(_registered(chain, moved), moved)
 
 
-def _explain(chain: Chain, part: PixelPart, first: float) -> None:
-    """Name the usual mistake (swapped joint columns, degrees) that explains absurd pixels.
+_WORDS = diagnosis.Words("pixels", "row of the pixels", "error at the target",
+                         check="the pixels, the camera's link and the target")  # fmt: skip
 
-    ``first``: the registration's error at the target [m] (infinite: no registration).
 
-    Raises:
-        DataError: A joint column that holds one value, or the mistake that explains them.
-    """
-    joints = _Joints(chain.joint_names, part.rows.q)
-    still = diagnosis.constant_joints(joints)
-    if still:
-        raise DataError(part.source, f"joint column(s) {', '.join(still)} hold one value in "
-                        "every row of the pixels: were those joints logged?")  # fmt: skip
+def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
+    """:func:`~.diagnosis.explain` of the rows' joint columns (``first``: error [m])."""
 
     def error(fixed: object) -> float:
         return _error_m(chain, part, cast(_Joints, fixed).q)
 
-    cause = diagnosis.likely_cause(joints, chain.sigma == 0, error, first, joints_only=True)
-    if cause is not None:
-        before = f"{1e3 * first:.4g} mm" if np.isfinite(first) else "no registration"
-        raise DataError(part.source, f"the pixels look like {cause[0]}: the registration's "
-                        f"error at the target goes from {before} to {1e3 * cause[1]:.4g} mm "
-                        "RMS once corrected")  # fmt: skip
+    joints = _Joints(chain.joint_names, part.rows.q, part.source)
+    notes = diagnosis.explain(joints, chain.sigma == 0, error, first, None, _WORDS)
+    return [f"camera {part.data.camera.name}: {n}" for n in notes]
 
 
 def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
     """The registration and its note, unless a usual mistake explains absurd pixels.
 
     The registration's error at the target above :data:`~.diagnosis.SUSPECT`, or no
-    registration (points behind the camera), tries the joint columns' usual mistakes
-    (:func:`_explain`).
+    registration (points behind the camera), tries the joint columns' usual mistakes.
 
     Raises:
         DataError: The mistake named, or the registration's own error.
@@ -425,14 +415,7 @@ def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]
     except DataError:
         _explain(chain, part, np.inf)
         raise
-    first = _rms_m(state, part)
-    if not diagnosis.suspect(first, None):
-        return state, []
-    _explain(chain, part, first)
-    return state, [f"camera {part.data.camera.name}: the registration leaves "
-                   f"{1e3 * first:.4g} mm RMS at the target, far above geometric errors, and "
-                   "no usual mistake (swapped joint columns, degrees) explains it: check the "
-                   "pixels, the camera's link and the target"]  # fmt: skip
+    return state, _explain(chain, part, _rms_m(state, part))
 
 
 def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
