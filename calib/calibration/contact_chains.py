@@ -414,12 +414,8 @@ def calibrate_contact_chains(
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
-    splits = [
-        validation.split(d, holdout, seed)
-        if isinstance(d, Measurements | PixelPart)
-        else split_contacts(d, holdout, seed)
-        for d in data
-    ]
+    splits = [validation.split(d, holdout, seed) if isinstance(d, Measurements | PixelPart)
+              else split_contacts(d, holdout, seed) for d in data]  # fmt: skip
     train = [s[0] for s in splits]
     held = [
         v if v is not None else s[1]
@@ -459,12 +455,9 @@ def calibrate_contact_chains(
     result = _assemble(
         start, fitted, model, kept_prior, train, held, plane_of, selection, notes, clock
     )
-    labels = [None if h is None else "holdout" for h in held]
-    if validate is not None:
-        labels = [
-            lab if v is None else held_label or v.source
-            for lab, v in zip(labels, validate, strict=True)
-        ]
+    given = validate or [None] * len(held)
+    labels = [None if h is None else "holdout" if v is None else held_label or v.source
+              for h, v in zip(held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
