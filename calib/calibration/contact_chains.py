@@ -62,7 +62,7 @@ from .contact_chains_result import (
 from .contact_checks import held_out_refusal, subset
 from .contact_choice import touching_postures
 from .contact_model import ContactState
-from .contact_result import gap_stats
+from .contact_result import gap_stats, part_stats
 from .contact_term import (
     check_held_out_gaps,
     check_level_equations,
@@ -548,13 +548,8 @@ def _assemble(
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
-        stats = {
-            "train": gap_stats(s, d.q, d.ids),
-            "train_registration": gap_stats(s0, d.q, d.ids),
-        }
+        stats = part_stats(lambda st, rows: gap_stats(st, rows.q, rows.ids), s0, s, d, h)
         if h is not None:
-            stats["held_out"] = gap_stats(s, h.q, h.ids)
-            stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
         objects = contact_objects(s, d)
