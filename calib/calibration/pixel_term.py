@@ -59,7 +59,6 @@ __all__ = [
     "apply_step",
     "camera_points",
     "check_in_front",
-    "column_names",
     "free_columns",
     "move_own",
     "pixel_jacobian",
@@ -171,20 +170,12 @@ def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndar
     return state.lens.projection(p_cam).pixels - rows.pixels
 
 
-def column_names(state: PixelState, what: Unknowns) -> tuple[str, ...]:
-    """The names of :func:`pixel_jacobian`'s columns."""
-    points = range(GAUGE_POINTS, len(state.target)) if what.targets else ()
-    targets = (f"target{k + 1}.{a}" for k in points for a in "xyz")
-    lens = (f"camera.{n}" for n in state.lens.parameter_names) if what.intrinsics else ()
-    return (*CAMERA_NAMES, *state.placements.names(), *MOUNT_NAMES, *targets, *lens)
-
-
 def pixel_jacobian(
     state: PixelState, chain: Chain, rows: PixelRows, what: Unknowns
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
-    Columns as :func:`column_names`: the camera's 6, every joint placement component of
+    Columns: the camera's 6, every joint placement component of
     ``state.placements`` (6 per joint), the target's mounting (6), with ``what.targets`` the
     target points after the first :data:`GAUGE_POINTS`, with ``what.intrinsics`` the
     camera's intrinsics.
