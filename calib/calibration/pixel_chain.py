@@ -442,7 +442,7 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     return errors[0], (errors[1] if held is not None else None)
 
 
-def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
+def checked_pixels(chain: Chain, part: PixelPart, held):
     """A pixel term's registration and its outliers (the shared rule, in mm at the target).
 
     Rows seen from behind their normal, and rows that the shared rule
