@@ -33,7 +33,6 @@ from ..identification.pinhole import Pinhole
 from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
 from . import determined, diagnosis, outliers, validation
 from .pixel_fit import PixelView, camera_from_rays, fit_alone, rays, refine_camera
@@ -48,6 +47,7 @@ from .pixel_term import (
     Unknowns,
     camera_points,
     check_in_front,
+    exact_columns,
     move_own,
     pixel_jacobian,
     pixel_residuals,
@@ -233,30 +233,6 @@ def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
     return np.r_[0:6, list(mount), 12 + n : total].astype(int)
 
 
-def _exact(J: np.ndarray, start: PixelTermState, x: np.ndarray, n: int, point) -> np.ndarray:
-    """The camera's and mounting's columns by ``x`` itself (not by a step from ``x``).
-
-    ``C = C0 [R(w) | v]``: d/dv is the step's translation column times ``R(w)^T``, d/dw its
-    rotation column times the right Jacobian ``Jl(-w)``. The mounting ``X = R(w) X0 + v``:
-    d/dw is ``(rotation + translation skew(v + d))`` columns times ``Jl(w)``, ``d`` the row's
-    point's own change (``what.targets``) ``point``: each row's target point index.
-    """
-    J = J.copy()
-    w = x[3:6]
-    R = rotation_matrix(w)
-    J[..., 0:3] = J[..., 0:3] @ R.T
-    J[..., 3:6] = J[..., 3:6] @ left_jacobian(-w)
-    if start.what.mount:
-        a, mv = 6 + n, x[6:12]
-        moved = np.zeros_like(start.target)
-        k = len(start.target)
-        if start.what.targets and k > GAUGE_POINTS:
-            moved[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
-        rot = J[..., a + 3 : a + 6] + J[..., a : a + 3] @ skew(mv[:3] + moved[point])
-        J[..., a + 3 : a + 6] = rot @ left_jacobian(mv[3:])
-    return J
-
-
 def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift):
     """Weighted rows of a pixel term: its own columns and the free placement directions.
 
@@ -275,7 +251,7 @@ def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState,
     pix = PixelState(placements, state.camera, state.target, state.lens)
     J = pixel_jacobian(pix, chain, part.rows, state.what)[1]
     n = placements.y.size
-    J = _exact(J, start, x, n, part.rows.point)
+    J = exact_columns(J, start.what, start.target, x, n, part.rows.point)
     own = J[:, :, _own_index(n, state.what, J.shape[2])]
     robot = J[:, :, 6 : 6 + n] @ lift.T
     return own * state.weight, robot * state.weight

@@ -28,8 +28,9 @@ from .pixel_term import (
     PixelRows,
     PixelState,
     Unknowns,
-    apply_step,
+    exact_columns,
     free_columns,
+    move_own,
     pixel_jacobian,
     pixel_residuals,
 )
@@ -146,34 +147,24 @@ def stacked_rows(states, views, what: Unknowns):
     return np.concatenate(rs), np.concatenate(Js)
 
 
-def _moved(states, dx: np.ndarray, what: Unknowns) -> tuple[PixelState, ...]:
-    layout = _layout(states, what)[0]
-    return tuple(apply_step(s, dx[i], what) for s, i in zip(states, layout, strict=True))
-
-
-def _residuals(states, views) -> np.ndarray:
-    return np.concatenate(
-        [pixel_residuals(s, v.chain, v.rows) for s, v in zip(states, views, strict=True)]
-    )
-
-
 @dataclass(frozen=True, eq=False)
-class _Cameras:
-    """Every camera's state: a fit's start or its state at x (:func:`~.solve.fit`'s)."""
+class _Term:
+    """A camera's state as the engine's solver reads it (:func:`~.solve.fit`'s)."""
 
-    states: tuple[PixelState, ...]
+    state: PixelState
 
-    def residuals(self, views: tuple[PixelView, ...], torque=None) -> np.ndarray:
-        """``observed - pixel`` of every camera's rows ``(M, 2)`` [px]."""
-        return -_residuals(self.states, views)
+    def residuals(self, view: PixelView, torque=None) -> np.ndarray:
+        """``observed - pixel`` ``(m, 2)`` [px]."""
+        return -pixel_residuals(self.state, view.chain, view.rows)
 
 
 @dataclass(frozen=True, eq=False)
 class _Steps:
-    """The cameras' joint columns ``free`` as a model of the engine's solver (:func:`~.solve.fit`).
+    """The columns ``free`` of one camera's (:func:`stacked_rows`) as the solver's model.
 
-    x is a step composed into the start (:func:`~.pixel_term.apply_step`); the Jacobian's
-    columns are the derivatives by a step composed at x: the same stationary points.
+    x moves the start: the joint placements shifted, the camera, the mounting, the points and
+    the lens as a pixel term's own unknowns (:func:`~.pixel_term.move_own`); the Jacobian is
+    by x itself (:func:`~.pixel_term.exact_columns`), as the joint engine's.
     """
 
     free: tuple[int, ...]
@@ -186,27 +177,39 @@ class _Steps:
         """Number of free columns."""
         return len(self.free)
 
-    def apply(self, start: _Cameras, x: np.ndarray) -> _Cameras:
-        """Every camera's state at x."""
-        dx = np.zeros(_layout(start.states, self.what)[1])
+    def _steps(self, start: _Term, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint placements' change and the own unknowns (with the mounting's 6)."""
+        dx = np.zeros(_layout((start.state,), self.what)[1])
         dx[list(self.free)] = x
-        return _Cameras(_moved(start.states, dx, self.what))
+        n = start.state.placements.y.size
+        return dx[6 : 6 + n], np.r_[dx[:6], dx[6 + n :]]
 
-    def jacobian(self, start: _Cameras, x: np.ndarray, views, torque=None) -> np.ndarray:
-        """d(pixel)/dx ``(M, 2, free)`` [px per unit]."""
-        J = stacked_rows(self.apply(start, x).states, views, self.what)[1]
+    def apply(self, start: _Term, x: np.ndarray) -> _Term:
+        """The camera's state at x."""
+        dy, own = self._steps(start, x)
+        s, what = start.state, Unknowns(True, self.what.targets, self.what.intrinsics)
+        camera, target, lens = move_own(s.camera, s.target, s.lens, own, what)
+        return _Term(PixelState(s.placements.shifted(dy), camera, target, lens))
+
+    def jacobian(self, start: _Term, x: np.ndarray, view: PixelView, torque=None):
+        """d(pixel)/dx ``(m, 2, free)`` [px per unit]."""
+        state, own = self.apply(start, x).state, self._steps(start, x)[1]
+        n, point = state.placements.y.size, view.rows.point
+        robot = any(6 <= c < 6 + n for c in self.free)  # else no joint placement column
+        J = pixel_jacobian(state, view.chain, view.rows, self.what, robot)[1]
+        J = exact_columns(J, self.what, start.state.target, own, n, point)
         return J[:, :, list(self.free)]
 
 
-def _solve(states, views, free, what: Unknowns) -> tuple[PixelState, ...]:
-    """The engine's least squares (:func:`~.solve.fit`) on the joint columns ``free``."""
-    return fit(_Steps(tuple(free), what), _Cameras(tuple(states)), tuple(views), None, 1.0,
-               max_iterations=MAX_EVALUATIONS).state.states  # fmt: skip
+def _solve(state: PixelState, view: PixelView, free, what: Unknowns) -> PixelState:
+    """The engine's least squares (:func:`~.solve.fit`) on the columns ``free``."""
+    return fit(_Steps(tuple(free), what), _Term(state), view, None, 1.0,
+               max_iterations=MAX_EVALUATIONS).state.state  # fmt: skip
 
 
 def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
     """The camera's placement by least squares on the current robot (its 6 unknowns alone)."""
-    return _solve((state,), (PixelView(chain, rows),), tuple(range(6)), KNOWN)[0]
+    return _solve(state, PixelView(chain, rows), tuple(range(6)), KNOWN)
 
 
 def fit_alone(state: PixelState, view: PixelView, what: Unknowns) -> PixelState:
@@ -217,4 +220,4 @@ def fit_alone(state: PixelState, view: PixelView, what: Unknowns) -> PixelState:
     """
     J = stacked_rows((state,), (view,), what)[1]
     free = free_columns(J.reshape(-1, J.shape[2]), state.placements, what)
-    return _solve((state,), (view,), free, what)[0]
+    return _solve(state, view, free, what)
