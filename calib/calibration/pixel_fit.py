@@ -9,8 +9,8 @@
    determine chosen once (pivoted QR of the Jacobian's scaled columns,
    :func:`~.pixel_term.free_columns`).
 
-Both least squares are the engine's (:func:`~.solve.fit`), x a step composed into the
-start (the robot's placements rebased: the first-order directions stay exact).
+Both least squares are the engine's (:func:`~.solve.fit`), x moving the start as the joint
+engine moves a pixel term's unknowns (its columns exact: :func:`~.pixel_term.exact_columns`).
 """
 
 from __future__ import annotations
