@@ -82,6 +82,9 @@ def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
     return at
 
 
+_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, quaternion order")
+
+
 def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     """Raise the likely mistake if the data cannot be registered; a note if none explains it.
 
@@ -94,35 +97,16 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     def errors(d):
         return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
 
+    def position(d) -> float:
+        return errors(d).position_rms
+
     first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None)
     revolute = chain.sigma == 0
-    if diagnosis.suspect(first.position_rms, opts.noise):
-        still = diagnosis.constant_joints(data)
-        if still:
-            raise DataError(
-                data.source,
-                f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS and joint "
-                f"column(s) {', '.join(still)} hold one value in every row: were those joints "
-                f"logged?",
-            )
-        cause = diagnosis.likely_cause(
-            data,
-            revolute,
-            lambda d: errors(d).position_rms,
-            first.position_rms,
-        )
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration error drops from "
-                f"{1e3 * first.position_rms:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once "
-                f"corrected",
-            )
-        return [
-            f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS, far above "
-            f"geometric errors, and no usual mistake (swapped joint columns, degrees, "
-            f"millimetres, quaternion order) explains it: check the data and the chain"
-        ]
+    notes = diagnosis.explain(
+        data, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
+    )
+    if notes:  # the positions are suspect (else no note): the orientations are not read
+        return notes
     rot = first.orientation_rms
     if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
         cause = diagnosis.likely_cause(

@@ -62,7 +62,7 @@ from .contact_chains_result import (
 from .contact_checks import held_out_refusal, subset
 from .contact_choice import touching_postures
 from .contact_model import ContactState
-from .contact_result import gap_stats
+from .contact_result import gap_stats, part_stats
 from .contact_term import (
     check_held_out_gaps,
     check_level_equations,
@@ -89,7 +89,6 @@ from .pixel_chain import (
     check_pixels,
     checked_pixels,
     pixel_parts,
-    split_pixels,
     with_tool,
 )
 from .pixel_chain_result import PixelChain, pixel_result
@@ -416,6 +415,7 @@ def calibrate_contact_chains(
     seed: int = 0,
     progress: Progress | None = None,
     instrument: bool = False,
+    held_label: str | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -448,6 +448,8 @@ def calibrate_contact_chains(
         instrument: The measured terms are a tree's tools measured by one instrument outside
             the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
             joint placement component.
+        held_label: The label of the rows given as ``validate`` in the result (``holdout``:
+            rows the caller held out of the data, a tree's); None: each one's source.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -466,14 +468,8 @@ def calibrate_contact_chains(
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
-    splits = [
-        split_pixels(d, holdout, seed)
-        if isinstance(d, PixelPart)
-        else validation.split(d, holdout, seed)
-        if isinstance(d, Measurements)
-        else split_contacts(d, holdout, seed)
-        for d in data
-    ]
+    splits = [validation.split(d, holdout, seed) if isinstance(d, Measurements | PixelPart)
+              else split_contacts(d, holdout, seed) for d in data]  # fmt: skip
     train = [s[0] for s in splits]
     held = [
         v if v is not None else s[1]
@@ -513,9 +509,9 @@ def calibrate_contact_chains(
     result = _assemble(
         start, fitted, model, kept_prior, train, held, plane_of, selection, notes, clock
     )
-    labels = [None if h is None else "holdout" for h in held]
-    if validate is not None:
-        labels = [lab if v is None else v.source for lab, v in zip(labels, validate, strict=True)]
+    given = validate or [None] * len(held)
+    labels = [None if h is None else "holdout" if v is None else held_label or v.source
+              for h, v in zip(held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
@@ -606,13 +602,8 @@ def _assemble(
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
-        stats = {
-            "train": gap_stats(s, d.q, d.ids),
-            "train_registration": gap_stats(s0, d.q, d.ids),
-        }
+        stats = part_stats(lambda st, rows: gap_stats(st, rows.q, rows.ids), s0, s, d, h)
         if h is not None:
-            stats["held_out"] = gap_stats(s, h.q, h.ids)
-            stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
         objects = contact_objects(s, d)
