@@ -200,25 +200,30 @@ class PixelTermState:
         """:attr:`weight` on both rows [m/px]."""
         return np.full(2, self.weight)
 
-    def seen(self, part: PixelPart) -> np.ndarray:
-        """The rows' points in the camera frame ``(m, 3)`` [m]."""
-        kin = self.mdh.kinematics(part.rows.q)
+    def seen(self, part: PixelPart, kin=None) -> np.ndarray:
+        """The rows' points in the camera frame ``(m, 3)`` [m].
+
+        ``kin``: the chain's frames at the rows' joints (the last the tool's; a joint fit's),
+        or None: its MDH model's.
+        """
+        if kin is None:
+            kin = self.mdh.kinematics(part.rows.q)
         X = self.target[part.rows.point]
         p = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
         return (p - self.camera[:3, 3]) @ self.camera[:3, :3]
 
-    def pixel_errors(self, part: PixelPart) -> np.ndarray:
-        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px]."""
-        return self.lens.projection(self.seen(part)).pixels - part.rows.pixels
+    def pixel_errors(self, part: PixelPart, kin=None) -> np.ndarray:
+        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px] (``kin``: :meth:`seen`)."""
+        return self.lens.projection(self.seen(part, kin)).pixels - part.rows.pixels
 
-    def residuals(self, part, torque=None) -> np.ndarray:
-        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent]."""
-        return -self.pixel_errors(part) * self.weight
+    def residuals(self, part, torque=None, kin=None) -> np.ndarray:
+        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent] (``kin``: :meth:`seen`)."""
+        return -self.pixel_errors(part, kin) * self.weight
 
-    def moved(self, mdh, x: np.ndarray) -> PixelTermState:
-        """The state on the chain model ``mdh`` with its own unknowns at ``x``."""
+    def moved(self, x: np.ndarray) -> PixelTermState:
+        """The state with its own unknowns at ``x``."""
         camera, target, lens = move_own(self.camera, self.target, self.lens, x, self.what)
-        return dataclasses.replace(self, mdh=mdh, camera=camera, target=target, lens=lens)
+        return dataclasses.replace(self, camera=camera, target=target, lens=lens)
 
 
 def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
@@ -251,7 +256,9 @@ def _exact(J: np.ndarray, start: PixelTermState, x: np.ndarray, n: int, point) -
     return J
 
 
-def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift):
+def pixel_block(
+    placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift, kin
+):
     """Weighted rows of a pixel term: its own columns and the free placement directions.
 
     Args:
@@ -262,12 +269,13 @@ def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState,
         x: Its own unknowns.
         part: Its rows.
         lift: The free directions ``(free, 6 J)``.
+        kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`).
 
     Returns:
         ``(m, 2, own)`` and ``(m, 2, free)`` [m-equivalent per unit].
     """
     pix = PixelState(placements, state.camera, state.target, state.lens)
-    J = pixel_jacobian(pix, chain, part.rows, state.what)[1]
+    J = pixel_jacobian(pix, chain, part.rows, state.what, kin)[1]
     n = placements.y.size
     J = _exact(J, start, x, n, part.rows.point)
     own = J[:, :, _own_index(n, state.what, J.shape[2])]
@@ -364,11 +372,11 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
     lens, target = cam.intrinsics.camera, part.data.target.position
     if guess is None:
         state = PixelState(placements, np.eye(4), target, lens)
-        mdh = placements.chain_geometry((chain,))[0][0]
+        mdh = placements.chain_models((chain,))[0]
         p = PixelTermState(mdh, np.eye(4), target, lens, 1.0).seen(part)
         guess = camera_from_rays(p, rays(lens, rows.pixels), part.source)
     state = PixelState(placements, guess, target, lens)
-    mdh = placements.chain_geometry((chain,))[0][0]
+    mdh = placements.chain_models((chain,))[0]
     check_in_front(PixelTermState(mdh, guess, target, lens, 1.0).seen(part), rows, part.source)
     state = refine_camera(state, chain, rows)
     depth = PixelTermState(mdh, state.camera, target, lens, 1.0).seen(part)[:, 2]

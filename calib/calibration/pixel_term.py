@@ -140,22 +140,19 @@ class PixelState:
     lens: Pinhole
 
 
-def _chain_kinematics(state: PixelState, chain: Chain, q: np.ndarray):
-    models, frames = state.placements.chain_geometry((chain,))
-    return models[0], frames[0], models[0].kinematics(q)
-
-
-def target_points(state: PixelState, chain: Chain, rows: PixelRows):
+def target_points(state: PixelState, chain: Chain, rows: PixelRows, kin=None):
     """The seen points in the camera frame ``(m, 3)`` and in the base link ``(m, 3)`` [m].
 
-    Also the chain's MDH model, joint frames and kinematics (for :func:`pixel_jacobian`).
+    Also the chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`,
+    for :func:`pixel_jacobian`; ``kin``: them, if already made).
     """
-    mdh, frames, kin = _chain_kinematics(state, chain, rows.q)
+    if kin is None:
+        kin = state.placements.frames(chain, rows.q)
     X = state.target[rows.point]
     p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
     C = state.camera
     p_cam = (p_link - C[:3, 3]) @ C[:3, :3]
-    return p_cam, p_link, (mdh, frames, kin)
+    return p_cam, p_link, kin
 
 
 def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndarray:
@@ -173,24 +170,24 @@ def column_names(state: PixelState, what: Unknowns) -> tuple[str, ...]:
 
 
 def pixel_jacobian(
-    state: PixelState, chain: Chain, rows: PixelRows, what: Unknowns
+    state: PixelState, chain: Chain, rows: PixelRows, what: Unknowns, kin=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
     Columns as :func:`column_names`: the camera's 6, every joint placement component of
     ``state.placements`` (6 per joint), the target's mounting (6), with ``what.targets`` the
     target points after the first :data:`GAUGE_POINTS`, with ``what.intrinsics`` the
-    camera's intrinsics.
+    camera's intrinsics. ``kin``: the chain's frames at the rows' joints, if already made.
     """
-    p_cam, p_link, (mdh, frames, kin) = target_points(state, chain, rows)
+    p_cam, p_link, kin = target_points(state, chain, rows, kin)
     seen = state.lens.projection(p_cam, derivatives=True)
     D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
     RcT = state.camera[:3, :3].T
     pl = state.placements
     m = rows.m
     moving = np.zeros((m, 3, len(pl.joints), 6))  # the point's motion in the base link
-    columns = np.array([pl.joints.index(name) for name in chain.joint_names])
-    ang, lin = joint_twists(pl, chain, mdh, frames, kin, columns)
+    columns = pl.path(chain).columns
+    ang, lin = joint_twists(pl, chain, kin)
     moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
     by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
     X = state.target[rows.point]

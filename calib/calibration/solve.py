@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 import scipy.linalg
@@ -35,6 +35,23 @@ class FitState(Protocol):
 
     def residuals(self, data: Any, torque: np.ndarray | None = None) -> np.ndarray:
         """Measured - model per configuration ``(m, rows)`` [m, rad]."""
+        ...
+
+
+@runtime_checkable
+class StepState(Protocol):
+    """A state whose kinematics a fit makes once per x.
+
+    They are passed to the residuals and the Jacobian (a chain's :class:`State`, the joint
+    fit's ``ChainsState``).
+    """
+
+    def step_kinematics(self, data: Any, torque: np.ndarray | None) -> Any:
+        """The frames at the data's joints."""
+        ...
+
+    def same_geometry(self, other: Any) -> bool:
+        """Whether ``other``'s kinematics at the same data are this state's."""
         ...
 
 
@@ -117,10 +134,10 @@ class Problem:
     """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
-    at the solution: the state at the last two x are kept (for a chain's
-    :class:`ErrorModel`, the last one's kinematics, reused while x moves no geometry: the
-    frame and markers; 77 MB at 100,000 poses), and the Jacobian at the last x it was asked
-    at (200 MB).
+    at the solution: the state at the last two x are kept (for a :class:`StepState`, the
+    last one's kinematics, made once and passed to the residuals and the Jacobian, reused
+    while x moves no geometry: a chain's frame and markers; 77 MB at 100,000 poses), and the
+    Jacobian at the last x it was asked at (200 MB).
     """
 
     def __init__(self, model, start, data, torque, weight, prior=None, robust=True):
@@ -128,7 +145,7 @@ class Problem:
         self.w = row_weights(model, weight)
         self.prior = prior  # (p,) weights of x in the prior rows, or None
         self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
-        self._chain = isinstance(model, ErrorModel)
+        self._chain = isinstance(start, StepState)
         self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
 
     def state(self, x: np.ndarray):
@@ -143,9 +160,9 @@ class Problem:
         state = self.model.apply(self.start, x)
         kin = None
         if self._chain:
-            kin = next((k[2] for k in self._kept if _same_geometry(k[1], state)), None)
+            kin = next((k[2] for k in self._kept if state.same_geometry(k[1])), None)
             if kin is None:
-                kin = state.kinematics(self.data.q, self.torque)
+                kin = state.step_kinematics(self.data, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
         for other in self._kept[1:]:  # another geometry's kinematics: made again if asked
             if other[2] is not kin:
@@ -190,11 +207,6 @@ class Problem:
         if self.prior is not None:
             return np.vstack([J, np.diag(self.prior)])
         return J.copy() if self.robust else J
-
-
-def _same_geometry(a, b) -> bool:
-    """Two chain states whose kinematics at the same data are the same (x moved no geometry)."""
-    return a.mdh is b.mdh and np.array_equal(a.compliance, b.compliance)
 
 
 def fit(
