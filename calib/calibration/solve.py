@@ -54,6 +54,10 @@ class StepState(Protocol):
         """Whether ``other``'s kinematics at the same data are this state's."""
         ...
 
+    def residuals(self, data: Any, torque: np.ndarray | None = None, kin: Any = None) -> Any:
+        """Measured - model per configuration, at the kinematics ``kin`` if given."""
+        ...
+
 
 _State = TypeVar("_State", bound=FitState)
 
@@ -105,6 +109,8 @@ class Fit(Generic[_Model, _State]):
         message: scipy's message.
         iterations: Jacobian evaluations.
         evaluations: Residual evaluations.
+        kin: The kinematics of ``state`` at the data's joints (a :class:`StepState`'s, made
+            once per x), or None: what a caller scoring ``state`` on the same data passes on.
     """
 
     model: _Model
@@ -118,6 +124,7 @@ class Fit(Generic[_Model, _State]):
     message: str
     iterations: int
     evaluations: int
+    kin: Any = None
 
 
 def row_weights(model: ErrorModel, weight: float) -> np.ndarray:
@@ -140,8 +147,9 @@ class Problem:
     Jacobian at the last x it was asked at (200 MB).
     """
 
-    def __init__(self, model, start, data, torque, weight, prior=None, robust=True):
+    def __init__(self, model, start, data, torque, weight, prior=None, robust=True, kin=None):
         self.model, self.start, self.data, self.torque = model, start, data, torque
+        self.start_kin = kin  # the start's kinematics at the data's joints, or None
         self.w = row_weights(model, weight)
         self.prior = prior  # (p,) weights of x in the prior rows, or None
         self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
@@ -161,6 +169,8 @@ class Problem:
         kin = None
         if self._chain:
             kin = next((k[2] for k in self._kept if state.same_geometry(k[1])), None)
+            if kin is None and self.start_kin is not None and state.same_geometry(self.start):
+                kin = self.start_kin
             if kin is None:
                 kin = state.step_kinematics(self.data, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
@@ -220,6 +230,7 @@ def fit(
     loss: str = "linear",
     scale: float = 1e-3,
     max_iterations: int = 100,
+    kin: Any = None,
 ) -> Fit[_Model, _State]:
     """Levenberg-Marquardt (least squares) or trust-region (robust loss) from x = 0.
 
@@ -234,10 +245,12 @@ def fit(
         loss: One of ``LOSSES``.
         scale: Residual scale of a robust loss [m].
         max_iterations: Most residual evaluations.
+        kin: The start's kinematics at the data's joints (a :class:`StepState`'s), if
+            already made.
     """
     import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
 
-    problem = Problem(model, start, data, torque, weight, prior, robust=loss != "linear")
+    problem = Problem(model, start, data, torque, weight, prior, loss != "linear", kin)
     p = model.size()
     if p == 0:
         x = np.zeros(0)
@@ -275,6 +288,7 @@ def fit(
         message if finite else "non-finite parameters or residuals",
         njev,
         nfev,
+        problem._at(x)[2],
     )
 
 
