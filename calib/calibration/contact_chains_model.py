@@ -331,7 +331,7 @@ class ChainsModel:
             return J
         if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
             raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
-        Jc = self._contact_model(s0).jacobian(s0, self._chain_x(x, c), d, kin=kin)
+        Jc = self._contact_model(s0).jacobian(s0, self._chain_x(x, c), d, None, kin, s)
         split = obj.stop - obj.start
         J[:, :, obj] = Jc[:, :, :split]
         J[:, :, con] = Jc[:, :, split:]

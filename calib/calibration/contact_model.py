@@ -204,12 +204,12 @@ class ContactModel:
         frames = start.frames.moved(x[: self.fixed])
         return dataclasses.replace(start, mdh=mdh, frames=frames, compliance=c)
 
-    def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None):
+    def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None):
         """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``.
 
-        ``kin``: the robot's frames at the touches (see :meth:`blocks`), or None.
+        ``kin`` and ``state``: see :meth:`blocks`.
         """
-        own, shared, index = self.blocks(start, x, data, torque, kin)
+        own, shared, index = self.blocks(start, x, data, torque, kin, state)
         m, rows, o = own.shape
         J = np.zeros((m, rows, self.size()))
         if o:
@@ -219,20 +219,20 @@ class ContactModel:
         return J
 
     def blocks(
-        self, start: ContactState, x: np.ndarray, data, torque=None, kin=None
+        self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`jacobian` by block: each touch's own object's columns, the shared ones.
 
         ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's, whose
         robot is not the state's MDH model: it moves no MDH parameter), or None: the MDH
-        model's at x.
+        model's at x. ``state``: :meth:`apply` at x, if already made.
 
         Returns:
             The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
             other objects' are zero), on the shared unknowns (the contact's, the robot's,
             the compliances) ``(m, rows, size - K o)``, and the object of each touch.
         """
-        s = self.apply(start, x)
+        s = self.apply(start, x) if state is None else state
         q = s.joints(data.q, torque)
         if kin is None or len(self.params) or self.compliance:  # MDH columns: its frames
             kin = s.mdh.kinematics(q)

@@ -392,18 +392,19 @@ def mdh_directions(
     ang, lin = joint_twists(placements, chain, kin)
     vel = lin - skew(kin.p[:, -1])[:, None] @ ang  # the tool origin's velocity
     A = np.concatenate([vel, ang], axis=2)  # (m, n, 6, 6)
+    Wf = W.reshape(-1, W.shape[2])  # every parameter's motion, one column each
+    scale = np.linalg.norm(Wf, axis=0)
+    fits = {}  # per joint: each parameter's components (6, P) and whether they match it
+    for i in range(chain.n):
+        Ai = A[:, i].reshape(-1, 6)
+        C = np.linalg.lstsq(Ai, Wf, rcond=None)[0]  # every parameter at once
+        fits[i] = (C, (np.linalg.norm(Ai @ C - Wf, axis=0) <= 1e-8 * scale) & (scale > 0))
     out, names = [], []
     for k, p in enumerate(params.parameters):
-        w = W[:, :, k].reshape(-1)
         for i in (p.row - 1, p.row - 2, p.row):
-            if not 0 <= i < chain.n:
-                continue
-            Ai = A[:, i].reshape(-1, 6)
-            c = np.linalg.lstsq(Ai, w, rcond=None)[0]
-            scale = float(np.linalg.norm(w))
-            if float(np.linalg.norm(Ai @ c - w)) <= 1e-8 * scale and scale > 0:
+            if 0 <= i < chain.n and fits[i][1][k]:
                 d = np.zeros(6 * len(placements.joints))
-                d[6 * columns[i] : 6 * columns[i] + 6] = c
+                d[6 * columns[i] : 6 * columns[i] + 6] = fits[i][0][:, k]
                 out.append(d)
                 names.append(f"{chain.joint_names[i]}:{p.name}")
                 break
