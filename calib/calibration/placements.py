@@ -139,23 +139,27 @@ class ChainPath:
         rows = y[self.columns]
         if not np.any(rows):
             return self.fixed
-        n = len(self.sign)
-        R = rotation_matrix(rows[:, 3:])
-        after, before = np.tile(np.eye(4), (2, n + 1, 1, 1))
-        ahead = self.sign > 0
-        after[:n][ahead, :3, :3] = R[ahead]
-        after[:n][ahead, :3, 3] = rows[ahead, :3]
-        Rt = np.swapaxes(R[~ahead], 1, 2)  # E^-1 = [R^T | -R^T v]
-        before[1:][~ahead, :3, :3] = Rt
-        before[1:][~ahead, :3, 3] = -(Rt @ rows[~ahead, :3, None])[..., 0]
-        return before @ self.fixed @ after
+        E = np.zeros((len(rows), 4, 4))
+        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = rotation_matrix(rows[:, 3:]), rows[:, :3], 1.0
+        out = self.fixed.copy()
+        ahead = np.flatnonzero(self.sign > 0)
+        out[ahead] = out[ahead] @ E[ahead]
+        back = np.flatnonzero(self.sign < 0)
+        if back.size:  # E^-1 = [R^T | -R^T v]
+            inverse = np.zeros((len(back), 4, 4))
+            inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
+            inverse[:, :3, 3] = -(inverse[:, :3, :3] @ rows[back, :3, None])[..., 0]
+            inverse[:, 3, 3] = 1.0
+            out[back + 1] = inverse @ out[back + 1]
+        return out
 
 
 def chain_frames(path: ChainPath, y: np.ndarray, q: np.ndarray) -> JointFrames:
     """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``.
 
     Vectorised over configurations and joints: each joint's motion and the fixed transform
-    after it for every configuration at once, then one product per joint along the chain.
+    after it for every configuration at once, then their products along the chain in
+    log2(n + 1) array products.
     """
     fixed = path.composed(y)
     q = np.asarray(q, dtype=float).reshape(-1, len(path.sign))
@@ -164,20 +168,22 @@ def chain_frames(path: ChainPath, y: np.ndarray, q: np.ndarray) -> JointFrames:
     turn = np.where(path.prismatic[:, None], 0.0, move)
     c, s = np.cos(turn)[..., None], np.sin(turn)[..., None]  # (n, m, 1)
     F, f = fixed[1:, None, :3, :3], fixed[1:, None, :3, 3]  # (n, 1, 3, 3), (n, 1, 3)
-    local = np.empty((n, m, 3, 3))  # Rot(z, turn) followed by the next fixed rotation
+    T = np.zeros((n + 1, m, 4, 4))  # each joint's motion then the fixed transform after it
+    T[..., 3, 3] = 1.0
+    T[0, :, :3] = fixed[0, :3]
+    local, step = T[1:, :, :3, :3], T[1:, :, :3, 3]  # Rot(z, turn) F_k, Rot(z, turn) f_k
     local[:, :, 0] = c * F[:, :, 0] - s * F[:, :, 1]
     local[:, :, 1] = s * F[:, :, 0] + c * F[:, :, 1]
     local[:, :, 2] = F[:, :, 2]
-    step = np.empty((n, m, 3))  # and the origin's step, the slide along z included
     step[..., 0] = c[..., 0] * f[..., 0] - s[..., 0] * f[..., 1]
     step[..., 1] = s[..., 0] * f[..., 0] + c[..., 0] * f[..., 1]
-    step[..., 2] = f[..., 2] + np.where(path.prismatic[:, None], move, 0.0)
-    R = np.empty((m, n + 1, 3, 3))  # each joint's axis frame before its motion, the tool's
-    p = np.empty((m, n + 1, 3))
-    R[:, 0], p[:, 0] = fixed[0, :3, :3], fixed[0, :3, 3]
-    for k in range(n):
-        np.matmul(R[:, k], local[k], out=R[:, k + 1])
-        p[:, k + 1] = p[:, k] + (R[:, k] @ step[k, :, :, None])[..., 0]
+    step[..., 2] = f[..., 2] + np.where(path.prismatic[:, None], move, 0.0)  # and the slide
+    span = 1  # the products along the chain: log2(n + 1) steps (Hillis-Steele scan)
+    while span <= n:
+        T[span:] = T[:-span] @ T[span:]
+        span *= 2
+    R = T[..., :3, :3].swapaxes(0, 1)  # each joint's axis frame before its motion, the tool's
+    p = T[..., :3, 3].swapaxes(0, 1)
     back = np.flatnonzero(path.sign < 0)  # their errors act after their motion
     if back.size:
         Rb, cb, sb = R[:, back], c[back].swapaxes(0, 1), s[back].swapaxes(0, 1)  # copies
