@@ -253,10 +253,10 @@ class Placements:
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
 
     def rebased(self) -> Placements:
-        """The same robot with zero errors on a model that holds them."""
-        model = self.perturbed_model()
+        """The same robot with zero errors on a model that holds them (and paths that do)."""
+        paths = tuple(dataclasses.replace(p, fixed=p.composed(self.y)) for p in self.paths)
         y = np.zeros_like(self.y)
-        return dataclasses.replace(self, model=model, y=y, paths=self._paths(model))
+        return dataclasses.replace(self, model=self.perturbed_model(), y=y, paths=paths)
 
     def frames(self, chain: Chain, q: np.ndarray) -> JointFrames:
         """Chain ``chain``'s frames at ``q`` ``(m, n)`` with the errors (:func:`chain_frames`)."""
