@@ -18,6 +18,7 @@ __all__ = [
     "FitModel",
     "FitState",
     "Problem",
+    "StepState",
     "condition",
     "covariance",
     "fit",
