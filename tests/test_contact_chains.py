@@ -364,3 +364,36 @@ def test_shared_plane_is_one_plane():
     own = calibrate_contact_chains(chains, data, contact=(0, 0, -0.12), params="frames")
     assert own.planes == 2
     assert not np.allclose(own.chains[0].plane[:3, 2], own.chains[1].plane[:3, 2], atol=1e-4)
+
+
+def test_a_fit_step_makes_each_chains_frames_once(monkeypatch):
+    """The solver's residuals and Jacobian at one x: each chain's frames made once, from the
+    placements (no MDH model made)."""
+    from calib.calibration import contact_chains_model, placements
+    from calib.calibration.solve import Problem
+
+    chains = tuple(_chains())
+    pl, models, C, n = moved_chains(chains, np.random.default_rng(4))
+    start = ChainsState(chains, pl, tuple(plane_state(m, C, n, 0.7, 0.3, "t") for m in models))
+    q = [c.random_configurations(5, 3) for c in chains]
+    data = ChainsData(
+        tuple(
+            ContactData(c.joint_names, qc, ("t",) * 5, PlaneContact())
+            for c, qc in zip(chains, q, strict=True)
+        )
+    )
+    model = ChainsModel((0, 1), 2, tuple(range(pl.y.size)), pl.names())
+    made = []
+    frames = placements.Placements.frames
+    monkeypatch.setattr(
+        placements.Placements, "frames", lambda self, *a: made.append(a[0]) or frames(self, *a)
+    )
+    monkeypatch.setattr(
+        contact_chains_model.MDHModel, "kinematics", lambda *a: pytest.fail("an MDH model")
+    )
+    problem = Problem(model, start, data, None, 1.0)
+    x = 1e-3 * np.ones(model.size())
+    problem.fun(x)
+    problem.jac(x)
+    problem.fun(x)
+    assert made == list(chains)
