@@ -158,41 +158,43 @@ def chain_frames(path: ChainPath, y: np.ndarray, q: np.ndarray) -> JointFrames:
     """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``.
 
     Vectorised over configurations and joints: each joint's motion and the fixed transform
-    after it for every configuration at once, then their products along the chain in
-    log2(n + 1) array products.
+    after it for every configuration at once, then one product per joint along the chain,
+    each along the configurations.
     """
     fixed = path.composed(y)
     q = np.asarray(q, dtype=float).reshape(-1, len(path.sign))
     m, n = q.shape
     move = (q * path.sign).T  # (n, m)
-    turn = np.where(path.prismatic[:, None], 0.0, move)
-    c, s = np.cos(turn)[..., None], np.sin(turn)[..., None]  # (n, m, 1)
-    F, f = fixed[1:, None, :3, :3], fixed[1:, None, :3, 3]  # (n, 1, 3, 3), (n, 1, 3)
-    T = np.zeros((n + 1, m, 4, 4))  # each joint's motion then the fixed transform after it
-    T[..., 3, 3] = 1.0
-    T[0, :, :3] = fixed[0, :3]
-    local, step = T[1:, :, :3, :3], T[1:, :, :3, 3]  # Rot(z, turn) F_k, Rot(z, turn) f_k
-    local[:, :, 0] = c * F[:, :, 0] - s * F[:, :, 1]
-    local[:, :, 1] = s * F[:, :, 0] + c * F[:, :, 1]
-    local[:, :, 2] = F[:, :, 2]
-    step[..., 0] = c[..., 0] * f[..., 0] - s[..., 0] * f[..., 1]
-    step[..., 1] = s[..., 0] * f[..., 0] + c[..., 0] * f[..., 1]
-    step[..., 2] = f[..., 2] + np.where(path.prismatic[:, None], move, 0.0)  # and the slide
-    span = 1  # the products along the chain: log2(n + 1) steps (Hillis-Steele scan)
-    while span <= n:
-        T[span:] = T[:-span] @ T[span:]
-        span *= 2
-    R = T[..., :3, :3].swapaxes(0, 1)  # each joint's axis frame before its motion, the tool's
-    p = T[..., :3, 3].swapaxes(0, 1)
+    slide = np.where(path.prismatic[:, None], move, 0.0)
+    turn = move - slide
+    c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]  # (n, 1, m)
+    F, f = fixed[1:, :3, :3, None], fixed[1:, :3, 3, None]  # (n, 3, 3, 1), (n, 3, 1)
+    # Component-major (joint, ..., configuration): every operation runs along the m
+    # configurations, the innermost axis. Rot(z, turn) followed by the next fixed transform:
+    local = np.empty((n, 3, 3, m))
+    local[:, 0] = c * F[:, 0] - s * F[:, 1]
+    local[:, 1] = s * F[:, 0] + c * F[:, 1]
+    local[:, 2] = F[:, 2]
+    step = np.empty((n, 3, m))  # and the origin's step, the slide along z included
+    step[:, 0] = c[:, 0] * f[:, 0] - s[:, 0] * f[:, 1]
+    step[:, 1] = s[:, 0] * f[:, 0] + c[:, 0] * f[:, 1]
+    step[:, 2] = f[:, 2] + slide
+    Rt = np.empty((n + 1, 3, 3, m))  # each joint's axis frame before its motion, the tool's
+    pt = np.empty((n + 1, 3, m))
+    Rt[0], pt[0] = fixed[0, :3, :3, None], fixed[0, :3, 3, None]
+    for k in range(n):
+        np.einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
+        np.einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
+        pt[k + 1] += pt[k]
     back = np.flatnonzero(path.sign < 0)  # their errors act after their motion
     if back.size:
-        Rb, cb, sb = R[:, back], c[back].swapaxes(0, 1), s[back].swapaxes(0, 1)  # copies
-        slide = np.where(path.prismatic[back, None], move[back], 0.0).T[..., None]
-        p[:, back] += Rb[..., 2] * slide
+        Rb, cb, sb = Rt[back], c[back], s[back]  # (b, 3, 3, m) copy, (b, 1, m)
+        pt[back] += Rb[:, :, 2] * slide[back, None]
         turned = Rb.copy()
-        turned[..., 0] = cb * Rb[..., 0] + sb * Rb[..., 1]
-        turned[..., 1] = cb * Rb[..., 1] - sb * Rb[..., 0]
-        R[:, back] = turned
+        turned[:, :, 0] = cb * Rb[:, :, 0] + sb * Rb[:, :, 1]
+        turned[:, :, 1] = cb * Rb[:, :, 1] - sb * Rb[:, :, 0]
+        Rt[back] = turned
+    R, p = Rt.transpose(3, 0, 1, 2), pt.transpose(2, 0, 1)  # (m, n + 1, ...) views
     return JointFrames(R, p)
 
 
