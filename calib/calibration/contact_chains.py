@@ -52,7 +52,7 @@ from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, determined, outliers, validation
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState, on_models
 from .contact_chains_result import (
     ChainContacts,
     ContactChainsCalibration,
@@ -229,13 +229,7 @@ def _register(
     contact in closed form, a measured term's frames, a pixel term's camera).
     """
     placements = Placements.of(tuple(chains))
-    models, frames = placements.chain_geometry(tuple(chains))
-    states: list[ContactState | MeasuredState | PixelTermState] = []
-    for mdh, reg in zip(models, measured, strict=True):
-        if isinstance(reg, MeasuredState):  # its registration on the nominal chain
-            states.append(dataclasses.replace(reg, inner=dataclasses.replace(reg.inner, mdh=mdh)))
-        else:
-            states.append(dataclasses.replace(reg, mdh=mdh))
+    states = list(on_models(tuple(measured), placements.chain_models(tuple(chains))))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
@@ -245,7 +239,7 @@ def _register(
             states[c] = dataclasses.replace(mine, camera=owner.camera)
     scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
     states = shared_frame(states, train)
-    start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
+    start = ChainsState(tuple(chains), placements, tuple(states), scales)
     if len(set(plane_of)) == len(plane_of):
         return start
     only_frames = _model(start, plane_of, (), placements.names())
@@ -294,9 +288,9 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     rows: list[np.ndarray] = []
     names: list[str] = []
     units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
-    for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
+    for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
+        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
             if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
@@ -566,7 +560,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     cost = float(fitted.f @ fitted.f)
     if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:
         return fitted, False
-    again = dataclasses.replace(fitted.state, placements=fitted.state.placements.rebased())
+    again = fitted.state.settled()
     try:
         better = fit(
             wide, again, data, None, 1.0, prior=PIN * np.ones(wide.size()), max_iterations=iters
@@ -581,7 +575,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
 def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
-    state: ChainsState = fitted.state
+    state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     cov = None

@@ -208,23 +208,28 @@ class PixelTermState:
         """:attr:`weight` on both rows [m/px]."""
         return np.full(2, self.weight)
 
-    def seen(self, part: PixelPart) -> np.ndarray:
-        """The rows' points in the camera frame ``(m, 3)`` [m]."""
-        kin = self.mdh.kinematics(part.rows.q)
+    def seen(self, part: PixelPart, kin=None) -> np.ndarray:
+        """The rows' points in the camera frame ``(m, 3)`` [m].
+
+        ``kin``: the chain's frames at the rows' joints (the last the tool's; a joint fit's),
+        or None: its MDH model's.
+        """
+        if kin is None:
+            kin = self.mdh.kinematics(part.rows.q)
         return camera_points(kin, self.camera, self.target[part.rows.point])[0]
 
-    def pixel_errors(self, part: PixelPart) -> np.ndarray:
-        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px]."""
-        return self.lens.projection(self.seen(part)).pixels - part.rows.pixels
+    def pixel_errors(self, part: PixelPart, kin=None) -> np.ndarray:
+        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px] (``kin``: :meth:`seen`)."""
+        return self.lens.projection(self.seen(part, kin)).pixels - part.rows.pixels
 
-    def residuals(self, part, torque=None) -> np.ndarray:
-        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent]."""
-        return -self.pixel_errors(part) * self.weight
+    def residuals(self, part, torque=None, kin=None) -> np.ndarray:
+        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent] (``kin``: :meth:`seen`)."""
+        return -self.pixel_errors(part, kin) * self.weight
 
-    def moved(self, mdh, x: np.ndarray) -> PixelTermState:
-        """The state on the chain model ``mdh`` with its own unknowns at ``x``."""
+    def moved(self, x: np.ndarray) -> PixelTermState:
+        """The state with its own unknowns at ``x``."""
         camera, target, lens = move_own(self.camera, self.target, self.lens, x, self.what)
-        return dataclasses.replace(self, mdh=mdh, camera=camera, target=target, lens=lens)
+        return dataclasses.replace(self, camera=camera, target=target, lens=lens)
 
 
 def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
@@ -233,7 +238,9 @@ def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
     return np.r_[0:6, list(mount), 12 + n : total].astype(int)
 
 
-def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift):
+def pixel_block(
+    placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift, kin
+):
     """Weighted rows of a pixel term: its own columns and the free placement directions.
 
     Args:
@@ -244,12 +251,13 @@ def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState,
         x: Its own unknowns.
         part: Its rows.
         lift: The free directions ``(free, 6 J)``.
+        kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`).
 
     Returns:
         ``(m, 2, own)`` and ``(m, 2, free)`` [m-equivalent per unit].
     """
     pix = PixelState(placements, state.camera, state.target, state.lens)
-    J = pixel_jacobian(pix, chain, part.rows, state.what)[1]
+    J = pixel_jacobian(pix, chain, part.rows, state.what, kin=kin)[1]
     n = placements.y.size
     J = exact_columns(J, start.what, start.target, x, n, part.rows.point)
     own = J[:, :, _own_index(n, state.what, J.shape[2])]
@@ -332,7 +340,8 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
     state = PixelState(placements, guess, target, lens)
     check_in_front(target_points(state, chain, rows)[0], rows, part.source)
     state = refine_camera(state, chain, rows)
-    p_cam, _, (mdh, _, _) = target_points(state, chain, rows)
+    p_cam = target_points(state, chain, rows)[0]
+    mdh = placements.chain_models((chain,))[0]
     weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
     return PixelTermState(mdh, state.camera, target, lens, weight, part.data.what)
 

@@ -140,19 +140,16 @@ class PixelState:
     lens: Pinhole
 
 
-def _chain_kinematics(state: PixelState, chain: Chain, q: np.ndarray):
-    models, frames = state.placements.chain_geometry((chain,))
-    return models[0], frames[0], models[0].kinematics(q)
-
-
-def target_points(state: PixelState, chain: Chain, rows: PixelRows):
+def target_points(state: PixelState, chain: Chain, rows: PixelRows, kin=None):
     """The seen points in the camera frame ``(m, 3)`` and in the base link ``(m, 3)`` [m].
 
-    Also the chain's MDH model, joint frames and kinematics (for :func:`pixel_jacobian`).
+    Also the chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`,
+    for :func:`pixel_jacobian`; ``kin``: them, if already made).
     """
-    mdh, frames, kin = _chain_kinematics(state, chain, rows.q)
+    if kin is None:
+        kin = state.placements.frames(chain, rows.q)
     p_cam, p_link = camera_points(kin, state.camera, state.target[rows.point])
-    return p_cam, p_link, (mdh, frames, kin)
+    return p_cam, p_link, kin
 
 
 def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -171,16 +168,22 @@ def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndar
 
 
 def pixel_jacobian(
-    state: PixelState, chain: Chain, rows: PixelRows, what: Unknowns, robot: bool = True
+    state: PixelState,
+    chain: Chain,
+    rows: PixelRows,
+    what: Unknowns,
+    robot: bool = True,
+    kin=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
     Columns: the camera's 6, every joint placement component of
     ``state.placements`` (6 per joint; zero unless ``robot``: a fit that moves no joint),
     the target's mounting (6), with ``what.targets`` the target points after the first
-    :data:`GAUGE_POINTS`, with ``what.intrinsics`` the camera's intrinsics.
+    :data:`GAUGE_POINTS`, with ``what.intrinsics`` the camera's intrinsics. ``kin``: the
+    chain's frames at the rows' joints, if already made.
     """
-    p_cam, p_link, (mdh, frames, kin) = target_points(state, chain, rows)
+    p_cam, p_link, kin = target_points(state, chain, rows, kin)
     seen = state.lens.projection(p_cam, derivatives=True)
     D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
     RcT = state.camera[:3, :3].T
@@ -188,8 +191,8 @@ def pixel_jacobian(
     m = rows.m
     moving = np.zeros((m, 3, len(pl.joints), 6))  # the point's motion in the base link
     if robot:
-        columns = np.array([pl.joints.index(name) for name in chain.joint_names])
-        ang, lin = joint_twists(pl, chain, mdh, frames, kin, columns)
+        columns = pl.path(chain).columns
+        ang, lin = joint_twists(pl, chain, kin)
         moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
     by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
     X = state.target[rows.point]

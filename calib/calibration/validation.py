@@ -31,7 +31,7 @@ from ..measurements.pixels import PixelObservations
 from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .result import ResidualStats
-from .solve import FitState
+from .solve import FitState, StepState
 
 __all__ = [
     "RANK_TOL",
@@ -207,8 +207,16 @@ def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: st
         )
 
 
-def stats(state: FitState, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
-    """Errors measured - model of a state on some data."""
+def stats(
+    state: FitState, data: Measurements, torque: np.ndarray | None, kin=None
+) -> ResidualStats:
+    """Errors measured - model of a state on some data.
+
+    ``kin``: its kinematics at the data's joints, if already made (a fit's
+    :attr:`~.solve.Fit.kin`).
+    """
+    if isinstance(state, StepState) and kin is not None:
+        return ResidualStats.of(state.residuals(data, torque, kin), data.n_markers)
     return ResidualStats.of(state.residuals(data, torque), data.n_markers)
 
 
