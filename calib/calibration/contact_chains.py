@@ -49,9 +49,10 @@ from ..identification.contacts import FixedPoseContact
 from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
+from ..kinematics.standing import StandingLoad, Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from . import contact_checks, determined, outliers, validation
+from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import (
     ChainContacts,
@@ -61,6 +62,7 @@ from .contact_chains_result import (
 )
 from .contact_checks import held_out_refusal, subset
 from .contact_choice import touching_postures
+from .contact_fit import block_fit, block_structural, by_block
 from .contact_model import ContactState
 from .contact_result import gap_stats
 from .contact_term import (
@@ -80,6 +82,7 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
+from .object_columns import ObjectColumns
 from .options import check_run_options
 from .outliers import Outlier
 from .pixel_chain import (
@@ -258,11 +261,18 @@ def _register(
     return refined.state
 
 
-def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
+def _model(state: ChainsState, plane_of, free, names, directions=None, comp=()) -> ChainsModel:
     kinds = tuple(s.kind for s in state.states)
     counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
     return ChainsModel(
-        tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions, kinds, counts
+        tuple(plane_of),
+        len(set(plane_of)),
+        tuple(free),
+        tuple(names),
+        directions,
+        kinds,
+        counts,
+        tuple(comp),
     )
 
 
@@ -301,50 +311,91 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     return np.array(rows), tuple(names), list(range(len(rows)))
 
 
-def _flush(start: ChainsState, train) -> ChainsData:
-    """Each chain's touches at flush postures near them (a measured term's rows as they are)."""
+def _flush(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
+    """Each chain's touches at flush postures near them (a measured term's rows as they are).
+
+    With a standing load (``elastic``, one chain touching) the torques are the flush
+    postures'.
+    """
     parts: list[ContactData | Measurements | PixelPart] = []
     for s, d in zip(start.states, train, strict=True):
         if not isinstance(s, ContactState):
             parts.append(d)
             continue
         qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
-        parts.append(ContactData(d.joint_names, qf, d.ids, d.kind, d.source))
-    return ChainsData(tuple(parts))
+        parts.append(dataclasses.replace(d, q=qf))
+    torques = None if load is None else (load.torques(parts[0].q, train[0].readings),)
+    return ChainsData(tuple(parts), torques)
+
+
+def _blocky(model: ChainsModel, start: ChainsState) -> bool:
+    """One chain touching many objects: its objects' unknowns eliminated object by object."""
+    return len(start.states) == 1 and isinstance(start.states[0], ContactState) and by_block(model)
 
 
 def _structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list[int]:
     """The columns the touches determine, from the Jacobian at flush postures (``_flush``)."""
+    if _blocky(wide, start):
+        return block_structural(wide, start, flush, None)
     A = wide.jacobian(start, np.zeros(wide.size()), flush)
     A = A.reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[str]):
-    """The model (free components), the selection (``auto``) and the prior weights."""
+def _choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=()):
+    """The model (free components, compliances), the selection (``auto``), the prior weights.
+
+    ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
+    """
+    train = list(data.parts)
     directions, names, offered = _offered(start, level)
-    wide = _model(start, plane_of, offered, names, directions)
-    fixed = wide.fixed
-    kept = _structural(wide, start, flush) if offered else list(range(fixed))
+    wide = _model(start, plane_of, offered, names, directions, comp)
+    fixed, every = wide.fixed, len(offered) + len(comp)
+    kept = _structural(wide, start, flush) if every else list(range(fixed))
     if sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = sorted(kept[fixed:])
-    cand = [offered[c - fixed] for c in columns]
-    if len(cand) < len(offered):
+    if len(columns) < every:
         what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
-        notes.append(f"the {what} determine {len(cand)} of the {len(offered)} parameters offered")
-    check_level_equations(train, fixed + len(cand), level)
+        notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
+    check_level_equations(train, fixed + len(columns), level)
     selection: Selection | None = None
     prior = None
-    if level == "auto" and cand:
-        data = ChainsData(tuple(train))
-        J = wide.jacobian(start, np.zeros(wide.size()), data)
-        cols = list(range(fixed)) + columns
-        cand_names = tuple(names[k] for k in cand)
-        selection, weights = select(J[:, :, cols], start.residuals(data), fixed, cand_names)
-        cand = [cand[cand_names.index(k)] for k in selection.kept]
-        prior = np.r_[np.zeros(fixed), weights] if np.any(weights) else None
-    return wide.with_free(tuple(cand)), wide, selection, prior
+    if level == "auto" and columns:
+        all_names = wide.names()
+        cand_names = tuple(all_names[c] for c in columns)
+        J, objects, free = _selection_columns(wide, start, data, columns)
+        selection, weights = select(J, start.residuals(data), free, cand_names, objects=objects)
+        columns = [columns[cand_names.index(k)] for k in selection.kept]
+        if np.any(weights):
+            prior = np.r_[np.zeros(fixed), weights]
+    split = fixed + len(offered)
+    free_dirs = tuple(offered[c - fixed] for c in columns if c < split)
+    model = wide.with_free(free_dirs, tuple(comp[c - split] for c in columns if c >= split))
+    if prior is not None:  # the model's order: the directions, then the compliances
+        order = [c for c in columns if c < split] + [c for c in columns if c >= split]
+        prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
+    return model, wide, selection, prior
+
+
+def _selection_columns(wide: ChainsModel, start: ChainsState, data: ChainsData, columns):
+    """The selection's columns (the always-free ones, then ``columns``), its objects' block.
+
+    Many objects (:func:`_blocky`): the objects' columns by block
+    (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense.
+
+    Returns:
+        The dense columns ``(m, rows, free + len(columns))``, the objects (or None) and the
+        number of always-free dense columns.
+    """
+    x = np.zeros(wide.size())
+    if not _blocky(wide, start):
+        J = wide.jacobian(start, x, data)
+        return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
+    own, shared, index = wide.blocks(start, x, data)
+    K, o = wide.object_blocks()
+    cols = list(range(wide.fixed - K * o)) + [c - K * o for c in columns]
+    return shared[:, :, cols], ObjectColumns(own, index, K), wide.fixed - K * o
 
 
 def calibrate_contact_chains(
@@ -362,6 +413,8 @@ def calibrate_contact_chains(
     seed: int = 0,
     progress: Progress | None = None,
     instrument: bool = False,
+    elastic: bool | None = None,
+    support: Support | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -394,6 +447,11 @@ def calibrate_contact_chains(
         instrument: The measured terms are a tree's tools measured by one instrument outside
             the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
             joint placement component.
+        elastic: One chain touching planes: its joint compliances are candidates too, under
+            the gravity torques of the robot standing on the chain's base frame
+            (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file).
+        support: With ``elastic``: the load split with a second foot
+            (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -405,8 +463,9 @@ def calibrate_contact_chains(
     level = "auto" if params is None else params
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
+    load = _standing(chains, data, elastic, support)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
-    contact_checks.check_memory(chains, data, level)  # before any work
+    contact_checks.check_memory(chains, data, level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
@@ -432,23 +491,27 @@ def calibrate_contact_chains(
     train, dropped, measured = _checked(
         chains, train, validate, guess, w, held, notes, max_iterations, instrument
     )
+    torques = contact_elastic.torques(load, train[0], held[0])
+    notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
+    comp = () if load is None else tuple(range(chains[0].n))
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
         start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
-        flush = _flush(start, train)
+        flush = _flush(start, train, load)
         offer = "components" if instrument and level == "complete" else level
-        model, _, selection, prior = _choose(start, train, flush, plane_of, offer, notes)
+        rows = ChainsData(tuple(train), None if load is None else torques[:1])
+        model, _, selection, prior = _choose(start, rows, flush, plane_of, offer, notes, comp)
         names = start.placements.names()
-        wide = _model(start, plane_of, range(len(names)), names)
+        wide = _model(start, plane_of, range(len(names)), names, None, comp)
         every = offer == "components"  # its rank kept a basis of every component: counted
         identifiable = model.size() if every else len(_structural(wide, start, flush))
         if instrument:
             check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, train, prior, offer, max_iterations)
+        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -457,7 +520,17 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     kept_prior = None if polished else prior
     result = _assemble(
-        start, fitted, model, kept_prior, train, held, plane_of, selection, notes, clock
+        start,
+        fitted,
+        model,
+        kept_prior,
+        train,
+        held,
+        plane_of,
+        selection,
+        notes,
+        clock,
+        (load, torques),
     )
     labels = [None if h is None else "holdout" for h in held]
     if validate is not None:
@@ -472,6 +545,18 @@ def calibrate_contact_chains(
     )
 
 
+def _standing(chains, data, elastic: bool | None, support) -> StandingLoad | None:
+    """The standing load of one chain touching planes (``elastic``), or None (rigid joints).
+
+    Raises:
+        InvalidArgumentError: ``elastic`` for several terms or for measurements.
+    """
+    if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
+        raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
+    kind = data[0].kind if isinstance(data[0], ContactData) else None
+    return contact_elastic.standing(chains[0], kind, elastic, support)
+
+
 PIN = 1e-6
 """Weight [m per m or rad] of the polish's pull toward the first fit: the undetermined components
 stay put (one solution, whatever the round-off), the determined ones are not held back."""
@@ -483,7 +568,8 @@ ROUND_OFF = 1e-12
 """RMS row [m] of a fit already exact: not polished (nothing is left to remove)."""
 
 
-def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, level, iters):
+def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
+         level, iters):  # fmt: skip
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -496,7 +582,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. One chain
     touching is not polished (its MDH directions span what it sees, as the single chain's
-    fit has always assumed; a polish of 20,000 touches took minutes). ``auto`` (a
+    fit has always assumed; a polish of 20,000 touches took minutes; many objects are fitted
+    by block, :func:`~.contact_fit.block_fit`). ``auto`` (a
     selection, a prior), ``offsets`` and ``components`` (every component offered) are not
     polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
     components would only wander), and a polish that wanders to no robot (its chain models
@@ -507,8 +594,11 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     Returns:
         The fit, and whether it was polished.
     """
-    data = ChainsData(tuple(train))
-    fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
+    data = train
+    if _blocky(model, start):
+        fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
+    else:
+        fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     one_contact = len(start.states) == 1 and isinstance(start.states[0], ContactState)
     if level != "complete" or not model.free or rows < wide.size() or one_contact:
@@ -529,7 +619,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
 
 
 def _assemble(
-    start, fitted, model, prior, train, held, plane_of, selection, notes, clock
+    start, fitted, model, prior, train, held, plane_of, selection, notes, clock, elastic
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state
     refusal = None  # a held-out error worse than the registration's first, then the solver
@@ -552,16 +642,18 @@ def _assemble(
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
+        load, torque = elastic if c == 0 else (None, (None, None))
         stats = {
-            "train": gap_stats(s, d.q, d.ids),
+            "train": gap_stats(s, d.q, d.ids, torque[0]),
             "train_registration": gap_stats(s0, d.q, d.ids),
         }
         if h is not None:
-            stats["held_out"] = gap_stats(s, h.q, h.ids)
+            stats["held_out"] = gap_stats(s, h.q, h.ids, torque[1])
             stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        objects = contact_objects(s, d)
+        compliance = contact_elastic.fitted_compliance(s, s0, (d, h), stats, notes, load)
+        objects = contact_objects(s, d, torque[0])
         parts.append(
             ChainContacts(
                 chain,
@@ -576,6 +668,9 @@ def _assemble(
                 s.kind,
                 s.frames,
                 placed=objects,
+                compliance=compliance,
+                load=None if compliance is None else load,
+                readings=() if compliance is None or d.readings is None else d.readings.names,
             )
         )
     joints = [name for c in state.chains for name in c.joint_names]

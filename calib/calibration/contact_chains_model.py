@@ -39,6 +39,7 @@ from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns
+from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import COMPONENTS, Placements, joint_twists
 
@@ -66,14 +67,23 @@ def padded(a: np.ndarray, rows: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ChainsData:
-    """Touches of each chain (one :class:`ContactData` per chain, in chain order)."""
+    """Touches of each chain (one :class:`ContactData` per chain, in chain order).
+
+    ``torques``: each chain's gravity torques at its touches, which deflect its compliant
+    joints (``elastic``), or None (rigid joints).
+    """
 
     parts: tuple[ContactData | Measurements | PixelPart, ...]
+    torques: tuple[np.ndarray | None, ...] | None = None
 
     @property
     def m(self) -> int:
         """Touches of all chains."""
         return sum(d.m for d in self.parts)
+
+    def torque(self, c: int) -> np.ndarray | None:
+        """Chain c's gravity torques ``(m, n)`` [N m or N] (joint compliance), or None."""
+        return None if self.torques is None else self.torques[c]
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,11 +110,14 @@ class ChainsState:
         return 1.0 if self.scales is None else float(self.scales[c])
 
     def residuals(self, data: ChainsData, torque=None) -> np.ndarray:
-        """Weighted ``0 - gap`` of every touch ``(m, rows)``, chain after chain (padded)."""
+        """Weighted ``0 - gap`` of every touch ``(m, rows)``, chain after chain (padded).
+
+        The gravity torques are the data's (``torque`` is the solver's argument, unused).
+        """
         rows = row_count(s.kind for s in self.states)
         return np.concatenate(
             [
-                padded(self.scale(c) * s.residuals(d), rows)
+                padded(self.scale(c) * s.residuals(d, data.torque(c)), rows)
                 for c, (s, d) in enumerate(zip(self.states, data.parts, strict=True))
             ]
         )
@@ -125,6 +138,8 @@ class ChainsModel:
         kinds: Each chain's contact kind (None: all ``plane``).
         counts: Each chain's number of objects (None: one each; a ``fixed-pose`` chain may
             hold several poses, e.g. one per session: the feet stood elsewhere).
+        compliance: The first chain's joints (0-based) whose compliance is free, columns
+            after the placement directions (``c<row>``; ``elastic``: one chain touching).
     """
 
     plane_of: tuple[int, ...]
@@ -134,6 +149,7 @@ class ChainsModel:
     directions: np.ndarray | None = None
     kinds: tuple[Contact | MeasuredKind | PixelKind, ...] | None = None
     counts: tuple[int, ...] | None = None
+    compliance: tuple[int, ...] = ()
     _last: dict = field(default_factory=dict, compare=False, repr=False)
 
     n_markers = 0  # its rows come weighted (solve.row_weights: 1)
@@ -167,7 +183,11 @@ class ChainsModel:
 
     def size(self) -> int:
         """Number of free parameters."""
-        return self.fixed + len(self.free)
+        return self.fixed + len(self.free) + len(self.compliance)
+
+    def object_blocks(self) -> tuple[int, int]:
+        """Objects and unknowns of each (a fit by block: one chain touching, the first)."""
+        return self._count(0), len(self.chain_kinds()[0].object_dofs)
 
     def names(self) -> tuple[str, ...]:
         """Column names."""
@@ -186,11 +206,12 @@ class ChainsModel:
                 out += [f"term{c + 1}.{n}" for n in kind.names()[len(kind.object_dofs) :]]
                 continue
             out += [f"contact{c + 1}_{DOF_NAMES[d]}" for d in kind.contact_dofs]
-        return (*out, *(self.names_all[k] for k in self.free))
+        comp = (compliance_name(j) for j in self.compliance)
+        return (*out, *(self.names_all[k] for k in self.free), *comp)
 
-    def with_free(self, free: tuple[int, ...]) -> ChainsModel:
-        """The same planes and contacts, other free components."""
-        return dataclasses.replace(self, free=tuple(free), _last={})
+    def with_free(self, free: tuple[int, ...], compliance: tuple[int, ...] = ()) -> ChainsModel:
+        """The same planes and contacts, other free components and compliances."""
+        return dataclasses.replace(self, free=tuple(free), compliance=tuple(compliance), _last={})
 
     def _lift(self) -> np.ndarray:
         """The free directions ``(free, 6 J)``."""
@@ -239,7 +260,8 @@ class ChainsModel:
         return state
 
     def _apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
-        dy = self._lift().T @ x[self.fixed :]
+        end = self.fixed + len(self.free)
+        dy = self._lift().T @ x[self.fixed : end]
         if len(self.free):
             placements = start.placements.shifted(dy)
             models, frames = placements.chain_geometry(start.chains)
@@ -252,6 +274,11 @@ class ChainsModel:
             else dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
             for c, (s, mdh) in enumerate(zip(start.states, models, strict=True))
         )
+        if self.compliance:  # the first chain's joints deflect: q' = q + c tau
+            s = states[0]
+            c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
+            c[list(self.compliance)] += x[end:]
+            states = (dataclasses.replace(s, compliance=c), *states[1:])
         return ChainsState(start.chains, placements, states, frames, start.scales)
 
     def jacobian(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
@@ -259,12 +286,47 @@ class ChainsModel:
         state = self.apply(start, x)
         rows = row_count(self.chain_kinds())
         blocks = [
-            padded(start.scale(c) * self._block(start, state, x, c, d), rows)
+            padded(start.scale(c) * self._block(start, state, x, c, d, data.torque(c)), rows)
             for c, d in enumerate(data.parts)
         ]
         return np.concatenate(blocks)
 
-    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d):
+    def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
+        """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
+
+        Returns:
+            The weighted rows on each touch's own object's unknowns ``(m, rows, o)``, on the
+            shared unknowns (contact, placement directions, compliances) ``(m, rows,
+            size - K o)``, and the object of each touch ``(m,)``.
+
+        Raises:
+            InvalidArgumentError: Not one chain touching.
+        """
+        if len(self.plane_of) != 1 or not isinstance(start.states[0], ContactState):
+            raise InvalidArgumentError("a fit by block is of one chain touching")
+        state = self.apply(start, x)
+        own, shared, index = self._contact_parts(start, state, x, 0, data.parts[0], data.torque(0))
+        return start.scale(0) * own, start.scale(0) * shared, index
+
+    def _contact_parts(self, start: ChainsState, state: ChainsState, x, c: int, d, torque):
+        """Contact chain c's weighted rows by block: own object's, shared (contact, robot)."""
+        s, s0 = state.states[c], start.states[c]
+        if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
+            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
+        comp = self.compliance if c == 0 else ()
+        base = dataclasses.replace(s0, mdh=s.mdh, compliance=s.compliance)
+        model = ContactModel(ParameterSet("none", ()), s0.frames, comp)
+        xc = np.r_[self._chain_x(x, c), np.zeros(len(comp))]
+        own, shared, index = model.blocks(base, xc, d, torque)
+        con = len(s.kind.contact_dofs)
+        robot = (
+            self._robot_columns(state, c, s, d, torque)
+            if self.free
+            else np.zeros((d.m, own.shape[1], 0))
+        )
+        return own, np.concatenate([shared[:, :, :con], robot, shared[:, :, con:]], axis=2), index
+
+    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, torque):
         """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded)."""
         s, s0 = state.states[c], start.states[c]
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
@@ -282,25 +344,24 @@ class ChainsModel:
                     state.placements, state.chains[c], s, state.frames[c], d, self._lift()
                 )
             return J
-        if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
-            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
-        base = dataclasses.replace(s0, mdh=s.mdh)
-        Jc = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
-        split = obj.stop - obj.start
-        J[:, :, obj] = Jc[:, :, :split]
-        J[:, :, con] = Jc[:, :, split:]
-        if self.free:
-            J[:, :, self.fixed :] = self._robot_columns(state, c, s, d)
+        own, shared, index = self._contact_parts(start, state, x, c, d, torque)
+        o, k = own.shape[2], con.stop - con.start
+        cols = obj.start + o * index[:, None] + np.arange(o)
+        J[np.arange(d.m)[:, None, None], np.arange(own.shape[1])[None, :, None], cols[:, None]] = (
+            own
+        )
+        J[:, :, con] = shared[:, :, :k]
+        J[:, :, self.fixed : self.fixed + shared.shape[2] - k] = shared[:, :, k:]
         return J
 
     def _robot_columns(
-        self, state: ChainsState, c: int, s: ContactState, d: ContactData
+        self, state: ChainsState, c: int, s: ContactState, d: ContactData, torque=None
     ) -> np.ndarray:
         """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
         chain = state.chains[c]
         joints = state.placements.joints
         columns = np.array([joints.index(name) for name in chain.joint_names])
-        kin = s.mdh.kinematics(np.asarray(d.q, dtype=float))
+        kin = s.kinematics(np.asarray(d.q, dtype=float), torque)
         ang, lin = joint_twists(state.placements, chain, s.mdh, state.frames[c], kin, columns)
         R, p = kin.R[:, -1], kin.p[:, -1]
         point = p + R @ s.contact[:3, 3]

@@ -307,8 +307,10 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
     return None
 
 
-def check_memory(chains, data, level: str) -> None:
+def check_memory(chains, data, level: str, comp: int = 0) -> None:
     """Refuse in one line, before any work, contact terms that would need too much memory.
+
+    ``comp``: the joint compliance columns offered (``elastic``).
 
     Raises:
         InvalidArgumentError: A term's estimate exceeds ``MAX_WORK_BYTES``
@@ -318,7 +320,7 @@ def check_memory(chains, data, level: str) -> None:
 
     for chain, d in zip(chains, data, strict=True):
         if isinstance(d, ContactData):
-            check_selection_memory(d, from_chain(chain), level, 0)
+            check_selection_memory(d, from_chain(chain), level, comp)
 
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:

@@ -20,16 +20,26 @@ import dataclasses
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
+from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support, standing_load
+from ..kinematics.urdf_model import read_urdf_file
 from ..measurements.contact_campaign import ContactData
 from . import validation
 from .contact_model import ContactState
 from .contact_result import gap_stats
 
-__all__ = ["fitted_compliance", "readings_note", "standing", "torques"]
+__all__ = [
+    "compliance_document",
+    "compliance_line",
+    "fitted_compliance",
+    "load_record",
+    "readings_note",
+    "standing",
+    "torques",
+]
 
 
 def standing(
@@ -114,3 +124,75 @@ def fitted_compliance(
                 f"{reg.weighted_mm:.3f} mm weighted RMS): use it only with its compliance file"
             )
     return state.compliance
+
+
+def load_record(part) -> dict | None:
+    """The load's record of a fit with compliance (standing, support, joints read), or None."""
+    if part.load is None:
+        return None
+    support = part.load.support.to_dict()
+    return {"kind": "standing", "support": support, "readings": list(part.readings)}
+
+
+def compliance_line(part) -> list[str]:
+    """The summary's line of a fitted compliance (none for rigid joints).
+
+    Args:
+        part: The chain touching (``chain``, ``compliance``, ``load``, ``readings``).
+    """
+    if part.compliance is None or part.load is None:
+        return []
+    chain = part.chain
+    read = f"; {len(part.readings)} joints off the chain as read" if part.readings else ""
+    pairs = zip(chain.joint_names, part.compliance, strict=True)
+    fitted = ", ".join(f"{j} {v:.3g}" for j, v in pairs if v)
+    return [
+        f"joint compliance under gravity, standing on {chain.base_frame} "
+        f"({part.load.support.label()}{read}): {fitted} [rad/(N m)]"
+    ]
+
+
+def compliance_document(part, urdf: str) -> dict:
+    """The compliance file of the calibrated URDF ``urdf`` (JSON-ready).
+
+    :func:`calib.kinematics.elastic.load_calibrated` reads it back with the URDF.
+
+    Args:
+        part: The chain touching (``chain``, ``compliance``, ``load``, ``readings``,
+            ``contact``, ``plane_id``, ``plane``).
+        urdf: The calibrated URDF's path, as recorded.
+
+    Raises:
+        CalibrationRefusedError: No compliance was fitted.
+    """
+    if part.compliance is None or part.load is None:
+        raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")
+    chain = part.chain
+    g = float(np.linalg.norm(chain.model.gravity.linear))
+    nominal = read_urdf_file(chain.urdf_path)
+    return {
+        "format_version": COMPLIANCE_FORMAT,
+        "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
+        "torques of the URDF's masses, the robot standing on the base frame (gravity along "
+        "its -z; load), the joints off the chain at their recorded positions (load."
+        "readings; the others at their neutral position)",
+        "robot": chain.name,
+        "urdf": urdf,
+        "base_frame": chain.base_frame,
+        "tool_frame": chain.tool_frame,
+        "joints": list(chain.joint_names),
+        "compliance": part.compliance.tolist(),
+        "units": ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma],
+        "gravity": {"frame": chain.base_frame, "vector": [0.0, 0.0, -g]},
+        "load": load_record(part),
+        "contact": {
+            "plane_id": part.plane_id,
+            "frame": part.contact.tolist(),
+            "plane": part.plane.tolist(),
+        },
+        "measurement_to_base": np.eye(4).tolist(),
+        "markers": [part.contact[:3, 3].tolist()],
+        "marker_links": [],
+        "nominal_origins": nominal_origins(nominal),
+        "nominal_masses": nominal_masses(nominal),
+    }

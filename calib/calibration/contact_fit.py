@@ -37,9 +37,10 @@ ACCEPT = 1e-4
 """Smallest ratio of the actual to the predicted reduction of an accepted step."""
 
 
-def by_block(model: ContactModel) -> bool:
-    """Whether a contact model has enough objects' unknowns to be solved by block."""
-    return len(model.frames.ids) * len(model.frames.kind.object_dofs) >= BLOCK_UNKNOWNS
+def by_block(model) -> bool:
+    """Whether a model of one chain touching has enough objects' unknowns to go by block."""
+    K, o = model.object_blocks()
+    return K * o >= BLOCK_UNKNOWNS
 
 
 def _cost(f: np.ndarray, prior: np.ndarray | None, x: np.ndarray) -> float:
@@ -78,7 +79,7 @@ def block_fit(
     Returns:
         The fit (``J``: the dense weighted Jacobian at the solution).
     """
-    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    K, o = model.object_blocks()
     split = K * o
     prior_s = None if prior is None else prior[split:]
 
@@ -153,7 +154,7 @@ def block_structural(model: ContactModel, start: ContactState, data, torque) -> 
     (else none of them, which the pipeline refuses); the shared columns are those the
     pivoted QR of the shared system, objects eliminated, keeps (contact columns first).
     """
-    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    K, o = model.object_blocks()
     own, shared, index = model.blocks(start, np.zeros(model.size()), data, torque)
     F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))
     R = F[:, :o, :o]
@@ -177,7 +178,7 @@ def block_weighted_fit(model: ContactModel, start: ContactState, data, residual:
     Returns:
         That function and the number of unknowns (none when the objects are undetermined).
     """
-    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    K, o = model.object_blocks()
     kept = block_structural(model, start, data, None)
     if not kept:
         return (lambda w: residual), 10**9  # undetermined: no proposal
