@@ -33,7 +33,7 @@ import numpy as np
 
 from calib import calibrate, load_robot
 from calib.calibration.contact_checks import subset
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.kinematics.standing import Support
 from calib.measurements.contact_campaign import ContactData, read_contacts
 

@@ -44,7 +44,7 @@ import numpy as np
 
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_checks import subset
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.measurements.contact_campaign import ContactData, read_contacts
 from calib.measurements.contact_loops import join_loops, read_loop
 

@@ -23,7 +23,7 @@ from contact_scorer import plane_gaps, read_joints
 
 from calib import load_calibrated, load_robot
 from calib.calibration.contact_model import ContactModel, plane_state
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contact_postures import joint_offsets
 from calib.kinematics.mdh import from_chain
@@ -203,7 +203,7 @@ def test_noise_free_round_trip_recovers_compliance():
     held = r.stats["held_out"]
     assert held.height_max_mm < 1e-6  # 1e-9 m
     assert max(held.roll_max_deg, held.pitch_max_deg) < math.degrees(1e-9)
-    assert np.max(np.abs(r.compliance - truth)) < 1e-9
+    assert np.max(np.abs(r.chains[0].compliance - truth)) < 1e-9
     assert r.stats["held_out_urdf"].height_rms_mm > 1e-3  # the URDF alone is not the model
 
 
@@ -215,9 +215,9 @@ def test_two_planes_round_trip_recovers_compliance():
     data = _deflected_campaign(chain, truth, 90, 6, planes=2)
     assert len(data.contacts) == 2
     r = calibrate_contacts(chain, data, params="complete", holdout=0.3, seed=1, elastic=True)
-    assert r.accepted and r.elastic and len(r.objects) == 2
+    assert r.accepted and r.elastic and len(r.chains[0].objects()) == 2
     assert r.stats["held_out"].height_max_mm < 1e-6  # 1e-9 m
-    assert np.max(np.abs(r.compliance - truth)) < 1e-9
+    assert np.max(np.abs(r.chains[0].compliance - truth)) < 1e-9
 
 
 @pytest.mark.parametrize("kind", ["plane-point", "fixed-point", "fixed-pose"])
@@ -310,7 +310,7 @@ def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
     model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
     chain = model.chain
     data = read_contacts(REAL / "right_train.csv", chain, "plane")
-    from calib.calibration.contact_pipeline import split_contacts
+    from calib.calibration.contact_term import split_contacts
 
     held = split_contacts(data, 0.25, 0)[1]
     _ids, joints = read_joints(REAL / "right_train.csv")
@@ -522,7 +522,7 @@ def test_cli_other_foot_splits_the_load(tmp_path, capsys):
 
 def test_held_out_touches_without_the_other_joints_are_noted():
     """A validation file lacking the joints off the chain: their load is at neutral, said."""
-    from calib.calibration.contact_pipeline import split_contacts
+    from calib.calibration.contact_term import split_contacts
 
     chain = load_robot(*RIGHT)
     data = read_contacts(REAL / "right_train.csv", chain, "plane")

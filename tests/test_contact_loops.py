@@ -21,7 +21,7 @@ from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_frames import ContactFrames
 from calib.calibration.contact_model import ContactState, plane_state
-from calib.calibration.contact_pipeline import split_contacts
+from calib.calibration.contact_term import split_contacts
 from calib.cli.commands import main
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import FixedPointContact, FixedPoseContact, PlaneContact

@@ -5,17 +5,19 @@ gripper, ``right_sole_link`` to the right one), share the torso joints. Fitted o
 time, each chain gets its own torso, and no single URDF holds both. Fitted together
 (:func:`calibrate_contact_chains`), every URDF joint has one placement error
 (:mod:`.placements`) that every chain through it sees, and the result is one URDF of the
-whole robot. The steps are those of one chain (:mod:`.contact_pipeline`):
+whole robot. The steps of every calibration:
 
 1. touches set aside per chain (``holdout``, seeded) or a validation set per chain;
 2. the registration: each chain's plane and contact tilts in closed form on the nominal
    robot (a plane shared by chains of one base frame: then refined together by least
    squares);
-3. the free placement components: those the touches determine beside the planes and
-   contacts (pivoted QR at flush postures, in the order offsets, then the axes' tilts and
-   shifts, then the rest), and for ``auto`` the cross-validated forward selection with a
-   prior (:func:`~.selection.select`) on all chains' touches together;
-4. least squares (:func:`~.solve.fit`);
+3. the free placement components (and, ``elastic``, joint compliances): those the touches
+   determine beside the planes and contacts (pivoted QR at flush postures, in the order
+   offsets, then the axes' tilts and shifts, then the rest), and for ``auto`` the
+   cross-validated forward selection with a prior (:func:`~.selection.select`) on all
+   chains' touches together (:mod:`.contact_choice`);
+4. least squares (:func:`~.solve.fit`; one chain touching many objects: their unknowns
+   eliminated object by object, :func:`~.contact_fit.block_fit`);
 5. refusal of a model whose held-out weighted RMS gap is worse than the registration's on
    any chain.
 
@@ -24,8 +26,8 @@ recorded on different days see the table from wherever the robot stood.
 
 A chain's kind is its touches', any contact kind (``plane``, ``plane-point``,
 ``fixed-point``, ``fixed-pose``), with any number of objects (ids); one chain touching alone
-is a problem of one term (:func:`calib.calibrate` routes it here, but joint compliance and
-many objects: :func:`~.contact_term.by_engine`). A ``fixed-pose`` chain of a joint fit is a
+is a problem of one term (:func:`calib.calibrate` routes it here), joint compliance under
+gravity included (``elastic``: :mod:`.contact_elastic`). A ``fixed-pose`` chain of a joint fit is a
 closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
 flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
 one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
@@ -46,7 +48,6 @@ from ..core.checks import MAX_WEIGHT, check_number
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact
-from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support
@@ -61,13 +62,12 @@ from .contact_chains_result import (
     measured_part,
 )
 from .contact_checks import held_out_refusal, subset
-from .contact_choice import touching_postures
-from .contact_fit import block_fit, block_structural, by_block
+from .contact_choice import blocky, chains_model, choose, flush_data, structural
+from .contact_fit import block_fit
 from .contact_model import ContactState
 from .contact_result import gap_stats
 from .contact_term import (
     check_held_out_gaps,
-    check_level_equations,
     check_touches,
     contact_frame,
     contact_guess,
@@ -82,7 +82,6 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
-from .object_columns import ObjectColumns
 from .options import check_run_options
 from .outliers import Outlier
 from .pixel_chain import (
@@ -93,11 +92,9 @@ from .pixel_chain import (
     checked_pixels,
     pixel_parts,
     split_pixels,
-    with_tool,
 )
 from .pixel_chain_result import PixelChain, pixel_result
-from .placements import COMPONENTS, Placements, mdh_directions, offset_component
-from .selection import Selection, select
+from .placements import Placements
 from .solve import covariance, fit, fitted_values, gauss_newton_finish
 
 __all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
@@ -149,7 +146,8 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
                 )
             if type(part.kind) is not type(d.kind):
                 raise InvalidArgumentError(
-                    f"{part.source}: validation touches of another kind than the chain's"
+                    f"{part.source}: validation touches of kind '{part.kind.label}' for "
+                    f"'{d.kind.label}' data"
                 )
     if params not in CHAIN_LEVELS:
         raise InvalidArgumentError(
@@ -168,7 +166,9 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
     the touches kept must determine the chain's objects and contact frame.
 
-    A measured term's rows are checked as a single chain's (:func:`checked_measured`), its
+    The held-out touches' outliers are set aside too (``held[c]`` replaced), and a chain
+    the contact leaves finitely many postures is noted. A measured term's rows are checked
+    as a single chain's (:func:`checked_measured`), its
     registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
 
     Returns:
@@ -207,6 +207,8 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
         if out:
             more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
             d = subset(d, ~bad)
+        held[c] = contact_checks.held_out_set_aside(start, d, held[c], more)
+        more += filter(None, [contact_checks.isolated_postures(chain, d, held[c])])
         what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
         out_m = 0 if held[c] is None else held[c].m
         rows, size = len(d.kind.row_names), start.frames.size
@@ -246,7 +248,7 @@ def _register(
     start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
     if len(set(plane_of)) == len(plane_of):
         return start
-    only_frames = _model(start, plane_of, (), placements.names())
+    only_frames = chains_model(start, plane_of, (), placements.names())
     refined = fit(
         only_frames, start, ChainsData(tuple(train)), None, 1.0, max_iterations=max_iterations
     )
@@ -259,143 +261,6 @@ def _register(
     if len(set(planes)) < len(planes):
         notes.append("a plane touched by several chains is fitted once (shared planes)")
     return refined.state
-
-
-def _model(state: ChainsState, plane_of, free, names, directions=None, comp=()) -> ChainsModel:
-    kinds = tuple(s.kind for s in state.states)
-    counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
-    return ChainsModel(
-        tuple(plane_of),
-        len(set(plane_of)),
-        tuple(free),
-        tuple(names),
-        directions,
-        kinds,
-        counts,
-        tuple(comp),
-    )
-
-
-def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
-    """Directions a level offers: (directions or None for components, names, indices).
-
-    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
-    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
-    single-chain pipeline offers them, turned into directions of joint placement errors
-    (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
-    offers (a shared joint's) once.
-    """
-    pl = start.placements
-    if level == "frames":
-        return None, pl.names(), []
-    if level == "components":  # every component (a tree's complete): the rank keeps a basis
-        return None, pl.names(), list(range(len(pl.names())))
-    if level == "offsets":
-        offsets = [
-            6 * j + COMPONENTS.index(offset_component(pl.model, jid))
-            for j, jid in enumerate(pl.ids)
-        ]
-        return None, pl.names(), offsets
-    rows: list[np.ndarray] = []
-    names: list[str] = []
-    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
-    for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
-        mdh_set = "paper" if level == "paper" else "complete"
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
-        for d, label in zip(D, labels, strict=True):
-            unit = d / np.linalg.norm(d)
-            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
-                units = np.vstack([units, unit])
-                rows.append(d)
-                names.append(label)
-    return np.array(rows), tuple(names), list(range(len(rows)))
-
-
-def _flush(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
-    """Each chain's touches at flush postures near them (a measured term's rows as they are).
-
-    With a standing load (``elastic``, one chain touching) the torques are the flush
-    postures'.
-    """
-    parts: list[ContactData | Measurements | PixelPart] = []
-    for s, d in zip(start.states, train, strict=True):
-        if not isinstance(s, ContactState):
-            parts.append(d)
-            continue
-        qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
-        parts.append(dataclasses.replace(d, q=qf))
-    torques = None if load is None else (load.torques(parts[0].q, train[0].readings),)
-    return ChainsData(tuple(parts), torques)
-
-
-def _blocky(model: ChainsModel, start: ChainsState) -> bool:
-    """One chain touching many objects: its objects' unknowns eliminated object by object."""
-    return len(start.states) == 1 and isinstance(start.states[0], ContactState) and by_block(model)
-
-
-def _structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list[int]:
-    """The columns the touches determine, from the Jacobian at flush postures (``_flush``)."""
-    if _blocky(wide, start):
-        return block_structural(wide, start, flush, None)
-    A = wide.jacobian(start, np.zeros(wide.size()), flush)
-    A = A.reshape(-1, wide.size())
-    return independent_columns(A, list(range(A.shape[1])))[2]
-
-
-def _choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=()):
-    """The model (free components, compliances), the selection (``auto``), the prior weights.
-
-    ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
-    """
-    train = list(data.parts)
-    directions, names, offered = _offered(start, level)
-    wide = _model(start, plane_of, offered, names, directions, comp)
-    fixed, every = wide.fixed, len(offered) + len(comp)
-    kept = _structural(wide, start, flush) if every else list(range(fixed))
-    if sorted(kept[:fixed]) != list(range(fixed)):
-        raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
-    columns = sorted(kept[fixed:])
-    if len(columns) < every:
-        what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
-        notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
-    check_level_equations(train, fixed + len(columns), level)
-    selection: Selection | None = None
-    prior = None
-    if level == "auto" and columns:
-        all_names = wide.names()
-        cand_names = tuple(all_names[c] for c in columns)
-        J, objects, free = _selection_columns(wide, start, data, columns)
-        selection, weights = select(J, start.residuals(data), free, cand_names, objects=objects)
-        columns = [columns[cand_names.index(k)] for k in selection.kept]
-        if np.any(weights):
-            prior = np.r_[np.zeros(fixed), weights]
-    split = fixed + len(offered)
-    free_dirs = tuple(offered[c - fixed] for c in columns if c < split)
-    model = wide.with_free(free_dirs, tuple(comp[c - split] for c in columns if c >= split))
-    if prior is not None:  # the model's order: the directions, then the compliances
-        order = [c for c in columns if c < split] + [c for c in columns if c >= split]
-        prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
-    return model, wide, selection, prior
-
-
-def _selection_columns(wide: ChainsModel, start: ChainsState, data: ChainsData, columns):
-    """The selection's columns (the always-free ones, then ``columns``), its objects' block.
-
-    Many objects (:func:`_blocky`): the objects' columns by block
-    (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense.
-
-    Returns:
-        The dense columns ``(m, rows, free + len(columns))``, the objects (or None) and the
-        number of always-free dense columns.
-    """
-    x = np.zeros(wide.size())
-    if not _blocky(wide, start):
-        J = wide.jacobian(start, x, data)
-        return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
-    own, shared, index = wide.blocks(start, x, data)
-    K, o = wide.object_blocks()
-    cols = list(range(wide.fixed - K * o)) + [c - K * o for c in columns]
-    return shared[:, :, cols], ObjectColumns(own, index, K), wide.fixed - K * o
 
 
 def calibrate_contact_chains(
@@ -433,7 +298,7 @@ def calibrate_contact_chains(
             ``complete``.
         validate: Per chain, touches of other postures to score the result on, or None.
         orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
-            :func:`~.contact_pipeline.tilt_weight`).
+            :func:`~.contact_term.tilt_weight`).
         shared_planes: Chains of one base frame whose touches name the same plane touch one
             plane (default: each chain its own plane).
         pose_weight: Factor of the ``fixed-pose`` chains' rows against the plane chains'
@@ -499,14 +364,14 @@ def calibrate_contact_chains(
         start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
-        flush = _flush(start, train, load)
+        flush = flush_data(start, train, load)
         offer = "components" if instrument and level == "complete" else level
         rows = ChainsData(tuple(train), None if load is None else torques[:1])
-        model, _, selection, prior = _choose(start, rows, flush, plane_of, offer, notes, comp)
+        model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp)
         names = start.placements.names()
-        wide = _model(start, plane_of, range(len(names)), names, None, comp)
+        wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         every = offer == "components"  # its rank kept a basis of every component: counted
-        identifiable = model.size() if every else len(_structural(wide, start, flush))
+        identifiable = model.size() if every else len(structural(wide, start, flush))
         if instrument:
             check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
@@ -595,7 +460,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
         The fit, and whether it was polished.
     """
     data = train
-    if _blocky(model, start):
+    if blocky(model, start):
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
         fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)

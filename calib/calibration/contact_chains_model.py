@@ -276,6 +276,8 @@ class ChainsModel:
         )
         if self.compliance:  # the first chain's joints deflect: q' = q + c tau
             s = states[0]
+            if not isinstance(s, ContactState):
+                raise InvalidArgumentError("joint compliance is fitted for a chain touching")
             c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
             c[list(self.compliance)] += x[end:]
             states = (dataclasses.replace(s, compliance=c), *states[1:])

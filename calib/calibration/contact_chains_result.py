@@ -197,6 +197,20 @@ class MeasuredChain:
         }
 
 
+def _stat_labels(part) -> dict[str, str]:
+    """Each statistic's label in the summary, padded (with compliance: which model it is)."""
+    labels = {}
+    for key in part.stats:
+        label = key.replace("_urdf", ", URDF alone (no compliance)")
+        if getattr(part, "compliance", None) is not None and not key.endswith(
+            ("_urdf", "_registration")
+        ):
+            label += ", whole model (URDF + compliance)"
+        labels[key] = label
+    width = max(22, *map(len, labels.values()))
+    return {k: f"{v:{width}s}" for k, v in labels.items()}
+
+
 def _rotation(R: np.ndarray) -> np.ndarray:
     """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
     T = np.eye(4)
@@ -510,6 +524,7 @@ class ContactChainsCalibration(Delivered):
                 lines.append(head + ":")
             else:
                 lines.append(f"{head} '{c.plane_id}':")
+            labels = _stat_labels(c)
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
                 rows = (
@@ -519,7 +534,7 @@ class ContactChainsCalibration(Delivered):
                     if isinstance(c, PixelChain)
                     else "configurations"
                 )
-                lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
+                lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
         lines += instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]
         names, sigma = self._row_joints()

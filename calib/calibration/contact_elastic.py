@@ -26,7 +26,6 @@ from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_orig
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support, standing_load
 from ..kinematics.urdf_model import read_urdf_file
-from ..measurements.contact_campaign import ContactData
 from . import validation
 from .contact_model import ContactState
 from .contact_result import gap_stats
@@ -43,7 +42,7 @@ __all__ = [
 
 
 def standing(
-    chain: Chain, kind: Contact, elastic: bool | None, support: Support | None
+    chain: Chain, kind: Contact | None, elastic: bool | None, support: Support | None
 ) -> StandingLoad | None:
     """The standing load compliance acts under (None: rigid joints).
 
@@ -59,15 +58,16 @@ def standing(
         return None
     if not isinstance(kind, PlaneContact):
         raise InvalidArgumentError(
-            f"elastic (joint compliance) is available for plane contacts only, not '{kind.label}'"
+            "elastic (joint compliance) is available for plane contacts only, not "
+            f"'{getattr(kind, 'label', 'measurements')}'"
         )
     return standing_load(chain, support)
 
 
-def torques(
-    load: StandingLoad | None, train: ContactData, held: ContactData | None
-) -> tuple[np.ndarray | None, np.ndarray | None]:
+def torques(load: StandingLoad | None, train, held) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid).
+
+    ``train`` and ``held`` (or None) are touches (:class:`ContactData`) when ``load`` is given.
 
     The joints off the chain are at their recorded positions where the touches have them.
     """
@@ -77,7 +77,7 @@ def torques(
     )
 
 
-def readings_note(load, train: ContactData, held: ContactData | None) -> str | None:
+def readings_note(load, train, held) -> str | None:
     """A note when the held-out touches record other joints off the chain than the training."""
     if load is None or held is None:
         return None

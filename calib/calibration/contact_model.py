@@ -178,10 +178,6 @@ class ContactModel:
         """Number of free parameters."""
         return self.fixed + len(self.params) + len(self.compliance)
 
-    def object_blocks(self) -> tuple[int, int]:
-        """Objects and unknowns of each (:mod:`.contact_fit`)."""
-        return len(self.frames.ids), len(self.frames.kind.object_dofs)
-
     def names(self) -> tuple[str, ...]:
         """Column names (a compliance: ``c<row>``, e.g. ``c3``)."""
         comp = tuple(compliance_name(j) for j in self.compliance)

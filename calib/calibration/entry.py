@@ -36,7 +36,7 @@ from .problem import Problem, Term
 from .result import CalibrationResult
 from .tree_checks import prepare_tree
 
-__all__ = ["calibrate", "calibrate_tree"]
+__all__ = ["calibrate", "calibrate_contacts", "calibrate_tree"]
 
 
 @overload
@@ -229,6 +229,18 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
 
 calibrate_tree = calibrate
 """The name :func:`calibrate` had for trees (a tree is one of its problems)."""
+
+
+def calibrate_contacts(
+    chain: Chain, data: ContactData, *, contact=None, validate: ContactData | None = None, **options
+) -> ContactChainsCalibration:
+    """One chain touching: the joint engine's fit of one term (the name of its own route once).
+
+    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]``, its
+    options (``params``, ``elastic``, ``support``, ``holdout``, ...) as they are.
+    """
+    held = None if validate is None else [validate]
+    return calibrate_contact_chains([chain], [data], contact=contact, validate=held, **options)
 
 
 def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
