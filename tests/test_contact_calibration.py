@@ -10,7 +10,7 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import load_robot
-from calib.calibration.contact_choice import flush_postures
+from calib.calibration.contact_choice import touching_postures
 from calib.calibration.contact_frames import ContactFrames
 from calib.calibration.contact_model import ContactModel, ContactState
 from calib.calibration.entry import calibrate_contacts
@@ -108,8 +108,8 @@ def test_flush_postures_hold_the_contact():
     (r,) = calibrate_contacts(chain, data, contact=[0, 0, -0.12], params="frames").chains
     frames = ContactFrames(PlaneContact(), r.contact, r.plane[None], (r.plane_id,))
     state = ContactState(r.nominal, frames, 1.0)
-    qf = flush_postures(state, data.q)
-    assert len(qf) == data.m
+    qf, reached = touching_postures(state, data.q, [r.plane_id] * data.m)
+    assert reached.all() and len(qf) == data.m
     assert np.max(np.abs(state.gaps(qf))) < 1e-10
     kin = r.nominal.kinematics(qf)
     z = (kin.R[:, -1] @ r.contact[:3, :3])[:, :, 2]

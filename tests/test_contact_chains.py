@@ -319,7 +319,8 @@ def test_bad_arguments():
     with pytest.raises(DataError, match="joints"):
         calibrate_contact_chains(chains, data[::-1])
     point = simulate_contacts(chains[0], 12, "fixed-point", seed=0).data
-    with pytest.raises(InvalidArgumentError, match="validation touches of kind 'fixed-point' for 'plane'"):
+    kinds = "validation touches of kind 'fixed-point' for 'plane'"
+    with pytest.raises(InvalidArgumentError, match=kinds):
         calibrate_contact_chains(chains, data, validate=[point, None])
 
 

@@ -285,10 +285,10 @@ def test_a_six_joint_arm_holding_a_fixed_pose_is_noted_not_silent():
     note = [n for n in result.notes if "finitely many postures" in n]
     assert len(set(labels)) <= 8  # a UR5 has at most 8 inverse-kinematics branches
     assert note == [  # the engine's notes name their term
-        f"base_link -> tool0: a 6-joint chain holding a fixed-pose contact (6 conditions) has finitely many "
-        f"postures: the touches sit at {len(set(labels))} distinct postures, and {repeats} of "
-        f"the {held.m} held-out touches repeat a fitted one: the model is checked at those "
-        f"postures only"
+        f"base_link -> tool0: a 6-joint chain holding a fixed-pose contact (6 conditions) has "
+        f"finitely many postures: the touches sit at {len(set(labels))} distinct postures, "
+        f"and {repeats} of the {held.m} held-out touches repeat a fitted one: the model is "
+        f"checked at those postures only"
     ]
     panda = load_robot("panda")
     moving = simulate_contacts(panda, 20, "fixed-pose", seed=2, noise_mrad=0.1).data

@@ -40,7 +40,6 @@ __all__ = [
     "check_selection_memory",
     "choose",
     "flush_data",
-    "flush_postures",
     "level_candidates",
     "offer_directions",
     "selection_columns",
@@ -138,13 +137,6 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
         good = gaps < CONTACT_TOL
         out[rows[good]], reached[rows[good]] = qf[good], True
     return out, reached
-
-
-def flush_postures(start: ContactState, q: np.ndarray, ids=None) -> np.ndarray:
-    """Postures near ``q`` where the contact of ``start`` holds (those that reach it)."""
-    ids = [start.frames.ids[0]] * len(q) if ids is None else ids
-    out, reached = touching_postures(start, q, ids)
-    return out[reached]
 
 
 def chains_model(
