@@ -24,6 +24,7 @@ from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
+from ..kinematics.standing import Support
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -231,16 +232,45 @@ calibrate_tree = calibrate
 """The name :func:`calibrate` had for trees (a tree is one of its problems)."""
 
 
+@checked_arguments
 def calibrate_contacts(
-    chain: Chain, data: ContactData, *, contact=None, validate: ContactData | None = None, **options
+    chain: Chain,
+    data: ContactData,
+    *,
+    contact=None,
+    params: str | None = None,
+    validate: ContactData | None = None,
+    orientation_weight: float | None = None,
+    elastic: bool | None = None,
+    support: Support | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    holdout: float = 0.0,
+    seed: int = 0,
+    progress: Progress | None = None,
 ) -> ContactChainsCalibration:
     """One chain touching: the joint engine's fit of one term (the name of its own route once).
 
-    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]``, its
-    options (``params``, ``elastic``, ``support``, ``holdout``, ...) as they are.
+    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]`` (its
+    arguments; ``support``: the load split with a second foot under ``elastic``).
+
+    Raises:
+        InvalidArgumentError: A bad or unknown argument.
+        DataError: Touches that do not belong to the chain or determine too little.
     """
-    held = None if validate is None else [validate]
-    return calibrate_contact_chains([chain], [data], contact=contact, validate=held, **options)
+    return calibrate_contact_chains(
+        [chain],
+        [data],
+        contact=contact,
+        params=params,
+        validate=None if validate is None else [validate],
+        orientation_weight=orientation_weight,
+        elastic=elastic,
+        support=support,
+        max_iterations=max_iterations,
+        holdout=holdout,
+        seed=seed,
+        progress=progress,
+    )
 
 
 def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
