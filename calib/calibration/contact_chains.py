@@ -82,7 +82,7 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
-from .options import check_run_options
+from .options import check_run_options, checked_arguments
 from .outliers import Outlier
 from .pixel_chain import (
     PixelData,
@@ -263,6 +263,7 @@ def _register(
     return refined.state
 
 
+@checked_arguments
 def calibrate_contact_chains(
     chains: Sequence[Chain],
     data: Sequence[ContactData | Measurements | PixelData],

@@ -24,7 +24,6 @@ from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
-from ..kinematics.standing import Support
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -232,45 +231,21 @@ calibrate_tree = calibrate
 """The name :func:`calibrate` had for trees (a tree is one of its problems)."""
 
 
-@checked_arguments
 def calibrate_contacts(
-    chain: Chain,
-    data: ContactData,
-    *,
-    contact=None,
-    params: str | None = None,
-    validate: ContactData | None = None,
-    orientation_weight: float | None = None,
-    elastic: bool | None = None,
-    support: Support | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
+    chain: Chain, data: ContactData, *, validate: ContactData | None = None, **options
 ) -> ContactChainsCalibration:
     """One chain touching: the joint engine's fit of one term (the name of its own route once).
 
-    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]`` (its
-    arguments; ``support``: the load split with a second foot under ``elastic``).
+    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]``, its other
+    arguments as they are (``contact``, ``params``, ``elastic``, ``support``: the load split
+    with a second foot, ``holdout``, ...).
 
     Raises:
         InvalidArgumentError: A bad or unknown argument.
         DataError: Touches that do not belong to the chain or determine too little.
     """
-    return calibrate_contact_chains(
-        [chain],
-        [data],
-        contact=contact,
-        params=params,
-        validate=None if validate is None else [validate],
-        orientation_weight=orientation_weight,
-        elastic=elastic,
-        support=support,
-        max_iterations=max_iterations,
-        holdout=holdout,
-        seed=seed,
-        progress=progress,
-    )
+    held = None if validate is None else [validate]
+    return calibrate_contact_chains([chain], [data], validate=held, **options)
 
 
 def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
