@@ -63,7 +63,7 @@ def main() -> None:
         mdh = from_chain(chain).idealized()
         label = name if tool is None else f"{name} {base} -> {tool}"
         for kind in KINDS:
-            run = lambda c=chain, k=kind: analyze(c, measure=k)  # noqa: E731
+            run = lambda c=chain, k=kind: analyze(c, measure=k, params="paper")  # noqa: E731
             whole, cpu = median_ms(run, REPEATS, 1), cpu_ms(run, REPEATS)
             projection = projection_ms(chain, mdh, kind)
             rows.append((label, kind, f"{whole:.1f}", f"{cpu:.1f}", f"{projection:.1f}"))

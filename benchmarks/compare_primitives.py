@@ -90,7 +90,7 @@ def runs() -> dict[str, float]:
     pose = Measurement.of("pose")
     return {
         "tiago_p1": cpu_us(lambda: calibrate(chain, one), 15),
-        "analyze_ur5": cpu_us(lambda: analyze("ur5"), 15),
+        "analyze_ur5": cpu_us(lambda: analyze("ur5", measure="pose", params="paper"), 15),
         "talos_analyze_model": cpu_us(lambda: analyze_model(ideal, "paper", pose, q), 11),
     }
 

@@ -3,12 +3,17 @@
 Load a robot with :func:`load_robot` (a chain between two frames, or a tree of several
 tools), ask :func:`analyze` which parameters can be identified, :func:`design` the postures to
 measure, :func:`simulate` (or :func:`simulate_contacts`) a campaign or read one
-(:func:`read_measurements`, :func:`read_contacts`), then :func:`calibrate` a :class:`Problem`
+(:func:`read_measurements`, :func:`read_contacts`; a camera's: :func:`read_intrinsics`,
+:func:`read_target`, :func:`read_observations`, :func:`simulate_pixels`, a
+:class:`PixelCamera` and its :class:`PixelData`), then :func:`calibrate` a :class:`Problem`
 of one or more :class:`Term` (a chain and what was recorded on it): the :class:`Result` writes
-the calibrated URDF. :func:`load_calibrated` reads it back with its report.
+the calibrated URDF. :func:`load_calibrated` reads it back with its report. ``analyze(problem)``
+counts what a problem's terms determine together.
 
 ``calib.__all__`` (and ``dir(calib)``) is the public face; the names calib had before it
-(``calibrate_tree``, ``tree_jacobian``, ...) are still attributes of ``calib``, and every
+(``calibrate_tree``, ``tree_jacobian``, ``load_tree``: ``load_robot`` with several tools,
+...) are still attributes of ``calib``, as are the camera's pieces (``Unknowns``, ``Pinhole``,
+``Intrinsics``, ``Target``, ``PixelObservations``, ``hand_eye``), and every
 module has its own ``__all__``.
 """
 
@@ -35,7 +40,8 @@ from .kinematics.catalog import CatalogEntry, catalog  # light (the standard lib
 _LAZY = {
     "Identifiability": "identification.identifiability",
     "RankWarning": "identification.identifiability",
-    "analyze": "identification.identifiability",
+    "analyze": "calibration.analysis",
+    "ProblemAnalysis": "calibration.analysis",
     "analyze_model": "identification.identifiability",
     "Measurement": "identification.jacobian",
     "complete_jacobian": "identification.jacobian",
@@ -90,6 +96,18 @@ _LAZY = {
     "write_calibrated_tree_urdf": "kinematics.tree_export",
     "ElasticModel": "kinematics.elastic",
     "load_calibrated": "kinematics.elastic",
+    "PixelCamera": "calibration.pixel_term",
+    "Unknowns": "calibration.pixel_term",
+    "PixelData": "calibration.pixel_chain",
+    "hand_eye": "calibration.hand_eye",
+    "Pinhole": "identification.pinhole",
+    "Intrinsics": "measurements.intrinsics",
+    "read_intrinsics": "measurements.intrinsics",
+    "PixelObservations": "measurements.pixels",
+    "Target": "measurements.pixels",
+    "read_observations": "measurements.pixels",
+    "read_target": "measurements.pixels",
+    "simulate_pixels": "measurements.pixel_simulation",
 }
 """Names imported when first used (all but the light catalog and errors), so that
 ``import calib`` loads nothing heavy: ``calib --version`` and ``calib list`` start without
@@ -111,13 +129,17 @@ def __getattr__(name: str) -> object:
 TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
     from .calibration import CalibrationResult, ResidualStats, calibrate, residual_stats
+    from .calibration.analysis import ProblemAnalysis, analyze
     from .calibration.contact_chains import calibrate_contact_chains
     from .calibration.contact_chains_result import ContactChainsCalibration
     from .calibration.delivery import Result
     from .calibration.entry import calibrate_tree
+    from .calibration.hand_eye import hand_eye
+    from .calibration.pixel_chain import PixelData
+    from .calibration.pixel_term import PixelCamera, Unknowns
     from .calibration.problem import Problem, Term
     from .design.design import design
-    from .identification.identifiability import Identifiability, RankWarning, analyze, analyze_model
+    from .identification.identifiability import Identifiability, RankWarning, analyze_model
     from .identification.jacobian import Measurement, complete_jacobian, identification_jacobian
     from .identification.parameters import (
         Kind,
@@ -126,6 +148,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
         complete_parameters,
         paper_parameters,
     )
+    from .identification.pinhole import Pinhole
     from .identification.tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
     from .kinematics.elastic import ElasticModel, load_calibrated
     from .kinematics.mdh import PARALLEL_TOL, MDHModel, from_chain, from_lines
@@ -137,6 +160,9 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .measurements.contact_campaign import ContactData, read_contacts, simulate_contacts
     from .measurements.csvfile import Columns, read_measurements, write_measurements
     from .measurements.data import DataWarning, Measurements
+    from .measurements.intrinsics import Intrinsics, read_intrinsics
+    from .measurements.pixel_simulation import simulate_pixels
+    from .measurements.pixels import PixelObservations, Target, read_observations, read_target
     from .measurements.simulation import Campaign, SimulationTruth, simulate
     from .measurements.tree_campaign import TreeCampaign, simulate_tree
 
@@ -178,6 +204,8 @@ __all__ = [
     "Measurement",
     "Measurements",
     "OutputError",
+    "PixelCamera",
+    "PixelData",
     "Problem",
     "RankWarning",
     "Result",
@@ -195,11 +223,14 @@ __all__ = [
     "load_calibrated",
     "load_chain",
     "load_robot",
-    "load_tree",
     "read_contacts",
+    "read_intrinsics",
     "read_measurements",
+    "read_observations",
+    "read_target",
     "simulate",
     "simulate_contacts",
+    "simulate_pixels",
     "write_measurements",
 ]
 

@@ -215,6 +215,17 @@ def _third_round_cases():
         "simulate_contacts configs=str": lambda: calib.simulate_contacts(CHAIN, "abc"),
         "simulate_contacts measure=pose": lambda: calib.simulate_contacts(CHAIN, 5, "pose"),
         "Problem terms=()": lambda: calib.Problem(()),
+        "analyze problem and measure": lambda: calib.analyze(
+            calib.Problem((calib.Term(CHAIN, data),)), measure="pose"
+        ),
+        "read_intrinsics missing file": lambda: calib.read_intrinsics("/no/such/intr.yaml"),
+        "read_target missing file": lambda: calib.read_target("/no/such/target.csv"),
+        "read_observations missing file": lambda: calib.read_observations(
+            "/no/such/obs.csv", CHAIN.joint_names, {}
+        ),
+        "simulate_pixels chain=str": lambda: calib.simulate_pixels(
+            "ur5", "cam", np.eye(4), None, None, Q
+        ),
         "Term robot=str": lambda: calib.Term("ur5", data),
         "calibrate problem and data": lambda: calib.calibrate(
             calib.Problem((calib.Term(CHAIN, data),)), data

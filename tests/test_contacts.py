@@ -207,7 +207,7 @@ def test_bad_contact_arguments(capsys):
     with pytest.raises(InvalidArgumentError, match="no marker"):
         kind_of("plane", (0.0, 0.0, 0.1))
     with pytest.raises(InvalidArgumentError, match="one chain"):
-        analyze("ur5", tool=["tool0", "wrist_2_link"], measure="plane")
+        analyze("ur5", tool=["tool0", "wrist_2_link"], measure="plane", params="paper")
     assert main(["analyze", "ur5", "--measure", "planes"]) == 2
     err = capsys.readouterr().err
     assert "unknown measure 'planes'" in err and "Traceback" not in err

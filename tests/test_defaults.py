@@ -65,3 +65,33 @@ def test_simulate_by_default_writes_points_design_counts_them(tmp_path, capsys):
     assert main(["design", "ur5", "--configs", "12", "--candidates", "60", "--json"]) == 0
     design = json.loads(capsys.readouterr().out)
     assert len(design["parameters"]) == design["design"]["rank"] == n_base
+
+
+@pytest.mark.parametrize("robot", ["ur5", "panda", "aid", "talos_left_arm"])
+def test_python_and_command_line_defaults_print_the_same_counts(robot, capsys):
+    """``calib.analyze(robot)`` and ``calib analyze ROBOT`` assume one instrument and one set:
+    the same report (JSON, timings aside) and the same printed text."""
+    import calib
+    from calib.identification.report import analysis_text
+
+    res = calib.analyze(robot)
+    assert main(["analyze", robot, "--json"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    mine = res.to_dict()
+    del cli["timings_ms"], mine["timings_ms"]
+    assert mine == json.loads(json.dumps(mine)) and mine["n_base"] == cli["n_base"]
+    assert mine == cli
+    assert main(["analyze", robot]) == 0
+    assert capsys.readouterr().out.rstrip("\n") == analysis_text(res).rstrip("\n")
+
+
+def test_python_simulate_and_design_default_to_the_command_lines_instrument():
+    """A simulated campaign is points (no orientation), and a design counts the set
+    ``calib.analyze`` counts by default."""
+    import calib
+
+    chain = calib.load_chain("ur5")
+    data = calib.simulate(chain, 12, seed=0).measurements
+    assert data.quaternion is None and data.position.shape[1] == 3
+    design = calib.design(chain, 12, candidates=60, seed=0)
+    assert design.indices.rank == len(design.model.names) == calib.analyze(chain).n_base

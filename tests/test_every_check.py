@@ -154,7 +154,9 @@ def _shapes() -> dict[str, Any]:
     tree = load_robot("talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
     head = load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
     return {
-        "chain": lambda: _measured(ur5, simulate(ur5, 40, noise_mm=0.05, seed=1).measurements),
+        "chain": lambda: _measured(
+            ur5, simulate(ur5, 40, noise_mm=0.05, seed=1, measure="pose").measurements
+        ),
         "tree": lambda: _measured(
             tree, simulate_tree(tree, 40, noise_mm=0.05, seed=2).measurements, "complete"
         ),

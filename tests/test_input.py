@@ -290,7 +290,7 @@ def test_huge_configs_are_refused_at_once(tmp_path, capfd, command, configs):
 
 def test_analyze_refuses_configs_beyond_the_memory_budget():
     with pytest.raises(InvalidArgumentError, match="GB"):
-        analyze("ur5", configs=10**9)
+        analyze("ur5", configs=10**9, measure="pose", params="paper")
     with pytest.raises(InvalidArgumentError, match="GB"):
         chain_of("ur5").random_configurations(10**12, seed=0)
 

@@ -288,35 +288,45 @@ def test_simulation_is_the_true_robot_plus_noise():
 
 def test_configurations_are_those_analyze_draws():
     chain = chain_of("ur5")
-    campaign = simulate(chain, configs=9, seed=11)
+    campaign = simulate(chain, configs=9, seed=11, measure="pose")
     assert np.array_equal(campaign.measurements.q, chain.random_configurations(9, 11))
 
 
 def test_errors_follow_the_requested_scales():
     chain = chain_of("ur5")
-    truth = simulate(chain, configs=6, error_mm=2.0, error_mrad=0.0, seed=5).truth
+    truth = simulate(chain, configs=6, error_mm=2.0, error_mrad=0.0, seed=5, measure="pose").truth
     rot = np.array([p.kind.is_rotation for p in truth.params.parameters])
     assert np.all(truth.errors[rot] == 0) and np.all(truth.errors[~rot] != 0)
     assert 0.5e-3 < np.std(truth.errors[~rot]) < 4e-3
-    none = simulate(chain, configs=6, error_mm=0.0, error_mrad=0.0, seed=5).truth
+    none = simulate(chain, configs=6, error_mm=0.0, error_mrad=0.0, seed=5, measure="pose").truth
     assert np.all(none.errors == 0)
     assert truth.params.label == "complete"
-    assert simulate(chain, configs=6, params="paper", seed=5).truth.params.label == "paper"
+    assert (
+        simulate(chain, configs=6, params="paper", seed=5, measure="pose").truth.params.label
+        == "paper"
+    )
 
 
 def test_noise_statistics():
     chain = chain_of("ur5")
     m = 4000
-    clean = simulate(chain, configs=m, error_mm=0, error_mrad=0, seed=8)
+    clean = simulate(chain, configs=m, error_mm=0, error_mrad=0, seed=8, measure="pose")
     noisy = simulate(
-        chain, configs=m, error_mm=0, error_mrad=0, seed=8, noise_mm=0.2, noise_mrad=0.5
+        chain,
+        configs=m,
+        error_mm=0,
+        error_mrad=0,
+        seed=8,
+        noise_mm=0.2,
+        noise_mrad=0.5,
+        measure="pose",
     )
     dp = noisy.measurements.position - clean.measurements.position
     assert np.allclose(np.std(dp, axis=0), 0.2e-3, rtol=0.06)
     rel = noisy.measurements.rotations @ np.swapaxes(clean.measurements.rotations, 1, 2)
     dr = so3.rotation_vector(rel)
     assert np.allclose(np.std(dr, axis=0), 0.5e-3, rtol=0.06)
-    default = simulate(chain, configs=6, seed=8, noise_mm=0.3).truth
+    default = simulate(chain, configs=6, seed=8, noise_mm=0.3, measure="pose").truth
     assert default.noise_mrad == 0.3
 
 
@@ -382,7 +392,7 @@ def test_simulate_rejects_bad_arguments(kwargs):
 
 def test_simulate_accepts_numpy_integers():
     chain = chain_of("ur5")
-    campaign = simulate(chain, configs=np.int64(6), seed=np.uint8(3))
+    campaign = simulate(chain, configs=np.int64(6), seed=np.uint8(3), measure="pose")
     assert campaign.measurements.m == 6 and campaign.truth.seed == 3
     assert type(campaign.truth.seed) is int
 

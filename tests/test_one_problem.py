@@ -83,7 +83,7 @@ def test_tree_and_chain_validation_rows_of_the_data_are_refused():
     with pytest.raises(DataError, match="held out must mean held out"):
         calibrate(tree, camp.measurements, validate=camp.measurements)
     chain = load_chain("ur5")
-    data = simulate(chain, 30, seed=1).measurements
+    data = simulate(chain, 30, seed=1, measure="pose").measurements
     with pytest.raises(DataError, match="held out must mean held out"):
         calibrate(chain, data, validate=data)
 

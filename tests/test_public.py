@@ -187,6 +187,6 @@ def test_a_library_error_names_the_keyword(tmp_path):
     from calib.exceptions import InvalidArgumentError
 
     chain = load_chain("ur5")
-    data = simulate(chain, 20, seed=3).measurements
+    data = simulate(chain, 20, seed=3, measure="pose").measurements
     with pytest.raises(InvalidArgumentError, match=r"^holdout 0.01 of 20 rows holds out no row"):
         calibrate(chain, data, holdout=0.01)

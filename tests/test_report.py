@@ -51,7 +51,7 @@ UNITS = {"m", "rad", "rad/(N m)", "m/N"}
 
 def _chain_report():
     chain = load_chain("ur5")
-    camp = simulate(chain, 40, noise_mm=0.05, seed=1)
+    camp = simulate(chain, 40, noise_mm=0.05, seed=1, measure="pose")
     q = camp.measurements
     position = q.position.copy()
     position[7] += 0.05  # a gross outlier: set aside
@@ -251,7 +251,7 @@ def test_load_calibrated_reads_a_chain_report_of_format_3_and_2(tmp_path):
     from calib import load_calibrated
 
     chain = load_chain("ur5")
-    camp = simulate(chain, 30, noise_mm=0.05, seed=3)
+    camp = simulate(chain, 30, noise_mm=0.05, seed=3, measure="pose")
     res = calibrate(chain, camp.measurements).check()
     urdf, report = tmp_path / "c.urdf", tmp_path / "r.json"
     urdf.write_bytes(res.urdf())
@@ -332,7 +332,9 @@ def _results():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return {
-            "chain": calibrate(chain, simulate(chain, 30, noise_mm=0.05, seed=1).measurements),
+            "chain": calibrate(
+                chain, simulate(chain, 30, noise_mm=0.05, seed=1, measure="pose").measurements
+            ),
             "tree": calibrate(tree, simulate_tree(tree, 30, noise_mm=0.05, seed=2).measurements),
             "contacts": calibrate_contacts(left, simulate_contacts(left, 40, "plane", seed=2).data),
             "chains": calibrate_contact_chains(

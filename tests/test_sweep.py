@@ -129,7 +129,7 @@ def test_figures_have_the_expected_content(pose_rows):
     fig = counts_figure(pose_rows)
     shown = [t.get_text() for ax in fig.axes if ax.get_visible() for t in ax.get_xticklabels()]
     assert sorted(shown) == sorted(r.robot for r in pose_rows if r.error is None)
-    res = analyze("aid", measure="position")
+    res = analyze("aid", measure="position", params="paper")
     spec = spectrum_figure(res).axes[0]
     kept, dropped = spec.lines[0].get_ydata(), spec.lines[1].get_ydata()
     assert len(kept) == 23 and len(dropped) == 7

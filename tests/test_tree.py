@@ -159,7 +159,8 @@ def test_one_tool_tree_is_the_chain_row_for_row(name, tool):
     pset, tset = calib.paper_parameters(mdh), tree_parameters(model, "paper")
     assert pset.names == tset.names
     assert np.array_equal(identification_jacobian(mdh, pset, q), tree_jacobian(model, tset, q))
-    a, b = quiet(analyze, chain, params="complete"), quiet(analyze, tree, params="complete")
+    a = quiet(analyze, chain, measure="pose", params="complete")
+    b = quiet(analyze, tree, measure="pose", params="complete")
     assert (a.base, a.n_complete, a.n_theory) == (b.base, b.n_complete, b.n_theory)
 
 
@@ -265,9 +266,9 @@ def test_tree_identifiable_count_is_the_pinocchio_complete_rank(name):
 
 def test_talos_hands_count_and_what_sharing_the_torso_removes():
     hands = ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
-    res = analyze("talos", tool=hands, params="complete")
-    left = analyze("talos", tool=hands[0], params="complete")
-    right = analyze("talos", tool=hands[1], params="complete")
+    res = analyze("talos", tool=hands, params="complete", measure="pose")
+    left = analyze("talos", tool=hands[0], params="complete", measure="pose")
+    right = analyze("talos", tool=hands[1], params="complete", measure="pose")
     # 2 torso joints + 7 per arm, each chain alone 4 * 9 + 6 = 42
     assert left.n_base == right.n_base == 42
     assert res.n_base == res.n_complete == res.n_theory == 4 * 16 + 6 * 2 == 76

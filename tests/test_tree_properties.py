@@ -254,5 +254,5 @@ def test_base_count_is_the_numerical_rank(tr, measure, params):
 @TREES
 @given(trees(nasty=False))
 def test_generic_trees_have_the_theoretical_count(tr):
-    res = quiet(analyze, loaded(tr), params="complete", configs=40)
+    res = quiet(analyze, loaded(tr), measure="pose", params="complete", configs=40)
     assert res.n_base == res.n_complete == res.n_theory == theory(tr, 6)

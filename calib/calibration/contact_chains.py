@@ -8,18 +8,13 @@ time, each chain gets its own torso, and no single URDF holds both. Fitted toget
 whole robot. The steps of every calibration:
 
 1. touches set aside per chain (``holdout``, seeded) or a validation set per chain;
-2. the registration: each chain's plane and contact tilts in closed form on the nominal
-   robot (a plane shared by chains of one base frame: then refined together by least
-   squares);
-3. the free placement components (and, ``elastic``, joint compliances): those the touches
-   determine beside the planes and contacts (pivoted QR at flush postures, in the order
-   offsets, then the axes' tilts and shifts, then the rest), and for ``auto`` the
-   cross-validated forward selection with a prior (:func:`~.selection.select`) on all
-   chains' touches together (:mod:`.contact_choice`);
-4. least squares (:func:`~.solve.fit`; one chain touching many objects: their unknowns
-   eliminated object by object, :func:`~.contact_fit.block_fit`);
-5. refusal of a model whose held-out weighted RMS gap is worse than the registration's on
-   any chain.
+2. the registration: each chain's objects and contact in closed form on the nominal robot
+   (a plane shared by chains of one base frame: then refined together by least squares);
+3. the free placement components and (``elastic``) joint compliances the touches determine
+   (pivoted QR at flush postures), and for ``auto`` the cross-validated forward selection
+   with a prior on all chains' touches together (:mod:`.contact_choice`);
+4. least squares (one chain touching many objects: by block, :func:`~.contact_fit.block_fit`);
+5. refusal of a model whose held-out weighted RMS gap is worse than the registration's.
 
 Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
 recorded on different days see the table from wherever the robot stood.
@@ -50,7 +45,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
-from ..kinematics.standing import StandingLoad, Support
+from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, determined, outliers, validation
@@ -97,7 +92,13 @@ from .pixel_chain_result import PixelChain, pixel_result
 from .placements import Placements
 from .solve import covariance, fit, fitted_values, gauss_newton_finish
 
-__all__ = ["CHAIN_LEVELS", "POLISH_GAIN", "ROUND_OFF", "calibrate_contact_chains"]
+__all__ = [
+    "CHAIN_LEVELS",
+    "POLISH_GAIN",
+    "ROUND_OFF",
+    "calibrate_contact_chains",
+    "determined_unknowns",
+]
 
 CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
@@ -263,6 +264,55 @@ def _register(
     return refined.state
 
 
+def determined_unknowns(
+    chains: Sequence[Chain],
+    data: Sequence[ContactData | Measurements | PixelData],
+    *,
+    contact=None,
+    shared_planes: bool = False,
+    pose_weight: float = 1.0,
+    max_iterations: int = 100,
+    instrument: bool = False,
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """What a joint fit of these terms would determine: the steps before its choice.
+
+    The data are checked, outliers set aside and registered as :func:`calibrate_contact_chains`
+    does (every row fitted: no holdout); the rank of the Jacobian of every row by every unknown
+    (objects, contact frames, measuring frames, markers, and every joint placement component)
+    at flush postures is what the data determine. Arguments as
+    :func:`calibrate_contact_chains`'s.
+
+    Returns:
+        The names of the unknowns determined (a basis, in the columns' order) and of all.
+    """
+    check_run_options(max_iterations, 0.0, 0)
+    _check(chains, data, None, "frames", 0.0, instrument)
+    parts = pixel_parts(chains, data)
+    contact_checks.check_memory(chains, parts, "complete")
+    plane_of = instrument_groups(
+        contact_checks.plane_groups(chains, parts, shared_planes), parts, instrument
+    )
+    check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    held: list = [None] * len(parts)
+    train, _, measured = _checked(
+        chains,
+        list(parts),
+        None,
+        contact_frame(contact),
+        None,
+        held,
+        [],
+        max_iterations,
+        instrument,
+    )
+    start = _register(chains, train, measured, plane_of, [], max_iterations, pose_weight)
+    names = start.placements.names()
+    wide = chains_model(start, plane_of, range(len(names)), names)
+    every = wide.names()
+    kept = structural(wide, start, flush_data(start, train, None))
+    return tuple(every[k] for k in sorted(kept)), every
+
+
 @checked_arguments
 def calibrate_contact_chains(
     chains: Sequence[Chain],
@@ -329,7 +379,7 @@ def calibrate_contact_chains(
     level = "auto" if params is None else params
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
-    load = _standing(chains, data, elastic, support)
+    load = contact_elastic.term_load(chains, data, elastic, support)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
     contact_checks.check_memory(chains, data, level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
@@ -409,18 +459,6 @@ def calibrate_contact_chains(
     return dataclasses.replace(
         result, chains=parts, params=level, identifiable=identifiable, refusal=refusal, **values
     )
-
-
-def _standing(chains, data, elastic: bool | None, support) -> StandingLoad | None:
-    """The standing load of one chain touching planes (``elastic``), or None (rigid joints).
-
-    Raises:
-        InvalidArgumentError: ``elastic`` for several terms or for measurements.
-    """
-    if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
-        raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
-    kind = data[0].kind if isinstance(data[0], ContactData) else None
-    return contact_elastic.standing(chains[0], kind, elastic, support)
 
 
 PIN = 1e-6

@@ -26,6 +26,7 @@ from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_orig
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support, standing_load
 from ..kinematics.urdf_model import read_urdf_file
+from ..measurements.contact_campaign import ContactData
 from . import validation
 from .contact_model import ContactState
 from .contact_result import gap_stats
@@ -37,6 +38,7 @@ __all__ = [
     "load_record",
     "readings_note",
     "standing",
+    "term_load",
     "torques",
 ]
 
@@ -62,6 +64,19 @@ def standing(
             f"'{getattr(kind, 'label', 'measurements')}'"
         )
     return standing_load(chain, support)
+
+
+def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | None:
+    """The standing load of a fit of one chain touching planes (``elastic``), or None.
+
+    Raises:
+        InvalidArgumentError: ``elastic`` for several terms or for measurements, or as
+            :func:`standing` says.
+    """
+    if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
+        raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
+    kind = data[0].kind if isinstance(data[0], ContactData) else None
+    return standing(chains[0], kind, elastic, support)
 
 
 def torques(load: StandingLoad | None, train, held) -> tuple[np.ndarray | None, np.ndarray | None]:

@@ -9,22 +9,23 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from ..calibration.analysis import analyze
 from ..core.choices import DEFAULT_SET, PARAMETER_SETS
 from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
-from ..identification.identifiability import analyze
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import load_chain
 from ..kinematics.tree import load_robot
 from ..kinematics.tree_model import from_tree
-from . import pixels_cli
+from . import contact_chains_cli, pixels_cli
 from .common import (
     add_chain_args,
     add_measure_args,
     add_sampling_args,
     check_output_paths,
     command_parser,
+    given_options,
     print_json,
     tool_arg,
     write_outputs,
@@ -84,6 +85,7 @@ def _model_and_table(robot):
 
 
 def _analyze(args: argparse.Namespace):
+    """The analysis ``calib.analyze`` gives for a robot (the Python function the CLI calls)."""
     return analyze(
         args.robot,
         args.base,
@@ -97,7 +99,9 @@ def _analyze(args: argparse.Namespace):
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    """Identifiable parameters of one chain."""
+    """Identifiable parameters of one chain, or what the terms of a problem determine."""
+    if args.term:
+        return _analyze_terms(args)
     if args.measure == "pixels":
         return pixels_cli.analyze_pixels_command(args)
     pixels_cli.refuse_pixel_options(args)
@@ -108,6 +112,31 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         print_json(res.to_dict())
     else:
         print(analysis_text(res))
+    return 0
+
+
+TERM_REFUSES = ("base", "tool", "measure", "marker", "markers", "configs", "seed")
+"""Options of ``analyze`` that ``--term`` replaces: the terms' files say what was measured."""
+
+
+def _analyze_terms(args: argparse.Namespace) -> int:
+    """``analyze --term ...``: what these terms determine together (``calib.analyze(problem)``)."""
+    from ..calibration.problem import Problem
+
+    typed = given_options(args, TERM_REFUSES)
+    if typed:
+        raise InvalidArgumentError(f"{typed[0]} is not for --term: its files say what is measured")
+    asked = contact_chains_cli.asked_terms(args)
+    if any(t[4] for t in asked):
+        raise InvalidArgumentError("analyze --term counts the data: give no VALIDATION file")
+    if args.params is not None and all(t[0] != "pixels" for t in asked):
+        raise InvalidArgumentError("--params with --term is for a pixels term (the mounting)")
+    chains = contact_chains_cli.term_chains(args, asked)
+    res = analyze(Problem(contact_chains_cli.read_terms(args, asked, chains)))
+    if args.json:
+        print_json(res.to_dict())
+    else:
+        print(res.summary())
     return 0
 
 
@@ -229,6 +258,9 @@ def _add_analyze_parser(sub) -> None:
             "calib analyze ur5 --markers 3          # what 3 points per configuration identify",
             "calib analyze ur5 --measure plane      # touches of a plane, no instrument",
             "calib analyze talos --tool wrist_left_ft_tool_link --tool wrist_right_ft_tool_link",
+            "calib analyze talos_full_v2.urdf --term plane left_sole_link gripper_left_base_link "
+            "L.csv --term plane left_sole_link gripper_right_base_link R.csv  # what they "
+            "determine together",
         ],
     )
     add_chain_args(p.add_argument_group("robot"), trees=True)
@@ -251,8 +283,17 @@ def _add_analyze_parser(sub) -> None:
     )
     add_sampling_args(g, "m")
     pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"))
+    p.add_argument_group("several terms").add_argument(
+        "--term",
+        action="append",
+        nargs="+",
+        metavar="ARG",
+        help="what a calibration of these terms determines together, at their rows: KIND BASE "
+        f"TOOL DATA, KIND one of {', '.join(contact_chains_cli.TERM_KINDS)}, once per term "
+        "(as calibrate's --term; one is enough), instead of --base, --tool, --measure",
+    )
     p.add_argument_group("output").add_argument("--json", action="store_true", help="print JSON")
-    p.set_defaults(func=cmd_analyze)
+    p.set_defaults(func=cmd_analyze, refine_targets=False, refine_intrinsics=False)
 
 
 def add_sweep_parser(sub) -> None:

@@ -26,7 +26,14 @@ from ..kinematics.tree import load_robot
 from . import pixels_cli
 from .common import look_outputs, write_calibration
 
-__all__ = ["add_chain_arguments", "calibrate_chains_command"]
+__all__ = [
+    "TERM_KINDS",
+    "add_chain_arguments",
+    "asked_terms",
+    "calibrate_chains_command",
+    "read_terms",
+    "term_chains",
+]
 
 
 TERM_KINDS = ("plane", "loop", "position", "pose", "pixels")
@@ -128,16 +135,10 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         CalibrationRefusedError: The model was refused (the report only is written).
     """
     from ..calibration.entry import calibrate
-    from ..calibration.problem import Problem, Term
+    from ..calibration.problem import Problem
 
     asked = _check(args)
-    chains: list[Chain] = []
-    for kind, base, tool, _, _ in asked:  # --term pixels NAME: the camera's link
-        link = pixels_cli.camera_link(args, base) if kind == "pixels" else base
-        robot = load_robot(args.robot, link, tool)
-        if not isinstance(robot, Chain) or robot.is_tree:
-            raise InvalidArgumentError("a term names one base and one tool (a chain)")
-        chains.append(robot)
+    chains = term_chains(args, asked)
     out, report = Path(args.out), Path(args.report) if args.report else None
     inputs: dict[str, str | Path] = {"the nominal URDF": chains[0].urdf_path}
     for k, (_, _, _, path, check) in enumerate(asked):
@@ -145,12 +146,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         if check:
             inputs[f"the validation data of term {k + 1}"] = check
     check_outputs({"--out": out, "--report": report, **look_outputs(args)}, inputs)
-    terms = []
-    for chain, (kind, name, _, path, check) in zip(chains, asked, strict=True):
-        data = _read(kind, path, chain, args, name)
-        validate = _read(kind, check, chain, args, name) if check else None
-        guess = args.contact if kind == "plane" else None
-        terms.append(Term(chain, data, validate, guess))
+    terms = read_terms(args, asked, chains)
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
     problem = Problem(
         tuple(terms),
@@ -173,6 +169,36 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         recorded,
         result,
     )
+
+
+def asked_terms(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | None]]:
+    """The ``--term`` flags alone (``calib analyze``): (kind, base, tool, data, validation)."""
+    return [_term(items, "--term") for items in args.term or []]
+
+
+def term_chains(args: argparse.Namespace, asked) -> list[Chain]:
+    """Each asked term's chain (a pixel term's: from its camera's link)."""
+    chains: list[Chain] = []
+    for kind, base, tool, _, _ in asked:  # --term pixels NAME: the camera's link
+        link = pixels_cli.camera_link(args, base) if kind == "pixels" else base
+        robot = load_robot(args.robot, link, tool)
+        if not isinstance(robot, Chain) or robot.is_tree:
+            raise InvalidArgumentError("a term names one base and one tool (a chain)")
+        chains.append(robot)
+    return chains
+
+
+def read_terms(args: argparse.Namespace, asked, chains: list[Chain]) -> tuple:
+    """Each asked term's :class:`~calib.calibration.problem.Term`: its data read."""
+    from ..calibration.problem import Term
+
+    terms = []
+    for chain, (kind, name, _, path, check) in zip(chains, asked, strict=True):
+        data = _read(kind, path, chain, args, name)
+        validate = _read(kind, check, chain, args, name) if check else None
+        guess = getattr(args, "contact", None) if kind == "plane" else None
+        terms.append(Term(chain, data, validate, guess))
+    return tuple(terms)
 
 
 def _read(kind: str, path: str, chain: Chain, args: argparse.Namespace, name: str):

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
 from ..core.checks import check_count, check_work, real_array
-from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES
+from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES, DEFAULT_MEASURE, DEFAULT_SET
 from ..core.progress import phase, steps
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
@@ -148,9 +148,9 @@ def design(
     *,
     candidates: int | np.ndarray = DEFAULT_CANDIDATES,
     criterion: str = "D",
-    measure: str = "position",
+    measure: str = DEFAULT_MEASURE,
     markers=None,
-    params: str = "complete",
+    params: str = DEFAULT_SET,
     orientation_weight: float = 1.0,
     constraints: Constraints | None = None,
     seed: int = 0,
@@ -390,9 +390,9 @@ def least_i(
 def evaluate(
     chain: Chain | Tree,
     q: np.ndarray,
-    measure: str = "position",
+    measure: str = DEFAULT_MEASURE,
     markers=None,
-    params: str = "complete",
+    params: str = DEFAULT_SET,
     seed: int = 0,
     orientation_weight: float = 1.0,
 ) -> Indices:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.checks import check_count, check_work, joint_positions
-from ..core.choices import DEFAULT_CONFIGS
+from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE, DEFAULT_SET
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.mimic import MimicJoint
@@ -472,9 +472,9 @@ def analyze(
     robot: str | Path | Chain | Tree,
     base: str | None = None,
     tool: str | Sequence[str] | None = None,
-    measure: str = "pose",
+    measure: str = DEFAULT_MEASURE,
     marker=None,
-    params: str = "paper",
+    params: str = DEFAULT_SET,
     configs: int = DEFAULT_CONFIGS,
     seed: int = 0,
 ) -> Identifiability:
@@ -485,10 +485,11 @@ def analyze(
         base: Base frame (default: the catalog's or the URDF root).
         tool: Tool frame (default: the catalog's or the deepest tip), or several: the tree of
             their chains, every tool measured at each configuration (see :func:`load_robot`).
-        measure: ``pose``, ``position``, comma-separated rows (``x,y,z,rx``), a contact
-            (``plane``, ``plane-point``, ``fixed-point``, ``fixed-pose``) or a kind.
+        measure: ``position`` (default: a point measured, as the command line's), ``pose``,
+            comma-separated rows (``x,y,z,rx``), a contact (``plane``, ``plane-point``,
+            ``fixed-point``, ``fixed-pose``) or a kind.
         marker: Measured point in the tool frame, 3 numbers [m].
-        params: ``paper`` or ``complete``.
+        params: ``complete`` (default: the set ``calibrate`` chooses from) or ``paper``.
         configs: Number of random configurations m (>= 1).
         seed: Seed of the configurations.
 

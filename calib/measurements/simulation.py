@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.checks import angle_mrad, check_count, length_mm, read_only
+from ..core.choices import DEFAULT_MEASURE, DEFAULT_SET
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point
 from ..identification.kinds import campaign_kind
@@ -111,14 +112,14 @@ class Campaign:
 def simulate(
     chain: Chain,
     configs: int | np.ndarray = 100,
-    measure: str | MeasureKind = "pose",
+    measure: str | MeasureKind = DEFAULT_MEASURE,
     marker=None,
     error_mm: float = 1.0,
     error_mrad: float = 1.0,
     noise_mm: float = 0.0,
     noise_mrad: float | None = None,
     seed: int = 0,
-    params: str = "complete",
+    params: str = DEFAULT_SET,
 ) -> Campaign:
     """Simulate a measurement campaign on a perturbed ("true") copy of a chain.
 
@@ -129,7 +130,8 @@ def simulate(
         chain: The nominal chain.
         configs: Number of configurations m (an integer >= 1), or the configurations
             themselves ``(m, n)`` [rad or m] (a designed set).
-        measure: ``pose`` or ``position`` (a name or the kind).
+        measure: ``position`` (default, as ``analyze`` and ``design``) or ``pose`` (a name
+            or the kind).
         marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
         error_mm: Standard deviation of every length error [mm].
         error_mrad: Standard deviation of every angle error [mrad].

@@ -1,0 +1,182 @@
+"""``analyze``: which parameters a robot's instrument, or a calibration problem, determines.
+
+``analyze(robot, ...)`` is the analysis of one chain or tree at random configurations
+(:func:`~calib.identification.identifiability.analyze`, what ``calib analyze ROBOT`` prints);
+``analyze(problem)`` counts what a calibration of the problem's terms would determine
+together, at their own rows: every kind (measured, touches, pixels), several terms, a tree.
+A robot's analysis imports no more than
+:mod:`~calib.identification.identifiability` (``calib analyze`` starts without SciPy). The
+count is the joint fit's (:func:`~.contact_chains.determined_unknowns`): the data
+checked and registered as a calibration does, then the rank of the Jacobian of every row by
+every unknown (objects, contact, measuring and camera frames, markers, every joint placement
+component) on the nominal robot.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, cast, overload
+
+from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE, DEFAULT_SET
+from ..exceptions import InvalidArgumentError
+from ..identification import identifiability
+from ..identification.identifiability import Identifiability
+from ..kinematics.robot import Chain
+from ..kinematics.tree import Tree
+
+if TYPE_CHECKING:
+    from .problem import Problem
+
+__all__ = ["ProblemAnalysis", "analyze"]
+
+
+@dataclass(frozen=True)
+class ProblemAnalysis:
+    """What the terms of a problem determine together, on the nominal robot at their rows.
+
+    Attributes:
+        robot: The robot's name.
+        shape: The problem's shape (``chain``, ``tree``, ``contacts``, ``chains``).
+        terms: Each term, in one line (its chain, rows and kind).
+        unknowns: Every unknown the rows depend on: each term's objects, contact, measuring
+            or camera frame and markers, then every joint placement component (``joint:rz``).
+        base: The unknowns determined (a basis of what the rows see, in the same order).
+    """
+
+    robot: str
+    shape: str
+    terms: tuple[str, ...]
+    unknowns: tuple[str, ...]
+    base: tuple[str, ...]
+
+    @property
+    def n_base(self) -> int:
+        """Unknowns the rows determine (the rank)."""
+        return len(self.base)
+
+    @property
+    def n_unknowns(self) -> int:
+        """Unknowns the rows depend on."""
+        return len(self.unknowns)
+
+    def to_dict(self) -> dict:
+        """The analysis as plain data (what ``--json`` would print)."""
+        return {
+            "robot": self.robot,
+            "shape": self.shape,
+            "terms": list(self.terms),
+            "n_base": self.n_base,
+            "n_unknowns": self.n_unknowns,
+            "base": list(self.base),
+        }
+
+    def summary(self) -> str:
+        """The analysis in a few lines: the terms, then the count and what is determined."""
+        lines = [f"{self.robot}: {len(self.terms)} term(s), {self.shape}"]
+        lines += [f"  {t}" for t in self.terms]
+        lines.append(
+            f"unknowns determined: {self.n_base} of {self.n_unknowns} (objects, frames and "
+            "markers, then every joint placement component)"
+        )
+        lines.append("  " + ", ".join(self.base))
+        return "\n".join(lines)
+
+
+def _count(problem: Problem) -> ProblemAnalysis:
+    """The joint fit's count of a problem's terms (module text).
+
+    A tree is one measured term per tool; one chain or tree measured is measured by an
+    instrument, its frame one unknown.
+    """
+    from ..measurements.data import Measurements
+    from .contact_chains import determined_unknowns
+    from .tree_checks import prepare_tree
+
+    terms = problem.terms
+    guesses = [t.guess for t in terms if t.touches and t.guess is not None]
+    if problem.shape == "tree":
+        tree = cast(Tree, terms[0].robot)
+        rows = cast(Measurements, terms[0].data)
+        chains, data = list(tree.chains), prepare_tree(tree, rows, None, 0.0, 0)[0]
+    else:
+        chains, data = [cast(Chain, t.robot) for t in terms], [t.data for t in terms]
+    base, unknowns = determined_unknowns(
+        chains,
+        data,
+        contact=guesses[0] if guesses else None,
+        shared_planes=problem.shared_planes,
+        pose_weight=problem.pose_weight,
+        max_iterations=problem.max_iterations,
+        instrument=problem.shape in ("chain", "tree"),
+    )
+    return ProblemAnalysis(
+        terms[0].robot.name, problem.shape, tuple(repr(t) for t in terms), unknowns, base
+    )
+
+
+@overload
+def analyze(robot: Problem) -> ProblemAnalysis: ...
+
+
+@overload
+def analyze(
+    robot: str | Path | Chain | Tree,
+    base: str | None = None,
+    tool: str | Sequence[str] | None = None,
+    measure: str = DEFAULT_MEASURE,
+    marker=None,
+    params: str = DEFAULT_SET,
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+) -> Identifiability: ...
+
+
+def analyze(
+    robot,
+    base=None,
+    tool=None,
+    measure=DEFAULT_MEASURE,
+    marker=None,
+    params=DEFAULT_SET,
+    configs=DEFAULT_CONFIGS,
+    seed=0,
+):
+    """Which parameters a robot's instrument, or a calibration problem, determines.
+
+    Args:
+        robot: A :class:`~.problem.Problem` (its terms' rows say what is measured: nothing
+            else is given), or a catalog name, URDF path, chain or tree.
+        base: Base frame (default: the catalog's or the URDF root).
+        tool: Tool frame, or several: a tree (default: the catalog's or the deepest tip).
+        measure: ``position`` (default: a point measured, as the command line's), ``pose``,
+            rows (``x,y,z,rx``) or a contact kind (``plane``, ...).
+        marker: Measured point in the tool frame, 3 numbers [m].
+        params: ``complete`` (default: the set ``calibrate`` chooses from) or ``paper``.
+        configs: Number of random configurations m (>= 1).
+        seed: Seed of the configurations.
+
+    Returns:
+        A robot's :class:`~calib.identification.identifiability.Identifiability` (what
+        ``calib analyze`` prints), or a problem's :class:`ProblemAnalysis`.
+
+    Raises:
+        InvalidArgumentError: A problem given with other arguments; a bad argument.
+        DataError: A problem's rows that cannot be registered (too few, not its chain's).
+    """
+    problem = sys.modules.get(f"{__package__}.problem")  # loaded if a Problem exists
+    if problem is not None and isinstance(robot, problem.Problem):
+        given = (base, tool, marker) != (None, None, None) or (measure, params, configs, seed) != (
+            DEFAULT_MEASURE,
+            DEFAULT_SET,
+            DEFAULT_CONFIGS,
+            0,
+        )
+        if given:
+            raise InvalidArgumentError(
+                "a problem says its robot, rows and kinds: give analyze(problem) alone"
+            )
+        return _count(robot)
+    return identifiability.analyze(robot, base, tool, measure, marker, params, configs, seed)
