@@ -275,7 +275,7 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     keys = column_keys(names, (*chain.variable_names, *follower_names(chain)))
     for name in chain.variable_names:
         if JOINT_PREFIX + name not in keys:
-            tools = ", ".join(chain.tool_frames if isinstance(chain, Tree) else (chain.tool_frame,))
+            tools = ", ".join(chain.tool_frames)
             raise DataError(
                 src,
                 f"missing joint column: the chain {chain.base_frame} -> {tools} moves that joint "
