@@ -414,7 +414,7 @@ def calibrate_contact_chains(
         every = offer == "components"  # its rank kept a basis of every component: counted
         identifiable = model.size() if every else len(structural(wide, start, flush))
         if instrument:
-            check_tree_rank(chains, identifiable, train, level, seed)
+            check_tree_rank(wide, start, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
         fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations)
