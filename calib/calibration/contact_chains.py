@@ -229,7 +229,7 @@ def _register(
     contact in closed form, a measured term's frames, a pixel term's camera).
     """
     placements = Placements.of(tuple(chains))
-    states = list(on_models(tuple(measured), placements.chain_models(tuple(chains))))
+    states = list(on_models(tuple(measured), placements.start_models(tuple(chains), measured)))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
