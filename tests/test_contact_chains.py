@@ -51,24 +51,25 @@ def central_differences(model, start, x, data, h=1e-5):
 
 
 def moved_chains(chains, rng):
-    """Placements moved by ~1 cm / 10 mrad, each chain's model and frames, a contact frame
-    12 cm below the tool and a slightly tilted plane normal, for central differences."""
+    """Placements moved by ~1 cm / 10 mrad, each chain's model (of the robot the errors act
+    on), a contact frame 12 cm below the tool and a slightly tilted plane normal, for
+    central differences."""
     pl = Placements.of(chains)
+    models = pl.chain_models(chains)
     pl = pl.shifted(1e-2 * rng.standard_normal(pl.y.size))
-    models, frames = pl.chain_geometry(chains)
     C = np.eye(4)
     C[2, 3] = -0.12
     n = np.array([0.01, 0.02, 1.0]) / np.linalg.norm([0.01, 0.02, 1.0])
-    return pl, models, frames, C, n
+    return pl, models, C, n
 
 
 def test_jacobian_matches_central_differences():
     """Every column (planes, contacts, every joint's six components) of both chains."""
     chains = tuple(_chains())
     rng = np.random.default_rng(1)
-    pl, models, frames, C, n = moved_chains(chains, rng)
+    pl, models, C, n = moved_chains(chains, rng)
     states = tuple(plane_state(m, C, n, 0.7, 0.3, "t") for m in models)
-    start = ChainsState(chains, pl, states, frames)
+    start = ChainsState(chains, pl, states)
     data = ChainsData(
         tuple(
             ContactData(c.joint_names, c.random_configurations(5, 3), ("t",) * 5, PlaneContact())
@@ -363,3 +364,36 @@ def test_shared_plane_is_one_plane():
     own = calibrate_contact_chains(chains, data, contact=(0, 0, -0.12), params="frames")
     assert own.planes == 2
     assert not np.allclose(own.chains[0].plane[:3, 2], own.chains[1].plane[:3, 2], atol=1e-4)
+
+
+def test_a_fit_step_makes_each_chains_frames_once(monkeypatch):
+    """The solver's residuals and Jacobian at one x: each chain's frames made once, from the
+    placements (no MDH model made)."""
+    from calib.calibration import contact_chains_model, placements
+    from calib.calibration.solve import Problem
+
+    chains = tuple(_chains())
+    pl, models, C, n = moved_chains(chains, np.random.default_rng(4))
+    start = ChainsState(chains, pl, tuple(plane_state(m, C, n, 0.7, 0.3, "t") for m in models))
+    q = [c.random_configurations(5, 3) for c in chains]
+    data = ChainsData(
+        tuple(
+            ContactData(c.joint_names, qc, ("t",) * 5, PlaneContact())
+            for c, qc in zip(chains, q, strict=True)
+        )
+    )
+    model = ChainsModel((0, 1), 2, tuple(range(pl.y.size)), pl.names())
+    made = []
+    frames = placements.Placements.frames
+    monkeypatch.setattr(
+        placements.Placements, "frames", lambda self, *a: made.append(a[0]) or frames(self, *a)
+    )
+    monkeypatch.setattr(
+        contact_chains_model.MDHModel, "kinematics", lambda *a: pytest.fail("an MDH model")
+    )
+    problem = Problem(model, start, data, None, 1.0)
+    x = 1e-3 * np.ones(model.size())
+    problem.fun(x)
+    problem.jac(x)
+    problem.fun(x)
+    assert made == list(chains)

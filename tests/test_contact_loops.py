@@ -43,13 +43,13 @@ def test_jacobian_matches_central_differences():
     the loop's rows weighted 3."""
     chains = tuple(_chains())
     rng = np.random.default_rng(3)
-    pl, models, frames, C, n = moved_chains(chains, rng)
+    pl, models, C, n = moved_chains(chains, rng)
     plane = plane_state(models[0], C, n, 0.7, 0.3, "t")
     F = np.repeat(np.eye(4)[None], 2, axis=0)  # two poses (two sessions)
     F[:, :3, 3] = [(0.01, -0.2, 0.02), (0.03, -0.18, 0.0)]
     two = ContactFrames(FixedPoseContact(), np.eye(4), F, ("p", "q"))
     pose = ContactState(models[1], two, 0.2)
-    start = ChainsState(chains, pl, (plane, pose), frames, (1.0, 3.0))
+    start = ChainsState(chains, pl, (plane, pose), (1.0, 3.0))
     q0 = chains[0].random_configurations(5, 3)
     q1 = chains[1].random_configurations(4, 4)
     data = ChainsData(

@@ -351,3 +351,16 @@ def test_mdh_model_is_a_value_object():
     assert np.array_equal(mdh.d, d_before)
     assert not np.array_equal(shifted.d, mdh.d)
     assert mdh.replace().n == mdh.n
+
+
+def test_kinematics_keep_no_state():
+    """A model is a value: its kinematics are made afresh at each call (no memo of the last
+    result held in the model; the joint fit passes the frames it made instead)."""
+    mdh = mdh_of("ur5")
+    fields = dict(vars(mdh))
+    q = own_random_q(np.zeros(mdh.n), 4, 3)
+    first, again = mdh.kinematics(q), mdh.kinematics(q)
+    assert first.R is not again.R and first.R.flags.writeable
+    assert np.array_equal(first.R, again.R)
+    assert vars(mdh).keys() == fields.keys()
+    assert all(vars(mdh)[k] is v for k, v in fields.items())

@@ -164,8 +164,7 @@ def test_the_terms_jacobian_matches_central_differences(what, tmp_path):
     part = pixel_part(s.nominal, PixelData(camera, s.target, obs, what))
     state = checked_pixels(s.nominal, part, None)[0]
     pl = Placements.of((s.nominal,))
-    frames = pl.chain_geometry((s.nominal,))[1]
-    start = ChainsState((s.nominal,), pl, (state,), frames)
+    start = ChainsState((s.nominal,), pl, (state,))
     model = ChainsModel((0,), 1, tuple(range(pl.y.size)), pl.names(), None, (state.kind,), (1,))
     x = 1e-3 * np.random.default_rng(2).standard_normal(model.size())
     data = ChainsData((part,))

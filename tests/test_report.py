@@ -153,6 +153,19 @@ def test_contact_errors_are_the_gaps(reports):
     assert held["calibrated"]["configs"] == gaps["held_out"]["m"]
 
 
+def test_a_trees_held_out_rows_are_labelled_holdout_or_their_file(reports, tmp_path):
+    """Rows held out of a tree's data are 'holdout'; a validation file's, its name."""
+    for term in reports["tree"]["errors"]["terms"]:
+        assert term["held_out"]["source"] == "holdout"
+    tree = load_robot("talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
+    data, check = (simulate_tree(tree, 30, noise_mm=0.05, seed=s).measurements for s in (2, 3))
+    check = dataclasses.replace(check, source="check.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        report = calibrate(tree, data, validate=check).to_dict()
+    assert [t["held_out"]["source"] for t in report["errors"]["terms"]] == ["check.csv"] * 2
+
+
 @pytest.mark.parametrize("shape", sorted(SHAPES))
 def test_parameters_name_their_joint(reports, shape):
     """A joint parameter names a joint of the URDF; frames, markers and objects name none."""

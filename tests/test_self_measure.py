@@ -52,13 +52,13 @@ def test_jacobian_matches_central_differences(pose):
     and every joint's six placement components, at a moved robot and off the solution."""
     chains = (load_robot(URDF, *PAIRS[0]), load_robot(URDF, *CAMERA))
     rng = np.random.default_rng(1)
-    pl, models, frames, C, n = moved_chains(chains, rng)
+    pl, models, C, n = moved_chains(chains, rng)
     F = np.eye(4)
     F[:3, :3], F[:3, 3] = rotation_matrix([0.1, -0.2, 0.05]), [0.02, -0.01, 0.03]
     tool = rotation_matrix([0.2, 0.1, -0.3]) if pose else None
     markers = np.array([[0.01, 0.02, 0.1], [-0.03, 0.0, 0.05]])
     term = MeasuredState(registration_state(models[1], F, markers, tool), 0.3)
-    start = ChainsState(chains, pl, (plane_state(models[0], C, n, 0.7, 0.3, "t"), term), frames)
+    start = ChainsState(chains, pl, (plane_state(models[0], C, n, 0.7, 0.3, "t"), term))
     q = [c.random_configurations(k, 3 + k) for c, k in zip(chains, (5, 6), strict=True)]
     quat = None
     if pose:

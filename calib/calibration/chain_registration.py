@@ -54,9 +54,15 @@ def frames_model(data: Measurements, opts: Options) -> ErrorModel:
     )
 
 
-def _registration(nominal, data, guess, opts) -> Fit:
-    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only)."""
-    start = register(nominal, data.q, data.points, data.rotations, guess)
+def _registration(nominal, data, guess, opts, kin=None) -> Fit:
+    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only).
+
+    ``kin``: the nominal kinematics at the data's joints, if already made (the fit's is
+    that: it moves no geometry).
+    """
+    if kin is None:
+        kin = nominal.kinematics(data.q)
+    start = register(nominal, data.q, data.points, data.rotations, guess, kin)
     if "frame" in opts.fix:
         start = dataclasses.replace(start, frame=np.eye(4))
     if "markers" in opts.fix:
@@ -68,18 +74,26 @@ def _registration(nominal, data, guess, opts) -> Fit:
         None,
         opts.orientation_weight,
         max_iterations=opts.max_iterations,
+        kin=kin,
     )
 
 
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
-    """The registration of one data set at an orientation weight, each weight run once."""
+    """The registration of one data set at an orientation weight, each weight run once.
+
+    The nominal kinematics at the data's joints are made once for all.
+    """
+    kin = nominal.kinematics(data.q)
 
     @functools.cache
     def at(weight: float) -> Fit:
         w_opts = dataclasses.replace(opts, orientation_weight=weight)
-        return _registration(nominal, data, guess, w_opts)
+        return _registration(nominal, data, guess, w_opts, kin)
 
     return at
+
+
+_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, quaternion order")
 
 
 def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
@@ -94,35 +108,17 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     def errors(d):
         return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
 
-    first = validation.stats(at(weighting.DEFAULT_WEIGHT).state, data, None)
+    def position(d) -> float:
+        return errors(d).position_rms
+
+    reg = at(weighting.DEFAULT_WEIGHT)
+    first = validation.stats(reg.state, data, None, reg.kin)
     revolute = chain.sigma == 0
-    if diagnosis.suspect(first.position_rms, opts.noise):
-        still = diagnosis.constant_joints(data)
-        if still:
-            raise DataError(
-                data.source,
-                f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS and joint "
-                f"column(s) {', '.join(still)} hold one value in every row: were those joints "
-                f"logged?",
-            )
-        cause = diagnosis.likely_cause(
-            data,
-            revolute,
-            lambda d: errors(d).position_rms,
-            first.position_rms,
-        )
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration error drops from "
-                f"{1e3 * first.position_rms:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once "
-                f"corrected",
-            )
-        return [
-            f"the registration leaves {1e3 * first.position_rms:.4g} mm RMS, far above "
-            f"geometric errors, and no usual mistake (swapped joint columns, degrees, "
-            f"millimetres, quaternion order) explains it: check the data and the chain"
-        ]
+    notes = diagnosis.explain(
+        data, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
+    )
+    if notes:  # the positions are suspect (else no note): the orientations are not read
+        return notes
     rot = first.orientation_rms
     if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
         cause = diagnosis.likely_cause(
@@ -185,7 +181,9 @@ def _weighted(data, opts: Options, at) -> Options:
         return opts
     weight = weighting.DEFAULT_WEIGHT
     if data.quaternion is not None:
-        weight = weighting.estimate_weight(lambda w: at(w).state.residuals(data), data.n_markers)
+        weight = weighting.estimate_weight(
+            lambda w: at(w).state.residuals(data, None, at(w).kin), data.n_markers
+        )
     return dataclasses.replace(opts, orientation_weight=weight)
 
 
@@ -205,8 +203,10 @@ def _register(nominal, data, guess, opts, at, frames=None) -> tuple[Fit, np.ndar
         determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
         return _registration(nominal, sub, guess, opts)
 
+    nominal_kin = at(opts.orientation_weight).kin  # every registration's, on the data
+
     def errors(reg: Fit) -> outliers.Errors:
-        return outliers.point_errors(reg.state.residuals(data), data.n_markers)
+        return outliers.point_errors(reg.state.residuals(data, None, nominal_kin), data.n_markers)
 
     def allowed(bad: np.ndarray) -> bool:
         return frames is None or int(np.sum(~bad)) * frames.rows > frames.size()
@@ -230,7 +230,9 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
     None where no row of the registration is far from the others
     (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
     """
-    if not outliers.spread_out(outliers.point_errors(reg.residuals(data), data.n_markers)):
+    kin = reg.kinematics(data.q)  # x = 0 is the registration
+    residuals = reg.residuals(data, None, kin)
+    if not outliers.spread_out(outliers.point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
     ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
@@ -238,12 +240,12 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
         params=pset, base=ordered, lift=selection_lift(pset, ordered)
     )
     w = row_weights(wide, opts.orientation_weight)
-    J = wide.jacobian(reg, np.zeros(wide.size()), data, None) * w[None, :, None]
+    J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
     kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
     rows = data.rows or tuple(range(1, data.m + 1))
     return outliers.robust_proposals(
         J[:, :, sorted(kept)],
-        reg.residuals(data) * w,
+        residuals * w,
         lambda r: outliers.point_errors(r, data.n_markers),
         opts.noise,
         rows,

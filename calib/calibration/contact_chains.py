@@ -52,7 +52,7 @@ from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, determined, outliers, validation
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState, on_models
 from .contact_chains_result import (
     ChainContacts,
     ContactChainsCalibration,
@@ -62,7 +62,7 @@ from .contact_chains_result import (
 from .contact_checks import held_out_refusal, subset
 from .contact_choice import touching_postures
 from .contact_model import ContactState
-from .contact_result import gap_stats
+from .contact_result import gap_stats, part_stats
 from .contact_term import (
     check_held_out_gaps,
     check_level_equations,
@@ -89,7 +89,6 @@ from .pixel_chain import (
     check_pixels,
     checked_pixels,
     pixel_parts,
-    split_pixels,
     with_tool,
 )
 from .pixel_chain_result import PixelChain, pixel_result
@@ -230,13 +229,7 @@ def _register(
     contact in closed form, a measured term's frames, a pixel term's camera).
     """
     placements = Placements.of(tuple(chains))
-    models, frames = placements.chain_geometry(tuple(chains))
-    states: list[ContactState | MeasuredState | PixelTermState] = []
-    for mdh, reg in zip(models, measured, strict=True):
-        if isinstance(reg, MeasuredState):  # its registration on the nominal chain
-            states.append(dataclasses.replace(reg, inner=dataclasses.replace(reg.inner, mdh=mdh)))
-        else:
-            states.append(dataclasses.replace(reg, mdh=mdh))
+    states = list(on_models(tuple(measured), placements.chain_models(tuple(chains))))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
@@ -246,7 +239,7 @@ def _register(
             states[c] = dataclasses.replace(mine, camera=owner.camera)
     scales = tuple(pose_weight if isinstance(d.kind, FixedPoseContact) else 1.0 for d in train)
     states = shared_frame(states, train)
-    start = ChainsState(tuple(chains), placements, tuple(states), frames, scales)
+    start = ChainsState(tuple(chains), placements, tuple(states), scales)
     if len(set(plane_of)) == len(plane_of):
         return start
     only_frames = _model(start, plane_of, (), placements.names())
@@ -295,9 +288,9 @@ def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[s
     rows: list[np.ndarray] = []
     names: list[str] = []
     units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
-    for chain, s, frames in zip(start.chains, start.states, start.frames, strict=True):
+    for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, frames, 0, mdh_set))
+        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         for d, label in zip(D, labels, strict=True):
             unit = d / np.linalg.norm(d)
             if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
@@ -416,6 +409,7 @@ def calibrate_contact_chains(
     seed: int = 0,
     progress: Progress | None = None,
     instrument: bool = False,
+    held_label: str | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -448,6 +442,8 @@ def calibrate_contact_chains(
         instrument: The measured terms are a tree's tools measured by one instrument outside
             the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
             joint placement component.
+        held_label: The label of the rows given as ``validate`` in the result (``holdout``:
+            rows the caller held out of the data, a tree's); None: each one's source.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -466,14 +462,8 @@ def calibrate_contact_chains(
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
-    splits = [
-        split_pixels(d, holdout, seed)
-        if isinstance(d, PixelPart)
-        else validation.split(d, holdout, seed)
-        if isinstance(d, Measurements)
-        else split_contacts(d, holdout, seed)
-        for d in data
-    ]
+    splits = [validation.split(d, holdout, seed) if isinstance(d, Measurements | PixelPart)
+              else split_contacts(d, holdout, seed) for d in data]  # fmt: skip
     train = [s[0] for s in splits]
     held = [
         v if v is not None else s[1]
@@ -513,9 +503,9 @@ def calibrate_contact_chains(
     result = _assemble(
         start, fitted, model, kept_prior, train, held, plane_of, selection, notes, clock
     )
-    labels = [None if h is None else "holdout" for h in held]
-    if validate is not None:
-        labels = [lab if v is None else v.source for lab, v in zip(labels, validate, strict=True)]
+    given = validate or [None] * len(held)
+    labels = [None if h is None else "holdout" if v is None else held_label or v.source
+              for h, v in zip(held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, None if polished else prior)
@@ -570,7 +560,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     cost = float(fitted.f @ fitted.f)
     if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:
         return fitted, False
-    again = dataclasses.replace(fitted.state, placements=fitted.state.placements.rebased())
+    again = fitted.state.settled()
     try:
         better = fit(
             wide, again, data, None, 1.0, prior=PIN * np.ones(wide.size()), max_iterations=iters
@@ -585,7 +575,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
 def _assemble(
     start, fitted, model, prior, train, held, plane_of, selection, notes, clock
 ) -> ContactChainsCalibration:
-    state: ChainsState = fitted.state
+    state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     cov = None
@@ -606,13 +596,8 @@ def _assemble(
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
-        stats = {
-            "train": gap_stats(s, d.q, d.ids),
-            "train_registration": gap_stats(s0, d.q, d.ids),
-        }
+        stats = part_stats(lambda st, rows: gap_stats(st, rows.q, rows.ids), s0, s, d, h)
         if h is not None:
-            stats["held_out"] = gap_stats(s, h.q, h.ids)
-            stats["held_out_registration"] = gap_stats(s0, h.q, h.ids)
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
         objects = contact_objects(s, d)

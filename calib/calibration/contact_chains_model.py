@@ -2,8 +2,11 @@
 
 A state is the robot's joint placement errors (:class:`~.placements.Placements`, one error
 per URDF joint, whatever chains it is on) and, per chain, its
-:class:`~.contact_model.ContactState` (its MDH model on the perturbed robot, its contact
-frame and plane, :class:`~.contact_frames.ContactFrames`, and its tilt weight). The
+:class:`~.contact_model.ContactState` (its MDH model on the robot the errors act on, its
+contact frame and plane, :class:`~.contact_frames.ContactFrames`, and its tilt weight). A fit
+step moves the errors, not the MDH models: the chains' frames come from the placements
+(:meth:`ChainsState.kinematics`, once per step, passed to the residuals and the Jacobian);
+:meth:`ChainsState.settled` composes the errors into the robot and remakes the MDH models. The
 parameters x: for each object (a plane, or a ``fixed-pose`` chain's pose) its kind's object
 unknowns (a plane's height and two tilts, a pose's six), for each chain its contact's (a flush
 contact's two tilts, none for a fixed pose), then components of joint placement errors
@@ -25,13 +28,14 @@ displacement in its object's frame.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..identification.parameters import ParameterSet
+from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import skew
 from ..measurements.contact_campaign import ContactData
@@ -40,12 +44,13 @@ from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .placements import COMPONENTS, Placements, joint_twists
+from .placements import COMPONENTS, JointFrames, Placements, joint_twists
 
 __all__ = [
     "ChainsData",
     "ChainsModel",
     "ChainsState",
+    "on_models",
     "padded",
     "row_count",
 ]
@@ -76,6 +81,21 @@ class ChainsData:
         return sum(d.m for d in self.parts)
 
 
+def on_models(states: tuple, models: tuple[MDHModel, ...]) -> tuple:
+    """Each chain's state with its MDH model replaced (a measured term's inner state's)."""
+    return tuple(
+        dataclasses.replace(s, inner=dataclasses.replace(s.inner, mdh=mdh))
+        if isinstance(s, MeasuredState)
+        else dataclasses.replace(s, mdh=mdh)
+        for s, mdh in zip(states, models, strict=True)
+    )
+
+
+def _joints(part) -> np.ndarray:
+    """A chain's joint positions in its data ``(m, n)`` (a pixel part's: its rows')."""
+    return np.asarray(part.rows.q if isinstance(part, PixelPart) else part.q, dtype=float)
+
+
 @dataclass(frozen=True, eq=False)
 class ChainsState:
     """The robot's joint placement errors and each chain's contact state.
@@ -83,8 +103,9 @@ class ChainsState:
     Attributes:
         chains: The nominal chains (one robot).
         placements: The joint placement errors.
-        states: Each chain's state (its MDH model on the perturbed robot).
-        frames: Each chain's joint frames at q = 0 on the perturbed robot ``(n, 4, 4)``.
+        states: Each chain's state, its MDH model the chain on ``placements.model`` (the
+            robot the errors act on): the robot with its errors is seen through
+            :meth:`kinematics` (:meth:`settled`: the models of the robot with its errors).
         scales: Factor of each chain's weighted rows in the fit (None: 1 each): a loop's
             rows may weigh more than a table's (``pose_weight``).
     """
@@ -92,20 +113,53 @@ class ChainsState:
     chains: tuple[Chain, ...]
     placements: Placements
     states: tuple[ContactState | MeasuredState | PixelTermState, ...]
-    frames: tuple[np.ndarray, ...]
     scales: tuple[float, ...] | None = None
 
     def scale(self, c: int) -> float:
         """Factor of chain c's rows."""
         return 1.0 if self.scales is None else float(self.scales[c])
 
-    def residuals(self, data: ChainsData, torque=None) -> np.ndarray:
-        """Weighted ``0 - gap`` of every touch ``(m, rows)``, chain after chain (padded)."""
+    def kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
+        """Each chain's frames at its data's joints, the errors included (once per step)."""
+        return tuple(
+            self.placements.frames(chain, _joints(d))
+            for chain, d in zip(self.chains, data.parts, strict=True)
+        )
+
+    def step_kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
+        """:meth:`kinematics` (what :class:`~.solve.Problem` makes once per x)."""
+        return self.kinematics(data, torque)
+
+    def same_geometry(self, other) -> bool:
+        """Whether ``other``'s kinematics at the same data are this state's."""
+        return isinstance(other, ChainsState) and other.placements is self.placements
+
+    def settled(self) -> ChainsState:
+        """The same robot with its errors composed into its model and the MDH models remade.
+
+        Each chain state's MDH model is then its chain on the robot with the errors (what a
+        result reports and a refinement starts from).
+        """
+        if not np.any(self.placements.y):
+            return self
+        placements = self.placements.rebased()
+        models = placements.chain_models(self.chains)
+        return dataclasses.replace(
+            self, placements=placements, states=on_models(self.states, models)
+        )
+
+    def residuals(self, data: ChainsData, torque=None, kin=None) -> np.ndarray:
+        """Weighted ``0 - gap`` of every touch ``(m, rows)``, chain after chain (padded).
+
+        ``kin``: :meth:`kinematics` at ``data``, if already made.
+        """
+        if kin is None:
+            kin = self.kinematics(data, torque)
         rows = row_count(s.kind for s in self.states)
         return np.concatenate(
             [
-                padded(self.scale(c) * s.residuals(d), rows)
-                for c, (s, d) in enumerate(zip(self.states, data.parts, strict=True))
+                padded(self.scale(c) * s.residuals(d, None, k), rows)
+                for c, (s, d, k) in enumerate(zip(self.states, data.parts, kin, strict=True))
             ]
         )
 
@@ -134,7 +188,6 @@ class ChainsModel:
     directions: np.ndarray | None = None
     kinds: tuple[Contact | MeasuredKind | PixelKind, ...] | None = None
     counts: tuple[int, ...] | None = None
-    _last: dict = field(default_factory=dict, compare=False, repr=False)
 
     n_markers = 0  # its rows come weighted (solve.row_weights: 1)
     pose = False
@@ -190,7 +243,7 @@ class ChainsModel:
 
     def with_free(self, free: tuple[int, ...]) -> ChainsModel:
         """The same planes and contacts, other free components."""
-        return dataclasses.replace(self, free=tuple(free), _last={})
+        return dataclasses.replace(self, free=tuple(free))
 
     def _lift(self) -> np.ndarray:
         """The free directions ``(free, 6 J)``."""
@@ -223,85 +276,77 @@ class ChainsModel:
         return ContactModel(ParameterSet("none", ()), state.frames)
 
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
-        """The state at parameters x (x = 0 is ``start``).
-
-        The last state made is remembered (the solver asks for the residuals, then the
-        Jacobian, at one x): a memo of a pure function, invisible from outside.
-        """
+        """The state at parameters x (x = 0 is ``start``): no MDH model is remade."""
         x = np.asarray(x, dtype=float)
-        key = (id(start), x.tobytes())
-        hit = self._last.get(key)
-        if hit is not None and hit[0] is start:
-            return hit[1]
-        state = self._apply(start, x)
-        self._last.clear()
-        self._last[key] = (start, state)
-        return state
-
-    def _apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
-        dy = self._lift().T @ x[self.fixed :]
+        placements = start.placements
         if len(self.free):
-            placements = start.placements.shifted(dy)
-            models, frames = placements.chain_geometry(start.chains)
-        else:
-            placements, frames = start.placements, start.frames
-            models = tuple(s.mdh for s in start.states)
+            placements = placements.shifted(self._lift().T @ x[self.fixed :])
         states = tuple(
-            s.moved(mdh, self._chain_x(x, c))
+            s.moved(self._chain_x(x, c))
             if isinstance(s, MeasuredState | PixelTermState)
-            else dataclasses.replace(self._contact_model(s).apply(s, self._chain_x(x, c)), mdh=mdh)
-            for c, (s, mdh) in enumerate(zip(start.states, models, strict=True))
+            else self._contact_model(s).apply(s, self._chain_x(x, c))
+            for c, s in enumerate(start.states)
         )
-        return ChainsState(start.chains, placements, states, frames, start.scales)
+        return dataclasses.replace(start, placements=placements, states=states)
 
-    def jacobian(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
-        """Weighted d(gap)/dx ``(m, rows, size)``, chain after chain (padded rows)."""
-        state = self.apply(start, x)
+    def jacobian(
+        self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None, state=None, kin=None
+    ):
+        """Weighted d(gap)/dx ``(m, rows, size)``, chain after chain (padded rows).
+
+        ``state`` (:meth:`apply` at x) and ``kin`` (its :meth:`ChainsState.kinematics` at
+        ``data``): if already made.
+        """
+        if state is None:
+            state = self.apply(start, x)
+        if kin is None:
+            kin = state.kinematics(data, torque)
         rows = row_count(self.chain_kinds())
         blocks = [
-            padded(start.scale(c) * self._block(start, state, x, c, d), rows)
+            padded(start.scale(c) * self._block(start, state, x, c, d, kin[c]), rows)
             for c, d in enumerate(data.parts)
         ]
         return np.concatenate(blocks)
 
-    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d):
-        """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded)."""
+    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin):
+        """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded).
+
+        ``kin``: chain c's frames at its data (:meth:`ChainsState.kinematics`).
+        """
         s, s0 = state.states[c], start.states[c]
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
         obj, con = self._chain_columns(c)
         if isinstance(s, PixelTermState) and isinstance(s0, PixelTermState):
             chain, xc, lift = state.chains[c], self._chain_x(x, c), self._lift()
-            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, xc, d, lift)
+            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, xc, d, lift, kin)
             if self.free:
                 J[:, :, self.fixed :] = robot
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, self.own_columns(c)] = s0.own_jacobian(s.mdh, self._chain_x(x, c), d)
+            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin)
             if self.free:
                 J[:, :, self.fixed :] = measured_columns(
-                    state.placements, state.chains[c], s, state.frames[c], d, self._lift()
+                    state.placements, state.chains[c], s, kin, d, self._lift()
                 )
             return J
         if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
             raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
-        base = dataclasses.replace(s0, mdh=s.mdh)
-        Jc = self._contact_model(base).jacobian(base, self._chain_x(x, c), d)
+        Jc = self._contact_model(s0).jacobian(s0, self._chain_x(x, c), d, None, kin, s)
         split = obj.stop - obj.start
         J[:, :, obj] = Jc[:, :, :split]
         J[:, :, con] = Jc[:, :, split:]
         if self.free:
-            J[:, :, self.fixed :] = self._robot_columns(state, c, s, d)
+            J[:, :, self.fixed :] = self._robot_columns(state, c, s, d, kin)
         return J
 
     def _robot_columns(
-        self, state: ChainsState, c: int, s: ContactState, d: ContactData
+        self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin: JointFrames
     ) -> np.ndarray:
         """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
         chain = state.chains[c]
         joints = state.placements.joints
-        columns = np.array([joints.index(name) for name in chain.joint_names])
-        kin = s.mdh.kinematics(np.asarray(d.q, dtype=float))
-        ang, lin = joint_twists(state.placements, chain, s.mdh, state.frames[c], kin, columns)
+        columns = state.placements.path(chain).columns
+        ang, lin = joint_twists(state.placements, chain, kin)
         R, p = kin.R[:, -1], kin.p[:, -1]
         point = p + R @ s.contact[:3, 3]
         moving = lin - skew(point)[:, None] @ ang  # velocity of the contact point

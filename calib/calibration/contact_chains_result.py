@@ -19,7 +19,7 @@ from ..kinematics.placement_export import (
 )
 from ..kinematics.robot import Chain
 from .contact_frames import ContactFrames
-from .contact_result import GapStats, gap_errors_mm, gap_rows
+from .contact_result import GapStats, gap_rows, part_stats, term_errors
 from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors
 from .instrument import instrument_errors, instrument_format2, instrument_lines
@@ -46,16 +46,7 @@ __all__ = [
     "ContactChainsCalibration",
     "MeasuredChain",
     "measured_part",
-    "term_errors",
 ]
-
-
-def term_errors(stats: dict[str, GapStats], held_source: str | None) -> dict:
-    """A term's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-    out: dict = {"train": gap_errors_mm(stats, "train"), "held_out": None}
-    if "held_out" in stats:
-        out["held_out"] = {"source": held_source, **gap_errors_mm(stats, "held_out")}
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,11 +198,7 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
         std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
         term: The term's number (1-based, in the order given), in its unknowns' names.
     """
-    stats = {"train": measured_stats(state, train), "train_registration": measured_stats(
-        registered, train)}  # fmt: skip
-    if held is not None:
-        stats["held_out"] = measured_stats(state, held)
-        stats["held_out_registration"] = measured_stats(registered, held)
+    stats = part_stats(measured_stats, registered, state, train, held)
     joint = None if state.instrument else measuring_joint(chain)
     frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
     names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]

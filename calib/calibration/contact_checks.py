@@ -24,7 +24,7 @@ import dataclasses
 
 import numpy as np
 
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
@@ -176,33 +176,11 @@ def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) ->
 
     start = start or registration(nominal, data, guess, DEFAULT_WEIGHT)
     first = _rms(length_errors(start, data)[0])
-    if not diagnosis.suspect(first, None):
-        return []
-    still = diagnosis.constant_joints(data)
-    if still:
-        raise DataError(
-            data.source,
-            f"the registration leaves {1e3 * first:.4g} mm RMS and joint column(s) "
-            f"{', '.join(still)} hold one value in every touch: were those joints logged?",
-        )
-    cause = diagnosis.likely_cause(
-        data,
-        chain.sigma == 0,
-        gap,
-        first,
-        joints_only=True,
-    )
-    if cause is not None:
-        raise DataError(
-            data.source,
-            f"the touches look like {cause[0]}: the registration's gap drops from "
-            f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
-        )
-    return [
-        f"the registration leaves {1e3 * first:.4g} mm RMS, far above geometric errors, and no "
-        f"usual mistake (swapped joint columns, degrees) explains it: check the touches, the "
-        f"chain and the contact frame's guess"
-    ]
+    return diagnosis.explain(data, chain.sigma == 0, gap, first, None, _WORDS)
+
+
+_WORDS = diagnosis.Words("touches", "touch", "gap",
+                         check="the touches, the chain and the contact frame's guess")  # fmt: skip
 
 
 def enough_touches(data: ContactData):

@@ -34,6 +34,7 @@ from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel
 from .contact_frames import ContactFrames, row_weights
 from .model import compliance_name, offset_parameter
+from .placements import JointFrames
 
 __all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame", "plane_state"]
 
@@ -109,13 +110,19 @@ class ContactState:
         return self.mdh.kinematics(self.joints(q, torque))
 
     def gaps(
-        self, q: np.ndarray, ids: Sequence[str] | None = None, torque: np.ndarray | None = None
+        self,
+        q: np.ndarray,
+        ids: Sequence[str] | None = None,
+        torque: np.ndarray | None = None,
+        kin: Kinematics | JointFrames | None = None,
     ) -> np.ndarray:
         """The kind's gap ``(m, rows)`` [m, rad] of touches ``q`` of objects ``ids``.
 
-        ``ids`` may be left out with one object.
+        ``ids`` may be left out with one object. ``kin``: the robot's frames at the touches
+        (the last the tool's; a joint fit's), or None: :meth:`kinematics`.
         """
-        kin = self.kinematics(q, torque)
+        if kin is None:
+            kin = self.kinematics(q, torque)
         index = self._index(ids, len(kin.p))
         return self.frames.gaps(kin.R[:, -1], kin.p[:, -1], index)
 
@@ -130,9 +137,11 @@ class ContactState:
         """Weight of each gap row: 1 for a length, :attr:`weight` for an angle."""
         return row_weights(self.kind, self.weight)
 
-    def residuals(self, data, torque: np.ndarray | None = None) -> np.ndarray:
+    def residuals(
+        self, data, torque: np.ndarray | None = None, kin: Kinematics | JointFrames | None = None
+    ) -> np.ndarray:
         """Weighted ``0 - gap`` ``(m, rows)`` of contact data (lengths [m], weighted angles)."""
-        return -self.gaps(data.q, data.ids, torque) * self.row_weights()
+        return -self.gaps(data.q, data.ids, torque, kin) * self.row_weights()
 
 
 def plane_state(
@@ -195,9 +204,12 @@ class ContactModel:
         frames = start.frames.moved(x[: self.fixed])
         return dataclasses.replace(start, mdh=mdh, frames=frames, compliance=c)
 
-    def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None) -> np.ndarray:
-        """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``."""
-        own, shared, index = self.blocks(start, x, data, torque)
+    def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None):
+        """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``.
+
+        ``kin`` and ``state``: see :meth:`blocks`.
+        """
+        own, shared, index = self.blocks(start, x, data, torque, kin, state)
         m, rows, o = own.shape
         J = np.zeros((m, rows, self.size()))
         if o:
@@ -207,18 +219,23 @@ class ContactModel:
         return J
 
     def blocks(
-        self, start: ContactState, x: np.ndarray, data, torque=None
+        self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`jacobian` by block: each touch's own object's columns, the shared ones.
+
+        ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's, whose
+        robot is not the state's MDH model: it moves no MDH parameter), or None: the MDH
+        model's at x. ``state``: :meth:`apply` at x, if already made.
 
         Returns:
             The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
             other objects' are zero), on the shared unknowns (the contact's, the robot's,
             the compliances) ``(m, rows, size - K o)``, and the object of each touch.
         """
-        s = self.apply(start, x)
+        s = self.apply(start, x) if state is None else state
         q = s.joints(data.q, torque)
-        kin = s.mdh.kinematics(q)
+        if kin is None or len(self.params) or self.compliance:  # MDH columns: its frames
+            kin = s.mdh.kinematics(q)
         index = s._index(data.ids, len(q), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
         own, shared = s.frames.parts(R, p, index, x[: self.fixed])

@@ -59,7 +59,9 @@ __all__ = [
     "gap_errors_mm",
     "gap_rows",
     "gap_stats",
+    "part_stats",
     "row_stats",
+    "term_errors",
 ]
 
 
@@ -134,6 +136,25 @@ def gap_errors_mm(stats: dict[str, GapStats], part: str) -> dict:
         "calibrated": cal.in_mm(),
         "urdf": stats.get(f"{part}_urdf", cal).in_mm(),
     }
+
+
+def term_errors(stats: dict[str, GapStats], held_source: str | None) -> dict:
+    """A term's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
+    out: dict = {"train": gap_errors_mm(stats, "train"), "held_out": None}
+    if "held_out" in stats:
+        out["held_out"] = {"source": held_source, **gap_errors_mm(stats, "held_out")}
+    return out
+
+
+def part_stats(stat, registered, state, train, held) -> dict:
+    """``stat(s, rows)`` of the fitted and the registered states on a term's rows.
+
+    Keys ``train``, ``train_registration`` and, with held-out rows (``held`` not None),
+    ``held_out`` and ``held_out_registration``.
+    """
+    parts = {"train": train} if held is None else {"train": train, "held_out": held}
+    return {key + suffix: stat(s, rows) for key, rows in parts.items()
+            for suffix, s in (("", state), ("_registration", registered))}  # fmt: skip
 
 
 def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) -> GapStats:

@@ -33,10 +33,11 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import CalibError
+from ..exceptions import CalibError, DataError
 
 __all__ = [
     "EXPLAINS",
@@ -44,7 +45,9 @@ __all__ = [
     "ORIENTATION_SUSPECT",
     "SHUFFLE_SEED",
     "SUSPECT",
+    "Words",
     "constant_joints",
+    "explain",
     "likely_cause",
     "suspect",
 ]
@@ -201,3 +204,62 @@ def likely_cause(
                 continue  # nearly one posture: any fit there explains nothing
             best = (what, rms)
     return best
+
+
+@dataclass(frozen=True)
+class Words:
+    """How a kind's rows are named in :func:`explain`'s messages.
+
+    Attributes:
+        data: The rows as a whole (``the touches look like degrees``).
+        row: One row (``hold one value in every touch``).
+        error: The registration's error (``the registration's gap drops from ...``).
+        mistakes: The usual mistakes tried, for the note when none explains the rows.
+        check: What to check then.
+    """
+
+    data: str = "data"
+    row: str = "row"
+    error: str = "error"
+    mistakes: str = "swapped joint columns, degrees"
+    check: str = "the data and the chain"
+
+
+def explain(
+    data, revolute, error, first: float, noise, words: Words, joints_only=True
+) -> list[str]:
+    """Raise the usual mistake behind a registration's absurd error; else a note of it.
+
+    Args:
+        data: The rows (``joint_names``, ``q``, ``m``, ``source``).
+        revolute: Which joint columns are revolute.
+        error: The registration's RMS error [m] of some rows (``data`` corrected).
+        first: That error of ``data`` as they are [m] (infinite: no registration).
+        noise: The instrument's noise [m], or None.
+        words: How the messages name the rows.
+        joints_only: Try the joint columns' mistakes only (:func:`likely_cause`).
+
+    Returns:
+        A list: empty when the error is not suspect (:func:`suspect`), else the note that no
+        usual mistake explains it.
+
+    Raises:
+        DataError: Joint columns that hold one value in every row, or the mistake named.
+    """
+    if not suspect(first, noise):
+        return []
+    known = bool(np.isfinite(first))
+    leaves = f"leaves {1e3 * first:.4g} mm RMS" if known else "fails"
+    still = constant_joints(data)
+    if still:
+        raise DataError(data.source, f"the registration {leaves} and joint column(s) "
+                        f"{', '.join(still)} hold one value in every {words.row}: were those "
+                        "joints logged?")  # fmt: skip
+    cause = likely_cause(data, revolute, error, first, joints_only=joints_only)
+    if cause is not None:
+        before = f"{1e3 * first:.4g} mm" if known else "no registration"
+        raise DataError(data.source, f"the {words.data} look like {cause[0]}: the "
+                        f"registration's {words.error} drops from {before} to "
+                        f"{1e3 * cause[1]:.4g} mm RMS once corrected")  # fmt: skip
+    return [f"the registration {leaves}, far above geometric errors, and no usual mistake "
+            f"({words.mistakes}) explains it: check {words.check}"]  # fmt: skip

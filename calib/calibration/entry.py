@@ -269,7 +269,7 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
         )
     tree = cast(Tree, term.robot)
     level = DEFAULT_TREE_LEVEL if problem.params is None else problem.params
-    dataclasses.replace(problem.options(), level=level).for_tree()
+    dataclasses.replace(problem.options(), level=level).check_tree()
     validate = cast(Measurements | None, term.validate)
     data, held = prepare_tree(
         tree, cast(Measurements, term.data), validate, problem.holdout, problem.seed
@@ -283,13 +283,8 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
         seed=problem.seed,
         progress=progress,
         instrument=True,
+        held_label="holdout" if validate is None else None,
     )
-    if validate is None:  # rows held out of the data: labelled so
-        chains = tuple(
-            c if c.held_source is None else dataclasses.replace(c, held_source="holdout")
-            for c in result.chains
-        )
-        result = dataclasses.replace(result, chains=chains)
     return dataclasses.replace(result, shape="tree")
 
 

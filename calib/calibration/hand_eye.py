@@ -8,42 +8,30 @@ on its link (6) and the target's mounting on its link (6) are unknown. The joint
 stay nominal (for a robot already calibrated, or to compare with hand-eye solvers: issue 32's
 "hand-eye alone"); :func:`calib.calibrate` of a pixel term fits them too.
 
-Steps: the camera placed in closed form on the target as given
-(:func:`~.pixel_fit.camera_from_rays`) unless a placement is given, refined alone
-(:func:`~.pixel_fit.refine_camera`), then Levenberg-Marquardt (``scipy.optimize.least_squares``)
-on the camera's and the mounting's 12 steps composed into the start
-(:func:`~.pixel_term.apply_step`), with the pixel term's analytic Jacobian at the moved state
-(:func:`~.pixel_term.pixel_jacobian`): its columns are the derivatives by a step composed
-there, so the fit's stationary points are those of the reprojection error.
+It is the joint engine's problem of one pixel term (:mod:`.pixel_chain`) with the target's
+mounting an unknown, at the level ``frames``: the joints held at nominal, the term's own
+unknowns free (:func:`~.contact_chains.calibrate_contact_chains`). The engine's steps are
+its: the camera placed in closed form (:func:`~.pixel_fit.camera_from_rays`) unless a
+placement is given, refined alone, the usual mistakes diagnosed, outliers set aside, then its
+least squares on the camera's and the mounting's 12 unknowns.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..measurements.pixels import PixelObservations, Target
-from .pixel_fit import camera_from_rays, rays, refine_camera
-from .pixel_term import (
-    PixelCamera,
-    PixelRows,
-    PixelState,
-    Unknowns,
-    apply_step,
-    check_in_front,
-    pixel_jacobian,
-    pixel_residuals,
-    pixel_rows,
-    target_points,
-)
-from .placements import Placements
+from .contact_chains import calibrate_contact_chains
+from .pixel_chain import PixelData
+from .pixel_chain_result import PixelChain
+from .pixel_term import PixelCamera, Unknowns
+from .registration import rigid_fit
 
 __all__ = ["HandEye", "hand_eye"]
-
-_MOUNT = Unknowns(mount=True)
 
 MAX_EVALUATIONS = 200
 """Most residual evaluations of the fit."""
@@ -59,23 +47,15 @@ class HandEye:
         mount: The correction of the target: the fitted points are ``R X + t`` of the given
             ones ``X`` (in the target's link) ``(4, 4)`` [m].
         target: The target points fitted, in the target's link ``(k, 3)`` [m].
-        rms_px: The reprojection error's RMS over u and v [px].
+        rms_px: The reprojection error's RMS over u and v [px] (the rows kept).
+        outliers: The rows set aside (their file lines), if any.
     """
 
     camera: np.ndarray
     mount: np.ndarray
     target: np.ndarray
     rms_px: float
-
-
-def _rigid(before: np.ndarray, after: np.ndarray) -> np.ndarray:
-    """The rigid motion ``(4, 4)`` taking the points ``before`` onto ``after`` (least squares)."""
-    a, b = before.mean(axis=0), after.mean(axis=0)
-    U, _, Vt = np.linalg.svd((before - a).T @ (after - b))
-    R = Vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))]) @ U.T
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, b - R @ a
-    return T
+    outliers: tuple[int, ...] = ()
 
 
 def hand_eye(chain: Chain, camera: PixelCamera, target: Target, obs: PixelObservations) -> HandEye:
@@ -92,47 +72,17 @@ def hand_eye(chain: Chain, camera: PixelCamera, target: Target, obs: PixelObserv
     Raises:
         InvalidArgumentError: The camera's link is not the chain's base.
         DataError: A joint without its column, a point not in the target, no row of the
-            camera, points behind the camera at the start.
+            camera, points behind the camera at the start, a usual mistake in the joints.
     """
-    if camera.link != chain.base_frame:
-        raise InvalidArgumentError(
-            f"camera {camera.name} is on {camera.link}; the chain starts at {chain.base_frame}"
-        )
-    rows = pixel_rows(chain, obs, target, camera.name)
-    placements = Placements.of((chain,))
-    lens, points = camera.intrinsics.camera, np.array(target.position)
-    guess = camera.placement
-    if guess is None:
-        seen = target_points(PixelState(placements, np.eye(4), points, lens), chain, rows)[1]
-        guess = camera_from_rays(seen, rays(lens, rows.pixels), obs.source)
-    state = PixelState(placements, np.asarray(guess, float), points, lens)
-    check_in_front(target_points(state, chain, rows)[0], rows, obs.source)
-    state = refine_camera(state, chain, rows)
-    fitted = _fit(state, chain, rows)
-    r = pixel_residuals(fitted, chain, rows)
-    rms = float(np.sqrt(np.mean(r**2)))
-    return HandEye(fitted.camera, _rigid(points, fitted.target), fitted.target, rms)
-
-
-def _fit(start: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
-    """Levenberg-Marquardt on the camera's and the mounting's 12 steps from ``start``."""
-    from scipy.optimize import least_squares
-
-    n = start.placements.y.size  # the joint placement columns, between the camera and mount
-    free = np.r_[0:6, 6 + n : 12 + n]
-
-    def moved(x: np.ndarray) -> PixelState:
-        step = np.zeros(12 + n)
-        step[free] = x
-        return apply_step(start, step, _MOUNT)
-
-    def residuals(x: np.ndarray) -> np.ndarray:
-        return pixel_residuals(moved(x), chain, rows).ravel()
-
-    def jacobian(x: np.ndarray) -> np.ndarray:
-        J = pixel_jacobian(moved(x), chain, rows, _MOUNT)[1]
-        return J.reshape(-1, J.shape[2])[:, free]
-
-    found = least_squares(residuals, np.zeros(12), jacobian, method="lm", xtol=1e-15,
-                          ftol=1e-15, gtol=1e-15, max_nfev=MAX_EVALUATIONS)  # fmt: skip
-    return moved(found.x)
+    data = PixelData(camera, target, obs, Unknowns(mount=True))
+    fitted = calibrate_contact_chains(
+        [chain], [data], params="frames", max_iterations=MAX_EVALUATIONS
+    )
+    part = cast(PixelChain, fitted.chains[0])  # a pixel term's part
+    points = np.asarray(target.position, dtype=float)
+    R, t = rigid_fit(points, part.state.target)
+    mount = np.eye(4)
+    mount[:3, :3], mount[:3, 3] = R, t
+    rms = float(part.pixels["train"]["reprojection_rms_px"]) / np.sqrt(2)  # of |(u, v)|: per axis
+    return HandEye(part.state.camera, mount, part.state.target, rms, tuple(
+        o.row for o in part.outliers))  # fmt: skip

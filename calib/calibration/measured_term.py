@@ -215,39 +215,42 @@ class MeasuredState:
         """1 on the point rows, :attr:`weight` on the rotation rows."""
         return np.where(np.array(self.kind.angular), self.weight, 1.0)
 
-    def residuals(self, data, torque=None) -> np.ndarray:
-        """Weighted measured - predicted ``(m, rows)`` [m]."""
-        return self.inner.residuals(data) * self.row_weights()
+    def residuals(self, data, torque=None, kin=None) -> np.ndarray:
+        """Weighted measured - predicted ``(m, rows)`` [m].
 
-    def moved(self, mdh, x: np.ndarray) -> MeasuredState:
-        """The state on the chain model ``mdh`` with its own unknowns moved by ``x``."""
-        inner = dataclasses.replace(self.inner, mdh=mdh)
-        return dataclasses.replace(self, inner=own_model(self.kind).apply(inner, x))
+        ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
+        MDH model's.
+        """
+        return self.inner.residuals(data, None, kin) * self.row_weights()
 
-    def own_jacobian(self, mdh, x: np.ndarray, data: Measurements) -> np.ndarray:
-        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``."""
-        inner = dataclasses.replace(self.inner, mdh=mdh)
-        J = own_model(self.kind).jacobian(inner, x, data, None)
+    def moved(self, x: np.ndarray) -> MeasuredState:
+        """The state with its own unknowns moved by ``x``."""
+        return dataclasses.replace(self, inner=own_model(self.kind).apply(self.inner, x))
+
+    def own_jacobian(self, x: np.ndarray, data: Measurements, kin) -> np.ndarray:
+        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
+
+        ``kin``: the chain's frames at the data's joints at x (the joint fit's).
+        """
+        J = own_model(self.kind).jacobian(self.inner, x, data, None, kin=kin)
         return J * self.row_weights()[None, :, None]
 
 
-def measured_columns(placements, chain, state: MeasuredState, frames, data, lift) -> np.ndarray:
+def measured_columns(placements, chain, state: MeasuredState, kin, data, lift) -> np.ndarray:
     """Weighted d(prediction)/d(free placement directions) ``(m, rows, free)``.
 
     Args:
         placements: The current joint placement errors.
         chain: The term's nominal chain.
-        state: Its state on the robot of ``placements``.
-        frames: Its joint frames at q = 0 (:meth:`~.placements.Placements.chain_geometry`).
+        state: Its state.
+        kin: The chain's frames at the data's joints (:meth:`~.placements.Placements.frames`).
         data: Its measurements.
         lift: The free directions ``(free, 6 J)``.
     """
     s = state.inner
     joints = placements.joints
-    columns = np.array([joints.index(name) for name in chain.joint_names])
-    q = np.asarray(data.q, dtype=float)
-    kin = s.mdh.kinematics(q)
-    ang, lin = joint_twists(placements, chain, s.mdh, frames, kin, columns)
+    columns = placements.path(chain).columns
+    ang, lin = joint_twists(placements, chain, kin)
     R, p = kin.R[:, -1], kin.p[:, -1]
     K, m = s.n_markers, data.m
     Rf = s.frame[:3, :3]

@@ -35,6 +35,7 @@ from ..identification.parameters import Kind, Parameter, ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import left_jacobian, matrix_to_quaternion, rotation_matrix, skew
 from ..measurements.data import Measurements
+from .placements import JointFrames
 
 __all__ = [
     "FRAME_NAMES",
@@ -115,11 +116,15 @@ class State:
         return POSITION if self.tool_rotation is None else POSE
 
     def predict(
-        self, q: np.ndarray, torque: np.ndarray | None = None, kin: Kinematics | None = None
+        self,
+        q: np.ndarray,
+        torque: np.ndarray | None = None,
+        kin: Kinematics | JointFrames | None = None,
     ):
         """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None).
 
-        ``kin``: :meth:`kinematics` at q, if already computed.
+        ``kin``: :meth:`kinematics` at q (or any frames whose last is the tool's), if
+        already computed.
         """
         if kin is None:
             kin = self.kinematics(q, torque)
@@ -131,13 +136,29 @@ class State:
         """The geometry's frames at the joints it sees (:meth:`joints`)."""
         return self.mdh.kinematics(self.joints(q, torque))
 
+    def step_kinematics(self, data, torque: np.ndarray | None) -> Kinematics:
+        """:meth:`kinematics` at the data's joints (what a fit makes once per x)."""
+        return self.kinematics(data.q, torque)
+
+    def same_geometry(self, other) -> bool:
+        """Whether ``other``'s kinematics at the same data are this state's.
+
+        True when x moved no geometry (the frame and markers only).
+        """
+        return (
+            isinstance(other, State)
+            and other.mdh is self.mdh
+            and np.array_equal(other.compliance, self.compliance)
+        )
+
     def residuals(
-        self, data, torque: np.ndarray | None = None, kin: Kinematics | None = None
+        self, data, torque: np.ndarray | None = None, kin: Kinematics | JointFrames | None = None
     ) -> np.ndarray:
         """Measured - model per configuration ``(m, 3 K [+ 3])`` [m, rad].
 
         The rows of the data's kind (the state's points only if it has no tool rotation);
-        ``kin``: :meth:`kinematics` at the data's joints, if already computed.
+        ``kin``: :meth:`kinematics` at the data's joints (or any frames whose last is the
+        tool's), if already computed.
         """
         kind = data.kind if self.tool_rotation is not None else POSITION
         if kin is None:
@@ -260,13 +281,15 @@ class ErrorModel:
         data,
         torque: np.ndarray | None,
         state: State | None = None,
-        kin: Kinematics | None = None,
+        kin: Kinematics | JointFrames | None = None,
     ) -> np.ndarray:
         """d(model)/dx, ``(m, rows, size)``: the kind's rows (3 K point rows, 3 rotation rows).
 
         The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
         whole Jacobian is that of model - measured). ``state`` (``apply(start, x)``) and
-        ``kin`` (its :meth:`State.kinematics` at the data's joints): if already computed.
+        ``kin`` (its :meth:`State.kinematics` at the data's joints): if already computed
+        (other frames whose last is the tool's, e.g. a joint fit's, for a model of no MDH
+        column).
         """
         if state is None:
             state = self.apply(start, x)
@@ -296,13 +319,15 @@ class ErrorModel:
         if self._tool_free:
             J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
             c += 3
-        for s in range(0, m, CONFIGURATION_BLOCK):  # in blocks: the temporaries stay small
-            part, col = slice(s, s + CONFIGURATION_BLOCK), c
-            load = None if torque is None else torque[part]
-            sub = Kinematics(*(a[part] for a in kin))
-            for block in self._mdh_blocks(state, q[part], sub, load):
-                J[part, :, col : col + block.shape[2]] = block
-                col += block.shape[2]
+        if self.base or self.compliance:  # the MDH columns need the MDH model's frames
+            mdh_kin = kin if isinstance(kin, Kinematics) else state.mdh.kinematics(q)
+            for s in range(0, m, CONFIGURATION_BLOCK):  # in blocks: small temporaries
+                part, col = slice(s, s + CONFIGURATION_BLOCK), c
+                load = None if torque is None else torque[part]
+                sub = Kinematics(*(a[part] for a in mdh_kin))
+                for block in self._mdh_blocks(state, q[part], sub, load):
+                    J[part, :, col : col + block.shape[2]] = block
+                    col += block.shape[2]
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
         return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
 

@@ -3,7 +3,7 @@
 The command line builds its parser from the constants here without importing the
 calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
 arguments for a chain and a tree and turns them into one :class:`Options`, checked once when
-it is made; a tree refuses (:meth:`Options.for_tree`) what only a chain's calibration can honour.
+it is made; a tree refuses (:meth:`Options.check_tree`) what only a chain's calibration can honour.
 """
 
 from __future__ import annotations
@@ -182,8 +182,8 @@ class Options:
         """Instrument noise [m], or None."""
         return None if self.noise_mm is None else 1e-3 * self.noise_mm
 
-    def for_tree(self) -> Options:
-        """These options, checked for a tree's calibration (which takes fewer).
+    def check_tree(self) -> None:
+        """Check these options for a tree's calibration (which takes fewer).
 
         Raises:
             InvalidArgumentError: A level other than :data:`TREE_LEVELS`, or a
@@ -201,7 +201,6 @@ class Options:
                     f"{name} is for one chain: a tree is calibrated with params "
                     f"({' or '.join(TREE_LEVELS)}), validate, holdout, seed and max_iterations"
                 )
-        return self
 
 
 P = ParamSpec("P")

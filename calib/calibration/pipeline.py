@@ -78,9 +78,10 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=Non
     train = data if keep.all() else data.subset(keep)
     reg = registration(nominal, train, guess, opts) if reg is None else reg
     torque = _torques(chain, opts, train, held)
+    kin = reg.kinematics(train.q, torque[0])  # x = 0 is the registration: once per round
     notes: list[str] = []
     with phase(progress, "calibrate: selection"):
-        model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes)
+        model, selection, prior = _choose(chain, nominal, reg, train, torque[0], opts, notes, kin)
     _collect(train.m)  # the registration's and selection's cycles held 130 MB at 100,000 poses
     tic = time.perf_counter()
     with phase(progress, f"calibrate: fit ({model.size()} parameters)"):
@@ -94,6 +95,7 @@ def _round(chain, nominal, data, keep, guess, opts, held, reg=None, progress=Non
             loss=opts.loss,
             scale=opts.noise or 1e-3,
             max_iterations=opts.max_iterations,
+            kin=kin,
         )
     ms = 1e3 * (time.perf_counter() - tic)
     return _Round(train, reg, torque, model, selection, prior, fitted, tuple(notes), ms)
@@ -120,7 +122,8 @@ def calibrate_chain(chain, data, marker, validate, opts, progress=None) -> Calib
         )
 
     def errors(rnd: _Round) -> outliers.Errors:
-        residual = rnd.fitted.state.residuals(train, all_torque)
+        kin = rnd.fitted.kin if rnd.train is train else None  # the fit's, on all the rows
+        residual = rnd.fitted.state.residuals(train, all_torque, kin)
         return outliers.point_errors(residual, train.n_markers)
 
     rows = train.rows or tuple(range(1, train.m + 1))
@@ -220,8 +223,11 @@ def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[st
     return pset, [n for n in names if n not in opts.fix]
 
 
-def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
-    """The free parameters: the level's identifiable ones, or the selection's (``auto``)."""
+def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str], kin=None):
+    """The free parameters: the level's identifiable ones, or the selection's (``auto``).
+
+    ``kin``: the registration's kinematics at the data's joints, if already made.
+    """
     pset, names = level_names(nominal, opts)
     joints = [] if torque is None else [j for j in range(nominal.n) if np.any(torque[:, j])]
     freedoms.check_compliance(chain, torque, joints, opts)
@@ -269,8 +275,10 @@ def _choose(chain, nominal, reg: State, data, torque, opts, notes: list[str]):
         del J  # memory: the selection's arrays are the campaign's largest
         if sample < data.m:
             data, torque = _sample(data, torque, sample, opts.seed, notes)
+            kin = None  # made at the sample's joints
         forced = [cand.index(n) for n in opts.free if n in cand]
-        selection, weights = _select(wide, reg, data, torque, w, fixed, columns, cand, forced)
+        chosen = _select(wide, reg, data, torque, w, fixed, columns, cand, forced, kin)
+        selection, weights = chosen
         cand = list(selection.kept)
     else:
         selection, weights = None, np.zeros(len(cand))
@@ -300,9 +308,13 @@ def _sample(data: Measurements, torque, size: int, seed: int, notes: list[str]):
     return data.subset(keep), None if torque is None else torque[keep]
 
 
-def _select(wide: ErrorModel, reg: State, data, torque, w, fixed, columns, cand, forced):
-    """The selection among the candidates ``cand`` (columns ``columns`` of ``wide``)."""
-    kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
+def _select(wide: ErrorModel, reg: State, data, torque, w, fixed, columns, cand, forced, kin):
+    """The selection among the candidates ``cand`` (columns ``columns`` of ``wide``).
+
+    ``kin``: the registration's kinematics at the data's joints, or None (made here).
+    """
+    if kin is None:
+        kin = reg.kinematics(data.q, torque)  # x = 0 is the registration
     cols = list(range(fixed)) + columns
     Jr = wide.jacobian(reg, np.zeros(wide.size()), data, torque, reg, kin)[:, :, cols]
     Jr *= w[None, :, None]
@@ -358,7 +370,7 @@ def _assemble(
     cov, sigma = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
     reg = fitted.start
     before = validation.stats(reg, train, None)
-    after = validation.stats(fitted.state, train, torque[0])
+    after = validation.stats(fitted.state, train, torque[0], fitted.kin)
     m, rows = train.m, fitted.model.rows
     std_train = validation.predicted_std(fitted.J.reshape(m, rows, p), cov, train.n_markers)
     val = None if held is None else _validation(fitted, held, torque[1], cov)

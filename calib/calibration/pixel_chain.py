@@ -33,10 +33,9 @@ from ..identification.pinhole import Pinhole
 from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
 from . import determined, diagnosis, outliers, validation
-from .pixel_fit import PixelView, camera_from_rays, fit_pixels, rays, refine_camera
+from .pixel_fit import PixelView, camera_from_rays, fit_alone, rays, refine_camera
 from .pixel_term import (
     CAMERA_NAMES,
     GAUGE_POINTS,
@@ -46,11 +45,14 @@ from .pixel_term import (
     PixelRows,
     PixelState,
     Unknowns,
+    camera_points,
     check_in_front,
+    exact_columns,
     move_own,
     pixel_jacobian,
     pixel_residuals,
     pixel_rows,
+    target_points,
 )
 from .placements import Placements
 
@@ -65,7 +67,6 @@ __all__ = [
     "pixel_block",
     "pixel_part",
     "pixel_parts",
-    "split_pixels",
     "with_tool",
 ]
 
@@ -123,6 +124,13 @@ class PixelPart:
     def m(self) -> int:
         """Rows."""
         return self.rows.m
+
+    tool = None  # one tool: postures are the joints' (validation.split)
+
+    @property
+    def q(self) -> np.ndarray:
+        """The rows' joint positions ``(m, n)`` [rad or m]."""
+        return self.rows.q
 
     @property
     def kind(self) -> PixelKind:
@@ -200,25 +208,28 @@ class PixelTermState:
         """:attr:`weight` on both rows [m/px]."""
         return np.full(2, self.weight)
 
-    def seen(self, part: PixelPart) -> np.ndarray:
-        """The rows' points in the camera frame ``(m, 3)`` [m]."""
-        kin = self.mdh.kinematics(part.rows.q)
-        X = self.target[part.rows.point]
-        p = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
-        return (p - self.camera[:3, 3]) @ self.camera[:3, :3]
+    def seen(self, part: PixelPart, kin=None) -> np.ndarray:
+        """The rows' points in the camera frame ``(m, 3)`` [m].
 
-    def pixel_errors(self, part: PixelPart) -> np.ndarray:
-        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px]."""
-        return self.lens.projection(self.seen(part)).pixels - part.rows.pixels
+        ``kin``: the chain's frames at the rows' joints (the last the tool's; a joint fit's),
+        or None: its MDH model's.
+        """
+        if kin is None:
+            kin = self.mdh.kinematics(part.rows.q)
+        return camera_points(kin, self.camera, self.target[part.rows.point])[0]
 
-    def residuals(self, part, torque=None) -> np.ndarray:
-        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent]."""
-        return -self.pixel_errors(part) * self.weight
+    def pixel_errors(self, part: PixelPart, kin=None) -> np.ndarray:
+        """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px] (``kin``: :meth:`seen`)."""
+        return self.lens.projection(self.seen(part, kin)).pixels - part.rows.pixels
 
-    def moved(self, mdh, x: np.ndarray) -> PixelTermState:
-        """The state on the chain model ``mdh`` with its own unknowns at ``x``."""
+    def residuals(self, part, torque=None, kin=None) -> np.ndarray:
+        """Weighted ``observed - pixel`` ``(m, 2)`` [m-equivalent] (``kin``: :meth:`seen`)."""
+        return -self.pixel_errors(part, kin) * self.weight
+
+    def moved(self, x: np.ndarray) -> PixelTermState:
+        """The state with its own unknowns at ``x``."""
         camera, target, lens = move_own(self.camera, self.target, self.lens, x, self.what)
-        return dataclasses.replace(self, mdh=mdh, camera=camera, target=target, lens=lens)
+        return dataclasses.replace(self, camera=camera, target=target, lens=lens)
 
 
 def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
@@ -227,31 +238,9 @@ def _own_index(n: int, what: Unknowns, total: int) -> np.ndarray:
     return np.r_[0:6, list(mount), 12 + n : total].astype(int)
 
 
-def _exact(J: np.ndarray, start: PixelTermState, x: np.ndarray, n: int, point) -> np.ndarray:
-    """The camera's and mounting's columns by ``x`` itself (not by a step from ``x``).
-
-    ``C = C0 [R(w) | v]``: d/dv is the step's translation column times ``R(w)^T``, d/dw its
-    rotation column times the right Jacobian ``Jl(-w)``. The mounting ``X = R(w) X0 + v``:
-    d/dw is ``(rotation + translation skew(v + d))`` columns times ``Jl(w)``, ``d`` the row's
-    point's own change (``what.targets``) ``point``: each row's target point index.
-    """
-    J = J.copy()
-    w = x[3:6]
-    R = rotation_matrix(w)
-    J[..., 0:3] = J[..., 0:3] @ R.T
-    J[..., 3:6] = J[..., 3:6] @ left_jacobian(-w)
-    if start.what.mount:
-        a, mv = 6 + n, x[6:12]
-        moved = np.zeros_like(start.target)
-        k = len(start.target)
-        if start.what.targets and k > GAUGE_POINTS:
-            moved[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
-        rot = J[..., a + 3 : a + 6] + J[..., a : a + 3] @ skew(mv[:3] + moved[point])
-        J[..., a + 3 : a + 6] = rot @ left_jacobian(mv[3:])
-    return J
-
-
-def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift):
+def pixel_block(
+    placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift, kin
+):
     """Weighted rows of a pixel term: its own columns and the free placement directions.
 
     Args:
@@ -262,14 +251,15 @@ def pixel_block(placements, chain, state: PixelTermState, start: PixelTermState,
         x: Its own unknowns.
         part: Its rows.
         lift: The free directions ``(free, 6 J)``.
+        kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`).
 
     Returns:
         ``(m, 2, own)`` and ``(m, 2, free)`` [m-equivalent per unit].
     """
     pix = PixelState(placements, state.camera, state.target, state.lens)
-    J = pixel_jacobian(pix, chain, part.rows, state.what)[1]
+    J = pixel_jacobian(pix, chain, part.rows, state.what, kin=kin)[1]
     n = placements.y.size
-    J = _exact(J, start, x, n, part.rows.point)
+    J = exact_columns(J, start.what, start.target, x, n, part.rows.point)
     own = J[:, :, _own_index(n, state.what, J.shape[2])]
     robot = J[:, :, 6 : 6 + n] @ lift.T
     return own * state.weight, robot * state.weight
@@ -336,24 +326,6 @@ def pixel_parts(chains, data) -> list:
     ]
 
 
-def split_pixels(part: PixelPart, holdout: float, seed: int):
-    """A seeded fraction of the postures held out with all their rows (training, held out).
-
-    Raises:
-        InvalidArgumentError: ``holdout`` outside [0, 1), or leaving nothing to fit or check.
-    """
-    if not (0.0 <= holdout < 1.0):
-        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
-    if holdout == 0:
-        return part, None
-    postures, which = np.unique(part.rows.q, axis=0, return_inverse=True)
-    out = np.random.default_rng([seed, 32]).permutation(len(postures))
-    held = np.isin(which.ravel(), out[: round(holdout * len(postures))])
-    if not held.any() or held.all():
-        raise InvalidArgumentError(f"holdout {holdout:g} leaves no posture to fit or to check")
-    return part.subset(~held), part.subset(held)
-
-
 def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
     """The camera placed on the nominal robot (given, the URDF's, or closed form), refined."""
     cam, rows = part.data.camera, part.rows
@@ -363,16 +335,14 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         guess = camera_placement(chain, cam.name, cam.link)
     lens, target = cam.intrinsics.camera, part.data.target.position
     if guess is None:
-        state = PixelState(placements, np.eye(4), target, lens)
-        mdh = placements.chain_geometry((chain,))[0][0]
-        p = PixelTermState(mdh, np.eye(4), target, lens, 1.0).seen(part)
-        guess = camera_from_rays(p, rays(lens, rows.pixels), part.source)
+        p_link = target_points(PixelState(placements, np.eye(4), target, lens), chain, rows)[1]
+        guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
     state = PixelState(placements, guess, target, lens)
-    mdh = placements.chain_geometry((chain,))[0][0]
-    check_in_front(PixelTermState(mdh, guess, target, lens, 1.0).seen(part), rows, part.source)
+    check_in_front(target_points(state, chain, rows)[0], rows, part.source)
     state = refine_camera(state, chain, rows)
-    depth = PixelTermState(mdh, state.camera, target, lens, 1.0).seen(part)[:, 2]
-    weight = float(np.median(depth)) / (0.5 * (lens.fx + lens.fy))
+    p_cam = target_points(state, chain, rows)[0]
+    mdh = placements.chain_models((chain,))[0]
+    weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
     return PixelTermState(mdh, state.camera, target, lens, weight, part.data.what)
 
 
@@ -382,6 +352,7 @@ class _Joints:
 
     joint_names: tuple[str, ...]
     q: np.ndarray
+    source: str
 
     @property
     def m(self) -> int:
@@ -400,37 +371,26 @@ def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
     return _rms_m(_registered(chain, moved), moved)
 
 
-def _explain(chain: Chain, part: PixelPart, first: float) -> None:
-    """Name the usual mistake (swapped joint columns, degrees) that explains absurd pixels.
+_WORDS = diagnosis.Words("pixels", "row of the pixels", "error at the target",
+                         check="the pixels, the camera's link and the target")  # fmt: skip
 
-    ``first``: the registration's error at the target [m] (infinite: no registration).
 
-    Raises:
-        DataError: A joint column that holds one value, or the mistake that explains them.
-    """
-    joints = _Joints(chain.joint_names, part.rows.q)
-    still = diagnosis.constant_joints(joints)
-    if still:
-        raise DataError(part.source, f"joint column(s) {', '.join(still)} hold one value in "
-                        "every row of the pixels: were those joints logged?")  # fmt: skip
+def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
+    """:func:`~.diagnosis.explain` of the rows' joint columns (``first``: error [m])."""
 
     def error(fixed: object) -> float:
         return _error_m(chain, part, cast(_Joints, fixed).q)
 
-    cause = diagnosis.likely_cause(joints, chain.sigma == 0, error, first, joints_only=True)
-    if cause is not None:
-        before = f"{1e3 * first:.4g} mm" if np.isfinite(first) else "no registration"
-        raise DataError(part.source, f"the pixels look like {cause[0]}: the registration's "
-                        f"error at the target goes from {before} to {1e3 * cause[1]:.4g} mm "
-                        "RMS once corrected")  # fmt: skip
+    joints = _Joints(chain.joint_names, part.rows.q, part.source)
+    notes = diagnosis.explain(joints, chain.sigma == 0, error, first, None, _WORDS)
+    return [f"camera {part.data.camera.name}: {n}" for n in notes]
 
 
 def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
     """The registration and its note, unless a usual mistake explains absurd pixels.
 
     The registration's error at the target above :data:`~.diagnosis.SUSPECT`, or no
-    registration (points behind the camera), tries the joint columns' usual mistakes
-    (:func:`_explain`).
+    registration (points behind the camera), tries the joint columns' usual mistakes.
 
     Raises:
         DataError: The mistake named, or the registration's own error.
@@ -440,14 +400,7 @@ def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]
     except DataError:
         _explain(chain, part, np.inf)
         raise
-    first = _rms_m(state, part)
-    if not diagnosis.suspect(first, None):
-        return state, []
-    _explain(chain, part, first)
-    return state, [f"camera {part.data.camera.name}: the registration leaves "
-                   f"{1e3 * first:.4g} mm RMS at the target, far above geometric errors, and "
-                   "no usual mistake (swapped joint columns, degrees) explains it: check the "
-                   "pixels, the camera's link and the target"]  # fmt: skip
+    return state, _explain(chain, part, _rms_m(state, part))
 
 
 def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
@@ -464,19 +417,17 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     """Each row's error [m at the target] on the term's own fit, and the held-out rows'.
 
     The term alone fitted (its camera and its chain's joint placements,
-    :func:`~.pixel_fit.fit_pixels`): a camera registered on the nominal robot errs by tens
+    :func:`~.pixel_fit.fit_alone`): a camera registered on the nominal robot errs by tens
     of pixels at far postures, which no outlier rule should read as gross.
     """
-    cam = part.data.camera
-    own = fit_pixels(Placements.of((chain,)), state.target, (state.camera,),
-                     (PixelView(chain, part.rows),), (state.lens,), (cam.name,),
-                     part.data.what, part.source).state  # fmt: skip
+    start = PixelState(Placements.of((chain,)), state.camera, state.target, state.lens)
+    own = fit_alone(start, PixelView(chain, part.rows), part.data.what)
     errors = [np.linalg.norm(pixel_residuals(own, chain, p.rows), axis=1) * state.weight
               for p in (part, held) if p is not None]  # fmt: skip
     return errors[0], (errors[1] if held is not None else None)
 
 
-def checked_pixels(chain: Chain, part: PixelPart, held, iterations: int = 0):
+def checked_pixels(chain: Chain, part: PixelPart, held):
     """A pixel term's registration and its outliers (the shared rule, in mm at the target).
 
     Rows seen from behind their normal, and rows that the shared rule

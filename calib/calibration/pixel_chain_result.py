@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics.robot import Chain
-from .contact_result import GapStats, gap_errors_mm, row_stats
+from .contact_result import GapStats, part_stats, row_stats, term_errors
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
 from .report import parameter_entries, pose_dict
@@ -89,16 +89,12 @@ class PixelChain:
 
     def errors(self) -> dict:
         """``errors.terms``: train and held out, mm at the target and px (format 3)."""
-        out: dict = {"train": {**gap_errors_mm(self.stats, "train"), **self._px("train")}}
-        out["held_out"] = None
-        if "held_out" in self.stats:
-            held = gap_errors_mm(self.stats, "held_out")
-            out["held_out"] = {"source": self.held_source, **held, **self._px("held_out")}
+        out = term_errors(self.stats, self.held_source)
+        for part in ("train", "held_out"):
+            if out[part] is not None:
+                out[part]["pixels"] = {"registration": self.pixels[f"{part}_registration"],
+                                       "calibrated": self.pixels[part]}  # fmt: skip
         return out
-
-    def _px(self, part: str) -> dict:
-        return {"pixels": {"registration": self.pixels[f"{part}_registration"],
-                           "calibrated": self.pixels[part]}}  # fmt: skip
 
     def warnings(self) -> list[str]:
         """A calibrated reprojection error above :data:`EXPECTED_PX` (RMS), said once."""
@@ -143,12 +139,8 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
         std: Their standard deviations.
         term: The term's number (1-based), in its unknowns' names.
     """
-    stats, pixels = {}, {}
-    parts = {"train": train} if held is None else {"train": train, "held_out": held}
-    for key, part in parts.items():
-        for suffix, s in (("", state), ("_registration", registered)):
-            stats[key + suffix] = _stats(s, part)
-            pixels[key + suffix] = _pixels(s, part)
+    stats = part_stats(_stats, registered, state, train, held)
+    pixels = part_stats(_pixels, registered, state, train, held)
     names = [f"term{term}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, x, std, ())
     name = train.data.camera.name

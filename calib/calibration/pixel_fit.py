@@ -1,13 +1,16 @@
-"""Fit a pixel term: the camera's placement (closed form, then least squares), then the robot.
+"""A pixel term's registration: the camera's placement (closed form, then least squares).
 
 1. The camera's starting placement: given (a ``--camera`` guess or the URDF's optical link),
    or a closed form of the perspective-n-point problem (:func:`camera_from_rays`: the pixels
    undistorted into rays, the direct linear transform on normalised points, the rotation
    projected onto SO(3));
 2. refined by least squares on the camera's 6 unknowns alone, on the nominal robot;
-3. the unknowns the rows determine chosen once (pivoted QR of the Jacobian's scaled columns,
-   :func:`~.pixel_term.free_columns`), then Levenberg-Marquardt on them, each step composed
-   into the robot's placements (the first-order directions stay exact).
+3. for the outlier rule, the term fitted alone (:func:`fit_alone`): the unknowns the rows
+   determine chosen once (pivoted QR of the Jacobian's scaled columns,
+   :func:`~.pixel_term.free_columns`).
+
+Both least squares are the engine's (:func:`~.solve.fit`), x moving the start as the joint
+engine moves a pixel term's unknowns (its columns exact: :func:`~.pixel_term.exact_columns`).
 """
 
 from __future__ import annotations
@@ -25,32 +28,29 @@ from .pixel_term import (
     PixelRows,
     PixelState,
     Unknowns,
-    apply_step,
-    check_in_front,
-    column_names,
+    exact_columns,
     free_columns,
+    move_own,
     pixel_jacobian,
     pixel_residuals,
-    target_points,
 )
-from .placements import Placements
+from .registration import nearest_rotation
+from .solve import fit
 
 __all__ = [
-    "PixelFit",
     "PixelView",
     "camera_from_rays",
-    "fit_pixels",
+    "fit_alone",
     "rays",
     "refine_camera",
     "stacked_rows",
-    "target_residuals",
 ]
 
 UNDISTORT_ITERATIONS = 20
 """Newton steps that invert the distortion (each pixel's ray)."""
 
-MAX_STEPS = 60
-"""Most Levenberg-Marquardt steps of a fit."""
+MAX_EVALUATIONS = 200
+"""Most residual evaluations of a fit."""
 
 
 def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
@@ -97,10 +97,9 @@ def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndar
     M = Vt[-1].reshape(3, 4) @ normalise
     if np.median(np.column_stack([points, np.ones(len(points))]) @ M[2]) < 0:
         M = -M
-    U, S, Wt = np.linalg.svd(M[:, :3])
-    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt))]) @ Wt
     seen = np.eye(4)  # the points' frame in the camera
-    seen[:3, :3], seen[:3, 3] = R, M[:, 3] / S.mean()
+    seen[:3, :3] = nearest_rotation(M[:, :3])
+    seen[:3, 3] = M[:, 3] / np.linalg.svd(M[:, :3], compute_uv=False).mean()
     return np.linalg.inv(seen)
 
 
@@ -148,129 +147,77 @@ def stacked_rows(states, views, what: Unknowns):
     return np.concatenate(rs), np.concatenate(Js)
 
 
-def _moved(states, dx: np.ndarray, what: Unknowns) -> tuple[PixelState, ...]:
-    layout = _layout(states, what)[0]
-    return tuple(apply_step(s, dx[i], what) for s, i in zip(states, layout, strict=True))
+@dataclass(frozen=True, eq=False)
+class _Term:
+    """A camera's state as the engine's solver reads it (:func:`~.solve.fit`'s)."""
+
+    state: PixelState
+
+    def residuals(self, view: PixelView, torque=None) -> np.ndarray:
+        """``observed - pixel`` ``(m, 2)`` [px]."""
+        return -pixel_residuals(self.state, view.chain, view.rows)
 
 
-def _residuals(states, views) -> np.ndarray:
-    return np.concatenate(
-        [pixel_residuals(s, v.chain, v.rows) for s, v in zip(states, views, strict=True)]
-    )
+@dataclass(frozen=True, eq=False)
+class _Steps:
+    """The columns ``free`` of one camera's (:func:`stacked_rows`) as the solver's model.
+
+    x moves the start: the joint placements shifted, the camera, the mounting, the points and
+    the lens as a pixel term's own unknowns (:func:`~.pixel_term.move_own`); the Jacobian is
+    by x itself (:func:`~.pixel_term.exact_columns`), as the joint engine's.
+    """
+
+    free: tuple[int, ...]
+    what: Unknowns
+
+    n_markers = 0  # rows in pixels, unweighted
+    pose = False
+
+    def size(self) -> int:
+        """Number of free columns."""
+        return len(self.free)
+
+    def _steps(self, start: _Term, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint placements' change and the own unknowns (with the mounting's 6)."""
+        dx = np.zeros(_layout((start.state,), self.what)[1])
+        dx[list(self.free)] = x
+        n = start.state.placements.y.size
+        return dx[6 : 6 + n], np.r_[dx[:6], dx[6 + n :]]
+
+    def apply(self, start: _Term, x: np.ndarray) -> _Term:
+        """The camera's state at x."""
+        dy, own = self._steps(start, x)
+        s, what = start.state, Unknowns(True, self.what.targets, self.what.intrinsics)
+        camera, target, lens = move_own(s.camera, s.target, s.lens, own, what)
+        return _Term(PixelState(s.placements.shifted(dy), camera, target, lens))
+
+    def jacobian(self, start: _Term, x: np.ndarray, view: PixelView, torque=None):
+        """d(pixel)/dx ``(m, 2, free)`` [px per unit]."""
+        state, own = self.apply(start, x).state, self._steps(start, x)[1]
+        n, point = state.placements.y.size, view.rows.point
+        robot = any(6 <= c < 6 + n for c in self.free)  # else no joint placement column
+        J = pixel_jacobian(state, view.chain, view.rows, self.what, robot)[1]
+        J = exact_columns(J, self.what, start.state.target, own, n, point)
+        return J[:, :, list(self.free)]
 
 
-def _solve(states, views, free, what: Unknowns, steps: int) -> tuple[PixelState, ...]:
-    """Levenberg-Marquardt on the joint columns ``free``; the states of least squared error."""
-    r, J = stacked_rows(states, views, what)
-    cost, damping = float(np.sum(r**2)), 1e-6
-    size, m = J.shape[2], len(r)
-    for _ in range(steps):
-        A = J.reshape(-1, size)[:, free]
-        g, H = A.T @ r.ravel(), A.T @ A
-        while True:
-            step = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-30), -g)
-            dx = np.zeros(size)
-            dx[list(free)] = step
-            trial = _moved(states, dx, what)
-            r_t = _residuals(trial, views)
-            cost_t = float(np.sum(r_t**2)) if np.all(np.isfinite(r_t)) else np.inf
-            if cost_t <= cost or damping > 1e12:
-                break
-            damping *= 10
-        if cost_t > cost:
-            break
-        done = cost - cost_t <= 1e-14 * cost or cost_t < 1e-26 * m
-        states, cost, damping = trial, cost_t, max(damping / 10, 1e-9)
-        if done:
-            break
-        r, J = stacked_rows(states, views, what)
-    return states
-
-
-def target_residuals(state: PixelState, chain, rows: PixelRows) -> np.ndarray:
-    """Reprojection errors ``(m, 2)`` [px]."""
-    return pixel_residuals(state, chain, rows)
+def _solve(state: PixelState, view: PixelView, free, what: Unknowns) -> PixelState:
+    """The engine's least squares (:func:`~.solve.fit`) on the columns ``free``."""
+    return fit(_Steps(tuple(free), what), _Term(state), view, None, 1.0,
+               max_iterations=MAX_EVALUATIONS).state.state  # fmt: skip
 
 
 def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
     """The camera's placement by least squares on the current robot (its 6 unknowns alone)."""
-    return _solve((state,), (PixelView(chain, rows),), tuple(range(6)), KNOWN, MAX_STEPS)[0]
+    return _solve(state, PixelView(chain, rows), tuple(range(6)), KNOWN)
 
 
-@dataclass(frozen=True, eq=False)
-class PixelFit:
-    """A fitted pixel problem: one or several cameras seeing one target.
+def fit_alone(state: PixelState, view: PixelView, what: Unknowns) -> PixelState:
+    """A registered camera's term fitted alone: the unknowns its rows determine.
 
-    Attributes:
-        starts: Each camera's state after its registration (nominal robot).
-        states: Each camera's fitted state (one robot and target: the same in each).
-        free: The joint columns fitted (indices into :attr:`names`).
-        names: Every joint column's name.
+    The columns chosen once (:func:`~.pixel_term.free_columns` at ``state``), then the
+    engine's least squares on them.
     """
-
-    starts: tuple[PixelState, ...]
-    states: tuple[PixelState, ...]
-    free: tuple[int, ...]
-    names: tuple[str, ...]
-
-    @property
-    def start(self) -> PixelState:
-        """The first camera's registered state."""
-        return self.starts[0]
-
-    @property
-    def state(self) -> PixelState:
-        """The first camera's fitted state."""
-        return self.states[0]
-
-
-def _names(states, cameras: tuple[str, ...], what: Unknowns) -> tuple[str, ...]:
-    """The joint columns' names: each camera's under its name."""
-    layout, size = _layout(states, what)
-    names = [""] * size
-    for state, name, index in zip(states, cameras, layout, strict=True):
-        for i, local in zip(index, column_names(state, what), strict=True):
-            names[i] = local.replace("camera.", f"{name}.", 1)
-    return tuple(names)
-
-
-def fit_pixels(
-    placements: Placements,
-    target: np.ndarray,
-    guesses: tuple[np.ndarray | None, ...],
-    views: tuple[PixelView, ...],
-    lenses: tuple[Pinhole, ...],
-    cameras: tuple[str, ...],
-    what: Unknowns = KNOWN,
-    source: str = "<observations>",
-) -> PixelFit:
-    """Register each camera, choose the determined unknowns, fit them together.
-
-    Args:
-        placements: The robot (zero errors on every camera chain's joints).
-        target: The target points in the tool frame ``(k, 3)`` [m].
-        guesses: Each camera's optical frame in its chain's base link ``(4, 4)`` [m], or
-            None: placed in closed form (:func:`camera_from_rays`).
-        views: Each camera's chain and rows.
-        lenses: Each camera's intrinsics (the start, with ``what.intrinsics``).
-        cameras: Each camera's name.
-        what: The optional unknowns (mounting, target points, intrinsics).
-        source: The observations' file, for messages.
-
-    Raises:
-        DataError: Too few observations, or points behind a camera once it is placed.
-    """
-    starts = []
-    for guess, view, lens in zip(guesses, views, lenses, strict=True):
-        chain, rows = view.chain, view.rows
-        if guess is None:
-            state = PixelState(placements, np.eye(4), target, lens)
-            p_link = target_points(state, chain, rows)[1]
-            guess = camera_from_rays(p_link, rays(lens, rows.pixels), source)
-        state = PixelState(placements, guess, target, lens)
-        check_in_front(target_points(state, chain, rows)[0], rows, source)
-        starts.append(refine_camera(state, chain, rows))
-    J = stacked_rows(tuple(starts), views, what)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), placements, what, len(views))
-    fitted = _solve(tuple(starts), views, free, what, MAX_STEPS)
-    return PixelFit(tuple(starts), fitted, free, _names(tuple(starts), cameras, what))
+    J = stacked_rows((state,), (view,), what)[1]
+    free = free_columns(J.reshape(-1, J.shape[2]), state.placements, what)
+    return _solve(state, view, free, what)

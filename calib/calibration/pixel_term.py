@@ -42,7 +42,7 @@ from ..exceptions import DataError
 from ..identification.base_columns import independent_columns
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import rotation_matrix, skew
+from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.intrinsics import Intrinsics
 from ..measurements.pixels import PixelObservations, Target
 from .placements import Placements, joint_twists, offset_component
@@ -56,9 +56,9 @@ __all__ = [
     "PixelRows",
     "PixelState",
     "Unknowns",
-    "apply_step",
+    "camera_points",
     "check_in_front",
-    "column_names",
+    "exact_columns",
     "free_columns",
     "move_own",
     "pixel_jacobian",
@@ -140,22 +140,25 @@ class PixelState:
     lens: Pinhole
 
 
-def _chain_kinematics(state: PixelState, chain: Chain, q: np.ndarray):
-    models, frames = state.placements.chain_geometry((chain,))
-    return models[0], frames[0], models[0].kinematics(q)
-
-
-def target_points(state: PixelState, chain: Chain, rows: PixelRows):
+def target_points(state: PixelState, chain: Chain, rows: PixelRows, kin=None):
     """The seen points in the camera frame ``(m, 3)`` and in the base link ``(m, 3)`` [m].
 
-    Also the chain's MDH model, joint frames and kinematics (for :func:`pixel_jacobian`).
+    Also the chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`,
+    for :func:`pixel_jacobian`; ``kin``: them, if already made).
     """
-    mdh, frames, kin = _chain_kinematics(state, chain, rows.q)
-    X = state.target[rows.point]
+    if kin is None:
+        kin = state.placements.frames(chain, rows.q)
+    p_cam, p_link = camera_points(kin, state.camera, state.target[rows.point])
+    return p_cam, p_link, kin
+
+
+def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``X`` ``(m, 3)`` of the tool, in the camera ``(m, 3)`` and the base link [m].
+
+    ``kin``: each row's kinematics of the chain; ``camera``: its frame ``(4, 4)`` [m].
+    """
     p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
-    C = state.camera
-    p_cam = (p_link - C[:3, 3]) @ C[:3, :3]
-    return p_cam, p_link, (mdh, frames, kin)
+    return (p_link - camera[:3, 3]) @ camera[:3, :3], p_link
 
 
 def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndarray:
@@ -164,34 +167,33 @@ def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndar
     return state.lens.projection(p_cam).pixels - rows.pixels
 
 
-def column_names(state: PixelState, what: Unknowns) -> tuple[str, ...]:
-    """The names of :func:`pixel_jacobian`'s columns."""
-    points = range(GAUGE_POINTS, len(state.target)) if what.targets else ()
-    targets = (f"target{k + 1}.{a}" for k in points for a in "xyz")
-    lens = (f"camera.{n}" for n in state.lens.parameter_names) if what.intrinsics else ()
-    return (*CAMERA_NAMES, *state.placements.names(), *MOUNT_NAMES, *targets, *lens)
-
-
 def pixel_jacobian(
-    state: PixelState, chain: Chain, rows: PixelRows, what: Unknowns
+    state: PixelState,
+    chain: Chain,
+    rows: PixelRows,
+    what: Unknowns,
+    robot: bool = True,
+    kin=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
-    Columns as :func:`column_names`: the camera's 6, every joint placement component of
-    ``state.placements`` (6 per joint), the target's mounting (6), with ``what.targets`` the
-    target points after the first :data:`GAUGE_POINTS`, with ``what.intrinsics`` the
-    camera's intrinsics.
+    Columns: the camera's 6, every joint placement component of
+    ``state.placements`` (6 per joint; zero unless ``robot``: a fit that moves no joint),
+    the target's mounting (6), with ``what.targets`` the target points after the first
+    :data:`GAUGE_POINTS`, with ``what.intrinsics`` the camera's intrinsics. ``kin``: the
+    chain's frames at the rows' joints, if already made.
     """
-    p_cam, p_link, (mdh, frames, kin) = target_points(state, chain, rows)
+    p_cam, p_link, kin = target_points(state, chain, rows, kin)
     seen = state.lens.projection(p_cam, derivatives=True)
     D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
     RcT = state.camera[:3, :3].T
     pl = state.placements
     m = rows.m
     moving = np.zeros((m, 3, len(pl.joints), 6))  # the point's motion in the base link
-    columns = np.array([pl.joints.index(name) for name in chain.joint_names])
-    ang, lin = joint_twists(pl, chain, mdh, frames, kin, columns)
-    moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
+    if robot:
+        columns = pl.path(chain).columns
+        ang, lin = joint_twists(pl, chain, kin)
+        moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
     by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
     X = state.target[rows.point]
     mount = RcT @ kin.R[:, -1]  # d(point in the camera) / d(point in the tool)
@@ -230,19 +232,29 @@ def move_own(camera: np.ndarray, target: np.ndarray, lens: Pinhole, x: np.ndarra
     return camera @ step, target, lens
 
 
-def apply_step(state: PixelState, dx: np.ndarray, what: Unknowns) -> PixelState:
-    """The state moved by ``dx`` (every column of :func:`pixel_jacobian`), rebased.
+def exact_columns(J: np.ndarray, what: Unknowns, target, x: np.ndarray, n: int, point):
+    """:func:`pixel_jacobian`'s columns ``J`` made the derivatives by ``x`` itself.
 
-    The camera becomes ``C [R(w) | v]``, the joint errors are composed into the robot's
-    placements (:meth:`~.placements.Placements.rebased`), the target is moved rigidly by its
-    mounting's step, then its free points move; the intrinsics move (:func:`move_own`).
+    ``x``: the own unknowns (:func:`move_own`'s, from the state ``J`` was not taken at, whose
+    points are ``target``), ``n``: the joint placement columns, ``point``: each row's target
+    point. ``C = C0 [R(w) | v]``: d/dv is the step's translation column times ``R(w)^T``,
+    d/dw its rotation column times the right Jacobian ``Jl(-w)``. The mounting
+    ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
+    ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
     """
-    n = state.placements.y.size
-    placements = state.placements.shifted(dx[6 : 6 + n]).rebased()
-    own = np.r_[dx[:6], dx[6 + n :]]
-    camera, target, lens = move_own(state.camera, state.target, state.lens, own, Unknowns(
-        True, what.targets, what.intrinsics))  # fmt: skip
-    return PixelState(placements, camera, target, lens)
+    J = J.copy()
+    w = x[3:6]
+    J[..., 0:3] = J[..., 0:3] @ rotation_matrix(w).T
+    J[..., 3:6] = J[..., 3:6] @ left_jacobian(-w)
+    if what.mount:
+        a, mv = 6 + n, x[6:12]
+        moved = np.zeros_like(target)
+        k = len(target)
+        if what.targets and k > GAUGE_POINTS:
+            moved[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
+        rot = J[..., a + 3 : a + 6] + J[..., a : a + 3] @ skew(mv[:3] + moved[point])
+        J[..., a + 3 : a + 6] = rot @ left_jacobian(mv[3:])
+    return J
 
 
 def _preference(placements: Placements, size: int, cameras: int) -> list[int]:

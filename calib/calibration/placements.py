@@ -10,33 +10,42 @@ axis, x the joint frame's x (or y) made perpendicular to it. Their names are
 ``<joint>:x``, ``:y``, ``:z`` (translation [m]) and ``<joint>:rx``, ``:ry``, ``:rz``
 (rotation [rad]); ``:rz`` of a revolute joint and ``:z`` of a prismatic one are its offset.
 
-A chain between two frames of the tree may traverse joints backwards (``Chain.sign``); each
-chain's kinematics is its MDH model (:func:`calib.kinematics.mdh.from_chain`) of the
-perturbed Pinocchio model, so every chain sees the same perturbed robot.
+A chain between two frames of the tree may traverse joints backwards (``Chain.sign``). Each
+chain is held as arrays (:class:`ChainPath`): the fixed transforms between its joints' axis
+frames on the model the errors act on. A fit step composes the errors into them and computes
+every frame at every configuration (:meth:`Placements.frames`, :func:`chain_frames`), with no
+model rebuilt; every chain sees the same perturbed robot. A chain's MDH model of the robot
+(:func:`calib.kinematics.mdh.from_chain` of the perturbed Pinocchio model) is made where the
+MDH parameters are named (:meth:`Placements.chain_models`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
+from ..exceptions import InvalidArgumentError
 from ..identification.base_columns import preference_order
 from ..identification.jacobian import identification_jacobian
 from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.frames import joint_placements, motion_axis
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain
+from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
 __all__ = [
     "COMPONENTS",
     "DIRECTION_CONFIGS",
+    "ChainPath",
+    "JointFrames",
     "Placements",
     "axis_basis",
+    "chain_frames",
     "joint_twists",
     "mdh_directions",
     "offset_component",
@@ -72,6 +81,123 @@ def placement_error(basis: np.ndarray, y: np.ndarray) -> np.ndarray:
     return E
 
 
+class JointFrames(NamedTuple):
+    """A chain's frames at m configurations, in its base frame (:func:`chain_frames`).
+
+    Frame k < n is where joint k's placement error acts: its axis frame (z along the axis)
+    before its motion for a joint traversed forwards, after it for one traversed backwards
+    (whose error lies on the base side of its motion). Frame n is the tool frame: the last,
+    as in an MDH model's :class:`~calib.kinematics.mdh.Kinematics`.
+
+    Attributes:
+        R: Rotations ``(m, n + 1, 3, 3)``.
+        p: Origins ``(m, n + 1, 3)`` [m].
+    """
+
+    R: np.ndarray
+    p: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ChainPath:
+    """A chain of a robot as arrays: the fixed transforms between its joints' axis frames.
+
+    Attributes:
+        fixed: ``(n + 1, 4, 4)``: the first joint's axis frame in the base frame, then each
+            joint's in the previous joint's axis frame after its motion, then the tool frame
+            in the last joint's (at q = 0 on the robot the errors act on, errors zero).
+        prismatic: Prismatic joints ``(n,)`` (the others turn about their axis, z).
+        sign: +1, or -1 for a joint traversed backwards ``(n,)``.
+        columns: Index of each chain joint among the placements' joints ``(n,)``.
+    """
+
+    fixed: np.ndarray
+    prismatic: np.ndarray
+    sign: np.ndarray
+    columns: np.ndarray
+
+    @staticmethod
+    def of(chain: Chain, zero: tuple, bases: np.ndarray, columns: np.ndarray) -> ChainPath:
+        """The path of ``chain`` from its :meth:`~calib.kinematics.robot.Chain.zero_frames`.
+
+        ``bases``: each chain joint's axis frame in its joint frame ``(n, 3, 3)``.
+        """
+        frames, tool = zero
+        A = np.array(frames, dtype=float)  # each joint's axis frame in the base frame
+        A[:, :3, :3] = A[:, :3, :3] @ bases
+        ends = np.concatenate([np.eye(4)[None], A])
+        fixed = np.linalg.inv(ends) @ np.concatenate([A, np.asarray(tool)[None]])
+        sigma, sign = np.asarray(chain.sigma), np.asarray(chain.sign, dtype=float)
+        return ChainPath(fixed, sigma == 1, sign, np.asarray(columns))
+
+    def composed(self, y: np.ndarray) -> np.ndarray:
+        """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed ``(n + 1, 4, 4)``.
+
+        A joint's error ``E = [R(w) | v]`` (in its axis frame) follows the transform into
+        its axis frame when traversed forwards, precedes (inverted) the next one backwards.
+        """
+        rows = y[self.columns]
+        if not np.any(rows):
+            return self.fixed
+        E = np.zeros((len(rows), 4, 4))
+        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = rotation_matrix(rows[:, 3:]), rows[:, :3], 1.0
+        out = self.fixed.copy()
+        ahead = np.flatnonzero(self.sign > 0)
+        out[ahead] = out[ahead] @ E[ahead]
+        back = np.flatnonzero(self.sign < 0)
+        if back.size:  # E^-1 = [R^T | -R^T v]
+            inverse = np.zeros((len(back), 4, 4))
+            inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
+            inverse[:, :3, 3] = -(inverse[:, :3, :3] @ rows[back, :3, None])[..., 0]
+            inverse[:, 3, 3] = 1.0
+            out[back + 1] = inverse @ out[back + 1]
+        return out
+
+
+def chain_frames(path: ChainPath, y: np.ndarray, q: np.ndarray) -> JointFrames:
+    """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``.
+
+    Vectorised over configurations and joints: each joint's motion and the fixed transform
+    after it for every configuration at once, then one product per joint along the chain,
+    each along the configurations.
+    """
+    fixed = path.composed(y)
+    q = np.asarray(q, dtype=float).reshape(-1, len(path.sign))
+    m, n = q.shape
+    move = (q * path.sign).T  # (n, m)
+    slide = np.where(path.prismatic[:, None], move, 0.0)
+    turn = move - slide
+    c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]  # (n, 1, m)
+    F, f = fixed[1:, :3, :3, None], fixed[1:, :3, 3, None]  # (n, 3, 3, 1), (n, 3, 1)
+    # Component-major (joint, ..., configuration): every operation runs along the m
+    # configurations, the innermost axis. Rot(z, turn) followed by the next fixed transform:
+    local = np.empty((n, 3, 3, m))
+    local[:, 0] = c * F[:, 0] - s * F[:, 1]
+    local[:, 1] = s * F[:, 0] + c * F[:, 1]
+    local[:, 2] = F[:, 2]
+    step = np.empty((n, 3, m))  # and the origin's step, the slide along z included
+    step[:, 0] = c[:, 0] * f[:, 0] - s[:, 0] * f[:, 1]
+    step[:, 1] = s[:, 0] * f[:, 0] + c[:, 0] * f[:, 1]
+    step[:, 2] = f[:, 2] + slide
+    Rt = np.empty((n + 1, 3, 3, m))  # each joint's axis frame before its motion, the tool's
+    pt = np.empty((n + 1, 3, m))
+    Rt[0], pt[0] = fixed[0, :3, :3, None], fixed[0, :3, 3, None]
+    for k in range(n):
+        np.einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
+        np.einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
+        pt[k + 1] += pt[k]
+    back = np.flatnonzero(path.sign < 0)  # their errors act after their motion
+    if back.size:
+        Rb, cb, sb = Rt[back], c[back], s[back]  # (b, 3, 3, m) copy, (b, 1, m)
+        pt[back] += Rb[:, :, 2] * slide[back, None]
+        turned = Rb.copy()
+        turned[:, :, 0] = cb * Rb[:, :, 0] + sb * Rb[:, :, 1]
+        turned[:, :, 1] = cb * Rb[:, :, 1] - sb * Rb[:, :, 0]
+        Rt[back] = turned
+    R, p = Rt.transpose(3, 0, 1, 2), pt.transpose(2, 0, 1)  # (m, n + 1, ...) views
+    return JointFrames(R, p)
+
+
 @dataclass(frozen=True, eq=False)
 class Placements:
     """The placement errors of the joints of several chains of one robot.
@@ -88,6 +214,8 @@ class Placements:
         ids: Their Pinocchio joint indices.
         bases: Axis frame of each joint in its joint frame ``(J, 3, 3)``.
         y: Errors in the axis frames ``(J, 6)`` (x y z [m], rx ry rz [rad]).
+        chains: The chains (on the nominal model).
+        paths: Each chain on ``model`` (:class:`ChainPath`).
     """
 
     nominal: pin.Model
@@ -96,6 +224,8 @@ class Placements:
     ids: tuple[int, ...]
     bases: np.ndarray
     y: np.ndarray
+    chains: tuple[Chain, ...] = ()
+    paths: tuple[ChainPath, ...] = ()
 
     @staticmethod
     def of(chains: tuple[Chain, ...]) -> Placements:
@@ -104,7 +234,17 @@ class Placements:
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
         bases = np.array([axis_basis(model, j) for j in ids]).reshape(-1, 3, 3)
         names = tuple(model.names[j] for j in ids)
-        return Placements(model, model, names, ids, bases, np.zeros((len(ids), 6)))
+        out = Placements(model, model, names, ids, bases, np.zeros((len(ids), 6)), tuple(chains))
+        return dataclasses.replace(out, paths=out._paths(model))
+
+    def _paths(self, model: pin.Model) -> tuple[ChainPath, ...]:
+        """Each chain's path on ``model`` (one Pinocchio walk for chains of one zero)."""
+        moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in self.chains]
+        out = []
+        for c, oMi in zip(moved, _zero_placements(model, moved), strict=True):
+            columns = np.array([self.joints.index(n) for n in c.joint_names], dtype=int)
+            out.append(ChainPath.of(c, c.zero_frames(oMi), self.bases[columns], columns))
+        return tuple(out)
 
     def names(self) -> tuple[str, ...]:
         """Column names, joint-major: ``<joint>:x`` ... ``<joint>:rz``."""
@@ -115,8 +255,27 @@ class Placements:
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
 
     def rebased(self) -> Placements:
-        """The same robot with zero errors on a model that holds them."""
-        return dataclasses.replace(self, model=self.perturbed_model(), y=np.zeros_like(self.y))
+        """The same robot with zero errors on a model that holds them (and paths that do)."""
+        paths = tuple(dataclasses.replace(p, fixed=p.composed(self.y)) for p in self.paths)
+        y = np.zeros_like(self.y)
+        return dataclasses.replace(self, model=self.perturbed_model(), y=y, paths=paths)
+
+    def frames(self, chain: Chain, q: np.ndarray) -> JointFrames:
+        """Chain ``chain``'s frames at ``q`` ``(m, n)`` with the errors (:func:`chain_frames`)."""
+        return chain_frames(self.path(chain), self.y, q)
+
+    def path(self, chain: Chain) -> ChainPath:
+        """Chain ``chain``'s path on :attr:`model` (a chain of :attr:`chains`).
+
+        Raises:
+            InvalidArgumentError: Not one of :attr:`chains` (its base and tool frames).
+        """
+        for c, path in zip(self.chains, self.paths, strict=True):
+            if c is chain or (c.base_id, c.tool_id) == (chain.base_id, chain.tool_id):
+                return path
+        raise InvalidArgumentError(
+            f"{chain.base_frame} -> {chain.tool_frame} is not a chain of these placements"
+        )
 
     def errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` from the nominal placement, by joint name, of the joints moved.
@@ -144,25 +303,13 @@ class Placements:
         return model
 
     def chain_models(self, chains: tuple[Chain, ...]) -> tuple[MDHModel, ...]:
-        """The MDH model of each chain on the perturbed robot."""
-        return self.chain_geometry(chains)[0]
-
-    def chain_geometry(
-        self, chains: tuple[Chain, ...]
-    ) -> tuple[tuple[MDHModel, ...], tuple[np.ndarray, ...]]:
-        """Each chain's MDH model on the perturbed robot and its joint frames at q = 0.
-
-        The joint frames (before each joint's motion, in the chain's base frame) are
-        ``(n, 4, 4)`` per chain (see :func:`joint_twists`).
-        """
+        """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""
         model = self.perturbed_model()
         moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
-        mdh, frames = [], []
-        for c, oMi in zip(moved, _zero_placements(model, moved), strict=True):
-            zero = c.zero_frames(oMi)
-            mdh.append(from_chain(c, zero=zero))
-            frames.append(zero[0])
-        return tuple(mdh), tuple(frames)
+        return tuple(
+            from_chain(c, zero=c.zero_frames(oMi))
+            for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
+        )
 
 
 def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
@@ -177,50 +324,36 @@ def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
 
 
 def joint_twists(
-    placements: Placements,
-    chain: Chain,
-    mdh: MDHModel,
-    frames: np.ndarray,
-    kin,
-    columns: np.ndarray,
+    placements: Placements, chain: Chain, kin: JointFrames
 ) -> tuple[np.ndarray, np.ndarray]:
     """Motion of the tool side of the chain per unit error of each joint's components.
 
-    A joint frame ``F`` (before the joint's motion) moves with the MDH frame of the link
-    that carries it: frame k-1 for a joint traversed forwards (row k), frame k backwards.
-    An error ``dy`` moves everything on the chain's tool side of the joint by the body
-    twist ``(R(w)^T dv, J_r(w) dw)`` of ``F`` (with a minus sign backwards).
+    An error ``dy`` of joint k moves everything on the chain's tool side of it by the body
+    twist ``(R(w)^T dv, J_r(w) dw)`` of the frame it acts at (frame k of ``kin``, its axis
+    frame), with a minus sign for a joint traversed backwards.
 
     Args:
-        placements: The current errors (of the model ``mdh`` was made from).
-        chain: The nominal chain.
-        mdh: Its MDH model on the perturbed robot.
-        frames: Its joint frames at q = 0 on the perturbed robot ``(n, 4, 4)``
-            (:meth:`Placements.chain_geometry`).
-        kin: ``mdh.kinematics(q)``.
-        columns: Index into ``placements.joints`` of each chain joint ``(n,)``.
+        placements: The current errors.
+        chain: The chain.
+        kin: Its frames (:meth:`Placements.frames`) at m configurations.
 
     Returns:
         Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
         origin's point moving with the tool side, per component (x y z rx ry rz).
     """
+    n = chain.n
     sign = np.asarray(chain.sign, dtype=float)
-    a = np.where(sign > 0, np.arange(chain.n), np.arange(chain.n) + 1)  # the carrying frame
-    K = np.linalg.inv(frames_at_zero(mdh)[a]) @ frames  # (n, 4, 4), every joint at once
-    B = placements.bases[columns]  # (n, 3, 3), every chain joint's at once
-    w = np.einsum("nab,nb->na", B, placements.y[columns, 3:])
-    body_v = np.swapaxes(rotation_matrix(w), 1, 2) @ B  # d(origin) per dv, in F
-    body_w = left_jacobian(-w) @ B  # right Jacobian of R(w), in F
-    Ra = kin.R[:, a]  # (m, n, 3, 3)
-    RF = sign[:, None, None] * (Ra @ K[:, :3, :3])
-    pF = kin.p[:, a] + (Ra @ K[:, :3, 3:])[..., 0]
+    w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
+    body_v = np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv, in the axis frame
+    body_w = left_jacobian(-w)  # right Jacobian of R(w)
+    RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
     wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
     m = kin.R.shape[0]
-    ang = np.zeros((m, chain.n, 3, 6))
-    lin = np.zeros((m, chain.n, 3, 6))
+    ang = np.zeros((m, n, 3, 6))
+    lin = np.zeros((m, n, 3, 6))
     ang[..., 3:] = wv
     lin[..., :3] = RF @ body_v
-    lin[..., 3:] = skew(pF) @ wv
+    lin[..., 3:] = skew(kin.p[:, :n]) @ wv
     return ang, lin
 
 
@@ -232,7 +365,6 @@ def mdh_directions(
     placements: Placements,
     chain: Chain,
     mdh: MDHModel,
-    frames: np.ndarray,
     seed: int = 0,
     label: str = "complete",
 ) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -250,7 +382,6 @@ def mdh_directions(
         placements: The (zero) placement errors of the robot.
         chain: The chain.
         mdh: Its MDH model on the robot of ``placements``.
-        frames: Its joint frames at q = 0 (:meth:`Placements.chain_geometry`).
         seed: Seed of the configurations.
         label: The MDH parameter set offered: ``complete`` or ``paper``.
 
@@ -262,25 +393,26 @@ def mdh_directions(
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
     params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= mdh.n))
     q = chain.random_configurations(DIRECTION_CONFIGS, seed)
-    kin = mdh.kinematics(q)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))
-    W = identification_jacobian(mdh, params, q, pose, kin).reshape(len(q), 6, -1)
-    columns = np.array([placements.joints.index(n) for n in chain.joint_names])
-    ang, lin = joint_twists(placements, chain, mdh, frames, kin, columns)
+    W = identification_jacobian(mdh, params, q, pose).reshape(len(q), 6, -1)
+    columns = placements.path(chain).columns
+    kin = placements.frames(chain, q)
+    ang, lin = joint_twists(placements, chain, kin)
     vel = lin - skew(kin.p[:, -1])[:, None] @ ang  # the tool origin's velocity
     A = np.concatenate([vel, ang], axis=2)  # (m, n, 6, 6)
+    Wf = W.reshape(-1, W.shape[2])  # every parameter's motion, one column each
+    scale = np.linalg.norm(Wf, axis=0)
+    fits = {}  # per joint: each parameter's components (6, P) and whether they match it
+    for i in range(chain.n):
+        Ai = A[:, i].reshape(-1, 6)
+        C = np.linalg.lstsq(Ai, Wf, rcond=None)[0]  # every parameter at once
+        fits[i] = (C, (np.linalg.norm(Ai @ C - Wf, axis=0) <= 1e-8 * scale) & (scale > 0))
     out, names = [], []
     for k, p in enumerate(params.parameters):
-        w = W[:, :, k].reshape(-1)
         for i in (p.row - 1, p.row - 2, p.row):
-            if not 0 <= i < chain.n:
-                continue
-            Ai = A[:, i].reshape(-1, 6)
-            c = np.linalg.lstsq(Ai, w, rcond=None)[0]
-            scale = float(np.linalg.norm(w))
-            if float(np.linalg.norm(Ai @ c - w)) <= 1e-8 * scale and scale > 0:
+            if 0 <= i < chain.n and fits[i][1][k]:
                 d = np.zeros(6 * len(placements.joints))
-                d[6 * columns[i] : 6 * columns[i] + 6] = c
+                d[6 * columns[i] : 6 * columns[i] + 6] = fits[i][0][:, k]
                 out.append(d)
                 names.append(f"{chain.joint_names[i]}:{p.name}")
                 break

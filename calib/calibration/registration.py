@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ..kinematics.mdh import MDHModel
+from ..kinematics.mdh import Kinematics, MDHModel
 from .model import State, registration_state
 
 __all__ = ["ITERATIONS", "nearest_rotation", "register", "rigid_fit"]
@@ -114,6 +114,7 @@ def register(
     points: np.ndarray,
     rotations: np.ndarray | None = None,
     markers: np.ndarray | None = None,
+    kin: Kinematics | None = None,
 ) -> State:
     """Closed-form measurement frame and markers for the nominal geometry.
 
@@ -123,11 +124,13 @@ def register(
         points: Measured points ``(m, K, 3)`` [m], measurement frame.
         rotations: Measured orientations ``(m, 3, 3)``, or None.
         markers: Guess of the markers in the tool frame ``(K, 3)`` [m] (default: zeros).
+        kin: ``mdh.kinematics(q)``, if already made.
 
     Returns:
         The nominal geometry with the estimated frame, markers (and measured-frame rotation).
     """
-    kin = mdh.kinematics(q)
+    if kin is None:
+        kin = mdh.kinematics(q)
     Rt, pt = kin.R[:, -1], kin.p[:, -1]
     K = points.shape[1]
     mk = np.zeros((K, 3)) if markers is None else np.array(markers, dtype=float).reshape(K, 3)

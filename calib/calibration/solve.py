@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 import scipy.linalg
@@ -18,6 +18,7 @@ __all__ = [
     "FitModel",
     "FitState",
     "Problem",
+    "StepState",
     "condition",
     "covariance",
     "fit",
@@ -35,6 +36,27 @@ class FitState(Protocol):
 
     def residuals(self, data: Any, torque: np.ndarray | None = None) -> np.ndarray:
         """Measured - model per configuration ``(m, rows)`` [m, rad]."""
+        ...
+
+
+@runtime_checkable
+class StepState(Protocol):
+    """A state whose kinematics a fit makes once per x.
+
+    They are passed to the residuals and the Jacobian (a chain's :class:`State`, the joint
+    fit's ``ChainsState``).
+    """
+
+    def step_kinematics(self, data: Any, torque: np.ndarray | None) -> Any:
+        """The frames at the data's joints."""
+        ...
+
+    def same_geometry(self, other: Any) -> bool:
+        """Whether ``other``'s kinematics at the same data are this state's."""
+        ...
+
+    def residuals(self, data: Any, torque: np.ndarray | None = None, kin: Any = None) -> Any:
+        """Measured - model per configuration, at the kinematics ``kin`` if given."""
         ...
 
 
@@ -88,6 +110,8 @@ class Fit(Generic[_Model, _State]):
         message: scipy's message.
         iterations: Jacobian evaluations.
         evaluations: Residual evaluations.
+        kin: The kinematics of ``state`` at the data's joints (a :class:`StepState`'s, made
+            once per x), or None: what a caller scoring ``state`` on the same data passes on.
     """
 
     model: _Model
@@ -101,6 +125,7 @@ class Fit(Generic[_Model, _State]):
     message: str
     iterations: int
     evaluations: int
+    kin: Any = None
 
 
 def row_weights(model: ErrorModel, weight: float) -> np.ndarray:
@@ -117,18 +142,19 @@ class Problem:
     """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
-    at the solution: the state at the last two x are kept (for a chain's
-    :class:`ErrorModel`, the last one's kinematics, reused while x moves no geometry: the
-    frame and markers; 77 MB at 100,000 poses), and the Jacobian at the last x it was asked
-    at (200 MB).
+    at the solution: the state at the last two x are kept (for a :class:`StepState`, the
+    last one's kinematics, made once and passed to the residuals and the Jacobian, reused
+    while x moves no geometry: a chain's frame and markers; 77 MB at 100,000 poses), and the
+    Jacobian at the last x it was asked at (200 MB).
     """
 
-    def __init__(self, model, start, data, torque, weight, prior=None, robust=True):
+    def __init__(self, model, start, data, torque, weight, prior=None, robust=True, kin=None):
         self.model, self.start, self.data, self.torque = model, start, data, torque
+        self.start_kin = kin  # the start's kinematics at the data's joints, or None
         self.w = row_weights(model, weight)
         self.prior = prior  # (p,) weights of x in the prior rows, or None
         self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
-        self._chain = isinstance(model, ErrorModel)
+        self._chain = isinstance(start, StepState)
         self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
 
     def state(self, x: np.ndarray):
@@ -143,9 +169,11 @@ class Problem:
         state = self.model.apply(self.start, x)
         kin = None
         if self._chain:
-            kin = next((k[2] for k in self._kept if _same_geometry(k[1], state)), None)
+            kin = next((k[2] for k in self._kept if state.same_geometry(k[1])), None)
+            if kin is None and self.start_kin is not None and state.same_geometry(self.start):
+                kin = self.start_kin
             if kin is None:
-                kin = state.kinematics(self.data.q, self.torque)
+                kin = state.step_kinematics(self.data, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
         for other in self._kept[1:]:  # another geometry's kinematics: made again if asked
             if other[2] is not kin:
@@ -192,11 +220,6 @@ class Problem:
         return J.copy() if self.robust else J
 
 
-def _same_geometry(a, b) -> bool:
-    """Two chain states whose kinematics at the same data are the same (x moved no geometry)."""
-    return a.mdh is b.mdh and np.array_equal(a.compliance, b.compliance)
-
-
 def fit(
     model: _Model,
     start: _State,
@@ -208,6 +231,7 @@ def fit(
     loss: str = "linear",
     scale: float = 1e-3,
     max_iterations: int = 100,
+    kin: Any = None,
 ) -> Fit[_Model, _State]:
     """Levenberg-Marquardt (least squares) or trust-region (robust loss) from x = 0.
 
@@ -222,10 +246,12 @@ def fit(
         loss: One of ``LOSSES``.
         scale: Residual scale of a robust loss [m].
         max_iterations: Most residual evaluations.
+        kin: The start's kinematics at the data's joints (a :class:`StepState`'s), if
+            already made.
     """
     import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
 
-    problem = Problem(model, start, data, torque, weight, prior, robust=loss != "linear")
+    problem = Problem(model, start, data, torque, weight, prior, loss != "linear", kin)
     p = model.size()
     if p == 0:
         x = np.zeros(0)
@@ -263,6 +289,7 @@ def fit(
         message if finite else "non-finite parameters or residuals",
         njev,
         nfev,
+        problem._at(x)[2],
     )
 
 

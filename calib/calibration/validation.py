@@ -20,6 +20,7 @@ compliance file).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, Protocol, Self, TypeVar
 
 import numpy as np
 
@@ -30,7 +31,7 @@ from ..measurements.pixels import PixelObservations
 from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .result import ResidualStats
-from .solve import FitState
+from .solve import FitState, StepState
 
 __all__ = [
     "RANK_TOL",
@@ -70,13 +71,30 @@ RANK_TOL = 1e-9
 """Smallest singular value, relative to the largest, of the unit-norm columns of a fit."""
 
 
-def split(
-    data: Measurements, fraction: float, seed: int
-) -> tuple[Measurements, Measurements | None]:
+class _Rows(Protocol):
+    """Rows recorded at postures: measurements, or a pixel term's rows."""
+
+    @property
+    def q(self) -> np.ndarray: ...
+
+    @property
+    def tool(self) -> Any: ...
+
+    @property
+    def m(self) -> int: ...
+
+    def subset(self, keep: np.ndarray) -> Self: ...
+
+
+_R = TypeVar("_R", bound=_Rows)
+
+
+def split(data: _R, fraction: float, seed: int) -> tuple[_R, _R | None]:
     """Set aside a seeded random ``fraction`` of the postures (training, held out).
 
     A posture recorded several times (:func:`~calib.measurements.postures.posture_groups`)
-    is held out with all its rows: none of its repeats is left to train on.
+    is held out with all its rows: none of its repeats is left to train on. ``data``:
+    measurements, or a pixel term's rows (every point seen in an image: one posture).
 
     Raises:
         InvalidArgumentError: ``fraction`` outside [0, 1), or > 0 but holding out no row.
@@ -189,8 +207,16 @@ def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: st
         )
 
 
-def stats(state: FitState, data: Measurements, torque: np.ndarray | None) -> ResidualStats:
-    """Errors measured - model of a state on some data."""
+def stats(
+    state: FitState, data: Measurements, torque: np.ndarray | None, kin=None
+) -> ResidualStats:
+    """Errors measured - model of a state on some data.
+
+    ``kin``: its kinematics at the data's joints, if already made (a fit's
+    :attr:`~.solve.Fit.kin`).
+    """
+    if isinstance(state, StepState) and kin is not None:
+        return ResidualStats.of(state.residuals(data, torque, kin), data.n_markers)
     return ResidualStats.of(state.residuals(data, torque), data.n_markers)
 
 

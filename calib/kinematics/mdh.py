@@ -160,10 +160,8 @@ class MDHModel:
     _pre: np.ndarray = field(init=False, repr=False)
     _gain: np.ndarray = field(init=False, repr=False)
     _offsets: np.ndarray = field(init=False, repr=False)
-    _last: list = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "_last", [])  # the last kinematics made: see kinematics
         if self.sign is None:
             object.__setattr__(self, "sign", np.ones(len(self.sigma), dtype=int))
         for name in _ARRAYS:
@@ -264,9 +262,6 @@ class MDHModel:
     def kinematics(self, q: np.ndarray) -> Kinematics:
         """Every frame at every configuration, vectorised over configurations.
 
-        The last result is recalled when asked again at the same ``q`` (a residual and then
-        its Jacobian at one state): its arrays are read-only.
-
         Args:
             q: Joint positions ``(m, n)`` or ``(n,)`` [rad or m].
 
@@ -278,17 +273,6 @@ class MDHModel:
                 :data:`~calib.core.checks.MAX_JOINT_POSITION`.
         """
         q = joint_positions(q, self.n)
-        key = q.tobytes()
-        if self._last and self._last[0] == key:
-            return self._last[1]
-        kin = self._kinematics(q)
-        for a in kin:
-            a.flags.writeable = False  # shared by the next call at the same q
-        self._last[:] = [key, kin]
-        return kin
-
-    def _kinematics(self, q: np.ndarray) -> Kinematics:
-        """:meth:`kinematics` at checked joint positions ``(m, n)`` (made, not recalled)."""
         m, rows, n = q.shape[0], self.n + 2, self.n
         # Component-major work arrays (row, ..., configuration): every operation runs along
         # the m configurations, the innermost (contiguous) axis.
