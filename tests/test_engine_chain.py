@@ -11,9 +11,8 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
-from pinref import PinTree
+from pinref import instrument_points
 
 import calib
 import calib.calibration.entry as entry
@@ -31,13 +30,8 @@ def measured_by_pinocchio(result, chain, q, tmp_path) -> np.ndarray:
     """The written URDF's marker 1 in the instrument frame ``(m, 3)`` [m], Pinocchio alone."""
     path = tmp_path / "cal.urdf"
     path.write_bytes(result.urdf())
-    frame = result.to_dict()["frames"]["measurement"]
-    if "xyz" not in frame:  # the engine's: by base frame
-        (frame,) = frame.values()
-    ref = PinTree.of_file(path, chain.base_frame, [f"{chain.tool_frame}_marker1"])
-    points = ref.poses(chain.joint_names, q)[:, 0, :3, 3]
-    R = pin.rpy.rpyToMatrix(np.array(frame["rpy"]))
-    return points @ R.T + np.array(frame["xyz"])
+    report = result.to_dict()
+    return instrument_points(path, report, chain.base_frame, chain.tool_frame, chain.joint_names, q)
 
 
 def rms_max_mm(error: np.ndarray) -> tuple[float, float]:
