@@ -17,9 +17,9 @@ the default), ``own-leg`` (the other foot carries its own leg) and ``half`` (the
 pushes up with half the robot's weight at its sole). Their ``urdf`` column scores the
 calibrated URDF alone (compliance left out) on the same held-out touches.
 
-The rigid rows go through :func:`calib.calibrate` (the joint engine, one contact term); the
-elastic rows through ``calibrate_contacts`` (joint compliance and the load split with
-another foot: the MDH chart's own steps, not yet in the engine).
+The rigid rows go through :func:`calib.calibrate` and the elastic rows through
+``calibrate_contacts`` (which takes the load split with another foot, ``support``): both the
+joint engine's fit of one contact term.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import numpy as np
 
 from calib import calibrate, load_robot
 from calib.calibration.contact_checks import subset
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.kinematics.standing import Support
 from calib.measurements.contact_campaign import ContactData, read_contacts
 

@@ -12,9 +12,7 @@ and the held folds' gaps pooled: RMS height [mm], roll and pitch [deg] per chain
   ``both, left sole``: the right chain from ``left_sole_link`` too (all joints are recorded):
   the left leg and the torso shared;
 * ``alone``: the same function on one chain;
-* ``single``: the single-chain pipeline :func:`calibrate_contacts` (MDH parameters);
-* ``offsets``: the same at ``params="offsets"`` (alone: equal to the single-chain
-  pipeline's offsets);
+* ``offsets``: the same at ``params="offsets"``;
 * ``baseline``: the registration (the nominal robot with its own plane and contact).
 
 * ``left sole + soles' loop``: both arms from the left sole with the closed loop
@@ -44,7 +42,6 @@ import numpy as np
 
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_checks import subset
-from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.measurements.contact_campaign import ContactData, read_contacts
 from calib.measurements.contact_loops import join_loops, read_loop
 
@@ -178,16 +175,6 @@ def loop_study(from_left, moved) -> None:
         print(pool.line(f"{side} left sole, offsets"))
 
 
-def single_chain(chain, data) -> Pool:
-    """The single-chain pipeline on the same folds."""
-    pool = Pool()
-    for fold in _folds(data):
-        train = subset(data, np.setdiff1d(np.arange(data.m), fold))
-        r = calibrate_contacts(chain, train, contact=CONTACT, validate=subset(data, fold))
-        pool.add(r.stats, r.accepted)
-    return pool
-
-
 def main() -> None:
     warnings.simplefilter("ignore")
     chains = [load_robot(URDF, f"{s}_sole_link", f"gripper_{s}_base_link") for s in SIDES]
@@ -209,7 +196,6 @@ def main() -> None:
         print(both[k].line(f"{side} both"))
         print(left_sole[k].line(f"{side} both, left sole"))
         print(alone.line(f"{side} alone"))
-        print(single_chain(chains[k], data[k]).line(f"{side} single"))
         offsets = cross_validate([chains[k]], [data[k]], params="offsets")[0]
         print(both_offsets[k].line(f"{side} both, offsets"))
         print(offsets.line(f"{side} alone, offsets"))

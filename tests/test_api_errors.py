@@ -19,6 +19,7 @@ from conftest import chain_of, mdh_of
 
 import calib
 from calib import CalibError, Measurement
+from calib.calibration.entry import calibrate_contacts
 from calib.outputs.plots import calibration_figure
 
 CHAIN = chain_of("ur5")
@@ -124,6 +125,8 @@ def _cases():
         "calibrate_contact_chains tree": lambda: calib.calibrate_contact_chains([TREE], [None]),
         "calibrate_contact_chains data": lambda: calib.calibrate_contact_chains([CHAIN], [None]),
         "calibrate_contact_chains empty": lambda: calib.calibrate_contact_chains([], []),
+        "entry.calibrate_contacts chain": lambda: calibrate_contacts("ur5", None),
+        "entry.calibrate_contacts unknown option": lambda: calibrate_contacts(CHAIN, None, levl=1),
         "calibrate_contact_chains str": lambda: calib.calibrate_contact_chains("ur5", "x"),
         "calibrate_tree level": lambda: calib.calibrate_tree(TREE, None, params="auto"),
         "simulate_tree chain": lambda: calib.simulate_tree(CHAIN),

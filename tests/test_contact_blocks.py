@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_choice, contact_fit, contact_pipeline
+from calib.calibration import contact_chains, contact_choice, contact_fit
 from calib.calibration.contact_blocks import BlockSystem, block_lstsq
-from calib.calibration.contact_fit import block_fit, block_structural
-from calib.calibration.contact_model import ContactModel
-from calib.calibration.solve import fit
-from calib.identification.parameters import ParameterSet
+from calib.calibration.entry import calibrate_contacts
 
 
 def _dense(Jo, Js, index, K):
@@ -55,38 +50,35 @@ def test_block_least_squares_is_the_dense_least_squares(seed):
     assert np.allclose(np.r_[plain.objects.ravel(), plain.shared], x0, atol=1e-10, rtol=0)
 
 
-def test_block_structural_check_keeps_the_dense_check_columns(forty_planes, monkeypatch):
-    nominal, start, train = forty_planes
-    wide = ContactModel(contact_choice.level_candidates(nominal, "complete"), start.frames, ())
-    assert contact_fit.by_block(wide)
-    qf, _ = contact_pipeline.touching_postures(start, train.q, train.ids)
-    held = dataclasses.replace(train, q=qf)
-    blocks = block_structural(wide, start, held, None)
+@pytest.mark.parametrize(("params", "elastic"), [("complete", False), ("offsets", True)])
+def test_the_engine_by_block_reaches_the_dense_engines_minimum(
+    forty_planes, monkeypatch, params, elastic
+):
+    """TALOS touching 40 planes (conftest): the joint engine's structural check and fit by
+    block keep the columns of the dense route (pivoted QR of every column) and reach its
+    minimum (MINPACK on the whole Jacobian), the joint compliances (standing torques)
+    included; the cost by block no higher."""
+    _, _, train = forty_planes
+    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
+    calls: list[str] = []
+    for name in ("block_fit", "block_structural"):
+        real = getattr(contact_fit, name)
+        spy = (lambda f, n: lambda *a, **k: calls.append(n) or f(*a, **k))(real, name)
+        target = contact_chains if name == "block_fit" else contact_choice
+        monkeypatch.setattr(target, name, spy)
+    kw = {"params": params, "elastic": elastic, "holdout": 0.2, "seed": 1}
+    block = calibrate_contacts(chain, train, **kw)
+    assert {"block_fit", "block_structural"} <= set(calls)
     monkeypatch.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route
-    dense = contact_choice.structural(wide, start, train, None)
-    assert sorted(blocks) == sorted(dense) and len(dense) < wide.size()
-
-
-@pytest.mark.parametrize("with_prior", [False, True])
-def test_block_fit_reaches_minpacks_minimum(forty_planes, with_prior):
-    """Levenberg-Marquardt by block against SciPy's MINPACK on the dense Jacobian (the
-    parameters the touches determine, as the pipeline frees them)."""
-    nominal, start, train = forty_planes
-    offered = contact_choice.level_candidates(nominal, "complete")
-    wide = ContactModel(offered, start.frames, ())
-    kept = contact_choice.structural(wide, start, train, None)[wide.fixed :]
-    params = tuple(offered.parameters[c - wide.fixed] for c in sorted(kept))
-    model = ContactModel(ParameterSet("free", params), start.frames, ())
-    prior = None
-    if with_prior:
-        rng = np.random.default_rng(0)
-        prior = np.r_[np.zeros(model.fixed), rng.uniform(0.0, 0.1, model.size() - model.fixed)]
-    dense = fit(model, start, train, None, 1.0, prior=prior)
-    blocks = block_fit(model, start, train, None, prior=prior)
-    assert dense.converged and blocks.converged
-    assert np.allclose(blocks.x, dense.x, atol=1e-9, rtol=0)
-    assert np.allclose(blocks.f, dense.f, atol=1e-11, rtol=0)  # 1e-8 mm
-    assert np.allclose(blocks.J, dense.J, atol=1e-9, rtol=0)
+    dense = calibrate_contacts(chain, train, **kw)
+    assert block.accepted and dense.accepted
+    assert block.fitted == dense.fitted and block.identifiable == dense.identifiable
+    assert any(n.startswith("c") for n in block.fitted) == elastic  # compliances fitted
+    assert np.allclose(block.estimate, dense.estimate, rtol=1e-6, atol=1e-9)
+    costs = [r.stats["train"].weighted_mm for r in (block, dense)]
+    assert costs[0] <= costs[1] * (1 + 1e-9) + 1e-12
+    held = [r.stats["held_out"].weighted_mm for r in (block, dense)]
+    assert abs(held[0] - held[1]) < 1e-6  # [mm]
 
 
 def test_a_long_recording_of_one_plane_needs_no_touches_by_touches_matrix():
@@ -108,29 +100,3 @@ def test_a_long_recording_of_one_plane_needs_no_touches_by_touches_matrix():
     assert peak < 60e6, peak
     assert np.allclose(reg.planes[0, :3, 2], PLANES["table"][:3, 2], atol=1e-9)
     assert np.max(np.abs(reg.residuals)) < 1e-9
-
-
-def test_block_fit_of_compliances_reaches_minpacks_minimum(forty_planes):
-    """With the joint compliances too (standing torques): the same minimum as MINPACK's, the
-    cost no higher (MINPACK stops a little earlier on these scales)."""
-    from calib.calibration import contact_elastic
-
-    nominal, start, train = forty_planes
-    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
-    load = contact_elastic.standing(chain, train.kind, True, None)
-    torque = contact_elastic.torques(load, train, None)[0]
-    offered = contact_choice.level_candidates(nominal, "offsets")
-    comp = tuple(range(nominal.n))
-    wide = ContactModel(offered, start.frames, comp)
-    kept = contact_choice.structural(wide, start, train, load)
-    split = wide.fixed + len(offered)
-    params = tuple(offered.parameters[c - wide.fixed] for c in kept if wide.fixed <= c < split)
-    joints = tuple(comp[c - split] for c in kept if c >= split)
-    assert joints  # compliances are fitted
-    model = ContactModel(ParameterSet("free", params), start.frames, joints)
-    dense = fit(model, start, train, torque, 1.0)
-    blocks = block_fit(model, start, train, torque)
-    assert dense.converged and blocks.converged
-    assert np.allclose(blocks.x, dense.x, atol=1e-7, rtol=0)
-    assert np.allclose(blocks.f, dense.f, atol=1e-9, rtol=0)  # 1e-6 mm
-    assert np.sum(blocks.f**2) <= np.sum(dense.f**2) * (1 + 1e-12)

@@ -10,10 +10,11 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import load_robot
+from calib.calibration.contact_choice import touching_postures
 from calib.calibration.contact_frames import ContactFrames
 from calib.calibration.contact_model import ContactModel, ContactState
-from calib.calibration.contact_pipeline import calibrate_contacts, flush_postures
-from calib.exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
+from calib.calibration.entry import calibrate_contacts
+from calib.exceptions import CalibrationRefusedError, InvalidArgumentError
 from calib.identification.contacts import PlaneContact
 from calib.identification.parameters import ParameterSet, parameter_set
 from calib.kinematics.mdh import from_chain
@@ -53,7 +54,8 @@ def test_noise_free_round_trip(name):
     truth = camp.truth
     (plane,) = truth.frames.values()
     want = _tilt_angle(truth.true_mdh, np.eye(4), plane[:3, 2], q)
-    got = _tilt_angle(r.calibrated, r.contact, r.plane[:3, 2], q)
+    (part,) = r.chains
+    got = _tilt_angle(part.calibrated, part.contact, part.plane[:3, 2], q)
     assert np.max(np.abs(got - want)) < 1e-8
 
 
@@ -103,11 +105,11 @@ def _pose(rotvec, t) -> np.ndarray:
 def test_flush_postures_hold_the_contact():
     chain = load_robot(*CHAINS["talos"])
     data = read_contacts(REAL / "left_train.csv", chain, "plane")
-    r = calibrate_contacts(chain, data, contact=[0, 0, -0.12], params="frames")
+    (r,) = calibrate_contacts(chain, data, contact=[0, 0, -0.12], params="frames").chains
     frames = ContactFrames(PlaneContact(), r.contact, r.plane[None], (r.plane_id,))
     state = ContactState(r.nominal, frames, 1.0)
-    qf = flush_postures(state, data.q)
-    assert len(qf) == data.m
+    qf, reached = touching_postures(state, data.q, [r.plane_id] * data.m)
+    assert reached.all() and len(qf) == data.m
     assert np.max(np.abs(state.gaps(qf))) < 1e-10
     kin = r.nominal.kinematics(qf)
     z = (kin.R[:, -1] @ r.contact[:3, :3])[:, :, 2]
@@ -131,8 +133,8 @@ def test_written_urdf_scored_by_pinocchio(tmp_path):
         out,
         chain.base_frame,
         chain.tool_frame,
-        r.contact,
-        r.plane,
+        r.chains[0].contact,
+        r.chains[0].plane,
         {k: v[rows] for k, v in joints.items()},
     )
     rms = np.sqrt(np.mean(g**2, axis=0))
@@ -144,7 +146,7 @@ def test_written_urdf_scored_by_pinocchio(tmp_path):
 
 
 def _train(r, data):
-    from calib.calibration.contact_pipeline import split_contacts
+    from calib.calibration.contact_term import split_contacts
 
     return split_contacts(data, 0.25, 0)[0].q
 
@@ -171,7 +173,7 @@ def test_bad_arguments():
     with pytest.raises(InvalidArgumentError):
         calibrate_contacts(chain, data, params="wild")
     point = simulate_contacts(chain, 20, "fixed-point", seed=0).data
-    with pytest.raises(DataError, match="kind 'fixed-point' for 'plane'"):
+    with pytest.raises(InvalidArgumentError, match="kind 'fixed-point' for 'plane'"):
         calibrate_contacts(chain, data, validate=point)
     with pytest.raises(InvalidArgumentError, match="holdout"):
         calibrate_contacts(chain, data, holdout=1.5)
@@ -205,11 +207,11 @@ def test_calibrate_dispatches_contact_data():
     guess = [0.0, 0.0, 0.05]
     a = calibrate(chain, data, marker=guess, params="offsets", holdout=0.25)
     b = calibrate_contacts(chain, data, contact=guess, params="offsets", holdout=0.25)
-    # the joint engine (joint placements) and the MDH chart: the same offsets, the same fit
+    # calibrate and the single chain's name: the joint engine's one fit, joint offsets
     (part,) = a.chains
-    assert np.allclose(part.contact, b.contact, atol=1e-9) and len(a.free) == len(b.free)
-    rows = [chain.joint_names[int(name[len("theta") :]) - 1] for name in b.free]  # theta k
-    assert [n.split(":")[0] for n in a.free] == rows and {n[-3:] for n in a.free} == {":rz"}
+    assert np.allclose(part.contact, b.chains[0].contact, atol=1e-9) and a.free == b.free
+    assert {n.split(":")[0] for n in a.free} <= set(chain.joint_names)
+    assert {n[-3:] for n in a.free} == {":rz"}
     held, other = part.stats["held_out"], b.stats["held_out"]
     assert held.m == other.m and np.allclose(held.rms, other.rms, rtol=1e-6, atol=1e-9)
     with pytest.raises(InvalidArgumentError, match="fix is for one chain measured"):

@@ -20,7 +20,7 @@ from contact_scorer import plane_gaps, read_joints, relative_placements
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_model import plane_state
-from calib.calibration.contact_pipeline import split_contacts
+from calib.calibration.contact_term import split_contacts
 from calib.calibration.placements import Placements
 from calib.cli.commands import main
 from calib.exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
@@ -320,7 +320,8 @@ def test_bad_arguments():
     with pytest.raises(DataError, match="joints"):
         calibrate_contact_chains(chains, data[::-1])
     point = simulate_contacts(chains[0], 12, "fixed-point", seed=0).data
-    with pytest.raises(InvalidArgumentError, match="validation touches of another kind"):
+    kinds = "validation touches of kind 'fixed-point' for 'plane'"
+    with pytest.raises(InvalidArgumentError, match=kinds):
         calibrate_contact_chains(chains, data, validate=[point, None])
 
 
@@ -328,7 +329,7 @@ def test_bad_arguments():
 @pytest.mark.parametrize("side", ["left", "right"])
 def test_one_chain_offsets_equal_the_single_chain_pipeline(side):
     """Joint offsets of one chain: the placement model and the MDH pipeline agree."""
-    from calib.calibration.contact_pipeline import calibrate_contacts
+    from calib.calibration.entry import calibrate_contacts
     from calib.measurements.contact_campaign import read_contacts
 
     chain = load_robot(URDF, f"{side}_sole_link", f"gripper_{side}_base_link")

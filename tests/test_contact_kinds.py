@@ -16,7 +16,8 @@ import pytest
 from contact_scorer import contact_gaps, read_joints
 
 from calib import load_robot
-from calib.calibration.contact_pipeline import calibrate_contacts, split_contacts
+from calib.calibration.contact_term import split_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.exceptions import DataError
 from calib.measurements.contact_campaign import simulate_contacts, write_contacts
@@ -91,16 +92,17 @@ def test_noise_free_round_trip_recovers_the_truth(robot, kind):
     r = calibrate_contacts(chain, camp.data, params="complete", holdout=0.3, seed=1)
     assert r.accepted, r.refusal
     held, reg = r.stats["held_out"], r.stats["held_out_registration"]
-    assert held.m >= 20 and set(r.objects) == set(camp.truth.frames) and len(r.objects) == 2
+    objects = r.chains[0].objects()
+    assert held.m >= 20 and set(objects) == set(camp.truth.frames) and len(objects) == 2
     top = np.array(held.max) * np.where(held.angular, math.radians(1.0), 1e-3)  # [m, rad]
     assert np.max(top) < 1e-9
     assert reg.weighted_mm > 1e-3  # there was something to fix
     q = chain.random_configurations(40, 7)  # postures where no contact holds
     true_T = _placements(camp.truth.true_mdh, np.eye(4), q)
-    got_T = _placements(r.calibrated, r.contact, q)
+    got_T = _placements(r.chains[0].calibrated, r.chains[0].contact, q)
     for name, F_true in camp.truth.frames.items():
         exact_t, scaled_t = _invariants(kind, true_T, F_true)
-        exact_g, scaled_g = _invariants(kind, got_T, r.objects[name])
+        exact_g, scaled_g = _invariants(kind, got_T, objects[name])
         assert np.max(np.abs(exact_g - exact_t), initial=0.0) < 1e-8
         if not scaled_t.size:
             continue
@@ -206,7 +208,7 @@ def test_usual_mistakes_and_outliers_in_touches():
     q[7, 2] += 0.05  # a bad reading: centimetres off its point
     rows = tuple(range(2, data.m + 2))
     r = calibrate_contacts(chain, dataclasses.replace(data, q=q, rows=rows), params="offsets")
-    assert [o.row for o in r.outliers] == [9]
+    assert [o.row for o in r.chains[0].outliers] == [9]
     assert r.stats["train"].m == data.m - 1
     assert r.to_dict()["outliers"][0]["row"] == 9
 
@@ -282,11 +284,11 @@ def test_a_six_joint_arm_holding_a_fixed_pose_is_noted_not_silent():
     repeats = sum(label in fitted for label in labels[train.m :])
     note = [n for n in result.notes if "finitely many postures" in n]
     assert len(set(labels)) <= 8  # a UR5 has at most 8 inverse-kinematics branches
-    assert note == [
-        f"a 6-joint chain holding a fixed-pose contact (6 conditions) has finitely many "
-        f"postures: the touches sit at {len(set(labels))} distinct postures, and {repeats} of "
-        f"the {held.m} held-out touches repeat a fitted one: the model is checked at those "
-        f"postures only"
+    assert note == [  # the engine's notes name their term
+        f"base_link -> tool0: a 6-joint chain holding a fixed-pose contact (6 conditions) has "
+        f"finitely many postures: the touches sit at {len(set(labels))} distinct postures, "
+        f"and {repeats} of the {held.m} held-out touches repeat a fitted one: the model is "
+        f"checked at those postures only"
     ]
     panda = load_robot("panda")
     moving = simulate_contacts(panda, 20, "fixed-pose", seed=2, noise_mrad=0.1).data

@@ -15,7 +15,6 @@ from test_contact_kinds import _invariants, _placements, _scale_fit, _similarity
 
 from calib import Problem, Term, calibrate, load_robot, simulate_contacts
 from calib.calibration.contact_chains_result import ContactChainsCalibration
-from calib.calibration.contact_result import ContactCalibration
 from calib.exceptions import DataError, InvalidArgumentError
 
 KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")
@@ -66,13 +65,35 @@ def test_talos_plane_touches_round_trip_through_the_engine():
     assert max(held.height_max_mm, 1e3 * math.radians(held.roll_max_deg)) < 1e-6
 
 
-def test_joint_compliance_and_many_objects_keep_the_mdh_chart():
-    """Not yet in the engine: ``elastic`` and 30 planes or more take the single chain's steps."""
+def test_joint_compliance_and_many_objects_are_fitted_by_the_engine(monkeypatch):
+    """``elastic`` and 30 planes or more: the engine's result. Many objects go by block
+    (:func:`~calib.calibration.contact_fit.block_fit`, called) and reach the minimum of the
+    dense fit (MINPACK on the whole Jacobian) at every level."""
+    from calib.calibration import contact_chains, contact_fit
+
     chain = load_robot(*TALOS)
     few = simulate_contacts(chain, 60, "plane", seed=3).data
-    assert isinstance(calibrate(chain, few, params="offsets", elastic=True), ContactCalibration)
-    many = simulate_contacts(chain, 120, "plane", contacts=30, seed=3).data
-    assert isinstance(calibrate(chain, many, params="frames"), ContactCalibration)
+    r = calibrate(chain, few, params="offsets", elastic=True)
+    assert isinstance(r, ContactChainsCalibration) and r.elastic
+    many = simulate_contacts(chain, 150, "plane", contacts=30, noise_mrad=0.1, seed=3).data
+    calls = []
+
+    def spy(*args, **kwargs):
+        calls.append(1)
+        return contact_fit.block_fit(*args, **kwargs)
+
+    for params in ("offsets", "auto"):
+        with monkeypatch.context() as m:
+            m.setattr(contact_chains, "block_fit", spy)
+            blocks = calibrate(chain, many, params=params, holdout=0.2)
+        with monkeypatch.context() as m:
+            m.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route
+            dense = calibrate(chain, many, params=params, holdout=0.2)
+        assert blocks.accepted and dense.accepted and blocks.fitted == dense.fitted
+        assert np.allclose(blocks.estimate, dense.estimate, atol=1e-8, rtol=0)
+        gaps = [r.chains[0].stats["held_out"].weighted_mm for r in (blocks, dense)]
+        assert gaps[0] > 1e-3 and abs(gaps[0] - gaps[1]) < 1e-6  # [mm]
+    assert len(calls) == 2
 
 
 def test_too_few_touches_for_a_level_and_empty_touches_are_refused():

@@ -38,13 +38,13 @@ def test_a_rank_deficient_fit_is_refused(monkeypatch):
     """The same direction offered twice (two equal columns): an SVD of the Jacobian the test
     builds from the result confirms the deficiency, and the engine refuses in one line."""
     chain, data = load_chain("ur5"), _touches()
-    choose = contact_chains._choose
+    choose = contact_chains.choose
 
     def twice(*args):
         model, wide, selection, prior = choose(*args)
         return model.with_free((*model.free, model.free[0])), wide, selection, prior
 
-    monkeypatch.setattr(contact_chains, "_choose", twice)
+    monkeypatch.setattr(contact_chains, "choose", twice)
     r = calibrate(chain, data, params="complete")
     assert r.free.count(r.free[-1]) == 2  # offered twice indeed
     assert not r.accepted

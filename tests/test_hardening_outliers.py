@@ -11,7 +11,8 @@ import pytest
 from conftest import chain_of
 
 from calib import DataError, calibrate, load_robot, simulate
-from calib.calibration.contact_pipeline import calibrate_contacts, split_contacts
+from calib.calibration.contact_term import split_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.calibration.validation import split
 from calib.measurements.contact_campaign import simulate_contacts
 
@@ -62,7 +63,7 @@ def test_a_glitched_touch_is_set_aside_not_called_degrees():
     res = calibrate_contacts(
         chain, dataclasses.replace(camp.data, q=q, rows=rows), params="offsets"
     )
-    assert [o.row for o in res.outliers] == [42]
+    assert [o.row for o in res.chains[0].outliers] == [42]
     assert res.stats["train"].m == 159
 
 

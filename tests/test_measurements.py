@@ -223,6 +223,15 @@ def test_bad_csv_names_row_and_column(case, tmp_path):
     assert "\n" not in str(err)
 
 
+def test_missing_joint_column_names_the_chain_that_needs_it(tmp_path):
+    """A file for another chain of the robot: the error says which chain wanted the joint."""
+    chain = chain_of("ur5")  # the catalog's base_link -> tool0 (calib list)
+    path = tmp_path / "other_chain.csv"
+    path.write_text(_text(chain, [_good_row(chain)[1:]], [*chain.joint_names[1:], "x", "y", "z"]))
+    with pytest.raises(DataError, match=r"the chain base_link -> tool0 moves that joint"):
+        read_measurements(path, chain)
+
+
 def test_missing_and_unreadable_files(tmp_path):
     with pytest.raises(DataError, match="no such file"):
         read_measurements(tmp_path / "nope.csv", chain_of("ur5"))

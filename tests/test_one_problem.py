@@ -27,7 +27,7 @@ from calib import (
 )
 from calib.calibration import validation
 from calib.calibration.contact_checks import subset
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.measurements.contact_campaign import simulate_contacts, write_contacts
 

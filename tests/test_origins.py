@@ -15,8 +15,8 @@ import xacro  # the test extra installs it (the registry package, no ROS)
 
 import calib
 from calib.calibration.contact_chains import calibrate_contact_chains
-from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.calibration.entry import calibrate as calibrate_tree
+from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.kinematics.origins import origins_yaml
 from calib.kinematics.tree import load_tree

@@ -9,8 +9,8 @@ import pytest
 
 import calib
 from calib.calibration.contact_chains import calibrate_contact_chains
-from calib.calibration.contact_pipeline import calibrate_contacts
 from calib.calibration.entry import calibrate as calibrate_tree
+from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.tree import load_tree

@@ -15,7 +15,8 @@ from test_calibration import refit_loo
 from calib import DataError, load_chain, simulate
 from calib.calibration import calibrate
 from calib.calibration.contact_checks import subset
-from calib.calibration.contact_pipeline import calibrate_contacts, split_contacts
+from calib.calibration.contact_term import split_contacts
+from calib.calibration.entry import calibrate_contacts
 from calib.calibration.selection import OUTER_FOLDS, RICH, STRENGTHS, select
 from calib.calibration.validation import split
 from calib.kinematics.urdf_export import write_calibrated_urdf

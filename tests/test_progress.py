@@ -91,7 +91,7 @@ def test_quiet_is_accepted_before_and_after_the_command(quiet, capsys):
 
 def test_contact_calibration_tells_its_phases():
     from calib import load_chain
-    from calib.calibration.contact_pipeline import calibrate_contacts
+    from calib.calibration.entry import calibrate_contacts
     from calib.measurements.contact_campaign import simulate_contacts
 
     chain = load_chain("ur5")

@@ -1,25 +1,20 @@
-"""The selection and the robust proposals with the objects' columns by block (issue 31).
+"""The selection with the objects' columns by block (issue 31).
 
 Every figure is checked against the dense route: the same selection computed with every
-object's columns in the Jacobian (dense QR bases, dense normal equations), and the robust
-fit of numpy's dense least squares.
+object's columns in the Jacobian (dense QR bases, dense normal equations).
 """
 
 from __future__ import annotations
-
-import dataclasses
 
 import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_choice, contact_fit
-from calib.calibration.contact_model import ContactModel
-from calib.calibration.contact_pipeline import calibrate_contacts
+from calib.calibration import contact_fit
 from calib.calibration.contact_registration import MIN_TOUCHES
+from calib.calibration.entry import calibrate_contacts
 from calib.calibration.forward_paths import paths
 from calib.calibration.object_columns import ObjectColumns
-from calib.calibration.options import Options
 from calib.calibration.selection import block_loo, select
 from calib.measurements.contact_campaign import simulate_contacts
 
@@ -107,38 +102,19 @@ def test_a_subset_without_an_object_leaves_its_columns_out():
         assert np.sqrt(np.sum(errors[k]) / (np.sum(train) * rows / 3)) == pytest.approx(loo)
 
 
-def test_the_contact_selection_by_block_is_the_dense_one(forty_planes):
-    """TALOS touching 40 planes 6 times each (conftest): the selection with the planes'
-    columns by block (as the pipeline takes it) chooses what the dense selection of the
-    whole Jacobian chooses."""
-    _, start, train = forty_planes
-    wide = ContactModel(contact_choice.level_candidates(start.mdh, "auto"), start.frames, ())
-    assert contact_fit.by_block(wide)
-    columns = list(range(wide.fixed, wide.size()))
-    names = tuple(wide.names()[c] for c in columns)
-    shared, objects = contact_choice.selection_columns(wide, start, train, None, columns)
-    e = start.residuals(train)
-    J = wide.jacobian(start, np.zeros(wide.size()), train)
-    dense = select(J, e, wide.fixed, names)[0]
-    block = select(shared, e, shared.shape[2] - len(columns), names, objects=objects)[0]
-    assert objects is not None and len(dense.kept) > 10
-    _same(dense, block)
-
-
-def test_the_robust_proposals_by_block_are_the_dense_ones(forty_planes, monkeypatch):
-    """Two touches knocked off their plane: the robust fit by block proposes the same
-    touches as numpy's dense least squares of every column."""
-    _, start, train = forty_planes
-    q = train.q.copy()
-    q[5, 3] += 0.05
-    q[17, 8] += 0.03
-    data = dataclasses.replace(train, q=q)
-    opts = Options(level="auto")
-    block = contact_choice.proposals(start, data, opts)
-    monkeypatch.setattr(contact_choice, "by_block", lambda model: False)
-    dense = contact_choice.proposals(start, data, opts)
-    assert block[5] and block[17]
-    assert np.array_equal(block, dense)
+def test_the_contact_selection_by_block_is_the_dense_one(forty_planes, monkeypatch):
+    """TALOS touching 40 planes 6 times each (conftest): the joint engine's selection with the
+    planes' columns by block chooses what its dense selection of the whole Jacobian
+    chooses, and the fits by block and dense reach one minimum."""
+    _, _, train = forty_planes
+    chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
+    block = calibrate_contacts(chain, train)
+    monkeypatch.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route
+    dense = calibrate_contacts(chain, train)
+    assert dense.selection is not None and block.selection is not None
+    assert len(dense.selection.kept) > 10
+    _same(dense.selection, block.selection)
+    assert np.allclose(block.estimate, dense.estimate, atol=1e-9, rtol=0)
 
 
 def test_proposals_that_leave_a_plane_too_few_touches_are_not_started_from():
@@ -149,6 +125,6 @@ def test_proposals_that_leave_a_plane_too_few_touches_are_not_started_from():
     data = simulate_contacts(chain, 160, "plane", contacts=40, noise_mrad=0.01, seed=1).data
     result = calibrate_contacts(chain, data, params="complete")
     ids = np.array(data.ids)
-    out = np.isin(np.arange(1, data.m + 1), [o.row for o in result.outliers])
+    out = np.isin(np.arange(1, data.m + 1), [o.row for o in result.chains[0].outliers])
     assert all(np.sum(ids[~out] == k) >= MIN_TOUCHES for k in data.contacts)
     assert result.stats["train"].length_rms_mm < result.stats["train_registration"].length_rms_mm

@@ -5,27 +5,24 @@ gripper, ``right_sole_link`` to the right one), share the torso joints. Fitted o
 time, each chain gets its own torso, and no single URDF holds both. Fitted together
 (:func:`calibrate_contact_chains`), every URDF joint has one placement error
 (:mod:`.placements`) that every chain through it sees, and the result is one URDF of the
-whole robot. The steps are those of one chain (:mod:`.contact_pipeline`):
+whole robot. The steps of every calibration:
 
 1. touches set aside per chain (``holdout``, seeded) or a validation set per chain;
-2. the registration: each chain's plane and contact tilts in closed form on the nominal
-   robot (a plane shared by chains of one base frame: then refined together by least
-   squares);
-3. the free placement components: those the touches determine beside the planes and
-   contacts (pivoted QR at flush postures, in the order offsets, then the axes' tilts and
-   shifts, then the rest), and for ``auto`` the cross-validated forward selection with a
-   prior (:func:`~.selection.select`) on all chains' touches together;
-4. least squares (:func:`~.solve.fit`);
-5. refusal of a model whose held-out weighted RMS gap is worse than the registration's on
-   any chain.
+2. the registration: each chain's objects and contact in closed form on the nominal robot
+   (a plane shared by chains of one base frame: then refined together by least squares);
+3. the free placement components and (``elastic``) joint compliances the touches determine
+   (pivoted QR at flush postures), and for ``auto`` the cross-validated forward selection
+   with a prior on all chains' touches together (:mod:`.contact_choice`);
+4. least squares (one chain touching many objects: by block, :func:`~.contact_fit.block_fit`);
+5. refusal of a model whose held-out weighted RMS gap is worse than the registration's.
 
 Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
 recorded on different days see the table from wherever the robot stood.
 
 A chain's kind is its touches', any contact kind (``plane``, ``plane-point``,
 ``fixed-point``, ``fixed-pose``), with any number of objects (ids); one chain touching alone
-is a problem of one term (:func:`calib.calibrate` routes it here, but joint compliance and
-many objects: :func:`~.contact_term.by_engine`). A ``fixed-pose`` chain of a joint fit is a
+is a problem of one term (:func:`calib.calibrate` routes it here), joint compliance under
+gravity included (``elastic``: :mod:`.contact_elastic`). A ``fixed-pose`` chain of a joint fit is a
 closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
 flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
 one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
@@ -46,12 +43,12 @@ from ..core.checks import MAX_WEIGHT, check_number
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact
-from ..identification.identifiability import independent_columns
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
+from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from . import contact_checks, determined, outliers, validation
+from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState, on_models
 from .contact_chains_result import (
     ChainContacts,
@@ -60,12 +57,12 @@ from .contact_chains_result import (
     measured_part,
 )
 from .contact_checks import held_out_refusal, subset
-from .contact_choice import touching_postures
+from .contact_choice import blocky, chains_model, choose, flush_data, structural
+from .contact_fit import block_fit
 from .contact_model import ContactState
 from .contact_result import gap_stats, part_stats
 from .contact_term import (
     check_held_out_gaps,
-    check_level_equations,
     check_touches,
     contact_frame,
     contact_guess,
@@ -80,7 +77,7 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
-from .options import check_run_options
+from .options import check_run_options, checked_arguments
 from .outliers import Outlier
 from .pixel_chain import (
     PixelData,
@@ -89,11 +86,9 @@ from .pixel_chain import (
     check_pixels,
     checked_pixels,
     pixel_parts,
-    with_tool,
 )
 from .pixel_chain_result import PixelChain, pixel_result
-from .placements import COMPONENTS, Placements, mdh_directions, offset_component
-from .selection import Selection, select
+from .placements import Placements
 from .solve import covariance, fit, fitted_values, gauss_newton_finish
 
 __all__ = [
@@ -151,7 +146,8 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
                 )
             if type(part.kind) is not type(d.kind):
                 raise InvalidArgumentError(
-                    f"{part.source}: validation touches of another kind than the chain's"
+                    f"{part.source}: validation touches of kind '{part.kind.label}' for "
+                    f"'{d.kind.label}' data"
                 )
     if params not in CHAIN_LEVELS:
         raise InvalidArgumentError(
@@ -170,7 +166,9 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
     the touches kept must determine the chain's objects and contact frame.
 
-    A measured term's rows are checked as a single chain's (:func:`checked_measured`), its
+    The held-out touches' outliers are set aside too (``held[c]`` replaced), and a chain
+    the contact leaves finitely many postures is noted. A measured term's rows are checked
+    as a single chain's (:func:`checked_measured`), its
     registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
 
     Returns:
@@ -209,6 +207,8 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
         if out:
             more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
             d = subset(d, ~bad)
+        held[c] = contact_checks.held_out_set_aside(start, d, held[c], more)
+        more += filter(None, [contact_checks.isolated_postures(chain, d, held[c])])
         what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
         out_m = 0 if held[c] is None else held[c].m
         rows, size = len(d.kind.row_names), start.frames.size
@@ -242,7 +242,7 @@ def _register(
     start = ChainsState(tuple(chains), placements, tuple(states), scales)
     if len(set(plane_of)) == len(plane_of):
         return start
-    only_frames = _model(start, plane_of, (), placements.names())
+    only_frames = chains_model(start, plane_of, (), placements.names())
     refined = fit(
         only_frames, start, ChainsData(tuple(train)), None, 1.0, max_iterations=max_iterations
     )
@@ -255,95 +255,6 @@ def _register(
     if len(set(planes)) < len(planes):
         notes.append("a plane touched by several chains is fitted once (shared planes)")
     return refined.state
-
-
-def _model(state: ChainsState, plane_of, free, names, directions=None) -> ChainsModel:
-    kinds = tuple(s.kind for s in state.states)
-    counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
-    return ChainsModel(
-        tuple(plane_of), len(set(plane_of)), tuple(free), tuple(names), directions, kinds, counts
-    )
-
-
-def _offered(start: ChainsState, level: str) -> tuple[np.ndarray | None, tuple[str, ...], list]:
-    """Directions a level offers: (directions or None for components, names, indices).
-
-    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
-    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
-    single-chain pipeline offers them, turned into directions of joint placement errors
-    (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
-    offers (a shared joint's) once.
-    """
-    pl = start.placements
-    if level == "frames":
-        return None, pl.names(), []
-    if level == "components":  # every component (a tree's complete): the rank keeps a basis
-        return None, pl.names(), list(range(len(pl.names())))
-    if level == "offsets":
-        offsets = [
-            6 * j + COMPONENTS.index(offset_component(pl.model, jid))
-            for j, jid in enumerate(pl.ids)
-        ]
-        return None, pl.names(), offsets
-    rows: list[np.ndarray] = []
-    names: list[str] = []
-    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
-    for chain, s in zip(start.chains, start.states, strict=True):
-        mdh_set = "paper" if level == "paper" else "complete"
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
-        for d, label in zip(D, labels, strict=True):
-            unit = d / np.linalg.norm(d)
-            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
-                units = np.vstack([units, unit])
-                rows.append(d)
-                names.append(label)
-    return np.array(rows), tuple(names), list(range(len(rows)))
-
-
-def _flush(start: ChainsState, train) -> ChainsData:
-    """Each chain's touches at flush postures near them (a measured term's rows as they are)."""
-    parts: list[ContactData | Measurements | PixelPart] = []
-    for s, d in zip(start.states, train, strict=True):
-        if not isinstance(s, ContactState):
-            parts.append(d)
-            continue
-        qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
-        parts.append(ContactData(d.joint_names, qf, d.ids, d.kind, d.source))
-    return ChainsData(tuple(parts))
-
-
-def _structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list[int]:
-    """The columns the touches determine, from the Jacobian at flush postures (``_flush``)."""
-    A = wide.jacobian(start, np.zeros(wide.size()), flush)
-    A = A.reshape(-1, wide.size())
-    return independent_columns(A, list(range(A.shape[1])))[2]
-
-
-def _choose(start: ChainsState, train, flush, plane_of, level: str, notes: list[str]):
-    """The model (free components), the selection (``auto``) and the prior weights."""
-    directions, names, offered = _offered(start, level)
-    wide = _model(start, plane_of, offered, names, directions)
-    fixed = wide.fixed
-    kept = _structural(wide, start, flush) if offered else list(range(fixed))
-    if sorted(kept[:fixed]) != list(range(fixed)):
-        raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
-    columns = sorted(kept[fixed:])
-    cand = [offered[c - fixed] for c in columns]
-    if len(cand) < len(offered):
-        what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
-        notes.append(f"the {what} determine {len(cand)} of the {len(offered)} parameters offered")
-    check_level_equations(train, fixed + len(cand), level)
-    selection: Selection | None = None
-    prior = None
-    if level == "auto" and cand:
-        data = ChainsData(tuple(train))
-        J = wide.jacobian(start, np.zeros(wide.size()), data)
-        cols = list(range(fixed)) + columns
-        cand_names = tuple(names[k] for k in cand)
-        selection, weights = select(J[:, :, cols], start.residuals(data), fixed, cand_names)
-        cand = [cand[cand_names.index(k)] for k in selection.kept]
-        prior = np.r_[np.zeros(fixed), weights] if np.any(weights) else None
-    return wide.with_free(tuple(cand)), wide, selection, prior
 
 
 def determined_unknowns(
@@ -389,11 +300,13 @@ def determined_unknowns(
     )
     start = _register(chains, train, measured, plane_of, [], max_iterations, pose_weight)
     names = start.placements.names()
-    wide = _model(start, plane_of, range(len(names)), names)
+    wide = chains_model(start, plane_of, range(len(names)), names)
     every = wide.names()
-    return tuple(every[k] for k in sorted(_structural(wide, start, _flush(start, train)))), every
+    kept = structural(wide, start, flush_data(start, train, None))
+    return tuple(every[k] for k in sorted(kept)), every
 
 
+@checked_arguments
 def calibrate_contact_chains(
     chains: Sequence[Chain],
     data: Sequence[ContactData | Measurements | PixelData],
@@ -410,6 +323,8 @@ def calibrate_contact_chains(
     progress: Progress | None = None,
     instrument: bool = False,
     held_label: str | None = None,
+    elastic: bool | None = None,
+    support: Support | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -428,7 +343,7 @@ def calibrate_contact_chains(
             ``complete``.
         validate: Per chain, touches of other postures to score the result on, or None.
         orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
-            :func:`~.contact_pipeline.tilt_weight`).
+            :func:`~.contact_term.tilt_weight`).
         shared_planes: Chains of one base frame whose touches name the same plane touch one
             plane (default: each chain its own plane).
         pose_weight: Factor of the ``fixed-pose`` chains' rows against the plane chains'
@@ -444,6 +359,11 @@ def calibrate_contact_chains(
             joint placement component.
         held_label: The label of the rows given as ``validate`` in the result (``holdout``:
             rows the caller held out of the data, a tree's); None: each one's source.
+        elastic: One chain touching planes: its joint compliances are candidates too, under
+            the gravity torques of the robot standing on the chain's base frame
+            (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file).
+        support: With ``elastic``: the load split with a second foot
+            (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -455,8 +375,9 @@ def calibrate_contact_chains(
     level = "auto" if params is None else params
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
+    load = contact_elastic.term_load(chains, data, elastic, support)
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
-    contact_checks.check_memory(chains, data, level)  # before any work
+    contact_checks.check_memory(chains, data, level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
@@ -476,23 +397,27 @@ def calibrate_contact_chains(
     train, dropped, measured = _checked(
         chains, train, validate, guess, w, held, notes, max_iterations, instrument
     )
+    torques = contact_elastic.torques(load, train[0], held[0])
+    notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
+    comp = () if load is None else tuple(range(chains[0].n))
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
         start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
-        flush = _flush(start, train)
+        flush = flush_data(start, train, load)
         offer = "components" if instrument and level == "complete" else level
-        model, _, selection, prior = _choose(start, train, flush, plane_of, offer, notes)
+        rows = ChainsData(tuple(train), None if load is None else torques[:1])
+        model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp)
         names = start.placements.names()
-        wide = _model(start, plane_of, range(len(names)), names)
+        wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         every = offer == "components"  # its rank kept a basis of every component: counted
-        identifiable = model.size() if every else len(_structural(wide, start, flush))
+        identifiable = model.size() if every else len(structural(wide, start, flush))
         if instrument:
             check_tree_rank(chains, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, train, prior, offer, max_iterations)
+        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -501,7 +426,17 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     kept_prior = None if polished else prior
     result = _assemble(
-        start, fitted, model, kept_prior, train, held, plane_of, selection, notes, clock
+        start,
+        fitted,
+        model,
+        kept_prior,
+        train,
+        held,
+        plane_of,
+        selection,
+        notes,
+        clock,
+        (load, torques),
     )
     given = validate or [None] * len(held)
     labels = [None if h is None else "holdout" if v is None else held_label or v.source
@@ -527,7 +462,8 @@ ROUND_OFF = 1e-12
 """RMS row [m] of a fit already exact: not polished (nothing is left to remove)."""
 
 
-def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior, level, iters):
+def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
+         level, iters):  # fmt: skip
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -540,7 +476,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. One chain
     touching is not polished (its MDH directions span what it sees, as the single chain's
-    fit has always assumed; a polish of 20,000 touches took minutes). ``auto`` (a
+    fit has always assumed; a polish of 20,000 touches took minutes; many objects are fitted
+    by block, :func:`~.contact_fit.block_fit`). ``auto`` (a
     selection, a prior), ``offsets`` and ``components`` (every component offered) are not
     polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
     components would only wander), and a polish that wanders to no robot (its chain models
@@ -551,8 +488,11 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
     Returns:
         The fit, and whether it was polished.
     """
-    data = ChainsData(tuple(train))
-    fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
+    data = train
+    if blocky(model, start):
+        fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
+    else:
+        fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     one_contact = len(start.states) == 1 and isinstance(start.states[0], ContactState)
     if level != "complete" or not model.free or rows < wide.size() or one_contact:
@@ -573,7 +513,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train, prior
 
 
 def _assemble(
-    start, fitted, model, prior, train, held, plane_of, selection, notes, clock
+    start, fitted, model, prior, train, held, plane_of, selection, notes, clock, elastic
 ) -> ContactChainsCalibration:
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver
@@ -596,11 +536,18 @@ def _assemble(
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
             parts.append(part)
             continue
-        stats = part_stats(lambda st, rows: gap_stats(st, rows.q, rows.ids), s0, s, d, h)
+        load, torque = elastic if c == 0 else (None, (None, None))
+        torques = {id(d): torque[0], id(h): torque[1]}  # the fitted state's deflect
+
+        def stat(st, rows, fitted=s, torques=torques):
+            return gap_stats(st, rows.q, rows.ids, torques[id(rows)] if st is fitted else None)
+
+        stats = part_stats(stat, s0, s, d, h)
         if h is not None:
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        objects = contact_objects(s, d)
+        compliance = contact_elastic.fitted_compliance(s, s0, (d, h), stats, notes, load)
+        objects = contact_objects(s, d, torque[0])
         parts.append(
             ChainContacts(
                 chain,
@@ -615,6 +562,9 @@ def _assemble(
                 s.kind,
                 s.frames,
                 placed=objects,
+                compliance=compliance,
+                load=None if compliance is None else load,
+                readings=() if compliance is None or d.readings is None else d.readings.names,
             )
         )
     joints = [name for c in state.chains for name in c.joint_names]

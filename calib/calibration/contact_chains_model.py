@@ -43,6 +43,7 @@ from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns
+from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import COMPONENTS, JointFrames, Placements, joint_twists
 
@@ -71,14 +72,23 @@ def padded(a: np.ndarray, rows: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ChainsData:
-    """Touches of each chain (one :class:`ContactData` per chain, in chain order)."""
+    """Touches of each chain (one :class:`ContactData` per chain, in chain order).
+
+    ``torques``: each chain's gravity torques at its touches, which deflect its compliant
+    joints (``elastic``), or None (rigid joints).
+    """
 
     parts: tuple[ContactData | Measurements | PixelPart, ...]
+    torques: tuple[np.ndarray | None, ...] | None = None
 
     @property
     def m(self) -> int:
         """Touches of all chains."""
         return sum(d.m for d in self.parts)
+
+    def torque(self, c: int) -> np.ndarray | None:
+        """Chain c's gravity torques ``(m, n)`` [N m or N] (joint compliance), or None."""
+        return None if self.torques is None else self.torques[c]
 
 
 def on_models(states: tuple, models: tuple[MDHModel, ...]) -> tuple:
@@ -94,6 +104,26 @@ def on_models(states: tuple, models: tuple[MDHModel, ...]) -> tuple:
 def _joints(part) -> np.ndarray:
     """A chain's joint positions in its data ``(m, n)`` (a pixel part's: its rows')."""
     return np.asarray(part.rows.q if isinstance(part, PixelPart) else part.q, dtype=float)
+
+
+def _seen_joints(state, part, torque) -> np.ndarray:
+    """A chain's joint positions the geometry sees (a compliant chain's deflected)."""
+    q = _joints(part)
+    return state.joints(q, torque) if isinstance(state, ContactState) else q
+
+
+def _gap_rows(s: ContactState, d: ContactData, kin, lin: np.ndarray, ang: np.ndarray):
+    """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of a chain touching.
+
+    ``lin``, ``ang`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving
+    with the tool side, and its angular velocity; ``kin``: the chain's frames at the touches.
+    """
+    R, p = kin.R[:, -1], kin.p[:, -1]
+    point = p + R @ s.contact[:3, 3]
+    W6 = np.concatenate([lin - skew(point) @ ang, ang], axis=1)  # the contact point's motion
+    index = s.frames.index(d.ids, d.source)
+    Rc, _ = s.frames.relative(R, p, index)
+    return s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc) * s.row_weights()[None, :, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,10 +150,16 @@ class ChainsState:
         return 1.0 if self.scales is None else float(self.scales[c])
 
     def kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
-        """Each chain's frames at its data's joints, the errors included (once per step)."""
+        """Each chain's frames at its data's joints, the errors included (once per step).
+
+        A compliant chain's joints deflect under the data's gravity torques (``torque`` is
+        the solver's argument, unused).
+        """
         return tuple(
-            self.placements.frames(chain, _joints(d))
-            for chain, d in zip(self.chains, data.parts, strict=True)
+            self.placements.frames(chain, _seen_joints(s, d, data.torque(c)))
+            for c, (chain, s, d) in enumerate(
+                zip(self.chains, self.states, data.parts, strict=True)
+            )
         )
 
     def step_kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
@@ -179,6 +215,8 @@ class ChainsModel:
         kinds: Each chain's contact kind (None: all ``plane``).
         counts: Each chain's number of objects (None: one each; a ``fixed-pose`` chain may
             hold several poses, e.g. one per session: the feet stood elsewhere).
+        compliance: The first chain's joints (0-based) whose compliance is free, columns
+            after the placement directions (``c<row>``; ``elastic``: one chain touching).
     """
 
     plane_of: tuple[int, ...]
@@ -188,6 +226,7 @@ class ChainsModel:
     directions: np.ndarray | None = None
     kinds: tuple[Contact | MeasuredKind | PixelKind, ...] | None = None
     counts: tuple[int, ...] | None = None
+    compliance: tuple[int, ...] = ()
 
     n_markers = 0  # its rows come weighted (solve.row_weights: 1)
     pose = False
@@ -220,7 +259,11 @@ class ChainsModel:
 
     def size(self) -> int:
         """Number of free parameters."""
-        return self.fixed + len(self.free)
+        return self.fixed + len(self.free) + len(self.compliance)
+
+    def object_blocks(self) -> tuple[int, int]:
+        """Objects and unknowns of each (a fit by block: one chain touching, the first)."""
+        return self._count(0), len(self.chain_kinds()[0].object_dofs)
 
     def names(self) -> tuple[str, ...]:
         """Column names."""
@@ -239,11 +282,12 @@ class ChainsModel:
                 out += [f"term{c + 1}.{n}" for n in kind.names()[len(kind.object_dofs) :]]
                 continue
             out += [f"contact{c + 1}_{DOF_NAMES[d]}" for d in kind.contact_dofs]
-        return (*out, *(self.names_all[k] for k in self.free))
+        comp = (compliance_name(j) for j in self.compliance)
+        return (*out, *(self.names_all[k] for k in self.free), *comp)
 
-    def with_free(self, free: tuple[int, ...]) -> ChainsModel:
-        """The same planes and contacts, other free components."""
-        return dataclasses.replace(self, free=tuple(free))
+    def with_free(self, free: tuple[int, ...], compliance: tuple[int, ...] = ()) -> ChainsModel:
+        """The same planes and contacts, other free components and compliances."""
+        return dataclasses.replace(self, free=tuple(free), compliance=tuple(compliance))
 
     def _lift(self) -> np.ndarray:
         """The free directions ``(free, 6 J)``."""
@@ -279,14 +323,22 @@ class ChainsModel:
         """The state at parameters x (x = 0 is ``start``): no MDH model is remade."""
         x = np.asarray(x, dtype=float)
         placements = start.placements
+        end = self.fixed + len(self.free)
         if len(self.free):
-            placements = placements.shifted(self._lift().T @ x[self.fixed :])
+            placements = placements.shifted(self._lift().T @ x[self.fixed : end])
         states = tuple(
             s.moved(self._chain_x(x, c))
             if isinstance(s, MeasuredState | PixelTermState)
             else self._contact_model(s).apply(s, self._chain_x(x, c))
             for c, s in enumerate(start.states)
         )
+        if self.compliance:  # the first chain's joints deflect: q' = q + c tau
+            s = states[0]
+            if not isinstance(s, ContactState):
+                raise InvalidArgumentError("joint compliance is fitted for a chain touching")
+            c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
+            c[list(self.compliance)] += x[end:]
+            states = (dataclasses.replace(s, compliance=c), *states[1:])
         return dataclasses.replace(start, placements=placements, states=states)
 
     def jacobian(
@@ -303,15 +355,58 @@ class ChainsModel:
             kin = state.kinematics(data, torque)
         rows = row_count(self.chain_kinds())
         blocks = [
-            padded(start.scale(c) * self._block(start, state, x, c, d, kin[c]), rows)
+            padded(
+                start.scale(c) * self._block(start, state, x, c, d, kin[c], data.torque(c)), rows
+            )
             for c, d in enumerate(data.parts)
         ]
         return np.concatenate(blocks)
 
-    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin):
+    def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
+        """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
+
+        Returns:
+            The weighted rows on each touch's own object's unknowns ``(m, rows, o)``, on the
+            shared unknowns (contact, placement directions, compliances) ``(m, rows,
+            size - K o)``, and the object of each touch ``(m,)``.
+
+        Raises:
+            InvalidArgumentError: Not one chain touching.
+        """
+        if len(self.plane_of) != 1 or not isinstance(start.states[0], ContactState):
+            raise InvalidArgumentError("a fit by block is of one chain touching")
+        state = self.apply(start, x)
+        kin = state.kinematics(data)[0]
+        parts = (data.parts[0], kin, data.torque(0))
+        own, shared, index = self._contact_parts(start, state, x, 0, *parts)
+        return start.scale(0) * own, start.scale(0) * shared, index
+
+    def _contact_parts(self, start: ChainsState, state: ChainsState, x, c: int, d, kin, torque):
+        """Contact chain c's rows by block: own object's, shared, each touch's object.
+
+        Shared: the contact's, the free placement directions', the compliances'.
+
+        ``kin``: chain c's frames at its touches (:meth:`ChainsState.kinematics`, deflected
+        by the gravity torques ``torque`` ``(m, n)``, or None).
+        """
+        s, s0 = state.states[c], start.states[c]
+        if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
+            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
+        own, shared, index = self._contact_model(s0).blocks(
+            s0, self._chain_x(x, c), d, None, kin, s
+        )
+        parts = [shared]
+        if self.free:
+            parts.append(self._robot_columns(state, c, s, d, kin))
+        if self.compliance and c == 0:
+            parts.append(self._compliance_columns(state, c, s, d, kin, torque))
+        return own, np.concatenate(parts, axis=2), index
+
+    def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):
         """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded).
 
-        ``kin``: chain c's frames at its data (:meth:`ChainsState.kinematics`).
+        ``kin``: chain c's frames at its data (:meth:`ChainsState.kinematics`); ``torque``:
+        its gravity torques (compliance), or None.
         """
         s, s0 = state.states[c], start.states[c]
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
@@ -329,14 +424,14 @@ class ChainsModel:
                     state.placements, state.chains[c], s, kin, d, self._lift()
                 )
             return J
-        if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
-            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
-        Jc = self._contact_model(s0).jacobian(s0, self._chain_x(x, c), d, None, kin, s)
-        split = obj.stop - obj.start
-        J[:, :, obj] = Jc[:, :, :split]
-        J[:, :, con] = Jc[:, :, split:]
-        if self.free:
-            J[:, :, self.fixed :] = self._robot_columns(state, c, s, d, kin)
+        own, shared, index = self._contact_parts(start, state, x, c, d, kin, torque)
+        o, k = own.shape[2], con.stop - con.start
+        cols = obj.start + o * index[:, None] + np.arange(o)
+        J[np.arange(d.m)[:, None, None], np.arange(own.shape[1])[None, :, None], cols[:, None]] = (
+            own
+        )
+        J[:, :, con] = shared[:, :, :k]
+        J[:, :, self.fixed : self.fixed + shared.shape[2] - k] = shared[:, :, k:]
         return J
 
     def _robot_columns(
@@ -344,20 +439,30 @@ class ChainsModel:
     ) -> np.ndarray:
         """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
         chain = state.chains[c]
-        joints = state.placements.joints
         columns = state.placements.path(chain).columns
         ang, lin = joint_twists(state.placements, chain, kin)
-        R, p = kin.R[:, -1], kin.p[:, -1]
-        point = p + R @ s.contact[:3, 3]
-        moving = lin - skew(point)[:, None] @ ang  # velocity of the contact point
         # the free directions on the chain's joints' components (Placements.names() order),
         # without the (m, 6, 6 J) array of every component of every joint
-        lift = self._lift().reshape(-1, len(joints), len(COMPONENTS))[:, columns]
-        lift = lift.reshape(len(lift), -1).T  # (n 6, free)
-        W6 = np.concatenate(
-            [np.moveaxis(v, 2, 1).reshape(d.m, 3, -1) @ lift for v in (moving, ang)], axis=1
-        )
-        index = s.frames.index(d.ids, d.source)
-        Rc, _ = s.frames.relative(R, p, index)
-        out = s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc)
-        return out * s.row_weights()[None, :, None]
+        per_joint = self._lift().reshape(-1, len(state.placements.joints), len(COMPONENTS))
+        lift = per_joint[:, columns].reshape(len(per_joint), -1).T  # (n 6, free)
+        flat = [np.moveaxis(v, 2, 1).reshape(d.m, 3, -1) @ lift for v in (lin, ang)]
+        return _gap_rows(s, d, kin, *flat)
+
+    def _compliance_columns(
+        self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin, torque
+    ) -> np.ndarray:
+        """Weighted gap rows of the free compliances of chain c ``(m, r, k)``.
+
+        ``q' = q + c tau``: d/dc_j is tau_j times the motion of joint j's variable, a turn
+        about (a slide along) the z axis of its frame in ``kin`` (deflected), signed by the
+        chain's direction through it.
+        """
+        chain = state.chains[c]
+        path = state.placements.path(chain)
+        joints = list(self.compliance)
+        z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
+        slide = np.asarray(path.prismatic)[joints]
+        ang = np.where(slide[None, :, None], 0.0, z)
+        lin = np.where(slide[None, :, None], z, np.cross(kin.p[:, joints], ang))
+        gain = np.asarray(torque, dtype=float)[:, None, joints]  # (m, 1, k)
+        return _gap_rows(s, d, kin, np.swapaxes(lin, 1, 2) * gain, np.swapaxes(ang, 1, 2) * gain)

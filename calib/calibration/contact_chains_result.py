@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.fileio import check_outputs, write_atomic
+from ..core.fileio import check_outputs, json_text, write_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
@@ -18,10 +18,12 @@ from ..kinematics.placement_export import (
     write_moved_origins_urdf,
 )
 from ..kinematics.robot import Chain
+from ..kinematics.standing import StandingLoad
+from .contact_elastic import compliance_document, compliance_line
 from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_rows, part_stats, term_errors
 from .contact_term_report import single_contact_report
-from .delivery import Delivered, RowErrors
+from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .outliers import Outlier
@@ -73,6 +75,10 @@ class ChainContacts:
         outliers: Its touches set aside after its registration.
         placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
             origin at its touches' contact points, projected), or None: :attr:`plane`.
+        compliance: Fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``), or
+            None (rigid joints).
+        load: The gravity load the compliance acts under, or None.
+        readings: The joints off the chain the load takes at their recorded positions.
     """
 
     chain: Chain
@@ -89,6 +95,9 @@ class ChainContacts:
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
     placed: dict[str, np.ndarray] | None = None
+    compliance: np.ndarray | None = None
+    load: StandingLoad | None = None
+    readings: tuple[str, ...] = ()
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
@@ -179,6 +188,20 @@ class MeasuredChain:
         }
 
 
+def _stat_labels(part) -> dict[str, str]:
+    """Each statistic's label in the summary, padded (with compliance: which model it is)."""
+    labels = {}
+    for key in part.stats:
+        label = key.replace("_urdf", ", URDF alone (no compliance)")
+        if getattr(part, "compliance", None) is not None and not key.endswith(
+            ("_urdf", "_registration")
+        ):
+            label += ", whole model (URDF + compliance)"
+        labels[key] = label
+    width = max(22, *map(len, labels.values()))
+    return {k: f"{v:{width}s}" for k, v in labels.items()}
+
+
 def _rotation(R: np.ndarray) -> np.ndarray:
     """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
     T = np.eye(4)
@@ -263,6 +286,25 @@ class ContactChainsCalibration(Delivered):
         """The model may be used (not refused)."""
         return self.refusal is None
 
+    @property
+    def elastic(self) -> bool:
+        """Joint compliance was fitted (one chain touching): the URDF alone is not the model."""
+        return any(getattr(c, "compliance", None) is not None for c in self.chains)
+
+    def compliance_files(self, out: Path) -> dict[Path, str]:
+        """With fitted compliance, its file beside the URDF ``out`` (``<stem>.compliance.json``)."""
+        if not self.elastic:
+            return {}
+        document = compliance_document(self.chains[0], str(out))
+        return {compliance_path(out): json_text(document)}
+
+    def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
+        """Each parameter row's URDF joint and type (one chain touching: its MDH rows)."""
+        part = self.chains[0]
+        if len(self.chains) == 1 and isinstance(part, ChainContacts):
+            return tuple(part.nominal.joint_names), part.nominal.sigma
+        return tuple(part.chain.model.names), None
+
     def check(self) -> ContactChainsCalibration:
         """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
         if self.refusal is not None:
@@ -341,7 +383,7 @@ class ContactChainsCalibration(Delivered):
         (``errors.terms``, in the order of ``terms``).
         """
         first = self.chains[0].chain
-        names = tuple(first.model.names)
+        names, sigma = self._row_joints()
         fields = {
             "robot": first.name,
             "urdf": str(first.urdf_path),
@@ -360,7 +402,7 @@ class ContactChainsCalibration(Delivered):
             "parameters": [
                 *{p["name"]: p for c in self._measured() for p in c.parameters}.values(),
                 *(p for c in self._pixels() for p in c.parameters),
-                *parameter_entries(self.fitted, self.estimate, self.std, names),
+                *parameter_entries(self.fitted, self.estimate, self.std, names, sigma),
             ],
             "errors": {
                 **instrument_errors(self._instrument()),
@@ -469,6 +511,7 @@ class ContactChainsCalibration(Delivered):
                 lines.append(head + ":")
             else:
                 lines.append(f"{head} '{c.plane_id}':")
+            labels = _stat_labels(c)
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
                 rows = (
@@ -478,10 +521,12 @@ class ContactChainsCalibration(Delivered):
                     if isinstance(c, PixelChain)
                     else "configurations"
                 )
-                lines.append(f"  {key:22s} {rms}  ({s.m} {rows})")
+                lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
         lines += instrument_lines(self._instrument())
-        names = tuple(self.chains[0].chain.model.names)
-        lines += parameter_lines(parameter_entries(self.fitted, self.estimate, self.std, names))
+        lines += [line for c in self._contacts() for line in compliance_line(c)]
+        names, sigma = self._row_joints()
+        entries = parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
+        lines += parameter_lines(entries)
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)

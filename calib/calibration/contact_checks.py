@@ -32,7 +32,6 @@ from ..measurements.contact_campaign import ContactData
 from . import diagnosis, outliers, validation
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
-from .contact_result import GapStats
 from .pixel_chain import PixelPart
 from .weighting import BOUNDS, DEFAULT_WEIGHT
 
@@ -44,11 +43,11 @@ __all__ = [
     "estimate_weight",
     "gap_errors",
     "held_out_refusal",
+    "held_out_set_aside",
     "isolated_postures",
     "length_errors",
     "plane_groups",
     "rank_refusal",
-    "refusal",
     "registration",
     "set_aside",
     "subset",
@@ -239,40 +238,6 @@ def checked_registration(
     return start, bad, notes
 
 
-def refusal(
-    converged: str | None, stats: dict[str, GapStats], identified: bool, free: int
-) -> str | None:
-    """The first check a calibration fails, as a sentence (None: every check passed).
-
-    Args:
-        converged: None, or why the solver did not converge.
-        stats: The gap statistics (``train``, ``train_registration``, ``held_out``, ...).
-        identified: The Jacobian at the solution has full column rank.
-        free: Number of parameters fitted.
-    """
-    if converged is not None:
-        return f"the solver did not converge ({converged})"
-    train, before = stats["train"], stats["train_registration"]
-    if validation.worse(train.weighted_mm, before.weighted_mm, 1e-3):
-        return (
-            "the calibrated model fits the touches worse than the registration alone "
-            f"({train.weighted_mm:.3f} > {before.weighted_mm:.3f} mm weighted RMS)"
-        )
-    if not identified:
-        return (
-            f"the touches do not identify the {free} fitted parameters (rank-deficient "
-            "Jacobian): touch in more varied postures or fit fewer parameters"
-        )
-    if "held_out" in stats:
-        held, reg = stats["held_out"], stats["held_out_registration"]
-        if validation.worse(held.weighted_mm, reg.weighted_mm, 1e-3):
-            return (
-                "the calibrated model's held-out gaps are worse than the registration's "
-                f"({held.weighted_mm:.3f} > {reg.weighted_mm:.3f} mm weighted RMS)"
-            )
-    return None
-
-
 def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
     """Why a term's held-out errors refuse the model (worse than the registration's), or None."""
     got, base = stats["held_out"].weighted_mm, stats["held_out_registration"].weighted_mm
@@ -285,8 +250,10 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
     return None
 
 
-def check_memory(chains, data, level: str) -> None:
+def check_memory(chains, data, level: str, comp: int = 0) -> None:
     """Refuse in one line, before any work, contact terms that would need too much memory.
+
+    ``comp``: the joint compliance columns offered (``elastic``).
 
     Raises:
         InvalidArgumentError: A term's estimate exceeds ``MAX_WORK_BYTES``
@@ -296,7 +263,7 @@ def check_memory(chains, data, level: str) -> None:
 
     for chain, d in zip(chains, data, strict=True):
         if isinstance(d, ContactData):
-            check_selection_memory(d, from_chain(chain), level, 0)
+            check_selection_memory(d, from_chain(chain), level, comp)
 
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
@@ -341,6 +308,28 @@ def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
         )
     index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
     return tuple(index[k] for k in keys)
+
+
+def held_out_set_aside(
+    start: ContactState, train: ContactData, held: ContactData | None, notes: list[str]
+) -> ContactData | None:
+    """The held-out touches without their outliers (:func:`.outliers.held_out_outliers`).
+
+    Each held-out object must be one of the registration's; a note lists those set aside.
+
+    Raises:
+        DataError: A held-out touch of an object the training touches do not touch.
+    """
+    if held is None:
+        return None
+    start.frames.index(held.ids, held.source)  # every held-out object was fitted
+    rows = held.rows or tuple(range(1, held.m + 1))
+    before = (length_errors(start, train), length_errors(start, held))
+    bad, dropped = outliers.held_out_outliers(*before, None, rows)
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped, "touch(es)", "gap"))
+    return subset(held, ~bad)
 
 
 def set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[outliers.Outlier]:

@@ -1,10 +1,10 @@
-"""The model of a contact calibration, chosen before its fit.
+"""The joint engine's model, chosen before its fit (:mod:`.contact_chains`).
 
-The parameters a level offers, those the touches determine, the selection's columns (by
-block with many objects), the robust proposals of outliers, and the memory a calibration
-would need (refused up front beyond 2 GB).
-
-Used by :mod:`calib.calibration.contact_pipeline`.
+The directions a level offers (:func:`offer_directions`), those the data determine (at touching
+postures, :func:`flush_data`; by block with many objects, :func:`structural`), the joint
+compliances offered (``elastic``), the selection's columns (:func:`selection_columns`) and
+the choice (:func:`choose`); and the memory a contact term would need (refused up front
+beyond 2 GB, :func:`check_selection_memory`).
 """
 
 from __future__ import annotations
@@ -22,21 +22,26 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_lines
 from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
+from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
-from . import contact_checks, determined, outliers
-from .contact_fit import block_structural, block_weighted_fit, by_block
-from .contact_model import ContactModel, ContactState
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .contact_fit import block_structural, by_block
+from .contact_model import ContactState
+from .contact_term import check_level_equations
 from .object_columns import ObjectColumns
-from .options import Options
+from .pixel_chain import PixelPart, with_tool
+from .placements import COMPONENTS, mdh_directions, offset_component
 from .selection import Selection, select
 
 __all__ = [
     "SELECTION_BYTES",
+    "blocky",
+    "chains_model",
     "check_selection_memory",
     "choose",
-    "flush_postures",
+    "flush_data",
     "level_candidates",
-    "proposals",
+    "offer_directions",
     "selection_columns",
     "structural",
     "touching_postures",
@@ -134,124 +139,160 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
     return out, reached
 
 
-def flush_postures(start: ContactState, q: np.ndarray, ids=None) -> np.ndarray:
-    """Postures near ``q`` where the contact of ``start`` holds (those that reach it)."""
-    ids = [start.frames.ids[0]] * len(q) if ids is None else ids
-    out, reached = touching_postures(start, q, ids)
-    return out[reached]
+def chains_model(
+    state: ChainsState, plane_of, free, names, directions=None, comp=()
+) -> ChainsModel:
+    """The engine's model of a state: its objects, contacts, directions and compliances.
 
-
-def structural(
-    wide: ContactModel, start: ContactState, train: ContactData, load: StandingLoad | None
-) -> list[int]:
-    """The columns the touches determine, from the Jacobian at touching postures near them.
-
-    At the registration the contact does not quite hold, and the directions no contact can
-    see (the scale without a prismatic joint, ...) have small columns a rank test would
-    keep; where the contact holds they vanish.
+    ``free`` of the directions ``names`` (rows of ``directions``; None: components), and the
+    joints ``comp`` whose compliance is free.
     """
-    qf, _ = touching_postures(start, train.q, train.ids)
-    held = dataclasses.replace(train, q=qf)
-    torque = None if load is None or not wide.compliance else load.torques(qf, train.readings)
-    if by_block(wide):
-        return block_structural(wide, start, held, torque)
-    A = wide.jacobian(start, np.zeros(wide.size()), held, torque).reshape(-1, wide.size())
+    kinds = tuple(s.kind for s in state.states)
+    counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
+    return ChainsModel(
+        tuple(plane_of),
+        len(set(plane_of)),
+        tuple(free),
+        tuple(names),
+        directions,
+        kinds,
+        counts,
+        tuple(comp),
+    )
+
+
+def offer_directions(
+    start: ChainsState, level: str
+) -> tuple[np.ndarray | None, tuple[str, ...], list]:
+    """Directions a level offers: (directions or None for components, names, indices).
+
+    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
+    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
+    single-chain pipeline offers them, turned into directions of joint placement errors
+    (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
+    offers (a shared joint's) once.
+    """
+    pl = start.placements
+    if level == "frames":
+        return None, pl.names(), []
+    if level == "components":  # every component (a tree's complete): the rank keeps a basis
+        return None, pl.names(), list(range(len(pl.names())))
+    if level == "offsets":
+        offsets = [
+            6 * j + COMPONENTS.index(offset_component(pl.model, jid))
+            for j, jid in enumerate(pl.ids)
+        ]
+        return None, pl.names(), offsets
+    rows: list[np.ndarray] = []
+    names: list[str] = []
+    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
+    for chain, s in zip(start.chains, start.states, strict=True):
+        mdh_set = "paper" if level == "paper" else "complete"
+        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
+        for d, label in zip(D, labels, strict=True):
+            unit = d / np.linalg.norm(d)
+            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
+                units = np.vstack([units, unit])
+                rows.append(d)
+                names.append(label)
+    return np.array(rows), tuple(names), list(range(len(rows)))
+
+
+def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
+    """Each chain's touches at flush postures near them (a measured term's rows as they are).
+
+    With a standing load (``elastic``, one chain touching) the torques are the flush
+    postures'.
+    """
+    parts: list[ContactData | Measurements | PixelPart] = []
+    for s, d in zip(start.states, train, strict=True):
+        if not isinstance(s, ContactState):
+            parts.append(d)
+            continue
+        qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
+        parts.append(dataclasses.replace(d, q=qf))
+    first = parts[0]
+    torques = None
+    if load is not None and isinstance(first, ContactData):
+        torques = (load.torques(first.q, first.readings),)
+    return ChainsData(tuple(parts), torques)
+
+
+def blocky(model: ChainsModel, start: ChainsState) -> bool:
+    """One chain touching many objects: its objects' unknowns eliminated object by object."""
+    return len(start.states) == 1 and isinstance(start.states[0], ContactState) and by_block(model)
+
+
+def structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list[int]:
+    """The columns the touches determine, from the Jacobian at flush postures (``flush_data``)."""
+    if blocky(wide, start):
+        return block_structural(wide, start, flush, None)
+    A = wide.jacobian(start, np.zeros(wide.size()), flush)
+    A = A.reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def choose(start: ContactState, train: ContactData, opts: Options, notes: list[str], load, torque):
-    """The model (free parameters and compliances), the selection (auto), the prior weights."""
-    offered = level_candidates(start.mdh, opts.level)
-    comp = tuple(range(start.mdh.n)) if load is not None else ()
-    wide = ContactModel(offered, start.frames, comp)
-    fixed = wide.fixed
-    kept = structural(wide, start, train, load)
-    if kept[:fixed] != list(range(fixed)):
-        what = start.kind.object_name
-        raise DataError(train.source, f"the touches do not determine the {what}(s) and the contact")
+def choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=()):
+    """The model (free components, compliances), the selection (``auto``), the prior weights.
+
+    ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
+    """
+    train = list(data.parts)
+    directions, names, offered = offer_directions(start, level)
+    wide = chains_model(start, plane_of, offered, names, directions, comp)
+    fixed, every = wide.fixed, len(offered) + len(comp)
+    kept = structural(wide, start, flush) if every else list(range(fixed))
+    if sorted(kept[:fixed]) != list(range(fixed)):
+        raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = sorted(kept[fixed:])
-    if len(columns) < len(offered) + len(comp):
-        notes.append(
-            f"the touches determine {len(columns)} of the {len(offered) + len(comp)} "
-            "parameters offered"
-        )
-    groups = posture_groups(train.q, train.ids)
-    touches = int(groups.max(initial=-1)) + 1  # distinct: a repeated touch counts once
-    equations = touches * start.kind.n_rows
-    if opts.level != "auto":
-        what = f"parameters of params '{opts.level}' (with the contact's unknowns)"
-        determined.check_equations(touches, start.kind.n_rows, fixed + len(columns), what,
-                                   train.source, unit="touches")  # fmt: skip
-    elif fixed + len(columns) > equations:  # the selection's cross-validation needs spare rows
-        columns = _fewer(columns, fixed + len(offered), max(0, equations - fixed - 1))
-        notes.append(f"{touches} touches: params 'auto' chooses among {len(columns)} parameters")
-    names = wide.names()
-    weights: dict[str, float] = {}
+    if len(columns) < every:
+        what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
+        notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
+    check_level_equations(train, fixed + len(columns), level)
     selection: Selection | None = None
-    if opts.level == "auto" and columns:
-        cand = tuple(names[c] for c in columns)
-        J, objects = selection_columns(wide, start, train, torque, columns)
-        residuals = start.residuals(train, torque)
-        free = J.shape[2] - len(columns)
-        selection, w = select(J, residuals, free, cand, groups=groups, objects=objects)
-        weights = dict(zip(selection.kept, w, strict=True))
-        columns = [c for c in columns if names[c] in weights]
-    split = fixed + len(offered)
-    params = tuple(offered.parameters[c - fixed] for c in columns if c < split)
-    joints = tuple(comp[c - split] for c in columns if c >= split)
-    model = ContactModel(ParameterSet("free", params), start.frames, joints)
     prior = None
-    if any(weights.values()):
-        prior = np.r_[np.zeros(fixed), [weights[k] for k in model.names()[fixed:]]]
-    return model, selection, prior
+    if level == "auto" and columns:
+        all_names = wide.names()
+        cand_names = tuple(all_names[c] for c in columns)
+        J, objects, free = selection_columns(wide, start, data, columns)
+        groups = _postures(data)
+        e = start.residuals(data)
+        selection, weights = select(J, e, free, cand_names, groups=groups, objects=objects)
+        columns = [columns[cand_names.index(k)] for k in selection.kept]
+        if np.any(weights):
+            prior = np.r_[np.zeros(fixed), weights]
+    split = fixed + len(offered)
+    free_dirs = tuple(offered[c - fixed] for c in columns if c < split)
+    model = wide.with_free(free_dirs, tuple(comp[c - split] for c in columns if c >= split))
+    if prior is not None:  # the model's order: the directions, then the compliances
+        order = [c for c in columns if c < split] + [c for c in columns if c >= split]
+        prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
+    return model, wide, selection, prior
 
 
-def selection_columns(wide: ContactModel, start: ContactState, train, torque, columns):
-    """The selection's columns: the objects' and the contact's, then the candidates.
+def _postures(data: ChainsData) -> np.ndarray | None:
+    """One chain touching: each touch's posture (a touch recorded again counts once)."""
+    first = data.parts[0]
+    if len(data.parts) != 1 or not isinstance(first, ContactData):
+        return None
+    return posture_groups(first.q, first.ids)
 
-    With many objects (:func:`~.contact_fit.by_block`) the objects' columns come apart, by
-    block (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense.
+
+def selection_columns(wide: ChainsModel, start: ChainsState, data: ChainsData, columns):
+    """The selection's columns (the always-free ones, then ``columns``), its objects' block.
+
+    Many objects (:func:`_blocky`): the objects' columns by block
+    (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense.
+
+    Returns:
+        The dense columns ``(m, rows, free + len(columns))``, the objects (or None) and the
+        number of always-free dense columns.
     """
     x = np.zeros(wide.size())
-    if not by_block(wide):
-        J = wide.jacobian(start, x, train, torque)
-        return J[:, :, list(range(wide.fixed)) + columns], None
-    own, shared, index = wide.blocks(start, x, train, torque)
-    split = wide.size() - shared.shape[2]
-    cols = list(range(wide.fixed - split)) + [c - split for c in columns]
-    return shared[:, :, cols], ObjectColumns(own, index, len(wide.frames.ids))
-
-
-def _fewer(columns: list[int], split: int, keep: int) -> list[int]:
-    """``keep`` of the candidate columns: the least preferred robot parameters dropped first.
-
-    Robot parameters (columns below ``split``) come in preference order; the compliances
-    (from ``split``) are dropped only when no robot parameter is left.
-    """
-    params = [c for c in columns if c < split]
-    comp = [c for c in columns if c >= split]
-    cut = max(0, len(columns) - keep)
-    params = params[: max(0, len(params) - cut)]
-    return (params + comp)[:keep]
-
-
-def proposals(start: ContactState, train: ContactData, opts: Options) -> np.ndarray:
-    """Touches a robust fit of every offered parameter, linearised, finds outlying.
-
-    With many objects (:func:`~.contact_fit.by_block`) the fit goes by block.
-    """
-    offered = level_candidates(start.mdh, "complete")
-    wide = ContactModel(offered, start.frames, ())
-    rows = train.rows or tuple(range(1, train.m + 1))
-    residual = start.residuals(train)
-    how: dict = {}
-    if by_block(wide):
-        how["fit"] = block_weighted_fit(wide, start, train, residual)
-        J = None
-    else:
-        J = wide.jacobian(start, np.zeros(wide.size()), train)
-        kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
-        J = J[:, :, sorted(kept)]
-    return outliers.robust_proposals(
-        J, residual, lambda g: contact_checks.gap_errors(g, start.kind), None, rows, **how
-    )
+    if not blocky(wide, start):
+        J = wide.jacobian(start, x, data)
+        return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
+    own, shared, index = wide.blocks(start, x, data)
+    K, o = wide.object_blocks()
+    cols = list(range(wide.fixed - K * o)) + [c - K * o for c in columns]
+    return shared[:, :, cols], ObjectColumns(own, index, K), wide.fixed - K * o

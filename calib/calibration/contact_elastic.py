@@ -20,20 +20,31 @@ import dataclasses
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
+from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
+from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support, standing_load
+from ..kinematics.urdf_model import read_urdf_file
 from ..measurements.contact_campaign import ContactData
 from . import validation
 from .contact_model import ContactState
 from .contact_result import gap_stats
 
-__all__ = ["fitted_compliance", "readings_note", "standing", "torques"]
+__all__ = [
+    "compliance_document",
+    "compliance_line",
+    "fitted_compliance",
+    "load_record",
+    "readings_note",
+    "standing",
+    "term_load",
+    "torques",
+]
 
 
 def standing(
-    chain: Chain, kind: Contact, elastic: bool | None, support: Support | None
+    chain: Chain, kind: Contact | None, elastic: bool | None, support: Support | None
 ) -> StandingLoad | None:
     """The standing load compliance acts under (None: rigid joints).
 
@@ -49,15 +60,29 @@ def standing(
         return None
     if not isinstance(kind, PlaneContact):
         raise InvalidArgumentError(
-            f"elastic (joint compliance) is available for plane contacts only, not '{kind.label}'"
+            "elastic (joint compliance) is available for plane contacts only, not "
+            f"'{getattr(kind, 'label', 'measurements')}'"
         )
     return standing_load(chain, support)
 
 
-def torques(
-    load: StandingLoad | None, train: ContactData, held: ContactData | None
-) -> tuple[np.ndarray | None, np.ndarray | None]:
+def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | None:
+    """The standing load of a fit of one chain touching planes (``elastic``), or None.
+
+    Raises:
+        InvalidArgumentError: ``elastic`` for several terms or for measurements, or as
+            :func:`standing` says.
+    """
+    if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
+        raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
+    kind = data[0].kind if isinstance(data[0], ContactData) else None
+    return standing(chains[0], kind, elastic, support)
+
+
+def torques(load: StandingLoad | None, train, held) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid).
+
+    ``train`` and ``held`` (or None) are touches (:class:`ContactData`) when ``load`` is given.
 
     The joints off the chain are at their recorded positions where the touches have them.
     """
@@ -67,7 +92,7 @@ def torques(
     )
 
 
-def readings_note(load, train: ContactData, held: ContactData | None) -> str | None:
+def readings_note(load, train, held) -> str | None:
     """A note when the held-out touches record other joints off the chain than the training."""
     if load is None or held is None:
         return None
@@ -114,3 +139,75 @@ def fitted_compliance(
                 f"{reg.weighted_mm:.3f} mm weighted RMS): use it only with its compliance file"
             )
     return state.compliance
+
+
+def load_record(part) -> dict | None:
+    """The load's record of a fit with compliance (standing, support, joints read), or None."""
+    if part.load is None:
+        return None
+    support = part.load.support.to_dict()
+    return {"kind": "standing", "support": support, "readings": list(part.readings)}
+
+
+def compliance_line(part) -> list[str]:
+    """The summary's line of a fitted compliance (none for rigid joints).
+
+    Args:
+        part: The chain touching (``chain``, ``compliance``, ``load``, ``readings``).
+    """
+    if part.compliance is None or part.load is None:
+        return []
+    chain = part.chain
+    read = f"; {len(part.readings)} joints off the chain as read" if part.readings else ""
+    pairs = zip(chain.joint_names, part.compliance, strict=True)
+    fitted = ", ".join(f"{j} {v:.3g}" for j, v in pairs if v)
+    return [
+        f"joint compliance under gravity, standing on {chain.base_frame} "
+        f"({part.load.support.label()}{read}): {fitted} [rad/(N m)]"
+    ]
+
+
+def compliance_document(part, urdf: str) -> dict:
+    """The compliance file of the calibrated URDF ``urdf`` (JSON-ready).
+
+    :func:`calib.kinematics.elastic.load_calibrated` reads it back with the URDF.
+
+    Args:
+        part: The chain touching (``chain``, ``compliance``, ``load``, ``readings``,
+            ``contact``, ``plane_id``, ``plane``).
+        urdf: The calibrated URDF's path, as recorded.
+
+    Raises:
+        CalibrationRefusedError: No compliance was fitted.
+    """
+    if part.compliance is None or part.load is None:
+        raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")
+    chain = part.chain
+    g = float(np.linalg.norm(chain.model.gravity.linear))
+    nominal = read_urdf_file(chain.urdf_path)
+    return {
+        "format_version": COMPLIANCE_FORMAT,
+        "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
+        "torques of the URDF's masses, the robot standing on the base frame (gravity along "
+        "its -z; load), the joints off the chain at their recorded positions (load."
+        "readings; the others at their neutral position)",
+        "robot": chain.name,
+        "urdf": urdf,
+        "base_frame": chain.base_frame,
+        "tool_frame": chain.tool_frame,
+        "joints": list(chain.joint_names),
+        "compliance": part.compliance.tolist(),
+        "units": ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma],
+        "gravity": {"frame": chain.base_frame, "vector": [0.0, 0.0, -g]},
+        "load": load_record(part),
+        "contact": {
+            "plane_id": part.plane_id,
+            "frame": part.contact.tolist(),
+            "plane": part.plane.tolist(),
+        },
+        "measurement_to_base": np.eye(4).tolist(),
+        "markers": [part.contact[:3, 3].tolist()],
+        "marker_links": [],
+        "nominal_origins": nominal_origins(nominal),
+        "nominal_masses": nominal_masses(nominal),
+    }

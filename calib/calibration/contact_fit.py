@@ -1,11 +1,12 @@
 """The fit and the structural check of contacts of many objects, object by object.
 
-A contact calibration's unknowns are each object's (a plane's height and tilts, ...), the
-contact frame's and the robot's. With many objects (``BLOCK_UNKNOWNS`` objects' unknowns or
-more) the dense least squares of :func:`~calib.calibration.solve.fit` (MINPACK's QR of every
-column) and the dense rank test grow as the cube of the objects; here the objects' unknowns
-are eliminated object by object (:func:`~calib.calibration.contact_blocks.block_lstsq`), and
-time grows linearly with the touches and the objects:
+One chain touching (:mod:`.contact_chains`): its unknowns are each object's (a plane's
+height and tilts, ...), the contact frame's, the robot's and the compliances. With many
+objects (``BLOCK_UNKNOWNS`` objects' unknowns or more) the dense least squares of
+:func:`~calib.calibration.solve.fit` (MINPACK's QR of every column) and the dense rank test
+grow as the cube of the objects; here the objects' unknowns are eliminated object by object
+(:func:`~calib.calibration.contact_blocks.block_lstsq`), and time grows linearly with the
+touches and the objects:
 
 * :func:`block_fit`: Levenberg-Marquardt on the same cost (the weighted gaps and the prior
   rows), each step the damped least squares solved by block (damping ``lambda |D dx|^2``
@@ -16,7 +17,8 @@ time grows linearly with the touches and the objects:
   of full rank), then the pivoted QR (:func:`~calib.identification.base_columns.
   independent_columns`) of the shared columns with the objects eliminated.
 
-Fewer objects keep the dense route (a few columns: the same results as always).
+Fewer objects, and several terms, keep the dense route (a few columns: the same results as
+always).
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ import numpy as np
 
 from ..identification.base_columns import independent_columns
 from .contact_blocks import BlockSystem, block_factors, block_lstsq
-from .contact_model import ContactModel, ContactState
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .solve import TOLERANCE, Fit
 
-__all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "block_weighted_fit", "by_block"]
+__all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
 
 BLOCK_UNKNOWNS = 90
 """Objects' unknowns (30 planes) from which the fit and the structural check go by block."""
@@ -37,9 +39,10 @@ ACCEPT = 1e-4
 """Smallest ratio of the actual to the predicted reduction of an accepted step."""
 
 
-def by_block(model: ContactModel) -> bool:
-    """Whether a contact model has enough objects' unknowns to be solved by block."""
-    return len(model.frames.ids) * len(model.frames.kind.object_dofs) >= BLOCK_UNKNOWNS
+def by_block(model: ChainsModel) -> bool:
+    """Whether a model of one chain touching has enough objects' unknowns to go by block."""
+    K, o = model.object_blocks()
+    return K * o >= BLOCK_UNKNOWNS
 
 
 def _cost(f: np.ndarray, prior: np.ndarray | None, x: np.ndarray) -> float:
@@ -56,9 +59,9 @@ def _scales(own, shared, index, K, prior_s) -> tuple[np.ndarray, np.ndarray]:
 
 
 def block_fit(
-    model: ContactModel,
-    start: ContactState,
-    data,
+    model: ChainsModel,
+    start: ChainsState,
+    data: ChainsData,
     torque: np.ndarray | None,
     *,
     prior: np.ndarray | None = None,
@@ -78,7 +81,7 @@ def block_fit(
     Returns:
         The fit (``J``: the dense weighted Jacobian at the solution).
     """
-    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    K, o = model.object_blocks()
     split = K * o
     prior_s = None if prior is None else prior[split:]
 
@@ -146,14 +149,14 @@ def _result(model, start, data, torque, x, f, status, counts) -> Fit:
     )
 
 
-def block_structural(model: ContactModel, start: ContactState, data, torque) -> list[int]:
-    """The columns the touches determine (:func:`~.contact_pipeline._structural`), by block.
+def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData, torque) -> list[int]:
+    """The columns the touches determine (:func:`~.contact_choice.structural`), by block.
 
     Every object's columns are kept when each object's own triangular factor has full rank
     (else none of them, which the pipeline refuses); the shared columns are those the
     pivoted QR of the shared system, objects eliminated, keeps (contact columns first).
     """
-    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
+    K, o = model.object_blocks()
     own, shared, index = model.blocks(start, np.zeros(model.size()), data, torque)
     F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))
     R = F[:, :o, :o]
@@ -165,28 +168,3 @@ def block_structural(model: ContactModel, start: ContactState, data, torque) -> 
     rows = own.shape[0] * own.shape[1]
     kept = independent_columns(reduced, list(range(shared.shape[2])), rows)[2]
     return list(range(K * o)) + [K * o + c for c in kept]
-
-
-def block_weighted_fit(model: ContactModel, start: ContactState, data, residual: np.ndarray):
-    """The weighted linear least squares of the touches' residuals, by block.
-
-    For :func:`~.outliers.robust_proposals`: the columns the touches determine
-    (:func:`block_structural`), and a function of each touch's weight ``(m,)`` giving the
-    residuals ``(m, rows)`` it leaves.
-
-    Returns:
-        That function and the number of unknowns (none when the objects are undetermined).
-    """
-    K, o = len(model.frames.ids), len(model.frames.kind.object_dofs)
-    kept = block_structural(model, start, data, None)
-    if not kept:
-        return (lambda w: residual), 10**9  # undetermined: no proposal
-    own, shared, index = model.blocks(start, np.zeros(model.size()), data, None)
-    shared = shared[:, :, [c - K * o for c in kept[K * o :]]]
-
-    def fitted(w: np.ndarray) -> np.ndarray:
-        s = np.sqrt(w)[:, None, None]
-        sol = block_lstsq(BlockSystem(own * s, shared * s, -residual * s[:, :, 0], index, K))
-        return residual - np.einsum("mro,mo->mr", own, sol.objects[index]) - shared @ sol.shared
-
-    return fitted, len(kept)

@@ -25,7 +25,6 @@ from .contact_model import ContactState, plane_frame
 from .contact_registration import MIN_TOUCHES
 
 __all__ = [
-    "by_engine",
     "check_held_out_gaps",
     "check_level_equations",
     "check_touches",
@@ -35,19 +34,6 @@ __all__ = [
     "split_contacts",
     "tilt_weight",
 ]
-
-
-def by_engine(data: ContactData, elastic: bool | None) -> bool:
-    """Whether one chain's touches are fitted by the joint engine (:mod:`.contact_chains`).
-
-    Every contact kind and level is; not yet joint compliance (``elastic``) nor many objects
-    (:data:`~.contact_fit.BLOCK_UNKNOWNS` of their unknowns or more, eliminated object by
-    object), which the MDH chart's own steps fit (:mod:`.contact_pipeline`).
-    """
-    from .contact_fit import BLOCK_UNKNOWNS
-
-    objects = len(data.contacts) * len(data.kind.object_dofs)
-    return not elastic and objects < BLOCK_UNKNOWNS
 
 
 def check_level_equations(train, unknowns: int, level: str) -> None:

@@ -6,13 +6,16 @@ A problem of one contact term (``shape`` ``contacts``) is fitted by the joint en
 layout users' scripts, ``calib predict`` and ``load_calibrated`` read for one chain touching
 (:func:`single_contact_report`): ``shape`` ``contacts``, the term's errors as ``errors.train``
 and ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
-joint's compliance (0: the joints are rigid), the chain's nominal and calibrated MDH rows
-under ``model``, and format 2's keys of a contact report (``base``, ``tool``, ``measure``,
-``contact``, ``gaps``, ``tilt_weight``, ``calibrated_mdh``, ...).
+joint's compliance (0 where none was fitted) and its load, the chain's nominal and calibrated
+MDH rows under ``model``, and format 2's keys of a contact report (``base``, ``tool``,
+``measure``, ``contact``, ``gaps``, ``tilt_weight``, ``calibrated_mdh``, ...).
 """
 
 from __future__ import annotations
 
+import numpy as np
+
+from .contact_elastic import load_record
 from .report import fit_dict
 
 __all__ = ["single_contact_report"]
@@ -30,6 +33,7 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
         The fields and format 2's keys of the single chain's layout.
     """
     chain, kind = part.chain, part.kind
+    compliance = np.zeros(chain.n) if part.compliance is None else part.compliance
     errors = part.errors()
     angles = any(kind.angular)
     fields = {
@@ -38,12 +42,12 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
         "errors": {**errors, "terms": [errors]},
         "frames": {**fields["frames"], "tool_link": chain.tool_frame},
         "fit": fit_dict(orientation_weight=part.weight if angles else None),
-        "compliance": {j: 0.0 for j in chain.joint_names},
+        "compliance": dict(zip(chain.joint_names, map(float, compliance), strict=True)),
         "model": {
             **fields["model"],
             "mdh_nominal": part.nominal.rows(),
             "mdh_calibrated": part.calibrated.rows(),
-            "load": None,
+            "load": load_record(part),
         },
     }
     base = chain.base_frame
@@ -62,7 +66,7 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
             "frames": {chain.tool_frame: {"matrix": part.contact.tolist()}},
         },
         "gaps": {k: v.to_dict() for k, v in part.stats.items()},
-        "load": None,
+        "load": load_record(part),
         "calibrated_mdh": part.calibrated.rows(),
         "notes": legacy["notes"],
     }

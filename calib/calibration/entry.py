@@ -5,10 +5,8 @@ is the problem of one term. The problem's shape picks the model that fits it: on
 measured (:func:`~.pipeline.calibrate_chain`, the MDH chart with its registration moments),
 or terms whose joints are shared (:func:`~.contact_chains.calibrate_contact_chains`, URDF
 joint placements): several terms, one chain touching (any contact kind, any number of
-objects) and a tree measured by one instrument (one measured term per tool sharing the
-instrument's frame: :mod:`~.instrument`, :mod:`~.tree_checks`). One chain touching with
-joint compliance (``elastic``) or many objects (:func:`~.contact_term.by_engine`) is still
-fitted by the single chain's MDH chart (:func:`~.contact_pipeline.calibrate_contacts`).
+objects, joint compliance included) and a tree measured by one instrument (one measured
+term per tool sharing the instrument's frame: :mod:`~.instrument`, :mod:`~.tree_checks`).
 Each takes the
 steps of every calibration: prepare (checks, held-out rows, validation data that are the
 training data refused), register, set outliers aside, diagnose usual mistakes, choose the
@@ -31,9 +29,6 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_chains import calibrate_contact_chains
 from .contact_chains_result import ContactChainsCalibration
-from .contact_pipeline import calibrate_contacts
-from .contact_result import ContactCalibration
-from .contact_term import by_engine
 from .delivery import Result
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
 from .pipeline import calibrate_chain
@@ -41,7 +36,7 @@ from .problem import Problem, Term
 from .result import CalibrationResult
 from .tree_checks import prepare_tree
 
-__all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_tree", "measured_chain"]
+__all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
 
 ENGINE_CHAIN = False
 """Internal switch (issue 28): fit one chain measured by an instrument with the joint engine
@@ -103,7 +98,7 @@ def calibrate(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
-) -> ContactChainsCalibration | ContactCalibration: ...
+) -> ContactChainsCalibration: ...
 
 
 @checked_arguments
@@ -218,7 +213,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
             progress=progress,
         )
     term = p.terms[0]  # its robot's and data's types are the shape's (Problem checks them)
-    if shape == "contacts" and by_engine(cast(ContactData, term.data), p.elastic):
+    if shape == "contacts":  # one chain touching: a joint fit of one term
         return calibrate_contact_chains(
             [cast(Chain, term.robot)],
             [term.data],
@@ -230,20 +225,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
             holdout=p.holdout,
             seed=p.seed,
             progress=progress,
-        )
-    if shape == "contacts":  # joint compliance, many objects: the MDH chart's own steps
-        return calibrate_contacts(
-            cast(Chain, term.robot),
-            cast(ContactData, term.data),
-            contact=term.guess,
-            params=p.params,
-            validate=cast(ContactData | None, term.validate),
             elastic=p.elastic,
-            orientation_weight=p.orientation_weight,
-            max_iterations=p.max_iterations,
-            holdout=p.holdout,
-            seed=p.seed,
-            progress=progress,
         )
     if shape == "tree":
         return _tree(p, term, progress)
@@ -254,6 +236,23 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
 
 calibrate_tree = calibrate
 """The name :func:`calibrate` had for trees (a tree is one of its problems)."""
+
+
+def calibrate_contacts(
+    chain: Chain, data: ContactData, *, validate: ContactData | None = None, **options
+) -> ContactChainsCalibration:
+    """One chain touching: the joint engine's fit of one term (the name of its own route once).
+
+    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]``, its other
+    arguments as they are (``contact``, ``params``, ``elastic``, ``support``: the load split
+    with a second foot, ``holdout``, ...).
+
+    Raises:
+        InvalidArgumentError: A bad or unknown argument.
+        DataError: Touches that do not belong to the chain or determine too little.
+    """
+    held = None if validate is None else [validate]
+    return calibrate_contact_chains([chain], [data], validate=held, **options)
 
 
 def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:

@@ -296,12 +296,11 @@ def spread_out(errors: Errors) -> bool:
 
 
 def robust_proposals(
-    J: np.ndarray | None,
+    J: np.ndarray,
     residual: np.ndarray,
     errors: Callable[[np.ndarray], Errors],
     noise: float | None,
     rows: tuple[int, ...],
-    fit: tuple[Callable[[np.ndarray], np.ndarray], int] | None = None,
 ) -> np.ndarray:
     """The units a robust fit of a linearised model finds outlying (a boolean mask).
 
@@ -317,18 +316,14 @@ def robust_proposals(
         errors: Each unit's errors from residuals ``(m, rows)``.
         noise: Instrument position noise [m], or None.
         rows: File row of each unit.
-        fit: Instead of J: the residuals the least squares weighted by each unit's weight
-            ``(m,)`` leaves ``(m, rows)``, and the number of unknowns (e.g. solved by block).
     """
     m, rows_each = residual.shape
-    if fit is None and J is not None:
-        fit = (lambda w: _dense_fit(J, residual, w)), J.shape[2]
-    if fit is None or m * rows_each < 2 * fit[1]:  # nearly interpolated: nothing to tell
+    if m * rows_each < 2 * J.shape[2]:  # nearly interpolated: nothing to tell
         return np.zeros(m, dtype=bool)
     w = np.ones(m)
     fitted = residual
     for _ in range(IRLS_ROUNDS):
-        fitted = fit[0](w)
+        fitted = _dense_fit(J, residual, w)
         pos, rot, _ = errors(fitted)
         ratio = _ratio(pos) if rot is None else np.maximum(_ratio(pos), _ratio(rot))
         new = np.minimum(1.0, 1.0 / np.maximum(ratio, 1e-300))

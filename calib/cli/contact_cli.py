@@ -69,7 +69,6 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
     Raises:
         CalibrationRefusedError: The model was refused (the report only is written).
     """
-    from ..calibration.contact_term import by_engine
     from ..measurements.contact_campaign import read_contacts
 
     if not isinstance(chain, Chain) or chain.is_tree:
@@ -92,8 +91,7 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
     check = read_contacts(args.validate, chain, args.measure) if args.validate else None
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
     support = _support(args)
-    run = _engine if by_engine(data, args.elastic) else _mdh_chart
-    result = run(args, chain, data, check, weight, support)
+    result = _engine(args, chain, data, check, weight, support)
 
     def urdf() -> dict[Path, str | bytes]:
         files: dict[Path, str | bytes] = {out: result.urdf()}
@@ -117,7 +115,6 @@ def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support
     """One chain's touches fitted by the joint engine (:mod:`calib.calibration.contact_chains`)."""
     from ..calibration.contact_chains import calibrate_contact_chains
 
-    del support  # only with --elastic, which the engine does not fit yet
     return calibrate_contact_chains(
         [chain],
         [data],
@@ -129,24 +126,6 @@ def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support
         holdout=args.holdout,
         seed=args.seed,
         progress=terminal(args.quiet),
-    )
-
-
-def _mdh_chart(args: argparse.Namespace, chain: Chain, data, check, weight, support):
-    """Joint compliance or many objects: the MDH chart's own steps (``contact_pipeline``)."""
-    from ..calibration.contact_pipeline import calibrate_contacts
-
-    return calibrate_contacts(
-        chain,
-        data,
-        contact=args.contact,
-        params=args.params,
-        validate=check,
-        orientation_weight=weight,
         elastic=args.elastic,
         support=support,
-        max_iterations=args.max_iterations,
-        holdout=args.holdout,
-        seed=args.seed,
-        progress=terminal(args.quiet),
     )

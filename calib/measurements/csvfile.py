@@ -275,7 +275,14 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     keys = column_keys(names, (*chain.variable_names, *follower_names(chain)))
     for name in chain.variable_names:
         if JOINT_PREFIX + name not in keys:
-            raise DataError(src, "missing joint column", row=line, column=name)
+            tools = ", ".join(chain.tool_frames)
+            raise DataError(
+                src,
+                f"missing joint column: the chain {chain.base_frame} -> {tools} moves that joint "
+                "(its base and tool frames choose the joints read)",
+                row=line,
+                column=name,
+            )
     pos, fmt, ori = _layout(keys, chain, columns, src, line)
     every = _point_columns(keys, src, line)  # the points not chosen are not "ignored"
     used = {*_joint_keys(chain), *pos, *every, *ori, TOOL_COLUMN}
