@@ -508,3 +508,19 @@ class PathRef:
                 cols.append(np.concatenate(col))
         s = np.linalg.svd(np.array(cols).T, compute_uv=False)
         return int(np.sum(s > 1e-8 * s[0]))
+
+
+def instrument_points(urdf, report: dict, base: str, tool: str, joint_names, q) -> np.ndarray:
+    """Pinocchio alone: a written URDF's marker 1 in the instrument's frame ``(m, 3)`` [m].
+
+    The marker link ``<tool>_marker1`` is placed in the base frame by Pinocchio, then in the
+    instrument's frame by the report's ``frames.measurement`` (xyz and rpy: the pose of the
+    base frame in the instrument's; a joint fit's is keyed by its base frame).
+    """
+    frame = report["frames"]["measurement"]
+    if "xyz" not in frame:
+        (frame,) = frame.values()
+    ref = PinTree.of_file(urdf, base, [f"{tool}_marker1"])
+    points = ref.poses(joint_names, q)[:, 0, :3, 3]
+    R = pin.rpy.rpyToMatrix(np.array(frame["rpy"]))
+    return points @ R.T + np.array(frame["xyz"])

@@ -16,6 +16,7 @@ import pytest
 from contact_scorer import contact_gaps, read_joints
 
 from calib import load_robot
+from calib.calibration import contact_choice
 from calib.calibration.contact_term import split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
@@ -75,6 +76,25 @@ def _invariants(kind: str, T: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np
     angle = np.linalg.norm(rotvec, axis=1)
     along = np.einsum("mi,mi->m", rotvec / angle[:, None], rel[:, :3, 3])
     return angle, along[:, None]
+
+
+def test_rank_postures_are_flush_on_the_joint_frames(monkeypatch):
+    """The structural rank is taken at postures flush in the geometry it differentiates: the
+    joint frames, not only the MDH model (the UR5's differ by 4e-13 m, which made dependent
+    directions independent at 1e-12 and dropped two of the fixed point's 26 columns)."""
+    seen = []
+    structural = contact_choice.structural
+
+    def spy(wide, start, flush):
+        seen.append((start, flush))
+        return structural(wide, start, flush)
+
+    monkeypatch.setattr(contact_choice, "structural", spy)
+    chain = load_robot(*CHAINS["ur5"])
+    camp = simulate_contacts(chain, 80, "fixed-point", contacts=2, seed=3)
+    calibrate_contacts(chain, camp.data, params="complete", holdout=0.3, seed=1)
+    start, flush = seen[0]
+    assert np.max(np.abs(start.residuals(flush))) < 1e-14
 
 
 def _log3(R: np.ndarray) -> np.ndarray:

@@ -51,6 +51,7 @@ __all__ = [
     "ChainsData",
     "ChainsModel",
     "ChainsState",
+    "joint_rows",
     "on_models",
     "padded",
     "row_count",
@@ -124,6 +125,20 @@ def _gap_rows(s: ContactState, d: ContactData, kin, lin: np.ndarray, ang: np.nda
     index = s.frames.index(d.ids, d.source)
     Rc, _ = s.frames.relative(R, p, index)
     return s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc) * s.row_weights()[None, :, None]
+
+
+def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
+    """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``.
+
+    Joint j's motion is a turn about (a slide along) the z axis of its frame in ``kin``,
+    signed by the chain's direction through it (``path``: the chain's
+    :class:`~.placements.ChainPath`).
+    """
+    z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
+    slide = np.asarray(path.prismatic)[joints][None, :, None]
+    ang = np.where(slide, 0.0, z)
+    lin = np.where(slide, z, np.cross(kin.p[:, joints], ang))
+    return _gap_rows(s, d, kin, np.swapaxes(lin, 1, 2), np.swapaxes(ang, 1, 2))
 
 
 @dataclass(frozen=True, eq=False)
@@ -453,16 +468,9 @@ class ChainsModel:
     ) -> np.ndarray:
         """Weighted gap rows of the free compliances of chain c ``(m, r, k)``.
 
-        ``q' = q + c tau``: d/dc_j is tau_j times the motion of joint j's variable, a turn
-        about (a slide along) the z axis of its frame in ``kin`` (deflected), signed by the
-        chain's direction through it.
+        ``q' = q + c tau``: d/dc_j is tau_j times d/dq_j (:func:`joint_rows`, in the
+        deflected frames ``kin``).
         """
-        chain = state.chains[c]
-        path = state.placements.path(chain)
         joints = list(self.compliance)
-        z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
-        slide = np.asarray(path.prismatic)[joints]
-        ang = np.where(slide[None, :, None], 0.0, z)
-        lin = np.where(slide[None, :, None], z, np.cross(kin.p[:, joints], ang))
         gain = np.asarray(torque, dtype=float)[:, None, joints]  # (m, 1, k)
-        return _gap_rows(s, d, kin, np.swapaxes(lin, 1, 2) * gain, np.swapaxes(ang, 1, 2) * gain)
+        return joint_rows(state.placements.path(state.chains[c]), s, d, kin, joints) * gain

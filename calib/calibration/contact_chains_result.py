@@ -552,7 +552,9 @@ class ContactChainsCalibration(Delivered):
             return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
         if self._instrument():  # each tool's markers as links (a tree's)
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
-            return marker_urdf(self.chains[0].chain, self.joint_errors(), marks)
+            return marker_urdf(
+                self.chains[0].chain, self.joint_errors(), marks, self.shape == "chain"
+            )
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:

@@ -24,7 +24,7 @@ from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_rows
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
 from .contact_term import check_level_equations
@@ -209,13 +209,34 @@ def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsDa
         if not isinstance(s, ContactState):
             parts.append(d)
             continue
-        qf, _ = touching_postures(s, d.q, d.ids)  # what could not be projected: as recorded
-        parts.append(dataclasses.replace(d, q=qf))
+        qf, reached = touching_postures(s, d.q, d.ids)  # the others: as recorded
+        parts.append(_flush_on_frames(start, len(parts), s, dataclasses.replace(d, q=qf), reached))
     first = parts[0]
     torques = None
     if load is not None and isinstance(first, ContactData):
         torques = (load.torques(first.q, first.readings),)
     return ChainsData(tuple(parts), torques)
+
+
+def _flush_on_frames(start: ChainsState, c: int, s: ContactState, d: ContactData, reached):
+    """Touches made flush in the geometry the rank test differentiates (the joint frames).
+
+    The projection (:func:`touching_postures`) is flush on the chain's MDH model, which
+    differs from the joint placements' frames by round-off (~1e-13 m): dependencies that
+    hold exactly at flush postures would then show at the 1e-12 level, above the rank's
+    tolerance. Two Newton steps on the joint positions of the touches that reached their
+    object remove that gap.
+    """
+    chain = start.chains[c]
+    path = start.placements.path(chain)
+    q = np.array(d.q, dtype=float)
+    for _ in range(2):
+        kin = start.placements.frames(chain, q)
+        g = s.gaps(q, d.ids, None, kin) * s.row_weights()
+        J = joint_rows(path, s, d, kin, list(range(chain.n)))
+        step = np.linalg.pinv(J) @ g[..., None]
+        q[reached] -= step[reached, :, 0]
+    return dataclasses.replace(d, q=q)
 
 
 def blocky(model: ChainsModel, start: ChainsState) -> bool:

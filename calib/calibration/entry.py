@@ -36,7 +36,12 @@ from .problem import Problem, Term
 from .result import CalibrationResult
 from .tree_checks import prepare_tree
 
-__all__ = ["calibrate", "calibrate_contacts", "calibrate_tree"]
+__all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
+
+ENGINE_CHAIN = False
+"""Internal switch (issue 28): fit one chain measured by an instrument with the joint engine
+(:func:`measured_chain`) instead of the MDH chart's pipeline (:func:`~.pipeline.calibrate_chain`).
+Off by default: the engine route lacks features of the pipeline (see :func:`measured_chain`)."""
 
 
 @overload
@@ -224,6 +229,8 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
         )
     if shape == "tree":
         return _tree(p, term, progress)
+    if ENGINE_CHAIN:
+        return measured_chain(p, term, progress)
     return calibrate_chain(term.robot, term.data, term.guess, term.validate, p.options(), progress)
 
 
@@ -278,6 +285,52 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
         held_label="holdout" if validate is None else None,
     )
     return dataclasses.replace(result, shape="tree")
+
+
+def measured_chain(
+    problem: Problem, term: Term, progress: Progress | None = None
+) -> ContactChainsCalibration:
+    """One chain measured by an instrument, fitted by the joint engine as a one-term problem.
+
+    The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
+    (``instrument=True``), its rows checked, registered and weighted by the chain pipeline's
+    own steps (:func:`~.measured_term.checked_measured`). What the engine does not have yet is
+    refused, not ignored: the ``paper`` level, ``fix``/``free``, ``elastic``, a robust
+    ``loss`` and ``noise_mm``, a marker guess.
+
+    Raises:
+        InvalidArgumentError: An option the engine route does not have.
+    """
+    missing = [
+        name
+        for name, given in (
+            ("params='paper'", problem.params == "paper"),
+            ("fix", bool(problem.fix)),
+            ("free", bool(problem.free)),
+            ("elastic", bool(problem.elastic)),
+            ("loss", problem.loss != "linear"),
+            ("noise_mm", problem.noise_mm is not None),
+            ("marker", term.guess is not None),
+        )
+        if given
+    ]
+    if missing:
+        raise InvalidArgumentError(
+            f"the joint engine's chain route does not take {', '.join(missing)} yet"
+        )
+    result = calibrate_contact_chains(
+        [cast(Chain, term.robot)],
+        [term.data],
+        params=problem.params,
+        validate=None if term.validate is None else [term.validate],
+        orientation_weight=problem.orientation_weight,
+        max_iterations=problem.max_iterations,
+        holdout=problem.holdout,
+        seed=problem.seed,
+        progress=progress,
+        instrument=True,
+    )
+    return dataclasses.replace(result, shape="chain")
 
 
 def _validated(problem: Problem) -> bool:

@@ -117,7 +117,10 @@ def camera_urdf(
 
 
 def marker_urdf(
-    chain: Chain, errors: dict[str, np.ndarray], markers: tuple[tuple[Chain, np.ndarray], ...]
+    chain: Chain,
+    errors: dict[str, np.ndarray],
+    markers: tuple[tuple[Chain, np.ndarray], ...],
+    moving: bool = False,
 ) -> bytes:
     """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
 
@@ -127,15 +130,18 @@ def marker_urdf(
         markers: ``(chain to the tool, its markers in the tool frame (K, 3) [m])`` of each
             tool: each marker a link fixed to the tool's link
             (:func:`~.urdf_links.add_marker_links`).
+        moving: A tool link carried by its chain's last joint is allowed (one chain's; a
+            tree's tools need their fixed joints).
 
     Raises:
-        CalibError: A tool not carried by a fixed joint, or a marker link's name taken.
+        CalibError: A tool not carried by a fixed joint (unless ``moving``), or a marker
+            link's name taken.
     """
     raw = moved_origins_urdf(chain, errors)
     src = str(chain.urdf_path)
     start, stop = xml_layout(raw, src)
     root = parse_xml(raw, src)
     for tool_chain, points in markers:
-        tool_link = child_link(edited_joints(root, tool_chain)[1])
+        tool_link = child_link(edited_joints(root, tool_chain, moving)[1])
         add_marker_links(root, tool_chain.tool_frame, tool_link, points)
     return spliced(raw, root, start, stop)
