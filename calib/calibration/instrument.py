@@ -265,7 +265,8 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     compared with those generic configurations determine: the rank of the engine's own
     Jacobian (``wide``: the frame, the markers and every joint placement component, at
     ``start``) with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random
-    configurations of the tree (seeded), no second model of the tree.
+    configurations of the tree (seeded), rows of each tool's kind (its markers, a pose's
+    orientation), no second model of the tree.
 
     Args:
         wide: The joint fit's model offering every joint placement component.
@@ -285,13 +286,23 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
     q = tree.random_configurations(DEFAULT_CONFIGS, seed)
     parts = tuple(
-        Measurements(c.joint_names, q[:, path], np.zeros((len(q), 3)))
-        for c, path in zip(chains, tree.paths, strict=True)
+        _rows_like(d, c.joint_names, q[:, path])
+        for c, d, path in zip(chains, train, tree.paths, strict=True)
     )
     J = wide.jacobian(start, np.zeros(wide.size()), ChainsData(parts)).reshape(-1, wide.size())
     generic = len(independent_columns(J, list(range(J.shape[1])))[2])
-    rows = sum(d.m for d in train)
-    determined.check_rank(identifiable, generic, rows, 3, level, train[0].source, "rows")
+    rows, per_row = sum(d.m for d in train), train[0].kind.rows_of(train[0].n_markers)
+    determined.check_rank(identifiable, generic, rows, per_row, level, train[0].source, "rows")
+
+
+def _rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
+    """Rows of ``data``'s kind (its markers, an orientation or not) at the joints ``q``.
+
+    Their values are zero points and identity orientations: a Jacobian's rank does not read them.
+    """
+    m = len(q)
+    turn = None if data.quaternion is None else np.tile([0.0, 0.0, 0.0, 1.0], (m, 1))
+    return Measurements(joint_names, q, np.zeros((m, 3 * data.n_markers)), turn)
 
 
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
