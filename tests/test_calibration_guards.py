@@ -21,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import chain_of
+from pinref import PinTree
 from scipy.spatial.transform import Rotation
 
 from calib import DataError, InvalidArgumentError, calibrate, simulate
@@ -233,6 +234,31 @@ def test_tree_level_the_rows_cannot_determine_is_refused(tmp_path):
     still = dataclasses.replace(data, q=q, position=pts)
     with pytest.raises(DataError, match="determine only"):
         calibrate_tree(tree, still)
+
+
+def test_tree_generic_count_is_pinocchios_rank(tmp_path):
+    """The count a tree's rows must reach (the refusal's 'of the N parameters') is the
+    finite-difference rank of Pinocchio's own model at random configurations: every joint
+    placement, the base (the instrument's frame) and each tool (its marker) moved, x y z rows."""
+    tree = load_robot("bolt")
+    camp = simulate_tree(tree, 30, markers=MARKER, seed=6)
+    q = camp.measurements.q.copy()
+    q[:, 2] = 0.4  # FL_KFE never moves: refused, the message names the generic count
+    tool = np.array([tree.tool_frames.index(t) for t in camp.measurements.tool])
+    pts = true_points(camp.true_mdh, q, camp.markers)[np.arange(len(q)), tool]
+    still = dataclasses.replace(camp.measurements, q=q, position=pts)
+    with pytest.raises(DataError, match="determine only") as err:
+        calibrate_tree(tree, still)
+    generic = int(str(err.value).split(" of the ")[1].split()[0])
+    ref = PinTree.of_file(tree.urdf_path, tree.base_frame, list(tree.tool_frames))
+    rng = np.random.default_rng(3)
+    qr = rng.uniform(-1.0, 1.0, (12, tree.n))
+    W = ref.placement_jacobian(tree.joint_names, qr, MARKER)
+    keep = np.concatenate([6 * k + np.arange(3) for k in range(len(W) // 6)])
+    s = np.linalg.svd(W[keep], compute_uv=False)
+    rank = int(np.sum(s > 1e-7 * s[0]))
+    assert s[rank] < 1e-9 * s[0]  # a clear gap
+    assert generic == rank
 
 
 # --- behaviour 3: validation data are data --------------------------------------------------

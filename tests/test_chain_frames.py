@@ -137,3 +137,30 @@ def test_joint_twists_match_central_differences(case):
             )
             scale = max(scale, np.abs(dp).max())
     assert worst < 1e-8 * max(scale, 1.0)
+
+
+def test_start_models_are_the_chains_own_conversions_when_unmoved():
+    """The registration's models (from_chain of each chain) are kept at zero errors: they are
+    what chain_models makes there, array for array; another model or a moved robot's is not."""
+    import dataclasses
+
+    from calib.kinematics.mdh import from_chain
+
+    hands = load_robot(
+        "talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
+    )
+    chains = tuple(hands.chains)
+    placements = Placements.of(chains)
+    own = tuple(from_chain(c) for c in chains)
+    states = [dataclasses.make_dataclass("S", [("mdh", object)])(m) for m in own]
+    kept = placements.start_models(chains, states)
+    assert all(a is b for a, b in zip(kept, own, strict=True))
+    for a, b in zip(kept, placements.chain_models(chains), strict=True):
+        for f in ("sigma", "beta", "alpha", "d", "theta", "r", "y", "sign"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+    swapped = placements.start_models(chains, states[::-1])  # not these chains' models
+    assert not any(a is b for a, b in zip(swapped, own[::-1], strict=True))
+    y = placements.y.copy()
+    y[0, 2] = 1e-3
+    moved = dataclasses.replace(placements, y=y)
+    assert not any(a is b for a, b in zip(moved.start_models(chains, states), own, strict=True))

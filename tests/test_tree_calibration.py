@@ -193,3 +193,27 @@ def test_cli_simulates_and_calibrates_a_tree(tmp_path, capsys):
     pose = [*sim[:-4], "--measure", "pose"]  # the default instrument measures positions
     assert main([*pose, "--out", str(tmp_path / "p.csv")]) == 2
     assert "add --measure position" in capsys.readouterr().err
+
+
+def test_held_out_rows_are_registered_once(monkeypatch):
+    """A tree's holdout rows are diagnosed with the file they come from (prepare_tree's
+    registration of every row), not registered and diagnosed again tool by tool as a
+    validation file is; a validation file still is."""
+    import calib.calibration.chain_registration as chain_registration
+
+    tree = talos()
+    data = simulate_tree(tree, 30, markers=MARKERS, noise_mm=0.05, seed=1).measurements
+    seen: list[int] = []
+    inner = chain_registration._diagnose_validation
+
+    def counted(chain, nominal, held, guess, opts):
+        seen.append(0 if held is None else held[0].m)
+        return inner(chain, nominal, held, guess, opts)
+
+    monkeypatch.setattr(chain_registration, "_diagnose_validation", counted)
+    assert calibrate(tree, data, holdout=0.25).accepted
+    assert seen == [0, 0]  # one call per tool, nothing to diagnose
+    seen.clear()
+    train, other = data.subset(np.arange(40)), data.subset(np.arange(40, 60))
+    calibrate(tree, train, validate=other)
+    assert sum(seen) == other.m  # each tool's validation rows diagnosed

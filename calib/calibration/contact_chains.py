@@ -229,7 +229,7 @@ def _register(
     contact in closed form, a measured term's frames, a pixel term's camera).
     """
     placements = Placements.of(tuple(chains))
-    states = list(on_models(tuple(measured), placements.chain_models(tuple(chains))))
+    states = list(on_models(tuple(measured), placements.start_models(tuple(chains), measured)))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
         if mine is not owner and isinstance(mine, ContactState) and isinstance(owner, ContactState):
@@ -358,7 +358,8 @@ def calibrate_contact_chains(
             the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
             joint placement component.
         held_label: The label of the rows given as ``validate`` in the result (``holdout``:
-            rows the caller held out of the data, a tree's); None: each one's source.
+            rows the caller held out of the data, a tree's, diagnosed with the data by the
+            caller, not again); None: each one's source.
         elastic: One chain touching planes: its joint compliances are candidates too, under
             the gravity torques of the robot standing on the chain's base frame
             (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file).
@@ -394,8 +395,9 @@ def calibrate_contact_chains(
     plane_of = instrument_groups(plane_of, data, instrument)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
+    diagnosed = None if held_label == "holdout" else validate  # a holdout: with its data's
     train, dropped, measured = _checked(
-        chains, train, validate, guess, w, held, notes, max_iterations, instrument
+        chains, train, diagnosed, guess, w, held, notes, max_iterations, instrument
     )
     torques = contact_elastic.torques(load, train[0], held[0])
     notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
@@ -414,7 +416,7 @@ def calibrate_contact_chains(
         every = offer == "components"  # its rank kept a basis of every component: counted
         identifiable = model.size() if every else len(structural(wide, start, flush))
         if instrument:
-            check_tree_rank(chains, identifiable, train, level, seed)
+            check_tree_rank(wide, start, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
         fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations)

@@ -41,8 +41,13 @@ def _twist(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
 def moved(T: np.ndarray, dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
     """Frames ``T [Exp(r), t]`` ``(..., 4, 4)``: ``(t, r)`` zero but at ``dofs``, there ``x``."""
     v = _twist(dofs, np.asarray(x, dtype=float))
+    return _moved(T, v, rotation_matrix(v[..., 3:]))
+
+
+def _moved(T: np.ndarray, v: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """:func:`moved` by the twists ``v`` ``(..., 6)`` whose rotations ``R`` are made."""
     out = np.array(T, dtype=float, copy=True)
-    out[..., :3, :3] = T[..., :3, :3] @ rotation_matrix(v[..., 3:])
+    out[..., :3, :3] = T[..., :3, :3] @ R
     out[..., :3, 3] = T[..., :3, 3] + (T[..., :3, :3] @ v[..., :3, None])[..., 0]
     return out
 
@@ -53,11 +58,15 @@ def twist_map(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
     The moved frame turns by ``Jr(r) dr`` about its own axes and its origin moves by
     ``Exp(-r) dt`` in them.
     """
-    v = _twist(dofs, np.asarray(x, dtype=float))
+    return _twist_maps(_twist(dofs, np.asarray(x, dtype=float)))[..., list(dofs)]
+
+
+def _twist_maps(v: np.ndarray) -> np.ndarray:
+    """:func:`twist_map` of the twists ``v`` ``(..., 6)``, every column ``(..., 6, 6)``."""
     A = np.zeros((*v.shape[:-1], 6, 6))
     A[..., :3, :3] = rotation_matrix(-v[..., 3:])
     A[..., 3:, 3:] = left_jacobian(-v[..., 3:])  # Jr(r) = Jl(-r)
-    return A[..., list(dofs)]
+    return A
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,11 +118,17 @@ class ContactFrames:
 
     def moved(self, x: np.ndarray) -> ContactFrames:
         """The frames at unknowns x (:attr:`size`; x = 0 is these frames)."""
+        v = self._twists(x)  # the objects' and the contact's rotations made at once
+        R = rotation_matrix(v[:, 3:])
+        objects = _moved(self.objects, v[:-1], R[:-1])
+        return ContactFrames(self.kind, _moved(self.contact, v[-1], R[-1]), objects, self.ids)
+
+    def _twists(self, x: np.ndarray) -> np.ndarray:
+        """The objects' twists, then the contact's ``(K + 1, 6)``, at unknowns x."""
         x = np.asarray(x, dtype=float)
         o, K = len(self.kind.object_dofs), len(self.ids)
-        objects = moved(self.objects, self.kind.object_dofs, x[: K * o].reshape(K, o))
-        contact = moved(self.contact, self.kind.contact_dofs, x[K * o :])
-        return ContactFrames(self.kind, contact, objects, self.ids)
+        objects = _twist(self.kind.object_dofs, x[: K * o].reshape(K, o))
+        return np.concatenate([objects, _twist(self.kind.contact_dofs, x[K * o :])[None]])
 
     def relative(
         self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray
@@ -158,8 +173,8 @@ class ContactFrames:
         The object's columns of a touch are those of its own object (the others are zero);
         the contact's ``(m, 6, len(contact_dofs))`` are shared by every touch.
         """
-        m, o, K = len(p), len(self.kind.object_dofs), len(self.ids)
-        x = np.asarray(x, dtype=float)
+        m, o = len(p), len(self.kind.object_dofs)
+        A = _twist_maps(self._twists(x))  # the objects' and the contact's at once
         own = np.zeros((m, 6, o))
         if o:
             # F -> F exp(d): the contact seen from F moves by exp(-d): dp = -dt + [p]x dr
@@ -167,14 +182,14 @@ class ContactFrames:
             E[:, :3, :3] = -np.eye(3)
             E[:, :3, 3:] = skew(p)
             E[:, 3:, 3:] = -np.eye(3)
-            own = E @ twist_map(self.kind.object_dofs, x[: K * o].reshape(K, o))[index]
+            own = E @ A[:-1][..., list(self.kind.object_dofs)][index]
         shared = np.zeros((m, 6, len(self.kind.contact_dofs)))
         if self.kind.contact_dofs:
             # C -> C exp(d): the contact moves by R dt and turns by R dr in F
             E = np.zeros((m, 6, 6))
             E[:, :3, :3] = R
             E[:, 3:, 3:] = R
-            shared = E @ twist_map(self.kind.contact_dofs, x[K * o :])
+            shared = E @ A[-1][..., list(self.kind.contact_dofs)]
         return own, shared
 
     def rotate(self, W6_base: np.ndarray, index: np.ndarray) -> np.ndarray:

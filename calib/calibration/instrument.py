@@ -27,18 +27,17 @@ import numpy as np
 from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
-from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree, tree_of_chains
-from ..kinematics.tree_model import from_tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from . import determined
+from .contact_chains_model import ChainsData
 from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
 from .result import ResidualStats
-from .tree import REGISTRATION_ITERATIONS, TreeErrorModel, TreeState
+from .tree import REGISTRATION_ITERATIONS
 
 __all__ = [
     "check_tree_rank",
@@ -259,13 +258,23 @@ def instrument_lines(parts) -> list[str]:
     return lines
 
 
-def check_tree_rank(chains, identifiable: int, train, level: str, seed: int) -> None:
+def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int) -> None:
     """Refuse a tree's ``complete`` level its rows do not determine, before the fit.
 
     The unknowns the rows determine (the engine's structural rank, ``identifiable``) are
-    compared with those generic configurations determine: the rank of the tree's own
-    Jacobian (:class:`~.tree.TreeErrorModel`: frame, markers and the tree's complete MDH set)
-    with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random configurations.
+    compared with those generic configurations determine: the rank of the engine's own
+    Jacobian (``wide``: the frame, the markers and every joint placement component, at
+    ``start``) with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random
+    configurations of the tree (seeded), rows of each tool's kind (its markers, a pose's
+    orientation), no second model of the tree.
+
+    Args:
+        wide: The joint fit's model offering every joint placement component.
+        start: The registration it is linearised at.
+        identifiable: Unknowns the rows determine.
+        train: Each tool's rows.
+        level: The level (only ``complete`` is checked).
+        seed: Seed of the configurations' draw.
 
     Raises:
         DataError: Too few equations, or rows that determine fewer unknowns
@@ -273,18 +282,27 @@ def check_tree_rank(chains, identifiable: int, train, level: str, seed: int) -> 
     """
     if level != "complete":
         return
+    chains = start.chains
     tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
-    nominal = from_tree(tree)
-    pset = tree_parameters(nominal, "complete")
-    wide = TreeErrorModel(pset, pset.names, tree.n_tools)
     q = tree.random_configurations(DEFAULT_CONFIGS, seed)
-    T = tree.n_tools
-    Q, tool = np.repeat(q, T, axis=0), np.tile(np.arange(T), len(q))
-    start = TreeState(nominal.idealized(), np.eye(4), np.zeros((T, 3)))
-    J = wide.jacobian_at(start, np.zeros(wide.size()), Q, tool).reshape(-1, wide.size())
+    parts = tuple(
+        _rows_like(d, c.joint_names, q[:, path])
+        for c, d, path in zip(chains, train, tree.paths, strict=True)
+    )
+    J = wide.jacobian(start, np.zeros(wide.size()), ChainsData(parts)).reshape(-1, wide.size())
     generic = len(independent_columns(J, list(range(J.shape[1])))[2])
-    rows = sum(d.m for d in train)
-    determined.check_rank(identifiable, generic, rows, 3, level, train[0].source, "rows")
+    rows, per_row = sum(d.m for d in train), train[0].kind.rows_of(train[0].n_markers)
+    determined.check_rank(identifiable, generic, rows, per_row, level, train[0].source, "rows")
+
+
+def _rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
+    """Rows of ``data``'s kind (its markers, an orientation or not) at the joints ``q``.
+
+    Their values are zero points and identity orientations: a Jacobian's rank does not read them.
+    """
+    m = len(q)
+    turn = None if data.quaternion is None else np.tile([0.0, 0.0, 0.0, 1.0], (m, 1))
+    return Measurements(joint_names, q, np.zeros((m, 3 * data.n_markers)), turn)
 
 
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 import pinocchio as pin
@@ -34,7 +34,7 @@ from ..identification.jacobian import identification_jacobian
 from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.frames import joint_placements, motion_axis
-from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.mdh import PARALLEL_TOL, MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
@@ -301,6 +301,24 @@ class Placements:
             jid = self.ids[k]
             model.jointPlacements[jid] = model.jointPlacements[jid] * pin.SE3(R_k, v_k)
         return model
+
+    def start_models(self, chains: tuple[Chain, ...], states) -> tuple[MDHModel, ...]:
+        """:meth:`chain_models` at zero errors, the states' own models when they are those.
+
+        A state's model converted from its chain itself (:func:`~calib.kinematics.mdh.from_chain`,
+        the default tolerance: its ``source``) has the arrays :meth:`chain_models` makes on
+        the unmoved robot (one walk, one conversion): it is not converted again.
+        """
+        mine = tuple(getattr(s, "mdh", None) for s in states)
+        if not np.any(self.y) and all(
+            m is not None
+            and m.source is not None
+            and m.source[0] is c
+            and m.source[1] == PARALLEL_TOL
+            for m, c in zip(mine, chains, strict=True)
+        ):
+            return cast(tuple[MDHModel, ...], mine)
+        return self.chain_models(chains)
 
     def chain_models(self, chains: tuple[Chain, ...]) -> tuple[MDHModel, ...]:
         """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""

@@ -40,19 +40,26 @@ def skew(v: np.ndarray) -> np.ndarray:
 def quaternion_to_matrix(quat: np.ndarray) -> np.ndarray:
     """Rotation matrices ``(..., 3, 3)`` of quaternions ``(..., 4)`` (x, y, z, w; normalised)."""
     q = np.asarray(quat, dtype=float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    q = q / _norm(q)[..., None]
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = x * x, y * y, z * z  # each product once (small arrays: the calls cost)
+    xy, xz, yz, xw, yw, zw = x * y, x * z, y * z, x * w, y * w, z * w
     R = np.empty((*q.shape[:-1], 3, 3))
-    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    R[..., 0, 1] = 2 * (x * y - z * w)
-    R[..., 0, 2] = 2 * (x * z + y * w)
-    R[..., 1, 0] = 2 * (x * y + z * w)
-    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    R[..., 1, 2] = 2 * (y * z - x * w)
-    R[..., 2, 0] = 2 * (x * z - y * w)
-    R[..., 2, 1] = 2 * (y * z + x * w)
-    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    R[..., 0, 0] = 1 - 2 * (yy + zz)
+    R[..., 0, 1] = 2 * (xy - zw)
+    R[..., 0, 2] = 2 * (xz + yw)
+    R[..., 1, 0] = 2 * (xy + zw)
+    R[..., 1, 1] = 1 - 2 * (xx + zz)
+    R[..., 1, 2] = 2 * (yz - xw)
+    R[..., 2, 0] = 2 * (xz - yw)
+    R[..., 2, 1] = 2 * (yz + xw)
+    R[..., 2, 2] = 1 - 2 * (xx + yy)
     return R
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms along the last axis: ``np.linalg.norm``'s sum, without its checks."""
+    return np.sqrt(np.add.reduce(v * v, axis=-1))
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
@@ -100,7 +107,7 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
 def rotation_matrix(phi: np.ndarray) -> np.ndarray:
     """Rotation matrices ``exp([phi]x)`` ``(..., 3, 3)`` of rotation vectors ``(..., 3)`` [rad]."""
     phi = np.asarray(phi, dtype=float)
-    theta = np.linalg.norm(phi, axis=-1)
+    theta = _norm(phi)
     small = theta < SMALL_ANGLE
     half = np.where(small, 0.5 - theta**2 / 48.0, np.sin(theta / 2) / np.where(small, 1.0, theta))
     quat = np.concatenate([phi * half[..., None], np.cos(theta / 2)[..., None]], axis=-1)
