@@ -29,8 +29,8 @@ from .measured_view import (
     MeasuredChain,
     chain_frames,
     chain_model,
-    instrument_links,
     measured_part,
+    world_of,
 )
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
@@ -261,7 +261,7 @@ class ContactChainsCalibration(Delivered):
                 out[c.joint] = c.placement_error()
         return out
 
-    def _chain(self) -> MeasuredChain:
+    def one_chain(self) -> MeasuredChain:
         """The one term of a chain measured by an instrument (shape ``chain``).
 
         Raises:
@@ -280,7 +280,7 @@ class ContactChainsCalibration(Delivered):
 
         The URDF keeps the base frame: the joints' placements hold the calibration.
         """
-        return self._chain().state.inner.frame.copy()
+        return self.one_chain().state.inner.frame.copy()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -305,7 +305,7 @@ class ContactChainsCalibration(Delivered):
     @property
     def marker_links(self) -> tuple[str, ...]:
         """One chain measured by an instrument: the written URDF's marker links."""
-        return tuple(chain_frames(self._chain(), None, False)["markers"])
+        return tuple(chain_frames(self.one_chain(), None)["markers"])
 
     def _measured(self) -> tuple[MeasuredChain, ...]:
         return tuple(c for c in self.chains if isinstance(c, MeasuredChain))
@@ -357,12 +357,12 @@ class ContactChainsCalibration(Delivered):
 
         Args:
             world_link: The ``world_link`` the URDF was written with (None: none).
-            on_robot: The URDF was written with the instrument on the robot.
+            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
 
         Raises:
-            InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape.
+            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
         """
-        instrument_links(self.shape, self._frame(), world_link, on_robot)
+        world_of(self.shape, self._frame(), world_link, on_robot)
         first = self.chains[0].chain
         names, sigma = self._row_joints()
         fields = {
@@ -406,8 +406,8 @@ class ContactChainsCalibration(Delivered):
         }
         legacy = self._format2()
         if self._frame() is not None:
-            fields["frames"] = chain_frames(self._chain(), world_link, on_robot)
-            fields["compliance"], fields["model"] = chain_model(self._chain(), fields["model"])
+            fields["frames"] = chain_frames(self.one_chain(), world_link)
+            fields["compliance"], fields["model"] = chain_model(self.one_chain(), fields["model"])
         if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
             fields, legacy = single_contact_report(self.chains[0], fields, legacy)
         return build_report(fields, legacy, FORMAT2_MOVED)
@@ -537,14 +537,13 @@ class ContactChainsCalibration(Delivered):
         Args:
             world_link: One chain measured by an instrument: add the instrument frame as
                 this root link (None: not added).
-            on_robot: One chain measured by an instrument, the instrument its base frame on
-                the robot: its placement is written into the base frame's fixed joint.
+            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
 
         Raises:
             CalibrationRefusedError: The model was refused.
-            InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
+            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
         """
-        world, robot = instrument_links(self.shape, self._frame(), world_link, on_robot)
+        world = world_of(self.shape, self._frame(), world_link, on_robot)
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
@@ -557,7 +556,6 @@ class ContactChainsCalibration(Delivered):
                 marks,
                 self.shape == "chain",
                 world,
-                robot,
             )
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 

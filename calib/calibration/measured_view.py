@@ -1,7 +1,7 @@
 """A chain measured by an instrument, fitted by the joint engine, seen as a chain's result.
 
 What users of a measured chain's result (:class:`~.result.CalibrationResult`) read and what
-the CLI passes (``world_link``, ``on_robot``), for a joint fit of that one term
+the CLI passes (``world_link``), for a joint fit of that one term
 (:class:`~.contact_chains_result.ContactChainsCalibration` of shape ``chain``,
 ``entry.ENGINE_CHAIN``): the report's frames as a chain's report has them, so that
 :func:`calib.load_calibrated` and ``calib predict`` read it.
@@ -26,8 +26,8 @@ __all__ = [
     "MeasuredChain",
     "chain_frames",
     "chain_model",
-    "instrument_links",
     "measured_part",
+    "world_of",
 ]
 
 
@@ -111,35 +111,37 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
     return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
 
 
-def instrument_links(
+def world_of(
     shape: str, frame: np.ndarray | None, world_link: str | None, on_robot: bool
-) -> tuple[tuple[str, np.ndarray] | None, np.ndarray | None]:
-    """The ``world`` and ``on_robot`` arguments of the URDF writer.
+) -> tuple[str, np.ndarray] | None:
+    """The ``world`` argument of the URDF writer (``marker_urdf``).
 
     Args:
-        shape: The result's shape (only ``chain`` takes either).
+        shape: The result's shape (only ``chain`` takes ``world_link``).
         frame: The base frame's pose in the instrument's ``(4, 4)``, or None.
         world_link: The instrument frame as a new root link of this name, or None.
-        on_robot: The instrument is the base frame, on the robot.
+        on_robot: The instrument is the base frame, on the robot (refused: the engine's
+            chain is measured from outside the robot; a frame on the robot measuring its
+            own arm is a measured term of its own, not routed here yet).
 
     Raises:
-        InvalidArgumentError: Either given for another shape, or both given.
+        InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
     """
-    if world_link is None and not on_robot:
-        return None, None
+    if on_robot:
+        raise InvalidArgumentError(
+            "on_robot: the joint engine's chain route fits an instrument outside the robot "
+            "(a frame on the robot measuring its own arm is not routed to it yet)"
+        )
+    if world_link is None:
+        return None
     if shape != "chain" or frame is None:
         raise InvalidArgumentError(
-            f"world_link and on_robot are for one chain measured by an instrument, not a "
-            f"fit of shape '{shape}'"
+            f"world_link is for one chain measured by an instrument, not a fit of shape '{shape}'"
         )
-    if world_link is not None and on_robot:
-        raise InvalidArgumentError("on_robot and world_link: the instrument is one or the other")
-    if on_robot:
-        return None, frame
-    return (None if world_link is None else (world_link, frame)), None
+    return world_link, frame
 
 
-def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool) -> dict:
+def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
     """The report's ``frames`` of a chain's (one measurement frame, marker links by name)."""
     inner = part.state.inner
     tool = part.chain.tool_frame
@@ -155,7 +157,7 @@ def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool) ->
         "contacts": {},
         "world_link": world_link,
         "tool_link": tool,
-        "on_robot": on_robot,
+        "on_robot": False,
     }
 
 

@@ -18,7 +18,6 @@ from ..exceptions import CalibError, InvalidArgumentError
 from .robot import Chain
 from .urdf_export import (
     NominalPoses,
-    base_joint,
     base_to_root,
     child_link,
     edited_joints,
@@ -125,7 +124,6 @@ def marker_urdf(
     markers: tuple[tuple[Chain, np.ndarray], ...],
     moving: bool = False,
     world: tuple[str, np.ndarray] | None = None,
-    on_robot: np.ndarray | None = None,
 ) -> bytes:
     """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
 
@@ -139,14 +137,10 @@ def marker_urdf(
             tree's tools need their fixed joints).
         world: ``(name, T)``: add the link ``name`` (the instrument) as the parent of the
             URDF's root link, ``T`` ``(4, 4)`` the pose of ``chain``'s base frame in it.
-        on_robot: The instrument is ``chain``'s base frame, on the robot: its fixed joint's
-            origin is moved by ``T`` ``(4, 4)`` (the base frame's pose in the instrument's),
-            so that forward kinematics from the base frame gives measured coordinates.
 
     Raises:
         CalibError: A tool not carried by a fixed joint (unless ``moving``), a marker or
-            world link's name taken, the base frame moved by a joint (``world``) or not
-            fixed to a link (``on_robot``).
+            world link's name taken, or the base frame moved by a joint (``world``).
     """
     raw = moved_origins_urdf(chain, errors)
     src = str(chain.urdf_path)
@@ -157,7 +151,4 @@ def marker_urdf(
         add_marker_links(root, tool_chain.tool_frame, tool_link, points)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, NominalPoses(chain)))
-    if on_robot is not None:
-        joint = base_joint(root, chain)
-        set_origin(joint, origin_of(joint) @ np.linalg.inv(on_robot))
     return spliced(raw, root, start, stop)
