@@ -83,7 +83,14 @@ def test_load_calibrated_and_residual_stats_read_the_engine_result(ur5_fit, tmp_
 
 
 def test_attributes_of_a_chain(ur5_fit):
-    _, result, _ = ur5_fit
+    chain, result, truth = ur5_fit
+    # points: the calibrated model's prediction of unseen noise-free rows (the truth).
+    assert np.abs(result.points(truth.q)[:, 0] - truth.position[:, :3]).max() < 1e-9
+    assert result.chain is chain
+    assert result.nominal.rows() == calib.from_chain(chain).rows()
+    # The registration: nominal robot, its residual the perturbation's (mm), not the truth.
+    assert np.abs(result.registration.predict(truth.q)[0][:, 0] - truth.position).max() > 1e-4
+    assert result.warnings == result.notes and isinstance(result.message, str)
     assert result.names == result.fitted and len(result.names) > 0
     assert result.iterations == result.solver[2] > 0 and result.converged
     assert result.outliers == ()

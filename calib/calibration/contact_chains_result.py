@@ -26,6 +26,7 @@ from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_view import (
+    ChainView,
     MeasuredChain,
     chain_frames,
     chain_model,
@@ -158,7 +159,7 @@ def _rotation(R: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class ContactChainsCalibration(Delivered):
+class ContactChainsCalibration(Delivered, ChainView):
     """A calibration of several chains of one robot from flush contacts.
 
     Attributes:
@@ -260,52 +261,6 @@ class ContactChainsCalibration(Delivered):
             if c.joint is not None:
                 out[c.joint] = c.placement_error()
         return out
-
-    def one_chain(self) -> MeasuredChain:
-        """The one term of a chain measured by an instrument (shape ``chain``).
-
-        Raises:
-            InvalidArgumentError: Another shape (a tree, contacts, several chains).
-        """
-        part = self.chains[0]
-        if self.shape != "chain" or not isinstance(part, MeasuredChain) or part.joint:
-            raise InvalidArgumentError(
-                f"a fit of shape '{self.shape}': a chain measured by an instrument's attribute"
-            )
-        return part
-
-    @property
-    def measurement_to_base(self) -> np.ndarray:
-        """One chain measured by an instrument: its base frame in the instrument's ``(4, 4)``.
-
-        The URDF keeps the base frame: the joints' placements hold the calibration.
-        """
-        return self.one_chain().state.inner.frame.copy()
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """The fitted parameters' names (:attr:`fitted`: joint placement components)."""
-        return self.fitted
-
-    @property
-    def iterations(self) -> int:
-        """Jacobian evaluations of the final fit."""
-        return self.solver[2]
-
-    @property
-    def converged(self) -> bool:
-        """The final fit converged."""
-        return self.solver[0]
-
-    @property
-    def outliers(self) -> tuple[Outlier, ...]:
-        """Every term's rows set aside, term after term."""
-        return tuple(o for c in self.chains for o in c.outliers)
-
-    @property
-    def marker_links(self) -> tuple[str, ...]:
-        """One chain measured by an instrument: the written URDF's marker links."""
-        return tuple(chain_frames(self.one_chain(), None)["markers"])
 
     def _measured(self) -> tuple[MeasuredChain, ...]:
         return tuple(c for c in self.chains if isinstance(c, MeasuredChain))

@@ -10,19 +10,23 @@ the CLI passes (``world_link``), for a joint fit of that one term
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
+from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_links import marker_link_names
 from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
+from .model import State
 from .outliers import Outlier
 from .report import parameter_entries, pose_dict
 from .result import gravity_dict
 
 __all__ = [
+    "ChainView",
     "MeasuredChain",
     "chain_frames",
     "chain_model",
@@ -165,3 +169,102 @@ def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
     """The report's ``compliance`` (rigid: zero per joint) and ``model`` with its gravity."""
     chain = part.chain
     return dict.fromkeys(chain.joint_names, 0.0), {**model, "gravity": gravity_dict(chain)}
+
+
+class ChainView:
+    """What a chain's result offers, on a joint fit of one chain measured by an instrument.
+
+    The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
+    has them (shape ``chain``; other shapes raise :class:`InvalidArgumentError`). Not here:
+    ``validation`` (the held-out errors are ``stats["held_out"]``), ``predicted_std`` and
+    ``covariance`` (the joint fit reports ``std`` only), ``model`` and ``prior`` (the
+    engine's parameters are joint placement components, not MDH rows).
+    """
+
+    chains: tuple[Any, ...]
+    shape: str
+    fitted: tuple[str, ...]
+    solver: tuple[bool, str, int]
+    notes: tuple[str, ...]
+
+    def one_chain(self) -> MeasuredChain:
+        """The one term of a chain measured by an instrument (shape ``chain``).
+
+        Raises:
+            InvalidArgumentError: Another shape (a tree, contacts, several chains).
+        """
+        part = self.chains[0]
+        if self.shape != "chain" or not isinstance(part, MeasuredChain) or part.joint:
+            raise InvalidArgumentError(
+                f"a fit of shape '{self.shape}': a chain measured by an instrument's attribute"
+            )
+        return part
+
+    @property
+    def measurement_to_base(self) -> np.ndarray:
+        """The base frame's pose in the instrument's ``(4, 4)`` (the URDF keeps the base)."""
+        return self.one_chain().state.inner.frame.copy()
+
+    @property
+    def chain(self) -> Chain:
+        """The nominal chain."""
+        return self.one_chain().chain
+
+    @property
+    def state(self) -> State:
+        """The fitted chain's state (``predict``, ``residuals``; frame, markers)."""
+        return self.one_chain().state.inner
+
+    @property
+    def registration(self) -> State:
+        """The registration on the nominal robot (instrument frame and markers only)."""
+        return self.one_chain().registered.inner
+
+    @property
+    def nominal(self) -> MDHModel:
+        """The nominal MDH model of the chain."""
+        return self.one_chain().registered.inner.mdh
+
+    @property
+    def orientation_weight(self) -> float:
+        """Weight of the rotation rows [m/rad]."""
+        return self.one_chain().state.weight
+
+    def points(self, q: np.ndarray) -> np.ndarray:
+        """Points predicted by the calibrated model, instrument frame ``(m, K, 3)`` [m]."""
+        return self.state.predict(np.atleast_2d(q))[0]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The fitted parameters' names (``fitted``: joint placement components)."""
+        return self.fitted
+
+    @property
+    def iterations(self) -> int:
+        """Jacobian evaluations of the final fit."""
+        return self.solver[2]
+
+    @property
+    def converged(self) -> bool:
+        """The final fit converged."""
+        return self.solver[0]
+
+    @property
+    def message(self) -> str:
+        """The final fit's solver message."""
+        return self.solver[1]
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The remarks for the user (``notes``)."""
+        return self.notes
+
+    @property
+    def outliers(self) -> tuple[Outlier, ...]:
+        """Every term's rows set aside, term after term."""
+        return tuple(o for c in self.chains for o in c.outliers)
+
+    @property
+    def marker_links(self) -> tuple[str, ...]:
+        """The written URDF's marker links."""
+        return tuple(chain_frames(self.one_chain(), None)["markers"])
