@@ -175,7 +175,8 @@ class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
     The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
-    has them (shape ``chain``; other shapes raise :class:`InvalidArgumentError`). Not here:
+    has them (shape ``chain``; other shapes raise
+    :class:`~calib.exceptions.InvalidArgumentError`). Not here:
     ``validation`` (the held-out errors are ``stats["held_out"]``), ``predicted_std`` and
     ``covariance`` (the joint fit reports ``std`` only), ``model`` and ``prior`` (the
     engine's parameters are joint placement components, not MDH rows).
