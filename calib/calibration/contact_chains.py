@@ -292,7 +292,7 @@ def determined_unknowns(
         chains,
         list(parts),
         None,
-        contact_frame(contact),
+        (contact_frame(contact), None),
         None,
         held,
         [],
