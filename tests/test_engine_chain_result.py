@@ -39,13 +39,13 @@ def simulated(chain, measure: str = "position"):
 
 @pytest.fixture(scope="module")
 def ur5_fit():
-    entry.ENGINE_CHAIN = True
+    switch, entry.ENGINE_CHAIN = entry.ENGINE_CHAIN, True
     try:
         chain = load_chain("ur5")
         seen, truth = simulated(chain)
         return chain, calibrate(chain, seen, params="complete"), truth
     finally:
-        entry.ENGINE_CHAIN = False
+        entry.ENGINE_CHAIN = switch
 
 
 def marker_in(urdf: Path, base: str, chain, q) -> np.ndarray:
