@@ -110,10 +110,57 @@ def test_noise_free_round_trip_is_exact(engine, tmp_path, robot, measure):
         {"elastic": True},
         {"loss": "soft_l1"},
         {"noise_mm": 0.1},
-        {"marker": (0.0, 0.0, 0.1)},
     ],
 )
 def test_options_the_engine_route_lacks_are_refused(engine, tiago, option):
     chain, train, _ = tiago
     with pytest.raises(InvalidArgumentError, match="joint engine's chain route does not take"):
         calibrate(chain, train, **option)
+
+
+def test_the_marker_guess_starts_the_measured_terms_registration(
+    engine, tiago, monkeypatch, tmp_path
+):
+    """``marker=``: the engine's measured term registers from it (it was refused before).
+
+    Every registration of the term (the checks', the diagnosis', the held-out rows') starts
+    at the guess; the fit lands where it does from zeros: the pipeline's published held-out
+    4.87 / 12.20 mm at ``frames`` (Pinocchio on the written URDF).
+    """
+    import calib.calibration.chain_registration as chain_registration
+
+    starts = []
+    register = chain_registration.register
+
+    def spy(mdh, q, points, rotations=None, markers=None, kin=None):
+        starts.append(None if markers is None else np.array(markers))
+        return register(mdh, q, points, rotations, markers, kin)
+
+    monkeypatch.setattr(chain_registration, "register", spy)
+    chain, train, test = tiago
+    result = calibrate(chain, train, validate=test, params="frames", marker=(0.3, -0.2, 0.4))
+    assert starts and all(np.array_equal(m, [[0.3, -0.2, 0.4]]) for m in starts)
+    got = rms_max_mm(measured_by_pinocchio(result, chain, test.q, tmp_path) - test.position)
+    assert got == pytest.approx(PIPELINE_HELD_OUT["frames"], abs=0.01)
+
+
+@pytest.mark.parametrize(
+    ("marker", "message"),
+    [
+        ((0.1, 0.2), "a marker is 3 numbers"),
+        ((0.0, 0.0, 0.1, 0.0, 0.0, 0.2), "2 marker guesses for 1 measured points"),
+        ((0.0, 0.0, np.inf), "3 finite numbers"),
+    ],
+)
+def test_a_bad_marker_guess_is_one_line(engine, tiago, marker, message):
+    chain, train, _ = tiago
+    with pytest.raises(InvalidArgumentError, match=message):
+        calibrate(chain, train, marker=marker)
+
+
+def test_a_marker_guess_without_a_measured_term_is_refused():
+    """Touches only: no term has markers; the guess is an error, not ignored."""
+    chain = load_chain("ur5")
+    touches = calib.simulate_contacts(chain, 12, "plane", seed=0).data
+    with pytest.raises(InvalidArgumentError, match="marker is for measured terms"):
+        calib.calibrate_contact_chains([chain], [touches], marker=(0.0, 0.0, 0.1))

@@ -166,6 +166,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
     the touches kept must determine the chain's objects and contact frame.
 
+    ``guess``: the contact frame's guess and the measured terms' marker guess (or None).
     The held-out touches' outliers are set aside too (``held[c]`` replaced), and a chain
     the contact leaves finitely many postures is noted. A measured term's rows are checked
     as a single chain's (:func:`checked_measured`), its
@@ -188,7 +189,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
             determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
             state, bad, found, more, held[c] = checked_measured(
-                chain, d, v, held[c], weight, iterations
+                chain, d, v, held[c], weight, iterations, guess[1]
             )
             state = dataclasses.replace(state, instrument=shared)
         if isinstance(d, Measurements | PixelPart):
@@ -199,7 +200,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             dropped.append(tuple(found))
             registered.append(state)
             continue
-        g = contact_guess(d.kind, guess, len(chains))
+        g = contact_guess(d.kind, guess[0], len(chains))
         start, bad, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
         )
@@ -291,7 +292,7 @@ def determined_unknowns(
         chains,
         list(parts),
         None,
-        contact_frame(contact),
+        (contact_frame(contact), None),
         None,
         held,
         [],
@@ -325,6 +326,7 @@ def calibrate_contact_chains(
     held_label: str | None = None,
     elastic: bool | None = None,
     support: Support | None = None,
+    marker=None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -365,6 +367,8 @@ def calibrate_contact_chains(
             (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file).
         support: With ``elastic``: the load split with a second foot
             (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
+        marker: Guess of each measured term's markers in its tool frame [m]: one point
+            for all or one per marker (default: zeros), the registration's start.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -380,6 +384,8 @@ def calibrate_contact_chains(
     data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
     contact_checks.check_memory(chains, data, level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
+    if marker is not None and not any(isinstance(d, Measurements) for d in data):
+        raise InvalidArgumentError("marker is for measured terms: no term here is measured")
     guess = contact_frame(contact)
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
@@ -397,7 +403,7 @@ def calibrate_contact_chains(
     notes: list[str] = []
     diagnosed = None if held_label == "holdout" else validate  # a holdout: with its data's
     train, dropped, measured = _checked(
-        chains, train, diagnosed, guess, w, held, notes, max_iterations, instrument
+        chains, train, diagnosed, (guess, marker), w, held, notes, max_iterations, instrument
     )
     torques = contact_elastic.torques(load, train[0], held[0])
     notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])

@@ -21,11 +21,18 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line
 from .contact_frames import ContactFrames
-from .contact_result import GapStats, gap_rows, part_stats, term_errors
+from .contact_result import GapStats, gap_rows, term_errors
 from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
-from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
+from .measured_view import (
+    ChainView,
+    MeasuredChain,
+    chain_frames,
+    chain_model,
+    measured_part,
+    world_of,
+)
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
 from .placements import Placements
@@ -130,64 +137,6 @@ class ChainContacts:
         }
 
 
-@dataclass(frozen=True, eq=False)
-class MeasuredChain:
-    """A measured term's part of the result (a frame on the robot measuring its tool).
-
-    Attributes:
-        chain: The nominal chain (its base frame: the measuring frame).
-        source: Its measurements' file (or description).
-        joint: The fixed joint that places the measuring frame on its link (None: an
-            instrument outside the robot, :mod:`.instrument`).
-        registered: Its registration on the nominal robot.
-        state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
-            frame; markers and measured-frame rotation in the tool frame).
-        stats: Errors (mm, degrees) of ``train``, ``train_registration`` and, with held-out
-            rows, ``held_out`` and ``held_out_registration``.
-        parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
-        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
-        outliers: Its rows set aside (none: a measured term's rows are all fitted).
-    """
-
-    chain: Chain
-    source: str
-    joint: str | None
-    registered: MeasuredState
-    state: MeasuredState
-    stats: dict[str, GapStats]
-    parameters: tuple[dict, ...] = ()
-    held_source: str | None = None
-    outliers: tuple[Outlier, ...] = ()
-
-    @property
-    def kind(self):
-        """The term's layout (:class:`~.measured_term.MeasuredKind`)."""
-        return self.state.kind
-
-    def placement_error(self) -> np.ndarray:
-        """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
-        return np.linalg.inv(self.state.inner.frame)
-
-    def errors(self) -> dict:
-        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-        return term_errors(self.stats, self.held_source)
-
-    def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; errors in mm and degrees)."""
-        s = self.state.inner
-        return {
-            "base": self.chain.base_frame,
-            "tool": self.chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
-            "orientation_weight": self.state.weight,
-            "measurement_to_base": s.frame.tolist(),
-            "joint": self.joint,
-            "markers": s.markers.tolist(),
-            "errors": {k: v.to_dict() for k, v in self.stats.items()},
-        }
-
-
 def _stat_labels(part) -> dict[str, str]:
     """Each statistic's label in the summary, padded (with compliance: which model it is)."""
     labels = {}
@@ -209,30 +158,8 @@ def _rotation(R: np.ndarray) -> np.ndarray:
     return T
 
 
-def measured_part(chain, train, held, registered, state, std, term: int) -> MeasuredChain:
-    """A measured term's part: its errors, and its unknowns' report entries.
-
-    Args:
-        chain: The term's chain.
-        train: Its fitted measurements.
-        held: Its held-out measurements, or None.
-        registered: Its registration (nominal robot).
-        state: Its fitted state.
-        std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
-        term: The term's number (1-based, in the order given), in its unknowns' names.
-    """
-    stats = part_stats(measured_stats, registered, state, train, held)
-    joint = None if state.instrument else measuring_joint(chain)
-    frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
-    names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
-    entries = parameter_entries(names, own_change(registered, state), std, ())
-    for e in entries:
-        e["joint"] = joint if ".frame." in e["name"] else None
-    return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
-
-
 @dataclass(frozen=True, eq=False, repr=False)
-class ContactChainsCalibration(Delivered):
+class ContactChainsCalibration(Delivered, ChainView):
     """A calibration of several chains of one robot from flush contacts.
 
     Attributes:
@@ -376,12 +303,21 @@ class ContactChainsCalibration(Delivered):
         """Each camera once (name, link, optical frame in the link [m]), of all its terms."""
         return tuple({c.name: c.camera() for c in self._pixels()}.values())
 
-    def to_dict(self) -> dict:
+    def to_dict(self, world_link: str | None = None, on_robot: bool = False) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
 
         ``errors.train`` and ``errors.held_out`` are None: each chain's gaps are its own rows
-        (``errors.terms``, in the order of ``terms``).
+        (``errors.terms``, in the order of ``terms``). One chain measured by an instrument
+        (shape ``chain``): ``frames`` and ``compliance`` as a chain's report has them.
+
+        Args:
+            world_link: The ``world_link`` the URDF was written with (None: none).
+            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
+
+        Raises:
+            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
         """
+        world_of(self.shape, self._frame(), world_link, on_robot)
         first = self.chains[0].chain
         names, sigma = self._row_joints()
         fields = {
@@ -424,6 +360,9 @@ class ContactChainsCalibration(Delivered):
             "timings_ms": dict(self.timings_ms),
         }
         legacy = self._format2()
+        if self._frame() is not None:
+            fields["frames"] = chain_frames(self.one_chain(), world_link)
+            fields["compliance"], fields["model"] = chain_model(self.one_chain(), fields["model"])
         if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
             fields, legacy = single_contact_report(self.chains[0], fields, legacy)
         return build_report(fields, legacy, FORMAT2_MOVED)
@@ -540,12 +479,26 @@ class ContactChainsCalibration(Delivered):
             ]
         )
 
-    def urdf(self) -> bytes:
+    def _frame(self) -> np.ndarray | None:
+        """One chain measured by an instrument: :attr:`measurement_to_base`; else None."""
+        try:
+            return self.measurement_to_base
+        except InvalidArgumentError:
+            return None
+
+    def urdf(self, world_link: str | None = None, on_robot: bool = False) -> bytes:
         """The calibrated URDF of the whole robot (the joint origins moved).
+
+        Args:
+            world_link: One chain measured by an instrument: add the instrument frame as
+                this root link (None: not added).
+            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
 
         Raises:
             CalibrationRefusedError: The model was refused.
+            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
         """
+        world = world_of(self.shape, self._frame(), world_link, on_robot)
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
@@ -553,7 +506,11 @@ class ContactChainsCalibration(Delivered):
         if self._instrument():  # each tool's markers as links (a tree's)
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
             return marker_urdf(
-                self.chains[0].chain, self.joint_errors(), marks, self.shape == "chain"
+                self.chains[0].chain,
+                self.joint_errors(),
+                marks,
+                self.shape == "chain",
+                world,
             )
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 

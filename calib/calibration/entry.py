@@ -296,7 +296,7 @@ def measured_chain(
     (``instrument=True``), its rows checked, registered and weighted by the chain pipeline's
     own steps (:func:`~.measured_term.checked_measured`). What the engine does not have yet is
     refused, not ignored: the ``paper`` level, ``fix``/``free``, ``elastic``, a robust
-    ``loss`` and ``noise_mm``, a marker guess.
+    ``loss`` and ``noise_mm``.
 
     Raises:
         InvalidArgumentError: An option the engine route does not have.
@@ -310,7 +310,6 @@ def measured_chain(
             ("elastic", bool(problem.elastic)),
             ("loss", problem.loss != "linear"),
             ("noise_mm", problem.noise_mm is not None),
-            ("marker", term.guess is not None),
         )
         if given
     ]
@@ -329,6 +328,7 @@ def measured_chain(
         seed=problem.seed,
         progress=progress,
         instrument=True,
+        marker=term.guess,
     )
     return dataclasses.replace(result, shape="chain")
 

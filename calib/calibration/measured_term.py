@@ -39,6 +39,7 @@ from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from .chain_registration import checked_registration, held_out_outliers
 from .contact_result import GapStats, row_stats
+from .freedoms import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
 from .outliers import point_errors, records
@@ -268,7 +269,9 @@ def measured_columns(placements, chain, state: MeasuredState, kin, data, lift) -
     return out * state.row_weights()[None, :, None]
 
 
-def checked_measured(chain: Chain, data: Measurements, validate, held, weight, max_iterations: int):
+def checked_measured(
+    chain: Chain, data: Measurements, validate, held, weight, max_iterations: int, marker=None
+):
     """A measured term's rows checked as one chain's are, and its registration.
 
     The chain pipeline's registration (:func:`~.chain_registration.checked_registration`:
@@ -284,6 +287,8 @@ def checked_measured(chain: Chain, data: Measurements, validate, held, weight, m
         held: Its held-out rows (validation or holdout), or None.
         weight: Orientation weight [m/rad], or None: estimated.
         max_iterations: Most residual evaluations of the registration's solver.
+        marker: Guess of the markers in the tool frame [m] (:func:`~.freedoms.marker_guess`:
+            one point for all, or one per marker), or None: zeros.
 
     Returns:
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
@@ -291,7 +296,7 @@ def checked_measured(chain: Chain, data: Measurements, validate, held, weight, m
     """
     opts = Options(orientation_weight=weight, max_iterations=max_iterations)
     checked = None if validate is None else (validate, validate.source)
-    guess = np.zeros((data.n_markers, 3))
+    guess = marker_guess(marker, data.n_markers)
     opts, reg, bad, notes = checked_registration(
         chain, from_chain(chain), data, checked, guess, opts
     )

@@ -28,6 +28,7 @@ from .chain_registration import (
     proposals,
     registration,
 )
+from .contact_chains_result import ContactChainsCalibration
 from .expansion import explained
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import Options
@@ -447,12 +448,21 @@ def _validation(fitted: Fit, held, torque, cov) -> Validation:
     )
 
 
-def residual_stats(result: CalibrationResult, data: Measurements) -> ResidualStats:
+def residual_stats(
+    result: CalibrationResult | ContactChainsCalibration, data: Measurements
+) -> ResidualStats:
     """Errors of a calibrated model on other data (gravity torques recomputed if needed).
 
+    A joint fit of one chain measured by an instrument (shape ``chain``) is scored by its
+    chain's state (rigid joints).
+
     Raises:
-        InvalidArgumentError: Not a calibration result and measurements of its chain.
+        InvalidArgumentError: Not a calibration of one chain and measurements of its chain.
     """
+    if isinstance(result, ContactChainsCalibration) and isinstance(data, Measurements):
+        part = result.one_chain()
+        check_against_chain(data, part.chain)
+        return validation.stats(part.state.inner, data, None)
     if not isinstance(result, CalibrationResult) or not isinstance(data, Measurements):
         raise InvalidArgumentError("residual_stats takes a CalibrationResult and Measurements")
     check_against_chain(data, result.chain)

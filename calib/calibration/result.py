@@ -42,6 +42,7 @@ __all__ = [
     "Validation",
     "finite",
     "finite_tree",
+    "gravity_dict",
 ]
 
 
@@ -404,7 +405,7 @@ class CalibrationResult(Delivered):
             "model": {
                 "mdh_nominal": mdh.rows(),
                 "mdh_calibrated": self.calibrated.rows(),
-                "gravity": _gravity_dict(chain),
+                "gravity": gravity_dict(chain),
             },
             "warnings": list(self.warnings),
             "timings_ms": dict(self.timings_ms),
@@ -434,13 +435,13 @@ class CalibrationResult(Delivered):
             "sigma": self.sigma,
             "condition_number": self.condition,
             "predicted_std": self.predicted_std,
-            "gravity": _gravity_dict(self.chain),
+            "gravity": gravity_dict(self.chain),
             "measurement_to_base": pose_dict(self.measurement_to_base),
             "mdh_nominal": self.nominal.rows(),
             "mdh_calibrated": self.calibrated.rows(),
         }
 
 
-def _gravity_dict(chain: Chain) -> dict:
+def gravity_dict(chain: Chain) -> dict:
     """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
     return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}

@@ -135,7 +135,6 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
-    from ..calibration.text import calibration_text
     from ..kinematics.elastic import compliance_document
 
     out, report = _calibration_outputs(args, chain.urdf_path)
@@ -187,7 +186,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     return write_calibration(
         args,
         result.to_dict(args.world_link, args.on_robot),
-        lambda: calibration_text(result),
+        result.summary,
         result.refusal,
         files,
         (out, report),

@@ -17,6 +17,8 @@ from ..core.fileio import check_outputs, write_atomic
 from ..exceptions import CalibError, InvalidArgumentError
 from .robot import Chain
 from .urdf_export import (
+    NominalPoses,
+    base_to_root,
     child_link,
     edited_joints,
     origin_of,
@@ -26,7 +28,7 @@ from .urdf_export import (
     spliced,
     xml_layout,
 )
-from .urdf_links import add_marker_links, set_fixed_link
+from .urdf_links import add_marker_links, add_world_link, set_fixed_link
 from .urdf_xml import parse_xml
 
 __all__ = [
@@ -121,6 +123,7 @@ def marker_urdf(
     errors: dict[str, np.ndarray],
     markers: tuple[tuple[Chain, np.ndarray], ...],
     moving: bool = False,
+    world: tuple[str, np.ndarray] | None = None,
 ) -> bytes:
     """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
 
@@ -132,10 +135,12 @@ def marker_urdf(
             (:func:`~.urdf_links.add_marker_links`).
         moving: A tool link carried by its chain's last joint is allowed (one chain's; a
             tree's tools need their fixed joints).
+        world: ``(name, T)``: add the link ``name`` (the instrument) as the parent of the
+            URDF's root link, ``T`` ``(4, 4)`` the pose of ``chain``'s base frame in it.
 
     Raises:
-        CalibError: A tool not carried by a fixed joint (unless ``moving``), or a marker
-            link's name taken.
+        CalibError: A tool not carried by a fixed joint (unless ``moving``), a marker or
+            world link's name taken, or the base frame moved by a joint (``world``).
     """
     raw = moved_origins_urdf(chain, errors)
     src = str(chain.urdf_path)
@@ -144,4 +149,6 @@ def marker_urdf(
     for tool_chain, points in markers:
         tool_link = child_link(edited_joints(root, tool_chain, moving)[1])
         add_marker_links(root, tool_chain.tool_frame, tool_link, points)
+    if world is not None:
+        add_world_link(root, world[0], world[1] @ base_to_root(chain, NominalPoses(chain)))
     return spliced(raw, root, start, stop)

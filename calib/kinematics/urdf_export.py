@@ -48,6 +48,7 @@ from .urdf_xml import MAX_URDF_BYTES, parse_xml
 __all__ = [
     "NominalPoses",
     "base_joint",
+    "base_to_root",
     "calibrated_urdf",
     "check_base_fixed",
     "check_exportable",

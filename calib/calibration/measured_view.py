@@ -1,0 +1,271 @@
+"""A chain measured by an instrument, fitted by the joint engine, seen as a chain's result.
+
+What users of a measured chain's result (:class:`~.result.CalibrationResult`) read and what
+the CLI passes (``world_link``), for a joint fit of that one term
+(:class:`~.contact_chains_result.ContactChainsCalibration` of shape ``chain``,
+``entry.ENGINE_CHAIN``): the report's frames as a chain's report has them, so that
+:func:`calib.load_calibrated` and ``calib predict`` read it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..kinematics.mdh import MDHModel
+from ..kinematics.robot import Chain
+from ..kinematics.urdf_links import marker_link_names
+from .contact_result import GapStats, part_stats, term_errors
+from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
+from .model import State
+from .outliers import Outlier
+from .report import parameter_entries, pose_dict
+from .result import gravity_dict
+
+__all__ = [
+    "ChainView",
+    "MeasuredChain",
+    "chain_frames",
+    "chain_model",
+    "measured_part",
+    "world_of",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredChain:
+    """A measured term's part of the result (a frame on the robot measuring its tool).
+
+    Attributes:
+        chain: The nominal chain (its base frame: the measuring frame).
+        source: Its measurements' file (or description).
+        joint: The fixed joint that places the measuring frame on its link (None: an
+            instrument outside the robot, :mod:`.instrument`).
+        registered: Its registration on the nominal robot.
+        state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
+            frame; markers and measured-frame rotation in the tool frame).
+        stats: Errors (mm, degrees) of ``train``, ``train_registration`` and, with held-out
+            rows, ``held_out`` and ``held_out_registration``.
+        parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
+        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
+        outliers: Its rows set aside (none: a measured term's rows are all fitted).
+    """
+
+    chain: Chain
+    source: str
+    joint: str | None
+    registered: MeasuredState
+    state: MeasuredState
+    stats: dict[str, GapStats]
+    parameters: tuple[dict, ...] = ()
+    held_source: str | None = None
+    outliers: tuple[Outlier, ...] = ()
+
+    @property
+    def kind(self):
+        """The term's layout (:class:`~.measured_term.MeasuredKind`)."""
+        return self.state.kind
+
+    def placement_error(self) -> np.ndarray:
+        """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
+        return np.linalg.inv(self.state.inner.frame)
+
+    def errors(self) -> dict:
+        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
+        return term_errors(self.stats, self.held_source)
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (metres, radians; errors in mm and degrees)."""
+        s = self.state.inner
+        return {
+            "base": self.chain.base_frame,
+            "tool": self.chain.tool_frame,
+            "data": self.source,
+            "kind": self.kind.label,
+            "orientation_weight": self.state.weight,
+            "measurement_to_base": s.frame.tolist(),
+            "joint": self.joint,
+            "markers": s.markers.tolist(),
+            "errors": {k: v.to_dict() for k, v in self.stats.items()},
+        }
+
+
+def measured_part(chain, train, held, registered, state, std, term: int) -> MeasuredChain:
+    """A measured term's part: its errors, and its unknowns' report entries.
+
+    Args:
+        chain: The term's chain.
+        train: Its fitted measurements.
+        held: Its held-out measurements, or None.
+        registered: Its registration (nominal robot).
+        state: Its fitted state.
+        std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
+        term: The term's number (1-based, in the order given), in its unknowns' names.
+    """
+    stats = part_stats(measured_stats, registered, state, train, held)
+    joint = None if state.instrument else measuring_joint(chain)
+    frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
+    names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
+    entries = parameter_entries(names, own_change(registered, state), std, ())
+    for e in entries:
+        e["joint"] = joint if ".frame." in e["name"] else None
+    return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
+
+
+def world_of(
+    shape: str, frame: np.ndarray | None, world_link: str | None, on_robot: bool
+) -> tuple[str, np.ndarray] | None:
+    """The ``world`` argument of the URDF writer (``marker_urdf``).
+
+    Args:
+        shape: The result's shape (only ``chain`` takes ``world_link``).
+        frame: The base frame's pose in the instrument's ``(4, 4)``, or None.
+        world_link: The instrument frame as a new root link of this name, or None.
+        on_robot: The instrument is the base frame, on the robot (refused: the engine's
+            chain is measured from outside the robot; a frame on the robot measuring its
+            own arm is a measured term of its own, not routed here yet).
+
+    Raises:
+        InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+    """
+    if on_robot:
+        raise InvalidArgumentError(
+            "on_robot: the joint engine's chain route fits an instrument outside the robot "
+            "(a frame on the robot measuring its own arm is not routed to it yet)"
+        )
+    if world_link is None:
+        return None
+    if shape != "chain" or frame is None:
+        raise InvalidArgumentError(
+            f"world_link is for one chain measured by an instrument, not a fit of shape '{shape}'"
+        )
+    return world_link, frame
+
+
+def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
+    """The report's ``frames`` of a chain's (one measurement frame, marker links by name)."""
+    inner = part.state.inner
+    tool = part.chain.tool_frame
+    T = np.eye(4)
+    if inner.tool_rotation is not None:
+        T[:3, :3] = inner.tool_rotation
+    return {
+        "measurement": pose_dict(inner.frame),
+        "measured": pose_dict(T) if inner.tool_rotation is not None else None,
+        "markers": dict(
+            zip(marker_link_names(tool, inner.n_markers), inner.markers.tolist(), strict=True)
+        ),
+        "contacts": {},
+        "world_link": world_link,
+        "tool_link": tool,
+        "on_robot": False,
+    }
+
+
+def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
+    """The report's ``compliance`` (rigid: zero per joint) and ``model`` with its gravity."""
+    chain = part.chain
+    return dict.fromkeys(chain.joint_names, 0.0), {**model, "gravity": gravity_dict(chain)}
+
+
+class ChainView:
+    """What a chain's result offers, on a joint fit of one chain measured by an instrument.
+
+    The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
+    has them (shape ``chain``; other shapes raise
+    :class:`~calib.exceptions.InvalidArgumentError`). Not here:
+    ``validation`` (the held-out errors are ``stats["held_out"]``), ``predicted_std`` and
+    ``covariance`` (the joint fit reports ``std`` only), ``model`` and ``prior`` (the
+    engine's parameters are joint placement components, not MDH rows).
+    """
+
+    chains: tuple[Any, ...]
+    shape: str
+    fitted: tuple[str, ...]
+    solver: tuple[bool, str, int]
+    notes: tuple[str, ...]
+
+    def one_chain(self) -> MeasuredChain:
+        """The one term of a chain measured by an instrument (shape ``chain``).
+
+        Raises:
+            InvalidArgumentError: Another shape (a tree, contacts, several chains).
+        """
+        part = self.chains[0]
+        if self.shape != "chain" or not isinstance(part, MeasuredChain) or part.joint:
+            raise InvalidArgumentError(
+                f"a fit of shape '{self.shape}': a chain measured by an instrument's attribute"
+            )
+        return part
+
+    @property
+    def measurement_to_base(self) -> np.ndarray:
+        """The base frame's pose in the instrument's ``(4, 4)`` (the URDF keeps the base)."""
+        return self.one_chain().state.inner.frame.copy()
+
+    @property
+    def chain(self) -> Chain:
+        """The nominal chain."""
+        return self.one_chain().chain
+
+    @property
+    def state(self) -> State:
+        """The fitted chain's state (``predict``, ``residuals``; frame, markers)."""
+        return self.one_chain().state.inner
+
+    @property
+    def registration(self) -> State:
+        """The registration on the nominal robot (instrument frame and markers only)."""
+        return self.one_chain().registered.inner
+
+    @property
+    def nominal(self) -> MDHModel:
+        """The nominal MDH model of the chain."""
+        return self.one_chain().registered.inner.mdh
+
+    @property
+    def orientation_weight(self) -> float:
+        """Weight of the rotation rows [m/rad]."""
+        return self.one_chain().state.weight
+
+    def points(self, q: np.ndarray) -> np.ndarray:
+        """Points predicted by the calibrated model, instrument frame ``(m, K, 3)`` [m]."""
+        return self.state.predict(np.atleast_2d(q))[0]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The fitted parameters' names (``fitted``: joint placement components)."""
+        return self.fitted
+
+    @property
+    def iterations(self) -> int:
+        """Jacobian evaluations of the final fit."""
+        return self.solver[2]
+
+    @property
+    def converged(self) -> bool:
+        """The final fit converged."""
+        return self.solver[0]
+
+    @property
+    def message(self) -> str:
+        """The final fit's solver message."""
+        return self.solver[1]
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The remarks for the user (``notes``)."""
+        return self.notes
+
+    @property
+    def outliers(self) -> tuple[Outlier, ...]:
+        """Every term's rows set aside, term after term."""
+        return tuple(o for c in self.chains for o in c.outliers)
+
+    @property
+    def marker_links(self) -> tuple[str, ...]:
+        """The written URDF's marker links."""
+        return tuple(chain_frames(self.one_chain(), None)["markers"])

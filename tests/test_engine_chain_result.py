@@ -1,0 +1,174 @@
+"""The joint engine's result of one measured chain read as a chain's result (issue 28).
+
+Under ``entry.ENGINE_CHAIN``: ``urdf``/``to_dict`` take ``world_link`` and ``on_robot``,
+``residual_stats``, ``load_calibrated`` and ``calib predict`` take the result and its report.
+Every number is checked against Pinocchio on the written URDF, simulated rows without noise
+(the truth) or Pinocchio-scored held-out data.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pinref import PinTree
+
+import calib
+import calib.calibration.entry as entry
+from calib import InvalidArgumentError, calibrate, load_calibrated, load_chain
+from calib.calibration.pipeline import residual_stats
+from calib.cli.commands import main
+
+MARKER = (0.05, 0.02, 0.1)
+
+
+@pytest.fixture
+def engine(monkeypatch):
+    monkeypatch.setattr(entry, "ENGINE_CHAIN", True)
+
+
+def simulated(chain, measure: str = "position"):
+    """40 noise-free rows to fit, 15 unseen noise-free rows (the truth)."""
+    seen = calib.simulate(chain, 40, measure, marker=MARKER, seed=4).measurements
+    q = calib.simulate(chain, 15, seed=9).measurements.q
+    return seen, calib.simulate(chain, q, measure, marker=MARKER, seed=4).measurements
+
+
+@pytest.fixture(scope="module")
+def ur5_fit():
+    switch, entry.ENGINE_CHAIN = entry.ENGINE_CHAIN, True
+    try:
+        chain = load_chain("ur5")
+        seen, truth = simulated(chain)
+        return chain, calibrate(chain, seen, params="complete"), truth
+    finally:
+        entry.ENGINE_CHAIN = switch
+
+
+def marker_in(urdf: Path, base: str, chain, q) -> np.ndarray:
+    """Pinocchio alone: marker 1 of the written URDF in ``base`` ``(m, 3)`` [m]."""
+    tree = PinTree.of_file(urdf, base, [f"{chain.tool_frame}_marker1"])
+    return tree.poses(chain.joint_names, q)[:, 0, :3, 3]
+
+
+def test_world_link_gives_measured_coordinates(ur5_fit, tmp_path):
+    """Failed before: urdf() and to_dict() took no world_link (TypeError)."""
+    chain, result, truth = ur5_fit
+    assert result.shape == "chain" and result.accepted
+    path = tmp_path / "cal.urdf"
+    path.write_bytes(result.urdf(world_link="tracker"))
+    got = marker_in(path, "tracker", chain, truth.q)
+    assert np.abs(got - truth.position[:, :3]).max() < 1e-9
+    frames = result.to_dict(world_link="tracker")["frames"]
+    assert frames["world_link"] == "tracker" and not frames["on_robot"]
+    # measurement_to_base places the URDF's base frame in the instrument's frame.
+    T = result.measurement_to_base
+    base = marker_in(path, chain.base_frame, chain, truth.q)
+    assert np.abs(base @ T[:3, :3].T + T[:3, 3] - truth.position[:, :3]).max() < 1e-9
+
+
+def test_load_calibrated_and_residual_stats_read_the_engine_result(ur5_fit, tmp_path):
+    """Failed before: load_calibrated refused the report ("its joints () are not ...")."""
+    _, result, truth = ur5_fit
+    urdf, report = tmp_path / "cal.urdf", tmp_path / "cal.json"
+    urdf.write_bytes(result.urdf())
+    report.write_text(json.dumps(result.to_dict()))
+    model = load_calibrated(urdf, report)
+    assert np.abs(model.points(truth.q)[:, 0] - truth.position[:, :3]).max() < 1e-9
+    stats = residual_stats(result, truth)
+    assert stats.configs == truth.m and stats.position_max < 1e-9
+
+
+def test_attributes_of_a_chain(ur5_fit):
+    chain, result, truth = ur5_fit
+    # points: the calibrated model's prediction of unseen noise-free rows (the truth).
+    assert np.abs(result.points(truth.q)[:, 0] - truth.position[:, :3]).max() < 1e-9
+    assert result.chain is chain
+    assert result.nominal.rows() == calib.from_chain(chain).rows()
+    # The registration: nominal robot, its residual the perturbation's (mm), not the truth.
+    assert np.abs(result.registration.predict(truth.q)[0][:, 0] - truth.position).max() > 1e-4
+    assert result.warnings == result.notes and isinstance(result.message, str)
+    assert result.names == result.fitted and len(result.names) > 0
+    assert result.iterations == result.solver[2] > 0 and result.converged
+    assert result.outliers == ()
+    assert result.marker_links == ("tool0_marker1",)
+    report = result.to_dict()
+    assert list(report["frames"]["markers"]) == ["tool0_marker1"]
+    assert report["compliance"] == dict.fromkeys(load_chain("ur5").joint_names, 0.0)
+
+
+def test_residual_stats_on_measured_held_out_rows(engine, tmp_path):
+    """TIAGo, 2021-11-26 held out (4 markers): the statistics equal Pinocchio's on the URDF."""
+    real = Path(__file__).resolve().parents[1] / "data" / "realdata" / "tiago"
+    chain = load_chain(real / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
+    train, test = (
+        calib.read_measurements(real / f"qualisys_2021-11-{d}_static_postures.csv", chain)
+        for d in (30, 26)
+    )
+    result = calibrate(chain, train, params="frames")
+    stats = residual_stats(result, test)
+    path = tmp_path / "cal.urdf"
+    path.write_bytes(result.urdf())
+    T = np.array(result.to_dict()["frames"]["measurement"]["matrix"])
+    tools = [f"{chain.tool_frame}_marker{k + 1}" for k in range(test.n_markers)]
+    p = PinTree.of_file(path, chain.base_frame, tools).poses(chain.joint_names, test.q)
+    measured = test.position.reshape(test.m, test.n_markers, 3)
+    norms = np.linalg.norm(measured - (p[..., :3, 3] @ T[:3, :3].T + T[:3, 3]), axis=2)
+    assert test.n_markers == 4 and stats.configs == test.m
+    assert stats.position_rms == pytest.approx(np.sqrt(np.mean(norms**2)), rel=1e-9)
+    assert stats.position_max == pytest.approx(norms.max(), rel=1e-9)
+
+
+def test_world_link_is_for_one_chain_and_on_robot_is_refused(engine, ur5_fit):
+    """A tree refuses world_link and measurement_to_base in one line; every shape on_robot.
+
+    on_robot moves the base frame's fixed joint: it means something only for a chain that
+    runs through it (a head camera measuring the arm), which the engine route does not fit.
+    """
+    tree = calib.load_robot("talos", tool=["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
+    data = calib.simulate_tree(tree, 20, seed=2, error_mm=0.0, error_mrad=0.0).measurements
+    result = calibrate(tree, data)
+    assert result.shape == "tree"
+    for call in (result.urdf, result.to_dict):
+        with pytest.raises(InvalidArgumentError, match="world_link is for one chain measured"):
+            call(world_link="w")
+        for fitted in (result, ur5_fit[1]):
+            with pytest.raises(InvalidArgumentError, match="on_robot: the joint engine"):
+                getattr(fitted, call.__name__)(on_robot=True)
+    with pytest.raises(InvalidArgumentError, match="a chain measured by an instrument"):
+        result.measurement_to_base  # noqa: B018
+
+
+def write_configs(path: Path, names, q) -> None:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(names)
+        w.writerows(q.tolist())
+
+
+def test_cli_calibrate_world_link_and_predict(engine, tmp_path, capsys):
+    """calib calibrate --world-link, then calib predict with its report, under the switch."""
+    data, urdf, rep = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
+    sim = ["--measure", "position", "--marker", *map(str, MARKER), "--noise-mm", "0"]
+    assert main(["simulate", "ur5", *sim, "--out", str(data)]) == 0
+    cal = ["calibrate", "ur5", "--data", str(data), "--params", "complete"]
+    code = main([*cal, "--report", str(rep), "--out", str(urdf), "--world-link", "tracker"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    report = json.loads(rep.read_text())
+    assert report["shape"] == "chain" and report["frames"]["world_link"] == "tracker"
+    chain = load_chain("ur5")
+    truth = calib.read_measurements(data, chain)  # noise-free: the truth
+    assert np.abs(marker_in(urdf, "tracker", chain, truth.q) - truth.position).max() < 1e-9
+    configs, pred = tmp_path / "q.csv", tmp_path / "p.csv"
+    write_configs(configs, chain.joint_names, truth.q)
+    code = main(["predict", str(urdf), "--compliance", str(rep), "--configs", str(configs),
+                 "--out", str(pred)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    with pred.open() as f:
+        rows = list(csv.DictReader(f))
+    got = np.array([[float(r[c]) for c in ("x1", "y1", "z1")] for r in rows])
+    assert np.abs(got - truth.position[:, :3]).max() < 1e-9
