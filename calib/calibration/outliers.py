@@ -42,7 +42,6 @@ __all__ = [
     "ROUNDS",
     "Outlier",
     "find_outliers",
-    "find_pose_outliers",
     "held_out_outliers",
     "point_errors",
     "records",
@@ -172,24 +171,6 @@ def _find_outliers(errors: np.ndarray, noise: float | None, dims: int = 3) -> np
     if np.sum(~bad) < max(3, len(errors) // 2):  # not outliers: the data are bad as a whole
         return np.zeros(len(errors), dtype=bool)
     return bad
-
-
-def find_pose_outliers(
-    residual: np.ndarray, n_markers: int, noise: float | None, rows: tuple[int, ...]
-) -> tuple[np.ndarray, list[Outlier]]:
-    """Outliers of residuals ``(m, 3 K [+ 3])``: by point error, and by orientation error.
-
-    Args:
-        residual: Residuals of the registration [m, rad].
-        n_markers: K.
-        noise: Instrument position noise [m], or None.
-        rows: File row of each configuration.
-
-    Returns:
-        The boolean mask of the outliers and the outliers (the point error first where both).
-    """
-    pos, rot, _ = point_errors(residual, n_markers)
-    return find_outliers(pos, rot, noise, rows)
 
 
 def find_outliers(
