@@ -425,3 +425,6 @@ def test_real_talos_joint_fit_names_each_direction_by_its_joint_and_unit():
         assert p["joint"] == joint and joint in on_chains, p
         angle = what in ("rx", "ry", "rz") or re.fullmatch(r"(alpha|beta|theta)\d+", what)
         assert p["unit"] == ("rad" if angle else "m"), p
+    for line in result.summary().splitlines():  # the printed table names each joint once
+        named = [j for j in on_chains if f"{j}:" in line]
+        assert all(line.count(j) == 1 for j in named), line

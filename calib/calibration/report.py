@@ -261,15 +261,22 @@ def parameter_lines(entries: Sequence[Mapping]) -> list[str]:
         return ["parameters: none fitted"]
     lines = ["parameters (change from the registration +- std), with their URDF joint:"]
     width = max(len(e["name"]) for e in entries)
-    jw = max(len(e["joint"] or "-") for e in entries)
-    for e in entries:
+    joints = [_joint_column(e) for e in entries]
+    jw = max(len(j) for j in joints)
+    for e, joint in zip(entries, joints, strict=True):
         scale, unit = _DISPLAY.get(e["unit"], (1.0, e["unit"]))
         value = "-" if e["value"] is None else f"{scale * e['value']:.4g}"
         sd = "-" if e["std"] is None else f"{scale * e['std']:.4g}"
-        lines.append(
-            f"  {e['name']:>{width}} {e['joint'] or '-':<{jw}} = {value:>10} +- {sd:<9} {unit}"
-        )
+        lines.append(f"  {e['name']:>{width}} {joint:<{jw}} = {value:>10} +- {sd:<9} {unit}")
     return lines
+
+
+def _joint_column(entry: Mapping) -> str:
+    """The table's joint column: the joint, ``-`` for none, blank when the name says it."""
+    joint = entry["joint"]
+    if joint is None:
+        return "-"
+    return "" if entry["name"].startswith(joint + ":") else joint
 
 
 def pose_dict(T: np.ndarray | None) -> dict | None:
