@@ -22,12 +22,9 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import calibrate, load_calibrated, load_robot
-from calib.calibration.contact_model import ContactModel, plane_state
+from calib.calibration.contact_model import plane_state
 from calib.calibration.entry import calibrate_contacts
 from calib.exceptions import InvalidArgumentError
-from calib.identification.contact_postures import joint_offsets
-from calib.kinematics.mdh import from_chain
-from calib.kinematics.so3 import rotation_matrix
 from calib.kinematics.standing import JointReadings, Support, standing_load
 from calib.measurements.contact_campaign import ContactData, read_contacts, simulate_contacts
 
@@ -144,33 +141,6 @@ def test_support_checks():
     assert standing_load(chain, Support("right_sole_link")).excluded == chain.model.getJointId(
         "leg_right_1_joint"
     )
-
-
-def test_compliance_columns_match_central_differences():
-    """The compliance columns (reversed leg joints included) against central differences."""
-    chain = load_robot(*TALOS)
-    mdh = from_chain(chain)
-    C = np.eye(4)
-    C[:3, :3], C[:3, 3] = rotation_matrix(np.array([0.1, 0.2, 0.3])), [0.01, 0.02, -0.12]
-    n = np.array([0.1, 0.2, 1.0]) / np.linalg.norm([0.1, 0.2, 1.0])
-    start = dataclasses.replace(
-        plane_state(mdh, C, n, 0.9, 0.3, "t"), compliance=1e-4 * np.arange(chain.n)
-    )
-    model = ContactModel(joint_offsets(mdh), start.frames, (0, 2, 5, 9, 14))
-    q = chain.random_configurations(6, 4)
-    data = ContactData(chain.joint_names, q, ("t",) * 6, read_kind())
-    torque = standing_load(chain).torques(q)
-    x = 1e-3 * np.random.default_rng(0).standard_normal(model.size())
-    x[-5:] *= 0.1
-    J = model.jacobian(start, x, data, torque)
-
-    def f(v):
-        return -model.apply(start, v).residuals(data, torque)
-
-    h = 1e-7
-    num = np.stack([(f(x + h * e) - f(x - h * e)) / (2 * h) for e in np.eye(model.size())], -1)
-    assert np.max(np.abs(J[:, :, -5:])) > 1.0  # compliance columns: metres per rad/(N m)
-    assert np.max(np.abs(J - num) / np.maximum(1.0, np.abs(num))) < 1e-6
 
 
 def read_kind():

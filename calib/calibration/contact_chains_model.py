@@ -34,7 +34,6 @@ import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
-from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import skew
@@ -332,7 +331,7 @@ class ChainsModel:
     @staticmethod
     def _contact_model(state: ContactState) -> ContactModel:
         """The single-chain model of a chain's plane and contact (no robot parameter)."""
-        return ContactModel(ParameterSet("none", ()), state.frames)
+        return ContactModel(state.frames)
 
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
         """The state at parameters x (x = 0 is ``start``): no MDH model is remade."""

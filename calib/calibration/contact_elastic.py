@@ -1,7 +1,7 @@
 """Joint compliance in a calibration from contacts (``elastic``): load, torques, URDF alone.
 
 With ``elastic=True`` the joint compliances are candidates of the fit beside the robot
-parameters (``q' = q + c tau``, :class:`~calib.calibration.contact_model.ContactModel`),
+parameters (``q' = q + c tau``, the joint engine's :mod:`~calib.calibration.contact_chains_model`),
 ``tau`` the gravity torques of the robot standing on the chain's base frame
 (:mod:`calib.kinematics.standing`, the load split with a second foot as ``support`` says,
 the joints off the chain at their recorded positions where the touches have them:

@@ -8,14 +8,11 @@ a plane's height, roll and pitch; a plane-point's height; a fixed point's positi
 pose's position and rotation vector.
 
 The parameters x of :class:`ContactModel`: the objects' and the contact's unknowns
-(:attr:`~calib.identification.contacts.Contact.object_dofs`, ``contact_dofs``), then shifts
-of robot parameters. Their Jacobian is the kind's rows (``kind.jacobian_rows``) of the
-contact frame's pose-error Jacobian in its object's frame: the frames' columns
-(:meth:`ContactFrames.columns`) and the robot's (the identification Jacobian of the contact
-origin, turned into each object's frame), then the joint compliances asked for
-(``elastic``: the geometry sees ``q' = q + c tau``, ``tau`` the gravity torques given with the
-data, :mod:`calib.kinematics.standing`); a compliance column is its joint's offset column
-times ``tau_j`` (times the joint's sign on a reversed chain).
+(:attr:`~calib.identification.contacts.Contact.object_dofs`, ``contact_dofs``). Their
+Jacobian is the kind's rows (``kind.jacobian_rows``) of the contact frame's pose-error
+Jacobian in its object's frame (:meth:`ContactFrames.columns`). The robot's columns (joint
+placement directions, compliances: ``elastic``, the geometry sees ``q' = q + c tau``) are the
+joint engine's (:mod:`.contact_chains_model`).
 """
 
 from __future__ import annotations
@@ -28,12 +25,8 @@ import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact
-from ..identification.jacobian import identification_jacobian
-from ..identification.measures import Measurement
-from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel
 from .contact_frames import ContactFrames, row_weights
-from .model import compliance_name, offset_parameter
 from .placements import JointFrames
 
 __all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame", "plane_state"]
@@ -161,19 +154,17 @@ def plane_state(
 
 @dataclass(frozen=True, eq=False)
 class ContactModel:
-    """What is free: the objects', the contact's unknowns, robot parameters, compliances.
+    """The unknowns of a chain's touches: its objects' and its contact frame's.
 
+    The joint engine (:mod:`.contact_chains_model`) adds the robot's columns (joint placement
+    directions, compliances) from the joint frames it makes once per step.
     Its rows come weighted (``n_markers`` 0, no pose rows: :func:`~.solve.fit` weighs them 1).
 
     Attributes:
-        params: The free robot parameters.
         frames: The frames' layout (kind and ids) the unknowns of x refer to.
-        compliance: Joints (0-based) whose compliance is free.
     """
 
-    params: ParameterSet
     frames: ContactFrames
-    compliance: tuple[int, ...] = ()
 
     n_markers = 0
     pose = False
@@ -185,24 +176,16 @@ class ContactModel:
 
     def size(self) -> int:
         """Number of free parameters."""
-        return self.fixed + len(self.params) + len(self.compliance)
+        return self.fixed
 
     def names(self) -> tuple[str, ...]:
-        """Column names (a compliance: ``c<row>``, e.g. ``c3``)."""
-        comp = tuple(compliance_name(j) for j in self.compliance)
-        return (*self.frames.names(), *self.params.names, *comp)
+        """Column names."""
+        return self.frames.names()
 
     def apply(self, start: ContactState, x: np.ndarray) -> ContactState:
         """The state at parameters x (x = 0 is ``start``)."""
-        x = np.asarray(x, dtype=float)
-        p = self.fixed + len(self.params)
-        mdh = self.params.apply(start.mdh, x[self.fixed : p]) if len(self.params) else start.mdh
-        c = start.compliance
-        if self.compliance:
-            c = np.zeros(start.mdh.n) if c is None else np.array(c, dtype=float)
-            c[list(self.compliance)] += x[p:]
-        frames = start.frames.moved(x[: self.fixed])
-        return dataclasses.replace(start, mdh=mdh, frames=frames, compliance=c)
+        frames = start.frames.moved(np.asarray(x, dtype=float)[: self.fixed])
+        return dataclasses.replace(start, frames=frames)
 
     def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None):
         """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``.
@@ -221,35 +204,22 @@ class ContactModel:
     def blocks(
         self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`jacobian` by block: each touch's own object's columns, the shared ones.
+        """:meth:`jacobian` by block: each touch's own object's columns, the contact's.
 
-        ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's, whose
-        robot is not the state's MDH model: it moves no MDH parameter), or None: the MDH
-        model's at x. ``state``: :meth:`apply` at x, if already made.
+        ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's), or
+        None: the state's (:meth:`ContactState.kinematics`, ``torque`` deflecting compliant
+        joints). ``state``: :meth:`apply` at x, if already made.
 
         Returns:
             The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
-            other objects' are zero), on the shared unknowns (the contact's, the robot's,
-            the compliances) ``(m, rows, size - K o)``, and the object of each touch.
+            other objects' are zero), on the contact's unknowns ``(m, rows, size - K o)``, and
+            the object of each touch.
         """
         s = self.apply(start, x) if state is None else state
-        q = s.joints(data.q, torque)
-        if kin is None or len(self.params) or self.compliance:  # MDH columns: its frames
-            kin = s.mdh.kinematics(q)
-        index = s._index(data.ids, len(q), data.source)
+        if kin is None:
+            kin = s.kinematics(data.q, torque)
+        index = s._index(data.ids, len(kin.p), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
         own, shared = s.frames.parts(R, p, index, x[: self.fixed])
-        W = [shared]
-        if len(self.params) or self.compliance:
-            offsets = tuple(offset_parameter(s.mdh, j) for j in self.compliance)
-            pset = ParameterSet("columns", (*self.params.parameters, *offsets))
-            marker = Measurement.of("pose", tuple(s.contact[:3, 3]))
-            W6 = identification_jacobian(s.mdh, pset, q, marker, kin).reshape(len(q), 6, -1)
-            if self.compliance:  # d/dc_j = tau_j d/dq_j = tau_j sign_j d(offset_j)
-                joints = list(self.compliance)
-                gain = np.asarray(torque, dtype=float)[:, joints] * s.mdh.sign[1:-1][joints]
-                W6[:, :, len(self.params) :] *= gain[:, None, :]
-            W.append(s.frames.rotate(W6, index))
         w = s.row_weights()[None, :, None]
-        own = s.kind.jacobian_rows(own, R) * w
-        return own, s.kind.jacobian_rows(np.concatenate(W, axis=2), R) * w, index
+        return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index
