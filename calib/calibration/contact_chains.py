@@ -49,6 +49,7 @@ from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, determined, outliers, validation
+from .chain_counts import Generic, assess
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState, on_models
 from .contact_chains_result import (
     ChainContacts,
@@ -414,14 +415,17 @@ def calibrate_contact_chains(
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
         flush = flush_data(start, train, load)
-        offer = "components" if instrument and level == "complete" else level
+        tree = instrument and len(chains) > 1  # one chain: its level's MDH directions
+        offer = "components" if tree and level == "complete" else level
         rows = ChainsData(tuple(train), None if load is None else torques[:1])
-        model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp)
+        generic = Generic(start, tuple(train), seed) if instrument else None
+        model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
+                                            generic)  # fmt: skip
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         every = offer == "components"  # its rank kept a basis of every component: counted
         identifiable = model.size() if every else len(structural(wide, start, flush))
-        if instrument:
+        if tree:
             check_tree_rank(wide, start, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
@@ -451,12 +455,12 @@ def calibrate_contact_chains(
               for h, v in zip(held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
-    values = fitted_values(fitted, None if polished else prior)
+    values = fitted_values(fitted, kept_prior)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
-    refusal = result.refusal or rank
-    return dataclasses.replace(
-        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal, **values
-    )
+    ill, figures = assess(generic, fitted, kept_prior, polished)
+    refusal = result.refusal or rank or ill
+    return dataclasses.replace(result, chains=parts, params=level, identifiable=identifiable,
+                               refusal=refusal, **values, **figures)  # fmt: skip
 
 
 PIN = 1e-6

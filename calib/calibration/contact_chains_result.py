@@ -183,6 +183,9 @@ class ContactChainsCalibration(Delivered, ChainView):
             directions kept (``free``).
         shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
             instrument (:mod:`.instrument`).
+        condition: One chain measured by an instrument: the condition number of the fit's
+            Jacobian, its columns scaled to unit norm (NaN: not computed).
+        sigma: Its noise estimate sqrt(RSS / (rows - unknowns)) [m] (NaN: not computed).
         identifiable: The rank of the rows' Jacobian over every unknown and every joint
             placement component, at the nominal robot (flush touches): what the data
             determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
@@ -207,6 +210,8 @@ class ContactChainsCalibration(Delivered, ChainView):
     unknowns: int = 0
     identifiable: int = 0
     shape: str = "chains"
+    condition: float = float("nan")
+    sigma: float = float("nan")
 
     @property
     def accepted(self) -> bool:

@@ -24,6 +24,7 @@ from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
+from .chain_counts import sampled
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_rows
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
@@ -253,10 +254,15 @@ def structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=()):
+def choose(
+    start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=(), generic=None
+):
     """The model (free components, compliances), the selection (``auto``), the prior weights.
 
     ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
+    ``generic``: terms measured by an instrument (:class:`~.chain_counts.Generic`): the level
+    offers what generic configurations determine (a note only when the data determine less),
+    and one chain gets a chain's checks and posture counts; or None.
     """
     train = list(data.parts)
     directions, names, offered = offer_directions(start, level)
@@ -266,6 +272,10 @@ def choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, no
     if sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = sorted(kept[fixed:])
+    if generic is not None:
+        allowed = generic.columns(wide)
+        generic.check_level(wide, kept, allowed, flush, level)
+        every = len(allowed) - fixed
     if len(columns) < every:
         what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
         notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
@@ -275,8 +285,10 @@ def choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, no
     if level == "auto" and columns:
         all_names = wide.names()
         cand_names = tuple(all_names[c] for c in columns)
+        keep = None if generic is None else generic.sample(fixed, len(columns), notes)
+        data = sampled(data, keep)
         J, objects, free = selection_columns(wide, start, data, columns)
-        groups = _postures(data)
+        groups = _postures(data) if generic is None else generic.groups(keep)
         e = start.residuals(data)
         selection, weights = select(J, e, free, cand_names, groups=groups, objects=objects)
         columns = [columns[cand_names.index(k)] for k in selection.kept]

@@ -237,8 +237,8 @@ class ChainView:
 
     @property
     def names(self) -> tuple[str, ...]:
-        """The fitted parameters' names (``fitted``: joint placement components)."""
-        return self.fitted
+        """The fitted unknowns' names: the frame's, the markers', the tool's, then ``fitted``."""
+        return (*self.one_chain().kind.names(), *self.fitted)
 
     @property
     def iterations(self) -> int:

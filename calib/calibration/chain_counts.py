@@ -1,0 +1,213 @@
+"""What a measured chain's structure lets rows determine, and the joint engine's counts of it.
+
+One chain (or a tree's tools) measured by an instrument (:mod:`.instrument`): a level offers
+the joint placement directions generic configurations determine with the frame and the
+markers (:class:`Generic`: the rank of the engine's own Jacobian at random configurations
+within the joint limits, rows of the data's kind); the reduction the structure forces (the
+base row's parameters the frame absorbs, the tool's the markers do) is the level's, not the
+data's. For one chain, as :mod:`.determined` states it:
+
+- a level (not ``auto``) the measured configurations do not determine is refused before the
+  fit, naming the unknowns they cannot separate (postures counted once);
+- ``auto`` chooses on the postures (a posture recorded again counts once), on a sample of
+  them beyond :data:`~.determined.SELECTION_WORK`;
+- after the fit, unknowns the rows cannot separate refuse the model
+  (:func:`~.determined.ill_posed`), naming a posture that separates them.
+
+The unknowns are named as a chain's: ``frame.z``, ``marker1.z`` (:func:`chain_name`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.choices import DEFAULT_CONFIGS
+from ..identification.base_columns import independent_columns
+from ..kinematics.tree import tree_of_chains
+from ..measurements.data import Measurements
+from ..measurements.postures import count, posture_groups, sample_postures
+from . import determined
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .solve import condition, covariance
+
+__all__ = ["Generic", "assess", "chain_name", "sampled"]
+
+
+def chain_name(name: str) -> str:
+    """A one-chain fit's unknown as a chain names it: ``instrument.frame.z`` -> ``frame.z``."""
+    head, _, rest = name.partition(".")
+    return rest if rest and (head == "instrument" or head.startswith("term")) else name
+
+
+def rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
+    """Rows of ``data``'s kind (its markers, an orientation or not) at the joints ``q``.
+
+    Their values are zero points and identity orientations: a Jacobian's rank does not read them.
+    """
+    m = len(q)
+    turn = None if data.quaternion is None else np.tile([0.0, 0.0, 0.0, 1.0], (m, 1))
+    return Measurements(joint_names, q, np.zeros((m, 3 * data.n_markers)), turn)
+
+
+@dataclass(frozen=True)
+class Generic:
+    """Generic configurations of the terms an instrument measures (module text).
+
+    Attributes:
+        start: The registration the Jacobians are linearised at.
+        train: Each term's rows (their kinds: markers, orientation).
+        seed: Seed of the configurations' draw.
+    """
+
+    start: ChainsState
+    train: tuple[Measurements, ...]
+    seed: int
+
+    @property
+    def one(self) -> bool:
+        """One chain (the counts and checks of a chain's, :mod:`.determined`)."""
+        return len(self.start.chains) == 1
+
+    def rows(self, q: np.ndarray | None = None) -> ChainsData:
+        """Rows of each term's kind at ``q`` (the tree's joints; None: the seeded draw)."""
+        chains = self.start.chains
+        tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
+        q = tree.random_configurations(DEFAULT_CONFIGS, self.seed) if q is None else q
+        pairs = zip(chains, self.train, tree.paths, strict=True)
+        return ChainsData(tuple(rows_like(d, c.joint_names, q[:, path]) for c, d, path in pairs))
+
+    def columns(self, wide: ChainsModel) -> list[int]:
+        """The columns of ``wide`` generic configurations determine (in column order)."""
+        J = wide.jacobian(self.start, np.zeros(wide.size()), self.rows()).reshape(-1, wide.size())
+        return sorted(independent_columns(J, list(range(J.shape[1])))[2])
+
+    def check_level(self, wide, kept, generic, flush, level: str) -> None:
+        """Refuse a level (not ``auto``) one chain's postures do not determine, before the fit.
+
+        Args:
+            wide: The level's model (every direction it offers).
+            kept: Its columns the rows determine (at the registration).
+            generic: Its columns generic configurations determine.
+            flush: The rows the rank was taken at.
+            level: The level.
+
+        Raises:
+            DataError: Too few equations for the level's unknowns, or rows that determine
+                fewer than generic configurations (:func:`~.determined.check_rank`, naming
+                the unknowns they cannot separate).
+        """
+        if level == "auto" or not self.one:
+            return
+        d = self.train[0]
+        lost: tuple[str, ...] = ()
+        if len(kept) < len(generic):
+            A = wide.jacobian(self.start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
+            names = tuple(chain_name(wide.names()[c]) for c in generic)
+            found = determined.ill_posed(A[:, generic], names, overwrite=True)
+            lost = tuple(dict.fromkeys(n for f in found for n in f.names))
+        rows = d.kind.rows_of(d.n_markers)
+        postures = count(d.q, d.tool)
+        determined.check_rank(len(kept), len(generic), postures, rows, level, d.source, lost=lost)
+
+    def groups(self, keep: np.ndarray | None) -> np.ndarray | None:
+        """One chain's posture of each row ``keep`` (a repeat counts once), or None (a tree)."""
+        if not self.one:
+            return None
+        d = self.train[0] if keep is None else self.train[0].subset(keep)
+        return posture_groups(d.q, d.tool)
+
+    def sample(self, fixed: int, candidates: int, notes: list[str]) -> np.ndarray | None:
+        """The rows ``auto`` chooses on beyond the work bound (a note says so), or None: all.
+
+        Whole postures drawn with the seed (:func:`~calib.measurements.postures.
+        sample_postures`); the fit uses every row.
+
+        Raises:
+            InvalidArgumentError: A sample within the bound too small to choose on
+                (:func:`~.determined.selection_configurations`).
+        """
+        if not self.one:
+            return None
+        d = self.train[0]
+        size = determined.selection_configurations(
+            d.m, d.kind.rows_of(d.n_markers), fixed, candidates
+        )
+        if size >= d.m:
+            return None
+        keep = sample_postures(posture_groups(d.q, d.tool), size, self.seed, d.tool)
+        notes.append(
+            f"params 'auto' chose the parameters on {int(keep.sum())} of the {d.m} "
+            f"configurations (whole postures drawn with seed {self.seed}: the selection's "
+            f"work bound); the fit uses all of them"
+        )
+        return keep
+
+    def ill_posed(self, fitted, std: np.ndarray) -> str | None:
+        """One chain's refusal for fitted unknowns its rows cannot separate (None: none).
+
+        It names the posture, among random ones within the joint limits, that separates them
+        best (:func:`~.determined.separating_posture`).
+
+        Args:
+            fitted: The joint fit (its model's columns: the frame, the markers, the free
+                directions).
+            std: The standard deviation of each of its columns [m or rad] (NaN: undetermined).
+        """
+        names = tuple(chain_name(n) for n in fitted.model.names())
+        spread = dict(zip(names, std, strict=True))
+        found = [
+            d
+            for d in determined.ill_posed(fitted.J, names)
+            if not all(spread[n] <= determined.ILL_STD for n in d.names)  # NaN: undetermined
+        ]
+        if not found:
+            return None
+        v = np.zeros(len(names))
+        v[[names.index(n) for n in found[0].names]] = found[0].weights
+        chain = self.start.chains[0]
+        q = chain.random_configurations(DEFAULT_CONFIGS, self.seed)
+
+        def jacobian_at(q: np.ndarray) -> np.ndarray:
+            return fitted.model.jacobian(fitted.start, fitted.x, self.rows(q))
+
+        best, cond = determined.separating_posture(jacobian_at, q, v)
+        joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(chain.joint_names, best, strict=True))
+        where = (
+            f"postures such as {joints} [rad or m] separate them (random configurations within "
+            f"the joint limits: condition {cond:.3g})"
+            if cond < determined.ILL_CONDITION
+            else None
+        )
+        return determined.ill_posed_text(found, spread, where)
+
+
+def assess(generic: Generic | None, fitted, prior, polished: bool) -> tuple[str | None, dict]:
+    """One chain's refusal for unknowns its rows cannot separate, and its fit's figures.
+
+    Args:
+        generic: The terms measured by an instrument, or None (no figures).
+        fitted: The joint fit.
+        prior: Its prior weights, or None.
+        polished: The fit was polished (every component: not assessed).
+
+    Returns:
+        The refusal (:meth:`Generic.ill_posed`) or None, and the result's ``condition`` (of
+        the fit's Jacobian, unit-norm columns) and ``sigma`` (sqrt(RSS / (r - p)) [m]).
+    """
+    if generic is None or polished or not generic.one:
+        return None, {}
+    cov, sigma = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
+    with np.errstate(invalid="ignore"):
+        std = np.sqrt(np.diag(cov))
+    figures = {"condition": condition(fitted.J), "sigma": sigma}
+    return generic.ill_posed(fitted, std), figures
+
+
+def sampled(data: ChainsData, keep: np.ndarray | None) -> ChainsData:
+    """One chain's rows ``keep`` (None: all)."""
+    if keep is None:
+        return data
+    return dataclasses.replace(data, parts=(data.parts[0].subset(keep),))
