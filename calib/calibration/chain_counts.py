@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.choices import DEFAULT_CONFIGS
+from ..exceptions import DataError
 from ..identification.base_columns import independent_columns
 from ..kinematics.tree import tree_of_chains
 from ..measurements.data import Measurements
@@ -84,8 +85,11 @@ class Generic:
         J = wide.jacobian(self.start, np.zeros(wide.size()), self.rows()).reshape(-1, wide.size())
         return sorted(independent_columns(J, list(range(J.shape[1])))[2])
 
-    def check_level(self, wide, kept, generic, flush, level: str) -> None:
+    def check(self, wide, kept, generic, flush, level: str) -> None:
         """Refuse a level (not ``auto``) one chain's postures do not determine, before the fit.
+
+        The frame and markers must be determined, as many unknowns as they are (which of
+        them the rows cannot separate, if any, refuses the fit: :meth:`ill_posed`).
 
         Args:
             wide: The level's model (every direction it offers).
@@ -95,13 +99,19 @@ class Generic:
             level: The level.
 
         Raises:
-            DataError: Too few equations for the level's unknowns, or rows that determine
+            DataError: Rows that do not determine as many unknowns as the frame and markers
+                have, too few equations for the level's unknowns, or rows that determine
                 fewer than generic configurations (:func:`~.determined.check_rank`, naming
                 the unknowns they cannot separate).
         """
+        d = self.train[0]
+        if len(kept) < wide.fixed:
+            raise DataError(
+                d.source,
+                "the configurations do not even determine the measurement frame and markers",
+            )
         if level == "auto" or not self.one:
             return
-        d = self.train[0]
         lost: tuple[str, ...] = ()
         if len(kept) < len(generic):
             A = wide.jacobian(self.start, np.zeros(wide.size()), flush).reshape(-1, wide.size())

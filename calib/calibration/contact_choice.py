@@ -269,13 +269,13 @@ def choose(
     wide = chains_model(start, plane_of, offered, names, directions, comp)
     fixed, every = wide.fixed, len(offered) + len(comp)
     kept = structural(wide, start, flush) if every else list(range(fixed))
-    if sorted(kept[:fixed]) != list(range(fixed)):
-        raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
-    columns = sorted(kept[fixed:])
     if generic is not None:
         allowed = generic.columns(wide)
-        generic.check_level(wide, kept, allowed, flush, level)
+        generic.check(wide, kept, allowed, flush, level)
         every = len(allowed) - fixed
+    elif sorted(kept[:fixed]) != list(range(fixed)):
+        raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
+    columns = [c for c in kept if c >= fixed]
     if len(columns) < every:
         what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
         notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
