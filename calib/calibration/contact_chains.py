@@ -127,7 +127,7 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
         raise InvalidArgumentError("give one validation set (or None) per chain")
     for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
         if isinstance(d, Measurements):
-            check_measured(c, d, v, instrument)
+            check_measured(c, d, v, instrument, holdout)
             continue
         if isinstance(d, PixelData):
             check_pixels(c, d, v)

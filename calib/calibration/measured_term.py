@@ -37,6 +37,8 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
+from ..measurements.postures import count
+from . import determined, validation
 from .chain_registration import checked_registration, held_out_outliers
 from .contact_result import GapStats, row_stats
 from .freedoms import marker_guess
@@ -136,16 +138,20 @@ def measuring_joint(chain: Chain) -> str:
         ) from None
 
 
-def check_measured(chain: Chain, data: Measurements, held, instrument: bool = False) -> None:
+def check_measured(
+    chain: Chain, data: Measurements, held, instrument: bool = False, holdout: float = 0.0
+) -> None:
     """A measured term's data: its chain's joints, one tool, held-out rows of its kind.
 
     ``instrument``: measured by an instrument outside the robot (its base frame need not be
-    on the robot).
+    on the robot). The postures left to fit once ``holdout`` of them are set aside (a posture
+    recorded again counts once) must give more equations than the frame and markers have
+    unknowns.
 
     Raises:
         InvalidArgumentError: The base frame is not on the robot, validation rows of another
             kind (touches, pose against position, other markers), or several tools.
-        DataError: The measurements' joints are not the chain's.
+        DataError: The measurements' joints are not the chain's, or too few postures.
     """
     if not instrument:
         measuring_joint(chain)
@@ -170,6 +176,11 @@ def check_measured(chain: Chain, data: Measurements, held, instrument: bool = Fa
                 f"({measured_kind(part).label}, {part.n_markers} marker(s) against "
                 f"{measured_kind(data).label}, {data.n_markers})"
             )
+    postures = count(data.q, data.tool)
+    out = round(holdout * postures)
+    unknowns, what = len(measured_kind(data).names()), "measurement frame and marker parameters"
+    rows = data.kind.rows_of(data.n_markers)
+    determined.check_equations(postures - out, rows, unknowns, what, data.source, held=out)
 
 
 def own_model(kind: MeasuredKind) -> ErrorModel:
@@ -306,6 +317,8 @@ def checked_measured(
     kept = data.subset(~bad) if bad.any() else data
     if held is not None:
         held = held_out_outliers(reg, kept, (held, held.source), opts, notes)[0]
+        fitted, other = (validation.stats(reg, d, None) for d in (kept, held))
+        validation.check_held_out_errors(fitted, other, held.source)
     return state, bad, found, notes, held
 
 
