@@ -27,14 +27,17 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from .chain_outliers import fit_until_stable
 from .contact_chains import calibrate_contact_chains
 from .contact_chains_result import ContactChainsCalibration
 from .delivery import Result
+from .measured_term import check_measured
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
 from .pipeline import calibrate_chain
 from .problem import Problem, Term
 from .result import CalibrationResult
 from .tree_checks import prepare_tree
+from .validation import split
 
 __all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
 
@@ -317,20 +320,31 @@ def measured_chain(
         raise InvalidArgumentError(
             f"the joint engine's chain route does not take {', '.join(missing)} yet"
         )
-    result = calibrate_contact_chains(
-        [cast(Chain, term.robot)],
-        [term.data],
-        params=problem.params,
-        validate=None if term.validate is None else [term.validate],
-        orientation_weight=problem.orientation_weight,
-        max_iterations=problem.max_iterations,
-        holdout=problem.holdout,
-        seed=problem.seed,
-        progress=progress,
-        instrument=True,
-        marker=term.guess,
+    chain, data = cast(Chain, term.robot), cast(Measurements, term.data)
+    check_measured(chain, data, term.validate, True, problem.holdout)
+    train, held = (
+        (data, term.validate)
+        if term.validate is not None
+        else split(data, problem.holdout, problem.seed)
     )
-    return dataclasses.replace(result, shape="chain")
+
+    def fit(rows: Measurements) -> ContactChainsCalibration:
+        result = calibrate_contact_chains(
+            [chain],
+            [rows],
+            params=problem.params,
+            validate=None if held is None else [held],
+            orientation_weight=problem.orientation_weight,
+            max_iterations=problem.max_iterations,
+            seed=problem.seed,
+            progress=progress,
+            instrument=True,
+            held_label="holdout" if term.validate is None else None,
+            marker=term.guess,
+        )
+        return dataclasses.replace(result, shape="chain")
+
+    return fit_until_stable(fit, train, problem.noise_mm)
 
 
 def _validated(problem: Problem) -> bool:
