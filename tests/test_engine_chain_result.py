@@ -91,7 +91,9 @@ def test_attributes_of_a_chain(ur5_fit):
     # The registration: nominal robot, its residual the perturbation's (mm), not the truth.
     assert np.abs(result.registration.predict(truth.q)[0][:, 0] - truth.position).max() > 1e-4
     assert result.warnings == result.notes and isinstance(result.message, str)
-    assert result.names == result.fitted and len(result.names) > 0
+    own = ("frame.rx", "frame.ry", "frame.rz", "frame.x", "frame.y", "frame.z")
+    own += ("marker1.x", "marker1.y", "marker1.z")  # the frame's and the marker's, then fitted
+    assert result.names == (*own, *result.fitted) and len(result.fitted) > 0
     assert result.iterations == result.solver[2] > 0 and result.converged
     assert result.outliers == ()
     assert result.marker_links == ("tool0_marker1",)
