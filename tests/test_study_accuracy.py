@@ -15,6 +15,7 @@ from functools import cache
 
 import numpy as np
 import pytest
+from pinref import instrument_points
 
 import calib
 
@@ -73,7 +74,7 @@ def pooled_error(robot: str, measure: str, m: int, noise_mm: float) -> float:
     return math.sqrt(np.mean([run(robot, measure, m, noise_mm, s)[1] ** 2 for s in SEEDS]))
 
 
-def test_one_ur5_campaign_residuals_and_held_out_errors():
+def test_one_ur5_campaign_residuals_and_held_out_errors(tmp_path):
     ur5 = chain_of("ur5")
     campaign = calib.simulate(
         ur5, configs=100, measure="position", marker=MARKER, noise_mm=NOISE_MM, seed=0
@@ -82,20 +83,25 @@ def test_one_ur5_campaign_residuals_and_held_out_errors():
     result = calib.calibrate(ur5, data, marker=MARKER, params="complete").check()
     r, b = 3 * data.m, len(result.names)
     assert (r, b) == (3 * 100, 4 * ur5.n_revolute + 3)  # Everett: 4R + 3, marker off the axis
-    assert result.before.position_rms > 3e-4  # 1 mm / 1 mrad errors: a millimetre of error
+    errors = result.to_dict()["errors"]["train"]  # [mm]
+    assert errors["registration"]["position_rms_mm"] > 0.3  # 1 mm / 1 mrad: a millimetre
     assert math.isclose(result.sigma, SIGMA, rel_tol=0.15)
     assert math.isclose(
-        result.after.position_rms, SIGMA * math.sqrt((r - b) / data.m), rel_tol=0.15
+        errors["calibrated"]["position_rms_mm"],
+        1e3 * SIGMA * math.sqrt((r - b) / data.m),
+        rel_tol=0.15,
     )
     q_test = ur5.random_configurations(HELD_OUT, HELD_OUT_SEED)
     assert q_test.shape == (HELD_OUT, ur5.n)
     assert np.all((q_test >= ur5.lower) & (q_test <= ur5.upper))  # inside the joint limits
     assert not np.isin(q_test, data.q).any()  # none of them was measured
-    # By hand: the measurement frame applied to the calibrated MDH model's marker.
-    kin = result.calibrated.kinematics(q_test)
-    by_hand = kin.p[:, -1] + kin.R[:, -1] @ result.state.markers[0]
-    by_hand = by_hand @ result.state.frame[:3, :3].T + result.state.frame[:3, 3]
-    assert np.allclose(result.points(q_test)[:, 0], by_hand, rtol=0, atol=1e-12)
+    # Pinocchio on the written URDF: its marker link in the report's measurement frame.
+    urdf = tmp_path / "ur5.urdf"
+    urdf.write_bytes(result.urdf())
+    points = instrument_points(
+        urdf, result.to_dict(), ur5.base_frame, ur5.tool_frame, ur5.joint_names, q_test
+    )
+    assert np.allclose(result.points(q_test)[:, 0], points, rtol=0, atol=1e-9)
     nominal_err, calibrated_err = held_out_errors(ur5, result, truth)
     assert rms(nominal_err) > 1e-3
     assert rms(calibrated_err) < rms(nominal_err) / 50
@@ -139,7 +145,7 @@ def test_pose_against_position(robot):
         analysis = calib.analyze(chain, measure=measure, marker=MARKER, params="complete")
         c[measure] = {
             "b": {len(res.names) for res in results},
-            "rows": results[0].data.m * results[0].model.rows,
+            "rows": results[0].stats["train"].m * len(results[0].one_chain().kind.row_names),
             "theory": analysis.n_theory,
             "on last axis": analysis.on_last_axis,
             "error": pooled_error(robot, measure, 100, NOISE_MM),
