@@ -414,7 +414,7 @@ def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, 
     auto is refused before the selection starts, naming the levels to give instead."""
     import numpy as np
 
-    import calib.calibration.pipeline as pipeline
+    import calib.calibration.contact_choice as choice
     from calib.kinematics.robot import load_chain
 
     chain = load_chain("ur5")
@@ -430,7 +430,7 @@ def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, 
     def forbidden(*args, **kwargs):
         raise AssertionError("the selection started")
 
-    monkeypatch.setattr(pipeline, "select", forbidden)
+    monkeypatch.setattr(choice, "select", forbidden)
     line = one_error(capsys, ["calibrate", "ur5", "--data", data, "--out", tmp_path / "c"])
     assert "params 'auto'" in line and "params complete" in line and "200 configurations" in line
     assert not (tmp_path / "c").exists()
