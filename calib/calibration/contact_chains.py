@@ -289,16 +289,9 @@ def determined_unknowns(
     )
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     held: list = [None] * len(parts)
+    guess = (contact_frame(contact), None)
     train, _, measured = _checked(
-        chains,
-        list(parts),
-        None,
-        (contact_frame(contact), None),
-        None,
-        held,
-        [],
-        max_iterations,
-        instrument,
+        chains, list(parts), None, guess, None, held, [], max_iterations, instrument
     )
     start = _register(chains, train, measured, plane_of, [], max_iterations, pose_weight)
     names = start.placements.names()
@@ -418,13 +411,14 @@ def calibrate_contact_chains(
         tree = instrument and len(chains) > 1  # one chain: its level's MDH directions
         offer = "components" if tree and level == "complete" else level
         rows = ChainsData(tuple(train), None if load is None else torques[:1])
-        generic = Generic(start, tuple(train), seed) if instrument else None
+        generic, kept = Generic(start, tuple(train), seed) if instrument else None, []
         model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
-                                            generic)  # fmt: skip
+                                            generic, kept)  # fmt: skip
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
-        every = offer == "components"  # its rank kept a basis of every component: counted
-        identifiable = model.size() if every else len(structural(wide, start, flush))
+        one = instrument and not tree  # one chain: its MDH directions span what it sees
+        identifiable = len(kept) if one else model.size() if offer == "components" else len(
+            structural(wide, start, flush))  # fmt: skip
         if tree:
             check_tree_rank(wide, start, identifiable, train, level, seed)
     clock.append(time.perf_counter())
@@ -487,9 +481,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
     is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
     fit's): on noisy touches, where it would only fit noise, it is dropped. One chain
-    touching is not polished (its MDH directions span what it sees, as the single chain's
-    fit has always assumed; a polish of 20,000 touches took minutes; many objects are fitted
-    by block, :func:`~.contact_fit.block_fit`). ``auto`` (a
+    touching or measured by an instrument is not polished (its MDH directions span what it
+    sees, as the single chain's fit has always assumed; a polish of 20,000 touches took
+    minutes; many objects are fitted by block, :func:`~.contact_fit.block_fit`). ``auto`` (a
     selection, a prior), ``offsets`` and ``components`` (every component offered) are not
     polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
     components would only wander), and a polish that wanders to no robot (its chain models
@@ -506,8 +500,9 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     else:
         fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
-    one_contact = len(start.states) == 1 and isinstance(start.states[0], ContactState)
-    if level != "complete" or not model.free or rows < wide.size() or one_contact:
+    alone = start.states[0] if len(start.states) == 1 else None  # one chain: not polished
+    one_chain = isinstance(alone, ContactState) or getattr(alone, "instrument", False)
+    if level != "complete" or not model.free or rows < wide.size() or one_chain:
         return fitted, False
     cost = float(fitted.f @ fitted.f)
     if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:

@@ -255,14 +255,24 @@ def structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list
 
 
 def choose(
-    start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=(), generic=None
+    start: ChainsState,
+    data: ChainsData,
+    flush,
+    plane_of,
+    level: str,
+    notes,
+    comp=(),
+    generic=None,
+    kept_out: list[int] | None = None,
 ):
     """The model (free components, compliances), the selection (``auto``), the prior weights.
 
     ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
     ``generic``: terms measured by an instrument (:class:`~.chain_counts.Generic`): the level
     offers what generic configurations determine (a note only when the data determine less),
-    and one chain gets a chain's checks and posture counts; or None.
+    and one chain gets a chain's checks and posture counts; or None. ``kept_out``: a list
+    given is filled with the columns the data determine (of the level's model), as ``notes``
+    with the remarks.
     """
     train = list(data.parts)
     directions, names, offered = offer_directions(start, level)
@@ -276,6 +286,8 @@ def choose(
     elif sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = [c for c in kept if c >= fixed]
+    if kept_out is not None:
+        kept_out.extend(kept)
     if len(columns) < every:
         what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
         notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
