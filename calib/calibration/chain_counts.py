@@ -218,6 +218,7 @@ def assess(generic: Generic | None, fitted, prior, polished: bool) -> tuple[str 
 
 def sampled(data: ChainsData, keep: np.ndarray | None) -> ChainsData:
     """One chain's rows ``keep`` (None: all)."""
-    if keep is None:
+    first = data.parts[0]
+    if keep is None or not isinstance(first, Measurements):
         return data
-    return dataclasses.replace(data, parts=(data.parts[0].subset(keep),))
+    return dataclasses.replace(data, parts=(first.subset(keep),))

@@ -411,7 +411,8 @@ def calibrate_contact_chains(
         tree = instrument and len(chains) > 1  # one chain: its level's MDH directions
         offer = "components" if tree and level == "complete" else level
         rows = ChainsData(tuple(train), None if load is None else torques[:1])
-        generic, kept = Generic(start, tuple(train), seed) if instrument else None, []
+        generic = Generic(start, tuple(train), seed) if instrument else None
+        kept: list[int] = []
         model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
                                             generic, kept)  # fmt: skip
         names = start.placements.names()
