@@ -167,31 +167,17 @@ class Generic:
             std: The standard deviation of each of its columns [m or rad] (NaN: undetermined).
         """
         names = tuple(chain_name(n) for n in fitted.model.names())
-        spread = dict(zip(names, std, strict=True))
-        found = [
-            d
-            for d in determined.ill_posed(fitted.J, names)
-            if not all(spread[n] <= determined.ILL_STD for n in d.names)  # NaN: undetermined
-        ]
+        found = determined.undetermined(fitted.J, names, std)
         if not found:
             return None
-        v = np.zeros(len(names))
-        v[[names.index(n) for n in found[0].names]] = found[0].weights
         chain = self.start.chains[0]
         q = chain.random_configurations(DEFAULT_CONFIGS, self.seed)
 
         def jacobian_at(q: np.ndarray) -> np.ndarray:
             return fitted.model.jacobian(fitted.start, fitted.x, self.rows(q))
 
-        best, cond = determined.separating_posture(jacobian_at, q, v)
-        joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(chain.joint_names, best, strict=True))
-        where = (
-            f"postures such as {joints} [rad or m] separate them (random configurations within "
-            f"the joint limits: condition {cond:.3g})"
-            if cond < determined.ILL_CONDITION
-            else None
-        )
-        return determined.ill_posed_text(found, spread, where)
+        where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
+        return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)
 
 
 def assess(generic: Generic | None, fitted, prior, polished: bool) -> tuple[str | None, dict]:

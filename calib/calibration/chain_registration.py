@@ -278,12 +278,7 @@ def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) ->
     best (:func:`~calib.calibration.determined.separating_posture`).
     """
     names = fitted.model.names()
-    spread = dict(zip(names, std, strict=True))
-    found = [
-        d
-        for d in determined.ill_posed(fitted.J, names)
-        if not all(spread[n] <= determined.ILL_STD for n in d.names)  # NaN: undetermined
-    ]
+    found = determined.undetermined(fitted.J, names, std)
     if not found:
         return None
     w = row_weights(fitted.model, opts.orientation_weight)
@@ -296,17 +291,6 @@ def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) ->
         data = Measurements(train.joint_names, q, pts.reshape(len(q), -1), quat)
         return fitted.model.jacobian(fitted.start, fitted.x, data, torque) * w[None, :, None]
 
-    d = found[0]
-    v = np.zeros(len(names))
-    v[[names.index(n) for n in d.names]] = d.weights
-    q, cond = determined.separating_posture(
-        jacobian_at, chain.random_configurations(DEFAULT_CONFIGS, opts.seed), v
-    )
-    joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(chain.joint_names, q, strict=True))
-    where = (
-        f"postures such as {joints} [rad or m] separate them (random configurations within "
-        f"the joint limits: condition {cond:.3g})"
-        if cond < determined.ILL_CONDITION
-        else None
-    )
+    q = chain.random_configurations(DEFAULT_CONFIGS, opts.seed)
+    where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
     return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)

@@ -46,6 +46,8 @@ __all__ = [
     "ill_posed_text",
     "selection_configurations",
     "separating_posture",
+    "separating_text",
+    "undetermined",
 ]
 
 
@@ -266,6 +268,49 @@ def separating_posture(
     seen = np.linalg.norm(J @ (direction / norms), axis=1) / np.linalg.norm(J / norms, axis=(1, 2))
     s = np.linalg.svd(flat / norms, compute_uv=False)
     return q[int(np.argmax(seen))], float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def undetermined(J: np.ndarray, names: tuple[str, ...], std) -> list[Direction]:
+    """The undetermined directions of :func:`ill_posed` but those it determines all the same.
+
+    A direction all of whose unknowns have standard deviations under :data:`ILL_STD` is
+    determined all the same (NaN: undetermined).
+
+    Args:
+        J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
+        names: The unknowns.
+        std: Each one's standard deviation [m or rad].
+    """
+    spread = dict(zip(names, std, strict=True))
+    return [d for d in ill_posed(J, names) if not all(spread[n] <= ILL_STD for n in d.names)]
+
+
+def separating_text(
+    jacobian_at: Callable[[np.ndarray], np.ndarray],
+    q: np.ndarray,
+    names: tuple[str, ...],
+    direction: Direction,
+    joint_names,
+) -> str | None:
+    """``postures such as <joint> <q> ...`` that separate a direction, or None (none does).
+
+    Args:
+        jacobian_at: Jacobian ``(m, rows, p)`` of the unknowns ``names`` at configurations.
+        q: Candidate configurations ``(m, n)`` (random ones within the joint limits).
+        names: The unknowns.
+        direction: The direction (:func:`ill_posed`).
+        joint_names: The joints of ``q``.
+    """
+    v = np.zeros(len(names))
+    v[[names.index(n) for n in direction.names]] = direction.weights
+    best, cond = separating_posture(jacobian_at, q, v)
+    if cond >= ILL_CONDITION:
+        return None
+    joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(joint_names, best, strict=True))
+    return (
+        f"postures such as {joints} [rad or m] separate them (random configurations within "
+        f"the joint limits: condition {cond:.3g})"
+    )
 
 
 def ill_posed_text(
