@@ -73,8 +73,11 @@ class Generic:
         return len(self.start.chains) == 1
 
     def rows(self, q: np.ndarray | None = None) -> ChainsData:
-        """Rows of each term's kind at ``q`` (the tree's joints; None: the seeded draw)."""
+        """Rows of each term's kind at ``q`` (one chain's or the tree's joints; None: drawn)."""
         chains = self.start.chains
+        if self.one:  # its own joints (a chain whose base is not above its tool is no tree)
+            q = chains[0].random_configurations(DEFAULT_CONFIGS, self.seed) if q is None else q
+            return ChainsData((rows_like(self.train[0], chains[0].joint_names, q),))
         tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
         q = tree.random_configurations(DEFAULT_CONFIGS, self.seed) if q is None else q
         pairs = zip(chains, self.train, tree.paths, strict=True)
