@@ -297,7 +297,10 @@ def measured_chain(
 
     The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
     (``instrument=True``), its rows checked, registered and weighted by the chain pipeline's
-    own steps (:func:`~.measured_term.checked_measured`). What the engine does not have yet is
+    own steps (:func:`~.measured_term.checked_measured`). The held-out rows are drawn first
+    (``holdout``), then the rows the fit's errors call outliers are set aside and the fit made
+    again until they are stable (:func:`~.chain_outliers.fit_until_stable`). What the engine
+    does not have yet is
     refused, not ignored: the ``paper`` level, ``fix``/``free``, ``elastic``, a robust
     ``loss`` and ``noise_mm``.
 
@@ -321,7 +324,10 @@ def measured_chain(
             f"the joint engine's chain route does not take {', '.join(missing)} yet"
         )
     chain, data = cast(Chain, term.robot), cast(Measurements, term.data)
-    check_measured(chain, data, term.validate, True, problem.holdout)
+    if problem.holdout > 0 and term.validate is not None:
+        raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
+    if problem.holdout > 0:  # the postures it leaves (the fit counts them with none)
+        check_measured(chain, data, None, True, problem.holdout)
     train, held = (
         (data, term.validate)
         if term.validate is not None
