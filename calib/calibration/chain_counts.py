@@ -89,7 +89,11 @@ class Generic:
         return sorted(independent_columns(J, list(range(J.shape[1])))[2])
 
     def check(self, wide, kept, generic, flush, level: str) -> None:
-        """Refuse a level (not ``auto``) one chain's postures do not determine, before the fit.
+        """Refuse a level (not ``auto``) the rows do not determine, before the fit.
+
+        One chain: any level, its postures counted, the unknowns they cannot separate named;
+        a tree: ``complete`` (offered as ``components``: every joint placement component),
+        its rows counted.
 
         The frame and markers must be determined, as many unknowns as they are (which of
         them the rows cannot separate, if any, refuses the fit: :meth:`ill_posed`).
@@ -113,7 +117,13 @@ class Generic:
                 d.source,
                 "the configurations do not even determine the measurement frame and markers",
             )
-        if level == "auto" or not self.one:
+        if level == "auto" or (not self.one and level != "components"):
+            return
+        if not self.one:  # a tree's complete (every component): its rows against generic ones
+            rows, per_row = sum(t.m for t in self.train), d.kind.rows_of(d.n_markers)
+            determined.check_rank(
+                len(kept), len(generic), rows, per_row, "complete", d.source, "rows"
+            )
             return
         lost: tuple[str, ...] = ()
         if len(kept) < len(generic):

@@ -70,7 +70,7 @@ from .contact_term import (
     contact_objects,
     split_contacts,
 )
-from .instrument import check_tree_rank, instrument_groups, shared_frame
+from .instrument import instrument_groups, shared_frame
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -420,8 +420,6 @@ def calibrate_contact_chains(
         one = instrument and not tree  # one chain: its MDH directions span what it sees
         identifiable = len(kept) if one else model.size() if offer == "components" else len(
             structural(wide, start, flush))  # fmt: skip
-        if tree:
-            check_tree_rank(wide, start, identifiable, train, level, seed)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
         fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations)

@@ -24,15 +24,11 @@ import dataclasses
 
 import numpy as np
 
-from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.base_columns import independent_columns
-from ..kinematics.tree import Tree, tree_of_chains
+from ..kinematics.tree import Tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
-from . import determined
-from .contact_chains_model import ChainsData
 from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
@@ -40,7 +36,6 @@ from .result import ResidualStats
 from .tree import REGISTRATION_ITERATIONS
 
 __all__ = [
-    "check_tree_rank",
     "instrument_errors",
     "instrument_format2",
     "instrument_groups",
@@ -256,53 +251,6 @@ def instrument_lines(parts) -> list[str]:
             f"{1e3 * after.position_rms:.4g} / {1e3 * after.position_max:.4g}"
         )
     return lines
-
-
-def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int) -> None:
-    """Refuse a tree's ``complete`` level its rows do not determine, before the fit.
-
-    The unknowns the rows determine (the engine's structural rank, ``identifiable``) are
-    compared with those generic configurations determine: the rank of the engine's own
-    Jacobian (``wide``: the frame, the markers and every joint placement component, at
-    ``start``) with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random
-    configurations of the tree (seeded), rows of each tool's kind (its markers, a pose's
-    orientation), no second model of the tree.
-
-    Args:
-        wide: The joint fit's model offering every joint placement component.
-        start: The registration it is linearised at.
-        identifiable: Unknowns the rows determine.
-        train: Each tool's rows.
-        level: The level (only ``complete`` is checked).
-        seed: Seed of the configurations' draw.
-
-    Raises:
-        DataError: Too few equations, or rows that determine fewer unknowns
-            (:func:`~.determined.check_rank`).
-    """
-    if level != "complete":
-        return
-    chains = start.chains
-    tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
-    q = tree.random_configurations(DEFAULT_CONFIGS, seed)
-    parts = tuple(
-        _rows_like(d, c.joint_names, q[:, path])
-        for c, d, path in zip(chains, train, tree.paths, strict=True)
-    )
-    J = wide.jacobian(start, np.zeros(wide.size()), ChainsData(parts)).reshape(-1, wide.size())
-    generic = len(independent_columns(J, list(range(J.shape[1])))[2])
-    rows, per_row = sum(d.m for d in train), train[0].kind.rows_of(train[0].n_markers)
-    determined.check_rank(identifiable, generic, rows, per_row, level, train[0].source, "rows")
-
-
-def _rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
-    """Rows of ``data``'s kind (its markers, an orientation or not) at the joints ``q``.
-
-    Their values are zero points and identity orientations: a Jacobian's rank does not read them.
-    """
-    m = len(q)
-    turn = None if data.quaternion is None else np.tile([0.0, 0.0, 0.0, 1.0], (m, 1))
-    return Measurements(joint_names, q, np.zeros((m, 3 * data.n_markers)), turn)
 
 
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
