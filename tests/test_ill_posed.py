@@ -51,6 +51,11 @@ def test_prism_offset_and_frame_height_are_named_not_delivered(params):
     assert not res.accepted
     assert "cannot separate frame.z and marker1.z" in res.refusal
     assert "postures such as" in res.refusal
+    if params is None:  # auto: Everett's 4R + 3 = 27 at generic configurations, the pair one
+        everett = 4 * chain.n_revolute + 3
+        assert any(
+            f"determine {everett - 1} of the {everett} parameters" in w for w in res.warnings
+        )
     # The evidence: the reported standard deviations and the condition.
     std = {p["name"]: np.inf if p["std"] is None else p["std"] for p in res.to_dict()["parameters"]}
     assert std["instrument.frame.z"] > 1e-3 and std["term1.marker1.z"] > 1e-3

@@ -150,6 +150,15 @@ class Generic:
         postures = count(d.q, d.tool)
         determined.check_rank(len(kept), len(generic), postures, rows, level, d.source, lost=lost)
 
+    def note(self, kept: int, generic: int) -> str:
+        """The note of rows that determine ``kept`` of the ``generic`` unknowns (``auto``)."""
+        d = self.train[0]
+        rows = f"{d.m} configurations" if self.one else f"{sum(t.m for t in self.train)} rows"
+        return (
+            f"the {rows} determine {kept} of the {generic} parameters generic configurations "
+            f"would: params 'auto' chooses among those only"
+        )
+
     def groups(self, keep: np.ndarray | None) -> np.ndarray | None:
         """One chain's posture of each row ``keep`` (a repeat counts once), or None (a tree)."""
         if not self.one:

@@ -282,13 +282,13 @@ def choose(
     if generic is not None:
         allowed = generic.columns(wide)
         generic.check(wide, kept, allowed, flush, level)
-        every = len(allowed) - fixed
+        notes += [generic.note(len(kept), len(allowed))] if len(kept) < len(allowed) else []
     elif sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = [c for c in kept if c >= fixed]
     if kept_out is not None:
         kept_out.extend(kept)
-    if len(columns) < every:
+    if generic is None and len(columns) < every:
         what = "touches" if all(isinstance(s, ContactState) for s in start.states) else "data"
         notes.append(f"the {what} determine {len(columns)} of the {every} parameters offered")
     check_level_equations(train, fixed + len(columns), level)
