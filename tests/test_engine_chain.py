@@ -104,12 +104,9 @@ def test_noise_free_round_trip_is_exact(engine, tmp_path, robot, measure):
 @pytest.mark.parametrize(
     "option",
     [
-        {"params": "paper"},
         {"fix": ("theta2",)},
         {"free": ("d3",)},
         {"elastic": True},
-        {"loss": "soft_l1"},
-        {"noise_mm": 0.1},
     ],
 )
 def test_options_the_engine_route_lacks_are_refused(engine, tiago, option):

@@ -266,7 +266,8 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     Jacobian (``wide``: the frame, the markers and every joint placement component, at
     ``start``) with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random
     configurations of the tree (seeded), rows of each tool's kind (its markers, a pose's
-    orientation), no second model of the tree.
+    orientation; a chain's compliances under its gravity torques there), no second model of
+    the tree.
 
     Args:
         wide: The joint fit's model offering every joint placement component.
@@ -289,7 +290,9 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
         _rows_like(d, c.joint_names, q[:, path])
         for c, d, path in zip(chains, train, tree.paths, strict=True)
     )
-    J = wide.jacobian(start, np.zeros(wide.size()), ChainsData(parts)).reshape(-1, wide.size())
+    torques = (chains[0].gravity_torques(parts[0].q),) if wide.compliance else None  # elastic
+    rows = ChainsData(parts, torques)
+    J = wide.jacobian(start, np.zeros(wide.size()), rows).reshape(-1, wide.size())
     generic = len(independent_columns(J, list(range(J.shape[1])))[2])
     rows, per_row = sum(d.m for d in train), train[0].kind.rows_of(train[0].n_markers)
     determined.check_rank(identifiable, generic, rows, per_row, level, train[0].source, "rows")
