@@ -16,7 +16,16 @@ from pinref import instrument_points
 
 import calib
 import calib.calibration.entry as entry
-from calib import InvalidArgumentError, calibrate, load_chain, read_measurements
+from calib import (
+    InvalidArgumentError,
+    calibrate,
+    complete_parameters,
+    from_chain,
+    load_chain,
+    read_measurements,
+)
+from calib.calibration.model import State
+from calib.measurements.data import Measurements
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 
@@ -101,18 +110,55 @@ def test_noise_free_round_trip_is_exact(engine, tmp_path, robot, measure):
     assert rms_max_mm(got - truth.position[:, :3])[1] < 1e-6
 
 
+def offset_campaign(chain, m: int, seed: int, joint: int, error: float) -> Measurements:
+    """Noise-free rows of a robot whose only error is joint ``joint``'s offset [rad]."""
+    nominal = from_chain(chain)
+    pset = complete_parameters(nominal)
+    dx = np.zeros(len(pset))
+    dx[pset.names.index(f"theta{joint}")] = error
+    frame = np.eye(4)
+    frame[:3, 3] = (0.5, -0.2, 0.1)
+    state = State(pset.apply(nominal, dx), frame, np.array([[0.01, 0.02, 0.05]]), None,
+                  np.zeros(chain.n))  # fmt: skip
+    q = chain.random_configurations(m, seed)
+    points = state.predict(q)[0][:, 0]
+    return Measurements(chain.joint_names, q, points, source="theta2 only"), state
+
+
+def test_free_and_fix_name_the_charts_parameters(engine):
+    """``free theta2`` at ``frames`` fits that offset alone: the truth, to round-off; fixed
+    at ``offsets``, the offset is held (the others cannot carry it: 1e-4 m off)."""
+    chain = load_chain("ur5")
+    data, truth = offset_campaign(chain, 40, 3, 2, 2e-3)
+    q = chain.random_configurations(30, 8)
+    expected = truth.predict(q)[0][:, 0]
+    for name in ("theta2", "shoulder_lift_joint:theta2"):
+        res = calibrate(chain, data, params="frames", free=(name,)).check()
+        assert res.names == ("shoulder_lift_joint:theta2",)
+        assert np.max(np.abs(res.points(q)[:, 0] - expected)) < 1e-9
+    assert np.max(np.abs(calibrate(chain, data, params="frames").points(q)[:, 0] - expected)) > 1e-4
+    free = calibrate(chain, data, params="offsets")
+    assert "shoulder_lift_joint:rz" in free.names
+    assert np.max(np.abs(free.points(q)[:, 0] - expected)) < 1e-9
+    held = calibrate(chain, data, params="offsets", fix=("theta2",))
+    assert set(held.names) == set(free.names) - {"shoulder_lift_joint:rz"}
+    assert np.max(np.abs(held.points(q)[:, 0] - expected)) > 1e-5
+
+
 @pytest.mark.parametrize(
-    "option",
+    ("option", "words"),
     [
-        {"fix": ("theta2",)},
-        {"free": ("d3",)},
-        {"elastic": True},
+        ({"fix": ("nope",)}, "unknown parameter 'nope'"),
+        ({"fix": ("frame",)}, "fix frame: the joint engine always fits"),
+        ({"free": ("d1",)}, "free d1 cannot be fitted: the measurement frame"),
     ],
 )
-def test_options_the_engine_route_lacks_are_refused(engine, tiago, option):
-    chain, train, _ = tiago
-    with pytest.raises(InvalidArgumentError, match="joint engine's chain route does not take"):
-        calibrate(chain, train, **option)
+def test_bad_fix_and_free_are_one_line_errors(engine, option, words):
+    chain = load_chain("ur5")
+    data, _ = offset_campaign(chain, 40, 3, 2, 2e-3)
+    with pytest.raises(InvalidArgumentError, match=words) as info:
+        calibrate(chain, data, **option)
+    assert "\n" not in str(info.value)
 
 
 def test_the_marker_guess_starts_the_measured_terms_registration(

@@ -152,6 +152,12 @@ def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) ->
     return _gap_rows(s, d, kin, *joint_motions(path, kin, joints))
 
 
+def _deflection(s) -> np.ndarray:
+    """A chain state's joint compliance (zeros: rigid)."""
+    c = s.inner.compliance if isinstance(s, MeasuredState) else getattr(s, "compliance", None)
+    return np.zeros(0) if c is None or not np.any(c) else np.asarray(c)
+
+
 def _compliant(s, joints: list[int], dc: np.ndarray):
     """A chain's state with the compliances of ``joints`` moved by ``dc``.
 
@@ -210,8 +216,18 @@ class ChainsState:
         return self.kinematics(data, torque)
 
     def same_geometry(self, other) -> bool:
-        """Whether ``other``'s kinematics at the same data are this state's."""
-        return isinstance(other, ChainsState) and other.placements is self.placements
+        """Whether ``other``'s kinematics at the same data are this state's.
+
+        The same placements and the same compliances (they deflect the joints).
+        """
+        return (
+            isinstance(other, ChainsState)
+            and other.placements is self.placements
+            and all(
+                np.array_equal(_deflection(a), _deflection(b))
+                for a, b in zip(self.states, other.states, strict=True)
+            )
+        )
 
     def settled(self) -> ChainsState:
         """The same robot with its errors composed into its model and the MDH models remade.

@@ -232,10 +232,13 @@ class ContactChainsCalibration(Delivered, ChainView):
         return {compliance_path(out): json_text(document)}
 
     def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
-        """Each parameter row's URDF joint and type (one chain touching: its MDH rows)."""
+        """Each parameter row's URDF joint and type (one chain touching or measured: MDH rows)."""
         part = self.chains[0]
         if len(self.chains) == 1 and isinstance(part, ChainContacts):
             return tuple(part.nominal.joint_names), part.nominal.sigma
+        if len(self.chains) == 1 and isinstance(part, MeasuredChain):  # its compliances' rows
+            nominal = part.registered.inner.mdh
+            return tuple(nominal.joint_names), nominal.sigma
         return tuple(part.chain.model.names), None
 
     def check(self) -> ContactChainsCalibration:

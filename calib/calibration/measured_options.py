@@ -78,8 +78,9 @@ class Asked:
         fix: The fixed parameters' engine names (``<joint>:<parameter>``).
         free: The free parameters' engine names (compliances as ``c<k>``).
         given: Each engine name's name as the user wrote it.
-        extra: Directions of the free parameters a level may not offer ``(F, 6 J)``, by
-            engine name.
+        extra: Directions ``(6 J,)`` of the parameters named, by engine name (a free one a
+            level may not offer is added; a fixed one holds every offered direction along
+            it: ``theta2`` is ``<joint>:rz`` at ``offsets``).
     """
 
     fix: tuple[str, ...]
@@ -110,7 +111,17 @@ class Asked:
             directions = np.vstack([directions, *(self.extra[n] for n in missing)])
             offered = [*offered, *range(len(names), len(names) + len(missing))]
             names = (*names, *missing)
-        offered = [k for k in offered if names[k] not in self.fix]
+        held = [self.extra[n] / np.linalg.norm(self.extra[n]) for n in self.fix if n in self.extra]
+
+        def fixed(k: int) -> bool:  # by name, or along a fixed parameter's direction
+            if names[k] in self.fix:
+                return True
+            if directions is None:  # the components: k's own
+                return any(abs(h[k]) >= 1.0 - 1e-9 for h in held)
+            d = directions[k]
+            return any(abs(d @ h) >= (1.0 - 1e-9) * np.linalg.norm(d) for h in held)
+
+        offered = [k for k in offered if not fixed(k)]
         return directions, tuple(names), offered, self.free
 
     def check(self, wide, start, flush, kept) -> None:
@@ -164,7 +175,7 @@ def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | N
     pick = {**components, **chart}
     fix = tuple(engine[n] for n in opts.fix)
     free = tuple(engine[n] for n in opts.free if n not in GROUPS)
-    extra = {n: pick[n] for n in free if n in pick}
+    extra = {n: pick[n] for n in (*fix, *free) if n in pick}
     return Asked(fix, free, {k: v for k, v in given.items() if k != v}, extra)
 
 
