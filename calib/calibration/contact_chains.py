@@ -70,7 +70,7 @@ from .contact_term import (
     split_contacts,
 )
 from .instrument import check_tree_rank, instrument_groups, shared_frame
-from .measured_options import asked_of, compliance_torques
+from .measured_options import compliance_torques, level_offer
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -161,9 +161,7 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(
-    chains, train, validate, guess, weight, held, notes: list[str], iterations, shared, noise=None
-):
+def _checked(chains, train, validate, guess, weight, held, notes, iterations, shared, noise=None):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
@@ -374,9 +372,8 @@ def calibrate_contact_chains(
             (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
         marker: Guess of each measured term's markers in its tool frame [m]: one point
             for all or one per marker (default: zeros), the registration's start.
-        options: One chain measured by an instrument: its :class:`~.options.Options`
-            (``noise_mm``, ``loss``, ``fix``/``free``, ``elastic``: :mod:`.measured_options`);
-            None: the defaults.
+        options: One measured chain's :class:`~.options.Options` (``noise_mm``, ``loss``,
+            ``fix``/``free``, ``elastic``: :mod:`.measured_options`); None: the defaults.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -415,27 +412,15 @@ def calibrate_contact_chains(
         chains, train, diagnosed, (guess, marker), w, held, notes, max_iterations, instrument,
         opts.noise_mm,
     )  # fmt: skip
-    torques = contact_elastic.torques(load, train[0], held[0])
     notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
-    comp = () if load is None else tuple(range(chains[0].n))
-    if load is None:  # a measured chain's compliance (elastic, free cN), its rows' torques
-        torques, comp = compliance_torques(chains, train, held, options)
+    torques, comp = compliance_torques(chains, train, held, options, load)
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
         start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
-        asked = (
-            None
-            if options is None
-            else asked_of(chains[0], start.placements, *start.states[:1], options)
-        )
+        asked, offer = level_offer(chains[0], start, level, instrument, options)
         flush = flush_data(start, train, load)
-        offer = (
-            "components"
-            if instrument and level == "complete" and not (asked and asked.joints)
-            else level
-        )
         rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
         model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp, asked)

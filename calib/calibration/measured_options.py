@@ -30,12 +30,20 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..kinematics.elastic import compliance_document
 from ..kinematics.robot import Chain
+from .contact_elastic import torques as contact_torques
 from .freedoms import check_compliance, check_free
 from .model import compliance_name
 from .options import Options
 from .placements import mdh_directions
 
-__all__ = ["GROUPS", "Asked", "asked_of", "chain_compliance_document", "compliance_torques"]
+__all__ = [
+    "GROUPS",
+    "Asked",
+    "asked_of",
+    "chain_compliance_document",
+    "compliance_torques",
+    "level_offer",
+]
 
 GROUPS = ("frame", "markers", "tool")
 """Names of a measured term's own unknowns, by group."""
@@ -45,11 +53,13 @@ def _compliance(name: str) -> bool:
     return name[:1] == "c" and name[1:].isdigit()
 
 
-def compliance_torques(chains, train, held, opts: Options | None):
+def compliance_torques(chains, train, held, opts: Options | None, load=None):
     """Gravity torques of the fitted and held-out rows, and the joints whose compliance is offered.
 
-    Compliance is opt-in (``elastic``, or a compliance named in ``free``): the URDF cannot
-    hold it. The joints offered are those gravity loads, less the compliances fixed.
+    A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
+    joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
+    ``free``): the URDF cannot hold it. The joints offered are those gravity loads, less the
+    compliances fixed.
 
     Returns:
         ``(torques of train, of held or None)`` (``(None, None)``: rigid joints) and the
@@ -59,6 +69,8 @@ def compliance_torques(chains, train, held, opts: Options | None):
         InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
             compliance of a joint it never loads.
     """
+    if load is not None:
+        return contact_torques(load, train[0], held[0]), tuple(range(chains[0].n))
     forced = opts is not None and any(_compliance(n) for n in opts.free)
     if opts is None or not (opts.elastic or (opts.elastic is None and forced)):
         return (None, None), ()
@@ -177,6 +189,24 @@ def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | N
     free = tuple(engine[n] for n in opts.free if n not in GROUPS)
     extra = {n: pick[n] for n in (*fix, *free) if n in pick}
     return Asked(fix, free, {k: v for k, v in given.items() if k != v}, extra)
+
+
+def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
+    """What a joint fit offers at ``level`` and what ``fix``/``free`` ask (or None).
+
+    An instrument's ``complete`` offers every joint placement component (the rank keeps a
+    basis), or the chart's MDH directions when ``fix`` names a joint parameter.
+
+    Args:
+        chain: The first term's chain.
+        start: The registration (``placements``, ``states``).
+        level: The parameter level.
+        instrument: The terms are measured by an instrument outside the robot.
+        opts: A measured chain's options, or None.
+    """
+    asked = None if opts is None else asked_of(chain, start.placements, start.states[0], opts)
+    every = instrument and level == "complete" and not (asked and asked.joints)
+    return asked, "components" if every else level
 
 
 @dataclass(frozen=True)
