@@ -207,3 +207,35 @@ def test_a_marker_guess_without_a_measured_term_is_refused():
     touches = calib.simulate_contacts(chain, 12, "plane", seed=0).data
     with pytest.raises(InvalidArgumentError, match="marker is for measured terms"):
         calib.calibrate_contact_chains([chain], [touches], marker=(0.0, 0.0, 0.1))
+
+
+def test_the_noise_reaches_the_outlier_rule(engine):
+    """A row 20 mm off: an outlier for 0.05 mm of noise, not for 5 mm (the rule's bar is
+    6 x the noise when given: 30 mm), as the chain pipeline's rule says."""
+    chain = load_chain("ur5")
+    marker = (0.01, 0.02, 0.05)
+    data = calib.simulate(chain, 40, "position", marker, noise_mm=0.05, seed=5).measurements
+    position = data.position.copy()
+    position[7, 0] += 0.02
+    bad = dataclasses.replace(data, position=position)
+    rows = {
+        noise: [o.row for o in calibrate(chain, bad, marker=marker, noise_mm=noise).outliers]
+        for noise in (0.05, 5.0)
+    }
+    assert rows == {0.05: [8], 5.0: []}
+
+
+def test_complete_with_a_parameter_named_fits_the_charts_directions(engine):
+    """At ``complete``: free d3 keeps the fit exact on noise-free rows (the truth to 1e-9 m),
+    fix d3 holds the true robot's d3 error out of it (0.1 mm off at least)."""
+    chain = load_chain("ur5")
+    marker = (0.01, 0.02, 0.05)
+    data = calib.simulate(chain, 60, "position", marker, noise_mm=0.0, seed=5).measurements
+    q = chain.random_configurations(30, 8)
+    truth = calib.simulate(chain, q, "position", marker, seed=5).measurements.position
+    free = calibrate(chain, data, params="complete", marker=marker, free=("d3",)).check()
+    assert "elbow_joint:d3" in free.names
+    assert np.max(np.abs(free.points(q)[:, 0] - truth)) < 1e-9
+    held = calibrate(chain, data, params="complete", marker=marker, fix=("d3",)).check()
+    assert "elbow_joint:d3" not in held.names
+    assert np.max(np.abs(held.points(q)[:, 0] - truth)) > 1e-4

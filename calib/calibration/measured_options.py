@@ -102,8 +102,8 @@ class Asked:
 
     @property
     def joints(self) -> bool:
-        """Some joint parameter is fixed (a level's components are then MDH directions)."""
-        return bool(self.fix)
+        """Some joint parameter is named (``complete`` then offers the chart's directions)."""
+        return bool(self.extra)
 
     def offer(self, directions, names, offered):
         """The level's offer with the fixed parameters out and the free ones in.
@@ -195,7 +195,7 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     """What a joint fit offers at ``level`` and what ``fix``/``free`` ask (or None).
 
     An instrument's ``complete`` offers every joint placement component (the rank keeps a
-    basis), or the chart's MDH directions when ``fix`` names a joint parameter.
+    basis), or the chart's MDH directions when ``fix`` or ``free`` names a joint parameter.
 
     Args:
         chain: The first term's chain.
