@@ -189,13 +189,15 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
     doc = json.loads(comp.read_text())
     assert doc["joints"] == list(chain.joint_names)
     assert np.allclose(doc["compliance"][1:3], 1e-5, rtol=0.05)
-    whole, alone = report["validation"]["calibrated"], report["validation"]["urdf"]
-    assert whole["position_rms"] < 0.5 * alone["position_rms"]  # compliance matters here
-    # Both figures are printed (mm, 3 decimals).
-    for label, st in (("calibrated", whole), ("URDF alone (no compliance)", alone)):
-        line = next(x for x in out.splitlines() if x.startswith(f"held out ({val}), {label}"))
-        rms = float(line.split()[-2])
-        assert abs(rms - 1e3 * st["position_rms"]) < 6e-4
+    errors = report["errors"]["held_out"]
+    assert errors["source"] == str(val)
+    whole, alone = errors["calibrated"], errors["urdf"]
+    assert whole["position_rms_mm"] < 0.5 * alone["position_rms_mm"]  # compliance matters here
+    # Both figures are printed (mm, 4 significant digits).
+    line = next(x for x in out.splitlines() if x.startswith("held-out rows of every tool"))
+    printed = re.findall(r"(calibrated|URDF alone \(no compliance\)) ([0-9.]+) /", line)
+    for (label, rms), st in zip(printed, (whole, alone), strict=True):
+        assert abs(float(rms) - st["position_rms_mm"]) < 5e-4 * st["position_rms_mm"], label
 
     q, measured = held[:, : chain.n], held[:, chain.n :]
     # Independent of calib's model: Pinocchio's gravity torques of the nominal URDF (root -z)
@@ -213,7 +215,7 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
         expected.append((T @ P)[:3, 3])
     expected = np.array(expected)
     rms = np.sqrt(np.mean(np.sum((expected - measured) ** 2, axis=1)))
-    assert abs(rms - whole["position_rms"]) < 1e-9
+    assert abs(1e3 * rms - whole["position_rms_mm"]) < 1e-9
     for source in (comp, rep):  # the compliance file or the report
         model = load_calibrated(urdf, source)
         assert np.max(np.abs(model.points(q)[:, 0] - expected)) < 1e-9
@@ -263,9 +265,9 @@ def test_urdf_alone_worse_than_registration_is_written_with_its_compliance_and_a
         "--free", "c2", "c3", "--out", str(urdf), "--report", str(rep),
     )  # fmt: skip
     report = json.loads(rep.read_text())
-    res = report["residuals"]
-    assert res["urdf"]["position_rms"] > res["registration"]["position_rms"]
-    assert res["calibrated"]["position_rms"] < 1e-9  # the whole model is exact
+    res = report["errors"]["train"]
+    assert res["urdf"]["position_rms_mm"] > res["registration"]["position_rms_mm"]
+    assert res["calibrated"]["position_rms_mm"] < 1e-6  # the whole model is exact
     assert code == 0, err
     assert urdf.exists() and (tmp_path / "cal.compliance.json").exists()
     assert report["accepted"] is True
@@ -524,15 +526,17 @@ def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path, capsys):
         "--elastic", "--world-link", "mocap", "--out", str(urdf),
     )  # fmt: skip
     assert code == 0, err
-    assert f"held out ({test}), calibrated" in out
-    assert f"held out ({test}), URDF alone (no compliance)" in out
+    line = next(x for x in out.splitlines() if x.startswith("held-out rows of every tool"))
+    assert "calibrated" in line and "URDF alone (no compliance)" in line
     model = load_calibrated(urdf, comp)
     e = np.linalg.norm(model.points(te.q)[:, 0] - te.points[:, 0], axis=1)
-    assert abs(np.sqrt(np.mean(e**2)) - res.validation.calibrated.position_rms) < 1e-9
-    assert abs(np.max(e) - res.validation.calibrated.position_max) < 1e-9
+    held = res.to_dict()["errors"]["held_out"]
+    assert held["source"] == te.source
+    assert abs(1e3 * np.sqrt(np.mean(e**2)) - held["calibrated"]["position_rms_mm"]) < 1e-9
+    assert abs(1e3 * np.max(e) - held["calibrated"]["position_max_mm"]) < 1e-9
     # The URDF alone, scored by Pinocchio from the world link: the printed "URDF alone" figure.
     rows = read_csv(test)
     names = list(chain.joint_names)
     P = PinURDF(urdf).placements(joint_rows(rows, names), "mocap", "wrist_ft_tool_link_marker1")
     e = np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)
-    assert abs(np.sqrt(np.mean(e**2)) - res.validation.urdf.position_rms) < 1e-9
+    assert abs(1e3 * np.sqrt(np.mean(e**2)) - held["urdf"]["position_rms_mm"]) < 1e-9

@@ -25,6 +25,7 @@ from .contact_result import GapStats, gap_rows, term_errors
 from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
+from .measured_options import chain_compliance_document
 from .measured_view import (
     ChainView,
     MeasuredChain,
@@ -222,14 +223,22 @@ class ContactChainsCalibration(Delivered, ChainView):
         """With fitted compliance, its file beside the URDF ``out`` (``<stem>.compliance.json``)."""
         if not self.elastic:
             return {}
-        document = compliance_document(self.chains[0], str(out))
+        part = self.chains[0]
+        document = (
+            chain_compliance_document(self, str(out))
+            if isinstance(part, MeasuredChain)
+            else compliance_document(part, str(out))
+        )
         return {compliance_path(out): json_text(document)}
 
     def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
-        """Each parameter row's URDF joint and type (one chain touching: its MDH rows)."""
+        """Each parameter row's URDF joint and type (one chain touching or measured: MDH rows)."""
         part = self.chains[0]
         if len(self.chains) == 1 and isinstance(part, ChainContacts):
             return tuple(part.nominal.joint_names), part.nominal.sigma
+        if len(self.chains) == 1 and isinstance(part, MeasuredChain):  # its compliances' rows
+            nominal = part.registered.inner.mdh
+            return tuple(nominal.joint_names), nominal.sigma
         return tuple(part.chain.model.names), None
 
     def check(self) -> ContactChainsCalibration:

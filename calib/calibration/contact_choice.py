@@ -253,16 +253,25 @@ def structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
-def choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=()):
+def choose(
+    start: ChainsState, data: ChainsData, flush, plane_of, level: str, notes, comp=(), asked=None
+):
     """The model (free components, compliances), the selection (``auto``), the prior weights.
 
-    ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
+    ``comp``: the joints whose compliance is offered (``elastic``), after the directions;
+    ``asked``: a measured chain's ``fix`` and ``free`` (:class:`~.measured_options.Asked`),
+    or None.
     """
     train = list(data.parts)
     directions, names, offered = offer_directions(start, level)
+    forced: tuple[str, ...] = ()
+    if asked is not None:
+        directions, names, offered, forced = asked.offer(directions, names, offered)
     wide = chains_model(start, plane_of, offered, names, directions, comp)
     fixed, every = wide.fixed, len(offered) + len(comp)
     kept = structural(wide, start, flush) if every else list(range(fixed))
+    if asked is not None:
+        asked.check(wide, start, flush, kept)
     if sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = sorted(kept[fixed:])
@@ -278,7 +287,8 @@ def choose(start: ChainsState, data: ChainsData, flush, plane_of, level: str, no
         J, objects, free = selection_columns(wide, start, data, columns)
         groups = _postures(data)
         e = start.residuals(data)
-        selection, weights = select(J, e, free, cand_names, groups=groups, objects=objects)
+        keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
+        selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
         columns = [columns[cand_names.index(k)] for k in selection.kept]
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]

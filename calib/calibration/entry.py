@@ -38,7 +38,7 @@ from .tree_checks import prepare_tree
 
 __all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
 
-ENGINE_CHAIN = False
+ENGINE_CHAIN = True
 """Internal switch (issue 28): fit one chain measured by an instrument with the joint engine
 (:func:`measured_chain`) instead of the MDH chart's pipeline (:func:`~.pipeline.calibrate_chain`).
 Off by default: the engine route lacks features of the pipeline (see :func:`measured_chain`)."""
@@ -294,29 +294,14 @@ def measured_chain(
 
     The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
     (``instrument=True``), its rows checked, registered and weighted by the chain pipeline's
-    own steps (:func:`~.measured_term.checked_measured`). What the engine does not have yet is
-    refused, not ignored: the ``paper`` level, ``fix``/``free``, ``elastic``, a robust
-    ``loss`` and ``noise_mm``.
+    own steps (:func:`~.measured_term.checked_measured`). Its options (``fix``/``free``,
+    ``elastic``, a robust ``loss``, ``noise_mm``) are the engine's
+    (:mod:`~.measured_options`).
 
     Raises:
-        InvalidArgumentError: An option the engine route does not have.
+        InvalidArgumentError: A bad option (an unknown parameter name, compliance without
+            gravity torques, a free parameter the data cannot fit).
     """
-    missing = [
-        name
-        for name, given in (
-            ("params='paper'", problem.params == "paper"),
-            ("fix", bool(problem.fix)),
-            ("free", bool(problem.free)),
-            ("elastic", bool(problem.elastic)),
-            ("loss", problem.loss != "linear"),
-            ("noise_mm", problem.noise_mm is not None),
-        )
-        if given
-    ]
-    if missing:
-        raise InvalidArgumentError(
-            f"the joint engine's chain route does not take {', '.join(missing)} yet"
-        )
     result = calibrate_contact_chains(
         [cast(Chain, term.robot)],
         [term.data],
@@ -329,6 +314,7 @@ def measured_chain(
         progress=progress,
         instrument=True,
         marker=term.guess,
+        options=problem.options(),
     )
     return dataclasses.replace(result, shape="chain")
 

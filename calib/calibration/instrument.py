@@ -228,6 +228,8 @@ def pooled(parts, key: str) -> ResidualStats | None:
 def instrument_errors(parts) -> dict:
     """The report's ``errors.train`` and ``errors.held_out`` of every tool together (format 3).
 
+    ``urdf``: the URDF alone, without a fitted compliance (else ``calibrated``).
+
     Args:
         parts: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
@@ -236,8 +238,9 @@ def instrument_errors(parts) -> dict:
         before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
         if before is None or after is None:
             continue
-        cal = after.in_mm()
-        out[key] = {"registration": before.in_mm(), "calibrated": cal, "urdf": cal}
+        cal, alone = after.in_mm(), pooled(parts, f"{key}_urdf")  # with compliance: apart
+        urdf = cal if alone is None else alone.in_mm()
+        out[key] = {"registration": before.in_mm(), "calibrated": cal, "urdf": urdf}
         if key == "held_out":
             out[key] = {"source": parts[0].held_source, **out[key]}
     return out
@@ -250,10 +253,17 @@ def instrument_lines(parts) -> list[str]:
         before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
         if before is None or after is None:
             continue
+        alone = pooled(parts, f"{key}_urdf")  # with compliance: the URDF alone too
         lines.append(
             f"{label} of every tool, position RMS / max [mm]: registration "
             f"{1e3 * before.position_rms:.4g} / {1e3 * before.position_max:.4g}, calibrated "
             f"{1e3 * after.position_rms:.4g} / {1e3 * after.position_max:.4g}"
+            + (
+                ""
+                if alone is None
+                else f", URDF alone (no compliance) {1e3 * alone.position_rms:.4g} / "
+                f"{1e3 * alone.position_max:.4g}"
+            )
         )
     return lines
 
@@ -266,7 +276,8 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     Jacobian (``wide``: the frame, the markers and every joint placement component, at
     ``start``) with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random
     configurations of the tree (seeded), rows of each tool's kind (its markers, a pose's
-    orientation), no second model of the tree.
+    orientation; a chain's compliances under its gravity torques there), no second model of
+    the tree.
 
     Args:
         wide: The joint fit's model offering every joint placement component.
@@ -289,7 +300,9 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
         _rows_like(d, c.joint_names, q[:, path])
         for c, d, path in zip(chains, train, tree.paths, strict=True)
     )
-    J = wide.jacobian(start, np.zeros(wide.size()), ChainsData(parts)).reshape(-1, wide.size())
+    torques = (chains[0].gravity_torques(parts[0].q),) if wide.compliance else None  # elastic
+    rows = ChainsData(parts, torques)
+    J = wide.jacobian(start, np.zeros(wide.size()), rows).reshape(-1, wide.size())
     generic = len(independent_columns(J, list(range(J.shape[1])))[2])
     rows, per_row = sum(d.m for d in train), train[0].kind.rows_of(train[0].n_markers)
     determined.check_rank(identifiable, generic, rows, per_row, level, train[0].source, "rows")

@@ -9,6 +9,7 @@ the CLI passes (``world_link``), for a joint fit of that one term
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,6 +19,7 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_links import marker_link_names
+from .contact_elastic import urdf_alone
 from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
@@ -52,6 +54,8 @@ class MeasuredChain:
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
         held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
         outliers: Its rows set aside (none: a measured term's rows are all fitted).
+        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
+            the state's), or None (rigid joints).
     """
 
     chain: Chain
@@ -63,6 +67,7 @@ class MeasuredChain:
     parameters: tuple[dict, ...] = ()
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
+    compliance: np.ndarray | None = None
 
     @property
     def kind(self):
@@ -93,8 +98,14 @@ class MeasuredChain:
         }
 
 
-def measured_part(chain, train, held, registered, state, std, term: int) -> MeasuredChain:
+def measured_part(
+    chain, train, held, registered, state, std, term: int, torques=(None, None), notes=None
+) -> MeasuredChain:
     """A measured term's part: its errors, and its unknowns' report entries.
+
+    With joint compliance fitted (``torques``: the gravity torques of ``train`` and
+    ``held``), its errors are the whole model's and the URDF alone's (``train_urdf``,
+    ``held_out_urdf``; ``notes`` completed, :func:`~.contact_elastic.urdf_alone`).
 
     Args:
         chain: The term's chain.
@@ -104,15 +115,33 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
         state: Its fitted state.
         std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
         term: The term's number (1-based, in the order given), in its unknowns' names.
+        torques: The gravity torques ``(m, n)`` of ``train`` and ``held`` (compliance), or
+            None each (rigid joints).
+        notes: Remarks for the user, completed with compliance's (or None: rigid).
     """
-    stats = part_stats(measured_stats, registered, state, train, held)
+    deflect = {id(train): torques[0], id(held): torques[1]}
+
+    def stat(st, rows):
+        return measured_stats(st, rows, deflect[id(rows)] if st is state else None)
+
+    stats = part_stats(stat, registered, state, train, held)
+    compliance = state.inner.compliance if torques[0] is not None else None
+    if compliance is not None and np.any(compliance):
+        rigid = dataclasses.replace(
+            state, inner=dataclasses.replace(state.inner, compliance=0 * compliance)
+        )
+        urdf_alone(lambda d: measured_stats(rigid, d), (train, held), stats, notes, "rows")
+    else:
+        compliance = None
     joint = None if state.instrument else measuring_joint(chain)
     frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
     names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
-    return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
+    return MeasuredChain(
+        chain, train.source, joint, registered, state, stats, tuple(entries), compliance=compliance
+    )
 
 
 def world_of(
@@ -166,9 +195,11 @@ def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
 
 
 def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
-    """The report's ``compliance`` (rigid: zero per joint) and ``model`` with its gravity."""
+    """The report's ``compliance`` (per joint; rigid: zero) and ``model`` with its gravity."""
     chain = part.chain
-    return dict.fromkeys(chain.joint_names, 0.0), {**model, "gravity": gravity_dict(chain)}
+    c = np.zeros(chain.n) if part.compliance is None else part.compliance
+    compliance = dict(zip(chain.joint_names, c.tolist(), strict=True))
+    return compliance, {**model, "gravity": gravity_dict(chain)}
 
 
 class ChainView:

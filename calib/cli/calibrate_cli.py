@@ -135,6 +135,8 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
+    from ..calibration.contact_chains_result import ContactChainsCalibration
+    from ..calibration.measured_options import chain_compliance_document
     from ..kinematics.elastic import compliance_document
 
     out, report = _calibration_outputs(args, chain.urdf_path)
@@ -180,7 +182,10 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
                     f"--out {out} is no regular file: the fitted compliance cannot be written "
                     f"next to it (give a file, or --no-elastic)"
                 )
-            urdf[comp] = json_text(compliance_document(result, str(out), args.on_robot))
+            if isinstance(result, ContactChainsCalibration):  # the joint engine's: its own
+                urdf[comp] = json_text(chain_compliance_document(result, str(out)))
+            else:
+                urdf[comp] = json_text(compliance_document(result, str(out), args.on_robot))
         return urdf
 
     return write_calibration(
