@@ -38,7 +38,7 @@ from .tree_checks import prepare_tree
 
 __all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
 
-ENGINE_CHAIN = False
+ENGINE_CHAIN = True
 """Internal switch (issue 28): fit one chain measured by an instrument with the joint engine
 (:func:`measured_chain`) instead of the MDH chart's pipeline (:func:`~.pipeline.calibrate_chain`).
 Off by default: the engine route lacks features of the pipeline (see :func:`measured_chain`)."""
