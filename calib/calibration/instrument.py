@@ -283,11 +283,14 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     if level != "complete":
         return
     chains = start.chains
-    tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
-    q = tree.random_configurations(DEFAULT_CONFIGS, seed)
+    if len(chains) == 1:  # one chain: its own configurations (it may run up from its base)
+        q, paths = chains[0].random_configurations(DEFAULT_CONFIGS, seed), [slice(None)]
+    else:
+        tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
+        q, paths = tree.random_configurations(DEFAULT_CONFIGS, seed), tree.paths
     parts = tuple(
         _rows_like(d, c.joint_names, q[:, path])
-        for c, d, path in zip(chains, train, tree.paths, strict=True)
+        for c, d, path in zip(chains, train, paths, strict=True)
     )
     J = wide.jacobian(start, np.zeros(wide.size()), ChainsData(parts)).reshape(-1, wide.size())
     generic = len(independent_columns(J, list(range(J.shape[1])))[2])

@@ -23,6 +23,7 @@ from .urdf_export import (
     edited_joints,
     origin_of,
     parent_link,
+    place_calibrated_tool,
     read_urdf_source,
     set_origin,
     spliced,
@@ -122,7 +123,7 @@ def marker_urdf(
     chain: Chain,
     errors: dict[str, np.ndarray],
     markers: tuple[tuple[Chain, np.ndarray], ...],
-    moving: bool = False,
+    tool: np.ndarray | None = None,
     world: tuple[str, np.ndarray] | None = None,
 ) -> bytes:
     """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
@@ -130,24 +131,30 @@ def marker_urdf(
     Args:
         chain: Any chain of the robot (its ``urdf_path`` is read).
         errors: ``E_j`` ``(4, 4)`` by URDF joint name.
-        markers: ``(chain to the tool, its markers in the tool frame (K, 3) [m])`` of each
-            tool: each marker a link fixed to the tool's link
-            (:func:`~.urdf_links.add_marker_links`).
-        moving: A tool link carried by its chain's last joint is allowed (one chain's; a
-            tree's tools need their fixed joints).
+        markers: ``(chain to the tool, its markers (K, 3) [m])`` of each tool: each marker a
+            link fixed to the tool's link (:func:`~.urdf_links.add_marker_links`), in the
+            tool frame (with ``tool``: in the calibrated tool's).
+        tool: One chain's calibrated tool ``(4, 4)`` (the measured frame in the tool frame;
+            identity for position data), written as a chain's calibration writes it
+            (:func:`~.urdf_export.place_calibrated_tool`: a tool link carried by the chain's
+            last joint is allowed), the markers hung from it; None: a tree's tools, each
+            marker on its tool's link (the tools need their fixed joints).
         world: ``(name, T)``: add the link ``name`` (the instrument) as the parent of the
             URDF's root link, ``T`` ``(4, 4)`` the pose of ``chain``'s base frame in it.
 
     Raises:
-        CalibError: A tool not carried by a fixed joint (unless ``moving``), a marker or
-            world link's name taken, or the base frame moved by a joint (``world``).
+        CalibError: A tool not carried by a fixed joint (a tree's), a marker or world link's
+            name taken, or the base frame moved by a joint (``world``).
     """
     raw = moved_origins_urdf(chain, errors)
     src = str(chain.urdf_path)
     start, stop = xml_layout(raw, src)
     root = parse_xml(raw, src)
     for tool_chain, points in markers:
-        tool_link = child_link(edited_joints(root, tool_chain, moving)[1])
+        tool_joint = edited_joints(root, tool_chain, tool is not None)[1]
+        tool_link = child_link(tool_joint)
+        if tool is not None:
+            tool_link = place_calibrated_tool(root, tool_chain, tool_joint, tool)
         add_marker_links(root, tool_chain.tool_frame, tool_link, points)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, NominalPoses(chain)))
