@@ -143,7 +143,7 @@ def world_of(
         raise InvalidArgumentError(
             "on_robot and world_link: the instrument is on the robot or in the world"
         )
-    return None if world_link is None else (world_link, frame)
+    return None if world_link is None or frame is None else (world_link, frame)
 
 
 def tool_pose(inner: State) -> np.ndarray:
