@@ -16,8 +16,9 @@ import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
+from ..kinematics.placement_export import instrument_joint
 from ..kinematics.robot import Chain
-from ..kinematics.urdf_export import instrument_joint, read_urdf_source, urdf_tool_frame
+from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change

@@ -214,12 +214,12 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot: bool) -> None:
     """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
+    from ..kinematics.placement_export import instrument_joint
     from ..kinematics.urdf_export import (
         check_base_fixed,
         check_exportable,
         child_link,
         edited_joints,
-        instrument_joint,
         read_urdf_source,
         tool_on_moving_joint,
         urdf_tool_frame,

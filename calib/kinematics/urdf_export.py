@@ -50,15 +50,15 @@ __all__ = [
     "base_joint",
     "base_to_root",
     "calibrated_urdf",
+    "chain_joint_below",
     "check_base_fixed",
     "check_exportable",
     "child_link",
     "edited_joints",
-    "instrument_joint",
+    "keep_tool_children",
     "measurement_to_base",
     "origin_of",
     "parent_link",
-    "place_calibrated_tool",
     "read_urdf_source",
     "set_origin",
     "spliced",
@@ -245,7 +245,7 @@ def edited_joints(
     if missing:
         raise CalibError(f"{chain.urdf_path}: no <joint name='{missing[0]}'> (a chain joint)")
     tool_joint = _tool_joint(root, chain, moving)
-    name = _chain_joint_below(joints, chain, child_link(tool_joint))
+    name = chain_joint_below(joints, chain, child_link(tool_joint))
     if name is not None:  # a tool above the chain: its origin would move the chain
         raise CalibError(
             f"the tool frame '{chain.tool_frame}' is carried by a link above joint "
@@ -255,7 +255,7 @@ def edited_joints(
     return joints, tool_joint
 
 
-def _chain_joint_below(joints: dict[str, ET.Element], chain: Chain, link: str) -> str | None:
+def chain_joint_below(joints: dict[str, ET.Element], chain: Chain, link: str) -> str | None:
     """The first chain joint that hangs from ``link`` (``link`` above it in the URDF), or None."""
     parents = {child_link(j): parent_link(j) for j in joints.values()}
     for name in chain.joint_names:
@@ -266,29 +266,6 @@ def _chain_joint_below(joints: dict[str, ET.Element], chain: Chain, link: str) -
             seen.add(up)
             up = parents.get(up, "")
     return None
-
-
-def instrument_joint(root: ET.Element, chain: Chain) -> ET.Element:
-    """The fixed joint that takes an instrument on the robot's placement (``on_robot``).
-
-    The base frame's fixed joint (:func:`base_joint`), off the chain: moving it moves the
-    base frame alone (a head camera whose chain runs up the head and down the arm).
-
-    Raises:
-        CalibError: The base frame is the root link or a joint moves it, or the chain hangs
-            from the base frame's link (moving its joint would move the whole chain).
-    """
-    joint = base_joint(root, chain)
-    joints = {j.get("name", ""): j for j in root.findall("joint")}
-    name = _chain_joint_below(joints, chain, child_link(joint))
-    if name is not None:
-        raise CalibError(
-            f"on_robot: the chain hangs from the base frame '{chain.base_frame}' (joint "
-            f"'{name}' is below it): moving its fixed joint would move the whole chain; an "
-            f"instrument on the robot is a frame the chain leaves upwards (a head camera "
-            f"measuring the arm)"
-        )
-    return joint
 
 
 def check_exportable(chain: Chain, moving: bool = False) -> None:
@@ -409,7 +386,7 @@ def calibrated_urdf(
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, poses))
     if on_robot is not None:
-        joint = instrument_joint(root, chain)
+        joint = base_joint(root, chain)
         set_origin(joint, origin_of(joint) @ np.linalg.inv(on_robot))
     return spliced(raw, root, start, stop)
 
@@ -430,7 +407,7 @@ def _write_tool(root, chain, poses, moved, links, tool_joint, X, moving: bool) -
     parent = parent_link(tool_joint)
     where = links.frame[parent] @ poses.link(parent)
     set_origin(tool_joint, np.linalg.inv(where) @ tool_new)
-    _keep_tool_children(root, tool_child, X)
+    keep_tool_children(root, tool_child, X)
     return tool_child
 
 
@@ -488,7 +465,7 @@ def _write_path(
     its parent's new frame: a chain joint's new frame is ``moved[row]`` applied to its
     nominal one; another joint's follows its child link (a link of the chain) or else the
     parent link's body. Origins whose parent and frame move alike are left as written, and
-    so is everything under the tool link (:func:`_keep_tool_children`); ``tool_joint`` is
+    so is everything under the tool link (:func:`keep_tool_children`); ``tool_joint`` is
     the tool's fixed joint (its origin is written apart), or None where the tool link is the
     last chain joint's (that joint is written like the others). The visuals,
     collisions and inertia of a link whose frame moves within its body are placed back on
@@ -544,40 +521,13 @@ def origin_of(joint: ET.Element) -> np.ndarray:
     return T
 
 
-def _keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
+def keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
     """Joints fixed to the tool link keep their place when its frame moves by ``X``."""
     if np.array_equal(X, np.eye(4)):
         return
     for joint in root.findall("joint"):
         if parent_link(joint) == tool_link:
             set_origin(joint, np.linalg.inv(X) @ origin_of(joint))
-
-
-def place_calibrated_tool(
-    root: ET.Element, chain: Chain, tool_joint: ET.Element, X: np.ndarray
-) -> str:
-    """Write the calibrated tool on the tool's link; the link that holds it.
-
-    ``X`` ``(4, 4)``: the measured frame in the tool frame of the written joints (identity
-    for position data). A tool on a fixed joint: that joint's origin is right-multiplied by
-    ``X`` and the joints fixed to the tool link keep their place; a tool link carried by the
-    chain's last joint keeps its place and a link ``<tool>_calibrated`` is fixed to it at
-    ``X`` (:func:`urdf_tool_frame`).
-
-    Args:
-        root: The URDF's ``<robot>`` element (edited).
-        chain: The chain.
-        tool_joint: The joint that carries the tool link (:func:`edited_joints`).
-        X: The calibrated tool in the tool frame ``(4, 4)``.
-    """
-    tool_link = child_link(tool_joint)
-    if tool_on_moving_joint(chain):
-        held = calibrated_tool_name(chain.tool_frame)
-        set_fixed_link(root, held, tool_link, X)
-        return held
-    set_origin(tool_joint, origin_of(tool_joint) @ X)
-    _keep_tool_children(root, tool_link, X)
-    return tool_link
 
 
 def check_base_fixed(chain: Chain) -> None:
