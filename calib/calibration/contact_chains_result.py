@@ -31,6 +31,7 @@ from .measured_view import (
     MeasuredChain,
     chain_frames,
     chain_model,
+    chain_writing,
     measured_part,
     world_of,
 )
@@ -321,10 +322,11 @@ class ContactChainsCalibration(Delivered, ChainView):
 
         Args:
             world_link: The ``world_link`` the URDF was written with (None: none).
-            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
+            on_robot: The URDF was written with the instrument on the robot (one chain: its
+                base frame's placement calibrated, ``frames.measurement`` is in the URDF).
 
         Raises:
-            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+            InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
         """
         world_of(self.shape, self._frame(), world_link, on_robot)
         first = self.chains[0].chain
@@ -370,7 +372,7 @@ class ContactChainsCalibration(Delivered, ChainView):
         }
         legacy = self._format2()
         if self._frame() is not None:
-            fields["frames"] = chain_frames(self.one_chain(), world_link)
+            fields["frames"] = chain_frames(self.one_chain(), world_link, on_robot)
             fields["compliance"], fields["model"] = chain_model(self.one_chain(), fields["model"])
         if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
             fields, legacy = single_contact_report(self.chains[0], fields, legacy)
@@ -501,26 +503,25 @@ class ContactChainsCalibration(Delivered, ChainView):
         Args:
             world_link: One chain measured by an instrument: add the instrument frame as
                 this root link (None: not added).
-            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
+            on_robot: One chain measured by an instrument on the robot (a head camera): its
+                fitted placement is written into the base frame's fixed joint.
 
         Raises:
             CalibrationRefusedError: The model was refused.
-            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+            InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
+            CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
         """
         world = world_of(self.shape, self._frame(), world_link, on_robot)
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
             return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
+        if self._frame() is not None:  # one chain: its calibrated tool, its markers on it
+            errors, marks, tool = chain_writing(self.one_chain(), self.joint_errors(), on_robot)
+            return marker_urdf(self.chains[0].chain, errors, marks, tool, world)
         if self._instrument():  # each tool's markers as links (a tree's)
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
-            return marker_urdf(
-                self.chains[0].chain,
-                self.joint_errors(),
-                marks,
-                self.shape == "chain",
-                world,
-            )
+            return marker_urdf(self.chains[0].chain, self.joint_errors(), marks, None, world)
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:

@@ -275,7 +275,8 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     compared with those generic configurations determine: the rank of the engine's own
     Jacobian (``wide``: the frame, the markers and every joint placement component, at
     ``start``) with every tool at :data:`~calib.core.choices.DEFAULT_CONFIGS` random
-    configurations of the tree (seeded), rows of each tool's kind (its markers, a pose's
+    configurations of the tree (seeded; one chain: of the chain, which may run up from its
+    base, a head camera measuring the arm), rows of each tool's kind (its markers, a pose's
     orientation; a chain's compliances under its gravity torques there), no second model of
     the tree.
 
@@ -294,11 +295,15 @@ def check_tree_rank(wide, start, identifiable: int, train, level: str, seed: int
     if level != "complete":
         return
     chains = start.chains
-    tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
-    q = tree.random_configurations(DEFAULT_CONFIGS, seed)
+    paths: tuple[np.ndarray | slice, ...] = (slice(None),)
+    if len(chains) == 1:  # one chain: its own configurations (it may run up from its base)
+        q = chains[0].random_configurations(DEFAULT_CONFIGS, seed)
+    else:
+        tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
+        q, paths = tree.random_configurations(DEFAULT_CONFIGS, seed), tree.paths
     parts = tuple(
         _rows_like(d, c.joint_names, q[:, path])
-        for c, d, path in zip(chains, train, tree.paths, strict=True)
+        for c, d, path in zip(chains, train, paths, strict=True)
     )
     torques = (chains[0].gravity_torques(parts[0].q),) if wide.compliance else None  # elastic
     rows = ChainsData(parts, torques)

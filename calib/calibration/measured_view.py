@@ -17,7 +17,9 @@ import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
+from ..kinematics.placement_export import instrument_joint
 from ..kinematics.robot import Chain
+from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .contact_elastic import urdf_alone
 from .contact_result import GapStats, part_stats, term_errors
@@ -32,8 +34,11 @@ __all__ = [
     "MeasuredChain",
     "chain_frames",
     "chain_model",
+    "chain_writing",
     "measured_part",
+    "tool_pose",
     "world_of",
+    "written_markers",
 ]
 
 
@@ -150,48 +155,86 @@ def world_of(
     """The ``world`` argument of the URDF writer (``marker_urdf``).
 
     Args:
-        shape: The result's shape (only ``chain`` takes ``world_link``).
+        shape: The result's shape (only ``chain`` takes ``world_link`` and ``on_robot``).
         frame: The base frame's pose in the instrument's ``(4, 4)``, or None.
         world_link: The instrument frame as a new root link of this name, or None.
-        on_robot: The instrument is the base frame, on the robot (refused: the engine's
-            chain is measured from outside the robot; a frame on the robot measuring its
-            own arm is a measured term of its own, not routed here yet).
+        on_robot: The instrument is the base frame, on the robot (a head camera measuring
+            the arm): its fitted placement goes into the base frame's fixed joint.
 
     Raises:
-        InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+        InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
     """
-    if on_robot:
+    for name, given in (("on_robot", on_robot), ("world_link", world_link is not None)):
+        if given and (shape != "chain" or frame is None):
+            raise InvalidArgumentError(
+                f"{name} is for one chain measured by an instrument, not a fit of shape '{shape}'"
+            )
+    if on_robot and world_link is not None:
         raise InvalidArgumentError(
-            "on_robot: the joint engine's chain route fits an instrument outside the robot "
-            "(a frame on the robot measuring its own arm is not routed to it yet)"
+            "on_robot and world_link: the instrument is on the robot or in the world"
         )
-    if world_link is None:
-        return None
-    if shape != "chain" or frame is None:
-        raise InvalidArgumentError(
-            f"world_link is for one chain measured by an instrument, not a fit of shape '{shape}'"
-        )
-    return world_link, frame
+    return None if world_link is None or frame is None else (world_link, frame)
 
 
-def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
-    """The report's ``frames`` of a chain's (one measurement frame, marker links by name)."""
-    inner = part.state.inner
-    tool = part.chain.tool_frame
+def tool_pose(inner: State) -> np.ndarray:
+    """The calibrated tool: the measured frame in the tool frame ``(4, 4)``.
+
+    Pose data: marker 1 and the measured frame's rotation (the written URDF's tool frame is
+    the measured frame); position data: identity.
+    """
     T = np.eye(4)
     if inner.tool_rotation is not None:
-        T[:3, :3] = inner.tool_rotation
+        T[:3, :3], T[:3, 3] = inner.tool_rotation, inner.markers[0]
+    return T
+
+
+def written_markers(inner: State) -> np.ndarray:
+    """The markers in the written URDF's calibrated tool frame ``(K, 3)`` [m]."""
+    T = tool_pose(inner)
+    return (inner.markers - T[:3, 3]) @ T[:3, :3]
+
+
+def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = False) -> dict:
+    """The report's ``frames`` of a chain's (one measurement frame, marker links by name).
+
+    ``on_robot``: the URDF was written with the measurement frame in the base frame's fixed
+    joint (``frames.measurement`` is then in the URDF).
+    """
+    inner = part.state.inner
+    tool = part.chain.tool_frame
     return {
         "measurement": pose_dict(inner.frame),
-        "measured": pose_dict(T) if inner.tool_rotation is not None else None,
+        "measured": pose_dict(tool_pose(inner)) if inner.tool_rotation is not None else None,
         "markers": dict(
-            zip(marker_link_names(tool, inner.n_markers), inner.markers.tolist(), strict=True)
+            zip(
+                marker_link_names(tool, inner.n_markers),
+                written_markers(inner).tolist(),
+                strict=True,
+            )
         ),
         "contacts": {},
         "world_link": world_link,
-        "tool_link": tool,
-        "on_robot": False,
+        "tool_link": urdf_tool_frame(part.chain),
+        "on_robot": on_robot,
     }
+
+
+def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
+    """``marker_urdf``'s ``errors``, ``markers`` and ``tool`` of one chain measured.
+
+    The calibrated tool (:func:`tool_pose`) and its markers as a chain's calibration writes
+    them; ``on_robot``: the base frame's fixed joint moved so that forward kinematics from
+    the base frame gives measured coordinates (its new origin ``O F^-1``, ``F`` the nominal
+    base frame's pose in the measuring frame).
+
+    Raises:
+        CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
+    """
+    inner = part.state.inner
+    if on_robot:
+        joint = instrument_joint(read_urdf_source(part.chain)[1], part.chain)
+        errors = {**errors, joint.get("name", ""): np.linalg.inv(inner.frame)}
+    return errors, ((part.chain, written_markers(inner)),), tool_pose(inner)
 
 
 def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
@@ -300,3 +343,24 @@ class ChainView:
     def marker_links(self) -> tuple[str, ...]:
         """The written URDF's marker links."""
         return tuple(chain_frames(self.one_chain(), None)["markers"])
+
+    @property
+    def tool_placement(self) -> np.ndarray:
+        """The measured frame in the tool frame ``(4, 4)``, written into the URDF's tool.
+
+        Pose data: the fitted marker 1 and measured-frame rotation; position data: identity.
+        """
+        return tool_pose(self.state)
+
+    @property
+    def urdf_markers(self) -> np.ndarray:
+        """The markers in the written URDF's tool frame ``(K, 3)`` [m] (the marker links)."""
+        return written_markers(self.state)
+
+    @property
+    def urdf_tool_frame(self) -> str:
+        """The written URDF's frame of the calibrated tool (the measured frame, the markers').
+
+        The tool frame, or ``<tool>_calibrated`` where the tool link is the last joint's.
+        """
+        return urdf_tool_frame(self.chain)

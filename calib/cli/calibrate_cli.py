@@ -219,8 +219,8 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot: bool) -> None:
     """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
+    from ..kinematics.placement_export import instrument_joint
     from ..kinematics.urdf_export import (
-        base_joint,
         check_base_fixed,
         check_exportable,
         child_link,
@@ -245,7 +245,7 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot:
                 "--on-robot and --world-link: the instrument is on the robot or in the world"
             )
         try:
-            base_joint(root, chain)
+            instrument_joint(root, chain)
         except CalibError as exc:  # the library names the keyword: say the flag
             raise CalibError(f"--on-robot{str(exc).removeprefix('on_robot')}") from None
     if world_link is not None:
