@@ -274,7 +274,7 @@ def test_urdf_alone_worse_than_registration_is_written_with_its_compliance_and_a
 
 
 def test_urdf_alone_warning_on_held_out_rows():
-    from calib.calibration.result import ResidualStats
+    from calib.calibration.residuals import ResidualStats
     from calib.calibration.validation import urdf_alone_warning
 
     def st(rms):

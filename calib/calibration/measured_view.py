@@ -22,8 +22,7 @@ from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
-from .report import parameter_entries, pose_dict
-from .result import gravity_dict
+from .report import gravity_dict, parameter_entries, pose_dict
 
 __all__ = [
     "ChainView",
