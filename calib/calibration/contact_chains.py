@@ -77,6 +77,7 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
+from .measured_view import Solution
 from .options import check_run_options, checked_arguments
 from .outliers import Outlier
 from .pixel_chain import (
@@ -455,8 +456,9 @@ def calibrate_contact_chains(
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
     refusal = result.refusal or rank
     return dataclasses.replace(
-        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal, **values
-    )
+        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal,
+        solution=Solution(fitted, kept_prior), **values,
+    )  # fmt: skip
 
 
 PIN = 1e-6

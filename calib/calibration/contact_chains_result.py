@@ -28,6 +28,7 @@ from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_view import (
     ChainView,
     MeasuredChain,
+    Solution,
     chain_frames,
     chain_model,
     measured_part,
@@ -207,6 +208,7 @@ class ContactChainsCalibration(Delivered, ChainView):
     unknowns: int = 0
     identifiable: int = 0
     shape: str = "chains"
+    solution: Solution | None = None
 
     @property
     def accepted(self) -> bool:

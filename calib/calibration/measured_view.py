@@ -18,15 +18,21 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_links import marker_link_names
+from ..measurements.data import Measurements
+from .contact_chains_model import ChainsData
 from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
 from .report import gravity_dict, parameter_entries, pose_dict
+from .residuals import ResidualStats, Validation
+from .solve import Fit, condition, covariance
+from .validation import predicted_std
 
 __all__ = [
     "ChainView",
     "MeasuredChain",
+    "Solution",
     "chain_frames",
     "chain_model",
     "measured_part",
@@ -51,6 +57,8 @@ class MeasuredChain:
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
         held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
         outliers: Its rows set aside (none: a measured term's rows are all fitted).
+        data: Its rows fitted (held-out rows and outliers left out), or None.
+        held: Its held-out rows (their outliers left out), or None.
     """
 
     chain: Chain
@@ -62,6 +70,8 @@ class MeasuredChain:
     parameters: tuple[dict, ...] = ()
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
+    data: Measurements | None = None
+    held: Measurements | None = None
 
     @property
     def kind(self):
@@ -111,7 +121,9 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
-    return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
+    return MeasuredChain(
+        chain, train.source, joint, registered, state, stats, tuple(entries), data=train, held=held
+    )
 
 
 def world_of(
@@ -170,18 +182,49 @@ def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
     return dict.fromkeys(chain.joint_names, 0.0), {**model, "gravity": gravity_dict(chain)}
 
 
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The joint fit's solution, kept for its uncertainty (read only when asked for).
+
+    Attributes:
+        fit: The final fit (its model, start, x, weighted Jacobian and residuals).
+        prior: The prior weights it was fitted with, or None.
+    """
+
+    fit: Fit
+    prior: np.ndarray | None = None
+
+    def covariance(self) -> tuple[np.ndarray, float]:
+        """Covariance of x ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat [m] (``solve.covariance``)."""
+        f = self.fit.f
+        return covariance(self.fit.J, float(f @ f), self.prior)
+
+    def condition(self) -> float:
+        """Condition number of the weighted Jacobian with unit-norm columns."""
+        return condition(self.fit.J)
+
+    def point_std(self, data: Measurements) -> float:
+        """Predicted position std at one term's rows [m]: the covariance through its Jacobian.
+
+        RMS over the rows and markers (:func:`~.validation.predicted_std`); the fit of one term.
+        """
+        fit = self.fit
+        J = fit.model.jacobian(fit.start, fit.x, ChainsData((data,)))
+        return predicted_std(J, self.covariance()[0], data.n_markers)
+
+
 class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
     The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
     has them (shape ``chain``; other shapes raise
     :class:`~calib.exceptions.InvalidArgumentError`). Not here:
-    ``validation`` (the held-out errors are ``stats["held_out"]``), ``predicted_std`` and
-    ``covariance`` (the joint fit reports ``std`` only), ``model`` and ``prior`` (the
-    engine's parameters are joint placement components, not MDH rows).
+    ``model`` and ``prior`` (the engine's parameters are joint placement components, not MDH
+    rows; its solution is :attr:`solution`).
     """
 
     chains: tuple[Any, ...]
+    solution: Solution | None
     shape: str
     fitted: tuple[str, ...]
     solver: tuple[bool, str, int]
@@ -268,3 +311,88 @@ class ChainView:
     def marker_links(self) -> tuple[str, ...]:
         """The written URDF's marker links."""
         return tuple(chain_frames(self.one_chain(), None)["markers"])
+
+    @property
+    def data(self) -> Measurements:
+        """The rows fitted (held-out rows and outliers left out)."""
+        return _rows(self.one_chain().data)
+
+    @property
+    def calibrated(self):
+        """The chain's calibrated MDH model (the URDF's base frame: see ``measurement_to_base``)."""
+        return self.state.mdh
+
+    @property
+    def before(self) -> ResidualStats:
+        """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
+        return _stats(self.registration, self.data)
+
+    @property
+    def after(self) -> ResidualStats:
+        """Errors of the calibrated model on :attr:`data`."""
+        return _stats(self.state, self.data)
+
+    @property
+    def urdf_after(self) -> ResidualStats | None:
+        """Errors of the URDF alone on :attr:`data`: None, the joints are rigid (:attr:`after`)."""
+        return None
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of the fit's unknowns (the term's own, then ``fitted``) ``(p, p)``."""
+        return self._solution().covariance()[0]
+
+    @property
+    def sigma(self) -> float:
+        """Estimated noise of a weighted row sigma_hat = sqrt(RSS / (r - p)) [m]."""
+        return self._solution().covariance()[1]
+
+    @property
+    def condition(self) -> float:
+        """Condition number of the fit's weighted Jacobian with unit-norm columns."""
+        return self._solution().condition()
+
+    @property
+    def predicted_std(self) -> float:
+        """Predicted position std at the fitted rows, RMS over them [m].
+
+        The fit's covariance through the point Jacobian at each row.
+        """
+        return self._solution().point_std(self.data)
+
+    @property
+    def validation(self) -> Validation | None:
+        """Errors on the held-out rows [m, rad], or None without held-out rows.
+
+        The registration's (the nominal robot registered on the fitted rows), the calibrated
+        model's, and the predicted position std there (the covariance through the Jacobian).
+        """
+        part = self.one_chain()
+        if part.held is None:
+            return None
+        held = part.held
+        return Validation(
+            part.held_source or held.source,
+            _stats(self.registration, held),
+            _stats(self.state, held),
+            self._solution().point_std(held),
+            None,
+            held,
+        )
+
+    def _solution(self) -> Solution:
+        self.one_chain()
+        if self.solution is None:
+            raise InvalidArgumentError("this result keeps no solution (its uncertainty is unknown)")
+        return self.solution
+
+
+def _rows(data: Measurements | None) -> Measurements:
+    if data is None:
+        raise InvalidArgumentError("this result keeps no rows of its measured term")
+    return data
+
+
+def _stats(state: State, data: Measurements) -> ResidualStats:
+    """Errors measured - model of a chain's state on rows [m, rad] (rigid joints)."""
+    return ResidualStats.of(state.residuals(data), data.n_markers)
