@@ -30,6 +30,7 @@ from .measured_view import (
     MeasuredChain,
     Solution,
     chain_frames,
+    chain_lines,
     chain_model,
     measured_part,
     world_of,
@@ -416,7 +417,8 @@ class ContactChainsCalibration(Delivered, ChainView):
         ]
         if self._contacts():
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
-        for c in self.chains:
+        one = self._frame() is not None  # one chain measured by an instrument: a chain's table
+        for c in () if one else self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
             if isinstance(c, PixelChain):
                 px = ", ".join(
@@ -463,7 +465,7 @@ class ContactChainsCalibration(Delivered, ChainView):
                     else "configurations"
                 )
                 lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
-        lines += instrument_lines(self._instrument())
+        lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]
         names, sigma = self._row_joints()
         entries = parameter_entries(self.fitted, self.estimate, self.std, names, sigma)

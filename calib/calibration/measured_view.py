@@ -25,7 +25,7 @@ from .measured_term import MeasuredState, measured_stats, measuring_joint, own_c
 from .model import State
 from .outliers import Outlier
 from .report import gravity_dict, parameter_entries, pose_dict
-from .residuals import ResidualStats, Validation
+from .residuals import ResidualStats, Validation, error_table
 from .solve import Fit, condition, covariance
 from .validation import predicted_std
 
@@ -34,6 +34,7 @@ __all__ = [
     "MeasuredChain",
     "Solution",
     "chain_frames",
+    "chain_lines",
     "chain_model",
     "measured_part",
     "world_of",
@@ -174,6 +175,17 @@ def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
         "tool_link": tool,
         "on_robot": False,
     }
+
+
+def chain_lines(view: ChainView) -> list[str]:
+    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
+    held = view.validation
+    std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
+    return [
+        error_table(view.before, view.after, view.urdf_after, held),
+        f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
+        f"at the fitted configurations{std}",
+    ]
 
 
 def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
