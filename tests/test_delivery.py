@@ -382,6 +382,7 @@ CHAIN_REPORT_KEYS = {
     "model_choice.cv_complete_mm", "model_choice.winner",
     *(f"outliers[].{k}" for k in ("term", "row", "kind", "error_mm", "median_mm")),
     "model.mdh_nominal", "model.mdh_calibrated", "model.gravity", "model.gravity.frame",
+    "model.joint_origins", "model.shared_joints",  # one engine: a chain's joint origins too
     "model.gravity.vector", *(f"model.mdh_{w}[].{k}" for w in ("nominal", "calibrated")
     for k in MDH),
     *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
@@ -432,6 +433,7 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     assert report["outliers"] and report["model_choice"] is not None
     assert report["errors"]["held_out"] is not None
     leaves = ("deprecated", "compliance", "frames.markers", "frames.contacts", "objects")
+    leaves += ("model.joint_origins",)  # joint -> pose (``frames.markers``: link -> point)
     assert format3_paths(report, leaves) == CHAIN_REPORT_KEYS
     assert report["format_version"] == "3"
     assert set(report["deprecated"]) == CHAIN_DEPRECATED

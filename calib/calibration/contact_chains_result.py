@@ -29,9 +29,8 @@ from .measured_view import (
     ChainView,
     MeasuredChain,
     Solution,
-    chain_frames,
     chain_lines,
-    chain_model,
+    chain_report,
     measured_part,
     world_of,
 )
@@ -363,9 +362,8 @@ class ContactChainsCalibration(Delivered, ChainView):
             "timings_ms": dict(self.timings_ms),
         }
         legacy = self._format2()
-        if self._frame() is not None:
-            fields["frames"] = chain_frames(self.one_chain(), world_link)
-            fields["compliance"], fields["model"] = chain_model(self.one_chain(), fields["model"])
+        if self._frame() is not None:  # one chain measured by an instrument
+            fields, legacy = chain_report(self, fields, world_link)
         if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
             fields, legacy = single_contact_report(self.chains[0], fields, legacy)
         return build_report(fields, legacy, FORMAT2_MOVED)

@@ -24,7 +24,7 @@ from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
-from .report import gravity_dict, parameter_entries, pose_dict
+from .report import fit_dict, gravity_dict, parameter_entries, pose_dict
 from .residuals import ResidualStats, Validation, error_table
 from .solve import Fit, condition, covariance
 from .validation import predicted_std
@@ -36,6 +36,7 @@ __all__ = [
     "chain_frames",
     "chain_lines",
     "chain_model",
+    "chain_report",
     "measured_part",
     "world_of",
 ]
@@ -166,7 +167,7 @@ def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
         T[:3, :3] = inner.tool_rotation
     return {
         "measurement": pose_dict(inner.frame),
-        "measured": pose_dict(T) if inner.tool_rotation is not None else None,
+        "measured": pose_dict(T),
         "markers": dict(
             zip(marker_link_names(tool, inner.n_markers), inner.markers.tolist(), strict=True)
         ),
@@ -186,6 +187,60 @@ def chain_lines(view: ChainView) -> list[str]:
         f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
         f"at the fitted configurations{std}",
     ]
+
+
+def chain_report(view: ChainView, fields: dict, world_link: str | None) -> tuple[dict, dict]:
+    """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
+
+    ``errors`` as :class:`~.residuals.ResidualStats` (position and orientation, mm and
+    degrees: ``train``, ``held_out`` and the one term's), ``frames`` by marker link,
+    ``fit`` (noise, condition, predicted std, weight), ``compliance`` (rigid: zero per joint)
+    and ``model`` with the MDH rows and the gravity beside the joint origins.
+
+    Args:
+        view: The result (shape ``chain``).
+        fields: The joint fit's format 3 fields (edited copy returned).
+        world_link: The ``world_link`` the URDF was written with (None: none).
+    """
+    part, held = view.one_chain(), view.validation
+    after = view.after.in_mm()
+    train = {"registration": view.before.in_mm(), "calibrated": after, "urdf": after}
+    out = {**fields, "frames": chain_frames(part, world_link)}
+    out["errors"] = {
+        "train": train,
+        "held_out": None if held is None else held.in_mm(),
+        "terms": [{"train": train, "held_out": None if held is None else held.in_mm()}],
+    }
+    out["compliance"], model = chain_model(part, fields["model"])
+    nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
+    out["model"] = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **model}
+    std, weight = view.predicted_std, view.orientation_weight
+    out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
+    frames, data = out["frames"], view.data
+    legacy = {
+        "data": data.source,
+        "base_frame": part.chain.base_frame,
+        "tool_frame": part.chain.tool_frame,
+        "measure": data.measure,
+        "markers": list(frames["markers"].values()),
+        "marker_links": list(frames["markers"]),
+        "measured_frame": frames["measured"],
+        "world_link": world_link,
+        "configs": data.m,
+        "orientation_weight": weight,
+        "residuals": {"registration": view.before.to_dict(), "calibrated": view.after.to_dict(),
+                      "urdf": view.after.to_dict()},
+        "validation": None if held is None else held.to_dict(),
+        "selection": None if view.selection is None else view.selection.to_dict(),
+        "sigma": view.sigma,
+        "condition_number": view.condition,
+        "predicted_std": std,
+        "gravity": model["gravity"],
+        "measurement_to_base": frames["measurement"],
+        "mdh_nominal": nominal,
+        "mdh_calibrated": calibrated,
+    }  # fmt: skip
+    return out, legacy
 
 
 def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
@@ -237,6 +292,7 @@ class ChainView:
 
     chains: tuple[Any, ...]
     solution: Solution | None
+    selection: Any
     shape: str
     fitted: tuple[str, ...]
     solver: tuple[bool, str, int]
