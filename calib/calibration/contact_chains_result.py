@@ -31,7 +31,9 @@ from .measured_view import (
     Solution,
     chain_lines,
     chain_report,
+    measured_frame,
     measured_part,
+    urdf_markers,
     world_of,
 )
 from .outliers import Outlier
@@ -505,15 +507,14 @@ class ContactChainsCalibration(Delivered, ChainView):
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
             return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
+        if self._frame() is not None:  # one chain: its calibrated tool, markers in it
+            part = self.one_chain()
+            marks = ((part.chain, urdf_markers(part)),)
+            X = measured_frame(part)
+            return marker_urdf(part.chain, self.joint_errors(), marks, True, world, X)
         if self._instrument():  # each tool's markers as links (a tree's)
-            marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
-            return marker_urdf(
-                self.chains[0].chain,
-                self.joint_errors(),
-                marks,
-                self.shape == "chain",
-                world,
-            )
+            tools = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
+            return marker_urdf(self.chains[0].chain, self.joint_errors(), tools, False, world)
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:

@@ -17,6 +17,7 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
+from ..kinematics.urdf_export import urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from .contact_chains_model import ChainsData
@@ -37,7 +38,9 @@ __all__ = [
     "chain_lines",
     "chain_model",
     "chain_report",
+    "measured_frame",
     "measured_part",
+    "urdf_markers",
     "world_of",
 ]
 
@@ -158,22 +161,36 @@ def world_of(
     return world_link, frame
 
 
+def measured_frame(part: MeasuredChain) -> np.ndarray:
+    """The measured frame in the chain's tool frame ``(4, 4)``: the calibrated tool written.
+
+    Pose data: the fitted tool rotation at marker 1 (the URDF's tool frame is then the
+    measured frame, as the chain pipeline wrote it); position data: identity.
+    """
+    inner = part.state.inner
+    X = np.eye(4)
+    if inner.tool_rotation is not None:
+        X[:3, :3], X[:3, 3] = inner.tool_rotation, inner.markers[0]
+    return X
+
+
+def urdf_markers(part: MeasuredChain) -> np.ndarray:
+    """The markers in the written URDF's calibrated tool frame ``(K, 3)`` [m] (marker links)."""
+    X = measured_frame(part)
+    return (part.state.inner.markers - X[:3, 3]) @ X[:3, :3]
+
+
 def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
     """The report's ``frames`` of a chain's (one measurement frame, marker links by name)."""
     inner = part.state.inner
-    tool = part.chain.tool_frame
-    T = np.eye(4)
-    if inner.tool_rotation is not None:
-        T[:3, :3] = inner.tool_rotation
+    links = marker_link_names(part.chain.tool_frame, inner.n_markers)
     return {
         "measurement": pose_dict(inner.frame),
-        "measured": pose_dict(T),
-        "markers": dict(
-            zip(marker_link_names(tool, inner.n_markers), inner.markers.tolist(), strict=True)
-        ),
+        "measured": pose_dict(measured_frame(part)),
+        "markers": dict(zip(links, urdf_markers(part).tolist(), strict=True)),
         "contacts": {},
         "world_link": world_link,
-        "tool_link": tool,
+        "tool_link": urdf_tool_frame(part.chain),
         "on_robot": False,
     }
 

@@ -21,14 +21,16 @@ from .urdf_export import (
     base_to_root,
     child_link,
     edited_joints,
+    keep_tool_children,
     origin_of,
     parent_link,
     read_urdf_source,
     set_origin,
     spliced,
+    tool_on_moving_joint,
     xml_layout,
 )
-from .urdf_links import add_marker_links, add_world_link, set_fixed_link
+from .urdf_links import add_marker_links, add_world_link, calibrated_tool_name, set_fixed_link
 from .urdf_xml import parse_xml
 
 __all__ = [
@@ -118,12 +120,35 @@ def camera_urdf(
     return spliced(raw, root, start, stop)
 
 
+def place_measured(root, chain: Chain, tool_joint, X: np.ndarray) -> str:
+    """Write a chain's calibrated tool: its measured frame ``X`` ``(4, 4)`` in the tool frame.
+
+    The tool's fixed joint takes it (the URDF's tool frame is then the measured frame; what is
+    fixed to the tool link keeps its place); a tool link carried by the chain's last joint
+    keeps its place and a link ``<tool>_calibrated`` fixed to it at ``X`` holds it (as
+    :func:`~.urdf_export.calibrated_urdf` writes it).
+
+    Returns:
+        The link of the calibrated tool (the markers' parent).
+    """
+    tool_link = child_link(tool_joint)
+    if tool_on_moving_joint(chain):
+        held = calibrated_tool_name(chain.tool_frame)
+        set_fixed_link(root, held, tool_link, X)
+        return held
+    if not np.array_equal(X, np.eye(4)):
+        set_origin(tool_joint, origin_of(tool_joint) @ X)
+        keep_tool_children(root, tool_link, X)
+    return tool_link
+
+
 def marker_urdf(
     chain: Chain,
     errors: dict[str, np.ndarray],
     markers: tuple[tuple[Chain, np.ndarray], ...],
     moving: bool = False,
     world: tuple[str, np.ndarray] | None = None,
+    measured: np.ndarray | None = None,
 ) -> bytes:
     """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
 
@@ -137,6 +162,9 @@ def marker_urdf(
             tree's tools need their fixed joints).
         world: ``(name, T)``: add the link ``name`` (the instrument) as the parent of the
             URDF's root link, ``T`` ``(4, 4)`` the pose of ``chain``'s base frame in it.
+        measured: One chain's measured frame in its tool frame ``(4, 4)`` (pose data: the
+            tool rotation and marker 1), or None: the tool frame. Written as the calibrated
+            tool (:func:`place_measured`); the markers are then given in it.
 
     Raises:
         CalibError: A tool not carried by a fixed joint (unless ``moving``), a marker or
@@ -147,7 +175,10 @@ def marker_urdf(
     start, stop = xml_layout(raw, src)
     root = parse_xml(raw, src)
     for tool_chain, points in markers:
-        tool_link = child_link(edited_joints(root, tool_chain, moving)[1])
+        tool_joint = edited_joints(root, tool_chain, moving)[1]
+        tool_link = child_link(tool_joint)
+        if measured is not None:
+            tool_link = place_measured(root, tool_chain, tool_joint, measured)
         add_marker_links(root, tool_chain.tool_frame, tool_link, points)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, NominalPoses(chain)))

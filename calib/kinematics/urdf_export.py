@@ -54,6 +54,7 @@ __all__ = [
     "check_exportable",
     "child_link",
     "edited_joints",
+    "keep_tool_children",
     "measurement_to_base",
     "origin_of",
     "parent_link",
@@ -397,7 +398,7 @@ def _write_tool(root, chain, poses, moved, links, tool_joint, X, moving: bool) -
     parent = parent_link(tool_joint)
     where = links.frame[parent] @ poses.link(parent)
     set_origin(tool_joint, np.linalg.inv(where) @ tool_new)
-    _keep_tool_children(root, tool_child, X)
+    keep_tool_children(root, tool_child, X)
     return tool_child
 
 
@@ -455,7 +456,7 @@ def _write_path(
     its parent's new frame: a chain joint's new frame is ``moved[row]`` applied to its
     nominal one; another joint's follows its child link (a link of the chain) or else the
     parent link's body. Origins whose parent and frame move alike are left as written, and
-    so is everything under the tool link (:func:`_keep_tool_children`); ``tool_joint`` is
+    so is everything under the tool link (:func:`keep_tool_children`); ``tool_joint`` is
     the tool's fixed joint (its origin is written apart), or None where the tool link is the
     last chain joint's (that joint is written like the others). The visuals,
     collisions and inertia of a link whose frame moves within its body are placed back on
@@ -511,7 +512,7 @@ def origin_of(joint: ET.Element) -> np.ndarray:
     return T
 
 
-def _keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
+def keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
     """Joints fixed to the tool link keep their place when its frame moves by ``X``."""
     if np.array_equal(X, np.eye(4)):
         return
