@@ -10,6 +10,7 @@ the CLI passes (``world_link``), for a joint fit of that one term
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -280,6 +281,10 @@ class Solution:
 
     def covariance(self) -> tuple[np.ndarray, float]:
         """Covariance of x ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat [m] (``solve.covariance``)."""
+        return self._covariance
+
+    @cached_property
+    def _covariance(self) -> tuple[np.ndarray, float]:
         f = self.fit.f
         return covariance(self.fit.J, float(f @ f), self.prior)
 
@@ -437,7 +442,7 @@ class ChainView:
         """Condition number of the fit's weighted Jacobian with unit-norm columns."""
         return self._solution().condition()
 
-    @property
+    @cached_property
     def predicted_std(self) -> float:
         """Predicted position std at the fitted rows, RMS over them [m].
 
@@ -445,7 +450,7 @@ class ChainView:
         """
         return self._solution().point_std(self.data)
 
-    @property
+    @cached_property
     def validation(self) -> Validation | None:
         """Errors on the held-out rows [m, rad], or None without held-out rows.
 
