@@ -54,6 +54,7 @@ from .contact_chains_result import (
     ChainContacts,
     ContactChainsCalibration,
     MeasuredChain,
+    Solution,
     measured_part,
 )
 from .contact_checks import held_out_refusal, subset
@@ -77,7 +78,6 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
-from .measured_view import Solution
 from .options import check_run_options, checked_arguments
 from .outliers import Outlier
 from .pixel_chain import (

@@ -57,6 +57,7 @@ __all__ = [
     "ChainContacts",
     "ContactChainsCalibration",
     "MeasuredChain",
+    "Solution",
     "measured_part",
 ]
 
