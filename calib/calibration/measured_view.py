@@ -9,6 +9,7 @@ the CLI passes (``world_link``), for a joint fit of that one term
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -221,8 +222,12 @@ def chain_report(view: ChainView, fields: dict, world_link: str | None) -> tuple
         world_link: The ``world_link`` the URDF was written with (None: none).
     """
     part, held = view.one_chain(), view.validation
-    after = view.after.in_mm()
-    train = {"registration": view.before.in_mm(), "calibrated": after, "urdf": after}
+    urdf = view.after if view.urdf_after is None else view.urdf_after
+    train = {
+        "registration": view.before.in_mm(),
+        "calibrated": view.after.in_mm(),
+        "urdf": urdf.in_mm(),
+    }
     out = {**fields, "frames": chain_frames(part, world_link)}
     out["errors"] = {
         "train": train,
@@ -247,7 +252,7 @@ def chain_report(view: ChainView, fields: dict, world_link: str | None) -> tuple
         "configs": data.m,
         "orientation_weight": weight,
         "residuals": {"registration": view.before.to_dict(), "calibrated": view.after.to_dict(),
-                      "urdf": view.after.to_dict()},
+                      "urdf": urdf.to_dict()},
         "validation": None if held is None else held.to_dict(),
         "selection": None if view.selection is None else view.selection.to_dict(),
         "sigma": view.sigma,
@@ -415,17 +420,20 @@ class ChainView:
     @property
     def before(self) -> ResidualStats:
         """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
-        return _stats(self.registration, self.data)
+        return _stats(self.chain, self.registration, self.data)
 
     @property
     def after(self) -> ResidualStats:
         """Errors of the calibrated model on :attr:`data`."""
-        return _stats(self.state, self.data)
+        return _stats(self.chain, self.state, self.data)
 
     @property
     def urdf_after(self) -> ResidualStats | None:
-        """Errors of the URDF alone on :attr:`data`: None, the joints are rigid (:attr:`after`)."""
-        return None
+        """Errors of the URDF alone (compliance left out) on :attr:`data`, or None.
+
+        None without fitted compliance: the URDF alone is then :attr:`after`.
+        """
+        return _geometry(self.state, self.data)
 
     @property
     def covariance(self) -> np.ndarray:
@@ -463,10 +471,10 @@ class ChainView:
         held = part.held
         return Validation(
             part.held_source or held.source,
-            _stats(self.registration, held),
-            _stats(self.state, held),
+            _stats(self.chain, self.registration, held),
+            _stats(self.chain, self.state, held),
             self._solution().point_std(held),
-            None,
+            _geometry(self.state, held),
             held,
         )
 
@@ -483,6 +491,18 @@ def _rows(data: Measurements | None) -> Measurements:
     return data
 
 
-def _stats(state: State, data: Measurements) -> ResidualStats:
-    """Errors measured - model of a chain's state on rows [m, rad] (rigid joints)."""
-    return ResidualStats.of(state.residuals(data), data.n_markers)
+def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
+    """Errors measured - model of a chain's state on rows [m, rad].
+
+    With fitted joint compliance, the joints deflect under the chain's gravity torques.
+    """
+    torque = chain.gravity_torques(data.q) if np.any(state.compliance) else None
+    return ResidualStats.of(state.residuals(data, torque), data.n_markers)
+
+
+def _geometry(state: State, data: Measurements) -> ResidualStats | None:
+    """Errors of the state without its compliance (the URDF alone), None without compliance."""
+    if not np.any(state.compliance):
+        return None
+    rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
+    return ResidualStats.of(rigid.residuals(data), data.n_markers)
