@@ -297,13 +297,15 @@ class Solution:
         """Condition number of the weighted Jacobian with unit-norm columns."""
         return condition(self.fit.J)
 
-    def point_std(self, data: Measurements) -> float:
+    def point_std(self, data: Measurements, torque: np.ndarray | None = None) -> float:
         """Predicted position std at one term's rows [m]: the covariance through its Jacobian.
 
-        RMS over the rows and markers (:func:`~.validation.predicted_std`); the fit of one term.
+        RMS over the rows and markers (:func:`~.validation.predicted_std`); the fit of one
+        term. ``torque``: the gravity torques at the rows (fitted compliance), or None.
         """
         fit = self.fit
-        J = fit.model.jacobian(fit.start, fit.x, ChainsData((data,)))
+        rows = ChainsData((data,), None if torque is None else (torque,))
+        J = fit.model.jacobian(fit.start, fit.x, rows)
         return predicted_std(J, self.covariance()[0], data.n_markers)
 
 
@@ -456,7 +458,7 @@ class ChainView:
 
         The fit's covariance through the point Jacobian at each row.
         """
-        return self._solution().point_std(self.data)
+        return self._solution().point_std(self.data, _torque(self.chain, self.state, self.data))
 
     @cached_property
     def validation(self) -> Validation | None:
@@ -473,7 +475,7 @@ class ChainView:
             part.held_source or held.source,
             _stats(self.chain, self.registration, held),
             _stats(self.chain, self.state, held),
-            self._solution().point_std(held),
+            self._solution().point_std(held, _torque(self.chain, self.state, held)),
             _geometry(self.state, held),
             held,
         )
@@ -496,8 +498,12 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 
     With fitted joint compliance, the joints deflect under the chain's gravity torques.
     """
-    torque = chain.gravity_torques(data.q) if np.any(state.compliance) else None
-    return ResidualStats.of(state.residuals(data, torque), data.n_markers)
+    return ResidualStats.of(state.residuals(data, _torque(chain, state, data)), data.n_markers)
+
+
+def _torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
+    """The chain's gravity torques at the rows where the state has compliance, else None."""
+    return chain.gravity_torques(data.q) if np.any(state.compliance) else None
 
 
 def _geometry(state: State, data: Measurements) -> ResidualStats | None:
