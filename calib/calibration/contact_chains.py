@@ -54,6 +54,7 @@ from .contact_chains_result import (
     ChainContacts,
     ContactChainsCalibration,
     MeasuredChain,
+    Solution,
     measured_part,
 )
 from .contact_checks import held_out_refusal, subset
@@ -462,8 +463,9 @@ def calibrate_contact_chains(
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
     refusal = result.refusal or rank
     return dataclasses.replace(
-        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal, **values
-    )
+        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal,
+        solution=Solution(fitted, kept_prior), **values,
+    )  # fmt: skip
 
 
 PIN = 1e-6

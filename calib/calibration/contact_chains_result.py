@@ -29,8 +29,9 @@ from .measured_options import chain_compliance_document
 from .measured_view import (
     ChainView,
     MeasuredChain,
-    chain_frames,
-    chain_model,
+    Solution,
+    chain_lines,
+    chain_report,
     chain_writing,
     measured_part,
     world_of,
@@ -56,6 +57,7 @@ __all__ = [
     "ChainContacts",
     "ContactChainsCalibration",
     "MeasuredChain",
+    "Solution",
     "measured_part",
 ]
 
@@ -209,6 +211,7 @@ class ContactChainsCalibration(Delivered, ChainView):
     unknowns: int = 0
     identifiable: int = 0
     shape: str = "chains"
+    solution: Solution | None = None
 
     @property
     def accepted(self) -> bool:
@@ -371,9 +374,8 @@ class ContactChainsCalibration(Delivered, ChainView):
             "timings_ms": dict(self.timings_ms),
         }
         legacy = self._format2()
-        if self._frame() is not None:
-            fields["frames"] = chain_frames(self.one_chain(), world_link, on_robot)
-            fields["compliance"], fields["model"] = chain_model(self.one_chain(), fields["model"])
+        if self._frame() is not None:  # one chain measured by an instrument
+            fields, legacy = chain_report(self, fields, world_link, on_robot)
         if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
             fields, legacy = single_contact_report(self.chains[0], fields, legacy)
         return build_report(fields, legacy, FORMAT2_MOVED)
@@ -425,7 +427,8 @@ class ContactChainsCalibration(Delivered, ChainView):
         ]
         if self._contacts():
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
-        for c in self.chains:
+        one = self._frame() is not None  # one chain measured by an instrument: a chain's table
+        for c in () if one else self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
             if isinstance(c, PixelChain):
                 px = ", ".join(
@@ -472,7 +475,7 @@ class ContactChainsCalibration(Delivered, ChainView):
                     else "configurations"
                 )
                 lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
-        lines += instrument_lines(self._instrument())
+        lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]
         names, sigma = self._row_joints()
         entries = parameter_entries(self.fitted, self.estimate, self.std, names, sigma)

@@ -36,7 +36,7 @@ from .contact_chains_model import ChainsData
 from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
-from .result import ResidualStats
+from .residuals import ResidualStats
 from .tree import REGISTRATION_ITERATIONS
 
 __all__ = [

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -21,19 +22,26 @@ from ..kinematics.placement_export import instrument_joint
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
+from ..measurements.data import Measurements
+from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
 from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
-from .report import parameter_entries, pose_dict
-from .result import gravity_dict
+from .report import fit_dict, gravity_dict, parameter_entries, pose_dict
+from .residuals import ResidualStats, Validation, error_table
+from .solve import Fit, condition, covariance
+from .validation import predicted_std
 
 __all__ = [
     "ChainView",
     "MeasuredChain",
+    "Solution",
     "chain_frames",
+    "chain_lines",
     "chain_model",
+    "chain_report",
     "chain_writing",
     "measured_part",
     "tool_pose",
@@ -61,6 +69,8 @@ class MeasuredChain:
         outliers: Its rows set aside (none: a measured term's rows are all fitted).
         compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
             the state's), or None (rigid joints).
+        data: Its rows fitted (held-out rows and outliers left out), or None.
+        held: Its held-out rows (their outliers left out), or None.
     """
 
     chain: Chain
@@ -73,6 +83,8 @@ class MeasuredChain:
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
+    data: Measurements | None = None
+    held: Measurements | None = None
 
     @property
     def kind(self):
@@ -145,7 +157,16 @@ def measured_part(
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
     return MeasuredChain(
-        chain, train.source, joint, registered, state, stats, tuple(entries), compliance=compliance
+        chain,
+        train.source,
+        joint,
+        registered,
+        state,
+        stats,
+        tuple(entries),
+        compliance=compliance,
+        data=train,
+        held=held,
     )
 
 
@@ -204,7 +225,7 @@ def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = F
     tool = part.chain.tool_frame
     return {
         "measurement": pose_dict(inner.frame),
-        "measured": pose_dict(tool_pose(inner)) if inner.tool_rotation is not None else None,
+        "measured": pose_dict(tool_pose(inner)),
         "markers": dict(
             zip(
                 marker_link_names(tool, inner.n_markers),
@@ -237,6 +258,78 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
     return errors, ((part.chain, written_markers(inner)),), tool_pose(inner)
 
 
+def chain_lines(view: ChainView) -> list[str]:
+    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
+    held = view.validation
+    std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
+    return [
+        error_table(view.before, view.after, view.urdf_after, held),
+        f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
+        f"at the fitted configurations{std}",
+    ]
+
+
+def chain_report(
+    view: ChainView, fields: dict, world_link: str | None, on_robot: bool = False
+) -> tuple[dict, dict]:
+    """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
+
+    ``errors`` as :class:`~.residuals.ResidualStats` (position and orientation, mm and
+    degrees: ``train``, ``held_out`` and the one term's), ``frames`` by marker link,
+    ``fit`` (noise, condition, predicted std, weight), ``compliance`` (rigid: zero per joint)
+    and ``model`` with the MDH rows and the gravity beside the joint origins.
+
+    Args:
+        view: The result (shape ``chain``).
+        fields: The joint fit's format 3 fields (edited copy returned).
+        world_link: The ``world_link`` the URDF was written with (None: none).
+        on_robot: Whether the URDF was written with the instrument on the robot.
+    """
+    part, held = view.one_chain(), view.validation
+    urdf = view.after if view.urdf_after is None else view.urdf_after
+    train = {
+        "registration": view.before.in_mm(),
+        "calibrated": view.after.in_mm(),
+        "urdf": urdf.in_mm(),
+    }
+    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
+    out["errors"] = {
+        "train": train,
+        "held_out": None if held is None else held.in_mm(),
+        "terms": [{"train": train, "held_out": None if held is None else held.in_mm()}],
+    }
+    out["compliance"], model = chain_model(part, fields["model"])
+    nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
+    out["model"] = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **model}
+    std, weight = view.predicted_std, view.orientation_weight
+    out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
+    frames, data = out["frames"], view.data
+    legacy = {
+        "data": data.source,
+        "base_frame": part.chain.base_frame,
+        "tool_frame": part.chain.tool_frame,
+        "measure": data.measure,
+        "markers": list(frames["markers"].values()),
+        "marker_links": list(frames["markers"]),
+        "measured_frame": frames["measured"],
+        "world_link": world_link,
+        "configs": data.m,
+        "orientation_weight": weight,
+        "residuals": {"registration": view.before.to_dict(), "calibrated": view.after.to_dict(),
+                      "urdf": urdf.to_dict()},
+        "validation": None if held is None else held.to_dict(),
+        "selection": None if view.selection is None else view.selection.to_dict(),
+        "sigma": view.sigma,
+        "condition_number": view.condition,
+        "predicted_std": std,
+        "gravity": model["gravity"],
+        "measurement_to_base": frames["measurement"],
+        "mdh_nominal": nominal,
+        "mdh_calibrated": calibrated,
+    }  # fmt: skip
+    return out, legacy
+
+
 def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
     """The report's ``compliance`` (per joint; rigid: zero) and ``model`` with its gravity."""
     chain = part.chain
@@ -245,18 +338,56 @@ def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
     return compliance, {**model, "gravity": gravity_dict(chain)}
 
 
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The joint fit's solution, kept for its uncertainty (read only when asked for).
+
+    Attributes:
+        fit: The final fit (its model, start, x, weighted Jacobian and residuals).
+        prior: The prior weights it was fitted with, or None.
+    """
+
+    fit: Fit
+    prior: np.ndarray | None = None
+
+    def covariance(self) -> tuple[np.ndarray, float]:
+        """Covariance of x ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat [m] (``solve.covariance``)."""
+        return self._covariance
+
+    @cached_property
+    def _covariance(self) -> tuple[np.ndarray, float]:
+        f = self.fit.f
+        return covariance(self.fit.J, float(f @ f), self.prior)
+
+    def condition(self) -> float:
+        """Condition number of the weighted Jacobian with unit-norm columns."""
+        return condition(self.fit.J)
+
+    def point_std(self, data: Measurements, torque: np.ndarray | None = None) -> float:
+        """Predicted position std at one term's rows [m]: the covariance through its Jacobian.
+
+        RMS over the rows and markers (:func:`~.validation.predicted_std`); the fit of one
+        term. ``torque``: the gravity torques at the rows (fitted compliance), or None.
+        """
+        fit = self.fit
+        rows = ChainsData((data,), None if torque is None else (torque,))
+        J = fit.model.jacobian(fit.start, fit.x, rows)
+        return predicted_std(J, self.covariance()[0], data.n_markers)
+
+
 class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
     The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
     has them (shape ``chain``; other shapes raise
     :class:`~calib.exceptions.InvalidArgumentError`). Not here:
-    ``validation`` (the held-out errors are ``stats["held_out"]``), ``predicted_std`` and
-    ``covariance`` (the joint fit reports ``std`` only), ``model`` and ``prior`` (the
-    engine's parameters are joint placement components, not MDH rows).
+    ``model`` and ``prior`` (the engine's parameters are joint placement components, not MDH
+    rows; its solution is :attr:`solution`).
     """
 
     chains: tuple[Any, ...]
+    solution: Solution | None
+    selection: Any
     shape: str
     fitted: tuple[str, ...]
     solver: tuple[bool, str, int]
@@ -364,3 +495,107 @@ class ChainView:
         The tool frame, or ``<tool>_calibrated`` where the tool link is the last joint's.
         """
         return urdf_tool_frame(self.chain)
+
+    @property
+    def data(self) -> Measurements:
+        """The rows fitted (held-out rows and outliers left out)."""
+        return _rows(self.one_chain().data)
+
+    @property
+    def calibrated(self):
+        """The chain's calibrated MDH model (the URDF's base frame: see ``measurement_to_base``)."""
+        return self.state.mdh
+
+    @property
+    def before(self) -> ResidualStats:
+        """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
+        return _stats(self.chain, self.registration, self.data)
+
+    @property
+    def after(self) -> ResidualStats:
+        """Errors of the calibrated model on :attr:`data`."""
+        return _stats(self.chain, self.state, self.data)
+
+    @property
+    def urdf_after(self) -> ResidualStats | None:
+        """Errors of the URDF alone (compliance left out) on :attr:`data`, or None.
+
+        None without fitted compliance: the URDF alone is then :attr:`after`.
+        """
+        return _geometry(self.state, self.data)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of the fit's unknowns (the term's own, then ``fitted``) ``(p, p)``."""
+        return self._solution().covariance()[0]
+
+    @property
+    def sigma(self) -> float:
+        """Estimated noise of a weighted row sigma_hat = sqrt(RSS / (r - p)) [m]."""
+        return self._solution().covariance()[1]
+
+    @property
+    def condition(self) -> float:
+        """Condition number of the fit's weighted Jacobian with unit-norm columns."""
+        return self._solution().condition()
+
+    @cached_property
+    def predicted_std(self) -> float:
+        """Predicted position std at the fitted rows, RMS over them [m].
+
+        The fit's covariance through the point Jacobian at each row.
+        """
+        return self._solution().point_std(self.data, _torque(self.chain, self.state, self.data))
+
+    @cached_property
+    def validation(self) -> Validation | None:
+        """Errors on the held-out rows [m, rad], or None without held-out rows.
+
+        The registration's (the nominal robot registered on the fitted rows), the calibrated
+        model's, and the predicted position std there (the covariance through the Jacobian).
+        """
+        part = self.one_chain()
+        if part.held is None:
+            return None
+        held = part.held
+        return Validation(
+            part.held_source or held.source,
+            _stats(self.chain, self.registration, held),
+            _stats(self.chain, self.state, held),
+            self._solution().point_std(held, _torque(self.chain, self.state, held)),
+            _geometry(self.state, held),
+            held,
+        )
+
+    def _solution(self) -> Solution:
+        self.one_chain()
+        if self.solution is None:
+            raise InvalidArgumentError("this result keeps no solution (its uncertainty is unknown)")
+        return self.solution
+
+
+def _rows(data: Measurements | None) -> Measurements:
+    if data is None:
+        raise InvalidArgumentError("this result keeps no rows of its measured term")
+    return data
+
+
+def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
+    """Errors measured - model of a chain's state on rows [m, rad].
+
+    With fitted joint compliance, the joints deflect under the chain's gravity torques.
+    """
+    return ResidualStats.of(state.residuals(data, _torque(chain, state, data)), data.n_markers)
+
+
+def _torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
+    """The chain's gravity torques at the rows where the state has compliance, else None."""
+    return chain.gravity_torques(data.q) if np.any(state.compliance) else None
+
+
+def _geometry(state: State, data: Measurements) -> ResidualStats | None:
+    """Errors of the state without its compliance (the URDF alone), None without compliance."""
+    if not np.any(state.compliance):
+        return None
+    rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
+    return ResidualStats.of(rigid.residuals(data), data.n_markers)
