@@ -8,8 +8,8 @@ Run it on two trees alternately (the machine's load drifts):
     done; done
 
 One line per run [ms of process CPU time, medians]: the TIAGo session (37 postures, point 1,
-``auto``) whole and by stage (``checked_registration``, the final ``fit``, ``_choose`` and
-within it ``select`` and ``_generic_kept``, ``_assemble``), then point 1 ``complete``, the
+``auto``) whole and by the joint engine's stages (``registration``, ``selection``, ``fit``,
+``validation``: the result's ``timings_ms``, wall clock, medians), then point 1 ``complete``, the
 four points and the plate's pose (``auto``), the UR10 with ``holdout=0.25``, the TALOS
 left contact calibration (default, through ``calibrate``) and the TALOS hands as a tree (30
 simulated configurations of both hands, 0.05 mm of noise, ``holdout=0.25``: the README's
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -32,32 +31,18 @@ from common import cpu_median_ns  # noqa: E402 (the benchmarks' folder, not ROOT
 warnings.simplefilter("ignore")
 
 import calib  # noqa: E402
-import calib.calibration.pipeline as pipeline  # noqa: E402
 from calib import calibrate, load_chain, load_robot, read_measurements  # noqa: E402
 from calib.measurements.contact_campaign import read_contacts  # noqa: E402
 from calib.measurements.csvfile import Columns  # noqa: E402
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "realdata"
-STAGES = ("checked_registration", "fit", "_choose", "select", "_generic_kept", "_assemble")
+STAGES = ("registration", "selection", "fit", "validation")
+"""The joint engine's stages (its result's ``timings_ms``)."""
 
 
 def cpu_ms(fn, repeats: int) -> float:
     """Median process CPU time of ``fn()`` [ms], after one warm-up call."""
     return cpu_median_ns(fn, repeats) / 1e6
-
-
-def timed(name: str, spent: dict[str, list[int]]) -> None:
-    """Replace ``pipeline.<name>`` by a wrapper that records each call's CPU time."""
-    inner = getattr(pipeline, name)
-
-    def wrapper(*args, **kwargs):
-        t0 = time.process_time_ns()
-        try:
-            return inner(*args, **kwargs)
-        finally:
-            spent.setdefault(name, []).append(time.process_time_ns() - t0)
-
-    setattr(pipeline, name, wrapper)
 
 
 def main() -> None:
@@ -75,11 +60,14 @@ def main() -> None:
         "talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
     )
     seen = calib.simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
-    spent: dict[str, list[int]] = {}
-    for name in STAGES:
-        timed(name, spent)
-    whole = cpu_ms(lambda: calibrate(chain, one), 21)
-    stage = {n: sorted(t)[len(t) // 2] / 1e6 for n, t in spent.items()}
+    spent: dict[str, list[float]] = {}
+
+    def run():
+        for name, ms in calibrate(chain, one).timings_ms.items():
+            spent.setdefault(name, []).append(ms)
+
+    whole = cpu_ms(run, 21)
+    stage = {n: sorted(t)[len(t) // 2] for n, t in spent.items()}
     others = [
         cpu_ms(lambda: calibrate(chain, one, params="complete"), 11),
         cpu_ms(lambda: calibrate(chain, four), 5),

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import sys
+import warnings
 from collections.abc import Iterable, Sequence
 
 __all__ = [
@@ -18,7 +21,29 @@ __all__ = [
     "RobotNotFoundError",
     "URDFError",
     "UnsupportedJointError",
+    "warn_user",
 ]
+
+_PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def warn_user(message: str, category: type[Warning]) -> None:
+    """Warn at the first line outside calib: the user's call, not calib's own line.
+
+    What ``warnings.warn``'s ``skip_file_prefixes`` does from Python 3.12, for 3.11: the
+    warning's file and line (and the ``once``/``default`` filters' registry) are those of
+    the innermost caller that is not a module of this package.
+
+    Args:
+        message: The one-line warning.
+        category: Its class (``DataWarning``, ``RankWarning``).
+    """
+    frame = sys._getframe(1)
+    level = 2  # warnings.warn's stacklevel of this function's caller
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(_PACKAGE_DIR):
+        frame = frame.f_back
+        level += 1
+    warnings.warn(message, category, stacklevel=level)
 
 
 class CalibError(Exception):

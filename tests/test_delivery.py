@@ -189,13 +189,15 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
     doc = json.loads(comp.read_text())
     assert doc["joints"] == list(chain.joint_names)
     assert np.allclose(doc["compliance"][1:3], 1e-5, rtol=0.05)
-    whole, alone = report["validation"]["calibrated"], report["validation"]["urdf"]
-    assert whole["position_rms"] < 0.5 * alone["position_rms"]  # compliance matters here
+    errors = report["errors"]["held_out"]
+    assert errors["source"] == str(val)
+    whole, alone = errors["calibrated"], errors["urdf"]
+    assert whole["position_rms_mm"] < 0.5 * alone["position_rms_mm"]  # compliance matters here
     # Both figures are printed (mm, 3 decimals).
     for label, st in (("calibrated", whole), ("URDF alone (no compliance)", alone)):
         line = next(x for x in out.splitlines() if x.startswith(f"held out ({val}), {label}"))
         rms = float(line.split()[-2])
-        assert abs(rms - 1e3 * st["position_rms"]) < 6e-4
+        assert abs(rms - st["position_rms_mm"]) < 6e-4
 
     q, measured = held[:, : chain.n], held[:, chain.n :]
     # Independent of calib's model: Pinocchio's gravity torques of the nominal URDF (root -z)
@@ -213,7 +215,7 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
         expected.append((T @ P)[:3, 3])
     expected = np.array(expected)
     rms = np.sqrt(np.mean(np.sum((expected - measured) ** 2, axis=1)))
-    assert abs(rms - whole["position_rms"]) < 1e-9
+    assert abs(1e3 * rms - whole["position_rms_mm"]) < 1e-9
     for source in (comp, rep):  # the compliance file or the report
         model = load_calibrated(urdf, source)
         assert np.max(np.abs(model.points(q)[:, 0] - expected)) < 1e-9
@@ -263,9 +265,9 @@ def test_urdf_alone_worse_than_registration_is_written_with_its_compliance_and_a
         "--free", "c2", "c3", "--out", str(urdf), "--report", str(rep),
     )  # fmt: skip
     report = json.loads(rep.read_text())
-    res = report["residuals"]
-    assert res["urdf"]["position_rms"] > res["registration"]["position_rms"]
-    assert res["calibrated"]["position_rms"] < 1e-9  # the whole model is exact
+    res = report["errors"]["train"]
+    assert res["urdf"]["position_rms_mm"] > res["registration"]["position_rms_mm"]
+    assert res["calibrated"]["position_rms_mm"] < 1e-6  # the whole model is exact
     assert code == 0, err
     assert urdf.exists() and (tmp_path / "cal.compliance.json").exists()
     assert report["accepted"] is True
@@ -274,7 +276,7 @@ def test_urdf_alone_worse_than_registration_is_written_with_its_compliance_and_a
 
 
 def test_urdf_alone_warning_on_held_out_rows():
-    from calib.calibration.result import ResidualStats
+    from calib.calibration.residuals import ResidualStats
     from calib.calibration.validation import urdf_alone_warning
 
     def st(rms):
@@ -382,6 +384,7 @@ CHAIN_REPORT_KEYS = {
     "model_choice.cv_complete_mm", "model_choice.winner",
     *(f"outliers[].{k}" for k in ("term", "row", "kind", "error_mm", "median_mm")),
     "model.mdh_nominal", "model.mdh_calibrated", "model.gravity", "model.gravity.frame",
+    "model.joint_origins", "model.shared_joints",  # one engine: a chain's joint origins too
     "model.gravity.vector", *(f"model.mdh_{w}[].{k}" for w in ("nominal", "calibrated")
     for k in MDH),
     *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
@@ -432,6 +435,7 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     assert report["outliers"] and report["model_choice"] is not None
     assert report["errors"]["held_out"] is not None
     leaves = ("deprecated", "compliance", "frames.markers", "frames.contacts", "objects")
+    leaves += ("model.joint_origins",)  # joint -> pose (``frames.markers``: link -> point)
     assert format3_paths(report, leaves) == CHAIN_REPORT_KEYS
     assert report["format_version"] == "3"
     assert set(report["deprecated"]) == CHAIN_DEPRECATED
@@ -528,11 +532,13 @@ def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path, capsys):
     assert f"held out ({test}), URDF alone (no compliance)" in out
     model = load_calibrated(urdf, comp)
     e = np.linalg.norm(model.points(te.q)[:, 0] - te.points[:, 0], axis=1)
-    assert abs(np.sqrt(np.mean(e**2)) - res.validation.calibrated.position_rms) < 1e-9
-    assert abs(np.max(e) - res.validation.calibrated.position_max) < 1e-9
+    held = res.to_dict()["errors"]["held_out"]
+    assert held["source"] == te.source
+    assert abs(1e3 * np.sqrt(np.mean(e**2)) - held["calibrated"]["position_rms_mm"]) < 1e-9
+    assert abs(1e3 * np.max(e) - held["calibrated"]["position_max_mm"]) < 1e-9
     # The URDF alone, scored by Pinocchio from the world link: the printed "URDF alone" figure.
     rows = read_csv(test)
     names = list(chain.joint_names)
     P = PinURDF(urdf).placements(joint_rows(rows, names), "mocap", "wrist_ft_tool_link_marker1")
     e = np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)
-    assert abs(np.sqrt(np.mean(e**2)) - res.validation.urdf.position_rms) < 1e-9
+    assert abs(1e3 * np.sqrt(np.mean(e**2)) - held["urdf"]["position_rms_mm"]) < 1e-9

@@ -16,7 +16,16 @@ from pinref import instrument_points
 
 import calib
 import calib.calibration.entry as entry
-from calib import InvalidArgumentError, calibrate, load_chain, read_measurements
+from calib import (
+    InvalidArgumentError,
+    calibrate,
+    complete_parameters,
+    from_chain,
+    load_chain,
+    read_measurements,
+)
+from calib.calibration.model import State
+from calib.measurements.data import Measurements
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 
@@ -101,21 +110,55 @@ def test_noise_free_round_trip_is_exact(engine, tmp_path, robot, measure):
     assert rms_max_mm(got - truth.position[:, :3])[1] < 1e-6
 
 
+def offset_campaign(chain, m: int, seed: int, joint: int, error: float) -> Measurements:
+    """Noise-free rows of a robot whose only error is joint ``joint``'s offset [rad]."""
+    nominal = from_chain(chain)
+    pset = complete_parameters(nominal)
+    dx = np.zeros(len(pset))
+    dx[pset.names.index(f"theta{joint}")] = error
+    frame = np.eye(4)
+    frame[:3, 3] = (0.5, -0.2, 0.1)
+    state = State(pset.apply(nominal, dx), frame, np.array([[0.01, 0.02, 0.05]]), None,
+                  np.zeros(chain.n))  # fmt: skip
+    q = chain.random_configurations(m, seed)
+    points = state.predict(q)[0][:, 0]
+    return Measurements(chain.joint_names, q, points, source="theta2 only"), state
+
+
+def test_free_and_fix_name_the_charts_parameters(engine):
+    """``free theta2`` at ``frames`` fits that offset alone: the truth, to round-off; fixed
+    at ``offsets``, the offset is held (the others cannot carry it: 1e-4 m off)."""
+    chain = load_chain("ur5")
+    data, truth = offset_campaign(chain, 40, 3, 2, 2e-3)
+    q = chain.random_configurations(30, 8)
+    expected = truth.predict(q)[0][:, 0]
+    for name in ("theta2", "shoulder_lift_joint:theta2"):
+        res = calibrate(chain, data, params="frames", free=(name,)).check()
+        assert res.fitted == ("shoulder_lift_joint:theta2",)  # beside the frame, marker
+        assert np.max(np.abs(res.points(q)[:, 0] - expected)) < 1e-9
+    assert np.max(np.abs(calibrate(chain, data, params="frames").points(q)[:, 0] - expected)) > 1e-4
+    free = calibrate(chain, data, params="offsets")
+    assert "shoulder_lift_joint:rz" in free.names
+    assert np.max(np.abs(free.points(q)[:, 0] - expected)) < 1e-9
+    held = calibrate(chain, data, params="offsets", fix=("theta2",))
+    assert set(held.names) == set(free.names) - {"shoulder_lift_joint:rz"}
+    assert np.max(np.abs(held.points(q)[:, 0] - expected)) > 1e-5
+
+
 @pytest.mark.parametrize(
-    "option",
+    ("option", "words"),
     [
-        {"params": "paper"},
-        {"fix": ("theta2",)},
-        {"free": ("d3",)},
-        {"elastic": True},
-        {"loss": "soft_l1"},
-        {"noise_mm": 0.1},
+        ({"fix": ("nope",)}, "unknown parameter 'nope'"),
+        ({"fix": ("frame",)}, "fix frame: the joint engine always fits"),
+        ({"free": ("d1",)}, "free d1 cannot be fitted: the measurement frame"),
     ],
 )
-def test_options_the_engine_route_lacks_are_refused(engine, tiago, option):
-    chain, train, _ = tiago
-    with pytest.raises(InvalidArgumentError, match="joint engine's chain route does not take"):
-        calibrate(chain, train, **option)
+def test_bad_fix_and_free_are_one_line_errors(engine, option, words):
+    chain = load_chain("ur5")
+    data, _ = offset_campaign(chain, 40, 3, 2, 2e-3)
+    with pytest.raises(InvalidArgumentError, match=words) as info:
+        calibrate(chain, data, **option)
+    assert "\n" not in str(info.value)
 
 
 def test_the_marker_guess_starts_the_measured_terms_registration(
@@ -164,3 +207,35 @@ def test_a_marker_guess_without_a_measured_term_is_refused():
     touches = calib.simulate_contacts(chain, 12, "plane", seed=0).data
     with pytest.raises(InvalidArgumentError, match="marker is for measured terms"):
         calib.calibrate_contact_chains([chain], [touches], marker=(0.0, 0.0, 0.1))
+
+
+def test_the_noise_reaches_the_outlier_rule(engine):
+    """A row 20 mm off: an outlier for 0.05 mm of noise, not for 5 mm (the rule's bar is
+    6 x the noise when given: 30 mm), as the chain pipeline's rule says."""
+    chain = load_chain("ur5")
+    marker = (0.01, 0.02, 0.05)
+    data = calib.simulate(chain, 40, "position", marker, noise_mm=0.05, seed=5).measurements
+    position = data.position.copy()
+    position[7, 0] += 0.02
+    bad = dataclasses.replace(data, position=position)
+    rows = {
+        noise: [o.row for o in calibrate(chain, bad, marker=marker, noise_mm=noise).outliers]
+        for noise in (0.05, 5.0)
+    }
+    assert rows == {0.05: [8], 5.0: []}
+
+
+def test_complete_with_a_parameter_named_fits_the_charts_directions(engine):
+    """At ``complete``: free d3 keeps the fit exact on noise-free rows (the truth to 1e-9 m),
+    fix d3 holds the true robot's d3 error out of it (0.1 mm off at least)."""
+    chain = load_chain("ur5")
+    marker = (0.01, 0.02, 0.05)
+    data = calib.simulate(chain, 60, "position", marker, noise_mm=0.0, seed=5).measurements
+    q = chain.random_configurations(30, 8)
+    truth = calib.simulate(chain, q, "position", marker, seed=5).measurements.position
+    free = calibrate(chain, data, params="complete", marker=marker, free=("d3",)).check()
+    assert "elbow_joint:d3" in free.names
+    assert np.max(np.abs(free.points(q)[:, 0] - truth)) < 1e-9
+    held = calibrate(chain, data, params="complete", marker=marker, fix=("d3",)).check()
+    assert "elbow_joint:d3" not in held.names
+    assert np.max(np.abs(held.points(q)[:, 0] - truth)) > 1e-4

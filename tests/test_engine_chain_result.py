@@ -124,22 +124,23 @@ def test_residual_stats_on_measured_held_out_rows(engine, tmp_path):
     assert stats.position_max == pytest.approx(norms.max(), rel=1e-9)
 
 
-def test_world_link_is_for_one_chain_and_on_robot_is_refused(engine, ur5_fit):
-    """A tree refuses world_link and measurement_to_base in one line; every shape on_robot.
-
-    on_robot moves the base frame's fixed joint: it means something only for a chain that
-    runs through it (a head camera measuring the arm), which the engine route does not fit.
-    """
+def test_world_link_and_on_robot_are_for_one_chain(engine, ur5_fit):
+    """A tree refuses world_link, on_robot and measurement_to_base in one line; a chain
+    refuses on_robot with world_link, and on_robot where it hangs from its base frame
+    (UR5's base_link, fixed to world: moving that joint moves the whole arm; a head camera
+    measuring the arm is written: tests/test_on_robot.py)."""
     tree = calib.load_robot("talos", tool=["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
     data = calib.simulate_tree(tree, 20, seed=2, error_mm=0.0, error_mrad=0.0).measurements
     result = calibrate(tree, data)
     assert result.shape == "tree"
     for call in (result.urdf, result.to_dict):
-        with pytest.raises(InvalidArgumentError, match="world_link is for one chain measured"):
-            call(world_link="w")
-        for fitted in (result, ur5_fit[1]):
-            with pytest.raises(InvalidArgumentError, match="on_robot: the joint engine"):
-                getattr(fitted, call.__name__)(on_robot=True)
+        for option, value in (("world_link", "w"), ("on_robot", True)):
+            with pytest.raises(InvalidArgumentError, match=f"{option} is for one chain measured"):
+                call(**{option: value})
+        with pytest.raises(InvalidArgumentError, match="on the robot or in the world"):
+            getattr(ur5_fit[1], call.__name__)(world_link="w", on_robot=True)
+    with pytest.raises(calib.CalibError, match="on_robot: the chain hangs from the base frame"):
+        ur5_fit[1].urdf(on_robot=True)
     with pytest.raises(InvalidArgumentError, match="a chain measured by an instrument"):
         result.measurement_to_base  # noqa: B018
 

@@ -99,3 +99,25 @@ def test_jacobian_matches_central_differences(name):
     h = 1e-6
     num = np.stack([(pixels(e) - pixels(-e)) / (2 * h) for e in h * np.eye(J.shape[2])], axis=2)
     assert np.max(np.abs(J - num)) < 1e-6 * np.max(np.abs(num))
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("cam", 5, "lens"), "link must be a non-empty text"),
+        (("", "world", "lens"), "name must be a non-empty text"),
+        (("cam", "world", None), "intrinsics must be read with calib.read_intrinsics"),
+        (("cam", "world", "lens", np.eye(3)), "placement must be a rigid transform"),
+        (("cam", "world", "lens", 2 * np.eye(4)), "placement must be a rigid transform"),
+    ],
+)
+def test_a_camera_that_cannot_be_one_is_refused_where_it_is_made(args, message):
+    """PixelCamera("cam", 5, None) was accepted and failed later, deep in the fit."""
+    from pixel_setups import INTRINSICS
+
+    import calib
+
+    args = tuple(INTRINSICS if isinstance(a, str) and a == "lens" else a for a in args)
+    with pytest.raises(calib.InvalidArgumentError, match=message):
+        calib.PixelCamera(*args)
+    calib.PixelCamera("cam", "world", INTRINSICS, np.eye(4))  # a good one is accepted

@@ -19,7 +19,6 @@ from calib.calibration.contact_term import split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.calibration.selection import OUTER_FOLDS, RICH, STRENGTHS, select
 from calib.calibration.validation import split
-from calib.kinematics.urdf_export import write_calibrated_urdf
 from calib.measurements.contact_campaign import simulate_contacts
 from calib.measurements.postures import posture_groups
 
@@ -151,8 +150,8 @@ def test_noise_free_round_trip_with_default_options(tmp_path):
     camp = simulate(chain, 100, "position", seed=0)
     res = calibrate(chain, camp.measurements).check()
     path = tmp_path / "ur5_cal.urdf"
-    write_calibrated_urdf(path, chain, res.nominal, res.calibrated)
-    model = pin.buildModelFromUrdf(str(path))
+    res.write_urdf(path)  # the result's URDF: its base frame in the instrument's is
+    model = pin.buildModelFromUrdf(str(path))  # measurement_to_base
     dmodel = model.createData()
     frame = model.getFrameId(chain.tool_frame)
     base = model.getFrameId(chain.base_frame)

@@ -201,17 +201,18 @@ def test_tiago_report_names_each_rows_joint_as_calib_show(tmp_path, capsys):
     )  # fmt: skip
     assert code == 0
     printed = capsys.readouterr().out  # the printed table names the joint too
-    assert re.search(r"theta6 arm_5_joint\s+=", printed), printed
+    assert re.search(r"arm_5_joint:theta6\s+=", printed), printed
     assert main(["show", urdf, *frames, "--json"]) == 0
     shown = json.loads(capsys.readouterr().out)["frames"]
     params = json.loads(report.read_text())["parameters"]
-    rows = [p for p in params if re.fullmatch(r"[a-z]+\d+", p["name"])]
+    # The joint engine names an MDH row's direction <joint>:<parameter><row>.
+    rows = [(p, re.fullmatch(r"(\w+):[a-z]+(\d+)", p["name"])) for p in params]
+    rows = [(p, m) for p, m in rows if m is not None]
     assert rows
-    for p in rows:
-        k = int(re.search(r"\d+$", p["name"]).group())
-        assert p["joint"] == shown[k]["joint"], p
-    names = {p["name"]: p["joint"] for p in rows}
-    assert names.get("theta6") == "arm_5_joint"
+    for p, m in rows:
+        assert p["joint"] == shown[int(m.group(2))]["joint"] == m.group(1), p
+    names = {p["name"]: p["joint"] for p, _ in rows}
+    assert names.get("arm_5_joint:theta6") == "arm_5_joint"
 
 
 def test_values_and_units_match_the_calibrated_model(reports):

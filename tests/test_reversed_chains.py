@@ -420,7 +420,7 @@ def test_cli_simulate_calibrate_design_from_the_foot(tmp_path):
     )
     assert code == 0 and out.is_file()
     doc = json.loads(report.read_text())
-    assert doc["accepted"] and doc["base_frame"] == "left_sole_link"
+    assert doc["accepted"] and doc["terms"][0]["base"] == "left_sole_link"  # format 3
     configs = tmp_path / "d.csv"
     code = main(
         [

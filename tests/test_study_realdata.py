@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from calib import Columns, calibrate, load_chain, read_measurements
+from calib.calibration.contact_chains_model import ChainsData
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::calib.DataWarning")]
 
@@ -55,13 +56,28 @@ def test_most_validation_postures_improve(tiago):
 
 
 def test_predicted_std_is_the_covariance_through_the_jacobian(tiago):
-    chain, _, test, auto, _ = tiago
+    _, _, test, auto, _ = tiago
     assert 0 < auto.predicted_std < auto.after.position_rms
     assert auto.validation.predicted_std < auto.validation.calibrated.position_rms
-    torque = chain.gravity_torques(test.q)
-    J = auto.model.jacobian(auto.registration, auto.estimate, test, torque)[:, :3]
-    std = np.sqrt(np.einsum("mrp,pq,mrq->m", J, auto.covariance, J))
-    assert np.isclose(np.sqrt(np.mean(std**2)), auto.validation.predicted_std, rtol=1e-9)
+    fit = auto.solution.fit  # the joint fit's unknowns x: the term's own, then placements
+
+    def jacobian(rows):  # of the points, by central differences of the fit's residuals
+        def points(x):
+            return fit.model.apply(fit.start, x).residuals(ChainsData((rows,)))[:, :3]
+
+        h = 1e-7
+        steps = h * np.eye(fit.x.size)
+        return np.stack([(points(fit.x + e) - points(fit.x - e)) / (2 * h) for e in steps], 2)
+
+    J = jacobian(auto.data).reshape(-1, fit.x.size)  # position rows only: weight 1
+    rss = float(np.sum(fit.model.apply(fit.start, fit.x).residuals(ChainsData((auto.data,))) ** 2))
+    prior = np.zeros(fit.x.size) if auto.solution.prior is None else auto.solution.prior
+    cov = rss / (J.shape[0] - J.shape[1]) * np.linalg.inv(J.T @ J + np.diag(prior**2))
+    assert np.allclose(cov, auto.covariance, rtol=1e-5, atol=1e-6 * np.abs(cov).max())
+    for rows, std in ((auto.data, auto.predicted_std), (test, auto.validation.predicted_std)):
+        Jp = jacobian(rows)
+        var = np.einsum("mrp,pq,mrq->m", Jp, cov, Jp)
+        assert np.isclose(np.sqrt(np.mean(var)), std, rtol=1e-5)
 
 
 def test_plate_pose_beats_its_registration_in_orientation(tiago):

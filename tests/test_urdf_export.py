@@ -106,19 +106,25 @@ def test_calibrated_urdf_of_a_calibration_predicts_the_true_robot(tmp_path):
     campaign = simulate(chain, configs=50, measure="position", marker=marker, seed=2)
     res = calibrate(chain, campaign.measurements, marker=marker, params="complete")
     fitted = res.state.markers[0]  # the fitted marker, in the calibrated tool frame
-    path = tmp_path / "panda_cal.urdf"
-    write_calibrated_urdf(path, chain, res.nominal, res.calibrated)
     q = chain.random_configurations(100, 77)
     true_points = campaign.truth.true_mdh.forward(q)
     true_points = true_points[:, :3, :3] @ marker + true_points[:, :3, 3]
-    T = res.measurement_to_base
-    for placements in (
-        pin_tool_placements(path, chain, q),
-        yourdfpy_tool_placements(path, chain, q),
-    ):
-        world = T @ placements
-        points = world[:, :3, :3] @ fitted + world[:, :3, 3]
-        assert np.abs(points - true_points).max() < 1e-9
+    # The result's URDF (the joint origins moved, the base kept: measurement_to_base is the
+    # base frame in the instrument's), and the MDH writer's from the calibrated MDH model
+    # (joint 1's nominal placement kept: the change of rows 0 and 1 joins the frame).
+    written, mdh = tmp_path / "panda_cal.urdf", tmp_path / "panda_mdh.urdf"
+    res.write_urdf(written)
+    write_calibrated_urdf(mdh, chain, res.nominal, res.calibrated)
+    frame = res.measurement_to_base
+    moved = frame @ measurement_to_base(res.nominal, res.calibrated)
+    for path, T in ((written, frame), (mdh, moved)):
+        for placements in (
+            pin_tool_placements(path, chain, q),
+            yourdfpy_tool_placements(path, chain, q),
+        ):
+            world = T @ placements
+            points = world[:, :3, :3] @ fitted + world[:, :3, 3]
+            assert np.abs(points - true_points).max() < 1e-9
 
 
 def _parse(path_or_bytes) -> ET.Element:

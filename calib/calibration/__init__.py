@@ -27,8 +27,8 @@ _LAZY = {
     "Term": "problem",
     "residual_stats": "pipeline",
     "CalibrationResult": "result",
-    "ResidualStats": "result",
-    "Validation": "result",
+    "ResidualStats": "residuals",
+    "Validation": "residuals",
     "Selection": "selection",
     "Step": "selection",
 }
@@ -44,7 +44,8 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .outliers import Outlier
     from .pipeline import residual_stats
     from .problem import Problem, Term
-    from .result import CalibrationResult, ResidualStats, Validation
+    from .residuals import ResidualStats, Validation
+    from .result import CalibrationResult
     from .selection import Selection, Step
 
 

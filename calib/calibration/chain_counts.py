@@ -32,7 +32,7 @@ from ..measurements.data import Measurements
 from ..measurements.postures import count, posture_groups, sample_postures
 from . import determined
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .solve import condition, covariance
+from .solve import covariance
 
 __all__ = ["GENERIC_EXCESS", "Generic", "assess", "chain_name", "sampled"]
 
@@ -80,18 +80,20 @@ class Generic:
         """One chain (the counts and checks of a chain's, :mod:`.determined`)."""
         return len(self.start.chains) == 1
 
-    def rows(self, q: np.ndarray | None = None, size: int = 0) -> ChainsData:
+    def rows(self, q: np.ndarray | None = None, size: int = 0, elastic=False) -> ChainsData:
         """Rows of each term's kind at ``q`` (one chain's or the tree's joints).
 
         ``q`` None: drawn (seeded), enough for ``GENERIC_EXCESS`` equations per unknown of
-        ``size`` (at most :data:`~calib.core.choices.DEFAULT_CONFIGS`).
+        ``size`` (at most :data:`~calib.core.choices.DEFAULT_CONFIGS`). ``elastic``: one
+        chain's compliances are fitted (its gravity torques at ``q`` given).
         """
         chains = self.start.chains
         per = sum(d.kind.rows_of(d.n_markers) for d in self.train)
         m = min(DEFAULT_CONFIGS, max(1, -(-GENERIC_EXCESS * size // per)))
         if self.one:  # its own joints (a chain whose base is not above its tool is no tree)
             q = chains[0].random_configurations(m, self.seed) if q is None else q
-            return ChainsData((rows_like(self.train[0], chains[0].joint_names, q),))
+            torques = (chains[0].gravity_torques(q),) if elastic else None
+            return ChainsData((rows_like(self.train[0], chains[0].joint_names, q),), torques)
         tree = tree_of_chains(chains[0].name, chains[0].urdf_path, tuple(chains))
         q = tree.random_configurations(m, self.seed) if q is None else q
         pairs = zip(chains, self.train, tree.paths, strict=True)
@@ -99,8 +101,9 @@ class Generic:
 
     def columns(self, wide: ChainsModel) -> list[int]:
         """The columns of ``wide`` generic configurations determine (in column order)."""
-        size = wide.size()
-        J = wide.jacobian(self.start, np.zeros(size), self.rows(None, size)).reshape(-1, size)
+        size, elastic = wide.size(), bool(wide.compliance)
+        rows = self.rows(None, size, elastic)
+        J = wide.jacobian(self.start, np.zeros(size), rows).reshape(-1, size)
         return sorted(independent_columns(J, list(range(J.shape[1])))[2])
 
     def check(self, wide, kept, generic, flush, level: str) -> None:
@@ -211,32 +214,28 @@ class Generic:
         q = chain.random_configurations(DEFAULT_CONFIGS, self.seed)
 
         def jacobian_at(q: np.ndarray) -> np.ndarray:
-            return fitted.model.jacobian(fitted.start, fitted.x, self.rows(q))
+            rows = self.rows(q, elastic=bool(fitted.model.compliance))
+            return fitted.model.jacobian(fitted.start, fitted.x, rows)
 
         where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
         return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)
 
 
-def assess(generic: Generic | None, fitted, prior, polished: bool) -> tuple[str | None, dict]:
-    """One chain's refusal for unknowns its rows cannot separate, and its fit's figures.
+def assess(generic: Generic | None, fitted, prior, polished: bool) -> str | None:
+    """One chain's refusal for unknowns its rows cannot separate (:meth:`Generic.ill_posed`).
 
     Args:
-        generic: The terms measured by an instrument, or None (no figures).
+        generic: The terms measured by an instrument, or None (not assessed).
         fitted: The joint fit.
         prior: Its prior weights, or None.
         polished: The fit was polished (every component: not assessed).
-
-    Returns:
-        The refusal (:meth:`Generic.ill_posed`) or None, and the result's ``condition`` (of
-        the fit's Jacobian, unit-norm columns) and ``sigma`` (sqrt(RSS / (r - p)) [m]).
     """
     if generic is None or polished or not generic.one:
-        return None, {}
-    cov, sigma = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
+        return None
+    cov = covariance(fitted.J, float(fitted.f @ fitted.f), prior)[0]
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))
-    figures = {"condition": condition(fitted.J), "sigma": sigma}
-    return generic.ill_posed(fitted, std), figures
+    return generic.ill_posed(fitted, std)
 
 
 def sampled(data: ChainsData, keep: np.ndarray | None) -> ChainsData:

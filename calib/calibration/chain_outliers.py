@@ -50,7 +50,9 @@ def fit_until_stable(
         return first if keep.all() else fit(train.subset(keep))
 
     def errors(result: ContactChainsCalibration):
-        return point_errors(result.state.residuals(train), train.n_markers)
+        state = result.state  # with fitted compliance: deflected by the rows' gravity torques
+        torque = result.chain.gravity_torques(train.q) if np.any(state.compliance) else None
+        return point_errors(state.residuals(train, torque), train.n_markers)
 
     opts = Options(orientation_weight=first.orientation_weight, noise_mm=noise_mm)
     start = proposals(first.nominal, first.registration, train, opts)

@@ -55,6 +55,7 @@ from .contact_chains_result import (
     ChainContacts,
     ContactChainsCalibration,
     MeasuredChain,
+    Solution,
     measured_part,
 )
 from .contact_checks import held_out_refusal, subset
@@ -71,6 +72,7 @@ from .contact_term import (
     split_contacts,
 )
 from .instrument import instrument_groups, shared_frame
+from .measured_options import compliance_torques, level_offer
 from .measured_term import (
     MeasuredState,
     check_measured,
@@ -78,7 +80,7 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
-from .options import check_run_options, checked_arguments
+from .options import Options, check_run_options, checked_arguments
 from .outliers import Outlier
 from .pixel_chain import (
     PixelData,
@@ -161,13 +163,14 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(chains, train, validate, guess, weight, held, notes: list[str], iterations, shared):
+def _checked(chains, train, validate, guess, weight, held, notes, iterations, shared, noise=None):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
     the touches kept must determine the chain's objects and contact frame.
 
-    ``guess``: the contact frame's guess and the measured terms' marker guess (or None).
+    ``guess``: the contact frame's guess and the measured terms' marker guess (or None);
+    ``noise``: the measured terms' instrument noise [mm] (or None).
     The held-out touches' outliers are set aside too (``held[c]`` replaced), and a chain
     the contact leaves finitely many postures is noted. A measured term's rows are checked
     as a single chain's (:func:`checked_measured`), its
@@ -190,7 +193,7 @@ def _checked(chains, train, validate, guess, weight, held, notes: list[str], ite
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
             determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
             state, bad, found, more, held[c] = checked_measured(
-                chain, d, v, held[c], weight, iterations, guess[1]
+                chain, d, v, held[c], weight, iterations, guess[1], noise
             )
             state = dataclasses.replace(state, instrument=shared)
         if isinstance(d, Measurements | PixelPart):
@@ -321,6 +324,7 @@ def calibrate_contact_chains(
     elastic: bool | None = None,
     support: Support | None = None,
     marker=None,
+    options: Options | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
 
@@ -363,6 +367,8 @@ def calibrate_contact_chains(
             (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
         marker: Guess of each measured term's markers in its tool frame [m]: one point
             for all or one per marker (default: zeros), the registration's start.
+        options: One measured chain's :class:`~.options.Options` (``noise_mm``, ``loss``,
+            ``fix``/``free``, ``elastic``: :mod:`.measured_options`); None: the defaults.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -372,6 +378,7 @@ def calibrate_contact_chains(
         DataError: Touches that do not belong to their chain or determine too little.
     """
     level = "auto" if params is None else params
+    opts = Options() if options is None else options
     check_run_options(max_iterations, holdout, seed)
     _check(chains, data, validate, level, holdout, instrument)
     load = contact_elastic.term_load(chains, data, elastic, support)
@@ -397,32 +404,32 @@ def calibrate_contact_chains(
     notes: list[str] = []
     diagnosed = None if held_label == "holdout" else validate  # a holdout: with its data's
     train, dropped, measured = _checked(
-        chains, train, diagnosed, (guess, marker), w, held, notes, max_iterations, instrument
-    )
-    torques = contact_elastic.torques(load, train[0], held[0])
+        chains, train, diagnosed, (guess, marker), w, held, notes, max_iterations, instrument,
+        opts.noise_mm,
+    )  # fmt: skip
     notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
-    comp = () if load is None else tuple(range(chains[0].n))
+    torques, comp = compliance_torques(chains, train, held, options, load)
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
         start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: selection"):
+        asked, offer = level_offer(chains[0], start, level, instrument, options)
         flush = flush_data(start, train, load)
-        tree = instrument and len(chains) > 1  # one chain: its level's MDH directions
-        offer = "components" if tree and level == "complete" else level
-        rows = ChainsData(tuple(train), None if load is None else torques[:1])
+        rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
+        flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
         generic = Generic(start, tuple(train), seed) if instrument else None
         kept: list[int] = []
         model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
-                                            generic, kept)  # fmt: skip
+                                            asked, generic, kept)  # fmt: skip
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
-        one = instrument and not tree  # one chain: its MDH directions span what it sees
+        one = instrument and len(chains) == 1  # its MDH directions span what it sees
         identifiable = len(kept) if one else model.size() if offer == "components" else len(
             structural(wide, start, flush))  # fmt: skip
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations)
+        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations, opts)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -450,10 +457,11 @@ def calibrate_contact_chains(
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     values = fitted_values(fitted, kept_prior)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
-    ill, figures = assess(generic, fitted, kept_prior, polished)
-    refusal = result.refusal or rank or ill
-    return dataclasses.replace(result, chains=parts, params=level, identifiable=identifiable,
-                               refusal=refusal, **values, **figures)  # fmt: skip
+    refusal = result.refusal or rank or assess(generic, fitted, kept_prior, polished)
+    return dataclasses.replace(
+        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal,
+        solution=Solution(fitted, kept_prior), **values,
+    )  # fmt: skip
 
 
 PIN = 1e-6
@@ -468,7 +476,7 @@ ROUND_OFF = 1e-12
 
 
 def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
-         level, iters):  # fmt: skip
+         level, iters, opts: Options):  # fmt: skip
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -486,7 +494,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     selection, a prior), ``offsets`` and ``components`` (every component offered) are not
     polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
     components would only wander), and a polish that wanders to no robot (its chain models
-    refused) is dropped. A kept polish is finished on the data rows alone
+    refused) is dropped; a robust loss (``opts.loss``, scale ``opts.noise_mm``) is not
+    polished. A kept polish is finished on the data rows alone
     (:func:`~.solve.gauss_newton_finish`): its pull ``PIN`` leaves a residue (TALOS's head
     camera with both arms' touches: 1.8e-9 px, 4e-12 px finished).
 
@@ -497,11 +506,13 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     if blocky(model, start):
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
-        fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters)
+        fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters,
+                     loss=opts.loss, scale=opts.noise or 1e-3)  # fmt: skip
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     alone = start.states[0] if len(start.states) == 1 else None  # one chain: not polished
     one_chain = isinstance(alone, ContactState) or getattr(alone, "instrument", False)
-    if level != "complete" or not model.free or rows < wide.size() or one_chain:
+    polish = level == "complete" and model.free and opts.loss == "linear" and not opts.fix
+    if not polish or rows < wide.size() or one_chain:
         return fitted, False
     cost = float(fitted.f @ fitted.f)
     if not fitted.converged or cost <= ROUND_OFF**2 * fitted.f.size:
@@ -535,7 +546,7 @@ def _assemble(
             part = (
                 pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
                 if isinstance(s, PixelTermState)
-                else measured_part(chain, d, h, s0, s, std, c + 1)
+                else measured_part(chain, d, h, s0, s, std, c + 1, elastic[1], notes)
             )
             if h is not None:
                 refusal = refusal or held_out_refusal(part.stats, chain, "errors")

@@ -41,7 +41,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactModel, ContactState
-from .measured_term import MeasuredKind, MeasuredState, measured_columns
+from .measured_term import MeasuredKind, MeasuredState, measured_columns, motion_rows
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import COMPONENTS, JointFrames, Placements, joint_twists
@@ -50,6 +50,7 @@ __all__ = [
     "ChainsData",
     "ChainsModel",
     "ChainsState",
+    "joint_motions",
     "joint_rows",
     "on_models",
     "padded",
@@ -109,6 +110,8 @@ def _joints(part) -> np.ndarray:
 def _seen_joints(state, part, torque) -> np.ndarray:
     """A chain's joint positions the geometry sees (a compliant chain's deflected)."""
     q = _joints(part)
+    if isinstance(state, MeasuredState):
+        return state.inner.joints(q, torque)
     return state.joints(q, torque) if isinstance(state, ContactState) else q
 
 
@@ -126,18 +129,50 @@ def _gap_rows(s: ContactState, d: ContactData, kin, lin: np.ndarray, ang: np.nda
     return s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc) * s.row_weights()[None, :, None]
 
 
-def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
-    """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``.
+def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The tool side's motion per unit motion of a chain's joints ``joints``.
 
     Joint j's motion is a turn about (a slide along) the z axis of its frame in ``kin``,
     signed by the chain's direction through it (``path``: the chain's
     :class:`~.placements.ChainPath`).
+
+    Returns:
+        The velocity of the base frame's origin moving with the tool side ``(m, 3, k)`` and
+        the angular velocity ``(m, 3, k)``.
     """
     z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
     slide = np.asarray(path.prismatic)[joints][None, :, None]
     ang = np.where(slide, 0.0, z)
     lin = np.where(slide, z, np.cross(kin.p[:, joints], ang))
-    return _gap_rows(s, d, kin, np.swapaxes(lin, 1, 2), np.swapaxes(ang, 1, 2))
+    return np.swapaxes(lin, 1, 2), np.swapaxes(ang, 1, 2)
+
+
+def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
+    """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``."""
+    return _gap_rows(s, d, kin, *joint_motions(path, kin, joints))
+
+
+def _deflection(s) -> np.ndarray:
+    """A chain state's joint compliance (zeros: rigid)."""
+    c = s.inner.compliance if isinstance(s, MeasuredState) else getattr(s, "compliance", None)
+    return np.zeros(0) if c is None or not np.any(c) else np.asarray(c)
+
+
+def _compliant(s, joints: list[int], dc: np.ndarray):
+    """A chain's state with the compliances of ``joints`` moved by ``dc``.
+
+    Raises:
+        InvalidArgumentError: Neither a chain touching nor a measured chain.
+    """
+    if isinstance(s, MeasuredState):
+        c = np.array(s.inner.compliance, dtype=float)
+        c[joints] += dc
+        return dataclasses.replace(s, inner=dataclasses.replace(s.inner, compliance=c))
+    if not isinstance(s, ContactState):
+        raise InvalidArgumentError("joint compliance is fitted for a chain touching or measured")
+    c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
+    c[joints] += dc
+    return dataclasses.replace(s, compliance=c)
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,8 +216,18 @@ class ChainsState:
         return self.kinematics(data, torque)
 
     def same_geometry(self, other) -> bool:
-        """Whether ``other``'s kinematics at the same data are this state's."""
-        return isinstance(other, ChainsState) and other.placements is self.placements
+        """Whether ``other``'s kinematics at the same data are this state's.
+
+        The same placements and the same compliances (they deflect the joints).
+        """
+        return (
+            isinstance(other, ChainsState)
+            and other.placements is self.placements
+            and all(
+                np.array_equal(_deflection(a), _deflection(b))
+                for a, b in zip(self.states, other.states, strict=True)
+            )
+        )
 
     def settled(self) -> ChainsState:
         """The same robot with its errors composed into its model and the MDH models remade.
@@ -347,12 +392,7 @@ class ChainsModel:
             for c, s in enumerate(start.states)
         )
         if self.compliance:  # the first chain's joints deflect: q' = q + c tau
-            s = states[0]
-            if not isinstance(s, ContactState):
-                raise InvalidArgumentError("joint compliance is fitted for a chain touching")
-            c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
-            c[list(self.compliance)] += x[end:]
-            states = (dataclasses.replace(s, compliance=c), *states[1:])
+            states = (_compliant(states[0], list(self.compliance), x[end:]), *states[1:])
         return dataclasses.replace(start, placements=placements, states=states)
 
     def jacobian(
@@ -368,13 +408,12 @@ class ChainsModel:
         if kin is None:
             kin = state.kinematics(data, torque)
         rows = row_count(self.chain_kinds())
-        blocks = [
-            padded(
-                start.scale(c) * self._block(start, state, x, c, d, kin[c], data.torque(c)), rows
-            )
-            for c, d in enumerate(data.parts)
-        ]
-        return np.concatenate(blocks)
+        blocks = []
+        for c, d in enumerate(data.parts):
+            block = self._block(start, state, x, c, d, kin[c], data.torque(c))
+            block *= start.scale(c)  # in place: a fresh array
+            blocks.append(padded(block, rows))
+        return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)  # one term: no copy
 
     def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
         """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
@@ -433,10 +472,16 @@ class ChainsModel:
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
             J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin)
+            robot = self.fixed + len(self.free)
             if self.free:
-                J[:, :, self.fixed :] = measured_columns(
+                J[:, :, self.fixed : robot] = measured_columns(
                     state.placements, state.chains[c], s, kin, d, self._lift()
                 )
+            if self.compliance and c == 0:  # d/dc_j = tau_j d/dq_j
+                path = state.placements.path(state.chains[c])
+                motions = joint_motions(path, kin, list(self.compliance))
+                gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]
+                J[:, :, robot:] = motion_rows(s, kin, d, *motions) * gain
             return J
         own, shared, index = self._contact_parts(start, state, x, c, d, kin, torque)
         o, k = own.shape[2], con.stop - con.start

@@ -25,11 +25,14 @@ from .contact_result import GapStats, gap_rows, term_errors
 from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
+from .measured_options import chain_compliance_document
 from .measured_view import (
     ChainView,
     MeasuredChain,
-    chain_frames,
-    chain_model,
+    Solution,
+    chain_lines,
+    chain_report,
+    chain_writing,
     measured_part,
     world_of,
 )
@@ -54,6 +57,7 @@ __all__ = [
     "ChainContacts",
     "ContactChainsCalibration",
     "MeasuredChain",
+    "Solution",
     "measured_part",
 ]
 
@@ -183,9 +187,6 @@ class ContactChainsCalibration(Delivered, ChainView):
             directions kept (``free``).
         shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
             instrument (:mod:`.instrument`).
-        condition: One chain measured by an instrument: the condition number of the fit's
-            Jacobian, its columns scaled to unit norm (NaN: not computed).
-        sigma: Its noise estimate sqrt(RSS / (rows - unknowns)) [m] (NaN: not computed).
         identifiable: The rank of the rows' Jacobian over every unknown and every joint
             placement component, at the nominal robot (flush touches): what the data
             determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
@@ -210,8 +211,7 @@ class ContactChainsCalibration(Delivered, ChainView):
     unknowns: int = 0
     identifiable: int = 0
     shape: str = "chains"
-    condition: float = float("nan")
-    sigma: float = float("nan")
+    solution: Solution | None = None
 
     @property
     def accepted(self) -> bool:
@@ -227,14 +227,22 @@ class ContactChainsCalibration(Delivered, ChainView):
         """With fitted compliance, its file beside the URDF ``out`` (``<stem>.compliance.json``)."""
         if not self.elastic:
             return {}
-        document = compliance_document(self.chains[0], str(out))
+        part = self.chains[0]
+        document = (
+            chain_compliance_document(self, str(out))
+            if isinstance(part, MeasuredChain)
+            else compliance_document(part, str(out))
+        )
         return {compliance_path(out): json_text(document)}
 
     def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
-        """Each parameter row's URDF joint and type (one chain touching: its MDH rows)."""
+        """Each parameter row's URDF joint and type (one chain touching or measured: MDH rows)."""
         part = self.chains[0]
         if len(self.chains) == 1 and isinstance(part, ChainContacts):
             return tuple(part.nominal.joint_names), part.nominal.sigma
+        if len(self.chains) == 1 and isinstance(part, MeasuredChain):  # its compliances' rows
+            nominal = part.registered.inner.mdh
+            return tuple(nominal.joint_names), nominal.sigma
         return tuple(part.chain.model.names), None
 
     def check(self) -> ContactChainsCalibration:
@@ -317,10 +325,11 @@ class ContactChainsCalibration(Delivered, ChainView):
 
         Args:
             world_link: The ``world_link`` the URDF was written with (None: none).
-            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
+            on_robot: The URDF was written with the instrument on the robot (one chain: its
+                base frame's placement calibrated, ``frames.measurement`` is in the URDF).
 
         Raises:
-            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+            InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
         """
         world_of(self.shape, self._frame(), world_link, on_robot)
         first = self.chains[0].chain
@@ -365,9 +374,8 @@ class ContactChainsCalibration(Delivered, ChainView):
             "timings_ms": dict(self.timings_ms),
         }
         legacy = self._format2()
-        if self._frame() is not None:
-            fields["frames"] = chain_frames(self.one_chain(), world_link)
-            fields["compliance"], fields["model"] = chain_model(self.one_chain(), fields["model"])
+        if self._frame() is not None:  # one chain measured by an instrument
+            fields, legacy = chain_report(self, fields, world_link, on_robot)
         if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
             fields, legacy = single_contact_report(self.chains[0], fields, legacy)
         return build_report(fields, legacy, FORMAT2_MOVED)
@@ -419,7 +427,8 @@ class ContactChainsCalibration(Delivered, ChainView):
         ]
         if self._contacts():
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
-        for c in self.chains:
+        one = self._frame() is not None  # one chain measured by an instrument: a chain's table
+        for c in () if one else self.chains:
             head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
             if isinstance(c, PixelChain):
                 px = ", ".join(
@@ -466,7 +475,7 @@ class ContactChainsCalibration(Delivered, ChainView):
                     else "configurations"
                 )
                 lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
-        lines += instrument_lines(self._instrument())
+        lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]
         names, sigma = self._row_joints()
         entries = parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
@@ -497,26 +506,25 @@ class ContactChainsCalibration(Delivered, ChainView):
         Args:
             world_link: One chain measured by an instrument: add the instrument frame as
                 this root link (None: not added).
-            on_robot: The instrument on the robot: refused (:func:`~.measured_view.world_of`).
+            on_robot: One chain measured by an instrument on the robot (a head camera): its
+                fitted placement is written into the base frame's fixed joint.
 
         Raises:
             CalibrationRefusedError: The model was refused.
-            InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+            InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
+            CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
         """
         world = world_of(self.shape, self._frame(), world_link, on_robot)
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         if self._cameras():
             return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
+        if self._frame() is not None:  # one chain: its calibrated tool, its markers on it
+            errors, marks, tool = chain_writing(self.one_chain(), self.joint_errors(), on_robot)
+            return marker_urdf(self.chains[0].chain, errors, marks, tool, world)
         if self._instrument():  # each tool's markers as links (a tree's)
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
-            return marker_urdf(
-                self.chains[0].chain,
-                self.joint_errors(),
-                marks,
-                self.shape == "chain",
-                world,
-            )
+            return marker_urdf(self.chains[0].chain, self.joint_errors(), marks, None, world)
         return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
 
     def write_urdf(self, path: str | Path) -> None:

@@ -262,23 +262,30 @@ def choose(
     level: str,
     notes,
     comp=(),
+    asked=None,
     generic=None,
     kept_out: list[int] | None = None,
 ):
     """The model (free components, compliances), the selection (``auto``), the prior weights.
 
-    ``comp``: the joints whose compliance is offered (``elastic``), after the directions.
-    ``generic``: terms measured by an instrument (:class:`~.chain_counts.Generic`): the level
-    offers what generic configurations determine (a note only when the data determine less),
-    and one chain gets a chain's checks and posture counts; or None. ``kept_out``: a list
-    given is filled with the columns the data determine (of the level's model), as ``notes``
-    with the remarks.
+    ``comp``: the joints whose compliance is offered (``elastic``), after the directions;
+    ``asked``: a measured chain's ``fix`` and ``free`` (:class:`~.measured_options.Asked`),
+    or None. ``generic``: terms measured by an instrument (:class:`~.chain_counts.Generic`):
+    the level offers what generic configurations determine (a note only when the data
+    determine less), and one chain gets a chain's checks and posture counts; or None.
+    ``kept_out``: a list given is filled with the columns the data determine (of the level's
+    model), as ``notes`` with the remarks.
     """
     train = list(data.parts)
     directions, names, offered = offer_directions(start, level)
+    forced: tuple[str, ...] = ()
+    if asked is not None:
+        directions, names, offered, forced = asked.offer(directions, names, offered)
     wide = chains_model(start, plane_of, offered, names, directions, comp)
     fixed, every = wide.fixed, len(offered) + len(comp)
     kept = structural(wide, start, flush) if every else list(range(fixed))
+    if asked is not None:
+        asked.check(wide, start, flush, kept)
     if generic is not None:
         allowed = generic.columns(wide)
         generic.check(wide, kept, allowed, flush, level)
@@ -297,12 +304,13 @@ def choose(
     if level == "auto" and columns:
         all_names = wide.names()
         cand_names = tuple(all_names[c] for c in columns)
-        keep = None if generic is None else generic.sample(fixed, len(columns), notes)
-        data = sampled(data, keep)
+        drawn = None if generic is None else generic.sample(fixed, len(columns), notes)
+        data = sampled(data, drawn)
         J, objects, free = selection_columns(wide, start, data, columns)
-        groups = _postures(data) if generic is None else generic.groups(keep)
+        groups = _postures(data) if generic is None else generic.groups(drawn)
         e = start.residuals(data)
-        selection, weights = select(J, e, free, cand_names, groups=groups, objects=objects)
+        keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
+        selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
         columns = [columns[cand_names.index(k)] for k in selection.kept]
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]

@@ -40,6 +40,7 @@ __all__ = [
     "standing",
     "term_load",
     "torques",
+    "urdf_alone",
 ]
 
 
@@ -123,6 +124,21 @@ def fitted_compliance(
             notes.append("elastic: no joint compliance was kept; the URDF is the whole model")
         return None
     rigid = dataclasses.replace(state, compliance=None)
+    urdf_alone(lambda d: gap_stats(rigid, d.q, d.ids), sets, stats, notes, "touches")
+    return state.compliance
+
+
+def urdf_alone(score, sets, stats: dict, notes: list[str], rows: str) -> None:
+    """The URDF alone of a fit with compliance, scored into ``stats`` and noted where worse.
+
+    Args:
+        score: ``score(d)``: the :class:`~.contact_result.GapStats` of the fitted state
+            without its compliance on the rows ``d``.
+        sets: The training and held-out rows (or None).
+        stats: The statistics, completed with ``train_urdf`` and ``held_out_urdf``.
+        notes: Remarks for the user, completed.
+        rows: What the rows are (``touches``, ``rows``), in the notes.
+    """
     notes.append(
         "joint compliance was fitted: the calibrated URDF cannot hold it; it is written to the "
         "compliance file (apply it with calib predict or calib.load_calibrated)"
@@ -130,15 +146,14 @@ def fitted_compliance(
     for label, key, d in (("the fitted", "train", sets[0]), ("held-out", "held_out", sets[1])):
         if d is None:
             continue
-        alone, reg = gap_stats(rigid, d.q, d.ids), stats[f"{key}_registration"]
+        alone, reg = score(d), stats[f"{key}_registration"]
         stats[f"{key}_urdf"] = alone
         if validation.worse(alone.weighted_mm, reg.weighted_mm, 1e-3):
             notes.append(
-                f"on {label} touches the calibrated URDF alone (without the fitted joint "
+                f"on {label} {rows} the calibrated URDF alone (without the fitted joint "
                 f"compliance) is worse than the registration alone ({alone.weighted_mm:.3f} > "
                 f"{reg.weighted_mm:.3f} mm weighted RMS): use it only with its compliance file"
             )
-    return state.compliance
 
 
 def load_record(part) -> dict | None:

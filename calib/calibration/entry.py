@@ -297,32 +297,16 @@ def measured_chain(
 
     The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
     (``instrument=True``), its rows checked, registered and weighted by the chain pipeline's
-    own steps (:func:`~.measured_term.checked_measured`). The held-out rows are drawn first
-    (``holdout``), then the rows the fit's errors call outliers are set aside and the fit made
-    again until they are stable (:func:`~.chain_outliers.fit_until_stable`). What the engine
-    does not have yet is
-    refused, not ignored: the ``paper`` level, ``fix``/``free``, ``elastic``, a robust
-    ``loss`` and ``noise_mm``.
+    own steps (:func:`~.measured_term.checked_measured`). Its options (``fix``/``free``,
+    ``elastic``, a robust ``loss``, ``noise_mm``) are the engine's
+    (:mod:`~.measured_options`). The held-out rows are drawn first (``holdout``), then the
+    rows the fit's errors call outliers are set aside and the fit made again until they are
+    stable (:func:`~.chain_outliers.fit_until_stable`).
 
     Raises:
-        InvalidArgumentError: An option the engine route does not have.
+        InvalidArgumentError: A bad option (an unknown parameter name, compliance without
+            gravity torques, a free parameter the data cannot fit).
     """
-    missing = [
-        name
-        for name, given in (
-            ("params='paper'", problem.params == "paper"),
-            ("fix", bool(problem.fix)),
-            ("free", bool(problem.free)),
-            ("elastic", bool(problem.elastic)),
-            ("loss", problem.loss != "linear"),
-            ("noise_mm", problem.noise_mm is not None),
-        )
-        if given
-    ]
-    if missing:
-        raise InvalidArgumentError(
-            f"the joint engine's chain route does not take {', '.join(missing)} yet"
-        )
     chain, data = cast(Chain, term.robot), cast(Measurements, term.data)
     if problem.holdout > 0 and term.validate is not None:
         raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
@@ -347,6 +331,7 @@ def measured_chain(
             instrument=True,
             held_label="holdout" if term.validate is None else None,
             marker=term.guess,
+            options=problem.options(),
         )
         return dataclasses.replace(result, shape="chain")
 

@@ -32,7 +32,7 @@ from ..measurements.limits import check_against_chain
 from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
-from .result import ResidualStats
+from .residuals import ResidualStats
 from .tree import REGISTRATION_ITERATIONS
 
 __all__ = [
@@ -223,6 +223,8 @@ def pooled(parts, key: str) -> ResidualStats | None:
 def instrument_errors(parts) -> dict:
     """The report's ``errors.train`` and ``errors.held_out`` of every tool together (format 3).
 
+    ``urdf``: the URDF alone, without a fitted compliance (else ``calibrated``).
+
     Args:
         parts: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
@@ -231,8 +233,9 @@ def instrument_errors(parts) -> dict:
         before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
         if before is None or after is None:
             continue
-        cal = after.in_mm()
-        out[key] = {"registration": before.in_mm(), "calibrated": cal, "urdf": cal}
+        cal, alone = after.in_mm(), pooled(parts, f"{key}_urdf")  # with compliance: apart
+        urdf = cal if alone is None else alone.in_mm()
+        out[key] = {"registration": before.in_mm(), "calibrated": cal, "urdf": urdf}
         if key == "held_out":
             out[key] = {"source": parts[0].held_source, **out[key]}
     return out
@@ -245,10 +248,17 @@ def instrument_lines(parts) -> list[str]:
         before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
         if before is None or after is None:
             continue
+        alone = pooled(parts, f"{key}_urdf")  # with compliance: the URDF alone too
         lines.append(
             f"{label} of every tool, position RMS / max [mm]: registration "
             f"{1e3 * before.position_rms:.4g} / {1e3 * before.position_max:.4g}, calibrated "
             f"{1e3 * after.position_rms:.4g} / {1e3 * after.position_max:.4g}"
+            + (
+                ""
+                if alone is None
+                else f", URDF alone (no compliance) {1e3 * alone.position_rms:.4g} / "
+                f"{1e3 * alone.position_max:.4g}"
+            )
         )
     return lines
 

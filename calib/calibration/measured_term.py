@@ -57,6 +57,7 @@ __all__ = [
     "measured_kind",
     "measured_stats",
     "measuring_joint",
+    "motion_rows",
     "one_term_per_frame",
     "own_change",
     "own_model",
@@ -259,29 +260,52 @@ def measured_columns(placements, chain, state: MeasuredState, kin, data, lift) -
         data: Its measurements.
         lift: The free directions ``(free, 6 J)``.
     """
-    s = state.inner
-    joints = placements.joints
     columns = placements.path(chain).columns
-    ang, lin = joint_twists(placements, chain, kin)
+    ang, lin = joint_twists(placements, chain, kin)  # (m, n, 3, 6)
+    # the free directions on the chain's joints' components, without an array of every
+    # component of every joint by row (5,000 poses: 1.2 Jacobians)
+    per_joint = lift.reshape(len(lift), len(placements.joints), 6)
+    chain_lift = per_joint[:, columns].reshape(len(lift), -1).T  # (n 6, free)
+    flat = [np.moveaxis(v, 2, 1).reshape(data.m, 3, -1) @ chain_lift for v in (lin, ang)]
+    return motion_rows(state, kin, data, *flat)
+
+
+def motion_rows(state: MeasuredState, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
+
+    Args:
+        state: The term's state.
+        kin: The chain's frames at the data's joints.
+        data: Its measurements.
+        lin: Each motion's velocity of the base frame's origin moving with the tool side
+            ``(m, 3, k)`` (in the base frame).
+        ang: Each motion's angular velocity ``(m, 3, k)``.
+    """
+    s = state.inner
     R, p = kin.R[:, -1], kin.p[:, -1]
-    K, m = s.n_markers, data.m
-    Rf = s.frame[:3, :3]
-    full = np.zeros((m, s.kind.full_rows(K), len(joints), 6))
+    K, Rf = s.n_markers, s.frame[:3, :3]
+    W = np.empty((data.m, s.kind.full_rows(K), lin.shape[2]))
     for k in range(K):
         point = p + R @ s.markers[k]
-        moving = lin - skew(point)[:, None] @ ang  # (m, n, 3, 6)
-        full[:, 3 * k : 3 * k + 3, columns] = np.moveaxis(Rf @ moving, 1, 2)
+        W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
     if s.tool_rotation is not None:
-        full[:, 3 * K :, columns] = np.moveaxis(Rf @ ang, 1, 2)
-    W = full.reshape(m, full.shape[1], -1) @ lift.T
+        W[:, 3 * K :] = Rf @ ang
     rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
     error = None if rot is None else s.kind.rotation_error(data.observed, rot)
     out = s.kind.jacobian_rows(W, rotation_error=error, n_markers=K)
-    return out * state.row_weights()[None, :, None]
+    out *= state.row_weights()[None, :, None]  # in place: a fresh array
+    return out
 
 
 def checked_measured(
-    chain: Chain, data: Measurements, validate, held, weight, max_iterations: int, marker=None
+    chain: Chain,
+    data: Measurements,
+    validate,
+    held,
+    weight,
+    max_iterations: int,
+    marker=None,
+    noise_mm: float | None = None,
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
@@ -300,12 +324,14 @@ def checked_measured(
         max_iterations: Most residual evaluations of the registration's solver.
         marker: Guess of the markers in the tool frame [m] (:func:`~.freedoms.marker_guess`:
             one point for all, or one per marker), or None: zeros.
+        noise_mm: The instrument's noise [mm] (outliers and the diagnosis: an error within
+            a few times it is not suspect), or None: unknown.
 
     Returns:
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
         held-out rows without their outliers (or None).
     """
-    opts = Options(orientation_weight=weight, max_iterations=max_iterations)
+    opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
     opts, reg, bad, notes = checked_registration(
@@ -322,9 +348,12 @@ def checked_measured(
     return state, bad, found, notes, held
 
 
-def measured_stats(state: MeasuredState, data: Measurements) -> GapStats:
-    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`."""
-    return row_stats(state.inner.residuals(data), state.kind, state.row_weights())
+def measured_stats(state: MeasuredState, data: Measurements, torque=None) -> GapStats:
+    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
+
+    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None).
+    """
+    return row_stats(state.inner.residuals(data, torque), state.kind, state.row_weights())
 
 
 def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:

@@ -9,29 +9,44 @@ the CLI passes (``world_link``), for a joint fit of that one term
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
+from ..kinematics.placement_export import instrument_joint
 from ..kinematics.robot import Chain
+from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
+from ..measurements.data import Measurements
+from .contact_chains_model import ChainsData
+from .contact_elastic import urdf_alone
 from .contact_result import GapStats, part_stats, term_errors
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
-from .report import parameter_entries, pose_dict
-from .result import gravity_dict
+from .report import fit_dict, gravity_dict, parameter_entries, pose_dict
+from .residuals import ResidualStats, Validation, error_table
+from .solve import Fit, condition, covariance
+from .validation import predicted_std
 
 __all__ = [
     "ChainView",
     "MeasuredChain",
+    "Solution",
     "chain_frames",
+    "chain_lines",
     "chain_model",
+    "chain_report",
+    "chain_writing",
     "measured_part",
+    "tool_pose",
     "world_of",
+    "written_markers",
 ]
 
 
@@ -52,6 +67,10 @@ class MeasuredChain:
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
         held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
         outliers: Its rows set aside (none: a measured term's rows are all fitted).
+        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
+            the state's), or None (rigid joints).
+        data: Its rows fitted (held-out rows and outliers left out), or None.
+        held: Its held-out rows (their outliers left out), or None.
     """
 
     chain: Chain
@@ -63,6 +82,9 @@ class MeasuredChain:
     parameters: tuple[dict, ...] = ()
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
+    compliance: np.ndarray | None = None
+    data: Measurements | None = None
+    held: Measurements | None = None
 
     @property
     def kind(self):
@@ -93,8 +115,14 @@ class MeasuredChain:
         }
 
 
-def measured_part(chain, train, held, registered, state, std, term: int) -> MeasuredChain:
+def measured_part(
+    chain, train, held, registered, state, std, term: int, torques=(None, None), notes=None
+) -> MeasuredChain:
     """A measured term's part: its errors, and its unknowns' report entries.
+
+    With joint compliance fitted (``torques``: the gravity torques of ``train`` and
+    ``held``), its errors are the whole model's and the URDF alone's (``train_urdf``,
+    ``held_out_urdf``; ``notes`` completed, :func:`~.contact_elastic.urdf_alone`).
 
     Args:
         chain: The term's chain.
@@ -104,15 +132,42 @@ def measured_part(chain, train, held, registered, state, std, term: int) -> Meas
         state: Its fitted state.
         std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
         term: The term's number (1-based, in the order given), in its unknowns' names.
+        torques: The gravity torques ``(m, n)`` of ``train`` and ``held`` (compliance), or
+            None each (rigid joints).
+        notes: Remarks for the user, completed with compliance's (or None: rigid).
     """
-    stats = part_stats(measured_stats, registered, state, train, held)
+    deflect = {id(train): torques[0], id(held): torques[1]}
+
+    def stat(st, rows):
+        return measured_stats(st, rows, deflect[id(rows)] if st is state else None)
+
+    stats = part_stats(stat, registered, state, train, held)
+    compliance = state.inner.compliance if torques[0] is not None else None
+    if compliance is not None and np.any(compliance):
+        rigid = dataclasses.replace(
+            state, inner=dataclasses.replace(state.inner, compliance=0 * compliance)
+        )
+        urdf_alone(lambda d: measured_stats(rigid, d), (train, held), stats, notes, "rows")
+    else:
+        compliance = None
     joint = None if state.instrument else measuring_joint(chain)
     frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
     names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
-    return MeasuredChain(chain, train.source, joint, registered, state, stats, tuple(entries))
+    return MeasuredChain(
+        chain,
+        train.source,
+        joint,
+        registered,
+        state,
+        stats,
+        tuple(entries),
+        compliance=compliance,
+        data=train,
+        held=held,
+    )
 
 
 def world_of(
@@ -121,54 +176,203 @@ def world_of(
     """The ``world`` argument of the URDF writer (``marker_urdf``).
 
     Args:
-        shape: The result's shape (only ``chain`` takes ``world_link``).
+        shape: The result's shape (only ``chain`` takes ``world_link`` and ``on_robot``).
         frame: The base frame's pose in the instrument's ``(4, 4)``, or None.
         world_link: The instrument frame as a new root link of this name, or None.
-        on_robot: The instrument is the base frame, on the robot (refused: the engine's
-            chain is measured from outside the robot; a frame on the robot measuring its
-            own arm is a measured term of its own, not routed here yet).
+        on_robot: The instrument is the base frame, on the robot (a head camera measuring
+            the arm): its fitted placement goes into the base frame's fixed joint.
 
     Raises:
-        InvalidArgumentError: ``world_link`` for another shape, or ``on_robot``.
+        InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
     """
-    if on_robot:
+    for name, given in (("on_robot", on_robot), ("world_link", world_link is not None)):
+        if given and (shape != "chain" or frame is None):
+            raise InvalidArgumentError(
+                f"{name} is for one chain measured by an instrument, not a fit of shape '{shape}'"
+            )
+    if on_robot and world_link is not None:
         raise InvalidArgumentError(
-            "on_robot: the joint engine's chain route fits an instrument outside the robot "
-            "(a frame on the robot measuring its own arm is not routed to it yet)"
+            "on_robot and world_link: the instrument is on the robot or in the world"
         )
-    if world_link is None:
-        return None
-    if shape != "chain" or frame is None:
-        raise InvalidArgumentError(
-            f"world_link is for one chain measured by an instrument, not a fit of shape '{shape}'"
-        )
-    return world_link, frame
+    return None if world_link is None or frame is None else (world_link, frame)
 
 
-def chain_frames(part: MeasuredChain, world_link: str | None) -> dict:
-    """The report's ``frames`` of a chain's (one measurement frame, marker links by name)."""
-    inner = part.state.inner
-    tool = part.chain.tool_frame
+def tool_pose(inner: State) -> np.ndarray:
+    """The calibrated tool: the measured frame in the tool frame ``(4, 4)``.
+
+    Pose data: marker 1 and the measured frame's rotation (the written URDF's tool frame is
+    the measured frame); position data: identity.
+    """
     T = np.eye(4)
     if inner.tool_rotation is not None:
-        T[:3, :3] = inner.tool_rotation
+        T[:3, :3], T[:3, 3] = inner.tool_rotation, inner.markers[0]
+    return T
+
+
+def written_markers(inner: State) -> np.ndarray:
+    """The markers in the written URDF's calibrated tool frame ``(K, 3)`` [m]."""
+    T = tool_pose(inner)
+    return (inner.markers - T[:3, 3]) @ T[:3, :3]
+
+
+def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = False) -> dict:
+    """The report's ``frames`` of a chain's (one measurement frame, marker links by name).
+
+    ``on_robot``: the URDF was written with the measurement frame in the base frame's fixed
+    joint (``frames.measurement`` is then in the URDF).
+    """
+    inner = part.state.inner
+    tool = part.chain.tool_frame
     return {
         "measurement": pose_dict(inner.frame),
-        "measured": pose_dict(T) if inner.tool_rotation is not None else None,
+        "measured": pose_dict(tool_pose(inner)),
         "markers": dict(
-            zip(marker_link_names(tool, inner.n_markers), inner.markers.tolist(), strict=True)
+            zip(
+                marker_link_names(tool, inner.n_markers),
+                written_markers(inner).tolist(),
+                strict=True,
+            )
         ),
         "contacts": {},
         "world_link": world_link,
-        "tool_link": tool,
-        "on_robot": False,
+        "tool_link": urdf_tool_frame(part.chain),
+        "on_robot": on_robot,
     }
 
 
+def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
+    """``marker_urdf``'s ``errors``, ``markers`` and ``tool`` of one chain measured.
+
+    The calibrated tool (:func:`tool_pose`) and its markers as a chain's calibration writes
+    them; ``on_robot``: the base frame's fixed joint moved so that forward kinematics from
+    the base frame gives measured coordinates (its new origin ``O F^-1``, ``F`` the nominal
+    base frame's pose in the measuring frame).
+
+    Raises:
+        CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
+    """
+    inner = part.state.inner
+    if on_robot:
+        joint = instrument_joint(read_urdf_source(part.chain)[1], part.chain)
+        errors = {**errors, joint.get("name", ""): np.linalg.inv(inner.frame)}
+    return errors, ((part.chain, written_markers(inner)),), tool_pose(inner)
+
+
+def chain_lines(view: ChainView) -> list[str]:
+    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
+    held = view.validation
+    std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
+    return [
+        error_table(view.before, view.after, view.urdf_after, held),
+        f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
+        f"at the fitted configurations{std}",
+    ]
+
+
+def chain_report(
+    view: ChainView, fields: dict, world_link: str | None, on_robot: bool = False
+) -> tuple[dict, dict]:
+    """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
+
+    ``errors`` as :class:`~.residuals.ResidualStats` (position and orientation, mm and
+    degrees: ``train``, ``held_out`` and the one term's), ``frames`` by marker link,
+    ``fit`` (noise, condition, predicted std, weight), ``compliance`` (rigid: zero per joint)
+    and ``model`` with the MDH rows and the gravity beside the joint origins.
+
+    Args:
+        view: The result (shape ``chain``).
+        fields: The joint fit's format 3 fields (edited copy returned).
+        world_link: The ``world_link`` the URDF was written with (None: none).
+        on_robot: Whether the URDF was written with the instrument on the robot.
+    """
+    part, held = view.one_chain(), view.validation
+    urdf = view.after if view.urdf_after is None else view.urdf_after
+    train = {
+        "registration": view.before.in_mm(),
+        "calibrated": view.after.in_mm(),
+        "urdf": urdf.in_mm(),
+    }
+    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
+    out["errors"] = {
+        "train": train,
+        "held_out": None if held is None else held.in_mm(),
+        "terms": [{"train": train, "held_out": None if held is None else held.in_mm()}],
+    }
+    out["compliance"], model = chain_model(part, fields["model"])
+    nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
+    out["model"] = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **model}
+    std, weight = view.predicted_std, view.orientation_weight
+    out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
+    frames, data = out["frames"], view.data
+    legacy = {
+        "data": data.source,
+        "base_frame": part.chain.base_frame,
+        "tool_frame": part.chain.tool_frame,
+        "measure": data.measure,
+        "markers": list(frames["markers"].values()),
+        "marker_links": list(frames["markers"]),
+        "measured_frame": frames["measured"],
+        "world_link": world_link,
+        "configs": data.m,
+        "orientation_weight": weight,
+        "residuals": {"registration": view.before.to_dict(), "calibrated": view.after.to_dict(),
+                      "urdf": urdf.to_dict()},
+        "validation": None if held is None else held.to_dict(),
+        "selection": None if view.selection is None else view.selection.to_dict(),
+        "sigma": view.sigma,
+        "condition_number": view.condition,
+        "predicted_std": std,
+        "gravity": model["gravity"],
+        "measurement_to_base": frames["measurement"],
+        "mdh_nominal": nominal,
+        "mdh_calibrated": calibrated,
+    }  # fmt: skip
+    return out, legacy
+
+
 def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
-    """The report's ``compliance`` (rigid: zero per joint) and ``model`` with its gravity."""
+    """The report's ``compliance`` (per joint; rigid: zero) and ``model`` with its gravity."""
     chain = part.chain
-    return dict.fromkeys(chain.joint_names, 0.0), {**model, "gravity": gravity_dict(chain)}
+    c = np.zeros(chain.n) if part.compliance is None else part.compliance
+    compliance = dict(zip(chain.joint_names, c.tolist(), strict=True))
+    return compliance, {**model, "gravity": gravity_dict(chain)}
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The joint fit's solution, kept for its uncertainty (read only when asked for).
+
+    Attributes:
+        fit: The final fit (its model, start, x, weighted Jacobian and residuals).
+        prior: The prior weights it was fitted with, or None.
+    """
+
+    fit: Fit
+    prior: np.ndarray | None = None
+
+    def covariance(self) -> tuple[np.ndarray, float]:
+        """Covariance of x ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat [m] (``solve.covariance``)."""
+        return self._covariance
+
+    @cached_property
+    def _covariance(self) -> tuple[np.ndarray, float]:
+        f = self.fit.f
+        return covariance(self.fit.J, float(f @ f), self.prior)
+
+    def condition(self) -> float:
+        """Condition number of the weighted Jacobian with unit-norm columns."""
+        return condition(self.fit.J)
+
+    def point_std(self, data: Measurements, torque: np.ndarray | None = None) -> float:
+        """Predicted position std at one term's rows [m]: the covariance through its Jacobian.
+
+        RMS over the rows and markers (:func:`~.validation.predicted_std`); the fit of one
+        term. ``torque``: the gravity torques at the rows (fitted compliance), or None.
+        """
+        fit = self.fit
+        rows = ChainsData((data,), None if torque is None else (torque,))
+        J = fit.model.jacobian(fit.start, fit.x, rows)
+        return predicted_std(J, self.covariance()[0], data.n_markers)
 
 
 class ChainView:
@@ -177,12 +381,13 @@ class ChainView:
     The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
     has them (shape ``chain``; other shapes raise
     :class:`~calib.exceptions.InvalidArgumentError`). Not here:
-    ``validation`` (the held-out errors are ``stats["held_out"]``), ``predicted_std`` and
-    ``covariance`` (the joint fit reports ``std`` only), ``model`` and ``prior`` (the
-    engine's parameters are joint placement components, not MDH rows).
+    ``model`` and ``prior`` (the engine's parameters are joint placement components, not MDH
+    rows; its solution is :attr:`solution`).
     """
 
     chains: tuple[Any, ...]
+    solution: Solution | None
+    selection: Any
     shape: str
     fitted: tuple[str, ...]
     solver: tuple[bool, str, int]
@@ -269,3 +474,128 @@ class ChainView:
     def marker_links(self) -> tuple[str, ...]:
         """The written URDF's marker links."""
         return tuple(chain_frames(self.one_chain(), None)["markers"])
+
+    @property
+    def tool_placement(self) -> np.ndarray:
+        """The measured frame in the tool frame ``(4, 4)``, written into the URDF's tool.
+
+        Pose data: the fitted marker 1 and measured-frame rotation; position data: identity.
+        """
+        return tool_pose(self.state)
+
+    @property
+    def urdf_markers(self) -> np.ndarray:
+        """The markers in the written URDF's tool frame ``(K, 3)`` [m] (the marker links)."""
+        return written_markers(self.state)
+
+    @property
+    def urdf_tool_frame(self) -> str:
+        """The written URDF's frame of the calibrated tool (the measured frame, the markers').
+
+        The tool frame, or ``<tool>_calibrated`` where the tool link is the last joint's.
+        """
+        return urdf_tool_frame(self.chain)
+
+    @property
+    def data(self) -> Measurements:
+        """The rows fitted (held-out rows and outliers left out)."""
+        return _rows(self.one_chain().data)
+
+    @property
+    def calibrated(self):
+        """The chain's calibrated MDH model (the URDF's base frame: see ``measurement_to_base``)."""
+        return self.state.mdh
+
+    @property
+    def before(self) -> ResidualStats:
+        """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
+        return _stats(self.chain, self.registration, self.data)
+
+    @property
+    def after(self) -> ResidualStats:
+        """Errors of the calibrated model on :attr:`data`."""
+        return _stats(self.chain, self.state, self.data)
+
+    @property
+    def urdf_after(self) -> ResidualStats | None:
+        """Errors of the URDF alone (compliance left out) on :attr:`data`, or None.
+
+        None without fitted compliance: the URDF alone is then :attr:`after`.
+        """
+        return _geometry(self.state, self.data)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of the fit's unknowns (the term's own, then ``fitted``) ``(p, p)``."""
+        return self._solution().covariance()[0]
+
+    @property
+    def sigma(self) -> float:
+        """Estimated noise of a weighted row sigma_hat = sqrt(RSS / (r - p)) [m]."""
+        return self._solution().covariance()[1]
+
+    @property
+    def condition(self) -> float:
+        """Condition number of the fit's weighted Jacobian with unit-norm columns."""
+        return self._solution().condition()
+
+    @cached_property
+    def predicted_std(self) -> float:
+        """Predicted position std at the fitted rows, RMS over them [m].
+
+        The fit's covariance through the point Jacobian at each row.
+        """
+        return self._solution().point_std(self.data, _torque(self.chain, self.state, self.data))
+
+    @cached_property
+    def validation(self) -> Validation | None:
+        """Errors on the held-out rows [m, rad], or None without held-out rows.
+
+        The registration's (the nominal robot registered on the fitted rows), the calibrated
+        model's, and the predicted position std there (the covariance through the Jacobian).
+        """
+        part = self.one_chain()
+        if part.held is None:
+            return None
+        held = part.held
+        return Validation(
+            part.held_source or held.source,
+            _stats(self.chain, self.registration, held),
+            _stats(self.chain, self.state, held),
+            self._solution().point_std(held, _torque(self.chain, self.state, held)),
+            _geometry(self.state, held),
+            held,
+        )
+
+    def _solution(self) -> Solution:
+        self.one_chain()
+        if self.solution is None:
+            raise InvalidArgumentError("this result keeps no solution (its uncertainty is unknown)")
+        return self.solution
+
+
+def _rows(data: Measurements | None) -> Measurements:
+    if data is None:
+        raise InvalidArgumentError("this result keeps no rows of its measured term")
+    return data
+
+
+def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
+    """Errors measured - model of a chain's state on rows [m, rad].
+
+    With fitted joint compliance, the joints deflect under the chain's gravity torques.
+    """
+    return ResidualStats.of(state.residuals(data, _torque(chain, state, data)), data.n_markers)
+
+
+def _torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
+    """The chain's gravity torques at the rows where the state has compliance, else None."""
+    return chain.gravity_torques(data.q) if np.any(state.compliance) else None
+
+
+def _geometry(state: State, data: Measurements) -> ResidualStats | None:
+    """Errors of the state without its compliance (the URDF alone), None without compliance."""
+    if not np.any(state.compliance):
+        return None
+    rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
+    return ResidualStats.of(rigid.residuals(data), data.n_markers)

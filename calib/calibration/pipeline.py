@@ -32,7 +32,8 @@ from .contact_chains_result import ContactChainsCalibration
 from .expansion import explained
 from .model import ErrorModel, State, compliance_name, offset_parameter, selection_lift
 from .options import Options
-from .result import CalibrationResult, ResidualStats, Validation
+from .residuals import ResidualStats, Validation
+from .result import CalibrationResult
 from .selection import Selection, select
 from .solve import Fit, condition, covariance, fit, row_weights
 

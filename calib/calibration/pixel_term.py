@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import DataError
+from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
@@ -327,6 +327,42 @@ class PixelCamera:
     link: str
     intrinsics: Intrinsics
     placement: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        """Refuse a camera that cannot be one (checked where it is made, not at the fit).
+
+        Raises:
+            InvalidArgumentError: A name or link that is not a non-empty text, intrinsics
+                that are not an :class:`~calib.measurements.intrinsics.Intrinsics`, or a
+                placement that is not a rigid transform ``(4, 4)``.
+        """
+        for what, value in (("name", self.name), ("link", self.link)):
+            if not isinstance(value, str) or not value:
+                raise InvalidArgumentError(
+                    f"PixelCamera {what} must be a non-empty text, got {value!r}"
+                )
+        if not isinstance(self.intrinsics, Intrinsics):
+            raise InvalidArgumentError(
+                f"PixelCamera {self.name}: intrinsics must be read with calib.read_intrinsics, "
+                f"got {type(self.intrinsics).__name__}"
+            )
+        if self.placement is not None and not _rigid(self.placement):
+            raise InvalidArgumentError(
+                f"PixelCamera {self.name}: placement must be a rigid transform (4, 4) [m]"
+            )
+
+
+def _rigid(T) -> bool:
+    """Whether ``T`` is a finite ``(4, 4)`` rigid transform (rotation to 1e-6)."""
+    T = np.asarray(T, dtype=float) if not isinstance(T, np.ndarray) else T
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        return False
+    R = T[:3, :3]
+    return bool(
+        np.allclose(R.T @ R, np.eye(3), atol=1e-6)
+        and abs(np.linalg.det(R) - 1) < 1e-6
+        and np.allclose(T[3], [0, 0, 0, 1])
+    )
 
 
 def pixel_rows(

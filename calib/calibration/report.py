@@ -34,6 +34,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
+from ..kinematics.elastic import gravity_in_base
+
 __all__ = [
     "FORMAT2_MOVED",
     "REPORT_FORMAT",
@@ -42,6 +44,7 @@ __all__ = [
     "finite",
     "finite_tree",
     "fit_dict",
+    "gravity_dict",
     "model_choice",
     "outlier_dict",
     "parameter_entries",
@@ -367,3 +370,8 @@ def finite_tree(value):
     if isinstance(value, (float, np.floating)):
         return finite(value)
     return value
+
+
+def gravity_dict(chain) -> dict:
+    """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
+    return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}

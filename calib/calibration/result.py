@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -10,7 +9,7 @@ import numpy as np
 
 from ..core.fileio import json_text
 from ..exceptions import CalibrationRefusedError, ConvergenceError
-from ..kinematics.elastic import compliance_document, gravity_in_base
+from ..kinematics.elastic import compliance_document
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import calibrated_urdf, measurement_to_base, urdf_tool_frame
@@ -26,6 +25,7 @@ from .report import (
     finite,
     finite_tree,
     fit_dict,
+    gravity_dict,
     model_choice,
     outlier_dict,
     parameter_entries,
@@ -33,6 +33,7 @@ from .report import (
     term_dict,
     verdict,
 )
+from .residuals import ResidualStats, Validation
 from .selection import Selection
 
 __all__ = [
@@ -44,113 +45,6 @@ __all__ = [
     "finite_tree",
     "gravity_dict",
 ]
-
-
-@dataclass(frozen=True)
-class ResidualStats:
-    """Errors measured - model of a set of measurements.
-
-    Attributes:
-        configs: Number of configurations.
-        position_rms: sqrt(mean |e_p|^2) over every measured point [m].
-        position_max: Largest point error [m].
-        orientation_rms: sqrt(mean |e_r|^2) of the rotation error [rad], or None.
-        orientation_max: Largest rotation error [rad], or None.
-    """
-
-    configs: int
-    position_rms: float
-    position_max: float
-    orientation_rms: float | None = None
-    orientation_max: float | None = None
-
-    @staticmethod
-    def of(residual: np.ndarray, n_markers: int = 1) -> ResidualStats:
-        """Statistics of residuals ``(m, 3 K)`` or, with orientations, ``(m, 3 K + 3)``."""
-        residual = np.asarray(residual, dtype=float)
-        m = len(residual)
-        pos = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
-        rot = None
-        if residual.shape[1] == 3 * n_markers + 3:
-            rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-        return ResidualStats(
-            configs=m,
-            position_rms=float(np.sqrt(np.mean(pos**2))),
-            position_max=float(np.max(pos)),
-            orientation_rms=None if rot is None else float(np.sqrt(np.mean(rot**2))),
-            orientation_max=None if rot is None else float(np.max(rot)),
-        )
-
-    def in_mm(self) -> dict:
-        """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
-        deg = math.degrees(1.0)
-        rot = (self.orientation_rms, self.orientation_max)
-        return {
-            "configs": self.configs,
-            "position_rms_mm": finite(1e3 * self.position_rms),
-            "position_max_mm": finite(1e3 * self.position_max),
-            "orientation_rms_deg": None if rot[0] is None else finite(deg * rot[0]),
-            "orientation_max_deg": None if rot[1] is None else finite(deg * rot[1]),
-        }
-
-    def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; format 2's)."""
-        return {
-            "configs": self.configs,
-            "position_rms": finite(self.position_rms),
-            "position_max": finite(self.position_max),
-            "orientation_rms": finite(self.orientation_rms),
-            "orientation_max": finite(self.orientation_max),
-        }
-
-
-@dataclass(frozen=True)
-class Validation:
-    """Errors on configurations the fit never saw.
-
-    Attributes:
-        source: ``holdout`` (rows set aside) or the validation file.
-        registration: Errors of the registration alone (nominal geometry).
-        calibrated: Errors of the calibrated model.
-        predicted_std: Predicted position standard deviation of the calibrated model at
-            these configurations, RMS over them [m].
-        urdf: Errors of the calibrated URDF alone (the geometry, frame and markers, without
-            the joint compliance), or None when no compliance was fitted (then it is
-            ``calibrated``).
-        rows: The held-out measurements themselves (for per-configuration errors), or None.
-    """
-
-    source: str
-    registration: ResidualStats
-    calibrated: ResidualStats
-    predicted_std: float
-    urdf: ResidualStats | None = None
-    rows: Measurements | None = None
-
-    @property
-    def geometry(self) -> ResidualStats:
-        """Errors of the calibrated URDF alone (no compliance; ``calibrated`` without any)."""
-        return self.calibrated if self.urdf is None else self.urdf
-
-    def in_mm(self) -> dict:
-        """The report's ``errors.held_out`` (format 3): mm and degrees."""
-        return {
-            "source": self.source,
-            "registration": self.registration.in_mm(),
-            "calibrated": self.calibrated.in_mm(),
-            "urdf": self.geometry.in_mm(),
-            "predicted_std_mm": finite(1e3 * self.predicted_std),
-        }
-
-    def to_dict(self) -> dict:
-        """JSON-ready form (format 2's)."""
-        return {
-            "source": self.source,
-            "registration": self.registration.to_dict(),
-            "calibrated": self.calibrated.to_dict(),
-            "urdf": self.geometry.to_dict(),
-            "predicted_std": finite(self.predicted_std),
-        }
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -440,8 +334,3 @@ class CalibrationResult(Delivered):
             "mdh_nominal": self.nominal.rows(),
             "mdh_calibrated": self.calibrated.rows(),
         }
-
-
-def gravity_dict(chain: Chain) -> dict:
-    """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
-    return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}

@@ -6,40 +6,15 @@ import math
 
 import pinocchio as pin
 
-from ..identification.report import format_table
 from .report import parameter_entries, parameter_lines
-from .result import CalibrationResult, ResidualStats
+from .residuals import error_table
+from .result import CalibrationResult
 
 __all__ = ["calibration_text"]
 
 
 def _mm(x: float | None) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}"
-
-
-def _row(label: str, st: ResidualStats) -> list[str]:
-    row = [label, str(st.configs), _mm(st.position_rms), _mm(st.position_max)]
-    if st.orientation_rms is not None:
-        row += [_mm(st.orientation_rms), _mm(st.orientation_max)]
-    return row
-
-
-def _errors(r: CalibrationResult) -> str:
-    rows = [_row("fitted, registration only", r.before), _row("fitted, calibrated", r.after)]
-    if r.urdf_after is not None:
-        rows.append(_row("fitted, URDF alone (no compliance)", r.urdf_after))
-    if r.validation is not None:
-        v = r.validation
-        rows += [
-            _row(f"held out ({v.source}), registration only", v.registration),
-            _row(f"held out ({v.source}), calibrated", v.calibrated),
-        ]
-        if v.urdf is not None:
-            rows.append(_row(f"held out ({v.source}), URDF alone (no compliance)", v.urdf))
-    header = ["errors", "configs", "rms [mm]", "max [mm]"]
-    if r.after.orientation_rms is not None:
-        header += ["rot rms [mrad]", "rot max [mrad]"]
-    return format_table(header, rows)
 
 
 def _selection(r: CalibrationResult) -> list[str]:
@@ -70,7 +45,7 @@ def calibration_text(result: CalibrationResult) -> str:
         *_selection(r),
         ("converged" if r.converged else "NOT CONVERGED")
         + f" in {r.iterations} iterations ({r.message})",
-        _errors(r),
+        error_table(r.before, r.after, r.urdf_after, r.validation),
         f"predicted position std (parameter uncertainty): {_mm(r.predicted_std)} mm at the fitted "
         f"configurations"
         + (f", {_mm(r.validation.predicted_std)} mm held out" if r.validation is not None else ""),

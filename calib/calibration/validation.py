@@ -30,7 +30,7 @@ from ..measurements.data import Measurements
 from ..measurements.pixels import PixelObservations
 from ..measurements.postures import posture_groups
 from .diagnosis import suspect
-from .result import ResidualStats
+from .residuals import ResidualStats
 from .solve import FitState, StepState
 
 __all__ = [

@@ -135,6 +135,8 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
+    from ..calibration.contact_chains_result import ContactChainsCalibration
+    from ..calibration.measured_options import chain_compliance_document
     from ..kinematics.elastic import compliance_document
 
     out, report = _calibration_outputs(args, chain.urdf_path)
@@ -180,7 +182,10 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
                     f"--out {out} is no regular file: the fitted compliance cannot be written "
                     f"next to it (give a file, or --no-elastic)"
                 )
-            urdf[comp] = json_text(compliance_document(result, str(out), args.on_robot))
+            if isinstance(result, ContactChainsCalibration):  # the joint engine's: its own
+                urdf[comp] = json_text(chain_compliance_document(result, str(out)))
+            else:
+                urdf[comp] = json_text(compliance_document(result, str(out), args.on_robot))
         return urdf
 
     return write_calibration(
@@ -214,8 +219,8 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot: bool) -> None:
     """Refuse now a URDF the calibration cannot be written to, or new links with taken names."""
+    from ..kinematics.placement_export import instrument_joint
     from ..kinematics.urdf_export import (
-        base_joint,
         check_base_fixed,
         check_exportable,
         child_link,
@@ -240,7 +245,7 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot:
                 "--on-robot and --world-link: the instrument is on the robot or in the world"
             )
         try:
-            base_joint(root, chain)
+            instrument_joint(root, chain)
         except CalibError as exc:  # the library names the keyword: say the flag
             raise CalibError(f"--on-robot{str(exc).removeprefix('on_robot')}") from None
     if world_link is not None:

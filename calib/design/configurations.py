@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import csv
 import io
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import DataError
+from ..exceptions import DataError, warn_user
 from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
@@ -123,12 +122,11 @@ def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | N
     found = tuple(n for n in names if header.count(n) == 1)
     if 0 < len(found) < len(names):  # none: the model's own warning says so
         missing = [n for n in names if n not in found]
-        warnings.warn(
+        warn_user(
             f"{src}: no column for {len(missing)} of the {len(names)} joints off the chain the "
             f"fit read ({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}): they are "
             f"at their neutral positions",
             DataWarning,
-            stacklevel=2,
         )
     if not found:
         return None

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +13,7 @@ import numpy as np
 
 from ..core.checks import check_count, check_work, joint_positions
 from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE, DEFAULT_SET
-from ..exceptions import InvalidArgumentError
+from ..exceptions import InvalidArgumentError, warn_user
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.mimic import MimicJoint
 from ..kinematics.robot import Chain
@@ -372,7 +371,7 @@ def analyze_model(
     t3 = time.perf_counter()
     notes = _rank_notes(diag, n_rows, len(kept), len(pset))
     for note in notes:
-        warnings.warn(note, RankWarning, stacklevel=2)
+        warn_user(note, RankWarning)
     return Identifiability(
         robot=robot,
         base_frame=mdh.base_frame,

@@ -27,7 +27,6 @@ import dataclasses
 import io
 import json
 import math
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +40,7 @@ from ..exceptions import (
     FrameNotFoundError,
     InvalidArgumentError,
     URDFError,
+    warn_user,
 )
 from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
@@ -139,12 +139,11 @@ class ElasticModel:
         if self.load is None and readings is not None:
             raise InvalidArgumentError("joint readings load a standing robot (contacts) only")
         if self.load is not None and self.readings and readings is None:
-            warnings.warn(
+            warn_user(
                 f"the fit took {len(self.readings)} joints off the chain at their recorded "
                 f"positions ({', '.join(self.readings[:3])}, ...); without readings they are "
                 f"at their neutral positions",
                 UserWarning,
-                stacklevel=3,
             )
 
     def _torques(self, q: np.ndarray, readings: JointReadings | None) -> np.ndarray:

@@ -9,6 +9,7 @@ bytes).
 from __future__ import annotations
 
 import os
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -18,24 +19,30 @@ from ..exceptions import CalibError, InvalidArgumentError
 from .robot import Chain
 from .urdf_export import (
     NominalPoses,
+    base_joint,
     base_to_root,
+    chain_joint_below,
     child_link,
     edited_joints,
+    keep_tool_children,
     origin_of,
     parent_link,
     read_urdf_source,
     set_origin,
     spliced,
+    tool_on_moving_joint,
     xml_layout,
 )
-from .urdf_links import add_marker_links, add_world_link, set_fixed_link
+from .urdf_links import add_marker_links, add_world_link, calibrated_tool_name, set_fixed_link
 from .urdf_xml import parse_xml
 
 __all__ = [
     "camera_placement",
     "camera_urdf",
+    "instrument_joint",
     "marker_urdf",
     "moved_origins_urdf",
+    "place_calibrated_tool",
     "write_moved_origins_urdf",
 ]
 
@@ -122,7 +129,7 @@ def marker_urdf(
     chain: Chain,
     errors: dict[str, np.ndarray],
     markers: tuple[tuple[Chain, np.ndarray], ...],
-    moving: bool = False,
+    tool: np.ndarray | None = None,
     world: tuple[str, np.ndarray] | None = None,
 ) -> bytes:
     """:func:`moved_origins_urdf` with each tool's markers as links ``<tool>_marker<k>``.
@@ -130,25 +137,82 @@ def marker_urdf(
     Args:
         chain: Any chain of the robot (its ``urdf_path`` is read).
         errors: ``E_j`` ``(4, 4)`` by URDF joint name.
-        markers: ``(chain to the tool, its markers in the tool frame (K, 3) [m])`` of each
-            tool: each marker a link fixed to the tool's link
-            (:func:`~.urdf_links.add_marker_links`).
-        moving: A tool link carried by its chain's last joint is allowed (one chain's; a
-            tree's tools need their fixed joints).
+        markers: ``(chain to the tool, its markers (K, 3) [m])`` of each tool: each marker a
+            link fixed to the tool's link (:func:`~.urdf_links.add_marker_links`), in the
+            tool frame (with ``tool``: in the calibrated tool's).
+        tool: One chain's calibrated tool ``(4, 4)`` (the measured frame in the tool frame;
+            identity for position data), written as a chain's calibration writes it
+            (:func:`~.urdf_export.place_calibrated_tool`: a tool link carried by the chain's
+            last joint is allowed), the markers hung from it; None: a tree's tools, each
+            marker on its tool's link (the tools need their fixed joints).
         world: ``(name, T)``: add the link ``name`` (the instrument) as the parent of the
             URDF's root link, ``T`` ``(4, 4)`` the pose of ``chain``'s base frame in it.
 
     Raises:
-        CalibError: A tool not carried by a fixed joint (unless ``moving``), a marker or
-            world link's name taken, or the base frame moved by a joint (``world``).
+        CalibError: A tool not carried by a fixed joint (a tree's), a marker or world link's
+            name taken, or the base frame moved by a joint (``world``).
     """
     raw = moved_origins_urdf(chain, errors)
     src = str(chain.urdf_path)
     start, stop = xml_layout(raw, src)
     root = parse_xml(raw, src)
     for tool_chain, points in markers:
-        tool_link = child_link(edited_joints(root, tool_chain, moving)[1])
+        tool_joint = edited_joints(root, tool_chain, tool is not None)[1]
+        tool_link = child_link(tool_joint)
+        if tool is not None:
+            tool_link = place_calibrated_tool(root, tool_chain, tool_joint, tool)
         add_marker_links(root, tool_chain.tool_frame, tool_link, points)
     if world is not None:
         add_world_link(root, world[0], world[1] @ base_to_root(chain, NominalPoses(chain)))
     return spliced(raw, root, start, stop)
+
+
+def place_calibrated_tool(
+    root: ET.Element, chain: Chain, tool_joint: ET.Element, X: np.ndarray
+) -> str:
+    """Write the calibrated tool on the tool's link; the link that holds it.
+
+    ``X`` ``(4, 4)``: the measured frame in the tool frame of the written joints (identity
+    for position data). A tool on a fixed joint: that joint's origin is right-multiplied by
+    ``X`` and the joints fixed to the tool link keep their place; a tool link carried by the
+    chain's last joint keeps its place and a link ``<tool>_calibrated`` is fixed to it at
+    ``X`` (:func:`~.urdf_export.urdf_tool_frame`).
+
+    Args:
+        root: The URDF's ``<robot>`` element (edited).
+        chain: The chain.
+        tool_joint: The joint that carries the tool link (:func:`~.urdf_export.edited_joints`).
+        X: The calibrated tool in the tool frame ``(4, 4)``.
+    """
+    tool_link = child_link(tool_joint)
+    if tool_on_moving_joint(chain):
+        held = calibrated_tool_name(chain.tool_frame)
+        set_fixed_link(root, held, tool_link, X)
+        return held
+    set_origin(tool_joint, origin_of(tool_joint) @ X)
+    keep_tool_children(root, tool_link, X)
+    return tool_link
+
+
+def instrument_joint(root: ET.Element, chain: Chain) -> ET.Element:
+    """The fixed joint that takes an instrument on the robot's placement (``on_robot``).
+
+    The base frame's fixed joint (:func:`~.urdf_export.base_joint`), off the chain: moving
+    it moves the base frame alone (a head camera whose chain runs up the head and down the
+    arm).
+
+    Raises:
+        CalibError: The base frame is the root link or a joint moves it, or the chain hangs
+            from the base frame's link (moving its joint would move the whole chain).
+    """
+    joint = base_joint(root, chain)
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
+    name = chain_joint_below(joints, chain, child_link(joint))
+    if name is not None:
+        raise CalibError(
+            f"on_robot: the chain hangs from the base frame '{chain.base_frame}' (joint "
+            f"'{name}' is below it): moving its fixed joint would move the whole chain; an "
+            f"instrument on the robot is a frame the chain leaves upwards (a head camera "
+            f"measuring the arm)"
+        )
+    return joint

@@ -50,10 +50,12 @@ __all__ = [
     "base_joint",
     "base_to_root",
     "calibrated_urdf",
+    "chain_joint_below",
     "check_base_fixed",
     "check_exportable",
     "child_link",
     "edited_joints",
+    "keep_tool_children",
     "measurement_to_base",
     "origin_of",
     "parent_link",
@@ -243,19 +245,27 @@ def edited_joints(
     if missing:
         raise CalibError(f"{chain.urdf_path}: no <joint name='{missing[0]}'> (a chain joint)")
     tool_joint = _tool_joint(root, chain, moving)
-    parents = {child_link(j): parent_link(j) for j in joints.values()}
-    for name in chain.joint_names:  # a tool above the chain: its origin would move the chain
-        link, seen = parent_link(joints[name]), set()
-        while link and link not in seen:
-            if link == child_link(tool_joint):
-                raise CalibError(
-                    f"the tool frame '{chain.tool_frame}' is carried by a link above joint "
-                    f"'{name}' in the URDF: its calibrated placement would move the chain "
-                    f"(use a tool link that no chain joint hangs from)"
-                )
-            seen.add(link)
-            link = parents.get(link, "")
+    name = chain_joint_below(joints, chain, child_link(tool_joint))
+    if name is not None:  # a tool above the chain: its origin would move the chain
+        raise CalibError(
+            f"the tool frame '{chain.tool_frame}' is carried by a link above joint "
+            f"'{name}' in the URDF: its calibrated placement would move the chain "
+            f"(use a tool link that no chain joint hangs from)"
+        )
     return joints, tool_joint
+
+
+def chain_joint_below(joints: dict[str, ET.Element], chain: Chain, link: str) -> str | None:
+    """The first chain joint that hangs from ``link`` (``link`` above it in the URDF), or None."""
+    parents = {child_link(j): parent_link(j) for j in joints.values()}
+    for name in chain.joint_names:
+        up, seen = parent_link(joints[name]), set()
+        while up and up not in seen:
+            if up == link:
+                return name
+            seen.add(up)
+            up = parents.get(up, "")
+    return None
 
 
 def check_exportable(chain: Chain, moving: bool = False) -> None:
@@ -397,7 +407,7 @@ def _write_tool(root, chain, poses, moved, links, tool_joint, X, moving: bool) -
     parent = parent_link(tool_joint)
     where = links.frame[parent] @ poses.link(parent)
     set_origin(tool_joint, np.linalg.inv(where) @ tool_new)
-    _keep_tool_children(root, tool_child, X)
+    keep_tool_children(root, tool_child, X)
     return tool_child
 
 
@@ -455,7 +465,7 @@ def _write_path(
     its parent's new frame: a chain joint's new frame is ``moved[row]`` applied to its
     nominal one; another joint's follows its child link (a link of the chain) or else the
     parent link's body. Origins whose parent and frame move alike are left as written, and
-    so is everything under the tool link (:func:`_keep_tool_children`); ``tool_joint`` is
+    so is everything under the tool link (:func:`keep_tool_children`); ``tool_joint`` is
     the tool's fixed joint (its origin is written apart), or None where the tool link is the
     last chain joint's (that joint is written like the others). The visuals,
     collisions and inertia of a link whose frame moves within its body are placed back on
@@ -511,7 +521,7 @@ def origin_of(joint: ET.Element) -> np.ndarray:
     return T
 
 
-def _keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
+def keep_tool_children(root: ET.Element, tool_link: str, X: np.ndarray) -> None:
     """Joints fixed to the tool link keep their place when its frame moves by ``X``."""
     if np.array_equal(X, np.eye(4)):
         return

@@ -19,7 +19,6 @@ the joint limits.
 from __future__ import annotations
 
 import re
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +26,7 @@ import numpy as np
 
 from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, angle_mrad, check_count, check_size, length_mm
 from ..core.fileio import write_atomic
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..identification.contact_postures import contact_model, contact_postures
 from ..identification.contacts import Contact
 from ..identification.kinds import kind_of
@@ -152,11 +151,10 @@ def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> 
     if off:
         read = f"{len(joints)} other joints ({_listed(joints)}), read for the gravity load of "
         read += "elastic only" + ("; " if ignored else "")
-        warnings.warn(
+        warn_user(
             f"{src}: {len(off)} columns not on the chain: {read if joints else ''}"
             + (f"{len(ignored)} ignored ({_listed(ignored)})" if ignored else ""),
             DataWarning,
-            stacklevel=4,
         )
     return {"id": keys.index(want), **{j: index[j] for j in (*chain.joint_names, *joints)}}
 
@@ -219,11 +217,10 @@ def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str
         values.append(column)
     if len(kept) < len(names):
         left = [n for n in names if n not in kept]
-        warnings.warn(
+        warn_user(
             f"{source}: {len(left)} joint columns off the chain hold a cell that is not a "
             f"number ({_listed(left)}): not read (their joints stay at neutral under elastic)",
             DataWarning,
-            stacklevel=4,
         )
     if not kept:
         return None

@@ -31,7 +31,6 @@ import io
 import itertools
 import math
 import re
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +39,7 @@ import numpy as np
 from ..core.checks import MAX_ROWS, check_size, read_only
 from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS, checked_points
 from ..core.fileio import read_failure, read_text_limited, write_atomic
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.so3 import (
     matrix_to_quaternion,
@@ -288,11 +287,10 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     used = {*_joint_keys(chain), *pos, *every, *ori, TOOL_COLUMN}
     ignored = [n for n, k in zip(names, keys, strict=True) if k not in used]
     if ignored:
-        warnings.warn(
+        warn_user(
             f"{src}: columns ignored (not joints of the chain, positions, orientation or tool): "
             f"{', '.join(ignored)}",
             DataWarning,
-            stacklevel=4,
         )
     return keys, pos, fmt, ori, names
 
@@ -499,12 +497,11 @@ def _warn_repeats(data: Measurements) -> None:
     if repeats:
         row = int(np.flatnonzero(~np.isin(np.arange(data.m), first))[0])
         line = data.rows[row] if data.rows else row + 2
-        warnings.warn(
+        warn_user(
             f"{data.source}: {repeats} of {data.m} rows repeat the joint positions of an "
             f"earlier row (first: row {line}): repeated configurations are not independent "
             f"measurements, the reported uncertainty is overconfident",
             DataWarning,
-            stacklevel=4,
         )
 
 
@@ -514,11 +511,10 @@ def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]
     if pose.flat < marker_set.MIN_FLATNESS:
         raise DataError(src, "the markers lie on a line: their set has no orientation")
     if pose.spread > marker_set.SPREAD_WARNING:
-        warnings.warn(
+        warn_user(
             f"{src}: the markers move up to {1e3 * pose.spread:.3g} mm relative to each "
             f"other: they are not one rigid set, its orientation is a least-squares fit",
             DataWarning,
-            stacklevel=4,
         )
     return position[:, :3], matrix_to_quaternion(pose.rotations)
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,7 +32,7 @@ import numpy as np
 
 from ..core.checks import real_array
 from ..core.fileio import write_atomic
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..identification.pinhole import DISTORTION_COUNTS, Pinhole
 from .csvfile import read_data_text
 from .data import DataWarning
@@ -299,12 +298,11 @@ def _warn_principal_point(intr: Intrinsics) -> None:
         if off(intr.height, intr.width) <= PRINCIPAL_POINT_WARNING
         else ""
     )
-    warnings.warn(
+    warn_user(
         f"{intr.source}: the principal point ({cam.cx:g}, {cam.cy:g}) px is far from the "
         f"centre ({intr.width / 2:g}, {intr.height / 2:g}) px of the {intr.width}x{intr.height} "
         f"image{hint}",
         DataWarning,
-        stacklevel=3,
     )
 
 

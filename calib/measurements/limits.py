@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .data import TOOL_COLUMN, DataWarning, Measurements
@@ -123,9 +122,8 @@ def check_limits(
             f"{chain.joint_names[k]} by up to {np.max(past[:, k]):.3g} {_unit(int(chain.sigma[k]))}"
             for k in np.flatnonzero(np.any(near, axis=0))
         ]
-        warnings.warn(
+        warn_user(
             f"{source}: {int(np.sum(np.any(near, axis=1)))} rows read past the URDF joint limits "
             f"({'; '.join(worst)}): accepted (kinematics does not need the limits)",
             DataWarning,
-            stacklevel=3,
         )

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import csv
 import io
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +37,7 @@ import numpy as np
 
 from ..core.checks import check_size, real_array
 from ..core.fileio import write_atomic
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError, warn_user
 from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .intrinsics import Intrinsics
@@ -246,11 +245,7 @@ def _text_cell(cells: list[str], j: int, source: str, line: int, column: str) ->
 def _warn_ignored(names: Sequence[str], source: str, what: str) -> None:
     """One note naming the columns a file has that are not read."""
     if names:
-        warnings.warn(
-            f"{source}: columns ignored (not {what}): {', '.join(names)}",
-            DataWarning,
-            stacklevel=4,
-        )
+        warn_user(f"{source}: columns ignored (not {what}): {', '.join(names)}", DataWarning)
 
 
 def parse_target(text: str, source: str = "<text>") -> Target:

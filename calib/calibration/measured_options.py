@@ -1,0 +1,248 @@
+"""The options of one chain measured by an instrument, on the joint engine: fix, free, elastic.
+
+:func:`~.entry.calibrate` of a chain and its measurements fits it with the joint engine
+(:func:`~.contact_chains.calibrate_contact_chains`, ``options``). What the chain's options
+ask of it:
+
+* ``fix`` / ``free`` name parameters. A joint's parameter is written as the printed table
+  names it, ``<joint>:<parameter>``: an MDH parameter of the chain's chart
+  (``elbow_joint:d3``, :func:`~.placements.mdh_directions`) or a joint placement component
+  (``elbow_joint:x`` ... ``:rz``); an MDH name alone (``d3``) is the chart's parameter of that
+  name. A fixed one is not offered; a free one is offered at every level and kept by ``auto``'s
+  selection, and refused in one line when the data cannot fit it (the instrument frame and
+  markers carry it, or parameters kept before it). ``c1`` .. ``cN``: a joint's compliance.
+  ``free`` of ``frame``, ``markers`` or ``tool`` asks nothing (they are always fitted);
+  ``fix`` of them is refused (the engine fits the instrument's frame and markers always).
+* ``elastic`` (or a compliance in ``free``): the joint compliances are candidates, under the
+  gravity torques of the URDF's masses (:meth:`~calib.kinematics.robot.Chain.gravity_torques`,
+  gravity along the URDF root's -z, as the compliance file records); refused where the URDF
+  gives the chain no torque (:func:`~.freedoms.check_compliance`).
+* ``loss`` and ``noise_mm`` go to the fit and the registration's checks
+  (:func:`~.contact_chains.calibrate_contact_chains`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InvalidArgumentError
+from ..kinematics.elastic import compliance_document
+from ..kinematics.robot import Chain
+from .contact_elastic import torques as contact_torques
+from .freedoms import check_compliance, check_free
+from .model import compliance_name
+from .options import Options
+from .placements import mdh_directions
+
+__all__ = [
+    "GROUPS",
+    "Asked",
+    "asked_of",
+    "chain_compliance_document",
+    "compliance_torques",
+    "level_offer",
+]
+
+GROUPS = ("frame", "markers", "tool")
+"""Names of a measured term's own unknowns, by group."""
+
+
+def _compliance(name: str) -> bool:
+    return name[:1] == "c" and name[1:].isdigit()
+
+
+def compliance_torques(chains, train, held, opts: Options | None, load=None):
+    """Gravity torques of the fitted and held-out rows, and the joints whose compliance is offered.
+
+    A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
+    joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
+    ``free``): the URDF cannot hold it. The joints offered are those gravity loads, less the
+    compliances fixed.
+
+    Returns:
+        ``(torques of train, of held or None)`` (``(None, None)``: rigid joints) and the
+        joints (0-based).
+
+    Raises:
+        InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
+            compliance of a joint it never loads.
+    """
+    if load is not None:
+        return contact_torques(load, train[0], held[0]), tuple(range(chains[0].n))
+    forced = opts is not None and any(_compliance(n) for n in opts.free)
+    if opts is None or not (opts.elastic or (opts.elastic is None and forced)):
+        return (None, None), ()
+    chain = chains[0]
+    tau = chain.gravity_torques(train[0].q)
+    loaded = [j for j in range(chain.n) if np.any(tau[:, j])]
+    check_compliance(chain, tau, loaded, opts)
+    joints = tuple(j for j in loaded if compliance_name(j) not in opts.fix)
+    return (tau, None if held[0] is None else chain.gravity_torques(held[0].q)), joints
+
+
+@dataclass(frozen=True)
+class Asked:
+    """Parameters a measured chain's ``fix`` and ``free`` name, resolved on its joints.
+
+    Attributes:
+        fix: The fixed parameters' engine names (``<joint>:<parameter>``).
+        free: The free parameters' engine names (compliances as ``c<k>``).
+        given: Each engine name's name as the user wrote it.
+        extra: Directions ``(6 J,)`` of the parameters named, by engine name (a free one a
+            level may not offer is added; a fixed one holds every offered direction along
+            it: ``theta2`` is ``<joint>:rz`` at ``offsets``).
+    """
+
+    fix: tuple[str, ...]
+    free: tuple[str, ...]
+    given: dict[str, str]
+    extra: dict[str, np.ndarray]
+
+    @property
+    def joints(self) -> bool:
+        """Some joint parameter is named (``complete`` then offers the chart's directions)."""
+        return bool(self.extra)
+
+    def offer(self, directions, names, offered):
+        """The level's offer with the fixed parameters out and the free ones in.
+
+        Args:
+            directions: The offered directions ``(D, 6 J)``, or None: the components.
+            names: Their names (the components' with None).
+            offered: The indices offered.
+
+        Returns:
+            The directions, names, indices offered and the names ``auto`` must keep.
+        """
+        missing = [n for n in self.free if n in self.extra and n not in names]
+        if missing and directions is None:
+            directions = np.eye(len(names))
+        if missing:
+            directions = np.vstack([directions, *(self.extra[n] for n in missing)])
+            offered = [*offered, *range(len(names), len(names) + len(missing))]
+            names = (*names, *missing)
+        held = [self.extra[n] / np.linalg.norm(self.extra[n]) for n in self.fix if n in self.extra]
+
+        def fixed(k: int) -> bool:  # by name, or along a fixed parameter's direction
+            if names[k] in self.fix:
+                return True
+            if directions is None:  # the components: k's own
+                return any(abs(h[k]) >= 1.0 - 1e-9 for h in held)
+            d = directions[k]
+            return any(abs(d @ h) >= (1.0 - 1e-9) * np.linalg.norm(d) for h in held)
+
+        offered = [k for k in offered if not fixed(k)]
+        return directions, tuple(names), offered, self.free
+
+    def check(self, wide, start, flush, kept) -> None:
+        """Refuse a free parameter the data cannot fit (:func:`~.freedoms.check_free`)."""
+        every = wide.names()
+        cand = [every[k] for k in kept]
+        if all(n in cand for n in self.free if n in every):
+            return
+        A = wide.jacobian(start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
+        shown = [self.given.get(n, n) for n in every]
+        free = [self.given.get(n, n) for n in self.free]
+        check_free(free, [self.given.get(n, n) for n in cand], shown, A, wide.fixed)
+
+
+def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | None:
+    """The parameters ``fix`` and ``free`` name (module text), or None: none named.
+
+    Raises:
+        InvalidArgumentError: An unknown name, or ``fix`` of a group.
+    """
+    if opts is None or not (opts.fix or opts.free):
+        return None
+    held = [n for n in opts.fix if n in GROUPS]
+    if held:
+        raise InvalidArgumentError(
+            f"fix {held[0]}: the joint engine always fits the instrument's frame and markers "
+            f"(and the measured frame's rotation); fix joint parameters or compliances"
+        )
+    D, labels = mdh_directions(placements, chain, state.mdh, 0, "complete")
+    chart = dict(zip(labels, D, strict=True))
+    units = np.eye(len(placements.names()))
+    components = dict(zip(placements.names(), units, strict=True))
+    bare = {label.split(":", 1)[1]: label for label in labels}
+    given: dict[str, str] = {}
+    for name in (*opts.fix, *opts.free):
+        if name in GROUPS or name in chart or name in components:
+            given[name] = name
+        elif name in bare:
+            given[bare[name]] = name
+        elif _compliance(name) and 1 <= int(name[1:]) <= chain.n:
+            given[name] = name
+        else:
+            example = labels[-1] if labels else placements.names()[-1]
+            raise InvalidArgumentError(
+                f"unknown parameter '{name}' for fix/free: give a joint's parameter as the "
+                f"table prints it (e.g. {example}, or {example.split(':')[1]} alone), a joint "
+                f"placement component (<joint>:x .. :rz), a compliance c1..c{chain.n}, or "
+                f"frame, markers, tool (free only)"
+            )
+    engine = {v: k for k, v in given.items()}
+    pick = {**components, **chart}
+    fix = tuple(engine[n] for n in opts.fix)
+    free = tuple(engine[n] for n in opts.free if n not in GROUPS)
+    extra = {n: pick[n] for n in (*fix, *free) if n in pick}
+    return Asked(fix, free, {k: v for k, v in given.items() if k != v}, extra)
+
+
+def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
+    """What a joint fit offers at ``level`` and what ``fix``/``free`` ask (or None).
+
+    A tree's ``complete`` offers every joint placement component (the rank keeps a basis), or
+    the chart's MDH directions when ``fix`` or ``free`` names a joint parameter; one chain's,
+    its MDH directions (those ``auto`` chooses among).
+
+    Args:
+        chain: The first term's chain.
+        start: The registration (``placements``, ``states``).
+        level: The parameter level.
+        instrument: The terms are measured by an instrument outside the robot.
+        opts: A measured chain's options, or None.
+    """
+    asked = None if opts is None else asked_of(chain, start.placements, start.states[0], opts)
+    tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
+    every = tree and level == "complete" and not (asked and asked.joints)
+    return asked, "components" if every else level
+
+
+@dataclass(frozen=True)
+class _ChainFile:
+    """What a chain's compliance file records of its result (the written URDF's frames)."""
+
+    robot: str
+    chain: Chain
+    urdf_tool_frame: str
+    state: object
+    measurement_to_base: np.ndarray
+    urdf_markers: np.ndarray
+    marker_links: tuple[str, ...]
+
+
+def chain_compliance_document(result, urdf: str) -> dict:
+    """The compliance file of a measured chain's joint fit (a chain's, JSON-ready).
+
+    Its markers hang from the tool link itself in the written URDF; the gravity torques are
+    the URDF's masses' (:func:`calib.kinematics.elastic.compliance_document`).
+
+    Args:
+        result: The joint fit of one chain measured by an instrument (``one_chain()``).
+        urdf: The calibrated URDF's path, as recorded.
+    """
+    part = result.one_chain()
+    inner = part.state.inner
+    view = _ChainFile(
+        part.chain.name,
+        part.chain,
+        part.chain.tool_frame,
+        inner,
+        inner.frame,
+        inner.markers,
+        tuple(result.marker_links),
+    )
+    return compliance_document(view, urdf)

@@ -1,0 +1,167 @@
+"""Errors of a calibrated model on measured rows: the statistics every result reports.
+
+:class:`ResidualStats` (position and orientation RMS / max of a set of measurements) and
+:class:`Validation` (the same on held-out rows, with the registration's and the predicted
+standard deviation), in metres and radians; :func:`error_table` is the summary's table of them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..identification.report import format_table
+from ..measurements.data import Measurements
+from .report import finite
+
+__all__ = ["ResidualStats", "Validation", "error_table"]
+
+
+@dataclass(frozen=True)
+class ResidualStats:
+    """Errors measured - model of a set of measurements.
+
+    Attributes:
+        configs: Number of configurations.
+        position_rms: sqrt(mean |e_p|^2) over every measured point [m].
+        position_max: Largest point error [m].
+        orientation_rms: sqrt(mean |e_r|^2) of the rotation error [rad], or None.
+        orientation_max: Largest rotation error [rad], or None.
+    """
+
+    configs: int
+    position_rms: float
+    position_max: float
+    orientation_rms: float | None = None
+    orientation_max: float | None = None
+
+    @staticmethod
+    def of(residual: np.ndarray, n_markers: int = 1) -> ResidualStats:
+        """Statistics of residuals ``(m, 3 K)`` or, with orientations, ``(m, 3 K + 3)``."""
+        residual = np.asarray(residual, dtype=float)
+        m = len(residual)
+        pos = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
+        rot = None
+        if residual.shape[1] == 3 * n_markers + 3:
+            rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+        return ResidualStats(
+            configs=m,
+            position_rms=float(np.sqrt(np.mean(pos**2))),
+            position_max=float(np.max(pos)),
+            orientation_rms=None if rot is None else float(np.sqrt(np.mean(rot**2))),
+            orientation_max=None if rot is None else float(np.max(rot)),
+        )
+
+    def in_mm(self) -> dict:
+        """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
+        deg = math.degrees(1.0)
+        rot = (self.orientation_rms, self.orientation_max)
+        return {
+            "configs": self.configs,
+            "position_rms_mm": finite(1e3 * self.position_rms),
+            "position_max_mm": finite(1e3 * self.position_max),
+            "orientation_rms_deg": None if rot[0] is None else finite(deg * rot[0]),
+            "orientation_max_deg": None if rot[1] is None else finite(deg * rot[1]),
+        }
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (metres, radians; format 2's)."""
+        return {
+            "configs": self.configs,
+            "position_rms": finite(self.position_rms),
+            "position_max": finite(self.position_max),
+            "orientation_rms": finite(self.orientation_rms),
+            "orientation_max": finite(self.orientation_max),
+        }
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Errors on configurations the fit never saw.
+
+    Attributes:
+        source: ``holdout`` (rows set aside) or the validation file.
+        registration: Errors of the registration alone (nominal geometry).
+        calibrated: Errors of the calibrated model.
+        predicted_std: Predicted position standard deviation of the calibrated model at
+            these configurations, RMS over them [m].
+        urdf: Errors of the calibrated URDF alone (the geometry, frame and markers, without
+            the joint compliance), or None when no compliance was fitted (then it is
+            ``calibrated``).
+        rows: The held-out measurements themselves (for per-configuration errors), or None.
+    """
+
+    source: str
+    registration: ResidualStats
+    calibrated: ResidualStats
+    predicted_std: float
+    urdf: ResidualStats | None = None
+    rows: Measurements | None = None
+
+    @property
+    def geometry(self) -> ResidualStats:
+        """Errors of the calibrated URDF alone (no compliance; ``calibrated`` without any)."""
+        return self.calibrated if self.urdf is None else self.urdf
+
+    def in_mm(self) -> dict:
+        """The report's ``errors.held_out`` (format 3): mm and degrees."""
+        return {
+            "source": self.source,
+            "registration": self.registration.in_mm(),
+            "calibrated": self.calibrated.in_mm(),
+            "urdf": self.geometry.in_mm(),
+            "predicted_std_mm": finite(1e3 * self.predicted_std),
+        }
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (format 2's)."""
+        return {
+            "source": self.source,
+            "registration": self.registration.to_dict(),
+            "calibrated": self.calibrated.to_dict(),
+            "urdf": self.geometry.to_dict(),
+            "predicted_std": finite(self.predicted_std),
+        }
+
+
+def _mm(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}"
+
+
+def _row(label: str, st: ResidualStats) -> list[str]:
+    row = [label, str(st.configs), _mm(st.position_rms), _mm(st.position_max)]
+    if st.orientation_rms is not None:
+        row += [_mm(st.orientation_rms), _mm(st.orientation_max)]
+    return row
+
+
+def error_table(
+    before: ResidualStats,
+    after: ResidualStats,
+    urdf_after: ResidualStats | None,
+    held: Validation | None,
+) -> str:
+    """The summary's errors table: fitted and held-out rows, registration and calibrated [mm].
+
+    Args:
+        before: The registration's errors on the fitted rows.
+        after: The calibrated model's on the fitted rows.
+        urdf_after: The URDF alone's (no compliance) on the fitted rows, or None (rigid).
+        held: The errors on held-out rows, or None.
+    """
+    rows = [_row("fitted, registration only", before), _row("fitted, calibrated", after)]
+    if urdf_after is not None:
+        rows.append(_row("fitted, URDF alone (no compliance)", urdf_after))
+    if held is not None:
+        rows += [
+            _row(f"held out ({held.source}), registration only", held.registration),
+            _row(f"held out ({held.source}), calibrated", held.calibrated),
+        ]
+        if held.urdf is not None:
+            rows.append(_row(f"held out ({held.source}), URDF alone (no compliance)", held.urdf))
+    header = ["errors", "configs", "rms [mm]", "max [mm]"]
+    if after.orientation_rms is not None:
+        header += ["rot rms [mrad]", "rot max [mrad]"]
+    return format_table(header, rows)
