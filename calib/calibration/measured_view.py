@@ -1,10 +1,10 @@
 """A chain measured by an instrument, fitted by the joint engine, seen as a chain's result.
 
-What users of a measured chain's result (:class:`~.result.CalibrationResult`) read and what
-the CLI passes (``world_link``), for a joint fit of that one term
-(:class:`~.contact_chains_result.ContactChainsCalibration` of shape ``chain``,
-``entry.ENGINE_CHAIN``): the report's frames as a chain's report has them, so that
-:func:`calib.load_calibrated` and ``calib predict`` read it.
+What users of a measured chain's result read (its errors, validation, frames, markers,
+uncertainty) and what the CLI passes (``world_link``, ``on_robot``), for the joint fit of that
+one term (:class:`~.contact_chains_result.ContactChainsCalibration` of shape ``chain``): the
+report's frames as a chain's report has them, so that :func:`calib.load_calibrated` and
+``calib predict`` read it.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from ..kinematics.placement_export import instrument_joint
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
+from ..measurements.csvfile import check_against_chain
 from ..measurements.data import Measurements
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
@@ -44,6 +45,7 @@ __all__ = [
     "chain_report",
     "chain_writing",
     "measured_part",
+    "residual_stats",
     "tool_pose",
     "world_of",
     "written_markers",
@@ -378,8 +380,8 @@ class Solution:
 class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
-    The names users of :class:`~.result.CalibrationResult` read, where a one-term joint fit
-    has them (shape ``chain``; other shapes raise
+    The names users of a chain's result read (those the MDH pipeline's result had until
+    issue 28), where a one-term joint fit has them (shape ``chain``; other shapes raise
     :class:`~calib.exceptions.InvalidArgumentError`). Not here:
     ``model`` and ``prior`` (the engine's parameters are joint placement components, not MDH
     rows; its solution is :attr:`solution`).
@@ -599,3 +601,23 @@ def _geometry(state: State, data: Measurements) -> ResidualStats | None:
         return None
     rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
     return ResidualStats.of(rigid.residuals(data), data.n_markers)
+
+
+def residual_stats(result: ChainView, data: Measurements) -> ResidualStats:
+    """Errors of a calibrated chain on other rows [m, rad] (gravity torques where fitted).
+
+    Args:
+        result: A calibration of one chain measured by an instrument (shape ``chain``).
+        data: Rows of the same chain, measured as its data were.
+
+    Raises:
+        InvalidArgumentError: Not a calibration of one chain measured, or not measurements.
+        DataError: Rows that are not of the chain.
+    """
+    if not isinstance(result, ChainView) or not isinstance(data, Measurements):
+        raise InvalidArgumentError(
+            "residual_stats takes the result of one chain measured and Measurements"
+        )
+    part = result.one_chain()
+    check_against_chain(data, part.chain)
+    return _stats(part.chain, part.state.inner, data)
