@@ -86,7 +86,7 @@ def ur10(tmp: Path) -> None:
     folds = np.array_split(np.arange(poses.m), 5)
     for name, data in (("position", poses.position_only()), ("pose", poses)):
         for level in ("frames", "offsets", "complete", "auto"):
-            pooled: list[list[np.ndarray]] = [[], []]
+            pooled: list[list[np.ndarray]] = [[] for _ in ROUTES]
             for test in folds:
                 held = np.zeros(data.m, dtype=bool)
                 held[test] = True
@@ -104,7 +104,7 @@ def simulated(tmp: Path) -> None:
         chain = load_chain(robot)
         for measure in ("position", "pose"):
             for level in ("auto", "complete"):
-                pooled: list[list[np.ndarray]] = [[], []]
+                pooled: list[list[np.ndarray]] = [[] for _ in ROUTES]
                 for seed in range(3):
                     seen = calib.simulate(
                         chain, 30, measure, marker=marker, noise_mm=0.05, seed=seed
