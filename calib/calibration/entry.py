@@ -135,7 +135,9 @@ def calibrate(
             [m], or of a contact frame (:attr:`~.problem.Term.guess`; default: the tool
             origin).
         validate: Data of other postures to score the result on (never fitted).
-        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
+        fix: Parameter names held at their start, as the printed table names them
+            (``elbow_joint:d3``, ``d3``, a compliance ``c2``; the instrument's frame and the
+            markers are always fitted).
         free: Parameter names (a compliance ``c1``.. included) always fitted.
         elastic: Fit joint compliance under gravity, which the URDF cannot hold (default:
             no, unless ``free`` names a compliance).

@@ -419,7 +419,7 @@ def _add_model_args(g: Group) -> None:
         nargs="+",
         default=[],
         metavar="NAME",
-        help="parameters (or frame, markers, tool) held at their start",
+        help="parameters held at their start, named as the printed table (elbow_joint:d3, d3, c2)",
     )
     g.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
     g.add_argument(
