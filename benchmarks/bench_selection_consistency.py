@@ -26,8 +26,7 @@ one_core()
 import numpy as np  # noqa: E402
 
 from calib import load_chain, simulate  # noqa: E402
-from calib.calibration import calibrate  # noqa: E402
-from calib.calibration.pipeline import residual_stats  # noqa: E402
+from calib.calibration import calibrate, residual_stats  # noqa: E402
 
 SEEDS = int(os.environ.get("CALIB_BENCH_SEEDS", "3"))
 CASES = {

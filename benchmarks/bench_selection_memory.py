@@ -40,7 +40,7 @@ from calib import load_chain, read_measurements
 from calib.calibration import calibrate
 if os.environ.get("CALIB_BENCH_BEYOND") == "1":  # every module that holds the maximum
     import importlib
-    for name in ("pipeline", "entry"):
+    for name in ("entry",):
         try:
             module = importlib.import_module("calib.calibration." + name)
         except ImportError:

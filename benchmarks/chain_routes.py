@@ -1,15 +1,14 @@
-"""CPU-time medians of one measured chain through either route (issue 28): pipeline and engine.
+"""CPU-time medians of one measured chain through the joint engine, its only route (issue 28).
 
-``calibrate`` fits one chain measured by an instrument with the MDH chart's pipeline
-(:func:`calib.calibration.pipeline.calibrate_chain`) unless the internal switch
-``calib.calibration.entry.ENGINE_CHAIN`` sends it to the joint engine as a one-term problem
-(:func:`calib.calibration.entry.measured_chain`). One line per route [ms of process CPU time,
+``calibrate`` fits one chain measured by an instrument with the joint engine as a one-term
+problem (:func:`calib.calibration.entry.measured_chain`; until issue 28 the MDH chart's own
+pipeline did, the figures it gave are in the issue's notes). One line [ms of process CPU time,
 medians]: the TIAGo session (37 postures, point 1, ``auto``: the target is under 40 ms), point
 1 ``complete``, the UR10 with ``holdout=0.25``. Run it a few times (the machine's load drifts):
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/chain_routes.py
 
-``accuracy``: held-out errors of both routes [mm, RMS / max], scored on what calib writes (the
+``accuracy``: held-out errors [mm, RMS / max], scored on what calib writes (the
 URDF read by Pinocchio, its marker link placed in the instrument's frame by the report;
 ``tests/pinref.instrument_points``): the TIAGo (fit on 2021-11-30, scored on 2021-11-26's point
 1) at every level, four points and the plate's pose; the UR10 (5 contiguous folds, pooled);
@@ -34,7 +33,6 @@ warnings.simplefilter("ignore")
 import numpy as np  # noqa: E402
 
 import calib  # noqa: E402
-import calib.calibration.entry as entry  # noqa: E402
 from calib import calibrate, load_chain, read_measurements  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -42,7 +40,7 @@ DATA = ROOT / "data" / "realdata"
 sys.path.insert(0, str(ROOT / "tests"))
 from pinref import instrument_points  # noqa: E402  (Pinocchio alone)
 
-ROUTES = ("pipeline", "engine")
+ROUTES = ("engine",)
 
 
 def held_out(result, chain, data, tmp: Path) -> np.ndarray:
@@ -62,13 +60,8 @@ def line(label: str, errors: list[np.ndarray]) -> None:
 
 
 def both(fit, score) -> list[np.ndarray]:
-    """``score(fit())`` with the pipeline, then with the engine."""
-    out = []
-    for engine in (False, True):
-        entry.ENGINE_CHAIN = engine
-        out.append(score(fit()))
-    entry.ENGINE_CHAIN = False
-    return out
+    """``[score(fit())]``: the one route's (the pipeline's column is gone with it)."""
+    return [score(fit())]
 
 
 def tiago(tmp: Path) -> None:
@@ -144,11 +137,8 @@ def main() -> None:
         "complete": (lambda: calibrate(chain, one, params="complete"), 11),
         "ur10": (lambda: calibrate(ur10, ur10_data, holdout=0.25), 11),
     }
-    for engine in (False, True):
-        entry.ENGINE_CHAIN = engine
-        ms = {name: cpu_median_ns(fn, n) / 1e6 for name, (fn, n) in cases.items()}
-        route = "engine" if engine else "pipeline"
-        print(f"{route:8s} " + " ".join(f"{k} {v:.1f}" for k, v in ms.items()), flush=True)
+    ms = {name: cpu_median_ns(fn, n) / 1e6 for name, (fn, n) in cases.items()}
+    print("engine   " + " ".join(f"{k} {v:.1f}" for k, v in ms.items()), flush=True)
 
 
 if __name__ == "__main__":

@@ -73,7 +73,6 @@ _LAZY = {
     "tree_parameters": "identification.tree_jacobian",
     "TreeMDH": "kinematics.tree_model",
     "from_tree": "kinematics.tree_model",
-    "CalibrationResult": "calibration",
     "Problem": "calibration.problem",
     "Term": "calibration.problem",
     "Result": "calibration.delivery",
@@ -128,7 +127,7 @@ def __getattr__(name: str) -> object:
 
 TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
-    from .calibration import CalibrationResult, ResidualStats, calibrate, residual_stats
+    from .calibration import ResidualStats, calibrate, residual_stats
     from .calibration.analysis import ProblemAnalysis, analyze
     from .calibration.contact_chains import calibrate_contact_chains
     from .calibration.contact_chains_result import ContactChainsCalibration

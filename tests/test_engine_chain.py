@@ -1,4 +1,4 @@
-"""One chain measured by an instrument, fitted by the joint engine (entry.ENGINE_CHAIN, issue 28).
+"""One chain measured by an instrument, fitted by the joint engine (issue 28: its only route).
 
 Every number is scored on what calib writes: the calibrated URDF read by Pinocchio, its marker
 link placed in the instrument's frame by the report's measurement frame, against measured or
@@ -15,7 +15,6 @@ import pytest
 from pinref import instrument_points
 
 import calib
-import calib.calibration.entry as entry
 from calib import (
     InvalidArgumentError,
     calibrate,
@@ -28,11 +27,6 @@ from calib.calibration.model import State
 from calib.measurements.data import Measurements
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
-
-
-@pytest.fixture
-def engine(monkeypatch):
-    monkeypatch.setattr(entry, "ENGINE_CHAIN", True)
 
 
 def measured_by_pinocchio(result, chain, q, tmp_path) -> np.ndarray:
@@ -64,7 +58,7 @@ PIPELINE_HELD_OUT = {"frames": (4.87, 12.20), "offsets": (4.23, 11.95), "complet
 
 
 @pytest.mark.parametrize("level", sorted(PIPELINE_HELD_OUT))
-def test_tiago_levels_match_the_pipeline_on_held_out_data(engine, tiago, tmp_path, level):
+def test_tiago_levels_match_the_pipeline_on_held_out_data(tiago, tmp_path, level):
     chain, train, test = tiago
     result = calibrate(chain, train, validate=test, params=level)
     assert result.accepted and result.shape == "chain"
@@ -72,7 +66,7 @@ def test_tiago_levels_match_the_pipeline_on_held_out_data(engine, tiago, tmp_pat
     assert got == pytest.approx(PIPELINE_HELD_OUT[level], abs=0.01)
 
 
-def test_tiago_default_no_worse_than_the_pipeline(engine, tiago, tmp_path):
+def test_tiago_default_no_worse_than_the_pipeline(tiago, tmp_path):
     """auto: the pipeline's 2.98 / 9.29 mm held out (README, docs); the engine's selection."""
     chain, train, test = tiago
     result = calibrate(chain, train, validate=test)
@@ -80,7 +74,7 @@ def test_tiago_default_no_worse_than_the_pipeline(engine, tiago, tmp_path):
     assert rms <= 2.983 and top <= 9.291
 
 
-def test_a_tool_link_on_a_revolute_joint_is_written(engine, tmp_path):
+def test_a_tool_link_on_a_revolute_joint_is_written(tmp_path):
     """The UR10 data's tool wrist_3_link is carried by wrist_3_joint: its marker hangs from it.
 
     Failed before (marker_urdf refused a tool not carried by a fixed joint); the pipeline
@@ -99,7 +93,7 @@ def test_a_tool_link_on_a_revolute_joint_is_written(engine, tmp_path):
 
 
 @pytest.mark.parametrize(("robot", "measure"), [("ur5", "position"), ("panda", "pose")])
-def test_noise_free_round_trip_is_exact(engine, tmp_path, robot, measure):
+def test_noise_free_round_trip_is_exact(tmp_path, robot, measure):
     """Simulated rows without noise: the written URDF predicts unseen rows to 1e-6 mm."""
     chain = load_chain(robot)
     seen = calib.simulate(chain, 40, measure, marker=(0.05, 0.02, 0.1), seed=4).measurements
@@ -125,7 +119,7 @@ def offset_campaign(chain, m: int, seed: int, joint: int, error: float) -> Measu
     return Measurements(chain.joint_names, q, points, source="theta2 only"), state
 
 
-def test_free_and_fix_name_the_charts_parameters(engine):
+def test_free_and_fix_name_the_charts_parameters():
     """``free theta2`` at ``frames`` fits that offset alone: the truth, to round-off; fixed
     at ``offsets``, the offset is held (the others cannot carry it: 1e-4 m off)."""
     chain = load_chain("ur5")
@@ -153,7 +147,7 @@ def test_free_and_fix_name_the_charts_parameters(engine):
         ({"free": ("d1",)}, "free d1 cannot be fitted: the measurement frame"),
     ],
 )
-def test_bad_fix_and_free_are_one_line_errors(engine, option, words):
+def test_bad_fix_and_free_are_one_line_errors(option, words):
     chain = load_chain("ur5")
     data, _ = offset_campaign(chain, 40, 3, 2, 2e-3)
     with pytest.raises(InvalidArgumentError, match=words) as info:
@@ -161,9 +155,7 @@ def test_bad_fix_and_free_are_one_line_errors(engine, option, words):
     assert "\n" not in str(info.value)
 
 
-def test_the_marker_guess_starts_the_measured_terms_registration(
-    engine, tiago, monkeypatch, tmp_path
-):
+def test_the_marker_guess_starts_the_measured_terms_registration(tiago, monkeypatch, tmp_path):
     """``marker=``: the engine's measured term registers from it (it was refused before).
 
     Every registration of the term (the checks', the diagnosis', the held-out rows') starts
@@ -195,7 +187,7 @@ def test_the_marker_guess_starts_the_measured_terms_registration(
         ((0.0, 0.0, np.inf), "3 finite numbers"),
     ],
 )
-def test_a_bad_marker_guess_is_one_line(engine, tiago, marker, message):
+def test_a_bad_marker_guess_is_one_line(tiago, marker, message):
     chain, train, _ = tiago
     with pytest.raises(InvalidArgumentError, match=message):
         calibrate(chain, train, marker=marker)
@@ -209,7 +201,7 @@ def test_a_marker_guess_without_a_measured_term_is_refused():
         calib.calibrate_contact_chains([chain], [touches], marker=(0.0, 0.0, 0.1))
 
 
-def test_the_noise_reaches_the_outlier_rule(engine):
+def test_the_noise_reaches_the_outlier_rule():
     """A row 20 mm off: an outlier for 0.05 mm of noise, not for 5 mm (the rule's bar is
     6 x the noise when given: 30 mm), as the chain pipeline's rule says."""
     chain = load_chain("ur5")
@@ -225,7 +217,7 @@ def test_the_noise_reaches_the_outlier_rule(engine):
     assert rows == {0.05: [8], 5.0: []}
 
 
-def test_complete_with_a_parameter_named_fits_the_charts_directions(engine):
+def test_complete_with_a_parameter_named_fits_the_charts_directions():
     """At ``complete``: free d3 keeps the fit exact on noise-free rows (the truth to 1e-9 m),
     fix d3 holds the true robot's d3 error out of it (0.1 mm off at least)."""
     chain = load_chain("ur5")

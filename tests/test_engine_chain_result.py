@@ -1,6 +1,6 @@
 """The joint engine's result of one measured chain read as a chain's result (issue 28).
 
-Under ``entry.ENGINE_CHAIN``: ``urdf``/``to_dict`` take ``world_link`` and ``on_robot``,
+``urdf``/``to_dict`` take ``world_link`` and ``on_robot``,
 ``residual_stats``, ``load_calibrated`` and ``calib predict`` take the result and its report.
 Every number is checked against Pinocchio on the written URDF, simulated rows without noise
 (the truth) or Pinocchio-scored held-out data.
@@ -17,17 +17,11 @@ import pytest
 from pinref import PinTree
 
 import calib
-import calib.calibration.entry as entry
 from calib import InvalidArgumentError, calibrate, load_calibrated, load_chain
-from calib.calibration.pipeline import residual_stats
+from calib.calibration import residual_stats
 from calib.cli.commands import main
 
 MARKER = (0.05, 0.02, 0.1)
-
-
-@pytest.fixture
-def engine(monkeypatch):
-    monkeypatch.setattr(entry, "ENGINE_CHAIN", True)
 
 
 def simulated(chain, measure: str = "position"):
@@ -39,13 +33,9 @@ def simulated(chain, measure: str = "position"):
 
 @pytest.fixture(scope="module")
 def ur5_fit():
-    switch, entry.ENGINE_CHAIN = entry.ENGINE_CHAIN, True
-    try:
-        chain = load_chain("ur5")
-        seen, truth = simulated(chain)
-        return chain, calibrate(chain, seen, params="complete"), truth
-    finally:
-        entry.ENGINE_CHAIN = switch
+    chain = load_chain("ur5")
+    seen, truth = simulated(chain)
+    return chain, calibrate(chain, seen, params="complete"), truth
 
 
 def marker_in(urdf: Path, base: str, chain, q) -> np.ndarray:
@@ -102,7 +92,7 @@ def test_attributes_of_a_chain(ur5_fit):
     assert report["compliance"] == dict.fromkeys(load_chain("ur5").joint_names, 0.0)
 
 
-def test_residual_stats_on_measured_held_out_rows(engine, tmp_path):
+def test_residual_stats_on_measured_held_out_rows(tmp_path):
     """TIAGo, 2021-11-26 held out (4 markers): the statistics equal Pinocchio's on the URDF."""
     real = Path(__file__).resolve().parents[1] / "data" / "realdata" / "tiago"
     chain = load_chain(real / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
@@ -124,7 +114,7 @@ def test_residual_stats_on_measured_held_out_rows(engine, tmp_path):
     assert stats.position_max == pytest.approx(norms.max(), rel=1e-9)
 
 
-def test_world_link_and_on_robot_are_for_one_chain(engine, ur5_fit):
+def test_world_link_and_on_robot_are_for_one_chain(ur5_fit):
     """A tree refuses world_link, on_robot and measurement_to_base in one line; a chain
     refuses on_robot with world_link, and on_robot where it hangs from its base frame
     (UR5's base_link, fixed to world: moving that joint moves the whole arm; a head camera
@@ -152,7 +142,7 @@ def write_configs(path: Path, names, q) -> None:
         w.writerows(q.tolist())
 
 
-def test_cli_calibrate_world_link_and_predict(engine, tmp_path, capsys):
+def test_cli_calibrate_world_link_and_predict(tmp_path, capsys):
     """calib calibrate --world-link, then calib predict with its report, under the switch."""
     data, urdf, rep = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
     sim = ["--measure", "position", "--marker", *map(str, MARKER), "--noise-mm", "0"]

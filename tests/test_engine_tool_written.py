@@ -15,17 +15,11 @@ import pinocchio as pin
 import pytest
 from pinref import PathRef, PinTree
 
-import calib.calibration.entry as entry
 from calib import calibrate, load_calibrated, load_chain, simulate
 from calib.cli.commands import main
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 MARKER = (0.03, -0.02, 0.05)
-
-
-@pytest.fixture(autouse=True)
-def engine(monkeypatch):
-    monkeypatch.setattr(entry, "ENGINE_CHAIN", True)
 
 
 def _quaternion_matrices(quat: np.ndarray) -> np.ndarray:

@@ -1,10 +1,11 @@
 """Calibration from measurements: registration, model choice, fit, validation.
 
-One module per step, in the order :func:`calibrate` runs them: :mod:`.registration`
-(measurement frame and markers in closed form), :mod:`.diagnosis` (the usual data mistakes),
-:mod:`.outliers` (robust fitting), :mod:`.selection` (which parameters the data support),
-:mod:`.solve` (the nonlinear fit), :mod:`.validation` (held-out errors and the checks), on the
-model of :mod:`.model`; :mod:`.pipeline` chains them and :mod:`.result` holds the outcome.
+:func:`calibrate` fits a :class:`~.problem.Problem` (a robot and its terms) with the joint
+engine (:mod:`.contact_chains`): one module per step, each once for every kind and shape:
+:mod:`.registration` (frames and markers in closed form), :mod:`.diagnosis` (the usual data
+mistakes), :mod:`.outliers` (robust fitting), :mod:`.selection` (which parameters the data
+support), :mod:`.solve` (the nonlinear fit), :mod:`.validation` (held-out errors and the
+checks); :mod:`.contact_chains_result` holds the one result.
 
 May import: :mod:`calib.measurements`, :mod:`calib.identification`, :mod:`calib.kinematics`
 and the bottom modules.
@@ -25,8 +26,7 @@ _LAZY = {
     "calibrate": "entry",
     "Problem": "problem",
     "Term": "problem",
-    "residual_stats": "pipeline",
-    "CalibrationResult": "result",
+    "residual_stats": "measured_view",
     "ResidualStats": "residuals",
     "Validation": "residuals",
     "Selection": "selection",
@@ -40,12 +40,11 @@ __getattr__ = attributes(__name__, _LAZY)
 TYPE_CHECKING = False  # True for type checkers; importing typing would cost start-up
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
     from .entry import calibrate
+    from .measured_view import residual_stats
     from .model import ErrorModel, State
     from .outliers import Outlier
-    from .pipeline import residual_stats
     from .problem import Problem, Term
     from .residuals import ResidualStats, Validation
-    from .result import CalibrationResult
     from .selection import Selection, Step
 
 
@@ -54,7 +53,6 @@ __all__ = [
     "DEFAULT_MAX_ITERATIONS",
     "LEVELS",
     "LOSSES",
-    "CalibrationResult",
     "ErrorModel",
     "Outlier",
     "Problem",

@@ -26,13 +26,11 @@ from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_options import chain_compliance_document
+from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import (
     ChainView,
     MeasuredChain,
     Solution,
-    chain_lines,
-    chain_report,
-    chain_writing,
     measured_part,
     world_of,
 )

@@ -153,7 +153,7 @@ def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData, t
     """The columns the touches determine (:func:`~.contact_choice.structural`), by block.
 
     Every object's columns are kept when each object's own triangular factor has full rank
-    (else none of them, which the pipeline refuses); the shared columns are those the
+    (else none of them, and the model is refused); the shared columns are those the
     pivoted QR of the shared system, objects eliminated, keeps (contact columns first).
     """
     K, o = model.object_blocks()

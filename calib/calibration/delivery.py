@@ -20,7 +20,7 @@ from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFErro
 from ..kinematics.origins import changed_origins, origins_document
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Delivered", "Result", "RowErrors", "compliance_path", "row_rms_mm"]
+__all__ = ["Delivered", "Result", "RowErrors", "compliance_path"]
 
 
 @dataclass(frozen=True)
@@ -69,13 +69,6 @@ class RowErrors:
         return [(name, self.term == k) for k, name in enumerate(self.names)]
 
 
-def row_rms_mm(residual: np.ndarray, n_markers: int) -> np.ndarray:
-    """Each row's RMS point error [mm] of residuals ``(m, 3 K [+ 3])`` [m] (points first)."""
-    m = len(residual)
-    points = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
-    return 1e3 * np.sqrt(np.mean(points**2, axis=1))
-
-
 def compliance_path(out: Path) -> Path:
     """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
@@ -85,7 +78,7 @@ class Result:
     """A calibration's result, whatever the problem: its report, URDF, text, ``write``, ``repr``.
 
     Every problem's result is one (:func:`~calib.calibration.entry.calibrate`): a chain
-    measured (:class:`~.result.CalibrationResult`), a tree, one chain touching, several terms.
+    measured, a tree, one chain touching, several terms.
     Each provides ``to_dict``, ``urdf``, ``summary``, ``refusal`` and ``accepted``; this class
     builds ``write`` and ``repr`` on them.
     """

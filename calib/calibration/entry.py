@@ -1,12 +1,12 @@
 """``calibrate``: one entry for every problem, whatever the robot's shape and the data's kind.
 
 ``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
-is the problem of one term. The problem's shape picks the model that fits it: one chain
-measured (:func:`~.pipeline.calibrate_chain`, the MDH chart with its registration moments),
-or terms whose joints are shared (:func:`~.contact_chains.calibrate_contact_chains`, URDF
-joint placements): several terms, one chain touching (any contact kind, any number of
-objects, joint compliance included) and a tree measured by one instrument (one measured
-term per tool sharing the instrument's frame: :mod:`~.instrument`, :mod:`~.tree_checks`).
+is the problem of one term. Every shape is fitted by the one joint engine
+(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements shared by the
+terms): one chain measured by an instrument (:func:`measured_chain`), one chain touching
+(any contact kind, any number of objects, joint compliance included), several terms, and a
+tree measured by one instrument (one measured term per tool sharing the instrument's frame:
+:mod:`~.instrument`, :mod:`~.tree_checks`).
 Each takes the
 steps of every calibration: prepare (checks, held-out rows, validation data that are the
 training data refused), register, set outliers aside, diagnose usual mistakes, choose the
@@ -38,18 +38,11 @@ from .contact_chains_result import ContactChainsCalibration
 from .delivery import Result
 from .measured_term import check_measured
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
-from .pipeline import calibrate_chain
 from .problem import Problem, Term
-from .result import CalibrationResult
 from .tree_checks import prepare_tree
 from .validation import split
 
-__all__ = ["ENGINE_CHAIN", "calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
-
-ENGINE_CHAIN = True
-"""Internal switch (issue 28): fit one chain measured by an instrument with the joint engine
-(:func:`measured_chain`) instead of the MDH chart's pipeline (:func:`~.pipeline.calibrate_chain`).
-Off by default: the engine route lacks features of the pipeline (see :func:`measured_chain`)."""
+__all__ = ["calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
 
 
 @overload
@@ -74,7 +67,7 @@ def calibrate(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
-) -> CalibrationResult: ...
+) -> ContactChainsCalibration: ...
 
 
 @overload
@@ -237,9 +230,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
         )
     if shape == "tree":
         return _tree(p, term, progress)
-    if ENGINE_CHAIN:
-        return measured_chain(p, term, progress)
-    return calibrate_chain(term.robot, term.data, term.guess, term.validate, p.options(), progress)
+    return measured_chain(p, term, progress)
 
 
 calibrate_tree = calibrate
@@ -301,7 +292,7 @@ def measured_chain(
     """One chain measured by an instrument, fitted by the joint engine as a one-term problem.
 
     The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
-    (``instrument=True``), its rows checked, registered and weighted by the chain pipeline's
+    (``instrument=True``), its rows checked, registered and weighted by the measured term's
     own steps (:func:`~.measured_term.checked_measured`). Its options (``fix``/``free``,
     ``elastic``, a robust ``loss``, ``noise_mm``) are the engine's
     (:mod:`~.measured_options`). The held-out rows are drawn first (``holdout``), then the

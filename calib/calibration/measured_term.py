@@ -16,9 +16,9 @@ the tool frame (3 each) and, for pose data, the measured frame's rotation in the
 the nominal robot, then refined jointly with the joint placements.
 
 Rows: the measured minus predicted points [m] and, for pose data, the rotation error times the
-orientation weight [m/rad] (the chain pipeline's weighting: the settled variance ratio of the
-registration's residuals, 1 m/rad when the data cannot tell). The placement columns: the
-motion of each marker (and the tool's rotation) per unit placement error, from
+orientation weight [m/rad] (the chain's weighting, :mod:`~.weighting`: the settled variance
+ratio of the registration's residuals, 1 m/rad when the data cannot tell). The placement
+columns: the motion of each marker (and the tool's rotation) per unit placement error, from
 :func:`~.placements.joint_twists`, turned into the measuring frame.
 """
 
@@ -309,7 +309,7 @@ def checked_measured(
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
-    The chain pipeline's registration (:func:`~.chain_registration.checked_registration`:
+    The chain's registration (:func:`~.chain_registration.checked_registration`:
     Horn/Umeyama in closed form, refined by Levenberg-Marquardt, the orientation weight
     estimated unless given, outliers set aside until stable, then the usual mistakes
     diagnosed in the data and in ``validate``) on the nominal chain; then the held-out rows'

@@ -26,16 +26,21 @@ from __future__ import annotations
 import dataclasses
 import functools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..identification.jacobian import identification_jacobian, measured_point
+from ..exceptions import InvalidArgumentError
+from ..identification.jacobian import identification_jacobian
 from ..identification.measures import POSE, POSITION, Measurement
-from ..identification.parameters import Kind, Parameter, ParameterSet
+from ..identification.parameters import Kind, Parameter, ParameterSet, parameter_set
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import left_jacobian, matrix_to_quaternion, rotation_matrix, skew
 from ..measurements.data import Measurements
 from .placements import JointFrames
+
+if TYPE_CHECKING:
+    from .options import Options
 
 __all__ = [
     "FRAME_NAMES",
@@ -44,6 +49,7 @@ __all__ = [
     "State",
     "compliance_name",
     "generic_measurements",
+    "level_names",
     "nominal_state",
     "offset_parameter",
     "registration_state",
@@ -409,12 +415,6 @@ def registration_state(
     )
 
 
-def tool_points(mdh: MDHModel, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
-    """Markers in the URDF base frame ``(m, K, 3)`` [m] (no measurement frame)."""
-    kin = mdh.kinematics(q)
-    return np.stack([measured_point(kin, mk) for mk in np.atleast_2d(markers)], axis=1)
-
-
 def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> State:
     """A registration state in the instrument's own frame, for a kind's generic counts.
 
@@ -434,3 +434,28 @@ def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarr
     pts, rot = state.predict(q)
     quat = None if rot is None else matrix_to_quaternion(rot)
     return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)
+
+
+def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[str]]:
+    """The standard set and the names a level offers (before --fix / --free)."""
+    pset = parameter_set(nominal, "paper" if opts.level == "paper" else "complete")
+    if opts.level == "frames":
+        names: list[str] = []
+    elif opts.level == "offsets":
+        names = [offset_parameter(nominal, j).name for j in range(nominal.n)]
+    else:
+        names = list(pset.names)
+    valid = (
+        set(pset.names)
+        | {compliance_name(j) for j in range(nominal.n)}
+        | {"frame", "markers", "tool"}
+    )
+    for name in (*opts.fix, *opts.free):
+        if name not in valid:
+            raise InvalidArgumentError(
+                f"unknown parameter '{name}' for fix/free: give frame, markers, tool, a "
+                f"parameter of the {pset.label} set (e.g. {', '.join(pset.names[2:5])}) or a "
+                f"compliance c1..c{nominal.n}"
+            )
+    names += [n for n in opts.free if n in pset.names and n not in names]
+    return pset, [n for n in names if n not in opts.fix]

@@ -394,7 +394,8 @@ def mdh_directions(
     components that moves the tool as the parameter does, at ``DIRECTION_CONFIGS`` random
     configurations (exactly, or the parameter is not offered: a row-1 tilt backwards moves
     the base frame's own fixed joint, which the plane takes). The parameters come in the
-    single-chain pipeline's order of preference.
+    MDH chart's order of preference
+    (:func:`~calib.identification.identifiability.preference_order`).
 
     Args:
         placements: The (zero) placement errors of the robot.

@@ -48,11 +48,11 @@ from ..calibration.model import (
     TOOL_NAMES,
     ErrorModel,
     generic_measurements,
+    level_names,
     nominal_state,
     selection_lift,
 )
 from ..calibration.options import TREE_LEVELS, Options
-from ..calibration.pipeline import level_names
 from ..calibration.solve import row_weights
 from ..calibration.tree import TreeErrorModel, TreeState
 from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array

@@ -249,7 +249,8 @@ def compliance_document(result, urdf: str, on_robot: bool = False) -> dict:
     """The compliance file of a calibration result (JSON-ready).
 
     Args:
-        result: A :class:`~calib.calibration.CalibrationResult`.
+        result: A calibration of one chain measured with fitted compliance
+            (:class:`~calib.calibration.contact_chains_result.ContactChainsCalibration`).
         urdf: The calibrated URDF it goes with (as written).
         on_robot: The URDF holds the instrument's placement (its base frame's fixed joint):
             the measurement frame is then the base frame.

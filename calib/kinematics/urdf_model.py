@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from ..core.fileio import read_bytes_limited
 from ..exceptions import URDFError
-from .urdf_xml import MAX_URDF_BYTES, URDFInfo, kinematic_xml, read_urdf_info
+from .urdf_xml import MAX_URDF_BYTES, URDFInfo, read_urdf_info
 
 __all__ = [
     "MAX_CAPTURED_BYTES",
@@ -104,28 +104,6 @@ def build_model(xml: str, src: str) -> pin.Model:
     if model is None:
         raise URDFError(src, f"Pinocchio refuses it: {_pinocchio_failure(error, messages)}")
     return model
-
-
-def load_model(path: str | Path, snapped: bool = False) -> tuple[pin.Model, URDFInfo]:
-    """Build a fixed-base Pinocchio model from a URDF file (meshes are not needed).
-
-    The file is read with a size limit (:data:`~.urdf_xml.MAX_URDF_BYTES`), parsed and
-    checked by calib (:func:`~.urdf_xml.read_urdf_info`), and Pinocchio builds the model
-    from its kinematic copy (:func:`~.urdf_xml.kinematic_xml`).
-
-    Args:
-        path: URDF file.
-        snapped: Build from the copy with URDF round-off removed.
-
-    Returns:
-        The model and the URDF facts Pinocchio does not keep.
-
-    Raises:
-        URDFError: The file is missing, a directory, too large, malformed, has a bad
-            number, or Pinocchio rejects it.
-    """
-    info = read_urdf_file(path)
-    return build_model(kinematic_xml(info, snap=snapped), str(path)), info
 
 
 def read_urdf_file(path: str | Path) -> URDFInfo:

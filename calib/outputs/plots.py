@@ -238,11 +238,6 @@ def figure_bytes(fig: Figure, fmt: str = "png") -> bytes:
     return buf.getvalue()
 
 
-def figure_png(fig: Figure) -> bytes:
-    """The figure as PNG bytes (120 dpi)."""
-    return figure_bytes(fig, "png")
-
-
 def save_figure(fig: Figure, path: str | Path) -> None:
     """Save in the format of the extension (png, svg, pdf); no partial file is ever left.
 

@@ -1,0 +1,173 @@
+"""One chain measured by an instrument: its calibrated tool as written, and its report's layout.
+
+The calibrated tool the URDF receives (pose data: the measured frame at marker 1; position
+data: the tool frame), the markers in it, the report's ``frames`` of a chain, its errors table
+and the format 2 keys a chain's report still writes (under ``deprecated``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..kinematics.placement_export import instrument_joint
+from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
+from ..kinematics.urdf_links import marker_link_names
+from .model import State
+from .report import fit_dict, gravity_dict, pose_dict
+from .residuals import error_table
+
+if TYPE_CHECKING:
+    from .measured_view import ChainView, MeasuredChain
+
+__all__ = [
+    "chain_frames",
+    "chain_lines",
+    "chain_model",
+    "chain_report",
+    "chain_writing",
+    "tool_pose",
+    "written_markers",
+]
+
+
+def tool_pose(inner: State) -> np.ndarray:
+    """The calibrated tool: the measured frame in the tool frame ``(4, 4)``.
+
+    Pose data: marker 1 and the measured frame's rotation (the written URDF's tool frame is
+    the measured frame); position data: identity.
+    """
+    T = np.eye(4)
+    if inner.tool_rotation is not None:
+        T[:3, :3], T[:3, 3] = inner.tool_rotation, inner.markers[0]
+    return T
+
+
+def written_markers(inner: State) -> np.ndarray:
+    """The markers in the written URDF's calibrated tool frame ``(K, 3)`` [m]."""
+    T = tool_pose(inner)
+    return (inner.markers - T[:3, 3]) @ T[:3, :3]
+
+
+def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = False) -> dict:
+    """The report's ``frames`` of a chain's (one measurement frame, marker links by name).
+
+    ``on_robot``: the URDF was written with the measurement frame in the base frame's fixed
+    joint (``frames.measurement`` is then in the URDF).
+    """
+    inner = part.state.inner
+    tool = part.chain.tool_frame
+    return {
+        "measurement": pose_dict(inner.frame),
+        "measured": pose_dict(tool_pose(inner)),
+        "markers": dict(
+            zip(
+                marker_link_names(tool, inner.n_markers),
+                written_markers(inner).tolist(),
+                strict=True,
+            )
+        ),
+        "contacts": {},
+        "world_link": world_link,
+        "tool_link": urdf_tool_frame(part.chain),
+        "on_robot": on_robot,
+    }
+
+
+def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
+    """``marker_urdf``'s ``errors``, ``markers`` and ``tool`` of one chain measured.
+
+    The calibrated tool (:func:`tool_pose`) and its markers as a chain's calibration writes
+    them; ``on_robot``: the base frame's fixed joint moved so that forward kinematics from
+    the base frame gives measured coordinates (its new origin ``O F^-1``, ``F`` the nominal
+    base frame's pose in the measuring frame).
+
+    Raises:
+        CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
+    """
+    inner = part.state.inner
+    if on_robot:
+        joint = instrument_joint(read_urdf_source(part.chain)[1], part.chain)
+        errors = {**errors, joint.get("name", ""): np.linalg.inv(inner.frame)}
+    return errors, ((part.chain, written_markers(inner)),), tool_pose(inner)
+
+
+def chain_lines(view: ChainView) -> list[str]:
+    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
+    held = view.validation
+    std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
+    return [
+        error_table(view.before, view.after, view.urdf_after, held),
+        f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
+        f"at the fitted configurations{std}",
+    ]
+
+
+def chain_report(
+    view: ChainView, fields: dict, world_link: str | None, on_robot: bool = False
+) -> tuple[dict, dict]:
+    """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
+
+    ``errors`` as :class:`~.residuals.ResidualStats` (position and orientation, mm and
+    degrees: ``train``, ``held_out`` and the one term's), ``frames`` by marker link,
+    ``fit`` (noise, condition, predicted std, weight), ``compliance`` (rigid: zero per joint)
+    and ``model`` with the MDH rows and the gravity beside the joint origins.
+
+    Args:
+        view: The result (shape ``chain``).
+        fields: The joint fit's format 3 fields (edited copy returned).
+        world_link: The ``world_link`` the URDF was written with (None: none).
+        on_robot: Whether the URDF was written with the instrument on the robot.
+    """
+    part, held = view.one_chain(), view.validation
+    urdf = view.after if view.urdf_after is None else view.urdf_after
+    train = {
+        "registration": view.before.in_mm(),
+        "calibrated": view.after.in_mm(),
+        "urdf": urdf.in_mm(),
+    }
+    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
+    out["errors"] = {
+        "train": train,
+        "held_out": None if held is None else held.in_mm(),
+        "terms": [{"train": train, "held_out": None if held is None else held.in_mm()}],
+    }
+    out["compliance"], model = chain_model(part, fields["model"])
+    nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
+    out["model"] = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **model}
+    std, weight = view.predicted_std, view.orientation_weight
+    out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
+    frames, data = out["frames"], view.data
+    legacy = {
+        "data": data.source,
+        "base_frame": part.chain.base_frame,
+        "tool_frame": part.chain.tool_frame,
+        "measure": data.measure,
+        "markers": list(frames["markers"].values()),
+        "marker_links": list(frames["markers"]),
+        "measured_frame": frames["measured"],
+        "world_link": world_link,
+        "configs": data.m,
+        "orientation_weight": weight,
+        "residuals": {"registration": view.before.to_dict(), "calibrated": view.after.to_dict(),
+                      "urdf": urdf.to_dict()},
+        "validation": None if held is None else held.to_dict(),
+        "selection": None if view.selection is None else view.selection.to_dict(),
+        "sigma": view.sigma,
+        "condition_number": view.condition,
+        "predicted_std": std,
+        "gravity": model["gravity"],
+        "measurement_to_base": frames["measurement"],
+        "mdh_nominal": nominal,
+        "mdh_calibrated": calibrated,
+    }  # fmt: skip
+    return out, legacy
+
+
+def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
+    """The report's ``compliance`` (per joint; rigid: zero) and ``model`` with its gravity."""
+    chain = part.chain
+    c = np.zeros(chain.n) if part.compliance is None else part.compliance
+    compliance = dict(zip(chain.joint_names, c.tolist(), strict=True))
+    return compliance, {**model, "gravity": gravity_dict(chain)}
