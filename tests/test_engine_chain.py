@@ -15,6 +15,7 @@ import pytest
 from pinref import instrument_points
 
 import calib
+import calib.calibration.entry as entry
 from calib import (
     InvalidArgumentError,
     calibrate,
@@ -233,7 +234,7 @@ def test_complete_with_a_parameter_named_fits_the_charts_directions():
     assert np.max(np.abs(held.points(q)[:, 0] - truth)) > 1e-4
 
 
-def test_proposed_outliers_are_set_aside_before_any_fit(engine, monkeypatch):
+def test_proposed_outliers_are_set_aside_before_any_fit(monkeypatch):
     """Two rows 20 mm off among 40: the robust proposals find them on the registration of
     every row, so the one fit made is of the 38 others (no fit of all 40 made and thrown
     away), and it is the fit of those 38 rows given alone (the same points to the last bit)."""
