@@ -15,6 +15,7 @@ import pytest
 from pinref import instrument_points
 
 import calib
+import calib.calibration.entry as entry
 from calib import (
     InvalidArgumentError,
     calibrate,
@@ -231,3 +232,31 @@ def test_complete_with_a_parameter_named_fits_the_charts_directions():
     held = calibrate(chain, data, params="complete", marker=marker, fix=("d3",)).check()
     assert "elbow_joint:d3" not in held.names
     assert np.max(np.abs(held.points(q)[:, 0] - truth)) > 1e-4
+
+
+def test_proposed_outliers_are_set_aside_before_any_fit(monkeypatch):
+    """Two rows 20 mm off among 40: the robust proposals find them on the registration of
+    every row, so the one fit made is of the 38 others (no fit of all 40 made and thrown
+    away), and it is the fit of those 38 rows given alone (the same points to the last bit)."""
+    chain = load_chain("ur5")
+    marker = (0.01, 0.02, 0.05)
+    data = calib.simulate(chain, 40, "position", marker, noise_mm=0.05, seed=5).measurements
+    position = data.position.copy()
+    position[7, 0] += 0.02
+    position[21, 1] -= 0.02
+    bad = dataclasses.replace(data, position=position)
+    fitted_rows: list[int] = []
+    inner = entry.fit_registered
+
+    def counting(registered):
+        fitted_rows.append(registered.train[0].m)
+        return inner(registered)
+
+    monkeypatch.setattr(entry, "fit_registered", counting)
+    result = calibrate(chain, bad, marker=marker, noise_mm=0.05)
+    assert fitted_rows == [38]
+    assert [o.row for o in result.outliers] == [8, 22]
+    keep = ~np.isin(np.arange(40), [7, 21])
+    alone = calibrate(chain, bad.subset(keep), marker=marker, noise_mm=0.05)
+    assert not alone.outliers
+    np.testing.assert_array_equal(result.points(data.q), alone.points(data.q))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from calib import calibrate, load_chain, simulate_contacts
-from calib.calibration import contact_chains, contact_choice
+from calib.calibration import contact_chains, contact_choice, contact_register
 from calib.calibration.contact_chains_result import ContactChainsCalibration
 from calib.exceptions import InvalidArgumentError
 
@@ -20,7 +20,7 @@ def test_one_chain_touching_too_big_for_memory_is_refused_before_any_work(monkey
     chain, data = load_chain("ur5"), _touches()
     monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6) + 1))
     registered = []
-    monkeypatch.setattr(contact_chains, "_checked", lambda *a: registered.append(a))
+    monkeypatch.setattr(contact_register, "_checked", lambda *a: registered.append(a))
     with pytest.raises(InvalidArgumentError, match=r"GB: fewer touches or planes$") as err:
         calibrate(chain, data, params="complete")
     assert "40 touches of 2 plane(s) (6 of their unknowns)" in str(err.value)

@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 
 from ..measurements.data import Measurements
 from .chain_registration import proposals
 from .contact_chains_result import ContactChainsCalibration
+from .contact_register import Registered
+from .measured_term import MeasuredState
 from .options import Options
 from .outliers import point_errors, records, set_aside_note, until_stable
 
@@ -28,14 +31,20 @@ __all__ = ["fit_until_stable"]
 
 
 def fit_until_stable(
-    fit: Callable[[Measurements], ContactChainsCalibration],
+    register: Callable[[Measurements], Registered],
+    fit: Callable[[Registered], ContactChainsCalibration],
     train: Measurements,
     noise_mm: float | None,
 ) -> ContactChainsCalibration:
     """The fit of the training rows without the outliers its errors find (module text).
 
+    The proposals read the registration of every row only: the fit of every row is made
+    only if the loop comes to it (no proposal, or a later round keeping every row).
+
     Args:
-        fit: The joint fit of some of the rows (one chain measured by an instrument).
+        register: The joint fit's checks and registration of some of the rows (one chain
+            measured by an instrument: :func:`~.contact_chains.register_contact_chains`).
+        fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
         train: Every training row.
         noise_mm: Instrument noise [mm], or None (unknown).
 
@@ -44,18 +53,24 @@ def fit_until_stable(
         the last fit's registration.
     """
     rows = train.rows or tuple(range(1, train.m + 1))
-    first = fit(train)
+    every = register(train)
+    first: list[ContactChainsCalibration] = []
 
     def refit(keep: np.ndarray) -> ContactChainsCalibration:
-        return first if keep.all() else fit(train.subset(keep))
+        if not keep.all():
+            return fit(register(train.subset(keep)))
+        if not first:
+            first.append(fit(every))
+        return first[0]
 
     def errors(result: ContactChainsCalibration):
         state = result.state  # with fitted compliance: deflected by the rows' gravity torques
         torque = result.chain.gravity_torques(train.q) if np.any(state.compliance) else None
         return point_errors(state.residuals(train, torque), train.n_markers)
 
-    opts = Options(orientation_weight=first.orientation_weight, noise_mm=noise_mm)
-    start = proposals(first.nominal, first.registration, train, opts)
+    registered = cast(MeasuredState, every.start.states[0])  # as its fit's result reports it
+    opts = Options(orientation_weight=registered.weight, noise_mm=noise_mm)
+    start = proposals(registered.inner.mdh, registered.inner, train, opts)
     result, bad, _ = until_stable(refit, errors, opts.noise, rows, start)
     part = result.one_chain()
     inner = np.isin(rows, [o.row for o in part.outliers])

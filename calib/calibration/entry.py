@@ -28,7 +28,12 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .chain_outliers import fit_until_stable
-from .contact_chains import calibrate_contact_chains
+from .contact_chains import (
+    Registered,
+    calibrate_contact_chains,
+    fit_registered,
+    register_contact_chains,
+)
 from .contact_chains_result import ContactChainsCalibration
 from .delivery import Result
 from .measured_term import check_measured
@@ -311,8 +316,8 @@ def measured_chain(
         else split(data, problem.holdout, problem.seed)
     )
 
-    def fit(rows: Measurements) -> ContactChainsCalibration:
-        result = calibrate_contact_chains(
+    def register(rows: Measurements) -> Registered:
+        return register_contact_chains(
             [chain],
             [rows],
             params=problem.params,
@@ -326,9 +331,11 @@ def measured_chain(
             marker=term.guess,
             options=problem.options(),
         )
-        return dataclasses.replace(result, shape="chain")
 
-    return fit_until_stable(fit, train, problem.noise_mm)
+    def fit(registered: Registered) -> ContactChainsCalibration:
+        return dataclasses.replace(fit_registered(registered), shape="chain")
+
+    return fit_until_stable(register, fit, train, problem.noise_mm)
 
 
 def _validated(problem: Problem) -> bool:

@@ -28,7 +28,17 @@ import numpy as np
 
 from .object_columns import FixedBasis, ObjectColumns
 
-__all__ = ["DEPENDENT", "REFRESH", "SHRINK", "SMALL", "loo_errors", "path", "paths", "spd_solve"]
+__all__ = [
+    "DEPENDENT",
+    "REFRESH",
+    "SHRINK",
+    "SMALL",
+    "loo_errors",
+    "lu_errors",
+    "path",
+    "paths",
+    "spd_solve",
+]
 
 DEPENDENT = 1e-8
 """A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
@@ -64,6 +74,20 @@ def loo_errors(H: np.ndarray, r: np.ndarray) -> np.ndarray:
         sq = np.sum(x * x, axis=0).reshape(c, m)
         if np.isfinite(sq).all():
             return sq
+    return lu_errors(M, r)
+
+
+def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """:func:`loo_errors` from the blocks ``M = I - H`` (any strides), by LAPACK's LU.
+
+    Args:
+        M: ``I`` minus the hat-matrix blocks ``(c, m, rows, rows)``.
+        r: Residuals of each fit ``(c, m, rows)``.
+
+    Returns:
+        ``(c, m)`` squared left-out errors; inf where a block is singular.
+    """
+    c, m, rows = r.shape
     try:  # a leverage of 1 or near it: LAPACK's LU (with pivoting) tells
         loo = np.linalg.solve(M, r[..., None])
     except np.linalg.LinAlgError:

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .forward_paths import SMALL, loo_errors, paths, spd_solve
+from .forward_paths import SMALL, lu_errors, paths, spd_solve
 from .object_columns import FixedBasis, ObjectColumns
 from .outer_cv import outer_cv
 
@@ -326,9 +326,10 @@ def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
     b, m = Ub.shape[:2]
     S = wt.shape[1]
     Uc = np.ascontiguousarray(np.transpose(Ub, (2, 0, 3, 1)))  # (rows, b, width, m)
-    M = -(wt @ (Uc[:, None] * Uc[None]))  # (rows, rows, b, strengths, m): component-major
+    M = _symmetric_hats(Uc, wt)  # (rows, rows, b, strengths, m): component-major
     M -= fixed[:, :, :, None]
-    M[np.arange(rows), np.arange(rows)] += 1.0
+    diag = np.arange(rows)
+    M[diag, diag] += 1.0
     fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
     y = np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
     if rows <= SMALL:
@@ -336,8 +337,31 @@ def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
         sq = np.einsum("is,is->s", x, x).reshape(b, S, m)
         if np.isfinite(sq).all():
             return sq
-    H = np.eye(rows) - np.moveaxis(M.reshape(rows, rows, b * S, m), (0, 1), (2, 3))
-    return loo_errors(H, np.moveaxis(y.reshape(rows, b * S, m), 0, 2)).reshape(b, S, m)
+    M[diag, diag] = 1.0 - (1.0 - M[diag, diag])  # I - (I - M): the digits LAPACK always had
+    blocks = np.moveaxis(M.reshape(rows, rows, b * S, m), (0, 1), (2, 3))  # a view: no copy
+    return lu_errors(blocks, np.moveaxis(y.reshape(rows, b * S, m), 0, 2)).reshape(b, S, m)
+
+
+def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
+    """``-U diag(wt) U^T`` of each configuration at each strength, component-major.
+
+    Each entry on and above the diagonal once, mirrored below it (half the products).
+
+    Args:
+        Uc: Prior columns' left singular vectors by row of a configuration
+            ``(rows, b, width, m)``.
+        wt: Their weights at each strength ``(b, strengths, width)``.
+
+    Returns:
+        ``(rows, rows, b, strengths, m)``.
+    """
+    rows = len(Uc)
+    i, j = np.triu_indices(rows)
+    upper = -(wt @ (Uc[i] * Uc[j]))  # (pairs, b, strengths, m)
+    M = np.empty((rows, rows, *upper.shape[1:]))
+    M[i, j] = upper
+    M[j, i] = upper
+    return M
 
 
 def best_prefix(sq: np.ndarray) -> int:
