@@ -10,6 +10,7 @@ import numpy as np
 from ..core.fileio import check_outputs, json_text, write_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
+from ..kinematics.elastic import compliance_document as chain_compliance_document
 from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import (
     camera_urdf,
@@ -25,7 +26,6 @@ from .contact_result import GapStats, gap_rows, term_errors
 from .contact_term_report import single_contact_report
 from .delivery import Delivered, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
-from .measured_options import chain_compliance_document
 from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import (
     ChainView,
@@ -221,13 +221,17 @@ class ContactChainsCalibration(Delivered, ChainView):
         """Joint compliance was fitted (one chain touching): the URDF alone is not the model."""
         return any(getattr(c, "compliance", None) is not None for c in self.chains)
 
-    def compliance_files(self, out: Path) -> dict[Path, str]:
-        """With fitted compliance, its file beside the URDF ``out`` (``<stem>.compliance.json``)."""
+    def compliance_files(self, out: Path, on_robot: bool = False) -> dict[Path, str]:
+        """With fitted compliance, its file beside the URDF ``out`` (``<stem>.compliance.json``).
+
+        One chain measured: the file of the URDF :meth:`urdf` writes (its calibrated tool,
+        markers and measurement frame; ``on_robot``: the instrument in the URDF).
+        """
         if not self.elastic:
             return {}
         part = self.chains[0]
         document = (
-            chain_compliance_document(self, str(out))
+            chain_compliance_document(self, str(out), on_robot)
             if isinstance(part, MeasuredChain)
             else compliance_document(part, str(out))
         )

@@ -97,9 +97,12 @@ class Result:
         """The text ``calib calibrate`` prints."""
         raise NotImplementedError
 
-    def compliance_files(self, out: Path) -> dict[Path, str]:
-        """Files written beside the URDF ``out`` (the compliance file; none by default)."""
-        del out
+    def compliance_files(self, out: Path, on_robot: bool = False) -> dict[Path, str]:
+        """Files written beside the URDF ``out`` (the compliance file; none by default).
+
+        ``on_robot``: the URDF was written with the instrument on the robot.
+        """
+        del out, on_robot
         return {}
 
     def row_errors(self) -> RowErrors:

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..kinematics.elastic import compliance_document
 from ..kinematics.robot import Chain
 from .contact_elastic import torques as contact_torques
 from .freedoms import check_compliance, check_free
@@ -40,7 +39,6 @@ __all__ = [
     "GROUPS",
     "Asked",
     "asked_of",
-    "chain_compliance_document",
     "compliance_torques",
     "level_offer",
 ]
@@ -209,40 +207,3 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
     every = tree and level == "complete" and not (asked and asked.joints)
     return asked, "components" if every else level
-
-
-@dataclass(frozen=True)
-class _ChainFile:
-    """What a chain's compliance file records of its result (the written URDF's frames)."""
-
-    robot: str
-    chain: Chain
-    urdf_tool_frame: str
-    state: object
-    measurement_to_base: np.ndarray
-    urdf_markers: np.ndarray
-    marker_links: tuple[str, ...]
-
-
-def chain_compliance_document(result, urdf: str) -> dict:
-    """The compliance file of a measured chain's joint fit (a chain's, JSON-ready).
-
-    Its markers hang from the tool link itself in the written URDF; the gravity torques are
-    the URDF's masses' (:func:`calib.kinematics.elastic.compliance_document`).
-
-    Args:
-        result: The joint fit of one chain measured by an instrument (``one_chain()``).
-        urdf: The calibrated URDF's path, as recorded.
-    """
-    part = result.one_chain()
-    inner = part.state.inner
-    view = _ChainFile(
-        part.chain.name,
-        part.chain,
-        part.chain.tool_frame,
-        inner,
-        inner.frame,
-        inner.markers,
-        tuple(result.marker_links),
-    )
-    return compliance_document(view, urdf)

@@ -265,6 +265,11 @@ class ChainView:
         return self.one_chain().state.inner.frame.copy()
 
     @property
+    def robot(self) -> str:
+        """The robot's name (its URDF's)."""
+        return self.chain.name
+
+    @property
     def chain(self) -> Chain:
         """The nominal chain."""
         return self.one_chain().chain

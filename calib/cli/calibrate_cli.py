@@ -19,7 +19,7 @@ from ..core.choices import (
     UNITS,
     checked_points,
 )
-from ..core.fileio import json_text, written_in_place
+from ..core.fileio import written_in_place
 from ..core.progress import terminal
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import CONTACT_NAMES
@@ -135,9 +135,6 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
-    from ..calibration.contact_chains_result import ContactChainsCalibration
-    from ..calibration.measured_options import chain_compliance_document
-    from ..kinematics.elastic import compliance_document
 
     out, report = _calibration_outputs(args, chain.urdf_path)
     comp = None if written_in_place(out) else compliance_path(out)
@@ -182,10 +179,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
                     f"--out {out} is no regular file: the fitted compliance cannot be written "
                     f"next to it (give a file, or --no-elastic)"
                 )
-            if isinstance(result, ContactChainsCalibration):  # the joint engine's: its own
-                urdf[comp] = json_text(chain_compliance_document(result, str(out)))
-            else:
-                urdf[comp] = json_text(compliance_document(result, str(out), args.on_robot))
+            urdf.update(result.compliance_files(out, args.on_robot))
         return urdf
 
     return write_calibration(
