@@ -174,7 +174,12 @@ class DataError(CalibError):
 
 
 class ConvergenceError(CalibError):
-    """An iterative fit did not converge."""
+    """An iterative fit did not converge.
+
+    Kept for scripts that catch it: since issue 28 no calibration raises it (a fit that does
+    not converge is refused: ``result.refusal`` names the solver's message, and ``check()``
+    raises :class:`CalibrationRefusedError`).
+    """
 
 
 class ContactGeometryError(CalibError):

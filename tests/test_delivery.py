@@ -275,19 +275,6 @@ def test_urdf_alone_worse_than_registration_is_written_with_its_compliance_and_a
     assert "URDF alone" in out
 
 
-def test_urdf_alone_warning_on_held_out_rows():
-    from calib.calibration.residuals import ResidualStats
-    from calib.calibration.validation import urdf_alone_warning
-
-    def st(rms):
-        return ResidualStats(10, rms, 2 * rms)
-
-    assert urdf_alone_warning((st(2e-3), st(1e-3)), (st(3e-3), st(2.9e-3))) is None
-    reason = urdf_alone_warning((st(2e-3), st(1e-3)), (st(3e-3), st(3.1e-3)))
-    assert "held-out" in reason and "3.1 mm vs 3 mm" in reason
-    assert "fitted data" in urdf_alone_warning((st(2e-3), st(2.1e-3)), None)
-
-
 def point1_csv(src: Path, dst: Path) -> None:
     rows = read_csv(src)
     keep = [k for k in rows[0] if not re.fullmatch(r"[xyz][234]", k)]

@@ -60,7 +60,8 @@ class MeasuredChain:
             rows, ``held_out`` and ``held_out_registration``.
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
         held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
-        outliers: Its rows set aside (none: a measured term's rows are all fitted).
+        outliers: Its rows set aside by the registration (the fit's outlier loop refits
+            without the rows it sets aside: :mod:`~.chain_outliers`).
         compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
             the state's), or None (rigid joints).
         data: Its rows fitted (held-out rows and outliers left out), or None.
@@ -364,17 +365,17 @@ class ChainView:
         """The chain's calibrated MDH model (the URDF's base frame: see ``measurement_to_base``)."""
         return self.state.mdh
 
-    @property
+    @cached_property
     def before(self) -> ResidualStats:
         """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
         return _stats(self.chain, self.registration, self.data)
 
-    @property
+    @cached_property
     def after(self) -> ResidualStats:
         """Errors of the calibrated model on :attr:`data`."""
         return _stats(self.chain, self.state, self.data)
 
-    @property
+    @cached_property
     def urdf_after(self) -> ResidualStats | None:
         """Errors of the URDF alone (compliance left out) on :attr:`data`, or None.
 

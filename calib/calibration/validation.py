@@ -13,8 +13,7 @@ A calibrated model is written only if it passes every check:
 With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
 plus the compliance file, and the checks apply to that whole model. The URDF alone
 (geometry, frame and markers, compliance left out) is scored too; where it is worse than the
-registration, :func:`urdf_alone_warning` says so (the URDF must then be used with its
-compliance file).
+registration, a warning says so (the URDF must then be used with its compliance file).
 """
 
 from __future__ import annotations
@@ -44,7 +43,6 @@ __all__ = [
     "refusal",
     "split",
     "stats",
-    "urdf_alone_warning",
     "worse",
 ]
 
@@ -306,28 +304,3 @@ def _worse_orientation(
     if reg is None or cal is None or not worse(cal, reg):
         return None
     return reg, cal
-
-
-def urdf_alone_warning(
-    fitted: tuple[ResidualStats, ResidualStats],
-    held: tuple[ResidualStats, ResidualStats] | None,
-) -> str | None:
-    """Why the URDF alone (compliance left out) must not be used without its compliance file.
-
-    Args:
-        fitted: Errors of the registration and of the URDF alone on the fitted data.
-        held: The same on held-out data, or None.
-
-    Returns:
-        A warning where the URDF alone is worse than the registration, else None.
-    """
-    checks = [("the fitted data", fitted)] + ([] if held is None else [("held-out rows", held)])
-    for label, (reg, urdf) in checks:
-        if worse(urdf.position_rms, reg.position_rms):
-            return (
-                f"on {label} the calibrated URDF alone (without the fitted joint compliance) "
-                f"is worse than the registration alone ({1e3 * urdf.position_rms:.3g} mm vs "
-                f"{1e3 * reg.position_rms:.3g} mm RMS): use it only with its compliance file "
-                f"(calib predict, calib.load_calibrated)"
-            )
-    return None
