@@ -186,18 +186,19 @@ def offer_directions(
         ]
         return None, pl.names(), offsets
     rows: list[np.ndarray] = []
-    names: list[str] = []
-    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
+    labels: list[str] = []
     for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
-        for d, label in zip(D, labels, strict=True):
-            unit = d / np.linalg.norm(d)
-            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
-                units = np.vstack([units, unit])
-                rows.append(d)
-                names.append(label)
-    return np.array(rows), tuple(names), list(range(len(rows)))
+        D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
+        rows.extend(D)
+        labels.extend(more)
+    units = np.array([d / np.linalg.norm(d) for d in rows]).reshape(len(rows), -1)
+    cosines = np.abs(units @ units.T)
+    kept: list[int] = []
+    for i in range(len(rows)):
+        if not kept or np.max(cosines[i, kept]) <= 1.0 - 1e-12:  # parallel to none kept
+            kept.append(i)
+    return np.array([rows[i] for i in kept]), tuple(labels[i] for i in kept), list(range(len(kept)))
 
 
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
