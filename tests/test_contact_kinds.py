@@ -85,9 +85,9 @@ def test_rank_postures_are_flush_on_the_joint_frames(monkeypatch):
     seen = []
     structural = contact_choice.structural
 
-    def spy(wide, start, flush):
+    def spy(wide, start, flush, *rest):
         seen.append((start, flush))
-        return structural(wide, start, flush)
+        return structural(wide, start, flush, *rest)
 
     monkeypatch.setattr(contact_choice, "structural", spy)
     chain = load_robot(*CHAINS["ur5"])

@@ -186,18 +186,19 @@ def offer_directions(
         ]
         return None, pl.names(), offsets
     rows: list[np.ndarray] = []
-    names: list[str] = []
-    units = np.zeros((0, 6 * len(pl.joints)))  # the kept directions, unit length
+    labels: list[str] = []
     for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
-        D, labels = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
-        for d, label in zip(D, labels, strict=True):
-            unit = d / np.linalg.norm(d)
-            if not rows or np.max(np.abs(units @ unit)) <= 1.0 - 1e-12:  # parallel to none
-                units = np.vstack([units, unit])
-                rows.append(d)
-                names.append(label)
-    return np.array(rows), tuple(names), list(range(len(rows)))
+        D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
+        rows.extend(D)
+        labels.extend(more)
+    units = np.array([d / np.linalg.norm(d) for d in rows]).reshape(len(rows), -1)
+    cosines = np.abs(units @ units.T)
+    kept: list[int] = []
+    for i in range(len(rows)):
+        if not kept or np.max(cosines[i, kept]) <= 1.0 - 1e-12:  # parallel to none kept
+            kept.append(i)
+    return np.array([rows[i] for i in kept]), tuple(labels[i] for i in kept), list(range(len(kept)))
 
 
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
@@ -246,12 +247,45 @@ def blocky(model: ChainsModel, start: ChainsState) -> bool:
     return len(start.states) == 1 and isinstance(start.states[0], ContactState) and by_block(model)
 
 
-def structural(wide: ChainsModel, start: ChainsState, flush: ChainsData) -> list[int]:
-    """The columns the touches determine, from the Jacobian at flush postures (``flush_data``)."""
+class AtStart:
+    """A model's Jacobian at the registration (``x = 0``), made once for the same rows.
+
+    The rank test and the selection of a measured term differentiate the same rows (its
+    flush postures are its rows as they are, :func:`flush_data`): one Jacobian serves both.
+    The arrays returned are shared: read only.
+    """
+
+    def __init__(self, wide: ChainsModel, start: ChainsState) -> None:
+        self.wide, self.start = wide, start
+        self._last: tuple[ChainsData, np.ndarray] | None = None
+
+    def __call__(self, data: ChainsData) -> np.ndarray:
+        """The Jacobian ``(m, rows, size)`` at the rows ``data``."""
+        if self._last is not None and same_rows(self._last[0], data):
+            return self._last[1]
+        J = self.wide.jacobian(self.start, np.zeros(self.wide.size()), data)
+        self._last = (data, J)
+        return J
+
+
+def same_rows(a: ChainsData, b: ChainsData) -> bool:
+    """Whether ``a`` and ``b`` hold the very same parts and torques (the same objects)."""
+    pairs = [(a.parts, b.parts), (a.torques or (), b.torques or ())]
+    return (a.torques is None) == (b.torques is None) and all(
+        len(x) == len(y) and all(u is v for u, v in zip(x, y, strict=True)) for x, y in pairs
+    )
+
+
+def structural(
+    wide: ChainsModel, start: ChainsState, flush: ChainsData, at: AtStart | None = None
+) -> list[int]:
+    """The columns the touches determine, from the Jacobian at flush postures (``flush_data``).
+
+    ``at``: the Jacobians at the registration made so far (:class:`AtStart`), or None.
+    """
     if blocky(wide, start):
         return block_structural(wide, start, flush, None)
-    A = wide.jacobian(start, np.zeros(wide.size()), flush)
-    A = A.reshape(-1, wide.size())
+    A = (at or AtStart(wide, start))(flush).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 
 
@@ -284,7 +318,8 @@ def choose(
         directions, names, offered, forced = asked.offer(directions, names, offered)
     wide = chains_model(start, plane_of, offered, names, directions, comp)
     fixed, every = wide.fixed, len(offered) + len(comp)
-    kept = structural(wide, start, flush) if every else list(range(fixed))
+    at = AtStart(wide, start)
+    kept = structural(wide, start, flush, at) if every else list(range(fixed))
     if asked is not None:
         asked.check(wide, start, flush, kept)
     if generic is not None:
@@ -307,7 +342,7 @@ def choose(
         cand_names = tuple(all_names[c] for c in columns)
         drawn = None if generic is None else generic.sample(fixed, len(columns), notes)
         data = sampled(data, drawn)
-        J, objects, free = selection_columns(wide, start, data, columns)
+        J, objects, free = selection_columns(wide, start, data, columns, at)
         groups = _postures(data) if generic is None else generic.groups(drawn)
         e = start.residuals(data)
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
@@ -332,11 +367,14 @@ def _postures(data: ChainsData) -> np.ndarray | None:
     return posture_groups(first.q, first.ids)
 
 
-def selection_columns(wide: ChainsModel, start: ChainsState, data: ChainsData, columns):
+def selection_columns(
+    wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart | None = None
+):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.
 
     Many objects (:func:`_blocky`): the objects' columns by block
-    (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense.
+    (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
+    Jacobians at the registration made so far (:class:`AtStart`), or None.
 
     Returns:
         The dense columns ``(m, rows, free + len(columns))``, the objects (or None) and the
@@ -344,7 +382,7 @@ def selection_columns(wide: ChainsModel, start: ChainsState, data: ChainsData, c
     """
     x = np.zeros(wide.size())
     if not blocky(wide, start):
-        J = wide.jacobian(start, x, data)
+        J = (at or AtStart(wide, start))(data)
         return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
     own, shared, index = wide.blocks(start, x, data)
     K, o = wide.object_blocks()
