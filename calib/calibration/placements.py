@@ -395,9 +395,7 @@ def mdh_directions(
     configurations (exactly, or the parameter is not offered: a row-1 tilt backwards moves
     the base frame's own fixed joint, which the plane takes). The parameters come in the
     MDH chart's order of preference
-    (:func:`~calib.identification.identifiability.preference_order`). The last
-    ``DIRECTION_CACHE`` results are kept with every value they were made from: equal values
-    (the same robot calibrated again) get a copy of the kept directions, not a new walk.
+    (:func:`~calib.identification.identifiability.preference_order`).
 
     Args:
         placements: The (zero) placement errors of the robot.
@@ -410,48 +408,10 @@ def mdh_directions(
         Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
         ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
     """
-    q = chain.random_configurations(DIRECTION_CONFIGS, seed)
-    key = _direction_inputs(placements, chain, mdh, q, label)
-    found = next((v for k, v in _DIRECTIONS if _equal(k, key)), None)
-    if found is None:
-        found = _mdh_directions(placements, chain, mdh, q, label)
-        for a in found[0], *key:
-            if isinstance(a, np.ndarray):
-                a.flags.writeable = False
-        _DIRECTIONS[:] = [(key, found), *_DIRECTIONS[: DIRECTION_CACHE - 1]]
-    return found[0].copy(), found[1]
-
-
-DIRECTION_CACHE = 4
-"""Most sets of MDH directions kept (:func:`mdh_directions`: a robot calibrated again)."""
-
-_DIRECTIONS: list[tuple[tuple, tuple[np.ndarray, tuple[str, ...]]]] = []
-"""The last :func:`mdh_directions` made, newest first, each with everything it read."""
-
-
-def _direction_inputs(placements: Placements, chain: Chain, mdh: MDHModel, q, label) -> tuple:
-    """Everything :func:`_mdh_directions` reads (its arguments as values, not objects)."""
-    path = placements.path(chain)
-    own = tuple(
-        getattr(mdh, f.name) for f in dataclasses.fields(mdh) if f.init and f.name != "source"
-    )
-    return (label, np.array(q), placements.joints, chain.joint_names, placements.y.copy(),
-            *(np.array(getattr(path, f.name)) for f in dataclasses.fields(path)), *own)  # fmt: skip
-
-
-def _equal(a: tuple, b: tuple) -> bool:
-    """Whether two :func:`_direction_inputs` are equal (arrays: of equal shape and values)."""
-    return len(a) == len(b) and all(
-        np.array_equal(x, y) if isinstance(x, np.ndarray) or isinstance(y, np.ndarray) else x == y
-        for x, y in zip(a, b, strict=True)
-    )
-
-
-def _mdh_directions(placements: Placements, chain: Chain, mdh: MDHModel, q, label):
-    """:func:`mdh_directions` at the configurations ``q`` (computed)."""
     pset = parameter_set(mdh, label)
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
     params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= mdh.n))
+    q = chain.random_configurations(DIRECTION_CONFIGS, seed)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))
     W = identification_jacobian(mdh, params, q, pose).reshape(len(q), 6, -1)
     columns = placements.path(chain).columns
