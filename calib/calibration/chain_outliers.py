@@ -24,6 +24,7 @@ from .chain_registration import proposals
 from .contact_chains_result import ContactChainsCalibration
 from .contact_register import Registered
 from .measured_term import MeasuredState
+from .measured_view import gravity_torque
 from .options import Options
 from .outliers import point_errors, records, set_aside_note, until_stable
 
@@ -65,7 +66,7 @@ def fit_until_stable(
 
     def errors(result: ContactChainsCalibration):
         state = result.state  # with fitted compliance: deflected by the rows' gravity torques
-        torque = result.chain.gravity_torques(train.q) if np.any(state.compliance) else None
+        torque = gravity_torque(result.chain, state, train)
         return point_errors(state.residuals(train, torque), train.n_markers)
 
     registered = cast(MeasuredState, every.start.states[0])  # as its fit's result reports it

@@ -181,7 +181,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     chains, level, opts, train, held, validate, held_label, dropped, notes, plane_of = (
         r.chains, r.level, r.opts, r.train, r.held, r.validate, r.held_label, r.dropped,
         r.notes, r.plane_of)  # fmt: skip
-    load, torques, comp, start, clock = r.load, r.torques, r.comp, r.start, r.clock
+    load, torques, comp, start = r.load, r.torques, r.comp, r.start
+    notes, clock = list(notes), list(r.clock)  # a registration fitted twice: its own lists
     max_iterations, seed, instrument, options, progress = (
         r.max_iterations, r.seed, r.instrument, r.options, r.progress)  # fmt: skip
     with phase(progress, "calibrate: selection"):

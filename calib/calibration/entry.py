@@ -306,8 +306,6 @@ def measured_chain(
             gravity torques, a free parameter the data cannot fit).
     """
     chain, data = cast(Chain, term.robot), cast(Measurements, term.data)
-    if problem.holdout > 0 and term.validate is not None:
-        raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
     if problem.holdout > 0:  # the postures it leaves (the fit counts them with none)
         check_measured(chain, data, None, True, problem.holdout)
     train, held = (

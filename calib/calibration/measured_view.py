@@ -38,6 +38,7 @@ __all__ = [
     "ChainView",
     "MeasuredChain",
     "Solution",
+    "gravity_torque",
     "measured_part",
     "residual_stats",
     "world_of",
@@ -404,7 +405,9 @@ class ChainView:
 
         The fit's covariance through the point Jacobian at each row.
         """
-        return self._solution().point_std(self.data, _torque(self.chain, self.state, self.data))
+        return self._solution().point_std(
+            self.data, gravity_torque(self.chain, self.state, self.data)
+        )
 
     @cached_property
     def validation(self) -> Validation | None:
@@ -421,7 +424,7 @@ class ChainView:
             part.held_source or held.source,
             _stats(self.chain, self.registration, held),
             _stats(self.chain, self.state, held),
-            self._solution().point_std(held, _torque(self.chain, self.state, held)),
+            self._solution().point_std(held, gravity_torque(self.chain, self.state, held)),
             _geometry(self.state, held),
             held,
         )
@@ -444,10 +447,12 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 
     With fitted joint compliance, the joints deflect under the chain's gravity torques.
     """
-    return ResidualStats.of(state.residuals(data, _torque(chain, state, data)), data.n_markers)
+    return ResidualStats.of(
+        state.residuals(data, gravity_torque(chain, state, data)), data.n_markers
+    )
 
 
-def _torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
+def gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
     """The chain's gravity torques at the rows where the state has compliance, else None."""
     return chain.gravity_torques(data.q) if np.any(state.compliance) else None
 

@@ -153,6 +153,8 @@ class Problem:
                 f"{', '.join(sorted(urdfs))}"
             )
         self.options()  # the values, checked once (the level by the model of the shape)
+        if self.holdout > 0 and any(t.validate is not None for t in self.terms):
+            raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         self._check_applicable()
 
     def options(self) -> Options:

@@ -14,7 +14,7 @@ sees is checked here, on the closed-form registration of the nominal tree
 
 from __future__ import annotations
 
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
 from ..measurements.data import Measurements
@@ -49,9 +49,7 @@ def prepare_tree(
     what = "measurement frame and marker parameters"
     determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
     nominal = from_tree(tree)
-    if validate is not None:
-        if holdout > 0:
-            raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
+    if validate is not None:  # with a holdout too: refused by Problem
         validation.check_held_out(data, validate)
         if set(validate.tools) == set(tree.tool_frames) and 3 * validate.m > unknowns:
             _diagnosed(tree, nominal, validate)
