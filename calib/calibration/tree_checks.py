@@ -40,8 +40,8 @@ def prepare_tree(
     Raises:
         DataError: Rows of other joints, pose or several-point rows, a tool no row measures,
             too few rows, a usual mistake (named), validation rows that are training rows or
-            measured in another frame.
-        InvalidArgumentError: Validation rows and a holdout fraction.
+            measured in another frame (validation rows with a holdout fraction: refused
+            by :class:`~.problem.Problem` before).
     """
     tool_parts(tree, data)
     out = round(holdout * data.m)
