@@ -62,7 +62,7 @@ from ..identification.contacts import (
     PlanePointContact,
 )
 from ..kinematics.so3 import rotation_matrix
-from .contact_blocks import BlockSystem, block_lstsq
+from .contact_blocks import BlockSystem, block_lstsq, dense
 from .contact_frames import ContactFrames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
@@ -198,10 +198,10 @@ def refine(
         Jc = frames.kind.jacobian_rows(shared, R) * rows
         sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
         if not sol.smallest > CONDITION_LIMIT * sol.largest:
+            A = dense(Jo, Jc, index, K).reshape(-1, frames.size)
             raise ContactGeometryError(
                 f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame"
-                f"{_undetermined(_dense(Jo, Jc, index, K), frames.names())}: touch at several "
-                f"orientations, or at "
+                f"{_undetermined(A, frames.names())}: touch at several orientations, or at "
                 f"spots that span each {frames.kind.object_name}"
             )
         step = np.r_[sol.objects.ravel(), sol.shared]
@@ -209,20 +209,6 @@ def refine(
         if np.max(np.abs(step)) < STEP_TOLERANCE:
             break
     return frames.moved(x), steps
-
-
-def _dense(Jo: np.ndarray, Jc: np.ndarray, index: np.ndarray, K: int) -> np.ndarray:
-    """The dense Jacobian ``(m rows, K d + c)`` of the blocks (for an error message only).
-
-    ``Jo`` ``(m, rows, d)``: touch i's columns of its object ``index[i]``; ``Jc``: the shared
-    columns.
-    """
-    m, rows, d = Jo.shape
-    A = np.zeros((m, rows, K * d + Jc.shape[2]))
-    cols = np.asarray(index)[:, None] * d + np.arange(d)[None, :]
-    A[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = Jo
-    A[:, :, K * d :] = Jc
-    return A.reshape(m * rows, -1)
 
 
 def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
