@@ -61,6 +61,7 @@ __all__ = [
     "exact_columns",
     "free_columns",
     "move_own",
+    "pixel_columns",
     "pixel_jacobian",
     "pixel_residuals",
     "pixel_rows",
@@ -207,6 +208,14 @@ def pixel_jacobian(
     if what.intrinsics:
         parts.append(np.asarray(seen.d_parameters))
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
+
+
+def pixel_columns(state: PixelState, what: Unknowns) -> int:
+    """The number of columns of :func:`pixel_jacobian`."""
+    k = len(state.target)
+    points = 3 * (k - GAUGE_POINTS) if what.targets and k > GAUGE_POINTS else 0
+    lens = len(state.lens.parameters) if what.intrinsics else 0
+    return 12 + state.placements.y.size + points + lens
 
 
 def move_own(camera: np.ndarray, target: np.ndarray, lens: Pinhole, x: np.ndarray, what: Unknowns):
