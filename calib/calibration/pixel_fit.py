@@ -32,7 +32,6 @@ from .pixel_term import (
     move_own,
     pixel_columns,
     pixel_jacobian,
-    pixel_residuals,
 )
 from .registration import nearest_rotation
 from .solve import fit
@@ -116,17 +115,6 @@ class PixelView:
 
 
 @dataclass(frozen=True, eq=False)
-class _Term:
-    """A camera's state as the engine's solver reads it (:func:`~.solve.fit`'s)."""
-
-    state: PixelState
-
-    def residuals(self, view: PixelView, torque=None) -> np.ndarray:
-        """``observed - pixel`` ``(m, 2)`` [px]."""
-        return -pixel_residuals(self.state, view.chain, view.rows)
-
-
-@dataclass(frozen=True, eq=False)
 class _Steps:
     """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian` as the solver's model.
 
@@ -145,34 +133,34 @@ class _Steps:
         """Number of free columns."""
         return len(self.free)
 
-    def _steps(self, start: _Term, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _steps(self, start: PixelState, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The joint placements' change and the own unknowns (with the mounting's 6)."""
-        dx = np.zeros(pixel_columns(start.state, self.what))
+        dx = np.zeros(pixel_columns(start, self.what))
         dx[list(self.free)] = x
-        n = start.state.placements.y.size
+        n = start.placements.y.size
         return dx[6 : 6 + n], np.r_[dx[:6], dx[6 + n :]]
 
-    def apply(self, start: _Term, x: np.ndarray) -> _Term:
+    def apply(self, start: PixelState, x: np.ndarray) -> PixelState:
         """The camera's state at x."""
         dy, own = self._steps(start, x)
-        s, what = start.state, Unknowns(True, self.what.targets, self.what.intrinsics)
-        camera, target, lens = move_own(s.camera, s.target, s.lens, own, what)
-        return _Term(PixelState(s.placements.shifted(dy), camera, target, lens))
+        what = Unknowns(True, self.what.targets, self.what.intrinsics)
+        camera, target, lens = move_own(start.camera, start.target, start.lens, own, what)
+        return PixelState(start.placements.shifted(dy), camera, target, lens)
 
-    def jacobian(self, start: _Term, x: np.ndarray, view: PixelView, torque=None):
+    def jacobian(self, start: PixelState, x: np.ndarray, view: PixelView, torque=None):
         """d(pixel)/dx ``(m, 2, free)`` [px per unit]."""
-        state, own = self.apply(start, x).state, self._steps(start, x)[1]
+        state, own = self.apply(start, x), self._steps(start, x)[1]
         n, point = state.placements.y.size, view.rows.point
         robot = any(6 <= c < 6 + n for c in self.free)  # else no joint placement column
         J = pixel_jacobian(state, view.chain, view.rows, self.what, robot)[1]
-        J = exact_columns(J, self.what, start.state.target, own, n, point)
+        J = exact_columns(J, self.what, start.target, own, n, point)
         return J[:, :, list(self.free)]
 
 
 def _solve(state: PixelState, view: PixelView, free, what: Unknowns) -> PixelState:
     """The engine's least squares (:func:`~.solve.fit`) on the columns ``free``."""
-    return fit(_Steps(tuple(free), what), _Term(state), view, None, 1.0,
-               max_iterations=MAX_EVALUATIONS).state.state  # fmt: skip
+    steps = _Steps(tuple(free), what)
+    return fit(steps, state, view, None, 1.0, max_iterations=MAX_EVALUATIONS).state
 
 
 def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:

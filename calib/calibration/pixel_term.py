@@ -140,6 +140,13 @@ class PixelState:
     target: np.ndarray
     lens: Pinhole
 
+    def residuals(self, view, torque=None) -> np.ndarray:
+        """``observed - pixel`` ``(m, 2)`` [px] of a :class:`~.pixel_fit.PixelView`'s rows.
+
+        What the engine's solver (:func:`~.solve.fit`) reads of its state.
+        """
+        return -pixel_residuals(self, view.chain, view.rows)
+
 
 def target_points(state: PixelState, chain: Chain, rows: PixelRows, kin=None):
     """The seen points in the camera frame ``(m, 3)`` and in the base link ``(m, 3)`` [m].
