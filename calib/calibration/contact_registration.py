@@ -53,7 +53,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..exceptions import ContactGeometryError, InvalidArgumentError
+from ..exceptions import ContactGeometryError
 from ..identification.contacts import (
     Contact,
     FixedPointContact,
@@ -93,10 +93,8 @@ MIN_SPREAD = 1e-6
 """Smallest RMS spread of the tool's orientations about any axis [rad] for a fixed point."""
 
 
-def _groups(ids: Sequence[str], m: int) -> tuple[tuple[str, ...], np.ndarray]:
+def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
     """The distinct ids in order of appearance and each touch's index among them."""
-    if len(ids) != m:
-        raise InvalidArgumentError(f"{len(ids)} ids for {m} touches")
     names = tuple(dict.fromkeys(str(i) for i in ids))
     index = np.array([names.index(str(i)) for i in ids], dtype=int)
     counts = np.bincount(index, minlength=len(names))
@@ -106,19 +104,6 @@ def _groups(ids: Sequence[str], m: int) -> tuple[tuple[str, ...], np.ndarray]:
                 f"'{name}' has {count} touch(es): at least {MIN_TOUCHES} are needed to fit it"
             )
     return names, index
-
-
-def _check_inputs(rotations, positions, contact) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    R = np.asarray(rotations, dtype=float)
-    p = np.asarray(positions, dtype=float)
-    C = np.asarray(contact, dtype=float)
-    if R.ndim != 3 or R.shape[1:] != (3, 3) or p.shape != (len(R), 3) or C.shape != (4, 4):
-        raise InvalidArgumentError(
-            "contact registration takes rotations (m, 3, 3), positions (m, 3), contact (4, 4)"
-        )
-    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(p)) and np.all(np.isfinite(C))):
-        raise InvalidArgumentError("contact registration: non-finite tool placement or contact")
-    return R, p, C
 
 
 def _tilt_to(b: np.ndarray) -> np.ndarray:
@@ -222,8 +207,6 @@ def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
 
 def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
     """Flush touches: the chordal fit of the normals, or the contact points' planes."""
-    if not (np.isfinite(weight) and weight > 0):
-        raise InvalidArgumentError(f"weight must be positive and finite, got {weight}")
     K = len(names)
     M = np.stack([np.sum(np.swapaxes(R[index == k], 1, 2), axis=0) for k in range(K)])
     U = np.linalg.svd(np.concatenate(list(M), axis=1), full_matrices=False)[0]
@@ -325,14 +308,11 @@ def register_contacts(
         ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry
             that fixes nothing (one orientation and spots on a line for a plane; one
             orientation, or rotations about one axis only, for a tip).
-        InvalidArgumentError: A kind calib cannot register, or inputs of the wrong shape.
+        InvalidArgumentError: A weight that is not positive.
     """
-    found = _STARTS.get(type(kind))
-    if found is None:
-        raise InvalidArgumentError(f"no registration for contacts of kind {kind.label!r}")
-    start, weighted = found
-    R, p, guess = _check_inputs(rotations, positions, contact)
-    names, index = _groups(ids, len(p))
+    start, weighted = _STARTS[type(kind)]
+    R, p, guess = (np.asarray(a, dtype=float) for a in (rotations, positions, contact))
+    names, index = _groups(ids)
     frames = start(kind, R, p, guess, index, names, weight)
     if isinstance(kind, FixedPointContact):
         return frames  # the closed form is the least squares
