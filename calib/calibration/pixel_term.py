@@ -62,7 +62,6 @@ __all__ = [
     "move_own",
     "pixel_columns",
     "pixel_jacobian",
-    "pixel_residuals",
     "pixel_rows",
     "target_points",
 ]
@@ -115,9 +114,10 @@ class PixelState:
     def residuals(self, view, torque=None) -> np.ndarray:
         """``observed - pixel`` ``(m, 2)`` [px] of a :class:`~.pixel_fit.PixelView`'s rows.
 
-        What the engine's solver (:func:`~.solve.fit`) reads of its state.
+        NaN behind the camera. What the engine's solver (:func:`~.solve.fit`) reads of its state.
         """
-        return -pixel_residuals(self, view.chain, view.rows)
+        p_cam = target_points(self, view.chain, view.rows)[0]
+        return view.rows.pixels - self.lens.projection(p_cam).pixels
 
 
 def target_points(state: PixelState, chain: Chain, rows: PixelRows, kin=None):
@@ -139,12 +139,6 @@ def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, n
     """
     p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
     return (p_link - camera[:3, 3]) @ camera[:3, :3], p_link
-
-
-def pixel_residuals(state: PixelState, chain: Chain, rows: PixelRows) -> np.ndarray:
-    """Reprojection errors ``pixel - observed`` ``(m, 2)`` [px] (NaN behind the camera)."""
-    p_cam = target_points(state, chain, rows)[0]
-    return state.lens.projection(p_cam).pixels - rows.pixels
 
 
 def pixel_jacobian(
