@@ -203,10 +203,6 @@ class PixelTermState:
         """The term's layout."""
         return PixelKind(len(self.target), len(self.lens.parameters), self.what)
 
-    def row_weights(self) -> np.ndarray:
-        """:attr:`weight` on both rows [m/px]."""
-        return np.full(2, self.weight)
-
     def seen(self, part: PixelPart, kin=None) -> np.ndarray:
         """The rows' points in the camera frame ``(m, 3)`` [m].
 
