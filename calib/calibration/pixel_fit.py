@@ -37,6 +37,7 @@ from .registration import nearest_rotation
 from .solve import fit
 
 __all__ = [
+    "MAX_EVALUATIONS",
     "PixelView",
     "camera_from_rays",
     "fit_alone",
