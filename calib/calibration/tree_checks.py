@@ -51,11 +51,15 @@ def prepare_tree(
     unknowns = 6 + 3 * tree.n_tools
     what = "measurement frame and marker parameters"
     determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
+    nominal = [  # every tool's chain on the nominal tree, its marker at its flange
+        MeasuredState(nominal_state(from_chain(c), np.zeros((1, 3)), POSITION), 1.0, True)
+        for c in tree.chains
+    ]
     if validate is not None:  # with a holdout too: refused by Problem
         validation.check_held_out(data, validate)
         if set(validate.tools) == set(tree.tool_frames) and 3 * validate.m > unknowns:
-            _diagnosed(tree, validate)
-    reg = _diagnosed(tree, data)
+            _diagnosed(tree, nominal, validate)
+    reg = _diagnosed(tree, nominal, data)
     if validate is not None:
         fitted, other = (_stats(reg, _by_tool(tree, d)) for d in (data, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
@@ -76,16 +80,6 @@ def _by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
     return parts
 
 
-def _registration(tree: Tree, data: Measurements) -> list[MeasuredState]:
-    """The nominal tree's measurement frame and markers in closed form (one per tool)."""
-    start = [
-        MeasuredState(nominal_state(from_chain(c), np.zeros((1, 3)), POSITION), 1.0, True)
-        for c in tree.chains
-    ]
-    parts = _by_tool(tree, data)
-    return shared_frame(start, parts)
-
-
 def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> ResidualStats:
     """The registration's errors on every tool's rows."""
     rows = [s.residuals(p) for s, p in zip(states, parts, strict=True) if p is not None]
@@ -95,17 +89,27 @@ def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> Res
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 
 
-def _diagnosed(tree: Tree, data: Measurements) -> list[MeasuredState]:
-    """The closed-form registration of ``data``; the likely mistake if it cannot be.
+def _registered(tree: Tree, nominal: list, data: Measurements) -> tuple[list, float]:
+    """The measurement frame and markers of ``data`` on the ``nominal`` tree, and their RMS.
+
+    In closed form (:func:`~.instrument.shared_frame`): one frame for every tool, one marker
+    each; the RMS error per row [m].
+    """
+    parts = _by_tool(tree, data)
+    states = shared_frame(nominal, parts)
+    return states, _stats(states, parts).position_rms
+
+
+def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
+    """The registration of ``data`` (:func:`_registered`); the likely mistake if it fails.
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
     """
-    reg = _registration(tree, data)
-    first = _stats(reg, _by_tool(tree, data)).position_rms
+    reg, first = _registered(tree, nominal, data)
 
-    def rms(d):  # the closed form only: every swap of two joints is tried
-        return _stats(_registration(tree, d), _by_tool(tree, d)).position_rms
+    def rms(d: Measurements) -> float:  # the closed form only: every swap of two joints
+        return _registered(tree, nominal, d)[1]
 
     diagnosis.explain(data, tree.sigma == 0, rms, first, None, _WORDS, joints_only=False)
     return reg
