@@ -7,8 +7,9 @@ A calibrated model is written only if it passes every check:
    the fitted measurement frame and markers);
 3. the measured configurations identify every fitted parameter (the weighted Jacobian at
    the solution has full column rank);
-4. on held-out configurations (``--validate`` or ``--holdout``), its RMS error is no larger
-   than the registration's.
+4. on held-out configurations (``--validate`` or ``--holdout``), its weighted RMS error
+   (angles times the orientation weight: position and orientation alike) is no larger than
+   the registration's (:func:`~.contact_checks.held_out_refusal`, by :func:`worse`).
 
 With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
 plus the compliance file, and the checks apply to that whole model. The URDF alone
