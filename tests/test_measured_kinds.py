@@ -15,7 +15,7 @@ import pytest
 from pinref import file_chain_poses
 
 from calib import Measurement, Measurements, from_chain, load_chain
-from calib.calibration.counting import MARKER_WORK_COPIES, marker_work_bytes
+from calib.calibration.determined import MARKER_WORK_COPIES, marker_work_bytes
 from calib.calibration.model import ErrorModel, registration_state, selection_lift
 from calib.identification.kinds import kind_of
 from calib.identification.measures import POSE, POSITION, Observed

@@ -427,7 +427,7 @@ def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> Stat
 def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarray):
     """What a state measures at q: its own points and, with a tool rotation, orientations.
 
-    The data the counts of :mod:`~.counting` and the design's Jacobians are evaluated on:
+    The data the counts of :mod:`~.determined` and the design's Jacobians are evaluated on:
     exact, so the residual is zero and the Jacobian is the plain linearisation (measured
     identity orientations would scale the rotation rows by ``Jr^-1`` of the tool's rotation).
     """

@@ -32,7 +32,7 @@ this choice; the condition number, O1, O3, O4 and A do.
 The model behind the columns is generic: :class:`ObservationModel` wraps any function that
 returns the Jacobian of the calibration's parameters at configurations: a chain's
 (:class:`~calib.calibration.model.ErrorModel`) or a tree's, every tool measured at each
-configuration (:class:`~calib.calibration.tree.TreeErrorModel`, 3 rows per tool).
+configuration (:class:`~calib.design.tree_error_model.TreeErrorModel`, 3 rows per tool).
 """
 
 from __future__ import annotations
@@ -54,7 +54,6 @@ from ..calibration.model import (
 )
 from ..calibration.options import TREE_LEVELS, Options
 from ..calibration.solve import row_weights
-from ..calibration.tree import TreeErrorModel, TreeState
 from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array
 from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
@@ -66,6 +65,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
+from .tree_error_model import TreeErrorModel, TreeState
 
 REFERENCE_CONFIGS = 200
 """Reference configurations of the predicted position error (I, G) by default."""
