@@ -244,7 +244,7 @@ def observation_model(
         pset.names[i] for i in preference_order(nominal, pset) if pset.names[i] in names
     )
     lift = selection_lift(pset, ordered)
-    model = ErrorModel(pset, ordered, lift, (), n_markers=len(mk), kind=kind)
+    model = ErrorModel(pset, ordered, lift, n_markers=len(mk), kind=kind)
     state = nominal_state(nominal, mk, kind)
     weights = row_weights(model, float(orientation_weight))
 
