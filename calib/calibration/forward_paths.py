@@ -35,7 +35,6 @@ __all__ = [
     "SMALL",
     "loo_errors",
     "lu_errors",
-    "path",
     "paths",
     "spd_solve",
 ]
@@ -127,25 +126,6 @@ def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarr
     return x
 
 
-def path(
-    A: np.ndarray, e: np.ndarray, rows: int, start: list[int], candidates: list[int]
-) -> tuple[list[int], np.ndarray]:
-    """The greedy forward path: each step adds the candidate of least leave-one-out error.
-
-    Args:
-        A: Columns, configuration-major rows ``(m rows, p)``.
-        e: Residuals to explain ``(m rows,)``.
-        rows: Rows per configuration.
-        start: Columns always in.
-        candidates: Columns to add, until none is left or independent of those in.
-
-    Returns:
-        The columns in the order added, and the squared left-out error of each configuration
-        before the first and after each addition ``(len(order) + 1, m)``.
-    """
-    return paths(A, e, rows, start, candidates, np.ones((1, e.size // rows), dtype=bool))[0]
-
-
 def paths(
     A: np.ndarray,
     e: np.ndarray,
@@ -155,7 +135,9 @@ def paths(
     train: np.ndarray,
     objects: ObjectColumns | None = None,
 ) -> list[tuple[list[int], np.ndarray]]:
-    """The forward paths (:func:`path`) of several subsets of the configurations at once.
+    """The greedy forward paths of several subsets of the configurations at once.
+
+    Each step adds, in each subset, the candidate of least leave-one-out error.
 
     Args:
         A: Columns, configuration-major rows ``(m rows, p)``.
