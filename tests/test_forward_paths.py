@@ -13,7 +13,7 @@ import pytest
 from test_calibration import greedy_check, path, refit_loo
 
 import calib.calibration.forward_paths as fp
-from calib.calibration.forward_paths import loo_errors, paths, spd_solve
+from calib.calibration.forward_paths import lu_errors, paths, spd_solve
 from calib.calibration.selection import (
     OUTER_FOLDS,
     STRENGTHS,
@@ -174,7 +174,7 @@ def test_spd_solve_equals_lapack(n):
     assert np.allclose(got.T, want, rtol=1e-12, atol=0)
 
 
-def test_loo_errors_of_a_singular_block_are_infinite_for_its_fit():
+def test_lu_errors_of_a_singular_block_are_infinite_for_its_fit():
     """A configuration of leverage exactly 1 makes its fit's errors infinite (as LAPACK's
     singular solve said before); the other fits keep their exact errors."""
     rng = np.random.default_rng(1)
@@ -182,9 +182,35 @@ def test_loo_errors_of_a_singular_block_are_infinite_for_its_fit():
     H[:, :] = 0.2 * np.eye(3)
     H[1, 2] = np.diag([1.0, 0.0, 0.0])  # fit 1, configuration 2: leverage 1 along x
     r = rng.normal(size=(2, 4, 3))
-    sq = loo_errors(H, r)
+    sq = lu_errors(np.eye(3) - H, r)
     assert np.all(np.isinf(sq[1]))
     assert np.allclose(sq[0], np.sum((r[0] / 0.8) ** 2, axis=1), rtol=1e-12)
+
+
+@pytest.mark.parametrize("rows", [1, 3])
+def test_paths_from_a_configuration_of_leverage_one(rows):
+    """A start column only one configuration sees: its hat block is exactly singular from
+    the start (LAPACK's inverse refuses it). Its left-out error is infinite at every step,
+    so is every candidate's total (the path takes them in their order); the other
+    configurations' errors are those of brute-force refits, in every subset."""
+    rng = np.random.default_rng(3)
+    m, cand = 9, 4
+    A = rng.normal(size=(m * rows, 1 + cand))
+    A[:, 0] = 0.0
+    A[rows * 4, 0] = 0.7  # configuration 4 alone
+    A /= np.linalg.norm(A, axis=0)
+    e = rng.normal(size=m * rows)
+    train = np.ones((2, m), dtype=bool)
+    train[1, 7] = False
+    out = paths(A, e, rows, [0], list(range(1, 1 + cand)), train)
+    for mask, (order, errors) in zip(train, out, strict=True):
+        assert order == list(range(1, 1 + cand))
+        keep = np.repeat(mask, rows)
+        lost = np.flatnonzero(mask) == 4
+        assert np.all(np.isinf(errors[:, lost]))
+        for k in range(cand + 1):
+            want = refit_loo(A[keep][:, : k + 1], e[keep], rows)
+            assert np.allclose(errors[k, ~lost], want[~lost], rtol=1e-9)
 
 
 def test_ridge_strengths_with_columns_seen_by_one_configuration():
