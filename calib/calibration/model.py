@@ -121,19 +121,9 @@ class State:
         """What the state predicts: a measured frame's pose (with a tool rotation) or points."""
         return POSITION if self.tool_rotation is None else POSE
 
-    def predict(
-        self,
-        q: np.ndarray,
-        torque: np.ndarray | None = None,
-        kin: Kinematics | JointFrames | None = None,
-    ):
-        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None).
-
-        ``kin``: :meth:`kinematics` at q (or any frames whose last is the tool's), if
-        already computed.
-        """
-        if kin is None:
-            kin = self.kinematics(q, torque)
+    def predict(self, q: np.ndarray, torque: np.ndarray | None = None):
+        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None)."""
+        kin = self.kinematics(q, torque)
         return self.kind.predict(
             kin.R[:, -1], kin.p[:, -1], self.markers, self.frame, self.tool_rotation
         )

@@ -135,13 +135,12 @@ class Selection:
         }
 
 
-def _rms(sq: np.ndarray, rows: int, count: np.ndarray | None = None) -> np.ndarray:
+def _rms(sq: np.ndarray, rows: int, count: np.ndarray) -> np.ndarray:
     """RMS error per point of squared errors per configuration ``(..., m)``.
 
-    ``count``: the configurations of the file each stands for (default one).
+    ``count``: the configurations of the file each stands for.
     """
-    n = sq.shape[-1] if count is None else float(np.sum(count))
-    return np.sqrt(np.sum(sq, axis=-1) / (n * rows / 3))
+    return np.sqrt(np.sum(sq, axis=-1) / (float(np.sum(count)) * rows / 3))
 
 
 def ridge_strengths(
@@ -337,19 +336,19 @@ def best_prefix(sq: np.ndarray) -> int:
     return int(np.argmax(close)) if close.any() else best
 
 
-def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects=None):
+def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
     """The forward selection (see the module docstring) on each subset ``train`` ``(b, m)``.
 
     Each subset's kept candidates (into ``names``) and steps, and the whole path's order
     (all it reached) and steps; ``forced``: indices into ``names`` always kept (``--free``).
 
     ``repeats``: each posture's spread, the squared errors every model leaves on it (added
-    to its left-out errors), and its rows in the file (:func:`_by_posture`); or None.
+    to its left-out errors), and its rows in the file (:func:`_by_posture`).
     """
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
-    spread, count = (np.zeros(train.shape[1]), None) if repeats is None else repeats
+    spread, count = repeats
     out = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
     found = (  # a batch at a time: each path's errors (steps x configurations) then dropped
@@ -360,7 +359,7 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects=None):
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
-        loo = [float(v) for v in _rms(errors, rows, None if count is None else count[mask])]
+        loo = [float(v) for v in _rms(errors, rows, count[mask])]
         steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
         steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
         whole = sel + [c - fixed for c in order]
