@@ -26,21 +26,16 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
 from ..identification.jacobian import identification_jacobian
 from ..identification.measures import POSE, POSITION, Measurement
-from ..identification.parameters import Kind, Parameter, ParameterSet, parameter_set
+from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import left_jacobian, matrix_to_quaternion, rotation_matrix, skew
 from ..measurements.data import Measurements
 from .placements import JointFrames
-
-if TYPE_CHECKING:
-    from .options import Options
 
 __all__ = [
     "FRAME_NAMES",
@@ -49,9 +44,7 @@ __all__ = [
     "State",
     "compliance_name",
     "generic_measurements",
-    "level_names",
     "nominal_state",
-    "offset_parameter",
     "registration_state",
     "selection_lift",
 ]
@@ -71,12 +64,6 @@ def _marker_names(k: int) -> tuple[str, str, str]:
 def compliance_name(joint: int) -> str:
     """Name of the compliance of joint ``joint`` (0-based): ``c<row>``, e.g. ``c3``."""
     return f"c{joint + 1}"
-
-
-def offset_parameter(mdh: MDHModel, joint: int) -> Parameter:
-    """The joint offset of joint ``joint`` (0-based): theta (revolute) or r (prismatic)."""
-    row = joint + 1
-    return Parameter(row, Kind.THETA if mdh.sigma[row] == 0 else Kind.R)
 
 
 CONFIGURATION_BLOCK = 4096
@@ -359,28 +346,3 @@ def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarr
     pts, rot = state.predict(q)
     quat = None if rot is None else matrix_to_quaternion(rot)
     return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)
-
-
-def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[str]]:
-    """The standard set and the names a level offers (before --fix / --free)."""
-    pset = parameter_set(nominal, "paper" if opts.level == "paper" else "complete")
-    if opts.level == "frames":
-        names: list[str] = []
-    elif opts.level == "offsets":
-        names = [offset_parameter(nominal, j).name for j in range(nominal.n)]
-    else:
-        names = list(pset.names)
-    valid = (
-        set(pset.names)
-        | {compliance_name(j) for j in range(nominal.n)}
-        | {"frame", "markers", "tool"}
-    )
-    for name in (*opts.fix, *opts.free):
-        if name not in valid:
-            raise InvalidArgumentError(
-                f"unknown parameter '{name}' for fix/free: give frame, markers, tool, a "
-                f"parameter of the {pset.label} set (e.g. {', '.join(pset.names[2:5])}) or a "
-                f"compliance c1..c{nominal.n}"
-            )
-    names += [n for n in opts.free if n in pset.names and n not in names]
-    return pset, [n for n in names if n not in opts.fix]
