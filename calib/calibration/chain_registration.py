@@ -45,7 +45,6 @@ def frames_model(data: Measurements, opts: Options) -> ErrorModel:
         ParameterSet("none", ()),
         (),
         np.zeros((0, 0)),
-        (),
         frame="frame" not in opts.fix,
         markers="markers" not in opts.fix,
         tool="tool" not in opts.fix,
@@ -282,7 +281,7 @@ def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) ->
     if not found:
         return None
     w = row_weights(fitted.model, opts.orientation_weight)
-    elastic = bool(fitted.model.compliance)
+    elastic = bool(np.any(fitted.state.compliance))
 
     def jacobian_at(q: np.ndarray) -> np.ndarray:
         torque = chain.gravity_torques(q) if elastic else None

@@ -389,7 +389,7 @@ def identifiable_parameters(
     data = generic_measurements(state, chain.joint_names, q)
     pset = complete_parameters(nominal)
     names = tuple(np.array(pset.names)[preference_order(nominal, pset)])
-    model = ErrorModel(pset, names, selection_lift(pset, names), (), n_markers=k, kind=kind)
+    model = ErrorModel(pset, names, selection_lift(pset, names), n_markers=k, kind=kind)
     J = model.jacobian(state, np.zeros(model.size()), data, None)
     J = J * row_weights(model, 1.0)[None, :, None]
     _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
