@@ -29,10 +29,10 @@ from calib import (
     read_measurements,
     simulate,
 )
-from calib.calibration.forward_paths import path, paths
+from calib.calibration.forward_paths import paths
 from calib.calibration.model import ErrorModel, selection_lift
 from calib.calibration.registration import register, rigid_fit
-from calib.calibration.selection import STRENGTHS, best_prefix, block_loo, ridge_loo
+from calib.calibration.selection import best_prefix
 from calib.calibration.solve import Problem
 from calib.cli.commands import main
 from calib.identification.kinds import kind_of
@@ -78,9 +78,7 @@ def test_jacobian_matches_finite_differences(measure, block, monkeypatch):
     data = simulate(chain, configs=15, measure=measure, seed=3, marker=MARKER).measurements
     start = register(nominal, data.q, data.points, data.rotations)
     pset = complete_parameters(nominal)
-    model = ErrorModel(
-        pset, pset.names, selection_lift(pset, pset.names), (0, 3, 6), kind=kind_of(measure)
-    )
+    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), kind=kind_of(measure))
     torque = np.random.default_rng(0).normal(size=data.q.shape)
     problem = Problem(model, start, data, torque, 0.7)
     x = 1e-2 * np.random.default_rng(1).normal(size=model.size())
@@ -104,27 +102,6 @@ def test_rigid_fit_recovers_a_known_motion():
     assert np.allclose(R_hat, R, atol=1e-12) and np.allclose(t_hat, t, atol=1e-12)
 
 
-def test_block_loo_equals_refits_without_each_configuration():
-    rng = np.random.default_rng(0)
-    m, rows, p = 12, 3, 4
-    A, e = rng.normal(size=(m * rows, p)), rng.normal(size=m * rows)
-    sse = 0.0
-    for i in range(m):
-        keep = np.ones(m * rows, dtype=bool)
-        keep[i * rows : (i + 1) * rows] = False
-        x = np.linalg.lstsq(A[keep], e[keep], rcond=None)[0]
-        sse += float(np.sum((e[~keep] - A[~keep] @ x) ** 2))
-    assert np.isclose(block_loo(A, e, rows), np.sqrt(sse / (m * rows / 3)), rtol=1e-10)
-    lam = np.array([0.0, 0.5, 0.5, 2.0])
-    sse = 0.0
-    for i in range(m):
-        keep = np.ones(m * rows, dtype=bool)
-        keep[i * rows : (i + 1) * rows] = False
-        x = np.linalg.solve(A[keep].T @ A[keep] + np.diag(lam), A[keep].T @ e[keep])
-        sse += float(np.sum((e[~keep] - A[~keep] @ x) ** 2))
-    assert np.isclose(block_loo(A, e, rows, lam), np.sqrt(sse / (m * rows / 3)), rtol=1e-10)
-
-
 def refit_loo(A: np.ndarray, e: np.ndarray, rows: int, lam=None) -> np.ndarray:
     """Squared error of each configuration predicted by a refit without it (brute force)."""
     m = e.size // rows
@@ -136,6 +113,12 @@ def refit_loo(A: np.ndarray, e: np.ndarray, rows: int, lam=None) -> np.ndarray:
         x = np.linalg.lstsq(A[keep].T @ A[keep] + np.diag(lam), A[keep].T @ e[keep], rcond=None)[0]
         out[i] = float(np.sum((e[~keep] - A[~keep] @ x) ** 2))
     return out
+
+
+def path(A, e, rows, start, candidates):
+    """The forward path of every configuration (:func:`~calib.calibration.forward_paths.paths`
+    of the one subset that holds them all)."""
+    return paths(A, e, rows, start, candidates, np.ones((1, e.size // rows), dtype=bool))[0]
 
 
 def greedy_check(A, e, rows, fixed, order, errors, mask=None):
@@ -206,21 +189,6 @@ def test_path_through_a_configuration_of_leverage_one():
         rest = [i for i in range(m) if i not in lost]
         want = refit_loo(A[:, cols], e, rows)[rest]
         assert np.allclose(errors[step, rest], want, rtol=1e-9)
-
-
-def test_ridge_loo_is_the_best_strength_of_the_refits():
-    rng = np.random.default_rng(3)
-    m, rows, fixed, p = 12, 3, 3, 8
-    A = rng.normal(size=(m * rows, p))
-    A /= np.linalg.norm(A, axis=0)
-    e = A @ (0.1 * rng.normal(size=p)) + rng.normal(size=m * rows)
-    sq, strength = ridge_loo(A, e, rows, fixed)
-    brute = {
-        s: refit_loo(A, e, rows, np.r_[np.zeros(fixed), np.full(p - fixed, s)])
-        for s in (0.0, *STRENGTHS)
-    }
-    best = min(brute, key=lambda s: brute[s].sum())
-    assert strength == best and np.allclose(sq, brute[best], rtol=1e-9)
 
 
 def test_best_prefix_looks_past_a_plateau_and_not_past_noise():
@@ -559,7 +527,7 @@ def test_ur10_poses_auto_no_worse_than_registration_under_any_fold_layout(layout
 @pytest.mark.parametrize("k", [1, 2, 4])
 def test_identifiable_count_with_k_markers_matches_theory(robot, k):
     """Each marker adds its 3 offsets to 4R + 2P (+ 3 for the tool orientation of a pose)."""
-    from calib.calibration.counting import identifiable_parameters
+    from calib.calibration.determined import identifiable_parameters
 
     chain = chain_of(robot)
     base = 4 * chain.n_revolute + 2 * chain.n_prismatic

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pinref import pair_collides
 
-from calib import InvalidArgumentError, calibrate, residual_stats, simulate
+from calib import InvalidArgumentError, calibrate, load_chain, residual_stats, simulate
 from calib.cli.commands import main
 from calib.design.configurations import configurations_csv, parse_configurations
 from calib.design.constraints import Constraints, filter_candidates
@@ -416,3 +416,19 @@ def test_design_refuses_bad_arguments():
         design(chain, 30, measure="orientation")
     with pytest.raises(InvalidArgumentError, match="margin"):
         design(chain, 30, constraints=Constraints(margin=4.0))
+
+
+@pytest.mark.parametrize("measure", ["pose", "position"])
+def test_frames_and_offsets_levels_on_the_tiago(measure):
+    """``frames``: the instrument's unknowns alone (frame 6, marker 3, tool rotation 3 for
+    poses). ``offsets``: the joint offsets neither they nor the other offsets carry. On the
+    TIAGo (a prismatic torso along z, then 7 revolute joints) the torso's r1 is the frame's z,
+    theta2 (the vertical arm_1, after a translation only) the frame's rotation about z, and
+    theta8 the tool's rotation (poses) or a turn of the tool origin about its own axis (a
+    point that does not move): theta3 to theta7 are left."""
+    chain = load_chain("tiago")
+    own = observation_model(chain, measure, params="frames").names
+    assert len(own) == (12 if measure == "pose" else 9)
+    assert all(n.startswith(("frame.", "marker1.", "tool.")) for n in own)
+    offsets = observation_model(chain, measure, params="offsets").names
+    assert offsets == own + tuple(f"theta{k}" for k in range(3, 8))

@@ -14,13 +14,13 @@ from pinref import MimicChain, pair_collides
 from calib import InvalidArgumentError, analyze
 from calib.calibration.entry import calibrate as calibrate_tree
 from calib.calibration.instrument import tree_points
-from calib.calibration.tree import TreeErrorModel, TreeState
 from calib.cli.commands import main
 from calib.design.collision import collision_checker
 from calib.design.configurations import parse_configurations
 from calib.design.constraints import Constraints, filter_candidates, measured_points
 from calib.design.design import candidate_configurations, design, evaluate
 from calib.design.observability import observation_model
+from calib.design.tree_error_model import TreeErrorModel, TreeState
 from calib.identification.tree_jacobian import tree_parameters
 from calib.kinematics.catalog import erd_robots_dir, resolve_urdf
 from calib.kinematics.tree import load_tree

@@ -96,7 +96,7 @@ def _model(nominal, measure: str) -> ErrorModel:
     rng = np.random.default_rng(5)
     names = pset.names[3:15]
     lift = rng.normal(size=(len(pset), len(names)))  # dense: every base value moves many
-    return ErrorModel(pset, names, lift, (1, 4), n_markers=len(MARKERS), kind=kind_of(measure))
+    return ErrorModel(pset, names, lift, n_markers=len(MARKERS), kind=kind_of(measure))
 
 
 def test_apply_lifts_the_base_values_as_the_parameter_set():
@@ -143,7 +143,7 @@ def test_problem_keeps_evaluations_without_mixing_them(prior, frames):
     nominal, state, data = _campaign("pose", m=10)
     model = _model(nominal, "pose")
     if frames:  # x moves no geometry: the kinematics are shared by every x
-        model = model.with_(base=(), lift=np.zeros((len(model.params), 0)), compliance=())
+        model = model.with_(base=(), lift=np.zeros((len(model.params), 0)))
     torque = np.random.default_rng(3).normal(size=data.q.shape)
     rng = np.random.default_rng(6)
     xs = [1e-2 * rng.normal(size=model.size()) for _ in range(3)]

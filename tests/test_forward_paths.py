@@ -10,11 +10,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_calibration import greedy_check, refit_loo
+from test_calibration import greedy_check, path, refit_loo
 
 import calib.calibration.forward_paths as fp
-from calib.calibration.forward_paths import loo_errors, path, paths, spd_solve
-from calib.calibration.selection import OUTER_FOLDS, STRENGTHS, forward, ridge_strengths, select
+from calib.calibration.forward_paths import lu_errors, paths, spd_solve
+from calib.calibration.selection import (
+    OUTER_FOLDS,
+    STRENGTHS,
+    best_prefix,
+    ridge_strengths,
+    select,
+)
 
 
 def count_calls(monkeypatch, name):
@@ -107,9 +113,30 @@ def test_ridge_strengths_are_each_subsets_best_refit_loo():
         assert np.all(sq[s, ~mask] == 0.0)
 
 
+def brute_forward(A, e, rows, fixed):
+    """The forward selection by refits from scratch: the greedy path of least summed left-out
+    error (:func:`refit_loo`), its prefix by :func:`best_prefix`, and the prior strength of
+    least refit error. Returns the kept candidates (into those after ``fixed``) and the
+    strength."""
+    cols, order = list(range(fixed)), []
+    errors = [refit_loo(A[:, cols], e, rows)]
+    while len(cols) < A.shape[1]:
+        rest = [c for c in range(fixed, A.shape[1]) if c not in cols]
+        sse = {c: refit_loo(A[:, [*cols, c]], e, rows) for c in rest}
+        best = min(sse, key=lambda c: sse[c].sum())
+        cols.append(best)
+        order.append(best - fixed)
+        errors.append(sse[best])
+    kept = order[: best_prefix(np.array(errors))]
+    At = A[:, list(range(fixed)) + [fixed + k for k in kept]]
+    lam = {t: np.r_[np.zeros(fixed), np.full(len(kept), t)] for t in (0.0, *STRENGTHS)}
+    return kept, min(lam, key=lambda t: refit_loo(At, e, rows, lam[t]).sum())
+
+
 def test_guard_errors_are_refits_of_each_folds_procedure():
-    """select()'s two cross-validated errors: each fold runs forward() on its own
-    configurations, its ridge fit (and the registration's) predicts the held-out ones."""
+    """select()'s two cross-validated errors: each fold runs the forward selection (by refits
+    from scratch) on its own configurations, its ridge fit (and the registration's) predicts
+    the held-out ones."""
     rng = np.random.default_rng(9)
     m, rows, fixed, cand = 23, 3, 3, 6
     J = rng.normal(size=(m, rows, fixed + cand)) * rng.uniform(0.5, 3.0, size=fixed + cand)
@@ -126,7 +153,7 @@ def test_guard_errors_are_refits_of_each_folds_procedure():
         At, et, Av = A[~held], ev[~held], A[held]
         x0 = np.linalg.lstsq(At[:, :fixed], et, rcond=None)[0]
         sse_reg += np.sum((ev[held] - Av[:, :fixed] @ x0) ** 2)
-        kept, _, strength = forward(At, et, rows, fixed, names)
+        kept, strength = brute_forward(At, et, rows, fixed)
         cols = list(range(fixed)) + [fixed + k for k in kept]
         lam = np.r_[np.zeros(fixed), np.full(len(kept), strength)]
         aug = np.vstack([At[:, cols], np.diag(np.sqrt(lam))])
@@ -147,7 +174,7 @@ def test_spd_solve_equals_lapack(n):
     assert np.allclose(got.T, want, rtol=1e-12, atol=0)
 
 
-def test_loo_errors_of_a_singular_block_are_infinite_for_its_fit():
+def test_lu_errors_of_a_singular_block_are_infinite_for_its_fit():
     """A configuration of leverage exactly 1 makes its fit's errors infinite (as LAPACK's
     singular solve said before); the other fits keep their exact errors."""
     rng = np.random.default_rng(1)
@@ -155,9 +182,35 @@ def test_loo_errors_of_a_singular_block_are_infinite_for_its_fit():
     H[:, :] = 0.2 * np.eye(3)
     H[1, 2] = np.diag([1.0, 0.0, 0.0])  # fit 1, configuration 2: leverage 1 along x
     r = rng.normal(size=(2, 4, 3))
-    sq = loo_errors(H, r)
+    sq = lu_errors(np.eye(3) - H, r)
     assert np.all(np.isinf(sq[1]))
     assert np.allclose(sq[0], np.sum((r[0] / 0.8) ** 2, axis=1), rtol=1e-12)
+
+
+@pytest.mark.parametrize("rows", [1, 3])
+def test_paths_from_a_configuration_of_leverage_one(rows):
+    """A start column only one configuration sees: its hat block is exactly singular from
+    the start (LAPACK's inverse refuses it). Its left-out error is infinite at every step,
+    so is every candidate's total (the path takes them in their order); the other
+    configurations' errors are those of brute-force refits, in every subset."""
+    rng = np.random.default_rng(3)
+    m, cand = 9, 4
+    A = rng.normal(size=(m * rows, 1 + cand))
+    A[:, 0] = 0.0
+    A[rows * 4, 0] = 0.7  # configuration 4 alone
+    A /= np.linalg.norm(A, axis=0)
+    e = rng.normal(size=m * rows)
+    train = np.ones((2, m), dtype=bool)
+    train[1, 7] = False
+    out = paths(A, e, rows, [0], list(range(1, 1 + cand)), train)
+    for mask, (order, errors) in zip(train, out, strict=True):
+        assert order == list(range(1, 1 + cand))
+        keep = np.repeat(mask, rows)
+        lost = np.flatnonzero(mask) == 4
+        assert np.all(np.isinf(errors[:, lost]))
+        for k in range(cand + 1):
+            want = refit_loo(A[keep][:, : k + 1], e[keep], rows)
+            assert np.allclose(errors[k, ~lost], want[~lost], rtol=1e-9)
 
 
 def test_ridge_strengths_with_columns_seen_by_one_configuration():

@@ -15,7 +15,7 @@ import pytest
 from pinref import file_chain_poses
 
 from calib import Measurement, Measurements, from_chain, load_chain
-from calib.calibration.counting import MARKER_WORK_COPIES, marker_work_bytes
+from calib.calibration.determined import MARKER_WORK_COPIES, marker_work_bytes
 from calib.calibration.model import ErrorModel, registration_state, selection_lift
 from calib.identification.kinds import kind_of
 from calib.identification.measures import POSE, POSITION, Observed
@@ -106,9 +106,7 @@ def test_error_model_jacobian_of_a_kind_matches_finite_differences(measure):
     if not kind.rotation_rows:
         start = registration_state(start.mdh, start.frame, start.markers, None)
     pset = complete_parameters(start.mdh)
-    model = ErrorModel(
-        pset, pset.names, selection_lift(pset, pset.names), (1, 4), n_markers=2, kind=kind
-    )
+    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), n_markers=2, kind=kind)
     torque = np.random.default_rng(1).normal(size=data.q.shape)
 
     def model_minus_measured(x):
@@ -149,9 +147,7 @@ def test_design_data_linearise_at_zero_residual():
 
     chain, start, _, _ = _setup(5, True)
     pset = complete_parameters(start.mdh)
-    model = ErrorModel(
-        pset, pset.names, selection_lift(pset, pset.names), (), n_markers=2, kind=POSE
-    )
+    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), n_markers=2, kind=POSE)
     q = chain.random_configurations(6, 2)
     data = generic_measurements(start, chain.joint_names, q)
     J = model.jacobian(start, np.zeros(model.size()), data, None)

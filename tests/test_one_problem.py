@@ -17,7 +17,6 @@ import pytest
 
 from calib import (
     DataError,
-    ResidualStats,
     calibrate,
     calibrate_contact_chains,
     load_chain,
@@ -25,8 +24,8 @@ from calib import (
     simulate,
     simulate_tree,
 )
-from calib.calibration import validation
-from calib.calibration.contact_checks import subset
+from calib.calibration.contact_checks import held_out_refusal, subset
+from calib.calibration.contact_result import GapStats
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.measurements.contact_campaign import simulate_contacts, write_contacts
@@ -89,15 +88,22 @@ def test_tree_and_chain_validation_rows_of_the_data_are_refused():
 
 
 def test_held_out_orientation_worse_refuses_a_pose_calibration():
-    """Positions better, orientations worse on held-out rows: refused, naming the
-    orientation; the same positions without orientations pass."""
-    fitted = ResidualStats(30, 2e-3, 4e-3, 2e-3, 5e-3)
-    better = ResidualStats(30, 1e-3, 2e-3, 1e-3, 3e-3)
-    reg, cal = ResidualStats(10, 3e-3, 6e-3, 2e-3, 4e-3), ResidualStats(10, 2e-3, 4e-3, 3e-3, 6e-3)
-    why = validation.refusal(True, fitted, better, True, (reg, cal), ("theta1",))
-    assert why is not None and "orientation is worse" in why and "3 mrad vs 2 mrad" in why
-    no_rot = [ResidualStats(s.configs, s.position_rms, s.position_max) for s in (reg, cal)]
-    assert validation.refusal(True, fitted, better, True, tuple(no_rot), ("theta1",)) is None
+    """Positions better, orientations worse on held-out rows: refused, as the held-out rule
+    weighs the angle rows (one refusal rule over position and orientation); the same
+    positions with orientations as good pass."""
+    chain = load_chain("ur5")
+
+    def held(pos_mm: float, rot_deg: float) -> GapStats:  # weight 1 m/rad: 1 mrad is 1 mm
+        weighted = math.hypot(pos_mm, 1e3 * math.radians(rot_deg))
+        return GapStats(10, ("xyz", "rot"), (False, True), (pos_mm, rot_deg), (pos_mm, rot_deg),
+                        weighted)  # fmt: skip
+
+    worse = {"held_out_registration": held(3.0, 0.1), "held_out": held(2.0, 0.3)}
+    why = held_out_refusal(worse, chain, "errors")
+    assert why is not None and "worse than the registration's" in why
+    assert "(5.605 > 3.471 mm weighted RMS)" in why  # hypot(2, 5.236) and hypot(3, 1.745)
+    good = {"held_out_registration": held(3.0, 0.1), "held_out": held(2.0, 0.1)}
+    assert held_out_refusal(good, chain, "errors") is None
 
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata" / "talos_contact"

@@ -37,11 +37,7 @@ from calib import (
     measurement_to_base,
     simulate,
 )
-from calib.calibration.model import ErrorModel, selection_lift
-from calib.calibration.registration import register
-from calib.calibration.solve import Problem
 from calib.cli.commands import main
-from calib.identification.measures import POSE
 from calib.kinematics.catalog import catalog_entry
 
 FK_TOL = 1e-10
@@ -226,27 +222,6 @@ def test_joint_columns_are_the_signed_pinocchio_jacobian(base, tool, marker):
     assert np.abs(J).max() > 0.1
     assert np.abs(W * chain.sign - J).max() <= 1e-10
     assert np.abs(W - J).max() > 0.1  # the sign matters
-
-
-def test_compliance_columns_carry_the_sign():
-    """The error model's analytic Jacobian (compliance of reversed joints included) against
-    central differences of its own residuals."""
-    chain = load_chain("talos", "left_sole_link", "gripper_left_base_link")
-    nominal = from_chain(chain)
-    data = simulate(chain, configs=12, measure="pose", seed=3).measurements
-    start = register(nominal, data.q, data.points, data.rotations)
-    pset = complete_parameters(nominal)
-    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), (0, 2, 5, 8), kind=POSE)
-    torque = np.random.default_rng(0).normal(size=data.q.shape)
-    problem = Problem(model, start, data, torque, 0.7)
-    x = 1e-3 * np.random.default_rng(1).normal(size=model.size())
-    J = problem.data_jac(x)
-    h = 1e-7
-    cols = [
-        (problem.data_rows(x + h * e) - problem.data_rows(x - h * e)) / (2 * h)
-        for e in np.eye(model.size())[-4:]
-    ]
-    assert np.abs(J[:, -4:] - np.column_stack(cols)).max() < 1e-6 * max(1.0, np.abs(J).max())
 
 
 @pytest.mark.parametrize(("robot", "base", "tool"), PAIRS)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from calib import DataError, InvalidArgumentError, Measurements, calibrate
-from calib.calibration.tree import TreeErrorModel, TreeState
+from calib.design.tree_error_model import TreeErrorModel, TreeState
 from calib.identification.tree_jacobian import tree_parameters
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.tree import load_tree

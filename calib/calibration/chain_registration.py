@@ -41,7 +41,6 @@ def frames_model(data: Measurements, opts: Options) -> ErrorModel:
         ParameterSet("none", ()),
         (),
         np.zeros((0, 0)),
-        (),
         frame="frame" not in opts.fix,
         markers="markers" not in opts.fix,
         tool="tool" not in opts.fix,

@@ -29,6 +29,7 @@ from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
+from ..measurements.postures import posture_groups
 from . import diagnosis, outliers, validation
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
@@ -70,7 +71,8 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
 
 
 POSTURE_TOL = 1e-2
-"""Postures whose joints agree within this [rad or m] (angles modulo a turn) are one posture."""
+"""Postures whose joints agree within this [rad or m] (angles modulo a turn: their cosines and
+sines) are one posture (:func:`~calib.measurements.postures.posture_groups`)."""
 
 
 def isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
@@ -83,24 +85,18 @@ def isolated_postures(chain: Chain, train: ContactData, held: ContactData | None
     kind = train.kind
     if chain.n > kind.n_rows:
         return None
-    fitted = set(_posture_keys(chain, train.q))
-    tested = [] if held is None else _posture_keys(chain, held.q)
-    again = sum(k in fitted for k in tested)
-    seen = len(fitted.union(tested))
+    q = train.q if held is None else np.vstack([train.q, held.q])
+    turning = chain.sigma == 0
+    parts = np.hstack([np.cos(q[:, turning]), np.sin(q[:, turning]), q[:, ~turning]])
+    groups = posture_groups(parts, tol=POSTURE_TOL)
+    again = int(np.isin(groups[train.m :], groups[: train.m]).sum())
     text = (
         f"a {chain.n}-joint chain holding a {kind.label} contact ({kind.n_rows} conditions) has "
-        f"finitely many postures: the touches sit at {seen} distinct postures"
+        f"finitely many postures: the touches sit at {groups.max() + 1} distinct postures"
     )
     if held is not None:
         text += f", and {again} of the {held.m} held-out touches repeat a fitted one"
     return text + ": the model is checked at those postures only"
-
-
-def _posture_keys(chain: Chain, q: np.ndarray) -> list[tuple[int, ...]]:
-    """Each configuration's posture, rounded to :data:`POSTURE_TOL` (angles by cos and sin)."""
-    turning = chain.sigma == 0
-    parts = np.hstack([np.cos(q[:, turning]), np.sin(q[:, turning]), q[:, ~turning]])
-    return [tuple(k) for k in np.round(parts / POSTURE_TOL).astype(int)]
 
 
 def estimate_weight(kind: Contact, R, p, ids, guess: np.ndarray, first=None) -> float:
@@ -207,11 +203,9 @@ def _drop_outliers(nominal, train: ContactData, guess, weight, start: ContactSta
 
 def _registrable(data: ContactData) -> bool:
     """Enough touches of every object, and equations, to register them on their own."""
-    ids = np.array(data.ids)
-    per = min(int(np.sum(ids == k)) for k in data.contacts)
     kind = data.kind
     unknowns = len(data.contacts) * len(kind.object_dofs) + len(kind.contact_dofs)
-    return per >= MIN_TOUCHES and data.m * kind.n_rows > unknowns
+    return enough_touches(data)(np.zeros(data.m, dtype=bool)) and data.m * kind.n_rows > unknowns
 
 
 def checked_registration(

@@ -169,7 +169,7 @@ def offer_directions(
 
     ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
     ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
-    MDH chart offers them (:func:`~.model.level_names`), turned into directions of joint
+    MDH chart offers them (:func:`level_candidates`), turned into directions of joint
     placement errors
     (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
     offers (a shared joint's) once.

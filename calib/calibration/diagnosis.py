@@ -170,7 +170,6 @@ def likely_cause(
     before: float,
     orientation: bool = False,
     joints_only: bool = False,
-    shuffle: bool = True,
 ) -> tuple[str, float] | None:
     """The usual mistake that explains the data, with the RMS error once it is corrected.
 
@@ -183,8 +182,6 @@ def likely_cause(
         orientation: Try the mistakes of the orientation columns.
         joints_only: Try the mistakes of the joint columns only (data that record the
             joints alone: contacts).
-        shuffle: A correction must not explain the rows with their joint columns shuffled
-            (see the module's text).
 
     Returns:
         (description, RMS [m or rad]) of the best explaining mistake, or None.
@@ -200,7 +197,7 @@ def likely_cause(
         except (CalibError, np.linalg.LinAlgError, ValueError):  # no valid data: no explanation
             continue
         if rms * EXPLAINS < before and rms < limit and (best is None or rms < best[1]):
-            if shuffle and not _beats_shuffle(registration_rms, fixed, rms):
+            if not _beats_shuffle(registration_rms, fixed, rms):
                 continue  # nearly one posture: any fit there explains nothing
             best = (what, rms)
     return best

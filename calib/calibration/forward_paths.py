@@ -1,7 +1,7 @@
 """Forward paths of the selection (:mod:`calib.calibration.selection`), batched over subsets.
 
 The path of a set of configurations adds, one at a time, the candidate column whose
-leave-one-configuration-out error (block PRESS, see :func:`loo_errors`) is least, until every
+leave-one-configuration-out error (block PRESS: ``(I - H_ii)^-1 r_i``) is least, until every
 candidate is in. :func:`paths` runs the paths of several subsets of the configurations at once
 (the selection's whole data and its guard's folds): a subset is the whole problem with the
 rows of its other configurations zeroed, which changes neither its fit nor the hat blocks of
@@ -33,9 +33,7 @@ __all__ = [
     "REFRESH",
     "SHRINK",
     "SMALL",
-    "loo_errors",
     "lu_errors",
-    "path",
     "paths",
     "spd_solve",
 ]
@@ -56,29 +54,10 @@ SHRINK = 1e-2
 the fit) stays above this fraction of what it was when they were last computed afresh."""
 
 
-def loo_errors(H: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Squared leave-one-configuration-out errors of several fits at once.
-
-    Args:
-        H: Hat-matrix blocks of each fit's configurations ``(c, m, rows, rows)``.
-        r: Residuals of each fit ``(c, m, rows)``.
-
-    Returns:
-        ``(c, m)`` squared left-out error of each configuration; inf where a configuration
-        alone determines a parameter (leverage 1).
-    """
-    c, m, rows = r.shape
-    M = np.eye(rows) - H
-    if rows <= SMALL:
-        x = spd_solve(np.moveaxis(M.reshape(-1, rows, rows), 0, 2), r.reshape(-1, rows).T)
-        sq = np.sum(x * x, axis=0).reshape(c, m)
-        if np.isfinite(sq).all():
-            return sq
-    return lu_errors(M, r)
-
-
 def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """:func:`loo_errors` from the blocks ``M = I - H`` (any strides), by LAPACK's LU.
+    """Squared leave-one-configuration-out errors of several fits, by LAPACK's LU.
+
+    From the blocks ``M = I - H`` (any strides), ``H`` the hat-matrix blocks.
 
     Args:
         M: ``I`` minus the hat-matrix blocks ``(c, m, rows, rows)``.
@@ -127,25 +106,6 @@ def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarr
     return x
 
 
-def path(
-    A: np.ndarray, e: np.ndarray, rows: int, start: list[int], candidates: list[int]
-) -> tuple[list[int], np.ndarray]:
-    """The greedy forward path: each step adds the candidate of least leave-one-out error.
-
-    Args:
-        A: Columns, configuration-major rows ``(m rows, p)``.
-        e: Residuals to explain ``(m rows,)``.
-        rows: Rows per configuration.
-        start: Columns always in.
-        candidates: Columns to add, until none is left or independent of those in.
-
-    Returns:
-        The columns in the order added, and the squared left-out error of each configuration
-        before the first and after each addition ``(len(order) + 1, m)``.
-    """
-    return paths(A, e, rows, start, candidates, np.ones((1, e.size // rows), dtype=bool))[0]
-
-
 def paths(
     A: np.ndarray,
     e: np.ndarray,
@@ -155,7 +115,9 @@ def paths(
     train: np.ndarray,
     objects: ObjectColumns | None = None,
 ) -> list[tuple[list[int], np.ndarray]]:
-    """The forward paths (:func:`path`) of several subsets of the configurations at once.
+    """The greedy forward paths of several subsets of the configurations at once.
+
+    Each step adds, in each subset, the candidate of least leave-one-out error.
 
     Args:
         A: Columns, configuration-major rows ``(m rows, p)``.
@@ -196,7 +158,7 @@ class _Batch:
         r: Residuals of each subset's fit ``(b, rows, m)``.
         H0, added: Hat blocks of the start ``(b, rows, rows, m)`` and the unit columns added
             since (the hat blocks, :meth:`hat`, are only needed to invert them afresh).
-        Minv: ``(I - H_ii)^-1`` (None while one is singular); ``v`` the left-out errors
+        Minv: ``(I - H_ii)^-1`` (identity on the ``lost`` blocks); ``v`` the left-out errors
             ``M r``, ``vv`` their squares ``(b, m)``.
         C: Candidates orthogonal to each fit ``(k, b, rows, m)``; ``floor2`` the squared norm
             under which one is dependent ``(k, b)``, ``alive`` those a subset may still add,
@@ -217,14 +179,13 @@ class _Batch:
         begin = _start if objects is None else _block_start
         self.r, self.H0, self.C, self.floor2 = begin(A, e, rows, start, candidates, train, objects)
         self.added: list[np.ndarray] = []
-        self.Minv = _inverse(self.H0)
         self.alive = np.ones((len(candidates), b), dtype=bool)
         self.index = np.arange(len(candidates))
         self.lost, self.any_lost = np.zeros((b, m), dtype=bool), False
         self.S: list[np.ndarray] = []  # empty: to compute afresh
         self.nu2 = self.lim = np.zeros(self.alive.shape)
-        self.v = self.vv = self.sq = np.zeros(0)
-        self._set_v()
+        self.Minv = self.v = self.vv = self.sq = np.zeros(0)
+        self._invert(self.H0)
 
     def hat(self) -> np.ndarray:
         """Hat blocks of the current fits ``(b, rows, rows, m)``."""
@@ -233,18 +194,32 @@ class _Batch:
         q = np.stack(self.added)
         return self.H0 + np.einsum("sbim,sbjm->bijm", q, q)
 
+    def _invert(self, H: np.ndarray) -> None:
+        """``Minv`` of the hat blocks ``H`` (the lost ones left out), then ``v``; ``S`` to redo.
+
+        A block of leverage exactly 1 (singular ``I - H_ii``: LAPACK's LU meets a zero pivot)
+        is lost from then on, as one that reaches it by a step.
+        """
+        M = np.eye(self.rows) - np.moveaxis(H * ~self.lost[:, None, None, :], 3, 1)
+        try:
+            inv = np.linalg.inv(M)
+        except np.linalg.LinAlgError:  # a leverage of 1
+            singular = np.linalg.det(M) == 0.0
+            self.lost |= singular
+            self.any_lost = True
+            M[singular] = np.eye(self.rows)
+            inv = np.linalg.inv(M)
+        self.Minv, self.S = np.ascontiguousarray(np.moveaxis(inv, 1, 3)), []
+        self._set_v()
+
     def _set_v(self) -> None:
-        """``v = M r`` and its squares by configuration (None without ``Minv``)."""
-        if self.Minv is None:
-            return
+        """``v = M r`` and its squares by configuration."""
         self.v = np.einsum("bijm,bjm->bim", self.Minv, self.r)
         self.vv = np.einsum("bim,bim->bm", self.v, self.v)
 
     def start_errors(self) -> np.ndarray:
         """Squared left-out errors of the start ``(b, m)``."""
-        if self.Minv is None:
-            return loo_errors(np.moveaxis(self.H0, 3, 1), np.swapaxes(self.r, 1, 2))
-        return self.vv.copy()  # vv follows the steps in place
+        return np.where(self.lost, np.inf, self.vv)  # a copy: vv follows the steps in place
 
     def prune(self) -> np.ndarray:
         """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""
@@ -268,28 +243,23 @@ class _Batch:
         determine it (``1 - q_i^T a_i = D / |c|^2`` <= 1e-12) or has already determined one
         (``lost``), or the sum is not finite.
         """
-        if self.Minv is None:
-            self.sq = self._errors_without_inverse()
-            self.sq[:, self.lost] = np.inf
-            total = self.sq.sum(axis=2)
-        else:
-            if not self.S:
-                self._fresh(self.Minv)
-            D, N, K, L2 = self.S
-            P = N / D
-            U = P * K
-            U += L2
-            P *= U
-            P += self.vv
-            self.sq = P
-            total = np.einsum("kbm->kb", P)
-            single = (1e-12 * self.nu2)[:, :, None] >= D
-            if single.any():
-                P[single] = np.inf
-                total[single.any(axis=2)] = np.inf
-            if self.any_lost:
-                P[:, self.lost] = np.inf
-                total[:, self.lost.any(axis=1)] = np.inf
+        if not self.S:
+            self._fresh(self.Minv)
+        D, N, K, L2 = self.S
+        P = N / D
+        U = P * K
+        U += L2
+        P *= U
+        P += self.vv
+        self.sq = P
+        total = np.einsum("kbm->kb", P)
+        single = (1e-12 * self.nu2)[:, :, None] >= D
+        if single.any():
+            P[single] = np.inf
+            total[single.any(axis=2)] = np.inf
+        if self.any_lost:
+            P[:, self.lost] = np.inf
+            total[:, self.lost.any(axis=1)] = np.inf
         ok = np.isfinite(total)
         ok &= self.alive
         return np.where(ok, total, np.inf)
@@ -318,17 +288,6 @@ class _Batch:
         lim = np.maximum(SHRINK * self.nu2, 2.0 * self.floor2)
         self.lim = np.where(self.alive, lim, -np.inf)
 
-    def _errors_without_inverse(self) -> np.ndarray:
-        """Squared errors ``(k, b, m)`` while a hat block is singular (each subset alone)."""
-        scale = self.alive / np.where(self.alive, np.sqrt(self.nu2), 1.0)
-        Cn = self.C * scale[:, :, None, None]
-        coef = np.einsum("kbim,bim->bk", Cn, self.r)
-        Cb = np.transpose(Cn, (1, 3, 2, 0))  # (b, m, rows, k)
-        Rb = np.swapaxes(self.r, 1, 2)[..., None] - Cb * coef[:, None, None, :]
-        H = np.moveaxis(self.hat(), 3, 1)
-        sq = np.stack([_added_loo(H[s], Cb[s], Rb[s]) for s in self.b])
-        return np.swapaxes(sq, 0, 1)
-
     def add(self, j: np.ndarray, active: np.ndarray) -> None:
         """Add candidate ``j[s]`` to each active subset s: rank-one updates of everything."""
         b = self.b
@@ -339,11 +298,6 @@ class _Batch:
         beta = (np.swapaxes(Cf, 0, 1) @ q.reshape(len(b), -1, 1))[:, :, 0].T  # q^T c (k, b)
         self.alive[j, b] = False
         self.added.append(q)
-        if self.Minv is None:
-            self._update_columns(q, kappa, beta)
-            self.Minv, self.S = _inverse(self.hat()), []
-            self._set_v()
-            return
         a = np.einsum("bijm,bjm->bim", self.Minv, q)
         d = 1.0 - np.einsum("bim,bim->bm", q, a)  # 1 - the leverage the column adds
         if self.any_lost or d.min() <= REFRESH:
@@ -352,8 +306,7 @@ class _Batch:
             self.any_lost = bool(self.lost.any())
             if newly.any() or np.where(self.lost, 1.0, d).min() <= REFRESH:
                 self._update_columns(q, kappa, beta)
-                self.Minv, self.S = _inverse(self.hat() * ~self.lost[:, None, None, :]), []
-                self._set_v()
+                self._invert(self.hat())
                 return
             a *= ~self.lost[:, None, :]
             d[self.lost] = 1.0
@@ -477,39 +430,3 @@ def _split_paths(candidates, chosen, errors, train) -> list[tuple[list[int], np.
         picked = [candidates[j] for j in steps[:, k] if j >= 0]
         out.append((picked, errs[: len(picked) + 1, k][:, mask]))
     return out
-
-
-def _inverse(H: np.ndarray) -> np.ndarray | None:
-    """``(I - H)^-1`` of each hat block ``(b, rows, rows, m)``, None if one is singular."""
-    try:
-        inv = np.linalg.inv(np.eye(H.shape[1]) - np.moveaxis(H, 3, 1))
-    except np.linalg.LinAlgError:  # a leverage of 1
-        return None
-    return np.ascontiguousarray(np.moveaxis(inv, 1, 3))
-
-
-def _added_loo(H: np.ndarray, Cb: np.ndarray, Rb: np.ndarray) -> np.ndarray:
-    """Squared left-out errors ``(c, m)`` of the fit with each orthonormal column added.
-
-    With ``M_i = I - H_ii`` and the added column's block ``q_i``, Sherman-Morrison gives
-    ``(M_i - q_i q_i^T)^-1 r_i = b + a (q^T b) / (1 - q^T a)``, ``a = M_i^-1 q_i``,
-    ``b = M_i^-1 r_i``: one inverse per configuration serves every candidate.
-
-    Args:
-        H: Hat blocks of the current fit ``(m, rows, rows)``.
-        Cb: Candidate columns, orthonormal to the fit, by configuration ``(m, rows, c)``.
-        Rb: Residuals after adding each candidate ``(m, rows, c)``.
-    """
-    rows = H.shape[1]
-    try:
-        Minv = np.linalg.inv(np.eye(rows) - H)
-    except np.linalg.LinAlgError:  # a configuration of leverage 1 already: solve each
-        Hc = H[None] + np.moveaxis(Cb[:, :, None, :] * Cb[:, None, :, :], 3, 0)
-        return loo_errors(Hc, np.moveaxis(Rb, 2, 0))
-    a, b = Minv @ Cb, Minv @ Rb
-    denom = 1.0 - np.sum(Cb * a, axis=-2)  # (m, c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        loo = b + a * (np.sum(Cb * b, axis=-2) / denom)[..., None, :]
-    sq = np.sum(loo**2, axis=-2)
-    sq[(denom <= 1e-12) | ~np.isfinite(sq)] = np.inf
-    return sq.T

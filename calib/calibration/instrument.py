@@ -33,9 +33,9 @@ from .measured_term import MeasuredState
 from .registration import rigid_fit
 from .report import pose_dict
 from .residuals import ResidualStats
-from .tree import REGISTRATION_ITERATIONS
 
 __all__ = [
+    "REGISTRATION_ITERATIONS",
     "instrument_errors",
     "instrument_format2",
     "instrument_groups",
@@ -45,6 +45,9 @@ __all__ = [
     "tool_parts",
     "tree_points",
 ]
+
+REGISTRATION_ITERATIONS = 50
+"""Most alternations of the closed-form registration (frame, then markers)."""
 
 
 def tool_parts(

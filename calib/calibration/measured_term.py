@@ -190,7 +190,6 @@ def own_model(kind: MeasuredKind) -> ErrorModel:
         ParameterSet("none", ()),
         (),
         np.zeros((0, 0)),
-        (),
         n_markers=kind.n_markers,
         kind=POSE if kind.pose else POSITION,
     )

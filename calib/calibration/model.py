@@ -16,31 +16,26 @@ orientation of the measured frame in the tool frame.
 
 The free parameters x, in this order: the frame (rotation vector [rad] applied on the left,
 then translation [m]), the markers (3 per marker [m]), the measured frame's rotation (pose
-data, rotation vector [rad] on the right), the MDH base values (``dX = lift @ x_b``) and the
-compliances. Every group may be fixed. The Jacobian is analytic (frame and tool rotations
-through the SO(3) left Jacobian, so it is exact at any x).
+data, rotation vector [rad] on the right) and the MDH base values (``dX = lift @ x_b``).
+Every group may be fixed; the compliance is the state's, never x's (the engine fits it). The
+Jacobian is analytic (frame and tool rotations through the SO(3) left Jacobian, so it is
+exact at any x).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
 from ..identification.jacobian import identification_jacobian
 from ..identification.measures import POSE, POSITION, Measurement
-from ..identification.parameters import Kind, Parameter, ParameterSet, parameter_set
+from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import left_jacobian, matrix_to_quaternion, rotation_matrix, skew
 from ..measurements.data import Measurements
 from .placements import JointFrames
-
-if TYPE_CHECKING:
-    from .options import Options
 
 __all__ = [
     "FRAME_NAMES",
@@ -49,9 +44,7 @@ __all__ = [
     "State",
     "compliance_name",
     "generic_measurements",
-    "level_names",
     "nominal_state",
-    "offset_parameter",
     "registration_state",
     "selection_lift",
 ]
@@ -71,12 +64,6 @@ def _marker_names(k: int) -> tuple[str, str, str]:
 def compliance_name(joint: int) -> str:
     """Name of the compliance of joint ``joint`` (0-based): ``c<row>``, e.g. ``c3``."""
     return f"c{joint + 1}"
-
-
-def offset_parameter(mdh: MDHModel, joint: int) -> Parameter:
-    """The joint offset of joint ``joint`` (0-based): theta (revolute) or r (prismatic)."""
-    row = joint + 1
-    return Parameter(row, Kind.THETA if mdh.sigma[row] == 0 else Kind.R)
 
 
 CONFIGURATION_BLOCK = 4096
@@ -121,19 +108,9 @@ class State:
         """What the state predicts: a measured frame's pose (with a tool rotation) or points."""
         return POSITION if self.tool_rotation is None else POSE
 
-    def predict(
-        self,
-        q: np.ndarray,
-        torque: np.ndarray | None = None,
-        kin: Kinematics | JointFrames | None = None,
-    ):
-        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None).
-
-        ``kin``: :meth:`kinematics` at q (or any frames whose last is the tool's), if
-        already computed.
-        """
-        if kin is None:
-            kin = self.kinematics(q, torque)
+    def predict(self, q: np.ndarray, torque: np.ndarray | None = None):
+        """Predicted points ``(m, K, 3)`` [m] and orientations ``(m, 3, 3)`` (or None)."""
+        kin = self.kinematics(q, torque)
         return self.kind.predict(
             kin.R[:, -1], kin.p[:, -1], self.markers, self.frame, self.tool_rotation
         )
@@ -183,7 +160,6 @@ class ErrorModel:
         base: Names of the free MDH base values, each a parameter of ``params``.
         lift: ``dX = lift @ x_b`` ``(len(params), len(base))``: how the base values move
             the standard parameters.
-        compliance: Joints (0-based) whose compliance is free.
         frame: The measurement frame is free.
         markers: The markers are free.
         tool: The measured frame's rotation is free (a kind with orientation rows).
@@ -195,7 +171,6 @@ class ErrorModel:
     params: ParameterSet
     base: tuple[str, ...]
     lift: np.ndarray
-    compliance: tuple[int, ...]
     frame: bool = True
     markers: bool = True
     tool: bool = True
@@ -219,16 +194,14 @@ class ErrorModel:
         if self._tool_free:
             out += TOOL_NAMES
         out += self.base
-        out += [compliance_name(j) for j in self.compliance]
         return tuple(out)
 
-    def _sizes(self) -> tuple[int, int, int, int, int]:
+    def _sizes(self) -> tuple[int, int, int, int]:
         return (
             6 * self.frame,
             3 * self.n_markers * self.markers,
             3 * self._tool_free,
             len(self.base),
-            len(self.compliance),
         )
 
     def size(self) -> int:
@@ -236,12 +209,12 @@ class ErrorModel:
         return sum(self._sizes())
 
     def split(self, x: np.ndarray) -> list[np.ndarray]:
-        """X cut into its groups: frame, markers, tool, base values, compliances."""
+        """X cut into its groups: frame, markers, tool, base values."""
         return np.split(np.asarray(x, dtype=float), np.cumsum(self._sizes())[:-1])
 
     def apply(self, start: State, x: np.ndarray) -> State:
         """The state at parameters x (x = 0 is ``start``)."""
-        xf, xm, xt, xb, xc = self.split(x)
+        xf, xm, xt, xb = self.split(x)
         frame = start.frame.copy()
         if self.frame:
             frame[:3, :3] = rotation_matrix(xf[:3]) @ start.frame[:3, :3]
@@ -250,35 +223,8 @@ class ErrorModel:
         tool = start.tool_rotation
         if xt.size:
             tool = tool @ rotation_matrix(xt)
-        mdh = self._moved(start.mdh, xb)
-        compliance = start.compliance.copy()
-        compliance[list(self.compliance)] += xc
-        return State(mdh, frame, markers, tool, compliance)
-
-    def _moved(self, mdh: MDHModel, xb: np.ndarray) -> MDHModel:
-        """The geometry with the base values xb lifted onto its standard parameters.
-
-        What ``params.apply(mdh, lift @ xb)`` gives, one array per kind of parameter.
-        """
-        if not np.any(xb):
-            return mdh
-        delta = self.lift @ xb
-        if not np.all(np.isfinite(delta)):
-            return self.params.apply(mdh, delta)  # its error on NaN or infinity
-        arrays = {}
-        for kind, rows, columns in self._scatter:
-            arrays[kind] = getattr(mdh, kind).copy()
-            np.add.at(arrays[kind], rows, delta[columns])  # a row named twice adds twice
-        return mdh.replace(**arrays)
-
-    @functools.cached_property
-    def _scatter(self) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
-        """Per kind of standard parameter: its name, the rows and the positions in the set."""
-        kinds: dict[str, list[int]] = {}
-        for i, p in enumerate(self.params.parameters):
-            kinds.setdefault(p.kind.value, []).append(i)
-        rows = np.array([p.row for p in self.params.parameters], dtype=int)
-        return tuple((k, rows[i], np.array(i)) for k, i in kinds.items())
+        mdh = self.params.apply(start.mdh, self.lift @ xb) if np.any(xb) else start.mdh
+        return State(mdh, frame, markers, tool, start.compliance.copy())
 
     def jacobian(
         self,
@@ -299,7 +245,7 @@ class ErrorModel:
         """
         if state is None:
             state = self.apply(start, x)
-        xf, _, xt, _, _ = self.split(x)
+        xf, _, xt, _ = self.split(x)
         q = state.joints(data.q, torque)
         if kin is None:
             kin = state.mdh.kinematics(q)
@@ -325,15 +271,12 @@ class ErrorModel:
         if self._tool_free:
             J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
             c += 3
-        if self.base or self.compliance:  # the MDH columns need the MDH model's frames
+        if self.base:  # the MDH columns need the MDH model's frames
             mdh_kin = kin if isinstance(kin, Kinematics) else state.mdh.kinematics(q)
             for s in range(0, m, CONFIGURATION_BLOCK):  # in blocks: small temporaries
-                part, col = slice(s, s + CONFIGURATION_BLOCK), c
-                load = None if torque is None else torque[part]
+                part = slice(s, s + CONFIGURATION_BLOCK)
                 sub = Kinematics(*(a[part] for a in mdh_kin))
-                for block in self._mdh_blocks(state, q[part], sub, load):
-                    J[part, :, col : col + block.shape[2]] = block
-                    col += block.shape[2]
+                J[part, :, c:] = self._mdh_columns(state, q[part], sub)
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
         return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
 
@@ -342,52 +285,21 @@ class ErrorModel:
         """Residual rows per configuration."""
         return self.kind.rows_of(self.n_markers)
 
-    def _stack(self, point: np.ndarray, ang: np.ndarray) -> np.ndarray:
-        """(m, K, 3, c) point rows and (m, 3, c) rotation rows as the kind's full rows."""
-        m = point.shape[0]
-        out = point.reshape(m, -1, point.shape[-1])
-        return np.concatenate([out, ang], axis=1) if self.kind.rotation_rows else out
-
-    def _mdh_blocks(self, state: State, q: np.ndarray, kin, torque) -> list[np.ndarray]:
-        """Columns of the base values (through the lift) and of the compliances."""
-        if not self.base and not self.compliance:
-            return []
-        pset = self._columns(state.mdh)
+    def _mdh_columns(self, state: State, q: np.ndarray, kin) -> np.ndarray:
+        """Columns of the base values (through the lift) ``(m, rows, len(base))``."""
         R = state.frame[:3, :3]
         m, K = q.shape[0], state.n_markers
-        ang = np.zeros((m, 3, len(pset)))
         if K == 1 and not self.pose:
             meas = dataclasses.replace(POSITION, marker=tuple(state.markers[0]))
-            W = identification_jacobian(state.mdh, pset, q, meas, kin=kin)
-            point = (R @ W.reshape(m, 3, -1))[:, None]
-        else:  # each marker from the tool's pose rows: d(p + R_t m_k) = dp - [R_t m_k]x dphi
-            W6 = identification_jacobian(state.mdh, pset, q, POSE, kin=kin).reshape(m, 6, -1)
-            lever = np.einsum("mij,kj->mki", kin.R[:, -1], state.markers)
-            point = R @ (W6[:, None, :3] - skew(lever) @ W6[:, None, 3:])
-            if self.pose:
-                ang = R @ W6[:, 3:]
-        cols = self._stack(point, ang)
-        p = len(self.params)
-        out = []
-        if self.base:
-            out.append(cols[:, :, :p] @ self.lift)
-        if self.compliance:  # d/dc_j = tau_j d/dq_j = tau_j sign_j d(offset_j)
-            joints = list(self.compliance)
-            gain = torque[:, None, joints] * state.mdh.sign[1:-1][joints]
-            out.append(cols[:, :, p:] * gain)
-        return out
-
-    def _columns(self, mdh: MDHModel) -> ParameterSet:
-        """The standard parameters, then the offsets of the free compliances' joints."""
-        offsets = tuple(offset_parameter(mdh, j) for j in self.compliance)
-        known = self._column_sets
-        if offsets not in known:  # one set per kind of joints (its layout computed once)
-            known[offsets] = ParameterSet("columns", (*self.params.parameters, *offsets))
-        return known[offsets]
-
-    @functools.cached_property
-    def _column_sets(self) -> dict[tuple[Parameter, ...], ParameterSet]:
-        return {}
+            W = identification_jacobian(state.mdh, self.params, q, meas, kin=kin)
+            return (R @ W.reshape(m, 3, -1)) @ self.lift
+        # each marker from the tool's pose rows: d(p + R_t m_k) = dp - [R_t m_k]x dphi
+        W6 = identification_jacobian(state.mdh, self.params, q, POSE, kin=kin).reshape(m, 6, -1)
+        lever = np.einsum("mij,kj->mki", kin.R[:, -1], state.markers)
+        cols = (R @ (W6[:, None, :3] - skew(lever) @ W6[:, None, 3:])).reshape(m, 3 * K, -1)
+        if self.pose:  # then the rotation rows
+            cols = np.concatenate([cols, R @ W6[:, 3:]], axis=1)
+        return cols @ self.lift
 
     def with_(self, **changes) -> ErrorModel:
         """A copy with some fields replaced."""
@@ -427,35 +339,10 @@ def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> Stat
 def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarray):
     """What a state measures at q: its own points and, with a tool rotation, orientations.
 
-    The data the counts of :mod:`~.counting` and the design's Jacobians are evaluated on:
+    The data the counts of :mod:`~.determined` and the design's Jacobians are evaluated on:
     exact, so the residual is zero and the Jacobian is the plain linearisation (measured
     identity orientations would scale the rotation rows by ``Jr^-1`` of the tool's rotation).
     """
     pts, rot = state.predict(q)
     quat = None if rot is None else matrix_to_quaternion(rot)
     return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)
-
-
-def level_names(nominal: MDHModel, opts: Options) -> tuple[ParameterSet, list[str]]:
-    """The standard set and the names a level offers (before --fix / --free)."""
-    pset = parameter_set(nominal, "paper" if opts.level == "paper" else "complete")
-    if opts.level == "frames":
-        names: list[str] = []
-    elif opts.level == "offsets":
-        names = [offset_parameter(nominal, j).name for j in range(nominal.n)]
-    else:
-        names = list(pset.names)
-    valid = (
-        set(pset.names)
-        | {compliance_name(j) for j in range(nominal.n)}
-        | {"frame", "markers", "tool"}
-    )
-    for name in (*opts.fix, *opts.free):
-        if name not in valid:
-            raise InvalidArgumentError(
-                f"unknown parameter '{name}' for fix/free: give frame, markers, tool, a "
-                f"parameter of the {pset.label} set (e.g. {', '.join(pset.names[2:5])}) or a "
-                f"compliance c1..c{nominal.n}"
-            )
-    names += [n for n in opts.free if n in pset.names and n not in names]
-    return pset, [n for n in names if n not in opts.fix]

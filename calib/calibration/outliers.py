@@ -128,12 +128,6 @@ def set_aside_note(dropped, unit: str = "row(s)", gap: str = "error") -> str:
     )
 
 
-def _configuration_errors(residual: np.ndarray, n_markers: int) -> np.ndarray:
-    """Largest point error of each configuration ``(m,)`` [m] from residuals ``(m, rows)``."""
-    pts = residual[:, : 3 * n_markers].reshape(len(residual), n_markers, 3)
-    return np.max(np.linalg.norm(pts, axis=2), axis=1)
-
-
 def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
     """Each configuration's largest point error [m] and orientation error [rad] (or None).
 
@@ -144,7 +138,8 @@ def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
     rot = None
     if residual.shape[1] == 3 * n_markers + 3:
         rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-    return Errors(_configuration_errors(residual, n_markers), rot)
+    pts = residual[:, : 3 * n_markers].reshape(len(residual), n_markers, 3)
+    return Errors(np.max(np.linalg.norm(pts, axis=2), axis=1), rot)
 
 
 @functools.cache
@@ -190,24 +185,14 @@ def find_outliers(
         dims: Components of the position and of the orientation errors (:func:`factor`).
 
     Returns:
-        The boolean mask of the outliers and the outliers (the position error first where
-        both).
+        The boolean mask of the outliers and the outliers (:func:`records`).
     """
     bad = _find_outliers(errors, noise, dims[0])
-    found = [
-        Outlier(rows[i], float(errors[i]), float(np.median(errors))) for i in np.flatnonzero(bad)
-    ]
     if orientation is not None:
-        bad_rot = _find_outliers(orientation, None, dims[1]) & ~bad
-        median = float(np.median(orientation))
-        found += [
-            Outlier(rows[i], float(orientation[i]), median, "orientation")
-            for i in np.flatnonzero(bad_rot)
-        ]
-        bad = bad | bad_rot
+        bad = bad | _find_outliers(orientation, None, dims[1])
     if np.sum(~bad) < max(3, len(errors) // 2):
         return np.zeros(len(errors), dtype=bool), []
-    return bad, found
+    return bad, records(Errors(errors, orientation, dims), bad, rows)
 
 
 def until_stable(
@@ -350,15 +335,12 @@ def held_out_outliers(
     if fitted.orientation is not None and held.orientation is not None:
         rot = np.concatenate([fitted.orientation, held.orientation])
     pooled = Errors(np.concatenate([fitted.position, held.position]), rot, fitted.dims)
-    bad = find_outliers(pooled.position, pooled.orientation, noise, (0,) * m + rows, pooled.dims)[0]
+    units = (0,) * m + rows
+    bad = find_outliers(pooled.position, pooled.orientation, noise, units, pooled.dims)[0]
     mask = bad[m:]
     if 2 * int(mask.sum()) >= len(mask):
         return np.zeros(len(mask), dtype=bool), []
-    return mask, [
-        o
-        for o in records(pooled, bad, (0,) * m + rows)
-        if o.row in set(rows[i] for i in np.flatnonzero(mask))
-    ]
+    return mask, records(pooled, np.concatenate([np.zeros(m, dtype=bool), mask]), units)
 
 
 def held_out_note(dropped: list[Outlier], unit: str = "row(s)", gap: str = "error") -> str:

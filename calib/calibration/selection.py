@@ -63,12 +63,8 @@ __all__ = [
     "Selection",
     "Step",
     "best_prefix",
-    "block_loo",
-    "forward",
-    "ridge_loo",
     "ridge_strengths",
     "select",
-    "shrinkage",
 ]
 
 MIN_GAIN = 0.02
@@ -139,63 +135,12 @@ class Selection:
         }
 
 
-def block_loo(A: np.ndarray, e: np.ndarray, rows: int, lam: np.ndarray | None = None) -> float:
-    """Leave-one-configuration-out RMS error per point of the linear fit ``A x ~ e``.
-
-    Args:
-        A: Columns, configuration-major rows ``(m rows, p)``.
-        e: Residuals to explain ``(m rows,)``.
-        rows: Rows per configuration (3 per point, 3 more for an orientation).
-        lam: Ridge penalty per column ``(p,)`` (None: plain least squares).
-
-    Returns:
-        sqrt(sum of squared left-out errors / points) [units of e].
-    """
-    m = e.size // rows
-    if A.shape[1] == 0:
-        return float(np.sqrt(e @ e / (m * rows / 3)))
-    if lam is None:
-        Q, _ = np.linalg.qr(A)
-        res = e - Q @ (Q.T @ e)
-        Qb = Q.reshape(m, rows, -1)
-        H = Qb @ np.swapaxes(Qb, 1, 2)
-    else:
-        G = np.linalg.inv(A.T @ A + np.diag(lam))
-        res = e - A @ (G @ (A.T @ e))
-        Ab = A.reshape(m, rows, -1)
-        H = Ab @ G @ np.swapaxes(Ab, 1, 2)
-    loo = np.linalg.solve(np.eye(rows) - H, res.reshape(m, rows, 1))
-    return float(np.sqrt(np.sum(loo**2) / (m * rows / 3)))
-
-
-def _rms(sq: np.ndarray, rows: int, count: np.ndarray | None = None) -> np.ndarray:
+def _rms(sq: np.ndarray, rows: int, count: np.ndarray) -> np.ndarray:
     """RMS error per point of squared errors per configuration ``(..., m)``.
 
-    ``count``: the configurations of the file each stands for (default one).
+    ``count``: the configurations of the file each stands for.
     """
-    n = sq.shape[-1] if count is None else float(np.sum(count))
-    return np.sqrt(np.sum(sq, axis=-1) / (n * rows / 3))
-
-
-def ridge_loo(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> tuple[np.ndarray, float]:
-    """Leave-one-out errors at the best prior strength (0 or one of ``STRENGTHS``), and it.
-
-    The prior acts on the columns after the first ``fixed`` (:func:`ridge_strengths` on the
-    whole data).
-
-    Args:
-        A: Unit-norm columns ``(m rows, p)``, the first ``fixed`` free of prior.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Columns without prior.
-
-    Returns:
-        The squared left-out error of each configuration at the strength of least RMS error,
-        and that strength (0: none; the smallest of equal errors).
-    """
-    train = np.ones((1, e.size // rows), dtype=bool)
-    sq, strength = ridge_strengths(A, e, rows, fixed, train, [list(range(fixed, A.shape[1]))])
-    return sq[0], float(strength[0])
+    return np.sqrt(np.sum(sq, axis=-1) / (float(np.sum(count)) * rows / 3))
 
 
 def ridge_strengths(
@@ -207,14 +152,17 @@ def ridge_strengths(
     cols: list[list[int]],
     objects: ObjectColumns | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`ridge_loo` of several subsets of the configurations, each with its own columns.
+    """Leave-one-out errors at the best prior strength of several subsets of the configurations.
+
+    The strength is 0 or one of ``STRENGTHS``, on the columns after the first ``fixed``;
+    each subset has its own configurations and columns.
 
     Subset s fits the first ``fixed`` columns free and ``cols[s]`` under the prior, on its
     configurations ``train[s]`` (the others' rows zeroed, which changes neither the fit nor
     its own hat blocks). With the prior's columns made orthogonal to the fixed ones (``B``,
     residuals ``r``) and ``B = U S V^T``, the hat matrix at strength ``s`` is
     ``P_fixed + U diag(S^2 / (S^2 + s)) U^T``: one SVD per subset serves every strength
-    (equal to :func:`block_loo` with ``lam = s`` on those columns), and the left-out errors of
+    (the block PRESS of the ridge fit ``A^T A + s`` on those columns), and the left-out errors of
     every subset at every strength are one batch of small solves. The subsets are taken a
     few at a time, and their configurations in blocks (:data:`BLOCK`): the memory is linear
     in the data.
@@ -388,48 +336,19 @@ def best_prefix(sq: np.ndarray) -> int:
     return int(np.argmax(close)) if close.any() else best
 
 
-def forward(
-    A: np.ndarray, e: np.ndarray, rows: int, fixed: int, names: tuple[str, ...], forced=()
-) -> tuple[list[int], list[Step], float]:
-    """Forward selection of columns ``fixed..`` and their prior (see the module docstring).
-
-    Args:
-        A: Unit-norm columns; the first ``fixed`` are always in.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Number of columns always in (frame, markers).
-        names: Names of the columns after the fixed ones.
-        forced: Indices (into ``names``) always kept (``--free``).
-
-    Returns:
-        The kept indices (into ``names``) in the order added, the steps kept (each with its
-        leave-one-out error), and the prior strength of the kept parameters.
-    """
-    train = np.ones((1, e.size // rows), dtype=bool)
-    return _forwards(A, e, rows, fixed, names, forced, train)[0]
-
-
-def _forwards(A, e, rows, fixed, names, forced, train) -> list[tuple[list[int], list[Step], float]]:
-    """:func:`forward` on each subset of the configurations ``train`` ``(subsets, m)``."""
-    found = _paths_of(A, e, rows, fixed, names, forced, train, None)
-    lists = [[fixed + u for u in o[0]] for o in found]
-    strengths = ridge_strengths(A, e, rows, fixed, train, lists)[1]
-    return [(o[0], o[1], float(s)) for o, s in zip(found, strengths, strict=True)]
-
-
-def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects=None):
-    """:func:`_forwards` without the prior strengths.
+def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
+    """The forward selection (see the module docstring) on each subset ``train`` ``(b, m)``.
 
     Each subset's kept candidates (into ``names``) and steps, and the whole path's order
-    (all it reached) and steps.
+    (all it reached) and steps; ``forced``: indices into ``names`` always kept (``--free``).
 
     ``repeats``: each posture's spread, the squared errors every model leaves on it (added
-    to its left-out errors), and its rows in the file (:func:`_by_posture`); or None.
+    to its left-out errors), and its rows in the file (:func:`_by_posture`).
     """
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
-    spread, count = (np.zeros(train.shape[1]), None) if repeats is None else repeats
+    spread, count = repeats
     out = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
     found = (  # a batch at a time: each path's errors (steps x configurations) then dropped
@@ -440,17 +359,12 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects=None):
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
-        loo = [float(v) for v in _rms(errors, rows, None if count is None else count[mask])]
+        loo = [float(v) for v in _rms(errors, rows, count[mask])]
         steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
         steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
         whole = sel + [c - fixed for c in order]
         out.append((sel + [c - fixed for c in order[:k]], steps[: k + 1], whole, steps))
     return out
-
-
-def shrinkage(A: np.ndarray, e: np.ndarray, rows: int, fixed: int) -> float:
-    """Prior strength (0 or one of ``STRENGTHS``) of least leave-one-out error."""
-    return ridge_loo(A, e, rows, fixed)[1]
 
 
 def _guard_folds(m: int) -> np.ndarray:

@@ -2,25 +2,28 @@
 
 Each tool's rows get a single chain's checks in the joint fit; what only the whole tree
 sees is checked here, on the closed-form registration of the nominal tree
-(:func:`~.tree.register_tree`: one frame for every tool):
+(:func:`~.instrument.shared_frame`: one frame for every tool, one marker each):
 
 - enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
 - validation rows that are training rows refused, or given with a holdout fraction;
 - usual mistakes across the branches (two joints of different tools' chains swapped,
-  degrees, millimetres: :func:`~.diagnosis.likely_cause`), in the data and the validation
-  rows;
+  degrees, millimetres: :func:`~.diagnosis.explain`), in the data and the validation rows;
 - validation rows measured in another frame (the training registration misses them by far).
 """
 
 from __future__ import annotations
 
-from ..exceptions import DataError
+import numpy as np
+
+from ..identification.measures import POSITION
+from ..kinematics.mdh import from_chain
 from ..kinematics.tree import Tree
-from ..kinematics.tree_model import TreeMDH, from_tree
 from ..measurements.data import Measurements
 from . import determined, diagnosis, validation
-from .instrument import tool_parts
-from .tree import TreeState, register_tree
+from .instrument import shared_frame, tool_parts
+from .measured_term import MeasuredState
+from .model import nominal_state
+from .residuals import ResidualStats
 
 __all__ = ["prepare_tree"]
 
@@ -48,14 +51,17 @@ def prepare_tree(
     unknowns = 6 + 3 * tree.n_tools
     what = "measurement frame and marker parameters"
     determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
-    nominal = from_tree(tree)
+    nominal = [  # every tool's chain on the nominal tree, its marker at its flange
+        MeasuredState(nominal_state(from_chain(c), np.zeros((1, 3)), POSITION), 1.0, True)
+        for c in tree.chains
+    ]
     if validate is not None:  # with a holdout too: refused by Problem
         validation.check_held_out(data, validate)
         if set(validate.tools) == set(tree.tool_frames) and 3 * validate.m > unknowns:
             _diagnosed(tree, nominal, validate)
     reg = _diagnosed(tree, nominal, data)
     if validate is not None:
-        fitted, other = (validation.stats(reg, d, None) for d in (data, validate))
+        fitted, other = (_stats(reg, _by_tool(tree, d)) for d in (data, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
     train, held = (
         (data, validate) if validate is not None else validation.split(data, holdout, seed)
@@ -63,25 +69,47 @@ def prepare_tree(
     return tool_parts(tree, train), tool_parts(tree, held, every=False)
 
 
-def _diagnosed(tree: Tree, nominal: TreeMDH, data: Measurements) -> TreeState:
-    """The closed-form registration of ``data``; the likely mistake if it cannot be.
+def _by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
+    """Each tool's rows on its chain's joints (None: no row), unchecked (data corrected)."""
+    tools = np.array(data.tool if data.tool is not None else (tree.tool_frames[0],) * data.m)
+    parts: list[Measurements | None] = []
+    for chain, path in zip(tree.chains, tree.paths, strict=True):
+        rows = tools == chain.tool_frame
+        q, points = data.q[rows][:, path], data.position[rows]
+        parts.append(Measurements(chain.joint_names, q, points) if rows.any() else None)
+    return parts
+
+
+def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> ResidualStats:
+    """The registration's errors on every tool's rows."""
+    rows = [s.residuals(p) for s, p in zip(states, parts, strict=True) if p is not None]
+    return ResidualStats.of(np.concatenate(rows))
+
+
+_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
+
+
+def _registered(tree: Tree, nominal: list, data: Measurements) -> tuple[list, float]:
+    """The measurement frame and markers of ``data`` on the ``nominal`` tree, and their RMS.
+
+    In closed form (:func:`~.instrument.shared_frame`): one frame for every tool, one marker
+    each; the RMS error per row [m].
+    """
+    parts = _by_tool(tree, data)
+    states = shared_frame(nominal, parts)
+    return states, _stats(states, parts).position_rms
+
+
+def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
+    """The registration of ``data`` (:func:`_registered`); the likely mistake if it fails.
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
     """
-    reg = register_tree(nominal, data)
-    first = validation.stats(reg, data, None).position_rms
-    if not diagnosis.suspect(first, None):
-        return reg
+    reg, first = _registered(tree, nominal, data)
 
-    def rms(d):  # the closed form only: every swap of two joints is tried
-        return validation.stats(register_tree(nominal, d), d, None).position_rms
+    def rms(d: Measurements) -> float:  # the closed form only: every swap of two joints
+        return _registered(tree, nominal, d)[1]
 
-    cause = diagnosis.likely_cause(data, tree.sigma == 0, rms, first)
-    if cause is not None:
-        raise DataError(
-            data.source,
-            f"the data look like {cause[0]}: the registration error drops from "
-            f"{1e3 * first:.4g} mm to {1e3 * cause[1]:.4g} mm RMS once corrected",
-        )
+    diagnosis.explain(data, tree.sigma == 0, rms, first, None, _WORDS, joints_only=False)
     return reg

@@ -7,8 +7,9 @@ A calibrated model is written only if it passes every check:
    the fitted measurement frame and markers);
 3. the measured configurations identify every fitted parameter (the weighted Jacobian at
    the solution has full column rank);
-4. on held-out configurations (``--validate`` or ``--holdout``), its RMS error is no larger
-   than the registration's.
+4. on held-out configurations (``--validate`` or ``--holdout``), its weighted RMS error
+   (angles times the orientation weight: position and orientation alike) is no larger than
+   the registration's (:func:`~.contact_checks.held_out_refusal`, by :func:`worse`).
 
 With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
 plus the compliance file, and the checks apply to that whole model. The URDF alone
@@ -40,7 +41,6 @@ __all__ = [
     "check_held_out_errors",
     "full_rank",
     "predicted_std",
-    "refusal",
     "split",
     "stats",
     "worse",
@@ -249,58 +249,3 @@ def full_rank(J: np.ndarray) -> bool:
         return False
     s = np.linalg.svd(J / norms, compute_uv=False)
     return bool(s[-1] > RANK_TOL * s[0])
-
-
-def refusal(
-    converged: bool,
-    before: ResidualStats,
-    after: ResidualStats,
-    identified: bool,
-    held: tuple[ResidualStats, ResidualStats] | None,
-    names: tuple[str, ...],
-    ill: str | None = None,
-) -> str | None:
-    """The first check a calibration fails, as a sentence (None: every check passed).
-
-    ``ill``: the sentence naming unknowns the data cannot separate
-    (:func:`~calib.calibration.determined.ill_posed_text`), or None.
-    """
-    if not converged:
-        return "the fit did not converge"
-    if worse(after.position_rms, before.position_rms):
-        return (
-            f"the calibrated model fits the data worse than the registration alone "
-            f"({1e3 * after.position_rms:.3g} mm vs {1e3 * before.position_rms:.3g} mm RMS)"
-        )
-    if ill is not None:
-        return ill
-    if not identified:
-        return (
-            f"the measured configurations do not identify the {len(names)} fitted parameters "
-            f"(rank-deficient Jacobian): measure more varied configurations or fit fewer "
-            f"parameters"
-        )
-    if held is not None and worse(held[1].position_rms, held[0].position_rms):
-        return (
-            f"on held-out configurations the calibrated model is worse than the registration "
-            f"alone ({1e3 * held[1].position_rms:.3g} mm vs {1e3 * held[0].position_rms:.3g} mm "
-            f"RMS): it would make the robot less accurate"
-        )
-    rotation = None if held is None else _worse_orientation(*held)
-    if rotation is not None:
-        return (
-            f"on held-out configurations the calibrated model's orientation is worse than the "
-            f"registration alone's ({1e3 * rotation[1]:.3g} mrad vs {1e3 * rotation[0]:.3g} "
-            f"mrad RMS): it would make the robot less accurate"
-        )
-    return None
-
-
-def _worse_orientation(
-    registration: ResidualStats, calibrated: ResidualStats
-) -> tuple[float, float] | None:
-    """The orientation RMS [rad] of both where the calibrated model's is the worse, else None."""
-    reg, cal = registration.orientation_rms, calibrated.orientation_rms
-    if reg is None or cal is None or not worse(cal, reg):
-        return None
-    return reg, cal

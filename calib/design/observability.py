@@ -32,7 +32,7 @@ this choice; the condition number, O1, O3, O4 and A do.
 The model behind the columns is generic: :class:`ObservationModel` wraps any function that
 returns the Jacobian of the calibration's parameters at configurations: a chain's
 (:class:`~calib.calibration.model.ErrorModel`) or a tree's, every tool measured at each
-configuration (:class:`~calib.calibration.tree.TreeErrorModel`, 3 rows per tool).
+configuration (:class:`~calib.design.tree_error_model.TreeErrorModel`, 3 rows per tool).
 """
 
 from __future__ import annotations
@@ -48,24 +48,24 @@ from ..calibration.model import (
     TOOL_NAMES,
     ErrorModel,
     generic_measurements,
-    level_names,
     nominal_state,
     selection_lift,
 )
-from ..calibration.options import TREE_LEVELS, Options
+from ..calibration.options import TREE_LEVELS
 from ..calibration.solve import row_weights
-from ..calibration.tree import TreeErrorModel, TreeState
 from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array
 from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
 from ..identification.base_columns import independent_columns, preference_order
+from ..identification.contact_postures import joint_offsets
 from ..identification.kinds import campaign_kind
-from ..identification.parameters import ParameterSet
+from ..identification.parameters import ParameterSet, parameter_set
 from ..identification.tree_jacobian import tree_parameters
-from ..kinematics.mdh import from_chain
+from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
+from .tree_error_model import TreeErrorModel, TreeState
 
 REFERENCE_CONFIGS = 200
 """Reference configurations of the predicted position error (I, G) by default."""
@@ -239,12 +239,12 @@ def observation_model(
     mk = marker_array(markers)
     kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
-    pset, names = level_names(nominal, Options(level=params))
+    pset, names = _level_names(nominal, params)
     ordered = tuple(
         pset.names[i] for i in preference_order(nominal, pset) if pset.names[i] in names
     )
     lift = selection_lift(pset, ordered)
-    model = ErrorModel(pset, ordered, lift, (), n_markers=len(mk), kind=kind)
+    model = ErrorModel(pset, ordered, lift, n_markers=len(mk), kind=kind)
     state = nominal_state(nominal, mk, kind)
     weights = row_weights(model, float(orientation_weight))
 
@@ -270,6 +270,16 @@ def observation_model(
         jacobian_of=jacobian_of,
         columns=np.array(kept, dtype=int),
     )
+
+
+def _level_names(nominal: MDHModel, level: str) -> tuple[ParameterSet, list[str]]:
+    """The standard set of a design level (``DESIGN_LEVELS``) and the names it offers."""
+    pset = parameter_set(nominal, "paper" if level == "paper" else "complete")
+    if level == "frames":
+        return pset, []
+    if level == "offsets":
+        return pset, list(joint_offsets(nominal).names)
+    return pset, list(pset.names)
 
 
 def robot_markers(robot: Chain | Tree, markers) -> np.ndarray:

@@ -1,19 +1,14 @@
-"""Calibration of a tree: several tools measured in one campaign, shared joints fitted once.
+"""A tree's measurement model for design: several tools measured in one campaign.
 
-Each row of the data measures one point on one tool (the CSV's ``tool`` column). The model
-of row i, measuring tool t, is ``R_f (p_t(q_i) + R_t(q_i) m_t) + t_f``: the tree's geometry
-(Khalil-Kleinfinger notation, :class:`~.tree_model.TreeMDH`), one measurement frame for
-every tool, and one marker per tool. Steps, as for a chain:
-
-1. registration: the frame by Horn/Umeyama on the nominal points of every tool together,
-   each tool's marker by linear least squares, alternated, then Levenberg-Marquardt;
-2. the free parameters: the frame, the markers and the base parameters of the tree's
-   complete set at the measured configurations (pivoted QR of the stacked Jacobian, frame
-   and markers first), or the frame and markers only (``frames``);
-3. the fit (:func:`calib.calibration.solve.fit`, the analytic Jacobian of
-   :func:`calib.identification.tree_jacobian.tree_jacobian`);
-4. validation and the checks of a chain (:func:`calib.calibration.validation.refusal`),
-   with the errors per tool.
+Each row measures one point on one tool (the CSV's ``tool`` column). The model of row i,
+measuring tool t, is ``R_f (p_t(q_i) + R_t(q_i) m_t) + t_f``: the tree's geometry
+(Khalil-Kleinfinger notation, :class:`~calib.kinematics.tree_model.TreeMDH`), one
+measurement frame for every tool, and one marker per tool. The free parameters
+(:class:`TreeErrorModel`) are the frame, the markers and base parameters of the tree's
+standard set; their Jacobian (the analytic one of
+:func:`calib.identification.tree_jacobian.tree_jacobian`) is what the design of a tree's
+configurations scores (:mod:`calib.design.observability`). A tree is calibrated by the joint
+engine (one measured term per tool: :mod:`calib.calibration.instrument`).
 """
 
 from __future__ import annotations
@@ -23,24 +18,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..calibration.model import FRAME_NAMES
 from ..identification.measures import POSITION, Measurement
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_jacobian
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..kinematics.tree_model import TreeMDH
 from ..measurements.data import Measurements
-from .model import FRAME_NAMES
-from .registration import rigid_fit
 
 __all__ = [
-    "REGISTRATION_ITERATIONS",
     "TreeErrorModel",
     "TreeState",
-    "register_tree",
 ]
-
-REGISTRATION_ITERATIONS = 50
-"""Most alternations of the closed-form registration (frame, then markers)."""
 
 
 def _tool_marker_names(tool: str) -> tuple[str, str, str]:
@@ -208,27 +197,3 @@ class TreeErrorModel:
             W = tree_jacobian(state.mdh, self.params, q[rows], meas, measured)
             out[rows] = state.frame[:3, :3] @ W.reshape(-1, 3, len(self.params))
         return out
-
-
-def register_tree(nominal: TreeMDH, data: Measurements) -> TreeState:
-    """The measurement frame and the markers in closed form, from the nominal tree."""
-    tool = _tool_indices(nominal, data)
-    R, p = TreeState(nominal, np.eye(4), np.zeros((nominal.n_tools, 3))).tool_placements(
-        data.q, tool
-    )
-    markers = np.zeros((nominal.n_tools, 3))
-    frame = np.eye(4)
-    for _ in range(REGISTRATION_ITERATIONS):
-        pts = p + np.einsum("mij,mj->mi", R, markers[tool])
-        frame[:3, :3], frame[:3, 3] = rigid_fit(pts, data.position)
-        local = (data.position - frame[:3, 3]) @ frame[:3, :3] - p  # R_t m_t, base frame
-        new = markers.copy()
-        for t in np.unique(tool):
-            rows = tool == t
-            A, b = R[rows].reshape(-1, 3), local[rows].reshape(-1)
-            new[t] = np.linalg.lstsq(A, b, rcond=None)[0]
-        if np.max(np.abs(new - markers)) < 1e-12:
-            markers = new
-            break
-        markers = new
-    return TreeState(nominal, frame, markers)
