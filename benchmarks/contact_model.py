@@ -19,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from calib.calibration.contact_registration import tilt_derivatives, tilts
-from calib.kinematics.so3 import rotation_matrix, skew
+from calib.kinematics.so3 import rotation_matrix, skew, tilt_derivatives, tilts
 
 TORQUE_SCALE = 100.0
 """Compliance parameters are ``c * TORQUE_SCALE`` [rad], so that all parameters are ~rad."""

@@ -11,7 +11,7 @@ design study's figure, as the notebooks did.
   seeds, and the K at which designed sets match 100 random configurations; the criteria D, A
   and I (Panda, position, K = 2 b); the figure ``docs/design_study.png`` when a path is given.
 - ``contacts``: TALOS's table touches, 5-fold cross-validation (seed 0): the nominal robot's
-  table and contact frame (``register_planes``, the README's 13.75 / 12.22 mm baseline), the
+  table and contact frame (``register_contacts``, the README's 13.75 / 12.22 mm baseline), the
   calibration's registration and calibrated held-out gaps, ``--elastic``, both arms in one
   problem.
 
@@ -230,7 +230,8 @@ def _design_figure(errors, B):
 def _nominal_baseline(chain, data, folds) -> str:
     """The table and contact frame fitted on the nominal robot (contact guessed 0.12 m along
     -z of the gripper), pooled held-out RMS height [mm] / roll / pitch [deg]."""
-    from calib.calibration.contact_registration import plane_residuals, register_planes
+    from calib.calibration.contact_registration import register_contacts
+    from calib.identification.contacts import PlaneContact
 
     guess = np.eye(4)
     guess[2, 3] = -0.12
@@ -239,10 +240,10 @@ def _nominal_baseline(chain, data, folds) -> str:
     gaps = []
     for test in folds(data.m):
         train = np.setdiff1d(np.arange(data.m), test)
-        reg = register_planes(T[train, :3, :3], T[train, :3, 3], ids[train], guess)
-        gaps.append(
-            plane_residuals(T[test, :3, :3], T[test, :3, 3], reg.contact, reg.plane("table"))
+        reg = register_contacts(
+            PlaneContact(), T[train, :3, :3], T[train, :3, 3], ids[train], guess
         )
+        gaps.append(reg.gaps(T[test, :3, :3], T[test, :3, 3], reg.index(ids[test])))
     rms = np.sqrt(np.mean(np.vstack(gaps) ** 2, axis=0))
     return f"{1e3 * rms[0]:.2f} / {math.degrees(rms[1]):.2f} / {math.degrees(rms[2]):.2f}"
 
@@ -273,7 +274,7 @@ def contacts() -> None:
     for side, (base, tool, name) in sides.items():
         chain = calib.load_chain(urdf, base, tool)
         data = calib.read_contacts(REAL / "talos_contact" / name, chain, "plane")
-        print(f"{side}: {_nominal_baseline(chain, data, folds)} (register_planes, held out)")
+        print(f"{side}: {_nominal_baseline(chain, data, folds)} (register_contacts, held out)")
         for elastic in (False, True):
             before, after = [], []
             for test in folds(data.m):

@@ -6,7 +6,7 @@ frame's height [mm], roll and pitch [deg] in the fitted table frame (folds drawn
 the ridge strength of each model is chosen inside each training set by an inner 4-fold CV).
 
 - ``registration``: the table and the contact frame fitted on the nominal robot
-  (:func:`calib.calibration.contact_registration.register_planes`): no calibration.
+  (:func:`calib.calibration.contact_registration.register_contacts`): no calibration.
 - ``offsets``: + an offset on each of the 15 chain joints.
 - ``offsets+legs``: + a compliance of each leg joint under its gravity torque (standing).
 - ``geometry``: + a 6-vector error of every joint placement of the chain (ridge).
@@ -32,7 +32,8 @@ import contact_model as cm
 import numpy as np
 import pinocchio as pin
 
-from calib.calibration.contact_registration import register_planes
+from calib.calibration.contact_registration import register_contacts
+from calib.identification.contacts import PlaneContact
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.so3 import rotation_matrix
 
@@ -161,8 +162,10 @@ def fit(sides: list[Side], keys, lam: float, weights) -> Fitted:
     planes, contacts = [], []
     for side, w in zip(sides, weights, strict=True):
         kin = cm.kinematics(side.chain, side.q)
-        reg = register_planes(kin.T[:, :3, :3], kin.T[:, :3, 3], side.ids, GUESS, weight=w)
-        P = reg.planes[0]
+        reg = register_contacts(
+            PlaneContact(), kin.T[:, :3, :3], kin.T[:, :3, 3], side.ids, GUESS, w
+        )
+        P = reg.objects[0]
         planes.append(cm.Plane(P[:3, 2], float(P[:3, 2] @ P[:3, 3])))
         contacts.append(reg.contact)
     fitted = Fitted(tuple(keys), np.zeros(len(keys)), tuple(planes), tuple(contacts))
@@ -200,7 +203,9 @@ def tilt_weight(side: Side) -> float:
     kin = cm.kinematics(side.chain, side.q)
     w = 1.0
     for _ in range(5):
-        r = register_planes(kin.T[:, :3, :3], kin.T[:, :3, 3], side.ids, GUESS, w).residuals
+        T = kin.T
+        reg = register_contacts(PlaneContact(), T[:, :3, :3], T[:, :3, 3], side.ids, GUESS, w)
+        r = reg.gaps(T[:, :3, :3], T[:, :3, 3], reg.index(side.ids))
         w = float(np.sqrt(np.mean(r[:, 0] ** 2) / np.mean(r[:, 1:] ** 2)))
     return w
 

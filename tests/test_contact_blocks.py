@@ -88,15 +88,16 @@ def test_a_long_recording_of_one_plane_needs_no_touches_by_touches_matrix():
 
     from test_contact_registration import CONTACT, GUESS, PLANES, _flush_touches
 
-    from calib.calibration.contact_registration import register_planes
+    from calib.calibration.contact_registration import register_contacts
+    from calib.identification.contacts import PlaneContact
 
     R, p = _flush_touches(PLANES["table"], CONTACT, 6000, 0)
     tracemalloc.start()
     try:
-        reg = register_planes(R, p, ["table"] * 6000, GUESS)
+        reg = register_contacts(PlaneContact(), R, p, ["table"] * 6000, GUESS)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
     assert peak < 60e6, peak
-    assert np.allclose(reg.planes[0, :3, 2], PLANES["table"][:3, 2], atol=1e-9)
-    assert np.max(np.abs(reg.residuals)) < 1e-9
+    assert np.allclose(reg.objects[0, :3, 2], PLANES["table"][:3, 2], atol=1e-9)
+    assert np.max(np.abs(reg.gaps(R, p, np.zeros(6000, dtype=int)))) < 1e-9

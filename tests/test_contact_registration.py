@@ -10,12 +10,9 @@ import pytest
 from contact_scorer import plane_gaps, read_joints, relative_placements
 from scipy.spatial.transform import Rotation
 
-from calib.calibration.contact_registration import (
-    register_planes,
-    register_points,
-    register_poses,
-)
+from calib.calibration.contact_registration import register_contacts
 from calib.exceptions import CalibError, ContactGeometryError
+from calib.identification.contacts import FixedPointContact, FixedPoseContact, PlaneContact
 from calib.kinematics.catalog import resolve_urdf
 
 TALOS = resolve_urdf("erd:talos_data/robots/talos_full_v2.urdf")
@@ -48,6 +45,26 @@ CONTACT = _pose([0.08, -0.12, 0.5], [0.01, -0.015, -0.13])
 GUESS = _pose([0.0, 0.0, 0.2], [0.0, 0.0, -0.12])
 
 
+def register_planes(R, p, ids, guess, weight=1.0):
+    return register_contacts(PlaneContact(), R, p, ids, guess, weight)
+
+
+def register_points(R, p, ids, guess):
+    return register_contacts(FixedPointContact(), R, p, ids, guess)
+
+
+def register_poses(R, p, ids, contact):
+    return register_contacts(FixedPoseContact(), R, p, ids, contact)
+
+
+def _plane(reg, name: str) -> np.ndarray:
+    return reg.objects[reg.ids.index(name)]
+
+
+def _gaps(reg, R, p, ids) -> np.ndarray:
+    return reg.gaps(R, p, reg.index(ids))
+
+
 def _two_planes(seed: int = 0):
     Ra, pa = _flush_touches(PLANES["table"], CONTACT, 12, seed)
     Rb, pb = _flush_touches(PLANES["wall"], CONTACT, 9, seed + 1)
@@ -66,14 +83,14 @@ def test_noise_free_planes_and_contact_normal_recovered():
     tilt = Rotation.from_matrix(GUESS[:3, :3].T @ reg.contact[:3, :3]).as_rotvec()
     assert abs(tilt[2]) < 1e-12
     for name, truth in PLANES.items():
-        fitted = reg.plane(name)
+        fitted = _plane(reg, name)
         n = truth[:3, 2]
         np.testing.assert_allclose(fitted[:3, 2], n, atol=1e-9)
         # the contact's offset along its normal regroups with the plane's height
         expected = n @ truth[:3, 3] + a @ (GUESS[:3, 3] - CONTACT[:3, 3])
         assert abs(fitted[:3, 2] @ fitted[:3, 3] - expected) < 1e-9
         np.testing.assert_allclose(fitted[:3, :3].T @ fitted[:3, :3], np.eye(3), atol=1e-12)
-    assert np.max(np.abs(reg.residuals)) < 1e-9
+    assert np.max(np.abs(_gaps(reg, R, p, ids))) < 1e-9
 
 
 def _cost(R, p, ids, contact, planes: dict, weight: float) -> float:
@@ -93,9 +110,9 @@ def test_noisy_plane_fit_is_a_least_squares_minimum():
     R = R @ Rotation.from_rotvec(rng.normal(0, 5e-3, (len(R), 3))).as_matrix()
     weight = 0.5
     reg = register_planes(R, p, ids, GUESS, weight=weight)
-    planes = {k: reg.plane(k) for k in reg.ids}
+    planes = {k: _plane(reg, k) for k in reg.ids}
     best = _cost(R, p, ids, reg.contact, planes, weight)
-    r = reg.residuals
+    r = _gaps(reg, R, p, ids)
     assert best == pytest.approx(np.sum(r[:, 0] ** 2) + weight**2 * np.sum(r[:, 1:] ** 2))
     # every free direction (plane tilts and heights, contact tilt) raises the cost
     h = 1e-5
@@ -139,8 +156,8 @@ def test_fixed_points_recovered_and_one_orientation_refused():
     np.testing.assert_allclose(reg.contact[:3, 3], tip, atol=1e-9)
     np.testing.assert_array_equal(reg.contact[:3, :3], GUESS[:3, :3])
     for k, y in points.items():
-        np.testing.assert_allclose(reg.points[reg.ids.index(k)], y, atol=1e-9)
-    assert np.max(np.abs(reg.residuals)) < 1e-9
+        np.testing.assert_allclose(reg.objects[reg.ids.index(k), :3, 3], y, atol=1e-9)
+    assert np.max(np.abs(_gaps(reg, R, p, ids))) < 1e-9
     with pytest.raises(ContactGeometryError, match="tip"):
         register_points(np.repeat(R[:1], 5, axis=0), p[:5], ["cup"] * 5, GUESS)
     about_z = Rotation.from_rotvec(np.outer(np.linspace(0, 2, 6), [0, 0, 1])).as_matrix()
@@ -163,16 +180,16 @@ def test_fixed_pose_is_the_geodesic_mean():
             for Tt in T
         )
 
-    Rf = reg.poses[0][:3, :3]
+    Rf = reg.objects[0][:3, :3]
     best = cost(Rf)
     for axis in range(3):
         for sign in (-1, 1):
             assert cost(Rf @ Rotation.from_rotvec(sign * 1e-5 * np.eye(3)[axis]).as_matrix()) > best
     x = T[:, :3, 3] + T[:, :3, :3] @ CONTACT[:3, 3]
-    np.testing.assert_allclose(reg.poses[0][:3, 3], x.mean(axis=0), atol=1e-12)
+    np.testing.assert_allclose(reg.objects[0][:3, 3], x.mean(axis=0), atol=1e-12)
     exact = np.array([F @ np.linalg.inv(CONTACT)] * 4)
     again = register_poses(exact[:, :3, :3], exact[:, :3, 3], ["f"] * 4, CONTACT)
-    np.testing.assert_allclose(again.poses[0], F, atol=1e-9)
+    np.testing.assert_allclose(again.objects[0], F, atol=1e-9)
 
 
 def test_independent_scorer_agrees_with_the_registration_on_talos():
@@ -182,9 +199,9 @@ def test_independent_scorer_agrees_with_the_registration_on_talos():
     p = np.array([t.translation for t in T])
     reg = register_planes(R, p, ids, _pose([0, 0, 0], [0, 0, -0.12]))
     gaps = plane_gaps(
-        TALOS, "left_sole_link", "gripper_left_base_link", reg.contact, reg.plane("table"), joints
+        TALOS, "left_sole_link", "gripper_left_base_link", reg.contact, _plane(reg, "table"), joints
     )
-    np.testing.assert_allclose(gaps, reg.residuals, atol=1e-12)
+    np.testing.assert_allclose(gaps, _gaps(reg, R, p, ids), atol=1e-12)
     assert np.sqrt(np.mean(gaps[:, 0] ** 2)) > 1e-4  # real data: the nominal model misfits
 
 

@@ -20,7 +20,8 @@ import pytest
 
 import calib
 from calib import analyze, from_chain, load_chain
-from calib.calibration.contact_registration import plane_residuals, register_planes
+from calib.calibration.contact_registration import register_contacts
+from calib.identification.contacts import PlaneContact
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.standing import standing_load
 
@@ -100,15 +101,17 @@ def test_registration_held_out_gaps_recomputed_by_pinocchio(sides):
         worst = 0.0
         for test in folds(data.m):
             train = np.setdiff1d(np.arange(data.m), test)
-            reg = register_planes(T[train, :3, :3], T[train, :3, 3], ids[train], guess)
-            gap = plane_residuals(T[test, :3, :3], T[test, :3, 3], reg.contact, reg.plane("table"))
+            reg = register_contacts(
+                PlaneContact(), T[train, :3, :3], T[train, :3, 3], ids[train], guess
+            )
+            gap = reg.gaps(T[test, :3, :3], T[test, :3, 3], reg.index(ids[test]))
             for i, g in zip(test, gap, strict=True):
                 qp = pin.neutral(model)
                 for joint, v in zip(data.joint_names, data.q[i], strict=True):
                     qp[model.joints[model.getJointId(joint)].idx_q] = v
                 pin.framesForwardKinematics(model, pdata, qp)
                 tip = pdata.oMf[base].actInv(pdata.oMf[tool]).homogeneous @ reg.contact
-                Tt = np.linalg.inv(reg.plane("table")) @ tip
+                Tt = np.linalg.inv(reg.objects[reg.ids.index("table")]) @ tip
                 n = Tt[2, :3]  # the table's normal in the contact frame
                 mine = np.array([Tt[2, 3], math.atan2(n[1], n[2]), -math.asin(n[0])])
                 worst = max(worst, float(np.abs(mine - g).max()))

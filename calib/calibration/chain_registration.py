@@ -16,12 +16,10 @@ import numpy as np
 
 from ..exceptions import DataError
 from ..identification.identifiability import (
-    DEFAULT_CONFIGS,
     independent_columns,
     preference_order,
 )
 from ..identification.parameters import ParameterSet, parameter_set
-from ..kinematics.so3 import matrix_to_quaternion
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, validation, weighting
 from .model import ErrorModel, selection_lift
@@ -33,9 +31,7 @@ __all__ = [
     "checked_registration",
     "frames_model",
     "held_out_outliers",
-    "ill_posed",
     "proposals",
-    "registration",
 ]
 
 
@@ -150,10 +146,7 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     """
     at = _registrations(nominal, train, guess, opts)
     opts = _weighted(train, opts, at)
-    reg, bad = _register(nominal, train, guess, opts, at)
-    kept = train.subset(~bad) if bad.any() else train
-    same = at if kept is train else _registrations(nominal, kept, guess, opts)
-    suspect = _diagnose(chain, nominal, kept, guess, opts, same)
+    reg, bad, suspect = _cleaned(chain, nominal, train, guess, opts, at)
     diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
@@ -168,10 +161,16 @@ def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts)
-    _, bad = _register(nominal, held[0], guess, opts, at, frames)
-    data = held[0].subset(~bad) if bad.any() else held[0]
-    at = at if data is held[0] else _registrations(nominal, data, guess, opts)
-    return [f"{held[1]}: {n}" for n in _diagnose(chain, nominal, data, guess, opts, at)]
+    notes = _cleaned(chain, nominal, held[0], guess, opts, at, frames)[2]
+    return [f"{held[1]}: {n}" for n in notes]
+
+
+def _cleaned(chain, nominal, data, guess, opts, at, frames=None):
+    """The registration without its outlier rows, their mask, the diagnosis of the rest."""
+    reg, bad = _register(nominal, data, guess, opts, at, frames)
+    kept = data.subset(~bad) if bad.any() else data
+    same = at if kept is data else _registrations(nominal, kept, guess, opts)
+    return reg, bad, _diagnose(chain, nominal, kept, guess, opts, same)
 
 
 def _weighted(data, opts: Options, at) -> Options:
@@ -213,14 +212,6 @@ def _register(nominal, data, guess, opts, at, frames=None) -> tuple[Fit, np.ndar
     rows = data.rows or tuple(range(1, data.m + 1))
     reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
     return reg, bad
-
-
-def registration(nominal, data, guess, opts):
-    """The registration state of some rows at the options' weight (converged, or an error)."""
-    reg = _registration(nominal, data, guess, opts)
-    if not reg.converged:
-        raise DataError(data.source, f"the registration did not converge ({reg.message})")
-    return reg.state
 
 
 def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
@@ -268,28 +259,3 @@ def held_out_outliers(reg, train, held, opts, notes: list[str]):
         return held
     notes.append(outliers.held_out_note(dropped))
     return data.subset(~bad), label
-
-
-def ill_posed(chain, fitted: Fit, train: Measurements, opts, std: np.ndarray) -> str | None:
-    """The refusal's sentence for unknowns the rows cannot separate (None: none).
-
-    It names the posture, among random ones within the joint limits, that separates them
-    best (:func:`~calib.calibration.determined.separating_posture`).
-    """
-    names = fitted.model.names()
-    found = determined.undetermined(fitted.J, names, std)
-    if not found:
-        return None
-    w = row_weights(fitted.model, opts.orientation_weight)
-    elastic = bool(np.any(fitted.state.compliance))
-
-    def jacobian_at(q: np.ndarray) -> np.ndarray:
-        torque = chain.gravity_torques(q) if elastic else None
-        pts, rot = fitted.state.predict(q, torque)
-        quat = None if train.quaternion is None else matrix_to_quaternion(rot)
-        data = Measurements(train.joint_names, q, pts.reshape(len(q), -1), quat)
-        return fitted.model.jacobian(fitted.start, fitted.x, data, torque) * w[None, :, None]
-
-    q = chain.random_configurations(DEFAULT_CONFIGS, opts.seed)
-    where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
-    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BlockSolution", "BlockSystem", "block_factors", "block_lstsq"]
+__all__ = ["BlockSolution", "BlockSystem", "block_factors", "block_lstsq", "dense"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,3 +143,17 @@ def block_lstsq(
         rhs = -(y + S @ shared)
         objects = np.linalg.solve(R, rhs[:, :, None])[:, :, 0]
     return BlockSolution(objects, shared, smallest, largest)
+
+
+def dense(own: np.ndarray, shared: np.ndarray, index: np.ndarray, K: int) -> np.ndarray:
+    """The blocks as one matrix ``(m, rows, K o + s)`` (a check or an error message's).
+
+    ``own`` ``(m, rows, o)``: touch i's columns of its object ``index[i]``; ``shared``
+    ``(m, rows, s)``: the shared columns, after the K objects'.
+    """
+    m, rows, o = own.shape
+    A = np.zeros((m, rows, K * o + shared.shape[2]))
+    cols = np.asarray(index)[:, None] * o + np.arange(o)[None, :]
+    A[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = own
+    A[:, :, K * o :] = shared
+    return A

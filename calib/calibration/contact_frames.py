@@ -26,7 +26,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
-__all__ = ["DOF_NAMES", "ContactFrames", "moved", "row_weights", "twist_map"]
+__all__ = ["DOF_NAMES", "ContactFrames", "row_weights"]
 
 DOF_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 """Names of a twist's components in a frame's own axes: translation [m], rotation [rad]."""
@@ -38,31 +38,23 @@ def _twist(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
     return v
 
 
-def moved(T: np.ndarray, dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
-    """Frames ``T [Exp(r), t]`` ``(..., 4, 4)``: ``(t, r)`` zero but at ``dofs``, there ``x``."""
-    v = _twist(dofs, np.asarray(x, dtype=float))
-    return _moved(T, v, rotation_matrix(v[..., 3:]))
-
-
 def _moved(T: np.ndarray, v: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """:func:`moved` by the twists ``v`` ``(..., 6)`` whose rotations ``R`` are made."""
+    """Frames ``T [Exp(r), t]`` ``(..., 4, 4)`` by the twists ``v = (t, r)`` ``(..., 6)``.
+
+    ``R``: the rotations ``Exp(r)``, made.
+    """
     out = np.array(T, dtype=float, copy=True)
     out[..., :3, :3] = T[..., :3, :3] @ R
     out[..., :3, 3] = T[..., :3, 3] + (T[..., :3, :3] @ v[..., :3, None])[..., 0]
     return out
 
 
-def twist_map(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
-    """Local twist of :func:`moved` per unit of ``x`` ``(..., 6, len(dofs))``, exact at any x.
-
-    The moved frame turns by ``Jr(r) dr`` about its own axes and its origin moves by
-    ``Exp(-r) dt`` in them.
-    """
-    return _twist_maps(_twist(dofs, np.asarray(x, dtype=float)))[..., list(dofs)]
-
-
 def _twist_maps(v: np.ndarray) -> np.ndarray:
-    """:func:`twist_map` of the twists ``v`` ``(..., 6)``, every column ``(..., 6, 6)``."""
+    """Local twist of the frames moved by ``v`` ``(..., 6)`` per unit of it ``(..., 6, 6)``.
+
+    Exact at any ``v``: the moved frame turns by ``Jr(r) dr`` about its own axes and its origin
+    moves by ``Exp(-r) dt`` in them.
+    """
     A = np.zeros((*v.shape[:-1], 6, 6))
     A[..., :3, :3] = rotation_matrix(-v[..., 3:])
     A[..., 3:, 3:] = left_jacobian(-v[..., 3:])  # Jr(r) = Jl(-r)
@@ -150,28 +142,16 @@ class ContactFrames:
         """The kind's gap of each touch ``(m, rows)`` [m, rad]."""
         return self.kind.residual(*self.relative(Rt, pt, index))
 
-    def columns(self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray):
-        """Pose-error Jacobian ``(m, 6, size)`` of the contact frame in its object's frame.
-
-        Columns: the unknowns of these frames moved by ``x`` from a start (:meth:`moved`),
-        at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames.
-        """
-        m, o, K = len(p), len(self.kind.object_dofs), len(self.ids)
-        own, shared = self.parts(R, p, index, x)
-        W = np.zeros((m, 6, self.size))
-        if o:
-            cols = o * index[:, None] + np.arange(o)
-            W[np.arange(m)[:, None, None], np.arange(6)[None, :, None], cols[:, None, :]] = own
-        W[:, :, K * o :] = shared
-        return W
-
     def parts(
         self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`columns` by block: each touch's own object's ``(m, 6, o)``, the contact's.
+        """Pose-error Jacobian of the contact frame in its object's frame, by block.
 
-        The object's columns of a touch are those of its own object (the others are zero);
-        the contact's ``(m, 6, len(contact_dofs))`` are shared by every touch.
+        Columns: the unknowns of these frames moved by ``x`` from a start (:meth:`moved`),
+        at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames. Each
+        touch's own object's ``(m, 6, o)`` (the other objects' columns are zero) and the
+        contact's ``(m, 6, len(contact_dofs))``, shared by every touch
+        (:func:`~.contact_blocks.dense` makes them one matrix).
         """
         m, o = len(p), len(self.kind.object_dofs)
         A = _twist_maps(self._twists(x))  # the objects' and the contact's at once

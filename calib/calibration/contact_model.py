@@ -10,7 +10,7 @@ pose's position and rotation vector.
 The parameters x of :class:`ContactModel`: the objects' and the contact's unknowns
 (:attr:`~calib.identification.contacts.Contact.object_dofs`, ``contact_dofs``). Their
 Jacobian is the kind's rows (``kind.jacobian_rows``) of the contact frame's pose-error
-Jacobian in its object's frame (:meth:`ContactFrames.columns`). The robot's columns (joint
+Jacobian in its object's frame (:meth:`ContactFrames.parts`). The robot's columns (joint
 placement directions, compliances: ``elastic``, the geometry sees ``q' = q + c tau``) are the
 joint engine's (:mod:`.contact_chains_model`).
 """

@@ -42,17 +42,18 @@ measured data estimates the instrument's frame:
 Every plane, point or pose is named by an id; the contact frame is shared by all.
 :func:`register_contacts` registers any kind, as the
 :class:`~calib.calibration.contact_frames.ContactFrames` the calibration starts from: the
-closed form of its kind, then :func:`refine` (Gauss-Newton on the kind's own gap).
+closed form of its kind, then (but for a fixed point, whose closed form is the least squares)
+:func:`refine` (Gauss-Newton on the kind's own gap); a plane's origin is then the contact
+points' centroid projected on it, its x the base's x (or y) projected.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..exceptions import ContactGeometryError, InvalidArgumentError
+from ..exceptions import ContactGeometryError
 from ..identification.contacts import (
     Contact,
     FixedPointContact,
@@ -60,8 +61,8 @@ from ..identification.contacts import (
     PlaneContact,
     PlanePointContact,
 )
-from ..kinematics.so3 import rotation_matrix, tilt_derivatives, tilts
-from .contact_blocks import BlockSystem, block_lstsq
+from ..kinematics.so3 import rotation_matrix
+from .contact_blocks import BlockSystem, block_lstsq, dense
 from .contact_frames import ContactFrames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
@@ -72,18 +73,8 @@ __all__ = [
     "MIN_SPREAD",
     "MIN_TOUCHES",
     "STEP_TOLERANCE",
-    "PlaneRegistration",
-    "PointRegistration",
-    "PoseRegistration",
-    "plane_residuals",
     "refine",
     "register_contacts",
-    "register_plane_points",
-    "register_planes",
-    "register_points",
-    "register_poses",
-    "tilt_derivatives",
-    "tilts",
 ]
 
 MIN_TOUCHES = 3
@@ -102,90 +93,8 @@ MIN_SPREAD = 1e-6
 """Smallest RMS spread of the tool's orientations about any axis [rad] for a fixed point."""
 
 
-@dataclass(frozen=True, eq=False)
-class PlaneRegistration:
-    """Planes and contact frame fitted to flush touches.
-
-    Attributes:
-        ids: The planes' ids, in order of first appearance.
-        planes: The planes ``(K, 4, 4)`` in the base frame (z = normal, origin: the contact
-            points' centroid projected on the plane, x: the base's x (or y) projected).
-        contact: The contact frame in the tool frame ``(4, 4)``.
-        residuals: Height [m], roll and pitch [rad] of each touch ``(m, 3)``.
-        weight: Weight of the tilt rows [m/rad].
-        iterations: Gauss-Newton steps taken.
-    """
-
-    ids: tuple[str, ...]
-    planes: np.ndarray
-    contact: np.ndarray
-    residuals: np.ndarray
-    weight: float
-    iterations: int
-
-    def plane(self, plane_id: str) -> np.ndarray:
-        """The plane ``(4, 4)`` of an id, in the base frame."""
-        return self.planes[self.ids.index(plane_id)]
-
-
-@dataclass(frozen=True, eq=False)
-class PointRegistration:
-    """Fixed points and tip fitted to touches.
-
-    Attributes:
-        ids: The points' ids, in order of first appearance.
-        points: The points ``(K, 3)`` [m] in the base frame.
-        contact: The contact frame in the tool frame ``(4, 4)`` (origin: the tip).
-        residuals: ``p_t + R_t x - y`` of each touch ``(m, 3)`` [m], base frame.
-    """
-
-    ids: tuple[str, ...]
-    points: np.ndarray
-    contact: np.ndarray
-    residuals: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
-class PoseRegistration:
-    """Fixed poses fitted to touches (the contact frame keeps its guess).
-
-    Attributes:
-        ids: The poses' ids, in order of first appearance.
-        poses: The poses ``(K, 4, 4)`` in the base frame.
-        contact: The contact frame in the tool frame ``(4, 4)``.
-        residuals: Position [m] and rotation vector [rad] of the contact in its pose ``(m, 6)``.
-        iterations: Gauss-Newton steps of the rotation mean (the most over the ids).
-    """
-
-    ids: tuple[str, ...]
-    poses: np.ndarray
-    contact: np.ndarray
-    residuals: np.ndarray
-    iterations: int
-
-
-def plane_residuals(
-    rotations: np.ndarray, positions: np.ndarray, contact: np.ndarray, planes: np.ndarray
-) -> np.ndarray:
-    """Height [m], roll and pitch [rad] ``(m, 3)`` of the contact frame in its plane's frame.
-
-    The gap of :class:`~calib.identification.contacts.PlaneContact` (its one definition).
-
-    Args:
-        rotations: Tool rotations in the base frame ``(m, 3, 3)``.
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        contact: Contact frame in the tool frame ``(4, 4)``.
-        planes: Plane of each touch in the base frame ``(m, 4, 4)`` (or one ``(4, 4)``).
-    """
-    planes = np.broadcast_to(planes, (len(positions), 4, 4))
-    frames = ContactFrames(PlaneContact(), np.asarray(contact, dtype=float), planes, ())
-    return frames.gaps(rotations, positions, np.arange(len(positions)))
-
-
-def _groups(ids: Sequence[str], m: int) -> tuple[tuple[str, ...], np.ndarray]:
+def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
     """The distinct ids in order of appearance and each touch's index among them."""
-    if len(ids) != m:
-        raise InvalidArgumentError(f"{len(ids)} ids for {m} touches")
     names = tuple(dict.fromkeys(str(i) for i in ids))
     index = np.array([names.index(str(i)) for i in ids], dtype=int)
     counts = np.bincount(index, minlength=len(names))
@@ -195,19 +104,6 @@ def _groups(ids: Sequence[str], m: int) -> tuple[tuple[str, ...], np.ndarray]:
                 f"'{name}' has {count} touch(es): at least {MIN_TOUCHES} are needed to fit it"
             )
     return names, index
-
-
-def _check_inputs(rotations, positions, contact) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    R = np.asarray(rotations, dtype=float)
-    p = np.asarray(positions, dtype=float)
-    C = np.asarray(contact, dtype=float)
-    if R.ndim != 3 or R.shape[1:] != (3, 3) or p.shape != (len(R), 3) or C.shape != (4, 4):
-        raise InvalidArgumentError(
-            "contact registration takes rotations (m, 3, 3), positions (m, 3), contact (4, 4)"
-        )
-    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(p)) and np.all(np.isfinite(C))):
-        raise InvalidArgumentError("contact registration: non-finite tool placement or contact")
-    return R, p, C
 
 
 def _tilt_to(b: np.ndarray) -> np.ndarray:
@@ -228,6 +124,19 @@ def _plane_frames(normals, heights, x, index) -> np.ndarray:
         planes[k, :3, :3] = np.column_stack([ex, np.cross(n, ex), n])
         planes[k, :3, 3] = c - (n @ c - h) * n
     return planes
+
+
+def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Each plane's normal through its contact points ``x``, on the side of ``up`` ``(K, 3)``.
+
+    The smallest singular vector of the centred points of each plane.
+    """
+    normals = []
+    for k, u in enumerate(up):
+        centred = x[index == k] - x[index == k].mean(axis=0)
+        n = np.linalg.svd(centred, full_matrices=False)[2][-1]
+        normals.append(n if n @ u >= 0 else -n)
+    return np.array(normals)
 
 
 def _cost(frames: ContactFrames, R, p, index, weight: float) -> float:
@@ -274,10 +183,10 @@ def refine(
         Jc = frames.kind.jacobian_rows(shared, R) * rows
         sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
         if not sol.smallest > CONDITION_LIMIT * sol.largest:
+            A = dense(Jo, Jc, index, K).reshape(-1, frames.size)
             raise ContactGeometryError(
                 f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame"
-                f"{_undetermined(_dense(Jo, Jc, index, K), frames.names())}: touch at several "
-                f"orientations, or at "
+                f"{_undetermined(A, frames.names())}: touch at several orientations, or at "
                 f"spots that span each {frames.kind.object_name}"
             )
         step = np.r_[sol.objects.ravel(), sol.shared]
@@ -285,20 +194,6 @@ def refine(
         if np.max(np.abs(step)) < STEP_TOLERANCE:
             break
     return frames.moved(x), steps
-
-
-def _dense(Jo: np.ndarray, Jc: np.ndarray, index: np.ndarray, K: int) -> np.ndarray:
-    """The dense Jacobian ``(m rows, K d + c)`` of the blocks (for an error message only).
-
-    ``Jo`` ``(m, rows, d)``: touch i's columns of its object ``index[i]``; ``Jc``: the shared
-    columns.
-    """
-    m, rows, d = Jo.shape
-    A = np.zeros((m, rows, K * d + Jc.shape[2]))
-    cols = np.asarray(index)[:, None] * d + np.arange(d)[None, :]
-    A[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = Jo
-    A[:, :, K * d :] = Jc
-    return A.reshape(m * rows, -1)
 
 
 def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
@@ -310,22 +205,17 @@ def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
     return f" (they cannot separate {', '.join(named)})" if named else ""
 
 
-def _plane_start(R, p, guess, index, names, w) -> ContactFrames:
-    """The closed-form start: the chordal fit of the normals, or the contact points' planes."""
+def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
+    """Flush touches: the chordal fit of the normals, or the contact points' planes."""
     K = len(names)
     M = np.stack([np.sum(np.swapaxes(R[index == k], 1, 2), axis=0) for k in range(K)])
     U = np.linalg.svd(np.concatenate(list(M), axis=1), full_matrices=False)[0]
     z0 = guess[:3, 2]
     a = U[:, 0] if U[:, 0] @ z0 >= 0 else -U[:, 0]
     x = p + R @ guess[:3, 3]
-    point_normals = []
-    for k in range(K):
-        centred = x[index == k] - x[index == k].mean(axis=0)
-        nk = np.linalg.svd(centred, full_matrices=False)[2][-1]
-        point_normals.append(nk if nk @ (R[index == k] @ z0).sum(axis=0) >= 0 else -nk)
-    by_points = np.array(point_normals)
+    up = np.array([(R[index == k] @ z0).sum(axis=0) for k in range(K)])
     candidates = []
-    for normals in (np.einsum("kji,j->ki", M, a), by_points):
+    for normals in (np.einsum("kji,j->ki", M, a), _point_normals(x, index, up)):
         normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
         ak = np.einsum("kij,kj->i", M, normals)
         ak = ak / np.linalg.norm(ak)
@@ -333,104 +223,21 @@ def _plane_start(R, p, guess, index, names, w) -> ContactFrames:
         C = guess.copy()
         C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*_tilt_to(guess[:3, :3].T @ ak), 0]))
         planes = _plane_frames(normals, heights, p + R @ C[:3, 3], index)
-        frames = ContactFrames(PlaneContact(), C, planes, names)
-        candidates.append((_cost(frames, R, p, index, w), frames))
+        frames = ContactFrames(kind, C, planes, names)
+        candidates.append((_cost(frames, R, p, index, weight), frames))
     return min(candidates, key=lambda c: c[0])[1]
 
 
-def _recentred(frames: ContactFrames, R, p, index) -> np.ndarray:
-    """The planes with their origin at the contact points' centroid projected."""
-    C = frames.contact
-    normals = frames.objects[:, :3, 2]
-    heights = np.einsum("ki,ki->k", normals, frames.objects[:, :3, 3])
-    return _plane_frames(normals, heights, p + R @ C[:3, 3], index)
-
-
-def register_planes(
-    rotations: np.ndarray,
-    positions: np.ndarray,
-    ids: Sequence[str],
-    contact: np.ndarray,
-    weight: float = DEFAULT_WEIGHT,
-) -> PlaneRegistration:
-    """Planes and the contact frame's tilt fitted to flush touches (see the module's text).
-
-    Args:
-        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        ids: Plane id of each touch ``(m,)``.
-        contact: Guess of the contact frame in the tool frame ``(4, 4)``.
-        weight: Weight of the tilt rows [m/rad] (1 mrad counts as ``weight`` mm).
-
-    Returns:
-        The planes, the contact frame and the residuals at the least-squares minimum.
-
-    Raises:
-        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a plane, or touches that do
-            not fix the fit (e.g. one orientation and spots on a line).
-    """
-    R, p, guess = _check_inputs(rotations, positions, contact)
-    names, index = _groups(ids, len(p))
-    if not (np.isfinite(weight) and weight > 0):
-        raise InvalidArgumentError(f"weight must be positive and finite, got {weight}")
-    start = _plane_start(R, p, guess, index, names, weight)
-    frames, steps = refine(start, R, p, index, weight)
-    planes = _recentred(frames, R, p, index)
-    C = frames.contact
-    return PlaneRegistration(
-        names, planes, C, plane_residuals(R, p, C, planes[index]), float(weight), steps
-    )
-
-
-def register_plane_points(
-    rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
-) -> PlaneRegistration:
-    """Planes and the tip fitted to the tip's touches (heights only; see the module's text).
-
-    Args:
-        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        ids: Plane id of each touch ``(m,)``.
-        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (its rotation kept).
-
-    Raises:
-        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a plane, or touches that do
-            not fix the planes and the tip (one orientation, spots on a line).
-    """
-    R, p, guess = _check_inputs(rotations, positions, contact)
-    names, index = _groups(ids, len(p))
+def _plane_points(kind, R, p, guess, index, names, weight) -> ContactFrames:
+    """A tip's touches: each plane through the tip's points at the guessed tip."""
     x = p + R @ guess[:3, 3]
-    normals, heights = [], []
-    for k in range(len(names)):
-        centred = x[index == k] - x[index == k].mean(axis=0)
-        n = np.linalg.svd(centred, full_matrices=False)[2][-1]
-        n = n if n[2] >= 0 else -n
-        normals.append(n)
-        heights.append(float(np.mean(x[index == k] @ n)))
-    planes = _plane_frames(np.array(normals), np.array(heights), x, index)
-    frames, steps = refine(ContactFrames(PlanePointContact(), guess, planes, names), R, p, index)
-    planes = _recentred(frames, R, p, index)
-    final = ContactFrames(PlanePointContact(), frames.contact, planes, names)
-    return PlaneRegistration(names, planes, frames.contact, final.gaps(R, p, index), 1.0, steps)
+    normals = _point_normals(x, index, np.tile([0.0, 0.0, 1.0], (len(names), 1)))
+    heights = [float(np.mean(x[index == k] @ n)) for k, n in enumerate(normals)]
+    return ContactFrames(kind, guess, _plane_frames(normals, np.array(heights), x, index), names)
 
 
-def register_points(
-    rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
-) -> PointRegistration:
-    """Fixed points and the tip, by linear least squares in closed form.
-
-    Args:
-        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        ids: Point id of each touch ``(m,)``.
-        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (its rotation is kept).
-
-    Raises:
-        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a point, or orientations
-            that do not fix the tip (one orientation, or rotations about one axis only).
-    """
-    R, p, guess = _check_inputs(rotations, positions, contact)
-    names, index = _groups(ids, len(p))
+def _points(kind, R, p, guess, index, names, weight) -> ContactFrames:
+    """A tip at fixed points: the tip and the points by linear least squares."""
     K = len(names)
     count = np.bincount(index, minlength=K)[:, None]
     Rbar = np.zeros((K, 3, 3))
@@ -445,42 +252,34 @@ def register_points(
             "the touches do not fix the tip: touch each point at orientations about several axes"
         )
     tip = np.linalg.lstsq(A, -(p - pbar[index]).ravel(), rcond=None)[0]
-    points = pbar + Rbar @ tip
     C = guess.copy()
     C[:3, 3] = tip
-    frames = np.tile(np.eye(4), (K, 1, 1))
-    frames[:, :3, 3] = points
-    gaps = ContactFrames(FixedPointContact(), C, frames, names).gaps(R, p, index)
-    return PointRegistration(names, points, C, gaps)
+    points = np.tile(np.eye(4), (K, 1, 1))
+    points[:, :3, 3] = pbar + Rbar @ tip
+    return ContactFrames(kind, C, points, names)
 
 
-def register_poses(
-    rotations: np.ndarray, positions: np.ndarray, ids: Sequence[str], contact: np.ndarray
-) -> PoseRegistration:
-    """Fixed poses: the mean pose of the contact frame per id (the contact keeps its guess).
-
-    The position is the mean, the rotation the chordal mean refined by :func:`refine` (the
-    geodesic, Karcher, mean: the least squares of the rotation vectors).
-
-    Args:
-        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        ids: Pose id of each touch ``(m,)``.
-        contact: The contact frame in the tool frame ``(4, 4)``.
-
-    Raises:
-        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of a pose.
-    """
-    R, p, C = _check_inputs(rotations, positions, contact)
-    names, index = _groups(ids, len(p))
+def _poses(kind, R, p, C, index, names, weight) -> ContactFrames:
+    """Fixed poses: the mean position, the chordal mean rotation (the contact kept)."""
     Q = R @ C[:3, :3]
     x = p + R @ C[:3, 3]
     poses = np.tile(np.eye(4), (len(names), 1, 1))
     for k in range(len(names)):
         poses[k, :3, :3] = nearest_rotation(Q[index == k].sum(axis=0))
         poses[k, :3, 3] = x[index == k].mean(axis=0)
-    frames, steps = refine(ContactFrames(FixedPoseContact(), C, poses, names), R, p, index)
-    return PoseRegistration(names, frames.objects, C, frames.gaps(R, p, index), steps)
+    return ContactFrames(kind, C, poses, names)
+
+
+_Start = Callable[..., ContactFrames]
+
+_STARTS: dict[type, tuple[_Start, bool]] = {
+    PlaneContact: (_planes, True),
+    PlanePointContact: (_plane_points, False),
+    FixedPointContact: (_points, False),
+    FixedPoseContact: (_poses, False),
+}
+"""Each kind's closed form, and whether its refinement weighs the angle rows by the weight
+given (a plane-point has none; a pose's rotation is its rows' mean whatever their weight)."""
 
 
 def register_contacts(
@@ -491,52 +290,36 @@ def register_contacts(
     contact: np.ndarray,
     weight: float = DEFAULT_WEIGHT,
 ) -> ContactFrames:
-    """The objects and the contact frame of any kind, registered (closed form, then refined).
+    """The objects and the contact frame of any kind, registered (see the module's text).
 
     Args:
         kind: The contact kind.
         rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
         positions: Tool positions in the base frame ``(m, 3)`` [m].
         ids: Object id of each touch ``(m,)``.
-        contact: Guess of the contact frame in the tool frame ``(4, 4)``.
-        weight: Weight of the angle rows [m/rad].
+        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (a fixed pose's:
+            kept; a tip's: its rotation kept).
+        weight: Weight of the angle rows [m/rad] (1 mrad counts as ``weight`` mm).
+
+    Returns:
+        The objects and the contact frame at the least-squares minimum of the kind's gap.
 
     Raises:
-        ContactGeometryError: Too few touches of an object, or a geometry that fixes nothing.
-        InvalidArgumentError: A kind calib cannot register.
+        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry
+            that fixes nothing (one orientation and spots on a line for a plane; one
+            orientation, or rotations about one axis only, for a tip).
+        InvalidArgumentError: A weight that is not positive.
     """
-    register = _REGISTRATIONS.get(type(kind))
-    if register is None:
-        raise InvalidArgumentError(f"no registration for contacts of kind {kind.label!r}")
-    return register(kind, rotations, positions, ids, contact, weight)
-
-
-def _planes(kind, R, p, ids, contact, weight) -> ContactFrames:
-    reg = register_planes(R, p, ids, contact, weight)
-    return ContactFrames(kind, reg.contact, reg.planes, reg.ids)
-
-
-def _plane_points(kind, R, p, ids, contact, weight) -> ContactFrames:
-    reg = register_plane_points(R, p, ids, contact)
-    return ContactFrames(kind, reg.contact, reg.planes, reg.ids)
-
-
-def _points(kind, R, p, ids, contact, weight) -> ContactFrames:
-    pts = register_points(R, p, ids, contact)
-    objects = np.tile(np.eye(4), (len(pts.ids), 1, 1))
-    objects[:, :3, 3] = pts.points
-    return ContactFrames(kind, pts.contact, objects, pts.ids)
-
-
-def _poses(kind, R, p, ids, contact, weight) -> ContactFrames:
-    poses = register_poses(R, p, ids, contact)
-    return ContactFrames(kind, poses.contact, poses.poses, poses.ids)
-
-
-_REGISTRATIONS = {
-    PlaneContact: _planes,
-    PlanePointContact: _plane_points,
-    FixedPointContact: _points,
-    FixedPoseContact: _poses,
-}
-"""The closed form of each kind (its refinement is the kind's own gap, :func:`refine`)."""
+    start, weighted = _STARTS[type(kind)]
+    R, p, guess = (np.asarray(a, dtype=float) for a in (rotations, positions, contact))
+    names, index = _groups(ids)
+    frames = start(kind, R, p, guess, index, names, weight)
+    if isinstance(kind, FixedPointContact):
+        return frames  # the closed form is the least squares
+    frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)[0]
+    if kind.object_name != "plane":
+        return frames
+    normals = frames.objects[:, :3, 2]
+    heights = np.einsum("ki,ki->k", normals, frames.objects[:, :3, 3])
+    x = p + R @ frames.contact[:3, 3]
+    return ContactFrames(kind, frames.contact, _plane_frames(normals, heights, x, index), names)

@@ -28,13 +28,11 @@ from ..measurements.pixels import PixelObservations, Target
 from .contact_chains import calibrate_contact_chains
 from .pixel_chain import PixelData
 from .pixel_chain_result import PixelChain
+from .pixel_fit import MAX_EVALUATIONS
 from .pixel_term import PixelCamera, Unknowns
 from .registration import rigid_fit
 
 __all__ = ["HandEye", "hand_eye"]
-
-MAX_EVALUATIONS = 200
-"""Most residual evaluations of the fit."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -50,7 +50,6 @@ from .pixel_term import (
     exact_columns,
     move_own,
     pixel_jacobian,
-    pixel_residuals,
     pixel_rows,
     target_points,
 )
@@ -203,10 +202,6 @@ class PixelTermState:
     def kind(self) -> PixelKind:
         """The term's layout."""
         return PixelKind(len(self.target), len(self.lens.parameters), self.what)
-
-    def row_weights(self) -> np.ndarray:
-        """:attr:`weight` on both rows [m/px]."""
-        return np.full(2, self.weight)
 
     def seen(self, part: PixelPart, kin=None) -> np.ndarray:
         """The rows' points in the camera frame ``(m, 3)`` [m].
@@ -422,7 +417,7 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     """
     start = PixelState(Placements.of((chain,)), state.camera, state.target, state.lens)
     own = fit_alone(start, PixelView(chain, part.rows), part.data.what)
-    errors = [np.linalg.norm(pixel_residuals(own, chain, p.rows), axis=1) * state.weight
+    errors = [np.linalg.norm(own.residuals(PixelView(chain, p.rows)), axis=1) * state.weight
               for p in (part, held) if p is not None]  # fmt: skip
     return errors[0], (errors[1] if held is not None else None)
 

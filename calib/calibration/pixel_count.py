@@ -1,6 +1,6 @@
 """What cameras' pixels determine (``calib analyze --measure pixels``).
 
-The rank of the pixel rows' Jacobian (:func:`~.pixel_fit.stacked_rows`: each camera's 6
+The rank of the pixel rows' Jacobian (:func:`~.pixel_term.pixel_jacobian`'s: each camera's 6
 columns, the joint placement components shared by the cameras' chains, the target's
 mounting) on the nominal robot at random postures where the cameras see the target: each
 camera's 6, every joint placement component of the chains and, with ``--params complete``,
@@ -13,27 +13,35 @@ import numpy as np
 
 from ..measurements.pixel_simulation import simulate_cameras
 from ..measurements.pixels import Target
-from .pixel_fit import PixelView, stacked_rows
-from .pixel_term import PixelCamera, PixelState, Unknowns, free_columns, pixel_rows
+from .pixel_term import (
+    PixelCamera,
+    PixelState,
+    Unknowns,
+    free_columns,
+    pixel_jacobian,
+    pixel_rows,
+)
 from .placements import Placements
 
 __all__ = ["pixel_count"]
 
 
-def _one_per_camera(J: np.ndarray, cameras: tuple[PixelCamera, ...]) -> np.ndarray:
-    """The rows' Jacobian ``(r, c)`` with one set of 6 camera columns per camera name.
+def _stacked(chains, cameras, rows, states, what: Unknowns) -> np.ndarray:
+    """The rows' Jacobian ``(r, c)``: each camera's 6 (by name), the joints', the mounting.
 
-    A camera with targets on several links (one chain each) has one placement: its chains'
-    columns are added (each row moves with its own chain's copy of it).
+    A camera with targets on several links (one chain each) has one placement: each row moves
+    its camera's 6 columns.
     """
     names = tuple(dict.fromkeys(c.name for c in cameras))
-    W = J.reshape(-1, J.shape[2])
-    out = np.zeros((W.shape[0], W.shape[1] - 6 * (len(cameras) - len(names))))
-    for k, camera in enumerate(cameras):
+    blocks = []
+    for chain, camera, part, state in zip(chains, cameras, rows, states, strict=True):
+        J = pixel_jacobian(state, chain, part, what)[1]
+        W = np.zeros((part.m, 2, 6 * len(names) + J.shape[2] - 6))
         i = names.index(camera.name)
-        out[:, 6 * i : 6 * i + 6] += W[:, 6 * k : 6 * k + 6]
-    out[:, 6 * len(names) :] = W[:, 6 * len(cameras) :]
-    return out
+        W[:, :, 6 * i : 6 * i + 6] = J[:, :, :6]
+        W[:, :, 6 * len(names) :] = J[:, :, 6:]
+        blocks.append(W.reshape(-1, W.shape[2]))
+    return np.concatenate(blocks)
 
 
 def pixel_count(
@@ -63,8 +71,7 @@ def pixel_count(
         PixelState(placements, np.asarray(cam.placement), target.position, cam.intrinsics.camera)
         for cam in cameras
     )
-    views_ = tuple(PixelView(c, r) for c, r in zip(chains, rows, strict=True))
-    W = _one_per_camera(stacked_rows(states, views_, what)[1], cameras)
+    W = _stacked(chains, cameras, rows, states, what)
     names = tuple(dict.fromkeys(c.name for c in cameras))
     free = free_columns(W, placements, what, len(names))
     first = cameras[0]

@@ -23,7 +23,6 @@ from ..exceptions import DataError
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from .pixel_term import (
-    GAUGE_POINTS,
     KNOWN,
     PixelRows,
     PixelState,
@@ -31,19 +30,19 @@ from .pixel_term import (
     exact_columns,
     free_columns,
     move_own,
+    pixel_columns,
     pixel_jacobian,
-    pixel_residuals,
 )
 from .registration import nearest_rotation
 from .solve import fit
 
 __all__ = [
+    "MAX_EVALUATIONS",
     "PixelView",
     "camera_from_rays",
     "fit_alone",
     "rays",
     "refine_camera",
-    "stacked_rows",
 ]
 
 UNDISTORT_ITERATIONS = 20
@@ -116,51 +115,9 @@ class PixelView:
     rows: PixelRows
 
 
-def _layout(states: tuple[PixelState, ...], what: Unknowns) -> tuple[list[np.ndarray], int]:
-    """Each camera's columns (:func:`~.pixel_term.pixel_jacobian`'s) in the joint columns.
-
-    Joint columns: each camera's 6, the joint placements, the mounting, the target points,
-    each camera's intrinsics. Returns the index of each camera's columns and their count.
-    """
-    C, n = len(states), states[0].placements.y.size
-    k = len(states[0].target)
-    shared = np.arange(6 * C, 6 * C + n + 6 + (3 * (k - GAUGE_POINTS) if what.targets else 0))
-    start = int(shared[-1]) + 1
-    out = []
-    for c, state in enumerate(states):
-        lens = 4 + len(state.lens.distortion) if what.intrinsics else 0
-        out.append(np.concatenate([np.arange(6 * c, 6 * c + 6), shared, start + np.arange(lens)]))
-        start += lens
-    return out, start
-
-
-def stacked_rows(states, views, what: Unknowns):
-    """All cameras' residuals ``(M, 2)`` and joint Jacobian ``(M, 2, size)``."""
-    layout, size = _layout(states, what)
-    rs, Js = [], []
-    for state, view, index in zip(states, views, layout, strict=True):
-        r, J = pixel_jacobian(state, view.chain, view.rows, what)
-        full = np.zeros((len(r), 2, size))
-        full[:, :, index] = J
-        rs.append(r)
-        Js.append(full)
-    return np.concatenate(rs), np.concatenate(Js)
-
-
-@dataclass(frozen=True, eq=False)
-class _Term:
-    """A camera's state as the engine's solver reads it (:func:`~.solve.fit`'s)."""
-
-    state: PixelState
-
-    def residuals(self, view: PixelView, torque=None) -> np.ndarray:
-        """``observed - pixel`` ``(m, 2)`` [px]."""
-        return -pixel_residuals(self.state, view.chain, view.rows)
-
-
 @dataclass(frozen=True, eq=False)
 class _Steps:
-    """The columns ``free`` of one camera's (:func:`stacked_rows`) as the solver's model.
+    """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian` as the solver's model.
 
     x moves the start: the joint placements shifted, the camera, the mounting, the points and
     the lens as a pixel term's own unknowns (:func:`~.pixel_term.move_own`); the Jacobian is
@@ -177,34 +134,34 @@ class _Steps:
         """Number of free columns."""
         return len(self.free)
 
-    def _steps(self, start: _Term, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _steps(self, start: PixelState, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The joint placements' change and the own unknowns (with the mounting's 6)."""
-        dx = np.zeros(_layout((start.state,), self.what)[1])
+        dx = np.zeros(pixel_columns(start, self.what))
         dx[list(self.free)] = x
-        n = start.state.placements.y.size
+        n = start.placements.y.size
         return dx[6 : 6 + n], np.r_[dx[:6], dx[6 + n :]]
 
-    def apply(self, start: _Term, x: np.ndarray) -> _Term:
+    def apply(self, start: PixelState, x: np.ndarray) -> PixelState:
         """The camera's state at x."""
         dy, own = self._steps(start, x)
-        s, what = start.state, Unknowns(True, self.what.targets, self.what.intrinsics)
-        camera, target, lens = move_own(s.camera, s.target, s.lens, own, what)
-        return _Term(PixelState(s.placements.shifted(dy), camera, target, lens))
+        what = Unknowns(True, self.what.targets, self.what.intrinsics)
+        camera, target, lens = move_own(start.camera, start.target, start.lens, own, what)
+        return PixelState(start.placements.shifted(dy), camera, target, lens)
 
-    def jacobian(self, start: _Term, x: np.ndarray, view: PixelView, torque=None):
+    def jacobian(self, start: PixelState, x: np.ndarray, view: PixelView, torque=None):
         """d(pixel)/dx ``(m, 2, free)`` [px per unit]."""
-        state, own = self.apply(start, x).state, self._steps(start, x)[1]
+        state, own = self.apply(start, x), self._steps(start, x)[1]
         n, point = state.placements.y.size, view.rows.point
         robot = any(6 <= c < 6 + n for c in self.free)  # else no joint placement column
         J = pixel_jacobian(state, view.chain, view.rows, self.what, robot)[1]
-        J = exact_columns(J, self.what, start.state.target, own, n, point)
+        J = exact_columns(J, self.what, start.target, own, n, point)
         return J[:, :, list(self.free)]
 
 
 def _solve(state: PixelState, view: PixelView, free, what: Unknowns) -> PixelState:
     """The engine's least squares (:func:`~.solve.fit`) on the columns ``free``."""
-    return fit(_Steps(tuple(free), what), _Term(state), view, None, 1.0,
-               max_iterations=MAX_EVALUATIONS).state.state  # fmt: skip
+    steps = _Steps(tuple(free), what)
+    return fit(steps, state, view, None, 1.0, max_iterations=MAX_EVALUATIONS).state
 
 
 def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
@@ -218,6 +175,6 @@ def fit_alone(state: PixelState, view: PixelView, what: Unknowns) -> PixelState:
     The columns chosen once (:func:`~.pixel_term.free_columns` at ``state``), then the
     engine's least squares on them.
     """
-    J = stacked_rows((state,), (view,), what)[1]
+    J = pixel_jacobian(state, view.chain, view.rows, what)[1]
     free = free_columns(J.reshape(-1, J.shape[2]), state.placements, what)
     return _solve(state, view, free, what)

@@ -68,10 +68,8 @@ def _det(M: np.ndarray) -> float:
 
 
 def nearest_rotation(M: np.ndarray) -> np.ndarray:
-    """The rotation nearest to a 3x3 matrix in the Frobenius norm."""
-    U, _, Vt = np.linalg.svd(M)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
-    return U @ D @ Vt
+    """The rotation nearest to a 3x3 matrix in the Frobenius norm (maximising ``trace(R^T M)``)."""
+    return _rotation(np.ascontiguousarray(M.T))
 
 
 class _Moments:
