@@ -103,17 +103,21 @@ def test_with_noise_each_hand_is_better_than_calibrating_its_arm_alone(tmp_path)
 
 
 def test_analytic_jacobian_matches_finite_differences():
+    """The design's tree Jacobian (every tool at each configuration) at a moved x."""
     tree = talos()
-    camp = simulate_tree(tree, 6, markers=MARKERS, error_mm=2, seed=3)
+    q = tree.random_configurations(6, 3)
     nominal = from_tree(tree)
     pset = tree_parameters(nominal, "complete")
     model = TreeErrorModel(pset, pset.names, 2)
     start = TreeState(nominal, np.eye(4), MARKERS)
     x = np.random.default_rng(0).normal(0, 1e-3, model.size())
-    J = model.jacobian(start, x, camp.measurements).reshape(-1, model.size())
+    tool = np.tile(np.arange(2), len(q))
+    J = model.jacobian_at(start, x, np.repeat(q, 2, axis=0), tool).reshape(-1, model.size())
 
     def model_points(x):
-        return -model.apply(start, x).residuals(camp.measurements).ravel()
+        state = model.apply(start, x)
+        pts = true_points(state.mdh, q, state.markers)
+        return (pts @ state.frame[:3, :3].T + state.frame[:3, 3]).ravel()
 
     h = 1e-6
     fd = np.stack(

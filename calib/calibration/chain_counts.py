@@ -26,7 +26,6 @@ import numpy as np
 
 from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError
-from ..identification.base_columns import independent_columns
 from ..kinematics.tree import tree_of_chains
 from ..measurements.data import Measurements
 from ..measurements.postures import count, posture_groups, sample_postures
@@ -103,8 +102,7 @@ class Generic:
         """The columns of ``wide`` generic configurations determine (in column order)."""
         size, elastic = wide.size(), bool(wide.compliance)
         rows = self.rows(None, size, elastic)
-        J = wide.jacobian(self.start, np.zeros(size), rows).reshape(-1, size)
-        return sorted(independent_columns(J, list(range(J.shape[1])))[2])
+        return determined.determined_columns(wide.jacobian(self.start, np.zeros(size), rows))
 
     def check(self, wide, kept, generic, flush, level: str) -> None:
         """Refuse a level (not ``auto``) the rows do not determine, before the fit.

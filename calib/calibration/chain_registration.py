@@ -15,14 +15,10 @@ from collections.abc import Callable
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.identifiability import (
-    independent_columns,
-    preference_order,
-)
 from ..identification.parameters import ParameterSet, parameter_set
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, validation, weighting
-from .model import ErrorModel, selection_lift
+from .model import ErrorModel, moved
 from .options import Options
 from .registration import register
 from .solve import Fit, fit, row_weights
@@ -225,16 +221,13 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
     if not outliers.spread_out(outliers.point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
-    ordered = tuple(pset.names[i] for i in preference_order(nominal, pset))
-    wide = frames_model(data, opts).with_(
-        params=pset, base=ordered, lift=selection_lift(pset, ordered)
-    )
+    base, lift = moved(pset, nominal)
+    wide = frames_model(data, opts).with_(params=pset, base=base, lift=lift)
     w = row_weights(wide, opts.orientation_weight)
     J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
-    kept = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))[2]
     rows = data.rows or tuple(range(1, data.m + 1))
     return outliers.robust_proposals(
-        J[:, :, sorted(kept)],
+        J[:, :, determined.determined_columns(J)],
         residuals * w,
         lambda r: outliers.point_errors(r, data.n_markers),
         opts.noise,

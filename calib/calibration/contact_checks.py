@@ -34,6 +34,7 @@ from . import diagnosis, outliers, validation
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
 from .pixel_chain import PixelPart
+from .solve import condition
 from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
@@ -267,7 +268,7 @@ def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
         J: The fit's Jacobian at the solution (prior rows included).
         fixed: Its first columns not tested (the objects' and contacts' unknowns).
     """
-    if validation.full_rank(J[:, fixed:]):
+    if condition(J[:, fixed:]) < 1 / validation.RANK_TOL:
         return None
     return (
         f"the data do not determine the {J.shape[1] - fixed} fitted parameters (rank-deficient "

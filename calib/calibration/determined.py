@@ -38,13 +38,13 @@ import numpy as np
 from ..core.checks import MAX_WORK_BYTES
 from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.base_columns import independent_columns, preference_order
+from ..identification.base_columns import independent_columns
 from ..identification.kinds import campaign_kind
 from ..identification.measures import Measurement
 from ..identification.parameters import complete_parameters
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain, check_count
-from .model import ErrorModel, generic_measurements, nominal_state, selection_lift
+from .model import ErrorModel, State, generic_measurements, moved, nominal_state
 from .solve import row_weights
 
 __all__ = [
@@ -59,6 +59,8 @@ __all__ = [
     "check_equations",
     "check_marker_work",
     "check_rank",
+    "determined_columns",
+    "generic_jacobian",
     "identifiable_parameters",
     "ill_posed",
     "ill_posed_text",
@@ -382,19 +384,43 @@ def identifiable_parameters(
     check_count(configs, "the number of configurations")
     nominal = from_chain(chain).idealized()
     kind = campaign_kind(measure)
-    check_marker_work(configs, k, len(complete_parameters(nominal)), kind)
+    pset = complete_parameters(nominal)
+    check_marker_work(configs, k, len(pset), kind)
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
     state = nominal_state(nominal, markers, kind)
-    data = generic_measurements(state, chain.joint_names, q)
-    pset = complete_parameters(nominal)
-    names = tuple(np.array(pset.names)[preference_order(nominal, pset)])
-    model = ErrorModel(pset, names, selection_lift(pset, names), n_markers=k, kind=kind)
-    J = model.jacobian(state, np.zeros(model.size()), data, None)
-    J = J * row_weights(model, 1.0)[None, :, None]
-    _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
+    model = ErrorModel(pset, *moved(pset, nominal), n_markers=k, kind=kind)
+    kept = determined_columns(generic_jacobian(model, state, chain.joint_names)(q))
     all_names = model.names()
-    return tuple(all_names[i] for i in sorted(kept))
+    return tuple(all_names[i] for i in kept)
+
+
+def generic_jacobian(
+    model: ErrorModel, state: State, joint_names: tuple[str, ...], weight: float = 1.0
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The weighted Jacobian ``(m, rows, size)`` at x = 0 at configurations ``(m, n)``.
+
+    Of what ``state`` measures there (:func:`~.model.generic_measurements`); ``weight``: of
+    the orientation rows [m/rad].
+    """
+    weights = row_weights(model, weight)
+
+    def at(q: np.ndarray) -> np.ndarray:
+        data = generic_measurements(state, joint_names, q)
+        return model.jacobian(state, np.zeros(model.size()), data, None) * weights[:, None]
+
+    return at
+
+
+def determined_columns(J: np.ndarray, order: list[int] | None = None) -> list[int]:
+    """The columns of a Jacobian ``(..., p)`` its rows determine, sorted (pivoted QR).
+
+    ``order``: the columns, most preferred first (default: theirs); of dependent columns,
+    those met first are kept (:func:`~calib.identification.base_columns.independent_columns`).
+    """
+    p = J.shape[-1]
+    order = list(range(p)) if order is None else order
+    return sorted(independent_columns(J.reshape(-1, p), order)[2])
 
 
 MARKER_WORK_COPIES = 4

@@ -25,10 +25,12 @@ exact at any x).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..identification.base_columns import preference_order
 from ..identification.jacobian import identification_jacobian
 from ..identification.measures import POSE, POSITION, Measurement
 from ..identification.parameters import ParameterSet
@@ -44,6 +46,8 @@ __all__ = [
     "State",
     "compliance_name",
     "generic_measurements",
+    "moved",
+    "moved_frame",
     "nominal_state",
     "registration_state",
     "selection_lift",
@@ -215,10 +219,7 @@ class ErrorModel:
     def apply(self, start: State, x: np.ndarray) -> State:
         """The state at parameters x (x = 0 is ``start``)."""
         xf, xm, xt, xb = self.split(x)
-        frame = start.frame.copy()
-        if self.frame:
-            frame[:3, :3] = rotation_matrix(xf[:3]) @ start.frame[:3, :3]
-            frame[:3, 3] = start.frame[:3, 3] + xf[3:]
+        frame = moved_frame(start.frame, xf, self.frame)
         markers = start.markers + (xm.reshape(-1, 3) if self.markers else 0.0)
         tool = start.tool_rotation
         if xt.size:
@@ -306,12 +307,40 @@ class ErrorModel:
         return dataclasses.replace(self, **changes)
 
 
+def moved_frame(frame: np.ndarray, xf: np.ndarray, free: bool = True) -> np.ndarray:
+    """A copy of a frame ``(4, 4)`` moved (if ``free``) by x's frame part ``xf``.
+
+    ``xf``: a rotation vector [rad] applied on the left, then a translation [m].
+    """
+    out = frame.copy()
+    if free:
+        out[:3, :3] = rotation_matrix(xf[:3]) @ frame[:3, :3]
+        out[:3, 3] = frame[:3, 3] + xf[3:]
+    return out
+
+
 def selection_lift(params: ParameterSet, base: tuple[str, ...]) -> np.ndarray:
     """The lift that moves each base value's own standard parameter only."""
     lift = np.zeros((len(params), len(base)))
     for j, name in enumerate(base):
         lift[params.index(name), j] = 1.0
     return lift
+
+
+def moved(
+    params: ParameterSet, mdh: MDHModel, offered: Collection[str] | None = None
+) -> tuple[tuple[str, ...], np.ndarray]:
+    """An :class:`ErrorModel`'s ``base`` and ``lift`` that move parameters from the nominal.
+
+    The parameters ``offered`` of ``params`` (default: all) in the paper's order of
+    preference at ``mdh`` (:func:`preference_order`), each its own (:func:`selection_lift`).
+    """
+    base = tuple(
+        params.names[i]
+        for i in preference_order(mdh, params)
+        if offered is None or params.names[i] in offered
+    )
+    return base, selection_lift(params, base)
 
 
 def registration_state(

@@ -39,7 +39,6 @@ __all__ = [
     "SAME",
     "check_held_out",
     "check_held_out_errors",
-    "full_rank",
     "predicted_std",
     "split",
     "stats",
@@ -238,14 +237,3 @@ def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) 
     Jp = J_points[:, : 3 * n_markers]
     var = np.einsum("mrp,pq,mrq->m", Jp, covariance, Jp) / n_markers
     return float(np.sqrt(np.mean(var)))
-
-
-def full_rank(J: np.ndarray) -> bool:
-    """Whether a Jacobian's unit-norm columns are independent (``RANK_TOL``)."""
-    if J.shape[1] == 0:
-        return True
-    norms = np.linalg.norm(J, axis=0)
-    if np.any(norms == 0):
-        return False
-    s = np.linalg.svd(J / norms, compute_uv=False)
-    return bool(s[-1] > RANK_TOL * s[0])

@@ -21,11 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..calibration.determined import determined_columns
 from ..core.checks import check_count, check_work
 from ..exceptions import InvalidArgumentError
 from ..identification.contact_postures import contact_model, contact_postures, project
 from ..identification.contacts import CONTACT_TOL, Contact
-from ..identification.identifiability import independent_columns, preference_order
+from ..identification.identifiability import preference_order
 from ..identification.jacobian import identification_jacobian
 from ..identification.parameters import parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
@@ -137,9 +138,7 @@ def contact_observation_model(
         W = identification_jacobian(model, pset, q, kind)
         return W.reshape(len(q), kind.n_rows, -1)
 
-    J = jacobian_of(cands.q)
-    _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), preference_order(model, pset))
-    kept = sorted(kept)
+    kept = determined_columns(jacobian_of(cands.q), preference_order(model, pset))
     nominal = from_chain(chain).idealized()
     return ObservationModel(
         names=tuple(pset.names[i] for i in kept),

@@ -43,20 +43,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibration.model import (
-    FRAME_NAMES,
-    TOOL_NAMES,
-    ErrorModel,
-    generic_measurements,
-    nominal_state,
-    selection_lift,
-)
+from ..calibration.determined import determined_columns, generic_jacobian
+from ..calibration.model import FRAME_NAMES, TOOL_NAMES, ErrorModel, moved, nominal_state
 from ..calibration.options import TREE_LEVELS
-from ..calibration.solve import row_weights
 from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array
 from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
-from ..identification.base_columns import independent_columns, preference_order
 from ..identification.contact_postures import joint_offsets
 from ..identification.kinds import campaign_kind
 from ..identification.parameters import ParameterSet, parameter_set
@@ -240,22 +232,14 @@ def observation_model(
     kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
     pset, names = _level_names(nominal, params)
-    ordered = tuple(
-        pset.names[i] for i in preference_order(nominal, pset) if pset.names[i] in names
-    )
-    lift = selection_lift(pset, ordered)
-    model = ErrorModel(pset, ordered, lift, n_markers=len(mk), kind=kind)
+    model = ErrorModel(pset, *moved(pset, nominal, names), n_markers=len(mk), kind=kind)
     state = nominal_state(nominal, mk, kind)
-    weights = row_weights(model, float(orientation_weight))
-
-    def jacobian_of(q: np.ndarray) -> np.ndarray:
-        data = generic_measurements(state, chain.joint_names, q)
-        return model.jacobian(state, np.zeros(model.size()), data, None) * weights[:, None]
-
+    jacobian_of = generic_jacobian(model, state, chain.joint_names, float(orientation_weight))
     if structure_q is None:
         structure_q = chain.random_configurations(STRUCTURE_CONFIGS, check_count(seed, "seed", 0))
-    J = jacobian_of(real_array(structure_q, "joint positions", (None, chain.n)))
-    _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
+    kept = determined_columns(
+        jacobian_of(real_array(structure_q, "joint positions", (None, chain.n)))
+    )
     all_names = model.names()
     angular = set(FRAME_NAMES[:3]) | set(TOOL_NAMES)
     angular |= {p.name for p in pset.parameters if p.kind.is_rotation}
@@ -328,9 +312,9 @@ def _tree_observation_model(
 
     if structure_q is None:
         structure_q = tree.random_configurations(STRUCTURE_CONFIGS, check_count(seed, "seed", 0))
-    J = jacobian_of(real_array(structure_q, "joint positions", (None, tree.n)))
-    _, _, kept, _ = independent_columns(J.reshape(-1, J.shape[2]), list(range(J.shape[2])))
-    kept = sorted(kept)
+    kept = determined_columns(
+        jacobian_of(real_array(structure_q, "joint positions", (None, tree.n)))
+    )
     all_names = model.names(nominal.tool_frames)
     angular = set(FRAME_NAMES[:3])
     if pset is not None:

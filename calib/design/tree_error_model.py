@@ -18,13 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibration.model import FRAME_NAMES
-from ..identification.measures import POSITION, Measurement
+from ..calibration.model import FRAME_NAMES, moved_frame, selection_lift
+from ..identification.measures import POSITION
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_jacobian
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..kinematics.so3 import left_jacobian, skew
 from ..kinematics.tree_model import TreeMDH
-from ..measurements.data import Measurements
 
 __all__ = [
     "TreeErrorModel",
@@ -65,26 +64,6 @@ class TreeState:
         R, p = self.tool_placements(q, tool)
         return p + np.einsum("mij,mj->mi", R, self.markers[tool])
 
-    @property
-    def kind(self) -> Measurement:
-        """What each row measures: the position of its tool's marker."""
-        return POSITION
-
-    def residuals(self, data: Measurements, torque=None) -> np.ndarray:
-        """Measured - model per row ``(m, 3)`` [m] (``torque`` is not used)."""
-        tool = _tool_indices(self.mdh, data)
-        R, p = self.tool_placements(data.q, tool)
-        markers = self.markers[tool][:, None, :]
-        return self.kind.residual(R, p, data.observed, markers, self.frame)
-
-
-def _tool_indices(mdh: TreeMDH, data: Measurements) -> np.ndarray:
-    """Index of each row's tool among the model's tools."""
-    if data.tool is None:
-        return np.zeros(data.m, dtype=int)
-    index = {name: t for t, name in enumerate(mdh.tool_frames)}
-    return np.array([index[name] for name in data.tool], dtype=int)
-
 
 @dataclass(frozen=True, eq=False)
 class TreeErrorModel:
@@ -94,41 +73,19 @@ class TreeErrorModel:
         params: The tree's standard parameter set.
         base: Names of the free base values (each a parameter of ``params``).
         n_tools: Number of tools T (one marker each).
-        frame: The measurement frame is free.
-        markers: The markers are free.
     """
 
     params: ParameterSet
     base: tuple[str, ...]
     n_tools: int
-    frame: bool = True
-    markers: bool = True
-    n_markers: int = 1  # points per row (the interface of calib.calibration.solve)
-
-    @property
-    def kind(self) -> Measurement:
-        """What each row measures: the position of its tool's marker."""
-        return POSITION
-
-    @property
-    def pose(self) -> bool:
-        """Orientation rows are fitted (never: a tree's rows are points)."""
-        return bool(self.kind.rotation_rows)
-
-    @property
-    def rows(self) -> int:
-        """Residual rows per row of the data."""
-        return self.kind.rows_of(self.n_markers)
 
     def names(self, tools: tuple[str, ...]) -> tuple[str, ...]:
         """Names of the free parameters, in the order of x."""
-        out = list(FRAME_NAMES) if self.frame else []
-        if self.markers:
-            out += [n for t in tools for n in _tool_marker_names(t)]
-        return (*out, *self.base)
+        markers = [n for t in tools for n in _tool_marker_names(t)]
+        return (*FRAME_NAMES, *markers, *self.base)
 
     def _sizes(self) -> tuple[int, int, int]:
-        return 6 * self.frame, 3 * self.n_tools * self.markers, len(self.base)
+        return 6, 3 * self.n_tools, len(self.base)
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -140,25 +97,15 @@ class TreeErrorModel:
 
     def lift(self) -> np.ndarray:
         """``dX = lift @ x_b``: each base value moves its own standard parameter."""
-        lift = np.zeros((len(self.params), len(self.base)))
-        for j, name in enumerate(self.base):
-            lift[self.params.index(name), j] = 1.0
-        return lift
+        return selection_lift(self.params, self.base)
 
     def apply(self, start: TreeState, x: np.ndarray) -> TreeState:
         """The state at parameters x (x = 0 is ``start``)."""
         xf, xm, xb = self.split(x)
-        frame = start.frame.copy()
-        if self.frame:
-            frame[:3, :3] = rotation_matrix(xf[:3]) @ start.frame[:3, :3]
-            frame[:3, 3] = start.frame[:3, 3] + xf[3:]
-        markers = start.markers + (xm.reshape(-1, 3) if self.markers else 0.0)
+        frame = moved_frame(start.frame, xf)
+        markers = start.markers + xm.reshape(-1, 3)
         mdh = self.params.apply(start.mdh, self.lift() @ xb) if xb.size else start.mdh
         return TreeState(mdh, frame, markers)
-
-    def jacobian(self, start: TreeState, x: np.ndarray, data, torque=None) -> np.ndarray:
-        """d(model)/dx, ``(m, 3, size)`` (rows in the data's order)."""
-        return self.jacobian_at(start, x, data.q, _tool_indices(start.mdh, data))
 
     def jacobian_at(
         self, start: TreeState, x: np.ndarray, q: np.ndarray, tool: np.ndarray
@@ -172,19 +119,15 @@ class TreeErrorModel:
         R = state.frame[:3, :3]
         Rt, _ = state.tool_placements(q, tool)
         lever = state.base_points(q, tool) @ R.T
-        blocks = []
-        if self.frame:
-            rot = -skew(lever) @ left_jacobian(self.split(x)[0][:3])
-            blocks.append(np.concatenate([rot, np.broadcast_to(np.eye(3), rot.shape)], axis=2))
-        if self.markers:
-            blk = np.zeros((len(q), 3, 3 * self.n_tools))
-            for t in range(self.n_tools):
-                blk[tool == t, :, 3 * t : 3 * t + 3] = R @ Rt[tool == t]
-            blocks.append(blk)
+        rot = -skew(lever) @ left_jacobian(self.split(x)[0][:3])
+        blocks = [np.concatenate([rot, np.broadcast_to(np.eye(3), rot.shape)], axis=2)]
+        markers = np.zeros((len(q), 3, 3 * self.n_tools))
+        for t in range(self.n_tools):
+            markers[tool == t, :, 3 * t : 3 * t + 3] = R @ Rt[tool == t]
+        blocks.append(markers)
         if self.base:
             blocks.append(self._geometry_block(state, q, tool) @ self.lift())
-        J = np.concatenate(blocks, axis=2) if blocks else np.zeros((len(q), 3, 0))
-        return self.kind.jacobian_rows(J, n_markers=self.n_markers)
+        return np.concatenate(blocks, axis=2)
 
     def _geometry_block(self, state: TreeState, q: np.ndarray, tool: np.ndarray) -> np.ndarray:
         """Columns of the standard parameters, ``(m, 3, len(params))``."""
@@ -193,7 +136,7 @@ class TreeErrorModel:
             rows = tool == t
             measured = np.zeros((int(rows.sum()), self.n_tools), dtype=bool)
             measured[:, t] = True
-            meas = dataclasses.replace(self.kind, marker=tuple(state.markers[t]))
+            meas = dataclasses.replace(POSITION, marker=tuple(state.markers[t]))
             W = tree_jacobian(state.mdh, self.params, q[rows], meas, measured)
             out[rows] = state.frame[:3, :3] @ W.reshape(-1, 3, len(self.params))
         return out
