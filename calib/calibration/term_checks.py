@@ -55,29 +55,24 @@ class Aside(Generic[D, S]):
 
 
 class Steps(Protocol[D, S]):
-    """A kind's steps on one set of rows (:func:`checked` runs them)."""
+    """A kind's steps on its rows, which :func:`checked` runs."""
 
     @property
     def rows(self) -> D:
         """The rows."""
-        ...
 
     @property
     def diagnose_first(self) -> bool:
         """Whether every row is diagnosed before the outliers are set aside."""
-        ...
 
     def register(self) -> S:
         """The registration of every row."""
-        ...
 
     def set_aside(self, state: S) -> Aside[D, S]:
         """The registration (``state``: of every row) without the outlier rows."""
-        ...
 
     def diagnose(self, rows: D, state: S) -> list[str]:
         """Raise the usual mistake the rows show (``state``: their registration); or notes."""
-        ...
 
 
 def checked(
