@@ -16,6 +16,7 @@ import io
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
@@ -24,7 +25,7 @@ from conftest import chain_of
 from pinref import PinTree
 from scipy.spatial.transform import Rotation
 
-from calib import DataError, InvalidArgumentError, calibrate, simulate
+from calib import DataError, InvalidArgumentError, calibrate, read_measurements, simulate
 from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.kinematics.tree import load_robot
@@ -352,6 +353,56 @@ def test_orientation_mistakes_are_named(pose_campaign, tmp_path, names, values, 
     right = _pose_csv(tmp_path / "ok.csv", camp, "roll,pitch,yaw", rot.as_euler("xyz"))
     code, _, err = run(["calibrate", "ur5", "--data", right, "--out", tmp_path / "o.urdf"])
     assert code == 0, err  # the same rotations written right: accepted
+
+
+@pytest.fixture(scope="module")
+def near_pose(tmp_path_factory):
+    """Pose rows of UR5 near one posture, rotated so that their rpy angles stay under 0.8 rad.
+
+    Small angles: a wrong rpy convention or noisy orientations barely move the points'
+    registration, so only the orientation error (chain_registration's second diagnosis)
+    shows them. Returns a writer of the rows with given orientations, and the rotations.
+    """
+    chain = chain_of("ur5")
+    rng = np.random.default_rng(5)
+    q = np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2]) + rng.uniform(-0.3, 0.3, (40, 6))
+    data = simulate(chain, q, measure="pose", seed=4, noise_mm=0.05, noise_mrad=0.1).measurements
+    turn = Rotation.from_quat(data.quaternion[0]).inv()  # the measurement frame's rotation
+    rot = turn * Rotation.from_quat(data.quaternion)
+    folder = tmp_path_factory.mktemp("near_pose")
+    moved = SimpleNamespace(
+        measurements=dataclasses.replace(data, position=turn.apply(np.array(data.position)))
+    )
+
+    def write(name: str, rpy: np.ndarray):
+        path = _pose_csv(folder / f"{name}.csv", moved, "roll,pitch,yaw", rpy)
+        return read_measurements(path, chain)
+
+    return chain, write, rot, rng
+
+
+def test_orientation_mistakes_the_points_do_not_show_are_named(near_pose):
+    """Angles composed x, y, z: named from the orientation error (the points fit), at the
+    default weight whatever the weight given; validation rows too; noisy orientations that
+    no mistake explains: a note on the orientation columns."""
+    chain, write, rot, rng = near_pose
+    right, wrong = write("right", rot.as_euler("xyz")), write("xyz", rot.as_euler("XYZ"))
+    assert calibrate(chain, right).accepted
+    cause = "rpy angles composed x, y, z"
+    said = []
+    for weight in (None, 1e-3):  # the diagnosis reads the rows at the default weight
+        with pytest.raises(DataError, match=f"{cause}.*orientation error drops") as err:
+            calibrate(chain, wrong, orientation_weight=weight)
+        said.append(str(err.value))
+    assert said[0] == said[1]
+    train, held = right.subset(np.arange(30)), wrong.subset(np.arange(30, 40))
+    with pytest.raises(DataError, match=cause) as err:
+        calibrate(chain, train, validate=held)
+    assert str(err.value).startswith(held.source)
+    noisy = rot * Rotation.from_rotvec(rng.normal(0.0, 0.08, (40, 3)))
+    res = calibrate(chain, write("noisy", noisy.as_euler("xyz")))
+    note = "deg RMS of orientation error, far above geometric errors, and no usual mistake"
+    assert any(note in w and "check the orientation columns" in w for w in res.warnings)
 
 
 def test_one_bad_orientation_is_set_aside_like_one_bad_point(pose_campaign):

@@ -145,6 +145,7 @@ def test_free_and_fix_name_the_charts_parameters():
     [
         ({"fix": ("nope",)}, "unknown parameter 'nope'"),
         ({"fix": ("frame",)}, "fix frame: the joint engine always fits"),
+        ({"fix": ("markers",)}, "fix markers: the joint engine always fits"),
         ({"free": ("d1",)}, "free d1 cannot be fitted: the measurement frame"),
     ],
 )

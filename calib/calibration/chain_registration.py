@@ -1,9 +1,10 @@
 """A chain calibration's registration: the measurement frame and markers on the nominal model.
 
-The registration is the closed-form fit refined by Levenberg-Marquardt (frame and markers only),
-preceded by the diagnosis of the usual mistakes in the data (swapped joint columns, degrees,
-millimetres, quaternion order) and followed by the outlier rows set aside. The orientation
-weight is estimated from it when not given.
+The registration is the closed-form fit refined by Levenberg-Marquardt (frame and markers only).
+The orientation weight is estimated from it when not given; then the steps of every kind of
+term (:mod:`.term_checks`): the outlier rows set aside, the usual mistakes (swapped joint
+columns, degrees, millimetres, quaternion order, orientation columns) diagnosed in the rows
+kept, the validation rows likewise.
 """
 
 from __future__ import annotations
@@ -11,17 +12,22 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from ..exceptions import DataError
 from ..identification.parameters import ParameterSet, parameter_set
+from ..kinematics.mdh import MDHModel
+from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
-from . import determined, diagnosis, outliers, validation, weighting
+from . import determined, diagnosis, outliers, term_checks, validation, weighting
 from .model import ErrorModel, moved
 from .options import Options
 from .registration import register
 from .solve import Fit, fit, row_weights
+from .term_checks import Aside
 
 __all__ = [
     "checked_registration",
@@ -32,16 +38,13 @@ __all__ = [
 
 
 def frames_model(data: Measurements, opts: Options) -> ErrorModel:
-    """The registration's free parameters: frame, markers (and measured-frame rotation)."""
+    """The registration's free parameters: frame, markers (and measured-frame rotation).
+
+    ``opts``: unused; the registration fits them all (``fix`` of the frame or the markers is
+    refused before any registration, :func:`~.measured_options.asked_of`).
+    """
     return ErrorModel(
-        ParameterSet("none", ()),
-        (),
-        np.zeros((0, 0)),
-        frame="frame" not in opts.fix,
-        markers="markers" not in opts.fix,
-        tool="tool" not in opts.fix,
-        n_markers=data.n_markers,
-        kind=data.kind,
+        ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=data.n_markers, kind=data.kind
     )
 
 
@@ -54,19 +57,9 @@ def _registration(nominal, data, guess, opts, kin=None) -> Fit:
     if kin is None:
         kin = nominal.kinematics(data.q)
     start = register(nominal, data.q, data.points, data.rotations, guess, kin)
-    if "frame" in opts.fix:
-        start = dataclasses.replace(start, frame=np.eye(4))
-    if "markers" in opts.fix:
-        start = dataclasses.replace(start, markers=guess)
-    return fit(
-        frames_model(data, opts),
-        start,
-        data,
-        None,
-        opts.orientation_weight,
-        max_iterations=opts.max_iterations,
-        kin=kin,
-    )
+    model = frames_model(data, opts)
+    w, n = opts.orientation_weight, opts.max_iterations
+    return fit(model, start, data, None, w, max_iterations=n, kin=kin)
 
 
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
@@ -130,11 +123,73 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     return []
 
 
+@dataclass(frozen=True, eq=False)
+class _Rows:
+    """A chain's steps on one set of measurements (:class:`~.term_checks.Steps`).
+
+    Attributes:
+        chain: The chain.
+        nominal: Its nominal model.
+        rows: The measurements.
+        guess: The markers' guess in the tool frame [m].
+        opts: The options (with the orientation weight).
+        at: The registrations of ``rows`` by weight (:func:`_registrations`).
+        frames: The registration's model, when the outliers may not leave fewer equations
+            than its unknowns (validation data: no error, the outliers stay); else None
+            (that is an error).
+    """
+
+    chain: Chain
+    nominal: MDHModel
+    rows: Measurements
+    guess: np.ndarray
+    opts: Options
+    at: Callable[[float], Fit]
+    frames: ErrorModel | None = None
+
+    diagnose_first = False
+
+    def register(self) -> Fit:
+        """The registration of every row at the options' weight."""
+        return self.at(cast(float, self.opts.orientation_weight))  # weighted: a number
+
+    def set_aside(self, state: Fit) -> Aside[Measurements, Fit]:
+        """The registration without the outlier rows, until stable (:mod:`.outliers`)."""
+        nominal, data, guess, opts = self.nominal, self.rows, self.guess, self.opts
+
+        def refit(keep: np.ndarray) -> Fit:
+            if keep.all():
+                return state
+            sub = data.subset(keep)
+            frames = frames_model(sub, opts)
+            what = "measurement frame and marker parameters once the outliers are set aside"
+            determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
+            return _registration(nominal, sub, guess, opts)
+
+        def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
+            residuals = reg.state.residuals(data, None, state.kin)
+            return outliers.point_errors(residuals, data.n_markers)
+
+        def allowed(bad: np.ndarray) -> bool:
+            f = self.frames
+            return f is None or int(np.sum(~bad)) * f.rows > f.size()
+
+        rows = data.rows or tuple(range(1, data.m + 1))
+        reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
+        return Aside(reg, bad, data.subset(~bad) if bad.any() else data)
+
+    def diagnose(self, rows: Measurements, state: Fit) -> list[str]:
+        """The usual mistakes of the rows kept (:func:`_diagnose`)."""
+        nominal, guess, opts = self.nominal, self.guess, self.opts
+        same = self.at if rows is self.rows else _registrations(nominal, rows, guess, opts)
+        return _diagnose(self.chain, nominal, rows, guess, opts, same)
+
+
 def checked_registration(chain, nominal, train, checked, guess, opts):
     """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
 
-    The outliers are set aside before any diagnosis: one bad row is not a mistake of the
-    whole file.
+    The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
+    estimated before.
 
     Returns:
         The options with the orientation weight, the registration state, the mask of the
@@ -142,31 +197,24 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     """
     at = _registrations(nominal, train, guess, opts)
     opts = _weighted(train, opts, at)
-    reg, bad, suspect = _cleaned(chain, nominal, train, guess, opts, at)
-    diagnosed = _diagnose_validation(chain, nominal, checked, guess, opts)
+    steps = _Rows(chain, nominal, train, guess, opts, at)
+    validate = _validation_steps(chain, nominal, checked, guess, opts)
+    aside, notes = term_checks.checked(steps, validate)
+    reg = aside.state
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, bad, suspect + diagnosed
+    return opts, reg.state, aside.bad, notes
 
 
-def _diagnose_validation(chain, nominal, held, guess, opts) -> list[str]:
-    """The diagnosis of validation data (``held``: (data, label) or None), noted by label."""
+def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, str]]:
+    """The steps on validation data (``held``: (data, label) or None), with their label."""
     if held is None:
         return []
     frames = frames_model(held[0], opts)
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts)
-    notes = _cleaned(chain, nominal, held[0], guess, opts, at, frames)[2]
-    return [f"{held[1]}: {n}" for n in notes]
-
-
-def _cleaned(chain, nominal, data, guess, opts, at, frames=None):
-    """The registration without its outlier rows, their mask, the diagnosis of the rest."""
-    reg, bad = _register(nominal, data, guess, opts, at, frames)
-    kept = data.subset(~bad) if bad.any() else data
-    same = at if kept is data else _registrations(nominal, kept, guess, opts)
-    return reg, bad, _diagnose(chain, nominal, kept, guess, opts, same)
+    return [(_Rows(chain, nominal, held[0], guess, opts, at, frames), held[1])]
 
 
 def _weighted(data, opts: Options, at) -> Options:
@@ -179,35 +227,6 @@ def _weighted(data, opts: Options, at) -> Options:
             lambda w: at(w).state.residuals(data, None, at(w).kin), data.n_markers
         )
     return dataclasses.replace(opts, orientation_weight=weight)
-
-
-def _register(nominal, data, guess, opts, at, frames=None) -> tuple[Fit, np.ndarray]:
-    """The registration (``at``: the data set's by weight) without the outlier rows (a mask).
-
-    ``frames``: the registration's model, when the outliers may not leave fewer equations
-    than its unknowns (validation data: no error, the outliers stay); else that is an error.
-    """
-
-    def refit(keep: np.ndarray) -> Fit:
-        if keep.all():
-            return at(opts.orientation_weight)
-        sub = data.subset(keep)
-        frames = frames_model(sub, opts)
-        what = "measurement frame and marker parameters once the outliers are set aside"
-        determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
-        return _registration(nominal, sub, guess, opts)
-
-    nominal_kin = at(opts.orientation_weight).kin  # every registration's, on the data
-
-    def errors(reg: Fit) -> outliers.Errors:
-        return outliers.point_errors(reg.state.residuals(data, None, nominal_kin), data.n_markers)
-
-    def allowed(bad: np.ndarray) -> bool:
-        return frames is None or int(np.sum(~bad)) * frames.rows > frames.size()
-
-    rows = data.rows or tuple(range(1, data.m + 1))
-    reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
-    return reg, bad
 
 
 def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
@@ -236,19 +255,12 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
 
 
 def held_out_outliers(reg, train, held, opts, notes: list[str]):
-    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`)."""
+    """The held-out rows without their outliers (:func:`.term_checks.held_out`)."""
     if held is None:
         return None
     data, label = held
     k = train.n_markers
     rows = data.rows or tuple(range(1, data.m + 1))
-    bad, dropped = outliers.held_out_outliers(
-        outliers.point_errors(reg.residuals(train), k),
-        outliers.point_errors(reg.residuals(data), k),
-        opts.noise,
-        rows,
-    )
-    if not dropped:
-        return held
-    notes.append(outliers.held_out_note(dropped))
-    return data.subset(~bad), label
+    fitted, errors = (outliers.point_errors(reg.residuals(d), k) for d in (train, data))
+    kept = term_checks.held_out(fitted, errors, data, rows, data.subset, notes, opts.noise)
+    return held if kept is data else (kept, label)

@@ -21,6 +21,8 @@ The same checks as measured data (:mod:`calib.calibration.chain_registration`,
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -30,11 +32,12 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import posture_groups
-from . import diagnosis, outliers, validation
+from . import diagnosis, outliers, term_checks, validation
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
 from .pixel_chain import PixelPart
 from .solve import condition
+from .term_checks import Aside
 from .weighting import BOUNDS, DEFAULT_WEIGHT
 
 __all__ = [
@@ -189,17 +192,46 @@ def enough_touches(data: ContactData):
     return allowed
 
 
-def _drop_outliers(nominal, train: ContactData, guess, weight, start: ContactState):
-    """The registration without the outlier touches (:mod:`.outliers`), and their mask."""
+@dataclass(frozen=True, eq=False)
+class _Touches:
+    """A contact chain's steps on one set of touches (:class:`~.term_checks.Steps`).
 
-    def refit(keep: np.ndarray) -> ContactState:
-        return start if keep.all() else registration(nominal, subset(train, keep), guess, weight)
+    Attributes:
+        chain: The chain.
+        nominal: Its nominal model.
+        rows: The touches.
+        guess: The contact frame's guess.
+    """
 
-    rows = train.rows or tuple(range(1, train.m + 1))
-    state, bad, _ = outliers.until_stable(
-        refit, lambda s: length_errors(s, train), None, rows, allowed=enough_touches(train)
-    )
-    return state, bad
+    chain: Chain
+    nominal: MDHModel
+    rows: ContactData
+    guess: np.ndarray
+
+    diagnose_first = False
+
+    def register(self) -> ContactState:
+        """The registration of every touch at the default weight."""
+        return registration(self.nominal, self.rows, self.guess, DEFAULT_WEIGHT)
+
+    def set_aside(self, state: ContactState) -> Aside[ContactData, ContactState]:
+        """The registration without the outlier touches, until stable (:mod:`.outliers`)."""
+        nominal, data, guess = self.nominal, self.rows, self.guess
+
+        def refit(keep: np.ndarray) -> ContactState:
+            if keep.all():
+                return state
+            return registration(nominal, subset(data, keep), guess, DEFAULT_WEIGHT)
+
+        rows = data.rows or tuple(range(1, data.m + 1))
+        state, bad, _ = outliers.until_stable(
+            refit, lambda s: length_errors(s, data), None, rows, allowed=enough_touches(data)
+        )
+        return Aside(state, bad, subset(data, ~bad) if bad.any() else data)
+
+    def diagnose(self, rows: ContactData, state: ContactState) -> list[str]:
+        """The usual mistakes of the touches kept (``state``: their registration)."""
+        return _diagnose(self.chain, self.nominal, rows, self.guess, state)
 
 
 def _registrable(data: ContactData) -> bool:
@@ -214,23 +246,18 @@ def checked_registration(
 ):
     """Outliers set aside, diagnosis (the touches, and validation touches), registration.
 
-    The outlier touches are set aside first (at the default weight), so that one bad touch
-    is not a mistake of the whole file; the diagnosis reads the touches kept.
+    The steps of every kind of term (:func:`~.term_checks.checked`, at the default weight),
+    then the touches kept registered at ``weight`` (None: estimated).
 
     Returns:
         The registration state of the touches kept, the mask of the outliers and the notes.
     """
-    default = registration(nominal, train, guess, DEFAULT_WEIGHT)
-    default, bad = _drop_outliers(nominal, train, guess, DEFAULT_WEIGHT, default)
-    kept = subset(train, ~bad) if bad.any() else train
-    notes = _diagnose(chain, nominal, kept, guess, default)
+    checks = []
     if validate is not None and _registrable(validate):
-        first = registration(nominal, validate, guess, DEFAULT_WEIGHT)
-        _, out = _drop_outliers(nominal, validate, guess, DEFAULT_WEIGHT, first)
-        checked = subset(validate, ~out) if out.any() else validate
-        notes += [f"{validate.source}: {n}" for n in _diagnose(chain, nominal, checked, guess)]
-    start = registration(nominal, kept, guess, weight, default.frames)
-    return start, bad, notes
+        checks.append((_Touches(chain, nominal, validate, guess), validate.source))
+    aside, notes = term_checks.checked(_Touches(chain, nominal, train, guess), checks)
+    start = registration(nominal, aside.kept, guess, weight, aside.state.frames)
+    return start, aside.bad, notes
 
 
 def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
@@ -319,12 +346,9 @@ def held_out_set_aside(
         return None
     start.frames.index(held.ids, held.source)  # every held-out object was fitted
     rows = held.rows or tuple(range(1, held.m + 1))
-    before = (length_errors(start, train), length_errors(start, held))
-    bad, dropped = outliers.held_out_outliers(*before, None, rows)
-    if not dropped:
-        return held
-    notes.append(outliers.held_out_note(dropped, "touch(es)", "gap"))
-    return subset(held, ~bad)
+    fitted, errors = (length_errors(start, d) for d in (train, held))
+    cut = partial(subset, held)
+    return term_checks.held_out(fitted, errors, held, rows, cut, notes, None, ("touch(es)", "gap"))
 
 
 def set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[outliers.Outlier]:

@@ -34,7 +34,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
 from ..measurements.pixels import PixelObservations, Target
-from . import determined, diagnosis, outliers, validation
+from . import determined, diagnosis, outliers, term_checks, validation
 from .pixel_fit import PixelView, camera_from_rays, fit_alone, rays, refine_camera
 from .pixel_term import (
     CAMERA_NAMES,
@@ -54,6 +54,7 @@ from .pixel_term import (
     target_points,
 )
 from .placements import Placements
+from .term_checks import Aside
 
 __all__ = [
     "ROUND_OFF_PX",
@@ -381,23 +382,6 @@ def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
     return [f"camera {part.data.camera.name}: {n}" for n in notes]
 
 
-def _diagnosed(chain: Chain, part: PixelPart) -> tuple[PixelTermState, list[str]]:
-    """The registration and its note, unless a usual mistake explains absurd pixels.
-
-    The registration's error at the target above :data:`~.diagnosis.SUSPECT`, or no
-    registration (points behind the camera), tries the joint columns' usual mistakes.
-
-    Raises:
-        DataError: The mistake named, or the registration's own error.
-    """
-    try:
-        state = _registered(chain, part)
-    except DataError:
-        _explain(chain, part, np.inf)
-        raise
-    return state, _explain(chain, part, _rms_m(state, part))
-
-
 def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
     """Rows whose point's outward normal (the target's) faces away from the camera."""
     normals = part.data.target.normal
@@ -422,39 +406,87 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     return errors[0], (errors[1] if held is not None else None)
 
 
+def _size(part: PixelPart) -> int:
+    """The camera's unknowns (placement, mounting, target points) of a pixel term."""
+    return len(PixelKind(len(part.data.target.position), 0, part.data.what).names())
+
+
+@dataclass(frozen=True, eq=False)
+class _Camera:
+    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`).
+
+    Every row is diagnosed before the outliers are set aside: the outlier rule reads the
+    term's own fit (:func:`_judged`), made from the registration.
+
+    Attributes:
+        chain: The term's chain.
+        rows: Its rows.
+        held: Its held-out rows (their outliers set aside by the same own fit), or None.
+    """
+
+    chain: Chain
+    rows: PixelPart
+    held: PixelPart | None
+
+    diagnose_first = True
+
+    def register(self) -> PixelTermState:
+        """The camera registered; no registration (points behind it) is diagnosed too.
+
+        Raises:
+            DataError: The mistake named, or the registration's own error.
+        """
+        try:
+            return _registered(self.chain, self.rows)
+        except DataError:
+            _explain(self.chain, self.rows, np.inf)
+            raise
+
+    def diagnose(self, rows: PixelPart, state: PixelTermState) -> list[str]:
+        """:func:`_explain` of the rows (``state``: their registration)."""
+        return _explain(self.chain, rows, _rms_m(state, rows))
+
+    def set_aside(self, state: PixelTermState) -> Aside[PixelPart, PixelTermState]:
+        """Rows seen from behind or far off the own fit set aside (:func:`checked_pixels`)."""
+        chain, part, held = self.chain, self.rows, self.held
+        behind = _from_behind(state, part)
+        errors, e_held = _judged(chain, state, part, held)
+        floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
+        bad, found = outliers.find_outliers(errors, None, floor, part.rows.lines, (2, 3))
+        found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
+        found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
+                  "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
+        bad = bad | behind
+        kept = part
+        if bad.any():
+            if part.m - int(bad.sum()) < _size(part):
+                raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")
+            kept = part.subset(~bad)
+            state = _registered(chain, kept)
+        notes: list[str] = []
+        if held is not None and e_held is not None:
+            fitted, other = (outliers.Errors(e, None, (2, 3)) for e in (errors[~bad], e_held))
+            held = term_checks.held_out(fitted, other, held, held.rows.lines, held.subset, notes)
+        found.sort(key=lambda o: o.row)
+        return Aside(state, bad, kept, tuple(found), held, tuple(notes))
+
+
 def checked_pixels(chain: Chain, part: PixelPart, held):
     """A pixel term's registration and its outliers (the shared rule, in mm at the target).
 
-    Rows seen from behind their normal, and rows that the shared rule
-    (:func:`~.outliers.find_outliers`) sets aside on the term's own fit (:func:`_judged`),
-    are outliers named by their line; the camera is registered again without them. Held-out
-    rows' outliers: the same rule (:func:`~.outliers.held_out_outliers`).
+    The steps of every kind of term (:func:`~.term_checks.checked`): rows seen from behind
+    their normal, and rows that the shared rule (:func:`~.outliers.find_outliers`) sets
+    aside on the term's own fit (:func:`_judged`), are outliers named by their line; the
+    camera is registered again without them. Held-out rows' outliers: the same rule
+    (:func:`~.term_checks.held_out`).
 
     Returns:
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
         held-out rows without their outliers (or None).
     """
-    size = len(PixelKind(len(part.data.target.position), 0, part.data.what).names())
     out_m = 0 if held is None else held.m
     what = f"unknowns of camera {part.data.camera.name}'s placement"
-    determined.check_equations(part.m, 2, size, what, part.source, held=out_m, unit="observations")
-    state, notes = _diagnosed(chain, part)
-    behind = _from_behind(state, part)
-    errors, e_held = _judged(chain, state, part, held)
-    floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
-    bad, found = outliers.find_outliers(errors, None, floor, part.rows.lines, (2, 3))
-    found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
-    found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
-              "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
-    bad = bad | behind
-    if bad.any():
-        if part.m - int(bad.sum()) < size:
-            raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")
-        state = _registered(chain, part.subset(~bad))
-    if held is not None and e_held is not None:
-        pair = (outliers.Errors(errors[~bad], None, (2, 3)), outliers.Errors(e_held, None, (2, 3)))
-        mask, dropped = outliers.held_out_outliers(*pair, None, held.rows.lines)
-        if dropped:
-            notes.append(outliers.held_out_note(dropped))
-            held = held.subset(~mask)
-    return state, bad, sorted(found, key=lambda o: o.row), notes, held
+    unit = "observations"
+    determined.check_equations(part.m, 2, _size(part), what, part.source, held=out_m, unit=unit)
+    aside, notes = term_checks.checked(_Camera(chain, part, held))
+    return aside.state, aside.bad, list(aside.found), notes, aside.held

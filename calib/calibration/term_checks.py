@@ -1,0 +1,133 @@
+"""A term's checks before the joint fit: one sequence for every kind of term.
+
+Each kind (a chain measured by an instrument: :mod:`.chain_registration`; a camera's pixels:
+:mod:`.pixel_chain`; touches: :mod:`.contact_checks`) gives its steps on one set of rows
+(:class:`Steps`) and :func:`checked` runs them in one order:
+
+1. ``register``: the registration on the nominal robot (closed form, refined);
+2. ``set_aside``: the registration without the outlier rows (:mod:`.outliers`);
+3. ``diagnose``: the usual mistakes (:mod:`.diagnosis`) looked for in the rows kept (one
+   bad row is not a mistake of the whole file): one raised, or a note; a kind whose outlier
+   rule reads a fit made from the registration (pixels: the term alone) diagnoses every row
+   before, ``diagnose_first``;
+4. the validation rows the same, on their own (their notes labelled).
+
+The held-out rows' outliers are then set aside by the shared rule (:func:`held_out`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Generic, Protocol, TypeVar
+
+import numpy as np
+
+from . import outliers
+
+__all__ = ["Aside", "Steps", "checked", "held_out"]
+
+D = TypeVar("D")
+S = TypeVar("S")
+
+
+@dataclass(frozen=True)
+class Aside(Generic[D, S]):
+    """A registration without its outlier rows.
+
+    Attributes:
+        state: The registration of the rows kept.
+        bad: The mask of the outlier rows.
+        kept: The rows kept.
+        found: The outliers, where the step names them (pixels: their rule reads the
+            term's own fit, not the registration; the others': by the caller).
+        held: The held-out rows without their outliers, where the step sets them aside
+            (pixels: by the same own fit), or None.
+        notes: Notes of the step (pixels: their held-out rows' outliers).
+    """
+
+    state: S
+    bad: np.ndarray
+    kept: D
+    found: tuple[outliers.Outlier, ...] = ()
+    held: D | None = None
+    notes: tuple[str, ...] = ()
+
+
+class Steps(Protocol[D, S]):
+    """A kind's steps on its rows, which :func:`checked` runs."""
+
+    @property
+    def rows(self) -> D:
+        """The rows."""
+
+    @property
+    def diagnose_first(self) -> bool:
+        """Whether every row is diagnosed before the outliers are set aside."""
+
+    def register(self) -> S:
+        """The registration of every row."""
+
+    def set_aside(self, state: S) -> Aside[D, S]:
+        """The registration (``state``: of every row) without the outlier rows."""
+
+    def diagnose(self, rows: D, state: S) -> list[str]:
+        """Raise the usual mistake the rows show (``state``: their registration); or notes."""
+
+
+def checked(
+    steps: Steps[D, S], validation: Sequence[tuple[Steps, str]] = ()
+) -> tuple[Aside[D, S], list[str]]:
+    """The rows registered, their outliers set aside, diagnosed (module text).
+
+    Args:
+        steps: The kind's steps on its rows.
+        validation: The steps on validation rows (registered and diagnosed on their own),
+            each with the label of its notes.
+
+    Returns:
+        The registration without the outlier rows, and the notes.
+    """
+    aside, notes = _sequence(steps)
+    for other, label in validation:
+        notes += [f"{label}: {n}" for n in _sequence(other)[1]]
+    return aside, notes
+
+
+def _sequence(steps: Steps[D, S]) -> tuple[Aside[D, S], list[str]]:
+    """Register, set the outliers aside and diagnose (every row first, or the rows kept)."""
+    first = steps.register()
+    notes = steps.diagnose(steps.rows, first) if steps.diagnose_first else []
+    aside = steps.set_aside(first)
+    if not steps.diagnose_first:
+        notes = steps.diagnose(aside.kept, aside.state)
+    return aside, [*notes, *aside.notes]
+
+
+def held_out(
+    fitted: outliers.Errors,
+    errors: outliers.Errors,
+    held: D,
+    rows: tuple[int, ...],
+    subset: Callable[[np.ndarray], D],
+    notes: list[str],
+    noise: float | None = None,
+    words: tuple[str, str] = ("row(s)", "error"),
+) -> D:
+    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`).
+
+    Args:
+        fitted: The errors of the rows fitted.
+        errors: The held-out rows' errors under the same model.
+        held: The held-out rows.
+        rows: Their file rows.
+        subset: The held-out rows a mask keeps.
+        notes: The notes, to which the outliers' is appended (if any).
+        noise: The instrument's noise [m], or None.
+        words: The unit and the error in the note.
+    """
+    bad, dropped = outliers.held_out_outliers(fitted, errors, noise, rows)
+    if not dropped:
+        return held
+    notes.append(outliers.held_out_note(dropped, *words))
+    return subset(~bad)
