@@ -22,9 +22,9 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line
 from .contact_frames import ContactFrames
-from .contact_result import GapStats, gap_rows, term_errors
+from .contact_result import GapStats, gap_rows
 from .contact_term_report import single_contact_report
-from .delivery import Delivered, RowErrors, compliance_path
+from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import (
@@ -47,6 +47,7 @@ from .report import (
     parameter_lines,
     pose_dict,
     term_dict,
+    term_errors,
     verdict,
 )
 from .selection import Selection
@@ -153,6 +154,13 @@ def _stat_labels(part) -> dict[str, str]:
     return {k: f"{v:{width}s}" for k, v in labels.items()}
 
 
+def _units(kind) -> str:
+    """A kind's rows with their units: ``x [mm], y [mm], z [mm], rx [deg], ...``."""
+    return ", ".join(
+        f"{n} [{'deg' if a else 'mm'}]" for n, a in zip(kind.row_names, kind.angular, strict=True)
+    )
+
+
 def _rotation(R: np.ndarray) -> np.ndarray:
     """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
     T = np.eye(4)
@@ -161,7 +169,7 @@ def _rotation(R: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class ContactChainsCalibration(Delivered, ChainView):
+class ContactChainsCalibration(Result, ChainView):
     """A calibration of several chains of one robot from flush contacts.
 
     Attributes:
@@ -443,10 +451,6 @@ class ContactChainsCalibration(Delivered, ChainView):
                     f"u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
                 )
             elif isinstance(c, MeasuredChain):
-                units = [
-                    f"{n} [{'deg' if a else 'mm'}]"
-                    for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
-                ]
                 where = (
                     "the instrument"
                     if c.joint is None
@@ -454,28 +458,18 @@ class ContactChainsCalibration(Delivered, ChainView):
                 )
                 lines.append(
                     f"{c.chain.base_frame} -> {c.chain.tool_frame}, measured {c.kind.label} "
-                    f"(errors: {', '.join(units)}; {where}):"
+                    f"(errors: {_units(c.kind)}; {where}):"
                 )
             elif not isinstance(c.kind, PlaneContact):
-                units = [
-                    f"{n} [{'deg' if a else 'mm'}]"
-                    for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
-                ]
                 ids = ", ".join(f"'{i}'" for i in c.objects())
-                head += f" {ids} (gaps: {', '.join(units)})"
+                head += f" {ids} (gaps: {_units(c.kind)})"
                 lines.append(head + ":")
             else:
                 lines.append(f"{head} '{c.plane_id}':")
             labels = _stat_labels(c)
+            rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
             for key, s in c.stats.items():
                 rms = "  ".join(f"{v:8.3f}" for v in s.rms)
-                rows = (
-                    "touches"
-                    if isinstance(c, ChainContacts)
-                    else "pixels"
-                    if isinstance(c, PixelChain)
-                    else "configurations"
-                )
                 lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]

@@ -21,12 +21,10 @@ from .delivery import RowErrors
 
 __all__ = [
     "GapStats",
-    "gap_errors_mm",
     "gap_rows",
     "gap_stats",
     "part_stats",
     "row_stats",
-    "term_errors",
 ]
 
 
@@ -91,24 +89,6 @@ class GapStats:
             out[key] = getattr(self, key)
         out["weighted_mm"] = self.weighted_mm
         return out
-
-
-def gap_errors_mm(stats: dict[str, GapStats], part: str) -> dict:
-    """``registration``, ``calibrated`` and ``urdf`` (no compliance) gaps of ``part``."""
-    cal = stats[part]
-    return {
-        "registration": stats[f"{part}_registration"].in_mm(),
-        "calibrated": cal.in_mm(),
-        "urdf": stats.get(f"{part}_urdf", cal).in_mm(),
-    }
-
-
-def term_errors(stats: dict[str, GapStats], held_source: str | None) -> dict:
-    """A term's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-    out: dict = {"train": gap_errors_mm(stats, "train"), "held_out": None}
-    if "held_out" in stats:
-        out["held_out"] = {"source": held_source, **gap_errors_mm(stats, "held_out")}
-    return out
 
 
 def part_stats(stat, registered, state, train, held) -> dict:

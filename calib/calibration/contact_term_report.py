@@ -34,7 +34,7 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
     """
     chain, kind = part.chain, part.kind
     compliance = np.zeros(chain.n) if part.compliance is None else part.compliance
-    errors = part.errors()
+    errors, load = part.errors(), load_record(part)
     angles = any(kind.angular)
     fields = {
         **fields,
@@ -47,26 +47,20 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
             **fields["model"],
             "mdh_nominal": part.nominal.rows(),
             "mdh_calibrated": part.calibrated.rows(),
-            "load": load_record(part),
+            "load": load,
         },
     }
-    base = chain.base_frame
-    objects = part.objects()
+    own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
     legacy = {
-        "base": base,
+        "base": chain.base_frame,
         "tool": chain.tool_frame,
         "measure": kind.label,
         "free": legacy["free"],
         "selection": legacy["selection"],
         "tilt_weight": part.weight if angles else None,
-        "contact": {
-            f"{kind.object_name}s": {
-                k: {"frame": base, "matrix": T.tolist()} for k, T in objects.items()
-            },
-            "frames": {chain.tool_frame: {"matrix": part.contact.tolist()}},
-        },
-        "gaps": {k: v.to_dict() for k, v in part.stats.items()},
-        "load": load_record(part),
+        "contact": own["contact"],
+        "gaps": own["gaps"],
+        "load": load,
         "calibrated_mdh": part.calibrated.rows(),
         "notes": legacy["notes"],
     }

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics.robot import Chain
-from .contact_result import GapStats, part_stats, row_stats, term_errors
+from .contact_result import GapStats, part_stats, row_stats
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
-from .report import parameter_entries, pose_dict
+from .report import parameter_entries, pose_dict, term_errors
 
 __all__ = ["EXPECTED_PX", "PixelChain", "pixel_result"]
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..identification.report import format_table
 from ..measurements.data import Measurements
-from .report import finite
+from .report import errors_part, finite
 
 __all__ = ["ResidualStats", "Validation", "error_table"]
 
@@ -100,18 +100,11 @@ class Validation:
     urdf: ResidualStats | None = None
     rows: Measurements | None = None
 
-    @property
-    def geometry(self) -> ResidualStats:
-        """Errors of the calibrated URDF alone (no compliance; ``calibrated`` without any)."""
-        return self.calibrated if self.urdf is None else self.urdf
-
     def in_mm(self) -> dict:
         """The report's ``errors.held_out`` (format 3): mm and degrees."""
         return {
             "source": self.source,
-            "registration": self.registration.in_mm(),
-            "calibrated": self.calibrated.in_mm(),
-            "urdf": self.geometry.in_mm(),
+            **errors_part(self.registration, self.calibrated, self.urdf),
             "predicted_std_mm": finite(1e3 * self.predicted_std),
         }
 
@@ -119,9 +112,7 @@ class Validation:
         """JSON-ready form (format 2's)."""
         return {
             "source": self.source,
-            "registration": self.registration.to_dict(),
-            "calibrated": self.calibrated.to_dict(),
-            "urdf": self.geometry.to_dict(),
+            **errors_part(self.registration, self.calibrated, self.urdf, mm=False),
             "predicted_std": finite(self.predicted_std),
         }
 
