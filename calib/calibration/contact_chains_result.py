@@ -22,7 +22,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line
 from .contact_frames import ContactFrames
-from .contact_result import GapStats, gap_rows
+from .contact_result import GapStats, gap_rows, part_dict
 from .contact_term_report import single_contact_report
 from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
@@ -124,10 +124,7 @@ class ChainContacts:
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; gaps in mm and degrees; format 2's)."""
         return {
-            "base": self.chain.base_frame,
-            "tool": self.chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
+            **part_dict(self),
             "tilt_weight": self.weight,
             "contact": {
                 f"{self.kind.object_name}s": {

@@ -23,6 +23,7 @@ __all__ = [
     "GapStats",
     "gap_rows",
     "gap_stats",
+    "part_dict",
     "part_stats",
     "row_stats",
 ]
@@ -89,6 +90,20 @@ class GapStats:
             out[key] = getattr(self, key)
         out["weighted_mm"] = self.weighted_mm
         return out
+
+
+def part_dict(part) -> dict:
+    """The first keys of a term's part in format 2's ``chains``: base, tool, data, kind.
+
+    ``part``: a term's part of a result (its ``chain``, ``source`` and ``kind``).
+    """
+    chain = part.chain
+    return {
+        "base": chain.base_frame,
+        "tool": chain.tool_frame,
+        "data": part.source,
+        "kind": part.kind.label,
+    }
 
 
 def part_stats(stat, registered, state, train, held) -> dict:

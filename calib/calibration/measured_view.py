@@ -25,7 +25,7 @@ from ..measurements.data import Measurements
 from . import validation
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
-from .contact_result import GapStats, part_stats
+from .contact_result import GapStats, part_dict, part_stats
 from .measured_report import chain_frames, tool_pose, written_markers
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
@@ -99,10 +99,7 @@ class MeasuredChain:
         """JSON-ready form (metres, radians; errors in mm and degrees)."""
         s = self.state.inner
         return {
-            "base": self.chain.base_frame,
-            "tool": self.chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
+            **part_dict(self),
             "orientation_weight": self.state.weight,
             "measurement_to_base": s.frame.tolist(),
             "joint": self.joint,

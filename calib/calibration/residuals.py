@@ -56,25 +56,20 @@ class ResidualStats:
 
     def in_mm(self) -> dict:
         """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
-        deg = math.degrees(1.0)
-        rot = (self.orientation_rms, self.orientation_max)
-        return {
-            "configs": self.configs,
-            "position_rms_mm": finite(1e3 * self.position_rms),
-            "position_max_mm": finite(1e3 * self.position_max),
-            "orientation_rms_deg": None if rot[0] is None else finite(deg * rot[0]),
-            "orientation_max_deg": None if rot[1] is None else finite(deg * rot[1]),
-        }
+        out: dict = {"configs": self.configs}
+        for key in _FIGURES:
+            value = getattr(self, key)
+            unit, scale = ("deg", math.degrees(1.0)) if "orient" in key else ("mm", 1e3)
+            out[f"{key}_{unit}"] = None if value is None else finite(scale * value)
+        return out
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; format 2's)."""
-        return {
-            "configs": self.configs,
-            "position_rms": finite(self.position_rms),
-            "position_max": finite(self.position_max),
-            "orientation_rms": finite(self.orientation_rms),
-            "orientation_max": finite(self.orientation_max),
-        }
+        return {"configs": self.configs, **{k: finite(getattr(self, k)) for k in _FIGURES}}
+
+
+_FIGURES = ("position_rms", "position_max", "orientation_rms", "orientation_max")
+""":class:`ResidualStats`' figures, in the reports' order."""
 
 
 @dataclass(frozen=True)
