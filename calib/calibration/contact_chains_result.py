@@ -158,6 +158,34 @@ def _units(kind) -> str:
     )
 
 
+def _term_lines(c) -> list[str]:
+    """A term's summary lines: what it measures, then each part's RMS errors by row."""
+    head = f"{c.chain.base_frame} -> {c.chain.tool_frame}"
+    if isinstance(c, PixelChain):
+        px = ", ".join(
+            f"{k.replace('_', ' ')} {c.pixels[k]['reprojection_rms_px']:.3g}"
+            for k in ("train", "held_out")
+            if k in c.pixels
+        )
+        head += (
+            f", camera {c.name} (errors: u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
+        )
+    elif isinstance(c, MeasuredChain):
+        where = "the instrument" if c.joint is None else f"the measuring frame in joint '{c.joint}'"
+        head += f", measured {c.kind.label} (errors: {_units(c.kind)}; {where}):"
+    elif not isinstance(c.kind, PlaneContact):
+        ids = ", ".join(f"'{i}'" for i in c.objects())
+        head += f", {c.kind.object_name} {ids} (gaps: {_units(c.kind)}):"
+    else:
+        head += f", {c.kind.object_name} '{c.plane_id}':"
+    labels = _stat_labels(c)
+    rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
+    return [head] + [
+        f"  {labels[key]} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
+        for key, s in c.stats.items()
+    ]
+
+
 def _rotation(R: np.ndarray) -> np.ndarray:
     """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
     T = np.eye(4)
@@ -252,6 +280,11 @@ class ContactChainsCalibration(Result, ChainView):
             return tuple(nominal.joint_names), nominal.sigma
         return tuple(part.chain.model.names), None
 
+    def _entries(self) -> list[dict]:
+        """The joint placement parameters' report entries (``fitted``)."""
+        names, sigma = self._row_joints()
+        return parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
+
     def check(self) -> ContactChainsCalibration:
         """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
         if self.refusal is not None:
@@ -340,7 +373,6 @@ class ContactChainsCalibration(Result, ChainView):
         """
         world_of(self.shape, self._frame(), world_link, on_robot)
         first = self.chains[0].chain
-        names, sigma = self._row_joints()
         fields = {
             "robot": first.name,
             "urdf": str(first.urdf_path),
@@ -359,7 +391,7 @@ class ContactChainsCalibration(Result, ChainView):
             "parameters": [
                 *{p["name"]: p for c in self._measured() for p in c.parameters}.values(),
                 *(p for c in self._pixels() for p in c.parameters),
-                *parameter_entries(self.fitted, self.estimate, self.std, names, sigma),
+                *self._entries(),
             ],
             "errors": {
                 **instrument_errors(self._instrument()),
@@ -380,11 +412,12 @@ class ContactChainsCalibration(Result, ChainView):
             "warnings": list(self.notes),
             "timings_ms": dict(self.timings_ms),
         }
-        legacy = self._format2()
         if self._frame() is not None:  # one chain measured by an instrument
             fields, legacy = chain_report(self, fields, world_link, on_robot)
-        if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
-            fields, legacy = single_contact_report(self.chains[0], fields, legacy)
+        elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
+            fields, legacy = single_contact_report(self.chains[0], fields, self._format2())
+        else:
+            legacy = self._format2()
         return build_report(fields, legacy, FORMAT2_MOVED)
 
     def _object_poses(self) -> dict:
@@ -435,44 +468,10 @@ class ContactChainsCalibration(Result, ChainView):
         if self._contacts():
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         one = self._frame() is not None  # one chain measured by an instrument: a chain's table
-        for c in () if one else self.chains:
-            head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
-            if isinstance(c, PixelChain):
-                px = ", ".join(
-                    f"{k.replace('_', ' ')} {c.pixels[k]['reprojection_rms_px']:.3g}"
-                    for k in ("train", "held_out")
-                    if k in c.pixels
-                )
-                lines.append(
-                    f"{c.chain.base_frame} -> {c.chain.tool_frame}, camera {c.name} (errors: "
-                    f"u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
-                )
-            elif isinstance(c, MeasuredChain):
-                where = (
-                    "the instrument"
-                    if c.joint is None
-                    else f"the measuring frame in joint '{c.joint}'"
-                )
-                lines.append(
-                    f"{c.chain.base_frame} -> {c.chain.tool_frame}, measured {c.kind.label} "
-                    f"(errors: {_units(c.kind)}; {where}):"
-                )
-            elif not isinstance(c.kind, PlaneContact):
-                ids = ", ".join(f"'{i}'" for i in c.objects())
-                head += f" {ids} (gaps: {_units(c.kind)})"
-                lines.append(head + ":")
-            else:
-                lines.append(f"{head} '{c.plane_id}':")
-            labels = _stat_labels(c)
-            rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
-            for key, s in c.stats.items():
-                rms = "  ".join(f"{v:8.3f}" for v in s.rms)
-                lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
+        lines += [line for c in (() if one else self.chains) for line in _term_lines(c)]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]
-        names, sigma = self._row_joints()
-        entries = parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
-        lines += parameter_lines(entries)
+        lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)

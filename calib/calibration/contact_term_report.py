@@ -13,10 +13,8 @@ MDH rows under ``model``, and format 2's keys of a contact report (``base``, ``t
 
 from __future__ import annotations
 
-import numpy as np
-
 from .contact_elastic import load_record
-from .report import fit_dict
+from .report import compliance_dict, fit_dict
 
 __all__ = ["single_contact_report"]
 
@@ -33,7 +31,6 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
         The fields and format 2's keys of the single chain's layout.
     """
     chain, kind = part.chain, part.kind
-    compliance = np.zeros(chain.n) if part.compliance is None else part.compliance
     errors, load = part.errors(), load_record(part)
     angles = any(kind.angular)
     fields = {
@@ -42,7 +39,7 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
         "errors": {**errors, "terms": [errors]},
         "frames": {**fields["frames"], "tool_link": chain.tool_frame},
         "fit": fit_dict(orientation_weight=part.weight if angles else None),
-        "compliance": dict(zip(chain.joint_names, map(float, compliance), strict=True)),
+        "compliance": compliance_dict(chain, part.compliance),
         "model": {
             **fields["model"],
             "mdh_nominal": part.nominal.rows(),

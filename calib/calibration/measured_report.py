@@ -16,7 +16,7 @@ from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .chain_counts import chain_name
 from .model import State
-from .report import errors_part, fit_dict, gravity_dict, pose_dict
+from .report import compliance_dict, errors_part, fit_dict, gravity_dict, pose_dict
 from .residuals import error_table
 
 if TYPE_CHECKING:
@@ -25,7 +25,6 @@ if TYPE_CHECKING:
 __all__ = [
     "chain_frames",
     "chain_lines",
-    "chain_model",
     "chain_report",
     "chain_writing",
     "tool_pose",
@@ -136,9 +135,11 @@ def chain_report(
         for p in fields["parameters"]
     ]
     out["errors"] = {**errors, "terms": [errors]}
-    out["compliance"], model = chain_model(part, fields["model"])
+    out["compliance"] = compliance_dict(part.chain, part.compliance)
     nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
-    out["model"] = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **model}
+    gravity = gravity_dict(part.chain)
+    model = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"]}
+    out["model"] = {**model, "gravity": gravity}
     std, weight = view.predicted_std, view.orientation_weight
     out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
     frames, data = out["frames"], view.data
@@ -159,17 +160,9 @@ def chain_report(
         "sigma": view.sigma,
         "condition_number": view.condition,
         "predicted_std": std,
-        "gravity": model["gravity"],
+        "gravity": gravity,
         "measurement_to_base": frames["measurement"],
         "mdh_nominal": nominal,
         "mdh_calibrated": calibrated,
     }  # fmt: skip
     return out, legacy
-
-
-def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
-    """The report's ``compliance`` (per joint; rigid: zero) and ``model`` with its gravity."""
-    chain = part.chain
-    c = np.zeros(chain.n) if part.compliance is None else part.compliance
-    compliance = dict(zip(chain.joint_names, c.tolist(), strict=True))
-    return compliance, {**model, "gravity": gravity_dict(chain)}

@@ -41,6 +41,7 @@ __all__ = [
     "REPORT_FORMAT",
     "REPORT_KEYS",
     "build_report",
+    "compliance_dict",
     "errors_part",
     "finite",
     "finite_tree",
@@ -413,3 +414,9 @@ def finite_tree(value):
 def gravity_dict(chain) -> dict:
     """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
     return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
+
+
+def compliance_dict(chain, compliance: np.ndarray | None) -> dict:
+    """The report's ``compliance``: each joint's [rad/(N m) or m/N], 0 where none was fitted."""
+    c = np.zeros(chain.n) if compliance is None else compliance
+    return dict(zip(chain.joint_names, map(float, c), strict=True))
