@@ -1,4 +1,4 @@
-"""Statistics of a term's rows before and after a fit: :class:`GapStats` and the reports' errors.
+"""Statistics of a term's rows before and after a fit: :class:`GapStats`, by part.
 
 A contact term's gaps (and a measured or pixel term's errors, :func:`row_stats`): for
 ``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
@@ -6,7 +6,7 @@ A contact term's gaps (and a measured or pixel term's errors, :func:`row_stats`)
 ``<row>_max_<unit>`` (``mm`` for a length, ``deg`` for an angle; e.g. ``height_rms_mm``,
 ``roll_max_deg``, ``x_rms_mm``, ``rz_rms_deg``), and ``weighted_mm``; with joint compliance
 (``elastic``), ``train_urdf`` and ``held_out_urdf``: the URDF alone
-(:mod:`.contact_elastic`).
+(:mod:`.contact_elastic`). The report's errors of them: :func:`~.report.term_errors`.
 """
 
 from __future__ import annotations
@@ -85,11 +85,9 @@ class GapStats:
 
     def to_dict(self) -> dict:
         """JSON-ready form: ``m``, each row's RMS and largest value, ``weighted_mm``."""
-        out: dict = {"m": self.m}
-        for key in self.figures():
-            out[key] = getattr(self, key)
-        out["weighted_mm"] = self.weighted_mm
-        return out
+        values = [v for pair in zip(self.rms, self.max, strict=True) for v in pair]
+        figures = dict(zip(self.figures(), values, strict=True))
+        return {"m": self.m, **figures, "weighted_mm": self.weighted_mm}
 
 
 def part_dict(part) -> dict:
