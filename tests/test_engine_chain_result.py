@@ -88,6 +88,8 @@ def test_attributes_of_a_chain(ur5_fit):
     assert result.outliers == ()
     assert result.marker_links == ("tool0_marker1",)
     report = result.to_dict()
+    # Failed before: the report named them instrument.frame.rx ... term1.marker1.z.
+    assert [p["name"] for p in report["parameters"]] == list(result.names)
     assert list(report["frames"]["markers"]) == ["tool0_marker1"]
     assert report["compliance"] == dict.fromkeys(load_chain("ur5").joint_names, 0.0)
 

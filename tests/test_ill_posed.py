@@ -58,7 +58,7 @@ def test_prism_offset_and_frame_height_are_named_not_delivered(params):
         )
     # The evidence: the reported standard deviations and the condition.
     std = {p["name"]: np.inf if p["std"] is None else p["std"] for p in res.to_dict()["parameters"]}
-    assert std["instrument.frame.z"] > 1e-3 and std["term1.marker1.z"] > 1e-3
+    assert std["frame.z"] > 1e-3 and std["marker1.z"] > 1e-3  # named as in the refusal
     assert res.condition > 1e3  # determined.ILL_CONDITION
     if params == "frames":
         return

@@ -22,9 +22,9 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line
 from .contact_frames import ContactFrames
-from .contact_result import GapStats, gap_rows, term_errors
+from .contact_result import GapStats, gap_rows, part_dict
 from .contact_term_report import single_contact_report
-from .delivery import Delivered, RowErrors, compliance_path
+from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import (
@@ -47,6 +47,7 @@ from .report import (
     parameter_lines,
     pose_dict,
     term_dict,
+    term_errors,
     verdict,
 )
 from .selection import Selection
@@ -123,10 +124,7 @@ class ChainContacts:
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; gaps in mm and degrees; format 2's)."""
         return {
-            "base": self.chain.base_frame,
-            "tool": self.chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
+            **part_dict(self),
             "tilt_weight": self.weight,
             "contact": {
                 f"{self.kind.object_name}s": {
@@ -153,6 +151,41 @@ def _stat_labels(part) -> dict[str, str]:
     return {k: f"{v:{width}s}" for k, v in labels.items()}
 
 
+def _units(kind) -> str:
+    """A kind's rows with their units: ``x [mm], y [mm], z [mm], rx [deg], ...``."""
+    return ", ".join(
+        f"{n} [{'deg' if a else 'mm'}]" for n, a in zip(kind.row_names, kind.angular, strict=True)
+    )
+
+
+def _term_lines(c) -> list[str]:
+    """A term's summary lines: what it measures, then each part's RMS errors by row."""
+    head = f"{c.chain.base_frame} -> {c.chain.tool_frame}"
+    if isinstance(c, PixelChain):
+        px = ", ".join(
+            f"{k.replace('_', ' ')} {c.pixels[k]['reprojection_rms_px']:.3g}"
+            for k in ("train", "held_out")
+            if k in c.pixels
+        )
+        head += (
+            f", camera {c.name} (errors: u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
+        )
+    elif isinstance(c, MeasuredChain):
+        where = "the instrument" if c.joint is None else f"the measuring frame in joint '{c.joint}'"
+        head += f", measured {c.kind.label} (errors: {_units(c.kind)}; {where}):"
+    elif not isinstance(c.kind, PlaneContact):
+        ids = ", ".join(f"'{i}'" for i in c.objects())
+        head += f", {c.kind.object_name} {ids} (gaps: {_units(c.kind)}):"
+    else:
+        head += f", {c.kind.object_name} '{c.plane_id}':"
+    labels = _stat_labels(c)
+    rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
+    return [head] + [
+        f"  {labels[key]} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
+        for key, s in c.stats.items()
+    ]
+
+
 def _rotation(R: np.ndarray) -> np.ndarray:
     """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
     T = np.eye(4)
@@ -161,7 +194,7 @@ def _rotation(R: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class ContactChainsCalibration(Delivered, ChainView):
+class ContactChainsCalibration(Result, ChainView):
     """A calibration of several chains of one robot from flush contacts.
 
     Attributes:
@@ -246,6 +279,11 @@ class ContactChainsCalibration(Delivered, ChainView):
             nominal = part.registered.inner.mdh
             return tuple(nominal.joint_names), nominal.sigma
         return tuple(part.chain.model.names), None
+
+    def _entries(self) -> list[dict]:
+        """The joint placement parameters' report entries (``fitted``)."""
+        names, sigma = self._row_joints()
+        return parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
 
     def check(self) -> ContactChainsCalibration:
         """Return self if accepted, else raise :class:`CalibrationRefusedError`."""
@@ -335,7 +373,6 @@ class ContactChainsCalibration(Delivered, ChainView):
         """
         world_of(self.shape, self._frame(), world_link, on_robot)
         first = self.chains[0].chain
-        names, sigma = self._row_joints()
         fields = {
             "robot": first.name,
             "urdf": str(first.urdf_path),
@@ -354,7 +391,7 @@ class ContactChainsCalibration(Delivered, ChainView):
             "parameters": [
                 *{p["name"]: p for c in self._measured() for p in c.parameters}.values(),
                 *(p for c in self._pixels() for p in c.parameters),
-                *parameter_entries(self.fitted, self.estimate, self.std, names, sigma),
+                *self._entries(),
             ],
             "errors": {
                 **instrument_errors(self._instrument()),
@@ -375,11 +412,12 @@ class ContactChainsCalibration(Delivered, ChainView):
             "warnings": list(self.notes),
             "timings_ms": dict(self.timings_ms),
         }
-        legacy = self._format2()
         if self._frame() is not None:  # one chain measured by an instrument
             fields, legacy = chain_report(self, fields, world_link, on_robot)
-        if len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
-            fields, legacy = single_contact_report(self.chains[0], fields, legacy)
+        elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
+            fields, legacy = single_contact_report(self.chains[0], fields, self._format2())
+        else:
+            legacy = self._format2()
         return build_report(fields, legacy, FORMAT2_MOVED)
 
     def _object_poses(self) -> dict:
@@ -430,58 +468,10 @@ class ContactChainsCalibration(Delivered, ChainView):
         if self._contacts():
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         one = self._frame() is not None  # one chain measured by an instrument: a chain's table
-        for c in () if one else self.chains:
-            head = f"{c.chain.base_frame} -> {c.chain.tool_frame}, {c.kind.object_name}"
-            if isinstance(c, PixelChain):
-                px = ", ".join(
-                    f"{k.replace('_', ' ')} {c.pixels[k]['reprojection_rms_px']:.3g}"
-                    for k in ("train", "held_out")
-                    if k in c.pixels
-                )
-                lines.append(
-                    f"{c.chain.base_frame} -> {c.chain.tool_frame}, camera {c.name} (errors: "
-                    f"u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
-                )
-            elif isinstance(c, MeasuredChain):
-                units = [
-                    f"{n} [{'deg' if a else 'mm'}]"
-                    for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
-                ]
-                where = (
-                    "the instrument"
-                    if c.joint is None
-                    else f"the measuring frame in joint '{c.joint}'"
-                )
-                lines.append(
-                    f"{c.chain.base_frame} -> {c.chain.tool_frame}, measured {c.kind.label} "
-                    f"(errors: {', '.join(units)}; {where}):"
-                )
-            elif not isinstance(c.kind, PlaneContact):
-                units = [
-                    f"{n} [{'deg' if a else 'mm'}]"
-                    for n, a in zip(c.kind.row_names, c.kind.angular, strict=True)
-                ]
-                ids = ", ".join(f"'{i}'" for i in c.objects())
-                head += f" {ids} (gaps: {', '.join(units)})"
-                lines.append(head + ":")
-            else:
-                lines.append(f"{head} '{c.plane_id}':")
-            labels = _stat_labels(c)
-            for key, s in c.stats.items():
-                rms = "  ".join(f"{v:8.3f}" for v in s.rms)
-                rows = (
-                    "touches"
-                    if isinstance(c, ChainContacts)
-                    else "pixels"
-                    if isinstance(c, PixelChain)
-                    else "configurations"
-                )
-                lines.append(f"  {labels[key]} {rms}  ({s.m} {rows})")
+        lines += [line for c in (() if one else self.chains) for line in _term_lines(c)]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._contacts() for line in compliance_line(c)]
-        names, sigma = self._row_joints()
-        entries = parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
-        lines += parameter_lines(entries)
+        lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)

@@ -1,4 +1,4 @@
-"""Statistics of a term's rows before and after a fit: :class:`GapStats` and the reports' errors.
+"""Statistics of a term's rows before and after a fit: :class:`GapStats`, by part.
 
 A contact term's gaps (and a measured or pixel term's errors, :func:`row_stats`): for
 ``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
@@ -6,7 +6,7 @@ A contact term's gaps (and a measured or pixel term's errors, :func:`row_stats`)
 ``<row>_max_<unit>`` (``mm`` for a length, ``deg`` for an angle; e.g. ``height_rms_mm``,
 ``roll_max_deg``, ``x_rms_mm``, ``rz_rms_deg``), and ``weighted_mm``; with joint compliance
 (``elastic``), ``train_urdf`` and ``held_out_urdf``: the URDF alone
-(:mod:`.contact_elastic`).
+(:mod:`.contact_elastic`). The report's errors of them: :func:`~.report.term_errors`.
 """
 
 from __future__ import annotations
@@ -21,12 +21,11 @@ from .delivery import RowErrors
 
 __all__ = [
     "GapStats",
-    "gap_errors_mm",
     "gap_rows",
     "gap_stats",
+    "part_dict",
     "part_stats",
     "row_stats",
-    "term_errors",
 ]
 
 
@@ -86,29 +85,23 @@ class GapStats:
 
     def to_dict(self) -> dict:
         """JSON-ready form: ``m``, each row's RMS and largest value, ``weighted_mm``."""
-        out: dict = {"m": self.m}
-        for key in self.figures():
-            out[key] = getattr(self, key)
-        out["weighted_mm"] = self.weighted_mm
-        return out
+        values = [v for pair in zip(self.rms, self.max, strict=True) for v in pair]
+        figures = dict(zip(self.figures(), values, strict=True))
+        return {"m": self.m, **figures, "weighted_mm": self.weighted_mm}
 
 
-def gap_errors_mm(stats: dict[str, GapStats], part: str) -> dict:
-    """``registration``, ``calibrated`` and ``urdf`` (no compliance) gaps of ``part``."""
-    cal = stats[part]
+def part_dict(part) -> dict:
+    """The first keys of a term's part in format 2's ``chains``: base, tool, data, kind.
+
+    ``part``: a term's part of a result (its ``chain``, ``source`` and ``kind``).
+    """
+    chain = part.chain
     return {
-        "registration": stats[f"{part}_registration"].in_mm(),
-        "calibrated": cal.in_mm(),
-        "urdf": stats.get(f"{part}_urdf", cal).in_mm(),
+        "base": chain.base_frame,
+        "tool": chain.tool_frame,
+        "data": part.source,
+        "kind": part.kind.label,
     }
-
-
-def term_errors(stats: dict[str, GapStats], held_source: str | None) -> dict:
-    """A term's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-    out: dict = {"train": gap_errors_mm(stats, "train"), "held_out": None}
-    if "held_out" in stats:
-        out["held_out"] = {"source": held_source, **gap_errors_mm(stats, "held_out")}
-    return out
 
 
 def part_stats(stat, registered, state, train, held) -> dict:

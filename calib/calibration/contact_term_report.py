@@ -13,10 +13,8 @@ MDH rows under ``model``, and format 2's keys of a contact report (``base``, ``t
 
 from __future__ import annotations
 
-import numpy as np
-
 from .contact_elastic import load_record
-from .report import fit_dict
+from .report import compliance_dict, fit_dict
 
 __all__ = ["single_contact_report"]
 
@@ -33,8 +31,7 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
         The fields and format 2's keys of the single chain's layout.
     """
     chain, kind = part.chain, part.kind
-    compliance = np.zeros(chain.n) if part.compliance is None else part.compliance
-    errors = part.errors()
+    errors, load = part.errors(), load_record(part)
     angles = any(kind.angular)
     fields = {
         **fields,
@@ -42,31 +39,25 @@ def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]
         "errors": {**errors, "terms": [errors]},
         "frames": {**fields["frames"], "tool_link": chain.tool_frame},
         "fit": fit_dict(orientation_weight=part.weight if angles else None),
-        "compliance": dict(zip(chain.joint_names, map(float, compliance), strict=True)),
+        "compliance": compliance_dict(chain, part.compliance),
         "model": {
             **fields["model"],
             "mdh_nominal": part.nominal.rows(),
             "mdh_calibrated": part.calibrated.rows(),
-            "load": load_record(part),
+            "load": load,
         },
     }
-    base = chain.base_frame
-    objects = part.objects()
+    own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
     legacy = {
-        "base": base,
+        "base": chain.base_frame,
         "tool": chain.tool_frame,
         "measure": kind.label,
         "free": legacy["free"],
         "selection": legacy["selection"],
         "tilt_weight": part.weight if angles else None,
-        "contact": {
-            f"{kind.object_name}s": {
-                k: {"frame": base, "matrix": T.tolist()} for k, T in objects.items()
-            },
-            "frames": {chain.tool_frame: {"matrix": part.contact.tolist()}},
-        },
-        "gaps": {k: v.to_dict() for k, v in part.stats.items()},
-        "load": load_record(part),
+        "contact": own["contact"],
+        "gaps": own["gaps"],
+        "load": load,
         "calibrated_mdh": part.calibrated.rows(),
         "notes": legacy["notes"],
     }

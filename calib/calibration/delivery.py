@@ -3,7 +3,7 @@
 A result (a chain measured by an instrument, a tree, one chain touching, several chains)
 provides ``to_dict()`` (its format 3 report), ``urdf()`` (the calibrated URDF), ``summary()``
 (the text ``calib calibrate`` prints), ``refusal`` and, with fitted compliance, its
-compliance file (``compliance_files``). :class:`Delivered` builds the rest on those:
+compliance file (``compliance_files``). :class:`Result` builds the rest on those:
 ``write(out, report=...)`` writes the URDF, its compliance file and the report at once
 (complete or not at all, never over an input), and a short ``repr``.
 """
@@ -20,7 +20,7 @@ from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFErro
 from ..kinematics.origins import changed_origins, origins_document
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Delivered", "Result", "RowErrors", "compliance_path"]
+__all__ = ["Result", "RowErrors", "compliance_path"]
 
 
 @dataclass(frozen=True)
@@ -191,7 +191,3 @@ class Result:
             f"<{type(self).__name__} {doc['robot']} {doc['shape']}: {what}, "
             f"{len(doc['parameters'])} parameters, {verdict}>"
         )
-
-
-Delivered = Result
-"""The former name of :class:`Result`."""

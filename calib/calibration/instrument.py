@@ -31,7 +31,7 @@ from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from .measured_term import MeasuredState
 from .registration import rigid_fit
-from .report import pose_dict
+from .report import pose_dict, term_errors
 from .residuals import ResidualStats
 
 __all__ = [
@@ -178,22 +178,18 @@ def instrument_format2(measured) -> dict:
     Args:
         measured: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
-    first = measured[0]
-    pairs = {
-        k: (pooled(measured, f"{k}_registration"), pooled(measured, k))
-        for k in ("train", "held_out")
-    }
+    first, stats = measured[0], pooled(measured)
     both = {
-        k: None
-        if a is None or b is None
-        else {"registration": a.to_dict(), "calibrated": b.to_dict()}
-        for k, (a, b) in pairs.items()
+        k: {"registration": stats[f"{k}_registration"].to_dict(), "calibrated": stats[k].to_dict()}
+        if k in stats
+        else None
+        for k in ("train", "held_out")
     }
     return {
         "data": first.source,
         "rows": sum(c.stats["train"].m for c in measured),
         "residuals": both["train"],
-        "per_tool": [_tool_errors(c) for c in measured],
+        "per_tool": [{"tool": c.chain.tool_frame, **_format2(pooled([c]))} for c in measured],
         "validation": both["held_out"],
         "measure": "position",
         "base_frame": first.chain.base_frame,
@@ -206,21 +202,29 @@ def instrument_format2(measured) -> dict:
     }
 
 
-def pooled(parts, key: str) -> ResidualStats | None:
-    """Position errors of every tool's rows together, or None when no part has them.
+def _format2(stats: dict[str, ResidualStats]) -> dict:
+    """Format 2's ``per_tool`` errors of one tool's fitted rows [m]."""
+    parts = (("registration", "train_registration"), ("calibrated", "train"))
+    return {k: stats[key].to_dict() if key in stats else None for k, key in parts}
 
-    ``key``: ``train``, ``held_out`` or either's ``_registration``.
+
+def pooled(parts) -> dict[str, ResidualStats]:
+    """Position errors of every tool's rows together, by part (those a tool has).
+
+    The parts are ``train``, ``train_registration`` and, with held-out rows or compliance,
+    ``held_out``, ``held_out_registration``, ``train_urdf`` and ``held_out_urdf``.
 
     Args:
         parts: The instrument terms' parts (each with ``stats``: :class:`GapStats` whose
             ``per_row`` are the point errors [mm]).
-        key: Which rows.
     """
-    rows = [c.stats[key].per_row for c in parts if key in c.stats]
-    if not rows or any(r is None for r in rows):
-        return None
-    e = 1e-3 * np.concatenate(rows)  # [m]
-    return ResidualStats(len(e), float(np.sqrt(np.mean(e**2))), float(np.max(e)))
+    out = {}
+    for key in dict.fromkeys(k for c in parts for k in c.stats):
+        rows = [c.stats[key].per_row for c in parts if key in c.stats]
+        if all(r is not None for r in rows):
+            e = 1e-3 * np.concatenate(rows)  # [m]
+            out[key] = ResidualStats(len(e), float(np.sqrt(np.mean(e**2))), float(np.max(e)))
+    return out
 
 
 def instrument_errors(parts) -> dict:
@@ -231,38 +235,27 @@ def instrument_errors(parts) -> dict:
     Args:
         parts: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
-    out: dict = {"train": None, "held_out": None}
-    for key in out:
-        before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
-        if before is None or after is None:
-            continue
-        cal, alone = after.in_mm(), pooled(parts, f"{key}_urdf")  # with compliance: apart
-        urdf = cal if alone is None else alone.in_mm()
-        out[key] = {"registration": before.in_mm(), "calibrated": cal, "urdf": urdf}
-        if key == "held_out":
-            out[key] = {"source": parts[0].held_source, **out[key]}
-    return out
+    if not parts:
+        return {"train": None, "held_out": None}
+    return term_errors(pooled(parts), parts[0].held_source)
 
 
 def instrument_lines(parts) -> list[str]:
     """The summary's lines of every tool together: position RMS / max [mm], fitted, held out."""
-    lines = []
+    lines, stats = [], pooled(parts)
     for key, label in (("train", "fitted rows"), ("held_out", "held-out rows")):
-        before, after = pooled(parts, f"{key}_registration"), pooled(parts, key)
-        if before is None or after is None:
+        if key not in stats:
             continue
-        alone = pooled(parts, f"{key}_urdf")  # with compliance: the URDF alone too
-        lines.append(
-            f"{label} of every tool, position RMS / max [mm]: registration "
-            f"{1e3 * before.position_rms:.4g} / {1e3 * before.position_max:.4g}, calibrated "
-            f"{1e3 * after.position_rms:.4g} / {1e3 * after.position_max:.4g}"
-            + (
-                ""
-                if alone is None
-                else f", URDF alone (no compliance) {1e3 * alone.position_rms:.4g} / "
-                f"{1e3 * alone.position_max:.4g}"
+        figures = [
+            f"{what} {1e3 * s.position_rms:.4g} / {1e3 * s.position_max:.4g}"
+            for what, s in (
+                ("registration", stats[f"{key}_registration"]),
+                ("calibrated", stats[key]),
+                ("URDF alone (no compliance)", stats.get(f"{key}_urdf")),
             )
-        )
+            if s is not None
+        ]
+        lines.append(f"{label} of every tool, position RMS / max [mm]: {', '.join(figures)}")
     return lines
 
 
@@ -280,13 +273,3 @@ def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
         [c.state.inner.predict(q[:, path])[0][:, 0] for c, path in zip(parts, paths, strict=True)],
         axis=1,
     )
-
-
-def _tool_errors(part) -> dict:
-    """Format 2's ``per_tool`` entry of one tool: its fitted rows' errors [m]."""
-    errors = {k: pooled([part], key) for k, key in (("registration", "train_registration"),
-              ("calibrated", "train"))}  # fmt: skip
-    return {
-        "tool": part.chain.tool_frame,
-        **{k: None if v is None else v.to_dict() for k, v in errors.items()},
-    }

@@ -14,8 +14,9 @@ import numpy as np
 from ..kinematics.placement_export import instrument_joint
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
+from .chain_counts import chain_name
 from .model import State
-from .report import fit_dict, gravity_dict, pose_dict
+from .report import compliance_dict, errors_part, fit_dict, gravity_dict, pose_dict
 from .residuals import error_table
 
 if TYPE_CHECKING:
@@ -24,7 +25,6 @@ if TYPE_CHECKING:
 __all__ = [
     "chain_frames",
     "chain_lines",
-    "chain_model",
     "chain_report",
     "chain_writing",
     "tool_pose",
@@ -109,8 +109,11 @@ def chain_report(
 ) -> tuple[dict, dict]:
     """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
 
-    ``errors`` as :class:`~.residuals.ResidualStats` (position and orientation, mm and
-    degrees: ``train``, ``held_out`` and the one term's), ``frames`` by marker link,
+    ``parameters`` with the term's unknowns named as :attr:`ChainView.names` and the
+    refusals name them (``frame.z``, ``marker1.z``; a tree's are ``instrument.frame.z``,
+    ``term1.marker1.z``), ``errors`` as :class:`~.residuals.ResidualStats` (position and
+    orientation, mm and degrees: ``train``, ``held_out`` and the one term's), ``frames`` by
+    marker link,
     ``fit`` (noise, condition, predicted std, weight), ``compliance`` (rigid: zero per joint)
     and ``model`` with the MDH rows and the gravity beside the joint origins.
 
@@ -121,21 +124,22 @@ def chain_report(
         on_robot: Whether the URDF was written with the instrument on the robot.
     """
     part, held = view.one_chain(), view.validation
-    urdf = view.after if view.urdf_after is None else view.urdf_after
-    train = {
-        "registration": view.before.in_mm(),
-        "calibrated": view.after.in_mm(),
-        "urdf": urdf.in_mm(),
-    }
-    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
-    out["errors"] = {
-        "train": train,
+    errors = {
+        "train": errors_part(view.before, view.after, view.urdf_after),
         "held_out": None if held is None else held.in_mm(),
-        "terms": [{"train": train, "held_out": None if held is None else held.in_mm()}],
     }
-    out["compliance"], model = chain_model(part, fields["model"])
+    own = {p["name"] for p in part.parameters}  # named as the chain names them: frame.z
+    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
+    out["parameters"] = [
+        {**p, "name": chain_name(p["name"])} if p["name"] in own else p
+        for p in fields["parameters"]
+    ]
+    out["errors"] = {**errors, "terms": [errors]}
+    out["compliance"] = compliance_dict(part.chain, part.compliance)
     nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
-    out["model"] = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **model}
+    gravity = gravity_dict(part.chain)
+    model = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"]}
+    out["model"] = {**model, "gravity": gravity}
     std, weight = view.predicted_std, view.orientation_weight
     out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
     frames, data = out["frames"], view.data
@@ -150,24 +154,15 @@ def chain_report(
         "world_link": world_link,
         "configs": data.m,
         "orientation_weight": weight,
-        "residuals": {"registration": view.before.to_dict(), "calibrated": view.after.to_dict(),
-                      "urdf": urdf.to_dict()},
+        "residuals": errors_part(view.before, view.after, view.urdf_after, mm=False),
         "validation": None if held is None else held.to_dict(),
         "selection": None if view.selection is None else view.selection.to_dict(),
         "sigma": view.sigma,
         "condition_number": view.condition,
         "predicted_std": std,
-        "gravity": model["gravity"],
+        "gravity": gravity,
         "measurement_to_base": frames["measurement"],
         "mdh_nominal": nominal,
         "mdh_calibrated": calibrated,
     }  # fmt: skip
     return out, legacy
-
-
-def chain_model(part: MeasuredChain, model: dict) -> tuple[dict, dict]:
-    """The report's ``compliance`` (per joint; rigid: zero) and ``model`` with its gravity."""
-    chain = part.chain
-    c = np.zeros(chain.n) if part.compliance is None else part.compliance
-    compliance = dict(zip(chain.joint_names, c.tolist(), strict=True))
-    return compliance, {**model, "gravity": gravity_dict(chain)}

@@ -22,17 +22,17 @@ from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import urdf_tool_frame
 from ..measurements.csvfile import check_against_chain
 from ..measurements.data import Measurements
+from . import validation
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
-from .contact_result import GapStats, part_stats, term_errors
+from .contact_result import GapStats, part_dict, part_stats
 from .measured_report import chain_frames, tool_pose, written_markers
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
-from .report import parameter_entries
+from .report import parameter_entries, term_errors
 from .residuals import ResidualStats, Validation
 from .solve import Fit, condition, covariance
-from .validation import predicted_std
 
 __all__ = [
     "ChainView",
@@ -99,10 +99,7 @@ class MeasuredChain:
         """JSON-ready form (metres, radians; errors in mm and degrees)."""
         s = self.state.inner
         return {
-            "base": self.chain.base_frame,
-            "tool": self.chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
+            **part_dict(self),
             "orientation_weight": self.state.weight,
             "measurement_to_base": s.frame.tolist(),
             "joint": self.joint,
@@ -227,7 +224,7 @@ class Solution:
         fit = self.fit
         rows = ChainsData((data,), None if torque is None else (torque,))
         J = fit.model.jacobian(fit.start, fit.x, rows)
-        return predicted_std(J, self.covariance()[0], data.n_markers)
+        return validation.predicted_std(J, self.covariance()[0], data.n_markers)
 
 
 class ChainView:
@@ -447,9 +444,7 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 
     With fitted joint compliance, the joints deflect under the chain's gravity torques.
     """
-    return ResidualStats.of(
-        state.residuals(data, gravity_torque(chain, state, data)), data.n_markers
-    )
+    return validation.stats(state, data, gravity_torque(chain, state, data))
 
 
 def gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
@@ -462,7 +457,7 @@ def _geometry(state: State, data: Measurements) -> ResidualStats | None:
     if not np.any(state.compliance):
         return None
     rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
-    return ResidualStats.of(rigid.residuals(data), data.n_markers)
+    return validation.stats(rigid, data, None)
 
 
 def residual_stats(result: ChainView, data: Measurements) -> ResidualStats:

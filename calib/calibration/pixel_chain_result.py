@@ -13,10 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics.robot import Chain
-from .contact_result import GapStats, part_stats, row_stats, term_errors
+from .contact_result import GapStats, part_dict, part_stats, row_stats
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
-from .report import parameter_entries, pose_dict
+from .report import parameter_entries, pose_dict, term_errors
 
 __all__ = ["EXPECTED_PX", "PixelChain", "pixel_result"]
 
@@ -114,10 +114,7 @@ class PixelChain:
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; errors in mm and px)."""
         return {
-            "base": self.chain.base_frame,
-            "tool": self.chain.tool_frame,
-            "data": self.source,
-            "kind": "pixels",
+            **part_dict(self),
             "camera": self.name,
             **self.camera_dict(),
             "targets": self.state.target.tolist(),

@@ -41,6 +41,8 @@ __all__ = [
     "REPORT_FORMAT",
     "REPORT_KEYS",
     "build_report",
+    "compliance_dict",
+    "errors_part",
     "finite",
     "finite_tree",
     "fit_dict",
@@ -53,6 +55,7 @@ __all__ = [
     "parameter_unit",
     "pose_dict",
     "term_dict",
+    "term_errors",
     "verdict",
 ]
 
@@ -220,6 +223,42 @@ def term_dict(base: str, tool: str, kind: str, source: str | None, configs: int)
     return {"base": base, "tool": tool, "kind": kind, "data": source, "configs": int(configs)}
 
 
+def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
+    """One part of the report's ``errors``: ``registration``, ``calibrated``, ``urdf``.
+
+    Each is a statistics' report form: ``in_mm()`` (mm and degrees, the unit in each key),
+    or with ``mm`` False ``to_dict()`` (format 2's: metres and radians).
+
+    Args:
+        registration: The registration's errors (nominal geometry).
+        calibrated: The calibrated model's.
+        urdf: The calibrated URDF alone's (no compliance), or None: ``calibrated``.
+        mm: The report's form (else format 2's).
+    """
+    parts = (registration, calibrated, calibrated if urdf is None else urdf)
+    return {
+        key: s.in_mm() if mm else s.to_dict()
+        for key, s in zip(("registration", "calibrated", "urdf"), parts, strict=True)
+    }
+
+
+def term_errors(stats: Mapping, held_source: str | None) -> dict:
+    """A term's ``errors.terms`` entry (format 3): ``train`` and ``held_out`` (None: none).
+
+    Args:
+        stats: Statistics by part (each with ``in_mm()``): ``train``, ``train_registration``
+            and, with held-out rows, ``held_out`` and ``held_out_registration``; with
+            compliance ``train_urdf`` and ``held_out_urdf`` (the URDF alone).
+        held_source: The held-out rows' source (``holdout`` or the validation file).
+    """
+    out: dict = {"train": None, "held_out": None}
+    for key in out:
+        if key in stats:
+            part = errors_part(stats[f"{key}_registration"], stats[key], stats.get(f"{key}_urdf"))
+            out[key] = part if key == "train" else {"source": held_source, **part}
+    return out
+
+
 def model_choice(selection) -> dict | None:
     """The report's ``model_choice``: the selection's record, errors in mm (None: none)."""
     if selection is None:
@@ -375,3 +414,9 @@ def finite_tree(value):
 def gravity_dict(chain) -> dict:
     """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
     return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
+
+
+def compliance_dict(chain, compliance: np.ndarray | None) -> dict:
+    """The report's ``compliance``: each joint's [rad/(N m) or m/N], 0 where none was fitted."""
+    c = np.zeros(chain.n) if compliance is None else compliance
+    return dict(zip(chain.joint_names, map(float, c), strict=True))

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..identification.report import format_table
 from ..measurements.data import Measurements
-from .report import finite
+from .report import errors_part, finite
 
 __all__ = ["ResidualStats", "Validation", "error_table"]
 
@@ -56,25 +56,20 @@ class ResidualStats:
 
     def in_mm(self) -> dict:
         """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
-        deg = math.degrees(1.0)
-        rot = (self.orientation_rms, self.orientation_max)
-        return {
-            "configs": self.configs,
-            "position_rms_mm": finite(1e3 * self.position_rms),
-            "position_max_mm": finite(1e3 * self.position_max),
-            "orientation_rms_deg": None if rot[0] is None else finite(deg * rot[0]),
-            "orientation_max_deg": None if rot[1] is None else finite(deg * rot[1]),
-        }
+        out: dict = {"configs": self.configs}
+        for key in _FIGURES:
+            value = getattr(self, key)
+            unit, scale = ("deg", math.degrees(1.0)) if "orient" in key else ("mm", 1e3)
+            out[f"{key}_{unit}"] = None if value is None else finite(scale * value)
+        return out
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres, radians; format 2's)."""
-        return {
-            "configs": self.configs,
-            "position_rms": finite(self.position_rms),
-            "position_max": finite(self.position_max),
-            "orientation_rms": finite(self.orientation_rms),
-            "orientation_max": finite(self.orientation_max),
-        }
+        return {"configs": self.configs, **{k: finite(getattr(self, k)) for k in _FIGURES}}
+
+
+_FIGURES = ("position_rms", "position_max", "orientation_rms", "orientation_max")
+""":class:`ResidualStats`' figures, in the reports' order."""
 
 
 @dataclass(frozen=True)
@@ -100,18 +95,11 @@ class Validation:
     urdf: ResidualStats | None = None
     rows: Measurements | None = None
 
-    @property
-    def geometry(self) -> ResidualStats:
-        """Errors of the calibrated URDF alone (no compliance; ``calibrated`` without any)."""
-        return self.calibrated if self.urdf is None else self.urdf
-
     def in_mm(self) -> dict:
         """The report's ``errors.held_out`` (format 3): mm and degrees."""
         return {
             "source": self.source,
-            "registration": self.registration.in_mm(),
-            "calibrated": self.calibrated.in_mm(),
-            "urdf": self.geometry.in_mm(),
+            **errors_part(self.registration, self.calibrated, self.urdf),
             "predicted_std_mm": finite(1e3 * self.predicted_std),
         }
 
@@ -119,9 +107,7 @@ class Validation:
         """JSON-ready form (format 2's)."""
         return {
             "source": self.source,
-            "registration": self.registration.to_dict(),
-            "calibrated": self.calibrated.to_dict(),
-            "urdf": self.geometry.to_dict(),
+            **errors_part(self.registration, self.calibrated, self.urdf, mm=False),
             "predicted_std": finite(self.predicted_std),
         }
 
