@@ -3,7 +3,8 @@
 The command line builds its parser from the constants here without importing the
 calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
 arguments for a chain and a tree and turns them into one :class:`Options`, checked once when
-it is made; a tree refuses (:meth:`Options.check_tree`) what only a chain's calibration can honour.
+it is made; what applies to some shapes only is one table (:data:`APPLIES`), and a tree's
+level is checked by :meth:`Options.check_tree`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ from ..exceptions import InvalidArgumentError
 
 __all__ = [
     "APPLIES",
-    "CHAIN_ONLY",
     "DEFAULT_LEVEL",
     "DEFAULT_MAX_ITERATIONS",
     "DEFAULT_TREE_LEVEL",
@@ -77,9 +77,6 @@ APPLIES: dict[str, tuple[str, ...]] = {
 """The one table of the options that apply to some shapes only: option -> the shapes it
 applies to. Every other option applies to every shape; one given where it does not apply is
 an error (:class:`~.problem.Problem`; the command line adds its own flags to it)."""
-
-CHAIN_ONLY = ("fix", "free", "elastic", "loss", "noise_mm", "orientation_weight")
-"""Options a tree calibration does not take: it refuses them away from their defaults."""
 
 
 def check_run_options(max_iterations, holdout, seed) -> None:
@@ -183,24 +180,16 @@ class Options:
         return None if self.noise_mm is None else 1e-3 * self.noise_mm
 
     def check_tree(self) -> None:
-        """Check these options for a tree's calibration (which takes fewer).
+        """Check the level of a tree's calibration (the chain's options: :data:`APPLIES`).
 
         Raises:
-            InvalidArgumentError: A level other than :data:`TREE_LEVELS`, or a
-                :data:`CHAIN_ONLY` option away from its default.
+            InvalidArgumentError: A level other than :data:`TREE_LEVELS`.
         """
         if self.level not in TREE_LEVELS:
             raise InvalidArgumentError(
                 f"unknown parameter level '{self.level}' for a tree: choose "
                 f"{', '.join(TREE_LEVELS)}"
             )
-        default = Options()
-        for name in CHAIN_ONLY:
-            if getattr(self, name) != getattr(default, name):
-                raise InvalidArgumentError(
-                    f"{name} is for one chain: a tree is calibrated with params "
-                    f"({' or '.join(TREE_LEVELS)}), validate, holdout, seed and max_iterations"
-                )
 
 
 P = ParamSpec("P")
