@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_cv_moments"]
+__all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_cv_moments", "posture_sums"]
 
 UNDETERMINED = 1e-14
 """An object's direction whose Gram eigenvalue is below this fraction of its largest (a
@@ -47,12 +47,9 @@ class ObjectColumns:
         """
         if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
             return self
-        count = np.bincount(groups).astype(float)
-        own = np.zeros((len(count), *self.own.shape[1:]))
-        np.add.at(own, groups, self.own)
-        index = np.zeros(len(count), dtype=int)
+        index = np.zeros(int(np.max(groups)) + 1, dtype=int)
         index[groups] = self.index
-        return ObjectColumns(own / np.sqrt(count)[:, None, None], index, self.objects)
+        return ObjectColumns(posture_sums(self.own, groups), index, self.objects)
 
     def unit(self) -> ObjectColumns:
         """The same columns, each object's of unit norm (a zero column left as it is)."""
@@ -110,6 +107,22 @@ class ObjectColumns:
         """
         coef = self.sums(np.einsum("bmro,bmrk->bmok", U, X))  # (b, K, o, k)
         return X - np.einsum("bmro,bmok->bmrk", U, coef[:, self.index])
+
+
+def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Each posture's rows of ``X`` ``(m, ...)`` summed, over the root of their count.
+
+    Args:
+        X: Rows by configuration ``(m, ...)``.
+        groups: Posture of each configuration ``(m,)``, numbered from 0.
+
+    Returns:
+        ``(postures, ...)``.
+    """
+    root = np.sqrt(np.bincount(groups).astype(float))
+    out = np.zeros((len(root), *X.shape[1:]))
+    np.add.at(out, groups, X)
+    return out / root.reshape(-1, *[1] * (X.ndim - 1))
 
 
 def object_cv_moments(
