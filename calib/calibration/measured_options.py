@@ -151,10 +151,9 @@ class Asked:
             The directions, names, indices offered and the names ``auto`` must keep.
         """
         missing = [n for n in self.free if n in self.extra and n not in names]
-        if missing and directions is None:
-            directions = np.eye(len(names))
         if missing:
-            directions = np.vstack([directions, *(self.extra[n] for n in missing)])
+            base = np.eye(len(names)) if directions is None else directions
+            directions = np.vstack([base, *(self.extra[n] for n in missing)])
             offered = [*offered, *range(len(names), len(names) + len(missing))]
             names = (*names, *missing)
         held = [self.extra[n] / np.linalg.norm(self.extra[n]) for n in self.fix if n in self.extra]
@@ -251,6 +250,6 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
         instrument: The terms are measured by an instrument outside the robot.
         opts: A measured chain's options, or None.
     """
-    asked = None if opts is None else asked_of(chain, start.placements, start.states[0], opts)
+    asked = asked_of(chain, start.placements, start.states[0], opts)
     tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
     return asked, "components" if tree and level == "complete" else level
