@@ -24,7 +24,7 @@ from test_round_off import MINIMAL  # one joint, a tool whose rpy is RPY
 
 import calib
 from calib import InvalidArgumentError, calibrate, calibrate_tree, simulate
-from calib.calibration.options import CHAIN_ONLY, TREE_LEVELS, Options
+from calib.calibration.options import APPLIES, TREE_LEVELS, Options
 from calib.cli.commands import main
 from calib.kinematics.robot import Robot
 from calib.kinematics.tree import load_robot, load_tree
@@ -62,7 +62,8 @@ def test_chain_and_tree_calibrations_take_the_same_arguments():
         assert p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD
     # a tree takes the level, max_iterations, holdout and seed; the rest is for one chain
     run = {"level", "max_iterations", "holdout", "seed"}
-    assert set(CHAIN_ONLY) == {f.name for f in dataclasses.fields(Options)} - run
+    fields = {f.name for f in dataclasses.fields(Options)}
+    assert {k for k, shapes in APPLIES.items() if "tree" not in shapes} & fields == fields - run
     # every option but the level is a field of Options, with the same default
     options = {f.name: f.default for f in dataclasses.fields(Options)}
     for name, default in options.items():
@@ -161,8 +162,11 @@ def test_calibrate_takes_a_tree_as_calibrate_tree_does(bolt):
     np.testing.assert_array_equal(via.estimate, direct.estimate)
     held = [r.to_dict()["errors"]["held_out"]["calibrated"] for r in (via, direct)]
     assert held[0]["position_rms_mm"] == held[1]["position_rms_mm"]
-    # the chain-only options at their defaults are accepted (given or not)
-    same = calibrate_tree(tree, data, holdout=0.25, seed=1, fix=(), loss="linear", marker=None)
+    # the chain-only options at their defaults are accepted (given or not; elastic=False asks
+    # for nothing, as on every shape: APPLIES)
+    same = calibrate_tree(
+        tree, data, holdout=0.25, seed=1, fix=(), loss="linear", marker=None, elastic=False
+    )
     np.testing.assert_array_equal(same.estimate, direct.estimate)
     assert calibrate(tree, data, params="frames").params == "frames"
     assert set(TREE_LEVELS) == {"frames", "complete"}

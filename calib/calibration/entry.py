@@ -37,7 +37,7 @@ from .contact_chains import (
 from .contact_chains_result import ContactChainsCalibration
 from .delivery import Result
 from .measured_term import check_measured
-from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, checked_arguments
+from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, check_tree_level, checked_arguments
 from .problem import Problem, Term
 from .tree_checks import prepare_tree
 from .validation import split
@@ -269,7 +269,7 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
         )
     tree = cast(Tree, term.robot)
     level = DEFAULT_TREE_LEVEL if problem.params is None else problem.params
-    dataclasses.replace(problem.options(), level=level).check_tree()
+    check_tree_level(level)  # the other options: the problem's (APPLIES)
     validate = cast(Measurements | None, term.validate)
     data, held = prepare_tree(
         tree, cast(Measurements, term.data), validate, problem.holdout, problem.seed

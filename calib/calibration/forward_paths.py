@@ -35,6 +35,7 @@ __all__ = [
     "SMALL",
     "lu_errors",
     "paths",
+    "residual",
     "spd_solve",
 ]
 
@@ -188,9 +189,7 @@ class _Batch:
         self._invert(self.H0)
 
     def hat(self) -> np.ndarray:
-        """Hat blocks of the current fits ``(b, rows, rows, m)``."""
-        if not self.added:
-            return self.H0
+        """Hat blocks of the current fits ``(b, rows, rows, m)`` (after a step)."""
         q = np.stack(self.added)
         return self.H0 + np.einsum("sbim,sbjm->bijm", q, q)
 
@@ -378,7 +377,7 @@ def _start(A, e, rows, start, candidates, train, objects=None):
     Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)
     w = np.tile(train, rows).astype(float)
     Q = np.linalg.qr(Ap[:, start] * w[:, :, None])[0]
-    r = _residual(Q, np.swapaxes(e.reshape(m, rows), 0, 1).ravel() * w).reshape(b, rows, m)
+    r = residual(Q, np.swapaxes(e.reshape(m, rows), 0, 1).ravel() * w).reshape(b, rows, m)
     Qb = Q.reshape(b, rows, m, -1)
     C = Ap[:, candidates] * w[:, :, None]
     floor2 = DEPENDENT**2 * np.einsum("bnk,bnk->kb", C, C)
@@ -402,7 +401,7 @@ def _block_start(A, e, rows, start, candidates, train, objects: ObjectColumns):
     return np.ascontiguousarray(np.swapaxes(r, 1, 2)), H0, C, floor2
 
 
-def _residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
+def residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
     """``e - Q Q^T e`` of a stack of orthonormal bases ``(b, n, s)`` and vectors ``(b, n)``."""
     return e - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e))
 

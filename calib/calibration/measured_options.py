@@ -16,9 +16,12 @@ ask of it:
 * ``elastic`` (or a compliance in ``free``): the joint compliances are candidates, under the
   gravity torques of the URDF's masses (:meth:`~calib.kinematics.robot.Chain.gravity_torques`,
   gravity along the URDF root's -z, as the compliance file records); refused where the URDF
-  gives the chain no torque (:func:`~.freedoms.check_compliance`).
+  gives the chain no torque (:func:`compliance_torques`).
+* ``marker`` guesses the measured points (:func:`marker_guess`).
 * ``loss`` and ``noise_mm`` go to the fit and the registration's checks
   (:func:`~.contact_chains.calibrate_contact_chains`).
+
+Each is checked before the fit, in one line that says why.
 """
 
 from __future__ import annotations
@@ -28,9 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
+from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
 from .contact_elastic import torques as contact_torques
-from .freedoms import check_compliance, check_free
 from .model import compliance_name
 from .options import Options
 from .placements import mdh_directions
@@ -41,6 +44,7 @@ __all__ = [
     "asked_of",
     "compliance_torques",
     "level_offer",
+    "marker_guess",
 ]
 
 GROUPS = ("frame", "markers", "tool")
@@ -75,9 +79,46 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
     chain = chains[0]
     tau = chain.gravity_torques(train[0].q)
     loaded = [j for j in range(chain.n) if np.any(tau[:, j])]
-    check_compliance(chain, tau, loaded, opts)
+    _check_loaded(chain, loaded, opts)
     joints = tuple(j for j in loaded if compliance_name(j) not in opts.fix)
     return (tau, None if held[0] is None else chain.gravity_torques(held[0].q)), joints
+
+
+def _check_loaded(chain: Chain, loaded: list[int], opts: Options) -> None:
+    """Refuse compliance asked for where gravity loads no joint (no masses) or not the one named.
+
+    Raises:
+        InvalidArgumentError: ``elastic`` (or a compliance in ``free``) on a chain whose URDF
+            gives its joints no gravity torque, or ``free`` naming an unloaded joint's.
+    """
+    if not loaded:
+        raise InvalidArgumentError(
+            f"elastic (or a compliance in free) needs gravity torques, and {chain.urdf_path} "
+            f"gives none on the chain (no masses beyond it): drop elastic and the compliances"
+        )
+    for name in opts.free:
+        if _compliance(name) and int(name[1:]) - 1 not in loaded:
+            raise InvalidArgumentError(
+                f"free {name} cannot be fitted: gravity loads joint {name[1:]} at none of the "
+                f"configurations (a compliance only shows under a torque); drop it from free"
+            )
+
+
+def marker_guess(marker, k: int) -> np.ndarray:
+    """The markers' guess ``(k, 3)`` [m]: zeros, one point for all, or one per marker."""
+    if marker is None:
+        return np.zeros((k, 3))
+    try:
+        mk = np.array(marker, dtype=float).reshape(-1, 3)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"a marker is 3 numbers [m], got {marker!r}") from None
+    if not np.all(np.isfinite(mk)) or np.max(np.abs(mk)) > 1e3:
+        raise InvalidArgumentError(f"a marker is 3 finite numbers within 1000 m, got {marker!r}")
+    if len(mk) == 1:
+        mk = np.repeat(mk, k, axis=0)
+    if len(mk) != k:
+        raise InvalidArgumentError(f"{len(mk)} marker guesses for {k} measured points")
+    return mk
 
 
 @dataclass(frozen=True)
@@ -98,11 +139,6 @@ class Asked:
     given: dict[str, str]
     extra: dict[str, np.ndarray]
 
-    @property
-    def joints(self) -> bool:
-        """Some joint parameter is named (``complete`` then offers the chart's directions)."""
-        return bool(self.extra)
-
     def offer(self, directions, names, offered):
         """The level's offer with the fixed parameters out and the free ones in.
 
@@ -115,10 +151,9 @@ class Asked:
             The directions, names, indices offered and the names ``auto`` must keep.
         """
         missing = [n for n in self.free if n in self.extra and n not in names]
-        if missing and directions is None:
-            directions = np.eye(len(names))
         if missing:
-            directions = np.vstack([directions, *(self.extra[n] for n in missing)])
+            base = np.eye(len(names)) if directions is None else directions
+            directions = np.vstack([base, *(self.extra[n] for n in missing)])
             offered = [*offered, *range(len(names), len(names) + len(missing))]
             names = (*names, *missing)
         held = [self.extra[n] / np.linalg.norm(self.extra[n]) for n in self.fix if n in self.extra]
@@ -135,15 +170,27 @@ class Asked:
         return directions, tuple(names), offered, self.free
 
     def check(self, wide, start, flush, kept) -> None:
-        """Refuse a free parameter the data cannot fit (:func:`~.freedoms.check_free`)."""
-        every = wide.names()
+        """Refuse a free parameter the data cannot fit on its own, saying why.
+
+        Raises:
+            InvalidArgumentError: A free parameter whose column the frame and markers carry,
+                or that is regrouped with parameters kept before it.
+        """
+        every, fixed = wide.names(), wide.fixed
         cand = [every[k] for k in kept]
-        if all(n in cand for n in self.free if n in every):
-            return
-        A = wide.jacobian(start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
-        shown = [self.given.get(n, n) for n in every]
-        free = [self.given.get(n, n) for n in self.free]
-        check_free(free, [self.given.get(n, n) for n in cand], shown, A, wide.fixed)
+        for name in self.free:
+            if name in cand or name not in every:
+                continue  # fitted; or no column of the model
+            A = wide.jacobian(start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
+            cols = [*range(fixed), every.index(name)]
+            _, _, ok, _ = independent_columns(A[:, cols], list(range(fixed + 1)))
+            why = (
+                "the measurement frame and markers carry it (they are always fitted)"
+                if fixed not in ok
+                else "it is regrouped with parameters kept before it (not identifiable on its own)"
+            )
+            given = self.given.get(name, name)
+            raise InvalidArgumentError(f"free {given} cannot be fitted: {why}; drop it from free")
 
 
 def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | None:
@@ -192,9 +239,9 @@ def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | N
 def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
     """What a joint fit offers at ``level`` and what ``fix``/``free`` ask (or None).
 
-    A tree's ``complete`` offers every joint placement component (the rank keeps a basis), or
-    the chart's MDH directions when ``fix`` or ``free`` names a joint parameter; one chain's,
-    its MDH directions (those ``auto`` chooses among).
+    A tree's ``complete`` offers every joint placement component (the rank keeps a basis); one
+    chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` are one
+    measured chain's options (a tree takes none).
 
     Args:
         chain: The first term's chain.
@@ -203,7 +250,6 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
         instrument: The terms are measured by an instrument outside the robot.
         opts: A measured chain's options, or None.
     """
-    asked = None if opts is None else asked_of(chain, start.placements, start.states[0], opts)
+    asked = asked_of(chain, start.placements, start.states[0], opts)
     tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
-    every = tree and level == "complete" and not (asked and asked.joints)
-    return asked, "components" if every else level
+    return asked, "components" if tree and level == "complete" else level

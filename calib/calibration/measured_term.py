@@ -41,7 +41,7 @@ from ..measurements.postures import count
 from . import determined, validation
 from .chain_registration import checked_registration, held_out_outliers
 from .contact_result import GapStats, row_stats
-from .freedoms import marker_guess
+from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
 from .outliers import point_errors, records
@@ -321,7 +321,7 @@ def checked_measured(
         held: Its held-out rows (validation or holdout), or None.
         weight: Orientation weight [m/rad], or None: estimated.
         max_iterations: Most residual evaluations of the registration's solver.
-        marker: Guess of the markers in the tool frame [m] (:func:`~.freedoms.marker_guess`:
+        marker: Guess of the markers in the tool frame [m] (:func:`~.measured_options.marker_guess`:
             one point for all, or one per marker), or None: zeros.
         noise_mm: The instrument's noise [mm] (outliers and the diagnosis: an error within
             a few times it is not suspect), or None: unknown.

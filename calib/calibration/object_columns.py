@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_cv_moments"]
+__all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_moments", "posture_sums"]
 
 UNDETERMINED = 1e-14
 """An object's direction whose Gram eigenvalue is below this fraction of its largest (a
@@ -47,12 +47,9 @@ class ObjectColumns:
         """
         if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
             return self
-        count = np.bincount(groups).astype(float)
-        own = np.zeros((len(count), *self.own.shape[1:]))
-        np.add.at(own, groups, self.own)
-        index = np.zeros(len(count), dtype=int)
+        index = np.zeros(int(np.max(groups)) + 1, dtype=int)
         index[groups] = self.index
-        return ObjectColumns(own / np.sqrt(count)[:, None, None], index, self.objects)
+        return ObjectColumns(posture_sums(self.own, groups), index, self.objects)
 
     def unit(self) -> ObjectColumns:
         """The same columns, each object's of unit norm (a zero column left as it is)."""
@@ -112,26 +109,51 @@ class ObjectColumns:
         return X - np.einsum("bmro,bmok->bmrk", U, coef[:, self.index])
 
 
-def object_cv_moments(
-    objects: ObjectColumns, D: np.ndarray, e: np.ndarray, train: np.ndarray
+def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Each posture's rows of ``X`` ``(m, ...)`` summed, over the root of their count.
+
+    Args:
+        X: Rows by configuration ``(m, ...)``.
+        groups: Posture of each configuration ``(m,)``, numbered from 0.
+
+    Returns:
+        ``(postures, ...)``.
+    """
+    root = np.sqrt(np.bincount(groups).astype(float))
+    out = np.zeros((len(root), *X.shape[1:]))
+    np.add.at(out, groups, X)
+    return out / root.reshape(-1, *[1] * (X.ndim - 1))
+
+
+def object_moments(
+    A: np.ndarray, e: np.ndarray, rows: int, train: np.ndarray, objects: ObjectColumns
 ) -> tuple[np.ndarray, ...]:
     """The guard's moments of each fold with the objects' unknowns eliminated.
 
+    About the whole data's least-squares fit ``x`` of the dense columns (objects eliminated).
     A fold fits the objects on its training rows: ``x_F = K (e_t - D_t y)`` per object
     (``K = G^+ F_t^T``), so that its training fit of the dense columns ``D`` is that of the
     projected rows ``(I - P_t) D_t``, ``(I - P_t) e_t``, and its held-out residual is
     ``e~_h - D~_h y`` with ``D~_h = D_h - F_h K D_t`` (and ``e~_h`` alike).
 
     Args:
-        objects: The object columns (unit norm).
-        D: The dense columns ``(m, rows, p)`` (configuration-major).
-        e: Residuals to explain ``(m, rows)``.
+        A: The dense columns, configuration-major rows ``(m rows, p)``.
+        e: Residuals to explain ``(m rows,)``.
+        rows: Rows per configuration.
         train: Training configurations of each fold ``(folds, m)`` [bool].
+        objects: The object columns (unit norm).
 
     Returns:
-        Per fold: the training normal matrices ``(f, p, p)`` and right-hand sides
-        ``(f, p)``, the held-out moments ``D~_h^T D~_h``, ``D~_h^T e~_h`` and ``|e~_h|^2``.
+        ``x``, then per fold: the training normal matrices ``(f, p, p)`` and right-hand
+        sides about 0 ``(f, p)``, the held-out moments ``D~_h^T D~_h``, ``D~_h^T e~_h`` and
+        ``|e~_h|^2`` (about ``x``).
     """
+    m = train.shape[1]
+    D = A.reshape(m, rows, -1)
+    every = FixedBasis(objects, D[:, :, :0], np.ones((1, m)))
+    Dp = every.project(D[None])[0].reshape(m * rows, -1)
+    x_all = np.linalg.lstsq(Dp, every.project(e.reshape(1, m, rows, 1)).ravel(), rcond=None)[0]
+    e = e.reshape(m, rows) - D @ x_all
     X = np.concatenate([D, e[:, :, None]], axis=2)
     out: list[list[np.ndarray]] = [[], [], [], [], []]
     for mask in train:  # one fold at a time: arrays of the data's size
@@ -147,7 +169,8 @@ def object_cv_moments(
         for k, v in enumerate((normal[:-1, :-1], normal[:-1, -1], held[:-1, :-1],
                                held[:-1, -1], held[-1, -1])):  # fmt: skip
             out[k].append(v)
-    return tuple(np.array(v) for v in out)
+    Gt, gt, Gh, gh, hh = (np.array(v) for v in out)
+    return x_all, Gt, gt + Gt @ x_all, Gh, gh, hh
 
 
 class FixedBasis:

@@ -3,7 +3,8 @@
 The command line builds its parser from the constants here without importing the
 calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
 arguments for a chain and a tree and turns them into one :class:`Options`, checked once when
-it is made; a tree refuses (:meth:`Options.check_tree`) what only a chain's calibration can honour.
+it is made; what applies to some shapes only is one table (:data:`APPLIES`), and a tree's
+level is checked by :func:`check_tree_level`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ from ..exceptions import InvalidArgumentError
 
 __all__ = [
     "APPLIES",
-    "CHAIN_ONLY",
     "DEFAULT_LEVEL",
     "DEFAULT_MAX_ITERATIONS",
     "DEFAULT_TREE_LEVEL",
@@ -30,6 +30,7 @@ __all__ = [
     "TREE_LEVELS",
     "Options",
     "check_run_options",
+    "check_tree_level",
     "checked_arguments",
 ]
 
@@ -78,9 +79,6 @@ APPLIES: dict[str, tuple[str, ...]] = {
 applies to. Every other option applies to every shape; one given where it does not apply is
 an error (:class:`~.problem.Problem`; the command line adds its own flags to it)."""
 
-CHAIN_ONLY = ("fix", "free", "elastic", "loss", "noise_mm", "orientation_weight")
-"""Options a tree calibration does not take: it refuses them away from their defaults."""
-
 
 def check_run_options(max_iterations, holdout, seed) -> None:
     """The options every calibration takes, chain or tree: one check, one-line errors.
@@ -106,6 +104,18 @@ def check_run_options(max_iterations, holdout, seed) -> None:
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
 
 
+def check_tree_level(level: str) -> None:
+    """Refuse a level a tree's calibration (or design) does not take.
+
+    Raises:
+        InvalidArgumentError: A level other than :data:`TREE_LEVELS`.
+    """
+    if level not in TREE_LEVELS:
+        raise InvalidArgumentError(
+            f"unknown parameter level '{level}' for a tree: choose {', '.join(TREE_LEVELS)}"
+        )
+
+
 def _names(option: str, names: str | Iterable[str]) -> tuple[str, ...]:
     """``fix`` or ``free`` as a tuple of names (one name may be given alone)."""
     if isinstance(names, str):
@@ -126,7 +136,8 @@ class Options:
     """The options of a calibration, chain or tree, checked when made.
 
     Attributes:
-        level: Parameter level, one of :data:`LEVELS` (a tree: :data:`TREE_LEVELS`).
+        level: Parameter level, one of :data:`LEVELS` (a tree: :data:`TREE_LEVELS`,
+            :func:`check_tree_level`).
         fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
         free: Parameter names always fitted.
         elastic: Fit joint compliance under gravity (None: only if ``free`` names one).
@@ -181,26 +192,6 @@ class Options:
     def noise(self) -> float | None:
         """Instrument noise [m], or None."""
         return None if self.noise_mm is None else 1e-3 * self.noise_mm
-
-    def check_tree(self) -> None:
-        """Check these options for a tree's calibration (which takes fewer).
-
-        Raises:
-            InvalidArgumentError: A level other than :data:`TREE_LEVELS`, or a
-                :data:`CHAIN_ONLY` option away from its default.
-        """
-        if self.level not in TREE_LEVELS:
-            raise InvalidArgumentError(
-                f"unknown parameter level '{self.level}' for a tree: choose "
-                f"{', '.join(TREE_LEVELS)}"
-            )
-        default = Options()
-        for name in CHAIN_ONLY:
-            if getattr(self, name) != getattr(default, name):
-                raise InvalidArgumentError(
-                    f"{name} is for one chain: a tree is calibrated with params "
-                    f"({' or '.join(TREE_LEVELS)}), validate, holdout, seed and max_iterations"
-                )
 
 
 P = ParamSpec("P")

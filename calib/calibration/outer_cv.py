@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .object_columns import FixedBasis, ObjectColumns, object_cv_moments
+from .object_columns import object_moments
 
 __all__ = ["outer_cv"]
 
@@ -31,7 +31,7 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
         train: Training configurations of each fold ``(folds, m)``.
         models: Per candidate, per fold: its columns and prior strength.
         objects: Objects' columns free too, by block (:func:`.object_columns.
-            object_cv_moments`), or None.
+            object_moments`), or None.
 
     Returns:
         ``(candidates, folds)`` summed squared held-out errors [units of e squared].
@@ -39,19 +39,13 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
     if objects is None:
         x_all = np.linalg.lstsq(A, e, rcond=None)[0]
         ec = e - A @ x_all
-        G, g = A.T @ A, A.T @ ec
-        moments = []
-        for mask in train:
-            held = np.repeat(~mask, rows)
-            Ah, eh = A[held], ec[held]
-            moments.append((Ah.T @ Ah, Ah.T @ eh, eh @ eh))
-        Gh = np.array([h[0] for h in moments])
-        gh = np.array([h[1] for h in moments])
-        hh = np.array([h[2] for h in moments])
-        Gt = G - Gh
-        gt = g - gh + Gt @ x_all  # training moments, about 0
+        held = ((A[h], ec[h]) for h in (np.repeat(~mask, rows) for mask in train))
+        moments = [(Ah.T @ Ah, Ah.T @ eh, eh @ eh) for Ah, eh in held]
+        Gh, gh, hh = (np.array(v) for v in zip(*moments, strict=True))
+        Gt = A.T @ A - Gh
+        gt = A.T @ ec - gh + Gt @ x_all  # training moments, about 0
     else:
-        x_all, Gt, gt, Gh, gh, hh = _object_moments(A, e, rows, train, objects)
+        x_all, Gt, gt, Gh, gh, hh = object_moments(A, e, rows, train, objects)
     p = A.shape[1]
     use = np.zeros((len(models), len(train), p), dtype=bool)
     lam = np.zeros(use.shape)
@@ -63,21 +57,6 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
     quad = np.einsum("cfi,fij,cfj->cf", d, Gh, d)
     sse = hh - 2.0 * np.einsum("cfi,fi->cf", d, gh) + quad
     return np.maximum(sse, 0.0)
-
-
-def _object_moments(A, e, rows, train, objects: ObjectColumns):
-    """:func:`outer_cv`'s moments with the objects' columns eliminated by block.
-
-    About the whole data's least-squares fit of the dense columns (objects eliminated).
-    """
-    m = train.shape[1]
-    D = A.reshape(m, rows, -1)
-    every = FixedBasis(objects, D[:, :, :0], np.ones((1, m)))
-    Dp = every.project(D[None])[0].reshape(m * rows, -1)
-    x_all = np.linalg.lstsq(Dp, every.project(e.reshape(1, m, rows, 1)).ravel(), rcond=None)[0]
-    ec = e.reshape(m, rows) - D @ x_all
-    Gt, gt, Gh, gh, hh = object_cv_moments(objects, D, ec, train)
-    return x_all, Gt, gt + Gt @ x_all, Gh, gh, hh
 
 
 def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:

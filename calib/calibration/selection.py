@@ -52,8 +52,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .forward_paths import SMALL, lu_errors, paths, spd_solve
-from .object_columns import FixedBasis, ObjectColumns
+from .forward_paths import SMALL, lu_errors, paths, residual, spd_solve
+from .object_columns import FixedBasis, ObjectColumns, posture_sums
 from .outer_cv import outer_cv
 
 __all__ = [
@@ -208,7 +208,7 @@ def _ridge_batch(A, e, rows, fixed, train, cols, objects=None) -> tuple[np.ndarr
     hat = Q = None
     if objects is None:
         Q = np.linalg.qr(A[:, :fixed] * w[:, :, None])[0]
-        r = e * w - np.einsum("bns,bs->bn", Q, np.einsum("bns,bn->bs", Q, e * w))
+        r = residual(Q, e * w)
         B -= Q @ (np.swapaxes(Q, 1, 2) @ B)
     else:  # the objects' columns by block
         m = train.shape[1]
@@ -410,19 +410,40 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
         return J, e, (np.zeros(m), np.ones(m))  # numbered by first appearance: same order
     count = np.bincount(groups).astype(float)
     root = np.sqrt(count)
-    Js, es = np.zeros((len(count), *J.shape[1:])), np.zeros((len(count), e.shape[1]))
-    np.add.at(Js, groups, J)
-    np.add.at(es, groups, e)
-    Js /= root[:, None, None]
-    es /= root[:, None]
+    Js, es = posture_sums(J, groups), posture_sums(e, groups)
     spread = np.zeros(len(count))
     np.add.at(spread, groups, np.sum((e - (es / root[:, None])[groups]) ** 2, axis=1))
     return Js, es, (spread, count)
 
 
-def _complete(names, order: list[int]) -> list[int]:
-    """Every candidate: the path's order, then those it never reached."""
-    return order + [u for u in range(len(names)) if u not in order]
+def _unit_columns(J, e, groups, objects):
+    """The rows of each posture once (:func:`_by_posture`), the columns of unit norm.
+
+    Returns:
+        The columns ``(postures rows, p)``, their norms, the residuals ``(postures rows,)``,
+        the postures' spread and counts, and the objects (:meth:`~.object_columns.
+        ObjectColumns.unit`, by posture) or None.
+    """
+    if objects is not None:
+        objects = objects.by_posture(groups, len(e)).unit()
+    J, e, repeats = _by_posture(J, e, groups)
+    A = J.reshape(-1, J.shape[2])
+    norms = np.linalg.norm(A, axis=0)
+    return A / np.where(norms > 0, norms, 1.0), norms, e.ravel(), repeats, objects
+
+
+def _guard_models(fixed: int, lists, fits, folds: int) -> list[list[tuple[list[int], float]]]:
+    """The guard's candidates by fold: the registration, then the procedures ``fits``.
+
+    ``fits``: the strengths the selection (then the complete fit) chose on the whole data
+    and each fold, ``lists`` their columns, in that order.
+    """
+    frame, n = list(range(fixed)), len(fits[0])
+    models = [[(frame, 0.0)] * folds]
+    for k, fit in enumerate(fits):
+        cols = lists[k * n + 1 : (k + 1) * n]
+        models.append([(frame + c, s) for c, s in zip(cols, fit[1:], strict=True)])
+    return models
 
 
 def select(
@@ -454,38 +475,28 @@ def select(
         The selection, and the prior weight of each kept parameter (in the units of x:
         ``sqrt(strength) * |column|``).
     """
-    points = e.size / 3
-    if objects is not None:
-        objects = objects.by_posture(groups, len(e)).unit()
-    J, e, repeats = _by_posture(J, e, groups)
-    m, rows, p = J.shape
-    A = J.reshape(m * rows, p)
-    norms = np.linalg.norm(A, axis=0)
-    A = A / np.where(norms > 0, norms, 1.0)
-    ev = e.ravel()
+    points, rows = e.size / 3, J.shape[1]
+    A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)
+    m = len(ev) // rows
     folds = _guard_folds(m)
     train = np.vstack([np.ones((1, m), dtype=bool), folds])  # the whole data, then each fold
     outcomes = _paths_of(A, ev, rows, fixed, names, forced, train, repeats, objects)
-    unknowns = p + (0 if objects is None else objects.objects * objects.own.shape[2])
+    unknowns = A.shape[1] + (0 if objects is None else objects.objects * objects.own.shape[2])
     rich = m * rows >= RICH * unknowns  # else the complete fit is no candidate (as before)
-    every = [_complete(names, o[2]) for o in outcomes] if rich else []
+    every = [o[2] + [u for u in range(len(names)) if u not in o[2]] for o in outcomes]
+    every = every if rich else []  # each path's order, then the candidates it never reached
     lists = [[fixed + u for u in c] for c in [o[0] for o in outcomes] + every]
     subsets = np.vstack([train] * (2 if rich else 1))
     both = ridge_strengths(A, ev, rows, fixed, subsets, lists, objects)[1].tolist()
-    strengths, complete = both[: len(train)], both[len(train) :]
-    frame = list(range(fixed))
-    models = [
-        [(frame, 0.0)] * len(folds),
-        [(frame + c, s) for c, s in zip(lists[1 : len(train)], strengths[1:], strict=True)],
-        [(frame + c, s) for c, s in zip(lists[len(train) + 1 :], complete[1:], strict=True)],
-    ]
-    folded = outer_cv(A, ev, rows, fixed, folds, models[: 3 if rich else 2], objects)
+    fits = [both[k : k + len(train)] for k in range(0, len(both), len(train))]
+    models = _guard_models(fixed, lists, fits, len(folds))
+    folded = outer_cv(A, ev, rows, fixed, folds, models, objects)
     cv = [*np.sqrt((folded.sum(axis=1) + repeats[0].sum()) / points).tolist(), float("nan")]
     reg_cv, sel_cv, full_cv = cv[:3]
     sel, steps, _, path_steps = outcomes[0]
-    strength, winner = strengths[0], "selection"
+    strength, winner = fits[0][0], "selection"
     if rich and full_cv < sel_cv:
-        sel, steps, strength, winner = every[0], path_steps, complete[0], "complete"
+        sel, steps, strength, winner = every[0], path_steps, fits[1][0], "complete"
     guarded = bool(sel) and not forced and min(cv[1 : 2 + rich]) >= reg_cv
     if guarded or not sel:
         winner, sel, strength = "registration", [], 0.0

@@ -45,7 +45,7 @@ import numpy as np
 
 from ..calibration.determined import determined_columns, generic_jacobian
 from ..calibration.model import FRAME_NAMES, TOOL_NAMES, ErrorModel, moved, nominal_state
-from ..calibration.options import TREE_LEVELS
+from ..calibration.options import check_tree_level
 from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array
 from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
@@ -180,10 +180,8 @@ def check_model_arguments(
     kind = campaign_kind(measure)
     if tree and not kind.is_position:
         raise InvalidArgumentError("a tree is calibrated from positions: use measure position")
-    if tree and params not in TREE_LEVELS:
-        raise InvalidArgumentError(
-            f"unknown parameter level '{params}' for a tree: choose {', '.join(TREE_LEVELS)}"
-        )
+    if tree:
+        check_tree_level(params)
     if params not in DESIGN_LEVELS:
         raise InvalidArgumentError(
             f"unknown parameter level '{params}' for a design: choose {', '.join(DESIGN_LEVELS)}"
