@@ -80,7 +80,7 @@ from .pixel_chain import (
     PixelTermState,
 )
 from .pixel_chain_result import PixelChain, pixel_result
-from .solve import covariance, fit, fitted_values, gauss_newton_finish
+from .solve import fit, fitted_values, gauss_newton_finish
 
 __all__ = [
     "CHAIN_LEVELS",
@@ -209,11 +209,11 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         )
     clock.append(time.perf_counter())
     kept_prior = None if polished else prior
+    solution = Solution(fitted, kept_prior)  # its covariance made once, for all who read it
     result = _assemble(
         start,
-        fitted,
+        solution,
         model,
-        kept_prior,
         train,
         held,
         plane_of,
@@ -227,12 +227,13 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
               for h, v in zip(held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
-    values = fitted_values(fitted, kept_prior)
+    cov = solution.covariance()[0]
+    values = fitted_values(fitted, cov)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
-    refusal = result.refusal or rank or assess(generic, fitted, kept_prior, polished)
+    refusal = result.refusal or rank or assess(generic, fitted, cov, polished)
     return dataclasses.replace(
         result, chains=parts, params=level, identifiable=identifiable, refusal=refusal,
-        solution=Solution(fitted, kept_prior), **values,
+        solution=solution, **values,
     )  # fmt: skip
 
 
@@ -302,17 +303,16 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
 
 
 def _assemble(
-    start, fitted, model, prior, train, held, plane_of, selection, notes, clock, elastic
+    start, solution, model, train, held, plane_of, selection, notes, clock, elastic
 ) -> ContactChainsCalibration:
+    fitted = solution.fit
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
-    cov = None
     for c, chain in enumerate(state.chains):
         s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
         if isinstance(s, MeasuredState | PixelTermState):
-            if cov is None:
-                cov = covariance(fitted.J, float(fitted.f @ fitted.f), prior)[0]
+            cov = solution.covariance()[0]
             own = fitted.model.own_columns(c)
             std = np.sqrt(np.diag(cov))[own]
             part = (

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -303,13 +304,22 @@ class ChainsModel:
         """Objects of group p."""
         return 1 if self.counts is None else self.counts[self.plane_of.index(p)]
 
+    @cached_property
+    def _starts(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """Each object's first column and each chain's contact's, each then the end (once)."""
+        kinds, objects = self.object_kinds(), [0]
+        for p in range(self.planes):
+            objects.append(objects[-1] + self._count(p) * len(kinds[p].object_dofs))
+        contacts = [objects[-1]]
+        for kind in self.chain_kinds():
+            contacts.append(contacts[-1] + len(kind.contact_dofs))
+        return tuple(objects), tuple(contacts)
+
     def _object_start(self, p: int) -> int:
-        kinds = self.object_kinds()
-        return sum(self._count(g) * len(kinds[g].object_dofs) for g in range(p))
+        return self._starts[0][p]
 
     def _contact_start(self, c: int) -> int:
-        objects = self._object_start(self.planes)
-        return objects + sum(len(k.contact_dofs) for k in self.chain_kinds()[:c])
+        return self._starts[1][c]
 
     @property
     def fixed(self) -> int:
@@ -349,10 +359,17 @@ class ChainsModel:
         return dataclasses.replace(self, free=tuple(free), compliance=tuple(compliance))
 
     def _lift(self) -> np.ndarray:
-        """The free directions ``(free, 6 J)``."""
-        if self.directions is None:
-            return np.eye(len(self.names_all))[list(self.free)]
-        return self.directions[list(self.free)]
+        """The free directions ``(free, 6 J)`` (made once: read only)."""
+        return self._free_directions
+
+    @cached_property
+    def _free_directions(self) -> np.ndarray:
+        free = list(self.free)
+        lift = (
+            np.eye(len(self.names_all))[free] if self.directions is None else self.directions[free]
+        )
+        lift.flags.writeable = False
+        return lift
 
     def _chain_columns(self, c: int) -> tuple[slice, slice]:
         """Chain c's object columns and contact columns in x."""
