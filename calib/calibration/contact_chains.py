@@ -192,8 +192,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
         generic = Generic(start, tuple(train), seed) if instrument else None
         kept: list[int] = []
-        model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
-                                            asked, generic, kept)  # fmt: skip
+        model, kin, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
+                                              asked, generic, kept)  # fmt: skip
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         one = instrument and len(chains) == 1  # its MDH directions span what it sees
@@ -201,7 +201,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             structural(wide, start, flush))  # fmt: skip
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations, opts)
+        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations, opts, kin)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -249,7 +249,7 @@ ROUND_OFF = 1e-12
 
 
 def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
-         level, iters, opts: Options):  # fmt: skip
+         level, iters, opts: Options, kin=None):  # fmt: skip
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -270,7 +270,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     refused) is dropped; a robust loss (``opts.loss``, scale ``opts.noise_mm``) is not
     polished. A kept polish is finished on the data rows alone
     (:func:`~.solve.gauss_newton_finish`): its pull ``PIN`` leaves a residue (TALOS's head
-    camera with both arms' touches: 1.8e-9 px, 4e-12 px finished).
+    camera with both arms' touches: 1.8e-9 px, 4e-12 px finished). ``kin``: the start's
+    kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None.
 
     Returns:
         The fit, and whether it was polished.
@@ -280,7 +281,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
         fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters,
-                     loss=opts.loss, scale=opts.noise or 1e-3)  # fmt: skip
+                     loss=opts.loss, scale=opts.noise or 1e-3, kin=kin)  # fmt: skip
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     alone = start.states[0] if len(start.states) == 1 else None  # one chain: not polished
     one_chain = isinstance(alone, ContactState) or getattr(alone, "instrument", False)

@@ -251,7 +251,13 @@ class Placements:
         return tuple(f"{j}:{c}" for j in self.joints for c in COMPONENTS)
 
     def shifted(self, dy: np.ndarray) -> Placements:
-        """The errors plus ``dy`` ``(J * 6,)`` (joint-major)."""
+        """The errors plus ``dy`` ``(J * 6,)`` (joint-major); ``self`` for a zero ``dy``.
+
+        Zero: the same robot, whose kinematics at the same data are not made again
+        (``ChainsState.same_geometry``).
+        """
+        if not np.any(dy):
+            return self
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
 
     def rebased(self) -> Placements:
