@@ -488,7 +488,7 @@ class ChainsModel:
                 J[:, :, self.fixed :] = robot
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin)
+            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin, s)
             robot = self.fixed + len(self.free)
             if self.free:
                 J[:, :, self.fixed : robot] = measured_columns(

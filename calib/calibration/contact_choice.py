@@ -192,13 +192,14 @@ def offer_directions(
         D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         rows.extend(D)
         labels.extend(more)
-    units = np.array([d / np.linalg.norm(d) for d in rows]).reshape(len(rows), -1)
-    cosines = np.abs(units @ units.T)
+    D = np.array(rows).reshape(len(rows), -1)
+    units = D / np.linalg.norm(D, axis=1, keepdims=True)  # every norm at once
+    parallel = ~(np.abs(units @ units.T) <= 1.0 - 1e-12)  # a zero row (NaN): parallel
     kept: list[int] = []
     for i in range(len(rows)):
-        if not kept or np.max(cosines[i, kept]) <= 1.0 - 1e-12:  # parallel to none kept
+        if not parallel[i, kept].any():  # parallel to none kept
             kept.append(i)
-    return np.array([rows[i] for i in kept]), tuple(labels[i] for i in kept), list(range(len(kept)))
+    return D[kept], tuple(labels[i] for i in kept), list(range(len(kept)))
 
 
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
