@@ -371,24 +371,30 @@ class ChainsModel:
         lift.flags.writeable = False
         return lift
 
+    @cached_property
+    def _columns(self) -> tuple[tuple[slice, slice, np.ndarray], ...]:
+        """Each chain's object columns, contact columns and both as indices (made once)."""
+        out = []
+        for c, kind in enumerate(self.chain_kinds()):
+            p = self.plane_of[c]
+            o, t = self._object_start(p), self._contact_start(c)
+            obj = slice(o, o + self._count(p) * len(kind.object_dofs))
+            con = slice(t, t + len(kind.contact_dofs))
+            own = np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
+            own.flags.writeable = False
+            out.append((obj, con, own))
+        return tuple(out)
+
     def _chain_columns(self, c: int) -> tuple[slice, slice]:
         """Chain c's object columns and contact columns in x."""
-        kind = self.chain_kinds()[c]
-        p = self.plane_of[c]
-        o, t = self._object_start(p), self._contact_start(c)
-        return (
-            slice(o, o + self._count(p) * len(kind.object_dofs)),
-            slice(t, t + len(kind.contact_dofs)),
-        )
+        return self._columns[c][:2]
 
     def own_columns(self, c: int) -> np.ndarray:
         """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
-        obj, con = self._chain_columns(c)
-        return np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
+        return self._columns[c][2]
 
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
-        obj, con = self._chain_columns(c)
-        return np.r_[x[obj], x[con]]
+        return x[self._columns[c][2]]
 
     @staticmethod
     def _contact_model(state: ContactState) -> ContactModel:

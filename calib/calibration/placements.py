@@ -305,6 +305,8 @@ class Placements:
         """A copy of the model with the joint placements ``O_j E_j``."""
         model = pin.Model(self.model)
         moved = np.flatnonzero(np.any(self.y != 0, axis=1))
+        if not moved.size:  # a robot already settled: its copy
+            return model
         B, y = self.bases[moved], self.y[moved]
         R = rotation_matrix((B @ y[:, 3:, None])[..., 0])  # every moved joint's at once
         v = (B @ y[:, :3, None])[..., 0]
