@@ -192,14 +192,14 @@ def offer_directions(
         D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         rows.extend(D)
         labels.extend(more)
-    D = np.array(rows).reshape(len(rows), -1)
-    units = D / np.linalg.norm(D, axis=1, keepdims=True)  # every norm at once
+    offered = np.array(rows).reshape(len(rows), -1)
+    units = offered / np.linalg.norm(offered, axis=1, keepdims=True)  # every norm at once
     parallel = ~(np.abs(units @ units.T) <= 1.0 - 1e-12)  # a zero row (NaN): parallel
     kept: list[int] = []
     for i in range(len(rows)):
         if not parallel[i, kept].any():  # parallel to none kept
             kept.append(i)
-    return D[kept], tuple(labels[i] for i in kept), list(range(len(kept)))
+    return offered[kept], tuple(labels[i] for i in kept), list(range(len(kept)))
 
 
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
