@@ -31,7 +31,6 @@ from ..measurements.data import Measurements
 from ..measurements.postures import count, posture_groups, sample_postures
 from . import determined
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .solve import covariance
 
 __all__ = ["GENERIC_EXCESS", "Generic", "assess", "chain_name", "sampled"]
 
@@ -219,18 +218,17 @@ class Generic:
         return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)
 
 
-def assess(generic: Generic | None, fitted, prior, polished: bool) -> str | None:
+def assess(generic: Generic | None, fitted, cov: np.ndarray, polished: bool) -> str | None:
     """One chain's refusal for unknowns its rows cannot separate (:meth:`Generic.ill_posed`).
 
     Args:
         generic: The terms measured by an instrument, or None (not assessed).
         fitted: The joint fit.
-        prior: Its prior weights, or None.
+        cov: Its covariance (:func:`~.solve.covariance`, with its prior weights).
         polished: The fit was polished (every component: not assessed).
     """
     if generic is None or polished or not generic.one:
         return None
-    cov = covariance(fitted.J, float(fitted.f @ fitted.f), prior)[0]
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))
     return generic.ill_posed(fitted, std)

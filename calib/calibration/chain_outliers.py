@@ -64,10 +64,15 @@ def fit_until_stable(
             first.append(fit(every))
         return first[0]
 
+    last: list = []  # the last fit and its errors: the loop and its end read them again
+
     def errors(result: ContactChainsCalibration):
+        if last and last[0] is result:
+            return last[1]
         state = result.state  # with fitted compliance: deflected by the rows' gravity torques
         torque = gravity_torque(result.chain, state, train)
-        return point_errors(state.residuals(train, torque), train.n_markers)
+        last[:] = [result, point_errors(state.residuals(train, torque), train.n_markers)]
+        return last[1]
 
     registered = cast(MeasuredState, every.start.states[0])  # as its fit's result reports it
     opts = Options(orientation_weight=registered.weight, noise_mm=noise_mm)

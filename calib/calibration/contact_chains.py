@@ -80,7 +80,7 @@ from .pixel_chain import (
     PixelTermState,
 )
 from .pixel_chain_result import PixelChain, pixel_result
-from .solve import covariance, fit, fitted_values, gauss_newton_finish
+from .solve import fit, fitted_values, gauss_newton_finish
 
 __all__ = [
     "CHAIN_LEVELS",
@@ -192,8 +192,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
         generic = Generic(start, tuple(train), seed) if instrument else None
         kept: list[int] = []
-        model, _, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
-                                            asked, generic, kept)  # fmt: skip
+        model, kin, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
+                                              asked, generic, kept)  # fmt: skip
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         one = instrument and len(chains) == 1  # its MDH directions span what it sees
@@ -201,7 +201,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             structural(wide, start, flush))  # fmt: skip
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations, opts)
+        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations, opts, kin)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -209,11 +209,11 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         )
     clock.append(time.perf_counter())
     kept_prior = None if polished else prior
+    solution = Solution(fitted, kept_prior)  # its covariance made once, for all who read it
     result = _assemble(
         start,
-        fitted,
+        solution,
         model,
-        kept_prior,
         train,
         held,
         plane_of,
@@ -227,12 +227,13 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
               for h, v in zip(held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
-    values = fitted_values(fitted, kept_prior)
+    cov = solution.covariance()[0]
+    values = fitted_values(fitted, cov)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
-    refusal = result.refusal or rank or assess(generic, fitted, kept_prior, polished)
+    refusal = result.refusal or rank or assess(generic, fitted, cov, polished)
     return dataclasses.replace(
         result, chains=parts, params=level, identifiable=identifiable, refusal=refusal,
-        solution=Solution(fitted, kept_prior), **values,
+        solution=solution, **values,
     )  # fmt: skip
 
 
@@ -248,7 +249,7 @@ ROUND_OFF = 1e-12
 
 
 def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
-         level, iters, opts: Options):  # fmt: skip
+         level, iters, opts: Options, kin=None):  # fmt: skip
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -269,7 +270,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     refused) is dropped; a robust loss (``opts.loss``, scale ``opts.noise_mm``) is not
     polished. A kept polish is finished on the data rows alone
     (:func:`~.solve.gauss_newton_finish`): its pull ``PIN`` leaves a residue (TALOS's head
-    camera with both arms' touches: 1.8e-9 px, 4e-12 px finished).
+    camera with both arms' touches: 1.8e-9 px, 4e-12 px finished). ``kin``: the start's
+    kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None.
 
     Returns:
         The fit, and whether it was polished.
@@ -279,7 +281,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
         fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters,
-                     loss=opts.loss, scale=opts.noise or 1e-3)  # fmt: skip
+                     loss=opts.loss, scale=opts.noise or 1e-3, kin=kin)  # fmt: skip
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     alone = start.states[0] if len(start.states) == 1 else None  # one chain: not polished
     one_chain = isinstance(alone, ContactState) or getattr(alone, "instrument", False)
@@ -302,17 +304,16 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
 
 
 def _assemble(
-    start, fitted, model, prior, train, held, plane_of, selection, notes, clock, elastic
+    start, solution, model, train, held, plane_of, selection, notes, clock, elastic
 ) -> ContactChainsCalibration:
+    fitted = solution.fit
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
-    cov = None
     for c, chain in enumerate(state.chains):
         s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
         if isinstance(s, MeasuredState | PixelTermState):
-            if cov is None:
-                cov = covariance(fitted.J, float(fitted.f @ fitted.f), prior)[0]
+            cov = solution.covariance()[0]
             own = fitted.model.own_columns(c)
             std = np.sqrt(np.diag(cov))[own]
             part = (

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -303,13 +304,22 @@ class ChainsModel:
         """Objects of group p."""
         return 1 if self.counts is None else self.counts[self.plane_of.index(p)]
 
+    @cached_property
+    def _starts(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """Each object's first column and each chain's contact's, each then the end (once)."""
+        kinds, objects = self.object_kinds(), [0]
+        for p in range(self.planes):
+            objects.append(objects[-1] + self._count(p) * len(kinds[p].object_dofs))
+        contacts = [objects[-1]]
+        for kind in self.chain_kinds():
+            contacts.append(contacts[-1] + len(kind.contact_dofs))
+        return tuple(objects), tuple(contacts)
+
     def _object_start(self, p: int) -> int:
-        kinds = self.object_kinds()
-        return sum(self._count(g) * len(kinds[g].object_dofs) for g in range(p))
+        return self._starts[0][p]
 
     def _contact_start(self, c: int) -> int:
-        objects = self._object_start(self.planes)
-        return objects + sum(len(k.contact_dofs) for k in self.chain_kinds()[:c])
+        return self._starts[1][c]
 
     @property
     def fixed(self) -> int:
@@ -349,29 +359,42 @@ class ChainsModel:
         return dataclasses.replace(self, free=tuple(free), compliance=tuple(compliance))
 
     def _lift(self) -> np.ndarray:
-        """The free directions ``(free, 6 J)``."""
-        if self.directions is None:
-            return np.eye(len(self.names_all))[list(self.free)]
-        return self.directions[list(self.free)]
+        """The free directions ``(free, 6 J)`` (made once: read only)."""
+        return self._free_directions
+
+    @cached_property
+    def _free_directions(self) -> np.ndarray:
+        free = list(self.free)
+        lift = (
+            np.eye(len(self.names_all))[free] if self.directions is None else self.directions[free]
+        )
+        lift.flags.writeable = False
+        return lift
+
+    @cached_property
+    def _columns(self) -> tuple[tuple[slice, slice, np.ndarray], ...]:
+        """Each chain's object columns, contact columns and both as indices (made once)."""
+        out = []
+        for c, kind in enumerate(self.chain_kinds()):
+            p = self.plane_of[c]
+            o, t = self._object_start(p), self._contact_start(c)
+            obj = slice(o, o + self._count(p) * len(kind.object_dofs))
+            con = slice(t, t + len(kind.contact_dofs))
+            own = np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
+            own.flags.writeable = False
+            out.append((obj, con, own))
+        return tuple(out)
 
     def _chain_columns(self, c: int) -> tuple[slice, slice]:
         """Chain c's object columns and contact columns in x."""
-        kind = self.chain_kinds()[c]
-        p = self.plane_of[c]
-        o, t = self._object_start(p), self._contact_start(c)
-        return (
-            slice(o, o + self._count(p) * len(kind.object_dofs)),
-            slice(t, t + len(kind.contact_dofs)),
-        )
+        return self._columns[c][:2]
 
     def own_columns(self, c: int) -> np.ndarray:
         """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
-        obj, con = self._chain_columns(c)
-        return np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
+        return self._columns[c][2]
 
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
-        obj, con = self._chain_columns(c)
-        return np.r_[x[obj], x[con]]
+        return x[self._columns[c][2]]
 
     @staticmethod
     def _contact_model(state: ContactState) -> ContactModel:
@@ -471,7 +494,7 @@ class ChainsModel:
                 J[:, :, self.fixed :] = robot
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin)
+            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin, s)
             robot = self.fixed + len(self.free)
             if self.free:
                 J[:, :, self.fixed : robot] = measured_columns(

@@ -31,7 +31,7 @@ from .contact_model import ContactState
 from .contact_term import check_level_equations
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
-from .placements import COMPONENTS, mdh_directions, offset_component
+from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
 from .selection import Selection, select
 
 __all__ = [
@@ -192,13 +192,14 @@ def offer_directions(
         D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         rows.extend(D)
         labels.extend(more)
-    units = np.array([d / np.linalg.norm(d) for d in rows]).reshape(len(rows), -1)
-    cosines = np.abs(units @ units.T)
+    offered = np.array(rows).reshape(len(rows), -1)
+    units = offered / np.linalg.norm(offered, axis=1, keepdims=True)  # every norm at once
+    parallel = ~(np.abs(units @ units.T) <= 1.0 - 1e-12)  # a zero row (NaN): parallel
     kept: list[int] = []
     for i in range(len(rows)):
-        if not kept or np.max(cosines[i, kept]) <= 1.0 - 1e-12:  # parallel to none kept
+        if not parallel[i, kept].any():  # parallel to none kept
             kept.append(i)
-    return np.array([rows[i] for i in kept]), tuple(labels[i] for i in kept), list(range(len(kept)))
+    return offered[kept], tuple(labels[i] for i in kept), list(range(len(kept)))
 
 
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
@@ -250,20 +251,30 @@ def blocky(model: ChainsModel, start: ChainsState) -> bool:
 class AtStart:
     """A model's Jacobian at the registration (``x = 0``), made once for the same rows.
 
-    The rank test and the selection of a measured term differentiate the same rows (its
-    flush postures are its rows as they are, :func:`flush_data`): one Jacobian serves both.
-    The arrays returned are shared: read only.
+    The rank test, the selection and the fit of a measured term differentiate the same rows
+    (its flush postures are its rows as they are, :func:`flush_data`): one Jacobian serves
+    the first two, the kinematics under it all three (the selection's residuals, the fit's
+    first step). The arrays returned are shared: read only.
     """
 
     def __init__(self, wide: ChainsModel, start: ChainsState) -> None:
         self.wide, self.start = wide, start
+        self._kin: tuple[ChainsData, tuple[JointFrames, ...]] | None = None
         self._last: tuple[ChainsData, np.ndarray] | None = None
+
+    def kinematics(self, data: ChainsData) -> tuple[JointFrames, ...]:
+        """The registration's kinematics at the rows ``data`` (:meth:`ChainsState.kinematics`)."""
+        if self._kin is None or not same_rows(self._kin[0], data):
+            self._kin = (data, self.start.kinematics(data))
+        return self._kin[1]
 
     def __call__(self, data: ChainsData) -> np.ndarray:
         """The Jacobian ``(m, rows, size)`` at the rows ``data``."""
         if self._last is not None and same_rows(self._last[0], data):
             return self._last[1]
-        J = self.wide.jacobian(self.start, np.zeros(self.wide.size()), data)
+        x = np.zeros(self.wide.size())
+        state = self.wide.apply(self.start, x)  # the registration's geometry (x = 0)
+        J = self.wide.jacobian(self.start, x, data, None, state, self.kinematics(data))
         self._last = (data, J)
         return J
 
@@ -301,7 +312,10 @@ def choose(
     generic=None,
     kept_out: list[int] | None = None,
 ):
-    """The model (free components, compliances), the selection (``auto``), the prior weights.
+    """The model, the registration's kinematics at ``data``, the selection, the prior weights.
+
+    The model: its free components and compliances; the kinematics: for the fit's first
+    step (None for a fit by block); the selection: ``auto``'s, else None.
 
     ``comp``: the joints whose compliance is offered (``elastic``), after the directions;
     ``asked``: a measured chain's ``fix`` and ``free`` (:class:`~.measured_options.Asked`),
@@ -311,7 +325,7 @@ def choose(
     ``kept_out``: a list given is filled with the columns the data determine (of the level's
     model), as ``notes`` with the remarks.
     """
-    train = list(data.parts)
+    train, rows = list(data.parts), data
     directions, names, offered = offer_directions(start, level)
     forced: tuple[str, ...] = ()
     if asked is not None:
@@ -344,7 +358,7 @@ def choose(
         data = sampled(data, drawn)
         J, objects, free = selection_columns(wide, start, data, columns, at)
         groups = _postures(data) if generic is None else generic.groups(drawn)
-        e = start.residuals(data)
+        e = start.residuals(data, None, at.kinematics(data))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
         selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
         columns = [columns[cand_names.index(k)] for k in selection.kept]
@@ -356,7 +370,8 @@ def choose(
     if prior is not None:  # the model's order: the directions, then the compliances
         order = [c for c in columns if c < split] + [c for c in columns if c >= split]
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
-    return model, wide, selection, prior
+    kin = None if blocky(model, start) else at.kinematics(rows)
+    return model, kin, selection, prior
 
 
 def _postures(data: ChainsData) -> np.ndarray | None:

@@ -239,12 +239,16 @@ class MeasuredState:
         """The state with its own unknowns moved by ``x``."""
         return dataclasses.replace(self, inner=own_model(self.kind).apply(self.inner, x))
 
-    def own_jacobian(self, x: np.ndarray, data: Measurements, kin) -> np.ndarray:
+    def own_jacobian(
+        self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
+    ) -> np.ndarray:
         """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
 
-        ``kin``: the chain's frames at the data's joints at x (the joint fit's).
+        ``kin``: the chain's frames at the data's joints at x (the joint fit's); ``moved``:
+        :meth:`moved` at x, if already made.
         """
-        J = own_model(self.kind).jacobian(self.inner, x, data, None, kin=kin)
+        inner = None if moved is None else moved.inner
+        J = own_model(self.kind).jacobian(self.inner, x, data, None, inner, kin)
         return J * self.row_weights()[None, :, None]
 
 

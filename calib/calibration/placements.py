@@ -44,7 +44,7 @@ __all__ = [
     "ChainPath",
     "JointFrames",
     "Placements",
-    "axis_basis",
+    "axis_bases",
     "chain_frames",
     "joint_twists",
     "mdh_directions",
@@ -56,15 +56,20 @@ COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
 """The six components of a joint's placement error, in its axis frame."""
 
 
-def axis_basis(model: pin.Model, jid: int) -> np.ndarray:
-    """The axis frame's axes in the joint frame ``(3, 3)``: columns x, y, z (z = the axis)."""
-    S = motion_axis(model.joints[jid])
-    u = S[:3] if np.linalg.norm(S[:3]) > 0.5 else S[3:]
-    u = u / np.linalg.norm(u)
-    helper = np.eye(3)[0] if abs(u[0]) < 0.9 else np.eye(3)[1]
-    ex = helper - (helper @ u) * u
-    ex /= np.linalg.norm(ex)
-    return np.column_stack([ex, np.cross(u, ex), u])
+def axis_bases(model: pin.Model, ids) -> np.ndarray:
+    """Each joint's axis frame's axes in its joint frame ``(J, 3, 3)``: columns x, y, z.
+
+    z is the joint's axis; x the joint frame's x (its y for an axis near x) made
+    perpendicular to it. Every joint at once (each norm its own, as one joint's is taken).
+    """
+    S = np.array([motion_axis(model.joints[j]) for j in ids]).reshape(-1, 6)
+    slides = np.array([np.linalg.norm(v) > 0.5 for v in S[:, :3]], dtype=bool)
+    u = np.where(slides[:, None], S[:, :3], S[:, 3:])
+    u = u / np.array([np.linalg.norm(v) for v in u]).reshape(-1, 1)
+    k = (np.abs(u[:, 0]) >= 0.9).astype(int)  # the helper: the frame's x, or y near x
+    ex = np.eye(3)[k] - u[np.arange(len(u)), k, None] * u  # helper - (helper . u) u
+    ex /= np.array([np.linalg.norm(v) for v in ex]).reshape(-1, 1)
+    return np.stack([ex, np.cross(u, ex), u], axis=2)
 
 
 def offset_component(model: pin.Model, jid: int) -> str:
@@ -232,7 +237,7 @@ class Placements:
         """Zero errors on every joint of the chains (which share one model)."""
         model = chains[0].model
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
-        bases = np.array([axis_basis(model, j) for j in ids]).reshape(-1, 3, 3)
+        bases = axis_bases(model, ids)
         names = tuple(model.names[j] for j in ids)
         out = Placements(model, model, names, ids, bases, np.zeros((len(ids), 6)), tuple(chains))
         return dataclasses.replace(out, paths=out._paths(model))
@@ -251,7 +256,13 @@ class Placements:
         return tuple(f"{j}:{c}" for j in self.joints for c in COMPONENTS)
 
     def shifted(self, dy: np.ndarray) -> Placements:
-        """The errors plus ``dy`` ``(J * 6,)`` (joint-major)."""
+        """The errors plus ``dy`` ``(J * 6,)`` (joint-major); ``self`` for a zero ``dy``.
+
+        Zero: the same robot, whose kinematics at the same data are not made again
+        (``ChainsState.same_geometry``).
+        """
+        if not np.any(dy):
+            return self
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
 
     def rebased(self) -> Placements:
@@ -294,6 +305,8 @@ class Placements:
         """A copy of the model with the joint placements ``O_j E_j``."""
         model = pin.Model(self.model)
         moved = np.flatnonzero(np.any(self.y != 0, axis=1))
+        if not moved.size:  # a robot already settled: its copy
+            return model
         B, y = self.bases[moved], self.y[moved]
         R = rotation_matrix((B @ y[:, 3:, None])[..., 0])  # every moved joint's at once
         v = (B @ y[:, :3, None])[..., 0]

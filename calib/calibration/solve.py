@@ -396,19 +396,18 @@ def condition(J: np.ndarray) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else math.inf
 
 
-def fitted_values(fitted: Fit, prior: np.ndarray | None) -> dict:
+def fitted_values(fitted: Fit, cov: np.ndarray) -> dict:
     """A fit's free robot parameters for a result: names, values, std and the solver's outcome.
 
     Args:
         fitted: The fit (its first ``model.fixed`` columns are frames and objects).
-        prior: The prior weights it was fitted with (None: none).
+        cov: Its covariance (:func:`covariance`, with the prior weights it was fitted with).
 
     Returns:
         ``fitted`` (names), ``estimate``, ``std`` (NaN where undefined) and ``solver``
         ``(converged, message, Jacobian evaluations)``.
     """
     fixed = fitted.model.fixed
-    cov, _ = covariance(fitted.J, float(fitted.f @ fitted.f), prior)
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))[fixed:] if fitted.x.size else np.zeros(0)
     return {
