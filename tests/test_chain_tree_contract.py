@@ -25,6 +25,7 @@ from test_round_off import MINIMAL  # one joint, a tool whose rpy is RPY
 import calib
 from calib import InvalidArgumentError, calibrate, calibrate_tree, simulate
 from calib.calibration.options import APPLIES, TREE_LEVELS, Options
+from calib.calibration.problem import Problem, Term
 from calib.cli.commands import main
 from calib.kinematics.robot import Robot
 from calib.kinematics.tree import load_robot, load_tree
@@ -116,6 +117,23 @@ def test_options_are_checked_when_made():
         assert says in str(info.value), (bad, str(info.value))
     with pytest.raises(dataclasses.FrozenInstanceError):
         Options().seed = 3  # type: ignore[misc]
+
+
+def test_a_problems_options_are_its_values_under_the_same_names(ur5):
+    given = {
+        "fix": ("d3",),
+        "free": ("c2",),
+        "elastic": True,
+        "loss": "huber",
+        "noise_mm": 0.2,
+        "orientation_weight": 0.5,
+        "max_iterations": 7,
+        "holdout": 0.2,
+        "seed": 4,
+    }
+    problem = Problem((Term(*ur5),), params="paper", **given)
+    assert problem.options() == Options(level="paper", **given)
+    assert Problem((Term(*ur5),)).options() == Options()  # a chain's level unless given
 
 
 @pytest.mark.parametrize(

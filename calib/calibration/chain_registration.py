@@ -37,11 +37,11 @@ __all__ = [
 ]
 
 
-def frames_model(data: Measurements, opts: Options) -> ErrorModel:
+def frames_model(data: Measurements) -> ErrorModel:
     """The registration's free parameters: frame, markers (and measured-frame rotation).
 
-    ``opts``: unused; the registration fits them all (``fix`` of the frame or the markers is
-    refused before any registration, :func:`~.measured_options.asked_of`).
+    The registration fits them all (``fix`` of the frame or the markers is refused before
+    any registration, :func:`~.measured_options.asked_of`).
     """
     return ErrorModel(
         ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=data.n_markers, kind=data.kind
@@ -57,7 +57,7 @@ def _registration(nominal, data, guess, opts, kin=None) -> Fit:
     if kin is None:
         kin = nominal.kinematics(data.q)
     start = register(nominal, data.q, data.points, data.rotations, guess, kin)
-    model = frames_model(data, opts)
+    model = frames_model(data)
     w, n = opts.orientation_weight, opts.max_iterations
     return fit(model, start, data, None, w, max_iterations=n, kin=kin)
 
@@ -161,7 +161,7 @@ class _Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = frames_model(sub, opts)
+            frames = frames_model(sub)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
             return _registration(nominal, sub, guess, opts)
@@ -210,7 +210,7 @@ def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, st
     """The steps on validation data (``held``: (data, label) or None), with their label."""
     if held is None:
         return []
-    frames = frames_model(held[0], opts)
+    frames = frames_model(held[0])
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts)
@@ -241,7 +241,7 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
     base, lift = moved(pset, nominal)
-    wide = frames_model(data, opts).with_(params=pset, base=base, lift=lift)
+    wide = frames_model(data).with_(params=pset, base=base, lift=lift)
     w = row_weights(wide, opts.orientation_weight)
     J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
     rows = data.rows or tuple(range(1, data.m + 1))

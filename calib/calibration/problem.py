@@ -160,21 +160,14 @@ class Problem:
     def options(self) -> Options:
         """The problem's options as one checked value (a chain's level unless given).
 
+        Every field of :class:`~.options.Options` is the problem's of the same name, but the
+        level: ``params``.
+
         Raises:
             InvalidArgumentError: A value out of its range or of the wrong type.
         """
-        return Options(
-            level=DEFAULT_LEVEL if self.params is None else self.params,
-            fix=self.fix,
-            free=self.free,
-            elastic=self.elastic,
-            loss=self.loss,
-            noise_mm=self.noise_mm,
-            orientation_weight=self.orientation_weight,
-            max_iterations=self.max_iterations,
-            holdout=self.holdout,
-            seed=self.seed,
-        )
+        given = {f.name: getattr(self, f.name) for f in fields(Options) if f.name != "level"}
+        return Options(level=DEFAULT_LEVEL if self.params is None else self.params, **given)
 
     @property
     def shape(self) -> str:

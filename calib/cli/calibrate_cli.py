@@ -263,14 +263,14 @@ def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Pa
 def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     """`calibrate` with several tools: the tree's calibration, URDF of every branch."""
     from ..calibration.entry import calibrate
-    from ..calibration.options import TREE_LEVELS
+    from ..calibration.options import DEFAULT_TREE_LEVEL, TREE_LEVELS
     from ..kinematics.urdf_export import check_exportable
     from ..measurements.csvfile import Columns, read_measurements
 
     if args.params not in (None, *TREE_LEVELS):
         raise InvalidArgumentError(
             f"--params {args.params} is for one chain: a tree is calibrated with --params "
-            f"{' or '.join(TREE_LEVELS)} (default: complete)"
+            f"{' or '.join(TREE_LEVELS)} (default: {DEFAULT_TREE_LEVEL})"
         )
     kind = _data_kind(args)
     if kind is not None and kind.is_pose:
@@ -278,7 +278,6 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
             "--measure pose is for one chain: a tree is calibrated from one point per row "
             "(x, y, z and a tool)"
         )
-    level = args.params or "complete"
     out, report = _calibration_outputs(args, tree.urdf_path)
     for chain in tree.chains:  # before the fit: a URDF it cannot be written to is known now
         check_exportable(chain)
@@ -291,7 +290,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     result = calibrate(
         tree,
         data,
-        params=level,
+        params=args.params,  # None: the tree's default
         validate=check,
         holdout=args.holdout,
         seed=args.seed,
