@@ -48,15 +48,17 @@ def frames_model(data: Measurements, opts: Options) -> ErrorModel:
     )
 
 
-def _registration(nominal, data, guess, opts, kin=None) -> Fit:
+def _registration(nominal, data, guess, opts, kin=None, start=None) -> Fit:
     """Closed-form registration refined by Levenberg-Marquardt (frame and markers only).
 
     ``kin``: the nominal kinematics at the data's joints, if already made (the fit's is
-    that: it moves no geometry).
+    that: it moves no geometry). ``start``: the closed-form registration of these rows, if
+    already made (it does not depend on the orientation weight).
     """
     if kin is None:
         kin = nominal.kinematics(data.q)
-    start = register(nominal, data.q, data.points, data.rotations, guess, kin)
+    if start is None:
+        start = register(nominal, data.q, data.points, data.rotations, guess, kin)
     model = frames_model(data, opts)
     w, n = opts.orientation_weight, opts.max_iterations
     return fit(model, start, data, None, w, max_iterations=n, kin=kin)
@@ -65,14 +67,19 @@ def _registration(nominal, data, guess, opts, kin=None) -> Fit:
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
     """The registration of one data set at an orientation weight, each weight run once.
 
-    The nominal kinematics at the data's joints are made once for all.
+    The nominal kinematics at the data's joints and the closed-form start are made once for
+    all weights (the start on the first registration).
     """
     kin = nominal.kinematics(data.q)
 
     @functools.cache
+    def start():
+        return register(nominal, data.q, data.points, data.rotations, guess, kin)
+
+    @functools.cache
     def at(weight: float) -> Fit:
         w_opts = dataclasses.replace(opts, orientation_weight=weight)
-        return _registration(nominal, data, guess, w_opts, kin)
+        return _registration(nominal, data, guess, w_opts, kin, start())
 
     return at
 
