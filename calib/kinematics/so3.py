@@ -73,23 +73,16 @@ def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
     s10, d10 = R[..., 1, 0] + R[..., 0, 1], R[..., 1, 0] - R[..., 0, 1]
     s20, d02 = R[..., 2, 0] + R[..., 0, 2], R[..., 0, 2] - R[..., 2, 0]
     s21, d21 = R[..., 2, 1] + R[..., 1, 2], R[..., 2, 1] - R[..., 1, 2]
-    four = np.stack(  # 4x^2, 4y^2, 4z^2, 4w^2 (each times 1, up to round-off)
-        [1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22, 1 + m00 + m11 + m22],
-        axis=-1,
-    )
+    f0, f1 = 1 + m00 - m11 - m22, 1 - m00 + m11 - m22
+    f2, f3 = 1 - m00 - m11 + m22, 1 + m00 + m11 + m22
+    four = np.stack([f0, f1, f2, f3], axis=-1)  # 4x^2, 4y^2, 4z^2, 4w^2 (up to round-off)
     # Candidate i holds 4 q_i * q for the largest component i: (x, y, z, w) in each row.
     cand = np.stack(
-        [
-            np.stack([four[..., 0], s10, s20, d21], axis=-1),
-            np.stack([s10, four[..., 1], s21, d02], axis=-1),
-            np.stack([s20, s21, four[..., 2], d10], axis=-1),
-            np.stack([d21, d02, d10, four[..., 3]], axis=-1),
-        ],
-        axis=-2,
-    )
-    best = np.argmax(four, axis=-1)[..., None, None]
-    q = np.take_along_axis(cand, best, axis=-2)[..., 0, :]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        [f0, s10, s20, d21, s10, f1, s21, d02, s20, s21, f2, d10, d21, d02, d10, f3], axis=-1
+    ).reshape(-1, 4, 4)
+    best = np.argmax(four, axis=-1).ravel()
+    q = cand[np.arange(len(best)), best].reshape(four.shape)
+    q = q / _norm(q)[..., None]
     return np.where(q[..., 3:] < 0, -q, q)
 
 
@@ -97,7 +90,7 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
     """Rotation vectors ``(..., 3)`` [rad] (angle in [0, pi] times unit axis) of matrices ``R``."""
     q = matrix_to_quaternion(R)
     v, w = q[..., :3], q[..., 3]
-    s = np.linalg.norm(v, axis=-1)
+    s = _norm(v)
     angle = 2.0 * np.arctan2(s, w)
     small = s < 1e-8
     factor = np.where(small, 2.0 / np.where(small, w, 1.0), angle / np.where(small, 1.0, s))
