@@ -200,7 +200,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
 
     Returns:
         The options with the orientation weight, the registration state, the mask of the
-        outlier rows of ``train`` and the notes.
+        outlier rows of ``train``, the notes and the nominal kinematics at ``train``'s joints
+        (the registration's, at every row: its geometry is the nominal one).
     """
     at = _registrations(nominal, train, guess, opts)
     opts = _weighted(train, opts, at)
@@ -210,7 +211,7 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     reg = aside.state
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, aside.bad, notes
+    return opts, reg.state, aside.bad, notes, steps.register().kin
 
 
 def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, str]]:

@@ -337,11 +337,11 @@ def checked_measured(
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
-    opts, reg, bad, notes = checked_registration(
+    opts, reg, bad, notes, kin = checked_registration(
         chain, from_chain(chain), data, checked, guess, opts
     )
     rows = data.rows or tuple(range(1, data.m + 1))
-    found = records(point_errors(reg.residuals(data), data.n_markers), bad, rows)
+    found = records(point_errors(reg.residuals(data, None, kin), data.n_markers), bad, rows)
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
     kept = data.subset(~bad) if bad.any() else data
     if held is not None:
