@@ -262,13 +262,17 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
     )
 
 
-def held_out_outliers(reg, train, held, opts, notes: list[str]):
-    """The held-out rows without their outliers (:func:`.term_checks.held_out`)."""
+def held_out_outliers(reg, train, held, opts, notes: list[str], kin=None):
+    """The held-out rows without their outliers (:func:`.term_checks.held_out`).
+
+    ``kin``: ``reg``'s kinematics at ``train``'s joints, if already made.
+    """
     if held is None:
         return None
     data, label = held
     k = train.n_markers
     rows = data.rows or tuple(range(1, data.m + 1))
-    fitted, errors = (outliers.point_errors(reg.residuals(d), k) for d in (train, data))
+    fitted = outliers.point_errors(reg.residuals(train, None, kin), k)
+    errors = outliers.point_errors(reg.residuals(data), k)
     kept = term_checks.held_out(fitted, errors, data, rows, data.subset, notes, opts.noise)
     return held if kept is data else (kept, label)

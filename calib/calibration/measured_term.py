@@ -345,8 +345,10 @@ def checked_measured(
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
     kept = data.subset(~bad) if bad.any() else data
     if held is not None:
-        held = held_out_outliers(reg, kept, (held, held.source), opts, notes)[0]
-        fitted, other = (validation.stats(reg, d, None) for d in (kept, held))
+        seen = kin if kept is data else None  # the nominal kinematics at the kept rows
+        held = held_out_outliers(reg, kept, (held, held.source), opts, notes, seen)[0]
+        fitted = validation.stats(reg, kept, None, seen)
+        other = validation.stats(reg, held, None)
         validation.check_held_out_errors(fitted, other, held.source)
     return state, bad, found, notes, held
 
