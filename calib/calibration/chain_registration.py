@@ -48,15 +48,17 @@ def frames_model(data: Measurements) -> ErrorModel:
     )
 
 
-def _registration(nominal, data, guess, opts, kin=None) -> Fit:
+def _registration(nominal, data, guess, opts, kin=None, start=None) -> Fit:
     """Closed-form registration refined by Levenberg-Marquardt (frame and markers only).
 
     ``kin``: the nominal kinematics at the data's joints, if already made (the fit's is
-    that: it moves no geometry).
+    that: it moves no geometry). ``start``: the closed-form registration of these rows, if
+    already made (it does not depend on the orientation weight).
     """
     if kin is None:
         kin = nominal.kinematics(data.q)
-    start = register(nominal, data.q, data.points, data.rotations, guess, kin)
+    if start is None:
+        start = register(nominal, data.q, data.points, data.rotations, guess, kin)
     model = frames_model(data)
     w, n = opts.orientation_weight, opts.max_iterations
     return fit(model, start, data, None, w, max_iterations=n, kin=kin)
@@ -65,14 +67,19 @@ def _registration(nominal, data, guess, opts, kin=None) -> Fit:
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
     """The registration of one data set at an orientation weight, each weight run once.
 
-    The nominal kinematics at the data's joints are made once for all.
+    The nominal kinematics at the data's joints and the closed-form start are made once for
+    all weights (the start on the first registration).
     """
     kin = nominal.kinematics(data.q)
 
     @functools.cache
+    def start():
+        return register(nominal, data.q, data.points, data.rotations, guess, kin)
+
+    @functools.cache
     def at(weight: float) -> Fit:
         w_opts = dataclasses.replace(opts, orientation_weight=weight)
-        return _registration(nominal, data, guess, w_opts, kin)
+        return _registration(nominal, data, guess, w_opts, kin, start())
 
     return at
 
@@ -193,7 +200,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
 
     Returns:
         The options with the orientation weight, the registration state, the mask of the
-        outlier rows of ``train`` and the notes.
+        outlier rows of ``train``, the notes and the nominal kinematics at ``train``'s joints
+        (the registration's, at every row: its geometry is the nominal one).
     """
     at = _registrations(nominal, train, guess, opts)
     opts = _weighted(train, opts, at)
@@ -203,7 +211,7 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     reg = aside.state
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, aside.bad, notes
+    return opts, reg.state, aside.bad, notes, steps.register().kin
 
 
 def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, str]]:
@@ -254,13 +262,17 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
     )
 
 
-def held_out_outliers(reg, train, held, opts, notes: list[str]):
-    """The held-out rows without their outliers (:func:`.term_checks.held_out`)."""
+def held_out_outliers(reg, train, held, opts, notes: list[str], kin=None):
+    """The held-out rows without their outliers (:func:`.term_checks.held_out`).
+
+    ``kin``: ``reg``'s kinematics at ``train``'s joints, if already made.
+    """
     if held is None:
         return None
     data, label = held
     k = train.n_markers
     rows = data.rows or tuple(range(1, data.m + 1))
-    fitted, errors = (outliers.point_errors(reg.residuals(d), k) for d in (train, data))
+    fitted = outliers.point_errors(reg.residuals(train, None, kin), k)
+    errors = outliers.point_errors(reg.residuals(data), k)
     kept = term_checks.held_out(fitted, errors, data, rows, data.subset, notes, opts.noise)
     return held if kept is data else (kept, label)

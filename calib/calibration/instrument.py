@@ -141,8 +141,10 @@ def shared_frame(states: list, train: list) -> list:
     if not terms:
         return states
     kin = {c: _points(states[c], train[c]) for c in terms}
+    tools = {c: kin[c][0].reshape(-1, 3) for c in terms}  # the markers' matrix, every round
+    points = {c: train[c].points for c in terms}
     markers = {c: states[c].inner.markers.copy() for c in terms}
-    measured = np.concatenate([train[c].points.reshape(-1, 3) for c in terms])
+    measured = np.concatenate([points[c].reshape(-1, 3) for c in terms])
     R, t = np.eye(3), np.zeros(3)
     for _ in range(REGISTRATION_ITERATIONS):
         predicted = [
@@ -151,15 +153,14 @@ def shared_frame(states: list, train: list) -> list:
         R, t = rigid_fit(np.concatenate([p.reshape(-1, 3) for p in predicted]), measured)
         moved = 0.0
         for c in terms:
-            Rt, pt = kin[c]
-            local = (train[c].points - t) @ R - pt[:, None]  # R_tool m_k, base frame
-            new = np.stack(
+            local = (points[c] - t) @ R - kin[c][1][:, None]  # R_tool m_k, base frame
+            new = np.array(
                 [
-                    np.linalg.lstsq(Rt.reshape(-1, 3), local[:, k].reshape(-1), rcond=None)[0]
+                    np.linalg.lstsq(tools[c], local[:, k].reshape(-1), rcond=None)[0]
                     for k in range(local.shape[1])
                 ]
             )
-            moved = max(moved, float(np.max(np.abs(new - markers[c]))))
+            moved = max(moved, float(np.abs(new - markers[c]).max()))
             markers[c] = new
         if moved < 1e-12:
             break

@@ -337,16 +337,18 @@ def checked_measured(
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
-    opts, reg, bad, notes = checked_registration(
+    opts, reg, bad, notes, kin = checked_registration(
         chain, from_chain(chain), data, checked, guess, opts
     )
     rows = data.rows or tuple(range(1, data.m + 1))
-    found = records(point_errors(reg.residuals(data), data.n_markers), bad, rows)
+    found = records(point_errors(reg.residuals(data, None, kin), data.n_markers), bad, rows)
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
     kept = data.subset(~bad) if bad.any() else data
     if held is not None:
-        held = held_out_outliers(reg, kept, (held, held.source), opts, notes)[0]
-        fitted, other = (validation.stats(reg, d, None) for d in (kept, held))
+        seen = kin if kept is data else None  # the nominal kinematics at the kept rows
+        held = held_out_outliers(reg, kept, (held, held.source), opts, notes, seen)[0]
+        fitted = validation.stats(reg, kept, None, seen)
+        other = validation.stats(reg, held, None)
         validation.check_held_out_errors(fitted, other, held.source)
     return state, bad, found, notes, held
 

@@ -52,9 +52,10 @@ def _rotation(H: np.ndarray) -> np.ndarray:
     if info != 0:
         U, _, Vt = np.linalg.svd(H)  # raises LinAlgError
     V = Vt.T
-    if _det(V @ U.T) < 0.0:
-        V = V * _FLIP
-    return V @ U.T
+    R = V @ U.T
+    if _det(R) < 0.0:
+        R = (V * _FLIP) @ U.T
+    return R
 
 
 _gesdd = scipy.linalg.lapack.dgesdd
@@ -93,11 +94,15 @@ class _Moments:
         self.R_mean = Rt.mean(axis=0)
         self.back = np.einsum("iba,ib->a", Rt, pt) / m  # mean of R_i^T p_i
 
-    def frame(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:func:`rigid_fit` of the predicted points (markers ``(3 K,)``): R, t, their centroid."""
+    def rotation(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`rigid_fit`'s rotation of the points (markers ``(3 K,)``) and their centroid."""
         ca = self.p_mean + self.R_mean @ (mk.reshape(-1, 3).sum(axis=0) / self.K)
-        R = _rotation(self.P + (mk @ self.G).reshape(3, 3))
-        return R, self.cb - R @ ca, ca
+        return _rotation(self.P + (mk @ self.G).reshape(3, 3)), ca
+
+    def frame(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`rigid_fit` of the predicted points (markers ``(3 K,)``): R and t."""
+        R, ca = self.rotation(mk)
+        return R, self.cb - R @ ca
 
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
         """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 K,)``."""
@@ -135,13 +140,12 @@ def register(
     sums = _Moments(Rt, pt, points)
     flat = mk.ravel()
     for _ in range(ITERATIONS):
-        R, _, ca = sums.frame(flat)
-        new = sums.markers(R, ca)
+        new = sums.markers(*sums.rotation(flat))  # t is not needed until the end
         done = np.abs(new - flat).max() < 1e-12
         flat = new
         if done:
             break
-    R, t, _ = sums.frame(flat)
+    R, t = sums.frame(flat)
     mk = flat.reshape(K, 3)
     frame = np.eye(4)
     frame[:3, :3], frame[:3, 3] = R, t

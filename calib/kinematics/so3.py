@@ -41,20 +41,21 @@ def quaternion_to_matrix(quat: np.ndarray) -> np.ndarray:
     """Rotation matrices ``(..., 3, 3)`` of quaternions ``(..., 4)`` (x, y, z, w; normalised)."""
     q = np.asarray(quat, dtype=float)
     q = q / _norm(q)[..., None]
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    xx, yy, zz = x * x, y * y, z * z  # each product once (small arrays: the calls cost)
-    xy, xz, yz, xw, yw, zw = x * y, x * z, y * z, x * w, y * w, z * w
-    R = np.empty((*q.shape[:-1], 3, 3))
-    R[..., 0, 0] = 1 - 2 * (yy + zz)
-    R[..., 0, 1] = 2 * (xy - zw)
-    R[..., 0, 2] = 2 * (xz + yw)
-    R[..., 1, 0] = 2 * (xy + zw)
-    R[..., 1, 1] = 1 - 2 * (xx + zz)
-    R[..., 1, 2] = 2 * (yz - xw)
-    R[..., 2, 0] = 2 * (xz - yw)
-    R[..., 2, 1] = 2 * (yz + xw)
-    R[..., 2, 2] = 1 - 2 * (xx + yy)
-    return R
+    # Entry e of R is 2 (a_e + s_e b_e), one minus that on the diagonal, with a_e and b_e
+    # products of two components: all 16 products at once (small arrays: the calls cost).
+    qq = (q[..., :, None] * q[..., None, :]).reshape(*q.shape[:-1], 16)
+    T = qq[..., _FIRST] + _SIGN * qq[..., _SECOND]
+    T *= 2.0
+    return np.where(_DIAGONAL, 1.0 - T, T).reshape(*q.shape[:-1], 3, 3)
+
+
+# Components x y z w are 0 1 2 3, product (i, j) is 4 i + j. R row-major:
+# 1 - 2(yy + zz), 2(xy - zw), 2(xz + yw); 2(xy + zw), 1 - 2(xx + zz), 2(yz - xw);
+# 2(xz - yw), 2(yz + xw), 1 - 2(xx + yy).
+_FIRST = np.array([5, 1, 2, 1, 0, 6, 2, 6, 0])
+_SECOND = np.array([10, 11, 7, 11, 10, 3, 7, 3, 5])
+_SIGN = np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
+_DIAGONAL = np.array([True, False, False, False, True, False, False, False, True])
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
@@ -73,23 +74,16 @@ def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
     s10, d10 = R[..., 1, 0] + R[..., 0, 1], R[..., 1, 0] - R[..., 0, 1]
     s20, d02 = R[..., 2, 0] + R[..., 0, 2], R[..., 0, 2] - R[..., 2, 0]
     s21, d21 = R[..., 2, 1] + R[..., 1, 2], R[..., 2, 1] - R[..., 1, 2]
-    four = np.stack(  # 4x^2, 4y^2, 4z^2, 4w^2 (each times 1, up to round-off)
-        [1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22, 1 + m00 + m11 + m22],
-        axis=-1,
-    )
+    f0, f1 = 1 + m00 - m11 - m22, 1 - m00 + m11 - m22
+    f2, f3 = 1 - m00 - m11 + m22, 1 + m00 + m11 + m22
+    four = np.stack([f0, f1, f2, f3], axis=-1)  # 4x^2, 4y^2, 4z^2, 4w^2 (up to round-off)
     # Candidate i holds 4 q_i * q for the largest component i: (x, y, z, w) in each row.
     cand = np.stack(
-        [
-            np.stack([four[..., 0], s10, s20, d21], axis=-1),
-            np.stack([s10, four[..., 1], s21, d02], axis=-1),
-            np.stack([s20, s21, four[..., 2], d10], axis=-1),
-            np.stack([d21, d02, d10, four[..., 3]], axis=-1),
-        ],
-        axis=-2,
-    )
-    best = np.argmax(four, axis=-1)[..., None, None]
-    q = np.take_along_axis(cand, best, axis=-2)[..., 0, :]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        [f0, s10, s20, d21, s10, f1, s21, d02, s20, s21, f2, d10, d21, d02, d10, f3], axis=-1
+    ).reshape(-1, 4, 4)
+    best = np.argmax(four, axis=-1).ravel()
+    q = cand[np.arange(len(best)), best].reshape(four.shape)
+    q = q / _norm(q)[..., None]
     return np.where(q[..., 3:] < 0, -q, q)
 
 
@@ -97,7 +91,7 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
     """Rotation vectors ``(..., 3)`` [rad] (angle in [0, pi] times unit axis) of matrices ``R``."""
     q = matrix_to_quaternion(R)
     v, w = q[..., :3], q[..., 3]
-    s = np.linalg.norm(v, axis=-1)
+    s = _norm(v)
     angle = 2.0 * np.arctan2(s, w)
     small = s < 1e-8
     factor = np.where(small, 2.0 / np.where(small, w, 1.0), angle / np.where(small, 1.0, s))
