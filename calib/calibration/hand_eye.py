@@ -1,19 +1,11 @@
 """Hand-eye calibration from pixels, the robot's joint geometry taken as exact.
 
-The problem OpenCV's ``cv2.calibrateHandEye`` solves (``AX = XB``), solved instead by
-minimising the reprojection error of every observed corner: a camera on one link of the robot
-sees a target on another (eye-in-hand: the camera on the hand, the board in the cell;
-eye-to-hand: the camera in the cell, the board on the hand), and only the camera's placement
-on its link (6) and the target's mounting on its link (6) are unknown. The joint placements
-stay nominal (for a robot already calibrated, or to compare with hand-eye solvers: issue 32's
-"hand-eye alone"); :func:`calib.calibrate` of a pixel term fits them too.
-
-It is the joint engine's problem of one pixel term (:mod:`.pixel_chain`) with the target's
-mounting an unknown, at the level ``frames``: the joints held at nominal, the term's own
-unknowns free (:func:`~.contact_chains.calibrate_contact_chains`). The engine's steps are
-its: the camera placed in closed form (:func:`~.pixel_fit.camera_from_rays`) unless a
-placement is given, refined alone, the usual mistakes diagnosed, outliers set aside, then its
-least squares on the camera's and the mounting's 12 unknowns.
+OpenCV's ``cv2.calibrateHandEye`` problem (``AX = XB``: eye-in-hand or eye-to-hand), solved
+by minimising every corner's reprojection error: only the camera's placement on its link (6)
+and the target's mounting on its link (6) are unknown, the joints nominal (issue 32's
+"hand-eye alone"; :func:`calib.calibrate` of a pixel term fits them too). It is the joint
+engine's problem of one pixel term (:mod:`.pixel_chain`, its steps) with the mounting an
+unknown, at the level ``frames`` (:func:`~.contact_chains.calibrate_contact_chains`).
 """
 
 from __future__ import annotations

@@ -1,20 +1,14 @@
 """A pixel term among several chains: a camera on a link sees a target on a tool, in pixels.
 
-A kind of term of the joint engine (:func:`~.contact_chains.calibrate_contact_chains`) beside
-``plane``, ``fixed-pose`` and the measured term: its data are :class:`PixelData` (one
-camera's observations, the target and the camera), its chain runs from the camera's link to
-the target's tool (:mod:`.pixel_term`), its rows are the reprojection errors ``u, v`` [px],
-its own unknowns (columns of the joint fit) the camera's placement (6), with ``what.mount``
-the target's mounting (6), with ``what.targets`` the target points after the first three,
-with ``what.intrinsics`` the camera's intrinsics; the joint placement columns are shared with
-every other term through the joints.
+A kind of term of the joint engine (:func:`~.contact_chains.calibrate_contact_chains`): its
+data are :class:`PixelData`, its chain, rows ``u, v`` [px] and own unknowns (the camera's 6
+and the optional ones of :class:`~.pixel_term.Unknowns`) are :mod:`.pixel_term`'s; the joint
+placement columns are shared with every other term through the joints.
 
-Weight: the rows enter the joint fit in metres-equivalent, each pixel times the term's
-:attr:`PixelTermState.weight` [m/px] = the median depth of the target in the camera at the
-registration over the mean focal length (the distance one pixel spans at the target). A
-camera and touches then weigh as their errors at the target would in millimetres: the
+Weight: each pixel enters the joint fit times :attr:`PixelTermState.weight` [m/px] (the
+target's median depth in the camera at the registration over the mean focal length), so the
 refusal rule (``validation.worse``) and the outlier rule (:func:`~.outliers.find_outliers`)
-read those millimetres, and the report gives both (px and the mm they mean).
+read millimetres at the target; the report gives both (px and mm).
 
 Registration: the camera placed on the nominal robot (given, the URDF's link NAME on LINK, or
 in closed form, :func:`~.pixel_fit.camera_from_rays`), refined by least squares on its 6.

@@ -1,10 +1,8 @@
 """What cameras' pixels determine (``calib analyze --measure pixels``).
 
-The rank of the pixel rows' Jacobian (:func:`~.pixel_term.pixel_jacobian`'s: each camera's 6
-columns, the joint placement components shared by the cameras' chains, the target's
-mounting) on the nominal robot at random postures where the cameras see the target: each
-camera's 6, every joint placement component of the chains and, with ``--params complete``,
-the target's mounting.
+The rank of the pixel rows' Jacobian (:func:`~.pixel_term.pixel_jacobian`'s columns: each
+camera's 6, the chains' joint placements, with ``--params complete`` the target's mounting)
+on the nominal robot at random postures where the cameras see the target.
 """
 
 from __future__ import annotations
@@ -26,13 +24,12 @@ from .placements import Placements
 __all__ = ["pixel_count"]
 
 
-def _stacked(chains, cameras, rows, states, what: Unknowns) -> np.ndarray:
+def _stacked(names, cameras, rows, states, chains, what: Unknowns) -> np.ndarray:
     """The rows' Jacobian ``(r, c)``: each camera's 6 (by name), the joints', the mounting.
 
     A camera with targets on several links (one chain each) has one placement: each row moves
     its camera's 6 columns.
     """
-    names = tuple(dict.fromkeys(c.name for c in cameras))
     blocks = []
     for chain, camera, part, state in zip(chains, cameras, rows, states, strict=True):
         J = pixel_jacobian(state, chain, part, what)[1]
@@ -71,8 +68,8 @@ def pixel_count(
         PixelState(placements, np.asarray(cam.placement), target.position, cam.intrinsics.camera)
         for cam in cameras
     )
-    W = _stacked(chains, cameras, rows, states, what)
     names = tuple(dict.fromkeys(c.name for c in cameras))
+    W = _stacked(names, cameras, rows, states, chains, what)
     free = free_columns(W, placements, what, len(names))
     first = cameras[0]
     return {

@@ -1,16 +1,10 @@
 """A pixel term's registration: the camera's placement (closed form, then least squares).
 
-1. The camera's starting placement: given (a ``--camera`` guess or the URDF's optical link),
-   or a closed form of the perspective-n-point problem (:func:`camera_from_rays`: the pixels
-   undistorted into rays, the direct linear transform on normalised points, the rotation
-   projected onto SO(3));
-2. refined by least squares on the camera's 6 unknowns alone, on the nominal robot;
-3. for the outlier rule, the term fitted alone (:func:`fit_alone`): the unknowns the rows
-   determine chosen once (pivoted QR of the Jacobian's scaled columns,
-   :func:`~.pixel_term.free_columns`).
-
-Both least squares are the engine's (:func:`~.solve.fit`), x moving the start as the joint
-engine moves a pixel term's unknowns (its columns exact: :func:`~.pixel_term.exact_columns`).
+The start given, or the perspective-n-point problem in closed form (:func:`camera_from_rays`
+of the pixels' :func:`rays`), refined on the camera's 6 alone (:func:`refine_camera`); for
+the outlier rule, the term fitted alone (:func:`fit_alone`). Both least squares are the
+engine's (:func:`~.solve.fit`), x moving the start as the joint engine moves a pixel term's
+unknowns (its columns exact: :func:`~.pixel_term.exact_columns`).
 """
 
 from __future__ import annotations

@@ -39,11 +39,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.base_columns import independent_columns
 from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
+from .determined import determined_columns
 from .placements import Placements, joint_twists, offset_component
 
 __all__ = [
@@ -274,8 +274,7 @@ def free_columns(
         used[n : n + 6] = False
     scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)
     order = [c for c in _preference(placements, W.shape[1], cameras) if used[c]]
-    kept = independent_columns(scaled[:, order], list(range(len(order))))[2]
-    return tuple(sorted(order[i] for i in kept))
+    return tuple(sorted(order[i] for i in determined_columns(scaled[:, order])))
 
 
 def check_in_front(p_cam: np.ndarray, rows: PixelRows, source: str) -> None:
