@@ -293,13 +293,17 @@ class Placements:
 
         The calibrated origin of joint j is ``O_j E_j``.
         """
-        model = self.perturbed_model()
+        model = self._robot()
         out = {}
         for name, jid in zip(self.joints, self.ids, strict=True):
             before, after = self.nominal.jointPlacements[jid], model.jointPlacements[jid]
             if not np.array_equal(before.homogeneous, after.homogeneous):
                 out[name] = (before.inverse() * after).homogeneous
         return out
+
+    def _robot(self) -> pin.Model:
+        """The robot with the errors, to read: :attr:`model` itself when they are all zero."""
+        return self.perturbed_model() if np.any(self.y) else self.model
 
     def perturbed_model(self) -> pin.Model:
         """A copy of the model with the joint placements ``O_j E_j``."""
@@ -335,7 +339,7 @@ class Placements:
 
     def chain_models(self, chains: tuple[Chain, ...]) -> tuple[MDHModel, ...]:
         """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""
-        model = self.perturbed_model()
+        model = self._robot()
         moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
         return tuple(
             from_chain(c, zero=c.zero_frames(oMi))
@@ -375,15 +379,18 @@ def joint_twists(
     n = chain.n
     sign = np.asarray(chain.sign, dtype=float)
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
-    body_v = np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv, in the axis frame
-    body_w = left_jacobian(-w)  # right Jacobian of R(w)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
-    wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
     m = kin.R.shape[0]
     ang = np.zeros((m, n, 3, 6))
     lin = np.zeros((m, n, 3, 6))
+    if np.any(w):
+        body_w = left_jacobian(-w)  # right Jacobian of R(w)
+        wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
+        lin[..., :3] = RF @ np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv
+    else:  # no rotation error (a start, a rebase): both products by the identity, which
+        wv = RF + 0.0  # make a zero +0.0 (the sign Householder reflections read later)
+        lin[..., :3] = wv
     ang[..., 3:] = wv
-    lin[..., :3] = RF @ body_v
     lin[..., 3:] = skew(kin.p[:, :n]) @ wv
     return ang, lin
 
