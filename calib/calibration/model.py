@@ -27,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Collection
 from dataclasses import dataclass
+from itertools import accumulate
 
 import numpy as np
 
@@ -213,8 +214,9 @@ class ErrorModel:
         return sum(self._sizes())
 
     def split(self, x: np.ndarray) -> list[np.ndarray]:
-        """X cut into its groups: frame, markers, tool, base values."""
-        return np.split(np.asarray(x, dtype=float), np.cumsum(self._sizes())[:-1])
+        """X cut into its groups: frame, markers, tool, base values (views, as ``np.split``'s)."""
+        x, ends = np.asarray(x, dtype=float), list(accumulate(self._sizes()))
+        return [x[a:b] for a, b in zip([0, *ends[:-1]], [*ends[:-1], len(x)], strict=True)]
 
     def apply(self, start: State, x: np.ndarray) -> State:
         """The state at parameters x (x = 0 is ``start``)."""

@@ -293,13 +293,17 @@ class Placements:
 
         The calibrated origin of joint j is ``O_j E_j``.
         """
-        model = self.perturbed_model()
+        model = self._robot()
         out = {}
         for name, jid in zip(self.joints, self.ids, strict=True):
             before, after = self.nominal.jointPlacements[jid], model.jointPlacements[jid]
             if not np.array_equal(before.homogeneous, after.homogeneous):
                 out[name] = (before.inverse() * after).homogeneous
         return out
+
+    def _robot(self) -> pin.Model:
+        """The robot with the errors, to read: :attr:`model` itself when they are all zero."""
+        return self.perturbed_model() if np.any(self.y) else self.model
 
     def perturbed_model(self) -> pin.Model:
         """A copy of the model with the joint placements ``O_j E_j``."""
@@ -335,7 +339,7 @@ class Placements:
 
     def chain_models(self, chains: tuple[Chain, ...]) -> tuple[MDHModel, ...]:
         """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""
-        model = self.perturbed_model()
+        model = self._robot()
         moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
         return tuple(
             from_chain(c, zero=c.zero_frames(oMi))
@@ -375,15 +379,18 @@ def joint_twists(
     n = chain.n
     sign = np.asarray(chain.sign, dtype=float)
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
-    body_v = np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv, in the axis frame
-    body_w = left_jacobian(-w)  # right Jacobian of R(w)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
-    wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
     m = kin.R.shape[0]
     ang = np.zeros((m, n, 3, 6))
     lin = np.zeros((m, n, 3, 6))
+    if np.any(w):
+        body_w = left_jacobian(-w)  # right Jacobian of R(w)
+        wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
+        lin[..., :3] = RF @ np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv
+    else:  # no rotation error (a start, a rebase): both products by the identity, which
+        wv = RF + 0.0  # make a zero +0.0 (the sign Householder reflections read later)
+        lin[..., :3] = wv
     ang[..., 3:] = wv
-    lin[..., :3] = RF @ body_v
     lin[..., 3:] = skew(kin.p[:, :n]) @ wv
     return ang, lin
 
@@ -421,9 +428,9 @@ def mdh_directions(
         Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
         ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
     """
-    pset = parameter_set(mdh, label)
+    pset, n = parameter_set(mdh, label), chain.n
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
-    params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= mdh.n))
+    params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= n))
     q = chain.random_configurations(DIRECTION_CONFIGS, seed)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))
     W = identification_jacobian(mdh, params, q, pose).reshape(len(q), 6, -1)
@@ -434,18 +441,16 @@ def mdh_directions(
     A = np.concatenate([vel, ang], axis=2)  # (m, n, 6, 6)
     Wf = W.reshape(-1, W.shape[2])  # every parameter's motion, one column each
     scale = np.linalg.norm(Wf, axis=0)
-    fits = {}  # per joint: each parameter's components (6, P) and whether they match it
-    for i in range(chain.n):
-        Ai = A[:, i].reshape(-1, 6)
-        C = np.linalg.lstsq(Ai, Wf, rcond=None)[0]  # every parameter at once
-        fits[i] = (C, (np.linalg.norm(Ai @ C - Wf, axis=0) <= 1e-8 * scale) & (scale > 0))
-    out, names = [], []
+    # per joint: each parameter's components (6, P) (every parameter at once), whether
+    # they match it (n, P)
+    C = np.stack([np.linalg.lstsq(A[:, i].reshape(-1, 6), Wf, rcond=None)[0] for i in range(n)])
+    miss = np.linalg.norm(A.transpose(1, 0, 2, 3).reshape(n, -1, 6) @ C - Wf, axis=1)
+    fits = (miss <= 1e-8 * scale) & (scale > 0)
+    out = np.zeros((len(params.parameters), 6 * len(placements.joints)))
+    names: list[str] = []
     for k, p in enumerate(params.parameters):
-        for i in (p.row - 1, p.row - 2, p.row):
-            if 0 <= i < chain.n and fits[i][1][k]:
-                d = np.zeros(6 * len(placements.joints))
-                d[6 * columns[i] : 6 * columns[i] + 6] = fits[i][0][:, k]
-                out.append(d)
-                names.append(f"{chain.joint_names[i]}:{p.name}")
-                break
-    return np.array(out).reshape(-1, 6 * len(placements.joints)), tuple(names)
+        i = next((i for i in (p.row - 1, p.row - 2, p.row) if 0 <= i < n and fits[i, k]), None)
+        if i is not None:
+            out[len(names), 6 * columns[i] : 6 * columns[i] + 6] = C[i, :, k]
+            names.append(f"{chain.joint_names[i]}:{p.name}")
+    return out[: len(names)], tuple(names)
