@@ -39,7 +39,6 @@ __all__ = [
     "readings_note",
     "standing",
     "term_load",
-    "torques",
     "urdf_alone",
 ]
 
@@ -78,19 +77,6 @@ def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | Non
         raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
     kind = data[0].kind if isinstance(data[0], ContactData) else None
     return standing(chains[0], kind, elastic, support)
-
-
-def torques(load: StandingLoad | None, train, held) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid).
-
-    ``train`` and ``held`` (or None) are touches (:class:`ContactData`) when ``load`` is given.
-
-    The joints off the chain are at their recorded positions where the touches have them.
-    """
-    return (
-        None if load is None else load.torques(train.q, train.readings),
-        None if load is None or held is None else load.torques(held.q, held.readings),
-    )
 
 
 def readings_note(load, train, held) -> str | None:

@@ -26,25 +26,11 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact
 from ..kinematics.mdh import Kinematics, MDHModel
-from .contact_frames import ContactFrames, row_weights
+from .contact_blocks import dense
+from .contact_frames import ContactFrames, plane_frame, row_weights
 from .placements import JointFrames
 
-__all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame", "plane_state"]
-
-PLANE_COLUMNS = 5
-"""Columns of one plane (its height and 2 tilts) and of a flush contact's tilts (2)."""
-
-
-def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.ndarray:
-    """The plane ``(4, 4)``: z = normal, origin the projected ``centre`` [m], x the base x."""
-    n = np.asarray(normal, dtype=float)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    ex = helper - (helper @ n) * n
-    ex /= np.linalg.norm(ex)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([ex, np.cross(n, ex), n])
-    T[:3, 3] = centre - (n @ centre - height) * n
-    return T
+__all__ = ["ContactModel", "ContactState", "plane_state"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,20 +58,6 @@ class ContactState:
     def contact(self) -> np.ndarray:
         """The contact frame in the tool frame ``(4, 4)``."""
         return self.frames.contact
-
-    @property
-    def normal(self) -> np.ndarray:
-        """The first object's z axis ``(3,)`` (a plane's normal) in the base frame."""
-        return self.frames.objects[0, :3, 2].copy()
-
-    @property
-    def height(self) -> float:
-        """The first object's origin along its z axis [m] (a plane's height)."""
-        return float(self.normal @ self.frames.objects[0, :3, 3])
-
-    def plane(self, centre: np.ndarray | None = None) -> np.ndarray:
-        """The first plane ``(4, 4)`` in the base frame (origin: ``centre`` projected, or 0)."""
-        return plane_frame(self.normal, self.height, np.zeros(3) if centre is None else centre)
 
     def joints(self, q: np.ndarray, torque: np.ndarray | None = None) -> np.ndarray:
         """Joint positions the geometry sees: ``q + c * tau`` [rad or m] (``q`` without torque)."""
@@ -193,13 +165,7 @@ class ContactModel:
         ``kin`` and ``state``: see :meth:`blocks`.
         """
         own, shared, index = self.blocks(start, x, data, torque, kin, state)
-        m, rows, o = own.shape
-        J = np.zeros((m, rows, self.size()))
-        if o:
-            cols = o * index[:, None] + np.arange(o)
-            J[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = own
-        J[:, :, len(self.frames.ids) * o :] = shared
-        return J
+        return dense(own, shared, index, len(self.frames.ids))
 
     def blocks(
         self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None

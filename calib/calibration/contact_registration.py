@@ -63,7 +63,7 @@ from ..identification.contacts import (
 )
 from ..kinematics.so3 import rotation_matrix
 from .contact_blocks import BlockSystem, block_lstsq, dense
-from .contact_frames import ContactFrames, row_weights
+from .contact_frames import ContactFrames, plane_frames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
 
@@ -111,19 +111,6 @@ def _tilt_to(b: np.ndarray) -> np.ndarray:
     axis = np.array([-b[1], b[0], 0.0])
     s = np.linalg.norm(axis)
     return np.zeros(2) if s < 1e-300 else (axis * np.arctan2(s, b[2]) / s)[:2]
-
-
-def _plane_frames(normals, heights, x, index) -> np.ndarray:
-    """Planes ``(K, 4, 4)``: z = normal, origin the projected centroid, x the base's x or y."""
-    planes = np.tile(np.eye(4), (len(heights), 1, 1))
-    for k, (n, h) in enumerate(zip(normals, heights, strict=True)):
-        c = x[index == k].mean(axis=0)
-        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        ex = helper - (helper @ n) * n
-        ex /= np.linalg.norm(ex)
-        planes[k, :3, :3] = np.column_stack([ex, np.cross(n, ex), n])
-        planes[k, :3, 3] = c - (n @ c - h) * n
-    return planes
 
 
 def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -222,7 +209,7 @@ def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
         heights = np.array([np.mean(x[index == k] @ normals[k]) for k in range(K)])
         C = guess.copy()
         C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*_tilt_to(guess[:3, :3].T @ ak), 0]))
-        planes = _plane_frames(normals, heights, p + R @ C[:3, 3], index)
+        planes = plane_frames(normals, heights, p + R @ C[:3, 3], index)
         frames = ContactFrames(kind, C, planes, names)
         candidates.append((_cost(frames, R, p, index, weight), frames))
     return min(candidates, key=lambda c: c[0])[1]
@@ -233,7 +220,7 @@ def _plane_points(kind, R, p, guess, index, names, weight) -> ContactFrames:
     x = p + R @ guess[:3, 3]
     normals = _point_normals(x, index, np.tile([0.0, 0.0, 1.0], (len(names), 1)))
     heights = [float(np.mean(x[index == k] @ n)) for k, n in enumerate(normals)]
-    return ContactFrames(kind, guess, _plane_frames(normals, np.array(heights), x, index), names)
+    return ContactFrames(kind, guess, plane_frames(normals, np.array(heights), x, index), names)
 
 
 def _points(kind, R, p, guess, index, names, weight) -> ContactFrames:
@@ -322,4 +309,4 @@ def register_contacts(
     normals = frames.objects[:, :3, 2]
     heights = np.einsum("ki,ki->k", normals, frames.objects[:, :3, 3])
     x = p + R @ frames.contact[:3, 3]
-    return ContactFrames(kind, frames.contact, _plane_frames(normals, heights, x, index), names)
+    return ContactFrames(kind, frames.contact, plane_frames(normals, heights, x, index), names)
