@@ -1,21 +1,12 @@
 """A contact calibration's registration and checks: usual mistakes, outliers, refusal.
 
-The same checks as measured data (:mod:`calib.calibration.chain_registration`,
-:mod:`calib.calibration.validation`), on the kind's gaps:
-
-* the registration (:func:`registration`): the objects and the contact frame on the nominal
-  robot (:func:`~calib.calibration.contact_registration.register_contacts`), the weight of
-  the angle rows estimated from it when not given (:func:`estimate_weight`);
-* the usual mistakes (:mod:`calib.calibration.diagnosis`): when the registration leaves a
-  length gap (RMS over touches of the length rows' norm) above ``diagnosis.SUSPECT``, joint
-  columns holding one value are named, then swapped joint columns and degrees are tried, and
-  the mistake whose correction explains the touches is named (a ``DataError``);
-* outliers (:func:`~calib.calibration.outliers.find_outliers`): touches whose length gap
-  (or angle gap) after the registration is more than ``outliers.FACTOR`` times the median
-  are set aside and the registration repeated (each object keeps ``MIN_TOUCHES``);
-* refusal (:func:`refusal`): a fit that did not converge, fits the touches worse than the
-  registration, leaves a rank-deficient Jacobian, or is worse than the registration on
-  held-out touches (weighted RMS gap) is not delivered.
+The checks of measured data (:mod:`calib.calibration.validation`,
+:mod:`calib.calibration.term_checks`) on the kind's gaps: the registration
+(:func:`registration`, the angle weight estimated when not given: :func:`estimate_weight`);
+the usual mistakes (:mod:`calib.calibration.diagnosis`) when it leaves a length gap above
+``diagnosis.SUSPECT``; outliers (:mod:`calib.calibration.outliers`, each object keeping
+``MIN_TOUCHES``); refusal of a fit whose held-out or rank checks fail
+(:func:`held_out_refusal`, :func:`rank_refusal`).
 """
 
 from __future__ import annotations
@@ -135,9 +126,7 @@ def registration(
     """
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
-    if weight is None:
-        weight = estimate_weight(data.kind, R, p, data.ids, guess, first)
-    w = weight
+    w = estimate_weight(data.kind, R, p, data.ids, guess, first) if weight is None else weight
     return ContactState(nominal, register_contacts(data.kind, R, p, data.ids, guess, w), w)
 
 

@@ -1,18 +1,11 @@
 """The error model of contacts: the objects touched, the contact frame, robot parameters.
 
-A state is the robot's MDH model (frame -1: the chain's base frame), the contact frame in the
-tool frame and the objects (planes, points or poses, by id) in the base frame
-(:class:`~calib.calibration.contact_frames.ContactFrames`). A touch's gap is the contact
-kind's own (``kind.residual`` of the contact frame in its object's frame), for every kind:
-a plane's height, roll and pitch; a plane-point's height; a fixed point's position; a fixed
-pose's position and rotation vector.
-
-The parameters x of :class:`ContactModel`: the objects' and the contact's unknowns
-(:attr:`~calib.identification.contacts.Contact.object_dofs`, ``contact_dofs``). Their
-Jacobian is the kind's rows (``kind.jacobian_rows``) of the contact frame's pose-error
-Jacobian in its object's frame (:meth:`ContactFrames.parts`). The robot's columns (joint
-placement directions, compliances: ``elastic``, the geometry sees ``q' = q + c tau``) are the
-joint engine's (:mod:`.contact_chains_model`).
+A state is the robot's MDH model (frame -1: the chain's base frame) with the contact frame
+and the objects (:class:`~calib.calibration.contact_frames.ContactFrames`, which defines
+every kind's gap). The parameters x of :class:`ContactModel` are the objects' and the
+contact's unknowns, their Jacobian the kind's rows of :meth:`ContactFrames.parts`; the robot's
+columns (joint placement directions, compliances ``q' = q + c tau``) are the joint engine's
+(:mod:`.contact_chains_model`).
 """
 
 from __future__ import annotations
@@ -130,7 +123,6 @@ class ContactModel:
 
     The joint engine (:mod:`.contact_chains_model`) adds the robot's columns (joint placement
     directions, compliances) from the joint frames it makes once per step.
-    Its rows come weighted (``n_markers`` 0, no pose rows: :func:`~.solve.fit` weighs them 1).
 
     Attributes:
         frames: The frames' layout (kind and ids) the unknowns of x refer to.
@@ -138,25 +130,13 @@ class ContactModel:
 
     frames: ContactFrames
 
-    n_markers = 0
-    pose = False
-
-    @property
-    def fixed(self) -> int:
-        """Columns of the objects and the contact (always free)."""
-        return self.frames.size
-
     def size(self) -> int:
-        """Number of free parameters."""
-        return self.fixed
-
-    def names(self) -> tuple[str, ...]:
-        """Column names."""
-        return self.frames.names()
+        """Number of free parameters: the objects' and the contact's."""
+        return self.frames.size
 
     def apply(self, start: ContactState, x: np.ndarray) -> ContactState:
         """The state at parameters x (x = 0 is ``start``)."""
-        frames = start.frames.moved(np.asarray(x, dtype=float)[: self.fixed])
+        frames = start.frames.moved(np.asarray(x, dtype=float)[: self.size()])
         return dataclasses.replace(start, frames=frames)
 
     def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None):
@@ -186,6 +166,6 @@ class ContactModel:
             kin = s.kinematics(data.q, torque)
         index = s._index(data.ids, len(kin.p), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
-        own, shared = s.frames.parts(R, p, index, x[: self.fixed])
+        own, shared = s.frames.parts(R, p, index, x[: self.size()])
         w = s.row_weights()[None, :, None]
         return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index
