@@ -149,24 +149,6 @@ def gap_errors(g: np.ndarray, kind: Contact) -> outliers.Errors:
     return outliers.Errors(np.linalg.norm(g[:, ~angle], axis=1), rot, dims)
 
 
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values**2)))
-
-
-def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) -> list[str]:
-    """Raise the usual mistake that explains absurd gaps; a note if none does.
-
-    ``start``: the registration of ``data`` at ``DEFAULT_WEIGHT``, if already made.
-    """
-
-    def gap(d) -> float:  # d: the touches, or a corrected copy
-        return _rms(length_errors(registration(nominal, d, guess, DEFAULT_WEIGHT), d)[0])
-
-    start = start or registration(nominal, data, guess, DEFAULT_WEIGHT)
-    first = _rms(length_errors(start, data)[0])
-    return diagnosis.explain(data, chain.sigma == 0, gap, first, None, _WORDS)
-
-
 _WORDS = diagnosis.Words("touches", "touch", "gap",
                          check="the touches, the chain and the contact frame's guess")  # fmt: skip
 
@@ -220,7 +202,13 @@ class _Touches:
 
     def diagnose(self, rows: ContactData, state: ContactState) -> list[str]:
         """The usual mistakes of the touches kept (``state``: their registration)."""
-        return _diagnose(self.chain, self.nominal, rows, self.guess, state)
+
+        def gap(d) -> float:  # d: the touches, or a corrected copy
+            s = registration(self.nominal, d, self.guess, DEFAULT_WEIGHT)
+            return float(np.sqrt(np.mean(length_errors(s, d)[0] ** 2)))
+
+        first = float(np.sqrt(np.mean(length_errors(state, rows)[0] ** 2)))
+        return diagnosis.explain(rows, self.chain.sigma == 0, gap, first, None, _WORDS)
 
 
 def _registrable(data: ContactData) -> bool:
