@@ -1,21 +1,12 @@
 """A contact calibration's registration and checks: usual mistakes, outliers, refusal.
 
-The same checks as measured data (:mod:`calib.calibration.chain_registration`,
-:mod:`calib.calibration.validation`), on the kind's gaps:
-
-* the registration (:func:`registration`): the objects and the contact frame on the nominal
-  robot (:func:`~calib.calibration.contact_registration.register_contacts`), the weight of
-  the angle rows estimated from it when not given (:func:`estimate_weight`);
-* the usual mistakes (:mod:`calib.calibration.diagnosis`): when the registration leaves a
-  length gap (RMS over touches of the length rows' norm) above ``diagnosis.SUSPECT``, joint
-  columns holding one value are named, then swapped joint columns and degrees are tried, and
-  the mistake whose correction explains the touches is named (a ``DataError``);
-* outliers (:func:`~calib.calibration.outliers.find_outliers`): touches whose length gap
-  (or angle gap) after the registration is more than ``outliers.FACTOR`` times the median
-  are set aside and the registration repeated (each object keeps ``MIN_TOUCHES``);
-* refusal (:func:`refusal`): a fit that did not converge, fits the touches worse than the
-  registration, leaves a rank-deficient Jacobian, or is worse than the registration on
-  held-out touches (weighted RMS gap) is not delivered.
+The checks of measured data (:mod:`calib.calibration.validation`,
+:mod:`calib.calibration.term_checks`) on the kind's gaps: the registration
+(:func:`registration`, the angle weight estimated when not given: :func:`estimate_weight`);
+the usual mistakes (:mod:`calib.calibration.diagnosis`) when it leaves a length gap above
+``diagnosis.SUSPECT``; outliers (:mod:`calib.calibration.outliers`, each object keeping
+``MIN_TOUCHES``); refusal of a fit whose held-out or rank checks fail
+(:func:`held_out_refusal`, :func:`rank_refusal`).
 """
 
 from __future__ import annotations
@@ -135,9 +126,7 @@ def registration(
     """
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
-    if weight is None:
-        weight = estimate_weight(data.kind, R, p, data.ids, guess, first)
-    w = weight
+    w = estimate_weight(data.kind, R, p, data.ids, guess, first) if weight is None else weight
     return ContactState(nominal, register_contacts(data.kind, R, p, data.ids, guess, w), w)
 
 
@@ -158,24 +147,6 @@ def gap_errors(g: np.ndarray, kind: Contact) -> outliers.Errors:
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
     dims = (int(np.sum(~angle)), int(np.sum(angle)))
     return outliers.Errors(np.linalg.norm(g[:, ~angle], axis=1), rot, dims)
-
-
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values**2)))
-
-
-def _diagnose(chain, nominal: MDHModel, data: ContactData, guess, start=None) -> list[str]:
-    """Raise the usual mistake that explains absurd gaps; a note if none does.
-
-    ``start``: the registration of ``data`` at ``DEFAULT_WEIGHT``, if already made.
-    """
-
-    def gap(d) -> float:  # d: the touches, or a corrected copy
-        return _rms(length_errors(registration(nominal, d, guess, DEFAULT_WEIGHT), d)[0])
-
-    start = start or registration(nominal, data, guess, DEFAULT_WEIGHT)
-    first = _rms(length_errors(start, data)[0])
-    return diagnosis.explain(data, chain.sigma == 0, gap, first, None, _WORDS)
 
 
 _WORDS = diagnosis.Words("touches", "touch", "gap",
@@ -231,7 +202,13 @@ class _Touches:
 
     def diagnose(self, rows: ContactData, state: ContactState) -> list[str]:
         """The usual mistakes of the touches kept (``state``: their registration)."""
-        return _diagnose(self.chain, self.nominal, rows, self.guess, state)
+
+        def gap(d) -> float:  # d: the touches, or a corrected copy
+            s = registration(self.nominal, d, self.guess, DEFAULT_WEIGHT)
+            return float(np.sqrt(np.mean(length_errors(s, d)[0] ** 2)))
+
+        first = float(np.sqrt(np.mean(length_errors(state, rows)[0] ** 2)))
+        return diagnosis.explain(rows, self.chain.sigma == 0, gap, first, None, _WORDS)
 
 
 def _registrable(data: ContactData) -> bool:

@@ -21,9 +21,8 @@ import dataclasses
 import numpy as np
 
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
-from ..identification.contacts import Contact, PlaneContact
+from ..identification.contacts import PlaneContact
 from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
-from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad, Support, standing_load
 from ..kinematics.urdf_model import read_urdf_file
 from ..measurements.contact_campaign import ContactData
@@ -37,60 +36,32 @@ __all__ = [
     "fitted_compliance",
     "load_record",
     "readings_note",
-    "standing",
     "term_load",
-    "torques",
     "urdf_alone",
 ]
 
 
-def standing(
-    chain: Chain, kind: Contact | None, elastic: bool | None, support: Support | None
-) -> StandingLoad | None:
-    """The standing load compliance acts under (None: rigid joints).
+def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | None:
+    """The standing load of a fit of one chain touching planes (``elastic``), or None (rigid).
 
     Raises:
-        InvalidArgumentError: ``support`` without ``elastic``, or ``elastic`` for a kind other
-            than ``plane``.
+        InvalidArgumentError: ``elastic`` for several terms, for measurements or for a kind
+            other than ``plane``; ``support`` not a :class:`Support`, or without ``elastic``.
     """
+    if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
+        raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
     if support is not None and not isinstance(support, Support):
         raise InvalidArgumentError(f"support must be a Support, got {type(support).__name__}")
     if support is not None and not elastic:
         raise InvalidArgumentError("support (the load split between feet) needs elastic=True")
     if not elastic:
         return None
-    if not isinstance(kind, PlaneContact):
+    if not isinstance(data[0].kind, PlaneContact):
         raise InvalidArgumentError(
             "elastic (joint compliance) is available for plane contacts only, not "
-            f"'{getattr(kind, 'label', 'measurements')}'"
+            f"'{data[0].kind.label}'"
         )
-    return standing_load(chain, support)
-
-
-def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | None:
-    """The standing load of a fit of one chain touching planes (``elastic``), or None.
-
-    Raises:
-        InvalidArgumentError: ``elastic`` for several terms or for measurements, or as
-            :func:`standing` says.
-    """
-    if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
-        raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
-    kind = data[0].kind if isinstance(data[0], ContactData) else None
-    return standing(chains[0], kind, elastic, support)
-
-
-def torques(load: StandingLoad | None, train, held) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Gravity torques ``(m, n)`` of the training and the held-out touches (None: rigid).
-
-    ``train`` and ``held`` (or None) are touches (:class:`ContactData`) when ``load`` is given.
-
-    The joints off the chain are at their recorded positions where the touches have them.
-    """
-    return (
-        None if load is None else load.torques(train.q, train.readings),
-        None if load is None or held is None else load.torques(held.q, held.readings),
-    )
+    return standing_load(chains[0], support)
 
 
 def readings_note(load, train, held) -> str | None:

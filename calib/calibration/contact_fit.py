@@ -1,24 +1,17 @@
-"""The fit and the structural check of contacts of many objects, object by object.
+"""The fit and the structural check of one chain touching many objects, object by object.
 
-One chain touching (:mod:`.contact_chains`): its unknowns are each object's (a plane's
-height and tilts, ...), the contact frame's, the robot's and the compliances. With many
-objects (``BLOCK_UNKNOWNS`` objects' unknowns or more) the dense least squares of
-:func:`~calib.calibration.solve.fit` (MINPACK's QR of every column) and the dense rank test
-grow as the cube of the objects; here the objects' unknowns are eliminated object by object
-(:func:`~calib.calibration.contact_blocks.block_lstsq`), and time grows linearly with the
-touches and the objects:
+With ``BLOCK_UNKNOWNS`` objects' unknowns or more, the dense least squares of
+:func:`~calib.calibration.solve.fit` and the dense rank test grow as the cube of the objects;
+here the objects' unknowns are eliminated object by object
+(:mod:`~calib.calibration.contact_blocks`), and time grows linearly with the touches:
 
-* :func:`block_fit`: Levenberg-Marquardt on the same cost (the weighted gaps and the prior
-  rows), each step the damped least squares solved by block (damping ``lambda |D dx|^2``
-  with ``D`` the column norms, as MINPACK scales its steps; Nielsen's update of lambda), and
-  MINPACK's tests of convergence (relative reduction of the cost, actual and predicted,
-  under ``TOLERANCE``; or a step under ``TOLERANCE`` of x). It reaches the same minimum.
+* :func:`block_fit`: MINPACK's Levenberg-Marquardt on the same cost (the weighted gaps and
+  the prior rows; damping ``lambda |D dx|^2``, ``D`` the column norms; Nielsen's update of
+  lambda; MINPACK's tests of convergence at ``TOLERANCE``): the same minimum.
 * :func:`block_structural`: each object's own columns independent (its triangular factor
-  of full rank), then the pivoted QR (:func:`~calib.identification.base_columns.
-  independent_columns`) of the shared columns with the objects eliminated.
+  of full rank), then the pivoted QR of the shared columns with the objects eliminated.
 
-Fewer objects, and several terms, keep the dense route (a few columns: the same results as
-always).
+Fewer objects, and several terms, keep the dense route.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
-__all__ = ["DOF_NAMES", "ContactFrames", "row_weights"]
+__all__ = ["DOF_NAMES", "ContactFrames", "plane_frame", "plane_frames", "row_weights"]
 
 DOF_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 """Names of a twist's components in a frame's own axes: translation [m], rotation [rad]."""
@@ -183,3 +183,21 @@ def row_weights(kind: Contact, weight: float) -> np.ndarray:
     if not (np.isfinite(weight) and weight > 0):
         raise InvalidArgumentError(f"the orientation weight must be positive, got {weight}")
     return np.where(np.array(kind.angular), float(weight), 1.0)
+
+
+def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.ndarray:
+    """The plane ``(4, 4)``: z = normal, origin the projected ``centre`` [m], x the base x."""
+    n = np.asarray(normal, dtype=float)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    ex = helper - (helper @ n) * n
+    ex /= np.linalg.norm(ex)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([ex, np.cross(n, ex), n])
+    T[:3, 3] = centre - (n @ centre - height) * n
+    return T
+
+
+def plane_frames(normals, heights, x: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Planes ``(K, 4, 4)`` (:func:`plane_frame`), each origin its points ``x``' centroid."""
+    pairs = enumerate(zip(normals, heights, strict=True))
+    return np.array([plane_frame(n, h, x[index == k].mean(axis=0)) for k, (n, h) in pairs])

@@ -1,18 +1,11 @@
 """The error model of contacts: the objects touched, the contact frame, robot parameters.
 
-A state is the robot's MDH model (frame -1: the chain's base frame), the contact frame in the
-tool frame and the objects (planes, points or poses, by id) in the base frame
-(:class:`~calib.calibration.contact_frames.ContactFrames`). A touch's gap is the contact
-kind's own (``kind.residual`` of the contact frame in its object's frame), for every kind:
-a plane's height, roll and pitch; a plane-point's height; a fixed point's position; a fixed
-pose's position and rotation vector.
-
-The parameters x of :class:`ContactModel`: the objects' and the contact's unknowns
-(:attr:`~calib.identification.contacts.Contact.object_dofs`, ``contact_dofs``). Their
-Jacobian is the kind's rows (``kind.jacobian_rows``) of the contact frame's pose-error
-Jacobian in its object's frame (:meth:`ContactFrames.parts`). The robot's columns (joint
-placement directions, compliances: ``elastic``, the geometry sees ``q' = q + c tau``) are the
-joint engine's (:mod:`.contact_chains_model`).
+A state is the robot's MDH model (frame -1: the chain's base frame) with the contact frame
+and the objects (:class:`~calib.calibration.contact_frames.ContactFrames`, which defines
+every kind's gap). The parameters x of :class:`ContactModel` are the objects' and the
+contact's unknowns, their Jacobian the kind's rows of :meth:`ContactFrames.parts`; the robot's
+columns (joint placement directions, compliances ``q' = q + c tau``) are the joint engine's
+(:mod:`.contact_chains_model`).
 """
 
 from __future__ import annotations
@@ -26,25 +19,11 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact
 from ..kinematics.mdh import Kinematics, MDHModel
-from .contact_frames import ContactFrames, row_weights
+from .contact_blocks import dense
+from .contact_frames import ContactFrames, plane_frame, row_weights
 from .placements import JointFrames
 
-__all__ = ["PLANE_COLUMNS", "ContactModel", "ContactState", "plane_frame", "plane_state"]
-
-PLANE_COLUMNS = 5
-"""Columns of one plane (its height and 2 tilts) and of a flush contact's tilts (2)."""
-
-
-def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.ndarray:
-    """The plane ``(4, 4)``: z = normal, origin the projected ``centre`` [m], x the base x."""
-    n = np.asarray(normal, dtype=float)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    ex = helper - (helper @ n) * n
-    ex /= np.linalg.norm(ex)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([ex, np.cross(n, ex), n])
-    T[:3, 3] = centre - (n @ centre - height) * n
-    return T
+__all__ = ["ContactModel", "ContactState", "plane_state"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,20 +51,6 @@ class ContactState:
     def contact(self) -> np.ndarray:
         """The contact frame in the tool frame ``(4, 4)``."""
         return self.frames.contact
-
-    @property
-    def normal(self) -> np.ndarray:
-        """The first object's z axis ``(3,)`` (a plane's normal) in the base frame."""
-        return self.frames.objects[0, :3, 2].copy()
-
-    @property
-    def height(self) -> float:
-        """The first object's origin along its z axis [m] (a plane's height)."""
-        return float(self.normal @ self.frames.objects[0, :3, 3])
-
-    def plane(self, centre: np.ndarray | None = None) -> np.ndarray:
-        """The first plane ``(4, 4)`` in the base frame (origin: ``centre`` projected, or 0)."""
-        return plane_frame(self.normal, self.height, np.zeros(3) if centre is None else centre)
 
     def joints(self, q: np.ndarray, torque: np.ndarray | None = None) -> np.ndarray:
         """Joint positions the geometry sees: ``q + c * tau`` [rad or m] (``q`` without torque)."""
@@ -158,7 +123,6 @@ class ContactModel:
 
     The joint engine (:mod:`.contact_chains_model`) adds the robot's columns (joint placement
     directions, compliances) from the joint frames it makes once per step.
-    Its rows come weighted (``n_markers`` 0, no pose rows: :func:`~.solve.fit` weighs them 1).
 
     Attributes:
         frames: The frames' layout (kind and ids) the unknowns of x refer to.
@@ -166,25 +130,13 @@ class ContactModel:
 
     frames: ContactFrames
 
-    n_markers = 0
-    pose = False
-
-    @property
-    def fixed(self) -> int:
-        """Columns of the objects and the contact (always free)."""
-        return self.frames.size
-
     def size(self) -> int:
-        """Number of free parameters."""
-        return self.fixed
-
-    def names(self) -> tuple[str, ...]:
-        """Column names."""
-        return self.frames.names()
+        """Number of free parameters: the objects' and the contact's."""
+        return self.frames.size
 
     def apply(self, start: ContactState, x: np.ndarray) -> ContactState:
         """The state at parameters x (x = 0 is ``start``)."""
-        frames = start.frames.moved(np.asarray(x, dtype=float)[: self.fixed])
+        frames = start.frames.moved(np.asarray(x, dtype=float)[: self.size()])
         return dataclasses.replace(start, frames=frames)
 
     def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None):
@@ -193,13 +145,7 @@ class ContactModel:
         ``kin`` and ``state``: see :meth:`blocks`.
         """
         own, shared, index = self.blocks(start, x, data, torque, kin, state)
-        m, rows, o = own.shape
-        J = np.zeros((m, rows, self.size()))
-        if o:
-            cols = o * index[:, None] + np.arange(o)
-            J[np.arange(m)[:, None, None], np.arange(rows)[None, :, None], cols[:, None, :]] = own
-        J[:, :, len(self.frames.ids) * o :] = shared
-        return J
+        return dense(own, shared, index, len(self.frames.ids))
 
     def blocks(
         self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None
@@ -220,6 +166,6 @@ class ContactModel:
             kin = s.kinematics(data.q, torque)
         index = s._index(data.ids, len(kin.p), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
-        own, shared = s.frames.parts(R, p, index, x[: self.fixed])
+        own, shared = s.frames.parts(R, p, index, x[: self.size()])
         w = s.row_weights()[None, :, None]
         return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index

@@ -1,50 +1,27 @@
 """Registration of contacts: planes, fixed points and fixed poses on the nominal model.
 
-The contact kinds measure nothing outside the robot: a touch only says that a contact frame,
-fixed to the tool, meets an unknown object. Before any robot parameter is fitted, the objects
-and the contact frame are estimated from the tool placements of the nominal model (``R_t``,
-``p_t``: the tool frame in the chain's base frame, one per touch), as the registration of
-measured data estimates the instrument's frame:
+A touch only says that a contact frame, fixed to the tool, meets an unknown object (named by
+an id; the contact frame is shared by all). Before any robot parameter is fitted, the objects
+and the contact frame are estimated from the nominal tool placements ``(R_t, p_t)`` (the tool
+frame in the chain's base frame), as the registration of measured data estimates the
+instrument's frame. :func:`register_contacts`: the closed form of the kind, then (but for a
+fixed point, whose closed form is the least squares) :func:`refine`, Gauss-Newton on the
+kind's own gap (:class:`~calib.calibration.contact_frames.ContactFrames`) until the step is
+under ``STEP_TOLERANCE``; a plane's origin is then its contact points' centroid projected.
 
-- **plane** (the contact frame flush with a plane; 3 rows per touch: its height ``z`` and its
-  two tilts, roll and pitch, in the plane's frame, with ``R = Rz(yaw) Ry(pitch) Rx(roll)``
-  the contact's rotation in the plane's frame). A closed-form start and Gauss-Newton steps
-  (the exact least squares has no closed form: the tilts are angles of unit vectors):
-
-  1. start: with ``M_k = sum R_t^T`` over the touches of plane ``k``, the contact normal in
-     the tool frame ``a`` and the plane normals ``n_k`` maximising ``sum a^T M_k n_k`` (the
-     chordal fit of ``R_t^T n_k = a``: the top left singular vector of ``[M_1 ... M_K]``,
-     then ``n_k = M_k^T a / |M_k^T a|``), or the normal of the contact points (smallest
-     singular vector of the centred points) when that costs less (touches at one
-     orientation); each height is the mean of ``n_k . x_t``;
-  2. Gauss-Newton on ``sum z^2 + w^2 (roll^2 + pitch^2)`` until the step is under
-     ``STEP_TOLERANCE`` (:func:`refine`: the gap and its rows are the kind's own,
-     :class:`~calib.identification.contacts.PlaneContact`, through
-     :class:`~calib.calibration.contact_frames.ContactFrames`).
-
-  What a flush contact can see: the plane's normal and height, and the contact's normal in
-  the tool frame. Its offset along its own normal regroups with the plane's height (moving
-  the contact by ``d`` along ``z`` is moving the plane by ``d``), and its offsets along its
-  own ``x``, ``y`` and its yaw change no residual at a perfect fit: they keep their guess
-  (the gauge), the contact frame is tilted about its own ``x`` and ``y`` axes only.
-- **plane-point** (a tip on a plane; 1 row, its height): each plane through the tip's points
-  at the guessed tip (the smallest singular vector of the centred points), then Gauss-Newton
-  on the planes and the tip (:func:`refine`).
-- **fixed point** (a tip at an unknown fixed point ``y_k``; 3 rows ``p_t + R_t x - y_k``):
-  the tip ``x`` in the tool frame and the points by linear least squares, in closed form
-  (the points eliminated: ``y_k`` is the mean of ``p_t + R_t x`` over its touches). The
-  contact frame's rotation keeps its guess (a point has no orientation).
-- **fixed pose** (the contact frame at an unknown fixed pose ``F_k``; 6 rows: the contact's
-  position and rotation vector in ``F_k``): ``F_k`` is the mean pose, the position in closed
-  form, the rotation by the chordal mean then Gauss-Newton steps (the Karcher mean). The
-  contact frame is invisible (only ``F_k C^-1`` is) and keeps its guess.
-
-Every plane, point or pose is named by an id; the contact frame is shared by all.
-:func:`register_contacts` registers any kind, as the
-:class:`~calib.calibration.contact_frames.ContactFrames` the calibration starts from: the
-closed form of its kind, then (but for a fixed point, whose closed form is the least squares)
-:func:`refine` (Gauss-Newton on the kind's own gap); a plane's origin is then the contact
-points' centroid projected on it, its x the base's x (or y) projected.
+- **plane** (flush; its height and two tilts): with ``M_k = sum R_t^T`` over plane ``k``'s
+  touches, the contact normal ``a`` in the tool frame is the top left singular vector of
+  ``[M_1 ... M_K]`` and ``n_k = M_k^T a / |M_k^T a|`` (the chordal fit of ``R_t^T n_k = a``),
+  or the normal of the contact points when that costs less (touches at one orientation);
+  each height the mean of ``n_k . x_t``. A flush contact sees the planes and its own normal:
+  its offset along that normal regroups with the heights, its ``x``, ``y`` and yaw keep
+  their guess (the gauge); it is tilted about its own ``x`` and ``y`` only.
+- **plane-point** (a tip on a plane; its height): each plane through the tip's points at the
+  guessed tip (the smallest singular vector of the centred points).
+- **fixed point** (``p_t + R_t x - y_k``): the tip ``x`` and the points by linear least
+  squares (``y_k`` the mean of ``p_t + R_t x`` over its touches); the rotation keeps its guess.
+- **fixed pose** (position and rotation vector in ``F_k``): ``F_k`` the mean position and the
+  chordal mean rotation; the contact frame is invisible (only ``F_k C^-1`` is) and kept.
 """
 
 from __future__ import annotations
@@ -63,7 +40,7 @@ from ..identification.contacts import (
 )
 from ..kinematics.so3 import rotation_matrix
 from .contact_blocks import BlockSystem, block_lstsq, dense
-from .contact_frames import ContactFrames, row_weights
+from .contact_frames import ContactFrames, plane_frames, row_weights
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
 
@@ -111,19 +88,6 @@ def _tilt_to(b: np.ndarray) -> np.ndarray:
     axis = np.array([-b[1], b[0], 0.0])
     s = np.linalg.norm(axis)
     return np.zeros(2) if s < 1e-300 else (axis * np.arctan2(s, b[2]) / s)[:2]
-
-
-def _plane_frames(normals, heights, x, index) -> np.ndarray:
-    """Planes ``(K, 4, 4)``: z = normal, origin the projected centroid, x the base's x or y."""
-    planes = np.tile(np.eye(4), (len(heights), 1, 1))
-    for k, (n, h) in enumerate(zip(normals, heights, strict=True)):
-        c = x[index == k].mean(axis=0)
-        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        ex = helper - (helper @ n) * n
-        ex /= np.linalg.norm(ex)
-        planes[k, :3, :3] = np.column_stack([ex, np.cross(n, ex), n])
-        planes[k, :3, 3] = c - (n @ c - h) * n
-    return planes
 
 
 def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -222,7 +186,7 @@ def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
         heights = np.array([np.mean(x[index == k] @ normals[k]) for k in range(K)])
         C = guess.copy()
         C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*_tilt_to(guess[:3, :3].T @ ak), 0]))
-        planes = _plane_frames(normals, heights, p + R @ C[:3, 3], index)
+        planes = plane_frames(normals, heights, p + R @ C[:3, 3], index)
         frames = ContactFrames(kind, C, planes, names)
         candidates.append((_cost(frames, R, p, index, weight), frames))
     return min(candidates, key=lambda c: c[0])[1]
@@ -233,7 +197,7 @@ def _plane_points(kind, R, p, guess, index, names, weight) -> ContactFrames:
     x = p + R @ guess[:3, 3]
     normals = _point_normals(x, index, np.tile([0.0, 0.0, 1.0], (len(names), 1)))
     heights = [float(np.mean(x[index == k] @ n)) for k, n in enumerate(normals)]
-    return ContactFrames(kind, guess, _plane_frames(normals, np.array(heights), x, index), names)
+    return ContactFrames(kind, guess, plane_frames(normals, np.array(heights), x, index), names)
 
 
 def _points(kind, R, p, guess, index, names, weight) -> ContactFrames:
@@ -322,4 +286,4 @@ def register_contacts(
     normals = frames.objects[:, :3, 2]
     heights = np.einsum("ki,ki->k", normals, frames.objects[:, :3, 3])
     x = p + R @ frames.contact[:3, 3]
-    return ContactFrames(kind, frames.contact, _plane_frames(normals, heights, x, index), names)
+    return ContactFrames(kind, frames.contact, plane_frames(normals, heights, x, index), names)

@@ -4,9 +4,8 @@ What a term of touches (:class:`~calib.measurements.contact_campaign.ContactData
 contact kind: ``plane``, ``plane-point``, ``fixed-point``, ``fixed-pose``; any number of
 objects) needs beside the engine's model (:mod:`.contact_chains`): the contact frame's guess
 (:func:`contact_frame`, :func:`contact_guess`), the touches set aside
-(:func:`split_contacts`), the angle rows' weight (:func:`tilt_weight`), the objects as
-reported (:func:`contact_objects`) and the check of held-out touches that are another
-object's (:func:`check_held_out_gaps`).
+(:func:`split_contacts`), the objects as reported (:func:`contact_objects`) and the check of
+held-out touches that are another object's (:func:`check_held_out_gaps`).
 """
 
 from __future__ import annotations
@@ -19,9 +18,10 @@ from ..identification.contacts import Contact, FixedPoseContact
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
-from . import contact_checks, determined
+from . import determined
 from .contact_checks import subset
-from .contact_model import ContactState, plane_frame
+from .contact_frames import plane_frames
+from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES
 
 __all__ = [
@@ -32,7 +32,6 @@ __all__ = [
     "contact_guess",
     "contact_objects",
     "split_contacts",
-    "tilt_weight",
 ]
 
 
@@ -129,16 +128,6 @@ def split_contacts(
     return subset(data, ~held), subset(data, held)
 
 
-def tilt_weight(R: np.ndarray, p: np.ndarray, ids, guess: np.ndarray, kind=None) -> float:
-    """Weight of the angle rows [m/rad] of a registration (default kind: ``plane``).
-
-    See :func:`~calib.calibration.contact_checks.estimate_weight`.
-    """
-    from ..identification.contacts import PlaneContact
-
-    return contact_checks.estimate_weight(kind or PlaneContact(), R, p, ids, guess)
-
-
 def contact_objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:
     """The objects by id; a plane's origin at its touches' contact points, projected."""
     frames = state.frames
@@ -146,12 +135,10 @@ def contact_objects(state: ContactState, train: ContactData, torque=None) -> dic
         return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
     kin = state.kinematics(train.q, torque)
     x = kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3]
-    index = frames.index(train.ids)
-    out = {}
-    for i, k in enumerate(frames.ids):
-        n = frames.objects[i, :3, 2]
-        out[k] = plane_frame(n, float(n @ frames.objects[i, :3, 3]), x[index == i].mean(axis=0))
-    return out
+    normals = frames.objects[:, :3, 2]
+    heights = [float(n @ F[:3, 3]) for n, F in zip(normals, frames.objects, strict=True)]
+    planes = plane_frames(normals, heights, x, frames.index(train.ids))
+    return dict(zip(frames.ids, planes, strict=True))
 
 
 def check_held_out_gaps(stats, source: str) -> None:

@@ -33,7 +33,6 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
-from .contact_elastic import torques as contact_torques
 from .model import compliance_name
 from .options import Options
 from .placements import mdh_directions
@@ -72,7 +71,8 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
             compliance of a joint it never loads.
     """
     if load is not None:
-        return contact_torques(load, train[0], held[0]), tuple(range(chains[0].n))
+        tau = [None if d is None else load.torques(d.q, d.readings) for d in (train[0], held[0])]
+        return (tau[0], tau[1]), tuple(range(chains[0].n))
     forced = opts is not None and any(_compliance(n) for n in opts.free)
     if opts is None or not (opts.elastic or (opts.elastic is None and forced)):
         return (None, None), ()
