@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,12 +13,7 @@ from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.elastic import compliance_document as chain_compliance_document
 from ..kinematics.mdh import MDHModel
-from ..kinematics.placement_export import (
-    camera_urdf,
-    marker_urdf,
-    moved_origins_urdf,
-    write_moved_origins_urdf,
-)
+from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origins_urdf
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line
@@ -273,11 +269,9 @@ class ContactChainsCalibration(Result, ChainView):
     def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
         """Each parameter row's URDF joint and type (one chain touching or measured: MDH rows)."""
         part = self.chains[0]
-        if len(self.chains) == 1 and isinstance(part, ChainContacts):
-            return tuple(part.nominal.joint_names), part.nominal.sigma
-        if len(self.chains) == 1 and isinstance(part, MeasuredChain):  # its compliances' rows
-            nominal = part.registered.inner.mdh
-            return tuple(nominal.joint_names), nominal.sigma
+        if len(self.chains) == 1 and isinstance(part, ChainContacts | MeasuredChain):
+            nominal = part.nominal if isinstance(part, ChainContacts) else part.registered.inner.mdh
+            return tuple(nominal.joint_names), nominal.sigma  # a measured chain: its compliances'
         return tuple(part.chain.model.names), None
 
     def _entries(self) -> list[dict]:
@@ -524,11 +518,10 @@ class ContactChainsCalibration(Result, ChainView):
 
         Raises:
             CalibrationRefusedError: The model was refused.
+            InvalidArgumentError: ``path`` is not a file path.
         """
-        if self.refusal is not None:
-            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        if self._cameras() or self._instrument():
-            check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
-            write_atomic(path, self.urdf())
-            return
-        write_moved_origins_urdf(path, self.chains[0].chain, self.joint_errors())
+        urdf = self.urdf()
+        if not isinstance(path, str | os.PathLike):
+            raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
+        check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
+        write_atomic(path, urdf)
