@@ -17,7 +17,6 @@ from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origin
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line
-from .contact_frames import ContactFrames
 from .contact_result import GapStats, gap_rows, part_dict
 from .contact_term_report import single_contact_report
 from .delivery import Result, RowErrors, compliance_path
@@ -74,8 +73,6 @@ class ChainContacts:
         stats: ``train``, ``train_registration`` and, with held-out touches, ``held_out``
             and ``held_out_registration``.
         kind: The chain's contact kind (``plane`` or ``fixed-pose``).
-        frames: Its fitted objects and contact frame (a ``fixed-pose`` chain's poses by
-            id), or None.
         held_source: Its held-out touches' source (``holdout`` or the validation file), or
             None.
         outliers: Its touches set aside after its registration.
@@ -97,7 +94,6 @@ class ChainContacts:
     weight: float
     stats: dict[str, GapStats]
     kind: Contact = field(default_factory=PlaneContact)
-    frames: ContactFrames | None = None
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
     placed: dict[str, np.ndarray] | None = None
@@ -107,11 +103,8 @@ class ChainContacts:
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
-        if self.placed is not None:
-            return {i: F.copy() for i, F in self.placed.items()}
-        if self.frames is None or isinstance(self.kind, PlaneContact):
-            return {self.plane_id: self.plane}
-        return {i: F.copy() for i, F in zip(self.frames.ids, self.frames.objects, strict=True)}
+        placed = {self.plane_id: self.plane} if self.placed is None else self.placed
+        return {i: F.copy() for i, F in placed.items()}
 
     def errors(self) -> dict:
         """The report's ``errors.terms`` entry: ``train`` and ``held_out`` gaps (format 3)."""

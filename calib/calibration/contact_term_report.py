@@ -1,14 +1,7 @@
-"""The report of one chain touching, fitted by the joint engine: the single chain's layout.
+"""The report of one chain touching (shape ``contacts``): the single chain's layout.
 
-A problem of one contact term (``shape`` ``contacts``) is fitted by the joint engine
-(:func:`~.contact_chains.calibrate_contact_chains`) and its result is a
-:class:`~.contact_chains_result.ContactChainsCalibration` of one part. Its report keeps the
-layout users' scripts, ``calib predict`` and ``load_calibrated`` read for one chain touching
-(:func:`single_contact_report`): ``shape`` ``contacts``, the term's errors as ``errors.train``
-and ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
-joint's compliance (0 where none was fitted) and its load, the chain's nominal and calibrated
-MDH rows under ``model``, and format 2's keys of a contact report (``base``, ``tool``,
-``measure``, ``contact``, ``gaps``, ``tilt_weight``, ``calibrated_mdh``, ...).
+A joint fit of one contact term keeps the layout users' scripts, ``calib predict`` and
+``load_calibrated`` read for one chain touching (:func:`single_contact_report`).
 """
 
 from __future__ import annotations
@@ -21,6 +14,11 @@ __all__ = ["single_contact_report"]
 
 def single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]:
     """The report's fields and format 2's keys of one contact term's fit.
+
+    Its own: ``shape`` ``contacts``, the term's errors as ``errors.train`` and
+    ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
+    joint's compliance (0 where none was fitted) and its load, the chain's MDH rows under
+    ``model``, and format 2's keys of a contact report.
 
     Args:
         part: The term's :class:`~.contact_chains_result.ChainContacts`.
