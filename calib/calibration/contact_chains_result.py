@@ -1,4 +1,9 @@
-"""The result of a calibration of several chains from flush contacts: one robot, one URDF."""
+"""The result of every calibration (one robot, one URDF), and one chain touching's layout.
+
+A fit of one contact term keeps the report's layout users' scripts, ``calib predict`` and
+``load_calibrated`` read for one chain touching (``shape`` ``contacts``); one chain measured
+by an instrument keeps a chain's (:mod:`.measured_report`).
+"""
 
 from __future__ import annotations
 
@@ -16,9 +21,8 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origins_urdf
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
-from .contact_elastic import compliance_document, compliance_line
+from .contact_elastic import compliance_document, compliance_line, load_record
 from .contact_result import GapStats, gap_rows, part_dict
-from .contact_term_report import single_contact_report
 from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
@@ -35,6 +39,7 @@ from .placements import Placements
 from .report import (
     FORMAT2_MOVED,
     build_report,
+    compliance_dict,
     fit_dict,
     model_choice,
     outlier_dict,
@@ -126,6 +131,56 @@ class ChainContacts:
         }
 
 
+def _single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]:
+    """The report's fields and format 2's keys of one contact term's fit.
+
+    Its own: ``shape`` ``contacts``, the term's errors as ``errors.train`` and
+    ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
+    joint's compliance (0 where none was fitted) and its load, the chain's MDH rows under
+    ``model``, and format 2's keys of a contact report.
+
+    Args:
+        part: The term's :class:`ChainContacts`.
+        fields: The joint fit's format-3 fields (:data:`~.report.REPORT_KEYS`).
+        legacy: Its format 2's keys.
+
+    Returns:
+        The fields and format 2's keys of the single chain's layout.
+    """
+    chain, kind = part.chain, part.kind
+    errors, load = part.errors(), load_record(part)
+    angles = any(kind.angular)
+    fields = {
+        **fields,
+        "shape": "contacts",
+        "errors": {**errors, "terms": [errors]},
+        "frames": {**fields["frames"], "tool_link": chain.tool_frame},
+        "fit": fit_dict(orientation_weight=part.weight if angles else None),
+        "compliance": compliance_dict(chain, part.compliance),
+        "model": {
+            **fields["model"],
+            "mdh_nominal": part.nominal.rows(),
+            "mdh_calibrated": part.calibrated.rows(),
+            "load": load,
+        },
+    }
+    own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
+    legacy = {
+        "base": chain.base_frame,
+        "tool": chain.tool_frame,
+        "measure": kind.label,
+        "free": legacy["free"],
+        "selection": legacy["selection"],
+        "tilt_weight": part.weight if angles else None,
+        "contact": own["contact"],
+        "gaps": own["gaps"],
+        "load": load,
+        "calibrated_mdh": part.calibrated.rows(),
+        "notes": legacy["notes"],
+    }
+    return fields, legacy
+
+
 def _stat_labels(part) -> dict[str, str]:
     """Each statistic's label in the summary, padded (with compliance: which model it is)."""
     labels = {}
@@ -184,7 +239,7 @@ def _rotation(R: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class ContactChainsCalibration(Result, ChainView):
-    """A calibration of several chains of one robot from flush contacts.
+    """Every calibration's result: a chain measured, a tree, contacts, pixels, several terms.
 
     Attributes:
         chains: Each chain's part, in the order given.
@@ -402,7 +457,7 @@ class ContactChainsCalibration(Result, ChainView):
         if self._frame() is not None:  # one chain measured by an instrument
             fields, legacy = chain_report(self, fields, world_link, on_robot)
         elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
-            fields, legacy = single_contact_report(self.chains[0], fields, self._format2())
+            fields, legacy = _single_contact_report(self.chains[0], fields, self._format2())
         else:
             legacy = self._format2()
         return build_report(fields, legacy, FORMAT2_MOVED)
