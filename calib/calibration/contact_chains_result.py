@@ -401,9 +401,10 @@ class ContactChainsCalibration(Result, ChainView):
     def to_dict(self, world_link: str | None = None, on_robot: bool = False) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
 
-        ``errors.train`` and ``errors.held_out`` are None: each chain's gaps are its own rows
-        (``errors.terms``, in the order of ``terms``). One chain measured by an instrument
-        (shape ``chain``): ``frames`` and ``compliance`` as a chain's report has them.
+        ``errors.train`` and ``errors.held_out``: the one term's, or the instrument's terms'
+        together (a tree's tools), else None (each term's: ``errors.terms``). One chain
+        measured by an instrument or touching: the single chain's layout (``frames``,
+        ``compliance``, ``model``, ``fit``).
 
         Args:
             world_link: The ``world_link`` the URDF was written with (None: none).
