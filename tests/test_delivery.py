@@ -529,3 +529,14 @@ def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path, capsys):
     P = PinURDF(urdf).placements(joint_rows(rows, names), "mocap", "wrist_ft_tool_link_marker1")
     e = np.linalg.norm(P[:, :3, 3] - points(rows), axis=1)
     assert abs(1e3 * np.sqrt(np.mean(e**2)) - held["urdf"]["position_rms_mm"]) < 1e-9
+
+
+def test_write_urdf_refuses_what_is_not_a_path_for_every_shape():
+    """A tree's ``write_urdf(3)`` is one InvalidArgumentError, as a chain touching's is (it was
+    a TypeError from the output checks: only the moved-origins URDF checked the path)."""
+    from calib import calibrate, load_tree, simulate_tree
+
+    tree = load_tree("bolt")
+    result = calibrate(tree, simulate_tree(tree, 30, seed=1).measurements)
+    with pytest.raises(InvalidArgumentError, match="path must be a file path"):
+        result.write_urdf(3)

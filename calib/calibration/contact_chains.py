@@ -350,7 +350,6 @@ def _assemble(
                 s.weight,
                 stats,
                 s.kind,
-                s.frames,
                 placed=objects,
                 compliance=compliance,
                 load=None if compliance is None else load,

@@ -1,7 +1,13 @@
-"""The result of a calibration of several chains from flush contacts: one robot, one URDF."""
+"""The result of every calibration (one robot, one URDF), and one chain touching's layout.
+
+A fit of one contact term keeps the report's layout users' scripts, ``calib predict`` and
+``load_calibrated`` read for one chain touching (``shape`` ``contacts``); one chain measured
+by an instrument keeps a chain's (:mod:`.measured_report`).
+"""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,18 +18,11 @@ from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.elastic import compliance_document as chain_compliance_document
 from ..kinematics.mdh import MDHModel
-from ..kinematics.placement_export import (
-    camera_urdf,
-    marker_urdf,
-    moved_origins_urdf,
-    write_moved_origins_urdf,
-)
+from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origins_urdf
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
-from .contact_elastic import compliance_document, compliance_line
-from .contact_frames import ContactFrames
+from .contact_elastic import compliance_document, compliance_line, load_record
 from .contact_result import GapStats, gap_rows, part_dict
-from .contact_term_report import single_contact_report
 from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
@@ -40,6 +39,7 @@ from .placements import Placements
 from .report import (
     FORMAT2_MOVED,
     build_report,
+    compliance_dict,
     fit_dict,
     model_choice,
     outlier_dict,
@@ -78,8 +78,6 @@ class ChainContacts:
         stats: ``train``, ``train_registration`` and, with held-out touches, ``held_out``
             and ``held_out_registration``.
         kind: The chain's contact kind (``plane`` or ``fixed-pose``).
-        frames: Its fitted objects and contact frame (a ``fixed-pose`` chain's poses by
-            id), or None.
         held_source: Its held-out touches' source (``holdout`` or the validation file), or
             None.
         outliers: Its touches set aside after its registration.
@@ -101,7 +99,6 @@ class ChainContacts:
     weight: float
     stats: dict[str, GapStats]
     kind: Contact = field(default_factory=PlaneContact)
-    frames: ContactFrames | None = None
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
     placed: dict[str, np.ndarray] | None = None
@@ -111,11 +108,8 @@ class ChainContacts:
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
-        if self.placed is not None:
-            return {i: F.copy() for i, F in self.placed.items()}
-        if self.frames is None or isinstance(self.kind, PlaneContact):
-            return {self.plane_id: self.plane}
-        return {i: F.copy() for i, F in zip(self.frames.ids, self.frames.objects, strict=True)}
+        placed = {self.plane_id: self.plane} if self.placed is None else self.placed
+        return {i: F.copy() for i, F in placed.items()}
 
     def errors(self) -> dict:
         """The report's ``errors.terms`` entry: ``train`` and ``held_out`` gaps (format 3)."""
@@ -135,6 +129,56 @@ class ChainContacts:
             },
             "gaps": {k: v.to_dict() for k, v in self.stats.items()},
         }
+
+
+def _single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]:
+    """The report's fields and format 2's keys of one contact term's fit.
+
+    Its own: ``shape`` ``contacts``, the term's errors as ``errors.train`` and
+    ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
+    joint's compliance (0 where none was fitted) and its load, the chain's MDH rows under
+    ``model``, and format 2's keys of a contact report.
+
+    Args:
+        part: The term's :class:`ChainContacts`.
+        fields: The joint fit's format-3 fields (:data:`~.report.REPORT_KEYS`).
+        legacy: Its format 2's keys.
+
+    Returns:
+        The fields and format 2's keys of the single chain's layout.
+    """
+    chain, kind = part.chain, part.kind
+    errors, load = part.errors(), load_record(part)
+    angles = any(kind.angular)
+    fields = {
+        **fields,
+        "shape": "contacts",
+        "errors": {**errors, "terms": [errors]},
+        "frames": {**fields["frames"], "tool_link": chain.tool_frame},
+        "fit": fit_dict(orientation_weight=part.weight if angles else None),
+        "compliance": compliance_dict(chain, part.compliance),
+        "model": {
+            **fields["model"],
+            "mdh_nominal": part.nominal.rows(),
+            "mdh_calibrated": part.calibrated.rows(),
+            "load": load,
+        },
+    }
+    own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
+    legacy = {
+        "base": chain.base_frame,
+        "tool": chain.tool_frame,
+        "measure": kind.label,
+        "free": legacy["free"],
+        "selection": legacy["selection"],
+        "tilt_weight": part.weight if angles else None,
+        "contact": own["contact"],
+        "gaps": own["gaps"],
+        "load": load,
+        "calibrated_mdh": part.calibrated.rows(),
+        "notes": legacy["notes"],
+    }
+    return fields, legacy
 
 
 def _stat_labels(part) -> dict[str, str]:
@@ -195,7 +239,7 @@ def _rotation(R: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False, repr=False)
 class ContactChainsCalibration(Result, ChainView):
-    """A calibration of several chains of one robot from flush contacts.
+    """Every calibration's result: a chain measured, a tree, contacts, pixels, several terms.
 
     Attributes:
         chains: Each chain's part, in the order given.
@@ -273,11 +317,9 @@ class ContactChainsCalibration(Result, ChainView):
     def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
         """Each parameter row's URDF joint and type (one chain touching or measured: MDH rows)."""
         part = self.chains[0]
-        if len(self.chains) == 1 and isinstance(part, ChainContacts):
-            return tuple(part.nominal.joint_names), part.nominal.sigma
-        if len(self.chains) == 1 and isinstance(part, MeasuredChain):  # its compliances' rows
-            nominal = part.registered.inner.mdh
-            return tuple(nominal.joint_names), nominal.sigma
+        if len(self.chains) == 1 and isinstance(part, ChainContacts | MeasuredChain):
+            nominal = part.nominal if isinstance(part, ChainContacts) else part.registered.inner.mdh
+            return tuple(nominal.joint_names), nominal.sigma  # a measured chain: its compliances'
         return tuple(part.chain.model.names), None
 
     def _entries(self) -> list[dict]:
@@ -359,9 +401,10 @@ class ContactChainsCalibration(Result, ChainView):
     def to_dict(self, world_link: str | None = None, on_robot: bool = False) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
 
-        ``errors.train`` and ``errors.held_out`` are None: each chain's gaps are its own rows
-        (``errors.terms``, in the order of ``terms``). One chain measured by an instrument
-        (shape ``chain``): ``frames`` and ``compliance`` as a chain's report has them.
+        ``errors.train`` and ``errors.held_out``: the one term's, or the instrument's terms'
+        together (a tree's tools), else None (each term's: ``errors.terms``). One chain
+        measured by an instrument or touching: the single chain's layout (``frames``,
+        ``compliance``, ``model``, ``fit``).
 
         Args:
             world_link: The ``world_link`` the URDF was written with (None: none).
@@ -415,7 +458,7 @@ class ContactChainsCalibration(Result, ChainView):
         if self._frame() is not None:  # one chain measured by an instrument
             fields, legacy = chain_report(self, fields, world_link, on_robot)
         elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
-            fields, legacy = single_contact_report(self.chains[0], fields, self._format2())
+            fields, legacy = _single_contact_report(self.chains[0], fields, self._format2())
         else:
             legacy = self._format2()
         return build_report(fields, legacy, FORMAT2_MOVED)
@@ -524,11 +567,10 @@ class ContactChainsCalibration(Result, ChainView):
 
         Raises:
             CalibrationRefusedError: The model was refused.
+            InvalidArgumentError: ``path`` is not a file path.
         """
-        if self.refusal is not None:
-            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        if self._cameras() or self._instrument():
-            check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
-            write_atomic(path, self.urdf())
-            return
-        write_moved_origins_urdf(path, self.chains[0].chain, self.joint_errors())
+        urdf = self.urdf()
+        if not isinstance(path, str | os.PathLike):
+            raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
+        check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
+        write_atomic(path, urdf)

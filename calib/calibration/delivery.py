@@ -75,12 +75,10 @@ def compliance_path(out: Path) -> Path:
 
 
 class Result:
-    """A calibration's result, whatever the problem: its report, URDF, text, ``write``, ``repr``.
+    """A calibration's result, whatever the problem (:func:`~calib.calibration.entry.calibrate`).
 
-    Every problem's result is one (:func:`~calib.calibration.entry.calibrate`): a chain
-    measured, a tree, one chain touching, several terms.
-    Each provides ``to_dict``, ``urdf``, ``summary``, ``refusal`` and ``accepted``; this class
-    builds ``write`` and ``repr`` on them.
+    ``write``, ``origins``, ``plot`` and ``repr`` built on ``to_dict``, ``urdf``, ``summary``
+    and ``refusal`` (module text).
     """
 
     refusal: str | None

@@ -109,13 +109,11 @@ def chain_report(
 ) -> tuple[dict, dict]:
     """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
 
-    ``parameters`` with the term's unknowns named as :attr:`ChainView.names` and the
-    refusals name them (``frame.z``, ``marker1.z``; a tree's are ``instrument.frame.z``,
-    ``term1.marker1.z``), ``errors`` as :class:`~.residuals.ResidualStats` (position and
-    orientation, mm and degrees: ``train``, ``held_out`` and the one term's), ``frames`` by
-    marker link,
-    ``fit`` (noise, condition, predicted std, weight), ``compliance`` (rigid: zero per joint)
-    and ``model`` with the MDH rows and the gravity beside the joint origins.
+    The fields a chain's report has its own way: ``parameters`` (the term's unknowns named
+    as :attr:`ChainView.names`: ``frame.z``, ``marker1.z``), ``errors`` of
+    :class:`~.residuals.ResidualStats` (``train``, ``held_out``, and the one term's),
+    ``frames`` (:func:`chain_frames`), ``fit``, ``compliance`` (zero per rigid joint) and
+    ``model`` (the MDH rows and the gravity beside the joint origins).
 
     Args:
         view: The result (shape ``chain``).
@@ -124,10 +122,8 @@ def chain_report(
         on_robot: Whether the URDF was written with the instrument on the robot.
     """
     part, held = view.one_chain(), view.validation
-    errors = {
-        "train": errors_part(view.before, view.after, view.urdf_after),
-        "held_out": None if held is None else held.in_mm(),
-    }
+    train = (view.before, view.after, view.urdf_after)
+    errors = {"train": errors_part(*train), "held_out": None if held is None else held.in_mm()}
     own = {p["name"] for p in part.parameters}  # named as the chain names them: frame.z
     out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
     out["parameters"] = [
@@ -154,7 +150,7 @@ def chain_report(
         "world_link": world_link,
         "configs": data.m,
         "orientation_weight": weight,
-        "residuals": errors_part(view.before, view.after, view.urdf_after, mm=False),
+        "residuals": errors_part(*train, mm=False),
         "validation": None if held is None else held.to_dict(),
         "selection": None if view.selection is None else view.selection.to_dict(),
         "sigma": view.sigma,

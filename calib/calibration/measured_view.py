@@ -26,7 +26,7 @@ from . import validation
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
 from .contact_result import GapStats, part_dict, part_stats
-from .measured_report import chain_frames, tool_pose, written_markers
+from .measured_report import chain_frames, written_markers
 from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
 from .model import State
 from .outliers import Outlier
@@ -59,14 +59,14 @@ class MeasuredChain:
             frame; markers and measured-frame rotation in the tool frame).
         stats: Errors (mm, degrees) of ``train``, ``train_registration`` and, with held-out
             rows, ``held_out`` and ``held_out_registration``.
+        data: Its rows fitted (held-out rows and outliers left out).
+        held: Its held-out rows (their outliers left out), or None.
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
         held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
         outliers: Its rows set aside by the registration (the fit's outlier loop refits
             without the rows it sets aside: :mod:`~.chain_outliers`).
         compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
             the state's), or None (rigid joints).
-        data: Its rows fitted (held-out rows and outliers left out), or None.
-        held: Its held-out rows (their outliers left out), or None.
     """
 
     chain: Chain
@@ -75,12 +75,12 @@ class MeasuredChain:
     registered: MeasuredState
     state: MeasuredState
     stats: dict[str, GapStats]
+    data: Measurements
+    held: Measurements | None
     parameters: tuple[dict, ...] = ()
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
-    data: Measurements | None = None
-    held: Measurements | None = None
 
     @property
     def kind(self):
@@ -150,17 +150,9 @@ def measured_part(
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
     return MeasuredChain(
-        chain,
-        train.source,
-        joint,
-        registered,
-        state,
-        stats,
-        tuple(entries),
+        chain, train.source, joint, registered, state, stats, train, held, tuple(entries),
         compliance=compliance,
-        data=train,
-        held=held,
-    )
+    )  # fmt: skip
 
 
 def world_of(
@@ -333,14 +325,6 @@ class ChainView:
         return tuple(chain_frames(self.one_chain(), None)["markers"])
 
     @property
-    def tool_placement(self) -> np.ndarray:
-        """The measured frame in the tool frame ``(4, 4)``, written into the URDF's tool.
-
-        Pose data: the fitted marker 1 and measured-frame rotation; position data: identity.
-        """
-        return tool_pose(self.state)
-
-    @property
     def urdf_markers(self) -> np.ndarray:
         """The markers in the written URDF's tool frame ``(K, 3)`` [m] (the marker links)."""
         return written_markers(self.state)
@@ -356,7 +340,7 @@ class ChainView:
     @property
     def data(self) -> Measurements:
         """The rows fitted (held-out rows and outliers left out)."""
-        return _rows(self.one_chain().data)
+        return self.one_chain().data
 
     @property
     def calibrated(self):
@@ -375,10 +359,7 @@ class ChainView:
 
     @cached_property
     def urdf_after(self) -> ResidualStats | None:
-        """Errors of the URDF alone (compliance left out) on :attr:`data`, or None.
-
-        None without fitted compliance: the URDF alone is then :attr:`after`.
-        """
+        """Errors of the URDF alone (compliance left out) on :attr:`data`; None when rigid."""
         return _geometry(self.state, self.data)
 
     @property
@@ -398,45 +379,38 @@ class ChainView:
 
     @cached_property
     def predicted_std(self) -> float:
-        """Predicted position std at the fitted rows, RMS over them [m].
-
-        The fit's covariance through the point Jacobian at each row.
-        """
-        return self._solution().point_std(
-            self.data, gravity_torque(self.chain, self.state, self.data)
-        )
+        """Predicted position std at :attr:`data`, RMS over them [m] (``Solution.point_std``)."""
+        return self._point_std(self.data)
 
     @cached_property
     def validation(self) -> Validation | None:
         """Errors on the held-out rows [m, rad], or None without held-out rows.
 
-        The registration's (the nominal robot registered on the fitted rows), the calibrated
-        model's, and the predicted position std there (the covariance through the Jacobian).
+        Those :attr:`before`, :attr:`after`, :attr:`urdf_after` and :attr:`predicted_std` give
+        on :attr:`data`.
         """
         part = self.one_chain()
-        if part.held is None:
-            return None
         held = part.held
+        if held is None:
+            return None
         return Validation(
             part.held_source or held.source,
             _stats(self.chain, self.registration, held),
             _stats(self.chain, self.state, held),
-            self._solution().point_std(held, gravity_torque(self.chain, self.state, held)),
+            self._point_std(held),
             _geometry(self.state, held),
             held,
         )
+
+    def _point_std(self, rows: Measurements) -> float:
+        """:meth:`Solution.point_std` at rows, the joints deflected where compliance was fitted."""
+        return self._solution().point_std(rows, gravity_torque(self.chain, self.state, rows))
 
     def _solution(self) -> Solution:
         self.one_chain()
         if self.solution is None:
             raise InvalidArgumentError("this result keeps no solution (its uncertainty is unknown)")
         return self.solution
-
-
-def _rows(data: Measurements | None) -> Measurements:
-    if data is None:
-        raise InvalidArgumentError("this result keeps no rows of its measured term")
-    return data
 
 
 def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:

@@ -90,10 +90,6 @@ REPORT_KEYS = (
 )
 """The top-level keys of every report (format 3), in order."""
 
-SHAPES = ("chain", "tree", "contacts", "chains")
-"""What a report's ``shape`` says: a measured chain, a measured tree, one chain touching,
-several chains touching."""
-
 _ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
 _PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz]|(?:alpha|beta|gamma|theta|offset|[dryb])\d+)")
 """A joint placement component (``arm_5_joint:rz``) or an MDH parameter of a chain's rows as a
