@@ -23,7 +23,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import ErrorModel, moved
+from .model import ErrorModel, State, moved
 from .options import Options
 from .registration import register
 from .solve import Fit, fit, row_weights
@@ -48,38 +48,23 @@ def frames_model(data: Measurements) -> ErrorModel:
     )
 
 
-def _registration(nominal, data, guess, opts, kin=None, start=None) -> Fit:
-    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only).
-
-    ``kin``: the nominal kinematics at the data's joints, if already made (the fit's is
-    that: it moves no geometry). ``start``: the closed-form registration of these rows, if
-    already made (it does not depend on the orientation weight).
-    """
-    if kin is None:
-        kin = nominal.kinematics(data.q)
-    if start is None:
-        start = register(nominal, data.q, data.points, data.rotations, guess, kin)
-    model = frames_model(data)
-    w, n = opts.orientation_weight, opts.max_iterations
-    return fit(model, start, data, None, w, max_iterations=n, kin=kin)
-
-
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
-    """The registration of one data set at an orientation weight, each weight run once.
+    """The registration of ``data`` at an orientation weight, each weight run once (module text).
 
-    The nominal kinematics at the data's joints and the closed-form start are made once for
-    all weights (the start on the first registration).
+    The nominal kinematics at the data's joints (the fit moves no geometry) and the
+    closed-form start (no weight changes it) are made once, the start on the first call.
     """
     kin = nominal.kinematics(data.q)
+    model = frames_model(data)
 
     @functools.cache
-    def start():
+    def start() -> State:
         return register(nominal, data.q, data.points, data.rotations, guess, kin)
 
     @functools.cache
     def at(weight: float) -> Fit:
-        w_opts = dataclasses.replace(opts, orientation_weight=weight)
-        return _registration(nominal, data, guess, w_opts, kin, start())
+        n = opts.max_iterations
+        return fit(model, start(), data, None, weight, max_iterations=n, kin=kin)
 
     return at
 
@@ -97,7 +82,8 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
 
     def errors(d):
-        return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
+        reg = _registrations(nominal, d, guess, opts)(weighting.DEFAULT_WEIGHT)
+        return validation.stats(reg.state, d, None)
 
     def position(d) -> float:
         return errors(d).position_rms
@@ -163,6 +149,7 @@ class _Rows:
     def set_aside(self, state: Fit) -> Aside[Measurements, Fit]:
         """The registration without the outlier rows, until stable (:mod:`.outliers`)."""
         nominal, data, guess, opts = self.nominal, self.rows, self.guess, self.opts
+        weight = cast(float, opts.orientation_weight)
 
         def refit(keep: np.ndarray) -> Fit:
             if keep.all():
@@ -171,7 +158,7 @@ class _Rows:
             frames = frames_model(sub)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
-            return _registration(nominal, sub, guess, opts)
+            return _registrations(nominal, sub, guess, opts)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
             residuals = reg.state.residuals(data, None, state.kin)
@@ -262,17 +249,12 @@ def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
     )
 
 
-def held_out_outliers(reg, train, held, opts, notes: list[str], kin=None):
+def held_out_outliers(reg, train, held: Measurements, opts, notes: list[str], kin=None):
     """The held-out rows without their outliers (:func:`.term_checks.held_out`).
 
     ``kin``: ``reg``'s kinematics at ``train``'s joints, if already made.
     """
-    if held is None:
-        return None
-    data, label = held
-    k = train.n_markers
-    rows = data.rows or tuple(range(1, data.m + 1))
+    k, rows = train.n_markers, held.rows or tuple(range(1, held.m + 1))
     fitted = outliers.point_errors(reg.residuals(train, None, kin), k)
-    errors = outliers.point_errors(reg.residuals(data), k)
-    kept = term_checks.held_out(fitted, errors, data, rows, data.subset, notes, opts.noise)
-    return held if kept is data else (kept, label)
+    errors = outliers.point_errors(reg.residuals(held), k)
+    return term_checks.held_out(fitted, errors, held, rows, held.subset, notes, opts.noise)

@@ -346,7 +346,7 @@ def checked_measured(
     kept = data.subset(~bad) if bad.any() else data
     if held is not None:
         seen = kin if kept is data else None  # the nominal kinematics at the kept rows
-        held = held_out_outliers(reg, kept, (held, held.source), opts, notes, seen)[0]
+        held = held_out_outliers(reg, kept, held, opts, notes, seen)
         fitted = validation.stats(reg, kept, None, seen)
         other = validation.stats(reg, held, None)
         validation.check_held_out_errors(fitted, other, held.source)

@@ -30,7 +30,7 @@ import scipy.linalg
 from ..kinematics.mdh import Kinematics, MDHModel
 from .model import State, registration_state
 
-__all__ = ["ITERATIONS", "nearest_rotation", "register", "rigid_fit"]
+__all__ = ["ITERATIONS", "nearest_rotation", "register", "register_points", "rigid_fit"]
 
 ITERATIONS = 50
 """Most alternations between the frame and the markers."""
@@ -76,39 +76,78 @@ def nearest_rotation(M: np.ndarray) -> np.ndarray:
 class _Moments:
     """The sums over the configurations that the alternation needs, computed once.
 
-    With ``pred_ik = p_i + R_i m_k`` and the centred measured points ``Y_ik``, the
-    cross-covariance of :func:`rigid_fit` is ``P + sum_kj m_kj G_kj`` and the markers' least
-    squares (``sum_i R_i^T R_i = m I``) is ``m_k = (1/m) sum_i R_i^T (R^T (y_ik - t) - p_i)``:
-    both are small contractions of ``G[k, j, a, b] = sum_i R_i[a, j] Y_ik[b]``, so that an
+    With ``pred_cik = p_ci + R_ci m_ck`` (tool c, configuration i, marker k) and the measured
+    points ``Y_cik`` centred on their mean over every tool, the cross-covariance of
+    :func:`rigid_fit` is ``P + sum_ckj m_ckj G_ckj`` and each tool's markers' least squares
+    (``sum_i R_ci^T R_ci = m_c I``) is ``m_ck = (1/m_c) sum_i R_ci^T (R^T (y_cik - t) - p_ci)``:
+    both are small contractions of ``G[k, j, a, b] = sum_i R_ci[a, j] Y_cik[b]``, so that an
     alternation costs the same whatever the number of configurations.
+
+    Args:
+        Rt: Each tool's rotations ``(m_c, 3, 3)`` in the base frame.
+        pt: Each tool's origins ``(m_c, 3)`` [m].
+        points: Each tool's measured points ``(m_c, K_c, 3)`` [m].
     """
 
-    def __init__(self, Rt: np.ndarray, pt: np.ndarray, points: np.ndarray) -> None:
-        m, K = points.shape[:2]
-        self.m, self.K = m, K
-        self.cb = points.reshape(-1, 3).mean(axis=0)
-        Y = points - self.cb  # (m, K, 3)
-        self.G = np.ascontiguousarray(np.einsum("iaj,ikb->kjab", Rt, Y).reshape(3 * K, 9))
-        self.P = pt.T @ Y.sum(axis=1)
-        self.p_mean = pt.mean(axis=0)
-        self.R_mean = Rt.mean(axis=0)
-        self.back = np.einsum("iba,ib->a", Rt, pt) / m  # mean of R_i^T p_i
+    def __init__(self, Rt: list, pt: list, points: list) -> None:
+        sizes = [p.shape[0] * p.shape[1] for p in points]
+        self.cuts = np.cumsum([3 * p.shape[1] for p in points])[:-1]
+        self.cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
+        Y = [p - self.cb for p in points]  # (m_c, K_c, 3)
+        G = [np.einsum("iaj,ikb->kjab", R, y).reshape(-1, 9) for R, y in zip(Rt, Y, strict=True)]
+        self.G = np.ascontiguousarray(np.concatenate(G))
+        self.P = sum(p.T @ y.sum(axis=1) for p, y in zip(pt, Y, strict=True))
+        self.tools = [  # share of the points, m_c, K_c, means of p_ci, R_ci and R_ci^T p_ci
+            (n / sum(sizes), len(p), y.shape[1], p.mean(axis=0), R.mean(axis=0),
+             np.einsum("iba,ib->a", R, p) / len(p))
+            for n, R, p, y in zip(sizes, Rt, pt, Y, strict=True)
+        ]  # fmt: skip
 
     def rotation(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`rigid_fit`'s rotation of the points (markers ``(3 K,)``) and their centroid."""
-        ca = self.p_mean + self.R_mean @ (mk.reshape(-1, 3).sum(axis=0) / self.K)
+        """:func:`rigid_fit`'s rotation of the points (markers ``(3 sum K_c,)``), their centroid."""
+        parts = zip(self.tools, np.split(mk, self.cuts), strict=True)
+        ca = sum(
+            s * (p + Rm @ (m.reshape(-1, 3).sum(axis=0) / K)) for (s, _, K, p, Rm, _), m in parts
+        )
         return _rotation(self.P + (mk @ self.G).reshape(3, 3)), ca
 
     def frame(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`rigid_fit` of the predicted points (markers ``(3 K,)``): R and t."""
+        """:func:`rigid_fit` of the predicted points (markers ``(3 sum K_c,)``): R and t."""
         R, ca = self.rotation(mk)
         return R, self.cb - R @ ca
 
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
-        """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 K,)``."""
-        # R^T (y_ik - t) = R^T Y_ik + ca, and (R^T Y_ik) summed against R_i^T is G : R
-        new = (self.G @ R.T.ravel()).reshape(self.K, 3) / self.m + (self.R_mean.T @ ca - self.back)
-        return new.ravel()
+        """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 sum K_c,)``."""
+        # R^T (y_cik - t) = R^T Y_cik + ca, and (R^T Y_cik) summed against R_ci^T is G : R
+        parts = zip(np.split(self.G @ R.T.ravel(), self.cuts), self.tools, strict=True)
+        new = [g.reshape(-1, 3) / m + (Rm.T @ ca - b) for g, (_, m, _, _, Rm, b) in parts]
+        return np.concatenate([n.ravel() for n in new])
+
+
+def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
+    """Closed-form frame and markers of tools measured in one frame (module text, steps 1-3).
+
+    Args:
+        Rt: Each tool's rotations ``(m_c, 3, 3)`` in the base frame.
+        pt: Each tool's origins ``(m_c, 3)`` [m].
+        points: Each tool's measured points ``(m_c, K_c, 3)`` [m], measurement frame.
+        markers: Each tool's markers' guess ``(K_c, 3)`` [m], tool frame.
+
+    Returns:
+        The pose of the base frame in the measurement frame ``(4, 4)``, and each tool's
+        markers ``(K_c, 3)`` [m].
+    """
+    sums = _Moments(Rt, pt, points)
+    flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])
+    for _ in range(ITERATIONS):
+        new = sums.markers(*sums.rotation(flat))  # t is not needed until the end
+        done = np.abs(new - flat).max() < 1e-12
+        flat = new
+        if done:
+            break
+    frame = np.eye(4)
+    frame[:3, :3], frame[:3, 3] = sums.frame(flat)
+    return frame, [m.reshape(-1, 3) for m in np.split(flat, sums.cuts)]
 
 
 def register(
@@ -119,7 +158,7 @@ def register(
     markers: np.ndarray | None = None,
     kin: Kinematics | None = None,
 ) -> State:
-    """Closed-form measurement frame and markers for the nominal geometry.
+    """Closed-form measurement frame and markers for the nominal geometry (module text).
 
     Args:
         mdh: The geometry (nominal model, URDF base frame).
@@ -137,19 +176,9 @@ def register(
     Rt, pt = kin.R[:, -1], kin.p[:, -1]
     K = points.shape[1]
     mk = np.zeros((K, 3)) if markers is None else np.array(markers, dtype=float).reshape(K, 3)
-    sums = _Moments(Rt, pt, points)
-    flat = mk.ravel()
-    for _ in range(ITERATIONS):
-        new = sums.markers(*sums.rotation(flat))  # t is not needed until the end
-        done = np.abs(new - flat).max() < 1e-12
-        flat = new
-        if done:
-            break
-    R, t = sums.frame(flat)
-    mk = flat.reshape(K, 3)
-    frame = np.eye(4)
-    frame[:3, :3], frame[:3, 3] = R, t
+    frame, (mk,) = register_points([Rt], [pt], [points], [mk])
     tool = None
     if rotations is not None:
+        R = np.ascontiguousarray(frame[:3, :3])
         tool = nearest_rotation(np.sum(np.swapaxes(Rt, 1, 2) @ R.T @ rotations, axis=0))
     return registration_state(mdh, frame, mk, tool)

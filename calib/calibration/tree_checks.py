@@ -20,7 +20,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.tree import Tree
 from ..measurements.data import Measurements
 from . import determined, diagnosis, validation
-from .instrument import shared_frame, tool_parts
+from .instrument import by_tool, shared_frame, tool_parts
 from .measured_term import MeasuredState
 from .model import nominal_state
 from .residuals import ResidualStats
@@ -61,23 +61,12 @@ def prepare_tree(
             _diagnosed(tree, nominal, validate)
     reg = _diagnosed(tree, nominal, data)
     if validate is not None:
-        fitted, other = (_stats(reg, _by_tool(tree, d)) for d in (data, validate))
+        fitted, other = (_stats(reg, by_tool(tree, d)) for d in (data, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
     train, held = (
         (data, validate) if validate is not None else validation.split(data, holdout, seed)
     )
     return tool_parts(tree, train), tool_parts(tree, held, every=False)
-
-
-def _by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
-    """Each tool's rows on its chain's joints (None: no row), unchecked (data corrected)."""
-    tools = np.array(data.tool if data.tool is not None else (tree.tool_frames[0],) * data.m)
-    parts: list[Measurements | None] = []
-    for chain, path in zip(tree.chains, tree.paths, strict=True):
-        rows = tools == chain.tool_frame
-        q, points = data.q[rows][:, path], data.position[rows]
-        parts.append(Measurements(chain.joint_names, q, points) if rows.any() else None)
-    return parts
 
 
 def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> ResidualStats:
@@ -95,7 +84,7 @@ def _registered(tree: Tree, nominal: list, data: Measurements) -> tuple[list, fl
     In closed form (:func:`~.instrument.shared_frame`): one frame for every tool, one marker
     each; the RMS error per row [m].
     """
-    parts = _by_tool(tree, data)
+    parts = by_tool(tree, data)
     states = shared_frame(nominal, parts)
     return states, _stats(states, parts).position_rms
 
