@@ -169,8 +169,8 @@ class _Rows:
             return f is None or int(np.sum(~bad)) * f.rows > f.size()
 
         rows = data.rows or tuple(range(1, data.m + 1))
-        reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
-        return Aside(reg, bad, data.subset(~bad) if bad.any() else data)
+        reg, bad, found = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
+        return Aside(reg, bad, data.subset(~bad) if bad.any() else data, tuple(found))
 
     def diagnose(self, rows: Measurements, state: Fit) -> list[str]:
         """The usual mistakes of the rows kept (:func:`_diagnose`)."""
@@ -187,8 +187,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
 
     Returns:
         The options with the orientation weight, the registration state, the mask of the
-        outlier rows of ``train``, the notes and the nominal kinematics at ``train``'s joints
-        (the registration's, at every row: its geometry is the nominal one).
+        outlier rows of ``train``, the outliers, the notes and the nominal kinematics at
+        ``train``'s joints (the registration's, at every row: its geometry is the nominal one).
     """
     at = _registrations(nominal, train, guess, opts)
     opts = _weighted(train, opts, at)
@@ -198,7 +198,7 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     reg = aside.state
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, aside.bad, notes, steps.register().kin
+    return opts, reg.state, aside.bad, aside.found, notes, steps.register().kin
 
 
 def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, str]]:

@@ -42,7 +42,6 @@ __all__ = [
     "ROUNDS",
     "Outlier",
     "find_outliers",
-    "held_out_outliers",
     "point_errors",
     "records",
     "robust_proposals",
@@ -312,41 +311,3 @@ def _ratio(errors: np.ndarray) -> np.ndarray:
     """Each error over their median (1 where the median is 0)."""
     median = float(np.median(errors))
     return errors / median if median > 0 else np.ones_like(errors)
-
-
-def held_out_outliers(
-    fitted: Errors, held: Errors, noise: float | None, rows: tuple[int, ...]
-) -> tuple[np.ndarray, list[Outlier]]:
-    """Held-out units set aside by the training rule (a mask of the held-out units).
-
-    The rule (:func:`find_outliers`) on the errors of the fitted and the held-out units
-    together under one model (the registration), so that the median is the same one; only
-    held-out units are set aside, and none when that would be half of them or more (then
-    they are not outliers: measured in another frame, or of another robot).
-
-    Args:
-        fitted: Errors of the fitted units.
-        held: Errors of the held-out units.
-        noise: Instrument position noise [m], or None.
-        rows: File row of each held-out unit.
-    """
-    m = len(fitted.position)
-    rot = None
-    if fitted.orientation is not None and held.orientation is not None:
-        rot = np.concatenate([fitted.orientation, held.orientation])
-    pooled = Errors(np.concatenate([fitted.position, held.position]), rot, fitted.dims)
-    units = (0,) * m + rows
-    bad = find_outliers(pooled.position, pooled.orientation, noise, units, pooled.dims)[0]
-    mask = bad[m:]
-    if 2 * int(mask.sum()) >= len(mask):
-        return np.zeros(len(mask), dtype=bool), []
-    return mask, records(pooled, np.concatenate([np.zeros(m, dtype=bool), mask]), units)
-
-
-def held_out_note(dropped: list[Outlier], unit: str = "row(s)", gap: str = "error") -> str:
-    """The note naming the held-out outliers, left out of the held-out statistics."""
-    return (
-        "held out: "
-        + set_aside_note(dropped, unit, gap)
-        + "; the held-out statistics leave them out"
-    )
