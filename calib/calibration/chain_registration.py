@@ -70,6 +70,11 @@ def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
 
 
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, quaternion order")
+_TURNS = diagnosis.Words(
+    error="orientation error",
+    mistakes="quaternion order, degrees, rpy order",
+    check="the orientation columns",
+)
 
 
 def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
@@ -79,41 +84,23 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
     points are diagnosed first, then the orientations (on the orientation error).
     """
-    opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
 
     def errors(d):
         reg = _registrations(nominal, d, guess, opts)(weighting.DEFAULT_WEIGHT)
         return validation.stats(reg.state, d, None)
 
-    def position(d) -> float:
-        return errors(d).position_rms
-
     reg = at(weighting.DEFAULT_WEIGHT)
     first = validation.stats(reg.state, data, None, reg.kin)
     revolute = chain.sigma == 0
     notes = diagnosis.explain(
-        data, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
-    )
-    if notes:  # the positions are suspect (else no note): the orientations are not read
-        return notes
+        data, revolute, lambda d: errors(d).position_rms, first.position_rms, opts.noise, _WORDS,
+        joints_only=False,
+    )  # fmt: skip
     rot = first.orientation_rms
-    if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
-        cause = diagnosis.likely_cause(
-            data, revolute, lambda d: errors(d).orientation_rms, rot, orientation=True
-        )
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration's orientation error drops "
-                f"from {np.degrees(rot):.4g} deg to {np.degrees(cause[1]):.4g} deg RMS once "
-                f"corrected",
-            )
-        return [
-            f"the registration leaves {np.degrees(rot):.4g} deg RMS of orientation error, far "
-            f"above geometric errors, and no usual mistake (quaternion order, degrees, rpy "
-            f"order) explains it: check the orientation columns"
-        ]
-    return []
+    if notes or rot is None:  # the positions are suspect: the orientations are not read
+        return notes
+    turns = lambda d: errors(d).orientation_rms  # noqa: E731
+    return diagnosis.explain(data, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
 @dataclass(frozen=True, eq=False)
