@@ -40,6 +40,7 @@ __all__ = [
     "NOISE_FACTOR",
     "PROPOSAL_SPREAD",
     "ROUNDS",
+    "Errors",
     "Outlier",
     "find_outliers",
     "point_errors",
@@ -168,30 +169,25 @@ def _find_outliers(errors: np.ndarray, noise: float | None, dims: int = 3) -> np
 
 
 def find_outliers(
-    errors: np.ndarray,
-    orientation: np.ndarray | None,
-    noise: float | None,
-    rows: tuple[int, ...],
-    dims: tuple[int, int] = (3, 3),
+    found: Errors, noise: float | None, rows: tuple[int, ...]
 ) -> tuple[np.ndarray, list[Outlier]]:
     """Outliers of per-configuration errors: by position error, and by orientation error.
 
     Args:
-        errors: Position error of each configuration ``(m,)`` [m].
-        orientation: Orientation error of each ``(m,)`` [rad], or None.
+        found: Each configuration's errors (:class:`Errors`).
         noise: Instrument position noise [m], or None.
         rows: File row of each configuration.
-        dims: Components of the position and of the orientation errors (:func:`factor`).
 
     Returns:
         The boolean mask of the outliers and the outliers (:func:`records`).
     """
+    errors, orientation, dims = found
     bad = _find_outliers(errors, noise, dims[0])
     if orientation is not None:
         bad = bad | _find_outliers(orientation, None, dims[1])
     if np.sum(~bad) < max(3, len(errors) // 2):
         return np.zeros(len(errors), dtype=bool), []
-    return bad, records(Errors(errors, orientation, dims), bad, rows)
+    return bad, records(found, bad, rows)
 
 
 def until_stable(
@@ -221,7 +217,7 @@ def until_stable(
     result = refit(~bad)
     for _ in range(ROUNDS):
         found = errors(result)
-        new = find_outliers(found.position, found.orientation, noise, rows, found.dims)[0]
+        new = find_outliers(found, noise, rows)[0]
         if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
             break
         try:
@@ -295,8 +291,7 @@ def robust_proposals(
         if np.allclose(new, w, rtol=1e-6, atol=1e-9):
             break
         w = new
-    final = errors(fitted)
-    return find_outliers(final.position, final.orientation, noise, rows, final.dims)[0]
+    return find_outliers(errors(fitted), noise, rows)[0]
 
 
 def _dense_fit(J: np.ndarray, residual: np.ndarray, w: np.ndarray) -> np.ndarray:

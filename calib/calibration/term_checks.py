@@ -138,7 +138,7 @@ def held_out(
         rot = np.concatenate([fitted.orientation, errors.orientation])
     pooled = outliers.Errors(np.concatenate([fitted.position, errors.position]), rot, fitted.dims)
     units = (0,) * m + rows
-    bad = outliers.find_outliers(pooled.position, rot, noise, units, pooled.dims)[0][m:]
+    bad = outliers.find_outliers(pooled, noise, units)[0][m:]
     if not bad.any() or 2 * int(bad.sum()) >= len(bad):
         return held
     dropped = outliers.records(pooled, np.concatenate([np.zeros(m, dtype=bool), bad]), units)

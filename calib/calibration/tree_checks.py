@@ -78,27 +78,19 @@ def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> Res
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 
 
-def _registered(tree: Tree, nominal: list, data: Measurements) -> tuple[list, float]:
-    """The measurement frame and markers of ``data`` on the ``nominal`` tree, and their RMS.
-
-    In closed form (:func:`~.instrument.shared_frame`): one frame for every tool, one marker
-    each; the RMS error per row [m].
-    """
-    parts = by_tool(tree, data)
-    states = shared_frame(nominal, parts)
-    return states, _stats(states, parts).position_rms
-
-
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
-    """The registration of ``data`` (:func:`_registered`); the likely mistake if it fails.
+    """The registration of ``data`` on the ``nominal`` tree (module text); a mistake raised.
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
     """
-    reg, first = _registered(tree, nominal, data)
 
-    def rms(d: Measurements) -> float:  # the closed form only: every swap of two joints
-        return _registered(tree, nominal, d)[1]
+    def registered(d: Measurements) -> tuple[list, float]:  # and the RMS error per row [m]
+        parts = by_tool(tree, d)
+        states = shared_frame(nominal, parts)
+        return states, _stats(states, parts).position_rms
 
+    reg, first = registered(data)
+    rms = lambda d: registered(d)[1]  # noqa: E731
     diagnosis.explain(data, tree.sigma == 0, rms, first, None, _WORDS, joints_only=False)
     return reg
