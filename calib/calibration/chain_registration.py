@@ -18,22 +18,21 @@ from typing import cast
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.parameters import ParameterSet, parameter_set
+from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import ErrorModel, State, moved
+from .model import ErrorModel, State
 from .options import Options
 from .registration import register
-from .solve import Fit, fit, row_weights
+from .solve import Fit, fit
 from .term_checks import Aside
 
 __all__ = [
     "checked_registration",
     "frames_model",
     "held_out_outliers",
-    "proposals",
 ]
 
 
@@ -209,31 +208,6 @@ def _weighted(data, opts: Options, at) -> Options:
             lambda w: at(w).state.residuals(data, None, at(w).kin), data.n_markers
         )
     return dataclasses.replace(opts, orientation_weight=weight)
-
-
-def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
-    """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
-
-    None where no row of the registration is far from the others
-    (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
-    """
-    kin = reg.kinematics(data.q)  # x = 0 is the registration
-    residuals = reg.residuals(data, None, kin)
-    if not outliers.spread_out(outliers.point_errors(residuals, data.n_markers)):
-        return np.zeros(data.m, dtype=bool)
-    pset = parameter_set(nominal, "complete")
-    base, lift = moved(pset, nominal)
-    wide = frames_model(data).with_(params=pset, base=base, lift=lift)
-    w = row_weights(wide, opts.orientation_weight)
-    J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
-    rows = data.rows or tuple(range(1, data.m + 1))
-    return outliers.robust_proposals(
-        J[:, :, determined.determined_columns(J)],
-        residuals * w,
-        lambda r: outliers.point_errors(r, data.n_markers),
-        opts.noise,
-        rows,
-    )
 
 
 def held_out_outliers(reg, train, held: Measurements, opts, notes: list[str], kin=None):

@@ -14,8 +14,7 @@ terms share
 
 Each tool's rows get a single chain's checks (registration, outliers set aside, usual
 mistakes diagnosed); then the frame and markers are registered together in closed form
-(:func:`shared_frame`: Horn/Umeyama over every tool's points, each marker by linear least
-squares, alternated), refined by Levenberg-Marquardt with the engine's shared objects.
+(:func:`shared_frame`), refined by Levenberg-Marquardt with the engine's shared objects.
 """
 
 from __future__ import annotations

@@ -15,6 +15,10 @@ from its solution whatever the frame's rotation and distance:
 4. for pose data, the measured frame's rotation in the tool frame: the rotation nearest (in
    the Frobenius norm) to the mean of ``R_i^T R^T R_meas,i``.
 
+Several tools measured in one frame (a tree's, :func:`~.instrument.shared_frame`) are
+registered the same way (:func:`register_points`): step 1 on every tool's points, step 2 for
+each tool's markers.
+
 The result then seeds a Levenberg-Marquardt fit of the same parameters (``frames`` level).
 
 References: B. K. P. Horn, "Closed-form solution of absolute orientation using unit
@@ -111,11 +115,6 @@ class _Moments:
         )
         return _rotation(self.P + (mk @ self.G).reshape(3, 3)), ca
 
-    def frame(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`rigid_fit` of the predicted points (markers ``(3 sum K_c,)``): R and t."""
-        R, ca = self.rotation(mk)
-        return R, self.cb - R @ ca
-
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
         """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 sum K_c,)``."""
         # R^T (y_cik - t) = R^T Y_cik + ca, and (R^T Y_cik) summed against R_ci^T is G : R
@@ -145,8 +144,9 @@ def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np
         flat = new
         if done:
             break
+    R, ca = sums.rotation(flat)
     frame = np.eye(4)
-    frame[:3, :3], frame[:3, 3] = sums.frame(flat)
+    frame[:3, :3], frame[:3, 3] = R, sums.cb - R @ ca
     return frame, [m.reshape(-1, 3) for m in np.split(flat, sums.cuts)]
 
 
