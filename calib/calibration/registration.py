@@ -28,6 +28,8 @@ parameters between two point patterns", IEEE TPAMI 13(4), 1991.
 
 from __future__ import annotations
 
+from itertools import accumulate
+
 import numpy as np
 import scipy.linalg
 
@@ -78,49 +80,73 @@ def nearest_rotation(M: np.ndarray) -> np.ndarray:
 
 
 class _Moments:
-    """The sums over the configurations that the alternation needs, computed once.
+    """The sums over one tool's configurations that the alternation needs, computed once.
 
-    With ``pred_cik = p_ci + R_ci m_ck`` (tool c, configuration i, marker k) and the measured
-    points ``Y_cik`` centred on their mean over every tool, the cross-covariance of
-    :func:`rigid_fit` is ``P + sum_ckj m_ckj G_ckj`` and each tool's markers' least squares
-    (``sum_i R_ci^T R_ci = m_c I``) is ``m_ck = (1/m_c) sum_i R_ci^T (R^T (y_cik - t) - p_ci)``:
-    both are small contractions of ``G[k, j, a, b] = sum_i R_ci[a, j] Y_cik[b]``, so that an
+    With ``pred_ik = p_i + R_i m_k`` and the centred measured points ``Y_ik``, the
+    cross-covariance of :func:`rigid_fit` is ``P + sum_kj m_kj G_kj`` and the markers' least
+    squares (``sum_i R_i^T R_i = m I``) is ``m_k = (1/m) sum_i R_i^T (R^T (y_ik - t) - p_i)``:
+    both are small contractions of ``G[k, j, a, b] = sum_i R_i[a, j] Y_ik[b]``, so that an
     alternation costs the same whatever the number of configurations.
 
     Args:
-        Rt: Each tool's rotations ``(m_c, 3, 3)`` in the base frame.
-        pt: Each tool's origins ``(m_c, 3)`` [m].
-        points: Each tool's measured points ``(m_c, K_c, 3)`` [m].
+        Rt: The tool's rotations ``(m, 3, 3)`` in the base frame.
+        pt: Its origins ``(m, 3)`` [m].
+        points: Its measured points ``(m, K, 3)`` [m].
+        cb: The centre of the measured points [m] (several tools: of every tool's), or None:
+            of these.
+    """
+
+    def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
+        m, K = points.shape[:2]
+        self.m, self.K = m, K
+        self.cb = points.reshape(-1, 3).mean(axis=0) if cb is None else cb
+        Y = points - self.cb  # (m, K, 3)
+        self.G = np.ascontiguousarray(np.einsum("iaj,ikb->kjab", Rt, Y).reshape(3 * K, 9))
+        self.P = pt.T @ Y.sum(axis=1)
+        self.p_mean = pt.mean(axis=0)
+        self.R_mean = Rt.mean(axis=0)
+        self.back = np.einsum("iba,ib->a", Rt, pt) / m  # mean of R_i^T p_i
+
+    def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`rigid_fit`'s cross-covariance (markers ``(3 K,)``) and the points' centroid."""
+        ca = self.p_mean + self.R_mean @ (mk.reshape(-1, 3).sum(axis=0) / self.K)
+        return self.P + (mk @ self.G).reshape(3, 3), ca
+
+    def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
+        """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 K,)``."""
+        # R^T (y_ik - t) = R^T Y_ik + ca, and (R^T Y_ik) summed against R_i^T is G : R
+        new = (self.G @ R.T.ravel()).reshape(self.K, 3) / self.m + (self.R_mean.T @ ca - self.back)
+        return new.ravel()
+
+
+class _Tools:
+    """:class:`_Moments` of several tools measured in one frame: their sums, summed.
+
+    The measured points are centred on their mean over every tool, so that the
+    cross-covariance is the sum of the tools' and the centroid their mean weighted by the
+    points; each tool's markers are its own least squares.
     """
 
     def __init__(self, Rt: list, pt: list, points: list) -> None:
-        sizes = [p.shape[0] * p.shape[1] for p in points]
-        self.cuts = np.cumsum([3 * p.shape[1] for p in points])[:-1]
-        self.cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
-        Y = [p - self.cb for p in points]  # (m_c, K_c, 3)
-        G = [np.einsum("iaj,ikb->kjab", R, y).reshape(-1, 9) for R, y in zip(Rt, Y, strict=True)]
-        self.G = np.ascontiguousarray(np.concatenate(G))
-        self.P = sum(p.T @ y.sum(axis=1) for p, y in zip(pt, Y, strict=True))
-        self.tools = [  # share of the points, m_c, K_c, means of p_ci, R_ci and R_ci^T p_ci
-            (n / sum(sizes), len(p), y.shape[1], p.mean(axis=0), R.mean(axis=0),
-             np.einsum("iba,ib->a", R, p) / len(p))
-            for n, R, p, y in zip(sizes, Rt, pt, Y, strict=True)
-        ]  # fmt: skip
+        cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
+        self.tools = [_Moments(*t, cb) for t in zip(Rt, pt, points, strict=True)]
+        self.cb, self.sizes = cb, [t.m * t.K for t in self.tools]
+        self.slices = _slices([3 * t.K for t in self.tools])
 
-    def rotation(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`rigid_fit`'s rotation of the points (markers ``(3 sum K_c,)``), their centroid."""
-        parts = zip(self.tools, np.split(mk, self.cuts), strict=True)
-        ca = sum(
-            s * (p + Rm @ (m.reshape(-1, 3).sum(axis=0) / K)) for (s, _, K, p, Rm, _), m in parts
-        )
-        return _rotation(self.P + (mk @ self.G).reshape(3, 3)), ca
+    def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cross-covariance of every tool's points (markers ``(3 sum K,)``), their centroid."""
+        each = [t.sums(mk[c]) for t, c in zip(self.tools, self.slices, strict=True)]
+        H = np.sum([h for h, _ in each], axis=0)
+        return H, np.average([ca for _, ca in each], axis=0, weights=self.sizes)
 
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
-        """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 sum K_c,)``."""
-        # R^T (y_cik - t) = R^T Y_cik + ca, and (R^T Y_cik) summed against R_ci^T is G : R
-        parts = zip(np.split(self.G @ R.T.ravel(), self.cuts), self.tools, strict=True)
-        new = [g.reshape(-1, 3) / m + (Rm.T @ ca - b) for g, (_, m, _, _, Rm, b) in parts]
-        return np.concatenate([n.ravel() for n in new])
+        """Each tool's markers' least squares with the frame held ``(3 sum K,)``."""
+        return np.concatenate([t.markers(R, ca) for t in self.tools])
+
+
+def _slices(sizes: list[int]) -> list[slice]:
+    """The slices of consecutive parts of these sizes."""
+    return [slice(end - n, end) for n, end in zip(sizes, accumulate(sizes), strict=True)]
 
 
 def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
@@ -136,18 +162,20 @@ def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np
         The pose of the base frame in the measurement frame ``(4, 4)``, and each tool's
         markers ``(K_c, 3)`` [m].
     """
-    sums = _Moments(Rt, pt, points)
+    sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])
     for _ in range(ITERATIONS):
-        new = sums.markers(*sums.rotation(flat))  # t is not needed until the end
+        H, ca = sums.sums(flat)
+        new = sums.markers(_rotation(H), ca)  # t is not needed until the end
         done = np.abs(new - flat).max() < 1e-12
         flat = new
         if done:
             break
-    R, ca = sums.rotation(flat)
+    H, ca = sums.sums(flat)
+    R = _rotation(H)
     frame = np.eye(4)
     frame[:3, :3], frame[:3, 3] = R, sums.cb - R @ ca
-    return frame, [m.reshape(-1, 3) for m in np.split(flat, sums.cuts)]
+    return frame, [flat[c].reshape(-1, 3) for c in _slices([np.size(m) for m in markers])]
 
 
 def register(
