@@ -98,7 +98,7 @@ class _Moments:
 
     def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
         m, K = points.shape[:2]
-        self.m, self.K = m, K
+        self.m, self.K, self.slices = m, K, [slice(None)]  # the markers: all of them
         self.cb = points.reshape(-1, 3).mean(axis=0) if cb is None else cb
         Y = points - self.cb  # (m, K, 3)
         self.G = np.ascontiguousarray(np.einsum("iaj,ikb->kjab", Rt, Y).reshape(3 * K, 9))
@@ -131,7 +131,8 @@ class _Tools:
         cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
         self.tools = [_Moments(*t, cb) for t in zip(Rt, pt, points, strict=True)]
         self.cb, self.sizes = cb, [t.m * t.K for t in self.tools]
-        self.slices = _slices([3 * t.K for t in self.tools])
+        ends = accumulate(3 * t.K for t in self.tools)
+        self.slices = [slice(end - 3 * t.K, end) for t, end in zip(self.tools, ends, strict=True)]
 
     def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The cross-covariance of every tool's points (markers ``(3 sum K,)``), their centroid."""
@@ -142,11 +143,6 @@ class _Tools:
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
         """Each tool's markers' least squares with the frame held ``(3 sum K,)``."""
         return np.concatenate([t.markers(R, ca) for t in self.tools])
-
-
-def _slices(sizes: list[int]) -> list[slice]:
-    """The slices of consecutive parts of these sizes."""
-    return [slice(end - n, end) for n, end in zip(sizes, accumulate(sizes), strict=True)]
 
 
 def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
@@ -175,7 +171,7 @@ def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np
     R = _rotation(H)
     frame = np.eye(4)
     frame[:3, :3], frame[:3, 3] = R, sums.cb - R @ ca
-    return frame, [flat[c].reshape(-1, 3) for c in _slices([np.size(m) for m in markers])]
+    return frame, [flat[c].reshape(-1, 3) for c in sums.slices]
 
 
 def register(
