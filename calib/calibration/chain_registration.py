@@ -88,17 +88,20 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
         reg = _registrations(nominal, d, guess, opts)(weighting.DEFAULT_WEIGHT)
         return validation.stats(reg.state, d, None)
 
+    def position(d) -> float:
+        return errors(d).position_rms
+
+    def turns(d) -> float:
+        return errors(d).orientation_rms
+
     reg = at(weighting.DEFAULT_WEIGHT)
     first = validation.stats(reg.state, data, None, reg.kin)
-    revolute = chain.sigma == 0
+    revolute, rot = chain.sigma == 0, first.orientation_rms
     notes = diagnosis.explain(
-        data, revolute, lambda d: errors(d).position_rms, first.position_rms, opts.noise, _WORDS,
-        joints_only=False,
-    )  # fmt: skip
-    rot = first.orientation_rms
+        data, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
+    )
     if notes or rot is None:  # the positions are suspect: the orientations are not read
         return notes
-    turns = lambda d: errors(d).orientation_rms  # noqa: E731
     return diagnosis.explain(data, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
