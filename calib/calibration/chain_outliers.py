@@ -7,7 +7,7 @@ always has (issue 29), the rows are tested again under each fit (every row: thos
 too, predicted) and the fit is made again without the outliers found, until the set stops
 changing (:func:`~.outliers.until_stable`), from the rows a robust fit of every identifiable
 parameter, linearised at the registration, finds outlying (outliers that could mask each
-other: :func:`~.chain_registration.proposals`). The held-out rows are drawn once, before
+other: :func:`proposals`). The held-out rows are drawn once, before
 (:func:`fit_until_stable` takes the training rows).
 """
 
@@ -19,16 +19,27 @@ from typing import cast
 
 import numpy as np
 
+from ..identification.parameters import parameter_set
 from ..measurements.data import Measurements
-from .chain_registration import proposals
+from . import determined
+from .chain_registration import frames_model
 from .contact_chains_result import ContactChainsCalibration
 from .contact_register import Registered
 from .measured_term import MeasuredState
 from .measured_view import gravity_torque
+from .model import moved
 from .options import Options
-from .outliers import point_errors, records, set_aside_note, until_stable
+from .outliers import (
+    point_errors,
+    records,
+    robust_proposals,
+    set_aside_note,
+    spread_out,
+    until_stable,
+)
+from .solve import row_weights
 
-__all__ = ["fit_until_stable"]
+__all__ = ["fit_until_stable", "proposals"]
 
 
 def fit_until_stable(
@@ -88,3 +99,28 @@ def fit_until_stable(
     notes = (*(n for n in result.notes if n != old), head + set_aside_note(found))
     chains = (dataclasses.replace(part, outliers=found), *result.chains[1:])
     return dataclasses.replace(result, chains=chains, notes=notes)
+
+
+def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
+    """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
+
+    None where no row of the registration is far from the others
+    (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
+    """
+    kin = reg.kinematics(data.q)  # x = 0 is the registration
+    residuals = reg.residuals(data, None, kin)
+    if not spread_out(point_errors(residuals, data.n_markers)):
+        return np.zeros(data.m, dtype=bool)
+    pset = parameter_set(nominal, "complete")
+    base, lift = moved(pset, nominal)
+    wide = frames_model(data).with_(params=pset, base=base, lift=lift)
+    w = row_weights(wide, opts.orientation_weight)
+    J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
+    rows = data.rows or tuple(range(1, data.m + 1))
+    return robust_proposals(
+        J[:, :, determined.determined_columns(J)],
+        residuals * w,
+        lambda r: point_errors(r, data.n_markers),
+        opts.noise,
+        rows,
+    )

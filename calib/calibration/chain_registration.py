@@ -18,22 +18,21 @@ from typing import cast
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.parameters import ParameterSet, parameter_set
+from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import ErrorModel, moved
+from .model import ErrorModel, State
 from .options import Options
 from .registration import register
-from .solve import Fit, fit, row_weights
+from .solve import Fit, fit
 from .term_checks import Aside
 
 __all__ = [
     "checked_registration",
     "frames_model",
     "held_out_outliers",
-    "proposals",
 ]
 
 
@@ -48,43 +47,33 @@ def frames_model(data: Measurements) -> ErrorModel:
     )
 
 
-def _registration(nominal, data, guess, opts, kin=None, start=None) -> Fit:
-    """Closed-form registration refined by Levenberg-Marquardt (frame and markers only).
-
-    ``kin``: the nominal kinematics at the data's joints, if already made (the fit's is
-    that: it moves no geometry). ``start``: the closed-form registration of these rows, if
-    already made (it does not depend on the orientation weight).
-    """
-    if kin is None:
-        kin = nominal.kinematics(data.q)
-    if start is None:
-        start = register(nominal, data.q, data.points, data.rotations, guess, kin)
-    model = frames_model(data)
-    w, n = opts.orientation_weight, opts.max_iterations
-    return fit(model, start, data, None, w, max_iterations=n, kin=kin)
-
-
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
-    """The registration of one data set at an orientation weight, each weight run once.
+    """The registration of ``data`` at an orientation weight, each weight run once (module text).
 
-    The nominal kinematics at the data's joints and the closed-form start are made once for
-    all weights (the start on the first registration).
+    The nominal kinematics at the data's joints (the fit moves no geometry) and the
+    closed-form start (no weight changes it) are made once, the start on the first call.
     """
     kin = nominal.kinematics(data.q)
+    model = frames_model(data)
 
     @functools.cache
-    def start():
+    def start() -> State:
         return register(nominal, data.q, data.points, data.rotations, guess, kin)
 
     @functools.cache
     def at(weight: float) -> Fit:
-        w_opts = dataclasses.replace(opts, orientation_weight=weight)
-        return _registration(nominal, data, guess, w_opts, kin, start())
+        n = opts.max_iterations
+        return fit(model, start(), data, None, weight, max_iterations=n, kin=kin)
 
     return at
 
 
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, quaternion order")
+_TURNS = diagnosis.Words(
+    error="orientation error",
+    mistakes="quaternion order, degrees, rpy order",
+    check="the orientation columns",
+)
 
 
 def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
@@ -94,40 +83,26 @@ def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
     orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
     points are diagnosed first, then the orientations (on the orientation error).
     """
-    opts = dataclasses.replace(opts, orientation_weight=weighting.DEFAULT_WEIGHT)
 
     def errors(d):
-        return validation.stats(_registration(nominal, d, guess, opts).state, d, None)
+        reg = _registrations(nominal, d, guess, opts)(weighting.DEFAULT_WEIGHT)
+        return validation.stats(reg.state, d, None)
 
     def position(d) -> float:
         return errors(d).position_rms
 
+    def turns(d) -> float:
+        return errors(d).orientation_rms
+
     reg = at(weighting.DEFAULT_WEIGHT)
     first = validation.stats(reg.state, data, None, reg.kin)
-    revolute = chain.sigma == 0
+    revolute, rot = chain.sigma == 0, first.orientation_rms
     notes = diagnosis.explain(
         data, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
     )
-    if notes:  # the positions are suspect (else no note): the orientations are not read
+    if notes or rot is None:  # the positions are suspect: the orientations are not read
         return notes
-    rot = first.orientation_rms
-    if rot is not None and rot > diagnosis.ORIENTATION_SUSPECT:
-        cause = diagnosis.likely_cause(
-            data, revolute, lambda d: errors(d).orientation_rms, rot, orientation=True
-        )
-        if cause is not None:
-            raise DataError(
-                data.source,
-                f"the data look like {cause[0]}: the registration's orientation error drops "
-                f"from {np.degrees(rot):.4g} deg to {np.degrees(cause[1]):.4g} deg RMS once "
-                f"corrected",
-            )
-        return [
-            f"the registration leaves {np.degrees(rot):.4g} deg RMS of orientation error, far "
-            f"above geometric errors, and no usual mistake (quaternion order, degrees, rpy "
-            f"order) explains it: check the orientation columns"
-        ]
-    return []
+    return diagnosis.explain(data, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,6 +138,7 @@ class _Rows:
     def set_aside(self, state: Fit) -> Aside[Measurements, Fit]:
         """The registration without the outlier rows, until stable (:mod:`.outliers`)."""
         nominal, data, guess, opts = self.nominal, self.rows, self.guess, self.opts
+        weight = cast(float, opts.orientation_weight)
 
         def refit(keep: np.ndarray) -> Fit:
             if keep.all():
@@ -171,7 +147,7 @@ class _Rows:
             frames = frames_model(sub)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
-            return _registration(nominal, sub, guess, opts)
+            return _registrations(nominal, sub, guess, opts)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
             residuals = reg.state.residuals(data, None, state.kin)
@@ -182,8 +158,8 @@ class _Rows:
             return f is None or int(np.sum(~bad)) * f.rows > f.size()
 
         rows = data.rows or tuple(range(1, data.m + 1))
-        reg, bad, _ = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
-        return Aside(reg, bad, data.subset(~bad) if bad.any() else data)
+        reg, bad, found = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
+        return Aside(reg, bad, data.subset(~bad) if bad.any() else data, tuple(found))
 
     def diagnose(self, rows: Measurements, state: Fit) -> list[str]:
         """The usual mistakes of the rows kept (:func:`_diagnose`)."""
@@ -200,8 +176,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
 
     Returns:
         The options with the orientation weight, the registration state, the mask of the
-        outlier rows of ``train``, the notes and the nominal kinematics at ``train``'s joints
-        (the registration's, at every row: its geometry is the nominal one).
+        outlier rows of ``train``, the outliers, the notes and the nominal kinematics at
+        ``train``'s joints (the registration's, at every row: its geometry is the nominal one).
     """
     at = _registrations(nominal, train, guess, opts)
     opts = _weighted(train, opts, at)
@@ -211,7 +187,7 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     reg = aside.state
     if not reg.converged:
         raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, aside.bad, notes, steps.register().kin
+    return opts, reg.state, aside.bad, aside.found, notes, steps.register().kin
 
 
 def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, str]]:
@@ -237,42 +213,12 @@ def _weighted(data, opts: Options, at) -> Options:
     return dataclasses.replace(opts, orientation_weight=weight)
 
 
-def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
-    """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
-
-    None where no row of the registration is far from the others
-    (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
-    """
-    kin = reg.kinematics(data.q)  # x = 0 is the registration
-    residuals = reg.residuals(data, None, kin)
-    if not outliers.spread_out(outliers.point_errors(residuals, data.n_markers)):
-        return np.zeros(data.m, dtype=bool)
-    pset = parameter_set(nominal, "complete")
-    base, lift = moved(pset, nominal)
-    wide = frames_model(data).with_(params=pset, base=base, lift=lift)
-    w = row_weights(wide, opts.orientation_weight)
-    J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
-    rows = data.rows or tuple(range(1, data.m + 1))
-    return outliers.robust_proposals(
-        J[:, :, determined.determined_columns(J)],
-        residuals * w,
-        lambda r: outliers.point_errors(r, data.n_markers),
-        opts.noise,
-        rows,
-    )
-
-
-def held_out_outliers(reg, train, held, opts, notes: list[str], kin=None):
+def held_out_outliers(reg, train, held: Measurements, opts, notes: list[str], kin=None):
     """The held-out rows without their outliers (:func:`.term_checks.held_out`).
 
     ``kin``: ``reg``'s kinematics at ``train``'s joints, if already made.
     """
-    if held is None:
-        return None
-    data, label = held
-    k = train.n_markers
-    rows = data.rows or tuple(range(1, data.m + 1))
+    k, rows = train.n_markers, held.rows or tuple(range(1, held.m + 1))
     fitted = outliers.point_errors(reg.residuals(train, None, kin), k)
-    errors = outliers.point_errors(reg.residuals(data), k)
-    kept = term_checks.held_out(fitted, errors, data, rows, data.subset, notes, opts.noise)
-    return held if kept is data else (kept, label)
+    errors = outliers.point_errors(reg.residuals(held), k)
+    return term_checks.held_out(fitted, errors, held, rows, held.subset, notes, opts.noise)

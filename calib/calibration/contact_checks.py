@@ -312,7 +312,7 @@ def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
 def held_out_set_aside(
     start: ContactState, train: ContactData, held: ContactData | None, notes: list[str]
 ) -> ContactData | None:
-    """The held-out touches without their outliers (:func:`.outliers.held_out_outliers`).
+    """The held-out touches without their outliers (:func:`.term_checks.held_out`).
 
     Each held-out object must be one of the registration's; a note lists those set aside.
 

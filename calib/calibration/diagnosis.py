@@ -223,7 +223,7 @@ class Words:
 
 
 def explain(
-    data, revolute, error, first: float, noise, words: Words, joints_only=True
+    data, revolute, error, first: float, noise, words: Words, joints_only=True, orientation=False
 ) -> list[str]:
     """Raise the usual mistake behind a registration's absurd error; else a note of it.
 
@@ -235,6 +235,8 @@ def explain(
         noise: The instrument's noise [m], or None.
         words: How the messages name the rows.
         joints_only: Try the joint columns' mistakes only (:func:`likely_cause`).
+        orientation: The errors are orientation errors [rad] (suspect above
+            ``ORIENTATION_SUSPECT``), the mistakes the orientation columns'.
 
     Returns:
         A list: empty when the error is not suspect (:func:`suspect`), else the note that no
@@ -243,20 +245,30 @@ def explain(
     Raises:
         DataError: Joint columns that hold one value in every row, or the mistake named.
     """
-    if not suspect(first, noise):
+    if not (first > ORIENTATION_SUSPECT if orientation else suspect(first, noise)):
         return []
     known = bool(np.isfinite(first))
-    leaves = f"leaves {1e3 * first:.4g} mm RMS" if known else "fails"
-    still = constant_joints(data)
+    amount = _degrees if orientation else _millimetres
+    of = f" of {words.error}" if orientation else ""
+    leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
+    still = [] if orientation else constant_joints(data)
     if still:
         raise DataError(data.source, f"the registration {leaves} and joint column(s) "
                         f"{', '.join(still)} hold one value in every {words.row}: were those "
                         "joints logged?")  # fmt: skip
-    cause = likely_cause(data, revolute, error, first, joints_only=joints_only)
+    cause = likely_cause(data, revolute, error, first, orientation, joints_only)
     if cause is not None:
-        before = f"{1e3 * first:.4g} mm" if known else "no registration"
+        before = amount(first) if known else "no registration"
         raise DataError(data.source, f"the {words.data} look like {cause[0]}: the "
                         f"registration's {words.error} drops from {before} to "
-                        f"{1e3 * cause[1]:.4g} mm RMS once corrected")  # fmt: skip
+                        f"{amount(cause[1])} RMS once corrected")  # fmt: skip
     return [f"the registration {leaves}, far above geometric errors, and no usual mistake "
             f"({words.mistakes}) explains it: check {words.check}"]  # fmt: skip
+
+
+def _millimetres(length: float) -> str:
+    return f"{1e3 * length:.4g} mm"
+
+
+def _degrees(angle: float) -> str:
+    return f"{np.degrees(angle):.4g} deg"

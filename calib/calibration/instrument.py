@@ -14,8 +14,7 @@ terms share
 
 Each tool's rows get a single chain's checks (registration, outliers set aside, usual
 mistakes diagnosed); then the frame and markers are registered together in closed form
-(:func:`shared_frame`: Horn/Umeyama over every tool's points, each marker by linear least
-squares, alternated), refined by Levenberg-Marquardt with the engine's shared objects.
+(:func:`shared_frame`), refined by Levenberg-Marquardt with the engine's shared objects.
 """
 
 from __future__ import annotations
@@ -30,12 +29,12 @@ from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from .measured_term import MeasuredState
-from .registration import rigid_fit
+from .registration import register_points
 from .report import pose_dict, term_errors
 from .residuals import ResidualStats
 
 __all__ = [
-    "REGISTRATION_ITERATIONS",
+    "by_tool",
     "instrument_errors",
     "instrument_format2",
     "instrument_groups",
@@ -45,9 +44,6 @@ __all__ = [
     "tool_parts",
     "tree_points",
 ]
-
-REGISTRATION_ITERATIONS = 50
-"""Most alternations of the closed-form registration (frame, then markers)."""
 
 
 def tool_parts(
@@ -70,31 +66,29 @@ def tool_parts(
         raise DataError(
             data.source, "a tree is calibrated from one point per row (x, y, z and a tool)"
         )
+    parts = by_tool(tree, data)
+    missing = [c.tool_frame for c, p in zip(tree.chains, parts, strict=True) if p is None]
+    if every and missing:
+        raise DataError(
+            data.source,
+            f"no row measures the tool {missing[0]}: calibrate the tools the rows measure "
+            f"(a tool for each)",
+        )
+    return parts
+
+
+def by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
+    """Each tool's rows on its chain's joints (None: no row), unchecked (:func:`tool_parts`)."""
     tools = np.array(data.tool if data.tool is not None else (tree.tool_frames[0],) * data.m)
     parts: list[Measurements | None] = []
     for chain, path in zip(tree.chains, tree.paths, strict=True):
-        rows = np.flatnonzero(tools == chain.tool_frame)
-        if not rows.size and not every:
+        mask = tools == chain.tool_frame
+        if not mask.any():
             parts.append(None)
             continue
-        if not rows.size:
-            raise DataError(
-                data.source,
-                f"no row measures the tool {chain.tool_frame}: calibrate the tools the rows "
-                f"measure (a tool for each)",
-            )
-        sub = data.subset(rows)
-        parts.append(
-            Measurements(
-                chain.joint_names,
-                sub.q[:, path],
-                sub.position,
-                None,
-                sub.source,
-                sub.rows,
-                sub.tool,
-            )
-        )
+        sub = data.subset(mask)
+        q, rows, tool = sub.q[:, path], sub.rows, sub.tool
+        parts.append(Measurements(chain.joint_names, q, sub.position, None, sub.source, rows, tool))
     return parts
 
 
@@ -116,18 +110,11 @@ def instrument_groups(plane_of: tuple[int, ...], data, instrument: bool) -> tupl
     return tuple(index[k] for k in keys)
 
 
-def _points(state: MeasuredState, data: Measurements) -> tuple[np.ndarray, np.ndarray]:
-    """Tool rotations ``(m, 3, 3)`` and origins ``(m, 3)`` in the base frame (its chain)."""
-    kin = state.inner.mdh.kinematics(np.asarray(data.q, dtype=float))
-    return kin.R[:, -1], kin.p[:, -1]
-
-
 def shared_frame(states: list, train: list) -> list:
     """The instrument terms' frame and markers registered together in closed form.
 
-    The frame by Horn/Umeyama on every tool's predicted points, each tool's markers by
-    linear least squares in its tool frame, alternated until the markers move less than
-    1e-12 m (at most :data:`REGISTRATION_ITERATIONS` times), from each term's own markers.
+    :func:`~.registration.register_points` on every tool's predicted points, from each
+    term's own markers.
 
     Args:
         states: Each term's state; the :class:`MeasuredState` with ``instrument`` are
@@ -140,35 +127,16 @@ def shared_frame(states: list, train: list) -> list:
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
         return states
-    kin = {c: _points(states[c], train[c]) for c in terms}
-    tools = {c: kin[c][0].reshape(-1, 3) for c in terms}  # the markers' matrix, every round
-    points = {c: train[c].points for c in terms}
-    markers = {c: states[c].inner.markers.copy() for c in terms}
-    measured = np.concatenate([points[c].reshape(-1, 3) for c in terms])
-    R, t = np.eye(3), np.zeros(3)
-    for _ in range(REGISTRATION_ITERATIONS):
-        predicted = [
-            kin[c][1][:, None] + np.einsum("mij,kj->mki", kin[c][0], markers[c]) for c in terms
-        ]
-        R, t = rigid_fit(np.concatenate([p.reshape(-1, 3) for p in predicted]), measured)
-        moved = 0.0
-        for c in terms:
-            local = (points[c] - t) @ R - kin[c][1][:, None]  # R_tool m_k, base frame
-            new = np.array(
-                [
-                    np.linalg.lstsq(tools[c], local[:, k].reshape(-1), rcond=None)[0]
-                    for k in range(local.shape[1])
-                ]
-            )
-            moved = max(moved, float(np.abs(new - markers[c]).max()))
-            markers[c] = new
-        if moved < 1e-12:
-            break
-    frame = np.eye(4)
-    frame[:3, :3], frame[:3, 3] = R, t
+    kin = [states[c].inner.mdh.kinematics(np.asarray(train[c].q, dtype=float)) for c in terms]
+    frame, markers = register_points(
+        [k.R[:, -1] for k in kin],
+        [k.p[:, -1] for k in kin],
+        [train[c].points for c in terms],
+        [states[c].inner.markers for c in terms],
+    )
     out = list(states)
-    for c in terms:
-        inner = dataclasses.replace(states[c].inner, frame=frame.copy(), markers=markers[c])
+    for c, mk in zip(terms, markers, strict=True):
+        inner = dataclasses.replace(states[c].inner, frame=frame.copy(), markers=mk)
         out[c] = dataclasses.replace(states[c], inner=inner)
     return out
 

@@ -44,7 +44,6 @@ from .contact_result import GapStats, row_stats
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
-from .outliers import point_errors, records
 from .placements import joint_twists
 from .weighting import DEFAULT_WEIGHT
 
@@ -337,16 +336,14 @@ def checked_measured(
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
-    opts, reg, bad, notes, kin = checked_registration(
+    opts, reg, bad, found, notes, kin = checked_registration(
         chain, from_chain(chain), data, checked, guess, opts
     )
-    rows = data.rows or tuple(range(1, data.m + 1))
-    found = records(point_errors(reg.residuals(data, None, kin), data.n_markers), bad, rows)
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
     kept = data.subset(~bad) if bad.any() else data
     if held is not None:
         seen = kin if kept is data else None  # the nominal kinematics at the kept rows
-        held = held_out_outliers(reg, kept, (held, held.source), opts, notes, seen)[0]
+        held = held_out_outliers(reg, kept, held, opts, notes, seen)
         fitted = validation.stats(reg, kept, None, seen)
         other = validation.stats(reg, held, None)
         validation.check_held_out_errors(fitted, other, held.source)

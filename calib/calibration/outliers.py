@@ -40,9 +40,9 @@ __all__ = [
     "NOISE_FACTOR",
     "PROPOSAL_SPREAD",
     "ROUNDS",
+    "Errors",
     "Outlier",
     "find_outliers",
-    "held_out_outliers",
     "point_errors",
     "records",
     "robust_proposals",
@@ -169,30 +169,25 @@ def _find_outliers(errors: np.ndarray, noise: float | None, dims: int = 3) -> np
 
 
 def find_outliers(
-    errors: np.ndarray,
-    orientation: np.ndarray | None,
-    noise: float | None,
-    rows: tuple[int, ...],
-    dims: tuple[int, int] = (3, 3),
+    found: Errors, noise: float | None, rows: tuple[int, ...]
 ) -> tuple[np.ndarray, list[Outlier]]:
     """Outliers of per-configuration errors: by position error, and by orientation error.
 
     Args:
-        errors: Position error of each configuration ``(m,)`` [m].
-        orientation: Orientation error of each ``(m,)`` [rad], or None.
+        found: Each configuration's errors (:class:`Errors`).
         noise: Instrument position noise [m], or None.
         rows: File row of each configuration.
-        dims: Components of the position and of the orientation errors (:func:`factor`).
 
     Returns:
         The boolean mask of the outliers and the outliers (:func:`records`).
     """
+    errors, orientation, dims = found
     bad = _find_outliers(errors, noise, dims[0])
     if orientation is not None:
         bad = bad | _find_outliers(orientation, None, dims[1])
     if np.sum(~bad) < max(3, len(errors) // 2):
         return np.zeros(len(errors), dtype=bool), []
-    return bad, records(Errors(errors, orientation, dims), bad, rows)
+    return bad, records(found, bad, rows)
 
 
 def until_stable(
@@ -222,7 +217,7 @@ def until_stable(
     result = refit(~bad)
     for _ in range(ROUNDS):
         found = errors(result)
-        new = find_outliers(found.position, found.orientation, noise, rows, found.dims)[0]
+        new = find_outliers(found, noise, rows)[0]
         if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
             break
         try:
@@ -296,8 +291,7 @@ def robust_proposals(
         if np.allclose(new, w, rtol=1e-6, atol=1e-9):
             break
         w = new
-    final = errors(fitted)
-    return find_outliers(final.position, final.orientation, noise, rows, final.dims)[0]
+    return find_outliers(errors(fitted), noise, rows)[0]
 
 
 def _dense_fit(J: np.ndarray, residual: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -312,41 +306,3 @@ def _ratio(errors: np.ndarray) -> np.ndarray:
     """Each error over their median (1 where the median is 0)."""
     median = float(np.median(errors))
     return errors / median if median > 0 else np.ones_like(errors)
-
-
-def held_out_outliers(
-    fitted: Errors, held: Errors, noise: float | None, rows: tuple[int, ...]
-) -> tuple[np.ndarray, list[Outlier]]:
-    """Held-out units set aside by the training rule (a mask of the held-out units).
-
-    The rule (:func:`find_outliers`) on the errors of the fitted and the held-out units
-    together under one model (the registration), so that the median is the same one; only
-    held-out units are set aside, and none when that would be half of them or more (then
-    they are not outliers: measured in another frame, or of another robot).
-
-    Args:
-        fitted: Errors of the fitted units.
-        held: Errors of the held-out units.
-        noise: Instrument position noise [m], or None.
-        rows: File row of each held-out unit.
-    """
-    m = len(fitted.position)
-    rot = None
-    if fitted.orientation is not None and held.orientation is not None:
-        rot = np.concatenate([fitted.orientation, held.orientation])
-    pooled = Errors(np.concatenate([fitted.position, held.position]), rot, fitted.dims)
-    units = (0,) * m + rows
-    bad = find_outliers(pooled.position, pooled.orientation, noise, units, pooled.dims)[0]
-    mask = bad[m:]
-    if 2 * int(mask.sum()) >= len(mask):
-        return np.zeros(len(mask), dtype=bool), []
-    return mask, records(pooled, np.concatenate([np.zeros(m, dtype=bool), mask]), units)
-
-
-def held_out_note(dropped: list[Outlier], unit: str = "row(s)", gap: str = "error") -> str:
-    """The note naming the held-out outliers, left out of the held-out statistics."""
-    return (
-        "held out: "
-        + set_aside_note(dropped, unit, gap)
-        + "; the held-out statistics leave them out"
-    )

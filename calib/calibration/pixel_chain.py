@@ -446,7 +446,8 @@ class _Camera:
         behind = _from_behind(state, part)
         errors, e_held = _judged(chain, state, part, held)
         floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
-        bad, found = outliers.find_outliers(errors, None, floor, part.rows.lines, (2, 3))
+        pixel = outliers.Errors(errors, None, (2, 3))
+        bad, found = outliers.find_outliers(pixel, floor, part.rows.lines)
         found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
         found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
                   "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip

@@ -15,6 +15,10 @@ from its solution whatever the frame's rotation and distance:
 4. for pose data, the measured frame's rotation in the tool frame: the rotation nearest (in
    the Frobenius norm) to the mean of ``R_i^T R^T R_meas,i``.
 
+Several tools measured in one frame (a tree's, :func:`~.instrument.shared_frame`) are
+registered the same way (:func:`register_points`): step 1 on every tool's points, step 2 for
+each tool's markers.
+
 The result then seeds a Levenberg-Marquardt fit of the same parameters (``frames`` level).
 
 References: B. K. P. Horn, "Closed-form solution of absolute orientation using unit
@@ -24,13 +28,15 @@ parameters between two point patterns", IEEE TPAMI 13(4), 1991.
 
 from __future__ import annotations
 
+from itertools import accumulate
+
 import numpy as np
 import scipy.linalg
 
 from ..kinematics.mdh import Kinematics, MDHModel
 from .model import State, registration_state
 
-__all__ = ["ITERATIONS", "nearest_rotation", "register", "rigid_fit"]
+__all__ = ["ITERATIONS", "nearest_rotation", "register", "register_points", "rigid_fit"]
 
 ITERATIONS = 50
 """Most alternations between the frame and the markers."""
@@ -74,19 +80,26 @@ def nearest_rotation(M: np.ndarray) -> np.ndarray:
 
 
 class _Moments:
-    """The sums over the configurations that the alternation needs, computed once.
+    """The sums over one tool's configurations that the alternation needs, computed once.
 
     With ``pred_ik = p_i + R_i m_k`` and the centred measured points ``Y_ik``, the
     cross-covariance of :func:`rigid_fit` is ``P + sum_kj m_kj G_kj`` and the markers' least
     squares (``sum_i R_i^T R_i = m I``) is ``m_k = (1/m) sum_i R_i^T (R^T (y_ik - t) - p_i)``:
     both are small contractions of ``G[k, j, a, b] = sum_i R_i[a, j] Y_ik[b]``, so that an
     alternation costs the same whatever the number of configurations.
+
+    Args:
+        Rt: The tool's rotations ``(m, 3, 3)`` in the base frame.
+        pt: Its origins ``(m, 3)`` [m].
+        points: Its measured points ``(m, K, 3)`` [m].
+        cb: The centre of the measured points [m] (several tools: of every tool's), or None:
+            of these.
     """
 
-    def __init__(self, Rt: np.ndarray, pt: np.ndarray, points: np.ndarray) -> None:
+    def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
         m, K = points.shape[:2]
-        self.m, self.K = m, K
-        self.cb = points.reshape(-1, 3).mean(axis=0)
+        self.m, self.K, self.slices = m, K, [slice(None)]  # the markers: all of them
+        self.cb = points.reshape(-1, 3).mean(axis=0) if cb is None else cb
         Y = points - self.cb  # (m, K, 3)
         self.G = np.ascontiguousarray(np.einsum("iaj,ikb->kjab", Rt, Y).reshape(3 * K, 9))
         self.P = pt.T @ Y.sum(axis=1)
@@ -94,21 +107,71 @@ class _Moments:
         self.R_mean = Rt.mean(axis=0)
         self.back = np.einsum("iba,ib->a", Rt, pt) / m  # mean of R_i^T p_i
 
-    def rotation(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`rigid_fit`'s rotation of the points (markers ``(3 K,)``) and their centroid."""
+    def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`rigid_fit`'s cross-covariance (markers ``(3 K,)``) and the points' centroid."""
         ca = self.p_mean + self.R_mean @ (mk.reshape(-1, 3).sum(axis=0) / self.K)
-        return _rotation(self.P + (mk @ self.G).reshape(3, 3)), ca
-
-    def frame(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`rigid_fit` of the predicted points (markers ``(3 K,)``): R and t."""
-        R, ca = self.rotation(mk)
-        return R, self.cb - R @ ca
+        return self.P + (mk @ self.G).reshape(3, 3), ca
 
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
         """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 K,)``."""
         # R^T (y_ik - t) = R^T Y_ik + ca, and (R^T Y_ik) summed against R_i^T is G : R
         new = (self.G @ R.T.ravel()).reshape(self.K, 3) / self.m + (self.R_mean.T @ ca - self.back)
         return new.ravel()
+
+
+class _Tools:
+    """:class:`_Moments` of several tools measured in one frame: their sums, summed.
+
+    The measured points are centred on their mean over every tool, so that the
+    cross-covariance is the sum of the tools' and the centroid their mean weighted by the
+    points; each tool's markers are its own least squares.
+    """
+
+    def __init__(self, Rt: list, pt: list, points: list) -> None:
+        cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
+        self.tools = [_Moments(*t, cb) for t in zip(Rt, pt, points, strict=True)]
+        self.cb, self.sizes = cb, [t.m * t.K for t in self.tools]
+        ends = accumulate(3 * t.K for t in self.tools)
+        self.slices = [slice(end - 3 * t.K, end) for t, end in zip(self.tools, ends, strict=True)]
+
+    def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cross-covariance of every tool's points (markers ``(3 sum K,)``), their centroid."""
+        each = [t.sums(mk[c]) for t, c in zip(self.tools, self.slices, strict=True)]
+        H = np.sum([h for h, _ in each], axis=0)
+        return H, np.average([ca for _, ca in each], axis=0, weights=self.sizes)
+
+    def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
+        """Each tool's markers' least squares with the frame held ``(3 sum K,)``."""
+        return np.concatenate([t.markers(R, ca) for t in self.tools])
+
+
+def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
+    """Closed-form frame and markers of tools measured in one frame (module text, steps 1-3).
+
+    Args:
+        Rt: Each tool's rotations ``(m_c, 3, 3)`` in the base frame.
+        pt: Each tool's origins ``(m_c, 3)`` [m].
+        points: Each tool's measured points ``(m_c, K_c, 3)`` [m], measurement frame.
+        markers: Each tool's markers' guess ``(K_c, 3)`` [m], tool frame.
+
+    Returns:
+        The pose of the base frame in the measurement frame ``(4, 4)``, and each tool's
+        markers ``(K_c, 3)`` [m].
+    """
+    sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
+    flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])
+    for _ in range(ITERATIONS):
+        H, ca = sums.sums(flat)
+        new = sums.markers(_rotation(H), ca)  # t is not needed until the end
+        done = np.abs(new - flat).max() < 1e-12
+        flat = new
+        if done:
+            break
+    H, ca = sums.sums(flat)
+    R = _rotation(H)
+    frame = np.eye(4)
+    frame[:3, :3], frame[:3, 3] = R, sums.cb - R @ ca
+    return frame, [flat[c].reshape(-1, 3) for c in sums.slices]
 
 
 def register(
@@ -119,7 +182,7 @@ def register(
     markers: np.ndarray | None = None,
     kin: Kinematics | None = None,
 ) -> State:
-    """Closed-form measurement frame and markers for the nominal geometry.
+    """Closed-form measurement frame and markers for the nominal geometry (module text).
 
     Args:
         mdh: The geometry (nominal model, URDF base frame).
@@ -137,19 +200,9 @@ def register(
     Rt, pt = kin.R[:, -1], kin.p[:, -1]
     K = points.shape[1]
     mk = np.zeros((K, 3)) if markers is None else np.array(markers, dtype=float).reshape(K, 3)
-    sums = _Moments(Rt, pt, points)
-    flat = mk.ravel()
-    for _ in range(ITERATIONS):
-        new = sums.markers(*sums.rotation(flat))  # t is not needed until the end
-        done = np.abs(new - flat).max() < 1e-12
-        flat = new
-        if done:
-            break
-    R, t = sums.frame(flat)
-    mk = flat.reshape(K, 3)
-    frame = np.eye(4)
-    frame[:3, :3], frame[:3, 3] = R, t
+    frame, (mk,) = register_points([Rt], [pt], [points], [mk])
     tool = None
     if rotations is not None:
+        R = np.ascontiguousarray(frame[:3, :3])
         tool = nearest_rotation(np.sum(np.swapaxes(Rt, 1, 2) @ R.T @ rotations, axis=0))
     return registration_state(mdh, frame, mk, tool)

@@ -39,8 +39,8 @@ class Aside(Generic[D, S]):
         state: The registration of the rows kept.
         bad: The mask of the outlier rows.
         kept: The rows kept.
-        found: The outliers, where the step names them (pixels: their rule reads the
-            term's own fit, not the registration; the others': by the caller).
+        found: The outliers, where the step names them (a chain's, pixels'; touches': by
+            the caller).
         held: The held-out rows without their outliers, where the step sets them aside
             (pixels: by the same own fit), or None.
         notes: Notes of the step (pixels: their held-out rows' outliers).
@@ -114,7 +114,12 @@ def held_out(
     noise: float | None = None,
     words: tuple[str, str] = ("row(s)", "error"),
 ) -> D:
-    """The held-out rows without their outliers (:func:`.outliers.held_out_outliers`).
+    """The held-out rows without the outliers the training rule finds among them.
+
+    The rule (:func:`~.outliers.find_outliers`) on the fitted and the held-out rows' errors
+    together under one model (the registration), so that the median is the same one; only
+    held-out rows are set aside, and none when that would be half of them or more (then they
+    are not outliers: measured in another frame, or of another robot).
 
     Args:
         fitted: The errors of the rows fitted.
@@ -122,12 +127,21 @@ def held_out(
         held: The held-out rows.
         rows: Their file rows.
         subset: The held-out rows a mask keeps.
-        notes: The notes, to which the outliers' is appended (if any).
+        notes: The notes, to which the outliers' is appended (if any): the held-out
+            statistics leave them out.
         noise: The instrument's noise [m], or None.
-        words: The unit and the error in the note.
+        words: The unit and the error in the note (:func:`~.outliers.set_aside_note`).
     """
-    bad, dropped = outliers.held_out_outliers(fitted, errors, noise, rows)
-    if not dropped:
+    m = len(fitted.position)
+    rot = None
+    if fitted.orientation is not None and errors.orientation is not None:
+        rot = np.concatenate([fitted.orientation, errors.orientation])
+    pooled = outliers.Errors(np.concatenate([fitted.position, errors.position]), rot, fitted.dims)
+    units = (0,) * m + rows
+    bad = outliers.find_outliers(pooled, noise, units)[0][m:]
+    if not bad.any() or 2 * int(bad.sum()) >= len(bad):
         return held
-    notes.append(outliers.held_out_note(dropped, *words))
+    dropped = outliers.records(pooled, np.concatenate([np.zeros(m, dtype=bool), bad]), units)
+    note = outliers.set_aside_note(dropped, *words)
+    notes.append(f"held out: {note}; the held-out statistics leave them out")
     return subset(~bad)

@@ -20,7 +20,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.tree import Tree
 from ..measurements.data import Measurements
 from . import determined, diagnosis, validation
-from .instrument import shared_frame, tool_parts
+from .instrument import by_tool, shared_frame, tool_parts
 from .measured_term import MeasuredState
 from .model import nominal_state
 from .residuals import ResidualStats
@@ -61,23 +61,12 @@ def prepare_tree(
             _diagnosed(tree, nominal, validate)
     reg = _diagnosed(tree, nominal, data)
     if validate is not None:
-        fitted, other = (_stats(reg, _by_tool(tree, d)) for d in (data, validate))
+        fitted, other = (_stats(reg, by_tool(tree, d)) for d in (data, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
     train, held = (
         (data, validate) if validate is not None else validation.split(data, holdout, seed)
     )
     return tool_parts(tree, train), tool_parts(tree, held, every=False)
-
-
-def _by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
-    """Each tool's rows on its chain's joints (None: no row), unchecked (data corrected)."""
-    tools = np.array(data.tool if data.tool is not None else (tree.tool_frames[0],) * data.m)
-    parts: list[Measurements | None] = []
-    for chain, path in zip(tree.chains, tree.paths, strict=True):
-        rows = tools == chain.tool_frame
-        q, points = data.q[rows][:, path], data.position[rows]
-        parts.append(Measurements(chain.joint_names, q, points) if rows.any() else None)
-    return parts
 
 
 def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> ResidualStats:
@@ -89,27 +78,19 @@ def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> Res
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 
 
-def _registered(tree: Tree, nominal: list, data: Measurements) -> tuple[list, float]:
-    """The measurement frame and markers of ``data`` on the ``nominal`` tree, and their RMS.
-
-    In closed form (:func:`~.instrument.shared_frame`): one frame for every tool, one marker
-    each; the RMS error per row [m].
-    """
-    parts = _by_tool(tree, data)
-    states = shared_frame(nominal, parts)
-    return states, _stats(states, parts).position_rms
-
-
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
-    """The registration of ``data`` (:func:`_registered`); the likely mistake if it fails.
+    """The registration of ``data`` on the ``nominal`` tree (module text); a mistake raised.
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
     """
-    reg, first = _registered(tree, nominal, data)
 
-    def rms(d: Measurements) -> float:  # the closed form only: every swap of two joints
-        return _registered(tree, nominal, d)[1]
+    def registered(d: Measurements) -> tuple[list, float]:  # and the RMS error per row [m]
+        parts = by_tool(tree, d)
+        states = shared_frame(nominal, parts)
+        return states, _stats(states, parts).position_rms
 
+    reg, first = registered(data)
+    rms = lambda d: registered(d)[1]  # noqa: E731
     diagnosis.explain(data, tree.sigma == 0, rms, first, None, _WORDS, joints_only=False)
     return reg
