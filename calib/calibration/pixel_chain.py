@@ -24,6 +24,7 @@ from ..exceptions import InvalidArgumentError
 from ..identification.pinhole import Pinhole
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
+from ..kinematics.so3 import rotation_matrix
 from ..measurements.pixels import PixelObservations, Target
 from . import validation
 from .pixel_term import (
@@ -36,8 +37,6 @@ from .pixel_term import (
     Unknowns,
     camera_points,
     exact_columns,
-    move_own,
-    own_columns,
     pixel_jacobian,
     pixel_rows,
 )
@@ -162,6 +161,8 @@ class PixelKind:
 class PixelTermState:
     """A pixel term's state: its chain on the robot, the camera, the target, the lens.
 
+    The joint fit's, and a term's fitted alone (:mod:`.pixel_fit`, weight 1: rows in px).
+
     Attributes:
         mdh: The chain's MDH model on the perturbed robot.
         camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
@@ -202,9 +203,26 @@ class PixelTermState:
         return -self.pixel_errors(part, kin) * self.weight
 
     def moved(self, x: np.ndarray) -> PixelTermState:
-        """The state with its own unknowns at ``x``."""
-        camera, target, lens = move_own(self.camera, self.target, self.lens, x, self.what)
-        return dataclasses.replace(self, camera=camera, target=target, lens=lens)
+        """The state with its own unknowns (:attr:`kind`'s) at ``x`` (as :mod:`.pixel_term`)."""
+        step = np.eye(4)
+        step[:3, :3], step[:3, 3] = rotation_matrix(x[3:6]), x[:3]
+        target, lens, what, start = np.array(self.target, dtype=float), self.lens, self.what, 6
+        if what.mount:
+            target = target @ rotation_matrix(x[9:12]).T + x[6:9]
+            start = 12
+        if what.targets and len(target) > GAUGE_POINTS:
+            stop = start + 3 * (len(target) - GAUGE_POINTS)
+            target[GAUGE_POINTS:] += x[start:stop].reshape(-1, 3)
+            start = stop
+        if what.intrinsics:
+            lens = lens.with_parameters(lens.parameters + x[start:])
+        return dataclasses.replace(self, camera=self.camera @ step, target=target, lens=lens)
+
+    def own_columns(self, n: int) -> np.ndarray:
+        """Its own unknowns' columns among :func:`~.pixel_term.pixel_jacobian`'s (``n`` joints')."""
+        extra = len(self.kind.names()) - 6 - 6 * self.what.mount  # target points, intrinsics
+        mount = range(6 + n, 12 + n) if self.what.mount else ()
+        return np.r_[0:6, list(mount), 12 + n : 12 + n + extra].astype(int)
 
 
 def pixel_block(
@@ -228,7 +246,7 @@ def pixel_block(
     J = pixel_jacobian(placements, state, chain, part.rows, len(lift) > 0, kin)[1]
     n = placements.y.size
     J = exact_columns(J, start.what, start.target, x, n, part.rows.point)
-    own = J[:, :, own_columns(state, n)]
+    own = J[:, :, state.own_columns(n)]
     robot = J[:, :, 6 : 6 + n] @ lift.T
     return own * state.weight, robot * state.weight
 

@@ -23,7 +23,7 @@ from ..kinematics.robot import Chain
 from . import determined, diagnosis, outliers, term_checks
 from .contact_chains_model import ChainsData, ChainsState
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .pixel_term import camera_points, check_in_front, free_columns, own_columns, pixel_jacobian
+from .pixel_term import camera_points, check_in_front, free_columns, pixel_jacobian
 from .placements import Placements
 from .registration import nearest_rotation
 from .solve import fit
@@ -42,6 +42,10 @@ UNDISTORT_ITERATIONS = 20
 
 MAX_EVALUATIONS = 200
 """Most residual evaluations of a fit."""
+
+ROUND_OFF_PX = 1e-6
+"""Pixel errors below 6 times this [px] are round-off, never outliers (a noise-free fit leaves
+1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
 
 
 def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
@@ -94,11 +98,6 @@ def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndar
     return np.linalg.inv(seen)
 
 
-ROUND_OFF_PX = 1e-6
-"""Pixel errors below 6 times this [px] are round-off, never outliers (a noise-free fit leaves
-1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
-
-
 @dataclass(frozen=True, eq=False)
 class _Steps:
     """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian`, in its order, as a model.
@@ -121,19 +120,21 @@ class _Steps:
 
         Returns:
             The mask of x's joint columns, their components, the others' places among the own
-            unknowns, the placements' change, the own unknowns.
+            unknowns, the own unknowns.
         """
-        s, n, free = _term(start), start.placements.y.size, np.asarray(self.free, dtype=int)
+        n, free = start.placements.y.size, np.asarray(self.free, dtype=int)
         joint = (free >= 6) & (free < 6 + n)
-        own_cols = own_columns(s, n)
+        own_cols = _term(start).own_columns(n)
         at = np.searchsorted(own_cols, free[~joint])
-        dy, own = np.zeros(n), np.zeros(own_cols.size)
-        dy[free[joint] - 6], own[at] = x[joint], x[~joint]
-        return joint, free[joint] - 6, at, dy, own
+        own = np.zeros(own_cols.size)
+        own[at] = x[~joint]
+        return joint, free[joint] - 6, at, own
 
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
         """The state at x."""
-        _, _, _, dy, own = self._moves(start, x)
+        joint, comps, _, own = self._moves(start, x)
+        dy = np.zeros(start.placements.y.size)
+        dy[comps] = x[joint]
         placements, term = start.placements.shifted(dy), _term(start).moved(own)
         return dataclasses.replace(start, placements=placements, states=(term,))
 
@@ -143,7 +144,7 @@ class _Steps:
             state = self.apply(start, x)
         if kin is None:
             kin = state.kinematics(data)
-        joint, comps, at, _, own = self._moves(start, x)
+        joint, comps, at, own = self._moves(start, x)
         lift = np.eye(start.placements.y.size)[comps]
         J = np.empty((data.m, 2, len(self.free)))
         by_own, J[:, :, joint] = pixel_block(

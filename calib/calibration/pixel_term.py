@@ -40,7 +40,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
@@ -62,8 +61,6 @@ __all__ = [
     "check_in_front",
     "exact_columns",
     "free_columns",
-    "move_own",
-    "own_columns",
     "pixel_jacobian",
     "pixel_rows",
 ]
@@ -116,17 +113,15 @@ def pixel_jacobian(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
-    Columns: the camera's 6, every joint placement component of ``placements`` (6 per
-    joint; zero unless ``robot``: a fit that moves no joint), the target's mounting (6), with
-    ``state.what.targets`` the target points after the first :data:`GAUGE_POINTS`, with
-    ``state.what.intrinsics`` the camera's intrinsics.
+    Columns: the unknowns in the module's order, the mounting's 6 always, the target points'
+    and the intrinsics' those of ``state.what``.
 
     Args:
-        placements: The joint placement errors.
+        placements: The joint placement errors (each joint's 6 columns).
         state: The term's camera, target and lens (its MDH model unused).
         chain: The term's chain.
         rows: Its rows.
-        robot: Whether the joint placement columns are made.
+        robot: Whether the joint placement columns are made (else zero: a fit moving none).
         kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`),
             if already made.
 
@@ -160,50 +155,15 @@ def pixel_jacobian(
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
 
 
-def own_columns(state: PixelTermState, n: int) -> np.ndarray:
-    """The term's own unknowns' columns among :func:`pixel_jacobian`'s (``n``: the joints').
-
-    The camera's 6, the mounting's (``state.what.mount``), the target points', the intrinsics'.
-    """
-    k, what = len(state.target), state.what
-    points = 3 * (k - GAUGE_POINTS) if what.targets and k > GAUGE_POINTS else 0
-    lens = len(state.lens.parameters) if what.intrinsics else 0
-    mount = range(6 + n, 12 + n) if what.mount else ()
-    return np.r_[0:6, list(mount), 12 + n : 12 + n + points + lens].astype(int)
-
-
-def move_own(camera: np.ndarray, target: np.ndarray, lens: Pinhole, x: np.ndarray, what: Unknowns):
-    """A pixel term's own unknowns at ``x``: the camera, the target and the lens moved.
-
-    ``x``: the camera's step (6: ``C -> C [R(w) | v]``), with ``what.mount`` the mounting's
-    (6: ``X -> R(w) X + v``), with ``what.targets`` the points after the first
-    :data:`GAUGE_POINTS` (3 each), with ``what.intrinsics`` the intrinsics' changes.
-    """
-    step = np.eye(4)
-    step[:3, :3], step[:3, 3] = rotation_matrix(x[3:6]), x[:3]
-    target = np.array(target, dtype=float)
-    start = 6
-    if what.mount:
-        target = target @ rotation_matrix(x[9:12]).T + x[6:9]
-        start = 12
-    if what.targets and len(target) > GAUGE_POINTS:
-        stop = start + 3 * (len(target) - GAUGE_POINTS)
-        target[GAUGE_POINTS:] += x[start:stop].reshape(-1, 3)
-        start = stop
-    if what.intrinsics:
-        lens = lens.with_parameters(lens.parameters + x[start:])
-    return camera @ step, target, lens
-
-
 def exact_columns(J: np.ndarray, what: Unknowns, target, x: np.ndarray, n: int, point):
     """:func:`pixel_jacobian`'s columns ``J`` made the derivatives by ``x`` itself.
 
-    ``x``: the own unknowns (:func:`move_own`'s, from the state ``J`` was not taken at, whose
-    points are ``target``), ``n``: the joint placement columns, ``point``: each row's target
-    point. ``C = C0 [R(w) | v]``: d/dv is the step's translation column times ``R(w)^T``,
-    d/dw its rotation column times the right Jacobian ``Jl(-w)``. The mounting
-    ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
-    ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
+    ``x``: the own unknowns (:meth:`~.pixel_chain.PixelTermState.moved`'s, from the state
+    ``J`` was not taken at, whose points are ``target``), ``n``: the joint placement columns,
+    ``point``: each row's target point. ``C = C0 [R(w) | v]``: d/dv is the step's translation
+    column times ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``.
+    The mounting ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))``
+    columns times ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
     """
     J = J.copy()
     w = x[3:6]
