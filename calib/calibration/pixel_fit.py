@@ -160,18 +160,24 @@ def _term(state: ChainsState) -> PixelTermState:
     return cast(PixelTermState, state.states[0])
 
 
-def _fitted(start: ChainsState, part: PixelPart, free, kin) -> ChainsState:
-    """The engine's least squares (:func:`~.solve.fit`) of one pixel term alone.
+def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, free, kin):
+    """One pixel term fitted alone (the engine's :func:`~.solve.fit`, its rows in pixels).
 
     Args:
-        start: The engine's state of the term (its weight 1: rows in pixels).
+        chain: The term's chain.
+        placements: The joint placement errors at the start.
+        term: The term at the start (its weight taken as 1).
         part: Its rows.
         free: The columns of :func:`~.pixel_term.pixel_jacobian` fitted.
-        kin: The chain's frames at the rows' joints on ``start``'s robot.
+        kin: The chain's frames at the rows' joints on ``placements``.
+
+    Returns:
+        The engine's state of the one term at the fit.
     """
-    data = ChainsData((part,))
-    return fit(_Steps(tuple(free)), start, data, None, 1.0, max_iterations=MAX_EVALUATIONS,
-               kin=(kin,)).state  # fmt: skip
+    start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
+    fitted = fit(_Steps(tuple(free)), start, ChainsData((part,)), None, 1.0,
+                 max_iterations=MAX_EVALUATIONS, kin=(kin,))  # fmt: skip
+    return fitted.state
 
 
 def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
@@ -188,8 +194,8 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
     check_in_front(camera_points(kin, guess, X[rows.point])[0], rows, part.source)
     mdh = placements.chain_models((chain,))[0]
-    start = ChainsState((chain,), placements, (PixelTermState(mdh, guess, X, lens, 1.0),))
-    camera = _term(_fitted(start, part, range(6), kin)).camera
+    start = PixelTermState(mdh, guess, X, lens, 1.0)
+    camera = _term(_fitted(chain, placements, start, part, range(6), kin)).camera
     p_cam = camera_points(kin, camera, X[rows.point])[0]
     weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
     return PixelTermState(mdh, camera, X, lens, weight, part.data.what)
@@ -256,8 +262,7 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     kin = placements.frames(chain, part.rows.q)
     J = pixel_jacobian(placements, state, chain, part.rows, kin=kin)[1]
     free = free_columns(J.reshape(-1, J.shape[2]), placements, state.what)
-    start = ChainsState((chain,), placements, (dataclasses.replace(state, weight=1.0),))
-    own = _fitted(start, part, free, kin)
+    own = _fitted(chain, placements, state, part, free, kin)
     errors = [np.linalg.norm(own.residuals(ChainsData((p,))), axis=1) * state.weight
               for p in (part, held) if p is not None]  # fmt: skip
     return errors[0], (errors[1] if held is not None else None)
