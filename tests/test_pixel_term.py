@@ -13,12 +13,8 @@ import pytest
 from pixel_scorer import link_points, moved_model, seen_pixels
 
 from calib import load_chain
-from calib.calibration.pixel_term import (
-    PixelRows,
-    PixelState,
-    Unknowns,
-    pixel_jacobian,
-)
+from calib.calibration.pixel_chain import PixelTermState
+from calib.calibration.pixel_term import PixelRows, Unknowns, pixel_jacobian
 from calib.calibration.placements import Placements
 from calib.identification.pinhole import Pinhole
 
@@ -82,8 +78,9 @@ def test_jacobian_matches_central_differences(name):
     C = _pose(rng, 0.3)
     C[:3, 3] = centre - 1.5 * C[:3, 2]
     rows = PixelRows(q, point, np.zeros((8, 2)), tuple(range(8)))
-    state, every = PixelState(pl, C, target, CAMERA), Unknowns(True, True, True)
-    r, J = pixel_jacobian(state, chain, rows, every)
+    mdh = pl.chain_models((chain,))[0]
+    state = PixelTermState(mdh, C, target, CAMERA, 1.0, Unknowns(True, True, True))
+    r, J = pixel_jacobian(pl, state, chain, rows)
     assert J.shape == (8, 2, 6 + 6 * chain.n + 6 + 3 + 9)
     n = pl.y.size
     lens = CAMERA.parameters

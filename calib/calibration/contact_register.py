@@ -53,9 +53,9 @@ from .pixel_chain import (
     PixelPart,
     PixelTermState,
     check_pixels,
-    checked_pixels,
     pixel_parts,
 )
+from .pixel_fit import checked_pixels
 from .placements import Placements
 from .solve import fit
 

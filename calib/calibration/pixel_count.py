@@ -11,20 +11,14 @@ import numpy as np
 
 from ..measurements.pixel_simulation import simulate_cameras
 from ..measurements.pixels import Target
-from .pixel_term import (
-    PixelCamera,
-    PixelState,
-    Unknowns,
-    free_columns,
-    pixel_jacobian,
-    pixel_rows,
-)
+from .pixel_chain import PixelTermState
+from .pixel_term import PixelCamera, Unknowns, free_columns, pixel_jacobian, pixel_rows
 from .placements import Placements
 
 __all__ = ["pixel_count"]
 
 
-def _stacked(names, cameras, rows, states, chains, what: Unknowns) -> np.ndarray:
+def _stacked(names, cameras, rows, states, chains, placements: Placements) -> np.ndarray:
     """The rows' Jacobian ``(r, c)``: each camera's 6 (by name), the joints', the mounting.
 
     A camera with targets on several links (one chain each) has one placement: each row moves
@@ -32,7 +26,7 @@ def _stacked(names, cameras, rows, states, chains, what: Unknowns) -> np.ndarray
     """
     blocks = []
     for chain, camera, part, state in zip(chains, cameras, rows, states, strict=True):
-        J = pixel_jacobian(state, chain, part, what)[1]
+        J = pixel_jacobian(placements, state, chain, part)[1]
         W = np.zeros((part.m, 2, 6 * len(names) + J.shape[2] - 6))
         i = names.index(camera.name)
         W[:, :, 6 * i : 6 * i + 6] = J[:, :, :6]
@@ -65,11 +59,12 @@ def pixel_count(
     what = Unknowns(mount=params == "complete")
     rows = [pixel_rows(c, obs, target, cam.name) for c, cam in zip(chains, cameras, strict=True)]
     states = tuple(
-        PixelState(placements, np.asarray(cam.placement), target.position, cam.intrinsics.camera)
-        for cam in cameras
-    )
+        PixelTermState(mdh, np.asarray(cam.placement), target.position, cam.intrinsics.camera,
+                       1.0, what)
+        for cam, mdh in zip(cameras, placements.chain_models(tuple(chains)), strict=True)
+    )  # fmt: skip
     names = tuple(dict.fromkeys(c.name for c in cameras))
-    W = _stacked(names, cameras, rows, states, chains, what)
+    W = _stacked(names, cameras, rows, states, chains, placements)
     free = free_columns(W, placements, what, len(names))
     first = cameras[0]
     return {

@@ -1,42 +1,40 @@
-"""A pixel term's registration: the camera's placement (closed form, then least squares).
+"""A pixel term's registration and outliers: its camera placed, the term fitted alone.
 
-The start given, or the perspective-n-point problem in closed form (:func:`camera_from_rays`
-of the pixels' :func:`rays`), refined on the camera's 6 alone (:func:`refine_camera`); for
-the outlier rule, the term fitted alone (:func:`fit_alone`). Both least squares are the
-engine's (:func:`~.solve.fit`), x moving the start as the joint engine moves a pixel term's
-unknowns (its columns exact: :func:`~.pixel_term.exact_columns`).
+The camera's start: given, the URDF's link NAME on LINK, or the perspective-n-point problem
+in closed form (:func:`camera_from_rays` of the pixels' :func:`rays`), refined on its 6
+alone; the outlier rule reads the term fitted alone (:func:`checked_pixels`). Both least
+squares are the engine's (:func:`~.solve.fit`) on its state of the one chain, x moving it as
+the joint engine moves a pixel term (:meth:`~.pixel_chain.PixelTermState.moved`,
+:func:`~.pixel_chain.pixel_block`), the rows in pixels.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from ..exceptions import DataError
 from ..identification.pinhole import Pinhole
+from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
-from .pixel_term import (
-    KNOWN,
-    PixelRows,
-    PixelState,
-    Unknowns,
-    exact_columns,
-    free_columns,
-    move_own,
-    pixel_columns,
-    pixel_jacobian,
-)
+from . import determined, diagnosis, outliers, term_checks
+from .contact_chains_model import ChainsData, ChainsState
+from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
+from .pixel_term import camera_points, check_in_front, free_columns, pixel_jacobian
+from .placements import Placements
 from .registration import nearest_rotation
 from .solve import fit
+from .term_checks import Aside
 
 __all__ = [
     "MAX_EVALUATIONS",
-    "PixelView",
+    "ROUND_OFF_PX",
     "camera_from_rays",
-    "fit_alone",
+    "checked_pixels",
     "rays",
-    "refine_camera",
 ]
 
 UNDISTORT_ITERATIONS = 20
@@ -44,6 +42,10 @@ UNDISTORT_ITERATIONS = 20
 
 MAX_EVALUATIONS = 200
 """Most residual evaluations of a fit."""
+
+ROUND_OFF_PX = 1e-6
+"""Pixel errors below 6 times this [px] are round-off, never outliers (a noise-free fit leaves
+1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
 
 
 def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
@@ -97,29 +99,14 @@ def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndar
 
 
 @dataclass(frozen=True, eq=False)
-class PixelView:
-    """One camera's rows on its chain (a camera's link to the target's tool).
-
-    Attributes:
-        chain: The camera's link to the tool.
-        rows: Its observations.
-    """
-
-    chain: Chain
-    rows: PixelRows
-
-
-@dataclass(frozen=True, eq=False)
 class _Steps:
-    """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian` as the solver's model.
+    """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian`, in its order, as a model.
 
-    x moves the start: the joint placements shifted, the camera, the mounting, the points and
-    the lens as a pixel term's own unknowns (:func:`~.pixel_term.move_own`); the Jacobian is
-    by x itself (:func:`~.pixel_term.exact_columns`), as the joint engine's.
+    Of the engine's state of one pixel term (its weight 1: rows in pixels), moved and derived
+    as the joint engine moves and derives the term.
     """
 
     free: tuple[int, ...]
-    what: Unknowns
 
     n_markers = 0  # rows in pixels, unweighted
     pose = False
@@ -128,47 +115,241 @@ class _Steps:
         """Number of free columns."""
         return len(self.free)
 
-    def _steps(self, start: PixelState, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The joint placements' change and the own unknowns (with the mounting's 6)."""
-        dx = np.zeros(pixel_columns(start, self.what))
-        dx[list(self.free)] = x
-        n = start.placements.y.size
-        return dx[6 : 6 + n], np.r_[dx[:6], dx[6 + n :]]
+    def _moves(self, start: ChainsState, x: np.ndarray):
+        """Where x goes: among the placements' components and among the own unknowns.
 
-    def apply(self, start: PixelState, x: np.ndarray) -> PixelState:
-        """The camera's state at x."""
-        dy, own = self._steps(start, x)
-        what = Unknowns(True, self.what.targets, self.what.intrinsics)
-        camera, target, lens = move_own(start.camera, start.target, start.lens, own, what)
-        return PixelState(start.placements.shifted(dy), camera, target, lens)
+        Returns:
+            The mask of x's joint columns, their components, the others' places among the own
+            unknowns, the own unknowns.
+        """
+        n, free = start.placements.y.size, np.asarray(self.free, dtype=int)
+        joint = (free >= 6) & (free < 6 + n)
+        own_cols = _term(start).own_columns(n)
+        at = np.searchsorted(own_cols, free[~joint])
+        own = np.zeros(own_cols.size)
+        own[at] = x[~joint]
+        return joint, free[joint] - 6, at, own
 
-    def jacobian(self, start: PixelState, x: np.ndarray, view: PixelView, torque=None):
-        """d(pixel)/dx ``(m, 2, free)`` [px per unit]."""
-        state, own = self.apply(start, x), self._steps(start, x)[1]
-        n, point = state.placements.y.size, view.rows.point
-        robot = any(6 <= c < 6 + n for c in self.free)  # else no joint placement column
-        J = pixel_jacobian(state, view.chain, view.rows, self.what, robot)[1]
-        J = exact_columns(J, self.what, start.target, own, n, point)
-        return J[:, :, list(self.free)]
+    def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
+        """The state at x."""
+        joint, comps, _, own = self._moves(start, x)
+        dy = np.zeros(start.placements.y.size)
+        dy[comps] = x[joint]
+        placements, term = start.placements.shifted(dy), _term(start).moved(own)
+        return dataclasses.replace(start, placements=placements, states=(term,))
+
+    def jacobian(self, start: ChainsState, x, data: ChainsData, torque=None, state=None, kin=None):
+        """d(pixel)/dx ``(m, 2, free)`` [px per unit] (``state``, ``kin``: at x, if made)."""
+        if state is None:
+            state = self.apply(start, x)
+        if kin is None:
+            kin = state.kinematics(data)
+        joint, comps, at, own = self._moves(start, x)
+        lift = np.eye(start.placements.y.size)[comps]
+        J = np.empty((data.m, 2, len(self.free)))
+        by_own, J[:, :, joint] = pixel_block(
+            state.placements, start.chains[0], _term(state), _term(start), own, data.parts[0],
+            lift, kin[0],
+        )  # fmt: skip
+        J[:, :, ~joint] = by_own[:, :, at]
+        return J
 
 
-def _solve(state: PixelState, view: PixelView, free, what: Unknowns) -> PixelState:
-    """The engine's least squares (:func:`~.solve.fit`) on the columns ``free``."""
-    steps = _Steps(tuple(free), what)
-    return fit(steps, state, view, None, 1.0, max_iterations=MAX_EVALUATIONS).state
+def _term(state: ChainsState) -> PixelTermState:
+    """The pixel term of the engine's state of one term."""
+    return cast(PixelTermState, state.states[0])
 
 
-def refine_camera(state: PixelState, chain: Chain, rows: PixelRows) -> PixelState:
-    """The camera's placement by least squares on the current robot (its 6 unknowns alone)."""
-    return _solve(state, PixelView(chain, rows), tuple(range(6)), KNOWN)
+def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, free, kin):
+    """One pixel term fitted alone (the engine's :func:`~.solve.fit`, its rows in pixels).
 
+    Args:
+        chain: The term's chain.
+        placements: The joint placement errors at the start.
+        term: The term at the start (its weight taken as 1).
+        part: Its rows.
+        free: The columns of :func:`~.pixel_term.pixel_jacobian` fitted.
+        kin: The chain's frames at the rows' joints on ``placements``.
 
-def fit_alone(state: PixelState, view: PixelView, what: Unknowns) -> PixelState:
-    """A registered camera's term fitted alone: the unknowns its rows determine.
-
-    The columns chosen once (:func:`~.pixel_term.free_columns` at ``state``), then the
-    engine's least squares on them.
+    Returns:
+        The engine's state of the one term at the fit.
     """
-    J = pixel_jacobian(state, view.chain, view.rows, what)[1]
-    free = free_columns(J.reshape(-1, J.shape[2]), state.placements, what)
-    return _solve(state, view, free, what)
+    start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
+    fitted = fit(_Steps(tuple(free)), start, ChainsData((part,)), None, 1.0,
+                 max_iterations=MAX_EVALUATIONS, kin=(kin,))  # fmt: skip
+    return fitted.state
+
+
+def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
+    """The camera placed on the nominal robot (given, the URDF's, or closed form), refined."""
+    cam, rows = part.data.camera, part.rows
+    placements = Placements.of((chain,))
+    kin = placements.frames(chain, rows.q)
+    lens, X = cam.intrinsics.camera, part.data.target.position
+    guess = cam.placement
+    if guess is None:
+        guess = camera_placement(chain, cam.name, cam.link)
+    if guess is None:
+        p_link = camera_points(kin, np.eye(4), X[rows.point])[1]
+        guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
+    check_in_front(camera_points(kin, guess, X[rows.point])[0], rows, part.source)
+    mdh = placements.chain_models((chain,))[0]
+    start = PixelTermState(mdh, guess, X, lens, 1.0)
+    camera = _term(_fitted(chain, placements, start, part, range(6), kin)).camera
+    p_cam = camera_points(kin, camera, X[rows.point])[0]
+    weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
+    return PixelTermState(mdh, camera, X, lens, weight, part.data.what)
+
+
+@dataclass(frozen=True, eq=False)
+class _Joints:
+    """A pixel term's joint columns, as the usual mistakes (:mod:`.diagnosis`) read them."""
+
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    source: str
+
+    @property
+    def m(self) -> int:
+        """Rows."""
+        return len(self.q)
+
+
+def _rms_m(state: PixelTermState, part: PixelPart) -> float:
+    """RMS reprojection error of the rows [m at the target]."""
+    return float(np.sqrt(2 * np.mean(state.pixel_errors(part) ** 2)) * state.weight)
+
+
+def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
+    """RMS error [m at the target] of the registration of the rows at joint positions ``q``."""
+    moved = PixelPart(part.data, dataclasses.replace(part.rows, q=q))
+    return _rms_m(_registered(chain, moved), moved)
+
+
+_WORDS = diagnosis.Words("pixels", "row of the pixels", "error at the target",
+                         check="the pixels, the camera's link and the target")  # fmt: skip
+
+
+def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
+    """:func:`~.diagnosis.explain` of the rows' joint columns (``first``: error [m])."""
+
+    def error(fixed: object) -> float:
+        return _error_m(chain, part, cast(_Joints, fixed).q)
+
+    joints = _Joints(chain.joint_names, part.rows.q, part.source)
+    notes = diagnosis.explain(joints, chain.sigma == 0, error, first, None, _WORDS)
+    return [f"camera {part.data.camera.name}: {n}" for n in notes]
+
+
+def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
+    """Rows whose point's outward normal (the target's) faces away from the camera."""
+    normals = part.data.target.normal
+    if normals is None:
+        return np.zeros(part.m, dtype=bool)
+    R = state.mdh.kinematics(part.rows.q).R[:, -1]
+    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], R, normals[part.rows.point])
+    return np.einsum("mi,mi->m", n_cam, state.seen(part)) >= 0
+
+
+def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
+    """Each row's error [m at the target] on the term's own fit, and the held-out rows'.
+
+    The term alone fitted (its camera and its chain's joint placements: the columns its rows
+    determine, :func:`~.pixel_term.free_columns`): a camera registered on the nominal robot
+    errs by tens of pixels at far postures, which no outlier rule should read as gross.
+    """
+    placements = Placements.of((chain,))
+    kin = placements.frames(chain, part.rows.q)
+    J = pixel_jacobian(placements, state, chain, part.rows, kin=kin)[1]
+    free = free_columns(J.reshape(-1, J.shape[2]), placements, state.what)
+    own = _fitted(chain, placements, state, part, free, kin)
+    errors = [np.linalg.norm(own.residuals(ChainsData((p,))), axis=1) * state.weight
+              for p in (part, held) if p is not None]  # fmt: skip
+    return errors[0], (errors[1] if held is not None else None)
+
+
+def _size(part: PixelPart) -> int:
+    """The camera's unknowns (placement, mounting, target points) of a pixel term."""
+    return len(PixelKind(len(part.data.target.position), 0, part.data.what).names())
+
+
+@dataclass(frozen=True, eq=False)
+class _Camera:
+    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`).
+
+    Every row is diagnosed before the outliers are set aside: the outlier rule reads the
+    term's own fit (:func:`_judged`), made from the registration.
+
+    Attributes:
+        chain: The term's chain.
+        rows: Its rows.
+        held: Its held-out rows (their outliers set aside by the same own fit), or None.
+    """
+
+    chain: Chain
+    rows: PixelPart
+    held: PixelPart | None
+
+    diagnose_first = True
+
+    def register(self) -> PixelTermState:
+        """The camera registered; no registration (points behind it) is diagnosed too.
+
+        Raises:
+            DataError: The mistake named, or the registration's own error.
+        """
+        try:
+            return _registered(self.chain, self.rows)
+        except DataError:
+            _explain(self.chain, self.rows, np.inf)
+            raise
+
+    def diagnose(self, rows: PixelPart, state: PixelTermState) -> list[str]:
+        """:func:`_explain` of the rows (``state``: their registration)."""
+        return _explain(self.chain, rows, _rms_m(state, rows))
+
+    def set_aside(self, state: PixelTermState) -> Aside[PixelPart, PixelTermState]:
+        """Rows seen from behind or far off the own fit set aside (:func:`checked_pixels`)."""
+        chain, part, held = self.chain, self.rows, self.held
+        behind = _from_behind(state, part)
+        errors, e_held = _judged(chain, state, part, held)
+        floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
+        pixel = outliers.Errors(errors, None, (2, 3))
+        bad, found = outliers.find_outliers(pixel, floor, part.rows.lines)
+        found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
+        found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
+                  "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
+        bad = bad | behind
+        kept = part
+        if bad.any():
+            if part.m - int(bad.sum()) < _size(part):
+                raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")
+            kept = part.subset(~bad)
+            state = _registered(chain, kept)
+        notes: list[str] = []
+        if held is not None and e_held is not None:
+            fitted, other = (outliers.Errors(e, None, (2, 3)) for e in (errors[~bad], e_held))
+            held = term_checks.held_out(fitted, other, held, held.rows.lines, held.subset, notes)
+        found.sort(key=lambda o: o.row)
+        return Aside(state, bad, kept, tuple(found), held, tuple(notes))
+
+
+def checked_pixels(chain: Chain, part: PixelPart, held):
+    """A pixel term's registration and its outliers (the shared rule, in mm at the target).
+
+    The steps of every kind of term (:func:`~.term_checks.checked`): rows seen from behind
+    their normal, and rows that the shared rule (:func:`~.outliers.find_outliers`) sets
+    aside on the term's own fit (:func:`_judged`), are outliers named by their line; the
+    camera is registered again without them. Held-out rows' outliers: the same rule
+    (:func:`~.term_checks.held_out`).
+
+    Returns:
+        Its registered state, the mask of its outlier rows, the outliers, the notes and its
+        held-out rows without their outliers (or None).
+    """
+    out_m = 0 if held is None else held.m
+    what = f"unknowns of camera {part.data.camera.name}'s placement"
+    unit = "observations"
+    determined.check_equations(part.m, 2, _size(part), what, part.source, held=out_m, unit=unit)
+    aside, notes = term_checks.checked(_Camera(chain, part, held))
+    return aside.state, aside.bad, list(aside.found), notes, aside.held

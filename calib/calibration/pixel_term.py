@@ -35,16 +35,19 @@ unknown (:func:`~.placements.joint_twists` for the joint placements).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.pinhole import Pinhole
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
 from .determined import determined_columns
 from .placements import Placements, joint_twists, offset_component
+
+if TYPE_CHECKING:  # the term's state, whose module imports this one
+    from .pixel_chain import PixelTermState
 
 __all__ = [
     "CAMERA_NAMES",
@@ -53,17 +56,13 @@ __all__ = [
     "MOUNT_NAMES",
     "PixelCamera",
     "PixelRows",
-    "PixelState",
     "Unknowns",
     "camera_points",
     "check_in_front",
     "exact_columns",
     "free_columns",
-    "move_own",
-    "pixel_columns",
     "pixel_jacobian",
     "pixel_rows",
-    "target_points",
 ]
 
 CAMERA_NAMES = ("camera.x", "camera.y", "camera.z", "camera.rx", "camera.ry", "camera.rz")
@@ -95,43 +94,6 @@ KNOWN = Unknowns()
 """No optional unknown: the target and the intrinsics as given."""
 
 
-@dataclass(frozen=True, eq=False)
-class PixelState:
-    """The robot, camera and target of a pixel term.
-
-    Attributes:
-        placements: The joint placement errors (their model the robot they act on).
-        camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
-        target: The target points in the tool frame ``(k, 3)`` [m].
-        lens: The camera's intrinsics.
-    """
-
-    placements: Placements
-    camera: np.ndarray
-    target: np.ndarray
-    lens: Pinhole
-
-    def residuals(self, view, torque=None) -> np.ndarray:
-        """``observed - pixel`` ``(m, 2)`` [px] of a :class:`~.pixel_fit.PixelView`'s rows.
-
-        NaN behind the camera. What the engine's solver (:func:`~.solve.fit`) reads of its state.
-        """
-        p_cam = target_points(self, view.chain, view.rows)[0]
-        return view.rows.pixels - self.lens.projection(p_cam).pixels
-
-
-def target_points(state: PixelState, chain: Chain, rows: PixelRows, kin=None):
-    """The seen points in the camera frame ``(m, 3)`` and in the base link ``(m, 3)`` [m].
-
-    Also the chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`,
-    for :func:`pixel_jacobian`; ``kin``: them, if already made).
-    """
-    if kin is None:
-        kin = state.placements.frames(chain, rows.q)
-    p_cam, p_link = camera_points(kin, state.camera, state.target[rows.point])
-    return p_cam, p_link, kin
-
-
 def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points ``X`` ``(m, 3)`` of the tool, in the camera ``(m, 3)`` and the base link [m].
 
@@ -142,87 +104,66 @@ def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, n
 
 
 def pixel_jacobian(
-    state: PixelState,
+    placements: Placements,
+    state: PixelTermState,
     chain: Chain,
     rows: PixelRows,
-    what: Unknowns,
     robot: bool = True,
     kin=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
-    Columns: the camera's 6, every joint placement component of
-    ``state.placements`` (6 per joint; zero unless ``robot``: a fit that moves no joint),
-    the target's mounting (6), with ``what.targets`` the target points after the first
-    :data:`GAUGE_POINTS`, with ``what.intrinsics`` the camera's intrinsics. ``kin``: the
-    chain's frames at the rows' joints, if already made.
+    Columns: the unknowns in the module's order, the mounting's 6 always, the target points'
+    and the intrinsics' those of ``state.what``.
+
+    Args:
+        placements: The joint placement errors (each joint's 6 columns).
+        state: The term's camera, target and lens (its MDH model unused).
+        chain: The term's chain.
+        rows: Its rows.
+        robot: Whether the joint placement columns are made (else zero: a fit moving none).
+        kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`),
+            if already made.
+
+    Returns:
+        ``pixel - observed`` [px] and its derivatives [px per m, rad or px].
     """
-    p_cam, p_link, kin = target_points(state, chain, rows, kin)
+    if kin is None:
+        kin = placements.frames(chain, rows.q)
+    X = state.target[rows.point]
+    p_cam, p_link = camera_points(kin, state.camera, X)
     seen = state.lens.projection(p_cam, derivatives=True)
     D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
     RcT = state.camera[:3, :3].T
-    pl = state.placements
     m = rows.m
-    moving = np.zeros((m, 3, len(pl.joints), 6))  # the point's motion in the base link
+    moving = np.zeros((m, 3, len(placements.joints), 6))  # the point's motion in the base link
     if robot:
-        columns = pl.path(chain).columns
-        ang, lin = joint_twists(pl, chain, kin)
+        columns = placements.path(chain).columns
+        ang, lin = joint_twists(placements, chain, kin)
         moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
     by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
-    X = state.target[rows.point]
     mount = RcT @ kin.R[:, -1]  # d(point in the camera) / d(point in the tool)
     by_mount = mount @ np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), -skew(X)], axis=2)
     parts = [D @ by_camera, D @ (RcT @ moving.reshape(m, 3, -1)), D @ by_mount]
     k = len(state.target)
-    if what.targets and k > GAUGE_POINTS:
+    if state.what.targets and k > GAUGE_POINTS:
         by_point = np.zeros((m, 3, k, 3))
         by_point[np.arange(m), :, rows.point] = mount
         parts.append(D @ by_point[:, :, GAUGE_POINTS:].reshape(m, 3, -1))
-    if what.intrinsics:
+    if state.what.intrinsics:
         parts.append(np.asarray(seen.d_parameters))
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
-
-
-def pixel_columns(state: PixelState, what: Unknowns) -> int:
-    """The number of columns of :func:`pixel_jacobian`."""
-    k = len(state.target)
-    points = 3 * (k - GAUGE_POINTS) if what.targets and k > GAUGE_POINTS else 0
-    lens = len(state.lens.parameters) if what.intrinsics else 0
-    return 12 + state.placements.y.size + points + lens
-
-
-def move_own(camera: np.ndarray, target: np.ndarray, lens: Pinhole, x: np.ndarray, what: Unknowns):
-    """A pixel term's own unknowns at ``x``: the camera, the target and the lens moved.
-
-    ``x``: the camera's step (6: ``C -> C [R(w) | v]``), with ``what.mount`` the mounting's
-    (6: ``X -> R(w) X + v``), with ``what.targets`` the points after the first
-    :data:`GAUGE_POINTS` (3 each), with ``what.intrinsics`` the intrinsics' changes.
-    """
-    step = np.eye(4)
-    step[:3, :3], step[:3, 3] = rotation_matrix(x[3:6]), x[:3]
-    target = np.array(target, dtype=float)
-    start = 6
-    if what.mount:
-        target = target @ rotation_matrix(x[9:12]).T + x[6:9]
-        start = 12
-    if what.targets and len(target) > GAUGE_POINTS:
-        stop = start + 3 * (len(target) - GAUGE_POINTS)
-        target[GAUGE_POINTS:] += x[start:stop].reshape(-1, 3)
-        start = stop
-    if what.intrinsics:
-        lens = lens.with_parameters(lens.parameters + x[start:])
-    return camera @ step, target, lens
 
 
 def exact_columns(J: np.ndarray, what: Unknowns, target, x: np.ndarray, n: int, point):
     """:func:`pixel_jacobian`'s columns ``J`` made the derivatives by ``x`` itself.
 
-    ``x``: the own unknowns (:func:`move_own`'s, from the state ``J`` was not taken at, whose
-    points are ``target``), ``n``: the joint placement columns, ``point``: each row's target
-    point. ``C = C0 [R(w) | v]``: d/dv is the step's translation column times ``R(w)^T``,
-    d/dw its rotation column times the right Jacobian ``Jl(-w)``. The mounting
-    ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
-    ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
+    ``x``: the own unknowns (:meth:`~.pixel_chain.PixelTermState.moved`'s, from the state
+    ``J`` was not taken at, whose points are ``target``), ``n``: the joint placement columns,
+    ``point``: each row's target point. ``C = C0 [R(w) | v]``: d/dv is the step's translation
+    column times ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``.
+    The mounting ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))``
+    columns times ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
     """
     J = J.copy()
     w = x[3:6]
