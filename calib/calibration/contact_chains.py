@@ -133,7 +133,7 @@ def calibrate_contact_chains(
             ``complete``.
         validate: Per chain, touches of other postures to score the result on, or None.
         orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
-            :func:`~.contact_checks.estimate_weight`).
+            :func:`~.weighting.estimate_weight` on its registration).
         shared_planes: Chains of one base frame whose touches name the same plane touch one
             plane (default: each chain its own plane).
         pose_weight: Factor of the ``fixed-pose`` chains' rows against the plane chains'
