@@ -45,7 +45,6 @@ __all__ = [
     "plane_groups",
     "rank_refusal",
     "registration",
-    "set_aside",
     "subset",
 ]
 
@@ -192,10 +191,10 @@ class _Touches:
             return registration(nominal, subset(data, keep), guess, DEFAULT_WEIGHT)
 
         rows = data.rows or tuple(range(1, data.m + 1))
-        state, bad, _ = outliers.until_stable(
+        state, bad, found = outliers.until_stable(
             refit, lambda s: length_errors(s, data), None, rows, allowed=enough_touches(data)
         )
-        return Aside(state, bad, subset(data, ~bad) if bad.any() else data)
+        return Aside(state, bad, subset(data, ~bad) if bad.any() else data, tuple(found))
 
     def diagnose(self, rows: ContactData, state: ContactState) -> list[str]:
         """The usual mistakes of the touches kept (``state``: their registration)."""
@@ -224,14 +223,16 @@ def checked_registration(
     then the touches kept registered at ``weight`` (None: estimated).
 
     Returns:
-        The registration state of the touches kept, the mask of the outliers and the notes.
+        The registration state of the touches kept, the mask of the outliers, the outliers
+        (their gaps under the registration that set them aside, :func:`.outliers.records`)
+        and the notes.
     """
     checks = []
     if validate is not None and _registrable(validate):
         checks.append((_Touches(chain, nominal, validate, guess), validate.source))
     aside, notes = term_checks.checked(_Touches(chain, nominal, train, guess), checks)
     start = registration(nominal, aside.kept, guess, weight, aside.state.frames)
-    return start, aside.bad, notes
+    return start, aside.bad, list(aside.found), notes
 
 
 def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
@@ -323,13 +324,3 @@ def held_out_set_aside(
     fitted, errors = (length_errors(start, d) for d in (train, held))
     cut = partial(subset, held)
     return term_checks.held_out(fitted, errors, held, rows, cut, notes, None, ("touch(es)", "gap"))
-
-
-def set_aside(start: ContactState, data: ContactData, bad: np.ndarray) -> list[outliers.Outlier]:
-    """The touches ``bad`` as outliers: each one's length gap and the median [m]."""
-    if not bad.any():
-        return []
-    lengths = length_errors(start, data)[0]
-    rows = data.rows or tuple(range(1, data.m + 1))
-    median = float(np.median(lengths[~bad]))
-    return [outliers.Outlier(rows[i], float(lengths[i]), median) for i in np.flatnonzero(bad)]
