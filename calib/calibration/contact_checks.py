@@ -18,7 +18,7 @@ from functools import partial
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..identification.contacts import Contact, PlaneContact
+from ..identification.contacts import PlaneContact
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
@@ -37,7 +37,6 @@ __all__ = [
     "check_memory",
     "checked_registration",
     "enough_touches",
-    "gap_errors",
     "held_out_refusal",
     "held_out_set_aside",
     "isolated_postures",
@@ -126,20 +125,10 @@ def registration(
     return ContactState(nominal, at(w), w)
 
 
-def length_errors(
-    state: ContactState, data: ContactData, torque: np.ndarray | None = None
-) -> outliers.Errors:
-    """Each touch's length gap [m] and angle gap [rad] (None without angle rows)."""
-    return gap_errors(state.gaps(data.q, data.ids, torque), state.kind)
-
-
-def gap_errors(g: np.ndarray, kind: Contact) -> outliers.Errors:
-    """Each touch's length gap [m] and angle gap [rad] (None without angle rows).
-
-    From gaps ``(m, rows)``, angle rows weighted or not: their norm is tested against its
-    median.
-    """
-    angle = np.array(kind.angular)
+def length_errors(state: ContactState, data: ContactData) -> outliers.Errors:
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms."""
+    g = state.gaps(data.q, data.ids)
+    angle = np.array(state.kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
     dims = (int(np.sum(~angle)), int(np.sum(angle)))
     return outliers.Errors(np.linalg.norm(g[:, ~angle], axis=1), rot, dims)
