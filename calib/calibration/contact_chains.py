@@ -336,7 +336,7 @@ def _assemble(
         if h is not None:
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        compliance = contact_elastic.fitted_compliance(s, s0, (d, h), stats, notes, load)
+        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes, load)
         objects = contact_objects(s, d, torque[0])
         parts.append(
             ChainContacts(

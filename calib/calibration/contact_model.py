@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..identification.contacts import Contact
+from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import Kinematics, MDHModel
 from .contact_frames import ContactFrames, plane_frame, row_weights
 from .placements import JointFrames
@@ -145,7 +145,5 @@ def plane_state(
     plane_id: str = "table",
 ) -> ContactState:
     """A state of one plane (``plane`` kind) from its unit normal and height [m]."""
-    from ..identification.contacts import PlaneContact
-
     plane = plane_frame(normal, height, np.zeros(3))[None]
     return ContactState(mdh, ContactFrames(PlaneContact(), contact, plane, (plane_id,)), weight)

@@ -15,6 +15,7 @@ import numpy as np
 from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, FixedPoseContact
+from ..kinematics.so3 import rotation_matrix
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
@@ -81,8 +82,6 @@ def contact_frame(contact) -> np.ndarray:
 
     Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame.
     """
-    from ..kinematics.so3 import rotation_matrix
-
     if contact is None:
         return np.eye(4)
     try:
