@@ -1,12 +1,11 @@
-"""The error model of contacts: the objects touched, the contact frame, robot parameters.
+"""A contact term's state: the robot, the contact frame and the objects touched.
 
 A state is the robot's MDH model (frame -1: the chain's base frame) with the contact frame
 and the objects (:class:`~calib.calibration.contact_frames.ContactFrames`, which defines
 every kind's gap). Its own unknowns x are the objects' and the contact's
 (:meth:`ContactState.moved`), their Jacobian the kind's rows of :meth:`ContactFrames.parts`
-(:meth:`ContactState.blocks`); the robot's
-columns (joint placement directions, compliances ``q' = q + c tau``) are the joint engine's
-(:mod:`.contact_chains_model`).
+(:meth:`ContactState.blocks`); the robot's columns (joint placement directions, compliances
+``q' = q + c tau``) are the joint engine's (:mod:`.contact_chains_model`).
 """
 
 from __future__ import annotations
