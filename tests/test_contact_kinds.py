@@ -17,10 +17,12 @@ from contact_scorer import contact_gaps, read_joints
 
 from calib import load_robot
 from calib.calibration import contact_choice
+from calib.calibration.contact_checks import registration
 from calib.calibration.contact_term import split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.exceptions import DataError
+from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import simulate_contacts, write_contacts
 
 KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")
@@ -231,6 +233,31 @@ def test_usual_mistakes_and_outliers_in_touches():
     assert [o.row for o in r.chains[0].outliers] == [9]
     assert r.stats["train"].m == data.m - 1
     assert r.to_dict()["outliers"][0]["row"] == 9
+
+
+def test_a_tilted_touch_is_set_aside_as_an_orientation_outlier():
+    """A touch tilted 0.1 rad at its height is named by its tilt gap, as the rule found it.
+
+    The outlier's record is the one rule's (:func:`calib.calibration.outliers.records`): the
+    touch's angle gap and their median, not its length gap (no outlier by itself).
+    """
+    chain = load_robot("panda")
+    data = simulate_contacts(chain, 60, "plane", contacts=2, seed=4).data
+    state = registration(from_chain(chain), data, np.eye(4), 1.0)
+    q = data.q.copy()
+
+    def gap(qi):
+        return state.gaps(qi[None], [data.ids[7]])[0]
+
+    target = gap(q[7]) + np.array([0.0, 0.1, 0.0])  # the height kept, rolled by 0.1 rad
+    for _ in range(5):
+        J = np.stack([(gap(q[7] + h) - gap(q[7] - h)) / 2e-6 for h in 1e-6 * np.eye(chain.n)], 1)
+        q[7] += np.linalg.lstsq(J, target - gap(q[7]), rcond=None)[0]
+    r = calibrate_contacts(chain, dataclasses.replace(data, q=q), params="offsets")
+    (out,) = r.chains[0].outliers
+    assert (out.row, out.kind) == (8, "orientation")
+    assert out.error > 0.09 and out.error > 6 * out.median
+    assert any("row 8 (orientation 5.9 deg)" in n for n in r.notes)
 
 
 def test_validation_touches_of_an_unfitted_object_are_refused():

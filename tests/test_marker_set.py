@@ -8,7 +8,7 @@ from conftest import chain_of
 from scipy.spatial.transform import Rotation
 
 from calib import Columns, DataError, DataWarning, calibrate, simulate
-from calib.calibration.weighting import estimate_weight, variance_ratio
+from calib.calibration.weighting import estimate_weight, pose_angles, variance_ratio
 from calib.cli.commands import main
 from calib.measurements.csvfile import measurements_csv, parse_measurements
 from calib.measurements.marker_set import marker_set_pose
@@ -74,8 +74,10 @@ def test_variance_ratio_is_the_simulated_noise_ratio():
     rng = np.random.default_rng(5)
     m = 4000
     residuals = np.hstack([rng.normal(0, 1e-4, (m, 3)), rng.normal(0, 2e-3, (m, 3))])
-    assert variance_ratio(residuals, 1) == pytest.approx(0.05, rel=0.03)
-    assert variance_ratio(np.zeros((5, 6)), 1) is None  # noise-free: the default weight
+    assert variance_ratio(residuals, pose_angles(1)) == pytest.approx(0.05, rel=0.03)
+    assert (
+        variance_ratio(np.zeros((5, 6)), pose_angles(1)) is None
+    )  # noise-free: the default weight
     data = simulate(chain, 300, "pose", noise_mm=0.1, noise_mrad=2.0, error_mm=0, error_mrad=0)
     res = calibrate(chain, data.measurements, params="frames")
     assert res.orientation_weight == pytest.approx(0.05, rel=0.1)
@@ -88,9 +90,11 @@ def test_the_weight_iteration_stops_where_the_ratio_settles():
         calls.append(w)  # a fit whose orientation error shrinks as its weight grows
         return np.hstack([np.full((4, 3), 1e-3), np.full((4, 3), 1e-3 / (1 + w))])
 
-    w = estimate_weight(residuals_at, 1)
+    w = estimate_weight(residuals_at, pose_angles(1))
     assert abs(w - (1 + w)) / w < 0.1 or len(calls) == 10  # no fixed point: runs out
-    fixed = estimate_weight(lambda w: np.hstack([np.ones((2, 3)), np.full((2, 3), 4.0)]), 1)
+    fixed = estimate_weight(
+        lambda w: np.hstack([np.ones((2, 3)), np.full((2, 3), 4.0)]), pose_angles(1)
+    )
     assert fixed == pytest.approx(0.25)
 
 

@@ -208,7 +208,8 @@ def _weighted(data, opts: Options, at) -> Options:
     weight = weighting.DEFAULT_WEIGHT
     if data.quaternion is not None:
         weight = weighting.estimate_weight(
-            lambda w: at(w).state.residuals(data, None, at(w).kin), data.n_markers
+            lambda w: at(w).state.residuals(data, None, at(w).kin),
+            weighting.pose_angles(data.n_markers),
         )
     return dataclasses.replace(opts, orientation_weight=weight)
 

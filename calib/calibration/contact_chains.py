@@ -133,7 +133,7 @@ def calibrate_contact_chains(
             ``complete``.
         validate: Per chain, touches of other postures to score the result on, or None.
         orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
-            :func:`~.contact_checks.estimate_weight`).
+            :func:`~.weighting.estimate_weight` on its registration).
         shared_planes: Chains of one base frame whose touches name the same plane touch one
             plane (default: each chain its own plane).
         pose_weight: Factor of the ``fixed-pose`` chains' rows against the plane chains'
@@ -336,7 +336,7 @@ def _assemble(
         if h is not None:
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        compliance = contact_elastic.fitted_compliance(s, s0, (d, h), stats, notes, load)
+        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes, load)
         objects = contact_objects(s, d, torque[0])
         parts.append(
             ChainContacts(

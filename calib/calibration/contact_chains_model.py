@@ -19,10 +19,10 @@ table) or ``fixed-pose`` (a closed loop, e.g. a humanoid's two soles flat on the
 
 The rows: each chain's touches, in chain order, each its kind's rows (a plane's height [m]
 and weighted roll and pitch; a pose's position [m] and weighted rotation vector), as a single
-chain's (:class:`~.contact_model.ContactModel`), padded with zero rows to the most rows of a
-kind in the fit (zero rows change no least-squares solution): the object and contact columns
-are that model's, the robot's the kind's rows (``kind.jacobian_rows``) of the contact frame's
-displacement in its object's frame.
+chain's (:meth:`~.contact_model.ContactState.blocks`), padded with zero rows to the most rows
+of a kind in the fit (zero rows change no least-squares solution): the object and contact
+columns are that state's, the robot's the kind's rows (``kind.jacobian_rows``) of the contact
+frame's displacement in its object's frame.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from ..kinematics.so3 import skew
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
-from .contact_model import ContactModel, ContactState
+from .contact_model import ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns, motion_rows
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
@@ -396,11 +396,6 @@ class ChainsModel:
     def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
         return x[self._columns[c][2]]
 
-    @staticmethod
-    def _contact_model(state: ContactState) -> ContactModel:
-        """The single-chain model of a chain's plane and contact (no robot parameter)."""
-        return ContactModel(state.frames)
-
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
         """The state at parameters x (x = 0 is ``start``): no MDH model is remade."""
         x = np.asarray(x, dtype=float)
@@ -408,12 +403,7 @@ class ChainsModel:
         end = self.fixed + len(self.free)
         if len(self.free):
             placements = placements.shifted(self._lift().T @ x[self.fixed : end])
-        states = tuple(
-            s.moved(self._chain_x(x, c))
-            if isinstance(s, MeasuredState | PixelTermState)
-            else self._contact_model(s).apply(s, self._chain_x(x, c))
-            for c, s in enumerate(start.states)
-        )
+        states = tuple(s.moved(self._chain_x(x, c)) for c, s in enumerate(start.states))
         if self.compliance:  # the first chain's joints deflect: q' = q + c tau
             states = (_compliant(states[0], list(self.compliance), x[end:]), *states[1:])
         return dataclasses.replace(start, placements=placements, states=states)
@@ -468,9 +458,7 @@ class ChainsModel:
         s, s0 = state.states[c], start.states[c]
         if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
             raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
-        own, shared, index = self._contact_model(s0).blocks(
-            s0, self._chain_x(x, c), d, None, kin, s
-        )
+        own, shared, index = s0.blocks(self._chain_x(x, c), d, None, kin, s)
         parts = [shared]
         if self.free:
             parts.append(self._robot_columns(state, c, s, d, kin))

@@ -78,13 +78,12 @@ def readings_note(load, train, held) -> str | None:
 
 
 def fitted_compliance(
-    state: ContactState, start: ContactState, sets, stats: dict, notes: list[str], load
+    state: ContactState, sets, stats: dict, notes: list[str], load
 ) -> np.ndarray | None:
     """The fitted compliance ``(n,)`` (None: none kept); the URDF alone scored into ``stats``.
 
     Args:
         state: The fitted state.
-        start: The registration.
         sets: The training and held-out touches (or None).
         stats: The gap statistics, completed with ``train_urdf`` and ``held_out_urdf``.
         notes: Remarks for the user, completed.

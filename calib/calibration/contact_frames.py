@@ -172,6 +172,21 @@ class ContactFrames:
             shared = E @ A[-1][..., list(self.kind.contact_dofs)]
         return own, shared
 
+    def centred(self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray) -> ContactFrames:
+        """The planes, each origin its touches' contact points' centroid (other kinds: self).
+
+        Args:
+            Rt: Tool rotations in the base frame ``(m, 3, 3)``.
+            pt: Tool positions in the base frame ``(m, 3)`` [m].
+            index: The object of each touch ``(m,)``.
+        """
+        if self.kind.object_name != "plane":
+            return self
+        normals = self.objects[:, :3, 2]
+        heights = np.einsum("ki,ki->k", normals, self.objects[:, :3, 3])
+        planes = plane_frames(normals, heights, pt + Rt @ self.contact[:3, 3], index)
+        return ContactFrames(self.kind, self.contact, planes, self.ids)
+
     def rotate(self, W6_base: np.ndarray, index: np.ndarray) -> np.ndarray:
         """A pose-error Jacobian in the base frame ``(m, 6, k)`` seen in each touch's object."""
         FRt = np.swapaxes(self.objects[index, :3, :3], 1, 2)

@@ -1,11 +1,11 @@
-"""The error model of contacts: the objects touched, the contact frame, robot parameters.
+"""A contact term's state: the robot, the contact frame and the objects touched.
 
 A state is the robot's MDH model (frame -1: the chain's base frame) with the contact frame
 and the objects (:class:`~calib.calibration.contact_frames.ContactFrames`, which defines
-every kind's gap). The parameters x of :class:`ContactModel` are the objects' and the
-contact's unknowns, their Jacobian the kind's rows of :meth:`ContactFrames.parts`; the robot's
-columns (joint placement directions, compliances ``q' = q + c tau``) are the joint engine's
-(:mod:`.contact_chains_model`).
+every kind's gap). Its own unknowns x are the objects' and the contact's
+(:meth:`ContactState.moved`), their Jacobian the kind's rows of :meth:`ContactFrames.parts`
+(:meth:`ContactState.blocks`); the robot's columns (joint placement directions, compliances
+``q' = q + c tau``) are the joint engine's (:mod:`.contact_chains_model`).
 """
 
 from __future__ import annotations
@@ -17,13 +17,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..identification.contacts import Contact
+from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import Kinematics, MDHModel
-from .contact_blocks import dense
 from .contact_frames import ContactFrames, plane_frame, row_weights
 from .placements import JointFrames
 
-__all__ = ["ContactModel", "ContactState", "plane_state"]
+__all__ = ["ContactState", "plane_state"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,6 +100,40 @@ class ContactState:
         """Weighted ``0 - gap`` ``(m, rows)`` of contact data (lengths [m], weighted angles)."""
         return -self.gaps(data.q, data.ids, torque, kin) * self.row_weights()
 
+    def moved(self, x: np.ndarray) -> ContactState:
+        """The state with its objects' and contact's unknowns moved by ``x`` (x = 0: self)."""
+        return dataclasses.replace(self, frames=self.frames.moved(self._own(x)))
+
+    def _own(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=float)[: self.frames.size]
+
+    def blocks(
+        self, x: np.ndarray, data, torque=None, kin=None, moved: ContactState | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Weighted d(gap)/dx at the touches of ``data`` by block, x the unknowns from self.
+
+        Args:
+            x: The objects' and contact's unknowns (:meth:`moved`).
+            data: The touches.
+            torque: Gravity torques ``(m, n)`` [N m or N] deflecting compliant joints, or None.
+            kin: The robot's frames at the touches, the last the tool's (a joint fit's), or
+                None: the moved state's (:meth:`kinematics`).
+            moved: :meth:`moved` at x, if already made.
+
+        Returns:
+            The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
+            other objects' are zero; :func:`~.contact_blocks.dense` makes one matrix), on the
+            contact's unknowns ``(m, rows, size - K o)``, and the object of each touch.
+        """
+        s = self.moved(x) if moved is None else moved
+        if kin is None:
+            kin = s.kinematics(data.q, torque)
+        index = s._index(data.ids, len(kin.p), data.source)
+        R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
+        own, shared = s.frames.parts(R, p, index, self._own(x))
+        w = s.row_weights()[None, :, None]
+        return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index
+
 
 def plane_state(
     mdh: MDHModel,
@@ -111,61 +144,5 @@ def plane_state(
     plane_id: str = "table",
 ) -> ContactState:
     """A state of one plane (``plane`` kind) from its unit normal and height [m]."""
-    from ..identification.contacts import PlaneContact
-
     plane = plane_frame(normal, height, np.zeros(3))[None]
     return ContactState(mdh, ContactFrames(PlaneContact(), contact, plane, (plane_id,)), weight)
-
-
-@dataclass(frozen=True, eq=False)
-class ContactModel:
-    """The unknowns of a chain's touches: its objects' and its contact frame's.
-
-    The joint engine (:mod:`.contact_chains_model`) adds the robot's columns (joint placement
-    directions, compliances) from the joint frames it makes once per step.
-
-    Attributes:
-        frames: The frames' layout (kind and ids) the unknowns of x refer to.
-    """
-
-    frames: ContactFrames
-
-    def size(self) -> int:
-        """Number of free parameters: the objects' and the contact's."""
-        return self.frames.size
-
-    def apply(self, start: ContactState, x: np.ndarray) -> ContactState:
-        """The state at parameters x (x = 0 is ``start``)."""
-        frames = start.frames.moved(np.asarray(x, dtype=float)[: self.size()])
-        return dataclasses.replace(start, frames=frames)
-
-    def jacobian(self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None):
-        """Weighted d(gap)/dx ``(m, rows, size)`` at the touches of ``data``.
-
-        ``kin`` and ``state``: see :meth:`blocks`.
-        """
-        own, shared, index = self.blocks(start, x, data, torque, kin, state)
-        return dense(own, shared, index, len(self.frames.ids))
-
-    def blocks(
-        self, start: ContactState, x: np.ndarray, data, torque=None, kin=None, state=None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`jacobian` by block: each touch's own object's columns, the contact's.
-
-        ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's), or
-        None: the state's (:meth:`ContactState.kinematics`, ``torque`` deflecting compliant
-        joints). ``state``: :meth:`apply` at x, if already made.
-
-        Returns:
-            The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
-            other objects' are zero), on the contact's unknowns ``(m, rows, size - K o)``, and
-            the object of each touch.
-        """
-        s = self.apply(start, x) if state is None else state
-        if kin is None:
-            kin = s.kinematics(data.q, torque)
-        index = s._index(data.ids, len(kin.p), data.source)
-        R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
-        own, shared = s.frames.parts(R, p, index, x[: self.size()])
-        w = s.row_weights()[None, :, None]
-        return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index

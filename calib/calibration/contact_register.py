@@ -169,10 +169,9 @@ def _checked(chains, train, validate, guess, weight, held, notes, iterations, sh
             registered.append(state)
             continue
         g = contact_guess(d.kind, guess[0], len(chains))
-        start, bad, more = contact_checks.checked_registration(
+        start, bad, out, more = contact_checks.checked_registration(
             chain, from_chain(chain), d, v, g, weight
         )
-        out = contact_checks.set_aside(start, d, bad)
         if out:
             more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
             d = subset(d, ~bad)

@@ -281,9 +281,4 @@ def register_contacts(
     if isinstance(kind, FixedPointContact):
         return frames  # the closed form is the least squares
     frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)[0]
-    if kind.object_name != "plane":
-        return frames
-    normals = frames.objects[:, :3, 2]
-    heights = np.einsum("ki,ki->k", normals, frames.objects[:, :3, 3])
-    x = p + R @ frames.contact[:3, 3]
-    return ContactFrames(kind, frames.contact, plane_frames(normals, heights, x, index), names)
+    return frames.centred(R, p, index)

@@ -15,12 +15,12 @@ import numpy as np
 from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact, FixedPoseContact
+from ..kinematics.so3 import rotation_matrix
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import determined
 from .contact_checks import subset
-from .contact_frames import plane_frames
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES
 
@@ -82,8 +82,6 @@ def contact_frame(contact) -> np.ndarray:
 
     Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame.
     """
-    from ..kinematics.so3 import rotation_matrix
-
     if contact is None:
         return np.eye(4)
     try:
@@ -131,14 +129,10 @@ def split_contacts(
 def contact_objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:
     """The objects by id; a plane's origin at its touches' contact points, projected."""
     frames = state.frames
-    if frames.kind.object_name != "plane":
-        return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
-    kin = state.kinematics(train.q, torque)
-    x = kin.p[:, -1] + kin.R[:, -1] @ state.contact[:3, 3]
-    normals = frames.objects[:, :3, 2]
-    heights = [float(n @ F[:3, 3]) for n, F in zip(normals, frames.objects, strict=True)]
-    planes = plane_frames(normals, heights, x, frames.index(train.ids))
-    return dict(zip(frames.ids, planes, strict=True))
+    if frames.kind.object_name == "plane":
+        kin = state.kinematics(train.q, torque)
+        frames = frames.centred(kin.R[:, -1], kin.p[:, -1], frames.index(train.ids))
+    return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
 
 
 def check_held_out_gaps(stats, source: str) -> None:

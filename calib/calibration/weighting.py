@@ -1,11 +1,13 @@
-"""The orientation weight from the data: variance components of position and orientation.
+"""The orientation weight from the data: variance components of lengths and angles.
 
-Pose rows mix metres and radians, so the orientation rows carry a weight w [m/rad]. The
+Pose rows (and a contact's gap rows) mix metres and radians, so the angle rows carry a weight
+w [m/rad]. The
 weighted least-squares fit is the maximum-likelihood one when w = sigma_p / sigma_o, the ratio
 of the position error [m] to the orientation error [rad] per axis. Neither is known
 beforehand, and the errors a calibration meets are mostly model errors, not the instrument's
 specification. Both are estimated from the residuals of the registration (the nominal model
-with its measurement frame, markers and measured-frame rotation fitted), the registration is
+with its measurement frame, markers and measured-frame rotation fitted; a contact's objects
+and contact frame: :func:`~.contact_checks.registration`), the registration is
 redone with the new weight, until the weight settles: an iterated estimation of the two
 variance components (a feasible weighted least squares; Koch, *Parameter Estimation and
 Hypothesis Testing in Linear Models*, Springer 1999, section 3.6).
@@ -25,6 +27,7 @@ __all__ = [
     "TINY",
     "TOLERANCE",
     "estimate_weight",
+    "pose_angles",
     "variance_ratio",
 ]
 
@@ -38,34 +41,56 @@ TINY = 1e-9
 """Residual RMS [m or rad] below which a component is noise-free: the weight is not estimated."""
 
 TOLERANCE = 0.01
-"""Relative change of the weight at which the estimation stops."""
+"""Relative change of the weight at which the estimation stops (measured chains)."""
 
 ITERATIONS = 10
-"""Most registrations the estimation runs."""
+"""Most registrations the estimation runs (measured chains)."""
 
 
-def variance_ratio(residuals: np.ndarray, n_markers: int) -> float | None:
-    """sigma_p / sigma_o [m/rad] of pose residuals ``(m, 3 K + 3)``, or None if one is ~0."""
-    sp = math.sqrt(float(np.mean(residuals[:, : 3 * n_markers] ** 2)))
-    so = math.sqrt(float(np.mean(residuals[:, 3 * n_markers :] ** 2)))
+def variance_ratio(residuals: np.ndarray, angle: np.ndarray) -> float | None:
+    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)``, or None if one is ~0.
+
+    Args:
+        residuals: Residuals [m, rad].
+        angle: Which rows are angles ``(rows,)`` (bool).
+    """
+    sp = math.sqrt(float(np.mean(residuals[:, ~angle] ** 2)))
+    so = math.sqrt(float(np.mean(residuals[:, angle] ** 2)))
     if sp < TINY or so < TINY:
         return None
     return float(np.clip(sp / so, *BOUNDS))
 
 
-def estimate_weight(residuals_at: Callable[[float], np.ndarray], n_markers: int) -> float:
+def pose_angles(n_markers: int) -> np.ndarray:
+    """Which rows of pose residuals ``(m, 3 K + 3)`` are angles: the last 3 (bool)."""
+    return np.arange(3 * n_markers + 3) >= 3 * n_markers
+
+
+def estimate_weight(
+    residuals_at: Callable[[float], np.ndarray],
+    angle: np.ndarray,
+    rounds: int = ITERATIONS,
+    tolerance: float = TOLERANCE,
+) -> float:
     """The orientation weight [m/rad] at which the residuals' variance ratio settles.
 
+    Residuals without both lengths and angles: ``DEFAULT_WEIGHT``.
+
     Args:
-        residuals_at: Residuals ``(m, 3 K + 3)`` [m, rad] of a fit made with a weight.
-        n_markers: K, the measured points per configuration.
+        residuals_at: Residuals ``(m, rows)`` [m, rad] of a fit made with a weight [m/rad].
+        angle: Which rows are angles ``(rows,)`` (bool; :func:`pose_angles` for poses).
+        rounds: Most fits.
+        tolerance: Relative change of the weight at which it stops (0: after ``rounds``).
     """
     weight = DEFAULT_WEIGHT
-    for _ in range(ITERATIONS):
-        new = variance_ratio(residuals_at(weight), n_markers)
+    angle = np.asarray(angle, dtype=bool)
+    if angle.all() or not angle.any():
+        return weight
+    for _ in range(rounds):
+        new = variance_ratio(residuals_at(weight), angle)
         if new is None:
             return weight
-        if abs(new - weight) <= TOLERANCE * weight:
+        if abs(new - weight) <= tolerance * weight:
             return new
         weight = new
     return weight
