@@ -45,7 +45,7 @@ from .contact_model import ContactModel, ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns, motion_rows
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .placements import COMPONENTS, JointFrames, Placements, joint_twists
+from .placements import JointFrames, Placements, twist_columns
 
 __all__ = [
     "ChainsData",
@@ -520,15 +520,9 @@ class ChainsModel:
         self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin: JointFrames
     ) -> np.ndarray:
         """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
-        chain = state.chains[c]
-        columns = state.placements.path(chain).columns
-        ang, lin = joint_twists(state.placements, chain, kin)
-        # the free directions on the chain's joints' components (Placements.names() order),
-        # without the (m, 6, 6 J) array of every component of every joint
-        per_joint = self._lift().reshape(-1, len(state.placements.joints), len(COMPONENTS))
-        lift = per_joint[:, columns].reshape(len(per_joint), -1).T  # (n 6, free)
-        flat = [np.moveaxis(v, 2, 1).reshape(d.m, 3, -1) @ lift for v in (lin, ang)]
-        return _gap_rows(s, d, kin, *flat)
+        return _gap_rows(
+            s, d, kin, *twist_columns(state.placements, state.chains[c], kin, self._lift())
+        )
 
     def _compliance_columns(
         self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin, torque

@@ -346,8 +346,9 @@ def register_contact_chains(
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
-    splits = [validation.split(d, holdout, seed) if isinstance(d, Measurements | PixelPart)
-              else split_contacts(d, holdout, seed) for d in data]  # fmt: skip
+    splits = [(d, None) if holdout == 0 else validation.split(d, holdout, seed)
+              if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
+              for d in data]  # fmt: skip
     train = [s[0] for s in splits]
     held = [
         v if v is not None else s[1]

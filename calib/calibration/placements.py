@@ -50,6 +50,7 @@ __all__ = [
     "mdh_directions",
     "offset_component",
     "placement_error",
+    "twist_columns",
 ]
 
 COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
@@ -60,16 +61,21 @@ def axis_bases(model: pin.Model, ids) -> np.ndarray:
     """Each joint's axis frame's axes in its joint frame ``(J, 3, 3)``: columns x, y, z.
 
     z is the joint's axis; x the joint frame's x (its y for an axis near x) made
-    perpendicular to it. Every joint at once (each norm its own, as one joint's is taken).
+    perpendicular to it. Every joint at once (each norm as one joint's is taken).
     """
     S = np.array([motion_axis(model.joints[j]) for j in ids]).reshape(-1, 6)
-    slides = np.array([np.linalg.norm(v) > 0.5 for v in S[:, :3]], dtype=bool)
+    slides = _norms(S[:, :3]) > 0.5
     u = np.where(slides[:, None], S[:, :3], S[:, 3:])
-    u = u / np.array([np.linalg.norm(v) for v in u]).reshape(-1, 1)
+    u = u / _norms(u).reshape(-1, 1)
     k = (np.abs(u[:, 0]) >= 0.9).astype(int)  # the helper: the frame's x, or y near x
     ex = np.eye(3)[k] - u[np.arange(len(u)), k, None] * u  # helper - (helper . u) u
-    ex /= np.array([np.linalg.norm(v) for v in ex]).reshape(-1, 1)
+    ex /= _norms(ex).reshape(-1, 1)
     return np.stack([ex, np.cross(u, ex), u], axis=2)
+
+
+def _norms(rows: np.ndarray) -> np.ndarray:
+    """Each row's norm ``(k,)``, as ``np.linalg.norm`` takes one vector's (its dot product)."""
+    return np.sqrt(np.matmul(rows[:, None, :], rows[:, :, None])[:, 0, 0])
 
 
 def offset_component(model: pin.Model, jid: int) -> str:
@@ -147,15 +153,17 @@ class ChainPath:
         E = np.zeros((len(rows), 4, 4))
         E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = rotation_matrix(rows[:, 3:]), rows[:, :3], 1.0
         out = self.fixed.copy()
+        back = np.flatnonzero(self.sign < 0)
+        if not back.size:  # every joint forwards: the same products, on slices
+            out[:-1] = out[:-1] @ E
+            return out
         ahead = np.flatnonzero(self.sign > 0)
         out[ahead] = out[ahead] @ E[ahead]
-        back = np.flatnonzero(self.sign < 0)
-        if back.size:  # E^-1 = [R^T | -R^T v]
-            inverse = np.zeros((len(back), 4, 4))
-            inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
-            inverse[:, :3, 3] = -(inverse[:, :3, :3] @ rows[back, :3, None])[..., 0]
-            inverse[:, 3, 3] = 1.0
-            out[back + 1] = inverse @ out[back + 1]
+        inverse = np.zeros((len(back), 4, 4))  # E^-1 = [R^T | -R^T v]
+        inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
+        inverse[:, :3, 3] = -(inverse[:, :3, :3] @ rows[back, :3, None])[..., 0]
+        inverse[:, 3, 3] = 1.0
+        out[back + 1] = inverse @ out[back + 1]
         return out
 
 
@@ -376,23 +384,54 @@ def joint_twists(
         Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
         origin's point moving with the tool side, per component (x y z rx ry rz).
     """
+    by_v, wv, by_w = _twist_blocks(placements, chain, kin)
+    m, n = wv.shape[:2]
+    ang, lin = np.zeros((m, n, 3, 6)), np.zeros((m, n, 3, 6))
+    ang[..., 3:], lin[..., :3], lin[..., 3:] = wv, by_v, by_w
+    return ang, lin
+
+
+def twist_columns(
+    placements: Placements, chain: Chain, kin: JointFrames, lift: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`joint_twists` along free directions of the joint placement components.
+
+    The twists laid out by row and component (the product's rows, no copy), each direction
+    taken on the chain's joints' components only (no array of every component of every
+    joint by row: 5,000 poses made 1.2 Jacobians of it).
+
+    Args:
+        placements: The current errors.
+        chain: The chain.
+        kin: Its frames at m configurations.
+        lift: The free directions ``(free, 6 J)`` (:meth:`Placements.names` order).
+
+    Returns:
+        Linear and angular velocity ``(m, 3, free)`` per unit of each direction.
+    """
+    by_v, wv, by_w = _twist_blocks(placements, chain, kin)
+    m, n = wv.shape[:2]
+    ang, lin = np.zeros((m, 3, n, 6)), np.zeros((m, 3, n, 6))
+    ang[..., 3:], lin[..., :3], lin[..., 3:] = (np.swapaxes(b, 1, 2) for b in (wv, by_v, by_w))
+    per_joint = lift.reshape(len(lift), len(placements.joints), len(COMPONENTS))
+    chain_lift = per_joint[:, placements.path(chain).columns].reshape(len(lift), -1).T
+    return lin.reshape(m, 3, -1) @ chain_lift, ang.reshape(m, 3, -1) @ chain_lift
+
+
+def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
+    """:func:`joint_twists`' non-zero blocks ``(m, n, 3, 3)``: linear per dv, angular per dw."""
     n = chain.n
     sign = np.asarray(chain.sign, dtype=float)
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
-    m = kin.R.shape[0]
-    ang = np.zeros((m, n, 3, 6))
-    lin = np.zeros((m, n, 3, 6))
     if np.any(w):
-        body_w = left_jacobian(-w)  # right Jacobian of R(w)
-        wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
-        lin[..., :3] = RF @ np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv
+        wv = RF @ left_jacobian(-w)  # angular velocity per d(rx ry rz): right Jacobian of R(w)
+        # d(origin) per dv: R(w)^T contiguous, as one product per frame reads it fastest
+        by_v = RF @ np.ascontiguousarray(np.swapaxes(rotation_matrix(w), 1, 2))
     else:  # no rotation error (a start, a rebase): both products by the identity, which
         wv = RF + 0.0  # make a zero +0.0 (the sign Householder reflections read later)
-        lin[..., :3] = wv
-    ang[..., 3:] = wv
-    lin[..., 3:] = skew(kin.p[:, :n]) @ wv
-    return ang, lin
+        by_v = wv
+    return by_v, wv, skew(kin.p[:, :n]) @ wv  # and the linear per dw
 
 
 DIRECTION_CONFIGS = 12
