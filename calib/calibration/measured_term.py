@@ -316,6 +316,7 @@ def checked_measured(
     max_iterations: int,
     marker=None,
     noise_mm: float | None = None,
+    zero: tuple | None = None,
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
@@ -336,6 +337,7 @@ def checked_measured(
             one point for all, or one per marker), or None: zeros.
         noise_mm: The instrument's noise [mm] (outliers and the diagnosis: an error within
             a few times it is not suspect), or None: unknown.
+        zero: The chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
 
     Returns:
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
@@ -345,7 +347,7 @@ def checked_measured(
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
     opts, reg, bad, notes, kin = checked_registration(
-        chain, from_chain(chain), data, checked, guess, opts
+        chain, from_chain(chain, zero=zero), data, checked, guess, opts
     )
     rows = data.rows or tuple(range(1, data.m + 1))
     found = records(point_errors(reg.residuals(data, None, kin), data.n_markers), bad, rows)

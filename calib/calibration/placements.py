@@ -51,6 +51,7 @@ __all__ = [
     "offset_component",
     "placement_error",
     "twist_columns",
+    "zero_frames",
 ]
 
 COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
@@ -241,22 +242,25 @@ class Placements:
     paths: tuple[ChainPath, ...] = ()
 
     @staticmethod
-    def of(chains: tuple[Chain, ...]) -> Placements:
-        """Zero errors on every joint of the chains (which share one model)."""
+    def of(chains: tuple[Chain, ...], zeros: tuple | None = None) -> Placements:
+        """Zero errors on every joint of the chains (which share one model).
+
+        ``zeros``: the chains' :func:`zero_frames`, if already made.
+        """
         model = chains[0].model
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
         bases = axis_bases(model, ids)
         names = tuple(model.names[j] for j in ids)
         out = Placements(model, model, names, ids, bases, np.zeros((len(ids), 6)), tuple(chains))
-        return dataclasses.replace(out, paths=out._paths(model))
+        zeros = zero_frames(chains) if zeros is None else zeros
+        return dataclasses.replace(out, paths=out._paths(zeros))
 
-    def _paths(self, model: pin.Model) -> tuple[ChainPath, ...]:
-        """Each chain's path on ``model`` (one Pinocchio walk for chains of one zero)."""
-        moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in self.chains]
+    def _paths(self, zeros: tuple) -> tuple[ChainPath, ...]:
+        """Each chain's path from its frames at zero on the model (:func:`zero_frames`)."""
         out = []
-        for c, oMi in zip(moved, _zero_placements(model, moved), strict=True):
+        for c, zero in zip(self.chains, zeros, strict=True):
             columns = np.array([self.joints.index(n) for n in c.joint_names], dtype=int)
-            out.append(ChainPath.of(c, c.zero_frames(oMi), self.bases[columns], columns))
+            out.append(ChainPath.of(c, zero, self.bases[columns], columns))
         return tuple(out)
 
     def names(self) -> tuple[str, ...]:
@@ -349,10 +353,20 @@ class Placements:
         """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""
         model = self._robot()
         moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
-        return tuple(
-            from_chain(c, zero=c.zero_frames(oMi))
-            for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
-        )
+        zeros = zero_frames(tuple(moved))
+        return tuple(from_chain(c, zero=z) for c, z in zip(moved, zeros, strict=True))
+
+
+def zero_frames(chains: tuple[Chain, ...]) -> tuple:
+    """Each chain's :meth:`~calib.kinematics.robot.Chain.zero_frames` on the first's model.
+
+    One Pinocchio walk for chains of one zero configuration.
+    """
+    model = chains[0].model
+    moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
+    return tuple(
+        c.zero_frames(oMi) for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
+    )
 
 
 def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
