@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple, cast
 
 import numpy as np
@@ -142,17 +143,19 @@ class ChainPath:
         sigma, sign = np.asarray(chain.sigma), np.asarray(chain.sign, dtype=float)
         return ChainPath(fixed, sigma == 1, sign, np.asarray(columns))
 
-    def composed(self, y: np.ndarray) -> np.ndarray:
+    def composed(self, y: np.ndarray, turns: np.ndarray | None = None) -> np.ndarray:
         """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed ``(n + 1, 4, 4)``.
 
         A joint's error ``E = [R(w) | v]`` (in its axis frame) follows the transform into
         its axis frame when traversed forwards, precedes (inverted) the next one backwards.
+        ``turns``: the joints' ``R(w)`` ``(n, 3, 3)``, if already made.
         """
         rows = y[self.columns]
         if not np.any(rows):
             return self.fixed
+        turns = rotation_matrix(rows[:, 3:]) if turns is None else turns
         E = np.zeros((len(rows), 4, 4))
-        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = rotation_matrix(rows[:, 3:]), rows[:, :3], 1.0
+        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = turns, rows[:, :3], 1.0
         out = self.fixed.copy()
         back = np.flatnonzero(self.sign < 0)
         if not back.size:  # every joint forwards: the same products, on slices
@@ -168,14 +171,16 @@ class ChainPath:
         return out
 
 
-def chain_frames(path: ChainPath, y: np.ndarray, q: np.ndarray) -> JointFrames:
+def chain_frames(
+    path: ChainPath, y: np.ndarray, q: np.ndarray, turns: np.ndarray | None = None
+) -> JointFrames:
     """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``.
 
     Vectorised over configurations and joints: each joint's motion and the fixed transform
     after it for every configuration at once, then one product per joint along the chain,
-    each along the configurations.
+    each along the configurations. ``turns``: the joints' ``R(w)`` (:meth:`ChainPath.composed`).
     """
-    fixed = path.composed(y)
+    fixed = path.composed(y, turns)
     q = np.asarray(q, dtype=float).reshape(-1, len(path.sign))
     m, n = q.shape
     move = (q * path.sign).T  # (n, m)
@@ -279,13 +284,17 @@ class Placements:
 
     def rebased(self) -> Placements:
         """The same robot with zero errors on a model that holds them (and paths that do)."""
-        paths = tuple(dataclasses.replace(p, fixed=p.composed(self.y)) for p in self.paths)
+        fixed = (p.composed(self.y, t) for p, t in zip(self.paths, self._turns, strict=True))
+        paths = tuple(
+            dataclasses.replace(p, fixed=f) for p, f in zip(self.paths, fixed, strict=True)
+        )
         y = np.zeros_like(self.y)
         return dataclasses.replace(self, model=self.perturbed_model(), y=y, paths=paths)
 
     def frames(self, chain: Chain, q: np.ndarray) -> JointFrames:
         """Chain ``chain``'s frames at ``q`` ``(m, n)`` with the errors (:func:`chain_frames`)."""
-        return chain_frames(self.path(chain), self.y, q)
+        k = self._index(chain)
+        return chain_frames(self.paths[k], self.y, q, self._turns[k])
 
     def path(self, chain: Chain) -> ChainPath:
         """Chain ``chain``'s path on :attr:`model` (a chain of :attr:`chains`).
@@ -293,9 +302,24 @@ class Placements:
         Raises:
             InvalidArgumentError: Not one of :attr:`chains` (its base and tool frames).
         """
-        for c, path in zip(self.chains, self.paths, strict=True):
+        return self.paths[self._index(chain)]
+
+    def turns(self, chain: Chain) -> np.ndarray | None:
+        """The rotations ``R(w)`` ``(n, 3, 3)`` of the chain's joints' errors (None: no error).
+
+        Made once per placements: its frames and its twists read them (read only).
+        """
+        return self._turns[self._index(chain)]
+
+    @cached_property
+    def _turns(self) -> tuple[np.ndarray | None, ...]:
+        rows = (self.y[p.columns] for p in self.paths)
+        return tuple(rotation_matrix(r[:, 3:]) if np.any(r) else None for r in rows)
+
+    def _index(self, chain: Chain) -> int:
+        for k, c in enumerate(self.chains):
             if c is chain or (c.base_id, c.tool_id) == (chain.base_id, chain.tool_id):
-                return path
+                return k
         raise InvalidArgumentError(
             f"{chain.base_frame} -> {chain.tool_frame} is not a chain of these placements"
         )
@@ -438,10 +462,11 @@ def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
     sign = np.asarray(chain.sign, dtype=float)
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
-    if np.any(w):
+    turns = placements.turns(chain)  # None: no error at all
+    if turns is not None and np.any(w):
         wv = RF @ left_jacobian(-w)  # angular velocity per d(rx ry rz): right Jacobian of R(w)
         # d(origin) per dv: R(w)^T contiguous, as one product per frame reads it fastest
-        by_v = RF @ np.ascontiguousarray(np.swapaxes(rotation_matrix(w), 1, 2))
+        by_v = RF @ np.ascontiguousarray(np.swapaxes(turns, 1, 2))
     else:  # no rotation error (a start, a rebase): both products by the identity, which
         wv = RF + 0.0  # make a zero +0.0 (the sign Householder reflections read later)
         by_v = wv
