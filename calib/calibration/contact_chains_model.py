@@ -252,12 +252,10 @@ class ChainsState:
         if kin is None:
             kin = self.kinematics(data, torque)
         rows = row_count(s.kind for s in self.states)
-        return np.concatenate(
-            [
-                padded(self.scale(c) * s.residuals(d, None, k), rows)
-                for c, (s, d, k) in enumerate(zip(self.states, data.parts, kin, strict=True))
-            ]
-        )
+        parts = zip(self.states, data.parts, kin, strict=True)
+        out = [s.residuals(d, None, k) for s, d, k in parts]
+        scaled = (r if self.scale(c) == 1.0 else self.scale(c) * r for c, r in enumerate(out))
+        return np.concatenate([padded(r, rows) for r in scaled])  # times 1: the same numbers
 
 
 @dataclass(frozen=True, eq=False)
@@ -434,7 +432,8 @@ class ChainsModel:
         blocks = []
         for c, d in enumerate(data.parts):
             block = self._block(start, state, x, c, d, kin[c], data.torque(c))
-            block *= start.scale(c)  # in place: a fresh array
+            if start.scale(c) != 1.0:  # in place: a fresh array (times 1: the same numbers)
+                block *= start.scale(c)
             blocks.append(padded(block, rows))
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)  # one term: no copy
 
