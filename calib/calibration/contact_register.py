@@ -132,16 +132,12 @@ def _checked(
 ):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
-    The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
-    the touches kept must determine the chain's objects and contact frame.
-
-    ``guess``: the contact frame's guess and the measured terms' marker guess (or None);
-    ``noise``: the measured terms' instrument noise [mm] (or None); ``zeros``: the chains'
-    frames at zero on the first's model (:func:`~.placements.zero_frames`), or None.
-    The held-out touches' outliers are set aside too (``held[c]`` replaced), and a chain
-    the contact leaves finitely many postures is noted. A measured term's rows are checked
-    as a single chain's (:func:`checked_measured`), its
-    registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
+    The usual mistakes are diagnosed (the validation touches' too), outliers set aside (the
+    held-out ones' too: ``held[c]`` replaced), the touches kept must determine the chain's
+    objects and contact frame, and a chain the contact leaves finitely many postures is
+    noted; a measured term's rows are checked as a single chain's (:func:`checked_measured`).
+    ``guess``: the contact frame's and the markers' guesses (or None); ``noise``: the measured
+    terms' instrument noise [mm] (or None); ``zeros``: :func:`~.placements.zero_frames` or None.
 
     Returns:
         Each chain's touches (rows) kept, each chain's outliers, and each term's
@@ -355,10 +351,8 @@ def register_contact_chains(
               if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
               for d in data]  # fmt: skip
     train = [s[0] for s in splits]
-    held = [
-        v if v is not None else s[1]
-        for s, v in zip(splits, validate or [None] * len(data), strict=True)
-    ]
+    given = validate or [None] * len(data)
+    held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
     plane_of = contact_checks.plane_groups(chains, data, shared_planes)
     plane_of = instrument_groups(plane_of, data, instrument)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
