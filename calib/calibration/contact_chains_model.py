@@ -45,7 +45,7 @@ from .contact_model import ContactState
 from .measured_term import MeasuredKind, MeasuredState, measured_columns, motion_rows
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .placements import COMPONENTS, JointFrames, Placements, joint_twists
+from .placements import JointFrames, Placements, twist_columns
 
 __all__ = [
     "ChainsData",
@@ -252,12 +252,10 @@ class ChainsState:
         if kin is None:
             kin = self.kinematics(data, torque)
         rows = row_count(s.kind for s in self.states)
-        return np.concatenate(
-            [
-                padded(self.scale(c) * s.residuals(d, None, k), rows)
-                for c, (s, d, k) in enumerate(zip(self.states, data.parts, kin, strict=True))
-            ]
-        )
+        parts = zip(self.states, data.parts, kin, strict=True)
+        out = [s.residuals(d, None, k) for s, d, k in parts]
+        scaled = (r if self.scale(c) == 1.0 else self.scale(c) * r for c, r in enumerate(out))
+        return np.concatenate([padded(r, rows) for r in scaled])  # times 1: the same numbers
 
 
 @dataclass(frozen=True, eq=False)
@@ -424,7 +422,8 @@ class ChainsModel:
         blocks = []
         for c, d in enumerate(data.parts):
             block = self._block(start, state, x, c, d, kin[c], data.torque(c))
-            block *= start.scale(c)  # in place: a fresh array
+            if start.scale(c) != 1.0:  # in place: a fresh array (times 1: the same numbers)
+                block *= start.scale(c)
             blocks.append(padded(block, rows))
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)  # one term: no copy
 
@@ -508,15 +507,9 @@ class ChainsModel:
         self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin: JointFrames
     ) -> np.ndarray:
         """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
-        chain = state.chains[c]
-        columns = state.placements.path(chain).columns
-        ang, lin = joint_twists(state.placements, chain, kin)
-        # the free directions on the chain's joints' components (Placements.names() order),
-        # without the (m, 6, 6 J) array of every component of every joint
-        per_joint = self._lift().reshape(-1, len(state.placements.joints), len(COMPONENTS))
-        lift = per_joint[:, columns].reshape(len(per_joint), -1).T  # (n 6, free)
-        flat = [np.moveaxis(v, 2, 1).reshape(d.m, 3, -1) @ lift for v in (lin, ang)]
-        return _gap_rows(s, d, kin, *flat)
+        return _gap_rows(
+            s, d, kin, *twist_columns(state.placements, state.chains[c], kin, self._lift())
+        )
 
     def _compliance_columns(
         self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin, torque

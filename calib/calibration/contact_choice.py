@@ -194,10 +194,10 @@ def offer_directions(
         labels.extend(more)
     offered = np.array(rows).reshape(len(rows), -1)
     units = offered / np.linalg.norm(offered, axis=1, keepdims=True)  # every norm at once
-    parallel = ~(np.abs(units @ units.T) <= 1.0 - 1e-12)  # a zero row (NaN): parallel
+    parallel = (~(np.abs(units @ units.T) <= 1.0 - 1e-12)).tolist()  # a zero row (NaN): parallel
     kept: list[int] = []
-    for i in range(len(rows)):
-        if not parallel[i, kept].any():  # parallel to none kept
+    for i, row in enumerate(parallel):
+        if not any(row[k] for k in kept):  # parallel to none kept
             kept.append(i)
     return offered[kept], tuple(labels[i] for i in kept), list(range(len(kept)))
 

@@ -56,7 +56,7 @@ from .pixel_chain import (
     pixel_parts,
 )
 from .pixel_fit import checked_pixels
-from .placements import Placements
+from .placements import Placements, zero_frames
 from .solve import fit
 
 __all__ = [
@@ -127,18 +127,17 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(chains, train, validate, guess, weight, held, notes, iterations, shared, noise=None):
+def _checked(
+    chains, train, validate, guess, weight, held, notes, iterations, shared, noise=None, zeros=None
+):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
-    The usual mistakes are diagnosed (the validation touches' too), outliers set aside, and
-    the touches kept must determine the chain's objects and contact frame.
-
-    ``guess``: the contact frame's guess and the measured terms' marker guess (or None);
-    ``noise``: the measured terms' instrument noise [mm] (or None).
-    The held-out touches' outliers are set aside too (``held[c]`` replaced), and a chain
-    the contact leaves finitely many postures is noted. A measured term's rows are checked
-    as a single chain's (:func:`checked_measured`), its
-    registration kept, and its held-out rows' outliers set aside (``held[c]`` replaced).
+    The usual mistakes are diagnosed (the validation touches' too), outliers set aside (the
+    held-out ones' too: ``held[c]`` replaced), the touches kept must determine the chain's
+    objects and contact frame, and a chain the contact leaves finitely many postures is
+    noted; a measured term's rows are checked as a single chain's (:func:`checked_measured`).
+    ``guess``: the contact frame's and the markers' guesses (or None); ``noise``: the measured
+    terms' instrument noise [mm] (or None); ``zeros``: :func:`~.placements.zero_frames` or None.
 
     Returns:
         Each chain's touches (rows) kept, each chain's outliers, and each term's
@@ -149,6 +148,7 @@ def _checked(chains, train, validate, guess, weight, held, notes, iterations, sh
     registered: list[MeasuredState | PixelTermState | ContactState] = []
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
+        zero = None if zeros is None or chain.model is not chains[0].model else zeros[c]
         if isinstance(d, PixelPart):
             state, bad, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
@@ -157,7 +157,7 @@ def _checked(chains, train, validate, guess, weight, held, notes, iterations, sh
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
             determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
             state, bad, found, more, held[c] = checked_measured(
-                chain, d, v, held[c], weight, iterations, guess[1], noise
+                chain, d, v, held[c], weight, iterations, guess[1], noise, zero
             )
             state = dataclasses.replace(state, instrument=shared)
         if isinstance(d, Measurements | PixelPart):
@@ -170,7 +170,7 @@ def _checked(chains, train, validate, guess, weight, held, notes, iterations, sh
             continue
         g = contact_guess(d.kind, guess[0], len(chains))
         start, bad, out, more = contact_checks.checked_registration(
-            chain, from_chain(chain), d, v, g, weight
+            chain, from_chain(chain, zero=zero), d, v, g, weight
         )
         if out:
             more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
@@ -189,14 +189,15 @@ def _checked(chains, train, validate, guess, weight, held, notes, iterations, sh
 
 
 def _register(
-    chains, train, measured, plane_of, notes, max_iterations, pose_weight=1.0
+    chains, train, measured, plane_of, notes, max_iterations, pose_weight=1.0, zeros=None
 ) -> ChainsState:
     """Each chain's registration on the nominal robot (a plane shared by chains: refined).
 
     ``measured``: each term's registration (``_checked``: a contact chain's objects and
-    contact in closed form, a measured term's frames, a pixel term's camera).
+    contact in closed form, a measured term's frames, a pixel term's camera); ``zeros``:
+    the chains' frames at zero (:func:`~.placements.zero_frames`), or None.
     """
-    placements = Placements.of(tuple(chains))
+    placements = Placements.of(tuple(chains), zeros)
     states = list(on_models(tuple(measured), placements.start_models(tuple(chains), measured)))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
         mine, owner = states[c], states[plane_of.index(p)]
@@ -345,27 +346,29 @@ def register_contact_chains(
     w = None if orientation_weight is None else float(orientation_weight)
     if w is not None and not (np.isfinite(w) and w > 0):
         raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
-    splits = [validation.split(d, holdout, seed) if isinstance(d, Measurements | PixelPart)
-              else split_contacts(d, holdout, seed) for d in data]  # fmt: skip
+    splits = [(d, None) if holdout == 0 else validation.split(d, holdout, seed)
+              if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
+              for d in data]  # fmt: skip
     train = [s[0] for s in splits]
-    held = [
-        v if v is not None else s[1]
-        for s, v in zip(splits, validate or [None] * len(data), strict=True)
-    ]
+    given = validate or [None] * len(data)
+    held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
     plane_of = contact_checks.plane_groups(chains, data, shared_planes)
     plane_of = instrument_groups(plane_of, data, instrument)
     check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     diagnosed = None if held_label == "holdout" else validate  # a holdout: with its data's
+    zeros = zero_frames(tuple(chains))  # one walk: the registrations' models and the paths
     train, dropped, measured = _checked(
         chains, train, diagnosed, (guess, marker), w, held, notes, max_iterations, instrument,
-        opts.noise_mm,
+        opts.noise_mm, zeros,
     )  # fmt: skip
     notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
     torques, comp = compliance_torques(chains, train, held, options, load)
     touches = sum(d.m for d in train)
     with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
-        start = _register(chains, train, measured, plane_of, notes, max_iterations, pose_weight)
+        start = _register(
+            chains, train, measured, plane_of, notes, max_iterations, pose_weight, zeros
+        )
     clock.append(time.perf_counter())
     return Registered(
         tuple(chains), level, opts, train, held, validate, held_label, dropped, notes, plane_of,

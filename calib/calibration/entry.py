@@ -310,7 +310,7 @@ def measured_chain(
         check_measured(chain, data, None, True, problem.holdout)
     train, held = (
         (data, term.validate)
-        if term.validate is not None
+        if term.validate is not None or problem.holdout == 0  # no posture to draw
         else split(data, problem.holdout, problem.seed)
     )
 

@@ -19,13 +19,14 @@ Rows: the measured minus predicted points [m] and, for pose data, the rotation e
 orientation weight [m/rad] (the chain's weighting, :mod:`~.weighting`: the settled variance
 ratio of the registration's residuals, 1 m/rad when the data cannot tell). The placement
 columns: the motion of each marker (and the tool's rotation) per unit placement error, from
-:func:`~.placements.joint_twists`, turned into the measuring frame.
+:func:`~.placements.twist_columns`, turned into the measuring frame.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -44,7 +45,7 @@ from .contact_result import GapStats, row_stats
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
-from .placements import joint_twists
+from .placements import twist_columns
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
@@ -226,17 +227,31 @@ class MeasuredState:
         """1 on the point rows, :attr:`weight` on the rotation rows."""
         return np.where(np.array(self.kind.angular), self.weight, 1.0)
 
+    def weighed(self, rows: np.ndarray) -> np.ndarray:
+        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place.
+
+        The rotation rows only: a point row's weight is 1 (the same numbers untouched).
+        """
+        if self.inner.tool_rotation is not None:
+            rows[:, 3 * self.inner.n_markers :] *= self.weight
+        return rows
+
     def residuals(self, data, torque=None, kin=None) -> np.ndarray:
         """Weighted measured - predicted ``(m, rows)`` [m].
 
         ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
         MDH model's.
         """
-        return self.inner.residuals(data, None, kin) * self.row_weights()
+        return self.weighed(self.inner.residuals(data, None, kin))
+
+    @cached_property
+    def _own(self) -> ErrorModel:
+        """The term's own unknowns' model (:func:`own_model`, made once per state)."""
+        return own_model(self.kind)
 
     def moved(self, x: np.ndarray) -> MeasuredState:
         """The state with its own unknowns moved by ``x``."""
-        return dataclasses.replace(self, inner=own_model(self.kind).apply(self.inner, x))
+        return dataclasses.replace(self, inner=self._own.apply(self.inner, x))
 
     def own_jacobian(
         self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
@@ -247,8 +262,7 @@ class MeasuredState:
         :meth:`moved` at x, if already made.
         """
         inner = None if moved is None else moved.inner
-        J = own_model(self.kind).jacobian(self.inner, x, data, None, inner, kin)
-        return J * self.row_weights()[None, :, None]
+        return self.weighed(self._own.jacobian(self.inner, x, data, None, inner, kin))
 
 
 def measured_columns(placements, chain, state: MeasuredState, kin, data, lift) -> np.ndarray:
@@ -262,14 +276,7 @@ def measured_columns(placements, chain, state: MeasuredState, kin, data, lift) -
         data: Its measurements.
         lift: The free directions ``(free, 6 J)``.
     """
-    columns = placements.path(chain).columns
-    ang, lin = joint_twists(placements, chain, kin)  # (m, n, 3, 6)
-    # the free directions on the chain's joints' components, without an array of every
-    # component of every joint by row (5,000 poses: 1.2 Jacobians)
-    per_joint = lift.reshape(len(lift), len(placements.joints), 6)
-    chain_lift = per_joint[:, columns].reshape(len(lift), -1).T  # (n 6, free)
-    flat = [np.moveaxis(v, 2, 1).reshape(data.m, 3, -1) @ chain_lift for v in (lin, ang)]
-    return motion_rows(state, kin, data, *flat)
+    return motion_rows(state, kin, data, *twist_columns(placements, chain, kin, lift))
 
 
 def motion_rows(state: MeasuredState, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
@@ -292,11 +299,11 @@ def motion_rows(state: MeasuredState, kin, data, lin: np.ndarray, ang: np.ndarra
         W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
     if s.tool_rotation is not None:
         W[:, 3 * K :] = Rf @ ang
-    rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+    rot = None  # the measured frame's orientation (pose data only: no points predicted for it)
+    if s.kind.rotation_rows:
+        rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
     error = None if rot is None else s.kind.rotation_error(data.observed, rot)
-    out = s.kind.jacobian_rows(W, rotation_error=error, n_markers=K)
-    out *= state.row_weights()[None, :, None]  # in place: a fresh array
-    return out
+    return state.weighed(s.kind.jacobian_rows(W, rotation_error=error, n_markers=K))
 
 
 def checked_measured(
@@ -308,6 +315,7 @@ def checked_measured(
     max_iterations: int,
     marker=None,
     noise_mm: float | None = None,
+    zero: tuple | None = None,
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
@@ -328,6 +336,7 @@ def checked_measured(
             one point for all, or one per marker), or None: zeros.
         noise_mm: The instrument's noise [mm] (outliers and the diagnosis: an error within
             a few times it is not suspect), or None: unknown.
+        zero: The chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
 
     Returns:
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
@@ -337,7 +346,7 @@ def checked_measured(
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
     opts, reg, bad, found, notes, kin = checked_registration(
-        chain, from_chain(chain), data, checked, guess, opts
+        chain, from_chain(chain, zero=zero), data, checked, guess, opts
     )
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
     kept = data.subset(~bad) if bad.any() else data

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple, cast
 
 import numpy as np
@@ -50,6 +51,8 @@ __all__ = [
     "mdh_directions",
     "offset_component",
     "placement_error",
+    "twist_columns",
+    "zero_frames",
 ]
 
 COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
@@ -60,16 +63,21 @@ def axis_bases(model: pin.Model, ids) -> np.ndarray:
     """Each joint's axis frame's axes in its joint frame ``(J, 3, 3)``: columns x, y, z.
 
     z is the joint's axis; x the joint frame's x (its y for an axis near x) made
-    perpendicular to it. Every joint at once (each norm its own, as one joint's is taken).
+    perpendicular to it. Every joint at once (each norm as one joint's is taken).
     """
     S = np.array([motion_axis(model.joints[j]) for j in ids]).reshape(-1, 6)
-    slides = np.array([np.linalg.norm(v) > 0.5 for v in S[:, :3]], dtype=bool)
+    slides = _norms(S[:, :3]) > 0.5
     u = np.where(slides[:, None], S[:, :3], S[:, 3:])
-    u = u / np.array([np.linalg.norm(v) for v in u]).reshape(-1, 1)
+    u = u / _norms(u).reshape(-1, 1)
     k = (np.abs(u[:, 0]) >= 0.9).astype(int)  # the helper: the frame's x, or y near x
     ex = np.eye(3)[k] - u[np.arange(len(u)), k, None] * u  # helper - (helper . u) u
-    ex /= np.array([np.linalg.norm(v) for v in ex]).reshape(-1, 1)
+    ex /= _norms(ex).reshape(-1, 1)
     return np.stack([ex, np.cross(u, ex), u], axis=2)
+
+
+def _norms(rows: np.ndarray) -> np.ndarray:
+    """Each row's norm ``(k,)``, as ``np.linalg.norm`` takes one vector's (its dot product)."""
+    return np.sqrt(np.matmul(rows[:, None, :], rows[:, :, None])[:, 0, 0])
 
 
 def offset_component(model: pin.Model, jid: int) -> str:
@@ -135,38 +143,44 @@ class ChainPath:
         sigma, sign = np.asarray(chain.sigma), np.asarray(chain.sign, dtype=float)
         return ChainPath(fixed, sigma == 1, sign, np.asarray(columns))
 
-    def composed(self, y: np.ndarray) -> np.ndarray:
+    def composed(self, y: np.ndarray, turns: np.ndarray | None = None) -> np.ndarray:
         """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed ``(n + 1, 4, 4)``.
 
         A joint's error ``E = [R(w) | v]`` (in its axis frame) follows the transform into
         its axis frame when traversed forwards, precedes (inverted) the next one backwards.
+        ``turns``: the joints' ``R(w)`` ``(n, 3, 3)``, if already made.
         """
         rows = y[self.columns]
         if not np.any(rows):
             return self.fixed
+        turns = rotation_matrix(rows[:, 3:]) if turns is None else turns
         E = np.zeros((len(rows), 4, 4))
-        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = rotation_matrix(rows[:, 3:]), rows[:, :3], 1.0
+        E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = turns, rows[:, :3], 1.0
         out = self.fixed.copy()
+        back = np.flatnonzero(self.sign < 0)
+        if not back.size:  # every joint forwards: the same products, on slices
+            out[:-1] = out[:-1] @ E
+            return out
         ahead = np.flatnonzero(self.sign > 0)
         out[ahead] = out[ahead] @ E[ahead]
-        back = np.flatnonzero(self.sign < 0)
-        if back.size:  # E^-1 = [R^T | -R^T v]
-            inverse = np.zeros((len(back), 4, 4))
-            inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
-            inverse[:, :3, 3] = -(inverse[:, :3, :3] @ rows[back, :3, None])[..., 0]
-            inverse[:, 3, 3] = 1.0
-            out[back + 1] = inverse @ out[back + 1]
+        inverse = np.zeros((len(back), 4, 4))  # E^-1 = [R^T | -R^T v]
+        inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
+        inverse[:, :3, 3] = -(inverse[:, :3, :3] @ rows[back, :3, None])[..., 0]
+        inverse[:, 3, 3] = 1.0
+        out[back + 1] = inverse @ out[back + 1]
         return out
 
 
-def chain_frames(path: ChainPath, y: np.ndarray, q: np.ndarray) -> JointFrames:
+def chain_frames(
+    path: ChainPath, y: np.ndarray, q: np.ndarray, turns: np.ndarray | None = None
+) -> JointFrames:
     """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``.
 
     Vectorised over configurations and joints: each joint's motion and the fixed transform
     after it for every configuration at once, then one product per joint along the chain,
-    each along the configurations.
+    each along the configurations. ``turns``: the joints' ``R(w)`` (:meth:`ChainPath.composed`).
     """
-    fixed = path.composed(y)
+    fixed = path.composed(y, turns)
     q = np.asarray(q, dtype=float).reshape(-1, len(path.sign))
     m, n = q.shape
     move = (q * path.sign).T  # (n, m)
@@ -233,22 +247,25 @@ class Placements:
     paths: tuple[ChainPath, ...] = ()
 
     @staticmethod
-    def of(chains: tuple[Chain, ...]) -> Placements:
-        """Zero errors on every joint of the chains (which share one model)."""
+    def of(chains: tuple[Chain, ...], zeros: tuple | None = None) -> Placements:
+        """Zero errors on every joint of the chains (which share one model).
+
+        ``zeros``: the chains' :func:`zero_frames`, if already made.
+        """
         model = chains[0].model
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
         bases = axis_bases(model, ids)
         names = tuple(model.names[j] for j in ids)
         out = Placements(model, model, names, ids, bases, np.zeros((len(ids), 6)), tuple(chains))
-        return dataclasses.replace(out, paths=out._paths(model))
+        zeros = zero_frames(chains) if zeros is None else zeros
+        return dataclasses.replace(out, paths=out._paths(zeros))
 
-    def _paths(self, model: pin.Model) -> tuple[ChainPath, ...]:
-        """Each chain's path on ``model`` (one Pinocchio walk for chains of one zero)."""
-        moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in self.chains]
+    def _paths(self, zeros: tuple) -> tuple[ChainPath, ...]:
+        """Each chain's path from its frames at zero on the model (:func:`zero_frames`)."""
         out = []
-        for c, oMi in zip(moved, _zero_placements(model, moved), strict=True):
+        for c, zero in zip(self.chains, zeros, strict=True):
             columns = np.array([self.joints.index(n) for n in c.joint_names], dtype=int)
-            out.append(ChainPath.of(c, c.zero_frames(oMi), self.bases[columns], columns))
+            out.append(ChainPath.of(c, zero, self.bases[columns], columns))
         return tuple(out)
 
     def names(self) -> tuple[str, ...]:
@@ -267,13 +284,17 @@ class Placements:
 
     def rebased(self) -> Placements:
         """The same robot with zero errors on a model that holds them (and paths that do)."""
-        paths = tuple(dataclasses.replace(p, fixed=p.composed(self.y)) for p in self.paths)
+        fixed = (p.composed(self.y, t) for p, t in zip(self.paths, self._turns, strict=True))
+        paths = tuple(
+            dataclasses.replace(p, fixed=f) for p, f in zip(self.paths, fixed, strict=True)
+        )
         y = np.zeros_like(self.y)
         return dataclasses.replace(self, model=self.perturbed_model(), y=y, paths=paths)
 
     def frames(self, chain: Chain, q: np.ndarray) -> JointFrames:
         """Chain ``chain``'s frames at ``q`` ``(m, n)`` with the errors (:func:`chain_frames`)."""
-        return chain_frames(self.path(chain), self.y, q)
+        k = self._index(chain)
+        return chain_frames(self.paths[k], self.y, q, self._turns[k])
 
     def path(self, chain: Chain) -> ChainPath:
         """Chain ``chain``'s path on :attr:`model` (a chain of :attr:`chains`).
@@ -281,9 +302,24 @@ class Placements:
         Raises:
             InvalidArgumentError: Not one of :attr:`chains` (its base and tool frames).
         """
-        for c, path in zip(self.chains, self.paths, strict=True):
+        return self.paths[self._index(chain)]
+
+    def turns(self, chain: Chain) -> np.ndarray | None:
+        """The rotations ``R(w)`` ``(n, 3, 3)`` of the chain's joints' errors (None: no error).
+
+        Made once per placements: its frames and its twists read them (read only).
+        """
+        return self._turns[self._index(chain)]
+
+    @cached_property
+    def _turns(self) -> tuple[np.ndarray | None, ...]:
+        rows = (self.y[p.columns] for p in self.paths)
+        return tuple(rotation_matrix(r[:, 3:]) if np.any(r) else None for r in rows)
+
+    def _index(self, chain: Chain) -> int:
+        for k, c in enumerate(self.chains):
             if c is chain or (c.base_id, c.tool_id) == (chain.base_id, chain.tool_id):
-                return path
+                return k
         raise InvalidArgumentError(
             f"{chain.base_frame} -> {chain.tool_frame} is not a chain of these placements"
         )
@@ -341,10 +377,20 @@ class Placements:
         """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""
         model = self._robot()
         moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
-        return tuple(
-            from_chain(c, zero=c.zero_frames(oMi))
-            for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
-        )
+        zeros = zero_frames(tuple(moved))
+        return tuple(from_chain(c, zero=z) for c, z in zip(moved, zeros, strict=True))
+
+
+def zero_frames(chains: tuple[Chain, ...]) -> tuple:
+    """Each chain's :meth:`~calib.kinematics.robot.Chain.zero_frames` on the first's model.
+
+    One Pinocchio walk for chains of one zero configuration.
+    """
+    model = chains[0].model
+    moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
+    return tuple(
+        c.zero_frames(oMi) for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
+    )
 
 
 def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
@@ -376,23 +422,55 @@ def joint_twists(
         Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
         origin's point moving with the tool side, per component (x y z rx ry rz).
     """
+    by_v, wv, by_w = _twist_blocks(placements, chain, kin)
+    m, n = wv.shape[:2]
+    ang, lin = np.zeros((m, n, 3, 6)), np.zeros((m, n, 3, 6))
+    ang[..., 3:], lin[..., :3], lin[..., 3:] = wv, by_v, by_w
+    return ang, lin
+
+
+def twist_columns(
+    placements: Placements, chain: Chain, kin: JointFrames, lift: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`joint_twists` along free directions of the joint placement components.
+
+    The twists laid out by row and component (the product's rows, no copy), each direction
+    taken on the chain's joints' components only (no array of every component of every
+    joint by row: 5,000 poses made 1.2 Jacobians of it).
+
+    Args:
+        placements: The current errors.
+        chain: The chain.
+        kin: Its frames at m configurations.
+        lift: The free directions ``(free, 6 J)`` (:meth:`Placements.names` order).
+
+    Returns:
+        Linear and angular velocity ``(m, 3, free)`` per unit of each direction.
+    """
+    by_v, wv, by_w = _twist_blocks(placements, chain, kin)
+    m, n = wv.shape[:2]
+    ang, lin = np.zeros((m, 3, n, 6)), np.zeros((m, 3, n, 6))
+    ang[..., 3:], lin[..., :3], lin[..., 3:] = (np.swapaxes(b, 1, 2) for b in (wv, by_v, by_w))
+    per_joint = lift.reshape(len(lift), len(placements.joints), len(COMPONENTS))
+    chain_lift = per_joint[:, placements.path(chain).columns].reshape(len(lift), -1).T
+    return lin.reshape(m, 3, -1) @ chain_lift, ang.reshape(m, 3, -1) @ chain_lift
+
+
+def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
+    """:func:`joint_twists`' non-zero blocks ``(m, n, 3, 3)``: linear per dv, angular per dw."""
     n = chain.n
     sign = np.asarray(chain.sign, dtype=float)
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
-    m = kin.R.shape[0]
-    ang = np.zeros((m, n, 3, 6))
-    lin = np.zeros((m, n, 3, 6))
-    if np.any(w):
-        body_w = left_jacobian(-w)  # right Jacobian of R(w)
-        wv = RF @ body_w  # (m, n, 3, 3) angular velocity per d(rx ry rz)
-        lin[..., :3] = RF @ np.swapaxes(rotation_matrix(w), 1, 2)  # d(origin) per dv
+    turns = placements.turns(chain)  # None: no error at all
+    if turns is not None and np.any(w):
+        wv = RF @ left_jacobian(-w)  # angular velocity per d(rx ry rz): right Jacobian of R(w)
+        # d(origin) per dv: R(w)^T contiguous, as one product per frame reads it fastest
+        by_v = RF @ np.ascontiguousarray(np.swapaxes(turns, 1, 2))
     else:  # no rotation error (a start, a rebase): both products by the identity, which
         wv = RF + 0.0  # make a zero +0.0 (the sign Householder reflections read later)
-        lin[..., :3] = wv
-    ang[..., 3:] = wv
-    lin[..., 3:] = skew(kin.p[:, :n]) @ wv
-    return ang, lin
+        by_v = wv
+    return by_v, wv, skew(kin.p[:, :n]) @ wv  # and the linear per dw
 
 
 DIRECTION_CONFIGS = 12

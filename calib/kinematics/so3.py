@@ -114,7 +114,7 @@ def inverse_right_jacobian(phi: np.ndarray) -> np.ndarray:
     ``Log(Exp(phi) Exp(e)) = phi + Jr^-1(phi) e + O(|e|^2)``.
     """
     phi = np.asarray(phi, dtype=float)
-    theta = np.linalg.norm(phi, axis=-1)
+    theta = _norm(phi)
     small = theta < SMALL_ANGLE
     t = np.where(small, 1.0, theta)
     coef = np.where(
@@ -156,7 +156,7 @@ def left_jacobian(phi: np.ndarray) -> np.ndarray:
     ``Exp(phi + e) = Exp(Jl(phi) e) Exp(phi) + O(|e|^2)``.
     """
     phi = np.asarray(phi, dtype=float)
-    theta = np.linalg.norm(phi, axis=-1)
+    theta = _norm(phi)
     small = theta < SMALL_ANGLE
     t = np.where(small, 1.0, theta)
     a = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
