@@ -149,8 +149,9 @@ def measured_part(
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
+    bare = dataclasses.replace(registered, seen=None)  # a result keeps no frames of its rows
     return MeasuredChain(
-        chain, train.source, joint, registered, state, stats, train, held, tuple(entries),
+        chain, train.source, joint, bare, state, stats, train, held, tuple(entries),
         compliance=compliance,
     )  # fmt: skip
 
