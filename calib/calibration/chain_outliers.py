@@ -82,7 +82,11 @@ def fit_until_stable(
             return last[1]
         state = result.state  # with fitted compliance: deflected by the rows' gravity torques
         torque = gravity_torque(result.chain, state, train)
-        last[:] = [result, point_errors(state.residuals(train, torque), train.n_markers)]
+        part = result.one_chain()  # its rigid residuals, when it fitted every row
+        residuals = part.residuals if torque is None and part.data is train else None
+        if residuals is None:
+            residuals = state.residuals(train, torque)
+        last[:] = [result, point_errors(residuals, train.n_markers)]
         return last[1]
 
     registered = cast(MeasuredState, every.start.states[0])  # as its fit's result reports it

@@ -407,13 +407,18 @@ def unseen(states: tuple) -> tuple:
     )
 
 
-def measured_stats(state: MeasuredState, data: Measurements, torque=None) -> GapStats:
+def measured_stats(
+    state: MeasuredState, data: Measurements, torque=None, residuals=None
+) -> GapStats:
     """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
 
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None).
+    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None);
+    ``residuals``: the state's at the data (with ``torque``), if already made.
     """
-    kin = state.frames_at(data) if torque is None else None
-    return row_stats(state.inner.residuals(data, torque, kin), state.kind, state.row_weights())
+    if residuals is None:
+        kin = state.frames_at(data) if torque is None else None
+        residuals = state.inner.residuals(data, torque, kin)
+    return row_stats(residuals, state.kind, state.row_weights())
 
 
 def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
