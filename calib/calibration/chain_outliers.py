@@ -82,12 +82,17 @@ def fit_until_stable(
             return last[1]
         state = result.state  # with fitted compliance: deflected by the rows' gravity torques
         torque = gravity_torque(result.chain, state, train)
-        last[:] = [result, point_errors(state.residuals(train, torque), train.n_markers)]
+        part = result.one_chain()  # its rigid residuals, when it fitted every row
+        residuals = part.residuals if torque is None and part.data is train else None
+        if residuals is None:
+            residuals = state.residuals(train, torque)
+        last[:] = [result, point_errors(residuals, train.n_markers)]
         return last[1]
 
     registered = cast(MeasuredState, every.start.states[0])  # as its fit's result reports it
     opts = Options(orientation_weight=registered.weight, noise_mm=noise_mm)
-    start = proposals(registered.inner.mdh, registered.inner, train, opts)
+    kin = registered.frames_at(train)  # the registration's, at every row
+    start = proposals(registered.inner.mdh, registered.inner, train, opts, kin)
     result, bad, _ = until_stable(refit, errors, opts.noise, rows, start)
     part = result.one_chain()
     inner = np.isin(rows, [o.row for o in part.outliers])
@@ -101,13 +106,15 @@ def fit_until_stable(
     return dataclasses.replace(result, chains=chains, notes=notes)
 
 
-def proposals(nominal, reg, data: Measurements, opts) -> np.ndarray:
+def proposals(nominal, reg, data: Measurements, opts, kin=None) -> np.ndarray:
     """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
 
     None where no row of the registration is far from the others
     (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
+    ``kin``: ``reg``'s kinematics at ``data``'s joints, if already made.
     """
-    kin = reg.kinematics(data.q)  # x = 0 is the registration
+    if kin is None:
+        kin = reg.kinematics(data.q)  # x = 0 is the registration
     residuals = reg.residuals(data, None, kin)
     if not spread_out(point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)

@@ -214,12 +214,15 @@ def _weighted(data, opts: Options, at) -> Options:
     return dataclasses.replace(opts, orientation_weight=weight)
 
 
-def held_out_outliers(reg, train, held: Measurements, opts, notes: list[str], kin=None):
+def held_out_outliers(
+    reg, train, held: Measurements, opts, notes: list[str], kin=None, held_kin=None
+):
     """The held-out rows without their outliers (:func:`.term_checks.held_out`).
 
-    ``kin``: ``reg``'s kinematics at ``train``'s joints, if already made.
+    ``kin``, ``held_kin``: ``reg``'s kinematics at ``train``'s and ``held``'s joints, if
+    already made.
     """
     k, rows = train.n_markers, held.rows or tuple(range(1, held.m + 1))
     fitted = outliers.point_errors(reg.residuals(train, None, kin), k)
-    errors = outliers.point_errors(reg.residuals(held), k)
+    errors = outliers.point_errors(reg.residuals(held, None, held_kin), k)
     return term_checks.held_out(fitted, errors, held, rows, held.subset, notes, opts.noise)

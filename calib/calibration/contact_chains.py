@@ -71,9 +71,7 @@ from .contact_term import (
     contact_objects,
 )
 from .measured_options import level_offer
-from .measured_term import (
-    MeasuredState,
-)
+from .measured_term import MeasuredState, unseen
 from .options import Options, checked_arguments
 from .pixel_chain import (
     PixelData,
@@ -209,7 +207,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         )
     clock.append(time.perf_counter())
     kept_prior = None if polished else prior
-    solution = Solution(fitted, kept_prior)  # its covariance made once, for all who read it
+    bare = dataclasses.replace(fitted.start, states=unseen(fitted.start.states))
+    solution = Solution(dataclasses.replace(fitted, start=bare), kept_prior)  # covariance once
     result = _assemble(
         start,
         solution,

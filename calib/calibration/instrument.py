@@ -127,7 +127,7 @@ def shared_frame(states: list, train: list) -> list:
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
         return states
-    kin = [states[c].inner.mdh.kinematics(np.asarray(train[c].q, dtype=float)) for c in terms]
+    kin = [states[c].frames_at(train[c]) for c in terms]  # the registration's, if made
     frame, markers = register_points(
         [k.R[:, -1] for k in kin],
         [k.p[:, -1] for k in kin],

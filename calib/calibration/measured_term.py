@@ -33,7 +33,7 @@ import numpy as np
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
 from ..identification.parameters import ParameterSet
-from ..kinematics.mdh import from_chain
+from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
@@ -51,6 +51,7 @@ from .weighting import DEFAULT_WEIGHT
 __all__ = [
     "MeasuredKind",
     "MeasuredState",
+    "Seen",
     "check_measured",
     "checked_measured",
     "measured_columns",
@@ -61,6 +62,7 @@ __all__ = [
     "one_term_per_frame",
     "own_change",
     "own_model",
+    "unseen",
 ]
 
 
@@ -196,6 +198,21 @@ def own_model(kind: MeasuredKind) -> ErrorModel:
 
 
 @dataclass(frozen=True, eq=False)
+class Seen:
+    """A model's frames at some rows' joints, made once: the registration's, read again.
+
+    Attributes:
+        mdh: The model (the nominal chain's).
+        q: Each set of rows' joint positions ``(m, n)`` (the arrays themselves).
+        kin: The model's frames at each.
+    """
+
+    mdh: MDHModel
+    q: tuple[np.ndarray, ...]
+    kin: tuple[Kinematics, ...]
+
+
+@dataclass(frozen=True, eq=False)
 class MeasuredState:
     """A measured term's state: its chain's model on the robot, frame, markers and weight.
 
@@ -205,11 +222,14 @@ class MeasuredState:
         weight: Weight of the rotation rows [m/rad].
         instrument: Measured by an instrument outside the robot, shared by every such term
             (:attr:`MeasuredKind.instrument`).
+        seen: The registration's frames of the nominal robot at its rows (kept and held
+            out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
     """
 
     inner: State
     weight: float
     instrument: bool = False
+    seen: Seen | None = None
 
     @property
     def kind(self) -> MeasuredKind:
@@ -250,8 +270,21 @@ class MeasuredState:
         return own_model(self.kind)
 
     def moved(self, x: np.ndarray) -> MeasuredState:
-        """The state with its own unknowns moved by ``x``."""
-        return dataclasses.replace(self, inner=self._own.apply(self.inner, x))
+        """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
+        return dataclasses.replace(self, inner=self._own.apply(self.inner, x), seen=None)
+
+    def frames_at(self, data: Measurements) -> Kinematics:
+        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
+
+        The registration's when the model is its and ``data`` are its rows (the same
+        arrays), else made.
+        """
+        s = self.seen
+        if s is not None and s.mdh is self.inner.mdh:
+            for q, kin in zip(s.q, s.kin, strict=True):
+                if q is data.q:
+                    return kin
+        return self.inner.kinematics(data.q)
 
     def own_jacobian(
         self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
@@ -339,8 +372,9 @@ def checked_measured(
         zero: The chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
 
     Returns:
-        Its registered state, the mask of its outlier rows, the outliers, the notes and its
-        held-out rows without their outliers (or None).
+        Its registered state (with the nominal robot's frames at its rows kept and held out:
+        :attr:`MeasuredState.seen`), the mask of its outlier rows, the outliers, the notes
+        and its held-out rows without their outliers (or None).
     """
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
@@ -348,23 +382,43 @@ def checked_measured(
     opts, reg, bad, found, notes, kin = checked_registration(
         chain, from_chain(chain, zero=zero), data, checked, guess, opts
     )
-    state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT))
     kept = data.subset(~bad) if bad.any() else data
+    rows = [*([kept] if kept is data else []), *([] if held is None else [held])]
+    kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
+    seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
+    state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT), seen=seen)
     if held is not None:
-        seen = kin if kept is data else None  # the nominal kinematics at the kept rows
-        held = held_out_outliers(reg, kept, held, opts, notes, seen)
-        fitted = validation.stats(reg, kept, None, seen)
-        other = validation.stats(reg, held, None)
+        at = state.frames_at
+        held = held_out_outliers(reg, kept, held, opts, notes, at(kept), at(held))
+        fitted = validation.stats(reg, kept, None, at(kept))
+        other = validation.stats(reg, held, None, at(held))
         validation.check_held_out_errors(fitted, other, held.source)
     return state, bad, found, notes, held
 
 
-def measured_stats(state: MeasuredState, data: Measurements, torque=None) -> GapStats:
+def unseen(states: tuple) -> tuple:
+    """The states without the registration's frames (:attr:`MeasuredState.seen`).
+
+    What a result keeps: the frames at every row would double a large campaign's memory.
+    """
+    return tuple(
+        dataclasses.replace(s, seen=None) if isinstance(s, MeasuredState) and s.seen else s
+        for s in states
+    )
+
+
+def measured_stats(
+    state: MeasuredState, data: Measurements, torque=None, residuals=None
+) -> GapStats:
     """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
 
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None).
+    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None);
+    ``residuals``: the state's at the data (with ``torque``), if already made.
     """
-    return row_stats(state.inner.residuals(data, torque), state.kind, state.row_weights())
+    if residuals is None:
+        kin = state.frames_at(data) if torque is None else None
+        residuals = state.inner.residuals(data, torque, kin)
+    return row_stats(residuals, state.kind, state.row_weights())
 
 
 def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:

@@ -67,6 +67,9 @@ class MeasuredChain:
             without the rows it sets aside: :mod:`~.chain_outliers`).
         compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
             the state's), or None (rigid joints).
+        residuals: The fitted state's residuals at :attr:`data` ``(m, rows)`` [m, rad] (no
+            gravity torque given: rigid joints), or None: what the outlier loop reads again
+            (:mod:`.chain_outliers`).
     """
 
     chain: Chain
@@ -81,6 +84,7 @@ class MeasuredChain:
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
+    residuals: np.ndarray | None = None
 
     @property
     def kind(self):
@@ -130,17 +134,22 @@ def measured_part(
         notes: Remarks for the user, completed with compliance's (or None: rigid).
     """
     deflect = {id(train): torques[0], id(held): torques[1]}
+    rigid = None if torques[0] is not None else state.inner.residuals(train, None)
+    if rigid is not None:
+        rigid.flags.writeable = False  # kept by the part (a value)
 
     def stat(st, rows):
+        if st is state and rows is train and rigid is not None:
+            return measured_stats(st, rows, None, rigid)
         return measured_stats(st, rows, deflect[id(rows)] if st is state else None)
 
     stats = part_stats(stat, registered, state, train, held)
     compliance = state.inner.compliance if torques[0] is not None else None
     if compliance is not None and np.any(compliance):
-        rigid = dataclasses.replace(
+        alone = dataclasses.replace(
             state, inner=dataclasses.replace(state.inner, compliance=0 * compliance)
         )
-        urdf_alone(lambda d: measured_stats(rigid, d), (train, held), stats, notes, "rows")
+        urdf_alone(lambda d: measured_stats(alone, d), (train, held), stats, notes, "rows")
     else:
         compliance = None
     joint = None if state.instrument else measuring_joint(chain)
@@ -149,9 +158,10 @@ def measured_part(
     entries = parameter_entries(names, own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
+    bare = dataclasses.replace(registered, seen=None)  # a result keeps no frames of its rows
     return MeasuredChain(
-        chain, train.source, joint, registered, state, stats, train, held, tuple(entries),
-        compliance=compliance,
+        chain, train.source, joint, bare, state, stats, train, held, tuple(entries),
+        compliance=compliance, residuals=rigid,
     )  # fmt: skip
 
 
