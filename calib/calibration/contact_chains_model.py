@@ -153,6 +153,11 @@ def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) ->
     return _gap_rows(s, d, kin, *joint_motions(path, kin, joints))
 
 
+def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
+    """Gravity torques of the compliant ``joints`` as factors of their rows ``(m, 1, k)``."""
+    return np.asarray(torque, dtype=float)[:, None, list(joints)]
+
+
 def _deflection(s) -> np.ndarray:
     """A chain state's joint compliance (zeros: rigid)."""
     c = s.inner.compliance if isinstance(s, MeasuredState) else getattr(s, "compliance", None)
@@ -313,16 +318,10 @@ class ChainsModel:
             contacts.append(contacts[-1] + len(kind.contact_dofs))
         return tuple(objects), tuple(contacts)
 
-    def _object_start(self, p: int) -> int:
-        return self._starts[0][p]
-
-    def _contact_start(self, c: int) -> int:
-        return self._starts[1][c]
-
     @property
     def fixed(self) -> int:
         """Columns of the objects and contacts (always free)."""
-        return self._contact_start(len(self.plane_of))
+        return self._starts[1][-1]
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -356,12 +355,9 @@ class ChainsModel:
         """The same planes and contacts, other free components and compliances."""
         return dataclasses.replace(self, free=tuple(free), compliance=tuple(compliance))
 
+    @cached_property
     def _lift(self) -> np.ndarray:
         """The free directions ``(free, 6 J)`` (made once: read only)."""
-        return self._free_directions
-
-    @cached_property
-    def _free_directions(self) -> np.ndarray:
         free = list(self.free)
         lift = (
             np.eye(len(self.names_all))[free] if self.directions is None else self.directions[free]
@@ -375,17 +371,13 @@ class ChainsModel:
         out = []
         for c, kind in enumerate(self.chain_kinds()):
             p = self.plane_of[c]
-            o, t = self._object_start(p), self._contact_start(c)
+            o, t = self._starts[0][p], self._starts[1][c]
             obj = slice(o, o + self._count(p) * len(kind.object_dofs))
             con = slice(t, t + len(kind.contact_dofs))
             own = np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
             own.flags.writeable = False
             out.append((obj, con, own))
         return tuple(out)
-
-    def _chain_columns(self, c: int) -> tuple[slice, slice]:
-        """Chain c's object columns and contact columns in x."""
-        return self._columns[c][:2]
 
     def own_columns(self, c: int) -> np.ndarray:
         """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
@@ -400,7 +392,7 @@ class ChainsModel:
         placements = start.placements
         end = self.fixed + len(self.free)
         if len(self.free):
-            placements = placements.shifted(self._lift().T @ x[self.fixed : end])
+            placements = placements.shifted(self._lift.T @ x[self.fixed : end])
         states = tuple(s.moved(self._chain_x(x, c)) for c, s in enumerate(start.states))
         if self.compliance:  # the first chain's joints deflect: q' = q + c tau
             states = (_compliant(states[0], list(self.compliance), x[end:]), *states[1:])
@@ -458,11 +450,14 @@ class ChainsModel:
         if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
             raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
         own, shared, index = s0.blocks(self._chain_x(x, c), d, None, kin, s)
-        parts = [shared]
-        if self.free:
-            parts.append(self._robot_columns(state, c, s, d, kin))
-        if self.compliance and c == 0:
-            parts.append(self._compliance_columns(state, c, s, d, kin, torque))
+        parts, chain = [shared], state.chains[c]
+        if self.free:  # the free placement directions'
+            twists = twist_columns(state.placements, chain, kin, self._lift)
+            parts.append(_gap_rows(s, d, kin, *twists))
+        if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
+            path = state.placements.path(chain)
+            rows = joint_rows(path, s, d, kin, list(self.compliance))
+            parts.append(rows * _gain(torque, self.compliance))
         return own, np.concatenate(parts, axis=2), index
 
     def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):
@@ -471,27 +466,24 @@ class ChainsModel:
         ``kin``: chain c's frames at its data (:meth:`ChainsState.kinematics`); ``torque``:
         its gravity torques (compliance), or None.
         """
-        s, s0 = state.states[c], start.states[c]
+        s, s0, chain, lift = state.states[c], start.states[c], state.chains[c], self._lift
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
-        obj, con = self._chain_columns(c)
+        obj, con, mine = self._columns[c]
         if isinstance(s, PixelTermState) and isinstance(s0, PixelTermState):
-            chain, xc, lift = state.chains[c], self._chain_x(x, c), self._lift()
-            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, xc, d, lift, kin)
+            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, x[mine], d, lift, kin)
             if self.free:
                 J[:, :, self.fixed :] = robot
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin, s)
+            J[:, :, mine] = s0.own_jacobian(x[mine], d, kin, s)
             robot = self.fixed + len(self.free)
             if self.free:
                 J[:, :, self.fixed : robot] = measured_columns(
-                    state.placements, state.chains[c], s, kin, d, self._lift()
+                    state.placements, chain, s, kin, d, lift
                 )
             if self.compliance and c == 0:  # d/dc_j = tau_j d/dq_j
-                path = state.placements.path(state.chains[c])
-                motions = joint_motions(path, kin, list(self.compliance))
-                gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]
-                J[:, :, robot:] = motion_rows(s, kin, d, *motions) * gain
+                motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
+                J[:, :, robot:] = motion_rows(s, kin, d, *motions) * _gain(torque, self.compliance)
             return J
         own, shared, index = self._contact_parts(start, state, x, c, d, kin, torque)
         o, k = own.shape[2], con.stop - con.start
@@ -502,23 +494,3 @@ class ChainsModel:
         J[:, :, con] = shared[:, :, :k]
         J[:, :, self.fixed : self.fixed + shared.shape[2] - k] = shared[:, :, k:]
         return J
-
-    def _robot_columns(
-        self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin: JointFrames
-    ) -> np.ndarray:
-        """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
-        return _gap_rows(
-            s, d, kin, *twist_columns(state.placements, state.chains[c], kin, self._lift())
-        )
-
-    def _compliance_columns(
-        self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin, torque
-    ) -> np.ndarray:
-        """Weighted gap rows of the free compliances of chain c ``(m, r, k)``.
-
-        ``q' = q + c tau``: d/dc_j is tau_j times d/dq_j (:func:`joint_rows`, in the
-        deflected frames ``kin``).
-        """
-        joints = list(self.compliance)
-        gain = np.asarray(torque, dtype=float)[:, None, joints]  # (m, 1, k)
-        return joint_rows(state.placements.path(state.chains[c]), s, d, kin, joints) * gain

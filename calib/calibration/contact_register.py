@@ -31,12 +31,7 @@ from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_checks import subset
 from .contact_choice import chains_model, flush_data, structural
 from .contact_model import ContactState
-from .contact_term import (
-    check_touches,
-    contact_frame,
-    contact_guess,
-    split_contacts,
-)
+from .contact_term import check_touches, contact_frame, contact_guess, split_contacts
 from .instrument import instrument_groups, shared_frame
 from .measured_options import compliance_torques
 from .measured_term import (
@@ -48,13 +43,7 @@ from .measured_term import (
 )
 from .options import Options, check_run_options
 from .outliers import Outlier
-from .pixel_chain import (
-    PixelData,
-    PixelPart,
-    PixelTermState,
-    check_pixels,
-    pixel_parts,
-)
+from .pixel_chain import PixelData, PixelPart, PixelTermState, check_pixels, pixel_parts
 from .pixel_fit import checked_pixels
 from .placements import Placements, zero_frames
 from .solve import fit
