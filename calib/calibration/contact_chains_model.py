@@ -217,9 +217,7 @@ class ChainsState:
             )
         )
 
-    def step_kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
-        """:meth:`kinematics` (what :class:`~.solve.Problem` makes once per x)."""
-        return self.kinematics(data, torque)
+    step_kinematics = kinematics  # what :class:`~.solve.Problem` makes once per x
 
     def same_geometry(self, other) -> bool:
         """Whether ``other``'s kinematics at the same data are this state's.
