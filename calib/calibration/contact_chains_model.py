@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -42,7 +42,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactState
-from .measured_term import MeasuredKind, MeasuredState, measured_columns, motion_rows
+from .measured_term import MeasuredKind, MeasuredState, motion_rows
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
@@ -448,15 +448,21 @@ class ChainsModel:
         if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
             raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
         own, shared, index = s0.blocks(self._chain_x(x, c), d, None, kin, s)
-        parts, chain = [shared], state.chains[c]
-        if self.free:  # the free placement directions'
-            twists = twist_columns(state.placements, chain, kin, self._lift)
-            parts.append(_gap_rows(s, d, kin, *twists))
+        robot = self._robot_rows(state, c, kin, torque, partial(_gap_rows, s, d, kin))
+        return own, np.concatenate([shared, *robot], axis=2), index
+
+    def _robot_rows(self, state: ChainsState, c: int, kin, torque, rows_of) -> list[np.ndarray]:
+        """Chain c's rows of the free placement directions, then compliances (``(m, r, k)``).
+
+        ``rows_of(lin, ang)``: the chain's weighted rows of k motions of its tool side.
+        """
+        chain, out = state.chains[c], []
+        if self.free:
+            out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
         if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
-            path = state.placements.path(chain)
-            rows = joint_rows(path, s, d, kin, list(self.compliance))
-            parts.append(rows * _gain(torque, self.compliance))
-        return own, np.concatenate(parts, axis=2), index
+            motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
+            out.append(rows_of(*motions) * _gain(torque, self.compliance))
+        return out
 
     def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):
         """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded).
@@ -474,14 +480,10 @@ class ChainsModel:
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
             J[:, :, mine] = s0.own_jacobian(x[mine], d, kin, s)
-            robot = self.fixed + len(self.free)
-            if self.free:
-                J[:, :, self.fixed : robot] = measured_columns(
-                    state.placements, chain, s, kin, d, lift
-                )
-            if self.compliance and c == 0:  # d/dc_j = tau_j d/dq_j
-                motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
-                J[:, :, robot:] = motion_rows(s, kin, d, *motions) * _gain(torque, self.compliance)
+            k = self.fixed
+            for rows in self._robot_rows(state, c, kin, torque, partial(motion_rows, s, kin, d)):
+                J[:, :, k : k + rows.shape[2]] = rows
+                k += rows.shape[2]
             return J
         own, shared, index = self._contact_parts(start, state, x, c, d, kin, torque)
         o, k = own.shape[2], con.stop - con.start
