@@ -378,7 +378,7 @@ def selection_columns(
 ):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.
 
-    Many objects (:func:`_blocky`): the objects' columns by block
+    Many objects (:func:`blocky`): the objects' columns by block
     (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
     Jacobians at the registration made so far (:class:`AtStart`), or None.
 
