@@ -95,12 +95,19 @@ class ChainsData:
 
 def on_models(states: tuple, models: tuple[MDHModel, ...]) -> tuple:
     """Each chain's state with its MDH model replaced (a measured term's inner state's)."""
-    return tuple(
-        dataclasses.replace(s, inner=dataclasses.replace(s.inner, mdh=mdh))
-        if isinstance(s, MeasuredState)
-        else dataclasses.replace(s, mdh=mdh)
-        for s, mdh in zip(states, models, strict=True)
-    )
+    return tuple(_with(s, mdh=mdh) for s, mdh in zip(states, models, strict=True))
+
+
+def _robot_part(s):
+    """The part of a chain's state that holds its MDH model and compliance."""
+    return s.inner if isinstance(s, MeasuredState) else s
+
+
+def _with(s, **changes):
+    """A chain's state with fields of :func:`_robot_part` replaced."""
+    if isinstance(s, MeasuredState):
+        return dataclasses.replace(s, inner=dataclasses.replace(s.inner, **changes))
+    return dataclasses.replace(s, **changes)
 
 
 def _joints(part) -> np.ndarray:
@@ -110,10 +117,8 @@ def _joints(part) -> np.ndarray:
 
 def _seen_joints(state, part, torque) -> np.ndarray:
     """A chain's joint positions the geometry sees (a compliant chain's deflected)."""
-    q = _joints(part)
-    if isinstance(state, MeasuredState):
-        return state.inner.joints(q, torque)
-    return state.joints(q, torque) if isinstance(state, ContactState) else q
+    s = _robot_part(state)
+    return _joints(part) if isinstance(s, PixelTermState) else s.joints(_joints(part), torque)
 
 
 def _gap_rows(s: ContactState, d: ContactData, kin, lin: np.ndarray, ang: np.ndarray):
@@ -160,7 +165,7 @@ def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
 
 def _deflection(s) -> np.ndarray:
     """A chain state's joint compliance (zeros: rigid)."""
-    c = s.inner.compliance if isinstance(s, MeasuredState) else getattr(s, "compliance", None)
+    c = getattr(_robot_part(s), "compliance", None)
     return np.zeros(0) if c is None or not np.any(c) else np.asarray(c)
 
 
@@ -170,15 +175,12 @@ def _compliant(s, joints: list[int], dc: np.ndarray):
     Raises:
         InvalidArgumentError: Neither a chain touching nor a measured chain.
     """
-    if isinstance(s, MeasuredState):
-        c = np.array(s.inner.compliance, dtype=float)
-        c[joints] += dc
-        return dataclasses.replace(s, inner=dataclasses.replace(s.inner, compliance=c))
-    if not isinstance(s, ContactState):
+    part = _robot_part(s)
+    if isinstance(part, PixelTermState):
         raise InvalidArgumentError("joint compliance is fitted for a chain touching or measured")
-    c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
+    c = np.zeros(part.mdh.n) if part.compliance is None else np.array(part.compliance, dtype=float)
     c[joints] += dc
-    return dataclasses.replace(s, compliance=c)
+    return _with(s, compliance=c)
 
 
 @dataclass(frozen=True, eq=False)
