@@ -1,28 +1,24 @@
-"""The error model of flush contacts on several chains of one robot, fitted together.
+"""The joint fit's error model: terms on several chains of one robot, fitted together.
 
 A state is the robot's joint placement errors (:class:`~.placements.Placements`, one error
-per URDF joint, whatever chains it is on) and, per chain, its
-:class:`~.contact_model.ContactState` (its MDH model on the robot the errors act on, its
-contact frame and plane, :class:`~.contact_frames.ContactFrames`, and its tilt weight). A fit
-step moves the errors, not the MDH models: the chains' frames come from the placements
-(:meth:`ChainsState.kinematics`, once per step, passed to the residuals and the Jacobian);
-:meth:`ChainsState.settled` composes the errors into the robot and remakes the MDH models. The
-parameters x: for each object (a plane, or a ``fixed-pose`` chain's pose) its kind's object
-unknowns (a plane's height and two tilts, a pose's six), for each chain its contact's (a flush
-contact's two tilts, none for a fixed pose), then components of joint placement errors
-(``<joint>:x`` ... ``:rz``). A plane touched by several chains is one plane (their chains
-share the base frame); each chain has its own contact frame.
+per URDF joint, whatever chains it is on) and each term's state, its MDH model on the robot
+the errors act on: a chain touching (:class:`~.contact_model.ContactState`: its contact frame
+and objects), measured (:class:`~.measured_term.MeasuredState`) or seen by a camera
+(:class:`~.pixel_chain.PixelTermState`). A fit step moves the errors, not the MDH models: the
+chains' frames come from the placements (:meth:`ChainsState.kinematics`, once per step,
+passed to the residuals and the Jacobian); :meth:`ChainsState.settled` composes the errors
+into the robot and remakes the MDH models.
 
-Each chain's kind is its touches' (:attr:`ContactData.kind`): ``plane`` (flush touches of a
-table) or ``fixed-pose`` (a closed loop, e.g. a humanoid's two soles flat on the ground:
-``left_sole_link`` to ``right_sole_link`` is one fixed pose at every touch).
+The parameters x: each object's unknowns (a plane's height and two tilts, a ``fixed-pose``
+chain's pose, e.g. a humanoid's two soles flat on the ground; a measured term's frame; a
+camera term's every unknown), each chain's own (a flush contact's two tilts; a measured
+term's markers and tool rotation), then the free directions of the joint placement errors
+(``<joint>:x`` ... ``:rz``, or MDH parameters as directions) and the first chain's free
+compliances. A plane touched by several chains is one plane (their chains share the base
+frame); each chain has its own contact frame.
 
-The rows: each chain's touches, in chain order, each its kind's rows (a plane's height [m]
-and weighted roll and pitch; a pose's position [m] and weighted rotation vector), as a single
-chain's (:meth:`~.contact_model.ContactState.blocks`), padded with zero rows to the most rows
-of a kind in the fit (zero rows change no least-squares solution): the object and contact
-columns are that state's, the robot's the kind's rows (``kind.jacobian_rows``) of the contact
-frame's displacement in its object's frame.
+The rows: each chain's, in chain order, as a single term's (weighted), padded with zero rows
+to the most rows of a kind in the fit (zero rows change no least-squares solution).
 """
 
 from __future__ import annotations
