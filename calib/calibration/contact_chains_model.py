@@ -1,35 +1,31 @@
-"""The error model of flush contacts on several chains of one robot, fitted together.
+"""The joint fit's error model: terms on several chains of one robot, fitted together.
 
 A state is the robot's joint placement errors (:class:`~.placements.Placements`, one error
-per URDF joint, whatever chains it is on) and, per chain, its
-:class:`~.contact_model.ContactState` (its MDH model on the robot the errors act on, its
-contact frame and plane, :class:`~.contact_frames.ContactFrames`, and its tilt weight). A fit
-step moves the errors, not the MDH models: the chains' frames come from the placements
-(:meth:`ChainsState.kinematics`, once per step, passed to the residuals and the Jacobian);
-:meth:`ChainsState.settled` composes the errors into the robot and remakes the MDH models. The
-parameters x: for each object (a plane, or a ``fixed-pose`` chain's pose) its kind's object
-unknowns (a plane's height and two tilts, a pose's six), for each chain its contact's (a flush
-contact's two tilts, none for a fixed pose), then components of joint placement errors
-(``<joint>:x`` ... ``:rz``). A plane touched by several chains is one plane (their chains
-share the base frame); each chain has its own contact frame.
+per URDF joint, whatever chains it is on) and each term's state, its MDH model on the robot
+the errors act on: a chain touching (:class:`~.contact_model.ContactState`: its contact frame
+and objects), measured (:class:`~.measured_term.MeasuredState`) or seen by a camera
+(:class:`~.pixel_chain.PixelTermState`). A fit step moves the errors, not the MDH models: the
+chains' frames come from the placements (:meth:`ChainsState.kinematics`, once per step,
+passed to the residuals and the Jacobian); :meth:`ChainsState.settled` composes the errors
+into the robot and remakes the MDH models.
 
-Each chain's kind is its touches' (:attr:`ContactData.kind`): ``plane`` (flush touches of a
-table) or ``fixed-pose`` (a closed loop, e.g. a humanoid's two soles flat on the ground:
-``left_sole_link`` to ``right_sole_link`` is one fixed pose at every touch).
+The parameters x: each object's unknowns (a plane's height and two tilts, a ``fixed-pose``
+chain's pose, e.g. a humanoid's two soles flat on the ground; a measured term's frame; a
+camera term's every unknown), each chain's own (a flush contact's two tilts; a measured
+term's markers and tool rotation), then the free directions of the joint placement errors
+(``<joint>:x`` ... ``:rz``, or MDH parameters as directions) and the first chain's free
+compliances. A plane touched by several chains is one plane (their chains share the base
+frame); each chain has its own contact frame.
 
-The rows: each chain's touches, in chain order, each its kind's rows (a plane's height [m]
-and weighted roll and pitch; a pose's position [m] and weighted rotation vector), as a single
-chain's (:meth:`~.contact_model.ContactState.blocks`), padded with zero rows to the most rows
-of a kind in the fit (zero rows change no least-squares solution): the object and contact
-columns are that state's, the robot's the kind's rows (``kind.jacobian_rows``) of the contact
-frame's displacement in its object's frame.
+The rows: each chain's, in chain order, as a single term's (weighted), padded with zero rows
+to the most rows of a kind in the fit (zero rows change no least-squares solution).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -42,7 +38,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactState
-from .measured_term import MeasuredKind, MeasuredState, measured_columns, motion_rows
+from .measured_term import MeasuredKind, MeasuredState, motion_rows
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
@@ -95,12 +91,19 @@ class ChainsData:
 
 def on_models(states: tuple, models: tuple[MDHModel, ...]) -> tuple:
     """Each chain's state with its MDH model replaced (a measured term's inner state's)."""
-    return tuple(
-        dataclasses.replace(s, inner=dataclasses.replace(s.inner, mdh=mdh))
-        if isinstance(s, MeasuredState)
-        else dataclasses.replace(s, mdh=mdh)
-        for s, mdh in zip(states, models, strict=True)
-    )
+    return tuple(_with(s, mdh=mdh) for s, mdh in zip(states, models, strict=True))
+
+
+def _robot_part(s):
+    """The part of a chain's state that holds its MDH model and compliance."""
+    return s.inner if isinstance(s, MeasuredState) else s
+
+
+def _with(s, **changes):
+    """A chain's state with fields of :func:`_robot_part` replaced."""
+    if isinstance(s, MeasuredState):
+        return dataclasses.replace(s, inner=dataclasses.replace(s.inner, **changes))
+    return dataclasses.replace(s, **changes)
 
 
 def _joints(part) -> np.ndarray:
@@ -110,10 +113,8 @@ def _joints(part) -> np.ndarray:
 
 def _seen_joints(state, part, torque) -> np.ndarray:
     """A chain's joint positions the geometry sees (a compliant chain's deflected)."""
-    q = _joints(part)
-    if isinstance(state, MeasuredState):
-        return state.inner.joints(q, torque)
-    return state.joints(q, torque) if isinstance(state, ContactState) else q
+    s = _robot_part(state)
+    return _joints(part) if isinstance(s, PixelTermState) else s.joints(_joints(part), torque)
 
 
 def _gap_rows(s: ContactState, d: ContactData, kin, lin: np.ndarray, ang: np.ndarray):
@@ -153,9 +154,14 @@ def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) ->
     return _gap_rows(s, d, kin, *joint_motions(path, kin, joints))
 
 
+def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
+    """Gravity torques of the compliant ``joints`` as factors of their rows ``(m, 1, k)``."""
+    return np.asarray(torque, dtype=float)[:, None, list(joints)]
+
+
 def _deflection(s) -> np.ndarray:
     """A chain state's joint compliance (zeros: rigid)."""
-    c = s.inner.compliance if isinstance(s, MeasuredState) else getattr(s, "compliance", None)
+    c = getattr(_robot_part(s), "compliance", None)
     return np.zeros(0) if c is None or not np.any(c) else np.asarray(c)
 
 
@@ -165,15 +171,12 @@ def _compliant(s, joints: list[int], dc: np.ndarray):
     Raises:
         InvalidArgumentError: Neither a chain touching nor a measured chain.
     """
-    if isinstance(s, MeasuredState):
-        c = np.array(s.inner.compliance, dtype=float)
-        c[joints] += dc
-        return dataclasses.replace(s, inner=dataclasses.replace(s.inner, compliance=c))
-    if not isinstance(s, ContactState):
+    part = _robot_part(s)
+    if isinstance(part, PixelTermState):
         raise InvalidArgumentError("joint compliance is fitted for a chain touching or measured")
-    c = np.zeros(s.mdh.n) if s.compliance is None else np.array(s.compliance)
+    c = np.zeros(part.mdh.n) if part.compliance is None else np.array(part.compliance, dtype=float)
     c[joints] += dc
-    return dataclasses.replace(s, compliance=c)
+    return _with(s, compliance=c)
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,9 +215,7 @@ class ChainsState:
             )
         )
 
-    def step_kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
-        """:meth:`kinematics` (what :class:`~.solve.Problem` makes once per x)."""
-        return self.kinematics(data, torque)
+    step_kinematics = kinematics  # what :class:`~.solve.Problem` makes once per x
 
     def same_geometry(self, other) -> bool:
         """Whether ``other``'s kinematics at the same data are this state's.
@@ -313,16 +314,10 @@ class ChainsModel:
             contacts.append(contacts[-1] + len(kind.contact_dofs))
         return tuple(objects), tuple(contacts)
 
-    def _object_start(self, p: int) -> int:
-        return self._starts[0][p]
-
-    def _contact_start(self, c: int) -> int:
-        return self._starts[1][c]
-
     @property
     def fixed(self) -> int:
         """Columns of the objects and contacts (always free)."""
-        return self._contact_start(len(self.plane_of))
+        return self._starts[1][-1]
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -356,12 +351,9 @@ class ChainsModel:
         """The same planes and contacts, other free components and compliances."""
         return dataclasses.replace(self, free=tuple(free), compliance=tuple(compliance))
 
+    @cached_property
     def _lift(self) -> np.ndarray:
         """The free directions ``(free, 6 J)`` (made once: read only)."""
-        return self._free_directions
-
-    @cached_property
-    def _free_directions(self) -> np.ndarray:
         free = list(self.free)
         lift = (
             np.eye(len(self.names_all))[free] if self.directions is None else self.directions[free]
@@ -375,17 +367,13 @@ class ChainsModel:
         out = []
         for c, kind in enumerate(self.chain_kinds()):
             p = self.plane_of[c]
-            o, t = self._object_start(p), self._contact_start(c)
+            o, t = self._starts[0][p], self._starts[1][c]
             obj = slice(o, o + self._count(p) * len(kind.object_dofs))
             con = slice(t, t + len(kind.contact_dofs))
             own = np.r_[np.arange(obj.start, obj.stop), np.arange(con.start, con.stop)]
             own.flags.writeable = False
             out.append((obj, con, own))
         return tuple(out)
-
-    def _chain_columns(self, c: int) -> tuple[slice, slice]:
-        """Chain c's object columns and contact columns in x."""
-        return self._columns[c][:2]
 
     def own_columns(self, c: int) -> np.ndarray:
         """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
@@ -400,7 +388,7 @@ class ChainsModel:
         placements = start.placements
         end = self.fixed + len(self.free)
         if len(self.free):
-            placements = placements.shifted(self._lift().T @ x[self.fixed : end])
+            placements = placements.shifted(self._lift.T @ x[self.fixed : end])
         states = tuple(s.moved(self._chain_x(x, c)) for c, s in enumerate(start.states))
         if self.compliance:  # the first chain's joints deflect: q' = q + c tau
             states = (_compliant(states[0], list(self.compliance), x[end:]), *states[1:])
@@ -458,12 +446,21 @@ class ChainsModel:
         if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
             raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
         own, shared, index = s0.blocks(self._chain_x(x, c), d, None, kin, s)
-        parts = [shared]
+        robot = self._robot_rows(state, c, kin, torque, partial(_gap_rows, s, d, kin))
+        return own, np.concatenate([shared, *robot], axis=2), index
+
+    def _robot_rows(self, state: ChainsState, c: int, kin, torque, rows_of) -> list[np.ndarray]:
+        """Chain c's rows of the free placement directions, then compliances (``(m, r, k)``).
+
+        ``rows_of(lin, ang)``: the chain's weighted rows of k motions of its tool side.
+        """
+        chain, out = state.chains[c], []
         if self.free:
-            parts.append(self._robot_columns(state, c, s, d, kin))
-        if self.compliance and c == 0:
-            parts.append(self._compliance_columns(state, c, s, d, kin, torque))
-        return own, np.concatenate(parts, axis=2), index
+            out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
+        if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
+            motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
+            out.append(rows_of(*motions) * _gain(torque, self.compliance))
+        return out
 
     def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):
         """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded).
@@ -471,27 +468,20 @@ class ChainsModel:
         ``kin``: chain c's frames at its data (:meth:`ChainsState.kinematics`); ``torque``:
         its gravity torques (compliance), or None.
         """
-        s, s0 = state.states[c], start.states[c]
+        s, s0, chain, lift = state.states[c], start.states[c], state.chains[c], self._lift
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
-        obj, con = self._chain_columns(c)
+        obj, con, mine = self._columns[c]
         if isinstance(s, PixelTermState) and isinstance(s0, PixelTermState):
-            chain, xc, lift = state.chains[c], self._chain_x(x, c), self._lift()
-            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, xc, d, lift, kin)
+            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, x[mine], d, lift, kin)
             if self.free:
                 J[:, :, self.fixed :] = robot
             return J
         if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, self.own_columns(c)] = s0.own_jacobian(self._chain_x(x, c), d, kin, s)
-            robot = self.fixed + len(self.free)
-            if self.free:
-                J[:, :, self.fixed : robot] = measured_columns(
-                    state.placements, state.chains[c], s, kin, d, self._lift()
-                )
-            if self.compliance and c == 0:  # d/dc_j = tau_j d/dq_j
-                path = state.placements.path(state.chains[c])
-                motions = joint_motions(path, kin, list(self.compliance))
-                gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]
-                J[:, :, robot:] = motion_rows(s, kin, d, *motions) * gain
+            J[:, :, mine] = s0.own_jacobian(x[mine], d, kin, s)
+            k = self.fixed
+            for rows in self._robot_rows(state, c, kin, torque, partial(motion_rows, s, kin, d)):
+                J[:, :, k : k + rows.shape[2]] = rows
+                k += rows.shape[2]
             return J
         own, shared, index = self._contact_parts(start, state, x, c, d, kin, torque)
         o, k = own.shape[2], con.stop - con.start
@@ -502,23 +492,3 @@ class ChainsModel:
         J[:, :, con] = shared[:, :, :k]
         J[:, :, self.fixed : self.fixed + shared.shape[2] - k] = shared[:, :, k:]
         return J
-
-    def _robot_columns(
-        self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin: JointFrames
-    ) -> np.ndarray:
-        """Weighted gap rows of the free placement components for chain c ``(m, r, free)``."""
-        return _gap_rows(
-            s, d, kin, *twist_columns(state.placements, state.chains[c], kin, self._lift())
-        )
-
-    def _compliance_columns(
-        self, state: ChainsState, c: int, s: ContactState, d: ContactData, kin, torque
-    ) -> np.ndarray:
-        """Weighted gap rows of the free compliances of chain c ``(m, r, k)``.
-
-        ``q' = q + c tau``: d/dc_j is tau_j times d/dq_j (:func:`joint_rows`, in the
-        deflected frames ``kin``).
-        """
-        joints = list(self.compliance)
-        gain = np.asarray(torque, dtype=float)[:, None, joints]  # (m, 1, k)
-        return joint_rows(state.placements.path(state.chains[c]), s, d, kin, joints) * gain

@@ -148,18 +148,9 @@ def chains_model(
     ``free`` of the directions ``names`` (rows of ``directions``; None: components), and the
     joints ``comp`` whose compliance is free.
     """
-    kinds = tuple(s.kind for s in state.states)
+    p, c, kinds = tuple(plane_of), tuple(comp), tuple(s.kind for s in state.states)
     counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
-    return ChainsModel(
-        tuple(plane_of),
-        len(set(plane_of)),
-        tuple(free),
-        tuple(names),
-        directions,
-        kinds,
-        counts,
-        tuple(comp),
-    )
+    return ChainsModel(p, len(set(p)), tuple(free), tuple(names), directions, kinds, counts, c)
 
 
 def offer_directions(
@@ -387,7 +378,7 @@ def selection_columns(
 ):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.
 
-    Many objects (:func:`_blocky`): the objects' columns by block
+    Many objects (:func:`blocky`): the objects' columns by block
     (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
     Jacobians at the registration made so far (:class:`AtStart`), or None.
 

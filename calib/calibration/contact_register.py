@@ -31,12 +31,7 @@ from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_checks import subset
 from .contact_choice import chains_model, flush_data, structural
 from .contact_model import ContactState
-from .contact_term import (
-    check_touches,
-    contact_frame,
-    contact_guess,
-    split_contacts,
-)
+from .contact_term import check_touches, contact_frame, contact_guess, split_contacts
 from .instrument import instrument_groups, shared_frame
 from .measured_options import compliance_torques
 from .measured_term import (
@@ -48,13 +43,7 @@ from .measured_term import (
 )
 from .options import Options, check_run_options
 from .outliers import Outlier
-from .pixel_chain import (
-    PixelData,
-    PixelPart,
-    PixelTermState,
-    check_pixels,
-    pixel_parts,
-)
+from .pixel_chain import PixelData, PixelPart, PixelTermState, check_pixels, pixel_parts
 from .pixel_fit import checked_pixels
 from .placements import Placements, zero_frames
 from .solve import fit
@@ -163,28 +152,25 @@ def _checked(
         if isinstance(d, Measurements | PixelPart):
             if found:
                 more.append(outliers.set_aside_note(found))
-            notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
-            kept.append(d.subset(~bad) if bad.any() else d)
-            dropped.append(tuple(found))
-            registered.append(state)
-            continue
-        g = contact_guess(d.kind, guess[0], len(chains))
-        start, bad, out, more = contact_checks.checked_registration(
-            chain, from_chain(chain, zero=zero), d, v, g, weight
-        )
-        if out:
-            more.append(outliers.set_aside_note(out, "touch(es)", "gap"))
-            d = subset(d, ~bad)
-        held[c] = contact_checks.held_out_set_aside(start, d, held[c], more)
-        more += filter(None, [contact_checks.isolated_postures(chain, d, held[c])])
-        what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
-        out_m = 0 if held[c] is None else held[c].m
-        rows, size = len(d.kind.row_names), start.frames.size
-        determined.check_equations(d.m, rows, size, what, d.source, held=out_m, unit="touches")
+            d = d.subset(~bad) if bad.any() else d
+        else:
+            g = contact_guess(d.kind, guess[0], len(chains))
+            state, bad, found, more = contact_checks.checked_registration(
+                chain, from_chain(chain, zero=zero), d, v, g, weight
+            )
+            if found:
+                more.append(outliers.set_aside_note(found, "touch(es)", "gap"))
+                d = subset(d, ~bad)
+            held[c] = contact_checks.held_out_set_aside(state, d, held[c], more)
+            more += filter(None, [contact_checks.isolated_postures(chain, d, held[c])])
+            what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
+            out_m = 0 if held[c] is None else held[c].m
+            rows, size = len(d.kind.row_names), state.frames.size
+            determined.check_equations(d.m, rows, size, what, d.source, held=out_m, unit="touches")
         notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
         kept.append(d)
-        dropped.append(tuple(out))
-        registered.append(start)
+        dropped.append(tuple(found))
+        registered.append(state)
     return kept, dropped, registered
 
 

@@ -77,11 +77,6 @@ def _configs_needed(unknowns: int, rows: int) -> int:
     return unknowns // rows + 1
 
 
-def _fitted(m: int, held: int, unit: str) -> str:
-    out = f"{m} {unit} to fit"
-    return out + (f" ({held} held out)" if held else "")
-
-
 def check_equations(
     m: int, rows: int, unknowns: int, what: str, source: str, *, held: int = 0, unit: str = ""
 ) -> None:
@@ -101,10 +96,10 @@ def check_equations(
     """
     if m * rows > unknowns:
         return
-    unit = unit or "configurations"
+    unit, out = unit or "configurations", f" ({held} held out)" if held else ""
     raise DataError(
         source,
-        f"{_fitted(m, held, unit)} give {m * rows} equations for the {unknowns} {what}: it "
+        f"{m} {unit} to fit{out} give {m * rows} equations for the {unknowns} {what}: it "
         f"needs at least {_configs_needed(unknowns, rows)} {unit} (more equations than "
         f"unknowns)",
     )
@@ -256,9 +251,7 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) ->
     if J.shape[1] == 0:
         return []
     norms = np.linalg.norm(J, axis=0)
-    if overwrite:
-        J /= np.where(norms > 0, norms, 1.0)
-    scaled = J if overwrite else J / np.where(norms > 0, norms, 1.0)
+    scaled = np.divide(J, np.where(norms > 0, norms, 1.0), out=J if overwrite else None)
     _, s, vt = np.linalg.svd(scaled, full_matrices=False)
     out = []
     for k in np.flatnonzero(s < s[0] / ILL_CONDITION)[::-1]:  # the weakest first

@@ -199,14 +199,14 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
     for t in problem.terms:
         if isinstance(t.data, Measurements):
             check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
-    p, shape = problem, problem.shape
-    if shape == "chains":
+    p, shape, held = problem, problem.shape, [t.validate for t in problem.terms]
+    if shape in ("chains", "contacts"):  # several terms, or one chain touching: a joint fit
         return calibrate_contact_chains(
             [cast(Chain, t.robot) for t in p.terms],
             [t.data for t in p.terms],
             contact=next((t.guess for t in p.terms if t.guess is not None), None),
             params=p.params,
-            validate=[t.validate for t in p.terms] if _validated(p) else None,
+            validate=held if any(h is not None for h in held) else None,
             orientation_weight=p.orientation_weight,
             shared_planes=p.shared_planes,
             pose_weight=p.pose_weight,
@@ -214,22 +214,9 @@ def solve(problem: Problem, progress: Progress | None = None) -> Result:
             holdout=p.holdout,
             seed=p.seed,
             progress=progress,
+            elastic=p.elastic,  # None or False for several terms (APPLIES)
         )
     term = p.terms[0]  # its robot's and data's types are the shape's (Problem checks them)
-    if shape == "contacts":  # one chain touching: a joint fit of one term
-        return calibrate_contact_chains(
-            [cast(Chain, term.robot)],
-            [term.data],
-            contact=term.guess,
-            params=p.params,
-            validate=[term.validate] if term.validate is not None else None,
-            orientation_weight=p.orientation_weight,
-            max_iterations=p.max_iterations,
-            holdout=p.holdout,
-            seed=p.seed,
-            progress=progress,
-            elastic=p.elastic,
-        )
     if shape == "tree":
         return _tree(p, term, progress)
     return measured_chain(p, term, progress)
@@ -334,8 +321,3 @@ def measured_chain(
         return dataclasses.replace(fit_registered(registered), shape="chain")
 
     return fit_until_stable(register, fit, train, problem.noise_mm)
-
-
-def _validated(problem: Problem) -> bool:
-    """Whether any term of a problem has validation data."""
-    return any(t.validate is not None for t in problem.terms)

@@ -61,11 +61,6 @@ TOOL_NAMES = ("tool.rx", "tool.ry", "tool.rz")
 """Names of the measured frame's rotation in the tool frame [rad] (pose data)."""
 
 
-def _marker_names(k: int) -> tuple[str, str, str]:
-    """Names of marker k's coordinates (1-based) in the tool frame [m]."""
-    return (f"marker{k}.x", f"marker{k}.y", f"marker{k}.z")
-
-
 def compliance_name(joint: int) -> str:
     """Name of the compliance of joint ``joint`` (0-based): ``c<row>``, e.g. ``c3``."""
     return f"c{joint + 1}"
@@ -195,7 +190,7 @@ class ErrorModel:
         """Names of the free parameters, in the order of x."""
         out: list[str] = list(FRAME_NAMES) if self.frame else []
         if self.markers:
-            out += [n for k in range(self.n_markers) for n in _marker_names(k + 1)]
+            out += [f"marker{k + 1}.{a}" for k in range(self.n_markers) for a in "xyz"]
         if self._tool_free:
             out += TOOL_NAMES
         out += self.base

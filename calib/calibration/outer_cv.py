@@ -16,12 +16,10 @@ __all__ = ["outer_cv"]
 
 
 def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
-    """Held-out squared error of each candidate model's fits, pooled over the guard's folds.
+    """Held-out squared error of each candidate model's fits, by fold (module text).
 
-    Each fold's fit is the ridge fit of the candidate's columns on its training rows; its
-    error on the held-out rows comes from the moments of the held-out rows (``A_h^T A_h``,
-    ``A_h^T e_h``, ``|e_h|^2``), about the whole data's least-squares fit (whose residuals
-    are small: the moments keep their digits), so that no array larger than the data is made.
+    The held-out rows' moments (``A_h^T A_h``, ``A_h^T e_h``, ``|e_h|^2``) are taken about
+    the whole data's least-squares fit (whose residuals are small: they keep their digits).
 
     Args:
         A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.

@@ -256,17 +256,12 @@ class Placements:
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
         bases = axis_bases(model, ids)
         names = tuple(model.names[j] for j in ids)
-        out = Placements(model, model, names, ids, bases, np.zeros((len(ids), 6)), tuple(chains))
-        zeros = zero_frames(chains) if zeros is None else zeros
-        return dataclasses.replace(out, paths=out._paths(zeros))
-
-    def _paths(self, zeros: tuple) -> tuple[ChainPath, ...]:
-        """Each chain's path from its frames at zero on the model (:func:`zero_frames`)."""
-        out = []
-        for c, zero in zip(self.chains, zeros, strict=True):
-            columns = np.array([self.joints.index(n) for n in c.joint_names], dtype=int)
-            out.append(ChainPath.of(c, zero, self.bases[columns], columns))
-        return tuple(out)
+        paths = []
+        for c, zero in zip(chains, zero_frames(chains) if zeros is None else zeros, strict=True):
+            columns = np.array([names.index(n) for n in c.joint_names], dtype=int)
+            paths.append(ChainPath.of(c, zero, bases[columns], columns))
+        y = np.zeros((len(ids), 6))
+        return Placements(model, model, names, ids, bases, y, tuple(chains), tuple(paths))
 
     def names(self) -> tuple[str, ...]:
         """Column names, joint-major: ``<joint>:x`` ... ``<joint>:rz``."""
@@ -376,9 +371,8 @@ class Placements:
     def chain_models(self, chains: tuple[Chain, ...]) -> tuple[MDHModel, ...]:
         """The MDH model of each chain on the perturbed robot (one walk for equal zeros)."""
         model = self._robot()
-        moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
-        zeros = zero_frames(tuple(moved))
-        return tuple(from_chain(c, zero=z) for c, z in zip(moved, zeros, strict=True))
+        moved = tuple(dataclasses.replace(c, model=model, ideal_model=None) for c in chains)
+        return tuple(from_chain(c, zero=z) for c, z in zip(moved, zero_frames(moved), strict=True))
 
 
 def zero_frames(chains: tuple[Chain, ...]) -> tuple:

@@ -32,7 +32,7 @@ TOLERANCE = 1e-10
 
 
 class FitState(Protocol):
-    """What a fit needs of a state (a chain's :class:`State` or a tree's ``TreeState``)."""
+    """What a fit needs of a state (a chain's :class:`State`, the joint fit's ``ChainsState``)."""
 
     def residuals(self, data: Any, torque: np.ndarray | None = None) -> np.ndarray:
         """Measured - model per configuration ``(m, rows)`` [m, rad]."""
@@ -64,7 +64,7 @@ _State = TypeVar("_State", bound=FitState)
 
 
 class FitModel(Protocol[_State]):
-    """What a fit needs of an error model (a chain's :class:`ErrorModel` or a tree's)."""
+    """What a fit needs of an error model (:class:`ErrorModel`, the joint fit's ``ChainsModel``)."""
 
     @property
     def n_markers(self) -> int:
