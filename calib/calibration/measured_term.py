@@ -45,7 +45,6 @@ from .contact_result import GapStats, row_stats
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
-from .placements import twist_columns
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
@@ -54,7 +53,6 @@ __all__ = [
     "Seen",
     "check_measured",
     "checked_measured",
-    "measured_columns",
     "measured_kind",
     "measured_stats",
     "measuring_joint",
@@ -296,20 +294,6 @@ class MeasuredState:
         """
         inner = None if moved is None else moved.inner
         return self.weighed(self._own.jacobian(self.inner, x, data, None, inner, kin))
-
-
-def measured_columns(placements, chain, state: MeasuredState, kin, data, lift) -> np.ndarray:
-    """Weighted d(prediction)/d(free placement directions) ``(m, rows, free)``.
-
-    Args:
-        placements: The current joint placement errors.
-        chain: The term's nominal chain.
-        state: Its state.
-        kin: The chain's frames at the data's joints (:meth:`~.placements.Placements.frames`).
-        data: Its measurements.
-        lift: The free directions ``(free, 6 J)``.
-    """
-    return motion_rows(state, kin, data, *twist_columns(placements, chain, kin, lift))
 
 
 def motion_rows(state: MeasuredState, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
