@@ -32,7 +32,6 @@ import numpy as np
 
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
-from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
@@ -40,7 +39,7 @@ from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import determined, validation
-from .chain_registration import checked_registration, held_out_outliers
+from .chain_registration import checked_registration, frames_model, held_out_outliers
 from .contact_result import GapStats, row_stats
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
@@ -59,7 +58,6 @@ __all__ = [
     "motion_rows",
     "one_term_per_frame",
     "own_change",
-    "own_model",
     "unseen",
 ]
 
@@ -184,17 +182,6 @@ def check_measured(
     determined.check_equations(postures - out, rows, unknowns, what, data.source, held=out)
 
 
-def own_model(kind: MeasuredKind) -> ErrorModel:
-    """The term's own unknowns as a chain's error model (no MDH parameter)."""
-    return ErrorModel(
-        ParameterSet("none", ()),
-        (),
-        np.zeros((0, 0)),
-        n_markers=kind.n_markers,
-        kind=POSE if kind.pose else POSITION,
-    )
-
-
 @dataclass(frozen=True, eq=False)
 class Seen:
     """A model's frames at some rows' joints, made once: the registration's, read again.
@@ -264,8 +251,8 @@ class MeasuredState:
 
     @cached_property
     def _own(self) -> ErrorModel:
-        """The term's own unknowns' model (:func:`own_model`, made once per state)."""
-        return own_model(self.kind)
+        """The term's own unknowns' model (the registration's, made once per state)."""
+        return frames_model(self.inner.n_markers, POSE if self.kind.pose else POSITION)
 
     def moved(self, x: np.ndarray) -> MeasuredState:
         """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
@@ -406,7 +393,7 @@ def measured_stats(
 
 
 def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
-    """The term's unknowns from the registration to ``state``, as x of :func:`own_model`.
+    """The term's unknowns from the registration to ``state``, as x of :meth:`MeasuredState._own`.
 
     The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
     changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).
