@@ -55,7 +55,6 @@ __all__ = [
     "measured_kind",
     "measured_stats",
     "measuring_joint",
-    "motion_rows",
     "one_term_per_frame",
     "own_change",
     "unseen",
@@ -271,7 +270,7 @@ class MeasuredState:
                     return kin
         return self.inner.kinematics(data.q)
 
-    def own_jacobian(
+    def own_rows(
         self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
     ) -> np.ndarray:
         """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
@@ -282,32 +281,30 @@ class MeasuredState:
         inner = None if moved is None else moved.inner
         return self.weighed(self._own.jacobian(self.inner, x, data, None, inner, kin))
 
+    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
 
-def motion_rows(state: MeasuredState, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
-    """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
-
-    Args:
-        state: The term's state.
-        kin: The chain's frames at the data's joints.
-        data: Its measurements.
-        lin: Each motion's velocity of the base frame's origin moving with the tool side
-            ``(m, 3, k)`` (in the base frame).
-        ang: Each motion's angular velocity ``(m, 3, k)``.
-    """
-    s = state.inner
-    R, p = kin.R[:, -1], kin.p[:, -1]
-    K, Rf = s.n_markers, s.frame[:3, :3]
-    W = np.empty((data.m, s.kind.full_rows(K), lin.shape[2]))
-    for k in range(K):
-        point = p + R @ s.markers[k]
-        W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
-    if s.tool_rotation is not None:
-        W[:, 3 * K :] = Rf @ ang
-    rot = None  # the measured frame's orientation (pose data only: no points predicted for it)
-    if s.kind.rotation_rows:
-        rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
-    error = None if rot is None else s.kind.rotation_error(data.observed, rot)
-    return state.weighed(s.kind.jacobian_rows(W, rotation_error=error, n_markers=K))
+        Args:
+            kin: The chain's frames at the data's joints.
+            data: Its measurements.
+            lin: Each motion's velocity of the base frame's origin moving with the tool side
+                ``(m, 3, k)`` (in the base frame).
+            ang: Each motion's angular velocity ``(m, 3, k)``.
+        """
+        s = self.inner
+        R, p = kin.R[:, -1], kin.p[:, -1]
+        K, Rf = s.n_markers, s.frame[:3, :3]
+        W = np.empty((data.m, s.kind.full_rows(K), lin.shape[2]))
+        for k in range(K):
+            point = p + R @ s.markers[k]
+            W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
+        if s.tool_rotation is not None:
+            W[:, 3 * K :] = Rf @ ang
+        rot = None  # the measured frame's orientation (pose data only: no points predicted for it)
+        if s.kind.rotation_rows:
+            rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+        error = None if rot is None else s.kind.rotation_error(data.observed, rot)
+        return self.weighed(s.kind.jacobian_rows(W, rotation_error=error, n_markers=K))
 
 
 def checked_measured(
