@@ -120,7 +120,7 @@ def proposals(nominal, reg, data: Measurements, opts, kin=None) -> np.ndarray:
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
     base, lift = moved(pset, nominal)
-    wide = frames_model(data).with_(params=pset, base=base, lift=lift)
+    wide = frames_model(data.n_markers, data.kind).with_(params=pset, base=base, lift=lift)
     w = row_weights(wide, opts.orientation_weight)
     J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
     rows = data.rows or tuple(range(1, data.m + 1))

@@ -18,6 +18,7 @@ from typing import cast
 import numpy as np
 
 from ..exceptions import DataError
+from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
@@ -36,14 +37,15 @@ __all__ = [
 ]
 
 
-def frames_model(data: Measurements) -> ErrorModel:
+def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
     """The registration's free parameters: frame, markers (and measured-frame rotation).
 
-    The registration fits them all (``fix`` of the frame or the markers is refused before
-    any registration, :func:`~.measured_options.asked_of`).
+    No MDH parameter: a measured term's own unknowns too. The registration fits them all
+    (``fix`` of the frame or the markers is refused before any registration,
+    :func:`~.measured_options.asked_of`).
     """
     return ErrorModel(
-        ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=data.n_markers, kind=data.kind
+        ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=n_markers, kind=kind
     )
 
 
@@ -54,7 +56,7 @@ def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
     closed-form start (no weight changes it) are made once, the start on the first call.
     """
     kin = nominal.kinematics(data.q)
-    model = frames_model(data)
+    model = frames_model(data.n_markers, data.kind)
 
     @functools.cache
     def start() -> State:
@@ -144,7 +146,7 @@ class _Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = frames_model(sub)
+            frames = frames_model(sub.n_markers, sub.kind)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
             return _registrations(nominal, sub, guess, opts)(weight)
@@ -194,7 +196,7 @@ def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, st
     """The steps on validation data (``held``: (data, label) or None), with their label."""
     if held is None:
         return []
-    frames = frames_model(held[0])
+    frames = frames_model(held[0].n_markers, held[0].kind)
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts)

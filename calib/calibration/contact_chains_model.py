@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property, partial
+from typing import cast
 
 import numpy as np
 
@@ -33,12 +34,11 @@ from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import skew
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactState
-from .measured_term import MeasuredKind, MeasuredState, motion_rows
+from .measured_term import MeasuredKind, MeasuredState
 from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
@@ -117,20 +117,6 @@ def _seen_joints(state, part, torque) -> np.ndarray:
     return _joints(part) if isinstance(s, PixelTermState) else s.joints(_joints(part), torque)
 
 
-def _gap_rows(s: ContactState, d: ContactData, kin, lin: np.ndarray, ang: np.ndarray):
-    """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of a chain touching.
-
-    ``lin``, ``ang`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving
-    with the tool side, and its angular velocity; ``kin``: the chain's frames at the touches.
-    """
-    R, p = kin.R[:, -1], kin.p[:, -1]
-    point = p + R @ s.contact[:3, 3]
-    W6 = np.concatenate([lin - skew(point) @ ang, ang], axis=1)  # the contact point's motion
-    index = s.frames.index(d.ids, d.source)
-    Rc, _ = s.frames.relative(R, p, index)
-    return s.kind.jacobian_rows(s.frames.rotate(W6, index), Rc) * s.row_weights()[None, :, None]
-
-
 def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """The tool side's motion per unit motion of a chain's joints ``joints``.
 
@@ -151,7 +137,7 @@ def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]
 
 def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
     """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``."""
-    return _gap_rows(s, d, kin, *joint_motions(path, kin, joints))
+    return s.motion_rows(kin, d, *joint_motions(path, kin, joints))
 
 
 def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
@@ -429,25 +415,11 @@ class ChainsModel:
         if len(self.plane_of) != 1 or not isinstance(start.states[0], ContactState):
             raise InvalidArgumentError("a fit by block is of one chain touching")
         state = self.apply(start, x)
-        kin = state.kinematics(data)[0]
-        parts = (data.parts[0], kin, data.torque(0))
-        own, shared, index = self._contact_parts(start, state, x, 0, *parts)
+        kin, s, d = state.kinematics(data)[0], cast(ContactState, state.states[0]), data.parts[0]
+        own, shared, index = start.states[0].blocks(self._chain_x(x, 0), d, None, kin, s)
+        robot = self._robot_rows(state, 0, kin, data.torque(0), partial(s.motion_rows, kin, d))
+        shared = np.concatenate([shared, *robot], axis=2)
         return start.scale(0) * own, start.scale(0) * shared, index
-
-    def _contact_parts(self, start: ChainsState, state: ChainsState, x, c: int, d, kin, torque):
-        """Contact chain c's rows by block: own object's, shared, each touch's object.
-
-        Shared: the contact's, the free placement directions', the compliances'.
-
-        ``kin``: chain c's frames at its touches (:meth:`ChainsState.kinematics`, deflected
-        by the gravity torques ``torque`` ``(m, n)``, or None).
-        """
-        s, s0 = state.states[c], start.states[c]
-        if not (isinstance(s, ContactState) and isinstance(s0, ContactState)):
-            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
-        own, shared, index = s0.blocks(self._chain_x(x, c), d, None, kin, s)
-        robot = self._robot_rows(state, c, kin, torque, partial(_gap_rows, s, d, kin))
-        return own, np.concatenate([shared, *robot], axis=2), index
 
     def _robot_rows(self, state: ChainsState, c: int, kin, torque, rows_of) -> list[np.ndarray]:
         """Chain c's rows of the free placement directions, then compliances (``(m, r, k)``).
@@ -470,25 +442,19 @@ class ChainsModel:
         """
         s, s0, chain, lift = state.states[c], start.states[c], state.chains[c], self._lift
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
-        obj, con, mine = self._columns[c]
+        mine = self._columns[c][2]
         if isinstance(s, PixelTermState) and isinstance(s0, PixelTermState):
-            J[:, :, obj], robot = pixel_block(state.placements, chain, s, s0, x[mine], d, lift, kin)
-            if self.free:
-                J[:, :, self.fixed :] = robot
-            return J
-        if isinstance(s, MeasuredState) and isinstance(s0, MeasuredState):
-            J[:, :, mine] = s0.own_jacobian(x[mine], d, kin, s)
-            k = self.fixed
-            for rows in self._robot_rows(state, c, kin, torque, partial(motion_rows, s, kin, d)):
-                J[:, :, k : k + rows.shape[2]] = rows
-                k += rows.shape[2]
-            return J
-        own, shared, index = self._contact_parts(start, state, x, c, d, kin, torque)
-        o, k = own.shape[2], con.stop - con.start
-        cols = obj.start + o * index[:, None] + np.arange(o)
-        J[np.arange(d.m)[:, None, None], np.arange(own.shape[1])[None, :, None], cols[:, None]] = (
-            own
-        )
-        J[:, :, con] = shared[:, :, :k]
-        J[:, :, self.fixed : self.fixed + shared.shape[2] - k] = shared[:, :, k:]
+            J[:, :, mine], robot = pixel_block(
+                state.placements, chain, s, s0, x[mine], d, lift, kin
+            )
+            robots = [robot]
+        elif isinstance(s, ContactState | MeasuredState) and isinstance(s0, type(s)):
+            J[:, :, mine] = s0.own_rows(x[mine], d, kin, s)  # type: ignore[arg-type]
+            robots = self._robot_rows(state, c, kin, torque, partial(s.motion_rows, kin, d))
+        else:
+            raise InvalidArgumentError(f"chain {c + 1}'s state is not of its term's kind")
+        k = self.fixed
+        for rows in robots:
+            J[:, :, k : k + rows.shape[2]] = rows
+            k += rows.shape[2]
         return J

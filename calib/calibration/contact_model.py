@@ -19,6 +19,8 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.mdh import Kinematics, MDHModel
+from ..kinematics.so3 import skew
+from .contact_blocks import dense
 from .contact_frames import ContactFrames, plane_frame, row_weights
 from .placements import JointFrames
 
@@ -133,6 +135,25 @@ class ContactState:
         own, shared = s.frames.parts(R, p, index, self._own(x))
         w = s.row_weights()[None, :, None]
         return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index
+
+    def own_rows(self, x: np.ndarray, data, kin, moved: ContactState | None = None) -> np.ndarray:
+        """:meth:`blocks` as one matrix ``(m, rows, size)`` (as a measured term's own rows)."""
+        own, shared, index = self.blocks(x, data, None, kin, moved)
+        return dense(own, shared, index, len(self.frames.ids))
+
+    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of the chain.
+
+        ``lin``, ``ang`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving
+        with the tool side, and its angular velocity; ``kin``: the chain's frames at the touches.
+        """
+        R, p = kin.R[:, -1], kin.p[:, -1]
+        point = p + R @ self.contact[:3, 3]
+        W6 = np.concatenate([lin - skew(point) @ ang, ang], axis=1)  # the contact point's motion
+        index = self.frames.index(data.ids, data.source)
+        Rc, _ = self.frames.relative(R, p, index)
+        rows = self.kind.jacobian_rows(self.frames.rotate(W6, index), Rc)
+        return rows * self.row_weights()[None, :, None]
 
 
 def plane_state(

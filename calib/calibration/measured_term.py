@@ -32,7 +32,6 @@ import numpy as np
 
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
-from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_vector, skew
@@ -40,7 +39,7 @@ from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import determined, validation
-from .chain_registration import checked_registration, held_out_outliers
+from .chain_registration import checked_registration, frames_model, held_out_outliers
 from .contact_result import GapStats, row_stats
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
@@ -56,10 +55,8 @@ __all__ = [
     "measured_kind",
     "measured_stats",
     "measuring_joint",
-    "motion_rows",
     "one_term_per_frame",
     "own_change",
-    "own_model",
     "unseen",
 ]
 
@@ -184,17 +181,6 @@ def check_measured(
     determined.check_equations(postures - out, rows, unknowns, what, data.source, held=out)
 
 
-def own_model(kind: MeasuredKind) -> ErrorModel:
-    """The term's own unknowns as a chain's error model (no MDH parameter)."""
-    return ErrorModel(
-        ParameterSet("none", ()),
-        (),
-        np.zeros((0, 0)),
-        n_markers=kind.n_markers,
-        kind=POSE if kind.pose else POSITION,
-    )
-
-
 @dataclass(frozen=True, eq=False)
 class Seen:
     """A model's frames at some rows' joints, made once: the registration's, read again.
@@ -264,8 +250,8 @@ class MeasuredState:
 
     @cached_property
     def _own(self) -> ErrorModel:
-        """The term's own unknowns' model (:func:`own_model`, made once per state)."""
-        return own_model(self.kind)
+        """The term's own unknowns' model (the registration's, made once per state)."""
+        return frames_model(self.inner.n_markers, POSE if self.kind.pose else POSITION)
 
     def moved(self, x: np.ndarray) -> MeasuredState:
         """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
@@ -284,7 +270,7 @@ class MeasuredState:
                     return kin
         return self.inner.kinematics(data.q)
 
-    def own_jacobian(
+    def own_rows(
         self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
     ) -> np.ndarray:
         """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
@@ -295,32 +281,30 @@ class MeasuredState:
         inner = None if moved is None else moved.inner
         return self.weighed(self._own.jacobian(self.inner, x, data, None, inner, kin))
 
+    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
 
-def motion_rows(state: MeasuredState, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
-    """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
-
-    Args:
-        state: The term's state.
-        kin: The chain's frames at the data's joints.
-        data: Its measurements.
-        lin: Each motion's velocity of the base frame's origin moving with the tool side
-            ``(m, 3, k)`` (in the base frame).
-        ang: Each motion's angular velocity ``(m, 3, k)``.
-    """
-    s = state.inner
-    R, p = kin.R[:, -1], kin.p[:, -1]
-    K, Rf = s.n_markers, s.frame[:3, :3]
-    W = np.empty((data.m, s.kind.full_rows(K), lin.shape[2]))
-    for k in range(K):
-        point = p + R @ s.markers[k]
-        W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
-    if s.tool_rotation is not None:
-        W[:, 3 * K :] = Rf @ ang
-    rot = None  # the measured frame's orientation (pose data only: no points predicted for it)
-    if s.kind.rotation_rows:
-        rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
-    error = None if rot is None else s.kind.rotation_error(data.observed, rot)
-    return state.weighed(s.kind.jacobian_rows(W, rotation_error=error, n_markers=K))
+        Args:
+            kin: The chain's frames at the data's joints.
+            data: Its measurements.
+            lin: Each motion's velocity of the base frame's origin moving with the tool side
+                ``(m, 3, k)`` (in the base frame).
+            ang: Each motion's angular velocity ``(m, 3, k)``.
+        """
+        s = self.inner
+        R, p = kin.R[:, -1], kin.p[:, -1]
+        K, Rf = s.n_markers, s.frame[:3, :3]
+        W = np.empty((data.m, s.kind.full_rows(K), lin.shape[2]))
+        for k in range(K):
+            point = p + R @ s.markers[k]
+            W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
+        if s.tool_rotation is not None:
+            W[:, 3 * K :] = Rf @ ang
+        rot = None  # the measured frame's orientation (pose data only: no points predicted for it)
+        if s.kind.rotation_rows:
+            rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+        error = None if rot is None else s.kind.rotation_error(data.observed, rot)
+        return self.weighed(s.kind.jacobian_rows(W, rotation_error=error, n_markers=K))
 
 
 def checked_measured(
@@ -406,7 +390,7 @@ def measured_stats(
 
 
 def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
-    """The term's unknowns from the registration to ``state``, as x of :func:`own_model`.
+    """The term's unknowns from the registration to ``state``, as x of :meth:`MeasuredState._own`.
 
     The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
     changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).

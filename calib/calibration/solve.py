@@ -18,7 +18,6 @@ __all__ = [
     "FitModel",
     "FitState",
     "Problem",
-    "StepState",
     "condition",
     "covariance",
     "fit",
@@ -31,20 +30,11 @@ TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
 
 
-class FitState(Protocol):
-    """What a fit needs of a state (a chain's :class:`State`, the joint fit's ``ChainsState``)."""
-
-    def residuals(self, data: Any, torque: np.ndarray | None = None) -> np.ndarray:
-        """Measured - model per configuration ``(m, rows)`` [m, rad]."""
-        ...
-
-
 @runtime_checkable
-class StepState(Protocol):
-    """A state whose kinematics a fit makes once per x.
+class FitState(Protocol):
+    """What a fit needs of a state (a chain's :class:`State`, the joint fit's ``ChainsState``).
 
-    They are passed to the residuals and the Jacobian (a chain's :class:`State`, the joint
-    fit's ``ChainsState``).
+    Its kinematics are made once per x and passed to the residuals and the Jacobian.
     """
 
     def step_kinematics(self, data: Any, torque: np.ndarray | None) -> Any:
@@ -56,7 +46,7 @@ class StepState(Protocol):
         ...
 
     def residuals(self, data: Any, torque: np.ndarray | None = None, kin: Any = None) -> Any:
-        """Measured - model per configuration, at the kinematics ``kin`` if given."""
+        """Measured - model per configuration ``(m, rows)``, at the kinematics ``kin`` if given."""
         ...
 
 
@@ -85,9 +75,9 @@ class FitModel(Protocol[_State]):
         ...
 
     def jacobian(
-        self, start: _State, x: np.ndarray, data: Any, torque: np.ndarray | None
+        self, start: _State, x: np.ndarray, data: Any, torque: Any, state: Any, kin: Any
     ) -> np.ndarray:
-        """d(model)/dx ``(m, rows, size)``."""
+        """d(model)/dx ``(m, rows, size)`` (``state`` at x and its ``kin``: None or made)."""
         ...
 
 
@@ -110,8 +100,8 @@ class Fit(Generic[_Model, _State]):
         message: scipy's message.
         iterations: Jacobian evaluations.
         evaluations: Residual evaluations.
-        kin: The kinematics of ``state`` at the data's joints (a :class:`StepState`'s, made
-            once per x), or None: what a caller scoring ``state`` on the same data passes on.
+        kin: The kinematics of ``state`` at the data's joints (made once per x), or None:
+            what a caller scoring ``state`` on the same data passes on.
     """
 
     model: _Model
@@ -142,10 +132,10 @@ class Problem:
     """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
-    at the solution: the state at the last two x are kept (for a :class:`StepState`, the
-    last one's kinematics, made once and passed to the residuals and the Jacobian, reused
-    while x moves no geometry: a chain's frame and markers; 77 MB at 100,000 poses), and the
-    Jacobian at the last x it was asked at (200 MB).
+    at the solution: the state at the last two x are kept (the last one's kinematics, made
+    once and passed to the residuals and the Jacobian, reused while x moves no geometry: a
+    chain's frame and markers; 77 MB at 100,000 poses), and the Jacobian at the last x it
+    was asked at (200 MB).
     """
 
     def __init__(self, model, start, data, torque, weight, prior=None, robust=True, kin=None):
@@ -155,7 +145,6 @@ class Problem:
         self.w = None if np.all(w == 1.0) else w  # None: rows of weight 1, not multiplied
         self.prior = prior  # (p,) weights of x in the prior rows, or None
         self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
-        self._chain = isinstance(start, StepState)
         self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
 
     def state(self, x: np.ndarray):
@@ -168,13 +157,11 @@ class Problem:
             if kept[0].shape == np.shape(x) and (kept[0] == x).all():  # np.array_equal's test
                 return kept
         state = self.model.apply(self.start, x)
-        kin = None
-        if self._chain:
-            kin = next((k[2] for k in self._kept if state.same_geometry(k[1])), None)
-            if kin is None and self.start_kin is not None and state.same_geometry(self.start):
-                kin = self.start_kin
-            if kin is None:
-                kin = state.step_kinematics(self.data, self.torque)
+        kin = next((k[2] for k in self._kept if state.same_geometry(k[1])), None)
+        if kin is None and self.start_kin is not None and state.same_geometry(self.start):
+            kin = self.start_kin
+        if kin is None:
+            kin = state.step_kinematics(self.data, self.torque)
         self._kept = [[np.array(x, dtype=float), state, kin, None], *self._kept[:1]]
         for other in self._kept[1:]:  # another geometry's kinematics: made again if asked
             if other[2] is not kin:
@@ -183,11 +170,8 @@ class Problem:
 
     def data_rows(self, x: np.ndarray) -> np.ndarray:
         """Weighted model - measured of the data, configuration-major ``(m rows,)``."""
-        _, state, kin, _ = self._at(x)
-        if kin is None:
-            f = -state.residuals(self.data, self.torque)
-        else:
-            f = -state.residuals(self.data, self.torque, kin)
+        _, state, kin, _ = self._at(x)  # kin None: another geometry's made since
+        f = -state.residuals(self.data, self.torque, kin)
         return (f if self.w is None else f * self.w).ravel()
 
     def fun(self, x: np.ndarray) -> np.ndarray:
@@ -203,10 +187,7 @@ class Problem:
                 if other is not kept:
                     other[3] = None
             _, state, kin, _ = kept
-            if kin is None:
-                J = self.model.jacobian(self.start, x, self.data, self.torque)
-            else:
-                J = self.model.jacobian(self.start, x, self.data, self.torque, state, kin)
+            J = self.model.jacobian(self.start, x, self.data, self.torque, state, kin)
             if self.w is not None:  # in place: a fresh array (100,000 rows: 65 MB saved)
                 J *= self.w[None, :, None]
             kept[3] = J.reshape(-1, J.shape[2])
@@ -250,8 +231,7 @@ def fit(
         loss: One of ``LOSSES``.
         scale: Residual scale of a robust loss [m].
         max_iterations: Most residual evaluations.
-        kin: The start's kinematics at the data's joints (a :class:`StepState`'s), if
-            already made.
+        kin: The start's kinematics at the data's joints, if already made.
     """
     import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
 

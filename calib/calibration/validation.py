@@ -31,7 +31,7 @@ from ..measurements.pixels import PixelObservations
 from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .residuals import ResidualStats
-from .solve import FitState, StepState
+from .solve import FitState
 
 __all__ = [
     "RANK_TOL",
@@ -212,9 +212,7 @@ def stats(
     ``kin``: its kinematics at the data's joints, if already made (a fit's
     :attr:`~.solve.Fit.kin`).
     """
-    if isinstance(state, StepState) and kin is not None:
-        return ResidualStats.of(state.residuals(data, torque, kin), data.n_markers)
-    return ResidualStats.of(state.residuals(data, torque), data.n_markers)
+    return ResidualStats.of(state.residuals(data, torque, kin), data.n_markers)
 
 
 def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
