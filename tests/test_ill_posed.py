@@ -94,6 +94,24 @@ def test_ill_posed_names_a_pair_of_equal_columns():
     assert ill_posed(rng.normal(size=(30, 4)), ("a", "b", "c", "d")) == []
 
 
+def test_ill_posed_finds_a_weak_direction_either_side_of_the_threshold():
+    """The singular values alone skip the vectors only when none can be weak."""
+    from calib.calibration.determined import ILL_CONDITION, ill_posed
+
+    rng = np.random.default_rng(2)
+    u, _ = np.linalg.qr(rng.normal(size=(30, 4)))
+    v, _ = np.linalg.qr(rng.normal(size=(4, 4)))
+    seen = set()
+    for ratio in (0.5, 0.7, 0.703, 0.7035, 0.705, 0.71, 2.0):  # the columns' scale: x1.42
+        J = u @ np.diag([1.0, 0.8, 0.5, ratio / ILL_CONDITION]) @ v.T
+        norms = np.linalg.norm(J, axis=0)
+        s = np.linalg.svd(J / norms, full_matrices=False)[1]
+        weak = int(np.sum(s < s[0] / ILL_CONDITION))
+        assert len(ill_posed(J, ("a", "b", "c", "d"))) == weak
+        seen.add(weak)
+    assert seen == {0, 1}
+
+
 def test_a_ceiling_touched_with_the_tool_up_names_the_tip_and_the_height():
     """Contacts: a drill tip on a ceiling (plane-point), the tool always pointing up: the tip's
     offset along the tool and the ceiling's height are one sum (and the tip's x, y unseen)."""

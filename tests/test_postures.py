@@ -165,3 +165,17 @@ def test_noise_free_round_trip_with_default_options(tmp_path):
         point = T[:3, :3] @ res.state.markers[0] + T[:3, 3]
         got.append(res.measurement_to_base[:3, :3] @ point + res.measurement_to_base[:3, 3])
     assert np.abs(np.array(got) - camp.measurements.points[:, 0]).max() < 1e-9
+
+
+def test_count_is_the_number_of_posture_groups():
+    """``count`` (rows sorted) counts what ``posture_groups`` numbers: repeats, keys, -0.0."""
+    from calib.measurements.postures import count, posture_groups
+
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        m, n = int(rng.integers(1, 30)), int(rng.integers(0, 5))
+        base = rng.normal(size=(max(m // 2, 1), n)) * rng.choice([1.0, 1e-6, 1e-7])
+        q = base[rng.integers(0, len(base), m)] + rng.choice([0, 1e-8]) * rng.normal(size=(m, n))
+        q = -0.0 * q if rng.random() < 0.2 else q
+        key = None if rng.random() < 0.5 else rng.choice(["a", "b", "c"], m)
+        assert count(q, key) == int(posture_groups(q, key).max()) + 1

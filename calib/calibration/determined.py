@@ -48,6 +48,7 @@ from .model import ErrorModel, State, generic_measurements, moved, nominal_state
 from .solve import row_weights
 
 __all__ = [
+    "CLEAR",
     "ILL_CONDITION",
     "ILL_STD",
     "MARKER_WORK_COPIES",
@@ -207,6 +208,11 @@ give a condition of 10 to 300: the TIAGo's and UR10's, simulated UR5s)."""
 NAMED = 0.3
 """Smallest component, in an undetermined unit direction, of an unknown it names."""
 
+CLEAR = 1.01
+"""Factor over the weak threshold (``1 / ILL_CONDITION`` of the largest) of the smallest
+singular value computed alone by which no singular value computed with the vectors can be
+under it (their round-offs differ by ~1e-16 of the largest): :func:`ill_posed` skips them."""
+
 
 @dataclass(frozen=True)
 class Direction:
@@ -252,6 +258,9 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) ->
         return []
     norms = np.linalg.norm(J, axis=0)
     scaled = np.divide(J, np.where(norms > 0, norms, 1.0), out=J if overwrite else None)
+    s = np.linalg.svd(scaled, compute_uv=False)  # half the time of the vectors'
+    if s[-1] > CLEAR * s[0] / ILL_CONDITION:  # none weak, whatever the round-off: no vectors
+        return []
     _, s, vt = np.linalg.svd(scaled, full_matrices=False)
     out = []
     for k in np.flatnonzero(s < s[0] / ILL_CONDITION)[::-1]:  # the weakest first
