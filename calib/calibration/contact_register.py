@@ -1,6 +1,7 @@
 """A joint fit's steps before its choice (:func:`register_contact_chains`).
 
-The terms checked, their outliers set aside, each chain registered on the nominal robot.
+A :class:`Run` (the engine's terms and arguments, once) checked, its held-out rows drawn,
+its outliers set aside, each chain registered on the nominal robot.
 
 :func:`~.contact_chains.calibrate_contact_chains` is :func:`register_contact_chains` then
 :func:`~.contact_chains.fit_registered`; one chain measured by an instrument is registered

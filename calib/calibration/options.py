@@ -2,7 +2,8 @@
 
 The command line builds its parser from the constants here without importing the
 calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
-arguments for a chain and a tree and turns them into one :class:`Options`, checked once when
+arguments for a chain and a tree and turns them into one :class:`Options` (a
+:class:`~calib.calibration.problem.Problem` is its terms and its options), checked once when
 it is made; what applies to some shapes only is one table (:data:`APPLIES`), and a tree's
 level is checked by :func:`check_tree_level`.
 """
