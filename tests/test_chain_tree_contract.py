@@ -62,14 +62,13 @@ def test_chain_and_tree_calibrations_take_the_same_arguments():
     for p in list(chain.values())[:2] + list(tree.values())[:2]:
         assert p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD
     # a tree takes the level, max_iterations, holdout and seed; the rest is for one chain
-    run = {"level", "max_iterations", "holdout", "seed"}
+    run = {"params", "max_iterations", "holdout", "seed"}
     fields = {f.name for f in dataclasses.fields(Options)}
     assert {k for k, shapes in APPLIES.items() if "tree" not in shapes} & fields == fields - run
-    # every option but the level is a field of Options, with the same default
+    # every option is a field of Options, with the same default
     options = {f.name: f.default for f in dataclasses.fields(Options)}
     for name, default in options.items():
-        if name != "level":
-            assert chain[name].default == default, name
+        assert chain[name].default == default, name
 
 
 @pytest.mark.parametrize(
@@ -103,7 +102,7 @@ def test_options_are_checked_when_made():
         ({"fix": ("d3", "d3")}, "fix names a parameter twice"),
         ({"fix": ("d3",), "free": ("d3",)}, "d3 both fixed and free"),
         ({"fix": (3,)}, "parameter names"),
-        ({"level": "all"}, "unknown parameter level 'all'"),
+        ({"params": "all"}, "unknown parameter level 'all'"),
         ({"loss": "cauchy"}, "unknown loss"),
         ({"elastic": "yes"}, "elastic is True, False or None"),
         ({"noise_mm": -1.0}, "noise must be a finite number > 0"),
@@ -132,8 +131,10 @@ def test_a_problems_options_are_its_values_under_the_same_names(ur5):
         "seed": 4,
     }
     problem = Problem((Term(*ur5),), params="paper", **given)
-    assert problem.options() == Options(level="paper", **given)
+    assert problem.options() == Options(params="paper", **given)
+    assert isinstance(problem, Options) and problem.params == "paper"  # a problem's options
     assert Problem((Term(*ur5),)).options() == Options()  # a chain's level unless given
+    assert Options().level == "auto" and Options(params="paper").level == "paper"
 
 
 @pytest.mark.parametrize(

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from contact_scorer import plane_gaps, read_joints, relative_placements
 
-from calib import calibrate_contact_chains, load_robot
+from calib import calibrate_contact_chains, load_robot, simulate
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_model import plane_state
 from calib.calibration.contact_term import split_contacts
@@ -398,3 +398,29 @@ def test_a_fit_step_makes_each_chains_frames_once(monkeypatch):
     problem.jac(x)
     problem.fun(x)
     assert made == list(chains)
+
+
+def test_the_engines_keywords_are_its_run_and_its_options():
+    """calibrate_contact_chains's keywords are a Run's fields, its options those of Options
+    the joint fit takes; a bad one refused in one line (``elastic`` is True, False or None)."""
+    import dataclasses
+    import inspect
+
+    from calib.calibration.contact_chains import Run
+    from calib.calibration.options import Options
+
+    given = set(list(inspect.signature(calibrate_contact_chains).parameters)[2:])
+    run = {f.name for f in dataclasses.fields(Run)} - {"chains", "data", "options"}
+    options = {"params", "orientation_weight", "max_iterations", "holdout", "seed", "elastic"}
+    assert given == run | options and options <= {f.name for f in dataclasses.fields(Options)}
+    chains = _chains()
+    data = [simulate_contacts(c, 12, "plane", seed=2).data for c in chains]
+    with pytest.raises(InvalidArgumentError, match="elastic is True, False or None"):
+        calibrate_contact_chains(chains[:1], data[:1], elastic="yes")
+    # one chain measured: its elastic is the measured chain's (compliances offered), as
+    # calibrate's; it was refused here as if it were touches
+    ur5 = load_robot("ur5")
+    rows = simulate(ur5, 40, "position", (0.01, 0.02, 0.05), seed=1).measurements
+    fitted = calibrate_contact_chains([ur5], [rows], elastic=True, params="complete",
+                                      instrument=True)  # fmt: skip
+    assert "c2" in fitted.free

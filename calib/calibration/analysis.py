@@ -92,7 +92,8 @@ def _count(problem: Problem) -> ProblemAnalysis:
     instrument, its frame one unknown.
     """
     from ..measurements.data import Measurements
-    from .contact_chains import determined_unknowns
+    from .contact_chains import Run, determined_unknowns
+    from .options import Options
     from .tree_checks import prepare_tree
 
     terms = problem.terms
@@ -103,15 +104,11 @@ def _count(problem: Problem) -> ProblemAnalysis:
         chains, data = list(tree.chains), prepare_tree(tree, rows, None, 0.0, 0)[0]
     else:
         chains, data = [cast(Chain, t.robot) for t in terms], [t.data for t in terms]
-    base, unknowns = determined_unknowns(
-        chains,
-        data,
-        contact=guesses[0] if guesses else None,
-        shared_planes=problem.shared_planes,
-        pose_weight=problem.pose_weight,
-        max_iterations=problem.max_iterations,
-        instrument=problem.shape in ("chain", "tree"),
-    )
+    options = Options(max_iterations=problem.max_iterations)  # every row, as registered
+    run = Run(chains, data, None, options, guesses[0] if guesses else None,
+              shared_planes=problem.shared_planes, pose_weight=problem.pose_weight,
+              instrument=problem.shape in ("chain", "tree"))  # fmt: skip
+    base, unknowns = determined_unknowns(run)
     return ProblemAnalysis(
         terms[0].robot.name, problem.shape, tuple(repr(t) for t in terms), unknowns, base
     )

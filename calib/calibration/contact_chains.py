@@ -62,6 +62,7 @@ from .contact_model import ContactState
 from .contact_register import (
     CHAIN_LEVELS,
     Registered,
+    Run,
     determined_unknowns,
     register_contact_chains,
 )
@@ -72,7 +73,7 @@ from .contact_term import (
 )
 from .measured_options import level_offer
 from .measured_term import MeasuredState, unseen
-from .options import Options, checked_arguments
+from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import (
     PixelData,
     PixelTermState,
@@ -85,6 +86,7 @@ __all__ = [
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
+    "Run",
     "calibrate_contact_chains",
     "determined_unknowns",
     "fit_registered",
@@ -103,7 +105,7 @@ def calibrate_contact_chains(
     orientation_weight: float | None = None,
     shared_planes: bool = False,
     pose_weight: float = 1.0,
-    max_iterations: int = 100,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
@@ -112,9 +114,11 @@ def calibrate_contact_chains(
     elastic: bool | None = None,
     support: Support | None = None,
     marker=None,
-    options: Options | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot from flush touches, together (module text).
+
+    The arguments are made one :class:`Run` (its options one :class:`~.options.Options`),
+    registered (:func:`register_contact_chains`) and fitted (:func:`fit_registered`).
 
     Args:
         chains: The nominal chains (one URDF; each base: where its plane is expressed;
@@ -127,8 +131,8 @@ def calibrate_contact_chains(
         contact: Guess of every plane chain's contact frame in its tool frame: ``(4, 4)``
             or ``X Y Z [RX RY RZ]`` [m, rad] (default: the tool frame; a fixed-pose chain's
             is its tool frame).
-        params: ``auto`` (default), ``frames`` (the registration only), ``offsets`` or
-            ``complete``.
+        params: ``auto`` (default), ``frames`` (the registration only), ``offsets``,
+            ``paper`` or ``complete``.
         validate: Per chain, touches of other postures to score the result on, or None.
         orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
             :func:`~.weighting.estimate_weight` on its registration).
@@ -150,13 +154,12 @@ def calibrate_contact_chains(
             caller, not again); None: each one's source.
         elastic: One chain touching planes: its joint compliances are candidates too, under
             the gravity torques of the robot standing on the chain's base frame
-            (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file).
+            (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file); one
+            chain measured: under the URDF's gravity torques (:mod:`.measured_options`).
         support: With ``elastic``: the load split with a second foot
             (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
         marker: Guess of each measured term's markers in its tool frame [m]: one point
             for all or one per marker (default: zeros), the registration's start.
-        options: One measured chain's :class:`~.options.Options` (``noise_mm``, ``loss``,
-            ``fix``/``free``, ``elastic``: :mod:`.measured_options`); None: the defaults.
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -165,26 +168,29 @@ def calibrate_contact_chains(
         InvalidArgumentError: A bad argument.
         DataError: Touches that do not belong to their chain or determine too little.
     """
-    return fit_registered(register_contact_chains(
-        chains, data, contact=contact, params=params, validate=validate,
-        orientation_weight=orientation_weight, shared_planes=shared_planes,
-        pose_weight=pose_weight, max_iterations=max_iterations, holdout=holdout, seed=seed,
-        progress=progress, instrument=instrument, held_label=held_label, elastic=elastic,
-        support=support, marker=marker, options=options,
-    ))  # fmt: skip
+    if params is not None and params not in CHAIN_LEVELS:
+        raise InvalidArgumentError(
+            f"params must be one of {', '.join(CHAIN_LEVELS)}, got {params!r:.40}"
+        )
+    w = None if orientation_weight is None else float(orientation_weight)
+    if w is not None and not (np.isfinite(w) and w > 0):
+        raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
+    options = Options(params=params, orientation_weight=orientation_weight, elastic=elastic,
+                      max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
+    run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,
+              instrument, held_label, support, progress)  # fmt: skip
+    return fit_registered(register_contact_chains(run))
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:
-    """Select, fit and assemble a registered calibration (:func:`calibrate_contact_chains`)."""
-    chains, level, opts, train, held, validate, held_label, dropped, notes, plane_of = (
-        r.chains, r.level, r.opts, r.train, r.held, r.validate, r.held_label, r.dropped,
-        r.notes, r.plane_of)  # fmt: skip
-    load, torques, comp, start = r.load, r.torques, r.comp, r.start
-    notes, clock = list(notes), list(r.clock)  # a registration fitted twice: its own lists
-    max_iterations, seed, instrument, options, progress = (
-        r.max_iterations, r.seed, r.instrument, r.options, r.progress)  # fmt: skip
+    """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`)."""
+    run, train, held, plane_of, load, torques, comp, start = (
+        r.run, r.train, r.held, r.plane_of, r.load, r.torques, r.comp, r.start)  # fmt: skip
+    chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
+    level, seed = opts.level, opts.seed
+    notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
     with phase(progress, "calibrate: selection"):
-        asked, offer = level_offer(chains[0], start, level, instrument, options)
+        asked, offer = level_offer(chains[0], start, level, instrument, opts)
         flush = flush_data(start, train, load)
         rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
@@ -199,7 +205,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             structural(wide, start, flush))  # fmt: skip
     clock.append(time.perf_counter())
     with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, rows, prior, offer, max_iterations, opts, kin)
+        fitted, polished = _fit(model, wide, start, rows, prior, offer, opts, kin)
     if polished:
         notes.append(
             f"polished with all {len(wide.free)} joint placement components (composed with "
@@ -221,10 +227,10 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         clock,
         (load, torques),
     )
-    given = validate or [None] * len(held)
-    labels = [None if h is None else "holdout" if v is None else held_label or v.source
+    given = run.validate or [None] * len(held)
+    labels = [None if h is None else "holdout" if v is None else run.held_label or v.source
               for h, v in zip(held, given, strict=True)]  # fmt: skip
-    pairs = zip(result.chains, labels, dropped, strict=True)
+    pairs = zip(result.chains, labels, r.dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     cov = solution.covariance()[0]
     values = fitted_values(fitted, cov)
@@ -248,7 +254,7 @@ ROUND_OFF = 1e-12
 
 
 def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
-         level, iters, opts: Options, kin=None):  # fmt: skip
+         level, opts: Options, kin=None):  # fmt: skip
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -275,7 +281,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     Returns:
         The fit, and whether it was polished.
     """
-    data = train
+    data, iters = train, opts.max_iterations
     if blocky(model, start):
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:

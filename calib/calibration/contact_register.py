@@ -1,6 +1,7 @@
 """A joint fit's steps before its choice (:func:`register_contact_chains`).
 
-The terms checked, their outliers set aside, each chain registered on the nominal robot.
+A :class:`Run` (the engine's terms and arguments, once) checked, its held-out rows drawn,
+its outliers set aside, each chain registered on the nominal robot.
 
 :func:`~.contact_chains.calibrate_contact_chains` is :func:`register_contact_chains` then
 :func:`~.contact_chains.fit_registered`; one chain measured by an instrument is registered
@@ -14,8 +15,6 @@ import dataclasses
 import time
 from collections.abc import Sequence
 from typing import Any
-
-import numpy as np
 
 from ..core.checks import MAX_WEIGHT, check_number
 from ..core.progress import Progress, phase
@@ -41,7 +40,7 @@ from .measured_term import (
     measured_kind,
     one_term_per_frame,
 )
-from .options import Options, check_run_options
+from .options import Options
 from .outliers import Outlier
 from .pixel_chain import PixelData, PixelPart, PixelTermState, check_pixels, pixel_parts
 from .pixel_fit import checked_pixels
@@ -51,6 +50,7 @@ from .solve import fit
 __all__ = [
     "CHAIN_LEVELS",
     "Registered",
+    "Run",
     "determined_unknowns",
     "register_contact_chains",
 ]
@@ -59,7 +59,40 @@ CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
 """Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
 
 
-def _check(chains, data, validate, params, holdout, instrument=False) -> None:
+@dataclasses.dataclass(frozen=True, eq=False)
+class Run:
+    """One run of the joint engine: its terms and every argument, written once.
+
+    Made by :func:`~.contact_chains.calibrate_contact_chains` from its keywords and by
+    :func:`~.entry.calibrate` from a problem; checked by :func:`register_contact_chains`.
+
+    Attributes:
+        options: The options, one checked value (:class:`~.options.Options`: the level,
+            ``orientation_weight``, ``max_iterations``, ``holdout``, ``seed``, ``elastic``;
+            one measured chain's ``fix``/``free``, ``loss``, ``noise_mm``:
+            :mod:`.measured_options`).
+        chains, data, validate, contact, marker, shared_planes, pose_weight, instrument,
+            held_label, support, progress: As
+            :func:`~.contact_chains.calibrate_contact_chains`'s arguments.
+    """
+
+    chains: Sequence[Chain]
+    data: Sequence[ContactData | Measurements | PixelData]
+    validate: Sequence[ContactData | Measurements | PixelData | None] | None = None
+    options: Options = dataclasses.field(default_factory=Options)
+    contact: Any = None
+    marker: Any = None
+    shared_planes: bool = False
+    pose_weight: float = 1.0
+    instrument: bool = False
+    held_label: str | None = None
+    support: Support | None = None
+    progress: Progress | None = None
+
+
+def _check(run: Run) -> None:
+    """The terms given as one robot's chains, each with data (and validation data) of its kind."""
+    chains, data, validate, holdout = run.chains, run.data, run.validate, run.options.holdout
     if not isinstance(chains, Sequence) or not chains:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
     for c in chains:
@@ -74,7 +107,7 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
     if not isinstance(data, Sequence) or len(data) != len(chains):
         raise InvalidArgumentError("give one set of touches per chain")
-    if not instrument:
+    if not run.instrument:
         one_term_per_frame(chains, data)
     if validate is not None and (
         not isinstance(validate, Sequence) or len(validate) != len(chains)
@@ -82,7 +115,7 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
         raise InvalidArgumentError("give one validation set (or None) per chain")
     for c, d, v in zip(chains, data, validate or [None] * len(chains), strict=True):
         if isinstance(d, Measurements):
-            check_measured(c, d, v, instrument, holdout)
+            check_measured(c, d, v, run.instrument, holdout)
             continue
         if isinstance(d, PixelData):
             check_pixels(c, d, v)
@@ -105,10 +138,6 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
                     f"{part.source}: validation touches of kind '{part.kind.label}' for "
                     f"'{d.kind.label}' data"
                 )
-    if params not in CHAIN_LEVELS:
-        raise InvalidArgumentError(
-            f"params must be one of {', '.join(CHAIN_LEVELS)}, got {params!r:.40}"
-        )
     if validate is not None and any(v is not None for v in validate) and holdout > 0:
         raise InvalidArgumentError("give validation touches or a holdout fraction, not both")
     for d, v in zip(data, validate or [None] * len(chains), strict=True):
@@ -116,17 +145,17 @@ def _check(chains, data, validate, params, holdout, instrument=False) -> None:
             validation.check_held_out(d, v)
 
 
-def _checked(
-    chains, train, validate, guess, weight, held, notes, iterations, shared, noise=None, zeros=None
-):
+def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
 
     The usual mistakes are diagnosed (the validation touches' too), outliers set aside (the
     held-out ones' too: ``held[c]`` replaced), the touches kept must determine the chain's
     objects and contact frame, and a chain the contact leaves finitely many postures is
     noted; a measured term's rows are checked as a single chain's (:func:`checked_measured`).
-    ``guess``: the contact frame's and the markers' guesses (or None); ``noise``: the measured
-    terms' instrument noise [mm] (or None); ``zeros``: :func:`~.placements.zero_frames` or None.
+    ``validate``: the validation sets diagnosed (or None); ``guess``: the contact frame's
+    (:func:`~.contact_term.contact_frame`); ``zeros``: :func:`~.placements.zero_frames` or None.
+    The run's ``orientation_weight``, ``max_iterations``, ``noise_mm`` and markers' guess are
+    the measured terms'.
 
     Returns:
         Each chain's touches (rows) kept, each chain's outliers, and each term's
@@ -135,6 +164,8 @@ def _checked(
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
     registered: list[MeasuredState | PixelTermState | ContactState] = []
+    chains, opts = run.chains, run.options
+    weight = None if opts.orientation_weight is None else float(opts.orientation_weight)
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
         zero = None if zeros is None or chain.model is not chains[0].model else zeros[c]
@@ -146,15 +177,15 @@ def _checked(
             what = f"unknowns of {chain.base_frame}'s placement and the markers"
             determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
             state, bad, found, more, held[c] = checked_measured(
-                chain, d, v, held[c], weight, iterations, guess[1], noise, zero
+                chain, d, v, held[c], weight, opts.max_iterations, run.marker, opts.noise_mm, zero
             )
-            state = dataclasses.replace(state, instrument=shared)
+            state = dataclasses.replace(state, instrument=run.instrument)
         if isinstance(d, Measurements | PixelPart):
             if found:
                 more.append(outliers.set_aside_note(found))
             d = d.subset(~bad) if bad.any() else d
         else:
-            g = contact_guess(d.kind, guess[0], len(chains))
+            g = contact_guess(d.kind, guess, len(chains))
             state, bad, found, more = contact_checks.checked_registration(
                 chain, from_chain(chain, zero=zero), d, v, g, weight
             )
@@ -174,15 +205,14 @@ def _checked(
     return kept, dropped, registered
 
 
-def _register(
-    chains, train, measured, plane_of, notes, max_iterations, pose_weight=1.0, zeros=None
-) -> ChainsState:
+def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsState:
     """Each chain's registration on the nominal robot (a plane shared by chains: refined).
 
     ``measured``: each term's registration (``_checked``: a contact chain's objects and
     contact in closed form, a measured term's frames, a pixel term's camera); ``zeros``:
     the chains' frames at zero (:func:`~.placements.zero_frames`), or None.
     """
+    chains, pose_weight = run.chains, run.pose_weight
     placements = Placements.of(tuple(chains), zeros)
     states = list(on_models(tuple(measured), placements.start_models(tuple(chains), measured)))
     for c, p in enumerate(plane_of):  # a shared plane (camera) starts from its first chain's
@@ -199,8 +229,9 @@ def _register(
         return start
     only_frames = chains_model(start, plane_of, (), placements.names())
     refined = fit(
-        only_frames, start, ChainsData(tuple(train)), None, 1.0, max_iterations=max_iterations
-    )
+        only_frames, start, ChainsData(tuple(train)), None, 1.0,
+        max_iterations=run.options.max_iterations,
+    )  # fmt: skip
     if not refined.converged:
         raise DataError(
             train[0].source,
@@ -212,42 +243,27 @@ def _register(
     return refined.state
 
 
-def determined_unknowns(
-    chains: Sequence[Chain],
-    data: Sequence[ContactData | Measurements | PixelData],
-    *,
-    contact=None,
-    shared_planes: bool = False,
-    pose_weight: float = 1.0,
-    max_iterations: int = 100,
-    instrument: bool = False,
-) -> tuple[tuple[str, ...], tuple[str, ...]]:
+def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """What a joint fit of these terms would determine: the steps before its choice.
 
-    The data are checked, outliers set aside and registered as
-    :func:`~.contact_chains.calibrate_contact_chains` does (every row fitted: no holdout);
-    the rank of the Jacobian of every row by every unknown (objects, contact frames,
-    measuring frames, markers, and every joint placement component) at flush postures is
-    what the data determine. Arguments as
-    :func:`~.contact_chains.calibrate_contact_chains`'s.
+    The run's data (every row: no validation, no holdout) are checked, outliers set aside
+    and registered as :func:`register_contact_chains` does; the rank of the Jacobian of every
+    row by every unknown (objects, contact frames, measuring frames, markers, and every joint
+    placement component) at flush postures is what the data determine.
 
     Returns:
         The names of the unknowns determined (a basis, in the columns' order) and of all.
     """
-    check_run_options(max_iterations, 0.0, 0)
-    _check(chains, data, None, "frames", 0.0, instrument)
-    parts = pixel_parts(chains, data)
+    _check(run)
+    chains, parts = run.chains, pixel_parts(run.chains, run.data)
     contact_checks.check_memory(chains, parts, "complete")
     plane_of = instrument_groups(
-        contact_checks.plane_groups(chains, parts, shared_planes), parts, instrument
+        contact_checks.plane_groups(chains, parts, run.shared_planes), parts, run.instrument
     )
-    check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     held: list = [None] * len(parts)
-    guess = (contact_frame(contact), None)
-    train, _, measured = _checked(
-        chains, list(parts), None, guess, None, held, [], max_iterations, instrument
-    )
-    start = _register(chains, train, measured, plane_of, [], max_iterations, pose_weight)
+    train, _, measured = _checked(run, list(parts), None, contact_frame(run.contact), held, [])
+    start = _register(run, train, measured, plane_of, [])
     names = start.placements.names()
     wide = chains_model(start, plane_of, range(len(names)), names)
     every = wide.names()
@@ -257,20 +273,16 @@ def determined_unknowns(
 
 @dataclasses.dataclass(frozen=True)
 class Registered:
-    """A calibration up to its registration (:func:`register_contact_chains`), to be fitted.
+    """A run up to its registration (:func:`register_contact_chains`), to be fitted.
 
-    The arguments and state :func:`fit_registered` continues from: the rows kept and held out,
-    the outliers set aside, the notes so far, the load and compliance torques, the registered
-    state ``start`` and the stage clock; the other fields are the arguments'.
+    The state :func:`~.contact_chains.fit_registered` continues from: the rows kept and held
+    out, the outliers set aside, the notes so far, the load and compliance torques, the
+    registered state ``start`` and the stage clock, and the ``run`` itself.
     """
 
-    chains: tuple[Chain, ...]
-    level: str
-    opts: Options
+    run: Run
     train: list
     held: list
-    validate: Sequence | None
-    held_label: str | None
     dropped: list
     notes: list[str]
     plane_of: Sequence[int]
@@ -279,84 +291,48 @@ class Registered:
     comp: Any
     start: ChainsState
     clock: list[float]
-    max_iterations: int
-    seed: int
-    instrument: bool
-    options: Options | None
-    progress: Progress | None
 
 
-def register_contact_chains(
-    chains: Sequence[Chain],
-    data: Sequence[ContactData | Measurements | PixelData],
-    *,
-    contact=None,
-    params: str | None = None,
-    validate: Sequence[ContactData | Measurements | PixelData | None] | None = None,
-    orientation_weight: float | None = None,
-    shared_planes: bool = False,
-    pose_weight: float = 1.0,
-    max_iterations: int = 100,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-    instrument: bool = False,
-    held_label: str | None = None,
-    elastic: bool | None = None,
-    support: Support | None = None,
-    marker=None,
-    options: Options | None = None,
-) -> Registered:
-    """:func:`~.contact_chains.calibrate_contact_chains` up to the registration.
+def register_contact_chains(run: Run) -> Registered:
+    """A run checked and registered: the joint fit's steps before its choice.
 
-    Its arguments, by name (checked there).
-
-    The rows checked, their outliers set aside, each chain registered on the nominal robot:
-    :func:`fit_registered` continues (the outlier loop reads the registration first).
+    The rows checked, held out (``holdout``), their outliers set aside, each chain registered
+    on the nominal robot: :func:`~.contact_chains.fit_registered` continues (the outlier
+    loop reads the registration first).
 
     Raises:
         InvalidArgumentError: A bad argument.
         DataError: Touches that do not belong to their chain or determine too little.
     """
-    level = "auto" if params is None else params
-    opts = Options() if options is None else options
-    check_run_options(max_iterations, holdout, seed)
-    _check(chains, data, validate, level, holdout, instrument)
-    load = contact_elastic.term_load(chains, data, elastic, support)
-    data, validate = pixel_parts(chains, data), validate and pixel_parts(chains, validate)
-    contact_checks.check_memory(chains, data, level, 0 if load is None else chains[0].n)
+    chains, opts, holdout, seed = run.chains, run.options, run.options.holdout, run.options.seed
+    _check(run)
+    one_measured = len(chains) == 1 and isinstance(run.data[0], Measurements)  # its own elastic
+    elastic = None if one_measured else opts.elastic  # (:func:`compliance_torques`)
+    load = contact_elastic.term_load(chains, run.data, elastic, run.support)
+    data = pixel_parts(chains, run.data)
+    validate = run.validate and pixel_parts(chains, run.validate)
+    contact_checks.check_memory(chains, data, opts.level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
-    if marker is not None and not any(isinstance(d, Measurements) for d in data):
+    if run.marker is not None and not any(isinstance(d, Measurements) for d in data):
         raise InvalidArgumentError("marker is for measured terms: no term here is measured")
-    guess = contact_frame(contact)
-    w = None if orientation_weight is None else float(orientation_weight)
-    if w is not None and not (np.isfinite(w) and w > 0):
-        raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
+    guess = contact_frame(run.contact)
     splits = [(d, None) if holdout == 0 else validation.split(d, holdout, seed)
               if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
               for d in data]  # fmt: skip
     train = [s[0] for s in splits]
     given = validate or [None] * len(data)
     held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
-    plane_of = contact_checks.plane_groups(chains, data, shared_planes)
-    plane_of = instrument_groups(plane_of, data, instrument)
-    check_number(pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    plane_of = contact_checks.plane_groups(chains, data, run.shared_planes)
+    plane_of = instrument_groups(plane_of, data, run.instrument)
+    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
-    diagnosed = None if held_label == "holdout" else validate  # a holdout: with its data's
+    diagnosed = None if run.held_label == "holdout" else validate  # a holdout: with its data's
     zeros = zero_frames(tuple(chains))  # one walk: the registrations' models and the paths
-    train, dropped, measured = _checked(
-        chains, train, diagnosed, (guess, marker), w, held, notes, max_iterations, instrument,
-        opts.noise_mm, zeros,
-    )  # fmt: skip
+    train, dropped, measured = _checked(run, train, diagnosed, guess, held, notes, zeros)
     notes += filter(None, [contact_elastic.readings_note(load, train[0], held[0])])
-    torques, comp = compliance_torques(chains, train, held, options, load)
+    torques, comp = compliance_torques(chains, train, held, opts, load)
     touches = sum(d.m for d in train)
-    with phase(progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
-        start = _register(
-            chains, train, measured, plane_of, notes, max_iterations, pose_weight, zeros
-        )
+    with phase(run.progress, f"calibrate: registration ({len(chains)} chains, {touches} touches)"):
+        start = _register(run, train, measured, plane_of, notes, zeros)
     clock.append(time.perf_counter())
-    return Registered(
-        tuple(chains), level, opts, train, held, validate, held_label, dropped, notes, plane_of,
-        load, torques, comp, start, clock, max_iterations, seed, instrument, options, progress,
-    )  # fmt: skip
+    return Registered(run, train, held, dropped, notes, plane_of, load, torques, comp, start, clock)

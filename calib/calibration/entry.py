@@ -18,7 +18,7 @@ deliver a result with ``summary()``, ``to_dict()`` (report format 3), ``urdf()``
 from __future__ import annotations
 
 import dataclasses
-from typing import cast, overload
+from typing import cast
 
 from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress
@@ -30,12 +30,12 @@ from ..measurements.data import Measurements
 from .chain_outliers import fit_until_stable
 from .contact_chains import (
     Registered,
+    Run,
     calibrate_contact_chains,
     fit_registered,
     register_contact_chains,
 )
 from .contact_chains_result import ContactChainsCalibration
-from .delivery import Result
 from .measured_term import check_measured
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, check_tree_level, checked_arguments
 from .problem import Problem, Term
@@ -43,63 +43,6 @@ from .tree_checks import prepare_tree
 from .validation import split
 
 __all__ = ["calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
-
-
-@overload
-def calibrate(robot: Problem, data: None = None, *, progress: Progress | None = None) -> Result: ...
-
-
-@overload
-def calibrate(
-    robot: Chain,
-    data: Measurements,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate: Measurements | None = None,
-    fix: tuple[str, ...] = (),
-    free: tuple[str, ...] = (),
-    elastic: bool | None = None,
-    loss: str = "linear",
-    noise_mm: float | None = None,
-    orientation_weight: float | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> ContactChainsCalibration: ...
-
-
-@overload
-def calibrate(
-    robot: Tree,
-    data: Measurements,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate: Measurements | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> ContactChainsCalibration: ...
-
-
-@overload
-def calibrate(
-    robot: Chain,
-    data: ContactData,
-    *,
-    params: str | None = None,
-    marker=None,
-    validate: ContactData | None = None,
-    elastic: bool | None = None,
-    orientation_weight: float | None = None,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    holdout: float = 0.0,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> ContactChainsCalibration: ...
 
 
 @checked_arguments
@@ -120,7 +63,7 @@ def calibrate(
     holdout: float = 0.0,
     seed: int = 0,
     progress: Progress | None = None,
-) -> Result:
+) -> ContactChainsCalibration:
     """Calibrate a robot from what was recorded on it: a model that predicts unseen postures.
 
     Steps: check the data, set rows aside (``holdout``), register the measurement frame and
@@ -177,49 +120,36 @@ def calibrate(
             "calibrate takes a Problem, or a robot and its data: missing a required argument: "
             "'data'"
         )
-    term = Term(robot, data, validate, marker)
     problem = Problem(
-        (term,),
-        params=params,
-        fix=fix,
-        free=free,
-        elastic=elastic,
-        loss=loss,
-        noise_mm=noise_mm,
-        orientation_weight=orientation_weight,
-        max_iterations=max_iterations,
-        holdout=holdout,
-        seed=seed,
-    )
+        (Term(robot, data, validate, marker),), params=params, fix=fix, free=free,
+        elastic=elastic, loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
+        max_iterations=max_iterations, holdout=holdout, seed=seed,
+    )  # fmt: skip
     return solve(problem, progress)
 
 
-def solve(problem: Problem, progress: Progress | None = None) -> Result:
-    """Fit a problem with the model of its shape (module text)."""
+def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCalibration:
+    """Fit a problem: the joint engine's run of its terms (module text)."""
     for t in problem.terms:
         if isinstance(t.data, Measurements):
             check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
-    p, shape, held = problem, problem.shape, [t.validate for t in problem.terms]
-    if shape in ("chains", "contacts"):  # several terms, or one chain touching: a joint fit
-        return calibrate_contact_chains(
-            [cast(Chain, t.robot) for t in p.terms],
-            [t.data for t in p.terms],
-            contact=next((t.guess for t in p.terms if t.guess is not None), None),
-            params=p.params,
-            validate=held if any(h is not None for h in held) else None,
-            orientation_weight=p.orientation_weight,
-            shared_planes=p.shared_planes,
-            pose_weight=p.pose_weight,
-            max_iterations=p.max_iterations,
-            holdout=p.holdout,
-            seed=p.seed,
-            progress=progress,
-            elastic=p.elastic,  # None or False for several terms (APPLIES)
-        )
-    term = p.terms[0]  # its robot's and data's types are the shape's (Problem checks them)
-    if shape == "tree":
-        return _tree(p, term, progress)
-    return measured_chain(p, term, progress)
+    if problem.shape == "tree":
+        return _tree(problem, progress)
+    terms, chain = problem.terms, problem.shape == "chain"
+    held = [t.validate for t in terms]
+    guess = next((t.guess for t in terms if t.guess is not None), None)  # a chain's: markers'
+    run = Run(
+        [cast(Chain, t.robot) for t in terms],
+        [t.data for t in terms],
+        held if any(h is not None for h in held) else None,
+        problem.options(),
+        contact=None if chain else guess,
+        marker=guess if chain else None,
+        shared_planes=problem.shared_planes,
+        pose_weight=problem.pose_weight,
+        progress=progress,
+    )
+    return measured_chain(run) if chain else fit_registered(register_contact_chains(run))
 
 
 calibrate_tree = calibrate
@@ -243,13 +173,14 @@ def calibrate_contacts(
     return calibrate_contact_chains([chain], [data], validate=held, **options)
 
 
-def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactChainsCalibration:
+def _tree(problem: Problem, progress: Progress | None) -> ContactChainsCalibration:
     """A tree measured by one instrument: a joint fit of one measured term per tool.
 
     The terms share the instrument's frame and the joints they run through
     (:mod:`~.instrument`); the level is a tree's (:data:`~.options.TREE_LEVELS`, default
     ``complete``).
     """
+    term = problem.terms[0]  # a tree's robot and data (Problem checks them)
     if term.guess is not None:
         raise InvalidArgumentError(
             "marker is for one chain: a tree's markers are registered in closed form"
@@ -261,24 +192,15 @@ def _tree(problem: Problem, term: Term, progress: Progress | None) -> ContactCha
     data, held = prepare_tree(
         tree, cast(Measurements, term.data), validate, problem.holdout, problem.seed
     )
-    result = calibrate_contact_chains(
-        list(tree.chains),
-        data,
-        params=level,
-        validate=held,
-        max_iterations=problem.max_iterations,
-        seed=problem.seed,
-        progress=progress,
-        instrument=True,
-        held_label="holdout" if validate is None else None,
-    )
-    return dataclasses.replace(result, shape="tree")
+    options = dataclasses.replace(problem.options(), params=level, holdout=0.0)  # drawn
+    label = "holdout" if validate is None else None
+    run = Run(list(tree.chains), data, held, options, instrument=True, held_label=label,
+              progress=progress)  # fmt: skip
+    return dataclasses.replace(fit_registered(register_contact_chains(run)), shape="tree")
 
 
-def measured_chain(
-    problem: Problem, term: Term, progress: Progress | None = None
-) -> ContactChainsCalibration:
-    """One chain measured by an instrument, fitted by the joint engine as a one-term problem.
+def measured_chain(run: Run) -> ContactChainsCalibration:
+    """One chain measured by an instrument, fitted by the joint engine as a one-term run.
 
     The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
     (``instrument=True``), its rows checked, registered and weighted by the measured term's
@@ -288,36 +210,35 @@ def measured_chain(
     rows the fit's errors call outliers are set aside and the fit made again until they are
     stable (:func:`~.chain_outliers.fit_until_stable`).
 
+    Args:
+        run: The chain's run (its markers' guess: ``marker``; ``instrument`` and
+            ``held_label`` set here).
+
     Raises:
         InvalidArgumentError: A bad option (an unknown parameter name, compliance without
             gravity torques, a free parameter the data cannot fit).
     """
-    chain, data = cast(Chain, term.robot), cast(Measurements, term.data)
-    if problem.holdout > 0:  # the postures it leaves (the fit counts them with none)
-        check_measured(chain, data, None, True, problem.holdout)
+    chain, data, opts = run.chains[0], cast(Measurements, run.data[0]), run.options
+    given = None if run.validate is None else cast(Measurements | None, run.validate[0])
+    if opts.holdout > 0:  # the postures it leaves (the fit counts them with none)
+        check_measured(chain, data, None, True, opts.holdout)
     train, held = (
-        (data, term.validate)
-        if term.validate is not None or problem.holdout == 0  # no posture to draw
-        else split(data, problem.holdout, problem.seed)
+        (data, given)
+        if given is not None or opts.holdout == 0  # no posture to draw
+        else split(data, opts.holdout, opts.seed)
+    )
+    run = dataclasses.replace(
+        run,
+        validate=None if held is None else [held],
+        options=dataclasses.replace(opts, holdout=0.0),  # drawn
+        instrument=True,
+        held_label="holdout" if given is None else None,
     )
 
     def register(rows: Measurements) -> Registered:
-        return register_contact_chains(
-            [chain],
-            [rows],
-            params=problem.params,
-            validate=None if held is None else [held],
-            orientation_weight=problem.orientation_weight,
-            max_iterations=problem.max_iterations,
-            seed=problem.seed,
-            progress=progress,
-            instrument=True,
-            held_label="holdout" if term.validate is None else None,
-            marker=term.guess,
-            options=problem.options(),
-        )
+        return register_contact_chains(dataclasses.replace(run, data=[rows]))
 
     def fit(registered: Registered) -> ContactChainsCalibration:
         return dataclasses.replace(fit_registered(registered), shape="chain")
 
-    return fit_until_stable(register, fit, train, problem.noise_mm)
+    return fit_until_stable(register, fit, train, opts.noise_mm)

@@ -1,7 +1,7 @@
 """The options of one chain measured by an instrument, on the joint engine: fix, free, elastic.
 
 :func:`~.entry.calibrate` of a chain and its measurements fits it with the joint engine
-(:func:`~.contact_chains.calibrate_contact_chains`, ``options``). What the chain's options
+(:class:`~.contact_register.Run`, its ``options``). What the chain's options
 ask of it:
 
 * ``fix`` / ``free`` name parameters. A joint's parameter is written as the printed table

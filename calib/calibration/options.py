@@ -2,7 +2,8 @@
 
 The command line builds its parser from the constants here without importing the
 calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
-arguments for a chain and a tree and turns them into one :class:`Options`, checked once when
+arguments for a chain and a tree and turns them into one :class:`Options` (a
+:class:`~calib.calibration.problem.Problem` is its terms and its options), checked once when
 it is made; what applies to some shapes only is one table (:data:`APPLIES`), and a tree's
 level is checked by :func:`check_tree_level`.
 """
@@ -131,13 +132,16 @@ def _names(option: str, names: str | Iterable[str]) -> tuple[str, ...]:
     return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Options:
-    """The options of a calibration, chain or tree, checked when made.
+    """The options of a calibration, chain or tree, checked when made (by name).
+
+    A :class:`~.problem.Problem` is its terms and these (and the joint fit's own), and the
+    joint engine's run carries them (:class:`~.contact_register.Run`).
 
     Attributes:
-        level: Parameter level, one of :data:`LEVELS` (a tree: :data:`TREE_LEVELS`,
-            :func:`check_tree_level`).
+        params: Parameter level, one of :data:`LEVELS`, or None: the shape's default
+            (:attr:`level`; a tree: :data:`TREE_LEVELS`, :func:`check_tree_level`).
         fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
         free: Parameter names always fitted.
         elastic: Fit joint compliance under gravity (None: only if ``free`` names one).
@@ -153,7 +157,7 @@ class Options:
             twice, or both fixed and free.
     """
 
-    level: str = DEFAULT_LEVEL
+    params: str | None = None
     fix: tuple[str, ...] = ()
     free: tuple[str, ...] = ()
     elastic: bool | None = None
@@ -165,9 +169,11 @@ class Options:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.level, str) or self.level not in LEVELS:
+        if self.params is not None and (
+            not isinstance(self.params, str) or self.params not in LEVELS
+        ):
             raise InvalidArgumentError(
-                f"unknown parameter level '{self.level}': choose {', '.join(LEVELS)}"
+                f"unknown parameter level '{self.params}': choose {', '.join(LEVELS)}"
             )
         if not isinstance(self.loss, str) or self.loss not in LOSSES:
             raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
@@ -187,6 +193,11 @@ class Options:
         both = set(self.fix) & set(self.free)
         if both:
             raise InvalidArgumentError(f"{', '.join(sorted(both))} both fixed and free")
+
+    @property
+    def level(self) -> str:
+        """The parameter level: ``params``, or :data:`DEFAULT_LEVEL` (a tree sets its own)."""
+        return DEFAULT_LEVEL if self.params is None else self.params
 
     @property
     def noise(self) -> float | None:

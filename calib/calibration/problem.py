@@ -18,7 +18,7 @@ option that does not apply is an error, here and on the command line.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import KW_ONLY, dataclass, fields
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from .options import APPLIES, DEFAULT_LEVEL, DEFAULT_MAX_ITERATIONS, SHAPE_LABELS, Options
+from .options import APPLIES, SHAPE_LABELS, Options
 from .pixel_chain import PixelData
 
 __all__ = ["Problem", "Term"]
@@ -99,42 +99,24 @@ class Term:
         return f"Term({r.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
 
 
-@dataclass(frozen=True, eq=False)
-class Problem:
+@dataclass(frozen=True)
+class Problem(Options):
     """Terms of one robot fitted together, and the options of the fit.
+
+    Its options are :class:`~.options.Options`'s fields, by name (checked when made), and
+    the joint fit's own: ``Problem((Term(arm, touches),), params="complete")``.
 
     Attributes:
         terms: One or more :class:`Term` of one URDF.
-        params: Parameter level (``auto``, ``frames``, ``offsets``, ``paper``, ``complete``;
-            default: ``auto``, a tree's ``complete``).
-        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
-        free: Parameter names (a compliance ``c1``.. included) always fitted.
-        elastic: Fit joint compliance under gravity (default: no, unless ``free`` names
-            one).
-        loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
-        noise_mm: Instrument noise [mm] (default: unknown).
-        orientation_weight: Weight of the orientation rows [m/rad] (default: estimated).
         shared_planes: Terms of one base frame whose touches name the same plane touch one
             plane (default: a plane per term).
         pose_weight: Factor of the fixed-pose (closed loop) terms' rows against the others'.
-        max_iterations: Most residual evaluations of each solver run.
-        holdout: Fraction of each term's rows set aside (seeded); not with validation data.
-        seed: Seed of the holdout draw and of the generic configurations of the rank checks.
     """
 
     terms: tuple[Term, ...]
-    params: str | None = None
-    fix: tuple[str, ...] = ()
-    free: tuple[str, ...] = ()
-    elastic: bool | None = None
-    loss: str = "linear"
-    noise_mm: float | None = None
-    orientation_weight: float | None = None
+    _: KW_ONLY
     shared_planes: bool = False
     pose_weight: float = 1.0
-    max_iterations: int = DEFAULT_MAX_ITERATIONS
-    holdout: float = 0.0
-    seed: int = 0
 
     def __post_init__(self) -> None:
         terms = self.terms
@@ -152,22 +134,14 @@ class Problem:
                 f"the terms of one problem are chains of one URDF, got {len(urdfs)}: "
                 f"{', '.join(sorted(urdfs))}"
             )
-        self.options()  # the values, checked once (the level by the model of the shape)
+        super().__post_init__()  # the values, checked once (the level by the model of the shape)
         if self.holdout > 0 and any(t.validate is not None for t in self.terms):
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         self._check_applicable()
 
     def options(self) -> Options:
-        """The problem's options as one checked value (a chain's level unless given).
-
-        Every field of :class:`~.options.Options` is the problem's of the same name, but the
-        level: ``params``.
-
-        Raises:
-            InvalidArgumentError: A value out of its range or of the wrong type.
-        """
-        given = {f.name: getattr(self, f.name) for f in fields(Options) if f.name != "level"}
-        return Options(level=DEFAULT_LEVEL if self.params is None else self.params, **given)
+        """The problem's options alone, as one value (its terms and the joint fit's left)."""
+        return Options(**{f.name: getattr(self, f.name) for f in fields(Options)})
 
     @property
     def shape(self) -> str:
