@@ -36,7 +36,7 @@ from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.frames import joint_placements, motion_axis
 from ..kinematics.mdh import PARALLEL_TOL, MDHModel, from_chain
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, pin_configurations
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
 __all__ = [
@@ -72,7 +72,13 @@ def axis_bases(model: pin.Model, ids) -> np.ndarray:
     k = (np.abs(u[:, 0]) >= 0.9).astype(int)  # the helper: the frame's x, or y near x
     ex = np.eye(3)[k] - u[np.arange(len(u)), k, None] * u  # helper - (helper . u) u
     ex /= _norms(ex).reshape(-1, 1)
-    return np.stack([ex, np.cross(u, ex), u], axis=2)
+    return np.stack([ex, _cross(u, ex), u], axis=2)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise ``a x b`` ``(k, 3)``: ``np.cross``'s products and differences, less its overhead."""
+    i, j = [1, 2, 0], [2, 0, 1]  # component k: a_i b_j - a_j b_i
+    return a[:, i] * b[:, j] - a[:, j] * b[:, i]
 
 
 def _norms(rows: np.ndarray) -> np.ndarray:
@@ -381,7 +387,10 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
     One Pinocchio walk for chains of one zero configuration.
     """
     model = chains[0].model
-    moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
+    moved = [
+        c if c.model is model else dataclasses.replace(c, model=model, ideal_model=None)
+        for c in chains
+    ]
     return tuple(
         c.zero_frames(oMi) for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
     )
@@ -389,7 +398,7 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
 
 def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
     """The joint placements at each chain's zero configuration: one walk for equal ones."""
-    q0 = [c.pin_configurations(np.zeros(c.n))[0] for c in chains]
+    q0 = [pin_configurations(model, c.q_ref, c.joint_ids, np.zeros((1, c.n)))[0] for c in chains]
     ends = [model.frames[f].parentJoint for c in chains for f in (c.base_id, c.tool_id)]
     if all(np.array_equal(q, q0[0]) for q in q0):
         return [joint_placements(model, q0[0], last=tuple(ends))] * len(chains)
