@@ -116,8 +116,9 @@ class _Moments:
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
         """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 K,)``."""
         # R^T (y_ik - t) = R^T Y_ik + ca, and (R^T Y_ik) summed against R_i^T is G : R
-        new = (self.G @ R.T.ravel()).reshape(self.K, 3) / self.m + (self.R_mean.T @ ca - self.back)
-        return new.ravel()
+        new = self.G @ R.T.ravel()  # one marker: (3,) as the markers are, else (K, 3)
+        new = (new if self.K == 1 else new.reshape(self.K, 3)) / self.m
+        return (new + (self.R_mean.T @ ca - self.back)).ravel()
 
 
 class _Tools:
