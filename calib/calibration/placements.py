@@ -158,17 +158,17 @@ class ChainPath:
         ``turns``: the joints' ``R(w)`` ``(n, 3, 3)``, if already made.
         """
         rows = y[self.columns]
-        if not np.any(rows):
+        if not rows.any():
             return self.fixed
         turns = rotation_matrix(rows[:, 3:]) if turns is None else turns
         E = np.zeros((len(rows), 4, 4))
         E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = turns, rows[:, :3], 1.0
         out = self.fixed.copy()
-        back = np.flatnonzero(self.sign < 0)
+        back = (self.sign < 0).nonzero()[0]
         if not back.size:  # every joint forwards: the same products, on slices
             out[:-1] = out[:-1] @ E
             return out
-        ahead = np.flatnonzero(self.sign > 0)
+        ahead = (self.sign > 0).nonzero()[0]
         out[ahead] = out[ahead] @ E[ahead]
         inverse = np.zeros((len(back), 4, 4))  # E^-1 = [R^T | -R^T v]
         inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
@@ -216,7 +216,7 @@ def chain_frames(
         _einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
         _einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
         pt[k + 1] += pt[k]
-    back = np.flatnonzero(path.sign < 0)  # their errors act after their motion
+    back = (path.sign < 0).nonzero()[0]  # their errors act after their motion
     if back.size:
         Rb, cb, sb = Rt[back], c[back], s[back]  # (b, 3, 3, m) copy, (b, 1, m)
         pt[back] += Rb[:, :, 2] * slide[back, None]
@@ -284,7 +284,7 @@ class Placements:
         Zero: the same robot, whose kinematics at the same data are not made again
         (``ChainsState.same_geometry``).
         """
-        if not np.any(dy):
+        if not np.asarray(dy).any():
             return self
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
 
@@ -320,7 +320,7 @@ class Placements:
     @cached_property
     def _turns(self) -> tuple[np.ndarray | None, ...]:
         rows = (self.y[p.columns] for p in self.paths)
-        return tuple(rotation_matrix(r[:, 3:]) if np.any(r) else None for r in rows)
+        return tuple(rotation_matrix(r[:, 3:]) if r.any() else None for r in rows)
 
     def _index(self, chain: Chain) -> int:
         for k, c in enumerate(self.chains):
@@ -345,7 +345,7 @@ class Placements:
 
     def _robot(self) -> pin.Model:
         """The robot with the errors, to read: :attr:`model` itself when they are all zero."""
-        return self.perturbed_model() if np.any(self.y) else self.model
+        return self.perturbed_model() if self.y.any() else self.model
 
     def perturbed_model(self) -> pin.Model:
         """A copy of the model with the joint placements ``O_j E_j``."""
@@ -370,7 +370,7 @@ class Placements:
         the unmoved robot (one walk, one conversion): it is not converted again.
         """
         mine = tuple(getattr(s, "mdh", None) for s in states)
-        if not np.any(self.y) and all(
+        if not self.y.any() and all(
             m is not None
             and m.source is not None
             and m.source[0] is c
@@ -472,7 +472,7 @@ def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
     turns = placements.turns(chain)  # None: no error at all
-    if turns is not None and np.any(w):
+    if turns is not None and w.any():
         wv = RF @ left_jacobian(-w)  # angular velocity per d(rx ry rz): right Jacobian of R(w)
         # d(origin) per dv: R(w)^T contiguous, as one product per frame reads it fastest
         by_v = RF @ np.ascontiguousarray(np.swapaxes(turns, 1, 2))
