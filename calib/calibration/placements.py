@@ -22,7 +22,6 @@ MDH parameters are named (:meth:`Placements.chain_models`).
 from __future__ import annotations
 
 import dataclasses
-import importlib
 from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple, cast
@@ -178,8 +177,10 @@ class ChainPath:
         return out
 
 
-_einsum = getattr(importlib.import_module("numpy._core.multiarray"), "c_einsum", np.einsum)
-"""What ``np.einsum`` runs (without ``optimize``), less its dispatch: 1 us of 3 per call."""
+try:  # what np.einsum runs without ``optimize``, less its dispatch (1 us of 3 per call)
+    from numpy._core.multiarray import c_einsum as _einsum
+except ImportError:  # NumPy 1
+    _einsum = np.einsum
 
 
 def chain_frames(
