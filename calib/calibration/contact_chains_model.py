@@ -223,7 +223,7 @@ class ChainsState:
         Each chain state's MDH model is then its chain on the robot with the errors (what a
         result reports and a refinement starts from).
         """
-        if not np.any(self.placements.y):
+        if not self.placements.y.any():
             return self
         placements = self.placements.rebased()
         models = placements.chain_models(self.chains)

@@ -36,7 +36,7 @@ from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.frames import joint_placements, motion_axis
 from ..kinematics.mdh import PARALLEL_TOL, MDHModel, from_chain
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, pin_configurations
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
 __all__ = [
@@ -72,7 +72,13 @@ def axis_bases(model: pin.Model, ids) -> np.ndarray:
     k = (np.abs(u[:, 0]) >= 0.9).astype(int)  # the helper: the frame's x, or y near x
     ex = np.eye(3)[k] - u[np.arange(len(u)), k, None] * u  # helper - (helper . u) u
     ex /= _norms(ex).reshape(-1, 1)
-    return np.stack([ex, np.cross(u, ex), u], axis=2)
+    return np.stack([ex, _cross(u, ex), u], axis=2)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise ``a x b`` ``(k, 3)``: ``np.cross``'s products and differences, less its overhead."""
+    i, j = [1, 2, 0], [2, 0, 1]  # component k: a_i b_j - a_j b_i
+    return a[:, i] * b[:, j] - a[:, j] * b[:, i]
 
 
 def _norms(rows: np.ndarray) -> np.ndarray:
@@ -151,17 +157,17 @@ class ChainPath:
         ``turns``: the joints' ``R(w)`` ``(n, 3, 3)``, if already made.
         """
         rows = y[self.columns]
-        if not np.any(rows):
+        if not rows.any():
             return self.fixed
         turns = rotation_matrix(rows[:, 3:]) if turns is None else turns
         E = np.zeros((len(rows), 4, 4))
         E[:, :3, :3], E[:, :3, 3], E[:, 3, 3] = turns, rows[:, :3], 1.0
         out = self.fixed.copy()
-        back = np.flatnonzero(self.sign < 0)
+        back = (self.sign < 0).nonzero()[0]
         if not back.size:  # every joint forwards: the same products, on slices
             out[:-1] = out[:-1] @ E
             return out
-        ahead = np.flatnonzero(self.sign > 0)
+        ahead = (self.sign > 0).nonzero()[0]
         out[ahead] = out[ahead] @ E[ahead]
         inverse = np.zeros((len(back), 4, 4))  # E^-1 = [R^T | -R^T v]
         inverse[:, :3, :3] = np.swapaxes(E[back, :3, :3], 1, 2)
@@ -169,6 +175,12 @@ class ChainPath:
         inverse[:, 3, 3] = 1.0
         out[back + 1] = inverse @ out[back + 1]
         return out
+
+
+try:  # what np.einsum runs without ``optimize``, less its dispatch (1 us of 3 per call)
+    from numpy._core.multiarray import c_einsum as _einsum
+except ImportError:  # NumPy 1
+    _einsum = np.einsum
 
 
 def chain_frames(
@@ -202,10 +214,10 @@ def chain_frames(
     pt = np.empty((n + 1, 3, m))
     Rt[0], pt[0] = fixed[0, :3, :3, None], fixed[0, :3, 3, None]
     for k in range(n):
-        np.einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
-        np.einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
+        _einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
+        _einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
         pt[k + 1] += pt[k]
-    back = np.flatnonzero(path.sign < 0)  # their errors act after their motion
+    back = (path.sign < 0).nonzero()[0]  # their errors act after their motion
     if back.size:
         Rb, cb, sb = Rt[back], c[back], s[back]  # (b, 3, 3, m) copy, (b, 1, m)
         pt[back] += Rb[:, :, 2] * slide[back, None]
@@ -273,7 +285,7 @@ class Placements:
         Zero: the same robot, whose kinematics at the same data are not made again
         (``ChainsState.same_geometry``).
         """
-        if not np.any(dy):
+        if not np.asarray(dy).any():
             return self
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
 
@@ -309,7 +321,7 @@ class Placements:
     @cached_property
     def _turns(self) -> tuple[np.ndarray | None, ...]:
         rows = (self.y[p.columns] for p in self.paths)
-        return tuple(rotation_matrix(r[:, 3:]) if np.any(r) else None for r in rows)
+        return tuple(rotation_matrix(r[:, 3:]) if r.any() else None for r in rows)
 
     def _index(self, chain: Chain) -> int:
         for k, c in enumerate(self.chains):
@@ -334,7 +346,7 @@ class Placements:
 
     def _robot(self) -> pin.Model:
         """The robot with the errors, to read: :attr:`model` itself when they are all zero."""
-        return self.perturbed_model() if np.any(self.y) else self.model
+        return self.perturbed_model() if self.y.any() else self.model
 
     def perturbed_model(self) -> pin.Model:
         """A copy of the model with the joint placements ``O_j E_j``."""
@@ -345,9 +357,10 @@ class Placements:
         B, y = self.bases[moved], self.y[moved]
         R = rotation_matrix((B @ y[:, 3:, None])[..., 0])  # every moved joint's at once
         v = (B @ y[:, :3, None])[..., 0]
-        for k, R_k, v_k in zip(moved, R, v, strict=True):
+        placements = model.jointPlacements  # the copy's own (a reference)
+        for k, R_k, v_k in zip(moved.tolist(), R, v, strict=True):
             jid = self.ids[k]
-            model.jointPlacements[jid] = model.jointPlacements[jid] * pin.SE3(R_k, v_k)
+            placements[jid] = placements[jid] * pin.SE3(R_k, v_k)
         return model
 
     def start_models(self, chains: tuple[Chain, ...], states) -> tuple[MDHModel, ...]:
@@ -358,7 +371,7 @@ class Placements:
         the unmoved robot (one walk, one conversion): it is not converted again.
         """
         mine = tuple(getattr(s, "mdh", None) for s in states)
-        if not np.any(self.y) and all(
+        if not self.y.any() and all(
             m is not None
             and m.source is not None
             and m.source[0] is c
@@ -381,7 +394,10 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
     One Pinocchio walk for chains of one zero configuration.
     """
     model = chains[0].model
-    moved = [dataclasses.replace(c, model=model, ideal_model=None) for c in chains]
+    moved = [
+        c if c.model is model else dataclasses.replace(c, model=model, ideal_model=None)
+        for c in chains
+    ]
     return tuple(
         c.zero_frames(oMi) for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
     )
@@ -389,7 +405,7 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
 
 def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
     """The joint placements at each chain's zero configuration: one walk for equal ones."""
-    q0 = [c.pin_configurations(np.zeros(c.n))[0] for c in chains]
+    q0 = [pin_configurations(model, c.q_ref, c.joint_ids, np.zeros((1, c.n)))[0] for c in chains]
     ends = [model.frames[f].parentJoint for c in chains for f in (c.base_id, c.tool_id)]
     if all(np.array_equal(q, q0[0]) for q in q0):
         return [joint_placements(model, q0[0], last=tuple(ends))] * len(chains)
@@ -457,7 +473,7 @@ def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
     w = placements.y[placements.path(chain).columns, 3:]  # (n, 3)
     RF = sign[:, None, None] * kin.R[:, :n]  # (m, n, 3, 3)
     turns = placements.turns(chain)  # None: no error at all
-    if turns is not None and np.any(w):
+    if turns is not None and w.any():
         wv = RF @ left_jacobian(-w)  # angular velocity per d(rx ry rz): right Jacobian of R(w)
         # d(origin) per dv: R(w)^T contiguous, as one product per frame reads it fastest
         by_v = RF @ np.ascontiguousarray(np.swapaxes(turns, 1, 2))

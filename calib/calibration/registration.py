@@ -109,14 +109,16 @@ class _Moments:
 
     def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:func:`rigid_fit`'s cross-covariance (markers ``(3 K,)``) and the points' centroid."""
-        ca = self.p_mean + self.R_mean @ (mk.reshape(-1, 3).sum(axis=0) / self.K)
-        return self.P + (mk @ self.G).reshape(3, 3), ca
+        # One marker: NumPy's sum of one row is 0.0 + it, and dividing by 1 changes nothing.
+        mean = mk + 0.0 if self.K == 1 else mk.reshape(-1, 3).sum(axis=0) / self.K
+        return self.P + (mk @ self.G).reshape(3, 3), self.p_mean + self.R_mean @ mean
 
     def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
         """Each marker's least squares with the frame (R, t = cb - R ca) held ``(3 K,)``."""
         # R^T (y_ik - t) = R^T Y_ik + ca, and (R^T Y_ik) summed against R_i^T is G : R
-        new = (self.G @ R.T.ravel()).reshape(self.K, 3) / self.m + (self.R_mean.T @ ca - self.back)
-        return new.ravel()
+        new = self.G @ R.T.ravel()  # one marker: (3,) as the markers are, else (K, 3)
+        new = (new if self.K == 1 else new.reshape(self.K, 3)) / self.m
+        return (new + (self.R_mean.T @ ca - self.back)).ravel()
 
 
 class _Tools:
@@ -163,7 +165,8 @@ def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np
     for _ in range(ITERATIONS):
         H, ca = sums.sums(flat)
         new = sums.markers(_rotation(H), ca)  # t is not needed until the end
-        done = np.abs(new - flat).max() < 1e-12
+        # every marker moved by less than 1e-12 (a NaN never): max(|new - flat|) < 1e-12
+        done = all(abs(a - b) < 1e-12 for a, b in zip(new.tolist(), flat.tolist(), strict=True))
         flat = new
         if done:
             break

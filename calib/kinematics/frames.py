@@ -98,23 +98,50 @@ def joint_placements(
     if last is None:
         joints: list[int] | range = range(1, model.njoints)
     elif isinstance(last, tuple):  # Pinocchio numbers a parent before its children
-        joints = sorted({j for one in last for j in model.supports[one]} - {0})
+        joints = sorted({j for one in last for j in _ancestors(model, one)} - {0})
     else:
-        joints = list(model.supports[last])[1:]
-    neutral = pin.neutral(model)
+        joints = _ancestors(model, last)[1:]
+    at, neutral = np.asarray(q, dtype=float).tolist(), pin.neutral(model).tolist()
     out = {0: pin.SE3.Identity()}
+    kinds, parents, placements = model.joints, model.parents, model.jointPlacements
     for jid in joints:
-        joint = model.joints[jid]
+        joint = kinds[jid]
         span = slice(joint.idx_q, joint.idx_q + joint.nq)
         motion = pin.SE3.Identity()
-        if not np.array_equal(q[span], neutral[span]):
+        if at[span] != neutral[span]:  # as floats: np.array_equal's test
             motion = _joint_motion(model.names[jid], joint, q[span])
-        out[jid] = out[model.parents[jid]] * model.jointPlacements[jid] * motion
+        out[jid] = out[parents[jid]] * placements[jid] * motion
     return out
 
 
+def _ancestors(model: pin.Model, jid: int) -> list[int]:
+    """``model.supports[jid]``: the joint's ancestors from the universe (0), then itself."""
+    chain = [jid]
+    parents = model.parents
+    while chain[-1]:
+        chain.append(parents[chain[-1]])
+    return chain[::-1]
+
+
+_ALONG_AXIS = {
+    **{f"JointModelP{a}": k for k, a in enumerate("XYZ")},
+    **{f"JointModelR{a}": 3 + k for k, a in enumerate("XYZ")},
+    **{f"JointModelRUB{a}": 3 + k for k, a in enumerate("XYZ")},
+}
+"""The joints along an axis of their frame: the entry of their motion subspace that is 1."""
+
+
 def motion_axis(joint) -> np.ndarray:
-    """Motion subspace ``(6,)`` (linear, angular) of a 1-DOF joint model, in its own frame."""
+    """Motion subspace ``(6,)`` (linear, angular) of a 1-DOF joint model, in its own frame.
+
+    A joint along an axis of its frame (a unit vector: the one Pinocchio's ``calc`` gives) is
+    read from its name, any other computed by Pinocchio.
+    """
+    k = _ALONG_AXIS.get(joint.shortname())
+    if k is not None:
+        S = np.zeros(6)
+        S[k] = 1.0
+        return S
     jdata = joint.createData()
     q = np.zeros(joint.nq)
     q[0] = 1.0 if joint.nq == 2 else 0.0  # continuous joints: (cos, sin) = (1, 0)
