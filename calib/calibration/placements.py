@@ -177,12 +177,6 @@ class ChainPath:
         return out
 
 
-try:  # what np.einsum runs without ``optimize``, less its dispatch (1 us of 3 per call)
-    from numpy._core.multiarray import c_einsum as _einsum
-except ImportError:  # NumPy 1
-    _einsum = np.einsum
-
-
 def chain_frames(
     path: ChainPath, y: np.ndarray, q: np.ndarray, turns: np.ndarray | None = None
 ) -> JointFrames:
@@ -214,8 +208,8 @@ def chain_frames(
     pt = np.empty((n + 1, 3, m))
     Rt[0], pt[0] = fixed[0, :3, :3, None], fixed[0, :3, 3, None]
     for k in range(n):
-        _einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
-        _einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
+        np.einsum("ilm,ljm->ijm", Rt[k], local[k], out=Rt[k + 1])
+        np.einsum("ilm,lm->im", Rt[k], step[k], out=pt[k + 1])
         pt[k + 1] += pt[k]
     back = (path.sign < 0).nonzero()[0]  # their errors act after their motion
     if back.size:
