@@ -1,4 +1,15 @@
-"""One chain measured by an instrument: outliers set aside after each fit, until stable.
+"""The engine's outlier loop: each term's outliers set aside after each fit, until stable.
+
+Every shape (:func:`fit_terms_until_stable`): the run is registered and fitted; each term's
+training rows (those its registration set aside too) are tested under the fitted model with
+its kind's errors (a contact term: each touch's length and angle gaps,
+:func:`~.contact_checks.length_errors`; a measured term: each row's point and orientation
+errors), the rule (:func:`~.outliers.find_outliers`) applied to each term's rows on its own,
+and the run registered and fitted again without the outliers found, until the set stops
+changing (:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``). Pixel terms
+keep the outliers their registration sets aside (a run with one is fitted once).
+
+One chain measured by an instrument (:func:`fit_until_stable`):
 
 The joint engine sets a measured term's outliers aside at its registration
 (:func:`~.measured_term.checked_measured`), where the geometric errors not yet fitted hide
@@ -14,32 +25,42 @@ other: :func:`proposals`). The held-out rows are drawn once, before
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Callable
 from typing import cast
 
 import numpy as np
 
 from ..identification.parameters import parameter_set
+from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from . import determined
+from . import determined, validation
 from .chain_registration import frames_model
-from .contact_chains_result import ContactChainsCalibration
-from .contact_register import Registered
+from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .contact_checks import enough_touches, length_errors, subset
+from .contact_model import ContactState
+from .contact_register import Registered, Run
+from .contact_term import split_contacts
+from .measured_options import compliance_torques
 from .measured_term import MeasuredState
 from .measured_view import gravity_torque
 from .model import moved
 from .options import Options
 from .outliers import (
+    Errors,
+    find_outliers,
     point_errors,
     records,
     robust_proposals,
     set_aside_note,
     spread_out,
+    stable_set,
     until_stable,
 )
+from .pixel_chain import PixelData
 from .solve import row_weights
 
-__all__ = ["fit_until_stable", "proposals"]
+__all__ = ["fit_terms_until_stable", "fit_until_stable", "proposals"]
 
 
 def fit_until_stable(
@@ -131,3 +152,128 @@ def proposals(nominal, reg, data: Measurements, opts, kin=None) -> np.ndarray:
         opts.noise,
         rows,
     )
+
+
+def fit_terms_until_stable(
+    run: Run,
+    register: Callable[[Run], Registered],
+    fit: Callable[[Registered], ContactChainsCalibration],
+) -> ContactChainsCalibration:
+    """The run's fit without the rows each term's errors under it find outlying (module text).
+
+    The loop starts from the rows each term's registration set aside (which stay aside) and
+    the run's fit as it is; a loop that sets no other row aside leaves it unchanged.
+
+    Args:
+        run: The run (its held-out rows drawn first, as its registration draws them).
+        register: Its checks and registration
+            (:func:`~.contact_register.register_contact_chains`).
+        fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
+
+    Returns:
+        The last fit; each term's outliers those set aside by the loop and by the last fit's
+        registration, their errors the last fit's.
+    """
+    first = register(run)
+    if any(isinstance(d, PixelData) for d in run.data):  # pixel terms: at registration only
+        return fit(first)
+    again, train = _drawn(run)
+    torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
+    ends = np.cumsum([0, *(d.m for d in train)])
+    parts = [slice(a, b) for a, b in itertools.pairwise(ends)]
+    rows = [d.rows or tuple(range(1, d.m + 1)) for d in train]
+    noise = [None if isinstance(d, ContactData) else run.options.noise for d in train]
+    errors = _term_errors(train, torque[0][0])
+    inner = np.concatenate(  # what the registration set aside: it stays aside
+        [np.isin(r, [o.row for o in out]) for r, out in zip(rows, first.dropped, strict=True)]
+    )
+    fitted: list[ContactChainsCalibration] = []
+
+    def refit(keep: np.ndarray) -> ContactChainsCalibration:
+        if np.array_equal(~keep, inner):  # the registration's own: the first fit
+            fitted[:] = fitted or [fit(first)]
+            return fitted[0]
+        kept = [_subset(d, keep[p]) for d, p in zip(train, parts, strict=True)]
+        return fit(register(dataclasses.replace(again, data=kept)))
+
+    def rule(result: ContactChainsCalibration) -> np.ndarray:
+        found = zip(errors(result), noise, rows, strict=True)
+        return inner | np.concatenate([find_outliers(e, n, r)[0] for e, n, r in found])
+
+    def allowed(bad: np.ndarray) -> bool:
+        pairs = zip(train, parts, strict=True)
+        return all(enough_touches(d)(bad[p]) for d, p in pairs if isinstance(d, ContactData))
+
+    result, bad = stable_set(refit, rule, inner, allowed)
+    if np.array_equal(bad, inner):
+        return result
+    return _recorded(result, errors(result), [bad[p] for p in parts], rows)
+
+
+def _drawn(run: Run) -> tuple[Run, list]:
+    """The run with its held-out rows drawn (given as validation rows), and its training rows."""
+    opts = run.options
+    if opts.holdout == 0:
+        return run, list(run.data)
+    splits = [
+        validation.split(d, opts.holdout, opts.seed)
+        if isinstance(d, Measurements)
+        else split_contacts(cast(ContactData, d), opts.holdout, opts.seed)
+        for d in run.data
+    ]
+    drawn = dataclasses.replace(opts, holdout=0.0)
+    again = dataclasses.replace(
+        run, validate=[s[1] for s in splits], options=drawn, held_label="holdout"
+    )
+    return again, [s[0] for s in splits]
+
+
+def _subset(data, keep: np.ndarray):
+    """A term's rows a boolean mask keeps (touches or measurements)."""
+    return subset(data, keep) if isinstance(data, ContactData) else data.subset(keep)
+
+
+def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
+    """Each term's errors at every training row under a fit (the last one's kept).
+
+    ``torque``: the first term's gravity torques at its rows (its compliance), or None.
+    """
+    last: list = []
+
+    def errors(result: ContactChainsCalibration) -> list[Errors]:
+        if last and last[0] is result:
+            return last[1]
+        solution = result.solution
+        if solution is None:  # fit_registered always keeps it
+            raise ValueError("a joint fit's result without its solution")
+        states = solution.fit.state.settled().states
+        found = []
+        for c, (s, d) in enumerate(zip(states, train, strict=True)):
+            tau = torque if c == 0 else None
+            if isinstance(s, ContactState):
+                found.append(length_errors(s, d, tau))
+            else:
+                found.append(point_errors(s.inner.residuals(d, tau), d.n_markers))
+        last[:] = [result, found]
+        return found
+
+    return errors
+
+
+def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, rows: list):
+    """The result with each term's outliers (the loop's and its registration's) recorded anew.
+
+    Their errors and the median are the fit's; each term's note of them replaced.
+    """
+    chains, notes = list(result.chains), list(result.notes)
+    for c, part in enumerate(result.chains):
+        inner = np.isin(rows[c], [o.row for o in part.outliers])
+        new = tuple(records(found[c], bad[c] | inner, rows[c]))
+        if not new or new == part.outliers:
+            continue
+        words = ("touch(es)", "gap") if isinstance(part, ChainContacts) else ()
+        head = f"{part.chain.base_frame} -> {part.chain.tool_frame}: "
+        old = head + set_aside_note(part.outliers, *words) if part.outliers else None
+        notes = [n for n in notes if n != old] + [head + set_aside_note(new, *words)]
+        chains[c] = dataclasses.replace(part, outliers=new)
+    return dataclasses.replace(result, chains=tuple(chains), notes=tuple(notes))

@@ -47,6 +47,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic
 from .chain_counts import Generic, assess
+from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import (
     ChainContacts,
@@ -90,6 +91,7 @@ __all__ = [
     "calibrate_contact_chains",
     "determined_unknowns",
     "fit_registered",
+    "fit_run",
     "register_contact_chains",
 ]
 
@@ -118,7 +120,8 @@ def calibrate_contact_chains(
     """Calibrate several chains of one robot from flush touches, together (module text).
 
     The arguments are made one :class:`Run` (its options one :class:`~.options.Options`),
-    registered (:func:`register_contact_chains`) and fitted (:func:`fit_registered`).
+    registered (:func:`register_contact_chains`) and fitted (:func:`fit_registered`), each
+    term's outliers set aside after each fit until stable (:func:`fit_run`).
 
     Args:
         chains: The nominal chains (one URDF; each base: where its plane is expressed;
@@ -179,7 +182,16 @@ def calibrate_contact_chains(
                       max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
     run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,
               instrument, held_label, support, progress)  # fmt: skip
-    return fit_registered(register_contact_chains(run))
+    return fit_run(run)
+
+
+def fit_run(run: Run) -> ContactChainsCalibration:
+    """A run registered and fitted, each term's outliers set aside after each fit until stable.
+
+    :func:`~.chain_outliers.fit_terms_until_stable` of :func:`register_contact_chains` and
+    :func:`fit_registered`.
+    """
+    return fit_terms_until_stable(run, register_contact_chains, fit_registered)
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:

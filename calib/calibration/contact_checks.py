@@ -125,9 +125,12 @@ def registration(
     return ContactState(nominal, at(w), w)
 
 
-def length_errors(state: ContactState, data: ContactData) -> outliers.Errors:
-    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms."""
-    g = state.gaps(data.q, data.ids)
+def length_errors(state: ContactState, data: ContactData, torque=None) -> outliers.Errors:
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms.
+
+    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints, or None.
+    """
+    g = state.gaps(data.q, data.ids, torque)
     angle = np.array(state.kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
     dims = (int(np.sum(~angle)), int(np.sum(angle)))

@@ -33,6 +33,7 @@ from .contact_chains import (
     Run,
     calibrate_contact_chains,
     fit_registered,
+    fit_run,
     register_contact_chains,
 )
 from .contact_chains_result import ContactChainsCalibration
@@ -149,7 +150,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
         pose_weight=problem.pose_weight,
         progress=progress,
     )
-    return measured_chain(run) if chain else fit_registered(register_contact_chains(run))
+    return measured_chain(run) if chain else fit_run(run)
 
 
 calibrate_tree = calibrate
@@ -196,7 +197,7 @@ def _tree(problem: Problem, progress: Progress | None) -> ContactChainsCalibrati
     label = "holdout" if validate is None else None
     run = Run(list(tree.chains), data, held, options, instrument=True, held_label=label,
               progress=progress)  # fmt: skip
-    return dataclasses.replace(fit_registered(register_contact_chains(run)), shape="tree")
+    return dataclasses.replace(fit_run(run), shape="tree")
 
 
 def measured_chain(run: Run) -> ContactChainsCalibration:

@@ -48,6 +48,7 @@ __all__ = [
     "robust_proposals",
     "set_aside_note",
     "spread_out",
+    "stable_set",
     "until_stable",
 ]
 
@@ -213,18 +214,40 @@ def until_stable(
     Returns:
         The last fit, the mask of the outliers it was fitted without, and the outliers.
     """
+
+    def rule(result: T) -> np.ndarray:
+        return find_outliers(errors(result), noise, rows)[0]
+
     bad = np.zeros(len(rows), dtype=bool) if start is None else start.copy()
+    result, bad = stable_set(refit, rule, bad, allowed)
+    return result, bad, records(errors(result), bad, rows)
+
+
+def stable_set(
+    refit: Callable[[np.ndarray], T],
+    rule: Callable[[T], np.ndarray],
+    start: np.ndarray,
+    allowed: Callable[[np.ndarray], bool] | None = None,
+) -> tuple[T, np.ndarray]:
+    """:func:`until_stable`'s loop: the outliers ``rule`` finds under a fit (a mask) each round.
+
+    Several terms fitted together (:func:`~.chain_outliers.fit_terms_until_stable`) apply the
+    rule to each term's units on its own.
+
+    Returns:
+        The last fit and the mask of the units it was fitted without.
+    """
+    bad = start
     result = refit(~bad)
     for _ in range(ROUNDS):
-        found = errors(result)
-        new = find_outliers(found, noise, rows)[0]
+        new = rule(result)
         if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
             break
         try:
             result, bad = refit(~new), new
         except DataError:  # too few rows left for the model: the last set stays
             break
-    return result, bad, records(errors(result), bad, rows)
+    return result, bad
 
 
 def records(found: Errors, bad: np.ndarray, rows: tuple[int, ...]) -> list[Outlier]:
