@@ -181,3 +181,25 @@ def test_a_tree_row_hidden_by_the_geometric_errors_is_set_aside_after_the_fit():
     assert [[o.row for o in c.outliers] for c in res.chains] == [[], [19]]
     assert 7e-3 < res.chains[1].outliers[0].error < 9e-3  # under the fit
     assert any("row 19 (8.05 mm)" in n for n in res.notes)
+
+
+def test_the_loop_keeps_the_rows_its_holdout_drew():
+    """With ``holdout``, the fit made again after the loop's outlier is scored on the rows the
+    first draw held out: the same as the training rows less the outlier fitted with those
+    rows given as validation touches."""
+    from calib.calibration.contact_checks import subset
+    from calib.calibration.contact_term import split_contacts
+
+    chain, _, data = _hidden_touch_error()
+    train, held = split_contacts(data, 0.25, 0)
+    assert 42 in train.rows
+    res = calibrate(chain, data, params="paper", holdout=0.25, seed=0)
+    assert [o.row for o in res.chains[0].outliers] == [42]
+    keep = np.array([r != 42 for r in train.rows])
+    same = calibrate(chain, train, params="paper", validate=held)
+    again = calibrate(chain, subset(train, keep), params="paper", validate=held)
+    assert same.chains[0].outliers[0].row == 42  # the loop finds it from the given rows too
+    for r in (same, again):
+        got, want = res.stats["held_out"], r.stats["held_out"]
+        assert got.m == want.m == held.m
+        assert abs(got.length_rms_mm - want.length_rms_mm) < 1e-9

@@ -34,13 +34,12 @@ import numpy as np
 from ..identification.parameters import parameter_set
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from . import determined, validation
+from . import determined
 from .chain_registration import frames_model
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import enough_touches, length_errors, subset
 from .contact_model import ContactState
-from .contact_register import Registered, Run
-from .contact_term import split_contacts
+from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState
 from .measured_view import gravity_torque
@@ -215,15 +214,10 @@ def _drawn(run: Run) -> tuple[Run, list]:
     opts = run.options
     if opts.holdout == 0:
         return run, list(run.data)
-    splits = [
-        validation.split(d, opts.holdout, opts.seed)
-        if isinstance(d, Measurements)
-        else split_contacts(cast(ContactData, d), opts.holdout, opts.seed)
-        for d in run.data
-    ]
-    drawn = dataclasses.replace(opts, holdout=0.0)
+    splits = drawn(run.data, opts.holdout, opts.seed)  # as the registration draws them
+    once = dataclasses.replace(opts, holdout=0.0)  # drawn here, not again
     again = dataclasses.replace(
-        run, validate=[s[1] for s in splits], options=drawn, held_label="holdout"
+        run, validate=[s[1] for s in splits], options=once, held_label="holdout"
     )
     return again, [s[0] for s in splits]
 

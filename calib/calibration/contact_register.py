@@ -52,6 +52,7 @@ __all__ = [
     "Registered",
     "Run",
     "determined_unknowns",
+    "drawn",
     "register_contact_chains",
 ]
 
@@ -293,6 +294,17 @@ class Registered:
     clock: list[float]
 
 
+def drawn(data: Sequence, holdout: float, seed: int) -> list[tuple]:
+    """Each term's rows split into training and held-out rows (``(rows, None)``: none held).
+
+    By posture for measurements and pixels (:func:`~.validation.split`), by object for
+    touches (:func:`~.contact_term.split_contacts`); seeded.
+    """
+    return [(d, None) if holdout == 0 else validation.split(d, holdout, seed)
+            if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
+            for d in data]  # fmt: skip
+
+
 def register_contact_chains(run: Run) -> Registered:
     """A run checked and registered: the joint fit's steps before its choice.
 
@@ -316,9 +328,7 @@ def register_contact_chains(run: Run) -> Registered:
     if run.marker is not None and not any(isinstance(d, Measurements) for d in data):
         raise InvalidArgumentError("marker is for measured terms: no term here is measured")
     guess = contact_frame(run.contact)
-    splits = [(d, None) if holdout == 0 else validation.split(d, holdout, seed)
-              if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
-              for d in data]  # fmt: skip
+    splits = drawn(data, holdout, seed)
     train = [s[0] for s in splits]
     given = validate or [None] * len(data)
     held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
