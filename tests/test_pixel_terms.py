@@ -311,3 +311,27 @@ def test_a_pixel_parts_rows_as_data_are_its_rows(campaign):
         assert np.array_equal(a, b)
     assert np.array_equal(again.rows.point, sub.rows.point)
     assert sub.as_data().obs.cameras == (NAME,)
+
+
+def test_the_loop_keeps_the_pixel_rows_its_holdout_drew(campaign):
+    """With ``holdout``, the fit made again after the loop's pixel outlier is scored on the
+    rows the first draw held out: the same as the training rows less the outlier fitted with
+    every term's held-out rows given as validation rows (the pixels' as data again)."""
+    from calib.calibration.contact_register import drawn
+    from calib.calibration.pixel_chain import pixel_parts
+
+    nominal, data = _hidden_pixel_error(campaign, 8, 0, 2.0)
+    res = calibrate_contact_chains(nominal, data, params="complete", holdout=0.25, seed=0)
+    assert [[o.row for o in c.outliers] for c in res.chains] == [[], [], [1]]
+    train, held = zip(*drawn(pixel_parts(nominal, data), 0.25, 0), strict=True)
+    keep = np.array([line != 1 for line in train[2].rows.lines])
+    kept = [*train[:2], train[2].subset(keep).as_data()]
+    again = calibrate_contact_chains(
+        nominal, kept, validate=[*held[:2], held[2].as_data()], params="complete"
+    )
+    assert [[o.row for o in c.outliers] for c in again.chains] == [[], [], []]
+    got, want = res.chains[2].pixels["held_out"], again.chains[2].pixels["held_out"]
+    assert got["reprojection_rms_px"] == pytest.approx(want["reprojection_rms_px"], abs=1e-9)
+    for a, b in zip(res.chains, again.chains, strict=True):
+        assert a.stats["held_out"].m == b.stats["held_out"].m > 0
+        assert abs(a.stats["held_out"].length_rms_mm - b.stats["held_out"].length_rms_mm) < 1e-9
