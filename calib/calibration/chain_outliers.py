@@ -4,10 +4,11 @@ Every shape (:func:`fit_terms_until_stable`): the run is registered and fitted; 
 training rows (those its registration set aside too) are tested under the fitted model with
 its kind's errors (a contact term: each touch's length and angle gaps,
 :func:`~.contact_checks.length_errors`; a measured term: each row's point and orientation
-errors), the rule (:func:`~.outliers.find_outliers`) applied to each term's rows on its own,
-and the run registered and fitted again without the outliers found, until the set stops
-changing (:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``). Pixel terms
-keep the outliers their registration sets aside (a run with one is fitted once).
+errors; a pixel term: each point's reprojection error at the target, floored as its
+registration's, :func:`~.pixel_fit.checked_pixels`), the rule
+(:func:`~.outliers.find_outliers`) applied to each term's rows on its own, and the run
+registered and fitted again without the outliers found, until the set stops changing
+(:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``).
 
 One chain measured by an instrument (:func:`fit_until_stable`):
 
@@ -56,7 +57,9 @@ from .outliers import (
     stable_set,
     until_stable,
 )
-from .pixel_chain import PixelData
+from .pixel_chain import PixelPart, PixelTermState, pixel_parts
+from .pixel_chain_result import PixelChain
+from .pixel_fit import ROUND_OFF_PX
 from .solve import row_weights
 
 __all__ = ["fit_terms_until_stable", "fit_until_stable", "proposals"]
@@ -174,14 +177,14 @@ def fit_terms_until_stable(
         registration, their errors the last fit's.
     """
     first = register(run)
-    if any(isinstance(d, PixelData) for d in run.data):  # pixel terms: at registration only
-        return fit(first)
     again, train = _drawn(run)
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
     parts = [slice(a, b) for a, b in itertools.pairwise(ends)]
-    rows = [d.rows or tuple(range(1, d.m + 1)) for d in train]
-    noise = [None if isinstance(d, ContactData) else run.options.noise for d in train]
+    rows = [_lines(d) for d in train]
+    noise = [
+        _noise(d, s, run.options.noise) for d, s in zip(train, first.start.states, strict=True)
+    ]
     errors = _term_errors(train, torque[0][0])
     inner = np.concatenate(  # what the registration set aside: it stays aside
         [np.isin(r, [o.row for o in out]) for r, out in zip(rows, first.dropped, strict=True)]
@@ -210,21 +213,45 @@ def fit_terms_until_stable(
 
 
 def _drawn(run: Run) -> tuple[Run, list]:
-    """The run with its held-out rows drawn (given as validation rows), and its training rows."""
+    """The run with its held-out rows drawn (given as validation rows), and its training rows.
+
+    A pixel term's rows are its camera's on its chain (:func:`~.pixel_chain.pixel_parts`), as
+    the registration draws them; given to the run again as :class:`PixelData`.
+    """
     opts = run.options
+    parts = pixel_parts(run.chains, run.data)
     if opts.holdout == 0:
-        return run, list(run.data)
-    splits = drawn(run.data, opts.holdout, opts.seed)  # as the registration draws them
+        return run, parts
+    splits = drawn(parts, opts.holdout, opts.seed)  # as the registration draws them
     once = dataclasses.replace(opts, holdout=0.0)  # drawn here, not again
-    again = dataclasses.replace(
-        run, validate=[s[1] for s in splits], options=once, held_label="holdout"
-    )
+    held = [s[1].as_data() if isinstance(s[1], PixelPart) else s[1] for s in splits]
+    again = dataclasses.replace(run, validate=held, options=once, held_label="holdout")
     return again, [s[0] for s in splits]
 
 
 def _subset(data, keep: np.ndarray):
-    """A term's rows a boolean mask keeps (touches or measurements)."""
+    """A term's rows a boolean mask keeps (touches, measurements, or pixels as PixelData)."""
+    if isinstance(data, PixelPart):
+        return data.subset(keep).as_data()
     return subset(data, keep) if isinstance(data, ContactData) else data.subset(keep)
+
+
+def _lines(data) -> tuple[int, ...]:
+    """A term's training rows' lines (a pixel term's: each point's in an image)."""
+    if isinstance(data, PixelPart):
+        return data.rows.lines
+    return data.rows or tuple(range(1, data.m + 1))
+
+
+def _noise(data, state, noise: float | None) -> float | None:
+    """A term's noise floor in the rule [m]: none for touches, the registration's for pixels.
+
+    A pixel term's: :data:`~.pixel_fit.ROUND_OFF_PX` at the target (``state``: its
+    registration), as :func:`~.pixel_fit.checked_pixels`; a measured term's: the instrument's.
+    """
+    if isinstance(data, ContactData):
+        return None
+    return ROUND_OFF_PX * state.weight if isinstance(data, PixelPart) else noise
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
@@ -246,6 +273,8 @@ def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], li
             tau = torque if c == 0 else None
             if isinstance(s, ContactState):
                 found.append(length_errors(s, d, tau))
+            elif isinstance(s, PixelTermState):  # each point's reprojection error at the target
+                found.append(Errors(np.linalg.norm(s.residuals(d), axis=1), None, (2, 3)))
             else:
                 found.append(point_errors(s.inner.residuals(d, tau), d.n_markers))
         last[:] = [result, found]
@@ -263,6 +292,9 @@ def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, 
     for c, part in enumerate(result.chains):
         inner = np.isin(rows[c], [o.row for o in part.outliers])
         new = tuple(records(found[c], bad[c] | inner, rows[c]))
+        if isinstance(part, PixelChain):  # set aside on pixels; seen from behind stays so
+            behind = {o.row: o for o in part.outliers if o.kind == "from behind"}
+            new = tuple(behind.get(o.row, dataclasses.replace(o, kind="pixels")) for o in new)
         if not new or new == part.outliers:
             continue
         words = ("touch(es)", "gap") if isinstance(part, ChainContacts) else ()

@@ -120,6 +120,23 @@ class PixelPart:
         """The rows where ``keep``."""
         return PixelPart(self.data, self.rows.subset(keep))
 
+    def as_data(self) -> PixelData:
+        """The term's data of these rows only, each keeping its line: a run's data again.
+
+        :func:`pixel_part` of it on the chain gives these rows (the outlier loop's subsets
+        and held-out rows, :mod:`.chain_outliers`).
+        """
+        obs = self.data.obs
+        lines = obs.rows or tuple(range(1, obs.m + 1))  # without a file: i + 1, as pixel_rows
+        keep = np.isin(lines, self.rows.lines)
+        pick = np.flatnonzero(keep)
+        rows = PixelObservations(
+            obs.joint_names, obs.q[keep], tuple(obs.camera[i] for i in pick),
+            tuple(obs.point[i] for i in pick), obs.pixels[keep], obs.source,
+            tuple(lines[i] for i in pick),
+        )  # fmt: skip
+        return dataclasses.replace(self.data, obs=rows)
+
 
 @dataclass(frozen=True)
 class PixelKind:
