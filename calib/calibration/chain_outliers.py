@@ -117,16 +117,7 @@ def fit_until_stable(
     kin = registered.frames_at(train)  # the registration's, at every row
     start = proposals(registered.inner.mdh, registered.inner, train, opts, kin)
     result, bad, _ = until_stable(refit, errors, opts.noise, rows, start)
-    part = result.one_chain()
-    inner = np.isin(rows, [o.row for o in part.outliers])
-    found = tuple(records(errors(result), bad | inner, rows))
-    if not found or found == part.outliers:
-        return result
-    head = f"{part.chain.base_frame} -> {part.chain.tool_frame}: "
-    old = head + set_aside_note(part.outliers) if part.outliers else None
-    notes = (*(n for n in result.notes if n != old), head + set_aside_note(found))
-    chains = (dataclasses.replace(part, outliers=found), *result.chains[1:])
-    return dataclasses.replace(result, chains=chains, notes=notes)
+    return _recorded(result, [errors(result)], [bad], [rows])  # its one term
 
 
 def proposals(nominal, reg, data: Measurements, opts, kin=None) -> np.ndarray:
