@@ -1,26 +1,23 @@
 """The engine's outlier loop: each term's outliers set aside after each fit, until stable.
 
-Every shape (:func:`fit_terms_until_stable`): the run is registered and fitted; each term's
-training rows (those its registration set aside too) are tested under the fitted model with
-its kind's errors (a contact term: each touch's length and angle gaps,
+The run is registered and fitted; each term's training rows are tested under the fitted
+model with its kind's errors (a contact term: each touch's length and angle gaps,
 :func:`~.contact_checks.length_errors`; a measured term: each row's point and orientation
 errors; a pixel term: each point's reprojection error at the target, floored as its
 registration's, :func:`~.pixel_fit.checked_pixels`), the rule
 (:func:`~.outliers.find_outliers`) applied to each term's rows on its own, and the run
 registered and fitted again without the outliers found, until the set stops changing
-(:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``).
+(:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``). The held-out rows
+are drawn once, before.
 
-One chain measured by an instrument (:func:`fit_until_stable`):
-
-The joint engine sets a measured term's outliers aside at its registration
-(:func:`~.measured_term.checked_measured`), where the geometric errors not yet fitted hide
-them (20 mm among 3.6 mm of them is not five times the median). As the chain's calibration
-always has (issue 29), the rows are tested again under each fit (every row: those set aside
-too, predicted) and the fit is made again without the outliers found, until the set stops
-changing (:func:`~.outliers.until_stable`), from the rows a robust fit of every identifiable
-parameter, linearised at the registration, finds outlying (outliers that could mask each
-other: :func:`proposals`). The held-out rows are drawn once, before
-(:func:`fit_until_stable` takes the training rows).
+A term's registration sets its outliers aside first, where the geometric errors not yet
+fitted hide some (20 mm among 3.6 mm of them is not five times the median): those rows stay
+aside, and the loop starts from them. One chain measured by an instrument
+(:func:`~.entry.measured_chain`: ``retest``) tests its registration's too, as its
+calibration always has (issue 29): its loop starts from the rows a robust fit of every
+identifiable parameter, linearised at the registration, finds outlying (outliers that could
+mask each other: :func:`proposals`), and every row is tested again (those set aside:
+predicted); its outliers are always recorded under the last fit.
 """
 
 from __future__ import annotations
@@ -28,7 +25,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from collections.abc import Callable
-from typing import cast
 
 import numpy as np
 
@@ -43,9 +39,7 @@ from .contact_model import ContactState
 from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState
-from .measured_view import gravity_torque
 from .model import moved
-from .options import Options
 from .outliers import (
     Errors,
     find_outliers,
@@ -55,94 +49,38 @@ from .outliers import (
     set_aside_note,
     spread_out,
     stable_set,
-    until_stable,
 )
 from .pixel_chain import PixelPart, PixelTermState, pixel_parts
 from .pixel_chain_result import PixelChain
 from .pixel_fit import ROUND_OFF_PX
 from .solve import row_weights
 
-__all__ = ["fit_terms_until_stable", "fit_until_stable", "proposals"]
+__all__ = ["fit_terms_until_stable", "proposals"]
 
 
-def fit_until_stable(
-    register: Callable[[Measurements], Registered],
-    fit: Callable[[Registered], ContactChainsCalibration],
-    train: Measurements,
-    noise_mm: float | None,
-) -> ContactChainsCalibration:
-    """The fit of the training rows without the outliers its errors find (module text).
-
-    The proposals read the registration of every row only: the fit of every row is made
-    only if the loop comes to it (no proposal, or a later round keeping every row).
-
-    Args:
-        register: The joint fit's checks and registration of some of the rows (one chain
-            measured by an instrument: :func:`~.contact_chains.register_contact_chains`).
-        fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
-        train: Every training row.
-        noise_mm: Instrument noise [mm], or None (unknown).
-
-    Returns:
-        The last fit; its outliers (and their note) every row set aside, by the loop or by
-        the last fit's registration.
-    """
-    rows = train.rows or tuple(range(1, train.m + 1))
-    every = register(train)
-    first: list[ContactChainsCalibration] = []
-
-    def refit(keep: np.ndarray) -> ContactChainsCalibration:
-        if not keep.all():
-            return fit(register(train.subset(keep)))
-        if not first:
-            first.append(fit(every))
-        return first[0]
-
-    last: list = []  # the last fit and its errors: the loop and its end read them again
-
-    def errors(result: ContactChainsCalibration):
-        if last and last[0] is result:
-            return last[1]
-        state = result.state  # with fitted compliance: deflected by the rows' gravity torques
-        torque = gravity_torque(result.chain, state, train)
-        part = result.one_chain()  # its rigid residuals, when it fitted every row
-        residuals = part.residuals if torque is None and part.data is train else None
-        if residuals is None:
-            residuals = state.residuals(train, torque)
-        last[:] = [result, point_errors(residuals, train.n_markers)]
-        return last[1]
-
-    registered = cast(MeasuredState, every.start.states[0])  # as its fit's result reports it
-    opts = Options(orientation_weight=registered.weight, noise_mm=noise_mm)
-    kin = registered.frames_at(train)  # the registration's, at every row
-    start = proposals(registered.inner.mdh, registered.inner, train, opts, kin)
-    result, bad, _ = until_stable(refit, errors, opts.noise, rows, start)
-    return _recorded(result, [errors(result)], [bad], [rows])  # its one term
-
-
-def proposals(nominal, reg, data: Measurements, opts, kin=None) -> np.ndarray:
+def proposals(state: MeasuredState, data: Measurements, noise: float | None) -> np.ndarray:
     """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
 
-    None where no row of the registration is far from the others
+    None where no row of the registration ``state`` is far from the others
     (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
-    ``kin``: ``reg``'s kinematics at ``data``'s joints, if already made.
+    ``noise``: the instrument's [m], or None.
     """
-    if kin is None:
-        kin = reg.kinematics(data.q)  # x = 0 is the registration
+    reg, nominal = state.inner, state.inner.mdh
+    kin = state.frames_at(data)  # the registration's (x = 0), at every row
     residuals = reg.residuals(data, None, kin)
     if not spread_out(point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
     base, lift = moved(pset, nominal)
     wide = frames_model(data.n_markers, data.kind).with_(params=pset, base=base, lift=lift)
-    w = row_weights(wide, opts.orientation_weight)
+    w = row_weights(wide, state.weight)
     J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
     rows = data.rows or tuple(range(1, data.m + 1))
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],
         residuals * w,
         lambda r: point_errors(r, data.n_markers),
-        opts.noise,
+        noise,
         rows,
     )
 
@@ -151,17 +89,22 @@ def fit_terms_until_stable(
     run: Run,
     register: Callable[[Run], Registered],
     fit: Callable[[Registered], ContactChainsCalibration],
+    retest: bool = False,
 ) -> ContactChainsCalibration:
     """The run's fit without the rows each term's errors under it find outlying (module text).
 
     The loop starts from the rows each term's registration set aside (which stay aside) and
-    the run's fit as it is; a loop that sets no other row aside leaves it unchanged.
+    the run's fit as it is; a loop that sets no other row aside leaves it unchanged. With
+    ``retest``, a measured term's start and rows tested are its own (:func:`_aside`); the
+    proposals read the registration of every row only: the fit of every row is made only if
+    the loop comes to it (no proposal, or a later round keeping every row).
 
     Args:
         run: The run (its held-out rows drawn first, as its registration draws them).
         register: Its checks and registration
             (:func:`~.contact_register.register_contact_chains`).
         fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
+        retest: One chain measured by an instrument (:func:`~.entry.measured_chain`).
 
     Returns:
         The last fit; each term's outliers those set aside by the loop and by the last fit's
@@ -177,9 +120,9 @@ def fit_terms_until_stable(
         _noise(d, s, run.options.noise) for d, s in zip(train, first.start.states, strict=True)
     ]
     errors = _term_errors(train, torque[0][0])
-    inner = np.concatenate(  # what the registration set aside: it stays aside
-        [np.isin(r, [o.row for o in out]) for r, out in zip(rows, first.dropped, strict=True)]
-    )
+    terms = zip(train, first.start.states, first.dropped, rows, noise, strict=True)
+    masks = [_aside(*t, retest) for t in terms]
+    inner, start = (np.concatenate([m[k] for m in masks]) for k in (0, 1))
     fitted: list[ContactChainsCalibration] = []
 
     def refit(keep: np.ndarray) -> ContactChainsCalibration:
@@ -197,10 +140,23 @@ def fit_terms_until_stable(
         pairs = zip(train, parts, strict=True)
         return all(enough_touches(d)(bad[p]) for d, p in pairs if isinstance(d, ContactData))
 
-    result, bad = stable_set(refit, rule, inner, allowed)
-    if np.array_equal(bad, inner):
+    result, bad = stable_set(refit, rule, start, allowed)
+    if np.array_equal(bad, inner) and not retest:
         return result
     return _recorded(result, errors(result), [bad[p] for p in parts], rows)
+
+
+def _aside(data, state, dropped, rows, noise, retest: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A term's rows that stay aside, and those the loop starts without (masks of ``rows``).
+
+    The registration's outliers (``dropped``), both; a measured term retested
+    (``retest``): none stays aside, and the loop starts from the :func:`proposals` of its
+    registration ``state`` (``noise``: the instrument's [m]).
+    """
+    if retest and isinstance(state, MeasuredState):
+        return np.zeros(len(rows), dtype=bool), proposals(state, data, noise)
+    inner = np.isin(rows, [o.row for o in dropped])
+    return inner, inner
 
 
 def _drawn(run: Run) -> tuple[Run, list]:

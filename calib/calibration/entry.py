@@ -27,7 +27,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from .chain_outliers import fit_until_stable
+from .chain_outliers import fit_terms_until_stable
 from .contact_chains import (
     Registered,
     Run,
@@ -209,7 +209,8 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     ``elastic``, a robust ``loss``, ``noise_mm``) are the engine's
     (:mod:`~.measured_options`). The held-out rows are drawn first (``holdout``), then the
     rows the fit's errors call outliers are set aside and the fit made again until they are
-    stable (:func:`~.chain_outliers.fit_until_stable`).
+    stable, every row tested again from a robust fit's proposals
+    (:func:`~.chain_outliers.fit_terms_until_stable`, ``retest``).
 
     Args:
         run: The chain's run (its markers' guess: ``marker``; ``instrument`` and
@@ -230,16 +231,14 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     )
     run = dataclasses.replace(
         run,
+        data=[train],
         validate=None if held is None else [held],
         options=dataclasses.replace(opts, holdout=0.0),  # drawn
         instrument=True,
         held_label="holdout" if given is None else None,
     )
 
-    def register(rows: Measurements) -> Registered:
-        return register_contact_chains(dataclasses.replace(run, data=[rows]))
-
     def fit(registered: Registered) -> ContactChainsCalibration:
         return dataclasses.replace(fit_registered(registered), shape="chain")
 
-    return fit_until_stable(register, fit, train, opts.noise_mm)
+    return fit_terms_until_stable(run, register_contact_chains, fit, retest=True)
