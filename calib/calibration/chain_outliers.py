@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 
@@ -39,6 +40,7 @@ from .contact_model import ContactState
 from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState
+from .measured_view import MeasuredChain
 from .model import moved
 from .outliers import (
     Errors,
@@ -214,20 +216,37 @@ def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], li
         solution = result.solution
         if solution is None:  # fit_registered always keeps it
             raise ValueError("a joint fit's result without its solution")
-        states = solution.fit.state.settled().states
+        parts = result.chains  # measured parts keep their fitted states (settled once)
+        measured = all(isinstance(p, MeasuredChain) for p in parts)
+        states = (
+            [p.state for p in cast(tuple[MeasuredChain, ...], parts)]
+            if measured
+            else solution.fit.state.settled().states
+        )
         found = []
-        for c, (s, d) in enumerate(zip(states, train, strict=True)):
+        for c, (s, d, part) in enumerate(zip(states, train, parts, strict=True)):
             tau = torque if c == 0 else None
             if isinstance(s, ContactState):
                 found.append(length_errors(s, d, tau))
             elif isinstance(s, PixelTermState):  # each point's reprojection error at the target
                 found.append(Errors(np.linalg.norm(s.residuals(d), axis=1), None, (2, 3)))
             else:
-                found.append(point_errors(s.inner.residuals(d, tau), d.n_markers))
+                found.append(point_errors(_residuals(s, part, d, tau), d.n_markers))
         last[:] = [result, found]
         return found
 
     return errors
+
+
+def _residuals(state: MeasuredState, part, data: Measurements, torque) -> np.ndarray:
+    """A measured term's residuals at every training row: its fit's own if they are those.
+
+    The fit's, kept by its part, when it fitted every row (``data``) of rigid joints.
+    """
+    fitted = part.residuals if isinstance(part, MeasuredChain) and part.data is data else None
+    if fitted is not None and torque is None:
+        return fitted
+    return state.inner.residuals(data, torque)
 
 
 def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, rows: list):
