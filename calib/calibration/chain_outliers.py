@@ -128,7 +128,7 @@ def fit_terms_until_stable(
     fitted: list[ContactChainsCalibration] = []
 
     def refit(keep: np.ndarray) -> ContactChainsCalibration:
-        if np.array_equal(~keep, inner):  # the registration's own: the first fit
+        if np.array_equal(~keep, inner):  # those that stay aside alone: the first fit
             fitted[:] = fitted or [fit(first)]
             return fitted[0]
         kept = [_subset(d, keep[p]) for d, p in zip(train, parts, strict=True)]

@@ -7,19 +7,20 @@ outlier (a marker swap, a bad reading). With pose data, the orientation error of
 configuration is tested the same way against the median orientation error, so that one bad
 orientation is set aside like one bad point. Outliers are listed by file row.
 
-The step is iterated until it is stable (:func:`until_stable`): the model is refitted without
-the outliers, every row (those set aside too) is tested again against the refit, and the set
-changes until a refit leaves it as it was (at most ``ROUNDS`` refits). It runs on the
-registration, then on the calibration itself: the registration leaves the robot's geometric
-errors, several millimetres, beside which a 20 mm outlier is not five times the median; the
-calibration leaves the noise. So that several outliers cannot hide each other by pulling
-the first fit (:func:`robust_proposals`), the loop starts from the rows a robust fit
-(iteratively reweighted least squares of the model linearised at the registration, every
-identifiable parameter free) finds outlying; the loop keeps them only if the calibration
-confirms them. The unit tested is a configuration (a row, or a touch); the functions take
-per-unit errors, so a unit of several rows (a posture) takes its largest error. A robust loss
-(``--loss soft_l1|huber``, scale ``--noise-mm``) further limits the pull of the rows that
-remain.
+The step is iterated until it is stable (:func:`stable_set`; :func:`until_stable` for one
+model): the model is refitted without the outliers, the units tested again against the
+refit, and the set changes until a refit leaves it as it was (at most ``ROUNDS`` refits). It
+runs on the registration, then on the calibration itself (every term's rows:
+:mod:`~.chain_outliers`): the registration leaves the robot's geometric errors, several
+millimetres, beside which a 20 mm outlier is not five times the median; the calibration
+leaves the noise. So that several outliers cannot hide each other by pulling the first fit,
+one chain measured by an instrument starts its loop from the rows a robust fit
+(:func:`robust_proposals`: iteratively reweighted least squares of the model linearised at
+the registration, every identifiable parameter free) finds outlying; the loop keeps them
+only if the calibration confirms them. The unit tested is a configuration (a row, or a
+touch); the functions take per-unit errors, so a unit of several rows (a posture) takes its
+largest error. A robust loss (``--loss soft_l1|huber``, scale ``--noise-mm``) further limits
+the pull of the rows that remain.
 """
 
 from __future__ import annotations
@@ -196,7 +197,6 @@ def until_stable(
     errors: Callable[[T], Errors],
     noise: float | None,
     rows: tuple[int, ...],
-    start: np.ndarray | None = None,
     allowed: Callable[[np.ndarray], bool] | None = None,
 ) -> tuple[T, np.ndarray, list[Outlier]]:
     """Refit without the outliers and test every unit again, until the set stops changing.
@@ -206,7 +206,6 @@ def until_stable(
         errors: Every unit's errors under a fit (those set aside too: predicted).
         noise: Instrument position noise [m], or None.
         rows: File row of each unit.
-        start: The units set aside at first (default: none).
         allowed: Whether a set of outliers (a mask) may be set aside (e.g. each plane keeps
             enough touches); a set that may not, or whose refit raises a ``DataError``
             (too few rows left), leaves the last one in place.
@@ -218,8 +217,7 @@ def until_stable(
     def rule(result: T) -> np.ndarray:
         return find_outliers(errors(result), noise, rows)[0]
 
-    bad = np.zeros(len(rows), dtype=bool) if start is None else start.copy()
-    result, bad = stable_set(refit, rule, bad, allowed)
+    result, bad = stable_set(refit, rule, np.zeros(len(rows), dtype=bool), allowed)
     return result, bad, records(errors(result), bad, rows)
 
 
@@ -231,8 +229,8 @@ def stable_set(
 ) -> tuple[T, np.ndarray]:
     """:func:`until_stable`'s loop: the outliers ``rule`` finds under a fit (a mask) each round.
 
-    Several terms fitted together (:func:`~.chain_outliers.fit_terms_until_stable`) apply the
-    rule to each term's units on its own.
+    The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
+    each term's units on its own, from those each term sets aside at first (``start``).
 
     Returns:
         The last fit and the mask of the units it was fitted without.
