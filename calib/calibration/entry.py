@@ -37,9 +37,11 @@ from .contact_chains import (
     register_contact_chains,
 )
 from .contact_chains_result import ContactChainsCalibration
+from .measured_term import check_measured
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, check_tree_level, checked_arguments
 from .problem import Problem, Term
 from .tree_checks import prepare_tree
+from .validation import split
 
 __all__ = ["calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]
 
@@ -211,13 +213,30 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     (:func:`~.chain_outliers.fit_terms_until_stable`, ``retest``).
 
     Args:
-        run: The chain's run (its markers' guess: ``marker``; ``instrument`` set here).
+        run: The chain's run (its markers' guess: ``marker``; ``instrument`` and
+            ``held_label`` set here).
 
     Raises:
         InvalidArgumentError: A bad option (an unknown parameter name, compliance without
             gravity torques, a free parameter the data cannot fit).
     """
-    run = dataclasses.replace(run, instrument=True)
+    chain, data, opts = run.chains[0], cast(Measurements, run.data[0]), run.options
+    given = None if run.validate is None else cast(Measurements | None, run.validate[0])
+    if opts.holdout > 0:  # the postures it leaves (the fit counts them with none)
+        check_measured(chain, data, None, True, opts.holdout)
+    train, held = (
+        (data, given)
+        if given is not None or opts.holdout == 0  # no posture to draw
+        else split(data, opts.holdout, opts.seed)
+    )
+    run = dataclasses.replace(
+        run,
+        data=[train],
+        validate=None if held is None else [held],
+        options=dataclasses.replace(opts, holdout=0.0),  # drawn
+        instrument=True,
+        held_label="holdout" if given is None else None,
+    )
 
     def fit(registered: Registered) -> ContactChainsCalibration:
         return dataclasses.replace(fit_registered(registered), shape="chain")
