@@ -11,13 +11,14 @@ registered and fitted again without the outliers found, until the set stops chan
 are drawn once, before.
 
 A term's registration sets its outliers aside first, where the geometric errors not yet
-fitted hide some (20 mm among 3.6 mm of them is not five times the median): those rows stay
-aside, and the loop starts from them. One chain measured by an instrument
-(:func:`~.entry.measured_chain`: ``retest``) tests its registration's too, as its
-calibration always has (issue 29): its loop starts from the rows a robust fit of every
-identifiable parameter, linearised at the registration, finds outlying (outliers that could
-mask each other: :func:`proposals`), and every row is tested again (those set aside:
-predicted); its outliers are always recorded under the last fit.
+fitted hide some (20 mm among 3.6 mm of them is not five times the median). A contact or
+pixel term's stay aside, and its loop starts from them. A measured term's (one chain or a
+tree's tools measured by an instrument, any measured term among others) are tested again,
+as a chain's calibration always has been (issue 29): its loop starts from the rows a robust
+fit of every identifiable parameter, linearised at the registration, finds outlying
+(outliers that could mask each other: :func:`proposals`), and every row is tested again
+(those set aside: predicted); a run with a measured term records its outliers under the
+last fit.
 """
 
 from __future__ import annotations
@@ -91,22 +92,20 @@ def fit_terms_until_stable(
     run: Run,
     register: Callable[[Run], Registered],
     fit: Callable[[Registered], ContactChainsCalibration],
-    retest: bool = False,
 ) -> ContactChainsCalibration:
     """The run's fit without the rows each term's errors under it find outlying (module text).
 
     The loop starts from the rows each term's registration set aside (which stay aside) and
-    the run's fit as it is; a loop that sets no other row aside leaves it unchanged. With
-    ``retest``, a measured term's start and rows tested are its own (:func:`_aside`); the
-    proposals read the registration of every row only: the fit of every row is made only if
-    the loop comes to it (no proposal, or a later round keeping every row).
+    the run's fit as it is; a loop that sets no other row aside leaves it unchanged. A
+    measured term's start and rows tested are its own (:func:`_aside`); the proposals read
+    the registration of every row only: the fit of every row is made only if the loop comes
+    to it (no proposal, or a later round keeping every row).
 
     Args:
         run: The run (its held-out rows drawn first, as its registration draws them).
         register: Its checks and registration
             (:func:`~.contact_register.register_contact_chains`).
         fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
-        retest: One chain measured by an instrument (:func:`~.entry.measured_chain`).
 
     Returns:
         The last fit; each term's outliers those set aside by the loop and by the last fit's
@@ -123,7 +122,8 @@ def fit_terms_until_stable(
     ]
     errors = _term_errors(train, torque[0][0])
     terms = zip(train, first.start.states, first.dropped, rows, noise, strict=True)
-    masks = [_aside(*t, retest) for t in terms]
+    masks = [_aside(*t) for t in terms]
+    retest = any(isinstance(s, MeasuredState) for s in first.start.states)
     inner, start = (np.concatenate([m[k] for m in masks]) for k in (0, 1))
     fitted: list[ContactChainsCalibration] = []
 
@@ -148,14 +148,14 @@ def fit_terms_until_stable(
     return _recorded(result, errors(result), [bad[p] for p in parts], rows)
 
 
-def _aside(data, state, dropped, rows, noise, retest: bool) -> tuple[np.ndarray, np.ndarray]:
+def _aside(data, state, dropped, rows, noise) -> tuple[np.ndarray, np.ndarray]:
     """A term's rows that stay aside, and those the loop starts without (masks of ``rows``).
 
-    The registration's outliers (``dropped``), both; a measured term retested
-    (``retest``): none stays aside, and the loop starts from the :func:`proposals` of its
+    The registration's outliers (``dropped``), both; a measured term's: none stays aside
+    (every row is tested again), and the loop starts from the :func:`proposals` of its
     registration ``state`` (``noise``: the instrument's [m]).
     """
-    if retest and isinstance(state, MeasuredState):
+    if isinstance(state, MeasuredState):
         return np.zeros(len(rows), dtype=bool), proposals(state, data, noise)
     inner = np.isin(rows, [o.row for o in dropped])
     return inner, inner

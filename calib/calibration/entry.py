@@ -210,7 +210,7 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     (:mod:`~.measured_options`). The held-out rows are drawn first (``holdout``), then the
     rows the fit's errors call outliers are set aside and the fit made again until they are
     stable, every row tested again from a robust fit's proposals
-    (:func:`~.chain_outliers.fit_terms_until_stable`, ``retest``).
+    (:func:`~.chain_outliers.fit_terms_until_stable`).
 
     Args:
         run: The chain's run (its markers' guess: ``marker``; ``instrument`` and
@@ -241,4 +241,4 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     def fit(registered: Registered) -> ContactChainsCalibration:
         return dataclasses.replace(fit_registered(registered), shape="chain")
 
-    return fit_terms_until_stable(run, register_contact_chains, fit, retest=True)
+    return fit_terms_until_stable(run, register_contact_chains, fit)
