@@ -11,12 +11,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..kinematics.elastic import gravity_in_base
 from ..kinematics.placement_export import instrument_joint
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .chain_counts import chain_name
 from .model import State
-from .report import compliance_dict, errors_part, fit_dict, gravity_dict, pose_dict
+from .report import compliance_dict, errors_part, fit_dict, pose_dict
 from .residuals import error_table
 
 if TYPE_CHECKING:
@@ -133,7 +134,8 @@ def chain_report(
     out["errors"] = {**errors, "terms": [errors]}
     out["compliance"] = compliance_dict(part.chain, part.compliance)
     nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
-    gravity = gravity_dict(part.chain)
+    g = gravity_in_base(part.chain).tolist()  # [m/s^2]
+    gravity = {"frame": part.chain.base_frame, "vector": g}
     model = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"]}
     out["model"] = {**model, "gravity": gravity}
     std, weight = view.predicted_std, view.orientation_weight
