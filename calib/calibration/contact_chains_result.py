@@ -24,7 +24,7 @@ from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origin
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line, load_record
-from .contact_result import GapStats, gap_rows, part_dict
+from .contact_result import GapStats, part_dict
 from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
@@ -501,12 +501,10 @@ class ContactChainsCalibration(Result, ChainView):
 
     def row_errors(self) -> RowErrors:
         """Each term's rows before and after [mm] (touches: weighted gaps), term after term."""
-        return RowErrors.join(
-            [
-                gap_rows(c.stats, f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})")
-                for k, c in enumerate(self.chains)
-            ]
-        )
+        return RowErrors.of(
+            [(f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})", c.stats)
+             for k, c in enumerate(self.chains)]
+        )  # fmt: skip
 
     def _frame(self) -> np.ndarray | None:
         """One chain measured by an instrument: :attr:`measurement_to_base`; else None."""

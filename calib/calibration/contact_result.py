@@ -16,12 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
-from .delivery import RowErrors
-
 __all__ = [
     "GapStats",
-    "gap_rows",
     "gap_stats",
     "part_dict",
     "part_stats",
@@ -143,25 +139,3 @@ def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
         float(np.sqrt(np.mean(per_row**2))),
         per_row,
     )
-
-
-def gap_rows(stats: dict[str, GapStats], name: str = "") -> RowErrors:
-    """Each touch's weighted gap [mm] before (registration) and after, held-out ones marked.
-
-    Args:
-        stats: ``train``, ``train_registration`` and (optional) ``held_out`` and
-            ``held_out_registration`` (as a contact term's ``stats``).
-        name: The term's name (several terms), or empty.
-    """
-    parts = [p for p in ("train", "held_out") if p in stats]
-    before, after = [], []
-    for part in parts:
-        reg, cal = stats[f"{part}_registration"].per_row, stats[part].per_row
-        if reg is None or cal is None:
-            raise InvalidArgumentError("these gap statistics keep no per-touch gaps")
-        before.append(reg)
-        after.append(cal)
-    held = np.concatenate(
-        [np.full(len(b), p == "held_out") for b, p in zip(before, parts, strict=True)]
-    )
-    return RowErrors(np.concatenate(before), np.concatenate(after), held, name=name)

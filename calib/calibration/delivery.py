@@ -10,6 +10,7 @@ compliance file (``compliance_files``). :class:`Result` builds the rest on those
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,7 +39,6 @@ class RowErrors:
         held_out: Which rows the fit never saw (``--holdout``, ``--validate``) ``(m,)``.
         term: Each row's term (index into ``names``) ``(m,)``, or None: one term.
         names: The terms' names (several terms), or empty.
-        name: The one term's name, when built for a term (see :meth:`join`).
     """
 
     before: np.ndarray
@@ -46,20 +46,32 @@ class RowErrors:
     held_out: np.ndarray
     term: np.ndarray | None = None
     names: tuple[str, ...] = ()
-    name: str = ""
 
     @staticmethod
-    def join(parts: list[RowErrors]) -> RowErrors:
-        """The rows of several terms, term after term (each term named by its ``name``)."""
-        if len(parts) == 1:
-            return parts[0]
-        term = np.concatenate([np.full(len(p.after), k) for k, p in enumerate(parts)])
+    def of(terms: list[tuple[str, Mapping]]) -> RowErrors:
+        """Each term's rows, term after term, each term's held-out rows after its fitted ones.
+
+        Args:
+            terms: Each term's name and statistics by part (``train``, ``train_registration``
+                and, with held-out rows, ``held_out`` and ``held_out_registration``), each
+                with ``per_row`` ``(m,)`` [mm].
+
+        Raises:
+            InvalidArgumentError: Statistics that keep no ``per_row``.
+        """
+        parts = [(k, p, s) for k, (_, s) in enumerate(terms) for p in ("train", "held_out")
+                 if p in s]  # fmt: skip
+        rows = [(s[f"{p}_registration"].per_row, s[p].per_row) for _, p, s in parts]
+        if any(r is None for pair in rows for r in pair):
+            raise InvalidArgumentError("these statistics keep no per-row errors")
+        m = [len(after) for _, after in rows]
+        several = len(terms) > 1
         return RowErrors(
-            np.concatenate([p.before for p in parts]),
-            np.concatenate([p.after for p in parts]),
-            np.concatenate([p.held_out for p in parts]),
-            term,
-            tuple(p.name for p in parts),
+            np.concatenate([before for before, _ in rows]),
+            np.concatenate([after for _, after in rows]),
+            np.repeat([p == "held_out" for _, p, _ in parts], m),
+            np.repeat([k for k, _, _ in parts], m) if several else None,
+            tuple(name for name, _ in terms) if several else (),
         )
 
     def series(self) -> list[tuple[str, np.ndarray]]:
