@@ -7,10 +7,12 @@ and the format 2 keys a chain's report still writes (under ``deprecated``).
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..identification.report import format_table
 from ..kinematics.elastic import gravity_in_base
 from ..kinematics.placement_export import instrument_joint
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
@@ -18,7 +20,7 @@ from ..kinematics.urdf_links import marker_link_names
 from .chain_counts import chain_name
 from .model import State
 from .report import compliance_dict, errors_part, fit_dict, pose_dict
-from .residuals import error_table
+from .residuals import ResidualStats
 
 if TYPE_CHECKING:
     from .measured_view import ChainView, MeasuredChain
@@ -97,11 +99,33 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
 def chain_lines(view: ChainView) -> list[str]:
     """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
     held = view.validation
+    rows = [
+        ("fitted, registration only", view.before),
+        ("fitted, calibrated", view.after),
+        ("fitted, URDF alone (no compliance)", view.urdf_after),
+    ]
+    if held is not None:
+        parts = (("registration only", held.registration), ("calibrated", held.calibrated),
+                 ("URDF alone (no compliance)", held.urdf))  # fmt: skip
+        rows += [(f"held out ({held.source}), {what}", st) for what, st in parts]
+    header = ["errors", "configs", "rms [mm]", "max [mm]"]
+    if view.after.orientation_rms is not None:
+        header += ["rot rms [mrad]", "rot max [mrad]"]
     std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
     return [
-        error_table(view.before, view.after, view.urdf_after, held),
+        format_table(header, [_row(label, st) for label, st in rows if st is not None]),
         f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
         f"at the fitted configurations{std}",
+    ]
+
+
+def _row(label: str, st: ResidualStats) -> list[str]:
+    """A row of the errors table: configurations, position (and rotation) RMS and max [mm]."""
+    figures: list[float | None] = [st.position_rms, st.position_max]
+    if st.orientation_rms is not None:
+        figures += [st.orientation_rms, st.orientation_max]
+    return [label, str(st.configs)] + [
+        "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}" for x in figures
     ]
 
 
