@@ -120,31 +120,22 @@ class ChainContacts:
         }
 
 
-def _single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]:
-    """The report's fields and format 2's keys of one contact term's fit.
-
-    Its own: ``shape`` ``contacts``, the term's errors as ``errors.train`` and
-    ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
-    joint's compliance (0 where none was fitted) and its load, the chain's MDH rows under
-    ``model``, and format 2's keys of a contact report.
+def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
+    """One chain touching: the report's fields of its layout, and its format 2's keys.
 
     Args:
-        part: The term's :class:`ChainContacts`.
-        fields: The joint fit's format-3 fields (:data:`~.report.REPORT_KEYS`).
-        legacy: Its format 2's keys.
-
-    Returns:
-        The fields and format 2's keys of the single chain's layout.
+        result: The :class:`ContactChainsCalibration` of one :class:`ChainContacts`.
+        fields: The report's fields of every shape (edited copy returned).
     """
-    chain, kind = part.chain, part.kind
+    part = result.chains[0]
+    chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
-    angles = any(kind.angular)
     fields = {
         **fields,
         "shape": "contacts",
         "errors": {**errors, "terms": [errors]},
         "frames": {**fields["frames"], "tool_link": chain.tool_frame},
-        "fit": fit_dict(orientation_weight=part.weight if angles else None),
+        "fit": fit_dict(orientation_weight=weight),
         "compliance": compliance_dict(chain, part.compliance),
         "model": {
             **fields["model"],
@@ -157,31 +148,17 @@ def _single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict
     legacy = {
         "base": chain.base_frame,
         "tool": chain.tool_frame,
-        "measure": kind.label,
-        "free": legacy["free"],
-        "selection": legacy["selection"],
-        "tilt_weight": part.weight if angles else None,
+        "measure": part.kind.label,
+        "free": list(result.free),
+        "selection": None if result.selection is None else result.selection.to_dict(),
+        "tilt_weight": weight,
         "contact": own["contact"],
         "gaps": own["gaps"],
         "load": load,
         "calibrated_mdh": part.calibrated.rows(),
-        "notes": legacy["notes"],
+        "notes": list(result.notes),
     }
     return fields, legacy
-
-
-def _stat_labels(part) -> dict[str, str]:
-    """Each statistic's label in the summary, padded (with compliance: which model it is)."""
-    labels = {}
-    for key in part.stats:
-        label = key.replace("_urdf", ", URDF alone (no compliance)")
-        if getattr(part, "compliance", None) is not None and not key.endswith(
-            ("_urdf", "_registration")
-        ):
-            label += ", whole model (URDF + compliance)"
-        labels[key] = label
-    width = max(22, *map(len, labels.values()))
-    return {k: f"{v:{width}s}" for k, v in labels.items()}
 
 
 def _units(kind) -> str:
@@ -211,10 +188,18 @@ def _term_lines(c) -> list[str]:
         head += f", {c.kind.object_name} {ids} (gaps: {_units(c.kind)}):"
     else:
         head += f", {c.kind.object_name} '{c.plane_id}':"
-    labels = _stat_labels(c)
+    labels = {}  # each part's label (with compliance: which model it is), padded
+    for key in c.stats:
+        label = key.replace("_urdf", ", URDF alone (no compliance)")
+        if getattr(c, "compliance", None) is not None and not key.endswith(
+            ("_urdf", "_registration")
+        ):
+            label += ", whole model (URDF + compliance)"
+        labels[key] = label
+    width = max(22, *map(len, labels.values()))
     rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
     return [head] + [
-        f"  {labels[key]} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
+        f"  {labels[key]:{width}s} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
         for key, s in c.stats.items()
     ]
 
@@ -393,7 +378,7 @@ class ContactChainsCalibration(Result, ChainView):
         if frame is not None:  # one chain measured by an instrument
             fields, legacy = chain_report(self, fields, world_link, on_robot)
         elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
-            fields, legacy = _single_contact_report(self.chains[0], fields, self._format2(origins))
+            fields, legacy = _single_contact_report(self, fields)
         else:
             legacy = self._format2(origins)
         return build_report(fields, legacy)
@@ -532,7 +517,9 @@ class ContactChainsCalibration(Result, ChainView):
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         robot, errors = self.chains[0].chain, self.joint_errors()
-        cameras = {c.name: c.camera() for c in self._of(PixelChain)}  # each camera once
+        cameras = {  # each camera once: name, link, optical frame in the link (4, 4) [m]
+            c.name: (c.name, c.chain.base_frame, c.state.camera) for c in self._of(PixelChain)
+        }
         if cameras:
             return camera_urdf(robot, errors, tuple(cameras.values()))
         if frame is not None:  # one chain: its calibrated tool, its markers on it

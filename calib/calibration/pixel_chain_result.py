@@ -68,10 +68,6 @@ class PixelChain:
     parameters: tuple[dict, ...] = ()
     outliers: tuple[Outlier, ...] = ()
 
-    def camera(self) -> tuple[str, str, np.ndarray]:
-        """``(name, link, optical frame in the link (4, 4) [m])`` for the URDF."""
-        return self.name, self.chain.base_frame, self.state.camera
-
     def camera_dict(self) -> dict:
         """The report's ``frames.cameras`` entry: link, pose, intrinsics [px]."""
         lens = self.state.lens
