@@ -1,12 +1,8 @@
-"""Statistics of a term's rows before and after a fit: :class:`GapStats`, by part.
+"""A term's rows before and after a fit, by part: :class:`GapStats` (mm, degrees).
 
-A contact term's gaps (and a measured or pixel term's errors, :func:`row_stats`): for
-``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
-``held_out_registration``: ``m``, then for each row of the kind ``<row>_rms_<unit>`` and
-``<row>_max_<unit>`` (``mm`` for a length, ``deg`` for an angle; e.g. ``height_rms_mm``,
-``roll_max_deg``, ``x_rms_mm``, ``rz_rms_deg``), and ``weighted_mm``; with joint compliance
-(``elastic``), ``train_urdf`` and ``held_out_urdf``: the URDF alone
-(:mod:`.contact_elastic`). The report's errors of them: :func:`~.report.term_errors`.
+The parts: ``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
+``held_out_registration``; with joint compliance also ``train_urdf`` and ``held_out_urdf``
+(the URDF alone, :mod:`.contact_elastic`).
 """
 
 from __future__ import annotations
@@ -16,13 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = [
-    "GapStats",
-    "gap_stats",
-    "part_dict",
-    "part_stats",
-    "row_stats",
-]
+__all__ = ["GapStats", "gap_stats", "part_dict", "part_stats", "row_stats"]
 
 
 @dataclass(frozen=True)

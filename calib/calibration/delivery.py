@@ -1,11 +1,7 @@
-"""What every calibration result offers, whatever the shape: ``summary``, ``write``, ``repr``.
+"""What every calibration result offers, whatever its shape: ``write``, ``origins``, ``repr``.
 
-A result (a chain measured by an instrument, a tree, one chain touching, several chains)
-provides ``to_dict()`` (its format 3 report), ``urdf()`` (the calibrated URDF), ``summary()``
-(the text ``calib calibrate`` prints), ``refusal`` and, with fitted compliance, its
-compliance file (``compliance_files``). :class:`Result` builds the rest on those:
-``write(out, report=...)`` writes the URDF, its compliance file and the report at once
-(complete or not at all, never over an input), and a short ``repr``.
+:class:`Result` builds them on a result's ``to_dict``, ``urdf``, ``refusal`` and compliance
+files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws.
 """
 
 from __future__ import annotations
@@ -89,8 +85,10 @@ def compliance_path(out: Path) -> Path:
 class Result:
     """A calibration's result, whatever the problem (:func:`~calib.calibration.entry.calibrate`).
 
-    ``write``, ``origins``, ``plot`` and ``repr`` built on ``to_dict``, ``urdf``, ``summary``
-    and ``refusal`` (module text).
+    A result (a chain measured by an instrument, a tree, one chain touching, several terms)
+    provides ``to_dict``, ``urdf``, ``summary``, ``refusal``, ``compliance_files`` and
+    ``row_errors``; ``write`` writes the URDF, its compliance file and the report at once
+    (complete or not at all, never over an input).
     """
 
     refusal: str | None
@@ -108,20 +106,12 @@ class Result:
         raise NotImplementedError
 
     def compliance_files(self, out: Path, on_robot: bool = False) -> dict[Path, str]:
-        """Files written beside the URDF ``out`` (the compliance file; none by default).
-
-        ``on_robot``: the URDF was written with the instrument on the robot.
-        """
-        del out, on_robot
-        return {}
+        """Files written beside the URDF ``out`` (``on_robot``: the instrument in the URDF)."""
+        raise NotImplementedError
 
     def row_errors(self) -> RowErrors:
-        """The error of each configuration before and after calibration, held-out rows marked.
-
-        Raises:
-            InvalidArgumentError: Not available for this shape of calibration (yet).
-        """
-        raise InvalidArgumentError(f"{type(self).__name__} keeps no per-configuration errors")
+        """The error of each configuration before and after calibration, held-out rows marked."""
+        raise NotImplementedError
 
     def plot(self):
         """A matplotlib Figure: errors per configuration before and after, and the parameters.

@@ -1,8 +1,7 @@
-"""One chain measured by an instrument: its calibrated tool as written, and its report's layout.
+"""One chain measured by an instrument: its calibrated tool as written, its report and table.
 
-The calibrated tool the URDF receives (pose data: the measured frame at marker 1; position
-data: the tool frame), the markers in it, the report's ``frames`` of a chain, its errors table
-and the format 2 keys a chain's report still writes (under ``deprecated``).
+The URDF's calibrated tool is the measured frame at marker 1 (pose data) or the tool frame
+(position data), the markers in it.
 """
 
 from __future__ import annotations
@@ -132,17 +131,15 @@ def _row(label: str, st: ResidualStats) -> list[str]:
 def chain_report(
     view: ChainView, fields: dict, world_link: str | None, on_robot: bool = False
 ) -> tuple[dict, dict]:
-    """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
+    """One chain measured: the report's fields of its layout, and its format 2's keys.
 
-    The fields a chain's report has its own way: ``parameters`` (the term's unknowns named
-    as :attr:`ChainView.names`: ``frame.z``, ``marker1.z``), ``errors`` of
-    :class:`~.residuals.ResidualStats` (``train``, ``held_out``, and the one term's),
-    ``frames`` (:func:`chain_frames`), ``fit``, ``compliance`` (zero per rigid joint) and
-    ``model`` (the MDH rows and the gravity beside the joint origins).
+    Its own ``parameters`` names (:func:`~.chain_counts.chain_name`: ``frame.z``), its
+    :class:`~.residuals.ResidualStats` under ``errors``, :func:`chain_frames`, ``fit``,
+    ``compliance`` (zero per rigid joint) and its MDH rows and gravity under ``model``.
 
     Args:
         view: The result (shape ``chain``).
-        fields: The joint fit's format 3 fields (edited copy returned).
+        fields: The report's fields of every shape (edited copy returned).
         world_link: The ``world_link`` the URDF was written with (None: none).
         on_robot: Whether the URDF was written with the instrument on the robot.
     """
