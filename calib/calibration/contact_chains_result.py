@@ -34,9 +34,9 @@ from .pixel_chain_result import PixelChain
 from .placements import Placements
 from .report import (
     build_report,
-    compliance_dict,
     fit_dict,
     model_choice,
+    one_term,
     outlier_dict,
     parameter_entries,
     parameter_lines,
@@ -130,20 +130,14 @@ def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
     part = result.chains[0]
     chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
-    fields = {
-        **fields,
-        "shape": "contacts",
-        "errors": {**errors, "terms": [errors]},
-        "frames": {**fields["frames"], "tool_link": chain.tool_frame},
-        "fit": fit_dict(orientation_weight=weight),
-        "compliance": compliance_dict(chain, part.compliance),
-        "model": {
-            **fields["model"],
-            "mdh_nominal": part.nominal.rows(),
-            "mdh_calibrated": part.calibrated.rows(),
-            "load": load,
-        },
-    }
+    fields = one_term(
+        fields, errors, chain, part.compliance,
+        shape="contacts",
+        frames={**fields["frames"], "tool_link": chain.tool_frame},
+        fit=fit_dict(orientation_weight=weight),
+        model={**fields["model"], "mdh_nominal": part.nominal.rows(),
+               "mdh_calibrated": part.calibrated.rows(), "load": load},
+    )  # fmt: skip
     own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
     legacy = {
         "base": chain.base_frame,

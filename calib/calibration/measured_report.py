@@ -18,7 +18,7 @@ from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .chain_counts import chain_name
 from .model import State
-from .report import compliance_dict, errors_part, fit_dict, pose_dict
+from .report import errors_part, fit_dict, one_term, pose_dict
 from .residuals import ResidualStats
 
 if TYPE_CHECKING:
@@ -147,20 +147,19 @@ def chain_report(
     train = (view.before, view.after, view.urdf_after)
     errors = {"train": errors_part(*train), "held_out": None if held is None else held.in_mm()}
     own = {p["name"] for p in part.parameters}  # named as the chain names them: frame.z
-    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
-    out["parameters"] = [
-        {**p, "name": chain_name(p["name"])} if p["name"] in own else p
-        for p in fields["parameters"]
-    ]
-    out["errors"] = {**errors, "terms": [errors]}
-    out["compliance"] = compliance_dict(part.chain, part.compliance)
     nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
     g = gravity_in_base(part.chain).tolist()  # [m/s^2]
     gravity = {"frame": part.chain.base_frame, "vector": g}
-    model = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"]}
-    out["model"] = {**model, "gravity": gravity}
     std, weight = view.predicted_std, view.orientation_weight
-    out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
+    out = one_term(
+        fields, errors, part.chain, part.compliance,
+        frames=chain_frames(part, world_link, on_robot),
+        parameters=[{**p, "name": chain_name(p["name"])} if p["name"] in own else p
+                    for p in fields["parameters"]],
+        model={"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"],
+               "gravity": gravity},
+        fit=fit_dict(view.sigma, view.condition, std, weight),
+    )  # fmt: skip
     frames, data = out["frames"], view.data
     legacy = {
         "data": data.source,

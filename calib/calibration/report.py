@@ -18,11 +18,11 @@ import pinocchio as pin
 __all__ = [
     "REPORT_KEYS",
     "build_report",
-    "compliance_dict",
     "errors_part",
     "finite",
     "fit_dict",
     "model_choice",
+    "one_term",
     "outlier_dict",
     "parameter_entries",
     "parameter_lines",
@@ -326,7 +326,17 @@ def _finite_tree(value):
     return value
 
 
-def compliance_dict(chain, compliance: np.ndarray | None) -> dict:
-    """The report's ``compliance``: each joint's [rad/(N m) or m/N], 0 where none was fitted."""
+def one_term(fields: Mapping, errors: dict, chain, compliance: np.ndarray | None, **own) -> dict:
+    """The report's fields of one term's layout (one chain measured or touching).
+
+    Args:
+        fields: The report's fields of every shape.
+        errors: The term's ``errors.terms`` entry: the report's ``errors`` too.
+        chain: Its chain.
+        compliance: Its joints' fitted compliance ``(n,)`` [rad/(N m) or m/N], or None
+            (rigid: zeros).
+        own: Its layout's other fields (``frames``, ``fit``, ``model``, ...).
+    """
     c = np.zeros(chain.n) if compliance is None else compliance
-    return dict(zip(chain.joint_names, map(float, c), strict=True))
+    joints = dict(zip(chain.joint_names, map(float, c), strict=True))
+    return {**fields, "errors": {**errors, "terms": [errors]}, "compliance": joints, **own}
