@@ -280,11 +280,12 @@ class ContactChainsCalibration(Result, ChainView):
 
         One chain touching or measured: named as its MDH rows (compliances with their type).
         """
-        part = self.chains[0]
-        names, sigma = tuple(part.chain.model.names), None
+        part, sigma = self.chains[0], None
         if len(self.chains) == 1 and isinstance(part, ChainContacts | MeasuredChain):
             nominal = part.nominal if isinstance(part, ChainContacts) else part.registered.inner.mdh
             names, sigma = tuple(nominal.joint_names), nominal.sigma
+        else:
+            names = tuple(part.chain.model.names)
         return parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
 
     def check(self) -> ContactChainsCalibration:

@@ -24,14 +24,7 @@ from .residuals import ResidualStats
 if TYPE_CHECKING:
     from .measured_view import ChainView, MeasuredChain
 
-__all__ = [
-    "chain_frames",
-    "chain_lines",
-    "chain_report",
-    "chain_writing",
-    "tool_pose",
-    "written_markers",
-]
+__all__ = ["chain_frames", "chain_lines", "chain_report", "chain_writing", "written_markers"]
 
 
 def tool_pose(inner: State) -> np.ndarray:
@@ -59,17 +52,11 @@ def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = F
     joint (``frames.measurement`` is then in the URDF).
     """
     inner = part.state.inner
-    tool = part.chain.tool_frame
+    links = marker_link_names(part.chain.tool_frame, inner.n_markers)
     return {
         "measurement": pose_dict(inner.frame),
         "measured": pose_dict(tool_pose(inner)),
-        "markers": dict(
-            zip(
-                marker_link_names(tool, inner.n_markers),
-                written_markers(inner).tolist(),
-                strict=True,
-            )
-        ),
+        "markers": dict(zip(links, written_markers(inner).tolist(), strict=True)),
         "contacts": {},
         "world_link": world_link,
         "tool_link": urdf_tool_frame(part.chain),
