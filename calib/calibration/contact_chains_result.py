@@ -47,7 +47,7 @@ from .selection import Selection
 
 __all__ = ["ChainContacts", "ContactChainsCalibration"]
 
-T = TypeVar("T")
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -318,7 +318,7 @@ class ContactChainsCalibration(Result, ChainView):
                 out[c.joint] = c.placement_error()
         return out
 
-    def _of(self, kind: type[T]) -> tuple[T, ...]:
+    def _of(self, kind: type[_T]) -> tuple[_T, ...]:
         """The terms of one kind (:class:`ChainContacts`, :class:`MeasuredChain`, ...)."""
         return tuple(c for c in self.chains if isinstance(c, kind))
 
