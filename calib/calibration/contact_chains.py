@@ -49,13 +49,7 @@ from . import contact_checks, contact_elastic
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .contact_chains_result import (
-    ChainContacts,
-    ContactChainsCalibration,
-    MeasuredChain,
-    Solution,
-    measured_part,
-)
+from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import held_out_refusal
 from .contact_choice import blocky, chains_model, choose, flush_data, structural
 from .contact_fit import block_fit
@@ -74,6 +68,7 @@ from .contact_term import (
 )
 from .measured_options import level_offer
 from .measured_term import MeasuredState, unseen
+from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import (
     PixelData,

@@ -10,8 +10,10 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from ..core.fileio import check_outputs, json_text, write_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
@@ -22,43 +24,30 @@ from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origin
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line, load_record
-from .contact_result import GapStats, gap_rows, part_dict
+from .contact_result import GapStats, part_dict
 from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
-from .measured_view import (
-    ChainView,
-    MeasuredChain,
-    Solution,
-    measured_part,
-    world_of,
-)
+from .measured_view import ChainView, MeasuredChain, Solution, world_of
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
 from .placements import Placements
 from .report import (
-    FORMAT2_MOVED,
     build_report,
-    compliance_dict,
     fit_dict,
     model_choice,
+    one_term,
     outlier_dict,
     parameter_entries,
     parameter_lines,
     pose_dict,
-    term_dict,
     term_errors,
-    verdict,
 )
 from .selection import Selection
 
-__all__ = [
-    "ChainContacts",
-    "ContactChainsCalibration",
-    "MeasuredChain",
-    "Solution",
-    "measured_part",
-]
+__all__ = ["ChainContacts", "ContactChainsCalibration"]
+
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,68 +120,39 @@ class ChainContacts:
         }
 
 
-def _single_contact_report(part, fields: dict, legacy: dict) -> tuple[dict, dict]:
-    """The report's fields and format 2's keys of one contact term's fit.
-
-    Its own: ``shape`` ``contacts``, the term's errors as ``errors.train`` and
-    ``errors.held_out``, ``frames.tool_link``, the angle rows' weight under ``fit``, each
-    joint's compliance (0 where none was fitted) and its load, the chain's MDH rows under
-    ``model``, and format 2's keys of a contact report.
+def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
+    """One chain touching: the report's fields of its layout, and its format 2's keys.
 
     Args:
-        part: The term's :class:`ChainContacts`.
-        fields: The joint fit's format-3 fields (:data:`~.report.REPORT_KEYS`).
-        legacy: Its format 2's keys.
-
-    Returns:
-        The fields and format 2's keys of the single chain's layout.
+        result: The :class:`ContactChainsCalibration` of one :class:`ChainContacts`.
+        fields: The report's fields of every shape (edited copy returned).
     """
-    chain, kind = part.chain, part.kind
+    part = result.chains[0]
+    chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
-    angles = any(kind.angular)
-    fields = {
-        **fields,
-        "shape": "contacts",
-        "errors": {**errors, "terms": [errors]},
-        "frames": {**fields["frames"], "tool_link": chain.tool_frame},
-        "fit": fit_dict(orientation_weight=part.weight if angles else None),
-        "compliance": compliance_dict(chain, part.compliance),
-        "model": {
-            **fields["model"],
-            "mdh_nominal": part.nominal.rows(),
-            "mdh_calibrated": part.calibrated.rows(),
-            "load": load,
-        },
-    }
+    fields = one_term(
+        fields, errors, chain, part.compliance,
+        shape="contacts",
+        frames={**fields["frames"], "tool_link": chain.tool_frame},
+        fit=fit_dict(orientation_weight=weight),
+        model={**fields["model"], "mdh_nominal": part.nominal.rows(),
+               "mdh_calibrated": part.calibrated.rows(), "load": load},
+    )  # fmt: skip
     own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
     legacy = {
         "base": chain.base_frame,
         "tool": chain.tool_frame,
-        "measure": kind.label,
-        "free": legacy["free"],
-        "selection": legacy["selection"],
-        "tilt_weight": part.weight if angles else None,
+        "measure": part.kind.label,
+        "free": list(result.free),
+        "selection": None if result.selection is None else result.selection.to_dict(),
+        "tilt_weight": weight,
         "contact": own["contact"],
         "gaps": own["gaps"],
         "load": load,
         "calibrated_mdh": part.calibrated.rows(),
-        "notes": legacy["notes"],
+        "notes": list(result.notes),
     }
     return fields, legacy
-
-
-def _stat_labels(part) -> dict[str, str]:
-    """Each statistic's label in the summary, padded (with compliance: which model it is)."""
-    labels = {}
-    for key in part.stats:
-        label = key.replace("_urdf", ", URDF alone (no compliance)")
-        if getattr(part, "compliance", None) is not None and not key.endswith(
-            ("_urdf", "_registration")
-        ):
-            label += ", whole model (URDF + compliance)"
-        labels[key] = label
-    width = max(22, *map(len, labels.values()))
-    return {k: f"{v:{width}s}" for k, v in labels.items()}
 
 
 def _units(kind) -> str:
@@ -222,19 +182,20 @@ def _term_lines(c) -> list[str]:
         head += f", {c.kind.object_name} {ids} (gaps: {_units(c.kind)}):"
     else:
         head += f", {c.kind.object_name} '{c.plane_id}':"
-    labels = _stat_labels(c)
+    labels = {}  # each part's label (with compliance: which model it is), padded
+    for key in c.stats:
+        label = key.replace("_urdf", ", URDF alone (no compliance)")
+        if getattr(c, "compliance", None) is not None and not key.endswith(
+            ("_urdf", "_registration")
+        ):
+            label += ", whole model (URDF + compliance)"
+        labels[key] = label
+    width = max(22, *map(len, labels.values()))
     rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
     return [head] + [
-        f"  {labels[key]} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
+        f"  {labels[key]:{width}s} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
         for key, s in c.stats.items()
     ]
-
-
-def _rotation(R: np.ndarray) -> np.ndarray:
-    """A rotation ``(3, 3)`` as a pose ``(4, 4)``."""
-    T = np.eye(4)
-    T[:3, :3] = R
-    return T
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -314,17 +275,17 @@ class ContactChainsCalibration(Result, ChainView):
         )
         return {compliance_path(out): json_text(document)}
 
-    def _row_joints(self) -> tuple[tuple[str | None, ...], np.ndarray | None]:
-        """Each parameter row's URDF joint and type (one chain touching or measured: MDH rows)."""
-        part = self.chains[0]
+    def _entries(self) -> list[dict]:
+        """The joint placement parameters' report entries (``fitted``), each with its joint.
+
+        One chain touching or measured: named as its MDH rows (compliances with their type).
+        """
+        part, sigma = self.chains[0], None
         if len(self.chains) == 1 and isinstance(part, ChainContacts | MeasuredChain):
             nominal = part.nominal if isinstance(part, ChainContacts) else part.registered.inner.mdh
-            return tuple(nominal.joint_names), nominal.sigma  # a measured chain: its compliances'
-        return tuple(part.chain.model.names), None
-
-    def _entries(self) -> list[dict]:
-        """The joint placement parameters' report entries (``fitted``)."""
-        names, sigma = self._row_joints()
+            names, sigma = tuple(nominal.joint_names), nominal.sigma
+        else:
+            names = tuple(part.chain.model.names)
         return parameter_entries(self.fitted, self.estimate, self.std, names, sigma)
 
     def check(self) -> ContactChainsCalibration:
@@ -352,51 +313,42 @@ class ContactChainsCalibration(Result, ChainView):
         A measured term's measuring frame moves its fixed joint (:class:`MeasuredChain`).
         """
         out = self.placements.errors()
-        for c in self._measured():
+        for c in self._of(MeasuredChain):
             if c.joint is not None:
                 out[c.joint] = c.placement_error()
         return out
 
-    def _measured(self) -> tuple[MeasuredChain, ...]:
-        return tuple(c for c in self.chains if isinstance(c, MeasuredChain))
+    def _of(self, kind: type[_T]) -> tuple[_T, ...]:
+        """The terms of one kind (:class:`ChainContacts`, :class:`MeasuredChain`, ...)."""
+        return tuple(c for c in self.chains if isinstance(c, kind))
 
     def _instrument(self) -> tuple[MeasuredChain, ...]:
         """The terms measured by an instrument outside the robot (a tree's tools)."""
-        return tuple(c for c in self._measured() if c.joint is None)
-
-    def _contacts(self) -> tuple[ChainContacts, ...]:
-        return tuple(c for c in self.chains if isinstance(c, ChainContacts))
+        return tuple(c for c in self._of(MeasuredChain) if c.joint is None)
 
     def _frames(self) -> dict:
         """The report's ``frames``: contact frames, each measuring frame's placement.
 
         With pixel terms, ``cameras``: each camera's link, placement and intrinsics.
         """
-        measured = self._measured()
-        cameras = {c.name: c.camera_dict() for c in self._pixels()}
+        measured = self._of(MeasuredChain)
+        cameras = {c.name: c.camera_dict() for c in self._of(PixelChain)}
         return {
             "measurement": {c.chain.base_frame: pose_dict(c.state.inner.frame) for c in measured}
             or None,
             "measured": {
-                c.chain.tool_frame: pose_dict(_rotation(c.state.inner.tool_rotation))
+                c.chain.tool_frame: pose_dict(block_diag(c.state.inner.tool_rotation, 1.0))
                 for c in measured
                 if c.state.inner.tool_rotation is not None
             }
             or None,
             "markers": {c.chain.tool_frame: c.state.inner.markers.tolist() for c in measured},
-            "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._contacts()},
+            "contacts": {c.chain.tool_frame: pose_dict(c.contact) for c in self._of(ChainContacts)},
             "world_link": None,
             "tool_link": None,
             "on_robot": any(c.joint is not None for c in measured) or bool(cameras),
             **({"cameras": cameras} if cameras else {}),
         }
-
-    def _pixels(self) -> tuple[PixelChain, ...]:
-        return tuple(c for c in self.chains if isinstance(c, PixelChain))
-
-    def _cameras(self) -> tuple[tuple[str, str, np.ndarray], ...]:
-        """Each camera once (name, link, optical frame in the link [m]), of all its terms."""
-        return tuple({c.name: c.camera() for c in self._pixels()}.values())
 
     def to_dict(self, world_link: str | None = None, on_robot: bool = False) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
@@ -414,26 +366,45 @@ class ContactChainsCalibration(Result, ChainView):
         Raises:
             InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
         """
-        world_of(self.shape, self._frame(), world_link, on_robot)
+        frame = self._frame()
+        world_of(self.shape, frame, world_link, on_robot)
+        origins = {n: pose_dict(E) for n, E in self.joint_errors().items()}
+        fields = self._fields(origins)
+        if frame is not None:  # one chain measured by an instrument
+            fields, legacy = chain_report(self, fields, world_link, on_robot)
+        elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
+            fields, legacy = _single_contact_report(self, fields)
+        else:
+            legacy = self._format2(origins)
+        return build_report(fields, legacy)
+
+    def _fields(self, origins: dict) -> dict:
+        """The report's fields of every shape (``origins``: ``model.joint_origins``)."""
         first = self.chains[0].chain
-        fields = {
+        solver = self.solver
+        return {
             "robot": first.name,
             "urdf": str(first.urdf_path),
             "shape": self.shape,
             "terms": [
-                term_dict(
-                    c.chain.base_frame,
-                    c.chain.tool_frame,
-                    c.kind.label,
-                    c.source,
-                    c.stats["train"].m,
-                )
+                {
+                    "base": c.chain.base_frame,
+                    "tool": c.chain.tool_frame,
+                    "kind": c.kind.label,
+                    "data": c.source,
+                    "configs": int(c.stats["train"].m),
+                }
                 for c in self.chains
             ],
-            **verdict(self.params, self.refusal, self.solver),
+            "params": self.params,
+            "accepted": self.refusal is None,
+            "refusal": self.refusal,
+            "converged": bool(solver[0]),
+            "message": solver[1],
+            "iterations": int(solver[2]),
             "parameters": [
-                *{p["name"]: p for c in self._measured() for p in c.parameters}.values(),
-                *(p for c in self._pixels() for p in c.parameters),
+                *{p["name"]: p for c in self._of(MeasuredChain) for p in c.parameters}.values(),
+                *(p for c in self._of(PixelChain) for p in c.parameters),
                 *self._entries(),
             ],
             "errors": {
@@ -448,35 +419,24 @@ class ContactChainsCalibration(Result, ChainView):
                 outlier_dict(o, term) for term, c in enumerate(self.chains) for o in c.outliers
             ],
             "compliance": {},
-            "model": {
-                "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},
-                "shared_joints": list(self.shared),
-            },
+            "model": {"joint_origins": origins, "shared_joints": list(self.shared)},
             "warnings": list(self.notes),
             "timings_ms": dict(self.timings_ms),
         }
-        if self._frame() is not None:  # one chain measured by an instrument
-            fields, legacy = chain_report(self, fields, world_link, on_robot)
-        elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
-            fields, legacy = _single_contact_report(self.chains[0], fields, self._format2())
-        else:
-            legacy = self._format2()
-        return build_report(fields, legacy, FORMAT2_MOVED)
 
     def _object_poses(self) -> dict:
         """Planes and poses by id, each in its chain's base frame (format 3's ``objects``)."""
         out: dict[str, dict] = {}
-        for c in self._contacts():
+        for c in self._of(ChainContacts):
             group = out.setdefault(f"{c.kind.object_name}s", {})
             for i, F in c.objects().items():
                 group[i] = {"frame": c.chain.base_frame, **(pose_dict(F) or {})}
         return out
 
-    def _format2(self) -> dict:
-        """Format 2's keys that format 3 replaced (written until format 4)."""
-        measured = self._instrument()
+    def _format2(self, origins: dict) -> dict:
+        """Format 2's keys that format 3 replaced (``origins``: ``joint_origins``)."""
         if self.shape == "tree":  # a tree's own keys of format 2
-            return instrument_format2(measured)
+            return instrument_format2(self._instrument())
         return {
             "measure": "plane",
             "chains": [c.to_dict() for c in self.chains],
@@ -484,15 +444,15 @@ class ContactChainsCalibration(Result, ChainView):
             "planes": self.planes,
             "free": list(self.free),
             "selection": None if self.selection is None else self.selection.to_dict(),
-            "joint_origins": {n: pose_dict(E) for n, E in self.joint_errors().items()},
+            "joint_origins": origins,
             "notes": list(self.notes),
         }
 
     def _objects(self) -> str:
         """What the terms fit beside the joints: ``2 plane(s)``, ``1 pose(s)``, ``1 camera(s)``."""
-        loops = [c for c in self._contacts() if not isinstance(c.kind, PlaneContact)]
+        loops = [c for c in self._of(ChainContacts) if not isinstance(c.kind, PlaneContact)]
         poses = sum(len(c.objects()) for c in loops)
-        measured, cameras = len(self._measured()), len(self._pixels())
+        measured, cameras = len(self._of(MeasuredChain)), len(self._of(PixelChain))
         planes = self.planes - len(loops)
         parts = [f"{planes} plane(s)"] if planes or not (poses or measured or cameras) else []
         parts += [f"{poses} pose(s)"] if poses else []
@@ -508,12 +468,12 @@ class ContactChainsCalibration(Result, ChainView):
             f"{len(self.free)} joint placement components fitted, {self.unknowns} unknowns "
             "determined" + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
         ]
-        if self._contacts():
+        if self._of(ChainContacts):
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         one = self._frame() is not None  # one chain measured by an instrument: a chain's table
         lines += [line for c in (() if one else self.chains) for line in _term_lines(c)]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
-        lines += [line for c in self._contacts() for line in compliance_line(c)]
+        lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
@@ -521,12 +481,10 @@ class ContactChainsCalibration(Result, ChainView):
 
     def row_errors(self) -> RowErrors:
         """Each term's rows before and after [mm] (touches: weighted gaps), term after term."""
-        return RowErrors.join(
-            [
-                gap_rows(c.stats, f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})")
-                for k, c in enumerate(self.chains)
-            ]
-        )
+        return RowErrors.of(
+            [(f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})", c.stats)
+             for k, c in enumerate(self.chains)]
+        )  # fmt: skip
 
     def _frame(self) -> np.ndarray | None:
         """One chain measured by an instrument: :attr:`measurement_to_base`; else None."""
@@ -549,18 +507,23 @@ class ContactChainsCalibration(Result, ChainView):
             InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
             CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
         """
-        world = world_of(self.shape, self._frame(), world_link, on_robot)
+        frame = self._frame()
+        world = world_of(self.shape, frame, world_link, on_robot)
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        if self._cameras():
-            return camera_urdf(self.chains[0].chain, self.joint_errors(), self._cameras())
-        if self._frame() is not None:  # one chain: its calibrated tool, its markers on it
-            errors, marks, tool = chain_writing(self.one_chain(), self.joint_errors(), on_robot)
-            return marker_urdf(self.chains[0].chain, errors, marks, tool, world)
+        robot, errors = self.chains[0].chain, self.joint_errors()
+        cameras = {  # each camera once: name, link, optical frame in the link (4, 4) [m]
+            c.name: (c.name, c.chain.base_frame, c.state.camera) for c in self._of(PixelChain)
+        }
+        if cameras:
+            return camera_urdf(robot, errors, tuple(cameras.values()))
+        if frame is not None:  # one chain: its calibrated tool, its markers on it
+            errors, marks, tool = chain_writing(self.one_chain(), errors, on_robot)
+            return marker_urdf(robot, errors, marks, tool, world)
         if self._instrument():  # each tool's markers as links (a tree's)
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
-            return marker_urdf(self.chains[0].chain, self.joint_errors(), marks, None, world)
-        return moved_origins_urdf(self.chains[0].chain, self.joint_errors())
+            return marker_urdf(robot, errors, marks, None, world)
+        return moved_origins_urdf(robot, errors)
 
     def write_urdf(self, path: str | Path) -> None:
         """Write :meth:`urdf` atomically (never over the nominal URDF).

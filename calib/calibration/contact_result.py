@@ -1,12 +1,8 @@
-"""Statistics of a term's rows before and after a fit: :class:`GapStats`, by part.
+"""A term's rows before and after a fit, by part: :class:`GapStats` (mm, degrees).
 
-A contact term's gaps (and a measured or pixel term's errors, :func:`row_stats`): for
-``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
-``held_out_registration``: ``m``, then for each row of the kind ``<row>_rms_<unit>`` and
-``<row>_max_<unit>`` (``mm`` for a length, ``deg`` for an angle; e.g. ``height_rms_mm``,
-``roll_max_deg``, ``x_rms_mm``, ``rz_rms_deg``), and ``weighted_mm``; with joint compliance
-(``elastic``), ``train_urdf`` and ``held_out_urdf``: the URDF alone
-(:mod:`.contact_elastic`). The report's errors of them: :func:`~.report.term_errors`.
+The parts: ``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
+``held_out_registration``; with joint compliance also ``train_urdf`` and ``held_out_urdf``
+(the URDF alone, :mod:`.contact_elastic`).
 """
 
 from __future__ import annotations
@@ -16,17 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..exceptions import InvalidArgumentError
-from .delivery import RowErrors
-
-__all__ = [
-    "GapStats",
-    "gap_rows",
-    "gap_stats",
-    "part_dict",
-    "part_stats",
-    "row_stats",
-]
+__all__ = ["GapStats", "gap_stats", "part_dict", "part_stats", "row_stats"]
 
 
 @dataclass(frozen=True)
@@ -143,25 +129,3 @@ def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
         float(np.sqrt(np.mean(per_row**2))),
         per_row,
     )
-
-
-def gap_rows(stats: dict[str, GapStats], name: str = "") -> RowErrors:
-    """Each touch's weighted gap [mm] before (registration) and after, held-out ones marked.
-
-    Args:
-        stats: ``train``, ``train_registration`` and (optional) ``held_out`` and
-            ``held_out_registration`` (as a contact term's ``stats``).
-        name: The term's name (several terms), or empty.
-    """
-    parts = [p for p in ("train", "held_out") if p in stats]
-    before, after = [], []
-    for part in parts:
-        reg, cal = stats[f"{part}_registration"].per_row, stats[part].per_row
-        if reg is None or cal is None:
-            raise InvalidArgumentError("these gap statistics keep no per-touch gaps")
-        before.append(reg)
-        after.append(cal)
-    held = np.concatenate(
-        [np.full(len(b), p == "held_out") for b, p in zip(before, parts, strict=True)]
-    )
-    return RowErrors(np.concatenate(before), np.concatenate(after), held, name=name)

@@ -1,15 +1,12 @@
-"""What every calibration result offers, whatever the shape: ``summary``, ``write``, ``repr``.
+"""What every calibration result offers, whatever its shape: ``write``, ``origins``, ``repr``.
 
-A result (a chain measured by an instrument, a tree, one chain touching, several chains)
-provides ``to_dict()`` (its format 3 report), ``urdf()`` (the calibrated URDF), ``summary()``
-(the text ``calib calibrate`` prints), ``refusal`` and, with fitted compliance, its
-compliance file (``compliance_files``). :class:`Result` builds the rest on those:
-``write(out, report=...)`` writes the URDF, its compliance file and the report at once
-(complete or not at all, never over an input), and a short ``repr``.
+:class:`Result` builds them on a result's ``to_dict``, ``urdf``, ``refusal`` and compliance
+files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,7 +35,6 @@ class RowErrors:
         held_out: Which rows the fit never saw (``--holdout``, ``--validate``) ``(m,)``.
         term: Each row's term (index into ``names``) ``(m,)``, or None: one term.
         names: The terms' names (several terms), or empty.
-        name: The one term's name, when built for a term (see :meth:`join`).
     """
 
     before: np.ndarray
@@ -46,20 +42,32 @@ class RowErrors:
     held_out: np.ndarray
     term: np.ndarray | None = None
     names: tuple[str, ...] = ()
-    name: str = ""
 
     @staticmethod
-    def join(parts: list[RowErrors]) -> RowErrors:
-        """The rows of several terms, term after term (each term named by its ``name``)."""
-        if len(parts) == 1:
-            return parts[0]
-        term = np.concatenate([np.full(len(p.after), k) for k, p in enumerate(parts)])
+    def of(terms: list[tuple[str, Mapping]]) -> RowErrors:
+        """Each term's rows, term after term, each term's held-out rows after its fitted ones.
+
+        Args:
+            terms: Each term's name and statistics by part (``train``, ``train_registration``
+                and, with held-out rows, ``held_out`` and ``held_out_registration``), each
+                with ``per_row`` ``(m,)`` [mm].
+
+        Raises:
+            InvalidArgumentError: Statistics that keep no ``per_row``.
+        """
+        parts = [(k, p, s) for k, (_, s) in enumerate(terms) for p in ("train", "held_out")
+                 if p in s]  # fmt: skip
+        rows = [(s[f"{p}_registration"].per_row, s[p].per_row) for _, p, s in parts]
+        if any(r is None for pair in rows for r in pair):
+            raise InvalidArgumentError("these statistics keep no per-row errors")
+        m = [len(after) for _, after in rows]
+        several = len(terms) > 1
         return RowErrors(
-            np.concatenate([p.before for p in parts]),
-            np.concatenate([p.after for p in parts]),
-            np.concatenate([p.held_out for p in parts]),
-            term,
-            tuple(p.name for p in parts),
+            np.concatenate([before for before, _ in rows]),
+            np.concatenate([after for _, after in rows]),
+            np.repeat([p == "held_out" for _, p, _ in parts], m),
+            np.repeat([k for k, _, _ in parts], m) if several else None,
+            tuple(name for name, _ in terms) if several else (),
         )
 
     def series(self) -> list[tuple[str, np.ndarray]]:
@@ -77,8 +85,10 @@ def compliance_path(out: Path) -> Path:
 class Result:
     """A calibration's result, whatever the problem (:func:`~calib.calibration.entry.calibrate`).
 
-    ``write``, ``origins``, ``plot`` and ``repr`` built on ``to_dict``, ``urdf``, ``summary``
-    and ``refusal`` (module text).
+    A result (a chain measured by an instrument, a tree, one chain touching, several terms)
+    provides ``to_dict``, ``urdf``, ``summary``, ``refusal``, ``compliance_files`` and
+    ``row_errors``; ``write`` writes the URDF, its compliance file and the report at once
+    (complete or not at all, never over an input).
     """
 
     refusal: str | None
@@ -96,20 +106,12 @@ class Result:
         raise NotImplementedError
 
     def compliance_files(self, out: Path, on_robot: bool = False) -> dict[Path, str]:
-        """Files written beside the URDF ``out`` (the compliance file; none by default).
-
-        ``on_robot``: the URDF was written with the instrument on the robot.
-        """
-        del out, on_robot
-        return {}
+        """Files written beside the URDF ``out`` (``on_robot``: the instrument in the URDF)."""
+        raise NotImplementedError
 
     def row_errors(self) -> RowErrors:
-        """The error of each configuration before and after calibration, held-out rows marked.
-
-        Raises:
-            InvalidArgumentError: Not available for this shape of calibration (yet).
-        """
-        raise InvalidArgumentError(f"{type(self).__name__} keeps no per-configuration errors")
+        """The error of each configuration before and after calibration, held-out rows marked."""
+        raise NotImplementedError
 
     def plot(self):
         """A matplotlib Figure: errors per configuration before and after, and the parameters.

@@ -1,35 +1,30 @@
-"""One chain measured by an instrument: its calibrated tool as written, and its report's layout.
+"""One chain measured by an instrument: its calibrated tool as written, its report and table.
 
-The calibrated tool the URDF receives (pose data: the measured frame at marker 1; position
-data: the tool frame), the markers in it, the report's ``frames`` of a chain, its errors table
-and the format 2 keys a chain's report still writes (under ``deprecated``).
+The URDF's calibrated tool is the measured frame at marker 1 (pose data) or the tool frame
+(position data), the markers in it.
 """
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..identification.report import format_table
+from ..kinematics.elastic import gravity_in_base
 from ..kinematics.placement_export import instrument_joint
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .chain_counts import chain_name
 from .model import State
-from .report import compliance_dict, errors_part, fit_dict, gravity_dict, pose_dict
-from .residuals import error_table
+from .report import errors_part, fit_dict, one_term, pose_dict
+from .residuals import ResidualStats
 
 if TYPE_CHECKING:
     from .measured_view import ChainView, MeasuredChain
 
-__all__ = [
-    "chain_frames",
-    "chain_lines",
-    "chain_report",
-    "chain_writing",
-    "tool_pose",
-    "written_markers",
-]
+__all__ = ["chain_frames", "chain_lines", "chain_report", "chain_writing", "written_markers"]
 
 
 def tool_pose(inner: State) -> np.ndarray:
@@ -57,17 +52,11 @@ def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = F
     joint (``frames.measurement`` is then in the URDF).
     """
     inner = part.state.inner
-    tool = part.chain.tool_frame
+    links = marker_link_names(part.chain.tool_frame, inner.n_markers)
     return {
         "measurement": pose_dict(inner.frame),
         "measured": pose_dict(tool_pose(inner)),
-        "markers": dict(
-            zip(
-                marker_link_names(tool, inner.n_markers),
-                written_markers(inner).tolist(),
-                strict=True,
-            )
-        ),
+        "markers": dict(zip(links, written_markers(inner).tolist(), strict=True)),
         "contacts": {},
         "world_link": world_link,
         "tool_link": urdf_tool_frame(part.chain),
@@ -96,28 +85,48 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
 def chain_lines(view: ChainView) -> list[str]:
     """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
     held = view.validation
+    rows = [
+        ("fitted, registration only", view.before),
+        ("fitted, calibrated", view.after),
+        ("fitted, URDF alone (no compliance)", view.urdf_after),
+    ]
+    if held is not None:
+        parts = (("registration only", held.registration), ("calibrated", held.calibrated),
+                 ("URDF alone (no compliance)", held.urdf))  # fmt: skip
+        rows += [(f"held out ({held.source}), {what}", st) for what, st in parts]
+    header = ["errors", "configs", "rms [mm]", "max [mm]"]
+    if view.after.orientation_rms is not None:
+        header += ["rot rms [mrad]", "rot max [mrad]"]
     std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
     return [
-        error_table(view.before, view.after, view.urdf_after, held),
+        format_table(header, [_row(label, st) for label, st in rows if st is not None]),
         f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "
         f"at the fitted configurations{std}",
+    ]
+
+
+def _row(label: str, st: ResidualStats) -> list[str]:
+    """A row of the errors table: configurations, position (and rotation) RMS and max [mm]."""
+    figures: list[float | None] = [st.position_rms, st.position_max]
+    if st.orientation_rms is not None:
+        figures += [st.orientation_rms, st.orientation_max]
+    return [label, str(st.configs)] + [
+        "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}" for x in figures
     ]
 
 
 def chain_report(
     view: ChainView, fields: dict, world_link: str | None, on_robot: bool = False
 ) -> tuple[dict, dict]:
-    """A chain's report: format 3's fields of a chain, and format 2's keys it still writes.
+    """One chain measured: the report's fields of its layout, and its format 2's keys.
 
-    The fields a chain's report has its own way: ``parameters`` (the term's unknowns named
-    as :attr:`ChainView.names`: ``frame.z``, ``marker1.z``), ``errors`` of
-    :class:`~.residuals.ResidualStats` (``train``, ``held_out``, and the one term's),
-    ``frames`` (:func:`chain_frames`), ``fit``, ``compliance`` (zero per rigid joint) and
-    ``model`` (the MDH rows and the gravity beside the joint origins).
+    Its own ``parameters`` names (:func:`~.chain_counts.chain_name`: ``frame.z``), its
+    :class:`~.residuals.ResidualStats` under ``errors``, :func:`chain_frames`, ``fit``,
+    ``compliance`` (zero per rigid joint) and its MDH rows and gravity under ``model``.
 
     Args:
         view: The result (shape ``chain``).
-        fields: The joint fit's format 3 fields (edited copy returned).
+        fields: The report's fields of every shape (edited copy returned).
         world_link: The ``world_link`` the URDF was written with (None: none).
         on_robot: Whether the URDF was written with the instrument on the robot.
     """
@@ -125,19 +134,19 @@ def chain_report(
     train = (view.before, view.after, view.urdf_after)
     errors = {"train": errors_part(*train), "held_out": None if held is None else held.in_mm()}
     own = {p["name"] for p in part.parameters}  # named as the chain names them: frame.z
-    out = {**fields, "frames": chain_frames(part, world_link, on_robot)}
-    out["parameters"] = [
-        {**p, "name": chain_name(p["name"])} if p["name"] in own else p
-        for p in fields["parameters"]
-    ]
-    out["errors"] = {**errors, "terms": [errors]}
-    out["compliance"] = compliance_dict(part.chain, part.compliance)
     nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
-    gravity = gravity_dict(part.chain)
-    model = {"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"]}
-    out["model"] = {**model, "gravity": gravity}
+    g = gravity_in_base(part.chain).tolist()  # [m/s^2]
+    gravity = {"frame": part.chain.base_frame, "vector": g}
     std, weight = view.predicted_std, view.orientation_weight
-    out["fit"] = fit_dict(view.sigma, view.condition, std, weight)
+    out = one_term(
+        fields, errors, part.chain, part.compliance,
+        frames=chain_frames(part, world_link, on_robot),
+        parameters=[{**p, "name": chain_name(p["name"])} if p["name"] in own else p
+                    for p in fields["parameters"]],
+        model={"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"],
+               "gravity": gravity},
+        fit=fit_dict(view.sigma, view.condition, std, weight),
+    )  # fmt: skip
     frames, data = out["frames"], view.data
     legacy = {
         "data": data.source,

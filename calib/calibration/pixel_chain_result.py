@@ -1,9 +1,7 @@
-"""A pixel term's part of a joint fit's result (``ContactChainsCalibration``'s ``chains``).
+"""A pixel term's part of a result: its camera, intrinsics, targets and errors.
 
-The camera's placement on its link (the calibrated URDF holds it as link NAME fixed to LINK),
-its intrinsics, the target points used, and the reprojection errors in pixels with the
-millimetres they mean at the target (the term's rows in the joint fit: each pixel times the
-term's weight, the target's median distance over the focal length).
+Its errors in pixels, and in mm at the target: the term's rows in the joint fit (each pixel
+times the term's weight, the target's median distance over the focal length).
 """
 
 from __future__ import annotations
@@ -67,10 +65,6 @@ class PixelChain:
     held_source: str | None = None
     parameters: tuple[dict, ...] = ()
     outliers: tuple[Outlier, ...] = ()
-
-    def camera(self) -> tuple[str, str, np.ndarray]:
-        """``(name, link, optical frame in the link (4, 4) [m])`` for the URDF."""
-        return self.name, self.chain.base_frame, self.state.camera
 
     def camera_dict(self) -> dict:
         """The report's ``frames.cameras`` entry: link, pose, intrinsics [px]."""

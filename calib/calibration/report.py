@@ -1,28 +1,9 @@
-"""One report for every calibration: format 3, the same top-level keys for every shape and kind.
+"""The one report (format 3) of every calibration: its keys, its entries, its units.
 
-A calibration of a chain measured by an instrument, of a tree of several tools, of one chain
-from contacts or of several chains joined by contacts writes the keys of :data:`REPORT_KEYS`,
-in that order; what is specific to a shape or a kind lives inside them:
-
-* ``terms``: one entry per chain and kind the fit used (``base``, ``tool``, ``kind``,
-  ``data``, ``configs``);
-* ``parameters``: every fitted parameter with ``name``, ``joint`` (the URDF joint it belongs
-  to, or None for a frame, marker or object), ``value`` (change from the registration),
-  ``std``, ``unit`` and ``prior_weight``;
-* ``errors``: ``train`` and ``held_out`` (None without held-out rows), each with
-  ``registration``, ``calibrated`` and ``urdf`` (the written URDF alone), and ``terms`` (the
-  same per term); lengths in mm and angles in degrees, the unit in each key's name
-  (``position_rms_mm``, ``orientation_max_deg``, ``height_rms_mm``, ``roll_rms_deg``);
-* ``frames``: the fitted frames (``measurement``: the URDF base in the measurement frame,
-  ``measured``: the measured frame in the tool frame, ``markers``: marker link -> point,
-  ``contacts``: tool -> contact frame); ``objects``: planes, points or poses touched;
-* ``fit``: ``sigma`` [m], ``condition_number``, ``predicted_std_mm``, ``orientation_weight``
-  [m/rad]; ``model_choice``: the automatic choice (``params auto``) or None.
-
-Format 2's keys that differ (``base_frame``, ``measurement_to_base``, ``markers``,
-``contact``, ``selection``, ``residuals``, ``gaps``, ``notes``, ...) are written beside them
-for one more format and listed in ``deprecated`` with the key that replaces each
-(:data:`FORMAT2_MOVED`); format 2's ``marker`` is gone, as announced.
+Every calibration writes the keys of :data:`REPORT_KEYS` in that order, whatever its shape
+and kind (the layout: ``docs/reference/formats.md``); format 2's keys that format 3 replaced
+are written beside them until format 4, each listed in ``deprecated`` (:data:`FORMAT2_MOVED`).
+The helpers here build the entries every shape shares.
 """
 
 from __future__ import annotations
@@ -34,60 +15,27 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
-from ..kinematics.elastic import gravity_in_base
-
 __all__ = [
-    "FORMAT2_MOVED",
-    "REPORT_FORMAT",
     "REPORT_KEYS",
     "build_report",
-    "compliance_dict",
     "errors_part",
     "finite",
-    "finite_tree",
     "fit_dict",
-    "gravity_dict",
     "model_choice",
+    "one_term",
     "outlier_dict",
     "parameter_entries",
-    "parameter_joint",
     "parameter_lines",
-    "parameter_unit",
     "pose_dict",
-    "term_dict",
     "term_errors",
-    "verdict",
 ]
 
-REPORT_FORMAT = "3"
-"""Version of the report's layout (``format_version``): raised when a key is renamed or
-removed (an added key keeps it)."""
-
 REPORT_KEYS = (
-    "format_version",
-    "deprecated",
-    "robot",
-    "urdf",
-    "shape",
-    "terms",
-    "params",
-    "accepted",
-    "refusal",
-    "converged",
-    "message",
-    "iterations",
-    "parameters",
-    "errors",
-    "frames",
-    "objects",
-    "fit",
-    "model_choice",
-    "outliers",
-    "compliance",
-    "model",
-    "warnings",
+    "format_version", "deprecated", "robot", "urdf", "shape", "terms", "params", "accepted",
+    "refusal", "converged", "message", "iterations", "parameters", "errors", "frames",
+    "objects", "fit", "model_choice", "outliers", "compliance", "model", "warnings",
     "timings_ms",
-)
+)  # fmt: skip
 """The top-level keys of every report (format 3), in order."""
 
 _ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
@@ -97,17 +45,16 @@ direction of joint placement errors (``arm_5_joint:alpha7``, in that parameter's
 _ANGLES = ("alpha", "beta", "gamma", "theta")
 
 
-def parameter_joint(name: str, joint_names: Sequence[str | None]) -> str | None:
+def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
     """The URDF joint a parameter belongs to, or None for a frame, marker or object.
 
-    An MDH row's parameter (``theta6``, ``d3``, ``beta2``, a mimic ``offset4``) and a
-    compliance (``c6``) belong to the joint of their row; a joint placement component
-    (``arm_5_joint:rz``) to its joint; rows 0 and n+1 (base and tool frames) to none.
+    An MDH row's parameter (``theta6``, a mimic ``offset4``) and a compliance (``c6``) belong
+    to the joint of their row (rows 0 and n+1, the frames: none), a joint placement component
+    (``arm_5_joint:rz``) to its joint.
 
     Args:
         name: The parameter's name.
-        joint_names: The URDF joint of each row (None for the frame rows), as
-            ``MDHModel.joint_names``.
+        joint_names: The URDF joint of each row (None for the frame rows).
     """
     row = _ROW_NAME.fullmatch(name)
     if row is not None:
@@ -117,7 +64,7 @@ def parameter_joint(name: str, joint_names: Sequence[str | None]) -> str | None:
     return None if placement is None else placement.group(1)
 
 
-def parameter_unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
+def _unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
     """The unit of a parameter's value: ``rad``, ``m``, ``rad/(N m)`` or ``m/N``.
 
     Args:
@@ -155,18 +102,18 @@ def parameter_entries(
         names: Fitted parameters' names.
         values: Their values (changes from the registration) [``unit``].
         stds: Their standard deviations [``unit``] (NaN where undefined).
-        joint_names: The URDF joint of each row (see :func:`parameter_joint`).
-        sigma: Each row's joint type (see :func:`parameter_unit`).
+        joint_names: The URDF joint of each row (None for the frame rows).
+        sigma: Each row's joint type (0 revolute, 1 prismatic).
         priors: Prior weight of each in the fit (None: zeros).
     """
     weights = [0.0] * len(names) if priors is None else priors
     return [
         {
             "name": n,
-            "joint": parameter_joint(n, joint_names),
+            "joint": _joint(n, joint_names),
             "value": finite(v),
             "std": finite(s),
-            "unit": parameter_unit(n, sigma),
+            "unit": _unit(n, sigma),
             "prior_weight": finite(p),
         }
         for n, v, s, p in zip(names, values, stds, weights, strict=True)
@@ -174,49 +121,23 @@ def parameter_entries(
 
 
 FORMAT2_MOVED = {
-    "data": "terms[].data",
-    "base_frame": "terms[].base",
-    "tool_frame": "terms[].tool",
-    "base": "terms[].base",
-    "tool": "terms[].tool",
-    "tools": "terms[].tool",
-    "measure": "terms[].kind",
-    "configs": "terms[].configs",
-    "rows": "terms[].configs",
-    "markers": "frames.markers",
-    "marker_links": "frames.markers",
-    "measured_frame": "frames.measured",
-    "world_link": "frames.world_link",
-    "measurement_to_base": "frames.measurement",
-    "contact": "frames.contacts and objects",
-    "orientation_weight": "fit.orientation_weight",
-    "tilt_weight": "fit.orientation_weight",
-    "sigma": "fit.sigma",
-    "condition_number": "fit.condition_number",
-    "predicted_std": "fit.predicted_std_mm",
-    "residuals": "errors.train (mm, deg)",
-    "gaps": "errors (mm, deg)",
-    "validation": "errors.held_out (mm, deg)",
-    "per_tool": "errors.terms",
-    "chains": "terms and errors.terms",
-    "selection": "model_choice",
-    "free": "parameters[].name",
-    "gravity": "model.gravity",
-    "load": "model.load",
-    "mdh_nominal": "model.mdh_nominal",
-    "mdh_calibrated": "model.mdh_calibrated",
-    "calibrated_mdh": "model.mdh_calibrated",
-    "joint_origins": "model.joint_origins",
-    "shared_joints": "model.shared_joints",
-    "planes": "objects",
-    "notes": "warnings",
-}
+    "data": "terms[].data", "base_frame": "terms[].base", "tool_frame": "terms[].tool",
+    "base": "terms[].base", "tool": "terms[].tool", "tools": "terms[].tool",
+    "measure": "terms[].kind", "configs": "terms[].configs", "rows": "terms[].configs",
+    "markers": "frames.markers", "marker_links": "frames.markers",
+    "measured_frame": "frames.measured", "world_link": "frames.world_link",
+    "measurement_to_base": "frames.measurement", "contact": "frames.contacts and objects",
+    "orientation_weight": "fit.orientation_weight", "tilt_weight": "fit.orientation_weight",
+    "sigma": "fit.sigma", "condition_number": "fit.condition_number",
+    "predicted_std": "fit.predicted_std_mm", "residuals": "errors.train (mm, deg)",
+    "gaps": "errors (mm, deg)", "validation": "errors.held_out (mm, deg)",
+    "per_tool": "errors.terms", "chains": "terms and errors.terms", "selection": "model_choice",
+    "free": "parameters[].name", "gravity": "model.gravity", "load": "model.load",
+    "mdh_nominal": "model.mdh_nominal", "mdh_calibrated": "model.mdh_calibrated",
+    "calibrated_mdh": "model.mdh_calibrated", "joint_origins": "model.joint_origins",
+    "shared_joints": "model.shared_joints", "planes": "objects", "notes": "warnings",
+}  # fmt: skip
 """Each format 2 key that format 3 replaced, and the key that replaces it."""
-
-
-def term_dict(base: str, tool: str, kind: str, source: str | None, configs: int) -> dict:
-    """One entry of ``terms``: a chain, its kind, its data's source and fitted rows."""
-    return {"base": base, "tool": tool, "kind": kind, "data": source, "configs": int(configs)}
 
 
 def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
@@ -299,7 +220,10 @@ def parameter_lines(entries: Sequence[Mapping]) -> list[str]:
         return ["parameters: none fitted"]
     lines = ["parameters (change from the registration +- std), with their URDF joint:"]
     width = max(len(e["name"]) for e in entries)
-    joints = [_joint_column(e) for e in entries]
+    joints = [  # the joint, "-" for none, blank when the name says it
+        "-" if e["joint"] is None else "" if e["name"].startswith(e["joint"] + ":") else e["joint"]
+        for e in entries
+    ]
     jw = max(len(j) for j in joints)
     for e, joint in zip(entries, joints, strict=True):
         scale, unit = _DISPLAY.get(e["unit"], (1.0, e["unit"]))
@@ -307,14 +231,6 @@ def parameter_lines(entries: Sequence[Mapping]) -> list[str]:
         sd = "-" if e["std"] is None else f"{scale * e['std']:.4g}"
         lines.append(f"  {e['name']:>{width}} {joint:<{jw}} = {value:>10} +- {sd:<9} {unit}")
     return lines
-
-
-def _joint_column(entry: Mapping) -> str:
-    """The table's joint column: the joint, ``-`` for none, blank when the name says it."""
-    joint = entry["joint"]
-    if joint is None:
-        return "-"
-    return "" if entry["name"].startswith(joint + ":") else joint
 
 
 def pose_dict(T: np.ndarray | None) -> dict | None:
@@ -326,21 +242,6 @@ def pose_dict(T: np.ndarray | None) -> dict | None:
         "xyz": T[:3, 3].tolist(),
         "rpy": pin.rpy.matrixToRpy(T[:3, :3]).tolist(),
         "matrix": T.tolist(),
-    }
-
-
-def verdict(params: str, refusal: str | None, solver: tuple[bool, str, int]) -> dict:
-    """The report's level, verdict and solver outcome (six keys, ``params`` to ``iterations``).
-
-    ``solver``: ``(converged, message, Jacobian evaluations)`` of the final fit.
-    """
-    return {
-        "params": params,
-        "accepted": refusal is None,
-        "refusal": refusal,
-        "converged": bool(solver[0]),
-        "message": solver[1],
-        "iterations": int(solver[2]),
     }
 
 
@@ -359,27 +260,24 @@ def fit_dict(
     }
 
 
-def build_report(
-    fields: Mapping[str, object],
-    legacy: Mapping[str, object],
-    moved: Mapping[str, str],
-) -> dict:
+def build_report(fields: Mapping[str, object], legacy: Mapping[str, object]) -> dict:
     """A format-3 report: ``fields`` in the order of :data:`REPORT_KEYS`, then format 2's keys.
 
     Args:
         fields: Every key of :data:`REPORT_KEYS` but ``format_version`` and ``deprecated``.
-        legacy: Format 2's keys of this shape that format 3 replaced, written for one more
-            format.
-        moved: For each of them, the key that replaces it (listed under ``deprecated``).
+        legacy: Format 2's keys of this shape that format 3 replaced (:data:`FORMAT2_MOVED`),
+            written until format 4.
 
     Raises:
         KeyError: A key of :data:`REPORT_KEYS` is missing, or a legacy key has no
             replacement (a programming error: tests pin the layout).
     """
     deprecated = {
-        key: f"format 3 moved it to '{moved[key]}'; written until format 4" for key in legacy
+        key: f"format 3 moved it to '{FORMAT2_MOVED[key]}'; written until format 4"
+        for key in legacy
     }
-    report: dict[str, object] = {"format_version": REPORT_FORMAT, "deprecated": deprecated}
+    # format_version: raised when a key is renamed or removed (an added key keeps it)
+    report: dict[str, object] = {"format_version": "3", "deprecated": deprecated}
     report.update({key: fields[key] for key in REPORT_KEYS[2:]})
     unexpected = set(fields) - set(REPORT_KEYS)
     if unexpected:
@@ -388,7 +286,7 @@ def build_report(
         if key in report:
             raise KeyError(f"legacy key '{key}' is a format 3 key")
         report[key] = value
-    return finite_tree(report)
+    return _finite_tree(report)
 
 
 def finite(x: float | np.floating | None) -> float | None:
@@ -396,23 +294,28 @@ def finite(x: float | np.floating | None) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
 
 
-def finite_tree(value):
+def _finite_tree(value):
     """A copy of a JSON-ready tree with every non-finite float replaced by None."""
     if isinstance(value, dict):
-        return {k: finite_tree(v) for k, v in value.items()}
+        return {k: _finite_tree(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [finite_tree(v) for v in value]
+        return [_finite_tree(v) for v in value]
     if isinstance(value, (float, np.floating)):
         return finite(value)
     return value
 
 
-def gravity_dict(chain) -> dict:
-    """The gravity of the compliance model: ``{frame, vector [m/s^2]}`` in the base frame."""
-    return {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()}
+def one_term(fields: Mapping, errors: dict, chain, compliance: np.ndarray | None, **own) -> dict:
+    """The report's fields of one term's layout (one chain measured or touching).
 
-
-def compliance_dict(chain, compliance: np.ndarray | None) -> dict:
-    """The report's ``compliance``: each joint's [rad/(N m) or m/N], 0 where none was fitted."""
+    Args:
+        fields: The report's fields of every shape.
+        errors: The term's ``errors.terms`` entry: the report's ``errors`` too.
+        chain: Its chain.
+        compliance: Its joints' fitted compliance ``(n,)`` [rad/(N m) or m/N], or None
+            (rigid: zeros).
+        own: Its layout's other fields (``frames``, ``fit``, ``model``, ...).
+    """
     c = np.zeros(chain.n) if compliance is None else compliance
-    return dict(zip(chain.joint_names, map(float, c), strict=True))
+    joints = dict(zip(chain.joint_names, map(float, c), strict=True))
+    return {**fields, "errors": {**errors, "terms": [errors]}, "compliance": joints, **own}

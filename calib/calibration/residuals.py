@@ -2,7 +2,7 @@
 
 :class:`ResidualStats` (position and orientation RMS / max of a set of measurements) and
 :class:`Validation` (the same on held-out rows, with the registration's and the predicted
-standard deviation), in metres and radians; :func:`error_table` is the summary's table of them.
+standard deviation), in metres and radians.
 """
 
 from __future__ import annotations
@@ -12,11 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..identification.report import format_table
 from ..measurements.data import Measurements
 from .report import errors_part, finite
 
-__all__ = ["ResidualStats", "Validation", "error_table"]
+__all__ = ["ResidualStats", "Validation"]
 
 
 @dataclass(frozen=True)
@@ -110,44 +109,3 @@ class Validation:
             **errors_part(self.registration, self.calibrated, self.urdf, mm=False),
             "predicted_std": finite(self.predicted_std),
         }
-
-
-def _mm(x: float | None) -> str:
-    return "-" if x is None or not math.isfinite(x) else f"{1e3 * x:.3f}"
-
-
-def _row(label: str, st: ResidualStats) -> list[str]:
-    row = [label, str(st.configs), _mm(st.position_rms), _mm(st.position_max)]
-    if st.orientation_rms is not None:
-        row += [_mm(st.orientation_rms), _mm(st.orientation_max)]
-    return row
-
-
-def error_table(
-    before: ResidualStats,
-    after: ResidualStats,
-    urdf_after: ResidualStats | None,
-    held: Validation | None,
-) -> str:
-    """The summary's errors table: fitted and held-out rows, registration and calibrated [mm].
-
-    Args:
-        before: The registration's errors on the fitted rows.
-        after: The calibrated model's on the fitted rows.
-        urdf_after: The URDF alone's (no compliance) on the fitted rows, or None (rigid).
-        held: The errors on held-out rows, or None.
-    """
-    rows = [_row("fitted, registration only", before), _row("fitted, calibrated", after)]
-    if urdf_after is not None:
-        rows.append(_row("fitted, URDF alone (no compliance)", urdf_after))
-    if held is not None:
-        rows += [
-            _row(f"held out ({held.source}), registration only", held.registration),
-            _row(f"held out ({held.source}), calibrated", held.calibrated),
-        ]
-        if held.urdf is not None:
-            rows.append(_row(f"held out ({held.source}), URDF alone (no compliance)", held.urdf))
-    header = ["errors", "configs", "rms [mm]", "max [mm]"]
-    if after.orientation_rms is not None:
-        header += ["rot rms [mrad]", "rot max [mrad]"]
-    return format_table(header, rows)
