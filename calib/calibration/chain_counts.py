@@ -1,20 +1,9 @@
 """What a measured chain's structure lets rows determine, and the joint engine's counts of it.
 
-One chain (or a tree's tools) measured by an instrument (:mod:`.instrument`): a level offers
-the joint placement directions generic configurations determine with the frame and the
-markers (:class:`Generic`: the rank of the engine's own Jacobian at random configurations
-within the joint limits, rows of the data's kind); the reduction the structure forces (the
-base row's parameters the frame absorbs, the tool's the markers do) is the level's, not the
-data's. For one chain, as :mod:`.determined` states it:
-
-- a level (not ``auto``) the measured configurations do not determine is refused before the
-  fit, naming the unknowns they cannot separate (postures counted once);
-- ``auto`` chooses on the postures (a posture recorded again counts once), on a sample of
-  them beyond :data:`~.determined.SELECTION_WORK`;
-- after the fit, unknowns the rows cannot separate refuse the model
-  (:func:`~.determined.ill_posed`), naming a posture that separates them.
-
-The unknowns are named as a chain's: ``frame.z``, ``marker1.z`` (:func:`chain_name`).
+A level of one chain (or a tree's tools) measured by an instrument offers the joint placement
+directions generic configurations determine with the frame and markers (:class:`Generic`): the
+reduction the structure forces is the level's, not the data's. One chain's checks are
+:mod:`.determined`'s (postures counted once), its unknowns named as a chain's (:func:`chain_name`).
 """
 
 from __future__ import annotations
@@ -61,7 +50,10 @@ def rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
 
 @dataclass(frozen=True)
 class Generic:
-    """Generic configurations of the terms an instrument measures (module text).
+    """Generic configurations of the terms an instrument measures.
+
+    The rank of the engine's own Jacobian at random configurations within the joint limits,
+    rows of the data's kind, is what the structure lets rows determine.
 
     Attributes:
         start: The registration the Jacobians are linearised at.

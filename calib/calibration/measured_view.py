@@ -1,9 +1,7 @@
 """A chain measured by an instrument, fitted by the joint engine, seen as a chain's result.
 
-What users of a measured chain's result read (its errors, validation, frames, markers,
-uncertainty) and what the CLI passes (``world_link``, ``on_robot``), for the joint fit of that
-one term (:class:`~.contact_chains_result.ContactChainsCalibration` of shape ``chain``): the
-report's frames as a chain's report has them, so that :func:`calib.load_calibrated` and
+A measured term's part of the result (:class:`MeasuredChain`), and what users of a chain's
+result read on a one-term joint fit (:class:`ChainView`), as :func:`calib.load_calibrated` and
 ``calib predict`` read it.
 """
 

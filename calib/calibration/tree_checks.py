@@ -1,14 +1,7 @@
 """The checks of a tree's rows as a whole, before its joint fit (:mod:`.instrument`).
 
-Each tool's rows get a single chain's checks in the joint fit; what only the whole tree
-sees is checked here, on the closed-form registration of the nominal tree
-(:func:`~.instrument.shared_frame`: one frame for every tool, one marker each):
-
-- enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
-- validation rows that are training rows refused, or given with a holdout fraction;
-- usual mistakes across the branches (two joints of different tools' chains swapped,
-  degrees, millimetres: :func:`~.diagnosis.explain`), in the data and the validation rows;
-- validation rows measured in another frame (the training registration misses them by far).
+Each tool's rows get a single chain's checks in the joint fit; what only the whole tree sees is
+checked here (:func:`prepare_tree`), on the closed-form registration of the nominal tree.
 """
 
 from __future__ import annotations
@@ -31,7 +24,12 @@ __all__ = ["prepare_tree"]
 def prepare_tree(
     tree: Tree, data: Measurements, validate: Measurements | None, holdout: float, seed: int
 ):
-    """Check a tree's rows (module text); each tool's rows and held-out rows.
+    """Check a tree's rows as a whole; each tool's rows and held-out rows.
+
+    Enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
+    validation rows that are training rows refused; usual mistakes across the branches (two
+    joints of different tools' chains swapped, degrees, millimetres: :func:`~.diagnosis.explain`)
+    in the data and the validation rows; validation rows measured in another frame.
 
     The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
     together (:func:`~.validation.split`), as the validation rows are given.
@@ -79,7 +77,7 @@ _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 
 
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
-    """The registration of ``data`` on the ``nominal`` tree (module text); a mistake raised.
+    """``data`` registered on the ``nominal`` tree (:func:`~.instrument.shared_frame`).
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
