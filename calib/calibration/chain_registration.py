@@ -46,9 +46,10 @@ def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
 
 
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
-    """The registration of ``data`` at an orientation weight, each weight run once (module text).
+    """The registration of ``data`` at an orientation weight, each weight run once.
 
-    The nominal kinematics at the data's joints (the fit moves no geometry) and the
+    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only). The
+    nominal kinematics at the data's joints (the fit moves no geometry) and the
     closed-form start (no weight changes it) are made once, the start on the first call.
     """
     kin = nominal.kinematics(data.q)

@@ -136,10 +136,9 @@ def measured_part(
     if rigid is not None:
         rigid.flags.writeable = False  # kept by the part (a value)
 
-    def stat(st, rows):
-        if st is state and rows is train and rigid is not None:
-            return measured_stats(st, rows, None, rigid)
-        return measured_stats(st, rows, deflect[id(rows)] if st is state else None)
+    def stat(st, rows):  # the fit's rigid residuals at train: made once
+        made = rigid if st is state and rows is train else None
+        return measured_stats(st, rows, deflect[id(rows)] if st is state else None, made)
 
     stats = part_stats(stat, registered, state, train, held)
     compliance = state.inner.compliance if torques[0] is not None else None
