@@ -20,13 +20,12 @@ from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
 from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import rotation_vector, skew
+from ..kinematics.so3 import skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import determined, outliers, term_checks, validation
 from .chain_registration import checked_registration, frames_model
-from .contact_result import GapStats, row_stats
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
@@ -40,10 +39,8 @@ __all__ = [
     "check_measured",
     "checked_measured",
     "measured_kind",
-    "measured_stats",
     "measuring_joint",
     "one_term_per_frame",
-    "own_change",
     "unseen",
 ]
 
@@ -365,37 +362,6 @@ def unseen(states: tuple) -> tuple:
         dataclasses.replace(s, seen=None) if isinstance(s, MeasuredState) and s.seen else s
         for s in states
     )
-
-
-def measured_stats(
-    state: MeasuredState, data: Measurements, torque=None, residuals=None
-) -> GapStats:
-    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
-
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None);
-    ``residuals``: the state's at the data (with ``torque``), if already made.
-    """
-    if residuals is None:
-        kin = state.frames_at(data) if torque is None else None
-        residuals = state.inner.residuals(data, torque, kin)
-    return row_stats(residuals, state.kind, state.row_weights())
-
-
-def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
-    """The term's unknowns from the registration to ``state``, as x of :meth:`MeasuredState._own`.
-
-    The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
-    changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).
-    """
-    a, b = registered.inner, state.inner
-    parts = [
-        rotation_vector((b.frame[:3, :3] @ a.frame[:3, :3].T)[None])[0],
-        b.frame[:3, 3] - a.frame[:3, 3],
-        (b.markers - a.markers).ravel(),
-    ]
-    if a.tool_rotation is not None and b.tool_rotation is not None:
-        parts.append(rotation_vector((a.tool_rotation.T @ b.tool_rotation)[None])[0])
-    return np.concatenate(parts)
 
 
 def one_term_per_frame(chains, data) -> None:
