@@ -57,9 +57,9 @@ def prepare_tree(
         validation.check_held_out(data, validate)
         if set(validate.tools) == set(tree.tool_frames) and 3 * validate.m > unknowns:
             _diagnosed(tree, nominal, validate)
-    reg = _diagnosed(tree, nominal, data)
+    reg, fitted = _diagnosed(tree, nominal, data)
     if validate is not None:
-        fitted, other = (_stats(reg, by_tool(tree, d)) for d in (data, validate))
+        other = _stats(reg, by_tool(tree, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
     train, held = (
         (data, validate) if validate is not None else validation.split(data, holdout, seed)
@@ -76,19 +76,21 @@ def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> Res
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 
 
-def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
-    """``data`` registered on the ``nominal`` tree (:func:`~.instrument.shared_frame`).
+def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:
+    """``data`` registered on the ``nominal`` tree (:func:`~.instrument.shared_frame`), its errors.
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
     """
 
-    def registered(d: Measurements) -> tuple[list, float]:  # and the RMS error per row [m]
+    def registered(d: Measurements) -> tuple[list, ResidualStats]:
         parts = by_tool(tree, d)
         states = shared_frame(nominal, parts)
-        return states, _stats(states, parts).position_rms
+        return states, _stats(states, parts)
 
     reg, first = registered(data)
-    rms = lambda d: registered(d)[1]  # noqa: E731
-    diagnosis.explain(data, tree.sigma == 0, rms, first, None, _WORDS, joints_only=False)
-    return reg
+    rms = lambda d: registered(d)[1].position_rms  # [m]  # noqa: E731
+    diagnosis.explain(
+        data, tree.sigma == 0, rms, first.position_rms, None, _WORDS, joints_only=False
+    )
+    return reg, first
