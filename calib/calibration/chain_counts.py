@@ -1,20 +1,9 @@
 """What a measured chain's structure lets rows determine, and the joint engine's counts of it.
 
-One chain (or a tree's tools) measured by an instrument (:mod:`.instrument`): a level offers
-the joint placement directions generic configurations determine with the frame and the
-markers (:class:`Generic`: the rank of the engine's own Jacobian at random configurations
-within the joint limits, rows of the data's kind); the reduction the structure forces (the
-base row's parameters the frame absorbs, the tool's the markers do) is the level's, not the
-data's. For one chain, as :mod:`.determined` states it:
-
-- a level (not ``auto``) the measured configurations do not determine is refused before the
-  fit, naming the unknowns they cannot separate (postures counted once);
-- ``auto`` chooses on the postures (a posture recorded again counts once), on a sample of
-  them beyond :data:`~.determined.SELECTION_WORK`;
-- after the fit, unknowns the rows cannot separate refuse the model
-  (:func:`~.determined.ill_posed`), naming a posture that separates them.
-
-The unknowns are named as a chain's: ``frame.z``, ``marker1.z`` (:func:`chain_name`).
+A level of one chain (or a tree's tools) measured by an instrument offers the joint placement
+directions generic configurations determine with the frame and markers (:class:`Generic`): the
+reduction the structure forces is the level's, not the data's. One chain's checks are
+:mod:`.determined`'s (postures counted once), its unknowns named as a chain's (:func:`chain_name`).
 """
 
 from __future__ import annotations
@@ -61,7 +50,10 @@ def rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
 
 @dataclass(frozen=True)
 class Generic:
-    """Generic configurations of the terms an instrument measures (module text).
+    """Generic configurations of the terms an instrument measures.
+
+    The rank of the engine's own Jacobian at random configurations within the joint limits,
+    rows of the data's kind, is what the structure lets rows determine.
 
     Attributes:
         start: The registration the Jacobians are linearised at.
@@ -111,7 +103,7 @@ class Generic:
         its rows counted.
 
         The frame and markers must be determined, as many unknowns as they are (which of
-        them the rows cannot separate, if any, refuses the fit: :meth:`ill_posed`).
+        them the rows cannot separate, if any, refuses the fit: :func:`assess`).
 
         Args:
             wide: The level's model (every direction it offers).
@@ -134,21 +126,17 @@ class Generic:
             )
         if level == "auto" or (not self.one and level != "components"):
             return
-        if not self.one:  # a tree's complete (every component): its rows against generic ones
-            rows, per_row = sum(t.m for t in self.train), d.kind.rows_of(d.n_markers)
-            determined.check_rank(
-                len(kept), len(generic), rows, per_row, "complete", d.source, "rows"
-            )
-            return
         lost: tuple[str, ...] = ()
-        if len(kept) < len(generic):
+        if self.one and len(kept) < len(generic):
             A = wide.jacobian(self.start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
             names = tuple(chain_name(wide.names()[c]) for c in generic)
             found = determined.ill_posed(A[:, generic], names, overwrite=True)
             lost = tuple(dict.fromkeys(n for f in found for n in f.names))
+        # one chain: its postures; a tree's complete (every component): its rows
+        m = count(d.q, d.tool) if self.one else sum(t.m for t in self.train)
+        level, unit = (level, "") if self.one else ("complete", "rows")
         rows = d.kind.rows_of(d.n_markers)
-        postures = count(d.q, d.tool)
-        determined.check_rank(len(kept), len(generic), postures, rows, level, d.source, lost=lost)
+        determined.check_rank(len(kept), len(generic), m, rows, level, d.source, unit, lost)
 
     def note(self, kept: int, generic: int) -> str:
         """The note of rows that determine ``kept`` of the ``generic`` unknowns (``auto``)."""
@@ -192,46 +180,37 @@ class Generic:
         )
         return keep
 
-    def ill_posed(self, fitted, std: np.ndarray) -> str | None:
-        """One chain's refusal for fitted unknowns its rows cannot separate (None: none).
-
-        It names the posture, among random ones within the joint limits, that separates them
-        best (:func:`~.determined.separating_posture`).
-
-        Args:
-            fitted: The joint fit (its model's columns: the frame, the markers, the free
-                directions).
-            std: The standard deviation of each of its columns [m or rad] (NaN: undetermined).
-        """
-        names = tuple(chain_name(n) for n in fitted.model.names())
-        found = determined.undetermined(fitted.J, names, std)
-        if not found:
-            return None
-        chain = self.start.chains[0]
-        q = chain.random_configurations(DEFAULT_CONFIGS, self.seed)
-
-        def jacobian_at(q: np.ndarray) -> np.ndarray:
-            rows = self.rows(q, elastic=bool(fitted.model.compliance))
-            return fitted.model.jacobian(fitted.start, fitted.x, rows)
-
-        where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
-        return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)
-
 
 def assess(generic: Generic | None, fitted, cov: np.ndarray, polished: bool) -> str | None:
-    """One chain's refusal for unknowns its rows cannot separate (:meth:`Generic.ill_posed`).
+    """One chain's refusal for fitted unknowns its rows cannot separate (None: none).
+
+    It names the posture, among random ones within the joint limits, that separates them
+    best (:func:`~.determined.separating_posture`).
 
     Args:
         generic: The terms measured by an instrument, or None (not assessed).
-        fitted: The joint fit.
+        fitted: The joint fit (its model's columns: the frame, the markers, the free
+            directions).
         cov: Its covariance (:func:`~.solve.covariance`, with its prior weights).
         polished: The fit was polished (every component: not assessed).
     """
     if generic is None or polished or not generic.one:
         return None
     with np.errstate(invalid="ignore"):
-        std = np.sqrt(np.diag(cov))
-    return generic.ill_posed(fitted, std)
+        std = np.sqrt(np.diag(cov))  # of each column [m or rad] (NaN: undetermined)
+    names = tuple(chain_name(n) for n in fitted.model.names())
+    found = determined.undetermined(fitted.J, names, std)
+    if not found:
+        return None
+    chain = generic.start.chains[0]
+    q = chain.random_configurations(DEFAULT_CONFIGS, generic.seed)
+
+    def jacobian_at(q: np.ndarray) -> np.ndarray:
+        rows = generic.rows(q, elastic=bool(fitted.model.compliance))
+        return fitted.model.jacobian(fitted.start, fitted.x, rows)
+
+    where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
+    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)
 
 
 def sampled(data: ChainsData, keep: np.ndarray | None) -> ChainsData:

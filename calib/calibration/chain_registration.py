@@ -1,10 +1,7 @@
-"""A chain calibration's registration: the measurement frame and markers on the nominal model.
+"""A measured chain's registration: its measuring frame and markers on the nominal model, checked.
 
-The registration is the closed-form fit refined by Levenberg-Marquardt (frame and markers only).
-The orientation weight is estimated from it when not given; then the steps of every kind of
-term (:mod:`.term_checks`): the outlier rows set aside, the usual mistakes (swapped joint
-columns, degrees, millimetres, quaternion order, orientation columns) diagnosed in the rows
-kept, the validation rows likewise.
+Closed form refined by Levenberg-Marquardt, then the steps of every kind of term
+(:mod:`.term_checks`): :func:`checked_registration`.
 """
 
 from __future__ import annotations
@@ -33,7 +30,6 @@ from .term_checks import Aside
 __all__ = [
     "checked_registration",
     "frames_model",
-    "held_out_outliers",
 ]
 
 
@@ -42,7 +38,7 @@ def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
 
     No MDH parameter: a measured term's own unknowns too. The registration fits them all
     (``fix`` of the frame or the markers is refused before any registration,
-    :func:`~.measured_options.asked_of`).
+    :func:`~.measured_options.level_offer`).
     """
     return ErrorModel(
         ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=n_markers, kind=kind
@@ -50,9 +46,10 @@ def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
 
 
 def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
-    """The registration of ``data`` at an orientation weight, each weight run once (module text).
+    """The registration of ``data`` at an orientation weight, each weight run once.
 
-    The nominal kinematics at the data's joints (the fit moves no geometry) and the
+    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only). The
+    nominal kinematics at the data's joints (the fit moves no geometry) and the
     closed-form start (no weight changes it) are made once, the start on the first call.
     """
     kin = nominal.kinematics(data.q)
@@ -76,35 +73,6 @@ _TURNS = diagnosis.Words(
     mistakes="quaternion order, degrees, rpy order",
     check="the orientation columns",
 )
-
-
-def _diagnose(chain, nominal, data, guess, opts, at) -> list[str]:
-    """Raise the likely mistake if the data cannot be registered; a note if none explains it.
-
-    It runs at the default orientation weight: an estimated weight would let wrong
-    orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
-    points are diagnosed first, then the orientations (on the orientation error).
-    """
-
-    def errors(d):
-        reg = _registrations(nominal, d, guess, opts)(weighting.DEFAULT_WEIGHT)
-        return validation.stats(reg.state, d, None)
-
-    def position(d) -> float:
-        return errors(d).position_rms
-
-    def turns(d) -> float:
-        return errors(d).orientation_rms
-
-    reg = at(weighting.DEFAULT_WEIGHT)
-    first = validation.stats(reg.state, data, None, reg.kin)
-    revolute, rot = chain.sigma == 0, first.orientation_rms
-    notes = diagnosis.explain(
-        data, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
-    )
-    if notes or rot is None:  # the positions are suspect: the orientations are not read
-        return notes
-    return diagnosis.explain(data, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,17 +132,36 @@ class _Rows:
         return Aside(reg, bad, data.subset(~bad) if bad.any() else data, tuple(found))
 
     def diagnose(self, rows: Measurements, state: Fit) -> list[str]:
-        """The usual mistakes of the rows kept (:func:`_diagnose`)."""
-        nominal, guess, opts = self.nominal, self.guess, self.opts
+        """Raise the rows' likely mistake if they cannot be registered; a note if none explains it.
+
+        It runs at the default orientation weight: an estimated weight would let wrong
+        orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
+        points are diagnosed first, then the orientations (on the orientation error).
+        """
+        nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
+
+        def errors(d):
+            return validation.stats(_registrations(nominal, d, guess, opts)(unit).state, d, None)
+
         same = self.at if rows is self.rows else _registrations(nominal, rows, guess, opts)
-        return _diagnose(self.chain, nominal, rows, guess, opts, same)
+        reg = same(unit)
+        first = validation.stats(reg.state, rows, None, reg.kin)
+        revolute, rot = self.chain.sigma == 0, first.orientation_rms
+        position = lambda d: errors(d).position_rms  # noqa: E731
+        notes = diagnosis.explain(
+            rows, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
+        )
+        if notes or rot is None:  # the positions are suspect: the orientations are not read
+            return notes
+        turns = lambda d: errors(d).orientation_rms  # noqa: E731
+        return diagnosis.explain(rows, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
 def checked_registration(chain, nominal, train, checked, guess, opts):
     """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
 
     The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
-    estimated before.
+    estimated before (unless given).
 
     Returns:
         The options with the orientation weight, the registration state, the mask of the
@@ -182,7 +169,14 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
         ``train``'s joints (the registration's, at every row: its geometry is the nominal one).
     """
     at = _registrations(nominal, train, guess, opts)
-    opts = _weighted(train, opts, at)
+    if opts.orientation_weight is None:  # estimated from the registration (poses)
+        weight = weighting.DEFAULT_WEIGHT
+        if train.quaternion is not None:
+            weight = weighting.estimate_weight(
+                lambda w: at(w).state.residuals(train, None, at(w).kin),
+                weighting.pose_angles(train.n_markers),
+            )
+        opts = dataclasses.replace(opts, orientation_weight=weight)
     steps = _Rows(chain, nominal, train, guess, opts, at)
     validate = _validation_steps(chain, nominal, checked, guess, opts)
     aside, notes = term_checks.checked(steps, validate)
@@ -201,30 +195,3 @@ def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, st
         return []
     at = _registrations(nominal, held[0], guess, opts)
     return [(_Rows(chain, nominal, held[0], guess, opts, at, frames), held[1])]
-
-
-def _weighted(data, opts: Options, at) -> Options:
-    """The options with the orientation weight: given, or estimated from the registration."""
-    if opts.orientation_weight is not None:
-        return opts
-    weight = weighting.DEFAULT_WEIGHT
-    if data.quaternion is not None:
-        weight = weighting.estimate_weight(
-            lambda w: at(w).state.residuals(data, None, at(w).kin),
-            weighting.pose_angles(data.n_markers),
-        )
-    return dataclasses.replace(opts, orientation_weight=weight)
-
-
-def held_out_outliers(
-    reg, train, held: Measurements, opts, notes: list[str], kin=None, held_kin=None
-):
-    """The held-out rows without their outliers (:func:`.term_checks.held_out`).
-
-    ``kin``, ``held_kin``: ``reg``'s kinematics at ``train``'s and ``held``'s joints, if
-    already made.
-    """
-    k, rows = train.n_markers, held.rows or tuple(range(1, held.m + 1))
-    fitted = outliers.point_errors(reg.residuals(train, None, kin), k)
-    errors = outliers.point_errors(reg.residuals(held, None, held_kin), k)
-    return term_checks.held_out(fitted, errors, held, rows, held.subset, notes, opts.noise)

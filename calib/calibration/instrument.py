@@ -1,20 +1,11 @@
 """A tree measured by one instrument: one measured term per tool, the instrument's frame shared.
 
-A tree (one base frame, several tools: TALOS's two hands below the torso) measured by one
-instrument outside the robot (a laser tracker seeing a marker on each hand; the CSV's
-``tool`` column says which) is a problem of the joint-placement engine
-(:func:`~.contact_chains.calibrate_contact_chains` with ``instrument=True``): one measured
-term (:mod:`.measured_term`) per tool, on the chain from the tree's base to that tool. The
-terms share
-
-- the joint placements of the joints they run through (one error per URDF joint, mimic
-  joints included: a mimic joint's placement is its own, its position follows its master's),
-- the instrument's frame: its 6 unknowns are one object of the fit (:func:`instrument_groups`),
-  each tool's marker its own unknowns (:attr:`~.measured_term.MeasuredKind.instrument`).
-
-Each tool's rows get a single chain's checks (registration, outliers set aside, usual
-mistakes diagnosed); then the frame and markers are registered together in closed form
-(:func:`shared_frame`), refined by Levenberg-Marquardt with the engine's shared objects.
+A tree (TALOS's two hands below the torso) measured by an instrument outside the robot (a laser
+tracker; the CSV's ``tool`` column says which tool) is a problem of the joint engine
+(:func:`~.contact_chains.calibrate_contact_chains` with ``instrument=True``): one measured term
+(:mod:`.measured_term`) per tool, sharing the joint placements of the joints they run through
+and the instrument's frame (:func:`instrument_groups`, :func:`shared_frame`). Here: the rows cut
+by tool, the shared frame's registration, and the report's errors of every tool together.
 """
 
 from __future__ import annotations
@@ -148,18 +139,17 @@ def instrument_format2(measured) -> dict:
         measured: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
     first, stats = measured[0], pooled(measured)
-    both = {
-        k: {"registration": stats[f"{k}_registration"].to_dict(), "calibrated": stats[k].to_dict()}
-        if k in stats
-        else None
-        for k in ("train", "held_out")
-    }
+
+    def both(stats: dict[str, ResidualStats], k: str) -> dict:  # of rows k [m]
+        keys = {"registration": f"{k}_registration", "calibrated": k}
+        return {n: stats[key].to_dict() if key in stats else None for n, key in keys.items()}
+
     return {
         "data": first.source,
         "rows": sum(c.stats["train"].m for c in measured),
-        "residuals": both["train"],
-        "per_tool": [{"tool": c.chain.tool_frame, **_format2(pooled([c]))} for c in measured],
-        "validation": both["held_out"],
+        "residuals": both(stats, "train") if "train" in stats else None,
+        "per_tool": [{"tool": c.chain.tool_frame, **both(pooled([c]), "train")} for c in measured],
+        "validation": both(stats, "held_out") if "held_out" in stats else None,
         "measure": "position",
         "base_frame": first.chain.base_frame,
         "tools": [c.chain.tool_frame for c in measured],
@@ -169,12 +159,6 @@ def instrument_format2(measured) -> dict:
             t: marker_link_names(t, 1)[0] for t in (c.chain.tool_frame for c in measured)
         },
     }
-
-
-def _format2(stats: dict[str, ResidualStats]) -> dict:
-    """Format 2's ``per_tool`` errors of one tool's fitted rows [m]."""
-    parts = (("registration", "train_registration"), ("calibrated", "train"))
-    return {k: stats[key].to_dict() if key in stats else None for k, key in parts}
 
 
 def pooled(parts) -> dict[str, ResidualStats]:

@@ -1,27 +1,9 @@
-"""The options of one chain measured by an instrument, on the joint engine: fix, free, elastic.
+"""A measured chain's options on the joint engine: ``fix``, ``free``, ``elastic``, ``marker``.
 
-:func:`~.entry.calibrate` of a chain and its measurements fits it with the joint engine
-(:class:`~.contact_register.Run`, its ``options``). What the chain's options
-ask of it:
-
-* ``fix`` / ``free`` name parameters. A joint's parameter is written as the printed table
-  names it, ``<joint>:<parameter>``: an MDH parameter of the chain's chart
-  (``elbow_joint:d3``, :func:`~.placements.mdh_directions`) or a joint placement component
-  (``elbow_joint:x`` ... ``:rz``); an MDH name alone (``d3``) is the chart's parameter of that
-  name. A fixed one is not offered; a free one is offered at every level and kept by ``auto``'s
-  selection, and refused in one line when the data cannot fit it (the instrument frame and
-  markers carry it, or parameters kept before it). ``c1`` .. ``cN``: a joint's compliance.
-  ``free`` of ``frame``, ``markers`` or ``tool`` asks nothing (they are always fitted);
-  ``fix`` of them is refused (the engine fits the instrument's frame and markers always).
-* ``elastic`` (or a compliance in ``free``): the joint compliances are candidates, under the
-  gravity torques of the URDF's masses (:meth:`~calib.kinematics.robot.Chain.gravity_torques`,
-  gravity along the URDF root's -z, as the compliance file records); refused where the URDF
-  gives the chain no torque (:func:`compliance_torques`).
-* ``marker`` guesses the measured points (:func:`marker_guess`).
-* ``loss`` and ``noise_mm`` go to the fit and the registration's checks
-  (:func:`~.contact_chains.calibrate_contact_chains`).
-
-Each is checked before the fit, in one line that says why.
+:func:`~.entry.calibrate` of a chain and its measurements fits it with the joint engine; each
+option is checked before the fit, in one line that says why: the parameters ``fix`` and
+``free`` name (:func:`level_offer`), the compliances ``elastic`` offers (:func:`compliance_torques`)
+and the markers' guess (:func:`marker_guess`).
 """
 
 from __future__ import annotations
@@ -40,7 +22,6 @@ from .placements import mdh_directions
 __all__ = [
     "GROUPS",
     "Asked",
-    "asked_of",
     "compliance_torques",
     "level_offer",
     "marker_guess",
@@ -79,18 +60,6 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
     chain = chains[0]
     tau = chain.gravity_torques(train[0].q)
     loaded = [j for j in range(chain.n) if np.any(tau[:, j])]
-    _check_loaded(chain, loaded, opts)
-    joints = tuple(j for j in loaded if compliance_name(j) not in opts.fix)
-    return (tau, None if held[0] is None else chain.gravity_torques(held[0].q)), joints
-
-
-def _check_loaded(chain: Chain, loaded: list[int], opts: Options) -> None:
-    """Refuse compliance asked for where gravity loads no joint (no masses) or not the one named.
-
-    Raises:
-        InvalidArgumentError: ``elastic`` (or a compliance in ``free``) on a chain whose URDF
-            gives its joints no gravity torque, or ``free`` naming an unloaded joint's.
-    """
     if not loaded:
         raise InvalidArgumentError(
             f"elastic (or a compliance in free) needs gravity torques, and {chain.urdf_path} "
@@ -102,6 +71,8 @@ def _check_loaded(chain: Chain, loaded: list[int], opts: Options) -> None:
                 f"free {name} cannot be fitted: gravity loads joint {name[1:]} at none of the "
                 f"configurations (a compliance only shows under a torque); drop it from free"
             )
+    joints = tuple(j for j in loaded if compliance_name(j) not in opts.fix)
+    return (tau, None if held[0] is None else chain.gravity_torques(held[0].q)), joints
 
 
 def marker_guess(marker, k: int) -> np.ndarray:
@@ -193,33 +164,51 @@ class Asked:
             raise InvalidArgumentError(f"free {given} cannot be fitted: {why}; drop it from free")
 
 
-def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | None:
-    """The parameters ``fix`` and ``free`` name (module text), or None: none named.
+def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
+    """What a joint fit offers at ``level``, and the parameters ``fix`` and ``free`` name.
+
+    A tree's ``complete`` offers every joint placement component (the rank keeps a basis); one
+    chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` (one
+    measured chain's) name parameters as the printed table does: ``elbow_joint:d3`` (the
+    chart's, :func:`~.placements.mdh_directions`; ``d3`` alone), ``elbow_joint:x`` .. ``:rz``
+    (a placement component), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
+    are always fitted (``free`` of them asks nothing, ``fix`` is refused).
+
+    Args:
+        chain: The first term's chain.
+        start: The registration (``placements``, ``states``).
+        level: The parameter level.
+        instrument: The terms are measured by an instrument outside the robot.
+        opts: A measured chain's options, or None.
+
+    Returns:
+        The :class:`Asked` (None: no parameter named) and the level offered.
 
     Raises:
         InvalidArgumentError: An unknown name, or ``fix`` of a group.
     """
+    tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
+    offer = "components" if tree and level == "complete" else level
     if opts is None or not (opts.fix or opts.free):
-        return None
+        return None, offer
     held = [n for n in opts.fix if n in GROUPS]
     if held:
         raise InvalidArgumentError(
             f"fix {held[0]}: the joint engine always fits the instrument's frame and markers "
             f"(and the measured frame's rotation); fix joint parameters or compliances"
         )
-    D, labels = mdh_directions(placements, chain, state.mdh, 0, "complete")
+    placements = start.placements
+    D, labels = mdh_directions(placements, chain, start.states[0].mdh, 0, "complete")
     chart = dict(zip(labels, D, strict=True))
-    units = np.eye(len(placements.names()))
-    components = dict(zip(placements.names(), units, strict=True))
+    components = dict(zip(placements.names(), np.eye(len(placements.names())), strict=True))
     bare = {label.split(":", 1)[1]: label for label in labels}
     given: dict[str, str] = {}
     for name in (*opts.fix, *opts.free):
-        if name in GROUPS or name in chart or name in components:
+        known = name in GROUPS or name in chart or name in components
+        if known or (name not in bare and _compliance(name) and 1 <= int(name[1:]) <= chain.n):
             given[name] = name
         elif name in bare:
             given[bare[name]] = name
-        elif _compliance(name) and 1 <= int(name[1:]) <= chain.n:
-            given[name] = name
         else:
             example = labels[-1] if labels else placements.names()[-1]
             raise InvalidArgumentError(
@@ -233,23 +222,4 @@ def asked_of(chain: Chain, placements, state, opts: Options | None) -> Asked | N
     fix = tuple(engine[n] for n in opts.fix)
     free = tuple(engine[n] for n in opts.free if n not in GROUPS)
     extra = {n: pick[n] for n in (*fix, *free) if n in pick}
-    return Asked(fix, free, {k: v for k, v in given.items() if k != v}, extra)
-
-
-def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
-    """What a joint fit offers at ``level`` and what ``fix``/``free`` ask (or None).
-
-    A tree's ``complete`` offers every joint placement component (the rank keeps a basis); one
-    chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` are one
-    measured chain's options (a tree takes none).
-
-    Args:
-        chain: The first term's chain.
-        start: The registration (``placements``, ``states``).
-        level: The parameter level.
-        instrument: The terms are measured by an instrument outside the robot.
-        opts: A measured chain's options, or None.
-    """
-    asked = asked_of(chain, start.placements, start.states[0], opts)
-    tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
-    return asked, "components" if tree and level == "complete" else level
+    return Asked(fix, free, {k: v for k, v in given.items() if k != v}, extra), offer

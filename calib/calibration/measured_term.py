@@ -1,25 +1,11 @@
-"""A measured term among several chains: a frame (on the robot, or an instrument) measures a tool.
+"""A measured term: a frame (on the robot, or an instrument outside it) measures a chain's tool.
 
-The robot measuring itself: a head camera (TIAGo's ``xtion_optical_frame``, TALOS's
-``rgbd_optical_frame``) measures points on the hand (position, several markers) or the
-hand's pose, in its own frame. The chain runs from that frame down the head and torso (joints
-traversed backwards) and up the arm; it is the chain's *base* frame, and the data are
-:class:`~calib.measurements.data.Measurements` in it. In a fit of several chains
-(:func:`~.contact_chains.calibrate_contact_chains`) such a chain is one term among the
-contact chains: it shares every joint placement error (:mod:`.placements`) with them.
-
-Its unknowns are a single chain's (:class:`~.model.State`, :class:`~.model.ErrorModel`
-without MDH parameters): the measuring frame's placement correction (``frame.rx`` ...
-``frame.z``: the pose of the nominal base frame in the true measuring frame, 6), the markers in
-the tool frame (3 each) and, for pose data, the measured frame's rotation in the tool frame
-(3). They are registered in closed form (Horn/Umeyama, :func:`~.registration.register`) on
-the nominal robot, then refined jointly with the joint placements.
-
-Rows: the measured minus predicted points [m] and, for pose data, the rotation error times the
-orientation weight [m/rad] (the chain's weighting, :mod:`~.weighting`: the settled variance
-ratio of the registration's residuals, 1 m/rad when the data cannot tell). The placement
-columns: the motion of each marker (and the tool's rotation) per unit placement error, from
-:func:`~.placements.twist_columns`, turned into the measuring frame.
+A head camera (TIAGo's ``xtion_optical_frame``) measuring the hand, or a laser tracker: the
+chain runs from the measuring frame (its base) to the tool, the data are
+:class:`~calib.measurements.data.Measurements` in that frame. In a joint fit
+(:func:`~.contact_chains.calibrate_contact_chains`) the term shares every joint placement error
+(:mod:`.placements`) with the other terms; its own unknowns (:meth:`MeasuredKind.names`) are
+registered on the nominal robot (:mod:`.chain_registration`), then refined with the placements.
 """
 
 from __future__ import annotations
@@ -34,16 +20,16 @@ from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..identification.measures import POSE, POSITION
 from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import rotation_vector, skew
+from ..kinematics.so3 import skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
-from . import determined, validation
-from .chain_registration import checked_registration, frames_model, held_out_outliers
-from .contact_result import GapStats, row_stats
+from . import determined, outliers, term_checks, validation
+from .chain_registration import checked_registration, frames_model
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
+from .residuals import ResidualStats
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
@@ -53,10 +39,8 @@ __all__ = [
     "check_measured",
     "checked_measured",
     "measured_kind",
-    "measured_stats",
     "measuring_joint",
     "one_term_per_frame",
-    "own_change",
     "unseen",
 ]
 
@@ -324,7 +308,7 @@ def checked_measured(
     Horn/Umeyama in closed form, refined by Levenberg-Marquardt, the orientation weight
     estimated unless given, outliers set aside until stable, then the usual mistakes
     diagnosed in the data and in ``validate``) on the nominal chain; then the held-out rows'
-    outliers set aside by the same rule (:func:`~.chain_registration.held_out_outliers`).
+    outliers set aside by the same rule (:func:`~.term_checks.held_out`).
 
     Args:
         chain: The term's chain.
@@ -355,13 +339,18 @@ def checked_measured(
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
     seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT), seen=seen)
-    if held is not None:
-        at = state.frames_at
-        held = held_out_outliers(reg, kept, held, opts, notes, at(kept), at(held))
-        fitted = validation.stats(reg, kept, None, at(kept))
-        other = validation.stats(reg, held, None, at(held))
-        validation.check_held_out_errors(fitted, other, held.source)
-    return state, bad, found, notes, held
+    if held is None:
+        return state, bad, found, notes, held
+    k, at = data.n_markers, state.frames_at
+    fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
+    aside = term_checks.held_out(
+        outliers.point_errors(fitted, k), outliers.point_errors(errors, k), held,
+        held.rows or tuple(range(1, held.m + 1)), held.subset, notes, opts.noise,
+    )  # fmt: skip
+    other = errors if aside is held else reg.residuals(aside, None, at(aside))
+    stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
+    validation.check_held_out_errors(*stats, aside.source)
+    return state, bad, found, notes, aside
 
 
 def unseen(states: tuple) -> tuple:
@@ -373,37 +362,6 @@ def unseen(states: tuple) -> tuple:
         dataclasses.replace(s, seen=None) if isinstance(s, MeasuredState) and s.seen else s
         for s in states
     )
-
-
-def measured_stats(
-    state: MeasuredState, data: Measurements, torque=None, residuals=None
-) -> GapStats:
-    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
-
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None);
-    ``residuals``: the state's at the data (with ``torque``), if already made.
-    """
-    if residuals is None:
-        kin = state.frames_at(data) if torque is None else None
-        residuals = state.inner.residuals(data, torque, kin)
-    return row_stats(residuals, state.kind, state.row_weights())
-
-
-def own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
-    """The term's unknowns from the registration to ``state``, as x of :meth:`MeasuredState._own`.
-
-    The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
-    changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).
-    """
-    a, b = registered.inner, state.inner
-    parts = [
-        rotation_vector((b.frame[:3, :3] @ a.frame[:3, :3].T)[None])[0],
-        b.frame[:3, 3] - a.frame[:3, 3],
-        (b.markers - a.markers).ravel(),
-    ]
-    if a.tool_rotation is not None and b.tool_rotation is not None:
-        parts.append(rotation_vector((a.tool_rotation.T @ b.tool_rotation)[None])[0])
-    return np.concatenate(parts)
 
 
 def one_term_per_frame(chains, data) -> None:

@@ -1,9 +1,7 @@
 """A chain measured by an instrument, fitted by the joint engine, seen as a chain's result.
 
-What users of a measured chain's result read (its errors, validation, frames, markers,
-uncertainty) and what the CLI passes (``world_link``, ``on_robot``), for the joint fit of that
-one term (:class:`~.contact_chains_result.ContactChainsCalibration` of shape ``chain``): the
-report's frames as a chain's report has them, so that :func:`calib.load_calibrated` and
+A measured term's part of the result (:class:`MeasuredChain`), and what users of a chain's
+result read on a one-term joint fit (:class:`ChainView`), as :func:`calib.load_calibrated` and
 ``calib predict`` read it.
 """
 
@@ -19,15 +17,16 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
+from ..kinematics.so3 import rotation_vector
 from ..kinematics.urdf_export import urdf_tool_frame
 from ..measurements.csvfile import check_against_chain
 from ..measurements.data import Measurements
 from . import validation
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
-from .contact_result import GapStats, part_dict, part_stats
+from .contact_result import GapStats, part_dict, part_stats, row_stats
 from .measured_report import chain_frames, written_markers
-from .measured_term import MeasuredState, measured_stats, measuring_joint, own_change
+from .measured_term import MeasuredState, measuring_joint
 from .model import State
 from .outliers import Outlier
 from .report import parameter_entries, term_errors
@@ -138,10 +137,9 @@ def measured_part(
     if rigid is not None:
         rigid.flags.writeable = False  # kept by the part (a value)
 
-    def stat(st, rows):
-        if st is state and rows is train and rigid is not None:
-            return measured_stats(st, rows, None, rigid)
-        return measured_stats(st, rows, deflect[id(rows)] if st is state else None)
+    def stat(st, rows):  # the fit's rigid residuals at train: made once
+        made = rigid if st is state and rows is train else None
+        return _measured_stats(st, rows, deflect[id(rows)] if st is state else None, made)
 
     stats = part_stats(stat, registered, state, train, held)
     compliance = state.inner.compliance if torques[0] is not None else None
@@ -149,13 +147,13 @@ def measured_part(
         alone = dataclasses.replace(
             state, inner=dataclasses.replace(state.inner, compliance=0 * compliance)
         )
-        urdf_alone(lambda d: measured_stats(alone, d), (train, held), stats, notes, "rows")
+        urdf_alone(lambda d: _measured_stats(alone, d), (train, held), stats, notes, "rows")
     else:
         compliance = None
     joint = None if state.instrument else measuring_joint(chain)
     frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
     names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
-    entries = parameter_entries(names, own_change(registered, state), std, ())
+    entries = parameter_entries(names, _own_change(registered, state), std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
     bare = dataclasses.replace(registered, seen=None)  # a result keeps no frames of its rows
@@ -163,6 +161,37 @@ def measured_part(
         chain, train.source, joint, bare, state, stats, train, held, tuple(entries),
         compliance=compliance, residuals=rigid,
     )  # fmt: skip
+
+
+def _measured_stats(
+    state: MeasuredState, data: Measurements, torque=None, residuals=None
+) -> GapStats:
+    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
+
+    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None);
+    ``residuals``: the state's at the data (with ``torque``), if already made.
+    """
+    if residuals is None:
+        kin = state.frames_at(data) if torque is None else None
+        residuals = state.inner.residuals(data, torque, kin)
+    return row_stats(residuals, state.kind, state.row_weights())
+
+
+def _own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
+    """The term's unknowns from the registration to ``state`` (x of its own unknowns' model).
+
+    The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
+    changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).
+    """
+    a, b = registered.inner, state.inner
+    parts = [
+        rotation_vector((b.frame[:3, :3] @ a.frame[:3, :3].T)[None])[0],
+        b.frame[:3, 3] - a.frame[:3, 3],
+        (b.markers - a.markers).ravel(),
+    ]
+    if a.tool_rotation is not None and b.tool_rotation is not None:
+        parts.append(rotation_vector((a.tool_rotation.T @ b.tool_rotation)[None])[0])
+    return np.concatenate(parts)
 
 
 def world_of(

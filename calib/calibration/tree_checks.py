@@ -1,14 +1,7 @@
 """The checks of a tree's rows as a whole, before its joint fit (:mod:`.instrument`).
 
-Each tool's rows get a single chain's checks in the joint fit; what only the whole tree
-sees is checked here, on the closed-form registration of the nominal tree
-(:func:`~.instrument.shared_frame`: one frame for every tool, one marker each):
-
-- enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
-- validation rows that are training rows refused, or given with a holdout fraction;
-- usual mistakes across the branches (two joints of different tools' chains swapped,
-  degrees, millimetres: :func:`~.diagnosis.explain`), in the data and the validation rows;
-- validation rows measured in another frame (the training registration misses them by far).
+Each tool's rows get a single chain's checks in the joint fit; what only the whole tree sees is
+checked here (:func:`prepare_tree`), on the closed-form registration of the nominal tree.
 """
 
 from __future__ import annotations
@@ -31,7 +24,12 @@ __all__ = ["prepare_tree"]
 def prepare_tree(
     tree: Tree, data: Measurements, validate: Measurements | None, holdout: float, seed: int
 ):
-    """Check a tree's rows (module text); each tool's rows and held-out rows.
+    """Check a tree's rows as a whole; each tool's rows and held-out rows.
+
+    Enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
+    validation rows that are training rows refused; usual mistakes across the branches (two
+    joints of different tools' chains swapped, degrees, millimetres: :func:`~.diagnosis.explain`)
+    in the data and the validation rows; validation rows measured in another frame.
 
     The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
     together (:func:`~.validation.split`), as the validation rows are given.
@@ -59,9 +57,9 @@ def prepare_tree(
         validation.check_held_out(data, validate)
         if set(validate.tools) == set(tree.tool_frames) and 3 * validate.m > unknowns:
             _diagnosed(tree, nominal, validate)
-    reg = _diagnosed(tree, nominal, data)
+    reg, fitted = _diagnosed(tree, nominal, data)
     if validate is not None:
-        fitted, other = (_stats(reg, by_tool(tree, d)) for d in (data, validate))
+        other = _stats(reg, by_tool(tree, validate))
         validation.check_held_out_errors(fitted, other, validate.source)
     train, held = (
         (data, validate) if validate is not None else validation.split(data, holdout, seed)
@@ -78,19 +76,21 @@ def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> Res
 _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 
 
-def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> list[MeasuredState]:
-    """The registration of ``data`` on the ``nominal`` tree (module text); a mistake raised.
+def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:
+    """``data`` registered on the ``nominal`` tree (:func:`~.instrument.shared_frame`), its errors.
 
     Raises:
         DataError: A usual mistake explains the registration's error (it is named).
     """
 
-    def registered(d: Measurements) -> tuple[list, float]:  # and the RMS error per row [m]
+    def registered(d: Measurements) -> tuple[list, ResidualStats]:
         parts = by_tool(tree, d)
         states = shared_frame(nominal, parts)
-        return states, _stats(states, parts).position_rms
+        return states, _stats(states, parts)
 
     reg, first = registered(data)
-    rms = lambda d: registered(d)[1]  # noqa: E731
-    diagnosis.explain(data, tree.sigma == 0, rms, first, None, _WORDS, joints_only=False)
-    return reg
+    rms = lambda d: registered(d)[1].position_rms  # [m]  # noqa: E731
+    diagnosis.explain(
+        data, tree.sigma == 0, rms, first.position_rms, None, _WORDS, joints_only=False
+    )
+    return reg, first
