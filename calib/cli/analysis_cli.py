@@ -282,7 +282,7 @@ def _add_analyze_parser(sub) -> None:
         "calibrate's default: the target's mounting known)",
     )
     add_sampling_args(g, "m")
-    pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"))
+    pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"), noise=False)
     p.add_argument_group("several terms").add_argument(
         "--term",
         action="append",

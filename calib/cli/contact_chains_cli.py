@@ -145,6 +145,8 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         inputs[f"the data of term {k + 1}"] = path
         if check:
             inputs[f"the validation data of term {k + 1}"] = check
+    if getattr(args, "target", None):  # a pixel term's target, read with the terms below
+        inputs["--target"] = args.target
     check_outputs({"--out": out, "--report": report, **look_outputs(args)}, inputs)
     terms = read_terms(args, asked, chains)
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
