@@ -330,6 +330,9 @@ def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_pat
         ["--other-foot", "base_link"],
         ["--pose-weight", "2"],
         ["--shared-planes"],
+        ["--term", "position", "base_link", "wrist_3_link", "obs.csv"],
+        ["--chain", "base_link", "wrist_3_link", "obs.csv"],
+        ["--loop", "base_link", "wrist_3_link", "obs.csv"],
     ],
 )
 def test_calibrate_pixels_refuses_an_option_it_would_ignore(capsys, tmp_path, ur5, extra):
@@ -400,3 +403,21 @@ def test_term_pixels_refuses_the_target_as_an_output_before_the_fit(capsys, tmp_
     )  # fmt: skip
     assert code == 2 and "would overwrite --target" in err, err
     assert out == "" and target.read_bytes() == (folder / "target.csv").read_bytes()
+
+
+@pytest.mark.parametrize("measure", ["position", "pixels", "plane"])
+def test_measure_with_terms_is_refused(capsys, tmp_path, ur5, measure):
+    """With ``--term`` each term names its kind: a ``--measure`` beside them is an error (it
+    was ignored, or with ``pixels`` the terms were)."""
+    folder, _ = ur5
+    data = ["--data", folder / "obs.csv"] if measure == "pixels" else []  # pixels needs it
+    code, out, err = run(
+        capsys, "calibrate", "ur5", "--measure", measure, "--camera", "cam", "world",
+        folder / "intr.yaml", "--target", folder / "target.csv", *data,
+        "--term", "pixels", "cam", "tool0", folder / "obs.csv",
+        "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv",
+        "--out", tmp_path / "cal.urdf",
+    )  # fmt: skip
+    assert code == 2 and out == "" and "Traceback" not in err
+    assert "is not for --term" in err or "--term is not for --measure pixels" in err, err
+    assert not (tmp_path / "cal.urdf").exists()

@@ -60,8 +60,12 @@ NOT_PIXELS = (
     "other_foot",
     "pose_weight",
     "shared_planes",
+    "term",
+    "chain",
+    "loop",
 )
-"""``calibrate`` options a pixel calibration does not take (``plot`` and ``origins``: not
+"""``calibrate`` options a pixel calibration does not take (a pixel term beside others is
+``--term pixels NAME TOOL OBS.csv``, without ``--measure``; ``plot`` and ``origins``: not
 yet for pixels): refused, never ignored."""
 
 NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params", "configs_file")
