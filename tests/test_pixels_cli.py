@@ -421,3 +421,17 @@ def test_measure_with_terms_is_refused(capsys, tmp_path, ur5, measure):
     assert code == 2 and out == "" and "Traceback" not in err
     assert "is not for --term" in err or "--term is not for --measure pixels" in err, err
     assert not (tmp_path / "cal.urdf").exists()
+
+
+def test_an_observations_file_as_configurations_counts_postures(capsys, tmp_path, ur5):
+    """OBS.csv given as configurations (``design --evaluate``, ``simulate --configs-file``):
+    each posture once, not once per pixel seen."""
+    folder, _ = ur5
+    obs = read_observations(folder / "obs.csv", UR5_JOINTS, {"cam": INTRINSICS}, None)
+    postures = len(np.unique(obs.q, axis=0))
+    assert obs.m > postures
+    code, out, err = run(capsys, "design", "ur5", "--evaluate", folder / "obs.csv")
+    assert code == 0 and f"ur5: {postures} configurations from" in out, err
+    code, out, err = run(capsys, "simulate", "ur5", "--configs-file", folder / "obs.csv",
+                         "--out", tmp_path / "meas.csv")  # fmt: skip
+    assert code == 0 and f"ur5: {postures} configurations, measure position" in out, err
