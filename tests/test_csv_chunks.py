@@ -86,3 +86,11 @@ def test_a_bad_row_beside_a_tool_column_is_named(ur5, monkeypatch, row, message)
     assert str(error.value) == message
     lines[3] = lines[2]
     assert parse_measurements("\n".join(lines), ur5).tool == ("tool0",) * 5
+
+
+@pytest.mark.parametrize(("sep", "what"), [(";", "';'"), ("\t", "tabs")])
+def test_a_file_of_another_separator_is_named(ur5, sep, what):
+    """A semicolon- or tab-separated file is one line saying so, not a missing joint column."""
+    text = _text(ur5, 5, "position").replace(",", sep)
+    with pytest.raises(DataError, match=f"one column containing {what}: write the CSV comma"):
+        parse_measurements(text, ur5)

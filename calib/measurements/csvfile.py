@@ -258,10 +258,10 @@ def _joint_keys(chain: Chain | Tree) -> set[str]:
 def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
     names = [c.strip() for c in cells]
-    if len(names) == 1 and ";" in names[0]:
-        raise DataError(
-            src, "the header has one column containing ';': write the CSV comma-separated", row=line
-        )
+    for sep, what in ((";", "';'"), ("\t", "tabs")):
+        if len(names) == 1 and sep in names[0]:
+            why = f"the header has one column containing {what}: write the CSV comma-separated"
+            raise DataError(src, why, row=line)
     seen: set[str] = set()
     for j, name in enumerate(names):
         if not name:
