@@ -435,3 +435,22 @@ def test_an_observations_file_as_configurations_counts_postures(capsys, tmp_path
     code, out, err = run(capsys, "simulate", "ur5", "--configs-file", folder / "obs.csv",
                          "--out", tmp_path / "meas.csv")  # fmt: skip
     assert code == 0 and f"ur5: {postures} configurations, measure position" in out, err
+
+
+def test_analyze_pixels_refuses_the_paper_set(capsys, ur5):
+    """``analyze --measure pixels --params paper`` is an error, as for calibrate (it counted
+    as the default, the mounting known)."""
+    code, _, err = run(
+        capsys, "analyze", "ur5", "--measure", "pixels", *ur5[1], "--params", "paper"
+    )
+    assert code == 2 and "not the paper's MDH set" in err, err
+
+
+def test_analyze_terms_refuse_a_camera_no_term_uses(capsys, ur5):
+    """``analyze --term`` without a pixels term: ``--camera`` and ``--target`` are errors, as
+    for calibrate (they were ignored)."""
+    folder, common = ur5
+    terms = ["--term", "position", "base_link", "tool0", folder / "obs.csv",
+             "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv"]  # fmt: skip
+    code, _, err = run(capsys, "analyze", "ur5", *terms, *common[:-2])  # --camera, --target
+    assert code == 2 and "--camera is for --measure pixels" in err, err

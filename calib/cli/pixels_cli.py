@@ -34,6 +34,7 @@ __all__ = [
     "calibrate_pixels_command",
     "camera_link",
     "pixel_term_data",
+    "refuse_paper",
     "simulate_pixels_command",
 ]
 
@@ -129,6 +130,19 @@ def refuse_pixel_options(args: argparse.Namespace) -> None:
     typed = given_options(args, PIXEL_OPTIONS)
     if typed:
         raise InvalidArgumentError(f"{typed[0]} is for --measure pixels")
+
+
+def refuse_paper(args: argparse.Namespace) -> None:
+    """Refuse ``--params paper`` for pixels (``analyze``; ``calibrate`` takes auto, complete).
+
+    Pixels count or fit every joint placement direction they determine, with the target's
+    mounting known (the default) or not (``complete``).
+    """
+    if args.params == "paper":
+        raise InvalidArgumentError(
+            "pixels determine joint placement directions, not the paper's MDH set: give "
+            "--params complete (the target's mounting unknown too) or no --params"
+        )
 
 
 def _cameras(args: argparse.Namespace, placed: bool, several: bool = False) -> tuple:
@@ -355,6 +369,7 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
     from ..calibration.pixel_count import pixel_count
 
     _refuse(args, NOT_PIXELS_ANALYZE)
+    refuse_paper(args)
     views, target = _views(args, _cameras(args, placed=True, several=True))
     chains = tuple(c for _, c in views)
     joints, q = _postures(chains, args.configs, args.seed)
