@@ -321,6 +321,18 @@ def test_millimetres_are_named_and_units_mm_reads_them(tmp_path):
     assert np.allclose(back.position, data.position, rtol=1e-15, atol=1e-15)
 
 
+def test_metres_read_as_millimetres_are_named(tmp_path):
+    """A file in metres read with ``units mm`` is named, not left to a refusal of another
+    kind (the reverse of the millimetres above)."""
+    chain = chain_of("ur5")
+    data = simulate(chain, configs=40, measure="position", marker=MARKER, seed=3).measurements
+    path = tmp_path / "m.csv"
+    path.write_text(measurements_csv(data))
+    small = read_measurements(path, chain, Columns(units="mm"))
+    with pytest.raises(DataError, match="metres read as millimetres"):
+        calibrate(chain, small)
+
+
 def test_holdout_reports_validation_and_refuses_a_worse_model():
     chain = chain_of("ur5")
     campaign = overfitting_campaign(chain)

@@ -461,3 +461,19 @@ def test_a_contact_that_cannot_be_reached_is_named(capsys):
     argv = ["simulate", "twodof", "--measure", "plane", "--contacts", "65", "--configs", "65"]
     line = one_error(capsys, [*argv, "--out", "-", "--truth", "/dev/null"])
     assert "plane table65: only 0 of" in line, line
+
+
+@pytest.mark.parametrize("weight", ["2", "auto"])
+def test_an_orientation_weight_with_no_angle_rows_is_refused(tmp_path, capsys, campaign, weight):
+    """Positions only, or lengths-only touches (fixed-point): ``--orientation-weight`` has no
+    rows to weigh; it is an error, not ignored (the report recorded the ignored weight)."""
+    out = tmp_path / "cal.urdf"
+    argv = ["calibrate", "ur5", "--data", campaign, "--out", out, "--orientation-weight", weight]
+    assert "the data have none (positions only)" in one_error(capsys, argv)
+    touches = tmp_path / "points.csv"
+    code, _, _ = run(capsys, ["simulate", "ur5", "--measure", "fixed-point", "--out", touches])
+    assert code == 0
+    argv = ["calibrate", "ur5", "--measure", "fixed-point", "--data", touches, "--out", out,
+            "--orientation-weight", weight]  # fmt: skip
+    assert "the data have none (--measure fixed-point: lengths)" in one_error(capsys, argv)
+    assert not out.exists()

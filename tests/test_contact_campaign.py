@@ -195,3 +195,12 @@ def test_configurations_missing_some_readings_say_so(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert read_readings(path, ("leg_left_4_joint",)) is None
+
+
+def test_repeated_touches_are_warned_about_as_repeated_configurations():
+    """A touch of the same object at the same joints as an earlier one is a warning (as a
+    measurement CSV's repeated row): not independent, the uncertainty overconfident. The same
+    joints on another plane are two touches."""
+    text = f"plane,{JOINTS}\nt,{ROW}\nu,{ROW}\nt,0.2,0.2,0.3,0.4,0.5,0.6\nt,{ROW}\n"
+    with pytest.warns(DataWarning, match=r"1 of 4 touches repeat .* \(first: row 5\)"):
+        parse_contacts(text, load_chain("ur5"), "plane", "t.csv")

@@ -86,3 +86,34 @@ def test_a_bad_row_beside_a_tool_column_is_named(ur5, monkeypatch, row, message)
     assert str(error.value) == message
     lines[3] = lines[2]
     assert parse_measurements("\n".join(lines), ur5).tool == ("tool0",) * 5
+
+
+@pytest.mark.parametrize(("sep", "what"), [(";", "';'"), ("\t", "tabs")])
+def test_a_file_of_another_separator_is_named(ur5, sep, what):
+    """A semicolon- or tab-separated file is one line saying so, not a missing joint column."""
+    text = _text(ur5, 5, "position").replace(",", sep)
+    with pytest.raises(DataError, match=f"one column containing {what}: write the CSV comma"):
+        parse_measurements(text, ur5)
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_every_calib_csv_names_another_separator(tmp_path, sep):
+    """Touches, pixels and configurations files too: one line naming the separator."""
+    from pixel_setups import INTRINSICS
+
+    from calib.design.configurations import parse_configurations
+    from calib.measurements.contact_campaign import parse_contacts
+    from calib.measurements.pixels import read_observations
+
+    ur5 = load_chain("ur5")
+    joints = ",".join(ur5.joint_names)
+    touches = f"plane,{joints}\nt,0.1,0.2,0.3,0.4,0.5,0.6\n".replace(",", sep)
+    pixels = tmp_path / "obs.csv"
+    pixels.write_text(f"{joints},camera,point,u,v\n".replace(",", sep))
+    match = "one column containing .*: write the CSV comma-separated"
+    with pytest.raises(DataError, match=match):
+        parse_contacts(touches, ur5, "plane")
+    with pytest.raises(DataError, match=match):
+        parse_configurations(f"{joints}\n0,0,0,0,0,0\n".replace(",", sep), ur5)
+    with pytest.raises(DataError, match=match):
+        read_observations(pixels, ur5.joint_names, {"cam": INTRINSICS}, None)

@@ -317,3 +317,140 @@ def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_pat
     assert "calibration refused: the calibrated model's " + worse in err
     doc = json.loads(report.read_text())
     assert doc["accepted"] is False and worse in doc["refusal"]
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--units", "mm"],
+        ["--orientation", "rpy"],
+        ["--orientation-columns", "a", "b", "c"],
+        ["--orientation-weight", "2"],
+        ["--contact", "0", "0", "0"],
+        ["--other-foot", "base_link"],
+        ["--pose-weight", "2"],
+        ["--shared-planes"],
+        ["--term", "position", "base_link", "wrist_3_link", "obs.csv"],
+        ["--chain", "base_link", "wrist_3_link", "obs.csv"],
+        ["--loop", "base_link", "wrist_3_link", "obs.csv"],
+    ],
+)
+def test_calibrate_pixels_refuses_an_option_it_would_ignore(capsys, tmp_path, ur5, extra):
+    """Every calibrate option a pixel calibration does not use is an error, not ignored."""
+    folder, _ = ur5
+    data, target = folder / "obs.csv", folder / "target.csv"
+    code, _, err = _calibrate_ur5(capsys, folder, data, target, tmp_path, *extra)
+    assert code == 2 and f"{extra[0]} is not for --measure pixels" in err, err
+    assert not (tmp_path / "cal.urdf").exists() and "Traceback" not in err
+
+
+def test_calibrate_pixels_takes_max_iterations(capsys, tmp_path, ur5):
+    """``--max-iterations`` reaches the pixel fit: one evaluation does not converge."""
+    folder, _ = ur5
+    data, target = folder / "obs.csv", folder / "target.csv"
+    code, _, err = _calibrate_ur5(capsys, folder, data, target, tmp_path, "--max-iterations", 1)
+    assert code == 2 and "did not converge" in err, err
+    assert not (tmp_path / "cal.urdf").exists()
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--marker", "0", "0", "0.1"],
+        ["--noise-mm", "1"],
+        ["--noise-mrad", "1"],
+        ["--contacts", "2"],
+        ["--params", "paper"],
+        ["--configs-file", "CONFIGS"],
+    ],
+)
+def test_simulate_pixels_refuses_an_option_it_would_ignore(capsys, tmp_path, ur5, extra):
+    """simulate --measure pixels: an option of the other campaigns is an error, not ignored."""
+    folder, common = ur5
+    extra = [str(folder / "obs.csv") if e == "CONFIGS" else e for e in extra]
+    out = tmp_path / "obs.csv"
+    code, _, err = run(capsys, "simulate", "ur5", "--measure", "pixels", *common, *extra,
+                       "--out", out)  # fmt: skip
+    assert code == 2 and f"{extra[0]} is not for --measure pixels" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("extra", [["--marker", "0", "0", "0.1"], ["--markers", "3"]])
+def test_analyze_pixels_refuses_an_option_it_would_ignore(capsys, ur5, extra):
+    """analyze --measure pixels counts the cameras' unknowns: a marker is an error."""
+    common = ur5[1]
+    code, _, err = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, *extra)
+    assert code == 2 and f"{extra[0]} is not for --measure pixels" in err, err
+
+
+def test_analyze_takes_no_pixel_noise(capsys, ur5):
+    """A count has no noise: ``analyze --noise-px`` is a usage error, not an ignored option."""
+    code, _, err = run(capsys, "analyze", "ur5", "--measure", "pixels", *ur5[1], "--noise-px", 1)
+    assert code == 2 and "unrecognized arguments: --noise-px" in err, err
+
+
+def test_term_pixels_refuses_the_target_as_an_output_before_the_fit(capsys, tmp_path, ur5):
+    """``--term pixels``: ``--report TARGET.csv`` is refused before any work (no fit printed),
+    as every other input of the terms."""
+    folder, _ = ur5
+    target = tmp_path / "target.csv"
+    target.write_bytes((folder / "target.csv").read_bytes())
+    code, out, err = run(
+        capsys, "calibrate", "ur5", "--camera", "cam", "world", folder / "intr.yaml",
+        "--target", target, "--term", "pixels", "cam", "tool0", folder / "obs.csv",
+        "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv",
+        "--out", tmp_path / "cal.urdf", "--report", target,
+    )  # fmt: skip
+    assert code == 2 and "would overwrite --target" in err, err
+    assert out == "" and target.read_bytes() == (folder / "target.csv").read_bytes()
+
+
+@pytest.mark.parametrize("measure", ["position", "pixels", "plane"])
+def test_measure_with_terms_is_refused(capsys, tmp_path, ur5, measure):
+    """With ``--term`` each term names its kind: a ``--measure`` beside them is an error (it
+    was ignored, or with ``pixels`` the terms were)."""
+    folder, _ = ur5
+    data = ["--data", folder / "obs.csv"] if measure == "pixels" else []  # pixels needs it
+    code, out, err = run(
+        capsys, "calibrate", "ur5", "--measure", measure, "--camera", "cam", "world",
+        folder / "intr.yaml", "--target", folder / "target.csv", *data,
+        "--term", "pixels", "cam", "tool0", folder / "obs.csv",
+        "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv",
+        "--out", tmp_path / "cal.urdf",
+    )  # fmt: skip
+    assert code == 2 and out == "" and "Traceback" not in err
+    assert "is not for --term" in err or "--term is not for --measure pixels" in err, err
+    assert not (tmp_path / "cal.urdf").exists()
+
+
+def test_an_observations_file_as_configurations_counts_postures(capsys, tmp_path, ur5):
+    """OBS.csv given as configurations (``design --evaluate``, ``simulate --configs-file``):
+    each posture once, not once per pixel seen."""
+    folder, _ = ur5
+    obs = read_observations(folder / "obs.csv", UR5_JOINTS, {"cam": INTRINSICS}, None)
+    postures = len(np.unique(obs.q, axis=0))
+    assert obs.m > postures
+    code, out, err = run(capsys, "design", "ur5", "--evaluate", folder / "obs.csv")
+    assert code == 0 and f"ur5: {postures} configurations from" in out, err
+    code, out, err = run(capsys, "simulate", "ur5", "--configs-file", folder / "obs.csv",
+                         "--out", tmp_path / "meas.csv")  # fmt: skip
+    assert code == 0 and f"ur5: {postures} configurations, measure position" in out, err
+
+
+def test_analyze_pixels_refuses_the_paper_set(capsys, ur5):
+    """``analyze --measure pixels --params paper`` is an error, as for calibrate (it counted
+    as the default, the mounting known)."""
+    code, _, err = run(
+        capsys, "analyze", "ur5", "--measure", "pixels", *ur5[1], "--params", "paper"
+    )
+    assert code == 2 and "not the paper's MDH set" in err, err
+
+
+def test_analyze_terms_refuse_a_camera_no_term_uses(capsys, ur5):
+    """``analyze --term`` without a pixels term: ``--camera`` and ``--target`` are errors, as
+    for calibrate (they were ignored)."""
+    folder, common = ur5
+    terms = ["--term", "position", "base_link", "tool0", folder / "obs.csv",
+             "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv"]  # fmt: skip
+    code, _, err = run(capsys, "analyze", "ur5", *terms, *common[:-2])  # --camera, --target
+    assert code == 2 and "--camera is for --measure pixels" in err, err

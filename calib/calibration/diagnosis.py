@@ -8,7 +8,7 @@ and the mistake whose correction explains the data (RMS ``EXPLAINS`` times lower
 
 * two joint columns swapped (every pair);
 * joint positions in degrees instead of radians;
-* positions in millimetres instead of metres;
+* positions in millimetres instead of metres, or metres read as millimetres (``units mm``);
 * quaternions written scalar first (w, x, y, z) in scalar-last columns, or the reverse.
 
 Orientations are diagnosed the same way on the registration's orientation error
@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import CalibError, DataError
+from ..measurements.data import MAX_COORDINATE
 
 __all__ = [
     "EXPLAINS",
@@ -96,6 +97,11 @@ def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[s
         "positions in millimetres, not metres (units mm)",
         dataclasses.replace(data, position=data.position * 1e-3),
     )
+    if np.max(np.abs(data.position), initial=0.0) * 1e3 <= MAX_COORDINATE:  # else: not metres
+        yield (
+            "positions in metres read as millimetres (units m, the default)",
+            dataclasses.replace(data, position=data.position * 1e3),
+        )
     if data.quaternion is not None:  # wrong orientations distort the points' registration too
         yield from _orientation_mistakes(data)
 

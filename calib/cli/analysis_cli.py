@@ -131,6 +131,9 @@ def _analyze_terms(args: argparse.Namespace) -> int:
         raise InvalidArgumentError("analyze --term counts the data: give no VALIDATION file")
     if args.params is not None and all(t[0] != "pixels" for t in asked):
         raise InvalidArgumentError("--params with --term is for a pixels term (the mounting)")
+    if all(t[0] != "pixels" for t in asked):
+        pixels_cli.refuse_pixel_options(args)  # --camera, --target: for a pixels term
+    pixels_cli.refuse_paper(args)
     chains = contact_chains_cli.term_chains(args, asked)
     res = analyze(Problem(contact_chains_cli.read_terms(args, asked, chains)))
     if args.json:
@@ -282,7 +285,7 @@ def _add_analyze_parser(sub) -> None:
         "calibrate's default: the target's mounting known)",
     )
     add_sampling_args(g, "m")
-    pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"))
+    pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"), noise=False)
     p.add_argument_group("several terms").add_argument(
         "--term",
         action="append",

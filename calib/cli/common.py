@@ -44,6 +44,7 @@ __all__ = [
     "one_line",
     "positive_number",
     "print_json",
+    "refuse_unused_weight",
     "tool_arg",
     "warning_lines",
     "with_warnings",
@@ -195,6 +196,29 @@ def check_applicable(args: argparse.Namespace, shape: str) -> None:
         labels = [SHAPE_LABELS[s] for s in shapes]
         where = labels[0] if len(labels) == 1 else f"{', '.join(labels[:-1])} or {labels[-1]}"
         raise InvalidArgumentError(f"{flag} is for {where}, not {SHAPE_LABELS[shape]}")
+
+
+def refuse_unused_weight(args: argparse.Namespace, angles: bool, data: str) -> None:
+    """Refuse ``--orientation-weight`` when the data have no angle rows for it to weigh.
+
+    Args:
+        args: ``calibrate``'s arguments.
+        angles: Whether the data have orientation (or tilt) rows.
+        data: What the data are, for the message (``positions only``).
+
+    Raises:
+        InvalidArgumentError: The value is out of range (the options' own message, first),
+            or the option was given and would be ignored.
+    """
+    from ..core.checks import MAX_WEIGHT, check_number  # numpy: only when calibrating
+
+    if isinstance(args.orientation_weight, float):
+        check_number(args.orientation_weight, "the orientation weight", 0.0, MAX_WEIGHT, above=True)
+    typed = given_options(args, ("orientation_weight",))
+    if typed and not angles:
+        raise InvalidArgumentError(
+            f"{typed[0]} weighs orientation or tilt rows: the data have none ({data})"
+        )
 
 
 def positive_number(text: str) -> float:

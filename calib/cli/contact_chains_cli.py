@@ -24,7 +24,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from . import pixels_cli
-from .common import look_outputs, write_calibration
+from .common import given_options, look_outputs, write_calibration
 
 __all__ = [
     "TERM_KINDS",
@@ -100,6 +100,11 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
         raise InvalidArgumentError(
             "a joint fit has two terms or more (one term: --base, --tool and --data)"
         )
+    if not args.chain and given_options(args, ("measure",)):
+        raise InvalidArgumentError(
+            f"{given_options(args, ('measure',))[0]} is not for --term or --loop: each term "
+            f"names its kind (--term KIND BASE TOOL DATA)"
+        )
     if args.pose_weight is not None and "loop" not in kinds:
         raise InvalidArgumentError("--pose-weight weighs the rows of --loop: give --loop too")
     if args.params == "paper":
@@ -145,6 +150,8 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         inputs[f"the data of term {k + 1}"] = path
         if check:
             inputs[f"the validation data of term {k + 1}"] = check
+    if getattr(args, "target", None):  # a pixel term's target, read with the terms below
+        inputs["--target"] = args.target
     check_outputs({"--out": out, "--report": report, **look_outputs(args)}, inputs)
     terms = read_terms(args, asked, chains)
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None

@@ -10,7 +10,7 @@ from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
-from .common import compliance_path, look_outputs, write_calibration
+from .common import compliance_path, look_outputs, refuse_unused_weight, write_calibration
 
 __all__ = ["add_contact_arguments", "calibrate_contacts_command"]
 
@@ -88,6 +88,7 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
     outputs = {"--out": out, "--report": report, "the compliance file": comp}
     check_outputs({**outputs, **look_outputs(args)}, inputs)
     data = read_contacts(args.data, chain, args.measure)
+    refuse_unused_weight(args, any(data.kind.angular), f"--measure {args.measure}: lengths")
     check = read_contacts(args.validate, chain, args.measure) if args.validate else None
     weight = args.orientation_weight if isinstance(args.orientation_weight, float) else None
     support = _support(args)

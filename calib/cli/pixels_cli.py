@@ -34,6 +34,7 @@ __all__ = [
     "calibrate_pixels_command",
     "camera_link",
     "pixel_term_data",
+    "refuse_paper",
     "simulate_pixels_command",
 ]
 
@@ -52,13 +53,38 @@ NOT_PIXELS = (
     "points",
     "plot",
     "origins",
+    "units",
+    "orientation",
+    "orientation_columns",
+    "orientation_weight",
+    "contact",
+    "other_foot",
+    "pose_weight",
+    "shared_planes",
+    "term",
+    "chain",
+    "loop",
 )
-"""``calibrate`` options a pixel calibration does not take (``plot`` and ``origins``: not
-yet for pixels)."""
+"""``calibrate`` options a pixel calibration does not take (a pixel term beside others is
+``--term pixels NAME TOOL OBS.csv``, without ``--measure``; ``plot`` and ``origins``: not
+yet for pixels): refused, never ignored."""
+
+NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params", "configs_file")
+"""``simulate`` options of the other campaigns, refused with ``--measure pixels`` (its postures
+are random, its robot perturbed in every joint placement, its noise ``--noise-px``)."""
+
+NOT_PIXELS_ANALYZE = ("marker", "markers")
+"""``analyze`` options a count of the cameras' unknowns does not use, refused."""
 
 
-def add_pixel_arguments(p: argparse._ActionsContainer, calibrate: bool = False) -> None:
-    """``--camera``, ``--target`` (and ``--noise-px`` or ``--refine-targets``)."""
+def add_pixel_arguments(
+    p: argparse._ActionsContainer, calibrate: bool = False, noise: bool = True
+) -> None:
+    """``--camera``, ``--target``, and ``--noise-px`` or the refinements.
+
+    ``--noise-px`` (simulate) unless ``noise`` is false (analyze counts, it has no noise);
+    ``--refine-targets`` and ``--refine-intrinsics`` instead when ``calibrate``.
+    """
     p.add_argument(
         "--camera",
         nargs="+",
@@ -83,7 +109,7 @@ def add_pixel_arguments(p: argparse._ActionsContainer, calibrate: bool = False) 
             help="with --measure pixels: fit the camera's intrinsics (focal lengths, principal "
             "point, distortion) with the rest (the report's frames.cameras.NAME.intrinsics)",
         )
-    else:
+    elif noise:
         p.add_argument(
             "--noise-px",
             type=float,
@@ -92,11 +118,31 @@ def add_pixel_arguments(p: argparse._ActionsContainer, calibrate: bool = False) 
         )
 
 
+def _refuse(args: argparse.Namespace, dests: tuple[str, ...]) -> None:
+    """Refuse the first option of ``dests`` given with ``--measure pixels``."""
+    typed = given_options(args, dests)
+    if typed:
+        raise InvalidArgumentError(f"{typed[0]} is not for --measure pixels")
+
+
 def refuse_pixel_options(args: argparse.Namespace) -> None:
     """Refuse ``--camera``/``--target`` without ``--measure pixels``."""
     typed = given_options(args, PIXEL_OPTIONS)
     if typed:
         raise InvalidArgumentError(f"{typed[0]} is for --measure pixels")
+
+
+def refuse_paper(args: argparse.Namespace) -> None:
+    """Refuse ``--params paper`` for pixels (``analyze``; ``calibrate`` takes auto, complete).
+
+    Pixels count or fit every joint placement direction they determine, with the target's
+    mounting known (the default) or not (``complete``).
+    """
+    if args.params == "paper":
+        raise InvalidArgumentError(
+            "pixels determine joint placement directions, not the paper's MDH set: give "
+            "--params complete (the target's mounting unknown too) or no --params"
+        )
 
 
 def _cameras(args: argparse.Namespace, placed: bool, several: bool = False) -> tuple:
@@ -212,9 +258,7 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     from ..calibration.problem import Problem, Term
     from ..measurements.pixels import read_observations
 
-    typed = given_options(args, NOT_PIXELS)
-    if typed:
-        raise InvalidArgumentError(f"{typed[0]} is not for --measure pixels")
+    _refuse(args, NOT_PIXELS)
     if args.data is None:
         raise InvalidArgumentError("--measure pixels needs --data OBS.csv")
     if args.params not in (None, "auto", "complete"):
@@ -242,7 +286,13 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
             cam, target, check, what))
         for cam, c in views if (cam.name, c.tool_frame) in seen
     )  # fmt: skip
-    problem = Problem(terms, params="complete", holdout=args.holdout, seed=args.seed)
+    problem = Problem(
+        terms,
+        params="complete",
+        max_iterations=args.max_iterations,
+        holdout=args.holdout,
+        seed=args.seed,
+    )
     result = calibrate(problem)
     paths = (Path(args.out), Path(args.report) if args.report else None)
     return write_calibration(
@@ -282,6 +332,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     from ..measurements.pixels import observations_csv
     from ..measurements.true_robot import true_robot
 
+    _refuse(args, NOT_PIXELS_SIMULATE)
     views, target = _views(args, _cameras(args, placed=True, several=True))
     cameras, chains = tuple(v[0] for v in views), tuple(v[1] for v in views)
     out = Path(args.out)
@@ -317,6 +368,8 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
     """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
     from ..calibration.pixel_count import pixel_count
 
+    _refuse(args, NOT_PIXELS_ANALYZE)
+    refuse_paper(args)
     views, target = _views(args, _cameras(args, placed=True, several=True))
     chains = tuple(c for _, c in views)
     joints, q = _postures(chains, args.configs, args.seed)

@@ -10,7 +10,10 @@ value far outside its joint limits is an error naming its row and column (as in
 :mod:`calib.measurements.csvfile`).
 
 A tree's measurement file (a ``tool`` column) holds one row per tool at each configuration:
-consecutive rows with the same joint positions are one configuration there.
+consecutive rows with the same joint positions are one configuration there. A camera's
+observations (OBS.csv: ``camera``, ``point``, ``u``, ``v`` columns) hold one row per pixel:
+each posture counts once there, in the order it first appears (the cameras' rows follow one
+another).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from ..measurements.csvfile import csv_records, parse_number, read_data_text
 from ..measurements.data import JOINT_PREFIX, TOOL_COLUMN, DataWarning
 from ..measurements.joint_columns import check_followers, column_keys, follower_names
 from ..measurements.limits import check_limits
+from ..measurements.pixels import OBSERVATION_COLUMNS
 
 MAX_CONFIGS_BYTES = 256 << 20
 """Largest configurations file read [B] (a million configurations of 20 joints fit)."""
@@ -86,6 +90,8 @@ def parse_configurations(text: str, chain: Chain | Tree, source: str = "<text>")
     check_limits(chain, q, source, np.array(lines), warn=False)
     if TOOL_COLUMN in header:  # a tree's measurements: one row per tool and configuration
         q = q[np.r_[True, np.any(q[1:] != q[:-1], axis=1)]]
+    elif set(OBSERVATION_COLUMNS) <= set(header):  # pixels: one row per point seen
+        q = q[np.sort(np.unique(q, axis=0, return_index=True)[1])]
     return q
 
 

@@ -195,9 +195,28 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
     check_size(len(set(ids)), MAX_OBJECTS, f"{ID_COLUMNS[kind.label]}s", source)
     qa = np.array(q, dtype=float)
     check_limits(chain, qa, source, np.array(rows))
+    _warn_repeats(qa, ids, rows, source)
     qa.setflags(write=False)
     readings = _readings(records[1:], others, cols, source)
     return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows), readings)
+
+
+def _warn_repeats(q: np.ndarray, ids: list[str], rows: list[int], source: str) -> None:
+    """Warn when touches repeat an earlier one (same object and joint positions).
+
+    As the measurement reader warns of repeated configurations: not independent touches.
+    """
+    key = np.column_stack([q, np.unique(np.array(ids), return_inverse=True)[1]])
+    _, first = np.unique(key, axis=0, return_index=True)
+    repeats = len(q) - len(first)
+    if repeats:
+        row = rows[int(np.flatnonzero(~np.isin(np.arange(len(q)), first))[0])]
+        warn_user(
+            f"{source}: {repeats} of {len(q)} touches repeat an earlier touch of the same "
+            f"object at the same joint positions (first: row {row}): repeated touches are not "
+            f"independent, the reported uncertainty is overconfident",
+            DataWarning,
+        )
 
 
 def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str):

@@ -258,10 +258,6 @@ def _joint_keys(chain: Chain | Tree) -> set[str]:
 def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
     names = [c.strip() for c in cells]
-    if len(names) == 1 and ";" in names[0]:
-        raise DataError(
-            src, "the header has one column containing ';': write the CSV comma-separated", row=line
-        )
     seen: set[str] = set()
     for j, name in enumerate(names):
         if not name:
@@ -321,9 +317,13 @@ def _lines(text: str):
 
 
 def csv_records(text: str, src: str):
-    """(first line, cells) of each non-blank CSV record; malformed CSV names its row."""
+    """(first line, cells) of each non-blank CSV record; malformed CSV names its row.
+
+    A header (the first record) of one cell holding ``;`` or tabs is refused: the file is
+    not comma-separated (every calib CSV: measurements, touches, pixels, configurations).
+    """
     reader = csv.reader(_lines(text), strict=True)
-    start = 1
+    start, header = 1, True
     while True:
         try:
             cells = next(reader)
@@ -334,8 +334,19 @@ def csv_records(text: str, src: str):
         if any(c.strip() for c in cells):
             if any("\n" in c or "\r" in c for c in cells):
                 raise DataError(src, "a quoted cell spans several lines", row=start)
+            if header:
+                _check_separator(cells, src, start)
+                header = False
             yield start, cells
         start = reader.line_num + 1
+
+
+def _check_separator(cells: list[str], src: str, line: int) -> None:
+    """Refuse a header of one cell holding ``;`` or tabs: another separator than commas."""
+    for sep, what in ((";", "';'"), ("\t", "tabs")):
+        if len(cells) == 1 and sep in cells[0]:
+            why = f"the header has one column containing {what}: write the CSV comma-separated"
+            raise DataError(src, why, row=line)
 
 
 def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:
