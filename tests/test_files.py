@@ -17,6 +17,7 @@ import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import calib.cli.commands
@@ -192,6 +193,31 @@ def test_api_export_refuses_to_overwrite_the_nominal_urdf(tmp_path):
     with pytest.raises(InvalidArgumentError, match="nominal URDF"):
         write_calibrated_urdf(tmp_path / "." / "r.urdf", chain, mdh, mdh)
     assert robot.read_bytes() == AID.read_bytes()
+
+
+def test_a_results_write_never_overwrites_the_data_it_was_fitted_on(tmp_path):
+    """``result.write`` refuses, before writing anything, an output that is a term's data or
+    validation file (it checked the nominal URDF only: ``write("meas.csv")`` replaced the
+    campaign)."""
+    import calib
+
+    chain = calib.load_robot("ur5")
+    paths = [tmp_path / "a.csv", tmp_path / "b.csv"]
+    every = calib.simulate(chain, 42, seed=1, noise_mm=0.05).measurements
+    for keep, path in zip((np.arange(42) < 30, np.arange(42) >= 30), paths, strict=True):
+        calib.write_measurements(path, every.subset(keep))
+    before = [p.read_bytes() for p in paths]
+    data, held = (calib.read_measurements(p, chain) for p in paths)
+    result = calib.calibrate(chain, data, validate=held)
+    for out, report, what in [
+        (paths[0], None, "the data of term 1"),
+        (tmp_path / "c.urdf", paths[1], "the validation data of term 1"),
+        (tmp_path / "c.urdf", tmp_path / "." / "a.csv", "the data of term 1"),
+    ]:
+        with pytest.raises(InvalidArgumentError, match=f"would overwrite {what}"):
+            result.write(out, report=report)
+    assert [p.read_bytes() for p in paths] == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv", "b.csv"]
 
 
 # --------------------------------------------------------------------------------------

@@ -156,7 +156,8 @@ class Result:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
 
         A refused model writes the report only, then raises. The outputs are checked before
-        anything is written: never an input (the nominal URDF), never two the same.
+        anything is written: never an input (the nominal URDF, each term's data and
+        validation file), never two the same.
 
         Args:
             out: The calibrated URDF to write.
@@ -175,7 +176,7 @@ class Result:
         files: dict[Path, str | bytes] = {} if report is None else {Path(report): json_text(doc)}
         extra = {} if self.refusal is not None else self.compliance_files(out)
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
-        check_outputs(outputs, {"the nominal URDF": doc.get("urdf")})
+        check_outputs(outputs, _inputs(doc))
         if self.refusal is not None:
             write_files_atomic(files)
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
@@ -191,3 +192,13 @@ class Result:
             f"<{type(self).__name__} {doc['robot']} {doc['shape']}: {what}, "
             f"{len(doc['parameters'])} parameters, {verdict}>"
         )
+
+
+def _inputs(doc: dict) -> dict[str, str | None]:
+    """The files a report names as read: the nominal URDF, each term's data and validation."""
+    found: dict[str, str | None] = {"the nominal URDF": doc.get("urdf")}
+    for k, term in enumerate(doc["terms"], start=1):
+        found[f"the data of term {k}"] = term.get("data")
+    for k, errors in enumerate(doc["errors"].get("terms") or [], start=1):
+        found[f"the validation data of term {k}"] = (errors.get("held_out") or {}).get("source")
+    return found
