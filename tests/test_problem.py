@@ -38,7 +38,7 @@ def shapes():
     touches = [simulate_contacts(c, 12, "plane", seed=1).data for c in arms]
     tree = load_robot("ur5", tool=("wrist_2_link", "tool0"))
     return {
-        "chain": (Term(ur5, measured),),
+        "chain": (Term(ur5, simulate(ur5, 12, "pose", seed=0).measurements),),
         "tree": (Term(tree, measured),),
         "contacts": (Term(arms[0], touches[0]),),
         "chains": tuple(Term(c, d) for c, d in zip(arms, touches, strict=True)),
@@ -74,6 +74,21 @@ def test_an_option_applies_where_the_table_says_and_is_refused_elsewhere(shapes,
         Problem(shapes[shape], **{option: VALUES[option]})
     message = str(info.value)
     assert message.startswith(f"{option} is for ") and "\n" not in message
+
+
+def test_an_orientation_weight_without_angle_rows_is_refused():
+    """It weighs orientation or tilt rows: positions, fixed-point touches and image points
+    have none (it was recorded in the report and used nowhere)."""
+    ur5 = load_robot("ur5")
+    positions = simulate(ur5, 12, "position", seed=0).measurements
+    points = simulate_contacts(ur5, 12, "fixed-point", seed=1).data
+    for terms in ((Term(ur5, positions),), (Term(ur5, points),)):
+        with pytest.raises(InvalidArgumentError, match="no term has any") as info:
+            Problem(terms, orientation_weight=0.5)
+        assert "\n" not in str(info.value)
+    planes = simulate_contacts(ur5, 12, "plane", seed=1).data  # a touch's tilts: weighed
+    mixed = (Term(ur5, positions), Term(ur5, planes))
+    assert Problem(mixed, orientation_weight=0.5).shape == "chains"
 
 
 def test_a_default_value_given_is_not_refused(shapes):

@@ -176,6 +176,11 @@ class Problem(Options):
                 continue
             where = " or ".join(SHAPE_LABELS[s] for s in shapes)
             raise InvalidArgumentError(f"{name} is for {where}, not {SHAPE_LABELS[shape]}")
+        if self.orientation_weight is not None and not any(map(_angles, self.terms)):
+            raise InvalidArgumentError(
+                "orientation_weight weighs orientation or tilt rows: no term has any (positions, "
+                "plane-point or fixed-point touches, image points)"
+            )
         if shape == "chains":
             self._check_terms()
 
@@ -196,6 +201,14 @@ class Problem(Options):
             raise InvalidArgumentError(
                 "a measured term of a joint fit takes no guess: its markers are registered"
             )
+
+
+def _angles(term: Term) -> bool:
+    """Whether a term's data have rows of angles (orientations, a touch's tilts)."""
+    data = term.data
+    if isinstance(data, Measurements):
+        return data.quaternion is not None
+    return isinstance(data, ContactData) and any(data.kind.angular)
 
 
 def _same(a, b) -> bool:
