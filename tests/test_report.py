@@ -325,12 +325,77 @@ def test_load_calibrated_and_predict_read_a_contact_report(tmp_path, capsys):
     assert code == 0 and (tmp_path / "p.csv").exists()
 
 
-def test_a_tree_report_is_refused_by_load_calibrated_in_one_line(tmp_path, reports):
+def test_load_calibrated_and_predict_read_each_tool_of_a_tree_report(tmp_path, capsys):
+    """Issue 28: every kind's report is read; a tree's (or several terms') by the tool of one
+    term. Each tool's points are Pinocchio's on the written URDF with the report's frames,
+    and they are the measured points (0.05 mm noise); without a tool, one line lists them."""
+    from calib import DataError, load_calibrated
+    from calib.measurements.tree_campaign import simulate_tree
+
+    tools = ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
+    tree = load_robot("talos", "base_link", tools)
+    data = simulate_tree(tree, 40, markers=(0.01, 0.02, 0.05), noise_mm=0.05, seed=2)
+    data = data.measurements
+    urdf, report = tmp_path / "t.urdf", tmp_path / "t.json"
+    calibrate(tree, data).write(urdf, report=report)
+    doc = json.loads(report.read_text())
+    M = np.array(doc["frames"]["measurement"]["base_link"]["matrix"])
+    for tool in tools:
+        model = load_calibrated(urdf, report, tool)
+        rows = np.array([t == tool for t in data.tool])
+        q = data.q[rows][:, [tree.joint_names.index(j) for j in model.chain.joint_names]]
+        T = M @ _pin_tool(urdf, "base_link", tool, model.chain.joint_names, q)
+        marker = np.array(doc["frames"]["markers"][tool][0])
+        expected = T[:, :3, 3] + T[:, :3, :3] @ marker
+        assert np.allclose(model.points(q)[:, 0], expected, atol=1e-9)
+        assert np.sqrt(np.mean(np.sum((expected - data.position[rows]) ** 2, 1))) < 0.2e-3
+    with pytest.raises(DataError, match="a report of 2 terms: name the tool of one") as info:
+        load_calibrated(urdf, report)
+    assert "\n" not in str(info.value) and all(t in str(info.value) for t in tools)
+    configs = tmp_path / "q.csv"
+    configs.write_text(",".join(model.chain.joint_names) + "\n" + ",".join(["0.1"] * 9) + "\n")
+    argv = ["predict", str(urdf), "--compliance", str(report), "--configs", str(configs)]
+    assert main([*argv, "--tool", tools[1], "--out", str(tmp_path / "p.csv")]) == 0
+    assert main([*argv, "--out", str(tmp_path / "p2.csv")]) == 2
+    assert not (tmp_path / "p2.csv").exists()
+
+
+def test_load_calibrated_reads_a_touching_term_of_several_where_its_base_holds_the_table(
+    tmp_path,
+):
+    """Both TALOS arms touching one table (id ``table1``): the table is fitted in one base's
+    frame. That term's contact is flush on it (Pinocchio's placements on the written URDF,
+    within the touches' noise); the other term's base does not hold it: one line says so."""
+    from calib import DataError, Problem, Term, load_calibrated
+
+    arms = [load_robot("talos_full_v2.urdf", f"{s}_sole_link", f"gripper_{s}_base_link")
+            for s in ("left", "right")]  # fmt: skip
+    data = [simulate_contacts(c, 40, "plane", seed=2 + i).data for i, c in enumerate(arms)]
+    result = calibrate(Problem(tuple(Term(c, d) for c, d in zip(arms, data, strict=True))))
+    urdf, report = tmp_path / "c.urdf", tmp_path / "c.json"
+    result.write(urdf, report=report)
+    doc = json.loads(report.read_text())
+    table = doc["objects"]["planes"]["table1"]
+    held = [c for c in arms if c.base_frame == table["frame"]]
+    other = [c for c in arms if c.base_frame != table["frame"]]
+    assert len(held) == 1 and len(other) == 1
+    arm, touches = held[0], data[arms.index(held[0])]
+    model = load_calibrated(urdf, report, arm.tool_frame)
+    T = _pin_tool(urdf, arm.base_frame, arm.tool_frame, arm.joint_names, touches.q)
+    C = np.array(doc["frames"]["contacts"][arm.tool_frame]["matrix"])
+    expected = np.linalg.inv(np.array(table["matrix"])) @ T @ C
+    assert np.allclose(model.contact_placements(touches.q), expected, atol=1e-9)
+    assert np.max(np.abs(expected[:, 2, 3])) < 5e-3
+    with pytest.raises(DataError, match="predict the term whose base holds them"):
+        load_calibrated(urdf, report, other[0].tool_frame)
+
+
+def test_a_report_of_a_newer_format_is_refused_in_one_line(tmp_path, reports):
     from calib import DataError, load_calibrated
 
-    report = tmp_path / "t.json"
-    report.write_text(json.dumps(reports["tree"]))
-    with pytest.raises(DataError, match="the calibrated URDF is the whole model"):
+    report = tmp_path / "r.json"
+    report.write_text(json.dumps({**reports["chain"], "format_version": "4"}))
+    with pytest.raises(DataError, match="format_version '4' is not one this calib reads"):
         load_calibrated(load_chain("ur5").urdf_path, report)
 
 

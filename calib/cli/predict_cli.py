@@ -23,7 +23,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
         {"--out": out},
         {"the URDF": args.urdf, "--compliance": args.compliance, "--configs": args.configs},
     )
-    model = load_calibrated(args.urdf, args.compliance)
+    model = load_calibrated(args.urdf, args.compliance, args.tool)
     q = read_configurations(args.configs, model.chain)
     readings = read_readings(args.configs, model.readings) if model.readings else None
     write_outputs({out: predictions_csv(model, q, readings)})
@@ -57,6 +57,11 @@ def add_predict_parser(sub) -> None:
         required=True,
         metavar="FILE",
         help="its compliance file (OUT.compliance.json) or its calibration report (--report)",
+    )
+    g.add_argument(
+        "--tool",
+        metavar="FRAME",
+        help="the tool frame of the term to predict, in a report of several (a tree's tools)",
     )
     g.add_argument(
         "--configs",

@@ -412,21 +412,31 @@ def _fields(doc: dict, src: str) -> tuple[str, str, list[str], np.ndarray]:
     return base, tool, [str(j) for j in joints], c
 
 
-def load_calibrated(urdf: str | Path, compliance: str | Path) -> ElasticModel:
+def load_calibrated(
+    urdf: str | Path, compliance: str | Path, tool: str | None = None
+) -> ElasticModel:
     """The calibrated URDF with its compliance file or its calibration report.
 
     Args:
         urdf: The calibrated URDF (as ``calib calibrate`` wrote it).
         compliance: Its ``.compliance.json``, or the report (``--report``).
+        tool: The tool frame of the term to read in a report of several (a tree's tools,
+            several terms; ``terms[k].tool``); None for a report of one term.
 
     Raises:
-        DataError: The file is not a report or compliance file, or does not match the URDF.
+        DataError: The file is not a report or compliance file, does not match the URDF,
+            or is a report of several terms and ``tool`` names none of them.
         CalibError: The URDF cannot be loaded with the recorded frames.
     """
     src = str(compliance)
-    doc = compliance_fields(_read_json(compliance), src)
+    doc = compliance_fields(_read_json(compliance), src, tool)
+    chain = None
+    several = doc.get("term_compliance")
+    if isinstance(several, dict):  # one term of several: its chain's joints, rigid if absent
+        chain = load_chain(urdf, str(doc.get("base_frame")), str(doc.get("tool_frame")))
+        doc = {**doc, "compliance": {j: several.get(j, 0.0) for j in chain.joint_names}}
     base, tool, joints, c = _fields(doc, src)
-    chain = load_chain(urdf, base, tool)
+    chain = chain or load_chain(urdf, base, tool)
     if tuple(joints) != tuple(chain.joint_names):
         raise DataError(
             src,

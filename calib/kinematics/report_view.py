@@ -12,7 +12,11 @@ from __future__ import annotations
 
 from ..exceptions import DataError
 
-__all__ = ["STANDING_GRAVITY", "compliance_fields"]
+__all__ = ["READ_FORMATS", "STANDING_GRAVITY", "compliance_fields"]
+
+READ_FORMATS = (None, "1", "2", "3")
+"""The ``format_version`` values read: reports of format 3 and 2 (or none, older), compliance
+files of format 1."""
 
 STANDING_GRAVITY = 9.81
 """Gravity [m/s^2] of a contact calibration without compliance (the robot standing on the
@@ -23,63 +27,113 @@ _IDENTITY = [[float(i == j) for j in range(4)] for i in range(4)]
 """The measurement frame of a report whose instrument is in the URDF (on the robot, contacts)."""
 
 
-def compliance_fields(doc: dict, src: str) -> dict:
+def compliance_fields(doc: dict, src: str, tool: str | None = None) -> dict:
     """The compliance file's fields of a report of format 3 (others: ``doc`` itself).
 
     Args:
         doc: The JSON document.
         src: Its path, for messages.
+        tool: The tool frame of the term to read, in a report of several (a tree's tools,
+            several terms); None: the report's one term.
 
     Raises:
-        DataError: A report of a tree or of several chains (one URDF, no chain to predict
-            along), or a format 3 report whose ``terms`` or ``frames`` are malformed.
+        DataError: A ``format_version`` not in :data:`READ_FORMATS`, a report of several
+            terms without ``tool`` (or a ``tool`` none of its terms has), a camera's term, or
+            a format 3 report whose ``terms`` or ``frames`` are malformed.
     """
-    if doc.get("format_version") != "3":
-        return doc
-    shape = doc.get("shape")
-    terms = doc.get("terms")
-    if shape in ("tree", "chains"):
+    version = doc.get("format_version")
+    if version not in READ_FORMATS:
         raise DataError(
             src,
-            f"a report of {'a tree' if shape == 'tree' else 'several chains'}: the calibrated "
-            f"URDF is the whole model (load it with Pinocchio); calib predict and "
-            f"load_calibrated take the report of one chain",
+            f"format_version {version!r} is not one this calib reads (reports 2 and 3, "
+            f"compliance files 1): written by a newer calib?",
         )
-    frames = doc.get("frames")
-    if not (isinstance(terms, list) and len(terms) == 1 and isinstance(terms[0], dict)):
-        raise DataError(src, "'terms' is not a list of one chain's term")
+    if version != "3":
+        return doc
+    terms, frames = doc.get("terms"), doc.get("frames")
+    if not (isinstance(terms, list) and terms and all(isinstance(t, dict) for t in terms)):
+        raise DataError(src, "'terms' is not a list of terms")
     if not isinstance(frames, dict):
         raise DataError(src, "'frames' is missing or not {measurement, markers, ...}")
-    term, model = terms[0], doc.get("model")
-    model = model if isinstance(model, dict) else {}
+    term, several = _term(terms, tool, src), len(terms) > 1
+    found = doc.get("model")
+    model: dict = found if isinstance(found, dict) else {}
     out = {
         "urdf": doc.get("urdf"),
         "base_frame": term.get("base"),
-        "tool_frame": frames.get("tool_link") or term.get("tool"),
-        "compliance": doc.get("compliance"),
+        "tool_frame": (None if several else frames.get("tool_link")) or term.get("tool"),
+        "compliance": None if several else doc.get("compliance"),
+        "term_compliance": doc.get("compliance") if several else None,
         "load": model.get("load"),
     }
-    if shape == "contacts":
+    if term.get("kind") == "pixels":
+        raise DataError(src, f"{term.get('tool')}'s term is a camera's: predict reads points")
+    if isinstance(frames.get("contacts"), dict) and term.get("tool") in frames["contacts"]:
         return {**out, **_contact_fields(doc, frames, term, src)}
-    markers = frames.get("markers")
+    return {**out, **_measured_fields(frames, term, model, several)}
+
+
+def _term(terms: list, tool: str | None, src: str) -> dict:
+    """The term of ``tool`` (the one term when None)."""
+    names = [str(t.get("tool")) for t in terms]
+    if tool is None and len(terms) == 1:
+        return terms[0]
+    if tool is None:
+        raise DataError(
+            src, f"a report of {len(terms)} terms: name the tool of one ({', '.join(names)})"
+        )
+    found = [t for t, n in zip(terms, names, strict=True) if n == tool]
+    if len(found) != 1:
+        what = "no term" if not found else f"{len(found)} terms"
+        raise DataError(src, f"{what} with tool {tool!r} (the terms' tools: {', '.join(names)})")
+    return found[0]
+
+
+def _measured_fields(frames: dict, term: dict, model: dict, several: bool) -> dict:
+    """A measured term's measurement frame, markers and gravity.
+
+    In a report of several terms: its base's frame and its tool's markers, rigid unless its
+    model records gravity.
+    """
+    measurement, markers = frames.get("measurement"), frames.get("markers")
+    if several and isinstance(measurement, dict) and "matrix" not in measurement:
+        measurement = measurement.get(term.get("base"))
+    if several and isinstance(markers, dict):
+        markers = markers.get(term.get("tool"))
+    elif isinstance(markers, dict):
+        markers = list(markers.values())
+    standing = {"frame": term.get("base"), "vector": [0.0, 0.0, -STANDING_GRAVITY]}
     return {
-        **out,
-        "gravity": model.get("gravity"),
-        "measurement_to_base": _IDENTITY if frames.get("on_robot") else frames.get("measurement"),
-        "markers": list(markers.values()) if isinstance(markers, dict) else markers,
+        "gravity": model.get("gravity") or (standing if several else None),
+        "measurement_to_base": _IDENTITY if frames.get("on_robot") else measurement,
+        "markers": markers,
     }
 
 
 def _contact_fields(doc: dict, frames: dict, term: dict, src: str) -> dict:
-    """A contact report's contact frame and first object, the identity for the instrument."""
+    """A contact term's contact frame, its first object in its base frame, no instrument.
+
+    An object several terms touch is fitted in the first touching term's base.
+    """
     contacts, objects = frames.get("contacts"), doc.get("objects")
     contact = contacts.get(term.get("tool")) if isinstance(contacts, dict) else None
-    first = None
-    if isinstance(objects, dict):
-        groups = [g for g in objects.values() if isinstance(g, dict) and g]
-        first = next(iter(groups[0].values())) if groups else None
-    if not isinstance(contact, dict) or not isinstance(first, dict):
+    found = [
+        o
+        for g in (objects.values() if isinstance(objects, dict) else ())
+        if isinstance(g, dict)
+        for o in g.values()
+        if isinstance(o, dict)
+    ]
+    if not isinstance(contact, dict) or not found:
         raise DataError(src, "'frames.contacts' or 'objects' is missing or malformed")
+    base = term.get("base")
+    first = next((o for o in found if o.get("frame") in (None, base)), None)
+    if first is None:
+        raise DataError(
+            src,
+            f"the objects are in {found[0].get('frame')}'s frame, not {term.get('tool')}'s "
+            f"base {base}: predict the term whose base holds them",
+        )
     return {
         "gravity": {"frame": term.get("base"), "vector": [0.0, 0.0, -STANDING_GRAVITY]},
         "measurement_to_base": _IDENTITY,
