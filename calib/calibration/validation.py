@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Protocol, Self, TypeVar
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..exceptions import DataError, InvalidArgumentError
 from ..measurements.contact_campaign import ContactData
@@ -44,6 +45,11 @@ __all__ = [
     "stats",
     "worse",
 ]
+
+COPY = 1e-6
+"""Largest difference [rad, m, px] of every value of a validation row from a training row's
+that makes it that row (a copy, perhaps rounded to 6 decimals); an instrument's repeated
+reading of one posture differs by its noise, far more."""
 
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
@@ -145,7 +151,8 @@ def check_held_out(data, held) -> None:
     Measurements, touches and pixels alike (:class:`Measurements`, :class:`ContactData` or
     :class:`PixelObservations` of any kind): a validation row that is a training row (the
     same joint values, and the same measurements, tool or touched object; or the same
-    camera, point and pixel) is refused.
+    camera, point and pixel; each number within :data:`COPY`: a copy rounded to 6
+    decimals) is refused.
 
     Raises:
         DataError: ``held`` comes from the training file, or a row of it is a training row.
@@ -166,12 +173,11 @@ def check_held_out(data, held) -> None:
         b = np.hstack([b, [[index[t]] for t in lb]])
     if a.shape[1] != b.shape[1]:
         return
-    _, inverse = np.unique(np.vstack([a, b]), axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    repeated = np.isin(inverse[data.m :], inverse[: data.m])
+    gap, nearest = cKDTree(a).query(b, p=np.inf, distance_upper_bound=COPY)
+    repeated = np.isfinite(gap)
     if np.any(repeated):
         i = int(np.argmax(repeated))
-        j = int(np.argmax(inverse[: data.m] == inverse[data.m + i]))
+        j = int(nearest[i])
         raise DataError(
             held.source,
             f"{int(repeated.sum())} of the {held.m} validation rows are rows of the data "
