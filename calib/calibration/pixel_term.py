@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..kinematics.so3 import skew
 from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
 from .determined import determined_columns
 from .placements import Placements, joint_twists, offset_component
@@ -57,7 +57,6 @@ __all__ = [
     "PixelRows",
     "Unknowns",
     "camera_points",
-    "exact_columns",
     "free_columns",
     "pixel_jacobian",
     "pixel_rows",
@@ -151,31 +150,6 @@ def pixel_jacobian(
     if state.what.intrinsics:
         parts.append(np.asarray(seen.d_parameters))
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
-
-
-def exact_columns(J: np.ndarray, what: Unknowns, target, x: np.ndarray, n: int, point):
-    """:func:`pixel_jacobian`'s columns ``J`` made the derivatives by ``x`` itself.
-
-    ``x``: the own unknowns (:meth:`~.pixel_chain.PixelTermState.moved`'s, from the state
-    ``J`` was not taken at, whose points are ``target``), ``n``: the joint placement columns,
-    ``point``: each row's target point. ``C = C0 [R(w) | v]``: d/dv is the step's translation
-    column times ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``.
-    The mounting ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))``
-    columns times ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
-    """
-    J = J.copy()
-    w = x[3:6]
-    J[..., 0:3] = J[..., 0:3] @ rotation_matrix(w).T
-    J[..., 3:6] = J[..., 3:6] @ left_jacobian(-w)
-    if what.mount:
-        a, mv = 6 + n, x[6:12]
-        moved = np.zeros_like(target)
-        k = len(target)
-        if what.targets and k > GAUGE_POINTS:
-            moved[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
-        rot = J[..., a + 3 : a + 6] + J[..., a : a + 3] @ skew(mv[:3] + moved[point])
-        J[..., a + 3 : a + 6] = rot @ left_jacobian(mv[3:])
-    return J
 
 
 def free_columns(
