@@ -275,10 +275,7 @@ def _size(part: PixelPart) -> int:
 
 @dataclass(frozen=True, eq=False)
 class _Camera:
-    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`).
-
-    Every row is diagnosed before the outliers are set aside: the outlier rule reads the
-    term's own fit (:func:`_judged`), made from the registration.
+    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`), diagnosing every row.
 
     Attributes:
         chain: The term's chain.
@@ -347,9 +344,8 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
         held-out rows without their outliers (or None).
     """
-    out_m = 0 if held is None else held.m
     what = f"unknowns of camera {part.data.camera.name}'s placement"
-    unit = "observations"
-    determined.check_equations(part.m, 2, _size(part), what, part.source, held=out_m, unit=unit)
+    determined.check_equations(part.m, 2, _size(part), what, part.source,
+                               held=0 if held is None else held.m, unit="observations")  # fmt: skip
     aside, notes = term_checks.checked(_Camera(chain, part, held))
     return aside.state, aside.bad, list(aside.found), notes, aside.held
