@@ -246,9 +246,9 @@ def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
     normals = part.data.target.normal
     if normals is None:
         return np.zeros(part.m, dtype=bool)
-    R = state.mdh.kinematics(part.rows.q).R[:, -1]
-    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], R, normals[part.rows.point])
-    return np.einsum("mi,mi->m", n_cam, state.seen(part)) >= 0
+    kin = state.mdh.kinematics(part.rows.q)
+    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], kin.R[:, -1], normals[part.rows.point])
+    return np.einsum("mi,mi->m", n_cam, state.seen(part, kin)) >= 0
 
 
 def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
