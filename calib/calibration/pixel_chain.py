@@ -24,7 +24,7 @@ from ..exceptions import InvalidArgumentError
 from ..identification.pinhole import Pinhole
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import rotation_matrix
+from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
 from . import validation
 from .pixel_term import (
@@ -36,7 +36,6 @@ from .pixel_term import (
     PixelRows,
     Unknowns,
     camera_points,
-    exact_columns,
     pixel_jacobian,
     pixel_rows,
 )
@@ -247,6 +246,12 @@ def pixel_block(
 ):
     """Weighted rows of a pixel term: its own columns and the free placement directions.
 
+    The own columns are the derivatives by ``x`` itself (:meth:`PixelTermState.moved`'s,
+    from ``start``). ``C = C0 [R(w) | v]``: d/dv is the step's translation column times
+    ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``. The mounting
+    ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
+    ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
+
     Args:
         placements: The current joint placement errors.
         chain: The term's nominal chain.
@@ -262,8 +267,15 @@ def pixel_block(
     """
     J = pixel_jacobian(placements, state, chain, part.rows, len(lift) > 0, kin)[1]
     n = placements.y.size
-    J = exact_columns(J, start.what, start.target, x, n, part.rows.point)
-    own = J[:, :, state.own_columns(n)]
+    own = J[:, :, state.own_columns(n)]  # in x's order
+    own[..., 0:3] = own[..., 0:3] @ rotation_matrix(x[3:6]).T
+    own[..., 3:6] = own[..., 3:6] @ left_jacobian(-x[3:6])
+    if start.what.mount:
+        k, d = len(start.target), np.zeros_like(start.target)
+        if start.what.targets and k > GAUGE_POINTS:
+            d[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
+        rot = own[..., 9:12] + own[..., 6:9] @ skew(x[6:9] + d[part.rows.point])
+        own[..., 9:12] = rot @ left_jacobian(x[9:12])
     robot = J[:, :, 6 : 6 + n] @ lift.T
     return own * state.weight, robot * state.weight
 

@@ -1,8 +1,4 @@
-"""A pixel term's part of a result: its camera, intrinsics, targets and errors.
-
-Its errors in pixels, and in mm at the target: the term's rows in the joint fit (each pixel
-times the term's weight, the target's median distance over the focal length).
-"""
+"""A pixel term's part of a result: its camera, intrinsics, targets and errors (px, mm)."""
 
 from __future__ import annotations
 

@@ -18,14 +18,17 @@ from .placements import Placements
 __all__ = ["pixel_count"]
 
 
-def _stacked(names, cameras, rows, states, chains, placements: Placements) -> np.ndarray:
+def _stacked(names, cameras, rows, chains, placements: Placements, target, what) -> np.ndarray:
     """The rows' Jacobian ``(r, c)``: each camera's 6 (by name), the joints', the mounting.
 
     A camera with targets on several links (one chain each) has one placement: each row moves
     its camera's 6 columns.
     """
     blocks = []
-    for chain, camera, part, state in zip(chains, cameras, rows, states, strict=True):
+    models = placements.chain_models(tuple(chains))
+    for chain, camera, part, mdh in zip(chains, cameras, rows, models, strict=True):
+        lens = camera.intrinsics.camera
+        state = PixelTermState(mdh, np.asarray(camera.placement), target.position, lens, 1.0, what)
         J = pixel_jacobian(placements, state, chain, part)[1]
         W = np.zeros((part.m, 2, 6 * len(names) + J.shape[2] - 6))
         i = names.index(camera.name)
@@ -58,13 +61,8 @@ def pixel_count(
     placements = Placements.of(tuple(chains))
     what = Unknowns(mount=params == "complete")
     rows = [pixel_rows(c, obs, target, cam.name) for c, cam in zip(chains, cameras, strict=True)]
-    states = tuple(
-        PixelTermState(mdh, np.asarray(cam.placement), target.position, cam.intrinsics.camera,
-                       1.0, what)
-        for cam, mdh in zip(cameras, placements.chain_models(tuple(chains)), strict=True)
-    )  # fmt: skip
     names = tuple(dict.fromkeys(c.name for c in cameras))
-    W = _stacked(names, cameras, rows, states, chains, placements)
+    W = _stacked(names, cameras, rows, chains, placements, target, what)
     free = free_columns(W, placements, what, len(names))
     first = cameras[0]
     return {

@@ -1,11 +1,8 @@
 """A pixel term's registration and outliers: its camera placed, the term fitted alone.
 
-The camera's start: given, the URDF's link NAME on LINK, or the perspective-n-point problem
-in closed form (:func:`camera_from_rays` of the pixels' :func:`rays`), refined on its 6
-alone; the outlier rule reads the term fitted alone (:func:`checked_pixels`). Both least
-squares are the engine's (:func:`~.solve.fit`) on its state of the one chain, x moving it as
-the joint engine moves a pixel term (:meth:`~.pixel_chain.PixelTermState.moved`,
-:func:`~.pixel_chain.pixel_block`), the rows in pixels.
+Both least squares (the camera refined on its 6, :func:`_registered`; the term alone, whose
+errors the outlier rule reads, :func:`_judged`) are the engine's (:func:`~.solve.fit`) on its
+state of the one chain, the rows in pixels.
 """
 
 from __future__ import annotations
@@ -23,7 +20,7 @@ from ..kinematics.robot import Chain
 from . import determined, diagnosis, outliers, term_checks
 from .contact_chains_model import ChainsData, ChainsState
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .pixel_term import camera_points, check_in_front, free_columns, pixel_jacobian
+from .pixel_term import camera_points, free_columns, pixel_jacobian
 from .placements import Placements
 from .registration import nearest_rotation
 from .solve import fit
@@ -181,7 +178,11 @@ def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, fre
 
 
 def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
-    """The camera placed on the nominal robot (given, the URDF's, or closed form), refined."""
+    """The camera placed on the nominal robot (given, the URDF's, or closed form), refined.
+
+    Raises:
+        DataError: Rows whose point is at or behind the camera so placed (the first's line).
+    """
     cam, rows = part.data.camera, part.rows
     placements = Placements.of((chain,))
     kin = placements.frames(chain, rows.q)
@@ -192,7 +193,11 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
     if guess is None:
         p_link = camera_points(kin, np.eye(4), X[rows.point])[1]
         guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
-    check_in_front(camera_points(kin, guess, X[rows.point])[0], rows, part.source)
+    behind = np.flatnonzero(camera_points(kin, guess, X[rows.point])[0][:, 2] <= 0)
+    if len(behind):
+        raise DataError(part.source, f"{len(behind)} observation(s) see a point behind the "
+                        f"camera on the starting model (first: row {rows.lines[behind[0]]}): "
+                        "check the camera's link and placement")  # fmt: skip
     mdh = placements.chain_models((chain,))[0]
     start = PixelTermState(mdh, guess, X, lens, 1.0)
     camera = _term(_fitted(chain, placements, start, part, range(6), kin)).camera
@@ -220,12 +225,6 @@ def _rms_m(state: PixelTermState, part: PixelPart) -> float:
     return float(np.sqrt(2 * np.mean(state.pixel_errors(part) ** 2)) * state.weight)
 
 
-def _error_m(chain: Chain, part: PixelPart, q: np.ndarray) -> float:
-    """RMS error [m at the target] of the registration of the rows at joint positions ``q``."""
-    moved = PixelPart(part.data, dataclasses.replace(part.rows, q=q))
-    return _rms_m(_registered(chain, moved), moved)
-
-
 _WORDS = diagnosis.Words("pixels", "row of the pixels", "error at the target",
                          check="the pixels, the camera's link and the target")  # fmt: skip
 
@@ -233,8 +232,9 @@ _WORDS = diagnosis.Words("pixels", "row of the pixels", "error at the target",
 def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
     """:func:`~.diagnosis.explain` of the rows' joint columns (``first``: error [m])."""
 
-    def error(fixed: object) -> float:
-        return _error_m(chain, part, cast(_Joints, fixed).q)
+    def error(fixed: object) -> float:  # the registration's at the joints corrected
+        moved = PixelPart(part.data, dataclasses.replace(part.rows, q=cast(_Joints, fixed).q))
+        return _rms_m(_registered(chain, moved), moved)
 
     joints = _Joints(chain.joint_names, part.rows.q, part.source)
     notes = diagnosis.explain(joints, chain.sigma == 0, error, first, None, _WORDS)
@@ -246,9 +246,9 @@ def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
     normals = part.data.target.normal
     if normals is None:
         return np.zeros(part.m, dtype=bool)
-    R = state.mdh.kinematics(part.rows.q).R[:, -1]
-    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], R, normals[part.rows.point])
-    return np.einsum("mi,mi->m", n_cam, state.seen(part)) >= 0
+    kin = state.mdh.kinematics(part.rows.q)
+    n_cam = np.einsum("ji,mjk,mk->mi", state.camera[:3, :3], kin.R[:, -1], normals[part.rows.point])
+    return np.einsum("mi,mi->m", n_cam, state.seen(part, kin)) >= 0
 
 
 def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
@@ -275,10 +275,7 @@ def _size(part: PixelPart) -> int:
 
 @dataclass(frozen=True, eq=False)
 class _Camera:
-    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`).
-
-    Every row is diagnosed before the outliers are set aside: the outlier rule reads the
-    term's own fit (:func:`_judged`), made from the registration.
+    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`), diagnosing every row.
 
     Attributes:
         chain: The term's chain.
@@ -347,9 +344,8 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
         Its registered state, the mask of its outlier rows, the outliers, the notes and its
         held-out rows without their outliers (or None).
     """
-    out_m = 0 if held is None else held.m
     what = f"unknowns of camera {part.data.camera.name}'s placement"
-    unit = "observations"
-    determined.check_equations(part.m, 2, _size(part), what, part.source, held=out_m, unit=unit)
+    determined.check_equations(part.m, 2, _size(part), what, part.source,
+                               held=0 if held is None else held.m, unit="observations")  # fmt: skip
     aside, notes = term_checks.checked(_Camera(chain, part, held))
     return aside.state, aside.bad, list(aside.found), notes, aside.held

@@ -39,9 +39,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..exceptions import DataError
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..kinematics.so3 import skew
 from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
 from .determined import determined_columns
 from .placements import Placements, joint_twists, offset_component
@@ -58,8 +57,6 @@ __all__ = [
     "PixelRows",
     "Unknowns",
     "camera_points",
-    "check_in_front",
-    "exact_columns",
     "free_columns",
     "pixel_jacobian",
     "pixel_rows",
@@ -155,49 +152,6 @@ def pixel_jacobian(
     return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
 
 
-def exact_columns(J: np.ndarray, what: Unknowns, target, x: np.ndarray, n: int, point):
-    """:func:`pixel_jacobian`'s columns ``J`` made the derivatives by ``x`` itself.
-
-    ``x``: the own unknowns (:meth:`~.pixel_chain.PixelTermState.moved`'s, from the state
-    ``J`` was not taken at, whose points are ``target``), ``n``: the joint placement columns,
-    ``point``: each row's target point. ``C = C0 [R(w) | v]``: d/dv is the step's translation
-    column times ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``.
-    The mounting ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))``
-    columns times ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
-    """
-    J = J.copy()
-    w = x[3:6]
-    J[..., 0:3] = J[..., 0:3] @ rotation_matrix(w).T
-    J[..., 3:6] = J[..., 3:6] @ left_jacobian(-w)
-    if what.mount:
-        a, mv = 6 + n, x[6:12]
-        moved = np.zeros_like(target)
-        k = len(target)
-        if what.targets and k > GAUGE_POINTS:
-            moved[GAUGE_POINTS:] = x[12 : 12 + 3 * (k - GAUGE_POINTS)].reshape(-1, 3)
-        rot = J[..., a + 3 : a + 6] + J[..., a : a + 3] @ skew(mv[:3] + moved[point])
-        J[..., a + 3 : a + 6] = rot @ left_jacobian(mv[3:])
-    return J
-
-
-def _preference(placements: Placements, size: int, cameras: int) -> list[int]:
-    """Columns in order of preference.
-
-    The camera, the target's mounting, the joints' offsets, their other components, the
-    target points, the intrinsics (the camera and the mounting absorb what the chain's end
-    joints also explain).
-    """
-    nominal = placements.nominal
-    offsets: list[int] = []
-    others: list[int] = []
-    for j, jid in enumerate(placements.ids):
-        off = ("x", "y", "z", "rx", "ry", "rz").index(offset_component(nominal, jid))
-        for c in range(6):
-            (offsets if c == off else others).append(6 * cameras + 6 * j + c)
-    n = 6 * cameras + placements.y.size
-    return [*range(6 * cameras), *range(n, n + 6), *offsets, *others, *range(n + 6, size)]
-
-
 def free_columns(
     W: np.ndarray, placements: Placements, what: Unknowns, cameras: int = 1
 ) -> tuple[int, ...]:
@@ -206,28 +160,22 @@ def free_columns(
     ``W``'s columns: each camera's 6, the joint placements, the mounting, the target points,
     each camera's intrinsics. They are scaled to unit length first (metres and radians,
     pixels per each). Without ``what.mount``, the target's mounting is known (its columns
-    are never free).
+    are never free). Preferred: the cameras, the mounting, the joints' offsets, their other
+    components, the target points, the intrinsics (the camera and the mounting absorb what
+    the chain's end joints also explain).
     """
     norms = np.linalg.norm(W, axis=0)
     used = norms > 0
+    n = 6 * cameras + placements.y.size
     if not what.mount:
-        n = 6 * cameras + placements.y.size
         used[n : n + 6] = False
     scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)
-    order = [c for c in _preference(placements, W.shape[1], cameras) if used[c]]
+    offsets: list[int] = []
+    others: list[int] = []
+    for j, jid in enumerate(placements.ids):
+        off = ("x", "y", "z", "rx", "ry", "rz").index(offset_component(placements.nominal, jid))
+        for c in range(6):
+            (offsets if c == off else others).append(6 * cameras + 6 * j + c)
+    preferred = [*range(6 * cameras), *range(n, n + 6), *offsets, *others, *range(n + 6, len(W.T))]
+    order = [c for c in preferred if used[c]]
     return tuple(sorted(order[i] for i in determined_columns(scaled[:, order])))
-
-
-def check_in_front(p_cam: np.ndarray, rows: PixelRows, source: str) -> None:
-    """Refuse rows whose point is at or behind the camera on the starting model.
-
-    Raises:
-        DataError: Naming the first such row's line.
-    """
-    behind = np.flatnonzero(p_cam[:, 2] <= 0)
-    if len(behind):
-        raise DataError(
-            source,
-            f"{len(behind)} observation(s) see a point behind the camera on the starting "
-            f"model (first: row {rows.lines[behind[0]]}): check the camera's link and placement",
-        )
