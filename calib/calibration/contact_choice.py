@@ -19,7 +19,7 @@ from ..identification.contact_postures import joint_offsets, project
 from ..identification.contacts import CONTACT_TOL
 from ..identification.identifiability import independent_columns, preference_order
 from ..identification.parameters import ParameterSet, parameter_set
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_lines
+from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -58,32 +58,36 @@ a few %: fitted to the whole-process peaks of ``calib calibrate`` on TALOS sole 
 and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."""
 
 
-def check_selection_memory(data: ContactData, nominal: MDHModel, level: str, comp: int) -> None:
-    """Refuse, before any work, a calibration that would need more than 2 GB.
+def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
+    """Refuse in one line, before any work, contact terms that would need more than 2 GB.
 
     Args:
-        data: The touches.
-        nominal: The chain's MDH model.
+        chains: The terms' chains.
+        data: Each chain's data (its touches checked; other kinds pass).
         level: The parameter level (``auto`` selects among dense columns).
-        comp: Number of joint compliance columns.
+        comp: Number of joint compliance columns offered (``elastic``).
 
     Raises:
-        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES`) exceeds
+        InvalidArgumentError: A term's estimate (:data:`SELECTION_BYTES`) exceeds
             ``MAX_WORK_BYTES``; says what to do.
     """
-    kind = data.kind
-    objects = len(data.contacts) * len(kind.object_dofs)
-    dense = len(kind.contact_dofs) + len(level_candidates(nominal, "auto")) + comp
     per_touch, per_column, per_object = SELECTION_BYTES
     auto = level == "auto"
-    need = data.m * (per_touch + auto * dense * per_column + objects * per_object)
-    if need > MAX_WORK_BYTES:
+    for chain, d in zip(chains, data, strict=True):
+        if not isinstance(d, ContactData):
+            continue
+        kind = d.kind
+        objects = len(d.contacts) * len(kind.object_dofs)
+        dense = len(kind.contact_dofs) + len(level_candidates(from_chain(chain), "auto")) + comp
+        need = d.m * (per_touch + auto * dense * per_column + objects * per_object)
+        if need <= MAX_WORK_BYTES:
+            continue
         way = "fewer touches or " + f"{kind.object_name}s"
-        if auto and data.m * (per_touch + objects * per_object) <= MAX_WORK_BYTES:
+        if auto and d.m * (per_touch + objects * per_object) <= MAX_WORK_BYTES:
             way = f"give a level (params complete, paper, offsets or frames), or {way}"
         selected = f", {dense} other columns to select" if auto else ""
         raise InvalidArgumentError(
-            f"{data.m} touches of {len(data.contacts)} {kind.object_name}(s) ({objects} of "
+            f"{d.m} touches of {len(d.contacts)} {kind.object_name}(s) ({objects} of "
             f"their unknowns{selected}) would need about {need / 2**30:.3g} GB, calib allows "
             f"{MAX_WORK_BYTES / 2**30:g} GB: {way}"
         )

@@ -28,7 +28,7 @@ from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_checks import subset
-from .contact_choice import chains_model, flush_data, structural
+from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
 from .contact_term import check_touches, contact_frame, contact_guess, split_contacts
 from .instrument import instrument_groups, shared_frame
@@ -257,7 +257,7 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """
     _check(run)
     chains, parts = run.chains, pixel_parts(run.chains, run.data)
-    contact_checks.check_memory(chains, parts, "complete")
+    check_selection_memory(chains, parts, "complete")
     plane_of = instrument_groups(
         contact_checks.plane_groups(chains, parts, run.shared_planes), parts, run.instrument
     )
@@ -323,7 +323,7 @@ def register_contact_chains(run: Run) -> Registered:
     load = contact_elastic.term_load(chains, run.data, elastic, run.support)
     data = pixel_parts(chains, run.data)
     validate = run.validate and pixel_parts(chains, run.validate)
-    contact_checks.check_memory(chains, data, opts.level, 0 if load is None else chains[0].n)
+    check_selection_memory(chains, data, opts.level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
     if run.marker is not None and not any(isinstance(d, Measurements) for d in data):
         raise InvalidArgumentError("marker is for measured terms: no term here is measured")
