@@ -15,10 +15,10 @@ import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contact_postures import joint_offsets, project
+from ..identification.contact_postures import project
 from ..identification.contacts import CONTACT_TOL
-from ..identification.identifiability import independent_columns, preference_order
-from ..identification.parameters import ParameterSet, parameter_set
+from ..identification.identifiability import independent_columns
+from ..identification.parameters import parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
@@ -41,7 +41,6 @@ __all__ = [
     "check_selection_memory",
     "choose",
     "flush_data",
-    "level_candidates",
     "offer_directions",
     "selection_columns",
     "structural",
@@ -78,7 +77,9 @@ def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
             continue
         kind = d.kind
         objects = len(d.contacts) * len(kind.object_dofs)
-        dense = len(kind.contact_dofs) + len(level_candidates(from_chain(chain), "auto")) + comp
+        mdh = from_chain(chain)  # auto's candidates: the complete set's joint rows 1..n
+        rows = sum(1 <= p.row <= mdh.n for p in parameter_set(mdh, "complete").parameters)
+        dense = len(kind.contact_dofs) + rows + comp
         need = d.m * (per_touch + auto * dense * per_column + objects * per_object)
         if need <= MAX_WORK_BYTES:
             continue
@@ -91,18 +92,6 @@ def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
             f"their unknowns{selected}) would need about {need / 2**30:.3g} GB, calib allows "
             f"{MAX_WORK_BYTES / 2**30:g} GB: {way}"
         )
-
-
-def level_candidates(nominal: MDHModel, level: str) -> ParameterSet:
-    """The robot parameters a level offers: joint rows 1..n only, in preference order."""
-    if level == "frames":
-        return ParameterSet("none", ())
-    if level == "offsets":
-        return joint_offsets(nominal)
-    pset = parameter_set(nominal, "paper" if level == "paper" else "complete")
-    order = preference_order(nominal, pset)
-    chosen = [pset.parameters[i] for i in order if 1 <= pset.parameters[i].row <= nominal.n]
-    return ParameterSet(pset.label, tuple(chosen))
 
 
 def _in_object(mdh: MDHModel, F: np.ndarray, C: np.ndarray) -> MDHModel:
@@ -163,9 +152,8 @@ def offer_directions(
     """Directions a level offers: (directions or None for components, names, indices).
 
     ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
-    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
-    MDH chart offers them (:func:`level_candidates`), turned into directions of joint
-    placement errors
+    ``paper``, ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n
+    (``paper``'s set or the complete one) as directions of joint placement errors
     (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
     offers (a shared joint's) once.
     """
