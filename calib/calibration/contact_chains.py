@@ -222,18 +222,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     kept_prior = None if polished else prior
     bare = dataclasses.replace(fitted.start, states=unseen(fitted.start.states))
     solution = Solution(dataclasses.replace(fitted, start=bare), kept_prior)  # covariance once
-    result = _assemble(
-        start,
-        solution,
-        model,
-        train,
-        held,
-        plane_of,
-        selection,
-        notes,
-        clock,
-        (load, torques),
-    )
+    result = _assemble(r, solution, model, selection, notes, clock)
     given = run.validate or [None] * len(held)
     labels = [None if h is None else "holdout" if v is None else run.held_label or v.source
               for h, v in zip(held, given, strict=True)]  # fmt: skip
@@ -315,9 +304,10 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     return fitted, False
 
 
-def _assemble(
-    start, solution, model, train, held, plane_of, selection, notes, clock, elastic
-) -> ContactChainsCalibration:
+def _assemble(r: Registered, solution, model, selection, notes, clock) -> ContactChainsCalibration:
+    """The result of a run's fit: each term's part, the refusal, the notes, the stage times."""
+    start, train, held, plane_of = r.start, r.train, r.held, r.plane_of
+    elastic = (r.load, r.torques)
     fitted = solution.fit
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver
