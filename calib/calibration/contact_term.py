@@ -23,6 +23,7 @@ from . import determined
 from .contact_checks import subset
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES
+from .diagnosis import suspect
 
 __all__ = [
     "check_held_out_gaps",
@@ -137,8 +138,6 @@ def contact_objects(state: ContactState, train: ContactData, torque=None) -> dic
 
 def check_held_out_gaps(stats, source: str) -> None:
     """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
-    from .diagnosis import suspect
-
     held, fitted = stats["held_out_registration"], stats["train_registration"]
     far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
     if suspect(far, None) and not suspect(near, None):
