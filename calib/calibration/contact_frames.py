@@ -32,12 +32,6 @@ DOF_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 """Names of a twist's components in a frame's own axes: translation [m], rotation [rad]."""
 
 
-def _twist(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
-    v = np.zeros((*x.shape[:-1], 6))
-    v[..., list(dofs)] = x
-    return v
-
-
 def _moved(T: np.ndarray, v: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Frames ``T [Exp(r), t]`` ``(..., 4, 4)`` by the twists ``v = (t, r)`` ``(..., 6)``.
 
@@ -119,8 +113,10 @@ class ContactFrames:
         """The objects' twists, then the contact's ``(K + 1, 6)``, at unknowns x."""
         x = np.asarray(x, dtype=float)
         o, K = len(self.kind.object_dofs), len(self.ids)
-        objects = _twist(self.kind.object_dofs, x[: K * o].reshape(K, o))
-        return np.concatenate([objects, _twist(self.kind.contact_dofs, x[K * o :])[None]])
+        v = np.zeros((K + 1, 6))
+        v[:K, list(self.kind.object_dofs)] = x[: K * o].reshape(K, o)
+        v[K, list(self.kind.contact_dofs)] = x[K * o :]
+        return v
 
     def relative(
         self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray
