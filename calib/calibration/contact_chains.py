@@ -1,34 +1,24 @@
-"""Several chains of one robot calibrated together from flush contacts: shared joints once.
+"""Several chains of one robot calibrated together from their touches: shared joints once.
 
 A humanoid's two arms, each calibrated from its foot (``left_sole_link`` to the left
 gripper, ``right_sole_link`` to the right one), share the torso joints. Fitted one at a
 time, each chain gets its own torso, and no single URDF holds both. Fitted together
 (:func:`calibrate_contact_chains`), every URDF joint has one placement error
 (:mod:`.placements`) that every chain through it sees, and the result is one URDF of the
-whole robot. The steps of every calibration:
+whole robot. A run is registered (:func:`~.contact_register.register_contact_chains`), its
+model chosen (:mod:`.contact_choice`), fitted (:func:`fit_registered`) and refused where its
+held-out gaps are worse than the registration's; one chain touching alone is a problem of
+one term (:func:`calib.calibrate` routes it here).
 
-1. touches set aside per chain (``holdout``, seeded) or a validation set per chain;
-2. the registration: each chain's objects and contact in closed form on the nominal robot
-   (a plane shared by chains of one base frame: then refined together by least squares);
-3. the free placement components and (``elastic``) joint compliances the touches determine
-   (pivoted QR at flush postures), and for ``auto`` the cross-validated forward selection
-   with a prior on all chains' touches together (:mod:`.contact_choice`);
-4. least squares (one chain touching many objects: by block, :func:`~.contact_fit.block_fit`);
-5. refusal of a model whose held-out weighted RMS gap is worse than the registration's.
-
-Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
-recorded on different days see the table from wherever the robot stood.
-
-A chain's kind is its touches', any contact kind (``plane``, ``plane-point``,
-``fixed-point``, ``fixed-pose``), with any number of objects (ids); one chain touching alone
-is a problem of one term (:func:`calib.calibrate` routes it here), joint compliance under
-gravity included (``elastic``: :mod:`.contact_elastic`). A ``fixed-pose`` chain of a joint fit is a
-closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
-flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
-one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
-recorded postures of the plane touches). Its registration is ``register_contacts`` of that kind, its
-contact frame the tool frame (only the relative placement of pose and contact is seen), and
-it constrains the joints it shares with the plane chains (the legs) together with them.
+Each chain has its own contact frame and, unless ``shared_planes``, its own objects of any
+contact kind: touches recorded on different days see the table from wherever the robot
+stood. A ``fixed-pose`` chain is a closed loop through the robot: TALOS's
+``left_sole_link`` -> ``right_sole_link``, both soles flat on the ground at every touch, is
+one unknown fixed pose of the right sole in the left one's frame
+(:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the recorded
+postures of the plane touches). Its contact frame is the tool frame (only the relative
+placement of pose and contact is seen), and it constrains the joints it shares with the
+plane chains (the legs) together with them.
 """
 
 from __future__ import annotations
