@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 import calib.calibration.contact_choice as contact_choice
-import calib.calibration.contact_term as contact_term
+import calib.calibration.contact_register as contact_register
 import calib.calibration.entry as entry
 import calib.core.checks
 import calib.measurements.contact_campaign as contact_campaign
@@ -57,7 +57,7 @@ def test_too_many_touches_or_planes_in_a_file_is_one_line(tmp_path, capsys, monk
     assert not (tmp_path / "o").exists()
     with pytest.raises(InvalidArgumentError, match="4 planes"):
         simulate_contacts(chain, 12, "plane", contacts=4)
-    monkeypatch.setattr(contact_term, "MAX_TOUCHES", 11)
+    monkeypatch.setattr(contact_register, "MAX_TOUCHES", 11)
     with pytest.raises(InvalidArgumentError, match="12 touches"):
         calibrate_contacts(chain, data)  # data made by the API are held to the same maxima
 
