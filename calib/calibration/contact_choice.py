@@ -188,42 +188,31 @@ def offer_directions(
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
     """Each chain's touches at flush postures near them (a measured term's rows as they are).
 
-    With a standing load (``elastic``, one chain touching) the torques are the flush
-    postures'.
+    The projection (:func:`touching_postures`) is flush on the chain's MDH model, which
+    differs from the joint placements' frames the rank test differentiates by round-off
+    (~1e-13 m): dependencies that hold exactly at flush postures would then show at the
+    1e-12 level, above the rank's tolerance. Two Newton steps on the joint positions of the
+    touches that reached their object remove that gap. With a standing load (``elastic``,
+    one chain touching) the torques are the flush postures'.
     """
     parts: list[ContactData | Measurements | PixelPart] = []
-    for s, d in zip(start.states, train, strict=True):
+    for chain, s, d in zip(start.chains, start.states, train, strict=True):
         if not isinstance(s, ContactState):
             parts.append(d)
             continue
-        qf, reached = touching_postures(s, d.q, d.ids)  # the others: as recorded
-        parts.append(_flush_on_frames(start, len(parts), s, dataclasses.replace(d, q=qf), reached))
+        q, reached = touching_postures(s, d.q, d.ids)  # the others: as recorded
+        path = start.placements.path(chain)
+        for _ in range(2):
+            kin = start.placements.frames(chain, q)
+            g = s.gaps(q, d.ids, None, kin) * s.row_weights()
+            J = joint_rows(path, s, d, kin, list(range(chain.n)))
+            q[reached] -= (np.linalg.pinv(J) @ g[..., None])[reached, :, 0]
+        parts.append(dataclasses.replace(d, q=q))
     first = parts[0]
     torques = None
     if load is not None and isinstance(first, ContactData):
         torques = (load.torques(first.q, first.readings),)
     return ChainsData(tuple(parts), torques)
-
-
-def _flush_on_frames(start: ChainsState, c: int, s: ContactState, d: ContactData, reached):
-    """Touches made flush in the geometry the rank test differentiates (the joint frames).
-
-    The projection (:func:`touching_postures`) is flush on the chain's MDH model, which
-    differs from the joint placements' frames by round-off (~1e-13 m): dependencies that
-    hold exactly at flush postures would then show at the 1e-12 level, above the rank's
-    tolerance. Two Newton steps on the joint positions of the touches that reached their
-    object remove that gap.
-    """
-    chain = start.chains[c]
-    path = start.placements.path(chain)
-    q = np.array(d.q, dtype=float)
-    for _ in range(2):
-        kin = start.placements.frames(chain, q)
-        g = s.gaps(q, d.ids, None, kin) * s.row_weights()
-        J = joint_rows(path, s, d, kin, list(range(chain.n)))
-        step = np.linalg.pinv(J) @ g[..., None]
-        q[reached] -= step[reached, :, 0]
-    return dataclasses.replace(d, q=q)
 
 
 def blocky(model: ChainsModel, start: ChainsState) -> bool:
