@@ -45,7 +45,6 @@ from .contact_choice import blocky, chains_model, choose, flush_data, structural
 from .contact_fit import block_fit
 from .contact_model import ContactState
 from .contact_register import (
-    CHAIN_LEVELS,
     Registered,
     Run,
     determined_unknowns,
@@ -68,7 +67,6 @@ from .pixel_chain_result import PixelChain, pixel_result
 from .solve import fit, fitted_values, gauss_newton_finish
 
 __all__ = [
-    "CHAIN_LEVELS",
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
@@ -156,13 +154,6 @@ def calibrate_contact_chains(
         InvalidArgumentError: A bad argument.
         DataError: Touches that do not belong to their chain or determine too little.
     """
-    if params is not None and params not in CHAIN_LEVELS:
-        raise InvalidArgumentError(
-            f"params must be one of {', '.join(CHAIN_LEVELS)}, got {params!r:.40}"
-        )
-    w = None if orientation_weight is None else float(orientation_weight)
-    if w is not None and not (np.isfinite(w) and w > 0):
-        raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
     options = Options(params=params, orientation_weight=orientation_weight, elastic=elastic,
                       max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
     run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,

@@ -50,16 +50,12 @@ from .placements import Placements, zero_frames
 from .solve import fit
 
 __all__ = [
-    "CHAIN_LEVELS",
     "Registered",
     "Run",
     "determined_unknowns",
     "drawn",
     "register_contact_chains",
 ]
-
-CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
-"""Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
