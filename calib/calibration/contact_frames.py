@@ -139,14 +139,14 @@ class ContactFrames:
         return self.kind.residual(*self.relative(Rt, pt, index))
 
     def parts(
-        self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray
+        self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray, w: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Pose-error Jacobian of the contact frame in its object's frame, by block.
+        """The kind's gap rows, each weighted by ``w`` (:func:`row_weights`), by block.
 
         Columns: the unknowns of these frames moved by ``x`` from a start (:meth:`moved`),
         at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames. Each
-        touch's own object's ``(m, 6, o)`` (the other objects' columns are zero) and the
-        contact's ``(m, 6, len(contact_dofs))``, shared by every touch
+        touch's own object's ``(m, rows, o)`` (the other objects' columns are zero) and the
+        contact's ``(m, rows, len(contact_dofs))``, shared by every touch
         (:func:`~.contact_blocks.dense` makes them one matrix).
         """
         m, o = len(p), len(self.kind.object_dofs)
@@ -166,7 +166,8 @@ class ContactFrames:
             E[:, :3, :3] = R
             E[:, 3:, 3:] = R
             shared = E @ A[-1][..., list(self.kind.contact_dofs)]
-        return own, shared
+        rows = w[None, :, None]
+        return self.kind.jacobian_rows(own, R) * rows, self.kind.jacobian_rows(shared, R) * rows
 
     def centred(self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray) -> ContactFrames:
         """The planes, each origin its touches' contact points' centroid (other kinds: self).

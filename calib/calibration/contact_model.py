@@ -132,9 +132,7 @@ class ContactState:
             kin = s.kinematics(data.q, torque)
         index = s._index(data.ids, len(kin.p), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
-        own, shared = s.frames.parts(R, p, index, self._own(x))
-        w = s.row_weights()[None, :, None]
-        return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index
+        return (*s.frames.parts(R, p, index, self._own(x), s.row_weights()), index)
 
     def own_rows(self, x: np.ndarray, data, kin, moved: ContactState | None = None) -> np.ndarray:
         """:meth:`blocks` as one matrix ``(m, rows, size)`` (as a measured term's own rows)."""

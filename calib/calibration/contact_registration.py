@@ -135,10 +135,7 @@ def refine(
         cur = frames.moved(x)
         R, p = cur.relative(rotations, positions, index)
         r = frames.kind.residual(R, p) * w
-        own, shared = cur.parts(R, p, index, x)
-        rows = w[None, :, None]
-        Jo = frames.kind.jacobian_rows(own, R) * rows
-        Jc = frames.kind.jacobian_rows(shared, R) * rows
+        Jo, Jc = cur.parts(R, p, index, x, w)
         sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
         if not sol.smallest > CONDITION_LIMIT * sol.largest:
             A = dense(Jo, Jc, index, K).reshape(-1, frames.size)
