@@ -41,8 +41,8 @@ from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import held_out_refusal
-from .contact_choice import blocky, chains_model, choose, flush_data, structural
-from .contact_fit import block_fit
+from .contact_choice import chains_model, choose, flush_data, structural
+from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
 from .contact_register import (
     Registered,
@@ -259,7 +259,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
         The fit, and whether it was polished.
     """
     data, iters = train, opts.max_iterations
-    if blocky(model, start):
+    if by_block(model, start):
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
         fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters,

@@ -36,7 +36,6 @@ from .selection import Selection, select
 
 __all__ = [
     "SELECTION_BYTES",
-    "blocky",
     "chains_model",
     "check_selection_memory",
     "choose",
@@ -215,11 +214,6 @@ def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsDa
     return ChainsData(tuple(parts), torques)
 
 
-def blocky(model: ChainsModel, start: ChainsState) -> bool:
-    """One chain touching many objects: its objects' unknowns eliminated object by object."""
-    return len(start.states) == 1 and isinstance(start.states[0], ContactState) and by_block(model)
-
-
 class AtStart:
     """A model's Jacobian at the registration (``x = 0``), made once for the same rows.
 
@@ -266,7 +260,7 @@ def structural(
 
     ``at``: the Jacobians at the registration made so far (:class:`AtStart`), or None.
     """
-    if blocky(wide, start):
+    if by_block(wide, start):
         return block_structural(wide, start, flush, None)
     A = (at or AtStart(wide, start))(flush).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
@@ -342,7 +336,7 @@ def choose(
     if prior is not None:  # the model's order: the directions, then the compliances
         order = [c for c in columns if c < split] + [c for c in columns if c >= split]
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
-    kin = None if blocky(model, start) else at.kinematics(rows)
+    kin = None if by_block(model, start) else at.kinematics(rows)
     return model, kin, selection, prior
 
 
@@ -359,7 +353,7 @@ def selection_columns(
 ):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.
 
-    Many objects (:func:`blocky`): the objects' columns by block
+    Many objects (:func:`~.contact_fit.by_block`): the objects' columns by block
     (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
     Jacobians at the registration made so far (:class:`AtStart`), or None.
 
@@ -368,7 +362,7 @@ def selection_columns(
         number of always-free dense columns.
     """
     x = np.zeros(wide.size())
-    if not blocky(wide, start):
+    if not by_block(wide, start):
         J = (at or AtStart(wide, start))(data)
         return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
     own, shared, index = wide.blocks(start, x, data)

@@ -136,8 +136,7 @@ class ContactState:
 
     def own_rows(self, x: np.ndarray, data, kin, moved: ContactState | None = None) -> np.ndarray:
         """:meth:`blocks` as one matrix ``(m, rows, size)`` (as a measured term's own rows)."""
-        own, shared, index = self.blocks(x, data, None, kin, moved)
-        return dense(own, shared, index, len(self.frames.ids))
+        return dense(*self.blocks(x, data, None, kin, moved), len(self.frames.ids))
 
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
         """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of the chain.
