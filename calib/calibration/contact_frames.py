@@ -184,11 +184,6 @@ class ContactFrames:
         planes = plane_frames(normals, heights, pt + Rt @ self.contact[:3, 3], index)
         return ContactFrames(self.kind, self.contact, planes, self.ids)
 
-    def rotate(self, W6_base: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """A pose-error Jacobian in the base frame ``(m, 6, k)`` seen in each touch's object."""
-        FRt = np.swapaxes(self.objects[index, :3, :3], 1, 2)
-        return np.concatenate([FRt @ W6_base[:, :3], FRt @ W6_base[:, 3:]], axis=1)
-
 
 def row_weights(kind: Contact, weight: float) -> np.ndarray:
     """Weight of each gap row: 1 for a length, ``weight`` [m/rad] for an angle."""

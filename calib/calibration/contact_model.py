@@ -149,7 +149,8 @@ class ContactState:
         W6 = np.concatenate([lin - skew(point) @ ang, ang], axis=1)  # the contact point's motion
         index = self.frames.index(data.ids, data.source)
         Rc, _ = self.frames.relative(R, p, index)
-        rows = self.kind.jacobian_rows(self.frames.rotate(W6, index), Rc)
+        FRt = np.swapaxes(self.frames.objects[index, :3, :3], 1, 2)  # seen in each object
+        rows = self.kind.jacobian_rows(np.concatenate([FRt @ W6[:, :3], FRt @ W6[:, 3:]], 1), Rc)
         return rows * self.row_weights()[None, :, None]
 
 
