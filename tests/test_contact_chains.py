@@ -306,15 +306,15 @@ def test_bad_arguments():
         calibrate_contact_chains(chains, data[:1])
     with pytest.raises(InvalidArgumentError, match="non-empty"):
         calibrate_contact_chains([], [])
-    with pytest.raises(InvalidArgumentError, match="params"):
-        calibrate_contact_chains(chains, data, params="some")
+    with pytest.raises(InvalidArgumentError, match="unknown parameter level 'some'"):
+        calibrate_contact_chains(chains, data, params="some")  # the options' check
     with pytest.raises(InvalidArgumentError, match="not both"):
         calibrate_contact_chains(chains, data, validate=data, holdout=0.2)
     with pytest.raises(InvalidArgumentError, match="seed"):
         calibrate_contact_chains(chains, data, seed=-1)
     with pytest.raises(InvalidArgumentError, match="holdout"):
         calibrate_contact_chains(chains, data, holdout=1.5)
-    with pytest.raises(InvalidArgumentError, match="orientation_weight"):
+    with pytest.raises(InvalidArgumentError, match="the orientation weight must be"):
         calibrate_contact_chains(chains, data, orientation_weight=-1.0)
     with pytest.raises(InvalidArgumentError, match="one robot"):
         calibrate_contact_chains([chains[0], load_robot("ur5")], data)

@@ -7,8 +7,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from calib.calibration.contact_blocks import dense
-from calib.calibration.contact_frames import ContactFrames
-from calib.identification.contacts import FixedPointContact, PlaneContact, PlanePointContact
+from calib.calibration.contact_frames import ContactFrames, row_weights
+from calib.identification.contacts import (
+    FixedPointContact,
+    FixedPoseContact,
+    PlaneContact,
+    PlanePointContact,
+)
 
 
 def _frames(kind, seed: int) -> tuple[ContactFrames, np.ndarray, np.ndarray, np.ndarray]:
@@ -26,20 +31,23 @@ def _frames(kind, seed: int) -> tuple[ContactFrames, np.ndarray, np.ndarray, np.
     return frames, Rt, rng.normal(size=(6, 3)) * 0.5, np.array([0, 1, 0, 1, 1, 0])
 
 
-@pytest.mark.parametrize("kind", [PlaneContact(), PlanePointContact(), FixedPointContact()])
-def test_parts_are_the_central_differences_of_the_moved_frames(kind):
+KINDS = [PlaneContact(), PlanePointContact(), FixedPointContact(), FixedPoseContact()]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_parts_are_the_central_differences_of_the_moved_frames_gaps(kind):
+    """Every kind's weighted gap rows (a fixed pose's: all six of the pose error)."""
     frames, Rt, pt, index = _frames(kind, 4)
     x = np.random.default_rng(5).normal(size=frames.size) * 0.2  # away from the start
     here = frames.moved(x)
-    W = dense(*frames.parts(*here.relative(Rt, pt, index), index, x), index, 2)
+    w = row_weights(kind, 0.3)
+    W = dense(*frames.parts(*here.relative(Rt, pt, index), index, x, w), index, 2)
     h = 1e-6
     for k in range(frames.size):
         step = np.zeros(frames.size)
         step[k] = h
-        (Ra, pa), (Rb, pb) = (frames.moved(x + s * step).relative(Rt, pt, index) for s in (1, -1))
-        turn = Rotation.from_matrix(Ra @ np.swapaxes(Rb, 1, 2)).as_rotvec()
-        fd = np.concatenate([pa - pb, turn], axis=1) / (2 * h)
-        assert np.allclose(W[:, :, k], fd, atol=1e-7), k
+        ga, gb = (frames.moved(x + s * step).gaps(Rt, pt, index) * w for s in (1, -1))
+        assert np.allclose(W[:, :, k], (ga - gb) / (2 * h), atol=1e-7), k
 
 
 def test_moved_frames_are_each_frame_moved_alone():

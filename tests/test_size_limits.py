@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 import calib.calibration.contact_choice as contact_choice
-import calib.calibration.contact_term as contact_term
+import calib.calibration.contact_register as contact_register
 import calib.calibration.entry as entry
 import calib.core.checks
 import calib.measurements.contact_campaign as contact_campaign
@@ -14,6 +14,7 @@ from calib import InvalidArgumentError, load_chain, simulate
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.core.checks import MAX_OBJECTS, MAX_ROWS, MAX_TOUCHES, check_size
+from calib.identification.parameters import parameter_set
 from calib.kinematics.mdh import from_chain
 from calib.measurements.contact_campaign import contacts_csv, simulate_contacts
 from calib.measurements.csvfile import measurements_csv
@@ -56,7 +57,7 @@ def test_too_many_touches_or_planes_in_a_file_is_one_line(tmp_path, capsys, monk
     assert not (tmp_path / "o").exists()
     with pytest.raises(InvalidArgumentError, match="4 planes"):
         simulate_contacts(chain, 12, "plane", contacts=4)
-    monkeypatch.setattr(contact_term, "MAX_TOUCHES", 11)
+    monkeypatch.setattr(contact_register, "MAX_TOUCHES", 11)
     with pytest.raises(InvalidArgumentError, match="12 touches"):
         calibrate_contacts(chain, data)  # data made by the API are held to the same maxima
 
@@ -94,7 +95,8 @@ def test_a_contact_calibration_too_big_for_memory_is_refused_up_front(monkeypatc
     every level."""
     chain = load_chain("ur5")
     data = simulate_contacts(chain, 40, "plane", contacts=2, seed=0).data
-    dense = 2 + len(contact_choice.level_candidates(from_chain(chain), "auto"))
+    mdh = from_chain(chain)  # auto's candidates: the complete set's joint rows 1..n
+    dense = 2 + sum(1 <= p.row <= mdh.n for p in parameter_set(mdh, "complete").parameters)
     monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense) + 1, 0))
     with pytest.raises(InvalidArgumentError, match="give a level") as err:
         calibrate_contacts(chain, data)

@@ -63,12 +63,6 @@ class BlockSolution:
     largest: float
 
 
-def _buckets(counts: np.ndarray, least: int) -> np.ndarray:
-    """Each object's padded number of touches: a power of two, at least ``least``."""
-    size = np.maximum(counts, least)
-    return (2 ** np.ceil(np.log2(np.maximum(size, 1)))).astype(int)
-
-
 def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.ndarray:
     """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
 
@@ -92,7 +86,8 @@ def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.
     first = np.r_[0, np.cumsum(counts)[:-1]]
     position = np.empty(m, dtype=int)
     position[order] = np.arange(m) - first[index[order]]  # the touch's rank in its object
-    padded = _buckets(counts, -(-w // rows))
+    least = np.maximum(counts, -(-w // rows))  # each object's touches: w rows at least,
+    padded = (2 ** np.ceil(np.log2(np.maximum(least, 1)))).astype(int)  # a power of two
     factors = np.zeros((K, w, w))
     for size in np.unique(padded):
         objects = np.flatnonzero(padded == size)

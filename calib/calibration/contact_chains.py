@@ -1,34 +1,24 @@
-"""Several chains of one robot calibrated together from flush contacts: shared joints once.
+"""Several chains of one robot calibrated together from their touches: shared joints once.
 
 A humanoid's two arms, each calibrated from its foot (``left_sole_link`` to the left
 gripper, ``right_sole_link`` to the right one), share the torso joints. Fitted one at a
 time, each chain gets its own torso, and no single URDF holds both. Fitted together
 (:func:`calibrate_contact_chains`), every URDF joint has one placement error
 (:mod:`.placements`) that every chain through it sees, and the result is one URDF of the
-whole robot. The steps of every calibration:
+whole robot. A run is registered (:func:`~.contact_register.register_contact_chains`), its
+model chosen (:mod:`.contact_choice`), fitted (:func:`fit_registered`) and refused where its
+held-out gaps are worse than the registration's; one chain touching alone is a problem of
+one term (:func:`calib.calibrate` routes it here).
 
-1. touches set aside per chain (``holdout``, seeded) or a validation set per chain;
-2. the registration: each chain's objects and contact in closed form on the nominal robot
-   (a plane shared by chains of one base frame: then refined together by least squares);
-3. the free placement components and (``elastic``) joint compliances the touches determine
-   (pivoted QR at flush postures), and for ``auto`` the cross-validated forward selection
-   with a prior on all chains' touches together (:mod:`.contact_choice`);
-4. least squares (one chain touching many objects: by block, :func:`~.contact_fit.block_fit`);
-5. refusal of a model whose held-out weighted RMS gap is worse than the registration's.
-
-Each chain has its own contact frame and, unless ``shared_planes``, its own plane: touches
-recorded on different days see the table from wherever the robot stood.
-
-A chain's kind is its touches', any contact kind (``plane``, ``plane-point``,
-``fixed-point``, ``fixed-pose``), with any number of objects (ids); one chain touching alone
-is a problem of one term (:func:`calib.calibrate` routes it here), joint compliance under
-gravity included (``elastic``: :mod:`.contact_elastic`). A ``fixed-pose`` chain of a joint fit is a
-closed loop through the robot: TALOS's ``left_sole_link`` -> ``right_sole_link``, both soles
-flat on the ground at every touch, is one unknown fixed pose of the right sole in the left
-one's frame (:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the
-recorded postures of the plane touches). Its registration is ``register_contacts`` of that kind, its
-contact frame the tool frame (only the relative placement of pose and contact is seen), and
-it constrains the joints it shares with the plane chains (the legs) together with them.
+Each chain has its own contact frame and, unless ``shared_planes``, its own objects of any
+contact kind: touches recorded on different days see the table from wherever the robot
+stood. A ``fixed-pose`` chain is a closed loop through the robot: TALOS's
+``left_sole_link`` -> ``right_sole_link``, both soles flat on the ground at every touch, is
+one unknown fixed pose of the right sole in the left one's frame
+(:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the recorded
+postures of the plane touches). Its contact frame is the tool frame (only the relative
+placement of pose and contact is seen), and it constrains the joints it shares with the
+plane chains (the legs) together with them.
 """
 
 from __future__ import annotations
@@ -51,11 +41,10 @@ from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import held_out_refusal
-from .contact_choice import blocky, chains_model, choose, flush_data, structural
-from .contact_fit import block_fit
+from .contact_choice import chains_model, choose, flush_data, structural
+from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
 from .contact_register import (
-    CHAIN_LEVELS,
     Registered,
     Run,
     determined_unknowns,
@@ -78,7 +67,6 @@ from .pixel_chain_result import PixelChain, pixel_result
 from .solve import fit, fitted_values, gauss_newton_finish
 
 __all__ = [
-    "CHAIN_LEVELS",
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
@@ -166,13 +154,6 @@ def calibrate_contact_chains(
         InvalidArgumentError: A bad argument.
         DataError: Touches that do not belong to their chain or determine too little.
     """
-    if params is not None and params not in CHAIN_LEVELS:
-        raise InvalidArgumentError(
-            f"params must be one of {', '.join(CHAIN_LEVELS)}, got {params!r:.40}"
-        )
-    w = None if orientation_weight is None else float(orientation_weight)
-    if w is not None and not (np.isfinite(w) and w > 0):
-        raise InvalidArgumentError(f"orientation_weight must be a positive number, got {w!r}")
     options = Options(params=params, orientation_weight=orientation_weight, elastic=elastic,
                       max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
     run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,
@@ -222,18 +203,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     kept_prior = None if polished else prior
     bare = dataclasses.replace(fitted.start, states=unseen(fitted.start.states))
     solution = Solution(dataclasses.replace(fitted, start=bare), kept_prior)  # covariance once
-    result = _assemble(
-        start,
-        solution,
-        model,
-        train,
-        held,
-        plane_of,
-        selection,
-        notes,
-        clock,
-        (load, torques),
-    )
+    result = _assemble(r, solution, model, selection, notes, clock)
     given = run.validate or [None] * len(held)
     labels = [None if h is None else "holdout" if v is None else run.held_label or v.source
               for h, v in zip(held, given, strict=True)]  # fmt: skip
@@ -289,7 +259,7 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
         The fit, and whether it was polished.
     """
     data, iters = train, opts.max_iterations
-    if blocky(model, start):
+    if by_block(model, start):
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
         fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters,
@@ -315,9 +285,10 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     return fitted, False
 
 
-def _assemble(
-    start, solution, model, train, held, plane_of, selection, notes, clock, elastic
-) -> ContactChainsCalibration:
+def _assemble(r: Registered, solution, model, selection, notes, clock) -> ContactChainsCalibration:
+    """The result of a run's fit: each term's part, the refusal, the notes, the stage times."""
+    start, train, held, plane_of = r.start, r.train, r.held, r.plane_of
+    elastic = (r.load, r.torques)
     fitted = solution.fit
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's first, then the solver

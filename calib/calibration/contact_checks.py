@@ -19,7 +19,7 @@ import numpy as np
 
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import PlaneContact
-from ..kinematics.mdh import MDHModel, from_chain
+from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import posture_groups
@@ -34,7 +34,6 @@ from .weighting import DEFAULT_WEIGHT, estimate_weight
 
 __all__ = [
     "WEIGHT_ROUNDS",
-    "check_memory",
     "checked_registration",
     "enough_touches",
     "held_out_refusal",
@@ -237,22 +236,6 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
             f"{base:.3f} mm weighted RMS)"
         )
     return None
-
-
-def check_memory(chains, data, level: str, comp: int = 0) -> None:
-    """Refuse in one line, before any work, contact terms that would need too much memory.
-
-    ``comp``: the joint compliance columns offered (``elastic``).
-
-    Raises:
-        InvalidArgumentError: A term's estimate exceeds ``MAX_WORK_BYTES``
-            (:func:`~.contact_choice.check_selection_memory`).
-    """
-    from .contact_choice import check_selection_memory  # contact_choice imports this module
-
-    for chain, d in zip(chains, data, strict=True):
-        if isinstance(d, ContactData):
-            check_selection_memory(d, from_chain(chain), level, comp)
 
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:

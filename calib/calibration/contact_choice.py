@@ -15,11 +15,11 @@ import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contact_postures import joint_offsets, project
+from ..identification.contact_postures import project
 from ..identification.contacts import CONTACT_TOL
-from ..identification.identifiability import independent_columns, preference_order
-from ..identification.parameters import ParameterSet, parameter_set
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_lines
+from ..identification.identifiability import independent_columns
+from ..identification.parameters import parameter_set
+from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
 from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -36,12 +36,10 @@ from .selection import Selection, select
 
 __all__ = [
     "SELECTION_BYTES",
-    "blocky",
     "chains_model",
     "check_selection_memory",
     "choose",
     "flush_data",
-    "level_candidates",
     "offer_directions",
     "selection_columns",
     "structural",
@@ -58,47 +56,41 @@ a few %: fitted to the whole-process peaks of ``calib calibrate`` on TALOS sole 
 and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."""
 
 
-def check_selection_memory(data: ContactData, nominal: MDHModel, level: str, comp: int) -> None:
-    """Refuse, before any work, a calibration that would need more than 2 GB.
+def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
+    """Refuse in one line, before any work, contact terms that would need more than 2 GB.
 
     Args:
-        data: The touches.
-        nominal: The chain's MDH model.
+        chains: The terms' chains.
+        data: Each chain's data (its touches checked; other kinds pass).
         level: The parameter level (``auto`` selects among dense columns).
-        comp: Number of joint compliance columns.
+        comp: Number of joint compliance columns offered (``elastic``).
 
     Raises:
-        InvalidArgumentError: The estimate (:data:`SELECTION_BYTES`) exceeds
+        InvalidArgumentError: A term's estimate (:data:`SELECTION_BYTES`) exceeds
             ``MAX_WORK_BYTES``; says what to do.
     """
-    kind = data.kind
-    objects = len(data.contacts) * len(kind.object_dofs)
-    dense = len(kind.contact_dofs) + len(level_candidates(nominal, "auto")) + comp
     per_touch, per_column, per_object = SELECTION_BYTES
     auto = level == "auto"
-    need = data.m * (per_touch + auto * dense * per_column + objects * per_object)
-    if need > MAX_WORK_BYTES:
+    for chain, d in zip(chains, data, strict=True):
+        if not isinstance(d, ContactData):
+            continue
+        kind = d.kind
+        objects = len(d.contacts) * len(kind.object_dofs)
+        mdh = from_chain(chain)  # auto's candidates: the complete set's joint rows 1..n
+        rows = sum(1 <= p.row <= mdh.n for p in parameter_set(mdh, "complete").parameters)
+        dense = len(kind.contact_dofs) + rows + comp
+        need = d.m * (per_touch + auto * dense * per_column + objects * per_object)
+        if need <= MAX_WORK_BYTES:
+            continue
         way = "fewer touches or " + f"{kind.object_name}s"
-        if auto and data.m * (per_touch + objects * per_object) <= MAX_WORK_BYTES:
+        if auto and d.m * (per_touch + objects * per_object) <= MAX_WORK_BYTES:
             way = f"give a level (params complete, paper, offsets or frames), or {way}"
         selected = f", {dense} other columns to select" if auto else ""
         raise InvalidArgumentError(
-            f"{data.m} touches of {len(data.contacts)} {kind.object_name}(s) ({objects} of "
+            f"{d.m} touches of {len(d.contacts)} {kind.object_name}(s) ({objects} of "
             f"their unknowns{selected}) would need about {need / 2**30:.3g} GB, calib allows "
             f"{MAX_WORK_BYTES / 2**30:g} GB: {way}"
         )
-
-
-def level_candidates(nominal: MDHModel, level: str) -> ParameterSet:
-    """The robot parameters a level offers: joint rows 1..n only, in preference order."""
-    if level == "frames":
-        return ParameterSet("none", ())
-    if level == "offsets":
-        return joint_offsets(nominal)
-    pset = parameter_set(nominal, "paper" if level == "paper" else "complete")
-    order = preference_order(nominal, pset)
-    chosen = [pset.parameters[i] for i in order if 1 <= pset.parameters[i].row <= nominal.n]
-    return ParameterSet(pset.label, tuple(chosen))
 
 
 def _in_object(mdh: MDHModel, F: np.ndarray, C: np.ndarray) -> MDHModel:
@@ -159,9 +151,8 @@ def offer_directions(
     """Directions a level offers: (directions or None for components, names, indices).
 
     ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
-    ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n, as the
-    MDH chart offers them (:func:`level_candidates`), turned into directions of joint
-    placement errors
+    ``paper``, ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n
+    (``paper``'s set or the complete one) as directions of joint placement errors
     (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
     offers (a shared joint's) once.
     """
@@ -196,47 +187,31 @@ def offer_directions(
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
     """Each chain's touches at flush postures near them (a measured term's rows as they are).
 
-    With a standing load (``elastic``, one chain touching) the torques are the flush
-    postures'.
+    The projection (:func:`touching_postures`) is flush on the chain's MDH model, which
+    differs from the joint placements' frames the rank test differentiates by round-off
+    (~1e-13 m): dependencies that hold exactly at flush postures would then show at the
+    1e-12 level, above the rank's tolerance. Two Newton steps on the joint positions of the
+    touches that reached their object remove that gap. With a standing load (``elastic``,
+    one chain touching) the torques are the flush postures'.
     """
     parts: list[ContactData | Measurements | PixelPart] = []
-    for s, d in zip(start.states, train, strict=True):
+    for chain, s, d in zip(start.chains, start.states, train, strict=True):
         if not isinstance(s, ContactState):
             parts.append(d)
             continue
-        qf, reached = touching_postures(s, d.q, d.ids)  # the others: as recorded
-        parts.append(_flush_on_frames(start, len(parts), s, dataclasses.replace(d, q=qf), reached))
+        q, reached = touching_postures(s, d.q, d.ids)  # the others: as recorded
+        path = start.placements.path(chain)
+        for _ in range(2):
+            kin = start.placements.frames(chain, q)
+            g = s.gaps(q, d.ids, None, kin) * s.row_weights()
+            J = joint_rows(path, s, d, kin, list(range(chain.n)))
+            q[reached] -= (np.linalg.pinv(J) @ g[..., None])[reached, :, 0]
+        parts.append(dataclasses.replace(d, q=q))
     first = parts[0]
     torques = None
     if load is not None and isinstance(first, ContactData):
         torques = (load.torques(first.q, first.readings),)
     return ChainsData(tuple(parts), torques)
-
-
-def _flush_on_frames(start: ChainsState, c: int, s: ContactState, d: ContactData, reached):
-    """Touches made flush in the geometry the rank test differentiates (the joint frames).
-
-    The projection (:func:`touching_postures`) is flush on the chain's MDH model, which
-    differs from the joint placements' frames by round-off (~1e-13 m): dependencies that
-    hold exactly at flush postures would then show at the 1e-12 level, above the rank's
-    tolerance. Two Newton steps on the joint positions of the touches that reached their
-    object remove that gap.
-    """
-    chain = start.chains[c]
-    path = start.placements.path(chain)
-    q = np.array(d.q, dtype=float)
-    for _ in range(2):
-        kin = start.placements.frames(chain, q)
-        g = s.gaps(q, d.ids, None, kin) * s.row_weights()
-        J = joint_rows(path, s, d, kin, list(range(chain.n)))
-        step = np.linalg.pinv(J) @ g[..., None]
-        q[reached] -= step[reached, :, 0]
-    return dataclasses.replace(d, q=q)
-
-
-def blocky(model: ChainsModel, start: ChainsState) -> bool:
-    """One chain touching many objects: its objects' unknowns eliminated object by object."""
-    return len(start.states) == 1 and isinstance(start.states[0], ContactState) and by_block(model)
 
 
 class AtStart:
@@ -285,7 +260,7 @@ def structural(
 
     ``at``: the Jacobians at the registration made so far (:class:`AtStart`), or None.
     """
-    if blocky(wide, start):
+    if by_block(wide, start):
         return block_structural(wide, start, flush, None)
     A = (at or AtStart(wide, start))(flush).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
@@ -361,7 +336,7 @@ def choose(
     if prior is not None:  # the model's order: the directions, then the compliances
         order = [c for c in columns if c < split] + [c for c in columns if c >= split]
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
-    kin = None if blocky(model, start) else at.kinematics(rows)
+    kin = None if by_block(model, start) else at.kinematics(rows)
     return model, kin, selection, prior
 
 
@@ -378,7 +353,7 @@ def selection_columns(
 ):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.
 
-    Many objects (:func:`blocky`): the objects' columns by block
+    Many objects (:func:`~.contact_fit.by_block`): the objects' columns by block
     (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
     Jacobians at the registration made so far (:class:`AtStart`), or None.
 
@@ -387,7 +362,7 @@ def selection_columns(
         number of always-free dense columns.
     """
     x = np.zeros(wide.size())
-    if not blocky(wide, start):
+    if not by_block(wide, start):
         J = (at or AtStart(wide, start))(data)
         return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
     own, shared, index = wide.blocks(start, x, data)

@@ -21,6 +21,7 @@ import numpy as np
 from ..identification.base_columns import independent_columns
 from .contact_blocks import BlockSystem, block_factors, block_lstsq
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .contact_model import ContactState
 from .solve import TOLERANCE, Fit
 
 __all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
@@ -32,8 +33,10 @@ ACCEPT = 1e-4
 """Smallest ratio of the actual to the predicted reduction of an accepted step."""
 
 
-def by_block(model: ChainsModel) -> bool:
-    """Whether a model of one chain touching has enough objects' unknowns to go by block."""
+def by_block(model: ChainsModel, start: ChainsState) -> bool:
+    """One chain touching with ``BLOCK_UNKNOWNS`` objects' unknowns or more: by block."""
+    if len(start.states) != 1 or not isinstance(start.states[0], ContactState):
+        return False
     K, o = model.object_blocks()
     return K * o >= BLOCK_UNKNOWNS
 

@@ -32,12 +32,6 @@ DOF_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 """Names of a twist's components in a frame's own axes: translation [m], rotation [rad]."""
 
 
-def _twist(dofs: tuple[int, ...], x: np.ndarray) -> np.ndarray:
-    v = np.zeros((*x.shape[:-1], 6))
-    v[..., list(dofs)] = x
-    return v
-
-
 def _moved(T: np.ndarray, v: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Frames ``T [Exp(r), t]`` ``(..., 4, 4)`` by the twists ``v = (t, r)`` ``(..., 6)``.
 
@@ -119,8 +113,10 @@ class ContactFrames:
         """The objects' twists, then the contact's ``(K + 1, 6)``, at unknowns x."""
         x = np.asarray(x, dtype=float)
         o, K = len(self.kind.object_dofs), len(self.ids)
-        objects = _twist(self.kind.object_dofs, x[: K * o].reshape(K, o))
-        return np.concatenate([objects, _twist(self.kind.contact_dofs, x[K * o :])[None]])
+        v = np.zeros((K + 1, 6))
+        v[:K, list(self.kind.object_dofs)] = x[: K * o].reshape(K, o)
+        v[K, list(self.kind.contact_dofs)] = x[K * o :]
+        return v
 
     def relative(
         self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray
@@ -143,14 +139,14 @@ class ContactFrames:
         return self.kind.residual(*self.relative(Rt, pt, index))
 
     def parts(
-        self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray
+        self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray, w: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Pose-error Jacobian of the contact frame in its object's frame, by block.
+        """The kind's gap rows, each weighted by ``w`` (:func:`row_weights`), by block.
 
         Columns: the unknowns of these frames moved by ``x`` from a start (:meth:`moved`),
         at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames. Each
-        touch's own object's ``(m, 6, o)`` (the other objects' columns are zero) and the
-        contact's ``(m, 6, len(contact_dofs))``, shared by every touch
+        touch's own object's ``(m, rows, o)`` (the other objects' columns are zero) and the
+        contact's ``(m, rows, len(contact_dofs))``, shared by every touch
         (:func:`~.contact_blocks.dense` makes them one matrix).
         """
         m, o = len(p), len(self.kind.object_dofs)
@@ -170,7 +166,8 @@ class ContactFrames:
             E[:, :3, :3] = R
             E[:, 3:, 3:] = R
             shared = E @ A[-1][..., list(self.kind.contact_dofs)]
-        return own, shared
+        rows = w[None, :, None]
+        return self.kind.jacobian_rows(own, R) * rows, self.kind.jacobian_rows(shared, R) * rows
 
     def centred(self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray) -> ContactFrames:
         """The planes, each origin its touches' contact points' centroid (other kinds: self).
@@ -186,11 +183,6 @@ class ContactFrames:
         heights = np.einsum("ki,ki->k", normals, self.objects[:, :3, 3])
         planes = plane_frames(normals, heights, pt + Rt @ self.contact[:3, 3], index)
         return ContactFrames(self.kind, self.contact, planes, self.ids)
-
-    def rotate(self, W6_base: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """A pose-error Jacobian in the base frame ``(m, 6, k)`` seen in each touch's object."""
-        FRt = np.swapaxes(self.objects[index, :3, :3], 1, 2)
-        return np.concatenate([FRt @ W6_base[:, :3], FRt @ W6_base[:, 3:]], axis=1)
 
 
 def row_weights(kind: Contact, weight: float) -> np.ndarray:

@@ -132,14 +132,11 @@ class ContactState:
             kin = s.kinematics(data.q, torque)
         index = s._index(data.ids, len(kin.p), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
-        own, shared = s.frames.parts(R, p, index, self._own(x))
-        w = s.row_weights()[None, :, None]
-        return s.kind.jacobian_rows(own, R) * w, s.kind.jacobian_rows(shared, R) * w, index
+        return (*s.frames.parts(R, p, index, self._own(x), s.row_weights()), index)
 
     def own_rows(self, x: np.ndarray, data, kin, moved: ContactState | None = None) -> np.ndarray:
         """:meth:`blocks` as one matrix ``(m, rows, size)`` (as a measured term's own rows)."""
-        own, shared, index = self.blocks(x, data, None, kin, moved)
-        return dense(own, shared, index, len(self.frames.ids))
+        return dense(*self.blocks(x, data, None, kin, moved), len(self.frames.ids))
 
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
         """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of the chain.
@@ -152,7 +149,8 @@ class ContactState:
         W6 = np.concatenate([lin - skew(point) @ ang, ang], axis=1)  # the contact point's motion
         index = self.frames.index(data.ids, data.source)
         Rc, _ = self.frames.relative(R, p, index)
-        rows = self.kind.jacobian_rows(self.frames.rotate(W6, index), Rc)
+        FRt = np.swapaxes(self.frames.objects[index, :3, :3], 1, 2)  # seen in each object
+        rows = self.kind.jacobian_rows(np.concatenate([FRt @ W6[:, :3], FRt @ W6[:, 3:]], 1), Rc)
         return rows * self.row_weights()[None, :, None]
 
 

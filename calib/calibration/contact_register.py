@@ -16,7 +16,9 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from ..core.checks import MAX_WEIGHT, check_number
+import numpy as np
+
+from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, MAX_WEIGHT, check_number, check_size
 from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact
@@ -28,9 +30,9 @@ from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, determined, outliers, validation
 from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_checks import subset
-from .contact_choice import chains_model, flush_data, structural
+from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
-from .contact_term import check_touches, contact_frame, contact_guess, split_contacts
+from .contact_term import contact_frame, split_contacts
 from .instrument import instrument_groups, shared_frame
 from .measured_options import compliance_torques
 from .measured_term import (
@@ -48,16 +50,12 @@ from .placements import Placements, zero_frames
 from .solve import fit
 
 __all__ = [
-    "CHAIN_LEVELS",
     "Registered",
     "Run",
     "determined_unknowns",
     "drawn",
     "register_contact_chains",
 ]
-
-CHAIN_LEVELS = ("auto", "frames", "offsets", "paper", "complete")
-"""Parameter levels of a joint fit (``paper`` and ``complete``: each chain's MDH sets)."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -129,7 +127,10 @@ def _check(run: Run) -> None:
                     f"(ContactData) or measurements (Measurements) like its data, got "
                     f"{type(part).__name__}"
                 )
-            check_touches(part)
+            if not part.m:
+                raise DataError(part.source, "no touches: an empty contact set")
+            check_size(part.m, MAX_TOUCHES, "touches", part.source)
+            check_size(len(part.contacts), MAX_OBJECTS, f"{part.id_column}s", part.source)
             if part.joint_names != c.joint_names:
                 raise DataError(
                     part.source, f"the touches' joints are not those of {c.tool_frame}'s chain"
@@ -186,7 +187,8 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
                 more.append(outliers.set_aside_note(found))
             d = d.subset(~bad) if bad.any() else d
         else:
-            g = contact_guess(d.kind, guess, len(chains))
+            loop = len(chains) > 1 and isinstance(d.kind, FixedPoseContact)  # a closed loop
+            g = np.eye(4) if loop else guess  # (TALOS's soles): from its tool frame
             state, bad, found, more = contact_checks.checked_registration(
                 chain, from_chain(chain, zero=zero), d, v, g, weight
             )
@@ -257,7 +259,7 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """
     _check(run)
     chains, parts = run.chains, pixel_parts(run.chains, run.data)
-    contact_checks.check_memory(chains, parts, "complete")
+    check_selection_memory(chains, parts, "complete")
     plane_of = instrument_groups(
         contact_checks.plane_groups(chains, parts, run.shared_planes), parts, run.instrument
     )
@@ -323,7 +325,7 @@ def register_contact_chains(run: Run) -> Registered:
     load = contact_elastic.term_load(chains, run.data, elastic, run.support)
     data = pixel_parts(chains, run.data)
     validate = run.validate and pixel_parts(chains, run.validate)
-    contact_checks.check_memory(chains, data, opts.level, 0 if load is None else chains[0].n)
+    check_selection_memory(chains, data, opts.level, 0 if load is None else chains[0].n)
     clock = [time.perf_counter()]
     if run.marker is not None and not any(isinstance(d, Measurements) for d in data):
         raise InvalidArgumentError("marker is for measured terms: no term here is measured")

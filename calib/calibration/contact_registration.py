@@ -41,6 +41,7 @@ from ..identification.contacts import (
 from ..kinematics.so3 import rotation_matrix
 from .contact_blocks import BlockSystem, block_lstsq, dense
 from .contact_frames import ContactFrames, plane_frames, row_weights
+from .determined import ill_posed
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
 
@@ -103,18 +104,13 @@ def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarr
     return np.array(normals)
 
 
-def _cost(frames: ContactFrames, R, p, index, weight: float) -> float:
-    g = frames.gaps(R, p, index) * row_weights(frames.kind, weight)
-    return float(np.sum(g**2))
-
-
 def refine(
     frames: ContactFrames,
     rotations: np.ndarray,
     positions: np.ndarray,
     index: np.ndarray,
     weight: float = DEFAULT_WEIGHT,
-) -> tuple[ContactFrames, int]:
+) -> ContactFrames:
     """Gauss-Newton on the unknowns of ``frames`` (the tool placements held), from them.
 
     The weighted gap is the kind's (``kind.residual``, rows ``kind.jacobian_rows``).
@@ -127,7 +123,7 @@ def refine(
         weight: Weight of the angle rows [m/rad].
 
     Returns:
-        The frames at the least-squares minimum and the steps taken.
+        The frames at the least-squares minimum.
 
     Raises:
         ContactGeometryError: Touches that do not fix the unknowns.
@@ -135,16 +131,11 @@ def refine(
     w = row_weights(frames.kind, weight)
     x = np.zeros(frames.size)
     K = len(frames.ids)
-    steps = 0
-    while steps < ITERATIONS:
-        steps += 1
+    for _ in range(ITERATIONS):
         cur = frames.moved(x)
         R, p = cur.relative(rotations, positions, index)
         r = frames.kind.residual(R, p) * w
-        own, shared = cur.parts(R, p, index, x)
-        rows = w[None, :, None]
-        Jo = frames.kind.jacobian_rows(own, R) * rows
-        Jc = frames.kind.jacobian_rows(shared, R) * rows
+        Jo, Jc = cur.parts(R, p, index, x, w)
         sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
         if not sol.smallest > CONDITION_LIMIT * sol.largest:
             A = dense(Jo, Jc, index, K).reshape(-1, frames.size)
@@ -157,13 +148,11 @@ def refine(
         x = x + step
         if np.max(np.abs(step)) < STEP_TOLERANCE:
             break
-    return frames.moved(x), steps
+    return frames.moved(x)
 
 
 def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
     """`` (they cannot separate ...)``: the unknowns of the undetermined directions of ``A``."""
-    from .determined import ill_posed
-
     found = [d for d in ill_posed(A, names) if d.condition >= 1.0 / CONDITION_LIMIT]
     named = sorted({n for d in found for n in d.names}, key=names.index)
     return f" (they cannot separate {', '.join(named)})" if named else ""
@@ -188,7 +177,8 @@ def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
         C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*_tilt_to(guess[:3, :3].T @ ak), 0]))
         planes = plane_frames(normals, heights, p + R @ C[:3, 3], index)
         frames = ContactFrames(kind, C, planes, names)
-        candidates.append((_cost(frames, R, p, index, weight), frames))
+        cost = np.sum((frames.gaps(R, p, index) * row_weights(kind, weight)) ** 2)
+        candidates.append((float(cost), frames))
     return min(candidates, key=lambda c: c[0])[1]
 
 
@@ -280,5 +270,5 @@ def register_contacts(
     frames = start(kind, R, p, guess, index, names, weight)
     if isinstance(kind, FixedPointContact):
         return frames  # the closed form is the least squares
-    frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)[0]
+    frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)
     return frames.centred(R, p, index)

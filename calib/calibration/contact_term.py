@@ -1,20 +1,15 @@
-"""A contact term of the joint engine: its guess, held-out touches, objects and checks.
+"""A contact term of the joint engine: what its touches need beside the engine's model.
 
-What a term of touches (:class:`~calib.measurements.contact_campaign.ContactData`, any
-contact kind: ``plane``, ``plane-point``, ``fixed-point``, ``fixed-pose``; any number of
-objects) needs beside the engine's model (:mod:`.contact_chains`): the contact frame's guess
-(:func:`contact_frame`, :func:`contact_guess`), the touches set aside
-(:func:`split_contacts`), the objects as reported (:func:`contact_objects`) and the check of
-held-out touches that are another object's (:func:`check_held_out_gaps`).
+The contact frame's guess (:func:`contact_frame`), the touches held out by object
+(:func:`split_contacts`), the objects as reported (:func:`contact_objects`), the equations a
+level needs and the held-out touches that are another object's (the checks).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, check_size
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import Contact, FixedPoseContact
 from ..kinematics.so3 import rotation_matrix
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import count as count_postures
@@ -23,13 +18,12 @@ from . import determined
 from .contact_checks import subset
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES
+from .diagnosis import suspect
 
 __all__ = [
     "check_held_out_gaps",
     "check_level_equations",
-    "check_touches",
     "contact_frame",
-    "contact_guess",
     "contact_objects",
     "split_contacts",
 ]
@@ -50,31 +44,6 @@ def check_level_equations(train, unknowns: int, level: str) -> None:
     what = f"parameters of params '{level}' (with the contact's unknowns)"
     touches = count_postures(d.q, d.ids)
     determined.check_equations(touches, d.kind.n_rows, unknowns, what, d.source, unit="touches")
-
-
-def check_touches(data: ContactData) -> None:
-    """Touches that are some, and not more than calib takes.
-
-    Raises:
-        DataError: No touches, or more touches or objects than ``MAX_TOUCHES`` and
-            ``MAX_OBJECTS``.
-    """
-    if not data.m:
-        raise DataError(data.source, "no touches: an empty contact set")
-    check_size(data.m, MAX_TOUCHES, "touches", data.source)
-    check_size(len(data.contacts), MAX_OBJECTS, f"{data.id_column}s", data.source)
-
-
-def contact_guess(kind: Contact, guess: np.ndarray, terms: int) -> np.ndarray:
-    """The contact frame's start of a term of ``kind`` among ``terms`` terms ``(4, 4)``.
-
-    The guess of every kind, but of a ``fixed-pose`` term of a joint fit: a closed loop
-    (TALOS's soles) starts from its tool frame, whatever the arms' guess (only the relative
-    placement of its pose and its contact is seen).
-    """
-    if terms > 1 and isinstance(kind, FixedPoseContact):
-        return np.eye(4)
-    return guess
 
 
 def contact_frame(contact) -> np.ndarray:
@@ -137,8 +106,6 @@ def contact_objects(state: ContactState, train: ContactData, torque=None) -> dic
 
 def check_held_out_gaps(stats, source: str) -> None:
     """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
-    from .diagnosis import suspect
-
     held, fitted = stats["held_out_registration"], stats["train_registration"]
     far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
     if suspect(far, None) and not suspect(near, None):
