@@ -130,7 +130,9 @@ def test_a_problems_options_are_its_values_under_the_same_names(ur5):
         "holdout": 0.2,
         "seed": 4,
     }
-    problem = Problem((Term(*ur5),), params="paper", **given)
+    chain = ur5[0]
+    poses = simulate(chain, configs=30, measure="pose", seed=3).measurements  # angles: weighed
+    problem = Problem((Term(chain, poses),), params="paper", **given)
     assert problem.options() == Options(params="paper", **given)
     assert isinstance(problem, Options) and problem.params == "paper"  # a problem's options
     assert Problem((Term(*ur5),)).options() == Options()  # a chain's level unless given
