@@ -86,6 +86,13 @@ def test_an_orientation_weight_without_angle_rows_is_refused():
         with pytest.raises(InvalidArgumentError, match="no term has any") as info:
             Problem(terms, orientation_weight=0.5)
         assert "\n" not in str(info.value)
+    from calib.calibration.contact_chains import calibrate_contact_chains
+    from calib.calibration.entry import calibrate_contacts
+
+    with pytest.raises(InvalidArgumentError, match="no term has any"):  # the engine's entries
+        calibrate_contact_chains([ur5], [positions], orientation_weight=0.5)
+    with pytest.raises(InvalidArgumentError, match="no term has any"):
+        calibrate_contacts(ur5, points, orientation_weight=0.5)
     planes = simulate_contacts(ur5, 12, "plane", seed=1).data  # a touch's tilts: weighed
     mixed = (Term(ur5, positions), Term(ur5, planes))
     assert Problem(mixed, orientation_weight=0.5).shape == "chains"

@@ -43,7 +43,7 @@ TOP = [
 """Format 3's top-level keys, in order, for every shape and kind."""
 
 PARAMETER = {"name", "joint", "value", "std", "unit", "prior_weight"}
-TERM = {"base", "tool", "kind", "data", "configs"}
+TERM = {"base", "tool", "kind", "data", "configs", "objects"}
 FRAMES = {"measurement", "measured", "markers", "contacts", "world_link", "tool_link", "on_robot"}
 FIT = {"sigma", "condition_number", "predicted_std_mm", "orientation_weight"}
 UNITS = {"m", "rad", "rad/(N m)", "m/N"}
@@ -262,7 +262,7 @@ def _pin_tool(urdf: Path, base: str, tool: str, names, q: np.ndarray) -> np.ndar
 def test_load_calibrated_reads_a_chain_report_of_format_3_and_2(tmp_path):
     """The points predicted from the report are Pinocchio's on the written URDF (the
     measurement frame and markers from the report); a format 2 view gives the same."""
-    from calib import load_calibrated
+    from calib import DataError, load_calibrated
 
     chain = load_chain("ur5")
     camp = simulate(chain, 30, noise_mm=0.05, seed=3, measure="pose")
@@ -283,6 +283,10 @@ def test_load_calibrated_reads_a_chain_report_of_format_3_and_2(tmp_path):
     two = tmp_path / "r2.json"
     two.write_text(json.dumps(old))
     assert np.allclose(load_calibrated(urdf, two).points(q), model.points(q), atol=1e-12)
+    for path in (two, report):  # one chain's file: the tool named must be its tool
+        assert load_calibrated(urdf, path, chain.tool_frame).chain.tool_frame == chain.tool_frame
+        with pytest.raises(DataError, match="tool"):
+            load_calibrated(urdf, path, "wrist_1_link")
 
 
 def test_load_calibrated_and_predict_read_a_contact_report(tmp_path, capsys):
@@ -388,6 +392,34 @@ def test_load_calibrated_reads_a_touching_term_of_several_where_its_base_holds_t
     assert np.max(np.abs(expected[:, 2, 3])) < 5e-3
     with pytest.raises(DataError, match="predict the term whose base holds them"):
         load_calibrated(urdf, report, other[0].tool_frame)
+
+
+def test_each_touching_term_is_read_against_the_table_it_touched(tmp_path):
+    """Both TALOS arms from ``base_link``, each touching its own table: both tables are in the
+    one base frame; each term's touches are flush on its own (the report's ``terms[k].
+    objects``), not on the first table of the base (the other arm's: 352 mm off)."""
+    import dataclasses
+
+    from calib import Problem, Term, load_calibrated
+
+    arms = [load_robot("talos_full_v2.urdf", "base_link", f"gripper_{s}_base_link")
+            for s in ("left", "right")]  # fmt: skip
+    data = [simulate_contacts(c, 40, "plane", seed=2 + i).data for i, c in enumerate(arms)]
+    data[1] = dataclasses.replace(data[1], ids=tuple("right_" + i for i in data[1].ids))
+    urdf, report = tmp_path / "c.urdf", tmp_path / "c.json"
+    calibrate(Problem(tuple(Term(c, d) for c, d in zip(arms, data, strict=True)))).write(
+        urdf, report=report
+    )
+    doc = json.loads(report.read_text())
+    assert [t["objects"] for t in doc["terms"]] == [["table1"], ["right_table1"]]
+    for arm, touches, table in zip(arms, data, ("table1", "right_table1"), strict=True):
+        model = load_calibrated(urdf, report, arm.tool_frame)
+        T = _pin_tool(urdf, arm.base_frame, arm.tool_frame, arm.joint_names, touches.q)
+        C = np.array(doc["frames"]["contacts"][arm.tool_frame]["matrix"])
+        P = np.array(doc["objects"]["planes"][table]["matrix"])
+        expected = np.linalg.inv(P) @ T @ C
+        assert np.allclose(model.contact_placements(touches.q), expected, atol=1e-9)
+        assert np.max(np.abs(expected[:, 2, 3])) < 5e-3
 
 
 def test_a_refused_calibrations_report_is_not_read(tmp_path, reports):

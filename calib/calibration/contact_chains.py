@@ -64,6 +64,7 @@ from .pixel_chain import (
     PixelTermState,
 )
 from .pixel_chain_result import PixelChain, pixel_result
+from .problem import check_weighed
 from .solve import fit, fitted_values, gauss_newton_finish
 
 __all__ = [
@@ -154,6 +155,7 @@ def calibrate_contact_chains(
         InvalidArgumentError: A bad argument.
         DataError: Touches that do not belong to their chain or determine too little.
     """
+    check_weighed(orientation_weight, data)
     options = Options(params=params, orientation_weight=orientation_weight, elastic=elastic,
                       max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
     run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,

@@ -393,6 +393,7 @@ class ContactChainsCalibration(Result, ChainView):
                     "kind": c.kind.label,
                     "data": c.source,
                     "configs": int(c.stats["train"].m),
+                    "objects": list(c.objects()) if isinstance(c, ChainContacts) else [],
                 }
                 for c in self.chains
             ],

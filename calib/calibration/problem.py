@@ -18,6 +18,7 @@ option that does not apply is an error, here and on the command line.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import KW_ONLY, dataclass, fields
 
 import numpy as np
@@ -30,7 +31,7 @@ from ..measurements.data import Measurements
 from .options import APPLIES, SHAPE_LABELS, Options
 from .pixel_chain import PixelData
 
-__all__ = ["Problem", "Term"]
+__all__ = ["Problem", "Term", "check_weighed"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,11 +177,7 @@ class Problem(Options):
                 continue
             where = " or ".join(SHAPE_LABELS[s] for s in shapes)
             raise InvalidArgumentError(f"{name} is for {where}, not {SHAPE_LABELS[shape]}")
-        if self.orientation_weight is not None and not any(map(_angles, self.terms)):
-            raise InvalidArgumentError(
-                "orientation_weight weighs orientation or tilt rows: no term has any (positions, "
-                "plane-point or fixed-point touches, image points)"
-            )
+        check_weighed(self.orientation_weight, [t.data for t in self.terms])
         if shape == "chains":
             self._check_terms()
 
@@ -203,12 +200,27 @@ class Problem(Options):
             )
 
 
-def _angles(term: Term) -> bool:
-    """Whether a term's data have rows of angles (orientations, a touch's tilts)."""
-    data = term.data
-    if isinstance(data, Measurements):
-        return data.quaternion is not None
-    return isinstance(data, ContactData) and any(data.kind.angular)
+def check_weighed(weight: float | None, data: Sequence) -> None:
+    """Refuse an orientation weight [m/rad] where no term's data have angle rows to weigh.
+
+    Args:
+        weight: The orientation weight given, or None.
+        data: Each term's data (measurements: orientations; touches: tilts; pixels: none).
+
+    Raises:
+        InvalidArgumentError: A weight is given and no term has orientation or tilt rows.
+    """
+    if weight is None:
+        return
+    for d in data:
+        if isinstance(d, Measurements) and d.quaternion is not None:
+            return
+        if isinstance(d, ContactData) and any(d.kind.angular):
+            return
+    raise InvalidArgumentError(
+        "orientation_weight weighs orientation or tilt rows: no term has any (positions, "
+        "plane-point or fixed-point touches, image points)"
+    )
 
 
 def _same(a, b) -> bool:

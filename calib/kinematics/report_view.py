@@ -90,6 +90,8 @@ def _term(terms: list, tool: str | None, src: str) -> dict:
             src, f"a report of {len(terms)} terms: name the tool of one ({', '.join(names)})"
         )
     found = [t for t, n in zip(terms, names, strict=True) if n == tool]
+    if len(found) > 1:  # a camera's term on the same tool predicts no points
+        found = [t for t in found if t.get("kind") != "pixels"] or found
     if len(found) != 1:
         what = "no term" if not found else f"{len(found)} terms"
         raise DataError(src, f"{what} with tool {tool!r} (the terms' tools: {', '.join(names)})")
@@ -133,13 +135,16 @@ def _contact_fields(doc: dict, frames: dict, term: dict, src: str) -> dict:
     ]
     if not isinstance(contact, dict) or not found:
         raise DataError(src, "'frames.contacts' or 'objects' is missing or malformed")
-    base = term.get("base")
+    base, touched = term.get("base"), term.get("objects")
+    if isinstance(touched, list) and isinstance(objects, dict):  # the term's own (format 3)
+        found = [o for g in objects.values() if isinstance(g, dict)
+                 for i, o in g.items() if i in touched and isinstance(o, dict)]  # fmt: skip
     first = next((o for o in found if o.get("frame") in (None, base)), None)
     if first is None:
         raise DataError(
             src,
-            f"the objects are in {found[0].get('frame')}'s frame, not {term.get('tool')}'s "
-            f"base {base}: predict the term whose base holds them",
+            f"the objects {term.get('tool')} touched are not in its base {base}'s frame: "
+            f"predict the term whose base holds them",
         )
     return {
         "gravity": {"frame": term.get("base"), "vector": [0.0, 0.0, -STANDING_GRAVITY]},
