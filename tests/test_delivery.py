@@ -351,7 +351,7 @@ FORMAT3_KEYS = {
 
 CHAIN_REPORT_KEYS = {
     *FORMAT3_KEYS,
-    *(f"terms[].{k}" for k in ("base", "tool", "kind", "data", "configs")),
+    *(f"terms[].{k}" for k in ("base", "tool", "kind", "data", "configs", "objects")),
     *(f"parameters[].{k}" for k in ("name", "joint", "value", "std", "unit", "prior_weight")),
     *(f"errors.{p}" for p in ("train", "held_out", "terms")), "errors.held_out.source",
     "errors.held_out.predicted_std_mm", "errors.terms[].train", "errors.terms[].held_out",
