@@ -75,18 +75,14 @@ def _shuffled(data):
     return dataclasses.replace(data, q=q)
 
 
-def _swaps(data) -> Iterator[tuple[str, object]]:
+def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
     names = data.joint_names
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             q = data.q.copy()
             q[:, [i, j]] = q[:, [j, i]]
             yield f"joint columns {names[i]} and {names[j]} swapped", dataclasses.replace(data, q=q)
-
-
-def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
-    yield from _swaps(data)
     if np.any(revolute):
         q = data.q.copy()
         q[:, revolute] = np.deg2rad(q[:, revolute])
@@ -110,23 +106,14 @@ ORIENTATION_SUSPECT = 0.1
 """Registration RMS orientation error [rad] above which the orientation mistakes are tried."""
 
 
-def _quaternion_orders(data) -> Iterator[tuple[str, object]]:
-    quat = data.quaternion
-    yield (
-        "quaternions written w, x, y, z (orientation quat-wxyz)",
-        dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
-    )
-    yield (
-        "quaternions written x, y, z, w (orientation quat-xyzw)",
-        dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
-    )
-
-
 def _orientation_mistakes(data) -> Iterator[tuple[str, object]]:
     """(description, corrected data) for each usual mistake of the orientation columns."""
-    angles = data.angles
+    angles, quat = data.angles, data.quaternion
     if angles is None:
-        yield from _quaternion_orders(data)
+        yield "quaternions written w, x, y, z (orientation quat-wxyz)", dataclasses.replace(
+            data, quaternion=quat[:, [1, 2, 3, 0]])  # fmt: skip
+        yield "quaternions written x, y, z, w (orientation quat-xyzw)", dataclasses.replace(
+            data, quaternion=quat[:, [3, 0, 1, 2]])  # fmt: skip
         return
 
     def read_as(values: np.ndarray):
