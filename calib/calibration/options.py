@@ -141,12 +141,13 @@ class Options:
 
     Attributes:
         params: Parameter level, one of :data:`LEVELS`, or None: the shape's default
-            (:attr:`level`; a tree: :data:`TREE_LEVELS`, :func:`check_tree_level`).
+            (``auto``, a tree's ``complete``: :attr:`level`; a tree takes :data:`TREE_LEVELS`,
+            :func:`check_tree_level`).
         fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
-        free: Parameter names always fitted.
+        free: Parameter names (a compliance ``c1``.. included) always fitted.
         elastic: Fit joint compliance under gravity (None: only if ``free`` names one).
-        loss: One of :data:`LOSSES`.
-        noise_mm: Instrument noise [mm], or None.
+        loss: One of :data:`LOSSES` (a robust one's scale: ``noise_mm``).
+        noise_mm: Instrument noise [mm], or None (unknown).
         orientation_weight: Weight of the orientation rows [m/rad], or None: estimated.
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside, in [0, 1).
