@@ -111,12 +111,6 @@ def _joints(part) -> np.ndarray:
     return np.asarray(part.rows.q if isinstance(part, PixelPart) else part.q, dtype=float)
 
 
-def _seen_joints(state, part, torque) -> np.ndarray:
-    """A chain's joint positions the geometry sees (a compliant chain's deflected)."""
-    s = _robot_part(state)
-    return _joints(part) if isinstance(s, PixelTermState) else s.joints(_joints(part), torque)
-
-
 def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """The tool side's motion per unit motion of a chain's joints ``joints``.
 
@@ -194,12 +188,12 @@ class ChainsState:
         A compliant chain's joints deflect under the data's gravity torques (``torque`` is
         the solver's argument, unused).
         """
-        return tuple(
-            self.placements.frames(chain, _seen_joints(s, d, data.torque(c)))
-            for c, (chain, s, d) in enumerate(
-                zip(self.chains, self.states, data.parts, strict=True)
-            )
-        )
+        frames = []
+        for c, (chain, s, d) in enumerate(zip(self.chains, self.states, data.parts, strict=True)):
+            robot, q = _robot_part(s), _joints(d)
+            seen = q if isinstance(robot, PixelTermState) else robot.joints(q, data.torque(c))
+            frames.append(self.placements.frames(chain, seen))
+        return tuple(frames)
 
     step_kinematics = kinematics  # what :class:`~.solve.Problem` makes once per x
 
