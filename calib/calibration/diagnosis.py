@@ -68,13 +68,6 @@ SHUFFLE_SEED = 29
 """Seed of the shuffle of the joint columns that a correction must not explain too."""
 
 
-def _shuffled(data):
-    """The rows with each joint column permuted across them (seeded): no posture kept."""
-    rng = np.random.default_rng(SHUFFLE_SEED)
-    q = np.column_stack([rng.permutation(col) for col in data.q.T])
-    return dataclasses.replace(data, q=q)
-
-
 def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
     """(description, corrected data) for each usual mistake (of the joints only, or all)."""
     names = data.joint_names
@@ -148,9 +141,14 @@ def constant_joints(data) -> list[str]:
 
 
 def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
-    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled."""
+    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled.
+
+    Shuffled: each joint column permuted across the rows (seeded), no posture kept.
+    """
+    rng = np.random.default_rng(SHUFFLE_SEED)
     try:
-        null = registration_rms(_shuffled(fixed))
+        q = np.column_stack([rng.permutation(col) for col in fixed.q.T])
+        null = registration_rms(dataclasses.replace(fixed, q=q))
     except (CalibError, np.linalg.LinAlgError, ValueError):  # shuffled rows cannot be fitted
         return True
     return bool(rms * EXPLAINS < null)
