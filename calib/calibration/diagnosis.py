@@ -47,9 +47,7 @@ __all__ = [
     "SHUFFLE_SEED",
     "SUSPECT",
     "Words",
-    "constant_joints",
     "explain",
-    "likely_cause",
     "suspect",
 ]
 
@@ -132,7 +130,7 @@ def suspect(rms: float, noise: float | None) -> bool:
     return rms > limit
 
 
-def constant_joints(data) -> list[str]:
+def _constant_joints(data) -> list[str]:
     """Joint columns that hold one value in every row (of data with several rows)."""
     if data.m < 2:
         return []
@@ -154,7 +152,7 @@ def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: floa
     return bool(rms * EXPLAINS < null)
 
 
-def likely_cause(
+def _likely_cause(
     data,
     revolute: np.ndarray,
     registration_rms: Callable[[object], float],
@@ -225,7 +223,7 @@ def explain(
         first: That error of ``data`` as they are [m] (infinite: no registration).
         noise: The instrument's noise [m], or None.
         words: How the messages name the rows.
-        joints_only: Try the joint columns' mistakes only (:func:`likely_cause`).
+        joints_only: Try the joint columns' mistakes only (:func:`_likely_cause`).
         orientation: The errors are orientation errors [rad] (suspect above
             ``ORIENTATION_SUSPECT``), the mistakes the orientation columns'.
 
@@ -242,12 +240,12 @@ def explain(
     amount = _degrees if orientation else _millimetres
     of = f" of {words.error}" if orientation else ""
     leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
-    still = [] if orientation else constant_joints(data)
+    still = [] if orientation else _constant_joints(data)
     if still:
         raise DataError(data.source, f"the registration {leaves} and joint column(s) "
                         f"{', '.join(still)} hold one value in every {words.row}: were those "
                         "joints logged?")  # fmt: skip
-    cause = likely_cause(data, revolute, error, first, orientation, joints_only)
+    cause = _likely_cause(data, revolute, error, first, orientation, joints_only)
     if cause is not None:
         before = amount(first) if known else "no registration"
         raise DataError(data.source, f"the {words.data} look like {cause[0]}: the "

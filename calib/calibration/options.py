@@ -30,7 +30,6 @@ __all__ = [
     "SHAPE_LABELS",
     "TREE_LEVELS",
     "Options",
-    "check_run_options",
     "check_tree_level",
     "checked_arguments",
 ]
@@ -81,7 +80,7 @@ applies to. Every other option applies to every shape; one given where it does n
 an error (:class:`~.problem.Problem`; the command line adds its own flags to it)."""
 
 
-def check_run_options(max_iterations, holdout, seed) -> None:
+def _check_run_options(max_iterations, holdout, seed) -> None:
     """The options every calibration takes, chain or tree: one check, one-line errors.
 
     Args:
@@ -188,7 +187,7 @@ class Options:
         ):
             if value is not None:
                 check_number(value, f"the {name}", 0.0, top, above=True)
-        check_run_options(self.max_iterations, self.holdout, self.seed)
+        _check_run_options(self.max_iterations, self.holdout, self.seed)
         object.__setattr__(self, "fix", _names("fix", self.fix))
         object.__setattr__(self, "free", _names("free", self.free))
         both = set(self.fix) & set(self.free)

@@ -45,7 +45,6 @@ __all__ = [
     "ChainPath",
     "JointFrames",
     "Placements",
-    "axis_bases",
     "chain_frames",
     "joint_twists",
     "mdh_directions",
@@ -59,7 +58,7 @@ COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
 """The six components of a joint's placement error, in its axis frame."""
 
 
-def axis_bases(model: pin.Model, ids) -> np.ndarray:
+def _axis_bases(model: pin.Model, ids) -> np.ndarray:
     """Each joint's axis frame's axes in its joint frame ``(J, 3, 3)``: columns x, y, z.
 
     z is the joint's axis; x the joint frame's x (its y for an axis near x) made
@@ -260,7 +259,7 @@ class Placements:
         """
         model = chains[0].model
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
-        bases = axis_bases(model, ids)
+        bases = _axis_bases(model, ids)
         names = tuple(model.names[j] for j in ids)
         paths = []
         for c, zero in zip(chains, zero_frames(chains) if zeros is None else zeros, strict=True):
