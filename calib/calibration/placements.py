@@ -391,20 +391,16 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
         c if c.model is model else dataclasses.replace(c, model=model, ideal_model=None)
         for c in chains
     ]
-    return tuple(
-        c.zero_frames(oMi) for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
-    )
-
-
-def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
-    """The joint placements at each chain's zero configuration: one walk for equal ones."""
-    q0 = [pin_configurations(model, c.q_ref, c.joint_ids, np.zeros((1, c.n)))[0] for c in chains]
-    ends = [model.frames[f].parentJoint for c in chains for f in (c.base_id, c.tool_id)]
-    if all(np.array_equal(q, q0[0]) for q in q0):
-        return [joint_placements(model, q0[0], last=tuple(ends))] * len(chains)
-    return [
-        joint_placements(model, q, last=tuple(ends[2 * i : 2 * i + 2])) for i, q in enumerate(q0)
-    ]
+    q0 = [pin_configurations(model, c.q_ref, c.joint_ids, np.zeros((1, c.n)))[0] for c in moved]
+    ends = [model.frames[f].parentJoint for c in moved for f in (c.base_id, c.tool_id)]
+    if all(np.array_equal(q, q0[0]) for q in q0):  # the joint placements at each zero
+        oMi = [joint_placements(model, q0[0], last=tuple(ends))] * len(moved)
+    else:
+        oMi = [
+            joint_placements(model, q, last=tuple(ends[2 * i : 2 * i + 2]))
+            for i, q in enumerate(q0)
+        ]
+    return tuple(c.zero_frames(o) for c, o in zip(moved, oMi, strict=True))
 
 
 def joint_twists(
