@@ -47,15 +47,13 @@ __all__ = [
     "ChainsData",
     "ChainsModel",
     "ChainsState",
-    "joint_motions",
     "joint_rows",
     "on_models",
     "padded",
-    "row_count",
 ]
 
 
-def row_count(kinds) -> int:
+def _row_count(kinds) -> int:
     """Rows per touch of a fit of chains of these kinds: the most of any kind."""
     return max(len(k.row_names) for k in kinds)
 
@@ -111,13 +109,7 @@ def _joints(part) -> np.ndarray:
     return np.asarray(part.rows.q if isinstance(part, PixelPart) else part.q, dtype=float)
 
 
-def _seen_joints(state, part, torque) -> np.ndarray:
-    """A chain's joint positions the geometry sees (a compliant chain's deflected)."""
-    s = _robot_part(state)
-    return _joints(part) if isinstance(s, PixelTermState) else s.joints(_joints(part), torque)
-
-
-def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """The tool side's motion per unit motion of a chain's joints ``joints``.
 
     Joint j's motion is a turn about (a slide along) the z axis of its frame in ``kin``,
@@ -137,7 +129,7 @@ def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]
 
 def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
     """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``."""
-    return s.motion_rows(kin, d, *joint_motions(path, kin, joints))
+    return s.motion_rows(kin, d, *_joint_motions(path, kin, joints))
 
 
 def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
@@ -194,12 +186,12 @@ class ChainsState:
         A compliant chain's joints deflect under the data's gravity torques (``torque`` is
         the solver's argument, unused).
         """
-        return tuple(
-            self.placements.frames(chain, _seen_joints(s, d, data.torque(c)))
-            for c, (chain, s, d) in enumerate(
-                zip(self.chains, self.states, data.parts, strict=True)
-            )
-        )
+        frames = []
+        for c, (chain, s, d) in enumerate(zip(self.chains, self.states, data.parts, strict=True)):
+            robot, q = _robot_part(s), _joints(d)
+            seen = q if isinstance(robot, PixelTermState) else robot.joints(q, data.torque(c))
+            frames.append(self.placements.frames(chain, seen))
+        return tuple(frames)
 
     step_kinematics = kinematics  # what :class:`~.solve.Problem` makes once per x
 
@@ -238,7 +230,7 @@ class ChainsState:
         """
         if kin is None:
             kin = self.kinematics(data, torque)
-        rows = row_count(s.kind for s in self.states)
+        rows = _row_count(s.kind for s in self.states)
         parts = zip(self.states, data.parts, kin, strict=True)
         out = [s.residuals(d, None, k) for s, d, k in parts]
         scaled = (r if self.scale(c) == 1.0 else self.scale(c) * r for c, r in enumerate(out))
@@ -392,7 +384,7 @@ class ChainsModel:
             state = self.apply(start, x)
         if kin is None:
             kin = state.kinematics(data, torque)
-        rows = row_count(self.chain_kinds())
+        rows = _row_count(self.chain_kinds())
         blocks = []
         for c, d in enumerate(data.parts):
             block = self._block(start, state, x, c, d, kin[c], data.torque(c))
@@ -430,7 +422,7 @@ class ChainsModel:
         if self.free:
             out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
         if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
-            motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
+            motions = _joint_motions(state.placements.path(chain), kin, list(self.compliance))
             out.append(rows_of(*motions) * _gain(torque, self.compliance))
         return out
 

@@ -58,7 +58,6 @@ __all__ = [
     "SELECTION_WORK",
     "Direction",
     "check_equations",
-    "check_marker_work",
     "check_rank",
     "determined_columns",
     "generic_jacobian",
@@ -387,7 +386,7 @@ def identifiable_parameters(
     nominal = from_chain(chain).idealized()
     kind = campaign_kind(measure)
     pset = complete_parameters(nominal)
-    check_marker_work(configs, k, len(pset), kind)
+    _check_marker_work(configs, k, len(pset), kind)
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
     state = nominal_state(nominal, markers, kind)
@@ -427,7 +426,7 @@ def determined_columns(J: np.ndarray, order: list[int] | None = None) -> list[in
 
 MARKER_WORK_COPIES = 4
 """Copies of the identification Jacobian the count holds at once (J, its weighted copy, the
-QR's factors), in the estimate of :func:`check_marker_work`."""
+QR's factors), in the estimate of :func:`_check_marker_work`."""
 
 
 def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
@@ -442,7 +441,7 @@ def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
     return MARKER_WORK_COPIES * 8 * rows * cols
 
 
-def check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
+def _check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
     """Refuse, before any work, K markers whose count would need more than MAX_WORK_BYTES.
 
     Raises:

@@ -47,9 +47,7 @@ __all__ = [
     "SHUFFLE_SEED",
     "SUSPECT",
     "Words",
-    "constant_joints",
     "explain",
-    "likely_cause",
     "suspect",
 ]
 
@@ -68,25 +66,14 @@ SHUFFLE_SEED = 29
 """Seed of the shuffle of the joint columns that a correction must not explain too."""
 
 
-def _shuffled(data):
-    """The rows with each joint column permuted across them (seeded): no posture kept."""
-    rng = np.random.default_rng(SHUFFLE_SEED)
-    q = np.column_stack([rng.permutation(col) for col in data.q.T])
-    return dataclasses.replace(data, q=q)
-
-
-def _swaps(data) -> Iterator[tuple[str, object]]:
+def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
     names = data.joint_names
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             q = data.q.copy()
             q[:, [i, j]] = q[:, [j, i]]
             yield f"joint columns {names[i]} and {names[j]} swapped", dataclasses.replace(data, q=q)
-
-
-def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
-    yield from _swaps(data)
     if np.any(revolute):
         q = data.q.copy()
         q[:, revolute] = np.deg2rad(q[:, revolute])
@@ -110,23 +97,14 @@ ORIENTATION_SUSPECT = 0.1
 """Registration RMS orientation error [rad] above which the orientation mistakes are tried."""
 
 
-def _quaternion_orders(data) -> Iterator[tuple[str, object]]:
-    quat = data.quaternion
-    yield (
-        "quaternions written w, x, y, z (orientation quat-wxyz)",
-        dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
-    )
-    yield (
-        "quaternions written x, y, z, w (orientation quat-xyzw)",
-        dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
-    )
-
-
 def _orientation_mistakes(data) -> Iterator[tuple[str, object]]:
     """(description, corrected data) for each usual mistake of the orientation columns."""
-    angles = data.angles
+    angles, quat = data.angles, data.quaternion
     if angles is None:
-        yield from _quaternion_orders(data)
+        yield "quaternions written w, x, y, z (orientation quat-wxyz)", dataclasses.replace(
+            data, quaternion=quat[:, [1, 2, 3, 0]])  # fmt: skip
+        yield "quaternions written x, y, z, w (orientation quat-xyzw)", dataclasses.replace(
+            data, quaternion=quat[:, [3, 0, 1, 2]])  # fmt: skip
         return
 
     def read_as(values: np.ndarray):
@@ -152,7 +130,7 @@ def suspect(rms: float, noise: float | None) -> bool:
     return rms > limit
 
 
-def constant_joints(data) -> list[str]:
+def _constant_joints(data) -> list[str]:
     """Joint columns that hold one value in every row (of data with several rows)."""
     if data.m < 2:
         return []
@@ -161,15 +139,20 @@ def constant_joints(data) -> list[str]:
 
 
 def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
-    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled."""
+    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled.
+
+    Shuffled: each joint column permuted across the rows (seeded), no posture kept.
+    """
+    rng = np.random.default_rng(SHUFFLE_SEED)
     try:
-        null = registration_rms(_shuffled(fixed))
+        q = np.column_stack([rng.permutation(col) for col in fixed.q.T])
+        null = registration_rms(dataclasses.replace(fixed, q=q))
     except (CalibError, np.linalg.LinAlgError, ValueError):  # shuffled rows cannot be fitted
         return True
     return bool(rms * EXPLAINS < null)
 
 
-def likely_cause(
+def _likely_cause(
     data,
     revolute: np.ndarray,
     registration_rms: Callable[[object], float],
@@ -240,7 +223,7 @@ def explain(
         first: That error of ``data`` as they are [m] (infinite: no registration).
         noise: The instrument's noise [m], or None.
         words: How the messages name the rows.
-        joints_only: Try the joint columns' mistakes only (:func:`likely_cause`).
+        joints_only: Try the joint columns' mistakes only (:func:`_likely_cause`).
         orientation: The errors are orientation errors [rad] (suspect above
             ``ORIENTATION_SUSPECT``), the mistakes the orientation columns'.
 
@@ -257,12 +240,12 @@ def explain(
     amount = _degrees if orientation else _millimetres
     of = f" of {words.error}" if orientation else ""
     leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
-    still = [] if orientation else constant_joints(data)
+    still = [] if orientation else _constant_joints(data)
     if still:
         raise DataError(data.source, f"the registration {leaves} and joint column(s) "
                         f"{', '.join(still)} hold one value in every {words.row}: were those "
                         "joints logged?")  # fmt: skip
-    cause = likely_cause(data, revolute, error, first, orientation, joints_only)
+    cause = _likely_cause(data, revolute, error, first, orientation, joints_only)
     if cause is not None:
         before = amount(first) if known else "no registration"
         raise DataError(data.source, f"the {words.data} look like {cause[0]}: the "

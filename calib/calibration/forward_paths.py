@@ -135,7 +135,7 @@ def paths(
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         state = _Batch(A, e, rows, start, candidates, train, objects)
-        errors, chosen = [state.start_errors()], []
+        errors, chosen = [np.where(state.lost, np.inf, state.vv)], []  # a copy: vv moves on
         for _ in candidates:
             active = state.prune()
             if not active.any():
@@ -215,10 +215,6 @@ class _Batch:
         """``v = M r`` and its squares by configuration."""
         self.v = np.einsum("bijm,bjm->bim", self.Minv, self.r)
         self.vv = np.einsum("bim,bim->bm", self.v, self.v)
-
-    def start_errors(self) -> np.ndarray:
-        """Squared left-out errors of the start ``(b, m)``."""
-        return np.where(self.lost, np.inf, self.vv)  # a copy: vv follows the steps in place
 
     def prune(self) -> np.ndarray:
         """Mark the dependent candidates dead; the subsets with one alive ``(b,)``."""

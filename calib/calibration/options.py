@@ -30,7 +30,6 @@ __all__ = [
     "SHAPE_LABELS",
     "TREE_LEVELS",
     "Options",
-    "check_run_options",
     "check_tree_level",
     "checked_arguments",
 ]
@@ -81,7 +80,7 @@ applies to. Every other option applies to every shape; one given where it does n
 an error (:class:`~.problem.Problem`; the command line adds its own flags to it)."""
 
 
-def check_run_options(max_iterations, holdout, seed) -> None:
+def _check_run_options(max_iterations, holdout, seed) -> None:
     """The options every calibration takes, chain or tree: one check, one-line errors.
 
     Args:
@@ -141,12 +140,13 @@ class Options:
 
     Attributes:
         params: Parameter level, one of :data:`LEVELS`, or None: the shape's default
-            (:attr:`level`; a tree: :data:`TREE_LEVELS`, :func:`check_tree_level`).
+            (``auto``, a tree's ``complete``: :attr:`level`; a tree takes :data:`TREE_LEVELS`,
+            :func:`check_tree_level`).
         fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
-        free: Parameter names always fitted.
+        free: Parameter names (a compliance ``c1``.. included) always fitted.
         elastic: Fit joint compliance under gravity (None: only if ``free`` names one).
-        loss: One of :data:`LOSSES`.
-        noise_mm: Instrument noise [mm], or None.
+        loss: One of :data:`LOSSES` (a robust one's scale: ``noise_mm``).
+        noise_mm: Instrument noise [mm], or None (unknown).
         orientation_weight: Weight of the orientation rows [m/rad], or None: estimated.
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside, in [0, 1).
@@ -187,7 +187,7 @@ class Options:
         ):
             if value is not None:
                 check_number(value, f"the {name}", 0.0, top, above=True)
-        check_run_options(self.max_iterations, self.holdout, self.seed)
+        _check_run_options(self.max_iterations, self.holdout, self.seed)
         object.__setattr__(self, "fix", _names("fix", self.fix))
         object.__setattr__(self, "free", _names("free", self.free))
         both = set(self.fix) & set(self.free)

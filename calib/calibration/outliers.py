@@ -305,7 +305,9 @@ def robust_proposals(
     w = np.ones(m)
     fitted = residual
     for _ in range(IRLS_ROUNDS):
-        fitted = _dense_fit(J, residual, w)
+        s = np.sqrt(w)[:, None]  # the least squares of J x ~ residual, unit i weighted by w[i]
+        A = (J * s[:, :, None]).reshape(-1, J.shape[2])
+        fitted = residual - J @ np.linalg.lstsq(A, (residual * s).ravel(), rcond=None)[0]
         pos, rot, _ = errors(fitted)
         ratio = _ratio(pos) if rot is None else np.maximum(_ratio(pos), _ratio(rot))
         new = np.minimum(1.0, 1.0 / np.maximum(ratio, 1e-300))
@@ -313,14 +315,6 @@ def robust_proposals(
             break
         w = new
     return find_outliers(errors(fitted), noise, rows)[0]
-
-
-def _dense_fit(J: np.ndarray, residual: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """The residuals of the least squares of ``J x ~ residual``, unit i weighted by ``w[i]``."""
-    s = np.sqrt(w)[:, None]
-    p = J.shape[2]
-    x = np.linalg.lstsq((J * s[:, :, None]).reshape(-1, p), (residual * s).ravel(), rcond=None)[0]
-    return residual - J @ x
 
 
 def _ratio(errors: np.ndarray) -> np.ndarray:

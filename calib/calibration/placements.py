@@ -45,7 +45,6 @@ __all__ = [
     "ChainPath",
     "JointFrames",
     "Placements",
-    "axis_bases",
     "chain_frames",
     "joint_twists",
     "mdh_directions",
@@ -59,7 +58,7 @@ COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
 """The six components of a joint's placement error, in its axis frame."""
 
 
-def axis_bases(model: pin.Model, ids) -> np.ndarray:
+def _axis_bases(model: pin.Model, ids) -> np.ndarray:
     """Each joint's axis frame's axes in its joint frame ``(J, 3, 3)``: columns x, y, z.
 
     z is the joint's axis; x the joint frame's x (its y for an axis near x) made
@@ -260,7 +259,7 @@ class Placements:
         """
         model = chains[0].model
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
-        bases = axis_bases(model, ids)
+        bases = _axis_bases(model, ids)
         names = tuple(model.names[j] for j in ids)
         paths = []
         for c, zero in zip(chains, zero_frames(chains) if zeros is None else zeros, strict=True):
@@ -392,20 +391,16 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
         c if c.model is model else dataclasses.replace(c, model=model, ideal_model=None)
         for c in chains
     ]
-    return tuple(
-        c.zero_frames(oMi) for c, oMi in zip(moved, _zero_placements(model, moved), strict=True)
-    )
-
-
-def _zero_placements(model: pin.Model, chains: list[Chain]) -> list[dict]:
-    """The joint placements at each chain's zero configuration: one walk for equal ones."""
-    q0 = [pin_configurations(model, c.q_ref, c.joint_ids, np.zeros((1, c.n)))[0] for c in chains]
-    ends = [model.frames[f].parentJoint for c in chains for f in (c.base_id, c.tool_id)]
-    if all(np.array_equal(q, q0[0]) for q in q0):
-        return [joint_placements(model, q0[0], last=tuple(ends))] * len(chains)
-    return [
-        joint_placements(model, q, last=tuple(ends[2 * i : 2 * i + 2])) for i, q in enumerate(q0)
-    ]
+    q0 = [pin_configurations(model, c.q_ref, c.joint_ids, np.zeros((1, c.n)))[0] for c in moved]
+    ends = [model.frames[f].parentJoint for c in moved for f in (c.base_id, c.tool_id)]
+    if all(np.array_equal(q, q0[0]) for q in q0):  # the joint placements at each zero
+        oMi = [joint_placements(model, q0[0], last=tuple(ends))] * len(moved)
+    else:
+        oMi = [
+            joint_placements(model, q, last=tuple(ends[2 * i : 2 * i + 2]))
+            for i, q in enumerate(q0)
+        ]
+    return tuple(c.zero_frames(o) for c, o in zip(moved, oMi, strict=True))
 
 
 def joint_twists(

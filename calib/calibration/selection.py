@@ -135,14 +135,6 @@ class Selection:
         }
 
 
-def _rms(sq: np.ndarray, rows: int, count: np.ndarray) -> np.ndarray:
-    """RMS error per point of squared errors per configuration ``(..., m)``.
-
-    ``count``: the configurations of the file each stands for.
-    """
-    return np.sqrt(np.sum(sq, axis=-1) / (float(np.sum(count)) * rows / 3))
-
-
 def ridge_strengths(
     A: np.ndarray,
     e: np.ndarray,
@@ -359,21 +351,13 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
-        loo = [float(v) for v in _rms(errors, rows, count[mask])]
+        points = float(np.sum(count[mask])) * rows / 3  # the file's points they stand for
+        loo = [float(v) for v in np.sqrt(np.sum(errors, axis=-1) / points)]  # RMS per point
         steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
         steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
         whole = sel + [c - fixed for c in order]
         out.append((sel + [c - fixed for c in order[:k]], steps[: k + 1], whole, steps))
     return out
-
-
-def _guard_folds(m: int) -> np.ndarray:
-    """Training configurations of the guard's folds ``(folds, m)``.
-
-    Fold f leaves out the configurations i with i mod ``OUTER_FOLDS`` = f.
-    """
-    folds = np.arange(min(OUTER_FOLDS, m))
-    return (np.arange(m) % OUTER_FOLDS)[None, :] != folds[:, None]
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
@@ -478,7 +462,8 @@ def select(
     points, rows = e.size / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)
     m = len(ev) // rows
-    folds = _guard_folds(m)
+    # the guard's folds' training configurations: fold f leaves out those i mod OUTER_FOLDS = f
+    folds = (np.arange(m) % OUTER_FOLDS)[None, :] != np.arange(min(OUTER_FOLDS, m))[:, None]
     train = np.vstack([np.ones((1, m), dtype=bool), folds])  # the whole data, then each fold
     outcomes = _paths_of(A, ev, rows, fixed, names, forced, train, repeats, objects)
     unknowns = A.shape[1] + (0 if objects is None else objects.objects * objects.own.shape[2])
