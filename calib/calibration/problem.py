@@ -105,11 +105,22 @@ class Problem(Options):
     """Terms of one robot fitted together, and the options of the fit.
 
     Its options are :class:`~.options.Options`'s fields, by name (checked when made; a
-    holdout not with a term's validation data), and the joint fit's own (below):
+    holdout not with a term's validation data), and the joint fit's own:
     ``Problem((Term(arm, touches),), params="complete")``.
 
     Attributes:
         terms: One or more :class:`Term` of one URDF.
+        params: Parameter level (``auto``, ``frames``, ``offsets``, ``paper``, ``complete``;
+            default: ``auto``, a tree's ``complete``).
+        fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
+        free: Parameter names (a compliance ``c1``.. included) always fitted.
+        elastic: Fit joint compliance under gravity (default: no, unless ``free`` names one).
+        loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
+        noise_mm: Instrument noise [mm] (default: unknown).
+        orientation_weight: Weight of the orientation rows [m/rad] (default: estimated).
+        max_iterations: Most residual evaluations of each solver run.
+        holdout: Fraction of each term's rows set aside (seeded); not with validation data.
+        seed: Seed of the holdout draw and of the generic configurations of the rank checks.
         shared_planes: Terms of one base frame whose touches name the same plane touch one
             plane (default: a plane per term).
         pose_weight: Factor of the fixed-pose (closed loop) terms' rows against the others'.

@@ -435,10 +435,7 @@ def load_calibrated(
     if isinstance(several, dict):  # one term of several: its chain's joints, rigid if absent
         chain = load_chain(urdf, str(doc.get("base_frame")), str(doc.get("tool_frame")))
         doc = {**doc, "compliance": {j: several.get(j, 0.0) for j in chain.joint_names}}
-    named = tool
     base, tool, joints, c = _fields(doc, src)
-    if named not in (None, tool) and "term_compliance" not in doc:  # format 2, compliance
-        raise DataError(src, f"its chain's tool is {tool}, not {named}")
     chain = chain or load_chain(urdf, base, tool)
     if tuple(joints) != tuple(chain.joint_names):
         raise DataError(

@@ -38,9 +38,9 @@ def compliance_fields(doc: dict, src: str, tool: str | None = None) -> dict:
 
     Raises:
         DataError: A ``format_version`` not in :data:`READ_FORMATS`, a refused
-            calibration's report, a report of several
-            terms without ``tool`` (or a ``tool`` none of its terms has), a camera's term, or
-            a format 3 report whose ``terms`` or ``frames`` are malformed.
+            calibration's report, a ``tool`` none of its terms (or its one chain) has, a report
+            of several terms without ``tool``, a camera's term, or a format 3 report whose
+            ``terms`` or ``frames`` are malformed.
     """
     version = doc.get("format_version")
     if version not in READ_FORMATS:
@@ -55,7 +55,9 @@ def compliance_fields(doc: dict, src: str, tool: str | None = None) -> dict:
             f"the report of a refused calibration ({doc.get('refusal')}): calib wrote no URDF "
             f"for it, and its frames belong to no written model",
         )
-    if version != "3":
+    if version != "3":  # a format 2 report or a compliance file: one chain
+        if tool not in (None, doc.get("tool_frame")):
+            raise DataError(src, f"its chain's tool is {doc.get('tool_frame')}, not {tool}")
         return doc
     terms, frames = doc.get("terms"), doc.get("frames")
     if not (isinstance(terms, list) and terms and all(isinstance(t, dict) for t in terms)):
