@@ -540,3 +540,46 @@ def test_write_urdf_refuses_what_is_not_a_path_for_every_shape():
     result = calibrate(tree, simulate_tree(tree, 30, seed=1).measurements)
     with pytest.raises(InvalidArgumentError, match="path must be a file path"):
         result.write_urdf(3)
+
+
+def test_a_report_reads_only_with_the_urdf_written_with_it(tmp_path, capsys):
+    """A report records the digest of the URDF written with it (``model.urdf_sha256``, by
+    ``Result.write`` and ``calib calibrate``): ``load_calibrated`` and ``calib predict`` refuse
+    the nominal URDF, another calibration's or an edited copy in one line naming both files
+    (they predicted other points with exit 0). A report without the digest (written alone,
+    older) is read as before."""
+    from calib import DataError, calibrate, simulate
+
+    chain = load_chain("ur5")
+    runs = [calibrate(chain, simulate(chain, 30, seed=s).measurements) for s in (1, 2)]
+    files = [(tmp_path / f"c{k}.urdf", tmp_path / f"c{k}.json") for k in (1, 2)]
+    for r, (urdf, report) in zip(runs, files, strict=True):
+        r.write(urdf, report)
+    (urdf, report), (other, _) = files
+    assert load_calibrated(urdf, report).chain.tool_frame == "tool0"
+    edited = tmp_path / "edited.urdf"
+    edited.write_bytes(urdf.read_bytes().replace(b"<robot", b"<robot ", 1))
+    for wrong in (chain.urdf_path, "ur5", other, edited):
+        with pytest.raises(DataError, match="written with another URDF") as info:
+            load_calibrated(wrong, report)
+        assert "\n" not in str(info.value) and f"{report}: " in str(info.value)
+        assert f"than {wrong} " in str(info.value)
+    configs, pred = tmp_path / "q.csv", tmp_path / "p.csv"
+    assert run(capsys, "simulate", "ur5", "--configs", "3", "--out", str(configs))[0] == 0
+    args = ["--compliance", str(report), "--configs", str(configs), "--out", str(pred)]
+    code, _, err = run(capsys, "predict", str(other), *args)
+    assert code == 2 and err.count("\n") == 1 and "written with another URDF" in err, err
+    assert not pred.exists()
+    assert run(capsys, "predict", str(urdf), *args)[0] == 0
+    # calib calibrate records it too; a report without it is read with any URDF.
+    data, cli, cli_report = tmp_path / "m.csv", tmp_path / "cli.urdf", tmp_path / "cli.json"
+    assert run(capsys, "simulate", "ur5", "--configs", "30", "--out", str(data))[0] == 0
+    cal = ["calibrate", "ur5", "--data", str(data), "--out", str(cli), "--report", str(cli_report)]
+    assert run(capsys, *cal)[0] == 0
+    with pytest.raises(DataError, match="written with another URDF"):
+        load_calibrated(urdf, cli_report)
+    assert load_calibrated(cli, cli_report).chain.tool_frame == "tool0"
+    alone = tmp_path / "alone.json"
+    alone.write_text(json.dumps(runs[0].to_dict()))
+    assert "urdf_sha256" not in runs[0].to_dict()["model"]
+    assert load_calibrated(other, alone).chain.tool_frame == "tool0"

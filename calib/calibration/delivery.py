@@ -15,9 +15,10 @@ import numpy as np
 from ..core.fileio import check_outputs, json_text, read_bytes_limited, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFError
 from ..kinematics.origins import changed_origins, origins_document
+from ..kinematics.report_view import urdf_digest
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Result", "RowErrors", "compliance_path"]
+__all__ = ["Result", "RowErrors", "compliance_path", "paired_report"]
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,15 @@ class RowErrors:
 def compliance_path(out: Path) -> Path:
     """The compliance file written next to the URDF ``out``: ``<stem>.compliance.json``."""
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
+
+
+def paired_report(doc: dict, urdf: bytes) -> dict:
+    """The report written with the URDF ``urdf``: its digest in ``model.urdf_sha256``.
+
+    :func:`calib.kinematics.elastic.load_calibrated` (``calib predict``) then refuses
+    another URDF with it.
+    """
+    return {**doc, "model": {**doc["model"], "urdf_sha256": urdf_digest(urdf)}}
 
 
 class Result:
@@ -155,7 +165,8 @@ class Result:
     def write(self, out: str | Path, report: str | Path | None = None) -> None:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
 
-        A refused model writes the report only, then raises. The outputs are checked before
+        A refused model writes the report only, then raises. The report records the URDF's
+        digest (``model.urdf_sha256``: :func:`paired_report`). The outputs are checked before
         anything is written: never an input (the nominal URDF, each term's data and
         validation file), never two the same.
 
@@ -173,14 +184,16 @@ class Result:
                 raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
         out = Path(out)
         doc = self.to_dict()
-        files: dict[Path, str | bytes] = {} if report is None else {Path(report): json_text(doc)}
         extra = {} if self.refusal is not None else self.compliance_files(out)
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
         check_outputs(outputs, _inputs(doc))
-        if self.refusal is not None:
-            write_files_atomic(files)
+        urdf = None if self.refusal is not None else self.urdf()
+        files: dict[Path, str | bytes] = {} if urdf is None else {out: urdf, **extra}
+        if report is not None:
+            files[Path(report)] = json_text(doc if urdf is None else paired_report(doc, urdf))
+        write_files_atomic(files)
+        if urdf is None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        write_files_atomic({out: self.urdf(), **extra, **files})
 
     def __repr__(self) -> str:
         doc = self.to_dict()
