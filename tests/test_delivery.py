@@ -583,3 +583,45 @@ def test_a_report_reads_only_with_the_urdf_written_with_it(tmp_path, capsys):
     alone.write_text(json.dumps(runs[0].to_dict()))
     assert "urdf_sha256" not in runs[0].to_dict()["model"]
     assert load_calibrated(other, alone).chain.tool_frame == "tool0"
+
+
+def test_write_never_overwrites_an_input_read_by_a_relative_name(tmp_path, monkeypatch):
+    """The inputs ``Result.write`` protects are the files read, not their names: after
+    ``os.chdir`` the data and the validation data read by relative names are refused given
+    by their new names (they were overwritten), and those names now name other files, which
+    are written (they were refused). Touches the same way. (The URDF is given by its full
+    name: writing reads it again.)"""
+    import shutil
+
+    from calib import calibrate, read_contacts, read_measurements, simulate, write_measurements
+    from calib.measurements.contact_campaign import simulate_contacts, write_contacts
+
+    here, elsewhere = tmp_path / "in", tmp_path / "elsewhere"
+    here.mkdir()
+    elsewhere.mkdir()
+    shutil.copy(load_chain("ur5").urdf_path, here / "robot.urdf")
+    monkeypatch.chdir(here)
+    chain = load_chain(here / "robot.urdf")
+    rows = simulate(chain, 60, seed=1).measurements
+    write_measurements("m.csv", rows.subset(np.arange(40)))
+    write_measurements("v.csv", rows.subset(np.arange(40, 60)))
+    write_contacts("t.csv", simulate_contacts(chain, 30, "plane", seed=3).data)
+    data, check = read_measurements("m.csv", chain), read_measurements("v.csv", chain)
+    results = {
+        "m.csv": calibrate(chain, data, validate=check),
+        "t.csv": calibrate(chain, read_contacts("t.csv", chain, "plane")),
+    }
+    names = ("robot.urdf", "m.csv", "v.csv", "t.csv")
+    before = {name: (here / name).read_bytes() for name in names}
+    monkeypatch.chdir(elsewhere)
+    for read, r in results.items():
+        assert r.accepted, r.refusal
+        inputs = ("robot.urdf", read, "v.csv") if read == "m.csv" else ("robot.urdf", read)
+        for name in inputs:
+            with pytest.raises(InvalidArgumentError, match="would overwrite"):
+                r.write(here / name)
+            with pytest.raises(InvalidArgumentError, match="would overwrite"):
+                r.write(elsewhere / "cal.urdf", report=here / name)
+        r.write("robot.urdf", report=read)  # other files of the same names
+        assert (elsewhere / "robot.urdf").read_bytes() == r.urdf()
+    assert {name: (here / name).read_bytes() for name in names} == before

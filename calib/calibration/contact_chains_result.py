@@ -228,6 +228,8 @@ class ContactChainsCalibration(Result, ChainView):
             determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
             combinations of shared joints that no chain's MDH rows name: the polish finds
             them).
+        inputs: The files it read (:func:`~.delivery.read_files`), which ``write`` never
+            overwrites; empty: those the report names.
     """
 
     chains: tuple[ChainContacts | MeasuredChain | PixelChain, ...]
@@ -248,6 +250,7 @@ class ContactChainsCalibration(Result, ChainView):
     identifiable: int = 0
     shape: str = "chains"
     solution: Solution | None = None
+    inputs: tuple[tuple[str, str], ...] = ()
 
     @property
     def accepted(self) -> bool:

@@ -6,7 +6,7 @@ files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +18,7 @@ from ..kinematics.origins import changed_origins, origins_document
 from ..kinematics.report_view import urdf_digest
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Result", "RowErrors", "compliance_path", "paired_report"]
+__all__ = ["Result", "RowErrors", "compliance_path", "paired_report", "read_files"]
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,33 @@ def paired_report(doc: dict, urdf: bytes) -> dict:
     return {**doc, "model": {**doc["model"], "urdf_sha256": urdf_digest(urdf)}}
 
 
+def read_files(
+    robots: Sequence, data: Sequence, validate: Sequence | None = None
+) -> tuple[tuple[str, str], ...]:
+    """The files a calibration read, by what they are: what :meth:`Result.write` never overwrites.
+
+    Each data file as its reader resolved it (``path``: absolute, links followed, whatever
+    the working directory is later), else as named (``source``); a pixel term's target and
+    intrinsics too; the nominal URDF resolved now.
+
+    Args:
+        robots: Each term's chain or tree (one URDF).
+        data: Each term's data: measurements, touches or a camera's pixels (``obs``,
+            ``target``, ``camera.intrinsics``).
+        validate: Each term's validation data (None: none), or None.
+    """
+    found = [("the nominal URDF", str(Path(robots[0].urdf_path).resolve()))]
+    held = [None] * len(data) if validate is None else validate
+    for k, (d, v) in enumerate(zip(data, held, strict=True), start=1):
+        for what, given in ((f"the data of term {k}", d), (f"the validation data of term {k}", v)):
+            parts = [] if given is None else [(what, getattr(given, "obs", given))]
+            if given is not None and hasattr(given, "target"):  # a camera's pixels
+                parts += [(f"the target of term {k}", given.target),
+                          (f"the intrinsics of term {k}", given.camera.intrinsics)]  # fmt: skip
+            found += [(name, part.path or part.source) for name, part in parts]
+    return tuple(found)
+
+
 class Result:
     """A calibration's result, whatever the problem (:func:`~calib.calibration.entry.calibrate`).
 
@@ -102,6 +129,9 @@ class Result:
     """
 
     refusal: str | None
+    inputs: tuple[tuple[str, str], ...]
+    """The files it read, by what they are (:func:`read_files`); empty: those its report
+    names."""
 
     def to_dict(self) -> dict:
         """The JSON report (format 3)."""
@@ -168,7 +198,8 @@ class Result:
         A refused model writes the report only, then raises. The report records the URDF's
         digest (``model.urdf_sha256``: :func:`paired_report`). The outputs are checked before
         anything is written: never an input (the nominal URDF, each term's data and
-        validation file), never two the same.
+        validation file, a pixel term's target and intrinsics: :attr:`inputs`, as resolved
+        when they were read), never two the same.
 
         Args:
             out: The calibrated URDF to write.
@@ -186,7 +217,7 @@ class Result:
         doc = self.to_dict()
         extra = {} if self.refusal is not None else self.compliance_files(out)
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
-        check_outputs(outputs, _inputs(doc))
+        check_outputs(outputs, dict(self.inputs) if self.inputs else _inputs(doc))
         urdf = None if self.refusal is not None else self.urdf()
         files: dict[Path, str | bytes] = {} if urdf is None else {out: urdf, **extra}
         if report is not None:
