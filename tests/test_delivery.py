@@ -6,6 +6,7 @@ Pinocchio on the written files (pinocchio.buildModelFromUrdf + framesForwardKine
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import re
 from pathlib import Path
@@ -236,6 +237,13 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
     assert np.max(np.abs(points(rows) - expected)) < 1e-9
     defl = np.array([[float(r[f"deflected_{n}"]) for n in chain.joint_names] for r in rows])
     assert np.allclose(defl, load_calibrated(urdf, comp).deflected(q), atol=1e-12)
+    # Both record the URDF written with them: the nominal URDF is refused with either.
+    assert doc["urdf_sha256"] == report["model"]["urdf_sha256"]
+    assert doc["urdf_sha256"] == hashlib.sha256(urdf.read_bytes()).hexdigest()
+    for source in (comp, rep):
+        args = ["--compliance", str(source), "--configs", str(configs), "--out", str(pred)]
+        code, _, err = run(capsys, "predict", str(chain.urdf_path), *args)
+        assert code == 2 and err.count("\n") == 1 and "written with another URDF" in err, err
     # Errors: one line, exit 2, no file, inputs never overwritten.
     before = configs.read_bytes()
     for argv in (
@@ -548,7 +556,7 @@ def test_a_report_reads_only_with_the_urdf_written_with_it(tmp_path, capsys):
     the nominal URDF, another calibration's or an edited copy in one line naming both files
     (they predicted other points with exit 0). A report without the digest (written alone,
     older) is read as before."""
-    from calib import DataError, calibrate, simulate
+    from calib import DataError, calibrate, read_measurements, simulate
 
     chain = load_chain("ur5")
     runs = [calibrate(chain, simulate(chain, 30, seed=s).measurements) for s in (1, 2)]
@@ -583,6 +591,16 @@ def test_a_report_reads_only_with_the_urdf_written_with_it(tmp_path, capsys):
     alone.write_text(json.dumps(runs[0].to_dict()))
     assert "urdf_sha256" not in runs[0].to_dict()["model"]
     assert load_calibrated(other, alone).chain.tool_frame == "tool0"
+    # A compliance file records it too (``urdf_sha256``).
+    data = tmp_path / "e.csv"
+    write_rows(data, chain, elastic_campaign(chain, 40, 1, 5e-5))
+    stiff, comp = tmp_path / "e.urdf", tmp_path / "e.compliance.json"
+    calibrate(chain, read_measurements(data, chain), elastic=True).write(stiff)
+    digest = json.loads(comp.read_text())["urdf_sha256"]
+    assert digest == hashlib.sha256(stiff.read_bytes()).hexdigest()
+    assert load_calibrated(stiff, comp).chain.tool_frame == "tool0"
+    with pytest.raises(DataError, match=r"written with another URDF .*\(urdf_sha256 differs"):
+        load_calibrated(urdf, comp)
 
 
 def test_write_never_overwrites_an_input_read_by_a_relative_name(tmp_path, monkeypatch):

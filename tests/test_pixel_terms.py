@@ -360,11 +360,11 @@ def test_the_loop_keeps_the_pixel_rows_its_holdout_drew(campaign):
 
 
 def test_write_never_overwrites_a_pixel_terms_target_or_intrinsics(tmp_path, monkeypatch):
-    """``Result.write`` refuses, as ``calib calibrate`` does, every file a pixel term read: its
-    observations, TARGET.csv and the camera's intrinsics (only the data and the URDF were
-    protected), each as its reader resolved it: after ``os.chdir`` the name the reader was
-    given still names the file read (refused given absolute), and the same name now names
-    another file (written)."""
+    """``Result.write`` (and ``write_urdf``) refuses, as ``calib calibrate`` does, every file a
+    pixel term read: its observations, TARGET.csv and the camera's intrinsics (only the data
+    and the URDF were protected; by ``write_urdf`` only the URDF), each as its reader resolved
+    it: after ``os.chdir`` the name the reader was given still names the file read (refused
+    given absolute), and the same name now names another file (written)."""
     from calib import InvalidArgumentError
     from calib.measurements.intrinsics import read_intrinsics, write_intrinsics
     from calib.measurements.pixels import (
@@ -396,6 +396,8 @@ def test_write_never_overwrites_a_pixel_terms_target_or_intrinsics(tmp_path, mon
             r.write(tmp_path / "cal.urdf", report=name)
         with pytest.raises(InvalidArgumentError, match=f"would overwrite the {what} of term 1"):
             r.write(name)
+        with pytest.raises(InvalidArgumentError, match=f"would overwrite the {what} of term 1"):
+            r.write_urdf(name)
     monkeypatch.chdir(elsewhere)
     for name in names:
         with pytest.raises(InvalidArgumentError, match="would overwrite"):

@@ -530,7 +530,7 @@ class ContactChainsCalibration(Result, ChainView):
         return moved_origins_urdf(robot, errors)
 
     def write_urdf(self, path: str | Path) -> None:
-        """Write :meth:`urdf` atomically (never over the nominal URDF).
+        """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
 
         Raises:
             CalibrationRefusedError: The model was refused.
@@ -539,5 +539,6 @@ class ContactChainsCalibration(Result, ChainView):
         urdf = self.urdf()
         if not isinstance(path, str | os.PathLike):
             raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-        check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
+        nominal = {"the nominal URDF": self.chains[0].chain.urdf_path}
+        check_outputs({"path": path}, dict(self.inputs) or nominal)
         write_atomic(path, urdf)

@@ -6,6 +6,7 @@ files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +19,7 @@ from ..kinematics.origins import changed_origins, origins_document
 from ..kinematics.report_view import urdf_digest
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Result", "RowErrors", "compliance_path", "paired_report", "read_files"]
+__all__ = ["Result", "RowErrors", "compliance_path", "paired_files", "paired_report", "read_files"]
 
 
 @dataclass(frozen=True)
@@ -83,7 +84,7 @@ def compliance_path(out: Path) -> Path:
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
 
 
-def paired_report(doc: dict, urdf: bytes) -> dict:
+def paired_report(doc: dict, urdf: bytes | str) -> dict:
     """The report written with the URDF ``urdf``: its digest in ``model.urdf_sha256``.
 
     :func:`calib.kinematics.elastic.load_calibrated` (``calib predict``) then refuses
@@ -117,6 +118,19 @@ def read_files(
                           (f"the intrinsics of term {k}", given.camera.intrinsics)]  # fmt: skip
             found += [(name, part.path or part.source) for name, part in parts]
     return tuple(found)
+
+
+def paired_files(files: Mapping[Path, str | bytes], out: Path) -> dict[Path, str | bytes]:
+    """The files written with the URDF ``out``: its compliance file with its digest too.
+
+    The compliance file (:func:`compliance_path`), if one of ``files``, records the URDF's
+    digest (``urdf_sha256``), as :func:`paired_report` does in a report.
+    """
+    comp = compliance_path(out)
+    if comp not in files:
+        return dict(files)
+    doc = json.loads(files[comp])
+    return {**files, comp: json_text({**doc, "urdf_sha256": urdf_digest(files[out])})}
 
 
 class Result:
@@ -195,11 +209,11 @@ class Result:
     def write(self, out: str | Path, report: str | Path | None = None) -> None:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
 
-        A refused model writes the report only, then raises. The report records the URDF's
-        digest (``model.urdf_sha256``: :func:`paired_report`). The outputs are checked before
-        anything is written: never an input (the nominal URDF, each term's data and
-        validation file, a pixel term's target and intrinsics: :attr:`inputs`, as resolved
-        when they were read), never two the same.
+        A refused model writes the report only, then raises. The report and the compliance
+        file record the URDF's digest (:func:`paired_report`, :func:`paired_files`). The
+        outputs are checked before anything is written: never an input (the nominal URDF,
+        each term's data and validation file, a pixel term's target and intrinsics:
+        :attr:`inputs`, as resolved when they were read), never two the same.
 
         Args:
             out: The calibrated URDF to write.
@@ -219,7 +233,7 @@ class Result:
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
         check_outputs(outputs, dict(self.inputs) if self.inputs else _inputs(doc))
         urdf = None if self.refusal is not None else self.urdf()
-        files: dict[Path, str | bytes] = {} if urdf is None else {out: urdf, **extra}
+        files = {} if urdf is None else paired_files({out: urdf, **extra}, out)
         if report is not None:
             files[Path(report)] = json_text(doc if urdf is None else paired_report(doc, urdf))
         write_files_atomic(files)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from ..calibration import options
-from ..calibration.delivery import compliance_path, paired_report
+from ..calibration.delivery import compliance_path, paired_files, paired_report
 from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
@@ -425,9 +425,10 @@ def write_calibration(
         CalibrationRefusedError: The model was refused (no URDF is written).
     """
     report = paths[1]
-    model = {} if refusal is not None else urdf()  # the report records the URDF's digest
+    out = Path(paths[0])  # the report and the compliance file record the URDF's digest
+    model: dict = {} if refusal is not None else paired_files(urdf(), out)
     found = with_warnings(report_dict, recorded)
-    doc = json_text(paired_report(found, model[Path(paths[0])]) if model else found)
+    doc = json_text(paired_report(found, model[out]) if model else found)
     print(doc if args.json else text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:
@@ -437,7 +438,7 @@ def write_calibration(
         raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
     written = {**model, **files}
     if result is not None:
-        written.update(_look_files(args, result, written[Path(paths[0])]))
+        written.update(_look_files(args, result, written[out]))
     write_outputs(written)
     if not args.json:
         print(f"wrote {', '.join(str(p) for p in written)}")

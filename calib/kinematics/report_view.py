@@ -30,17 +30,17 @@ _IDENTITY = [[float(i == j) for j in range(4)] for i in range(4)]
 """The measurement frame of a report whose instrument is in the URDF (on the robot, contacts)."""
 
 
-def urdf_digest(urdf: bytes) -> str:
-    """The SHA-256 (hex) of a URDF's bytes: a report's ``model.urdf_sha256``."""
-    return hashlib.sha256(urdf).hexdigest()
+def urdf_digest(urdf: bytes | str) -> str:
+    """The SHA-256 (hex) of a URDF's bytes (text: UTF-8): a report's ``model.urdf_sha256``."""
+    return hashlib.sha256(urdf.encode() if isinstance(urdf, str) else urdf).hexdigest()
 
 
 def check_pairing(doc: dict, urdf: bytes, urdf_name: str, src: str) -> None:
     """Refuse a URDF whose bytes are not those the report was written with.
 
     A report written with its URDF (``Result.write``, ``calib calibrate``) records their
-    digest in ``model.urdf_sha256``; one without it (written alone, older, format 2, a
-    compliance file) is not checked.
+    digest in ``model.urdf_sha256``, a compliance file in ``urdf_sha256``; one without it
+    (a report written alone, older, format 2) is not checked.
 
     Args:
         doc: The JSON document.
@@ -52,17 +52,17 @@ def check_pairing(doc: dict, urdf: bytes, urdf_name: str, src: str) -> None:
         DataError: The digests differ, or the recorded one is not a string.
     """
     model = doc.get("model")
-    recorded = model.get("urdf_sha256") if isinstance(model, dict) else None
+    key = "model.urdf_sha256" if isinstance(model, dict) else "urdf_sha256"
+    recorded = model.get("urdf_sha256") if isinstance(model, dict) else doc.get("urdf_sha256")
     if recorded is None:
         return
     if not isinstance(recorded, str):
-        raise DataError(src, "'model.urdf_sha256' is not a SHA-256 digest")
+        raise DataError(src, f"'{key}' is not a SHA-256 digest")
     if recorded != urdf_digest(urdf):
         raise DataError(
             src,
-            f"written with another URDF than {urdf_name} (model.urdf_sha256 differs: the "
-            f"nominal URDF, another calibration's, or an edited copy): give the URDF written "
-            f"with this report",
+            f"written with another URDF than {urdf_name} ({key} differs: the nominal URDF, "
+            f"another calibration's, or an edited copy): give the URDF written with it",
         )
 
 
