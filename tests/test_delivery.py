@@ -6,6 +6,7 @@ Pinocchio on the written files (pinocchio.buildModelFromUrdf + framesForwardKine
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import re
 from pathlib import Path
@@ -236,6 +237,13 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
     assert np.max(np.abs(points(rows) - expected)) < 1e-9
     defl = np.array([[float(r[f"deflected_{n}"]) for n in chain.joint_names] for r in rows])
     assert np.allclose(defl, load_calibrated(urdf, comp).deflected(q), atol=1e-12)
+    # Both record the URDF written with them: the nominal URDF is refused with either.
+    assert doc["urdf_sha256"] == report["model"]["urdf_sha256"]
+    assert doc["urdf_sha256"] == hashlib.sha256(urdf.read_bytes()).hexdigest()
+    for source in (comp, rep):
+        args = ["--compliance", str(source), "--configs", str(configs), "--out", str(pred)]
+        code, _, err = run(capsys, "predict", str(chain.urdf_path), *args)
+        assert code == 2 and err.count("\n") == 1 and "written with another URDF" in err, err
     # Errors: one line, exit 2, no file, inputs never overwritten.
     before = configs.read_bytes()
     for argv in (
@@ -540,3 +548,98 @@ def test_write_urdf_refuses_what_is_not_a_path_for_every_shape():
     result = calibrate(tree, simulate_tree(tree, 30, seed=1).measurements)
     with pytest.raises(InvalidArgumentError, match="path must be a file path"):
         result.write_urdf(3)
+
+
+def test_a_report_reads_only_with_the_urdf_written_with_it(tmp_path, capsys):
+    """A report records the digest of the URDF written with it (``model.urdf_sha256``, by
+    ``Result.write`` and ``calib calibrate``): ``load_calibrated`` and ``calib predict`` refuse
+    the nominal URDF, another calibration's or an edited copy in one line naming both files
+    (they predicted other points with exit 0). A report without the digest (written alone,
+    older) is read as before."""
+    from calib import DataError, calibrate, read_measurements, simulate
+
+    chain = load_chain("ur5")
+    runs = [calibrate(chain, simulate(chain, 30, seed=s).measurements) for s in (1, 2)]
+    files = [(tmp_path / f"c{k}.urdf", tmp_path / f"c{k}.json") for k in (1, 2)]
+    for r, (urdf, report) in zip(runs, files, strict=True):
+        r.write(urdf, report)
+    (urdf, report), (other, _) = files
+    assert load_calibrated(urdf, report).chain.tool_frame == "tool0"
+    edited = tmp_path / "edited.urdf"
+    edited.write_bytes(urdf.read_bytes().replace(b"<robot", b"<robot ", 1))
+    for wrong in (chain.urdf_path, "ur5", other, edited):
+        with pytest.raises(DataError, match="written with another URDF") as info:
+            load_calibrated(wrong, report)
+        assert "\n" not in str(info.value) and f"{report}: " in str(info.value)
+        assert f"than {wrong} " in str(info.value)
+    configs, pred = tmp_path / "q.csv", tmp_path / "p.csv"
+    assert run(capsys, "simulate", "ur5", "--configs", "3", "--out", str(configs))[0] == 0
+    args = ["--compliance", str(report), "--configs", str(configs), "--out", str(pred)]
+    code, _, err = run(capsys, "predict", str(other), *args)
+    assert code == 2 and err.count("\n") == 1 and "written with another URDF" in err, err
+    assert not pred.exists()
+    assert run(capsys, "predict", str(urdf), *args)[0] == 0
+    # calib calibrate records it too; a report without it is read with any URDF.
+    data, cli, cli_report = tmp_path / "m.csv", tmp_path / "cli.urdf", tmp_path / "cli.json"
+    assert run(capsys, "simulate", "ur5", "--configs", "30", "--out", str(data))[0] == 0
+    cal = ["calibrate", "ur5", "--data", str(data), "--out", str(cli), "--report", str(cli_report)]
+    assert run(capsys, *cal)[0] == 0
+    with pytest.raises(DataError, match="written with another URDF"):
+        load_calibrated(urdf, cli_report)
+    assert load_calibrated(cli, cli_report).chain.tool_frame == "tool0"
+    alone = tmp_path / "alone.json"
+    alone.write_text(json.dumps(runs[0].to_dict()))
+    assert "urdf_sha256" not in runs[0].to_dict()["model"]
+    assert load_calibrated(other, alone).chain.tool_frame == "tool0"
+    # A compliance file records it too (``urdf_sha256``).
+    data = tmp_path / "e.csv"
+    write_rows(data, chain, elastic_campaign(chain, 40, 1, 5e-5))
+    stiff, comp = tmp_path / "e.urdf", tmp_path / "e.compliance.json"
+    calibrate(chain, read_measurements(data, chain), elastic=True).write(stiff)
+    digest = json.loads(comp.read_text())["urdf_sha256"]
+    assert digest == hashlib.sha256(stiff.read_bytes()).hexdigest()
+    assert load_calibrated(stiff, comp).chain.tool_frame == "tool0"
+    with pytest.raises(DataError, match=r"written with another URDF .*\(urdf_sha256 differs"):
+        load_calibrated(urdf, comp)
+
+
+def test_write_never_overwrites_an_input_read_by_a_relative_name(tmp_path, monkeypatch):
+    """The inputs ``Result.write`` protects are the files read, not their names: after
+    ``os.chdir`` the data and the validation data read by relative names are refused given
+    by their new names (they were overwritten), and those names now name other files, which
+    are written (they were refused). Touches the same way. (The URDF is given by its full
+    name: writing reads it again.)"""
+    import shutil
+
+    from calib import calibrate, read_contacts, read_measurements, simulate, write_measurements
+    from calib.measurements.contact_campaign import simulate_contacts, write_contacts
+
+    here, elsewhere = tmp_path / "in", tmp_path / "elsewhere"
+    here.mkdir()
+    elsewhere.mkdir()
+    shutil.copy(load_chain("ur5").urdf_path, here / "robot.urdf")
+    monkeypatch.chdir(here)
+    chain = load_chain(here / "robot.urdf")
+    rows = simulate(chain, 60, seed=1).measurements
+    write_measurements("m.csv", rows.subset(np.arange(40)))
+    write_measurements("v.csv", rows.subset(np.arange(40, 60)))
+    write_contacts("t.csv", simulate_contacts(chain, 30, "plane", seed=3).data)
+    data, check = read_measurements("m.csv", chain), read_measurements("v.csv", chain)
+    results = {
+        "m.csv": calibrate(chain, data, validate=check),
+        "t.csv": calibrate(chain, read_contacts("t.csv", chain, "plane")),
+    }
+    names = ("robot.urdf", "m.csv", "v.csv", "t.csv")
+    before = {name: (here / name).read_bytes() for name in names}
+    monkeypatch.chdir(elsewhere)
+    for read, r in results.items():
+        assert r.accepted, r.refusal
+        inputs = ("robot.urdf", read, "v.csv") if read == "m.csv" else ("robot.urdf", read)
+        for name in inputs:
+            with pytest.raises(InvalidArgumentError, match="would overwrite"):
+                r.write(here / name)
+            with pytest.raises(InvalidArgumentError, match="would overwrite"):
+                r.write(elsewhere / "cal.urdf", report=here / name)
+        r.write("robot.urdf", report=read)  # other files of the same names
+        assert (elsewhere / "robot.urdf").read_bytes() == r.urdf()
+    assert {name: (here / name).read_bytes() for name in names} == before

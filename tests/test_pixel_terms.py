@@ -357,3 +357,53 @@ def test_the_loop_keeps_the_pixel_rows_its_holdout_drew(campaign):
     for a, b in zip(res.chains, again.chains, strict=True):
         assert a.stats["held_out"].m == b.stats["held_out"].m > 0
         assert abs(a.stats["held_out"].length_rms_mm - b.stats["held_out"].length_rms_mm) < 1e-9
+
+
+def test_write_never_overwrites_a_pixel_terms_target_or_intrinsics(tmp_path, monkeypatch):
+    """``Result.write`` (and ``write_urdf``) refuses, as ``calib calibrate`` does, every file a
+    pixel term read: its observations, TARGET.csv and the camera's intrinsics (only the data
+    and the URDF were protected; by ``write_urdf`` only the URDF), each as its reader resolved
+    it: after ``os.chdir`` the name the reader was given still names the file read (refused
+    given absolute), and the same name now names another file (written)."""
+    from calib import InvalidArgumentError
+    from calib.measurements.intrinsics import read_intrinsics, write_intrinsics
+    from calib.measurements.pixels import (
+        read_observations,
+        read_target,
+        write_observations,
+        write_target,
+    )
+
+    s = setup("ur5", tmp_path, postures=120)
+    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    here, elsewhere = tmp_path / "in", tmp_path / "elsewhere"
+    here.mkdir()
+    elsewhere.mkdir()
+    write_target(here / "target.csv", s.target)
+    write_intrinsics(here / "camera.yaml", INTRINSICS)
+    write_observations(here / "obs.csv", obs)
+    monkeypatch.chdir(here)
+    lens = read_intrinsics("camera.yaml")
+    target = read_target("target.csv")
+    seen = read_observations("obs.csv", s.nominal.joint_names, {s.camera: lens}, target)
+    camera = PixelCamera(s.camera, s.link, lens, s.placement)
+    r = calibrate(Problem((Term(s.nominal, PixelData(camera, target, seen)),), params="complete"))
+    assert r.accepted, r.refusal
+    names = ("target.csv", "camera.yaml", "obs.csv")
+    before = {name: (here / name).read_bytes() for name in names}
+    for name, what in zip(names, ("target", "intrinsics", "data"), strict=True):
+        with pytest.raises(InvalidArgumentError, match=f"would overwrite the {what} of term 1"):
+            r.write(tmp_path / "cal.urdf", report=name)
+        with pytest.raises(InvalidArgumentError, match=f"would overwrite the {what} of term 1"):
+            r.write(name)
+        with pytest.raises(InvalidArgumentError, match=f"would overwrite the {what} of term 1"):
+            r.write_urdf(name)
+    monkeypatch.chdir(elsewhere)
+    for name in names:
+        with pytest.raises(InvalidArgumentError, match="would overwrite"):
+            r.write(here / name)
+    assert {name: (here / name).read_bytes() for name in names} == before
+    assert not (tmp_path / "cal.urdf").exists()
+    r.write("target.csv", report="obs.csv")  # other files of the same names: written
+    assert (elsewhere / "target.csv").read_bytes() == r.urdf()
+    assert json.loads((elsewhere / "obs.csv").read_text())["accepted"]

@@ -9,6 +9,7 @@ without the calibration), and the errors against the format 2 figures in metres.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import re
@@ -473,14 +474,17 @@ def results():
 
 @pytest.mark.parametrize("shape", ["chain", "tree", "contacts", "chains"])
 def test_every_result_writes_its_urdf_and_report_the_same_way(results, shape, tmp_path):
-    """``write(out, report=)`` writes what ``urdf()`` and ``to_dict()`` give; the summary ends
-    on the verdict; the repr is one short line naming the shape."""
+    """``write(out, report=)`` writes what ``urdf()`` and ``to_dict()`` give, the report with
+    the URDF's SHA-256 in ``model.urdf_sha256``; the summary ends on the verdict; the repr is
+    one short line naming the shape."""
     r = results[shape]
     assert r.accepted, r.refusal
     out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
     r.write(out, report=report)
     assert out.read_bytes() == r.urdf()
-    assert json.loads(report.read_text()) == json.loads(json.dumps(r.to_dict()))
+    expected = json.loads(json.dumps(r.to_dict()))
+    expected["model"]["urdf_sha256"] = hashlib.sha256(out.read_bytes()).hexdigest()
+    assert json.loads(report.read_text()) == expected
     pin_model = __import__("pinocchio").buildModelFromUrdf(str(out))  # a URDF Pinocchio reads
     assert pin_model.nq > 0
     assert r.summary().splitlines()[-1] == "accepted"

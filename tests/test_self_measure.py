@@ -483,3 +483,43 @@ def test_the_command_line_takes_the_measured_term(joint_fit, tmp_path, capsys):
     assert np.max(np.abs(seen - d.position)) < 1e-9  # every row, held out too [m]
     names = [p["name"] for p in report["parameters"] if p["name"].startswith("term3.")]
     assert names[:6] == [f"term3.frame.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]
+
+
+def test_each_term_of_one_tool_is_read_as_what_it_is(joint_fit, tmp_path, capsys):
+    """The head camera's measured term and the left arm's touching term share the tool
+    ``gripper_left_base_link``: ``tool=`` alone is refused in one line naming how to choose
+    (``term=``, ``--term``); ``term=2`` reads the measured term (it was read as touching when
+    ``frames.contacts`` had its tool), whose points are the camera's rows on the written URDF
+    (noise-free, 1e-9 m); ``term=1`` the right arm's touches; a term of another tool is
+    refused."""
+    from calib import load_calibrated, write_measurements
+    from calib.cli.commands import main
+
+    nominal, data, _, r, _ = joint_fit
+    out, report = tmp_path / "cal.urdf", tmp_path / "cal.json"
+    r.write(out, report)
+    tool = CAMERA[1]
+    assert nominal[0].tool_frame == tool
+    with pytest.raises(DataError, match=r"terms 0, 2 have the tool .*\(term=\)") as info:
+        load_calibrated(out, report, tool)
+    assert "\n" not in str(info.value)
+    d = data[2]
+    for model in (load_calibrated(out, report, term=2), load_calibrated(out, report, tool, 2)):
+        assert model.contact is None and model.chain.base_frame == CAMERA[0]
+        assert np.max(np.abs(model.points(d.q)[:, 0] - d.position[:, :3])) < 1e-9
+    touching = load_calibrated(out, report, term=1)
+    assert touching.contact is not None and touching.chain.tool_frame == PAIRS[1][1]
+    with pytest.raises(DataError, match=f"term 1's tool is {PAIRS[1][1]}, not {tool}"):
+        load_calibrated(out, report, tool, 1)
+    with pytest.raises(DataError, match="no term 3: its terms are 0 to 2"):
+        load_calibrated(out, report, term=3)
+    configs, pred = tmp_path / "q.csv", tmp_path / "p.csv"
+    write_measurements(configs, d)
+    args = ["predict", str(out), "--compliance", str(report), "--configs", str(configs)]
+    assert main([*args, "--tool", tool, "--term", "2", "--out", str(pred)]) == 0
+    header = pred.read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(pred, delimiter=",", skiprows=1)
+    xyz = rows[:, [header.index(c) for c in ("x1", "y1", "z1")]]
+    assert np.max(np.abs(xyz - d.position[:, :3])) < 1e-9
+    assert main([*args, "--tool", tool, "--out", str(pred)]) == 2
+    assert "choose one by its index (--term)" in capsys.readouterr().err

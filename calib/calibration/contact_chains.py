@@ -55,6 +55,7 @@ from .contact_term import (
     check_held_out_gaps,
     contact_objects,
 )
+from .delivery import read_files
 from .measured_options import level_offer
 from .measured_term import MeasuredState, unseen
 from .measured_view import MeasuredChain, Solution, measured_part
@@ -160,7 +161,7 @@ def calibrate_contact_chains(
                       max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
     run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,
               instrument, held_label, support, progress)  # fmt: skip
-    return fit_run(run)
+    return dataclasses.replace(fit_run(run), inputs=read_files(chains, data, validate))
 
 
 def fit_run(run: Run) -> ContactChainsCalibration:

@@ -228,6 +228,8 @@ class ContactChainsCalibration(Result, ChainView):
             determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
             combinations of shared joints that no chain's MDH rows name: the polish finds
             them).
+        inputs: The files it read (:func:`~.delivery.read_files`), which ``write`` never
+            overwrites; empty: those the report names.
     """
 
     chains: tuple[ChainContacts | MeasuredChain | PixelChain, ...]
@@ -248,6 +250,7 @@ class ContactChainsCalibration(Result, ChainView):
     identifiable: int = 0
     shape: str = "chains"
     solution: Solution | None = None
+    inputs: tuple[tuple[str, str], ...] = ()
 
     @property
     def accepted(self) -> bool:
@@ -527,7 +530,7 @@ class ContactChainsCalibration(Result, ChainView):
         return moved_origins_urdf(robot, errors)
 
     def write_urdf(self, path: str | Path) -> None:
-        """Write :meth:`urdf` atomically (never over the nominal URDF).
+        """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
 
         Raises:
             CalibrationRefusedError: The model was refused.
@@ -536,5 +539,6 @@ class ContactChainsCalibration(Result, ChainView):
         urdf = self.urdf()
         if not isinstance(path, str | os.PathLike):
             raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-        check_outputs({"path": path}, {"the nominal URDF": self.chains[0].chain.urdf_path})
+        nominal = {"the nominal URDF": self.chains[0].chain.urdf_path}
+        check_outputs({"path": path}, dict(self.inputs) or nominal)
         write_atomic(path, urdf)

@@ -6,7 +6,8 @@ files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,9 +16,10 @@ import numpy as np
 from ..core.fileio import check_outputs, json_text, read_bytes_limited, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFError
 from ..kinematics.origins import changed_origins, origins_document
+from ..kinematics.report_view import urdf_digest
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 
-__all__ = ["Result", "RowErrors", "compliance_path"]
+__all__ = ["Result", "RowErrors", "compliance_path", "paired_files", "paired_report", "read_files"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,55 @@ def compliance_path(out: Path) -> Path:
     return out.with_name((out.stem if out.suffix == ".urdf" else out.name) + ".compliance.json")
 
 
+def paired_report(doc: dict, urdf: bytes | str) -> dict:
+    """The report written with the URDF ``urdf``: its digest in ``model.urdf_sha256``.
+
+    :func:`calib.kinematics.elastic.load_calibrated` (``calib predict``) then refuses
+    another URDF with it.
+    """
+    return {**doc, "model": {**doc["model"], "urdf_sha256": urdf_digest(urdf)}}
+
+
+def read_files(
+    robots: Sequence, data: Sequence, validate: Sequence | None = None
+) -> tuple[tuple[str, str], ...]:
+    """The files a calibration read, by what they are: what :meth:`Result.write` never overwrites.
+
+    Each data file as its reader resolved it (``path``: absolute, links followed, whatever
+    the working directory is later), else as named (``source``); a pixel term's target and
+    intrinsics too; the nominal URDF resolved now.
+
+    Args:
+        robots: Each term's chain or tree (one URDF).
+        data: Each term's data: measurements, touches or a camera's pixels (``obs``,
+            ``target``, ``camera.intrinsics``).
+        validate: Each term's validation data (None: none), or None.
+    """
+    found = [("the nominal URDF", str(Path(robots[0].urdf_path).resolve()))]
+    held = [None] * len(data) if validate is None else validate
+    for k, (d, v) in enumerate(zip(data, held, strict=True), start=1):
+        for what, given in ((f"the data of term {k}", d), (f"the validation data of term {k}", v)):
+            parts = [] if given is None else [(what, getattr(given, "obs", given))]
+            if given is not None and hasattr(given, "target"):  # a camera's pixels
+                parts += [(f"the target of term {k}", given.target),
+                          (f"the intrinsics of term {k}", given.camera.intrinsics)]  # fmt: skip
+            found += [(name, part.path or part.source) for name, part in parts]
+    return tuple(found)
+
+
+def paired_files(files: Mapping[Path, str | bytes], out: Path) -> dict[Path, str | bytes]:
+    """The files written with the URDF ``out``: its compliance file with its digest too.
+
+    The compliance file (:func:`compliance_path`), if one of ``files``, records the URDF's
+    digest (``urdf_sha256``), as :func:`paired_report` does in a report.
+    """
+    comp = compliance_path(out)
+    if comp not in files:
+        return dict(files)
+    doc = json.loads(files[comp])
+    return {**files, comp: json_text({**doc, "urdf_sha256": urdf_digest(files[out])})}
+
+
 class Result:
     """A calibration's result, whatever the problem (:func:`~calib.calibration.entry.calibrate`).
 
@@ -92,6 +143,9 @@ class Result:
     """
 
     refusal: str | None
+    inputs: tuple[tuple[str, str], ...]
+    """The files it read, by what they are (:func:`read_files`); empty: those its report
+    names."""
 
     def to_dict(self) -> dict:
         """The JSON report (format 3)."""
@@ -155,9 +209,11 @@ class Result:
     def write(self, out: str | Path, report: str | Path | None = None) -> None:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
 
-        A refused model writes the report only, then raises. The outputs are checked before
-        anything is written: never an input (the nominal URDF, each term's data and
-        validation file), never two the same.
+        A refused model writes the report only, then raises. The report and the compliance
+        file record the URDF's digest (:func:`paired_report`, :func:`paired_files`). The
+        outputs are checked before anything is written: never an input (the nominal URDF,
+        each term's data and validation file, a pixel term's target and intrinsics:
+        :attr:`inputs`, as resolved when they were read), never two the same.
 
         Args:
             out: The calibrated URDF to write.
@@ -173,14 +229,16 @@ class Result:
                 raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
         out = Path(out)
         doc = self.to_dict()
-        files: dict[Path, str | bytes] = {} if report is None else {Path(report): json_text(doc)}
         extra = {} if self.refusal is not None else self.compliance_files(out)
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
-        check_outputs(outputs, _inputs(doc))
-        if self.refusal is not None:
-            write_files_atomic(files)
+        check_outputs(outputs, dict(self.inputs) if self.inputs else _inputs(doc))
+        urdf = None if self.refusal is not None else self.urdf()
+        files = {} if urdf is None else paired_files({out: urdf, **extra}, out)
+        if report is not None:
+            files[Path(report)] = json_text(doc if urdf is None else paired_report(doc, urdf))
+        write_files_atomic(files)
+        if urdf is None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
-        write_files_atomic({out: self.urdf(), **extra, **files})
 
     def __repr__(self) -> str:
         doc = self.to_dict()

@@ -37,6 +37,7 @@ from .contact_chains import (
     register_contact_chains,
 )
 from .contact_chains_result import ContactChainsCalibration
+from .delivery import read_files
 from .measured_term import check_measured
 from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, check_tree_level, checked_arguments
 from .problem import Problem, Term
@@ -134,9 +135,11 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
     for t in problem.terms:
         if isinstance(t.data, Measurements):
             check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
+    terms = problem.terms
+    files = read_files(*zip(*((t.robot, t.data, t.validate) for t in terms), strict=True))
     if problem.shape == "tree":
-        return _tree(problem, progress)
-    terms, chain = problem.terms, problem.shape == "chain"
+        return dataclasses.replace(_tree(problem, progress), inputs=files)
+    chain = problem.shape == "chain"
     held = [t.validate for t in terms]
     guess = next((t.guess for t in terms if t.guess is not None), None)  # a chain's: markers'
     run = Run(
@@ -150,7 +153,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
         pose_weight=problem.pose_weight,
         progress=progress,
     )
-    return measured_chain(run) if chain else fit_run(run)
+    return dataclasses.replace(measured_chain(run) if chain else fit_run(run), inputs=files)
 
 
 calibrate_tree = calibrate

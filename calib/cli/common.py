@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from ..calibration import options
-from ..calibration.delivery import compliance_path
+from ..calibration.delivery import compliance_path, paired_files, paired_report
 from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
@@ -411,7 +411,7 @@ def write_calibration(
     Args:
         args: The command's arguments (``--json``).
         report_dict: The JSON report (the ``recorded`` warnings are added to its
-            ``warnings``).
+            ``warnings``, the URDF's digest to its ``model``).
         text: Returns the text printed without ``--json``.
         refusal: Why the model must not be written, or None.
         urdf: Returns the files of an accepted model: the calibrated URDF (and the
@@ -425,7 +425,10 @@ def write_calibration(
         CalibrationRefusedError: The model was refused (no URDF is written).
     """
     report = paths[1]
-    doc = json_text(with_warnings(report_dict, recorded))
+    out = Path(paths[0])  # the report and the compliance file record the URDF's digest
+    model: dict = {} if refusal is not None else paired_files(urdf(), out)
+    found = with_warnings(report_dict, recorded)
+    doc = json_text(paired_report(found, model[out]) if model else found)
     print(doc if args.json else text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:
@@ -433,9 +436,9 @@ def write_calibration(
         write_outputs(files)
         kept = f"; report written to {report}" if report is not None else ""
         raise CalibrationRefusedError(f"calibration refused: {refusal}: no URDF written{kept}")
-    written = {**urdf(), **files}
+    written = {**model, **files}
     if result is not None:
-        written.update(_look_files(args, result, written[Path(paths[0])]))
+        written.update(_look_files(args, result, written[out]))
     write_outputs(written)
     if not args.json:
         print(f"wrote {', '.join(str(p) for p in written)}")

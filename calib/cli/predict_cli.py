@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..exceptions import DataError
 from .common import check_output_paths, command_parser, write_outputs
 
 __all__ = ["add_predict_parser", "cmd_predict"]
@@ -23,7 +24,13 @@ def cmd_predict(args: argparse.Namespace) -> int:
         {"--out": out},
         {"the URDF": args.urdf, "--compliance": args.compliance, "--configs": args.configs},
     )
-    model = load_calibrated(args.urdf, args.compliance, args.tool)
+    try:
+        model = load_calibrated(args.urdf, args.compliance, args.tool, args.term)
+    except DataError as exc:  # the library names the keyword: say the flag
+        reason = str(exc).removeprefix(f"{exc.path}: ")
+        if "(term=)" not in reason:
+            raise
+        raise DataError(exc.path, reason.replace("(term=)", "(--term)")) from None
     q = read_configurations(args.configs, model.chain)
     readings = read_readings(args.configs, model.readings) if model.readings else None
     write_outputs({out: predictions_csv(model, q, readings)})
@@ -62,6 +69,13 @@ def add_predict_parser(sub) -> None:
         "--tool",
         metavar="FRAME",
         help="the tool frame of the term to predict, in a report of several (a tree's tools)",
+    )
+    g.add_argument(
+        "--term",
+        type=int,
+        metavar="K",
+        help="the index (from 0) of the term to predict in the report's terms: two terms of "
+        "one tool (a hand measured by a camera and touching a table)",
     )
     g.add_argument(
         "--configs",

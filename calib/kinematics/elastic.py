@@ -33,9 +33,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..core.fileio import read_failure, read_text_limited
+from ..core.fileio import read_bytes_limited, read_failure, read_text_limited
 from ..exceptions import (
     AmbiguousFrameError,
+    CalibError,
     DataError,
     FrameNotFoundError,
     InvalidArgumentError,
@@ -44,11 +45,11 @@ from ..exceptions import (
 )
 from .frames import frame_placement, joint_placements, resolve_frame
 from .mdh import MDHModel, from_chain
-from .report_view import compliance_fields
-from .robot import Chain, load_chain, pin_configurations
+from .report_view import check_pairing, compliance_fields
+from .robot import Chain, load_chain, pin_configurations, robot_source
 from .standing import JointReadings, StandingLoad, Support, standing_load
 from .urdf_model import build_model, read_urdf_file
-from .urdf_xml import URDFInfo, kinematic_xml
+from .urdf_xml import MAX_URDF_BYTES, URDFInfo, kinematic_xml
 
 __all__ = [
     "COMMAND_ITERATIONS",
@@ -413,7 +414,7 @@ def _fields(doc: dict, src: str) -> tuple[str, str, list[str], np.ndarray]:
 
 
 def load_calibrated(
-    urdf: str | Path, compliance: str | Path, tool: str | None = None
+    urdf: str | Path, compliance: str | Path, tool: str | None = None, term: int | None = None
 ) -> ElasticModel:
     """The calibrated URDF with its compliance file or its calibration report.
 
@@ -422,14 +423,19 @@ def load_calibrated(
         compliance: Its ``.compliance.json``, or the report (``--report``).
         tool: The tool frame of the term to read in a report of several (a tree's tools,
             several terms; ``terms[k].tool``); None for a report of one term.
+        term: The index (from 0) in the report's ``terms`` of the term to read: two terms of
+            one tool (a hand measured by a camera and touching a table); None: ``tool``'s.
 
     Raises:
-        DataError: The file is not a report or compliance file, does not match the URDF,
-            or is a report of several terms and ``tool`` names none of them.
+        DataError: The file is not a report or compliance file, does not match the URDF
+            (a report written with another URDF: its ``model.urdf_sha256``), or is a report
+            of several terms and ``tool`` names none of them (or two: give ``term``).
         CalibError: The URDF cannot be loaded with the recorded frames.
     """
     src = str(compliance)
-    doc = compliance_fields(_read_json(compliance), src, tool)
+    raw = _read_json(compliance)
+    _check_urdf(raw, urdf, src)
+    doc = compliance_fields(raw, src, tool, term)
     chain = None
     several = doc.get("term_compliance")
     if isinstance(several, dict):  # one term of several: its chain's joints, rigid if absent
@@ -464,6 +470,15 @@ def load_calibrated(
     return ElasticModel(
         chain, T, markers, c, vec, from_chain(chain), model, load, *frames, readings=readings
     )
+
+
+def _check_urdf(doc: dict, urdf: str | Path, src: str) -> None:
+    """Refuse a URDF other than the one the report was written with (a readable one)."""
+    try:
+        text = read_bytes_limited(robot_source(urdf)[1], MAX_URDF_BYTES)
+    except (OSError, CalibError):  # loading the chain says why
+        return
+    check_pairing(doc, text, str(urdf), src)
 
 
 def _readings(load, src: str) -> tuple[str, ...]:

@@ -18,6 +18,7 @@ the joint limits.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -75,6 +76,9 @@ class ContactData:
         source: File name (or a description) for messages.
         rows: The file row of each touch, or None.
         readings: Recorded positions of the robot's joints off the chain, or None.
+        path: The file read, resolved when it was read (absolute, links followed), or None
+            (not read from a file): what ``Result.write`` never overwrites, wherever the
+            working directory is then.
     """
 
     joint_names: tuple[str, ...]
@@ -84,6 +88,7 @@ class ContactData:
     source: str = "<contacts>"
     rows: tuple[int, ...] | None = None
     readings: JointReadings | None = None
+    path: str | None = None
 
     @property
     def m(self) -> int:
@@ -250,7 +255,8 @@ def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
     """Read and check a contact CSV file (see the module docstring for the format)."""
-    return parse_contacts(read_data_text(path), chain, measure, str(path))
+    data = parse_contacts(read_data_text(path), chain, measure, str(path))
+    return dataclasses.replace(data, path=str(Path(path).resolve()))
 
 
 def contacts_csv(data: ContactData) -> str:

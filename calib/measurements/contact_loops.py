@@ -14,6 +14,7 @@ own id and :func:`join_loops` them.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -94,4 +95,5 @@ def read_loop(path: str | Path, chain: Chain, pose_id: str = LOOP_ID) -> Contact
         measure = "fixed-pose"
     else:
         raise DataError(src, "a loop's file needs a 'plane' or 'point' id column")
-    return as_loop(parse_contacts(text, chain, measure, src), pose_id)
+    loop = as_loop(parse_contacts(text, chain, measure, src), pose_id)
+    return dataclasses.replace(loop, path=str(Path(path).resolve()))

@@ -41,11 +41,7 @@ from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS, checked_points
 from ..core.fileio import read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..kinematics.robot import Chain, check_robot
-from ..kinematics.so3 import (
-    matrix_to_quaternion,
-    rotation_matrix,
-    rpy_to_matrix,
-)
+from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix, rpy_to_matrix
 from ..kinematics.tree import Tree
 from . import marker_set
 from .data import (
@@ -366,7 +362,11 @@ def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np
 
 
 def parse_measurements(
-    text: str, chain: Chain | Tree, source: str = "<text>", columns: Columns | None = None
+    text: str,
+    chain: Chain | Tree,
+    source: str = "<text>",
+    columns: Columns | None = None,
+    path: str | None = None,
 ) -> Measurements:
     """Parse and validate CSV text (see the module docstring for the format).
 
@@ -376,6 +376,7 @@ def parse_measurements(
         source: Name of the data in messages (a file path).
         columns: How to read positions and orientations (default: metres, orientation
             format from the column names).
+        path: The file read, resolved (:func:`read_measurements`), or None.
 
     Returns:
         The measurements, joints in chain order, positions in metres.
@@ -419,6 +420,7 @@ def parse_measurements(
         tuple(tools) or None,
         chain.coupling,
         angles,
+        path,
     )
     check_tools(data, tool_frames(chain))
     _warn_repeats(data)
@@ -548,7 +550,8 @@ def read_measurements(
             :data:`MAX_MEASUREMENTS_BYTES`, or its content is invalid (see
             :func:`parse_measurements`).
     """
-    return parse_measurements(read_data_text(path), chain, str(path), columns)
+    text = read_data_text(path)
+    return parse_measurements(text, chain, str(path), columns, str(Path(path).resolve()))
 
 
 def read_data_text(path: str | Path, limit: int | None = None) -> str:

@@ -116,6 +116,9 @@ class Measurements:
             joints (``coupling.names``) and ``q`` follows from them.
         angles: The orientation columns as read when they are angles (rpy, rotation
             vector), or None.
+        path: The file read, resolved when it was read (absolute, links followed), or None
+            (not read from a file): what ``Result.write`` never overwrites, wherever the
+            working directory is then.
     """
 
     joint_names: tuple[str, ...]
@@ -127,6 +130,7 @@ class Measurements:
     tool: tuple[str, ...] | None = None
     coupling: Coupling | None = None
     angles: Angles | None = None
+    path: str | None = None
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -237,6 +241,7 @@ class Measurements:
             tool,
             self.coupling,
             None if self.angles is None else Angles(self.angles.format, self.angles.values[index]),
+            self.path,
         )
 
     @property

@@ -23,6 +23,7 @@ point far from the image's centre (the width and height swapped, often) is a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -73,12 +74,16 @@ class Intrinsics:
         height: Image height [px] (rows).
         camera: The pinhole camera with its distortion.
         source: Where the intrinsics came from (a file path), for messages.
+        path: The file read, resolved when it was read (absolute, links followed), or None
+            (not read from a file): what ``Result.write`` never overwrites, wherever the
+            working directory is then.
     """
 
     width: int
     height: int
     camera: Pinhole
     source: str = "<intrinsics>"
+    path: str | None = None
 
     def __post_init__(self) -> None:
         for what, side in (("width", self.width), ("height", self.height)):
@@ -125,7 +130,8 @@ def read_intrinsics(path: str | Path) -> Intrinsics:
         DataError: The file is missing, unreadable or too large, or its content is not valid
             (see :func:`parse_intrinsics`).
     """
-    return parse_intrinsics(read_data_text(path, MAX_INTRINSICS_BYTES), str(path))
+    found = parse_intrinsics(read_data_text(path, MAX_INTRINSICS_BYTES), str(path))
+    return dataclasses.replace(found, path=str(Path(path).resolve()))
 
 
 def parse_intrinsics(text: str, source: str = "<text>") -> Intrinsics:

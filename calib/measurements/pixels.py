@@ -28,6 +28,7 @@ is known.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -97,6 +98,9 @@ class Target:
         normal: Each point's outward unit normal in its link's frame ``(k, 3)``, or None.
         source: Where the target came from (a file path), for messages.
         rows: Each point's row in the source file (the header is row 1), or None.
+        path: The file read, resolved when it was read (absolute, links followed), or None
+            (not read from a file): what ``Result.write`` never overwrites, wherever the
+            working directory is then.
     """
 
     point: tuple[str, ...]
@@ -105,6 +109,7 @@ class Target:
     normal: np.ndarray | None = None
     source: str = "<target>"
     rows: tuple[int, ...] | None = None
+    path: str | None = None
 
     def __post_init__(self) -> None:
         k = len(self.point)
@@ -154,6 +159,9 @@ class PixelObservations:
         pixels: ``(u, v)`` of each row ``(m, 2)`` [px]: column, row.
         source: Where the observations came from (a file path), for messages.
         rows: Each row's line in the source file (the header is row 1), or None.
+        path: The file read, resolved when it was read (absolute, links followed), or None
+            (not read from a file): what ``Result.write`` never overwrites, wherever the
+            working directory is then.
     """
 
     joint_names: tuple[str, ...]
@@ -163,6 +171,7 @@ class PixelObservations:
     pixels: np.ndarray
     source: str = "<observations>"
     rows: tuple[int, ...] | None = None
+    path: str | None = None
 
     def __post_init__(self) -> None:
         m = len(self.camera)
@@ -248,8 +257,10 @@ def _warn_ignored(names: Sequence[str], source: str, what: str) -> None:
         warn_user(f"{source}: columns ignored (not {what}): {', '.join(names)}", DataWarning)
 
 
-def parse_target(text: str, source: str = "<text>") -> Target:
+def parse_target(text: str, source: str = "<text>", path: str | None = None) -> Target:
     """A target from CSV text (see the module docstring for the format).
+
+    ``source`` names it in messages; ``path``: the file read, resolved (:func:`read_target`).
 
     Raises:
         DataError: A missing column, a bad cell, a point given twice, a zero normal, or a
@@ -290,7 +301,7 @@ def parse_target(text: str, source: str = "<text>") -> Target:
         raise DataError(source, "a zero normal (nx, ny, nz)", row=lines[i])
     link = tuple(links) if has_link else None
     _check_metres(table[:, :3], link, source, lines)
-    return Target(tuple(points), table[:, :3], link, normal, source, tuple(lines))
+    return Target(tuple(points), table[:, :3], link, normal, source, tuple(lines), path)
 
 
 def _check_metres(position: np.ndarray, link, source: str, lines: list[int]) -> None:
@@ -323,7 +334,7 @@ def read_target(path: str | Path) -> Target:
         DataError: The file is missing or unreadable, or its content is not valid
             (:func:`parse_target`).
     """
-    return parse_target(read_data_text(path), str(path))
+    return parse_target(read_data_text(path), str(path), str(Path(path).resolve()))
 
 
 def _observation_columns(names: list[str], joints: Sequence[str], source: str) -> dict[str, int]:
@@ -490,7 +501,8 @@ def read_observations(
         InvalidArgumentError: Arguments of the wrong kind.
     """
     _checked_arguments(joints, cameras, target)  # before reading the file
-    return parse_observations(read_data_text(path), joints, cameras, target, str(path))
+    obs = parse_observations(read_data_text(path), joints, cameras, target, str(path))
+    return dataclasses.replace(obs, path=str(Path(path).resolve()))
 
 
 def _csv_text(header: Sequence[str], rows) -> str:
