@@ -237,7 +237,8 @@ def explain(
     if not (first > ORIENTATION_SUSPECT if orientation else suspect(first, noise)):
         return []
     known = bool(np.isfinite(first))
-    amount = _degrees if orientation else _millimetres
+    unit, scale = ("deg", np.degrees(1.0)) if orientation else ("mm", 1e3)
+    amount = lambda e: f"{scale * e:.4g} {unit}"  # noqa: E731
     of = f" of {words.error}" if orientation else ""
     leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
     still = [] if orientation else _constant_joints(data)
@@ -253,11 +254,3 @@ def explain(
                         f"{amount(cause[1])} RMS once corrected")  # fmt: skip
     return [f"the registration {leaves}, far above geometric errors, and no usual mistake "
             f"({words.mistakes}) explains it: check {words.check}"]  # fmt: skip
-
-
-def _millimetres(length: float) -> str:
-    return f"{1e3 * length:.4g} mm"
-
-
-def _degrees(angle: float) -> str:
-    return f"{np.degrees(angle):.4g} deg"
