@@ -79,16 +79,10 @@ _TURNS = diagnosis.Words(
 class _Rows:
     """A chain's steps on one set of measurements (:class:`~.term_checks.Steps`).
 
-    Attributes:
-        chain: The chain.
-        nominal: Its nominal model.
-        rows: The measurements.
-        guess: The markers' guess in the tool frame [m].
-        opts: The options (with the orientation weight).
-        at: The registrations of ``rows`` by weight (:func:`_registrations`).
-        frames: The registration's model, when the outliers may not leave fewer equations
-            than its unknowns (validation data: no error, the outliers stay); else None
-            (that is an error).
+    ``guess``: the markers' in the tool frame [m]; ``opts``: with the orientation weight;
+    ``at``: :func:`_registrations` of ``rows``; ``frames``: the registration's model when the
+    outliers may not leave fewer equations than its unknowns (validation data: the outliers
+    stay), else None (that is an error).
     """
 
     chain: Chain

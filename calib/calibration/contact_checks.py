@@ -152,14 +152,7 @@ def enough_touches(data: ContactData):
 
 @dataclass(frozen=True, eq=False)
 class _Touches:
-    """A contact chain's steps on one set of touches (:class:`~.term_checks.Steps`).
-
-    Attributes:
-        chain: The chain.
-        nominal: Its nominal model.
-        rows: The touches.
-        guess: The contact frame's guess.
-    """
+    """A contact chain's steps on one set of touches (:class:`~.term_checks.Steps`)."""
 
     chain: Chain
     nominal: MDHModel
@@ -241,9 +234,8 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
     """Why a fit with a rank-deficient Jacobian at its solution is refused, or None.
 
-    Args:
-        J: The fit's Jacobian at the solution (prior rows included).
-        fixed: Its first columns not tested (the objects' and contacts' unknowns).
+    ``J``: prior rows included; ``fixed``: its first columns, not tested (the objects' and
+    contacts' unknowns).
     """
     if condition(J[:, fixed:]) < 1 / validation.RANK_TOL:
         return None

@@ -59,15 +59,9 @@ and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."
 def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
     """Refuse in one line, before any work, contact terms that would need more than 2 GB.
 
-    Args:
-        chains: The terms' chains.
-        data: Each chain's data (its touches checked; other kinds pass).
-        level: The parameter level (``auto`` selects among dense columns).
-        comp: Number of joint compliance columns offered (``elastic``).
-
-    Raises:
-        InvalidArgumentError: A term's estimate (:data:`SELECTION_BYTES`) exceeds
-            ``MAX_WORK_BYTES``; says what to do.
+    InvalidArgumentError (saying what to do) where a touching term's estimate
+    (:data:`SELECTION_BYTES`) exceeds ``MAX_WORK_BYTES`` (``auto`` selects among dense
+    columns); ``comp``: the joint compliance columns offered (``elastic``).
     """
     per_touch, per_column, per_object = SELECTION_BYTES
     auto = level == "auto"

@@ -80,19 +80,11 @@ def _configs_needed(unknowns: int, rows: int) -> int:
 def check_equations(
     m: int, rows: int, unknowns: int, what: str, source: str, *, held: int = 0, unit: str = ""
 ) -> None:
-    """Refuse fitting ``unknowns`` parameters from ``m`` configurations of ``rows`` equations.
+    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` equations.
 
-    Args:
-        m: Configurations (or, for a tree, rows of the file) fitted.
-        rows: Equations each gives.
-        unknowns: Parameters fitted.
-        what: The parameters, for the message (e.g. ``parameters of params 'complete'``).
-        source: The data, for the message.
-        held: Configurations held out (``holdout``), for the message.
-        unit: What ``m`` counts (default: configurations).
-
-    Raises:
-        DataError: ``m * rows <= unknowns``.
+    ``m``: configurations fitted (or what ``unit`` names: a tree's file rows, touches);
+    ``what`` (e.g. ``parameters of params 'complete'``), ``source`` and ``held`` (the
+    configurations held out) are for the message.
     """
     if m * rows > unknowns:
         return
@@ -115,21 +107,11 @@ def check_rank(
     unit: str = "",
     lost: tuple[str, ...] = (),
 ) -> None:
-    """Refuse a level the measured configurations do not determine (rank of W_b there).
+    """Refuse (DataError) a level the measured configurations do not determine (rank of W_b).
 
-    Args:
-        determined: Parameters the measured configurations determine.
-        generic: Parameters the level fits at generic configurations.
-        m: Configurations (or rows) fitted; ``rows`` equations each.
-        rows: Equations per configuration.
-        level: The parameter level.
-        source: The data, for the message.
-        unit: What ``m`` counts (default: configurations).
-        lost: The unknowns that generic configurations separate and the measured ones do
-            not (named in the message).
-
-    Raises:
-        DataError: ``determined < generic`` or too few equations.
+    ``determined < generic`` (the parameters the level fits at generic configurations), or
+    too few equations (``m`` configurations, or ``unit``, of ``rows`` each); ``lost``: the
+    unknowns that generic configurations separate and the measured ones do not (named).
     """
     check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
     if determined >= generic:
@@ -275,13 +257,9 @@ def separating_posture(
 ) -> tuple[np.ndarray, float]:
     """The configuration of ``q`` where a direction of the unknowns moves the rows most.
 
-    Args:
-        jacobian_at: Jacobian ``(m, rows, p)`` of the unknowns at configurations ``(m, n)``.
-        q: Candidate configurations ``(m, n)`` (random ones within the joint limits).
-        direction: The direction ``(p,)`` in the unknowns (unit-norm columns' scale).
-
-    Returns:
-        That configuration, and the condition of the unknowns at all of ``q``.
+    ``jacobian_at``: the Jacobian ``(m, rows, p)`` at configurations ``(m, n)``; ``q``:
+    candidates within the joint limits; ``direction`` ``(p,)``: unit-norm columns' scale.
+    Returns it and the condition of the unknowns at all of ``q``.
     """
     J = jacobian_at(q)
     flat = J.reshape(-1, J.shape[2])
@@ -316,12 +294,7 @@ def separating_text(
 ) -> str | None:
     """``postures such as <joint> <q> ...`` that separate a direction, or None (none does).
 
-    Args:
-        jacobian_at: Jacobian ``(m, rows, p)`` of the unknowns ``names`` at configurations.
-        q: Candidate configurations ``(m, n)`` (random ones within the joint limits).
-        names: The unknowns.
-        direction: The direction (:func:`ill_posed`).
-        joint_names: The joints of ``q``.
+    As :func:`separating_posture`, ``direction`` of :func:`ill_posed` in the unknowns ``names``.
     """
     v = np.zeros(len(names))
     v[[names.index(n) for n in direction.names]] = direction.weights
@@ -340,10 +313,8 @@ def ill_posed_text(
 ) -> str | None:
     """The refusal's sentence for undetermined directions (None: there are none).
 
-    Args:
-        found: The undetermined directions (:func:`ill_posed`).
-        std: Standard deviation of each fitted unknown [m or rad].
-        posture: What postures would separate them, or None.
+    ``std``: each fitted unknown's standard deviation [m or rad]; ``posture``: what
+    postures would separate them, or None.
     """
     if not found:
         return None

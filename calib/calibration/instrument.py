@@ -84,12 +84,9 @@ def by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
 
 
 def instrument_groups(plane_of: tuple[int, ...], data, instrument: bool) -> tuple[int, ...]:
-    """The objects of a joint fit with every measured term's frame one (``instrument``).
+    """Each term's object (``plane_of``, :func:`~.contact_checks.plane_groups`'s): one frame.
 
-    Args:
-        plane_of: Each term's object (:func:`~.contact_checks.plane_groups`).
-        data: Each term's data.
-        instrument: The measured terms share one instrument (else ``plane_of`` as it is).
+    With ``instrument``, every measured term's frame is one object (else ``plane_of``).
     """
     if not instrument:
         return plane_of
@@ -133,11 +130,7 @@ def shared_frame(states: list, train: list) -> list:
 
 
 def instrument_format2(measured) -> dict:
-    """Format 2's keys of a tree's report (written until format 4): frame and markers.
-
-    Args:
-        measured: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
-    """
+    """Format 2's keys of a tree's report (written until format 4) of the instrument terms."""
     first, stats = measured[0], pooled(measured)
 
     def both(stats: dict[str, ResidualStats], k: str) -> dict:  # of rows k [m]
@@ -184,9 +177,6 @@ def instrument_errors(parts) -> dict:
     """The report's ``errors.train`` and ``errors.held_out`` of every tool together (format 3).
 
     ``urdf``: the URDF alone, without a fitted compliance (else ``calibrated``).
-
-    Args:
-        parts: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
     if not parts:
         return {"train": None, "held_out": None}

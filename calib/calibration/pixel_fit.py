@@ -158,18 +158,11 @@ def _term(state: ChainsState) -> PixelTermState:
 
 
 def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, free, kin):
-    """One pixel term fitted alone (the engine's :func:`~.solve.fit`, its rows in pixels).
+    """The engine's state of one pixel term fitted alone (:func:`~.solve.fit`, rows in pixels).
 
-    Args:
-        chain: The term's chain.
-        placements: The joint placement errors at the start.
-        term: The term at the start (its weight taken as 1).
-        part: Its rows.
-        free: The columns of :func:`~.pixel_term.pixel_jacobian` fitted.
-        kin: The chain's frames at the rows' joints on ``placements``.
-
-    Returns:
-        The engine's state of the one term at the fit.
+    ``term``'s weight is taken as 1; ``free``: the columns of
+    :func:`~.pixel_term.pixel_jacobian` fitted; ``kin``: the chain's frames at the rows'
+    joints on ``placements``.
     """
     start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
     fitted = fit(_Steps(tuple(free)), start, ChainsData((part,)), None, 1.0,
@@ -277,10 +270,7 @@ def _size(part: PixelPart) -> int:
 class _Camera:
     """A pixel term's steps on its rows (:class:`~.term_checks.Steps`), diagnosing every row.
 
-    Attributes:
-        chain: The term's chain.
-        rows: Its rows.
-        held: Its held-out rows (their outliers set aside by the same own fit), or None.
+    ``held``: its held-out rows (their outliers set aside by the same own fit), or None.
     """
 
     chain: Chain

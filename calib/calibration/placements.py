@@ -437,14 +437,9 @@ def twist_columns(
     taken on the chain's joints' components only (no array of every component of every
     joint by row: 5,000 poses made 1.2 Jacobians of it).
 
-    Args:
-        placements: The current errors.
-        chain: The chain.
-        kin: Its frames at m configurations.
-        lift: The free directions ``(free, 6 J)`` (:meth:`Placements.names` order).
-
-    Returns:
-        Linear and angular velocity ``(m, 3, free)`` per unit of each direction.
+    ``kin``: the chain's frames at m configurations; ``lift``: the free directions
+    ``(free, 6 J)`` (:meth:`Placements.names` order). Returns the linear and angular velocity
+    ``(m, 3, free)`` per unit of each direction.
     """
     by_v, wv, by_w = _twist_blocks(placements, chain, kin)
     m, n = wv.shape[:2]
@@ -494,16 +489,10 @@ def mdh_directions(
     MDH chart's order of preference
     (:func:`~calib.identification.identifiability.preference_order`).
 
-    Args:
-        placements: The (zero) placement errors of the robot.
-        chain: The chain.
-        mdh: Its MDH model on the robot of ``placements``.
-        seed: Seed of the configurations.
-        label: The MDH parameter set offered: ``complete`` or ``paper``.
-
-    Returns:
-        Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
-        ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
+    ``placements``: zero errors; ``mdh``: the chain's model on their robot; ``seed``: of the
+    configurations; ``label``: ``complete`` or ``paper``. Returns the directions ``(D, 6 J)``
+    (in the MDH parameters' units) and their names ``<joint>:<parameter>`` (the parameter's
+    name in this chain's rows).
     """
     pset, n = parameter_set(mdh, label), chain.n
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
