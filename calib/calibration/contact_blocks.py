@@ -66,13 +66,8 @@ class BlockSolution:
 def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.ndarray:
     """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
 
-    Args:
-        system: The rows.
-        damping: Extra rows ``diag(damping[k])`` (zero residual) of each object's unknowns
-            ``(K, o)``, or None.
-
-    Returns:
-        The factors (rows beyond an object's own rank are zero).
+    Rows beyond an object's own rank are zero. ``damping`` ``(K, o)``: extra rows
+    ``diag(damping[k])`` (zero residual) of each object's unknowns, or None.
     """
     Jo, Js, r, index, K = (
         system.own, system.shared, system.residual, system.index, system.objects

@@ -114,11 +114,8 @@ def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray
 
     Joint j's motion is a turn about (a slide along) the z axis of its frame in ``kin``,
     signed by the chain's direction through it (``path``: the chain's
-    :class:`~.placements.ChainPath`).
-
-    Returns:
-        The velocity of the base frame's origin moving with the tool side ``(m, 3, k)`` and
-        the angular velocity ``(m, 3, k)``.
+    :class:`~.placements.ChainPath`). Returns the velocity of the base frame's origin moving
+    with the tool side ``(m, 3, k)`` and the angular velocity ``(m, 3, k)``.
     """
     z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
     slide = np.asarray(path.prismatic)[joints][None, :, None]
@@ -144,11 +141,7 @@ def _deflection(s) -> np.ndarray:
 
 
 def _compliant(s, joints: list[int], dc: np.ndarray):
-    """A chain's state with the compliances of ``joints`` moved by ``dc``.
-
-    Raises:
-        InvalidArgumentError: Neither a chain touching nor a measured chain.
-    """
+    """A touching or measured chain's state with the compliances of ``joints`` moved by ``dc``."""
     part = _robot_part(s)
     if isinstance(part, PixelTermState):
         raise InvalidArgumentError("joint compliance is fitted for a chain touching or measured")

@@ -156,12 +156,8 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     noted; a measured term's rows are checked as a single chain's (:func:`checked_measured`).
     ``validate``: the validation sets diagnosed (or None); ``guess``: the contact frame's
     (:func:`~.contact_term.contact_frame`); ``zeros``: :func:`~.placements.zero_frames` or None.
-    The run's ``orientation_weight``, ``max_iterations``, ``noise_mm`` and markers' guess are
-    the measured terms'.
-
-    Returns:
-        Each chain's touches (rows) kept, each chain's outliers, and each term's
-        registration on the nominal robot (a contact chain's: of the touches kept).
+    Returns each chain's rows kept and outliers, and each term's registration on the nominal
+    robot (a contact chain's: of the touches kept).
     """
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []

@@ -413,11 +413,7 @@ def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
 
 
 def _check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
-    """Refuse, before any work, K markers whose count would need more than MAX_WORK_BYTES.
-
-    Raises:
-        InvalidArgumentError: Names K, the memory needed and the most markers that fit.
-    """
+    """Refuse, before any work, K markers needing more than MAX_WORK_BYTES (the most that fit)."""
     need = marker_work_bytes(m, k, n_params, kind)
     if need <= MAX_WORK_BYTES:
         return

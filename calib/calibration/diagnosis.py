@@ -160,20 +160,12 @@ def _likely_cause(
     orientation: bool = False,
     joints_only: bool = False,
 ) -> tuple[str, float] | None:
-    """The usual mistake that explains the data, with the RMS error once it is corrected.
+    """(description, RMS [m or rad]) of the usual mistake that best explains the data, or None.
 
-    Args:
-        data: The measurements.
-        revolute: Which joint columns are revolute.
-        registration_rms: RMS error per point [m] (or, ``orientation``, RMS orientation
-            error [rad]) of the registration of some data.
-        before: That error for ``data`` as they are [m or rad].
-        orientation: Try the mistakes of the orientation columns.
-        joints_only: Try the mistakes of the joint columns only (data that record the
-            joints alone: contacts).
-
-    Returns:
-        (description, RMS [m or rad]) of the best explaining mistake, or None.
+    ``registration_rms``: the registration's RMS error per point [m] (``orientation``: RMS
+    orientation error [rad], the orientation columns' mistakes) of some data; ``before``:
+    that of ``data`` as they are; ``joints_only``: the joint columns' mistakes only (data
+    that record the joints alone: contacts).
     """
     best = None
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT

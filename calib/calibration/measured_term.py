@@ -339,11 +339,7 @@ def unseen(states: tuple) -> tuple:
 
 
 def one_term_per_frame(chains, data) -> None:
-    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it).
-
-    Raises:
-        InvalidArgumentError: Two terms whose data are measurements share a base frame.
-    """
+    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it)."""
     measuring = [
         c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
     ]

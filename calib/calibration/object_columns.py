@@ -110,14 +110,9 @@ class ObjectColumns:
 
 
 def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """Each posture's rows of ``X`` ``(m, ...)`` summed, over the root of their count.
+    """Each posture's rows of ``X`` ``(m, ...)`` summed over the root of their count ``(P, ...)``.
 
-    Args:
-        X: Rows by configuration ``(m, ...)``.
-        groups: Posture of each configuration ``(m,)``, numbered from 0.
-
-    Returns:
-        ``(postures, ...)``.
+    ``groups``: each configuration's posture ``(m,)``, numbered from 0.
     """
     root = np.sqrt(np.bincount(groups).astype(float))
     out = np.zeros((len(root), *X.shape[1:]))

@@ -83,14 +83,8 @@ an error (:class:`~.problem.Problem`; the command line adds its own flags to it)
 def _check_run_options(max_iterations, holdout, seed) -> None:
     """The options every calibration takes, chain or tree: one check, one-line errors.
 
-    Args:
-        max_iterations: Most residual evaluations of each solver run (an integer in
-            [1, :data:`MAX_ITERATIONS`]).
-        holdout: Fraction of the rows set aside, in [0, 1).
-        seed: Seed of the holdout draw (an integer >= 0).
-
-    Raises:
-        InvalidArgumentError: A value out of its range or of the wrong type.
+    InvalidArgumentError unless ``max_iterations`` is an integer in [1,
+    :data:`MAX_ITERATIONS`], ``holdout`` in [0, 1) and ``seed`` an integer >= 0.
     """
     from ..core.checks import check_count  # numpy: not when the parser is built
 

@@ -61,15 +61,9 @@ def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np
     """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
 
     Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
-
-    Args:
-        N: Normal matrices of each fold ``(folds, p, p)``.
-        b: Their right-hand sides ``(folds, p)``.
-        use: The columns of each candidate's fit in each fold ``(candidates, folds, p)``.
-        lam: The prior on each column ``(candidates, folds, p)``.
-
-    Returns:
-        ``(candidates, folds, p)`` solutions, zero off their columns.
+    ``N`` ``(folds, p, p)`` and ``b`` ``(folds, p)``: each fold's normal equations; ``use``
+    (the columns of each candidate's fit) and ``lam`` (the prior on each column):
+    ``(candidates, folds, p)``. Returns ``(candidates, folds, p)``, zero off their columns.
     """
     both = use[..., :, None] & use[..., None, :]
     M = np.where(both, N[None], 0.0)

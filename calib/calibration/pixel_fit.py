@@ -113,12 +113,7 @@ class _Steps:
         return len(self.free)
 
     def _moves(self, start: ChainsState, x: np.ndarray):
-        """Where x goes: among the placements' components and among the own unknowns.
-
-        Returns:
-            The mask of x's joint columns, their components, the others' places among the own
-            unknowns, the own unknowns.
-        """
+        """Where x goes: joint-column mask, their components, others' own places, own unknowns."""
         n, free = start.placements.y.size, np.asarray(self.free, dtype=int)
         joint = (free >= 6) & (free < 6 + n)
         own_cols = _term(start).own_columns(n)

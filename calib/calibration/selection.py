@@ -223,15 +223,10 @@ def _ridge_errors(Q, U, wt, r, rows, hat=None) -> np.ndarray:
     """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
 
     The configurations are taken in blocks (:data:`BLOCK`): each one's error needs its own
-    rows and the fits' coefficients ``wt U^T r`` only.
-
-    Args:
-        Q: Fixed columns' orthonormal basis ``(b, n, fixed)``.
-        U: Prior columns' left singular vectors ``(b, n, width)``.
-        wt: Their weights at each strength ``(b, strengths, width)``.
-        r: Residuals of the fixed columns' fit ``(b, n)``.
-        rows: Rows per configuration.
-        hat: The fixed columns' hat blocks ``(b, m, rows, rows)`` instead of ``Q`` (None).
+    rows and the fits' coefficients ``wt U^T r`` only. ``Q`` ``(b, n, fixed)``: the fixed
+    columns' orthonormal basis (or ``hat``, their hat blocks ``(b, m, rows, rows)``); ``U``
+    ``(b, n, width)``: the prior columns' left singular vectors, ``wt`` ``(b, strengths,
+    width)`` their weights; ``r`` ``(b, n)``: the fixed columns' fit's residuals.
     """
     b, n, width = U.shape
     m, S = n // rows, wt.shape[1]
@@ -286,14 +281,8 @@ def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
     """``-U diag(wt) U^T`` of each configuration at each strength, component-major.
 
     Each entry on and above the diagonal once, mirrored below it (half the products).
-
-    Args:
-        Uc: Prior columns' left singular vectors by row of a configuration
-            ``(rows, b, width, m)``.
-        wt: Their weights at each strength ``(b, strengths, width)``.
-
-    Returns:
-        ``(rows, rows, b, strengths, m)``.
+    ``Uc`` ``(rows, b, width, m)``: the prior columns' left singular vectors by row of a
+    configuration; ``wt`` ``(b, strengths, width)``. Returns ``(rows, rows, b, strengths, m)``.
     """
     rows = len(Uc)
     i, j = np.triu_indices(rows)
@@ -361,11 +350,7 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
-    """Each list's columns of A, zero columns padding to the longest ``(lists, n, width)``.
-
-    Returns:
-        The columns, and which are real ``(lists, width)``.
-    """
+    """Each list's columns of A zero-padded ``(lists, n, width)``, and which are real."""
     width = max(map(len, cols))
     out = np.zeros((len(cols), A.shape[0], width))
     for s, c in enumerate(cols):
@@ -379,15 +364,9 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
     For the linear model the fit and every left-out error of a posture are those of its
     repeats (a posture held out leaves with all of them), but for the spread of the repeats
     about their mean, which no model explains: it is returned, to be added to the errors.
-
-    Args:
-        J: Columns ``(m, rows, p)``.
-        e: Residuals ``(m, rows)``.
-        groups: Posture of each configuration ``(m,)`` (numbered from 0), or None.
-
-    Returns:
-        Columns ``(postures, rows, p)``, residuals ``(postures, rows)``, and the spread of each
-        posture's residuals (summed squares) with its count of configurations.
+    ``J`` ``(m, rows, p)`` -> ``(postures, rows, p)``, ``e`` ``(m, rows)`` -> ``(postures,
+    rows)``, then each posture's spread (summed squares) with its count; ``groups``: each
+    configuration's posture ``(m,)`` (from 0), or None.
     """
     m = len(e)
     if groups is None or int(np.max(groups, initial=-1)) + 1 == m:

@@ -284,16 +284,9 @@ def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fi
     noise-free rows already near their round-off a few steps remove the remainder, one
     Jacobian each. Each step is the least-norm solution of the linearised data rows (no
     prior: it moves nothing the rows do not determine) and is kept only if it lowers the
-    data rows' cost; the first that does not ends the finish.
-
-    Args:
-        fitted: A converged linear-loss fit (:func:`fit`, no torque).
-        data: Its measurements.
-        steps: Most steps.
-
-    Returns:
-        The fit at the last step kept (``fitted`` itself when none lowers the cost); its
-        counts of Jacobians and evaluations include the finish's.
+    data rows' cost; the first that does not ends the finish. ``fitted``: a converged
+    linear-loss fit (:func:`fit`, no torque). Returns the fit at the last step kept
+    (``fitted`` itself when none lowers the cost), its counts including the finish's.
     """
     problem = Problem(fitted.model, fitted.start, data, None, 1.0, None, robust=False)
     x, f, best = fitted.x, fitted.f, fitted
@@ -383,13 +376,9 @@ def condition(J: np.ndarray) -> float:
 def fitted_values(fitted: Fit, cov: np.ndarray) -> dict:
     """A fit's free robot parameters for a result: names, values, std and the solver's outcome.
 
-    Args:
-        fitted: The fit (its first ``model.fixed`` columns are frames and objects).
-        cov: Its covariance (:func:`covariance`, with the prior weights it was fitted with).
-
-    Returns:
-        ``fitted`` (names), ``estimate``, ``std`` (NaN where undefined) and ``solver``
-        ``(converged, message, Jacobian evaluations)``.
+    Past ``fitted``'s first ``model.fixed`` columns (frames and objects); ``cov``:
+    :func:`covariance` with its prior weights. Keys ``fitted`` (names), ``estimate``, ``std``
+    (NaN where undefined), ``solver`` ``(converged, message, Jacobian evaluations)``.
     """
     fixed = fitted.model.fixed
     with np.errstate(invalid="ignore"):

@@ -79,8 +79,7 @@ _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:
     """``data`` registered on the ``nominal`` tree (:func:`~.instrument.shared_frame`), its errors.
 
-    Raises:
-        DataError: A usual mistake explains the registration's error (it is named).
+    A DataError names the usual mistake that explains the registration's error, if one does.
     """
 
     def registered(d: Measurements) -> tuple[list, ResidualStats]:

@@ -191,15 +191,8 @@ def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: st
 
     Each file passed the usual-mistake diagnosis on its own registration: held-out rows that
     the training registration still misses by more than ``diagnosis.SUSPECT`` were measured
-    in another frame or of another robot.
-
-    Args:
-        fitted: Registration errors on the fitted rows.
-        held: Errors of the same registration on the held-out rows.
-        source: The held-out data, for the message.
-
-    Raises:
-        DataError: The held-out error is absurd and the fitted one is not.
+    in another frame or of another robot: a DataError names ``source`` (the held-out data)
+    when their error is absurd and the fitted rows' is not.
     """
     if suspect(held.position_rms, None) and not suspect(fitted.position_rms, None):
         raise DataError(
