@@ -99,17 +99,10 @@ def fit_terms_until_stable(
     the run's fit as it is; a loop that sets no other row aside leaves it unchanged. A
     measured term's start and rows tested are its own (:func:`_aside`); the proposals read
     the registration of every row only: the fit of every row is made only if the loop comes
-    to it (no proposal, or a later round keeping every row).
-
-    Args:
-        run: The run (its held-out rows drawn first, as its registration draws them).
-        register: Its checks and registration
-            (:func:`~.contact_register.register_contact_chains`).
-        fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
-
-    Returns:
-        The last fit; each term's outliers those set aside by the loop and by the last fit's
-        registration, their errors the last fit's.
+    to it (no proposal, or a later round keeping every row). ``register``:
+    :func:`~.contact_register.register_contact_chains`; ``fit``:
+    :func:`~.contact_chains.fit_registered`. In the last fit returned, each term's outliers
+    are those the loop and its registration set aside, their errors the last fit's.
     """
     first = register(run)
     again, train = _drawn(run)

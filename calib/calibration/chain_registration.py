@@ -155,12 +155,9 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
 
     The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
-    estimated before (unless given).
-
-    Returns:
-        The options with the orientation weight, the registration state, the mask of the
-        outlier rows of ``train``, the outliers, the notes and the nominal kinematics at
-        ``train``'s joints (the registration's, at every row: its geometry is the nominal one).
+    estimated before (unless given). Returns the options with it, the registration state,
+    the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
+    kinematics at ``train``'s joints (the registration's, at every row).
     """
     at = _registrations(nominal, train, guess, opts)
     if opts.orientation_weight is None:  # estimated from the registration (poses)

@@ -106,14 +106,9 @@ def block_lstsq(
 ) -> BlockSolution:
     """The least squares of ``system`` (see the module's text).
 
-    Args:
-        system: The rows.
-        damping: Extra rows ``diag(damping[k])`` on each object's unknowns ``(K, o)``.
-        shared_rows: Extra rows ``[C | c]`` on the shared unknowns alone ``(n, s + 1)``
-            (``min |C x_s + c|`` joins the sum), or None.
-
-    Returns:
-        The solution (the least-norm one in the shared unknowns if they are undetermined).
+    The least-norm one in the shared unknowns if they are undetermined. Extra rows:
+    ``damping`` ``(K, o)``, ``diag(damping[k])`` on each object's unknowns; ``shared_rows``
+    ``(n, s + 1)``, ``[C | c]`` on the shared unknowns alone (``min |C x_s + c|`` joins).
     """
     o, s, K = system.own.shape[2], system.shared.shape[2], system.objects
     F = block_factors(system, damping)

@@ -204,12 +204,9 @@ def checked_registration(
     """Outliers set aside, diagnosis (the touches, and validation touches), registration.
 
     The steps of every kind of term (:func:`~.term_checks.checked`, at the default weight),
-    then the touches kept registered at ``weight`` (None: estimated).
-
-    Returns:
-        The registration state of the touches kept, the mask of the outliers, the outliers
-        (their gaps under the registration that set them aside, :func:`.outliers.records`)
-        and the notes.
+    then the touches kept registered at ``weight`` (None: estimated). Returns it, the mask
+    of the outliers, the outliers (their gaps under the registration that set them aside)
+    and the notes.
     """
     checks = []
     if validate is not None and _registrable(validate):

@@ -151,16 +151,8 @@ def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> 
     """Configurations the selection (``--params auto``) chooses on: all, or a sample's size.
 
     A campaign within :data:`SELECTION_WORK` is chosen on all its configurations; a larger
-    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them).
-
-    Args:
-        m: Configurations.
-        rows: Rows per configuration (3 per marker, 3 more for an orientation).
-        fixed: Frame and marker columns.
-        candidates: Candidate parameters.
-
-    Returns:
-        ``m``, or the size of the sample (``< m``).
+    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them). ``fixed``:
+    the frame and marker columns; returns ``m`` or the sample's size (``< m``).
 
     Raises:
         InvalidArgumentError: The sample the bound allows would keep fewer than
@@ -226,14 +218,9 @@ determined all the same (noise-free or very precise data): it is not refused."""
 def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
     """Directions of the unknowns (columns of ``J``) the rows do not determine.
 
-    Args:
-        J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
-        names: The unknowns.
-        overwrite: ``J`` may be written to (its columns scaled in place: no copy of it).
-
-    Returns:
-        One :class:`Direction` per singular value of the unit-norm columns under
-        ``1 / ILL_CONDITION`` times the largest, the weakest first.
+    One :class:`Direction` per singular value of the unit-norm columns under
+    ``1 / ILL_CONDITION`` times the largest, the weakest first. ``J`` ``(rows, p)``: weighted
+    rows (scaled in place with ``overwrite``: no copy).
     """
     if J.shape[1] == 0:
         return []
@@ -274,12 +261,7 @@ def undetermined(J: np.ndarray, names: tuple[str, ...], std) -> list[Direction]:
     """The undetermined directions of :func:`ill_posed` but those it determines all the same.
 
     A direction all of whose unknowns have standard deviations under :data:`ILL_STD` is
-    determined all the same (NaN: undetermined).
-
-    Args:
-        J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
-        names: The unknowns.
-        std: Each one's standard deviation [m or rad].
+    determined all the same (NaN: undetermined); ``std`` [m or rad].
     """
     spread = dict(zip(names, std, strict=True))
     return [d for d in ill_posed(J, names) if not all(spread[n] <= ILL_STD for n in d.names)]

@@ -208,23 +208,12 @@ def explain(
 ) -> list[str]:
     """Raise the usual mistake behind a registration's absurd error; else a note of it.
 
-    Args:
-        data: The rows (``joint_names``, ``q``, ``m``, ``source``).
-        revolute: Which joint columns are revolute.
-        error: The registration's RMS error [m] of some rows (``data`` corrected).
-        first: That error of ``data`` as they are [m] (infinite: no registration).
-        noise: The instrument's noise [m], or None.
-        words: How the messages name the rows.
-        joints_only: Try the joint columns' mistakes only (:func:`_likely_cause`).
-        orientation: The errors are orientation errors [rad] (suspect above
-            ``ORIENTATION_SUSPECT``), the mistakes the orientation columns'.
-
-    Returns:
-        A list: empty when the error is not suspect (:func:`suspect`), else the note that no
-        usual mistake explains it.
-
-    Raises:
-        DataError: Joint columns that hold one value in every row, or the mistake named.
+    ``data``: rows with ``joint_names``, ``q``, ``m``, ``source``; ``error``: the
+    registration's RMS error [m] of some rows (``data`` corrected), ``first`` that of
+    ``data`` (infinite: no registration); ``noise`` [m] or None; ``orientation``: the errors
+    are orientation errors [rad] (suspect above ``ORIENTATION_SUSPECT``), the mistakes the
+    orientation columns'. No note when the error is not suspect (:func:`suspect`). A
+    DataError names joint columns holding one value in every row, or the mistake.
     """
     if not (first > ORIENTATION_SUSPECT if orientation else suspect(first, noise)):
         return []

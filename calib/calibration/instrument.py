@@ -102,15 +102,8 @@ def shared_frame(states: list, train: list) -> list:
     """The instrument terms' frame and markers registered together in closed form.
 
     :func:`~.registration.register_points` on every tool's predicted points, from each
-    term's own markers.
-
-    Args:
-        states: Each term's state; the :class:`MeasuredState` with ``instrument`` are
-            registered together (the others are returned as they are).
-        train: Each term's rows.
-
-    Returns:
-        The states, the instrument terms' with one frame and their markers.
+    term's own markers: the :class:`MeasuredState` with ``instrument`` among ``states`` get
+    one frame and their markers, the others are returned as they are.
     """
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
@@ -158,11 +151,8 @@ def pooled(parts) -> dict[str, ResidualStats]:
     """Position errors of every tool's rows together, by part (those a tool has).
 
     The parts are ``train``, ``train_registration`` and, with held-out rows or compliance,
-    ``held_out``, ``held_out_registration``, ``train_urdf`` and ``held_out_urdf``.
-
-    Args:
-        parts: The instrument terms' parts (each with ``stats``: :class:`GapStats` whose
-            ``per_row`` are the point errors [mm]).
+    ``held_out``, ``held_out_registration``, ``train_urdf`` and ``held_out_urdf``; each
+    part's ``stats`` are :class:`GapStats` whose ``per_row`` are the point errors [mm].
     """
     out = {}
     for key in dict.fromkeys(k for c in parts for k in c.stats):

@@ -168,13 +168,8 @@ def find_outliers(
 ) -> tuple[np.ndarray, list[Outlier]]:
     """Outliers of per-configuration errors: by position error, and by orientation error.
 
-    Args:
-        found: Each configuration's errors (:class:`Errors`).
-        noise: Instrument position noise [m], or None.
-        rows: File row of each configuration.
-
-    Returns:
-        The boolean mask of the outliers and the outliers (:func:`records`).
+    ``noise`` [m] or None; ``rows``: each configuration's file row. Returns the mask of the
+    outliers and the outliers (:func:`records`).
     """
     errors, orientation, dims = found
     bad = _find_outliers(errors, noise, dims[0])

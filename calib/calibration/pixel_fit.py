@@ -323,11 +323,8 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
     their normal, and rows that the shared rule (:func:`~.outliers.find_outliers`) sets
     aside on the term's own fit (:func:`_judged`), are outliers named by their line; the
     camera is registered again without them. Held-out rows' outliers: the same rule
-    (:func:`~.term_checks.held_out`).
-
-    Returns:
-        Its registered state, the mask of its outlier rows, the outliers, the notes and its
-        held-out rows without their outliers (or None).
+    (:func:`~.term_checks.held_out`). Returns as
+    :func:`~.measured_term.checked_measured` does.
     """
     what = f"unknowns of camera {part.data.camera.name}'s placement"
     determined.check_equations(part.m, 2, _size(part), what, part.source,

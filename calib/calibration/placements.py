@@ -410,16 +410,10 @@ def joint_twists(
 
     An error ``dy`` of joint k moves everything on the chain's tool side of it by the body
     twist ``(R(w)^T dv, J_r(w) dw)`` of the frame it acts at (frame k of ``kin``, its axis
-    frame), with a minus sign for a joint traversed backwards.
-
-    Args:
-        placements: The current errors.
-        chain: The chain.
-        kin: Its frames (:meth:`Placements.frames`) at m configurations.
-
-    Returns:
-        Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
-        origin's point moving with the tool side, per component (x y z rx ry rz).
+    frame), with a minus sign for a joint traversed backwards. ``kin``:
+    :meth:`Placements.frames` at m configurations. Returns the angular and linear velocity
+    ``(m, n, 3, 6)`` of the base-frame origin's point moving with the tool side, per
+    component (x y z rx ry rz).
     """
     by_v, wv, by_w = _twist_blocks(placements, chain, kin)
     m, n = wv.shape[:2]

@@ -146,15 +146,10 @@ class _Tools:
 def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
     """Closed-form frame and markers of tools measured in one frame (module text, steps 1-3).
 
-    Args:
-        Rt: Each tool's rotations ``(m_c, 3, 3)`` in the base frame.
-        pt: Each tool's origins ``(m_c, 3)`` [m].
-        points: Each tool's measured points ``(m_c, K_c, 3)`` [m], measurement frame.
-        markers: Each tool's markers' guess ``(K_c, 3)`` [m], tool frame.
-
-    Returns:
-        The pose of the base frame in the measurement frame ``(4, 4)``, and each tool's
-        markers ``(K_c, 3)`` [m].
+    Each tool's rotations ``Rt`` ``(m_c, 3, 3)`` and origins ``pt`` ``(m_c, 3)`` [m] in the
+    base frame, points ``(m_c, K_c, 3)`` [m] in the measurement frame and markers' guess
+    ``(K_c, 3)`` [m] in the tool frame. Returns the pose of the base frame in the measurement
+    frame ``(4, 4)`` and each tool's markers ``(K_c, 3)`` [m].
     """
     sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])

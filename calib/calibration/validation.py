@@ -217,15 +217,9 @@ def stats(
 def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
     """RMS over configurations and points of the predicted position std [m].
 
-    Args:
-        J_points: Jacobian of the points of each configuration ``(m, rows, p)`` (the first
-            3 K rows are points).
-        covariance: Parameter covariance ``(p, p)``.
-        n_markers: K.
-
-    Returns:
-        sqrt(mean over points of trace(J_k C J_k^T)): the RMS distance between the predicted
-        and the true point that the parameter uncertainty alone explains.
+    sqrt(mean over points of trace(J_k C J_k^T)): the RMS distance between the predicted and
+    the true point that the parameter uncertainty alone explains. ``J_points`` ``(m, rows,
+    p)``: its first 3 K rows are points (``n_markers``: K); ``covariance`` ``(p, p)``.
     """
     if covariance.size == 0:
         return 0.0
