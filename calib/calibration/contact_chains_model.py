@@ -389,13 +389,8 @@ class ChainsModel:
     def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
         """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
 
-        Returns:
-            The weighted rows on each touch's own object's unknowns ``(m, rows, o)``, on the
-            shared unknowns (contact, placement directions, compliances) ``(m, rows,
-            size - K o)``, and the object of each touch ``(m,)``.
-
-        Raises:
-            InvalidArgumentError: Not one chain touching.
+        As :meth:`~.contact_model.ContactState.blocks`, the shared unknowns' rows the
+        contact's, the placement directions' and the compliances'.
         """
         if len(self.plane_of) != 1 or not isinstance(start.states[0], ContactState):
             raise InvalidArgumentError("a fit by block is of one chain touching")

@@ -108,10 +108,8 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
 
     Each object's touches are Newton-projected onto it, the model re-expressed in its frame
     with the contact as its tool (:func:`~calib.identification.contact_postures.project`).
-
-    Returns:
-        The postures ``(m, n)`` (the given one where the projection failed) and which
-        reached the contact ``(m,)``.
+    Returns the postures ``(m, n)`` (the given one where the projection failed) and which
+    reached the contact ``(m,)``.
     """
     q = np.asarray(q, dtype=float)
     index = start.frames.index(ids)
@@ -349,11 +347,9 @@ def selection_columns(
 
     Many objects (:func:`~.contact_fit.by_block`): the objects' columns by block
     (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
-    Jacobians at the registration made so far (:class:`AtStart`), or None.
-
-    Returns:
-        The dense columns ``(m, rows, free + len(columns))``, the objects (or None) and the
-        number of always-free dense columns.
+    Jacobians at the registration made so far (:class:`AtStart`), or None. Returns the dense
+    columns ``(m, rows, free + len(columns))``, the objects (or None) and the number of
+    always-free dense columns.
     """
     x = np.zeros(wide.size())
     if not by_block(wide, start):

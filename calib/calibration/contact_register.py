@@ -248,10 +248,8 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     The run's data (every row: no validation, no holdout) are checked, outliers set aside
     and registered as :func:`register_contact_chains` does; the rank of the Jacobian of every
     row by every unknown (objects, contact frames, measuring frames, markers, and every joint
-    placement component) at flush postures is what the data determine.
-
-    Returns:
-        The names of the unknowns determined (a basis, in the columns' order) and of all.
+    placement component) at flush postures is what the data determine. Returns the names
+    of the unknowns determined (a basis, in the columns' order) and of all.
     """
     _check(run)
     chains, parts = run.chains, pixel_parts(run.chains, run.data)

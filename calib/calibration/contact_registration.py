@@ -243,17 +243,10 @@ def register_contacts(
 ) -> ContactFrames:
     """The objects and the contact frame of any kind, registered (see the module's text).
 
-    Args:
-        kind: The contact kind.
-        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        ids: Object id of each touch ``(m,)``.
-        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (a fixed pose's:
-            kept; a tip's: its rotation kept).
-        weight: Weight of the angle rows [m/rad] (1 mrad counts as ``weight`` mm).
-
-    Returns:
-        The objects and the contact frame at the least-squares minimum of the kind's gap.
+    At the least-squares minimum of the kind's gap, from the tool ``rotations`` ``(m, 3, 3)``
+    and ``positions`` ``(m, 3)`` [m] in the base frame (nominal model), each touch's object
+    id, the contact frame's guess in the tool frame ``(4, 4)`` (a fixed pose's kept, a tip's
+    rotation kept) and the angle rows' ``weight`` [m/rad] (1 mrad counts as ``weight`` mm).
 
     Raises:
         ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry

@@ -352,10 +352,9 @@ class _Batch:
 def _start(A, e, rows, start, candidates, train, objects=None):
     """Each subset's fit of the columns ``start`` (rows component-major).
 
-    Returns:
-        Residuals ``(b, rows, m)``, hat blocks ``(b, rows, rows, m)``, the candidates
-        orthogonal to the fit ``(k, b, rows, m)`` and the squared norms under which they are
-        dependent ``(k, b)``.
+    Returns its residuals ``(b, rows, m)``, hat blocks ``(b, rows, rows, m)``, the candidates
+    orthogonal to it ``(k, b, rows, m)`` and the squared norms under which they are
+    dependent ``(k, b)``.
     """
     b, m = train.shape
     Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)

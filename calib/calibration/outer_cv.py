@@ -20,19 +20,10 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
 
     The held-out rows' moments (``A_h^T A_h``, ``A_h^T e_h``, ``|e_h|^2``) are taken about
     the whole data's least-squares fit (whose residuals are small: they keep their digits).
-
-    Args:
-        A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Number of columns always in (frame, markers).
-        train: Training configurations of each fold ``(folds, m)``.
-        models: Per candidate, per fold: its columns and prior strength.
-        objects: Objects' columns free too, by block (:func:`.object_columns.
-            object_moments`), or None.
-
-    Returns:
-        ``(candidates, folds)`` summed squared held-out errors [units of e squared].
+    ``A``: unit-norm columns, configuration-major rows, the first ``fixed`` always in;
+    ``train`` ``(folds, m)``; ``models``: per candidate, per fold, its columns and prior
+    strength; ``objects``: free by block (:func:`.object_columns.object_moments`), or None.
+    Returns ``(candidates, folds)`` [units of e squared].
     """
     if objects is None:
         x_all = np.linalg.lstsq(A, e, rcond=None)[0]

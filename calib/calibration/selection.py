@@ -157,21 +157,11 @@ def ridge_strengths(
     (the block PRESS of the ridge fit ``A^T A + s`` on those columns), and the left-out errors of
     every subset at every strength are one batch of small solves. The subsets are taken a
     few at a time, and their configurations in blocks (:data:`BLOCK`): the memory is linear
-    in the data.
-
-    Args:
-        A: Unit-norm columns ``(m rows, p)``, the first ``fixed`` free of prior.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Columns without prior.
-        train: Configurations of each subset ``(subsets, m)`` [bool].
-        cols: Columns under the prior of each subset.
-        objects: Objects' columns free too, by block (:mod:`.object_columns`), or None.
-
-    Returns:
-        Each subset's squared left-out errors at its strength of least RMS error ``(b, m)``
-        (zero on the configurations it leaves out), and those strengths ``(b,)`` (0: none;
-        the smallest of equal errors).
+    in the data. ``A``: unit-norm columns ``(m rows, p)``; ``train`` ``(subsets, m)``
+    [bool]; ``objects``: objects' columns free too, by block (:mod:`.object_columns`), or
+    None. Returns each subset's squared left-out errors at its strength of least RMS error
+    ``(b, m)`` (zero on the configurations it leaves out), and those strengths ``(b,)`` (0:
+    none; the smallest of equal errors).
     """
     per = _per_batch(A.shape[0] * A.shape[1], len(train))
     parts = [
@@ -382,10 +372,8 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
 def _unit_columns(J, e, groups, objects):
     """The rows of each posture once (:func:`_by_posture`), the columns of unit norm.
 
-    Returns:
-        The columns ``(postures rows, p)``, their norms, the residuals ``(postures rows,)``,
-        the postures' spread and counts, and the objects (:meth:`~.object_columns.
-        ObjectColumns.unit`, by posture) or None.
+    Returns the columns ``(postures rows, p)``, their norms, the residuals ``(postures
+    rows,)``, the postures' spread and counts, and the objects (by posture) or None.
     """
     if objects is not None:
         objects = objects.by_posture(groups, len(e)).unit()
@@ -420,23 +408,13 @@ def select(
 ) -> tuple[Selection, np.ndarray]:
     """Choose the parameters the data support (see the module docstring).
 
-    Args:
-        J: Weighted Jacobian at the registration ``(m, rows, fixed + len(names))``: the
-            frame and marker columns first, then the candidates.
-        e: Weighted residuals measured - model at the registration ``(m, rows)``.
-        fixed: Number of always-free columns (frame, markers).
-        names: Candidate names.
-        forced: Indices into ``names`` kept whatever the data say.
-        groups: Posture of each configuration (:func:`~calib.measurements.postures.
-            posture_groups`): the repeats of a posture count once (None: every
-            configuration is a posture).
-        objects: The objects' columns (contacts: each object's unknowns, on its own
-            touches), always free like the first ``fixed`` of J, kept by block
-            (:mod:`.object_columns`); or None.
-
-    Returns:
-        The selection, and the prior weight of each kept parameter (in the units of x:
-        ``sqrt(strength) * |column|``).
+    At the registration: ``J`` ``(m, rows, fixed + len(names))``, the ``fixed`` always-free
+    columns (frame, markers) first, and ``e`` ``(m, rows)`` measured - model, both weighted.
+    ``forced``: indices into ``names`` kept whatever the data say; ``groups``: each
+    configuration's posture (:func:`~calib.measurements.postures.posture_groups`; repeats
+    count once; None: each its own); ``objects``: always-free object columns by block
+    (:mod:`.object_columns`), or None. Returns the selection and each kept parameter's
+    prior weight (in the units of x: ``sqrt(strength) * |column|``).
     """
     points, rows = e.size / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)

@@ -48,11 +48,9 @@ ITERATIONS = 10
 
 
 def variance_ratio(residuals: np.ndarray, angle: np.ndarray) -> float | None:
-    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)``, or None if one is ~0.
+    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)`` [m, rad], or None if one is ~0.
 
-    Args:
-        residuals: Residuals [m, rad].
-        angle: Which rows are angles ``(rows,)`` (bool).
+    ``angle`` ``(rows,)``: which rows are angles.
     """
     sp = math.sqrt(float(np.mean(residuals[:, ~angle] ** 2)))
     so = math.sqrt(float(np.mean(residuals[:, angle] ** 2)))
