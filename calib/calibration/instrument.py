@@ -195,11 +195,9 @@ def instrument_lines(parts) -> list[str]:
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
     """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m].
 
-    Args:
-        parts: The instrument terms' parts, in tool order
-            (``result.chains`` of a tree's calibration).
-        paths: Each tool's joints among the tree's (:attr:`~calib.kinematics.tree.Tree.paths`).
-        q: The tree's joint positions ``(m, n)`` [rad or m].
+    ``parts``: a tree calibration's ``result.chains`` (tool order); ``paths``: each tool's
+    joints among the tree's (:attr:`~calib.kinematics.tree.Tree.paths`); ``q`` ``(m, n)``
+    [rad or m].
     """
     q = np.asarray(q, dtype=float)
     return np.stack(

@@ -41,11 +41,8 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
     A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
     joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
     ``free``): the URDF cannot hold it. The joints offered are those gravity loads, less the
-    compliances fixed.
-
-    Returns:
-        ``(torques of train, of held or None)`` (``(None, None)``: rigid joints) and the
-        joints (0-based).
+    compliances fixed. Returns ``(torques of train, of held or None)`` (``(None, None)``:
+    rigid joints) and the joints (0-based).
 
     Raises:
         InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free

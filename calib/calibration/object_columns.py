@@ -158,12 +158,8 @@ class FixedBasis:
 
     The dense fixed columns (the contact's, ...) are made orthogonal to the objects' and
     factored by QR; the projection onto the fixed columns is the objects' (block diagonal)
-    plus theirs.
-
-    Args:
-        objects: The object columns.
-        D: The dense fixed columns by configuration ``(m, rows, f)``.
-        w: Configurations of each subset ``(b, m)`` (1 in, 0 out).
+    plus theirs. ``D`` ``(m, rows, f)``: the dense fixed columns by configuration; ``w``
+    ``(b, m)``: each subset's configurations (1 in, 0 out).
     """
 
     def __init__(self, objects: ObjectColumns, D: np.ndarray, w: np.ndarray) -> None:

@@ -213,9 +213,7 @@ def stable_set(
 
     The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
     each term's units on its own, from those each term sets aside at first (``start``).
-
-    Returns:
-        The last fit and the mask of the units it was fitted without.
+    Returns the last fit and the mask of the units it was fitted without.
     """
     bad = start
     result = refit(~bad)

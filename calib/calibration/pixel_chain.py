@@ -82,12 +82,7 @@ class PixelData:
 
 @dataclass(frozen=True, eq=False)
 class PixelPart:
-    """A pixel term's rows on its chain (training or held out).
-
-    Attributes:
-        data: The term's data.
-        rows: The rows, joints in the chain's order.
-    """
+    """A pixel term's ``data`` and its ``rows`` on its chain (joints in the chain's order)."""
 
     data: PixelData
     rows: PixelRows

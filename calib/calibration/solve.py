@@ -86,22 +86,13 @@ _Model = TypeVar("_Model", bound=FitModel[Any])
 
 @dataclass(frozen=True, eq=False)
 class Fit(Generic[_Model, _State]):
-    """A solved fit.
+    """A solved fit: ``model`` (what was free) from ``start`` (x = 0) to ``state`` at ``x``.
 
-    Attributes:
-        model: What was free.
-        start: The state at x = 0.
-        state: The state at the solution.
-        x: The solution ``(p,)``.
-        J: Weighted Jacobian of the data rows at the solution ``(r, p)``.
-        f: Weighted residuals model - measured of the data rows ``(r,)`` [m].
-        converged: The solver met a convergence criterion with finite numbers.
-        status: scipy's status.
-        message: scipy's message.
-        iterations: Jacobian evaluations.
-        evaluations: Residual evaluations.
-        kin: The kinematics of ``state`` at the data's joints (made once per x), or None:
-            what a caller scoring ``state`` on the same data passes on.
+    ``J`` ``(r, p)`` and ``f`` ``(r,)`` [m]: the data rows' weighted Jacobian and residuals
+    model - measured at the solution; ``converged``: a convergence criterion met with finite
+    numbers (``status``, ``message``: scipy's); ``iterations``, ``evaluations``: of the
+    Jacobian and the residuals; ``kin``: ``state``'s kinematics at the data's joints (made
+    once per x), or None: what a caller scoring ``state`` on the same data passes on.
     """
 
     model: _Model
@@ -324,9 +315,7 @@ def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
     (``factor`` 100, no ``diag``, no column-major Jacobian), without ``least_squares``'s
     copies of the Jacobian (one kept from the start, one per evaluation, one at the end:
     three times 100,000 poses x 6 rows x 40 columns, 190 MB): the same steps, to the bit.
-
-    Returns:
-        x, status and message (``least_squares``'s), Jacobian and residual evaluations.
+    Returns x, status and message (``least_squares``'s), Jacobian and residual evaluations.
     """
     import scipy.optimize
 

@@ -32,11 +32,8 @@ def prepare_tree(
     in the data and the validation rows; validation rows measured in another frame.
 
     The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
-    together (:func:`~.validation.split`), as the validation rows are given.
-
-    Returns:
-        Each tool's rows, and each tool's held-out rows (None: none, or a tool without
-        held-out rows).
+    together (:func:`~.validation.split`), as the validation rows are given. Returns each
+    tool's rows and held-out rows (None: none, or a tool without held-out rows).
 
     Raises:
         DataError: Rows of other joints, pose or several-point rows, a tool no row measures,
