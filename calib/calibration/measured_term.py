@@ -292,16 +292,23 @@ def checked_measured(
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
+    The rows kept must determine the frame and markers; then
     :func:`~.chain_registration.checked_registration` on the nominal chain (``validate``
-    diagnosed too), then the held-out rows' (``held``) outliers set aside by the same rule
+    diagnosed too), and the held-out rows' (``held``) outliers set aside by the same rule
     (:func:`~.term_checks.held_out`). ``weight`` [m/rad] None: estimated; ``marker`` [m]:
     :func:`~.measured_options.marker_guess`'s; ``noise_mm`` [mm] or None; ``zero``: the
     chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
 
     Returns:
-        Its registered state (:attr:`MeasuredState.seen` set), the mask of its outlier rows,
-        the outliers, the notes and its held-out rows without their outliers (or None).
+        Its registered state (:attr:`MeasuredState.seen` set), its rows kept, the outliers,
+        the notes (the outliers' last) and its held-out rows without their outliers (or None):
+        every kind's checks return these (:func:`~.contact_checks.checked_registration`,
+        :func:`~.pixel_fit.checked_pixels`).
     """
+    each, size = data.kind.rows_of(data.n_markers), len(measured_kind(data).names())
+    what = f"unknowns of {chain.base_frame}'s placement and the markers"
+    out = 0 if held is None else held.m
+    determined.check_equations(data.m, each, size, what, data.source, held=out)
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
@@ -313,18 +320,18 @@ def checked_measured(
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
     seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT), seen=seen)
-    if held is None:
-        return state, bad, found, notes, held
-    k, at = data.n_markers, state.frames_at
-    fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
-    aside = term_checks.held_out(
-        outliers.point_errors(fitted, k), outliers.point_errors(errors, k), held,
-        held.rows or tuple(range(1, held.m + 1)), held.subset, notes, opts.noise,
-    )  # fmt: skip
-    other = errors if aside is held else reg.residuals(aside, None, at(aside))
-    stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
-    validation.check_held_out_errors(*stats, aside.source)
-    return state, bad, found, notes, aside
+    aside = held
+    if held is not None:
+        k, at = data.n_markers, state.frames_at
+        fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
+        aside = term_checks.held_out(
+            outliers.point_errors(fitted, k), outliers.point_errors(errors, k), held,
+            held.rows or tuple(range(1, held.m + 1)), held.subset, notes, opts.noise,
+        )  # fmt: skip
+        other = errors if aside is held else reg.residuals(aside, None, at(aside))
+        stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
+        validation.check_held_out_errors(*stats, aside.source)
+    return state, kept, found, notes + ([outliers.set_aside_note(found)] if found else []), aside
 
 
 def unseen(states: tuple) -> tuple:

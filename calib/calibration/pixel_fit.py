@@ -330,4 +330,6 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
     determined.check_equations(part.m, 2, _size(part), what, part.source,
                                held=0 if held is None else held.m, unit="observations")  # fmt: skip
     aside, notes = term_checks.checked(_Camera(chain, part, held))
-    return aside.state, aside.bad, list(aside.found), notes, aside.held
+    found = list(aside.found)
+    notes += [outliers.set_aside_note(found)] if found else []
+    return aside.state, aside.kept, found, notes, aside.held
