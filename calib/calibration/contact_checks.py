@@ -37,7 +37,6 @@ __all__ = [
     "checked_registration",
     "enough_touches",
     "held_out_refusal",
-    "isolated_postures",
     "length_errors",
     "plane_groups",
     "rank_refusal",
@@ -69,7 +68,7 @@ POSTURE_TOL = 1e-2
 sines) are one posture (:func:`~calib.measurements.postures.posture_groups`)."""
 
 
-def isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
+def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
     """A note when the contact leaves the chain finitely many postures (None otherwise).
 
     A chain with no more joints than the contact has conditions (a 6-joint arm holding a fixed
@@ -206,7 +205,7 @@ def checked_registration(
     then the touches kept registered at ``weight`` (None: estimated); the held-out touches'
     outliers set aside by the same rule (:func:`~.term_checks.held_out`; each held-out
     object must be one of the registration's), a chain the contact leaves finitely many
-    postures noted (:func:`isolated_postures`), and the touches kept must determine the
+    postures noted (:func:`_isolated_postures`), and the touches kept must determine the
     objects and the contact frame. Returns what :func:`~.measured_term.checked_measured`
     does (the outliers' gaps: under the registration that set them aside).
 
@@ -226,7 +225,7 @@ def checked_registration(
         fitted, errors = (length_errors(start, d) for d in (kept, held))
         rows, cut = held.rows or tuple(range(1, held.m + 1)), partial(subset, held)
         held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
-    notes += filter(None, [isolated_postures(chain, kept, held)])
+    notes += filter(None, [_isolated_postures(chain, kept, held)])
     what = f"unknowns of {chain.tool_frame}'s {kept.kind.object_name}(s) and contact frame"
     rows_each, out = len(kept.kind.row_names), 0 if held is None else held.m
     determined.check_equations(

@@ -1,8 +1,8 @@
 """The joint engine's model, chosen before its fit (:mod:`.contact_chains`).
 
-The directions a level offers (:func:`offer_directions`), those the data determine (at touching
+The directions a level offers (:func:`_offer_directions`), those the data determine (at touching
 postures, :func:`flush_data`; by block with many objects, :func:`structural`), the joint
-compliances offered (``elastic``), the selection's columns (:func:`selection_columns`) and
+compliances offered (``elastic``), the selection's columns (:func:`_selection_columns`) and
 the choice (:func:`choose`); and the memory a contact term would need (refused up front
 beyond 2 GB, :func:`check_selection_memory`).
 """
@@ -40,8 +40,6 @@ __all__ = [
     "check_selection_memory",
     "choose",
     "flush_data",
-    "offer_directions",
-    "selection_columns",
     "structural",
     "touching_postures",
 ]
@@ -137,7 +135,7 @@ def chains_model(
     return ChainsModel(p, len(set(p)), tuple(free), tuple(names), directions, kinds, counts, c)
 
 
-def offer_directions(
+def _offer_directions(
     start: ChainsState, level: str
 ) -> tuple[np.ndarray | None, tuple[str, ...], list]:
     """Directions a level offers: (directions or None for components, names, indices).
@@ -284,7 +282,7 @@ def choose(
     model), as ``notes`` with the remarks.
     """
     train, rows = list(data.parts), data
-    directions, names, offered = offer_directions(start, level)
+    directions, names, offered = _offer_directions(start, level)
     forced: tuple[str, ...] = ()
     if asked is not None:
         directions, names, offered, forced = asked.offer(directions, names, offered)
@@ -314,7 +312,7 @@ def choose(
         cand_names = tuple(all_names[c] for c in columns)
         drawn = None if generic is None else generic.sample(fixed, len(columns), notes)
         data = sampled(data, drawn)
-        J, objects, free = selection_columns(wide, start, data, columns, at)
+        J, objects, free = _selection_columns(wide, start, data, columns, at)
         groups = _postures(data) if generic is None else generic.groups(drawn)
         e = start.residuals(data, None, at.kinematics(data))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
@@ -340,7 +338,7 @@ def _postures(data: ChainsData) -> np.ndarray | None:
     return posture_groups(first.q, first.ids)
 
 
-def selection_columns(
+def _selection_columns(
     wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart | None = None
 ):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.

@@ -37,7 +37,6 @@ __all__ = [
     "ChainView",
     "MeasuredChain",
     "Solution",
-    "gravity_torque",
     "measured_part",
     "residual_stats",
     "world_of",
@@ -428,7 +427,7 @@ class ChainView:
 
     def _point_std(self, rows: Measurements) -> float:
         """:meth:`Solution.point_std` at rows, the joints deflected where compliance was fitted."""
-        return self._solution().point_std(rows, gravity_torque(self.chain, self.state, rows))
+        return self._solution().point_std(rows, _gravity_torque(self.chain, self.state, rows))
 
     def _solution(self) -> Solution:
         self.one_chain()
@@ -442,10 +441,10 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 
     With fitted joint compliance, the joints deflect under the chain's gravity torques.
     """
-    return validation.stats(state, data, gravity_torque(chain, state, data))
+    return validation.stats(state, data, _gravity_torque(chain, state, data))
 
 
-def gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
+def _gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
     """The chain's gravity torques at the rows where the state has compliance, else None."""
     return chain.gravity_torques(data.q) if np.any(state.compliance) else None
 

@@ -29,9 +29,7 @@ from .term_checks import Aside
 __all__ = [
     "MAX_EVALUATIONS",
     "ROUND_OFF_PX",
-    "camera_from_rays",
     "checked_pixels",
-    "rays",
 ]
 
 UNDISTORT_ITERATIONS = 20
@@ -45,7 +43,7 @@ ROUND_OFF_PX = 1e-6
 1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
 
 
-def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
+def _rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
     """The normalised coordinates ``(a, b)`` ``(m, 2)`` of the ray of each pixel.
 
     Newton's method on ``pinhole((a, b, 1)) = pixel`` from the undistorted guess.
@@ -61,7 +59,7 @@ def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
     return ab
 
 
-def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndarray:
+def _camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndarray:
     """The camera's placement in the points' frame ``(4, 4)`` from their rays, in closed form.
 
     The direct linear transform of the normalised points (centred, mean distance sqrt(3)),
@@ -180,7 +178,7 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         guess = camera_placement(chain, cam.name, cam.link)
     if guess is None:
         p_link = camera_points(kin, np.eye(4), X[rows.point])[1]
-        guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
+        guess = _camera_from_rays(p_link, _rays(lens, rows.pixels), part.source)
     behind = np.flatnonzero(camera_points(kin, guess, X[rows.point])[0][:, 2] <= 0)
     if len(behind):
         raise DataError(part.source, f"{len(behind)} observation(s) see a point behind the "
