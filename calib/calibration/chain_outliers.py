@@ -109,10 +109,13 @@ def fit_terms_until_stable(
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
     parts = [slice(a, b) for a, b in itertools.pairwise(ends)]
-    rows = [_lines(d) for d in train]
-    noise = [
-        _noise(d, s, run.options.noise) for d, s in zip(train, first.start.states, strict=True)
-    ]
+    rows = [d.rows.lines if isinstance(d, PixelPart) else d.rows or tuple(range(1, d.m + 1))
+            for d in train]  # fmt: skip
+    noise = [  # the rule's floor [m]: none for touches, a pixel term's as checked_pixels's
+        None if isinstance(d, ContactData) else ROUND_OFF_PX * s.weight
+        if isinstance(d, PixelPart) else run.options.noise
+        for d, s in zip(train, first.start.states, strict=True)
+    ]  # fmt: skip
     errors = _term_errors(train, torque[0][0])
     terms = zip(train, first.start.states, first.dropped, rows, noise, strict=True)
     masks = [_aside(*t) for t in terms]
@@ -176,24 +179,6 @@ def _subset(data, keep: np.ndarray):
     if isinstance(data, PixelPart):
         return data.subset(keep).as_data()
     return subset(data, keep) if isinstance(data, ContactData) else data.subset(keep)
-
-
-def _lines(data) -> tuple[int, ...]:
-    """A term's training rows' lines (a pixel term's: each point's in an image)."""
-    if isinstance(data, PixelPart):
-        return data.rows.lines
-    return data.rows or tuple(range(1, data.m + 1))
-
-
-def _noise(data, state, noise: float | None) -> float | None:
-    """A term's noise floor in the rule [m]: none for touches, the registration's for pixels.
-
-    A pixel term's: :data:`~.pixel_fit.ROUND_OFF_PX` at the target (``state``: its
-    registration), as :func:`~.pixel_fit.checked_pixels`; a measured term's: the instrument's.
-    """
-    if isinstance(data, ContactData):
-        return None
-    return ROUND_OFF_PX * state.weight if isinstance(data, PixelPart) else noise
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
