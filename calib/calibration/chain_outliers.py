@@ -208,23 +208,14 @@ def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], li
                 found.append(length_errors(s, d, tau))
             elif isinstance(s, PixelTermState):  # each point's reprojection error at the target
                 found.append(Errors(np.linalg.norm(s.residuals(d), axis=1), None, (2, 3)))
-            else:
-                found.append(point_errors(_residuals(s, part, d, tau), d.n_markers))
+            else:  # a measured term's: its fit's own (kept by its part) if it fitted d, rigid
+                r = part.residuals if isinstance(part, MeasuredChain) and part.data is d else None
+                r = s.inner.residuals(d, tau) if r is None or tau is not None else r
+                found.append(point_errors(r, d.n_markers))
         last[:] = [result, found]
         return found
 
     return errors
-
-
-def _residuals(state: MeasuredState, part, data: Measurements, torque) -> np.ndarray:
-    """A measured term's residuals at every training row: its fit's own if they are those.
-
-    The fit's, kept by its part, when it fitted every row (``data``) of rigid joints.
-    """
-    fitted = part.residuals if isinstance(part, MeasuredChain) and part.data is data else None
-    if fitted is not None and torque is None:
-        return fitted
-    return state.inner.residuals(data, torque)
 
 
 def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, rows: list):

@@ -130,14 +130,6 @@ def suspect(rms: float, noise: float | None) -> bool:
     return rms > limit
 
 
-def _constant_joints(data) -> list[str]:
-    """Joint columns that hold one value in every row (of data with several rows)."""
-    if data.m < 2:
-        return []
-    same = np.all(data.q == data.q[0], axis=0)
-    return [name for name, s in zip(data.joint_names, same, strict=True) if s]
-
-
 def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
     """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled.
 
@@ -222,7 +214,8 @@ def explain(
     amount = lambda e: f"{scale * e:.4g} {unit}"  # noqa: E731
     of = f" of {words.error}" if orientation else ""
     leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
-    still = [] if orientation else _constant_joints(data)
+    same = () if orientation or data.m < 2 else np.all(data.q == data.q[0], axis=0)
+    still = [name for name, s in zip(data.joint_names, same, strict=False) if s]  # constant
     if still:
         raise DataError(data.source, f"the registration {leaves} and joint column(s) "
                         f"{', '.join(still)} hold one value in every {words.row}: were those "
