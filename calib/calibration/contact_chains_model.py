@@ -104,11 +104,6 @@ def _with(s, **changes):
     return dataclasses.replace(s, **changes)
 
 
-def _joints(part) -> np.ndarray:
-    """A chain's joint positions in its data ``(m, n)`` (a pixel part's: its rows')."""
-    return np.asarray(part.rows.q if isinstance(part, PixelPart) else part.q, dtype=float)
-
-
 def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """The tool side's motion per unit motion of a chain's joints ``joints``.
 
@@ -127,11 +122,6 @@ def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray
 def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
     """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``."""
     return s.motion_rows(kin, d, *_joint_motions(path, kin, joints))
-
-
-def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
-    """Gravity torques of the compliant ``joints`` as factors of their rows ``(m, 1, k)``."""
-    return np.asarray(torque, dtype=float)[:, None, list(joints)]
 
 
 def _deflection(s) -> np.ndarray:
@@ -181,7 +171,7 @@ class ChainsState:
         """
         frames = []
         for c, (chain, s, d) in enumerate(zip(self.chains, self.states, data.parts, strict=True)):
-            robot, q = _robot_part(s), _joints(d)
+            robot, q = _robot_part(s), np.asarray(d.q, dtype=float)  # a pixel part's: its rows'
             seen = q if isinstance(robot, PixelTermState) else robot.joints(q, data.torque(c))
             frames.append(self.placements.frames(chain, seen))
         return tuple(frames)
@@ -411,7 +401,8 @@ class ChainsModel:
             out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
         if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
             motions = _joint_motions(state.placements.path(chain), kin, list(self.compliance))
-            out.append(rows_of(*motions) * _gain(torque, self.compliance))
+            gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]  # (m, 1, k)
+            out.append(rows_of(*motions) * gain)
         return out
 
     def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):
