@@ -79,8 +79,7 @@ def forty_planes():
     chain = load_chain("talos", base="left_sole_link", tool="gripper_left_base_link")
     data = simulate_contacts(chain, 240, "plane", contacts=40, noise_mrad=0.01, seed=1).data
     nominal = from_chain(chain)
-    start, bad, *_ = contact_checks.checked_registration(
+    start, train, *_ = contact_checks.checked_registration(
         chain, nominal, data, None, np.eye(4), None
     )
-    train = contact_checks.subset(data, ~bad) if bad.any() else data
     return nominal, start, train

@@ -508,3 +508,14 @@ def test_tree_model_worse_on_held_out_rows_is_refused_with_its_report(tmp_path):
     assert not out.exists() and rep["accepted"] is False
     held = rep["validation"]
     assert held["calibrated"]["position_rms"] > held["registration"]["position_rms"]
+
+
+def test_a_joint_column_holding_one_value_is_named_first():
+    """A joint not logged (its column one value in every row) is named before any unit or
+    order mistake is looked for: the registration's absurd error and the column."""
+    chain = chain_of("ur5")
+    data = simulate(chain, configs=30, measure="position", marker=MARKER, seed=2).measurements
+    q = data.q.copy()
+    q[:, 1] = 0.3  # shoulder_lift_joint not logged
+    with pytest.raises(DataError, match=r"joint column\(s\) shoulder_lift_joint hold one value"):
+        calibrate(chain, dataclasses.replace(data, q=q))

@@ -55,10 +55,8 @@ class Generic:
     The rank of the engine's own Jacobian at random configurations within the joint limits,
     rows of the data's kind, is what the structure lets rows determine.
 
-    Attributes:
-        start: The registration the Jacobians are linearised at.
-        train: Each term's rows (their kinds: markers, orientation).
-        seed: Seed of the configurations' draw.
+    ``start``: the registration the Jacobians are linearised at; ``train``: each term's rows
+    (their kinds).
     """
 
     start: ChainsState
@@ -105,12 +103,9 @@ class Generic:
         The frame and markers must be determined, as many unknowns as they are (which of
         them the rows cannot separate, if any, refuses the fit: :func:`assess`).
 
-        Args:
-            wide: The level's model (every direction it offers).
-            kept: Its columns the rows determine (at the registration).
-            generic: Its columns generic configurations determine.
-            flush: The rows the rank was taken at.
-            level: The level.
+        ``wide``: the level's model (every direction it offers); ``kept``: its columns the
+        rows (``flush``) determine at the registration, ``generic``: those generic
+        configurations determine.
 
         Raises:
             DataError: Rows that do not determine as many unknowns as the frame and markers
@@ -187,12 +182,8 @@ def assess(generic: Generic | None, fitted, cov: np.ndarray, polished: bool) -> 
     It names the posture, among random ones within the joint limits, that separates them
     best (:func:`~.determined.separating_posture`).
 
-    Args:
-        generic: The terms measured by an instrument, or None (not assessed).
-        fitted: The joint fit (its model's columns: the frame, the markers, the free
-            directions).
-        cov: Its covariance (:func:`~.solve.covariance`, with its prior weights).
-        polished: The fit was polished (every component: not assessed).
+    Not assessed: ``generic`` None, or a ``polished`` fit (every component). ``cov``:
+    :func:`~.solve.covariance` of ``fitted``, with its prior weights.
     """
     if generic is None or polished or not generic.one:
         return None

@@ -99,27 +99,23 @@ def fit_terms_until_stable(
     the run's fit as it is; a loop that sets no other row aside leaves it unchanged. A
     measured term's start and rows tested are its own (:func:`_aside`); the proposals read
     the registration of every row only: the fit of every row is made only if the loop comes
-    to it (no proposal, or a later round keeping every row).
-
-    Args:
-        run: The run (its held-out rows drawn first, as its registration draws them).
-        register: Its checks and registration
-            (:func:`~.contact_register.register_contact_chains`).
-        fit: The rest of the joint fit (:func:`~.contact_chains.fit_registered`).
-
-    Returns:
-        The last fit; each term's outliers those set aside by the loop and by the last fit's
-        registration, their errors the last fit's.
+    to it (no proposal, or a later round keeping every row). ``register``:
+    :func:`~.contact_register.register_contact_chains`; ``fit``:
+    :func:`~.contact_chains.fit_registered`. In the last fit returned, each term's outliers
+    are those the loop and its registration set aside, their errors the last fit's.
     """
     first = register(run)
     again, train = _drawn(run)
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
     parts = [slice(a, b) for a, b in itertools.pairwise(ends)]
-    rows = [_lines(d) for d in train]
-    noise = [
-        _noise(d, s, run.options.noise) for d, s in zip(train, first.start.states, strict=True)
-    ]
+    rows = [d.rows.lines if isinstance(d, PixelPart) else d.rows or tuple(range(1, d.m + 1))
+            for d in train]  # fmt: skip
+    noise = [  # the rule's floor [m]: none for touches, a pixel term's as checked_pixels's
+        None if isinstance(d, ContactData) else ROUND_OFF_PX * s.weight
+        if isinstance(d, PixelPart) else run.options.noise
+        for d, s in zip(train, first.start.states, strict=True)
+    ]  # fmt: skip
     errors = _term_errors(train, torque[0][0])
     terms = zip(train, first.start.states, first.dropped, rows, noise, strict=True)
     masks = [_aside(*t) for t in terms]
@@ -185,24 +181,6 @@ def _subset(data, keep: np.ndarray):
     return subset(data, keep) if isinstance(data, ContactData) else data.subset(keep)
 
 
-def _lines(data) -> tuple[int, ...]:
-    """A term's training rows' lines (a pixel term's: each point's in an image)."""
-    if isinstance(data, PixelPart):
-        return data.rows.lines
-    return data.rows or tuple(range(1, data.m + 1))
-
-
-def _noise(data, state, noise: float | None) -> float | None:
-    """A term's noise floor in the rule [m]: none for touches, the registration's for pixels.
-
-    A pixel term's: :data:`~.pixel_fit.ROUND_OFF_PX` at the target (``state``: its
-    registration), as :func:`~.pixel_fit.checked_pixels`; a measured term's: the instrument's.
-    """
-    if isinstance(data, ContactData):
-        return None
-    return ROUND_OFF_PX * state.weight if isinstance(data, PixelPart) else noise
-
-
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
     """Each term's errors at every training row under a fit (the last one's kept).
 
@@ -230,23 +208,14 @@ def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], li
                 found.append(length_errors(s, d, tau))
             elif isinstance(s, PixelTermState):  # each point's reprojection error at the target
                 found.append(Errors(np.linalg.norm(s.residuals(d), axis=1), None, (2, 3)))
-            else:
-                found.append(point_errors(_residuals(s, part, d, tau), d.n_markers))
+            else:  # a measured term's: its fit's own (kept by its part) if it fitted d, rigid
+                r = part.residuals if isinstance(part, MeasuredChain) and part.data is d else None
+                r = s.inner.residuals(d, tau) if r is None or tau is not None else r
+                found.append(point_errors(r, d.n_markers))
         last[:] = [result, found]
         return found
 
     return errors
-
-
-def _residuals(state: MeasuredState, part, data: Measurements, torque) -> np.ndarray:
-    """A measured term's residuals at every training row: its fit's own if they are those.
-
-    The fit's, kept by its part, when it fitted every row (``data``) of rigid joints.
-    """
-    fitted = part.residuals if isinstance(part, MeasuredChain) and part.data is data else None
-    if fitted is not None and torque is None:
-        return fitted
-    return state.inner.residuals(data, torque)
 
 
 def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, rows: list):

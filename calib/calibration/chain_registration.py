@@ -79,16 +79,10 @@ _TURNS = diagnosis.Words(
 class _Rows:
     """A chain's steps on one set of measurements (:class:`~.term_checks.Steps`).
 
-    Attributes:
-        chain: The chain.
-        nominal: Its nominal model.
-        rows: The measurements.
-        guess: The markers' guess in the tool frame [m].
-        opts: The options (with the orientation weight).
-        at: The registrations of ``rows`` by weight (:func:`_registrations`).
-        frames: The registration's model, when the outliers may not leave fewer equations
-            than its unknowns (validation data: no error, the outliers stay); else None
-            (that is an error).
+    ``guess``: the markers' in the tool frame [m]; ``opts``: with the orientation weight;
+    ``at``: :func:`_registrations` of ``rows``; ``frames``: the registration's model when the
+    outliers may not leave fewer equations than its unknowns (validation data: the outliers
+    stay), else None (that is an error).
     """
 
     chain: Chain
@@ -161,12 +155,9 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
 
     The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
-    estimated before (unless given).
-
-    Returns:
-        The options with the orientation weight, the registration state, the mask of the
-        outlier rows of ``train``, the outliers, the notes and the nominal kinematics at
-        ``train``'s joints (the registration's, at every row: its geometry is the nominal one).
+    estimated before (unless given). Returns the options with it, the registration state,
+    the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
+    kinematics at ``train``'s joints (the registration's, at every row).
     """
     at = _registrations(nominal, train, guess, opts)
     if opts.orientation_weight is None:  # estimated from the registration (poses)

@@ -66,13 +66,8 @@ class BlockSolution:
 def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.ndarray:
     """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
 
-    Args:
-        system: The rows.
-        damping: Extra rows ``diag(damping[k])`` (zero residual) of each object's unknowns
-            ``(K, o)``, or None.
-
-    Returns:
-        The factors (rows beyond an object's own rank are zero).
+    Rows beyond an object's own rank are zero. ``damping`` ``(K, o)``: extra rows
+    ``diag(damping[k])`` (zero residual) of each object's unknowns, or None.
     """
     Jo, Js, r, index, K = (
         system.own, system.shared, system.residual, system.index, system.objects
@@ -111,14 +106,9 @@ def block_lstsq(
 ) -> BlockSolution:
     """The least squares of ``system`` (see the module's text).
 
-    Args:
-        system: The rows.
-        damping: Extra rows ``diag(damping[k])`` on each object's unknowns ``(K, o)``.
-        shared_rows: Extra rows ``[C | c]`` on the shared unknowns alone ``(n, s + 1)``
-            (``min |C x_s + c|`` joins the sum), or None.
-
-    Returns:
-        The solution (the least-norm one in the shared unknowns if they are undetermined).
+    The least-norm one in the shared unknowns if they are undetermined. Extra rows:
+    ``damping`` ``(K, o)``, ``diag(damping[k])`` on each object's unknowns; ``shared_rows``
+    ``(n, s + 1)``, ``[C | c]`` on the shared unknowns alone (``min |C x_s + c|`` joins).
     """
     o, s, K = system.own.shape[2], system.shared.shape[2], system.objects
     F = block_factors(system, damping)

@@ -256,10 +256,8 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     polished. A kept polish is finished on the data rows alone
     (:func:`~.solve.gauss_newton_finish`): its pull ``PIN`` leaves a residue (TALOS's head
     camera with both arms' touches: 1.8e-9 px, 4e-12 px finished). ``kin``: the start's
-    kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None.
-
-    Returns:
-        The fit, and whether it was polished.
+    kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None. Returns the fit
+    and whether it was polished.
     """
     data, iters = train, opts.max_iterations
     if by_block(model, start):

@@ -104,21 +104,13 @@ def _with(s, **changes):
     return dataclasses.replace(s, **changes)
 
 
-def _joints(part) -> np.ndarray:
-    """A chain's joint positions in its data ``(m, n)`` (a pixel part's: its rows')."""
-    return np.asarray(part.rows.q if isinstance(part, PixelPart) else part.q, dtype=float)
-
-
 def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """The tool side's motion per unit motion of a chain's joints ``joints``.
 
     Joint j's motion is a turn about (a slide along) the z axis of its frame in ``kin``,
     signed by the chain's direction through it (``path``: the chain's
-    :class:`~.placements.ChainPath`).
-
-    Returns:
-        The velocity of the base frame's origin moving with the tool side ``(m, 3, k)`` and
-        the angular velocity ``(m, 3, k)``.
+    :class:`~.placements.ChainPath`). Returns the velocity of the base frame's origin moving
+    with the tool side ``(m, 3, k)`` and the angular velocity ``(m, 3, k)``.
     """
     z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
     slide = np.asarray(path.prismatic)[joints][None, :, None]
@@ -132,11 +124,6 @@ def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) ->
     return s.motion_rows(kin, d, *_joint_motions(path, kin, joints))
 
 
-def _gain(torque, joints: tuple[int, ...]) -> np.ndarray:
-    """Gravity torques of the compliant ``joints`` as factors of their rows ``(m, 1, k)``."""
-    return np.asarray(torque, dtype=float)[:, None, list(joints)]
-
-
 def _deflection(s) -> np.ndarray:
     """A chain state's joint compliance (zeros: rigid)."""
     c = getattr(_robot_part(s), "compliance", None)
@@ -144,11 +131,7 @@ def _deflection(s) -> np.ndarray:
 
 
 def _compliant(s, joints: list[int], dc: np.ndarray):
-    """A chain's state with the compliances of ``joints`` moved by ``dc``.
-
-    Raises:
-        InvalidArgumentError: Neither a chain touching nor a measured chain.
-    """
+    """A touching or measured chain's state with the compliances of ``joints`` moved by ``dc``."""
     part = _robot_part(s)
     if isinstance(part, PixelTermState):
         raise InvalidArgumentError("joint compliance is fitted for a chain touching or measured")
@@ -188,7 +171,7 @@ class ChainsState:
         """
         frames = []
         for c, (chain, s, d) in enumerate(zip(self.chains, self.states, data.parts, strict=True)):
-            robot, q = _robot_part(s), _joints(d)
+            robot, q = _robot_part(s), np.asarray(d.q, dtype=float)  # a pixel part's: its rows'
             seen = q if isinstance(robot, PixelTermState) else robot.joints(q, data.torque(c))
             frames.append(self.placements.frames(chain, seen))
         return tuple(frames)
@@ -396,13 +379,8 @@ class ChainsModel:
     def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
         """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
 
-        Returns:
-            The weighted rows on each touch's own object's unknowns ``(m, rows, o)``, on the
-            shared unknowns (contact, placement directions, compliances) ``(m, rows,
-            size - K o)``, and the object of each touch ``(m,)``.
-
-        Raises:
-            InvalidArgumentError: Not one chain touching.
+        As :meth:`~.contact_model.ContactState.blocks`, the shared unknowns' rows the
+        contact's, the placement directions' and the compliances'.
         """
         if len(self.plane_of) != 1 or not isinstance(start.states[0], ContactState):
             raise InvalidArgumentError("a fit by block is of one chain touching")
@@ -423,7 +401,8 @@ class ChainsModel:
             out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
         if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
             motions = _joint_motions(state.placements.path(chain), kin, list(self.compliance))
-            out.append(rows_of(*motions) * _gain(torque, self.compliance))
+            gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]  # (m, 1, k)
+            out.append(rows_of(*motions) * gain)
         return out
 
     def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):

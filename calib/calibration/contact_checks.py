@@ -23,7 +23,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.postures import posture_groups
-from . import diagnosis, outliers, term_checks, validation
+from . import determined, diagnosis, outliers, term_checks, validation
 from .contact_frames import ContactFrames
 from .contact_model import ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
@@ -37,8 +37,6 @@ __all__ = [
     "checked_registration",
     "enough_touches",
     "held_out_refusal",
-    "held_out_set_aside",
-    "isolated_postures",
     "length_errors",
     "plane_groups",
     "rank_refusal",
@@ -70,7 +68,7 @@ POSTURE_TOL = 1e-2
 sines) are one posture (:func:`~calib.measurements.postures.posture_groups`)."""
 
 
-def isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
+def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
     """A note when the contact leaves the chain finitely many postures (None otherwise).
 
     A chain with no more joints than the contact has conditions (a 6-joint arm holding a fixed
@@ -152,14 +150,7 @@ def enough_touches(data: ContactData):
 
 @dataclass(frozen=True, eq=False)
 class _Touches:
-    """A contact chain's steps on one set of touches (:class:`~.term_checks.Steps`).
-
-    Attributes:
-        chain: The chain.
-        nominal: Its nominal model.
-        rows: The touches.
-        guess: The contact frame's guess.
-    """
+    """A contact chain's steps on one set of touches (:class:`~.term_checks.Steps`)."""
 
     chain: Chain
     nominal: MDHModel
@@ -206,24 +197,41 @@ def _registrable(data: ContactData) -> bool:
 
 
 def checked_registration(
-    chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None
+    chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None, held=None
 ):
     """Outliers set aside, diagnosis (the touches, and validation touches), registration.
 
     The steps of every kind of term (:func:`~.term_checks.checked`, at the default weight),
-    then the touches kept registered at ``weight`` (None: estimated).
+    then the touches kept registered at ``weight`` (None: estimated); the held-out touches'
+    outliers set aside by the same rule (:func:`~.term_checks.held_out`; each held-out
+    object must be one of the registration's), a chain the contact leaves finitely many
+    postures noted (:func:`_isolated_postures`), and the touches kept must determine the
+    objects and the contact frame. Returns what :func:`~.measured_term.checked_measured`
+    does (the outliers' gaps: under the registration that set them aside).
 
-    Returns:
-        The registration state of the touches kept, the mask of the outliers, the outliers
-        (their gaps under the registration that set them aside, :func:`.outliers.records`)
-        and the notes.
+    Raises:
+        DataError: A held-out touch of an object the training touches do not touch, or too
+            few touches.
     """
     checks = []
     if validate is not None and _registrable(validate):
         checks.append((_Touches(chain, nominal, validate, guess), validate.source))
     aside, notes = term_checks.checked(_Touches(chain, nominal, train, guess), checks)
-    start = registration(nominal, aside.kept, guess, weight, aside.state.frames)
-    return start, aside.bad, list(aside.found), notes
+    kept, found, words = aside.kept, list(aside.found), ("touch(es)", "gap")
+    start = registration(nominal, kept, guess, weight, aside.state.frames)
+    notes += [outliers.set_aside_note(found, *words)] if found else []
+    if held is not None:
+        start.frames.index(held.ids, held.source)  # every held-out object was fitted
+        fitted, errors = (length_errors(start, d) for d in (kept, held))
+        rows, cut = held.rows or tuple(range(1, held.m + 1)), partial(subset, held)
+        held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
+    notes += filter(None, [_isolated_postures(chain, kept, held)])
+    what = f"unknowns of {chain.tool_frame}'s {kept.kind.object_name}(s) and contact frame"
+    rows_each, out = len(kept.kind.row_names), 0 if held is None else held.m
+    determined.check_equations(
+        kept.m, rows_each, start.frames.size, what, kept.source, held=out, unit="touches"
+    )
+    return start, kept, found, notes, held
 
 
 def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
@@ -241,9 +249,8 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
     """Why a fit with a rank-deficient Jacobian at its solution is refused, or None.
 
-    Args:
-        J: The fit's Jacobian at the solution (prior rows included).
-        fixed: Its first columns not tested (the objects' and contacts' unknowns).
+    ``J``: prior rows included; ``fixed``: its first columns, not tested (the objects' and
+    contacts' unknowns).
     """
     if condition(J[:, fixed:]) < 1 / validation.RANK_TOL:
         return None
@@ -280,22 +287,3 @@ def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
         )
     index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
     return tuple(index[k] for k in keys)
-
-
-def held_out_set_aside(
-    start: ContactState, train: ContactData, held: ContactData | None, notes: list[str]
-) -> ContactData | None:
-    """The held-out touches without their outliers (:func:`.term_checks.held_out`).
-
-    Each held-out object must be one of the registration's; a note lists those set aside.
-
-    Raises:
-        DataError: A held-out touch of an object the training touches do not touch.
-    """
-    if held is None:
-        return None
-    start.frames.index(held.ids, held.source)  # every held-out object was fitted
-    rows = held.rows or tuple(range(1, held.m + 1))
-    fitted, errors = (length_errors(start, d) for d in (train, held))
-    cut = partial(subset, held)
-    return term_checks.held_out(fitted, errors, held, rows, cut, notes, None, ("touch(es)", "gap"))

@@ -1,8 +1,8 @@
 """The joint engine's model, chosen before its fit (:mod:`.contact_chains`).
 
-The directions a level offers (:func:`offer_directions`), those the data determine (at touching
+The directions a level offers (:func:`_offer_directions`), those the data determine (at touching
 postures, :func:`flush_data`; by block with many objects, :func:`structural`), the joint
-compliances offered (``elastic``), the selection's columns (:func:`selection_columns`) and
+compliances offered (``elastic``), the selection's columns (:func:`_selection_columns`) and
 the choice (:func:`choose`); and the memory a contact term would need (refused up front
 beyond 2 GB, :func:`check_selection_memory`).
 """
@@ -40,8 +40,6 @@ __all__ = [
     "check_selection_memory",
     "choose",
     "flush_data",
-    "offer_directions",
-    "selection_columns",
     "structural",
     "touching_postures",
 ]
@@ -59,15 +57,9 @@ and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."
 def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
     """Refuse in one line, before any work, contact terms that would need more than 2 GB.
 
-    Args:
-        chains: The terms' chains.
-        data: Each chain's data (its touches checked; other kinds pass).
-        level: The parameter level (``auto`` selects among dense columns).
-        comp: Number of joint compliance columns offered (``elastic``).
-
-    Raises:
-        InvalidArgumentError: A term's estimate (:data:`SELECTION_BYTES`) exceeds
-            ``MAX_WORK_BYTES``; says what to do.
+    InvalidArgumentError (saying what to do) where a touching term's estimate
+    (:data:`SELECTION_BYTES`) exceeds ``MAX_WORK_BYTES`` (``auto`` selects among dense
+    columns); ``comp``: the joint compliance columns offered (``elastic``).
     """
     per_touch, per_column, per_object = SELECTION_BYTES
     auto = level == "auto"
@@ -114,10 +106,8 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
 
     Each object's touches are Newton-projected onto it, the model re-expressed in its frame
     with the contact as its tool (:func:`~calib.identification.contact_postures.project`).
-
-    Returns:
-        The postures ``(m, n)`` (the given one where the projection failed) and which
-        reached the contact ``(m,)``.
+    Returns the postures ``(m, n)`` (the given one where the projection failed) and which
+    reached the contact ``(m,)``.
     """
     q = np.asarray(q, dtype=float)
     index = start.frames.index(ids)
@@ -145,7 +135,7 @@ def chains_model(
     return ChainsModel(p, len(set(p)), tuple(free), tuple(names), directions, kinds, counts, c)
 
 
-def offer_directions(
+def _offer_directions(
     start: ChainsState, level: str
 ) -> tuple[np.ndarray | None, tuple[str, ...], list]:
     """Directions a level offers: (directions or None for components, names, indices).
@@ -292,7 +282,7 @@ def choose(
     model), as ``notes`` with the remarks.
     """
     train, rows = list(data.parts), data
-    directions, names, offered = offer_directions(start, level)
+    directions, names, offered = _offer_directions(start, level)
     forced: tuple[str, ...] = ()
     if asked is not None:
         directions, names, offered, forced = asked.offer(directions, names, offered)
@@ -322,7 +312,7 @@ def choose(
         cand_names = tuple(all_names[c] for c in columns)
         drawn = None if generic is None else generic.sample(fixed, len(columns), notes)
         data = sampled(data, drawn)
-        J, objects, free = selection_columns(wide, start, data, columns, at)
+        J, objects, free = _selection_columns(wide, start, data, columns, at)
         groups = _postures(data) if generic is None else generic.groups(drawn)
         e = start.residuals(data, None, at.kinematics(data))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
@@ -348,18 +338,16 @@ def _postures(data: ChainsData) -> np.ndarray | None:
     return posture_groups(first.q, first.ids)
 
 
-def selection_columns(
+def _selection_columns(
     wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart | None = None
 ):
     """The selection's columns (the always-free ones, then ``columns``), its objects' block.
 
     Many objects (:func:`~.contact_fit.by_block`): the objects' columns by block
     (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
-    Jacobians at the registration made so far (:class:`AtStart`), or None.
-
-    Returns:
-        The dense columns ``(m, rows, free + len(columns))``, the objects (or None) and the
-        number of always-free dense columns.
+    Jacobians at the registration made so far (:class:`AtStart`), or None. Returns the dense
+    columns ``(m, rows, free + len(columns))``, the objects (or None) and the number of
+    always-free dense columns.
     """
     x = np.zeros(wide.size())
     if not by_block(wide, start):

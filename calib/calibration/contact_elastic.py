@@ -82,12 +82,8 @@ def fitted_compliance(
 ) -> np.ndarray | None:
     """The fitted compliance ``(n,)`` (None: none kept); the URDF alone scored into ``stats``.
 
-    Args:
-        state: The fitted state.
-        sets: The training and held-out touches (or None).
-        stats: The gap statistics, completed with ``train_urdf`` and ``held_out_urdf``.
-        notes: Remarks for the user, completed.
-        load: The standing load, or None (rigid fit).
+    ``stats`` completed with ``train_urdf`` and ``held_out_urdf``, ``notes`` too; ``load``
+    None: a rigid fit.
     """
     if state.compliance is None or not np.any(state.compliance):
         if load is not None:
@@ -101,13 +97,9 @@ def fitted_compliance(
 def urdf_alone(score, sets, stats: dict, notes: list[str], rows: str) -> None:
     """The URDF alone of a fit with compliance, scored into ``stats`` and noted where worse.
 
-    Args:
-        score: ``score(d)``: the :class:`~.contact_result.GapStats` of the fitted state
-            without its compliance on the rows ``d``.
-        sets: The training and held-out rows (or None).
-        stats: The statistics, completed with ``train_urdf`` and ``held_out_urdf``.
-        notes: Remarks for the user, completed.
-        rows: What the rows are (``touches``, ``rows``), in the notes.
+    ``score(d)``: the :class:`~.contact_result.GapStats` of the fitted state without its
+    compliance on rows ``d``; ``sets``: the training and held-out rows (or None); ``rows``:
+    what they are in the notes (``touches``, ``rows``).
     """
     notes.append(
         "joint compliance was fitted: the calibrated URDF cannot hold it; it is written to the "
@@ -135,11 +127,7 @@ def load_record(part) -> dict | None:
 
 
 def compliance_line(part) -> list[str]:
-    """The summary's line of a fitted compliance (none for rigid joints).
-
-    Args:
-        part: The chain touching (``chain``, ``compliance``, ``load``, ``readings``).
-    """
+    """The summary's line of a fitted compliance of a chain touching (none: rigid joints)."""
     if part.compliance is None or part.load is None:
         return []
     chain = part.chain

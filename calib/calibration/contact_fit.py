@@ -65,17 +65,9 @@ def block_fit(
 ) -> Fit:
     """Levenberg-Marquardt from x = 0 with the objects eliminated by block (module's text).
 
-    Args:
-        model: The free parameters (objects, contact, robot, compliances).
-        start: The state at x = 0.
-        data: The touches.
-        torque: Gravity torques ``(m, n)`` for compliances, or None.
-        prior: Weights of x in extra rows ``prior * x`` (zero on the objects and the
-            contact), or None.
-        max_iterations: Most evaluations of the gaps.
-
-    Returns:
-        The fit (``J``: the dense weighted Jacobian at the solution).
+    ``torque`` ``(m, n)`` for compliances, or None; ``prior``: weights of x in extra rows
+    ``prior * x`` (zero on the objects and the contact), or None; ``max_iterations``: of
+    the gaps' evaluations. The fit's ``J`` is the dense weighted Jacobian at the solution.
     """
     K, o = model.object_blocks()
     split = K * o

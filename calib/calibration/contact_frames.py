@@ -123,10 +123,8 @@ class ContactFrames:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The contact frame in its object's frame: rotations ``(m, 3, 3)``, origins ``(m, 3)``.
 
-        Args:
-            Rt: Tool rotations in the base frame ``(m, 3, 3)``.
-            pt: Tool positions in the base frame ``(m, 3)`` [m].
-            index: The object of each touch ``(m,)`` (:meth:`index`).
+        From the tool's ``Rt`` ``(m, 3, 3)`` and ``pt`` ``(m, 3)`` [m] in the base frame;
+        ``index``: each touch's object (:meth:`index`).
         """
         F = self.objects[index]
         FRt = np.swapaxes(F[:, :3, :3], 1, 2)
@@ -172,10 +170,7 @@ class ContactFrames:
     def centred(self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray) -> ContactFrames:
         """The planes, each origin its touches' contact points' centroid (other kinds: self).
 
-        Args:
-            Rt: Tool rotations in the base frame ``(m, 3, 3)``.
-            pt: Tool positions in the base frame ``(m, 3)`` [m].
-            index: The object of each touch ``(m,)``.
+        ``Rt``, ``pt``, ``index``: as :meth:`relative`'s.
         """
         if self.kind.object_name != "plane":
             return self

@@ -114,18 +114,11 @@ class ContactState:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Weighted d(gap)/dx at the touches of ``data`` by block, x the unknowns from self.
 
-        Args:
-            x: The objects' and contact's unknowns (:meth:`moved`).
-            data: The touches.
-            torque: Gravity torques ``(m, n)`` [N m or N] deflecting compliant joints, or None.
-            kin: The robot's frames at the touches, the last the tool's (a joint fit's), or
-                None: the moved state's (:meth:`kinematics`).
-            moved: :meth:`moved` at x, if already made.
-
-        Returns:
-            The weighted rows on each touch's own object's unknowns ``(m, rows, o)`` (the
-            other objects' are zero; :func:`~.contact_blocks.dense` makes one matrix), on the
-            contact's unknowns ``(m, rows, size - K o)``, and the object of each touch.
+        ``torque`` ``(m, n)`` [N m or N] or None; ``kin``: the robot's frames at the touches,
+        the last the tool's (a joint fit's), or None: the moved state's; ``moved``:
+        :meth:`moved` at x, if made. Returns the rows on each touch's own object's unknowns
+        ``(m, rows, o)`` (:func:`~.contact_blocks.dense` makes one matrix), on the contact's
+        ``(m, rows, size - K o)``, and each touch's object.
         """
         s = self.moved(x) if moved is None else moved
         if kin is None:

@@ -27,9 +27,8 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from . import contact_checks, contact_elastic, determined, outliers, validation
+from . import contact_checks, contact_elastic, validation
 from .contact_chains_model import ChainsData, ChainsState, on_models
-from .contact_checks import subset
 from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
 from .contact_term import contact_frame, split_contacts
@@ -39,7 +38,6 @@ from .measured_term import (
     MeasuredState,
     check_measured,
     checked_measured,
-    measured_kind,
     one_term_per_frame,
 )
 from .options import Options
@@ -148,20 +146,15 @@ def _check(run: Run) -> None:
 
 
 def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
-    """Each chain's touches checked as one chain's are (diagnosis, outliers, equations).
+    """Each term's rows checked by its kind's checks, each returning the same five things.
 
-    The usual mistakes are diagnosed (the validation touches' too), outliers set aside (the
-    held-out ones' too: ``held[c]`` replaced), the touches kept must determine the chain's
-    objects and contact frame, and a chain the contact leaves finitely many postures is
-    noted; a measured term's rows are checked as a single chain's (:func:`checked_measured`).
-    ``validate``: the validation sets diagnosed (or None); ``guess``: the contact frame's
+    :func:`~.pixel_fit.checked_pixels`, :func:`checked_measured` (a single chain's checks),
+    :func:`~.contact_checks.checked_registration`: the usual mistakes diagnosed (``validate``
+    too, or None), outliers set aside (the held-out ones' too: ``held[c]`` replaced), the
+    rows kept enough for the term's unknowns. ``guess``: the contact frame's
     (:func:`~.contact_term.contact_frame`); ``zeros``: :func:`~.placements.zero_frames` or None.
-    The run's ``orientation_weight``, ``max_iterations``, ``noise_mm`` and markers' guess are
-    the measured terms'.
-
-    Returns:
-        Each chain's touches (rows) kept, each chain's outliers, and each term's
-        registration on the nominal robot (a contact chain's: of the touches kept).
+    Returns each chain's rows kept and outliers, and each term's registration on the nominal
+    robot (a contact chain's: of the touches kept).
     """
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
@@ -172,35 +165,18 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
         v = None if validate is None else validate[c]
         zero = None if zeros is None or chain.model is not chains[0].model else zeros[c]
         if isinstance(d, PixelPart):
-            state, bad, found, more, held[c] = checked_pixels(chain, d, held[c])
+            state, d, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
-            out_m = 0 if held[c] is None else held[c].m
-            rows, size = d.kind.rows_of(d.n_markers), len(measured_kind(d).names())
-            what = f"unknowns of {chain.base_frame}'s placement and the markers"
-            determined.check_equations(d.m, rows, size, what, d.source, held=out_m)
-            state, bad, found, more, held[c] = checked_measured(
+            state, d, found, more, held[c] = checked_measured(
                 chain, d, v, held[c], weight, opts.max_iterations, run.marker, opts.noise_mm, zero
             )
             state = dataclasses.replace(state, instrument=run.instrument)
-        if isinstance(d, Measurements | PixelPart):
-            if found:
-                more.append(outliers.set_aside_note(found))
-            d = d.subset(~bad) if bad.any() else d
         else:
             loop = len(chains) > 1 and isinstance(d.kind, FixedPoseContact)  # a closed loop
             g = np.eye(4) if loop else guess  # (TALOS's soles): from its tool frame
-            state, bad, found, more = contact_checks.checked_registration(
-                chain, from_chain(chain, zero=zero), d, v, g, weight
+            state, d, found, more, held[c] = contact_checks.checked_registration(
+                chain, from_chain(chain, zero=zero), d, v, g, weight, held[c]
             )
-            if found:
-                more.append(outliers.set_aside_note(found, "touch(es)", "gap"))
-                d = subset(d, ~bad)
-            held[c] = contact_checks.held_out_set_aside(state, d, held[c], more)
-            more += filter(None, [contact_checks.isolated_postures(chain, d, held[c])])
-            what = f"unknowns of {chain.tool_frame}'s {d.kind.object_name}(s) and contact frame"
-            out_m = 0 if held[c] is None else held[c].m
-            rows, size = len(d.kind.row_names), state.frames.size
-            determined.check_equations(d.m, rows, size, what, d.source, held=out_m, unit="touches")
         notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
         kept.append(d)
         dropped.append(tuple(found))
@@ -252,10 +228,8 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     The run's data (every row: no validation, no holdout) are checked, outliers set aside
     and registered as :func:`register_contact_chains` does; the rank of the Jacobian of every
     row by every unknown (objects, contact frames, measuring frames, markers, and every joint
-    placement component) at flush postures is what the data determine.
-
-    Returns:
-        The names of the unknowns determined (a basis, in the columns' order) and of all.
+    placement component) at flush postures is what the data determine. Returns the names
+    of the unknowns determined (a basis, in the columns' order) and of all.
     """
     _check(run)
     chains, parts = run.chains, pixel_parts(run.chains, run.data)

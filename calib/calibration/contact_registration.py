@@ -138,24 +138,21 @@ def refine(
         Jo, Jc = cur.parts(R, p, index, x, w)
         sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
         if not sol.smallest > CONDITION_LIMIT * sol.largest:
-            A = dense(Jo, Jc, index, K).reshape(-1, frames.size)
+            names = frames.names()  # the unknowns of the undetermined directions
+            found = ill_posed(dense(Jo, Jc, index, K).reshape(-1, frames.size), names)
+            found = [d for d in found if d.condition >= 1 / CONDITION_LIMIT]
+            named = [n for n in names if any(n in d.names for d in found)]
+            which = f" (they cannot separate {', '.join(named)})" if named else ""
             raise ContactGeometryError(
                 f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame"
-                f"{_undetermined(A, frames.names())}: touch at several orientations, or at "
-                f"spots that span each {frames.kind.object_name}"
+                f"{which}: touch at several orientations, or at spots that span each "
+                f"{frames.kind.object_name}"
             )
         step = np.r_[sol.objects.ravel(), sol.shared]
         x = x + step
         if np.max(np.abs(step)) < STEP_TOLERANCE:
             break
     return frames.moved(x)
-
-
-def _undetermined(A: np.ndarray, names: tuple[str, ...]) -> str:
-    """`` (they cannot separate ...)``: the unknowns of the undetermined directions of ``A``."""
-    found = [d for d in ill_posed(A, names) if d.condition >= 1.0 / CONDITION_LIMIT]
-    named = sorted({n for d in found for n in d.names}, key=names.index)
-    return f" (they cannot separate {', '.join(named)})" if named else ""
 
 
 def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
@@ -246,17 +243,10 @@ def register_contacts(
 ) -> ContactFrames:
     """The objects and the contact frame of any kind, registered (see the module's text).
 
-    Args:
-        kind: The contact kind.
-        rotations: Tool rotations in the base frame ``(m, 3, 3)`` (nominal model).
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        ids: Object id of each touch ``(m,)``.
-        contact: Guess of the contact frame in the tool frame ``(4, 4)`` (a fixed pose's:
-            kept; a tip's: its rotation kept).
-        weight: Weight of the angle rows [m/rad] (1 mrad counts as ``weight`` mm).
-
-    Returns:
-        The objects and the contact frame at the least-squares minimum of the kind's gap.
+    At the least-squares minimum of the kind's gap, from the tool ``rotations`` ``(m, 3, 3)``
+    and ``positions`` ``(m, 3)`` [m] in the base frame (nominal model), each touch's object
+    id, the contact frame's guess in the tool frame ``(4, 4)`` (a fixed pose's kept, a tip's
+    rotation kept) and the angle rows' ``weight`` [m/rad] (1 mrad counts as ``weight`` mm).
 
     Raises:
         ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry

@@ -33,10 +33,7 @@ def check_level_equations(train, unknowns: int, level: str) -> None:
     """One chain's touches must give more equations than a level's unknowns (not ``auto``).
 
     Distinct touches count (a touch recorded again adds no equation); the selection of
-    ``auto`` keeps what the touches support.
-
-    Raises:
-        DataError: Too few touches for the level's parameters and the contact's unknowns.
+    ``auto`` keeps what the touches support. A DataError otherwise.
     """
     if level == "auto" or len(train) != 1 or not isinstance(train[0], ContactData):
         return

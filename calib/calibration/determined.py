@@ -80,19 +80,11 @@ def _configs_needed(unknowns: int, rows: int) -> int:
 def check_equations(
     m: int, rows: int, unknowns: int, what: str, source: str, *, held: int = 0, unit: str = ""
 ) -> None:
-    """Refuse fitting ``unknowns`` parameters from ``m`` configurations of ``rows`` equations.
+    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` equations.
 
-    Args:
-        m: Configurations (or, for a tree, rows of the file) fitted.
-        rows: Equations each gives.
-        unknowns: Parameters fitted.
-        what: The parameters, for the message (e.g. ``parameters of params 'complete'``).
-        source: The data, for the message.
-        held: Configurations held out (``holdout``), for the message.
-        unit: What ``m`` counts (default: configurations).
-
-    Raises:
-        DataError: ``m * rows <= unknowns``.
+    ``m``: configurations fitted (or what ``unit`` names: a tree's file rows, touches);
+    ``what`` (e.g. ``parameters of params 'complete'``), ``source`` and ``held`` (the
+    configurations held out) are for the message.
     """
     if m * rows > unknowns:
         return
@@ -115,21 +107,11 @@ def check_rank(
     unit: str = "",
     lost: tuple[str, ...] = (),
 ) -> None:
-    """Refuse a level the measured configurations do not determine (rank of W_b there).
+    """Refuse (DataError) a level the measured configurations do not determine (rank of W_b).
 
-    Args:
-        determined: Parameters the measured configurations determine.
-        generic: Parameters the level fits at generic configurations.
-        m: Configurations (or rows) fitted; ``rows`` equations each.
-        rows: Equations per configuration.
-        level: The parameter level.
-        source: The data, for the message.
-        unit: What ``m`` counts (default: configurations).
-        lost: The unknowns that generic configurations separate and the measured ones do
-            not (named in the message).
-
-    Raises:
-        DataError: ``determined < generic`` or too few equations.
+    ``determined < generic`` (the parameters the level fits at generic configurations), or
+    too few equations (``m`` configurations, or ``unit``, of ``rows`` each); ``lost``: the
+    unknowns that generic configurations separate and the measured ones do not (named).
     """
     check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
     if determined >= generic:
@@ -169,16 +151,8 @@ def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> 
     """Configurations the selection (``--params auto``) chooses on: all, or a sample's size.
 
     A campaign within :data:`SELECTION_WORK` is chosen on all its configurations; a larger
-    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them).
-
-    Args:
-        m: Configurations.
-        rows: Rows per configuration (3 per marker, 3 more for an orientation).
-        fixed: Frame and marker columns.
-        candidates: Candidate parameters.
-
-    Returns:
-        ``m``, or the size of the sample (``< m``).
+    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them). ``fixed``:
+    the frame and marker columns; returns ``m`` or the sample's size (``< m``).
 
     Raises:
         InvalidArgumentError: The sample the bound allows would keep fewer than
@@ -244,14 +218,9 @@ determined all the same (noise-free or very precise data): it is not refused."""
 def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
     """Directions of the unknowns (columns of ``J``) the rows do not determine.
 
-    Args:
-        J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
-        names: The unknowns.
-        overwrite: ``J`` may be written to (its columns scaled in place: no copy of it).
-
-    Returns:
-        One :class:`Direction` per singular value of the unit-norm columns under
-        ``1 / ILL_CONDITION`` times the largest, the weakest first.
+    One :class:`Direction` per singular value of the unit-norm columns under
+    ``1 / ILL_CONDITION`` times the largest, the weakest first. ``J`` ``(rows, p)``: weighted
+    rows (scaled in place with ``overwrite``: no copy).
     """
     if J.shape[1] == 0:
         return []
@@ -275,13 +244,9 @@ def separating_posture(
 ) -> tuple[np.ndarray, float]:
     """The configuration of ``q`` where a direction of the unknowns moves the rows most.
 
-    Args:
-        jacobian_at: Jacobian ``(m, rows, p)`` of the unknowns at configurations ``(m, n)``.
-        q: Candidate configurations ``(m, n)`` (random ones within the joint limits).
-        direction: The direction ``(p,)`` in the unknowns (unit-norm columns' scale).
-
-    Returns:
-        That configuration, and the condition of the unknowns at all of ``q``.
+    ``jacobian_at``: the Jacobian ``(m, rows, p)`` at configurations ``(m, n)``; ``q``:
+    candidates within the joint limits; ``direction`` ``(p,)``: unit-norm columns' scale.
+    Returns it and the condition of the unknowns at all of ``q``.
     """
     J = jacobian_at(q)
     flat = J.reshape(-1, J.shape[2])
@@ -296,12 +261,7 @@ def undetermined(J: np.ndarray, names: tuple[str, ...], std) -> list[Direction]:
     """The undetermined directions of :func:`ill_posed` but those it determines all the same.
 
     A direction all of whose unknowns have standard deviations under :data:`ILL_STD` is
-    determined all the same (NaN: undetermined).
-
-    Args:
-        J: Jacobian of the fitted unknowns ``(rows, p)`` (rows weighted).
-        names: The unknowns.
-        std: Each one's standard deviation [m or rad].
+    determined all the same (NaN: undetermined); ``std`` [m or rad].
     """
     spread = dict(zip(names, std, strict=True))
     return [d for d in ill_posed(J, names) if not all(spread[n] <= ILL_STD for n in d.names)]
@@ -316,12 +276,7 @@ def separating_text(
 ) -> str | None:
     """``postures such as <joint> <q> ...`` that separate a direction, or None (none does).
 
-    Args:
-        jacobian_at: Jacobian ``(m, rows, p)`` of the unknowns ``names`` at configurations.
-        q: Candidate configurations ``(m, n)`` (random ones within the joint limits).
-        names: The unknowns.
-        direction: The direction (:func:`ill_posed`).
-        joint_names: The joints of ``q``.
+    As :func:`separating_posture`, ``direction`` of :func:`ill_posed` in the unknowns ``names``.
     """
     v = np.zeros(len(names))
     v[[names.index(n) for n in direction.names]] = direction.weights
@@ -340,10 +295,8 @@ def ill_posed_text(
 ) -> str | None:
     """The refusal's sentence for undetermined directions (None: there are none).
 
-    Args:
-        found: The undetermined directions (:func:`ill_posed`).
-        std: Standard deviation of each fitted unknown [m or rad].
-        posture: What postures would separate them, or None.
+    ``std``: each fitted unknown's standard deviation [m or rad]; ``posture``: what
+    postures would separate them, or None.
     """
     if not found:
         return None
@@ -442,11 +395,7 @@ def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
 
 
 def _check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
-    """Refuse, before any work, K markers whose count would need more than MAX_WORK_BYTES.
-
-    Raises:
-        InvalidArgumentError: Names K, the memory needed and the most markers that fit.
-    """
+    """Refuse, before any work, K markers needing more than MAX_WORK_BYTES (the most that fit)."""
     need = marker_work_bytes(m, k, n_params, kind)
     if need <= MAX_WORK_BYTES:
         return

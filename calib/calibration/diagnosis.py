@@ -130,14 +130,6 @@ def suspect(rms: float, noise: float | None) -> bool:
     return rms > limit
 
 
-def _constant_joints(data) -> list[str]:
-    """Joint columns that hold one value in every row (of data with several rows)."""
-    if data.m < 2:
-        return []
-    same = np.all(data.q == data.q[0], axis=0)
-    return [name for name, s in zip(data.joint_names, same, strict=True) if s]
-
-
 def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
     """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled.
 
@@ -160,20 +152,12 @@ def _likely_cause(
     orientation: bool = False,
     joints_only: bool = False,
 ) -> tuple[str, float] | None:
-    """The usual mistake that explains the data, with the RMS error once it is corrected.
+    """(description, RMS [m or rad]) of the usual mistake that best explains the data, or None.
 
-    Args:
-        data: The measurements.
-        revolute: Which joint columns are revolute.
-        registration_rms: RMS error per point [m] (or, ``orientation``, RMS orientation
-            error [rad]) of the registration of some data.
-        before: That error for ``data`` as they are [m or rad].
-        orientation: Try the mistakes of the orientation columns.
-        joints_only: Try the mistakes of the joint columns only (data that record the
-            joints alone: contacts).
-
-    Returns:
-        (description, RMS [m or rad]) of the best explaining mistake, or None.
+    ``registration_rms``: the registration's RMS error per point [m] (``orientation``: RMS
+    orientation error [rad], the orientation columns' mistakes) of some data; ``before``:
+    that of ``data`` as they are; ``joints_only``: the joint columns' mistakes only (data
+    that record the joints alone: contacts).
     """
     best = None
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT
@@ -216,31 +200,22 @@ def explain(
 ) -> list[str]:
     """Raise the usual mistake behind a registration's absurd error; else a note of it.
 
-    Args:
-        data: The rows (``joint_names``, ``q``, ``m``, ``source``).
-        revolute: Which joint columns are revolute.
-        error: The registration's RMS error [m] of some rows (``data`` corrected).
-        first: That error of ``data`` as they are [m] (infinite: no registration).
-        noise: The instrument's noise [m], or None.
-        words: How the messages name the rows.
-        joints_only: Try the joint columns' mistakes only (:func:`_likely_cause`).
-        orientation: The errors are orientation errors [rad] (suspect above
-            ``ORIENTATION_SUSPECT``), the mistakes the orientation columns'.
-
-    Returns:
-        A list: empty when the error is not suspect (:func:`suspect`), else the note that no
-        usual mistake explains it.
-
-    Raises:
-        DataError: Joint columns that hold one value in every row, or the mistake named.
+    ``data``: rows with ``joint_names``, ``q``, ``m``, ``source``; ``error``: the
+    registration's RMS error [m] of some rows (``data`` corrected), ``first`` that of
+    ``data`` (infinite: no registration); ``noise`` [m] or None; ``orientation``: the errors
+    are orientation errors [rad] (suspect above ``ORIENTATION_SUSPECT``), the mistakes the
+    orientation columns'. No note when the error is not suspect (:func:`suspect`). A
+    DataError names joint columns holding one value in every row, or the mistake.
     """
     if not (first > ORIENTATION_SUSPECT if orientation else suspect(first, noise)):
         return []
     known = bool(np.isfinite(first))
-    amount = _degrees if orientation else _millimetres
+    unit, scale = ("deg", np.degrees(1.0)) if orientation else ("mm", 1e3)
+    amount = lambda e: f"{scale * e:.4g} {unit}"  # noqa: E731
     of = f" of {words.error}" if orientation else ""
     leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
-    still = [] if orientation else _constant_joints(data)
+    same = () if orientation or data.m < 2 else np.all(data.q == data.q[0], axis=0)
+    still = [name for name, s in zip(data.joint_names, same, strict=False) if s]  # constant
     if still:
         raise DataError(data.source, f"the registration {leaves} and joint column(s) "
                         f"{', '.join(still)} hold one value in every {words.row}: were those "
@@ -253,11 +228,3 @@ def explain(
                         f"{amount(cause[1])} RMS once corrected")  # fmt: skip
     return [f"the registration {leaves}, far above geometric errors, and no usual mistake "
             f"({words.mistakes}) explains it: check {words.check}"]  # fmt: skip
-
-
-def _millimetres(length: float) -> str:
-    return f"{1e3 * length:.4g} mm"
-
-
-def _degrees(angle: float) -> str:
-    return f"{np.degrees(angle):.4g} deg"

@@ -213,11 +213,8 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     (:mod:`~.measured_options`). The held-out rows are drawn first (``holdout``), then the
     rows the fit's errors call outliers are set aside and the fit made again until they are
     stable, every row tested again from a robust fit's proposals
-    (:func:`~.chain_outliers.fit_terms_until_stable`).
-
-    Args:
-        run: The chain's run (its markers' guess: ``marker``; ``instrument`` and
-            ``held_label`` set here).
+    (:func:`~.chain_outliers.fit_terms_until_stable`). The run's ``instrument`` and
+    ``held_label`` are set here.
 
     Raises:
         InvalidArgumentError: A bad option (an unknown parameter name, compliance without

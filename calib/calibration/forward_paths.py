@@ -58,14 +58,9 @@ the fit) stays above this fraction of what it was when they were last computed a
 def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Squared leave-one-configuration-out errors of several fits, by LAPACK's LU.
 
-    From the blocks ``M = I - H`` (any strides), ``H`` the hat-matrix blocks.
-
-    Args:
-        M: ``I`` minus the hat-matrix blocks ``(c, m, rows, rows)``.
-        r: Residuals of each fit ``(c, m, rows)``.
-
-    Returns:
-        ``(c, m)`` squared left-out errors; inf where a block is singular.
+    From the blocks ``M = I - H`` ``(c, m, rows, rows)`` (any strides), ``H`` the hat-matrix
+    blocks, and each fit's residuals ``r`` ``(c, m, rows)``: ``(c, m)``, inf where a block is
+    singular.
     """
     c, m, rows = r.shape
     try:  # a leverage of 1 or near it: LAPACK's LU (with pivoting) tells
@@ -83,15 +78,8 @@ def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarr
 
     Gaussian elimination without pivoting (stable for positive definite matrices), vectorised
     over the systems: one array operation per step of the elimination instead of a LAPACK
-    call per system. A singular system gives inf or nan.
-
-    Args:
-        M: Matrices ``(n, n, systems)``.
-        y: Right-hand sides ``(n, systems)``.
-        overwrite: M may be overwritten (else it is copied; y is always copied).
-
-    Returns:
-        ``x`` ``(n, systems)``.
+    call per system. A singular system gives inf or nan. ``M`` ``(n, n, systems)`` (copied
+    unless ``overwrite``), ``y`` ``(n, systems)`` (always copied): ``x`` ``(n, systems)``.
     """
     n = len(y)
     a, x = M if overwrite else np.array(M, order="C"), np.array(y, order="C")
@@ -364,10 +352,9 @@ class _Batch:
 def _start(A, e, rows, start, candidates, train, objects=None):
     """Each subset's fit of the columns ``start`` (rows component-major).
 
-    Returns:
-        Residuals ``(b, rows, m)``, hat blocks ``(b, rows, rows, m)``, the candidates
-        orthogonal to the fit ``(k, b, rows, m)`` and the squared norms under which they are
-        dependent ``(k, b)``.
+    Returns its residuals ``(b, rows, m)``, hat blocks ``(b, rows, rows, m)``, the candidates
+    orthogonal to it ``(k, b, rows, m)`` and the squared norms under which they are
+    dependent ``(k, b)``.
     """
     b, m = train.shape
     Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)

@@ -84,12 +84,9 @@ def by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
 
 
 def instrument_groups(plane_of: tuple[int, ...], data, instrument: bool) -> tuple[int, ...]:
-    """The objects of a joint fit with every measured term's frame one (``instrument``).
+    """Each term's object (``plane_of``, :func:`~.contact_checks.plane_groups`'s): one frame.
 
-    Args:
-        plane_of: Each term's object (:func:`~.contact_checks.plane_groups`).
-        data: Each term's data.
-        instrument: The measured terms share one instrument (else ``plane_of`` as it is).
+    With ``instrument``, every measured term's frame is one object (else ``plane_of``).
     """
     if not instrument:
         return plane_of
@@ -105,15 +102,8 @@ def shared_frame(states: list, train: list) -> list:
     """The instrument terms' frame and markers registered together in closed form.
 
     :func:`~.registration.register_points` on every tool's predicted points, from each
-    term's own markers.
-
-    Args:
-        states: Each term's state; the :class:`MeasuredState` with ``instrument`` are
-            registered together (the others are returned as they are).
-        train: Each term's rows.
-
-    Returns:
-        The states, the instrument terms' with one frame and their markers.
+    term's own markers: the :class:`MeasuredState` with ``instrument`` among ``states`` get
+    one frame and their markers, the others are returned as they are.
     """
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
@@ -133,11 +123,7 @@ def shared_frame(states: list, train: list) -> list:
 
 
 def instrument_format2(measured) -> dict:
-    """Format 2's keys of a tree's report (written until format 4): frame and markers.
-
-    Args:
-        measured: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
-    """
+    """Format 2's keys of a tree's report (written until format 4) of the instrument terms."""
     first, stats = measured[0], pooled(measured)
 
     def both(stats: dict[str, ResidualStats], k: str) -> dict:  # of rows k [m]
@@ -165,11 +151,8 @@ def pooled(parts) -> dict[str, ResidualStats]:
     """Position errors of every tool's rows together, by part (those a tool has).
 
     The parts are ``train``, ``train_registration`` and, with held-out rows or compliance,
-    ``held_out``, ``held_out_registration``, ``train_urdf`` and ``held_out_urdf``.
-
-    Args:
-        parts: The instrument terms' parts (each with ``stats``: :class:`GapStats` whose
-            ``per_row`` are the point errors [mm]).
+    ``held_out``, ``held_out_registration``, ``train_urdf`` and ``held_out_urdf``; each
+    part's ``stats`` are :class:`GapStats` whose ``per_row`` are the point errors [mm].
     """
     out = {}
     for key in dict.fromkeys(k for c in parts for k in c.stats):
@@ -184,9 +167,6 @@ def instrument_errors(parts) -> dict:
     """The report's ``errors.train`` and ``errors.held_out`` of every tool together (format 3).
 
     ``urdf``: the URDF alone, without a fitted compliance (else ``calibrated``).
-
-    Args:
-        parts: The instrument terms' parts (:class:`~.contact_chains_result.MeasuredChain`).
     """
     if not parts:
         return {"train": None, "held_out": None}
@@ -215,11 +195,9 @@ def instrument_lines(parts) -> list[str]:
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
     """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m].
 
-    Args:
-        parts: The instrument terms' parts, in tool order
-            (``result.chains`` of a tree's calibration).
-        paths: Each tool's joints among the tree's (:attr:`~calib.kinematics.tree.Tree.paths`).
-        q: The tree's joint positions ``(m, n)`` [rad or m].
+    ``parts``: a tree calibration's ``result.chains`` (tool order); ``paths``: each tool's
+    joints among the tree's (:attr:`~calib.kinematics.tree.Tree.paths`); ``q`` ``(m, n)``
+    [rad or m].
     """
     q = np.asarray(q, dtype=float)
     return np.stack(

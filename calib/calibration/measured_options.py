@@ -41,11 +41,8 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
     A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
     joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
     ``free``): the URDF cannot hold it. The joints offered are those gravity loads, less the
-    compliances fixed.
-
-    Returns:
-        ``(torques of train, of held or None)`` (``(None, None)``: rigid joints) and the
-        joints (0-based).
+    compliances fixed. Returns ``(torques of train, of held or None)`` (``(None, None)``:
+    rigid joints) and the joints (0-based).
 
     Raises:
         InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
@@ -113,13 +110,8 @@ class Asked:
     def offer(self, directions, names, offered):
         """The level's offer with the fixed parameters out and the free ones in.
 
-        Args:
-            directions: The offered directions ``(D, 6 J)``, or None: the components.
-            names: Their names (the components' with None).
-            offered: The indices offered.
-
-        Returns:
-            The directions, names, indices offered and the names ``auto`` must keep.
+        ``directions`` ``(D, 6 J)``, or None: the components. Returns the directions, names,
+        indices offered and the names ``auto`` must keep.
         """
         missing = [n for n in self.free if n in self.extra and n not in names]
         if missing:
@@ -174,15 +166,8 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     (a placement component), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
     are always fitted (``free`` of them asks nothing, ``fix`` is refused).
 
-    Args:
-        chain: The first term's chain.
-        start: The registration (``placements``, ``states``).
-        level: The parameter level.
-        instrument: The terms are measured by an instrument outside the robot.
-        opts: A measured chain's options, or None.
-
-    Returns:
-        The :class:`Asked` (None: no parameter named) and the level offered.
+    ``chain``: the first term's; ``start``: the registration; ``opts``: a measured chain's,
+    or None. Returns the :class:`Asked` (None: no parameter named) and the level offered.
 
     Raises:
         InvalidArgumentError: An unknown name, or ``fix`` of a group.

@@ -105,9 +105,8 @@ def measuring_joint(chain: Chain) -> str:
     """The fixed joint that places the chain's base frame (the measuring frame) on the robot.
 
     Raises:
-        InvalidArgumentError: The base frame is not fixed to a link by a fixed joint (the root
-            link, or a frame a joint moves): not on the robot, its placement has nowhere to go
-            in the URDF.
+        InvalidArgumentError: No fixed joint fixes the base frame to a link (the root link,
+            or a frame a joint moves): its placement has nowhere to go in the URDF.
     """
     _, root = read_urdf_source(chain)
     try:
@@ -125,15 +124,14 @@ def check_measured(
 ) -> None:
     """A measured term's data: its chain's joints, one tool, held-out rows of its kind.
 
-    ``instrument``: measured by an instrument outside the robot (its base frame need not be
-    on the robot). The postures left to fit once ``holdout`` of them are set aside (a posture
-    recorded again counts once) must give more equations than the frame and markers have
-    unknowns.
+    ``instrument``: its base frame need not be on the robot. The postures left once
+    ``holdout`` of them are set aside (a repeated posture counts once) must give more
+    equations than the frame and markers have unknowns.
 
     Raises:
-        InvalidArgumentError: The base frame is not on the robot, validation rows of another
-            kind (touches, pose against position, other markers), or several tools.
-        DataError: The measurements' joints are not the chain's, or too few postures.
+        InvalidArgumentError: The base frame not on the robot, validation rows of another
+            kind, or several tools.
+        DataError: Joints not the chain's, or too few postures.
     """
     if not instrument:
         measuring_joint(chain)
@@ -167,13 +165,7 @@ def check_measured(
 
 @dataclass(frozen=True, eq=False)
 class Seen:
-    """A model's frames at some rows' joints, made once: the registration's, read again.
-
-    Attributes:
-        mdh: The model (the nominal chain's).
-        q: Each set of rows' joint positions ``(m, n)`` (the arrays themselves).
-        kin: The model's frames at each.
-    """
+    """The registration's frames ``kin`` of the nominal chain at each rows' ``q`` (those arrays)."""
 
     mdh: MDHModel
     q: tuple[np.ndarray, ...]
@@ -268,12 +260,8 @@ class MeasuredState:
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
         """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
 
-        Args:
-            kin: The chain's frames at the data's joints.
-            data: Its measurements.
-            lin: Each motion's velocity of the base frame's origin moving with the tool side
-                ``(m, 3, k)`` (in the base frame).
-            ang: Each motion's angular velocity ``(m, 3, k)``.
+        ``lin`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving with
+        the tool side (base frame); ``ang`` ``(m, 3, k)``: its angular velocity.
         """
         s = self.inner
         R, p = kin.R[:, -1], kin.p[:, -1]
@@ -304,30 +292,23 @@ def checked_measured(
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
-    The chain's registration (:func:`~.chain_registration.checked_registration`:
-    Horn/Umeyama in closed form, refined by Levenberg-Marquardt, the orientation weight
-    estimated unless given, outliers set aside until stable, then the usual mistakes
-    diagnosed in the data and in ``validate``) on the nominal chain; then the held-out rows'
-    outliers set aside by the same rule (:func:`~.term_checks.held_out`).
-
-    Args:
-        chain: The term's chain.
-        data: Its measurements.
-        validate: Its validation measurements (diagnosed too), or None.
-        held: Its held-out rows (validation or holdout), or None.
-        weight: Orientation weight [m/rad], or None: estimated.
-        max_iterations: Most residual evaluations of the registration's solver.
-        marker: Guess of the markers in the tool frame [m] (:func:`~.measured_options.marker_guess`:
-            one point for all, or one per marker), or None: zeros.
-        noise_mm: The instrument's noise [mm] (outliers and the diagnosis: an error within
-            a few times it is not suspect), or None: unknown.
-        zero: The chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
+    The rows kept must determine the frame and markers; then
+    :func:`~.chain_registration.checked_registration` on the nominal chain (``validate``
+    diagnosed too), and the held-out rows' (``held``) outliers set aside by the same rule
+    (:func:`~.term_checks.held_out`). ``weight`` [m/rad] None: estimated; ``marker`` [m]:
+    :func:`~.measured_options.marker_guess`'s; ``noise_mm`` [mm] or None; ``zero``: the
+    chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
 
     Returns:
-        Its registered state (with the nominal robot's frames at its rows kept and held out:
-        :attr:`MeasuredState.seen`), the mask of its outlier rows, the outliers, the notes
-        and its held-out rows without their outliers (or None).
+        Its registered state (:attr:`MeasuredState.seen` set), its rows kept, the outliers,
+        the notes (the outliers' last) and its held-out rows without their outliers (or None):
+        every kind's checks return these (:func:`~.contact_checks.checked_registration`,
+        :func:`~.pixel_fit.checked_pixels`).
     """
+    each, size = data.kind.rows_of(data.n_markers), len(measured_kind(data).names())
+    what = f"unknowns of {chain.base_frame}'s placement and the markers"
+    out = 0 if held is None else held.m
+    determined.check_equations(data.m, each, size, what, data.source, held=out)
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
@@ -339,18 +320,18 @@ def checked_measured(
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
     seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
     state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT), seen=seen)
-    if held is None:
-        return state, bad, found, notes, held
-    k, at = data.n_markers, state.frames_at
-    fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
-    aside = term_checks.held_out(
-        outliers.point_errors(fitted, k), outliers.point_errors(errors, k), held,
-        held.rows or tuple(range(1, held.m + 1)), held.subset, notes, opts.noise,
-    )  # fmt: skip
-    other = errors if aside is held else reg.residuals(aside, None, at(aside))
-    stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
-    validation.check_held_out_errors(*stats, aside.source)
-    return state, bad, found, notes, aside
+    aside = held
+    if held is not None:
+        k, at = data.n_markers, state.frames_at
+        fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
+        aside = term_checks.held_out(
+            outliers.point_errors(fitted, k), outliers.point_errors(errors, k), held,
+            held.rows or tuple(range(1, held.m + 1)), held.subset, notes, opts.noise,
+        )  # fmt: skip
+        other = errors if aside is held else reg.residuals(aside, None, at(aside))
+        stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
+        validation.check_held_out_errors(*stats, aside.source)
+    return state, kept, found, notes + ([outliers.set_aside_note(found)] if found else []), aside
 
 
 def unseen(states: tuple) -> tuple:
@@ -365,11 +346,7 @@ def unseen(states: tuple) -> tuple:
 
 
 def one_term_per_frame(chains, data) -> None:
-    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it).
-
-    Raises:
-        InvalidArgumentError: Two terms whose data are measurements share a base frame.
-    """
+    """Refuse two measured terms of one measuring frame (the URDF holds one placement of it)."""
     measuring = [
         c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
     ]

@@ -37,7 +37,6 @@ __all__ = [
     "ChainView",
     "MeasuredChain",
     "Solution",
-    "gravity_torque",
     "measured_part",
     "residual_stats",
     "world_of",
@@ -116,21 +115,11 @@ def measured_part(
 ) -> MeasuredChain:
     """A measured term's part: its errors, and its unknowns' report entries.
 
-    With joint compliance fitted (``torques``: the gravity torques of ``train`` and
-    ``held``), its errors are the whole model's and the URDF alone's (``train_urdf``,
-    ``held_out_urdf``; ``notes`` completed, :func:`~.contact_elastic.urdf_alone`).
-
-    Args:
-        chain: The term's chain.
-        train: Its fitted measurements.
-        held: Its held-out measurements, or None.
-        registered: Its registration (nominal robot).
-        state: Its fitted state.
-        std: Standard deviations of its unknowns in the fit (frame, markers, tool rotation).
-        term: The term's number (1-based, in the order given), in its unknowns' names.
-        torques: The gravity torques ``(m, n)`` of ``train`` and ``held`` (compliance), or
-            None each (rigid joints).
-        notes: Remarks for the user, completed with compliance's (or None: rigid).
+    With joint compliance fitted (``torques``: the gravity torques ``(m, n)`` of ``train``
+    and ``held``, None each: rigid), its errors are the whole model's and the URDF alone's
+    (``train_urdf``, ``held_out_urdf``; ``notes`` completed, :func:`~.contact_elastic.urdf_alone`).
+    ``registered``: on the nominal robot; ``std``: its unknowns' in the fit; ``term``: its
+    number (1-based) in its unknowns' names.
     """
     deflect = {id(train): torques[0], id(held): torques[1]}
     rigid = None if torques[0] is not None else state.inner.residuals(train, None)
@@ -199,15 +188,10 @@ def world_of(
 ) -> tuple[str, np.ndarray] | None:
     """The ``world`` argument of the URDF writer (``marker_urdf``).
 
-    Args:
-        shape: The result's shape (only ``chain`` takes ``world_link`` and ``on_robot``).
-        frame: The base frame's pose in the instrument's ``(4, 4)``, or None.
-        world_link: The instrument frame as a new root link of this name, or None.
-        on_robot: The instrument is the base frame, on the robot (a head camera measuring
-            the arm): its fitted placement goes into the base frame's fixed joint.
-
-    Raises:
-        InvalidArgumentError: ``world_link`` or ``on_robot`` for another shape, or both.
+    Only shape ``chain`` takes ``world_link`` (the instrument frame as a new root link of
+    that name) or ``on_robot`` (the instrument is the base frame, on the robot: its fitted
+    placement goes into the base frame's fixed joint), not both (else InvalidArgumentError);
+    ``frame``: the base frame's pose in the instrument's ``(4, 4)``, or None.
     """
     for name, given in (("on_robot", on_robot), ("world_link", world_link is not None)):
         if given and (shape != "chain" or frame is None):
@@ -443,7 +427,7 @@ class ChainView:
 
     def _point_std(self, rows: Measurements) -> float:
         """:meth:`Solution.point_std` at rows, the joints deflected where compliance was fitted."""
-        return self._solution().point_std(rows, gravity_torque(self.chain, self.state, rows))
+        return self._solution().point_std(rows, _gravity_torque(self.chain, self.state, rows))
 
     def _solution(self) -> Solution:
         self.one_chain()
@@ -457,10 +441,10 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 
     With fitted joint compliance, the joints deflect under the chain's gravity torques.
     """
-    return validation.stats(state, data, gravity_torque(chain, state, data))
+    return validation.stats(state, data, _gravity_torque(chain, state, data))
 
 
-def gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
+def _gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
     """The chain's gravity torques at the rows where the state has compliance, else None."""
     return chain.gravity_torques(data.q) if np.any(state.compliance) else None
 

@@ -66,13 +66,8 @@ class ObjectColumns:
     def transform(self, w: np.ndarray) -> np.ndarray:
         """Each subset's ``W_k``, ``F_k W_k`` an orthonormal basis of object k's columns.
 
-        On the subset's rows; zero columns where a direction is undetermined.
-
-        Args:
-            w: Configurations of each subset ``(b, m)`` (1 in, 0 out).
-
-        Returns:
-            ``(b, K, o, o)``.
+        On the subset's rows (``w`` ``(b, m)``: 1 in, 0 out); zero columns where a direction
+        is undetermined. ``(b, K, o, o)``.
         """
         o = self.own.shape[2]
         F = self.own[None] * w[:, :, None, None]
@@ -99,25 +94,18 @@ class ObjectColumns:
         return np.einsum("bmri,bmij->bmrj", self.own[None] * w[:, :, None, None], W)
 
     def project(self, U: np.ndarray, X: np.ndarray) -> np.ndarray:
-        """``X`` minus its projection onto the objects' basis ``U`` (:meth:`basis`).
+        """``X`` ``(b, m, rows, k)`` minus its projection onto the basis ``U`` ``(b, m, rows, o)``.
 
-        Args:
-            U: The basis ``(b, m, rows, o)``.
-            X: Columns by configuration ``(b, m, rows, k)``.
+        ``U``: :meth:`basis`'s.
         """
         coef = self.sums(np.einsum("bmro,bmrk->bmok", U, X))  # (b, K, o, k)
         return X - np.einsum("bmro,bmok->bmrk", U, coef[:, self.index])
 
 
 def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """Each posture's rows of ``X`` ``(m, ...)`` summed, over the root of their count.
+    """Each posture's rows of ``X`` ``(m, ...)`` summed over the root of their count ``(P, ...)``.
 
-    Args:
-        X: Rows by configuration ``(m, ...)``.
-        groups: Posture of each configuration ``(m,)``, numbered from 0.
-
-    Returns:
-        ``(postures, ...)``.
+    ``groups``: each configuration's posture ``(m,)``, numbered from 0.
     """
     root = np.sqrt(np.bincount(groups).astype(float))
     out = np.zeros((len(root), *X.shape[1:]))
@@ -134,19 +122,11 @@ def object_moments(
     A fold fits the objects on its training rows: ``x_F = K (e_t - D_t y)`` per object
     (``K = G^+ F_t^T``), so that its training fit of the dense columns ``D`` is that of the
     projected rows ``(I - P_t) D_t``, ``(I - P_t) e_t``, and its held-out residual is
-    ``e~_h - D~_h y`` with ``D~_h = D_h - F_h K D_t`` (and ``e~_h`` alike).
-
-    Args:
-        A: The dense columns, configuration-major rows ``(m rows, p)``.
-        e: Residuals to explain ``(m rows,)``.
-        rows: Rows per configuration.
-        train: Training configurations of each fold ``(folds, m)`` [bool].
-        objects: The object columns (unit norm).
-
-    Returns:
-        ``x``, then per fold: the training normal matrices ``(f, p, p)`` and right-hand
-        sides about 0 ``(f, p)``, the held-out moments ``D~_h^T D~_h``, ``D~_h^T e~_h`` and
-        ``|e~_h|^2`` (about ``x``).
+    ``e~_h - D~_h y`` with ``D~_h = D_h - F_h K D_t`` (and ``e~_h`` alike). ``A`` ``(m rows,
+    p)``: configuration-major rows, ``e`` ``(m rows,)``, ``train`` ``(folds, m)`` [bool],
+    ``objects``: unit norm. Returns ``x``, then per fold: the training normal matrices ``(f,
+    p, p)`` and right-hand sides about 0 ``(f, p)``, the held-out moments ``D~_h^T D~_h``,
+    ``D~_h^T e~_h`` and ``|e~_h|^2`` (about ``x``).
     """
     m = train.shape[1]
     D = A.reshape(m, rows, -1)
@@ -178,12 +158,8 @@ class FixedBasis:
 
     The dense fixed columns (the contact's, ...) are made orthogonal to the objects' and
     factored by QR; the projection onto the fixed columns is the objects' (block diagonal)
-    plus theirs.
-
-    Args:
-        objects: The object columns.
-        D: The dense fixed columns by configuration ``(m, rows, f)``.
-        w: Configurations of each subset ``(b, m)`` (1 in, 0 out).
+    plus theirs. ``D`` ``(m, rows, f)``: the dense fixed columns by configuration; ``w``
+    ``(b, m)``: each subset's configurations (1 in, 0 out).
     """
 
     def __init__(self, objects: ObjectColumns, D: np.ndarray, w: np.ndarray) -> None:

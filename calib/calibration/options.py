@@ -80,30 +80,6 @@ applies to. Every other option applies to every shape; one given where it does n
 an error (:class:`~.problem.Problem`; the command line adds its own flags to it)."""
 
 
-def _check_run_options(max_iterations, holdout, seed) -> None:
-    """The options every calibration takes, chain or tree: one check, one-line errors.
-
-    Args:
-        max_iterations: Most residual evaluations of each solver run (an integer in
-            [1, :data:`MAX_ITERATIONS`]).
-        holdout: Fraction of the rows set aside, in [0, 1).
-        seed: Seed of the holdout draw (an integer >= 0).
-
-    Raises:
-        InvalidArgumentError: A value out of its range or of the wrong type.
-    """
-    from ..core.checks import check_count  # numpy: not when the parser is built
-
-    check_count(max_iterations, "max_iterations", 1, MAX_ITERATIONS)
-    check_count(seed, "the seed", 0)
-    if (
-        isinstance(holdout, bool)
-        or not isinstance(holdout, numbers.Real)
-        or not (0.0 <= float(holdout) < 1.0)
-    ):
-        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
-
-
 def check_tree_level(level: str) -> None:
     """Refuse a level a tree's calibration (or design) does not take.
 
@@ -179,7 +155,7 @@ class Options:
             raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
         if self.elastic not in (None, True, False):
             raise InvalidArgumentError(f"elastic is True, False or None, got {self.elastic!r}")
-        from ..core.checks import MAX_ERROR_MM, MAX_WEIGHT, check_number
+        from ..core.checks import MAX_ERROR_MM, MAX_WEIGHT, check_count, check_number
 
         for name, value, top in (
             ("orientation weight", self.orientation_weight, MAX_WEIGHT),
@@ -187,7 +163,11 @@ class Options:
         ):
             if value is not None:
                 check_number(value, f"the {name}", 0.0, top, above=True)
-        _check_run_options(self.max_iterations, self.holdout, self.seed)
+        check_count(self.max_iterations, "max_iterations", 1, MAX_ITERATIONS)
+        check_count(self.seed, "the seed", 0)
+        h = self.holdout
+        if isinstance(h, bool) or not isinstance(h, numbers.Real) or not (0.0 <= float(h) < 1.0):
+            raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {h!r}")
         object.__setattr__(self, "fix", _names("fix", self.fix))
         object.__setattr__(self, "free", _names("free", self.free))
         both = set(self.fix) & set(self.free)

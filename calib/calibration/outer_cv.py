@@ -20,19 +20,10 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
 
     The held-out rows' moments (``A_h^T A_h``, ``A_h^T e_h``, ``|e_h|^2``) are taken about
     the whole data's least-squares fit (whose residuals are small: they keep their digits).
-
-    Args:
-        A: Unit-norm columns, configuration-major rows; the first ``fixed`` always in.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Number of columns always in (frame, markers).
-        train: Training configurations of each fold ``(folds, m)``.
-        models: Per candidate, per fold: its columns and prior strength.
-        objects: Objects' columns free too, by block (:func:`.object_columns.
-            object_moments`), or None.
-
-    Returns:
-        ``(candidates, folds)`` summed squared held-out errors [units of e squared].
+    ``A``: unit-norm columns, configuration-major rows, the first ``fixed`` always in;
+    ``train`` ``(folds, m)``; ``models``: per candidate, per fold, its columns and prior
+    strength; ``objects``: free by block (:func:`.object_columns.object_moments`), or None.
+    Returns ``(candidates, folds)`` [units of e squared].
     """
     if objects is None:
         x_all = np.linalg.lstsq(A, e, rcond=None)[0]
@@ -61,15 +52,9 @@ def _solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np
     """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
 
     Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
-
-    Args:
-        N: Normal matrices of each fold ``(folds, p, p)``.
-        b: Their right-hand sides ``(folds, p)``.
-        use: The columns of each candidate's fit in each fold ``(candidates, folds, p)``.
-        lam: The prior on each column ``(candidates, folds, p)``.
-
-    Returns:
-        ``(candidates, folds, p)`` solutions, zero off their columns.
+    ``N`` ``(folds, p, p)`` and ``b`` ``(folds, p)``: each fold's normal equations; ``use``
+    (the columns of each candidate's fit) and ``lam`` (the prior on each column):
+    ``(candidates, folds, p)``. Returns ``(candidates, folds, p)``, zero off their columns.
     """
     both = use[..., :, None] & use[..., None, :]
     M = np.where(both, N[None], 0.0)

@@ -118,12 +118,7 @@ def set_aside_note(dropped, unit: str = "row(s)", gap: str = "error") -> str:
     """The note listing the outliers set aside (one line).
 
     For example ``2 outlier row(s) set aside (error > 5 x the median): row 4 (5.3 mm), row 9
-    (6.1 mm)``.
-
-    Args:
-        dropped: The outliers (:class:`Outlier`).
-        unit: What one is: ``row(s)`` of measurements, ``touch(es)`` of contacts.
-        gap: What exceeded the bound: ``error`` (measurements) or ``gap`` (contacts).
+    (6.1 mm)``; contacts' ``unit`` and ``gap``: ``touch(es)``, ``gap``.
     """
     return f"{len(dropped)} outlier {unit} set aside ({gap} > {FACTOR:g} x the median): " + (
         ", ".join(o.text() for o in dropped)
@@ -133,9 +128,7 @@ def set_aside_note(dropped, unit: str = "row(s)", gap: str = "error") -> str:
 def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
     """Each configuration's largest point error [m] and orientation error [rad] (or None).
 
-    Args:
-        residual: Residuals ``(m, 3 K [+ 3])`` [m, rad] (the orientation rows last).
-        n_markers: K.
+    ``residual``: ``(m, 3 K [+ 3])`` [m, rad], the orientation rows last; ``n_markers``: K.
     """
     rot = None
     if residual.shape[1] == 3 * n_markers + 3:
@@ -175,13 +168,8 @@ def find_outliers(
 ) -> tuple[np.ndarray, list[Outlier]]:
     """Outliers of per-configuration errors: by position error, and by orientation error.
 
-    Args:
-        found: Each configuration's errors (:class:`Errors`).
-        noise: Instrument position noise [m], or None.
-        rows: File row of each configuration.
-
-    Returns:
-        The boolean mask of the outliers and the outliers (:func:`records`).
+    ``noise`` [m] or None; ``rows``: each configuration's file row. Returns the mask of the
+    outliers and the outliers (:func:`records`).
     """
     errors, orientation, dims = found
     bad = _find_outliers(errors, noise, dims[0])
@@ -201,17 +189,11 @@ def until_stable(
 ) -> tuple[T, np.ndarray, list[Outlier]]:
     """Refit without the outliers and test every unit again, until the set stops changing.
 
-    Args:
-        refit: The fit of the units a boolean mask keeps.
-        errors: Every unit's errors under a fit (those set aside too: predicted).
-        noise: Instrument position noise [m], or None.
-        rows: File row of each unit.
-        allowed: Whether a set of outliers (a mask) may be set aside (e.g. each plane keeps
-            enough touches); a set that may not, or whose refit raises a ``DataError``
-            (too few rows left), leaves the last one in place.
-
-    Returns:
-        The last fit, the mask of the outliers it was fitted without, and the outliers.
+    ``refit``: the fit of the units a mask keeps; ``errors``: every unit's under a fit (those
+    set aside: predicted); ``noise`` [m] or None; ``rows``: each unit's file row. A set that
+    ``allowed`` refuses (e.g. a plane left too few touches), or whose refit raises a
+    ``DataError``, leaves the last one in place. Returns the last fit, the mask of the
+    outliers it was fitted without, and the outliers.
     """
 
     def rule(result: T) -> np.ndarray:
@@ -231,9 +213,7 @@ def stable_set(
 
     The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
     each term's units on its own, from those each term sets aside at first (``start``).
-
-    Returns:
-        The last fit and the mask of the units it was fitted without.
+    Returns the last fit and the mask of the units it was fitted without.
     """
     bad = start
     result = refit(~bad)
@@ -291,13 +271,7 @@ def robust_proposals(
     Iteratively reweighted least squares: each unit weighs ``min(1, median / error)`` (the
     larger of its position and orientation ratios), reweighted until the weights settle (at
     most ``IRLS_ROUNDS``); the rule (:func:`find_outliers`) is then applied to its errors.
-
-    Args:
-        J: Jacobian of the model at its start ``(m, rows, p)`` (rows weighted).
-        residual: Residuals at its start ``(m, rows)`` (weighted alike).
-        errors: Each unit's errors from residuals ``(m, rows)``.
-        noise: Instrument position noise [m], or None.
-        rows: File row of each unit.
+    ``J`` ``(m, rows, p)`` and ``residual`` ``(m, rows)``: at the model's start, weighted.
     """
     m, rows_each = residual.shape
     if m * rows_each < 2 * J.shape[2]:  # nearly interpolated: nothing to tell

@@ -82,12 +82,7 @@ class PixelData:
 
 @dataclass(frozen=True, eq=False)
 class PixelPart:
-    """A pixel term's rows on its chain (training or held out).
-
-    Attributes:
-        data: The term's data.
-        rows: The rows, joints in the chain's order.
-    """
+    """A pixel term's ``data`` and its ``rows`` on its chain (joints in the chain's order)."""
 
     data: PixelData
     rows: PixelRows
@@ -139,13 +134,7 @@ class PixelPart:
 
 @dataclass(frozen=True)
 class PixelKind:
-    """The layout of a pixel term: its unknowns and rows.
-
-    Attributes:
-        points: Target points.
-        lens: Intrinsic parameters of the camera.
-        what: The optional unknowns.
-    """
+    """The layout of a pixel term: its unknowns and rows (``points``: the target's)."""
 
     points: int
     lens: int
@@ -252,18 +241,9 @@ def pixel_block(
     ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
     ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
 
-    Args:
-        placements: The current joint placement errors.
-        chain: The term's nominal chain.
-        state: Its state at ``x``.
-        start: Its state at x = 0.
-        x: Its own unknowns.
-        part: Its rows.
-        lift: The free directions ``(free, 6 J)``.
-        kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`).
-
-    Returns:
-        ``(m, 2, own)`` and ``(m, 2, free)`` [m-equivalent per unit].
+    ``state`` at ``x``, ``start`` at x = 0; ``lift``: the free directions ``(free, 6 J)``;
+    ``kin``: :meth:`~.placements.Placements.frames` at the rows. Returns ``(m, 2, own)`` and
+    ``(m, 2, free)`` [m-equivalent per unit].
     """
     J = pixel_jacobian(placements, state, chain, part.rows, len(lift) > 0, kin)[1]
     n = placements.y.size

@@ -29,9 +29,7 @@ from .term_checks import Aside
 __all__ = [
     "MAX_EVALUATIONS",
     "ROUND_OFF_PX",
-    "camera_from_rays",
     "checked_pixels",
-    "rays",
 ]
 
 UNDISTORT_ITERATIONS = 20
@@ -45,7 +43,7 @@ ROUND_OFF_PX = 1e-6
 1e-12 px, of which one may be 5 times the median), far below any detector's noise."""
 
 
-def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
+def _rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
     """The normalised coordinates ``(a, b)`` ``(m, 2)`` of the ray of each pixel.
 
     Newton's method on ``pinhole((a, b, 1)) = pixel`` from the undistorted guess.
@@ -61,7 +59,7 @@ def rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
     return ab
 
 
-def camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndarray:
+def _camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndarray:
     """The camera's placement in the points' frame ``(4, 4)`` from their rays, in closed form.
 
     The direct linear transform of the normalised points (centred, mean distance sqrt(3)),
@@ -113,12 +111,7 @@ class _Steps:
         return len(self.free)
 
     def _moves(self, start: ChainsState, x: np.ndarray):
-        """Where x goes: among the placements' components and among the own unknowns.
-
-        Returns:
-            The mask of x's joint columns, their components, the others' places among the own
-            unknowns, the own unknowns.
-        """
+        """Where x goes: joint-column mask, their components, others' own places, own unknowns."""
         n, free = start.placements.y.size, np.asarray(self.free, dtype=int)
         joint = (free >= 6) & (free < 6 + n)
         own_cols = _term(start).own_columns(n)
@@ -158,18 +151,11 @@ def _term(state: ChainsState) -> PixelTermState:
 
 
 def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, free, kin):
-    """One pixel term fitted alone (the engine's :func:`~.solve.fit`, its rows in pixels).
+    """The engine's state of one pixel term fitted alone (:func:`~.solve.fit`, rows in pixels).
 
-    Args:
-        chain: The term's chain.
-        placements: The joint placement errors at the start.
-        term: The term at the start (its weight taken as 1).
-        part: Its rows.
-        free: The columns of :func:`~.pixel_term.pixel_jacobian` fitted.
-        kin: The chain's frames at the rows' joints on ``placements``.
-
-    Returns:
-        The engine's state of the one term at the fit.
+    ``term``'s weight is taken as 1; ``free``: the columns of
+    :func:`~.pixel_term.pixel_jacobian` fitted; ``kin``: the chain's frames at the rows'
+    joints on ``placements``.
     """
     start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
     fitted = fit(_Steps(tuple(free)), start, ChainsData((part,)), None, 1.0,
@@ -192,7 +178,7 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         guess = camera_placement(chain, cam.name, cam.link)
     if guess is None:
         p_link = camera_points(kin, np.eye(4), X[rows.point])[1]
-        guess = camera_from_rays(p_link, rays(lens, rows.pixels), part.source)
+        guess = _camera_from_rays(p_link, _rays(lens, rows.pixels), part.source)
     behind = np.flatnonzero(camera_points(kin, guess, X[rows.point])[0][:, 2] <= 0)
     if len(behind):
         raise DataError(part.source, f"{len(behind)} observation(s) see a point behind the "
@@ -277,10 +263,7 @@ def _size(part: PixelPart) -> int:
 class _Camera:
     """A pixel term's steps on its rows (:class:`~.term_checks.Steps`), diagnosing every row.
 
-    Attributes:
-        chain: The term's chain.
-        rows: Its rows.
-        held: Its held-out rows (their outliers set aside by the same own fit), or None.
+    ``held``: its held-out rows (their outliers set aside by the same own fit), or None.
     """
 
     chain: Chain
@@ -338,14 +321,13 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
     their normal, and rows that the shared rule (:func:`~.outliers.find_outliers`) sets
     aside on the term's own fit (:func:`_judged`), are outliers named by their line; the
     camera is registered again without them. Held-out rows' outliers: the same rule
-    (:func:`~.term_checks.held_out`).
-
-    Returns:
-        Its registered state, the mask of its outlier rows, the outliers, the notes and its
-        held-out rows without their outliers (or None).
+    (:func:`~.term_checks.held_out`). Returns as
+    :func:`~.measured_term.checked_measured` does.
     """
     what = f"unknowns of camera {part.data.camera.name}'s placement"
     determined.check_equations(part.m, 2, _size(part), what, part.source,
                                held=0 if held is None else held.m, unit="observations")  # fmt: skip
     aside, notes = term_checks.checked(_Camera(chain, part, held))
-    return aside.state, aside.bad, list(aside.found), notes, aside.held
+    found = list(aside.found)
+    notes += [outliers.set_aside_note(found)] if found else []
+    return aside.state, aside.kept, found, notes, aside.held

@@ -111,19 +111,10 @@ def pixel_jacobian(
     """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
 
     Columns: the unknowns in the module's order, the mounting's 6 always, the target points'
-    and the intrinsics' those of ``state.what``.
-
-    Args:
-        placements: The joint placement errors (each joint's 6 columns).
-        state: The term's camera, target and lens (its MDH model unused).
-        chain: The term's chain.
-        rows: Its rows.
-        robot: Whether the joint placement columns are made (else zero: a fit moving none).
-        kin: The chain's frames at the rows' joints (:meth:`~.placements.Placements.frames`),
-            if already made.
-
-    Returns:
-        ``pixel - observed`` [px] and its derivatives [px per m, rad or px].
+    and the intrinsics' those of ``state.what`` (``state``'s MDH model unused). ``robot``
+    False: the joint placement columns are zero (a fit moving none); ``kin``:
+    :meth:`~.placements.Placements.frames` at the rows, if made. ``pixel - observed`` [px],
+    its derivatives [px per m, rad or px].
     """
     if kin is None:
         kin = placements.frames(chain, rows.q)

@@ -410,16 +410,10 @@ def joint_twists(
 
     An error ``dy`` of joint k moves everything on the chain's tool side of it by the body
     twist ``(R(w)^T dv, J_r(w) dw)`` of the frame it acts at (frame k of ``kin``, its axis
-    frame), with a minus sign for a joint traversed backwards.
-
-    Args:
-        placements: The current errors.
-        chain: The chain.
-        kin: Its frames (:meth:`Placements.frames`) at m configurations.
-
-    Returns:
-        Angular ``(m, n, 3, 6)`` and linear ``(m, n, 3, 6)`` velocity of the base-frame
-        origin's point moving with the tool side, per component (x y z rx ry rz).
+    frame), with a minus sign for a joint traversed backwards. ``kin``:
+    :meth:`Placements.frames` at m configurations. Returns the angular and linear velocity
+    ``(m, n, 3, 6)`` of the base-frame origin's point moving with the tool side, per
+    component (x y z rx ry rz).
     """
     by_v, wv, by_w = _twist_blocks(placements, chain, kin)
     m, n = wv.shape[:2]
@@ -437,14 +431,9 @@ def twist_columns(
     taken on the chain's joints' components only (no array of every component of every
     joint by row: 5,000 poses made 1.2 Jacobians of it).
 
-    Args:
-        placements: The current errors.
-        chain: The chain.
-        kin: Its frames at m configurations.
-        lift: The free directions ``(free, 6 J)`` (:meth:`Placements.names` order).
-
-    Returns:
-        Linear and angular velocity ``(m, 3, free)`` per unit of each direction.
+    ``kin``: the chain's frames at m configurations; ``lift``: the free directions
+    ``(free, 6 J)`` (:meth:`Placements.names` order). Returns the linear and angular velocity
+    ``(m, 3, free)`` per unit of each direction.
     """
     by_v, wv, by_w = _twist_blocks(placements, chain, kin)
     m, n = wv.shape[:2]
@@ -494,16 +483,10 @@ def mdh_directions(
     MDH chart's order of preference
     (:func:`~calib.identification.identifiability.preference_order`).
 
-    Args:
-        placements: The (zero) placement errors of the robot.
-        chain: The chain.
-        mdh: Its MDH model on the robot of ``placements``.
-        seed: Seed of the configurations.
-        label: The MDH parameter set offered: ``complete`` or ``paper``.
-
-    Returns:
-        Directions ``(D, 6 J)`` (in the units of the MDH parameters) and their names
-        ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
+    ``placements``: zero errors; ``mdh``: the chain's model on their robot; ``seed``: of the
+    configurations; ``label``: ``complete`` or ``paper``. Returns the directions ``(D, 6 J)``
+    (in the MDH parameters' units) and their names ``<joint>:<parameter>`` (the parameter's
+    name in this chain's rows).
     """
     pset, n = parameter_set(mdh, label), chain.n
     chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]

@@ -204,12 +204,8 @@ class Problem(Options):
 def check_weighed(weight: float | None, data: Sequence) -> None:
     """Refuse an orientation weight [m/rad] where no term's data have angle rows to weigh.
 
-    Args:
-        weight: The orientation weight given, or None.
-        data: Each term's data (measurements: orientations; touches: tilts; pixels: none).
-
-    Raises:
-        InvalidArgumentError: A weight is given and no term has orientation or tilt rows.
+    Angle rows: measurements' orientations, touches' tilts (pixels have none); an
+    InvalidArgumentError when ``weight`` is not None and no term has one.
     """
     if weight is None:
         return

@@ -86,14 +86,10 @@ class _Moments:
     cross-covariance of :func:`rigid_fit` is ``P + sum_kj m_kj G_kj`` and the markers' least
     squares (``sum_i R_i^T R_i = m I``) is ``m_k = (1/m) sum_i R_i^T (R^T (y_ik - t) - p_i)``:
     both are small contractions of ``G[k, j, a, b] = sum_i R_i[a, j] Y_ik[b]``, so that an
-    alternation costs the same whatever the number of configurations.
-
-    Args:
-        Rt: The tool's rotations ``(m, 3, 3)`` in the base frame.
-        pt: Its origins ``(m, 3)`` [m].
-        points: Its measured points ``(m, K, 3)`` [m].
-        cb: The centre of the measured points [m] (several tools: of every tool's), or None:
-            of these.
+    alternation costs the same whatever the number of configurations. ``Rt`` ``(m, 3, 3)``
+    and ``pt`` ``(m, 3)`` [m]: the tool's rotations and origins in the base frame;
+    ``points`` ``(m, K, 3)`` [m]; ``cb``: their centre [m] (several tools: every tool's), or
+    None: of these.
     """
 
     def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
@@ -150,15 +146,10 @@ class _Tools:
 def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
     """Closed-form frame and markers of tools measured in one frame (module text, steps 1-3).
 
-    Args:
-        Rt: Each tool's rotations ``(m_c, 3, 3)`` in the base frame.
-        pt: Each tool's origins ``(m_c, 3)`` [m].
-        points: Each tool's measured points ``(m_c, K_c, 3)`` [m], measurement frame.
-        markers: Each tool's markers' guess ``(K_c, 3)`` [m], tool frame.
-
-    Returns:
-        The pose of the base frame in the measurement frame ``(4, 4)``, and each tool's
-        markers ``(K_c, 3)`` [m].
+    Each tool's rotations ``Rt`` ``(m_c, 3, 3)`` and origins ``pt`` ``(m_c, 3)`` [m] in the
+    base frame, points ``(m_c, K_c, 3)`` [m] in the measurement frame and markers' guess
+    ``(K_c, 3)`` [m] in the tool frame. Returns the pose of the base frame in the measurement
+    frame ``(4, 4)`` and each tool's markers ``(K_c, 3)`` [m].
     """
     sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])

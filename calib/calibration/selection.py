@@ -157,21 +157,11 @@ def ridge_strengths(
     (the block PRESS of the ridge fit ``A^T A + s`` on those columns), and the left-out errors of
     every subset at every strength are one batch of small solves. The subsets are taken a
     few at a time, and their configurations in blocks (:data:`BLOCK`): the memory is linear
-    in the data.
-
-    Args:
-        A: Unit-norm columns ``(m rows, p)``, the first ``fixed`` free of prior.
-        e: Residuals to explain.
-        rows: Rows per configuration.
-        fixed: Columns without prior.
-        train: Configurations of each subset ``(subsets, m)`` [bool].
-        cols: Columns under the prior of each subset.
-        objects: Objects' columns free too, by block (:mod:`.object_columns`), or None.
-
-    Returns:
-        Each subset's squared left-out errors at its strength of least RMS error ``(b, m)``
-        (zero on the configurations it leaves out), and those strengths ``(b,)`` (0: none;
-        the smallest of equal errors).
+    in the data. ``A``: unit-norm columns ``(m rows, p)``; ``train`` ``(subsets, m)``
+    [bool]; ``objects``: objects' columns free too, by block (:mod:`.object_columns`), or
+    None. Returns each subset's squared left-out errors at its strength of least RMS error
+    ``(b, m)`` (zero on the configurations it leaves out), and those strengths ``(b,)`` (0:
+    none; the smallest of equal errors).
     """
     per = _per_batch(A.shape[0] * A.shape[1], len(train))
     parts = [
@@ -223,15 +213,10 @@ def _ridge_errors(Q, U, wt, r, rows, hat=None) -> np.ndarray:
     """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
 
     The configurations are taken in blocks (:data:`BLOCK`): each one's error needs its own
-    rows and the fits' coefficients ``wt U^T r`` only.
-
-    Args:
-        Q: Fixed columns' orthonormal basis ``(b, n, fixed)``.
-        U: Prior columns' left singular vectors ``(b, n, width)``.
-        wt: Their weights at each strength ``(b, strengths, width)``.
-        r: Residuals of the fixed columns' fit ``(b, n)``.
-        rows: Rows per configuration.
-        hat: The fixed columns' hat blocks ``(b, m, rows, rows)`` instead of ``Q`` (None).
+    rows and the fits' coefficients ``wt U^T r`` only. ``Q`` ``(b, n, fixed)``: the fixed
+    columns' orthonormal basis (or ``hat``, their hat blocks ``(b, m, rows, rows)``); ``U``
+    ``(b, n, width)``: the prior columns' left singular vectors, ``wt`` ``(b, strengths,
+    width)`` their weights; ``r`` ``(b, n)``: the fixed columns' fit's residuals.
     """
     b, n, width = U.shape
     m, S = n // rows, wt.shape[1]
@@ -286,14 +271,8 @@ def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
     """``-U diag(wt) U^T`` of each configuration at each strength, component-major.
 
     Each entry on and above the diagonal once, mirrored below it (half the products).
-
-    Args:
-        Uc: Prior columns' left singular vectors by row of a configuration
-            ``(rows, b, width, m)``.
-        wt: Their weights at each strength ``(b, strengths, width)``.
-
-    Returns:
-        ``(rows, rows, b, strengths, m)``.
+    ``Uc`` ``(rows, b, width, m)``: the prior columns' left singular vectors by row of a
+    configuration; ``wt`` ``(b, strengths, width)``. Returns ``(rows, rows, b, strengths, m)``.
     """
     rows = len(Uc)
     i, j = np.triu_indices(rows)
@@ -361,11 +340,7 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
-    """Each list's columns of A, zero columns padding to the longest ``(lists, n, width)``.
-
-    Returns:
-        The columns, and which are real ``(lists, width)``.
-    """
+    """Each list's columns of A zero-padded ``(lists, n, width)``, and which are real."""
     width = max(map(len, cols))
     out = np.zeros((len(cols), A.shape[0], width))
     for s, c in enumerate(cols):
@@ -379,15 +354,9 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
     For the linear model the fit and every left-out error of a posture are those of its
     repeats (a posture held out leaves with all of them), but for the spread of the repeats
     about their mean, which no model explains: it is returned, to be added to the errors.
-
-    Args:
-        J: Columns ``(m, rows, p)``.
-        e: Residuals ``(m, rows)``.
-        groups: Posture of each configuration ``(m,)`` (numbered from 0), or None.
-
-    Returns:
-        Columns ``(postures, rows, p)``, residuals ``(postures, rows)``, and the spread of each
-        posture's residuals (summed squares) with its count of configurations.
+    ``J`` ``(m, rows, p)`` -> ``(postures, rows, p)``, ``e`` ``(m, rows)`` -> ``(postures,
+    rows)``, then each posture's spread (summed squares) with its count; ``groups``: each
+    configuration's posture ``(m,)`` (from 0), or None.
     """
     m = len(e)
     if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
@@ -403,10 +372,8 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
 def _unit_columns(J, e, groups, objects):
     """The rows of each posture once (:func:`_by_posture`), the columns of unit norm.
 
-    Returns:
-        The columns ``(postures rows, p)``, their norms, the residuals ``(postures rows,)``,
-        the postures' spread and counts, and the objects (:meth:`~.object_columns.
-        ObjectColumns.unit`, by posture) or None.
+    Returns the columns ``(postures rows, p)``, their norms, the residuals ``(postures
+    rows,)``, the postures' spread and counts, and the objects (by posture) or None.
     """
     if objects is not None:
         objects = objects.by_posture(groups, len(e)).unit()
@@ -441,23 +408,13 @@ def select(
 ) -> tuple[Selection, np.ndarray]:
     """Choose the parameters the data support (see the module docstring).
 
-    Args:
-        J: Weighted Jacobian at the registration ``(m, rows, fixed + len(names))``: the
-            frame and marker columns first, then the candidates.
-        e: Weighted residuals measured - model at the registration ``(m, rows)``.
-        fixed: Number of always-free columns (frame, markers).
-        names: Candidate names.
-        forced: Indices into ``names`` kept whatever the data say.
-        groups: Posture of each configuration (:func:`~calib.measurements.postures.
-            posture_groups`): the repeats of a posture count once (None: every
-            configuration is a posture).
-        objects: The objects' columns (contacts: each object's unknowns, on its own
-            touches), always free like the first ``fixed`` of J, kept by block
-            (:mod:`.object_columns`); or None.
-
-    Returns:
-        The selection, and the prior weight of each kept parameter (in the units of x:
-        ``sqrt(strength) * |column|``).
+    At the registration: ``J`` ``(m, rows, fixed + len(names))``, the ``fixed`` always-free
+    columns (frame, markers) first, and ``e`` ``(m, rows)`` measured - model, both weighted.
+    ``forced``: indices into ``names`` kept whatever the data say; ``groups``: each
+    configuration's posture (:func:`~calib.measurements.postures.posture_groups`; repeats
+    count once; None: each its own); ``objects``: always-free object columns by block
+    (:mod:`.object_columns`), or None. Returns the selection and each kept parameter's
+    prior weight (in the units of x: ``sqrt(strength) * |column|``).
     """
     points, rows = e.size / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)

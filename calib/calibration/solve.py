@@ -86,22 +86,13 @@ _Model = TypeVar("_Model", bound=FitModel[Any])
 
 @dataclass(frozen=True, eq=False)
 class Fit(Generic[_Model, _State]):
-    """A solved fit.
+    """A solved fit: ``model`` (what was free) from ``start`` (x = 0) to ``state`` at ``x``.
 
-    Attributes:
-        model: What was free.
-        start: The state at x = 0.
-        state: The state at the solution.
-        x: The solution ``(p,)``.
-        J: Weighted Jacobian of the data rows at the solution ``(r, p)``.
-        f: Weighted residuals model - measured of the data rows ``(r,)`` [m].
-        converged: The solver met a convergence criterion with finite numbers.
-        status: scipy's status.
-        message: scipy's message.
-        iterations: Jacobian evaluations.
-        evaluations: Residual evaluations.
-        kin: The kinematics of ``state`` at the data's joints (made once per x), or None:
-            what a caller scoring ``state`` on the same data passes on.
+    ``J`` ``(r, p)`` and ``f`` ``(r,)`` [m]: the data rows' weighted Jacobian and residuals
+    model - measured at the solution; ``converged``: a convergence criterion met with finite
+    numbers (``status``, ``message``: scipy's); ``iterations``, ``evaluations``: of the
+    Jacobian and the residuals; ``kin``: ``state``'s kinematics at the data's joints (made
+    once per x), or None: what a caller scoring ``state`` on the same data passes on.
     """
 
     model: _Model
@@ -284,16 +275,9 @@ def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fi
     noise-free rows already near their round-off a few steps remove the remainder, one
     Jacobian each. Each step is the least-norm solution of the linearised data rows (no
     prior: it moves nothing the rows do not determine) and is kept only if it lowers the
-    data rows' cost; the first that does not ends the finish.
-
-    Args:
-        fitted: A converged linear-loss fit (:func:`fit`, no torque).
-        data: Its measurements.
-        steps: Most steps.
-
-    Returns:
-        The fit at the last step kept (``fitted`` itself when none lowers the cost); its
-        counts of Jacobians and evaluations include the finish's.
+    data rows' cost; the first that does not ends the finish. ``fitted``: a converged
+    linear-loss fit (:func:`fit`, no torque). Returns the fit at the last step kept
+    (``fitted`` itself when none lowers the cost), its counts including the finish's.
     """
     problem = Problem(fitted.model, fitted.start, data, None, 1.0, None, robust=False)
     x, f, best = fitted.x, fitted.f, fitted
@@ -331,9 +315,7 @@ def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
     (``factor`` 100, no ``diag``, no column-major Jacobian), without ``least_squares``'s
     copies of the Jacobian (one kept from the start, one per evaluation, one at the end:
     three times 100,000 poses x 6 rows x 40 columns, 190 MB): the same steps, to the bit.
-
-    Returns:
-        x, status and message (``least_squares``'s), Jacobian and residual evaluations.
+    Returns x, status and message (``least_squares``'s), Jacobian and residual evaluations.
     """
     import scipy.optimize
 
@@ -383,13 +365,9 @@ def condition(J: np.ndarray) -> float:
 def fitted_values(fitted: Fit, cov: np.ndarray) -> dict:
     """A fit's free robot parameters for a result: names, values, std and the solver's outcome.
 
-    Args:
-        fitted: The fit (its first ``model.fixed`` columns are frames and objects).
-        cov: Its covariance (:func:`covariance`, with the prior weights it was fitted with).
-
-    Returns:
-        ``fitted`` (names), ``estimate``, ``std`` (NaN where undefined) and ``solver``
-        ``(converged, message, Jacobian evaluations)``.
+    Past ``fitted``'s first ``model.fixed`` columns (frames and objects); ``cov``:
+    :func:`covariance` with its prior weights. Keys ``fitted`` (names), ``estimate``, ``std``
+    (NaN where undefined), ``solver`` ``(converged, message, Jacobian evaluations)``.
     """
     fixed = fitted.model.fixed
     with np.errstate(invalid="ignore"):

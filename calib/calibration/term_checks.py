@@ -33,17 +33,11 @@ S = TypeVar("S")
 
 @dataclass(frozen=True)
 class Aside(Generic[D, S]):
-    """A registration without its outlier rows.
+    """A registration (``state``) of the rows ``kept``, without the outlier rows ``bad`` (mask).
 
-    Attributes:
-        state: The registration of the rows kept.
-        bad: The mask of the outlier rows.
-        kept: The rows kept.
-        found: The outliers, where the step names them (a chain's, pixels'; touches': by
-            the caller).
-        held: The held-out rows without their outliers, where the step sets them aside
-            (pixels: by the same own fit), or None.
-        notes: Notes of the step (pixels: their held-out rows' outliers).
+    ``found``: the outliers, where the step names them (a chain's, pixels'; touches': by the
+    caller); ``held``: the held-out rows without their outliers, where the step sets them
+    aside (pixels: by the same own fit), or None; ``notes``: pixels' held-out outliers'.
     """
 
     state: S

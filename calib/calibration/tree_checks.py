@@ -32,11 +32,8 @@ def prepare_tree(
     in the data and the validation rows; validation rows measured in another frame.
 
     The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
-    together (:func:`~.validation.split`), as the validation rows are given.
-
-    Returns:
-        Each tool's rows, and each tool's held-out rows (None: none, or a tool without
-        held-out rows).
+    together (:func:`~.validation.split`), as the validation rows are given. Returns each
+    tool's rows and held-out rows (None: none, or a tool without held-out rows).
 
     Raises:
         DataError: Rows of other joints, pose or several-point rows, a tool no row measures,
@@ -79,8 +76,7 @@ _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:
     """``data`` registered on the ``nominal`` tree (:func:`~.instrument.shared_frame`), its errors.
 
-    Raises:
-        DataError: A usual mistake explains the registration's error (it is named).
+    A DataError names the usual mistake that explains the registration's error, if one does.
     """
 
     def registered(d: Measurements) -> tuple[list, ResidualStats]:

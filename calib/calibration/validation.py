@@ -191,15 +191,8 @@ def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: st
 
     Each file passed the usual-mistake diagnosis on its own registration: held-out rows that
     the training registration still misses by more than ``diagnosis.SUSPECT`` were measured
-    in another frame or of another robot.
-
-    Args:
-        fitted: Registration errors on the fitted rows.
-        held: Errors of the same registration on the held-out rows.
-        source: The held-out data, for the message.
-
-    Raises:
-        DataError: The held-out error is absurd and the fitted one is not.
+    in another frame or of another robot: a DataError names ``source`` (the held-out data)
+    when their error is absurd and the fitted rows' is not.
     """
     if suspect(held.position_rms, None) and not suspect(fitted.position_rms, None):
         raise DataError(
@@ -224,15 +217,9 @@ def stats(
 def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
     """RMS over configurations and points of the predicted position std [m].
 
-    Args:
-        J_points: Jacobian of the points of each configuration ``(m, rows, p)`` (the first
-            3 K rows are points).
-        covariance: Parameter covariance ``(p, p)``.
-        n_markers: K.
-
-    Returns:
-        sqrt(mean over points of trace(J_k C J_k^T)): the RMS distance between the predicted
-        and the true point that the parameter uncertainty alone explains.
+    sqrt(mean over points of trace(J_k C J_k^T)): the RMS distance between the predicted and
+    the true point that the parameter uncertainty alone explains. ``J_points`` ``(m, rows,
+    p)``: its first 3 K rows are points (``n_markers``: K); ``covariance`` ``(p, p)``.
     """
     if covariance.size == 0:
         return 0.0

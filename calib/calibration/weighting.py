@@ -48,11 +48,9 @@ ITERATIONS = 10
 
 
 def variance_ratio(residuals: np.ndarray, angle: np.ndarray) -> float | None:
-    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)``, or None if one is ~0.
+    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)`` [m, rad], or None if one is ~0.
 
-    Args:
-        residuals: Residuals [m, rad].
-        angle: Which rows are angles ``(rows,)`` (bool).
+    ``angle`` ``(rows,)``: which rows are angles.
     """
     sp = math.sqrt(float(np.mean(residuals[:, ~angle] ** 2)))
     so = math.sqrt(float(np.mean(residuals[:, angle] ** 2)))
@@ -74,13 +72,10 @@ def estimate_weight(
 ) -> float:
     """The orientation weight [m/rad] at which the residuals' variance ratio settles.
 
-    Residuals without both lengths and angles: ``DEFAULT_WEIGHT``.
-
-    Args:
-        residuals_at: Residuals ``(m, rows)`` [m, rad] of a fit made with a weight [m/rad].
-        angle: Which rows are angles ``(rows,)`` (bool; :func:`pose_angles` for poses).
-        rounds: Most fits.
-        tolerance: Relative change of the weight at which it stops (0: after ``rounds``).
+    Residuals without both lengths and angles: ``DEFAULT_WEIGHT``. ``residuals_at(w)``:
+    ``(m, rows)`` [m, rad] of a fit with weight w; ``angle`` ``(rows,)``: which rows are
+    angles (:func:`pose_angles`); ``tolerance``: the relative change of the weight that
+    stops it (0: after ``rounds`` fits).
     """
     weight = DEFAULT_WEIGHT
     angle = np.asarray(angle, dtype=bool)
