@@ -664,7 +664,8 @@ def test_a_robot_loaded_by_a_relative_name_reads_that_file_after_chdir(tmp_path,
     chain = load_chain("robot.urdf", "base_link", "tool0")
     tree = load_tree("bolt.urdf", "base_link", ["FL_FOOT", "FR_FOOT"])
     assert (chain.urdf_path, tree.urdf_path) == (Path("robot.urdf"), Path("bolt.urdf"))
-    assert chain.urdf_resolved == here / "robot.urdf" and tree.urdf_resolved == here / "bolt.urdf"
+    assert chain.urdf_resolved == (here / "robot.urdf").resolve()
+    assert tree.urdf_resolved == (here / "bolt.urdf").resolve()
     write_rows(here / "e.csv", chain, elastic_campaign(chain, 40, 1, 5e-5))
     data = read_measurements(here / "e.csv", chain)
     monkeypatch.chdir(elsewhere)
