@@ -643,3 +643,48 @@ def test_write_never_overwrites_an_input_read_by_a_relative_name(tmp_path, monke
         r.write("robot.urdf", report=read)  # other files of the same names
         assert (elsewhere / "robot.urdf").read_bytes() == r.urdf()
     assert {name: (here / name).read_bytes() for name in names} == before
+
+
+def test_a_robot_loaded_by_a_relative_name_reads_that_file_after_chdir(tmp_path, monkeypatch):
+    """A chain or tree loaded from a relative URDF name keeps the file it read
+    (``urdf_resolved``): after ``os.chdir`` it calibrates, and its result's ``urdf()``,
+    ``origins()``, compliance file and ``write`` read that file, never the file the name
+    now names (here: the calibrated URDF just written under it). ``write`` refuses the
+    nominal URDF by its new name. The report keeps the name given."""
+    import shutil
+
+    from calib import calibrate, load_tree, read_measurements, simulate_tree
+
+    here, elsewhere = tmp_path / "in", tmp_path / "elsewhere"
+    here.mkdir()
+    elsewhere.mkdir()
+    shutil.copy(load_chain("ur5").urdf_path, here / "robot.urdf")
+    shutil.copy(load_tree("bolt").urdf_path, here / "bolt.urdf")
+    monkeypatch.chdir(here)
+    chain = load_chain("robot.urdf", "base_link", "tool0")
+    tree = load_tree("bolt.urdf", "base_link", ["FL_FOOT", "FR_FOOT"])
+    assert (chain.urdf_path, tree.urdf_path) == (Path("robot.urdf"), Path("bolt.urdf"))
+    assert chain.urdf_resolved == (here / "robot.urdf").resolve()
+    assert tree.urdf_resolved == (here / "bolt.urdf").resolve()
+    write_rows(here / "e.csv", chain, elastic_campaign(chain, 40, 1, 5e-5))
+    data = read_measurements(here / "e.csv", chain)
+    monkeypatch.chdir(elsewhere)
+    results = {
+        "robot.urdf": calibrate(chain, data, elastic=True),
+        "bolt.urdf": calibrate(tree, simulate_tree(tree, 40, seed=2).measurements),
+    }
+    for name, r in results.items():
+        assert r.accepted, r.refusal
+        assert r.to_dict()["urdf"] == name
+        urdf, origins = r.urdf(), r.origins()
+        assert origins["joints"]
+        with pytest.raises(InvalidArgumentError, match="would overwrite the nominal URDF"):
+            r.write(here / name)
+        r.write(name, report=f"{name}.json")  # another file of that name
+        assert (elsewhere / name).read_bytes() == urdf
+        assert (r.urdf(), r.origins()) == (urdf, origins)
+    comp = json.loads((elsewhere / "robot.compliance.json").read_text())
+    assert comp["nominal_origins"]
+    monkeypatch.chdir(here)
+    for r in results.values():
+        assert r.urdf() == (elsewhere / r.to_dict()["urdf"]).read_bytes()

@@ -270,6 +270,22 @@ def test_collision_filter_rejects_a_known_colliding_configuration(robot):
     assert dict(report.rejected)["collision"] == 1
 
 
+def test_collision_filter_reads_the_urdf_loaded_by_a_relative_name(tmp_path, monkeypatch):
+    """A chain loaded by a relative URDF name reads that file's collision geometry after
+    ``os.chdir`` (the file it loaded, not the name's)."""
+    import shutil
+
+    (tmp_path / "elsewhere").mkdir()
+    shutil.copy(chain_of("ur5").urdf_path, tmp_path / "robot.urdf")
+    monkeypatch.chdir(tmp_path)
+    chain = load_chain("robot.urdf", "base_link", "tool0")
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    q = np.array([COLLIDING["ur5"][0], FREE["ur5"]])
+    keep, report = filter_candidates(chain, q, np.zeros((1, 3)), Constraints())
+    assert keep.tolist() == [False, True]
+    assert dict(report.rejected)["collision"] == 1
+
+
 def test_urdf_without_collision_geometry_is_accepted_with_a_note():
     chain = chain_of("aid")
     q = candidate_configurations(chain, 50, seed=0)

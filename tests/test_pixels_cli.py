@@ -454,3 +454,37 @@ def test_analyze_terms_refuse_a_camera_no_term_uses(capsys, ur5):
              "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv"]  # fmt: skip
     code, _, err = run(capsys, "analyze", "ur5", *terms, *common[:-2])  # --camera, --target
     assert code == 2 and "--camera is for --measure pixels" in err, err
+
+
+def test_calibrate_pixels_lists_each_cameras_intrinsics_among_its_inputs(
+    capsys, tmp_path, ur5, monkeypatch
+):
+    """``calibrate --measure pixels``: the intrinsics file of each ``--camera`` is one of the
+    inputs the command lists, refused as an output before any work and named; the result it
+    builds records it among its inputs too (what ``Result.write`` never overwrites)."""
+    import calib.calibration.entry as entry
+    from calib import InvalidArgumentError
+
+    folder, _ = ur5
+    intr = tmp_path / "intr.yaml"
+    intr.write_bytes((folder / "intr.yaml").read_bytes())
+    argv = [
+        "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
+        "--camera", "cam", "world", intr, "--target", folder / "target.csv",
+        "--tool", "tool0", "--out", tmp_path / "cal.urdf",
+    ]  # fmt: skip
+    code, out, err = run(capsys, *argv, "--report", intr)
+    assert code == 2 and f"--report {intr} would overwrite the intrinsics of --camera cam" in err
+    assert out == "" and intr.read_bytes() == (folder / "intr.yaml").read_bytes()
+    results = []
+
+    def calibrate(*args, **kwargs):
+        results.append(calibrate_now(*args, **kwargs))
+        return results[-1]
+
+    calibrate_now = entry.calibrate
+    monkeypatch.setattr(entry, "calibrate", calibrate)
+    assert run(capsys, *argv)[0] == 0
+    assert dict(results[0].inputs)["the intrinsics of term 1"] == str(intr.resolve())
+    with pytest.raises(InvalidArgumentError, match="would overwrite the intrinsics of term 1"):
+        results[0].write(tmp_path / "cal2.urdf", report=intr)

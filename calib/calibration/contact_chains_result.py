@@ -539,6 +539,6 @@ class ContactChainsCalibration(Result, ChainView):
         urdf = self.urdf()
         if not isinstance(path, str | os.PathLike):
             raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-        nominal = {"the nominal URDF": self.chains[0].chain.urdf_path}
+        nominal = {"the nominal URDF": self.chains[0].chain.urdf_resolved}
         check_outputs({"path": path}, dict(self.inputs) or nominal)
         write_atomic(path, urdf)

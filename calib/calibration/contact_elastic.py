@@ -157,7 +157,7 @@ def compliance_document(part, urdf: str) -> dict:
         raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")
     chain = part.chain
     g = float(np.linalg.norm(chain.model.gravity.linear))
-    nominal = read_urdf_file(chain.urdf_path)
+    nominal = read_urdf_file(chain.urdf_resolved)
     return {
         "format_version": COMPLIANCE_FORMAT,
         "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "

@@ -100,7 +100,7 @@ def read_files(
 
     Each data file as its reader resolved it (``path``: absolute, links followed, whatever
     the working directory is later), else as named (``source``); a pixel term's target and
-    intrinsics too; the nominal URDF resolved now.
+    intrinsics too; the nominal URDF as resolved when it was loaded (``urdf_resolved``).
 
     Args:
         robots: Each term's chain or tree (one URDF).
@@ -108,7 +108,7 @@ def read_files(
             ``target``, ``camera.intrinsics``).
         validate: Each term's validation data (None: none), or None.
     """
-    found = [("the nominal URDF", str(Path(robots[0].urdf_path).resolve()))]
+    found = [("the nominal URDF", str(robots[0].urdf_resolved))]
     held = [None] * len(data) if validate is None else validate
     for k, (d, v) in enumerate(zip(data, held, strict=True), start=1):
         for what, given in ((f"the data of term {k}", d), (f"the validation data of term {k}", v)):
@@ -197,8 +197,9 @@ class Result:
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
         doc = self.to_dict()
+        read = dict(self.inputs).get("the nominal URDF", doc["urdf"])  # the file loaded
         try:
-            nominal = read_bytes_limited(doc["urdf"], MAX_URDF_BYTES)
+            nominal = read_bytes_limited(read, MAX_URDF_BYTES)
         except OSError as exc:
             raise URDFError(str(doc["urdf"]), f"cannot read: {exc.strerror or exc}") from None
         calibrated = self.urdf() if urdf is None else urdf

@@ -270,6 +270,7 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     chains = tuple(c for _, c in views)
     outputs = {"--out": args.out, "--report": args.report}
     inputs = {"the URDF": chains[0].urdf_path, "--data": args.data, "--target": args.target}
+    inputs |= {f"the intrinsics of --camera {c.name}": c.intrinsics.path for c, _ in views}
     check_output_paths(outputs, {**inputs, "--validate": args.validate})
     lenses = {c.name: c.intrinsics for c, _ in views}
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))

@@ -214,15 +214,15 @@ def _package_dirs(urdf: Path) -> list[str]:
 
 def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
     """The URDF's collision geometry on the robot's model (meshes loaded)."""
-    path = robot.urdf_path
+    path, read = robot.urdf_path, robot.urdf_resolved  # named as given, read as loaded
     try:
-        text = read_text_limited(path, MAX_URDF_BYTES)
+        text = read_text_limited(read, MAX_URDF_BYTES)
     except OSError as exc:
         raise URDFError(str(path), exc.strerror or str(exc)) from None
     with console_captured() as captured:
         try:
             geom = pin.buildGeomFromUrdfString(
-                robot.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path)
+                robot.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(read)
             )
         except (RuntimeError, ValueError) as exc:
             geom = exc
@@ -340,7 +340,7 @@ def collision_checker(
             )
     if srdf is not None and self_collision:
         _read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
-    srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(robot.urdf_path))
+    srdf_path = Path(srdf) if srdf is not None else find_srdf(robot.urdf_resolved)
     geom = _geometry(robot)
     model = robot.model
     data = model.createData()

@@ -275,8 +275,8 @@ def compliance_document(result, urdf: str, on_robot: bool = False) -> dict:
         ).tolist(),
         "markers": result.urdf_markers.tolist(),
         "marker_links": list(result.marker_links),
-        "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_path)),
-        "nominal_masses": nominal_masses(read_urdf_file(chain.urdf_path)),
+        "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_resolved)),
+        "nominal_masses": nominal_masses(read_urdf_file(chain.urdf_resolved)),
     }
 
 

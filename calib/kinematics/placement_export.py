@@ -77,7 +77,7 @@ def write_moved_origins_urdf(path: str | Path, chain: Chain, errors: dict[str, n
     """Write :func:`moved_origins_urdf` atomically (never over the nominal URDF)."""
     if not isinstance(path, str | os.PathLike):
         raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
+    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_resolved})
     write_atomic(path, moved_origins_urdf(chain, errors))
 
 

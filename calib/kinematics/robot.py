@@ -131,8 +131,8 @@ class Robot(CoupledJoints):
     same for both. ``is_tree`` tells the places where each keeps its own implementation (a
     chain's MDH model and a tree's model, and what is built on them: calibration,
     campaigns, export, the command line's output); calib asks it rather than the robot's
-    class. A subclass has ``name``, ``urdf_path``, ``model``, ``base_frame``, ``base_id``,
-    the members of :class:`CoupledJoints` and the properties below.
+    class. A subclass has ``name``, ``urdf_path``, ``urdf_resolved``, ``model``,
+    ``base_frame``, ``base_id``, the members of :class:`CoupledJoints` and the properties below.
     """
 
     is_tree: ClassVar[bool] = False
@@ -141,7 +141,12 @@ class Robot(CoupledJoints):
     name: str
     urdf_path: Path
 
-    if TYPE_CHECKING:  # a Tree's field, a Chain's property: no class attribute at run time
+    if TYPE_CHECKING:  # each a field of one class, a property of the other: no class attribute
+
+        @property
+        def urdf_resolved(self) -> Path:
+            """The URDF file resolved when it was read."""
+            ...
 
         @property
         def chains(self) -> tuple[Chain, ...]:
@@ -203,7 +208,10 @@ class Chain(Robot):
 
     Attributes:
         name: Robot name (catalog name or URDF file stem).
-        urdf_path: The URDF file.
+        urdf_path: The URDF file, as given (messages and reports name it).
+        urdf_resolved: The same file resolved when it was read (absolute, links followed):
+            what calib reads again (export, compliance) and never overwrites, whatever the
+            working directory is later. Default: ``urdf_path`` resolved now.
         model: Pinocchio model (never mutated by calib).
         base_frame: Name of the base frame (frame -1).
         tool_frame: Name of the tool frame (frame n+1).
@@ -242,8 +250,11 @@ class Chain(Robot):
     coupling: Coupling | None = field(default=None, repr=False)
     is_tree: ClassVar[Literal[False]] = False
     sign: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment,arg-type]  # None: all +1 (post_init)
+    urdf_resolved: Path = field(default=None, repr=False)  # type: ignore[assignment]  # None: urdf_path resolved (post_init)
 
     def __post_init__(self) -> None:
+        if self.urdf_resolved is None:
+            object.__setattr__(self, "urdf_resolved", Path(self.urdf_path).resolve())
         sign = np.ones(len(self.joint_ids), dtype=int) if self.sign is None else self.sign
         sign = np.array(sign, dtype=int)
         if sign.shape != (len(self.joint_ids),) or not np.all(np.abs(sign) == 1):
@@ -434,7 +445,8 @@ class RobotModels:
 
     Attributes:
         name: Robot name (catalog name or URDF file stem).
-        path: The URDF file.
+        path: The URDF file, as given.
+        resolved: The same file resolved when it was read (:attr:`Chain.urdf_resolved`).
         info: What calib read from the URDF itself (root link, mimic joints, ...).
         model: Pinocchio model of the kinematic URDF.
         ideal_model: The same with round-off removed (see :meth:`Chain.idealized`).
@@ -442,16 +454,18 @@ class RobotModels:
 
     name: str
     path: Path
+    resolved: Path
     info: URDFInfo
     model: pin.Model
     ideal_model: pin.Model
 
     @staticmethod
     def build(name: str, path: Path, info: URDFInfo) -> RobotModels:
-        """Build both Pinocchio models of a URDF."""
+        """Build both Pinocchio models of a URDF just read (``info``) from ``path``."""
         return RobotModels(
             name,
             path,
+            path.resolve(),
             info,
             build_model(kinematic_xml(info), str(path)),
             build_model(kinematic_xml(info, snap=True), str(path)),
@@ -509,6 +523,7 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
     return Chain(
         name=name,
         urdf_path=path,
+        urdf_resolved=robot.resolved,
         model=model,
         base_frame=base_name,
         tool_frame=tool_name,

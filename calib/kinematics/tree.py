@@ -45,7 +45,9 @@ class Tree(Robot):
 
     Attributes:
         name: Robot name (catalog name or URDF file stem).
-        urdf_path: The URDF file.
+        urdf_path: The URDF file, as given (messages and reports name it).
+        urdf_resolved: The same file resolved when it was read (the chains'
+            :attr:`~calib.kinematics.robot.Chain.urdf_resolved`).
         chains: The chain to each tool, in tool order (they share one Pinocchio model).
         joint_ids: Pinocchio joint indices of the tree, antecedents first.
         joint_names: URDF names of those joints.
@@ -71,6 +73,11 @@ class Tree(Robot):
     upper: np.ndarray
     coupling: Coupling | None = field(default=None, repr=False)
     is_tree: ClassVar[Literal[True]] = True
+
+    @property
+    def urdf_resolved(self) -> Path:
+        """The URDF file resolved when it was read (its chains')."""
+        return self.chains[0].urdf_resolved
 
     @property
     def model(self) -> pin.Model:

@@ -114,5 +114,5 @@ def write_calibrated_tree_urdf(
     """Write :func:`calibrated_tree_urdf` atomically (never over the nominal URDF)."""
     if not isinstance(path, str | os.PathLike):
         raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-    check_outputs({"path": path}, {"the nominal URDF": tree.urdf_path})
+    check_outputs({"path": path}, {"the nominal URDF": tree.urdf_resolved})
     write_atomic(path, calibrated_tree_urdf(tree, nominal, calibrated))

@@ -226,7 +226,7 @@ def read_urdf_source(chain: Chain) -> tuple[bytes, ET.Element]:
     """The URDF file's bytes and its element tree (comments and processing instructions kept)."""
     src = str(chain.urdf_path)
     try:
-        raw = read_bytes_limited(chain.urdf_path, MAX_URDF_BYTES)
+        raw = read_bytes_limited(chain.urdf_resolved, MAX_URDF_BYTES)
     except OSError as exc:
         raise URDFError(src, f"cannot read: {exc.strerror or exc}") from None
     return raw, parse_xml(raw, src)
@@ -569,5 +569,5 @@ def write_calibrated_urdf(
     """
     if not isinstance(path, str | os.PathLike):
         raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_path})
+    check_outputs({"path": path}, {"the nominal URDF": chain.urdf_resolved})
     write_atomic(path, calibrated_urdf(chain, nominal, calibrated, **links))

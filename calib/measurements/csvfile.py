@@ -1,7 +1,8 @@
 """Measurement campaigns: the CSV format and its validation (simulation: :mod:`.simulation`).
 
 The value read is :class:`~.data.Measurements`; its checks against the chain are in
-:mod:`.limits` (both modules' names are re-exported here, where they were first).
+:mod:`.limits`, the CSV records and numbers every calib CSV shares in :mod:`.csv_text` (their
+names are re-exported here, where they were first).
 
 CSV format (one header line, then one row per configuration; comma separated):
 
@@ -29,8 +30,6 @@ from __future__ import annotations
 import csv
 import io
 import itertools
-import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,6 +43,7 @@ from ..kinematics.robot import Chain, check_robot
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix, rpy_to_matrix
 from ..kinematics.tree import Tree
 from . import marker_set
+from .csv_text import NUMBER, csv_records, parse_number
 from .data import (
     JOINT_PREFIX,
     MAX_COORDINATE,
@@ -108,9 +108,6 @@ DEFAULT_ORIENTATION_COLUMNS = {
 
 CHUNK = 4096
 """Rows of a measurement file parsed at once."""
-
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
-"""Strict decimal number grammar of a CSV cell (no ``1_0``, no ``0x10``, no ``nan``)."""
 
 
 @dataclass(frozen=True)
@@ -287,64 +284,6 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     return keys, pos, fmt, ori, names
 
 
-def parse_number(cell: str, src: str, line: int, column: str) -> float:
-    """A finite number from a CSV cell (strict grammar); DataError naming its row and column."""
-    text = cell.strip()
-    if not text:
-        raise DataError(src, "empty cell", row=line, column=column)
-    if not _NUMBER.fullmatch(text):
-        raise DataError(src, f"not a number: {text!r}", row=line, column=column)
-    value = float(text)
-    if not math.isfinite(value):
-        raise DataError(src, f"{text!r} is not a finite number", row=line, column=column)
-    return value
-
-
-def _lines(text: str):
-    """The lines of ``text``, each with its newline, as ``io.StringIO`` gives them.
-
-    Without its copy of the text (four bytes per character).
-    """
-    start = 0
-    while start < len(text):
-        end = text.find("\n", start) + 1 or len(text)
-        yield text[start:end]
-        start = end
-
-
-def csv_records(text: str, src: str):
-    """(first line, cells) of each non-blank CSV record; malformed CSV names its row.
-
-    A header (the first record) of one cell holding ``;`` or tabs is refused: the file is
-    not comma-separated (every calib CSV: measurements, touches, pixels, configurations).
-    """
-    reader = csv.reader(_lines(text), strict=True)
-    start, header = 1, True
-    while True:
-        try:
-            cells = next(reader)
-        except StopIteration:
-            return
-        except csv.Error as exc:
-            raise DataError(src, f"malformed CSV: {exc}", row=start) from None
-        if any(c.strip() for c in cells):
-            if any("\n" in c or "\r" in c for c in cells):
-                raise DataError(src, "a quoted cell spans several lines", row=start)
-            if header:
-                _check_separator(cells, src, start)
-                header = False
-            yield start, cells
-        start = reader.line_num + 1
-
-
-def _check_separator(cells: list[str], src: str, line: int) -> None:
-    """Refuse a header of one cell holding ``;`` or tabs: another separator than commas."""
-    for sep, what in ((";", "';'"), ("\t", "tabs")):
-        if len(cells) == 1 and sep in cells[0]:
-            why = f"the header has one column containing {what}: write the CSV comma-separated"
-            raise DataError(src, why, row=line)
-
-
 def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:
     """Quaternions (x, y, z, w) from orientation columns in a format."""
     if fmt in ("quat-xyzw", "quat-wxyz"):
@@ -470,7 +409,7 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
     names = [] if at is None else [cells[at].strip() for cells in whole]
     texts = [cells[j].strip() for cells in whole for j in numbers]
     values = np.zeros((len(chunk), len(keys)))
-    if len(whole) == len(chunk) and all(names) and all(map(_NUMBER.fullmatch, texts)):
+    if len(whole) == len(chunk) and all(names) and all(map(NUMBER.fullmatch, texts)):
         parsed = np.fromiter(map(float, texts), dtype=float, count=len(texts))
         if np.all(np.isfinite(parsed)):
             values[:, numbers] = parsed.reshape(len(chunk), len(numbers))

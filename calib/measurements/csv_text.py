@@ -1,0 +1,80 @@
+"""The CSV records and numbers every calib CSV reader shares.
+
+Measurements (:mod:`.csvfile`, which re-exports these names), touches, loops, pixels,
+detections and configurations are read as records (:func:`csv_records`: the first line of
+each, blank lines skipped, one separator: commas) of cells holding strict decimal numbers
+(:func:`parse_number`). Errors name the row the way a text editor or spreadsheet numbers it
+(the header is row 1) and the column by its name.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+
+from ..exceptions import DataError
+
+__all__ = ["NUMBER", "csv_records", "parse_number"]
+
+
+NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+"""Strict decimal number grammar of a CSV cell (no ``1_0``, no ``0x10``, no ``nan``)."""
+
+
+def parse_number(cell: str, src: str, line: int, column: str) -> float:
+    """A finite number from a CSV cell (strict grammar); DataError naming its row and column."""
+    text = cell.strip()
+    if not text:
+        raise DataError(src, "empty cell", row=line, column=column)
+    if not NUMBER.fullmatch(text):
+        raise DataError(src, f"not a number: {text!r}", row=line, column=column)
+    value = float(text)
+    if not math.isfinite(value):
+        raise DataError(src, f"{text!r} is not a finite number", row=line, column=column)
+    return value
+
+
+def _lines(text: str):
+    """The lines of ``text``, each with its newline, as ``io.StringIO`` gives them.
+
+    Without its copy of the text (four bytes per character).
+    """
+    start = 0
+    while start < len(text):
+        end = text.find("\n", start) + 1 or len(text)
+        yield text[start:end]
+        start = end
+
+
+def csv_records(text: str, src: str):
+    """(first line, cells) of each non-blank CSV record; malformed CSV names its row.
+
+    A header (the first record) of one cell holding ``;`` or tabs is refused: the file is
+    not comma-separated (every calib CSV: measurements, touches, pixels, configurations).
+    """
+    reader = csv.reader(_lines(text), strict=True)
+    start, header = 1, True
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise DataError(src, f"malformed CSV: {exc}", row=start) from None
+        if any(c.strip() for c in cells):
+            if any("\n" in c or "\r" in c for c in cells):
+                raise DataError(src, "a quoted cell spans several lines", row=start)
+            if header:
+                _check_separator(cells, src, start)
+                header = False
+            yield start, cells
+        start = reader.line_num + 1
+
+
+def _check_separator(cells: list[str], src: str, line: int) -> None:
+    """Refuse a header of one cell holding ``;`` or tabs: another separator than commas."""
+    for sep, what in ((";", "';'"), ("\t", "tabs")):
+        if len(cells) == 1 and sep in cells[0]:
+            why = f"the header has one column containing {what}: write the CSV comma-separated"
+            raise DataError(src, why, row=line)
