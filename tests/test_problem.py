@@ -191,3 +191,21 @@ def test_two_measured_terms_of_one_camera_are_refused_in_one_line():
         calibrate(Problem(tuple(Term(h, d) for h, d in zip(hands, data, strict=True))))
     assert f"two measured terms measure from '{camera}'" in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_one_urdf_is_one_file_whatever_its_name(tmp_path, monkeypatch):
+    """Terms of one file named two ways are one URDF; two files of one name are two."""
+    text = load_robot("ur5").urdf_path.read_bytes()
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "robot.urdf").write_bytes(text)
+    monkeypatch.chdir(tmp_path / "a")
+    first = load_robot("robot.urdf", "base_link", "wrist_3_link")
+    again = load_robot("./robot.urdf", "base_link", "forearm_link")
+    data = simulate(first, 12, "position", seed=0).measurements
+    other_data = simulate(again, 12, "position", seed=1).measurements
+    assert len(Problem((Term(first, data), Term(again, other_data))).terms) == 2
+    monkeypatch.chdir(tmp_path / "b")
+    other = load_robot("robot.urdf", "base_link", "forearm_link")
+    with pytest.raises(InvalidArgumentError, match="one URDF, got 2"):
+        Problem((Term(first, data), Term(other, other_data)))

@@ -97,7 +97,9 @@ def _check(run: Run) -> None:
             raise InvalidArgumentError(f"contacts are calibrated on Chains, got {c!r:.60}")
     first = chains[0]
     for c in chains[1:]:
-        if c.urdf_path != first.urdf_path or tuple(c.model.names) != tuple(first.model.names):
+        if c.urdf_resolved != first.urdf_resolved or tuple(c.model.names) != tuple(
+            first.model.names
+        ):
             raise InvalidArgumentError("the chains must be chains of one robot (one URDF)")
     pairs = [(c.base_frame, c.tool_frame) for c in chains]
     if len(set(pairs)) != len(pairs):

@@ -141,7 +141,7 @@ class Problem(Options):
         if bad:
             raise InvalidArgumentError(f"a problem's terms must be Term, got {bad[0]!r:.60}")
         object.__setattr__(self, "terms", tuple(terms))
-        urdfs = {str(t.robot.urdf_path) for t in self.terms}
+        urdfs = {str(t.robot.urdf_resolved) for t in self.terms}  # the files, not their names
         if len(urdfs) > 1:
             raise InvalidArgumentError(
                 f"the terms of one problem are chains of one URDF, got {len(urdfs)}: "

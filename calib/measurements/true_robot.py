@@ -69,7 +69,7 @@ def true_robot(
         raise InvalidArgumentError("give the true robot's chains as a non-empty list of Chain")
     if not all(isinstance(c, Chain) for c in (*chains, *measuring)):
         raise InvalidArgumentError("give the true robot's chains as a non-empty list of Chain")
-    if len({str(c.urdf_path) for c in (*chains, *measuring)}) != 1:
+    if len({c.urdf_resolved for c in (*chains, *measuring)}) != 1:
         raise InvalidArgumentError("the chains of a true robot must be chains of one URDF")
     seed = check_count(seed, "seed", 0)
     sd_m, sd_rad = (
