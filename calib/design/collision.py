@@ -212,6 +212,10 @@ def _package_dirs(urdf: Path) -> list[str]:
     return dirs
 
 
+NO_COLLISION = "Constraints(collision=False)"
+"""How a missing mesh's message says to skip the check (``calib design``: ``--no-collision``)."""
+
+
 def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
     """The URDF's collision geometry on the robot's model (meshes loaded)."""
     path = robot.urdf_path
@@ -229,13 +233,19 @@ def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
     if captured and captured[0].strip():
         _LOG.info("Pinocchio on %s:\n%s", path, captured[0].rstrip())
     if isinstance(geom, Exception):
-        first = str(geom).strip().splitlines()[0] if str(geom).strip() else type(geom).__name__
         raise URDFError(
             str(path),
-            f"cannot load its collision geometry ({first}): check the mesh paths, "
-            f"or skip the collision check",
+            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths, "
+            f"or skip the collision check ({NO_COLLISION})",
         )
     return geom
+
+
+def _reason(exc: Exception) -> str:
+    """Pinocchio's message in one line: its ``message:`` line (the mesh), not the C++ file."""
+    lines = [line.strip() for line in str(exc).strip().splitlines() if line.strip()]
+    said = [line.removeprefix("message:").strip() for line in lines if line.startswith("message:")]
+    return (said or lines or [type(exc).__name__])[0]
 
 
 def _moving(robot: Chain | Tree, geom: pin.GeometryModel) -> list[int]:
@@ -367,4 +377,10 @@ def collision_checker(
     return CollisionChecker(robot, geom, tuple(moving), tool, base, tuple(notes))
 
 
-__all__ = ["CollisionChecker", "collision_checker", "find_srdf", "reference_configuration"]
+__all__ = [
+    "NO_COLLISION",
+    "CollisionChecker",
+    "collision_checker",
+    "find_srdf",
+    "reference_configuration",
+]

@@ -91,6 +91,13 @@ class Design:
     timings_ms: dict[str, float] = field(default_factory=dict)
     contact: np.ndarray | None = None
 
+    def __repr__(self) -> str:
+        """One line (the configurations are ``q``, the full text :meth:`summary`)."""
+        return (
+            f"<Design {self.robot}: {len(self.q)} configurations of {self.candidates} "
+            f"candidates, criterion {self.criterion}, seed {self.seed}>"
+        )
+
     def summary(self, noise_mm: float = 0.05) -> str:
         """The text ``calib design`` prints (:func:`design_text`; ``noise_mm`` [mm])."""
         return design_text(self, noise_mm)

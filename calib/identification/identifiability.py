@@ -125,6 +125,14 @@ class Identifiability:
     per_tool: tuple[tuple[str, int | None], ...] = ()
     mimic: tuple[MimicJoint, ...] = ()
 
+    def __repr__(self) -> str:
+        """One line (the arrays are in the attributes, the full text in :meth:`summary`)."""
+        return (
+            f"<Identifiability {self.robot}: {self.base_frame} -> {self.tool_frame}, measure "
+            f"{self.measurement.label}, {self.params.label} set, {self.n_base} of "
+            f"{self.n_standard} identifiable>"
+        )
+
     @property
     def n_standard(self) -> int:
         """Number of standard parameters."""
