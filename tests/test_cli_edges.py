@@ -477,3 +477,23 @@ def test_an_orientation_weight_with_no_angle_rows_is_refused(tmp_path, capsys, c
             "--orientation-weight", weight]  # fmt: skip
     assert "the data have none (--measure fixed-point: lengths)" in one_error(capsys, argv)
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "option", [["--marker", "0", "0", "0.1"], ["--params", "paper"]], ids=["marker", "paper"]
+)
+def test_analyze_markers_refuses_an_option_it_would_ignore(capsys, option):
+    """``analyze --markers K`` counts with the K markers unknown, every joint placement
+    offered: a known ``--marker`` or the paper's set changed nothing (the same output)."""
+    line = one_error(capsys, ["analyze", "ur5", "--markers", "3", *option])
+    assert f"{' '.join(option[:2]) if option[0] == '--params' else option[0]} is not for" in line
+    code, out, _ = run(capsys, ["analyze", "ur5", "--markers", "3", "--params", "complete"])
+    assert code == 0 and "33 identifiable parameters" in out
+
+
+def test_a_measure_naming_a_row_twice_is_refused(capsys):
+    """``--measure x,y,x`` (a typo for ``x,y,z``?) was analysed as ``x,y``, labelled x,y,x."""
+    line = one_error(capsys, ["analyze", "ur5", "--measure", "x,y,x"])
+    assert line.endswith("measure 'x,y,x' names the row x twice"), line
+    with pytest.raises(calib.InvalidArgumentError, match="names the row rz twice"):
+        calib.analyze("ur5", measure="rz,x,rz")
