@@ -229,8 +229,16 @@ class Identifiability:
         out = self._summary()
         if self.measurement.is_contact:
             out["rows"] = list(self.measurement.row_names)
-            out["unseen"] = list(getattr(self.measurement, "unseen", ()))
+            out["unseen"] = list(self.unseen)
         return out
+
+    @property
+    def unseen(self) -> tuple[str, ...]:
+        """What the contact can never identify (the scale: only without a prismatic joint)."""
+        lines = tuple(getattr(self.measurement, "unseen", ()))
+        if lines and np.any(self.mdh.sigma == 1):  # a prismatic reading fixes the scale
+            lines = tuple(u for u in lines if not u.startswith("without a prismatic joint"))
+        return lines
 
     def _summary(self) -> dict:
         last, nxt = self.gap
@@ -471,7 +479,9 @@ def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> 
             diff = (diff + math.pi) % (2 * math.pi) - math.pi
         unit = "rad" if kind.is_rotation else "m"
         for k in np.flatnonzero((np.abs(diff) > 1e-14) & (np.abs(diff) <= SNAPPED_CHANGE)):
-            out.append(f"{kind.value}{k}: {a[k]:.7g} {unit} -> {b[k]:.7g}")
+            was, new = f"{a[k]:.7g}", f"{b[k]:.7g}"
+            change = f" ({diff[k]:+.2g} {unit})" if was == new else ""  # past 7 digits
+            out.append(f"{kind.value}{k}: {was} {unit} -> {new}{change}")
     return tuple(out)
 
 
