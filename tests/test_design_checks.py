@@ -100,6 +100,16 @@ MISSING_MESH = """<robot name="mesh">
 """
 
 
+def one_line_error(capsys, argv) -> str:
+    """Exit 2 and one line on stderr: the line."""
+    from calib.cli.commands import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err, err
+    return err
+
+
 def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, capsys):
     """Pinocchio's message names its C++ source file first: the error names the mesh instead,
     and the option that skips the collision check (there is no option named like the hint)."""
@@ -113,6 +123,9 @@ def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, ca
     assert "\n" not in err and "assimp.cpp" not in err, err
     assert "Could not load resource /nonexistent/base.stl" in err and "(--no-collision)" in err
     assert main([*argv, "--no-collision"]) == 0
+    capsys.readouterr()
+    sight = one_line_error(capsys, [*argv, "--no-collision", "--line-of-sight", "2", "0", "1"])
+    assert sight.endswith("(the line of sight and the obstacles are checked against the meshes)")
     chain = calib.load_chain(urdf, "base", "tool")
     with pytest.raises(calib.URDFError, match=r"\(Constraints\(collision=False\)\)$"):
         design(chain, 5)

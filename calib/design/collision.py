@@ -216,8 +216,12 @@ NO_COLLISION = "Constraints(collision=False)"
 """How a missing mesh's message says to skip the check (``calib design``: ``--no-collision``)."""
 
 
-def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
-    """The URDF's collision geometry on the robot's model (meshes loaded)."""
+def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryModel:
+    """The URDF's collision geometry on the robot's model (meshes loaded).
+
+    A missing mesh's message says how to skip the self-collision check, or, with that check
+    off (the geometry loaded for the line of sight or obstacles), what needs the meshes.
+    """
     path = robot.urdf_path
     try:
         text = read_text_limited(path, MAX_URDF_BYTES)
@@ -235,8 +239,12 @@ def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
     if isinstance(geom, Exception):
         raise URDFError(
             str(path),
-            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths, "
-            f"or skip the collision check ({NO_COLLISION})",
+            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths"
+            + (
+                f", or skip the collision check ({NO_COLLISION})"
+                if self_collision
+                else " (the line of sight and the obstacles are checked against the meshes)"
+            ),
         )
     return geom
 
@@ -351,7 +359,7 @@ def collision_checker(
     if srdf is not None and self_collision:
         _read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
     srdf_path = Path(srdf) if srdf is not None else find_srdf(Path(robot.urdf_path))
-    geom = _geometry(robot)
+    geom = _geometry(robot, self_collision)
     model = robot.model
     data = model.createData()
     pin.framesForwardKinematics(
