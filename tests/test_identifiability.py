@@ -294,6 +294,15 @@ def test_exact_urdf_round_off_is_flagged_and_analyze_removes_it():
     assert any(s.startswith("alpha7:") for s in res.snapped)
 
 
+def test_an_analysis_says_its_text_as_every_result_does(capsys):
+    """Result, ProblemAnalysis and Design have ``summary()``; an Identifiability had none (the
+    CLI's text was ``calib.identification.report.analysis_text``, outside ``calib.__all__``)."""
+    from calib.cli.commands import main
+
+    assert main(["analyze", "ur5", "--measure", "pose"]) == 0
+    assert calib.analyze("ur5", measure="pose").summary() + "\n" == capsys.readouterr().out
+
+
 def test_a_round_off_seven_digits_hide_is_listed_with_its_change():
     """TIAGo's ``alpha3: -1.570796 rad -> -1.570796`` said nothing: the change is given too
     where the two values print alike (a value snapped to 0 keeps its line)."""

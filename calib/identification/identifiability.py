@@ -224,6 +224,12 @@ class Identifiability:
             return "regrouped"
         raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
 
+    def summary(self) -> str:
+        """The text ``calib analyze`` prints (:func:`~.report.analysis_text`)."""
+        from .report import analysis_text  # the report reads this module
+
+        return analysis_text(self)
+
     def to_dict(self) -> dict:
         """JSON-ready summary (a contact adds its rows and what it can never identify)."""
         out = self._summary()
