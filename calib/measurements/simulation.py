@@ -31,7 +31,6 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
-from ..kinematics.tree import Tree
 from .data import Measurements
 
 
@@ -129,8 +128,8 @@ def chain_argument(value: object, caller: str, tree_hint: str = "") -> Chain:
     if isinstance(value, Chain):
         return value
     got = f"{type(value).__name__} {value!r:.60}"
-    if isinstance(value, Tree):
-        got = f"the tree {value.name!r}{tree_hint}"
+    if getattr(value, "is_tree", False):  # a robot says what it is (no class dispatch)
+        got = f"the tree {getattr(value, 'name', '')!r}{tree_hint}"
     raise InvalidArgumentError(f"{caller} takes a Chain (see load_chain), got {got}")
 
 
