@@ -497,3 +497,28 @@ def test_a_measure_naming_a_row_twice_is_refused(capsys):
     assert line.endswith("measure 'x,y,x' names the row x twice"), line
     with pytest.raises(calib.InvalidArgumentError, match="names the row rz twice"):
         calib.analyze("ur5", measure="rz,x,rz")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["design", "ur5", "--configs", "30"],
+        ["design", "ur5", "--measure", "plane", "--configs", "30"],
+        ["design", "ur5", "--evaluate", "CONFIGS"],
+    ],
+    ids=["position", "plane", "evaluate"],
+)
+def test_design_refuses_an_orientation_weight_it_would_ignore(tmp_path, capsys, argv):
+    """Only pose data have orientation rows the design weighs (a contact design weighs no
+    row): the same design came out with or without ``--orientation-weight 2``."""
+    configs = tmp_path / "c.csv"
+    assert run(capsys, ["design", "ur5", "--configs", "12", "--out", configs])[0] == 0
+    argv = [str(configs) if a == "CONFIGS" else a for a in argv]
+    line = one_error(capsys, [*argv, "--orientation-weight", "2"])
+    assert "--orientation-weight weighs the orientation rows of --measure pose" in line
+    chain = calib.load_chain("ur5")
+    with pytest.raises(calib.InvalidArgumentError, match="weighs the orientation rows"):
+        calib.design(chain, 30, measure=argv[argv.index("--measure") + 1] if "--measure" in argv
+                     else "position", orientation_weight=2.0)  # fmt: skip
+    assert run(capsys, ["design", "ur5", "--measure", "pose", "--configs", "30",
+                        "--orientation-weight", "2"])[0] == 0  # fmt: skip

@@ -71,6 +71,15 @@ def _check_design_options(args: argparse.Namespace) -> None:
         raise InvalidArgumentError(
             f"{count[0]} draws random candidates; --candidates-file gives them: use one"
         )
+    weight = given_options(args, ("orientation_weight",))
+    if weight and args.measure != "pose":
+        from ..core.checks import MAX_WEIGHT, check_number  # the range's message first
+
+        check_number(args.orientation_weight, "the orientation weight", 0.0, MAX_WEIGHT, above=True)
+        raise InvalidArgumentError(
+            f"{weight[0]} weighs the orientation rows of --measure pose: --measure "
+            f"{args.measure} has none the design weighs"
+        )
     if args.srdf and not args.collision:
         raise InvalidArgumentError(
             "--srdf disables pairs of the self-collision check, which --no-collision turns off"

@@ -209,6 +209,11 @@ def design(
     cands = None
     if contact is not None:
         chain = checked_contact_chain(chain, contact, markers, params)
+        if orientation_weight != 1.0:
+            raise InvalidArgumentError(
+                f"orientation_weight weighs the orientation rows of pose data: a "
+                f"{contact.label} design weighs no row"
+            )
         with phase(progress, "design: candidates on the contact"):
             cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
         q_all = cands.q
