@@ -522,3 +522,16 @@ def test_design_refuses_an_orientation_weight_it_would_ignore(tmp_path, capsys, 
                      else "position", orientation_weight=2.0)  # fmt: skip
     assert run(capsys, ["design", "ur5", "--measure", "pose", "--configs", "30",
                         "--orientation-weight", "2"])[0] == 0  # fmt: skip
+
+
+HANDS = ["--tool", "wrist_left_ft_tool_link", "--tool", "gripper_left_base_link"]
+
+
+@pytest.mark.parametrize("robot", [["ur5"], ["talos", *HANDS]], ids=["chain", "tree"])
+def test_simulate_refuses_an_orientation_noise_with_no_orientation(tmp_path, capsys, robot):
+    """``--noise-mrad`` with positions (a chain's, or a tree's: positions only) changed
+    nothing: the campaign said ``noise 0 mm`` and no mrad."""
+    argv = ["simulate", *robot, "--noise-mrad", "0.1", "--out", tmp_path / "m.csv"]
+    line = one_error(capsys, argv)
+    assert line.endswith("--measure position records no orientation"), line
+    assert list(tmp_path.iterdir()) == []
