@@ -535,3 +535,9 @@ def test_simulate_refuses_an_orientation_noise_with_no_orientation(tmp_path, cap
     line = one_error(capsys, argv)
     assert line.endswith("--measure position records no orientation"), line
     assert list(tmp_path.iterdir()) == []
+
+
+def test_design_json_refuses_the_noise_of_a_prediction_it_does_not_print(capsys):
+    """``design --json --noise-mm N``: the JSON has no prediction, so N changed nothing."""
+    line = one_error(capsys, ["design", "ur5", "--configs", "30", "--json", "--noise-mm", "0.5"])
+    assert "--noise-mm scales the printed error prediction" in line, line

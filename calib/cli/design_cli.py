@@ -71,6 +71,12 @@ def _check_design_options(args: argparse.Namespace) -> None:
         raise InvalidArgumentError(
             f"{count[0]} draws random candidates; --candidates-file gives them: use one"
         )
+    noise = given_options(args, ("noise_mm",))
+    if noise and args.json:
+        raise InvalidArgumentError(
+            f"{noise[0]} scales the printed error prediction: --json prints the indices (I and "
+            f"G per unit noise), not the prediction"
+        )
     weight = given_options(args, ("orientation_weight",))
     if weight and args.measure != "pose":
         from ..core.checks import MAX_WEIGHT, check_number  # the range's message first
