@@ -211,6 +211,8 @@ def _third_round_cases():
         ),
         "design chain=str": lambda: calib.design("ur5", 5),
         "design configs=0": lambda: calib.design(CHAIN, 0),
+        "design constraints=str": lambda: calib.design(CHAIN, 10, constraints="margin 0.1"),
+        "design progress=3": lambda: calib.design(CHAIN, 10, progress=3),
         "read_contacts chain=str": lambda: calib.read_contacts(touches_csv, "ur5", "plane"),
         "read_contacts measure=pose": lambda: calib.read_contacts(touches_csv, CHAIN, "pose"),
         "simulate_contacts configs=str": lambda: calib.simulate_contacts(CHAIN, "abc"),

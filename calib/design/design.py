@@ -200,11 +200,7 @@ def design(
     check_robot(chain, "chain")
     k = check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
-    if criterion not in EXCHANGE_CRITERIA:
-        raise InvalidArgumentError(
-            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
-        )
-    constraints = Constraints() if constraints is None else constraints
+    constraints = _checked_options(criterion, constraints, progress)
     contact = _contact_of(measure)
     cands = None
     if contact is not None:
@@ -267,6 +263,26 @@ def design(
         },
         contact=None if cands is None else cands.frame,
     )
+
+
+def _checked_options(criterion: str, constraints, progress) -> Constraints:
+    """The constraints (default: none but the self-collisions), the other two checked.
+
+    Raises:
+        InvalidArgumentError: An unknown criterion, constraints that are no
+            :class:`Constraints`, or a progress that is not callable.
+    """
+    if criterion not in EXCHANGE_CRITERIA:
+        raise InvalidArgumentError(
+            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
+        )
+    constraints = Constraints() if constraints is None else constraints
+    if not isinstance(constraints, Constraints) or not (progress is None or callable(progress)):
+        raise InvalidArgumentError(
+            f"constraints must be a calib.design.constraints.Constraints and progress a "
+            f"callable or None, got {type(constraints).__name__} and {type(progress).__name__}"
+        )
+    return constraints
 
 
 def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: float):
