@@ -9,6 +9,7 @@ own rewrite, issue 10.)
 from __future__ import annotations
 
 import atexit
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -210,6 +211,8 @@ def _third_round_cases():
         ),
         "design chain=str": lambda: calib.design("ur5", 5),
         "design configs=0": lambda: calib.design(CHAIN, 0),
+        "design constraints=str": lambda: calib.design(CHAIN, 10, constraints="margin 0.1"),
+        "design progress=3": lambda: calib.design(CHAIN, 10, progress=3),
         "read_contacts chain=str": lambda: calib.read_contacts(touches_csv, "ur5", "plane"),
         "read_contacts measure=pose": lambda: calib.read_contacts(touches_csv, CHAIN, "pose"),
         "simulate_contacts configs=str": lambda: calib.simulate_contacts(CHAIN, "abc"),
@@ -304,3 +307,38 @@ def test_every_function_the_docs_document_is_covered():
     wanted = {".".join(name.split(".")[-2:]) for name in dotted if name.count(".") >= 1}
     wanted = {w for w in wanted if not w.startswith(("Measurement.", "calib."))}
     assert wanted <= covered, wanted - covered
+
+
+def test_simulate_names_the_function_called_and_the_tree_route():
+    """``calib.simulate("ur5")`` named ``from_chain`` (a function the user did not call), and
+    ``simulate_contacts`` said "contacts are simulated on must be a Chain"."""
+    tree = calib.load_robot("bolt")
+    cases = {
+        (calib.simulate, "ur5"): "simulate takes a Chain (see load_chain), got str 'ur5'",
+        (calib.simulate, tree): "got the tree 'bolt': a tree's campaign is calib.simulate_tree",
+        (calib.simulate_contacts, "ur5"): "simulate_contacts takes a Chain (see load_chain)",
+        (calib.simulate_contacts, tree): "got the tree 'bolt': contacts are simulated on one",
+    }
+    for (function, robot), said in cases.items():
+        with pytest.raises(calib.InvalidArgumentError, match=re.escape(said)):
+            function(robot, 10)
+
+
+def test_results_and_data_print_in_one_line():
+    """In a notebook or the REPL, ``calib.analyze(chain)`` printed 87 lines of arrays (a
+    dataclass's repr): every result and data set of the API prints one line saying what it is
+    (the arrays stay attributes, the text ``summary()``)."""
+    campaign = calib.simulate(CHAIN, 12, noise_mm=0.05, seed=1)
+    touches = calib.simulate_contacts(CHAIN, 12, "plane", contacts=2, seed=0)
+    shown = {
+        calib.analyze(CHAIN): "<Identifiability ur5: base_link -> tool0, measure position, "
+        "complete set, 25 of 33 identifiable>",
+        calib.design(CHAIN, 12, candidates=200): "<Design ur5: 12 configurations of ",
+        campaign: "<Campaign ur5: 12 configurations, measure position, noise 0.05 mm, seed 1>",
+        campaign.measurements: "<Measurements <simulated ur5>: 12 rows of 6 joints, position, "
+        "1 marker(s)>",
+        touches: "<ContactCampaign ur5: 12 plane touches of 2 plane(s), seed 0>",
+        touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 plane(s), 6 joints>",
+    }
+    for value, start in shown.items():
+        assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)

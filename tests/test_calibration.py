@@ -395,6 +395,37 @@ def test_limits_margin_warns_and_far_outside_names_row_and_column(tmp_path):
     assert info.value.row == 4 and info.value.column == chain.joint_names[4]
 
 
+def past_a_limit(data, chain):
+    """The rows with joint 4 of row 2 read 0.05 rad past its upper limit (within the margin)."""
+    q = data.q.copy()
+    q[1, 3] = chain.upper[3] + 0.05
+    return dataclasses.replace(data, q=q)
+
+
+def test_calibrate_warns_on_a_reading_past_a_limit_and_refuses_one_far_out():
+    """A chain's calibrate checks its rows' joints against the limits, fitted and held out.
+
+    The check went with the chain's old pipeline: a TIAGo reading 0.18 mm past its torso's
+    limit was accepted without the warning the quickstart shows, and rows in degrees built in
+    Python were fitted.
+    """
+    chain = chain_of("panda")
+    data = simulate(chain, configs=30, measure="position", noise_mm=0.05, seed=1).measurements
+    other = simulate(chain, configs=30, measure="position", noise_mm=0.05, seed=2).measurements
+    near, other_near = (past_a_limit(d, chain) for d in (data, other))
+    for fitted, held, warned in ((near, None, 1), (other, near, 1), (near, other_near, 2)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            calibrate(chain, fitted, validate=held, params="frames")
+        said = [str(w.message) for w in caught if issubclass(w.category, DataWarning)]
+        assert sum("past the URDF joint limits" in m for m in said) == warned, said
+    q = data.q.copy()
+    q[2, 4] = chain.lower[4] - 1.0
+    with pytest.raises(DataError, match="outside the joint limits") as info:
+        calibrate(chain, dataclasses.replace(data, q=q))
+    assert info.value.row == 3 and info.value.column == chain.joint_names[4]
+
+
 def test_joint_named_like_a_measured_column_round_trips(tmp_path):
     data = Measurements(("x", "j2"), np.zeros((2, 2)), np.ones((2, 3)))
     assert data.columns == ("x", "j2", "x1", "y1", "z1")

@@ -477,3 +477,67 @@ def test_an_orientation_weight_with_no_angle_rows_is_refused(tmp_path, capsys, c
             "--orientation-weight", weight]  # fmt: skip
     assert "the data have none (--measure fixed-point: lengths)" in one_error(capsys, argv)
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "option", [["--marker", "0", "0", "0.1"], ["--params", "paper"]], ids=["marker", "paper"]
+)
+def test_analyze_markers_refuses_an_option_it_would_ignore(capsys, option):
+    """``analyze --markers K`` counts with the K markers unknown, every joint placement
+    offered: a known ``--marker`` or the paper's set changed nothing (the same output)."""
+    line = one_error(capsys, ["analyze", "ur5", "--markers", "3", *option])
+    assert f"{' '.join(option[:2]) if option[0] == '--params' else option[0]} is not for" in line
+    code, out, _ = run(capsys, ["analyze", "ur5", "--markers", "3", "--params", "complete"])
+    assert code == 0 and "33 identifiable parameters" in out
+
+
+def test_a_measure_naming_a_row_twice_is_refused(capsys):
+    """``--measure x,y,x`` (a typo for ``x,y,z``?) was analysed as ``x,y``, labelled x,y,x."""
+    line = one_error(capsys, ["analyze", "ur5", "--measure", "x,y,x"])
+    assert line.endswith("measure 'x,y,x' names the row x twice"), line
+    with pytest.raises(calib.InvalidArgumentError, match="names the row rz twice"):
+        calib.analyze("ur5", measure="rz,x,rz")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["design", "ur5", "--configs", "30"],
+        ["design", "ur5", "--measure", "plane", "--configs", "30"],
+        ["design", "ur5", "--evaluate", "CONFIGS"],
+    ],
+    ids=["position", "plane", "evaluate"],
+)
+def test_design_refuses_an_orientation_weight_it_would_ignore(tmp_path, capsys, argv):
+    """Only pose data have orientation rows the design weighs (a contact design weighs no
+    row): the same design came out with or without ``--orientation-weight 2``."""
+    configs = tmp_path / "c.csv"
+    assert run(capsys, ["design", "ur5", "--configs", "12", "--out", configs])[0] == 0
+    argv = [str(configs) if a == "CONFIGS" else a for a in argv]
+    line = one_error(capsys, [*argv, "--orientation-weight", "2"])
+    assert "--orientation-weight weighs the orientation rows of --measure pose" in line
+    chain = calib.load_chain("ur5")
+    with pytest.raises(calib.InvalidArgumentError, match="weighs the orientation rows"):
+        calib.design(chain, 30, measure=argv[argv.index("--measure") + 1] if "--measure" in argv
+                     else "position", orientation_weight=2.0)  # fmt: skip
+    assert run(capsys, ["design", "ur5", "--measure", "pose", "--configs", "30",
+                        "--orientation-weight", "2"])[0] == 0  # fmt: skip
+
+
+HANDS = ["--tool", "wrist_left_ft_tool_link", "--tool", "gripper_left_base_link"]
+
+
+@pytest.mark.parametrize("robot", [["ur5"], ["talos", *HANDS]], ids=["chain", "tree"])
+def test_simulate_refuses_an_orientation_noise_with_no_orientation(tmp_path, capsys, robot):
+    """``--noise-mrad`` with positions (a chain's, or a tree's: positions only) changed
+    nothing: the campaign said ``noise 0 mm`` and no mrad."""
+    argv = ["simulate", *robot, "--noise-mrad", "0.1", "--out", tmp_path / "m.csv"]
+    line = one_error(capsys, argv)
+    assert line.endswith("--measure position records no orientation"), line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_design_json_refuses_the_noise_of_a_prediction_it_does_not_print(capsys):
+    """``design --json --noise-mm N``: the JSON has no prediction, so N changed nothing."""
+    line = one_error(capsys, ["design", "ur5", "--configs", "30", "--json", "--noise-mm", "0.5"])
+    assert "--noise-mm scales the printed error prediction" in line, line

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from conftest import chain_of
 
+import calib
 from calib import InvalidArgumentError
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import RANDOM_POOL, _draw, _random_sets, candidate_configurations, design
@@ -86,3 +87,45 @@ def test_too_few_collision_free_candidates_is_one_error():
     box = (-3.0, -3.0, -3.0, 3.0, 3.0, 3.0)  # around the whole robot: every candidate touches it
     with pytest.raises(InvalidArgumentError, match="collision rejects 40"):
         design(chain, 10, candidates=40, constraints=Constraints(obstacles=(box,)))
+
+
+MISSING_MESH = """<robot name="mesh">
+  <link name="base"><collision><geometry><mesh filename="/nonexistent/base.stl"/></geometry>
+  </collision></link><link name="a"/><link name="tool"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
+    <origin xyz="0 0 0.3"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="tool"/><axis xyz="0 1 0"/>
+    <origin xyz="0.2 0 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def one_line_error(capsys, argv) -> str:
+    """Exit 2 and one line on stderr: the line."""
+    from calib.cli.commands import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err, err
+    return err
+
+
+def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, capsys):
+    """Pinocchio's message names its C++ source file first: the error names the mesh instead,
+    and the option that skips the collision check (there is no option named like the hint)."""
+    from calib.cli.commands import main
+
+    urdf = tmp_path / "mesh.urdf"
+    urdf.write_text(MISSING_MESH)
+    argv = ["design", str(urdf), "--base", "base", "--tool", "tool", "--configs", "5"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "assimp.cpp" not in err, err
+    assert "Could not load resource /nonexistent/base.stl" in err and "(--no-collision)" in err
+    assert main([*argv, "--no-collision"]) == 0
+    capsys.readouterr()
+    sight = one_line_error(capsys, [*argv, "--no-collision", "--line-of-sight", "2", "0", "1"])
+    assert sight.endswith("(the line of sight and the obstacles are checked against the meshes)")
+    chain = calib.load_chain(urdf, "base", "tool")
+    with pytest.raises(calib.URDFError, match=r"\(Constraints\(collision=False\)\)$"):
+        design(chain, 5)

@@ -125,6 +125,18 @@ def test_a_usage_error_is_one_line_with_one_prefix(tmp_path, monkeypatch, capsys
     assert list(tmp_path.iterdir()) == []
 
 
+UNKNOWN = [["simulate", "ur5", "--out", "-", "--json"], ["show", "ur5", "x"]]
+
+
+@pytest.mark.parametrize("argv", UNKNOWN)
+def test_an_unknown_argument_points_to_the_commands_help(capsys, argv):
+    """An option a command does not have said ``(see calib --help)``, whose page lists the
+    commands, not that command's options."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == f"calib: error: unrecognized arguments: {argv[-1]} (see calib {argv[0]} --help)\n"
+
+
 def test_the_parser_factory_is_side_effect_free(capsys):
     """The docs build the CLI reference from build_parser(): nothing printed, same parser."""
     first, second = build_parser().format_help(), build_parser().format_help()

@@ -294,6 +294,36 @@ def test_exact_urdf_round_off_is_flagged_and_analyze_removes_it():
     assert any(s.startswith("alpha7:") for s in res.snapped)
 
 
+def test_an_analysis_says_its_text_as_every_result_does(capsys):
+    """Result, ProblemAnalysis and Design have ``summary()``; an Identifiability had none (the
+    CLI's text was ``calib.identification.report.analysis_text``, outside ``calib.__all__``)."""
+    from calib.cli.commands import main
+
+    assert main(["analyze", "ur5", "--measure", "pose"]) == 0
+    assert calib.analyze("ur5", measure="pose").summary() + "\n" == capsys.readouterr().out
+
+
+def test_a_round_off_seven_digits_hide_is_listed_with_its_change():
+    """TIAGo's ``alpha3: -1.570796 rad -> -1.570796`` said nothing: the change is given too
+    where the two values print alike (a value snapped to 0 keeps its line)."""
+    snapped = calib.analyze("tiago").snapped
+    alpha3 = next(s for s in snapped if s.startswith("alpha3:"))
+    assert alpha3 == "alpha3: -1.570796 rad -> -1.570796 (-4.9e-12 rad)", alpha3
+    assert "theta4: 4.896583e-12 rad -> 0" in snapped
+
+
+def test_the_scale_is_unseen_by_a_contact_only_without_a_prismatic_joint():
+    """A prismatic joint's reading fixes the scale (docs/method.md: one fewer only without
+    one): TIAGo's plane analysis listed "without a prismatic joint, the scale" anyway."""
+    scale = "without a prismatic joint, the scale"
+    ur5, tiago = (calib.analyze(r, measure="plane") for r in ("ur5", "tiago"))
+    assert any(u.startswith(scale) for u in ur5.unseen) and len(tiago.unseen) == 3
+    assert not any(u.startswith(scale) for u in tiago.to_dict()["unseen"])
+    from calib.identification.report import analysis_text
+
+    assert scale not in analysis_text(tiago)
+
+
 @pytest.mark.filterwarnings("ignore::calib.RankWarning")  # exact UR5: see the test above
 @pytest.mark.parametrize("name", ["aid", "stanford", "ur5", "tiago", "twodof"])
 @pytest.mark.parametrize("measure", ["position", "pose"])

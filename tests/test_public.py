@@ -12,6 +12,8 @@ from __future__ import annotations
 import ast
 import importlib
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -190,3 +192,22 @@ def test_a_library_error_names_the_keyword(tmp_path):
     data = simulate(chain, 20, seed=3, measure="pose").measurements
     with pytest.raises(InvalidArgumentError, match=r"^holdout 0.01 of 20 rows holds out no row"):
         calibrate(chain, data, holdout=0.01)
+
+
+def test_the_callable_design_package_shows_its_function_and_modules():
+    """``calib.design`` is a callable package: a notebook's signature help said ``(*args,
+    **kwargs)``, and ``calib.design.design.evaluate`` or ``calib.design.constraints`` (named by
+    the design page) raised AttributeError after ``import calib``, in a fresh interpreter."""
+    code = (
+        "import inspect, calib\n"
+        "print(inspect.signature(calib.design))\n"
+        "print(calib.design.design.evaluate.__name__, calib.design.constraints.Constraints())\n"
+        "print('constraints' in dir(calib.design), hasattr(calib.design, 'nope'))\n"
+    )
+    root = PACKAGE.parent
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0].startswith("(chain: 'Chain | Tree', configs: 'int', *, candidates"), lines
+    assert lines[1].startswith("evaluate Constraints(margin=0.0"), lines
+    assert lines[2] == "True False", lines

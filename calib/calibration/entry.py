@@ -20,6 +20,8 @@ from __future__ import annotations
 import dataclasses
 from typing import cast
 
+import numpy as np
+
 from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress
 from ..exceptions import InvalidArgumentError
@@ -27,6 +29,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from ..measurements.limits import check_limits
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains import (
     Registered,
@@ -222,6 +225,11 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     """
     chain, data, opts = run.chains[0], cast(Measurements, run.data[0]), run.options
     given = None if run.validate is None else cast(Measurements | None, run.validate[0])
+    for part in (data, given):  # a reading past a joint limit: warned once, far out refused
+        if isinstance(part, Measurements) and part.joint_names == chain.joint_names:
+            check_limits(
+                chain, part.q, part.source, np.array(list(map(part.row_of, range(part.m))))
+            )
     if opts.holdout > 0:  # the postures it leaves (the fit counts them with none)
         check_measured(chain, data, None, True, opts.holdout)
     train, held = (

@@ -151,6 +151,13 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     kind = kind_of(args.measure)
     if not getattr(kind, "is_campaign", False):
         raise InvalidArgumentError("--markers takes --measure position or pose")
+    paper = ["--params paper"] if args.params == "paper" else []
+    typed = given_options(args, ("marker",)) + paper
+    if typed:  # the count is of every joint placement (complete), the markers' places unknown
+        raise InvalidArgumentError(
+            f"{typed[0]} is not for --markers: it counts every joint placement component with "
+            f"the measurement frame and the {args.markers} markers unknown"
+        )
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if chain.is_tree:
         raise InvalidArgumentError("--markers counts for one chain: give one --tool")

@@ -19,7 +19,7 @@ from ..core.choices import (
     EXCHANGE_CRITERIA,
 )
 from ..core.progress import terminal
-from ..exceptions import InvalidArgumentError
+from ..exceptions import InvalidArgumentError, URDFError
 from .common import (
     BooleanOnce,
     Group,
@@ -71,6 +71,21 @@ def _check_design_options(args: argparse.Namespace) -> None:
         raise InvalidArgumentError(
             f"{count[0]} draws random candidates; --candidates-file gives them: use one"
         )
+    noise = given_options(args, ("noise_mm",))
+    if noise and args.json:
+        raise InvalidArgumentError(
+            f"{noise[0]} scales the printed error prediction: --json prints the indices (I and "
+            f"G per unit noise), not the prediction"
+        )
+    weight = given_options(args, ("orientation_weight",))
+    if weight and args.measure != "pose":
+        from ..core.checks import MAX_WEIGHT, check_number  # the range's message first
+
+        check_number(args.orientation_weight, "the orientation weight", 0.0, MAX_WEIGHT, above=True)
+        raise InvalidArgumentError(
+            f"{weight[0]} weighs the orientation rows of --measure pose: --measure "
+            f"{args.measure} has none the design weighs"
+        )
     if args.srdf and not args.collision:
         raise InvalidArgumentError(
             "--srdf disables pairs of the self-collision check, which --no-collision turns off"
@@ -79,6 +94,18 @@ def _check_design_options(args: argparse.Namespace) -> None:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
+    from ..design.collision import NO_COLLISION
+
+    try:
+        return _design(args)
+    except URDFError as exc:  # a missing mesh: the library names the keyword, say the flag
+        if NO_COLLISION not in exc.reason:
+            raise
+        raise URDFError(exc.path, exc.reason.replace(NO_COLLISION, "--no-collision")) from None
+
+
+def _design(args: argparse.Namespace) -> int:
+    """:func:`cmd_design`, the library's messages as they are."""
     from ..design.collision import find_srdf
     from ..design.configurations import configurations_csv, read_configurations
     from ..design.constraints import Constraints

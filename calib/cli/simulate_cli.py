@@ -113,6 +113,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             f"--contacts counts the planes or points of a contact campaign, not of --measure "
             f"{args.measure}"
         )
+    if given_options(args, ["noise_mrad"]) and not kind.is_pose:  # a tree: positions only
+        from ..core.checks import angle_mrad
+
+        angle_mrad(args.noise_mrad, "noise_mrad")  # the range's message first
+        raise InvalidArgumentError(
+            f"--noise-mrad is the orientation noise of --measure pose (a contact's: the joints'): "
+            f"--measure {args.measure} records no orientation"
+        )
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")

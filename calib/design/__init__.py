@@ -5,7 +5,8 @@
 :mod:`.constraints` and :mod:`.collision`; :mod:`.configurations` reads and writes them.
 
 The package is callable: ``calib.design(chain, 30, ...)`` is
-:func:`calib.design.design.design`, and ``calib.design.observability`` stays this package's
+:func:`calib.design.design.design` (its signature; ``help(calib.design.design.design)``
+gives every argument), and ``calib.design.observability`` stays this package's
 module (a function named ``calib.design`` would hide the package from
 ``import calib.design.observability as o``).
 
@@ -13,10 +14,23 @@ May import: :mod:`calib.calibration`, :mod:`calib.measurements`, :mod:`calib.ide
 :mod:`calib.kinematics` and the bottom modules.
 """
 
+import importlib
 import sys
 import types
 
 __all__: list[str] = []
+
+_MODULES = (
+    "collision",
+    "configurations",
+    "constraints",
+    "contact_design",
+    "design",
+    "exchange",
+    "observability",
+    "tree_error_model",
+)
+"""The package's modules: attributes of ``calib.design`` once used (imported then)."""
 
 
 class _Design(types.ModuleType):
@@ -24,9 +38,24 @@ class _Design(types.ModuleType):
 
     def __call__(self, *args, **kwargs):
         """:func:`calib.design.design.design` (its arguments and result)."""
-        from .design import design
+        return self.design.design(*args, **kwargs)
 
-        return design(*args, **kwargs)
+    def __getattr__(self, name: str) -> types.ModuleType:
+        """A module of the package, imported when first used (``calib.design.constraints``)."""
+        if name not in _MODULES:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return importlib.import_module(f".{name}", __name__)
+
+    def __dir__(self) -> list[str]:
+        """The package's names and modules (tab completion)."""
+        return sorted({*super().__dir__(), *_MODULES})
+
+    @property
+    def __signature__(self):
+        """The design function's signature (``help``, ``inspect.signature``, a notebook's)."""
+        import inspect
+
+        return inspect.signature(self.design.design)
 
 
 sys.modules[__name__].__class__ = _Design

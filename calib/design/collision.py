@@ -212,8 +212,16 @@ def _package_dirs(urdf: Path) -> list[str]:
     return dirs
 
 
-def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
-    """The URDF's collision geometry on the robot's model (meshes loaded)."""
+NO_COLLISION = "Constraints(collision=False)"
+"""How a missing mesh's message says to skip the check (``calib design``: ``--no-collision``)."""
+
+
+def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryModel:
+    """The URDF's collision geometry on the robot's model (meshes loaded).
+
+    A missing mesh's message says how to skip the self-collision check, or, with that check
+    off (the geometry loaded for the line of sight or obstacles), what needs the meshes.
+    """
     path, read = robot.urdf_path, robot.urdf_resolved  # named as given, read as loaded
     try:
         text = read_text_limited(read, MAX_URDF_BYTES)
@@ -229,13 +237,23 @@ def _geometry(robot: Chain | Tree) -> pin.GeometryModel:
     if captured and captured[0].strip():
         _LOG.info("Pinocchio on %s:\n%s", path, captured[0].rstrip())
     if isinstance(geom, Exception):
-        first = str(geom).strip().splitlines()[0] if str(geom).strip() else type(geom).__name__
         raise URDFError(
             str(path),
-            f"cannot load its collision geometry ({first}): check the mesh paths, "
-            f"or skip the collision check",
+            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths"
+            + (
+                f", or skip the collision check ({NO_COLLISION})"
+                if self_collision
+                else " (the line of sight and the obstacles are checked against the meshes)"
+            ),
         )
     return geom
+
+
+def _reason(exc: Exception) -> str:
+    """Pinocchio's message in one line: its ``message:`` line (the mesh), not the C++ file."""
+    lines = [line.strip() for line in str(exc).strip().splitlines() if line.strip()]
+    said = [line.removeprefix("message:").strip() for line in lines if line.startswith("message:")]
+    return (said or lines or [type(exc).__name__])[0]
 
 
 def _moving(robot: Chain | Tree, geom: pin.GeometryModel) -> list[int]:
@@ -341,7 +359,7 @@ def collision_checker(
     if srdf is not None and self_collision:
         _read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
     srdf_path = Path(srdf) if srdf is not None else find_srdf(robot.urdf_resolved)
-    geom = _geometry(robot)
+    geom = _geometry(robot, self_collision)
     model = robot.model
     data = model.createData()
     pin.framesForwardKinematics(
@@ -367,4 +385,10 @@ def collision_checker(
     return CollisionChecker(robot, geom, tuple(moving), tool, base, tuple(notes))
 
 
-__all__ = ["CollisionChecker", "collision_checker", "find_srdf", "reference_configuration"]
+__all__ = [
+    "NO_COLLISION",
+    "CollisionChecker",
+    "collision_checker",
+    "find_srdf",
+    "reference_configuration",
+]

@@ -91,6 +91,13 @@ class Design:
     timings_ms: dict[str, float] = field(default_factory=dict)
     contact: np.ndarray | None = None
 
+    def __repr__(self) -> str:
+        """One line (the configurations are ``q``, the full text :meth:`summary`)."""
+        return (
+            f"<Design {self.robot}: {len(self.q)} configurations of {self.candidates} "
+            f"candidates, criterion {self.criterion}, seed {self.seed}>"
+        )
+
     def summary(self, noise_mm: float = 0.05) -> str:
         """The text ``calib design`` prints (:func:`design_text`; ``noise_mm`` [mm])."""
         return design_text(self, noise_mm)
@@ -193,15 +200,16 @@ def design(
     check_robot(chain, "chain")
     k = check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
-    if criterion not in EXCHANGE_CRITERIA:
-        raise InvalidArgumentError(
-            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
-        )
-    constraints = Constraints() if constraints is None else constraints
+    constraints = _checked_options(criterion, constraints, progress)
     contact = _contact_of(measure)
     cands = None
     if contact is not None:
         chain = checked_contact_chain(chain, contact, markers, params)
+        if orientation_weight != 1.0:
+            raise InvalidArgumentError(
+                f"orientation_weight weighs the orientation rows of pose data: a "
+                f"{contact.label} design weighs no row"
+            )
         with phase(progress, "design: candidates on the contact"):
             cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
         q_all = cands.q
@@ -255,6 +263,26 @@ def design(
         },
         contact=None if cands is None else cands.frame,
     )
+
+
+def _checked_options(criterion: str, constraints, progress) -> Constraints:
+    """The constraints (default: none but the self-collisions), the other two checked.
+
+    Raises:
+        InvalidArgumentError: An unknown criterion, constraints that are no
+            :class:`Constraints`, or a progress that is not callable.
+    """
+    if criterion not in EXCHANGE_CRITERIA:
+        raise InvalidArgumentError(
+            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
+        )
+    constraints = Constraints() if constraints is None else constraints
+    if not isinstance(constraints, Constraints) or not (progress is None or callable(progress)):
+        raise InvalidArgumentError(
+            f"constraints must be a calib.design.constraints.Constraints and progress a "
+            f"callable or None, got {type(constraints).__name__} and {type(progress).__name__}"
+        )
+    return constraints
 
 
 def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: float):

@@ -187,6 +187,11 @@ def check_model_arguments(
             f"unknown parameter level '{params}' for a design: choose {', '.join(DESIGN_LEVELS)}"
         )
     check_number(orientation_weight, "the orientation weight", 0.0, MAX_WEIGHT, above=True)
+    if orientation_weight != 1.0 and not kind.is_pose:
+        raise InvalidArgumentError(
+            f"orientation_weight weighs the orientation rows of pose data: measure "
+            f"{kind.label} has none"
+        )
 
 
 def observation_model(

@@ -125,6 +125,14 @@ class Identifiability:
     per_tool: tuple[tuple[str, int | None], ...] = ()
     mimic: tuple[MimicJoint, ...] = ()
 
+    def __repr__(self) -> str:
+        """One line (the arrays are in the attributes, the full text in :meth:`summary`)."""
+        return (
+            f"<Identifiability {self.robot}: {self.base_frame} -> {self.tool_frame}, measure "
+            f"{self.measurement.label}, {self.params.label} set, {self.n_base} of "
+            f"{self.n_standard} identifiable>"
+        )
+
     @property
     def n_standard(self) -> int:
         """Number of standard parameters."""
@@ -216,13 +224,27 @@ class Identifiability:
             return "regrouped"
         raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
 
+    def summary(self) -> str:
+        """The text ``calib analyze`` prints (:func:`~.report.analysis_text`)."""
+        from .report import analysis_text  # the report reads this module
+
+        return analysis_text(self)
+
     def to_dict(self) -> dict:
         """JSON-ready summary (a contact adds its rows and what it can never identify)."""
         out = self._summary()
         if self.measurement.is_contact:
             out["rows"] = list(self.measurement.row_names)
-            out["unseen"] = list(getattr(self.measurement, "unseen", ()))
+            out["unseen"] = list(self.unseen)
         return out
+
+    @property
+    def unseen(self) -> tuple[str, ...]:
+        """What the contact can never identify (the scale: only without a prismatic joint)."""
+        lines = tuple(getattr(self.measurement, "unseen", ()))
+        if lines and np.any(self.mdh.sigma == 1):  # a prismatic reading fixes the scale
+            lines = tuple(u for u in lines if not u.startswith("without a prismatic joint"))
+        return lines
 
     def _summary(self) -> dict:
         last, nxt = self.gap
@@ -463,7 +485,9 @@ def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> 
             diff = (diff + math.pi) % (2 * math.pi) - math.pi
         unit = "rad" if kind.is_rotation else "m"
         for k in np.flatnonzero((np.abs(diff) > 1e-14) & (np.abs(diff) <= SNAPPED_CHANGE)):
-            out.append(f"{kind.value}{k}: {a[k]:.7g} {unit} -> {b[k]:.7g}")
+            was, new = f"{a[k]:.7g}", f"{b[k]:.7g}"
+            change = f" ({diff[k]:+.2g} {unit})" if was == new else ""  # past 7 digits
+            out.append(f"{kind.value}{k}: {was} {unit} -> {new}{change}")
     return tuple(out)
 
 

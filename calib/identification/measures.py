@@ -138,6 +138,9 @@ class Measurement:
                     f"unknown measure '{measure}': choose pose, position or rows among "
                     f"{', '.join(ROW_NAMES)}"
                 )
+            twice = [s for s in ROW_NAMES if names.count(s) > 1]
+            if twice:
+                raise InvalidArgumentError(f"measure '{measure}' names the row {twice[0]} twice")
             rows = tuple(sorted({ROW_NAMES.index(s) for s in names}))
         return Measurement(rows, checked_marker(marker), measure)
 

@@ -124,7 +124,7 @@ def analysis_text(res: Identifiability) -> str:
     if res.snapped:
         lines.append(f"URDF round-off removed before the analysis: {'; '.join(res.snapped)}")
     lines += _mimic_lines(res)
-    unseen = getattr(res.measurement, "unseen", ())
+    unseen = res.unseen
     if unseen:
         lines.append(f"a {res.measurement.label} contact can never identify:")
         lines += [f"  - {u}" for u in unseen]

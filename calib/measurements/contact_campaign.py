@@ -39,6 +39,7 @@ from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .joint_columns import column_keys
 from .limits import check_limits, joint_bounds
+from .simulation import chain_argument
 
 ID_COLUMNS = {
     "plane": "plane",
@@ -89,6 +90,15 @@ class ContactData:
     rows: tuple[int, ...] | None = None
     readings: JointReadings | None = None
     path: str | None = None
+
+    def __repr__(self) -> str:
+        """One line (the arrays are in the attributes)."""
+        return f"<ContactData {self.source}: {self.touches}, {len(self.joint_names)} joints>"
+
+    @property
+    def touches(self) -> str:
+        """How many touches of which kind on how many contacts, in words."""
+        return f"{self.m} {self.kind.label} touches of {len(self.contacts)} {self.id_column}(s)"
 
     @property
     def m(self) -> int:
@@ -329,6 +339,10 @@ class ContactCampaign:
     data: ContactData
     truth: ContactTruth
 
+    def __repr__(self) -> str:
+        """One line (the touches are ``data``, the errors and contacts ``truth``)."""
+        return f"<ContactCampaign {self.truth.robot}: {self.data.touches}, seed {self.truth.seed}>"
+
 
 def simulate_contacts(
     chain: Chain,
@@ -364,7 +378,7 @@ def simulate_contacts(
             within its limits.
     """
     kind = _contact(measure)
-    check_chain(chain, "contacts are simulated on")
+    chain = chain_argument(chain, "simulate_contacts", ": contacts are simulated on one chain")
     if chain.coupling is not None:
         raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
     configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)

@@ -180,6 +180,14 @@ class Measurements:
         if self.rows is not None:
             object.__setattr__(self, "rows", tuple(int(r) for r in self.rows))
 
+    def __repr__(self) -> str:
+        """One line (the arrays are in the attributes)."""
+        tools = "" if self.tool is None else f", tools {', '.join(dict.fromkeys(self.tool))}"
+        return (
+            f"<Measurements {self.source}: {self.m} rows of {len(self.joint_names)} joints, "
+            f"{self.kind.label}, {self.n_markers} marker(s){tools}>"
+        )
+
     @property
     def m(self) -> int:
         """Number of configurations (rows)."""

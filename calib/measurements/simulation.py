@@ -22,6 +22,7 @@ import numpy as np
 
 from ..core.checks import angle_mrad, check_count, length_mm, read_only
 from ..core.choices import DEFAULT_MEASURE, DEFAULT_SET
+from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point
 from ..identification.kinds import campaign_kind
@@ -108,6 +109,29 @@ class Campaign:
     measurements: Measurements
     truth: SimulationTruth
 
+    def __repr__(self) -> str:
+        """One line (the rows are ``measurements``, the errors ``truth``)."""
+        t = self.truth
+        return (
+            f"<Campaign {t.robot}: {self.measurements.m} configurations, measure "
+            f"{t.measurement.label}, noise {t.noise_mm:g} mm, seed {t.seed}>"
+        )
+
+
+def chain_argument(value: object, caller: str, tree_hint: str = "") -> Chain:
+    """``value`` if it is a :class:`Chain`.
+
+    Raises:
+        InvalidArgumentError: Anything else (a catalog name, a path, a tree), named with the
+            function the user called (``caller``) and, for a tree, ``tree_hint``.
+    """
+    if isinstance(value, Chain):
+        return value
+    got = f"{type(value).__name__} {value!r:.60}"
+    if getattr(value, "is_tree", False):  # a robot says what it is (no class dispatch)
+        got = f"the tree {getattr(value, 'name', '')!r}{tree_hint}"
+    raise InvalidArgumentError(f"{caller} takes a Chain (see load_chain), got {got}")
+
 
 def simulate(
     chain: Chain,
@@ -147,6 +171,7 @@ def simulate(
     Raises:
         InvalidArgumentError: A bad argument.
     """
+    chain = chain_argument(chain, "simulate", ": a tree's campaign is calib.simulate_tree")
     measurement = campaign_kind(measure, marker)
     given = isinstance(configs, np.ndarray | list | tuple)
     m = 0 if given else check_count(configs, "the number of configurations")
@@ -207,4 +232,4 @@ def simulate(
     return Campaign(data, truth)
 
 
-__all__ = ["Campaign", "SimulationTruth", "simulate"]
+__all__ = ["Campaign", "SimulationTruth", "chain_argument", "simulate"]
