@@ -339,6 +339,11 @@ def test_results_and_data_print_in_one_line():
         "1 marker(s)>",
         touches: "<ContactCampaign ur5: 12 plane touches of 2 plane(s), seed 0>",
         touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 plane(s), 6 joints>",
+        CHAIN: "<Chain ur5: base_link -> tool0, 6 joints>",
+        calib.load_robot("ur5", tool=("wrist_2_link", "tool0")): "<Tree ur5: base_link -> "
+        "wrist_2_link, tool0, 6 joints>",
+        calib.analyze(calib.Problem(calib.Term(CHAIN, campaign.measurements))): "<ProblemAnalysis "
+        "ur5: chain, 1 term(s), ",
     }
     for value, start in shown.items():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)

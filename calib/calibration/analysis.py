@@ -57,6 +57,13 @@ class ProblemAnalysis:
         """Unknowns the rows determine (the rank)."""
         return len(self.base)
 
+    def __repr__(self) -> str:
+        """One line (the names are in the attributes, the full text in ``summary()``)."""
+        return (
+            f"<ProblemAnalysis {self.robot}: {self.shape}, {len(self.terms)} term(s), "
+            f"{self.n_base} of {self.n_unknowns} unknowns determined>"
+        )
+
     @property
     def n_unknowns(self) -> int:
         """Unknowns the rows depend on."""

@@ -13,11 +13,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from ..core.checks import check_count, check_work, joint_positions
-from ..exceptions import (
-    ChainError,
-    InvalidArgumentError,
-    UnsupportedJointError,
-)
+from ..exceptions import ChainError, InvalidArgumentError, UnsupportedJointError
 from .catalog import CatalogEntry, catalog, catalog_entry, shipped_urdf
 from .frames import (
     DEFAULT_PRISMATIC_RANGE,
@@ -168,6 +164,11 @@ class Robot(CoupledJoints):
         """Number of tools."""
         return len(self.tool_ids)
 
+    def __repr__(self) -> str:
+        """One line: ``<Chain ur5: base_link -> tool0, 6 joints>``."""
+        ends = f"{self.chains[0].base_frame} -> {', '.join(self.tool_frames)}"
+        return f"<{type(self).__name__} {self.name}: {ends}, {len(self.joint_names)} joints>"
+
 
 def pin_configurations(
     model: pin.Model, q_ref: np.ndarray, joint_ids: tuple[int, ...], q: np.ndarray
@@ -192,7 +193,7 @@ def pin_configurations(
     return out
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Chain(Robot):
     """A serial chain between a base frame and a tool frame of a Pinocchio model.
 
@@ -228,8 +229,8 @@ class Chain(Robot):
         q_ref: Pinocchio configuration of the joints outside the chain.
         ideal_model: The same model built from the URDF with round-off removed (see
             :meth:`idealized`), or None.
-        coupling: How mimic joints follow the independent joints (:mod:`calib.kinematics.mimic`), or
-            None when no chain joint has a ``<mimic>`` tag.
+        coupling: How mimic joints follow the independent ones (:mod:`calib.kinematics.mimic`),
+            or None (no chain joint has a ``<mimic>`` tag).
     """
 
     name: str

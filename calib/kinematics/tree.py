@@ -39,7 +39,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Tree(Robot):
     """The union of the chains from one base frame to several tool frames.
 
