@@ -244,6 +244,21 @@ def test_simulate_to_a_device_or_stdout_needs_an_explicit_truth_file(
     assert listing(tmp_path) == [] and not os.path.exists("/dev/null.truth.json")
 
 
+@pytest.mark.parametrize("out", ["-", "/dev/stdout"])
+def test_data_written_to_stdout_is_alone_there_and_the_text_goes_to_stderr(tmp_path, out):
+    """``calib simulate --out - > meas.csv``: the file was followed on stdout by the printed
+    summary, so the CSV redirected was not one."""
+    argv = [*SIMULATE, "--out", out, "--truth", str(tmp_path / "t.json")]
+    printed = subprocess.run(
+        [sys.executable, "-m", "calib.cli", *argv], capture_output=True, text=True, timeout=120
+    )
+    assert printed.returncode == 0, printed.stderr
+    rows = printed.stdout.splitlines()
+    assert rows[0].startswith("shoulder_pan_joint,") and len(rows) == 6, printed.out
+    assert {row.count(",") for row in rows} == {8}
+    assert "5 configurations" in printed.stderr and "wrote" in printed.stderr
+
+
 def test_dev_full_is_a_one_line_error_and_nothing_else_is_written(tmp_path, capsys):
     line = one_line_error(
         capsys,

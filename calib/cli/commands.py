@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from typing import NoReturn
 
 from .. import __version__
-from ..core.fileio import inputs_recorded
+from ..core.fileio import inputs_recorded, text_to_stderr, writes_stdout
 from ..exceptions import CalibError, InvalidArgumentError
 from .analysis_cli import add_analysis_parsers, add_demo_parser, add_sweep_parser
 from .calibrate_cli import add_calibrate_parser
@@ -241,7 +241,10 @@ def _main(argv: Sequence[str] | None) -> int:
         inputs_recorded(),
     ):
         warnings.simplefilter("always")
-        code = _run(args)
+        outputs = (getattr(args, k, None) for k in ("out", "csv", "report", "truth", "origins"))
+        to_stdout = any(o is not None and writes_stdout(o) for o in outputs)
+        with text_to_stderr() if to_stdout else contextlib.nullcontext():
+            code = _run(args)
     sys.stdout.flush()  # the warnings come after the output
     for line in warning_lines(caught):
         print(line, file=sys.stderr)

@@ -32,7 +32,7 @@ import tempfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import TextIO, TypeVar
 
 from ..exceptions import InvalidArgumentError, OutputError
 
@@ -48,9 +48,11 @@ __all__ = [
     "read_failure",
     "read_text_limited",
     "same_file",
+    "text_to_stderr",
     "write_all",
     "write_atomic",
     "write_files_atomic",
+    "writes_stdout",
     "written_in_place",
 ]
 
@@ -142,7 +144,7 @@ def _read_only(folder: str) -> bool:
 def _file_key(path: PathLike) -> tuple[int, int] | None:
     """(device, inode) of the file a path names (standard output for ``-``), if it exists."""
     try:
-        st = os.fstat(sys.stdout.fileno()) if os.fspath(path) == STDOUT else os.stat(path)
+        st = os.fstat(_stdout().fileno()) if os.fspath(path) == STDOUT else os.stat(path)
     except (OSError, ValueError, AttributeError):  # no such file; stdout without a descriptor
         return None
     return st.st_dev, st.st_ino
@@ -242,6 +244,41 @@ def _refuse_read(path: PathLike) -> None:
                 f"{os.fspath(path)} is {read}, which this command read: calib never "
                 f"overwrites its inputs (write elsewhere)"
             )
+
+
+_DATA: list[TextIO] = []
+"""Standard output as it was when each :func:`text_to_stderr` block began, innermost last."""
+
+
+@contextlib.contextmanager
+def text_to_stderr() -> Iterator[None]:
+    """Within the block, printed text goes to standard error, files written to ``-`` to stdout.
+
+    A command whose output is ``-`` (``calib simulate --out - > meas.csv``) leaves the data
+    alone on standard output.
+    """
+    _DATA.append(sys.stdout)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        _DATA.pop()
+
+
+def writes_stdout(path: object) -> bool:
+    """Whether an output path is standard output (``-``, ``/dev/stdout``, ``/dev/fd/1``)."""
+    text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
+    if text == STDOUT:
+        return True
+    if not isinstance(text, str) or not text.startswith(_DIRECT_TREES):
+        return False
+    key = _file_key(text)
+    return key is not None and key == _file_key(STDOUT)
+
+
+def _stdout() -> TextIO:
+    """Where a file written to ``-`` goes (standard output, outside :func:`text_to_stderr`)."""
+    return _DATA[-1] if _DATA else sys.stdout
 
 
 READ_CHUNK = 1 << 20
@@ -486,10 +523,11 @@ def _write_direct(target: _Target, data: bytes) -> None:
 
 def _write_stdout(data: bytes) -> None:
     """Write to standard output after what was printed there before."""
-    sys.stdout.flush()
-    buffer = getattr(sys.stdout, "buffer", None)
+    out = _stdout()
+    out.flush()
+    buffer = getattr(out, "buffer", None)
     if buffer is None:
-        sys.stdout.write(data.decode("utf-8", errors="replace"))
+        out.write(data.decode("utf-8", errors="replace"))
     else:
         buffer.write(data)
         buffer.flush()
