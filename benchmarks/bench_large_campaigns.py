@@ -68,7 +68,8 @@ def main() -> None:
             "50 markers x 1000": folder / "k50.csv",
         }
         for measure, key in (("position", "20000 positions"), ("pose", "20000 poses")):
-            camp = simulate(chain, 20000, measure, noise_mm=0.05, noise_mrad=0.1, seed=0)
+            mrad = {"noise_mrad": 0.1} if measure == "pose" else {}
+            camp = simulate(chain, 20000, measure, noise_mm=0.05, seed=0, **mrad)
             write_measurements(data[key], camp.measurements)
         markers_csv(data["50 markers x 1000"], 1000, 50)
         for label, path in data.items():

@@ -347,3 +347,13 @@ def test_results_and_data_print_in_one_line():
     }
     for value, start in shown.items():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
+
+
+def test_an_orientation_noise_without_orientation_rows_is_refused():
+    """``simulate(chain, m, "position", noise_mrad=0.1)`` drew no orientation noise and said
+    nothing (the command line refused it); a pose takes it, and 0 is no noise."""
+    with pytest.raises(calib.InvalidArgumentError, match="records no orientation"):
+        calib.simulate(CHAIN, 5, "position", noise_mrad=0.1)
+    calib.simulate(CHAIN, 5, "position", noise_mrad=0.0)
+    rotations = calib.simulate(CHAIN, 5, "pose", noise_mrad=0.1).measurements.rotations
+    assert rotations.shape == (5, 3, 3)
