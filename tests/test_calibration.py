@@ -424,6 +424,18 @@ def test_calibrate_warns_on_a_reading_past_a_limit_and_refuses_one_far_out():
     with pytest.raises(DataError, match="outside the joint limits") as info:
         calibrate(chain, dataclasses.replace(data, q=q))
     assert info.value.row == 3 and info.value.column == chain.joint_names[4]
+    head = calib.load_robot("tiago", "xtion_optical_frame", "arm_tool_link")  # among two terms
+    seen = calib.simulate(head, 30, "position", marker=(0.02, 0.01, 0.05), seed=3).measurements
+    arm = calib.load_robot("tiago", "base_footprint", "arm_tool_link")
+    touching = calib.Term(arm, calib.simulate_contacts(arm, 30, "plane", seed=4).data)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        calibrate(calib.Problem((calib.Term(head, past_a_limit(seen, head)), touching)))
+    assert any("past the URDF joint limits" in str(w.message) for w in caught)
+    q = seen.q.copy()
+    q[2, 4] = head.lower[4] - 1.0
+    with pytest.raises(DataError, match="outside the joint limits"):
+        calibrate(calib.Problem((calib.Term(head, dataclasses.replace(seen, q=q)), touching)))
 
 
 def test_joint_named_like_a_measured_column_round_trips(tmp_path):

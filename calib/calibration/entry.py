@@ -138,6 +138,10 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
     for t in problem.terms:
         if isinstance(t.data, Measurements):
             check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
+        for part in (t.data, t.validate) if isinstance(t.robot, Chain) else ():  # tree: prepared
+            if isinstance(part, Measurements) and part.joint_names == t.robot.joint_names:
+                rows = np.array(list(map(part.row_of, range(part.m))))
+                check_limits(t.robot, part.q, part.source, rows)  # past: warned; far: refused
     terms = problem.terms
     files = read_files(*zip(*((t.robot, t.data, t.validate) for t in terms), strict=True))
     if problem.shape == "tree":
@@ -225,11 +229,6 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     """
     chain, data, opts = run.chains[0], cast(Measurements, run.data[0]), run.options
     given = None if run.validate is None else cast(Measurements | None, run.validate[0])
-    for part in (data, given):  # a reading past a joint limit: warned once, far out refused
-        if isinstance(part, Measurements) and part.joint_names == chain.joint_names:
-            check_limits(
-                chain, part.q, part.source, np.array(list(map(part.row_of, range(part.m))))
-            )
     if opts.holdout > 0:  # the postures it leaves (the fit counts them with none)
         check_measured(chain, data, None, True, opts.holdout)
     train, held = (
