@@ -357,3 +357,10 @@ def test_an_orientation_noise_without_orientation_rows_is_refused():
     calib.simulate(CHAIN, 5, "position", noise_mrad=0.0)
     rotations = calib.simulate(CHAIN, 5, "pose", noise_mrad=0.1).measurements.rotations
     assert rotations.shape == (5, 3, 3)
+
+
+def test_a_term_given_to_analyze_points_to_its_problem():
+    term = calib.Term(CHAIN, calib.simulate(CHAIN, 12, seed=0).measurements)
+    with pytest.raises(calib.InvalidArgumentError, match=re.escape("analyze(Problem((term,)))")):
+        calib.analyze(term)
+    assert calib.analyze(calib.Problem((term,))).n_base > 0

@@ -183,4 +183,6 @@ def analyze(
                 "a problem says its robot, rows and kinds: give analyze(problem) alone"
             )
         return _count(robot)
+    if problem is not None and isinstance(robot, problem.Term):
+        raise InvalidArgumentError("a term is analysed in its problem: analyze(Problem((term,)))")
     return identifiability.analyze(robot, base, tool, measure, marker, params, configs, seed)
