@@ -688,3 +688,31 @@ def test_a_robot_loaded_by_a_relative_name_reads_that_file_after_chdir(tmp_path,
     monkeypatch.chdir(here)
     for r in results.values():
         assert r.urdf() == (elsewhere / r.to_dict()["urdf"]).read_bytes()
+
+
+def test_term_is_an_index_and_out_a_path(tmp_path):
+    """``load_calibrated(term=)`` takes a Python or NumPy integer (an index from
+    ``np.argmax``); a bool, text or a float is a bad argument (InvalidArgumentError naming
+    ``term``), on a report as on a compliance file (``term=False`` read a compliance file as
+    term 0, ``np.int64(0)`` was 'no term 0'). ``write(None, report=)`` is the same one-line
+    InvalidArgumentError as ``write(3)`` (it was a TypeError), and writes nothing."""
+    from calib import calibrate, read_measurements, simulate
+
+    chain = load_chain("ur5")
+    r = calibrate(chain, simulate(chain, 30, seed=1).measurements)
+    urdf, report = tmp_path / "c.urdf", tmp_path / "c.json"
+    with pytest.raises(InvalidArgumentError, match="out must be a file path, got None"):
+        r.write(None, report=report)
+    assert not report.exists()
+    r.write(urdf, report)
+    assert load_calibrated(urdf, report, term=np.int64(0)).chain.tool_frame == "tool0"
+    data = tmp_path / "e.csv"
+    write_rows(data, chain, elastic_campaign(chain, 40, 1, 5e-5))
+    stiff = tmp_path / "e.urdf"
+    calibrate(chain, read_measurements(data, chain), elastic=True).write(stiff)
+    comp = tmp_path / "e.compliance.json"
+    assert load_calibrated(stiff, comp, term=np.int64(0)).chain.tool_frame == "tool0"
+    for source, model in ((report, urdf), (comp, stiff)):
+        for bad in (True, False, "0", 0.0):
+            with pytest.raises(InvalidArgumentError, match=r"term must be a term's index"):
+                load_calibrated(model, source, term=bad)

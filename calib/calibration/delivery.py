@@ -226,7 +226,7 @@ class Result:
             OutputError: A file cannot be written.
         """
         for what, path in (("out", out), ("report", report)):
-            if path is not None and not isinstance(path, str | Path):
+            if (path is not None or what == "out") and not isinstance(path, str | Path):
                 raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
         out = Path(out)
         doc = self.to_dict()

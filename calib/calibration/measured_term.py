@@ -292,7 +292,7 @@ def checked_measured(
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
-    The rows kept must determine the frame and markers; then
+    Its rows (before outliers are set aside) must determine the frame and markers; then
     :func:`~.chain_registration.checked_registration` on the nominal chain (``validate``
     diagnosed too), and the held-out rows' (``held``) outliers set aside by the same rule
     (:func:`~.term_checks.held_out`). ``weight`` [m/rad] None: estimated; ``marker`` [m]:

@@ -266,12 +266,14 @@ def robust_proposals(
 ) -> np.ndarray:
     """The units a robust fit of a linearised model finds outlying (a boolean mask).
 
-    None where the units give fewer than twice as many equations as the model's unknowns.
+    None set aside (an all-False mask) where the units give fewer than twice as many
+    equations as the model's unknowns.
 
     Iteratively reweighted least squares: each unit weighs ``min(1, median / error)`` (the
     larger of its position and orientation ratios), reweighted until the weights settle (at
     most ``IRLS_ROUNDS``); the rule (:func:`find_outliers`) is then applied to its errors.
-    ``J`` ``(m, rows, p)`` and ``residual`` ``(m, rows)``: at the model's start, weighted.
+    ``J`` ``(m, rows, p)`` and ``residual`` ``(m, rows)``: at the model's start, weighted;
+    ``noise``: the instrument's position noise [m], or None; ``rows``: each unit's file row.
     """
     m, rows_each = residual.shape
     if m * rows_each < 2 * J.shape[2]:  # nearly interpolated: nothing to tell

@@ -35,9 +35,9 @@ S = TypeVar("S")
 class Aside(Generic[D, S]):
     """A registration (``state``) of the rows ``kept``, without the outlier rows ``bad`` (mask).
 
-    ``found``: the outliers, where the step names them (a chain's, pixels'; touches': by the
-    caller); ``held``: the held-out rows without their outliers, where the step sets them
-    aside (pixels: by the same own fit), or None; ``notes``: pixels' held-out outliers'.
+    ``found``: the outliers, named by their lines; ``held``: the held-out rows without their
+    outliers, where the step sets them aside (pixels: by the same own fit), or None;
+    ``notes``: pixels' held-out outliers'.
     """
 
     state: S

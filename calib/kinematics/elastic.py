@@ -427,11 +427,17 @@ def load_calibrated(
             one tool (a hand measured by a camera and touching a table); None: ``tool``'s.
 
     Raises:
+        InvalidArgumentError: ``term`` is not an integer (a bool is not one).
         DataError: The file is not a report or compliance file, does not match the URDF
             (a report written with another URDF: its ``model.urdf_sha256``), or is a report
-            of several terms and ``tool`` names none of them (or two: give ``term``).
+            of several terms and ``tool`` names none of them (or two: give ``term``), or
+            has no term ``term``.
         CalibError: The URDF cannot be loaded with the recorded frames.
     """
+    if term is not None:
+        if isinstance(term, bool) or not isinstance(term, int | np.integer):
+            raise InvalidArgumentError(f"term must be a term's index (from 0), got {term!r:.60}")
+        term = int(term)
     src = str(compliance)
     raw = _read_json(compliance)
     _check_urdf(raw, urdf, src)
