@@ -516,10 +516,10 @@ def test_each_term_of_one_tool_is_read_as_what_it_is(joint_fit, tmp_path, capsys
     configs, pred = tmp_path / "q.csv", tmp_path / "p.csv"
     write_measurements(configs, d)
     args = ["predict", str(out), "--compliance", str(report), "--configs", str(configs)]
-    assert main([*args, "--tool", tool, "--term", "2", "--out", str(pred)]) == 0
+    assert main([*args, "--tool", tool, "--term-index", "2", "--out", str(pred)]) == 0
     header = pred.read_text().splitlines()[0].split(",")
     rows = np.loadtxt(pred, delimiter=",", skiprows=1)
     xyz = rows[:, [header.index(c) for c in ("x1", "y1", "z1")]]
     assert np.max(np.abs(xyz - d.position[:, :3])) < 1e-9
     assert main([*args, "--tool", tool, "--out", str(pred)]) == 2
-    assert "choose one by its index (--term)" in capsys.readouterr().err
+    assert "choose one by its index (--term-index)" in capsys.readouterr().err

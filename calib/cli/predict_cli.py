@@ -30,7 +30,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
         reason = str(exc).removeprefix(f"{exc.path}: ")
         if "(term=)" not in reason:
             raise
-        raise DataError(exc.path, reason.replace("(term=)", "(--term)")) from None
+        raise DataError(exc.path, reason.replace("(term=)", "(--term-index)")) from None
     q = read_configurations(args.configs, model.chain)
     readings = read_readings(args.configs, model.readings) if model.readings else None
     write_outputs({out: predictions_csv(model, q, readings)})
@@ -71,7 +71,8 @@ def add_predict_parser(sub) -> None:
         help="the tool frame of the term to predict, in a report of several (a tree's tools)",
     )
     g.add_argument(
-        "--term",
+        "--term-index",
+        dest="term",
         type=int,
         metavar="K",
         help="the index (from 0) of the term to predict in the report's terms: two terms of "
