@@ -437,9 +437,11 @@ def test_a_report_of_a_newer_format_is_refused_in_one_line(tmp_path, reports):
     from calib import DataError, load_calibrated
 
     report = tmp_path / "r.json"
-    report.write_text(json.dumps({**reports["chain"], "format_version": "4"}))
-    with pytest.raises(DataError, match="format_version '4' is not one this calib reads"):
-        load_calibrated(load_chain("ur5").urdf_path, report)
+    model = {**reports["chain"].get("model", {}), "urdf_sha256": "0" * 64}  # another URDF's
+    for doc in ({}, {"model": model}):  # its format is said first, with a digest or without
+        report.write_text(json.dumps({**reports["chain"], "format_version": "4", **doc}))
+        with pytest.raises(DataError, match="format_version '4' is not one this calib reads"):
+            load_calibrated(load_chain("ur5").urdf_path, report)
 
 
 # --- one interface: summary, urdf, write, repr -------------------------------------------

@@ -211,7 +211,10 @@ def explain(
         return []
     known = bool(np.isfinite(first))
     unit, scale = ("deg", np.degrees(1.0)) if orientation else ("mm", 1e3)
-    amount = lambda e: f"{scale * e:.4g} {unit}"  # noqa: E731
+
+    def amount(e: float) -> str:
+        return f"{scale * e:.4g} {unit}"
+
     of = f" of {words.error}" if orientation else ""
     leaves = f"leaves {amount(first)} RMS{of}" if known else "fails"
     same = () if orientation or data.m < 2 else np.all(data.q == data.q[0], axis=0)

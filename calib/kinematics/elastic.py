@@ -440,8 +440,8 @@ def load_calibrated(
         term = int(term)
     src = str(compliance)
     raw = _read_json(compliance)
+    doc = compliance_fields(raw, src, tool, term)  # its format first
     _check_urdf(raw, urdf, src)
-    doc = compliance_fields(raw, src, tool, term)
     chain = None
     several = doc.get("term_compliance")
     if isinstance(several, dict):  # one term of several: its chain's joints, rigid if absent
