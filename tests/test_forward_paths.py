@@ -163,6 +163,17 @@ def test_guard_errors_are_refits_of_each_folds_procedure():
     assert np.isclose(selection.selection_cv, np.sqrt(sse_sel / m), rtol=1e-9)
 
 
+def test_the_selection_gives_each_kept_candidate_by_position():
+    """Two candidates of one name (a joint two chains share, one MDH parameter in each chain's
+    rows): both kept, told apart by their positions (``index``), not their names."""
+    rng = np.random.default_rng(4)
+    m, rows, fixed = 40, 3, 2
+    J = rng.normal(size=(m, rows, fixed + 4))
+    e = J @ np.r_[0.0, 0.0, 1.0, 0.0, 0.0, -1.0] + 0.01 * rng.normal(size=(m, rows))
+    selection, _ = select(J, e, fixed, ("a", "d7", "b", "d7"))
+    assert sorted(selection.index) == [0, 3] and sorted(selection.kept) == ["a", "d7"]
+
+
 @pytest.mark.parametrize("n", [3, 6])
 def test_spd_solve_equals_lapack(n):
     rng = np.random.default_rng(n)

@@ -523,3 +523,28 @@ def test_each_term_of_one_tool_is_read_as_what_it_is(joint_fit, tmp_path, capsys
     assert np.max(np.abs(xyz - d.position[:, :3])) < 1e-9
     assert main([*args, "--tool", tool, "--out", str(pred)]) == 2
     assert "choose one by its index (--term-index)" in capsys.readouterr().err
+
+
+def test_auto_on_both_arms_and_the_camera_is_accepted(tmp_path):
+    """``auto`` on the self-measure campaign (benchmarks/self_measure.py): both arms' MDH rows
+    name the torso's shared joint alike (``torso_1_joint:d7``, two directions, one per chain);
+    the selection keeps both, and the fit frees both (not the first twice, a rank-deficient
+    Jacobian the engine refused, the user getting the registration). Accepted, every term's
+    held-out error below its registration's."""
+    nominal = _talos()
+    truth = true_robot(nominal, tmp_path / "true.urdf", measuring=nominal[2:], seed=3)
+    true = _talos(str(truth.urdf))
+    zero = {"error_mm": 0.0, "error_mrad": 0.0}
+    data = [
+        simulate_contacts(c, 40, "plane", seed=1 + k, noise_mrad=0.2, **zero).data
+        for k, c in enumerate(true[:2])
+    ]
+    camera = simulate(true[2], 40, "position", marker=MARKER, seed=2, noise_mm=0.5, **zero)
+    data.append(camera.measurements)
+    r = calibrate_contact_chains(nominal, data, params="auto", holdout=0.25, seed=0)
+    free = r.solution.fit.model.free
+    assert len(set(free)) == len(free) and r.free.count("torso_1_joint:d7") == 2
+    assert r.accepted, r.refusal
+    for part in r.chains:
+        held, reg = part.stats["held_out"].rms, part.stats["held_out_registration"].rms
+        assert held[0] < 0.5 * reg[0] and held[1] < reg[1]

@@ -317,7 +317,7 @@ def choose(
         e = start.residuals(data, None, at.kinematics(data))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
         selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
-        columns = [columns[cand_names.index(k)] for k in selection.kept]
+        columns = [columns[k] for k in selection.index]  # by position: names may repeat
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]
     split = fixed + len(offered)

@@ -110,6 +110,9 @@ class Selection:
         complete_cv: The same for the complete fit (every candidate) with its prior strength
             chosen by the leave-one-out error [m].
         winner: The model delivered: ``registration``, ``selection`` or ``complete``.
+        index: Each kept parameter's position among the candidates (``kept``'s order): two
+            candidates may share a name (a joint two chains share, its MDH parameter in each
+            chain's rows: two directions).
     """
 
     kept: tuple[str, ...]
@@ -120,6 +123,7 @@ class Selection:
     guarded: bool
     complete_cv: float = float("nan")
     winner: str = "selection"
+    index: tuple[int, ...] = ()
 
     def to_dict(self) -> dict:
         """JSON-ready form (metres)."""
@@ -444,5 +448,6 @@ def select(
         winner, sel, strength = "registration", [], 0.0
     kept = tuple(names[s] for s in sel)
     prior = np.sqrt(strength) * norms[[fixed + s for s in sel]]
-    out = Selection(kept, tuple(steps), strength, reg_cv, sel_cv, guarded, full_cv, winner)
+    index = tuple(int(s) for s in sel)
+    out = Selection(kept, tuple(steps), strength, reg_cv, sel_cv, guarded, full_cv, winner, index)
     return out, prior
