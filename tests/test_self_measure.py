@@ -527,7 +527,8 @@ def test_each_term_of_one_tool_is_read_as_what_it_is(joint_fit, tmp_path, capsys
 
 def test_auto_on_both_arms_and_the_camera_is_accepted(tmp_path):
     """``auto`` on the self-measure campaign (benchmarks/self_measure.py): both arms' MDH rows
-    name the torso's shared joint alike (``torso_1_joint:d7``, two directions, one per chain);
+    name the torso's shared joint alike (``torso_1_joint:d7``, two directions, one per chain:
+    each named with its chain's tool, ``torso_1_joint:d7@gripper_left_base_link``);
     the selection keeps both, and the fit frees both (not the first twice, a rank-deficient
     Jacobian the engine refused, the user getting the registration). Accepted, every term's
     held-out error below its registration's."""
@@ -543,7 +544,11 @@ def test_auto_on_both_arms_and_the_camera_is_accepted(tmp_path):
     data.append(camera.measurements)
     r = calibrate_contact_chains(nominal, data, params="auto", holdout=0.25, seed=0)
     free = r.solution.fit.model.free
-    assert len(set(free)) == len(free) and r.free.count("torso_1_joint:d7") == 2
+    assert len(set(free)) == len(free) and len(set(r.free)) == len(r.free)  # a name each
+    shared = {f"torso_1_joint:d7@gripper_{side}_base_link" for side in ("left", "right")}
+    assert shared <= set(r.free) and "torso_1_joint:d7" not in r.free
+    entries = {p["name"]: p for p in r.to_dict()["parameters"]}
+    assert all(entries[n]["joint"] == "torso_1_joint" and entries[n]["unit"] == "m" for n in shared)
     assert r.accepted, r.refusal
     for part in r.chains:
         held, reg = part.stats["held_out"].rms, part.stats["held_out_registration"].rms

@@ -20,6 +20,7 @@ from ..identification.contacts import CONTACT_TOL
 from ..identification.identifiability import independent_columns
 from ..identification.parameters import parameter_set
 from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
+from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -158,12 +159,12 @@ def _offer_directions(
         ]
         return None, pl.names(), offsets
     rows: list[np.ndarray] = []
-    labels: list[str] = []
+    labels: list[tuple[str, Chain]] = []
     for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
         D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         rows.extend(D)
-        labels.extend(more)
+        labels.extend((name, chain) for name in more)
     offered = np.array(rows).reshape(len(rows), -1)
     units = offered / np.linalg.norm(offered, axis=1, keepdims=True)  # every norm at once
     parallel = (~(np.abs(units @ units.T) <= 1.0 - 1e-12)).tolist()  # a zero row (NaN): parallel
@@ -171,7 +172,27 @@ def _offer_directions(
     for i, row in enumerate(parallel):
         if not any(row[k] for k in kept):  # parallel to none kept
             kept.append(i)
-    return offered[kept], tuple(labels[i] for i in kept), list(range(len(kept)))
+    return offered[kept], _unique([labels[i] for i in kept]), list(range(len(kept)))
+
+
+def _unique(labels: list[tuple[str, Chain]]) -> tuple[str, ...]:
+    """Each direction's name, one that several chains give saying whose it is.
+
+    A shared joint's MDH parameter of the same row in two chains is two directions of one
+    name: ``torso_1_joint:d7@gripper_left_base_link`` (its chain's tool, or ``@base->tool``
+    where those chains share their tool).
+    """
+    out = []
+    for name, chain in labels:
+        same = [c for n, c in labels if n == name]
+        tools = {c.tool_frame for c in same}
+        own = (
+            chain.tool_frame
+            if len(tools) == len(same)
+            else f"{chain.base_frame}->{chain.tool_frame}"
+        )
+        out.append(name if len(same) == 1 else f"{name}@{own}")
+    return tuple(out)
 
 
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:

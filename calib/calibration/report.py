@@ -56,6 +56,7 @@ def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
         name: The parameter's name.
         joint_names: The URDF joint of each row (None for the frame rows).
     """
+    name = name.partition("@")[0]  # a direction two chains name alike: whose (<name>@<tool>)
     row = _ROW_NAME.fullmatch(name)
     if row is not None:
         k = int(row.group(2))
@@ -72,6 +73,7 @@ def _unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
         sigma: Each row's joint type (0 revolute, 1 prismatic), for a joint offset
             (``offset<k>``) and a compliance (``c<k>``).
     """
+    name = name.partition("@")[0]
     row = _ROW_NAME.fullmatch(name)
     if row is not None:
         kind, k = row.group(1), int(row.group(2))
