@@ -96,12 +96,10 @@ def _target(path: PathLike) -> _Target:
         OutputError: A directory, a socket or block device, or a missing parent directory.
     """
     text = path_text(path)
-    if text == STDOUT:
+    if writes_stdout(text):  # -, /dev/stdout, /dev/fd/1: after what was printed
         return _Target(text, text, _Kind.STDOUT)
     if os.path.abspath(text).startswith(_DIRECT_TREES):
-        key = _file_key(text)  # /dev/stdout, /dev/fd/1: after what was printed
-        stdout = key is not None and key == _file_key(STDOUT)
-        return _Target(text, text, _Kind.STDOUT if stdout else _Kind.DIRECT)
+        return _Target(text, text, _Kind.DIRECT)
     real = os.path.realpath(text)
     try:
         mode = os.stat(real).st_mode
@@ -270,7 +268,7 @@ def writes_stdout(path: object) -> bool:
     text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
     if text == STDOUT:
         return True
-    if not isinstance(text, str) or not text.startswith(_DIRECT_TREES):
+    if not isinstance(text, str) or not os.path.abspath(text).startswith(_DIRECT_TREES):
         return False
     key = _file_key(text)
     return key is not None and key == _file_key(STDOUT)
