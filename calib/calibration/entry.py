@@ -20,8 +20,6 @@ from __future__ import annotations
 import dataclasses
 from typing import cast
 
-import numpy as np
-
 from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress
 from ..exceptions import InvalidArgumentError
@@ -140,8 +138,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
             check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
         for part in (t.data, t.validate) if isinstance(t.robot, Chain) else ():  # tree: prepared
             if isinstance(part, Measurements) and part.joint_names == t.robot.joint_names:
-                rows = np.array(list(map(part.row_of, range(part.m))))
-                check_limits(t.robot, part.q, part.source, rows)  # past: warned; far: refused
+                check_limits(t.robot, part.q, part.source, part.file_rows())  # past: warned
     terms = problem.terms
     files = read_files(*zip(*((t.robot, t.data, t.validate) for t in terms), strict=True))
     if problem.shape == "tree":

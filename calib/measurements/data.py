@@ -229,6 +229,10 @@ class Measurements:
         """Row of configuration i in the source (file row, or i + 1 without a file)."""
         return self.rows[i] if self.rows is not None else i + 1
 
+    def file_rows(self) -> np.ndarray:
+        """Every configuration's row in the source ``(m,)`` (:meth:`row_of` of each)."""
+        return np.arange(1, self.m + 1) if self.rows is None else np.asarray(self.rows)
+
     def position_only(self) -> Measurements:
         """The same data without the orientations."""
         return dataclasses.replace(self, quaternion=None, angles=None)

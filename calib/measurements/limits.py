@@ -67,7 +67,7 @@ def check_against_chain(data: Measurements, chain: Chain | Tree) -> None:
             f"{', '.join(chain.joint_names)}",
         )
     check_tools(data, tool_frames(chain))
-    check_limits(chain, data.q, data.source, np.array([data.row_of(i) for i in range(data.m)]))
+    check_limits(chain, data.q, data.source, data.file_rows())
 
 
 def tool_frames(chain) -> tuple[str, ...]:
