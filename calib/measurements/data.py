@@ -241,7 +241,7 @@ class Measurements:
         """The configurations ``index`` (an integer array or a boolean mask)."""
         index = np.arange(self.m)[index]
         quat = None if self.quaternion is None else self.quaternion[index]
-        rows = tuple(self.row_of(int(i)) for i in index)
+        rows = tuple(self.file_rows()[index].tolist())
         tool = None if self.tool is None else tuple(self.tool[int(i)] for i in index)
         return Measurements(
             self.joint_names,
