@@ -270,7 +270,7 @@ def writes_stdout(path: object) -> bool:
     text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
     if text == STDOUT:
         return True
-    if not isinstance(text, str) or not text.startswith(_DIRECT_TREES):
+    if not isinstance(text, str) or not os.path.abspath(text).startswith(_DIRECT_TREES):
         return False
     key = _file_key(text)
     return key is not None and key == _file_key(STDOUT)
