@@ -354,7 +354,10 @@ def test_an_orientation_noise_without_orientation_rows_is_refused():
     nothing (the command line refused it); a pose takes it, and 0 is no noise."""
     with pytest.raises(calib.InvalidArgumentError, match="records no orientation"):
         calib.simulate(CHAIN, 5, "position", noise_mrad=0.1)
+    with pytest.raises(calib.InvalidArgumentError, match="records no orientation"):
+        calib.simulate(CHAIN, 5, "position", noise_mm=0.1, noise_mrad=0.1)  # noise_mm's: given
     calib.simulate(CHAIN, 5, "position", noise_mrad=0.0)
+    calib.simulate(CHAIN, 5, "position", noise_mm=0.1)  # noise_mrad's default: noise_mm's
     rotations = calib.simulate(CHAIN, 5, "pose", noise_mrad=0.1).measurements.rotations
     assert rotations.shape == (5, 3, 3)
 

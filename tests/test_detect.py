@@ -347,3 +347,16 @@ def _homogeneous(R: np.ndarray, p: np.ndarray) -> np.ndarray:
     T = np.tile(np.eye(4), (len(R), 1, 1))
     T[:, :3, :3], T[:, :3, 3] = R, p
     return T
+
+
+def test_intrinsics_written_to_stdout_are_alone_there(capsys, tmp_path):
+    """``calib detect ... --intrinsics-out - > intr.yaml``: the summary was printed after the
+    YAML, on standard output too."""
+    images = [SET / "images" / f"{i}.jpg" for i in range(8)]
+    code, out, err = run(
+        capsys, "detect", *images, *SET_BOARD, "--joints", _joints_csv(tmp_path, 8),
+        "--camera", "mako", "--out", tmp_path / "obs.csv", "--intrinsics-out", "-",
+    )  # fmt: skip
+    assert code == 0, err
+    assert out.startswith("%YAML") and "found in" not in out and "wrote" not in out
+    assert "found in 8 of 8 images" in err

@@ -4,6 +4,7 @@ one-line errors for every OS failure, clean-up on SIGTERM, figure formats, BLAS 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import hashlib
 import json
@@ -22,6 +23,7 @@ import pytest
 
 import calib.cli.commands
 import calib.core.fileio
+import calib.measurements.csvfile
 import calib.outputs.sweep
 from calib.cli.commands import main
 from calib.core.fileio import check_outputs, same_file, write_atomic, write_files_atomic
@@ -254,9 +256,51 @@ def test_data_written_to_stdout_is_alone_there_and_the_text_goes_to_stderr(tmp_p
     )
     assert printed.returncode == 0, printed.stderr
     rows = printed.stdout.splitlines()
-    assert rows[0].startswith("shoulder_pan_joint,") and len(rows) == 6, printed.out
+    assert rows[0].startswith("shoulder_pan_joint,") and len(rows) == 6, printed.stdout
     assert {row.count(",") for row in rows} == {8}
     assert "5 configurations" in printed.stderr and "wrote" in printed.stderr
+
+
+def test_json_and_an_output_on_stdout_are_refused_together(capsys):
+    """``calib design --out - --json``: the JSON went to standard error with the messages."""
+    code = main(["design", "ur5", "--configs", "3", "--out", "-", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert (
+        err
+        == "calib: error: --json prints to standard output, where --out - writes: give it a file\n"
+    )
+
+
+def test_a_relative_path_to_dev_stdout_is_standard_output(monkeypatch):
+    """``cd /dev; calib ... --out stdout`` writes standard output (the file's path is taken
+    absolute), so the printed text must leave it too."""
+    assert calib.core.fileio.writes_stdout("/dev/stdout")
+    monkeypatch.chdir("/dev")
+    assert calib.core.fileio.writes_stdout("stdout")
+
+
+def test_a_closed_pipe_on_stdout_leaves_the_warnings_on_stderr(tmp_path):
+    """``calib calibrate --out - | head -c 0``: the URDF stops quietly; the warnings after it
+    still go to standard error (it was standard error that was sent to /dev/null)."""
+    chain = calib.load_chain("ur5")
+    data = calib.simulate(chain, 30, seed=1, noise_mm=0.05).measurements
+    q = data.q.copy()
+    q[0, 0] = chain.upper[0] + 0.02  # past the limit by less than the margin: a warning
+    path = tmp_path / "m.csv"
+    calib.measurements.csvfile.write_measurements(path, dataclasses.replace(data, q=q))
+    read, write = os.pipe()
+    os.close(read)  # a reader that left at once
+    try:
+        printed = subprocess.run(
+            [sys.executable, "-m", "calib.cli", "calibrate", "ur5", "--data", str(path),
+             "--out", "-"],
+            stdout=write, stderr=subprocess.PIPE, text=True, timeout=120,
+        )  # fmt: skip
+    finally:
+        os.close(write)
+    assert printed.returncode == 0, printed.stderr
+    assert "read past the URDF joint limits" in printed.stderr
 
 
 def test_dev_full_is_a_one_line_error_and_nothing_else_is_written(tmp_path, capsys):

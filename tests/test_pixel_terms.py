@@ -21,6 +21,7 @@ from pixel_scorer import seen_pixels
 from pixel_setups import INTRINSICS, grid, setup
 from test_contact_chains import central_differences
 
+import calib
 from calib import Problem, Term, calibrate, calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.pixel_chain import PixelData, pixel_part
@@ -29,6 +30,7 @@ from calib.calibration.pixel_fit import checked_pixels
 from calib.calibration.pixel_term import PixelCamera, Unknowns, pixel_rows
 from calib.calibration.placements import Placements
 from calib.calibration.report import REPORT_KEYS
+from calib.exceptions import DataError
 from calib.measurements.contact_campaign import simulate_contacts
 from calib.measurements.pixel_simulation import simulate_pixels
 from calib.measurements.pixels import Target
@@ -407,3 +409,29 @@ def test_write_never_overwrites_a_pixel_terms_target_or_intrinsics(tmp_path, mon
     r.write("target.csv", report="obs.csv")  # other files of the same names: written
     assert (elsewhere / "target.csv").read_bytes() == r.urdf()
     assert json.loads((elsewhere / "obs.csv").read_text())["accepted"]
+
+
+def test_a_pixel_terms_joint_readings_are_checked_against_the_limits(tmp_path):
+    """Pixels' joint positions are "checked where the robot is known" (measurements/pixels.py):
+    they were not, anywhere; a reading far past a limit is refused through both entries, and
+    ``calibrate_contact_chains`` checks a measured term's rows as ``calibrate`` does."""
+    s = setup("ur5", tmp_path, postures=60)
+    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    q = obs.q.copy()
+    q[obs.q[:, 0] == obs.q[0, 0], 0] = s.nominal.upper[0] + 1.0  # the first posture's rows
+    far = PixelData(PixelCamera(s.camera, s.link, INTRINSICS, s.placement), s.target,
+                    dataclasses.replace(obs, q=q))  # fmt: skip
+    for fit in (
+        lambda: calibrate(Problem((Term(s.nominal, far),), params="complete")),
+        lambda: calibrate_contact_chains([s.nominal], [far], params="complete"),
+    ):
+        with pytest.raises(DataError, match="outside the joint limits") as info:
+            fit()
+        assert info.value.row == 1 and info.value.column == s.nominal.joint_names[0]
+    chain = load_robot("ur5")
+    data = calib.simulate(chain, 30, seed=1, noise_mm=0.05).measurements
+    q = data.q.copy()
+    q[2, 4] = chain.lower[4] - 1.0
+    with pytest.raises(DataError, match="outside the joint limits") as info:
+        calibrate_contact_chains([chain], [dataclasses.replace(data, q=q)])
+    assert info.value.row == 3 and info.value.column == chain.joint_names[4]

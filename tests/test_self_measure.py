@@ -418,8 +418,9 @@ def test_a_measured_term_gets_a_chains_checks(talos_data):
     assert r.chains[2].stats["held_out"].m == 19  # its outlier set aside, as a chain's
     assert any("held" in n and "row 4" in n for n in r.notes), r.notes
     q = cam.q.copy()
-    q[:, [3, 4]] = q[:, [4, 3]]
-    cases = [(np.degrees(cam.q), "in degrees"), (q, "arm_left_2_joint and arm_left_3_joint")]
+    q[:, [4, 6]] = q[:, [6, 4]]  # within the limits (+- 2.43 and 2.51 rad): the diagnosis
+    far = "outside the joint limits .* degrees for radians"  # the limits first, as calibrate's
+    cases = [(np.degrees(cam.q), far), (q, "arm_left_3_joint and arm_left_5_joint")]
     for joints, what in cases:
         wrong = Measurements(cam.joint_names, joints, cam.position, None, "wrong.csv")
         _one_line_error(DataError, what, nominal, [*data[:2], wrong])

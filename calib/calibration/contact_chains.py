@@ -35,6 +35,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from ..measurements.limits import check_limits
 from . import contact_checks, contact_elastic
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
@@ -74,6 +75,7 @@ __all__ = [
     "Registered",
     "Run",
     "calibrate_contact_chains",
+    "check_readings",
     "determined_unknowns",
     "fit_registered",
     "fit_run",
@@ -157,11 +159,38 @@ def calibrate_contact_chains(
         DataError: Touches that do not belong to their chain or determine too little.
     """
     check_weighed(orientation_weight, data)
+    if isinstance(chains, Sequence) and isinstance(data, Sequence):  # else refused later
+        held = validate if isinstance(validate, Sequence) else [None] * len(data)
+        for c, d, v in zip(chains, data, held, strict=False):
+            check_readings(c, d, v)
     options = Options(params=params, orientation_weight=orientation_weight, elastic=elastic,
                       max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
     run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,
               instrument, held_label, support, progress)  # fmt: skip
     return dataclasses.replace(fit_run(run), inputs=read_files(chains, data, validate))
+
+
+def check_readings(chain: object, *parts: object) -> None:
+    """A chain's joint readings in each part against its limits: past one warned, far refused.
+
+    Measurements of the chain's joints and a pixel term's rows of its camera are checked;
+    other parts pass (other joints: the term's checks say so; touches: read with theirs; a
+    tree's rows: prepared with the tree).
+    """
+    if not isinstance(chain, Chain):
+        return
+    for part in parts:
+        if isinstance(part, PixelData):
+            obs = part.obs
+            mine = np.asarray(obs.camera) == part.camera.name
+            lines = np.array(obs.rows or range(1, obs.m + 1))
+            joints, q, rows = obs.joint_names, obs.q[mine], lines[mine]
+        elif isinstance(part, Measurements):
+            joints, q, rows = part.joint_names, part.q, part.file_rows()
+        else:
+            continue
+        if tuple(joints) == tuple(chain.joint_names) and len(q):
+            check_limits(chain, q, part.source, rows)
 
 
 def fit_run(run: Run) -> ContactChainsCalibration:

@@ -27,12 +27,12 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from ..measurements.limits import check_limits
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains import (
     Registered,
     Run,
     calibrate_contact_chains,
+    check_readings,
     fit_registered,
     fit_run,
     register_contact_chains,
@@ -136,9 +136,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
     for t in problem.terms:
         if isinstance(t.data, Measurements):
             check_size(t.data.m, MAX_ROWS, "rows", t.data.source)
-        for part in (t.data, t.validate) if isinstance(t.robot, Chain) else ():  # tree: prepared
-            if isinstance(part, Measurements) and part.joint_names == t.robot.joint_names:
-                check_limits(t.robot, part.q, part.source, part.file_rows())  # past: warned
+        check_readings(t.robot, t.data, t.validate)  # past a limit: warned; far: refused
     terms = problem.terms
     files = read_files(*zip(*((t.robot, t.data, t.validate) for t in terms), strict=True))
     if problem.shape == "tree":

@@ -143,7 +143,7 @@ def _run(args: argparse.Namespace) -> int:
         print("calib: terminated", file=sys.stderr)
         return 128 + signal.SIGTERM
     except BrokenPipeError:  # `calib ... | head`: stop quietly
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        os.dup2(os.open(os.devnull, os.O_WRONLY), 1)  # fd 1: sys.stdout may be stderr here
         return 0
     except OSError as exc:  # an OS error not raised as a CalibError
         message = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")
@@ -228,6 +228,20 @@ def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argpa
     return args
 
 
+_OUTPUTS = ("out", "csv", "report", "truth", "origins", "intrinsics_out")
+"""The options (``dest``) of a file a command writes (``detect``'s ``--target`` too)."""
+
+
+def _stdout_output(args: argparse.Namespace) -> str | None:
+    """The option whose file is standard output (``-``, ``/dev/stdout``), or None."""
+    dests = (*_OUTPUTS, "target") if args.command == "detect" else _OUTPUTS
+    for dest in dests:
+        path = getattr(args, dest, None)
+        if path is not None and writes_stdout(path):
+            return f"--{dest.replace('_', '-')} {path}"
+    return None
+
+
 def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
@@ -241,9 +255,15 @@ def _main(argv: Sequence[str] | None) -> int:
         inputs_recorded(),
     ):
         warnings.simplefilter("always")
-        outputs = (getattr(args, k, None) for k in ("out", "csv", "report", "truth", "origins"))
-        to_stdout = any(o is not None and writes_stdout(o) for o in outputs)
-        with text_to_stderr() if to_stdout else contextlib.nullcontext():
+        on_stdout = _stdout_output(args)
+        if on_stdout is not None and getattr(args, "json", False):
+            print(
+                f"calib: error: --json prints to standard output, where {on_stdout} writes: "
+                "give it a file",
+                file=sys.stderr,
+            )
+            return 2
+        with contextlib.nullcontext() if on_stdout is None else text_to_stderr():
             code = _run(args)
     sys.stdout.flush()  # the warnings come after the output
     for line in warning_lines(caught):

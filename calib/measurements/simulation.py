@@ -161,8 +161,8 @@ def simulate(
         error_mrad: Standard deviation of every angle error [mrad].
         noise_mm: Standard deviation of the position noise per axis [mm].
         noise_mrad: Standard deviation of the orientation noise per axis [mrad] (default:
-            the number given as ``noise_mm``, so that 1 mrad weighs like 1 mm); another
-            value with a measure of no orientation is refused.
+            the number given as ``noise_mm``, so that 1 mrad weighs like 1 mm); one above 0
+            with a measure of no orientation is refused.
         seed: Seed (an integer >= 0; not None, a bool or a float).
         params: Parameter set perturbed: ``complete`` (default) or ``paper``.
 
@@ -179,8 +179,9 @@ def simulate(
     seed = check_count(seed, "the seed", 0)
     error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
     noise_mm = length_mm(noise_mm, "noise_mm")
-    noise_mrad = noise_mm if noise_mrad is None else angle_mrad(noise_mrad, "noise_mrad")
-    if noise_mrad > 0 and noise_mrad != noise_mm and not measurement.is_pose:
+    asked = None if noise_mrad is None else angle_mrad(noise_mrad, "noise_mrad")
+    noise_mrad = noise_mm if asked is None else asked
+    if asked and not measurement.is_pose:  # one given (noise_mm's too): as the command line's
         raise InvalidArgumentError(
             f"noise_mrad is the orientation noise of a pose: measure {measurement.label!r} "
             "records no orientation"
