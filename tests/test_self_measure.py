@@ -554,3 +554,21 @@ def test_auto_on_both_arms_and_the_camera_is_accepted(tmp_path):
     for part in r.chains:
         held, reg = part.stats["held_out"].rms, part.stats["held_out_registration"].rms
         assert held[0] < 0.5 * reg[0] and held[1] < reg[1]
+
+
+def test_two_measured_terms_keep_their_own_frames_and_markers_in_the_report():
+    """The report merges the measured terms' parameters by name (a tree's tools share the
+    instrument's frame): two terms measured from two frames of the head name theirs apart
+    (``term1.frame.x``, ``term2.frame.x``), so none is lost."""
+    from calib import Problem, Term, calibrate
+
+    a = load_robot(URDF, "rgbd_optical_frame", "gripper_left_base_link")
+    b = load_robot(URDF, "rgbd_link", "gripper_right_base_link")
+    terms = tuple(
+        Term(c, simulate(c, 40, "position", marker=MARKER, seed=k).measurements)
+        for k, c in ((1, a), (2, b))
+    )
+    result = calibrate(Problem(terms, params="frames"))
+    names = [p["name"] for p in result.to_dict()["parameters"]]
+    assert len(names) == len(set(names)) == 2 * (6 + 3)
+    assert {"term1.frame.x", "term2.frame.x", "term1.marker1.z", "term2.marker1.z"} <= set(names)
