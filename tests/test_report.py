@@ -542,3 +542,16 @@ def test_real_talos_joint_fit_names_each_direction_by_its_joint_and_unit():
     for line in result.summary().splitlines():  # the printed table names each joint once
         named = [j for j in on_chains if f"{j}:" in line]
         assert all(line.count(j) == 1 for j in named), line
+
+
+def test_compliance_fields_takes_a_terms_index_as_load_calibrated_does(reports):
+    """The term's index is checked where it is used (``report_view.compliance_fields``), not
+    only by ``load_calibrated``: ``term=True`` was read as "no term True"."""
+    from calib import InvalidArgumentError
+    from calib.kinematics.report_view import compliance_fields
+
+    doc = reports["chain"]
+    assert compliance_fields(doc, "r.json", term=np.int64(0))["tool_frame"] == "tool0"
+    for bad in (True, "0", 0.0):
+        with pytest.raises(InvalidArgumentError, match="term must be a term's index"):
+            compliance_fields(doc, "r.json", term=bad)

@@ -434,10 +434,6 @@ def load_calibrated(
             has no term ``term``.
         CalibError: The URDF cannot be loaded with the recorded frames.
     """
-    if term is not None:
-        if isinstance(term, bool) or not isinstance(term, int | np.integer):
-            raise InvalidArgumentError(f"term must be a term's index (from 0), got {term!r:.60}")
-        term = int(term)
     src = str(compliance)
     raw = _read_json(compliance)
     doc = compliance_fields(raw, src, tool, term)  # its format first

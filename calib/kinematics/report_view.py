@@ -12,8 +12,9 @@ is. :func:`check_pairing` refuses a URDF other than the one a report was written
 from __future__ import annotations
 
 import hashlib
+import numbers
 
-from ..exceptions import DataError
+from ..exceptions import DataError, InvalidArgumentError
 
 __all__ = ["READ_FORMATS", "STANDING_GRAVITY", "check_pairing", "compliance_fields", "urdf_digest"]
 
@@ -87,7 +88,12 @@ def compliance_fields(
             two that predict points (choose by ``term``), a ``term`` not in ``terms`` or of
             another tool, a report of several terms without ``tool`` or ``term``, a camera's
             term, or a format 3 report whose ``terms`` or ``frames`` are malformed.
+        InvalidArgumentError: A ``term`` that is no integer (a bool, a text, a float).
     """
+    if term is not None:  # a Python or NumPy integer (np.argmax's)
+        if isinstance(term, bool) or not isinstance(term, numbers.Integral):
+            raise InvalidArgumentError(f"term must be a term's index (from 0), got {term!r:.60}")
+        term = int(term)
     version = doc.get("format_version")
     if version not in READ_FORMATS:
         raise DataError(
