@@ -25,7 +25,14 @@ from conftest import chain_of
 from pinref import PinTree
 from scipy.spatial.transform import Rotation
 
-from calib import DataError, InvalidArgumentError, calibrate, read_measurements, simulate
+from calib import (
+    DataError,
+    InvalidArgumentError,
+    calibrate,
+    load_chain,
+    read_measurements,
+    simulate,
+)
 from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.kinematics.tree import load_robot
@@ -519,3 +526,31 @@ def test_a_joint_column_holding_one_value_is_named_first():
     q[:, 1] = 0.3  # shoulder_lift_joint not logged
     with pytest.raises(DataError, match=r"joint column\(s\) shoulder_lift_joint hold one value"):
         calibrate(chain, dataclasses.replace(data, q=q))
+
+
+GANTRY = """<robot name="gantry">
+  <link name="base"/><link name="a"/><link name="b"/><link name="tool"/>
+  <joint name="px" type="prismatic"><parent link="base"/><child link="a"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="py" type="prismatic"><parent link="a"/><child link="b"/><axis xyz="0 1 0"/>
+    <limit lower="0" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="pz" type="prismatic"><parent link="b"/><child link="tool"/><axis xyz="0 0 1"/>
+    <limit lower="0" upper="0.5" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_unknowns_no_posture_separates_are_said_to_be_so(tmp_path):
+    """A gantry's tool never turns: its marker and the instrument frame's translation are one
+    unknown at every posture. The refusal said "fix one of them or measure more varied
+    postures" (neither can help: the frame and markers are always fitted); it says that no
+    posture within the joint limits separates them."""
+    urdf = tmp_path / "gantry.urdf"
+    urdf.write_text(GANTRY)
+    chain = load_chain(urdf)
+    data = simulate(chain, 30, "position", seed=0).measurements
+    result = calibrate(chain, data)
+    assert not result.accepted
+    assert "cannot separate frame" in result.refusal and "marker1" in result.refusal
+    assert "no posture separates them" in result.refusal
+    assert "more varied postures" not in result.refusal

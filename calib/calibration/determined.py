@@ -273,16 +273,19 @@ def separating_text(
     names: tuple[str, ...],
     direction: Direction,
     joint_names,
-) -> str | None:
-    """``postures such as <joint> <q> ...`` that separate a direction, or None (none does).
+) -> str:
+    """``postures such as <joint> <q> ...`` that separate a direction, or that none does.
 
     As :func:`separating_posture`, ``direction`` of :func:`ill_posed` in the unknowns ``names``.
     """
     v = np.zeros(len(names))
     v[[names.index(n) for n in direction.names]] = direction.weights
     best, cond = separating_posture(jacobian_at, q, v)
-    if cond >= ILL_CONDITION:
-        return None
+    if cond >= ILL_CONDITION:  # e.g. a tool that never turns: its markers and the frame
+        return (
+            f"no posture separates them (condition {cond:.3g} at {len(q)} random configurations "
+            "within the joint limits): these measurements of this robot cannot tell them apart"
+        )
     joints = ", ".join(f"{n} {x:.3g}" for n, x in zip(joint_names, best, strict=True))
     return (
         f"postures such as {joints} [rad or m] separate them (random configurations within "
