@@ -131,6 +131,11 @@ def _sigterm_raises() -> Iterator[None]:
 def _run(args: argparse.Namespace) -> int:
     """Run a command; every error becomes one line on stderr and an exit code."""
     try:
+        on_stdout = _stdout_output(args) if getattr(args, "json", False) else None
+        if on_stdout is not None:
+            raise InvalidArgumentError(
+                f"--json prints to standard output, where {on_stdout} writes: give it a file"
+            )
         with _sigterm_raises(), _blas_limit(blas_threads()):
             return args.func(args)
     except CalibError as exc:
@@ -256,13 +261,6 @@ def _main(argv: Sequence[str] | None) -> int:
     ):
         warnings.simplefilter("always")
         on_stdout = _stdout_output(args)
-        if on_stdout is not None and getattr(args, "json", False):
-            print(
-                f"calib: error: --json prints to standard output, where {on_stdout} writes: "
-                "give it a file",
-                file=sys.stderr,
-            )
-            return 2
         with contextlib.nullcontext() if on_stdout is None else text_to_stderr():
             code = _run(args)
     sys.stdout.flush()  # the warnings come after the output
