@@ -64,6 +64,7 @@ __all__ = [
     "identifiable_parameters",
     "ill_posed",
     "ill_posed_text",
+    "inseparable_markers",
     "marker_work_bytes",
     "selection_configurations",
     "separating_posture",
@@ -316,6 +317,27 @@ def ill_posed_text(
     return text + (
         f"; {posture}" if posture else "; fix one of them or measure more varied postures"
     )
+
+
+def inseparable_markers(J: np.ndarray, n_markers: int, tool: int = 0) -> tuple[int, ...]:
+    """The marker coordinates no posture separates from the frame: the robot's, not the data's.
+
+    ``J`` ``(..., 6 + 3 K + tool)``: the Jacobian of the measurement frame, the K markers and
+    (pose) the measured frame's rotation at generic configurations (random ones within the
+    joint limits). The frame is preferred, then the rotation, then the markers from the
+    last to the first: the coordinates returned (0-based among the ``3 K``, sorted) are
+    those dependent on the ones before them, the first marker's. A tool that never turns (a
+    gantry): the first marker's x, y and z, one unknown with the frame's translation at every
+    posture (the other markers' offsets from it are determined); a tool that turns about one
+    fixed axis: the first marker's coordinate along it. Such a coordinate is held at its given
+    value, the frame's translation absorbing it, as a non-identifiable MDH parameter regroups
+    into a base parameter. Empty: every posture-dependent unknown is separable (a weak data
+    set is :func:`ill_posed`'s).
+    """
+    markers = [6 + 3 * k + a for k in reversed(range(n_markers)) for a in range(3)]
+    order = [*range(6), *range(6 + 3 * n_markers, 6 + 3 * n_markers + tool), *markers]
+    kept = set(determined_columns(J, order))
+    return tuple(sorted(c - 6 for c in markers if c not in kept))
 
 
 def identifiable_parameters(
