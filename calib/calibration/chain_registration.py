@@ -17,7 +17,6 @@ from typing import cast
 
 import numpy as np
 
-from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError
 from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet
@@ -25,13 +24,14 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import ErrorModel, State, nominal_state
+from .model import ErrorModel, State
 from .options import Options
 from .registration import register
 from .solve import Fit, fit
 from .term_checks import Aside
 
 __all__ = [
+    "STRUCTURE_CONFIGS",
     "Held",
     "checked_registration",
     "frames_model",
@@ -102,23 +102,26 @@ class Held:
         return self.model.jacobian(start, self._full(x), data, torque, state, kin)[..., self.free]
 
 
+STRUCTURE_CONFIGS = 20
+"""Random configurations :func:`held_markers` reads the tool's rotations at: a tool that turns
+about two axes turns its every direction at almost any two of them."""
+
+
 def own_model(n_markers: int, kind: Measurement, held: tuple[int, ...] = ()) -> ErrorModel | Held:
     """:func:`frames_model`, the marker coordinates ``held`` held (:class:`Held`) if any."""
     model = frames_model(n_markers, kind)
     return Held(model, held) if held else model
 
 
-def held_markers(chain: Chain, nominal: MDHModel, guess: np.ndarray, kind) -> tuple[int, ...]:
-    """The marker coordinates no posture within the joint limits separates from the frame.
+def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
+    """The first marker's coordinates no posture within the joint limits separates from the frame.
 
-    :func:`~.determined.inseparable_markers` of the registration's Jacobian at random
-    configurations of ``chain`` (seed 0: the robot's structure, not the data's) on the
-    ``nominal`` geometry with the markers' ``guess`` ``(K, 3)`` [m].
+    :func:`~.determined.still_axes` of the ``nominal`` tool's rotations at
+    ``STRUCTURE_CONFIGS`` random configurations of ``chain`` (seed 0: the robot's structure,
+    not the data's); 0-based among the markers' ``3 K``.
     """
-    q = chain.random_configurations(DEFAULT_CONFIGS, 0)
-    model = frames_model(len(guess), kind)
-    at = determined.generic_jacobian(model, nominal_state(nominal, guess, kind), chain.joint_names)
-    return determined.inseparable_markers(at(q), len(guess), 3 * model.pose)
+    q = chain.random_configurations(STRUCTURE_CONFIGS, 0)
+    return determined.still_axes(nominal.kinematics(q).R[:, -1])
 
 
 def held_note(held: tuple[int, ...], guess: np.ndarray) -> str:

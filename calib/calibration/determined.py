@@ -20,7 +20,9 @@ it needs; calib never silently cuts the level down to what the rows can carry.
    the instrument frame's height are one sum). The model is then refused, the sentence names
    the unknowns, their combination, its condition and their standard deviations, and the
    posture among random ones within the joint limits that separates them best
-   (:func:`separating_posture`).
+   (:func:`separating_posture`). What no posture separates is the robot's structure, not a
+   weak data set: a marker's offset along a tool direction that never turns (a gantry's,
+   :func:`still_axes`) is held at its given value before the registration, not refused.
 
 What a chain's instrument determines with K markers (``calib analyze --markers``,
 :func:`identifiable_parameters`): the measurement frame (6), the markers (3 each; and the
@@ -56,6 +58,7 @@ __all__ = [
     "SAMPLE_EQUATIONS",
     "SAMPLE_WORK",
     "SELECTION_WORK",
+    "STILL",
     "Direction",
     "check_equations",
     "check_rank",
@@ -64,11 +67,11 @@ __all__ = [
     "identifiable_parameters",
     "ill_posed",
     "ill_posed_text",
-    "inseparable_markers",
     "marker_work_bytes",
     "selection_configurations",
     "separating_posture",
     "separating_text",
+    "still_axes",
     "undetermined",
 ]
 
@@ -319,25 +322,28 @@ def ill_posed_text(
     )
 
 
-def inseparable_markers(J: np.ndarray, n_markers: int, tool: int = 0) -> tuple[int, ...]:
-    """The marker coordinates no posture separates from the frame: the robot's, not the data's.
+STILL = 1e-9
+"""Singular value [per rotation entry] of the tool's rotations' changes between random
+configurations under which a direction in the tool frame never turns (:func:`still_axes`)."""
 
-    ``J`` ``(..., 6 + 3 K + tool)``: the Jacobian of the measurement frame, the K markers and
-    (pose) the measured frame's rotation at generic configurations (random ones within the
-    joint limits). The frame is preferred, then the rotation, then the markers from the
-    last to the first: the coordinates returned (0-based among the ``3 K``, sorted) are
-    those dependent on the ones before them, the first marker's. A tool that never turns (a
-    gantry): the first marker's x, y and z, one unknown with the frame's translation at every
-    posture (the other markers' offsets from it are determined); a tool that turns about one
-    fixed axis: the first marker's coordinate along it. Such a coordinate is held at its given
-    value, the frame's translation absorbing it, as a non-identifiable MDH parameter regroups
-    into a base parameter. Empty: every posture-dependent unknown is separable (a weak data
-    set is :func:`ill_posed`'s).
+
+def still_axes(R: np.ndarray) -> tuple[int, ...]:
+    """The tool-frame coordinates a marker's offset along the axes that never turn hides in.
+
+    ``R`` ``(m, 3, 3)``: the tool's rotations at random configurations within the joint
+    limits. A direction ``a`` of the tool frame with ``R_i a`` the same at every posture (all
+    three for a gantry's tool, which never turns; the axis a SCARA's tool turns about) moves
+    a marker's predicted points as the measurement frame's translation does: the robot's
+    structure, not the data's, leaves them one unknown. Returns as many coordinates (0-based:
+    x, y, z) as there are such directions (none, one or all three: a rotation that keeps two
+    keeps their cross product), those they move most: holding the first marker's at its given
+    value leaves the frame to absorb it, as a non-identifiable MDH parameter regroups into a
+    base parameter (the other markers' offsets from it stay determined). Empty: the tool
+    turns about two axes or more (a weak data set is :func:`ill_posed`'s).
     """
-    markers = [6 + 3 * k + a for k in reversed(range(n_markers)) for a in range(3)]
-    order = [*range(6), *range(6 + 3 * n_markers, 6 + 3 * n_markers + tool), *markers]
-    kept = set(determined_columns(J, order))
-    return tuple(sorted(c - 6 for c in markers if c not in kept))
+    _, s, vt = np.linalg.svd((R[1:] - R[0]).reshape(-1, 3), full_matrices=False)
+    still = vt[s < STILL * np.sqrt(len(R))]
+    return tuple(sorted(np.argsort(-np.abs(still).sum(axis=0))[: len(still)].tolist()))
 
 
 def identifiable_parameters(

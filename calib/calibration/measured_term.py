@@ -332,7 +332,7 @@ def checked_measured(
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
-    pinned = held_markers(chain, nominal, guess, data.kind) if hold else ()
+    pinned = held_markers(chain, nominal) if hold else ()
     opts, reg, bad, found, notes, kin = checked_registration(
         chain, nominal, data, checked, guess, opts, pinned
     )

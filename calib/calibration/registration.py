@@ -13,7 +13,7 @@ from its solution whatever the frame's rotation and distance:
    ``sum_i R_i^T R_i = m I``, the mean of ``R_i^T (R^T (y_ik - t) - p_i)``);
 3. repeat until the markers move less than 1e-12 m (at most ``ITERATIONS`` times); marker
    coordinates no posture separates from the frame's translation (a tool that never turns,
-   :func:`~.determined.inseparable_markers`) stay at their guess, the frame absorbing them;
+   :func:`~.determined.still_axes`) stay at their guess, the frame absorbing them;
 4. for pose data, the measured frame's rotation in the tool frame: the rotation nearest (in
    the Frobenius norm) to the mean of ``R_i^T R^T R_meas,i``.
 
