@@ -46,7 +46,8 @@ def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
 
     No MDH parameter: a measured term's own unknowns too. The registration fits them all
     (``fix`` of the frame or the markers is refused before any registration,
-    :func:`~.measured_options.level_offer`).
+    :func:`~.measured_options.level_offer`) but the marker coordinates no posture separates
+    from the frame (:func:`own_model`).
     """
     return ErrorModel(
         ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=n_markers, kind=kind
@@ -55,29 +56,17 @@ def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
 
 @dataclass(frozen=True, eq=False)
 class Held:
-    """:func:`frames_model` with marker coordinates held at the start: the others' columns.
+    """A :func:`frames_model` with marker coordinates held at the start (x: the other columns).
 
-    ``model``: the frame and markers' (and measured frame's rotation); ``held``: the marker
-    coordinates (0-based among the ``3 K``) held. x holds the model's other columns, in order.
+    ``held``: 0-based among the markers' ``3 K``.
     """
 
     model: ErrorModel
     held: tuple[int, ...]
 
-    @property
-    def n_markers(self) -> int:
-        """Markers K."""
-        return self.model.n_markers
-
-    @property
-    def pose(self) -> bool:
-        """Orientation rows are fitted."""
-        return self.model.pose
-
-    @property
-    def rows(self) -> int:
-        """Residual rows per configuration."""
-        return self.model.rows
+    n_markers = property(lambda self: self.model.n_markers, doc="Markers K.")
+    pose = property(lambda self: self.model.pose, doc="Orientation rows are fitted.")
+    rows = property(lambda self: self.model.rows, doc="Residual rows per configuration.")
 
     @property
     def free(self) -> list[int]:
