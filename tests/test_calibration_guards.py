@@ -28,6 +28,7 @@ from scipy.spatial.transform import Rotation
 from calib import (
     DataError,
     InvalidArgumentError,
+    Measurements,
     calibrate,
     load_chain,
     read_measurements,
@@ -540,17 +541,134 @@ GANTRY = """<robot name="gantry">
 """
 
 
-def test_unknowns_no_posture_separates_are_said_to_be_so(tmp_path):
-    """A gantry's tool never turns: its marker and the instrument frame's translation are one
-    unknown at every posture. The refusal said "fix one of them or measure more varied
-    postures" (neither can help: the frame and markers are always fitted); it says that no
-    posture within the joint limits separates them."""
-    urdf = tmp_path / "gantry.urdf"
+HELD = "held at its given value"
+"""The note of a marker no posture separates from the instrument frame's translation."""
+
+
+def gantry_rows(chain, m: int, markers, noise_mm: float = 0.0, pose: bool = False, seed=0):
+    """Rows of ``markers`` ``(K, 3)`` [m] on the true robot of ``simulate`` (seeded), seen
+    from a tracker placed by scipy's rotation, and the true points at any joints ``(m, K, 3)``."""
+    campaign = simulate(chain, m, "pose" if pose else "position", seed=seed)
+    q, forward = campaign.measurements.q, campaign.truth.true_mdh.forward
+    R, t = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix(), np.array([1.0, 2.0, 0.5])
+
+    def truth(q: np.ndarray) -> np.ndarray:
+        T = forward(q)
+        return (np.einsum("mij,kj->mki", T[:, :3, :3], markers) + T[:, None, :3, 3]) @ R.T + t
+
+    noise = np.random.default_rng([seed, 7]).normal(size=(m, len(markers), 3))
+    points = truth(q) + 1e-3 * noise_mm * noise
+    turn = None if not pose else Rotation.from_matrix(R @ forward(q)[:, :3, :3]).as_quat()
+    return Measurements(chain.joint_names, q, points.reshape(m, -1), turn), truth
+
+
+@pytest.fixture(scope="module")
+def gantry(tmp_path_factory):
+    """The gantry's nominal chain (a URDF written to a temporary folder)."""
+    urdf = tmp_path_factory.mktemp("gantry") / "gantry.urdf"
     urdf.write_text(GANTRY)
+    return load_chain(urdf)
+
+
+def test_a_gantry_is_calibrated_its_marker_held(gantry, tmp_path):
+    """A gantry's tool never turns: its marker and the instrument frame's translation are one
+    unknown at every posture. It was refused ("no posture separates them"); the marker is held
+    at its given value, the frame absorbs it, the rest is fitted: the held-out rows are
+    predicted exactly, by the result and by its URDF read by Pinocchio (the marker link)."""
+    data, truth = gantry_rows(gantry, 40, [MARKER])
+    result = calibrate(gantry, data, holdout=0.25)
+    assert result.accepted, result.refusal
+    assert any(HELD in w and "marker1 " in w for w in result.warnings)
+    report = result.to_dict()
+    assert any(HELD in w for w in report["warnings"])
+    assert report["validation"]["calibrated"]["position_rms"] < 1e-9  # [m]
+    names = {p["name"] for p in report["parameters"]}
+    assert "frame.x" in names and not any(n.startswith("marker1") for n in names)
+    result.write_urdf(tmp_path / "cal.urdf")
+    model = pin.buildModelFromUrdf(str(tmp_path / "cal.urdf"))
+    pdata, q = model.createData(), gantry.random_configurations(20, 5)
+    tool = model.getFrameId(report["marker_links"][0])
+    frame = np.array(report["measurement_to_base"]["matrix"])
+    seen = []
+    for row in q:
+        pin.framesForwardKinematics(model, pdata, row)
+        seen.append(frame[:3, :3] @ pdata.oMf[tool].translation + frame[:3, 3])
+    assert np.max(np.abs(np.array(seen) - truth(q)[:, 0])) < 1e-9
+    assert np.max(np.abs(result.points(q)[:, 0] - truth(q)[:, 0])) < 1e-9
+
+
+def test_a_noisy_gantry_is_calibrated_no_worse_than_its_registration(gantry):
+    """Noise 0.05 mm: accepted, held-out rows predicted as well as the registration or better."""
+    data, _ = gantry_rows(gantry, 40, [MARKER], noise_mm=0.05, seed=3)
+    result = calibrate(gantry, data, holdout=0.25, marker=(0.01, 0.0, 0.05))
+    assert result.accepted, result.refusal
+    assert any(HELD in w and "(0.01, 0, 0.05 m" in w for w in result.warnings)
+    held = result.to_dict()["validation"]
+    assert held["calibrated"]["position_rms"] <= held["registration"]["position_rms"]
+
+
+def test_a_gantry_with_two_markers_holds_the_first_and_fits_the_other(gantry):
+    """Two markers: the first is held (the frame absorbs it), the second's offset from it is
+    determined and fitted: every point of every held-out row predicted exactly."""
+    markers = np.array([MARKER, (-0.03, 0.04, 0.12)])
+    data, truth = gantry_rows(gantry, 40, markers)
+    result = calibrate(gantry, data, holdout=0.25)
+    assert result.accepted, result.refusal
+    assert any("marker1 held" in w for w in result.warnings)
+    names = {p["name"] for p in result.to_dict()["parameters"]}
+    assert {"marker2.x", "marker2.y", "marker2.z"} <= names and "marker1.x" not in names
+    q = gantry.random_configurations(20, 5)
+    assert np.max(np.abs(result.points(q) - truth(q))) < 1e-9
+
+
+def test_a_gantry_measured_by_poses_is_calibrated(gantry):
+    """Pose rows: the marker is held as with positions; the orientations are fitted."""
+    data, truth = gantry_rows(gantry, 40, [MARKER], pose=True)
+    result = calibrate(gantry, data, holdout=0.25)
+    assert result.accepted, result.refusal
+    assert any(HELD in w for w in result.warnings)
+    q = gantry.random_configurations(20, 5)
+    assert np.max(np.abs(result.points(q)[:, 0] - truth(q)[:, 0])) < 1e-9
+
+
+SCARA = """<robot name="scara">
+  <link name="base"/><link name="a"/><link name="b"/><link name="tool"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+    <origin xyz="0 0 0.4"/><axis xyz="0 0 1"/>
+    <limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
+    <origin xyz="0.4 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="prismatic"><parent link="b"/><child link="tool"/>
+    <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-0.3" upper="0" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_a_tool_turning_about_one_axis_holds_the_marker_along_it(tmp_path):
+    """A SCARA's tool turns about its vertical axis only: the marker's height on it and the
+    frame's are one unknown at every posture (it was refused); marker1.z alone is held."""
+    urdf = tmp_path / "scara.urdf"
+    urdf.write_text(SCARA)
     chain = load_chain(urdf)
-    data = simulate(chain, 30, "position", seed=0).measurements
-    result = calibrate(chain, data)
-    assert not result.accepted
-    assert "cannot separate frame" in result.refusal and "marker1" in result.refusal
-    assert "no posture separates them" in result.refusal
-    assert "more varied postures" not in result.refusal
+    data, truth = gantry_rows(chain, 40, [MARKER])
+    result = calibrate(chain, data, holdout=0.25, marker=(0.0, 0.0, 0.08))
+    assert result.accepted, result.refusal
+    assert any("marker1.z held at its given value (0.08 m" in w for w in result.warnings)
+    names = {p["name"] for p in result.to_dict()["parameters"]}
+    assert {"marker1.x", "marker1.y"} <= names and "marker1.z" not in names
+    q = chain.random_configurations(20, 5)
+    assert np.max(np.abs(result.points(q)[:, 0] - truth(q)[:, 0])) < 1e-9
+
+
+def test_a_gantry_is_calibrated_on_the_command_line(tmp_path):
+    """``calib simulate`` then ``calib calibrate`` on the gantry's URDF: exit 0, the URDF
+    written, the note in its summary."""
+    urdf, data, out = tmp_path / "gantry.urdf", tmp_path / "g.csv", tmp_path / "cal.urdf"
+    urdf.write_text(GANTRY)
+    code, _, err = run(["simulate", urdf, "--configs", 30, "--noise-mm", 0.02, "--out", data])
+    assert code == 0, err
+    code, text, err = run(["calibrate", urdf, "--data", data, "--holdout", 0.25, "--out", out])
+    assert code == 0, err
+    assert HELD in text + err and out.exists()

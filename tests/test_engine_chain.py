@@ -169,9 +169,9 @@ def test_the_marker_guess_starts_the_measured_terms_registration(tiago, monkeypa
     starts = []
     register = chain_registration.register
 
-    def spy(mdh, q, points, rotations=None, markers=None, kin=None):
+    def spy(mdh, q, points, rotations=None, markers=None, kin=None, held=()):
         starts.append(None if markers is None else np.array(markers))
-        return register(mdh, q, points, rotations, markers, kin)
+        return register(mdh, q, points, rotations, markers, kin, held)
 
     monkeypatch.setattr(chain_registration, "register", spy)
     chain, train, test = tiago

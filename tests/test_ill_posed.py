@@ -50,7 +50,8 @@ def test_prism_offset_and_frame_height_are_named_not_delivered(params):
     res = calibrate(chain, campaign.measurements, params=params, marker=PRISM)
     assert not res.accepted
     assert "cannot separate frame.z and marker1.z" in res.refusal
-    assert "postures such as" in res.refusal
+    assert "postures such as" in res.refusal  # the data's weakness: the robot's tool turns,
+    assert not any("held at its given value" in w for w in res.warnings)  # so nothing is held
     if params is None:  # auto: Everett's 4R + 3 = 27 at generic configurations, the pair one
         everett = 4 * chain.n_revolute + 3
         assert any(
@@ -138,3 +139,27 @@ def test_a_level_the_rows_cannot_determine_names_what_they_cannot_separate():
     campaign = simulate(chain, _tool_up(chain, 40, 1), "position", marker=PRISM, seed=1)
     with pytest.raises(DataError, match=r"cannot separate frame\.z, marker1\.z"):
         calibrate(chain, campaign.measurements, params="complete", marker=PRISM)
+
+
+@pytest.mark.parametrize(
+    ("axes", "still"),
+    [(None, (0, 1, 2)), ([[0.2, -0.3, 0.93]], (2,)), ([[0.9, 0.1, 0.2]], (0,)), (3, ())],
+)
+def test_the_tool_directions_that_never_turn_are_the_robots(axes, still):
+    """``still_axes`` of the tool's rotations (scipy's): a tool that never turns hides all
+    three coordinates of a marker; one turning about a fixed axis, the one along it the most;
+    one turning about any axis, none."""
+    from scipy.spatial.transform import Rotation
+
+    from calib.calibration.determined import still_axes
+
+    rng = np.random.default_rng(0)
+    R0 = Rotation.from_rotvec([0.3, -0.1, 0.2])
+    if axes is None:  # a gantry
+        turns = Rotation.identity(20)
+    elif axes == 3:
+        turns = Rotation.from_rotvec(rng.uniform(-1.0, 1.0, (20, 3)))
+    else:  # about one axis, by any angle
+        axis = np.asarray(axes[0]) / np.linalg.norm(axes[0])
+        turns = Rotation.from_rotvec(np.outer(rng.uniform(-2.0, 2.0, 20), axis))
+    assert still_axes(R0.as_matrix() @ turns.as_matrix()) == still

@@ -210,9 +210,9 @@ def test_held_out_rows_are_registered_once(monkeypatch):
     seen: list[int] = []
     inner = chain_registration._validation_steps
 
-    def counted(chain, nominal, held, guess, opts):
+    def counted(chain, nominal, held, guess, opts, hold):
         seen.append(0 if held is None else held[0].m)
-        return inner(chain, nominal, held, guess, opts)
+        return inner(chain, nominal, held, guess, opts, hold)
 
     monkeypatch.setattr(chain_registration, "_validation_steps", counted)
     assert calibrate(tree, data, holdout=0.25).accepted

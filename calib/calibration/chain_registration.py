@@ -1,7 +1,10 @@
 """A measured chain's registration: its measuring frame and markers on the nominal model, checked.
 
 Closed form refined by Levenberg-Marquardt, then the steps of every kind of term
-(:mod:`.term_checks`): :func:`checked_registration`.
+(:mod:`.term_checks`): :func:`checked_registration`. Marker coordinates no posture within the
+joint limits separates from the frame's translation (a gantry's tool never turns:
+:func:`held_markers`) are held at their given value, the frame absorbing them
+(:class:`Held`, :func:`held_note`).
 """
 
 from __future__ import annotations
@@ -28,8 +31,13 @@ from .solve import Fit, fit
 from .term_checks import Aside
 
 __all__ = [
+    "STRUCTURE_CONFIGS",
+    "Held",
     "checked_registration",
     "frames_model",
+    "held_markers",
+    "held_note",
+    "own_model",
 ]
 
 
@@ -38,26 +46,104 @@ def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
 
     No MDH parameter: a measured term's own unknowns too. The registration fits them all
     (``fix`` of the frame or the markers is refused before any registration,
-    :func:`~.measured_options.level_offer`).
+    :func:`~.measured_options.level_offer`) but the marker coordinates no posture separates
+    from the frame (:func:`own_model`).
     """
     return ErrorModel(
         ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=n_markers, kind=kind
     )
 
 
-def _registrations(nominal, data, guess, opts) -> Callable[[float], Fit]:
+@dataclass(frozen=True, eq=False)
+class Held:
+    """A :func:`frames_model` with marker coordinates held at the start (x: the other columns).
+
+    ``held``: 0-based among the markers' ``3 K``.
+    """
+
+    model: ErrorModel
+    held: tuple[int, ...]
+
+    n_markers = property(lambda self: self.model.n_markers, doc="Markers K.")
+    pose = property(lambda self: self.model.pose, doc="Orientation rows are fitted.")
+    rows = property(lambda self: self.model.rows, doc="Residual rows per configuration.")
+
+    @property
+    def free(self) -> list[int]:
+        """The model's columns x moves."""
+        return [c for c in range(self.model.size()) if c - 6 not in self.held]
+
+    def size(self) -> int:
+        """Number of free parameters."""
+        return self.model.size() - len(self.held)
+
+    def _full(self, x: np.ndarray) -> np.ndarray:
+        full = np.zeros(self.model.size())
+        full[self.free] = x
+        return full
+
+    def apply(self, start: State, x: np.ndarray) -> State:
+        """The state at parameters x (x = 0 is ``start``)."""
+        return self.model.apply(start, self._full(x))
+
+    def jacobian(self, start: State, x, data, torque, state=None, kin=None) -> np.ndarray:
+        """The model's Jacobian ``(m, rows, size)`` at x, the held columns left out."""
+        return self.model.jacobian(start, self._full(x), data, torque, state, kin)[..., self.free]
+
+
+STRUCTURE_CONFIGS = 20
+"""Random configurations :func:`held_markers` reads the tool's rotations at: a tool that turns
+about two axes turns its every direction at almost any two of them."""
+
+
+def own_model(n_markers: int, kind: Measurement, held: tuple[int, ...] = ()) -> ErrorModel | Held:
+    """:func:`frames_model`, the marker coordinates ``held`` held (:class:`Held`) if any."""
+    model = frames_model(n_markers, kind)
+    return Held(model, held) if held else model
+
+
+def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
+    """The first marker's coordinates no posture within the joint limits separates from the frame.
+
+    :func:`~.determined.still_axes` of the ``nominal`` tool's rotations at
+    ``STRUCTURE_CONFIGS`` random configurations of ``chain`` (seed 0: the robot's structure,
+    not the data's); 0-based among the markers' ``3 K``.
+    """
+    q = chain.random_configurations(STRUCTURE_CONFIGS, 0)
+    return determined.still_axes(nominal.kinematics(q).R[:, -1])
+
+
+def held_note(held: tuple[int, ...], guess: np.ndarray) -> str:
+    """The note of marker coordinates held at their given value (:func:`held_markers`)."""
+    whole = [k for k in range(len(guess)) if all(3 * k + a in held for a in range(3))]
+    named = [f"marker{k + 1}" for k in whole] + [
+        f"marker{c // 3 + 1}.{'xyz'[c % 3]}" for c in held if c // 3 not in whole
+    ]
+    values = ", ".join(f"{v:.4g}" for v in guess.ravel()[list(held)])
+    one = len(named) == 1
+    it, turns = ("it" if one else "them"), "never turns" if whole else "turns about one axis only"
+    return (
+        f"{' and '.join(named)} held at {'its' if one else 'their'} given value ({values} m in "
+        f"the tool frame): no posture within the joint limits separates {it} from the "
+        f"measurement frame's translation (the tool {turns}), which absorbs {it}: the "
+        f"predictions do not depend on {it}"
+    )
+
+
+def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
     """The registration of ``data`` at an orientation weight, each weight run once.
 
     Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only). The
     nominal kinematics at the data's joints (the fit moves no geometry) and the
     closed-form start (no weight changes it) are made once, the start on the first call.
+    ``held``: marker coordinates held at the ``guess`` (:func:`held_markers`).
     """
     kin = nominal.kinematics(data.q)
-    model = frames_model(data.n_markers, data.kind)
+    model = own_model(data.n_markers, data.kind, held)
 
     @functools.cache
     def start() -> State:
-        return register(nominal, data.q, data.points, data.rotations, guess, kin)
+        return register(nominal, data.q, data.points, data.rotations, guess, kin, held)
 
     @functools.cache
     def at(weight: float) -> Fit:
@@ -82,7 +168,7 @@ class _Rows:
     ``guess``: the markers' in the tool frame [m]; ``opts``: with the orientation weight;
     ``at``: :func:`_registrations` of ``rows``; ``frames``: the registration's model when the
     outliers may not leave fewer equations than its unknowns (validation data: the outliers
-    stay), else None (that is an error).
+    stay), else None (that is an error); ``hold``: marker coordinates held at the ``guess``.
     """
 
     chain: Chain
@@ -92,6 +178,7 @@ class _Rows:
     opts: Options
     at: Callable[[float], Fit]
     frames: ErrorModel | None = None
+    hold: tuple[int, ...] = ()
 
     diagnose_first = False
 
@@ -111,7 +198,7 @@ class _Rows:
             frames = frames_model(sub.n_markers, sub.kind)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
-            return _registrations(nominal, sub, guess, opts)(weight)
+            return _registrations(nominal, sub, guess, opts, self.hold)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
             residuals = reg.state.residuals(data, None, state.kin)
@@ -135,9 +222,11 @@ class _Rows:
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 
         def errors(d):
-            return validation.stats(_registrations(nominal, d, guess, opts)(unit).state, d, None)
+            registered = _registrations(nominal, d, guess, opts, self.hold)(unit)
+            return validation.stats(registered.state, d, None)
 
-        same = self.at if rows is self.rows else _registrations(nominal, rows, guess, opts)
+        hold = self.hold
+        same = self.at if rows is self.rows else _registrations(nominal, rows, guess, opts, hold)
         reg = same(unit)
         first = validation.stats(reg.state, rows, None, reg.kin)
         revolute, rot = self.chain.sigma == 0, first.orientation_rms
@@ -151,15 +240,16 @@ class _Rows:
         return diagnosis.explain(rows, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
-def checked_registration(chain, nominal, train, checked, guess, opts):
+def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
     """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
 
     The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
     estimated before (unless given). Returns the options with it, the registration state,
     the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
-    kinematics at ``train``'s joints (the registration's, at every row).
+    kinematics at ``train``'s joints (the registration's, at every row). ``hold``: marker
+    coordinates held at the ``guess`` (:func:`held_markers`).
     """
-    at = _registrations(nominal, train, guess, opts)
+    at = _registrations(nominal, train, guess, opts, hold)
     if opts.orientation_weight is None:  # estimated from the registration (poses)
         weight = weighting.DEFAULT_WEIGHT
         if train.quaternion is not None:
@@ -168,8 +258,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
                 weighting.pose_angles(train.n_markers),
             )
         opts = dataclasses.replace(opts, orientation_weight=weight)
-    steps = _Rows(chain, nominal, train, guess, opts, at)
-    validate = _validation_steps(chain, nominal, checked, guess, opts)
+    steps = _Rows(chain, nominal, train, guess, opts, at, hold=hold)
+    validate = _validation_steps(chain, nominal, checked, guess, opts, hold)
     aside, notes = term_checks.checked(steps, validate)
     reg = aside.state
     if not reg.converged:
@@ -177,12 +267,12 @@ def checked_registration(chain, nominal, train, checked, guess, opts):
     return opts, reg.state, aside.bad, aside.found, notes, steps.register().kin
 
 
-def _validation_steps(chain, nominal, held, guess, opts) -> list[tuple[_Rows, str]]:
+def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Rows, str]]:
     """The steps on validation data (``held``: (data, label) or None), with their label."""
     if held is None:
         return []
     frames = frames_model(held[0].n_markers, held[0].kind)
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
-    at = _registrations(nominal, held[0], guess, opts)
-    return [(_Rows(chain, nominal, held[0], guess, opts, at, frames), held[1])]
+    at = _registrations(nominal, held[0], guess, opts, hold)
+    return [(_Rows(chain, nominal, held[0], guess, opts, at, frames, hold), held[1])]

@@ -169,9 +169,11 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
         if isinstance(d, PixelPart):
             state, d, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
+            hold = not run.instrument or len(chains) == 1  # a tree's tools share one frame
             state, d, found, more, held[c] = checked_measured(
-                chain, d, v, held[c], weight, opts.max_iterations, run.marker, opts.noise_mm, zero
-            )
+                chain, d, v, held[c], weight, opts.max_iterations, run.marker, opts.noise_mm, zero,
+                hold,
+            )  # fmt: skip
             state = dataclasses.replace(state, instrument=run.instrument)
         else:
             loop = len(chains) > 1 and isinstance(d.kind, FixedPoseContact)  # a closed loop

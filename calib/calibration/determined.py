@@ -20,7 +20,9 @@ it needs; calib never silently cuts the level down to what the rows can carry.
    the instrument frame's height are one sum). The model is then refused, the sentence names
    the unknowns, their combination, its condition and their standard deviations, and the
    posture among random ones within the joint limits that separates them best
-   (:func:`separating_posture`).
+   (:func:`separating_posture`). What no posture separates is the robot's structure, not a
+   weak data set: a marker's offset along a tool direction that never turns (a gantry's,
+   :func:`still_axes`) is held at its given value before the registration, not refused.
 
 What a chain's instrument determines with K markers (``calib analyze --markers``,
 :func:`identifiable_parameters`): the measurement frame (6), the markers (3 each; and the
@@ -56,6 +58,7 @@ __all__ = [
     "SAMPLE_EQUATIONS",
     "SAMPLE_WORK",
     "SELECTION_WORK",
+    "STILL",
     "Direction",
     "check_equations",
     "check_rank",
@@ -68,6 +71,7 @@ __all__ = [
     "selection_configurations",
     "separating_posture",
     "separating_text",
+    "still_axes",
     "undetermined",
 ]
 
@@ -316,6 +320,30 @@ def ill_posed_text(
     return text + (
         f"; {posture}" if posture else "; fix one of them or measure more varied postures"
     )
+
+
+STILL = 1e-9
+"""Singular value [per rotation entry] of the tool's rotations' changes between random
+configurations under which a direction in the tool frame never turns (:func:`still_axes`)."""
+
+
+def still_axes(R: np.ndarray) -> tuple[int, ...]:
+    """The tool-frame coordinates a marker's offset along the axes that never turn hides in.
+
+    ``R`` ``(m, 3, 3)``: the tool's rotations at random configurations within the joint
+    limits. A direction ``a`` of the tool frame with ``R_i a`` the same at every posture (all
+    three for a gantry's tool, which never turns; the axis a SCARA's tool turns about) moves
+    a marker's predicted points as the measurement frame's translation does: the robot's
+    structure, not the data's, leaves them one unknown. Returns as many coordinates (0-based:
+    x, y, z) as there are such directions (none, one or all three: a rotation that keeps two
+    keeps their cross product), those they move most: holding the first marker's at its given
+    value leaves the frame to absorb it, as a non-identifiable MDH parameter regroups into a
+    base parameter (the other markers' offsets from it stay determined). Empty: the tool
+    turns about two axes or more (a weak data set is :func:`ill_posed`'s).
+    """
+    _, s, vt = np.linalg.svd((R[1:] - R[0]).reshape(-1, 3), full_matrices=False)
+    still = vt[s < STILL * np.sqrt(len(R))]
+    return tuple(sorted(np.argsort(-np.abs(still).sum(axis=0))[: len(still)].tolist()))
 
 
 def identifiable_parameters(

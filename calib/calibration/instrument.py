@@ -103,7 +103,8 @@ def shared_frame(states: list, train: list) -> list:
 
     :func:`~.registration.register_points` on every tool's predicted points, from each
     term's own markers: the :class:`MeasuredState` with ``instrument`` among ``states`` get
-    one frame and their markers, the others are returned as they are.
+    one frame and their markers (those :attr:`~.measured_term.MeasuredState.held` kept), the
+    others are returned as they are.
     """
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
@@ -114,6 +115,7 @@ def shared_frame(states: list, train: list) -> list:
         [k.p[:, -1] for k in kin],
         [train[c].points for c in terms],
         [states[c].inner.markers for c in terms],
+        [states[c].held for c in terms],  # at their given value (one chain's gantry)
     )
     out = list(states)
     for c, mk in zip(terms, markers, strict=True):

@@ -25,7 +25,7 @@ from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import determined, outliers, term_checks, validation
-from .chain_registration import checked_registration, frames_model
+from .chain_registration import Held, checked_registration, held_markers, held_note, own_model
 from .measured_options import marker_guess
 from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
 from .options import Options
@@ -55,11 +55,15 @@ class MeasuredKind:
         instrument: Measured by an instrument outside the robot whose frame every such term
             shares (a tree's tools): the frame's 6 unknowns are the term's object (one for
             all), its markers and tool rotation its own (the contact's place in a joint fit).
+        held: Marker coordinates (0-based among the ``3 K``) held at their given value, no
+            unknown: no posture separates them from the frame's translation
+            (:func:`~.chain_registration.held_markers`).
     """
 
     n_markers: int
     pose: bool
     instrument: bool = False
+    held: tuple[int, ...] = ()
 
     object_name = "frame"
 
@@ -69,9 +73,19 @@ class MeasuredKind:
         return "pose" if self.pose else "position"
 
     def names(self) -> tuple[str, ...]:
-        """The term's unknowns: the frame's 6, each marker's 3, the tool rotation's 3 (pose)."""
-        markers = [f"marker{k + 1}.{a}" for k in range(self.n_markers) for a in "xyz"]
+        """The unknowns: the frame's 6, each marker's 3 (but those held), the tool's 3 (pose)."""
+        markers = [
+            f"marker{c // 3 + 1}.{'xyz'[c % 3]}"
+            for c in range(3 * self.n_markers)
+            if c not in self.held
+        ]
         return (*FRAME_NAMES, *markers, *(TOOL_NAMES if self.pose else ()))
+
+    @property
+    def kept(self) -> list[int]:
+        """Each unknown's place among the frame's, every marker coordinate's and the tool's."""
+        every = 6 + 3 * self.n_markers + 3 * self.pose
+        return [c for c in range(every) if c - 6 not in self.held]
 
     @property
     def object_dofs(self) -> tuple[int, ...]:
@@ -184,19 +198,20 @@ class MeasuredState:
             (:attr:`MeasuredKind.instrument`).
         seen: The registration's frames of the nominal robot at its rows (kept and held
             out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
+        held: Marker coordinates held at their given value (:attr:`MeasuredKind.held`).
     """
 
     inner: State
     weight: float
     instrument: bool = False
     seen: Seen | None = None
+    held: tuple[int, ...] = ()
 
     @property
     def kind(self) -> MeasuredKind:
         """The term's layout."""
-        return MeasuredKind(
-            self.inner.n_markers, self.inner.tool_rotation is not None, self.instrument
-        )
+        pose = self.inner.tool_rotation is not None
+        return MeasuredKind(self.inner.n_markers, pose, self.instrument, self.held)
 
     @property
     def mdh(self):
@@ -225,9 +240,9 @@ class MeasuredState:
         return self.weighed(self.inner.residuals(data, None, kin))
 
     @cached_property
-    def _own(self) -> ErrorModel:
+    def _own(self) -> ErrorModel | Held:
         """The term's own unknowns' model (the registration's, made once per state)."""
-        return frames_model(self.inner.n_markers, POSE if self.kind.pose else POSITION)
+        return own_model(self.inner.n_markers, POSE if self.kind.pose else POSITION, self.held)
 
     def moved(self, x: np.ndarray) -> MeasuredState:
         """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
@@ -289,6 +304,7 @@ def checked_measured(
     marker=None,
     noise_mm: float | None = None,
     zero: tuple | None = None,
+    hold: bool = True,
 ):
     """A measured term's rows checked as one chain's are, and its registration.
 
@@ -297,7 +313,10 @@ def checked_measured(
     diagnosed too), and the held-out rows' (``held``) outliers set aside by the same rule
     (:func:`~.term_checks.held_out`). ``weight`` [m/rad] None: estimated; ``marker`` [m]:
     :func:`~.measured_options.marker_guess`'s; ``noise_mm`` [mm] or None; ``zero``: the
-    chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made.
+    chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made; ``hold``:
+    marker coordinates no posture separates from the frame's translation are held at
+    ``marker`` (:func:`~.chain_registration.held_markers`, a note says so), not a tree's
+    tools (their shared frame may be determined by another tool).
 
     Returns:
         Its registered state (:attr:`MeasuredState.seen` set), its rows kept, the outliers,
@@ -312,14 +331,18 @@ def checked_measured(
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
+    nominal = from_chain(chain, zero=zero)
+    pinned = held_markers(chain, nominal) if hold else ()
     opts, reg, bad, found, notes, kin = checked_registration(
-        chain, from_chain(chain, zero=zero), data, checked, guess, opts
+        chain, nominal, data, checked, guess, opts, pinned
     )
+    notes = [held_note(pinned, guess), *notes] if pinned else notes
     kept = data.subset(~bad) if bad.any() else data
     rows = [*([kept] if kept is data else []), *([] if held is None else [held])]
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
     seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
-    state = MeasuredState(reg, float(opts.orientation_weight or DEFAULT_WEIGHT), seen=seen)
+    turn = float(opts.orientation_weight or DEFAULT_WEIGHT)
+    state = MeasuredState(reg, turn, seen=seen, held=pinned)
     aside = held
     if held is not None:
         k, at = data.n_markers, state.frames_at

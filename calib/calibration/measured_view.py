@@ -142,7 +142,7 @@ def measured_part(
     joint = None if state.instrument else measuring_joint(chain)
     frame = "instrument" if state.instrument else f"term{term}"  # the instrument's: shared
     names = [f"{frame if n.startswith('frame') else f'term{term}'}.{n}" for n in state.kind.names()]
-    entries = parameter_entries(names, _own_change(registered, state), std, ())
+    entries = parameter_entries(names, _own_change(registered, state)[state.kind.kept], std, ())
     for e in entries:
         e["joint"] = joint if ".frame." in e["name"] else None
     bare = dataclasses.replace(registered, seen=None)  # a result keeps no frames of its rows

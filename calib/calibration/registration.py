@@ -11,7 +11,9 @@ from its solution whatever the frame's rotation and distance:
 2. with that frame, each marker by linear least squares
    (``R^T (y_ik - t) - p_i = R_i m_k`` stacked over the configurations: as
    ``sum_i R_i^T R_i = m I``, the mean of ``R_i^T (R^T (y_ik - t) - p_i)``);
-3. repeat until the markers move less than 1e-12 m (at most ``ITERATIONS`` times);
+3. repeat until the markers move less than 1e-12 m (at most ``ITERATIONS`` times); marker
+   coordinates no posture separates from the frame's translation (a tool that never turns,
+   :func:`~.determined.still_axes`) stay at their guess, the frame absorbing them;
 4. for pose data, the measured frame's rotation in the tool frame: the rotation nearest (in
    the Frobenius norm) to the mean of ``R_i^T R^T R_meas,i``.
 
@@ -143,19 +145,25 @@ class _Tools:
         return np.concatenate([t.markers(R, ca) for t in self.tools])
 
 
-def register_points(Rt: list, pt: list, points: list, markers: list) -> tuple[np.ndarray, list]:
+def register_points(
+    Rt: list, pt: list, points: list, markers: list, held: list | None = None
+) -> tuple[np.ndarray, list]:
     """Closed-form frame and markers of tools measured in one frame (module text, steps 1-3).
 
     Each tool's rotations ``Rt`` ``(m_c, 3, 3)`` and origins ``pt`` ``(m_c, 3)`` [m] in the
     base frame, points ``(m_c, K_c, 3)`` [m] in the measurement frame and markers' guess
-    ``(K_c, 3)`` [m] in the tool frame. Returns the pose of the base frame in the measurement
-    frame ``(4, 4)`` and each tool's markers ``(K_c, 3)`` [m].
+    ``(K_c, 3)`` [m] in the tool frame; ``held``: each tool's marker coordinates (0-based
+    among its ``3 K_c``) kept at their guess, or None (none). Returns the pose of the base
+    frame in the measurement frame ``(4, 4)`` and each tool's markers ``(K_c, 3)`` [m].
     """
     sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])
+    keep = [(c.start or 0) + k for c, h in zip(sums.slices, held or (), strict=False) for k in h]
     for _ in range(ITERATIONS):
         H, ca = sums.sums(flat)
         new = sums.markers(_rotation(H), ca)  # t is not needed until the end
+        if keep:
+            new[keep] = flat[keep]
         # every marker moved by less than 1e-12 (a NaN never): max(|new - flat|) < 1e-12
         done = all(abs(a - b) < 1e-12 for a, b in zip(new.tolist(), flat.tolist(), strict=True))
         flat = new
@@ -175,6 +183,7 @@ def register(
     rotations: np.ndarray | None = None,
     markers: np.ndarray | None = None,
     kin: Kinematics | None = None,
+    held: tuple[int, ...] = (),
 ) -> State:
     """Closed-form measurement frame and markers for the nominal geometry (module text).
 
@@ -185,6 +194,7 @@ def register(
         rotations: Measured orientations ``(m, 3, 3)``, or None.
         markers: Guess of the markers in the tool frame ``(K, 3)`` [m] (default: zeros).
         kin: ``mdh.kinematics(q)``, if already made.
+        held: Marker coordinates (0-based among the ``3 K``) kept at their guess.
 
     Returns:
         The nominal geometry with the estimated frame, markers (and measured-frame rotation).
@@ -194,7 +204,7 @@ def register(
     Rt, pt = kin.R[:, -1], kin.p[:, -1]
     K = points.shape[1]
     mk = np.zeros((K, 3)) if markers is None else np.array(markers, dtype=float).reshape(K, 3)
-    frame, (mk,) = register_points([Rt], [pt], [points], [mk])
+    frame, (mk,) = register_points([Rt], [pt], [points], [mk], [held])
     tool = None
     if rotations is not None:
         R = np.ascontiguousarray(frame[:3, :3])
