@@ -147,6 +147,14 @@ def _check(run: Run) -> None:
             validation.check_held_out(d, v)
 
 
+def _objects(run: Run, data) -> tuple[int, ...]:
+    """Each term's object (:func:`~.contact_checks.plane_groups`, an instrument shared)."""
+    groups = contact_checks.plane_groups(run.chains, data, run.shared_planes)
+    plane_of = instrument_groups(groups, data, run.instrument)
+    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    return plane_of
+
+
 def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     """Each term's rows checked by its kind's checks, each returning the same five things.
 
@@ -236,10 +244,7 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     _check(run)
     chains, parts = run.chains, pixel_parts(run.chains, run.data)
     check_selection_memory(chains, parts, "complete")
-    plane_of = instrument_groups(
-        contact_checks.plane_groups(chains, parts, run.shared_planes), parts, run.instrument
-    )
-    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    plane_of = _objects(run, parts)
     held: list = [None] * len(parts)
     train, _, measured = _checked(run, list(parts), None, contact_frame(run.contact), held, [])
     start = _register(run, train, measured, plane_of, [])
@@ -310,9 +315,7 @@ def register_contact_chains(run: Run) -> Registered:
     train = [s[0] for s in splits]
     given = validate or [None] * len(data)
     held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
-    plane_of = contact_checks.plane_groups(chains, data, run.shared_planes)
-    plane_of = instrument_groups(plane_of, data, run.instrument)
-    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    plane_of = _objects(run, data)
     notes: list[str] = []
     diagnosed = None if run.held_label == "holdout" else validate  # a holdout: with its data's
     zeros = zero_frames(tuple(chains))  # one walk: the registrations' models and the paths
