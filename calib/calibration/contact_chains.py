@@ -45,26 +45,15 @@ from .contact_checks import held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
-from .contact_register import (
-    Registered,
-    Run,
-    determined_unknowns,
-    register_contact_chains,
-)
+from .contact_register import Registered, Run, determined_unknowns, register_contact_chains
 from .contact_result import gap_stats, part_stats
-from .contact_term import (
-    check_held_out_gaps,
-    contact_objects,
-)
+from .contact_term import check_held_out_gaps, contact_objects
 from .delivery import read_files
 from .measured_options import level_offer
 from .measured_term import MeasuredState, unseen
 from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
-from .pixel_chain import (
-    PixelData,
-    PixelTermState,
-)
+from .pixel_chain import PixelData, PixelTermState
 from .pixel_chain_result import PixelChain, pixel_result
 from .problem import check_weighed
 from .solve import fit, fitted_values, gauss_newton_finish

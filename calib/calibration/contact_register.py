@@ -34,12 +34,7 @@ from .contact_model import ContactState
 from .contact_term import contact_frame, split_contacts
 from .instrument import instrument_groups, shared_frame
 from .measured_options import compliance_torques
-from .measured_term import (
-    MeasuredState,
-    check_measured,
-    checked_measured,
-    one_term_per_frame,
-)
+from .measured_term import MeasuredState, check_measured, checked_measured, one_term_per_frame
 from .options import Options
 from .outliers import Outlier
 from .pixel_chain import PixelData, PixelPart, PixelTermState, check_pixels, pixel_parts
@@ -47,13 +42,7 @@ from .pixel_fit import checked_pixels
 from .placements import Placements, zero_frames
 from .solve import fit
 
-__all__ = [
-    "Registered",
-    "Run",
-    "determined_unknowns",
-    "drawn",
-    "register_contact_chains",
-]
+__all__ = ["Registered", "Run", "determined_unknowns", "drawn", "register_contact_chains"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -33,14 +33,7 @@ from .report import parameter_entries, term_errors
 from .residuals import ResidualStats, Validation
 from .solve import Fit, condition, covariance
 
-__all__ = [
-    "ChainView",
-    "MeasuredChain",
-    "Solution",
-    "measured_part",
-    "residual_stats",
-    "world_of",
-]
+__all__ = ["ChainView", "MeasuredChain", "Solution", "measured_part", "residual_stats", "world_of"]
 
 
 @dataclass(frozen=True, eq=False)
