@@ -224,23 +224,18 @@ def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsS
 def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """What a joint fit of these terms would determine: the steps before its choice.
 
-    The run's data (every row: no validation, no holdout) are checked, outliers set aside
-    and registered as :func:`register_contact_chains` does; the rank of the Jacobian of every
-    row by every unknown (objects, contact frames, measuring frames, markers, and every joint
+    The run's data (every row: no validation, no holdout, rigid) checked, outliers set aside
+    and registered by :func:`register_contact_chains`; the rank of the Jacobian of every row
+    by every unknown (objects, contact frames, measuring frames, markers, and every joint
     placement component) at flush postures is what the data determine. Returns the names
     of the unknowns determined (a basis, in the columns' order) and of all.
     """
-    _check(run)
-    chains, parts = run.chains, pixel_parts(run.chains, run.data)
-    check_selection_memory(chains, parts, "complete")
-    plane_of = _objects(run, parts)
-    held: list = [None] * len(parts)
-    train, _, measured = _checked(run, list(parts), None, contact_frame(run.contact), held, [])
-    start = _register(run, train, measured, plane_of, [])
-    names = start.placements.names()
-    wide = chains_model(start, plane_of, range(len(names)), names)
+    complete = dataclasses.replace(run.options, params="complete")  # its memory estimate
+    r = register_contact_chains(dataclasses.replace(run, options=complete))
+    names = r.start.placements.names()
+    wide = chains_model(r.start, r.plane_of, range(len(names)), names)
     every = wide.names()
-    kept = structural(wide, start, flush_data(start, train, None))
+    kept = structural(wide, r.start, flush_data(r.start, r.train, None))
     return tuple(every[k] for k in sorted(kept)), every
 
 
