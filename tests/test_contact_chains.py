@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from contact_scorer import plane_gaps, read_joints, relative_placements
+from contact_states import plane_state
 
 from calib import calibrate_contact_chains, load_robot, simulate
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
-from calib.calibration.contact_model import plane_state
 from calib.calibration.contact_term import split_contacts
 from calib.calibration.placements import Placements
 from calib.cli.commands import main

@@ -20,9 +20,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from contact_scorer import plane_gaps, read_joints
+from contact_states import plane_state
 
 from calib import calibrate, load_calibrated, load_robot
-from calib.calibration.contact_model import plane_state
 from calib.calibration.entry import calibrate_contacts
 from calib.exceptions import InvalidArgumentError
 from calib.kinematics.standing import JointReadings, Support, standing_load

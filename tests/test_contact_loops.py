@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from contact_scorer import contact_gaps
+from contact_states import plane_state
 from test_contact_chains import central_differences, moved_chains, true_robot
 
 from calib import calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_checks import subset
 from calib.calibration.contact_frames import ContactFrames
-from calib.calibration.contact_model import ContactState, plane_state
+from calib.calibration.contact_model import ContactState
 from calib.calibration.contact_term import split_contacts
 from calib.cli.commands import main
 from calib.exceptions import InvalidArgumentError

@@ -16,11 +16,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from contact_scorer import configurations, plane_gaps, relative_placements
+from contact_states import plane_state
 from test_contact_chains import central_differences, moved_chains
 
 from calib import calibrate_contact_chains, load_chain, load_robot, simulate
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
-from calib.calibration.contact_model import plane_state
 from calib.calibration.measured_term import MeasuredState
 from calib.calibration.measured_view import MeasuredChain
 from calib.calibration.model import registration_state

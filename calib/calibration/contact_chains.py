@@ -45,26 +45,15 @@ from .contact_checks import held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
-from .contact_register import (
-    Registered,
-    Run,
-    determined_unknowns,
-    register_contact_chains,
-)
+from .contact_register import Registered, Run, determined_unknowns, register_contact_chains
 from .contact_result import gap_stats, part_stats
-from .contact_term import (
-    check_held_out_gaps,
-    contact_objects,
-)
+from .contact_term import check_held_out_gaps, contact_objects
 from .delivery import read_files
 from .measured_options import level_offer
 from .measured_term import MeasuredState, unseen
 from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
-from .pixel_chain import (
-    PixelData,
-    PixelTermState,
-)
+from .pixel_chain import PixelData, PixelTermState
 from .pixel_chain_result import PixelChain, pixel_result
 from .problem import check_weighed
 from .solve import fit, fitted_values, gauss_newton_finish
@@ -351,42 +340,22 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
         compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes, load)
         objects = contact_objects(s, d, torque[0])
-        parts.append(
-            ChainContacts(
-                chain,
-                d.source,
-                d.contacts[0],
-                objects[d.contacts[0]],
-                s.contact,
-                s0.mdh,
-                s.mdh,
-                s.weight,
-                stats,
-                s.kind,
-                placed=objects,
-                compliance=compliance,
-                load=None if compliance is None else load,
-                readings=() if compliance is None or d.readings is None else d.readings.names,
-            )
-        )
+        parts.append(ChainContacts(
+            chain, d.source, d.contacts[0], objects[d.contacts[0]], s.contact, s0.mdh, s.mdh,
+            s.weight, stats, s.kind, placed=objects, compliance=compliance,
+            load=None if compliance is None else load,
+            readings=() if compliance is None or d.readings is None else d.readings.names,
+        ))  # fmt: skip
     joints = [name for c in state.chains for name in c.joint_names]
     shared = tuple(n for n in dict.fromkeys(joints) if joints.count(n) > 1)
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
+    spans = zip(stages, clock[:-1], clock[1:], strict=True)
+    planes = {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
+    unconverged = None if fitted.converged else f"the solver did not converge ({fitted.message})"
     return ContactChainsCalibration(
-        chains=tuple(parts),
-        placements=state.placements,
-        shared=shared,
-        planes=len(
-            {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
-        ),
-        free=tuple(model.names()[model.fixed :]),
-        unknowns=model.size(),
-        selection=selection,
-        refusal=refusal
-        or (None if fitted.converged else f"the solver did not converge ({fitted.message})"),
-        notes=tuple(notes),
-        timings_ms={
-            k: 1e3 * (b - a) for k, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
-        },
-    )
+        chains=tuple(parts), placements=state.placements, shared=shared, planes=len(planes),
+        free=tuple(model.names()[model.fixed :]), unknowns=model.size(), selection=selection,
+        refusal=refusal or unconverged, notes=tuple(notes),
+        timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
+    )  # fmt: skip

@@ -43,14 +43,7 @@ from .model import compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
 
-__all__ = [
-    "ChainsData",
-    "ChainsModel",
-    "ChainsState",
-    "joint_rows",
-    "on_models",
-    "padded",
-]
+__all__ = ["ChainsData", "ChainsModel", "ChainsState", "joint_rows", "on_models", "padded"]
 
 
 def _row_count(kinds) -> int:

@@ -121,12 +121,7 @@ class ChainContacts:
 
 
 def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
-    """One chain touching: the report's fields of its layout, and its format 2's keys.
-
-    Args:
-        result: The :class:`ContactChainsCalibration` of one :class:`ChainContacts`.
-        fields: The report's fields of every shape (edited copy returned).
-    """
+    """One chain touching (``result``): ``fields`` of its layout (a copy), format 2's keys."""
     part = result.chains[0]
     chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
@@ -279,10 +274,7 @@ class ContactChainsCalibration(Result, ChainView):
         return {compliance_path(out): json_text(document)}
 
     def _entries(self) -> list[dict]:
-        """The joint placement parameters' report entries (``fitted``), each with its joint.
-
-        One chain touching or measured: named as its MDH rows (compliances with their type).
-        """
+        """``fitted``'s report entries with their joints (one chain: as its MDH rows name them)."""
         part, sigma = self.chains[0], None
         if len(self.chains) == 1 and isinstance(part, ChainContacts | MeasuredChain):
             nominal = part.nominal if isinstance(part, ChainContacts) else part.registered.inner.mdh
@@ -330,10 +322,7 @@ class ContactChainsCalibration(Result, ChainView):
         return tuple(c for c in self._of(MeasuredChain) if c.joint is None)
 
     def _frames(self) -> dict:
-        """The report's ``frames``: contact frames, each measuring frame's placement.
-
-        With pixel terms, ``cameras``: each camera's link, placement and intrinsics.
-        """
+        """The report's ``frames``: contact frames, measuring frames' placements, ``cameras``."""
         measured = self._of(MeasuredChain)
         cameras = {c.name: c.camera_dict() for c in self._of(PixelChain)}
         return {

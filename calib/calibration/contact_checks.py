@@ -97,13 +97,9 @@ def registration(
 ) -> ContactState:
     """The nominal robot with the objects and the contact frame registered (closed form).
 
-    Args:
-        nominal: The nominal robot.
-        data: The touches.
-        guess: The contact frame's guess in the tool frame ``(4, 4)``.
-        weight: Weight of the angle rows [m/rad], or None: estimated from the gaps
-            (:func:`.weighting.estimate_weight`, ``WEIGHT_ROUNDS`` registrations).
-        first: The registration at ``DEFAULT_WEIGHT``, if already made.
+    ``guess``: the contact frame's in the tool frame ``(4, 4)``; ``weight``: the angle rows'
+    [m/rad], or None: estimated from the gaps (:func:`.weighting.estimate_weight`,
+    ``WEIGHT_ROUNDS`` registrations); ``first``: the registration at ``DEFAULT_WEIGHT``, if made.
     """
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]

@@ -44,9 +44,8 @@ __all__ = [
 def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | None:
     """The standing load of a fit of one chain touching planes (``elastic``), or None (rigid).
 
-    Raises:
-        InvalidArgumentError: ``elastic`` for several terms, for measurements or for a kind
-            other than ``plane``; ``support`` not a :class:`Support`, or without ``elastic``.
+    InvalidArgumentError: ``elastic`` for several terms, measurements or a kind other than
+    ``plane``; ``support`` not a :class:`Support`, or without ``elastic``.
     """
     if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
         raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
@@ -143,15 +142,8 @@ def compliance_line(part) -> list[str]:
 def compliance_document(part, urdf: str) -> dict:
     """The compliance file of the calibrated URDF ``urdf`` (JSON-ready).
 
-    :func:`calib.kinematics.elastic.load_calibrated` reads it back with the URDF.
-
-    Args:
-        part: The chain touching (``chain``, ``compliance``, ``load``, ``readings``,
-            ``contact``, ``plane_id``, ``plane``).
-        urdf: The calibrated URDF's path, as recorded.
-
-    Raises:
-        CalibrationRefusedError: No compliance was fitted.
+    :func:`calib.kinematics.elastic.load_calibrated` reads it back with the URDF. ``part``:
+    the chain touching; CalibrationRefusedError where it fitted no compliance.
     """
     if part.compliance is None or part.load is None:
         raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")

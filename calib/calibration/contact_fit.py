@@ -122,19 +122,9 @@ def _result(model, start, data, torque, x, f, status, counts) -> Fit:
         1: "both actual and predicted relative reductions are at most the tolerance",
         2: "the relative step is at most the tolerance",
     }
-    return Fit(
-        model,
-        start,
-        model.apply(start, x),
-        x,
-        J,
-        f.ravel(),
-        status > 0 and finite,
-        status,
-        messages[status] if finite else "non-finite parameters or residuals",
-        counts[0],
-        counts[1],
-    )
+    message = messages[status] if finite else "non-finite parameters or residuals"
+    return Fit(model, start, model.apply(start, x), x, J, f.ravel(), status > 0 and finite,
+               status, message, counts[0], counts[1])  # fmt: skip
 
 
 def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData, torque) -> list[int]:

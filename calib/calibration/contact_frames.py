@@ -87,11 +87,7 @@ class ContactFrames:
         return obj + tuple(f"contact_{DOF_NAMES[d]}" for d in self.kind.contact_dofs)
 
     def index(self, ids: Sequence[str], source: str = "<contacts>") -> np.ndarray:
-        """The object of each touch ``(m,)``.
-
-        Raises:
-            DataError: A touch of an object these frames do not hold.
-        """
+        """The object of each touch ``(m,)`` (DataError: an object these frames do not hold)."""
         where = {name: k for k, name in enumerate(self.ids)}
         unknown = [i for i in dict.fromkeys(ids) if i not in where]
         if unknown:

@@ -17,14 +17,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..identification.contacts import Contact, PlaneContact
+from ..identification.contacts import Contact
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import skew
 from .contact_blocks import dense
-from .contact_frames import ContactFrames, plane_frame, row_weights
+from .contact_frames import ContactFrames, row_weights
 from .placements import JointFrames
 
-__all__ = ["ContactState", "plane_state"]
+__all__ = ["ContactState"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,16 +145,3 @@ class ContactState:
         FRt = np.swapaxes(self.frames.objects[index, :3, :3], 1, 2)  # seen in each object
         rows = self.kind.jacobian_rows(np.concatenate([FRt @ W6[:, :3], FRt @ W6[:, 3:]], 1), Rc)
         return rows * self.row_weights()[None, :, None]
-
-
-def plane_state(
-    mdh: MDHModel,
-    contact: np.ndarray,
-    normal: np.ndarray,
-    height: float,
-    weight: float,
-    plane_id: str = "table",
-) -> ContactState:
-    """A state of one plane (``plane`` kind) from its unit normal and height [m]."""
-    plane = plane_frame(normal, height, np.zeros(3))[None]
-    return ContactState(mdh, ContactFrames(PlaneContact(), contact, plane, (plane_id,)), weight)

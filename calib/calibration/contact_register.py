@@ -34,12 +34,7 @@ from .contact_model import ContactState
 from .contact_term import contact_frame, split_contacts
 from .instrument import instrument_groups, shared_frame
 from .measured_options import compliance_torques
-from .measured_term import (
-    MeasuredState,
-    check_measured,
-    checked_measured,
-    one_term_per_frame,
-)
+from .measured_term import MeasuredState, check_measured, checked_measured, one_term_per_frame
 from .options import Options
 from .outliers import Outlier
 from .pixel_chain import PixelData, PixelPart, PixelTermState, check_pixels, pixel_parts
@@ -47,13 +42,7 @@ from .pixel_fit import checked_pixels
 from .placements import Placements, zero_frames
 from .solve import fit
 
-__all__ = [
-    "Registered",
-    "Run",
-    "determined_unknowns",
-    "drawn",
-    "register_contact_chains",
-]
+__all__ = ["Registered", "Run", "determined_unknowns", "drawn", "register_contact_chains"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -147,6 +136,14 @@ def _check(run: Run) -> None:
             validation.check_held_out(d, v)
 
 
+def _objects(run: Run, data) -> tuple[int, ...]:
+    """Each term's object (:func:`~.contact_checks.plane_groups`, an instrument shared)."""
+    groups = contact_checks.plane_groups(run.chains, data, run.shared_planes)
+    plane_of = instrument_groups(groups, data, run.instrument)
+    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    return plane_of
+
+
 def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     """Each term's rows checked by its kind's checks, each returning the same five things.
 
@@ -229,26 +226,18 @@ def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsS
 def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """What a joint fit of these terms would determine: the steps before its choice.
 
-    The run's data (every row: no validation, no holdout) are checked, outliers set aside
-    and registered as :func:`register_contact_chains` does; the rank of the Jacobian of every
-    row by every unknown (objects, contact frames, measuring frames, markers, and every joint
+    The run's data (every row: no validation, no holdout, rigid) checked, outliers set aside
+    and registered by :func:`register_contact_chains`; the rank of the Jacobian of every row
+    by every unknown (objects, contact frames, measuring frames, markers, and every joint
     placement component) at flush postures is what the data determine. Returns the names
     of the unknowns determined (a basis, in the columns' order) and of all.
     """
-    _check(run)
-    chains, parts = run.chains, pixel_parts(run.chains, run.data)
-    check_selection_memory(chains, parts, "complete")
-    plane_of = instrument_groups(
-        contact_checks.plane_groups(chains, parts, run.shared_planes), parts, run.instrument
-    )
-    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
-    held: list = [None] * len(parts)
-    train, _, measured = _checked(run, list(parts), None, contact_frame(run.contact), held, [])
-    start = _register(run, train, measured, plane_of, [])
-    names = start.placements.names()
-    wide = chains_model(start, plane_of, range(len(names)), names)
+    complete = dataclasses.replace(run.options, params="complete")  # its memory estimate
+    r = register_contact_chains(dataclasses.replace(run, options=complete))
+    names = r.start.placements.names()
+    wide = chains_model(r.start, r.plane_of, range(len(names)), names)
     every = wide.names()
-    kept = structural(wide, start, flush_data(start, train, None))
+    kept = structural(wide, r.start, flush_data(r.start, r.train, None))
     return tuple(every[k] for k in sorted(kept)), every
 
 
@@ -312,9 +301,7 @@ def register_contact_chains(run: Run) -> Registered:
     train = [s[0] for s in splits]
     given = validate or [None] * len(data)
     held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
-    plane_of = contact_checks.plane_groups(chains, data, run.shared_planes)
-    plane_of = instrument_groups(plane_of, data, run.instrument)
-    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
+    plane_of = _objects(run, data)
     notes: list[str] = []
     diagnosed = None if run.held_label == "holdout" else validate  # a holdout: with its data's
     zeros = zero_frames(tuple(chains))  # one walk: the registrations' models and the paths

@@ -111,22 +111,12 @@ def refine(
     index: np.ndarray,
     weight: float = DEFAULT_WEIGHT,
 ) -> ContactFrames:
-    """Gauss-Newton on the unknowns of ``frames`` (the tool placements held), from them.
+    """The frames at the least-squares minimum of the kind's weighted gap, from ``frames``.
 
-    The weighted gap is the kind's (``kind.residual``, rows ``kind.jacobian_rows``).
-
-    Args:
-        frames: The start (a closed form).
-        rotations: Tool rotations in the base frame ``(m, 3, 3)``.
-        positions: Tool positions in the base frame ``(m, 3)`` [m].
-        index: The object of each touch ``(m,)``.
-        weight: Weight of the angle rows [m/rad].
-
-    Returns:
-        The frames at the least-squares minimum.
-
-    Raises:
-        ContactGeometryError: Touches that do not fix the unknowns.
+    Gauss-Newton on their unknowns, the tool's ``rotations`` ``(m, 3, 3)`` and ``positions``
+    ``(m, 3)`` [m] in the base frame held; ``index``: each touch's object ``(m,)``;
+    ``weight``: the angle rows' [m/rad]. ContactGeometryError where the touches do not fix
+    the unknowns.
     """
     w = row_weights(frames.kind, weight)
     x = np.zeros(frames.size)

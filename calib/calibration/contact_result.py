@@ -77,10 +77,7 @@ class GapStats:
 
 
 def part_dict(part) -> dict:
-    """The first keys of a term's part in format 2's ``chains``: base, tool, data, kind.
-
-    ``part``: a term's part of a result (its ``chain``, ``source`` and ``kind``).
-    """
+    """The first keys of a term's ``part`` in format 2's ``chains``: base, tool, data, kind."""
     chain = part.chain
     return {
         "base": chain.base_frame,

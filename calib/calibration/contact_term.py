@@ -73,11 +73,8 @@ def split_contacts(
     """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
 
     A touch recorded several times (the same posture on the same object) is held out whole.
+    ``holdout`` in (0, 1) (:class:`~.options.Options` checks it).
     """
-    if not (0.0 <= holdout < 1.0):
-        raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {holdout!r}")
-    if holdout <= 0:
-        return data, None
     rng = np.random.default_rng([seed, 21])
     ids = np.array(data.ids)
     groups = posture_groups(data.q, data.ids)  # a touch repeated is held out whole

@@ -49,13 +49,9 @@ class RowErrors:
     def of(terms: list[tuple[str, Mapping]]) -> RowErrors:
         """Each term's rows, term after term, each term's held-out rows after its fitted ones.
 
-        Args:
-            terms: Each term's name and statistics by part (``train``, ``train_registration``
-                and, with held-out rows, ``held_out`` and ``held_out_registration``), each
-                with ``per_row`` ``(m,)`` [mm].
-
-        Raises:
-            InvalidArgumentError: Statistics that keep no ``per_row``.
+        ``terms``: each one's name and statistics by part (``train``, ``train_registration``,
+        ``held_out``, ``held_out_registration``), each with ``per_row`` ``(m,)`` [mm] (else
+        InvalidArgumentError).
         """
         parts = [(k, p, s) for k, (_, s) in enumerate(terms) for p in ("train", "held_out")
                  if p in s]  # fmt: skip
@@ -101,12 +97,7 @@ def read_files(
     Each data file as its reader resolved it (``path``: absolute, links followed, whatever
     the working directory is later), else as named (``source``); a pixel term's target and
     intrinsics too; the nominal URDF as resolved when it was loaded (``urdf_resolved``).
-
-    Args:
-        robots: Each term's chain or tree (one URDF).
-        data: Each term's data: measurements, touches or a camera's pixels (``obs``,
-            ``target``, ``camera.intrinsics``).
-        validate: Each term's validation data (None: none), or None.
+    ``robots``: each term's chain or tree; ``validate``: each term's (None: none), or None.
     """
     found = [("the nominal URDF", str(robots[0].urdf_resolved))]
     held = [None] * len(data) if validate is None else validate

@@ -122,13 +122,9 @@ def chain_report(
 
     Its own ``parameters`` names (:func:`~.chain_counts.chain_name`: ``frame.z``), its
     :class:`~.residuals.ResidualStats` under ``errors``, :func:`chain_frames`, ``fit``,
-    ``compliance`` (zero per rigid joint) and its MDH rows and gravity under ``model``.
-
-    Args:
-        view: The result (shape ``chain``).
-        fields: The report's fields of every shape (edited copy returned).
-        world_link: The ``world_link`` the URDF was written with (None: none).
-        on_robot: Whether the URDF was written with the instrument on the robot.
+    ``compliance`` (zero per rigid joint) and its MDH rows and gravity under ``model``:
+    ``fields`` (a copy) of ``view`` (shape ``chain``), its URDF written with ``world_link``
+    (None: none) and ``on_robot``.
     """
     part, held = view.one_chain(), view.validation
     train = (view.before, view.after, view.urdf_after)

@@ -33,14 +33,7 @@ from .report import parameter_entries, term_errors
 from .residuals import ResidualStats, Validation
 from .solve import Fit, condition, covariance
 
-__all__ = [
-    "ChainView",
-    "MeasuredChain",
-    "Solution",
-    "measured_part",
-    "residual_stats",
-    "world_of",
-]
+__all__ = ["ChainView", "MeasuredChain", "Solution", "measured_part", "residual_stats", "world_of"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,11 +254,7 @@ class ChainView:
     notes: tuple[str, ...]
 
     def one_chain(self) -> MeasuredChain:
-        """The one term of a chain measured by an instrument (shape ``chain``).
-
-        Raises:
-            InvalidArgumentError: Another shape (a tree, contacts, several chains).
-        """
+        """The one term of a chain measured by an instrument (else InvalidArgumentError)."""
         part = self.chains[0]
         if self.shape != "chain" or not isinstance(part, MeasuredChain) or part.joint:
             raise InvalidArgumentError(
@@ -437,10 +426,7 @@ class ChainView:
 
 
 def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
-    """Errors measured - model of a chain's state on rows [m, rad].
-
-    With fitted joint compliance, the joints deflect under the chain's gravity torques.
-    """
+    """Errors measured - model of a chain's state on rows [m, rad] (its compliance deflecting)."""
     return validation.stats(state, data, _gravity_torque(chain, state, data))
 
 

@@ -10,17 +10,11 @@ orientation is set aside like one bad point. Outliers are listed by file row.
 The step is iterated until it is stable (:func:`stable_set`; :func:`until_stable` for one
 model): the model is refitted without the outliers, the units tested again against the
 refit, and the set changes until a refit leaves it as it was (at most ``ROUNDS`` refits). It
-runs on the registration, then on the calibration itself (every term's rows:
-:mod:`~.chain_outliers`): the registration leaves the robot's geometric errors, several
-millimetres, beside which a 20 mm outlier is not five times the median; the calibration
-leaves the noise. So that several outliers cannot hide each other by pulling the first fit,
-one chain measured by an instrument starts its loop from the rows a robust fit
-(:func:`robust_proposals`: iteratively reweighted least squares of the model linearised at
-the registration, every identifiable parameter free) finds outlying; the loop keeps them
-only if the calibration confirms them. The unit tested is a configuration (a row, or a
-touch); the functions take per-unit errors, so a unit of several rows (a posture) takes its
-largest error. A robust loss (``--loss soft_l1|huber``, scale ``--noise-mm``) further limits
-the pull of the rows that remain.
+runs on the registration, then on the calibration itself (:mod:`~.chain_outliers`, which
+starts a measured term's loop from :func:`robust_proposals`). The unit tested is a
+configuration (a row, or a touch); the functions take per-unit errors, so a unit of several
+rows (a posture) takes its largest error. A robust loss (``--loss soft_l1|huber``, scale
+``--noise-mm``) further limits the pull of the rows that remain.
 """
 
 from __future__ import annotations

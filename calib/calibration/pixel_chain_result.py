@@ -24,8 +24,8 @@ a principal point with width and height swapped 17 px), and the fit is warned ab
 def _pixels(state: PixelTermState, part: PixelPart) -> dict:
     """RMS and largest reprojection error [px]."""
     r = np.linalg.norm(state.pixel_errors(part), axis=1)
-    return {"reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "reprojection_max_px": float(
-        np.max(r, initial=0.0))}  # fmt: skip
+    rms, top = float(np.sqrt(np.mean(r**2))), float(np.max(r, initial=0.0))
+    return {"reprojection_rms_px": rms, "reprojection_max_px": top}
 
 
 def _stats(state: PixelTermState, part: PixelPart) -> GapStats:
@@ -116,15 +116,10 @@ class PixelChain:
 def pixel_result(chain, train, held, registered, state, x, std, term: int) -> PixelChain:
     """A pixel term's part: its errors (mm and px), and its unknowns' report entries.
 
-    Args:
-        chain: From the camera's link to the target's tool.
-        train: The rows fitted (outliers out); ``held``: the held-out ones, or None.
-        held: See ``train``.
-        registered: The camera placed on the nominal robot; ``state``: fitted.
-        state: See ``registered``.
-        x: Its own unknowns' values in the fit (changes from the registration).
-        std: Their standard deviations.
-        term: The term's number (1-based), in its unknowns' names.
+    ``chain``: from the camera's link to the target's tool; ``train``: the rows fitted
+    (outliers out), ``held``: the held-out ones or None; ``registered``: on the nominal
+    robot; ``x``, ``std``: its own unknowns' changes from it and their std; ``term``: its
+    number (1-based) in its unknowns' names.
     """
     stats = part_stats(_stats, registered, state, train, held)
     pixels = part_stats(_pixels, registered, state, train, held)

@@ -50,11 +50,7 @@ def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
 
     An MDH row's parameter (``theta6``, a mimic ``offset4``) and a compliance (``c6``) belong
     to the joint of their row (rows 0 and n+1, the frames: none), a joint placement component
-    (``arm_5_joint:rz``) to its joint.
-
-    Args:
-        name: The parameter's name.
-        joint_names: The URDF joint of each row (None for the frame rows).
+    (``arm_5_joint:rz``) to its joint. ``joint_names``: each row's (None: the frame rows).
     """
     name = name.partition("@")[0]  # a direction two chains name alike: whose (<name>@<tool>)
     row = _ROW_NAME.fullmatch(name)
@@ -68,10 +64,8 @@ def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
 def _unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
     """The unit of a parameter's value: ``rad``, ``m``, ``rad/(N m)`` or ``m/N``.
 
-    Args:
-        name: The parameter's name.
-        sigma: Each row's joint type (0 revolute, 1 prismatic), for a joint offset
-            (``offset<k>``) and a compliance (``c<k>``).
+    ``sigma``: each row's joint type (0 revolute, 1 prismatic), for a joint offset
+    (``offset<k>``) and a compliance (``c<k>``).
     """
     name = name.partition("@")[0]
     row = _ROW_NAME.fullmatch(name)
@@ -100,13 +94,9 @@ def parameter_entries(
 ) -> list[dict]:
     """The report's ``parameters``: ``name``, ``joint``, ``value``, ``std``, ``unit``, prior.
 
-    Args:
-        names: Fitted parameters' names.
-        values: Their values (changes from the registration) [``unit``].
-        stds: Their standard deviations [``unit``] (NaN where undefined).
-        joint_names: The URDF joint of each row (None for the frame rows).
-        sigma: Each row's joint type (0 revolute, 1 prismatic).
-        priors: Prior weight of each in the fit (None: zeros).
+    ``values``: changes from the registration, ``stds`` (NaN: undefined) [``unit``];
+    ``joint_names``, ``sigma``: each row's joint (None: frame rows) and type (1 prismatic);
+    ``priors``: each one's prior weight in the fit (None: zeros).
     """
     weights = [0.0] * len(names) if priors is None else priors
     return [
@@ -145,14 +135,9 @@ FORMAT2_MOVED = {
 def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
     """One part of the report's ``errors``: ``registration``, ``calibrated``, ``urdf``.
 
-    Each is a statistics' report form: ``in_mm()`` (mm and degrees, the unit in each key),
-    or with ``mm`` False ``to_dict()`` (format 2's: metres and radians).
-
-    Args:
-        registration: The registration's errors (nominal geometry).
-        calibrated: The calibrated model's.
-        urdf: The calibrated URDF alone's (no compliance), or None: ``calibrated``.
-        mm: The report's form (else format 2's).
+    Each statistics' ``in_mm()`` (mm and degrees, the unit in each key), or with ``mm``
+    False ``to_dict()`` (format 2's: metres and radians); ``urdf`` (the URDF alone, no
+    compliance) None: ``calibrated``.
     """
     parts = (registration, calibrated, calibrated if urdf is None else urdf)
     return {
@@ -164,11 +149,9 @@ def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
 def term_errors(stats: Mapping, held_source: str | None) -> dict:
     """A term's ``errors.terms`` entry (format 3): ``train`` and ``held_out`` (None: none).
 
-    Args:
-        stats: Statistics by part (each with ``in_mm()``): ``train``, ``train_registration``
-            and, with held-out rows, ``held_out`` and ``held_out_registration``; with
-            compliance ``train_urdf`` and ``held_out_urdf`` (the URDF alone).
-        held_source: The held-out rows' source (``holdout`` or the validation file).
+    ``stats`` by part (each with ``in_mm()``): ``train``, ``train_registration``, with
+    held-out rows ``held_out`` and ``held_out_registration`` (from ``held_source``), with
+    compliance ``train_urdf`` and ``held_out_urdf`` (the URDF alone).
     """
     out: dict = {"train": None, "held_out": None}
     for key in out:
@@ -213,11 +196,7 @@ _DISPLAY = {"m": (1e3, "mm"), "rad": (1e3, "mrad")}
 
 
 def parameter_lines(entries: Sequence[Mapping]) -> list[str]:
-    """The printed parameter table: name, the URDF joint it belongs to, value +- std.
-
-    Args:
-        entries: The report's ``parameters`` (:func:`parameter_entries`).
-    """
+    """The printed table of ``parameters`` entries: name, URDF joint, value +- std."""
     if not entries:
         return ["parameters: none fitted"]
     lines = ["parameters (change from the registration +- std), with their URDF joint:"]
@@ -265,14 +244,9 @@ def fit_dict(
 def build_report(fields: Mapping[str, object], legacy: Mapping[str, object]) -> dict:
     """A format-3 report: ``fields`` in the order of :data:`REPORT_KEYS`, then format 2's keys.
 
-    Args:
-        fields: Every key of :data:`REPORT_KEYS` but ``format_version`` and ``deprecated``.
-        legacy: Format 2's keys of this shape that format 3 replaced (:data:`FORMAT2_MOVED`),
-            written until format 4.
-
-    Raises:
-        KeyError: A key of :data:`REPORT_KEYS` is missing, or a legacy key has no
-            replacement (a programming error: tests pin the layout).
+    ``fields``: every key of :data:`REPORT_KEYS` but the first two; ``legacy``: this shape's
+    format 2 keys that format 3 replaced (:data:`FORMAT2_MOVED`), written until format 4.
+    KeyError for a missing key or a legacy key without replacement (tests pin the layout).
     """
     deprecated = {
         key: f"format 3 moved it to '{FORMAT2_MOVED[key]}'; written until format 4"
@@ -308,15 +282,11 @@ def _finite_tree(value):
 
 
 def one_term(fields: Mapping, errors: dict, chain, compliance: np.ndarray | None, **own) -> dict:
-    """The report's fields of one term's layout (one chain measured or touching).
+    """The report's ``fields`` of one term's layout (one chain measured or touching).
 
-    Args:
-        fields: The report's fields of every shape.
-        errors: The term's ``errors.terms`` entry: the report's ``errors`` too.
-        chain: Its chain.
-        compliance: Its joints' fitted compliance ``(n,)`` [rad/(N m) or m/N], or None
-            (rigid: zeros).
-        own: Its layout's other fields (``frames``, ``fit``, ``model``, ...).
+    ``errors``: the term's ``errors.terms`` entry, the report's ``errors`` too;
+    ``compliance``: its joints' ``(n,)`` [rad/(N m) or m/N], or None (rigid: zeros);
+    ``own``: its layout's other fields (``frames``, ``fit``, ``model``, ...).
     """
     c = np.zeros(chain.n) if compliance is None else compliance
     joints = dict(zip(chain.joint_names, map(float, c), strict=True))

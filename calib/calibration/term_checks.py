@@ -74,13 +74,9 @@ def checked(
 ) -> tuple[Aside[D, S], list[str]]:
     """The rows registered, their outliers set aside, diagnosed (module text).
 
-    Args:
-        steps: The kind's steps on its rows.
-        validation: The steps on validation rows (registered and diagnosed on their own),
-            each with the label of its notes.
-
-    Returns:
-        The registration without the outlier rows, and the notes.
+    ``validation``: the steps on validation rows (registered and diagnosed on their own),
+    each with the label of its notes. Returns the registration without the outlier rows,
+    and the notes.
     """
     aside, notes = _sequence(steps)
     for other, label in validation:
@@ -113,18 +109,10 @@ def held_out(
     The rule (:func:`~.outliers.find_outliers`) on the fitted and the held-out rows' errors
     together under one model (the registration), so that the median is the same one; only
     held-out rows are set aside, and none when that would be half of them or more (then they
-    are not outliers: measured in another frame, or of another robot).
-
-    Args:
-        fitted: The errors of the rows fitted.
-        errors: The held-out rows' errors under the same model.
-        held: The held-out rows.
-        rows: Their file rows.
-        subset: The held-out rows a mask keeps.
-        notes: The notes, to which the outliers' is appended (if any): the held-out
-            statistics leave them out.
-        noise: The instrument's noise [m], or None.
-        words: The unit and the error in the note (:func:`~.outliers.set_aside_note`).
+    are not outliers: measured in another frame, or of another robot). ``fitted``,
+    ``errors``: the fitted and the held-out rows' errors; ``rows``: their file rows;
+    ``subset``: the held-out rows a mask keeps; the outliers' note appended to ``notes``
+    (``words``: :func:`~.outliers.set_aside_note`'s); ``noise``: the instrument's [m] or None.
     """
     m = len(fitted.position)
     rot = None

@@ -62,10 +62,7 @@ errors (a few 1e-13) are round-off, not a worse model."""
 def worse(after: float, before: float, unit: float = 1.0) -> bool:
     """Whether an RMS error is worse than another beyond round-off (the one refusal rule).
 
-    Args:
-        after: The calibrated model's error.
-        before: The registration's (the nominal model's) error.
-        unit: The errors' unit in metres or radians (1e-3 for mm or mrad).
+    ``after``: the calibrated model's, ``before``: the registration's, in ``unit`` [m or rad].
     """
     return after > before * (1 + SAME) + ROUND_OFF / unit
 
