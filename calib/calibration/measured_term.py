@@ -27,7 +27,7 @@ from ..measurements.postures import count
 from . import determined, outliers, term_checks, validation
 from .chain_registration import checked_registration, frames_model, held_markers, held_note
 from .measured_options import marker_guess
-from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
+from .model import FRAME_NAMES, ErrorModel, State
 from .options import Options
 from .residuals import ResidualStats
 from .weighting import DEFAULT_WEIGHT
@@ -74,12 +74,7 @@ class MeasuredKind:
 
     def names(self) -> tuple[str, ...]:
         """The unknowns: the frame's 6, each marker's 3 (but those held), the tool's 3 (pose)."""
-        markers = [
-            f"marker{c // 3 + 1}.{'xyz'[c % 3]}"
-            for c in range(3 * self.n_markers)
-            if c not in self.held
-        ]
-        return (*FRAME_NAMES, *markers, *(TOOL_NAMES if self.pose else ()))
+        return frames_model(self.n_markers, POSE if self.pose else POSITION, self.held).names()
 
     @property
     def kept(self) -> list[int]:
