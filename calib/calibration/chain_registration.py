@@ -174,14 +174,11 @@ class _Rows:
         """
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 
-        def errors(d):
-            registered = _registrations(nominal, d, guess, opts, self.hold)(unit)
-            return validation.stats(registered.state, d, None)
+        def errors(d):  # the registration's kin: the nominal's at d's joints
+            at = self.at if d is self.rows else _registrations(nominal, d, guess, opts, self.hold)
+            return validation.stats(at(unit).state, d, None, at(unit).kin)
 
-        hold = self.hold
-        same = self.at if rows is self.rows else _registrations(nominal, rows, guess, opts, hold)
-        reg = same(unit)
-        first = validation.stats(reg.state, rows, None, reg.kin)
+        first = errors(rows)
         revolute, rot = self.chain.sigma == 0, first.orientation_rms
         position = lambda d: errors(d).position_rms  # noqa: E731
         notes = diagnosis.explain(
