@@ -143,7 +143,7 @@ def test_problem_keeps_evaluations_without_mixing_them(prior, frames):
     nominal, state, data = _campaign("pose", m=10)
     model = _model(nominal, "pose")
     if frames:  # x moves no geometry: the kinematics are shared by every x
-        model = model.with_(base=(), lift=np.zeros((len(model.params), 0)))
+        model = dataclasses.replace(model, base=(), lift=np.zeros((len(model.params), 0)))
     torque = np.random.default_rng(3).normal(size=data.q.shape)
     rng = np.random.default_rng(6)
     xs = [1e-2 * rng.normal(size=model.size()) for _ in range(3)]

@@ -172,13 +172,8 @@ def analyze(
     """
     problem = sys.modules.get(f"{__package__}.problem")  # loaded if a Problem exists
     if problem is not None and isinstance(robot, problem.Problem):
-        given = (base, tool, marker) != (None, None, None) or (measure, params, configs, seed) != (
-            DEFAULT_MEASURE,
-            DEFAULT_SET,
-            DEFAULT_CONFIGS,
-            0,
-        )
-        if given:
+        defaults = (None, None, None, DEFAULT_MEASURE, DEFAULT_SET, DEFAULT_CONFIGS, 0)
+        if (base, tool, marker, measure, params, configs, seed) != defaults:
             raise InvalidArgumentError(
                 "a problem says its robot, rows and kinds: give analyze(problem) alone"
             )

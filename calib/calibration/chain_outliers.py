@@ -34,7 +34,6 @@ from ..identification.parameters import parameter_set
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import determined
-from .chain_registration import frames_model
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import enough_touches, length_errors, subset
 from .contact_model import ContactState
@@ -42,7 +41,7 @@ from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState
 from .measured_view import MeasuredChain
-from .model import moved
+from .model import ErrorModel, moved
 from .outliers import (
     Errors,
     find_outliers,
@@ -74,8 +73,7 @@ def proposals(state: MeasuredState, data: Measurements, noise: float | None) -> 
     if not spread_out(point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
-    base, lift = moved(pset, nominal)
-    wide = frames_model(data.n_markers, data.kind).with_(params=pset, base=base, lift=lift)
+    wide = ErrorModel(pset, *moved(pset, nominal), data.n_markers, data.kind)
     w = row_weights(wide, state.weight)
     J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
     rows = data.rows or tuple(range(1, data.m + 1))

@@ -4,7 +4,7 @@ Closed form refined by Levenberg-Marquardt, then the steps of every kind of term
 (:mod:`.term_checks`): :func:`checked_registration`. Marker coordinates no posture within the
 joint limits separates from the frame's translation (a gantry's tool never turns:
 :func:`held_markers`) are held at their given value, the frame absorbing them
-(:class:`Held`, :func:`held_note`).
+(:func:`held_note`).
 """
 
 from __future__ import annotations
@@ -32,74 +32,27 @@ from .term_checks import Aside
 
 __all__ = [
     "STRUCTURE_CONFIGS",
-    "Held",
     "checked_registration",
     "frames_model",
     "held_markers",
     "held_note",
-    "own_model",
 ]
 
 
-def frames_model(n_markers: int, kind: Measurement) -> ErrorModel:
+def frames_model(n_markers: int, kind: Measurement, held: tuple[int, ...] = ()) -> ErrorModel:
     """The registration's free parameters: frame, markers (and measured-frame rotation).
 
     No MDH parameter: a measured term's own unknowns too. The registration fits them all
     (``fix`` of the frame or the markers is refused before any registration,
-    :func:`~.measured_options.level_offer`) but the marker coordinates no posture separates
-    from the frame (:func:`own_model`).
+    :func:`~.measured_options.level_offer`) but the marker coordinates ``held`` at the start:
+    those no posture separates from the frame (:func:`held_markers`).
     """
-    return ErrorModel(
-        ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers=n_markers, kind=kind
-    )
-
-
-@dataclass(frozen=True, eq=False)
-class Held:
-    """A :func:`frames_model` with marker coordinates held at the start (x: the other columns).
-
-    ``held``: 0-based among the markers' ``3 K``.
-    """
-
-    model: ErrorModel
-    held: tuple[int, ...]
-
-    n_markers = property(lambda self: self.model.n_markers, doc="Markers K.")
-    pose = property(lambda self: self.model.pose, doc="Orientation rows are fitted.")
-    rows = property(lambda self: self.model.rows, doc="Residual rows per configuration.")
-
-    @property
-    def free(self) -> list[int]:
-        """The model's columns x moves."""
-        return [c for c in range(self.model.size()) if c - 6 not in self.held]
-
-    def size(self) -> int:
-        """Number of free parameters."""
-        return self.model.size() - len(self.held)
-
-    def _full(self, x: np.ndarray) -> np.ndarray:
-        full = np.zeros(self.model.size())
-        full[self.free] = x
-        return full
-
-    def apply(self, start: State, x: np.ndarray) -> State:
-        """The state at parameters x (x = 0 is ``start``)."""
-        return self.model.apply(start, self._full(x))
-
-    def jacobian(self, start: State, x, data, torque, state=None, kin=None) -> np.ndarray:
-        """The model's Jacobian ``(m, rows, size)`` at x, the held columns left out."""
-        return self.model.jacobian(start, self._full(x), data, torque, state, kin)[..., self.free]
+    return ErrorModel(ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers, kind, held)
 
 
 STRUCTURE_CONFIGS = 20
 """Random configurations :func:`held_markers` reads the tool's rotations at: a tool that turns
 about two axes turns its every direction at almost any two of them."""
-
-
-def own_model(n_markers: int, kind: Measurement, held: tuple[int, ...] = ()) -> ErrorModel | Held:
-    """:func:`frames_model`, the marker coordinates ``held`` held (:class:`Held`) if any."""
-    model = frames_model(n_markers, kind)
-    return Held(model, held) if held else model
 
 
 def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
@@ -139,7 +92,7 @@ def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit
     ``held``: marker coordinates held at the ``guess`` (:func:`held_markers`).
     """
     kin = nominal.kinematics(data.q)
-    model = own_model(data.n_markers, data.kind, held)
+    model = frames_model(data.n_markers, data.kind, held)
 
     @functools.cache
     def start() -> State:
@@ -221,14 +174,11 @@ class _Rows:
         """
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 
-        def errors(d):
-            registered = _registrations(nominal, d, guess, opts, self.hold)(unit)
-            return validation.stats(registered.state, d, None)
+        def errors(d):  # the registration's kin: the nominal's at d's joints
+            at = self.at if d is self.rows else _registrations(nominal, d, guess, opts, self.hold)
+            return validation.stats(at(unit).state, d, None, at(unit).kin)
 
-        hold = self.hold
-        same = self.at if rows is self.rows else _registrations(nominal, rows, guess, opts, hold)
-        reg = same(unit)
-        first = validation.stats(reg.state, rows, None, reg.kin)
+        first = errors(rows)
         revolute, rot = self.chain.sigma == 0, first.orientation_rms
         position = lambda d: errors(d).position_rms  # noqa: E731
         notes = diagnosis.explain(

@@ -25,9 +25,9 @@ from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import determined, outliers, term_checks, validation
-from .chain_registration import Held, checked_registration, held_markers, held_note, own_model
+from .chain_registration import checked_registration, frames_model, held_markers, held_note
 from .measured_options import marker_guess
-from .model import FRAME_NAMES, TOOL_NAMES, ErrorModel, State
+from .model import FRAME_NAMES, ErrorModel, State
 from .options import Options
 from .residuals import ResidualStats
 from .weighting import DEFAULT_WEIGHT
@@ -74,12 +74,7 @@ class MeasuredKind:
 
     def names(self) -> tuple[str, ...]:
         """The unknowns: the frame's 6, each marker's 3 (but those held), the tool's 3 (pose)."""
-        markers = [
-            f"marker{c // 3 + 1}.{'xyz'[c % 3]}"
-            for c in range(3 * self.n_markers)
-            if c not in self.held
-        ]
-        return (*FRAME_NAMES, *markers, *(TOOL_NAMES if self.pose else ()))
+        return frames_model(self.n_markers, POSE if self.pose else POSITION, self.held).names()
 
     @property
     def kept(self) -> list[int]:
@@ -240,9 +235,9 @@ class MeasuredState:
         return self.weighed(self.inner.residuals(data, None, kin))
 
     @cached_property
-    def _own(self) -> ErrorModel | Held:
+    def _own(self) -> ErrorModel:
         """The term's own unknowns' model (the registration's, made once per state)."""
-        return own_model(self.inner.n_markers, POSE if self.kind.pose else POSITION, self.held)
+        return frames_model(self.inner.n_markers, POSE if self.kind.pose else POSITION, self.held)
 
     def moved(self, x: np.ndarray) -> MeasuredState:
         """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""

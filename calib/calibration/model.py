@@ -17,9 +17,9 @@ orientation of the measured frame in the tool frame.
 The free parameters x, in this order: the frame (rotation vector [rad] applied on the left,
 then translation [m]), the markers (3 per marker [m]), the measured frame's rotation (pose
 data, rotation vector [rad] on the right) and the MDH base values (``dX = lift @ x_b``).
-Every group may be fixed; the compliance is the state's, never x's (the engine fits it). The
-Jacobian is analytic (frame and tool rotations through the SO(3) left Jacobian, so it is
-exact at any x).
+Marker coordinates may be held (no column); the compliance is the state's, never x's (the
+engine fits it). The Jacobian is analytic (frame and tool rotations through the SO(3) left
+Jacobian, so it is exact at any x).
 """
 
 from __future__ import annotations
@@ -160,49 +160,36 @@ class ErrorModel:
         base: Names of the free MDH base values, each a parameter of ``params``.
         lift: ``dX = lift @ x_b`` ``(len(params), len(base))``: how the base values move
             the standard parameters.
-        frame: The measurement frame is free.
-        markers: The markers are free.
-        tool: The measured frame's rotation is free (a kind with orientation rows).
         n_markers: Number of markers K.
         kind: What is measured (its rows, residual and Jacobian rows): the position of the
-            markers (default) or the pose.
+            markers (default) or the pose (then the measured frame's rotation is free).
+        held: Marker coordinates (0-based among the ``3 K``) held at the start, no column of
+            x (:func:`~.chain_registration.held_markers`).
     """
 
     params: ParameterSet
     base: tuple[str, ...]
     lift: np.ndarray
-    frame: bool = True
-    markers: bool = True
-    tool: bool = True
     n_markers: int = 1
     kind: Measurement = POSITION
+    held: tuple[int, ...] = ()
 
     @property
     def pose(self) -> bool:
         """Orientation rows are fitted."""
         return bool(self.kind.rotation_rows)
 
-    @property
-    def _tool_free(self) -> bool:
-        return self.tool and self.pose
-
     def names(self) -> tuple[str, ...]:
         """Names of the free parameters, in the order of x."""
-        out: list[str] = list(FRAME_NAMES) if self.frame else []
-        if self.markers:
-            out += [f"marker{k + 1}.{a}" for k in range(self.n_markers) for a in "xyz"]
-        if self._tool_free:
-            out += TOOL_NAMES
-        out += self.base
-        return tuple(out)
+        out = list(FRAME_NAMES) + [f"marker{c // 3 + 1}.{'xyz'[c % 3]}" for c in self._moved]
+        return tuple(out + list(TOOL_NAMES if self.pose else ()) + list(self.base))
+
+    @property
+    def _moved(self) -> list[int]:
+        return [c for c in range(3 * self.n_markers) if c not in self.held]
 
     def _sizes(self) -> tuple[int, int, int, int]:
-        return (
-            6 * self.frame,
-            3 * self.n_markers * self.markers,
-            3 * self._tool_free,
-            len(self.base),
-        )
+        return 6, 3 * self.n_markers - len(self.held), 3 * self.pose, len(self.base)
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -216,13 +203,14 @@ class ErrorModel:
     def apply(self, start: State, x: np.ndarray) -> State:
         """The state at parameters x (x = 0 is ``start``)."""
         xf, xm, xt, xb = self.split(x)
-        frame = moved_frame(start.frame, xf, self.frame)
-        markers = start.markers + (xm.reshape(-1, 3) if self.markers else 0.0)
+        dm = np.zeros(3 * self.n_markers)
+        dm[self._moved] = xm
+        markers = start.markers + dm.reshape(-1, 3)
         tool = start.tool_rotation
         if xt.size:
             tool = tool @ rotation_matrix(xt)
         mdh = self.params.apply(start.mdh, self.lift @ xb) if np.any(xb) else start.mdh
-        return State(mdh, frame, markers, tool, start.compliance.copy())
+        return State(mdh, moved_frame(start.frame, xf), markers, tool, start.compliance.copy())
 
     def jacobian(
         self,
@@ -252,21 +240,19 @@ class ErrorModel:
         pts, rot = self.kind.predict(
             kin.R[:, -1], kin.p[:, -1], state.markers, state.frame, state.tool_rotation
         )
-        J = np.zeros((m, self.kind.full_rows(K), self.size()))  # 3 K point rows, 3 turning
-        P, c = 3 * K, 0
-        if self.frame:  # d(R p)/dphi = -[R p]x Jl(phi) with R = Exp(phi) R0, then translation
-            Jl = left_jacobian(xf[:3])
-            J[:, :P, :3] = (-skew(pts - state.frame[:3, 3]) @ Jl).reshape(m, P, 3)
-            J[:, :P, 3:6] = np.tile(np.eye(3), (K, 1))
-            if self.kind.rotation_rows:
-                J[:, P:, :3] = Jl
-            c = 6
-        if self.markers:
-            Rt = R @ kin.R[:, -1]
-            for k in range(K):
-                J[:, 3 * k : 3 * k + 3, c + 3 * k : c + 3 * k + 3] = Rt
-            c += P
-        if self._tool_free:
+        P, width = 3 * K, self.size() + len(self.held)  # every marker column, then held's out
+        J = np.zeros((m, self.kind.full_rows(K), width))  # 3 K point rows, 3 turning
+        # d(R p)/dphi = -[R p]x Jl(phi) with R = Exp(phi) R0, then translation
+        Jl = left_jacobian(xf[:3])
+        J[:, :P, :3] = (-skew(pts - state.frame[:3, 3]) @ Jl).reshape(m, P, 3)
+        J[:, :P, 3:6] = np.tile(np.eye(3), (K, 1))
+        if self.kind.rotation_rows:
+            J[:, P:, :3] = Jl
+        Rt = R @ kin.R[:, -1]
+        for k in range(K):
+            J[:, 3 * k : 3 * k + 3, 6 + 3 * k : 9 + 3 * k] = Rt
+        c = 6 + P
+        if self.pose:
             J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
             c += 3
         if self.base:  # the MDH columns need the MDH model's frames
@@ -276,7 +262,8 @@ class ErrorModel:
                 sub = Kinematics(*(a[part] for a in mdh_kin))
                 J[part, :, c:] = self._mdh_columns(state, q[part], sub)
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
-        return self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
+        J = self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
+        return J[..., [c for c in range(width) if c - 6 not in self.held]] if self.held else J
 
     @property
     def rows(self) -> int:
@@ -299,20 +286,15 @@ class ErrorModel:
             cols = np.concatenate([cols, R @ W6[:, 3:]], axis=1)
         return cols @ self.lift
 
-    def with_(self, **changes) -> ErrorModel:
-        """A copy with some fields replaced."""
-        return dataclasses.replace(self, **changes)
 
-
-def moved_frame(frame: np.ndarray, xf: np.ndarray, free: bool = True) -> np.ndarray:
-    """A copy of a frame ``(4, 4)`` moved (if ``free``) by x's frame part ``xf``.
+def moved_frame(frame: np.ndarray, xf: np.ndarray) -> np.ndarray:
+    """A copy of a frame ``(4, 4)`` moved by x's frame part ``xf``.
 
     ``xf``: a rotation vector [rad] applied on the left, then a translation [m].
     """
     out = frame.copy()
-    if free:
-        out[:3, :3] = rotation_matrix(xf[:3]) @ frame[:3, :3]
-        out[:3, 3] = frame[:3, 3] + xf[3:]
+    out[:3, :3] = rotation_matrix(xf[:3]) @ frame[:3, :3]
+    out[:3, 3] = frame[:3, 3] + xf[3:]
     return out
 
 

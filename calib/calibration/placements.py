@@ -49,7 +49,6 @@ __all__ = [
     "joint_twists",
     "mdh_directions",
     "offset_component",
-    "placement_error",
     "twist_columns",
     "zero_frames",
 ]
@@ -89,14 +88,6 @@ def offset_component(model: pin.Model, jid: int) -> str:
     """``rz`` for a revolute joint, ``z`` for a prismatic one (its offset)."""
     S = motion_axis(model.joints[jid])
     return "z" if np.linalg.norm(S[:3]) > 0.5 else "rz"
-
-
-def placement_error(basis: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``E = [R(w) | v]`` ``(4, 4)`` of axis-frame components ``y`` (x y z rx ry rz)."""
-    E = np.eye(4)
-    E[:3, :3] = rotation_matrix(basis @ y[3:])
-    E[:3, 3] = basis @ y[:3]
-    return E
 
 
 class JointFrames(NamedTuple):

@@ -39,15 +39,12 @@ class FitState(Protocol):
 
     def step_kinematics(self, data: Any, torque: np.ndarray | None) -> Any:
         """The frames at the data's joints."""
-        ...
 
     def same_geometry(self, other: Any) -> bool:
         """Whether ``other``'s kinematics at the same data are this state's."""
-        ...
 
     def residuals(self, data: Any, torque: np.ndarray | None = None, kin: Any = None) -> Any:
         """Measured - model per configuration ``(m, rows)``, at the kinematics ``kin`` if given."""
-        ...
 
 
 _State = TypeVar("_State", bound=FitState)
@@ -59,26 +56,21 @@ class FitModel(Protocol[_State]):
     @property
     def n_markers(self) -> int:
         """Points per configuration."""
-        ...
 
     @property
     def pose(self) -> bool:
         """Orientation rows are fitted."""
-        ...
 
     def size(self) -> int:
         """Number of free parameters."""
-        ...
 
     def apply(self, start: _State, x: np.ndarray) -> _State:
         """The state at parameters x (x = 0 is ``start``)."""
-        ...
 
     def jacobian(
         self, start: _State, x: np.ndarray, data: Any, torque: Any, state: Any, kin: Any
     ) -> np.ndarray:
         """d(model)/dx ``(m, rows, size)`` (``state`` at x and its ``kin``: None or made)."""
-        ...
 
 
 _Model = TypeVar("_Model", bound=FitModel[Any])
