@@ -34,6 +34,8 @@ TREE = calib.load_tree("bolt")  # 6 joints, 2 tools
 TREE_MODEL = calib.from_tree(TREE)
 TREE_SET = calib.tree_parameters(TREE_MODEL)
 TREE_Q = np.zeros((4, 6))
+ARRAY = np.arange(60.0).reshape(10, 6)  # a notebook's configurations
+DATA = calib.simulate(CHAIN, 30, seed=0).measurements
 
 
 def _cases():
@@ -267,6 +269,33 @@ def _third_round_cases():
         "calibrate_contact_chains measured from the root": lambda: calib.calibrate_contact_chains(
             [ROOTED], [calib.simulate(ROOTED, 12, measure="position", seed=0).measurements]
         ),
+        # An array where a number, a name or a marker goes (a notebook's q, several markers):
+        # its repr spanned lines in the message, or a comparison raised ValueError.
+        "analyze configs=array": lambda: calib.analyze(CHAIN, configs=ARRAY),
+        "analyze marker=(K, 3)": lambda: calib.analyze(CHAIN, marker=ARRAY[:2, :3]),
+        "analyze measure=array": lambda: calib.analyze(CHAIN, measure=ARRAY),
+        "analyze params=array": lambda: calib.analyze(CHAIN, params=ARRAY),
+        "analyze seed=array": lambda: calib.analyze(CHAIN, seed=ARRAY),
+        "simulate noise_mm=array": lambda: calib.simulate(CHAIN, 10, noise_mm=ARRAY),
+        "simulate params=array": lambda: calib.simulate(CHAIN, 10, params=ARRAY),
+        "simulate_contacts contacts=array": lambda: calib.simulate_contacts(
+            CHAIN, 10, contacts=ARRAY
+        ),
+        "design criterion=array": lambda: calib.design(CHAIN, 10, criterion=ARRAY),
+        "design params=array": lambda: calib.design(CHAIN, 10, params=ARRAY),
+        "design measure=array": lambda: calib.design(CHAIN, 10, measure=ARRAY),
+        "design random_sets=array": lambda: calib.design(CHAIN, 10, random_sets=ARRAY),
+        "calibrate elastic=array": lambda: calib.calibrate(CHAIN, DATA, elastic=ARRAY),
+        "calibrate holdout=array": lambda: calib.calibrate(CHAIN, DATA, holdout=ARRAY),
+        "calibrate loss=array": lambda: calib.calibrate(CHAIN, DATA, loss=ARRAY),
+        "calibrate max_iterations=array": lambda: calib.calibrate(
+            CHAIN, DATA, max_iterations=ARRAY
+        ),
+        # A loaded robot's frames are its own: another base or tool was ignored (the whole
+        # chain analysed where the user asked for a shorter one).
+        "analyze tool of a loaded chain": lambda: calib.analyze(CHAIN, tool="wrist_2_link"),
+        "load_robot base of a loaded chain": lambda: calib.load_robot(CHAIN, "world"),
+        "load_robot tools of a loaded tree": lambda: calib.load_robot(TREE, tool=["FL_FOOT"]),
     }
 
 

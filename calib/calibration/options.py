@@ -17,6 +17,9 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import ParamSpec, TypeVar
 
+import numpy as np
+
+from ..core.checks import shown
 from ..exceptions import InvalidArgumentError
 
 __all__ = [
@@ -86,9 +89,9 @@ def check_tree_level(level: str) -> None:
     Raises:
         InvalidArgumentError: A level other than :data:`TREE_LEVELS`.
     """
-    if level not in TREE_LEVELS:
+    if not isinstance(level, str) or level not in TREE_LEVELS:
         raise InvalidArgumentError(
-            f"unknown parameter level '{level}' for a tree: choose {', '.join(TREE_LEVELS)}"
+            f"unknown parameter level {shown(level)} for a tree: choose {', '.join(TREE_LEVELS)}"
         )
 
 
@@ -149,12 +152,14 @@ class Options:
             not isinstance(self.params, str) or self.params not in LEVELS
         ):
             raise InvalidArgumentError(
-                f"unknown parameter level '{self.params}': choose {', '.join(LEVELS)}"
+                f"unknown parameter level {shown(self.params)}: choose {', '.join(LEVELS)}"
             )
         if not isinstance(self.loss, str) or self.loss not in LOSSES:
-            raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
-        if self.elastic not in (None, True, False):
-            raise InvalidArgumentError(f"elastic is True, False or None, got {self.elastic!r}")
+            raise InvalidArgumentError(
+                f"unknown loss {shown(self.loss)}: choose {', '.join(LOSSES)}"
+            )
+        if isinstance(self.elastic, np.ndarray) or self.elastic not in (None, True, False):
+            raise InvalidArgumentError(f"elastic is True, False or None, got {shown(self.elastic)}")
         from ..core.checks import MAX_ERROR_MM, MAX_WEIGHT, check_count, check_number
 
         for name, value, top in (
@@ -167,7 +172,7 @@ class Options:
         check_count(self.seed, "the seed", 0)
         h = self.holdout
         if isinstance(h, bool) or not isinstance(h, numbers.Real) or not (0.0 <= float(h) < 1.0):
-            raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {h!r}")
+            raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {shown(h)}")
         object.__setattr__(self, "fix", _names("fix", self.fix))
         object.__setattr__(self, "free", _names("free", self.free))
         both = set(self.fix) & set(self.free)

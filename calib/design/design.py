@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
-from ..core.checks import check_count, check_work, real_array
+from ..core.checks import check_count, check_work, real_array, shown
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES, DEFAULT_MEASURE, DEFAULT_SET
 from ..core.progress import phase, steps
 from ..exceptions import InvalidArgumentError
@@ -272,9 +272,9 @@ def _checked_options(criterion: str, constraints, progress) -> Constraints:
         InvalidArgumentError: An unknown criterion, constraints that are no
             :class:`Constraints`, or a progress that is not callable.
     """
-    if criterion not in EXCHANGE_CRITERIA:
+    if not isinstance(criterion, str) or criterion not in EXCHANGE_CRITERIA:
         raise InvalidArgumentError(
-            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
+            f"unknown criterion {shown(criterion)}: choose {', '.join(EXCHANGE_CRITERIA)}"
         )
     constraints = Constraints() if constraints is None else constraints
     if not isinstance(constraints, Constraints) or not (progress is None or callable(progress)):

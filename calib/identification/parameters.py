@@ -9,7 +9,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from ..core.checks import real_array
+from ..core.checks import real_array, shown
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH
@@ -205,8 +205,8 @@ def parameter_set(mdh: MDHModel, label: str) -> ParameterSet:
     Raises:
         InvalidArgumentError: Unknown label.
     """
-    if label == "paper":
+    if isinstance(label, str) and label == "paper":
         return paper_parameters(mdh)
-    if label == "complete":
+    if isinstance(label, str) and label == "complete":
         return complete_parameters(mdh)
-    raise InvalidArgumentError(f"unknown parameter set '{label}': choose paper or complete")
+    raise InvalidArgumentError(f"unknown parameter set {shown(label)}: choose paper or complete")
