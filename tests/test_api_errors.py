@@ -378,6 +378,31 @@ def test_results_and_data_print_in_one_line():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
 
 
+def test_a_cameras_data_print_in_one_line():
+    """A camera's pieces printed their arrays: PixelData 42,719 characters over hundreds of
+    lines for 2088 pixels, the observations, target, camera and intrinsics likewise (a
+    pinhole's 8 or more distortion coefficients over lines)."""
+    pinhole = calib.Pinhole(600.0, 600.0, 320.0, 240.0, np.linspace(-0.1, 0.1, 8))
+    intr = calib.Intrinsics(640, 480, pinhole, "intr.yaml")
+    target = calib.Target(("a", "b", "c"), np.eye(3) * 0.05, source="target.csv")
+    q = np.zeros((200, 6))
+    obs = calib.PixelObservations(
+        CHAIN.joint_names, q, ("cam",) * 200, ("a", "b", "c", "a") * 50, np.ones((200, 2))
+    )
+    camera = calib.PixelCamera("cam", "world", intr, None)
+    shown = {
+        pinhole: "Pinhole(fx=600.0, fy=600.0, cx=320.0, cy=240.0, distortion=(-0.1, ",
+        intr: "<Intrinsics intr.yaml: 640x480 px, fx 600, fy 600, cx 320, cy 240 px>",
+        target: "<Target target.csv: 3 points on the tool>",
+        obs: "<PixelObservations <observations>: 200 pixels of 3 points, camera(s) cam, 6 joints>",
+        camera: "<PixelCamera cam on world, intr.yaml, placed from the URDF or the pixels>",
+        calib.PixelData(camera, target, obs): "<PixelData <observations>: 200 pixels of camera "
+        "cam>",
+    }
+    for value, start in shown.items():
+        assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
+
+
 def test_an_orientation_noise_without_orientation_rows_is_refused():
     """``simulate(chain, m, "position", noise_mrad=0.1)`` drew no orientation noise and said
     nothing (the command line refused it); a pose takes it, and 0 is no noise."""

@@ -88,6 +88,11 @@ class PixelCamera:
                 f"PixelCamera {self.name}: placement must be a rigid transform (4, 4) [m]"
             )
 
+    def __repr__(self) -> str:
+        """One line (the intrinsics and the placement are in the attributes)."""
+        at = "placed from the URDF or the pixels" if self.placement is None else "placed"
+        return f"<PixelCamera {self.name} on {self.link}, {self.intrinsics.source}, {at}>"
+
 
 def _rigid(T) -> bool:
     """Whether ``T`` is a finite ``(4, 4)`` rigid transform (rotation to 1e-6)."""
