@@ -36,6 +36,7 @@ TREE_SET = calib.tree_parameters(TREE_MODEL)
 TREE_Q = np.zeros((4, 6))
 ARRAY = np.arange(60.0).reshape(10, 6)  # a notebook's configurations
 DATA = calib.simulate(CHAIN, 30, seed=0).measurements
+PROBLEM = calib.Problem((calib.Term(CHAIN, DATA),))
 
 
 def _cases():
@@ -291,6 +292,10 @@ def _third_round_cases():
         "calibrate max_iterations=array": lambda: calib.calibrate(
             CHAIN, DATA, max_iterations=ARRAY
         ),
+        # An option beside a problem (whose options are in it) was ignored: no rows held out.
+        "calibrate problem, holdout=": lambda: calib.calibrate(PROBLEM, holdout=0.25),
+        "calibrate problem, fix=": lambda: calib.calibrate(PROBLEM, fix=("d2",)),
+        "calibrate problem, seed=": lambda: calib.calibrate(PROBLEM, seed=3),
         # A loaded robot's frames are its own: another base or tool was ignored (the whole
         # chain analysed where the user asked for a shorter one).
         "analyze tool of a loaded chain": lambda: calib.analyze(CHAIN, tool="wrist_2_link"),

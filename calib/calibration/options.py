@@ -35,6 +35,7 @@ __all__ = [
     "Options",
     "check_tree_level",
     "checked_arguments",
+    "options_given",
 ]
 
 LEVELS = ("auto", "frames", "offsets", "paper", "complete")
@@ -195,6 +196,17 @@ R = TypeVar("R")
 
 _RENAMED = {"level": "params", "chain": "robot", "tree": "robot", "markers": "marker"}
 """Keywords users reach for, and the argument that takes what they mean."""
+
+
+def options_given(function: Callable, values: dict[str, object]) -> list[str]:
+    """The options among ``values`` (by name) that are not ``function``'s defaults."""
+    defaults = inspect.signature(function).parameters
+
+    def default(value, given) -> bool:
+        kind = isinstance(value, str | int | float | tuple) and type(value) is type(given)
+        return value is given or (kind and value == given)
+
+    return [n for n, v in values.items() if not default(v, defaults[n].default)]
 
 
 def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
