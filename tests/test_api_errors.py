@@ -9,6 +9,7 @@ own rewrite, issue 10.)
 from __future__ import annotations
 
 import atexit
+import dataclasses
 import re
 import shutil
 import tempfile
@@ -37,6 +38,7 @@ TREE_Q = np.zeros((4, 6))
 ARRAY = np.arange(60.0).reshape(10, 6)  # a notebook's configurations
 DATA = calib.simulate(CHAIN, 30, seed=0).measurements
 PROBLEM = calib.Problem((calib.Term(CHAIN, DATA),))
+TOUCHES = calib.simulate_contacts(CHAIN, 20, seed=0).data
 
 
 def _cases():
@@ -158,8 +160,6 @@ def _cases():
 def _third_round_cases():
     """Issue 29, item 12: the calls of the README's Python section with wrong arguments (a
     path where data are expected, an empty contact set, a string where an array is)."""
-    import dataclasses
-
     from calib.design.design import design, evaluate, least_i
     from calib.design.observability import indices
     from calib.measurements.contact_campaign import (
@@ -291,6 +291,13 @@ def _third_round_cases():
         "calibrate loss=array": lambda: calib.calibrate(CHAIN, DATA, loss=ARRAY),
         "calibrate max_iterations=array": lambda: calib.calibrate(
             CHAIN, DATA, max_iterations=ARRAY
+        ),
+        # Touches whose ids are not one per touch: an IndexError inside the fit.
+        "calibrate touches with fewer ids": lambda: calib.calibrate(
+            CHAIN, dataclasses.replace(TOUCHES, ids=TOUCHES.ids[:3])
+        ),
+        "calibrate touches with fewer rows": lambda: calib.calibrate(
+            CHAIN, dataclasses.replace(TOUCHES, q=TOUCHES.q[:5])
         ),
         # An option beside a problem (whose options are in it) was ignored: no rows held out.
         "calibrate problem, holdout=": lambda: calib.calibrate(PROBLEM, holdout=0.25),
