@@ -415,6 +415,17 @@ def test_a_cameras_data_print_in_one_line():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
 
 
+def test_a_cameras_placement_given_as_a_list_is_an_array():
+    """``PixelCamera(..., placement=np.eye(4).tolist())`` passed the rigid-transform check
+    and was kept a list: the fit failed with a TypeError (list indices)."""
+    pinhole = calib.Pinhole(600.0, 600.0, 320.0, 240.0)
+    camera = calib.PixelCamera("cam", "world", calib.Intrinsics(640, 480, pinhole), [
+        [1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0], [0, 0, 0, 1]
+    ])  # fmt: skip
+    assert isinstance(camera.placement, np.ndarray) and camera.placement.dtype == float
+    assert camera.placement[0, 3] == 0.5 and not camera.placement.flags.writeable
+
+
 def test_an_orientation_noise_without_orientation_rows_is_refused():
     """``simulate(chain, m, "position", noise_mrad=0.1)`` drew no orientation noise and said
     nothing (the command line refused it); a pose takes it, and 0 is no noise."""

@@ -119,7 +119,7 @@ def calibrate(
             ``data``.
     """
     if isinstance(robot, Problem):
-        named = options_given(calibrate, dict(
+        named = options_given(dict(
             marker=marker, validate=validate, params=params, fix=fix, free=free, elastic=elastic,
             loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
             max_iterations=max_iterations, holdout=holdout, seed=seed))  # fmt: skip

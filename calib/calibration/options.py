@@ -10,6 +10,7 @@ level is checked by :func:`check_tree_level`.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import inspect
 import numbers
@@ -198,15 +199,18 @@ _RENAMED = {"level": "params", "chain": "robot", "tree": "robot", "markers": "ma
 """Keywords users reach for, and the argument that takes what they mean."""
 
 
-def options_given(function: Callable, values: dict[str, object]) -> list[str]:
-    """The options among ``values`` (by name) that are not ``function``'s defaults."""
-    defaults = inspect.signature(function).parameters
+def options_given(values: dict[str, object]) -> list[str]:
+    """The options among ``values`` (by name) that are not :class:`Options`'s defaults.
+
+    A name that is no field of :class:`Options` (``marker``, ``validate``) defaults to None.
+    """
+    defaults = {f.name: f.default for f in dataclasses.fields(Options)}
 
     def default(value, given) -> bool:
         kind = isinstance(value, str | int | float | tuple) and type(value) is type(given)
         return value is given or (kind and value == given)
 
-    return [n for n, v in values.items() if not default(v, defaults[n].default)]
+    return [n for n, v in values.items() if not default(v, defaults.get(n))]
 
 
 def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
