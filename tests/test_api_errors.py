@@ -39,6 +39,7 @@ ARRAY = np.arange(60.0).reshape(10, 6)  # a notebook's configurations
 DATA = calib.simulate(CHAIN, 30, seed=0).measurements
 PROBLEM = calib.Problem((calib.Term(CHAIN, DATA),))
 TOUCHES = calib.simulate_contacts(CHAIN, 20, seed=0).data
+CONFIGS = CHAIN.random_configurations(10, seed=0)
 
 
 def _cases():
@@ -299,6 +300,12 @@ def _third_round_cases():
         "calibrate touches with fewer rows": lambda: calib.calibrate(
             CHAIN, dataclasses.replace(TOUCHES, q=TOUCHES.q[:5])
         ),
+        # Configurations in degrees: simulated (98.6 rad) where a configurations file is
+        # refused, and a calibration of the campaign too.
+        "simulate configurations in degrees": lambda: calib.simulate(CHAIN, np.degrees(CONFIGS)),
+        "simulate_tree configurations in degrees": lambda: calib.simulate_tree(
+            TREE, np.degrees(TREE.random_configurations(5, seed=0))
+        ),
         # An option beside a problem (whose options are in it) was ignored: no rows held out.
         "calibrate problem, holdout=": lambda: calib.calibrate(PROBLEM, holdout=0.25),
         "calibrate problem, fix=": lambda: calib.calibrate(PROBLEM, fix=("d2",)),
@@ -380,6 +387,8 @@ def test_results_and_data_print_in_one_line():
         "1 marker(s)>",
         touches: "<ContactCampaign ur5: 12 plane touches of 2 plane(s), seed 0>",
         touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 plane(s), 6 joints>",
+        calib.simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
+        "tools (FL_FOOT, FR_FOOT), ",
         CHAIN: "<Chain ur5: base_link -> tool0, 6 joints>",
         calib.load_robot("ur5", tool=("wrist_2_link", "tool0")): "<Tree ur5: base_link -> "
         "wrist_2_link, tool0, 6 joints>",
