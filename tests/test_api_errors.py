@@ -390,6 +390,7 @@ def test_results_and_data_print_in_one_line():
         calib.simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
         "tools (FL_FOOT, FR_FOOT), ",
         CHAIN: "<Chain ur5: base_link -> tool0, 6 joints>",
+        calib.tree_parameters(TREE_MODEL): "<ParameterSet paper: 36 parameters (theta0, ",
         calib.load_robot("ur5", tool=("wrist_2_link", "tool0")): "<Tree ur5: base_link -> "
         "wrist_2_link, tool0, 6 joints>",
         calib.analyze(calib.Problem(calib.Term(CHAIN, campaign.measurements))): "<ProblemAnalysis "

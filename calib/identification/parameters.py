@@ -116,6 +116,11 @@ class ParameterSet:
     def __len__(self) -> int:
         return len(self.parameters)
 
+    def __repr__(self) -> str:
+        """One line of names (the dataclass's listed every Parameter: 6,480 characters)."""
+        names = self.names if len(self) <= 8 else (*self.names[:6], "...", self.names[-1])
+        return f"<ParameterSet {self.label}: {len(self)} parameters ({', '.join(names)})>"
+
     @functools.cached_property
     def names(self) -> tuple[str, ...]:
         """Parameter names, e.g. ``('theta0', 'r0', 'alpha1', ...)`` (computed once per set)."""
