@@ -24,6 +24,7 @@ from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
+from ..measurements.limits import check_limits
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
 from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, optimal_subset
@@ -289,7 +290,9 @@ def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: f
     """Random candidates within the limits, or the user's ``(N, n)`` checked."""
     if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
         return candidate_configurations(chain, int(candidates), seed, margin)
-    return chain.check_configurations(candidates)
+    q = chain.check_configurations(candidates)  # far past a limit (degrees?): as a file's
+    check_limits(chain, q, "the candidates", np.arange(1, len(q) + 1), warn=False)
+    return q
 
 
 def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: int):
