@@ -9,7 +9,14 @@ from conftest import chain_of
 import calib
 from calib import InvalidArgumentError
 from calib.design.constraints import Constraints, filter_candidates
-from calib.design.design import RANDOM_POOL, _draw, _random_sets, candidate_configurations, design
+from calib.design.design import (
+    RANDOM_POOL,
+    _draw,
+    _random_sets,
+    candidate_configurations,
+    design,
+    evaluate,
+)
 from calib.design.exchange import optimal_subset
 
 
@@ -142,3 +149,5 @@ def test_candidates_in_degrees_are_named_as_a_candidates_file_is():
     with pytest.raises(DataError, match=r"row 1, column 'shoulder_pan_joint'.*degrees"):
         design(chain, 12, candidates=np.degrees(q))
     assert len(design(chain, 12, candidates=q, random_sets=2).q) == 12
+    with pytest.raises(DataError, match=r"configurations \(row 1, .*degrees"):
+        evaluate(chain, np.degrees(q))  # it scored them (as --evaluate FILE refuses them)

@@ -290,8 +290,13 @@ def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: f
     """Random candidates within the limits, or the user's ``(N, n)`` checked."""
     if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
         return candidate_configurations(chain, int(candidates), seed, margin)
-    q = chain.check_configurations(candidates)  # far past a limit (degrees?): as a file's
-    check_limits(chain, q, "the candidates", np.arange(1, len(q) + 1), warn=False)
+    return _within_limits(chain, candidates, "the candidates")
+
+
+def _within_limits(chain: Chain | Tree, q, what: str) -> np.ndarray:
+    """The user's configurations ``(K, n)``, refused far past a limit as a file's are."""
+    q = chain.check_configurations(q)
+    check_limits(chain, q, what, np.arange(1, len(q) + 1), warn=False)  # degrees?
     return q
 
 
@@ -434,7 +439,8 @@ def evaluate(
     configurations too, so that the set's own rank deficiency shows. The other arguments
     are :func:`design`'s.
     """
-    q = check_robot(chain, "chain").check_configurations(q)
+    check_robot(chain, "chain")
+    q = _within_limits(chain, q, "the configurations")
     if not len(q):
         raise InvalidArgumentError("no configuration to evaluate: q has no row")
     model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
