@@ -40,6 +40,8 @@ DATA = calib.simulate(CHAIN, 30, seed=0).measurements
 PROBLEM = calib.Problem((calib.Term(CHAIN, DATA),))
 TOUCHES = calib.simulate_contacts(CHAIN, 20, seed=0).data
 CONFIGS = CHAIN.random_configurations(10, seed=0)
+INTRINSICS = calib.Intrinsics(640, 480, calib.Pinhole(600.0, 600.0, 320.0, 240.0))
+TARGET = calib.Target(("a", "b", "c"), np.eye(3) * 0.05)
 
 
 def _cases():
@@ -303,6 +305,9 @@ def _third_round_cases():
         # Configurations in degrees: simulated (98.6 rad) where a configurations file is
         # refused, and a calibration of the campaign too.
         "simulate configurations in degrees": lambda: calib.simulate(CHAIN, np.degrees(CONFIGS)),
+        "simulate_pixels configurations in degrees": lambda: calib.simulate_pixels(
+            CHAIN, "cam", np.eye(4), INTRINSICS, TARGET, np.degrees(CONFIGS)
+        ),
         "simulate_tree configurations in degrees": lambda: calib.simulate_tree(
             TREE, np.degrees(TREE.random_configurations(5, seed=0))
         ),
