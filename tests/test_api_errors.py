@@ -430,6 +430,12 @@ def test_a_cameras_data_print_in_one_line():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
 
 
+def test_one_point_number_given_alone_is_asked_as_a_sequence():
+    """``Columns(points=1)`` said "points must be integers ..., got 1"."""
+    with pytest.raises(calib.InvalidArgumentError, match=r"a sequence of point numbers"):
+        calib.Columns(points=1)
+
+
 def test_a_cameras_placement_given_as_a_list_is_an_array():
     """``PixelCamera(..., placement=np.eye(4).tolist())`` passed the rigid-transform check
     and was kept a list: the fit failed with a TypeError (list indices)."""
