@@ -9,6 +9,7 @@ own rewrite, issue 10.)
 from __future__ import annotations
 
 import atexit
+import dataclasses
 import re
 import shutil
 import tempfile
@@ -34,6 +35,13 @@ TREE = calib.load_tree("bolt")  # 6 joints, 2 tools
 TREE_MODEL = calib.from_tree(TREE)
 TREE_SET = calib.tree_parameters(TREE_MODEL)
 TREE_Q = np.zeros((4, 6))
+ARRAY = np.arange(60.0).reshape(10, 6)  # a notebook's configurations
+DATA = calib.simulate(CHAIN, 30, seed=0).measurements
+PROBLEM = calib.Problem((calib.Term(CHAIN, DATA),))
+TOUCHES = calib.simulate_contacts(CHAIN, 20, seed=0).data
+CONFIGS = CHAIN.random_configurations(10, seed=0)
+INTRINSICS = calib.Intrinsics(640, 480, calib.Pinhole(600.0, 600.0, 320.0, 240.0))
+TARGET = calib.Target(("a", "b", "c"), np.eye(3) * 0.05)
 
 
 def _cases():
@@ -155,8 +163,6 @@ def _cases():
 def _third_round_cases():
     """Issue 29, item 12: the calls of the README's Python section with wrong arguments (a
     path where data are expected, an empty contact set, a string where an array is)."""
-    import dataclasses
-
     from calib.design.design import design, evaluate, least_i
     from calib.design.observability import indices
     from calib.measurements.contact_campaign import (
@@ -267,6 +273,53 @@ def _third_round_cases():
         "calibrate_contact_chains measured from the root": lambda: calib.calibrate_contact_chains(
             [ROOTED], [calib.simulate(ROOTED, 12, measure="position", seed=0).measurements]
         ),
+        # An array where a number, a name or a marker goes (a notebook's q, several markers):
+        # its repr spanned lines in the message, or a comparison raised ValueError.
+        "analyze configs=array": lambda: calib.analyze(CHAIN, configs=ARRAY),
+        "analyze marker=(K, 3)": lambda: calib.analyze(CHAIN, marker=ARRAY[:2, :3]),
+        "analyze measure=array": lambda: calib.analyze(CHAIN, measure=ARRAY),
+        "analyze params=array": lambda: calib.analyze(CHAIN, params=ARRAY),
+        "analyze seed=array": lambda: calib.analyze(CHAIN, seed=ARRAY),
+        "simulate noise_mm=array": lambda: calib.simulate(CHAIN, 10, noise_mm=ARRAY),
+        "simulate params=array": lambda: calib.simulate(CHAIN, 10, params=ARRAY),
+        "simulate_contacts contacts=array": lambda: calib.simulate_contacts(
+            CHAIN, 10, contacts=ARRAY
+        ),
+        "design criterion=array": lambda: calib.design(CHAIN, 10, criterion=ARRAY),
+        "design params=array": lambda: calib.design(CHAIN, 10, params=ARRAY),
+        "design measure=array": lambda: calib.design(CHAIN, 10, measure=ARRAY),
+        "design random_sets=array": lambda: calib.design(CHAIN, 10, random_sets=ARRAY),
+        "calibrate elastic=array": lambda: calib.calibrate(CHAIN, DATA, elastic=ARRAY),
+        "calibrate holdout=array": lambda: calib.calibrate(CHAIN, DATA, holdout=ARRAY),
+        "calibrate loss=array": lambda: calib.calibrate(CHAIN, DATA, loss=ARRAY),
+        "calibrate max_iterations=array": lambda: calib.calibrate(
+            CHAIN, DATA, max_iterations=ARRAY
+        ),
+        # Touches whose ids are not one per touch: an IndexError inside the fit.
+        "calibrate touches with fewer ids": lambda: calib.calibrate(
+            CHAIN, dataclasses.replace(TOUCHES, ids=TOUCHES.ids[:3])
+        ),
+        "calibrate touches with fewer rows": lambda: calib.calibrate(
+            CHAIN, dataclasses.replace(TOUCHES, q=TOUCHES.q[:5])
+        ),
+        # Configurations in degrees: simulated (98.6 rad) where a configurations file is
+        # refused, and a calibration of the campaign too.
+        "simulate configurations in degrees": lambda: calib.simulate(CHAIN, np.degrees(CONFIGS)),
+        "simulate_pixels configurations in degrees": lambda: calib.simulate_pixels(
+            CHAIN, "cam", np.eye(4), INTRINSICS, TARGET, np.degrees(CONFIGS)
+        ),
+        "simulate_tree configurations in degrees": lambda: calib.simulate_tree(
+            TREE, np.degrees(TREE.random_configurations(5, seed=0))
+        ),
+        # An option beside a problem (whose options are in it) was ignored: no rows held out.
+        "calibrate problem, holdout=": lambda: calib.calibrate(PROBLEM, holdout=0.25),
+        "calibrate problem, fix=": lambda: calib.calibrate(PROBLEM, fix=("d2",)),
+        "calibrate problem, seed=": lambda: calib.calibrate(PROBLEM, seed=3),
+        # A loaded robot's frames are its own: another base or tool was ignored (the whole
+        # chain analysed where the user asked for a shorter one).
+        "analyze tool of a loaded chain": lambda: calib.analyze(CHAIN, tool="wrist_2_link"),
+        "load_robot base of a loaded chain": lambda: calib.load_robot(CHAIN, "world"),
+        "load_robot tools of a loaded tree": lambda: calib.load_robot(TREE, tool=["FL_FOOT"]),
     }
 
 
@@ -339,7 +392,10 @@ def test_results_and_data_print_in_one_line():
         "1 marker(s)>",
         touches: "<ContactCampaign ur5: 12 plane touches of 2 plane(s), seed 0>",
         touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 plane(s), 6 joints>",
+        calib.simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
+        "tools (FL_FOOT, FR_FOOT), ",
         CHAIN: "<Chain ur5: base_link -> tool0, 6 joints>",
+        calib.tree_parameters(TREE_MODEL): "<ParameterSet paper: 36 parameters (theta0, ",
         calib.load_robot("ur5", tool=("wrist_2_link", "tool0")): "<Tree ur5: base_link -> "
         "wrist_2_link, tool0, 6 joints>",
         calib.analyze(calib.Problem(calib.Term(CHAIN, campaign.measurements))): "<ProblemAnalysis "
@@ -347,6 +403,48 @@ def test_results_and_data_print_in_one_line():
     }
     for value, start in shown.items():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
+
+
+def test_a_cameras_data_print_in_one_line():
+    """A camera's pieces printed their arrays: PixelData 42,719 characters over hundreds of
+    lines for 2088 pixels, the observations, target, camera and intrinsics likewise (a
+    pinhole's 8 or more distortion coefficients over lines)."""
+    pinhole = calib.Pinhole(600.0, 600.0, 320.0, 240.0, np.linspace(-0.1, 0.1, 8))
+    intr = calib.Intrinsics(640, 480, pinhole, "intr.yaml")
+    target = calib.Target(("a", "b", "c"), np.eye(3) * 0.05, source="target.csv")
+    q = np.zeros((200, 6))
+    obs = calib.PixelObservations(
+        CHAIN.joint_names, q, ("cam",) * 200, ("a", "b", "c", "a") * 50, np.ones((200, 2))
+    )
+    camera = calib.PixelCamera("cam", "world", intr, None)
+    shown = {
+        pinhole: "Pinhole(fx=600.0, fy=600.0, cx=320.0, cy=240.0, distortion=(-0.1, ",
+        intr: "<Intrinsics intr.yaml: 640x480 px, fx 600, fy 600, cx 320, cy 240 px>",
+        target: "<Target target.csv: 3 points on the tool>",
+        obs: "<PixelObservations <observations>: 200 pixels of 3 points, camera(s) cam, 6 joints>",
+        camera: "<PixelCamera cam on world, intr.yaml, placed from the URDF or the pixels>",
+        calib.PixelData(camera, target, obs): "<PixelData <observations>: 200 pixels of camera "
+        "cam>",
+    }
+    for value, start in shown.items():
+        assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
+
+
+def test_one_point_number_given_alone_is_asked_as_a_sequence():
+    """``Columns(points=1)`` said "points must be integers ..., got 1"."""
+    with pytest.raises(calib.InvalidArgumentError, match=r"a sequence of point numbers"):
+        calib.Columns(points=1)
+
+
+def test_a_cameras_placement_given_as_a_list_is_an_array():
+    """``PixelCamera(..., placement=np.eye(4).tolist())`` passed the rigid-transform check
+    and was kept a list: the fit failed with a TypeError (list indices)."""
+    pinhole = calib.Pinhole(600.0, 600.0, 320.0, 240.0)
+    camera = calib.PixelCamera("cam", "world", calib.Intrinsics(640, 480, pinhole), [
+        [1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0], [0, 0, 0, 1]
+    ])  # fmt: skip
+    assert isinstance(camera.placement, np.ndarray) and camera.placement.dtype == float
+    assert camera.placement[0, 3] == 0.5 and not camera.placement.flags.writeable
 
 
 def test_an_orientation_noise_without_orientation_rows_is_refused():

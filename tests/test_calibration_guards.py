@@ -147,18 +147,25 @@ def test_tree_report_has_the_documented_schema(files, tmp_path):
     assert rep["iterations"] >= 1 and isinstance(rep["message"], str)
 
 
-def test_tree_tool_placement_is_checked_before_the_fit(tmp_path):
-    """A tool carried by a revolute joint: refused before any fit or printed result."""
+def test_a_trees_tool_carried_by_its_last_joint_is_written(tmp_path):
+    """A tool carried by its chain's last (revolute) joint, ``FR_LOWER_LEG``: refused before
+    the fit ("not by a fixed joint"), a rule of the tree's old writer (the tool's placement
+    in its fixed joint); the joint engine hangs each tool's markers from the tool's link, as
+    a chain's calibration does. Written now, the marker link on the tool's link
+    (``tests/test_tree_calibration.py`` checks the written URDF with Pinocchio)."""
+    import xml.etree.ElementTree as ET
+
     tools = ["--tool", "FL_FOOT", "--tool", "FR_LOWER_LEG"]
     data = tmp_path / "m.csv"
     sim = ["simulate", "bolt", *tools, "--measure", "position", "--configs", "20"]
     assert run([*sim, "--out", data])[0] == 0
     out, report = tmp_path / "o.urdf", tmp_path / "r.json"
-    code, stdout, err = run(
+    code, _, err = run(
         ["calibrate", "bolt", *tools, "--data", data, "--out", out, "--report", report]
     )
-    assert "not by a fixed joint" in one_error(code, err)
-    assert stdout == "" and not out.exists() and not report.exists()
+    assert code == 0, err
+    joints = {j.get("name"): j for j in ET.parse(out).getroot().iter("joint")}
+    assert joints["FR_LOWER_LEG_marker1_joint"].find("parent").get("link") == "FR_LOWER_LEG"
 
 
 def test_tree_outlier_row_is_set_aside(tmp_path):

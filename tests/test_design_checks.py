@@ -9,7 +9,14 @@ from conftest import chain_of
 import calib
 from calib import InvalidArgumentError
 from calib.design.constraints import Constraints, filter_candidates
-from calib.design.design import RANDOM_POOL, _draw, _random_sets, candidate_configurations, design
+from calib.design.design import (
+    RANDOM_POOL,
+    _draw,
+    _random_sets,
+    candidate_configurations,
+    design,
+    evaluate,
+)
 from calib.design.exchange import optimal_subset
 
 
@@ -129,3 +136,18 @@ def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, ca
     chain = calib.load_chain(urdf, "base", "tool")
     with pytest.raises(calib.URDFError, match=r"\(Constraints\(collision=False\)\)$"):
         design(chain, 5)
+
+
+def test_candidates_in_degrees_are_named_as_a_candidates_file_is():
+    """The user's candidates far past a joint limit (degrees for radians): "0 of 60
+    candidates pass the filters (margin rejects 60 ...)", where ``--candidates-file`` names
+    the row, the joint and the likely mistake; now the same line."""
+    from calib import DataError
+
+    chain = chain_of("ur5")
+    q = chain.random_configurations(60, seed=0)
+    with pytest.raises(DataError, match=r"row 1, column 'shoulder_pan_joint'.*degrees"):
+        design(chain, 12, candidates=np.degrees(q))
+    assert len(design(chain, 12, candidates=q, random_sets=2).q) == 12
+    with pytest.raises(DataError, match=r"configurations \(row 1, .*degrees"):
+        evaluate(chain, np.degrees(q))  # it scored them (as --evaluate FILE refuses them)

@@ -622,3 +622,35 @@ def test_control_characters_in_a_message_are_escaped(tmp_path, capsys):
     name = "a\x0bb\nc\u2028d.urdf"
     line = one_line_error(capsys, ["show", tmp_path / name])
     assert r"a\x0bb\nc\u2028d.urdf" in line
+
+
+def test_the_python_writers_never_write_inside_installed_packages(tmp_path, monkeypatch):
+    """``calib.write_measurements(chain.urdf_path, data)`` (a notebook's slip) replaced the
+    installed UR5 URDF with a CSV, for every later use of ``ur5``; the CLI refused such a
+    path, the Python writers did not. Every writer refuses a file in site-packages (here a
+    stand-in folder, so that the test harms nothing where the refusal is missing), before
+    writing anything."""
+    import sysconfig
+
+    import calib
+
+    site = tmp_path / "site-packages"
+    (site / "robots").mkdir(parents=True)
+    installed = site / "robots" / "robot.urdf"
+    installed.write_text("<robot/>\n")
+    monkeypatch.setattr(sysconfig, "get_path", lambda name, *a, **k: str(site))
+    chain = calib.load_chain("ur5")
+    data = calib.simulate(chain, 12, seed=0).measurements
+    result = calib.calibrate(chain, data)
+    writes = {
+        "write_measurements": lambda: calib.write_measurements(installed, data),
+        "Result.write": lambda: result.write(site / "robots" / "cal.urdf"),
+        "Result.write report": lambda: result.write(tmp_path / "c.urdf", site / "r.json"),
+    }
+    for what, write in writes.items():
+        with pytest.raises(InvalidArgumentError, match="inside the installed files") as info:
+            write()
+        assert "\n" not in str(info.value), what
+    assert installed.read_text() == "<robot/>\n"
+    assert sorted(p.name for p in site.rglob("*")) == ["robot.urdf", "robots"]
+    assert not (tmp_path / "c.urdf").exists()

@@ -142,23 +142,22 @@ def test_the_report_holds_the_camera_and_its_pixels(joint):
 def test_load_calibrated_reads_the_touching_term_beside_a_camera_on_its_tool(joint, tmp_path):
     """The head camera's term and the left arm's touches share the tool
     ``gripper_left_base_link``: ``tool=`` reads the touching term (a camera's predicts no
-    points). The one table both arms touched is fitted in the right sole's frame: the left
-    arm's term is refused for that, in one line; the right arm's is flush on it on the written
-    URDF (Pinocchio, 1e-9 m, noise-free)."""
-    from calib import DataError, load_calibrated
+    points). Each arm touched its own table (one id, two planes, each in its sole's frame: the
+    left arm's was lost from the report, its term refused): each term is flush on its own on
+    the written URDF (Pinocchio, 1e-9 m, noise-free)."""
+    from calib import load_calibrated
 
     nominal, data, r, out = joint
     report = tmp_path / "r.json"
     report.write_text(json.dumps(r.to_dict()))
     assert nominal[0].tool_frame == HEAD[1]
-    with pytest.raises(DataError, match="not in its base left_sole_link's frame"):
-        load_calibrated(out, report, HEAD[1])  # the touching term, not "2 terms"
-    arm, part, q = nominal[1], r.chains[1], data[1].q
-    model = load_calibrated(out, report, arm.tool_frame)
-    joints = {n: q[:, k] for k, n in enumerate(arm.joint_names)}
-    gaps = plane_gaps(out, arm.base_frame, arm.tool_frame, part.contact, part.plane, joints)
-    assert np.max(np.abs(gaps)) < 1e-9
-    assert np.max(np.abs(model.contact_placements(q)[:, 2, 3])) < 1e-9
+    for k in (0, 1):  # the left arm's term by its tool: the touching term, not "2 terms"
+        arm, part, q = nominal[k], r.chains[k], data[k].q
+        model = load_calibrated(out, report, arm.tool_frame)
+        joints = {n: q[:, k] for k, n in enumerate(arm.joint_names)}
+        gaps = plane_gaps(out, arm.base_frame, arm.tool_frame, part.contact, part.plane, joints)
+        assert np.max(np.abs(gaps)) < 1e-9
+        assert np.max(np.abs(model.contact_placements(q)[:, 2, 3])) < 1e-9
 
 
 def test_one_pixel_term_through_the_one_entry(tmp_path):

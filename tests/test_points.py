@@ -120,7 +120,8 @@ def test_points_not_chosen_are_not_read_nor_warned_about(tmp_path):
         ((True,), "numbered from 1"),
         ((1, 2, 1), "point 1 is chosen twice"),
         ((), "at least one point"),
-        ("1", "must be integers"),
+        ("1", "a sequence of point numbers"),
+        (1, "a sequence of point numbers"),
     ],
 )
 def test_bad_points_in_the_api_are_one_line_errors(points, message):

@@ -365,34 +365,33 @@ def test_load_calibrated_and_predict_read_each_tool_of_a_tree_report(tmp_path, c
     assert not (tmp_path / "p2.csv").exists()
 
 
-def test_load_calibrated_reads_a_touching_term_of_several_where_its_base_holds_the_table(
-    tmp_path,
-):
-    """Both TALOS arms touching one table (id ``table1``): the table is fitted in one base's
-    frame. That term's contact is flush on it (Pinocchio's placements on the written URDF,
-    within the touches' noise); the other term's base does not hold it: one line says so."""
-    from calib import DataError, Problem, Term, load_calibrated
+def test_load_calibrated_reads_each_touching_term_on_its_own_table_of_one_id(tmp_path):
+    """Both TALOS arms touching a table each (both ids ``table1``, planes not shared: their
+    bases differ): two planes are fitted, each in its arm's base frame. The report kept one
+    (the other term was refused, "not in its base's frame"); each is now ``table1@<tool>``,
+    and each term's contact is flush on its own (Pinocchio's placements on the written URDF,
+    within the touches' noise)."""
+    from calib import Problem, Term, load_calibrated
 
     arms = [load_robot("talos_full_v2.urdf", f"{s}_sole_link", f"gripper_{s}_base_link")
             for s in ("left", "right")]  # fmt: skip
     data = [simulate_contacts(c, 40, "plane", seed=2 + i).data for i, c in enumerate(arms)]
     result = calibrate(Problem(tuple(Term(c, d) for c, d in zip(arms, data, strict=True))))
+    assert result.planes == 2
     urdf, report = tmp_path / "c.urdf", tmp_path / "c.json"
     result.write(urdf, report=report)
     doc = json.loads(report.read_text())
-    table = doc["objects"]["planes"]["table1"]
-    held = [c for c in arms if c.base_frame == table["frame"]]
-    other = [c for c in arms if c.base_frame != table["frame"]]
-    assert len(held) == 1 and len(other) == 1
-    arm, touches = held[0], data[arms.index(held[0])]
-    model = load_calibrated(urdf, report, arm.tool_frame)
-    T = _pin_tool(urdf, arm.base_frame, arm.tool_frame, arm.joint_names, touches.q)
-    C = np.array(doc["frames"]["contacts"][arm.tool_frame]["matrix"])
-    expected = np.linalg.inv(np.array(table["matrix"])) @ T @ C
-    assert np.allclose(model.contact_placements(touches.q), expected, atol=1e-9)
-    assert np.max(np.abs(expected[:, 2, 3])) < 5e-3
-    with pytest.raises(DataError, match="predict the term whose base holds them"):
-        load_calibrated(urdf, report, other[0].tool_frame)
+    for k, (arm, touches) in enumerate(zip(arms, data, strict=True)):
+        name = f"table1@{arm.tool_frame}"
+        assert doc["terms"][k]["objects"] == [name]
+        table = doc["objects"]["planes"][name]
+        assert table["frame"] == arm.base_frame
+        model = load_calibrated(urdf, report, arm.tool_frame)
+        T = _pin_tool(urdf, arm.base_frame, arm.tool_frame, arm.joint_names, touches.q)
+        C = np.array(doc["frames"]["contacts"][arm.tool_frame]["matrix"])
+        expected = np.linalg.inv(np.array(table["matrix"])) @ T @ C
+        assert np.allclose(model.contact_placements(touches.q), expected, atol=1e-9)
+        assert np.max(np.abs(expected[:, 2, 3])) < 5e-3
 
 
 def test_each_touching_term_is_read_against_the_table_it_touched(tmp_path):

@@ -526,6 +526,28 @@ def test_each_term_of_one_tool_is_read_as_what_it_is(joint_fit, tmp_path, capsys
     assert "choose one by its index (--term-index)" in capsys.readouterr().err
 
 
+def test_two_terms_own_planes_of_one_id_are_both_reported_and_read(joint_fit, tmp_path):
+    """Both arms touch a plane each (not shared), both named alike by their touches: the
+    report's ``objects`` kept one (the last term's overwrote the first's), so
+    ``load_calibrated(term=0)`` read the right arm's plane, or was refused when the bases
+    differ ("not in its base's frame"). Each is now ``<id>@<tool>``, listed in its term."""
+    from calib import load_calibrated
+
+    _, _, _, r, _ = joint_fit
+    out, report = tmp_path / "cal.urdf", tmp_path / "cal.json"
+    r.write(out, report)
+    doc = json.loads(report.read_text())
+    ids = [next(iter(c.objects())) for c in r.chains[:2]]
+    assert ids[0] == ids[1]  # one id, two planes
+    names = [f"{ids[0]}@{tool}" for _, tool in PAIRS]
+    assert sorted(doc["objects"]["planes"]) == sorted(names)
+    for k, part in enumerate(r.chains[:2]):
+        assert doc["terms"][k]["objects"] == [names[k]]
+        model = load_calibrated(out, report, term=k)
+        assert model.chain.base_frame == PAIRS[k][0]
+        assert np.max(np.abs(model.plane - part.objects()[ids[0]])) < 1e-12
+
+
 def test_auto_on_both_arms_and_the_camera_is_accepted(tmp_path):
     """``auto`` on the self-measure campaign (benchmarks/self_measure.py): both arms' MDH rows
     name the torso's shared joint alike (``torso_1_joint:d7``, two directions, one per chain:

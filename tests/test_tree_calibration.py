@@ -221,3 +221,37 @@ def test_held_out_rows_are_registered_once(monkeypatch):
     train, other = data.subset(np.arange(40)), data.subset(np.arange(40, 60))
     calibrate(tree, train, validate=other)
     assert sum(seen) == other.m  # each tool's validation rows diagnosed
+
+
+def test_a_trees_tool_on_its_last_joints_link_is_written(tmp_path):
+    """A tree whose tool is the link of its chain's last joint (the UR5's ``wrist_2_link``
+    beside ``tool0``): a chain to that tool writes its URDF, the tree's fit was accepted and
+    then refused at the write ("not by a fixed joint: nowhere to go"), though its markers
+    hang from the tool's link as a chain's do. Now written: Pinocchio's placement of each
+    tool's marker on the written URDF is the data (noise-free) and ``load_calibrated``'s
+    prediction, to 1e-9 m."""
+    import pinocchio as pin
+
+    from calib import load_calibrated, load_robot
+
+    tree = load_robot("ur5", tool=("wrist_2_link", "tool0"))
+    data = simulate_tree(tree, 30, seed=0).measurements
+    out, report = tmp_path / "cal.urdf", tmp_path / "cal.json"
+    calibrate(tree, data).write(out, report)
+    model = pin.buildModelFromUrdf(str(out))
+    pose = model.createData()
+    frames = json.loads(report.read_text())["frames"]["measurement"]
+    M = np.array(frames["base_link"]["matrix"])
+    for tool in tree.tool_frames:
+        rows = np.array([t == tool for t in data.tool])
+        seen = []
+        for q in data.q[rows]:
+            pin.framesForwardKinematics(model, pose, q)
+            base = pose.oMf[model.getFrameId("base_link")]
+            x = base.actInv(pose.oMf[model.getFrameId(f"{tool}_marker1")]).translation
+            seen.append(M[:3, :3] @ x + M[:3, 3])
+        assert np.max(np.abs(np.array(seen) - data.position[rows])) < 1e-9, tool
+        predicted = load_calibrated(out, report, tool)
+        joints = [tree.joint_names.index(n) for n in predicted.chain.joint_names]
+        points = predicted.points(data.q[rows][:, joints])[:, 0]
+        assert np.max(np.abs(points - data.position[rows])) < 1e-9, tool

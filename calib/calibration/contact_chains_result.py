@@ -374,6 +374,7 @@ class ContactChainsCalibration(Result, ChainView):
         """The report's fields of every shape (``origins``: ``model.joint_origins``)."""
         first = self.chains[0].chain
         solver = self.solver
+        names = self._object_names()
         return {
             "robot": first.name,
             "urdf": str(first.urdf_path),
@@ -385,7 +386,7 @@ class ContactChainsCalibration(Result, ChainView):
                     "kind": c.kind.label,
                     "data": c.source,
                     "configs": int(c.stats["train"].m),
-                    "objects": list(c.objects()) if isinstance(c, ChainContacts) else [],
+                    "objects": list(names.get(id(c), {}).values()),
                 }
                 for c in self.chains
             ],
@@ -405,7 +406,7 @@ class ContactChainsCalibration(Result, ChainView):
                 "terms": [c.errors() for c in self.chains],
             },
             "frames": self._frames(),
-            "objects": self._object_poses(),
+            "objects": self._object_poses(names),
             "fit": fit_dict(),
             "model_choice": model_choice(self.selection),
             "outliers": [
@@ -417,13 +418,42 @@ class ContactChainsCalibration(Result, ChainView):
             "timings_ms": dict(self.timings_ms),
         }
 
-    def _object_poses(self) -> dict:
-        """Planes and poses by id, each in its chain's base frame (format 3's ``objects``)."""
+    def _object_names(self) -> dict[int, dict[str, str]]:
+        """Each touching term's objects' names in the report, by term (``id``) and object id.
+
+        Terms that touch distinct objects of one id (each arm its own ``table``: planes not
+        shared) name theirs ``<id>@<tool>`` (``@<base>-><tool>`` where they share their tool),
+        as the parameters two chains name alike; a plane shared (one base, one plane) keeps
+        its id.
+        """
+        parts = self._of(ChainContacts)
+        seen = [(c, i, F) for c in parts for i, F in c.objects().items()]
+
+        def one(a, b) -> bool:  # one object: a shared plane (same base, normal and offset)
+            (c, _, F), (d, _, G) = a, b
+            planes = isinstance(c.kind, PlaneContact) and isinstance(d.kind, PlaneContact)
+            return (planes and c.chain.base_frame == d.chain.base_frame
+                    and np.allclose(F[:3, 2], G[:3, 2], rtol=0.0, atol=1e-12)
+                    and abs(F[:3, 2] @ (F[:3, 3] - G[:3, 3])) <= 1e-12)  # fmt: skip
+
+        names: dict[int, dict[str, str]] = {}
+        for a in seen:
+            c, i, _ = a
+            others = [b[0].chain for b in seen if b[1] == i and b is not a and not one(a, b)]
+            tool = c.chain.tool_frame
+            own = (
+                f"{c.chain.base_frame}->{tool}" if tool in {o.tool_frame for o in others} else tool
+            )
+            names.setdefault(id(c), {})[i] = f"{i}@{own}" if others else i
+        return names
+
+    def _object_poses(self, names: dict[int, dict[str, str]]) -> dict:
+        """Planes and poses by name, each in its chain's base frame (format 3's ``objects``)."""
         out: dict[str, dict] = {}
         for c in self._of(ChainContacts):
             group = out.setdefault(f"{c.kind.object_name}s", {})
             for i, F in c.objects().items():
-                group[i] = {"frame": c.chain.base_frame, **(pose_dict(F) or {})}
+                group[names[id(c)][i]] = {"frame": c.chain.base_frame, **(pose_dict(F) or {})}
         return out
 
     def _format2(self, origins: dict) -> dict:

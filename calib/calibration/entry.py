@@ -40,7 +40,13 @@ from .contact_chains import (
 from .contact_chains_result import ContactChainsCalibration
 from .delivery import read_files
 from .measured_term import check_measured
-from .options import DEFAULT_MAX_ITERATIONS, DEFAULT_TREE_LEVEL, check_tree_level, checked_arguments
+from .options import (
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_TREE_LEVEL,
+    check_tree_level,
+    checked_arguments,
+    options_given,
+)
 from .problem import Problem, Term
 from .tree_checks import prepare_tree
 from .validation import split
@@ -113,9 +119,14 @@ def calibrate(
             ``data``.
     """
     if isinstance(robot, Problem):
-        if data is not None or any(v is not None for v in (marker, validate, params)):
+        named = options_given(dict(
+            marker=marker, validate=validate, params=params, fix=fix, free=free, elastic=elastic,
+            loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
+            max_iterations=max_iterations, holdout=holdout, seed=seed))  # fmt: skip
+        if data is not None or named:  # an option beside the problem was ignored
             raise InvalidArgumentError(
                 "calibrate(problem) takes the problem alone: its data and options are in it"
+                + (f" ({', '.join(named)} given beside it)" if named else "")
             )
         return solve(robot, progress)
     if data is None:

@@ -10,6 +10,7 @@ level is checked by :func:`check_tree_level`.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import inspect
 import numbers
@@ -17,6 +18,9 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import ParamSpec, TypeVar
 
+import numpy as np
+
+from ..core.checks import shown
 from ..exceptions import InvalidArgumentError
 
 __all__ = [
@@ -32,6 +36,7 @@ __all__ = [
     "Options",
     "check_tree_level",
     "checked_arguments",
+    "options_given",
 ]
 
 LEVELS = ("auto", "frames", "offsets", "paper", "complete")
@@ -86,9 +91,9 @@ def check_tree_level(level: str) -> None:
     Raises:
         InvalidArgumentError: A level other than :data:`TREE_LEVELS`.
     """
-    if level not in TREE_LEVELS:
+    if not isinstance(level, str) or level not in TREE_LEVELS:
         raise InvalidArgumentError(
-            f"unknown parameter level '{level}' for a tree: choose {', '.join(TREE_LEVELS)}"
+            f"unknown parameter level {shown(level)} for a tree: choose {', '.join(TREE_LEVELS)}"
         )
 
 
@@ -149,12 +154,14 @@ class Options:
             not isinstance(self.params, str) or self.params not in LEVELS
         ):
             raise InvalidArgumentError(
-                f"unknown parameter level '{self.params}': choose {', '.join(LEVELS)}"
+                f"unknown parameter level {shown(self.params)}: choose {', '.join(LEVELS)}"
             )
         if not isinstance(self.loss, str) or self.loss not in LOSSES:
-            raise InvalidArgumentError(f"unknown loss '{self.loss}': choose {', '.join(LOSSES)}")
-        if self.elastic not in (None, True, False):
-            raise InvalidArgumentError(f"elastic is True, False or None, got {self.elastic!r}")
+            raise InvalidArgumentError(
+                f"unknown loss {shown(self.loss)}: choose {', '.join(LOSSES)}"
+            )
+        if isinstance(self.elastic, np.ndarray) or self.elastic not in (None, True, False):
+            raise InvalidArgumentError(f"elastic is True, False or None, got {shown(self.elastic)}")
         from ..core.checks import MAX_ERROR_MM, MAX_WEIGHT, check_count, check_number
 
         for name, value, top in (
@@ -167,7 +174,7 @@ class Options:
         check_count(self.seed, "the seed", 0)
         h = self.holdout
         if isinstance(h, bool) or not isinstance(h, numbers.Real) or not (0.0 <= float(h) < 1.0):
-            raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {h!r}")
+            raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {shown(h)}")
         object.__setattr__(self, "fix", _names("fix", self.fix))
         object.__setattr__(self, "free", _names("free", self.free))
         both = set(self.fix) & set(self.free)
@@ -190,6 +197,20 @@ R = TypeVar("R")
 
 _RENAMED = {"level": "params", "chain": "robot", "tree": "robot", "markers": "marker"}
 """Keywords users reach for, and the argument that takes what they mean."""
+
+
+def options_given(values: dict[str, object]) -> list[str]:
+    """The options among ``values`` (by name) that are not :class:`Options`'s defaults.
+
+    A name that is no field of :class:`Options` (``marker``, ``validate``) defaults to None.
+    """
+    defaults = {f.name: f.default for f in dataclasses.fields(Options)}
+
+    def default(value, given) -> bool:
+        kind = isinstance(value, str | int | float | tuple) and type(value) is type(given)
+        return value is given or (kind and value == given)
+
+    return [n for n, v in values.items() if not default(v, defaults.get(n))]
 
 
 def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:

@@ -69,6 +69,10 @@ class PixelData:
     obs: PixelObservations
     what: Unknowns = KNOWN
 
+    def __repr__(self) -> str:
+        """One line (what it holds is in the attributes)."""
+        return f"<PixelData {self.source}: {self.m} pixels of camera {self.camera.name}>"
+
     @property
     def source(self) -> str:
         """The observations' file."""

@@ -282,7 +282,7 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
         )
     out, report = _calibration_outputs(args, tree.urdf_path)
     for chain in tree.chains:  # before the fit: a URDF it cannot be written to is known now
-        check_exportable(chain)
+        check_exportable(chain, moving=True)  # markers hang from the tool's link
     columns = Columns(points=args.points)
     data = read_measurements(args.data, tree, columns)
     check = read_measurements(args.validate, tree, columns) if args.validate else None

@@ -28,6 +28,7 @@ __all__ = [
     "length_mm",
     "read_only",
     "real_array",
+    "shown",
 ]
 
 MAX_JOINT_POSITION = 1e4
@@ -66,6 +67,18 @@ MAX_OBJECTS = 2_000
 """Most planes, points or poses of contact data (each brings its own unknowns)."""
 
 
+def shown(value, width: int = 60) -> str:
+    """A value as an error message shows it: one line of at most ``width`` characters.
+
+    An array is shown by its shape (its repr spans lines: ``calib.analyze(chain,
+    configs=q)`` printed ``q``'s rows into the one-line message).
+    """
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape}"
+    text = " ".join(repr(value).split())
+    return text if len(text) <= width else f"{text[: width - 3]}..."
+
+
 def check_size(count: int, limit: int, what: str, where: str | None = None) -> None:
     """Refuse, before any work, more than ``limit`` rows, touches or objects.
 
@@ -101,7 +114,7 @@ def check_count(value, what: str, minimum: int = 1, maximum: int | None = None) 
     ok = isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= minimum
     if not ok or (maximum is not None and value > maximum):
         span = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
-        raise InvalidArgumentError(f"{what} must be an integer {span}, got {value!r:.60}")
+        raise InvalidArgumentError(f"{what} must be an integer {span}, got {shown(value)}")
     return int(value)
 
 
@@ -136,7 +149,7 @@ def check_number(
     if not (math.isfinite(x) and low_ok and (maximum is None or x <= maximum)):
         span = f"{'>' if above else '>='} {minimum:g}"
         span += "" if maximum is None else f" and at most {maximum:g}"
-        raise InvalidArgumentError(f"{what} must be a finite number {span}, got {value!r:.60}")
+        raise InvalidArgumentError(f"{what} must be a finite number {span}, got {shown(value)}")
     return x
 
 

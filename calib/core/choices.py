@@ -83,7 +83,9 @@ def checked_points(points: Iterable[int]) -> tuple[int, ...]:
     Raises:
         InvalidArgumentError: No number, one that is no integer or below 1, or one given twice.
     """
-    wrong = f"points must be integers (1 for x1, y1, z1), got {points!r:.60}"
+    wrong = (  # "must be integers, got 1" read as a contradiction
+        f"points are a sequence of point numbers ((1,) for x1, y1, z1; (1, 3)), got {points!r:.60}"
+    )
     if isinstance(points, str | bytes):
         raise InvalidArgumentError(wrong)
     try:

@@ -28,6 +28,7 @@ import json
 import os
 import stat
 import sys
+import sysconfig
 import tempfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -445,6 +446,7 @@ def write_files_atomic(files: Mapping[_AnyPath, str | bytes]) -> None:
     for target, _ in jobs:
         if target.kind is not _Kind.STDOUT:
             _refuse_read(target.path)
+            _refuse_installed(target)
         _check_writable(target)
     staged: list[str] = []
     try:
@@ -464,6 +466,29 @@ def write_files_atomic(files: Mapping[_AnyPath, str | bytes]) -> None:
         for tmp in staged:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
+
+
+_SITE = ("purelib", "platlib")
+"""The ``sysconfig`` paths of installed packages, which no output may go inside."""
+
+
+def _refuse_installed(target: _Target) -> None:
+    """Refuse a file inside installed packages, whatever writes it (the Python API too).
+
+    Python's ``site-packages`` (example-robot-data's URDFs, SRDFs and meshes among them)
+    and calib's own folder: ``calib.write_measurements(chain.urdf_path, data)`` replaced the
+    installed robot for every later use.
+
+    Raises:
+        InvalidArgumentError: ``target`` resolves inside one of them.
+    """
+    roots = [("calib", Path(__file__).resolve().parent.parent)]
+    roots += [("the installed Python packages", Path(sysconfig.get_path(k))) for k in _SITE]
+    for what, root in roots:
+        if Path(target.real).is_relative_to(os.path.realpath(root)):
+            raise InvalidArgumentError(
+                f"{target.path} is inside the installed files of {what}: write elsewhere"
+            )
 
 
 def _guarded(target: _Target, func, *args):

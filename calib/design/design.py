@@ -17,13 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
-from ..core.checks import check_count, check_work, real_array
+from ..core.checks import check_count, check_work, real_array, shown
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES, DEFAULT_MEASURE, DEFAULT_SET
 from ..core.progress import phase, steps
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
+from ..measurements.limits import check_limits
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
 from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, optimal_subset
@@ -272,9 +273,9 @@ def _checked_options(criterion: str, constraints, progress) -> Constraints:
         InvalidArgumentError: An unknown criterion, constraints that are no
             :class:`Constraints`, or a progress that is not callable.
     """
-    if criterion not in EXCHANGE_CRITERIA:
+    if not isinstance(criterion, str) or criterion not in EXCHANGE_CRITERIA:
         raise InvalidArgumentError(
-            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
+            f"unknown criterion {shown(criterion)}: choose {', '.join(EXCHANGE_CRITERIA)}"
         )
     constraints = Constraints() if constraints is None else constraints
     if not isinstance(constraints, Constraints) or not (progress is None or callable(progress)):
@@ -289,7 +290,14 @@ def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: f
     """Random candidates within the limits, or the user's ``(N, n)`` checked."""
     if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
         return candidate_configurations(chain, int(candidates), seed, margin)
-    return chain.check_configurations(candidates)
+    return _within_limits(chain, candidates, "the candidates")
+
+
+def _within_limits(chain: Chain | Tree, q, what: str) -> np.ndarray:
+    """The user's configurations ``(K, n)``, refused far past a limit as a file's are."""
+    q = chain.check_configurations(q)
+    check_limits(chain, q, what, np.arange(1, len(q) + 1), warn=False)  # degrees?
+    return q
 
 
 def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: int):
@@ -431,7 +439,8 @@ def evaluate(
     configurations too, so that the set's own rank deficiency shows. The other arguments
     are :func:`design`'s.
     """
-    q = check_robot(chain, "chain").check_configurations(q)
+    check_robot(chain, "chain")
+    q = _within_limits(chain, q, "the configurations")
     if not len(q):
         raise InvalidArgumentError("no configuration to evaluate: q has no row")
     model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)

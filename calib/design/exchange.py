@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.checks import shown
 from ..core.choices import EXCHANGE_CRITERIA
 from ..core.progress import steps
 from ..exceptions import InvalidArgumentError
@@ -544,9 +545,9 @@ def optimal_subset(
         CandidatesExhaustedError: The checks leave fewer than k candidates.
     """
     N, r, b = J.shape
-    if criterion not in EXCHANGE_CRITERIA:
+    if not isinstance(criterion, str) or criterion not in EXCHANGE_CRITERIA:
         raise InvalidArgumentError(
-            f"unknown criterion '{criterion}': choose {', '.join(EXCHANGE_CRITERIA)}"
+            f"unknown criterion {shown(criterion)}: choose {', '.join(EXCHANGE_CRITERIA)}"
         )
     if k > N:
         raise InvalidArgumentError(f"{k} configurations asked from only {N} candidates")

@@ -46,7 +46,7 @@ import numpy as np
 from ..calibration.determined import determined_columns, generic_jacobian
 from ..calibration.model import FRAME_NAMES, TOOL_NAMES, ErrorModel, moved, nominal_state
 from ..calibration.options import check_tree_level
-from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array
+from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array, shown
 from ..core.choices import DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
 from ..identification.contact_postures import joint_offsets
@@ -182,9 +182,10 @@ def check_model_arguments(
         raise InvalidArgumentError("a tree is calibrated from positions: use measure position")
     if tree:
         check_tree_level(params)
-    if params not in DESIGN_LEVELS:
+    if not isinstance(params, str) or params not in DESIGN_LEVELS:
         raise InvalidArgumentError(
-            f"unknown parameter level '{params}' for a design: choose {', '.join(DESIGN_LEVELS)}"
+            f"unknown parameter level {shown(params)} for a design: choose "
+            f"{', '.join(DESIGN_LEVELS)}"
         )
     check_number(orientation_weight, "the orientation weight", 0.0, MAX_WEIGHT, above=True)
     if orientation_weight != 1.0 and not kind.is_pose:
@@ -390,9 +391,9 @@ class Indices:
 
     def value(self, criterion: str) -> float:
         """The index named ``criterion`` (one of ``CRITERIA``)."""
-        if criterion not in CRITERIA:
+        if not isinstance(criterion, str) or criterion not in CRITERIA:
             raise InvalidArgumentError(
-                f"unknown criterion '{criterion}': choose {', '.join(CRITERIA)}"
+                f"unknown criterion {shown(criterion)}: choose {', '.join(CRITERIA)}"
             )
         v = getattr(self, criterion.lower())
         if v is None:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.checks import check_count, check_work, joint_positions
+from ..core.checks import check_count, check_work, joint_positions, shown
 from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE, DEFAULT_SET
 from ..exceptions import InvalidArgumentError, warn_user
 from ..kinematics.mdh import MDHModel, from_chain
@@ -530,8 +530,10 @@ def analyze(
     measurement = kind_of(measure, marker)
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
-    if params not in ("paper", "complete"):
-        raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
+    if not isinstance(params, str) or params not in ("paper", "complete"):
+        raise InvalidArgumentError(
+            f"unknown parameter set {shown(params)}: choose paper or complete"
+        )
     t0 = time.perf_counter()
     chain = load_robot(robot, base, tool)
     t1 = time.perf_counter()

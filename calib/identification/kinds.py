@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..core.checks import shown
 from ..exceptions import InvalidArgumentError
 from .contacts import contact_kind
 from .measures import CONTACT_NAMES, MeasureKind, Measurement, checked_marker
@@ -23,6 +24,8 @@ def kind_of(measure: str | MeasureKind = "pose", marker=None) -> MeasureKind:
         if marker is not None and tuple(checked_marker(marker)) != tuple(measure.marker):
             raise InvalidArgumentError("give the marker in the measurement kind, not beside it")
         return measure
+    if not isinstance(measure, str):
+        raise InvalidArgumentError(f"a measure is a name or a kind, got {shown(measure)}")
     if measure in CONTACT_NAMES:
         if marker is not None and any(checked_marker(marker)):
             raise InvalidArgumentError(
@@ -30,8 +33,6 @@ def kind_of(measure: str | MeasureKind = "pose", marker=None) -> MeasureKind:
                 f"the tool frame)"
             )
         return contact_kind(measure)
-    if not isinstance(measure, str):
-        raise InvalidArgumentError(f"a measure is a name or a kind, got {measure!r:.60}")
     try:
         return Measurement.of(measure, marker)
     except InvalidArgumentError as exc:

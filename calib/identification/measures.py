@@ -18,6 +18,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from ..core.checks import shown
 from ..core.choices import CONTACT_MEASURES
 from ..exceptions import InvalidArgumentError
 from ..kinematics.so3 import inverse_right_jacobian, rotation_vector
@@ -390,7 +391,7 @@ def checked_marker(marker) -> tuple[float, float, float]:
     ):
         raise InvalidArgumentError(
             f"a marker is 3 finite numbers (x y z in metres, each within {MAX_MARKER:g} m), "
-            f"got {marker!r}"
+            f"got {shown(marker)}"
         )
     return (float(mk[0]), float(mk[1]), float(mk[2]))
 

@@ -9,7 +9,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from ..core.checks import real_array
+from ..core.checks import real_array, shown
 from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH
@@ -116,6 +116,11 @@ class ParameterSet:
     def __len__(self) -> int:
         return len(self.parameters)
 
+    def __repr__(self) -> str:
+        """One line of names (the dataclass's listed every Parameter: 6,480 characters)."""
+        names = self.names if len(self) <= 8 else (*self.names[:6], "...", self.names[-1])
+        return f"<ParameterSet {self.label}: {len(self)} parameters ({', '.join(names)})>"
+
     @functools.cached_property
     def names(self) -> tuple[str, ...]:
         """Parameter names, e.g. ``('theta0', 'r0', 'alpha1', ...)`` (computed once per set)."""
@@ -205,8 +210,8 @@ def parameter_set(mdh: MDHModel, label: str) -> ParameterSet:
     Raises:
         InvalidArgumentError: Unknown label.
     """
-    if label == "paper":
+    if isinstance(label, str) and label == "paper":
         return paper_parameters(mdh)
-    if label == "complete":
+    if isinstance(label, str) and label == "complete":
         return complete_parameters(mdh)
-    raise InvalidArgumentError(f"unknown parameter set '{label}': choose paper or complete")
+    raise InvalidArgumentError(f"unknown parameter set {shown(label)}: choose paper or complete")

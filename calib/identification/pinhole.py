@@ -125,6 +125,14 @@ class Pinhole:
             object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "distortion", dist)
 
+    def __repr__(self) -> str:
+        """One line (NumPy wraps 8 or more distortion coefficients over lines)."""
+        dist = ", ".join(f"{d:g}" for d in self.distortion)
+        return (
+            f"Pinhole(fx={self.fx!r}, fy={self.fy!r}, cx={self.cx!r}, cy={self.cy!r}, "
+            f"distortion=({dist}))"
+        )
+
     @property
     def parameter_names(self) -> tuple[str, ...]:
         """Names of the intrinsic parameters, the columns of ``d_parameters``."""

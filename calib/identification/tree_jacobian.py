@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from ..core.checks import joint_positions
+from ..core.checks import joint_positions, shown
 from ..exceptions import InvalidArgumentError
 from ..kinematics.tree_model import TreeMDH
 from .jacobian import Measurement, identification_jacobian, measured_point
@@ -44,8 +44,10 @@ def tree_parameters(model: TreeMDH, label: str = "paper") -> ParameterSet:
         InvalidArgumentError: Not a tree model, or an unknown label.
     """
     _check_tree(model)
-    if label not in ("paper", "complete"):
-        raise InvalidArgumentError(f"unknown parameter set '{label}': choose paper or complete")
+    if not isinstance(label, str) or label not in ("paper", "complete"):
+        raise InvalidArgumentError(
+            f"unknown parameter set {shown(label)}: choose paper or complete"
+        )
     a = model.antecedent
     params = [Parameter(0, Kind.THETA), Parameter(0, Kind.R)]
     for k in range(1, len(a)):

@@ -144,20 +144,21 @@ def marker_urdf(
             identity for position data), written as a chain's calibration writes it
             (:func:`~.urdf_export.place_calibrated_tool`: a tool link carried by the chain's
             last joint is allowed), the markers hung from it; None: a tree's tools, each
-            marker on its tool's link (the tools need their fixed joints).
+            marker on its tool's link (a fixed one, or the link of the tool chain's last
+            joint: TALOS's ``left_sole_link``, a UR5's ``wrist_2_link``).
         world: ``(name, T)``: add the link ``name`` (the instrument) as the parent of the
             URDF's root link, ``T`` ``(4, 4)`` the pose of ``chain``'s base frame in it.
 
     Raises:
-        CalibError: A tool not carried by a fixed joint (a tree's), a marker or world link's
-            name taken, or the base frame moved by a joint (``world``).
+        CalibError: A tool carried by neither a fixed joint nor its chain's last joint, a
+            marker or world link's name taken, or the base frame moved by a joint (``world``).
     """
     raw = moved_origins_urdf(chain, errors)
     src = str(chain.urdf_path)
     start, stop = xml_layout(raw, src)
     root = parse_xml(raw, src)
     for tool_chain, points in markers:
-        tool_joint = edited_joints(root, tool_chain, tool is not None)[1]
+        tool_joint = edited_joints(root, tool_chain, moving=True)[1]  # a link moved by its joint
         tool_link = child_link(tool_joint)
         if tool is not None:
             tool_link = place_calibrated_tool(root, tool_chain, tool_joint, tool)

@@ -247,15 +247,28 @@ def load_robot(
     """A chain, or a tree where several tools are named.
 
     Args:
-        robot: Catalog name, URDF path, or an already loaded chain or tree (returned as is).
+        robot: Catalog name, URDF path, or an already loaded chain or tree (returned as is:
+            a base or tool given must be its own).
         base: Base frame (default: the catalog's or the URDF root).
         tool: One tool frame, several (a list: the tree of their chains), or None: the
             catalog entry's tool or tools, or a URDF's deepest tip.
 
     Raises:
-        CalibError: See :func:`~calib.kinematics.robot.load_chain` and :func:`load_tree`.
+        CalibError: See :func:`~calib.kinematics.robot.load_chain` and :func:`load_tree`;
+            a loaded robot with another base or tool (ignored before).
     """
     if isinstance(robot, Robot):
+        given = tuple(tool) if isinstance(tool, list | tuple) else (tool,)
+        named = all(f is None or isinstance(f, str) for f in (base, *given))
+        if (
+            not named
+            or base not in (None, robot.base_frame)
+            or given not in ((None,), robot.tool_frames)
+        ):
+            raise InvalidArgumentError(
+                f"{robot!r} is loaded already: a base or tool chooses the frames of a robot "
+                f"to load (its URDF, {robot.urdf_path}, or its catalog name)"
+            )
         return robot
     tools = (tool,) if tool is None or isinstance(tool, str) else tool
     if not isinstance(tools, list | tuple) or not tools:

@@ -87,6 +87,15 @@ class PixelCamera:
             raise InvalidArgumentError(
                 f"PixelCamera {self.name}: placement must be a rigid transform (4, 4) [m]"
             )
+        if self.placement is not None:  # a nested list as well (a TypeError in the fit)
+            placement = np.array(self.placement, dtype=float)
+            placement.flags.writeable = False
+            object.__setattr__(self, "placement", placement)
+
+    def __repr__(self) -> str:
+        """One line (the intrinsics and the placement are in the attributes)."""
+        at = "placed from the URDF or the pixels" if self.placement is None else "placed"
+        return f"<PixelCamera {self.name} on {self.link}, {self.intrinsics.source}, {at}>"
 
 
 def _rigid(T) -> bool:

@@ -91,6 +91,24 @@ class ContactData:
     readings: JointReadings | None = None
     path: str | None = None
 
+    def __post_init__(self) -> None:
+        """Refuse touches whose columns disagree (an IndexError deep in the fit before).
+
+        Raises:
+            InvalidArgumentError: ``ids`` (or ``rows``) not one per row of ``q``.
+        """
+        m = np.shape(self.q)[0] if np.ndim(self.q) == 2 else None
+        ids = len(self.ids) if isinstance(self.ids, list | tuple) else None
+        if m is None or ids != m:
+            got = f"{ids} ids" if ids is not None else f"ids of type {type(self.ids).__name__}"
+            raise InvalidArgumentError(
+                f"touches need joint positions (m, n) and one id per touch, got positions "
+                f"of shape {np.shape(self.q)} and {got}"
+            )
+        object.__setattr__(self, "ids", tuple(self.ids))
+        if self.rows is not None and len(self.rows) != m:
+            raise InvalidArgumentError(f"{len(self.rows)} file rows for {m} touches")
+
     def __repr__(self) -> str:
         """One line (the arrays are in the attributes)."""
         return f"<ContactData {self.source}: {self.touches}, {len(self.joint_names)} joints>"

@@ -96,6 +96,14 @@ class Intrinsics:
         if not isinstance(self.camera, Pinhole):
             raise InvalidArgumentError(f"camera must be a Pinhole, got {self.camera!r:.60}")
 
+    def __repr__(self) -> str:
+        """One line (the distortion coefficients are in ``camera``)."""
+        c = self.camera
+        return (
+            f"<Intrinsics {self.source}: {self.width}x{self.height} px, fx {c.fx:g}, "
+            f"fy {c.fy:g}, cx {c.cx:g}, cy {c.cy:g} px>"
+        )
+
     @property
     def camera_matrix(self) -> np.ndarray:
         """OpenCV's camera matrix ``(3, 3)`` [px]."""

@@ -17,6 +17,7 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from .intrinsics import Intrinsics
+from .limits import check_limits
 from .pixels import PixelObservations, Target, on_link
 
 __all__ = ["MAX_NOISE_PX", "simulate_cameras", "simulate_pixels"]
@@ -47,7 +48,8 @@ def _simulated(chain, camera, placement, intrinsics, target, q, noise_px, rng):
     if not isinstance(target, Target) or not isinstance(camera, str) or not camera:
         raise InvalidArgumentError("simulate pixels of a Target seen by a named camera")
     C = real_array(placement, "camera placement", (4, 4))
-    q = chain.check_configurations(q)
+    q = chain.check_configurations(q)  # far past a limit (degrees?): refused as simulate's
+    check_limits(chain, q, "the configurations", np.arange(1, len(q) + 1), warn=False)
     noise = check_number(noise_px, "noise_px", 0.0, MAX_NOISE_PX)
     pixels, ok = _seen(chain, C, intrinsics, target, q)
     if not ok.any():

@@ -141,6 +141,11 @@ class Target:
             unit.flags.writeable = False
             object.__setattr__(self, "normal", unit)
 
+    def __repr__(self) -> str:
+        """One line (the arrays are in the attributes)."""
+        links = "the tool" if self.link is None else ", ".join(dict.fromkeys(self.link))
+        return f"<Target {self.source}: {len(self.point)} points on {links}>"
+
     @property
     def index(self) -> dict[str, int]:
         """Each point id's index."""
@@ -188,6 +193,13 @@ class PixelObservations:
         for name, value in (("q", q), ("pixels", pixels)):
             value.flags.writeable = False
             object.__setattr__(self, name, value)
+
+    def __repr__(self) -> str:
+        """One line (the arrays are in the attributes)."""
+        return (
+            f"<PixelObservations {self.source}: {self.m} pixels of {len(set(self.point))} "
+            f"points, camera(s) {', '.join(self.cameras)}, {len(self.joint_names)} joints>"
+        )
 
     @property
     def m(self) -> int:

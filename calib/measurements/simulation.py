@@ -32,6 +32,7 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
 from .data import Measurements
+from .limits import check_limits
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,6 +192,8 @@ def simulate(
 
     q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
     m = len(q)
+    if given:  # as a configurations file is read: far past a limit (degrees?) is an error
+        check_limits(chain, q, "the configurations", np.arange(1, m + 1), warn=False)
     rng_errors = np.random.default_rng([seed, 1])
     rng_noise = np.random.default_rng([seed, 2])
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])

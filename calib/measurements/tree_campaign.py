@@ -21,6 +21,7 @@ from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
 from .data import Measurements
+from .limits import check_limits
 
 __all__ = ["TreeCampaign", "simulate_tree", "true_points"]
 
@@ -42,6 +43,15 @@ class TreeCampaign:
     errors: np.ndarray
     true_mdh: TreeMDH
     markers: np.ndarray
+
+    def __repr__(self) -> str:
+        """One line (the rows are ``measurements``, the truth the other attributes)."""
+        tools = self.true_mdh.tool_frames
+        return (
+            f"<TreeCampaign {self.measurements.source}: {self.measurements.m // len(tools)} "
+            f"configurations x {len(tools)} tools ({', '.join(tools)}), "
+            f"{len(self.params)} {self.params.label} parameters perturbed>"
+        )
 
 
 def true_points(mdh: TreeMDH, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
@@ -89,8 +99,9 @@ def simulate_tree(
     pset = tree_parameters(nominal, params)
     if isinstance(configs, int | np.integer) and not isinstance(configs, bool):
         q = tree.random_configurations(int(configs), seed)
-    else:
+    else:  # as a configurations file is read: far past a limit (degrees?) is an error
         q = tree.check_configurations(configs)
+        check_limits(tree, q, "the configurations", np.arange(1, len(q) + 1), warn=False)
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])
     scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
     errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from ..core.checks import check_count, check_work
+from ..core.checks import check_count, check_work, shown
 from ..core.progress import steps
 from ..exceptions import CalibError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
@@ -153,8 +153,10 @@ def sweep(
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
     check_work(configs, 1, "even a 1-joint chain")  # what no chain can afford
-    if params not in ("paper", "complete"):
-        raise InvalidArgumentError(f"unknown parameter set '{params}': choose paper or complete")
+    if not isinstance(params, str) or params not in ("paper", "complete"):
+        raise InvalidArgumentError(
+            f"unknown parameter set {shown(params)}: choose paper or complete"
+        )
     entries = {e.name: e for e in catalog()}
     jobs: list[tuple[str, str | None, str | tuple[str, ...] | None]] = []
     for name in robots if robots is not None else entries:
