@@ -255,3 +255,17 @@ def test_a_trees_tool_on_its_last_joints_link_is_written(tmp_path):
         joints = [tree.joint_names.index(n) for n in predicted.chain.joint_names]
         points = predicted.points(data.q[rows][:, joints])[:, 0]
         assert np.max(np.abs(points - data.position[rows])) < 1e-9, tool
+
+
+def test_a_tree_holds_a_posture_out_whole_every_tool_with_it():
+    """A posture held out is held out for every tool: none of its rows is fitted through
+    another tool (the draw was per (posture, tool) pair: 7 postures of one hand and 8 of the
+    other held out of 30, some of them fitted through the other hand)."""
+    tree = talos()
+    data = simulate_tree(tree, 30, markers=MARKERS, noise_mm=0.05, seed=1).measurements
+    res = calibrate(tree, data, holdout=0.25)
+    terms = res.to_dict()["errors"]["terms"]
+    held = [t["held_out"]["calibrated"]["configs"] for t in terms]
+    assert held == [8, 8]  # round(0.25 * 30) postures, both hands at each
+    by_tool = [data.q[np.asarray(data.tool) == t] for t in HANDS]
+    assert all(len(q) == 30 for q in by_tool)  # every posture measured by both hands

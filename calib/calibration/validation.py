@@ -93,15 +93,16 @@ def split(data: _R, fraction: float, seed: int) -> tuple[_R, _R | None]:
     """Set aside a seeded random ``fraction`` of the postures (training, held out).
 
     A posture recorded several times (:func:`~calib.measurements.postures.posture_groups`)
-    is held out with all its rows: none of its repeats is left to train on. ``data``:
-    measurements, or a pixel term's rows (every point seen in an image: one posture).
+    is held out with all its rows: none of its repeats is left to train on, nor (a tree) the
+    rows of its other tools. ``data``: measurements, or a pixel term's rows (every point seen
+    in an image: one posture).
 
     Raises:
         InvalidArgumentError: ``fraction`` outside [0, 1), or > 0 but holding out no row.
     """
     if not (0.0 <= fraction < 1.0):
         raise InvalidArgumentError(f"the holdout fraction must be in [0, 1), got {fraction!r}")
-    groups = posture_groups(data.q, data.tool)
+    groups = posture_groups(data.q)  # a tree's tools at one posture: one posture
     postures = int(groups.max(initial=-1)) + 1
     n_out = round(fraction * postures)
     if n_out == 0 and fraction > 0.0:
