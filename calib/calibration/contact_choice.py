@@ -30,6 +30,7 @@ from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_ro
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
 from .contact_term import check_level_equations
+from .determined import ILL_CONDITION, ill_posed
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
@@ -338,6 +339,8 @@ def choose(
         e = start.residuals(data, None, at.kinematics(data))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
         selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
+        if generic is not None and generic.one:  # the fit's refusal: chain_counts.assess
+            selection, weights = _determined(J, free, cand_names, selection, weights, keep, notes)
         columns = [columns[k] for k in selection.index]  # by position: names may repeat
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]
@@ -349,6 +352,50 @@ def choose(
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
     kin = None if by_block(model, start) else at.kinematics(rows)
     return model, kin, selection, prior
+
+
+def _determined(J, free, names, selection: Selection, weights, forced, notes):
+    """``auto``'s selection but the candidates the refusal after the fit would find undetermined.
+
+    One measured chain's fit is refused where a combination of its unknowns is undetermined
+    (:func:`~.chain_counts.assess`: :func:`~.determined.ill_posed`, condition over
+    ``ILL_CONDITION``). The same test on the selection's columns at the registration (``J``
+    ``(m, rows, free + len(names))``: the frame and markers, then the candidates ``names``):
+    while a weak combination (the weakest first) names a kept candidate not ``forced``
+    (indices into ``names``), the one of largest component is held at its nominal value, a
+    note naming it. Returns the selection and its prior weights without those.
+    """
+    A, index, w, held = J.reshape(-1, J.shape[2]), list(selection.index), list(weights), []
+    while index:
+        labels = tuple(str(c) for c in range(free + len(index)))  # position among the columns
+        found = ill_posed(A[:, list(range(free)) + [free + k for k in index]], labels)
+        weak = [(d.condition, _largest(d, free, index, forced)) for d in found]
+        cond, k = next(((c, k) for c, k in weak if k is not None), (0.0, None))
+        if k is None:
+            break
+        held.append((names[index.pop(k)], cond))
+        w.pop(k)
+    if not held:
+        return selection, weights
+    notes.append(
+        f"params 'auto' held {', '.join(n for n, _ in held)} at the nominal value: at the "
+        f"registration it and the measurement frame and markers form a combination the data "
+        f"do not determine (condition {held[0][1]:.3g}, over {ILL_CONDITION:g}), for which "
+        "the fit would be refused"
+    )
+    kept = tuple(names[k] for k in index)
+    winner = selection.winner if index else "registration"
+    return dataclasses.replace(selection, kept=kept, index=tuple(index), winner=winner), np.array(w)
+
+
+def _largest(direction, free: int, index: list[int], forced) -> int | None:
+    """The kept candidate (position in ``index``) of largest component in a weak direction.
+
+    Of those not ``forced``; None: it names none (the frame and markers alone).
+    """
+    named = [(abs(x), int(n) - free) for n, x in zip(direction.names, direction.weights,
+             strict=True) if int(n) >= free and index[int(n) - free] not in forced]  # fmt: skip
+    return max(named)[1] if named else None
 
 
 def _postures(data: ChainsData) -> np.ndarray | None:
