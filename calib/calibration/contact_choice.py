@@ -30,7 +30,7 @@ from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_ro
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
 from .contact_term import check_level_equations
-from .determined import ILL_CONDITION, ill_posed
+from .determined import ILL_CONDITION, undetermined
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
@@ -340,7 +340,8 @@ def choose(
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
         selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
         if generic is not None and generic.one:  # the fit's refusal: chain_counts.assess
-            selection, weights = _determined(J, free, cand_names, selection, weights, keep, notes)
+            fitted = (J, e, free)
+            selection, weights = _determined(fitted, cand_names, selection, weights, keep, notes)
         columns = [columns[k] for k in selection.index]  # by position: names may repeat
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]
@@ -354,21 +355,25 @@ def choose(
     return model, kin, selection, prior
 
 
-def _determined(J, free, names, selection: Selection, weights, forced, notes):
+def _determined(fitted, names, selection: Selection, weights, forced, notes):
     """``auto``'s selection but the candidates the refusal after the fit would find undetermined.
 
     One measured chain's fit is refused where a combination of its unknowns is undetermined
-    (:func:`~.chain_counts.assess`: :func:`~.determined.ill_posed`, condition over
-    ``ILL_CONDITION``). The same test on the selection's columns at the registration (``J``
-    ``(m, rows, free + len(names))``: the frame and markers, then the candidates ``names``):
+    (:func:`~.chain_counts.assess`: :func:`~.determined.undetermined`, condition over
+    ``ILL_CONDITION`` and standard deviations over ``ILL_STD``). The same test at the
+    registration (``fitted``: the selection's columns ``J`` ``(m, rows, free + len(names))``,
+    the frame and markers then the candidates ``names``, the residuals ``e`` ``(m, rows)``, and
+    ``free``), the standard deviations those of the linearised fit with the prior ``weights``:
     while a weak combination (the weakest first) names a kept candidate not ``forced``
     (indices into ``names``), the one of largest component is held at its nominal value, a
     note naming it. Returns the selection and its prior weights without those.
     """
+    J, e, free = fitted
     A, index, w, held = J.reshape(-1, J.shape[2]), list(selection.index), list(weights), []
     while index:
-        labels = tuple(str(c) for c in range(free + len(index)))  # position among the columns
-        found = ill_posed(A[:, list(range(free)) + [free + k for k in index]], labels)
+        cols = A[:, list(range(free)) + [free + k for k in index]]
+        labels = tuple(str(c) for c in range(cols.shape[1]))  # position among the columns
+        found = undetermined(cols, labels, _spread(cols, e.ravel(), np.r_[np.zeros(free), w]))
         weak = [(d.condition, _largest(d, free, index, forced)) for d in found]
         cond, k = next(((c, k) for c, k in weak if k is not None), (0.0, None))
         if k is None:
@@ -386,6 +391,20 @@ def _determined(J, free, names, selection: Selection, weights, forced, notes):
     kept = tuple(names[k] for k in index)
     winner = selection.winner if index else "registration"
     return dataclasses.replace(selection, kept=kept, index=tuple(index), winner=winner), np.array(w)
+
+
+def _spread(A: np.ndarray, e: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """Standard deviations of the least-squares fit of ``e`` by ``A`` with ``prior`` rows.
+
+    As :func:`~.solve.covariance` (the residual's variance over ``rows - columns``) of the
+    linearised fit; NaN where a column is not determined.
+    """
+    U, s, vt = np.linalg.svd(np.vstack([A, np.diag(prior)]), full_matrices=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = vt.T @ ((U[: len(e)].T @ e) / s)
+        r = e - A @ x
+        sigma = np.sqrt(r @ r / max(A.shape[0] - A.shape[1], 1))
+        return sigma * np.sqrt(np.sum((vt / s[:, None]) ** 2, axis=0))
 
 
 def _largest(direction, free: int, index: list[int], forced) -> int | None:
