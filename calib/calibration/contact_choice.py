@@ -30,7 +30,7 @@ from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_ro
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
 from .contact_term import check_level_equations
-from .determined import ILL_CONDITION, undetermined
+from .determined import ILL_CONDITION, ill_posed, undetermined
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
@@ -373,6 +373,8 @@ def _determined(fitted, names, selection: Selection, weights, forced, notes):
     while index:
         cols = A[:, list(range(free)) + [free + k for k in index]]
         labels = tuple(str(c) for c in range(cols.shape[1]))  # position among the columns
+        if not ill_posed(cols, labels):  # none weak (one SVD's values): no spread needed
+            break
         found = undetermined(cols, labels, _spread(cols, e.ravel(), np.r_[np.zeros(free), w]))
         weak = [(d.condition, _largest(d, free, index, forced)) for d in found]
         cond, k = next(((c, k) for c, k in weak if k is not None), (0.0, None))
