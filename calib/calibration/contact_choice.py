@@ -30,7 +30,6 @@ from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_ro
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
 from .contact_term import check_level_equations
-from .determined import ILL_CONDITION, ill_posed, undetermined
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
@@ -339,9 +338,6 @@ def choose(
         e = start.residuals(data, None, at.kinematics(data))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
         selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
-        if generic is not None and generic.one:  # the fit's refusal: chain_counts.assess
-            fitted = (J, e, free)
-            selection, weights = _determined(fitted, cand_names, selection, weights, keep, notes)
         columns = [columns[k] for k in selection.index]  # by position: names may repeat
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]
@@ -353,70 +349,6 @@ def choose(
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
     kin = None if by_block(model, start) else at.kinematics(rows)
     return model, kin, selection, prior
-
-
-def _determined(fitted, names, selection: Selection, weights, forced, notes):
-    """``auto``'s selection but the candidates the refusal after the fit would find undetermined.
-
-    One measured chain's fit is refused where a combination of its unknowns is undetermined
-    (:func:`~.chain_counts.assess`: :func:`~.determined.undetermined`, condition over
-    ``ILL_CONDITION`` and standard deviations over ``ILL_STD``). The same test at the
-    registration (``fitted``: the selection's columns ``J`` ``(m, rows, free + len(names))``,
-    the frame and markers then the candidates ``names``, the residuals ``e`` ``(m, rows)``, and
-    ``free``), the standard deviations those of the linearised fit with the prior ``weights``:
-    while a weak combination (the weakest first) names a kept candidate not ``forced``
-    (indices into ``names``), the one of largest component is held at its nominal value, a
-    note naming it. Returns the selection and its prior weights without those.
-    """
-    J, e, free = fitted
-    A, index, w, held = J.reshape(-1, J.shape[2]), list(selection.index), list(weights), []
-    while index:
-        cols = A[:, list(range(free)) + [free + k for k in index]]
-        labels = tuple(str(c) for c in range(cols.shape[1]))  # position among the columns
-        if not ill_posed(cols, labels):  # none weak (one SVD's values): no spread needed
-            break
-        found = undetermined(cols, labels, _spread(cols, e.ravel(), np.r_[np.zeros(free), w]))
-        weak = [(d.condition, _largest(d, free, index, forced)) for d in found]
-        cond, k = next(((c, k) for c, k in weak if k is not None), (0.0, None))
-        if k is None:
-            break
-        held.append((names[index.pop(k)], cond))
-        w.pop(k)
-    if not held:
-        return selection, weights
-    notes.append(
-        f"params 'auto' held {', '.join(n for n, _ in held)} at the nominal value: at the "
-        f"registration it and the measurement frame and markers form a combination the data "
-        f"do not determine (condition {held[0][1]:.3g}, over {ILL_CONDITION:g}), for which "
-        "the fit would be refused"
-    )
-    kept = tuple(names[k] for k in index)
-    winner = selection.winner if index else "registration"
-    return dataclasses.replace(selection, kept=kept, index=tuple(index), winner=winner), np.array(w)
-
-
-def _spread(A: np.ndarray, e: np.ndarray, prior: np.ndarray) -> np.ndarray:
-    """Standard deviations of the least-squares fit of ``e`` by ``A`` with ``prior`` rows.
-
-    As :func:`~.solve.covariance` (the residual's variance over ``rows - columns``) of the
-    linearised fit; NaN where a column is not determined.
-    """
-    U, s, vt = np.linalg.svd(np.vstack([A, np.diag(prior)]), full_matrices=False)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = vt.T @ ((U[: len(e)].T @ e) / s)
-        r = e - A @ x
-        sigma = np.sqrt(r @ r / max(A.shape[0] - A.shape[1], 1))
-        return sigma * np.sqrt(np.sum((vt / s[:, None]) ** 2, axis=0))
-
-
-def _largest(direction, free: int, index: list[int], forced) -> int | None:
-    """The kept candidate (position in ``index``) of largest component in a weak direction.
-
-    Of those not ``forced``; None: it names none (the frame and markers alone).
-    """
-    named = [(abs(x), int(n) - free) for n, x in zip(direction.names, direction.weights,
-             strict=True) if int(n) >= free and index[int(n) - free] not in forced]  # fmt: skip
-    return max(named)[1] if named else None
 
 
 def _postures(data: ChainsData) -> np.ndarray | None:
