@@ -52,9 +52,9 @@ def _numbers(v) -> str:
     return " ".join(repr(float(x)) for x in v)
 
 
-def _nearly_urdf() -> str:
+def _urdf(joints=NEARLY, tool=NEARLY_TOOL) -> str:
     parts, parent = ['<robot name="nearly">', '<link name="base"/>'], "base"
-    for k, (kind, xyz, axis) in enumerate(NEARLY):
+    for k, (kind, xyz, axis) in enumerate(joints):
         lim = 0.5 if kind == "prismatic" else 3.1
         parts += [
             f'<link name="l{k}"/><joint name="j{k}" type="{kind}">',
@@ -63,7 +63,7 @@ def _nearly_urdf() -> str:
             f'<limit lower="{-lim}" upper="{lim}" effort="1" velocity="1"/></joint>',
         ]
         parent = f"l{k}"
-    xyz, rpy = NEARLY_TOOL
+    xyz, rpy = tool
     parts += [
         f'<link name="t0"/><joint name="tj" type="fixed"><parent link="{parent}"/>',
         f'<child link="t0"/><origin xyz="{_numbers(xyz)}" rpy="{_numbers(rpy)}"/></joint>',
@@ -82,7 +82,7 @@ def test_auto_holds_what_the_frame_absorbs_and_its_fit_is_accepted():
     """Before: refused (the data cannot separate frame.rx, frame.ry and j1:theta2); after:
     j1:theta2 held at its nominal value with a note, the fit accepted and better than the
     registration on held-out postures."""
-    chain = _chain(_nearly_urdf())
+    chain = _chain(_urdf())
     data = simulate(chain, 46, "pose", noise_mm=0.05, seed=259).measurements
     r = calibrate(chain, data, params="auto", holdout=0.2)
     assert r.accepted, r.refusal
@@ -97,24 +97,18 @@ def test_auto_holds_what_the_frame_absorbs_and_its_fit_is_accepted():
 # through it (URDF numbers of 4 decimals), measured in pose without noise: auto's fit is exact.
 # A hold before the fit (j1:theta2: at the registration, the linearised fit's spread is over
 # ILL_STD) missed by 3e-4 mm; the refusal exempts the exact fit's combination.
-COINCIDENT = """<robot name="r"><link name="base"/><link name="l0"/><link name="l1"/>
-<link name="l2"/><joint name="j0" type="revolute"><parent link="base"/><child link="l0"/>
-<origin xyz="0 0 -0.3109" rpy="0 0 0"/><axis xyz="0.674028 0.337861 -0.656914"/>
-<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
-<joint name="j1" type="revolute"><parent link="l0"/><child link="l1"/>
-<origin xyz="0.1192 0.0598 -0.1162" rpy="0 0 0"/><axis xyz="-0.674028 -0.337861 0.656914"/>
-<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
-<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-<origin xyz="0.1519 0.0761 -0.1480" rpy="0 0 0"/><axis xyz="-0.186075 -0.782949 -0.593605"/>
-<limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
-<link name="t0"/><joint name="tj" type="fixed"><parent link="l2"/><child link="t0"/>
-<origin xyz="-0.3964 -0.5864 0.8548" rpy="2.4937 -0.8332 0.0147"/></joint></robot>"""
+COINCIDENT = (
+    ("revolute", (0, 0, -0.3109), (0.674028, 0.337861, -0.656914)),
+    ("revolute", (0.1192, 0.0598, -0.1162), (-0.674028, -0.337861, 0.656914)),
+    ("revolute", (0.1519, 0.0761, -0.148), (-0.186075, -0.782949, -0.593605)),
+)
+COINCIDENT_TOOL = ((-0.3964, -0.5864, 0.8548), (2.4937, -0.8332, 0.0147))
 
 
 def test_auto_holds_nothing_where_its_fit_is_exact():
     """A noise-free round trip of a chain with a weak combination at its registration: the fit
     is accepted and exact (train and held out under 1e-6 mm), nothing held."""
-    chain = _chain(COINCIDENT)
+    chain = _chain(_urdf(COINCIDENT, COINCIDENT_TOOL))
     data = simulate(chain, 25, "pose", noise_mm=0.0, seed=427).measurements
     r = calibrate(chain, data, params="auto", holdout=0.2)
     assert r.accepted, r.refusal

@@ -197,10 +197,9 @@ def fit_run(run: Run) -> ContactChainsCalibration:
 def fit_registered(r: Registered) -> ContactChainsCalibration:
     """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`).
 
-    One measured chain at ``auto``: a fit refused for combinations its rows cannot separate
-    (:func:`~.chain_counts.assess`) that each name parameters ``auto`` chose (not ``free``)
-    is fitted again without the one of largest component in the weakest (held at its nominal
-    value, a note naming it), at most ``HOLDS`` times; an accepted fit is fitted once.
+    A fit refused for combinations that each name a parameter ``auto`` chose (not ``free``;
+    :func:`~.chain_counts.assess`) is fitted again without the one of largest component in
+    the weakest (held at its nominal value, a note), at most ``HOLDS`` times.
     """
     run, train, plane_of, load, torques, comp, start = (
         r.run, r.train, r.plane_of, r.load, r.torques, r.comp, r.start)  # fmt: skip
@@ -226,12 +225,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     for attempt in range(HOLDS + 1):
         with phase(progress, "calibrate: fit"):
             fitted, polished = _fit(model, wide, start, rows, prior, offer, opts, kin)
-        tried = notes + ([
-            f"polished with all {len(wide.free)} joint placement components (composed with "
-            f"the fit of the {len(model.free)} parameters determined at the nominal robot)"
-        ] if polished else [])  # fmt: skip
         fit_of = (fitted, polished, prior, generic)
-        result, found = _assessed(r, fit_of, model, selection, tried, list(clock))
+        result, found = _assessed(r, fit_of, model, selection, list(notes), list(clock))
         held = _held(found, selection, given)
         if held is None or attempt == HOLDS:
             break
@@ -246,18 +241,21 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
 
 
 HOLDS = 3
-"""Most parameters ``auto`` holds, one a fit, where its fits are refused for combinations
-naming them (:func:`fit_registered`)."""
+"""Most parameters ``auto`` holds, one a refit (:func:`fit_registered`)."""
 
 
 def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
-    None of them: accepted or refused for another reason first. ``fit_of``: the fit, whether
-    it was polished, the prior weights (None: none) and the :class:`~.chain_counts.Generic`
-    configurations (None: not measured by an instrument).
+    None: accepted or refused for another reason first. ``fit_of``: the fit, whether it was
+    polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
     fitted, polished, prior, generic = fit_of
+    if polished:
+        notes.append(
+            f"polished with all {len(fitted.model.free)} joint placement components (composed "
+            f"with the fit of the {len(model.free)} parameters determined at the nominal robot)"
+        )
     clock.append(time.perf_counter())
     bare = dataclasses.replace(fitted.start, states=unseen(fitted.start.states))
     solution = Solution(dataclasses.replace(fitted, start=bare), None if polished else prior)
@@ -286,9 +284,7 @@ def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | 
     chosen = set(() if selection is None else selection.kept) - set(given)
     named = [[(abs(w), n) for n, w in zip(d.names, d.weights, strict=True) if n in chosen]
              for d in found]  # fmt: skip
-    if not found or not all(named):
-        return None
-    return max(named[0])[1], found[0]
+    return (max(named[0])[1], found[0]) if found and all(named) else None
 
 
 def _without(model: ChainsModel, prior, selection: Selection, name: str):
