@@ -176,23 +176,26 @@ class Generic:
         return keep
 
 
-def assess(generic: Generic | None, fitted, cov: np.ndarray, polished: bool) -> str | None:
-    """One chain's refusal for fitted unknowns its rows cannot separate (None: none).
+def assess(
+    generic: Generic | None, fitted, cov: np.ndarray, polished: bool
+) -> tuple[str | None, list[determined.Direction]]:
+    """One chain's refusal for fitted unknowns its rows cannot separate, and those combinations.
 
-    It names the posture, among random ones within the joint limits, that separates them
-    best (:func:`~.determined.separating_posture`).
+    The refusal (None: none) names the posture, among random ones within the joint limits,
+    that separates them best (:func:`~.determined.separating_posture`); the combinations are
+    :func:`~.determined.undetermined`'s (the weakest first, the unknowns named as a chain's).
 
     Not assessed: ``generic`` None, or a ``polished`` fit (every component). ``cov``:
     :func:`~.solve.covariance` of ``fitted``, with its prior weights.
     """
     if generic is None or polished or not generic.one:
-        return None
+        return None, []
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))  # of each column [m or rad] (NaN: undetermined)
     names = tuple(chain_name(n) for n in fitted.model.names())
     found = determined.undetermined(fitted.J, names, std)
     if not found:
-        return None
+        return None, []
     chain = generic.start.chains[0]
     q = chain.random_configurations(DEFAULT_CONFIGS, generic.seed)
 
@@ -201,7 +204,7 @@ def assess(generic: Generic | None, fitted, cov: np.ndarray, polished: bool) -> 
         return fitted.model.jacobian(fitted.start, fitted.x, rows)
 
     where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
-    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where)
+    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where), found
 
 
 def sampled(data: ChainsData, keep: np.ndarray | None) -> ChainsData:

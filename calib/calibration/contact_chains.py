@@ -49,6 +49,7 @@ from .contact_register import Registered, Run, determined_unknowns, register_con
 from .contact_result import gap_stats, part_stats
 from .contact_term import check_held_out_gaps, contact_objects
 from .delivery import read_files
+from .determined import ILL_CONDITION, Direction
 from .measured_options import level_offer
 from .measured_term import MeasuredState, unseen
 from .measured_view import MeasuredChain, Solution, measured_part
@@ -56,9 +57,11 @@ from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import PixelData, PixelTermState
 from .pixel_chain_result import PixelChain, pixel_result
 from .problem import check_weighed
+from .selection import Selection
 from .solve import fit, fitted_values, gauss_newton_finish
 
 __all__ = [
+    "HOLDS",
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
@@ -192,9 +195,14 @@ def fit_run(run: Run) -> ContactChainsCalibration:
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:
-    """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`)."""
-    run, train, held, plane_of, load, torques, comp, start = (
-        r.run, r.train, r.held, r.plane_of, r.load, r.torques, r.comp, r.start)  # fmt: skip
+    """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`).
+
+    A fit refused for combinations that each name a parameter ``auto`` chose (not ``free``;
+    :func:`~.chain_counts.assess`) is fitted again without the one of largest component in
+    the weakest (held at its nominal value, a note), at most ``HOLDS`` times.
+    """
+    run, train, plane_of, load, torques, comp, start = (
+        r.run, r.train, r.plane_of, r.load, r.torques, r.comp, r.start)  # fmt: skip
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
     level, seed = opts.level, opts.seed
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
@@ -213,31 +221,84 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         identifiable = len(kept) if one else model.size() if offer == "components" else len(
             structural(wide, start, flush))  # fmt: skip
     clock.append(time.perf_counter())
-    with phase(progress, "calibrate: fit"):
-        fitted, polished = _fit(model, wide, start, rows, prior, offer, opts, kin)
+    given = () if asked is None else asked.free
+    for attempt in range(HOLDS + 1):
+        with phase(progress, "calibrate: fit"):
+            fitted, polished = _fit(model, wide, start, rows, prior, offer, opts, kin)
+        fit_of = (fitted, polished, prior, generic)
+        result, found = _assessed(r, fit_of, model, selection, list(notes), list(clock))
+        held = _held(found, selection, given)
+        if held is None or attempt == HOLDS:
+            break
+        name, weak = held
+        model, prior, selection = _without(model, prior, selection, name)
+        notes.append(
+            f"params 'auto' held {name} at the nominal value: the fit with it was refused: the "
+            f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
+            f"of the fitted unknowns, over {ILL_CONDITION:g})"
+        )
+    return dataclasses.replace(result, params=level, identifiable=identifiable)
+
+
+HOLDS = 3
+"""Most parameters ``auto`` holds, one a refit (:func:`fit_registered`)."""
+
+
+def _assessed(r: Registered, fit_of, model, selection, notes, clock):
+    """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
+
+    None: accepted or refused for another reason first. ``fit_of``: the fit, whether it was
+    polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
+    """
+    fitted, polished, prior, generic = fit_of
     if polished:
         notes.append(
-            f"polished with all {len(wide.free)} joint placement components (composed with "
-            f"the fit of the {len(model.free)} parameters determined at the nominal robot)"
+            f"polished with all {len(fitted.model.free)} joint placement components (composed "
+            f"with the fit of the {len(model.free)} parameters determined at the nominal robot)"
         )
     clock.append(time.perf_counter())
-    kept_prior = None if polished else prior
     bare = dataclasses.replace(fitted.start, states=unseen(fitted.start.states))
-    solution = Solution(dataclasses.replace(fitted, start=bare), kept_prior)  # covariance once
+    solution = Solution(dataclasses.replace(fitted, start=bare), None if polished else prior)
     result = _assemble(r, solution, model, selection, notes, clock)
-    given = run.validate or [None] * len(held)
-    labels = [None if h is None else "holdout" if v is None else run.held_label or v.source
-              for h, v in zip(held, given, strict=True)]  # fmt: skip
+    given = r.run.validate or [None] * len(r.held)
+    labels = [None if h is None else "holdout" if v is None else r.run.held_label or v.source
+              for h, v in zip(r.held, given, strict=True)]  # fmt: skip
     pairs = zip(result.chains, labels, r.dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     cov = solution.covariance()[0]
     values = fitted_values(fitted, cov)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
-    refusal = result.refusal or rank or assess(generic, fitted, cov, polished)
-    return dataclasses.replace(
-        result, chains=parts, params=level, identifiable=identifiable, refusal=refusal,
-        solution=solution, **values,
-    )  # fmt: skip
+    refusal, found = result.refusal or rank, list[Direction]()
+    if refusal is None:
+        refusal, found = assess(generic, fitted, cov, polished)
+    out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
+    return out, found
+
+
+def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | None:
+    """The parameter ``auto`` chose (not ``given``) to hold, and the combination that names it.
+
+    Of largest component in the weakest of the combinations ``found``; None: one of them
+    names none (the frame, markers and tool alone: no hold would lift the refusal).
+    """
+    chosen = set(() if selection is None else selection.kept) - set(given)
+    named = [[(abs(w), n) for n, w in zip(d.names, d.weights, strict=True) if n in chosen]
+             for d in found]  # fmt: skip
+    return (max(named[0])[1], found[0]) if found and all(named) else None
+
+
+def _without(model: ChainsModel, prior, selection: Selection, name: str):
+    """The model, its prior weights and the selection without the parameter ``name``."""
+    c, j = model.names().index(name), selection.kept.index(name)
+    k, n = c - model.fixed, len(model.free)  # the directions, then the compliances
+    free = tuple(f for i, f in enumerate(model.free) if i != k)
+    comp = tuple(f for i, f in enumerate(model.compliance) if i != k - n)
+    kept = tuple(x for i, x in enumerate(selection.kept) if i != j)
+    index = tuple(x for i, x in enumerate(selection.index) if i != j)
+    winner = selection.winner if kept else "registration"
+    selection = dataclasses.replace(selection, kept=kept, index=index, winner=winner)
+    prior = None if prior is None else np.delete(prior, c)
+    return model.with_free(free, comp), prior, selection
 
 
 PIN = 1e-6

@@ -1,0 +1,170 @@
+"""``auto`` never delivers a refusal for a parameter it chose (one rank rule, issue 28's rank44).
+
+Two rules decide what is determined: the structural test that chooses (pivoted QR on the
+unscaled Jacobian at the registration) and the refusal after the fit (unit-norm columns:
+condition under ``1 / RANK_TOL`` of the robot's columns, and, one chain measured by an
+instrument, no combination of the fitted unknowns over ``ILL_CONDITION``). A chosen model the
+refusal rejects would cost the user the registration for nothing: ``auto`` holds the parameter
+the refusal names and fits again; a fit accepted is never changed."""
+
+from __future__ import annotations
+
+import contextlib
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import CI
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_properties import chains
+from test_tree_properties import RandomTree, urdf_text
+
+import calib
+from calib import calibrate, load_chain, simulate
+from calib.calibration import contact_chains, contact_checks, solve
+
+# A prismatic joint, then a revolute one 3.5e-5 rad from parallel to it, a prismatic joint on
+# the revolute's axis and two generic revolute ones (a seeded random chain of rank44's search):
+# with the measurement frame's rotations about x and y, j1:theta2 is a combination of condition
+# 4.9e5 at the registration (9.7e3 at the solution), which refused auto's fit.
+NEARLY = (
+    ("prismatic", (0, 0, -0.272386433362),
+     (-0.70766265698, 0.614402009923, 0.348889286333)),
+    ("revolute", (0.39564824932, -0.392935826159, 0.144154115257),
+     (-0.707672603501, 0.614377366772, 0.348912506872)),
+    ("prismatic", (-0.063002894437, 0.0546969773759, 0.031063090092),
+     (0.707672603501, -0.614377366772, -0.348912506872)),
+    ("revolute", (-0.0454478615658, 0.0394562928903, 0.0224077168346),
+     (0.753880811251, 0.656150883366, -0.0336116153318)),
+    ("revolute", (-0.0876557751504, -0.0762924502636, 0.00390811405729),
+     (-0.422973436353, 0.131257089643, 0.896585215447)),
+)  # fmt: skip
+NEARLY_TOOL = (
+    (0.214700292846, 0.523332289575, 0.315024989561),
+    (-2.01611466449, -1.48536580449, -1.7525355927),
+)
+
+
+def _numbers(v) -> str:
+    return " ".join(repr(float(x)) for x in v)
+
+
+def _urdf(joints=NEARLY, tool=NEARLY_TOOL) -> str:
+    parts, parent = ['<robot name="nearly">', '<link name="base"/>'], "base"
+    for k, (kind, xyz, axis) in enumerate(joints):
+        lim = 0.5 if kind == "prismatic" else 3.1
+        parts += [
+            f'<link name="l{k}"/><joint name="j{k}" type="{kind}">',
+            f'<parent link="{parent}"/><child link="l{k}"/>',
+            f'<origin xyz="{_numbers(xyz)}" rpy="0 0 0"/><axis xyz="{_numbers(axis)}"/>',
+            f'<limit lower="{-lim}" upper="{lim}" effort="1" velocity="1"/></joint>',
+        ]
+        parent = f"l{k}"
+    xyz, rpy = tool
+    parts += [
+        f'<link name="t0"/><joint name="tj" type="fixed"><parent link="{parent}"/>',
+        f'<child link="t0"/><origin xyz="{_numbers(xyz)}" rpy="{_numbers(rpy)}"/></joint>',
+    ]
+    return "\n".join([*parts, "</robot>"])
+
+
+def _chain(text: str, tool: str = "t0"):
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "chain.urdf"
+        path.write_text(text)
+        return load_chain(path, "base", tool)
+
+
+def test_auto_holds_what_the_frame_absorbs_and_its_fit_is_accepted():
+    """Before: refused (the data cannot separate frame.rx, frame.ry and j1:theta2); after:
+    j1:theta2 held at its nominal value with a note, the fit accepted and better than the
+    registration on held-out postures."""
+    chain = _chain(_urdf())
+    data = simulate(chain, 46, "pose", noise_mm=0.05, seed=259).measurements
+    r = calibrate(chain, data, params="auto", holdout=0.2)
+    assert r.accepted, r.refusal
+    assert "j1:theta2" not in r.free
+    assert any(n.startswith("params 'auto' held j1:theta2 at the nominal value") for n in r.notes)
+    stats = r.chains[0].stats
+    assert stats["held_out"].weighted_mm < stats["held_out_registration"].weighted_mm
+    assert r.selection.kept == r.free  # the report's selection is the model fitted
+
+
+# Case 427 of rank44's search: two revolute joints on one axis, a third perpendicular to it
+# through it (URDF numbers of 4 decimals), measured in pose without noise: auto's fit is exact.
+# A hold before the fit (j1:theta2: at the registration, the linearised fit's spread is over
+# ILL_STD) missed by 3e-4 mm; the refusal exempts the exact fit's combination.
+COINCIDENT = (
+    ("revolute", (0, 0, -0.3109), (0.674028, 0.337861, -0.656914)),
+    ("revolute", (0.1192, 0.0598, -0.1162), (-0.674028, -0.337861, 0.656914)),
+    ("revolute", (0.1519, 0.0761, -0.148), (-0.186075, -0.782949, -0.593605)),
+)
+COINCIDENT_TOOL = ((-0.3964, -0.5864, 0.8548), (2.4937, -0.8332, 0.0147))
+
+
+def test_auto_holds_nothing_where_its_fit_is_exact():
+    """A noise-free round trip of a chain with a weak combination at its registration: the fit
+    is accepted and exact (train and held out under 1e-6 mm), nothing held."""
+    chain = _chain(_urdf(COINCIDENT, COINCIDENT_TOOL))
+    data = simulate(chain, 25, "pose", noise_mm=0.0, seed=427).measurements
+    r = calibrate(chain, data, params="auto", holdout=0.2)
+    assert r.accepted, r.refusal
+    assert not [n for n in r.notes if n.startswith("params 'auto' held")], r.notes
+    stats = r.chains[0].stats
+    assert stats["train"].weighted_mm < 1e-6
+    assert stats["held_out"].weighted_mm < 1e-6
+    assert r.selection.kept == r.free
+
+
+def _start_checks(found: list, monkeypatch) -> None:
+    """Each fit's model checked at its start (x = 0) by the rank refusal's own rule."""
+    real = contact_chains._fit
+
+    def checked(model, wide, start, train, prior, level, opts, kin=None):
+        p = model.size()
+        J = solve.Problem(model, start, train, None, 1.0, None, False, kin).data_jac(np.zeros(p))
+        found.append((level, contact_checks.rank_refusal(J, model.fixed)))
+        return real(model, wide, start, train, prior, level, opts, kin)
+
+    monkeypatch.setattr(contact_chains, "_fit", checked)
+
+
+def _inseparable(refusal: str | None) -> list[str]:
+    """The unknowns a refusal for an undetermined combination names (none: another refusal)."""
+    head = "the data cannot separate "
+    if not refusal or not refusal.startswith(head):
+        return []
+    return refusal[len(head) : refusal.index(": the combination")].split(" and ")
+
+
+def _chain_urdf(ch) -> str:
+    """A random chain of test_properties as a URDF (one tool, t0)."""
+    tree = RandomTree(list(range(-1, ch.n - 1)), ch.points, ch.directions, ch.sigma,
+                      [(ch.n - 1, ch.tool)], ch.relations, (False,))  # fmt: skip
+    return urdf_text(tree)
+
+
+@settings(CI, max_examples=max(1, CI.max_examples // 4))
+@given(chains(max_joints=6), st.sampled_from(["position", "pose"]), st.sampled_from([0.0, 0.05]))
+def test_a_chosen_model_meets_the_refusals_rules_at_its_start(ch, measure, noise):
+    """Nearly parallel, intersecting, coincident axes, prismatic joints, tools on the last
+    axis, measured with and without noise: at its start, the model ``auto`` and ``complete``
+    choose has robot columns of condition under ``1 / RANK_TOL`` (the rank refusal's rule: a
+    guard, rank44's search of 600 seeded chains, 1022 fits, found none over it at the start),
+    and ``auto``'s fit is never refused for a combination that names a parameter it chose."""
+    chain = _chain(_chain_urdf(ch))
+    data = simulate(chain, 30, measure, noise_mm=noise, seed=1).measurements
+    found: list = []
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        _start_checks(found, mp)
+        for level in ("auto", "complete"):
+            with contextlib.suppress(calib.CalibError):  # refused before any fit
+                r = calibrate(chain, data, params=level)
+                chosen = set(_inseparable(r.refusal)) & set(r.free)
+                assert level != "auto" or not chosen, (ch.relations, ch.sigma, r.refusal)
+    for level, rank in found:
+        assert rank is None, (level, ch.relations, ch.sigma)
