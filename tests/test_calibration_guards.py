@@ -607,6 +607,19 @@ def test_a_noisy_gantry_is_calibrated_no_worse_than_its_registration(gantry):
     assert held["calibrated"]["position_rms"] <= held["registration"]["position_rms"]
 
 
+def test_a_gantry_validation_file_of_three_rows_is_diagnosed(gantry):
+    """Three validation rows give 9 equations, more than the 6 unknowns of their own
+    registration once the marker is held: they are registered alone and their mistake (here
+    positions in metres divided by 1000) is named, as four rows' is. The held coordinates
+    were counted as unknowns (9 against 9): the rows were judged too few and only said to be
+    far from the model."""
+    data, _ = gantry_rows(gantry, 43, [MARKER])
+    train, rows = data.subset(np.arange(40)), data.subset(np.arange(40, 43))
+    wrong = Measurements(rows.joint_names, rows.q, rows.points.reshape(3, -1) / 1000.0)
+    with pytest.raises(DataError, match="metres read as millimetres"):
+        calibrate(gantry, train, validate=wrong)
+
+
 def test_a_gantry_with_two_markers_holds_the_first_and_fits_the_other(gantry):
     """Two markers: the first is held (the frame absorbs it), the second's offset from it is
     determined and fitted: every point of every held-out row predicted exactly."""
