@@ -685,3 +685,29 @@ def test_a_gantry_is_calibrated_on_the_command_line(tmp_path):
     code, text, err = run(["calibrate", urdf, "--data", data, "--holdout", 0.25, "--out", out])
     assert code == 0, err
     assert HELD in text + err and out.exists()
+
+
+def test_a_tool_turning_a_few_microradians_is_refused_not_held(tmp_path):
+    """A wrist joint limited to +-1e-6 rad turns the tool, a little: nothing is held (the
+    robot's structure is not a still tool), and with noise the marker's height and the
+    frame's are refused as no posture within the joint limits separates them (as the docs,
+    docs/reference/errors.md and docs/howto/validate.md, say)."""
+    wrist = """  <link name="w"/>
+  <joint name="rx" type="revolute"><parent link="tool"/><child link="w"/><axis xyz="1 0 0"/>
+    <origin xyz="0 0 -0.2"/><limit lower="-1e-6" upper="1e-6" effort="1" velocity="1"/></joint>
+</robot>
+"""
+    turn = """<joint name="pz" type="revolute"><parent link="b"/><child link="tool"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>"""
+    urdf = tmp_path / "tiny.urdf"
+    text = GANTRY.replace(GANTRY[GANTRY.index('<joint name="pz"') :], turn + "\n" + wrist)
+    urdf.write_text(text)
+    chain = load_chain(urdf)
+    assert chain.tool_frame == "w" and list(chain.sigma) == [1, 1, 0, 0]
+    data, _ = gantry_rows(chain, 40, [MARKER], noise_mm=0.02)
+    result = calibrate(chain, data)
+    assert not result.accepted and not any(HELD in w for w in result.warnings)
+    assert "frame.z and marker1.z" in result.refusal
+    assert "no posture separates them" in result.refusal
+    assert "cannot tell them apart" in result.refusal
