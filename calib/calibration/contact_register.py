@@ -151,12 +151,16 @@ def _holds(run: Run, train) -> list[bool]:
     Each term its own frame: every one (:func:`~.chain_registration.held_markers`). A tree's
     tools share one frame (``run.instrument``): a tool that turns determines it, and nothing
     is held; if no tool turns, the frame's translation and every marker move together, and
-    the first tool's marker alone is held (the others' offsets from it are determined).
+    the first tool's marker alone is held (the others' offsets from it are determined). A
+    revolute joint is read as turning its tool (no structure computed: most trees).
     """
     if not run.instrument or len(run.chains) == 1:
         return [True] * len(run.chains)
     tools = [c for c, d in enumerate(train) if isinstance(d, Measurements)]
-    still = all(len(held_markers(run.chains[c], from_chain(run.chains[c]))) == 3 for c in tools)
+    turns = any(np.any(np.asarray(run.chains[c].sigma) == 0) for c in tools)  # a revolute joint
+    still = not turns and all(
+        len(held_markers(run.chains[c], from_chain(run.chains[c]))) == 3 for c in tools
+    )
     return [still and c == tools[0] for c in range(len(run.chains))]
 
 
