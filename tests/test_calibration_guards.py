@@ -614,6 +614,19 @@ def test_a_noisy_gantry_is_calibrated_no_worse_than_its_registration(gantry):
     assert held["calibrated"]["position_rms"] <= held["registration"]["position_rms"]
 
 
+def test_a_gantry_validation_file_of_three_rows_is_diagnosed(gantry):
+    """Three validation rows give 9 equations, more than the 6 unknowns of their own
+    registration once the marker is held: they are registered alone and their mistake (here
+    positions in metres divided by 1000) is named, as four rows' is. The held coordinates
+    were counted as unknowns (9 against 9): the rows were judged too few and only said to be
+    far from the model."""
+    data, _ = gantry_rows(gantry, 43, [MARKER])
+    train, rows = data.subset(np.arange(40)), data.subset(np.arange(40, 43))
+    wrong = Measurements(rows.joint_names, rows.q, rows.points.reshape(3, -1) / 1000.0)
+    with pytest.raises(DataError, match="metres read as millimetres"):
+        calibrate(gantry, train, validate=wrong)
+
+
 def test_a_gantry_with_two_markers_holds_the_first_and_fits_the_other(gantry):
     """Two markers: the first is held (the frame absorbs it), the second's offset from it is
     determined and fitted: every point of every held-out row predicted exactly."""
@@ -679,3 +692,61 @@ def test_a_gantry_is_calibrated_on_the_command_line(tmp_path):
     code, text, err = run(["calibrate", urdf, "--data", data, "--holdout", 0.25, "--out", out])
     assert code == 0, err
     assert HELD in text + err and out.exists()
+
+
+def test_a_tool_turning_a_few_microradians_is_refused_not_held(tmp_path):
+    """A wrist joint limited to +-1e-6 rad turns the tool, a little: nothing is held (the
+    robot's structure is not a still tool), and with noise the marker's height and the
+    frame's are refused as no posture within the joint limits separates them (as the docs,
+    docs/reference/errors.md and docs/howto/validate.md, say)."""
+    wrist = """  <link name="w"/>
+  <joint name="rx" type="revolute"><parent link="tool"/><child link="w"/><axis xyz="1 0 0"/>
+    <origin xyz="0 0 -0.2"/><limit lower="-1e-6" upper="1e-6" effort="1" velocity="1"/></joint>
+</robot>
+"""
+    turn = """<joint name="pz" type="revolute"><parent link="b"/><child link="tool"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>"""
+    urdf = tmp_path / "tiny.urdf"
+    text = GANTRY.replace(GANTRY[GANTRY.index('<joint name="pz"') :], turn + "\n" + wrist)
+    urdf.write_text(text)
+    chain = load_chain(urdf)
+    assert chain.tool_frame == "w" and list(chain.sigma) == [1, 1, 0, 0]
+    data, _ = gantry_rows(chain, 40, [MARKER], noise_mm=0.02)
+    result = calibrate(chain, data)
+    assert not result.accepted and not any(HELD in w for w in result.warnings)
+    assert "frame.z and marker1.z" in result.refusal
+    assert "no posture separates them" in result.refusal
+    assert "cannot tell them apart" in result.refusal
+
+
+GANTRY_TREE = GANTRY.replace(
+    "</robot>",
+    """  <link name="b2"/><link name="t2"/><link name="f1"/><link name="f2"/>
+  <joint name="py2" type="prismatic"><parent link="a"/><child link="b2"/><axis xyz="0 1 0"/>
+    <origin xyz="0 0.3 0"/><limit lower="0" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="pz2" type="prismatic"><parent link="b2"/><child link="t2"/><axis xyz="0 0 1"/>
+    <limit lower="0" upper="0.5" effort="1" velocity="1"/></joint>
+  <joint name="f1" type="fixed"><parent link="tool"/><child link="f1"/></joint>
+  <joint name="f2" type="fixed"><parent link="t2"/><child link="f2"/></joint>
+</robot>""",
+)
+
+
+def test_a_tree_of_tools_that_never_turn_holds_the_first_marker(tmp_path):
+    """Two gantry heads measured by one tracker: no tool turns, so the shared frame's
+    translation and both markers move together at every posture. The first tool's marker is
+    held at its given value (a note says so), the second's offset is fitted; the held-out
+    rows are predicted exactly. Both markers were fitted along that direction: delivered
+    some 0.5 m from the tools (the truth: 0), 19 unknowns said determined."""
+    urdf = tmp_path / "gantry_tree.urdf"
+    urdf.write_text(GANTRY_TREE)
+    tree = load_robot(urdf, tool=["f1", "f2"])
+    data = simulate_tree(tree, 30, noise_mm=0.02, seed=0).measurements
+    report = calibrate_tree(tree, data).to_dict()
+    assert report["accepted"], report["refusal"]
+    assert any(HELD in w and "f1: marker1 held" in w for w in report["warnings"])
+    assert report["markers"]["f1"] == [0.0, 0.0, 0.0]
+    assert np.max(np.abs(report["markers"]["f2"])) < 0.02  # [m] the truth 0, placements 1 mm
+    exact = calibrate_tree(tree, simulate_tree(tree, 40, seed=1).measurements, holdout=0.25)
+    assert exact.to_dict()["validation"]["calibrated"]["position_rms"] < 1e-9  # [m]

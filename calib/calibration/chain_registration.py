@@ -148,7 +148,7 @@ class _Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = frames_model(sub.n_markers, sub.kind)
+            frames = frames_model(sub.n_markers, sub.kind, self.hold)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
             return _registrations(nominal, sub, guess, opts, self.hold)(weight)
@@ -221,7 +221,7 @@ def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Ro
     """The steps on validation data (``held``: (data, label) or None), with their label."""
     if held is None:
         return []
-    frames = frames_model(held[0].n_markers, held[0].kind)
+    frames = frames_model(held[0].n_markers, held[0].kind, hold)
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts, hold)

@@ -28,6 +28,7 @@ from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, validation
+from .chain_registration import held_markers
 from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
@@ -144,6 +145,25 @@ def _objects(run: Run, data) -> tuple[int, ...]:
     return plane_of
 
 
+def _holds(run: Run, train) -> list[bool]:
+    """Which measured terms hold the marker coordinates no posture separates from their frame.
+
+    Each term its own frame: every one (:func:`~.chain_registration.held_markers`). A tree's
+    tools share one frame (``run.instrument``): a tool that turns determines it, and nothing
+    is held; if no tool turns, the frame's translation and every marker move together, and
+    the first tool's marker alone is held (the others' offsets from it are determined). A
+    revolute joint is read as turning its tool (no structure computed: most trees).
+    """
+    if not run.instrument or len(run.chains) == 1:
+        return [True] * len(run.chains)
+    tools = [c for c, d in enumerate(train) if isinstance(d, Measurements)]
+    turns = any(np.any(np.asarray(run.chains[c].sigma) == 0) for c in tools)  # a revolute joint
+    still = not turns and all(
+        len(held_markers(run.chains[c], from_chain(run.chains[c]))) == 3 for c in tools
+    )
+    return [still and c == tools[0] for c in range(len(run.chains))]
+
+
 def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     """Each term's rows checked by its kind's checks, each returning the same five things.
 
@@ -160,16 +180,16 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     registered: list[MeasuredState | PixelTermState | ContactState] = []
     chains, opts = run.chains, run.options
     weight = None if opts.orientation_weight is None else float(opts.orientation_weight)
+    holds = _holds(run, train)
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
         zero = None if zeros is None or chain.model is not chains[0].model else zeros[c]
         if isinstance(d, PixelPart):
             state, d, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
-            hold = not run.instrument or len(chains) == 1  # a tree's tools share one frame
             state, d, found, more, held[c] = checked_measured(
                 chain, d, v, held[c], weight, opts.max_iterations, run.marker, opts.noise_mm, zero,
-                hold,
+                holds[c],
             )  # fmt: skip
             state = dataclasses.replace(state, instrument=run.instrument)
         else:
