@@ -72,6 +72,29 @@ def test_load_calibrated_and_residual_stats_read_the_engine_result(ur5_fit, tmp_
     assert stats.configs == truth.m and stats.position_max < 1e-9
 
 
+def test_a_calibrated_model_refuses_degrees_as_calib_predict_does(ur5_fit, tmp_path):
+    """Failed before: load_calibrated(...).points(q) predicted at q in degrees (far past a
+    joint limit) where ``calib predict --configs`` refuses them; a little past is accepted."""
+    _, result, truth = ur5_fit
+    urdf, report = tmp_path / "cal.urdf", tmp_path / "cal.json"
+    urdf.write_bytes(result.urdf())
+    report.write_text(json.dumps(result.to_dict()))
+    model = load_calibrated(urdf, report)
+    degrees = np.degrees(truth.q)
+    for call in (
+        model.points,
+        model.deflected,
+        model.torques,
+        model.tool_placements,
+        model.command,
+    ):
+        with pytest.raises(calib.DataError, match=r"degrees for radians\?"):
+            call(degrees)
+    q = truth.q.copy()
+    q[0, 1] = model.chain.upper[1] + 0.05  # within the margin a reading may have
+    assert model.points(q).shape == (truth.m, 1, 3)
+
+
 def test_attributes_of_a_chain(ur5_fit):
     chain, result, truth = ur5_fit
     # points: the calibrated model's prediction of unseen noise-free rows (the truth).
