@@ -80,6 +80,9 @@ def test_a_calibrated_model_refuses_degrees_as_calib_predict_does(ur5_fit, tmp_p
     urdf.write_bytes(result.urdf())
     report.write_text(json.dumps(result.to_dict()))
     model = load_calibrated(urdf, report)
+    shown = repr(model)  # failed before: 21 lines of arrays
+    assert shown.endswith(": base_link -> tool0, 6 joints, 0 compliant, 1 marker(s)>"), shown
+    assert shown.startswith("<ElasticModel ") and "\n" not in shown, shown
     degrees = np.degrees(truth.q)
     for call in (
         model.points,

@@ -123,6 +123,17 @@ class ElasticModel:
     plane: np.ndarray | None = None
     readings: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        """One line: ``<ElasticModel ur5: base_link -> tool0, 6 joints, 2 compliant, ...>``."""
+        chain = self.chain
+        extra = ", standing" if self.load is not None else ""
+        extra += ", contact" if self.contact is not None else ""
+        return (
+            f"<ElasticModel {chain.name}: {chain.base_frame} -> {chain.tool_frame}, "
+            f"{chain.n} joints, {int(np.count_nonzero(self.compliance))} compliant, "
+            f"{len(self.markers)} marker(s){extra}>"
+        )
+
     def torques(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
         """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``.
 
