@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -96,6 +97,31 @@ def test_a_calibrated_model_refuses_degrees_as_calib_predict_does(ur5_fit, tmp_p
     q = truth.q.copy()
     q[0, 1] = model.chain.upper[1] + 0.05  # within the margin a reading may have
     assert model.points(q).shape == (truth.m, 1, 3)
+
+
+def test_a_results_methods_name_an_unknown_keyword(ur5_fit, tmp_path):
+    """Failed before: ``result.urdf(foo=1)`` raised Python's bare TypeError where
+    ``calibrate`` names an unknown keyword in an InvalidArgumentError."""
+    _, result, _ = ur5_fit
+    out = tmp_path / "cal.urdf"
+    calls = {
+        "urdf: unknown argument(s) foo (it takes world_link, on_robot)": lambda: result.urdf(foo=1),
+        "to_dict: unknown argument(s) world (it takes world_link": lambda: result.to_dict(
+            world="tracker"
+        ),
+        "summary: unknown argument(s) verbose (it takes no argument)": lambda: result.summary(
+            verbose=True
+        ),
+        "write: unknown argument(s) reprot (it takes out, report)": lambda: result.write(
+            out, reprot=tmp_path / "cal.json"
+        ),
+        "write: too many positional arguments": lambda: result.write(out, out, out),
+        "origins: unknown argument(s) foo": lambda: result.origins(foo=1),
+    }
+    for said, call in calls.items():
+        with pytest.raises(InvalidArgumentError, match=re.escape(said)):
+            call()
+    assert not out.exists()
 
 
 def test_attributes_of_a_chain(ur5_fit):
