@@ -405,6 +405,19 @@ def test_results_and_data_print_in_one_line():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
 
 
+def test_models_and_the_catalog_print_in_one_line():
+    """Failed before: an MDH model printed 5 lines of arrays, a tree's 58, ``calib.catalog()``
+    19k characters (every entry's fields): one short line each."""
+    shown = {
+        calib.from_chain(CHAIN): "<MDHModel base_link -> tool0, 6 joints>",
+        TREE_MODEL: "<TreeMDH base_link -> FL_FOOT, FR_FOOT, 6 joints>",
+        calib.catalog(): "<catalog: ",
+    }
+    for value, start in shown.items():
+        assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
+        assert len(repr(value)) < 100, repr(value)
+
+
 def test_a_cameras_data_print_in_one_line():
     """A camera's pieces printed their arrays: PixelData 42,719 characters over hundreds of
     lines for 2088 pixels, the observations, target, camera and intrinsics likewise (a

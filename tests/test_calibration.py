@@ -535,6 +535,24 @@ def test_compliance_is_opt_in():
     forced = calibrate(chain, one, params="offsets", free=("c3",))
     assert "c3" in forced.names and forced.state.compliance[2] != 0
     assert not any(n[0] == "c" for n in calibrate(chain, one, params="complete").names)
+    assert not any("none was kept" in n for n in elastic.notes)
+
+
+def test_elastic_on_rigid_data_says_no_compliance_was_kept():
+    """Failed before: elastic=True on data no compliance explains kept none, silently (the
+    report's compliance all zeros, no compliance file): a note names the joints offered."""
+    chain = load_chain("ur5")
+    data = simulate(chain, 60, noise_mm=0.05, seed=1).measurements
+    result = calibrate(chain, data, elastic=True)
+    assert not result.elastic and result.compliance_files(Path("cal.urdf")) == {}
+    said = [n for n in result.to_dict()["warnings"] if n.startswith("elastic: ")]
+    assert said == [
+        "elastic: the compliance of 4 joint(s) was offered (shoulder_pan_joint, "
+        "shoulder_lift_joint, elbow_joint, wrist_1_joint) and none was kept; the URDF is the "
+        "whole model (no compliance file)"
+    ]
+    assert f"note: {said[0]}" in result.summary()
+    assert not any("none was kept" in n for n in calibrate(chain, data).notes)
 
 
 def ur10_poses():

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +71,57 @@ def test_load_calibrated_and_residual_stats_read_the_engine_result(ur5_fit, tmp_
     assert np.abs(model.points(truth.q)[:, 0] - truth.position[:, :3]).max() < 1e-9
     stats = residual_stats(result, truth)
     assert stats.configs == truth.m and stats.position_max < 1e-9
+
+
+def test_a_calibrated_model_refuses_degrees_as_calib_predict_does(ur5_fit, tmp_path):
+    """Failed before: load_calibrated(...).points(q) predicted at q in degrees (far past a
+    joint limit) where ``calib predict --configs`` refuses them; a little past is accepted."""
+    _, result, truth = ur5_fit
+    urdf, report = tmp_path / "cal.urdf", tmp_path / "cal.json"
+    urdf.write_bytes(result.urdf())
+    report.write_text(json.dumps(result.to_dict()))
+    model = load_calibrated(urdf, report)
+    shown = repr(model)  # failed before: 21 lines of arrays
+    assert shown.endswith(": base_link -> tool0, 6 joints, 0 compliant, 1 marker(s)>"), shown
+    assert shown.startswith("<ElasticModel ") and "\n" not in shown, shown
+    degrees = np.degrees(truth.q)
+    for call in (
+        model.points,
+        model.deflected,
+        model.torques,
+        model.tool_placements,
+        model.command,
+    ):
+        with pytest.raises(calib.DataError, match=r"degrees for radians\?"):
+            call(degrees)
+    q = truth.q.copy()
+    q[0, 1] = model.chain.upper[1] + 0.05  # within the margin a reading may have
+    assert model.points(q).shape == (truth.m, 1, 3)
+
+
+def test_a_results_methods_name_an_unknown_keyword(ur5_fit, tmp_path):
+    """Failed before: ``result.urdf(foo=1)`` raised Python's bare TypeError where
+    ``calibrate`` names an unknown keyword in an InvalidArgumentError."""
+    _, result, _ = ur5_fit
+    out = tmp_path / "cal.urdf"
+    calls = {
+        "urdf: unknown argument(s) foo (it takes world_link, on_robot)": lambda: result.urdf(foo=1),
+        "to_dict: unknown argument(s) world (it takes world_link": lambda: result.to_dict(
+            world="tracker"
+        ),
+        "summary: unknown argument(s) verbose (it takes no argument)": lambda: result.summary(
+            verbose=True
+        ),
+        "write: unknown argument(s) reprot (it takes out, report)": lambda: result.write(
+            out, reprot=tmp_path / "cal.json"
+        ),
+        "write: too many positional arguments": lambda: result.write(out, out, out),
+        "origins: unknown argument(s) foo": lambda: result.origins(foo=1),
+    }
+    for said, call in calls.items():
+        with pytest.raises(InvalidArgumentError, match=re.escape(said)):
+            call()
+    assert not out.exists()
 
 
 def test_attributes_of_a_chain(ur5_fit):

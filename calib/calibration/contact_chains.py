@@ -407,6 +407,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             load=None if compliance is None else load,
             readings=() if compliance is None or d.readings is None else d.readings.names,
         ))  # fmt: skip
+    notes += contact_elastic.none_kept_note(parts[0], r.comp, r.load)
     joints = [name for c in state.chains for name in c.joint_names]
     shared = tuple(n for n in dict.fromkeys(joints) if joints.count(n) > 1)
     clock.append(time.perf_counter())

@@ -29,6 +29,7 @@ from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import ChainView, MeasuredChain, Solution, world_of
+from .options import checked_arguments
 from .outliers import Outlier
 from .pixel_chain_result import PixelChain
 from .placements import Placements
@@ -257,6 +258,7 @@ class ContactChainsCalibration(Result, ChainView):
         """Joint compliance was fitted (one chain touching): the URDF alone is not the model."""
         return any(getattr(c, "compliance", None) is not None for c in self.chains)
 
+    @checked_arguments
     def compliance_files(self, out: Path, on_robot: bool = False) -> dict[Path, str]:
         """With fitted compliance, its file beside the URDF ``out`` (``<stem>.compliance.json``).
 
@@ -342,6 +344,7 @@ class ContactChainsCalibration(Result, ChainView):
             **({"cameras": cameras} if cameras else {}),
         }
 
+    @checked_arguments
     def to_dict(self, world_link: str | None = None, on_robot: bool = False) -> dict:
         """The JSON report (format 3, :mod:`calib.calibration.report`).
 
@@ -483,6 +486,7 @@ class ContactChainsCalibration(Result, ChainView):
         parts += [f"{cameras} camera(s)"] if cameras else []
         return ", ".join(parts)
 
+    @checked_arguments
     def summary(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
         n = len(self.chains)
@@ -502,6 +506,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
         return "\n".join(lines)
 
+    @checked_arguments
     def row_errors(self) -> RowErrors:
         """Each term's rows before and after [mm] (touches: weighted gaps), term after term."""
         return RowErrors.of(
@@ -516,6 +521,7 @@ class ContactChainsCalibration(Result, ChainView):
         except InvalidArgumentError:
             return None
 
+    @checked_arguments
     def urdf(self, world_link: str | None = None, on_robot: bool = False) -> bytes:
         """The calibrated URDF of the whole robot (the joint origins moved).
 
@@ -548,6 +554,7 @@ class ContactChainsCalibration(Result, ChainView):
             return marker_urdf(robot, errors, marks, None, world)
         return moved_origins_urdf(robot, errors)
 
+    @checked_arguments
     def write_urdf(self, path: str | Path) -> None:
         """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
 

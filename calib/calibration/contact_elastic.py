@@ -35,6 +35,7 @@ __all__ = [
     "compliance_line",
     "fitted_compliance",
     "load_record",
+    "none_kept_note",
     "readings_note",
     "term_load",
     "urdf_alone",
@@ -74,6 +75,22 @@ def readings_note(load, train, held) -> str | None:
         f"elastic: the held-out touches record {len(names[1])} joints off the chain, the "
         f"fitted ones {len(names[0])}: the load puts those a file lacks at neutral"
     )
+
+
+def none_kept_note(part, offered: tuple[int, ...], load) -> list[str]:
+    """A measured chain's note when ``elastic`` offered compliances and the fit kept none.
+
+    ``part``: the first term's part (its ``chain`` and fitted ``compliance``, None: none
+    kept); ``offered``: the joints (0-based) whose compliance was offered; ``load``: a
+    touching chain's standing load (noted by :func:`fitted_compliance`), or None.
+    """
+    if load is not None or not offered or part.compliance is not None:
+        return []
+    names = ", ".join(part.chain.joint_names[j] for j in offered)
+    return [
+        f"elastic: the compliance of {len(offered)} joint(s) was offered ({names}) and none "
+        f"was kept; the URDF is the whole model (no compliance file)"
+    ]
 
 
 def fitted_compliance(

@@ -18,6 +18,7 @@ from ..exceptions import CalibrationRefusedError, InvalidArgumentError, URDFErro
 from ..kinematics.origins import changed_origins, origins_document
 from ..kinematics.report_view import urdf_digest
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
+from .options import checked_arguments
 
 __all__ = ["Result", "RowErrors", "compliance_path", "paired_files", "paired_report", "read_files"]
 
@@ -158,6 +159,7 @@ class Result:
         """The error of each configuration before and after calibration, held-out rows marked."""
         raise NotImplementedError
 
+    @checked_arguments
     def plot(self):
         """A matplotlib Figure: errors per configuration before and after, and the parameters.
 
@@ -167,6 +169,7 @@ class Result:
 
         return calibration_figure(self)
 
+    @checked_arguments
     def origins(self, urdf: bytes | None = None) -> dict:
         """The joint origins the calibration moved or added, with the nominal ones beside them.
 
@@ -198,6 +201,7 @@ class Result:
             doc["robot"], str(doc["urdf"]), changed_origins(nominal, calibrated)
         )
 
+    @checked_arguments
     def write(self, out: str | Path, report: str | Path | None = None) -> None:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
 

@@ -218,7 +218,8 @@ def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
 
     Python would raise a bare TypeError for an unknown keyword or an option given by
     position; the wrapped function names the argument instead (and the one meant, for a
-    usual slip such as ``level=`` for ``params=``).
+    usual slip such as ``level=`` for ``params=``). A result's method (``self`` first) names
+    the arguments it takes.
     """
     signature = inspect.signature(function)
 
@@ -236,11 +237,14 @@ def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
 
 def _argument_error(name: str, signature: inspect.Signature, kwargs, exc: TypeError) -> str:
     unknown = sorted(set(kwargs) - set(signature.parameters))
+    method = next(iter(signature.parameters), None) == "self"
     if unknown:
         hints = [f"{u} is called {_RENAMED[u]} here" for u in unknown if u in _RENAMED]
+        if method:
+            hints = [f"it takes {', '.join(list(signature.parameters)[1:]) or 'no argument'}"]
         hint = f" ({'; '.join(hints)})" if hints else ""
         return f"{name}: unknown argument(s) {', '.join(unknown)}{hint}"
-    if "positional" in str(exc):
+    if "positional" in str(exc) and not method:
         return (
             f"{name} takes the robot and the data by position and every other argument by "
             f"name (e.g. params='complete'): {exc}"

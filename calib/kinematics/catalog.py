@@ -14,6 +14,7 @@ from ..exceptions import CalibError, RobotNotFoundError
 
 __all__ = [
     "ERD_PREFIX",
+    "Catalog",
     "CatalogEntry",
     "catalog",
     "catalog_entry",
@@ -175,13 +176,25 @@ def shipped_urdf(name: str) -> Path | None:
 
 
 @functools.cache
-def catalog() -> tuple[CatalogEntry, ...]:
-    """All catalog entries, in file order."""
+class Catalog(tuple[CatalogEntry, ...]):
+    """The catalog's entries, a tuple that prints in one line (``calib list`` describes them)."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        """One line: ``<catalog: 91 robots (aid, ..., ur5)>``."""
+        names = [e.name for e in self]
+        shown = ", ".join(names if len(names) <= 3 else [names[0], "...", names[-1]])
+        return f"<catalog: {len(names)} robots ({shown})>"
+
+
+def catalog() -> Catalog:
+    """All catalog entries, in file order (a tuple)."""
     import tomllib  # here: ``calib --version`` goes without (a tenth of its start)
 
     with open(models_dir() / "catalog.toml", "rb") as f:
         data = tomllib.load(f)
-    return tuple(CatalogEntry(**row) for row in data["robot"])
+    return Catalog(CatalogEntry(**row) for row in data["robot"])
 
 
 FIRST_GROUP = "calib's own models"

@@ -44,6 +44,7 @@ from ..exceptions import (
     warn_user,
 )
 from .frames import frame_placement, joint_placements, resolve_frame
+from .limits import refuse_far_past_limits
 from .mdh import MDHModel, from_chain
 from .report_view import check_pairing, compliance_fields
 from .robot import Chain, load_chain, pin_configurations, robot_source
@@ -122,6 +123,17 @@ class ElasticModel:
     plane: np.ndarray | None = None
     readings: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        """One line: ``<ElasticModel ur5: base_link -> tool0, 6 joints, 2 compliant, ...>``."""
+        chain = self.chain
+        extra = ", standing" if self.load is not None else ""
+        extra += ", contact" if self.contact is not None else ""
+        return (
+            f"<ElasticModel {chain.name}: {chain.base_frame} -> {chain.tool_frame}, "
+            f"{chain.n} joints, {int(np.count_nonzero(self.compliance))} compliant, "
+            f"{len(self.markers)} marker(s){extra}>"
+        )
+
     def torques(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
         """Gravity torque of each chain joint ``(m, n)`` [N m or N] at configurations ``(m, n)``.
 
@@ -134,7 +146,13 @@ class ElasticModel:
             InvalidArgumentError: ``readings`` for a hanging chain (no standing load).
         """
         self._check_readings(readings)
-        return self._torques(q, readings)
+        return self._torques(self._configurations(q), readings)
+
+    def _configurations(self, q: np.ndarray) -> np.ndarray:
+        """Commanded ``q`` ``(m, n)``, refused far past a limit as a configurations file is."""
+        q = self.chain.check_configurations(q)
+        refuse_far_past_limits(self.chain, q, "the configurations", np.arange(1, len(q) + 1))
+        return q
 
     def _check_readings(self, readings: JointReadings | None) -> None:
         if self.load is None and readings is not None:
@@ -165,7 +183,7 @@ class ElasticModel:
         ``readings``: the joints off the chain, as :meth:`torques` takes them.
         """
         self._check_readings(readings)
-        q = self.chain.check_configurations(q)
+        q = self._configurations(q)
         return q + self.compliance * self._torques(q, readings)
 
     def command(
@@ -181,7 +199,7 @@ class ElasticModel:
             InvalidArgumentError: It does not settle in ``COMMAND_ITERATIONS`` iterations.
         """
         self._check_readings(readings)
-        target = self.chain.check_configurations(target)
+        target = self._configurations(target)
         q = target.copy()
         for _ in range(COMMAND_ITERATIONS):
             r = q + self.compliance * self._torques(q, readings) - target

@@ -187,6 +187,10 @@ class MDHModel:
         """Number of joints."""
         return len(self.sigma) - 2
 
+    def __repr__(self) -> str:
+        """One line: ``<MDHModel base_link -> tool0, 6 joints>`` (the rows are attributes)."""
+        return f"<MDHModel {self.base_frame} -> {self.tool_frame}, {self.n} joints>"
+
     def replace(self, **changes: Any) -> MDHModel:
         """A copy with some fields replaced (the model itself is never mutated).
 

@@ -200,7 +200,9 @@ def _measured_fields(frames: dict, term: dict, model: dict, several: bool) -> di
 def _contact_fields(doc: dict, frames: dict, term: dict, src: str) -> dict:
     """A contact term's contact frame, its first object in its base frame, no instrument.
 
-    An object several terms touch is fitted in the first touching term's base.
+    The term's objects are its own (``terms[k].objects``: ``<id>@<tool>`` where terms touch
+    distinct objects of one id); a plane several terms share (one base) is in that base. A
+    report without ``terms[k].objects``: the first object in the term's base frame.
     """
     contacts, objects = frames.get("contacts"), doc.get("objects")
     contact = contacts.get(term.get("tool")) if isinstance(contacts, dict) else None

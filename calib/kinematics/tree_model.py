@@ -110,6 +110,11 @@ class TreeMDH:
         """Number of joints."""
         return int(np.sum(self.sigma >= 0))
 
+    def __repr__(self) -> str:
+        """One line: ``<TreeMDH base -> FL_FOOT, FR_FOOT, 6 joints>`` (rows are attributes)."""
+        tools = ", ".join(self.tool_frames)
+        return f"<TreeMDH {self.base_frame} -> {tools}, {self.n} joints>"
+
     @property
     def n_tools(self) -> int:
         """Number of tools T."""

@@ -7,6 +7,13 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError, warn_user
+from ..kinematics.limits import (
+    LIMIT_MARGIN,
+    LIMIT_TOL,
+    joint_bounds,
+    joint_unit,
+    refuse_far_past_limits,
+)
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .data import TOOL_COLUMN, DataWarning, Measurements
@@ -20,29 +27,6 @@ __all__ = [
     "joint_bounds",
     "tool_frames",
 ]
-
-
-LIMIT_TOL = 1e-9
-"""Slack [rad or m] allowed beyond a joint limit (values written at the limit, rounded)."""
-
-
-LIMIT_MARGIN = (0.1, 0.01)
-"""Margin [rad, m] beyond a joint limit that a reading may have with only a warning.
-
-Real encoders read a little past the limits the URDF gives for motion planning; kinematics
-does not need the limits. Farther out is an error (a wrong column, degrees for radians).
-"""
-
-
-def joint_bounds(chain: Chain | Tree) -> tuple[np.ndarray, np.ndarray]:
-    """Limits a measured joint position must respect [rad or m]: infinite for continuous joints."""
-    lower = np.where(chain.continuous, -np.inf, chain.lower)
-    upper = np.where(chain.continuous, np.inf, chain.upper)
-    return lower, upper
-
-
-def _unit(sigma: int) -> str:
-    return "m" if sigma == 1 else "rad"
 
 
 def check_against_chain(data: Measurements, chain: Chain | Tree) -> None:
@@ -99,27 +83,12 @@ def check_limits(
     chain: Chain | Tree, q: np.ndarray, source: str, rows: np.ndarray, warn: bool = True
 ) -> None:
     """Raise a DataError naming the first joint value far outside its limits; warn on others."""
-    lower, upper = joint_bounds(chain)
-    margin = np.where(chain.sigma == 1, LIMIT_MARGIN[1], LIMIT_MARGIN[0])
-    past = np.maximum(lower - q, q - upper)
-    if chain.coupling is not None:  # a mimic joint's position is computed, not read
-        past[:, [mj.joint for mj in chain.coupling.mimic]] = -np.inf
-    far = past > margin + LIMIT_TOL
-    if np.any(far):
-        i, k = (int(v) for v in np.argwhere(far)[0])
-        unit = _unit(int(chain.sigma[k]))
-        raise DataError(
-            source,
-            f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
-            f"[{chain.lower[k]:.9g}, {chain.upper[k]:.9g}] {unit} by more than "
-            f"{margin[k]:g} {unit} (a wrong column, or degrees for radians?)",
-            row=int(rows[i]),
-            column=chain.joint_names[k],
-        )
+    past = refuse_far_past_limits(chain, q, source, rows)
     near = past > LIMIT_TOL
     if warn and np.any(near):
         worst = [
-            f"{chain.joint_names[k]} by up to {np.max(past[:, k]):.3g} {_unit(int(chain.sigma[k]))}"
+            f"{chain.joint_names[k]} by up to {np.max(past[:, k]):.3g} "
+            f"{joint_unit(int(chain.sigma[k]))}"
             for k in np.flatnonzero(np.any(near, axis=0))
         ]
         warn_user(
