@@ -72,15 +72,18 @@ class MeasuredKind:
         """``pose`` or ``position`` (the report's term kind)."""
         return "pose" if self.pose else "position"
 
+    @property
+    def _own(self) -> ErrorModel:
+        return frames_model(self.n_markers, POSE if self.pose else POSITION, self.held)
+
     def names(self) -> tuple[str, ...]:
         """The unknowns: the frame's 6, each marker's 3 (but those held), the tool's 3 (pose)."""
-        return frames_model(self.n_markers, POSE if self.pose else POSITION, self.held).names()
+        return self._own.names()
 
     @property
     def kept(self) -> list[int]:
         """Each unknown's place among the frame's, every marker coordinate's and the tool's."""
-        every = 6 + 3 * self.n_markers + 3 * self.pose
-        return [c for c in range(every) if c - 6 not in self.held]
+        return self._own.columns
 
     @property
     def object_dofs(self) -> tuple[int, ...]:

@@ -185,6 +185,11 @@ class ErrorModel:
         return tuple(out + list(TOOL_NAMES if self.pose else ()) + list(self.base))
 
     @property
+    def columns(self) -> list[int]:
+        """Each of x's parameters' place among every column (the held markers' included)."""
+        return [c for c in range(self.size() + len(self.held)) if c - 6 not in self.held]
+
+    @property
     def _moved(self) -> list[int]:
         return [c for c in range(3 * self.n_markers) if c not in self.held]
 
@@ -263,7 +268,7 @@ class ErrorModel:
                 J[part, :, c:] = self._mdh_columns(state, q[part], sub)
         error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
         J = self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
-        return J[..., [c for c in range(width) if c - 6 not in self.held]] if self.held else J
+        return J[..., self.columns] if self.held else J
 
     @property
     def rows(self) -> int:
