@@ -112,9 +112,16 @@ def _count(problem: Problem) -> ProblemAnalysis:
     else:
         chains, data = [cast(Chain, t.robot) for t in terms], [t.data for t in terms]
     options = Options(max_iterations=problem.max_iterations)  # every row, as registered
-    run = Run(chains, data, None, options, guesses[0] if guesses else None,
-              shared_planes=problem.shared_planes, pose_weight=problem.pose_weight,
-              instrument=problem.shape in ("chain", "tree"))  # fmt: skip
+    run = Run(
+        chains,
+        data,
+        None,
+        options,
+        guesses[0] if guesses else None,
+        shared_planes=problem.shared_planes,
+        pose_weight=problem.pose_weight,
+        instrument=problem.shape in ("chain", "tree"),
+    )
     base, unknowns = determined_unknowns(run)
     return ProblemAnalysis(
         terms[0].robot.name, problem.shape, tuple(repr(t) for t in terms), unknowns, base

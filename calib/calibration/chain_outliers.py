@@ -107,13 +107,18 @@ def fit_terms_until_stable(
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
     parts = [slice(a, b) for a, b in itertools.pairwise(ends)]
-    rows = [d.rows.lines if isinstance(d, PixelPart) else d.rows or tuple(range(1, d.m + 1))
-            for d in train]  # fmt: skip
+    rows = [
+        d.rows.lines if isinstance(d, PixelPart) else d.rows or tuple(range(1, d.m + 1))
+        for d in train
+    ]
     noise = [  # the rule's floor [m]: none for touches, a pixel term's as checked_pixels's
-        None if isinstance(d, ContactData) else ROUND_OFF_PX * s.weight
-        if isinstance(d, PixelPart) else run.options.noise
+        None
+        if isinstance(d, ContactData)
+        else ROUND_OFF_PX * s.weight
+        if isinstance(d, PixelPart)
+        else run.options.noise
         for d, s in zip(train, first.start.states, strict=True)
-    ]  # fmt: skip
+    ]
     errors = _term_errors(train, torque[0][0])
     terms = zip(train, first.start.states, first.dropped, rows, noise, strict=True)
     masks = [_aside(*t) for t in terms]

@@ -69,9 +69,7 @@ def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.
     Rows beyond an object's own rank are zero. ``damping`` ``(K, o)``: extra rows
     ``diag(damping[k])`` (zero residual) of each object's unknowns, or None.
     """
-    Jo, Js, r, index, K = (
-        system.own, system.shared, system.residual, system.index, system.objects
-    )  # fmt: skip
+    Jo, Js, r, index, K = (system.own, system.shared, system.residual, system.index, system.objects)
     m, rows, o = Jo.shape
     s = Js.shape[2]
     w = o + s + 1

@@ -155,10 +155,28 @@ def calibrate_contact_chains(
         held = validate if isinstance(validate, Sequence) else [None] * len(data)
         for c, d, v in zip(chains, data, held, strict=False):
             check_readings(c, d, v)
-    options = Options(params=params, orientation_weight=orientation_weight, elastic=elastic,
-                      max_iterations=max_iterations, holdout=holdout, seed=seed)  # fmt: skip
-    run = Run(chains, data, validate, options, contact, marker, shared_planes, pose_weight,
-              instrument, held_label, support, progress)  # fmt: skip
+    options = Options(
+        params=params,
+        orientation_weight=orientation_weight,
+        elastic=elastic,
+        max_iterations=max_iterations,
+        holdout=holdout,
+        seed=seed,
+    )
+    run = Run(
+        chains,
+        data,
+        validate,
+        options,
+        contact,
+        marker,
+        shared_planes,
+        pose_weight,
+        instrument,
+        held_label,
+        support,
+        progress,
+    )
     return dataclasses.replace(fit_run(run), inputs=read_files(chains, data, validate))
 
 
@@ -202,7 +220,14 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     the weakest (held at its nominal value, a note), at most ``HOLDS`` times.
     """
     run, train, plane_of, load, torques, comp, start = (
-        r.run, r.train, r.plane_of, r.load, r.torques, r.comp, r.start)  # fmt: skip
+        r.run,
+        r.train,
+        r.plane_of,
+        r.load,
+        r.torques,
+        r.comp,
+        r.start,
+    )
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
     level, seed = opts.level, opts.seed
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
@@ -213,13 +238,19 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
         generic = Generic(start, tuple(train), seed) if instrument else None
         kept: list[int] = []
-        model, kin, selection, prior = choose(start, rows, flush, plane_of, offer, notes, comp,
-                                              asked, generic, kept)  # fmt: skip
+        model, kin, selection, prior = choose(
+            start, rows, flush, plane_of, offer, notes, comp, asked, generic, kept
+        )
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         one = instrument and len(chains) == 1  # its MDH directions span what it sees
-        identifiable = len(kept) if one else model.size() if offer == "components" else len(
-            structural(wide, start, flush))  # fmt: skip
+        identifiable = (
+            len(kept)
+            if one
+            else model.size()
+            if offer == "components"
+            else len(structural(wide, start, flush))
+        )
     clock.append(time.perf_counter())
     given = () if asked is None else asked.free
     for attempt in range(HOLDS + 1):
@@ -261,8 +292,10 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     solution = Solution(dataclasses.replace(fitted, start=bare), None if polished else prior)
     result = _assemble(r, solution, model, selection, notes, clock)
     given = r.run.validate or [None] * len(r.held)
-    labels = [None if h is None else "holdout" if v is None else r.run.held_label or v.source
-              for h, v in zip(r.held, given, strict=True)]  # fmt: skip
+    labels = [
+        None if h is None else "holdout" if v is None else r.run.held_label or v.source
+        for h, v in zip(r.held, given, strict=True)
+    ]
     pairs = zip(result.chains, labels, r.dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     cov = solution.covariance()[0]
@@ -282,8 +315,9 @@ def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | 
     names none (the frame, markers and tool alone: no hold would lift the refusal).
     """
     chosen = set(() if selection is None else selection.kept) - set(given)
-    named = [[(abs(w), n) for n, w in zip(d.names, d.weights, strict=True) if n in chosen]
-             for d in found]  # fmt: skip
+    named = [
+        [(abs(w), n) for n, w in zip(d.names, d.weights, strict=True) if n in chosen] for d in found
+    ]
     return (max(named[0])[1], found[0]) if found and all(named) else None
 
 
@@ -312,8 +346,16 @@ ROUND_OFF = 1e-12
 """RMS row [m] of a fit already exact: not polished (nothing is left to remove)."""
 
 
-def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: ChainsData, prior,
-         level, opts: Options, kin=None):  # fmt: skip
+def _fit(
+    model: ChainsModel,
+    wide: ChainsModel,
+    start: ChainsState,
+    train: ChainsData,
+    prior,
+    level,
+    opts: Options,
+    kin=None,
+):
     """Least squares; at ``complete``, polished from its result.
 
     The rank test at the nominal robot keeps the parameters that span what the touches
@@ -342,8 +384,18 @@ def _fit(model: ChainsModel, wide: ChainsModel, start: ChainsState, train: Chain
     if by_block(model, start):
         fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
     else:
-        fitted = fit(model, start, data, None, 1.0, prior=prior, max_iterations=iters,
-                     loss=opts.loss, scale=opts.noise or 1e-3, kin=kin)  # fmt: skip
+        fitted = fit(
+            model,
+            start,
+            data,
+            None,
+            1.0,
+            prior=prior,
+            max_iterations=iters,
+            loss=opts.loss,
+            scale=opts.noise or 1e-3,
+            kin=kin,
+        )
     rows = sum(d.m * len(s.kind.row_names) for s, d in zip(start.states, data.parts, strict=True))
     alone = start.states[0] if len(start.states) == 1 else None  # one chain: not polished
     one_chain = isinstance(alone, ContactState) or getattr(alone, "instrument", False)
@@ -401,12 +453,24 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
         compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes, load)
         objects = contact_objects(s, d, torque[0])
-        parts.append(ChainContacts(
-            chain, d.source, d.contacts[0], objects[d.contacts[0]], s.contact, s0.mdh, s.mdh,
-            s.weight, stats, s.kind, placed=objects, compliance=compliance,
-            load=None if compliance is None else load,
-            readings=() if compliance is None or d.readings is None else d.readings.names,
-        ))  # fmt: skip
+        parts.append(
+            ChainContacts(
+                chain,
+                d.source,
+                d.contacts[0],
+                objects[d.contacts[0]],
+                s.contact,
+                s0.mdh,
+                s.mdh,
+                s.weight,
+                stats,
+                s.kind,
+                placed=objects,
+                compliance=compliance,
+                load=None if compliance is None else load,
+                readings=() if compliance is None or d.readings is None else d.readings.names,
+            )
+        )
     notes += contact_elastic.none_kept_note(parts[0], r.comp, r.load)
     joints = [name for c in state.chains for name in c.joint_names]
     shared = tuple(n for n in dict.fromkeys(joints) if joints.count(n) > 1)
@@ -416,8 +480,14 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
     planes = {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
     unconverged = None if fitted.converged else f"the solver did not converge ({fitted.message})"
     return ContactChainsCalibration(
-        chains=tuple(parts), placements=state.placements, shared=shared, planes=len(planes),
-        free=tuple(model.names()[model.fixed :]), unknowns=model.size(), selection=selection,
-        refusal=refusal or unconverged, notes=tuple(notes),
+        chains=tuple(parts),
+        placements=state.placements,
+        shared=shared,
+        planes=len(planes),
+        free=tuple(model.names()[model.fixed :]),
+        unknowns=model.size(),
+        selection=selection,
+        refusal=refusal or unconverged,
+        notes=tuple(notes),
         timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
-    )  # fmt: skip
+    )

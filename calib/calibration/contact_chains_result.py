@@ -127,13 +127,20 @@ def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
     chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
     fields = one_term(
-        fields, errors, chain, part.compliance,
+        fields,
+        errors,
+        chain,
+        part.compliance,
         shape="contacts",
         frames={**fields["frames"], "tool_link": chain.tool_frame},
         fit=fit_dict(orientation_weight=weight),
-        model={**fields["model"], "mdh_nominal": part.nominal.rows(),
-               "mdh_calibrated": part.calibrated.rows(), "load": load},
-    )  # fmt: skip
+        model={
+            **fields["model"],
+            "mdh_nominal": part.nominal.rows(),
+            "mdh_calibrated": part.calibrated.rows(),
+            "load": load,
+        },
+    )
     own = part.to_dict()  # format 2's chain entry: its contact and gaps as they were
     legacy = {
         "base": chain.base_frame,
@@ -435,9 +442,12 @@ class ContactChainsCalibration(Result, ChainView):
         def one(a, b) -> bool:  # one object: a shared plane (same base, normal and offset)
             (c, _, F), (d, _, G) = a, b
             planes = isinstance(c.kind, PlaneContact) and isinstance(d.kind, PlaneContact)
-            return (planes and c.chain.base_frame == d.chain.base_frame
-                    and np.allclose(F[:3, 2], G[:3, 2], rtol=0.0, atol=1e-12)
-                    and abs(F[:3, 2] @ (F[:3, 3] - G[:3, 3])) <= 1e-12)  # fmt: skip
+            return (
+                planes
+                and c.chain.base_frame == d.chain.base_frame
+                and np.allclose(F[:3, 2], G[:3, 2], rtol=0.0, atol=1e-12)
+                and abs(F[:3, 2] @ (F[:3, 3] - G[:3, 3])) <= 1e-12
+            )
 
         names: dict[int, dict[str, str]] = {}
         for a in seen:
@@ -510,9 +520,11 @@ class ContactChainsCalibration(Result, ChainView):
     def row_errors(self) -> RowErrors:
         """Each term's rows before and after [mm] (touches: weighted gaps), term after term."""
         return RowErrors.of(
-            [(f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})", c.stats)
-             for k, c in enumerate(self.chains)]
-        )  # fmt: skip
+            [
+                (f"{k + 1}: {c.chain.tool_frame} ({c.kind.label})", c.stats)
+                for k, c in enumerate(self.chains)
+            ]
+        )
 
     def _frame(self) -> np.ndarray | None:
         """One chain measured by an instrument: :attr:`measurement_to_base`; else None."""

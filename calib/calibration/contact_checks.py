@@ -130,8 +130,9 @@ def length_errors(state: ContactState, data: ContactData, torque=None) -> outlie
     return outliers.Errors(np.linalg.norm(g[:, ~angle], axis=1), rot, dims)
 
 
-_WORDS = diagnosis.Words("touches", "touch", "gap",
-                         check="the touches, the chain and the contact frame's guess")  # fmt: skip
+_WORDS = diagnosis.Words(
+    "touches", "touch", "gap", check="the touches, the chain and the contact frame's guess"
+)
 
 
 def enough_touches(data: ContactData):

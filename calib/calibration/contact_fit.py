@@ -123,8 +123,19 @@ def _result(model, start, data, torque, x, f, status, counts) -> Fit:
         2: "the relative step is at most the tolerance",
     }
     message = messages[status] if finite else "non-finite parameters or residuals"
-    return Fit(model, start, model.apply(start, x), x, J, f.ravel(), status > 0 and finite,
-               status, message, counts[0], counts[1])  # fmt: skip
+    return Fit(
+        model,
+        start,
+        model.apply(start, x),
+        x,
+        J,
+        f.ravel(),
+        status > 0 and finite,
+        status,
+        message,
+        counts[0],
+        counts[1],
+    )
 
 
 def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData, torque) -> list[int]:

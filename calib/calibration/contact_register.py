@@ -188,9 +188,17 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
             state, d, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
             state, d, found, more, held[c] = checked_measured(
-                chain, d, v, held[c], weight, opts.max_iterations, run.marker, opts.noise_mm, zero,
+                chain,
+                d,
+                v,
+                held[c],
+                weight,
+                opts.max_iterations,
+                run.marker,
+                opts.noise_mm,
+                zero,
                 holds[c],
-            )  # fmt: skip
+            )
             state = dataclasses.replace(state, instrument=run.instrument)
         else:
             loop = len(chains) > 1 and isinstance(d.kind, FixedPoseContact)  # a closed loop
@@ -229,9 +237,13 @@ def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsS
         return start
     only_frames = chains_model(start, plane_of, (), placements.names())
     refined = fit(
-        only_frames, start, ChainsData(tuple(train)), None, 1.0,
+        only_frames,
+        start,
+        ChainsData(tuple(train)),
+        None,
+        1.0,
         max_iterations=run.options.max_iterations,
-    )  # fmt: skip
+    )
     if not refined.converged:
         raise DataError(
             train[0].source,
@@ -289,9 +301,14 @@ def drawn(data: Sequence, holdout: float, seed: int) -> list[tuple]:
     By posture for measurements and pixels (:func:`~.validation.split`), by object for
     touches (:func:`~.contact_term.split_contacts`); seeded.
     """
-    return [(d, None) if holdout == 0 else validation.split(d, holdout, seed)
-            if isinstance(d, Measurements | PixelPart) else split_contacts(d, holdout, seed)
-            for d in data]  # fmt: skip
+    return [
+        (d, None)
+        if holdout == 0
+        else validation.split(d, holdout, seed)
+        if isinstance(d, Measurements | PixelPart)
+        else split_contacts(d, holdout, seed)
+        for d in data
+    ]
 
 
 def register_contact_chains(run: Run) -> Registered:

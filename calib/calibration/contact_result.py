@@ -94,8 +94,11 @@ def part_stats(stat, registered, state, train, held) -> dict:
     ``held_out`` and ``held_out_registration``.
     """
     parts = {"train": train} if held is None else {"train": train, "held_out": held}
-    return {key + suffix: stat(s, rows) for key, rows in parts.items()
-            for suffix, s in (("", state), ("_registration", registered))}  # fmt: skip
+    return {
+        key + suffix: stat(s, rows)
+        for key, rows in parts.items()
+        for suffix, s in (("", state), ("_registration", registered))
+    }
 
 
 def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) -> GapStats:

@@ -54,8 +54,9 @@ class RowErrors:
         ``held_out``, ``held_out_registration``), each with ``per_row`` ``(m,)`` [mm] (else
         InvalidArgumentError).
         """
-        parts = [(k, p, s) for k, (_, s) in enumerate(terms) for p in ("train", "held_out")
-                 if p in s]  # fmt: skip
+        parts = [
+            (k, p, s) for k, (_, s) in enumerate(terms) for p in ("train", "held_out") if p in s
+        ]
         rows = [(s[f"{p}_registration"].per_row, s[p].per_row) for _, p, s in parts]
         if any(r is None for pair in rows for r in pair):
             raise InvalidArgumentError("these statistics keep no per-row errors")
@@ -106,8 +107,10 @@ def read_files(
         for what, given in ((f"the data of term {k}", d), (f"the validation data of term {k}", v)):
             parts = [] if given is None else [(what, getattr(given, "obs", given))]
             if given is not None and hasattr(given, "target"):  # a camera's pixels
-                parts += [(f"the target of term {k}", given.target),
-                          (f"the intrinsics of term {k}", given.camera.intrinsics)]  # fmt: skip
+                parts += [
+                    (f"the target of term {k}", given.target),
+                    (f"the intrinsics of term {k}", given.camera.intrinsics),
+                ]
             found += [(name, part.path or part.source) for name, part in parts]
     return tuple(found)
 

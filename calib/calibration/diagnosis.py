@@ -101,10 +101,14 @@ def _orientation_mistakes(data) -> Iterator[tuple[str, object]]:
     """(description, corrected data) for each usual mistake of the orientation columns."""
     angles, quat = data.angles, data.quaternion
     if angles is None:
-        yield "quaternions written w, x, y, z (orientation quat-wxyz)", dataclasses.replace(
-            data, quaternion=quat[:, [1, 2, 3, 0]])  # fmt: skip
-        yield "quaternions written x, y, z, w (orientation quat-xyzw)", dataclasses.replace(
-            data, quaternion=quat[:, [3, 0, 1, 2]])  # fmt: skip
+        yield (
+            "quaternions written w, x, y, z (orientation quat-wxyz)",
+            dataclasses.replace(data, quaternion=quat[:, [1, 2, 3, 0]]),
+        )
+        yield (
+            "quaternions written x, y, z, w (orientation quat-xyzw)",
+            dataclasses.replace(data, quaternion=quat[:, [3, 0, 1, 2]]),
+        )
         return
 
     def read_as(values: np.ndarray):
@@ -220,14 +224,22 @@ def explain(
     same = () if orientation or data.m < 2 else np.all(data.q == data.q[0], axis=0)
     still = [name for name, s in zip(data.joint_names, same, strict=False) if s]  # constant
     if still:
-        raise DataError(data.source, f"the registration {leaves} and joint column(s) "
-                        f"{', '.join(still)} hold one value in every {words.row}: were those "
-                        "joints logged?")  # fmt: skip
+        raise DataError(
+            data.source,
+            f"the registration {leaves} and joint column(s) "
+            f"{', '.join(still)} hold one value in every {words.row}: were those "
+            "joints logged?",
+        )
     cause = _likely_cause(data, revolute, error, first, orientation, joints_only)
     if cause is not None:
         before = amount(first) if known else "no registration"
-        raise DataError(data.source, f"the {words.data} look like {cause[0]}: the "
-                        f"registration's {words.error} drops from {before} to "
-                        f"{amount(cause[1])} RMS once corrected")  # fmt: skip
-    return [f"the registration {leaves}, far above geometric errors, and no usual mistake "
-            f"({words.mistakes}) explains it: check {words.check}"]  # fmt: skip
+        raise DataError(
+            data.source,
+            f"the {words.data} look like {cause[0]}: the "
+            f"registration's {words.error} drops from {before} to "
+            f"{amount(cause[1])} RMS once corrected",
+        )
+    return [
+        f"the registration {leaves}, far above geometric errors, and no usual mistake "
+        f"({words.mistakes}) explains it: check {words.check}"
+    ]

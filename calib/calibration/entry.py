@@ -119,10 +119,22 @@ def calibrate(
             ``data``.
     """
     if isinstance(robot, Problem):
-        named = options_given(dict(
-            marker=marker, validate=validate, params=params, fix=fix, free=free, elastic=elastic,
-            loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
-            max_iterations=max_iterations, holdout=holdout, seed=seed))  # fmt: skip
+        named = options_given(
+            dict(
+                marker=marker,
+                validate=validate,
+                params=params,
+                fix=fix,
+                free=free,
+                elastic=elastic,
+                loss=loss,
+                noise_mm=noise_mm,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                holdout=holdout,
+                seed=seed,
+            )
+        )
         if data is not None or named:  # an option beside the problem was ignored
             raise InvalidArgumentError(
                 "calibrate(problem) takes the problem alone: its data and options are in it"
@@ -135,10 +147,18 @@ def calibrate(
             "'data'"
         )
     problem = Problem(
-        (Term(robot, data, validate, marker),), params=params, fix=fix, free=free,
-        elastic=elastic, loss=loss, noise_mm=noise_mm, orientation_weight=orientation_weight,
-        max_iterations=max_iterations, holdout=holdout, seed=seed,
-    )  # fmt: skip
+        (Term(robot, data, validate, marker),),
+        params=params,
+        fix=fix,
+        free=free,
+        elastic=elastic,
+        loss=loss,
+        noise_mm=noise_mm,
+        orientation_weight=orientation_weight,
+        max_iterations=max_iterations,
+        holdout=holdout,
+        seed=seed,
+    )
     return solve(problem, progress)
 
 
@@ -211,8 +231,9 @@ def _tree(problem: Problem, progress: Progress | None) -> ContactChainsCalibrati
     )
     options = dataclasses.replace(problem.options(), params=level, holdout=0.0)  # drawn
     label = "holdout" if validate is None else None
-    run = Run(list(tree.chains), data, held, options, instrument=True, held_label=label,
-              progress=progress)  # fmt: skip
+    run = Run(
+        list(tree.chains), data, held, options, instrument=True, held_label=label, progress=progress
+    )
     return dataclasses.replace(fit_run(run), shape="tree")
 
 

@@ -74,5 +74,6 @@ def hand_eye(chain: Chain, camera: PixelCamera, target: Target, obs: PixelObserv
     mount = np.eye(4)
     mount[:3, :3], mount[:3, 3] = R, t
     rms = float(part.pixels["train"]["reprojection_rms_px"]) / np.sqrt(2)  # of |(u, v)|: per axis
-    return HandEye(part.state.camera, mount, part.state.target, rms, tuple(
-        o.row for o in part.outliers))  # fmt: skip
+    return HandEye(
+        part.state.camera, mount, part.state.target, rms, tuple(o.row for o in part.outliers)
+    )

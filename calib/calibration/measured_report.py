@@ -91,8 +91,11 @@ def chain_lines(view: ChainView) -> list[str]:
         ("fitted, URDF alone (no compliance)", view.urdf_after),
     ]
     if held is not None:
-        parts = (("registration only", held.registration), ("calibrated", held.calibrated),
-                 ("URDF alone (no compliance)", held.urdf))  # fmt: skip
+        parts = (
+            ("registration only", held.registration),
+            ("calibrated", held.calibrated),
+            ("URDF alone (no compliance)", held.urdf),
+        )
         rows += [(f"held out ({held.source}), {what}", st) for what, st in parts]
     header = ["errors", "configs", "rms [mm]", "max [mm]"]
     if view.after.orientation_rms is not None:
@@ -135,14 +138,23 @@ def chain_report(
     gravity = {"frame": part.chain.base_frame, "vector": g}
     std, weight = view.predicted_std, view.orientation_weight
     out = one_term(
-        fields, errors, part.chain, part.compliance,
+        fields,
+        errors,
+        part.chain,
+        part.compliance,
         frames=chain_frames(part, world_link, on_robot),
-        parameters=[{**p, "name": chain_name(p["name"])} if p["name"] in own else p
-                    for p in fields["parameters"]],
-        model={"mdh_nominal": nominal, "mdh_calibrated": calibrated, **fields["model"],
-               "gravity": gravity},
+        parameters=[
+            {**p, "name": chain_name(p["name"])} if p["name"] in own else p
+            for p in fields["parameters"]
+        ],
+        model={
+            "mdh_nominal": nominal,
+            "mdh_calibrated": calibrated,
+            **fields["model"],
+            "gravity": gravity,
+        },
         fit=fit_dict(view.sigma, view.condition, std, weight),
-    )  # fmt: skip
+    )
     frames, data = out["frames"], view.data
     legacy = {
         "data": data.source,
@@ -165,5 +177,5 @@ def chain_report(
         "measurement_to_base": frames["measurement"],
         "mdh_nominal": nominal,
         "mdh_calibrated": calibrated,
-    }  # fmt: skip
+    }
     return out, legacy

@@ -346,9 +346,14 @@ def checked_measured(
         k, at = data.n_markers, state.frames_at
         fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
         aside = term_checks.held_out(
-            outliers.point_errors(fitted, k), outliers.point_errors(errors, k), held,
-            held.rows or tuple(range(1, held.m + 1)), held.subset, notes, opts.noise,
-        )  # fmt: skip
+            outliers.point_errors(fitted, k),
+            outliers.point_errors(errors, k),
+            held,
+            held.rows or tuple(range(1, held.m + 1)),
+            held.subset,
+            notes,
+            opts.noise,
+        )
         other = errors if aside is held else reg.residuals(aside, None, at(aside))
         stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
         validation.check_held_out_errors(*stats, aside.source)

@@ -140,9 +140,18 @@ def measured_part(
         e["joint"] = joint if ".frame." in e["name"] else None
     bare = dataclasses.replace(registered, seen=None)  # a result keeps no frames of its rows
     return MeasuredChain(
-        chain, train.source, joint, bare, state, stats, train, held, tuple(entries),
-        compliance=compliance, residuals=rigid,
-    )  # fmt: skip
+        chain,
+        train.source,
+        joint,
+        bare,
+        state,
+        stats,
+        train,
+        held,
+        tuple(entries),
+        compliance=compliance,
+        residuals=rigid,
+    )
 
 
 def _measured_stats(

@@ -146,8 +146,9 @@ def object_moments(
         Xt = (Xt - fitted * mask[:, None, None]).reshape(-1, X.shape[2])
         Xh = ((X - fitted) * ~mask[:, None, None]).reshape(-1, X.shape[2])
         normal, held = Xt.T @ Xt, Xh.T @ Xh
-        for k, v in enumerate((normal[:-1, :-1], normal[:-1, -1], held[:-1, :-1],
-                               held[:-1, -1], held[-1, -1])):  # fmt: skip
+        for k, v in enumerate(
+            (normal[:-1, :-1], normal[:-1, -1], held[:-1, :-1], held[:-1, -1], held[-1, -1])
+        ):
             out[k].append(v)
     Gt, gt, Gh, gh, hh = (np.array(v) for v in out)
     return x_all, Gt, gt + Gt @ x_all, Gh, gh, hh

@@ -129,10 +129,14 @@ class PixelPart:
         keep = np.isin(lines, self.rows.lines)
         pick = np.flatnonzero(keep)
         rows = PixelObservations(
-            obs.joint_names, obs.q[keep], tuple(obs.camera[i] for i in pick),
-            tuple(obs.point[i] for i in pick), obs.pixels[keep], obs.source,
+            obs.joint_names,
+            obs.q[keep],
+            tuple(obs.camera[i] for i in pick),
+            tuple(obs.point[i] for i in pick),
+            obs.pixels[keep],
+            obs.source,
             tuple(lines[i] for i in pick),
-        )  # fmt: skip
+        )
         return dataclasses.replace(self.data, obs=rows)
 
 

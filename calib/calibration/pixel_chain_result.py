@@ -82,14 +82,18 @@ class PixelChain:
         out = term_errors(self.stats, self.held_source)
         for part in ("train", "held_out"):
             if out[part] is not None:
-                out[part]["pixels"] = {"registration": self.pixels[f"{part}_registration"],
-                                       "calibrated": self.pixels[part]}  # fmt: skip
+                out[part]["pixels"] = {
+                    "registration": self.pixels[f"{part}_registration"],
+                    "calibrated": self.pixels[part],
+                }
         return out
 
     def warnings(self) -> list[str]:
         """A calibrated reprojection error above :data:`EXPECTED_PX` (RMS), said once."""
-        worst = max((k for k in ("train", "held_out") if k in self.pixels),
-                    key=lambda k: self.pixels[k]["reprojection_rms_px"])  # fmt: skip
+        worst = max(
+            (k for k in ("train", "held_out") if k in self.pixels),
+            key=lambda k: self.pixels[k]["reprojection_rms_px"],
+        )
         rms = self.pixels[worst]["reprojection_rms_px"]
         if not rms > EXPECTED_PX:
             return []

@@ -69,12 +69,14 @@ def pixel_count(
         "kind": "pixels",
         "camera": first.name,
         "link": first.link,
-        "cameras": [{"name": c.name, "link": c.link, "rows": r.m} for c, r in zip(
-            cameras, rows, strict=True)],
+        "cameras": [
+            {"name": c.name, "link": c.link, "rows": r.m}
+            for c, r in zip(cameras, rows, strict=True)
+        ],
         "tool": chains[0].tool_frame,
         "rows": int(obs.m),
         "postures": len(np.unique(obs.q, axis=0)),
         "mount": what.mount,
         "n_unknowns": 6 * len(names) + placements.y.size + 6 * what.mount,
         "n_base": len(free),
-    }  # fmt: skip
+    }

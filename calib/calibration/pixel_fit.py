@@ -138,9 +138,15 @@ class _Steps:
         lift = np.eye(start.placements.y.size)[comps]
         J = np.empty((data.m, 2, len(self.free)))
         by_own, J[:, :, joint] = pixel_block(
-            state.placements, start.chains[0], _term(state), _term(start), own, data.parts[0],
-            lift, kin[0],
-        )  # fmt: skip
+            state.placements,
+            start.chains[0],
+            _term(state),
+            _term(start),
+            own,
+            data.parts[0],
+            lift,
+            kin[0],
+        )
         J[:, :, ~joint] = by_own[:, :, at]
         return J
 
@@ -158,8 +164,15 @@ def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, fre
     joints on ``placements``.
     """
     start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
-    fitted = fit(_Steps(tuple(free)), start, ChainsData((part,)), None, 1.0,
-                 max_iterations=MAX_EVALUATIONS, kin=(kin,))  # fmt: skip
+    fitted = fit(
+        _Steps(tuple(free)),
+        start,
+        ChainsData((part,)),
+        None,
+        1.0,
+        max_iterations=MAX_EVALUATIONS,
+        kin=(kin,),
+    )
     return fitted.state
 
 
@@ -181,9 +194,12 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         guess = _camera_from_rays(p_link, _rays(lens, rows.pixels), part.source)
     behind = np.flatnonzero(camera_points(kin, guess, X[rows.point])[0][:, 2] <= 0)
     if len(behind):
-        raise DataError(part.source, f"{len(behind)} observation(s) see a point behind the "
-                        f"camera on the starting model (first: row {rows.lines[behind[0]]}): "
-                        "check the camera's link and placement")  # fmt: skip
+        raise DataError(
+            part.source,
+            f"{len(behind)} observation(s) see a point behind the "
+            f"camera on the starting model (first: row {rows.lines[behind[0]]}): "
+            "check the camera's link and placement",
+        )
     mdh = placements.chain_models((chain,))[0]
     start = PixelTermState(mdh, guess, X, lens, 1.0)
     camera = _term(_fitted(chain, placements, start, part, range(6), kin)).camera
@@ -211,8 +227,12 @@ def _rms_m(state: PixelTermState, part: PixelPart) -> float:
     return float(np.sqrt(2 * np.mean(state.pixel_errors(part) ** 2)) * state.weight)
 
 
-_WORDS = diagnosis.Words("pixels", "row of the pixels", "error at the target",
-                         check="the pixels, the camera's link and the target")  # fmt: skip
+_WORDS = diagnosis.Words(
+    "pixels",
+    "row of the pixels",
+    "error at the target",
+    check="the pixels, the camera's link and the target",
+)
 
 
 def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
@@ -249,8 +269,11 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     J = pixel_jacobian(placements, state, chain, part.rows, kin=kin)[1]
     free = free_columns(J.reshape(-1, J.shape[2]), placements, state.what)
     own = _fitted(chain, placements, state, part, free, kin)
-    errors = [np.linalg.norm(own.residuals(ChainsData((p,))), axis=1) * state.weight
-              for p in (part, held) if p is not None]  # fmt: skip
+    errors = [
+        np.linalg.norm(own.residuals(ChainsData((p,))), axis=1) * state.weight
+        for p in (part, held)
+        if p is not None
+    ]
     return errors[0], (errors[1] if held is not None else None)
 
 
@@ -297,8 +320,12 @@ class _Camera:
         pixel = outliers.Errors(errors, None, (2, 3))
         bad, found = outliers.find_outliers(pixel, floor, part.rows.lines)
         found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
-        found += [outliers.Outlier(part.rows.lines[i], float(errors[i]), float(np.median(errors)),
-                  "from behind") for i in np.flatnonzero(behind & ~bad)]  # fmt: skip
+        found += [
+            outliers.Outlier(
+                part.rows.lines[i], float(errors[i]), float(np.median(errors)), "from behind"
+            )
+            for i in np.flatnonzero(behind & ~bad)
+        ]
         bad = bad | behind
         kept = part
         if bad.any():
@@ -325,8 +352,15 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
     :func:`~.measured_term.checked_measured` does.
     """
     what = f"unknowns of camera {part.data.camera.name}'s placement"
-    determined.check_equations(part.m, 2, _size(part), what, part.source,
-                               held=0 if held is None else held.m, unit="observations")  # fmt: skip
+    determined.check_equations(
+        part.m,
+        2,
+        _size(part),
+        what,
+        part.source,
+        held=0 if held is None else held.m,
+        unit="observations",
+    )
     aside, notes = term_checks.checked(_Camera(chain, part, held))
     found = list(aside.found)
     notes += [outliers.set_aside_note(found)] if found else []

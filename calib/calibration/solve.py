@@ -280,9 +280,14 @@ def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fi
             break
         x, f = x + step, trial
         best = dataclasses.replace(
-            fitted, state=problem.state(x), x=x, J=problem.data_jac(x), f=f,
-            iterations=fitted.iterations + k, evaluations=fitted.evaluations + k,
-        )  # fmt: skip
+            fitted,
+            state=problem.state(x),
+            x=x,
+            J=problem.data_jac(x),
+            f=f,
+            iterations=fitted.iterations + k,
+            evaluations=fitted.evaluations + k,
+        )
     return best
 
 

@@ -283,10 +283,14 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     link = dict(zip(target.point, links, strict=True))
     seen = {(c, link[p]) for c, p in zip(obs.camera, obs.point, strict=True)}
     terms = tuple(
-        Term(c, PixelData(cam, target, obs, what), None if check is None else PixelData(
-            cam, target, check, what))
-        for cam, c in views if (cam.name, c.tool_frame) in seen
-    )  # fmt: skip
+        Term(
+            c,
+            PixelData(cam, target, obs, what),
+            None if check is None else PixelData(cam, target, check, what),
+        )
+        for cam, c in views
+        if (cam.name, c.tool_frame) in seen
+    )
     problem = Problem(
         terms,
         params="complete",
@@ -352,8 +356,12 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
         )
     cameras = tuple({c.name: c for c in cameras}.values())
     errors = {name: np.round(E, 15).tolist() for name, E in truth.errors.items()}
-    document = {"camera": cameras[0].name, "link": cameras[0].link,
-                "cameras": {c.name: c.link for c in cameras}, "joint_errors": errors}  # fmt: skip
+    document = {
+        "camera": cameras[0].name,
+        "link": cameras[0].link,
+        "cameras": {c.name: c.link for c in cameras},
+        "joint_errors": errors,
+    }
     write_outputs({out: observations_csv(obs), truth_path: json_text(document)})
     seen = len(np.unique(obs.q, axis=0))
     names = ", ".join(f"{c.name} on {c.link}" for c in cameras)

@@ -44,9 +44,15 @@ def terminal(quiet: bool = False, stream=None) -> Progress | None:
     def bar(iterable=None, desc: str | None = None, total: int | None = None):
         shape = "{desc}: {elapsed}" if iterable is None and total is None else None  # a phase
         return tqdm(
-            iterable, desc=desc, total=total, file=out, leave=False, delay=PHASE_DELAY,
-            dynamic_ncols=True, bar_format=shape,
-        )  # fmt: skip
+            iterable,
+            desc=desc,
+            total=total,
+            file=out,
+            leave=False,
+            delay=PHASE_DELAY,
+            dynamic_ncols=True,
+            bar_format=shape,
+        )
 
     return bar
 

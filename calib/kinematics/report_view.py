@@ -217,8 +217,13 @@ def _contact_fields(doc: dict, frames: dict, term: dict, src: str) -> dict:
         raise DataError(src, "'frames.contacts' or 'objects' is missing or malformed")
     base, touched = term.get("base"), term.get("objects")
     if isinstance(touched, list) and isinstance(objects, dict):  # the term's own (format 3)
-        found = [o for g in objects.values() if isinstance(g, dict)
-                 for i, o in g.items() if i in touched and isinstance(o, dict)]  # fmt: skip
+        found = [
+            o
+            for g in objects.values()
+            if isinstance(g, dict)
+            for i, o in g.items()
+            if i in touched and isinstance(o, dict)
+        ]
     first = next((o for o in found if o.get("frame") in (None, base)), None)
     if first is None:
         raise DataError(

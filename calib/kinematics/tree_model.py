@@ -317,6 +317,11 @@ def _converted_tree(tree: Tree, parallel_tol: float) -> TreeMDH:
     sigma = np.concatenate([[-1], tree.sigma, -np.ones(T, dtype=int)])
     names = (None, *tree.joint_names, *(None,) * T)
     return TreeMDH(
-        antecedent, sigma, **values, joint_names=names, **flags,
-        base_frame=tree.base_frame, tool_frames=tree.tool_frames,
-    )  # fmt: skip
+        antecedent,
+        sigma,
+        **values,
+        joint_names=names,
+        **flags,
+        base_frame=tree.base_frame,
+        tool_frames=tree.tool_frames,
+    )

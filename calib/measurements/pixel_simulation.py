@@ -151,6 +151,10 @@ def simulate_cameras(
         points += [on.point[i] for i in index % len(on.point)]
         pixels.append(seen)
     return PixelObservations(
-        joints, q[np.concatenate(rows)], tuple(names), tuple(points), np.concatenate(pixels),
+        joints,
+        q[np.concatenate(rows)],
+        tuple(names),
+        tuple(points),
+        np.concatenate(pixels),
         source="<simulated pixels>",
-    )  # fmt: skip
+    )

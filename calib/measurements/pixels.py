@@ -224,8 +224,13 @@ def on_link(target: Target, link: str) -> Target:
     if not keep:
         raise InvalidArgumentError(f"{target.source}: no target point on {link}")
     normal = None if target.normal is None else target.normal[keep]
-    return Target(tuple(target.point[i] for i in keep), target.position[keep],
-                  (link,) * len(keep), normal, target.source)  # fmt: skip
+    return Target(
+        tuple(target.point[i] for i in keep),
+        target.position[keep],
+        (link,) * len(keep),
+        normal,
+        target.source,
+    )
 
 
 def _checked_text(text: object) -> str:

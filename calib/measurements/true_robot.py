@@ -78,8 +78,11 @@ def true_robot(
     )
     names = list(dict.fromkeys(n for c in chains for n in c.joint_names))
     _, root = read_urdf_source(chains[0])
-    names += [n for n in dict.fromkeys(base_joint(root, c).get("name", "") for c in measuring)
-              if n not in names]  # fmt: skip
+    names += [
+        n
+        for n in dict.fromkeys(base_joint(root, c).get("name", "") for c in measuring)
+        if n not in names
+    ]
     rng = np.random.default_rng([seed, 5])
     errors = {}
     for name in names:
