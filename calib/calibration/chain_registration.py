@@ -18,13 +18,11 @@ from typing import cast
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.measures import Measurement
-from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import ErrorModel, State
+from .model import MeasuredKind, State, measured_kind
 from .options import Options
 from .registration import register
 from .solve import Fit, fit
@@ -33,21 +31,9 @@ from .term_checks import Aside
 __all__ = [
     "STRUCTURE_CONFIGS",
     "checked_registration",
-    "frames_model",
     "held_markers",
     "held_note",
 ]
-
-
-def frames_model(n_markers: int, kind: Measurement, held: tuple[int, ...] = ()) -> ErrorModel:
-    """The registration's free parameters: frame, markers (and measured-frame rotation).
-
-    No MDH parameter: a measured term's own unknowns too. The registration fits them all
-    (``fix`` of the frame or the markers is refused before any registration,
-    :func:`~.measured_options.level_offer`) but the marker coordinates ``held`` at the start:
-    those no posture separates from the frame (:func:`held_markers`).
-    """
-    return ErrorModel(ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers, kind, held)
 
 
 STRUCTURE_CONFIGS = 20
@@ -92,7 +78,7 @@ def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit
     ``held``: marker coordinates held at the ``guess`` (:func:`held_markers`).
     """
     kin = nominal.kinematics(data.q)
-    model = frames_model(data.n_markers, data.kind, held)
+    model = measured_kind(data, held)
 
     @functools.cache
     def start() -> State:
@@ -130,7 +116,7 @@ class _Rows:
     guess: np.ndarray
     opts: Options
     at: Callable[[float], Fit]
-    frames: ErrorModel | None = None
+    frames: MeasuredKind | None = None
     hold: tuple[int, ...] = ()
 
     diagnose_first = False
@@ -148,7 +134,7 @@ class _Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = frames_model(sub.n_markers, sub.kind, self.hold)
+            frames = measured_kind(sub, self.hold)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
             return _registrations(nominal, sub, guess, opts, self.hold)(weight)
@@ -221,7 +207,7 @@ def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Ro
     """The steps on validation data (``held``: (data, label) or None), with their label."""
     if held is None:
         return []
-    frames = frames_model(held[0].n_markers, held[0].kind, hold)
+    frames = measured_kind(held[0], hold)
     if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
     at = _registrations(nominal, held[0], guess, opts, hold)

@@ -46,7 +46,7 @@ from ..identification.measures import Measurement
 from ..identification.parameters import complete_parameters
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain, check_count
-from .model import ErrorModel, State, generic_measurements, moved, nominal_state
+from .model import ErrorModel, MeasuredKind, State, generic_measurements, moved, nominal_state
 from .solve import row_weights
 
 __all__ = [
@@ -374,7 +374,7 @@ def identifiable_parameters(
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
     state = nominal_state(nominal, markers, kind)
-    model = ErrorModel(pset, *moved(pset, nominal), n_markers=k, kind=kind)
+    model = ErrorModel(pset, moved(pset, nominal), MeasuredKind(k, bool(kind.rotation_rows)))
     kept = determined_columns(generic_jacobian(model, state, chain.joint_names)(q))
     all_names = model.names()
     return tuple(all_names[i] for i in kept)
@@ -383,16 +383,16 @@ def identifiable_parameters(
 def generic_jacobian(
     model: ErrorModel, state: State, joint_names: tuple[str, ...], weight: float = 1.0
 ) -> Callable[[np.ndarray], np.ndarray]:
-    """The weighted Jacobian ``(m, rows, size)`` at x = 0 at configurations ``(m, n)``.
+    """The weighted Jacobian ``(m, rows, size)`` at ``state`` at configurations ``(m, n)``.
 
     Of what ``state`` measures there (:func:`~.model.generic_measurements`); ``weight``: of
     the orientation rows [m/rad].
     """
-    weights = row_weights(model, weight)
+    weights = row_weights(model.own, weight)
 
     def at(q: np.ndarray) -> np.ndarray:
         data = generic_measurements(state, joint_names, q)
-        return model.jacobian(state, np.zeros(model.size()), data, None) * weights[:, None]
+        return model.jacobian(state, data) * weights[:, None]
 
     return at
 

@@ -44,7 +44,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..calibration.determined import determined_columns, generic_jacobian
-from ..calibration.model import FRAME_NAMES, TOOL_NAMES, ErrorModel, moved, nominal_state
+from ..calibration.model import (
+    FRAME_NAMES,
+    TOOL_NAMES,
+    ErrorModel,
+    MeasuredKind,
+    moved,
+    nominal_state,
+)
 from ..calibration.options import check_tree_level
 from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array, shown
 from ..core.choices import DESIGN_LEVELS
@@ -236,7 +243,8 @@ def observation_model(
     kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
     pset, names = _level_names(nominal, params)
-    model = ErrorModel(pset, *moved(pset, nominal, names), n_markers=len(mk), kind=kind)
+    own = MeasuredKind(len(mk), bool(kind.rotation_rows))
+    model = ErrorModel(pset, moved(pset, nominal, names), own)
     state = nominal_state(nominal, mk, kind)
     jacobian_of = generic_jacobian(model, state, chain.joint_names, float(orientation_weight))
     if structure_q is None:
@@ -252,7 +260,7 @@ def observation_model(
         names=tuple(all_names[i] for i in kept),
         angular=np.array([all_names[i] in angular for i in kept], dtype=bool),
         length=characteristic_length(lengths, mk),
-        rows=model.rows,
+        rows=own.rows,
         n_markers=len(mk),
         joint_names=chain.joint_names,
         jacobian_of=jacobian_of,
