@@ -30,6 +30,7 @@ from .term_checks import Aside
 
 __all__ = [
     "STRUCTURE_CONFIGS",
+    "TURNS",
     "checked_registration",
     "held_markers",
     "held_note",
@@ -41,13 +42,26 @@ STRUCTURE_CONFIGS = 20
 about two axes turns its every direction at almost any two of them."""
 
 
+TURNS = 0.1
+"""Range [rad] of two revolute joints, and sine of the angle between their axes, over which a
+tool turns about two axes at every posture (:func:`held_markers` holds nothing)."""
+
+
 def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
     """The first marker's coordinates no posture within the joint limits separates from the frame.
 
     :func:`~.determined.still_axes` of the ``nominal`` tool's rotations at
     ``STRUCTURE_CONFIGS`` random configurations of ``chain`` (seed 0: the robot's structure,
-    not the data's); 0-based among the markers' ``3 K``.
+    not the data's); 0-based among the markers' ``3 K``. None without them when two revolute
+    joints of independent ranges over :data:`TURNS` turn about axes :data:`TURNS` apart at
+    the middle of the limits: every direction of the tool turns there.
     """
+    if chain.coupling is None:
+        turning = (chain.sigma == 0) & (chain.upper - chain.lower > TURNS)
+        middle = nominal.kinematics(0.5 * (chain.lower + chain.upper)).R[0, 1:-1, :, 2]
+        axes = middle[turning]  # each turning joint's axis (z of its frame)
+        if len(axes) > 1 and np.max(np.linalg.norm(np.cross(axes[0], axes[1:]), axis=1)) > TURNS:
+            return ()
     q = chain.random_configurations(STRUCTURE_CONFIGS, 0)
     return determined.still_axes(nominal.kinematics(q).R[:, -1])
 
