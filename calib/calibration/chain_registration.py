@@ -196,7 +196,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
     The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
     estimated before (unless given). Returns the options with it, the registration state,
     the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
-    kinematics at ``train``'s joints (the registration's, at every row). ``hold``: marker
+    kinematics at ``train``'s joints (the registration's, at every row). ``checked``:
+    validation rows (their notes labelled by their source), or None; ``hold``: marker
     coordinates held at the ``guess`` (:func:`held_markers`).
     """
     at = _registrations(nominal, train, guess, opts, hold)
@@ -218,11 +219,11 @@ def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
 
 
 def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Rows, str]]:
-    """The steps on validation data (``held``: (data, label) or None), with their label."""
+    """The steps on validation data ``held`` (or None), labelled by their source."""
     if held is None:
         return []
-    frames = measured_kind(held[0], hold)
-    if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
+    frames = measured_kind(held, hold)
+    if held.m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
-    at = _registrations(nominal, held[0], guess, opts, hold)
-    return [(_Rows(chain, nominal, held[0], guess, opts, at, frames, hold), held[1])]
+    at = _registrations(nominal, held, guess, opts, hold)
+    return [(_Rows(chain, nominal, held, guess, opts, at, frames, hold), held.source)]

@@ -98,9 +98,8 @@ def check_measured(
             )
     postures = count(data.q, data.tool)
     out = round(holdout * postures)
-    unknowns, what = len(measured_kind(data).names()), "measurement frame and marker parameters"
-    rows = data.kind.rows_of(data.n_markers)
-    determined.check_equations(postures - out, rows, unknowns, what, data.source, held=out)
+    kind, what = measured_kind(data), "measurement frame and marker parameters"
+    determined.check_equations(postures - out, kind.rows, kind.size(), what, data.source, held=out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,17 +238,15 @@ def checked_measured(
         every kind's checks return these (:func:`~.contact_checks.checked_registration`,
         :func:`~.pixel_fit.checked_pixels`).
     """
-    each, size = data.kind.rows_of(data.n_markers), len(measured_kind(data).names())
-    what = f"unknowns of {chain.base_frame}'s placement and the markers"
+    kind, what = measured_kind(data), f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
-    determined.check_equations(data.m, each, size, what, data.source, held=out)
+    determined.check_equations(data.m, kind.rows, kind.size(), what, data.source, held=out)
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
-    checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()
     opts, reg, bad, found, notes, kin = checked_registration(
-        chain, nominal, data, checked, guess, opts, pinned
+        chain, nominal, data, validate, guess, opts, pinned
     )
     notes = [held_note(pinned, guess), *notes] if pinned else notes
     kept = data.subset(~bad) if bad.any() else data
