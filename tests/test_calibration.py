@@ -594,7 +594,7 @@ def test_ur10_poses_auto_no_worse_than_registration_under_any_fold_layout(layout
 @pytest.mark.parametrize("k", [1, 2, 4])
 def test_identifiable_count_with_k_markers_matches_theory(robot, k):
     """Each marker adds its 3 offsets to 4R + 2P (+ 3 for the tool orientation of a pose)."""
-    from calib.calibration.determined import identifiable_parameters
+    from calib.design.observability import identifiable_parameters
 
     chain = chain_of(robot)
     base = 4 * chain.n_revolute + 2 * chain.n_prismatic

@@ -16,8 +16,8 @@ from conftest import wide_minus_measured, wide_state
 from pinref import file_chain_poses
 
 from calib import Measurement, Measurements, from_chain, load_chain
-from calib.calibration.determined import MARKER_WORK_COPIES, marker_work_bytes
 from calib.calibration.model import ErrorModel, MeasuredKind, registration_state
+from calib.design.observability import MARKER_WORK_COPIES, marker_work_bytes
 from calib.identification.kinds import kind_of
 from calib.identification.measures import POSE, POSITION, Observed
 from calib.identification.parameters import complete_parameters
