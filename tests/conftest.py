@@ -83,3 +83,25 @@ def forty_planes():
         chain, nominal, data, None, np.eye(4), None
     )
     return nominal, start, train
+
+
+def wide_state(model, start, x):
+    """An ``ErrorModel``'s state at columns ``x`` from ``start``, not by its Jacobian's route.
+
+    The own unknowns through ``model.own.apply``, then the MDH base values added to their
+    parameters through ``ParameterSet.apply``.
+    """
+    import dataclasses
+
+    import numpy as np
+
+    own = model.own
+    state = own.apply(start, x[: own.size()])
+    dX = np.zeros(len(model.params))
+    dX[[model.params.index(name) for name in model.base]] = x[own.size() :]
+    return dataclasses.replace(state, mdh=model.params.apply(state.mdh, dX))
+
+
+def wide_minus_measured(model, start, data, x):
+    """Model - measured of an ``ErrorModel``'s columns moved by ``x`` (:func:`wide_state`)."""
+    return -wide_state(model, start, x).residuals(data)

@@ -3,8 +3,8 @@
 Each is checked against a route it does not share: the alternation against its plain form
 (every predicted point formed, NumPy's least squares and SVD), the rigid fit against SciPy's
 Kabsch solution, the Jacobian of several markers against central differences of the
-residuals, the lifted base values against ``ParameterSet.apply``, and the fit's kept
-evaluations against a fresh evaluation at each x.
+residuals (the MDH values moved by ``ParameterSet.apply``), and the fit's kept evaluations
+against a fresh evaluation at each x.
 """
 
 from __future__ import annotations
@@ -13,14 +13,17 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import chain_of
+from conftest import chain_of, wide_minus_measured, wide_state
 from scipy.spatial.transform import Rotation
 
-from calib.calibration.model import ErrorModel, generic_measurements, registration_state
+from calib.calibration.model import (
+    ErrorModel,
+    MeasuredKind,
+    generic_measurements,
+    registration_state,
+)
 from calib.calibration.registration import ITERATIONS, register, rigid_fit
 from calib.calibration.solve import Problem
-from calib.exceptions import InvalidArgumentError
-from calib.identification.kinds import kind_of
 from calib.identification.parameters import complete_parameters
 from calib.kinematics.mdh import from_chain
 from calib.kinematics.so3 import rotation_matrix
@@ -93,57 +96,56 @@ def test_rigid_fit_is_kabsch(mirror):
 
 def _model(nominal, measure: str) -> ErrorModel:
     pset = complete_parameters(nominal)
-    rng = np.random.default_rng(5)
-    names = pset.names[3:15]
-    lift = rng.normal(size=(len(pset), len(names)))  # dense: every base value moves many
-    return ErrorModel(pset, names, lift, n_markers=len(MARKERS), kind=kind_of(measure))
+    return ErrorModel(pset, pset.names[3:15], MeasuredKind(len(MARKERS), measure == "pose"))
 
 
-def test_apply_lifts_the_base_values_as_the_parameter_set():
-    nominal, state, _ = _campaign("position")
-    model = _model(nominal, "position")
-    x = 1e-2 * np.random.default_rng(2).normal(size=model.size())
-    xb = model.split(x)[3]
-    ref = model.params.apply(nominal, model.lift @ xb)
-    got = model.apply(state, x).mdh
-    for kind in ("beta", "alpha", "d", "theta", "r", "y"):
-        assert np.abs(getattr(got, kind) - getattr(ref, kind)).max() < 1e-15
-    assert model.apply(state, np.zeros(model.size())).mdh is nominal
-    x[-3] = np.nan  # a base value: refused as ParameterSet.apply refuses it
-    with pytest.raises(InvalidArgumentError, match="NaN"):
-        model.apply(state, x)
+def _central(f, x: np.ndarray, h: float = 1e-7) -> np.ndarray:
+    """Central differences of ``f`` at ``x`` ``(m, rows, len(x))``."""
+    return np.stack([(f(x + h * e) - f(x - h * e)) / (2 * h) for e in np.eye(len(x))], axis=2)
 
 
 @pytest.mark.parametrize("measure", ["position", "pose"])
 def test_jacobian_of_several_markers_matches_finite_differences(measure):
+    """The own unknowns' at any x, joints deflected; with MDH columns at the state (x = 0)."""
     nominal, state, data = _campaign(measure, m=12)
     model = _model(nominal, measure)
-    torque = np.random.default_rng(0).normal(size=data.q.shape)
-    x = 1e-2 * np.random.default_rng(1).normal(size=model.size())
-
-    def model_minus_measured(x):
-        return -model.apply(state, x).residuals(data, torque)
-
-    J = model.jacobian(state, x, data, torque)
-    h = 1e-7
-    fd = np.stack(
-        [
-            (model_minus_measured(x + h * e) - model_minus_measured(x - h * e)) / (2 * h)
-            for e in np.eye(model.size())
-        ],
-        axis=2,
-    )
-    assert J.shape == fd.shape == (data.m, model.rows, model.size())
+    own, torque = model.own, np.random.default_rng(0).normal(size=data.q.shape)
+    x = 1e-2 * np.random.default_rng(1).normal(size=own.size())
+    J = own.jacobian(state, x, data, torque)
+    fd = _central(lambda x: -own.apply(state, x).residuals(data, torque), x)
+    assert J.shape == fd.shape == (data.m, own.rows, own.size())
     assert np.abs(J - fd).max() < 1e-6 * max(1.0, np.abs(J).max())
+    J = model.jacobian(state, data)
+    fd = _central(lambda x: wide_minus_measured(model, state, data, x), np.zeros(model.size()))
+    assert J.shape == fd.shape == (data.m, own.rows, model.size())
+    assert np.abs(J - fd).max() < 1e-6 * max(1.0, np.abs(J).max())
+
+
+@dataclasses.dataclass(frozen=True)
+class _Geometry:
+    """A fit's model that moves the geometry too (MDH values, as the joint engine's moves it)."""
+
+    wide: ErrorModel
+    n_markers = len(MARKERS)
+    pose = True
+
+    def size(self) -> int:
+        return self.wide.size()
+
+    def apply(self, start, x):
+        return wide_state(self.wide, start, x)
+
+    def jacobian(self, start, x, data, torque, state=None, kin=None):
+        return self.wide.jacobian(self.apply(start, x) if state is None else state, data, kin)
 
 
 @pytest.mark.parametrize("prior", [None, 0.1])
 @pytest.mark.parametrize("frames", [False, True])
 def test_problem_keeps_evaluations_without_mixing_them(prior, frames):
     nominal, state, data = _campaign("pose", m=10)
-    model = _model(nominal, "pose")
+    model = _Geometry(_model(nominal, "pose"))
     if frames:  # x moves no geometry: the kinematics are shared by every x
-        model = dataclasses.replace(model, base=(), lift=np.zeros((len(model.params), 0)))
+        model = model.wide.own
     torque = np.random.default_rng(3).normal(size=data.q.shape)
     rng = np.random.default_rng(6)
     xs = [1e-2 * rng.normal(size=model.size()) for _ in range(3)]

@@ -163,3 +163,19 @@ def test_the_tool_directions_that_never_turn_are_the_robots(axes, still):
         axis = np.asarray(axes[0]) / np.linalg.norm(axes[0])
         turns = Rotation.from_rotvec(np.outer(rng.uniform(-2.0, 2.0, 20), axis))
     assert still_axes(R0.as_matrix() @ turns.as_matrix()) == still
+
+
+def test_a_tool_turning_about_two_axes_holds_nothing_without_the_random_postures():
+    """``held_markers`` skips the random postures where two revolute axes turn the tool about
+    two directions: the same coordinates held as the postures' ``still_axes`` on every
+    catalog chain (a planar chain's, e.g. the double pendulum's, still found by them)."""
+    from conftest import ANALYSABLE
+
+    from calib.calibration.chain_registration import STRUCTURE_CONFIGS, held_markers
+    from calib.calibration.determined import still_axes
+
+    for name in ANALYSABLE:
+        chain = chain_of(name)
+        nominal = from_chain(chain)
+        q = chain.random_configurations(STRUCTURE_CONFIGS, 0)
+        assert held_markers(chain, nominal) == still_axes(nominal.kinematics(q).R[:, -1]), name

@@ -12,11 +12,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import wide_minus_measured, wide_state
 from pinref import file_chain_poses
 
 from calib import Measurement, Measurements, from_chain, load_chain
-from calib.calibration.determined import MARKER_WORK_COPIES, marker_work_bytes
-from calib.calibration.model import ErrorModel, registration_state, selection_lift
+from calib.calibration.model import ErrorModel, MeasuredKind, registration_state
+from calib.design.observability import MARKER_WORK_COPIES, marker_work_bytes
 from calib.identification.kinds import kind_of
 from calib.identification.measures import POSE, POSITION, Observed
 from calib.identification.parameters import complete_parameters
@@ -99,34 +100,30 @@ def test_measured_poses_of_two_markers():
     assert obs.points.shape == (4, 2, 3)
 
 
-@pytest.mark.parametrize("measure", ["x,z,ry", "pose", "position", "y,rx,rz"])
+def _central(f, x: np.ndarray, h: float = 1e-7) -> np.ndarray:
+    """Central differences of ``f`` at ``x`` ``(m, rows, len(x))``."""
+    return np.stack([(f(x + h * e) - f(x - h * e)) / (2 * h) for e in np.eye(len(x))], axis=2)
+
+
+@pytest.mark.parametrize("measure", ["pose", "position"])
 def test_error_model_jacobian_of_a_kind_matches_finite_differences(measure):
+    """The own unknowns' at any x, joints deflected; the MDH columns' at the state (x = 0)."""
     _, start, data, _ = _setup(7, True)
     kind = kind_of(measure)
     if not kind.rotation_rows:
         start = registration_state(start.mdh, start.frame, start.markers, None)
     pset = complete_parameters(start.mdh)
-    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), n_markers=2, kind=kind)
-    torque = np.random.default_rng(1).normal(size=data.q.shape)
-
-    def model_minus_measured(x):
-        s = model.apply(start, x)
-        kin = s.mdh.kinematics(s.joints(data.q, torque))
-        return -kind.residual(
-            kin.R[:, -1], kin.p[:, -1], data.observed, s.markers, s.frame, s.tool_rotation
-        )
-
-    x = 1e-2 * np.random.default_rng(3).normal(size=model.size())
-    J = model.jacobian(start, x, data, torque)
-    assert J.shape == (M, kind.rows_of(2), model.size()) and model.rows == kind.rows_of(2)
-    h = 1e-7
-    fd = np.stack(
-        [
-            (model_minus_measured(x + h * e) - model_minus_measured(x - h * e)) / (2 * h)
-            for e in np.eye(model.size())
-        ],
-        axis=2,
-    )
+    model = ErrorModel(pset, pset.names, MeasuredKind(2, measure == "pose"))
+    own, torque = model.own, np.random.default_rng(1).normal(size=data.q.shape)
+    x = 1e-2 * np.random.default_rng(3).normal(size=own.size())
+    J = own.jacobian(start, x, data, torque)
+    fd = _central(lambda x: -own.apply(start, x).residuals(data, torque), x)
+    assert J.shape == fd.shape == (M, kind.rows_of(2), own.size())
+    assert np.abs(J - fd).max() < 1e-6 * max(1.0, np.abs(J).max())
+    J = model.jacobian(start, data)
+    fd = _central(lambda x: wide_minus_measured(model, start, data, x), np.zeros(model.size()))
+    assert J.shape == fd.shape == (M, kind.rows_of(2), model.size())
+    assert own.rows == kind.rows_of(2) and model.names()[: own.size()] == own.names()
     assert np.abs(J - fd).max() < 1e-6 * max(1.0, np.abs(J).max())
 
 
@@ -147,15 +144,15 @@ def test_design_data_linearise_at_zero_residual():
 
     chain, start, _, _ = _setup(5, True)
     pset = complete_parameters(start.mdh)
-    model = ErrorModel(pset, pset.names, selection_lift(pset, pset.names), n_markers=2, kind=POSE)
+    model = ErrorModel(pset, pset.names, MeasuredKind(2, True))
     q = chain.random_configurations(6, 2)
     data = generic_measurements(start, chain.joint_names, q)
-    J = model.jacobian(start, np.zeros(model.size()), data, None)
+    J = model.jacobian(start, data)
     _, R0 = start.predict(q)
     h = 1e-6
 
     def rot(x):
-        return model.apply(start, x).predict(q)[1]
+        return wide_state(model, start, x).predict(q)[1]
 
     fd = np.stack(
         [

@@ -41,7 +41,7 @@ from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState
 from .measured_view import MeasuredChain
-from .model import ErrorModel, moved
+from .model import ErrorModel, measured_kind, moved
 from .outliers import (
     Errors,
     find_outliers,
@@ -73,9 +73,9 @@ def proposals(state: MeasuredState, data: Measurements, noise: float | None) -> 
     if not spread_out(point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
-    wide = ErrorModel(pset, *moved(pset, nominal), data.n_markers, data.kind)
-    w = row_weights(wide, state.weight)
-    J = wide.jacobian(reg, np.zeros(wide.size()), data, None, reg, kin) * w[None, :, None]
+    wide = ErrorModel(pset, moved(pset, nominal), measured_kind(data))
+    w = row_weights(wide.own, state.weight)
+    J = wide.jacobian(reg, data, kin) * w[None, :, None]
     rows = data.rows or tuple(range(1, data.m + 1))
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],

@@ -18,13 +18,11 @@ from typing import cast
 import numpy as np
 
 from ..exceptions import DataError
-from ..identification.measures import Measurement
-from ..identification.parameters import ParameterSet
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import ErrorModel, State
+from .model import MeasuredKind, State, measured_kind
 from .options import Options
 from .registration import register
 from .solve import Fit, fit
@@ -32,22 +30,11 @@ from .term_checks import Aside
 
 __all__ = [
     "STRUCTURE_CONFIGS",
+    "TURNS",
     "checked_registration",
-    "frames_model",
     "held_markers",
     "held_note",
 ]
-
-
-def frames_model(n_markers: int, kind: Measurement, held: tuple[int, ...] = ()) -> ErrorModel:
-    """The registration's free parameters: frame, markers (and measured-frame rotation).
-
-    No MDH parameter: a measured term's own unknowns too. The registration fits them all
-    (``fix`` of the frame or the markers is refused before any registration,
-    :func:`~.measured_options.level_offer`) but the marker coordinates ``held`` at the start:
-    those no posture separates from the frame (:func:`held_markers`).
-    """
-    return ErrorModel(ParameterSet("none", ()), (), np.zeros((0, 0)), n_markers, kind, held)
 
 
 STRUCTURE_CONFIGS = 20
@@ -55,13 +42,26 @@ STRUCTURE_CONFIGS = 20
 about two axes turns its every direction at almost any two of them."""
 
 
+TURNS = 0.1
+"""Range [rad] of two revolute joints, and sine of the angle between their axes, over which a
+tool turns about two axes at every posture (:func:`held_markers` holds nothing)."""
+
+
 def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
     """The first marker's coordinates no posture within the joint limits separates from the frame.
 
     :func:`~.determined.still_axes` of the ``nominal`` tool's rotations at
     ``STRUCTURE_CONFIGS`` random configurations of ``chain`` (seed 0: the robot's structure,
-    not the data's); 0-based among the markers' ``3 K``.
+    not the data's); 0-based among the markers' ``3 K``. None without them when two revolute
+    joints of independent ranges over :data:`TURNS` turn about axes :data:`TURNS` apart at
+    the middle of the limits: every direction of the tool turns there.
     """
+    if chain.coupling is None:
+        turning = (chain.sigma == 0) & (chain.upper - chain.lower > TURNS)
+        middle = nominal.kinematics(0.5 * (chain.lower + chain.upper)).R[0, 1:-1, :, 2]
+        axes = middle[turning]  # each turning joint's axis (z of its frame)
+        if len(axes) > 1 and np.max(np.linalg.norm(np.cross(axes[0], axes[1:]), axis=1)) > TURNS:
+            return ()
     q = chain.random_configurations(STRUCTURE_CONFIGS, 0)
     return determined.still_axes(nominal.kinematics(q).R[:, -1])
 
@@ -92,7 +92,7 @@ def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit
     ``held``: marker coordinates held at the ``guess`` (:func:`held_markers`).
     """
     kin = nominal.kinematics(data.q)
-    model = frames_model(data.n_markers, data.kind, held)
+    model = measured_kind(data, held)
 
     @functools.cache
     def start() -> State:
@@ -130,7 +130,7 @@ class _Rows:
     guess: np.ndarray
     opts: Options
     at: Callable[[float], Fit]
-    frames: ErrorModel | None = None
+    frames: MeasuredKind | None = None
     hold: tuple[int, ...] = ()
 
     diagnose_first = False
@@ -148,7 +148,7 @@ class _Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = frames_model(sub.n_markers, sub.kind, self.hold)
+            frames = measured_kind(sub, self.hold)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
             return _registrations(nominal, sub, guess, opts, self.hold)(weight)
@@ -196,7 +196,8 @@ def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
     The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
     estimated before (unless given). Returns the options with it, the registration state,
     the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
-    kinematics at ``train``'s joints (the registration's, at every row). ``hold``: marker
+    kinematics at ``train``'s joints (the registration's, at every row). ``checked``:
+    validation rows (their notes labelled by their source), or None; ``hold``: marker
     coordinates held at the ``guess`` (:func:`held_markers`).
     """
     at = _registrations(nominal, train, guess, opts, hold)
@@ -218,11 +219,11 @@ def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
 
 
 def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Rows, str]]:
-    """The steps on validation data (``held``: (data, label) or None), with their label."""
+    """The steps on validation data ``held`` (or None), labelled by their source."""
     if held is None:
         return []
-    frames = frames_model(held[0].n_markers, held[0].kind, hold)
-    if held[0].m * frames.rows <= frames.size():  # too few rows to register on their own
+    frames = measured_kind(held, hold)
+    if held.m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
-    at = _registrations(nominal, held[0], guess, opts, hold)
-    return [(_Rows(chain, nominal, held[0], guess, opts, at, frames, hold), held[1])]
+    at = _registrations(nominal, held, guess, opts, hold)
+    return [(_Rows(chain, nominal, held, guess, opts, at, frames, hold), held.source)]

@@ -38,8 +38,8 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactState
-from .measured_term import MeasuredKind, MeasuredState
-from .model import compliance_name
+from .measured_term import MeasuredState
+from .model import MeasuredKind, compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
 

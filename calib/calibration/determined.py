@@ -25,9 +25,11 @@ it needs; calib never silently cuts the level down to what the rows can carry.
    :func:`still_axes`) is held at its given value before the registration, not refused.
 
 What a chain's instrument determines with K markers (``calib analyze --markers``,
-:func:`identifiable_parameters`): the measurement frame (6), the markers (3 each; and the
-measured frame's rotation, 3, for pose data) first; then the base parameters of the complete
-set that they do not already carry, in the paper's order of preference.
+:func:`~calib.design.observability.identifiable_parameters`, the columns of
+:func:`generic_jacobian` :func:`determined_columns` keeps): the measurement frame (6), the
+markers (3 each; and the measured frame's rotation, 3, for pose data) first; then the base
+parameters of the complete set that they do not already carry, in the paper's order of
+preference.
 """
 
 from __future__ import annotations
@@ -37,23 +39,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.checks import MAX_WORK_BYTES
-from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
-from ..identification.kinds import campaign_kind
-from ..identification.measures import Measurement
-from ..identification.parameters import complete_parameters
-from ..kinematics.mdh import from_chain
-from ..kinematics.robot import Chain, check_count
-from .model import ErrorModel, State, generic_measurements, moved, nominal_state
+from .model import ErrorModel, State, generic_measurements
 from .solve import row_weights
 
 __all__ = [
     "CLEAR",
     "ILL_CONDITION",
     "ILL_STD",
-    "MARKER_WORK_COPIES",
     "NAMED",
     "SAMPLE_EQUATIONS",
     "SAMPLE_WORK",
@@ -64,10 +58,8 @@ __all__ = [
     "check_rank",
     "determined_columns",
     "generic_jacobian",
-    "identifiable_parameters",
     "ill_posed",
     "ill_posed_text",
-    "marker_work_bytes",
     "selection_configurations",
     "separating_posture",
     "separating_text",
@@ -346,53 +338,19 @@ def still_axes(R: np.ndarray) -> tuple[int, ...]:
     return tuple(sorted(np.argsort(-np.abs(still).sum(axis=0))[: len(still)].tolist()))
 
 
-def identifiable_parameters(
-    chain: Chain,
-    n_markers: int = 1,
-    measure: str = "position",
-    configs: int = DEFAULT_CONFIGS,
-    seed: int = 0,
-) -> tuple[str, ...]:
-    """Names of the parameters a calibration with K markers identifies (generic configurations).
-
-    Args:
-        chain: The chain.
-        n_markers: Points measured per configuration K (markers at generic, distinct places).
-        measure: ``position`` or ``pose`` (the orientation of the tool is measured too).
-        configs: Random configurations m.
-        seed: Seed of the configurations and of the marker places.
-
-    Returns:
-        Frame, marker (and tool) parameters, then the MDH base parameters.
-    """
-    k = check_count(n_markers, "the number of markers")
-    check_count(configs, "the number of configurations")
-    nominal = from_chain(chain).idealized()
-    kind = campaign_kind(measure)
-    pset = complete_parameters(nominal)
-    _check_marker_work(configs, k, len(pset), kind)
-    q = chain.random_configurations(configs, seed)
-    markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
-    state = nominal_state(nominal, markers, kind)
-    model = ErrorModel(pset, *moved(pset, nominal), n_markers=k, kind=kind)
-    kept = determined_columns(generic_jacobian(model, state, chain.joint_names)(q))
-    all_names = model.names()
-    return tuple(all_names[i] for i in kept)
-
-
 def generic_jacobian(
     model: ErrorModel, state: State, joint_names: tuple[str, ...], weight: float = 1.0
 ) -> Callable[[np.ndarray], np.ndarray]:
-    """The weighted Jacobian ``(m, rows, size)`` at x = 0 at configurations ``(m, n)``.
+    """The weighted Jacobian ``(m, rows, size)`` at ``state`` at configurations ``(m, n)``.
 
     Of what ``state`` measures there (:func:`~.model.generic_measurements`); ``weight``: of
     the orientation rows [m/rad].
     """
-    weights = row_weights(model, weight)
+    weights = row_weights(model.own, weight)
 
     def at(q: np.ndarray) -> np.ndarray:
         data = generic_measurements(state, joint_names, q)
-        return model.jacobian(state, np.zeros(model.size()), data, None) * weights[:, None]
+        return model.jacobian(state, data) * weights[:, None]
 
     return at
 
@@ -406,41 +364,3 @@ def determined_columns(J: np.ndarray, order: list[int] | None = None) -> list[in
     p = J.shape[-1]
     order = list(range(p)) if order is None else order
     return sorted(independent_columns(J.reshape(-1, p), order)[2])
-
-
-MARKER_WORK_COPIES = 4
-"""Copies of the identification Jacobian the count holds at once (J, its weighted copy, the
-QR's factors), in the estimate of :func:`_check_marker_work`."""
-
-
-def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
-    """Memory [B] of counting K markers at m configurations: the Jacobian's copies.
-
-    Rows: the kind's rows at K markers per configuration (``3 K``, + 3 for pose); columns:
-    the kind's unknown constants (the frame 6, the markers ``3 K``, + 3 for pose) and the
-    ``n_params`` geometric parameters.
-    """
-    rows = m * kind.rows_of(k)
-    cols = kind.unknown_constants(k) + n_params
-    return MARKER_WORK_COPIES * 8 * rows * cols
-
-
-def _check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
-    """Refuse, before any work, K markers needing more than MAX_WORK_BYTES (the most that fit)."""
-    need = marker_work_bytes(m, k, n_params, kind)
-    if need <= MAX_WORK_BYTES:
-        return
-    lo, hi = 0, k  # the most markers that fit: lo fits (or is 0), hi does not
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        lo, hi = (
-            (mid, hi) if marker_work_bytes(m, mid, n_params, kind) <= MAX_WORK_BYTES else (lo, mid)
-        )
-    per_config = marker_work_bytes(1, k, n_params, kind)
-    fit = [f"at most {lo} markers"] if lo else []
-    if MAX_WORK_BYTES // per_config:
-        fit.append(f"at most {MAX_WORK_BYTES // per_config} configurations (configs)")
-    raise InvalidArgumentError(
-        f"{k} markers at {m} configurations need about {need / 2**30:.3g} GB; calib allows "
-        f"{MAX_WORK_BYTES / 2**30:g} GB: use {' or '.join(fit)}"
-    )

@@ -4,7 +4,7 @@ A head camera (TIAGo's ``xtion_optical_frame``) measuring the hand, or a laser t
 chain runs from the measuring frame (its base) to the tool, the data are
 :class:`~calib.measurements.data.Measurements` in that frame. In a joint fit
 (:func:`~.contact_chains.calibrate_contact_chains`) the term shares every joint placement error
-(:mod:`.placements`) with the other terms; its own unknowns (:meth:`MeasuredKind.names`) are
+(:mod:`.placements`) with the other terms; its own unknowns (:meth:`~.model.MeasuredKind.names`) are
 registered on the nominal robot (:mod:`.chain_registration`), then refined with the placements.
 """
 
@@ -12,105 +12,33 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
 from ..exceptions import CalibError, DataError, InvalidArgumentError
-from ..identification.measures import POSE, POSITION
+from ..identification.measures import POSE
 from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
-from ..kinematics.so3 import skew
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import determined, outliers, term_checks, validation
-from .chain_registration import checked_registration, frames_model, held_markers, held_note
+from .chain_registration import checked_registration, held_markers, held_note
 from .measured_options import marker_guess
-from .model import FRAME_NAMES, ErrorModel, State
+from .model import MeasuredKind, State, measured_kind, point_rows
 from .options import Options
 from .residuals import ResidualStats
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
-    "MeasuredKind",
     "MeasuredState",
     "Seen",
     "check_measured",
     "checked_measured",
-    "measured_kind",
     "measuring_joint",
     "one_term_per_frame",
     "unseen",
 ]
-
-
-@dataclass(frozen=True)
-class MeasuredKind:
-    """The layout of a measured term: its unknowns and rows (as a contact kind's are read).
-
-    Attributes:
-        n_markers: Points measured per configuration K.
-        pose: The measured frame's orientation is measured too (pose data).
-        instrument: Measured by an instrument outside the robot whose frame every such term
-            shares (a tree's tools): the frame's 6 unknowns are the term's object (one for
-            all), its markers and tool rotation its own (the contact's place in a joint fit).
-        held: Marker coordinates (0-based among the ``3 K``) held at their given value, no
-            unknown: no posture separates them from the frame's translation
-            (:func:`~.chain_registration.held_markers`).
-    """
-
-    n_markers: int
-    pose: bool
-    instrument: bool = False
-    held: tuple[int, ...] = ()
-
-    object_name = "frame"
-
-    @property
-    def label(self) -> str:
-        """``pose`` or ``position`` (the report's term kind)."""
-        return "pose" if self.pose else "position"
-
-    @property
-    def _own(self) -> ErrorModel:
-        return frames_model(self.n_markers, POSE if self.pose else POSITION, self.held)
-
-    def names(self) -> tuple[str, ...]:
-        """The unknowns: the frame's 6, each marker's 3 (but those held), the tool's 3 (pose)."""
-        return self._own.names()
-
-    @property
-    def kept(self) -> list[int]:
-        """Each unknown's place among the frame's, every marker coordinate's and the tool's."""
-        return self._own.columns
-
-    @property
-    def object_dofs(self) -> tuple[int, ...]:
-        """One index per unknown of the term's object: all of them, the frame's (instrument)."""
-        return tuple(range(len(FRAME_NAMES) if self.instrument else len(self.names())))
-
-    @property
-    def contact_dofs(self) -> tuple[int, ...]:
-        """The term's own unknowns beside a shared instrument frame (else none)."""
-        return tuple(range(len(self.object_dofs), len(self.names())))
-
-    @property
-    def row_names(self) -> tuple[str, ...]:
-        """``x y z`` per marker (numbered with several), then ``rx ry rz`` (pose)."""
-        tag = [""] if self.n_markers == 1 else [str(k + 1) for k in range(self.n_markers)]
-        rows = [f"{a}{t}" for t in tag for a in "xyz"]
-        return (*rows, *(("rx", "ry", "rz") if self.pose else ()))
-
-    @property
-    def angular(self) -> tuple[bool, ...]:
-        """Whether each row is an angle."""
-        return (False,) * (3 * self.n_markers) + (True,) * (3 * self.pose)
-
-
-def measured_kind(data: Measurements) -> MeasuredKind:
-    """The layout of a measured term of these measurements."""
-    return MeasuredKind(data.n_markers, data.quaternion is not None)
 
 
 def measuring_joint(chain: Chain) -> str:
@@ -170,9 +98,8 @@ def check_measured(
             )
     postures = count(data.q, data.tool)
     out = round(holdout * postures)
-    unknowns, what = len(measured_kind(data).names()), "measurement frame and marker parameters"
-    rows = data.kind.rows_of(data.n_markers)
-    determined.check_equations(postures - out, rows, unknowns, what, data.source, held=out)
+    kind, what = measured_kind(data), "measurement frame and marker parameters"
+    determined.check_equations(postures - out, kind.rows, kind.size(), what, data.source, held=out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,10 +120,10 @@ class MeasuredState:
             ``frame`` the pose of the nominal base frame in the measuring frame).
         weight: Weight of the rotation rows [m/rad].
         instrument: Measured by an instrument outside the robot, shared by every such term
-            (:attr:`MeasuredKind.instrument`).
+            (:attr:`~.model.MeasuredKind.instrument`).
         seen: The registration's frames of the nominal robot at its rows (kept and held
             out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
-        held: Marker coordinates held at their given value (:attr:`MeasuredKind.held`).
+        held: Marker coordinates held at their given value (:attr:`~.model.MeasuredKind.held`).
     """
 
     inner: State
@@ -237,14 +164,9 @@ class MeasuredState:
         """
         return self.weighed(self.inner.residuals(data, None, kin))
 
-    @cached_property
-    def _own(self) -> ErrorModel:
-        """The term's own unknowns' model (the registration's, made once per state)."""
-        return frames_model(self.inner.n_markers, POSE if self.kind.pose else POSITION, self.held)
-
     def moved(self, x: np.ndarray) -> MeasuredState:
         """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
-        return dataclasses.replace(self, inner=self._own.apply(self.inner, x), seen=None)
+        return dataclasses.replace(self, inner=self.kind.apply(self.inner, x), seen=None)
 
     def frames_at(self, data: Measurements) -> Kinematics:
         """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
@@ -268,7 +190,7 @@ class MeasuredState:
         :meth:`moved` at x, if already made.
         """
         inner = None if moved is None else moved.inner
-        return self.weighed(self._own.jacobian(self.inner, x, data, None, inner, kin))
+        return self.weighed(self.kind.jacobian(self.inner, x, data, None, inner, kin))
 
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
         """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
@@ -278,18 +200,12 @@ class MeasuredState:
         """
         s = self.inner
         R, p = kin.R[:, -1], kin.p[:, -1]
-        K, Rf = s.n_markers, s.frame[:3, :3]
-        W = np.empty((data.m, s.kind.full_rows(K), lin.shape[2]))
-        for k in range(K):
-            point = p + R @ s.markers[k]
-            W[:, 3 * k : 3 * k + 3] = Rf @ (lin - skew(point) @ ang)
+        points = np.stack([p + R @ marker for marker in s.markers], axis=1)
+        W = point_rows(s.frame[:3, :3], lin, ang, points, s.tool_rotation is not None)
+        rot = None  # the measured frame's orientation (pose data only: no points predicted)
         if s.tool_rotation is not None:
-            W[:, 3 * K :] = Rf @ ang
-        rot = None  # the measured frame's orientation (pose data only: no points predicted for it)
-        if s.kind.rotation_rows:
-            rot = s.kind.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
-        error = None if rot is None else s.kind.rotation_error(data.observed, rot)
-        return self.weighed(s.kind.jacobian_rows(W, rotation_error=error, n_markers=K))
+            rot = POSE.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+        return self.weighed(self.kind.measured_rows(W, rot, data, held=False))
 
 
 def checked_measured(
@@ -322,17 +238,15 @@ def checked_measured(
         every kind's checks return these (:func:`~.contact_checks.checked_registration`,
         :func:`~.pixel_fit.checked_pixels`).
     """
-    each, size = data.kind.rows_of(data.n_markers), len(measured_kind(data).names())
-    what = f"unknowns of {chain.base_frame}'s placement and the markers"
+    kind, what = measured_kind(data), f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
-    determined.check_equations(data.m, each, size, what, data.source, held=out)
+    determined.check_equations(data.m, kind.rows, kind.size(), what, data.source, held=out)
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
-    checked = None if validate is None else (validate, validate.source)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()
     opts, reg, bad, found, notes, kin = checked_registration(
-        chain, nominal, data, checked, guess, opts, pinned
+        chain, nominal, data, validate, guess, opts, pinned
     )
     notes = [held_note(pinned, guess), *notes] if pinned else notes
     kept = data.subset(~bad) if bad.any() else data

@@ -79,7 +79,7 @@ class MeasuredChain:
 
     @property
     def kind(self):
-        """The term's layout (:class:`~.measured_term.MeasuredKind`)."""
+        """The term's layout (:class:`~.model.MeasuredKind`)."""
         return self.state.kind
 
     def placement_error(self) -> np.ndarray:

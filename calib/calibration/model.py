@@ -1,4 +1,4 @@
-"""The calibration model: what predicts a measurement, and which of its parameters are free.
+"""The calibration model of a measured chain: what predicts a measurement, and its unknowns.
 
 A measured point k at configuration q is predicted as
 
@@ -14,12 +14,14 @@ A measured point k at configuration q is predicted as
 A measured orientation (pose data) is predicted as ``R_f R_tool(q') R_m``, ``R_m`` the
 orientation of the measured frame in the tool frame.
 
-The free parameters x, in this order: the frame (rotation vector [rad] applied on the left,
-then translation [m]), the markers (3 per marker [m]), the measured frame's rotation (pose
-data, rotation vector [rad] on the right) and the MDH base values (``dX = lift @ x_b``).
-Marker coordinates may be held (no column); the compliance is the state's, never x's (the
-engine fits it). The Jacobian is analytic (frame and tool rotations through the SO(3) left
-Jacobian, so it is exact at any x).
+A measured chain's own unknowns x (:class:`MeasuredKind`), in this order: the frame
+(rotation vector [rad] applied on the left, then translation [m]), the markers (3 per marker
+[m]) and the measured frame's rotation (pose data, rotation vector [rad] on the right).
+Marker coordinates may be held (no column). The geometry and the compliance are the state's,
+never x's: the joint engine fits them (:mod:`.placements`). The MDH parameters' columns are
+a linearisation at a state (:class:`ErrorModel`: the counts of what rows determine, the
+designs, the outlier proposals). The Jacobian is analytic (frame and tool rotations through
+the SO(3) left Jacobian, so it is exact at any x).
 """
 
 from __future__ import annotations
@@ -27,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Collection
 from dataclasses import dataclass
-from itertools import accumulate
 
 import numpy as np
 
@@ -44,12 +45,15 @@ __all__ = [
     "FRAME_NAMES",
     "TOOL_NAMES",
     "ErrorModel",
+    "MeasuredKind",
     "State",
     "compliance_name",
     "generic_measurements",
+    "measured_kind",
     "moved",
     "moved_frame",
     "nominal_state",
+    "point_rows",
     "registration_state",
     "selection_lift",
 ]
@@ -151,71 +155,107 @@ class State:
         )
 
 
-@dataclass(frozen=True, eq=False)
-class ErrorModel:
-    """Which parameters of a :class:`State` a fit moves, and how.
+@dataclass(frozen=True)
+class MeasuredKind:
+    """A measured chain's own unknowns and rows: the registration's model, a term's layout.
+
+    The unknowns of the module text (frame, markers, measured frame's rotation), read by the
+    registration's fit (:func:`~.solve.fit`) and by the joint engine as a measured term's own
+    (as a contact kind's are read).
 
     Attributes:
-        params: Standard MDH parameter set the base values come from.
-        base: Names of the free MDH base values, each a parameter of ``params``.
-        lift: ``dX = lift @ x_b`` ``(len(params), len(base))``: how the base values move
-            the standard parameters.
-        n_markers: Number of markers K.
-        kind: What is measured (its rows, residual and Jacobian rows): the position of the
-            markers (default) or the pose (then the measured frame's rotation is free).
-        held: Marker coordinates (0-based among the ``3 K``) held at the start, no column of
-            x (:func:`~.chain_registration.held_markers`).
+        n_markers: Points measured per configuration K.
+        pose: The measured frame's orientation is measured too (pose data).
+        instrument: Measured by an instrument outside the robot whose frame every such term
+            shares (a tree's tools): the frame's 6 unknowns are the term's object (one for
+            all), its markers and tool rotation its own (the contact's place in a joint fit).
+        held: Marker coordinates (0-based among the ``3 K``) held at their given value, no
+            unknown: no posture separates them from the frame's translation
+            (:func:`~.chain_registration.held_markers`).
     """
 
-    params: ParameterSet
-    base: tuple[str, ...]
-    lift: np.ndarray
-    n_markers: int = 1
-    kind: Measurement = POSITION
+    n_markers: int
+    pose: bool
+    instrument: bool = False
     held: tuple[int, ...] = ()
 
+    object_name = "frame"
+
     @property
-    def pose(self) -> bool:
-        """Orientation rows are fitted."""
-        return bool(self.kind.rotation_rows)
+    def measurement(self) -> Measurement:
+        """What is measured: its rows, residual and Jacobian rows (pose or position)."""
+        return POSE if self.pose else POSITION
+
+    @property
+    def label(self) -> str:
+        """``pose`` or ``position`` (the report's term kind)."""
+        return "pose" if self.pose else "position"
+
+    @property
+    def rows(self) -> int:
+        """Residual rows per configuration."""
+        return self.measurement.rows_of(self.n_markers)
 
     def names(self) -> tuple[str, ...]:
-        """Names of the free parameters, in the order of x."""
+        """The unknowns: the frame's 6, each marker's 3 (but those held), the tool's 3 (pose)."""
         out = list(FRAME_NAMES) + [f"marker{c // 3 + 1}.{'xyz'[c % 3]}" for c in self._moved]
-        return tuple(out + list(TOOL_NAMES if self.pose else ()) + list(self.base))
+        return tuple(out + list(TOOL_NAMES if self.pose else ()))
 
     @property
-    def columns(self) -> list[int]:
-        """Each of x's parameters' place among every column (the held markers' included)."""
-        return [c for c in range(self.size() + len(self.held)) if c - 6 not in self.held]
+    def kept(self) -> list[int]:
+        """Each unknown's place among the frame's, every marker coordinate's and the tool's."""
+        return self._kept(6 + 3 * self.n_markers + 3 * self.pose)
+
+    def _kept(self, width: int) -> list[int]:
+        """The columns of ``width`` but the held markers' (their place among every column)."""
+        return [c for c in range(width) if c - 6 not in self.held]
 
     @property
     def _moved(self) -> list[int]:
         return [c for c in range(3 * self.n_markers) if c not in self.held]
 
-    def _sizes(self) -> tuple[int, int, int, int]:
-        return 6, 3 * self.n_markers - len(self.held), 3 * self.pose, len(self.base)
-
     def size(self) -> int:
-        """Number of free parameters."""
-        return sum(self._sizes())
+        """Number of unknowns."""
+        return 6 + 3 * self.n_markers - len(self.held) + 3 * self.pose
 
-    def split(self, x: np.ndarray) -> list[np.ndarray]:
-        """X cut into its groups: frame, markers, tool, base values (views, as ``np.split``'s)."""
-        x, ends = np.asarray(x, dtype=float), list(accumulate(self._sizes()))
-        return [x[a:b] for a, b in zip([0, *ends[:-1]], [*ends[:-1], len(x)], strict=True)]
+    @property
+    def object_dofs(self) -> tuple[int, ...]:
+        """One index per unknown of the term's object: all of them, the frame's (instrument)."""
+        return tuple(range(len(FRAME_NAMES) if self.instrument else len(self.names())))
+
+    @property
+    def contact_dofs(self) -> tuple[int, ...]:
+        """The term's own unknowns beside a shared instrument frame (else none)."""
+        return tuple(range(len(self.object_dofs), len(self.names())))
+
+    @property
+    def row_names(self) -> tuple[str, ...]:
+        """``x y z`` per marker (numbered with several), then ``rx ry rz`` (pose)."""
+        tag = [""] if self.n_markers == 1 else [str(k + 1) for k in range(self.n_markers)]
+        rows = [f"{a}{t}" for t in tag for a in "xyz"]
+        return (*rows, *(("rx", "ry", "rz") if self.pose else ()))
+
+    @property
+    def angular(self) -> tuple[bool, ...]:
+        """Whether each row is an angle."""
+        return (False,) * (3 * self.n_markers) + (True,) * (3 * self.pose)
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """X cut into its groups: frame, markers, tool (views)."""
+        x, tool = np.asarray(x, dtype=float), len(x) - 3 * self.pose
+        return x[:6], x[6:tool], x[tool:]
 
     def apply(self, start: State, x: np.ndarray) -> State:
-        """The state at parameters x (x = 0 is ``start``)."""
-        xf, xm, xt, xb = self.split(x)
+        """The state at unknowns x (x = 0 is ``start``; its geometry and compliance kept)."""
+        xf, xm, xt = self.split(x)
         dm = np.zeros(3 * self.n_markers)
         dm[self._moved] = xm
         markers = start.markers + dm.reshape(-1, 3)
         tool = start.tool_rotation
         if xt.size:
             tool = tool @ rotation_matrix(xt)
-        mdh = self.params.apply(start.mdh, self.lift @ xb) if np.any(xb) else start.mdh
-        return State(mdh, moved_frame(start.frame, xf), markers, tool, start.compliance.copy())
+        frame = moved_frame(start.frame, xf)
+        return State(start.mdh, frame, markers, tool, start.compliance.copy())
 
     def jacobian(
         self,
@@ -230,66 +270,129 @@ class ErrorModel:
 
         The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
         whole Jacobian is that of model - measured). ``state`` (``apply(start, x)``) and
-        ``kin`` (its :meth:`State.kinematics` at the data's joints): if already computed
-        (other frames whose last is the tool's, e.g. a joint fit's, for a model of no MDH
-        column).
+        ``kin`` (its :meth:`State.kinematics` at the data's joints, or other frames whose
+        last is the tool's, e.g. a joint fit's): if already computed.
         """
         if state is None:
             state = self.apply(start, x)
-        xf, _, xt, _ = self.split(x)
-        q = state.joints(data.q, torque)
+        xf, _, xt = self.split(x)
         if kin is None:
-            kin = state.mdh.kinematics(q)
-        m, K = data.m, state.n_markers
+            kin = state.kinematics(data.q, torque)
+        J, rot = self._columns(state, xf, xt, data.m, kin, 0)
+        return self.measured_rows(J, rot, data)
+
+    def _columns(self, state: State, xf, xt, m: int, kin, extra: int):
+        """Every own column's full rows ``(m, full rows, 6 + 3 K [+ 3] + extra)``, rotation.
+
+        The held markers' columns included; ``extra`` columns left zero (a wide model's).
+        """
+        K, kind = state.n_markers, self.measurement
         R = state.frame[:3, :3]
-        pts, rot = self.kind.predict(
+        pts, rot = kind.predict(
             kin.R[:, -1], kin.p[:, -1], state.markers, state.frame, state.tool_rotation
         )
-        P, width = 3 * K, self.size() + len(self.held)  # every marker column, then held's out
-        J = np.zeros((m, self.kind.full_rows(K), width))  # 3 K point rows, 3 turning
+        P = 3 * K
+        J = np.zeros((m, kind.full_rows(K), 6 + P + 3 * self.pose + extra))
         # d(R p)/dphi = -[R p]x Jl(phi) with R = Exp(phi) R0, then translation
         Jl = left_jacobian(xf[:3])
         J[:, :P, :3] = (-skew(pts - state.frame[:3, 3]) @ Jl).reshape(m, P, 3)
         J[:, :P, 3:6] = np.tile(np.eye(3), (K, 1))
-        if self.kind.rotation_rows:
+        if self.pose:
             J[:, P:, :3] = Jl
         Rt = R @ kin.R[:, -1]
         for k in range(K):
             J[:, 3 * k : 3 * k + 3, 6 + 3 * k : 9 + 3 * k] = Rt
-        c = 6 + P
-        if self.pose:
-            J[:, P:, c : c + 3] = rot @ left_jacobian(xt).T  # right perturbation: R Jr(psi)
-            c += 3
-        if self.base:  # the MDH columns need the MDH model's frames
-            mdh_kin = kin if isinstance(kin, Kinematics) else state.mdh.kinematics(q)
-            for s in range(0, m, CONFIGURATION_BLOCK):  # in blocks: small temporaries
-                part = slice(s, s + CONFIGURATION_BLOCK)
-                sub = Kinematics(*(a[part] for a in mdh_kin))
-                J[part, :, c:] = self._mdh_columns(state, q[part], sub)
-        error = self.kind.rotation_error(data.observed, rot) if rot is not None else None
-        J = self.kind.jacobian_rows(J, rotation_error=error, n_markers=K, overwrite=True)
-        return J[..., self.columns] if self.held else J
+        if self.pose:  # right perturbation: R Jr(psi)
+            J[:, P:, 6 + P : 9 + P] = rot @ left_jacobian(xt).T
+        return J, rot
 
-    @property
-    def rows(self) -> int:
-        """Residual rows per configuration."""
-        return self.kind.rows_of(self.n_markers)
+    def measured_rows(self, J: np.ndarray, rot, data, held: bool = True) -> np.ndarray:
+        """The kind's rows of full rows ``J`` ``(m, 3 K [+ 3], k)``, in place.
+
+        ``rot``: the predicted orientations (pose data), or None; ``held``: the held markers'
+        columns taken out.
+        """
+        kind = self.measurement
+        error = kind.rotation_error(data.observed, rot) if rot is not None else None
+        J = kind.jacobian_rows(J, rotation_error=error, n_markers=self.n_markers, overwrite=True)
+        return J[..., self._kept(J.shape[2])] if held and self.held else J
+
+
+def point_rows(Rf: np.ndarray, lin, ang, points: np.ndarray, pose: bool) -> np.ndarray:
+    """Full rows ``(m, 3 K [+ 3], k)`` of k motions (velocity ``lin`` at ``points``' origin).
+
+    Each point ``(m, K, 3)`` moves by ``lin - [point]x ang``, the orientation (``pose``) by
+    ``ang``, in the measurement frame (rotation ``Rf``).
+    """
+    m, K = points.shape[:2]
+    rows = (Rf @ (lin[:, None] - skew(points) @ ang[:, None])).reshape(m, 3 * K, -1)
+    return np.concatenate([rows, Rf @ ang], axis=1) if pose else rows
+
+
+def measured_kind(data: Measurements, held: tuple[int, ...] = ()) -> MeasuredKind:
+    """The unknowns and rows of a chain measured by these measurements (``held``: no unknown)."""
+    return MeasuredKind(data.n_markers, data.quaternion is not None, held=held)
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorModel:
+    """A measured chain's own unknowns and MDH base values, linearised at a state.
+
+    The columns of :class:`MeasuredKind`'s unknowns, then those of MDH parameters at the
+    state's geometry: what rows determine (:mod:`.determined`, the designs) and the outlier
+    proposals (:func:`~.chain_outliers.proposals`). The fits move the geometry through the
+    joint engine (:mod:`.placements`), never through these columns.
+
+    Attributes:
+        params: Standard MDH parameter set the base values come from.
+        base: Names of the MDH parameters whose columns follow the own unknowns', each a
+            parameter of ``params`` (:func:`moved`).
+        own: The chain's own unknowns and rows (its markers, pose or position).
+    """
+
+    params: ParameterSet
+    base: tuple[str, ...]
+    own: MeasuredKind
+
+    def names(self) -> tuple[str, ...]:
+        """Names of the columns: the own unknowns', then the base values'."""
+        return self.own.names() + tuple(self.base)
+
+    def size(self) -> int:
+        """Number of columns."""
+        return self.own.size() + len(self.base)
+
+    def jacobian(self, state: State, data, kin: Kinematics | None = None) -> np.ndarray:
+        """d(model)/d(columns) at ``state`` ``(m, rows, size)`` (x = 0, the data's joints).
+
+        ``kin``: ``state``'s :meth:`State.kinematics` at the data's joints, if already made.
+        """
+        own, q = self.own, data.q
+        if kin is None:
+            kin = state.mdh.kinematics(q)
+        zero = np.zeros(6 + 3 * own.pose)  # the frame's and the tool's rotations at x = 0
+        J, rot = own._columns(state, zero[:6], zero[6:], data.m, kin, len(self.base))
+        if self.base:  # in blocks: small temporaries
+            c = J.shape[2] - len(self.base)
+            for s in range(0, data.m, CONFIGURATION_BLOCK):
+                part = slice(s, s + CONFIGURATION_BLOCK)
+                sub = Kinematics(*(a[part] for a in kin))
+                J[part, :, c:] = self._mdh_columns(state, q[part], sub)
+        return own.measured_rows(J, rot, data)
 
     def _mdh_columns(self, state: State, q: np.ndarray, kin) -> np.ndarray:
-        """Columns of the base values (through the lift) ``(m, rows, len(base))``."""
+        """Columns of the base values ``(m, full rows, len(base))``."""
         R = state.frame[:3, :3]
         m, K = q.shape[0], state.n_markers
-        if K == 1 and not self.pose:
+        index = [self.params.index(name) for name in self.base]
+        if K == 1 and not self.own.pose:
             meas = dataclasses.replace(POSITION, marker=tuple(state.markers[0]))
             W = identification_jacobian(state.mdh, self.params, q, meas, kin=kin)
-            return (R @ W.reshape(m, 3, -1)) @ self.lift
+            return (R @ W.reshape(m, 3, -1))[..., index]
         # each marker from the tool's pose rows: d(p + R_t m_k) = dp - [R_t m_k]x dphi
         W6 = identification_jacobian(state.mdh, self.params, q, POSE, kin=kin).reshape(m, 6, -1)
         lever = np.einsum("mij,kj->mki", kin.R[:, -1], state.markers)
-        cols = (R @ (W6[:, None, :3] - skew(lever) @ W6[:, None, 3:])).reshape(m, 3 * K, -1)
-        if self.pose:  # then the rotation rows
-            cols = np.concatenate([cols, R @ W6[:, 3:]], axis=1)
-        return cols @ self.lift
+        return point_rows(R, W6[:, :3], W6[:, 3:], lever, self.own.pose)[..., index]
 
 
 def moved_frame(frame: np.ndarray, xf: np.ndarray) -> np.ndarray:
@@ -304,7 +407,7 @@ def moved_frame(frame: np.ndarray, xf: np.ndarray) -> np.ndarray:
 
 
 def selection_lift(params: ParameterSet, base: tuple[str, ...]) -> np.ndarray:
-    """The lift that moves each base value's own standard parameter only."""
+    """The lift ``(len(params), len(base))`` that moves each base value's own parameter only."""
     lift = np.zeros((len(params), len(base)))
     for j, name in enumerate(base):
         lift[params.index(name), j] = 1.0
@@ -313,18 +416,16 @@ def selection_lift(params: ParameterSet, base: tuple[str, ...]) -> np.ndarray:
 
 def moved(
     params: ParameterSet, mdh: MDHModel, offered: Collection[str] | None = None
-) -> tuple[tuple[str, ...], np.ndarray]:
-    """An :class:`ErrorModel`'s ``base`` and ``lift`` that move parameters from the nominal.
+) -> tuple[str, ...]:
+    """An :class:`ErrorModel`'s ``base``: the parameters ``offered`` of ``params`` (default: all).
 
-    The parameters ``offered`` of ``params`` (default: all) in the paper's order of
-    preference at ``mdh`` (:func:`preference_order`), each its own (:func:`selection_lift`).
+    In the paper's order of preference at ``mdh`` (:func:`preference_order`).
     """
-    base = tuple(
+    return tuple(
         params.names[i]
         for i in preference_order(mdh, params)
         if offered is None or params.names[i] in offered
     )
-    return base, selection_lift(params, base)
 
 
 def registration_state(

@@ -10,8 +10,6 @@ from typing import Any, Generic, Protocol, TypeVar, runtime_checkable
 import numpy as np
 import scipy.linalg
 
-from .model import ErrorModel
-
 __all__ = [
     "TOLERANCE",
     "Fit",
@@ -51,7 +49,7 @@ _State = TypeVar("_State", bound=FitState)
 
 
 class FitModel(Protocol[_State]):
-    """What a fit needs of an error model (:class:`ErrorModel`, the joint fit's ``ChainsModel``)."""
+    """What a fit needs of a model (the registration's ``MeasuredKind``, a ``ChainsModel``)."""
 
     @property
     def n_markers(self) -> int:
@@ -101,7 +99,7 @@ class Fit(Generic[_Model, _State]):
     kin: Any = None
 
 
-def row_weights(model: ErrorModel, weight: float) -> np.ndarray:
+def row_weights(model: FitModel[Any], weight: float) -> np.ndarray:
     """Weight of each residual row of a configuration: 1 for points, ``weight`` [m/rad] else.
 
     A model of no point and no orientation row (contacts: their rows come weighted) gets 1.

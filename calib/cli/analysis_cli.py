@@ -145,7 +145,7 @@ def _analyze_terms(args: argparse.Namespace) -> int:
 
 def _analyze_markers(args: argparse.Namespace) -> int:
     """What a calibration with K measured points (and free frame and markers) identifies."""
-    from ..calibration.determined import identifiable_parameters
+    from ..design.observability import identifiable_parameters
     from ..identification.kinds import kind_of
 
     kind = kind_of(args.measure)

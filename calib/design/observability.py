@@ -44,13 +44,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..calibration.determined import determined_columns, generic_jacobian
-from ..calibration.model import FRAME_NAMES, TOOL_NAMES, ErrorModel, moved, nominal_state
+from ..calibration.model import (
+    FRAME_NAMES,
+    TOOL_NAMES,
+    ErrorModel,
+    MeasuredKind,
+    moved,
+    nominal_state,
+)
 from ..calibration.options import check_tree_level
-from ..core.checks import MAX_WEIGHT, check_count, check_number, real_array, shown
-from ..core.choices import DESIGN_LEVELS
+from ..core.checks import MAX_WEIGHT, MAX_WORK_BYTES, check_count, check_number, real_array, shown
+from ..core.choices import DEFAULT_CONFIGS, DESIGN_LEVELS
 from ..exceptions import InvalidArgumentError
 from ..identification.contact_postures import joint_offsets
 from ..identification.kinds import campaign_kind
+from ..identification.measures import Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.mdh import MDHModel, from_chain
@@ -236,7 +244,8 @@ def observation_model(
     kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
     pset, names = _level_names(nominal, params)
-    model = ErrorModel(pset, *moved(pset, nominal, names), n_markers=len(mk), kind=kind)
+    own = MeasuredKind(len(mk), bool(kind.rotation_rows))
+    model = ErrorModel(pset, moved(pset, nominal, names), own)
     state = nominal_state(nominal, mk, kind)
     jacobian_of = generic_jacobian(model, state, chain.joint_names, float(orientation_weight))
     if structure_q is None:
@@ -252,7 +261,7 @@ def observation_model(
         names=tuple(all_names[i] for i in kept),
         angular=np.array([all_names[i] in angular for i in kept], dtype=bool),
         length=characteristic_length(lengths, mk),
-        rows=model.rows,
+        rows=own.rows,
         n_markers=len(mk),
         joint_names=chain.joint_names,
         jacobian_of=jacobian_of,
@@ -472,18 +481,90 @@ def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None
     return indices_of(model.jacobian(q), ref)
 
 
+def identifiable_parameters(
+    chain: Chain,
+    n_markers: int = 1,
+    measure: str = "position",
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+) -> tuple[str, ...]:
+    """Names of the parameters a calibration with K markers identifies (generic configurations).
+
+    The columns :func:`observation_model` keeps at ``complete`` (``calib analyze --markers``).
+
+    Args:
+        chain: The chain.
+        n_markers: Points measured per configuration K (markers at generic, distinct places).
+        measure: ``position`` or ``pose`` (the orientation of the tool is measured too).
+        configs: Random configurations m.
+        seed: Seed of the configurations and of the marker places.
+
+    Returns:
+        Frame, marker (and tool) parameters, then the MDH base parameters.
+    """
+    k = check_count(n_markers, "the number of markers")
+    check_count(configs, "the number of configurations")
+    nominal = from_chain(chain).idealized()
+    kind = campaign_kind(measure)
+    _check_marker_work(configs, k, len(parameter_set(nominal, "complete")), kind)
+    q = chain.random_configurations(configs, seed)
+    markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
+    return observation_model(chain, measure, markers, "complete", structure_q=q).names
+
+
+MARKER_WORK_COPIES = 4
+"""Copies of the identification Jacobian the count holds at once (J, its weighted copy, the
+QR's factors), in the estimate of :func:`_check_marker_work`."""
+
+
+def marker_work_bytes(m: int, k: int, n_params: int, kind: Measurement) -> int:
+    """Memory [B] of counting K markers at m configurations: the Jacobian's copies.
+
+    Rows: the kind's rows at K markers per configuration (``3 K``, + 3 for pose); columns:
+    the kind's unknown constants (the frame 6, the markers ``3 K``, + 3 for pose) and the
+    ``n_params`` geometric parameters.
+    """
+    rows = m * kind.rows_of(k)
+    cols = kind.unknown_constants(k) + n_params
+    return MARKER_WORK_COPIES * 8 * rows * cols
+
+
+def _check_marker_work(m: int, k: int, n_params: int, kind: Measurement) -> None:
+    """Refuse, before any work, K markers needing more than MAX_WORK_BYTES (the most that fit)."""
+    need = marker_work_bytes(m, k, n_params, kind)
+    if need <= MAX_WORK_BYTES:
+        return
+    lo, hi = 0, k  # the most markers that fit: lo fits (or is 0), hi does not
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (
+            (mid, hi) if marker_work_bytes(m, mid, n_params, kind) <= MAX_WORK_BYTES else (lo, mid)
+        )
+    per_config = marker_work_bytes(1, k, n_params, kind)
+    fit = [f"at most {lo} markers"] if lo else []
+    if MAX_WORK_BYTES // per_config:
+        fit.append(f"at most {MAX_WORK_BYTES // per_config} configurations (configs)")
+    raise InvalidArgumentError(
+        f"{k} markers at {m} configurations need about {need / 2**30:.3g} GB; calib allows "
+        f"{MAX_WORK_BYTES / 2**30:g} GB: use {' or '.join(fit)}"
+    )
+
+
 __all__ = [
     "CRITERIA",
     "DESIGN_LEVELS",
+    "MARKER_WORK_COPIES",
     "REFERENCE_CONFIGS",
     "Indices",
     "ObservationModel",
     "Reference",
     "characteristic_length",
     "check_model_arguments",
+    "identifiable_parameters",
     "indices",
     "indices_of",
     "marker_array",
+    "marker_work_bytes",
     "observation_model",
     "reference",
     "robot_markers",
