@@ -352,6 +352,7 @@ def identifiable_parameters(
     measure: str = "position",
     configs: int = DEFAULT_CONFIGS,
     seed: int = 0,
+    held: tuple[int, ...] | None = None,
 ) -> tuple[str, ...]:
     """Names of the parameters a calibration with K markers identifies (generic configurations).
 
@@ -361,10 +362,15 @@ def identifiable_parameters(
         measure: ``position`` or ``pose`` (the orientation of the tool is measured too).
         configs: Random configurations m.
         seed: Seed of the configurations and of the marker places.
+        held: Marker coordinates (0-based among the ``3 K``) the calibration holds at their
+            given value, not counted (None: those it holds,
+            :func:`~.chain_registration.held_markers`: a gantry's first marker).
 
     Returns:
         Frame, marker (and tool) parameters, then the MDH base parameters.
     """
+    from .chain_registration import held_markers  # it reads this module
+
     k = check_count(n_markers, "the number of markers")
     check_count(configs, "the number of configurations")
     nominal = from_chain(chain).idealized()
@@ -374,7 +380,8 @@ def identifiable_parameters(
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
     state = nominal_state(nominal, markers, kind)
-    model = ErrorModel(pset, *moved(pset, nominal), n_markers=k, kind=kind)
+    held = held_markers(chain, nominal) if held is None else held
+    model = ErrorModel(pset, *moved(pset, nominal), n_markers=k, kind=kind, held=held)
     kept = determined_columns(generic_jacobian(model, state, chain.joint_names)(q))
     all_names = model.names()
     return tuple(all_names[i] for i in kept)
