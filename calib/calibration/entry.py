@@ -94,7 +94,8 @@ def calibrate(
         validate: Data of other postures to score the result on (never fitted).
         fix: Parameter names held at their start, as the printed table names them
             (``elbow_joint:d3``, ``d3``, a compliance ``c2``; the instrument's frame and the
-            markers are always fitted).
+            markers are fitted, but a marker coordinate no posture separates from the frame,
+            held at ``marker``: a gantry's first marker).
         free: Parameter names (a compliance ``c1``.. included) always fitted.
         elastic: Fit joint compliance under gravity, which the URDF cannot hold (default:
             no, unless ``free`` names a compliance).

@@ -148,7 +148,7 @@ class Asked:
             cols = [*range(fixed), every.index(name)]
             _, _, ok, _ = independent_columns(A[:, cols], list(range(fixed + 1)))
             why = (
-                "the measurement frame and markers carry it (they are always fitted)"
+                "the measurement frame and markers carry it (the registration fits them)"
                 if fixed not in ok
                 else "it is regrouped with parameters kept before it (not identifiable on its own)"
             )
@@ -164,7 +164,9 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     measured chain's) name parameters as the printed table does: ``elbow_joint:d3`` (the
     chart's, :func:`~.placements.mdh_directions`; ``d3`` alone), ``elbow_joint:x`` .. ``:rz``
     (a placement component), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
-    are always fitted (``free`` of them asks nothing, ``fix`` is refused).
+    are fitted (``free`` of them asks nothing, ``fix`` is refused) but for the first marker's
+    coordinates no posture separates from the frame, held at their given value
+    (:func:`~.chain_registration.held_markers`: a gantry's).
 
     ``chain``: the first term's; ``start``: the registration; ``opts``: a measured chain's,
     or None. Returns the :class:`Asked` (None: no parameter named) and the level offered.
@@ -179,8 +181,10 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     held = [n for n in opts.fix if n in GROUPS]
     if held:
         raise InvalidArgumentError(
-            f"fix {held[0]}: the joint engine always fits the instrument's frame and markers "
-            f"(and the measured frame's rotation); fix joint parameters or compliances"
+            f"fix {held[0]}: the joint engine fits the instrument's frame and markers (and the "
+            f"measured frame's rotation), holding at its given value only a marker coordinate "
+            f"no posture separates from the frame (a gantry's first marker); fix joint "
+            f"parameters or compliances"
         )
     placements = start.placements
     D, labels = mdh_directions(placements, chain, start.states[0].mdh, 0, "complete")
