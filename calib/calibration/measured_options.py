@@ -17,7 +17,7 @@ from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
 from .model import compliance_name
 from .options import Options
-from .placements import mdh_directions
+from .placements import component_of, mdh_directions
 
 __all__ = [
     "GROUPS",
@@ -99,7 +99,7 @@ class Asked:
         given: Each engine name's name as the user wrote it.
         extra: Directions ``(6 J,)`` of the parameters named, by engine name (a free one a
             level may not offer is added; a fixed one holds every offered direction along
-            it: ``theta2`` is ``<joint>:rz`` at ``offsets``).
+            it).
     """
 
     fix: tuple[str, ...]
@@ -163,7 +163,8 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` (one
     measured chain's) name parameters as the printed table does: ``elbow_joint:d3`` (the
     chart's, :func:`~.placements.mdh_directions`; ``d3`` alone), ``elbow_joint:x`` .. ``:rz``
-    (a placement component), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
+    (a placement component; one that is a chart's parameter, ``shoulder_lift_joint:rz``, is
+    that parameter, ``theta2``), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
     are fitted (``free`` of them asks nothing, ``fix`` is refused) but for the first marker's
     coordinates no posture separates from the frame, held at their given value
     (:func:`~.chain_registration.held_markers`: a gantry's).
@@ -191,10 +192,17 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     chart = dict(zip(labels, D, strict=True))
     components = dict(zip(placements.names(), np.eye(len(placements.names())), strict=True))
     bare = {label.split(":", 1)[1]: label for label in labels}
+    alias = {  # a component that is a chart's parameter (``<joint>:rz``, ``theta2``): one name
+        placements.names()[c]: label
+        for label, d in chart.items()
+        if offer != "components" and (c := component_of(d)) is not None
+    }
     given: dict[str, str] = {}
     for name in (*opts.fix, *opts.free):
         known = name in GROUPS or name in chart or name in components
-        if known or (name not in bare and _compliance(name) and 1 <= int(name[1:]) <= chain.n):
+        if name in alias:
+            given[alias[name]] = name
+        elif known or (name not in bare and _compliance(name) and 1 <= int(name[1:]) <= chain.n):
             given[name] = name
         elif name in bare:
             given[bare[name]] = name

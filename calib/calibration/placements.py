@@ -46,6 +46,7 @@ __all__ = [
     "JointFrames",
     "Placements",
     "chain_frames",
+    "component_of",
     "joint_twists",
     "mdh_directions",
     "offset_component",
@@ -88,6 +89,17 @@ def offset_component(model: pin.Model, jid: int) -> str:
     """``rz`` for a revolute joint, ``z`` for a prismatic one (its offset)."""
     S = motion_axis(model.joints[jid])
     return "z" if np.linalg.norm(S[:3]) > 0.5 else "rz"
+
+
+def component_of(direction: np.ndarray) -> int | None:
+    """The one component (its index) a direction ``(6 J,)`` of placement errors moves, or None.
+
+    An MDH parameter's direction (:func:`mdh_directions`) is one component where the
+    parameter is it (``theta2``, ``<joint>:rz`` of a joint traversed forwards): one
+    parameter, which the chart names.
+    """
+    c = int(np.argmax(np.abs(direction)))
+    return c if direction[c] >= (1.0 - 1e-9) * np.linalg.norm(direction) > 0 else None
 
 
 class JointFrames(NamedTuple):
