@@ -21,6 +21,7 @@ from .placements import component_of, mdh_directions
 
 __all__ = [
     "GROUPS",
+    "NO_LOAD",
     "Asked",
     "compliance_torques",
     "level_offer",
@@ -29,6 +30,10 @@ __all__ = [
 
 GROUPS = ("frame", "markers", "tool")
 """Names of a measured term's own unknowns, by group."""
+
+NO_LOAD = 1e-9
+"""A joint's gravity torque under this fraction of the largest is round-off, no load (a UR5's
+vertical shoulder_pan_joint: 2e-15 N m beside 58): its compliance is not offered."""
 
 
 def _compliance(name: str) -> bool:
@@ -40,9 +45,9 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
 
     A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
     joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
-    ``free``): the URDF cannot hold it. The joints offered are those gravity loads, less the
-    compliances fixed. Returns ``(torques of train, of held or None)`` (``(None, None)``:
-    rigid joints) and the joints (0-based).
+    ``free``): the URDF cannot hold it. The joints offered are those gravity loads (over
+    :data:`NO_LOAD` of the largest torque), less the compliances fixed. Returns ``(torques
+    of train, of held or None)`` (``(None, None)``: rigid joints) and the joints (0-based).
 
     Raises:
         InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
@@ -56,7 +61,8 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
         return (None, None), ()
     chain = chains[0]
     tau = chain.gravity_torques(train[0].q)
-    loaded = [j for j in range(chain.n) if np.any(tau[:, j])]
+    most = np.max(np.abs(tau), axis=0)
+    loaded = [j for j in range(chain.n) if most[j] > NO_LOAD * np.max(most)]
     if not loaded:
         raise InvalidArgumentError(
             f"elastic (or a compliance in free) needs gravity torques, and {chain.urdf_path} "
