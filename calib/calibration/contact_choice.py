@@ -10,13 +10,12 @@ beyond 2 GB, :func:`check_selection_memory`).
 from __future__ import annotations
 
 import dataclasses
-from typing import cast
 
 import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contact_postures import project
+from ..identification.contact_postures import joint_offsets, project
 from ..identification.contacts import CONTACT_TOL
 from ..identification.identifiability import independent_columns
 from ..identification.parameters import parameter_set
@@ -182,11 +181,14 @@ def _offset_names(start: ChainsState, offsets: list[int]) -> tuple[str, ...]:
 
     The offset component of a joint is the MDH joint offset (``theta_k``, ``r_k``) that
     ``paper`` and ``complete`` offer where that parameter moves the component alone
-    (:func:`~.placements.component_of`): one name for one parameter.
+    (:func:`~.placements.component_of`): one name for one parameter (a shared joint's as
+    the first chain names it, as they do).
     """
-    names = list(start.placements.names())
-    D, labels, _ = _offer_directions(start, "complete")
-    chart = {component_of(d): label for d, label in zip(cast(np.ndarray, D), labels, strict=True)}
+    pl, chart = start.placements, dict[int | None, str]()
+    for chain, s in zip(start.chains, start.states, strict=True):
+        D, labels = mdh_directions(pl, chain, s.mdh, 0, joint_offsets(s.mdh))
+        chart = {component_of(d): label for d, label in zip(D, labels, strict=True)} | chart
+    names = pl.names()
     return tuple(chart.get(c, names[c]) if c in offsets else names[c] for c in range(len(names)))
 
 
