@@ -694,6 +694,25 @@ def test_a_gantry_is_calibrated_on_the_command_line(tmp_path):
     assert HELD in text + err and out.exists()
 
 
+def test_analyze_markers_holds_what_calibrate_holds(tmp_path):
+    """``calib analyze --markers``: the first marker's coordinates a calibration holds (all
+    three on a gantry, its z on a SCARA) are counted as held, with calibrate's reason, not
+    listed as identifiable; the second marker's offset from it is (it listed marker1's)."""
+    for name, text, held in (("gantry", GANTRY, "marker1 "), ("scara", SCARA, "marker1.z ")):
+        urdf = tmp_path / f"{name}.urdf"
+        urdf.write_text(text)
+        argv = ["analyze", urdf, "--markers", 2, "--measure", "pose", "--json"]
+        code, out, err = run(argv)
+        assert code == 0, err
+        report = json.loads(out)
+        assert report["n_held"] == (3 if name == "gantry" else 1)
+        assert any(HELD in n and n.startswith(held) for n in report["notes"])
+        assert "marker1.z" not in report["parameters"]
+        assert {"marker2.x", "marker2.y", "marker2.z"} <= set(report["parameters"])
+        code, out, err = run(argv[:-1])
+        assert code == 0 and f"{held}{HELD}" in out, err
+
+
 def test_a_tool_turning_a_few_microradians_is_refused_not_held(tmp_path):
     """A wrist joint limited to +-1e-6 rad turns the tool, a little: nothing is held (the
     robot's structure is not a still tool), and with noise the marker's height and the

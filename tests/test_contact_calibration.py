@@ -208,7 +208,7 @@ def test_calibrate_dispatches_contact_data():
     (part,) = a.chains
     assert np.allclose(part.contact, b.chains[0].contact, atol=1e-9) and a.free == b.free
     assert {n.split(":")[0] for n in a.free} <= set(chain.joint_names)
-    assert {n[-3:] for n in a.free} == {":rz"}
+    assert {n.split(":")[1][:5] for n in a.free} == {"theta"}  # as paper names them
     held, other = part.stats["held_out"], b.stats["held_out"]
     assert held.m == other.m and np.allclose(held.rms, other.rms, rtol=1e-6, atol=1e-9)
     with pytest.raises(InvalidArgumentError, match="fix is for one chain measured"):

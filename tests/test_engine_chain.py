@@ -133,19 +133,42 @@ def test_free_and_fix_name_the_charts_parameters():
         assert np.max(np.abs(res.points(q)[:, 0] - expected)) < 1e-9
     assert np.max(np.abs(calibrate(chain, data, params="frames").points(q)[:, 0] - expected)) > 1e-4
     free = calibrate(chain, data, params="offsets")
-    assert "shoulder_lift_joint:rz" in free.names
+    assert "shoulder_lift_joint:theta2" in free.names
     assert np.max(np.abs(free.points(q)[:, 0] - expected)) < 1e-9
     held = calibrate(chain, data, params="offsets", fix=("theta2",))
-    assert set(held.names) == set(free.names) - {"shoulder_lift_joint:rz"}
+    assert set(held.names) == set(free.names) - {"shoulder_lift_joint:theta2"}
     assert np.max(np.abs(held.points(q)[:, 0] - expected)) > 1e-5
+
+
+def test_a_joint_offset_has_one_name_at_every_level():
+    """``offsets`` names joint 2's offset as ``paper`` does, ``shoulder_lift_joint:theta2``
+    (it printed the placement component ``shoulder_lift_joint:rz``), in the table and the
+    report, with the same value on noise-free rows; the component's name stays accepted by
+    ``fix`` and ``free`` at both levels, and ``free theta2`` at ``offsets`` is that column,
+    not a second one along it."""
+    chain = load_chain("ur5")
+    data, _ = offset_campaign(chain, 40, 3, 2, 2e-3)
+    name, rz = "shoulder_lift_joint:theta2", "shoulder_lift_joint:rz"
+    values = {}
+    for level in ("offsets", "paper"):
+        res = calibrate(chain, data, params=level)
+        assert name in res.names and rz not in res.names and name in res.summary()
+        (values[level],) = [p["value"] for p in res.to_dict()["parameters"] if p["name"] == name]
+        for option in ("fix", "free"):
+            named = calibrate(chain, data, params=level, **{option: (rz,)}).names
+            assert (name in named) == (option == "free") and rz not in named
+    assert values["offsets"] == pytest.approx(values["paper"], abs=1e-9)
+    assert values["offsets"] == pytest.approx(2e-3, abs=1e-9)
+    forced = calibrate(chain, data, params="offsets", free=("theta2",)).names
+    assert forced == calibrate(chain, data, params="offsets").names
 
 
 @pytest.mark.parametrize(
     ("option", "words"),
     [
         ({"fix": ("nope",)}, "unknown parameter 'nope'"),
-        ({"fix": ("frame",)}, "fix frame: the joint engine always fits"),
-        ({"fix": ("markers",)}, "fix markers: the joint engine always fits"),
+        ({"fix": ("frame",)}, r"fix frame: the joint engine fits .* \(a gantry's first marker\)"),
+        ({"fix": ("markers",)}, "fix markers: the joint engine fits .* holding at its given"),
         ({"free": ("d1",)}, "free d1 cannot be fitted: the measurement frame"),
     ],
 )

@@ -103,6 +103,13 @@ def test_help_exits_0_on_stdout(capsys, name):
     assert out.startswith(f"usage: calib {name}") and err == ""
 
 
+def test_fix_help_says_what_is_held_not_always_fitted(capsys):
+    """``--fix``: the frame and markers are fitted, but a gantry's first marker is held."""
+    assert main(["calibrate", "--help"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "not the frame or markers: fitted, but a gantry's first marker, held at --marker" in out
+
+
 USAGE_ERRORS = [
     [],  # no command
     ["no-such-command"],

@@ -66,18 +66,22 @@ def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
     return determined.still_axes(nominal.kinematics(q).R[:, -1])
 
 
-def held_note(held: tuple[int, ...], guess: np.ndarray) -> str:
-    """The note of marker coordinates held at their given value (:func:`held_markers`)."""
-    whole = [k for k in range(len(guess)) if all(3 * k + a in held for a in range(3))]
+def held_note(held: tuple[int, ...], guess: np.ndarray | None) -> str:
+    """The note of marker coordinates held at their given value (:func:`held_markers`).
+
+    ``guess``: the markers' given values [m] (None: not said, as ``calib analyze`` does).
+    """
+    whole = [k for k in range(max(held) // 3 + 1) if all(3 * k + a in held for a in range(3))]
     named = [f"marker{k + 1}" for k in whole] + [
         f"marker{c // 3 + 1}.{'xyz'[c % 3]}" for c in held if c // 3 not in whole
     ]
-    values = ", ".join(f"{v:.4g}" for v in guess.ravel()[list(held)])
+    given = "" if guess is None else ", ".join(f"{v:.4g}" for v in guess.ravel()[list(held)])
+    values = f" ({given} m in the tool frame)" if given else ""
     one = len(named) == 1
     it, turns = ("it" if one else "them"), "never turns" if whole else "turns about one axis only"
     return (
-        f"{' and '.join(named)} held at {'its' if one else 'their'} given value ({values} m in "
-        f"the tool frame): no posture within the joint limits separates {it} from the "
+        f"{' and '.join(named)} held at {'its' if one else 'their'} given value{values}: no "
+        f"posture within the joint limits separates {it} from the "
         f"measurement frame's translation (the tool {turns}), which absorbs {it}: the "
         f"predictions do not depend on {it}"
     )

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contact_postures import project
+from ..identification.contact_postures import joint_offsets, project
 from ..identification.contacts import CONTACT_TOL
 from ..identification.identifiability import independent_columns
 from ..identification.parameters import parameter_set
@@ -32,7 +32,7 @@ from .contact_model import ContactState
 from .contact_term import check_level_equations
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
-from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
+from .placements import COMPONENTS, JointFrames, component_of, mdh_directions, offset_component
 from .selection import Selection, select
 
 __all__ = [
@@ -141,7 +141,8 @@ def _offer_directions(
 ) -> tuple[np.ndarray | None, tuple[str, ...], list]:
     """Directions a level offers: (directions or None for components, names, indices).
 
-    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic).
+    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic), named as
+    ``complete`` names that parameter (``<joint>:theta2``, :func:`_offset_names`).
     ``paper``, ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n
     (``paper``'s set or the complete one) as directions of joint placement errors
     (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
@@ -157,7 +158,7 @@ def _offer_directions(
             6 * j + COMPONENTS.index(offset_component(pl.model, jid))
             for j, jid in enumerate(pl.ids)
         ]
-        return None, pl.names(), offsets
+        return None, _offset_names(start, offsets), offsets
     rows: list[np.ndarray] = []
     labels: list[tuple[str, Chain]] = []
     for chain, s in zip(start.chains, start.states, strict=True):
@@ -173,6 +174,22 @@ def _offer_directions(
         if not any(row[k] for k in kept):  # parallel to none kept
             kept.append(i)
     return offered[kept], _unique([labels[i] for i in kept]), list(range(len(kept)))
+
+
+def _offset_names(start: ChainsState, offsets: list[int]) -> tuple[str, ...]:
+    """The components' names, each joint offset (``offsets``) as the chart names it.
+
+    The offset component of a joint is the MDH joint offset (``theta_k``, ``r_k``) that
+    ``paper`` and ``complete`` offer where that parameter moves the component alone
+    (:func:`~.placements.component_of`): one name for one parameter (a shared joint's as
+    the first chain names it, as they do).
+    """
+    pl, chart = start.placements, dict[int | None, str]()
+    for chain, s in zip(start.chains, start.states, strict=True):
+        D, labels = mdh_directions(pl, chain, s.mdh, 0, joint_offsets(s.mdh))
+        chart = {component_of(d): label for d, label in zip(D, labels, strict=True)} | chart
+    names = pl.names()
+    return tuple(chart.get(c, names[c]) if c in offsets else names[c] for c in range(len(names)))
 
 
 def _unique(labels: list[tuple[str, Chain]]) -> tuple[str, ...]:

@@ -18,7 +18,7 @@ deliver a result with ``summary()``, ``to_dict()`` (report format 3), ``urdf()``
 from __future__ import annotations
 
 import dataclasses
-from typing import cast
+from typing import Any, cast
 
 from ..core.checks import MAX_ROWS, check_size
 from ..core.progress import Progress
@@ -94,7 +94,8 @@ def calibrate(
         validate: Data of other postures to score the result on (never fitted).
         fix: Parameter names held at their start, as the printed table names them
             (``elbow_joint:d3``, ``d3``, a compliance ``c2``; the instrument's frame and the
-            markers are always fitted).
+            markers are fitted, but a marker coordinate no posture separates from the frame,
+            held at ``marker``: a gantry's first marker).
         free: Parameter names (a compliance ``c1``.. included) always fitted.
         elastic: Fit joint compliance under gravity, which the URDF cannot hold (default:
             no, unless ``free`` names a compliance).
@@ -118,36 +119,7 @@ def calibrate(
             (:data:`~.options.APPLIES`), an unknown one, or one given by position after
             ``data``.
     """
-    if isinstance(robot, Problem):
-        named = options_given(
-            dict(
-                marker=marker,
-                validate=validate,
-                params=params,
-                fix=fix,
-                free=free,
-                elastic=elastic,
-                loss=loss,
-                noise_mm=noise_mm,
-                orientation_weight=orientation_weight,
-                max_iterations=max_iterations,
-                holdout=holdout,
-                seed=seed,
-            )
-        )
-        if data is not None or named:  # an option beside the problem was ignored
-            raise InvalidArgumentError(
-                "calibrate(problem) takes the problem alone: its data and options are in it"
-                + (f" ({', '.join(named)} given beside it)" if named else "")
-            )
-        return solve(robot, progress)
-    if data is None:
-        raise InvalidArgumentError(
-            "calibrate takes a Problem, or a robot and its data: missing a required argument: "
-            "'data'"
-        )
-    problem = Problem(
-        (Term(robot, data, validate, marker),),
+    options: dict[str, Any] = dict(
         params=params,
         fix=fix,
         free=free,
@@ -159,7 +131,24 @@ def calibrate(
         holdout=holdout,
         seed=seed,
     )
-    return solve(problem, progress)
+    if isinstance(robot, Problem):
+        _alone(data, options_given(dict(marker=marker, validate=validate, **options)))
+        return solve(robot, progress)
+    if data is None:
+        raise InvalidArgumentError(
+            "calibrate takes a Problem, or a robot and its data: missing a required argument: "
+            "'data'"
+        )
+    return solve(Problem((Term(robot, data, validate, marker),), **options), progress)
+
+
+def _alone(data, named: list[str]) -> None:
+    """Refuse data or options (``named``) given beside a problem: they are in it."""
+    if data is not None or named:  # an option beside the problem was ignored
+        raise InvalidArgumentError(
+            "calibrate(problem) takes the problem alone: its data and options are in it"
+            + (f" ({', '.join(named)} given beside it)" if named else "")
+        )
 
 
 def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCalibration:

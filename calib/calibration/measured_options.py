@@ -17,10 +17,11 @@ from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
 from .model import compliance_name
 from .options import Options
-from .placements import mdh_directions
+from .placements import component_of, mdh_directions
 
 __all__ = [
     "GROUPS",
+    "NO_LOAD",
     "Asked",
     "compliance_torques",
     "level_offer",
@@ -29,6 +30,10 @@ __all__ = [
 
 GROUPS = ("frame", "markers", "tool")
 """Names of a measured term's own unknowns, by group."""
+
+NO_LOAD = 1e-9
+"""A joint's gravity torque under this fraction of the largest is round-off, no load (a UR5's
+vertical shoulder_pan_joint: 2e-15 N m beside 58): its compliance is not offered."""
 
 
 def _compliance(name: str) -> bool:
@@ -40,9 +45,9 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
 
     A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
     joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
-    ``free``): the URDF cannot hold it. The joints offered are those gravity loads, less the
-    compliances fixed. Returns ``(torques of train, of held or None)`` (``(None, None)``:
-    rigid joints) and the joints (0-based).
+    ``free``): the URDF cannot hold it. The joints offered are those gravity loads (over
+    :data:`NO_LOAD` of the largest torque), less the compliances fixed. Returns ``(torques
+    of train, of held or None)`` (``(None, None)``: rigid joints) and the joints (0-based).
 
     Raises:
         InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
@@ -56,7 +61,8 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
         return (None, None), ()
     chain = chains[0]
     tau = chain.gravity_torques(train[0].q)
-    loaded = [j for j in range(chain.n) if np.any(tau[:, j])]
+    most = np.max(np.abs(tau), axis=0)
+    loaded = [j for j in range(chain.n) if most[j] > NO_LOAD * np.max(most)]
     if not loaded:
         raise InvalidArgumentError(
             f"elastic (or a compliance in free) needs gravity torques, and {chain.urdf_path} "
@@ -99,7 +105,7 @@ class Asked:
         given: Each engine name's name as the user wrote it.
         extra: Directions ``(6 J,)`` of the parameters named, by engine name (a free one a
             level may not offer is added; a fixed one holds every offered direction along
-            it: ``theta2`` is ``<joint>:rz`` at ``offsets``).
+            it).
     """
 
     fix: tuple[str, ...]
@@ -148,7 +154,7 @@ class Asked:
             cols = [*range(fixed), every.index(name)]
             _, _, ok, _ = independent_columns(A[:, cols], list(range(fixed + 1)))
             why = (
-                "the measurement frame and markers carry it (they are always fitted)"
+                "the measurement frame and markers carry it (the registration fits them)"
                 if fixed not in ok
                 else "it is regrouped with parameters kept before it (not identifiable on its own)"
             )
@@ -163,8 +169,11 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` (one
     measured chain's) name parameters as the printed table does: ``elbow_joint:d3`` (the
     chart's, :func:`~.placements.mdh_directions`; ``d3`` alone), ``elbow_joint:x`` .. ``:rz``
-    (a placement component), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
-    are always fitted (``free`` of them asks nothing, ``fix`` is refused).
+    (a placement component; one that is a chart's parameter, ``shoulder_lift_joint:rz``, is
+    that parameter, ``theta2``), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
+    are fitted (``free`` of them asks nothing, ``fix`` is refused) but for the first marker's
+    coordinates no posture separates from the frame, held at their given value
+    (:func:`~.chain_registration.held_markers`: a gantry's).
 
     ``chain``: the first term's; ``start``: the registration; ``opts``: a measured chain's,
     or None. Returns the :class:`Asked` (None: no parameter named) and the level offered.
@@ -179,18 +188,27 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     held = [n for n in opts.fix if n in GROUPS]
     if held:
         raise InvalidArgumentError(
-            f"fix {held[0]}: the joint engine always fits the instrument's frame and markers "
-            f"(and the measured frame's rotation); fix joint parameters or compliances"
+            f"fix {held[0]}: the joint engine fits the instrument's frame and markers (and the "
+            f"measured frame's rotation), holding at its given value only a marker coordinate "
+            f"no posture separates from the frame (a gantry's first marker); fix joint "
+            f"parameters or compliances"
         )
     placements = start.placements
     D, labels = mdh_directions(placements, chain, start.states[0].mdh, 0, "complete")
     chart = dict(zip(labels, D, strict=True))
     components = dict(zip(placements.names(), np.eye(len(placements.names())), strict=True))
     bare = {label.split(":", 1)[1]: label for label in labels}
+    alias = {  # a component that is a chart's parameter (``<joint>:rz``, ``theta2``): one name
+        placements.names()[c]: label
+        for label, d in chart.items()
+        if offer != "components" and (c := component_of(d)) is not None
+    }
     given: dict[str, str] = {}
     for name in (*opts.fix, *opts.free):
         known = name in GROUPS or name in chart or name in components
-        if known or (name not in bare and _compliance(name) and 1 <= int(name[1:]) <= chain.n):
+        if name in alias:
+            given[alias[name]] = name
+        elif known or (name not in bare and _compliance(name) and 1 <= int(name[1:]) <= chain.n):
             given[name] = name
         elif name in bare:
             given[bare[name]] = name

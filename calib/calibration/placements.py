@@ -46,6 +46,7 @@ __all__ = [
     "JointFrames",
     "Placements",
     "chain_frames",
+    "component_of",
     "joint_twists",
     "mdh_directions",
     "offset_component",
@@ -88,6 +89,17 @@ def offset_component(model: pin.Model, jid: int) -> str:
     """``rz`` for a revolute joint, ``z`` for a prismatic one (its offset)."""
     S = motion_axis(model.joints[jid])
     return "z" if np.linalg.norm(S[:3]) > 0.5 else "rz"
+
+
+def component_of(direction: np.ndarray) -> int | None:
+    """The one component (its index) a direction ``(6 J,)`` of placement errors moves, or None.
+
+    An MDH parameter's direction (:func:`mdh_directions`) is one component where the
+    parameter is it (``theta2``, ``<joint>:rz`` of a joint traversed forwards): one
+    parameter, which the chart names.
+    """
+    c = int(np.argmax(np.abs(direction)))
+    return c if direction[c] >= (1.0 - 1e-9) * np.linalg.norm(direction) > 0 else None
 
 
 class JointFrames(NamedTuple):
@@ -461,7 +473,7 @@ def mdh_directions(
     chain: Chain,
     mdh: MDHModel,
     seed: int = 0,
-    label: str = "complete",
+    label: str | ParameterSet = "complete",
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """The chain's MDH parameters of joint rows 1..n as directions of joint placement errors.
 
@@ -475,13 +487,13 @@ def mdh_directions(
     (:func:`~calib.identification.identifiability.preference_order`).
 
     ``placements``: zero errors; ``mdh``: the chain's model on their robot; ``seed``: of the
-    configurations; ``label``: ``complete`` or ``paper``. Returns the directions ``(D, 6 J)``
-    (in the MDH parameters' units) and their names ``<joint>:<parameter>`` (the parameter's
-    name in this chain's rows).
+    configurations; ``label``: ``complete``, ``paper`` or a set of ``mdh``'s parameters.
+    Returns the directions ``(D, 6 J)`` (in the MDH parameters' units) and their names
+    ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
     """
-    pset, n = parameter_set(mdh, label), chain.n
-    chosen = [pset.parameters[i] for i in preference_order(mdh, pset)]
-    params = ParameterSet(label, tuple(p for p in chosen if 1 <= p.row <= n))
+    pset = parameter_set(mdh, label) if isinstance(label, str) else label
+    chosen, n = [pset.parameters[i] for i in preference_order(mdh, pset)], chain.n
+    params = ParameterSet(pset.label, tuple(p for p in chosen if 1 <= p.row <= n))
     q = chain.random_configurations(DIRECTION_CONFIGS, seed)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))
     W = identification_jacobian(mdh, params, q, pose).reshape(len(q), 6, -1)

@@ -145,6 +145,7 @@ def _analyze_terms(args: argparse.Namespace) -> int:
 
 def _analyze_markers(args: argparse.Namespace) -> int:
     """What a calibration with K measured points (and free frame and markers) identifies."""
+    from ..calibration.chain_registration import held_markers, held_note
     from ..design.observability import identifiable_parameters
     from ..identification.kinds import kind_of
 
@@ -161,7 +162,11 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if chain.is_tree:
         raise InvalidArgumentError("--markers counts for one chain: give one --tool")
-    names = identifiable_parameters(chain, args.markers, args.measure, args.configs, args.seed)
+    held = held_markers(chain, from_chain(chain).idealized())  # as calibrate holds them
+    names = identifiable_parameters(
+        chain, args.markers, args.measure, args.configs, args.seed, held
+    )
+    notes = [held_note(held, None)] if held else []
     if args.json:
         print_json(
             {
@@ -170,15 +175,19 @@ def _analyze_markers(args: argparse.Namespace) -> int:
                 "measure": args.measure,
                 "n_identifiable": len(names),
                 "parameters": list(names),
+                "n_held": len(held),
+                "notes": notes,
             }
         )
     else:
         print(
             f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
             f"{args.measure}: {len(names)} identifiable parameters (measurement frame and "
-            f"markers free)"
+            f"markers free{f', {len(held)} held' if held else ''})"
         )
         print("  " + ", ".join(names))
+        for note in notes:
+            print(f"  {note}")
     return 0
 
 

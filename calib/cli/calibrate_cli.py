@@ -414,7 +414,8 @@ def _add_model_args(g: Group) -> None:
         nargs="+",
         default=[],
         metavar="NAME",
-        help="parameters held at their start, named as the printed table (elbow_joint:d3, d3, c2)",
+        help="parameters held at their start, named as the printed table (elbow_joint:d3, d3, "
+        "c2); not the frame or markers: fitted, but a gantry's first marker, held at --marker",
     )
     g.add_argument("--free", nargs="+", default=[], metavar="NAME", help="parameters always fitted")
     g.add_argument(

@@ -36,6 +36,8 @@ from .common import (
 if TYPE_CHECKING:
     import numpy as np
 
+    from ..identification.measures import Measurement
+
 __all__ = [
     "add_simulate_parser",
     "cmd_simulate",
@@ -98,29 +100,12 @@ def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
-    from ..identification.kinds import campaign_kind
-    from ..measurements.csvfile import measurements_csv
-    from ..measurements.simulation import simulate
-
     if args.measure == "pixels":
         return pixels_cli.simulate_pixels_command(args)
     pixels_cli.refuse_pixel_options(args)
     if args.measure in CONTACT_MEASURES:
         return _simulate_contacts(args)
-    kind = campaign_kind(args.measure, args.marker)
-    if given_options(args, ["contacts"]):
-        raise InvalidArgumentError(
-            f"--contacts counts the planes or points of a contact campaign, not of --measure "
-            f"{args.measure}"
-        )
-    if given_options(args, ["noise_mrad"]) and not kind.is_pose:  # a tree: positions only
-        from ..core.checks import angle_mrad
-
-        angle_mrad(args.noise_mrad, "noise_mrad")  # the range's message first
-        raise InvalidArgumentError(
-            f"--noise-mrad is the orientation noise of --measure pose (a contact's: the joints'): "
-            f"--measure {args.measure} records no orientation"
-        )
+    kind = _campaign_kind(args)
     out = Path(args.out)
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
@@ -135,6 +120,42 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     configs = _configs(args, chain)
     if chain.is_tree:
         return _simulate_tree(args, chain, configs, (out, truth_path))
+    return _simulate_chain(args, chain, kind, configs, (out, truth_path))
+
+
+def _campaign_kind(args: argparse.Namespace) -> Measurement:
+    """What ``--measure`` records of a chain or tree, the options that do not apply refused."""
+    from ..identification.kinds import campaign_kind
+
+    kind = campaign_kind(args.measure, args.marker)
+    if given_options(args, ["contacts"]):
+        raise InvalidArgumentError(
+            f"--contacts counts the planes or points of a contact campaign, not of --measure "
+            f"{args.measure}"
+        )
+    if given_options(args, ["noise_mrad"]) and not kind.is_pose:  # a tree: positions only
+        from ..core.checks import angle_mrad
+
+        angle_mrad(args.noise_mrad, "noise_mrad")  # the range's message first
+        raise InvalidArgumentError(
+            f"--noise-mrad is the orientation noise of --measure pose (a contact's: the joints'): "
+            f"--measure {args.measure} records no orientation"
+        )
+    return kind
+
+
+def _simulate_chain(
+    args: argparse.Namespace, chain: Chain, kind: Measurement, configs, paths
+) -> int:
+    """`simulate` of one chain: its rows and its true errors.
+
+    ``kind``: what is measured; ``configs``: a count or joint positions; ``paths``:
+    ``(--out, --truth)``, checked.
+    """
+    from ..measurements.csvfile import measurements_csv
+    from ..measurements.simulation import simulate
+
+    out, truth_path = paths
     campaign = simulate(
         chain,
         configs,

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..calibration.chain_registration import held_markers
 from ..calibration.determined import determined_columns, generic_jacobian
 from ..calibration.model import (
     FRAME_NAMES,
@@ -211,6 +212,7 @@ def observation_model(
     orientation_weight: float = 1.0,
     structure_q: np.ndarray | None = None,
     seed: int = 0,
+    held: tuple[int, ...] = (),
 ) -> ObservationModel:
     """The observation model of a calibration of a chain or a tree.
 
@@ -230,6 +232,8 @@ def observation_model(
             ``STRUCTURE_CONFIGS`` random ones drawn with ``seed``); give the candidates when
             they span less than the joint limits.
         seed: Seed of the default ``structure_q``.
+        held: Marker coordinates (0-based among the ``3 K``) held at their given value, no
+            unknown (a gantry's first marker, as :func:`calib.calibrate` holds it).
 
     Returns:
         The model.
@@ -244,7 +248,7 @@ def observation_model(
     kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
     pset, names = _level_names(nominal, params)
-    own = MeasuredKind(len(mk), bool(kind.rotation_rows))
+    own = MeasuredKind(len(mk), bool(kind.rotation_rows), held=held)
     model = ErrorModel(pset, moved(pset, nominal, names), own)
     state = nominal_state(nominal, mk, kind)
     jacobian_of = generic_jacobian(model, state, chain.joint_names, float(orientation_weight))
@@ -487,6 +491,7 @@ def identifiable_parameters(
     measure: str = "position",
     configs: int = DEFAULT_CONFIGS,
     seed: int = 0,
+    held: tuple[int, ...] | None = None,
 ) -> tuple[str, ...]:
     """Names of the parameters a calibration with K markers identifies (generic configurations).
 
@@ -498,6 +503,10 @@ def identifiable_parameters(
         measure: ``position`` or ``pose`` (the orientation of the tool is measured too).
         configs: Random configurations m.
         seed: Seed of the configurations and of the marker places.
+        held: Marker coordinates (0-based among the ``3 K``) the calibration holds at their
+            given value, not counted (None: those it holds,
+            :func:`~calib.calibration.chain_registration.held_markers`: a gantry's first
+            marker).
 
     Returns:
         Frame, marker (and tool) parameters, then the MDH base parameters.
@@ -509,7 +518,8 @@ def identifiable_parameters(
     _check_marker_work(configs, k, len(parameter_set(nominal, "complete")), kind)
     q = chain.random_configurations(configs, seed)
     markers = 0.1 * np.random.default_rng([seed, 4]).uniform(-1.0, 1.0, (k, 3))
-    return observation_model(chain, measure, markers, "complete", structure_q=q).names
+    held = held_markers(chain, nominal) if held is None else held
+    return observation_model(chain, measure, markers, "complete", structure_q=q, held=held).names
 
 
 MARKER_WORK_COPIES = 4

@@ -540,35 +540,51 @@ def analyze(
     exact = from_tree(chain) if chain.is_tree else from_chain(chain)
     mdh = exact.idealized()
     t2 = time.perf_counter()
-    if measurement.is_contact:
-        if (
-            not isinstance(mdh, MDHModel)
-            or not isinstance(measurement, Contact)
-            or chain.coupling is not None
-        ):
-            raise InvalidArgumentError(
-                f"a {measurement.label} contact is analysed on one chain without mimic joints"
-            )
-        mdh, q = contact_configurations(
-            mdh, measurement, lambda c, r: chain.random_configurations(c, seed + r), int(configs)
-        )
-    else:
-        q = chain.random_configurations(int(configs), seed)
+    mdh, q = _configurations(chain, mdh, measurement, int(configs), seed)
     t3 = time.perf_counter()
     result = analyze_model(mdh, params, measurement, q, robot=chain.name, seed=seed)
     timings = {"load": 1e3 * (t1 - t0), "convert": 1e3 * (t2 - t1), **result.timings_ms}
     if measurement.is_contact:
         timings["contact"] = 1e3 * (t3 - t2)  # the postures where the contact holds
     result = dataclasses.replace(result, snapped=snapped_values(exact, mdh), timings_ms=timings)
-    if chain.coupling is not None:  # coupled joints: the formula for independent ones is silent
-        per_tool = result.per_tool
-        if chain.is_tree:  # so it is for each tool's chain through mimic joints
-            pairs = zip(per_tool, chain.chains, strict=True)
-            per_tool = tuple((t, None if c.coupling else n) for (t, n), c in pairs)
-        result = dataclasses.replace(
-            result, n_theory=None, mimic=chain.coupling.mimic, per_tool=per_tool
+    return result if chain.coupling is None else _coupled(result, chain)
+
+
+def _configurations(
+    chain: Chain | Tree, mdh: MDHModel | TreeMDH, measurement: MeasureKind, m: int, seed: int
+) -> tuple[MDHModel | TreeMDH, np.ndarray]:
+    """The model and the m configurations :func:`analyze` analyses (module text of a contact).
+
+    Raises:
+        InvalidArgumentError: A contact on a tree or a chain with mimic joints.
+    """
+    if not measurement.is_contact:
+        return mdh, chain.random_configurations(m, seed)
+    if (
+        not isinstance(mdh, MDHModel)
+        or not isinstance(measurement, Contact)
+        or chain.coupling is not None
+    ):
+        raise InvalidArgumentError(
+            f"a {measurement.label} contact is analysed on one chain without mimic joints"
         )
-    return result
+    return contact_configurations(
+        mdh, measurement, lambda c, r: chain.random_configurations(c, seed + r), m
+    )
+
+
+def _coupled(result: Identifiability, chain: Chain | Tree) -> Identifiability:
+    """A coupled robot's analysis: no theoretical count (the formula is for independent joints).
+
+    A tree's count of each tool's chain through mimic joints is silent too; the mimic joints
+    are set (:attr:`Identifiability.mimic`).
+    """
+    per_tool = result.per_tool
+    if chain.is_tree:
+        pairs = zip(per_tool, chain.chains, strict=True)
+        per_tool = tuple((t, None if c.coupling else n) for (t, n), c in pairs)
+    mimic = () if chain.coupling is None else chain.coupling.mimic
+    return dataclasses.replace(result, n_theory=None, mimic=mimic, per_tool=per_tool)
 
 
 __all__ = [
