@@ -382,7 +382,7 @@ def _fit(
     """
     data, iters = train, opts.max_iterations
     if by_block(model, start):
-        fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
+        fitted = block_fit(model, start, data, prior=prior, max_iterations=iters)
     else:
         fitted = fit(
             model,

@@ -22,6 +22,7 @@ from ..identification.contacts import PlaneContact
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
+from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
 from . import determined, diagnosis, outliers, term_checks, validation
 from .contact_frames import ContactFrames
@@ -260,11 +261,12 @@ def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
     )
 
 
-def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
+def plane_groups(chains, data, shared: bool, instrument: bool = False) -> tuple[int, ...]:
     """Index of each chain's object: one per chain, or shared by base frame and plane id.
 
     The pixel terms of one camera (its targets on several links: one term per link) share
-    their object, the camera, whatever ``shared``; shared planes need one object per chain.
+    their object, the camera, whatever ``shared``; shared planes need one object per chain;
+    with ``instrument``, every measured term's frame is one object (:mod:`.instrument`).
     """
     several = [d for d in data if isinstance(d, ContactData) and len(d.contacts) != 1]
     if shared and several:
@@ -276,6 +278,8 @@ def plane_groups(chains, data, shared: bool) -> tuple[int, ...]:
     for k, (c, d) in enumerate(zip(chains, data, strict=True)):
         if isinstance(d, PixelPart):
             keys.append(("camera", d.data.camera.name))
+        elif instrument and isinstance(d, Measurements):
+            keys.append(("instrument",))
         elif shared and isinstance(d.kind, PlaneContact):
             keys.append((c.base_frame, d.contacts[0]))
         else:

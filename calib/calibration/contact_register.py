@@ -33,7 +33,7 @@ from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
 from .contact_term import contact_frame, split_contacts
-from .instrument import instrument_groups, shared_frame
+from .instrument import shared_frame
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState, check_measured, checked_measured, one_term_per_frame
 from .options import Options
@@ -139,8 +139,7 @@ def _check(run: Run) -> None:
 
 def _objects(run: Run, data) -> tuple[int, ...]:
     """Each term's object (:func:`~.contact_checks.plane_groups`, an instrument shared)."""
-    groups = contact_checks.plane_groups(run.chains, data, run.shared_planes)
-    plane_of = instrument_groups(groups, data, run.instrument)
+    plane_of = contact_checks.plane_groups(run.chains, data, run.shared_planes, run.instrument)
     check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     return plane_of
 

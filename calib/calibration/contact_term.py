@@ -91,10 +91,8 @@ def split_contacts(
 
 def contact_objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:
     """The objects by id; a plane's origin at its touches' contact points, projected."""
-    frames = state.frames
-    if frames.kind.object_name == "plane":
-        kin = state.kinematics(train.q, torque)
-        frames = frames.centred(kin.R[:, -1], kin.p[:, -1], frames.index(train.ids))
+    kin = state.kinematics(train.q, torque)
+    frames = state.frames.centred(kin.R[:, -1], kin.p[:, -1], state.frames.index(train.ids))
     return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
 
 
