@@ -281,7 +281,7 @@ def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
     model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
     chain = model.chain
     data = read_contacts(REAL / "right_train.csv", chain, "plane")
-    from calib.calibration.contact_term import split_contacts
+    from calib.calibration.contact_checks import split_contacts
 
     held = split_contacts(data, 0.25, 0)[1]
     _ids, joints = read_joints(REAL / "right_train.csv")
@@ -493,7 +493,7 @@ def test_cli_other_foot_splits_the_load(tmp_path, capsys):
 
 def test_held_out_touches_without_the_other_joints_are_noted():
     """A validation file lacking the joints off the chain: their load is at neutral, said."""
-    from calib.calibration.contact_term import split_contacts
+    from calib.calibration.contact_checks import split_contacts
 
     chain = load_robot(*RIGHT)
     data = read_contacts(REAL / "right_train.csv", chain, "plane")

@@ -41,13 +41,12 @@ from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
-from .contact_checks import held_out_refusal
+from .contact_checks import check_held_out_gaps, contact_objects, held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
 from .contact_register import Registered, Run, determined_unknowns, register_contact_chains
 from .contact_result import gap_stats, part_stats
-from .contact_term import check_held_out_gaps, contact_objects
 from .delivery import read_files
 from .determined import ILL_CONDITION, Direction
 from .measured_options import level_offer

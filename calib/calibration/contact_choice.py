@@ -27,9 +27,9 @@ from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
 from .chain_counts import sampled
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_rows
+from .contact_checks import check_level_equations
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
-from .contact_term import check_level_equations
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, mdh_directions, offset_component
