@@ -595,3 +595,17 @@ def test_elastic_count_is_the_pinocchio_finite_difference_rank():
     rank = int(np.sum(sv > 1e-7 * sv[0]))
     assert sv[rank - 1] > 1e2 * sv[rank]  # a clear gap
     assert r.identifiable == rank
+
+
+def test_one_note_says_when_elastic_kept_no_compliance():
+    """A chain touching under its load, or a measured chain: one note each, none if kept."""
+    from types import SimpleNamespace
+
+    from calib.calibration.contact_elastic import none_kept_note
+
+    chain = SimpleNamespace(joint_names=("a", "b"))
+    rigid, kept = (SimpleNamespace(chain=chain, compliance=c) for c in (None, np.ones(2)))
+    touching = none_kept_note(rigid, (0, 1), load=object())
+    assert touching == ["elastic: no joint compliance was kept; the URDF is the whole model"]
+    assert "offered (a, b) and none was kept" in none_kept_note(rigid, (0, 1), None)[0]
+    assert none_kept_note(kept, (0, 1), object()) == none_kept_note(rigid, (), None) == []

@@ -450,7 +450,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         if h is not None:
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes, load)
+        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
         objects = contact_objects(s, d, torque[0])
         parts.append(
             ChainContacts(
