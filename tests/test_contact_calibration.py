@@ -143,7 +143,7 @@ def test_written_urdf_scored_by_pinocchio(tmp_path):
 
 
 def _train(r, data):
-    from calib.calibration.contact_term import split_contacts
+    from calib.calibration.contact_checks import split_contacts
 
     return split_contacts(data, 0.25, 0)[0].q
 

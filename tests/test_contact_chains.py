@@ -21,7 +21,7 @@ from contact_states import plane_state
 
 from calib import calibrate_contact_chains, load_robot, simulate
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
-from calib.calibration.contact_term import split_contacts
+from calib.calibration.contact_checks import split_contacts
 from calib.calibration.placements import Placements
 from calib.cli.commands import main
 from calib.exceptions import CalibrationRefusedError, DataError, InvalidArgumentError

@@ -281,7 +281,7 @@ def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
     model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
     chain = model.chain
     data = read_contacts(REAL / "right_train.csv", chain, "plane")
-    from calib.calibration.contact_term import split_contacts
+    from calib.calibration.contact_checks import split_contacts
 
     held = split_contacts(data, 0.25, 0)[1]
     _ids, joints = read_joints(REAL / "right_train.csv")
@@ -493,7 +493,7 @@ def test_cli_other_foot_splits_the_load(tmp_path, capsys):
 
 def test_held_out_touches_without_the_other_joints_are_noted():
     """A validation file lacking the joints off the chain: their load is at neutral, said."""
-    from calib.calibration.contact_term import split_contacts
+    from calib.calibration.contact_checks import split_contacts
 
     chain = load_robot(*RIGHT)
     data = read_contacts(REAL / "right_train.csv", chain, "plane")
@@ -595,3 +595,17 @@ def test_elastic_count_is_the_pinocchio_finite_difference_rank():
     rank = int(np.sum(sv > 1e-7 * sv[0]))
     assert sv[rank - 1] > 1e2 * sv[rank]  # a clear gap
     assert r.identifiable == rank
+
+
+def test_one_note_says_when_elastic_kept_no_compliance():
+    """A chain touching under its load, or a measured chain: one note each, none if kept."""
+    from types import SimpleNamespace
+
+    from calib.calibration.contact_elastic import none_kept_note
+
+    chain = SimpleNamespace(joint_names=("a", "b"))
+    rigid, kept = (SimpleNamespace(chain=chain, compliance=c) for c in (None, np.ones(2)))
+    touching = none_kept_note(rigid, (0, 1), load=object())
+    assert touching == ["elastic: no joint compliance was kept; the URDF is the whole model"]
+    assert "offered (a, b) and none was kept" in none_kept_note(rigid, (0, 1), None)[0]
+    assert none_kept_note(kept, (0, 1), object()) == none_kept_note(rigid, (), None) == []

@@ -17,8 +17,7 @@ from contact_scorer import contact_gaps, read_joints
 
 from calib import load_robot
 from calib.calibration import contact_choice
-from calib.calibration.contact_checks import registration
-from calib.calibration.contact_term import split_contacts
+from calib.calibration.contact_checks import registration, split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.exceptions import DataError

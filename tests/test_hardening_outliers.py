@@ -11,7 +11,7 @@ import pytest
 from conftest import chain_of
 
 from calib import DataError, calibrate, load_robot, simulate
-from calib.calibration.contact_term import split_contacts
+from calib.calibration.contact_checks import split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.calibration.validation import split
 from calib.measurements.contact_campaign import simulate_contacts
@@ -210,8 +210,7 @@ def test_the_loop_keeps_the_rows_its_holdout_drew():
     """With ``holdout``, the fit made again after the loop's outlier is scored on the rows the
     first draw held out: the same as the training rows less the outlier fitted with those
     rows given as validation touches."""
-    from calib.calibration.contact_checks import subset
-    from calib.calibration.contact_term import split_contacts
+    from calib.calibration.contact_checks import split_contacts, subset
 
     chain, _, data = _hidden_touch_error()
     train, held = split_contacts(data, 0.25, 0)

@@ -14,8 +14,7 @@ from test_calibration import refit_loo
 
 from calib import DataError, load_chain, simulate
 from calib.calibration import calibrate
-from calib.calibration.contact_checks import subset
-from calib.calibration.contact_term import split_contacts
+from calib.calibration.contact_checks import split_contacts, subset
 from calib.calibration.entry import calibrate_contacts
 from calib.calibration.selection import OUTER_FOLDS, RICH, STRENGTHS, select
 from calib.calibration.validation import split

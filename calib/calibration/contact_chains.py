@@ -41,13 +41,12 @@ from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
-from .contact_checks import held_out_refusal
+from .contact_checks import check_held_out_gaps, contact_objects, held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
 from .contact_register import Registered, Run, determined_unknowns, register_contact_chains
 from .contact_result import gap_stats, part_stats
-from .contact_term import check_held_out_gaps, contact_objects
 from .delivery import read_files
 from .determined import ILL_CONDITION, Direction
 from .measured_options import level_offer
@@ -382,7 +381,7 @@ def _fit(
     """
     data, iters = train, opts.max_iterations
     if by_block(model, start):
-        fitted = block_fit(model, start, data, None, prior=prior, max_iterations=iters)
+        fitted = block_fit(model, start, data, prior=prior, max_iterations=iters)
     else:
         fitted = fit(
             model,
@@ -451,7 +450,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         if h is not None:
             check_held_out_gaps(stats, h.source)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes, load)
+        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
         objects = contact_objects(s, d, torque[0])
         parts.append(
             ChainContacts(

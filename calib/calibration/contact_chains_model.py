@@ -369,7 +369,7 @@ class ChainsModel:
             blocks.append(padded(block, rows))
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)  # one term: no copy
 
-    def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData, torque=None):
+    def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData):
         """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
 
         As :meth:`~.contact_model.ContactState.blocks`, the shared unknowns' rows the
@@ -379,7 +379,7 @@ class ChainsModel:
             raise InvalidArgumentError("a fit by block is of one chain touching")
         state = self.apply(start, x)
         kin, s, d = state.kinematics(data)[0], cast(ContactState, state.states[0]), data.parts[0]
-        own, shared, index = start.states[0].blocks(self._chain_x(x, 0), d, None, kin, s)
+        own, shared, index = start.states[0].blocks(self._chain_x(x, 0), d, kin, s)
         robot = self._robot_rows(state, 0, kin, data.torque(0), partial(s.motion_rows, kin, d))
         shared = np.concatenate([shared, *robot], axis=2)
         return start.scale(0) * own, start.scale(0) * shared, index

@@ -15,11 +15,11 @@ import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
 from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contact_postures import joint_offsets, project
+from ..identification.contact_postures import in_frame, joint_offsets, project
 from ..identification.contacts import CONTACT_TOL
 from ..identification.identifiability import independent_columns
 from ..identification.parameters import parameter_set
-from ..kinematics.mdh import MDHModel, frames_at_zero, from_chain, from_lines
+from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from ..measurements.contact_campaign import ContactData
@@ -27,9 +27,9 @@ from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
 from .chain_counts import sampled
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_rows
+from .contact_checks import check_level_equations
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
-from .contact_term import check_level_equations
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, component_of, mdh_directions, offset_component
@@ -86,22 +86,6 @@ def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
         )
 
 
-def _in_object(mdh: MDHModel, F: np.ndarray, C: np.ndarray) -> MDHModel:
-    """The model in an object's frame ``F``, its tool the contact frame ``C``."""
-    n = mdh.n
-    T = frames_at_zero(mdh)
-    Finv = np.linalg.inv(F)
-    joints = Finv @ T[1 : n + 1]
-    return from_lines(
-        joints[:, :3, 3],
-        joints[:, :3, 2],
-        mdh.sigma[1 : n + 1],
-        Finv @ T[-1] @ C,
-        tuple(str(x) for x in mdh.joint_names[1 : n + 1]),
-        sign=mdh.sign[1 : n + 1],
-    )
-
-
 def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarray, np.ndarray]:
     """Postures near ``q`` where the contact of ``start`` holds on each touch's object.
 
@@ -117,7 +101,7 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
         rows = np.flatnonzero(index == k)
         if not rows.size:
             continue
-        qf, gaps = project(_in_object(start.mdh, F, start.contact), start.kind, q[rows])
+        qf, gaps = project(in_frame(start.mdh, F, start.contact), start.kind, q[rows])
         good = gaps < CONTACT_TOL
         out[rows[good]], reached[rows[good]] = qf[good], True
     return out, reached
@@ -289,7 +273,7 @@ def structural(
     ``at``: the Jacobians at the registration made so far (:class:`AtStart`), or None.
     """
     if by_block(wide, start):
-        return block_structural(wide, start, flush, None)
+        return block_structural(wide, start, flush)
     A = (at or AtStart(wide, start))(flush).reshape(-1, wide.size())
     return independent_columns(A, list(range(A.shape[1])))[2]
 

@@ -78,14 +78,16 @@ def readings_note(load, train, held) -> str | None:
 
 
 def none_kept_note(part, offered: tuple[int, ...], load) -> list[str]:
-    """A measured chain's note when ``elastic`` offered compliances and the fit kept none.
+    """The note when ``elastic`` offered compliances and the fit kept none (else none).
 
     ``part``: the first term's part (its ``chain`` and fitted ``compliance``, None: none
     kept); ``offered``: the joints (0-based) whose compliance was offered; ``load``: a
-    touching chain's standing load (noted by :func:`fitted_compliance`), or None.
+    touching chain's standing load (every joint offered), or None (a measured chain).
     """
-    if load is not None or not offered or part.compliance is not None:
+    if not offered or part.compliance is not None:
         return []
+    if load is not None:
+        return ["elastic: no joint compliance was kept; the URDF is the whole model"]
     names = ", ".join(part.chain.joint_names[j] for j in offered)
     return [
         f"elastic: the compliance of {len(offered)} joint(s) was offered ({names}) and none "
@@ -94,16 +96,14 @@ def none_kept_note(part, offered: tuple[int, ...], load) -> list[str]:
 
 
 def fitted_compliance(
-    state: ContactState, sets, stats: dict, notes: list[str], load
+    state: ContactState, sets, stats: dict, notes: list[str]
 ) -> np.ndarray | None:
     """The fitted compliance ``(n,)`` (None: none kept); the URDF alone scored into ``stats``.
 
-    ``stats`` completed with ``train_urdf`` and ``held_out_urdf``, ``notes`` too; ``load``
-    None: a rigid fit.
+    ``stats`` completed with ``train_urdf`` and ``held_out_urdf``, ``notes`` too (none kept:
+    :func:`none_kept_note`).
     """
     if state.compliance is None or not np.any(state.compliance):
-        if load is not None:
-            notes.append("elastic: no joint compliance was kept; the URDF is the whole model")
         return None
     rigid = dataclasses.replace(state, compliance=None)
     urdf_alone(lambda d: gap_stats(rigid, d.q, d.ids), sets, stats, notes, "touches")

@@ -58,14 +58,13 @@ def block_fit(
     model: ChainsModel,
     start: ChainsState,
     data: ChainsData,
-    torque: np.ndarray | None,
     *,
     prior: np.ndarray | None = None,
     max_iterations: int = 100,
 ) -> Fit:
     """Levenberg-Marquardt from x = 0 with the objects eliminated by block (module's text).
 
-    ``torque`` ``(m, n)`` for compliances, or None; ``prior``: weights of x in extra rows
+    The compliances' torques are the data's; ``prior``: weights of x in extra rows
     ``prior * x`` (zero on the objects and the contact), or None; ``max_iterations``: of
     the gaps' evaluations. The fit's ``J`` is the dense weighted Jacobian at the solution.
     """
@@ -74,14 +73,14 @@ def block_fit(
     prior_s = None if prior is None else prior[split:]
 
     def gaps(x: np.ndarray) -> np.ndarray:
-        return -model.apply(start, x).residuals(data, torque)
+        return -model.apply(start, x).residuals(data)
 
     x = np.zeros(model.size())
     f = gaps(x)
     cost, lam, nu = _cost(f, prior, x), 1e-3, 2.0
     evals, jacobians, status = 1, 0, 0
     while evals < max_iterations and status == 0:
-        own, shared, index = model.blocks(start, x, data, torque)
+        own, shared, index = model.blocks(start, x, data)
         jacobians += 1
         Do, Ds = _scales(own, shared, index, K, prior_s)
         while evals < max_iterations:
@@ -110,12 +109,12 @@ def block_fit(
                 status = 2  # no smaller step lowers the cost: a minimum
                 break
             lam, nu = lam * nu, nu * 2.0
-    return _result(model, start, data, torque, x, f, status, (jacobians, evals))
+    return _result(model, start, data, x, f, status, (jacobians, evals))
 
 
-def _result(model, start, data, torque, x, f, status, counts) -> Fit:
+def _result(model, start, data, x, f, status, counts) -> Fit:
     """The :class:`~calib.calibration.solve.Fit` of :func:`block_fit`."""
-    J = model.jacobian(start, x, data, torque).reshape(len(f.ravel()), -1)
+    J = model.jacobian(start, x, data).reshape(len(f.ravel()), -1)
     finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
     messages = {
         0: "the number of evaluations exceeded max_iterations",
@@ -138,7 +137,7 @@ def _result(model, start, data, torque, x, f, status, counts) -> Fit:
     )
 
 
-def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData, torque) -> list[int]:
+def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData) -> list[int]:
     """The columns the touches determine (:func:`~.contact_choice.structural`), by block.
 
     Every object's columns are kept when each object's own triangular factor has full rank
@@ -146,7 +145,7 @@ def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData, t
     pivoted QR of the shared system, objects eliminated, keeps (contact columns first).
     """
     K, o = model.object_blocks()
-    own, shared, index = model.blocks(start, np.zeros(model.size()), data, torque)
+    own, shared, index = model.blocks(start, np.zeros(model.size()), data)
     F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))
     R = F[:, :o, :o]
     diag = np.abs(np.diagonal(R, axis1=1, axis2=2))

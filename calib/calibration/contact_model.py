@@ -110,26 +110,26 @@ class ContactState:
         return np.asarray(x, dtype=float)[: self.frames.size]
 
     def blocks(
-        self, x: np.ndarray, data, torque=None, kin=None, moved: ContactState | None = None
+        self, x: np.ndarray, data, kin=None, moved: ContactState | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Weighted d(gap)/dx at the touches of ``data`` by block, x the unknowns from self.
 
-        ``torque`` ``(m, n)`` [N m or N] or None; ``kin``: the robot's frames at the touches,
-        the last the tool's (a joint fit's), or None: the moved state's; ``moved``:
-        :meth:`moved` at x, if made. Returns the rows on each touch's own object's unknowns
-        ``(m, rows, o)`` (:func:`~.contact_blocks.dense` makes one matrix), on the contact's
+        ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's), or
+        None: the moved state's (rigid); ``moved``: :meth:`moved` at x, if made. Returns the
+        rows on each touch's own object's unknowns ``(m, rows, o)``
+        (:func:`~.contact_blocks.dense` makes one matrix), on the contact's
         ``(m, rows, size - K o)``, and each touch's object.
         """
         s = self.moved(x) if moved is None else moved
         if kin is None:
-            kin = s.kinematics(data.q, torque)
+            kin = s.kinematics(data.q)
         index = s._index(data.ids, len(kin.p), data.source)
         R, p = s.frames.relative(kin.R[:, -1], kin.p[:, -1], index)
         return (*s.frames.parts(R, p, index, self._own(x), s.row_weights()), index)
 
     def own_rows(self, x: np.ndarray, data, kin, moved: ContactState | None = None) -> np.ndarray:
         """:meth:`blocks` as one matrix ``(m, rows, size)`` (as a measured term's own rows)."""
-        return dense(*self.blocks(x, data, None, kin, moved), len(self.frames.ids))
+        return dense(*self.blocks(x, data, kin, moved), len(self.frames.ids))
 
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
         """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of the chain.

@@ -32,8 +32,7 @@ from .chain_registration import held_markers
 from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
-from .contact_term import contact_frame, split_contacts
-from .instrument import instrument_groups, shared_frame
+from .instrument import shared_frame
 from .measured_options import compliance_torques
 from .measured_term import MeasuredState, check_measured, checked_measured, one_term_per_frame
 from .options import Options
@@ -139,8 +138,7 @@ def _check(run: Run) -> None:
 
 def _objects(run: Run, data) -> tuple[int, ...]:
     """Each term's object (:func:`~.contact_checks.plane_groups`, an instrument shared)."""
-    groups = contact_checks.plane_groups(run.chains, data, run.shared_planes)
-    plane_of = instrument_groups(groups, data, run.instrument)
+    plane_of = contact_checks.plane_groups(run.chains, data, run.shared_planes, run.instrument)
     check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     return plane_of
 
@@ -171,7 +169,7 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     :func:`~.contact_checks.checked_registration`: the usual mistakes diagnosed (``validate``
     too, or None), outliers set aside (the held-out ones' too: ``held[c]`` replaced), the
     rows kept enough for the term's unknowns. ``guess``: the contact frame's
-    (:func:`~.contact_term.contact_frame`); ``zeros``: :func:`~.placements.zero_frames` or None.
+    (:func:`~.contact_checks.contact_frame`); ``zeros``: :func:`~.placements.zero_frames` or None.
     Returns each chain's rows kept and outliers, and each term's registration on the nominal
     robot (a contact chain's: of the touches kept).
     """
@@ -299,14 +297,14 @@ def drawn(data: Sequence, holdout: float, seed: int) -> list[tuple]:
     """Each term's rows split into training and held-out rows (``(rows, None)``: none held).
 
     By posture for measurements and pixels (:func:`~.validation.split`), by object for
-    touches (:func:`~.contact_term.split_contacts`); seeded.
+    touches (:func:`~.contact_checks.split_contacts`); seeded.
     """
     return [
         (d, None)
         if holdout == 0
         else validation.split(d, holdout, seed)
         if isinstance(d, Measurements | PixelPart)
-        else split_contacts(d, holdout, seed)
+        else contact_checks.split_contacts(d, holdout, seed)
         for d in data
     ]
 
@@ -333,7 +331,7 @@ def register_contact_chains(run: Run) -> Registered:
     clock = [time.perf_counter()]
     if run.marker is not None and not any(isinstance(d, Measurements) for d in data):
         raise InvalidArgumentError("marker is for measured terms: no term here is measured")
-    guess = contact_frame(run.contact)
+    guess = contact_checks.contact_frame(run.contact)
     splits = drawn(data, holdout, seed)
     train = [s[0] for s in splits]
     given = validate or [None] * len(data)

@@ -4,8 +4,9 @@ A tree (TALOS's two hands below the torso) measured by an instrument outside the
 tracker; the CSV's ``tool`` column says which tool) is a problem of the joint engine
 (:func:`~.contact_chains.calibrate_contact_chains` with ``instrument=True``): one measured term
 (:mod:`.measured_term`) per tool, sharing the joint placements of the joints they run through
-and the instrument's frame (:func:`instrument_groups`, :func:`shared_frame`). Here: the rows cut
-by tool, the shared frame's registration, and the report's errors of every tool together.
+and the instrument's frame (:func:`~.contact_checks.plane_groups`, :func:`shared_frame`). Here:
+the rows cut by tool, the shared frame's registration, and the report's errors of every tool
+together.
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ __all__ = [
     "by_tool",
     "instrument_errors",
     "instrument_format2",
-    "instrument_groups",
     "instrument_lines",
     "pooled",
     "shared_frame",
@@ -81,21 +81,6 @@ def by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
         q, rows, tool = sub.q[:, path], sub.rows, sub.tool
         parts.append(Measurements(chain.joint_names, q, sub.position, None, sub.source, rows, tool))
     return parts
-
-
-def instrument_groups(plane_of: tuple[int, ...], data, instrument: bool) -> tuple[int, ...]:
-    """Each term's object (``plane_of``, :func:`~.contact_checks.plane_groups`'s): one frame.
-
-    With ``instrument``, every measured term's frame is one object (else ``plane_of``).
-    """
-    if not instrument:
-        return plane_of
-    keys = [
-        "instrument" if isinstance(d, Measurements) else p
-        for p, d in zip(plane_of, data, strict=True)
-    ]
-    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
-    return tuple(index[k] for k in keys)
 
 
 def shared_frame(states: list, train: list) -> list:

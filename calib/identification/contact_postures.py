@@ -33,19 +33,30 @@ def contact_model(mdh: MDHModel, q0: np.ndarray, frame: str = "") -> MDHModel:
         q0: The posture of the reference touch ``(n,)`` [rad or m].
         frame: Name of the new frame -1 (default: ``contact``).
     """
+    model = in_frame(mdh, mdh.forward(np.asarray(q0, dtype=float)[None])[0])
+    return model.replace(base_frame=frame or "contact", tool_frame=mdh.tool_frame)
+
+
+def in_frame(mdh: MDHModel, F: np.ndarray, C: np.ndarray | None = None) -> MDHModel:
+    """The chain's model in a frame ``F`` ``(4, 4)`` of its base frame (an object touched).
+
+    Args:
+        mdh: A chain's model (frame -1 its base frame).
+        F: The new frame -1 in the base frame ``(4, 4)`` [m].
+        C: The new tool frame in the tool frame ``(4, 4)`` [m] (a contact frame), or None:
+            the tool frame.
+    """
     T = frames_at_zero(mdh)
-    P = mdh.forward(np.asarray(q0, dtype=float)[None])[0]
-    Pinv = np.linalg.inv(P)
-    joints = Pinv @ T[1 : mdh.n + 1]
-    model = from_lines(
+    Finv = np.linalg.inv(F)
+    joints = Finv @ T[1 : mdh.n + 1]
+    return from_lines(
         joints[:, :3, 3],
         joints[:, :3, 2],
         mdh.sigma[1 : mdh.n + 1],
-        Pinv @ T[-1],
+        Finv @ T[-1] if C is None else Finv @ T[-1] @ C,
         tuple(str(x) for x in mdh.joint_names[1 : mdh.n + 1]),
         sign=mdh.sign[1 : mdh.n + 1],
     )
-    return model.replace(base_frame=frame or "contact", tool_frame=mdh.tool_frame)
 
 
 def joint_offsets(mdh: MDHModel) -> ParameterSet:
@@ -209,6 +220,7 @@ __all__ = [
     "contact_configurations",
     "contact_model",
     "contact_postures",
+    "in_frame",
     "joint_jacobian",
     "joint_offsets",
     "project",
