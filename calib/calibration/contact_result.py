@@ -29,6 +29,8 @@ class GapStats:
             orientation weight).
         per_row: Each touch's weighted gap norm ``(m,)`` [mm] (``weighted_mm`` is their
             RMS), or None.
+        residuals: The rows themselves ``(m, rows)`` [m, rad], or None (a measured term's
+            point and rotation errors read them: :class:`~.residuals.ResidualStats`).
 
     Each row's figures also read as attributes: ``height_rms_mm``, ``roll_max_deg``, ...
     """
@@ -40,6 +42,7 @@ class GapStats:
     max: tuple[float, ...]
     weighted_mm: float
     per_row: np.ndarray | None = field(default=None, compare=False, repr=False)
+    residuals: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def figures(self) -> tuple[str, ...]:
         """``<row>_rms_<unit>`` and ``<row>_max_<unit>`` of every row, in row order."""
@@ -51,7 +54,7 @@ class GapStats:
 
     def __getattr__(self, key: str) -> float:
         """A row's figure by its key (:meth:`figures`), e.g. ``height_rms_mm``."""
-        if key.startswith("__") or key in ("names", "angular", "rms", "max", "figures", "per_row"):
+        if key.startswith("__") or key in self.__dataclass_fields__:  # not set yet (a copy)
             raise AttributeError(key)
         keys = self.figures()
         if key not in keys:
@@ -128,4 +131,5 @@ def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
         tuple(float(v) for v in top),
         float(np.sqrt(np.mean(per_row**2))),
         per_row,
+        g,
     )

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -371,17 +371,23 @@ class ChainView:
     @cached_property
     def before(self) -> ResidualStats:
         """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
-        return _stats(self.chain, self.registration, self.data)
+        return self._points("train_registration")
 
     @cached_property
     def after(self) -> ResidualStats:
         """Errors of the calibrated model on :attr:`data`."""
-        return _stats(self.chain, self.state, self.data)
+        return self._points("train")
 
     @cached_property
     def urdf_after(self) -> ResidualStats | None:
         """Errors of the URDF alone (compliance left out) on :attr:`data`; None when rigid."""
-        return _geometry(self.state, self.data)
+        return self._points("train_urdf") if self.one_chain().compliance is not None else None
+
+    def _points(self, key: str) -> ResidualStats:
+        """A part of the term's errors (:attr:`MeasuredChain.stats`) by point and rotation."""
+        part = self.one_chain()
+        rows = cast(np.ndarray, part.stats[key].residuals)  # [m, rad]: measured_part keeps them
+        return ResidualStats.of(rows, part.data.n_markers)
 
     @property
     def covariance(self) -> np.ndarray:
@@ -414,12 +420,13 @@ class ChainView:
         held = part.held
         if held is None:
             return None
+        urdf = self._points("held_out_urdf") if part.compliance is not None else None
         return Validation(
             part.held_source or held.source,
-            _stats(self.chain, self.registration, held),
-            _stats(self.chain, self.state, held),
+            self._points("held_out_registration"),
+            self._points("held_out"),
             self._point_std(held),
-            _geometry(self.state, held),
+            urdf,
             held,
         )
 
@@ -442,14 +449,6 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 def _gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
     """The chain's gravity torques at the rows where the state has compliance, else None."""
     return chain.gravity_torques(data.q) if np.any(state.compliance) else None
-
-
-def _geometry(state: State, data: Measurements) -> ResidualStats | None:
-    """Errors of the state without its compliance (the URDF alone), None without compliance."""
-    if not np.any(state.compliance):
-        return None
-    rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
-    return validation.stats(rigid, data, None)
 
 
 def residual_stats(result: ChainView, data: Measurements) -> ResidualStats:
