@@ -21,16 +21,16 @@ are most likely wrong (a focal length 10 % off leaves about 4 px on a UR5 seen f
 a principal point with width and height swapped 17 px), and the fit is warned about."""
 
 
-def _pixels(state: PixelTermState, part: PixelPart) -> dict:
-    """RMS and largest reprojection error [px]."""
-    r = np.linalg.norm(state.pixel_errors(part), axis=1)
+def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:
+    """The rows' errors in mm at the target (u and v times the weight), and in pixels.
+
+    The pixels' RMS and largest reprojection error [px], from one reprojection.
+    """
+    e = state.pixel_errors(part)  # [px]
+    r = np.linalg.norm(e, axis=1)
     rms, top = float(np.sqrt(np.mean(r**2))), float(np.max(r, initial=0.0))
-    return {"reprojection_rms_px": rms, "reprojection_max_px": top}
-
-
-def _stats(state: PixelTermState, part: PixelPart) -> GapStats:
-    """The rows' errors in mm at the target (u and v times the weight)."""
-    return row_stats(state.pixel_errors(part) * state.weight, state.kind, np.ones(2))
+    pixels = {"reprojection_rms_px": rms, "reprojection_max_px": top}
+    return row_stats(e * state.weight, state.kind, np.ones(2)), pixels
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,8 +125,8 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     robot; ``x``, ``std``: its own unknowns' changes from it and their std; ``term``: its
     number (1-based) in its unknowns' names.
     """
-    stats = part_stats(_stats, registered, state, train, held)
-    pixels = part_stats(_pixels, registered, state, train, held)
+    found = part_stats(_errors, registered, state, train, held)
+    stats, pixels = {k: v[0] for k, v in found.items()}, {k: v[1] for k, v in found.items()}
     names = [f"term{term}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, x, std, ())
     name = train.data.camera.name
