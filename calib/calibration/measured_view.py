@@ -24,12 +24,12 @@ from ..measurements.data import Measurements
 from . import validation
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
-from .contact_result import GapStats, part_dict, part_stats, row_stats
+from .contact_result import GapStats, TermPart, part_stats, row_stats, units
 from .measured_report import chain_frames, written_markers
 from .measured_term import MeasuredState, measuring_joint
 from .model import State
 from .outliers import Outlier
-from .report import parameter_entries, term_errors
+from .report import parameter_entries
 from .residuals import ResidualStats, Validation
 from .solve import Fit, condition, covariance
 
@@ -37,27 +37,22 @@ __all__ = ["ChainView", "MeasuredChain", "Solution", "measured_part", "residual_
 
 
 @dataclass(frozen=True, eq=False)
-class MeasuredChain:
+class MeasuredChain(TermPart):
     """A measured term's part of the result (a frame on the robot measuring its tool).
 
-    Attributes:
+    Attributes (besides :class:`~.contact_result.TermPart`'s: ``source``, ``stats`` in mm and
+    degrees, ``held_source``, ``compliance``):
         chain: The nominal chain (its base frame: the measuring frame).
-        source: Its measurements' file (or description).
         joint: The fixed joint that places the measuring frame on its link (None: an
             instrument outside the robot, :mod:`.instrument`).
         registered: Its registration on the nominal robot.
         state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
             frame; markers and measured-frame rotation in the tool frame).
-        stats: Errors (mm, degrees) of ``train``, ``train_registration`` and, with held-out
-            rows, ``held_out`` and ``held_out_registration``.
         data: Its rows fitted (held-out rows and outliers left out).
         held: Its held-out rows (their outliers left out), or None.
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
-        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
         outliers: Its rows set aside by the registration (the fit's outlier loop refits
             without the rows it sets aside: :mod:`~.chain_outliers`).
-        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
-            the state's), or None (rigid joints).
         residuals: The fitted state's residuals at :attr:`data` ``(m, rows)`` [m, rad] (no
             gravity torque given: rigid joints), or None: what the outlier loop reads again
             (:mod:`.chain_outliers`).
@@ -86,15 +81,16 @@ class MeasuredChain:
         """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
         return np.linalg.inv(self.state.inner.frame)
 
-    def errors(self) -> dict:
-        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-        return term_errors(self.stats, self.held_source)
+    def heading(self) -> str:
+        """Its kind, its rows' units and what measures it (the instrument, a frame's joint)."""
+        joint = self.joint
+        where = "the instrument" if joint is None else f"the measuring frame in joint '{joint}'"
+        return f"measured {self.kind.label} (errors: {units(self.kind)}; {where}):"
 
-    def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; errors in mm and degrees)."""
+    def _own(self) -> dict:
+        """Its weight, measuring frame, joint, markers and errors (mm, degrees)."""
         s = self.state.inner
         return {
-            **part_dict(self),
             "orientation_weight": self.state.weight,
             "measurement_to_base": s.frame.tolist(),
             "joint": self.joint,
