@@ -9,6 +9,7 @@ Every number is checked against Pinocchio on the written URDF, simulated rows wi
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -20,6 +21,7 @@ from pinref import PinTree
 import calib
 from calib import InvalidArgumentError, calibrate, load_calibrated, load_chain
 from calib.calibration import residual_stats
+from calib.calibration.validation import stats as state_stats
 from calib.cli.commands import main
 
 MARKER = (0.05, 0.02, 0.1)
@@ -219,3 +221,26 @@ def test_cli_calibrate_world_link_and_predict(tmp_path, capsys):
         rows = list(csv.DictReader(f))
     got = np.array([[float(r[c]) for c in ("x1", "y1", "z1")] for r in rows])
     assert np.abs(got - truth.position[:, :3]).max() < 1e-9
+
+
+@pytest.mark.filterwarnings("ignore::calib.DataWarning")
+def test_a_chains_errors_are_its_states_residuals_at_its_rows():
+    """``before``, ``after``, ``urdf_after`` and ``validation`` read the term's one set of
+    statistics (the rows its ``stats`` keep): the numbers of its states' residuals at the same
+    rows, fitted and held out, with compliance fitted (the URDF alone: compliance zero)."""
+    chain = load_chain("ur5")
+    seen = calib.simulate(chain, 40, "pose", marker=MARKER, seed=1, error_mm=0.05).measurements
+    result = calibrate(chain, seen, params="complete", elastic=True, holdout=0.3, seed=0)
+    held = result.validation
+    assert held is not None and np.any(result.state.compliance)
+    alone = dataclasses.replace(result.state, compliance=np.zeros_like(result.state.compliance))
+    for rows, got in (
+        (result.data, (result.before, result.after, result.urdf_after)),
+        (held.rows, (held.registration, held.calibrated, held.urdf)),
+    ):
+        want = (
+            state_stats(result.registration, rows, None),
+            residual_stats(result, rows),  # the joints deflected by gravity
+            state_stats(alone, rows, None),
+        )
+        assert got == want

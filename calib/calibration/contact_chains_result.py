@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TypeVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 from scipy.linalg import block_diag
@@ -24,7 +24,7 @@ from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origin
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line, load_record
-from .contact_result import GapStats, part_dict
+from .contact_result import GapStats, TermPart, units
 from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
@@ -42,7 +42,6 @@ from .report import (
     parameter_entries,
     parameter_lines,
     pose_dict,
-    term_errors,
 )
 from .selection import Selection
 
@@ -52,12 +51,11 @@ _T = TypeVar("_T")
 
 
 @dataclass(frozen=True, eq=False)
-class ChainContacts:
-    """One chain's part of the result.
+class ChainContacts(TermPart):
+    """One chain touching's part of the result.
 
-    Attributes:
-        chain: The nominal chain.
-        source: Its touches' file (or description).
+    Attributes (besides :class:`~.contact_result.TermPart`'s: ``chain``, ``source``, ``stats``,
+    ``held_source``, ``compliance`` fitted with ``elastic``):
         plane_id: The plane's (or the fixed pose's) id.
         plane: The plane in the chain's base frame ``(4, 4)``, z = normal (a
             ``fixed-pose`` chain: the fixed pose of its contact frame).
@@ -65,16 +63,10 @@ class ChainContacts:
         nominal: The chain's nominal MDH model.
         calibrated: Its MDH model on the calibrated robot.
         weight: Weight of its tilt rows [m/rad].
-        stats: ``train``, ``train_registration`` and, with held-out touches, ``held_out``
-            and ``held_out_registration``.
         kind: The chain's contact kind (``plane`` or ``fixed-pose``).
-        held_source: Its held-out touches' source (``holdout`` or the validation file), or
-            None.
         outliers: Its touches set aside after its registration.
         placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
             origin at its touches' contact points, projected), or None: :attr:`plane`.
-        compliance: Fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``), or
-            None (rigid joints).
         load: The gravity load the compliance acts under, or None.
         readings: The joints off the chain the load takes at their recorded positions.
     """
@@ -101,14 +93,18 @@ class ChainContacts:
         placed = {self.plane_id: self.plane} if self.placed is None else self.placed
         return {i: F.copy() for i, F in placed.items()}
 
-    def errors(self) -> dict:
-        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` gaps (format 3)."""
-        return term_errors(self.stats, self.held_source)
+    rows: ClassVar[str] = "touches"
 
-    def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; gaps in mm and degrees; format 2's)."""
+    def heading(self) -> str:
+        """Its object (a plane, or the poses or points it touches and their gaps' units)."""
+        if isinstance(self.kind, PlaneContact):
+            return f"{self.kind.object_name} '{self.plane_id}':"
+        ids = ", ".join(f"'{i}'" for i in self.objects())
+        return f"{self.kind.object_name} {ids} (gaps: {units(self.kind)}):"
+
+    def _own(self) -> dict:
+        """Its weight, contact (objects and contact frame) and gaps (mm, degrees)."""
         return {
-            **part_dict(self),
             "tilt_weight": self.weight,
             "contact": {
                 f"{self.kind.object_name}s": {
@@ -156,49 +152,6 @@ def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
         "notes": list(result.notes),
     }
     return fields, legacy
-
-
-def _units(kind) -> str:
-    """A kind's rows with their units: ``x [mm], y [mm], z [mm], rx [deg], ...``."""
-    return ", ".join(
-        f"{n} [{'deg' if a else 'mm'}]" for n, a in zip(kind.row_names, kind.angular, strict=True)
-    )
-
-
-def _term_lines(c) -> list[str]:
-    """A term's summary lines: what it measures, then each part's RMS errors by row."""
-    head = f"{c.chain.base_frame} -> {c.chain.tool_frame}"
-    if isinstance(c, PixelChain):
-        px = ", ".join(
-            f"{k.replace('_', ' ')} {c.pixels[k]['reprojection_rms_px']:.3g}"
-            for k in ("train", "held_out")
-            if k in c.pixels
-        )
-        head += (
-            f", camera {c.name} (errors: u [mm], v [mm] at the target; reprojection RMS [px]: {px})"
-        )
-    elif isinstance(c, MeasuredChain):
-        where = "the instrument" if c.joint is None else f"the measuring frame in joint '{c.joint}'"
-        head += f", measured {c.kind.label} (errors: {_units(c.kind)}; {where}):"
-    elif not isinstance(c.kind, PlaneContact):
-        ids = ", ".join(f"'{i}'" for i in c.objects())
-        head += f", {c.kind.object_name} {ids} (gaps: {_units(c.kind)}):"
-    else:
-        head += f", {c.kind.object_name} '{c.plane_id}':"
-    labels = {}  # each part's label (with compliance: which model it is), padded
-    for key in c.stats:
-        label = key.replace("_urdf", ", URDF alone (no compliance)")
-        if getattr(c, "compliance", None) is not None and not key.endswith(
-            ("_urdf", "_registration")
-        ):
-            label += ", whole model (URDF + compliance)"
-        labels[key] = label
-    width = max(22, *map(len, labels.values()))
-    rows = {ChainContacts: "touches", PixelChain: "pixels"}.get(type(c), "configurations")
-    return [head] + [
-        f"  {labels[key]:{width}s} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {rows})"
-        for key, s in c.stats.items()
-    ]
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -263,7 +216,7 @@ class ContactChainsCalibration(Result, ChainView):
     @property
     def elastic(self) -> bool:
         """Joint compliance was fitted (one chain touching): the URDF alone is not the model."""
-        return any(getattr(c, "compliance", None) is not None for c in self.chains)
+        return any(c.compliance is not None for c in self.chains)
 
     @checked_arguments
     def compliance_files(self, out: Path, on_robot: bool = False) -> dict[Path, str]:
@@ -508,7 +461,7 @@ class ContactChainsCalibration(Result, ChainView):
         if self._of(ChainContacts):
             lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         one = self._frame() is not None  # one chain measured by an instrument: a chain's table
-        lines += [line for c in (() if one else self.chains) for line in _term_lines(c)]
+        lines += [line for c in (() if one else self.chains) for line in c.lines()]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self._entries())

@@ -1,4 +1,4 @@
-"""A term's rows before and after a fit, by part: :class:`GapStats` (mm, degrees).
+"""A term's part of a result (:class:`TermPart`) and its rows by part (:class:`GapStats`).
 
 The parts: ``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
 ``held_out_registration``; with joint compliance also ``train_urdf`` and ``held_out_urdf``
@@ -9,10 +9,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["GapStats", "gap_stats", "part_dict", "part_stats", "row_stats"]
+from ..kinematics.robot import Chain
+from .report import term_errors
+
+__all__ = ["GapStats", "TermPart", "gap_stats", "part_stats", "row_stats", "units"]
 
 
 @dataclass(frozen=True)
@@ -29,6 +33,8 @@ class GapStats:
             orientation weight).
         per_row: Each touch's weighted gap norm ``(m,)`` [mm] (``weighted_mm`` is their
             RMS), or None.
+        residuals: The rows themselves ``(m, rows)`` [m, rad], or None (a measured term's
+            point and rotation errors read them: :class:`~.residuals.ResidualStats`).
 
     Each row's figures also read as attributes: ``height_rms_mm``, ``roll_max_deg``, ...
     """
@@ -40,6 +46,7 @@ class GapStats:
     max: tuple[float, ...]
     weighted_mm: float
     per_row: np.ndarray | None = field(default=None, compare=False, repr=False)
+    residuals: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def figures(self) -> tuple[str, ...]:
         """``<row>_rms_<unit>`` and ``<row>_max_<unit>`` of every row, in row order."""
@@ -51,7 +58,7 @@ class GapStats:
 
     def __getattr__(self, key: str) -> float:
         """A row's figure by its key (:meth:`figures`), e.g. ``height_rms_mm``."""
-        if key.startswith("__") or key in ("names", "angular", "rms", "max", "figures", "per_row"):
+        if key.startswith("__") or key in self.__dataclass_fields__:  # not set yet (a copy)
             raise AttributeError(key)
         keys = self.figures()
         if key not in keys:
@@ -76,15 +83,77 @@ class GapStats:
         return {"m": self.m, **figures, "weighted_mm": self.weighted_mm}
 
 
-def part_dict(part) -> dict:
-    """The first keys of a term's ``part`` in format 2's ``chains``: base, tool, data, kind."""
-    chain = part.chain
-    return {
-        "base": chain.base_frame,
-        "tool": chain.tool_frame,
-        "data": part.source,
-        "kind": part.kind.label,
-    }
+class TermPart:
+    """What every term's part of a result offers, whatever its kind: errors, report, lines.
+
+    A part (a chain touching, a chain measured, a camera's pixels) is a frozen dataclass with
+    these attributes; what its kind adds is its :meth:`heading`, its own report entries
+    (:meth:`_own`) and what its rows are (:attr:`rows`).
+
+    Attributes:
+        chain: The nominal chain.
+        source: Its rows' file (or description).
+        kind: The term's layout (its ``label``, ``row_names`` and ``angular``).
+        stats: Its errors by part (:class:`GapStats`).
+        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
+        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
+        rows: What its rows are in the summary (``configurations``, ``touches``, ``pixels``).
+    """
+
+    chain: Chain
+    source: str
+    kind: Any
+    stats: dict[str, GapStats]
+    held_source: str | None
+    compliance: np.ndarray | None = None
+    rows: ClassVar[str] = "configurations"
+
+    def errors(self) -> dict:
+        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
+        return term_errors(self.stats, self.held_source)
+
+    def to_dict(self) -> dict:
+        """Format 2's ``chains`` entry: base, tool, data, kind, then its kind's own keys.
+
+        Metres and radians; errors in mm and degrees (a camera's also in pixels).
+        """
+        chain = self.chain
+        return {
+            "base": chain.base_frame,
+            "tool": chain.tool_frame,
+            "data": self.source,
+            "kind": self.kind.label,
+            **self._own(),
+        }
+
+    def _own(self) -> dict:
+        """Its kind's own keys of :meth:`to_dict`."""
+        raise NotImplementedError
+
+    def heading(self) -> str:
+        """What the summary says the term is, after its base and tool frames."""
+        raise NotImplementedError
+
+    def lines(self) -> list[str]:
+        """The summary's lines: what the term is, then each part's RMS errors by row."""
+        labels = {}  # each part's label (with compliance: which model it is), padded
+        for key in self.stats:
+            label = key.replace("_urdf", ", URDF alone (no compliance)")
+            if self.compliance is not None and not key.endswith(("_urdf", "_registration")):
+                label += ", whole model (URDF + compliance)"
+            labels[key] = label
+        width = max(22, *map(len, labels.values()))
+        return [f"{self.chain.base_frame} -> {self.chain.tool_frame}, {self.heading()}"] + [
+            f"  {labels[key]:{width}s} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {self.rows})"
+            for key, s in self.stats.items()
+        ]
+
+
+def units(kind) -> str:
+    """A kind's rows with their units: ``x [mm], y [mm], z [mm], rx [deg], ...``."""
+    return ", ".join(
+        f"{n} [{'deg' if a else 'mm'}]" for n, a in zip(kind.row_names, kind.angular, strict=True)
+    )
 
 
 def part_stats(stat, registered, state, train, held) -> dict:
@@ -128,4 +197,5 @@ def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
         tuple(float(v) for v in top),
         float(np.sqrt(np.mean(per_row**2))),
         per_row,
+        g,
     )

@@ -84,19 +84,12 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
 
 def chain_lines(view: ChainView) -> list[str]:
     """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
-    held = view.validation
-    rows = [
-        ("fitted, registration only", view.before),
-        ("fitted, calibrated", view.after),
-        ("fitted, URDF alone (no compliance)", view.urdf_after),
-    ]
+    held, what = view.validation, ("registration only", "calibrated", "URDF alone (no compliance)")
+    found = (view.before, view.after, view.urdf_after)
+    rows = [(f"fitted, {w}", st) for w, st in zip(what, found, strict=True)]
     if held is not None:
-        parts = (
-            ("registration only", held.registration),
-            ("calibrated", held.calibrated),
-            ("URDF alone (no compliance)", held.urdf),
-        )
-        rows += [(f"held out ({held.source}), {what}", st) for what, st in parts]
+        found = (held.registration, held.calibrated, held.urdf)
+        rows += [(f"held out ({held.source}), {w}", st) for w, st in zip(what, found, strict=True)]
     header = ["errors", "configs", "rms [mm]", "max [mm]"]
     if view.after.orientation_rms is not None:
         header += ["rot rms [mrad]", "rot max [mrad]"]

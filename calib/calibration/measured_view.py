@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -24,12 +24,12 @@ from ..measurements.data import Measurements
 from . import validation
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
-from .contact_result import GapStats, part_dict, part_stats, row_stats
+from .contact_result import GapStats, TermPart, part_stats, row_stats, units
 from .measured_report import chain_frames, written_markers
 from .measured_term import MeasuredState, measuring_joint
 from .model import State
 from .outliers import Outlier
-from .report import parameter_entries, term_errors
+from .report import parameter_entries
 from .residuals import ResidualStats, Validation
 from .solve import Fit, condition, covariance
 
@@ -37,27 +37,22 @@ __all__ = ["ChainView", "MeasuredChain", "Solution", "measured_part", "residual_
 
 
 @dataclass(frozen=True, eq=False)
-class MeasuredChain:
+class MeasuredChain(TermPart):
     """A measured term's part of the result (a frame on the robot measuring its tool).
 
-    Attributes:
+    Attributes (besides :class:`~.contact_result.TermPart`'s: ``source``, ``stats`` in mm and
+    degrees, ``held_source``, ``compliance``):
         chain: The nominal chain (its base frame: the measuring frame).
-        source: Its measurements' file (or description).
         joint: The fixed joint that places the measuring frame on its link (None: an
             instrument outside the robot, :mod:`.instrument`).
         registered: Its registration on the nominal robot.
         state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
             frame; markers and measured-frame rotation in the tool frame).
-        stats: Errors (mm, degrees) of ``train``, ``train_registration`` and, with held-out
-            rows, ``held_out`` and ``held_out_registration``.
         data: Its rows fitted (held-out rows and outliers left out).
         held: Its held-out rows (their outliers left out), or None.
         parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
-        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
         outliers: Its rows set aside by the registration (the fit's outlier loop refits
             without the rows it sets aside: :mod:`~.chain_outliers`).
-        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N] (``elastic``:
-            the state's), or None (rigid joints).
         residuals: The fitted state's residuals at :attr:`data` ``(m, rows)`` [m, rad] (no
             gravity torque given: rigid joints), or None: what the outlier loop reads again
             (:mod:`.chain_outliers`).
@@ -86,15 +81,16 @@ class MeasuredChain:
         """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
         return np.linalg.inv(self.state.inner.frame)
 
-    def errors(self) -> dict:
-        """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-        return term_errors(self.stats, self.held_source)
+    def heading(self) -> str:
+        """Its kind, its rows' units and what measures it (the instrument, a frame's joint)."""
+        joint = self.joint
+        where = "the instrument" if joint is None else f"the measuring frame in joint '{joint}'"
+        return f"measured {self.kind.label} (errors: {units(self.kind)}; {where}):"
 
-    def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; errors in mm and degrees)."""
+    def _own(self) -> dict:
+        """Its weight, measuring frame, joint, markers and errors (mm, degrees)."""
         s = self.state.inner
         return {
-            **part_dict(self),
             "orientation_weight": self.state.weight,
             "measurement_to_base": s.frame.tolist(),
             "joint": self.joint,
@@ -371,17 +367,23 @@ class ChainView:
     @cached_property
     def before(self) -> ResidualStats:
         """Errors of the registration (nominal robot, fitted frame and markers) on :attr:`data`."""
-        return _stats(self.chain, self.registration, self.data)
+        return self._points("train_registration")
 
     @cached_property
     def after(self) -> ResidualStats:
         """Errors of the calibrated model on :attr:`data`."""
-        return _stats(self.chain, self.state, self.data)
+        return self._points("train")
 
     @cached_property
     def urdf_after(self) -> ResidualStats | None:
         """Errors of the URDF alone (compliance left out) on :attr:`data`; None when rigid."""
-        return _geometry(self.state, self.data)
+        return self._points("train_urdf") if self.one_chain().compliance is not None else None
+
+    def _points(self, key: str) -> ResidualStats:
+        """A part of the term's errors (:attr:`MeasuredChain.stats`) by point and rotation."""
+        part = self.one_chain()
+        rows = cast(np.ndarray, part.stats[key].residuals)  # [m, rad]: measured_part keeps them
+        return ResidualStats.of(rows, part.data.n_markers)
 
     @property
     def covariance(self) -> np.ndarray:
@@ -414,12 +416,13 @@ class ChainView:
         held = part.held
         if held is None:
             return None
+        urdf = self._points("held_out_urdf") if part.compliance is not None else None
         return Validation(
             part.held_source or held.source,
-            _stats(self.chain, self.registration, held),
-            _stats(self.chain, self.state, held),
+            self._points("held_out_registration"),
+            self._points("held_out"),
             self._point_std(held),
-            _geometry(self.state, held),
+            urdf,
             held,
         )
 
@@ -442,14 +445,6 @@ def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
 def _gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
     """The chain's gravity torques at the rows where the state has compliance, else None."""
     return chain.gravity_torques(data.q) if np.any(state.compliance) else None
-
-
-def _geometry(state: State, data: Measurements) -> ResidualStats | None:
-    """Errors of the state without its compliance (the URDF alone), None without compliance."""
-    if not np.any(state.compliance):
-        return None
-    rigid = dataclasses.replace(state, compliance=np.zeros_like(state.compliance))
-    return validation.stats(rigid, data, None)
 
 
 def residual_stats(result: ChainView, data: Measurements) -> ResidualStats:

@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from ..kinematics.robot import Chain
-from .contact_result import GapStats, part_dict, part_stats, row_stats
+from .contact_result import GapStats, TermPart, part_stats, row_stats
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
-from .report import parameter_entries, pose_dict, term_errors
+from .report import parameter_entries, pose_dict
 
 __all__ = ["EXPECTED_PX", "PixelChain", "pixel_result"]
 
@@ -21,32 +22,30 @@ are most likely wrong (a focal length 10 % off leaves about 4 px on a UR5 seen f
 a principal point with width and height swapped 17 px), and the fit is warned about."""
 
 
-def _pixels(state: PixelTermState, part: PixelPart) -> dict:
-    """RMS and largest reprojection error [px]."""
-    r = np.linalg.norm(state.pixel_errors(part), axis=1)
+def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:
+    """The rows' errors in mm at the target (u and v times the weight), and in pixels.
+
+    The pixels' RMS and largest reprojection error [px], from one reprojection.
+    """
+    e = state.pixel_errors(part)  # [px]
+    r = np.linalg.norm(e, axis=1)
     rms, top = float(np.sqrt(np.mean(r**2))), float(np.max(r, initial=0.0))
-    return {"reprojection_rms_px": rms, "reprojection_max_px": top}
-
-
-def _stats(state: PixelTermState, part: PixelPart) -> GapStats:
-    """The rows' errors in mm at the target (u and v times the weight)."""
-    return row_stats(state.pixel_errors(part) * state.weight, state.kind, np.ones(2))
+    pixels = {"reprojection_rms_px": rms, "reprojection_max_px": top}
+    return row_stats(e * state.weight, state.kind, np.ones(2)), pixels
 
 
 @dataclass(frozen=True, eq=False)
-class PixelChain:
+class PixelChain(TermPart):
     """A pixel term's part of the result (a camera on a link seeing a target on a tool).
 
-    Attributes:
+    Attributes (besides :class:`~.contact_result.TermPart`'s: ``source``, ``held_source``):
         chain: The nominal chain (its base: the camera's link).
-        source: The observations' file.
         name: The camera's name (its link in the calibrated URDF).
         registered: Its registration on the nominal robot.
         state: Its fitted state (camera, target, lens).
         stats: Errors in mm at the target of ``train``, ``train_registration`` and, with
             held-out rows, ``held_out`` and ``held_out_registration``.
         pixels: The same parts' reprojection errors [px].
-        held_source: Its held-out rows' source, or None.
         parameters: Its unknowns' report entries (changes from the registration).
         outliers: Its rows set aside.
     """
@@ -61,6 +60,7 @@ class PixelChain:
     held_source: str | None = None
     parameters: tuple[dict, ...] = ()
     outliers: tuple[Outlier, ...] = ()
+    rows: ClassVar[str] = "pixels"
 
     def camera_dict(self) -> dict:
         """The report's ``frames.cameras`` entry: link, pose, intrinsics [px]."""
@@ -79,7 +79,7 @@ class PixelChain:
 
     def errors(self) -> dict:
         """``errors.terms``: train and held out, mm at the target and px (format 3)."""
-        out = term_errors(self.stats, self.held_source)
+        out = super().errors()
         for part in ("train", "held_out"):
             if out[part] is not None:
                 out[part]["pixels"] = {
@@ -105,10 +105,19 @@ class PixelChain:
             f"focal length, the principal point){fix}"
         ]
 
-    def to_dict(self) -> dict:
-        """JSON-ready form (metres, radians; errors in mm and px)."""
+    def heading(self) -> str:
+        """Its camera, its rows' units and its reprojection errors [px]."""
+        px = ", ".join(
+            f"{k.replace('_', ' ')} {self.pixels[k]['reprojection_rms_px']:.3g}"
+            for k in ("train", "held_out")
+            if k in self.pixels
+        )
+        units = "u [mm], v [mm] at the target; reprojection RMS [px]"
+        return f"camera {self.name} (errors: {units}: {px})"
+
+    def _own(self) -> dict:
+        """Its camera, targets and errors (mm and px)."""
         return {
-            **part_dict(self),
             "camera": self.name,
             **self.camera_dict(),
             "targets": self.state.target.tolist(),
@@ -125,8 +134,8 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     robot; ``x``, ``std``: its own unknowns' changes from it and their std; ``term``: its
     number (1-based) in its unknowns' names.
     """
-    stats = part_stats(_stats, registered, state, train, held)
-    pixels = part_stats(_pixels, registered, state, train, held)
+    found = part_stats(_errors, registered, state, train, held)
+    stats, pixels = {k: v[0] for k, v in found.items()}, {k: v[1] for k, v in found.items()}
     names = [f"term{term}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, x, std, ())
     name = train.data.camera.name
