@@ -40,7 +40,6 @@ from .weighting import DEFAULT_WEIGHT, estimate_weight
 
 __all__ = [
     "WEIGHT_ROUNDS",
-    "check_held_out_gaps",
     "check_level_equations",
     "checked_registration",
     "contact_frame",
@@ -368,15 +367,3 @@ def contact_objects(state: ContactState, train: ContactData, torque=None) -> dic
     kin = state.kinematics(train.q, torque)
     frames = state.frames.centred(kin.R[:, -1], kin.p[:, -1], state.frames.index(train.ids))
     return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
-
-
-def check_held_out_gaps(stats, source: str) -> None:
-    """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
-    held, fitted = stats["held_out_registration"], stats["train_registration"]
-    far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
-    if diagnosis.suspect(far, None) and not diagnosis.suspect(near, None):
-        raise DataError(
-            source,
-            f"the held-out touches are {1e3 * far:.4g} mm RMS from the registered contact (the "
-            f"data {1e3 * near:.4g} mm): touched another object, or on another robot?",
-        )

@@ -270,7 +270,7 @@ def checked_measured(
         )
         other = errors if aside is held else reg.residuals(aside, None, at(aside))
         stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
-        validation.check_held_out_errors(*stats, aside.source)
+        validation.check_held_out_errors(stats[0].position_rms, stats[1].position_rms, aside.source)
     return state, kept, found, notes + ([outliers.set_aside_note(found)] if found else []), aside
 
 
