@@ -36,7 +36,7 @@ from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.limits import check_limits
-from . import contact_checks, contact_elastic, validation
+from . import contact_checks, contact_elastic, term_checks, validation
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
@@ -192,7 +192,7 @@ def check_readings(chain: object, *parts: object) -> None:
         if isinstance(part, PixelData):
             obs = part.obs
             mine = np.asarray(obs.camera) == part.camera.name
-            lines = np.array(obs.rows or range(1, obs.m + 1))
+            lines = np.array(term_checks.file_lines(obs))
             joints, q, rows = obs.joint_names, obs.q[mine], lines[mine]
         elif isinstance(part, Measurements):
             joints, q, rows = part.joint_names, part.q, part.file_rows()

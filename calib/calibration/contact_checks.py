@@ -179,7 +179,7 @@ class _Touches:
                 return state
             return registration(nominal, subset(data, keep), guess, DEFAULT_WEIGHT)
 
-        rows = data.rows or tuple(range(1, data.m + 1))
+        rows = term_checks.file_lines(data)
         state, bad, found = outliers.until_stable(
             refit, lambda s: length_errors(s, data), None, rows, allowed=enough_touches(data)
         )
@@ -230,7 +230,7 @@ def checked_registration(
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
         fitted, errors = (length_errors(start, d) for d in (kept, held))
-        rows, cut = held.rows or tuple(range(1, held.m + 1)), partial(subset, held)
+        rows, cut = term_checks.file_lines(held), partial(subset, held)
         held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
     notes += filter(None, [_isolated_postures(chain, kept, held)])
     what = f"unknowns of {chain.tool_frame}'s {kept.kind.object_name}(s) and contact frame"

@@ -263,7 +263,7 @@ def checked_measured(
             outliers.point_errors(fitted, k),
             outliers.point_errors(errors, k),
             held,
-            held.rows or tuple(range(1, held.m + 1)),
+            term_checks.file_lines(held),
             held.subset,
             notes,
             opts.noise,
