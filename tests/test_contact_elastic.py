@@ -273,6 +273,22 @@ def test_cli_writes_the_compliance_file_and_prints_both(talos_elastic):
     assert set(report["gaps"]) >= {"held_out", "held_out_urdf", "held_out_registration"}
 
 
+def test_written_compliance_file_reads_back_as_the_fit(talos_elastic):
+    """The compliance file written (one builder for every kind), read by load_calibrated:
+    the report's compliance, contact frame and plane, the load, gravity along -z."""
+    out, run = talos_elastic
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "r.json").read_text())
+    model = load_calibrated(out / "cal.urdf", out / "cal.compliance.json")
+    tool = model.chain.tool_frame
+    assert model.compliance.tolist() == list(report["compliance"].values())
+    assert np.array_equal(model.contact, report["contact"]["frames"][tool]["matrix"])
+    assert np.array_equal(model.plane, report["contact"]["planes"]["table"]["matrix"])
+    assert model.readings == tuple(report["load"]["readings"]) and model.load is not None
+    assert model.gravity[:2].tolist() == [0.0, 0.0] and model.gravity[2] < -9
+    assert np.array_equal(model.measurement_to_base, np.eye(4))
+
+
 def test_compliance_file_and_api_reproduce_the_whole_model(talos_elastic):
     """load_calibrated's deflected joints, scored by Pinocchio on the written URDF."""
     out, run = talos_elastic

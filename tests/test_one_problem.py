@@ -7,6 +7,7 @@ held-out orientation that gets worse refuses a pose calibration as a held-out po
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import shutil
@@ -232,3 +233,24 @@ def test_a_tool_link_carried_by_a_revolute_joint_is_written(tmp_path, capsys):
     rms = 1e3 * float(np.sqrt(np.mean(np.square(errors))))
     assert math.isclose(rms, doc["errors"]["held_out"]["calibrated"]["position_rms_mm"],
                         rel_tol=1e-6)  # fmt: skip
+
+
+def test_validation_far_off_is_refused_for_touches_as_for_points():
+    """Validation rows fitting their own registration but far from the data's (another
+    robot and plane, an instrument moved 0.5 m): one DataError naming the validation data, in the
+    words of the rows' kind."""
+    chain = load_robot("ur5")
+    train = simulate_contacts(chain, 40, "plane", seed=3).data
+    other = simulate_contacts(chain, 20, "plane", seed=4).data  # another robot and plane
+    with pytest.raises(DataError, match=r"held-out touches are .* mm RMS from the registered "):
+        calibrate_contacts(chain, train, validate=other)
+    chain = load_chain("ur5")
+    rows = simulate(chain, 60, seed=1).measurements
+    data, val = rows.subset(np.arange(60) < 40), rows.subset(np.arange(60) >= 40)
+    moved = dataclasses.replace(val, position=val.position + 0.5)
+    with pytest.raises(
+        DataError,
+        match=r"validation rows are .* mm RMS from the registered model .*instrument moved",
+    ):
+        calibrate(chain, data, validate=moved)
+    calibrate(chain, data, validate=val).check()  # the same rows in the data's frame

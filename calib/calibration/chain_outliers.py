@@ -33,7 +33,7 @@ import numpy as np
 from ..identification.parameters import parameter_set
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from . import determined
+from . import determined, term_checks
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import enough_touches, length_errors, subset
 from .contact_model import ContactState
@@ -76,7 +76,7 @@ def proposals(state: MeasuredState, data: Measurements, noise: float | None) -> 
     wide = ErrorModel(pset, moved(pset, nominal), measured_kind(data))
     w = row_weights(wide.own, state.weight)
     J = wide.jacobian(reg, data, kin) * w[None, :, None]
-    rows = data.rows or tuple(range(1, data.m + 1))
+    rows = term_checks.file_lines(data)
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],
         residuals * w,
@@ -107,10 +107,7 @@ def fit_terms_until_stable(
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
     parts = [slice(a, b) for a, b in itertools.pairwise(ends)]
-    rows = [
-        d.rows.lines if isinstance(d, PixelPart) else d.rows or tuple(range(1, d.m + 1))
-        for d in train
-    ]
+    rows = [d.rows.lines if isinstance(d, PixelPart) else term_checks.file_lines(d) for d in train]
     noise = [  # the rule's floor [m]: none for touches, a pixel term's as checked_pixels's
         None
         if isinstance(d, ContactData)

@@ -165,7 +165,7 @@ class _Rows:
             f = self.frames
             return f is None or int(np.sum(~bad)) * f.rows > f.size()
 
-        rows = data.rows or tuple(range(1, data.m + 1))
+        rows = term_checks.file_lines(data)
         reg, bad, found = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
         return Aside(reg, bad, data.subset(~bad) if bad.any() else data, tuple(found))
 

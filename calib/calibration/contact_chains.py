@@ -36,12 +36,12 @@ from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.limits import check_limits
-from . import contact_checks, contact_elastic
+from . import contact_checks, contact_elastic, term_checks, validation
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
-from .contact_checks import check_held_out_gaps, contact_objects, held_out_refusal
+from .contact_checks import contact_objects, held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
@@ -192,7 +192,7 @@ def check_readings(chain: object, *parts: object) -> None:
         if isinstance(part, PixelData):
             obs = part.obs
             mine = np.asarray(obs.camera) == part.camera.name
-            lines = np.array(obs.rows or range(1, obs.m + 1))
+            lines = np.array(term_checks.file_lines(obs))
             joints, q, rows = obs.joint_names, obs.q[mine], lines[mine]
         elif isinstance(part, Measurements):
             joints, q, rows = part.joint_names, part.q, part.file_rows()
@@ -448,7 +448,10 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
 
         stats = part_stats(stat, s0, s, d, h)
         if h is not None:
-            check_held_out_gaps(stats, h.source)
+            near, far = (
+                1e-3 * stats[f"{k}_registration"].length_rms_mm for k in ("train", "held_out")
+            )
+            validation.check_held_out_errors(near, far, h.source, validation.TOUCHES)
             refusal = refusal or held_out_refusal(stats, chain, "gaps")
         compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
         objects = contact_objects(s, d, torque[0])

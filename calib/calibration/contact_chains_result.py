@@ -229,7 +229,17 @@ class ContactChainsCalibration(Result, ChainView):
             return {}
         part = self.chains[0]
         document = (
-            chain_compliance_document(self, str(out), on_robot)
+            chain_compliance_document(
+                self.chain,
+                self.state.compliance,
+                str(out),
+                tool_frame=self.urdf_tool_frame,
+                measured=(
+                    np.eye(4) if on_robot else self.measurement_to_base,
+                    self.urdf_markers,
+                    self.marker_links,
+                ),
+            )
             if isinstance(part, MeasuredChain)
             else compliance_document(part, str(out))
         )

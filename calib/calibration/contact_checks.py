@@ -40,7 +40,6 @@ from .weighting import DEFAULT_WEIGHT, estimate_weight
 
 __all__ = [
     "WEIGHT_ROUNDS",
-    "check_held_out_gaps",
     "check_level_equations",
     "checked_registration",
     "contact_frame",
@@ -180,7 +179,7 @@ class _Touches:
                 return state
             return registration(nominal, subset(data, keep), guess, DEFAULT_WEIGHT)
 
-        rows = data.rows or tuple(range(1, data.m + 1))
+        rows = term_checks.file_lines(data)
         state, bad, found = outliers.until_stable(
             refit, lambda s: length_errors(s, data), None, rows, allowed=enough_touches(data)
         )
@@ -231,7 +230,7 @@ def checked_registration(
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
         fitted, errors = (length_errors(start, d) for d in (kept, held))
-        rows, cut = held.rows or tuple(range(1, held.m + 1)), partial(subset, held)
+        rows, cut = term_checks.file_lines(held), partial(subset, held)
         held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
     notes += filter(None, [_isolated_postures(chain, kept, held)])
     what = f"unknowns of {chain.tool_frame}'s {kept.kind.object_name}(s) and contact frame"
@@ -368,15 +367,3 @@ def contact_objects(state: ContactState, train: ContactData, torque=None) -> dic
     kin = state.kinematics(train.q, torque)
     frames = state.frames.centred(kin.R[:, -1], kin.p[:, -1], state.frames.index(train.ids))
     return {k: frames.objects[i].copy() for i, k in enumerate(frames.ids)}
-
-
-def check_held_out_gaps(stats, source: str) -> None:
-    """Held-out touches the registration misses absurdly while it fits the data: a DataError."""
-    held, fitted = stats["held_out_registration"], stats["train_registration"]
-    far, near = 1e-3 * held.length_rms_mm, 1e-3 * fitted.length_rms_mm
-    if diagnosis.suspect(far, None) and not diagnosis.suspect(near, None):
-        raise DataError(
-            source,
-            f"the held-out touches are {1e3 * far:.4g} mm RMS from the registered contact (the "
-            f"data {1e3 * near:.4g} mm): touched another object, or on another robot?",
-        )

@@ -22,9 +22,8 @@ import numpy as np
 
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import PlaneContact
-from ..kinematics.elastic import COMPLIANCE_FORMAT, nominal_masses, nominal_origins
+from ..kinematics import elastic
 from ..kinematics.standing import StandingLoad, Support, standing_load
-from ..kinematics.urdf_model import read_urdf_file
 from ..measurements.contact_campaign import ContactData
 from . import validation
 from .contact_model import ContactState
@@ -164,32 +163,16 @@ def compliance_document(part, urdf: str) -> dict:
     """
     if part.compliance is None or part.load is None:
         raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")
-    chain = part.chain
-    g = float(np.linalg.norm(chain.model.gravity.linear))
-    nominal = read_urdf_file(chain.urdf_resolved)
-    return {
-        "format_version": COMPLIANCE_FORMAT,
-        "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
-        "torques of the URDF's masses, the robot standing on the base frame (gravity along "
-        "its -z; load), the joints off the chain at their recorded positions (load."
-        "readings; the others at their neutral position)",
-        "robot": chain.name,
-        "urdf": urdf,
-        "base_frame": chain.base_frame,
-        "tool_frame": chain.tool_frame,
-        "joints": list(chain.joint_names),
-        "compliance": part.compliance.tolist(),
-        "units": ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma],
-        "gravity": {"frame": chain.base_frame, "vector": [0.0, 0.0, -g]},
-        "load": load_record(part),
-        "contact": {
-            "plane_id": part.plane_id,
-            "frame": part.contact.tolist(),
-            "plane": part.plane.tolist(),
-        },
-        "measurement_to_base": np.eye(4).tolist(),
-        "markers": [part.contact[:3, 3].tolist()],
-        "marker_links": [],
-        "nominal_origins": nominal_origins(nominal),
-        "nominal_masses": nominal_masses(nominal),
+    contact = {
+        "plane_id": part.plane_id,
+        "frame": part.contact.tolist(),
+        "plane": part.plane.tolist(),
     }
+    return elastic.compliance_document(
+        part.chain,
+        part.compliance,
+        urdf,
+        tool_frame=part.chain.tool_frame,
+        measured=(np.eye(4), part.contact[None, :3, 3], ()),
+        touching=(load_record(part), contact),
+    )

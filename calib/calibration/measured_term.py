@@ -263,14 +263,14 @@ def checked_measured(
             outliers.point_errors(fitted, k),
             outliers.point_errors(errors, k),
             held,
-            held.rows or tuple(range(1, held.m + 1)),
+            term_checks.file_lines(held),
             held.subset,
             notes,
             opts.noise,
         )
         other = errors if aside is held else reg.residuals(aside, None, at(aside))
         stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
-        validation.check_held_out_errors(*stats, aside.source)
+        validation.check_held_out_errors(stats[0].position_rms, stats[1].position_rms, aside.source)
     return state, kept, found, notes + ([outliers.set_aside_note(found)] if found else []), aside
 
 

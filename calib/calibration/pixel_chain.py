@@ -26,7 +26,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.pixels import PixelObservations, Target
-from . import validation
+from . import term_checks, validation
 from .pixel_term import (
     CAMERA_NAMES,
     GAUGE_POINTS,
@@ -125,7 +125,7 @@ class PixelPart:
         and held-out rows, :mod:`.chain_outliers`).
         """
         obs = self.data.obs
-        lines = obs.rows or tuple(range(1, obs.m + 1))  # without a file: i + 1, as pixel_rows
+        lines = term_checks.file_lines(obs)
         keep = np.isin(lines, self.rows.lines)
         pick = np.flatnonzero(keep)
         rows = PixelObservations(

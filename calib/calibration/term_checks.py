@@ -25,7 +25,7 @@ import numpy as np
 
 from . import outliers
 
-__all__ = ["Aside", "Steps", "checked", "held_out"]
+__all__ = ["Aside", "FileRows", "Steps", "checked", "file_lines", "held_out"]
 
 D = TypeVar("D")
 S = TypeVar("S")
@@ -67,6 +67,23 @@ class Steps(Protocol[D, S]):
 
     def diagnose(self, rows: D, state: S) -> list[str]:
         """Raise the usual mistake the rows show (``state``: their registration); or notes."""
+
+
+class FileRows(Protocol):
+    """Rows read from a file (measurements, touches, a camera's points)."""
+
+    @property
+    def rows(self) -> tuple[int, ...] | None:
+        """Each row's line in its file (the header is line 1), or None (no file)."""
+
+    @property
+    def m(self) -> int:
+        """Number of rows."""
+
+
+def file_lines(data: FileRows) -> tuple[int, ...]:
+    """Each row's line in its file; without a file, row i's is i + 1."""
+    return data.rows or tuple(range(1, data.m + 1))
 
 
 def checked(

@@ -57,7 +57,7 @@ def prepare_tree(
     reg, fitted = _diagnosed(tree, nominal, data)
     if validate is not None:
         other = _stats(reg, by_tool(tree, validate))
-        validation.check_held_out_errors(fitted, other, validate.source)
+        validation.check_held_out_errors(fitted.position_rms, other.position_rms, validate.source)
     train, held = (
         (data, validate) if validate is not None else validation.split(data, holdout, seed)
     )

@@ -37,7 +37,9 @@ from .solve import FitState
 __all__ = [
     "RANK_TOL",
     "ROUND_OFF",
+    "ROWS",
     "SAME",
+    "TOUCHES",
     "check_held_out",
     "check_held_out_errors",
     "predicted_std",
@@ -57,6 +59,16 @@ SAME = 1e-6
 ROUND_OFF = 1e-12
 """Absolute difference [m, rad] under which two RMS errors are the same: a noise-free fit's
 errors (a few 1e-13) are round-off, not a worse model."""
+
+ROWS = (
+    "validation rows",
+    "model",
+    "they look measured in another measurement frame (the instrument moved?) or on another robot",
+)
+"""Held-out rows of an instrument far off (:func:`check_held_out_errors`' words)."""
+
+TOUCHES = ("held-out touches", "contact", "touched another object, or on another robot?")
+"""Held-out touches far off (:func:`check_held_out_errors`' words)."""
 
 
 def worse(after: float, before: float, unit: float = 1.0) -> bool:
@@ -184,20 +196,29 @@ def check_held_out(data, held) -> None:
         )
 
 
-def check_held_out_errors(fitted: ResidualStats, held: ResidualStats, source: str) -> None:
+def check_held_out_errors(
+    fitted: float, held: float, source: str, words: tuple[str, str, str] = ROWS
+) -> None:
     """Stop on held-out errors far above any geometric error while the data fit well.
 
     Each file passed the usual-mistake diagnosis on its own registration: held-out rows that
     the training registration still misses by more than ``diagnosis.SUSPECT`` were measured
     in another frame or of another robot: a DataError names ``source`` (the held-out data)
     when their error is absurd and the fitted rows' is not.
+
+    Args:
+        fitted: The fitted rows' RMS position error (a touch's: gap) [m].
+        held: The held-out rows' [m].
+        source: The held-out data.
+        words: The held-out rows, the registered thing they miss and the likely cause
+            (:data:`ROWS`; touches: :data:`TOUCHES`).
     """
-    if suspect(held.position_rms, None) and not suspect(fitted.position_rms, None):
+    if suspect(held, None) and not suspect(fitted, None):
+        rows, missed, cause = words
         raise DataError(
             source,
-            f"the validation rows are {1e3 * held.position_rms:.4g} mm RMS from the registered "
-            f"model (the data {1e3 * fitted.position_rms:.4g} mm): they look measured in "
-            f"another measurement frame (the instrument moved?) or on another robot",
+            f"the {rows} are {1e3 * held:.4g} mm RMS from the registered {missed} (the data "
+            f"{1e3 * fitted:.4g} mm): {cause}",
         )
 
 

@@ -264,37 +264,60 @@ class ElasticModel:
         return T[:, None, :3, 3] + np.einsum("mij,kj->mki", T[:, :3, :3], self.markers)
 
 
-def compliance_document(result, urdf: str, on_robot: bool = False) -> dict:
-    """The compliance file of a calibration result (JSON-ready).
+def compliance_document(
+    chain: Chain,
+    compliance: np.ndarray,
+    urdf: str,
+    *,
+    tool_frame: str,
+    measured: tuple[np.ndarray, np.ndarray, tuple[str, ...]],
+    touching: tuple[dict | None, dict] | None = None,
+) -> dict:
+    """The compliance file of a calibration with fitted compliance (JSON-ready).
 
     Args:
-        result: A calibration of one chain measured with fitted compliance
-            (:class:`~calib.calibration.contact_chains_result.ContactChainsCalibration`).
+        chain: The nominal chain (its URDF, base frame and joints).
+        compliance: The fitted compliance of each joint ``(n,)`` [rad/(N m) or m/N].
         urdf: The calibrated URDF it goes with (as written).
-        on_robot: The URDF holds the instrument's placement (its base frame's fixed joint):
-            the measurement frame is then the base frame.
+        tool_frame: The written URDF's tool frame.
+        measured: The base frame's pose in the measurement frame ``(4, 4)``, the measured
+            points in the tool frame ``(K, 3)`` [m] and their links in the URDF.
+        touching: A chain touching a plane, standing on its base frame (gravity along -z of
+            it): its load record and its contact (``{"plane_id", "frame", "plane"}``);
+            None: a chain measured (the URDF's gravity).
     """
-    chain = result.chain
-    units = ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma]
-    return {
+    nominal = read_urdf_file(chain.urdf_resolved)
+    frame, markers, links = measured
+    if touching is None:
+        gravity, torques = gravity_in_base(chain), " (other joints at their neutral position)"
+    else:
+        gravity = np.array([0.0, 0.0, -np.linalg.norm(chain.model.gravity.linear)])
+        torques = (
+            ", the robot standing on the base frame (gravity along its -z; load), the joints "
+            "off the chain at their recorded positions (load.readings; the others at their "
+            "neutral position)"
+        )
+    document = {
         "format_version": COMPLIANCE_FORMAT,
         "model": "q' = q + c * tau(q): the URDF's joints see q' at commanded q; tau = gravity "
-        "torques of the URDF's masses (other joints at their neutral position)",
-        "robot": result.robot,
+        f"torques of the URDF's masses{torques}",
+        "robot": chain.name,
         "urdf": urdf,
         "base_frame": chain.base_frame,
-        "tool_frame": result.urdf_tool_frame,
+        "tool_frame": tool_frame,
         "joints": list(chain.joint_names),
-        "compliance": result.state.compliance.tolist(),
-        "units": units,
-        "gravity": {"frame": chain.base_frame, "vector": gravity_in_base(chain).tolist()},
-        "measurement_to_base": (
-            np.eye(4) if on_robot else np.asarray(result.measurement_to_base)
-        ).tolist(),
-        "markers": result.urdf_markers.tolist(),
-        "marker_links": list(result.marker_links),
-        "nominal_origins": nominal_origins(read_urdf_file(chain.urdf_resolved)),
-        "nominal_masses": nominal_masses(read_urdf_file(chain.urdf_resolved)),
+        "compliance": compliance.tolist(),
+        "units": ["rad/(N m)" if s == 0 else "m/N" for s in chain.sigma],
+        "gravity": {"frame": chain.base_frame, "vector": gravity.tolist()},
+    }
+    if touching is not None:
+        document |= {"load": touching[0], "contact": touching[1]}
+    return document | {
+        "measurement_to_base": np.asarray(frame).tolist(),
+        "markers": np.asarray(markers).tolist(),
+        "marker_links": list(links),
+        "nominal_origins": nominal_origins(nominal),
+        "nominal_masses": nominal_masses(nominal),
     }
 
 
