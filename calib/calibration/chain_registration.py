@@ -1,10 +1,10 @@
 """A measured chain's registration: its measuring frame and markers on the nominal model, checked.
 
-Closed form refined by Levenberg-Marquardt, then the steps of every kind of term
-(:mod:`.term_checks`): :func:`checked_registration`. Marker coordinates no posture within the
-joint limits separates from the frame's translation (a gantry's tool never turns:
-:func:`held_markers`) are held at their given value, the frame absorbing them
-(:func:`held_note`).
+Closed form refined by Levenberg-Marquardt (:func:`registrations`), then the steps of every
+kind of term (:mod:`.term_checks`) on its rows (:class:`Rows`, :func:`validation_steps`).
+Marker coordinates no posture within the joint limits separates from the frame's translation
+(a gantry's tool never turns: :func:`held_markers`) are held at their given value, the frame
+absorbing them (:func:`held_note`).
 """
 
 from __future__ import annotations
@@ -17,11 +17,10 @@ from typing import cast
 
 import numpy as np
 
-from ..exceptions import DataError
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
-from . import determined, diagnosis, outliers, term_checks, validation, weighting
+from . import determined, diagnosis, outliers, validation, weighting
 from .model import MeasuredKind, State, measured_kind
 from .options import Options
 from .registration import register
@@ -31,9 +30,11 @@ from .term_checks import Aside
 __all__ = [
     "STRUCTURE_CONFIGS",
     "TURNS",
-    "checked_registration",
+    "Rows",
     "held_markers",
     "held_note",
+    "registrations",
+    "validation_steps",
 ]
 
 
@@ -83,7 +84,7 @@ def held_note(held: tuple[int, ...], guess: np.ndarray) -> str:
     )
 
 
-def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
+def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
     """The registration of ``data`` at an orientation weight, each weight run once.
 
     Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only). The
@@ -115,11 +116,11 @@ _TURNS = diagnosis.Words(
 
 
 @dataclass(frozen=True, eq=False)
-class _Rows:
+class Rows:
     """A chain's steps on one set of measurements (:class:`~.term_checks.Steps`).
 
     ``guess``: the markers' in the tool frame [m]; ``opts``: with the orientation weight;
-    ``at``: :func:`_registrations` of ``rows``; ``frames``: the registration's model when the
+    ``at``: :func:`registrations` of ``rows``; ``frames``: the registration's model when the
     outliers may not leave fewer equations than its unknowns (validation data: the outliers
     stay), else None (that is an error); ``hold``: marker coordinates held at the ``guess``.
     """
@@ -151,7 +152,7 @@ class _Rows:
             frames = measured_kind(sub, self.hold)
             what = "measurement frame and marker parameters once the outliers are set aside"
             determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
-            return _registrations(nominal, sub, guess, opts, self.hold)(weight)
+            return registrations(nominal, sub, guess, opts, self.hold)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
             residuals = reg.state.residuals(data, None, state.kin)
@@ -175,7 +176,7 @@ class _Rows:
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 
         def errors(d):  # the registration's kin: the nominal's at d's joints
-            at = self.at if d is self.rows else _registrations(nominal, d, guess, opts, self.hold)
+            at = self.at if d is self.rows else registrations(nominal, d, guess, opts, self.hold)
             return validation.stats(at(unit).state, d, None, at(unit).kin)
 
         first = errors(rows)
@@ -190,40 +191,12 @@ class _Rows:
         return diagnosis.explain(rows, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
-def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
-    """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
-
-    The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
-    estimated before (unless given). Returns the options with it, the registration state,
-    the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
-    kinematics at ``train``'s joints (the registration's, at every row). ``checked``:
-    validation rows (their notes labelled by their source), or None; ``hold``: marker
-    coordinates held at the ``guess`` (:func:`held_markers`).
-    """
-    at = _registrations(nominal, train, guess, opts, hold)
-    if opts.orientation_weight is None:  # estimated from the registration (poses)
-        weight = weighting.DEFAULT_WEIGHT
-        if train.quaternion is not None:
-            weight = weighting.estimate_weight(
-                lambda w: at(w).state.residuals(train, None, at(w).kin),
-                weighting.pose_angles(train.n_markers),
-            )
-        opts = dataclasses.replace(opts, orientation_weight=weight)
-    steps = _Rows(chain, nominal, train, guess, opts, at, hold=hold)
-    validate = _validation_steps(chain, nominal, checked, guess, opts, hold)
-    aside, notes = term_checks.checked(steps, validate)
-    reg = aside.state
-    if not reg.converged:
-        raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, aside.bad, aside.found, notes, steps.register().kin
-
-
-def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Rows, str]]:
-    """The steps on validation data ``held`` (or None), labelled by their source."""
+def validation_steps(steps: Rows, held: Measurements | None) -> list[tuple[Rows, str]]:
+    """The ``steps`` on validation data ``held`` (or None), labelled by their source."""
     if held is None:
         return []
-    frames = measured_kind(held, hold)
+    frames = measured_kind(held, steps.hold)
     if held.m * frames.rows <= frames.size():  # too few rows to register on their own
         return []
-    at = _registrations(nominal, held, guess, opts, hold)
-    return [(_Rows(chain, nominal, held, guess, opts, at, frames, hold), held.source)]
+    at = registrations(steps.nominal, held, steps.guess, steps.opts, steps.hold)
+    return [(dataclasses.replace(steps, rows=held, at=at, frames=frames), held.source)]

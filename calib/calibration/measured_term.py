@@ -22,8 +22,8 @@ from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
-from . import determined, outliers, term_checks, validation
-from .chain_registration import checked_registration, held_markers, held_note
+from . import chain_registration, determined, outliers, term_checks, validation, weighting
+from .chain_registration import held_markers, held_note
 from .measured_options import marker_guess
 from .model import MeasuredKind, State, measured_kind, point_rows
 from .options import Options
@@ -223,14 +223,16 @@ def checked_measured(
     """A measured term's rows checked as one chain's are, and its registration.
 
     Its rows (before outliers are set aside) must determine the frame and markers; then
-    :func:`~.chain_registration.checked_registration` on the nominal chain (``validate``
-    diagnosed too), and the held-out rows' (``held``) outliers set aside by the same rule
-    (:func:`~.term_checks.held_out`). ``weight`` [m/rad] None: estimated; ``marker`` [m]:
-    :func:`~.measured_options.marker_guess`'s; ``noise_mm`` [mm] or None; ``zero``: the
-    chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made; ``hold``:
-    marker coordinates no posture separates from the frame's translation are held at
-    ``marker`` (:func:`~.chain_registration.held_markers`, a note says so), not a tree's
-    tools (their shared frame may be determined by another tool).
+    the steps of every kind of term (:func:`~.term_checks.checked`) on the nominal chain's
+    registration (:class:`~.chain_registration.Rows`; ``validate`` diagnosed too), the
+    orientation weight estimated before (unless given), and the held-out rows' (``held``)
+    outliers set aside by the same rule (:func:`~.term_checks.held_out`). ``weight``
+    [m/rad] None: estimated; ``marker`` [m]: :func:`~.measured_options.marker_guess`'s;
+    ``noise_mm`` [mm] or None; ``zero``: the chain's
+    :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made; ``hold``: marker
+    coordinates no posture separates from the frame's translation are held at ``marker``
+    (:func:`~.chain_registration.held_markers`, a note says so), not a tree's tools (their
+    shared frame may be determined by another tool).
 
     Returns:
         Its registered state (:attr:`MeasuredState.seen` set), its rows kept, the outliers,
@@ -245,33 +247,53 @@ def checked_measured(
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()
-    opts, reg, bad, found, notes, kin = checked_registration(
-        chain, nominal, data, validate, guess, opts, pinned
-    )
+    at = chain_registration.registrations(nominal, data, guess, opts, pinned)
+    if weight is None:  # estimated from the registration (poses)
+        weight = DEFAULT_WEIGHT
+        if data.quaternion is not None:
+            weight = weighting.estimate_weight(
+                lambda w: at(w).state.residuals(data, None, at(w).kin),
+                weighting.pose_angles(data.n_markers),
+            )
+    opts = dataclasses.replace(opts, orientation_weight=weight)
+    steps = chain_registration.Rows(chain, nominal, data, guess, opts, at, hold=pinned)
+    validated = chain_registration.validation_steps(steps, validate)
+    registered, notes = term_checks.checked(steps, validated)
+    if not registered.state.converged:
+        message = registered.state.message
+        raise DataError(data.source, f"the registration did not converge ({message})")
+    reg, kept, kin = registered.state.state, registered.kept, steps.register().kin
     notes = [held_note(pinned, guess), *notes] if pinned else notes
-    kept = data.subset(~bad) if bad.any() else data
     rows = [*([kept] if kept is data else []), *([] if held is None else [held])]
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
     seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
-    turn = float(opts.orientation_weight or DEFAULT_WEIGHT)
-    state = MeasuredState(reg, turn, seen=seen, held=pinned)
-    aside = held
-    if held is not None:
-        k, at = data.n_markers, state.frames_at
-        fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
-        aside = term_checks.held_out(
-            outliers.point_errors(fitted, k),
-            outliers.point_errors(errors, k),
-            held,
-            held.rows or tuple(range(1, held.m + 1)),
-            held.subset,
-            notes,
-            opts.noise,
-        )
-        other = errors if aside is held else reg.residuals(aside, None, at(aside))
-        stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
-        validation.check_held_out_errors(*stats, aside.source)
+    state = MeasuredState(reg, float(weight), seen=seen, held=pinned)
+    aside = held if held is None else _held_out(state, kept, held, notes, opts.noise)
+    found = registered.found
     return state, kept, found, notes + ([outliers.set_aside_note(found)] if found else []), aside
+
+
+def _held_out(state: MeasuredState, kept, held: Measurements, notes: list[str], noise):
+    """The held-out rows without their outliers (:func:`~.term_checks.held_out`), checked.
+
+    ``kept``: the registration's rows; the outliers' note appended to ``notes``; ``noise``:
+    the instrument's [m] or None.
+    """
+    reg, k, at = state.inner, held.n_markers, state.frames_at
+    fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
+    aside = term_checks.held_out(
+        outliers.point_errors(fitted, k),
+        outliers.point_errors(errors, k),
+        held,
+        held.rows or tuple(range(1, held.m + 1)),
+        held.subset,
+        notes,
+        noise,
+    )
+    other = errors if aside is held else reg.residuals(aside, None, at(aside))
+    stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
+    validation.check_held_out_errors(*stats, aside.source)
+    return aside
 
 
 def unseen(states: tuple) -> tuple:
