@@ -149,9 +149,8 @@ class Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = measured_kind(sub, self.hold)
-            what = "measurement frame and marker parameters once the outliers are set aside"
-            determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
+            what = f"{determined.FRAMES} once the outliers are set aside"
+            determined.check_frames(measured_kind(sub, self.hold), sub.m, sub.source, what)
             return registrations(nominal, sub, guess, opts, self.hold)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
@@ -159,8 +158,7 @@ class Rows:
             return outliers.point_errors(residuals, data.n_markers)
 
         def allowed(bad: np.ndarray) -> bool:
-            f = self.frames
-            return f is None or int(np.sum(~bad)) * f.rows > f.size()
+            return self.frames is None or self.frames.determined_by(int(np.sum(~bad)))
 
         rows = data.rows or tuple(range(1, data.m + 1))
         reg, bad, found = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
@@ -196,7 +194,7 @@ def validation_steps(steps: Rows, held: Measurements | None) -> list[tuple[Rows,
     if held is None:
         return []
     frames = measured_kind(held, steps.hold)
-    if held.m * frames.rows <= frames.size():  # too few rows to register on their own
+    if not frames.determined_by(held.m):  # too few rows to register on their own
         return []
     at = registrations(steps.nominal, held, steps.guess, steps.opts, steps.hold)
     return [(dataclasses.replace(steps, rows=held, at=at, frames=frames), held.source)]

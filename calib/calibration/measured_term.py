@@ -98,8 +98,7 @@ def check_measured(
             )
     postures = count(data.q, data.tool)
     out = round(holdout * postures)
-    kind, what = measured_kind(data), "measurement frame and marker parameters"
-    determined.check_equations(postures - out, kind.rows, kind.size(), what, data.source, held=out)
+    determined.check_frames(measured_kind(data), postures - out, data.source, held=out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,9 +239,9 @@ def checked_measured(
         every kind's checks return these (:func:`~.contact_checks.checked_registration`,
         :func:`~.pixel_fit.checked_pixels`).
     """
-    kind, what = measured_kind(data), f"unknowns of {chain.base_frame}'s placement and the markers"
+    what = f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
-    determined.check_equations(data.m, kind.rows, kind.size(), what, data.source, held=out)
+    determined.check_frames(measured_kind(data), data.m, data.source, what, held=out)
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)

@@ -218,6 +218,10 @@ class MeasuredKind:
         """Number of unknowns."""
         return 6 + 3 * self.n_markers - len(self.held) + 3 * self.pose
 
+    def determined_by(self, m: int) -> bool:
+        """Whether ``m`` configurations give more equations than the unknowns."""
+        return m * self.rows > self.size()
+
     @property
     def object_dofs(self) -> tuple[int, ...]:
         """One index per unknown of the term's object: all of them, the frame's (instrument)."""

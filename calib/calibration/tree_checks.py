@@ -44,7 +44,7 @@ def prepare_tree(
     tool_parts(tree, data)
     out = round(holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools
-    what = "measurement frame and marker parameters"
+    what = determined.FRAMES  # one tool's point a row: no MeasuredKind's rows
     determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
     nominal = [  # every tool's chain on the nominal tree, its marker at its flange
         MeasuredState(nominal_state(from_chain(c), np.zeros((1, 3)), POSITION), 1.0, True)
