@@ -34,12 +34,12 @@ from ..identification.parameters import parameter_set
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import determined
+from .chain_registration import MeasuredState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import enough_touches, length_errors, subset
 from .contact_model import ContactState
 from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
-from .measured_term import MeasuredState
 from .measured_view import MeasuredChain
 from .model import ErrorModel, measured_kind, moved
 from .outliers import (
@@ -55,7 +55,6 @@ from .outliers import (
 from .pixel_chain import PixelPart, PixelTermState, pixel_parts
 from .pixel_chain_result import PixelChain
 from .pixel_fit import ROUND_OFF_PX
-from .solve import row_weights
 
 __all__ = ["fit_terms_until_stable", "proposals"]
 
@@ -74,7 +73,7 @@ def proposals(state: MeasuredState, data: Measurements, noise: float | None) -> 
         return np.zeros(data.m, dtype=bool)
     pset = parameter_set(nominal, "complete")
     wide = ErrorModel(pset, moved(pset, nominal), measured_kind(data))
-    w = row_weights(wide.own, state.weight)
+    w = state.row_weights()
     J = wide.jacobian(reg, data, kin) * w[None, :, None]
     rows = data.rows or tuple(range(1, data.m + 1))
     return robust_proposals(

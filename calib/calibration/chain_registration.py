@@ -17,11 +17,12 @@ from typing import cast
 
 import numpy as np
 
-from ..kinematics.mdh import MDHModel
+from ..identification.measures import POSE
+from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, validation, weighting
-from .model import MeasuredKind, State, measured_kind
+from .model import MeasuredKind, State, measured_kind, point_rows
 from .options import Options
 from .registration import register
 from .solve import Fit, fit
@@ -30,7 +31,9 @@ from .term_checks import Aside
 __all__ = [
     "STRUCTURE_CONFIGS",
     "TURNS",
+    "MeasuredState",
     "Rows",
+    "Seen",
     "held_markers",
     "held_note",
     "registrations",
@@ -84,16 +87,150 @@ def held_note(held: tuple[int, ...], guess: np.ndarray) -> str:
     )
 
 
+@dataclass(frozen=True, eq=False)
+class Seen:
+    """The registration's frames ``kin`` of the nominal chain at each rows' ``q`` (those arrays)."""
+
+    mdh: MDHModel
+    q: tuple[np.ndarray, ...]
+    kin: tuple[Kinematics, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredState:
+    """A measured term's state: its chain's model on the robot, frame, markers and weight.
+
+    Attributes:
+        inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
+            ``frame`` the pose of the nominal base frame in the measuring frame).
+        weight: Weight of the rotation rows [m/rad].
+        instrument: Measured by an instrument outside the robot, shared by every such term
+            (:attr:`~.model.MeasuredKind.instrument`).
+        seen: The registration's frames of the nominal robot at its rows (kept and held
+            out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
+        held: Marker coordinates held at their given value (:attr:`~.model.MeasuredKind.held`).
+    """
+
+    inner: State
+    weight: float
+    instrument: bool = False
+    seen: Seen | None = None
+    held: tuple[int, ...] = ()
+
+    @property
+    def kind(self) -> MeasuredKind:
+        """The term's layout."""
+        pose = self.inner.tool_rotation is not None
+        return MeasuredKind(self.inner.n_markers, pose, self.instrument, self.held)
+
+    @property
+    def mdh(self):
+        """The chain's MDH model on the perturbed robot."""
+        return self.inner.mdh
+
+    def row_weights(self) -> np.ndarray:
+        """1 on the point rows, :attr:`weight` on the rotation rows."""
+        return self.kind.row_weights(self.weight)
+
+    def step_kinematics(self, data: Measurements, torque=None) -> Kinematics:
+        """:attr:`inner`'s frames at the data's joints (a fit's, once per x)."""
+        return self.inner.step_kinematics(data, torque)
+
+    def same_geometry(self, other: MeasuredState) -> bool:
+        """Whether ``other``'s kinematics at the same data are this state's."""
+        return self.inner.same_geometry(other.inner)
+
+    def weighed(self, rows: np.ndarray) -> np.ndarray:
+        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place.
+
+        The rotation rows only: a point row's weight is 1 (the same numbers untouched).
+        """
+        if self.inner.tool_rotation is not None:
+            rows[:, 3 * self.inner.n_markers :] *= self.weight
+        return rows
+
+    def residuals(self, data, torque=None, kin=None) -> np.ndarray:
+        """Weighted measured - predicted ``(m, rows)`` [m].
+
+        ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
+        MDH model's.
+        """
+        return self.weighed(self.inner.residuals(data, None, kin))
+
+    def moved(self, x: np.ndarray) -> MeasuredState:
+        """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
+        return dataclasses.replace(self, inner=self.kind.apply(self.inner, x), seen=None)
+
+    def frames_at(self, data: Measurements) -> Kinematics:
+        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
+
+        The registration's when the model is its and ``data`` are its rows (the same
+        arrays), else made.
+        """
+        s = self.seen
+        if s is not None and s.mdh is self.inner.mdh:
+            for q, kin in zip(s.q, s.kin, strict=True):
+                if q is data.q:
+                    return kin
+        return self.inner.kinematics(data.q)
+
+    def own_rows(
+        self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
+    ) -> np.ndarray:
+        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
+
+        ``kin``: the chain's frames at the data's joints at x (the joint fit's); ``moved``:
+        :meth:`moved` at x, if already made.
+        """
+        inner = None if moved is None else moved.inner
+        return self.weighed(self.kind.jacobian(self.inner, x, data, None, inner, kin))
+
+    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
+
+        ``lin`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving with
+        the tool side (base frame); ``ang`` ``(m, 3, k)``: its angular velocity.
+        """
+        s = self.inner
+        R, p = kin.R[:, -1], kin.p[:, -1]
+        points = np.stack([p + R @ marker for marker in s.markers], axis=1)
+        W = point_rows(s.frame[:3, :3], lin, ang, points, s.tool_rotation is not None)
+        rot = None  # the measured frame's orientation (pose data only: no points predicted)
+        if s.tool_rotation is not None:
+            rot = POSE.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+        return self.weighed(self.kind.measured_rows(W, rot, data, held=False))
+
+
+@dataclass(frozen=True)
+class _Own:
+    """The registration's fit model: a :class:`MeasuredState`'s own unknowns (``kind``)."""
+
+    kind: MeasuredKind
+
+    def size(self) -> int:
+        """Number of unknowns."""
+        return self.kind.size()
+
+    def apply(self, start: MeasuredState, x: np.ndarray) -> MeasuredState:
+        """The state at unknowns x (:meth:`MeasuredState.moved`)."""
+        return start.moved(x)
+
+    def jacobian(self, start: MeasuredState, x, data, torque, state, kin) -> np.ndarray:
+        """Weighted d(model)/dx ``(m, rows, size)`` (:meth:`MeasuredState.own_rows`)."""
+        return start.own_rows(x, data, kin, state)
+
+
 def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
     """The registration of ``data`` at an orientation weight, each weight run once.
 
-    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only). The
-    nominal kinematics at the data's joints (the fit moves no geometry) and the
-    closed-form start (no weight changes it) are made once, the start on the first call.
-    ``held``: marker coordinates held at the ``guess`` (:func:`held_markers`).
+    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only, the
+    rows weighted by the :class:`MeasuredState`). The nominal kinematics at the data's
+    joints (the fit moves no geometry) and the closed-form start (no weight changes it) are
+    made once, the start on the first call. ``held``: marker coordinates held at the
+    ``guess`` (:func:`held_markers`).
     """
     kin = nominal.kinematics(data.q)
-    model = measured_kind(data, held)
+    model = _Own(measured_kind(data, held))
 
     @functools.cache
     def start() -> State:
@@ -102,7 +239,8 @@ def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]
     @functools.cache
     def at(weight: float) -> Fit:
         n = opts.max_iterations
-        return fit(model, start(), data, None, weight, max_iterations=n, kin=kin)
+        first = MeasuredState(start(), weight, held=held)
+        return fit(model, first, data, None, max_iterations=n, kin=kin)
 
     return at
 
@@ -154,7 +292,7 @@ class Rows:
             return registrations(nominal, sub, guess, opts, self.hold)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
-            residuals = reg.state.residuals(data, None, state.kin)
+            residuals = reg.state.inner.residuals(data, None, state.kin)
             return outliers.point_errors(residuals, data.n_markers)
 
         def allowed(bad: np.ndarray) -> bool:
@@ -175,7 +313,7 @@ class Rows:
 
         def errors(d):  # the registration's kin: the nominal's at d's joints
             at = self.at if d is self.rows else registrations(nominal, d, guess, opts, self.hold)
-            return validation.stats(at(unit).state, d, None, at(unit).kin)
+            return validation.stats(at(unit).state.inner, d, None, at(unit).kin)
 
         first = errors(rows)
         revolute, rot = self.chain.sigma == 0, first.orientation_rms

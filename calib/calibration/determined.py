@@ -42,7 +42,6 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
 from .model import ErrorModel, MeasuredKind, State, generic_measurements
-from .solve import row_weights
 
 __all__ = [
     "CLEAR",
@@ -362,7 +361,7 @@ def generic_jacobian(
     Of what ``state`` measures there (:func:`~.model.generic_measurements`); ``weight``: of
     the orientation rows [m/rad].
     """
-    weights = row_weights(model.own, weight)
+    weights = model.own.row_weights(weight)
 
     def at(q: np.ndarray) -> np.ndarray:
         data = generic_measurements(state, joint_names, q)

@@ -11,28 +11,22 @@ registered on the nominal robot (:mod:`.chain_registration`), then refined with 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-
-import numpy as np
 
 from ..exceptions import CalibError, DataError, InvalidArgumentError
-from ..identification.measures import POSE
-from ..kinematics.mdh import Kinematics, MDHModel, from_chain
+from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
 from . import chain_registration, determined, outliers, term_checks, validation, weighting
-from .chain_registration import held_markers, held_note
+from .chain_registration import MeasuredState, Seen, held_markers, held_note
 from .measured_options import marker_guess
-from .model import MeasuredKind, State, measured_kind, point_rows
+from .model import measured_kind
 from .options import Options
 from .residuals import ResidualStats
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
-    "MeasuredState",
-    "Seen",
     "check_measured",
     "checked_measured",
     "measuring_joint",
@@ -101,112 +95,6 @@ def check_measured(
     determined.check_frames(measured_kind(data), postures - out, data.source, held=out)
 
 
-@dataclass(frozen=True, eq=False)
-class Seen:
-    """The registration's frames ``kin`` of the nominal chain at each rows' ``q`` (those arrays)."""
-
-    mdh: MDHModel
-    q: tuple[np.ndarray, ...]
-    kin: tuple[Kinematics, ...]
-
-
-@dataclass(frozen=True, eq=False)
-class MeasuredState:
-    """A measured term's state: its chain's model on the robot, frame, markers and weight.
-
-    Attributes:
-        inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
-            ``frame`` the pose of the nominal base frame in the measuring frame).
-        weight: Weight of the rotation rows [m/rad].
-        instrument: Measured by an instrument outside the robot, shared by every such term
-            (:attr:`~.model.MeasuredKind.instrument`).
-        seen: The registration's frames of the nominal robot at its rows (kept and held
-            out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
-        held: Marker coordinates held at their given value (:attr:`~.model.MeasuredKind.held`).
-    """
-
-    inner: State
-    weight: float
-    instrument: bool = False
-    seen: Seen | None = None
-    held: tuple[int, ...] = ()
-
-    @property
-    def kind(self) -> MeasuredKind:
-        """The term's layout."""
-        pose = self.inner.tool_rotation is not None
-        return MeasuredKind(self.inner.n_markers, pose, self.instrument, self.held)
-
-    @property
-    def mdh(self):
-        """The chain's MDH model on the perturbed robot."""
-        return self.inner.mdh
-
-    def row_weights(self) -> np.ndarray:
-        """1 on the point rows, :attr:`weight` on the rotation rows."""
-        return np.where(np.array(self.kind.angular), self.weight, 1.0)
-
-    def weighed(self, rows: np.ndarray) -> np.ndarray:
-        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place.
-
-        The rotation rows only: a point row's weight is 1 (the same numbers untouched).
-        """
-        if self.inner.tool_rotation is not None:
-            rows[:, 3 * self.inner.n_markers :] *= self.weight
-        return rows
-
-    def residuals(self, data, torque=None, kin=None) -> np.ndarray:
-        """Weighted measured - predicted ``(m, rows)`` [m].
-
-        ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
-        MDH model's.
-        """
-        return self.weighed(self.inner.residuals(data, None, kin))
-
-    def moved(self, x: np.ndarray) -> MeasuredState:
-        """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
-        return dataclasses.replace(self, inner=self.kind.apply(self.inner, x), seen=None)
-
-    def frames_at(self, data: Measurements) -> Kinematics:
-        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
-
-        The registration's when the model is its and ``data`` are its rows (the same
-        arrays), else made.
-        """
-        s = self.seen
-        if s is not None and s.mdh is self.inner.mdh:
-            for q, kin in zip(s.q, s.kin, strict=True):
-                if q is data.q:
-                    return kin
-        return self.inner.kinematics(data.q)
-
-    def own_rows(
-        self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
-    ) -> np.ndarray:
-        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
-
-        ``kin``: the chain's frames at the data's joints at x (the joint fit's); ``moved``:
-        :meth:`moved` at x, if already made.
-        """
-        inner = None if moved is None else moved.inner
-        return self.weighed(self.kind.jacobian(self.inner, x, data, None, inner, kin))
-
-    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
-        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
-
-        ``lin`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving with
-        the tool side (base frame); ``ang`` ``(m, 3, k)``: its angular velocity.
-        """
-        s = self.inner
-        R, p = kin.R[:, -1], kin.p[:, -1]
-        points = np.stack([p + R @ marker for marker in s.markers], axis=1)
-        W = point_rows(s.frame[:3, :3], lin, ang, points, s.tool_rotation is not None)
-        rot = None  # the measured frame's orientation (pose data only: no points predicted)
-        if s.tool_rotation is not None:
-            rot = POSE.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
-        return self.weighed(self.kind.measured_rows(W, rot, data, held=False))
-
-
 def checked_measured(
     chain: Chain,
     data: Measurements,
@@ -251,7 +139,7 @@ def checked_measured(
         weight = DEFAULT_WEIGHT
         if data.quaternion is not None:
             weight = weighting.estimate_weight(
-                lambda w: at(w).state.residuals(data, None, at(w).kin),
+                lambda w: at(w).state.inner.residuals(data, None, at(w).kin),
                 weighting.pose_angles(data.n_markers),
             )
     opts = dataclasses.replace(opts, orientation_weight=weight)
@@ -261,7 +149,7 @@ def checked_measured(
     if not registered.state.converged:
         message = registered.state.message
         raise DataError(data.source, f"the registration did not converge ({message})")
-    reg, kept, kin = registered.state.state, registered.kept, steps.register().kin
+    reg, kept, kin = registered.state.state.inner, registered.kept, steps.register().kin
     notes = [held_note(pinned, guess), *notes] if pinned else notes
     rows = [*([kept] if kept is data else []), *([] if held is None else [held])]
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]

@@ -13,8 +13,8 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.tree import Tree
 from ..measurements.data import Measurements
 from . import determined, diagnosis, validation
+from .chain_registration import MeasuredState
 from .instrument import by_tool, shared_frame, tool_parts
-from .measured_term import MeasuredState
 from .model import nominal_state
 from .residuals import ResidualStats
 
