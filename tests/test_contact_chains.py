@@ -393,7 +393,7 @@ def test_a_fit_step_makes_each_chains_frames_once(monkeypatch):
     monkeypatch.setattr(
         contact_chains_model.MDHModel, "kinematics", lambda *a: pytest.fail("an MDH model")
     )
-    problem = Problem(model, start, data, None, 1.0)
+    problem = Problem(model, start, data, None)
     x = 1e-3 * np.ones(model.size())
     problem.fun(x)
     problem.jac(x)

@@ -22,9 +22,9 @@ def engine_fit(monkeypatch, chain, data, **options) -> dict:
     """The arguments and the result of the engine's fit of ``calibrate(chain, data)``."""
     seen: dict = {}
 
-    def spy(model, start, rows, torque, weight, **kwargs):
-        seen.update(model=model, start=start, data=rows, torque=torque, weight=weight, **kwargs)
-        seen["fitted"] = fit(model, start, rows, torque, weight, **kwargs)
+    def spy(model, start, rows, torque, **kwargs):
+        seen.update(model=model, start=start, data=rows, torque=torque, **kwargs)
+        seen["fitted"] = fit(model, start, rows, torque, **kwargs)
         return seen["fitted"]
 
     monkeypatch.setattr(contact_chains, "fit", spy)
@@ -41,7 +41,7 @@ def test_the_fit_is_least_squares_lm(monkeypatch, measure, params, iterations):
     seen = engine_fit(monkeypatch, chain, data, params=params, max_iterations=iterations)
     size = seen["model"].size()
     prior = np.full(size, 0.5) if params == "auto" else None  # prior rows or not
-    args = (seen["model"], seen["start"], seen["data"], seen["torque"], seen["weight"])
+    args = (seen["model"], seen["start"], seen["data"], seen["torque"])
     problem = Problem(*args, prior, robust=False)
     sol = scipy.optimize.least_squares(
         problem.fun, np.zeros(size), jac=problem.jac, method="lm",
@@ -62,7 +62,7 @@ def test_a_robust_loss_is_least_squares_trf_with_the_noise_as_scale(monkeypatch)
     seen = engine_fit(monkeypatch, chain, data, params="complete", loss="huber", noise_mm=0.2)
     assert (seen["loss"], seen["scale"]) == ("huber", 2e-4)
     size = seen["model"].size()
-    args = (seen["model"], seen["start"], seen["data"], seen["torque"], seen["weight"])
+    args = (seen["model"], seen["start"], seen["data"], seen["torque"])
     problem = Problem(*args, None, robust=True)
     sol = scipy.optimize.least_squares(
         problem.fun, np.zeros(size), jac=problem.jac, method="trf", loss="huber",
@@ -77,7 +77,7 @@ def test_the_fit_holds_few_copies_of_its_jacobian(monkeypatch):
     chain = load_chain("ur5")
     data = simulate(chain, 5000, "pose", (0.01, 0.02, 0.05), noise_mm=0.05, seed=4).measurements
     seen = engine_fit(monkeypatch, chain, data, params="complete")
-    args = (seen["model"], seen["start"], seen["data"], seen["torque"], seen["weight"])
+    args = (seen["model"], seen["start"], seen["data"], seen["torque"])
     tracemalloc.start()
     try:
         fitted = fit(*args)

@@ -126,8 +126,6 @@ class _Geometry:
     """A fit's model that moves the geometry too (MDH values, as the joint engine's moves it)."""
 
     wide: ErrorModel
-    n_markers = len(MARKERS)
-    pose = True
 
     def size(self) -> int:
         return self.wide.size()
@@ -150,9 +148,9 @@ def test_problem_keeps_evaluations_without_mixing_them(prior, frames):
     rng = np.random.default_rng(6)
     xs = [1e-2 * rng.normal(size=model.size()) for _ in range(3)]
     weights = None if prior is None else np.full(model.size(), prior)
-    kept = Problem(model, state, data, torque, 0.5, prior=weights)
+    kept = Problem(model, state, data, torque, prior=weights)
     for i in (0, 1, 0, 2, 1, 2, 2, 0):
-        fresh = Problem(model, state, data, torque, 0.5, prior=weights)
+        fresh = Problem(model, state, data, torque, prior=weights)
         J = kept.jac(xs[i])
         assert np.array_equal(kept.fun(xs[i]), fresh.fun(xs[i]))
         assert np.array_equal(J, fresh.jac(xs[i]))

@@ -125,7 +125,7 @@ def _start_checks(found: list, monkeypatch) -> None:
 
     def checked(model, wide, start, train, prior, level, opts, kin=None):
         p = model.size()
-        J = solve.Problem(model, start, train, None, 1.0, None, False, kin).data_jac(np.zeros(p))
+        J = solve.Problem(model, start, train, None, None, False, kin).data_jac(np.zeros(p))
         found.append((level, contact_checks.rank_refusal(J, model.fixed)))
         return real(model, wide, start, train, prior, level, opts, kin)
 

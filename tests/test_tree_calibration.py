@@ -208,13 +208,13 @@ def test_held_out_rows_are_registered_once(monkeypatch):
     tree = talos()
     data = simulate_tree(tree, 30, markers=MARKERS, noise_mm=0.05, seed=1).measurements
     seen: list[int] = []
-    inner = chain_registration._validation_steps
+    inner = chain_registration.validation_steps
 
-    def counted(chain, nominal, held, guess, opts, hold):
-        seen.append(0 if held is None else held[0].m)
-        return inner(chain, nominal, held, guess, opts, hold)
+    def counted(steps, held):
+        seen.append(0 if held is None else held.m)
+        return inner(steps, held)
 
-    monkeypatch.setattr(chain_registration, "_validation_steps", counted)
+    monkeypatch.setattr(chain_registration, "validation_steps", counted)
     assert calibrate(tree, data, holdout=0.25).accepted
     assert seen == [0, 0]  # one call per tool, nothing to diagnose
     seen.clear()

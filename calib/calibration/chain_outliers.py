@@ -30,18 +30,18 @@ from typing import cast
 
 import numpy as np
 
-from ..identification.parameters import parameter_set
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import determined, term_checks
+from .chain_registration import MeasuredState
+from .contact_chains_model import ChainsData, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import enough_touches, length_errors, subset
+from .contact_choice import chains_model
 from .contact_model import ContactState
 from .contact_register import Registered, Run, drawn
 from .measured_options import compliance_torques
-from .measured_term import MeasuredState
 from .measured_view import MeasuredChain
-from .model import ErrorModel, measured_kind, moved
 from .outliers import (
     Errors,
     find_outliers,
@@ -55,27 +55,27 @@ from .outliers import (
 from .pixel_chain import PixelPart, PixelTermState, pixel_parts
 from .pixel_chain_result import PixelChain
 from .pixel_fit import ROUND_OFF_PX
-from .solve import row_weights
 
 __all__ = ["fit_terms_until_stable", "proposals"]
 
 
-def proposals(state: MeasuredState, data: Measurements, noise: float | None) -> np.ndarray:
+def proposals(start: ChainsState, c: int, data: Measurements, noise: float | None) -> np.ndarray:
     """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
 
-    None where no row of the registration ``state`` is far from the others
-    (:func:`.outliers.spread_out`): outliers that could mask each other stand out there.
-    ``noise``: the instrument's [m], or None.
+    The engine's model of term ``c`` alone at the registration ``start``: every component of
+    its chain's joint placements, its frame and markers. None where no row of the
+    registration is far from the others (:func:`.outliers.spread_out`): outliers that could
+    mask each other stand out there. ``noise``: the instrument's [m], or None.
     """
-    reg, nominal = state.inner, state.inner.mdh
-    kin = state.frames_at(data)  # the registration's (x = 0), at every row
-    residuals = reg.residuals(data, None, kin)
+    state = cast(MeasuredState, start.states[c])
+    residuals = state.inner.residuals(data, None, state.frames_at(data))  # the registration's
     if not spread_out(point_errors(residuals, data.n_markers)):
         return np.zeros(data.m, dtype=bool)
-    pset = parameter_set(nominal, "complete")
-    wide = ErrorModel(pset, moved(pset, nominal), measured_kind(data))
-    w = row_weights(wide.own, state.weight)
-    J = wide.jacobian(reg, data, kin) * w[None, :, None]
+    alone = dataclasses.replace(start, chains=(start.chains[c],), states=(state,), scales=None)
+    names = start.placements.names()
+    wide = chains_model(alone, (0,), range(len(names)), names)
+    J = wide.jacobian(alone, np.zeros(wide.size()), ChainsData((data,)))
+    w = state.row_weights()
     rows = term_checks.file_lines(data)
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],
@@ -118,7 +118,7 @@ def fit_terms_until_stable(
     ]
     errors = _term_errors(train, torque[0][0])
     terms = zip(train, first.start.states, first.dropped, rows, noise, strict=True)
-    masks = [_aside(*t) for t in terms]
+    masks = [_aside(*t, first.start, c) for c, t in enumerate(terms)]
     retest = any(isinstance(s, MeasuredState) for s in first.start.states)
     inner, start = (np.concatenate([m[k] for m in masks]) for k in (0, 1))
     fitted: list[ContactChainsCalibration] = []
@@ -144,15 +144,15 @@ def fit_terms_until_stable(
     return _recorded(result, errors(result), [bad[p] for p in parts], rows)
 
 
-def _aside(data, state, dropped, rows, noise) -> tuple[np.ndarray, np.ndarray]:
+def _aside(data, state, dropped, rows, noise, start, c) -> tuple[np.ndarray, np.ndarray]:
     """A term's rows that stay aside, and those the loop starts without (masks of ``rows``).
 
     The registration's outliers (``dropped``), both; a measured term's: none stays aside
     (every row is tested again), and the loop starts from the :func:`proposals` of its
-    registration ``state`` (``noise``: the instrument's [m]).
+    registration ``state``, term ``c`` of ``start`` (``noise``: the instrument's [m]).
     """
     if isinstance(state, MeasuredState):
-        return np.zeros(len(rows), dtype=bool), proposals(state, data, noise)
+        return np.zeros(len(rows), dtype=bool), proposals(start, c, data, noise)
     inner = np.isin(rows, [o.row for o in dropped])
     return inner, inner
 

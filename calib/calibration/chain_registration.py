@@ -1,10 +1,10 @@
 """A measured chain's registration: its measuring frame and markers on the nominal model, checked.
 
-Closed form refined by Levenberg-Marquardt, then the steps of every kind of term
-(:mod:`.term_checks`): :func:`checked_registration`. Marker coordinates no posture within the
-joint limits separates from the frame's translation (a gantry's tool never turns:
-:func:`held_markers`) are held at their given value, the frame absorbing them
-(:func:`held_note`).
+Closed form refined by Levenberg-Marquardt (:func:`registrations`), then the steps of every
+kind of term (:mod:`.term_checks`) on its rows (:class:`Rows`, :func:`validation_steps`).
+Marker coordinates no posture within the joint limits separates from the frame's translation
+(a gantry's tool never turns: :func:`held_markers`) are held at their given value, the frame
+absorbing them (:func:`held_note`).
 """
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ from typing import cast
 
 import numpy as np
 
-from ..exceptions import DataError
-from ..kinematics.mdh import MDHModel
+from ..identification.measures import POSE
+from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
-from .model import MeasuredKind, State, measured_kind
+from .model import MeasuredKind, State, measured_kind, point_rows
 from .options import Options
 from .registration import register
 from .solve import Fit, fit
@@ -31,9 +31,13 @@ from .term_checks import Aside
 __all__ = [
     "STRUCTURE_CONFIGS",
     "TURNS",
-    "checked_registration",
+    "MeasuredState",
+    "Rows",
+    "Seen",
     "held_markers",
     "held_note",
+    "registrations",
+    "validation_steps",
 ]
 
 
@@ -87,16 +91,150 @@ def held_note(held: tuple[int, ...], guess: np.ndarray | None) -> str:
     )
 
 
-def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
+@dataclass(frozen=True, eq=False)
+class Seen:
+    """The registration's frames ``kin`` of the nominal chain at each rows' ``q`` (those arrays)."""
+
+    mdh: MDHModel
+    q: tuple[np.ndarray, ...]
+    kin: tuple[Kinematics, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredState:
+    """A measured term's state: its chain's model on the robot, frame, markers and weight.
+
+    Attributes:
+        inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
+            ``frame`` the pose of the nominal base frame in the measuring frame).
+        weight: Weight of the rotation rows [m/rad].
+        instrument: Measured by an instrument outside the robot, shared by every such term
+            (:attr:`~.model.MeasuredKind.instrument`).
+        seen: The registration's frames of the nominal robot at its rows (kept and held
+            out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
+        held: Marker coordinates held at their given value (:attr:`~.model.MeasuredKind.held`).
+    """
+
+    inner: State
+    weight: float
+    instrument: bool = False
+    seen: Seen | None = None
+    held: tuple[int, ...] = ()
+
+    @property
+    def kind(self) -> MeasuredKind:
+        """The term's layout."""
+        pose = self.inner.tool_rotation is not None
+        return MeasuredKind(self.inner.n_markers, pose, self.instrument, self.held)
+
+    @property
+    def mdh(self):
+        """The chain's MDH model on the perturbed robot."""
+        return self.inner.mdh
+
+    def row_weights(self) -> np.ndarray:
+        """1 on the point rows, :attr:`weight` on the rotation rows."""
+        return self.kind.row_weights(self.weight)
+
+    def step_kinematics(self, data: Measurements, torque=None) -> Kinematics:
+        """:attr:`inner`'s frames at the data's joints (a fit's, once per x)."""
+        return self.inner.step_kinematics(data, torque)
+
+    def same_geometry(self, other: MeasuredState) -> bool:
+        """Whether ``other``'s kinematics at the same data are this state's."""
+        return self.inner.same_geometry(other.inner)
+
+    def weighed(self, rows: np.ndarray) -> np.ndarray:
+        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place.
+
+        The rotation rows only: a point row's weight is 1 (the same numbers untouched).
+        """
+        if self.inner.tool_rotation is not None:
+            rows[:, 3 * self.inner.n_markers :] *= self.weight
+        return rows
+
+    def residuals(self, data, torque=None, kin=None) -> np.ndarray:
+        """Weighted measured - predicted ``(m, rows)`` [m].
+
+        ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
+        MDH model's.
+        """
+        return self.weighed(self.inner.residuals(data, None, kin))
+
+    def moved(self, x: np.ndarray) -> MeasuredState:
+        """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
+        return dataclasses.replace(self, inner=self.kind.apply(self.inner, x), seen=None)
+
+    def frames_at(self, data: Measurements) -> Kinematics:
+        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
+
+        The registration's when the model is its and ``data`` are its rows (the same
+        arrays), else made.
+        """
+        s = self.seen
+        if s is not None and s.mdh is self.inner.mdh:
+            for q, kin in zip(s.q, s.kin, strict=True):
+                if q is data.q:
+                    return kin
+        return self.inner.kinematics(data.q)
+
+    def own_rows(
+        self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
+    ) -> np.ndarray:
+        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
+
+        ``kin``: the chain's frames at the data's joints at x (the joint fit's); ``moved``:
+        :meth:`moved` at x, if already made.
+        """
+        inner = None if moved is None else moved.inner
+        return self.weighed(self.kind.jacobian(self.inner, x, data, None, inner, kin))
+
+    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
+
+        ``lin`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving with
+        the tool side (base frame); ``ang`` ``(m, 3, k)``: its angular velocity.
+        """
+        s = self.inner
+        R, p = kin.R[:, -1], kin.p[:, -1]
+        points = np.stack([p + R @ marker for marker in s.markers], axis=1)
+        W = point_rows(s.frame[:3, :3], lin, ang, points, s.tool_rotation is not None)
+        rot = None  # the measured frame's orientation (pose data only: no points predicted)
+        if s.tool_rotation is not None:
+            rot = POSE.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
+        return self.weighed(self.kind.measured_rows(W, rot, data, held=False))
+
+
+@dataclass(frozen=True)
+class _Own:
+    """The registration's fit model: a :class:`MeasuredState`'s own unknowns (``kind``)."""
+
+    kind: MeasuredKind
+
+    def size(self) -> int:
+        """Number of unknowns."""
+        return self.kind.size()
+
+    def apply(self, start: MeasuredState, x: np.ndarray) -> MeasuredState:
+        """The state at unknowns x (:meth:`MeasuredState.moved`)."""
+        return start.moved(x)
+
+    def jacobian(self, start: MeasuredState, x, data, torque, state, kin) -> np.ndarray:
+        """Weighted d(model)/dx ``(m, rows, size)`` (:meth:`MeasuredState.own_rows`)."""
+        return start.own_rows(x, data, kin, state)
+
+
+def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
     """The registration of ``data`` at an orientation weight, each weight run once.
 
-    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only). The
-    nominal kinematics at the data's joints (the fit moves no geometry) and the
-    closed-form start (no weight changes it) are made once, the start on the first call.
-    ``held``: marker coordinates held at the ``guess`` (:func:`held_markers`).
+    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only, the
+    rows weighted by the :class:`MeasuredState`). The nominal kinematics at the data's
+    joints (the fit moves no geometry) and the closed-form start (no weight changes it) are
+    made once, the start on the first call. ``held``: marker coordinates held at the
+    ``guess`` (:func:`held_markers`).
     """
     kin = nominal.kinematics(data.q)
-    model = measured_kind(data, held)
+    model = _Own(measured_kind(data, held))
 
     @functools.cache
     def start() -> State:
@@ -105,7 +243,8 @@ def _registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit
     @functools.cache
     def at(weight: float) -> Fit:
         n = opts.max_iterations
-        return fit(model, start(), data, None, weight, max_iterations=n, kin=kin)
+        first = MeasuredState(start(), weight, held=held)
+        return fit(model, first, data, None, max_iterations=n, kin=kin)
 
     return at
 
@@ -119,11 +258,11 @@ _TURNS = diagnosis.Words(
 
 
 @dataclass(frozen=True, eq=False)
-class _Rows:
+class Rows:
     """A chain's steps on one set of measurements (:class:`~.term_checks.Steps`).
 
     ``guess``: the markers' in the tool frame [m]; ``opts``: with the orientation weight;
-    ``at``: :func:`_registrations` of ``rows``; ``frames``: the registration's model when the
+    ``at``: :func:`registrations` of ``rows``; ``frames``: the registration's model when the
     outliers may not leave fewer equations than its unknowns (validation data: the outliers
     stay), else None (that is an error); ``hold``: marker coordinates held at the ``guess``.
     """
@@ -152,18 +291,16 @@ class _Rows:
             if keep.all():
                 return state
             sub = data.subset(keep)
-            frames = measured_kind(sub, self.hold)
-            what = "measurement frame and marker parameters once the outliers are set aside"
-            determined.check_equations(sub.m, frames.rows, frames.size(), what, sub.source)
-            return _registrations(nominal, sub, guess, opts, self.hold)(weight)
+            what = f"{determined.FRAMES} once the outliers are set aside"
+            determined.check_frames(measured_kind(sub, self.hold), sub.m, sub.source, what)
+            return registrations(nominal, sub, guess, opts, self.hold)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's
-            residuals = reg.state.residuals(data, None, state.kin)
+            residuals = reg.state.inner.residuals(data, None, state.kin)
             return outliers.point_errors(residuals, data.n_markers)
 
         def allowed(bad: np.ndarray) -> bool:
-            f = self.frames
-            return f is None or int(np.sum(~bad)) * f.rows > f.size()
+            return self.frames is None or self.frames.determined_by(int(np.sum(~bad)))
 
         rows = term_checks.file_lines(data)
         reg, bad, found = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
@@ -179,8 +316,8 @@ class _Rows:
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 
         def errors(d):  # the registration's kin: the nominal's at d's joints
-            at = self.at if d is self.rows else _registrations(nominal, d, guess, opts, self.hold)
-            return validation.stats(at(unit).state, d, None, at(unit).kin)
+            at = self.at if d is self.rows else registrations(nominal, d, guess, opts, self.hold)
+            return validation.stats(at(unit).state.inner, d, None, at(unit).kin)
 
         first = errors(rows)
         revolute, rot = self.chain.sigma == 0, first.orientation_rms
@@ -194,40 +331,12 @@ class _Rows:
         return diagnosis.explain(rows, revolute, turns, rot, None, _TURNS, orientation=True)
 
 
-def checked_registration(chain, nominal, train, checked, guess, opts, hold=()):
-    """Weight, registration, outliers set aside, then the diagnosis (data and ``checked``).
-
-    The steps of every kind of term (:func:`~.term_checks.checked`), the orientation weight
-    estimated before (unless given). Returns the options with it, the registration state,
-    the mask of the outlier rows of ``train``, the outliers, the notes and the nominal
-    kinematics at ``train``'s joints (the registration's, at every row). ``checked``:
-    validation rows (their notes labelled by their source), or None; ``hold``: marker
-    coordinates held at the ``guess`` (:func:`held_markers`).
-    """
-    at = _registrations(nominal, train, guess, opts, hold)
-    if opts.orientation_weight is None:  # estimated from the registration (poses)
-        weight = weighting.DEFAULT_WEIGHT
-        if train.quaternion is not None:
-            weight = weighting.estimate_weight(
-                lambda w: at(w).state.residuals(train, None, at(w).kin),
-                weighting.pose_angles(train.n_markers),
-            )
-        opts = dataclasses.replace(opts, orientation_weight=weight)
-    steps = _Rows(chain, nominal, train, guess, opts, at, hold=hold)
-    validate = _validation_steps(chain, nominal, checked, guess, opts, hold)
-    aside, notes = term_checks.checked(steps, validate)
-    reg = aside.state
-    if not reg.converged:
-        raise DataError(train.source, f"the registration did not converge ({reg.message})")
-    return opts, reg.state, aside.bad, aside.found, notes, steps.register().kin
-
-
-def _validation_steps(chain, nominal, held, guess, opts, hold) -> list[tuple[_Rows, str]]:
-    """The steps on validation data ``held`` (or None), labelled by their source."""
+def validation_steps(steps: Rows, held: Measurements | None) -> list[tuple[Rows, str]]:
+    """The ``steps`` on validation data ``held`` (or None), labelled by their source."""
     if held is None:
         return []
-    frames = measured_kind(held, hold)
-    if held.m * frames.rows <= frames.size():  # too few rows to register on their own
+    frames = measured_kind(held, steps.hold)
+    if not frames.determined_by(held.m):  # too few rows to register on their own
         return []
-    at = _registrations(nominal, held, guess, opts, hold)
-    return [(_Rows(chain, nominal, held, guess, opts, at, frames, hold), held.source)]
+    at = registrations(steps.nominal, held, steps.guess, steps.opts, steps.hold)
+    return [(dataclasses.replace(steps, rows=held, at=at, frames=frames), held.source)]

@@ -39,6 +39,7 @@ from ..measurements.limits import check_limits
 from . import contact_checks, contact_elastic, term_checks, validation
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
+from .chain_registration import MeasuredState
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration
 from .contact_checks import contact_objects, held_out_refusal
@@ -50,7 +51,7 @@ from .contact_result import gap_stats, part_stats
 from .delivery import read_files
 from .determined import ILL_CONDITION, Direction
 from .measured_options import level_offer
-from .measured_term import MeasuredState, unseen
+from .measured_term import unseen
 from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import PixelData, PixelTermState
@@ -388,7 +389,6 @@ def _fit(
             start,
             data,
             None,
-            1.0,
             prior=prior,
             max_iterations=iters,
             loss=opts.loss,
@@ -407,7 +407,7 @@ def _fit(
     again = fitted.state.settled()
     try:
         better = fit(
-            wide, again, data, None, 1.0, prior=PIN * np.ones(wide.size()), max_iterations=iters
+            wide, again, data, None, prior=PIN * np.ones(wide.size()), max_iterations=iters
         )
     except InvalidArgumentError:  # it wandered along undetermined components to no robot
         return fitted, False

@@ -3,7 +3,7 @@
 A state is the robot's joint placement errors (:class:`~.placements.Placements`, one error
 per URDF joint, whatever chains it is on) and each term's state, its MDH model on the robot
 the errors act on: a chain touching (:class:`~.contact_model.ContactState`: its contact frame
-and objects), measured (:class:`~.measured_term.MeasuredState`) or seen by a camera
+and objects), measured (:class:`~.chain_registration.MeasuredState`) or seen by a camera
 (:class:`~.pixel_chain.PixelTermState`). A fit step moves the errors, not the MDH models: the
 chains' frames come from the placements (:meth:`ChainsState.kinematics`, once per step,
 passed to the residuals and the Jacobian); :meth:`ChainsState.settled` composes the errors
@@ -36,9 +36,9 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from .chain_registration import MeasuredState
 from .contact_frames import DOF_NAMES
 from .contact_model import ContactState
-from .measured_term import MeasuredState
 from .model import MeasuredKind, compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
@@ -240,9 +240,6 @@ class ChainsModel:
     kinds: tuple[Contact | MeasuredKind | PixelKind, ...] | None = None
     counts: tuple[int, ...] | None = None
     compliance: tuple[int, ...] = ()
-
-    n_markers = 0  # its rows come weighted (solve.row_weights: 1)
-    pose = False
 
     def chain_kinds(self) -> tuple[Contact | MeasuredKind | PixelKind, ...]:
         """Each chain's contact kind."""

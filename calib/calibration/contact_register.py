@@ -28,13 +28,13 @@ from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, validation
-from .chain_registration import held_markers
+from .chain_registration import MeasuredState, held_markers
 from .contact_chains_model import ChainsData, ChainsState, on_models
 from .contact_choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
 from .instrument import shared_frame
 from .measured_options import compliance_torques
-from .measured_term import MeasuredState, check_measured, checked_measured, one_term_per_frame
+from .measured_term import check_measured, checked_measured, one_term_per_frame
 from .options import Options
 from .outliers import Outlier
 from .pixel_chain import PixelData, PixelPart, PixelTermState, check_pixels, pixel_parts
@@ -239,7 +239,6 @@ def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsS
         start,
         ChainsData(tuple(train)),
         None,
-        1.0,
         max_iterations=run.options.max_iterations,
     )
     if not refined.converged:

@@ -41,11 +41,11 @@ import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
-from .model import ErrorModel, State, generic_measurements
-from .solve import row_weights
+from .model import ErrorModel, MeasuredKind, State, generic_measurements
 
 __all__ = [
     "CLEAR",
+    "FRAMES",
     "ILL_CONDITION",
     "ILL_STD",
     "NAMED",
@@ -55,6 +55,7 @@ __all__ = [
     "STILL",
     "Direction",
     "check_equations",
+    "check_frames",
     "check_rank",
     "determined_columns",
     "generic_jacobian",
@@ -91,6 +92,20 @@ def check_equations(
         f"needs at least {_configs_needed(unknowns, rows)} {unit} (more equations than "
         f"unknowns)",
     )
+
+
+FRAMES = "measurement frame and marker parameters"
+"""A measured chain's own unknowns (:class:`~.model.MeasuredKind`), as the messages name them."""
+
+
+def check_frames(
+    kind: MeasuredKind, m: int, source: str, what: str = FRAMES, *, held: int = 0
+) -> None:
+    """Refuse (DataError) ``m`` configurations too few for a measured chain's own unknowns.
+
+    :func:`check_equations` on ``kind``'s rows and unknowns (``what``, ``source``, ``held``).
+    """
+    check_equations(m, kind.rows, kind.size(), what, source, held=held)
 
 
 def check_rank(
@@ -346,7 +361,7 @@ def generic_jacobian(
     Of what ``state`` measures there (:func:`~.model.generic_measurements`); ``weight``: of
     the orientation rows [m/rad].
     """
-    weights = row_weights(model.own, weight)
+    weights = model.own.row_weights(weight)
 
     def at(q: np.ndarray) -> np.ndarray:
         data = generic_measurements(state, joint_names, q)

@@ -20,7 +20,7 @@ from ..kinematics.tree import Tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
-from .measured_term import MeasuredState
+from .chain_registration import MeasuredState
 from .registration import register_points
 from .report import pose_dict, term_errors
 from .residuals import ResidualStats
@@ -88,7 +88,7 @@ def shared_frame(states: list, train: list) -> list:
 
     :func:`~.registration.register_points` on every tool's predicted points, from each
     term's own markers: the :class:`MeasuredState` with ``instrument`` among ``states`` get
-    one frame and their markers (those :attr:`~.measured_term.MeasuredState.held` kept), the
+    one frame and their markers (those :attr:`~.chain_registration.MeasuredState.held` kept), the
     others are returned as they are.
     """
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]

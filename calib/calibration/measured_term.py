@@ -11,28 +11,22 @@ registered on the nominal robot (:mod:`.chain_registration`), then refined with 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-
-import numpy as np
 
 from ..exceptions import CalibError, DataError, InvalidArgumentError
-from ..identification.measures import POSE
-from ..kinematics.mdh import Kinematics, MDHModel, from_chain
+from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.urdf_export import base_joint, read_urdf_source
 from ..measurements.data import Measurements
 from ..measurements.postures import count
-from . import determined, outliers, term_checks, validation
-from .chain_registration import checked_registration, held_markers, held_note
+from . import chain_registration, determined, outliers, term_checks, validation, weighting
+from .chain_registration import MeasuredState, Seen, held_markers, held_note
 from .measured_options import marker_guess
-from .model import MeasuredKind, State, measured_kind, point_rows
+from .model import measured_kind
 from .options import Options
 from .residuals import ResidualStats
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
-    "MeasuredState",
-    "Seen",
     "check_measured",
     "checked_measured",
     "measuring_joint",
@@ -98,114 +92,7 @@ def check_measured(
             )
     postures = count(data.q, data.tool)
     out = round(holdout * postures)
-    kind, what = measured_kind(data), "measurement frame and marker parameters"
-    determined.check_equations(postures - out, kind.rows, kind.size(), what, data.source, held=out)
-
-
-@dataclass(frozen=True, eq=False)
-class Seen:
-    """The registration's frames ``kin`` of the nominal chain at each rows' ``q`` (those arrays)."""
-
-    mdh: MDHModel
-    q: tuple[np.ndarray, ...]
-    kin: tuple[Kinematics, ...]
-
-
-@dataclass(frozen=True, eq=False)
-class MeasuredState:
-    """A measured term's state: its chain's model on the robot, frame, markers and weight.
-
-    Attributes:
-        inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
-            ``frame`` the pose of the nominal base frame in the measuring frame).
-        weight: Weight of the rotation rows [m/rad].
-        instrument: Measured by an instrument outside the robot, shared by every such term
-            (:attr:`~.model.MeasuredKind.instrument`).
-        seen: The registration's frames of the nominal robot at its rows (kept and held
-            out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
-        held: Marker coordinates held at their given value (:attr:`~.model.MeasuredKind.held`).
-    """
-
-    inner: State
-    weight: float
-    instrument: bool = False
-    seen: Seen | None = None
-    held: tuple[int, ...] = ()
-
-    @property
-    def kind(self) -> MeasuredKind:
-        """The term's layout."""
-        pose = self.inner.tool_rotation is not None
-        return MeasuredKind(self.inner.n_markers, pose, self.instrument, self.held)
-
-    @property
-    def mdh(self):
-        """The chain's MDH model on the perturbed robot."""
-        return self.inner.mdh
-
-    def row_weights(self) -> np.ndarray:
-        """1 on the point rows, :attr:`weight` on the rotation rows."""
-        return np.where(np.array(self.kind.angular), self.weight, 1.0)
-
-    def weighed(self, rows: np.ndarray) -> np.ndarray:
-        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place.
-
-        The rotation rows only: a point row's weight is 1 (the same numbers untouched).
-        """
-        if self.inner.tool_rotation is not None:
-            rows[:, 3 * self.inner.n_markers :] *= self.weight
-        return rows
-
-    def residuals(self, data, torque=None, kin=None) -> np.ndarray:
-        """Weighted measured - predicted ``(m, rows)`` [m].
-
-        ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
-        MDH model's.
-        """
-        return self.weighed(self.inner.residuals(data, None, kin))
-
-    def moved(self, x: np.ndarray) -> MeasuredState:
-        """The state with its own unknowns moved by ``x`` (a fit's: without :attr:`seen`)."""
-        return dataclasses.replace(self, inner=self.kind.apply(self.inner, x), seen=None)
-
-    def frames_at(self, data: Measurements) -> Kinematics:
-        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
-
-        The registration's when the model is its and ``data`` are its rows (the same
-        arrays), else made.
-        """
-        s = self.seen
-        if s is not None and s.mdh is self.inner.mdh:
-            for q, kin in zip(s.q, s.kin, strict=True):
-                if q is data.q:
-                    return kin
-        return self.inner.kinematics(data.q)
-
-    def own_rows(
-        self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
-    ) -> np.ndarray:
-        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
-
-        ``kin``: the chain's frames at the data's joints at x (the joint fit's); ``moved``:
-        :meth:`moved` at x, if already made.
-        """
-        inner = None if moved is None else moved.inner
-        return self.weighed(self.kind.jacobian(self.inner, x, data, None, inner, kin))
-
-    def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
-        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
-
-        ``lin`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving with
-        the tool side (base frame); ``ang`` ``(m, 3, k)``: its angular velocity.
-        """
-        s = self.inner
-        R, p = kin.R[:, -1], kin.p[:, -1]
-        points = np.stack([p + R @ marker for marker in s.markers], axis=1)
-        W = point_rows(s.frame[:3, :3], lin, ang, points, s.tool_rotation is not None)
-        rot = None  # the measured frame's orientation (pose data only: no points predicted)
-        if s.tool_rotation is not None:
-            rot = POSE.predict(R, p, s.markers, s.frame, s.tool_rotation)[1]
-        return self.weighed(self.kind.measured_rows(W, rot, data, held=False))
+    determined.check_frames(measured_kind(data), postures - out, data.source, held=out)
 
 
 def checked_measured(
@@ -223,14 +110,16 @@ def checked_measured(
     """A measured term's rows checked as one chain's are, and its registration.
 
     Its rows (before outliers are set aside) must determine the frame and markers; then
-    :func:`~.chain_registration.checked_registration` on the nominal chain (``validate``
-    diagnosed too), and the held-out rows' (``held``) outliers set aside by the same rule
-    (:func:`~.term_checks.held_out`). ``weight`` [m/rad] None: estimated; ``marker`` [m]:
-    :func:`~.measured_options.marker_guess`'s; ``noise_mm`` [mm] or None; ``zero``: the
-    chain's :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made; ``hold``:
-    marker coordinates no posture separates from the frame's translation are held at
-    ``marker`` (:func:`~.chain_registration.held_markers`, a note says so), not a tree's
-    tools (their shared frame may be determined by another tool).
+    the steps of every kind of term (:func:`~.term_checks.checked`) on the nominal chain's
+    registration (:class:`~.chain_registration.Rows`; ``validate`` diagnosed too), the
+    orientation weight estimated before (unless given), and the held-out rows' (``held``)
+    outliers set aside by the same rule (:func:`~.term_checks.held_out`). ``weight``
+    [m/rad] None: estimated; ``marker`` [m]: :func:`~.measured_options.marker_guess`'s;
+    ``noise_mm`` [mm] or None; ``zero``: the chain's
+    :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made; ``hold``: marker
+    coordinates no posture separates from the frame's translation are held at ``marker``
+    (:func:`~.chain_registration.held_markers`, a note says so), not a tree's tools (their
+    shared frame may be determined by another tool).
 
     Returns:
         Its registered state (:attr:`MeasuredState.seen` set), its rows kept, the outliers,
@@ -238,40 +127,60 @@ def checked_measured(
         every kind's checks return these (:func:`~.contact_checks.checked_registration`,
         :func:`~.pixel_fit.checked_pixels`).
     """
-    kind, what = measured_kind(data), f"unknowns of {chain.base_frame}'s placement and the markers"
+    what = f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
-    determined.check_equations(data.m, kind.rows, kind.size(), what, data.source, held=out)
+    determined.check_frames(measured_kind(data), data.m, data.source, what, held=out)
     opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()
-    opts, reg, bad, found, notes, kin = checked_registration(
-        chain, nominal, data, validate, guess, opts, pinned
-    )
+    at = chain_registration.registrations(nominal, data, guess, opts, pinned)
+    if weight is None:  # estimated from the registration (poses)
+        weight = DEFAULT_WEIGHT
+        if data.quaternion is not None:
+            weight = weighting.estimate_weight(
+                lambda w: at(w).state.inner.residuals(data, None, at(w).kin),
+                weighting.pose_angles(data.n_markers),
+            )
+    opts = dataclasses.replace(opts, orientation_weight=weight)
+    steps = chain_registration.Rows(chain, nominal, data, guess, opts, at, hold=pinned)
+    validated = chain_registration.validation_steps(steps, validate)
+    registered, notes = term_checks.checked(steps, validated)
+    if not registered.state.converged:
+        message = registered.state.message
+        raise DataError(data.source, f"the registration did not converge ({message})")
+    reg, kept, kin = registered.state.state.inner, registered.kept, steps.register().kin
     notes = [held_note(pinned, guess), *notes] if pinned else notes
-    kept = data.subset(~bad) if bad.any() else data
     rows = [*([kept] if kept is data else []), *([] if held is None else [held])]
     kins = [*([kin] if kept is data else []), *([] if held is None else [reg.kinematics(held.q)])]
     seen = Seen(reg.mdh, tuple(d.q for d in rows), tuple(kins))  # the nominal robot's frames
-    turn = float(opts.orientation_weight or DEFAULT_WEIGHT)
-    state = MeasuredState(reg, turn, seen=seen, held=pinned)
-    aside = held
-    if held is not None:
-        k, at = data.n_markers, state.frames_at
-        fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
-        aside = term_checks.held_out(
-            outliers.point_errors(fitted, k),
-            outliers.point_errors(errors, k),
-            held,
-            term_checks.file_lines(held),
-            held.subset,
-            notes,
-            opts.noise,
-        )
-        other = errors if aside is held else reg.residuals(aside, None, at(aside))
-        stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
-        validation.check_held_out_errors(stats[0].position_rms, stats[1].position_rms, aside.source)
+    state = MeasuredState(reg, float(weight), seen=seen, held=pinned)
+    aside = held if held is None else _held_out(state, kept, held, notes, opts.noise)
+    found = registered.found
     return state, kept, found, notes + ([outliers.set_aside_note(found)] if found else []), aside
+
+
+def _held_out(state: MeasuredState, kept, held: Measurements, notes: list[str], noise):
+    """The held-out rows without their outliers (:func:`~.term_checks.held_out`), checked.
+
+    ``kept``: the registration's rows; the outliers' note appended to ``notes``; ``noise``:
+    the instrument's [m] or None.
+    """
+    reg, k, at = state.inner, held.n_markers, state.frames_at
+    fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
+    aside = term_checks.held_out(
+        outliers.point_errors(fitted, k),
+        outliers.point_errors(errors, k),
+        held,
+        term_checks.file_lines(held),
+        held.subset,
+        notes,
+        noise,
+    )
+    other = errors if aside is held else reg.residuals(aside, None, at(aside))
+    stats = (ResidualStats.of(fitted, k), ResidualStats.of(other, k))
+    validation.check_held_out_errors(stats[0].position_rms, stats[1].position_rms, aside.source)
+    return aside
 
 
 def unseen(states: tuple) -> tuple:

@@ -22,11 +22,12 @@ from ..kinematics.urdf_export import urdf_tool_frame
 from ..measurements.csvfile import check_against_chain
 from ..measurements.data import Measurements
 from . import validation
+from .chain_registration import MeasuredState
 from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
 from .contact_result import GapStats, TermPart, part_stats, row_stats, units
 from .measured_report import chain_frames, written_markers
-from .measured_term import MeasuredState, measuring_joint
+from .measured_term import measuring_joint
 from .model import State
 from .outliers import Outlier
 from .report import parameter_entries

@@ -159,9 +159,9 @@ class State:
 class MeasuredKind:
     """A measured chain's own unknowns and rows: the registration's model, a term's layout.
 
-    The unknowns of the module text (frame, markers, measured frame's rotation), read by the
-    registration's fit (:func:`~.solve.fit`) and by the joint engine as a measured term's own
-    (as a contact kind's are read).
+    The unknowns of the module text (frame, markers, measured frame's rotation), moved and
+    derived by a :class:`~.chain_registration.MeasuredState` (the registration's fit, and the
+    joint engine's measured term: its own unknowns, as a contact kind's are read).
 
     Attributes:
         n_markers: Points measured per configuration K.
@@ -218,6 +218,10 @@ class MeasuredKind:
         """Number of unknowns."""
         return 6 + 3 * self.n_markers - len(self.held) + 3 * self.pose
 
+    def determined_by(self, m: int) -> bool:
+        """Whether ``m`` configurations give more equations than the unknowns."""
+        return m * self.rows > self.size()
+
     @property
     def object_dofs(self) -> tuple[int, ...]:
         """One index per unknown of the term's object: all of them, the frame's (instrument)."""
@@ -239,6 +243,10 @@ class MeasuredKind:
     def angular(self) -> tuple[bool, ...]:
         """Whether each row is an angle."""
         return (False,) * (3 * self.n_markers) + (True,) * (3 * self.pose)
+
+    def row_weights(self, weight: float) -> np.ndarray:
+        """1 on the point rows, ``weight`` [m/rad] on the rotation rows."""
+        return np.where(np.array(self.angular), weight, 1.0)
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """X cut into its groups: frame, markers, tool (views)."""

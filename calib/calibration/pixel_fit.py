@@ -103,9 +103,6 @@ class _Steps:
 
     free: tuple[int, ...]
 
-    n_markers = 0  # rows in pixels, unweighted
-    pose = False
-
     def size(self) -> int:
         """Number of free columns."""
         return len(self.free)
@@ -169,7 +166,6 @@ def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, fre
         start,
         ChainsData((part,)),
         None,
-        1.0,
         max_iterations=MAX_EVALUATIONS,
         kin=(kin,),
     )

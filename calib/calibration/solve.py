@@ -21,7 +21,6 @@ __all__ = [
     "fit",
     "fitted_values",
     "gauss_newton_finish",
-    "row_weights",
 ]
 
 TOLERANCE = 1e-10
@@ -50,14 +49,6 @@ _State = TypeVar("_State", bound=FitState)
 
 class FitModel(Protocol[_State]):
     """What a fit needs of a model (the registration's ``MeasuredKind``, a ``ChainsModel``)."""
-
-    @property
-    def n_markers(self) -> int:
-        """Points per configuration."""
-
-    @property
-    def pose(self) -> bool:
-        """Orientation rows are fitted."""
 
     def size(self) -> int:
         """Number of free parameters."""
@@ -99,18 +90,8 @@ class Fit(Generic[_Model, _State]):
     kin: Any = None
 
 
-def row_weights(model: FitModel[Any], weight: float) -> np.ndarray:
-    """Weight of each residual row of a configuration: 1 for points, ``weight`` [m/rad] else.
-
-    A model of no point and no orientation row (contacts: their rows come weighted) gets 1.
-    """
-    if model.n_markers == 0 and not model.pose:
-        return np.ones(1)
-    return np.r_[np.ones(3 * model.n_markers), np.full(3 * model.pose, weight)]
-
-
 class Problem:
-    """Weighted residuals model - measured (and prior rows) and their Jacobian, of x.
+    """Residuals model - measured (weighted by the state) and prior rows, their Jacobian, of x.
 
     SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
     at the solution: the state at the last two x are kept (the last one's kinematics, made
@@ -119,11 +100,9 @@ class Problem:
     was asked at (200 MB).
     """
 
-    def __init__(self, model, start, data, torque, weight, prior=None, robust=True, kin=None):
+    def __init__(self, model, start, data, torque, prior=None, robust=True, kin=None):
         self.model, self.start, self.data, self.torque = model, start, data, torque
         self.start_kin = kin  # the start's kinematics at the data's joints, or None
-        w = row_weights(model, weight)
-        self.w = None if np.all(w == 1.0) else w  # None: rows of weight 1, not multiplied
         self.prior = prior  # (p,) weights of x in the prior rows, or None
         self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
         self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
@@ -152,8 +131,7 @@ class Problem:
     def data_rows(self, x: np.ndarray) -> np.ndarray:
         """Weighted model - measured of the data, configuration-major ``(m rows,)``."""
         _, state, kin, _ = self._at(x)  # kin None: another geometry's made since
-        f = -state.residuals(self.data, self.torque, kin)
-        return (f if self.w is None else f * self.w).ravel()
+        return -state.residuals(self.data, self.torque, kin).ravel()
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         """Data rows, then the prior rows ``prior * x``."""
@@ -169,8 +147,6 @@ class Problem:
                     other[3] = None
             _, state, kin, _ = kept
             J = self.model.jacobian(self.start, x, self.data, self.torque, state, kin)
-            if self.w is not None:  # in place: a fresh array (100,000 rows: 65 MB saved)
-                J *= self.w[None, :, None]
             kept[3] = J.reshape(-1, J.shape[2])
         return kept[3]
 
@@ -191,7 +167,6 @@ def fit(
     start: _State,
     data,
     torque: np.ndarray | None,
-    weight: float,
     *,
     prior: np.ndarray | None = None,
     loss: str = "linear",
@@ -206,7 +181,6 @@ def fit(
         start: The state at x = 0.
         data: The measurements.
         torque: Gravity torques ``(m, n)`` for compliance, or None.
-        weight: Orientation weight [m/rad].
         prior: Weights of x in extra residual rows ``prior * x`` (a Gaussian prior toward
             the start), or None.
         loss: One of ``LOSSES``.
@@ -216,7 +190,7 @@ def fit(
     """
     import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
 
-    problem = Problem(model, start, data, torque, weight, prior, loss != "linear", kin)
+    problem = Problem(model, start, data, torque, prior, loss != "linear", kin)
     p = model.size()
     if p == 0:
         x = np.zeros(0)
@@ -269,7 +243,7 @@ def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fi
     linear-loss fit (:func:`fit`, no torque). Returns the fit at the last step kept
     (``fitted`` itself when none lowers the cost), its counts including the finish's.
     """
-    problem = Problem(fitted.model, fitted.start, data, None, 1.0, None, robust=False)
+    problem = Problem(fitted.model, fitted.start, data, None, None, robust=False)
     x, f, best = fitted.x, fitted.f, fitted
     for k in range(1, steps + 1):
         step = np.linalg.lstsq(problem.data_jac(x), -f, rcond=None)[0]

@@ -13,8 +13,8 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.tree import Tree
 from ..measurements.data import Measurements
 from . import determined, diagnosis, validation
+from .chain_registration import MeasuredState
 from .instrument import by_tool, shared_frame, tool_parts
-from .measured_term import MeasuredState
 from .model import nominal_state
 from .residuals import ResidualStats
 
@@ -44,7 +44,7 @@ def prepare_tree(
     tool_parts(tree, data)
     out = round(holdout * data.m)
     unknowns = 6 + 3 * tree.n_tools
-    what = "measurement frame and marker parameters"
+    what = determined.FRAMES  # one tool's point a row: no MeasuredKind's rows
     determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
     nominal = [  # every tool's chain on the nominal tree, its marker at its flange
         MeasuredState(nominal_state(from_chain(c), np.zeros((1, 3)), POSITION), 1.0, True)
