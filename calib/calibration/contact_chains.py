@@ -215,8 +215,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`).
 
     A fit refused for combinations that each name a parameter ``auto`` chose (not ``free``;
-    :func:`~.chain_counts.assess`) is fitted again without the one of largest component in
-    the weakest (held at its nominal value, a note), at most ``HOLDS`` times.
+    :func:`~.chain_counts.assess`), or that did not converge where such combinations stall
+    it, is fitted again without the one of largest component in the weakest (held at its
+    nominal value, a note), at most ``HOLDS`` times.
     """
     run, train, plane_of, load, torques, comp, start = (
         r.run,
@@ -262,8 +263,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             break
         name, weak = held
         model, prior, selection = _without(model, prior, selection, name)
+        why = "was refused" if fitted.converged else "did not converge"
         notes.append(
-            f"params 'auto' held {name} at the nominal value: the fit with it was refused: the "
+            f"params 'auto' held {name} at the nominal value: the fit with it {why}: the "
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
@@ -277,7 +279,9 @@ HOLDS = 3
 def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
-    None: accepted or refused for another reason first. ``fit_of``: the fit, whether it was
+    A fit refused only for not converging is assessed too (its refusal kept): the
+    combinations it stalled in. Empty: accepted, or refused for a held-out error or (a
+    converged fit) the rank rule. ``fit_of``: the fit, whether it was
     polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
     fitted, polished, prior, generic = fit_of
@@ -301,8 +305,9 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     values = fitted_values(fitted, cov)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
     refusal, found = result.refusal or rank, list[Direction]()
-    if refusal is None:
-        refusal, found = assess(generic, fitted, cov, polished)
+    if refusal is None or refusal == _unconverged(fitted):
+        weak, found = assess(generic, fitted, cov, polished)
+        refusal = refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
 
@@ -332,6 +337,11 @@ def _without(model: ChainsModel, prior, selection: Selection, name: str):
     selection = dataclasses.replace(selection, kept=kept, index=index, winner=winner)
     prior = None if prior is None else np.delete(prior, c)
     return model.with_free(free, comp), prior, selection
+
+
+def _unconverged(fitted) -> str | None:
+    """The refusal of a fit that did not converge (None: it converged)."""
+    return None if fitted.converged else f"the solver did not converge ({fitted.message})"
 
 
 PIN = 1e-6
@@ -477,7 +487,6 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
     stages = ("registration", "selection", "fit", "validation")
     spans = zip(stages, clock[:-1], clock[1:], strict=True)
     planes = {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
-    unconverged = None if fitted.converged else f"the solver did not converge ({fitted.message})"
     return ContactChainsCalibration(
         chains=tuple(parts),
         placements=state.placements,
@@ -486,7 +495,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         free=tuple(model.names()[model.fixed :]),
         unknowns=model.size(),
         selection=selection,
-        refusal=refusal or unconverged,
+        refusal=refusal or _unconverged(fitted),
         notes=tuple(notes),
         timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
     )
