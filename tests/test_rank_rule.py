@@ -136,6 +136,17 @@ def test_auto_holds_nothing_where_its_fit_is_exact():
     assert r.selection.kept == r.free
 
 
+def test_a_fit_stopped_by_the_evaluation_cap_says_what_to_raise_and_where_it_stalled():
+    """A refusal for not converging names the cap it met, the option to raise, and the
+    combination the data do not determine where it stopped (before: the solver's message)."""
+    chain = _chain(_urdf(COINCIDENT, COINCIDENT_TOOL))
+    data = simulate(chain, 25, "pose", noise_mm=0.05, seed=1).measurements
+    r = calibrate(chain, data, params="complete", max_iterations=5)
+    assert r.refusal is not None and r.refusal.startswith("the solver did not converge")
+    assert "stopped after 5 residual evaluations, a larger max_iterations" in r.refusal
+    assert "where it stopped, the data cannot separate frame.rx" in r.refusal, r.refusal
+
+
 def _start_checks(found: list, monkeypatch) -> None:
     """Each fit's model checked at its start (x = 0) by the rank refusal's own rule."""
     real = contact_chains._fit

@@ -279,8 +279,8 @@ HOLDS = 3
 def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
-    A fit refused only for not converging is assessed too (its refusal kept): the
-    combinations it stalled in. Empty: accepted, or refused for a held-out error or (a
+    A fit refused only for not converging is assessed too: the combinations it stalled in
+    (its refusal names them after its own). Empty: accepted, or refused for a held-out error or (a
     converged fit) the rank rule. ``fit_of``: the fit, whether it was
     polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
@@ -307,7 +307,8 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     refusal, found = result.refusal or rank, list[Direction]()
     if refusal is None or refusal == _unconverged(fitted):
         weak, found = assess(generic, fitted, cov, polished)
-        refusal = refusal or weak
+        stalled = refusal and weak and f"{refusal}; where it stopped, {weak}"
+        refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
 
@@ -340,8 +341,20 @@ def _without(model: ChainsModel, prior, selection: Selection, name: str):
 
 
 def _unconverged(fitted) -> str | None:
-    """The refusal of a fit that did not converge (None: it converged)."""
-    return None if fitted.converged else f"the solver did not converge ({fitted.message})"
+    """The refusal of a fit that did not converge (None: it converged).
+
+    Stopped by the evaluation cap (status 0), it says so: a fit creeping along a weak
+    valley (nearly parallel or intersecting axes) may finish with more evaluations.
+    """
+    if fitted.converged:
+        return None
+    more = (
+        f": it stopped after {fitted.evaluations} residual evaluations, a larger "
+        "max_iterations (--max-iterations) may let it finish"
+        if fitted.status == 0
+        else ""
+    )
+    return f"the solver did not converge ({fitted.message}){more}"
 
 
 PIN = 1e-6
