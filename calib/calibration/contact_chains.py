@@ -216,8 +216,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`).
 
     A fit refused for combinations that each name a parameter ``auto`` chose (not ``free``;
-    :func:`~.chain_counts.assess`) is fitted again without the one of largest component in
-    the weakest (held at its nominal value, a note), at most ``HOLDS`` times.
+    :func:`~.chain_counts.assess`), or that did not converge where such combinations stall
+    it, is fitted again without the one of largest component in the weakest (held at its
+    nominal value, a note), at most ``HOLDS`` times.
     """
     run, train, plane_of, load, torques, comp, start = (
         r.run,
@@ -263,8 +264,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             break
         name, weak = held
         model, prior, selection = _without(model, prior, selection, name)
+        why = "was refused" if fitted.converged else "did not converge"
         notes.append(
-            f"params 'auto' held {name} at the nominal value: the fit with it was refused: the "
+            f"params 'auto' held {name} at the nominal value: the fit with it {why}: the "
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
@@ -278,7 +280,9 @@ HOLDS = 3
 def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
-    None: accepted or refused for another reason first. ``fit_of``: the fit, whether it was
+    A fit refused only for not converging is assessed too: the combinations it stalled in
+    (its refusal names them after its own). Empty: accepted, or refused for a held-out error or (a
+    converged fit) the rank rule. ``fit_of``: the fit, whether it was
     polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
     fitted, polished, prior, generic = fit_of
@@ -302,8 +306,10 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     values = fitted_values(fitted, cov)
     rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
     refusal, found = result.refusal or rank, list[Direction]()
-    if refusal is None:
-        refusal, found = assess(generic, fitted, cov, polished)
+    if refusal is None or refusal == _unconverged(fitted):
+        weak, found = assess(generic, fitted, cov, polished)
+        stalled = refusal and weak and f"{refusal}; where it stopped, {weak}"
+        refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
 
@@ -333,6 +339,23 @@ def _without(model: ChainsModel, prior, selection: Selection, name: str):
     selection = dataclasses.replace(selection, kept=kept, index=index, winner=winner)
     prior = None if prior is None else np.delete(prior, c)
     return model.with_free(free, comp), prior, selection
+
+
+def _unconverged(fitted) -> str | None:
+    """The refusal of a fit that did not converge (None: it converged).
+
+    Stopped by the evaluation cap (status 0), it says so: a fit creeping along a weak
+    valley (nearly parallel or intersecting axes) may finish with more evaluations.
+    """
+    if fitted.converged:
+        return None
+    more = (
+        f": it stopped after {fitted.evaluations} residual evaluations, a larger "
+        "max_iterations (--max-iterations) may let it finish"
+        if fitted.status == 0
+        else ""
+    )
+    return f"the solver did not converge ({fitted.message}){more}"
 
 
 PIN = 1e-6
@@ -480,7 +503,6 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
     stages = ("registration", "selection", "fit", "validation")
     spans = zip(stages, clock[:-1], clock[1:], strict=True)
     planes = {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
-    unconverged = None if fitted.converged else f"the solver did not converge ({fitted.message})"
     return ContactChainsCalibration(
         chains=tuple(parts),
         placements=state.placements,
@@ -489,7 +511,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         free=tuple(model.names()[model.fixed :]),
         unknowns=model.size(),
         selection=selection,
-        refusal=refusal or unconverged,
+        refusal=refusal or _unconverged(fitted),
         notes=tuple(notes),
         timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
     )
