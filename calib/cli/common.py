@@ -42,6 +42,7 @@ __all__ = [
     "given_options",
     "look_outputs",
     "one_line",
+    "orientation_wanted",
     "positive_number",
     "print_json",
     "refuse_unused_weight",
@@ -312,6 +313,25 @@ def add_measure_args(p: Group) -> None:
         f"fixed-point, fixed-pose (default: {DEFAULT_MEASURE}, as simulate and design)",
     )
     add_marker_arg(p)
+
+
+def orientation_wanted(option: str, renamed: bool) -> str:
+    """The error of a pose read from a file without orientation columns.
+
+    Args:
+        option: the option that asked for a pose (``--measure pose``, ``--term pose``).
+        renamed: whether ``--orientation FORMAT --orientation-columns`` can name other columns.
+
+    Returns:
+        One line naming the column names read as an orientation (and the options, if any).
+    """
+    from ..measurements.csvfile import DEFAULT_ORIENTATION_COLUMNS
+
+    names = "; ".join(
+        ", ".join(DEFAULT_ORIENTATION_COLUMNS[f]) for f in ("quat-xyzw", "rotvec", "rpy")
+    )
+    other = ", or name yours: --orientation FORMAT --orientation-columns A B C [D]"
+    return f"{option} needs orientation columns ({names}){other if renamed else ''}"
 
 
 def one_line(message: object) -> str:
