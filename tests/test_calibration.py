@@ -388,6 +388,19 @@ def test_limits_margin_warns_and_far_outside_names_row_and_column(tmp_path):
     assert info.value.row == 4 and info.value.column == chain.joint_names[4]
 
 
+def test_a_prismatic_joint_far_past_its_limit_suggests_millimetres_not_degrees(tmp_path):
+    """A TIAGo torso lift logged in millimetres: the message said "degrees for radians"."""
+    chain = chain_of("tiago")
+    k = list(chain.joint_names).index("torso_lift_joint")
+    data = simulate(chain, configs=4, measure="position", seed=1).measurements
+    q = data.q.copy()
+    q[:, k] *= 1000.0
+    path = tmp_path / "m.csv"
+    path.write_text(measurements_csv(dataclasses.replace(data, q=q)))
+    with pytest.raises(DataError, match=r"\(a wrong column, or millimetres for metres\?\)$"):
+        read_measurements(path, chain)
+
+
 def past_a_limit(data, chain):
     """The rows with joint 4 of row 2 read 0.05 rad past its upper limit (within the margin)."""
     q = data.q.copy()
