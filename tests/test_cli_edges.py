@@ -562,3 +562,27 @@ def test_a_pose_without_orientation_columns_names_the_names_read_and_the_options
     named = ["--orientation", "quat-xyzw", "--orientation-columns", "a1", "a2", "a3", "a4"]
     code, out, err = run(capsys, [*argv, *named])
     assert code == 0 and "rot rms [mrad]" in out, err
+
+
+def test_calibrate_writes_its_files_when_its_reader_is_gone(tmp_path):
+    """``calib calibrate ... | head -2``: the summary's print met the closed pipe, the command
+    stopped quietly with exit code 0 and wrote neither the URDF nor the report."""
+    import subprocess
+    import sys
+
+    data = calib.simulate(calib.load_chain("ur5"), 40, measure="position", seed=1).measurements
+    calib.write_measurements(tmp_path / "m.csv", data)
+    argv = ["calibrate", "ur5", "--data", "m.csv", "--out", "c.urdf", "--report", "r.json"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
+    with subprocess.Popen(
+        [sys.executable, "-m", "calib.cli", *argv],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    ) as proc:
+        assert proc.stdout is not None and proc.stderr is not None
+        proc.stdout.close()  # the reader is gone before calib prints
+        err = proc.stderr.read().decode()
+    assert proc.returncode == 0 and "Traceback" not in err, err
+    assert (tmp_path / "c.urdf").is_file() and (tmp_path / "r.json").is_file()
