@@ -211,7 +211,7 @@ def test_held_out_rows_are_registered_once(monkeypatch):
     inner = chain_registration._validation_steps
 
     def counted(chain, nominal, held, guess, opts, hold):
-        seen.append(0 if held is None else held[0].m)
+        seen.append(0 if held is None else held.m)
         return inner(chain, nominal, held, guess, opts, hold)
 
     monkeypatch.setattr(chain_registration, "_validation_steps", counted)
