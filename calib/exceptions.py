@@ -54,14 +54,20 @@ class CalibError(Exception):
 
 
 class RobotNotFoundError(CalibError):
-    """A robot name is neither in the catalog nor a path to a URDF file."""
+    """A robot name is neither in the catalog nor a path to a URDF file.
 
-    def __init__(self, name: str, known: Sequence[str]):
+    The message suggests catalog names close to it (whatever the case) and ``urdf``, a URDF
+    calib finds by its bare file name (``talos_full_v2.urdf`` for ``talos_full_v2``).
+    """
+
+    def __init__(self, name: str, known: Sequence[str], urdf: str | None = None):
         self.name = name
         self.known = tuple(known)
         import difflib  # here: every start of calib imports this module
 
-        close = difflib.get_close_matches(name, self.known, n=3, cutoff=0.5)
+        by_case = {k.lower(): k for k in self.known}  # UR5 is ur5
+        close = difflib.get_close_matches(name.lower(), by_case, n=3, cutoff=0.5)
+        close = ([urdf] if urdf else []) + [by_case[c] for c in close]  # a URDF's bare name
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
         super().__init__(
             f"unknown robot '{name}'{hint}: give a URDF path or one of the catalog names "

@@ -379,15 +379,26 @@ def test_limits_margin_warns_and_far_outside_names_row_and_column(tmp_path):
         from calib.measurements.csvfile import check_against_chain
 
         check_against_chain(calibrate_data, chain)
-    assert any(
-        issubclass(w.category, DataWarning) and "past the URDF joint limits" in str(w.message)
-        for w in caught
-    )
+    said = [str(w.message) for w in caught if issubclass(w.category, DataWarning)]
+    assert any(": 1 row read past the URDF joint limits (" in m for m in said), said  # not "1 rows"
     q[2, 4] = chain.lower[4] - 1.0
     path.write_text(measurements_csv(dataclasses.replace(data, q=q)))
     with pytest.raises(DataError) as info:
         read_measurements(path, chain)
     assert info.value.row == 4 and info.value.column == chain.joint_names[4]
+
+
+def test_a_prismatic_joint_far_past_its_limit_suggests_millimetres_not_degrees(tmp_path):
+    """A TIAGo torso lift logged in millimetres: the message said "degrees for radians"."""
+    chain = chain_of("tiago")
+    k = list(chain.joint_names).index("torso_lift_joint")
+    data = simulate(chain, configs=4, measure="position", seed=1).measurements
+    q = data.q.copy()
+    q[:, k] *= 1000.0
+    path = tmp_path / "m.csv"
+    path.write_text(measurements_csv(dataclasses.replace(data, q=q)))
+    with pytest.raises(DataError, match=r"\(a wrong column, or millimetres for metres\?\)$"):
+        read_measurements(path, chain)
 
 
 def past_a_limit(data, chain):

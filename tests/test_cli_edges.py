@@ -541,3 +541,48 @@ def test_design_json_refuses_the_noise_of_a_prediction_it_does_not_print(capsys)
     """``design --json --noise-mm N``: the JSON has no prediction, so N changed nothing."""
     line = one_error(capsys, ["design", "ur5", "--configs", "30", "--json", "--noise-mm", "0.5"])
     assert "--noise-mm scales the printed error prediction" in line, line
+
+
+def test_a_pose_without_orientation_columns_names_the_names_read_and_the_options(tmp_path, capsys):
+    """The UR10's real file names its angles phix1, phiy1, phiz1: ``--measure pose`` said
+    "needs orientation columns (qx, qy, qz, qw, ...)", hiding the rotation vector's and rpy's
+    names and the options that read other names. Its advice, followed, reads the file."""
+    chain = calib.load_chain("ur5")
+    data = calib.simulate(chain, 20, measure="pose", seed=0).measurements
+    path = tmp_path / "pose.csv"
+    calib.write_measurements(path, data)
+    text = path.read_text()
+    header, rest = text.split("\n", 1)
+    renamed = {"qx": "a1", "qy": "a2", "qz": "a3", "qw": "a4"}
+    path.write_text(",".join(renamed.get(c, c) for c in header.split(",")) + "\n" + rest)
+    argv = ["calibrate", "ur5", "--data", path, "--measure", "pose", "--out", tmp_path / "c.urdf"]
+    line = one_error(capsys, argv)
+    assert "(qx, qy, qz, qw; rx, ry, rz; roll, pitch, yaw)" in line, line
+    assert "--orientation FORMAT --orientation-columns A B C [D]" in line, line
+    named = ["--orientation", "quat-xyzw", "--orientation-columns", "a1", "a2", "a3", "a4"]
+    code, out, err = run(capsys, [*argv, *named])
+    assert code == 0 and "rot rms [mrad]" in out, err
+
+
+def test_calibrate_writes_its_files_when_its_reader_is_gone(tmp_path):
+    """``calib calibrate ... | head -2``: the summary's print met the closed pipe, the command
+    stopped quietly with exit code 0 and wrote neither the URDF nor the report."""
+    import subprocess
+    import sys
+
+    data = calib.simulate(calib.load_chain("ur5"), 40, measure="position", seed=1).measurements
+    calib.write_measurements(tmp_path / "m.csv", data)
+    argv = ["calibrate", "ur5", "--data", "m.csv", "--out", "c.urdf", "--report", "r.json"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
+    with subprocess.Popen(
+        [sys.executable, "-m", "calib.cli", *argv],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    ) as proc:
+        assert proc.stdout is not None and proc.stderr is not None
+        proc.stdout.close()  # the reader is gone before calib prints
+        err = proc.stderr.read().decode()
+    assert proc.returncode == 0 and "Traceback" not in err, err
+    assert (tmp_path / "c.urdf").is_file() and (tmp_path / "r.json").is_file()

@@ -134,8 +134,11 @@ def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, ca
     sight = one_line_error(capsys, [*argv, "--no-collision", "--line-of-sight", "2", "0", "1"])
     assert sight.endswith("(the line of sight and the obstacles are checked against the meshes)")
     chain = calib.load_chain(urdf, "base", "tool")
-    with pytest.raises(calib.URDFError, match=r"\(Constraints\(collision=False\)\)$"):
+    hint = "(constraints=calib.design.constraints.Constraints(collision=False))"
+    with pytest.raises(calib.URDFError) as info:  # Constraints is not in calib's namespace
         design(chain, 5)
+    assert str(info.value).endswith(hint), info.value
+    assert design(chain, 5, constraints=calib.design.constraints.Constraints(collision=False))
 
 
 def test_candidates_in_degrees_are_named_as_a_candidates_file_is():

@@ -142,6 +142,18 @@ def test_an_unread_column_is_noted():
 
 
 TARGET = "point,x,y,z,link,nx,ny,nz\na,0.1,0,0,hand,0,0,1\nb,0,0.1,0,hand,0,0,2\n"
+INTRINSICS_YAML = (  # given for the target or the observations: named by a missing column
+    "image_width: 640\nimage_height: 480\n"
+    "camera_matrix: [[600.0, 0.0, 319.5], [0.0, 600.0, 239.5], [0.0, 0.0, 1.0]]\n"
+)
+
+
+def test_another_file_for_the_target_or_the_observations_is_named_by_a_missing_column():
+    """An intrinsics YAML given as ``--target``: "expected 1 cells, found 9" (its inline
+    lists counted as cells) before the columns were looked for."""
+    with pytest.raises(DataError, match=r"row 1, column 'point'\): missing column$"):
+        parse_target(INTRINSICS_YAML, "intr.yaml")
+    obs_error(INTRINSICS_YAML, r"row 1, column 'camera'\): missing column$")
 
 
 @pytest.mark.parametrize(

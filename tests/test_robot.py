@@ -292,6 +292,18 @@ def test_unknown_robot_name_suggests_close_names():
     assert_one_line(info.value, "pnada", "did you mean", "panda")
 
 
+@pytest.mark.parametrize(
+    ("name", "meant"),
+    [("UR5", "(did you mean ur5"), ("talos_full_v2", "(did you mean talos_full_v2.urdf,")],
+)
+def test_an_unknown_robot_in_capitals_or_a_urdf_without_its_extension_is_suggested(name, meant):
+    """``UR5`` had no suggestion (``ur-5`` had); ``talos_full_v2`` suggested catalog names,
+    not the example-robot-data URDF calib reads by its bare file name."""
+    with pytest.raises(RobotNotFoundError) as info:
+        load_chain(name)
+    assert_one_line(info.value, name, meant)
+
+
 def test_unknown_frame_lists_closest_first():
     with pytest.raises(FrameNotFoundError) as info:
         load_chain("ur5", tool="tool1")

@@ -36,6 +36,7 @@ from .common import (
     command_parser,
     compliance_path,
     look_outputs,
+    orientation_wanted,
     refuse_unused_weight,
     tool_arg,
     write_calibration,
@@ -208,7 +209,7 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
         data = data.position_only()
         check = check.position_only() if check is not None else None
     elif kind is not None and kind.is_pose and data.quaternion is None:
-        raise DataError(args.data, "--measure pose needs orientation columns (qx, qy, qz, qw, ...)")
+        raise DataError(args.data, orientation_wanted("--measure pose", renamed=True))
     refuse_unused_weight(args, data.quaternion is not None, "positions only")
     return data, check
 

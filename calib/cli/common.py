@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -42,6 +43,7 @@ __all__ = [
     "given_options",
     "look_outputs",
     "one_line",
+    "orientation_wanted",
     "positive_number",
     "print_json",
     "refuse_unused_weight",
@@ -314,6 +316,41 @@ def add_measure_args(p: Group) -> None:
     add_marker_arg(p)
 
 
+def orientation_wanted(option: str, renamed: bool) -> str:
+    """The error of a pose read from a file without orientation columns.
+
+    Args:
+        option: the option that asked for a pose (``--measure pose``, ``--term pose``).
+        renamed: whether ``--orientation FORMAT --orientation-columns`` can name other columns.
+
+    Returns:
+        One line naming the column names read as an orientation (and the options, if any).
+    """
+    from ..measurements.csvfile import DEFAULT_ORIENTATION_COLUMNS
+
+    names = "; ".join(
+        ", ".join(DEFAULT_ORIENTATION_COLUMNS[f]) for f in ("quat-xyzw", "rotvec", "rpy")
+    )
+    other = ", or name yours: --orientation FORMAT --orientation-columns A B C [D]"
+    return f"{option} needs orientation columns ({names}){other if renamed else ''}"
+
+
+def _print_out(text: str, end: str = "\n") -> None:
+    """Print to standard output; a reader gone (``calib calibrate ... | head``) silences it.
+
+    The command goes on: the files still to write are written (the pipe's end stopped the
+    command before them, with exit code 0).
+
+    Args:
+        text: What to print.
+        end: The end of the line, as ``print``'s.
+    """
+    try:
+        print(text, end=end, flush=True)
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
 def one_line(message: object) -> str:
     """A message on one line: control characters (line breaks included) shown escaped."""
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(message))
@@ -429,7 +466,7 @@ def write_calibration(
     model: dict = {} if refusal is not None else paired_files(urdf(), out)
     found = with_warnings(report_dict, recorded)
     doc = json_text(paired_report(found, model[out]) if model else found)
-    print(doc if args.json else text(), end="" if args.json else "\n")
+    _print_out(doc if args.json else text(), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:
         files.update({} if result is None else _look_files(args, result, None))
@@ -441,5 +478,5 @@ def write_calibration(
         written.update(_look_files(args, result, written[out]))
     write_outputs(written)
     if not args.json:
-        print(f"wrote {', '.join(str(p) for p in written)}")
+        _print_out(f"wrote {', '.join(str(p) for p in written)}")
     return 0

@@ -24,7 +24,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from . import pixels_cli
-from .common import given_options, look_outputs, write_calibration
+from .common import given_options, look_outputs, orientation_wanted, write_calibration
 
 __all__ = [
     "TERM_KINDS",
@@ -224,5 +224,5 @@ def _read(kind: str, path: str, chain: Chain, args: argparse.Namespace, name: st
     if kind == "position":
         return data.position_only()
     if data.quaternion is None:
-        raise DataError(path, "--term pose needs orientation columns (qx, qy, qz, qw, ...)")
+        raise DataError(path, orientation_wanted("--term pose", renamed=False))
     return data

@@ -212,7 +212,7 @@ def _package_dirs(urdf: Path) -> list[str]:
     return dirs
 
 
-NO_COLLISION = "Constraints(collision=False)"
+NO_COLLISION = "constraints=calib.design.constraints.Constraints(collision=False)"
 """How a missing mesh's message says to skip the check (``calib design``: ``--no-collision``)."""
 
 

@@ -228,7 +228,8 @@ def catalog_entry(name: str) -> CatalogEntry:
     for entry in catalog():
         if entry.name == name:
             return entry
-    raise RobotNotFoundError(name, [e.name for e in catalog()])
+    bare = re.fullmatch(r"[\w.-]+", name) and shipped_urdf(f"{name}.urdf")
+    raise RobotNotFoundError(name, [e.name for e in catalog()], f"{name}.urdf" if bare else None)
 
 
 def catalog_files() -> dict[str, Path]:

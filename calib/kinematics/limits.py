@@ -63,11 +63,12 @@ def refuse_far_past_limits(
     if np.any(far):
         i, k = (int(v) for v in np.argwhere(far)[0])
         unit = joint_unit(int(robot.sigma[k]))
+        mistake = "millimetres for metres" if unit == "m" else "degrees for radians"
         raise DataError(
             source,
             f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
             f"[{robot.lower[k]:.9g}, {robot.upper[k]:.9g}] {unit} by more than "
-            f"{margin[k]:g} {unit} (a wrong column, or degrees for radians?)",
+            f"{margin[k]:g} {unit} (a wrong column, or {mistake}?)",
             row=int(rows[i]),
             column=robot.joint_names[k],
         )

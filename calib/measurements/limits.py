@@ -91,8 +91,9 @@ def check_limits(
             f"{joint_unit(int(chain.sigma[k]))}"
             for k in np.flatnonzero(np.any(near, axis=0))
         ]
+        n = int(np.sum(np.any(near, axis=1)))
         warn_user(
-            f"{source}: {int(np.sum(np.any(near, axis=1)))} rows read past the URDF joint limits "
+            f"{source}: {n} row{'s' if n != 1 else ''} read past the URDF joint limits "
             f"({'; '.join(worst)}): accepted (kinematics does not need the limits)",
             DataWarning,
         )

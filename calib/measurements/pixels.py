@@ -240,8 +240,12 @@ def _checked_text(text: object) -> str:
     return text
 
 
-def _table(text: str, source: str, what: str):
-    """The header's names and the other records ``(line, cells)`` of a CSV; checked layout."""
+def _table(text: str, source: str, what: str, required: Sequence[str]):
+    """The header's names and the other records ``(line, cells)`` of a CSV; checked layout.
+
+    The ``required`` columns are looked for before the rows' cells are counted: another
+    file given (an intrinsics YAML for the target) is named by its missing column.
+    """
     records = list(csv_records(text, source))
     if not records:
         raise DataError(source, f"empty file: expected a header line and {what}")
@@ -252,6 +256,9 @@ def _table(text: str, source: str, what: str):
             raise DataError(source, f"header cell {j + 1} is empty", row=line)
         if names.index(name) != j:
             raise DataError(source, "duplicate column", row=line, column=name)
+    for column in required:
+        if column not in names:
+            raise DataError(source, "missing column", row=line, column=column)
     if len(records) == 1:
         raise DataError(source, f"no {what} after the header")
     for row, cells in records[1:]:
@@ -283,7 +290,7 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
         DataError: A missing column, a bad cell, a point given twice, a zero normal, or a
             target in millimetres, naming the row.
     """
-    names, records = _table(_checked_text(text), source, "target points")
+    names, records = _table(_checked_text(text), source, "target points", ["point", *_TARGET_XYZ])
     check_size(len(records), MAX_TARGET_POINTS, "target points", source)
     wanted = ["point", *_TARGET_XYZ]
     has_normal = [c in names for c in _NORMAL]
@@ -439,7 +446,7 @@ def parse_observations(
         InvalidArgumentError: Arguments of the wrong kind.
     """
     joint_names = _checked_arguments(joints, cameras, target)
-    names, records = _table(_checked_text(text), source, "observations")
+    names, records = _table(_checked_text(text), source, "observations", OBSERVATION_COLUMNS)
     check_size(len(records), MAX_OBSERVATIONS, "observations", source)
     col = _observation_columns(names, joint_names, source)
     numbers = [col[JOINT_PREFIX + j] for j in joint_names] + [col["u"], col["v"]]
