@@ -236,8 +236,8 @@ def check_fitted_errors(
     error) and no usual mistake explained it (:func:`~.diagnosis.explain` would have
     raised); when the calibrated model still misses the rows it was fitted to by as much
     (suspect too: beyond any instrument), the data are not of this robot or chain (another
-    robot's file, another tool or arm): a DataError names ``source``. Real data never come
-    close (TIAGo, UR10, TALOS: 5 to 13 mm RMS registered, 2 to 3 mm calibrated).
+    robot's file, another tool or arm): a DataError names ``source``. Real data stay far
+    below (TIAGo: 3.4 mm RMS registered, 1.7 mm calibrated; TALOS's left arm: 12.6, 2.8 mm).
 
     Args:
         stats: A term's ``train_registration`` and ``train`` errors
