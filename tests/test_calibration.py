@@ -520,6 +520,32 @@ def test_tiago_default_beats_the_issue_targets_on_the_other_session():
     assert np.isclose(np.sqrt(np.mean(err**2)), held.calibrated.position_rms, rtol=1e-9)
 
 
+def test_tiago_positions_in_centimetres_are_named_and_no_urdf_is_written(tmp_path, capsys):
+    """The TIAGo's positions in centimetres read as metres: the registration leaves 16,770 mm
+    RMS and was only noted (centimetres were not among the usual mistakes); the fit was
+    accepted (6,232 mm, arm lengths changed by metres) and the URDF written. Named now as
+    millimetres are; ``units cm`` reads the file (the metres' fit)."""
+    tiago = REAL / "tiago"
+    text = (tiago / "qualisys_2021-11-30_static_postures.csv").read_text().splitlines()
+    head = text[0].split(",")
+    points = [i for i, n in enumerate(head) if n[0] in "xyz" and n[1:].isdigit()]
+    rows = [r.split(",") for r in text[1:]]
+    for row in rows:
+        for i in points:
+            row[i] = repr(100.0 * float(row[i]))
+    data, out = tmp_path / "cm.csv", tmp_path / "cal.urdf"
+    data.write_text("\n".join([text[0], *(",".join(r) for r in rows)]) + "\n")
+    argv = ["calibrate", str(tiago / "tiago_48_schunk.urdf"), "--base", "base_footprint"]
+    argv += ["--tool", "wrist_ft_tool_link", "--data", str(data), "--points", "1"]
+    argv += ["--out", str(out)]
+    assert main(argv) != 0 and not out.exists()
+    err = capsys.readouterr().err
+    assert "the data look like positions in centimetres, not metres (units cm)" in err
+    assert "Traceback" not in err
+    assert main([*argv, "--units", "cm"]) == 0 and out.exists()
+    assert "fitted, calibrated              37     1.736     3.324" in capsys.readouterr().out
+
+
 @pytest.mark.filterwarnings("ignore::calib.DataWarning")
 def test_tiago_plate_pose_default_beats_its_registration():
     """The four markers read as the plate's pose: point 1 and the plate's orientation are

@@ -69,12 +69,14 @@ def test_a_glitched_touch_is_set_aside_not_called_degrees():
 
 def test_two_tables_under_one_id_are_not_called_degrees():
     """Item 1: dividing the joints by 57.3 brings every touch near one posture, where one
-    plane fits two tables: that was named degrees; now no mistake is named."""
+    plane fits two tables: that was named degrees; now no mistake is named. The calibrated
+    model still misses the one table by 158 mm: the touches do not match the chain (it was
+    only noted, and accepted)."""
     chain, camp = _panda_touches(160, contacts=2)
     one = dataclasses.replace(camp.data, ids=tuple("t" for _ in camp.data.ids))
-    res = calibrate_contacts(chain, one, params="offsets")
-    assert any("no usual mistake" in n for n in res.notes)
-    assert not res.accepted or res.stats["train"].length_rms_mm > 20
+    with pytest.raises(DataError, match="do not match panda_link0 -> panda_hand") as caught:
+        calibrate_contacts(chain, one, params="offsets")
+    assert "degrees" not in str(caught.value)
 
 
 def test_true_degrees_and_swaps_are_still_named():

@@ -249,7 +249,9 @@ def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]
     return at
 
 
-_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, quaternion order")
+_WORDS = diagnosis.Words(
+    mistakes="swapped joint columns, degrees, millimetres, centimetres, quaternion order"
+)
 _TURNS = diagnosis.Words(
     error="orientation error",
     mistakes="quaternion order, degrees, rpy order",

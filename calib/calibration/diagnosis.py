@@ -8,7 +8,8 @@ and the mistake whose correction explains the data (RMS ``EXPLAINS`` times lower
 
 * two joint columns swapped (every pair);
 * joint positions in degrees instead of radians;
-* positions in millimetres instead of metres, or metres read as millimetres (``units mm``);
+* positions in millimetres or centimetres instead of metres, or metres read as millimetres
+  (``units mm``);
 * quaternions written scalar first (w, x, y, z) in scalar-last columns, or the reverse.
 
 Orientations are diagnosed the same way on the registration's orientation error
@@ -80,10 +81,11 @@ def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[s
         yield "revolute joint positions in degrees, not radians", dataclasses.replace(data, q=q)
     if joints_only:
         return
-    yield (
-        "positions in millimetres, not metres (units mm)",
-        dataclasses.replace(data, position=data.position * 1e-3),
-    )
+    for unit, size in (("millimetres", 1e-3), ("centimetres", 1e-2)):
+        yield (
+            f"positions in {unit}, not metres (units {unit[0]}m)",
+            dataclasses.replace(data, position=data.position * size),
+        )
     if np.max(np.abs(data.position), initial=0.0) * 1e3 <= MAX_COORDINATE:  # else: not metres
         yield (
             "positions in metres read as millimetres (units m, the default)",

@@ -70,7 +70,7 @@ def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> Res
     return ResidualStats.of(np.concatenate(rows))
 
 
-_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres")
+_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, centimetres")
 
 
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:

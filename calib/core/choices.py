@@ -51,7 +51,7 @@ ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 MARKERS = "markers"
 """Orientation format: no columns, the orientation of the K >= 3 measured points."""
 
-UNITS = {"m": 1.0, "mm": 1e-3}
+UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
 """Position units a file may use, and their size in metres."""
 
 CAMPAIGN_MEASURES = ("pose", "position")
