@@ -215,6 +215,23 @@ def test_report_keys_of_each_kind():
         assert (d["tilt_weight"] is None) == (kind in ("plane-point", "fixed-point"))
 
 
+def test_summary_names_each_kind_of_object_and_its_own_rows():
+    """Planes, points and poses counted by their kind; each chain's line gives its rows' units."""
+    chain = load_robot("panda")
+    want = {
+        "plane": ("2 plane(s)", "plane 'table1', 'table2' (gaps: height [mm], roll [deg], pitch"),
+        "plane-point": ("2 plane(s)", "plane 'table1', 'table2' (gaps: height [mm]):"),
+        "fixed-point": ("2 point(s)", "point 'point1', 'point2' (gaps: x [mm], y [mm], z [mm]):"),
+        "fixed-pose": ("2 pose(s)", "pose 'point1', 'point2' (gaps: x [mm], y [mm], z [mm], rx"),
+    }
+    for kind, (objects, heading) in want.items():
+        data = simulate_contacts(chain, 40, kind, contacts=2, seed=1).data
+        lines = calibrate_contacts(chain, data, params="offsets").summary().splitlines()
+        assert lines[0].startswith(f"panda: 1 chain, {objects}, "), lines[0]
+        assert lines[1].startswith(f"panda_link0 -> panda_hand, {heading}"), lines[1]
+        assert not any(line.startswith("gaps (RMS)") for line in lines)
+
+
 def test_usual_mistakes_and_outliers_in_touches():
     """Swapped joint columns and degrees are named; a wild touch is set aside and listed."""
     chain = load_robot("panda")
