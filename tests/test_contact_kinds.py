@@ -308,6 +308,19 @@ def test_bad_input_one_line_exit_2_no_output(capsys, tmp_path, extra, message):
     assert not out.exists() and not rep.exists()
 
 
+def test_an_object_of_too_few_touches_names_the_file(capsys, tmp_path):
+    """Two touches of one point: the one-line error names the file, like every data error."""
+    data = simulate_contacts(load_robot("ur5"), 30, "fixed-point", seed=0).data
+    ids = tuple("t2" if k < 2 else i for k, i in enumerate(data.ids))
+    csv = tmp_path / "points.csv"
+    write_contacts(csv, dataclasses.replace(data, ids=ids))
+    out = tmp_path / "cal.urdf"
+    argv = ("calibrate", "ur5", "--data", str(csv), "--measure", "fixed-point", "--out", str(out))
+    code, err = _cli(capsys, *argv)
+    assert code == 2 and f"{csv}: 't2' has 2 touch(es): at least 3 are needed" in err
+    assert not out.exists()
+
+
 def test_validation_file_of_few_touches_scores_the_fit():
     """A validation campaign of two touches per object is scored, not registered on its own."""
     chain = load_robot("panda")
