@@ -288,6 +288,8 @@ def test_ctrl_c_at_any_time_is_one_line_and_130(tmp_path, large_campaign, librar
         (["design", "ur5", "--configs", "9", "--noise-mm", "-0.1"], "positive number"),
         (["design", "ur5", "--configs", "9", "--noise-mm", "nan"], "positive number"),
         (["design", "ur5", "--configs", "9", "--noise-mm", "inf"], "positive number"),
+        (["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--noise-mm", "0"],
+         "argument --noise-mm: expected a positive number"),
     ],
 )  # fmt: skip
 def test_contradictory_repeated_or_impossible_flags_are_usage_errors(capsys, argv, fact):

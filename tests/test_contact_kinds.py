@@ -215,6 +215,23 @@ def test_report_keys_of_each_kind():
         assert (d["tilt_weight"] is None) == (kind in ("plane-point", "fixed-point"))
 
 
+def test_summary_names_each_kind_of_object_and_its_own_rows():
+    """Planes, points and poses counted by their kind; each chain's line gives its rows' units."""
+    chain = load_robot("panda")
+    want = {
+        "plane": ("2 plane(s)", "plane 'table1', 'table2' (gaps: height [mm], roll [deg], pitch"),
+        "plane-point": ("2 plane(s)", "plane 'table1', 'table2' (gaps: height [mm]):"),
+        "fixed-point": ("2 point(s)", "point 'point1', 'point2' (gaps: x [mm], y [mm], z [mm]):"),
+        "fixed-pose": ("2 pose(s)", "pose 'point1', 'point2' (gaps: x [mm], y [mm], z [mm], rx"),
+    }
+    for kind, (objects, heading) in want.items():
+        data = simulate_contacts(chain, 40, kind, contacts=2, seed=1).data
+        lines = calibrate_contacts(chain, data, params="offsets").summary().splitlines()
+        assert lines[0].startswith(f"panda: 1 chain, {objects}, "), lines[0]
+        assert lines[1].startswith(f"panda_link0 -> panda_hand, {heading}"), lines[1]
+        assert not any(line.startswith("gaps (RMS)") for line in lines)
+
+
 def test_usual_mistakes_and_outliers_in_touches():
     """Swapped joint columns and degrees are named; a wild touch is set aside and listed."""
     chain = load_robot("panda")
@@ -289,6 +306,19 @@ def test_bad_input_one_line_exit_2_no_output(capsys, tmp_path, extra, message):
     assert code == 2 and message in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert not out.exists() and not rep.exists()
+
+
+def test_an_object_of_too_few_touches_names_the_file(capsys, tmp_path):
+    """Two touches of one point: the one-line error names the file, like every data error."""
+    data = simulate_contacts(load_robot("ur5"), 30, "fixed-point", seed=0).data
+    ids = tuple("t2" if k < 2 else i for k, i in enumerate(data.ids))
+    csv = tmp_path / "points.csv"
+    write_contacts(csv, dataclasses.replace(data, ids=ids))
+    out = tmp_path / "cal.urdf"
+    argv = ("calibrate", "ur5", "--data", str(csv), "--measure", "fixed-point", "--out", str(out))
+    code, err = _cli(capsys, *argv)
+    assert code == 2 and f"{csv}: 't2' has 2 touch(es): at least 3 are needed" in err
+    assert not out.exists()
 
 
 def test_validation_file_of_few_touches_scores_the_fit():

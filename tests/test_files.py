@@ -94,6 +94,7 @@ CASES = [  # (command line, a fact of the error line)
     ("calibrate {robot} --data {data} --out {tmp}/c.urdf --report {tmp}/soft.urdf", "--report"),
     ("calibrate {robot} --data {data} --out {tmp}/hard.urdf", "nominal"),
     ("calibrate {robot} --data {data} --out {tmp}/c.urdf --report {tmp}/sub/../c.urdf", "same"),
+    ("calibrate {robot} --data {data} --out {tmp}/c.json --report {tmp}/c.urdf", "not the JSON"),
     ("sweep {robot} --csv {robot}", "--csv"),
     ("sweep {robot} --csv {tmp}/s.png --plot {tmp}/s.png", "same file"),
     ("sweep {robot} --csv {tmp}/hard.urdf", "--csv"),

@@ -96,9 +96,7 @@ class ChainContacts(TermPart):
     rows: ClassVar[str] = "touches"
 
     def heading(self) -> str:
-        """Its object (a plane, or the poses or points it touches and their gaps' units)."""
-        if isinstance(self.kind, PlaneContact):
-            return f"{self.kind.object_name} '{self.plane_id}':"
+        """Its objects (the planes, points or poses it touches) and its gaps' units."""
         ids = ", ".join(f"'{i}'" for i in self.objects())
         return f"{self.kind.object_name} {ids} (gaps: {units(self.kind)}):"
 
@@ -162,8 +160,9 @@ class ContactChainsCalibration(Result, ChainView):
         chains: Each chain's part, in the order given.
         placements: The fitted joint placement errors (one per URDF joint on any chain).
         shared: Joints on two chains or more (fitted once for all of them).
-        planes: Objects fitted: planes (a plane shared by chains counts once) and the
-            fixed poses of ``fixed-pose`` chains.
+        planes: The touching chains' sets of objects: one per chain (whatever the planes,
+            points or poses it touches), a plane shared by chains once (format 2's
+            ``planes``; the summary counts the objects themselves).
         free: The placement components fitted (``<joint>:x`` ... ``:rz``).
         selection: The automatic choice (``auto``), or None.
         refusal: Why the model must not be used, or None.
@@ -448,13 +447,17 @@ class ContactChainsCalibration(Result, ChainView):
         }
 
     def _objects(self) -> str:
-        """What the terms fit beside the joints: ``2 plane(s)``, ``1 pose(s)``, ``1 camera(s)``."""
-        loops = [c for c in self._of(ChainContacts) if not isinstance(c.kind, PlaneContact)]
-        poses = sum(len(c.objects()) for c in loops)
+        """What the terms fit beside the joints: ``2 plane(s)``, ``2 point(s)``, ``1 camera(s)``.
+
+        A contact term's objects are named by their kind (a plane-point's plane is a plane), a
+        plane shared by chains counts once.
+        """
+        names = self._object_names()
+        objects: dict[str, set[str]] = {}
+        for c in self._of(ChainContacts):
+            objects.setdefault(c.kind.object_name, set()).update(names[id(c)].values())
         measured, cameras = len(self._of(MeasuredChain)), len(self._of(PixelChain))
-        planes = self.planes - len(loops)
-        parts = [f"{planes} plane(s)"] if planes or not (poses or measured or cameras) else []
-        parts += [f"{poses} pose(s)"] if poses else []
+        parts = [f"{len(ids)} {kind}(s)" for kind, ids in objects.items()]
         parts += [f"{measured} measured term(s)"] if measured else []
         parts += [f"{cameras} camera(s)"] if cameras else []
         return ", ".join(parts)
@@ -468,8 +471,6 @@ class ContactChainsCalibration(Result, ChainView):
             f"{len(self.free)} joint placement components fitted, {self.unknowns} unknowns "
             "determined" + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
         ]
-        if self._of(ChainContacts):
-            lines.append("gaps (RMS): height [mm]  roll [deg]  pitch [deg]")
         one = self._frame() is not None  # one chain measured by an instrument: a chain's table
         lines += [line for c in (() if one else self.chains) for line in c.lines()]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())

@@ -117,7 +117,7 @@ def registration(
     def at(w: float) -> ContactFrames:
         if first is not None and w == DEFAULT_WEIGHT:
             return first
-        return register_contacts(data.kind, R, p, data.ids, guess, w)
+        return register_contacts(data.kind, R, p, data.ids, guess, w, data.source)
 
     def gaps(w: float) -> np.ndarray:
         frames = at(w)

@@ -230,6 +230,7 @@ def register_contacts(
     ids: Sequence[str],
     contact: np.ndarray,
     weight: float = DEFAULT_WEIGHT,
+    source: str | None = None,
 ) -> ContactFrames:
     """The objects and the contact frame of any kind, registered (see the module's text).
 
@@ -237,6 +238,7 @@ def register_contacts(
     and ``positions`` ``(m, 3)`` [m] in the base frame (nominal model), each touch's object
     id, the contact frame's guess in the tool frame ``(4, 4)`` (a fixed pose's kept, a tip's
     rotation kept) and the angle rows' ``weight`` [m/rad] (1 mrad counts as ``weight`` mm).
+    ``source``: the touches' file, which the errors name first (or None).
 
     Raises:
         ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry
@@ -246,9 +248,14 @@ def register_contacts(
     """
     start, weighted = _STARTS[type(kind)]
     R, p, guess = (np.asarray(a, dtype=float) for a in (rotations, positions, contact))
-    names, index = _groups(ids)
-    frames = start(kind, R, p, guess, index, names, weight)
-    if isinstance(kind, FixedPointContact):
-        return frames  # the closed form is the least squares
-    frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)
+    try:
+        names, index = _groups(ids)
+        frames = start(kind, R, p, guess, index, names, weight)
+        if isinstance(kind, FixedPointContact):
+            return frames  # the closed form is the least squares
+        frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)
+    except ContactGeometryError as exc:
+        if source is None:
+            raise
+        raise ContactGeometryError(f"{source}: {exc}") from None
     return frames.centred(R, p, index)

@@ -37,6 +37,7 @@ from .common import (
     compliance_path,
     look_outputs,
     orientation_wanted,
+    positive_number,
     refuse_unused_weight,
     tool_arg,
     write_calibration,
@@ -93,6 +94,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
     the report's ``warnings`` too.
     """
+    if Path(args.out).suffix.lower() == ".json":  # the report's suffix: --out and --report swapped?
+        raise InvalidArgumentError(
+            f"--out {args.out} names the calibrated URDF, not the JSON report (--report): give "
+            "it a .urdf name"
+        )
     with _recorded_warnings() as recorded:
         if args.measure == "pixels":
             return pixels_cli.calibrate_pixels_command(args, recorded)
@@ -434,7 +440,7 @@ def _add_model_args(g: Group) -> None:
     )
     g.add_argument(
         "--noise-mm",
-        type=float,
+        type=positive_number,
         help="instrument noise [mm]: scale of the robust loss and of the outlier test",
     )
     g.add_argument(
