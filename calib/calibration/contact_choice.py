@@ -130,7 +130,7 @@ def _offer_directions(
     ``paper``, ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n
     (``paper``'s set or the complete one) as directions of joint placement errors
     (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
-    offers (a shared joint's) once; ``complete`` then the components where chains meet
+    offers (a shared joint's) once; ``complete`` first the components where chains meet
     (:func:`_branch_components`).
     """
     pl = start.placements
@@ -146,15 +146,15 @@ def _offer_directions(
         return None, _offset_names(start, offsets), offsets
     rows: list[np.ndarray] = []
     labels: list[tuple[str, Chain]] = []
+    if level == "complete":
+        branch = _branch_components(start)
+        rows.extend(np.eye(6 * len(pl.joints))[branch])
+        labels.extend((pl.names()[c], start.chains[0]) for c in branch)
     for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
         D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
         rows.extend(D)
         labels.extend((name, chain) for name in more)
-    if level == "complete":
-        branch = _branch_components(start)
-        rows.extend(np.eye(6 * len(pl.joints))[branch])
-        labels.extend((pl.names()[c], start.chains[0]) for c in branch)
     offered = np.array(rows).reshape(len(rows), -1)
     units = offered / np.linalg.norm(offered, axis=1, keepdims=True)  # every norm at once
     parallel = (~(np.abs(units @ units.T) <= 1.0 - 1e-12)).tolist()  # a zero row (NaN): parallel
@@ -172,7 +172,9 @@ def _branch_components(start: ChainsState) -> list[int]:
     moves its tool as a neighbouring joint's parameter does. Where that neighbour is shared
     (or the joint is), the other chain tells them apart: two arms touching from their feet
     determine the tilts of the first leg and arm joints beside the torso, which neither
-    chain's MDH rows hold. The rank keeps those the MDH directions before them do not span.
+    chain's MDH rows hold. Offered before the MDH directions: the rank keeps a basis of these
+    joints' components (after the MDH rows, the few it kept made a basis that a fit off the
+    nominal robot found rank-deficient: TALOS's arms and head camera, condition 1.6e9).
     """
     pl = start.placements
     paths = [list(pl.path(chain).columns) for chain in start.chains]
