@@ -275,9 +275,9 @@ def test_talos_head_and_contacts_count_equals_a_pinocchio_rank():
     assert np.max(np.abs(robot.rows()[: 3 * 48])) < 1e-9  # flush: the planes are right
     names = [n for c in nominal for n in c.joint_names]
     assert r.identifiable == robot.rank(names, [_frame(robot.model, CAMERA[0])])
-    # the complete level's offer (each chain's MDH rows) names fewer combinations of the
-    # shared joints than the data determine; the polish fits them (the round trip is exact)
-    assert r.unknowns <= r.identifiable
+    # the complete level's offer (each chain's MDH rows, then the components where the
+    # chains meet) holds every combination of the shared joints the data determine
+    assert r.unknowns == r.identifiable
 
 
 @pytest.fixture(scope="module")

@@ -130,7 +130,8 @@ def _offer_directions(
     ``paper``, ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n
     (``paper``'s set or the complete one) as directions of joint placement errors
     (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
-    offers (a shared joint's) once.
+    offers (a shared joint's) once; ``complete`` first the components where chains meet
+    (:func:`_branch_components`).
     """
     pl = start.placements
     if level == "frames":
@@ -145,6 +146,10 @@ def _offer_directions(
         return None, _offset_names(start, offsets), offsets
     rows: list[np.ndarray] = []
     labels: list[tuple[str, Chain]] = []
+    if level == "complete":
+        branch = _branch_components(start)
+        rows.extend(np.eye(6 * len(pl.joints))[branch])
+        labels.extend((pl.names()[c], start.chains[0]) for c in branch)
     for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
         D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
@@ -158,6 +163,30 @@ def _offer_directions(
         if not any(row[k] for k in kept):  # parallel to none kept
             kept.append(i)
     return offered[kept], _unique([labels[i] for i in kept]), list(range(len(kept)))
+
+
+def _branch_components(start: ChainsState) -> list[int]:
+    """The components of the joints shared by chains and of their neighbours on a path.
+
+    A chain's MDH parameters span what it sees alone: a placement component it leaves out
+    moves its tool as a neighbouring joint's parameter does. Where that neighbour is shared
+    (or the joint is), the other chain tells them apart: two arms touching from their feet
+    determine the tilts of the first leg and arm joints beside the torso, which neither
+    chain's MDH rows hold. Offered before the MDH directions: the rank keeps a basis of these
+    joints' components (after the MDH rows, the few it kept made a basis that a fit off the
+    nominal robot found rank-deficient: TALOS's arms and head camera, condition 1.6e9).
+    """
+    pl = start.placements
+    paths = [list(pl.path(chain).columns) for chain in start.chains]
+    seen = [j for path in paths for j in path]
+    shared = {j for j in seen if seen.count(j) > 1}
+    near = {
+        j
+        for path in paths
+        for i, j in enumerate(path)
+        if shared & {j, *path[max(i - 1, 0) : i + 2]}
+    }
+    return [6 * j + k for j in sorted(near) for k in range(6)]
 
 
 def _offset_names(start: ChainsState, offsets: list[int]) -> tuple[str, ...]:
