@@ -458,7 +458,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
                 if isinstance(s, PixelTermState)
                 else measured_part(chain, d, h, s0, s, std, c + 1, elastic[1], notes)
             )
-            if isinstance(part, MeasuredChain):
+            if isinstance(part, MeasuredChain) and fitted.converged:  # else refused (a retry)
                 noise = r.run.options.noise
                 validation.check_fitted_errors(part.stats, d.n_markers, noise, d.source, chain)
             if h is not None:
@@ -473,7 +473,8 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             return gap_stats(st, rows.q, rows.ids, torques[id(rows)] if st is fitted else None)
 
         stats = part_stats(stat, s0, s, d, h)
-        validation.check_fitted_errors(stats, None, None, d.source, chain)
+        if fitted.converged:  # a fit that stalled is refused, or fitted again (auto)
+            validation.check_fitted_errors(stats, None, None, d.source, chain)
         if h is not None:
             near, far = (
                 1e-3 * stats[f"{k}_registration"].length_rms_mm for k in ("train", "held_out")

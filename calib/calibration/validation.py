@@ -235,8 +235,9 @@ def check_fitted_errors(
     The registration's error was suspect (:func:`~.diagnosis.suspect`: above any geometric
     error) and no usual mistake explained it (:func:`~.diagnosis.explain` would have
     raised); when the calibrated model still misses the rows it was fitted to by as much
-    (suspect too: beyond any instrument), the data are not of this robot or chain (another
-    robot's file, another tool or arm): a DataError names ``source``. Real data stay far
+    (suspect too: over 20 mm, or 20 times the noise given), the data are not of this robot or
+    chain (another robot's file, another tool or arm), or of a noisier instrument than said:
+    a DataError names ``source`` and the way out (the instrument's noise). Real data stay far
     below (TIAGo: 3.4 mm RMS registered, 1.7 mm calibrated; TALOS's left arm: 12.6, 2.8 mm).
 
     Args:
@@ -256,12 +257,19 @@ def check_fitted_errors(
 
     registration, calibrated = rms("train_registration"), rms("train")
     if suspect(registration, noise) and suspect(calibrated, noise):
+        way_out = (
+            "two objects logged under one id?"
+            if n_markers is None
+            else "an instrument this noisy? give its noise (noise_mm, --noise-mm)"
+            if noise is None
+            else "an instrument noisier than the noise given?"
+        )
         raise DataError(
             source,
             f"the data do not match {chain.base_frame} -> {chain.tool_frame}: the calibrated "
             f"model still misses them by {1e3 * calibrated:.4g} mm RMS (registered: "
-            f"{1e3 * registration:.4g} mm), beyond any instrument: another robot's data, or "
-            "another tool or arm?",
+            f"{1e3 * registration:.4g} mm): another robot's data, another tool or arm, or "
+            f"{way_out}",
         )
 
 
