@@ -520,24 +520,30 @@ def test_tiago_default_beats_the_issue_targets_on_the_other_session():
     assert np.isclose(np.sqrt(np.mean(err**2)), held.calibrated.position_rms, rtol=1e-9)
 
 
-def test_tiago_positions_in_centimetres_are_named_and_no_urdf_is_written(tmp_path, capsys):
-    """The TIAGo's positions in centimetres read as metres: the registration leaves 16,770 mm
-    RMS and was only noted (centimetres were not among the usual mistakes); the fit was
-    accepted (6,232 mm, arm lengths changed by metres) and the URDF written. Named now as
-    millimetres are; ``units cm`` reads the file (the metres' fit)."""
+def _tiago_cli_with_positions(tmp_path, change) -> tuple[list[str], Path]:
+    """``calib calibrate`` of the TIAGo's real positions, each row's point coordinates [m]
+    passed through ``change(row index, coordinates)``: its argv and its output URDF."""
     tiago = REAL / "tiago"
     text = (tiago / "qualisys_2021-11-30_static_postures.csv").read_text().splitlines()
     head = text[0].split(",")
     points = [i for i, n in enumerate(head) if n[0] in "xyz" and n[1:].isdigit()]
     rows = [r.split(",") for r in text[1:]]
-    for row in rows:
-        for i in points:
-            row[i] = repr(100.0 * float(row[i]))
-    data, out = tmp_path / "cm.csv", tmp_path / "cal.urdf"
+    for k, row in enumerate(rows):
+        for i, v in zip(points, change(k, np.array([float(row[i]) for i in points])), strict=True):
+            row[i] = repr(float(v))
+    data, out = tmp_path / "positions.csv", tmp_path / "cal.urdf"
     data.write_text("\n".join([text[0], *(",".join(r) for r in rows)]) + "\n")
     argv = ["calibrate", str(tiago / "tiago_48_schunk.urdf"), "--base", "base_footprint"]
     argv += ["--tool", "wrist_ft_tool_link", "--data", str(data), "--points", "1"]
-    argv += ["--out", str(out)]
+    return [*argv, "--out", str(out)], out
+
+
+def test_tiago_positions_in_centimetres_are_named_and_no_urdf_is_written(tmp_path, capsys):
+    """The TIAGo's positions in centimetres read as metres: the registration leaves 16,770 mm
+    RMS and was only noted (centimetres were not among the usual mistakes); the fit was
+    accepted (6,232 mm, arm lengths changed by metres) and the URDF written. Named now as
+    millimetres are; ``units cm`` reads the file (the metres' fit)."""
+    argv, out = _tiago_cli_with_positions(tmp_path, lambda k, p: 100.0 * p)
     assert main(argv) != 0 and not out.exists()
     err = capsys.readouterr().err
     assert "the data look like positions in centimetres, not metres (units cm)" in err
@@ -553,20 +559,8 @@ def test_a_noisy_instrument_is_refused_with_its_way_out_and_accepted_with_its_no
     calibrated model misses them by about 24 mm RMS, as the registration does. Refused
     without the instrument's noise, the error naming it (not "another robot" alone); given
     (``--noise-mm 25``), the same data are accepted and the URDF written."""
-    tiago = REAL / "tiago"
-    text = (tiago / "qualisys_2021-11-30_static_postures.csv").read_text().splitlines()
-    head = text[0].split(",")
-    points = [i for i, n in enumerate(head) if n[0] in "xyz" and n[1:].isdigit()]
-    rows = [r.split(",") for r in text[1:]]
-    noise = np.random.default_rng(3).normal(0.0, 0.015, (len(rows), len(points)))
-    for row, e in zip(rows, noise, strict=True):
-        for i, n in zip(points, e, strict=True):
-            row[i] = repr(float(row[i]) + float(n))
-    data, out = tmp_path / "noisy.csv", tmp_path / "cal.urdf"
-    data.write_text("\n".join([text[0], *(",".join(r) for r in rows)]) + "\n")
-    argv = ["calibrate", str(tiago / "tiago_48_schunk.urdf"), "--base", "base_footprint"]
-    argv += ["--tool", "wrist_ft_tool_link", "--data", str(data), "--points", "1"]
-    argv += ["--out", str(out)]
+    noise = np.random.default_rng(3).normal(0.0, 0.015, (37, 12))  # 37 rows of 4 points
+    argv, out = _tiago_cli_with_positions(tmp_path, lambda k, p: p + noise[k])
     assert main(argv) != 0 and not out.exists()
     err = capsys.readouterr().err
     assert "an instrument this noisy? give its noise (noise_mm, --noise-mm)" in err
