@@ -290,6 +290,12 @@ def test_ctrl_c_at_any_time_is_one_line_and_130(tmp_path, large_campaign, librar
         (["design", "ur5", "--configs", "9", "--noise-mm", "inf"], "positive number"),
         (["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--noise-mm", "0"],
          "argument --noise-mm: expected a positive number"),
+        (["simulate", "ur5", "--out", "s.csv", "--noise-mm", "-1"],
+         "argument --noise-mm: expected a number >= 0"),
+        (["simulate", "ur5", "--out", "s.csv", "--error-mm", "nan"],
+         "argument --error-mm: expected a number >= 0"),
+        (["simulate", "ur5", "--out", "s.csv", "--noise-mrad", "2000"],
+         "argument --noise-mrad: expected a number >= 0"),
     ],
 )  # fmt: skip
 def test_contradictory_repeated_or_impossible_flags_are_usage_errors(capsys, argv, fact):

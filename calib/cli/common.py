@@ -42,6 +42,7 @@ __all__ = [
     "compliance_path",
     "given_options",
     "look_outputs",
+    "nonnegative_number",
     "one_line",
     "orientation_wanted",
     "positive_number",
@@ -225,16 +226,25 @@ def refuse_unused_weight(args: argparse.Namespace, angles: bool, data: str) -> N
 
 def positive_number(text: str) -> float:
     """The type of a noise option [mm]: a finite number > 0, at most 1 m (else a usage error)."""
+    return _bounded(text, zero=False)
+
+
+def nonnegative_number(text: str) -> float:
+    """The type of a simulated error or noise [mm or mrad]: a number in [0, 1000]."""
+    return _bounded(text, zero=True)
+
+
+def _bounded(text: str, zero: bool) -> float:
+    """``text`` as a number in (0, MAX_ERROR_MM] (``zero``: [0, MAX_ERROR_MM])."""
     from ..core.checks import MAX_ERROR_MM  # numpy: only when the option is given
 
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not (value > 0.0 and value <= MAX_ERROR_MM):
-        raise argparse.ArgumentTypeError(
-            f"expected a positive number at most {MAX_ERROR_MM:g}, got '{text}'"
-        )
+    if not ((value >= 0.0 if zero else value > 0.0) and value <= MAX_ERROR_MM):
+        sign = "a number >= 0" if zero else "a positive number"
+        raise argparse.ArgumentTypeError(f"expected {sign} at most {MAX_ERROR_MM:g}, got '{text}'")
     return value
 
 

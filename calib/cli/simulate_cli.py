@@ -29,6 +29,7 @@ from .common import (
     check_output_paths,
     command_parser,
     given_options,
+    nonnegative_number,
     tool_arg,
     write_outputs,
 )
@@ -288,20 +289,26 @@ def _add_error_args(g: Group) -> None:
         help=f"parameter set perturbed (default: {DEFAULT_SET})",
     )
     g.add_argument(
-        "--error-mm", type=float, default=1.0, help="std of every length error [mm] (default: 1)"
+        "--error-mm",
+        type=nonnegative_number,
+        default=1.0,
+        help="std of every length error [mm] (default: 1)",
     )
     g.add_argument(
-        "--error-mrad", type=float, default=1.0, help="std of every angle error [mrad] (default: 1)"
+        "--error-mrad",
+        type=nonnegative_number,
+        default=1.0,
+        help="std of every angle error [mrad] (default: 1)",
     )
     g.add_argument(
         "--noise-mm",
-        type=float,
+        type=nonnegative_number,
         default=0.0,
         help="std of the position noise per axis [mm] (default: 0)",
     )
     g.add_argument(
         "--noise-mrad",
-        type=float,
+        type=nonnegative_number,
         default=None,
         help="std of the orientation noise per axis [mrad] (default: NOISE_MM)",
     )
