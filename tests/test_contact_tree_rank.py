@@ -92,6 +92,16 @@ def independent_rank() -> int:
     return int(np.sum(s > 1e-6 * s[0]))
 
 
+def _both_arms() -> tuple[calib.Term, ...]:
+    """Each arm's real touches, its chain from its own sole."""
+    terms = []
+    for side, tool in ARMS:
+        robot = calib.load_robot(URDF, f"{side}_sole_link", tool)
+        touches = calib.read_contacts(REAL / f"{side}_train.csv", robot, "plane")
+        terms.append(calib.Term(robot, touches))
+    return tuple(terms)
+
+
 def test_two_arms_touching_fit_every_unknown_pinocchio_finds_determined():
     """Both arms' touches, params complete: calib fits and counts the independent rank.
 
@@ -103,12 +113,7 @@ def test_two_arms_touching_fit_every_unknown_pinocchio_finds_determined():
     rank = independent_rank()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        terms = []
-        for side, tool in ARMS:
-            robot = calib.load_robot(URDF, f"{side}_sole_link", tool)
-            touches = calib.read_contacts(REAL / f"{side}_train.csv", robot, "plane")
-            terms.append(calib.Term(robot, touches))
-        problem = calib.Problem(tuple(terms), params="complete")
+        problem = calib.Problem(_both_arms(), params="complete")
         result = calib.calibrate(problem)
         n_base = calib.analyze(problem).n_base
     printed = re.search(r"(\d+) unknowns determined", result.summary())
@@ -130,11 +135,6 @@ def test_auto_offers_each_chains_mdh_rows_not_the_components_where_chains_meet()
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        terms = []
-        for side, tool in ARMS:
-            robot = calib.load_robot(URDF, f"{side}_sole_link", tool)
-            touches = calib.read_contacts(REAL / f"{side}_train.csv", robot, "plane")
-            terms.append(calib.Term(robot, touches))
-        result = calib.calibrate(calib.Problem(tuple(terms)))
+        result = calib.calibrate(calib.Problem(_both_arms()))
     assert "the touches determine 96 of the 111 parameters offered" in result.notes
     assert not any(n.endswith((":rx", ":ry")) for n in result.selection.kept)
