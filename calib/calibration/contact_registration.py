@@ -92,10 +92,7 @@ def _tilt_to(b: np.ndarray) -> np.ndarray:
 
 
 def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """Each plane's normal through its contact points ``x``, on the side of ``up`` ``(K, 3)``.
-
-    The smallest singular vector of the centred points of each plane.
-    """
+    """Each plane's normal through its contact points ``x``, on the side of ``up`` ``(K, 3)``."""
     normals = []
     for k, u in enumerate(up):
         centred = x[index == k] - x[index == k].mean(axis=0)
