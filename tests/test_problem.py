@@ -115,7 +115,7 @@ def _guessed(terms, heights):
         (lambda s: Problem(()), "at least one Term"),
         (lambda s: Problem(("x",)), "must be Term"),
         (lambda s: Problem((*s["chains"], *s["chain"])), "one URDF"),
-        (lambda s: Term("ur5", s["chain"][0].data), "chain or a tree"),
+        (lambda s: Term("ur5", s["chain"][0].data), "must be a Chain or a Tree"),
         (
             lambda s: Term(s["chain"][0].robot, np.zeros((3, 6))),
             "Measurements, ContactData or PixelData",

@@ -117,8 +117,8 @@ def block_lstsq(
     sv = [np.linalg.svd(R, compute_uv=False).ravel()] if o else []
     shared = np.zeros(s)
     if s:
-        shared = np.linalg.lstsq(reduced[:, :s], -reduced[:, s], rcond=None)[0]
-        sv.append(np.linalg.svd(reduced[:, :s], compute_uv=False))
+        shared, _, _, singular = np.linalg.lstsq(reduced[:, :s], -reduced[:, s], rcond=None)
+        sv.append(singular)
     values = np.concatenate(sv) if sv else np.ones(1)
     smallest, largest = float(np.min(values)), float(np.max(values))
     objects = np.zeros((K, o))

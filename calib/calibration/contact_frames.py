@@ -33,10 +33,7 @@ DOF_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 
 
 def _moved(T: np.ndarray, v: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Frames ``T [Exp(r), t]`` ``(..., 4, 4)`` by the twists ``v = (t, r)`` ``(..., 6)``.
-
-    ``R``: the rotations ``Exp(r)``, made.
-    """
+    """Frames ``T [Exp(r), t]`` ``(..., 4, 4)`` by twists ``v = (t, r)``, ``R = Exp(r)`` made."""
     out = np.array(T, dtype=float, copy=True)
     out[..., :3, :3] = T[..., :3, :3] @ R
     out[..., :3, 3] = T[..., :3, 3] + (T[..., :3, :3] @ v[..., :3, None])[..., 0]

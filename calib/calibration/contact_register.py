@@ -23,7 +23,7 @@ from ..core.progress import Progress, phase
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import FixedPoseContact
 from ..kinematics.mdh import from_chain
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -82,8 +82,7 @@ def _check(run: Run) -> None:
     if not isinstance(chains, Sequence) or not chains:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
     for c in chains:
-        if not isinstance(c, Chain):
-            raise InvalidArgumentError(f"contacts are calibrated on Chains, got {c!r:.60}")
+        check_chain(c, "each chain")
     first = chains[0]
     for c in chains[1:]:
         if c.urdf_resolved != first.urdf_resolved or tuple(c.model.names) != tuple(

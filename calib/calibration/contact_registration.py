@@ -92,10 +92,7 @@ def _tilt_to(b: np.ndarray) -> np.ndarray:
 
 
 def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """Each plane's normal through its contact points ``x``, on the side of ``up`` ``(K, 3)``.
-
-    The smallest singular vector of the centred points of each plane.
-    """
+    """Each plane's normal through its contact points ``x``, on the side of ``up`` ``(K, 3)``."""
     normals = []
     for k, u in enumerate(up):
         centred = x[index == k] - x[index == k].mean(axis=0)
@@ -187,12 +184,11 @@ def _points(kind, R, p, guess, index, names, weight) -> ContactFrames:
     np.add.at(pbar, index, p)
     Rbar, pbar = Rbar / count[:, :, None], pbar / count
     A = (R - Rbar[index]).reshape(-1, 3)
-    s = np.linalg.svd(A, compute_uv=False)
+    tip, _, _, s = np.linalg.lstsq(A, -(p - pbar[index]).ravel(), rcond=None)
     if s[-1] < MIN_SPREAD * np.sqrt(len(p)):
         raise ContactGeometryError(
             "the touches do not fix the tip: touch each point at orientations about several axes"
         )
-    tip = np.linalg.lstsq(A, -(p - pbar[index]).ravel(), rcond=None)[0]
     C = guess.copy()
     C[:3, 3] = tip
     points = np.tile(np.eye(4), (K, 1, 1))

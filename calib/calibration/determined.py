@@ -42,6 +42,7 @@ import numpy as np
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
 from .model import ErrorModel, MeasuredKind, State, generic_measurements
+from .solve import condition
 
 __all__ = [
     "CLEAR",
@@ -264,8 +265,7 @@ def separating_posture(
     norms = np.linalg.norm(flat, axis=0)
     norms = np.where(norms > 0, norms, 1.0)
     seen = np.linalg.norm(J @ (direction / norms), axis=1) / np.linalg.norm(J / norms, axis=(1, 2))
-    s = np.linalg.svd(flat / norms, compute_uv=False)
-    return q[int(np.argmax(seen))], float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    return q[int(np.argmax(seen))], condition(flat)
 
 
 def undetermined(J: np.ndarray, names: tuple[str, ...], std) -> list[Direction]:

@@ -73,16 +73,16 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.sum(loo**2, axis=(2, 3))
 
 
-def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
+def spd_solve(M: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Solutions of many small symmetric positive definite systems, component-major.
 
     Gaussian elimination without pivoting (stable for positive definite matrices), vectorised
     over the systems: one array operation per step of the elimination instead of a LAPACK
-    call per system. A singular system gives inf or nan. ``M`` ``(n, n, systems)`` (copied
-    unless ``overwrite``), ``y`` ``(n, systems)`` (always copied): ``x`` ``(n, systems)``.
+    call per system. A singular system gives inf or nan. ``M`` ``(n, n, systems)`` and ``y``
+    ``(n, systems)`` (both copied): ``x`` ``(n, systems)``.
     """
     n = len(y)
-    a, x = M if overwrite else np.array(M, order="C"), np.array(y, order="C")
+    a, x = np.array(M, order="C"), np.array(y, order="C")
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for p in range(n - 1):
             f = a[p + 1 :, p] / a[p, p]

@@ -15,7 +15,7 @@ import dataclasses
 
 import numpy as np
 
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError
 from ..kinematics.tree import Tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
@@ -50,8 +50,6 @@ def tool_parts(
     """
     if data is None:
         return [None] * tree.n_tools
-    if not isinstance(data, Measurements):
-        raise InvalidArgumentError(f"data must be Measurements, got {type(data).__name__}")
     check_against_chain(data, tree)
     if data.quaternion is not None or data.n_markers != 1:
         raise DataError(

@@ -24,7 +24,7 @@ from dataclasses import KW_ONLY, dataclass, fields
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
-from ..kinematics.robot import Chain
+from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
@@ -58,10 +58,7 @@ class Term:
     guess: object = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.robot, Chain | Tree):
-            raise InvalidArgumentError(
-                f"a term's robot must be a chain or a tree (load_robot), got {self.robot!r:.60}"
-            )
+        check_robot(self.robot, "a term's robot")
         if not isinstance(self.data, Measurements | ContactData | PixelData):
             raise InvalidArgumentError(
                 "a term's data must be Measurements, ContactData or PixelData "

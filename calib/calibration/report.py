@@ -109,15 +109,13 @@ def parameter_entries(
     stds: Sequence[float] | np.ndarray,
     joint_names: Sequence[str | None],
     sigma: Sequence[int] | np.ndarray | None = None,
-    priors: Sequence[float] | np.ndarray | None = None,
 ) -> list[dict]:
     """The report's ``parameters``: ``name``, ``joint``, ``value``, ``std``, ``unit``, prior.
 
     ``values``: changes from the registration, ``stds`` (NaN: undefined) [``unit``];
     ``joint_names``, ``sigma``: each row's joint (None: frame rows) and type (1 prismatic);
-    ``priors``: each one's prior weight in the fit (None: zeros).
+    ``prior_weight`` is written 0.0 (no route records the fit's prior weights here).
     """
-    weights = [0.0] * len(names) if priors is None else priors
     return [
         {
             "name": n,
@@ -125,9 +123,9 @@ def parameter_entries(
             "value": finite(v),
             "std": finite(s),
             "unit": _unit(n, sigma),
-            "prior_weight": finite(p),
+            "prior_weight": 0.0,
         }
-        for n, v, s, p in zip(names, values, stds, weights, strict=True)
+        for n, v, s in zip(names, values, stds, strict=True)
     ]
 
 
