@@ -15,6 +15,7 @@ import json
 import re
 import shutil
 import sys
+import types
 from pathlib import Path
 
 import nbclient
@@ -128,3 +129,23 @@ def test_notebook_runs(path: Path, tmp_path: Path):
         assert any("image/png" in o.get("data", {}) for o in outputs), (
             f"{path.name} builds figures but displays none"
         )
+
+
+REAL_DATA = [p for p in NOTEBOOKS if "data/realdata" in p.read_text()]
+
+
+@pytest.mark.parametrize("path", REAL_DATA, ids=lambda p: p.name)
+def test_notebook_without_the_real_data_says_where_to_run_it(path, tmp_path, monkeypatch):
+    """Run outside a clone (a pip-installed calib), the data cell names the way out.
+
+    It raised a bare StopIteration.
+    """
+    nb = nbformat.read(path, as_version=4)
+    cell = next(c.source for c in nb.cells if "REAL =" in c.source)
+    code = "\n".join(line for line in cell.splitlines() if not line.startswith("%"))
+    installed = types.ModuleType("calib")
+    installed.__file__ = str(tmp_path / "site-packages" / "calib" / "__init__.py")
+    monkeypatch.setitem(sys.modules, "calib", installed)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(FileNotFoundError, match="notebooks/ folder of a clone"):
+        exec(compile(code, path.name, "exec"), {})
