@@ -38,6 +38,8 @@ def _kernel_manager(tmp_path: Path):
         "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
         "display_name": "Python 3 (calib tests)",
         "language": "python",
+        # this tree's calib, not an editable install's (another tree's in a git worktree)
+        "env": {"PYTHONPATH": str(NOTEBOOKS_DIR.parent)},
     }
     (spec_dir / "kernel.json").write_text(json.dumps(spec))
     ksm = KernelSpecManager(kernel_dirs=[str(tmp_path / "kernels")], ensure_native_kernel=False)
@@ -70,6 +72,15 @@ def test_kernel_runs_this_interpreter(tmp_path):
     (out,) = _outputs_of(nb)
     assert out.output_type == "stream"
     assert Path(out.text.strip()) == Path(sys.executable)
+
+
+def test_kernel_imports_this_trees_calib(tmp_path):
+    """In a worktree, the notebooks ran the editable install's calib (another tree's code)."""
+    nb = nbformat.v4.new_notebook()
+    nb.cells.append(nbformat.v4.new_code_cell("import calib\nprint(calib.__file__)"))
+    _execute(nb, tmp_path, tmp_path)
+    (out,) = _outputs_of(nb)
+    assert Path(out.text.strip()) == NOTEBOOKS_DIR.parent / "calib" / "__init__.py"
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
