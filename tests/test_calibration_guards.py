@@ -470,7 +470,8 @@ def test_orientation_columns_overlapping_others_are_a_usage_error(
     data = _pose_csv(tmp_path / "m.csv", camp, "rx,ry,rz", rot.as_rotvec())
     out = tmp_path / "o.urdf"
     argv = ["calibrate", "ur5", "--data", data, "--out", out, "--orientation", cols[0]]
-    assert taken in one_error(*run([*argv, "--orientation-columns", *cols[1:]])[::2])
+    line = one_error(*run([*argv, "--orientation-columns", *cols[1:]])[::2])
+    assert taken in line and "name other columns (--orientation-columns;" in line  # the option
     assert not out.exists()
 
 

@@ -384,6 +384,21 @@ def test_cli_design_simulate_evaluate(tmp_path, capsys):
     assert got["D"] == pytest.approx(evaluate(chain, q).d, rel=1e-12)
 
 
+def test_cli_evaluate_predicts_the_error_at_the_instruments_noise(tmp_path, capsys):
+    """``--evaluate --noise-mm``: the predicted error of a given set, as a design prints its
+    own (it refused --noise-mm, leaving I per unit noise to multiply by hand)."""
+    q = candidate_configurations(chain_of("ur5"), 23, 4)
+    out = tmp_path / "configs.csv"
+    out.write_text(configurations_csv(chain_of("ur5"), q))
+    assert main(["design", "ur5", "--evaluate", str(out), "--noise-mm", "0.03"]) == 0
+    i = evaluate(chain_of("ur5"), q).i
+    line = capsys.readouterr().out.splitlines()[-1]
+    assert (
+        line
+        == f"predicted RMS position error after calibration at 0.03 mm noise: {0.03 * i:.4g} mm"
+    )
+
+
 def test_cli_design_errors_leave_no_output(tmp_path, capsys):
     out = tmp_path / "configs.csv"
     assert main(["design", "ur5", "--configs", "3", "--out", str(out)]) == 2

@@ -106,9 +106,14 @@ def squeeze(line: str) -> str:
     return " ".join(line.split())
 
 
+def console_env() -> dict[str, str]:
+    """The environment of a page's commands: this tree's calib first (as test_cli_edges')."""
+    return {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
+
+
 def run_console(block: Block, page: Path, tmp: Path) -> None:
     calib_exe = Path(sys.executable).parent / "calib"
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
+    env = console_env()
     for cmd, shown in commands(block.text):
         argv = shlex.split(cmd, comments=True)
         assert argv[0] == "calib", f"{page.name}:{block.line}: not a calib command: {cmd}"
@@ -177,3 +182,16 @@ def test_every_command_has_its_reference_page():
         assert page.is_file(), f"no reference page for calib {name}"
         assert f":path: {name}\n" in page.read_text()
         assert f"\n{name}\n" in index
+
+
+def test_page_commands_run_this_trees_calib(tmp_path):
+    """In a worktree, the commands ran the editable install's calib (another tree's code)."""
+    code = "import calib; print(calib.__file__)"
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env=console_env(),
+        capture_output=True,
+        text=True,
+    )
+    assert Path(done.stdout.strip()) == ROOT / "calib" / "__init__.py"

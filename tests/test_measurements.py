@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from calib import (
     DataError,
+    DataWarning,
     InvalidArgumentError,
     Measurements,
     analyze_model,
@@ -570,3 +571,16 @@ def test_cli_simulate_then_calibrate_with_clashing_joint_names(tmp_path, monkeyp
     assert code == 0, err
     assert "duplicate" not in err
     assert Path("c.urdf").stat().st_size > 0
+
+
+def test_ignored_columns_that_may_be_an_orientation_say_how_to_read_them(tmp_path):
+    """The UR10 data's phix1, phiy1, phiz1 (roll-pitch-yaw) were ignored without a way out."""
+    chain = chain_of("ur5")
+    names = ",".join(chain.joint_names)
+    (tmp_path / "m.csv").write_text(f"{names},x,y,z,phix,phiy,phiz\n0,0,0,0,0,0,1,2,3,0,0,0\n")
+    hint = r"phix, phiy, phiz; .* --orientation rpy --orientation-columns phix phiy phiz"
+    with pytest.warns(DataWarning, match=hint):
+        read_measurements(tmp_path / "m.csv", chain)
+    (tmp_path / "s.csv").write_text(f"{names},x,y,z,stamp\n0,0,0,0,0,0,1,2,3,7\n")
+    with pytest.warns(DataWarning, match=r"or tool\): stamp$"):  # one column: no hint
+        read_measurements(tmp_path / "s.csv", chain)

@@ -15,6 +15,7 @@ import json
 import re
 import shutil
 import sys
+import types
 from pathlib import Path
 
 import nbclient
@@ -37,6 +38,8 @@ def _kernel_manager(tmp_path: Path):
         "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
         "display_name": "Python 3 (calib tests)",
         "language": "python",
+        # this tree's calib, not an editable install's (another tree's in a git worktree)
+        "env": {"PYTHONPATH": str(NOTEBOOKS_DIR.parent)},
     }
     (spec_dir / "kernel.json").write_text(json.dumps(spec))
     ksm = KernelSpecManager(kernel_dirs=[str(tmp_path / "kernels")], ensure_native_kernel=False)
@@ -69,6 +72,15 @@ def test_kernel_runs_this_interpreter(tmp_path):
     (out,) = _outputs_of(nb)
     assert out.output_type == "stream"
     assert Path(out.text.strip()) == Path(sys.executable)
+
+
+def test_kernel_imports_this_trees_calib(tmp_path):
+    """In a worktree, the notebooks ran the editable install's calib (another tree's code)."""
+    nb = nbformat.v4.new_notebook()
+    nb.cells.append(nbformat.v4.new_code_cell("import calib\nprint(calib.__file__)"))
+    _execute(nb, tmp_path, tmp_path)
+    (out,) = _outputs_of(nb)
+    assert Path(out.text.strip()) == NOTEBOOKS_DIR.parent / "calib" / "__init__.py"
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
@@ -128,3 +140,23 @@ def test_notebook_runs(path: Path, tmp_path: Path):
         assert any("image/png" in o.get("data", {}) for o in outputs), (
             f"{path.name} builds figures but displays none"
         )
+
+
+REAL_DATA = [p for p in NOTEBOOKS if "data/realdata" in p.read_text()]
+
+
+@pytest.mark.parametrize("path", REAL_DATA, ids=lambda p: p.name)
+def test_notebook_without_the_real_data_says_where_to_run_it(path, tmp_path, monkeypatch):
+    """Run outside a clone (a pip-installed calib), the data cell names the way out.
+
+    It raised a bare StopIteration.
+    """
+    nb = nbformat.read(path, as_version=4)
+    cell = next(c.source for c in nb.cells if "REAL =" in c.source)
+    code = "\n".join(line for line in cell.splitlines() if not line.startswith("%"))
+    installed = types.ModuleType("calib")
+    installed.__file__ = str(tmp_path / "site-packages" / "calib" / "__init__.py")
+    monkeypatch.setitem(sys.modules, "calib", installed)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(FileNotFoundError, match="notebooks/ folder of a clone"):
+        exec(compile(code, path.name, "exec"), {})

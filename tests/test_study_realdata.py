@@ -111,3 +111,14 @@ def test_ur10_complete_is_worse_than_auto_held_out():
     auto = pooled("auto")
     assert auto <= 4.03e-3  # the issue's target (also in tests/test_calibration.py)
     assert pooled("complete") > auto  # 27 parameters from 54 rows
+
+
+def test_ur10_readme_says_its_urdf_is_a_ur10e_not_the_catalog_ur10():
+    """The data's URDF is a UR10e's: planning on the catalog's ``ur10`` is another robot."""
+    text = (REAL / "ur10" / "README.md").read_text()
+    data = (REAL / "ur10" / "ur10_robot.urdf").read_text()
+    catalog = load_chain("ur10").urdf_path.read_text()
+    assert '<robot name="ur10e">' in data and '`<robot name="ur10e">`' in text
+    for urdf, lengths in ((data, ("0.1807", "0.6127", "0.57155")), (catalog, ("0.1273", "0.5723"))):
+        for length in lengths:
+            assert length in urdf and length in text, length

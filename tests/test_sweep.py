@@ -77,6 +77,16 @@ def test_extra_urdfs_and_unloadable_ones_are_rows(tmp_path):
     assert rows[1].error and "malformed XML" in rows[1].error
 
 
+def test_cli_sweep_robots_compares_the_named_ones_alone(capsys):
+    """``--robots``: the catalog names a comparison needs (it ran the whole catalog, 91 rows)."""
+    good = str(DATA / "negative_axes.urdf")
+    code = main(["sweep", "--configs", "40", "--json", "--robots", "panda", "ur5", "--", good])
+    assert code == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [r["robot"] for r in rows] == ["panda", "ur5", good]
+    assert rows[1]["n_base_complete"] == analyze("ur5", configs=40).n_base
+
+
 def test_csv_text_has_one_row_per_chain(pose_rows):
     parsed = list(csv.DictReader(io.StringIO(rows_to_csv(pose_rows))))
     assert [p["robot"] for p in parsed] == [r.robot for r in pose_rows]

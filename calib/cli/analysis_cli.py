@@ -213,6 +213,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         {"--csv": args.csv, "--plot": args.plot}, {f"the URDF {u}": u for u in args.urdf}
     )
     rows = sweep(
+        robots=args.robots,
         extra=args.urdf,
         measure=args.measure,
         marker=args.marker,
@@ -325,10 +326,16 @@ def add_sweep_parser(sub) -> None:
             "calib sweep                            # every robot, a point measured",
             "calib sweep --measure pose --csv sweep.csv",
             "calib sweep --plot survey.png models/mimic_arm.urdf  # and a URDF of yours",
+            "calib sweep --robots ur5 panda talos_left_arm -- my_arm.urdf  # these alone",
         ],
     )
-    p.add_argument_group("robots").add_argument(
-        "urdf", nargs="*", help="extra URDF files analysed after the catalog"
+    g = p.add_argument_group("robots")
+    g.add_argument("urdf", nargs="*", help="extra URDF files analysed after the catalog")
+    g.add_argument(
+        "--robots",
+        nargs="+",
+        metavar="NAME",
+        help="catalog names analysed instead of the whole catalog (see `calib list`)",
     )
     add_measure_args(p.add_argument_group("instrument"))
     g = p.add_argument_group("parameters and configurations")

@@ -7,6 +7,7 @@ live with the feature.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..core.choices import (
@@ -47,7 +48,6 @@ CHOOSING = (
     "obstacle",
     "srdf",
     "collision",
-    "noise_mm",
 )
 """Options of the choice of configurations, which ``--evaluate`` does not take."""
 
@@ -64,7 +64,8 @@ def _check_design_options(args: argparse.Namespace) -> None:
         if ignored:
             raise InvalidArgumentError(
                 f"{ignored[0]} is for choosing configurations; --evaluate takes only --tool, "
-                f"--base, --measure, --marker, --params, --orientation-weight and --seed"
+                f"--base, --measure, --marker, --params, --orientation-weight, --noise-mm "
+                f"and --seed"
             )
     count = given_options(args, ("candidates",))
     if count and args.candidates_file:
@@ -181,6 +182,12 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
             f"{ind.parameters} parameters, rank {ind.rank}"
         )
         print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
+        if ind.i is not None and math.isfinite(ind.i):
+            kind = "gap" if args.measure in CONTACT_MEASURES else "position"
+            print(
+                f"\npredicted RMS {kind} error after calibration at {args.noise_mm:g} mm noise: "
+                f"{args.noise_mm * ind.i:.4g} mm"
+            )
     return 0
 
 

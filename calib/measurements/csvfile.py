@@ -214,7 +214,7 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
             raise InvalidArgumentError(
                 f"orientation column '{taken[0]}' is also a "
                 f"{'position' if taken[0] in pos else 'joint'} column: name other columns "
-                f"(orientation_columns)"
+                f"(--orientation-columns; Python: Columns' orientation_columns)"
             )
         for c in cols:
             if c not in free:
@@ -278,10 +278,21 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     if ignored:
         warn_user(
             f"{src}: columns ignored (not joints of the chain, positions, orientation or tool): "
-            f"{', '.join(ignored)}",
+            f"{', '.join(ignored)}{_orientation_hint(ignored) if fmt is None else ''}",
             DataWarning,
         )
     return keys, pos, fmt, ori, names
+
+
+def _orientation_hint(ignored: list[str]) -> str:
+    """How to read an orientation under other names, when 3 or more columns were ignored."""
+    if len(ignored) < 3:
+        return ""
+    return (
+        "; if 3 or 4 of them are an orientation, name its format and columns, e.g. "
+        f"--orientation rpy --orientation-columns {' '.join(ignored[:3])} (Python: "
+        f"Columns(FORMAT, COLUMNS); formats: {', '.join(ORIENTATION_FORMATS)})"
+    )
 
 
 def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:
