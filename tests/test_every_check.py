@@ -300,3 +300,35 @@ def test_a_fit_worse_than_the_registration_is_refused(name, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
     report = json.loads((tmp_path / "r.json").read_text())
     assert "worse than the registration" in report["refusal"]
+
+
+def _unexplained(shape: Shape):
+    """The first term's data no calibration explains: each joint column shuffled across the
+    rows (another log's postures); a camera's pixels each about 100 px off (another camera's
+    detections: its postures shuffled would put the target behind it, refused before)."""
+    first = shape.parts(shape.data)[0]
+    rng = np.random.default_rng(11)
+    if hasattr(first, "pixels"):
+        pixels = first.pixels + rng.normal(0.0, 100.0, first.pixels.shape)
+        return shape.rebuild(shape.data, [dataclasses.replace(first, pixels=pixels)])
+    return _with_q(shape, np.column_stack([rng.permutation(c) for c in first.q.T]))
+
+
+def test_data_no_calibration_explains_are_refused(shape):
+    """Registered and calibrated, they stay far above any geometric error (pixels: over
+    ``REFUSED_PX``): one DataError names the data and the way out, and no result (no URDF)
+    is made. A stalled fit on them is refused so too, not sent to a larger iteration cap."""
+    with pytest.raises(DataError, match=r"do not match .*(another robot's|another camera's)"):
+        shape.fit(_unexplained(shape))
+
+
+def test_orientations_no_calibration_explains_are_refused():
+    """The chain's poses with every row's orientation another row's (another frame's
+    orientations): the positions fit, the orientations are refused, the positions alone
+    named as the way out. Only the chain measures orientations among the shapes."""
+    shape = SHAPES["chain"]()
+    data = shape.data
+    turned = data.quaternion[np.random.default_rng(11).permutation(data.m)]
+    with pytest.raises(DataError, match=r"orientations do not match .*--measure position"):
+        shape.fit(dataclasses.replace(data, quaternion=turned))
+    assert shape.fit(data.position_only()).accepted  # the way out

@@ -7,19 +7,28 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..exceptions import DataError
 from ..kinematics.robot import Chain
 from .contact_result import GapStats, TermPart, part_stats, row_stats
+from .diagnosis import NOISE_FACTOR, suspect
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
 from .report import parameter_entries, pose_dict
 
-__all__ = ["EXPECTED_PX", "PixelChain", "pixel_result"]
+__all__ = ["EXPECTED_PX", "REFUSED_PX", "PixelChain", "check_fitted_pixels", "pixel_result"]
 
 EXPECTED_PX = 3.0
 """Largest calibrated reprojection error (RMS, training or held out) a camera's pixels are
 expected to leave [px]: a detector's noise is a fraction of a pixel; beyond, the intrinsics
 are most likely wrong (a focal length 10 % off leaves about 4 px on a UR5 seen from the cell,
 a principal point with width and height swapped 17 px), and the fit is warned about."""
+
+REFUSED_PX = NOISE_FACTOR * EXPECTED_PX
+"""Calibrated reprojection error (RMS) [px] beyond which pixels whose registration was
+suspect are refused (:func:`check_fitted_pixels`): the measured terms' rule, ``NOISE_FACTOR``
+times the noise, with the most a camera's pixels are expected to leave as the noise (a
+detector's fraction of a pixel, a few pixels for slightly wrong intrinsics): 60 px, 3.5
+times the principal point with width and height swapped (17 px, warned and accepted)."""
 
 
 def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:
@@ -142,3 +151,27 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     return PixelChain(
         chain, train.source, name, registered, state, stats, pixels, parameters=tuple(entries)
     )
+
+
+def check_fitted_pixels(part: PixelChain) -> None:
+    """Stop on pixels the calibrated camera and robot still miss absurdly.
+
+    Their registration was suspect as the diagnosis reads it (:func:`~.diagnosis.suspect`
+    at the target: the usual mistakes were tried, none explained it) and the calibrated
+    reprojection error is over :data:`REFUSED_PX`: another camera's intrinsics or images,
+    another robot's postures, or another target. A DataError names the pixels' file and
+    the way out (nothing is written).
+
+    Args:
+        part: A fitted pixel term's part (:func:`pixel_result`).
+    """
+    registered = 1e-3 * part.stats["train_registration"].length_rms_mm  # [m at the target]
+    before, after = (part.pixels[k]["reprojection_rms_px"] for k in ("train_registration", "train"))
+    if suspect(registered, None) and after > REFUSED_PX:
+        raise DataError(
+            part.source,
+            f"the pixels do not match camera {part.name} and {part.chain.base_frame} -> "
+            f"{part.chain.tool_frame}: the calibrated reprojection error is {after:.4g} px RMS "
+            f"(registered: {before:.4g} px): another camera's intrinsics or images, another "
+            "robot's postures, or another target?",
+        )

@@ -34,7 +34,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.pixels import PixelObservations
 from ..measurements.postures import posture_groups
-from .diagnosis import suspect
+from .diagnosis import ORIENTATION_SUSPECT, suspect
 from .residuals import ResidualStats
 from .solve import FitState
 
@@ -239,6 +239,9 @@ def check_fitted_errors(
     chain (another robot's file, another tool or arm), or of a noisier instrument than said:
     a DataError names ``source`` and the way out (the instrument's noise). Real data stay far
     below (TIAGo: 3.4 mm RMS registered, 1.7 mm calibrated; TALOS's left arm: 12.6, 2.8 mm).
+    Orientations are judged alike, on their own, where the positions pass: registered and
+    calibrated over ``ORIENTATION_SUSPECT`` (the diagnosis' bar), they are of another frame or
+    convention than any the diagnosis tries, and the way out is the positions alone.
 
     Args:
         stats: A term's ``train_registration`` and ``train`` errors
@@ -250,12 +253,14 @@ def check_fitted_errors(
         chain: The chain they were fitted to (its base and tool named).
     """
 
-    def rms(key: str) -> float:  # [m]
+    def rms(key: str) -> tuple[float, float | None]:  # [m], [rad] (None: positions only)
         if n_markers is None:
-            return 1e-3 * stats[key].length_rms_mm
-        return ResidualStats.of(stats[key].residuals, n_markers).position_rms
+            return 1e-3 * stats[key].length_rms_mm, None
+        found = ResidualStats.of(stats[key].residuals, n_markers)
+        return found.position_rms, found.orientation_rms
 
-    registration, calibrated = rms("train_registration"), rms("train")
+    (registration, turned), (calibrated, turns) = rms("train_registration"), rms("train")
+    ends = f"{chain.base_frame} -> {chain.tool_frame}: the calibrated model still misses them by"
     if suspect(registration, noise) and suspect(calibrated, noise):
         way_out = (
             "two objects logged under one id?"
@@ -266,10 +271,17 @@ def check_fitted_errors(
         )
         raise DataError(
             source,
-            f"the data do not match {chain.base_frame} -> {chain.tool_frame}: the calibrated "
-            f"model still misses them by {1e3 * calibrated:.4g} mm RMS (registered: "
+            f"the data do not match {ends} {1e3 * calibrated:.4g} mm RMS (registered: "
             f"{1e3 * registration:.4g} mm): another robot's data, another tool or arm, or "
             f"{way_out}",
+        )
+    if turned is not None and turns is not None and min(turned, turns) > ORIENTATION_SUSPECT:
+        raise DataError(
+            source,
+            f"the orientations do not match {ends} {np.degrees(turns):.4g} deg RMS "
+            f"(registered: {np.degrees(turned):.4g} deg): another frame's orientations, or "
+            "another convention? fit the positions alone (--measure position, "
+            "data.position_only())",
         )
 
 
