@@ -304,18 +304,24 @@ def test_a_fit_worse_than_the_registration_is_refused(name, tmp_path):
 
 def _unexplained(shape: Shape):
     """The first term's data no calibration explains: each joint column shuffled across the
-    rows (another log's postures); a camera's pixels each about 100 px off (another camera's
-    detections: its postures shuffled would put the target behind it, refused before)."""
+    rows (another log's postures); a camera's pixels read with another camera's intrinsics
+    (focal lengths half the true ones: its postures shuffled would put the target behind it,
+    refused before any fit)."""
     first = shape.parts(shape.data)[0]
-    rng = np.random.default_rng(11)
     if hasattr(first, "pixels"):
-        pixels = first.pixels + rng.normal(0.0, 100.0, first.pixels.shape)
-        return shape.rebuild(shape.data, [dataclasses.replace(first, pixels=pixels)])
+        intrinsics = shape.data.camera.intrinsics
+        lens = intrinsics.camera
+        other = dataclasses.replace(lens, fx=lens.fx / 2, fy=lens.fy / 2)
+        camera = dataclasses.replace(
+            shape.data.camera, intrinsics=dataclasses.replace(intrinsics, camera=other)
+        )
+        return dataclasses.replace(shape.data, camera=camera)
+    rng = np.random.default_rng(11)
     return _with_q(shape, np.column_stack([rng.permutation(c) for c in first.q.T]))
 
 
 def test_data_no_calibration_explains_are_refused(shape):
-    """Registered and calibrated, they stay far above any geometric error (pixels: over
+    """Registered and calibrated, they stay far above any geometric error (pixels: and over
     ``REFUSED_PX``): one DataError names the data and the way out, and no result (no URDF)
     is made. A stalled fit on them is refused so too, not sent to a larger iteration cap."""
     with pytest.raises(DataError, match=r"do not match .*(another robot's|another camera's)"):
