@@ -335,6 +335,6 @@ def test_orientations_no_calibration_explains_are_refused():
     shape = SHAPES["chain"]()
     data = shape.data
     turned = data.quaternion[np.random.default_rng(11).permutation(data.m)]
-    with pytest.raises(DataError, match=r"orientations do not match .*--measure position"):
+    with pytest.raises(DataError, match=r"orientations do not match .*positions alone"):
         shape.fit(dataclasses.replace(data, quaternion=turned))
     assert shape.fit(data.position_only()).accepted  # the way out

@@ -181,12 +181,11 @@ def check_fitted_pixels(part: PixelChain) -> None:
     registered, missed = (1e-3 * part.stats[k].length_rms_mm for k in keys)  # [m at the target]
     before, after = (part.pixels[k]["reprojection_rms_px"] for k in keys)
     if suspect(registered, None) and suspect(missed, None) and after > REFUSED_PX:
-        fix = "" if part.state.what.intrinsics else ", or fit them: --refine-intrinsics"
+        fix = "" if part.state.what.intrinsics else ", or fit them: Unknowns(intrinsics=True)"
         raise DataError(
             part.source,
             f"the pixels do not match camera {part.name} and {part.chain.base_frame} -> "
             f"{part.chain.tool_frame}: the calibrated reprojection error is {after:.4g} px RMS "
             f"(registered: {before:.4g} px): another camera's images or intrinsics (check the "
-            f"intrinsics given with --camera{fix}), another robot's postures, or another "
-            "target (--target)?",
+            f"camera's{fix}), another robot's postures, or another target?",
         )

@@ -289,8 +289,7 @@ def check_fitted_errors(
             source,
             f"the orientations do not match {ends} {np.degrees(turns):.4g} deg RMS "
             f"(registered: {np.degrees(turned):.4g} deg): another frame's orientations, or "
-            "another convention? fit the positions alone (--measure position, "
-            "data.position_only())",
+            "another convention? fit the positions alone (the data's position_only())",
         )
 
 
