@@ -9,7 +9,9 @@ from the cell: one pixel term). Checks: validation data that are
 the data are refused; a gross outlier is set aside (named by its row, and said in the
 report's warnings); swapped joint columns and degrees are diagnosed (a one-line DataError
 naming the mistake); too few rows for the unknowns are refused before any fit; a fit worse
-than the registration on held-out rows is refused and writes no URDF. None is skipped. The
+than the registration on held-out rows is refused and writes no URDF; data no calibration
+explains (another log's postures, another camera's intrinsics) are refused with a DataError
+(and, the chain's poses, orientations of another row). None is skipped. The
 data are simulated with a known truth, and the mistakes made by the test on the data it reads
 (columns swapped, radians turned into degrees).
 """

@@ -12,7 +12,9 @@ A calibrated model is written only if it passes every check:
    the registration's (:func:`~.contact_checks.held_out_refusal`, by :func:`worse`).
 
 Data that no calibration brings near the robot stop with a DataError instead
-(:func:`check_fitted_errors`): no model is written for another robot's (or tool's) data.
+(:func:`check_fitted_errors`; orientations alike, pixels:
+:func:`~.pixel_chain_result.check_fitted_pixels`): no model is written for another robot's
+(or tool's, or camera's) data.
 
 With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
 plus the compliance file, and the checks apply to that whole model. The URDF alone
