@@ -9,7 +9,9 @@ from the cell: one pixel term). Checks: validation data that are
 the data are refused; a gross outlier is set aside (named by its row, and said in the
 report's warnings); swapped joint columns and degrees are diagnosed (a one-line DataError
 naming the mistake); too few rows for the unknowns are refused before any fit; a fit worse
-than the registration on held-out rows is refused and writes no URDF. None is skipped. The
+than the registration on held-out rows is refused and writes no URDF; data no calibration
+explains (another log's postures, another camera's intrinsics) are refused with a DataError
+(and, the chain's poses, orientations of another row). None is skipped. The
 data are simulated with a known truth, and the mistakes made by the test on the data it reads
 (columns swapped, radians turned into degrees).
 """
@@ -300,3 +302,41 @@ def test_a_fit_worse_than_the_registration_is_refused(name, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
     report = json.loads((tmp_path / "r.json").read_text())
     assert "worse than the registration" in report["refusal"]
+
+
+def _unexplained(shape: Shape):
+    """The first term's data no calibration explains: each joint column shuffled across the
+    rows (another log's postures); a camera's pixels read with another camera's intrinsics
+    (focal lengths half the true ones: its postures shuffled would put the target behind it,
+    refused before any fit)."""
+    first = shape.parts(shape.data)[0]
+    if hasattr(first, "pixels"):
+        intrinsics = shape.data.camera.intrinsics
+        lens = intrinsics.camera
+        other = dataclasses.replace(lens, fx=lens.fx / 2, fy=lens.fy / 2)
+        camera = dataclasses.replace(
+            shape.data.camera, intrinsics=dataclasses.replace(intrinsics, camera=other)
+        )
+        return dataclasses.replace(shape.data, camera=camera)
+    rng = np.random.default_rng(11)
+    return _with_q(shape, np.column_stack([rng.permutation(c) for c in first.q.T]))
+
+
+def test_data_no_calibration_explains_are_refused(shape):
+    """Registered and calibrated, they stay far above any geometric error (pixels: and over
+    ``REFUSED_PX``): one DataError names the data and the way out, and no result (no URDF)
+    is made. A stalled fit on them is refused so too, not sent to a larger iteration cap."""
+    with pytest.raises(DataError, match=r"do not match .*(another robot's|another camera's)"):
+        shape.fit(_unexplained(shape))
+
+
+def test_orientations_no_calibration_explains_are_refused():
+    """The chain's poses with every row's orientation another row's (another frame's
+    orientations): the positions fit, the orientations are refused, the positions alone
+    named as the way out. Only the chain measures orientations among the shapes."""
+    shape = SHAPES["chain"]()
+    data = shape.data
+    turned = data.quaternion[np.random.default_rng(11).permutation(data.m)]
+    with pytest.raises(DataError, match=r"orientations do not match .*positions alone"):
+        shape.fit(dataclasses.replace(data, quaternion=turned))
+    assert shape.fit(data.position_only()).accepted  # the way out

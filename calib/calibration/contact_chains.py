@@ -55,7 +55,7 @@ from .measured_term import unseen
 from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import PixelData, PixelTermState
-from .pixel_chain_result import PixelChain, pixel_result
+from .pixel_chain_result import PixelChain, check_fitted_pixels, pixel_result
 from .problem import check_weighed
 from .selection import Selection
 from .solve import fit, fitted_values, gauss_newton_finish
@@ -270,7 +270,24 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
+    if not fitted.converged:  # where it stopped: data no calibration explains are named
+        for part in result.chains:
+            _check_fitted(part, opts.noise)
     return dataclasses.replace(result, params=level, identifiable=identifiable)
+
+
+def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:
+    """Stop on a term's data no calibration explains (a DataError naming them).
+
+    :func:`~.validation.check_fitted_errors` (``noise`` [m]: a measured term's) or, pixels,
+    :func:`~.pixel_chain_result.check_fitted_pixels`.
+    """
+    if isinstance(part, PixelChain):
+        check_fitted_pixels(part)
+        return
+    markers = part.data.n_markers if isinstance(part, MeasuredChain) else None
+    noise = noise if isinstance(part, MeasuredChain) else None
+    validation.check_fitted_errors(part.stats, markers, noise, part.source, part.chain)
 
 
 HOLDS = 3
@@ -304,11 +321,13 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     cov = solution.covariance()[0]
     values = fitted_values(fitted, cov)
-    rank = None if polished else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
-    refusal, found = result.refusal or rank, list[Direction]()
-    if refusal is None or refusal == _unconverged(fitted):
+    stopped = _unconverged(fitted)
+    ranked = polished or not fitted.converged  # a stalled fit's rank is not judged
+    rank = None if ranked else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
+    refusal, found = result.refusal or stopped or rank, list[Direction]()
+    if result.refusal is None and rank is None:  # accepted so far, or only stalled
         weak, found = assess(generic, fitted, cov, polished)
-        stalled = refusal and weak and f"{refusal}; where it stopped, {weak}"
+        stalled = stopped and weak and f"{stopped}; where it stopped, {weak}"
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
@@ -440,12 +459,16 @@ def _fit(
 
 
 def _assemble(r: Registered, solution, model, selection, notes, clock) -> ContactChainsCalibration:
-    """The result of a run's fit: each term's part, the refusal, the notes, the stage times."""
+    """The result of a run's fit: each term's part, the notes, the stage times.
+
+    Its refusal: a held-out error worse than the registration's only (:func:`_assessed` adds
+    the solver's and the rank's). Data no calibration explains stop here (a DataError).
+    """
     start, train, held, plane_of = r.start, r.train, r.held, r.plane_of
     elastic = (r.load, r.torques)
     fitted = solution.fit
     state: ChainsState = fitted.state.settled()
-    refusal = None  # a held-out error worse than the registration's first, then the solver
+    refusal = None  # a held-out error worse than the registration's (the solver's: _assessed)
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     for c, chain in enumerate(state.chains):
         s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
@@ -458,9 +481,8 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
                 if isinstance(s, PixelTermState)
                 else measured_part(chain, d, h, s0, s, std, c + 1, elastic[1], notes)
             )
-            if isinstance(part, MeasuredChain) and fitted.converged:  # else refused (a retry)
-                noise = r.run.options.noise
-                validation.check_fitted_errors(part.stats, d.n_markers, noise, d.source, chain)
+            if fitted.converged:  # else refused, or fitted again (auto): fit_registered
+                _check_fitted(part, r.run.options.noise)
             if h is not None:
                 refusal = refusal or held_out_refusal(part.stats, chain, "errors")
             notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
@@ -516,7 +538,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         free=tuple(model.names()[model.fixed :]),
         unknowns=model.size(),
         selection=selection,
-        refusal=refusal or _unconverged(fitted),
+        refusal=refusal,
         notes=tuple(notes),
         timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
     )

@@ -207,7 +207,11 @@ def stable_set(
 
     The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
     each term's units on its own, from those each term sets aside at first (``start``).
-    Returns the last fit and the mask of the units it was fitted without.
+    Returns the last fit and the mask of the units it was fitted without. A later round's
+    refit refused (a DataError: too few rows left for the model, or the engine's checks of
+    the data, :func:`~.validation.check_fitted_errors` and the like, on the rows it keeps)
+    ends the loop on the round before, whose fit passed the same checks; the first fit's
+    DataError is raised.
     """
     bad = start
     result = refit(~bad)
@@ -217,7 +221,7 @@ def stable_set(
             break
         try:
             result, bad = refit(~new), new
-        except DataError:  # too few rows left for the model: the last set stays
+        except DataError:  # the new set refused: the last set (its fit passed them) stays
             break
     return result, bad
 

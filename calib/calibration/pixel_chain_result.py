@@ -7,19 +7,40 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..exceptions import DataError
 from ..kinematics.robot import Chain
 from .contact_result import GapStats, TermPart, part_stats, row_stats
+from .diagnosis import NOISE_FACTOR, suspect
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
 from .report import parameter_entries, pose_dict
 
-__all__ = ["EXPECTED_PX", "PixelChain", "pixel_result"]
+__all__ = [
+    "DETECTOR_PX",
+    "EXPECTED_PX",
+    "REFUSED_PX",
+    "PixelChain",
+    "check_fitted_pixels",
+    "pixel_result",
+]
 
 EXPECTED_PX = 3.0
 """Largest calibrated reprojection error (RMS, training or held out) a camera's pixels are
 expected to leave [px]: a detector's noise is a fraction of a pixel; beyond, the intrinsics
 are most likely wrong (a focal length 10 % off leaves about 4 px on a UR5 seen from the cell,
 a principal point with width and height swapped 17 px), and the fit is warned about."""
+
+DETECTOR_PX = 1.0
+"""A corner detector's largest noise (RMS) [px]: a fraction of a pixel (the simulations use
+0.2 to 0.5 px); the pixels' noise, as no option gives it."""
+
+REFUSED_PX = NOISE_FACTOR * DETECTOR_PX
+"""Calibrated reprojection error (RMS) [px] over which pixels that the registration and the
+calibrated model both miss by over ``SUSPECT`` at the target are refused
+(:func:`check_fitted_pixels`): the measured terms' rule (over 20 mm and over
+``NOISE_FACTOR`` times the noise) with the detector's noise: 20 px. Focal lengths half the
+true ones leave 53 px (refused); a principal point with width and height swapped 11 to 17 px,
+focal lengths twice the true ones 18 px (warned, :data:`EXPECTED_PX`, and accepted)."""
 
 
 def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:
@@ -142,3 +163,29 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     return PixelChain(
         chain, train.source, name, registered, state, stats, pixels, parameters=tuple(entries)
     )
+
+
+def check_fitted_pixels(part: PixelChain) -> None:
+    """Stop on pixels the calibrated camera and robot still miss absurdly.
+
+    Their registration was suspect as the diagnosis reads it (:func:`~.diagnosis.suspect`
+    at the target: the usual mistakes were tried, none explained it), the calibrated model
+    still misses them by as much, and by over :data:`REFUSED_PX`: another camera's
+    intrinsics or images, another robot's postures, or another target. A DataError names the
+    pixels' file and the way out (nothing is written).
+
+    Args:
+        part: A fitted pixel term's part (:func:`pixel_result`).
+    """
+    keys = ("train_registration", "train")
+    registered, missed = (1e-3 * part.stats[k].length_rms_mm for k in keys)  # [m at the target]
+    before, after = (part.pixels[k]["reprojection_rms_px"] for k in keys)
+    if suspect(registered, None) and suspect(missed, None) and after > REFUSED_PX:
+        fix = "" if part.state.what.intrinsics else ", or fit them: Unknowns(intrinsics=True)"
+        raise DataError(
+            part.source,
+            f"the pixels do not match camera {part.name} and {part.chain.base_frame} -> "
+            f"{part.chain.tool_frame}: the calibrated reprojection error is {after:.4g} px RMS "
+            f"(registered: {before:.4g} px): another camera's images or intrinsics (check the "
+            f"camera's{fix}), another robot's postures, or another target?",
+        )

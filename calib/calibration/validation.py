@@ -12,7 +12,9 @@ A calibrated model is written only if it passes every check:
    the registration's (:func:`~.contact_checks.held_out_refusal`, by :func:`worse`).
 
 Data that no calibration brings near the robot stop with a DataError instead
-(:func:`check_fitted_errors`): no model is written for another robot's (or tool's) data.
+(:func:`check_fitted_errors`; orientations alike, pixels:
+:func:`~.pixel_chain_result.check_fitted_pixels`): no model is written for another robot's
+(or tool's, or camera's) data.
 
 With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
 plus the compliance file, and the checks apply to that whole model. The URDF alone
@@ -39,6 +41,7 @@ from .residuals import ResidualStats
 from .solve import FitState
 
 __all__ = [
+    "ORIENTATION_REFUSED",
     "RANK_TOL",
     "ROUND_OFF",
     "ROWS",
@@ -227,6 +230,14 @@ def check_held_out_errors(
         )
 
 
+ORIENTATION_REFUSED = 0.5
+"""RMS orientation error [rad] (29 deg) over which orientations that the registration and the
+calibrated model both miss are refused (:func:`check_fitted_errors`); no option gives an
+orientation noise, so the bar is above any instrument's: 0.08 rad of noise an axis (7.3 deg
+RMS, over ``diagnosis.ORIENTATION_SUSPECT``) is noted and accepted, while every row given
+another row's orientation, or every quaternion conjugated, misses a UR5 by 110 to 120 deg."""
+
+
 def check_fitted_errors(
     stats: dict, n_markers: int | None, noise: float | None, source: str, chain: Chain
 ) -> None:
@@ -239,6 +250,9 @@ def check_fitted_errors(
     chain (another robot's file, another tool or arm), or of a noisier instrument than said:
     a DataError names ``source`` and the way out (the instrument's noise). Real data stay far
     below (TIAGo: 3.4 mm RMS registered, 1.7 mm calibrated; TALOS's left arm: 12.6, 2.8 mm).
+    Orientations are judged on their own where the positions pass: registered and calibrated
+    over :data:`ORIENTATION_REFUSED`, they are of another frame or convention than any the
+    diagnosis tries, and the way out is the positions alone.
 
     Args:
         stats: A term's ``train_registration`` and ``train`` errors
@@ -250,12 +264,14 @@ def check_fitted_errors(
         chain: The chain they were fitted to (its base and tool named).
     """
 
-    def rms(key: str) -> float:  # [m]
+    def rms(key: str) -> tuple[float, float | None]:  # [m], [rad] (None: positions only)
         if n_markers is None:
-            return 1e-3 * stats[key].length_rms_mm
-        return ResidualStats.of(stats[key].residuals, n_markers).position_rms
+            return 1e-3 * stats[key].length_rms_mm, None
+        found = ResidualStats.of(stats[key].residuals, n_markers)
+        return found.position_rms, found.orientation_rms
 
-    registration, calibrated = rms("train_registration"), rms("train")
+    (registration, turned), (calibrated, turns) = rms("train_registration"), rms("train")
+    ends = f"{chain.base_frame} -> {chain.tool_frame}: the calibrated model still misses them by"
     if suspect(registration, noise) and suspect(calibrated, noise):
         way_out = (
             "two objects logged under one id?"
@@ -266,10 +282,16 @@ def check_fitted_errors(
         )
         raise DataError(
             source,
-            f"the data do not match {chain.base_frame} -> {chain.tool_frame}: the calibrated "
-            f"model still misses them by {1e3 * calibrated:.4g} mm RMS (registered: "
+            f"the data do not match {ends} {1e3 * calibrated:.4g} mm RMS (registered: "
             f"{1e3 * registration:.4g} mm): another robot's data, another tool or arm, or "
             f"{way_out}",
+        )
+    if turned is not None and turns is not None and min(turned, turns) > ORIENTATION_REFUSED:
+        raise DataError(
+            source,
+            f"the orientations do not match {ends} {np.degrees(turns):.4g} deg RMS "
+            f"(registered: {np.degrees(turned):.4g} deg): another frame's orientations, or "
+            "another convention? fit the positions alone (the data's position_only())",
         )
 
 
