@@ -471,7 +471,7 @@ def test_orientation_columns_overlapping_others_are_a_usage_error(
     out = tmp_path / "o.urdf"
     argv = ["calibrate", "ur5", "--data", data, "--out", out, "--orientation", cols[0]]
     line = one_error(*run([*argv, "--orientation-columns", *cols[1:]])[::2])
-    assert taken in line and "name other columns (--orientation-columns;" in line  # the option
+    assert taken in line and "name other columns (--orientation-columns)" in line  # the option
     assert not out.exists()
 
 

@@ -94,6 +94,16 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
     the report's ``warnings`` too.
     """
+    try:
+        return _calibrate(args)
+    except InvalidArgumentError as exc:  # the library names the keyword: say the flag
+        keyword = "(Columns' orientation_columns)"
+        if keyword not in str(exc):
+            raise
+        raise InvalidArgumentError(str(exc).replace(keyword, "(--orientation-columns)")) from None
+
+
+def _calibrate(args: argparse.Namespace) -> int:
     if Path(args.out).suffix.lower() == ".json":  # the report's suffix: --out and --report swapped?
         raise InvalidArgumentError(
             f"--out {args.out} names the calibrated URDF, not the JSON report (--report): give "

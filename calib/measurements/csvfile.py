@@ -214,7 +214,7 @@ def _layout(names: list[str], chain: Chain | Tree, columns: Columns, src: str, l
             raise InvalidArgumentError(
                 f"orientation column '{taken[0]}' is also a "
                 f"{'position' if taken[0] in pos else 'joint'} column: name other columns "
-                f"(--orientation-columns; Python: Columns' orientation_columns)"
+                f"(Columns' orientation_columns)"
             )
         for c in cols:
             if c not in free:
