@@ -126,7 +126,9 @@ def _design(args: argparse.Namespace) -> int:
         "the URDF": chain.urdf_path,
         "--candidates-file": args.candidates_file,
         "--srdf": args.srdf,
-        "the SRDF found beside the URDF": find_srdf(chain.urdf_path) if args.collision else None,
+        "the SRDF found beside the URDF": find_srdf(chain.urdf_path, chain.model.name)
+        if args.collision
+        else None,
     }
     check_output_paths({"--out": out}, inputs)
     candidates = args.candidates
