@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +19,8 @@ from calib.cli.commands import main
 from calib.design.configurations import read_configurations
 from calib.design.constraints import Constraints
 from calib.design.design import design
+
+ROOT = Path(__file__).resolve().parents[1]
 
 CASES = (
     pytest.param("ur5", None, None, "plane", id="ur5-plane"),
@@ -91,6 +94,23 @@ def test_contact_design_errors(tmp_path, capsys):
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "measures no point" in err and "Traceback" not in err and not out.exists()
+
+
+def test_contact_design_options_it_refuses_name_the_way_out(tmp_path, capsys):
+    """A user's table touches given to --evaluate: "unknown measure 'plane'" said neither
+    that --evaluate does not score contacts nor how to choose postures; --params offsets:
+    "use params complete", not the option."""
+    touches = ROOT / "data" / "realdata" / "talos_contact" / "left_train.csv"
+    argv = ["design", "talos_full_v2.urdf", "--base", "left_sole_link", "--tool"]
+    argv += ["gripper_left_base_link", "--measure", "plane"]
+    assert main([*argv, "--evaluate", str(touches)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown measure" not in err and len(err.strip().splitlines()) == 1
+    assert "not yet a plane contact's postures" in err and "--configs K" in err
+    out = tmp_path / "c.csv"
+    assert main([*argv, "--configs", "30", "--params", "offsets", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "(--params complete, the default)" in err and not out.exists()
 
 
 def test_a_numerically_singular_newton_system_takes_the_least_norm_step():
