@@ -113,6 +113,19 @@ def test_contact_design_options_it_refuses_name_the_way_out(tmp_path, capsys):
     assert "(--params complete, the default)" in err and not out.exists()
 
 
+def test_too_few_postures_of_candidates_that_identify_everything_ask_for_more(capsys):
+    """TALOS's left hand on a plane, 24 postures: "a joint that never moves, or too few
+    distinct candidates?", while the candidates together identify the 58 parameters and 30
+    postures are designed."""
+    argv = ["design", "talos", "--base", "left_sole_link", "--tool", "gripper_left_base_link"]
+    argv += ["--measure", "plane", "--candidates", "300", "--no-collision", "--seed", "1"]
+    assert main([*argv, "--configs", "24"]) == 2
+    err = capsys.readouterr().err
+    assert "do not identify the 58 parameters with 24 configurations" in err
+    assert "(all 300 together do: choose more configurations)" in err
+    assert main([*argv, "--configs", "30"]) == 0
+
+
 def test_a_numerically_singular_newton_system_takes_the_least_norm_step():
     """Rows so large that the damping is lost in round-off (near the flipped side): the
     step is the least-norm one (numpy's lstsq), not a LinAlgError; a UR5 plane design
