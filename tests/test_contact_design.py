@@ -18,7 +18,7 @@ from calib import InvalidArgumentError, analyze, load_chain
 from calib.cli.commands import main
 from calib.design.configurations import read_configurations
 from calib.design.constraints import Constraints
-from calib.design.design import design
+from calib.design.design import design, evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -98,19 +98,22 @@ def test_contact_design_errors(tmp_path, capsys):
 
 def test_contact_design_options_it_refuses_name_the_way_out(tmp_path, capsys):
     """A user's table touches given to --evaluate: "unknown measure 'plane'" said neither
-    that --evaluate does not score contacts nor how to choose postures; --params offsets:
-    "use params complete", not the option."""
+    that --evaluate does not score contacts nor how to choose postures (calib.design's
+    evaluate names the Python call); --params offsets: "use params complete"."""
     touches = ROOT / "data" / "realdata" / "talos_contact" / "left_train.csv"
     argv = ["design", "talos_full_v2.urdf", "--base", "left_sole_link", "--tool"]
     argv += ["gripper_left_base_link", "--measure", "plane"]
     assert main([*argv, "--evaluate", str(touches)]) == 2
     err = capsys.readouterr().err
     assert "unknown measure" not in err and len(err.strip().splitlines()) == 1
-    assert "not yet a plane contact's postures" in err and "--configs K" in err
+    assert "not yet touches (--measure plane): --configs K chooses" in err
+    chain = load_chain("talos_full_v2.urdf", "left_sole_link", "gripper_left_base_link")
+    with pytest.raises(InvalidArgumentError, match=r"calib\.design\(chain, K, measure='plane'\)"):
+        evaluate(chain, np.zeros((5, chain.n)), "plane")
     out = tmp_path / "c.csv"
     assert main([*argv, "--configs", "30", "--params", "offsets", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "(--params complete, the default)" in err and not out.exists()
+    assert "use params='complete' (the default)" in err and not out.exists()
 
 
 def test_too_few_postures_of_candidates_that_identify_everything_ask_for_more(capsys):

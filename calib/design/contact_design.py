@@ -73,7 +73,7 @@ def checked_contact_chain(chain: Chain | Tree, kind: Contact, markers, params: s
     if params != "complete":
         raise InvalidArgumentError(
             f"a {kind.label} contact design fits the complete model: use params='complete' "
-            f"(--params complete, the default)"
+            f"(the default)"
         )
     return chain
 

@@ -447,8 +447,8 @@ def evaluate(
     if contact is not None:
         raise InvalidArgumentError(
             f"evaluate scores a measured campaign (pose or position), not yet a "
-            f"{contact.label} contact's postures; to choose them: calib design --measure "
-            f"{contact.label} --configs K (calib.design(chain, K, measure='{contact.label}'))"
+            f"{contact.label} contact's postures; to choose them: "
+            f"calib.design(chain, K, measure='{contact.label}')"
         )
     q = _within_limits(chain, q, "the configurations")
     if not len(q):
