@@ -142,6 +142,18 @@ def test_a_contact_guess_in_millimetres_is_an_error_for_several_terms_too(capsys
     assert "--contact's X Y Z are metres: 120 m" in err and "120 mm is 0.12 m" in err
 
 
+@pytest.mark.parametrize("measure", [[], ["--measure", "position"]])
+def test_a_contact_file_without_its_kind_is_named_a_contact_file(capsys, tmp_path, measure):
+    """TALOS's touches without --measure plane: "missing position column: expected x, y, z
+    ..." said nothing of the file's 'plane' column nor of the kinds that read it."""
+    out = tmp_path / "cal.urdf"
+    argv = ["calibrate", "talos_full_v2.urdf", *LEFT, "--data", str(REAL / "left_train.csv")]
+    code, _, err = run(capsys, *argv, *measure, "--out", str(out))
+    assert code == 2 and not out.exists() and len(err.strip().splitlines()) == 1
+    assert "its 'plane' column names what was touched: a contact file" in err
+    assert "--measure plane (flush) or plane-point (a tip)" in err and "--contact X Y Z" in err
+
+
 def test_coordinates_in_a_contact_file_are_an_error(capsys, tmp_path):
     data = _campaign(tmp_path)
     lines = data.read_text().splitlines()
