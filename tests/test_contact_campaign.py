@@ -122,6 +122,22 @@ def test_a_kind_that_is_no_contact_is_refused():
         parse_contacts(_csv(f"plane,{JOINTS}", f"t,{ROW}"), load_chain("ur5"), "pose")
 
 
+def test_a_chain_through_a_leg_the_file_does_not_record_is_named_with_its_frames():
+    """The left arm's touches read from the right sole, in a file without the right leg's
+    columns: "no column for joint leg_right_6_joint of the chain" named neither the chain
+    nor what chose that joint."""
+    lines = [line.split(",") for line in (REAL / "left_train.csv").read_text().splitlines()]
+    kept = [k for k, name in enumerate(lines[0]) if not name.startswith("leg_right_")]
+    text = "\n".join(",".join(line[k] for k in kept) for line in lines)
+    chain = load_chain("talos_full_v2.urdf", "right_sole_link", "gripper_left_base_link")
+    with pytest.raises(DataError, match="leg_right_6_joint") as caught:
+        parse_contacts(text, chain, "plane", "left.csv")
+    assert str(caught.value).endswith(
+        "of the chain right_sole_link -> gripper_left_base_link (its base and tool frames "
+        "choose the joints read)"
+    )
+
+
 def test_the_real_talos_file_reads_with_one_note():
     chain = load_chain("talos_left_arm_full")
     with warnings.catch_warnings(record=True) as caught:

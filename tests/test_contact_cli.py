@@ -96,6 +96,11 @@ def _campaign(tmp_path: Path, measure="plane") -> Path:
     [
         (["--measure", "pose", "--contact", "0", "0", "0.1"], "--contact is for contact kinds"),
         (["--measure", "plane", "--contact", "0", "0"], "3 or 6 numbers"),
+        (["--measure", "plane", "--contact", "0", "0", "-120"], "are metres: 120 m from the"),
+        (
+            ["--measure", "plane", "--contact", "0", "0", "0.1", "180", "0", "0"],
+            "are radians: 180 is more than a turn (degrees? 180 deg is 3.142 rad)",
+        ),
         (
             ["--measure", "plane", "--marker", "0", "0", "0"],
             "--marker is for one chain measured",
@@ -121,6 +126,32 @@ def test_errors_one_line_exit_2_no_output(capsys, tmp_path, extra, message):
     assert code == 2
     assert message in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert not out.exists() and not (tmp_path / "r.json").exists()
+
+
+def test_a_contact_guess_in_millimetres_is_an_error_for_several_terms_too(capsys, tmp_path):
+    """``--contact 0 0 -120`` (mm) fitted a contact frame 120 m off the gripper, accepted
+    with a note: one line now, before any file is read."""
+    terms = []
+    for side in ("left", "right"):
+        terms += ["--term", "plane", "left_sole_link", f"gripper_{side}_base_link"]
+        terms += [str(REAL / f"{side}_train.csv")]
+    out = tmp_path / "cal.urdf"
+    argv = ["calibrate", "talos_full_v2.urdf", *terms, "--out", str(out)]
+    code, _, err = run(capsys, *argv, "--contact", "0", "0", "-120")
+    assert code == 2 and not out.exists() and len(err.strip().splitlines()) == 1
+    assert "--contact's X Y Z are metres: 120 m" in err and "120 mm is 0.12 m" in err
+
+
+@pytest.mark.parametrize("measure", [[], ["--measure", "position"]])
+def test_a_contact_file_without_its_kind_is_named_a_contact_file(capsys, tmp_path, measure):
+    """TALOS's touches without --measure plane: "missing position column: expected x, y, z
+    ..." said nothing of the file's 'plane' column nor of the kinds that read it."""
+    out = tmp_path / "cal.urdf"
+    argv = ["calibrate", "talos_full_v2.urdf", *LEFT, "--data", str(REAL / "left_train.csv")]
+    code, _, err = run(capsys, *argv, *measure, "--out", str(out))
+    assert code == 2 and not out.exists() and len(err.strip().splitlines()) == 1
+    assert "its 'plane' column names what was touched: a contact file" in err
+    assert "--measure plane (flush) or plane-point (a tip)" in err and "--contact X Y Z" in err
 
 
 def test_coordinates_in_a_contact_file_are_an_error(capsys, tmp_path):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +18,9 @@ from calib import InvalidArgumentError, analyze, load_chain
 from calib.cli.commands import main
 from calib.design.configurations import read_configurations
 from calib.design.constraints import Constraints
-from calib.design.design import design
+from calib.design.design import design, evaluate
+
+ROOT = Path(__file__).resolve().parents[1]
 
 CASES = (
     pytest.param("ur5", None, None, "plane", id="ur5-plane"),
@@ -91,6 +94,39 @@ def test_contact_design_errors(tmp_path, capsys):
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "measures no point" in err and "Traceback" not in err and not out.exists()
+
+
+def test_contact_design_options_it_refuses_name_the_way_out(tmp_path, capsys):
+    """A user's table touches given to --evaluate: "unknown measure 'plane'" said neither
+    that --evaluate does not score contacts nor how to choose postures (calib.design's
+    evaluate names the Python call); --params offsets: "use params complete"."""
+    touches = ROOT / "data" / "realdata" / "talos_contact" / "left_train.csv"
+    argv = ["design", "talos_full_v2.urdf", "--base", "left_sole_link", "--tool"]
+    argv += ["gripper_left_base_link", "--measure", "plane"]
+    assert main([*argv, "--evaluate", str(touches)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown measure" not in err and len(err.strip().splitlines()) == 1
+    assert "not yet touches (--measure plane): --configs K chooses" in err
+    chain = load_chain("talos_full_v2.urdf", "left_sole_link", "gripper_left_base_link")
+    with pytest.raises(InvalidArgumentError, match=r"calib\.design\(chain, K, measure='plane'\)"):
+        evaluate(chain, np.zeros((5, chain.n)), "plane")
+    out = tmp_path / "c.csv"
+    assert main([*argv, "--configs", "30", "--params", "offsets", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "use params='complete' (the default)" in err and not out.exists()
+
+
+def test_too_few_postures_of_candidates_that_identify_everything_ask_for_more(capsys):
+    """TALOS's left hand on a plane, 24 postures: "a joint that never moves, or too few
+    distinct candidates?", while the candidates together identify the 58 parameters and 30
+    postures are designed."""
+    argv = ["design", "talos", "--base", "left_sole_link", "--tool", "gripper_left_base_link"]
+    argv += ["--measure", "plane", "--candidates", "300", "--no-collision", "--seed", "1"]
+    assert main([*argv, "--configs", "24"]) == 2
+    err = capsys.readouterr().err
+    assert "do not identify the 58 parameters with 24 configurations" in err
+    assert "(all 300 together do: choose more configurations)" in err
+    assert main([*argv, "--configs", "30"]) == 0
 
 
 def test_a_numerically_singular_newton_system_takes_the_least_norm_step():

@@ -416,6 +416,7 @@ def test_cli_design_errors_leave_no_output(tmp_path, capsys):
     assert main(["design", "ur5", "--configs", "10", "--candidates-file", str(cand)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "do not identify" in err  # 40 copies of one pose
+    assert "too few distinct candidates?" in err
     assert (
         main(
             [

@@ -154,3 +154,16 @@ def test_candidates_in_degrees_are_named_as_a_candidates_file_is():
     assert len(design(chain, 12, candidates=q, random_sets=2).q) == 12
     with pytest.raises(DataError, match=r"configurations \(row 1, .*degrees"):
         evaluate(chain, np.degrees(q))  # it scored them (as --evaluate FILE refuses them)
+
+
+@pytest.mark.parametrize("urdf", ["talos_full_v2.urdf", "talos_reduced.urdf"])
+def test_the_srdf_named_after_the_robot_is_found_for_any_of_its_urdfs(urdf):
+    """example-robot-data ships talos.srdf for TALOS's URDFs (``<robot name="talos">``):
+    a design on talos_full_v2.urdf (the contact data's URDF) disabled none of its 225 pairs
+    on the left sole's chain to the gripper."""
+    from calib.design.collision import collision_checker, find_srdf
+
+    chain = calib.load_chain(urdf, "left_sole_link", "gripper_left_base_link")
+    assert find_srdf(chain.urdf_resolved, chain.model.name).name == "talos.srdf"
+    notes = collision_checker(chain).notes
+    assert any(note.endswith("disabled by talos.srdf") for note in notes), notes

@@ -184,6 +184,30 @@ def test_every_command_has_its_reference_page():
         assert f"\n{name}\n" in index
 
 
+COMMAND = re.compile(r"`calib ([a-z]+)\b([^`]*)`|^\s*(?:\$ )?calib ([a-z]+)\b(.*)$", re.M)
+
+
+def test_the_options_the_pages_give_a_command_are_its_own():
+    """Every ``--option`` a page gives ``calib COMMAND`` (inline code, or a command line of
+    a block, run or not) is one of that command's: contacts.md said ``calib predict --report
+    r.json``, whose option is ``--compliance``."""
+    from calib.cli.commands import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    options = {
+        name: {o for action in parser._actions for o in action.option_strings}
+        for name, parser in sub.choices.items()
+    }
+    wrong = []
+    for page in PAGES:
+        for m in COMMAND.finditer(page.read_text().replace("\\\n", " ")):
+            name, rest = m.group(1, 2) if m.group(1) else m.group(3, 4)
+            rest = rest.split("#")[0]
+            given = re.findall(r"(?<![\w-])(--[a-z][a-z-]*)", rest) if name in options else []
+            wrong += [f"{page.name}: calib {name} {o}" for o in given if o not in options[name]]
+    assert not wrong
+
+
 def test_page_commands_run_this_trees_calib(tmp_path):
     """In a worktree, the commands ran the editable install's calib (another tree's code)."""
     code = "import calib; print(calib.__file__)"

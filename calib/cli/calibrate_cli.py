@@ -217,7 +217,12 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
     from ..measurements.csvfile import read_measurements
 
     columns = _columns(args)
-    data = read_measurements(args.data, chain, columns)
+    try:
+        data = read_measurements(args.data, chain, columns)
+    except DataError as exc:
+        if "missing position column" not in str(exc):
+            raise
+        raise _touches_named(args.data, chain) or exc from None
     _check_links(chain, data.n_markers, args.world_link, args.on_robot)  # before the fit
     check = read_measurements(args.validate, chain, columns) if args.validate else None
     kind = _data_kind(args)
@@ -228,6 +233,30 @@ def _chain_data(args: argparse.Namespace, chain: Chain):
         raise DataError(args.data, orientation_wanted("--measure pose", renamed=True))
     refuse_unused_weight(args, data.quaternion is not None, "positions only")
     return data, check
+
+
+def _touches_named(path: str, chain: Chain) -> DataError | None:
+    """The error of a file without coordinates that reads as touches: say their kind."""
+    from ..measurements.contact_campaign import read_contacts
+
+    kinds = {
+        "plane": "plane (flush) or plane-point (a tip)",
+        "fixed-point": "fixed-point (a tip held) or fixed-pose (a frame held)",
+    }
+    for kind, choice in kinds.items():
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                read_contacts(path, chain, kind)
+        except CalibError:
+            continue
+        return DataError(
+            path,
+            f"no coordinates, and its '{kind.split('-')[-1]}' column names what was touched: "
+            f"a contact file; give its kind, --measure {choice}, and the contact frame's "
+            f"guess, --contact X Y Z",
+        )
+    return None
 
 
 def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot: bool) -> None:

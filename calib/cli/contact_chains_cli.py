@@ -25,6 +25,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from . import pixels_cli
 from .common import given_options, look_outputs, orientation_wanted, write_calibration
+from .contact_cli import check_contact
 
 __all__ = [
     "TERM_KINDS",
@@ -111,8 +112,7 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
         raise InvalidArgumentError("--params paper is a chain's MDH set: not with --chain")
     if args.shared_planes and len(terms) < 2:
         raise InvalidArgumentError("--shared-planes is for several terms: give two or more")
-    if args.contact is not None and len(args.contact) not in (3, 6):
-        raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
+    check_contact(args.contact)
     return terms
 
 

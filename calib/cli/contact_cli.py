@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..core.fileio import check_outputs, written_in_place
@@ -12,7 +13,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .common import compliance_path, look_outputs, refuse_unused_weight, write_calibration
 
-__all__ = ["add_contact_arguments", "calibrate_contacts_command"]
+__all__ = ["add_contact_arguments", "calibrate_contacts_command", "check_contact"]
 
 
 def add_contact_arguments(p: argparse._ActionsContainer) -> None:
@@ -34,9 +35,35 @@ def add_contact_arguments(p: argparse._ActionsContainer) -> None:
     )
 
 
-def _check_args(args: argparse.Namespace) -> None:
-    if args.contact is not None and len(args.contact) not in (3, 6):
+def check_contact(values: list[float] | None) -> None:
+    """``--contact X Y Z [RX RY RZ]``: 3 or 6 numbers, metres and radians.
+
+    Raises:
+        InvalidArgumentError: Another count, a point farther from the tool frame than a
+            target may be from its link (millimetres?), or an angle beyond a turn (degrees?).
+    """
+    from ..measurements.pixels import MAX_TARGET_DISTANCE
+
+    if values is None:
+        return
+    if len(values) not in (3, 6):
         raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
+    far = max(abs(v) for v in values[:3])
+    if far > MAX_TARGET_DISTANCE:
+        raise InvalidArgumentError(
+            f"--contact's X Y Z are metres: {far:g} m from the tool frame is more than "
+            f"{MAX_TARGET_DISTANCE:g} m (millimetres? {far:g} mm is {far / 1000:g} m)"
+        )
+    turned = max((abs(v) for v in values[3:]), default=0.0)
+    if turned > math.tau:
+        raise InvalidArgumentError(
+            f"--contact's RX RY RZ are radians: {turned:g} is more than a turn (degrees? "
+            f"{turned:g} deg is {math.radians(turned):.4g} rad)"
+        )
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    check_contact(args.contact)
 
 
 def _support(args: argparse.Namespace):

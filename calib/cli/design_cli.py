@@ -126,7 +126,9 @@ def _design(args: argparse.Namespace) -> int:
         "the URDF": chain.urdf_path,
         "--candidates-file": args.candidates_file,
         "--srdf": args.srdf,
-        "the SRDF found beside the URDF": find_srdf(chain.urdf_path) if args.collision else None,
+        "the SRDF found beside the URDF": find_srdf(chain.urdf_path, chain.model.name)
+        if args.collision
+        else None,
     }
     check_output_paths({"--out": out}, inputs)
     candidates = args.candidates
@@ -170,6 +172,11 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
     from ..design.design import evaluate, indices_table
     from ..design.observability import CRITERIA
 
+    if args.measure in CONTACT_MEASURES:
+        raise InvalidArgumentError(
+            f"--evaluate scores a measured campaign (pose or position), not yet touches "
+            f"(--measure {args.measure}): --configs K chooses postures on the contact"
+        )
     q = read_configurations(args.evaluate, chain)
     ind = evaluate(
         chain, q, args.measure, args.marker, args.params, args.seed, args.orientation_weight
@@ -183,9 +190,8 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
         )
         print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
         if ind.i is not None and math.isfinite(ind.i):
-            kind = "gap" if args.measure in CONTACT_MEASURES else "position"
             print(
-                f"\npredicted RMS {kind} error after calibration at {args.noise_mm:g} mm noise: "
+                f"\npredicted RMS position error after calibration at {args.noise_mm:g} mm noise: "
                 f"{args.noise_mm * ind.i:.4g} mm"
             )
     return 0

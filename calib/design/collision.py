@@ -138,10 +138,16 @@ def _segment(a: np.ndarray, b: np.ndarray):
     return coal.Capsule(SIGHT_RADIUS, length), coal.Transform3s(R, (a + b) / 2)
 
 
-def find_srdf(urdf: Path) -> Path | None:
-    """The SRDF example-robot-data ships for a URDF, if any (``../srdf/NAME.srdf``)."""
+def find_srdf(urdf: Path, robot_name: str = "") -> Path | None:
+    """The SRDF example-robot-data ships for a URDF, if any (``../srdf/NAME.srdf``).
+
+    Args:
+        urdf: The URDF file.
+        robot_name: Its ``<robot name>``, the SRDF's name when the file's is another
+            (``talos_full_v2.urdf`` and ``talos_reduced.urdf``: ``talos.srdf``).
+    """
     folder = urdf.parent.parent / "srdf"
-    for stem in (urdf.stem, urdf.stem.removesuffix("_robot")):
+    for stem in (urdf.stem, urdf.stem.removesuffix("_robot"), robot_name or urdf.stem):
         path = folder / f"{stem}.srdf"
         if path.is_file():
             return path
@@ -358,7 +364,7 @@ def collision_checker(
             )
     if srdf is not None and self_collision:
         _read_srdf(srdf, robot)  # a bad SRDF is refused even on a URDF without geometry
-    srdf_path = Path(srdf) if srdf is not None else find_srdf(robot.urdf_resolved)
+    srdf_path = Path(srdf) if srdf is not None else find_srdf(robot.urdf_resolved, robot.model.name)
     geom = _geometry(robot, self_collision)
     model = robot.model
     data = model.createData()

@@ -72,7 +72,8 @@ def checked_contact_chain(chain: Chain | Tree, kind: Contact, markers, params: s
         )
     if params != "complete":
         raise InvalidArgumentError(
-            f"a {kind.label} contact design fits the complete model: use params complete"
+            f"a {kind.label} contact design fits the complete model: use params='complete' "
+            f"(the default)"
         )
     return chain
 

@@ -438,8 +438,18 @@ def evaluate(
     joint limits (seed ``seed``); the independent columns are chosen at random
     configurations too, so that the set's own rank deficiency shows. The other arguments
     are :func:`design`'s.
+
+    Raises:
+        InvalidArgumentError: A bad argument, or a contact (its postures are not scored yet).
     """
     check_robot(chain, "chain")
+    contact = _contact_of(measure)
+    if contact is not None:
+        raise InvalidArgumentError(
+            f"evaluate scores a measured campaign (pose or position), not yet a "
+            f"{contact.label} contact's postures; to choose them: "
+            f"calib.design(chain, K, measure='{contact.label}')"
+        )
     q = _within_limits(chain, q, "the configurations")
     if not len(q):
         raise InvalidArgumentError("no configuration to evaluate: q has no row")

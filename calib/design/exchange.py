@@ -515,6 +515,22 @@ def _best(bound: np.ndarray, gains: Callable, floor: float) -> int | None:
     return best
 
 
+def _not_identified(J: np.ndarray, k: int) -> InvalidArgumentError:
+    """The error of k configurations that do not identify the parameters, with its cause.
+
+    Too few of them (every candidate together identifies the parameters), or candidates
+    that never can.
+    """
+    N, _, b = J.shape
+    if np.linalg.cond(J.reshape(-1, b)) <= MAX_CONDITION:
+        why = f"all {N} together do: choose more configurations"
+    else:
+        why = "a joint that never moves, or too few distinct candidates?"
+    return InvalidArgumentError(
+        f"the candidates do not identify the {b} parameters with {k} configurations ({why})"
+    )
+
+
 def optimal_subset(
     J: np.ndarray,
     k: int,
@@ -563,10 +579,7 @@ def optimal_subset(
     greedy = greedy_start(J, k, progress, check)
     weight = {"D": None, "A": np.eye(b), "I": L}[criterion]
     if np.linalg.cond(J[greedy].reshape(-1, b)) > MAX_CONDITION:
-        raise InvalidArgumentError(
-            f"the candidates do not identify the {b} parameters with {k} configurations "
-            f"(a joint that never moves, or too few distinct candidates?)"
-        )
+        raise _not_identified(J, k)
     state = ExchangeState(J, greedy, weight, 0.0)
     exchanges = sweeps = 0
     while sweeps < MAX_SWEEPS:

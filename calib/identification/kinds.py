@@ -43,13 +43,23 @@ def kind_of(measure: str | MeasureKind = "pose", marker=None) -> MeasureKind:
         raise
 
 
-def campaign_kind(measure: str | MeasureKind, marker=None) -> Measurement:
+def campaign_kind(measure: str | MeasureKind, marker=None, contacts: str = "") -> Measurement:
     """A kind a measured campaign can hold: the pose or the position of a point.
+
+    Args:
+        measure: The measure's name or kind (:func:`kind_of`).
+        marker: Measured point in the tool frame, 3 numbers [m].
+        contacts: What takes a contact instead, said after the error (e.g. ``"
+            (touches: calib.simulate_contacts)"``).
 
     Raises:
         InvalidArgumentError: Another kind (rows, a contact) or an unknown name.
     """
     kind = kind_of(measure, marker)
+    if kind.label in CONTACT_NAMES:
+        raise InvalidArgumentError(
+            f"a {kind.label} contact is not a measured campaign: choose pose or position{contacts}"
+        )
     if not (isinstance(kind, Measurement) and kind.is_campaign):
         raise InvalidArgumentError(f"unknown measure '{kind.label}': choose pose or position")
     return kind

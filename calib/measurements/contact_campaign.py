@@ -174,7 +174,12 @@ def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> 
         raise DataError(src, "a column name appears twice", row=1)
     missing = [j for j in chain.joint_names if JOINT_PREFIX + j not in keys]
     if missing:
-        raise DataError(src, f"no column for joint {missing[0]} of the chain", row=1)
+        raise DataError(
+            src,
+            f"no column for joint {missing[0]} of the chain {chain.base_frame} -> "
+            f"{chain.tool_frame} (its base and tool frames choose the joints read)",
+            row=1,
+        )
     index = {k.removeprefix(JOINT_PREFIX): i for i, k in enumerate(keys)}
     off = [k for k in keys if k != want and k.removeprefix(JOINT_PREFIX) not in chain.joint_names]
     joints = [k.removeprefix(JOINT_PREFIX) for k in off if k.startswith(JOINT_PREFIX)]

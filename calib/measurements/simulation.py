@@ -174,7 +174,7 @@ def simulate(
         InvalidArgumentError: A bad argument.
     """
     chain = chain_argument(chain, "simulate", ": a tree's campaign is calib.simulate_tree")
-    measurement = campaign_kind(measure, marker)
+    measurement = campaign_kind(measure, marker, " (touches: calib.simulate_contacts)")
     given = isinstance(configs, np.ndarray | list | tuple)
     m = 0 if given else check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
