@@ -716,3 +716,22 @@ def test_term_is_an_index_and_out_a_path(tmp_path):
         for bad in (True, False, "0", 0.0):
             with pytest.raises(InvalidArgumentError, match=r"term must be a term's index"):
                 load_calibrated(model, source, term=bad)
+
+
+def test_write_takes_any_path_like_as_write_urdf_does(tmp_path):
+    """``write`` checks its paths as ``write_urdf`` does (one check): any ``os.PathLike`` is a
+    file path (``write`` took ``str`` and ``Path`` only, ``write_urdf`` any path)."""
+    from calib import calibrate, simulate
+
+    class Where:  # a path that is no Path
+        def __init__(self, path: Path) -> None:
+            self.path = path
+
+        def __fspath__(self) -> str:
+            return str(self.path)
+
+    chain = load_chain("ur5")
+    r = calibrate(chain, simulate(chain, 30, seed=1).measurements)
+    r.write(Where(tmp_path / "c.urdf"), report=Where(tmp_path / "c.json"))
+    assert (tmp_path / "c.urdf").read_bytes() == r.urdf()
+    assert json.loads((tmp_path / "c.json").read_text())["accepted"]

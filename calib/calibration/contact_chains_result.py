@@ -7,7 +7,6 @@ by an instrument keeps a chain's (:mod:`.measured_report`).
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, TypeVar
@@ -25,7 +24,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line, load_record
 from .contact_result import GapStats, TermPart, units
-from .delivery import Result, RowErrors, compliance_path
+from .delivery import NOMINAL_URDF, Result, RowErrors, compliance_path, file_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import ChainView, MeasuredChain, Solution, world_of
@@ -42,6 +41,7 @@ from .report import (
     parameter_entries,
     parameter_lines,
     pose_dict,
+    selection_dict,
 )
 from .selection import Selection
 
@@ -141,12 +141,12 @@ def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
         "tool": chain.tool_frame,
         "measure": part.kind.label,
         "free": list(result.free),
-        "selection": None if result.selection is None else result.selection.to_dict(),
+        "selection": selection_dict(result.selection),
         "tilt_weight": weight,
         "contact": own["contact"],
         "gaps": own["gaps"],
         "load": load,
-        "calibrated_mdh": part.calibrated.rows(),
+        "calibrated_mdh": fields["model"]["mdh_calibrated"],
         "notes": list(result.notes),
     }
     return fields, legacy
@@ -441,7 +441,7 @@ class ContactChainsCalibration(Result, ChainView):
             "shared_joints": list(self.shared),
             "planes": self.planes,
             "free": list(self.free),
-            "selection": None if self.selection is None else self.selection.to_dict(),
+            "selection": selection_dict(self.selection),
             "joint_origins": origins,
             "notes": list(self.notes),
         }
@@ -477,7 +477,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
-        lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
+        lines.append(self._verdict())
         return "\n".join(lines)
 
     @checked_arguments
@@ -514,8 +514,7 @@ class ContactChainsCalibration(Result, ChainView):
         """
         frame = self._frame()
         world = world_of(self.shape, frame, world_link, on_robot)
-        if self.refusal is not None:
-            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        self._accepted()
         robot, errors = self.chains[0].chain, self.joint_errors()
         cameras = {  # each camera once: name, link, optical frame in the link (4, 4) [m]
             c.name: (c.name, c.chain.base_frame, c.state.camera) for c in self._of(PixelChain)
@@ -539,8 +538,7 @@ class ContactChainsCalibration(Result, ChainView):
             InvalidArgumentError: ``path`` is not a file path.
         """
         urdf = self.urdf()
-        if not isinstance(path, str | os.PathLike):
-            raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-        nominal = {"the nominal URDF": self.chains[0].chain.urdf_resolved}
+        file_path("path", path)
+        nominal = {NOMINAL_URDF: self.chains[0].chain.urdf_resolved}
         check_outputs({"path": path}, dict(self.inputs) or nominal)
         write_atomic(path, urdf)
