@@ -14,7 +14,7 @@ from typing import ClassVar, TypeVar
 import numpy as np
 from scipy.linalg import block_diag
 
-from ..core.fileio import check_outputs, json_text, write_atomic
+from ..core.fileio import json_text
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.elastic import compliance_document as chain_compliance_document
@@ -24,7 +24,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
 from .contact_elastic import compliance_document, compliance_line, load_record
 from .contact_result import GapStats, TermPart, units
-from .delivery import NOMINAL_URDF, Result, RowErrors, compliance_path, file_path
+from .delivery import Result, RowErrors, compliance_path
 from .instrument import instrument_errors, instrument_format2, instrument_lines
 from .measured_report import chain_lines, chain_report, chain_writing
 from .measured_view import ChainView, MeasuredChain, Solution, world_of
@@ -528,17 +528,3 @@ class ContactChainsCalibration(Result, ChainView):
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
             return marker_urdf(robot, errors, marks, None, world)
         return moved_origins_urdf(robot, errors)
-
-    @checked_arguments
-    def write_urdf(self, path: str | Path) -> None:
-        """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
-
-        Raises:
-            CalibrationRefusedError: The model was refused.
-            InvalidArgumentError: ``path`` is not a file path.
-        """
-        urdf = self.urdf()
-        file_path("path", path)
-        nominal = {NOMINAL_URDF: self.chains[0].chain.urdf_resolved}
-        check_outputs({"path": path}, dict(self.inputs) or nominal)
-        write_atomic(path, urdf)

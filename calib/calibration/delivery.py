@@ -21,18 +21,9 @@ from ..kinematics.report_view import urdf_digest
 from ..kinematics.urdf_xml import MAX_URDF_BYTES
 from .options import checked_arguments
 
-__all__ = [
-    "NOMINAL_URDF",
-    "Result",
-    "RowErrors",
-    "compliance_path",
-    "file_path",
-    "paired_files",
-    "paired_report",
-    "read_files",
-]
+__all__ = ["Result", "RowErrors", "compliance_path", "paired_files", "paired_report", "read_files"]
 
-NOMINAL_URDF = "the nominal URDF"
+_NOMINAL_URDF = "the nominal URDF"
 """What the files a calibration read (:func:`read_files`) call the nominal URDF."""
 
 
@@ -114,7 +105,7 @@ def read_files(
     intrinsics too; the nominal URDF as resolved when it was loaded (``urdf_resolved``).
     ``robots``: each term's chain or tree; ``validate``: each term's (None: none), or None.
     """
-    found = [(NOMINAL_URDF, str(robots[0].urdf_resolved))]
+    found = [(_NOMINAL_URDF, str(robots[0].urdf_resolved))]
     held = [None] * len(data) if validate is None else validate
     for k, (d, v) in enumerate(zip(data, held, strict=True), start=1):
         for what, given in zip(_term_files(k), (d, v), strict=True):
@@ -133,7 +124,7 @@ def _term_files(k: int) -> tuple[str, str]:
     return f"the data of term {k}", f"the validation data of term {k}"
 
 
-def file_path(what: str, path: object) -> Path:
+def _file_path(what: str, path: object) -> Path:
     """``path`` as a Path: InvalidArgumentError if it is not a file path (``what``: its name)."""
     if not isinstance(path, str | os.PathLike):
         raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
@@ -218,7 +209,7 @@ class Result:
         """
         self._accepted()
         doc = self.to_dict()
-        read = dict(self.inputs).get(NOMINAL_URDF, doc["urdf"])  # the file loaded
+        read = dict(self.inputs).get(_NOMINAL_URDF, doc["urdf"])  # the file loaded
         try:
             nominal = read_bytes_limited(read, MAX_URDF_BYTES)
         except OSError as exc:
@@ -247,18 +238,35 @@ class Result:
             InvalidArgumentError: A path is not a path, or is an input.
             OutputError: A file cannot be written.
         """
-        out = file_path("out", out)
-        report = None if report is None else file_path("report", report)
+        out = _file_path("out", out)
+        report = None if report is None else _file_path("report", report)
         doc = self.to_dict()
         extra = {} if self.refusal is not None else self.compliance_files(out)
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
-        check_outputs(outputs, dict(self.inputs) if self.inputs else _inputs(doc))
+        check_outputs(outputs, self._read(doc))
         urdf = None if self.refusal is not None else self.urdf()
         files = {} if urdf is None else paired_files({out: urdf, **extra}, out)
         if report is not None:
             files[report] = json_text(doc if urdf is None else paired_report(doc, urdf))
         write_files_atomic(files)
         self._accepted()
+
+    @checked_arguments
+    def write_urdf(self, path: str | Path) -> None:
+        """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
+
+        Raises:
+            CalibrationRefusedError: The model was refused.
+            InvalidArgumentError: ``path`` is not a file path, or is an input.
+        """
+        urdf = self.urdf()
+        path = _file_path("path", path)
+        check_outputs({"path": path}, self._read())
+        write_files_atomic({path: urdf})
+
+    def _read(self, doc: dict | None = None) -> dict[str, str | None]:
+        """The files it read: :attr:`inputs`, else those its report (``doc``) names."""
+        return dict(self.inputs) if self.inputs else _inputs(doc or self.to_dict())
 
     def _verdict(self) -> str:
         """The summary's last word: ``accepted`` or ``REFUSED: <why>``."""
@@ -282,7 +290,7 @@ class Result:
 
 def _inputs(doc: dict) -> dict[str, str | None]:
     """The files a report names as read: the nominal URDF, each term's data and validation."""
-    found: dict[str, str | None] = {NOMINAL_URDF: doc.get("urdf")}
+    found: dict[str, str | None] = {_NOMINAL_URDF: doc.get("urdf")}
     for k, term in enumerate(doc["terms"], start=1):
         found[_term_files(k)[0]] = term.get("data")
     for k, errors in enumerate(doc["errors"].get("terms") or [], start=1):
