@@ -716,3 +716,43 @@ def test_term_is_an_index_and_out_a_path(tmp_path):
         for bad in (True, False, "0", 0.0):
             with pytest.raises(InvalidArgumentError, match=r"term must be a term's index"):
                 load_calibrated(model, source, term=bad)
+
+
+def test_write_takes_any_path_like_as_write_urdf_does(tmp_path):
+    """``write`` checks its paths as ``write_urdf`` does (one check): any ``os.PathLike`` is a
+    file path (``write`` took ``str`` and ``Path`` only, ``write_urdf`` any path)."""
+    from calib import calibrate, simulate
+
+    class Where:  # a path that is no Path
+        def __init__(self, path: Path) -> None:
+            self.path = path
+
+        def __fspath__(self) -> str:
+            return str(self.path)
+
+    chain = load_chain("ur5")
+    r = calibrate(chain, simulate(chain, 30, seed=1).measurements)
+    r.write(Where(tmp_path / "c.urdf"), report=Where(tmp_path / "c.json"))
+    assert (tmp_path / "c.urdf").read_bytes() == r.urdf()
+    assert json.loads((tmp_path / "c.json").read_text())["accepted"]
+
+
+def test_write_urdf_refuses_the_files_write_refuses(tmp_path):
+    """``write_urdf`` and ``write`` protect the same files (one rule): the files the result
+    read, else (a result that records none) those its report names: the nominal URDF and the
+    data (``write_urdf`` then protected the nominal URDF alone, and wrote over the data)."""
+    import dataclasses
+
+    from calib import calibrate, read_measurements, simulate, write_measurements
+
+    chain = load_chain("ur5")
+    write_measurements(tmp_path / "m.csv", simulate(chain, 30, seed=1).measurements)
+    r = calibrate(chain, read_measurements(tmp_path / "m.csv", chain))
+    before = (tmp_path / "m.csv").read_bytes()
+    for result in (r, dataclasses.replace(r, inputs=())):
+        for path in (tmp_path / "m.csv", chain.urdf_path):
+            with pytest.raises(InvalidArgumentError, match="would overwrite"):
+                result.write_urdf(path)
+    assert (tmp_path / "m.csv").read_bytes() == before
+    r.write_urdf(tmp_path / "cal.urdf")
+    assert (tmp_path / "cal.urdf").read_bytes() == r.urdf()

@@ -7,7 +7,6 @@ by an instrument keeps a chain's (:mod:`.measured_report`).
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, TypeVar
@@ -15,7 +14,7 @@ from typing import ClassVar, TypeVar
 import numpy as np
 from scipy.linalg import block_diag
 
-from ..core.fileio import check_outputs, json_text, write_atomic
+from ..core.fileio import json_text
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.elastic import compliance_document as chain_compliance_document
@@ -42,6 +41,7 @@ from .report import (
     parameter_entries,
     parameter_lines,
     pose_dict,
+    selection_dict,
 )
 from .selection import Selection
 
@@ -141,12 +141,12 @@ def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
         "tool": chain.tool_frame,
         "measure": part.kind.label,
         "free": list(result.free),
-        "selection": None if result.selection is None else result.selection.to_dict(),
+        "selection": selection_dict(result.selection),
         "tilt_weight": weight,
         "contact": own["contact"],
         "gaps": own["gaps"],
         "load": load,
-        "calibrated_mdh": part.calibrated.rows(),
+        "calibrated_mdh": fields["model"]["mdh_calibrated"],
         "notes": list(result.notes),
     }
     return fields, legacy
@@ -441,7 +441,7 @@ class ContactChainsCalibration(Result, ChainView):
             "shared_joints": list(self.shared),
             "planes": self.planes,
             "free": list(self.free),
-            "selection": None if self.selection is None else self.selection.to_dict(),
+            "selection": selection_dict(self.selection),
             "joint_origins": origins,
             "notes": list(self.notes),
         }
@@ -477,7 +477,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
-        lines.append("accepted" if self.accepted else f"REFUSED: {self.refusal}")
+        lines.append(self._verdict())
         return "\n".join(lines)
 
     @checked_arguments
@@ -514,8 +514,7 @@ class ContactChainsCalibration(Result, ChainView):
         """
         frame = self._frame()
         world = world_of(self.shape, frame, world_link, on_robot)
-        if self.refusal is not None:
-            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        self._accepted()
         robot, errors = self.chains[0].chain, self.joint_errors()
         cameras = {  # each camera once: name, link, optical frame in the link (4, 4) [m]
             c.name: (c.name, c.chain.base_frame, c.state.camera) for c in self._of(PixelChain)
@@ -529,18 +528,3 @@ class ContactChainsCalibration(Result, ChainView):
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
             return marker_urdf(robot, errors, marks, None, world)
         return moved_origins_urdf(robot, errors)
-
-    @checked_arguments
-    def write_urdf(self, path: str | Path) -> None:
-        """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
-
-        Raises:
-            CalibrationRefusedError: The model was refused.
-            InvalidArgumentError: ``path`` is not a file path.
-        """
-        urdf = self.urdf()
-        if not isinstance(path, str | os.PathLike):
-            raise InvalidArgumentError(f"path must be a file path, got {path!r:.60}")
-        nominal = {"the nominal URDF": self.chains[0].chain.urdf_resolved}
-        check_outputs({"path": path}, dict(self.inputs) or nominal)
-        write_atomic(path, urdf)

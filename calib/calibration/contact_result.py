@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..kinematics.robot import Chain
-from .report import term_errors
+from .report import URDF_ALONE, mm_or_deg, term_errors
 
 __all__ = ["GapStats", "TermPart", "gap_stats", "part_stats", "row_stats", "units"]
 
@@ -52,7 +52,7 @@ class GapStats:
         """``<row>_rms_<unit>`` and ``<row>_max_<unit>`` of every row, in row order."""
         out = []
         for name, angle in zip(self.names, self.angular, strict=True):
-            unit = "deg" if angle else "mm"
+            unit = mm_or_deg(angle)[0]
             out += [f"{name}_rms_{unit}", f"{name}_max_{unit}"]
         return tuple(out)
 
@@ -138,7 +138,7 @@ class TermPart:
         """The summary's lines: what the term is, then each part's RMS errors by row."""
         labels = {}  # each part's label (with compliance: which model it is), padded
         for key in self.stats:
-            label = key.replace("_urdf", ", URDF alone (no compliance)")
+            label = key.replace("_urdf", f", {URDF_ALONE}")
             if self.compliance is not None and not key.endswith(("_urdf", "_registration")):
                 label += ", whole model (URDF + compliance)"
             labels[key] = label
@@ -152,7 +152,7 @@ class TermPart:
 def units(kind) -> str:
     """A kind's rows with their units: ``x [mm], y [mm], z [mm], rx [deg], ...``."""
     return ", ".join(
-        f"{n} [{'deg' if a else 'mm'}]" for n, a in zip(kind.row_names, kind.angular, strict=True)
+        f"{n} [{mm_or_deg(a)[0]}]" for n, a in zip(kind.row_names, kind.angular, strict=True)
     )
 
 
@@ -185,7 +185,7 @@ def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
     ``kind``: its ``row_names`` and ``angular``; ``weights`` ``(rows,)`` [1, m/rad]: the
     rows' weights in ``weighted_mm``.
     """
-    scale = np.where(np.array(kind.angular), math.degrees(1.0), 1e3)
+    scale = np.array([mm_or_deg(a)[1] for a in kind.angular])
     rms = np.sqrt(np.mean(g**2, axis=0)) * scale
     top = np.max(np.abs(g), axis=0) * scale
     per_row = 1e3 * np.linalg.norm(g * weights, axis=1)

@@ -7,6 +7,7 @@ files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,9 @@ from ..kinematics.urdf_xml import MAX_URDF_BYTES
 from .options import checked_arguments
 
 __all__ = ["Result", "RowErrors", "compliance_path", "paired_files", "paired_report", "read_files"]
+
+_NOMINAL_URDF = "the nominal URDF"
+"""What the files a calibration read (:func:`read_files`) call the nominal URDF."""
 
 
 @dataclass(frozen=True)
@@ -101,10 +105,10 @@ def read_files(
     intrinsics too; the nominal URDF as resolved when it was loaded (``urdf_resolved``).
     ``robots``: each term's chain or tree; ``validate``: each term's (None: none), or None.
     """
-    found = [("the nominal URDF", str(robots[0].urdf_resolved))]
+    found = [(_NOMINAL_URDF, str(robots[0].urdf_resolved))]
     held = [None] * len(data) if validate is None else validate
     for k, (d, v) in enumerate(zip(data, held, strict=True), start=1):
-        for what, given in ((f"the data of term {k}", d), (f"the validation data of term {k}", v)):
+        for what, given in zip(_term_files(k), (d, v), strict=True):
             parts = [] if given is None else [(what, getattr(given, "obs", given))]
             if given is not None and hasattr(given, "target"):  # a camera's pixels
                 parts += [
@@ -113,6 +117,18 @@ def read_files(
                 ]
             found += [(name, part.path or part.source) for name, part in parts]
     return tuple(found)
+
+
+def _term_files(k: int) -> tuple[str, str]:
+    """What the files read call term ``k``'s data and validation data (1-based ``k``)."""
+    return f"the data of term {k}", f"the validation data of term {k}"
+
+
+def _file_path(what: str, path: object) -> Path:
+    """``path`` as a Path: InvalidArgumentError if it is not a file path (``what``: its name)."""
+    if not isinstance(path, str | os.PathLike):
+        raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
+    return Path(path)
 
 
 def paired_files(files: Mapping[Path, str | bytes], out: Path) -> dict[Path, str | bytes]:
@@ -191,10 +207,9 @@ class Result:
             CalibrationRefusedError: The model was refused.
             URDFError: The nominal URDF cannot be read.
         """
-        if self.refusal is not None:
-            raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
+        self._accepted()
         doc = self.to_dict()
-        read = dict(self.inputs).get("the nominal URDF", doc["urdf"])  # the file loaded
+        read = dict(self.inputs).get(_NOMINAL_URDF, doc["urdf"])  # the file loaded
         try:
             nominal = read_bytes_limited(read, MAX_URDF_BYTES)
         except OSError as exc:
@@ -223,20 +238,43 @@ class Result:
             InvalidArgumentError: A path is not a path, or is an input.
             OutputError: A file cannot be written.
         """
-        for what, path in (("out", out), ("report", report)):
-            if (path is not None or what == "out") and not isinstance(path, str | Path):
-                raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
-        out = Path(out)
+        out = _file_path("out", out)
+        report = None if report is None else _file_path("report", report)
         doc = self.to_dict()
         extra = {} if self.refusal is not None else self.compliance_files(out)
         outputs = {"out": out, "report": report, **{str(p): p for p in extra}}
-        check_outputs(outputs, dict(self.inputs) if self.inputs else _inputs(doc))
+        check_outputs(outputs, self._read(doc))
         urdf = None if self.refusal is not None else self.urdf()
         files = {} if urdf is None else paired_files({out: urdf, **extra}, out)
         if report is not None:
-            files[Path(report)] = json_text(doc if urdf is None else paired_report(doc, urdf))
+            files[report] = json_text(doc if urdf is None else paired_report(doc, urdf))
         write_files_atomic(files)
-        if urdf is None:
+        self._accepted()
+
+    @checked_arguments
+    def write_urdf(self, path: str | Path) -> None:
+        """Write :meth:`urdf` atomically (never over a file it read: :attr:`inputs`).
+
+        Raises:
+            CalibrationRefusedError: The model was refused.
+            InvalidArgumentError: ``path`` is not a file path, or is an input.
+        """
+        urdf = self.urdf()
+        path = _file_path("path", path)
+        check_outputs({"path": path}, self._read())
+        write_files_atomic({path: urdf})
+
+    def _read(self, doc: dict | None = None) -> dict[str, str | None]:
+        """The files it read: :attr:`inputs`, else those its report (``doc``) names."""
+        return dict(self.inputs) if self.inputs else _inputs(doc or self.to_dict())
+
+    def _verdict(self) -> str:
+        """The summary's last word: ``accepted`` or ``REFUSED: <why>``."""
+        return "accepted" if self.refusal is None else f"REFUSED: {self.refusal}"
+
+    def _accepted(self) -> None:
+        """Raise :class:`CalibrationRefusedError` where the model was refused."""
+        if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
 
     def __repr__(self) -> str:
@@ -244,18 +282,17 @@ class Result:
         terms = doc["terms"]
         what = ", ".join(f"{t['base']} -> {t['tool']} ({t['kind']})" for t in terms[:2])
         what += f" and {len(terms) - 2} more" if len(terms) > 2 else ""
-        verdict = "accepted" if doc["accepted"] else f"REFUSED: {doc['refusal']}"
         return (
             f"<{type(self).__name__} {doc['robot']} {doc['shape']}: {what}, "
-            f"{len(doc['parameters'])} parameters, {verdict}>"
+            f"{len(doc['parameters'])} parameters, {self._verdict()}>"
         )
 
 
 def _inputs(doc: dict) -> dict[str, str | None]:
     """The files a report names as read: the nominal URDF, each term's data and validation."""
-    found: dict[str, str | None] = {"the nominal URDF": doc.get("urdf")}
+    found: dict[str, str | None] = {_NOMINAL_URDF: doc.get("urdf")}
     for k, term in enumerate(doc["terms"], start=1):
-        found[f"the data of term {k}"] = term.get("data")
+        found[_term_files(k)[0]] = term.get("data")
     for k, errors in enumerate(doc["errors"].get("terms") or [], start=1):
-        found[f"the validation data of term {k}"] = (errors.get("held_out") or {}).get("source")
+        found[_term_files(k)[1]] = (errors.get("held_out") or {}).get("source")
     return found

@@ -22,7 +22,7 @@ from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
 from .chain_registration import MeasuredState
 from .registration import register_points
-from .report import pose_dict, term_errors
+from .report import URDF_ALONE, pose_dict, term_errors
 from .residuals import ResidualStats
 
 __all__ = [
@@ -169,7 +169,7 @@ def instrument_lines(parts) -> list[str]:
             for what, s in (
                 ("registration", stats[f"{key}_registration"]),
                 ("calibrated", stats[key]),
-                ("URDF alone (no compliance)", stats.get(f"{key}_urdf")),
+                (URDF_ALONE, stats.get(f"{key}_urdf")),
             )
             if s is not None
         ]

@@ -18,7 +18,7 @@ from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
 from .chain_counts import chain_name
 from .model import State
-from .report import errors_part, fit_dict, one_term, pose_dict
+from .report import URDF_ALONE, errors_part, fit_dict, one_term, pose_dict, selection_dict
 from .residuals import ResidualStats
 
 if TYPE_CHECKING:
@@ -84,12 +84,11 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
 
 def chain_lines(view: ChainView) -> list[str]:
     """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
-    held, what = view.validation, ("registration only", "calibrated", "URDF alone (no compliance)")
-    found = (view.before, view.after, view.urdf_after)
-    rows = [(f"fitted, {w}", st) for w, st in zip(what, found, strict=True)]
+    held, what = view.validation, ("registration only", "calibrated", URDF_ALONE)
+    parts = [("fitted", (view.before, view.after, view.urdf_after))]
     if held is not None:
-        found = (held.registration, held.calibrated, held.urdf)
-        rows += [(f"held out ({held.source}), {w}", st) for w, st in zip(what, found, strict=True)]
+        parts.append((f"held out ({held.source})", (held.registration, held.calibrated, held.urdf)))
+    rows = [(f"{p}, {w}", st) for p, found in parts for w, st in zip(what, found, strict=True)]
     header = ["errors", "configs", "rms [mm]", "max [mm]"]
     if view.after.orientation_rms is not None:
         header += ["rot rms [mrad]", "rot max [mrad]"]
@@ -162,7 +161,7 @@ def chain_report(
         "orientation_weight": weight,
         "residuals": errors_part(*train, mm=False),
         "validation": None if held is None else held.to_dict(),
-        "selection": None if view.selection is None else view.selection.to_dict(),
+        "selection": selection_dict(view.selection),
         "sigma": view.sigma,
         "condition_number": view.condition,
         "predicted_std": std,

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..exceptions import DataError
 from ..kinematics.robot import Chain
-from .contact_result import GapStats, TermPart, part_stats, row_stats
+from .contact_result import GapStats, TermPart, part_stats, row_stats, units
 from .diagnosis import NOISE_FACTOR, suspect
 from .outliers import Outlier
 from .pixel_chain import PixelKind, PixelPart, PixelTermState
@@ -133,8 +133,8 @@ class PixelChain(TermPart):
             for k in ("train", "held_out")
             if k in self.pixels
         )
-        units = "u [mm], v [mm] at the target; reprojection RMS [px]"
-        return f"camera {self.name} (errors: {units}: {px})"
+        what = f"{units(self.kind)} at the target; reprojection RMS [px]"
+        return f"camera {self.name} (errors: {what}: {px})"
 
     def _own(self) -> dict:
         """Its camera, targets and errors (mm and px)."""

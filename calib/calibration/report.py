@@ -17,16 +17,19 @@ import pinocchio as pin
 
 __all__ = [
     "REPORT_KEYS",
+    "URDF_ALONE",
     "build_report",
     "errors_part",
     "finite",
     "fit_dict",
+    "mm_or_deg",
     "model_choice",
     "one_term",
     "outlier_dict",
     "parameter_entries",
     "parameter_lines",
     "pose_dict",
+    "selection_dict",
     "term_errors",
 ]
 
@@ -56,6 +59,9 @@ REPORT_KEYS = (
     "timings_ms",
 )
 """The top-level keys of every report (format 3), in order."""
+
+URDF_ALONE = "URDF alone (no compliance)"
+"""The summaries' name of the calibrated URDF without its fitted joint compliance."""
 
 _ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
 _PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz]|(?:alpha|beta|gamma|theta|offset|[dryb])\d+)")
@@ -199,11 +205,16 @@ def term_errors(stats: Mapping, held_source: str | None) -> dict:
     return out
 
 
+def selection_dict(selection) -> dict | None:
+    """Format 2's ``selection``: the automatic choice's record, errors in m (None: none)."""
+    return None if selection is None else selection.to_dict()
+
+
 def model_choice(selection) -> dict | None:
     """The report's ``model_choice``: the selection's record, errors in mm (None: none)."""
-    if selection is None:
+    out = selection_dict(selection)
+    if out is None:
         return None
-    out = dict(selection.to_dict())
     out["steps"] = [
         {"name": s["name"], "loo_mm": finite(1e3 * s["loo"])} for s in out.get("steps", [])
     ]
@@ -213,13 +224,20 @@ def model_choice(selection) -> dict | None:
     return out
 
 
+def mm_or_deg(angle: bool) -> tuple[str, float]:
+    """The unit the report gives an error in, and its factor from SI units.
+
+    Lengths in mm (1e3 per m), angles in degrees (per rad): ``("mm", 1e3)`` or ``("deg", ...)``.
+    """
+    return ("deg", math.degrees(1.0)) if angle else ("mm", 1e3)
+
+
 def outlier_dict(outlier, term: int = 0) -> dict:
     """One entry of ``outliers``: ``term``, ``row``, ``kind``, error and median [mm or deg].
 
     ``term`` is the index in ``terms`` of the data it is a row of.
     """
-    angle = outlier.kind == "orientation"
-    unit, scale = ("deg", math.degrees(1.0)) if angle else ("mm", 1e3)
+    unit, scale = mm_or_deg(outlier.kind == "orientation")
     return {
         "term": term,
         "row": outlier.row,

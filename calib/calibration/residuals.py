@@ -7,13 +7,12 @@ standard deviation), in metres and radians.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..measurements.data import Measurements
-from .report import errors_part, finite
+from .report import errors_part, finite, mm_or_deg
 
 __all__ = ["ResidualStats", "Validation"]
 
@@ -58,7 +57,7 @@ class ResidualStats:
         out: dict = {"configs": self.configs}
         for key in _FIGURES:
             value = getattr(self, key)
-            unit, scale = ("deg", math.degrees(1.0)) if "orient" in key else ("mm", 1e3)
+            unit, scale = mm_or_deg("orient" in key)
             out[f"{key}_{unit}"] = None if value is None else finite(scale * value)
         return out
 
