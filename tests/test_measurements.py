@@ -584,3 +584,14 @@ def test_ignored_columns_that_may_be_an_orientation_say_how_to_read_them(tmp_pat
     (tmp_path / "s.csv").write_text(f"{names},x,y,z,stamp\n0,0,0,0,0,0,1,2,3,7\n")
     with pytest.warns(DataWarning, match=r"or tool\): stamp$"):  # one column: no hint
         read_measurements(tmp_path / "s.csv", chain)
+
+
+def test_ignored_columns_no_axes_name_get_no_orientation_hint(tmp_path):
+    """The TIAGo data's bookkeeping columns (the quickstart's first calibration) were offered
+    as an orientation: --orientation-columns shipped_row t_start_robot t_end_robot."""
+    chain = chain_of("ur5")
+    names = ",".join(chain.joint_names)
+    log = "shipped_row,t_start_robot,t_end_robot,marker_std_mm"
+    (tmp_path / "m.csv").write_text(f"{names},x,y,z,{log}\n0,0,0,0,0,0,1,2,3,4,5,6,7\n")
+    with pytest.warns(DataWarning, match=r"or tool\): shipped_row, .*, marker_std_mm$"):
+        read_measurements(tmp_path / "m.csv", chain)

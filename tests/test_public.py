@@ -183,6 +183,64 @@ def test_the_command_line_says_the_flag_where_the_library_says_the_keyword(tmp_p
     assert not out.exists()
 
 
+INTRINSICS = (
+    "image_width: 640\nimage_height: 480\n"
+    "camera_matrix: [[{f}, 0.0, 319.5], [0.0, {f}, 239.5], [0.0, 0.0, 1.0]]\n"
+    "distortion_coefficients: [-0.1, 0.05, 0.0, 0.0, 0.0]\n"
+)
+
+
+def test_calibrate_names_the_flags_of_the_refusals_ways_out(tmp_path, capsys):
+    """The refusals of data no calibration explains name their way out by keyword (the
+    data's position_only(), Unknowns(intrinsics=True)); ``calib calibrate`` printed those
+    Python names: it says --measure position and --refine-intrinsics. The UR10's
+    roll-pitch-yaw read as rotation vectors; pixels read with half the focal lengths."""
+    from calib.cli.commands import main
+
+    ur10 = Path(__file__).resolve().parents[1] / "data" / "realdata" / "ur10"
+    chain = [str(ur10 / "ur10_robot.urdf"), "--base", "universe", "--tool", "wrist_3_link"]
+    phi = ["--orientation", "rotvec", "--orientation-columns", "phix1", "phiy1", "phiz1"]
+    out = tmp_path / "c.urdf"
+    data = ["--data", str(ur10 / "calibration.csv"), "--out", str(out)]
+    assert main(["calibrate", *chain, *data, *phi]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "orientations do not match" in err
+    assert err.endswith("fit the positions alone (--measure position)\n")
+    rows = [
+        f"p{i}{j},{0.03 * i - 0.045:.3f},{0.03 * j - 0.03:.3f},0.02"
+        for i in range(4)
+        for j in range(3)
+    ]
+    (tmp_path / "target.csv").write_text("point,x,y,z\n" + "\n".join(rows) + "\n")
+    for name, f in (("intr.yaml", 600.0), ("half.yaml", 300.0)):
+        (tmp_path / name).write_text(INTRINSICS.format(f=f))
+    cam = ["--camera", "cam", "world", str(tmp_path / "intr.yaml")]
+    pixels = ["--measure", "pixels", "--target", str(tmp_path / "target.csv"), "--tool", "tool0"]
+    obs = str(tmp_path / "obs.csv")
+    place = ["1.6", "0.3", "0.8", "-1.8688", "0", "1.7561"]
+    argv = [
+        "simulate",
+        "ur5",
+        *pixels,
+        *cam,
+        *place,
+        "--out",
+        obs,
+        "--configs",
+        "100",
+        "--seed",
+        "1",
+    ]
+    assert main([*argv, "--noise-px", "0.5"]) == 0
+    cam[-1] = str(tmp_path / "half.yaml")
+    capsys.readouterr()
+    assert main(["calibrate", "ur5", *pixels, *cam, "--data", obs, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the pixels do not match camera cam" in err
+    assert "or fit them: --refine-intrinsics)" in err and "Unknowns" not in err
+    assert not out.exists()
+
+
 def test_a_library_error_names_the_keyword(tmp_path):
     """calibrate(holdout=...) that holds out no row says ``holdout``, not ``--holdout``."""
     from calib import calibrate, load_chain, simulate

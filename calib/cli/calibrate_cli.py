@@ -44,6 +44,7 @@ from .common import (
 )
 
 __all__ = [
+    "FLAGS",
     "add_calibrate_parser",
     "cmd_calibrate",
     "compliance_path",
@@ -88,6 +89,14 @@ def _columns(args: argparse.Namespace):
     return Columns(args.orientation, cols, args.units, args.points)
 
 
+FLAGS = {
+    "(Columns' orientation_columns)": "(--orientation-columns)",
+    "(the data's position_only())": "(--measure position)",
+    "Unknowns(intrinsics=True)": "--refine-intrinsics",
+}
+"""The ways out the library's messages name by keyword, and the flags calibrate says instead."""
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report.
 
@@ -96,11 +105,16 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """
     try:
         return _calibrate(args)
-    except InvalidArgumentError as exc:  # the library names the keyword: say the flag
-        keyword = "(Columns' orientation_columns)"
-        if keyword not in str(exc):
+    except (InvalidArgumentError, DataError) as exc:  # the library names the keyword: the flag
+        text = str(exc)
+        if not any(k in text for k in FLAGS):
             raise
-        raise InvalidArgumentError(str(exc).replace(keyword, "(--orientation-columns)")) from None
+        for keyword, flag in FLAGS.items():
+            text = text.replace(keyword, flag)
+        if isinstance(exc, InvalidArgumentError):
+            raise InvalidArgumentError(text) from None
+        where = str(DataError(exc.path, "", exc.row, exc.column))  # "PATH (row R): "
+        raise DataError(exc.path, text.removeprefix(where), exc.row, exc.column) from None
 
 
 def _calibrate(args: argparse.Namespace) -> int:

@@ -285,14 +285,27 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
 
 
 def _orientation_hint(ignored: list[str]) -> str:
-    """How to read an orientation under other names, when 3 or more columns were ignored."""
-    if len(ignored) < 3:
+    """How to read an orientation under other names, when 3 ignored columns are named alike.
+
+    Alike but for x, y and z (``phix1, phiy1, phiz1``); none for others (a log's time stamps).
+    """
+    triple = next((t for t in map(_axes_of, ignored) if t and set(t) <= set(ignored)), ())
+    if not triple:
         return ""
     return (
         "; if 3 or 4 of them are an orientation, name its format and columns, e.g. "
-        f"--orientation rpy --orientation-columns {' '.join(ignored[:3])} (Python: "
+        f"--orientation rpy --orientation-columns {' '.join(triple)} (Python: "
         f"Columns(FORMAT, COLUMNS); formats: {', '.join(ORIENTATION_FORMATS)})"
     )
+
+
+def _axes_of(name: str) -> tuple[str, ...]:
+    """The names of ``name``'s x, y and z columns, its first ``x`` replaced (none: ``()``)."""
+    i = name.lower().find("x")
+    if i < 0:
+        return ()
+    axes = "xyz" if name[i] == "x" else "XYZ"
+    return tuple(name[:i] + a + name[i + 1 :] for a in axes)
 
 
 def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:
