@@ -87,6 +87,17 @@ def test_cli_sweep_robots_compares_the_named_ones_alone(capsys):
     assert rows[1]["n_base_complete"] == analyze("ur5", configs=40).n_base
 
 
+def test_cli_sweep_robots_with_an_unknown_name_is_a_usage_error(tmp_path, capsys):
+    """A typo among ``--robots`` stops before any work, as ``calib analyze`` does (it was an
+    error row, exit 0); nothing written."""
+    csv_out = tmp_path / "rows.csv"
+    code = main(["sweep", "--configs", "40", "--robots", "ur5", "ur55", "--csv", str(csv_out)])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "unknown robot 'ur55' (did you mean ur5" in err
+    assert not csv_out.exists()
+
+
 def test_csv_text_has_one_row_per_chain(pose_rows):
     parsed = list(csv.DictReader(io.StringIO(rows_to_csv(pose_rows))))
     assert [p["robot"] for p in parsed] == [r.robot for r in pose_rows]

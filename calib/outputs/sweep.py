@@ -17,7 +17,7 @@ from ..exceptions import CalibError, InvalidArgumentError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.kinds import kind_of
 from ..identification.measures import MeasureKind, Measurement
-from ..kinematics.catalog import catalog
+from ..kinematics.catalog import catalog, catalog_entry
 from ..kinematics.tree import load_robot
 
 __all__ = [
@@ -148,6 +148,9 @@ def sweep(
 
     Returns:
         One row per chain, in order.
+
+    Raises:
+        RobotNotFoundError: A name of ``robots`` is not in the catalog (before any work).
     """
     measurement = kind_of(measure, marker)
     check_count(configs, "the number of configurations")
@@ -157,11 +160,9 @@ def sweep(
         raise InvalidArgumentError(
             f"unknown parameter set {shown(params)}: choose paper or complete"
         )
-    entries = {e.name: e for e in catalog()}
-    jobs: list[tuple[str, str | None, str | tuple[str, ...] | None]] = []
-    for name in robots if robots is not None else entries:
-        e = entries.get(name)
-        jobs.append((name, e.base, e.tool) if e else (name, None, None))
+    named = catalog() if robots is None else [catalog_entry(n) for n in robots]
+    jobs: list[tuple[str, str | None, str | tuple[str, ...] | None]]
+    jobs = [(e.name, e.base, e.tool) for e in named]
     jobs += [(str(Path(p)), None, None) for p in extra]
     it = steps(progress, jobs, "calib sweep", len(jobs))
     return [_sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
