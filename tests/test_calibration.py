@@ -563,7 +563,7 @@ def test_a_noisy_instrument_is_refused_with_its_way_out_and_accepted_with_its_no
     argv, out = _tiago_cli_with_positions(tmp_path, lambda k, p: p + noise[k])
     assert main(argv) != 0 and not out.exists()
     err = capsys.readouterr().err
-    assert "an instrument this noisy? give its noise (noise_mm, --noise-mm)" in err
+    assert "an instrument this noisy? give its noise (--noise-mm)" in err
     errors = [line for line in err.splitlines() if line.startswith("calib: error:")]
     assert len(errors) == 1 and "another robot's data" in errors[0] and "Traceback" not in err
     assert main([*argv, "--noise-mm", "25"]) == 0 and out.exists()

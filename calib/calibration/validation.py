@@ -276,7 +276,7 @@ def check_fitted_errors(
         way_out = (
             "two objects logged under one id?"
             if n_markers is None
-            else "an instrument this noisy? give its noise (noise_mm, --noise-mm)"
+            else "an instrument this noisy? give its noise (noise_mm)"
             if noise is None
             else "an instrument noisier than the noise given?"
         )

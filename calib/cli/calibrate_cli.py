@@ -93,6 +93,7 @@ FLAGS = {
     "(Columns' orientation_columns)": "(--orientation-columns)",
     "(the data's position_only())": "(--measure position)",
     "Unknowns(intrinsics=True)": "--refine-intrinsics",
+    "give its noise (noise_mm)": "give its noise (--noise-mm)",
 }
 """The ways out the library's messages name by keyword, and the flags calibrate says instead."""
 
