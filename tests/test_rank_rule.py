@@ -23,7 +23,7 @@ from test_properties import chains
 from test_tree_properties import RandomTree, urdf_text
 
 import calib
-from calib import calibrate, load_chain, simulate
+from calib import calibrate, load_chain, simulate, simulate_contacts
 from calib.calibration import contact_chains, contact_checks, solve
 
 # A prismatic joint, then a revolute one 3.5e-5 rad from parallel to it, a prismatic joint on
@@ -145,6 +145,65 @@ def test_a_fit_stopped_by_the_evaluation_cap_says_what_to_raise_and_where_it_sta
     assert r.refusal is not None and r.refusal.startswith("the solver did not converge")
     assert "stopped after 5 residual evaluations, a larger max_iterations" in r.refusal
     assert "where it stopped, the data cannot separate frame.rx" in r.refusal, r.refusal
+
+
+# Case 67 of converge45's search: a revolute joint, two on one axis through it (URDF numbers
+# of 4 decimals) and two generic ones, touching one plane without noise; case 226: two
+# prismatic joints on one axis, a revolute and a prismatic one, touching two planes.
+ON_ONE_AXIS = (
+    ("revolute", (0, 0, 0.0683), (0.009545, 0.667129, -0.744881)),
+    ("revolute", (-0.0033, -0.2336, 0.2608), (-0.009545, -0.667129, 0.744881)),
+    ("revolute", (-0.0018, -0.1257, 0.1404), (-0.009545, -0.667129, 0.744881)),
+    ("revolute", (0.0024, 0.1704, -0.1903), (-0.408593, -0.562957, 0.718423)),
+    ("revolute", (-0.1957, -0.2697, 0.3442), (-0.364551, 0.072491, -0.928357)),
+)
+ON_ONE_AXIS_TOOL = ((0.5672, 0.2918, -0.3965), (-0.2130, 0.9945, 0.5057))
+SLIDES = (
+    ("prismatic", (0.09234559248945817, -0.39472715078890463, 0.15509534700701522), (0, 0, 1)),
+    ("prismatic", (0.09542887085819274, 0.1498414875832842, -0.5054493399366518), (0, 0, -1)),
+    (
+        "revolute",
+        (0.14036847954331444, -0.07854893176935662, 0.5435848203024812),
+        (-0.10060967324088417, -0.9949259553942008, -0.0001921803827464165),
+    ),
+    (
+        "prismatic",
+        (0.04537786509242292, 0.44874030822795324, 8.667889677763108e-05),
+        (-0.6323474316547584, 0.06409385235894083, -0.7720289526756241),
+    ),
+)
+SLIDES_TOOL = (
+    (-0.055544418299433795, 0.0056299046499343475, -0.06781382660869376),
+    (0.8631588658009148, 0.1391513077688615, 0.7203113981783076),
+)
+
+
+def test_auto_holds_what_stalls_a_contact_fit_and_its_fit_is_accepted():
+    """Touches get what measurements got: the fit stalls in plane1_ry with j1:theta2, then
+    j2:theta3 (before: refused, the solver did not converge in its 100 evaluations); after:
+    both held with a note, the fit accepted and better than the registration on held-out
+    touches (0.09 mm against 2.0)."""
+    chain = _chain(_urdf(ON_ONE_AXIS, ON_ONE_AXIS_TOOL))
+    data = simulate_contacts(chain, 36, "plane", seed=67).data
+    r = calibrate(chain, data, params="auto", holdout=0.2)
+    assert r.accepted, r.refusal
+    held = [n for n in r.notes if n.startswith("params 'auto' held")]
+    assert len(held) == 2 and all("the fit with it did not converge" in n for n in held), held
+    assert "j1:theta2" not in r.free and "j2:theta3" not in r.free
+    stats = r.chains[0].stats
+    assert stats["held_out"].weighted_mm < stats["held_out_registration"].weighted_mm
+
+
+def test_a_stalled_contact_fit_names_what_the_touches_cannot_separate():
+    """A contact fit stalled in a combination of its planes and contact only (no hold can lift
+    it) says where it stopped what the touches cannot separate (before: the cap alone)."""
+    chain = _chain(_urdf(SLIDES, SLIDES_TOOL))
+    data = simulate_contacts(chain, 38, "plane", contacts=2, seed=226).data
+    r = calibrate(chain, data, params="auto")
+    assert r.refusal is not None and "stopped after 100 residual evaluations" in r.refusal
+    where = "; where it stopped, the data cannot separate plane1.1_rx and plane1.2_rx and contact1"
+    assert where in r.refusal, r.refusal
+    assert not [n for n in r.notes if n.startswith("params 'auto' held")], r.notes
 
 
 def _start_checks(found: list, monkeypatch) -> None:

@@ -184,18 +184,24 @@ def assess(
     The refusal (None: none) names the posture, among random ones within the joint limits,
     that separates them best (:func:`~.determined.separating_posture`); the combinations are
     :func:`~.determined.undetermined`'s (the weakest first, the unknowns named as a chain's).
+    A fit that did not converge without ``generic`` (touches, pixels: no instrument) is
+    assessed where it stopped, its unknowns named as the model does, without a posture.
 
-    Not assessed: ``generic`` None, or a ``polished`` fit (every component). ``cov``:
-    :func:`~.solve.covariance` of ``fitted``, with its prior weights.
+    Not assessed: a converged fit without ``generic`` (the rank rule's:
+    :func:`~.contact_checks.rank_refusal`), a tree's (``generic`` of several chains), or a
+    ``polished`` fit (every component). ``cov``: :func:`~.solve.covariance` of ``fitted``,
+    with its prior weights.
     """
-    if generic is None or polished or not generic.one:
+    skipped = fitted.converged if generic is None else not generic.one
+    if skipped or polished:
         return None, []
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))  # of each column [m or rad] (NaN: undetermined)
-    names = tuple(chain_name(n) for n in fitted.model.names())
+    names = tuple(n if generic is None else chain_name(n) for n in fitted.model.names())
     found = determined.undetermined(fitted.J, names, std)
-    if not found:
-        return None, []
+    spread = dict(zip(names, std, strict=True))
+    if not found or generic is None:
+        return determined.ill_posed_text(found, spread), found
     chain = generic.start.chains[0]
     q = chain.random_configurations(DEFAULT_CONFIGS, generic.seed)
 
@@ -204,7 +210,7 @@ def assess(
         return fitted.model.jacobian(fitted.start, fitted.x, rows)
 
     where = determined.separating_text(jacobian_at, q, names, found[0], chain.joint_names)
-    return determined.ill_posed_text(found, dict(zip(names, std, strict=True)), where), found
+    return determined.ill_posed_text(found, spread, where), found
 
 
 def sampled(data: ChainsData, keep: np.ndarray | None) -> ChainsData:

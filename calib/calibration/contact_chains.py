@@ -217,8 +217,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
 
     A fit refused for combinations that each name a parameter ``auto`` chose (not ``free``;
     :func:`~.chain_counts.assess`), or that did not converge where such combinations stall
-    it, is fitted again without the one of largest component in the weakest (held at its
-    nominal value, a note), at most ``HOLDS`` times.
+    it (touches and pixels too: assessed where they stopped), is fitted again without the
+    one of largest component in the weakest (held at its nominal value, a note), at most
+    ``HOLDS`` times.
     """
     run, train, plane_of, load, torques, comp, start = (
         r.run,
