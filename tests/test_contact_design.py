@@ -132,6 +132,7 @@ def test_recorded_touches_are_checked_for_collisions_as_recorded(arm, touches, c
         design(chain, touches, candidates=q, measure="plane", random_sets=1)
     got = design(chain, touches, candidates=q, measure="plane", random_sets=1, readings=readings)
     assert len(got.q) == touches and dict(got.filters.rejected)["collision"] == 0
+    assert got.readings.names == readings.names and len(got.readings.values) == touches
 
 
 def test_too_few_postures_of_candidates_that_identify_everything_ask_for_more(capsys):

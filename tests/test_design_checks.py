@@ -216,9 +216,13 @@ def test_candidates_recording_the_joints_off_the_chain_are_checked_as_recorded(t
     argv = ["design", str(urdf), "--base", "base", "--tool", "tool", "--configs", "8"]
     from calib.cli.commands import main
 
-    assert main([*argv, "--candidates-file", str(path)]) == 0
+    chosen = tmp_path / "chosen.csv"
+    assert main([*argv, "--candidates-file", str(path), "--out", str(chosen)]) == 0
     out = capsys.readouterr().out
     assert "rejected: none of the" in out and "1 joints off the chain at each" in out
+    written = np.loadtxt(chosen, delimiter=",", skiprows=1)  # each with its own b1
+    rows = [int(np.flatnonzero(np.all(q == w[:2], axis=1))[0]) for w in written]
+    assert chosen.read_text().startswith("a1,a2,b1\n") and np.array_equal(written[:, 2], b1[rows])
     np.savetxt(path, q, delimiter=",", header="a1,a2", comments="")  # no b1: at zero
     err = one_line_error(capsys, [*argv, "--candidates-file", str(path)])
     assert "collision rejects 30" in err

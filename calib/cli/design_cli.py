@@ -158,7 +158,7 @@ def _design(args: argparse.Namespace) -> int:
         readings=readings,
     )
     if out is not None:
-        write_outputs({out: configurations_csv(chain, result.q)})
+        write_outputs({out: configurations_csv(chain, result.q, result.readings)})
     if args.json:
         print_json(result.to_dict())
     else:
@@ -256,7 +256,11 @@ def add_design_parser(sub) -> None:
     _add_model_args(p.add_argument_group("instrument and model"))
     _add_limit_args(p.add_argument_group("limits of the campaign"))
     g = p.add_argument_group("outputs")
-    g.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
+    g.add_argument(
+        "--out",
+        help="CSV of the chosen configurations (joint columns; then the joints off the chain "
+        "--candidates-file records)",
+    )
     g.add_argument(
         "--noise-mm",
         type=positive_number,

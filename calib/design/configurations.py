@@ -167,12 +167,20 @@ def recorded_off_chain(path: str | Path, chain: Chain) -> JointReadings | None:
     return read_readings(path, names) if names else None
 
 
-def configurations_csv(chain: Chain | Tree, q: np.ndarray) -> str:
-    """CSV text of configurations ``(m, n)``: the chain's joint names, full precision."""
+def configurations_csv(
+    chain: Chain | Tree, q: np.ndarray, readings: JointReadings | None = None
+) -> str:
+    """CSV text of configurations ``(m, n)``: the chain's joint names, full precision.
+
+    With ``readings``, the joints off the chain follow, a row per configuration.
+    """
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(chain.joint_names)
-    for row in np.atleast_2d(q):
+    q = np.atleast_2d(q)
+    if readings is not None:
+        q = np.hstack([q, readings.values])
+    writer.writerow([*chain.joint_names, *(() if readings is None else readings.names)])
+    for row in q:
         writer.writerow([repr(float(v)) for v in row])
     return out.getvalue()
 

@@ -74,6 +74,8 @@ class Design:
         timings_ms: Time of each stage [ms].
         contact: For a contact campaign, the plane, point or pose its postures hold, in the
             base frame ``(4, 4)`` (the nominal contact frame at the first candidate); else None.
+        readings: The joints off the chain at the chosen configurations, as the candidates
+            recorded them (``readings`` of :func:`design`), or None.
     """
 
     robot: str
@@ -92,6 +94,7 @@ class Design:
     seed: int
     timings_ms: dict[str, float] = field(default_factory=dict)
     contact: np.ndarray | None = None
+    readings: JointReadings | None = None
 
     def __repr__(self) -> str:
         """One line (the configurations are ``q``, the full text :meth:`summary`)."""
@@ -130,7 +133,15 @@ class Design:
             "joint_names": list(self.joint_names),
             "q": self.q.tolist(),
             "timings_ms": dict(self.timings_ms),
-        } | ({} if self.contact is None else {"contact": self.contact.tolist()})
+        } | (
+            ({} if self.contact is None else {"contact": self.contact.tolist()})
+            | ({} if self.readings is None else {"readings": _readings_dict(self.readings)})
+        )
+
+
+def _readings_dict(readings: JointReadings) -> dict[str, list[float]]:
+    """The joints off the chain: each joint's positions [rad or m], one per configuration."""
+    return {name: readings.values[:, k].tolist() for k, name in enumerate(readings.names)}
 
 
 def candidate_configurations(
@@ -270,6 +281,7 @@ def design(
             s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
         },
         contact=None if cands is None else cands.frame,
+        readings=None if lazy.readings is None else lazy.readings.take(chosen),
     )
 
 
