@@ -116,6 +116,25 @@ def test_contact_design_options_it_refuses_name_the_way_out(tmp_path, capsys):
     assert "use params='complete' (the default)" in err and not out.exists()
 
 
+@pytest.mark.parametrize(("arm", "touches", "colliding"), [("left", 21, 15), ("right", 29, 19)])
+def test_recorded_touches_are_checked_for_collisions_as_recorded(arm, touches, colliding):
+    """TALOS's recorded table touches as a contact design's candidates: the collision check
+    held the joints off the chain at zero (the other arm in the base link, the other leg in
+    the moved one) and rejected most of them; at the file's recorded joints, none."""
+    from calib.design.configurations import recorded_off_chain
+
+    path = ROOT / "data" / "realdata" / "talos_contact" / f"{arm}_train.csv"
+    chain = load_chain("talos_full_v2.urdf", f"{arm}_sole_link", f"gripper_{arm}_base_link")
+    q = read_configurations(path, chain)
+    readings = recorded_off_chain(path, chain)
+    assert len(q) == touches and len(readings.names) == 17  # the other arm and leg, the head
+    with pytest.raises(InvalidArgumentError, match=f"collision rejects {colliding}"):
+        design(chain, touches, candidates=q, measure="plane", random_sets=1)
+    got = design(chain, touches, candidates=q, measure="plane", random_sets=1, readings=readings)
+    assert len(got.q) == touches and dict(got.filters.rejected)["collision"] == 0
+    assert got.readings.names == readings.names and len(got.readings.values) == touches
+
+
 def test_too_few_postures_of_candidates_that_identify_everything_ask_for_more(capsys):
     """TALOS's left hand on a plane, 24 postures: "a joint that never moves, or too few
     distinct candidates?", while the candidates together identify the 58 parameters and 30

@@ -167,3 +167,64 @@ def test_the_srdf_named_after_the_robot_is_found_for_any_of_its_urdfs(urdf):
     assert find_srdf(chain.urdf_resolved, chain.model.name).name == "talos.srdf"
     notes = collision_checker(chain).notes
     assert any(note.endswith("disabled by talos.srdf") for note in notes), notes
+
+
+TWO_ARMS = """<robot name="two_arms">
+  <link name="base"/><link name="tool"/>
+  <link name="arm_a"><collision><origin xyz="0.6 0 0"/><geometry><box size="0.8 0.1 0.1"/>
+  </geometry></collision></link>
+  <link name="arm_b"><collision><origin xyz="0 0.6 0"/><geometry><box size="0.1 0.8 0.1"/>
+  </geometry></collision></link>
+  <joint name="a1" type="revolute"><parent link="base"/><child link="arm_a"/><axis xyz="0 0 1"/>
+    <origin xyz="0 0 0.3"/><limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
+  <joint name="a2" type="revolute"><parent link="arm_a"/><child link="tool"/><axis xyz="0 1 0"/>
+    <origin xyz="1.0 0 0"/><limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
+  <joint name="b1" type="revolute"><parent link="base"/><child link="arm_b"/><axis xyz="0 0 1"/>
+    <origin xyz="0 0 0.3"/><limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
+</robot>
+"""
+"""Two arms on one base, apart at zero: arm a (the chain base -> tool) turned a quarter turn
+lies on arm b at zero, not on arm b turned back (b1 = 3 rad)."""
+
+
+def test_candidates_recording_the_joints_off_the_chain_are_checked_as_recorded(tmp_path, capsys):
+    """A recorded posture's other arm (off the chain) is where the file records it in the
+    collision check, not at zero: TALOS's recorded touches were 15 of 21 rejected (the right
+    arm at zero in the base link, the right leg at zero in the moved left leg). A file without
+    those columns keeps them at zero, as before."""
+    from pinref import pair_collides
+
+    from calib.design.configurations import recorded_off_chain
+
+    urdf = tmp_path / "two_arms.urdf"
+    urdf.write_text(TWO_ARMS)
+    chain = calib.load_chain(urdf, "base", "tool")
+    rng = np.random.default_rng(0)
+    q = np.column_stack([1.5708 + rng.uniform(-0.2, 0.2, 30), rng.uniform(-2, 2, 30)])
+    b1 = 3.0 + rng.uniform(-0.1, 0.1, 30)
+    names, links = ("a1", "a2", "b1"), ("arm_a", "arm_b")
+    assert pair_collides(urdf, str(tmp_path), names, [*q[0], 0.0], links)  # Pinocchio alone
+    assert not pair_collides(urdf, str(tmp_path), names, [*q[0], b1[0]], links)
+    path = tmp_path / "touches.csv"
+    np.savetxt(path, np.column_stack([q, b1]), delimiter=",", header="a1,a2,b1", comments="")
+    readings = recorded_off_chain(path, chain)
+    assert readings is not None and readings.names == ("b1",)
+    keep, report = filter_candidates(chain, q, np.zeros((1, 3)), Constraints(), readings)
+    assert keep.all() and "1 joints off the chain at each candidate's recorded" in report.notes[-1]
+    keep, report = filter_candidates(chain, q, np.zeros((1, 3)), Constraints())
+    assert not keep.any() and dict(report.rejected)["collision"] == 30
+    argv = ["design", str(urdf), "--base", "base", "--tool", "tool", "--configs", "8"]
+    from calib.cli.commands import main
+
+    chosen = tmp_path / "chosen.csv"
+    assert main([*argv, "--candidates-file", str(path), "--out", str(chosen)]) == 0
+    out = capsys.readouterr().out
+    assert "rejected: none of the" in out and "1 joints off the chain at each" in out
+    written = np.loadtxt(chosen, delimiter=",", skiprows=1)  # each with its own b1
+    rows = [int(np.flatnonzero(np.all(q == w[:2], axis=1))[0]) for w in written]
+    assert chosen.read_text().startswith("a1,a2,b1\n") and np.array_equal(written[:, 2], b1[rows])
+    np.savetxt(path, q, delimiter=",", header="a1,a2", comments="")  # no b1: at zero
+    err = one_line_error(capsys, [*argv, "--candidates-file", str(path)])
+    assert "collision rejects 30" in err
+    with pytest.raises(InvalidArgumentError, match="JointReadings of the joints off a chain"):
+        design(chain, 8, candidates=30, readings=readings)

@@ -131,9 +131,10 @@ def _design(args: argparse.Namespace) -> int:
         else None,
     }
     check_output_paths({"--out": out}, inputs)
-    candidates = args.candidates
+    candidates, readings = args.candidates, None
     if args.candidates_file:
         candidates = read_configurations(args.candidates_file, chain)
+        readings = _off_chain(args.candidates_file, chain, candidates)
     constraints = Constraints(
         margin=args.margin,
         workspace=tuple(args.workspace) if args.workspace else None,
@@ -154,9 +155,10 @@ def _design(args: argparse.Namespace) -> int:
         constraints=constraints,
         seed=args.seed,
         progress=terminal(args.quiet),
+        readings=readings,
     )
     if out is not None:
-        write_outputs({out: configurations_csv(chain, result.q)})
+        write_outputs({out: configurations_csv(chain, result.q, result.readings)})
     if args.json:
         print_json(result.to_dict())
     else:
@@ -164,6 +166,21 @@ def _design(args: argparse.Namespace) -> int:
         if out is not None:
             print(f"wrote {out} ({len(result.q)} configurations)")
     return 0
+
+
+def _off_chain(path: str, chain, candidates):
+    """The joints off the chain the candidates file records, one row per candidate, or None.
+
+    None (those joints at zero in the checks) for a tree, a file without such columns, or one
+    whose rows are not one per candidate (a tree's or a camera's measurements).
+    """
+    from ..design.configurations import recorded_off_chain
+    from ..kinematics.robot import Chain
+
+    readings = recorded_off_chain(path, chain) if isinstance(chain, Chain) else None
+    if readings is None or len(readings.values) != len(candidates):
+        return None
+    return readings
 
 
 def _evaluate(args: argparse.Namespace, chain) -> int:
@@ -225,7 +242,10 @@ def add_design_parser(sub) -> None:
         help=f"random candidates within the joint limits (default: {DEFAULT_CANDIDATES})",
     )
     g.add_argument(
-        "--candidates-file", help="CSV of candidate configurations known to be reachable"
+        "--candidates-file",
+        help="CSV of candidate configurations known to be reachable; the joints off the chain "
+        "it records (a recorded touch's other arm and legs) are where the collision and "
+        "line-of-sight checks hold them (otherwise, and with random candidates, at zero)",
     )
     g.add_argument(
         "--seed",
@@ -236,7 +256,11 @@ def add_design_parser(sub) -> None:
     _add_model_args(p.add_argument_group("instrument and model"))
     _add_limit_args(p.add_argument_group("limits of the campaign"))
     g = p.add_argument_group("outputs")
-    g.add_argument("--out", help="CSV of the chosen configurations (joint columns)")
+    g.add_argument(
+        "--out",
+        help="CSV of the chosen configurations (joint columns; then the joints off the chain "
+        "--candidates-file records)",
+    )
     g.add_argument(
         "--noise-mm",
         type=positive_number,
@@ -328,5 +352,6 @@ def _add_limit_args(p: Group) -> None:
         "--collision",
         action=BooleanOnce,
         default=True,
-        help="reject self-colliding candidates (default: yes)",
+        help="reject self-colliding candidates (default: yes; the joints off the chain at zero, "
+        "or as --candidates-file records them)",
     )

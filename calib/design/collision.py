@@ -11,10 +11,11 @@ Pairs checked: every pair of geometries that its joints move relative to each ot
 * pairs already in contact at the reference configuration (joints at zero, or at the middle
   of their limits if zero is outside them): touching covers and wheels, not a motion.
 
-Obstacles are boxes in the chain's base frame, checked against every moving geometry. The
-line of sight from an instrument to a measured point is a thin capsule checked against every
-geometry except those of the point's tool link and the links it carries (the marker sits on
-them).
+The joints off the chain (another arm, the other leg) are at their neutral positions (zero)
+in the checks, or where a recorded posture has them (``readings``). Obstacles are
+boxes in the chain's base frame, checked against every moving geometry. The line of sight
+from an instrument to a measured point is a thin capsule checked against every geometry
+except those of the point's tool link and the links it carries (the marker sits on them).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from ..core.fileio import read_bytes_limited, read_failure, read_text_limited
 from ..exceptions import CalibError, InvalidArgumentError, URDFError
 from ..kinematics.catalog import erd_robots_dir
 from ..kinematics.robot import Chain
+from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..kinematics.urdf_model import console_captured
 from ..kinematics.urdf_xml import MAX_URDF_BYTES, parse_xml
@@ -69,28 +71,54 @@ class CollisionChecker:
         """Number of pairs checked."""
         return len(self.geometry.collisionPairs)
 
-    def _placements(self, q: np.ndarray):
+    def _configurations(self, q: np.ndarray, readings: JointReadings | None) -> np.ndarray:
+        """Pinocchio configurations ``(m, nq)``: the joints off the robot as read, or at zero.
+
+        Raises:
+            InvalidArgumentError: Readings of a tree, or readings that do not fit ``q``
+                (:meth:`~calib.kinematics.standing.JointReadings.configurations`).
+        """
+        if readings is None:
+            return self.robot.pin_configurations(q)
+        if not isinstance(self.robot, Chain):
+            raise InvalidArgumentError("joint readings off the chain are for a chain, not a tree")
+        return readings.configurations(self.robot, q)
+
+    def _placements(self, q: np.ndarray, readings: JointReadings | None):
         """Pinocchio data for each configuration: yields (index, geometry data)."""
         model = self.robot.model
         data = model.createData()
         gdata = pin.GeometryData(self.geometry)
-        for i, qp in enumerate(self.robot.pin_configurations(q)):
+        for i, qp in enumerate(self._configurations(q, readings)):
             pin.updateGeometryPlacements(model, data, self.geometry, gdata, qp)
             yield i, gdata
 
-    def colliding(self, q: np.ndarray) -> np.ndarray:
-        """Whether each configuration ``(m, n)`` has a pair in contact ``(m,)``."""
+    def colliding(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
+        """Whether each configuration ``(m, n)`` has a pair in contact ``(m,)``.
+
+        Args:
+            q: Joint positions ``(m, n)``.
+            readings: Positions of joints off the chain, a row per configuration (a
+                recorded posture's other arm and leg), or None: they are at zero (the
+                reference configuration's).
+        """
         out = np.zeros(len(np.atleast_2d(q)), dtype=bool)
         if not self.pairs:
             return out
         model = self.robot.model
         data = model.createData()
         gdata = pin.GeometryData(self.geometry)
-        for i, qp in enumerate(self.robot.pin_configurations(q)):
+        for i, qp in enumerate(self._configurations(q, readings)):
             out[i] = pin.computeCollisions(model, data, self.geometry, gdata, qp, True)
         return out
 
-    def blocked(self, q: np.ndarray, points: np.ndarray, instrument: np.ndarray) -> np.ndarray:
+    def blocked(
+        self,
+        q: np.ndarray,
+        points: np.ndarray,
+        instrument: np.ndarray,
+        readings: JointReadings | None = None,
+    ) -> np.ndarray:
         """Whether a geometry hides a point from the instrument, per configuration ``(m,)``.
 
         Args:
@@ -98,6 +126,7 @@ class CollisionChecker:
             points: Measured points in the base frame ``(m, K, 3)`` [m]: on the one tool of
                 a chain, or point k on tool k of a tree.
             instrument: Instrument position in the base frame ``(3,)`` [m].
+            readings: Positions of joints off the chain, as :meth:`colliding` takes them.
         """
         out = np.zeros(len(points), dtype=bool)
         every = range(len(self.geometry.geometryObjects))
@@ -108,7 +137,7 @@ class CollisionChecker:
         src = world[:3, :3] @ instrument + world[:3, 3]
         pts = points @ world[:3, :3].T + world[:3, 3]
         request, shapes = coal.CollisionRequest(), self.geometry.geometryObjects
-        for i, gdata in self._placements(q):
+        for i, gdata in self._placements(q, readings):
             for k, p in enumerate(pts[i]):
                 capsule, tf = _segment(src, p)
                 if capsule is None:

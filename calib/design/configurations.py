@@ -145,14 +145,50 @@ def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | N
     return JointReadings(found, np.array(values, dtype=float).reshape(-1, len(found)))
 
 
-def configurations_csv(chain: Chain | Tree, q: np.ndarray) -> str:
-    """CSV text of configurations ``(m, n)``: the chain's joint names, full precision."""
+def recorded_off_chain(path: str | Path, chain: Chain) -> JointReadings | None:
+    """The joints off the chain a configurations file records, or None (no such column).
+
+    Its columns named like a one-degree-of-freedom joint of the URDF that is not on the chain
+    (a recorded touch's other arm, legs and head); the URDF's other joints are not read.
+
+    Raises:
+        DataError: The file is unreadable, or a cell of those columns is not a number.
+    """
+    model = chain.model
+    first = next(csv_records(read_data_text(path, MAX_CONFIGS_BYTES), str(path)), None)
+    header = [] if first is None else [c.strip() for c in first[1]]
+    names = tuple(
+        n
+        for n in header
+        if n not in chain.joint_names
+        and model.existJointName(n)
+        and model.joints[model.getJointId(n)].nv == 1
+    )
+    return read_readings(path, names) if names else None
+
+
+def configurations_csv(
+    chain: Chain | Tree, q: np.ndarray, readings: JointReadings | None = None
+) -> str:
+    """CSV text of configurations ``(m, n)``: the chain's joint names, full precision.
+
+    With ``readings``, the joints off the chain follow, a row per configuration.
+    """
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(chain.joint_names)
-    for row in np.atleast_2d(q):
+    q = np.atleast_2d(q)
+    if readings is not None:
+        q = np.hstack([q, readings.values])
+    writer.writerow([*chain.joint_names, *(() if readings is None else readings.names)])
+    for row in q:
         writer.writerow([repr(float(v)) for v in row])
     return out.getvalue()
 
 
-__all__ = ["configurations_csv", "parse_configurations", "read_configurations", "read_readings"]
+__all__ = [
+    "configurations_csv",
+    "parse_configurations",
+    "read_configurations",
+    "read_readings",
+    "recorded_off_chain",
+]

@@ -10,6 +10,9 @@ Each filter keeps a candidate or rejects it, in this order:
    obstacle box (always)
    (:mod:`calib.design.collision`; a URDF without collision geometry is accepted with a note);
 4. ``line_of_sight``: no geometry between the instrument and any measured point.
+
+The joints off the chain (another arm, the other leg) are at zero in the last two, or at each
+candidate's recorded positions when they are given (``readings``: a recorded touch's).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from ..exceptions import InvalidArgumentError
 from ..identification.jacobian import measured_point
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
+from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
 
@@ -159,7 +163,11 @@ def measured_points(robot: Chain | Tree, q: np.ndarray, markers: np.ndarray) -> 
 
 
 def filter_candidates(
-    chain: Chain | Tree, q: np.ndarray, markers: np.ndarray, constraints: Constraints
+    chain: Chain | Tree,
+    q: np.ndarray,
+    markers: np.ndarray,
+    constraints: Constraints,
+    readings: JointReadings | None = None,
 ) -> tuple[np.ndarray, FilterReport]:
     """Keep the candidate configurations a campaign can measure (every filter, every one).
 
@@ -168,17 +176,23 @@ def filter_candidates(
         q: Candidate joint positions ``(N, n)``.
         markers: Measured points in the tool frame ``(K, 3)`` [m] (a tree: one per tool).
         constraints: The limits.
+        readings: Positions of the joints off the chain, a row per candidate, where the
+            collision and line-of-sight checks hold them (a chain), or None: at zero.
 
     Returns:
         A mask of the kept candidates ``(N,)`` and the report.
     """
-    keep, lazy = cheap_filters(chain, q, markers, constraints)
+    keep, lazy = cheap_filters(chain, q, markers, constraints, readings)
     keep[np.flatnonzero(keep)] = lazy.ok(np.arange(int(np.count_nonzero(keep))))
     return keep, lazy.report()
 
 
 def cheap_filters(
-    chain: Chain | Tree, q: np.ndarray, markers: np.ndarray, constraints: Constraints
+    chain: Chain | Tree,
+    q: np.ndarray,
+    markers: np.ndarray,
+    constraints: Constraints,
+    readings: JointReadings | None = None,
 ) -> tuple[np.ndarray, LazyChecks]:
     """The margin and workspace filters applied, the costly ones (:class:`LazyChecks`) not.
 
@@ -207,7 +221,8 @@ def cheap_filters(
         ok = np.all((points >= box[:3]) & (points <= box[3:]), axis=(1, 2))
         apply("workspace", ok[keep], np.flatnonzero(keep))
     points = None if points is None else points[keep]
-    return keep, LazyChecks(chain, q[keep], points, constraints, len(q), tuple(rejected))
+    kept = None if readings is None else readings.take(keep)
+    return keep, LazyChecks(chain, q[keep], points, constraints, len(q), tuple(rejected), kept)
 
 
 class LazyChecks:
@@ -225,10 +240,15 @@ class LazyChecks:
         constraints: The limits.
         total: Candidates given.
         rejected: ``(filter, count)`` of the filters already applied (margin, workspace).
+        readings: Positions of the joints off the chain, a row per candidate of ``q``, or
+            None (at zero).
     """
 
-    def __init__(self, chain, q, points, constraints: Constraints, total, rejected) -> None:
+    def __init__(
+        self, chain, q, points, constraints: Constraints, total, rejected, readings=None
+    ) -> None:
         self.q, self.points, self.total, self.cheap = q, points, total, rejected
+        self.readings: JointReadings | None = readings
         self.collision = bool(constraints.collision or constraints.obstacles)
         self.eye = constraints.line_of_sight
         self.status = np.zeros(len(q), dtype=np.int8)  # 0 unchecked, 1 kept, -1 collision, -2 sight
@@ -241,6 +261,11 @@ class LazyChecks:
                 chain, constraints.srdf, constraints.obstacles, self_collision=constraints.collision
             )
             self.notes = tuple(self.checker.notes)
+            if readings is not None:
+                self.notes += (
+                    f"{len(readings.names)} joints off the chain at each candidate's recorded "
+                    f"positions",
+                )
 
     @property
     def active(self) -> bool:
@@ -262,16 +287,20 @@ class LazyChecks:
         elif todo.size and checker is not None:
             bad = np.zeros(todo.size, dtype=bool)
             if self.collision:
-                bad = checker.colliding(self.q[todo])
+                bad = checker.colliding(self.q[todo], self._readings(todo))
             self.status[todo[bad]] = -1
             rest = todo[~bad]
             if self.eye is not None and rest.size and self.points is not None:
                 eye = np.asarray(self.eye)
-                hidden = checker.blocked(self.q[rest], self.points[rest], eye)
+                hidden = checker.blocked(self.q[rest], self.points[rest], eye, self._readings(rest))
                 self.status[rest[hidden]] = -2
                 rest = rest[~hidden]
             self.status[rest] = 1
         return self.status[idx] > 0
+
+    def _readings(self, idx: np.ndarray) -> JointReadings | None:
+        """The readings of the candidates ``idx``, or None."""
+        return None if self.readings is None else self.readings.take(idx)
 
     def report(self) -> FilterReport:
         """What the filters did: the cheap ones on every candidate, these on those checked."""

@@ -48,11 +48,14 @@ class ContactCandidates:
             or pose).
         frame: The plane, point or pose in the chain's base frame ``(4, 4)``.
         q: Postures where the contact holds, within the limits ``(N, n)`` [rad or m].
+        rows: For each posture, the index of the given candidate it comes from ``(N,)``
+            (drawn candidates: ``0 .. N-1``).
     """
 
     model: MDHModel
     frame: np.ndarray
     q: np.ndarray
+    rows: np.ndarray
 
 
 def checked_contact_chain(chain: Chain | Tree, kind: Contact, markers, params: str) -> Chain:
@@ -111,18 +114,20 @@ def contact_candidates(
         q = contact_postures(
             model, kind, lambda c, r: draw(c, r + 1), n, CONTACT_ROUNDS, (lower, upper)
         )
+        rows = np.arange(len(q))
     else:
         start = chain.check_configurations(candidates)
         q0 = np.clip(start[0], lower, upper)
         model = contact_model(nominal, q0, kind.label)
         q, gap = project(model, kind, np.clip(start, lower, upper), bounds=(lower, upper))
-        q = q[gap < CONTACT_TOL]
+        rows = np.flatnonzero(gap < CONTACT_TOL)
+        q = q[rows]
         if not len(q):
             raise InvalidArgumentError(
                 f"none of the {len(start)} candidates reaches the {kind.label} contact within "
                 f"the joint limits"
             )
-    return ContactCandidates(model, nominal.forward(q0[None])[0], q)
+    return ContactCandidates(model, nominal.forward(q0[None])[0], q, rows)
 
 
 def contact_observation_model(

@@ -23,6 +23,7 @@ from ..core.progress import phase, steps
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain, check_robot
+from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..measurements.limits import check_limits
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
@@ -73,6 +74,8 @@ class Design:
         timings_ms: Time of each stage [ms].
         contact: For a contact campaign, the plane, point or pose its postures hold, in the
             base frame ``(4, 4)`` (the nominal contact frame at the first candidate); else None.
+        readings: The joints off the chain at the chosen configurations, as the candidates
+            recorded them (``readings`` of :func:`design`), or None.
     """
 
     robot: str
@@ -91,6 +94,7 @@ class Design:
     seed: int
     timings_ms: dict[str, float] = field(default_factory=dict)
     contact: np.ndarray | None = None
+    readings: JointReadings | None = None
 
     def __repr__(self) -> str:
         """One line (the configurations are ``q``, the full text :meth:`summary`)."""
@@ -129,7 +133,15 @@ class Design:
             "joint_names": list(self.joint_names),
             "q": self.q.tolist(),
             "timings_ms": dict(self.timings_ms),
-        } | ({} if self.contact is None else {"contact": self.contact.tolist()})
+        } | (
+            ({} if self.contact is None else {"contact": self.contact.tolist()})
+            | ({} if self.readings is None else {"readings": _readings_dict(self.readings)})
+        )
+
+
+def _readings_dict(readings: JointReadings) -> dict[str, list[float]]:
+    """The joints off the chain: each joint's positions [rad or m], one per configuration."""
+    return {name: readings.values[:, k].tolist() for k, name in enumerate(readings.names)}
 
 
 def candidate_configurations(
@@ -164,6 +176,7 @@ def design(
     seed: int = 0,
     random_sets: int = RANDOM_SETS,
     progress: Callable | None = None,
+    readings: JointReadings | None = None,
 ) -> Design:
     """Choose K configurations to measure.
 
@@ -189,6 +202,9 @@ def design(
         random_sets: Random sets of K candidates to compare with.
         progress: Progress bars of the phases (:mod:`calib.core.progress`; e.g.
             ``tqdm.tqdm``), or None.
+        readings: Positions of joints off the chain, a row per given candidate (a
+            recording's other arm and leg), where the collision and line-of-sight checks
+            hold them; None: at zero.
 
     Returns:
         The design.
@@ -203,6 +219,7 @@ def design(
     seed = check_count(seed, "the seed", 0)
     constraints = _checked_options(criterion, constraints, progress)
     contact = _contact_of(measure)
+    readings = _checked_readings(chain, candidates, readings)
     cands = None
     if contact is not None:
         chain = checked_contact_chain(chain, contact, markers, params)
@@ -214,10 +231,11 @@ def design(
         with phase(progress, "design: candidates on the contact"):
             cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
         q_all = cands.q
+        readings = None if readings is None else readings.take(cands.rows)
     else:
         q_all = _instrument_candidates(chain, candidates, seed, constraints.margin)
         check_model_arguments(measure, params, orientation_weight, chain.is_tree)
-    q, lazy = _filtered(chain, q_all, markers, constraints, k)
+    q, lazy = _filtered(chain, q_all, markers, constraints, k, readings)
     check = lazy.ok if lazy.active else None
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
@@ -263,6 +281,7 @@ def design(
             s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
         },
         contact=None if cands is None else cands.frame,
+        readings=None if lazy.readings is None else lazy.readings.take(chosen),
     )
 
 
@@ -300,12 +319,33 @@ def _within_limits(chain: Chain | Tree, q, what: str) -> np.ndarray:
     return q
 
 
-def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: int):
+def _checked_readings(chain: Chain | Tree, candidates, readings) -> JointReadings | None:
+    """The readings of joints off the chain at the given candidates, checked, or None.
+
+    Raises:
+        InvalidArgumentError: Readings that are no :class:`JointReadings`, with drawn
+            candidates or a tree, or that do not fit the candidates (names or rows).
+    """
+    if readings is None:
+        return None
+    drawn = isinstance(candidates, int | np.integer)
+    if not isinstance(readings, JointReadings) or drawn or not isinstance(chain, Chain):
+        raise InvalidArgumentError(
+            f"readings are a calib.kinematics.standing.JointReadings of the joints off a "
+            f"chain at the candidates given, got {type(readings).__name__} on a "
+            f"{type(chain).__name__} with {'drawn' if drawn else 'given'} candidates"
+        )
+    readings.configurations(chain, candidates)  # names and rows
+    return readings
+
+
+def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: int, readings):
     """The candidates the margin and workspace keep ``(N, n)`` (at least ``k``), the checks.
 
-    The checks (collision, line of sight) are made on the candidates the design considers.
+    The checks (collision, line of sight) are made on the candidates the design considers,
+    the joints off the chain as ``readings`` hold them (or at zero).
     """
-    keep, lazy = cheap_filters(chain, q_all, robot_markers(chain, markers), constraints)
+    keep, lazy = cheap_filters(chain, q_all, robot_markers(chain, markers), constraints, readings)
     if int(np.count_nonzero(keep)) < k:
         raise _too_few(lazy.report(), k)
     return q_all[keep], lazy
