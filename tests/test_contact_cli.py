@@ -97,6 +97,8 @@ def _campaign(tmp_path: Path, measure="plane") -> Path:
         (["--measure", "pose", "--contact", "0", "0", "0.1"], "--contact is for contact kinds"),
         (["--measure", "plane", "--contact", "0", "0"], "3 or 6 numbers"),
         (["--measure", "plane", "--contact", "0", "0", "-120"], "are metres: 120 m from the"),
+        (["--measure", "plane", "--contact", "0", "0", "inf"], "takes finite numbers: X Y Z"),
+        (["--measure", "plane", "--contact", "0", "0", "nan"], "takes finite numbers: X Y Z"),
         (
             ["--measure", "plane", "--contact", "0", "0", "0.1", "180", "0", "0"],
             "are radians: 180 is more than a turn (degrees? 180 deg is 3.142 rad)",

@@ -574,7 +574,8 @@ def test_cli_simulate_then_calibrate_with_clashing_joint_names(tmp_path, monkeyp
 
 
 def test_ignored_columns_that_may_be_an_orientation_say_how_to_read_them(tmp_path):
-    """The UR10 data's phix1, phiy1, phiz1 (roll-pitch-yaw) were ignored without a way out."""
+    """The UR10 data's phix1, phiy1, phiz1 (roll-pitch-yaw) were ignored without a way out; an
+    IMU's xsens_rx, xsens_ry, xsens_rz got none (the hint read a name's first x alone)."""
     chain = chain_of("ur5")
     names = ",".join(chain.joint_names)
     (tmp_path / "m.csv").write_text(f"{names},x,y,z,phix,phiy,phiz\n0,0,0,0,0,0,1,2,3,0,0,0\n")
@@ -584,6 +585,10 @@ def test_ignored_columns_that_may_be_an_orientation_say_how_to_read_them(tmp_pat
     (tmp_path / "s.csv").write_text(f"{names},x,y,z,stamp\n0,0,0,0,0,0,1,2,3,7\n")
     with pytest.warns(DataWarning, match=r"or tool\): stamp$"):  # one column: no hint
         read_measurements(tmp_path / "s.csv", chain)
+    (tmp_path / "i.csv").write_text(f"{names},x,y,z,xsens_rx,xsens_ry,xsens_rz\n{'0,' * 11}0\n")
+    imu = r"--orientation-columns xsens_rx xsens_ry xsens_rz \(Python"  # not the brand's x
+    with pytest.warns(DataWarning, match=imu):
+        read_measurements(tmp_path / "i.csv", chain)
 
 
 def test_ignored_columns_no_axes_name_get_no_orientation_hint(tmp_path):

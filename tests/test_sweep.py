@@ -205,3 +205,13 @@ def test_counts_figure_is_grouped_by_kind_of_robot_and_readable(pose_rows):
         assert paper == [ok[n].n_base_paper for n in names[kind]]
     width, height = fig.get_size_inches() * 120  # figure_bytes' dpi
     assert width < 1600 and height < 1600, (width, height)  # was 3,230 pixels wide, one row
+
+
+def test_cli_sweep_robots_with_a_urdf_file_among_the_names_analyses_it(capsys):
+    """A URDF file before ``--`` is analysed as it was (9bd99ee made it 'unknown robot ...:
+    give a URDF path', exit 2); a typo still stops (the test above)."""
+    good = str(DATA / "negative_axes.urdf")
+    code = main(["sweep", "--configs", "40", "--json", "--robots", "ur5", good])
+    assert code == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [r["robot"] for r in rows] == ["ur5", good] and rows[1]["error"] is None

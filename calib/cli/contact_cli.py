@@ -39,8 +39,9 @@ def check_contact(values: list[float] | None) -> None:
     """``--contact X Y Z [RX RY RZ]``: 3 or 6 numbers, metres and radians.
 
     Raises:
-        InvalidArgumentError: Another count, a point farther from the tool frame than a
-            target may be from its link (millimetres?), or an angle beyond a turn (degrees?).
+        InvalidArgumentError: Another count, NaN or infinity, a point farther from the tool
+            frame than a target may be from its link (millimetres?), or an angle beyond a
+            turn (degrees?).
     """
     from ..measurements.pixels import MAX_TARGET_DISTANCE
 
@@ -48,6 +49,8 @@ def check_contact(values: list[float] | None) -> None:
         return
     if len(values) not in (3, 6):
         raise InvalidArgumentError("--contact takes X Y Z [RX RY RZ] (3 or 6 numbers)")
+    if not all(map(math.isfinite, values)):
+        raise InvalidArgumentError("--contact takes finite numbers: X Y Z [m], RX RY RZ [rad]")
     far = max(abs(v) for v in values[:3])
     if far > MAX_TARGET_DISTANCE:
         raise InvalidArgumentError(

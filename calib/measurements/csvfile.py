@@ -289,7 +289,7 @@ def _orientation_hint(ignored: list[str]) -> str:
 
     Alike but for x, y and z (``phix1, phiy1, phiz1``); none for others (a log's time stamps).
     """
-    triple = next((t for t in map(_axes_of, ignored) if t and set(t) <= set(ignored)), ())
+    triple = next((t for n in ignored for t in _axes_of(n) if set(t) <= set(ignored)), ())
     if not triple:
         return ""
     return (
@@ -299,13 +299,16 @@ def _orientation_hint(ignored: list[str]) -> str:
     )
 
 
-def _axes_of(name: str) -> tuple[str, ...]:
-    """The names of ``name``'s x, y and z columns, its first ``x`` replaced (none: ``()``)."""
-    i = name.lower().find("x")
-    if i < 0:
-        return ()
-    axes = "xyz" if name[i] == "x" else "XYZ"
-    return tuple(name[:i] + a + name[i + 1 :] for a in axes)
+def _axes_of(name: str) -> list[tuple[str, ...]]:
+    """The x, y and z columns ``name`` may be one of: each of its ``x`` (or ``X``) replaced.
+
+    ``xsens_rx``: ``(xsens_rx, ysens_rx, zsens_rx)`` and ``(xsens_rx, xsens_ry, xsens_rz)``.
+    """
+    return [
+        tuple(name[:i] + a + name[i + 1 :] for a in ("xyz" if c == "x" else "XYZ"))
+        for i, c in enumerate(name)
+        if c in "xX"
+    ]
 
 
 def _orientation(values: np.ndarray, fmt: str, src: str, lines: list[int]) -> np.ndarray:

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..core.checks import check_count, check_work, shown
 from ..core.progress import steps
-from ..exceptions import CalibError, InvalidArgumentError
+from ..exceptions import CalibError, InvalidArgumentError, RobotNotFoundError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.kinds import kind_of
 from ..identification.measures import MeasureKind, Measurement
@@ -135,7 +135,8 @@ def sweep(
     A chain that cannot be analysed is a row with its reason, never skipped.
 
     Args:
-        robots: Catalog names (default: the whole catalog).
+        robots: Catalog names (default: the whole catalog); a URDF file among them is
+            analysed as ``extra``'s are.
         extra: URDF paths (default frames) analysed after the catalog.
         measure: ``pose``, ``position``, rows (``x,y,rz``) or a contact (``plane``,
             ``plane-point``, ``fixed-point``, ``fixed-pose``; a tree or a chain through mimic
@@ -150,7 +151,8 @@ def sweep(
         One row per chain, in order.
 
     Raises:
-        RobotNotFoundError: A name of ``robots`` is not in the catalog (before any work).
+        RobotNotFoundError: A name of ``robots`` is neither in the catalog nor a file (before
+            any work).
     """
     measurement = kind_of(measure, marker)
     check_count(configs, "the number of configurations")
@@ -160,12 +162,31 @@ def sweep(
         raise InvalidArgumentError(
             f"unknown parameter set {shown(params)}: choose paper or complete"
         )
-    named = catalog() if robots is None else [catalog_entry(n) for n in robots]
     jobs: list[tuple[str, str | None, str | tuple[str, ...] | None]]
-    jobs = [(e.name, e.base, e.tool) for e in named]
+    if robots is None:
+        jobs = [(e.name, e.base, e.tool) for e in catalog()]
+    else:
+        jobs = [_job(n) for n in robots]
     jobs += [(str(Path(p)), None, None) for p in extra]
     it = steps(progress, jobs, "calib sweep", len(jobs))
     return [_sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
+
+
+def _job(name: str) -> tuple[str, str | None, str | tuple[str, ...] | None]:
+    """The robot, base and tool of a name of ``robots``: its catalog entry's, or a URDF file's.
+
+    A URDF file given among the names (before ``--``) is analysed as it was, as ``extra``'s.
+
+    Raises:
+        RobotNotFoundError: Neither a catalog name nor a file (the closest names).
+    """
+    try:
+        entry = catalog_entry(name)
+    except RobotNotFoundError:
+        if not Path(name).is_file():
+            raise
+        return str(Path(name)), None, None
+    return entry.name, entry.base, entry.tool
 
 
 COLUMNS = (
