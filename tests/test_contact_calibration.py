@@ -176,6 +176,23 @@ def test_bad_arguments():
         calibrate_contacts(chain, data, holdout=1.5)
 
 
+@pytest.mark.parametrize(
+    "contact, words",
+    [
+        ([0, 0, -120], "X Y Z are metres: 120 m from the tool frame"),
+        ([0, 0, 0.1, 0, 180, 0], "RX RY RZ are radians: 180 is more than a turn"),
+        ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 120], [0, 0, 0, 1]], "are metres: 120 m"),
+    ],
+)
+def test_a_contact_guess_in_millimetres_or_degrees_is_refused_by_the_library(contact, words):
+    """The command line refused ``--contact 0 0 -120``; the library fitted a contact frame
+    120 m off the tool and accepted it with a note (a review's case)."""
+    chain = load_robot("ur5")
+    data = simulate_contacts(chain, 20, "plane", seed=0).data
+    with pytest.raises(InvalidArgumentError, match=words):
+        calibrate_contacts(chain, data, contact=contact)
+
+
 def test_contact_model_keeps_reversed_joints():
     """The model in a contact's frame moves as the chain does (TALOS: reversed leg joints)."""
     from calib.identification.contact_postures import contact_model

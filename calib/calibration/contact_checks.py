@@ -27,6 +27,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_matrix
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
+from ..measurements.pixels import MAX_TARGET_DISTANCE
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import determined, diagnosis, outliers, term_checks, validation
@@ -319,7 +320,10 @@ def check_level_equations(train, unknowns: int, level: str) -> None:
 def contact_frame(contact) -> np.ndarray:
     """The contact frame ``(4, 4)`` in the tool frame from a 4x4, 3 or 6 numbers (m, rad).
 
-    Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame.
+    Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame. A point
+    farther from the tool frame than a target may be from its link
+    (:data:`~calib.measurements.pixels.MAX_TARGET_DISTANCE`: millimetres?) or an angle
+    beyond a turn (degrees?) is refused.
     """
     if contact is None:
         return np.eye(4)
@@ -330,13 +334,25 @@ def contact_frame(contact) -> np.ndarray:
     if C.shape == (4, 4):
         if not np.allclose(C[:3, :3] @ C[:3, :3].T, np.eye(3), atol=1e-9):
             raise InvalidArgumentError("the contact frame must be a rigid transform (4, 4)")
-        return C.copy()
-    if C.shape not in ((3,), (6,)) or not np.all(np.isfinite(C)):
+        T = C.copy()
+    elif C.shape not in ((3,), (6,)) or not np.all(np.isfinite(C)):
         raise InvalidArgumentError("the contact frame takes X Y Z [RX RY RZ] (m, rad)")
-    T = np.eye(4)
-    T[:3, 3] = C[:3]
-    if C.shape == (6,):
-        T[:3, :3] = rotation_matrix(C[3:])
+    else:
+        T = np.eye(4)
+        T[:3, 3] = C[:3]
+        if C.shape == (6,):
+            if np.max(np.abs(C[3:])) > 2 * np.pi:
+                raise InvalidArgumentError(
+                    f"the contact frame's RX RY RZ are radians: {np.max(np.abs(C[3:])):g} is "
+                    "more than a turn (degrees?)"
+                )
+            T[:3, :3] = rotation_matrix(C[3:])
+    far = float(np.max(np.abs(T[:3, 3])))
+    if far > MAX_TARGET_DISTANCE:
+        raise InvalidArgumentError(
+            f"the contact frame's X Y Z are metres: {far:g} m from the tool frame is more than "
+            f"{MAX_TARGET_DISTANCE:g} m (millimetres? {far:g} mm is {far / 1000:g} m)"
+        )
     return T
 
 
