@@ -206,6 +206,36 @@ def test_a_stalled_contact_fit_names_what_the_touches_cannot_separate():
     assert not [n for n in r.notes if n.startswith("params 'auto' held")], r.notes
 
 
+# Case 192 of converge45's search: two revolute joints on one axis, a third perpendicular to
+# it, a prismatic joint 1e-6 rad from parallel to the third (URDF numbers of 3 decimals); two
+# contacts touch a fixed point, without noise. Its fit stalls at the evaluation cap.
+FIXED_POINT = (
+    ("revolute", (-0.188, 0.279, 0.471), (0, 0, 1)),
+    ("revolute", (0, 0, -0.071), (0, 0, 1)),
+    ("revolute", (0, 0, -0.427), (-0.993858, -0.110662, 0)),
+    ("prismatic", (-0.114, -0.221, 0.26), (-0.993858, -0.110661, 0.000001)),
+)
+FIXED_POINT_TOOL = ((-0.178, -0.206, -0.513), (-0.385, -1.302, 1.431))
+
+
+def test_a_fit_that_did_not_converge_sets_no_touch_aside():
+    """Noise-free touches have no outliers. Before, the outlier loop read the gaps of a fit that
+    had not converged: ``complete`` set 5 touches aside from the stalled fit's gaps (then a
+    fit converged), ``auto`` 3 (0.39 mm) from the fit holding j2:theta3 after the stall. After,
+    neither sets any aside: ``auto`` holds j2:theta3 and is accepted on every touch,
+    ``complete`` is refused where it stopped."""
+    chain = _chain(_urdf(FIXED_POINT, FIXED_POINT_TOOL))
+    data = simulate_contacts(chain, 48, "fixed-point", contacts=2, seed=192).data
+    auto, complete = (calibrate(chain, data, params=p) for p in ("auto", "complete"))
+    for r in (auto, complete):
+        assert not r.chains[0].outliers, r.notes
+        assert not [n for n in r.notes if "outlier" in n], r.notes
+    assert auto.accepted and auto.stalled, auto.refusal
+    held = "params 'auto' held j2:theta3 at the nominal value: the fit with it did not converge"
+    assert any(n.startswith(held) for n in auto.notes), auto.notes
+    assert complete.refusal is not None and "did not converge" in complete.refusal
+
+
 def _start_checks(found: list, monkeypatch) -> None:
     """Each fit's model checked at its start (x = 0) by the rank refusal's own rule."""
     real = contact_chains._fit

@@ -8,7 +8,10 @@ registration's, :func:`~.pixel_fit.checked_pixels`), the rule
 (:func:`~.outliers.find_outliers`) applied to each term's rows on its own, and the run
 registered and fitted again without the outliers found, until the set stops changing
 (:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``). The held-out rows
-are drawn once, before.
+are drawn once, before. Only a fit that converged proposes outliers: a fit that stalled
+(``stalled``: it, or the fit ``auto`` held a parameter after, did not converge) leaves gaps
+where it stopped, or of the parameter held, not of bad rows (noise-free touches had 3 to 5
+set aside), and ends the loop.
 
 A term's registration sets its outliers aside first, where the geometric errors not yet
 fitted hide some (20 mm among 3.6 mm of them is not five times the median). A contact or
@@ -130,7 +133,9 @@ def fit_terms_until_stable(
         kept = [_subset(d, keep[p]) for d, p in zip(train, parts, strict=True)]
         return fit(register(dataclasses.replace(again, data=kept)))
 
-    def rule(result: ContactChainsCalibration) -> np.ndarray:
+    def rule(result: ContactChainsCalibration) -> np.ndarray | None:
+        if result.stalled:  # gaps where a fit stopped, or of the parameters held after: none
+            return None
         found = zip(errors(result), noise, rows, strict=True)
         return inner | np.concatenate([find_outliers(e, n, r)[0] for e, n, r in found])
 

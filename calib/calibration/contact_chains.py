@@ -219,7 +219,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     :func:`~.chain_counts.assess`), or that did not converge where such combinations stall
     it (touches and pixels too: assessed where they stopped), is fitted again without the
     one of largest component in the weakest (held at its nominal value, a note), at most
-    ``HOLDS`` times.
+    ``HOLDS`` times. ``stalled``: some fit made did not converge (no outliers are read from it).
     """
     run, train, plane_of, load, torques, comp, start = (
         r.run,
@@ -255,9 +255,11 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         )
     clock.append(time.perf_counter())
     given = () if asked is None else asked.free
+    converged = []
     for attempt in range(HOLDS + 1):
         with phase(progress, "calibrate: fit"):
             fitted, polished = _fit(model, wide, start, rows, prior, offer, opts, kin)
+        converged.append(fitted.converged)
         fit_of = (fitted, polished, prior, generic)
         result, found = _assessed(r, fit_of, model, selection, list(notes), list(clock))
         held = _held(found, selection, given)
@@ -274,7 +276,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     if not fitted.converged:  # where it stopped: data no calibration explains are named
         for part in result.chains:
             _check_fitted(part, opts.noise)
-    return dataclasses.replace(result, params=level, identifiable=identifiable)
+    stalled = not all(converged)
+    return dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:

@@ -185,6 +185,8 @@ class ContactChainsCalibration(Result, ChainView):
             them).
         inputs: The files it read (:func:`~.delivery.read_files`), which ``write`` never
             overwrites; empty: those the report names.
+        stalled: A fit made did not converge (the last, or one ``auto`` held a parameter
+            after): the outlier loop reads no outliers from its errors.
     """
 
     chains: tuple[ChainContacts | MeasuredChain | PixelChain, ...]
@@ -206,6 +208,7 @@ class ContactChainsCalibration(Result, ChainView):
     shape: str = "chains"
     solution: Solution | None = None
     inputs: tuple[tuple[str, str], ...] = ()
+    stalled: bool = False
 
     @property
     def accepted(self) -> bool:

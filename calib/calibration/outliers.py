@@ -199,7 +199,7 @@ def until_stable(
 
 def stable_set(
     refit: Callable[[np.ndarray], T],
-    rule: Callable[[T], np.ndarray],
+    rule: Callable[[T], np.ndarray | None],
     start: np.ndarray,
     allowed: Callable[[np.ndarray], bool] | None = None,
 ) -> tuple[T, np.ndarray]:
@@ -207,7 +207,8 @@ def stable_set(
 
     The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
     each term's units on its own, from those each term sets aside at first (``start``).
-    Returns the last fit and the mask of the units it was fitted without. A later round's
+    Returns the last fit and the mask of the units it was fitted without. A ``rule`` that
+    proposes none (None: the engine's fit did not converge) ends the loop there. A later round's
     refit refused (a DataError: too few rows left for the model, or the engine's checks of
     the data, :func:`~.validation.check_fitted_errors` and the like, on the rows it keeps)
     ends the loop on the round before, whose fit passed the same checks; the first fit's
@@ -217,7 +218,7 @@ def stable_set(
     result = refit(~bad)
     for _ in range(ROUNDS):
         new = rule(result)
-        if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
+        if new is None or np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
             break
         try:
             result, bad = refit(~new), new
