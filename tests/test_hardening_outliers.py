@@ -227,3 +227,18 @@ def test_the_loop_keeps_the_rows_its_holdout_drew():
         got, want = res.stats["held_out"], r.stats["held_out"]
         assert got.m == want.m == held.m
         assert abs(got.length_rms_mm - want.length_rms_mm) < 1e-9
+
+
+def test_an_outlier_round_whose_refit_stalls_ends_on_the_round_before():
+    """A round's refit that did not converge (the rule proposes None) is not kept: the loop
+    ends on the round before, whose fit converged, as on a refit refused; a first fit that
+    stalled is returned as it is (the engine refuses or refits it)."""
+    from calib.calibration.outliers import stable_set
+
+    start = np.zeros(4, dtype=bool)
+    fits = {0: "first", 1: "second (stalled)"}  # by the number of units set aside
+    rule = {"first": np.array([0, 1, 0, 0], bool), "second (stalled)": None}.get
+    found = stable_set(lambda keep: fits[int((~keep).sum())], rule, start)
+    assert found[0] == "first" and not found[1].any()
+    alone = stable_set(lambda keep: "second (stalled)", rule, start)
+    assert alone[0] == "second (stalled)"

@@ -208,20 +208,24 @@ def stable_set(
     The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
     each term's units on its own, from those each term sets aside at first (``start``).
     Returns the last fit and the mask of the units it was fitted without. A ``rule`` that
-    proposes none (None: the engine's fit did not converge) ends the loop there. A later round's
-    refit refused (a DataError: too few rows left for the model, or the engine's checks of
-    the data, :func:`~.validation.check_fitted_errors` and the like, on the rows it keeps)
-    ends the loop on the round before, whose fit passed the same checks; the first fit's
+    proposes none (None: the engine's fit did not converge) ends the loop: on the round
+    before, whose fit converged, if there was one. A later round's refit refused (a
+    DataError: too few rows left for the model, or the engine's checks of the data,
+    :func:`~.validation.check_fitted_errors` and the like, on the rows it keeps) ends the
+    loop on the round before too, whose fit passed the same checks; the first fit's
     DataError is raised.
     """
     bad = start
     result = refit(~bad)
+    before = (result, bad)
     for _ in range(ROUNDS):
         new = rule(result)
-        if new is None or np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
+        if new is None:  # the fit stalled: the round before (the first: itself)
+            return before
+        if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
             break
         try:
-            result, bad = refit(~new), new
+            before, (result, bad) = (result, bad), (refit(~new), new)
         except DataError:  # the new set refused: the last set (its fit passed them) stays
             break
     return result, bad
