@@ -225,9 +225,10 @@ def stable_set(
         if np.array_equal(new, bad) or (allowed is not None and not allowed(new)):
             break
         try:
-            before, (result, bad) = (result, bad), (refit(~new), new)
+            refitted = refit(~new)
         except DataError:  # the new set refused: the last set (its fit passed them) stays
             break
+        before, result, bad = (result, bad), refitted, new
     return result, bad
 
 
