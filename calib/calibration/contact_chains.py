@@ -41,7 +41,7 @@ from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .chain_registration import MeasuredState
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .contact_chains_result import ChainContacts, ContactChainsCalibration, nothing_fitted
 from .contact_checks import contact_objects, held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
@@ -277,7 +277,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         for part in result.chains:
             _check_fitted(part, opts.noise)
     stalled = not all(converged)
-    return dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
+    result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
+    none = nothing_fitted(result, bool(opts.fix))
+    return dataclasses.replace(result, notes=(*result.notes, none)) if none else result
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:

@@ -45,7 +45,7 @@ from .report import (
 )
 from .selection import Selection
 
-__all__ = ["ChainContacts", "ContactChainsCalibration"]
+__all__ = ["ChainContacts", "ContactChainsCalibration", "nothing_fitted"]
 
 _T = TypeVar("_T")
 
@@ -531,3 +531,36 @@ class ContactChainsCalibration(Result, ChainView):
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
             return marker_urdf(robot, errors, marks, None, world)
         return moved_origins_urdf(robot, errors)
+
+
+def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
+    """The note of an accepted fit that moved no joint placement (``frames`` not asked).
+
+    Its URDF (:meth:`~ContactChainsCalibration.urdf`) is the nominal robot's, with only the
+    registered frames a measured term or a camera adds; ``fixed``: ``fix`` named some.
+    """
+    if result.free or result.elastic or result.params == "frames" or not result.accepted:
+        return None
+    auto = result.params == "auto"
+    why = (
+        "params 'auto' kept none (the data support none over the registration alone)"
+        if auto
+        else f"params '{result.params}'{' with fix (--fix)' if fixed else ''} left none to fit"
+    )
+    frames = []
+    if result._of(MeasuredChain):
+        frames.append("the markers as links on the tool, the measurement frame with world_link")
+    if result._of(PixelChain):
+        frames.append("the cameras' placements")
+    urdf = f"with only the registered frames added ({'; '.join(frames)})" if frames else "as is"
+    hint = (
+        "params 'complete' (--params complete) fits every parameter the data determine"
+        if auto
+        else "fix (--fix) fewer parameters"
+        if fixed
+        else "measure postures that determine some"
+    )
+    return (
+        f"no joint placement was fitted: {why}; the URDF written is the nominal robot's {urdf}; "
+        f"if you expected a fit, {hint}"
+    )
