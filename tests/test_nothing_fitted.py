@@ -40,7 +40,7 @@ def test_auto_choosing_none_on_a_chain_is_warned_and_its_urdf_is_the_nominal_one
     assert r.accepted and not r.free
     warned = [n for n in r.to_dict()["warnings"] if n.startswith(NONE)]
     assert len(warned) == 1, r.notes
-    assert "params 'complete' (--params complete)" in warned[0]
+    assert "params='complete' fits" in warned[0]
     assert "the markers as links on the tool" in warned[0]
     q = ur5.random_configurations(5, 3)
     written = r.urdf().decode()
@@ -58,8 +58,8 @@ def test_every_parameter_fixed_is_warned_with_fix_named(ur5):
     r = calibrate(ur5, data.measurements, params="offsets", fix=offsets)
     assert r.accepted and not r.free
     warned = [n for n in r.notes if n.startswith(NONE)]
-    assert len(warned) == 1 and "with fix (--fix)" in warned[0], r.notes
-    assert warned[0].endswith("if you expected a fit, fix (--fix) fewer parameters")
+    assert len(warned) == 1 and "with fix left none" in warned[0], r.notes
+    assert warned[0].endswith("if you expected a fit, name fewer parameters in fix")
 
 
 def test_auto_choosing_none_on_touches_is_warned_and_its_urdf_is_the_nominal_one(ur5):

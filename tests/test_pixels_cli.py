@@ -240,6 +240,7 @@ def test_a_wrong_focal_length_is_warned_about(capsys, tmp_path, ur5):
     assert rms > 3.0
     warned = [w for w in doc["warnings"] if WRONG_LENS in w]
     assert len(warned) == 1 and "focal length" in warned[0] and "--refine-intrinsics" in warned[0]
+    assert "Unknowns" not in warned[0]  # the keyword, said as the flag
     assert f"note: {warned[0]}" in text
 
 

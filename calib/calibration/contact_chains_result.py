@@ -545,7 +545,7 @@ def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
     why = (
         "params 'auto' kept none (the data support none over the registration alone)"
         if auto
-        else f"params '{result.params}'{' with fix (--fix)' if fixed else ''} left none to fit"
+        else f"params '{result.params}'{' with fix' if fixed else ''} left none to fit"
     )
     frames = []
     if result._of(MeasuredChain):
@@ -554,9 +554,9 @@ def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
         frames.append("the cameras' placements")
     urdf = f"with only the registered frames added ({'; '.join(frames)})" if frames else "as is"
     hint = (
-        "params 'complete' (--params complete) fits every parameter the data determine"
+        "params='complete' fits every parameter the data determine"
         if auto
-        else "fix (--fix) fewer parameters"
+        else "name fewer parameters in fix"
         if fixed
         else "measure postures that determine some"
     )

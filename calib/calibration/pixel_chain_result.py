@@ -118,7 +118,7 @@ class PixelChain(TermPart):
         rms = self.pixels[worst]["reprojection_rms_px"]
         if not rms > EXPECTED_PX:
             return []
-        fix = "" if self.state.what.intrinsics else " or fit them (--refine-intrinsics)"
+        fix = "" if self.state.what.intrinsics else ", or fit them: Unknowns(intrinsics=True)"
         return [
             f"camera {self.name}: the calibrated reprojection error is {rms:.1f} px RMS "
             f"({worst.replace('_', '-')}), far above a detector's noise (over "

@@ -101,7 +101,7 @@ def unconverged(fitted: Fit, what: str = "the solver") -> str | None:
         return None
     more = (
         f": it stopped after {fitted.evaluations} residual evaluations, a larger "
-        "max_iterations (--max-iterations) may let it finish"
+        "max_iterations may let it finish"
         if fitted.status == 0
         else ""
     )

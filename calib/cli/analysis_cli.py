@@ -18,6 +18,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import load_chain
 from ..kinematics.tree import load_robot
 from ..kinematics.tree_model import from_tree
+from ..outputs.sweep import VERDICT_SET
 from . import contact_chains_cli, pixels_cli
 from .common import (
     add_chain_args,
@@ -341,9 +342,9 @@ def add_sweep_parser(sub) -> None:
     g = p.add_argument_group("parameters and configurations")
     g.add_argument(
         "--params",
-        default="paper",
+        default=VERDICT_SET,
         choices=PARAMETER_SETS,
-        help="set the verdict column judges (default: paper; the complete set reaches the "
+        help=f"set the verdict column judges (default: {VERDICT_SET}; the complete set reaches the "
         "rank on every chain, the counts of both sets are in the table)",
     )
     add_sampling_args(g, "per chain")

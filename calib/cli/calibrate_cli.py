@@ -44,7 +44,6 @@ from .common import (
 )
 
 __all__ = [
-    "FLAGS",
     "add_calibrate_parser",
     "cmd_calibrate",
     "compliance_path",
@@ -89,36 +88,12 @@ def _columns(args: argparse.Namespace):
     return Columns(args.orientation, cols, args.units, args.points)
 
 
-FLAGS = {
-    "(Columns' orientation_columns)": "(--orientation-columns)",
-    "(the data's position_only())": "(--measure position)",
-    "Unknowns(intrinsics=True)": "--refine-intrinsics",
-    "give its noise (noise_mm)": "give its noise (--noise-mm)",
-}
-"""The ways out the library's messages name by keyword, and the flags calibrate says instead."""
-
-
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report.
 
     Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
     the report's ``warnings`` too.
     """
-    try:
-        return _calibrate(args)
-    except (InvalidArgumentError, DataError) as exc:  # the library names the keyword: the flag
-        text = str(exc)
-        if not any(k in text for k in FLAGS):
-            raise
-        for keyword, flag in FLAGS.items():
-            text = text.replace(keyword, flag)
-        if isinstance(exc, InvalidArgumentError):
-            raise InvalidArgumentError(text) from None
-        where = str(DataError(exc.path, "", exc.row, exc.column))  # "PATH (row R): "
-        raise DataError(exc.path, text.removeprefix(where), exc.row, exc.column) from None
-
-
-def _calibrate(args: argparse.Namespace) -> int:
     if Path(args.out).suffix.lower() == ".json":  # the report's suffix: --out and --report swapped?
         raise InvalidArgumentError(
             f"--out {args.out} names the calibrated URDF, not the JSON report (--report): give "
@@ -199,13 +174,7 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     )
 
     def files() -> dict[Path, str | bytes]:
-        try:
-            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link, args.on_robot)}
-        except InvalidArgumentError as exc:  # the library names the keyword: say the flag
-            text = str(exc)
-            if not text.startswith("world_link:"):
-                raise
-            raise InvalidArgumentError(f"--world-link{text.removeprefix('world_link')}") from None
+        urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link, args.on_robot)}
         if result.elastic:
             if comp is None:
                 raise InvalidArgumentError(
@@ -301,16 +270,10 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot:
             raise InvalidArgumentError(
                 "--on-robot and --world-link: the instrument is on the robot or in the world"
             )
-        try:
-            instrument_joint(root, chain)
-        except CalibError as exc:  # the library names the keyword: say the flag
-            raise CalibError(f"--on-robot{str(exc).removeprefix('on_robot')}") from None
+        instrument_joint(root, chain)  # its error names on_robot: the CLI's in_flags
     if world_link is not None:
         check_new_names(root, (world_link,), "--world-link")
-        try:
-            check_base_fixed(chain)
-        except CalibError as exc:  # the library names the keyword: say the flag
-            raise CalibError(f"--world-link{str(exc).removeprefix('world_link')}") from None
+        check_base_fixed(chain)
 
 
 def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:

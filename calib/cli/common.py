@@ -23,6 +23,7 @@ from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..kinematics.catalog import catalog_files, installed_dirs
+from .flags import in_flags, report_in_flags
 
 __all__ = [
     "APPLIES",
@@ -474,9 +475,9 @@ def write_calibration(
     report = paths[1]
     out = Path(paths[0])  # the report and the compliance file record the URDF's digest
     model: dict = {} if refusal is not None else paired_files(urdf(), out)
-    found = with_warnings(report_dict, recorded)
+    found = report_in_flags(with_warnings(report_dict, recorded), args)  # the flags, not keywords
     doc = json_text(paired_report(found, model[out]) if model else found)
-    _print_out(doc if args.json else text(), end="" if args.json else "\n")
+    _print_out(doc if args.json else in_flags(text(), args), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:
         files.update({} if result is None else _look_files(args, result, None))
