@@ -35,6 +35,7 @@ from .common import (
     check_output_paths,
     command_parser,
     compliance_path,
+    cross_validated,
     look_outputs,
     orientation_wanted,
     positive_number,
@@ -94,6 +95,7 @@ FLAGS = {
     "(the data's position_only())": "(--measure position)",
     "Unknowns(intrinsics=True)": "--refine-intrinsics",
     "give its noise (noise_mm)": "give its noise (--noise-mm)",
+    "folds must be": "--folds must be",
 }
 """The ways out the library's messages name by keyword, and the flags calibrate says instead."""
 
@@ -180,23 +182,27 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
     )
     data, check = _chain_data(args, chain)
-    result = calibrate(
-        chain,
-        data,
-        params=args.params or DEFAULT_LEVEL,
-        marker=args.marker,
-        validate=check,
-        fix=tuple(args.fix),
-        free=tuple(args.free),
-        elastic=args.elastic,
-        loss=args.loss,
-        noise_mm=args.noise_mm,
-        orientation_weight=args.orientation_weight,
-        max_iterations=args.max_iterations,
-        holdout=args.holdout,
-        seed=args.seed,
-        progress=terminal(args.quiet),
-    )
+
+    def fit(rows: list, held: list | None):
+        return calibrate(
+            chain,
+            rows[0],
+            params=args.params or DEFAULT_LEVEL,
+            marker=args.marker,
+            validate=None if held is None else held[0],
+            fix=tuple(args.fix),
+            free=tuple(args.free),
+            elastic=args.elastic,
+            loss=args.loss,
+            noise_mm=args.noise_mm,
+            orientation_weight=args.orientation_weight,
+            max_iterations=args.max_iterations,
+            holdout=args.holdout,
+            seed=args.seed,
+            progress=terminal(args.quiet),
+        )
+
+    result = cross_validated(args, fit, [data], None if check is None else [check])
 
     def files() -> dict[Path, str | bytes]:
         try:
@@ -350,15 +356,19 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
-    result = calibrate(
-        tree,
-        data,
-        params=args.params,  # None: the tree's default
-        validate=check,
-        holdout=args.holdout,
-        seed=args.seed,
-        max_iterations=args.max_iterations,
-    )
+
+    def fit(rows: list, held: list | None):
+        return calibrate(
+            tree,
+            rows[0],
+            params=args.params,  # None: the tree's default
+            validate=None if held is None else held[0],
+            holdout=args.holdout,
+            seed=args.seed,
+            max_iterations=args.max_iterations,
+        )
+
+    result = cross_validated(args, fit, [data], None if check is None else [check])
     return write_calibration(
         args,
         result.to_dict(),
@@ -403,6 +413,13 @@ def add_calibrate_parser(sub) -> None:
         help="fraction of the rows set aside for validation (default: 0)",
     )
     g.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    g.add_argument(
+        "--folds",
+        type=int,
+        metavar="K",
+        help="K-fold cross-validation: K contiguous folds of the postures, each held out of a "
+        "fit on the others; the URDF is the fit on every row (not with --holdout, --validate)",
+    )
     g = p.add_argument_group("contacts and several chains (--measure plane|..., --term)")
     contact_cli.add_contact_arguments(g)
     contact_chains_cli.add_chain_arguments(g)
