@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib import Columns, calibrate, load_chain, read_measurements
+from calib import Columns, calibrate, cross_validate, load_chain, read_measurements
 from calib.cli.commands import main
-from calib.design.folds import cross_validate, fold_of_rows
+from calib.design.folds import fold_of_rows
 from calib.measurements.contact_campaign import simulate_contacts
 
 UR10 = Path(__file__).resolve().parents[1] / "data" / "realdata" / "ur10"

@@ -16,6 +16,7 @@ information matrices: the calibration's pipeline is run as it is, K + 1 times.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from collections.abc import Callable, Sequence
 from typing import Any, cast
 
@@ -48,14 +49,17 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
     Raises:
         InvalidArgumentError: ``folds`` under 2 or over the postures (an object's touches).
     """
+    if isinstance(folds, bool) or not isinstance(folds, numbers.Integral):
+        raise InvalidArgumentError(f"folds must be a whole number, got {shown(folds)}")
     if not isinstance(data, Measurements | ContactData):
         raise InvalidArgumentError(
             f"folds are for measurements and touches, not {type(data).__name__} (pixels: "
             "give a holdout fraction or validation data)"
         )
     touches = isinstance(data, ContactData)
-    groups = posture_groups(data.q, data.ids if touches else None)
-    keys = np.array(data.ids) if touches else np.zeros(data.m, dtype=int)
+    ids = data.ids if isinstance(data, ContactData) else None
+    groups = posture_groups(data.q, ids)
+    keys = np.zeros(data.m, dtype=int) if ids is None else np.array(ids)
     out = np.zeros(data.m, dtype=int)
     for key in dict.fromkeys(keys.tolist()):
         own = np.unique(groups[keys == key])  # numbered in order of first appearance
@@ -83,8 +87,8 @@ def pooled(parts: list[GapStats]) -> GapStats:
         return float(np.sqrt(np.sum(m * np.asarray(values, dtype=float) ** 2) / np.sum(m)))
 
     first = parts[0]
-    rows = [p.residuals for p in parts]
-    per_row = [p.per_row for p in parts]
+    rows = [p.residuals for p in parts if p.residuals is not None]
+    per_row = [p.per_row for p in parts if p.per_row is not None]
     return GapStats(
         int(m.sum()),
         first.names,
@@ -92,8 +96,8 @@ def pooled(parts: list[GapStats]) -> GapStats:
         tuple(rms([p.rms[i] for p in parts]) for i in range(len(first.names))),
         tuple(max(p.max[i] for p in parts) for i in range(len(first.names))),
         rms([p.weighted_mm for p in parts]),
-        None if any(r is None for r in per_row) else np.concatenate(per_row),
-        None if any(r is None for r in rows) else np.concatenate(rows),
+        np.concatenate(per_row) if len(per_row) == len(parts) else None,
+        np.concatenate(rows) if len(rows) == len(parts) else None,
     )
 
 
@@ -112,13 +116,18 @@ def _stacked(parts: list[Measurements]) -> Measurements:
         position=joined("position"),
         quaternion=joined("quaternion"),
         rows=tuple(int(r) for p in parts for r in p.file_rows()),
-        tool=None if first.tool is None else tuple(t for p in parts for t in p.tool),
+        tool=None if first.tool is None else tuple(t for p in parts for t in p.tool or ()),
         angles=(
             None
             if angles is None
-            else Angles(angles.format, np.concatenate([p.angles.values for p in parts]))
+            else Angles(angles.format, np.concatenate([_angles(p) for p in parts]))
         ),
     )
+
+
+def _angles(data: Measurements) -> np.ndarray:
+    """The angle columns of rows read with them ``(m, 3)``."""
+    return cast(Angles, data.angles).values
 
 
 Fit = Callable[[list, list | None], ContactChainsCalibration]
@@ -216,7 +225,7 @@ def _pooled_result(
                 stats[key] = pooled([p.stats[key] for p in own])
         extra: dict[str, Any] = {}
         if isinstance(part, MeasuredChain):
-            extra["held"] = _stacked([cast(MeasuredChain, p).held for p in own])
+            extra["held"] = _stacked([cast(Measurements, cast(MeasuredChain, p).held) for p in own])
         parts.append(dataclasses.replace(part, stats=stats, held_source=label, **extra))
         what = "gaps" if isinstance(part, ChainContacts) else "errors"
         refusal = refusal or held_out_refusal(stats, part.chain, what)
