@@ -167,6 +167,24 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
+def _chain_options(args: argparse.Namespace) -> dict:
+    """One chain's options of ``calibrate`` (its data and validation data left)."""
+    return {
+        "params": args.params or DEFAULT_LEVEL,
+        "marker": args.marker,
+        "fix": tuple(args.fix),
+        "free": tuple(args.free),
+        "elastic": args.elastic,
+        "loss": args.loss,
+        "noise_mm": args.noise_mm,
+        "orientation_weight": args.orientation_weight,
+        "max_iterations": args.max_iterations,
+        "holdout": args.holdout,
+        "seed": args.seed,
+        "progress": terminal(args.quiet),
+    }
+
+
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
@@ -183,24 +201,10 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     )
     data, check = _chain_data(args, chain)
 
+    options = _chain_options(args)
+
     def fit(rows: list, held: list | None):
-        return calibrate(
-            chain,
-            rows[0],
-            params=args.params or DEFAULT_LEVEL,
-            marker=args.marker,
-            validate=None if held is None else held[0],
-            fix=tuple(args.fix),
-            free=tuple(args.free),
-            elastic=args.elastic,
-            loss=args.loss,
-            noise_mm=args.noise_mm,
-            orientation_weight=args.orientation_weight,
-            max_iterations=args.max_iterations,
-            holdout=args.holdout,
-            seed=args.seed,
-            progress=terminal(args.quiet),
-        )
+        return calibrate(chain, rows[0], validate=None if held is None else held[0], **options)
 
     result = cross_validated(args, fit, [data], None if check is None else [check])
 
