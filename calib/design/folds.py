@@ -29,7 +29,7 @@ from ..calibration.entry import calibrate
 from ..calibration.measured_view import MeasuredChain
 from ..calibration.problem import Problem, Term
 from ..core.checks import shown
-from ..exceptions import InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
@@ -150,14 +150,21 @@ def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
     """
     labels = [fold_of_rows(d, folds) for d in data]
     full = fit(list(data), None)
-    runs = [
-        fit(
-            [_subset(d, f != k) for d, f in zip(data, labels, strict=True)],
-            [_subset(d, f == k) for d, f in zip(data, labels, strict=True)],
-        )
-        for k in range(folds)
-    ]
+    runs = [_fold(fit, data, labels, k, folds) for k in range(folds)]
     return _pooled_result(full, runs, folds)
+
+
+def _fold(fit: Fit, data: Sequence, labels: list, k: int, folds: int):
+    """The fit of fold ``k`` held out; a DataError of its rows says which fold it is."""
+    pairs = list(zip(data, labels, strict=True))
+    try:
+        return fit([_subset(d, f != k) for d, f in pairs], [_subset(d, f == k) for d, f in pairs])
+    except DataError as exc:
+        where = str(DataError(exc.path, "", exc.row, exc.column))
+        reason = str(exc).removeprefix(where)
+        raise DataError(
+            exc.path, f"fold {k + 1} of {folds}: {reason}", exc.row, exc.column
+        ) from None
 
 
 def cross_validate(
