@@ -199,6 +199,8 @@ def cross_validated(args: argparse.Namespace, fit: Callable, data: list, validat
 def check_applicable(args: argparse.Namespace, shape: str) -> None:
     """Refuse an option of :data:`APPLIES` given where it does not apply.
 
+    ``--folds`` with ``--holdout`` or ``--validate`` too: each holds rows out its own way.
+
     Args:
         args: ``calibrate``'s arguments (with ``given``, the options typed).
         shape: ``chain``, ``tree``, ``contacts`` or ``chains``.
