@@ -185,7 +185,11 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         )
         return calibrate(dataclasses.replace(problem, terms=parts), progress=terminal(args.quiet))
 
-    result = cross_validated(args, fit, [t.data for t in problem.terms], None)
+    result = (
+        calibrate(problem, progress=terminal(args.quiet))  # each term's validation data
+        if args.folds is None
+        else cross_validated(args, fit, [t.data for t in problem.terms], None)
+    )
     return write_calibration(
         args,
         result.to_dict(),
