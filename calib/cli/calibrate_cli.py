@@ -35,6 +35,7 @@ from .common import (
     check_output_paths,
     command_parser,
     compliance_path,
+    cross_validated,
     look_outputs,
     orientation_wanted,
     positive_number,
@@ -140,6 +141,24 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
+def _chain_options(args: argparse.Namespace) -> dict:
+    """One chain's options of ``calibrate`` (its data and validation data left)."""
+    return {
+        "params": args.params or DEFAULT_LEVEL,
+        "marker": args.marker,
+        "fix": tuple(args.fix),
+        "free": tuple(args.free),
+        "elastic": args.elastic,
+        "loss": args.loss,
+        "noise_mm": args.noise_mm,
+        "orientation_weight": args.orientation_weight,
+        "max_iterations": args.max_iterations,
+        "holdout": args.holdout,
+        "seed": args.seed,
+        "progress": terminal(args.quiet),
+    }
+
+
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
@@ -155,23 +174,13 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
     )
     data, check = _chain_data(args, chain)
-    result = calibrate(
-        chain,
-        data,
-        params=args.params or DEFAULT_LEVEL,
-        marker=args.marker,
-        validate=check,
-        fix=tuple(args.fix),
-        free=tuple(args.free),
-        elastic=args.elastic,
-        loss=args.loss,
-        noise_mm=args.noise_mm,
-        orientation_weight=args.orientation_weight,
-        max_iterations=args.max_iterations,
-        holdout=args.holdout,
-        seed=args.seed,
-        progress=terminal(args.quiet),
-    )
+
+    options = _chain_options(args)
+
+    def fit(rows: list, held: list | None):
+        return calibrate(chain, rows[0], validate=None if held is None else held[0], **options)
+
+    result = cross_validated(args, fit, [data], None if check is None else [check])
 
     def files() -> dict[Path, str | bytes]:
         urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link, args.on_robot)}
@@ -313,15 +322,19 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
-    result = calibrate(
-        tree,
-        data,
-        params=args.params,  # None: the tree's default
-        validate=check,
-        holdout=args.holdout,
-        seed=args.seed,
-        max_iterations=args.max_iterations,
-    )
+
+    def fit(rows: list, held: list | None):
+        return calibrate(
+            tree,
+            rows[0],
+            params=args.params,  # None: the tree's default
+            validate=None if held is None else held[0],
+            holdout=args.holdout,
+            seed=args.seed,
+            max_iterations=args.max_iterations,
+        )
+
+    result = cross_validated(args, fit, [data], None if check is None else [check])
     return write_calibration(
         args,
         result.to_dict(),
@@ -366,6 +379,13 @@ def add_calibrate_parser(sub) -> None:
         help="fraction of the rows set aside for validation (default: 0)",
     )
     g.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    g.add_argument(
+        "--folds",
+        type=int,
+        metavar="K",
+        help="K-fold cross-validation: K contiguous folds of the postures, each held out of a "
+        "fit on the others; the URDF is the fit on every row (not with --holdout, --validate)",
+    )
     g = p.add_argument_group("contacts and several chains (--measure plane|..., --term)")
     contact_cli.add_contact_arguments(g)
     contact_chains_cli.add_chain_arguments(g)

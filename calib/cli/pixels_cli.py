@@ -42,6 +42,7 @@ PIXEL_OPTIONS = ("camera", "target", "noise_px", "refine_targets", "refine_intri
 """The options of ``--measure pixels`` alone."""
 
 NOT_PIXELS = (
+    "folds",
     "marker",
     "world_link",
     "on_robot",
