@@ -196,7 +196,7 @@ def test_bad_folds_in_python():
     chain, data = _ur10()
     from calib import InvalidArgumentError
 
-    with pytest.raises(InvalidArgumentError, match=r"folds must be in \[2, 23\]"):
+    with pytest.raises(InvalidArgumentError, match=r"the number of folds must be in \[2, 23\]"):
         cross_validate(chain, data, folds=1)
     with pytest.raises(InvalidArgumentError, match="not with a holdout"):
         cross_validate(chain, data, folds=3, holdout=0.2)

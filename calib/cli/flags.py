@@ -27,7 +27,7 @@ FLAGS = {
     "a larger max_iterations": "a larger --max-iterations",
     NO_COLLISION: "--no-collision",
     "(term=)": "(--term-index)",
-    "folds must be": "--folds must be",
+    "the number of folds must be": "--folds must be",
     "params='complete' fits": "--params complete fits",
     "with fix left none": "with --fix left none",
     "fewer parameters in fix": "fewer parameters in --fix",

@@ -50,7 +50,9 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
         InvalidArgumentError: ``folds`` under 2 or over the postures (an object's touches).
     """
     if isinstance(folds, bool) or not isinstance(folds, numbers.Integral):
-        raise InvalidArgumentError(f"folds must be a whole number, got {shown(folds)}")
+        raise InvalidArgumentError(
+            f"the number of folds must be a whole number, got {shown(folds)}"
+        )
     if not isinstance(data, Measurements | ContactData):
         raise InvalidArgumentError(
             f"folds are for measurements and touches, not {type(data).__name__} (pixels: "
@@ -66,8 +68,8 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
         if folds < 2 or folds > len(own):
             what = f"touches of '{key}'" if touches else "postures"
             raise InvalidArgumentError(
-                f"folds must be in [2, {len(own)}] (the {what} in {data.source}), got "
-                f"{shown(folds)}"
+                f"the number of folds must be in [2, {len(own)}] (the {what} in "
+                f"{data.source}), got {shown(folds)}"
             )
         for k, part in enumerate(np.array_split(own, folds)):
             out[np.isin(groups, part)] = k
