@@ -123,6 +123,57 @@ def test_tiago_optical_frame_is_the_start_and_is_moved_in_place(capsys, tmp_path
     assert "38 unknowns determined" in text  # the count of tests/test_pixel_calibration.py
 
 
+def test_simulate_and_analyze_place_a_camera_by_its_urdf_link(capsys, tmp_path):
+    """A head camera without numbers: simulate and analyze take the URDF's xtion_optical_joint.
+
+    The pixels equal those of the camera placed by the URDF's origin given as numbers, and
+    those of a textbook pinhole at Pinocchio's camera -> tool placement (no noise, no error).
+    """
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    nominal = ["0", "0", "0", "-1.57079632679", "0.0", "-1.57079632679"]  # the URDF's origin
+    camera = ["--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml"]
+    common = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link", "--seed", 1]
+    exact = ["--error-mm", 0, "--error-mrad", 0, "--configs", 300]
+    for name, numbers in (("urdf", []), ("numbers", nominal)):
+        out = tmp_path / f"{name}.csv"
+        argv = ["simulate", "tiago", "--measure", "pixels", *camera, *numbers, *common, *exact]
+        code, _, err = run(capsys, *argv, "--out", out)
+        assert code == 0, err
+        code, text, err = run(capsys, "analyze", "tiago", "--measure", "pixels", *camera,
+                              *numbers, *common)  # fmt: skip
+        assert code == 0, err
+        assert "38 of 60" in text  # tests/test_pixel_calibration.py's independent rank
+    chain = load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
+    lens, board = {"xtion_optical_frame": INTRINSICS}, read_target(tmp_path / "target.csv")
+    obs, given = (
+        read_observations(tmp_path / f"{name}.csv", chain.joint_names, lens, board)
+        for name in ("urdf", "numbers")
+    )
+    assert obs.point == given.point
+    np.testing.assert_allclose(obs.pixels, given.pixels, atol=1e-8)
+    X = read_target(tmp_path / "target.csv").position[[int(p[1:]) for p in obs.point]]
+    model = pin.buildModelFromUrdf(str(chain.urdf_path))
+    frames = ("xtion_optical_frame", "arm_tool_link", chain.joint_names, obs.q, X)
+    expected = seen_pixels(model, *frames, np.eye(4), K, DIST)
+    np.testing.assert_allclose(obs.pixels, expected, atol=1e-6)
+
+
+def test_a_camera_without_numbers_nor_urdf_link_is_refused_by_simulate(capsys, tmp_path):
+    """simulate needs the camera's placement: no numbers and no URDF link of its name."""
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    code, _, err = run(
+        capsys, "simulate", "tiago", "--measure", "pixels",
+        "--camera", "headcam", "xtion_link", tmp_path / "intr.yaml",
+        "--target", tmp_path / "target.csv", "--tool", "arm_tool_link",
+        "--out", tmp_path / "obs.csv",
+    )  # fmt: skip
+    assert code == 2
+    assert "no link headcam fixed to xtion_link" in err and "X Y Z RX RY RZ" in err
+    assert not (tmp_path / "obs.csv").exists()
+
+
 def _bad_files(folder: Path, case: str) -> tuple[list, Path]:
     """(extra arguments, observations file) of a bad-input case."""
     intr, target, obs = folder / "intr.yaml", folder / "target.csv", folder / "obs.csv"
