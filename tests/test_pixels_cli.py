@@ -140,8 +140,8 @@ def test_simulate_and_analyze_place_a_camera_by_its_urdf_link(capsys, tmp_path):
         argv = ["simulate", "tiago", "--measure", "pixels", *camera, *numbers, *common, *exact]
         code, _, err = run(capsys, *argv, "--out", out)
         assert code == 0, err
-        code, text, err = run(capsys, "analyze", "tiago", "--measure", "pixels", *camera,
-                              *numbers, *common)  # fmt: skip
+        argv = ["analyze", "tiago", "--measure", "pixels", *camera, *numbers, *common]
+        code, text, err = run(capsys, *argv)
         assert code == 0, err
         assert "38 of 60" in text  # tests/test_pixel_calibration.py's independent rank
     chain = load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
@@ -163,12 +163,10 @@ def test_a_camera_without_numbers_nor_urdf_link_is_refused_by_simulate(capsys, t
     """simulate needs the camera's placement: no numbers and no URDF link of its name."""
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
     write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
-    code, _, err = run(
-        capsys, "simulate", "tiago", "--measure", "pixels",
-        "--camera", "headcam", "xtion_link", tmp_path / "intr.yaml",
-        "--target", tmp_path / "target.csv", "--tool", "arm_tool_link",
-        "--out", tmp_path / "obs.csv",
-    )  # fmt: skip
+    camera = ["--camera", "headcam", "xtion_link", tmp_path / "intr.yaml"]
+    target = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
+    argv = ["simulate", "tiago", "--measure", "pixels", *camera, *target]
+    code, _, err = run(capsys, *argv, "--out", tmp_path / "obs.csv")
     assert code == 2
     assert "no link headcam fixed to xtion_link" in err and "X Y Z RX RY RZ" in err
     assert not (tmp_path / "obs.csv").exists()
