@@ -172,6 +172,29 @@ def test_a_camera_without_numbers_nor_urdf_link_is_refused_by_simulate(capsys, t
     assert not (tmp_path / "obs.csv").exists()
 
 
+def test_a_head_camera_on_the_wrong_link_is_refused_naming_the_link(capsys, tmp_path):
+    """TIAGo's head camera given on head_1_link: its chain misses head_2_joint, so no camera
+    placement explains the pixels; the refusal names the link as a suspect."""
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    target = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
+    nominal = ["0", "0", "0", "-1.57079632679", "0.0", "-1.57079632679"]  # the URDF's origin
+    camera = ["--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml", *nominal]
+    argv = ["simulate", "tiago", "--measure", "pixels", *camera, *target, "--configs", 600]
+    code, _, err = run(capsys, *argv, "--seed", 1, "--out", tmp_path / "obs.csv")
+    assert code == 0, err
+    text = (tmp_path / "obs.csv").read_text().replace("xtion_optical_frame", "cam")
+    (tmp_path / "obs.csv").write_text(text)
+    out = tmp_path / "cal.urdf"
+    camera = ["--camera", "cam", "head_1_link", tmp_path / "intr.yaml"]
+    argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv"]
+    code, _, err = run(capsys, *argv, *camera, *target, "--out", out)
+    assert code == 2
+    assert "the pixels do not match camera cam and head_1_link -> arm_tool_link" in err
+    assert "the camera on another link than head_1_link" in err
+    assert not out.exists()
+
+
 def _bad_files(folder: Path, case: str) -> tuple[list, Path]:
     """(extra arguments, observations file) of a bad-input case."""
     intr, target, obs = folder / "intr.yaml", folder / "target.csv", folder / "obs.csv"
