@@ -195,6 +195,37 @@ def test_a_head_camera_on_the_wrong_link_is_refused_naming_the_link(capsys, tmp_
     assert not out.exists()
 
 
+def test_simulate_pixels_at_the_postures_of_a_configurations_file(capsys, tmp_path):
+    """simulate --measure pixels --configs-file (a plan of calib design): the pixels are seen
+    at the file's postures, in its order, and are Pinocchio's + a textbook pinhole's."""
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    joints = ("head_2_joint", "head_1_joint", *(f"arm_{k}_joint" for k in range(1, 8)))
+    model = pin.buildModelFromUrdf(str(load_chain("tiago").urdf_path))
+    ids = [model.getJointId(j) for j in joints]
+    at = [model.joints[i].idx_q for i in ids]
+    low, high = model.lowerPositionLimit[at], model.upperPositionLimit[at]
+    plan = np.random.default_rng(5).uniform(low, high, (400, len(joints)))
+    rows = [",".join(("torso_lift_joint", *joints))]
+    rows += [",".join(repr(float(v)) for v in (0.1, *q)) for q in plan]  # off the chain: ignored
+    (tmp_path / "plan.csv").write_text("\n".join(rows) + "\n")
+    camera = ["--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml"]
+    argv = ["simulate", "tiago", "--measure", "pixels", *camera, "--target"]
+    argv += [tmp_path / "target.csv", "--tool", "arm_tool_link", "--error-mm", 0]
+    argv += ["--error-mrad", 0, "--configs-file", tmp_path / "plan.csv"]
+    code, out, err = run(capsys, *argv, "--out", tmp_path / "obs.csv")
+    assert code == 0, err
+    assert "of 400 postures" in out
+    lens, board = {"xtion_optical_frame": INTRINSICS}, read_target(tmp_path / "target.csv")
+    obs = read_observations(tmp_path / "obs.csv", joints, lens, board)
+    seen = [int(np.flatnonzero((plan == q).all(axis=1))[0]) for q in obs.q]
+    assert seen == sorted(seen) and len(set(seen)) > 10
+    X = board.position[[int(p[1:]) for p in obs.point]]
+    frames = ("xtion_optical_frame", "arm_tool_link", joints, obs.q, X)
+    expected = seen_pixels(model, *frames, np.eye(4), K, DIST)
+    np.testing.assert_allclose(obs.pixels, expected, atol=1e-6)
+
+
 def _bad_files(folder: Path, case: str) -> tuple[list, Path]:
     """(extra arguments, observations file) of a bad-input case."""
     intr, target, obs = folder / "intr.yaml", folder / "target.csv", folder / "obs.csv"
@@ -433,13 +464,11 @@ def test_calibrate_pixels_takes_max_iterations(capsys, tmp_path, ur5):
         ["--noise-mrad", "1"],
         ["--contacts", "2"],
         ["--params", "paper"],
-        ["--configs-file", "CONFIGS"],
     ],
 )
 def test_simulate_pixels_refuses_an_option_it_would_ignore(capsys, tmp_path, ur5, extra):
     """simulate --measure pixels: an option of the other campaigns is an error, not ignored."""
-    folder, common = ur5
-    extra = [str(folder / "obs.csv") if e == "CONFIGS" else e for e in extra]
+    _, common = ur5
     out = tmp_path / "obs.csv"
     code, _, err = run(capsys, "simulate", "ur5", "--measure", "pixels", *common, *extra,
                        "--out", out)  # fmt: skip

@@ -69,9 +69,9 @@ NOT_PIXELS = (
 ``--term pixels NAME TOOL OBS.csv``, without ``--measure``; ``plot`` and ``origins``: not
 yet for pixels): refused, never ignored."""
 
-NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params", "configs_file")
-"""``simulate`` options of the other campaigns, refused with ``--measure pixels`` (its postures
-are random, its robot perturbed in every joint placement, its noise ``--noise-px``)."""
+NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params")
+"""``simulate`` options of the other campaigns, refused with ``--measure pixels`` (its robot
+is perturbed in every joint placement, its noise ``--noise-px``)."""
 
 NOT_PIXELS_ANALYZE = ("marker", "markers")
 """``analyze`` options a count of the cameras' unknowns does not use, refused."""
@@ -339,16 +339,26 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     )
 
 
-def _postures(chains, configs: int, seed: int):
-    """Random postures of every joint of the chains: each chain's draw (the first's wins)."""
+def _postures(chains, configs: int, seed: int, path: str | None = None):
+    """Postures of every joint of the chains, random or read.
+
+    Each chain's random draw (the first's wins), or each chain's columns of the
+    configurations file ``path`` (``calib design``'s).
+    """
     import numpy as np
 
+    from ..design.configurations import read_configurations
+
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
-    q = np.zeros((configs, len(joints)))
+    q = None
     for chain in reversed(chains):
-        q[:, [joints.index(j) for j in chain.joint_names]] = chain.random_configurations(
-            configs, seed
+        drawn = (
+            chain.random_configurations(configs, seed)
+            if path is None
+            else read_configurations(path, chain)
         )
+        q = np.zeros((len(drawn), len(joints))) if q is None else q
+        q[:, [joints.index(j) for j in chain.joint_names]] = drawn
     return joints, q
 
 
@@ -370,14 +380,15 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     cameras, chains = tuple(v[0] for v in views), tuple(v[1] for v in views)
     out = Path(args.out)
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chains[0].urdf_path})
+    inputs = {"the URDF": chains[0].urdf_path, "--configs-file": args.configs_file}
+    check_output_paths({"--out": out, "--truth": truth_path}, inputs)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "true.urdf"
         truth = true_robot(
             list(chains), path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
         )
         true_chains = [load_chain(str(path), base=c.base_frame, tool=c.tool_frame) for c in chains]
-        joints, q = _postures(chains, args.configs, args.seed)
+        joints, q = _postures(chains, args.configs, args.seed, args.configs_file)
         lenses = [(c.name, c.placement, c.intrinsics) for c in cameras]
         obs = simulate_cameras(
             true_chains, lenses, target, joints, q, noise_px=args.noise_px, seed=args.seed
@@ -395,7 +406,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
     print(
         f"{chains[0].name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
-        f"{args.configs} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
+        f"{len(q)} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
         f"{args.noise_px:g} px -> {out}"
     )
     return 0
