@@ -128,3 +128,14 @@ def test_python_sweep_defaults_are_the_command_lines():
     python = inspect.signature(sweep).parameters
     assert {k: python[k].default for k in cli} == cli
     assert cli["measure"] == inspect.signature(calib.analyze).parameters["measure"].default
+
+
+def test_the_table_says_the_library_texts_as_the_library_writes_them():
+    """The table holds two library texts as literals (every command starts without the CSV
+    reader and the collision checker): they are the library's, word for word."""
+    from calib.cli import flags
+    from calib.design.collision import NO_COLLISION
+    from calib.measurements.csvfile import NAMED_ORIENTATION
+
+    assert NO_COLLISION in FLAGS
+    assert flags.NAMED_ORIENTATION == NAMED_ORIENTATION

@@ -10,7 +10,7 @@ import dataclasses
 from pathlib import Path
 
 from ..calibration.analysis import analyze
-from ..core.choices import DEFAULT_SET, PARAMETER_SETS
+from ..core.choices import DEFAULT_SET, PARAMETER_SETS, VERDICT_SET
 from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
@@ -18,7 +18,6 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import load_chain
 from ..kinematics.tree import load_robot
 from ..kinematics.tree_model import from_tree
-from ..outputs.sweep import VERDICT_SET
 from . import contact_chains_cli, pixels_cli
 from .common import (
     add_chain_args,

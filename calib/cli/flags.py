@@ -13,9 +13,6 @@ import argparse
 import re
 from collections.abc import Collection
 
-from ..design.collision import NO_COLLISION
-from ..measurements.csvfile import NAMED_ORIENTATION
-
 __all__ = ["FLAGS", "OPTIONS", "in_flags", "report_in_flags"]
 
 
@@ -25,7 +22,7 @@ FLAGS = {
     "Unknowns(intrinsics=True)": "--refine-intrinsics",
     "give its noise (noise_mm)": "give its noise (--noise-mm)",
     "a larger max_iterations": "a larger --max-iterations",
-    NO_COLLISION: "--no-collision",
+    "constraints=calib.design.constraints.Constraints(collision=False)": "--no-collision",
     "(term=)": "(--term-index)",
     "the number of folds must be": "--folds must be",
     "params='complete' fits": "--params complete fits",
@@ -61,6 +58,10 @@ def in_flags(text: str, args: argparse.Namespace | None = None) -> str:
         text = text.partition(NAMED_ORIENTATION)[0]  # the hint's last clause: cut to the end
     return text
 
+
+NAMED_ORIENTATION = ", or name its format and columns"
+""":data:`calib.measurements.csvfile.NAMED_ORIENTATION`, the columns-ignored warning's last clause
+(written again here: every command starts without the CSV reader; a test checks they agree)."""
 
 _FLAG = re.compile(r"--[a-z][a-z-]*")
 """A flag in a value of :data:`FLAGS`."""

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.checks import check_count, check_work, shown
-from ..core.choices import DEFAULT_MEASURE
+from ..core.choices import DEFAULT_MEASURE, VERDICT_SET
 from ..core.progress import steps
 from ..exceptions import CalibError, InvalidArgumentError, RobotNotFoundError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
@@ -29,11 +29,6 @@ __all__ = [
     "rows_to_csv",
     "sweep",
 ]
-
-
-VERDICT_SET = "paper"
-"""The set a sweep's verdict judges by default (``calib sweep --params``): the paper's, since
-the complete set reaches the rank on every chain (both sets' counts are in every row)."""
 
 
 @dataclass(frozen=True)
