@@ -80,6 +80,7 @@ _LAZY = {
     "read_contacts": "measurements.contact_campaign",
     "simulate_contacts": "measurements.contact_campaign",
     "design": "design.design",
+    "cross_validate": "design.folds",
     "ResidualStats": "calibration",
     "calibrate": "calibration",
     "residual_stats": "calibration",
@@ -138,6 +139,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .calibration.pixel_term import PixelCamera, Unknowns
     from .calibration.problem import Problem, Term
     from .design.design import design
+    from .design.folds import cross_validate
     from .identification.identifiability import Identifiability, RankWarning, analyze_model
     from .identification.jacobian import Measurement, complete_jacobian, identification_jacobian
     from .identification.parameters import (
@@ -216,6 +218,7 @@ __all__ = [
     "analyze",
     "calibrate",
     "catalog",
+    "cross_validate",
     "design",
     "from_chain",
     "from_tree",

@@ -315,6 +315,12 @@ def _third_round_cases():
         "calibrate problem, holdout=": lambda: calib.calibrate(PROBLEM, holdout=0.25),
         "calibrate problem, fix=": lambda: calib.calibrate(PROBLEM, fix=("d2",)),
         "calibrate problem, seed=": lambda: calib.calibrate(PROBLEM, seed=3),
+        "cross_validate folds=1": lambda: calib.cross_validate(CHAIN, DATA, folds=1),
+        "cross_validate folds=text": lambda: calib.cross_validate(CHAIN, DATA, folds="5"),
+        "cross_validate folds=array": lambda: calib.cross_validate(CHAIN, DATA, folds=ARRAY),
+        "cross_validate holdout=": lambda: calib.cross_validate(CHAIN, DATA, holdout=0.2),
+        "cross_validate no data": lambda: calib.cross_validate(CHAIN),
+        "cross_validate problem, seed=": lambda: calib.cross_validate(PROBLEM, seed=3),
         # A loaded robot's frames are its own: another base or tool was ignored (the whole
         # chain analysed where the user asked for a shorter one).
         "analyze tool of a loaded chain": lambda: calib.analyze(CHAIN, tool="wrist_2_link"),

@@ -242,3 +242,22 @@ def test_an_outlier_round_whose_refit_stalls_ends_on_the_round_before():
     assert found[0] == "first" and not found[1].any()
     alone = stable_set(lambda keep: "second (stalled)", rule, start)
     assert alone[0] == "second (stalled)"
+
+
+def test_a_registration_stopped_by_its_cap_sets_no_row_aside():
+    """A UR5 measured in pose without noise, one row moved 5 mm (seed 1, its fourth). At
+    ``max_iterations=4`` the registration of every row stops at the cap; before, the outlier
+    loop read that registration's errors, set the row aside and the calibration went on
+    from the refit without it. After, a stalled registration sets no row aside (as the fit's
+    loop): the registration of every row is the last one, refused for its cap with the option
+    to raise. At the default cap it converges and the moved row is set aside."""
+    chain = chain_of("ur5")
+    data = simulate(chain, 30, "pose", noise_mm=0.0, seed=1).measurements
+    position = data.position.copy()
+    position[3] += 0.005
+    data = dataclasses.replace(data, position=position)
+    with pytest.raises(DataError, match="the registration did not converge") as info:
+        calibrate(chain, data, params="complete", max_iterations=4)
+    assert "stopped after 4 residual evaluations, a larger max_iterations" in str(info.value)
+    converged = calibrate(chain, data, params="complete")
+    assert [o.row for o in converged.chains[0].outliers] == [4]  # rows count from 1

@@ -95,6 +95,16 @@ def obs_error(text: str, match: str) -> None:
     assert "\n" not in str(caught.value) and str(caught.value).startswith("o.csv")
 
 
+def test_pixels_with_u_and_v_swapped_are_named_so():
+    """Pixels that fit a 640x480 image only with u and v exchanged: the error says so; a pixel
+    off the image either way does not."""
+    text = OBS.replace("100,200", "200,100").replace("110,210", "470,600")
+    obs_error(text, r"row 3\).*pixel \(470, 600\) is outside.*: u and v swapped")
+    with pytest.raises(DataError, match="outside") as caught:
+        parse_observations(text.replace("200,100", "200,700"), JOINTS, CAMERAS, target(), "o")
+    assert "swapped" not in str(caught.value)
+
+
 @pytest.mark.parametrize(
     ("text", "match"),
     [

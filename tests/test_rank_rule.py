@@ -317,3 +317,50 @@ def test_a_chosen_model_meets_the_refusals_rules_at_its_start(ch, measure, noise
                 assert level != "auto" or not chosen, (ch.relations, ch.sigma, r.refusal)
     for level, rank in found:
         assert rank is None, (level, ch.relations, ch.sigma)
+
+
+def _pixels_of(tmp_path: Path, joints, tool, seed: int):
+    """The chain ``joints``/``tool`` and a camera on its base link seeing a board on its tool
+    (40 postures, no noise, the true robot ``seed``'s: ~1 mm / 1 mrad from the nominal), the
+    camera 1.8 m from the tool's mean position, looking at it."""
+    import pinocchio as pin
+    from pixel_setups import INTRINSICS, grid, look_at
+
+    from calib.calibration.pixel_chain import PixelData
+    from calib.calibration.pixel_term import PixelCamera
+    from calib.measurements.pixel_simulation import simulate_pixels
+    from calib.measurements.true_robot import true_robot
+
+    (tmp_path / "chain.urdf").write_text(_urdf(joints, tool))
+    chain = load_chain(tmp_path / "chain.urdf", "base", "t0")
+    true_robot([chain], tmp_path / "true.urdf", seed=seed)
+    truth = load_chain(tmp_path / "true.urdf", "base", "t0")
+    q, data = chain.random_configurations(40, seed), chain.model.createData()
+    tool_at = []
+    for qk in q:
+        pin.framesForwardKinematics(chain.model, data, qk)
+        tool_at.append(data.oMf[chain.model.getFrameId("t0")].translation.copy())
+    at = np.mean(tool_at, axis=0)
+    C, target = look_at(at + np.array([1.6, 0.3, 0.8]), at), grid(4, 3, 0.03)
+    obs = simulate_pixels(truth, "cam", C, INTRINSICS, target, q, seed=seed)
+    return chain, PixelData(PixelCamera("cam", "base", INTRINSICS, None), target, obs)
+
+
+def test_auto_holds_what_stalls_a_pixel_fit_and_a_stalled_pixel_fit_names_it(tmp_path):
+    """Pixels get what touches and measurements got (the same fit, :func:`fit_registered`):
+    the coincident axes seen by a camera, noise-free, stall the fit at its 100 evaluations in
+    the camera's x and ry with j1:theta2. ``complete`` is refused naming that combination where
+    it stopped; ``auto`` holds j1:theta2 with a note, and its fit is accepted."""
+    from calib.calibration.problem import Problem, Term
+
+    chain, data = _pixels_of(tmp_path, COINCIDENT, COINCIDENT_TOOL, 0)
+    term = Term(chain, data)
+    auto, complete = (calibrate(Problem((term,), params=p)) for p in ("auto", "complete"))
+    assert complete.refusal is not None and complete.stalled
+    assert "stopped after 100 residual evaluations" in complete.refusal, complete.refusal
+    where = "; where it stopped, the data cannot separate term1.camera.x and term1.camera.ry"
+    assert where in complete.refusal and "j1:theta2" in complete.refusal, complete.refusal
+    assert auto.accepted and auto.stalled, auto.refusal
+    held = "params 'auto' held j1:theta2 at the nominal value: the fit with it did not converge"
+    assert any(n.startswith(held) for n in auto.notes), auto.notes
+    assert "j1:theta2" not in auto.free

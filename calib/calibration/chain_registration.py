@@ -285,7 +285,11 @@ class Rows:
         return self.at(cast(float, self.opts.orientation_weight))  # weighted: a number
 
     def set_aside(self, state: Fit) -> Aside[Measurements, Fit]:
-        """The registration without the outlier rows, until stable (:mod:`.outliers`)."""
+        """The registration without the outlier rows, until stable (:mod:`.outliers`).
+
+        A registration stopped by the evaluation cap sets no row aside (its errors are not
+        the data's): the last converged one's set stays, or none.
+        """
         nominal, data, guess, opts = self.nominal, self.rows, self.guess, self.opts
         weight = cast(float, opts.orientation_weight)
 
@@ -305,7 +309,9 @@ class Rows:
             return self.frames is None or self.frames.determined_by(int(np.sum(~bad)))
 
         rows = term_checks.file_lines(data)
-        reg, bad, found = outliers.until_stable(refit, errors, opts.noise, rows, allowed=allowed)
+        reg, bad, found = outliers.until_stable(
+            refit, errors, opts.noise, rows, allowed, lambda reg: reg.converged
+        )
         return Aside(reg, bad, data.subset(~bad) if bad.any() else data, tuple(found))
 
     def diagnose(self, rows: Measurements, state: Fit) -> list[str]:

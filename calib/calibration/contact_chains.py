@@ -41,7 +41,7 @@ from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .chain_registration import MeasuredState
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .contact_chains_result import ChainContacts, ContactChainsCalibration, nothing_fitted
 from .contact_checks import contact_objects, held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
@@ -58,7 +58,7 @@ from .pixel_chain import PixelData, PixelTermState
 from .pixel_chain_result import PixelChain, check_fitted_pixels, pixel_result
 from .problem import check_weighed
 from .selection import Selection
-from .solve import fit, fitted_values, gauss_newton_finish
+from .solve import fit, fitted_values, gauss_newton_finish, unconverged
 
 __all__ = [
     "HOLDS",
@@ -277,7 +277,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         for part in result.chains:
             _check_fitted(part, opts.noise)
     stalled = not all(converged)
-    return dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
+    result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
+    none = nothing_fitted(result, bool(opts.fix))
+    return dataclasses.replace(result, notes=(*result.notes, none)) if none else result
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:
@@ -325,7 +327,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
     cov = solution.covariance()[0]
     values = fitted_values(fitted, cov)
-    stopped = _unconverged(fitted)
+    stopped = unconverged(fitted)
     ranked = polished or not fitted.converged  # a stalled fit's rank is not judged
     rank = None if ranked else contact_checks.rank_refusal(fitted.J, fitted.model.fixed)
     refusal, found = result.refusal or stopped or rank, list[Direction]()
@@ -362,23 +364,6 @@ def _without(model: ChainsModel, prior, selection: Selection, name: str):
     selection = dataclasses.replace(selection, kept=kept, index=index, winner=winner)
     prior = None if prior is None else np.delete(prior, c)
     return model.with_free(free, comp), prior, selection
-
-
-def _unconverged(fitted) -> str | None:
-    """The refusal of a fit that did not converge (None: it converged).
-
-    Stopped by the evaluation cap (status 0), it says so: a fit creeping along a weak
-    valley (nearly parallel or intersecting axes) may finish with more evaluations.
-    """
-    if fitted.converged:
-        return None
-    more = (
-        f": it stopped after {fitted.evaluations} residual evaluations, a larger "
-        "max_iterations (--max-iterations) may let it finish"
-        if fitted.status == 0
-        else ""
-    )
-    return f"the solver did not converge ({fitted.message}){more}"
 
 
 PIN = 1e-6

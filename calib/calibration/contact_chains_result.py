@@ -34,6 +34,7 @@ from .pixel_chain_result import PixelChain
 from .placements import Placements
 from .report import (
     build_report,
+    errors_part,
     fit_dict,
     model_choice,
     one_term,
@@ -45,7 +46,7 @@ from .report import (
 )
 from .selection import Selection
 
-__all__ = ["ChainContacts", "ContactChainsCalibration"]
+__all__ = ["ChainContacts", "ContactChainsCalibration", "nothing_fitted"]
 
 _T = TypeVar("_T")
 
@@ -187,6 +188,8 @@ class ContactChainsCalibration(Result, ChainView):
             overwrites; empty: those the report names.
         stalled: A fit made did not converge (the last, or one ``auto`` held a parameter
             after): the outlier loop reads no outliers from its errors.
+        folds: Cross-validated (:func:`calib.design.folds.cross_validate`): each fold's
+            held-out errors, term by term ``(registration, calibrated)``; empty: not.
     """
 
     chains: tuple[ChainContacts | MeasuredChain | PixelChain, ...]
@@ -209,6 +212,7 @@ class ContactChainsCalibration(Result, ChainView):
     solution: Solution | None = None
     inputs: tuple[tuple[str, str], ...] = ()
     stalled: bool = False
+    folds: tuple[tuple[tuple[GapStats, GapStats], ...], ...] = ()
 
     @property
     def accepted(self) -> bool:
@@ -343,7 +347,7 @@ class ContactChainsCalibration(Result, ChainView):
             fields, legacy = _single_contact_report(self, fields)
         else:
             legacy = self._format2(origins)
-        return build_report(fields, legacy)
+        return _with_folds(build_report(fields, legacy), self.folds)
 
     def _fields(self, origins: dict) -> dict:
         """The report's fields of every shape (``origins``: ``model.joint_origins``)."""
@@ -480,6 +484,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
+        lines += _fold_lines(self.folds)
         lines.append(self._verdict())
         return "\n".join(lines)
 
@@ -531,3 +536,60 @@ class ContactChainsCalibration(Result, ChainView):
             marks = tuple((c.chain, c.state.inner.markers) for c in self._instrument())
             return marker_urdf(robot, errors, marks, None, world)
         return moved_origins_urdf(robot, errors)
+
+
+def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
+    """The note of an accepted fit that moved no joint placement (``frames`` not asked).
+
+    Its URDF (:meth:`~ContactChainsCalibration.urdf`) is the nominal robot's, with only the
+    registered frames a measured term or a camera adds; ``fixed``: ``fix`` named some.
+    """
+    if result.free or result.elastic or result.params == "frames" or not result.accepted:
+        return None
+    auto = result.params == "auto"
+    why = (
+        "params 'auto' kept none (the data support none over the registration alone)"
+        if auto
+        else f"params '{result.params}'{' with fix' if fixed else ''} left none to fit"
+    )
+    frames = []
+    if result._of(MeasuredChain):
+        frames.append("the markers as links on the tool, the measurement frame with world_link")
+    if result._of(PixelChain):
+        frames.append("the cameras' placements")
+    urdf = f"with only the registered frames added ({'; '.join(frames)})" if frames else "as is"
+    hint = (
+        "params='complete' fits every parameter the data determine"
+        if auto
+        else "name fewer parameters in fix"
+        if fixed
+        else "measure postures that determine some"
+    )
+    return (
+        f"no joint placement was fitted: {why}; the URDF written is the nominal robot's {urdf}; "
+        f"if you expected a fit, {hint}"
+    )
+
+
+def _with_folds(report: dict, folds) -> dict:
+    """``report`` with each fold's held-out errors in every ``held_out`` entry (``folds``)."""
+    if not folds:
+        return report
+    errors = report["errors"]
+    for k, term in enumerate(errors["terms"]):
+        term["held_out"]["folds"] = [errors_part(*fold[k]) for fold in folds]
+    held = errors.get("held_out")
+    if held is not None and len(errors["terms"]) == 1:
+        held["folds"] = errors["terms"][0]["held_out"]["folds"]
+    return report
+
+
+def _fold_lines(folds) -> list[str]:
+    """The summary's errors of each fold's held-out rows: weighted RMS [mm], term by term."""
+    if not folds:
+        return []
+    lines = ["held out by fold (weighted RMS [mm], registration only -> calibrated):"]
+    for k, fold in enumerate(folds):
+        cells = [f"{b.weighted_mm:.3f} -> {a.weighted_mm:.3f} ({a.m} rows)" for b, a in fold]
+        lines.append(f"  fold {k + 1}: " + "; ".join(cells))
+    return lines

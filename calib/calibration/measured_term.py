@@ -24,6 +24,7 @@ from .measured_options import marker_guess
 from .model import measured_kind
 from .options import Options
 from .residuals import ResidualStats
+from .solve import unconverged
 from .weighting import DEFAULT_WEIGHT
 
 __all__ = [
@@ -146,9 +147,9 @@ def checked_measured(
     steps = chain_registration.Rows(chain, nominal, data, guess, opts, at, hold=pinned)
     validated = chain_registration.validation_steps(steps, validate)
     registered, notes = term_checks.checked(steps, validated)
-    if not registered.state.converged:
-        message = registered.state.message
-        raise DataError(data.source, f"the registration did not converge ({message})")
+    stopped = unconverged(registered.state, "the registration")
+    if stopped:
+        raise DataError(data.source, stopped)
     reg, kept, kin = registered.state.state.inner, registered.kept, steps.register().kin
     notes = [held_note(pinned, guess), *notes] if pinned else notes
     rows = [*([kept] if kept is data else []), *([] if held is None else [held])]

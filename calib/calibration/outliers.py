@@ -180,17 +180,21 @@ def until_stable(
     noise: float | None,
     rows: tuple[int, ...],
     allowed: Callable[[np.ndarray], bool] | None = None,
+    converged: Callable[[T], bool] | None = None,
 ) -> tuple[T, np.ndarray, list[Outlier]]:
     """Refit without the outliers and test every unit again, until the set stops changing.
 
     ``refit``: the fit of the units a mask keeps; ``errors``: every unit's under a fit (those
     set aside: predicted); ``noise`` [m] or None; ``rows``: each unit's file row. A set that
     ``allowed`` refuses (e.g. a plane left too few touches), or whose refit raises a
-    ``DataError``, leaves the last one in place. Returns the last fit, the mask of the
-    outliers it was fitted without, and the outliers.
+    ``DataError``, leaves the last one in place. A fit that ``converged`` says stopped short
+    proposes none (:func:`stable_set`: the round before, or the first fit with none aside).
+    Returns the last fit, the mask of the outliers it was fitted without, and the outliers.
     """
 
-    def rule(result: T) -> np.ndarray:
+    def rule(result: T) -> np.ndarray | None:
+        if converged is not None and not converged(result):
+            return None
         return find_outliers(errors(result), noise, rows)[0]
 
     result, bad = stable_set(refit, rule, np.zeros(len(rows), dtype=bool), allowed)

@@ -118,7 +118,7 @@ class PixelChain(TermPart):
         rms = self.pixels[worst]["reprojection_rms_px"]
         if not rms > EXPECTED_PX:
             return []
-        fix = "" if self.state.what.intrinsics else " or fit them (--refine-intrinsics)"
+        fix = "" if self.state.what.intrinsics else ", or fit them: Unknowns(intrinsics=True)"
         return [
             f"camera {self.name}: the calibrated reprojection error is {rms:.1f} px RMS "
             f"({worst.replace('_', '-')}), far above a detector's noise (over "
@@ -186,6 +186,8 @@ def check_fitted_pixels(part: PixelChain) -> None:
             part.source,
             f"the pixels do not match camera {part.name} and {part.chain.base_frame} -> "
             f"{part.chain.tool_frame}: the calibrated reprojection error is {after:.4g} px RMS "
-            f"(registered: {before:.4g} px): another camera's images or intrinsics (check the "
-            f"camera's{fix}), another robot's postures, or another target?",
+            f"(registered: {before:.4g} px): the camera on another link than "
+            f"{part.chain.base_frame} (a joint between them left out of its chain), another "
+            f"camera's images or intrinsics (check the camera's{fix}), another robot's "
+            "postures, or another target?",
         )

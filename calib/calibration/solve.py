@@ -21,6 +21,7 @@ __all__ = [
     "fit",
     "fitted_values",
     "gauss_newton_finish",
+    "unconverged",
 ]
 
 TOLERANCE = 1e-10
@@ -88,6 +89,23 @@ class Fit(Generic[_Model, _State]):
     iterations: int
     evaluations: int
     kin: Any = None
+
+
+def unconverged(fitted: Fit, what: str = "the solver") -> str | None:
+    """Why ``what`` (a fit, a registration) did not converge (None: it converged).
+
+    Stopped by the evaluation cap (status 0), it says so: a fit creeping along a weak
+    valley (nearly parallel or intersecting axes) may finish with more evaluations.
+    """
+    if fitted.converged:
+        return None
+    more = (
+        f": it stopped after {fitted.evaluations} residual evaluations, a larger "
+        "max_iterations may let it finish"
+        if fitted.status == 0
+        else ""
+    )
+    return f"{what} did not converge ({fitted.message}){more}"
 
 
 class Problem:

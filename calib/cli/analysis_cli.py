@@ -10,7 +10,7 @@ import dataclasses
 from pathlib import Path
 
 from ..calibration.analysis import analyze
-from ..core.choices import DEFAULT_SET, PARAMETER_SETS
+from ..core.choices import DEFAULT_SET, PARAMETER_SETS, VERDICT_SET
 from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
@@ -341,9 +341,9 @@ def add_sweep_parser(sub) -> None:
     g = p.add_argument_group("parameters and configurations")
     g.add_argument(
         "--params",
-        default="paper",
+        default=VERDICT_SET,
         choices=PARAMETER_SETS,
-        help="set the verdict column judges (default: paper; the complete set reaches the "
+        help=f"set the verdict column judges (default: {VERDICT_SET}; the complete set reaches the "
         "rank on every chain, the counts of both sets are in the table)",
     )
     add_sampling_args(g, "per chain")

@@ -35,6 +35,7 @@ from .common import (
     check_output_paths,
     command_parser,
     compliance_path,
+    cross_validated,
     look_outputs,
     orientation_wanted,
     positive_number,
@@ -44,7 +45,6 @@ from .common import (
 )
 
 __all__ = [
-    "FLAGS",
     "add_calibrate_parser",
     "cmd_calibrate",
     "compliance_path",
@@ -89,36 +89,12 @@ def _columns(args: argparse.Namespace):
     return Columns(args.orientation, cols, args.units, args.points)
 
 
-FLAGS = {
-    "(Columns' orientation_columns)": "(--orientation-columns)",
-    "(the data's position_only())": "(--measure position)",
-    "Unknowns(intrinsics=True)": "--refine-intrinsics",
-    "give its noise (noise_mm)": "give its noise (--noise-mm)",
-}
-"""The ways out the library's messages name by keyword, and the flags calibrate says instead."""
-
-
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate from a CSV; write the calibrated URDF (if it passes every check) and a report.
 
     Every warning raised on the way (the data's, the fit's) is printed as usual and goes into
     the report's ``warnings`` too.
     """
-    try:
-        return _calibrate(args)
-    except (InvalidArgumentError, DataError) as exc:  # the library names the keyword: the flag
-        text = str(exc)
-        if not any(k in text for k in FLAGS):
-            raise
-        for keyword, flag in FLAGS.items():
-            text = text.replace(keyword, flag)
-        if isinstance(exc, InvalidArgumentError):
-            raise InvalidArgumentError(text) from None
-        where = str(DataError(exc.path, "", exc.row, exc.column))  # "PATH (row R): "
-        raise DataError(exc.path, text.removeprefix(where), exc.row, exc.column) from None
-
-
-def _calibrate(args: argparse.Namespace) -> int:
     if Path(args.out).suffix.lower() == ".json":  # the report's suffix: --out and --report swapped?
         raise InvalidArgumentError(
             f"--out {args.out} names the calibrated URDF, not the JSON report (--report): give "
@@ -165,6 +141,24 @@ def _recorded_warnings() -> Iterator[list[warnings.WarningMessage]]:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
+def _chain_options(args: argparse.Namespace) -> dict:
+    """One chain's options of ``calibrate`` (its data and validation data left)."""
+    return {
+        "params": args.params or DEFAULT_LEVEL,
+        "marker": args.marker,
+        "fix": tuple(args.fix),
+        "free": tuple(args.free),
+        "elastic": args.elastic,
+        "loss": args.loss,
+        "noise_mm": args.noise_mm,
+        "orientation_weight": args.orientation_weight,
+        "max_iterations": args.max_iterations,
+        "holdout": args.holdout,
+        "seed": args.seed,
+        "progress": terminal(args.quiet),
+    }
+
+
 def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
     """`calibrate` with one tool."""
     from ..calibration import calibrate  # only this command loads the calibration
@@ -180,32 +174,16 @@ def _calibrate_chain(args: argparse.Namespace, chain: Chain, recorded) -> int:
         {"the nominal URDF": chain.urdf_path, "--data": args.data, "--validate": args.validate},
     )
     data, check = _chain_data(args, chain)
-    result = calibrate(
-        chain,
-        data,
-        params=args.params or DEFAULT_LEVEL,
-        marker=args.marker,
-        validate=check,
-        fix=tuple(args.fix),
-        free=tuple(args.free),
-        elastic=args.elastic,
-        loss=args.loss,
-        noise_mm=args.noise_mm,
-        orientation_weight=args.orientation_weight,
-        max_iterations=args.max_iterations,
-        holdout=args.holdout,
-        seed=args.seed,
-        progress=terminal(args.quiet),
-    )
+
+    options = _chain_options(args)
+
+    def fit(rows: list, held: list | None):
+        return calibrate(chain, rows[0], validate=None if held is None else held[0], **options)
+
+    result = cross_validated(args, fit, [data], None if check is None else [check])
 
     def files() -> dict[Path, str | bytes]:
-        try:
-            urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link, args.on_robot)}
-        except InvalidArgumentError as exc:  # the library names the keyword: say the flag
-            text = str(exc)
-            if not text.startswith("world_link:"):
-                raise
-            raise InvalidArgumentError(f"--world-link{text.removeprefix('world_link')}") from None
+        urdf: dict[Path, str | bytes] = {out: result.urdf(args.world_link, args.on_robot)}
         if result.elastic:
             if comp is None:
                 raise InvalidArgumentError(
@@ -301,16 +279,10 @@ def _check_links(chain: Chain, n_markers: int, world_link: str | None, on_robot:
             raise InvalidArgumentError(
                 "--on-robot and --world-link: the instrument is on the robot or in the world"
             )
-        try:
-            instrument_joint(root, chain)
-        except CalibError as exc:  # the library names the keyword: say the flag
-            raise CalibError(f"--on-robot{str(exc).removeprefix('on_robot')}") from None
+        instrument_joint(root, chain)  # its error names on_robot: the CLI's in_flags
     if world_link is not None:
         check_new_names(root, (world_link,), "--world-link")
-        try:
-            check_base_fixed(chain)
-        except CalibError as exc:  # the library names the keyword: say the flag
-            raise CalibError(f"--world-link{str(exc).removeprefix('world_link')}") from None
+        check_base_fixed(chain)
 
 
 def _calibration_outputs(args: argparse.Namespace, urdf: Path) -> tuple[Path, Path | None]:
@@ -350,15 +322,19 @@ def _calibrate_tree(args: argparse.Namespace, tree: Tree, recorded) -> int:
     if kind is not None and kind.is_position:
         data = data.position_only()
         check = check.position_only() if check is not None else None
-    result = calibrate(
-        tree,
-        data,
-        params=args.params,  # None: the tree's default
-        validate=check,
-        holdout=args.holdout,
-        seed=args.seed,
-        max_iterations=args.max_iterations,
-    )
+
+    def fit(rows: list, held: list | None):
+        return calibrate(
+            tree,
+            rows[0],
+            params=args.params,  # None: the tree's default
+            validate=None if held is None else held[0],
+            holdout=args.holdout,
+            seed=args.seed,
+            max_iterations=args.max_iterations,
+        )
+
+    result = cross_validated(args, fit, [data], None if check is None else [check])
     return write_calibration(
         args,
         result.to_dict(),
@@ -403,6 +379,13 @@ def add_calibrate_parser(sub) -> None:
         help="fraction of the rows set aside for validation (default: 0)",
     )
     g.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    g.add_argument(
+        "--folds",
+        type=int,
+        metavar="K",
+        help="K-fold cross-validation: K contiguous folds of the postures, each held out of a "
+        "fit on the others; the URDF is the fit on every row (not with --holdout, --validate)",
+    )
     g = p.add_argument_group("contacts and several chains (--measure plane|..., --term)")
     contact_cli.add_contact_arguments(g)
     contact_chains_cli.add_chain_arguments(g)

@@ -30,6 +30,7 @@ from .calibrate_cli import add_calibrate_parser
 from .common import GIVEN, Parser, one_line, warning_lines
 from .design_cli import add_design_parser
 from .detect_cli import add_detect_parser
+from .flags import OPTIONS, in_flags
 from .predict_cli import add_predict_parser
 from .simulate_cli import add_simulate_parser
 
@@ -138,8 +139,8 @@ def _run(args: argparse.Namespace) -> int:
             )
         with _sigterm_raises(), _blas_limit(blas_threads()):
             return args.func(args)
-    except CalibError as exc:
-        print(f"calib: error: {one_line(exc)}", file=sys.stderr)
+    except CalibError as exc:  # the library names a way out by its keyword: say the flag
+        print(f"calib: error: {in_flags(one_line(exc), args)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("calib: interrupted", file=sys.stderr)
@@ -228,9 +229,19 @@ def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argpa
     """The arguments; one left over is the command's usage error (``see calib CMD --help``)."""
     args, extra = parser.parse_known_args(argv)
     if extra:
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        sub.choices[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
+        _command(parser, args.command).error(f"unrecognized arguments: {' '.join(extra)}")
     return args
+
+
+def _command(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
+    """The parser of the command ``name``."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[name]
+
+
+def _options(parser: argparse.ArgumentParser, command: str) -> frozenset[str]:
+    """The option strings of ``command`` (``--noise-mm``, ...): the flags :func:`in_flags` says."""
+    return frozenset(_command(parser, command)._option_string_actions)
 
 
 _OUTPUTS = ("out", "csv", "report", "truth", "origins", "intrinsics_out")
@@ -254,6 +265,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except SystemExit as exc:  # usage error (one line already printed), --help, --version
         return exc.code if isinstance(exc.code, int) else 2
     args.given = dict(vars(args).pop(GIVEN, {}))
+    setattr(args, OPTIONS, _options(parser, args.command))
     with (
         warnings.catch_warnings(record=True) as caught,
         _verbose_logging(args.verbose),
@@ -265,7 +277,7 @@ def _main(argv: Sequence[str] | None) -> int:
             code = _run(args)
     sys.stdout.flush()  # the warnings come after the output
     for line in warning_lines(caught):
-        print(line, file=sys.stderr)
+        print(in_flags(line, args), file=sys.stderr)
     return code
 
 

@@ -13,7 +13,7 @@ import json
 import os
 import sys
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import NoReturn
 
@@ -23,6 +23,7 @@ from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE
 from ..core.fileio import check_outputs, json_text, write_files_atomic
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..kinematics.catalog import catalog_files, installed_dirs
+from .flags import in_flags, report_in_flags
 
 __all__ = [
     "APPLIES",
@@ -40,6 +41,7 @@ __all__ = [
     "check_output_paths",
     "command_parser",
     "compliance_path",
+    "cross_validated",
     "given_options",
     "look_outputs",
     "nonnegative_number",
@@ -181,8 +183,24 @@ the shapes it applies to. One given where it does not apply is an error
 (:func:`check_applicable`)."""
 
 
+def cross_validated(args: argparse.Namespace, fit: Callable, data: list, validate: list | None):
+    """``fit(data, validate)``, or with ``--folds K`` its K-fold cross-validation.
+
+    ``fit``: a route's calibration of its terms' data, each with its validation data (a
+    list, or None: none); with ``--folds``, :func:`calib.design.folds.k_fold` calls it K + 1
+    times (``--holdout`` and ``--validate`` refused before: :func:`check_applicable`).
+    """
+    if getattr(args, "folds", None) is None:
+        return fit(data, validate)
+    from ..design.folds import k_fold  # numpy: only when calibrating
+
+    return k_fold(fit, data, args.folds)
+
+
 def check_applicable(args: argparse.Namespace, shape: str) -> None:
     """Refuse an option of :data:`APPLIES` given where it does not apply.
+
+    ``--folds`` with ``--holdout`` or ``--validate`` too: each holds rows out its own way.
 
     Args:
         args: ``calibrate``'s arguments (with ``given``, the options typed).
@@ -191,6 +209,12 @@ def check_applicable(args: argparse.Namespace, shape: str) -> None:
     Raises:
         InvalidArgumentError: The first such option, saying what it is for.
     """
+    folds = given_options(args, ("folds",))
+    held = given_options(args, ("holdout", "validate"))
+    if folds and held:
+        raise InvalidArgumentError(
+            f"{folds[0]} holds every posture out in turn: not with {held[0]}"
+        )
     for dest, shapes in APPLIES.items():
         typed = given_options(args, (dest,))
         if shape in shapes or not typed:
@@ -474,9 +498,9 @@ def write_calibration(
     report = paths[1]
     out = Path(paths[0])  # the report and the compliance file record the URDF's digest
     model: dict = {} if refusal is not None else paired_files(urdf(), out)
-    found = with_warnings(report_dict, recorded)
+    found = report_in_flags(with_warnings(report_dict, recorded), args)  # the flags, not keywords
     doc = json_text(paired_report(found, model[out]) if model else found)
-    _print_out(doc if args.json else text(), end="" if args.json else "\n")
+    _print_out(doc if args.json else in_flags(text(), args), end="" if args.json else "\n")
     files: dict[Path, str | bytes] = {} if report is None else {report: doc}
     if refusal is not None:
         files.update({} if result is None else _look_files(args, result, None))

@@ -11,7 +11,13 @@ from ..core.progress import terminal
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
-from .common import compliance_path, look_outputs, refuse_unused_weight, write_calibration
+from .common import (
+    compliance_path,
+    cross_validated,
+    look_outputs,
+    refuse_unused_weight,
+    write_calibration,
+)
 
 __all__ = ["add_contact_arguments", "calibrate_contacts_command", "check_contact"]
 
@@ -146,17 +152,20 @@ def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support
     """One chain's touches fitted by the joint engine (:mod:`calib.calibration.contact_chains`)."""
     from ..calibration.contact_chains import calibrate_contact_chains
 
-    return calibrate_contact_chains(
-        [chain],
-        [data],
-        contact=args.contact,
-        params=args.params,
-        validate=None if check is None else [check],
-        orientation_weight=weight,
-        max_iterations=args.max_iterations,
-        holdout=args.holdout,
-        seed=args.seed,
-        progress=terminal(args.quiet),
-        elastic=args.elastic,
-        support=support,
-    )
+    def fit(rows: list, held: list | None):
+        return calibrate_contact_chains(
+            [chain],
+            rows,
+            contact=args.contact,
+            params=args.params,
+            validate=held,
+            orientation_weight=weight,
+            max_iterations=args.max_iterations,
+            holdout=args.holdout,
+            seed=args.seed,
+            progress=terminal(args.quiet),
+            elastic=args.elastic,
+            support=support,
+        )
+
+    return cross_validated(args, fit, [data], None if check is None else [check])

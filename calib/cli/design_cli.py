@@ -20,7 +20,7 @@ from ..core.choices import (
     EXCHANGE_CRITERIA,
 )
 from ..core.progress import terminal
-from ..exceptions import InvalidArgumentError, URDFError
+from ..exceptions import InvalidArgumentError
 from .common import (
     BooleanOnce,
     Group,
@@ -95,18 +95,6 @@ def _check_design_options(args: argparse.Namespace) -> None:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
-    from ..design.collision import NO_COLLISION
-
-    try:
-        return _design(args)
-    except URDFError as exc:  # a missing mesh: the library names the keyword, say the flag
-        if NO_COLLISION not in exc.reason:
-            raise
-        raise URDFError(exc.path, exc.reason.replace(NO_COLLISION, "--no-collision")) from None
-
-
-def _design(args: argparse.Namespace) -> int:
-    """:func:`cmd_design`, the library's messages as they are."""
     from ..design.collision import find_srdf
     from ..design.configurations import configurations_csv, read_configurations
     from ..design.constraints import Constraints

@@ -42,6 +42,7 @@ PIXEL_OPTIONS = ("camera", "target", "noise_px", "refine_targets", "refine_intri
 """The options of ``--measure pixels`` alone."""
 
 NOT_PIXELS = (
+    "folds",
     "marker",
     "world_link",
     "on_robot",
@@ -69,9 +70,9 @@ NOT_PIXELS = (
 ``--term pixels NAME TOOL OBS.csv``, without ``--measure``; ``plot`` and ``origins``: not
 yet for pixels): refused, never ignored."""
 
-NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params", "configs_file")
-"""``simulate`` options of the other campaigns, refused with ``--measure pixels`` (its postures
-are random, its robot perturbed in every joint placement, its noise ``--noise-px``)."""
+NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params")
+"""``simulate`` options of the other campaigns, refused with ``--measure pixels`` (its robot
+is perturbed in every joint placement, its noise ``--noise-px``)."""
 
 NOT_PIXELS_ANALYZE = ("marker", "markers")
 """``analyze`` options a count of the cameras' unknowns does not use, refused."""
@@ -145,31 +146,31 @@ def refuse_paper(args: argparse.Namespace) -> None:
         )
 
 
-def _cameras(args: argparse.Namespace, placed: bool, several: bool = False) -> tuple:
-    """The cameras of ``--camera`` (with their placements when ``placed``)."""
+def _cameras(args: argparse.Namespace, several: bool = False) -> tuple:
+    """The cameras of ``--camera`` (their placements None where no numbers are given)."""
     cameras = args.camera or []
     if not cameras or (len(cameras) > 1 and not several):
         raise InvalidArgumentError(
             f"--measure pixels takes {'one or more' if several else 'one'} --camera NAME LINK "
             f"INTRINSICS [X Y Z RX RY RZ], got {len(cameras)}"
         )
-    out = tuple(_camera(values, placed) for values in cameras)
+    out = tuple(_camera(values) for values in cameras)
     names = [c.name for c in out]
     if len(set(names)) != len(names):
         raise InvalidArgumentError("a camera is given twice (--camera NAME ...)")
     return out
 
 
-def _camera(values: list[str], placed: bool):
+def _camera(values: list[str]):
     """One ``--camera NAME LINK INTRINSICS [X Y Z RX RY RZ]``."""
     from ..calibration.pixel_term import PixelCamera
     from ..kinematics.so3 import rpy_to_matrix
     from ..measurements.intrinsics import read_intrinsics
 
-    if len(values) not in (3, 9) or (placed and len(values) != 9):
-        need = "NAME LINK INTRINSICS X Y Z RX RY RZ"
-        need = need if placed else "NAME LINK INTRINSICS [6 numbers]"
-        raise InvalidArgumentError(f"--camera takes {need}, got {len(values)} values")
+    if len(values) not in (3, 9):
+        raise InvalidArgumentError(
+            f"--camera takes NAME LINK INTRINSICS [6 numbers], got {len(values)} values"
+        )
     name, link, path = values[:3]
     placement = None
     if len(values) == 9:
@@ -200,8 +201,12 @@ def _target(args: argparse.Namespace) -> tuple[Target, tuple[str, ...]]:
     return target, links
 
 
-def _views(args: argparse.Namespace, cameras) -> tuple[tuple, Target]:
-    """Each camera with a chain from its link to each of the target's links, and the target."""
+def _views(args: argparse.Namespace, cameras, placed: bool = False) -> tuple[tuple, Target]:
+    """Each camera with a chain from its link to each of the target's links, and the target.
+
+    ``placed`` (simulate, analyze): a camera given without numbers takes the URDF's placement
+    of its link NAME on LINK.
+    """
     from ..kinematics.robot import load_chain
 
     target, links = _target(args)
@@ -212,12 +217,36 @@ def _views(args: argparse.Namespace, cameras) -> tuple[tuple, Target]:
         for camera in cameras
         for link in links
     )
+    if placed:
+        views = tuple((_placed(camera, chain), chain) for camera, chain in views)
     return views, target
+
+
+def _placed(camera, chain):
+    """``camera`` with its placement: its numbers, else the URDF's link NAME on LINK.
+
+    Raises:
+        InvalidArgumentError: No numbers and no URDF link NAME fixed to LINK.
+    """
+    import dataclasses
+
+    from ..kinematics.placement_export import camera_placement
+
+    if camera.placement is not None:
+        return camera
+    placement = camera_placement(chain, camera.name, camera.link)
+    if placement is None:
+        raise InvalidArgumentError(
+            f"--camera {camera.name} {camera.link}: the URDF has no link {camera.name} fixed "
+            f"to {camera.link}: give the camera's placement on {camera.link} "
+            "(X Y Z RX RY RZ after the intrinsics file)"
+        )
+    return dataclasses.replace(camera, placement=placement)
 
 
 def _named(args: argparse.Namespace, name: str):
     """The ``--camera`` named ``name``."""
-    for camera in _cameras(args, placed=False, several=True):
+    for camera in _cameras(args, several=True):
         if camera.name == name:
             return camera
     raise InvalidArgumentError(f"--term pixels {name}: give --camera {name} LINK INTRINSICS")
@@ -266,7 +295,7 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
             "--measure pixels fits what the pixels determine (--params auto), or also the "
             f"target's mounting (--params complete), not --params {args.params}"
         )
-    views, target = _views(args, _cameras(args, placed=False, several=True))
+    views, target = _views(args, _cameras(args, several=True))
     chains = tuple(c for _, c in views)
     outputs = {"--out": args.out, "--report": args.report}
     inputs = {"the URDF": chains[0].urdf_path, "--data": args.data, "--target": args.target}
@@ -311,16 +340,26 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     )
 
 
-def _postures(chains, configs: int, seed: int):
-    """Random postures of every joint of the chains: each chain's draw (the first's wins)."""
+def _postures(chains, configs: int, seed: int, path: str | None = None):
+    """Postures of every joint of the chains, random or read.
+
+    Each chain's random draw (the first's wins), or each chain's columns of the
+    configurations file ``path`` (``calib design``'s).
+    """
     import numpy as np
 
+    from ..design.configurations import read_configurations
+
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
-    q = np.zeros((configs, len(joints)))
+    q = None
     for chain in reversed(chains):
-        q[:, [joints.index(j) for j in chain.joint_names]] = chain.random_configurations(
-            configs, seed
+        drawn = (
+            chain.random_configurations(configs, seed)
+            if path is None
+            else read_configurations(path, chain)
         )
+        q = np.zeros((len(drawn), len(joints))) if q is None else q
+        q[:, [joints.index(j) for j in chain.joint_names]] = drawn
     return joints, q
 
 
@@ -338,18 +377,19 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     from ..measurements.true_robot import true_robot
 
     _refuse(args, NOT_PIXELS_SIMULATE)
-    views, target = _views(args, _cameras(args, placed=True, several=True))
+    views, target = _views(args, _cameras(args, several=True), placed=True)
     cameras, chains = tuple(v[0] for v in views), tuple(v[1] for v in views)
     out = Path(args.out)
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
-    check_output_paths({"--out": out, "--truth": truth_path}, {"the URDF": chains[0].urdf_path})
+    inputs = {"the URDF": chains[0].urdf_path, "--configs-file": args.configs_file}
+    check_output_paths({"--out": out, "--truth": truth_path}, inputs)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "true.urdf"
         truth = true_robot(
             list(chains), path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
         )
         true_chains = [load_chain(str(path), base=c.base_frame, tool=c.tool_frame) for c in chains]
-        joints, q = _postures(chains, args.configs, args.seed)
+        joints, q = _postures(chains, args.configs, args.seed, args.configs_file)
         lenses = [(c.name, c.placement, c.intrinsics) for c in cameras]
         obs = simulate_cameras(
             true_chains, lenses, target, joints, q, noise_px=args.noise_px, seed=args.seed
@@ -367,7 +407,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
     print(
         f"{chains[0].name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
-        f"{args.configs} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
+        f"{len(q)} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
         f"{args.noise_px:g} px -> {out}"
     )
     return 0
@@ -379,7 +419,7 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
 
     _refuse(args, NOT_PIXELS_ANALYZE)
     refuse_paper(args)
-    views, target = _views(args, _cameras(args, placed=True, several=True))
+    views, target = _views(args, _cameras(args, several=True), placed=True)
     chains = tuple(c for _, c in views)
     joints, q = _postures(chains, args.configs, args.seed)
     counted = pixel_count(chains, tuple(c for c, _ in views), target, joints, q, args.params)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..exceptions import DataError
 from .common import check_output_paths, command_parser, write_outputs
 
 __all__ = ["add_predict_parser", "cmd_predict"]
@@ -24,13 +23,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
         {"--out": out},
         {"the URDF": args.urdf, "--compliance": args.compliance, "--configs": args.configs},
     )
-    try:
-        model = load_calibrated(args.urdf, args.compliance, args.tool, args.term)
-    except DataError as exc:  # the library names the keyword: say the flag
-        reason = str(exc).removeprefix(f"{exc.path}: ")
-        if "(term=)" not in reason:
-            raise
-        raise DataError(exc.path, reason.replace("(term=)", "(--term-index)")) from None
+    model = load_calibrated(args.urdf, args.compliance, args.tool, args.term)
     q = read_configurations(args.configs, model.chain)
     readings = read_readings(args.configs, model.readings) if model.readings else None
     write_outputs({out: predictions_csv(model, q, readings)})

@@ -25,6 +25,7 @@ __all__ = [
     "ORIENTATION_FORMATS",
     "PARAMETER_SETS",
     "UNITS",
+    "VERDICT_SET",
     "checked_points",
 ]
 
@@ -43,6 +44,11 @@ DEFAULT_SET = "complete"
 """The parameter set ``analyze``, ``simulate`` and ``design`` default to: the one
 ``calibrate --params auto`` (its default) chooses its parameters from. (``sweep`` prints the
 counts of both sets; its verdict column judges the paper's set by default.)"""
+
+VERDICT_SET = "paper"
+"""The set a sweep's verdict judges by default (``calib sweep --params``, ``calib.sweep``): the
+paper's, since the complete set reaches the rank on every chain (both sets' counts are in every
+row)."""
 
 ORIENTATION_FORMATS = ("quat-xyzw", "quat-wxyz", "rotvec", "rpy")
 """How orientation columns are written: quaternion (scalar last or first), rotation vector

@@ -3,6 +3,7 @@
 :mod:`.observability` scores a set of configurations, :mod:`.exchange` improves it,
 :mod:`.design` drives both under the reachability and collision constraints of
 :mod:`.constraints` and :mod:`.collision`; :mod:`.configurations` reads and writes them.
+:mod:`.folds` scores a campaign's calibration by K-fold cross-validation (K + 1 fits).
 
 The package is callable: ``calib.design(chain, 30, ...)`` is
 :func:`calib.design.design.design` (its signature; ``help(calib.design.design.design)``
@@ -27,6 +28,7 @@ _MODULES = (
     "contact_design",
     "design",
     "exchange",
+    "folds",
     "observability",
     "tree_error_model",
 )

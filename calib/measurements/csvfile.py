@@ -72,6 +72,7 @@ __all__ = [
     "LIMIT_TOL",
     "MAX_COORDINATE",
     "MAX_MEASUREMENTS_BYTES",
+    "NAMED_ORIENTATION",
     "POSITION_COLUMNS",
     "QUATERNION_COLUMNS",
     "TOOL_COLUMN",
@@ -104,6 +105,10 @@ DEFAULT_ORIENTATION_COLUMNS = {
     "rpy": ("roll", "pitch", "yaw"),
 }
 """Column names of each orientation format, in the order the format reads them."""
+
+NAMED_ORIENTATION = ", or name its format and columns"
+"""The last clause of the columns-ignored warning: an orientation read under other names (the
+command line's ``--term`` reads the default names alone, and cuts it)."""
 
 
 CHUNK = 4096
@@ -292,10 +297,11 @@ def _orientation_hint(ignored: list[str]) -> str:
     triple = next((t for n in ignored for t in _axes_of(n) if set(t) <= set(ignored)), ())
     if not triple:
         return ""
+    names = "; ".join(f"{f}: {' '.join(c)}" for f, c in DEFAULT_ORIENTATION_COLUMNS.items())
     return (
-        "; if 3 or 4 of them are an orientation, name its format and columns, e.g. "
-        f"--orientation rpy --orientation-columns {' '.join(triple)} (Python: "
-        f"Columns(FORMAT, COLUMNS); formats: {', '.join(ORIENTATION_FORMATS)})"
+        f"; if 3 or 4 of them are an orientation, rename them as its format reads them ({names})"
+        f"{NAMED_ORIENTATION}, e.g. --orientation rpy --orientation-columns {' '.join(triple)} "
+        f"(Python: Columns(FORMAT, COLUMNS); formats: {', '.join(ORIENTATION_FORMATS)})"
     )
 
 

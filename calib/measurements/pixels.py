@@ -487,11 +487,18 @@ def _check_pixels(obs: PixelObservations, cameras: Mapping[str, Intrinsics]) -> 
         if np.any(outside):
             i = mine[int(np.argmax(outside))]
             u, v = obs.pixels[i]
+            swapped = intr.inside(uv[:, ::-1]).all()
             raise DataError(
                 obs.source,
                 f"pixel ({u:g}, {v:g}) is outside the {intr.width}x{intr.height} image of "
                 f"camera '{name}' (u from -0.5 to {intr.width - 0.5:g}, v from -0.5 to "
-                f"{intr.height - 0.5:g})",
+                f"{intr.height - 0.5:g})"
+                + (
+                    ": u and v swapped (u is the column, v the row), or the intrinsics' "
+                    "image_width and image_height? every pixel fits with them exchanged"
+                    if swapped
+                    else ""
+                ),
                 row=rows[i],
             )
 

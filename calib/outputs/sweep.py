@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.checks import check_count, check_work, shown
+from ..core.choices import DEFAULT_MEASURE, VERDICT_SET
 from ..core.progress import steps
 from ..exceptions import CalibError, InvalidArgumentError, RobotNotFoundError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
@@ -22,6 +23,7 @@ from ..kinematics.tree import load_robot
 
 __all__ = [
     "COLUMNS",
+    "VERDICT_SET",
     "SweepRow",
     "rows_table",
     "rows_to_csv",
@@ -123,12 +125,12 @@ def _sweep_one(
 def sweep(
     robots: Iterable[str] | None = None,
     extra: Sequence[str] = (),
-    measure: str = "pose",
+    measure: str = DEFAULT_MEASURE,
     marker=None,
     configs: int = DEFAULT_CONFIGS,
     seed: int = 0,
     progress: Callable[[Iterable], Iterable] | None = None,
-    params: str = "paper",
+    params: str = VERDICT_SET,
 ) -> list[SweepRow]:
     """Analyse every catalog chain and tree (or the given names) and extra URDF files.
 
@@ -138,14 +140,19 @@ def sweep(
         robots: Catalog names (default: the whole catalog); a URDF file among them is
             analysed as ``extra``'s are.
         extra: URDF paths (default frames) analysed after the catalog.
-        measure: ``pose``, ``position``, rows (``x,y,rz``) or a contact (``plane``,
-            ``plane-point``, ``fixed-point``, ``fixed-pose``; a tree or a chain through mimic
-            joints is then a row with its reason).
+        measure: ``position`` (default: a point measured, as ``calib sweep`` and
+            :func:`~calib.identification.identifiability.analyze`), ``pose``, rows
+            (``x,y,rz``) or a contact (``plane``, ``plane-point``, ``fixed-point``,
+            ``fixed-pose``; a tree or a chain through mimic joints is then a row with its
+            reason).
         marker: Measured point in the tool frame [m].
         configs: Random configurations per chain.
         seed: Seed of the configurations.
         progress: Wraps the iterable of jobs (e.g. a progress bar).
-        params: Set the verdict is about: ``paper`` or ``complete``.
+        params: Set the verdict is about: ``paper`` (default, :data:`VERDICT_SET`, as
+            ``calib sweep``) or ``complete``. Unlike ``analyze``'s default (``complete``): the
+            complete set reaches the rank on every chain, so a verdict on it says nothing;
+            each row has the counts of both sets whatever the verdict's.
 
     Returns:
         One row per chain, in order.

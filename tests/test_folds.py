@@ -1,0 +1,261 @@
+"""``calib calibrate --folds K`` and ``calib.design.folds``: K-fold cross-validation.
+
+The expected figures come from another route: the fold files cut from the CSV's lines by
+hand, each fitted by an explicit ``--validate`` run, the held-out errors pooled here (to
+1e-8: a file read again registers to the solver's tolerance, 2e-10 apart).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calib import Columns, calibrate, cross_validate, load_chain, read_measurements
+from calib.cli.commands import main
+from calib.design.folds import fold_of_rows
+from calib.measurements.contact_campaign import simulate_contacts
+
+UR10 = Path(__file__).resolve().parents[1] / "data" / "realdata" / "ur10"
+CHAIN = [str(UR10 / "ur10_robot.urdf"), "--base", "universe", "--tool", "wrist_3_link"]
+POSE = ["--orientation", "rpy", "--orientation-columns", "phix1", "phiy1", "phiz1"]
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _ur10(pose: bool = True):
+    chain = load_chain(UR10 / "ur10_robot.urdf", "universe", "wrist_3_link")
+    data = read_measurements(
+        UR10 / "calibration.csv", chain, Columns("rpy", ("phix1", "phiy1", "phiz1"))
+    )
+    return chain, data if pose else data.position_only()
+
+
+def test_folds_partition_the_postures_contiguously():
+    """Every posture in one fold, a repeated posture's rows together, folds in file order."""
+    _, data = _ur10()
+    order = np.r_[np.arange(data.m), [3, 3, 10]]  # postures 3 and 10 repeated at the end
+    repeated = data.subset(order)
+    labels = fold_of_rows(repeated, 5)
+    sizes = np.bincount(labels[: data.m], minlength=5)
+    assert sorted(sizes.tolist()) == [4, 4, 5, 5, 5]  # 23 postures: 5, 5, 5, 4, 4
+    assert np.all(np.diff(labels[: data.m]) >= 0)  # contiguous, in order
+    assert labels[-3] == labels[3] and labels[-2] == labels[3] and labels[-1] == labels[10]
+    for k in range(5):  # each posture held out exactly once: its rows in fold k only
+        held = set(order[labels == k].tolist())
+        rest = set(order[labels != k].tolist())
+        assert held and not held & rest
+
+
+def test_touches_fold_within_each_object():
+    """Touches: each object's touches split into the K folds (a repeated touch whole)."""
+    chain = load_chain("ur5")
+    data = simulate_contacts(chain, 30, contacts=2, seed=3).data
+    labels = fold_of_rows(data, 3)
+    ids = np.array(data.ids)
+    for name in data.contacts:
+        own = labels[ids == name]
+        assert set(own.tolist()) == {0, 1, 2} and np.all(np.diff(own) >= 0)
+
+
+def _explicit(tmp_path: Path, capsys, extra: list[str], k: int) -> list[dict]:
+    """The held-out errors of K ``--validate`` runs on the CSV's lines cut by hand."""
+    lines = (UR10 / "calibration.csv").read_text().splitlines()
+    header, rows = lines[0], lines[1:]
+    sizes = [len(rows) // k + (1 if i < len(rows) % k else 0) for i in range(k)]
+    edges = np.r_[0, np.cumsum(sizes)]
+    assert edges[-1] == len(rows)
+    out = []
+    for i in range(k):
+        held = rows[edges[i] : edges[i + 1]]
+        train = rows[: edges[i]] + rows[edges[i + 1] :]
+        (tmp_path / f"train{i}.csv").write_text("\n".join([header, *train]) + "\n")
+        (tmp_path / f"held{i}.csv").write_text("\n".join([header, *held]) + "\n")
+        report = tmp_path / f"r{i}.json"
+        run(
+            capsys,
+            "calibrate",
+            *CHAIN,
+            *extra,
+            "--data",
+            str(tmp_path / f"train{i}.csv"),
+            "--validate",
+            str(tmp_path / f"held{i}.csv"),
+            "--out",
+            str(tmp_path / f"c{i}.urdf"),
+            "--report",
+            str(report),
+        )
+        out.append(json.loads(report.read_text())["errors"]["held_out"])
+    return out
+
+
+def _pool(parts: list[dict], key: str, figure: str) -> float:
+    n = sum(p[key]["configs"] for p in parts)
+    return math.sqrt(sum(p[key]["configs"] * p[key][figure] ** 2 for p in parts) / n)
+
+
+@pytest.mark.parametrize(
+    ("extra", "accepted"),
+    [([*POSE, "--params", "auto"], True), (["--measure", "position", *POSE], False)],
+)
+def test_pooled_errors_are_those_of_k_validate_runs(tmp_path, capsys, extra, accepted):
+    """--folds 5: the pooled held-out errors of five explicit --validate runs, and their verdict.
+
+    Position data at ``auto``: 3.995 mm pooled against the registration's 3.970: refused, no
+    URDF (the held-out rule); each fold alone is no worse, so every --validate run passes.
+    """
+    parts = _explicit(tmp_path, capsys, extra, 5)
+    out, report = tmp_path / "all.urdf", tmp_path / "all.json"
+    code, text, _ = run(
+        capsys,
+        "calibrate",
+        *CHAIN,
+        *extra,
+        "--data",
+        str(UR10 / "calibration.csv"),
+        "--folds",
+        "5",
+        "--out",
+        str(out),
+        "--report",
+        str(report),
+    )
+    doc = json.loads(report.read_text())
+    held = doc["errors"]["held_out"]
+    assert held["source"] == "5 folds" and len(held["folds"]) == 5
+    for key in ("registration", "calibrated"):
+        for figure in ("position_rms_mm", "orientation_rms_deg"):
+            if held[key].get(figure) is None:
+                continue
+            assert held[key][figure] == pytest.approx(_pool(parts, key, figure), rel=1e-8)
+        assert held[key]["position_max_mm"] == pytest.approx(
+            max(p[key]["position_max_mm"] for p in parts), rel=1e-8
+        )
+        assert held[key]["configs"] == 23
+    for fold, part in zip(held["folds"], parts, strict=True):
+        assert fold["calibrated"]["configs"] == part["calibrated"]["configs"]
+    assert doc["accepted"] is accepted and out.exists() is accepted
+    assert (code == 0) is accepted and ("held out (5 folds)" in text)
+    if not accepted:
+        assert "REFUSED: the calibrated model's held-out errors" in text
+
+
+def test_the_model_written_is_the_fit_on_every_row():
+    """The result's estimate is the plain fit's, bit for bit; only its held-out part differs."""
+    chain, data = _ur10()
+    plain = calibrate(chain, data)
+    folded = cross_validate(chain, data, folds=4)
+    assert np.array_equal(plain.estimate, folded.estimate)
+    assert plain.urdf() == folded.urdf()
+    assert plain.validation is None and folded.validation.source == "4 folds"
+    assert folded.validation.calibrated.configs == data.m
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--folds", "1"], "--folds must be in [2, 23]"),
+        (["--folds", "24"], "--folds must be in [2, 23]"),
+        (
+            ["--folds", "5", "--holdout", "0.2"],
+            "--folds holds every posture out in turn: not with --holdout",
+        ),
+        (
+            ["--folds", "5", "--validate", str(UR10 / "calibration.csv")],
+            "--folds holds every posture out in turn: not with --validate",
+        ),
+    ],
+)
+def test_bad_folds_are_one_line_errors(tmp_path, capsys, extra, message):
+    code, _, err = run(
+        capsys,
+        "calibrate",
+        *CHAIN,
+        *POSE,
+        "--data",
+        str(UR10 / "calibration.csv"),
+        *extra,
+        "--out",
+        str(tmp_path / "x.urdf"),
+    )
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.urdf").exists()
+
+
+def test_bad_folds_in_python():
+    chain, data = _ur10()
+    from calib import InvalidArgumentError
+
+    with pytest.raises(InvalidArgumentError, match=r"the number of folds must be in \[2, 23\]"):
+        cross_validate(chain, data, folds=1)
+    with pytest.raises(InvalidArgumentError, match="not with a holdout"):
+        cross_validate(chain, data, folds=3, holdout=0.2)
+    with pytest.raises(InvalidArgumentError, match="not with a holdout"):
+        cross_validate(chain, data, folds=3, validate=data)
+
+
+def _by_hand(labels_of, data, folds: int) -> list[np.ndarray]:
+    """Each fold's rows: ``labels_of(data)`` groups, split in order into ``folds`` runs."""
+    keys = labels_of(data)
+    out = [np.zeros(data.m, dtype=bool) for _ in range(folds)]
+    for key in dict.fromkeys(keys):
+        rows = [i for i in range(data.m) if keys[i] == key]
+        for k, part in enumerate(np.array_split(np.array(rows), folds)):
+            out[k][part] = True
+    return out
+
+
+def _pooled_by_hand(results, what: str) -> float:
+    stats = [r.chains[0].stats[what] for r in results]
+    m = sum(s.m for s in stats)
+    return math.sqrt(sum(s.m * s.weighted_mm**2 for s in stats) / m)
+
+
+def test_touches_pooled_as_explicit_validation_runs():
+    """A chain touching two planes, 3 folds: each plane's touches cut in order by hand."""
+    from calib.calibration.contact_checks import subset
+
+    chain = load_chain("ur5")
+    data = simulate_contacts(chain, 36, contacts=2, seed=4, noise_mrad=0.05).data
+    held = _by_hand(lambda d: list(d.ids), data, 3)
+    runs = [calibrate(chain, subset(data, ~h), validate=subset(data, h)) for h in held]
+    folded = cross_validate(chain, data, folds=3)
+    stats = folded.chains[0].stats
+    for what in ("held_out", "held_out_registration"):
+        assert stats[what].m == data.m
+        assert stats[what].weighted_mm == pytest.approx(_pooled_by_hand(runs, what), rel=1e-9)
+    assert folded.accepted and folded.chains[0].held_source == "3 folds"
+    assert np.array_equal(folded.estimate, calibrate(chain, data).estimate)
+
+
+def test_tree_pooled_as_explicit_validation_runs():
+    """A tree's two tools at each posture: a posture's rows (both tools) in one fold."""
+    from calib import load_robot, simulate_tree
+
+    tree = load_robot("ur5", tool=("wrist_3_link", "forearm_link"))
+    data = simulate_tree(tree, 24, noise_mm=0.05, seed=5).measurements
+    postures = [tuple(r) for r in np.round(data.q, 9)]  # a posture: its joint values
+    order = list(dict.fromkeys(postures))
+    held = [
+        np.array([order.index(p) in set(part.tolist()) for p in postures])
+        for part in np.array_split(np.arange(len(order)), 3)
+    ]
+    assert len(order) == 24 and data.m == 48
+    runs = [calibrate(tree, data.subset(~h), validate=data.subset(h)) for h in held]
+    folded = cross_validate(tree, data, folds=3)
+    for c, part in enumerate(folded.chains):
+        for what in ("held_out", "held_out_registration"):
+            own = [r.chains[c].stats[what] for r in runs]
+            expected = math.sqrt(sum(s.m * s.weighted_mm**2 for s in own) / sum(s.m for s in own))
+            assert part.stats[what].weighted_mm == pytest.approx(expected, rel=1e-9)
+    assert folded.accepted
