@@ -259,3 +259,21 @@ def test_tree_pooled_as_explicit_validation_runs():
             expected = math.sqrt(sum(s.m * s.weighted_mm**2 for s in own) / sum(s.m for s in own))
             assert part.stats[what].weighted_mm == pytest.approx(expected, rel=1e-9)
     assert folded.accepted
+
+
+def test_a_fold_whose_own_fit_is_refused_refuses_the_cross_validation():
+    """UR10 pose, ``complete``, at most 7 residual evaluations: the fit on every row converges
+    and is accepted, but the explicit ``validate`` run of fold 2 (its rows cut by hand) stops
+    at the cap. Its held-out errors are not a fitted model's: before, they were pooled and the
+    cross-validation accepted without a word; now it is refused, naming the fold and why."""
+    chain, data = _ur10()
+    options = {"params": "complete", "max_iterations": 7}
+    assert calibrate(chain, data, **options).accepted
+    held = _by_hand(lambda d: [0] * d.m, data, 5)
+    runs = [calibrate(chain, data.subset(~h), validate=data.subset(h), **options) for h in held]
+    stopped = [k for k, r in enumerate(runs) if "did not converge" in (r.refusal or "")]
+    assert stopped == [1]
+    folded = cross_validate(chain, data, folds=5, **options)
+    assert not folded.accepted
+    assert folded.refusal.startswith("fold 2 of 5: the solver did not converge")
+    assert np.array_equal(folded.estimate, calibrate(chain, data, **options).estimate)
