@@ -16,7 +16,6 @@ fitted by :func:`~calib.calibration.entry.calibrate`.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 from ..core.fileio import check_outputs
@@ -25,13 +24,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from . import pixels_cli
-from .common import (
-    cross_validated,
-    given_options,
-    look_outputs,
-    orientation_wanted,
-    write_calibration,
-)
+from .common import given_options, look_outputs, orientation_wanted, write_calibration
 from .contact_cli import check_contact
 
 __all__ = [
@@ -148,6 +141,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     """
     from ..calibration.entry import calibrate
     from ..calibration.problem import Problem
+    from ..design.folds import cross_validate
 
     asked = _check(args)
     chains = term_chains(args, asked)
@@ -176,19 +170,10 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         raise InvalidArgumentError(
             "--folds holds every posture out in turn: not with a term's validation data"
         )
-
-    def fit(rows: list, held: list | None):
-        given = [None] * len(rows) if held is None else held
-        parts = tuple(
-            dataclasses.replace(t, data=d, validate=v)
-            for t, d, v in zip(problem.terms, rows, given, strict=True)
-        )
-        return calibrate(dataclasses.replace(problem, terms=parts), progress=terminal(args.quiet))
-
     result = (
         calibrate(problem, progress=terminal(args.quiet))  # each term's validation data
         if args.folds is None
-        else cross_validated(args, fit, [t.data for t in problem.terms], None)
+        else cross_validate(problem, folds=args.folds, progress=terminal(args.quiet))
     )
     return write_calibration(
         args,
