@@ -113,7 +113,23 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
     if args.shared_planes and len(terms) < 2:
         raise InvalidArgumentError("--shared-planes is for several terms: give two or more")
     check_contact(args.contact)
+    _refuse_folds(args, terms)
     return terms
+
+
+def _refuse_folds(args: argparse.Namespace, terms: list) -> None:
+    """``--folds`` with a term it cannot fold: a pixels term, or one with its validation file."""
+    if args.folds is None:
+        return
+    if any(kind == "pixels" for kind, *_ in terms):
+        raise InvalidArgumentError(
+            "--folds is not for a pixels term (--term pixels): pixels have no folds yet; hold "
+            "rows out with --holdout, or give the term its validation file"
+        )
+    if any(check is not None for *_, check in terms):
+        raise InvalidArgumentError(
+            "--folds holds every posture out in turn: not with a term's validation data"
+        )
 
 
 def _term(items: list[str], flag: str) -> tuple[str, str, str, str, str | None]:
@@ -166,10 +182,6 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         holdout=args.holdout,
         seed=args.seed,
     )
-    if args.folds is not None and any(t.validate is not None for t in terms):
-        raise InvalidArgumentError(
-            "--folds holds every posture out in turn: not with a term's validation data"
-        )
     result = (
         calibrate(problem, progress=terminal(args.quiet))  # each term's validation data
         if args.folds is None
