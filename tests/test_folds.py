@@ -259,3 +259,49 @@ def test_tree_pooled_as_explicit_validation_runs():
             expected = math.sqrt(sum(s.m * s.weighted_mm**2 for s in own) / sum(s.m for s in own))
             assert part.stats[what].weighted_mm == pytest.approx(expected, rel=1e-9)
     assert folded.accepted
+
+
+def test_a_fold_whose_own_fit_is_refused_refuses_the_cross_validation():
+    """UR10 pose, ``complete``, at most 7 residual evaluations: the fit on every row converges
+    and is accepted, but the explicit ``validate`` run of fold 2 (its rows cut by hand) stops
+    at the cap. Its held-out errors are not a fitted model's: before, they were pooled and the
+    cross-validation accepted without a word; now it is refused, naming the fold and why."""
+    chain, data = _ur10()
+    options = {"params": "complete", "max_iterations": 7}
+    assert calibrate(chain, data, **options).accepted
+    held = _by_hand(lambda d: [0] * d.m, data, 5)
+    runs = [calibrate(chain, data.subset(~h), validate=data.subset(h), **options) for h in held]
+    stopped = [k for k, r in enumerate(runs) if "did not converge" in (r.refusal or "")]
+    assert stopped == [1]
+    folded = cross_validate(chain, data, folds=5, **options)
+    assert not folded.accepted
+    assert folded.refusal.startswith("fold 2 of 5: the solver did not converge")
+    assert np.array_equal(folded.estimate, calibrate(chain, data, **options).estimate)
+
+
+def test_folds_with_a_pixel_term_is_a_command_line_error(tmp_path, capsys):
+    """``--term pixels`` with ``--folds``: pixels have no folds. Before, the files were read
+    and the library's Python words came out (``not PixelData``, ``a holdout fraction``); now
+    one line in the command line's words, before any file is read, as ``--measure pixels``."""
+    from pixel_setups import INTRINSICS, grid
+
+    from calib import simulate, write_measurements
+    from calib.measurements.intrinsics import write_intrinsics
+    from calib.measurements.pixels import write_target
+
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    camera = ["--camera", "cam", "world", str(tmp_path / "intr.yaml")]
+    placed = ["1.6", "0.3", "0.8", "-1.8688", "0", "1.7561"]  # the cameras how-to's
+    target = ["--target", str(tmp_path / "target.csv")]
+    obs, pose = tmp_path / "obs.csv", tmp_path / "pose.csv"
+    argv = ["simulate", "ur5", "--measure", "pixels", *camera, *placed, *target, "--tool"]
+    assert main([*argv, "tool0", "--configs", "30", "--out", str(obs)]) == 0
+    write_measurements(pose, simulate(load_chain("ur5"), 30, "pose", seed=1).measurements)
+    capsys.readouterr()
+    terms = ["--term", "pixels", "cam", "tool0", str(obs), "--term", "pose", "base_link"]
+    argv = ["calibrate", "ur5", *terms, "tool0", str(pose), *camera, *target, "--folds", "3"]
+    code, _, err = run(capsys, *argv, "--out", str(tmp_path / "c.urdf"))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--folds is not for a pixels term" in err and "PixelData" not in err, err
+    assert not (tmp_path / "c.urdf").exists()

@@ -4,6 +4,8 @@ warning of the report (a note), with the option that fits; ``frames`` asked is n
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -75,3 +77,22 @@ def test_auto_choosing_none_on_touches_is_warned_and_its_urdf_is_the_nominal_one
     assert np.abs(got - _tool_placements(str(ur5.urdf_path), q)).max() < 1e-12
     frames = calibrate(ur5, touches, params="frames")
     assert not [n for n in frames.notes if n.startswith(NONE)]
+
+
+def test_calib_calibrate_says_the_flags_in_the_warning(ur5, tmp_path, capsys):
+    """From the command line, the warning names ``--world-link`` (a flag of ``calibrate``) as
+    it names ``--params complete``: not the keywords ``world_link`` and ``params='complete'``."""
+    from calib import write_measurements
+    from calib.cli.commands import main
+
+    data = simulate(ur5, 15, "position", noise_mm=2.0, error_mm=0.0, error_mrad=0.0, seed=1)
+    path, report = tmp_path / "m.csv", tmp_path / "r.json"
+    write_measurements(path, data.measurements)
+    argv = ["calibrate", "ur5", "--data", str(path), "--noise-mm", "2", "--report", str(report)]
+    assert main([*argv, "--out", str(tmp_path / "c.urdf")]) == 0
+    out = capsys.readouterr().out
+    (warned,) = [w for w in json.loads(report.read_text())["warnings"] if w.startswith(NONE)]
+    assert f"note: {warned}" in out
+    assert "the measurement frame with --world-link" in warned
+    assert "--params complete fits" in warned
+    assert "world_link" not in warned and "params='complete'" not in warned, warned

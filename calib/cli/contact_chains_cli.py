@@ -16,7 +16,6 @@ fitted by :func:`~calib.calibration.entry.calibrate`.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 from ..core.fileio import check_outputs
@@ -25,13 +24,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from . import pixels_cli
-from .common import (
-    cross_validated,
-    given_options,
-    look_outputs,
-    orientation_wanted,
-    write_calibration,
-)
+from .common import given_options, look_outputs, orientation_wanted, write_calibration
 from .contact_cli import check_contact
 
 __all__ = [
@@ -120,7 +113,23 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
     if args.shared_planes and len(terms) < 2:
         raise InvalidArgumentError("--shared-planes is for several terms: give two or more")
     check_contact(args.contact)
+    _refuse_folds(args, terms)
     return terms
+
+
+def _refuse_folds(args: argparse.Namespace, terms: list) -> None:
+    """``--folds`` with a term it cannot fold: a pixels term, or one with its validation file."""
+    if args.folds is None:
+        return
+    if any(kind == "pixels" for kind, *_ in terms):
+        raise InvalidArgumentError(
+            "--folds is not for a pixels term (--term pixels): pixels have no folds yet; hold "
+            "rows out with --holdout, or give the term its validation file"
+        )
+    if any(check is not None for *_, check in terms):
+        raise InvalidArgumentError(
+            "--folds holds every posture out in turn: not with a term's validation data"
+        )
 
 
 def _term(items: list[str], flag: str) -> tuple[str, str, str, str, str | None]:
@@ -148,6 +157,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     """
     from ..calibration.entry import calibrate
     from ..calibration.problem import Problem
+    from ..design.folds import cross_validate
 
     asked = _check(args)
     chains = term_chains(args, asked)
@@ -172,23 +182,10 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         holdout=args.holdout,
         seed=args.seed,
     )
-    if args.folds is not None and any(t.validate is not None for t in terms):
-        raise InvalidArgumentError(
-            "--folds holds every posture out in turn: not with a term's validation data"
-        )
-
-    def fit(rows: list, held: list | None):
-        given = [None] * len(rows) if held is None else held
-        parts = tuple(
-            dataclasses.replace(t, data=d, validate=v)
-            for t, d, v in zip(problem.terms, rows, given, strict=True)
-        )
-        return calibrate(dataclasses.replace(problem, terms=parts), progress=terminal(args.quiet))
-
     result = (
         calibrate(problem, progress=terminal(args.quiet))  # each term's validation data
         if args.folds is None
-        else cross_validated(args, fit, [t.data for t in problem.terms], None)
+        else cross_validate(problem, folds=args.folds, progress=terminal(args.quiet))
     )
     return write_calibration(
         args,

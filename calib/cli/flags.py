@@ -29,6 +29,7 @@ FLAGS = {
     "did not see: folds)": "did not see: --folds K)",
     "with fix left none": "with --fix left none",
     "fewer parameters in fix": "fewer parameters in --fix",
+    "the measurement frame with world_link": "the measurement frame with --world-link",
     "world_link: ": "--world-link: ",
     "on_robot: ": "--on-robot: ",
 }

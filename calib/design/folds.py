@@ -7,7 +7,9 @@ and the others fitted with the same options, and pools the held-out errors of th
 (the calibrated model's and the registration's on the same rows). The model delivered is the
 fit on every row; it is refused where the pooled held-out error is worse than the
 registration's (the rule a held-out file's errors obey,
-:func:`~calib.calibration.contact_checks.held_out_refusal`), or for its own reasons.
+:func:`~calib.calibration.contact_checks.held_out_refusal`), where a fold's fit is refused
+for another reason (it stalled: its held-out errors are no fitted model's), or for its own
+reasons.
 
 It is a driver of fits, as :func:`~calib.design.design.evaluate` is a driver of
 information matrices: the calibration's pipeline is run as it is, K + 1 times.
@@ -28,6 +30,7 @@ from ..calibration.contact_result import GapStats
 from ..calibration.entry import calibrate
 from ..calibration.measured_view import MeasuredChain
 from ..calibration.problem import Problem, Term
+from ..calibration.solve import unconverged
 from ..core.checks import shown
 from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
@@ -184,8 +187,9 @@ def cross_validate(
 
     Returns:
         The fit on every row, its held-out errors the pooled ones of the K fits (source
-        ``K folds``, each fold's in the report's ``errors.held_out.folds``) and its refusal
-        that of those errors where the fit is not refused otherwise.
+        ``K folds``, each fold's in the report's ``errors.held_out.folds``) and its refusal:
+        its own, else a fold's fit's other than by its held-out errors (``fold k of K: ...``),
+        else that of the pooled errors.
 
     Raises:
         InvalidArgumentError: ``folds`` out of range, with ``holdout`` or ``validate``, or a
@@ -238,10 +242,29 @@ def _pooled_result(
         parts.append(dataclasses.replace(part, stats=stats, held_source=label, **extra))
         what = "gaps" if isinstance(part, ChainContacts) else "errors"
         refusal = refusal or held_out_refusal(stats, part.chain, what)
+    refused = [_own_refusal(r) for r in runs]
+    first = next((f"fold {k + 1} of {folds}: {r}" for k, r in enumerate(refused) if r), None)
     per_fold = tuple(
         tuple((p.stats["held_out_registration"], p.stats["held_out"]) for p in r.chains)
         for r in runs
     )
     return dataclasses.replace(
-        full, chains=tuple(parts), refusal=full.refusal or refusal, folds=per_fold
+        full, chains=tuple(parts), refusal=full.refusal or first or refusal, folds=per_fold
     )
+
+
+def _own_refusal(run: ContactChainsCalibration) -> str | None:
+    """Why a fold's fit is refused other than by its held-out errors (None: it is not).
+
+    Its held-out rule is the pooled one's business; a fit that stalled, or that its data do
+    not determine, gives held-out errors of no fitted model (a held-out refusal may hide a
+    stall: :func:`~calib.calibration.contact_chains._assessed` names it first).
+    """
+    held = {
+        held_out_refusal(p.stats, p.chain, "gaps" if isinstance(p, ChainContacts) else "errors")
+        for p in run.chains
+        if "held_out" in p.stats
+    }
+    if run.refusal is not None and run.refusal not in held:
+        return run.refusal
+    return None if run.solution is None else unconverged(run.solution.fit)
