@@ -30,6 +30,7 @@ FLAGS = {
     "fewer parameters in fix": "fewer parameters in --fix",
     "world_link: ": "--world-link: ",
     "on_robot: ": "--on-robot: ",
+    "with Columns(units='mm')": "with --units mm",
 }
 """A library text naming a keyword -> the command line's text naming its flag (the first
 ``--`` word of the value is the flag: a command without it keeps the keyword)."""
