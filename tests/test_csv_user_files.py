@@ -12,11 +12,14 @@ import io
 import numpy as np
 import pytest
 
-from calib import Columns, DataError, load_chain, read_measurements, simulate
+from calib import Columns, DataError, Intrinsics, Pinhole, load_chain, read_measurements, simulate
 from calib.cli import main
 from calib.cli.flags import FLAGS
 from calib.design.configurations import read_configurations
+from calib.measurements.contact_campaign import parse_contacts
 from calib.measurements.csvfile import MM_HINT, measurements_csv
+from calib.measurements.detection_files import read_image_joints
+from calib.measurements.pixels import parse_observations, parse_target
 
 
 @pytest.fixture(scope="module")
@@ -112,3 +115,25 @@ def test_coordinates_too_large_even_in_millimetres_are_not_called_millimetres(ur
     with pytest.raises(DataError, match="not a plausible") as info:
         read_measurements(path, ur5, Columns(units="cm"))
     assert str(info.value).endswith(MM_HINT)
+
+
+CAMERAS = {"c": Intrinsics(640, 480, Pinhole(600.0, 600.0, 320.0, 240.0))}
+NOTES = "# notes\n# of the campaign\n"
+"""Two comment lines above the header: the header is row 3."""
+
+
+def test_header_errors_name_the_header_row_below_comment_lines(ur5, tmp_path):
+    """Each reader's header error names the header's row, not row 1 (a comment)."""
+    joints = ",".join(ur5.joint_names[1:])  # the first joint's column missing
+    with pytest.raises(DataError, match=r"row 3\).*no column for joint shoulder_pan_joint"):
+        parse_contacts(f"{NOTES}plane,{joints}\n0,0,0,0,0,0\n", ur5, "plane", "t.csv")
+    with pytest.raises(DataError, match=r"row 3, column 'shoulder_pan_joint'\): missing joint"):
+        parse_observations(
+            f"{NOTES}camera,point,u,v,{joints}\nc,1,1,1,0,0,0,0,0\n", ur5.joint_names, CAMERAS
+        )
+    with pytest.raises(DataError, match=r"row 3, column 'nz'\): missing column"):
+        parse_target(f"{NOTES}point,x,y,z,nx,ny\n1,0,0,0,0,1\n")
+    path = tmp_path / "images.csv"
+    path.write_text(f"{NOTES}{joints}\n0,0,0,0,0\n")
+    with pytest.raises(DataError, match=r"row 3\): no 'image' column"):
+        read_image_joints(path)
