@@ -290,9 +290,8 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
         DataError: A missing column, a bad cell, a point given twice, a zero normal, or a
             target in millimetres, naming the row.
     """
-    names, records, head = _table(
-        _checked_text(text), source, "target points", ["point", *_TARGET_XYZ]
-    )
+    text = _checked_text(text)
+    names, records, head = _table(text, source, "target points", ["point", *_TARGET_XYZ])
     check_size(len(records), MAX_TARGET_POINTS, "target points", source)
     wanted = ["point", *_TARGET_XYZ]
     has_normal = [c in names for c in _NORMAL]
@@ -368,13 +367,12 @@ def _observation_columns(
 ) -> dict[str, int]:
     """Column index of each joint and of camera, point, u, v; DataError for a missing one."""
     keys = column_keys(names, joints)
-    for column in OBSERVATION_COLUMNS:
-        if column not in keys:
-            raise DataError(source, "missing column", row=line, column=column)
-    for joint in joints:
-        if JOINT_PREFIX + joint not in keys:
-            raise DataError(source, "missing joint column", row=line, column=joint)
-    used = {*OBSERVATION_COLUMNS, *(JOINT_PREFIX + j for j in joints)}
+    wanted = [*OBSERVATION_COLUMNS, *(JOINT_PREFIX + j for j in joints)]
+    missing = next((c for c in wanted if c not in keys), None)
+    if missing is not None:
+        what = "missing joint column" if missing.startswith(JOINT_PREFIX) else "missing column"
+        raise DataError(source, what, row=line, column=missing.removeprefix(JOINT_PREFIX))
+    used = set(wanted)
     _warn_ignored(
         [n for n, k in zip(names, keys, strict=True) if k not in used],
         source,
