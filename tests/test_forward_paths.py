@@ -243,3 +243,29 @@ def test_ridge_strengths_with_columns_seen_by_one_configuration():
     }
     assert strength[0] == min(brute, key=lambda t: brute[t].sum())
     assert np.allclose(sq[0], brute[strength[0]], rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_step_that_fits_exactly_has_errors_of_zero_not_below(seed):
+    """Noise-free residuals in the span of the start and one candidate: at the step that adds
+    it every left-out error is zero up to round-off (brute-force refits agree), never below
+    (the rank-one sums gave squares of -1e-17: NaN in the selection's square roots, and the
+    exact step was never kept); every subset keeps it."""
+    rng = np.random.default_rng(seed)
+    m, rows, fixed, cand = 14, 3, 4, 5
+    A = rng.normal(size=(m * rows, fixed + cand))
+    A /= np.linalg.norm(A, axis=0)
+    e = A[:, [0, fixed + 1]] @ np.array([1.0, 0.4])
+    train = np.ones((3, m), dtype=bool)
+    train[1, ::4] = False
+    train[2, [0, 5]] = False
+    out = paths(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)), train)
+    for mask, (order, errors) in zip(train, out, strict=True):
+        k = order.index(fixed + 1) + 1
+        tiny = 1e-12 * errors[0].mean()
+        keep = np.repeat(mask, rows)
+        assert refit_loo(A[keep][:, [*range(fixed), fixed + 1]], e[keep], rows).max() < tiny
+        assert np.all(errors >= 0.0)
+        assert errors[k].max() < tiny
+        with np.errstate(invalid="raise"):
+            assert best_prefix(errors) >= k

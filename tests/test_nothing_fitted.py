@@ -40,7 +40,7 @@ def test_auto_choosing_none_on_a_chain_is_warned_and_its_urdf_is_the_nominal_one
     assert r.accepted and not r.free
     warned = [n for n in r.to_dict()["warnings"] if n.startswith(NONE)]
     assert len(warned) == 1, r.notes
-    assert "params='complete' fits" in warned[0]
+    assert "params='complete' fits" in warned[0] and "more or more varied postures" in warned[0]
     assert "the markers as links on the tool" in warned[0]
     q = ur5.random_configurations(5, 3)
     written = r.urdf().decode()

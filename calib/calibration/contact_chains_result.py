@@ -559,7 +559,9 @@ def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
         frames.append("the cameras' placements")
     urdf = f"with only the registered frames added ({'; '.join(frames)})" if frames else "as is"
     hint = (
-        "params='complete' fits every parameter the data determine"
+        "measure more or more varied postures (auto keeps what held-out errors support); "
+        "params='complete' fits every parameter the data determine, noise included (check it "
+        "on rows it did not see: folds)"
         if auto
         else "name fewer parameters in fix"
         if fixed

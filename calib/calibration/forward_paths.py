@@ -253,7 +253,7 @@ class _Batch:
         ``stuck``: some subset's candidate has an infinite total (else every configuration's
         error is finite).
         """
-        sq = self.sq[j, self.b]
+        sq = np.maximum(self.sq[j, self.b], 0.0)  # a square: round-off in the sums, not < 0
         if stuck:
             sq[~np.isfinite(sq)] = np.inf
         return sq

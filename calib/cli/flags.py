@@ -26,6 +26,7 @@ FLAGS = {
     "(term=)": "(--term-index)",
     "the number of folds must be": "--folds must be",
     "params='complete' fits": "--params complete fits",
+    "did not see: folds)": "did not see: --folds K)",
     "with fix left none": "with --fix left none",
     "fewer parameters in fix": "fewer parameters in --fix",
     "world_link: ": "--world-link: ",
