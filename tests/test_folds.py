@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -305,3 +306,35 @@ def test_folds_with_a_pixel_term_is_a_command_line_error(tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "--folds is not for a pixels term" in err and "PixelData" not in err, err
     assert not (tmp_path / "c.urdf").exists()
+
+
+def test_five_postures_in_five_folds_leave_no_nan_in_the_selection(monkeypatch):
+    """The UR10's postures 11 to 15, 5 folds: each fold's fit of 4 postures chooses its
+    parameters by leave-one-out errors, some infinite (a posture the others cannot predict).
+    Multiplied by 0 off the subset's postures, they were NaN and printed numpy's "invalid
+    value encountered in multiply"; a squared error is >= 0 or inf, 0 off the subset."""
+    from calib.calibration import selection
+
+    chain, data = _ur10()
+    data = data.subset(np.arange(10, 15))
+    batches, raw = [], []
+    ridge_batch, ridge_errors = selection._ridge_batch, selection._ridge_errors
+
+    def spy(A, e, rows, fixed, train, cols, objects=None):
+        batches.append((train, *ridge_batch(A, e, rows, fixed, train, cols, objects)))
+        return batches[-1][1:]
+
+    def errors(*args):
+        raw.append(ridge_errors(*args))
+        return raw[-1]
+
+    monkeypatch.setattr(selection, "_ridge_errors", errors)
+    monkeypatch.setattr(selection, "_ridge_batch", spy)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cross_validate(chain, data, folds=5)
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert any(np.isinf(sq).any() for sq in raw)  # the case is met
+    for train, sq, _ in batches:
+        assert not np.isnan(sq).any() and np.all(sq >= 0)
+        assert np.all(sq[~train] == 0)

@@ -208,7 +208,7 @@ def _ridge_batch(A, e, rows, fixed, train, cols, objects=None) -> tuple[np.ndarr
     s2 = np.broadcast_to(sv[:, None, :] ** 2, (b, len(strengths), width))
     with np.errstate(invalid="ignore"):  # 0 / 0 where a column is dependent, as it should
         wt = np.divide(s2, s2 + strengths[:, None], out=np.zeros(s2.shape), where=real[:, None])
-    sq = _ridge_errors(Q, U, wt, r, rows, hat) * train[:, None, :]  # held out: round-off only
+    sq = np.where(train[:, None, :], _ridge_errors(Q, U, wt, r, rows, hat), 0.0)  # not inf * 0
     best = np.argmin(np.sum(sq, axis=2), axis=1)
     return sq[np.arange(b), best], strengths[best]
 

@@ -32,6 +32,7 @@ FLAGS = {
     "the measurement frame with world_link": "the measurement frame with --world-link",
     "world_link: ": "--world-link: ",
     "on_robot: ": "--on-robot: ",
+    "with Columns(units='mm')": "with --units mm",
 }
 """A library text naming a keyword -> the command line's text naming its flag (the first
 ``--`` word of the value is the flag: a command without it keeps the keyword)."""

@@ -143,7 +143,9 @@ def _contact(measure) -> Contact:
     return kind
 
 
-def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> dict[str, int]:
+def _checked_header(
+    cells: list[str], chain: Chain, kind: Contact, src: str, line: int
+) -> dict[str, int]:
     """Column index of the id and of every chain joint; DataError for a wrong layout.
 
     Joint columns are read as in every calib file (``joint:NAME`` for a joint named like the
@@ -160,25 +162,27 @@ def _checked_header(cells: list[str], chain: Chain, kind: Contact, src: str) -> 
                 src,
                 f"a contact file has no coordinates, found '{key}': the joints alone record a "
                 f"touch",
-                row=1,
+                row=line,
             )
     want = ID_COLUMNS[kind.label]
     other = "point" if want == "plane" else "plane"
     if want not in keys:
         kinds = ", ".join(k for k, c in ID_COLUMNS.items() if c == other)
         hint = f": it names {other}s, for {kinds}" if other in keys else ""
-        raise DataError(src, f"a {kind.label} contact needs a '{want}' column{hint}", row=1)
+        raise DataError(src, f"a {kind.label} contact needs a '{want}' column{hint}", row=line)
     if other in keys:
-        raise DataError(src, f"both 'plane' and 'point' columns for a {kind.label} contact", row=1)
+        raise DataError(
+            src, f"both 'plane' and 'point' columns for a {kind.label} contact", row=line
+        )
     if len(set(keys)) != len(keys):
-        raise DataError(src, "a column name appears twice", row=1)
+        raise DataError(src, "a column name appears twice", row=line)
     missing = [j for j in chain.joint_names if JOINT_PREFIX + j not in keys]
     if missing:
         raise DataError(
             src,
             f"no column for joint {missing[0]} of the chain {chain.base_frame} -> "
             f"{chain.tool_frame} (its base and tool frames choose the joints read)",
-            row=1,
+            row=line,
         )
     index = {k.removeprefix(JOINT_PREFIX): i for i, k in enumerate(keys)}
     off = [k for k in keys if k != want and k.removeprefix(JOINT_PREFIX) not in chain.joint_names]
@@ -218,7 +222,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
     if len(records) == 1:
         raise DataError(source, "no touches after the header")
     check_size(len(records) - 1, MAX_TOUCHES, "touches", source)
-    cols = _checked_header(records[0][1], chain, kind, source)
+    cols = _checked_header(records[0][1], chain, kind, source, records[0][0])
     others = tuple(n for n in cols if n != "id" and n not in chain.joint_names)
     ids, q, rows = [], [], []
     for line, cells in records[1:]:

@@ -38,20 +38,24 @@ def parse_number(cell: str, src: str, line: int, column: str) -> float:
 def _lines(text: str):
     """The lines of ``text``, each with its newline, as ``io.StringIO`` gives them.
 
-    Without its copy of the text (four bytes per character).
+    A comment line (starting with ``#``, after spaces) is given as a blank one: the rows keep
+    their numbers. Without its copy of the text (four bytes per character).
     """
     start = 0
     while start < len(text):
         end = text.find("\n", start) + 1 or len(text)
-        yield text[start:end]
+        yield "\n" if text[start:end].lstrip().startswith("#") else text[start:end]
         start = end
 
 
 def csv_records(text: str, src: str):
-    """(first line, cells) of each non-blank CSV record; malformed CSV names its row.
+    """(first line, cells) of each CSV record but blank and comment lines (malformed: its row).
 
-    A header (the first record) of one cell holding ``;`` or tabs is refused: the file is
-    not comma-separated (every calib CSV: measurements, touches, pixels, configurations).
+    A line starting with ``#`` is a comment (an instrument's export, notes above the
+    header, a row left out), skipped as a blank one. A header (the first record)
+    of one cell holding ``;`` or tabs is refused: the file is not comma-separated (every
+    calib CSV: measurements, touches, pixels, configurations); so is one of numbers only: the
+    column names are not the first line (a header written as a ``#`` comment).
     """
     reader = csv.reader(_lines(text), strict=True)
     start, header = 1, True
@@ -73,8 +77,11 @@ def csv_records(text: str, src: str):
 
 
 def _check_separator(cells: list[str], src: str, line: int) -> None:
-    """Refuse a header of one cell holding ``;`` or tabs: another separator than commas."""
+    """Refuse a header of one cell holding ``;`` or tabs (not commas), or of numbers only."""
     for sep, what in ((";", "';'"), ("\t", "tabs")):
         if len(cells) == 1 and sep in cells[0]:
             why = f"the header has one column containing {what}: write the CSV comma-separated"
             raise DataError(src, why, row=line)
+    if all(NUMBER.fullmatch(c.strip()) for c in cells):
+        why = "the header holds numbers: the columns' names come first (not as a # comment)"
+        raise DataError(src, why, row=line)

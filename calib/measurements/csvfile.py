@@ -147,7 +147,7 @@ class Columns:
                 f"{', '.join(ORIENTATION_FORMATS)}"
             )
         if self.units not in UNITS:
-            raise InvalidArgumentError(f"unknown units '{self.units}': choose m or mm")
+            raise InvalidArgumentError(f"unknown units '{self.units}': choose {', '.join(UNITS)}")
         cols = self.orientation_columns
         if cols is not None:
             if self.orientation in ("auto", MARKERS):
@@ -374,7 +374,7 @@ def parse_measurements(
     check_followers(chain, q, followers, source, lines)
     check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
-    _check_coordinates(position, pos_cols, lines, source)
+    _check_coordinates(position, pos_cols, lines, source, columns.units)
     quat, angles = None, None
     if fmt == MARKERS:
         position, quat = _marker_set(position, source)
@@ -458,15 +458,26 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
     return values  # not reached: a row above is invalid
 
 
-def _check_coordinates(position: np.ndarray, names, lines: list[int], source: str) -> None:
-    """Refuse a measured coordinate beyond :data:`MAX_COORDINATE` [m] (its row and column)."""
+MM_HINT = ": millimetres? read them with Columns(units='mm')"
+"""The way out of coordinates too large in metres: the command line says ``--units mm``."""
+
+
+def _check_coordinates(
+    position: np.ndarray, names, lines: list[int], source: str, units: str
+) -> None:
+    """Refuse a measured coordinate beyond :data:`MAX_COORDINATE` [m] (its row and column).
+
+    Millimetres read as metres or centimetres are named when every coordinate would fit in
+    millimetres (a tracker a few metres away writes thousands).
+    """
     far = np.abs(position) > MAX_COORDINATE
     if np.any(far):
         i, j = (int(v) for v in np.argwhere(far)[0])
+        in_mm = np.max(np.abs(position)) * UNITS["mm"] / UNITS[units] <= MAX_COORDINATE
         raise DataError(
             source,
             f"{position[i, j]:.9g} m is not a plausible measurement (coordinates are within "
-            f"{MAX_COORDINATE:g} m)",
+            f"{MAX_COORDINATE:g} m){MM_HINT if units != 'mm' and in_mm else ''}",
             row=lines[i],
             column=names[j],
         )

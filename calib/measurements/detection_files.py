@@ -84,13 +84,15 @@ def read_image_joints(path: str | Path) -> ImageJoints:
         raise DataError(source, "empty file: expected a header 'image,<joint>,...'")
     names = [c.strip() for c in header[1]]
     if IMAGE_COLUMN not in names:
-        raise DataError(source, f"no '{IMAGE_COLUMN}' column (each row's image file)", row=1)
+        raise DataError(
+            source, f"no '{IMAGE_COLUMN}' column (each row's image file)", row=header[0]
+        )
     if len(set(names)) != len(names) or not all(names):
-        raise DataError(source, "a column is empty or named twice", row=1)
+        raise DataError(source, "a column is empty or named twice", row=header[0])
     col = names.index(IMAGE_COLUMN)
     joints = tuple(n for n in names if n != IMAGE_COLUMN)
     if not joints:
-        raise DataError(source, "no joint column besides 'image'", row=1)
+        raise DataError(source, "no joint column besides 'image'", row=header[0])
     images, q, lines = [], [], []
     for line, cells in records:
         if len(cells) != len(names):

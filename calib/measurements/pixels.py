@@ -241,7 +241,7 @@ def _checked_text(text: object) -> str:
 
 
 def _table(text: str, source: str, what: str, required: Sequence[str]):
-    """The header's names and the other records ``(line, cells)`` of a CSV; checked layout.
+    """The header's names, the other records ``(line, cells)`` and the header's line; checked.
 
     The ``required`` columns are looked for before the rows' cells are counted: another
     file given (an intrinsics YAML for the target) is named by its missing column.
@@ -264,7 +264,7 @@ def _table(text: str, source: str, what: str, required: Sequence[str]):
     for row, cells in records[1:]:
         if len(cells) != len(names):
             raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=row)
-    return names, records[1:]
+    return names, records[1:], line
 
 
 def _text_cell(cells: list[str], j: int, source: str, line: int, column: str) -> str:
@@ -290,7 +290,8 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
         DataError: A missing column, a bad cell, a point given twice, a zero normal, or a
             target in millimetres, naming the row.
     """
-    names, records = _table(_checked_text(text), source, "target points", ["point", *_TARGET_XYZ])
+    text = _checked_text(text)
+    names, records, head = _table(text, source, "target points", ["point", *_TARGET_XYZ])
     check_size(len(records), MAX_TARGET_POINTS, "target points", source)
     wanted = ["point", *_TARGET_XYZ]
     has_normal = [c in names for c in _NORMAL]
@@ -298,7 +299,7 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
         wanted += _NORMAL
     for column in wanted:
         if column not in names:
-            raise DataError(source, "missing column", row=1, column=column)
+            raise DataError(source, "missing column", row=head, column=column)
     has_link = _LINK in names
     _warn_ignored(
         [n for n in names if n not in (*wanted, _LINK)], source, "point, x, y, z, link, nx, ny, nz"
@@ -361,16 +362,17 @@ def read_target(path: str | Path) -> Target:
     return parse_target(read_data_text(path), str(path), str(Path(path).resolve()))
 
 
-def _observation_columns(names: list[str], joints: Sequence[str], source: str) -> dict[str, int]:
+def _observation_columns(
+    names: list[str], joints: Sequence[str], source: str, line: int
+) -> dict[str, int]:
     """Column index of each joint and of camera, point, u, v; DataError for a missing one."""
     keys = column_keys(names, joints)
-    for column in OBSERVATION_COLUMNS:
-        if column not in keys:
-            raise DataError(source, "missing column", row=1, column=column)
-    for joint in joints:
-        if JOINT_PREFIX + joint not in keys:
-            raise DataError(source, "missing joint column", row=1, column=joint)
-    used = {*OBSERVATION_COLUMNS, *(JOINT_PREFIX + j for j in joints)}
+    wanted = [*OBSERVATION_COLUMNS, *(JOINT_PREFIX + j for j in joints)]
+    missing = next((c for c in wanted if c not in keys), None)
+    if missing is not None:
+        what = "missing joint column" if missing.startswith(JOINT_PREFIX) else "missing column"
+        raise DataError(source, what, row=line, column=missing.removeprefix(JOINT_PREFIX))
+    used = set(wanted)
     _warn_ignored(
         [n for n, k in zip(names, keys, strict=True) if k not in used],
         source,
@@ -446,9 +448,9 @@ def parse_observations(
         InvalidArgumentError: Arguments of the wrong kind.
     """
     joint_names = _checked_arguments(joints, cameras, target)
-    names, records = _table(_checked_text(text), source, "observations", OBSERVATION_COLUMNS)
+    names, records, head = _table(_checked_text(text), source, "observations", OBSERVATION_COLUMNS)
     check_size(len(records), MAX_OBSERVATIONS, "observations", source)
-    col = _observation_columns(names, joint_names, source)
+    col = _observation_columns(names, joint_names, source, head)
     numbers = [col[JOINT_PREFIX + j] for j in joint_names] + [col["u"], col["v"]]
     known = _Known(None, "") if target is None else _Known(frozenset(target.point), target.source)
     ids, values, lines = [], [], []
