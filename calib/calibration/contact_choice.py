@@ -48,11 +48,8 @@ __all__ = [
 
 SELECTION_BYTES = (12_000, 330, 130)
 """Peak memory [B] of a contact calibration per touch, per touch and column of the dense
-selection (``params auto``: the contact's and the candidates'), and per touch and object
-column (their rows in the fit's Jacobian, which the report keeps dense), with a margin of
-a few %: fitted to the whole-process peaks of ``calib calibrate`` on TALOS sole to gripper
-(``benchmarks/bench_scale.py``), 20,000 touches of one plane (62 columns to select: 650 MB)
-and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."""
+selection (``params auto``), and per touch and object column.
+Measurements: docs/developers/performance.md#selection_bytes-contact_choice"""
 
 
 def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:

@@ -1,49 +1,11 @@
-"""Model selection: which identifiable parameters the data support.
+"""Model selection (``auto``): which identifiable parameters the data support.
 
-All of it works on the model linearised at the registration (the nominal geometry with the
-fitted measurement frame and markers), whose errors are millimetres: there the fit of any
-subset of parameters is a linear least-squares problem, and its cross-validated error has a
-closed form.
+On the model linearised at the registration: a forward path ordered by the
+leave-one-configuration-out error (block PRESS), a prefix of it kept, shrunk toward the nominal
+model by a ridge prior, guarded by ``OUTER_FOLDS`` folds against selection bias, against the
+complete fit from ``RICH`` equations per parameter; a posture's repeats enter as one.
 
-* **Leave-one-configuration-out error** (block PRESS): with ``H`` the hat matrix of the
-  training rows, the prediction error of configuration i by the fit without it is
-  ``(I - H_ii)^-1 e_i`` (the rows of one configuration leave together). Deterministic and
-  exact for the linear model; for a ridge fit ``H = A (A^T A + L)^-1 A^T``.
-* **Forward selection** (``auto``): starting from the registration (frame and markers, always
-  free), the forward path adds, one at a time, the candidate that lowers the leave-one-out
-  error most, until every candidate is in (each step is a rank-one update of the fit: no
-  refactorisation). The model kept is a prefix of that path: the one of least error (a
-  longer prefix preferred only if it lowers the error of every shorter one by ``MIN_GAIN``,
-  2 %), then the shortest prefix whose error is within one standard error of it (paired
-  over configurations). The whole path matters: parameters often lower the error together
-  while neither does alone (on the TIAGo the error rises at steps 7 to 9, then falls by 3 to
-  5 % at steps 10, 13 and 14), so stopping at the first step that gains less than 2 % stops
-  early. Candidates are the base parameters of the complete set (the identifiable
-  combinations not already carried by the frame and markers) and, only when compliance is
-  asked for (``elastic``), the joint compliances.
-* **Shrinkage**: the kept parameters are then pulled toward the nominal model by a Gaussian
-  prior whose strength (on the unit-norm columns) is chosen by the same leave-one-out error
-  (zero allowed).
-* **Guard** against selection bias: the whole procedure is cross-validated once more, by
-  ``OUTER_FOLDS`` folds (configuration i in fold i mod 10: no random draw); if it predicts
-  the held-out folds no better than the registration alone, the registration is kept.
-* **The complete fit as a candidate**: with at least ``RICH`` equations per parameter of
-  the complete fit, the guard's folds also fit every candidate with a prior strength chosen
-  by each fold's leave-one-out error, and the lower cross-validated error of the two
-  (selection, complete) is delivered. The selection's thresholds (``MIN_GAIN``, one
-  standard error) shrink slower with the number of configurations m than the cost of one
-  more parameter (about noise^2 / m): alone, it kept dropping parameters the data
-  determine. Below ``RICH`` (a fold's error is that of a few postures) the selection is
-  delivered as before. The guard's errors come from the moments of each fold's held-out rows
-  (:func:`~.outer_cv.outer_cv`), the prior strengths in blocks of configurations
-  (:func:`ridge_strengths`): the memory is linear in the data with a small constant.
-* **Postures**: the configurations of one posture (its repeats, ``groups``) enter as one
-  (:func:`_by_posture`), so that its repeats leave together and buy no parameter. Ten
-  folds rather than five: each fold's procedure sees 90 % of the configurations, closer to
-  the final fit (with 80 %, a fold that loses the only postures pinning a parameter down
-  judges the procedure by an extrapolation the final fit does not make). The folds' forward
-  paths run in one batch with the whole data's (:func:`paths`: each fold is the whole
-  problem with its held-out rows zeroed), step by step.
+Rationale and measurements: docs/developers/engine.md#selection
 """
 
 from __future__ import annotations
