@@ -2,9 +2,9 @@
 
 When the registration leaves errors above ``SUSPECT`` [m] RMS (or ``NOISE_FACTOR`` times the
 noise; orientations: ``ORIENTATION_SUSPECT`` [rad]), the data are read again under each usual
-mistake (swapped joint columns, degrees, mm/cm/m, quaternion order, rpy order), and the one
-whose correction explains the data ``EXPLAINS`` times better, also at shuffled postures not,
-is named; a joint column with one value is named first.
+mistake (swapped joint columns, degrees, mm/cm/m, quaternion order, rpy order); the one whose
+correction leaves an RMS ``EXPLAINS`` times lower is named, unless it explains the rows with
+shuffled joint columns as well; a joint column with one value is named first.
 
 Rationale and measurements: docs/developers/engine.md#diagnosis
 """
