@@ -100,8 +100,8 @@ def _count(problem: Problem) -> ProblemAnalysis:
     """
     from ..measurements.data import Measurements
     from .contact_chains import Run, determined_unknowns
+    from .instrument import prepare_tree
     from .options import Options
-    from .tree_checks import prepare_tree
 
     terms = problem.terms
     guesses = [t.guess for t in terms if t.touches and t.guess is not None]

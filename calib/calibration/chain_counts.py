@@ -25,11 +25,8 @@ __all__ = ["GENERIC_EXCESS", "Generic", "assess", "chain_name", "sampled"]
 
 
 GENERIC_EXCESS = 3
-"""Equations per unknown of the generic configurations' Jacobian whose rank is the structure's
-(random configurations within the joint limits, at most ``DEFAULT_CONFIGS`` of them): its
-rank was the same from 20 configurations to 100 on simulated UR5 and Panda campaigns
-(position and pose), the TIAGo's point 1 and 4 points and the UR10's poses at every level
-(1.2 to 12 equations per unknown), and a third of the rows costs a third of the time."""
+"""Equations per unknown of the generic configurations' Jacobian whose rank is the structure's.
+Rationale and measurements: docs/developers/engine.md#generic_excess"""
 
 
 def chain_name(name: str) -> str:

@@ -1,27 +1,11 @@
 """The engine's outlier loop: each term's outliers set aside after each fit, until stable.
 
-The run is registered and fitted; each term's training rows are tested under the fitted
-model with its kind's errors (a contact term: each touch's length and angle gaps,
-:func:`~.contact_checks.length_errors`; a measured term: each row's point and orientation
-errors; a pixel term: each point's reprojection error at the target, floored as its
-registration's, :func:`~.pixel_fit.checked_pixels`), the rule
-(:func:`~.outliers.find_outliers`) applied to each term's rows on its own, and the run
-registered and fitted again without the outliers found, until the set stops changing
-(:func:`~.outliers.stable_set`; each object keeps its ``MIN_TOUCHES``). The held-out rows
-are drawn once, before. Only a fit that converged proposes outliers: a fit that stalled
-(``stalled``: it, or the fit ``auto`` held a parameter after, did not converge) leaves gaps
-where it stopped, or of the parameter held, not of bad rows (noise-free touches had 3 to 5
-set aside), and ends the loop.
+Each term's training rows are tested under the fitted model with its kind's errors
+(:func:`~.outliers.find_outliers` per term), and the run registered and fitted again without
+them until the set stops changing (:func:`~.outliers.stable_set`); a stalled fit ends the loop.
+A measured term's loop starts from a robust fit's :func:`proposals`.
 
-A term's registration sets its outliers aside first, where the geometric errors not yet
-fitted hide some (20 mm among 3.6 mm of them is not five times the median). A contact or
-pixel term's stay aside, and its loop starts from them. A measured term's (one chain or a
-tree's tools measured by an instrument, any measured term among others) are tested again,
-as a chain's calibration always has been (issue 29): its loop starts from the rows a robust
-fit of every identifiable parameter, linearised at the registration, finds outlying
-(outliers that could mask each other: :func:`proposals`), and every row is tested again
-(those set aside: predicted); a run with a measured term records its outliers under the
-last fit.
+Rationale and measurements: docs/developers/engine.md#chain_outliers
 """
 
 from __future__ import annotations

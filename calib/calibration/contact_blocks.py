@@ -1,20 +1,10 @@
 """Linear least squares of contacts with the objects' unknowns eliminated object by object.
 
-The unknowns of contacts are each object's own (a plane's height and tilts, a point's
-position, ...) and shared ones (the contact frame's, the robot's parameters). A touch's rows
-depend on its own object's unknowns and on the shared ones only: the Jacobian is block
-structured, ``[diag(A_k) | B]`` with ``A_k`` the rows of object k's touches. The least
-squares ``min |A x_o + B x_s + r|`` is solved without forming that matrix:
+``min |A x_o + B x_s + r|`` with ``A = diag(A_k)``: per object a QR factor of ``[A_k | B_k |
+r_k]`` (objects grouped by touch count), the shared unknowns from the stacked remainders, each
+object's by back-substitution; linear time and memory, the dense least squares' solution.
 
-1. per object, the QR factor of its rows ``[A_k | B_k | r_k]`` (orthogonal, as a dense QR
-   of the whole system is): ``[[R_k, S_k, y_k], [0, T_k, z_k]]``, the objects grouped by
-   their number of touches (padded with zero rows to a power of two) and factored together;
-2. the shared unknowns from the stacked ``[T_k | z_k]`` of every object
-   (``min |T x_s + z|``, a small dense system: as many columns as shared unknowns);
-3. each object's unknowns by back-substitution, ``x_k = -R_k^-1 (y_k + S_k x_s)``.
-
-Time and memory grow linearly with the touches and the objects (no matrix of touches by
-touches, nor of objects by objects), and the solution is the dense least squares'.
+Rationale and measurements: docs/developers/engine.md#contact_blocks
 """
 
 from __future__ import annotations

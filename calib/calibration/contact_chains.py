@@ -1,24 +1,12 @@
 """Several chains of one robot calibrated together from their touches: shared joints once.
 
-A humanoid's two arms, each calibrated from its foot (``left_sole_link`` to the left
-gripper, ``right_sole_link`` to the right one), share the torso joints. Fitted one at a
-time, each chain gets its own torso, and no single URDF holds both. Fitted together
-(:func:`calibrate_contact_chains`), every URDF joint has one placement error
-(:mod:`.placements`) that every chain through it sees, and the result is one URDF of the
-whole robot. A run is registered (:func:`~.contact_register.register_contact_chains`), its
-model chosen (:mod:`.contact_choice`), fitted (:func:`fit_registered`) and refused where its
-held-out gaps are worse than the registration's; one chain touching alone is a problem of
-one term (:func:`calib.calibrate` routes it here).
+:func:`calibrate_contact_chains`: a run is registered
+(:func:`~.contact_register.register_contact_chains`), its model chosen
+(:mod:`.contact_choice`), fitted (:func:`fit_registered`) and refused where its held-out gaps
+are worse than the registration's. Every URDF joint has one placement error (:mod:`.placements`);
+each chain its own contact frame and objects (unless ``shared_planes``).
 
-Each chain has its own contact frame and, unless ``shared_planes``, its own objects of any
-contact kind: touches recorded on different days see the table from wherever the robot
-stood. A ``fixed-pose`` chain is a closed loop through the robot: TALOS's
-``left_sole_link`` -> ``right_sole_link``, both soles flat on the ground at every touch, is
-one unknown fixed pose of the right sole in the left one's frame
-(:func:`~calib.measurements.contact_loops.read_loop` makes its touches from the recorded
-postures of the plane touches). Its contact frame is the tool frame (only the relative
-placement of pose and contact is seen), and it constrains the joints it shares with the
-plane chains (the legs) together with them.
+Rationale and measurements: docs/developers/engine.md#contact_chains
 """
 
 from __future__ import annotations
@@ -389,27 +377,15 @@ def _fit(
 ):
     """Least squares; at ``complete``, polished from its result.
 
-    The rank test at the nominal robot keeps the parameters that span what the touches
-    see *there*; a robot off the nominal shows a little more (TALOS's arms, mirror images
-    of each other, see one combination of the torso's placements less together than apart
-    at the nominal geometry). A fit from the registration then leaves gaps of the order of
-    the squared errors (1 um for 1 mm and 1 mrad). From the fitted robot, every joint
-    placement component (``wide``, dependent ones included: Levenberg-Marquardt's damping
-    keeps their steps small) is fitted again, the errors composed with the first fit's. The polish
-    is kept only if it removes that residue (the cost falls below ``POLISH_GAIN`` of the
-    fit's): on noisy touches, where it would only fit noise, it is dropped. One chain
-    touching or measured by an instrument is not polished (its MDH directions span what it
-    sees, as the single chain's fit has always assumed; a polish of 20,000 touches took
-    minutes; many objects are fitted by block, :func:`~.contact_fit.block_fit`). ``auto`` (a
-    selection, a prior), ``offsets`` and ``components`` (every component offered) are not
-    polished, nor a fit already exact (RMS row under ``ROUND_OFF``: the undetermined
-    components would only wander), and a polish that wanders to no robot (its chain models
-    refused) is dropped; a robust loss (``opts.loss``, scale ``opts.noise_mm``) is not
-    polished. A kept polish is finished on the data rows alone
-    (:func:`~.solve.gauss_newton_finish`): its pull ``PIN`` leaves a residue (TALOS's head
-    camera with both arms' touches: 1.8e-9 px, 4e-12 px finished). ``kin``: the start's
-    kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None. Returns the fit
-    and whether it was polished.
+    The polish refits every joint placement component (``wide``) from the fitted robot and is
+    kept only if the cost falls below ``POLISH_GAIN`` of the fit's; a kept polish is finished on
+    the data rows alone (:func:`~.solve.gauss_newton_finish`). Not polished: one chain alone,
+    ``auto``, ``offsets``, ``components``, an exact fit (``ROUND_OFF``), a robust loss; a polish
+    whose chain models are refused is dropped.
+    Rationale and measurements: docs/developers/engine.md#_fit
+
+    ``kin``: the start's kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None.
+    Returns the fit and whether it was polished.
     """
     data, iters = train, opts.max_iterations
     if by_block(model, start):

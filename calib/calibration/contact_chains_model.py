@@ -1,24 +1,12 @@
 """The joint fit's error model: terms on several chains of one robot, fitted together.
 
-A state is the robot's joint placement errors (:class:`~.placements.Placements`, one error
-per URDF joint, whatever chains it is on) and each term's state, its MDH model on the robot
-the errors act on: a chain touching (:class:`~.contact_model.ContactState`: its contact frame
-and objects), measured (:class:`~.chain_registration.MeasuredState`) or seen by a camera
-(:class:`~.pixel_chain.PixelTermState`). A fit step moves the errors, not the MDH models: the
-chains' frames come from the placements (:meth:`ChainsState.kinematics`, once per step,
-passed to the residuals and the Jacobian); :meth:`ChainsState.settled` composes the errors
-into the robot and remakes the MDH models.
+A state is the robot's joint placement errors (:class:`~.placements.Placements`) and each
+term's state; a fit step moves the errors (:meth:`ChainsState.kinematics`), and
+:meth:`ChainsState.settled` composes them into the robot. x: each object's unknowns, each
+chain's own, the free placement directions, the first chain's free compliances. Rows: each
+chain's in order, zero-padded to the most rows of a kind.
 
-The parameters x: each object's unknowns (a plane's height and two tilts, a ``fixed-pose``
-chain's pose, e.g. a humanoid's two soles flat on the ground; a measured term's frame; a
-camera term's every unknown), each chain's own (a flush contact's two tilts; a measured
-term's markers and tool rotation), then the free directions of the joint placement errors
-(``<joint>:x`` ... ``:rz``, or MDH parameters as directions) and the first chain's free
-compliances. A plane touched by several chains is one plane (their chains share the base
-frame); each chain has its own contact frame.
-
-The rows: each chain's, in chain order, as a single term's (weighted), padded with zero rows
-to the most rows of a kind in the fit (zero rows change no least-squares solution).
+Rationale and measurements: docs/developers/engine.md#contact_chains_model
 """
 
 from __future__ import annotations

@@ -57,9 +57,8 @@ __all__ = [
 
 
 WEIGHT_ROUNDS = 5
-"""Registrations of the angle weight's estimate (all of them: no tolerance). A 1 % stop, the
-measured chains' (:data:`.weighting.TOLERANCE`), stops after 3 on TALOS's touches, about
-0.1 % short of where the weight settles: held-out heights 0.004 to 0.03 % worse."""
+"""Registrations of the angle weight's estimate (all of them: no tolerance).
+Rationale and measurements: docs/developers/engine.md#weight_rounds"""
 
 
 def subset(data: ContactData, keep: np.ndarray) -> ContactData:
@@ -260,8 +259,8 @@ def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
     ``J``: the data rows' (no prior rows: the data must determine what is fitted);
     ``fixed``: its first columns, not tested (the objects' and contacts' unknowns). The rule:
     unit-norm columns, smallest singular value over ``validation.RANK_TOL`` of the largest
-    (:func:`~.solve.condition`). ``auto``'s candidates pass it by far at the registration
-    (TALOS's arms and head camera: condition 5e3 at most, 24 to 31 at the solution).
+    (:func:`~.solve.condition`).
+    Rationale and measurements: docs/developers/engine.md#rank_refusal
     """
     if condition(J[:, fixed:]) < 1 / validation.RANK_TOL:
         return None

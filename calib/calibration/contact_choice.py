@@ -48,11 +48,8 @@ __all__ = [
 
 SELECTION_BYTES = (12_000, 330, 130)
 """Peak memory [B] of a contact calibration per touch, per touch and column of the dense
-selection (``params auto``: the contact's and the candidates'), and per touch and object
-column (their rows in the fit's Jacobian, which the report keeps dense), with a margin of
-a few %: fitted to the whole-process peaks of ``calib calibrate`` on TALOS sole to gripper
-(``benchmarks/bench_scale.py``), 20,000 touches of one plane (62 columns to select: 650 MB)
-and 2,000 touches of 500 planes (the same 62, and 1,500 of the planes: 438 MB)."""
+selection (``params auto``), and per touch and object column.
+Measurements: docs/developers/performance.md#selection_bytes-contact_choice"""
 
 
 def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
@@ -168,13 +165,10 @@ def _offer_directions(
 def _branch_components(start: ChainsState) -> list[int]:
     """The components of the joints shared by chains and of their neighbours on a path.
 
-    A chain's MDH parameters span what it sees alone: a placement component it leaves out
-    moves its tool as a neighbouring joint's parameter does. Where that neighbour is shared
-    (or the joint is), the other chain tells them apart: two arms touching from their feet
-    determine the tilts of the first leg and arm joints beside the torso, which neither
-    chain's MDH rows hold. Offered before the MDH directions: the rank keeps a basis of these
-    joints' components (after the MDH rows, the few it kept made a basis that a fit off the
-    nominal robot found rank-deficient: TALOS's arms and head camera, condition 1.6e9).
+    Offered before the MDH directions, so that the rank keeps a basis of these joints'
+    components: a placement component one chain leaves out, another chain through a shared
+    joint may tell apart.
+    Rationale and measurements: docs/developers/engine.md#_branch_components
     """
     pl = start.placements
     paths = [list(pl.path(chain).columns) for chain in start.chains]

@@ -1,17 +1,11 @@
 """The fit and the structural check of one chain touching many objects, object by object.
 
-With ``BLOCK_UNKNOWNS`` objects' unknowns or more, the dense least squares of
-:func:`~calib.calibration.solve.fit` and the dense rank test grow as the cube of the objects;
-here the objects' unknowns are eliminated object by object
-(:mod:`~calib.calibration.contact_blocks`), and time grows linearly with the touches:
+From ``BLOCK_UNKNOWNS`` objects' unknowns, with the objects eliminated object by object
+(:mod:`~calib.calibration.contact_blocks`): :func:`block_fit` (MINPACK's Levenberg-Marquardt
+on the same cost, the same minimum) and :func:`block_structural` (the structural rank). Fewer
+objects, and several terms, keep the dense route.
 
-* :func:`block_fit`: MINPACK's Levenberg-Marquardt on the same cost (the weighted gaps and
-  the prior rows; damping ``lambda |D dx|^2``, ``D`` the column norms; Nielsen's update of
-  lambda; MINPACK's tests of convergence at ``TOLERANCE``): the same minimum.
-* :func:`block_structural`: each object's own columns independent (its triangular factor
-  of full rank), then the pivoted QR of the shared columns with the objects eliminated.
-
-Fewer objects, and several terms, keep the dense route.
+Rationale and measurements: docs/developers/engine.md#contact_fit
 """
 
 from __future__ import annotations

@@ -1,27 +1,10 @@
 """Registration of contacts: planes, fixed points and fixed poses on the nominal model.
 
-A touch only says that a contact frame, fixed to the tool, meets an unknown object (named by
-an id; the contact frame is shared by all). Before any robot parameter is fitted, the objects
-and the contact frame are estimated from the nominal tool placements ``(R_t, p_t)`` (the tool
-frame in the chain's base frame), as the registration of measured data estimates the
-instrument's frame. :func:`register_contacts`: the closed form of the kind, then (but for a
-fixed point, whose closed form is the least squares) :func:`refine`, Gauss-Newton on the
-kind's own gap (:class:`~calib.calibration.contact_frames.ContactFrames`) until the step is
-under ``STEP_TOLERANCE``; a plane's origin is then its contact points' centroid projected.
+:func:`register_contacts` estimates the objects and the contact frame from the nominal tool
+placements: each kind's closed form, then (but for a fixed point) :func:`refine`, Gauss-Newton
+on the kind's gap until the step is under ``STEP_TOLERANCE``.
 
-- **plane** (flush; its height and two tilts): with ``M_k = sum R_t^T`` over plane ``k``'s
-  touches, the contact normal ``a`` in the tool frame is the top left singular vector of
-  ``[M_1 ... M_K]`` and ``n_k = M_k^T a / |M_k^T a|`` (the chordal fit of ``R_t^T n_k = a``),
-  or the normal of the contact points when that costs less (touches at one orientation);
-  each height the mean of ``n_k . x_t``. A flush contact sees the planes and its own normal:
-  its offset along that normal regroups with the heights, its ``x``, ``y`` and yaw keep
-  their guess (the gauge); it is tilted about its own ``x`` and ``y`` only.
-- **plane-point** (a tip on a plane; its height): each plane through the tip's points at the
-  guessed tip (the smallest singular vector of the centred points).
-- **fixed point** (``p_t + R_t x - y_k``): the tip ``x`` and the points by linear least
-  squares (``y_k`` the mean of ``p_t + R_t x`` over its touches); the rotation keeps its guess.
-- **fixed pose** (position and rotation vector in ``F_k``): ``F_k`` the mean position and the
-  chordal mean rotation; the contact frame is invisible (only ``F_k C^-1`` is) and kept.
+Rationale and measurements: docs/developers/engine.md#contact_registration
 """
 
 from __future__ import annotations

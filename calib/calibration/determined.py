@@ -1,35 +1,10 @@
 """No silent overfit: the rows must determine the parameters a level fits, or calib refuses.
 
-Before any fit, two counts are compared (chains and trees alike):
+Before the fit: equations against unknowns, and the level's rank at generic configurations
+against the measured ones. After it: the conditioning of the fitted unknowns
+(:func:`ill_posed`, ``ILL_CONDITION``), refused with the posture that separates them best.
 
-1. equations: the residual rows of the fitted data (3 per measured point, 3 more per
-   measured orientation) must outnumber the unknowns, else the fit interpolates the data and
-   its errors say nothing (and the noise cannot be estimated);
-2. rank: the parameters the level fits at *generic* configurations (random ones inside the
-   joint limits, with the same markers and measurements) must all be determined at the
-   *measured* configurations too (the rank of the identification Jacobian W_b there).
-
-A level the rows cannot determine is refused in one line that says how many configurations
-it needs; calib never silently cuts the level down to what the rows can carry.
-
-3. conditioning: after the fit, the unknowns it fitted (frame, markers, contact and objects,
-   robot parameters) must all be determined: a combination of them whose singular value (of
-   the unit-norm columns of the Jacobian at the solution) is under ``1 / ILL_CONDITION``
-   times the largest (:func:`ill_posed`) has an arbitrary fitted value, metres where the
-   data cannot tell (a total station's prism offset along a tool that always points up and
-   the instrument frame's height are one sum). The model is then refused, the sentence names
-   the unknowns, their combination, its condition and their standard deviations, and the
-   posture among random ones within the joint limits that separates them best
-   (:func:`separating_posture`). What no posture separates is the robot's structure, not a
-   weak data set: a marker's offset along a tool direction that never turns (a gantry's,
-   :func:`still_axes`) is held at its given value before the registration, not refused.
-
-What a chain's instrument determines with K markers (``calib analyze --markers``,
-:func:`~calib.design.observability.identifiable_parameters`, the columns of
-:func:`generic_jacobian` :func:`determined_columns` keeps): the measurement frame (6), the
-markers (3 each; and the measured frame's rotation, 3, for pose data) first; then the base
-parameters of the complete set that they do not already carry, in the paper's order of
-preference.
+Rationale and measurements: docs/developers/engine.md#determined
 """
 
 from __future__ import annotations
@@ -141,22 +116,18 @@ def check_rank(
 
 SELECTION_WORK = 4e9
 """Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
-is run on (its forward paths cost about this). Measured on one core under a load of 8 to 12
-on 2 cores (benchmarks/bench_selection_memory.py): a UR5's 10,000 positions (3.9e8) take 3.5
-to 18 s, its 10,000 poses (1.1e9) 22 s, its 100,000 positions (3.9e9) 118 s. Before issue 30
-(1.2e9; QR factorisations per fold) 20,000 positions took 45 s. A larger campaign is chosen
-on a sample of its configurations (:data:`SAMPLE_WORK`, :func:`selection_configurations`)."""
+is run on; a larger campaign is chosen on a sample (:data:`SAMPLE_WORK`,
+:func:`selection_configurations`).
+Measurements: docs/developers/performance.md#selection_work-determined"""
 
 SAMPLE_WORK = 1e9
-"""The work of the sample a campaign beyond :data:`SELECTION_WORK` is chosen on: that of a
-UR5's 10,000 poses (about 1e9; 6 s on one core at a load of 2), some thousand equations per
-selection column. A sample sized to the bound itself (41,000 of 100,000 UR5 poses) took 32 s
-of the selection at a load of 4, and the fit on every row 20 s more."""
+"""The work of the sample a campaign beyond :data:`SELECTION_WORK` is chosen on.
+Measurements: docs/developers/performance.md#sample_work-determined"""
 
 SAMPLE_EQUATIONS = 200
 """Fewest equations per selection column (frame, markers and candidates) a sample of the
-configurations must keep for the selection to choose on it: its cross-validated choice is
-stable when they are in the hundreds (a UR5's 100,000 poses keep about 6,000)."""
+configurations must keep for the selection to choose on it.
+Measurements: docs/developers/performance.md#sample_equations-determined"""
 
 
 def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> int:
@@ -187,8 +158,8 @@ def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> 
 
 ILL_CONDITION = 1e3
 """Singular value, relative to the largest, of the unit-norm columns of the fitted unknowns
-under which a direction of them is undetermined (campaigns that determine their unknowns
-give a condition of 10 to 300: the TIAGo's and UR10's, simulated UR5s)."""
+under which a direction of them is undetermined.
+Rationale and measurements: docs/developers/engine.md#ill_condition"""
 
 NAMED = 0.3
 """Smallest component, in an undetermined unit direction, of an unknown it names."""

@@ -1,33 +1,12 @@
 """Likely causes of data that no calibration can fit: the usual mistakes, each tried.
 
-When the registration (nominal model, fitted measurement frame and markers) leaves errors far
-above what a robot's geometric errors can cause (``SUSPECT`` [m] RMS, or ``NOISE_FACTOR``
-times the instrument noise), the data are read again under each usual mistake, registered,
-and the mistake whose correction explains the data (RMS ``EXPLAINS`` times lower and under
-``SUSPECT``) is named:
+When the registration leaves errors above ``SUSPECT`` [m] RMS (or ``NOISE_FACTOR`` times the
+noise; orientations: ``ORIENTATION_SUSPECT`` [rad]), the data are read again under each usual
+mistake (swapped joint columns, degrees, mm/cm/m, quaternion order, rpy order); the one whose
+correction leaves an RMS ``EXPLAINS`` times lower is named, unless it explains the rows with
+shuffled joint columns as well; a joint column with one value is named first.
 
-* two joint columns swapped (every pair);
-* joint positions in degrees instead of radians;
-* positions in millimetres or centimetres instead of metres, or metres read as millimetres
-  (``units mm``);
-* quaternions written scalar first (w, x, y, z) in scalar-last columns, or the reverse.
-
-Orientations are diagnosed the same way on the registration's orientation error
-(``ORIENTATION_SUSPECT`` [rad] RMS): the quaternion orders, angles (rpy or rotation vector)
-in degrees instead of radians, and rpy columns holding yaw, pitch, roll (or the rotations
-composed x, y, z instead of URDF's z, y, x).
-
-Joint columns that hold one value in every row are named first (a joint not logged): no
-unit or order mistake is looked for then.
-
-A mistake is named only where its correction fits well at many distinct postures: dividing
-the joints by 57.3 brings every row to nearly one posture, where any frame or plane fits (one
-wild reading, two tables under one id, another arm's file would all "look like degrees").
-So the correction is applied to the rows with each joint column shuffled across them too
-(seeded): a correction that explains those as well (their RMS under ``EXPLAINS`` times its
-own) explains nothing about the postures, and is not named. The outliers are set aside before
-any diagnosis (:mod:`calib.calibration.outliers`), so one bad row is not a mistake of the
-whole file.
+Rationale and measurements: docs/developers/engine.md#diagnosis
 """
 
 from __future__ import annotations

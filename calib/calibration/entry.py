@@ -6,13 +6,11 @@ is the problem of one term. Every shape is fitted by the one joint engine
 terms): one chain measured by an instrument (:func:`measured_chain`), one chain touching
 (any contact kind, any number of objects, joint compliance included), several terms, and a
 tree measured by one instrument (one measured term per tool sharing the instrument's frame:
-:mod:`~.instrument`, :mod:`~.tree_checks`).
-Each takes the
-steps of every calibration: prepare (checks, held-out rows, validation data that are the
-training data refused), register, set outliers aside, diagnose usual mistakes, choose the
-parameters, fit, assess (a model worse than its start on held-out data is refused) and
-deliver a result with ``summary()``, ``to_dict()`` (report format 3), ``urdf()`` and
-``write()``.
+:mod:`~.instrument`). Each takes the steps of every calibration: prepare (checks, held-out
+rows, validation data that are the training data refused), register, set outliers aside,
+diagnose usual mistakes, choose the parameters, fit, assess (a model worse than its start on
+held-out data is refused) and deliver a result with ``summary()``, ``to_dict()`` (report
+format 3), ``urdf()`` and ``write()``.
 """
 
 from __future__ import annotations
@@ -39,6 +37,7 @@ from .contact_chains import (
 )
 from .contact_chains_result import ContactChainsCalibration
 from .delivery import read_files
+from .instrument import prepare_tree
 from .measured_term import check_measured
 from .options import (
     DEFAULT_MAX_ITERATIONS,
@@ -48,7 +47,6 @@ from .options import (
     options_given,
 )
 from .problem import Problem, Term
-from .tree_checks import prepare_tree
 from .validation import split
 
 __all__ = ["calibrate", "calibrate_contacts", "calibrate_tree", "measured_chain"]

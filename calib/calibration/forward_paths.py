@@ -1,23 +1,10 @@
 """Forward paths of the selection (:mod:`calib.calibration.selection`), batched over subsets.
 
-The path of a set of configurations adds, one at a time, the candidate column whose
-leave-one-configuration-out error (block PRESS: ``(I - H_ii)^-1 r_i``) is least, until every
-candidate is in. :func:`paths` runs the paths of several subsets of the configurations at once
-(the selection's whole data and its guard's folds): a subset is the whole problem with the
-rows of its other configurations zeroed, which changes neither its fit nor the hat blocks of
-its own configurations, so a step of every path is one set of array operations.
+:func:`paths` runs the paths of several subsets of the configurations at once (a subset is the
+whole problem with its other rows zeroed), each step by rank-one updates of the
+leave-one-configuration-out sums.
 
-Each subset's fit is kept as its residuals ``r``, its hat blocks ``H_i`` and their
-``M_i = (I - H_i)^-1``; the candidates are kept orthogonal to it (``c``, unit ``q = c/|c|``).
-Adding the unit column q (coefficient ``q^T r``) changes configuration i's left-out error to
-``v_i + a_i (q_i^T v_i - q^T r) / (1 - q_i^T a_i)`` (``v = M r``, ``a = M q``: Sherman-Morrison).
-Its square needs four sums per configuration and candidate: ``G = c^T M c``, ``T = c^T M r``,
-``K = |M c|^2`` and ``L = (M c)^T (M r)``. They are computed afresh once, then follow each
-step by rank-one updates (the column added changes c, r and M by rank one): a step reads the
-candidates twice (two dot products per configuration), not through a product by every
-``M_i``. A candidate's sums are computed afresh when its norm falls by more than ``SHRINK``
-(an update's round-off is relative to the norm before it), and all of them when the ``M_i``
-are.
+Rationale and measurements: docs/developers/engine.md#forward_paths
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
 """Hand-eye calibration from pixels, the robot's joint geometry taken as exact.
 
-OpenCV's ``cv2.calibrateHandEye`` problem (``AX = XB``: eye-in-hand or eye-to-hand), solved
-by minimising every corner's reprojection error: only the camera's placement on its link (6)
-and the target's mounting on its link (6) are unknown, the joints nominal (issue 32's
-"hand-eye alone"; :func:`calib.calibrate` of a pixel term fits them too). It is the joint
-engine's problem of one pixel term (:mod:`.pixel_chain`, its steps) with the mounting an
-unknown, at the level ``frames`` (:func:`~.contact_chains.calibrate_contact_chains`).
+OpenCV's ``cv2.calibrateHandEye`` problem (``AX = XB``) by every corner's reprojection error:
+the camera's placement on its link (6) and the target's mounting on its link (6) unknown, the
+joint engine's problem of one pixel term at the level ``frames``.
+
+Rationale and measurements: docs/developers/engine.md#hand_eye
 """
 
 from __future__ import annotations

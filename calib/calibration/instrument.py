@@ -5,8 +5,10 @@ tracker; the CSV's ``tool`` column says which tool) is a problem of the joint en
 (:func:`~.contact_chains.calibrate_contact_chains` with ``instrument=True``): one measured term
 (:mod:`.measured_term`) per tool, sharing the joint placements of the joints they run through
 and the instrument's frame (:func:`~.contact_checks.plane_groups`, :func:`shared_frame`). Here:
-the rows cut by tool, the shared frame's registration, and the report's errors of every tool
-together.
+the rows cut by tool, the checks of the tree's rows as a whole before the joint fit (each
+tool's rows get a single chain's checks in it: :func:`prepare_tree`, on the closed-form
+registration of the nominal tree), the shared frame's registration, and the report's errors of
+every tool together.
 """
 
 from __future__ import annotations
@@ -16,11 +18,15 @@ import dataclasses
 import numpy as np
 
 from ..exceptions import DataError
+from ..identification.measures import POSITION
+from ..kinematics.mdh import from_chain
 from ..kinematics.tree import Tree
 from ..kinematics.urdf_links import marker_link_names
 from ..measurements.data import Measurements
 from ..measurements.limits import check_against_chain
+from . import determined, diagnosis, validation
 from .chain_registration import MeasuredState
+from .model import nominal_state
 from .registration import register_points
 from .report import URDF_ALONE, pose_dict, term_errors
 from .residuals import ResidualStats
@@ -31,6 +37,7 @@ __all__ = [
     "instrument_format2",
     "instrument_lines",
     "pooled",
+    "prepare_tree",
     "shared_frame",
     "tool_parts",
     "tree_points",
@@ -189,3 +196,74 @@ def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
         [c.state.inner.predict(q[:, path])[0][:, 0] for c, path in zip(parts, paths, strict=True)],
         axis=1,
     )
+
+
+def prepare_tree(
+    tree: Tree, data: Measurements, validate: Measurements | None, holdout: float, seed: int
+):
+    """Check a tree's rows as a whole; each tool's rows and held-out rows.
+
+    Enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
+    validation rows that are training rows refused; usual mistakes across the branches (two
+    joints of different tools' chains swapped, degrees, millimetres: :func:`~.diagnosis.explain`)
+    in the data and the validation rows; validation rows measured in another frame.
+
+    The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
+    together (:func:`~.validation.split`), as the validation rows are given. Returns each
+    tool's rows and held-out rows (None: none, or a tool without held-out rows).
+
+    Raises:
+        DataError: Rows of other joints, pose or several-point rows, a tool no row measures,
+            too few rows, a usual mistake (named), validation rows that are training rows or
+            measured in another frame (validation rows with a holdout fraction: refused
+            by :class:`~.problem.Problem` before).
+    """
+    tool_parts(tree, data)
+    out = round(holdout * data.m)
+    unknowns = 6 + 3 * tree.n_tools
+    what = determined.FRAMES  # one tool's point a row: no MeasuredKind's rows
+    determined.check_equations(data.m - out, 3, unknowns, what, data.source, held=out, unit="rows")
+    nominal = [  # every tool's chain on the nominal tree, its marker at its flange
+        MeasuredState(nominal_state(from_chain(c), np.zeros((1, 3)), POSITION), 1.0, True)
+        for c in tree.chains
+    ]
+    if validate is not None:  # with a holdout too: refused by Problem
+        validation.check_held_out(data, validate)
+        if set(validate.tools) == set(tree.tool_frames) and 3 * validate.m > unknowns:
+            _diagnosed(tree, nominal, validate)
+    reg, fitted = _diagnosed(tree, nominal, data)
+    if validate is not None:
+        other = _stats(reg, by_tool(tree, validate))
+        validation.check_held_out_errors(fitted.position_rms, other.position_rms, validate.source)
+    train, held = (
+        (data, validate) if validate is not None else validation.split(data, holdout, seed)
+    )
+    return tool_parts(tree, train), tool_parts(tree, held, every=False)
+
+
+def _stats(states: list[MeasuredState], parts: list[Measurements | None]) -> ResidualStats:
+    """The registration's errors on every tool's rows."""
+    rows = [s.residuals(p) for s, p in zip(states, parts, strict=True) if p is not None]
+    return ResidualStats.of(np.concatenate(rows))
+
+
+_WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, centimetres")
+
+
+def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:
+    """``data`` registered on the ``nominal`` tree (:func:`shared_frame`), its errors.
+
+    A DataError names the usual mistake that explains the registration's error, if one does.
+    """
+
+    def registered(d: Measurements) -> tuple[list, ResidualStats]:
+        parts = by_tool(tree, d)
+        states = shared_frame(nominal, parts)
+        return states, _stats(states, parts)
+
+    reg, first = registered(data)
+    rms = lambda d: registered(d)[1].position_rms  # [m]  # noqa: E731
+    diagnosis.explain(
+        data, tree.sigma == 0, rms, first.position_rms, None, _WORDS, joints_only=False
+    )
+    return reg, first

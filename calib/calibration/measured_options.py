@@ -32,8 +32,8 @@ GROUPS = ("frame", "markers", "tool")
 """Names of a measured term's own unknowns, by group."""
 
 NO_LOAD = 1e-9
-"""A joint's gravity torque under this fraction of the largest is round-off, no load (a UR5's
-vertical shoulder_pan_joint: 2e-15 N m beside 58): its compliance is not offered."""
+"""A joint's gravity torque under this fraction of the largest is round-off, no load: its
+compliance is not offered. Rationale and measurements: docs/developers/engine.md#no_load"""
 
 
 def _compliance(name: str) -> bool:

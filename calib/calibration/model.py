@@ -1,27 +1,14 @@
 """The calibration model of a measured chain: what predicts a measurement, and its unknowns.
 
-A measured point k at configuration q is predicted as
+A point k at q is predicted as ``R_f (p_tool(q') + R_tool(q') m_k) + t_f``,
+``q' = q + c * tau(q)`` (frame, marker k [m], MDH tool frame, compliance times gravity
+torque); an orientation as ``R_f R_tool(q') R_m``. A chain's own unknowns x
+(:class:`MeasuredKind`), in order: the frame (rotation vector [rad] on the left, translation
+[m]), the markers (3 each [m], some may be held) and, for pose data, the measured frame's
+rotation (rotation vector [rad] on the right). Geometry and compliance are the state's
+(:mod:`.placements`); :class:`ErrorModel` linearises the MDH parameters at a state.
 
-    p_k(q) = R_f (p_tool(q') + R_tool(q') m_k) + t_f,     q' = q + c * tau(q)
-
-* ``(R_f, t_f)``: the measurement frame, i.e. the pose of the URDF base frame (frame -1 of
-  the MDH model) in the instrument's frame;
-* ``m_k``: marker k in the tool frame [m];
-* ``p_tool, R_tool``: the MDH model's tool frame (geometric errors live in its rows);
-* ``c * tau``: joint compliance c_j [rad/(N m) or m/N] times the gravity torque tau_j(q)
-  [N m or N] that the joint carries (nominal masses of the URDF); zero unless chosen.
-
-A measured orientation (pose data) is predicted as ``R_f R_tool(q') R_m``, ``R_m`` the
-orientation of the measured frame in the tool frame.
-
-A measured chain's own unknowns x (:class:`MeasuredKind`), in this order: the frame
-(rotation vector [rad] applied on the left, then translation [m]), the markers (3 per marker
-[m]) and the measured frame's rotation (pose data, rotation vector [rad] on the right).
-Marker coordinates may be held (no column). The geometry and the compliance are the state's,
-never x's: the joint engine fits them (:mod:`.placements`). The MDH parameters' columns are
-a linearisation at a state (:class:`ErrorModel`: the counts of what rows determine, the
-designs, the outlier proposals). The Jacobian is analytic (frame and tool rotations through
-the SO(3) left Jacobian, so it is exact at any x).
+Rationale and measurements: docs/developers/engine.md#model
 """
 
 from __future__ import annotations
@@ -71,10 +58,9 @@ def compliance_name(joint: int) -> str:
 
 
 CONFIGURATION_BLOCK = 4096
-"""Configurations whose robot-parameter columns :meth:`ErrorModel.jacobian` computes at once:
-the identification Jacobian's temporaries (several arrays of rows x parameters per
-configuration) stay a few MB whatever the campaign's size (100,000 configurations: they
-peaked at about 400 MB beside the Jacobian itself)."""
+"""Configurations whose robot-parameter columns :meth:`ErrorModel.jacobian` computes at once
+(bounds the Jacobian's temporaries).
+Measurements: docs/developers/performance.md#configuration_block-model"""
 
 
 @dataclass(frozen=True, eq=False)

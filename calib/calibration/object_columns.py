@@ -1,16 +1,10 @@
 """The selection's object columns by block: each object's unknowns eliminated on its touches.
 
-Contacts fit each object's own unknowns (a plane's height and tilts, ...) beside the shared
-ones: a touch's rows depend on its own object's columns only. The selection
-(:mod:`calib.calibration.selection`) keeps those columns always in; dense, they make every
-subset's basis of the fixed columns a matrix of rows by objects (500 planes: 1,500 columns),
-and the guard's normal equations of every fold as wide. Here they stay by block: for each
-subset of the configurations (rows outside it zeroed), the projection onto the objects'
-columns is block diagonal, each object's ``U_k U_k^T`` with ``U_k = F_k W_k`` an orthonormal
-basis of its columns on the subset's rows (``W_k`` the inverse square root of the object's
-Gram matrix, applied twice for orthogonality to round-off); an object without rows in a
-subset, or a direction its rows do not determine, adds nothing (the least-norm fit, as the
-dense solutions take it). Time and memory are linear in the configurations and the objects.
+For each subset of the configurations (rows outside it zeroed) the projection onto the
+objects' columns is block diagonal, each object's ``U_k U_k^T`` (``U_k`` an orthonormal basis
+of its columns on the subset's rows); time and memory linear in configurations and objects.
+
+Rationale and measurements: docs/developers/engine.md#object_columns
 """
 
 from __future__ import annotations

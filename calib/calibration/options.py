@@ -52,12 +52,9 @@ TREE_LEVELS = ("frames", "complete")
 DEFAULT_TREE_LEVEL = "complete"
 
 DEFAULT_MAX_ITERATIONS = 100
-"""Most residual evaluations of each solver run (registration and fit). MINPACK reads it only to
-stop: a fit converging within it is bit-identical under any larger cap. Of 600 seeded nasty
-chains, ``auto`` accepts 476 at 100, 479 at 300 and 480 at 1000 (two or three accepted with a
-hold at 100 creep on and are refused), ``complete`` 381, 406 and 423; a fit stopped by the cap
-costs the cap's evaluations, up to ``1 + HOLDS`` fits (20 ms each on 2,000 UR10 poses, 280 ms on
-20,000), and says to raise it."""
+"""Most residual evaluations of each solver run (registration and fit); MINPACK reads it only to
+stop.
+Measurements: docs/developers/performance.md#default_max_iterations-options"""
 
 MAX_ITERATIONS = 1_000_000
 """Most residual evaluations a fit may be given (hours of fitting; the solver's counter is a

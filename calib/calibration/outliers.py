@@ -1,20 +1,11 @@
 """Robust fitting: configurations whose error is far from the others' are set aside.
 
-The rule (:func:`find_outliers`): the error of each configuration (the largest of its points)
-is compared with the median over the configurations: one more than ``FACTOR`` times the
-median (and, when the instrument noise is given, more than ``NOISE_FACTOR`` times it) is an
-outlier (a marker swap, a bad reading). With pose data, the orientation error of each
-configuration is tested the same way against the median orientation error, so that one bad
-orientation is set aside like one bad point. Outliers are listed by file row.
+:func:`find_outliers`: a unit (a row, a touch; a posture takes its largest error) over
+``FACTOR`` times the median (and ``NOISE_FACTOR`` times the noise, when given) is an outlier,
+orientations tested alike; :func:`stable_set` / :func:`until_stable` iterate to a stable set
+(at most ``ROUNDS`` refits). Outliers are listed by file row.
 
-The step is iterated until it is stable (:func:`stable_set`; :func:`until_stable` for one
-model): the model is refitted without the outliers, the units tested again against the
-refit, and the set changes until a refit leaves it as it was (at most ``ROUNDS`` refits). It
-runs on the registration, then on the calibration itself (:mod:`~.chain_outliers`, which
-starts a measured term's loop from :func:`robust_proposals`). The unit tested is a
-configuration (a row, or a touch); the functions take per-unit errors, so a unit of several
-rows (a posture) takes its largest error. A robust loss (``--loss soft_l1|huber``, scale
-``--noise-mm``) further limits the pull of the rows that remain.
+Rationale and measurements: docs/developers/engine.md#outliers
 """
 
 from __future__ import annotations
@@ -251,10 +242,8 @@ def records(found: Errors, bad: np.ndarray, rows: tuple[int, ...]) -> list[Outli
 
 PROPOSAL_SPREAD = 2.5
 """A robust fit's proposals are sought only where some unit's error after the registration
-exceeds this many times the median (position or orientation): with geometric errors alone the
-largest of 35 three-component errors is about 2.1 times the median (2.6 of 1,000), while
-outliers that could mask each other stand out (20 mm among 3.6 mm of geometric errors: 3.4
-to 6 times)."""
+exceeds this many times the median.
+Rationale and measurements: docs/developers/engine.md#proposal_spread"""
 
 
 def spread_out(errors: Errors) -> bool:

@@ -26,9 +26,8 @@ __all__ = [
 
 EXPECTED_PX = 3.0
 """Largest calibrated reprojection error (RMS, training or held out) a camera's pixels are
-expected to leave [px]: a detector's noise is a fraction of a pixel; beyond, the intrinsics
-are most likely wrong (a focal length 10 % off leaves about 4 px on a UR5 seen from the cell,
-a principal point with width and height swapped 17 px), and the fit is warned about."""
+expected to leave [px]; beyond, the fit is warned about.
+Rationale and measurements: docs/developers/engine.md#expected_px"""
 
 DETECTOR_PX = 1.0
 """A corner detector's largest noise (RMS) [px]: a fraction of a pixel (the simulations use
@@ -37,10 +36,8 @@ DETECTOR_PX = 1.0
 REFUSED_PX = NOISE_FACTOR * DETECTOR_PX
 """Calibrated reprojection error (RMS) [px] over which pixels that the registration and the
 calibrated model both miss by over ``SUSPECT`` at the target are refused
-(:func:`check_fitted_pixels`): the measured terms' rule (over 20 mm and over
-``NOISE_FACTOR`` times the noise) with the detector's noise: 20 px. Focal lengths half the
-true ones leave 53 px (refused); a principal point with width and height swapped 11 to 17 px,
-focal lengths twice the true ones 18 px (warned, :data:`EXPECTED_PX`, and accepted)."""
+(:func:`check_fitted_pixels`).
+Rationale and measurements: docs/developers/engine.md#refused_px"""
 
 
 def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:

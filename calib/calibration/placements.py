@@ -1,22 +1,11 @@
 """Errors of URDF joint placements shared by several chains of one robot.
 
-Each URDF joint j on a chain has a placement ``O_j`` in its parent link (its ``<origin>``).
-Its error is a small rigid motion ``E_j = [R(w) | v]`` after it: the calibrated origin is
-``O_j E_j``. A joint on several chains (a humanoid's torso, on both arms' chains from the
-feet) has one error, seen by every chain through it: this is how chains share.
+The calibrated origin of joint j is ``O_j E_j``, ``E_j = [R(w) | v]`` one error per joint
+whatever chains it is on, in the joint's axis frame: ``<joint>:x``, ``:y``, ``:z`` [m],
+``:rx``, ``:ry``, ``:rz`` [rad]. Chains are held as arrays (:class:`ChainPath`); a step
+computes every frame (:meth:`Placements.frames`) with no model rebuilt.
 
-The six numbers of ``E_j`` are expressed in the joint's *axis frame*: z along the joint
-axis, x the joint frame's x (or y) made perpendicular to it. Their names are
-``<joint>:x``, ``:y``, ``:z`` (translation [m]) and ``<joint>:rx``, ``:ry``, ``:rz``
-(rotation [rad]); ``:rz`` of a revolute joint and ``:z`` of a prismatic one are its offset.
-
-A chain between two frames of the tree may traverse joints backwards (``Chain.sign``). Each
-chain is held as arrays (:class:`ChainPath`): the fixed transforms between its joints' axis
-frames on the model the errors act on. A fit step composes the errors into them and computes
-every frame at every configuration (:meth:`Placements.frames`, :func:`chain_frames`), with no
-model rebuilt; every chain sees the same perturbed robot. A chain's MDH model of the robot
-(:func:`calib.kinematics.mdh.from_chain` of the perturbed Pinocchio model) is made where the
-MDH parameters are named (:meth:`Placements.chain_models`).
+Rationale and measurements: docs/developers/engine.md#placements
 """
 
 from __future__ import annotations
@@ -431,8 +420,8 @@ def twist_columns(
     """:func:`joint_twists` along free directions of the joint placement components.
 
     The twists laid out by row and component (the product's rows, no copy), each direction
-    taken on the chain's joints' components only (no array of every component of every
-    joint by row: 5,000 poses made 1.2 Jacobians of it).
+    taken on the chain's joints' components only.
+    Rationale and measurements: docs/developers/engine.md#twist_columns
 
     ``kin``: the chain's frames at m configurations; ``lift``: the free directions
     ``(free, 6 J)`` (:meth:`Placements.names` order). Returns the linear and angular velocity

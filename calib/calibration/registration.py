@@ -1,31 +1,14 @@
 """Registration: the measurement frame and the markers in closed form, from the nominal model.
 
-Before any geometric error is fitted, the instrument's frame and the marker offsets are
-estimated with the nominal kinematics, so that the nonlinear fit starts a few millimetres
-from its solution whatever the frame's rotation and distance:
-
-1. with the markers at their guess (the tool origin, or ``--marker``), the rigid motion that
-   best maps the predicted points onto the measured ones (Horn's / Umeyama's closed form:
-   the SVD of the cross-covariance of the centred point sets, with the determinant sign
-   fixed so that it is a rotation);
-2. with that frame, each marker by linear least squares
-   (``R^T (y_ik - t) - p_i = R_i m_k`` stacked over the configurations: as
-   ``sum_i R_i^T R_i = m I``, the mean of ``R_i^T (R^T (y_ik - t) - p_i)``);
-3. repeat until the markers move less than 1e-12 m (at most ``ITERATIONS`` times); marker
-   coordinates no posture separates from the frame's translation (a tool that never turns,
-   :func:`~.determined.still_axes`) stay at their guess, the frame absorbing them;
-4. for pose data, the measured frame's rotation in the tool frame: the rotation nearest (in
-   the Frobenius norm) to the mean of ``R_i^T R^T R_meas,i``.
-
-Several tools measured in one frame (a tree's, :func:`~.instrument.shared_frame`) are
-registered the same way (:func:`register_points`): step 1 on every tool's points, step 2 for
-each tool's markers.
-
-The result then seeds a Levenberg-Marquardt fit of the same parameters (``frames`` level).
+Horn's / Umeyama's rigid motion, then each marker by linear least squares, alternated
+(at most ``ITERATIONS`` times); for pose data the measured frame's rotation. Several tools in
+one frame: :func:`register_points`. The result seeds the ``frames`` fit.
 
 References: B. K. P. Horn, "Closed-form solution of absolute orientation using unit
 quaternions", JOSA A 4(4), 1987; S. Umeyama, "Least-squares estimation of transformation
 parameters between two point patterns", IEEE TPAMI 13(4), 1991.
+
+Rationale and measurements: docs/developers/engine.md#registration
 """
 
 from __future__ import annotations
@@ -54,7 +37,8 @@ def rigid_fit(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _rotation(H: np.ndarray) -> np.ndarray:
     """The rotation R maximising ``trace(R H)``: Umeyama's closed form (cross-covariance H).
 
-    LAPACK's SVD is called directly: NumPy's adds 20 us to each of the alternations'.
+    LAPACK's SVD is called directly.
+    Rationale and measurements: docs/developers/engine.md#_rotation
     """
     U, _, Vt, info = _gesdd(H)
     if info != 0:

@@ -1,49 +1,11 @@
-"""Model selection: which identifiable parameters the data support.
+"""Model selection (``auto``): which identifiable parameters the data support.
 
-All of it works on the model linearised at the registration (the nominal geometry with the
-fitted measurement frame and markers), whose errors are millimetres: there the fit of any
-subset of parameters is a linear least-squares problem, and its cross-validated error has a
-closed form.
+On the model linearised at the registration: a forward path ordered by the
+leave-one-configuration-out error (block PRESS), a prefix of it kept, shrunk toward the nominal
+model by a ridge prior, guarded by ``OUTER_FOLDS`` folds against selection bias, against the
+complete fit from ``RICH`` equations per parameter; a posture's repeats enter as one.
 
-* **Leave-one-configuration-out error** (block PRESS): with ``H`` the hat matrix of the
-  training rows, the prediction error of configuration i by the fit without it is
-  ``(I - H_ii)^-1 e_i`` (the rows of one configuration leave together). Deterministic and
-  exact for the linear model; for a ridge fit ``H = A (A^T A + L)^-1 A^T``.
-* **Forward selection** (``auto``): starting from the registration (frame and markers, always
-  free), the forward path adds, one at a time, the candidate that lowers the leave-one-out
-  error most, until every candidate is in (each step is a rank-one update of the fit: no
-  refactorisation). The model kept is a prefix of that path: the one of least error (a
-  longer prefix preferred only if it lowers the error of every shorter one by ``MIN_GAIN``,
-  2 %), then the shortest prefix whose error is within one standard error of it (paired
-  over configurations). The whole path matters: parameters often lower the error together
-  while neither does alone (on the TIAGo the error rises at steps 7 to 9, then falls by 3 to
-  5 % at steps 10, 13 and 14), so stopping at the first step that gains less than 2 % stops
-  early. Candidates are the base parameters of the complete set (the identifiable
-  combinations not already carried by the frame and markers) and, only when compliance is
-  asked for (``elastic``), the joint compliances.
-* **Shrinkage**: the kept parameters are then pulled toward the nominal model by a Gaussian
-  prior whose strength (on the unit-norm columns) is chosen by the same leave-one-out error
-  (zero allowed).
-* **Guard** against selection bias: the whole procedure is cross-validated once more, by
-  ``OUTER_FOLDS`` folds (configuration i in fold i mod 10: no random draw); if it predicts
-  the held-out folds no better than the registration alone, the registration is kept.
-* **The complete fit as a candidate**: with at least ``RICH`` equations per parameter of
-  the complete fit, the guard's folds also fit every candidate with a prior strength chosen
-  by each fold's leave-one-out error, and the lower cross-validated error of the two
-  (selection, complete) is delivered. The selection's thresholds (``MIN_GAIN``, one
-  standard error) shrink slower with the number of configurations m than the cost of one
-  more parameter (about noise^2 / m): alone, it kept dropping parameters the data
-  determine. Below ``RICH`` (a fold's error is that of a few postures) the selection is
-  delivered as before. The guard's errors come from the moments of each fold's held-out rows
-  (:func:`~.outer_cv.outer_cv`), the prior strengths in blocks of configurations
-  (:func:`ridge_strengths`): the memory is linear in the data with a small constant.
-* **Postures**: the configurations of one posture (its repeats, ``groups``) enter as one
-  (:func:`_by_posture`), so that its repeats leave together and buy no parameter. Ten
-  folds rather than five: each fold's procedure sees 90 % of the configurations, closer to
-  the final fit (with 80 %, a fold that loses the only postures pinning a parameter down
-  judges the procedure by an extrapolation the final fit does not make). The folds' forward
-  paths run in one batch with the whole data's (:func:`paths`: each fold is the whole
-  problem with its held-out rows zeroed), step by step.
+Rationale and measurements: docs/developers/engine.md#selection
 """
 
 from __future__ import annotations
@@ -53,8 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .forward_paths import SMALL, lu_errors, paths, residual, spd_solve
-from .object_columns import FixedBasis, ObjectColumns, posture_sums
-from .outer_cv import outer_cv
+from .object_columns import FixedBasis, ObjectColumns, object_moments, posture_sums
 
 __all__ = [
     "MIN_GAIN",
@@ -451,3 +412,60 @@ def select(
     index = tuple(int(s) for s in sel)
     out = Selection(kept, tuple(steps), strength, reg_cv, sel_cv, guarded, full_cv, winner, index)
     return out, prior
+
+
+def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
+    """Held-out squared error of each candidate model's fits, by fold (the selection's guard).
+
+    Each fold's fit of a candidate model (its columns, its prior strength) is a ridge fit of the
+    fold's training rows; its error on the fold's held-out rows comes from the moments of those
+    rows, so that no array larger than the data is made.
+    The held-out rows' moments (``A_h^T A_h``, ``A_h^T e_h``, ``|e_h|^2``) are taken about
+    the whole data's least-squares fit (whose residuals are small: they keep their digits).
+    ``A``: unit-norm columns, configuration-major rows, the first ``fixed`` always in;
+    ``train`` ``(folds, m)``; ``models``: per candidate, per fold, its columns and prior
+    strength; ``objects``: free by block (:func:`.object_columns.object_moments`), or None.
+    Returns ``(candidates, folds)`` [units of e squared].
+    """
+    if objects is None:
+        x_all = np.linalg.lstsq(A, e, rcond=None)[0]
+        ec = e - A @ x_all
+        held = ((A[h], ec[h]) for h in (np.repeat(~mask, rows) for mask in train))
+        moments = [(Ah.T @ Ah, Ah.T @ eh, eh @ eh) for Ah, eh in held]
+        Gh, gh, hh = (np.array(v) for v in zip(*moments, strict=True))
+        Gt = A.T @ A - Gh
+        gt = A.T @ ec - gh + Gt @ x_all  # training moments, about 0
+    else:
+        x_all, Gt, gt, Gh, gh, hh = object_moments(A, e, rows, train, objects)
+    p = A.shape[1]
+    use = np.zeros((len(models), len(train), p), dtype=bool)
+    lam = np.zeros(use.shape)
+    for c, model in enumerate(models):
+        for f, (cols, strength) in enumerate(model):
+            use[c, f, cols] = True
+            lam[c, f, cols[fixed:]] = strength
+    d = _ridge_solve(Gt, gt, use, lam) - x_all
+    quad = np.einsum("cfi,fij,cfj->cf", d, Gh, d)
+    sse = hh - 2.0 * np.einsum("cfi,fi->cf", d, gh) + quad
+    return np.maximum(sse, 0.0)
+
+
+def _ridge_solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
+
+    Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
+    ``N`` ``(folds, p, p)`` and ``b`` ``(folds, p)``: each fold's normal equations; ``use``
+    (the columns of each candidate's fit) and ``lam`` (the prior on each column):
+    ``(candidates, folds, p)``. Returns ``(candidates, folds, p)``, zero off their columns.
+    """
+    both = use[..., :, None] & use[..., None, :]
+    M = np.where(both, N[None], 0.0)
+    diag = np.arange(N.shape[1])
+    top = np.max(np.abs(M[..., diag, diag]), axis=-1, keepdims=True)
+    M[..., diag, diag] += lam + np.where(use, 0.0, top)  # the padding: eigenvalue top, no rhs
+    ev, V = np.linalg.eigh(M)
+    ev_abs = np.abs(ev)
+    tol = np.finfo(float).eps * use.sum(axis=-1, keepdims=True) * ev_abs.max(axis=-1, keepdims=True)
+    y = np.einsum("cfji,cfj->cfi", V, np.where(use, b[None], 0.0))
+    y = np.divide(y, ev, out=np.zeros_like(y), where=ev_abs > tol)
+    return np.einsum("cfij,cfj->cfi", V, y)

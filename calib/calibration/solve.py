@@ -111,11 +111,9 @@ def unconverged(fitted: Fit, what: str = "the solver") -> str | None:
 class Problem:
     """Residuals model - measured (weighted by the state) and prior rows, their Jacobian, of x.
 
-    SciPy asks for the residuals and the Jacobian at the same x, and the fit for both again
-    at the solution: the state at the last two x are kept (the last one's kinematics, made
-    once and passed to the residuals and the Jacobian, reused while x moves no geometry: a
-    chain's frame and markers; 77 MB at 100,000 poses), and the Jacobian at the last x it
-    was asked at (200 MB).
+    The state at the last two x is kept (its kinematics reused while x moves no geometry),
+    and the Jacobian at the last x.
+    Measurements: docs/developers/performance.md#problem-solve
     """
 
     def __init__(self, model, start, data, torque, prior=None, robust=True, kin=None):
@@ -298,10 +296,9 @@ _STATUS_MESSAGES = {
 def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
     """MINPACK's Levenberg-Marquardt on the problem, as ``least_squares(method='lm')`` runs it.
 
-    ``scipy.optimize.leastsq`` calls the same MINPACK routine with the same arguments
-    (``factor`` 100, no ``diag``, no column-major Jacobian), without ``least_squares``'s
-    copies of the Jacobian (one kept from the start, one per evaluation, one at the end:
-    three times 100,000 poses x 6 rows x 40 columns, 190 MB): the same steps, to the bit.
+    Through ``scipy.optimize.leastsq`` (same routine and arguments, fewer Jacobian copies).
+    Measurements: docs/developers/performance.md#_levenberg_marquardt-solve
+
     Returns x, status and message (``least_squares``'s), Jacobian and residual evaluations.
     """
     import scipy.optimize

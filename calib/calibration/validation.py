@@ -1,25 +1,11 @@
 """Validation: held-out configurations, predicted uncertainty, and the checks a model must pass.
 
-A calibrated model is written only if it passes every check:
+A model is written only if it converged, fits the training data no worse than the
+registration, has every fitted parameter identified and is no worse held out (:func:`worse`);
+data that no calibration brings near the robot stop with a DataError
+(:func:`check_fitted_errors`).
 
-1. the fit converged;
-2. it fits the training data no worse than the registration alone (nominal geometry with
-   the fitted measurement frame and markers);
-3. the measured configurations identify every fitted parameter (the weighted Jacobian at
-   the solution has full column rank);
-4. on held-out configurations (``--validate`` or ``--holdout``), its weighted RMS error
-   (angles times the orientation weight: position and orientation alike) is no larger than
-   the registration's (:func:`~.contact_checks.held_out_refusal`, by :func:`worse`).
-
-Data that no calibration brings near the robot stop with a DataError instead
-(:func:`check_fitted_errors`; orientations alike, pixels:
-:func:`~.pixel_chain_result.check_fitted_pixels`): no model is written for another robot's
-(or tool's, or camera's) data.
-
-With joint compliance fitted (an opt-in: ``elastic=True``), the model delivered is the URDF
-plus the compliance file, and the checks apply to that whole model. The URDF alone
-(geometry, frame and markers, compliance left out) is scored too; where it is worse than the
-registration, a warning says so (the URDF must then be used with its compliance file).
+Rationale and measurements: docs/developers/engine.md#validation
 """
 
 from __future__ import annotations
@@ -232,10 +218,8 @@ def check_held_out_errors(
 
 ORIENTATION_REFUSED = 0.5
 """RMS orientation error [rad] (29 deg) over which orientations that the registration and the
-calibrated model both miss are refused (:func:`check_fitted_errors`); no option gives an
-orientation noise, so the bar is above any instrument's: 0.08 rad of noise an axis (7.3 deg
-RMS, over ``diagnosis.ORIENTATION_SUSPECT``) is noted and accepted, while every row given
-another row's orientation, or every quaternion conjugated, misses a UR5 by 110 to 120 deg."""
+calibrated model both miss are refused (:func:`check_fitted_errors`).
+Rationale and measurements: docs/developers/engine.md#orientation_refused"""
 
 
 def check_fitted_errors(
@@ -243,16 +227,11 @@ def check_fitted_errors(
 ) -> None:
     """Stop on data whose fitted rows the calibrated model still misses absurdly.
 
-    The registration's error was suspect (:func:`~.diagnosis.suspect`: above any geometric
-    error) and no usual mistake explained it (:func:`~.diagnosis.explain` would have
-    raised); when the calibrated model still misses the rows it was fitted to by as much
-    (suspect too: over 20 mm, or 20 times the noise given), the data are not of this robot or
-    chain (another robot's file, another tool or arm), or of a noisier instrument than said:
-    a DataError names ``source`` and the way out (the instrument's noise). Real data stay far
-    below (TIAGo: 3.4 mm RMS registered, 1.7 mm calibrated; TALOS's left arm: 12.6, 2.8 mm).
-    Orientations are judged on their own where the positions pass: registered and calibrated
-    over :data:`ORIENTATION_REFUSED`, they are of another frame or convention than any the
-    diagnosis tries, and the way out is the positions alone.
+    Registration suspect (:func:`~.diagnosis.suspect`), no usual mistake found, and the
+    calibrated model suspect too on its training rows: a DataError names ``source`` and the
+    way out (the instrument's noise). Orientations registered and calibrated over
+    :data:`ORIENTATION_REFUSED` are refused on their own (way out: the positions alone).
+    Rationale and measurements: docs/developers/engine.md#check_fitted_errors
 
     Args:
         stats: A term's ``train_registration`` and ``train`` errors

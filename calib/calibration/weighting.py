@@ -1,16 +1,11 @@
 """The orientation weight from the data: variance components of lengths and angles.
 
-Pose rows (and a contact's gap rows) mix metres and radians, so the angle rows carry a weight
-w [m/rad]. The
-weighted least-squares fit is the maximum-likelihood one when w = sigma_p / sigma_o, the ratio
-of the position error [m] to the orientation error [rad] per axis. Neither is known
-beforehand, and the errors a calibration meets are mostly model errors, not the instrument's
-specification. Both are estimated from the residuals of the registration (the nominal model
-with its measurement frame, markers and measured-frame rotation fitted; a contact's objects
-and contact frame: :func:`~.contact_checks.registration`), the registration is
-redone with the new weight, until the weight settles: an iterated estimation of the two
-variance components (a feasible weighted least squares; Koch, *Parameter Estimation and
-Hypothesis Testing in Linear Models*, Springer 1999, section 3.6).
+Angle rows carry a weight w [m/rad], estimated as sigma_p / sigma_o from the residuals of the
+registration, which is redone with the new weight until it settles (an iterated estimation of
+two variance components; Koch, *Parameter Estimation and Hypothesis Testing in Linear Models*,
+Springer 1999, section 3.6).
+
+Rationale and measurements: docs/developers/engine.md#weighting
 """
 
 from __future__ import annotations
