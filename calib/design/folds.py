@@ -240,8 +240,7 @@ def _pooled_result(
         if isinstance(part, MeasuredChain):
             extra["held"] = _stacked([cast(Measurements, cast(MeasuredChain, p).held) for p in own])
         parts.append(dataclasses.replace(part, stats=stats, held_source=label, **extra))
-        what = "gaps" if isinstance(part, ChainContacts) else "errors"
-        refusal = refusal or held_out_refusal(stats, part.chain, what)
+        refusal = refusal or _held_out_refusal(part, stats)
     refused = [_own_refusal(r) for r in runs]
     first = next((f"fold {k + 1} of {folds}: {r}" for k, r in enumerate(refused) if r), None)
     per_fold = tuple(
@@ -253,6 +252,12 @@ def _pooled_result(
     )
 
 
+def _held_out_refusal(part, stats: dict) -> str | None:
+    """The held-out rule on a term's ``stats`` (touches: gaps; the others: errors)."""
+    what = "gaps" if isinstance(part, ChainContacts) else "errors"
+    return held_out_refusal(stats, part.chain, what)
+
+
 def _own_refusal(run: ContactChainsCalibration) -> str | None:
     """Why a fold's fit is refused other than by its held-out errors (None: it is not).
 
@@ -260,11 +265,7 @@ def _own_refusal(run: ContactChainsCalibration) -> str | None:
     not determine, gives held-out errors of no fitted model (a held-out refusal may hide a
     stall: :func:`~calib.calibration.contact_chains._assessed` names it first).
     """
-    held = {
-        held_out_refusal(p.stats, p.chain, "gaps" if isinstance(p, ChainContacts) else "errors")
-        for p in run.chains
-        if "held_out" in p.stats
-    }
+    held = {_held_out_refusal(p, p.stats) for p in run.chains if "held_out" in p.stats}
     if run.refusal is not None and run.refusal not in held:
         return run.refusal
     return None if run.solution is None else unconverged(run.solution.fit)
