@@ -260,6 +260,12 @@ def test_tree_pooled_as_explicit_validation_runs():
             expected = math.sqrt(sum(s.m * s.weighted_mm**2 for s in own) / sum(s.m for s in own))
             assert part.stats[what].weighted_mm == pytest.approx(expected, rel=1e-9)
     assert folded.accepted
+    lines = folded.summary().splitlines()  # a line a fold and a tool, each named
+    for k, r in enumerate(runs):
+        for c, tool in enumerate(("wrist_3_link", "forearm_link")):
+            b, a = (r.chains[c].stats[w] for w in ("held_out_registration", "held_out"))
+            line = f"  fold {k + 1}, term {c + 1} ({tool}, position): {b.weighted_mm:.3f} -> "
+            assert f"{line}{a.weighted_mm:.3f} ({a.m} rows)" in lines, (line, lines)
 
 
 def test_a_fold_whose_own_fit_is_refused_refuses_the_cross_validation():
@@ -359,3 +365,19 @@ def test_a_folds_held_out_refusal_is_told_by_its_rule_not_by_its_text(monkeypatc
     folded = cross_validate(chain, data, folds=5)
     assert folded.refusal.startswith("the calibrated model's held-out errors"), folded.refusal
     assert "(3.995 > 3.970 mm weighted RMS)" in folded.refusal
+
+
+def test_the_predicted_std_line_says_it_is_the_fit_of_every_rows(tmp_path, capsys):
+    """With ``--folds`` the held-out table lines are the folds' fits'; the predicted std line
+    said "N mm held out" of the fit of every row at every row (each held out once), as if it
+    were the folds'. It is the fit of every row's, and says so: its figure the plain fit's."""
+    chain, data = _ur10()
+    plain = calibrate(chain, data).predicted_std
+    argv = ["calibrate", *CHAIN, *POSE, "--data", str(UR10 / "calibration.csv"), "--folds", "5"]
+    code, out, _ = run(capsys, *argv, "--out", str(tmp_path / "x.urdf"))
+    (line,) = [x for x in out.splitlines() if x.startswith("predicted position std")]
+    assert code == 0 and "held out" not in line, line
+    assert line.endswith(
+        f": {1e3 * plain:.3f} mm at the fitted configurations (of the fit of every row, not of "
+        "the folds' fits)"
+    ), line
