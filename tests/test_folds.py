@@ -173,7 +173,8 @@ def test_the_model_written_is_the_fit_on_every_row():
         ),
         (
             ["--folds", "5", "--validate", str(UR10 / "calibration.csv")],
-            "--folds holds every posture out in turn: not with --validate",
+            "--folds holds every posture out in turn: not with --holdout, --validate or a term's "
+            "validation file",
         ),
     ],
 )
@@ -190,6 +191,21 @@ def test_bad_folds_are_one_line_errors(tmp_path, capsys, extra, message):
         str(tmp_path / "x.urdf"),
     )
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.urdf").exists()
+
+
+def test_folds_with_a_terms_validation_file_is_the_same_one_line_error(tmp_path, capsys):
+    """``--term ... VALIDATION`` with ``--folds`` said the rule in its own words; one text now,
+    the library's (``NOT_WITH``) said with the flags, as ``--holdout`` and ``--validate`` get."""
+    data = str(UR10 / "calibration.csv")
+    term = ["--term", "pose", "universe", "wrist_3_link", data]
+    out = ["--out", str(tmp_path / "x.urdf")]
+    texts = []
+    for extra in ([data, "--folds", "3"], ["--folds", "3", "--holdout", "0.2"]):
+        code, _, err = run(capsys, "calibrate", CHAIN[0], *term, *term, *extra, *out)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        texts.append(err)
+    assert texts[0] == texts[1] and "not with --holdout, --validate or a term's" in texts[0]
     assert not (tmp_path / "x.urdf").exists()
 
 

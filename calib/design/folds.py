@@ -139,6 +139,8 @@ Fit = Callable[[list, list | None], ContactChainsCalibration]
 """A fit of a problem's terms: their data, and their validation data (None: none)."""
 
 NOT_WITH = "folds hold every posture out in turn: not with a holdout fraction or validation data"
+"""The one text of folds with held-out rows of another kind (the command line says it with its
+flags: :data:`calib.cli.flags.FLAGS`)."""
 
 
 def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
