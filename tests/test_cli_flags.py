@@ -131,11 +131,12 @@ def test_python_sweep_defaults_are_the_command_lines():
 
 
 def test_the_table_says_the_library_texts_as_the_library_writes_them():
-    """The table holds two library texts as literals (every command starts without the CSV
+    """The table holds three library texts as literals (every command starts without the CSV
     reader and the collision checker): they are the library's, word for word."""
     from calib.cli import flags
     from calib.design.collision import NO_COLLISION
+    from calib.design.folds import NOT_WITH
     from calib.measurements.csvfile import NAMED_ORIENTATION
 
-    assert NO_COLLISION in FLAGS
+    assert NO_COLLISION in FLAGS and NOT_WITH in FLAGS
     assert flags.NAMED_ORIENTATION == NAMED_ORIENTATION

@@ -590,3 +590,28 @@ def test_calibrate_pixels_lists_each_cameras_intrinsics_among_its_inputs(
     assert dict(results[0].inputs)["the intrinsics of term 1"] == str(intr.resolve())
     with pytest.raises(InvalidArgumentError, match="would overwrite the intrinsics of term 1"):
         results[0].write(tmp_path / "cal2.urdf", report=intr)
+
+
+def test_the_configurations_file_of_several_cameras_is_read_once(tmp_path, monkeypatch):
+    """simulate --measure pixels with several cameras' chains and --configs-file: the file was
+    read once per chain; once now, each chain's columns taken from the one text."""
+    from calib.cli import pixels_cli
+    from calib.design import configurations
+    from calib.measurements import csvfile
+
+    reads = []
+    read_data_text = csvfile.read_data_text
+
+    def counted(path, limit):
+        reads.append(path)
+        return read_data_text(path, limit)
+
+    monkeypatch.setattr(csvfile, "read_data_text", counted)
+    monkeypatch.setattr(configurations, "read_data_text", counted)
+    chains = (load_chain("ur5", "base_link", "forearm_link"), load_chain("ur5"))
+    plan = np.random.default_rng(7).uniform(-1.0, 1.0, (5, len(UR5_JOINTS)))
+    rows = [",".join(UR5_JOINTS), *(",".join(repr(float(v)) for v in q) for q in plan)]
+    (tmp_path / "plan.csv").write_text("\n".join(rows) + "\n")
+    joints, q = pixels_cli._postures(chains, 0, 0, str(tmp_path / "plan.csv"))
+    assert len(reads) == 1
+    assert joints == UR5_JOINTS and np.array_equal(q, plan)

@@ -484,7 +484,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self._entries())
         lines += [f"note: {n}" for n in self.notes]
-        lines += _fold_lines(self.folds)
+        lines += _fold_lines(self.folds, self.chains)
         lines.append(self._verdict())
         return "\n".join(lines)
 
@@ -586,12 +586,14 @@ def _with_folds(report: dict, folds) -> dict:
     return report
 
 
-def _fold_lines(folds) -> list[str]:
-    """The summary's errors of each fold's held-out rows: weighted RMS [mm], term by term."""
-    if not folds:
-        return []
-    lines = ["held out by fold (weighted RMS [mm], registration only -> calibrated):"]
-    for k, fold in enumerate(folds):
-        cells = [f"{b.weighted_mm:.3f} -> {a.weighted_mm:.3f} ({a.m} rows)" for b, a in fold]
-        lines.append(f"  fold {k + 1}: " + "; ".join(cells))
-    return lines
+def _fold_lines(folds, chains) -> list[str]:
+    """The summary's errors of each fold's held-out rows: weighted RMS [mm], a line a term."""
+    terms = [f", term {k + 1} ({c.chain.tool_frame}, {c.kind.label})" for k, c in enumerate(chains)]
+    lines = [
+        f"  fold {k + 1}{terms[c] if len(chains) > 1 else ''}: {b.weighted_mm:.3f} -> "
+        f"{a.weighted_mm:.3f} ({a.m} rows)"
+        for k, fold in enumerate(folds)
+        for c, (b, a) in enumerate(fold)
+    ]
+    head = "held out by fold (weighted RMS [mm], registration only -> calibrated):"
+    return [head, *lines] if folds else []

@@ -83,7 +83,10 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
 
 
 def chain_lines(view: ChainView) -> list[str]:
-    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
+    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm].
+
+    Cross-validated (``folds``): the std is the fit of every row's only, and says so.
+    """
     held, what = view.validation, ("registration only", "calibrated", URDF_ALONE)
     parts = [("fitted", (view.before, view.after, view.urdf_after))]
     if held is not None:
@@ -92,7 +95,13 @@ def chain_lines(view: ChainView) -> list[str]:
     header = ["errors", "configs", "rms [mm]", "max [mm]"]
     if view.after.orientation_rms is not None:
         header += ["rot rms [mrad]", "rot max [mrad]"]
-    std = "" if held is None else f", {1e3 * held.predicted_std:.3f} mm held out"
+    std = (
+        ""
+        if held is None
+        else " (of the fit of every row, not of the folds' fits)"  # every row held out once
+        if view.folds
+        else f", {1e3 * held.predicted_std:.3f} mm held out"
+    )
     return [
         format_table(header, [_row(label, st) for label, st in rows if st is not None]),
         f"predicted position std (parameter uncertainty): {1e3 * view.predicted_std:.3f} mm "

@@ -258,6 +258,7 @@ class ChainView:
     fitted: tuple[str, ...]
     solver: tuple[bool, str, int]
     notes: tuple[str, ...]
+    folds: tuple[Any, ...]
 
     def one_chain(self) -> MeasuredChain:
         """The one term of a chain measured by an instrument (else InvalidArgumentError)."""

@@ -212,9 +212,9 @@ def check_applicable(args: argparse.Namespace, shape: str) -> None:
     folds = given_options(args, ("folds",))
     held = given_options(args, ("holdout", "validate"))
     if folds and held:
-        raise InvalidArgumentError(
-            f"{folds[0]} holds every posture out in turn: not with {held[0]}"
-        )
+        from ..design.folds import NOT_WITH  # numpy: only on this error
+
+        raise InvalidArgumentError(NOT_WITH)  # said with the flags: calib.cli.flags.FLAGS
     for dest, shapes in APPLIES.items():
         typed = given_options(args, (dest,))
         if shape in shapes or not typed:

@@ -127,9 +127,9 @@ def _refuse_folds(args: argparse.Namespace, terms: list) -> None:
             "rows out with --holdout, or give the term its validation file"
         )
     if any(check is not None for *_, check in terms):
-        raise InvalidArgumentError(
-            "--folds holds every posture out in turn: not with a term's validation data"
-        )
+        from ..design.folds import NOT_WITH  # numpy: only on this error
+
+        raise InvalidArgumentError(NOT_WITH)  # said with the flags: calib.cli.flags.FLAGS
 
 
 def _term(items: list[str], flag: str) -> tuple[str, str, str, str, str | None]:

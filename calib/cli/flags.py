@@ -27,6 +27,10 @@ FLAGS = {
     "the number of folds must be": "--folds must be",
     "params='complete' fits": "--params complete fits",
     "did not see: folds)": "did not see: --folds K)",
+    "folds hold every posture out in turn: not with a holdout fraction or validation data": (
+        "--folds holds every posture out in turn: not with --holdout, --validate or a term's "
+        "validation file"
+    ),
     "with fix left none": "with --fix left none",
     "fewer parameters in fix": "fewer parameters in --fix",
     "the measurement frame with world_link": "the measurement frame with --world-link",

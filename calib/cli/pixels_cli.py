@@ -344,19 +344,21 @@ def _postures(chains, configs: int, seed: int, path: str | None = None):
     """Postures of every joint of the chains, random or read.
 
     Each chain's random draw (the first's wins), or each chain's columns of the
-    configurations file ``path`` (``calib design``'s).
+    configurations file ``path`` (``calib design``'s, read once).
     """
     import numpy as np
 
-    from ..design.configurations import read_configurations
+    from ..design.configurations import MAX_CONFIGS_BYTES, parse_configurations
+    from ..measurements.csvfile import read_data_text
 
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    text = None if path is None else read_data_text(path, MAX_CONFIGS_BYTES)
     q = None
     for chain in reversed(chains):
         drawn = (
             chain.random_configurations(configs, seed)
-            if path is None
-            else read_configurations(path, chain)
+            if text is None
+            else parse_configurations(text, chain, str(path))
         )
         q = np.zeros((len(drawn), len(joints))) if q is None else q
         q[:, [joints.index(j) for j in chain.joint_names]] = drawn

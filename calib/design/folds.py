@@ -139,6 +139,8 @@ Fit = Callable[[list, list | None], ContactChainsCalibration]
 """A fit of a problem's terms: their data, and their validation data (None: none)."""
 
 NOT_WITH = "folds hold every posture out in turn: not with a holdout fraction or validation data"
+"""The one text of folds with held-out rows of another kind (the command line says it with its
+flags: :data:`calib.cli.flags.FLAGS`)."""
 
 
 def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
@@ -262,10 +264,12 @@ def _own_refusal(run: ContactChainsCalibration) -> str | None:
     """Why a fold's fit is refused other than by its held-out errors (None: it is not).
 
     Its held-out rule is the pooled one's business; a fit that stalled, or that its data do
-    not determine, gives held-out errors of no fitted model (a held-out refusal may hide a
-    stall: :func:`~calib.calibration.contact_chains._assessed` names it first).
+    not determine, gives held-out errors of no fitted model. Told by the rule, not by the
+    text: a fit whose held-out rule fails on a term is refused by it, before the solver's
+    and the rank's reasons (:func:`~calib.calibration.contact_chains._assessed`), so a stall
+    it hides is asked of the solution.
     """
-    held = {_held_out_refusal(p, p.stats) for p in run.chains if "held_out" in p.stats}
-    if run.refusal is not None and run.refusal not in held:
+    held_out = any(_held_out_refusal(p, p.stats) for p in run.chains if "held_out" in p.stats)
+    if run.refusal is not None and not held_out:
         return run.refusal
     return None if run.solution is None else unconverged(run.solution.fit)
