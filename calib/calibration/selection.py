@@ -264,7 +264,7 @@ def best_prefix(sq: np.ndarray) -> int:
     Errors under ``ROUNDOFF`` of the largest are equal (round-off after an exact step).
     """
     mean = sq.mean(axis=1)
-    floor = ROUNDOFF * np.max(mean, initial=0.0, where=np.isfinite(mean))
+    floor = ROUNDOFF * mean[np.isfinite(mean)].max(initial=0.0)
     root = np.sqrt(np.maximum(mean, floor)).tolist()
     best = 0
     for k, value in enumerate(root):
