@@ -269,3 +269,42 @@ def test_a_step_that_fits_exactly_has_errors_of_zero_not_below(seed):
         assert errors[k].max() < tiny
         with np.errstate(invalid="raise"):
             assert best_prefix(errors) >= k
+
+
+def exact_prefix(A, e, rows, fixed, order):
+    """Brute force: the shortest prefix of ``order`` whose least squares (with the ``fixed``
+    start) leaves only round-off of ``e``, and the relative residual of the prefix before."""
+    norms = []
+    for k in range(len(order) + 1):
+        B = A[:, [*range(fixed), *order[:k]]]
+        norms.append(np.linalg.norm(e - B @ np.linalg.lstsq(B, e, rcond=None)[0]))
+        if norms[-1] <= 1e-12 * np.linalg.norm(e):
+            return k, norms[-2] / np.linalg.norm(e) if k else 1.0
+    raise AssertionError("no prefix fits exactly")
+
+
+@pytest.mark.parametrize(
+    ("m", "rows", "fixed", "cand", "true", "corr"),
+    [(14, 3, 4, 5, 1, 0.0), (14, 3, 4, 5, 2, 0.0), (20, 6, 6, 12, 2, 10.0), (16, 1, 3, 6, 2, 0.0)],
+)
+def test_the_selection_stops_at_the_step_that_fits_exactly(m, rows, fixed, cand, true, corr):
+    """Noise-free residuals in the span of the start and a few candidates: every subset's
+    path keeps the shortest prefix whose least squares fits them exactly (brute force), not
+    a column more: after it the steps' errors are round-off (some kept one more in 7 of 40)."""
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        A = rng.normal(size=(m * rows, fixed + cand))
+        A[:, fixed:] += corr * A[:, [fixed - 1]]  # candidates close to the start: ill-conditioned
+        A /= np.linalg.norm(A, axis=0)
+        cols = [0, *(fixed + rng.choice(cand, size=true, replace=False))]
+        e = A[:, cols] @ (rng.normal(size=true + 1) * 10.0 ** rng.uniform(-3, 1, size=true + 1))
+        train = np.ones((3, m), dtype=bool)
+        train[1, ::4] = False
+        train[2, [0, 5]] = False
+        out = paths(A, e, rows, list(range(fixed)), list(range(fixed, fixed + cand)), train)
+        for mask, (order, errors) in zip(train, out, strict=True):
+            keep = np.repeat(mask, rows)
+            k, before = exact_prefix(A[keep], e[keep], rows, fixed, order)
+            assert before > 1e-6  # the premises: the shorter prefixes leave a real error,
+            assert fixed + k < keep.sum() - rows  # and the left-out fits are not square
+            assert best_prefix(errors) == k, (seed, mask.sum())

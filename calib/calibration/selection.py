@@ -20,6 +20,7 @@ from .object_columns import FixedBasis, ObjectColumns, object_moments, posture_s
 __all__ = [
     "MIN_GAIN",
     "OUTER_FOLDS",
+    "ROUNDOFF",
     "STRENGTHS",
     "Selection",
     "Step",
@@ -30,6 +31,11 @@ __all__ = [
 
 MIN_GAIN = 0.02
 """Relative decrease of the leave-one-out error a longer prefix of the path must bring."""
+
+ROUNDOFF = 1e-13
+"""A prefix's mean squared left-out error under this fraction of the path's largest counts as
+this floor: after a step that fits exactly, the steps' errors are round-off (about eps times
+it), equal, and the shorter prefix is kept."""
 
 OUTER_FOLDS = 10
 """Folds of the guard's cross-validation (configuration i goes to fold i mod OUTER_FOLDS)."""
@@ -255,8 +261,11 @@ def best_prefix(sq: np.ndarray) -> int:
     shorter one), then the shortest prefix whose error is within one standard error of it
     (the standard error of the mean difference over configurations, paired): the minimum of
     a long path is partly chance, and a difference smaller than its own noise is not kept.
+    Errors under ``ROUNDOFF`` of the largest are equal (round-off after an exact step).
     """
-    root = np.sqrt(sq.mean(axis=1)).tolist()
+    mean = sq.mean(axis=1)
+    floor = ROUNDOFF * mean[np.isfinite(mean)].max(initial=0.0)
+    root = np.sqrt(np.maximum(mean, floor)).tolist()
     best = 0
     for k, value in enumerate(root):
         if value < (1.0 - MIN_GAIN) * root[best]:
