@@ -292,8 +292,8 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
     A fit refused only for not converging is assessed too: the combinations it stalled in
-    (its refusal names them after its own). Empty: accepted, or refused for a held-out error or (a
-    converged fit) the rank rule. ``fit_of``: the fit, whether it was
+    (its refusal names them first, the stop after). Empty: accepted, or refused for a
+    held-out error or (a converged fit) the rank rule. ``fit_of``: the fit, whether it was
     polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
     fitted, polished, prior, generic = fit_of
@@ -321,7 +321,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     refusal, found = result.refusal or stopped or rank, list[Direction]()
     if result.refusal is None and rank is None:  # accepted so far, or only stalled
         weak, found = assess(generic, fitted, cov, polished)
-        stalled = stopped and weak and f"{stopped}; where it stopped, {weak}"
+        stalled = stopped and weak and f"{weak}; assessed where the fit stopped: {stopped}"
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
