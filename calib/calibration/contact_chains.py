@@ -50,6 +50,7 @@ from .solve import fit, fitted_values, gauss_newton_finish, unconverged
 
 __all__ = [
     "HOLDS",
+    "NOTHING_HELD",
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
@@ -266,8 +267,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             _check_fitted(part, opts.noise)
     stalled = not all(converged)
     result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
-    none = nothing_fitted(result, bool(opts.fix))
-    return dataclasses.replace(result, notes=(*result.notes, none)) if none else result
+    unseen = NOTHING_HELD if result.accepted and not any(h is not None for h in r.held) else None
+    added = [n for n in (nothing_fitted(result, bool(opts.fix)), unseen) if n]
+    return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:
@@ -283,6 +285,12 @@ def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float
     noise = noise if isinstance(part, MeasuredChain) else None
     validation.check_fitted_errors(part.stats, markers, noise, part.source, part.chain)
 
+
+NOTHING_HELD = (
+    "nothing held out: not checked on unseen postures (hold some out: holdout or validate, or "
+    "folds for measurements and touches)"
+)
+"""The note of an accepted fit of every kind that held no row out (folds: its full fit's)."""
 
 HOLDS = 3
 """Most parameters ``auto`` holds, one a refit (:func:`fit_registered`)."""
