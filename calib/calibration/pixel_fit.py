@@ -258,9 +258,8 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     The term alone fitted (its camera and its chain's joint placements: the columns its rows
     determine, :func:`~.pixel_term.free_columns`): a camera registered on the nominal robot
     errs by tens of pixels at far postures, which no outlier rule should read as gross.
-    An own fit stopped by its cap (:data:`MAX_EVALUATIONS`) proposes no outliers (its errors
-    are not the data's, as in :func:`~.outliers.until_stable`): the held-out rows' are None,
-    and the third item says why (else None).
+    One stopped by its cap proposes no outliers (:func:`~.outliers.until_stable`'s rule): the
+    held-out rows' errors None, and why (third; else None).
     """
     placements = Placements.of((chain,))
     kin = placements.frames(chain, part.rows.q)
@@ -321,8 +320,8 @@ class _Camera:
         errors, e_held, stopped = _judged(chain, state, part, held)
         floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
         pixel = outliers.Errors(errors, None, (2, 3))
-        bad, found = outliers.find_outliers(pixel, floor, part.rows.lines)
-        bad, found = (bad & False, []) if stopped else (bad, found)  # not the data's errors
+        none: tuple = (np.zeros(part.m, dtype=bool), [])  # a stopped fit's errors: not the data's
+        bad, found = none if stopped else outliers.find_outliers(pixel, floor, part.rows.lines)
         found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
         found += [
             outliers.Outlier(
