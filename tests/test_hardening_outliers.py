@@ -261,3 +261,33 @@ def test_a_registration_stopped_by_its_cap_sets_no_row_aside():
     assert "stopped after 4 residual evaluations, a larger max_iterations" in str(info.value)
     converged = calibrate(chain, data, params="complete")
     assert [o.row for o in converged.chains[0].outliers] == [4]  # rows count from 1
+
+
+def test_a_pixel_terms_own_fit_stopped_by_its_cap_sets_no_row_aside(tmp_path, monkeypatch):
+    """The pixels' rule of the registration's above: a UR5 seen by a camera in the cell
+    (tests/pixel_setups.py), 0.3 px of noise (seed 1), one pixel moved by 40 px (its tenth
+    row). Its own fit (the camera and the chain's placements, whose errors the outlier rule
+    reads) stopped at 2 evaluations: before, its errors set that row aside; after, none, and
+    a note says why. At the default cap it converges and sets the moved row aside."""
+
+    from pixel_setups import INTRINSICS, setup
+
+    from calib.calibration import pixel_fit
+    from calib.calibration.pixel_chain import PixelData, pixel_part
+    from calib.calibration.pixel_term import PixelCamera
+    from calib.measurements.pixel_simulation import simulate_pixels
+
+    s = setup("ur5", tmp_path, postures=30)
+    truth = (s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    obs = simulate_pixels(*truth, noise_px=0.3, seed=1)
+    pixels = np.array(obs.pixels)
+    pixels[9, 0] += 40.0
+    obs = dataclasses.replace(obs, pixels=pixels)
+    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
+    part = pixel_part(s.nominal, PixelData(camera, s.target, obs))
+    _, kept, found, notes, _ = pixel_fit.checked_pixels(s.nominal, part, None)
+    assert [o.row for o in found] == [part.rows.lines[9]] and kept.m == part.m - 1
+    monkeypatch.setattr(pixel_fit, "MAX_EVALUATIONS", 2)
+    _, kept, found, notes, _ = pixel_fit.checked_pixels(s.nominal, part, None)
+    assert found == [] and kept is part, found
+    assert any("own fit did not converge" in n and "no outliers" in n for n in notes), notes

@@ -137,14 +137,16 @@ def test_auto_holds_nothing_where_its_fit_is_exact():
 
 
 def test_a_fit_stopped_by_the_evaluation_cap_says_what_to_raise_and_where_it_stalled():
-    """A refusal for not converging names the cap it met, the option to raise, and the
-    combination the data do not determine where it stopped (before: the solver's message)."""
+    """A refusal for not converging names the combination the data do not determine where it
+    stopped first (the cause; before checks48 the cap led), then the cap it met and the option
+    to raise (before: the solver's message)."""
     chain = _chain(_urdf(COINCIDENT, COINCIDENT_TOOL))
     data = simulate(chain, 25, "pose", noise_mm=0.05, seed=1).measurements
     r = calibrate(chain, data, params="complete", max_iterations=5)
-    assert r.refusal is not None and r.refusal.startswith("the solver did not converge")
-    assert "stopped after 5 residual evaluations, a larger max_iterations" in r.refusal
-    assert "where it stopped, the data cannot separate frame.rx" in r.refusal, r.refusal
+    assert r.refusal is not None and r.refusal.startswith("the data cannot separate frame.rx")
+    stop = "; assessed where the fit stopped: the solver did not converge"
+    assert stop in r.refusal and "stopped after 5 residual evaluations" in r.refusal
+    assert "a larger max_iterations" in r.refusal, r.refusal
 
 
 # Case 67 of converge45's search: a revolute joint, two on one axis through it (URDF numbers
@@ -234,8 +236,8 @@ def test_a_stalled_contact_fit_names_what_the_touches_cannot_separate(monkeypatc
     assert s[0] / s[-1] > 1e6  # undetermined: over ILL_CONDITION by far
     weak = [n for n, c in zip(fit.model.names(), vt[-1], strict=True) if abs(c) >= 0.3]
     assert weak and not set(weak) & set(r.free)  # the planes and contact alone
-    where = f"; where it stopped, the data cannot separate {' and '.join(weak)}: the combination "
-    assert where in r.refusal, r.refusal
+    where = f"the data cannot separate {' and '.join(weak)}: the combination "
+    assert r.refusal.startswith(where), r.refusal
 
 
 # Case 192 of converge45's search: two revolute joints on one axis, a third perpendicular to
@@ -362,9 +364,60 @@ def test_auto_holds_what_stalls_a_pixel_fit_and_a_stalled_pixel_fit_names_it(tmp
     )
     assert complete.refusal is not None and complete.stalled
     assert "stopped after 50 residual evaluations" in complete.refusal, complete.refusal
-    where = "; where it stopped, the data cannot separate term1.camera.x and term1.camera.ry"
-    assert where in complete.refusal and "j1:theta2" in complete.refusal, complete.refusal
+    where = "the data cannot separate term1.camera.x and term1.camera.ry"
+    assert complete.refusal.startswith(where), complete.refusal
+    assert "j1:theta2" in complete.refusal, complete.refusal
     assert auto.accepted and auto.stalled, auto.refusal
     held = "params 'auto' held j1:theta2 at the nominal value: the fit with it did not converge"
     assert any(n.startswith(held) for n in auto.notes), auto.notes
     assert "j1:theta2" not in auto.free
+
+
+def test_a_pixel_calibration_from_five_images_is_refused_for_its_cause_first(tmp_path, capsys):
+    """docs/howto/cameras.md's UR5 and camera with 5 images (``--configs 5 --seed 2``): the
+    fit stops at the cap in a combination of the camera's y and elbow_joint:theta3 that 51
+    pixels do not determine. The refusal leads with that cause, the cap after it (before, it
+    led with ``the solver did not converge``). The combination is checked on the fitted
+    unknowns' Jacobian where it stopped (unit-norm columns, its weakest singular vector)."""
+    from calib.cli import main
+
+    (tmp_path / "intr.yaml").write_text(
+        "image_width: 640\nimage_height: 480\n"
+        "camera_matrix: [[600.0, 0.0, 319.5], [0.0, 600.0, 239.5], [0.0, 0.0, 1.0]]\n"
+        "distortion_coefficients: [-0.1, 0.05, 0.0, 0.0, 0.0]\n"
+    )
+    rows = [
+        f"p{i}{j},{0.03 * i - 0.045},{0.03 * j - 0.03},0.02" for i in range(4) for j in range(3)
+    ]
+    (tmp_path / "target.csv").write_text("point,x,y,z\n" + "\n".join(rows) + "\n")
+    camera = ["--camera", "cam", "world", tmp_path / "intr.yaml"]
+    common = ["--target", tmp_path / "target.csv", "--tool", "tool0"]
+    numbers = ["1.6", "0.3", "0.8", "-1.8688", "0", "1.7561"]
+    obs = tmp_path / "obs.csv"
+    simulated = ["simulate", "ur5", "--measure", "pixels", *camera, *numbers, *common]
+    more = ["--configs", "5", "--noise-px", "0.5", "--seed", "2", "--out", obs]
+    assert main([str(a) for a in (*simulated, *more)]) == 0
+    fits: list = []
+    real = contact_chains._fit
+
+    def recorded(*args, **kwargs):
+        out = real(*args, **kwargs)
+        fits.append(out[0])
+        return out
+
+    argv = ["calibrate", "ur5", "--measure", "pixels", "--data", obs, *camera, *common]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(contact_chains, "_fit", recorded)
+        code = main([str(a) for a in (*argv, "--out", tmp_path / "cal.urdf")])
+    assert code != 0 and not (tmp_path / "cal.urdf").exists()
+    refusal = capsys.readouterr().err.split("calibration refused: ", 1)[1]
+    (fit,) = fits  # one fit: nothing held (the camera's y is not a parameter auto chose)
+    assert not fit.converged and fit.evaluations == 100  # the default cap
+    J = fit.J / np.linalg.norm(fit.J, axis=0)
+    _, sv, vt = np.linalg.svd(J)
+    assert sv[0] / sv[-1] > 1e3  # over ILL_CONDITION
+    weak = [n for n, c in zip(fit.model.names(), vt[-1], strict=True) if abs(c) >= 0.3]
+    assert weak == ["term1.camera.y", "elbow_joint:theta3"], weak
+    assert refusal.startswith(f"the data cannot separate {' and '.join(weak)}: "), refusal
+    stop = "; assessed where the fit stopped: the solver did not converge"
+    assert stop in refusal and "stopped after 100 residual evaluations" in refusal, refusal

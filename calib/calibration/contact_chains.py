@@ -50,6 +50,7 @@ from .solve import fit, fitted_values, gauss_newton_finish, unconverged
 
 __all__ = [
     "HOLDS",
+    "NOTHING_HELD",
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
@@ -266,8 +267,9 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             _check_fitted(part, opts.noise)
     stalled = not all(converged)
     result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
-    none = nothing_fitted(result, bool(opts.fix))
-    return dataclasses.replace(result, notes=(*result.notes, none)) if none else result
+    unseen = NOTHING_HELD if result.accepted and not any(h is not None for h in r.held) else None
+    added = [n for n in (nothing_fitted(result, bool(opts.fix)), unseen) if n]
+    return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:
@@ -284,6 +286,12 @@ def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float
     validation.check_fitted_errors(part.stats, markers, noise, part.source, part.chain)
 
 
+NOTHING_HELD = (
+    "nothing held out: not checked on unseen postures (hold some out: holdout or validate, or "
+    "folds for measurements and touches)"
+)
+"""The note of an accepted fit of every kind that held no row out (folds: its full fit's)."""
+
 HOLDS = 3
 """Most parameters ``auto`` holds, one a refit (:func:`fit_registered`)."""
 
@@ -292,8 +300,8 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
     A fit refused only for not converging is assessed too: the combinations it stalled in
-    (its refusal names them after its own). Empty: accepted, or refused for a held-out error or (a
-    converged fit) the rank rule. ``fit_of``: the fit, whether it was
+    (its refusal names them first, the stop after). Empty: accepted, or refused for a
+    held-out error or (a converged fit) the rank rule. ``fit_of``: the fit, whether it was
     polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
     fitted, polished, prior, generic = fit_of
@@ -321,7 +329,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     refusal, found = result.refusal or stopped or rank, list[Direction]()
     if result.refusal is None and rank is None:  # accepted so far, or only stalled
         weak, found = assess(generic, fitted, cov, polished)
-        stalled = stopped and weak and f"{stopped}; where it stopped, {weak}"
+        stalled = stopped and weak and f"{weak}; assessed where the fit stopped: {stopped}"
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found

@@ -158,10 +158,10 @@ def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, fre
 
     ``term``'s weight is taken as 1; ``free``: the columns of
     :func:`~.pixel_term.pixel_jacobian` fitted; ``kin``: the chain's frames at the rows'
-    joints on ``placements``.
+    joints on ``placements``. Returns the engine's fit (:class:`~.solve.Fit`).
     """
     start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
-    fitted = fit(
+    return fit(
         _Steps(tuple(free)),
         start,
         ChainsData((part,)),
@@ -169,7 +169,6 @@ def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, fre
         max_iterations=MAX_EVALUATIONS,
         kin=(kin,),
     )
-    return fitted.state
 
 
 def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
@@ -198,7 +197,7 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         )
     mdh = placements.chain_models((chain,))[0]
     start = PixelTermState(mdh, guess, X, lens, 1.0)
-    camera = _term(_fitted(chain, placements, start, part, range(6), kin)).camera
+    camera = _term(_fitted(chain, placements, start, part, range(6), kin).state).camera
     p_cam = camera_points(kin, camera, X[rows.point])[0]
     weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
     return PixelTermState(mdh, camera, X, lens, weight, part.data.what)
@@ -259,18 +258,25 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     The term alone fitted (its camera and its chain's joint placements: the columns its rows
     determine, :func:`~.pixel_term.free_columns`): a camera registered on the nominal robot
     errs by tens of pixels at far postures, which no outlier rule should read as gross.
+    One stopped by its cap proposes no outliers (:func:`~.outliers.until_stable`'s rule): the
+    held-out rows' errors None, and why (third; else None).
     """
     placements = Placements.of((chain,))
     kin = placements.frames(chain, part.rows.q)
     J = pixel_jacobian(placements, state, chain, part.rows, kin=kin)[1]
     free = free_columns(J.reshape(-1, J.shape[2]), placements, state.what)
     own = _fitted(chain, placements, state, part, free, kin)
+    stopped = not own.converged and (
+        f"camera {part.data.camera.name}: the term's own fit did not converge "
+        f"({own.message}): it proposed no outliers"
+    )
     errors = [
-        np.linalg.norm(own.residuals(ChainsData((p,))), axis=1) * state.weight
+        np.linalg.norm(own.state.residuals(ChainsData((p,))), axis=1) * state.weight
         for p in (part, held)
         if p is not None
     ]
-    return errors[0], (errors[1] if held is not None else None)
+    e_held = errors[1] if held is not None and not stopped else None
+    return errors[0], e_held, stopped or None
 
 
 def _size(part: PixelPart) -> int:
@@ -311,10 +317,11 @@ class _Camera:
         """Rows seen from behind or far off the own fit set aside (:func:`checked_pixels`)."""
         chain, part, held = self.chain, self.rows, self.held
         behind = _from_behind(state, part)
-        errors, e_held = _judged(chain, state, part, held)
+        errors, e_held, stopped = _judged(chain, state, part, held)
         floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
         pixel = outliers.Errors(errors, None, (2, 3))
-        bad, found = outliers.find_outliers(pixel, floor, part.rows.lines)
+        none: tuple = (np.zeros(part.m, dtype=bool), [])  # a stopped fit's errors: not the data's
+        bad, found = none if stopped else outliers.find_outliers(pixel, floor, part.rows.lines)
         found = [dataclasses.replace(o, kind="pixels") for o in found]  # set aside on pixels
         found += [
             outliers.Outlier(
@@ -329,7 +336,7 @@ class _Camera:
                 raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")
             kept = part.subset(~bad)
             state = _registered(chain, kept)
-        notes: list[str] = []
+        notes = [stopped] if stopped else []
         if held is not None and e_held is not None:
             fitted, other = (outliers.Errors(e, None, (2, 3)) for e in (errors[~bad], e_held))
             held = term_checks.held_out(fitted, other, held, held.rows.lines, held.subset, notes)

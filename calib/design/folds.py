@@ -24,6 +24,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from ..calibration.contact_chains import NOTHING_HELD
 from ..calibration.contact_chains_result import ChainContacts, ContactChainsCalibration
 from ..calibration.contact_checks import held_out_refusal, subset
 from ..calibration.contact_result import GapStats
@@ -249,8 +250,10 @@ def _pooled_result(
         tuple((p.stats["held_out_registration"], p.stats["held_out"]) for p in r.chains)
         for r in runs
     )
+    refusal = full.refusal or first or refusal
+    notes = tuple(n for n in full.notes if n != NOTHING_HELD)  # every row held out once
     return dataclasses.replace(
-        full, chains=tuple(parts), refusal=full.refusal or first or refusal, folds=per_fold
+        full, chains=tuple(parts), refusal=refusal, folds=per_fold, notes=notes
     )
 
 

@@ -1,0 +1,71 @@
+"""An accepted fit that held nothing out says so, one text for every kind (checks48).
+
+Its held-out figures are null in the report: nothing was checked on unseen postures. The note
+says it and names the ways out; with a holdout or K folds (every row held out once) it is not
+there. Whether anything was held out is read from the report (each term's held-out errors).
+"""
+
+from __future__ import annotations
+
+import pytest
+from conftest import chain_of
+from pixel_setups import INTRINSICS, calibrated, setup
+
+from calib import calibrate, cross_validate, simulate, simulate_contacts
+from calib.calibration.contact_chains import NOTHING_HELD
+from calib.calibration.pixel_term import PixelCamera
+from calib.cli.flags import in_flags
+from calib.measurements.pixel_simulation import simulate_pixels
+
+MARKER = (0.05, 0.02, 0.1)
+
+
+def _measured(**options):
+    chain = chain_of("ur5")
+    data = simulate(chain, 30, "position", marker=MARKER, noise_mm=0.05, seed=1).measurements
+    return calibrate(chain, data, marker=MARKER, **options)
+
+
+def _touches(**options):
+    chain = chain_of("ur5")
+    data = simulate_contacts(chain, 40, "plane", seed=1).data
+    return calibrate(chain, data, **options)
+
+
+def _pixels(tmp_path, **options):
+    s = setup("ur5", tmp_path, postures=30)
+    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q, seed=1)
+    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
+    return calibrated(s.nominal, camera, s.target, obs, **options)
+
+
+def _held_out(result) -> list:
+    """Each term's held-out errors in the report (None: none)."""
+    return [t["held_out"] for t in result.to_dict()["errors"]["terms"]]
+
+
+@pytest.mark.parametrize("kind", ["measured", "touches", "pixels"])
+def test_every_kind_says_when_nothing_is_held_out(kind, tmp_path):
+    fit = {"measured": _measured, "touches": _touches}.get(kind) or (
+        lambda **o: _pixels(tmp_path, **o)
+    )
+    alone, held = fit(), fit(holdout=0.25)
+    assert alone.accepted and held.accepted, (alone.refusal, held.refusal)
+    assert _held_out(alone) == [None] and _held_out(held) != [None]
+    assert NOTHING_HELD in alone.notes and NOTHING_HELD not in held.notes
+    assert f"note: {NOTHING_HELD}" in alone.summary()
+    assert NOTHING_HELD in alone.to_dict()["warnings"]
+
+
+def test_folds_hold_every_row_out_once_so_no_note():
+    chain = chain_of("ur5")
+    data = simulate(chain, 30, "position", marker=MARKER, noise_mm=0.05, seed=1).measurements
+    folded = cross_validate(chain, data, folds=5, marker=MARKER)
+    assert _held_out(folded) != [None]
+    assert NOTHING_HELD not in folded.notes
+
+
+def test_the_command_line_names_its_flags():
+    said = in_flags(NOTHING_HELD)
+    flags = "(hold some out: --holdout or --validate, or --folds for measurements and touches)"
+    assert said.endswith(flags), said
