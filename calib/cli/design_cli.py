@@ -20,6 +20,7 @@ from ..core.choices import (
     EXCHANGE_CRITERIA,
 )
 from ..core.progress import terminal
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from .common import (
     BooleanOnce,
@@ -152,7 +153,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     else:
         print(design_text(result, args.noise_mm))
         if out is not None:
-            print(f"wrote {out} ({len(result.q)} configurations)")
+            print(f"wrote {out} ({counted(len(result.q), 'configurations')})")
     return 0
 
 
@@ -190,7 +191,7 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
         print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
     else:
         print(
-            f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
+            f"{chain.name}: {counted(len(q), 'configurations')} from {args.evaluate}, "
             f"{ind.parameters} parameters, rank {ind.rank}"
         )
         print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
