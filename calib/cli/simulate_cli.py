@@ -269,7 +269,8 @@ def add_simulate_parser(sub) -> None:
     )
     g.add_argument(
         "--configs-file",
-        help="CSV of the configurations to simulate (joint columns, e.g. from calib design)",
+        help="CSV of the configurations to simulate (joint columns, e.g. from calib design); "
+        "not with --configs",
     )
     g.add_argument(
         "--seed",
