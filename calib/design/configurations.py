@@ -181,6 +181,7 @@ def configurations_csv(
 
 
 __all__ = [
+    "MAX_CONFIGS_BYTES",
     "configurations_csv",
     "parse_configurations",
     "read_configurations",
