@@ -14,10 +14,11 @@ from pinref import pair_collides
 
 from calib import InvalidArgumentError, calibrate, load_chain, residual_stats, simulate
 from calib.cli.commands import main
+from calib.design.blocks import solve_blocks
 from calib.design.configurations import configurations_csv, parse_configurations
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import candidate_configurations, design, evaluate, least_i
-from calib.design.exchange import ExchangeState, optimal_subset, solve_blocks
+from calib.design.exchange import ExchangeState, optimal_subset
 from calib.design.observability import indices_of, observation_model, reference
 from calib.exceptions import DataError
 from calib.kinematics.catalog import erd_robots_dir

@@ -226,6 +226,45 @@ def test_simulate_pixels_at_the_postures_of_a_configurations_file(capsys, tmp_pa
     np.testing.assert_allclose(obs.pixels, expected, atol=1e-6)
 
 
+def test_a_head_camera_on_the_link_before_its_own_is_refused_both_ways(capsys, tmp_path):
+    """TIAGo's head camera fixed to head_1_link, given on head_2_link (cli48): its chain has
+    head_2_joint, which does not move the camera. The refusal's hint says a joint may be too
+    many as well as left out, and names no link (the data do not say which)."""
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    model = pin.buildModelFromUrdf(str(load_chain("tiago").urdf_path))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    head_1, optical = (data.oMf[pin_frame(model, n)] for n in ("head_1_link", "xtion_link"))
+    optical = optical.act(pin.SE3(pin.rpy.rpyToMatrix(-np.pi / 2, 0.0, -np.pi / 2), np.zeros(3)))
+    placed = _placement_numbers(head_1.actInv(optical).homogeneous)  # by Pinocchio
+    target = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
+    camera = ["--camera", "cam", "head_1_link", tmp_path / "intr.yaml", *placed]
+    argv = ["simulate", "tiago", "--measure", "pixels", *camera, *target, "--configs", 1500]
+    code, _, err = run(capsys, *argv, "--seed", 1, "--out", tmp_path / "obs.csv")
+    assert code == 0, err
+    lines = (tmp_path / "obs.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    assert "head_2_joint" not in head  # the chain from head_1_link
+    rng = np.random.default_rng(3)  # head_2_joint moving, as a robot's log records it
+    drawn: dict[str, float] = {}
+    rows = [f"head_2_joint,{lines[0]}"]
+    for line in lines[1:]:
+        posture = line.rsplit(",", 4)[0]
+        drawn.setdefault(posture, float(rng.uniform(-0.4, 0.4)))
+        rows.append(f"{drawn[posture]!r},{line}")
+    (tmp_path / "obs.csv").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "cal.urdf"
+    camera = ["--camera", "cam", "head_2_link", tmp_path / "intr.yaml"]
+    argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv"]
+    code, _, err = run(capsys, *argv, *camera, *target, "--out", out)
+    assert code == 2, err
+    assert "the pixels do not match camera cam and head_2_link -> arm_tool_link" in err
+    assert "its chain has a joint that does not move the camera, or misses one" in err
+    assert "left out of its chain" not in err
+    assert not out.exists()
+
+
 def _bad_files(folder: Path, case: str) -> tuple[list, Path]:
     """(extra arguments, observations file) of a bad-input case."""
     intr, target, obs = folder / "intr.yaml", folder / "target.csv", folder / "obs.csv"

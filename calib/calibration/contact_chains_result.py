@@ -15,6 +15,7 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from ..core.fileio import json_text
+from ..core.words import counted
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.elastic import compliance_document as chain_compliance_document
@@ -453,31 +454,30 @@ class ContactChainsCalibration(Result, ChainView):
             "notes": list(self.notes),
         }
 
-    def _objects(self) -> str:
-        """What the terms fit beside the joints: ``2 plane(s)``, ``2 point(s)``, ``1 camera(s)``.
+    def _headline(self) -> str:
+        """The summary's first line: the chains, the terms' objects, what is fitted, determined.
 
-        A contact term's objects are named by their kind (a plane-point's plane is a plane), a
-        plane shared by chains counts once.
+        The objects (``2 plane(s)``, ``1 camera(s)``): a contact term's by their kind (a
+        plane-point's plane is a plane), a plane shared by chains once.
         """
         names = self._object_names()
         objects: dict[str, set[str]] = {}
         for c in self._of(ChainContacts):
             objects.setdefault(c.kind.object_name, set()).update(names[id(c)].values())
         measured, cameras = len(self._of(MeasuredChain)), len(self._of(PixelChain))
-        parts = [f"{len(ids)} {kind}(s)" for kind, ids in objects.items()]
+        parts = [counted(len(self.chains), "chains")]
+        parts += [f"{len(ids)} {kind}(s)" for kind, ids in objects.items()]
         parts += [f"{measured} measured term(s)"] if measured else []
         parts += [f"{cameras} camera(s)"] if cameras else []
-        return ", ".join(parts)
+        parts += [f"{counted(len(self.free), 'joint placement components')} fitted"]
+        parts += [f"{counted(self.unknowns, 'unknowns')} determined"]
+        shared = f" (shared joints: {', '.join(self.shared)})" if self.shared else ""
+        return f"{self.chains[0].chain.name}: {', '.join(parts)}{shared}"
 
     @checked_arguments
     def summary(self) -> str:
         """A terminal summary: each chain's gaps, then the shared joints."""
-        n = len(self.chains)
-        lines = [
-            f"{self.chains[0].chain.name}: {n} chain{'s' if n != 1 else ''}, {self._objects()}, "
-            f"{len(self.free)} joint placement components fitted, {self.unknowns} unknowns "
-            "determined" + (f" (shared joints: {', '.join(self.shared)})" if self.shared else ""),
-        ]
+        lines = [self._headline()]
         one = self._frame() is not None  # one chain measured by an instrument: a chain's table
         lines += [line for c in (() if one else self.chains) for line in c.lines()]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
@@ -591,7 +591,7 @@ def _fold_lines(folds, chains) -> list[str]:
     terms = [f", term {k + 1} ({c.chain.tool_frame}, {c.kind.label})" for k, c in enumerate(chains)]
     lines = [
         f"  fold {k + 1}{terms[c] if len(chains) > 1 else ''}: {b.weighted_mm:.3f} -> "
-        f"{a.weighted_mm:.3f} ({a.m} rows)"
+        f"{a.weighted_mm:.3f} ({counted(a.m, 'rows')})"
         for k, fold in enumerate(folds)
         for c, (b, a) in enumerate(fold)
     ]

@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..core.words import counted
 from ..kinematics.robot import Chain
 from .report import URDF_ALONE, mm_or_deg, term_errors
 
@@ -144,7 +145,8 @@ class TermPart:
             labels[key] = label
         width = max(22, *map(len, labels.values()))
         return [f"{self.chain.base_frame} -> {self.chain.tool_frame}, {self.heading()}"] + [
-            f"  {labels[key]:{width}s} {'  '.join(f'{v:8.3f}' for v in s.rms)}  ({s.m} {self.rows})"
+            f"  {labels[key]:{width}s} {'  '.join(f'{v:8.3f}' for v in s.rms)}  "
+            f"({counted(s.m, self.rows)})"
             for key, s in self.stats.items()
         ]
 

@@ -184,7 +184,7 @@ def check_fitted_pixels(part: PixelChain) -> None:
             f"the pixels do not match camera {part.name} and {part.chain.base_frame} -> "
             f"{part.chain.tool_frame}: the calibrated reprojection error is {after:.4g} px RMS "
             f"(registered: {before:.4g} px): the camera on another link than "
-            f"{part.chain.base_frame} (a joint between them left out of its chain), another "
-            f"camera's images or intrinsics (check the camera's{fix}), another robot's "
-            "postures, or another target?",
+            f"{part.chain.base_frame} (its chain has a joint that does not move the camera, or "
+            f"misses one that does), another camera's images or intrinsics (check the "
+            f"camera's{fix}), another robot's postures, or another target?",
         )

@@ -16,6 +16,7 @@ from typing import Any, Protocol, Self, TypeVar
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
@@ -112,7 +113,7 @@ def split(data: _R, fraction: float, seed: int) -> tuple[_R, _R | None]:
     postures = int(groups.max(initial=-1)) + 1
     n_out = round(fraction * postures)
     if n_out == 0 and fraction > 0.0:
-        distinct = f" ({postures} postures)" if postures < data.m else ""
+        distinct = f" ({counted(postures, 'postures')})" if postures < data.m else ""
         raise InvalidArgumentError(
             f"holdout {fraction:g} of {data.m} rows{distinct} holds out no row: give at least "
             f"{1.0 / postures:.3g} (one {'posture' if distinct else 'row'}), or 0 for no holdout"

@@ -12,6 +12,7 @@ from pathlib import Path
 from ..calibration.analysis import analyze
 from ..core.choices import DEFAULT_SET, PARAMETER_SETS, VERDICT_SET
 from ..core.progress import terminal
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.report import analysis_text, coupling_lines, mdh_table, tree_table
 from ..kinematics.mdh import from_chain
@@ -182,8 +183,8 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     else:
         print(
             f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
-            f"{args.measure}: {len(names)} identifiable parameters (measurement frame and "
-            f"markers free{f', {len(held)} held' if held else ''})"
+            f"{args.measure}: {counted(len(names), 'identifiable parameters')} (measurement "
+            f"frame and markers free{f', {len(held)} held' if held else ''})"
         )
         print("  " + ", ".join(names))
         for note in notes:

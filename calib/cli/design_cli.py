@@ -20,6 +20,7 @@ from ..core.choices import (
     EXCHANGE_CRITERIA,
 )
 from ..core.progress import terminal
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from .common import (
     BooleanOnce,
@@ -95,52 +96,28 @@ def _check_design_options(args: argparse.Namespace) -> None:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """Choose the configurations to measure, or evaluate a given set (``--evaluate``)."""
-    from ..design.collision import find_srdf
-    from ..design.configurations import configurations_csv, read_configurations
-    from ..design.constraints import Constraints
+    from ..design.configurations import configurations_csv
     from ..design.design import design, design_text
     from ..kinematics.tree import load_robot
 
     _check_design_options(args)
     chain = load_robot(args.robot, args.base, tool_arg(args))
-    markers = args.marker
-    weight = args.orientation_weight
     if args.evaluate:
         return _evaluate(args, chain)
     if args.configs is None:
         raise InvalidArgumentError("give --configs K (or --evaluate CONFIGS.csv)")
     out = Path(args.out) if args.out else None
-    inputs = {
-        "the URDF": chain.urdf_path,
-        "--candidates-file": args.candidates_file,
-        "--srdf": args.srdf,
-        "the SRDF found beside the URDF": find_srdf(chain.urdf_path, chain.model.name)
-        if args.collision
-        else None,
-    }
-    check_output_paths({"--out": out}, inputs)
-    candidates, readings = args.candidates, None
-    if args.candidates_file:
-        candidates = read_configurations(args.candidates_file, chain)
-        readings = _off_chain(args.candidates_file, chain, candidates)
-    constraints = Constraints(
-        margin=args.margin,
-        workspace=tuple(args.workspace) if args.workspace else None,
-        collision=args.collision,
-        obstacles=tuple(tuple(b) for b in args.obstacle),
-        srdf=args.srdf,
-        line_of_sight=tuple(args.line_of_sight) if args.line_of_sight else None,
-    )
+    candidates, readings = _candidates(args, chain, out)
     result = design(
         chain,
         args.configs,
         candidates=candidates,
         criterion=args.criterion,
         measure=args.measure,
-        markers=markers,
+        markers=args.marker,
         params=args.params,
-        orientation_weight=weight,
-        constraints=constraints,
+        orientation_weight=args.orientation_weight,
+        constraints=_constraints(args),
         seed=args.seed,
         progress=terminal(args.quiet),
         readings=readings,
@@ -152,8 +129,46 @@ def cmd_design(args: argparse.Namespace) -> int:
     else:
         print(design_text(result, args.noise_mm))
         if out is not None:
-            print(f"wrote {out} ({len(result.q)} configurations)")
+            print(f"wrote {out} ({counted(len(result.q), 'configurations')})")
     return 0
+
+
+def _candidates(args: argparse.Namespace, chain, out: Path | None):
+    """``(candidates, readings)``: ``--candidates`` K, or ``--candidates-file``'s rows.
+
+    With a file, ``readings`` are the joints off the chain it records (:func:`_off_chain`),
+    else None. ``--out`` is checked first against every input (the URDF, the candidates file,
+    the SRDF given or found beside the URDF).
+    """
+    from ..design.collision import find_srdf
+    from ..design.configurations import read_configurations
+
+    found = find_srdf(chain.urdf_path, chain.model.name) if args.collision else None
+    inputs = {
+        "the URDF": chain.urdf_path,
+        "--candidates-file": args.candidates_file,
+        "--srdf": args.srdf,
+        "the SRDF found beside the URDF": found,
+    }
+    check_output_paths({"--out": out}, inputs)
+    if not args.candidates_file:
+        return args.candidates, None
+    candidates = read_configurations(args.candidates_file, chain)
+    return candidates, _off_chain(args.candidates_file, chain, candidates)
+
+
+def _constraints(args: argparse.Namespace):
+    """The design's constraints from the command line (margin, workspace, collisions, sight)."""
+    from ..design.constraints import Constraints
+
+    return Constraints(
+        margin=args.margin,
+        workspace=tuple(args.workspace) if args.workspace else None,
+        collision=args.collision,
+        obstacles=tuple(tuple(b) for b in args.obstacle),
+        srdf=args.srdf,
+        line_of_sight=tuple(args.line_of_sight) if args.line_of_sight else None,
+    )
 
 
 def _off_chain(path: str, chain, candidates):
@@ -190,7 +205,7 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
         print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
     else:
         print(
-            f"{chain.name}: {len(q)} configurations from {args.evaluate}, "
+            f"{chain.name}: {counted(len(q), 'configurations')} from {args.evaluate}, "
             f"{ind.parameters} parameters, rank {ind.rank}"
         )
         print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..core.fileio import json_text
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from .common import (
     check_output_paths,
@@ -408,8 +409,9 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     seen = len(np.unique(obs.q, axis=0))
     names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
     print(
-        f"{chains[0].name}: {obs.m} pixels of {len(target.point)} target points in {seen} of "
-        f"{len(q)} postures, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
+        f"{chains[0].name}: {counted(obs.m, 'pixels')} of "
+        f"{counted(len(target.point), 'target points')} in {seen} of "
+        f"{counted(len(q), 'postures')}, camera{'s' if len(cameras) > 1 else ''} {names}, noise "
         f"{args.noise_px:g} px -> {out}"
     )
     return 0
@@ -424,20 +426,20 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
     views, target = _views(args, _cameras(args, several=True), placed=True)
     chains = tuple(c for _, c in views)
     joints, q = _postures(chains, args.configs, args.seed)
-    counted = pixel_count(chains, tuple(c for c, _ in views), target, joints, q, args.params)
+    found = pixel_count(chains, tuple(c for c, _ in views), target, joints, q, args.params)
     cameras = tuple({c.name: c for c, _ in views}.values())
     if args.json:
-        print_json(counted)
+        print_json(found)
         return 0
     names = ", ".join(f"{c.name} on {c.link}" for c in cameras)
     own = "camera 6" if len(cameras) == 1 else f"cameras {len(cameras)} x 6"
     print(
         f"{chains[0].name}: camera{'s' if len(cameras) > 1 else ''} {names} seeing "
-        f"{len(target.point)} points on {chains[0].tool_frame} ({counted['rows']} pixels in "
-        f"{counted['postures']} postures)\n"
-        f"unknowns determined: {counted['n_base']} of {counted['n_unknowns']} ({own}, "
-        f"{len(joints)} joints x 6 placement components"
-        + (", target mounting 6" if counted["mount"] else "")
+        f"{counted(len(target.point), 'points')} on {chains[0].tool_frame} "
+        f"({counted(found['rows'], 'pixels')} in {counted(found['postures'], 'postures')})\n"
+        f"unknowns determined: {found['n_base']} of {found['n_unknowns']} ({own}, "
+        f"{counted(len(joints), 'joints')} x 6 placement components"
+        + (", target mounting 6" if found["mount"] else "")
         + ")"
     )
     return 0

@@ -18,6 +18,7 @@ from ..core.choices import (
     PARAMETER_SETS,
 )
 from ..core.fileio import json_text, written_in_place
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
@@ -81,7 +82,7 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
     truth = campaign.truth
     write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
     print(
-        f"{chain.name}: {campaign.data.m} touches, measure {args.measure}, "
+        f"{chain.name}: {counted(campaign.data.m, 'touches')}, measure {args.measure}, "
         f"{len(campaign.data.contacts)} {campaign.data.id_column}(s), {len(truth.params)} "
         f"{truth.params.label} parameters perturbed ({truth.error_mm:g} mm, "
         f"{truth.error_mrad:g} mrad), joint noise {truth.noise_mrad:g} mrad, seed {truth.seed}"
@@ -101,6 +102,11 @@ def _configs(args: argparse.Namespace, robot: Chain | Tree) -> int | np.ndarray:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Simulate a measurement campaign; write the CSV and the true errors (JSON)."""
+    both = given_options(args, ("configs", "configs_file"))
+    if len(both) == 2:
+        raise InvalidArgumentError(
+            f"{both[0]} draws random configurations; {both[1]} gives them: use one"
+        )
     if args.measure == "pixels":
         return pixels_cli.simulate_pixels_command(args)
     pixels_cli.refuse_pixel_options(args)
@@ -174,7 +180,8 @@ def _simulate_chain(
         {out: measurements_csv(campaign.measurements), truth_path: json_text(truth.to_dict())}
     )
     print(
-        f"{chain.name}: {campaign.measurements.m} configurations, measure {args.measure}, "
+        f"{chain.name}: {counted(campaign.measurements.m, 'configurations')}, measure "
+        f"{args.measure}, "
         f"{len(truth.params)} {truth.params.label} parameters perturbed "
         f"({truth.error_mm:g} mm, {truth.error_mrad:g} mrad), noise {truth.noise_mm:g} mm"
         + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
@@ -214,7 +221,8 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
     }
     write_outputs({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
     print(
-        f"{tree.name}: {camp.measurements.m // tree.n_tools} configurations x {tree.n_tools} tools "
+        f"{tree.name}: {counted(camp.measurements.m // tree.n_tools, 'configurations')} x "
+        f"{tree.n_tools} tools "
         f"({', '.join(tree.tool_frames)}), {len(camp.params)} {camp.params.label} parameters "
         f"perturbed ({args.error_mm:g} mm, {args.error_mrad:g} mrad), noise {args.noise_mm:g} mm"
     )
@@ -261,7 +269,8 @@ def add_simulate_parser(sub) -> None:
     )
     g.add_argument(
         "--configs-file",
-        help="CSV of the configurations to simulate (joint columns, e.g. from calib design)",
+        help="CSV of the configurations to simulate (joint columns, e.g. from calib design); "
+        "not with --configs",
     )
     g.add_argument(
         "--seed",

@@ -21,8 +21,10 @@ Every command that writes files goes through :func:`check_outputs` (before its w
 from __future__ import annotations
 
 import contextlib
+import csv
 import enum
 import errno
+import io
 import itertools
 import json
 import os
@@ -30,7 +32,7 @@ import stat
 import sys
 import sysconfig
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO, TypeVar
@@ -42,6 +44,7 @@ __all__ = [
     "STDOUT",
     "PathLike",
     "check_outputs",
+    "csv_text",
     "inputs_recorded",
     "json_text",
     "path_text",
@@ -578,3 +581,12 @@ def json_text(obj: object) -> str:
         ValueError: ``obj`` holds NaN or infinity (write None for "undefined" instead).
     """
     return json.dumps(obj, indent=2, allow_nan=False) + "\n"
+
+
+def csv_text(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
+    """CSV text of a header and rows of cells (Unix line ends), as calib writes its files."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return out.getvalue()

@@ -1,8 +1,9 @@
 """Experiment design: which configurations to measure.
 
-:mod:`.observability` scores a set of configurations, :mod:`.exchange` improves it,
-:mod:`.design` drives both under the reachability and collision constraints of
-:mod:`.constraints` and :mod:`.collision`; :mod:`.configurations` reads and writes them.
+:mod:`.observability` scores a set of configurations, :mod:`.exchange` improves it (on
+:mod:`.blocks`, many small matrices at once), :mod:`.design` drives both under the
+reachability and collision constraints of :mod:`.constraints` and :mod:`.collision`;
+:mod:`.configurations` reads and writes them.
 :mod:`.folds` scores a campaign's calibration by K-fold cross-validation (K + 1 fits).
 
 The package is callable: ``calib.design(chain, 30, ...)`` is
@@ -22,6 +23,7 @@ import types
 __all__: list[str] = []
 
 _MODULES = (
+    "blocks",
     "collision",
     "configurations",
     "constraints",

@@ -18,12 +18,11 @@ another).
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
 
+from ..core.fileio import csv_text
 from ..exceptions import DataError, warn_user
 from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
@@ -174,18 +173,15 @@ def configurations_csv(
 
     With ``readings``, the joints off the chain follow, a row per configuration.
     """
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
     q = np.atleast_2d(q)
     if readings is not None:
         q = np.hstack([q, readings.values])
-    writer.writerow([*chain.joint_names, *(() if readings is None else readings.names)])
-    for row in q:
-        writer.writerow([repr(float(v)) for v in row])
-    return out.getvalue()
+    header = [*chain.joint_names, *(() if readings is None else readings.names)]
+    return csv_text(header, ([repr(float(v)) for v in row] for row in q))
 
 
 __all__ = [
+    "MAX_CONFIGS_BYTES",
     "configurations_csv",
     "parse_configurations",
     "read_configurations",

@@ -20,6 +20,7 @@ from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
 from ..core.checks import check_count, check_work, real_array, shown
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES, DEFAULT_MEASURE, DEFAULT_SET
 from ..core.progress import phase, steps
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain, check_robot
@@ -531,10 +532,10 @@ def design_text(d: Design, noise_mm: float = 0.05) -> str:
     if d.filters.checked is not None:
         rejected = f"{rejected or 'none'} of the {d.filters.checked} checked for collisions"
     lines = [
-        f"{d.robot}: {len(d.q)} configurations designed from {d.candidates} of "
+        f"{d.robot}: {counted(len(d.q), 'configurations')} designed from {d.candidates} of "
         f"{d.filters.candidates} candidates"
         + (f" (rejected: {rejected})" if rejected else "")
-        + f", criterion {d.criterion}, {d.model.rows} rows per configuration, "
+        + f", criterion {d.criterion}, {counted(d.model.rows, 'rows')} per configuration, "
         f"{d.model.b} parameters",
         *(f"note: {n}" for n in d.filters.notes),
         f"greedy start then {d.exchanges} exchange(s) in {d.sweeps} sweep(s); angles scaled by "

@@ -39,6 +39,7 @@ from ..core.checks import shown
 from ..core.choices import EXCHANGE_CRITERIA
 from ..core.progress import steps
 from ..exceptions import InvalidArgumentError
+from .blocks import component_major, dots, eye_blocks, gemm, outer, solve_blocks, times
 
 MIN_IMPROVEMENT = 1e-9
 """Relative improvement of the criterion below which an exchange is not made."""
@@ -61,77 +62,6 @@ FIRST_CHUNK = 128
 GATHER = 0.25
 """Fraction of the candidates below which their rows are gathered for the bounds (above it,
 one product over all the candidates is cheaper)."""
-
-
-def _eye(r: int, n: int) -> np.ndarray:
-    """Identity blocks ``(r, r, n)``."""
-    out = np.zeros((r, r, n))
-    out[np.arange(r), np.arange(r)] = 1.0
-    return out
-
-
-def solve_blocks(X: np.ndarray, E: np.ndarray | None = None):
-    """``log det X`` and ``X^-1 E`` of many small symmetric positive definite matrices.
-
-    Gauss-Jordan elimination without pivoting (stable on SPD matrices) on blocks stored
-    component-major, ``(r, r, N)``: r steps of operations on whole arrays, no Python loop
-    over the N matrices.
-
-    Args:
-        X: Matrices ``(r, r, N)``.
-        E: Right-hand sides ``(r, p, N)``, or None (log-determinant only).
-
-    Returns:
-        ``log det X`` ``(N,)``, ``X^-1 E`` ``(r, p, N)`` (None without E), and whether X is
-        positive definite ``(N,)`` (where it is not, the other two are meaningless).
-    """
-    r = X.shape[0]
-    aug = np.array(X, dtype=float) if E is None else np.concatenate([X, E], axis=1)
-    logdet = np.zeros(X.shape[2])
-    ok = np.ones(X.shape[2], dtype=bool)
-    for k in range(r):
-        piv = aug[k, k].copy()
-        ok &= piv > 0
-        piv[~(piv > 0)] = 1.0
-        logdet += np.log(piv)
-        aug[k] /= piv
-        f = aug[:, k].copy()
-        f[k] = 0.0
-        rows = slice(None) if E is not None else slice(k + 1, None)  # no back-substitution
-        aug[rows] -= f[rows, None, :] * aug[k][None]
-    return logdet, (None if E is None else aug[:, r:]), ok
-
-
-def _gemm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A_c B`` for every block of A ``(N, r, b)`` and one matrix B ``(b, p)``: ``(N, r, p)``.
-
-    One matrix product (BLAS) instead of N small ones.
-    """
-    N, r, b = A.shape
-    return (A.reshape(N * r, b) @ B).reshape(N, r, -1)
-
-
-def _blocks(A: np.ndarray) -> np.ndarray:
-    """``(N, r, p)`` to component-major ``(r, p, N)``."""
-    return np.ascontiguousarray(A.transpose(1, 2, 0))
-
-
-def _outer(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A_c B_c^T`` for component-major blocks ``(r, p, N)`` and ``(s, p, N)``: ``(r, s, N)``."""
-    return np.einsum("ipn,jpn->ijn", A, B)
-
-
-def _times(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A_c B`` for component-major blocks ``(r, p, N)`` and one matrix ``(p, s)``."""
-    return np.einsum("rpn,ps->rsn", A, B)
-
-
-def _dot(A: np.ndarray, B: np.ndarray, r: int) -> np.ndarray:
-    """``<A_c, B_c>_F`` of the p x r blocks of N candidates stored ``(p, r N)``: ``(N,)``.
-
-    Column ``s N + c`` holds column s of candidate c's block.
-    """
-    return np.einsum("ij,ij->j", A, B).reshape(r, -1).sum(axis=0)
 
 
 class ExchangeState:
@@ -173,8 +103,8 @@ class ExchangeState:
         self.logdet = float(logdet)
         self._removed: tuple[int | None, Any] = (None, None)
         G = self.Minv @ self.Jt  # M^-1 J_c^T of every candidate
-        self.trS = _dot(G, self.Jt, self.J.shape[1])
-        self.trP = None if self.L is None else _dot(self.L @ G, G, self.J.shape[1])
+        self.trS = dots(G, self.Jt, self.J.shape[1])
+        self.trP = None if self.L is None else dots(self.L @ G, G, self.J.shape[1])
 
     def value(self) -> float:
         """The criterion, as a cost: ``-log det M`` or ``trace(L M^-1)``."""
@@ -183,14 +113,14 @@ class ExchangeState:
     def blocks(self, subset: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """``S_c`` and ``P_c`` (None for D) of the candidates of ``subset``, ``(r, r, n)``."""
         Js = self.J[subset]
-        return self._blocks_of(Js, _gemm(Js, self.Minv))
+        return self._blocks_of(Js, gemm(Js, self.Minv))
 
     def _blocks_of(self, Js: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """``S_c`` and ``P_c`` from the rows ``Js`` and ``G = Js M^-1``, ``(n, r, b)``."""
-        S = _blocks(np.matmul(G, Js.transpose(0, 2, 1)))
+        S = component_major(np.matmul(G, Js.transpose(0, 2, 1)))
         if self.L is None:
             return S, None
-        return S, _blocks(np.matmul(_gemm(G, self.L), G.transpose(0, 2, 1)))
+        return S, component_major(np.matmul(gemm(G, self.L), G.transpose(0, 2, 1)))
 
     def _removal(self, j: int):
         """``G_j = J_j M^-1``, ``W = (I - S_j)^-1``, ``log det(I - S_j)`` and ``P_j`` (or None).
@@ -256,18 +186,19 @@ class ExchangeState:
         r = self.J.shape[1]
         if self.L is None or self.trP is None:  # D (trP is None exactly when L is)
             Y = self._products(np.linalg.cholesky(W).T @ Gj, subset)  # R S_cj^T
-            return lw + r * np.log1p((self.trS[every] + _dot(Y, Y, r)) / r)
+            return lw + r * np.log1p((self.trS[every] + dots(Y, Y, r)) / r)
         e, U = np.linalg.eigh(Pj)
         F = np.sqrt(np.maximum(e, 0.0))[:, None] * U.T
         V = W @ Gj
         Y = self._products(np.vstack([V, Gj @ self.L @ self.Minv, F @ V]), subset)
-        cross = _dot(Y[:r], Y[r : 2 * r], r)  # Y: V_c, T_cj^T and F V_c
-        return self.trP[every] + 2.0 * cross + _dot(Y[2 * r :], Y[2 * r :], r) - np.trace(W @ Pj)
+        cross = dots(Y[:r], Y[r : 2 * r], r)  # Y: V_c, T_cj^T and F V_c
+        return self.trP[every] + 2.0 * cross + dots(Y[2 * r :], Y[2 * r :], r) - np.trace(W @ Pj)
 
     def _products(self, rows: np.ndarray, subset: np.ndarray | None) -> np.ndarray:
         """``rows J_c^T`` of the candidates of ``subset`` (default: all), ``(p, r n)``.
 
-        Column ``s n + i`` is column s of the i-th candidate's block (as :func:`_dot` reads).
+        Column ``s n + i`` is column s of the i-th candidate's block (as
+        :func:`~.blocks.dots` reads).
         """
         if subset is None:
             return rows @ self.Jt
@@ -312,20 +243,20 @@ class ExchangeState:
             right.append(removal[0].T)
             if self.L is not None:
                 right.append(self.Minv @ self.L @ removal[0].T)
-        X = _gemm(Js, np.hstack(right))
+        X = gemm(Js, np.hstack(right))
         D, E = self._blocks_of(Js, X[:, :, :b])
         base = trace_base = 0.0
         if removal is not None:
             _, W, base, Pj = removal
-            Scj = _blocks(X[:, :, b : b + r])
-            A = _times(Scj, W)
-            D = D + _outer(A, Scj)
+            Scj = component_major(X[:, :, b : b + r])
+            A = times(Scj, W)
+            D = D + outer(A, Scj)
             if E is not None:
-                Tcj = _blocks(X[:, :, b + r :])
-                AT = _outer(A, Tcj)
-                E = E + AT + AT.transpose(1, 0, 2) + _outer(_times(A, Pj), A)
+                Tcj = component_major(X[:, :, b + r :])
+                AT = outer(A, Tcj)
+                E = E + AT + AT.transpose(1, 0, 2) + outer(times(A, Pj), A)
                 trace_base = -float(np.trace(W @ Pj))
-        logdet, Y, ok = solve_blocks(_eye(r, n) + D, E)
+        logdet, Y, ok = solve_blocks(eye_blocks(r, n) + D, E)
         ok &= logdet + base > np.log(MIN_DET_RATIO)  # det M' / det M
         gain = logdet + base if Y is None else np.einsum("iin->n", Y) + trace_base
         return np.where(ok & np.isfinite(gain), gain, -np.inf)
@@ -352,10 +283,10 @@ class ExchangeState:
         left = GR if self.L is None else np.vstack([GR, GR @ self.L @ self.Minv])
         QT = left @ self.Jt  # Q_c^T (then T_c^T) of every candidate, (p or 2p, r N)
         Ut = C @ QT[:p]
-        self.trS -= _dot(Ut, QT[:p], r)
+        self.trS -= dots(Ut, QT[:p], r)
         if self.L is not None:
             H = GR @ self.L @ GR.T
-            self.trP -= 2.0 * _dot(Ut, QT[p:], r) - _dot(H @ Ut, Ut, r)
+            self.trP -= 2.0 * dots(Ut, QT[p:], r) - dots(H @ Ut, Ut, r)
         self.Minv -= GR.T @ C @ GR
         self._removed = (None, None)
         if remove is None:

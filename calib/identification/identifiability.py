@@ -19,7 +19,6 @@ from ..kinematics.mimic import MimicJoint
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from ..kinematics.tree_model import TreeMDH, from_tree
-from . import qr
 from .base_columns import (
     checked_selection,
     identify_base,
@@ -36,6 +35,7 @@ from .jacobian import complete_jacobian, identification_jacobian
 from .kinds import kind_of
 from .measures import MeasureKind, Measurement
 from .parameters import Kind, Parameter, ParameterSet, parameter_set
+from .rank_notes import missing_errors, rank_notes
 from .theory import axes_through_point, per_tool_theory, theoretical_count
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 
@@ -45,24 +45,6 @@ REGROUP_TOL = 1e-8
 
 class RankWarning(UserWarning):
     """The observation matrix is too small, or its rank gap too weak, to trust the rank."""
-
-
-def _explain(p: Parameter, mdh: MDHModel | TreeMDH) -> str:
-    k, a = p.row, int(mdh.antecedent[p.row])
-    prev = "the base z axis (z_-1)" if a == 0 else f"axis {a}"
-    this = f"axis {k}"
-    if k in mdh.tool_rows:
-        tools = getattr(mdh, "tool_frames", ())
-        this = f"the z axis of tool {tools[mdh.tool_rows.index(k)]}" if tools else "the tool z axis"
-    if p.kind is Kind.BETA:
-        return (
-            f"{p.name}: {prev} is parallel to {this} and the set has no beta there, so a "
-            f"rotation about y_{a} cannot be represented"
-        )
-    return (
-        f"{p.name}: {prev} and {this} lie on one line, so a translation along y_{a} "
-        f"cannot be represented"
-    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -389,9 +371,9 @@ def analyze_model(
     Wc = complete()
     n_complete, _ = numerical_rank(pivoted_diagonal(Wc), n_rows)
     on_axes = axes_through_point(mdh, measurement)
-    missing = _missing(mdh, W_all, pset, extras, kept, n_complete, n_rows)
+    missing = missing_errors(mdh, W_all, pset, extras, kept, n_complete, n_rows)
     t3 = time.perf_counter()
-    notes = _rank_notes(diag, n_rows, len(kept), len(pset))
+    notes = rank_notes(diag, n_rows, len(kept), len(pset))
     for note in notes:
         warn_user(note, RankWarning)
     return Identifiability(
@@ -422,46 +404,6 @@ def analyze_model(
             "complete": 1e3 * (t3 - t2),
         },
     )
-
-
-def _missing(mdh, W_all, pset, extras, kept, n_complete: int, n_rows: int) -> list[str]:
-    """Why the set reaches fewer independent errors than the complete set (one line each)."""
-    if len(kept) >= n_complete:
-        return []
-    R_all = qr.triangular(W_all)
-    missing = []
-    for j, p in enumerate(extras):
-        cols = [*kept, len(pset) + j]
-        r_x, _ = numerical_rank(pivoted_diagonal(R_all[:, cols]), n_rows)
-        if r_x > len(kept):
-            missing.append(_explain(p, mdh))
-    return missing or [
-        f"the set reaches {len(kept)} of the {n_complete} independent errors for a "
-        f"reason calib does not diagnose"
-    ]
-
-
-def _rank_notes(diag: np.ndarray, n_rows: int, n_kept: int, n_params: int) -> list[str]:
-    """Warnings about the rank: ill-defined, too few rows, a weak gap."""
-    notes = []
-    rank, _ = numerical_rank(diag, n_rows)
-    if n_kept != rank:
-        notes.append(
-            f"{n_kept} independent columns were selected for a numerical rank of {rank}: "
-            f"the rank is ill-defined at this geometry"
-        )
-    if n_rows < n_params:
-        notes.append(
-            f"only {n_rows} measurement rows for {n_params} parameters: the rank cannot "
-            f"exceed {n_rows}; draw more configurations"
-        )
-    b = rank
-    if 0 < b < len(diag) and diag[b] > 0 and diag[b - 1] / diag[b] < 1e4:
-        notes.append(
-            f"weak rank gap: |R_bb| = {diag[b - 1]:.3g} vs |R_b+1| = {diag[b]:.3g}; the "
-            f"rank may change with more or other configurations"
-        )
-    return notes
 
 
 SNAPPED_CHANGE = 1e-3

@@ -27,8 +27,6 @@ text editor or spreadsheet numbers it (the header is row 1) and the column by it
 
 from __future__ import annotations
 
-import csv
-import io
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +35,7 @@ import numpy as np
 
 from ..core.checks import MAX_ROWS, check_size, read_only
 from ..core.choices import MARKERS, ORIENTATION_FORMATS, UNITS, checked_points
-from ..core.fileio import read_failure, read_text_limited, write_atomic
+from ..core.fileio import csv_text, read_failure, read_text_limited, write_atomic
 from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix, rpy_to_matrix
@@ -563,13 +561,11 @@ def __getattr__(name: str):
 
 def measurements_csv(data: Measurements) -> str:
     """The CSV text of measurements, full precision (``repr`` of every float)."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(data.columns)
-    tools = data.tool or ()
-    for row, tool in itertools.zip_longest(data.table(), tools):
-        writer.writerow([repr(float(v)) for v in row] + ([tool] if tool is not None else []))
-    return out.getvalue()
+    cells = (
+        [*(repr(float(v)) for v in row), *(() if tool is None else (tool,))]
+        for row, tool in itertools.zip_longest(data.table(), data.tool or ())
+    )
+    return csv_text(data.columns, cells)
 
 
 def write_measurements(path: str | Path, data: Measurements) -> None:

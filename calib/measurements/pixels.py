@@ -27,9 +27,7 @@ is known.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.checks import check_size, real_array
-from ..core.fileio import write_atomic
+from ..core.fileio import csv_text, write_atomic
 from ..exceptions import DataError, InvalidArgumentError, warn_user
 from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
@@ -538,15 +536,6 @@ def read_observations(
     return dataclasses.replace(obs, path=str(Path(path).resolve()))
 
 
-def _csv_text(header: Sequence[str], rows) -> str:
-    """CSV text of a header and rows of cells."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(header)
-    writer.writerows(rows)
-    return out.getvalue()
-
-
 def observations_csv(obs: PixelObservations) -> str:
     """The CSV text of observations, full precision (``repr`` of every number).
 
@@ -560,7 +549,7 @@ def observations_csv(obs: PixelObservations) -> str:
         [*(repr(float(v)) for v in q), camera, point, repr(float(uv[0])), repr(float(uv[1]))]
         for q, camera, point, uv in zip(obs.q, obs.camera, obs.point, obs.pixels, strict=True)
     )
-    return _csv_text([*joints, *OBSERVATION_COLUMNS], rows)
+    return csv_text([*joints, *OBSERVATION_COLUMNS], rows)
 
 
 def target_csv(target: Target) -> str:
@@ -576,7 +565,7 @@ def target_csv(target: Target) -> str:
         row += [target.link[i]] if target.link is not None else []
         row += [repr(float(v)) for v in target.normal[i]] if target.normal is not None else []
         rows.append(row)
-    return _csv_text(header, rows)
+    return csv_text(header, rows)
 
 
 def write_observations(path: str | Path, obs: PixelObservations) -> None:
