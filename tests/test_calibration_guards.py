@@ -177,7 +177,7 @@ def test_tree_outlier_row_is_set_aside(tmp_path):
     rep = res.to_dict()
     assert [o["row"] for o in rep["outliers"]] == [14]  # no file: rows are numbered from 1
     assert sum(t["configs"] for t in rep["terms"]) == camp.measurements.m - 1
-    assert "row 14" in rep["warnings"][0]
+    assert any("row 14" in w for w in rep["warnings"])
 
 
 def test_tree_usual_mistakes_are_named(files, tmp_path):

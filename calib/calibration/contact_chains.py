@@ -60,6 +60,7 @@ __all__ = [
     "determined_unknowns",
     "fit_registered",
     "fit_run",
+    "nothing_held",
     "register_contact_chains",
 ]
 
@@ -267,7 +268,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             _check_fitted(part, opts.noise)
     stalled = not all(converged)
     result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
-    unseen = NOTHING_HELD if result.accepted and not any(h is not None for h in r.held) else None
+    unseen = result.accepted and not any(h is not None for h in r.held) and nothing_held(result)
     added = [n for n in (nothing_fitted(result, bool(opts.fix)), unseen) if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
@@ -286,11 +287,16 @@ def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float
     validation.check_fitted_errors(part.stats, markers, noise, part.source, part.chain)
 
 
-NOTHING_HELD = (
-    "nothing held out: not checked on unseen postures (hold some out: holdout or validate, or "
-    "folds for measurements and touches)"
-)
-"""The note of an accepted fit of every kind that held no row out (folds: its full fit's)."""
+NOTHING_HELD = "nothing held out: not checked on unseen postures (hold some out: "
+"""The head of the note of an accepted fit of every kind that held no row out (folds: its full
+fit's), :func:`nothing_held`."""
+
+
+def nothing_held(result: ContactChainsCalibration) -> str:
+    """The nothing-held-out note of ``result``, naming the ways out its terms have."""
+    pixels = any(isinstance(c, PixelChain) for c in result.chains)  # not cross-validated
+    return NOTHING_HELD + ("holdout or validate)" if pixels else "holdout, validate or folds)")
+
 
 HOLDS = 3
 """Most parameters ``auto`` holds, one a refit (:func:`fit_registered`)."""

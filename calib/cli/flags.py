@@ -37,7 +37,8 @@ FLAGS = {
     "world_link: ": "--world-link: ",
     "on_robot: ": "--on-robot: ",
     "with Columns(units='mm')": "with --units mm",
-    "out: holdout or validate, or folds": "out: --holdout or --validate, or --folds",
+    "out: holdout, validate or folds)": "out: --holdout, --validate or --folds)",
+    "out: holdout or validate)": "out: --holdout or --validate)",
 }
 """A library text naming a keyword -> the command line's text naming its flag (the first
 ``--`` word of the value is the flag: a command without it keeps the keyword)."""

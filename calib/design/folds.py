@@ -251,7 +251,7 @@ def _pooled_result(
         for r in runs
     )
     refusal = full.refusal or first or refusal
-    notes = tuple(n for n in full.notes if n != NOTHING_HELD)  # every row held out once
+    notes = tuple(n for n in full.notes if not n.startswith(NOTHING_HELD))  # each row held out
     return dataclasses.replace(
         full, chains=tuple(parts), refusal=refusal, folds=per_fold, notes=notes
     )
