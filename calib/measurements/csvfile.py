@@ -454,8 +454,19 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
         if at is not None and not cells[at].strip():
             raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
         for j in numbers:
+            if keys[j] in header[1] and not cells[j].strip():
+                raise DataError(source, _unseen(header[1]), row=line, column=shown[j])
             values[i, j] = parse_number(cells[j], source, line, shown[j])
     return values  # not reached: a row above is invalid
+
+
+def _unseen(position_keys) -> str:
+    """The message of an empty measured coordinate: a marker not seen, and the ways out."""
+    others = " or fit the other points only (Columns' points)" if len(position_keys) > 3 else ""
+    return (
+        "empty cell: a marker not seen in this row? every row needs each point fitted: "
+        f"leave the row out (start it with #){others}"
+    )
 
 
 MM_HINT = ": millimetres? read them with Columns(units='mm')"
