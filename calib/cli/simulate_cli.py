@@ -25,7 +25,6 @@ from . import pixels_cli
 from .common import (
     Group,
     add_chain_args,
-    add_marker_arg,
     check_output_paths,
     command_parser,
     given_options,
@@ -128,7 +127,7 @@ def _campaign_kind(args: argparse.Namespace) -> Measurement:
     """What ``--measure`` records of a chain or tree, the options that do not apply refused."""
     from ..identification.kinds import campaign_kind
 
-    kind = campaign_kind(args.measure, args.marker)
+    kind = campaign_kind(args.measure, _first_marker(args))
     if given_options(args, ["contacts"]):
         raise InvalidArgumentError(
             f"--contacts counts the planes or points of a contact campaign, not of --measure "
@@ -143,6 +142,11 @@ def _campaign_kind(args: argparse.Namespace) -> Measurement:
             f"--measure {args.measure} records no orientation"
         )
     return kind
+
+
+def _first_marker(args: argparse.Namespace) -> list[float] | None:
+    """The first ``--marker`` (the one that names the measured kind), or None."""
+    return args.marker[0] if args.marker else None
 
 
 def _simulate_chain(
@@ -160,8 +164,8 @@ def _simulate_chain(
     campaign = simulate(
         chain,
         configs,
-        kind,
-        None,
+        kind.label,
+        args.marker,
         args.error_mm,
         args.error_mrad,
         args.noise_mm,
@@ -180,7 +184,8 @@ def _simulate_chain(
         + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
         + f", seed {truth.seed}"
     )
-    print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
+    of = " of marker 1" if args.marker and len(args.marker) > 1 else ""
+    print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values{of})")
     return 0
 
 
@@ -196,7 +201,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
     camp = simulate_tree(
         tree,
         configs,
-        args.marker,
+        _first_marker(args) if args.marker and len(args.marker) == 1 else args.marker,
         args.error_mm,
         args.error_mrad,
         args.noise_mm,
@@ -245,7 +250,16 @@ def add_simulate_parser(sub) -> None:
         "by the joints alone, on the true robot; or pixels: what --camera sees of --target "
         f"(default: {DEFAULT_MEASURE}, as analyze and design)",
     )
-    add_marker_arg(g)
+    g.add_argument(
+        "--marker",
+        nargs=3,
+        type=float,
+        action="append",
+        metavar=("X", "Y", "Z"),
+        help="measured point in the tool frame [m]; repeat for several markers (x1, y1, z1, "
+        "..., xK, yK, zK; a tree: one for every tool, or one per tool in --tool order; "
+        "default: the tool origin)",
+    )
     g.add_argument(
         "--contacts",
         type=int,
