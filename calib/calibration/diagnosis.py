@@ -85,8 +85,9 @@ def _swapped_coordinates(data) -> Iterator[tuple[str, object]]:
     """
     k = data.position.shape[1] // 3
     mirrored = "mirrored points (two of the x, y, z columns swapped, or a left-handed frame)"
-    groups = [(tuple(range(k)), ((0, 1),), mirrored)]
-    pairs = ((0, 1), (0, 2), (1, 2))
+    pairs: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 2))
+    groups: list[tuple[tuple[int, ...], tuple[tuple[int, int], ...], str]]
+    groups = [(tuple(range(k)), pairs[:1], mirrored)]
     if k > 1:
         groups += [((p,), pairs, f"point {p + 1}'s") for p in range(k)]
     for points, swaps, what in groups:

@@ -25,6 +25,7 @@ from . import pixels_cli
 from .common import (
     Group,
     add_chain_args,
+    add_marker_arg,
     check_output_paths,
     command_parser,
     given_options,
@@ -250,16 +251,7 @@ def add_simulate_parser(sub) -> None:
         "by the joints alone, on the true robot; or pixels: what --camera sees of --target "
         f"(default: {DEFAULT_MEASURE}, as analyze and design)",
     )
-    g.add_argument(
-        "--marker",
-        nargs=3,
-        type=float,
-        action="append",
-        metavar=("X", "Y", "Z"),
-        help="measured point in the tool frame [m]; repeat for several markers (x1, y1, z1, "
-        "..., xK, yK, zK; a tree: one for every tool, or one per tool in --tool order; "
-        "default: the tool origin)",
-    )
+    add_marker_arg(g, several=True)
     g.add_argument(
         "--contacts",
         type=int,
