@@ -68,6 +68,24 @@ def test_collinear_markers_are_an_error_and_a_loose_set_a_warning():
         parse_measurements(measurements_csv(data), chain, columns=Columns("markers"))
 
 
+def test_a_loose_set_names_the_row_and_marker_farthest_off_it():
+    """One marker 5 mm off the plate in one row (an outlier, two labels swapped): the warning
+    names that row (as an editor numbers it, comments counted) and that marker."""
+    chain = chain_of("ur5")
+    q = chain.random_configurations(8, seed=0)
+    _, points = _moved(PLATE, 8, 4)
+    points[5, 1] += [0.003, -0.004, 0.0]  # configuration 5, marker 2
+    header = ",".join([*chain.joint_names, *(f"{a}{k}" for k in range(1, 5) for a in "xyz")])
+    rows = [
+        ",".join(str(float(v)) for v in [*qi, *p.ravel()]) for qi, p in zip(q, points, strict=True)
+    ]
+    text = "\n".join(["# a note", header, *rows])  # configuration 5 is row 8
+    with pytest.warns(
+        DataWarning, match=r"up to \S+ mm relative to each other \(row 8, marker 2\)"
+    ):
+        parse_measurements(text, chain, columns=Columns("markers"))
+
+
 def test_variance_ratio_is_the_simulated_noise_ratio():
     """Pose data with 0.1 mm and 2 mrad noise: sigma_p / sigma_o = 0.05 m/rad."""
     chain = chain_of("ur5")

@@ -2,9 +2,10 @@
 
 When the registration leaves errors above ``SUSPECT`` [m] RMS (or ``NOISE_FACTOR`` times the
 noise; orientations: ``ORIENTATION_SUSPECT`` [rad]), the data are read again under each usual
-mistake (swapped joint columns, degrees, mm/cm/m, quaternion order, rpy order); the one whose
-correction leaves an RMS ``EXPLAINS`` times lower is named, unless it explains the rows with
-shuffled joint columns as well; a joint column with one value is named first.
+mistake (swapped joint columns, degrees, mm/cm/m, swapped coordinate columns, quaternion
+order, rpy order); the one whose correction leaves an RMS ``EXPLAINS`` times lower is named,
+unless it explains the rows with shuffled joint columns as well; a joint column with one
+value is named first.
 
 Rationale and measurements: docs/developers/engine.md#diagnosis
 """
@@ -70,8 +71,33 @@ def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[s
             "positions in metres read as millimetres (units m, the default)",
             dataclasses.replace(data, position=data.position * 1e3),
         )
+    yield from _swapped_coordinates(data)
     if data.quaternion is not None:  # wrong orientations distort the points' registration too
         yield from _orientation_mistakes(data)
+
+
+def _swapped_coordinates(data) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for coordinate columns swapped: in every point, or one's.
+
+    A swap mirrors the points, which no registration of the instrument's frame undoes. In
+    every point alike, any swap undoes any other (the two make a rotation, which the frame
+    takes): one is tried, and named as a mirror. In one point of several, each swap is its own.
+    """
+    k = data.position.shape[1] // 3
+    mirrored = "mirrored points (two of the x, y, z columns swapped, or a left-handed frame)"
+    pairs: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 2))
+    groups: list[tuple[tuple[int, ...], tuple[tuple[int, int], ...], str]]
+    groups = [(tuple(range(k)), pairs[:1], mirrored)]
+    if k > 1:
+        groups += [((p,), pairs, f"point {p + 1}'s") for p in range(k)]
+    for points, swaps, what in groups:
+        for a, b in swaps:
+            first = [3 * p + a for p in points]
+            second = [3 * p + b for p in points]
+            position = data.position.copy()
+            position[:, first + second] = data.position[:, second + first]
+            said = what if len(points) == k else f"{what} {'xyz'[a]} and {'xyz'[b]} columns swapped"
+            yield said, dataclasses.replace(data, position=position)
 
 
 ORIENTATION_SUSPECT = 0.1

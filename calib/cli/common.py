@@ -316,14 +316,18 @@ def add_chain_args(p: Group, trees: bool = False) -> None:
         p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
 
 
-def add_marker_arg(p: Group) -> None:
-    """The ``--marker X Y Z`` option."""
+def add_marker_arg(p: Group, several: bool = False) -> None:
+    """The ``--marker X Y Z`` option (``several``: given once per marker, a list of them)."""
+    many = "; repeat for several markers (a tree: one for every tool, or one per tool in --tool "
+    many += "order; "
     p.add_argument(
         "--marker",
         nargs=3,
         type=float,
         metavar=("X", "Y", "Z"),
-        help="measured point in the tool frame [m] (default: the tool origin)",
+        help=f"measured point in the tool frame [m]{many if several else ' ('}default: the tool "
+        "origin)",
+        action="append" if several else "store",
     )
 
 

@@ -26,6 +26,7 @@ from .common import (
     BooleanOnce,
     Group,
     add_chain_args,
+    add_marker_arg,
     check_output_paths,
     command_parser,
     given_options,
@@ -290,15 +291,7 @@ def _add_model_args(p: Group) -> None:
         help=f"position or pose (default: {DEFAULT_MEASURE}, as analyze and simulate), or a "
         "contact: postures on it",
     )
-    p.add_argument(
-        "--marker",
-        nargs=3,
-        type=float,
-        action="append",
-        metavar=("X", "Y", "Z"),
-        help="measured point in the tool frame [m]; repeat for several markers (a tree: "
-        "one for every tool, or one per tool in --tool order; default: the tool origin)",
-    )
+    add_marker_arg(p, several=True)
     p.add_argument(
         "--orientation-weight",
         type=float,

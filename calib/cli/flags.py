@@ -18,6 +18,7 @@ __all__ = ["FLAGS", "OPTIONS", "in_flags", "report_in_flags"]
 
 FLAGS = {
     "(Columns' orientation_columns)": "(--orientation-columns)",
+    "(Columns' points)": "(--points)",
     "(the data's position_only())": "(--measure position)",
     "Unknowns(intrinsics=True)": "--refine-intrinsics",
     "give its noise (noise_mm)": "give its noise (--noise-mm)",

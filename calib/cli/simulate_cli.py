@@ -134,7 +134,7 @@ def _campaign_kind(args: argparse.Namespace) -> Measurement:
     """What ``--measure`` records of a chain or tree, the options that do not apply refused."""
     from ..identification.kinds import campaign_kind
 
-    kind = campaign_kind(args.measure, args.marker)
+    kind = campaign_kind(args.measure, _first_marker(args))
     if given_options(args, ["contacts"]):
         raise InvalidArgumentError(
             f"--contacts counts the planes or points of a contact campaign, not of --measure "
@@ -149,6 +149,11 @@ def _campaign_kind(args: argparse.Namespace) -> Measurement:
             f"--measure {args.measure} records no orientation"
         )
     return kind
+
+
+def _first_marker(args: argparse.Namespace) -> list[float] | None:
+    """The first ``--marker`` (the one that names the measured kind), or None."""
+    return args.marker[0] if args.marker else None
 
 
 def _simulate_chain(
@@ -166,8 +171,8 @@ def _simulate_chain(
     campaign = simulate(
         chain,
         configs,
-        kind,
-        None,
+        kind.label,
+        args.marker,
         args.error_mm,
         args.error_mrad,
         args.noise_mm,
@@ -187,7 +192,8 @@ def _simulate_chain(
         + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
         + f", seed {truth.seed}"
     )
-    print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values)")
+    of = " of marker 1" if args.marker and len(args.marker) > 1 else ""
+    print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values{of})")
     return 0
 
 
@@ -203,7 +209,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
     camp = simulate_tree(
         tree,
         configs,
-        args.marker,
+        _first_marker(args) if args.marker and len(args.marker) == 1 else args.marker,
         args.error_mm,
         args.error_mrad,
         args.noise_mm,
@@ -253,7 +259,7 @@ def add_simulate_parser(sub) -> None:
         "by the joints alone, on the true robot; or pixels: what --camera sees of --target "
         f"(default: {DEFAULT_MEASURE}, as analyze and design)",
     )
-    add_marker_arg(g)
+    add_marker_arg(g, several=True)
     g.add_argument(
         "--contacts",
         type=int,

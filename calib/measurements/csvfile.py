@@ -375,7 +375,7 @@ def parse_measurements(
     _check_coordinates(position, pos_cols, lines, source, columns.units)
     quat, angles = None, None
     if fmt == MARKERS:
-        position, quat = _marker_set(position, source)
+        position, quat = _marker_set(position, source, lines)
     elif fmt is not None:
         ori = table[:, [col[n] for n in ori_cols]]
         quat = _orientation(ori, fmt, source, lines)
@@ -452,8 +452,19 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
         if at is not None and not cells[at].strip():
             raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
         for j in numbers:
+            if keys[j] in header[1] and not cells[j].strip():
+                raise DataError(source, _unseen(header[1]), row=line, column=shown[j])
             values[i, j] = parse_number(cells[j], source, line, shown[j])
     return values  # not reached: a row above is invalid
+
+
+def _unseen(position_keys) -> str:
+    """The message of an empty measured coordinate: a marker not seen, and the ways out."""
+    others = " or fit the other points only (Columns' points)" if len(position_keys) > 3 else ""
+    return (
+        "empty cell: a marker not seen in this row? every row needs each point fitted: "
+        f"leave the row out (start it with #){others}"
+    )
 
 
 MM_HINT = ": millimetres? read them with Columns(units='mm')"
@@ -499,15 +510,20 @@ def _warn_repeats(data: Measurements) -> None:
         )
 
 
-def _marker_set(position: np.ndarray, src: str) -> tuple[np.ndarray, np.ndarray]:
-    """Marker 1's position and the orientation of a rigid set of K >= 3 markers."""
+def _marker_set(position: np.ndarray, src: str, lines) -> tuple[np.ndarray, np.ndarray]:
+    """Marker 1's position and the orientation of a rigid set of K >= 3 markers.
+
+    A set that is not rigid is warned about, with the row and marker farthest off it (an
+    outlier, or two markers' labels swapped in that row).
+    """
     pose = marker_set.marker_set_pose(position.reshape(len(position), -1, 3))
     if pose.flat < marker_set.MIN_FLATNESS:
         raise DataError(src, "the markers lie on a line: their set has no orientation")
     if pose.spread > marker_set.SPREAD_WARNING:
         warn_user(
             f"{src}: the markers move up to {1e3 * pose.spread:.3g} mm relative to each "
-            f"other: they are not one rigid set, its orientation is a least-squares fit",
+            f"other (row {lines[pose.worst[0]]}, marker {pose.worst[1] + 1}): they are not one "
+            "rigid set, its orientation is a least-squares fit",
             DataWarning,
         )
     return position[:, :3], matrix_to_quaternion(pose.rotations)

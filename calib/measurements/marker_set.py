@@ -53,11 +53,13 @@ class MarkerSetPose:
         rotations: Orientation of the set's frame per configuration ``(m, 3, 3)``.
         spread: Largest distance of a marker from the rigid set fitted to it [m].
         flat: Smallest over largest singular value of the centred shape (0: collinear points).
+        worst: (configuration, marker) of ``spread``, both counted from 0.
     """
 
     rotations: np.ndarray
     spread: float
     flat: float
+    worst: tuple[int, int] = (0, 0)
 
 
 def _kabsch(shape: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -93,10 +95,13 @@ def marker_set_pose(points: np.ndarray) -> MarkerSetPose:
     R, t = _kabsch(shape, points)
     fitted = np.einsum("mij,kj->mki", R, shape) + t[:, None]
     s = np.linalg.svd(shape, compute_uv=False)
+    off = np.linalg.norm(points - fitted, axis=2)
+    worst = np.unravel_index(np.argmax(off), off.shape)
     return MarkerSetPose(
         rotations=R @ _set_frame(shape),
-        spread=float(np.max(np.linalg.norm(points - fitted, axis=2))),
+        spread=float(off[worst]),
         flat=float(s[-2] / s[0]) if s[0] > 0 else 0.0,
+        worst=(int(worst[0]), int(worst[1])),
     )
 
 

@@ -11,7 +11,8 @@ n+1 the tool error. The measured point (and tool orientation) of the true robot 
 seeded random configurations within the joint limits, then noise is added: isotropic Gaussian
 of standard deviation ``noise_mm`` [mm] on x, y, z and, for poses, a rotation vector of
 standard deviation ``noise_mrad`` [mrad] per axis (base frame), left-multiplied onto the true
-orientation.
+orientation. Several markers (a sequence of points on the tool) are measured at each
+configuration, each with noise of its own, drawn after marker 1's.
 """
 
 from __future__ import annotations
@@ -56,6 +57,8 @@ class SimulationTruth:
         error_mrad: Standard deviation of the angle errors [mrad].
         noise_mm: Standard deviation of the position noise per axis [mm].
         noise_mrad: Standard deviation of the orientation noise per axis [mrad].
+        markers: Every measured point in the tool frame ``(K, 3)`` [m], marker 1 first (the
+            one ``measurement`` and ``analysis`` hold).
     """
 
     robot: str
@@ -72,6 +75,7 @@ class SimulationTruth:
     error_mrad: float
     noise_mm: float
     noise_mrad: float
+    markers: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready record of the truth (radians, metres)."""
@@ -81,6 +85,9 @@ class SimulationTruth:
             "tool_frame": self.tool_frame,
             "measure": self.measurement.label,
             "marker": list(self.measurement.marker),
+            "markers": [list(self.measurement.marker)]
+            if self.markers is None
+            else self.markers.tolist(),
             "params": self.params.label,
             "configs": self.analysis.n_configs,
             "seed": self.seed,
@@ -157,7 +164,9 @@ def simulate(
             themselves ``(m, n)`` [rad or m] (a designed set).
         measure: ``position`` (default, as ``analyze`` and ``design``) or ``pose`` (a name
             or the kind).
-        marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin).
+        marker: Measured point in the tool frame, 3 numbers [m] (default: the tool origin),
+            or several points, a sequence of K triples (markers on the tool, each with its
+            own noise; the truth's ``analysis`` and ``base_values`` are marker 1's).
         error_mm: Standard deviation of every length error [mm].
         error_mrad: Standard deviation of every angle error [mrad].
         noise_mm: Standard deviation of the position noise per axis [mm].
@@ -174,7 +183,8 @@ def simulate(
         InvalidArgumentError: A bad argument.
     """
     chain = chain_argument(chain, "simulate", ": a tree's campaign is calib.simulate_tree")
-    measurement = campaign_kind(measure, marker, " (touches: calib.simulate_contacts)")
+    markers = [campaign_kind(measure, mk, TOUCHES) for mk in _several(marker)]
+    measurement = markers[0]
     given = isinstance(configs, np.ndarray | list | tuple)
     m = 0 if given else check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
@@ -208,6 +218,10 @@ def simulate(
     if measurement.is_pose:
         noise = 1e-3 * noise_mrad * rng_noise.standard_normal((m, 3))
         quat = matrix_to_quaternion(rotation_matrix(noise) @ kin.R[:, -1])
+    for other in markers[1:]:  # after marker 1's draws: one marker's campaign is unchanged
+        point = measured_point(kin, other.marker_array)
+        point = point + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
+        position = np.hstack([position, point])
 
     analysis = analyze_model(nominal.idealized(), pset, measurement, q, robot=chain.name, seed=seed)
     index = {n: i for i, n in enumerate(pset.names)}
@@ -238,8 +252,25 @@ def simulate(
         error_mrad=error_mrad,
         noise_mm=noise_mm,
         noise_mrad=noise_mrad,
+        markers=read_only(np.array([k.marker_array for k in markers])),
     )
     return Campaign(data, truth)
+
+
+TOUCHES = " (touches: calib.simulate_contacts)"
+"""What :func:`simulate` says a contact's campaign is made by."""
+
+
+def _several(marker) -> list:
+    """The markers given: ``[marker]`` (3 numbers or None), or a sequence of triples."""
+    sequence = list | tuple | np.ndarray
+    if (
+        isinstance(marker, sequence)
+        and len(marker)
+        and all(isinstance(k, sequence) for k in marker)
+    ):
+        return list(marker)
+    return [marker]
 
 
 __all__ = ["Campaign", "SimulationTruth", "chain_argument", "simulate"]
