@@ -50,7 +50,7 @@ def tree_study() -> None:
             tree,
             40,
             candidates=800,
-            markers=markers,
+            marker=markers,
             seed=seed,
             random_sets=10,
             constraints=NO_COLLISION,
@@ -104,7 +104,7 @@ def payoff_study(robots=("ur5", "panda", "tiago")) -> None:
     for name in robots:
         chain = load_chain(name)
         designs = {
-            c: design(chain, k, candidates=2000, markers=PAYOFF_MARKER, criterion=c)
+            c: design(chain, k, candidates=2000, marker=PAYOFF_MARKER, criterion=c)
             for c in ("D", "I")
         }
         model = designs["D"].model

@@ -83,7 +83,7 @@ def test_cli_design_plane_from_the_foot(tmp_path, capsys):
 def test_contact_design_errors(tmp_path, capsys):
     chain = load_chain("ur5")
     with pytest.raises(InvalidArgumentError, match="measures no point"):
-        design(chain, 10, measure="plane", markers=(0.0, 0.0, 0.1))
+        design(chain, 10, measure="plane", marker=(0.0, 0.0, 0.1))
     with pytest.raises(InvalidArgumentError, match="complete model"):
         design(chain, 10, measure="plane", params="joints")
     tree = calib.load_tree("talos", None, ["gripper_left_base_link", "gripper_right_base_link"])

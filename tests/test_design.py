@@ -465,3 +465,18 @@ def test_frames_and_offsets_levels_on_the_tiago(measure):
     assert all(n.startswith(("frame.", "marker1.", "tool.")) for n in own)
     offsets = observation_model(chain, measure, params="offsets").names
     assert offsets == own + tuple(f"theta{k}" for k in range(3, 8))
+
+
+def test_every_function_takes_the_measured_point_as_marker():
+    """calibrate, simulate, analyze and design name the measured point alike (newuser48)."""
+    import inspect
+
+    import calib
+
+    for f in (calib.calibrate, calib.simulate, calib.analyze, calib.design, evaluate):
+        assert "marker" in inspect.signature(f).parameters, f.__name__
+    chain = chain_of("ur5")
+    marker = (0.05, 0.02, 0.3)
+    plan = design(chain, 12, candidates=200, marker=marker, random_sets=2, seed=3)
+    assert plan.indices.d == pytest.approx(evaluate(chain, plan.q, marker=marker).d, rel=1e-12)
+    assert plan.indices.d != pytest.approx(evaluate(chain, plan.q).d, rel=1e-6)

@@ -90,7 +90,7 @@ def test_tree_design_beats_random_sets_and_calibrates_better():
             tree,
             k,
             candidates=800,
-            markers=MARKERS,
+            marker=MARKERS,
             seed=seed,
             random_sets=10,
             constraints=NO_COLLISION,
@@ -168,7 +168,7 @@ def test_tree_design_refuses_what_tree_calibration_cannot_fit():
     with pytest.raises(InvalidArgumentError, match="frames, complete"):
         design(tree, 30, params="paper")
     with pytest.raises(InvalidArgumentError, match="one marker for all or one per tool"):
-        design(tree, 30, markers=np.zeros((3, 3)))
+        design(tree, 30, marker=np.zeros((3, 3)))
 
 
 def test_cli_tree_design_simulate_calibrate(tmp_path, capsys):

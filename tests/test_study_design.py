@@ -102,7 +102,7 @@ def test_payoff_after_the_default_calibration(robots):
     ratios = []
     for chain in robots.values():
         d = calib.design(
-            chain, K, candidates=2000, measure="position", params="complete", markers=MARKER
+            chain, K, candidates=2000, measure="position", params="complete", marker=MARKER
         )
         q_cand = candidate_configurations(chain, 2000, seed=0)  # its candidates
         q_cand = q_cand[filter_candidates(chain, q_cand, [MARKER], Constraints())[0]]

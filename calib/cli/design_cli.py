@@ -115,7 +115,7 @@ def cmd_design(args: argparse.Namespace) -> int:
         candidates=candidates,
         criterion=args.criterion,
         measure=args.measure,
-        markers=args.marker,
+        marker=args.marker,
         params=args.params,
         orientation_weight=args.orientation_weight,
         constraints=_constraints(args),

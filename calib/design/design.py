@@ -170,7 +170,7 @@ def design(
     candidates: int | np.ndarray = DEFAULT_CANDIDATES,
     criterion: str = "D",
     measure: str = DEFAULT_MEASURE,
-    markers=None,
+    marker=None,
     params: str = DEFAULT_SET,
     orientation_weight: float = 1.0,
     constraints: Constraints | None = None,
@@ -191,7 +191,7 @@ def design(
         measure: ``position`` or ``pose`` (a tree: ``position``), or a contact (``plane``,
             ``plane-point``, ``fixed-point``, ``fixed-pose``; a chain): the candidates are
             then postures on the contact (:mod:`calib.design.contact_design`).
-        markers: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (a tree: one
+        marker: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (a tree: one
             point for every tool, or one per tool; a contact: none).
         params: The calibration's parameter level (``DESIGN_LEVELS``; a tree: ``frames`` or
             ``complete``; a contact: ``complete``).
@@ -223,7 +223,7 @@ def design(
     readings = _checked_readings(chain, candidates, readings)
     cands = None
     if contact is not None:
-        chain = checked_contact_chain(chain, contact, markers, params)
+        chain = checked_contact_chain(chain, contact, marker, params)
         if orientation_weight != 1.0:
             raise InvalidArgumentError(
                 f"orientation_weight weighs the orientation rows of pose data: a "
@@ -236,14 +236,14 @@ def design(
     else:
         q_all = _instrument_candidates(chain, candidates, seed, constraints.margin)
         check_model_arguments(measure, params, orientation_weight, chain.is_tree)
-    q, lazy = _filtered(chain, q_all, markers, constraints, k, readings)
+    q, lazy = _filtered(chain, q_all, marker, constraints, k, readings)
     check = lazy.ok if lazy.active else None
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
     if cands is not None and isinstance(chain, Chain) and contact is not None:
         model = contact_observation_model(chain, cands, contact)
     else:
-        model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
+        model = observation_model(chain, measure, marker, params, orientation_weight, seed=seed)
     rows = _draw(len(q), REFERENCE_CONFIGS, rng, check)
     if len(rows) < min(k, REFERENCE_CONFIGS):  # every candidate checked: too few pass
         raise _too_few(lazy.report(), k)
@@ -468,7 +468,7 @@ def evaluate(
     chain: Chain | Tree,
     q: np.ndarray,
     measure: str = DEFAULT_MEASURE,
-    markers=None,
+    marker=None,
     params: str = DEFAULT_SET,
     seed: int = 0,
     orientation_weight: float = 1.0,
@@ -494,7 +494,7 @@ def evaluate(
     q = _within_limits(chain, q, "the configurations")
     if not len(q):
         raise InvalidArgumentError("no configuration to evaluate: q has no row")
-    model = observation_model(chain, measure, markers, params, orientation_weight, seed=seed)
+    model = observation_model(chain, measure, marker, params, orientation_weight, seed=seed)
     ref = reference(model, candidate_configurations(chain, REFERENCE_CONFIGS, seed))
     return indices(model, q, ref)
 
