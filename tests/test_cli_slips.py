@@ -98,3 +98,23 @@ def test_simulate_of_one_configuration_says_configuration(tmp_path, capsys):
     with (tmp_path / "m.csv").open() as f:
         assert len(list(csv.DictReader(f))) == 1
     assert out.startswith("ur5: 1 configuration, measure position")
+
+
+def test_predict_of_one_configuration_says_configuration(tmp_path, capsys):
+    """``calib predict`` at one posture printed ``1 configurations``: counted from the file
+    written here (one row), as ``simulate --configs 1``."""
+    data, urdf, report = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
+    assert run(capsys, "simulate", "ur5", "--configs", 30, "--out", data)[0] == 0
+    code, _, err = run(
+        capsys, "calibrate", "ur5", "--data", data, "--out", urdf, "--report", report
+    )
+    assert code == 0, err
+    chain = load_chain("ur5")
+    plan = tmp_path / "one.csv"
+    plan.write_text(",".join(chain.joint_names) + "\n" + ",".join(["0.1"] * chain.n) + "\n")
+    argv = ["predict", urdf, "--compliance", report, "--configs", plan, "--out", tmp_path / "p.csv"]
+    code, out, err = run(capsys, *argv)
+    assert code == 0, err
+    with (tmp_path / "p.csv").open() as f:
+        assert len(list(csv.DictReader(f))) == 1
+    assert out.split(": ", 1)[1].startswith("1 configuration, "), out  # after the robot's name

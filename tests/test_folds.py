@@ -215,10 +215,15 @@ def test_bad_folds_in_python():
 
     with pytest.raises(InvalidArgumentError, match=r"the number of folds must be in \[2, 23\]"):
         cross_validate(chain, data, folds=1)
-    with pytest.raises(InvalidArgumentError, match="not with a holdout"):
+    keywords = "not with holdout or validate"  # the library's keywords, as its other texts
+    with pytest.raises(InvalidArgumentError, match=keywords):
         cross_validate(chain, data, folds=3, holdout=0.2)
-    with pytest.raises(InvalidArgumentError, match="not with a holdout"):
+    with pytest.raises(InvalidArgumentError, match=keywords):
         cross_validate(chain, data, folds=3, validate=data)
+    with pytest.raises(
+        InvalidArgumentError, match=r"\(pixels: hold rows out with holdout or validate"
+    ):
+        fold_of_rows(object(), 3)  # pixels (PixelData) have no folds: any other kind is told so
 
 
 def _by_hand(labels_of, data, folds: int) -> list[np.ndarray]:

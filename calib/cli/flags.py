@@ -28,7 +28,7 @@ FLAGS = {
     "the number of folds must be": "--folds must be",
     "params='complete' fits": "--params complete fits",
     "did not see: folds)": "did not see: --folds K)",
-    "folds hold every posture out in turn: not with a holdout fraction or validation data": (
+    "folds hold every posture out in turn: not with holdout or validate (a term's too)": (
         "--folds holds every posture out in turn: not with --holdout, --validate or a term's "
         "validation file"
     ),

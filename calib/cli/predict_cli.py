@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..core.words import counted
 from .common import check_output_paths, command_parser, write_outputs
 
 __all__ = ["add_predict_parser", "cmd_predict"]
@@ -33,9 +34,10 @@ def cmd_predict(args: argparse.Namespace) -> int:
         else f"{len(model.markers)} point(s) in the measurement frame"
     )
     if readings is not None:
-        where += f", the load with {len(readings.names)} joints off the chain as read"
-    name = model.chain.name
-    print(f"{name}: {len(q)} configurations, {where} and the deflected joints; wrote {out}")
+        off = counted(len(readings.names), "joints")
+        where += f", the load with {off} off the chain as read"
+    configs = counted(len(q), "configurations")
+    print(f"{model.chain.name}: {configs}, {where} and the deflected joints; wrote {out}")
     return 0
 
 

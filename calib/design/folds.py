@@ -60,7 +60,7 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
     if not isinstance(data, Measurements | ContactData):
         raise InvalidArgumentError(
             f"folds are for measurements and touches, not {type(data).__name__} (pixels: "
-            "give a holdout fraction or validation data)"
+            "hold rows out with holdout or validate)"
         )
     touches = isinstance(data, ContactData)
     ids = data.ids if isinstance(data, ContactData) else None
@@ -139,7 +139,7 @@ def _angles(data: Measurements) -> np.ndarray:
 Fit = Callable[[list, list | None], ContactChainsCalibration]
 """A fit of a problem's terms: their data, and their validation data (None: none)."""
 
-NOT_WITH = "folds hold every posture out in turn: not with a holdout fraction or validation data"
+NOT_WITH = "folds hold every posture out in turn: not with holdout or validate (a term's too)"
 """The one text of folds with held-out rows of another kind (the command line says it with its
 flags: :data:`calib.cli.flags.FLAGS`)."""
 
