@@ -12,33 +12,10 @@ import math
 
 import pytest
 from conftest import chain_of
-from pixel_setups import INTRINSICS, calibrated, setup
+from test_nothing_held import MARKER, _measured, _pixels, _touches
 
-from calib import calibrate, cross_validate, simulate, simulate_contacts
+from calib import calibrate, cross_validate, simulate
 from calib.calibration.contact_checks import FEW_POSTURES
-from calib.calibration.pixel_term import PixelCamera
-from calib.measurements.pixel_simulation import simulate_pixels
-
-MARKER = (0.05, 0.02, 0.1)
-
-
-def _measured(postures=30, **options):
-    chain = chain_of("ur5")
-    data = simulate(chain, postures, "position", marker=MARKER, noise_mm=0.05, seed=1)
-    return calibrate(chain, data.measurements, marker=MARKER, **options)
-
-
-def _touches(**options):
-    chain = chain_of("ur5")
-    data = simulate_contacts(chain, 30, "plane", seed=1).data
-    return calibrate(chain, data, **options)
-
-
-def _pixels(tmp_path, **options):
-    s = setup("ur5", tmp_path, postures=30)
-    obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q, seed=1)
-    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
-    return calibrated(s.nominal, camera, s.target, obs, **options)
 
 
 def _few(result) -> list[str]:
@@ -51,18 +28,22 @@ def _said(n: int) -> str:
     )
 
 
-@pytest.mark.parametrize("kind", ["measured", "touches", "pixels"])
-def test_a_holdout_of_few_postures_is_noted_for_every_kind(kind, tmp_path):
-    """30 postures (touches of one plane): 0.2 holds 6 out, noted (+-29%); 0.3 holds 9, not."""
+@pytest.mark.parametrize(
+    ("kind", "postures", "few", "enough"),
+    [("measured", 30, 0.2, 0.3), ("touches", 40, 0.15, 0.25), ("pixels", 30, 0.2, 0.3)],
+)
+def test_a_holdout_of_few_postures_is_noted_for_every_kind(kind, postures, few, enough, tmp_path):
+    """30 postures (40 touches of one plane): ``few`` holds 6 out, noted (+-29%); ``enough``
+    holds 9 (10), not."""
     fit = {"measured": _measured, "touches": _touches}.get(kind) or (
         lambda **o: _pixels(tmp_path, **o)
     )
-    few, enough = fit(holdout=0.2), fit(holdout=0.3)
-    assert round(0.2 * 30) == 6 < FEW_POSTURES <= round(0.3 * 30) == 9
-    (note,) = _few(few)
+    assert round(few * postures) == 6 < FEW_POSTURES <= round(enough * postures)
+    noted, plenty = fit(holdout=few), fit(holdout=enough)
+    (note,) = _few(noted)
     assert note.endswith(f"the held-out verdict rests on {_said(6)}"), note
-    assert f"note: {note}" in few.summary() and note in few.to_dict()["warnings"]
-    assert _few(enough) == [], enough.notes
+    assert f"note: {note}" in noted.summary() and note in noted.to_dict()["warnings"]
+    assert _few(plenty) == [], plenty.notes
 
 
 def test_validation_data_of_few_postures_are_noted():
