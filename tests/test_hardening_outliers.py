@@ -267,8 +267,9 @@ def test_a_pixel_terms_own_fit_stopped_by_its_cap_sets_no_row_aside(tmp_path, mo
     """The pixels' rule of the registration's above: a UR5 seen by a camera in the cell
     (tests/pixel_setups.py), 0.3 px of noise (seed 1), one pixel moved by 40 px (its tenth
     row). Its own fit (the camera and the chain's placements, whose errors the outlier rule
-    reads) stopped at 2 evaluations: before, its errors set that row aside; after, none, and
-    a note says why. At the default cap it converges and sets the moved row aside."""
+    reads) stopped at 2 evaluations (not the registration, of the camera's 6: it raises):
+    before, its errors set that row aside; after, none, and a note says why. At the default
+    cap it converges and sets the moved row aside."""
 
     from pixel_setups import INTRINSICS, setup
 
@@ -287,7 +288,50 @@ def test_a_pixel_terms_own_fit_stopped_by_its_cap_sets_no_row_aside(tmp_path, mo
     part = pixel_part(s.nominal, PixelData(camera, s.target, obs))
     _, kept, found, notes, _ = pixel_fit.checked_pixels(s.nominal, part, None)
     assert [o.row for o in found] == [part.rows.lines[9]] and kept.m == part.m - 1
-    monkeypatch.setattr(pixel_fit, "MAX_EVALUATIONS", 2)
+    real = pixel_fit.fit
+
+    def capped(model, *args, max_iterations, **kwargs):  # the own fit's, not the camera's 6
+        cap = 2 if model.size() > 6 else max_iterations
+        return real(model, *args, max_iterations=cap, **kwargs)
+
+    monkeypatch.setattr(pixel_fit, "fit", capped)
     _, kept, found, notes, _ = pixel_fit.checked_pixels(s.nominal, part, None)
     assert found == [] and kept is part, found
     assert any("own fit did not converge" in n and "no outliers" in n for n in notes), notes
+
+
+def test_a_pixel_cameras_registration_stopped_by_its_cap_is_an_error(tmp_path, monkeypatch):
+    """A measured chain's rule (above) for a camera's: its placement refined on its 6 from
+    the given one stopped by the cap (2 evaluations; it takes 4 to converge here) was used as
+    it stood; it is an error naming the camera, without the max_iterations hint (the cap is
+    the module's). The UR5 camera of tests/pixel_setups.py, 30 postures, 0.3 px (seed 1)."""
+
+    from pixel_setups import INTRINSICS, setup
+
+    from calib.calibration import pixel_fit
+    from calib.calibration.pixel_chain import PixelData, pixel_part
+    from calib.calibration.pixel_term import PixelCamera
+    from calib.measurements.pixel_simulation import simulate_pixels
+
+    s = setup("ur5", tmp_path, postures=30)
+    truth = (s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
+    obs = simulate_pixels(*truth, noise_px=0.3, seed=1)
+    camera = PixelCamera(s.camera, s.link, INTRINSICS, s.placement)
+    part = pixel_part(s.nominal, PixelData(camera, s.target, obs))
+    real, six = pixel_fit.fit, []
+
+    def recorded(model, *args, **kwargs):
+        out = real(model, *args, **kwargs)
+        six.extend([out] if model.size() == 6 else [])
+        return out
+
+    monkeypatch.setattr(pixel_fit, "fit", recorded)
+    pixel_fit.checked_pixels(s.nominal, part, None)
+    assert six and all(f.converged for f in six)  # at the default cap
+    monkeypatch.setattr(pixel_fit, "MAX_EVALUATIONS", 2)
+    six.clear()
+    with pytest.raises(DataError, match=f"camera {s.camera}'s registration did not") as info:
+        pixel_fit.checked_pixels(s.nominal, part, None)
+    assert not six[-1].converged and six[-1].evaluations == 2
+    assert "stopped after 2 residual evaluations" in str(info.value)
+    assert "max_iterations" not in str(info.value)

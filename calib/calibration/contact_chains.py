@@ -30,7 +30,7 @@ from .chain_outliers import fit_terms_until_stable
 from .chain_registration import MeasuredState
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_chains_result import ChainContacts, ContactChainsCalibration, nothing_fitted
-from .contact_checks import contact_objects, held_out_refusal
+from .contact_checks import contact_objects, few_postures, held_out_refusal
 from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
@@ -269,7 +269,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     stalled = not all(converged)
     result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
     unseen = result.accepted and not any(h is not None for h in r.held) and nothing_held(result)
-    added = [n for n in (nothing_fitted(result, bool(opts.fix)), unseen) if n]
+    few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
+    added = [n for n in (nothing_fitted(result, bool(opts.fix)), unseen, *few) if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
@@ -335,7 +336,8 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     refusal, found = result.refusal or stopped or rank, list[Direction]()
     if result.refusal is None and rank is None:  # accepted so far, or only stalled
         weak, found = assess(generic, fitted, cov, polished)
-        stalled = stopped and weak and f"{weak}; assessed where the fit stopped: {stopped}"
+        stop = unconverged(fitted, hint=False)  # more evaluations stall in what it names
+        stalled = stopped and weak and f"{weak}; assessed where the fit stopped: {stop}"
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found

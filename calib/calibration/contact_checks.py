@@ -20,6 +20,7 @@ from functools import partial
 
 import numpy as np
 
+from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import PlaneContact
 from ..kinematics.mdh import MDHModel
@@ -40,12 +41,14 @@ from .term_checks import Aside
 from .weighting import DEFAULT_WEIGHT, estimate_weight
 
 __all__ = [
+    "FEW_POSTURES",
     "WEIGHT_ROUNDS",
     "check_level_equations",
     "checked_registration",
     "contact_frame",
     "contact_objects",
     "enough_touches",
+    "few_postures",
     "held_out_refusal",
     "length_errors",
     "plane_groups",
@@ -251,6 +254,27 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
             f"{base:.3f} mm weighted RMS)"
         )
     return None
+
+
+FEW_POSTURES = 8
+"""Fewest postures a held-out verdict rests on without a note (:func:`few_postures`): an RMS
+over n postures is known to about 1/sqrt(2n) of itself (a chi distribution's n degrees of
+freedom; a posture's rows err together), over 25% under 8 (27% at 7, 41% at 3, 71% at 1)."""
+
+
+def few_postures(data, what: str) -> str | None:
+    """A note where ``data`` (held-out rows; a fold's training rows) hold under FEW_POSTURES.
+
+    Postures counted once (:func:`~calib.measurements.postures.count`; touches: by object).
+    ``what``: the sentence's start before the count.
+    """
+    n = count_postures(data.q, data.ids if isinstance(data, ContactData) else None)
+    if n >= FEW_POSTURES:
+        return None
+    return (
+        f"{data.source}: {what} {counted(n, 'postures')}, under {FEW_POSTURES}: an RMS over n "
+        f"postures is known to about 1/sqrt(2n) of itself (+-{100 / np.sqrt(2 * n):.0f}% here)"
+    )
 
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:

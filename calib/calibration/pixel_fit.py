@@ -23,7 +23,7 @@ from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .pixel_term import camera_points, free_columns, pixel_jacobian
 from .placements import Placements
 from .registration import nearest_rotation
-from .solve import fit
+from .solve import fit, unconverged
 from .term_checks import Aside
 
 __all__ = [
@@ -171,11 +171,12 @@ def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, fre
     )
 
 
-def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
+def _registered(chain: Chain, part: PixelPart, strict: bool = True) -> PixelTermState:
     """The camera placed on the nominal robot (given, the URDF's, or closed form), refined.
 
     Raises:
-        DataError: Rows whose point is at or behind the camera so placed (the first's line).
+        DataError: Rows whose point is at or behind the camera so placed (the first's line),
+            or (``strict``) a refinement stopped by its cap, as a measured chain's registration.
     """
     cam, rows = part.data.camera, part.rows
     placements = Placements.of((chain,))
@@ -197,7 +198,11 @@ def _registered(chain: Chain, part: PixelPart) -> PixelTermState:
         )
     mdh = placements.chain_models((chain,))[0]
     start = PixelTermState(mdh, guess, X, lens, 1.0)
-    camera = _term(_fitted(chain, placements, start, part, range(6), kin).state).camera
+    refined = _fitted(chain, placements, start, part, range(6), kin)
+    stopped = strict and unconverged(refined, f"camera {cam.name}'s registration", hint=False)
+    if stopped:
+        raise DataError(part.source, stopped)
+    camera = _term(refined.state).camera
     p_cam = camera_points(kin, camera, X[rows.point])[0]
     weight = float(np.median(p_cam[:, 2])) / (0.5 * (lens.fx + lens.fy))
     return PixelTermState(mdh, camera, X, lens, weight, part.data.what)
@@ -235,7 +240,7 @@ def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
 
     def error(fixed: object) -> float:  # the registration's at the joints corrected
         moved = PixelPart(part.data, dataclasses.replace(part.rows, q=cast(_Joints, fixed).q))
-        return _rms_m(_registered(chain, moved), moved)
+        return _rms_m(_registered(chain, moved, strict=False), moved)
 
     joints = _Joints(chain.joint_names, part.rows.q, part.source)
     notes = diagnosis.explain(joints, chain.sigma == 0, error, first, None, _WORDS)

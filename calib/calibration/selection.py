@@ -409,11 +409,13 @@ def select(
     folded = outer_cv(A, ev, rows, fixed, folds, models, objects)
     cv = [*np.sqrt((folded.sum(axis=1) + repeats[0].sum()) / points).tolist(), float("nan")]
     reg_cv, sel_cv, full_cv = cv[:3]
+    low = np.sqrt(ROUNDOFF) * max(float(np.sqrt(np.sum(e * e) / points)), *cv[: 2 + rich])
+    reg, chosen, full = (max(v, low) for v in cv[:3])  # round-off after an exact fit: equal
     sel, steps, _, path_steps = outcomes[0]
     strength, winner = fits[0][0], "selection"
-    if rich and full_cv < sel_cv:
+    if rich and full < chosen:
         sel, steps, strength, winner = every[0], path_steps, fits[1][0], "complete"
-    guarded = bool(sel) and not forced and min(cv[1 : 2 + rich]) >= reg_cv
+    guarded = bool(sel) and not forced and min(chosen, full if rich else chosen) >= reg
     if guarded or not sel:
         winner, sel, strength = "registration", [], 0.0
     kept = tuple(names[s] for s in sel)

@@ -91,20 +91,18 @@ class Fit(Generic[_Model, _State]):
     kin: Any = None
 
 
-def unconverged(fitted: Fit, what: str = "the solver") -> str | None:
+def unconverged(fitted: Fit, what: str = "the solver", hint: bool = True) -> str | None:
     """Why ``what`` (a fit, a registration) did not converge (None: it converged).
 
-    Stopped by the evaluation cap (status 0), it says so: a fit creeping along a weak
-    valley (nearly parallel or intersecting axes) may finish with more evaluations.
+    Stopped by the evaluation cap (status 0), it says so and, with ``hint``, that a larger
+    max_iterations may let it finish (a fit creeping along a weak valley: nearly parallel or
+    intersecting axes); not where the cap is no option's, or the cause is named beside it.
     """
     if fitted.converged:
         return None
-    more = (
-        f": it stopped after {fitted.evaluations} residual evaluations, a larger "
-        "max_iterations may let it finish"
-        if fitted.status == 0
-        else ""
-    )
+    capped = fitted.status == 0
+    more = f": it stopped after {fitted.evaluations} residual evaluations" if capped else ""
+    more += ", a larger max_iterations may let it finish" if capped and hint else ""
     return f"{what} did not converge ({fitted.message}){more}"
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..calibration.contact_chains import NOTHING_HELD
 from ..calibration.contact_chains_result import ChainContacts, ContactChainsCalibration
-from ..calibration.contact_checks import held_out_refusal, subset
+from ..calibration.contact_checks import few_postures, held_out_refusal, subset
 from ..calibration.contact_result import GapStats
 from ..calibration.entry import calibrate
 from ..calibration.measured_view import MeasuredChain
@@ -38,7 +38,7 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Angles, Measurements
-from ..measurements.postures import posture_groups
+from ..measurements.postures import count, posture_groups
 
 __all__ = ["NOT_WITH", "cross_validate", "fold_of_rows", "k_fold", "pooled"]
 
@@ -159,7 +159,18 @@ def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
     labels = [fold_of_rows(d, folds) for d in data]
     full = fit(list(data), None)
     runs = [_fold(fit, data, labels, k, folds) for k in range(folds)]
-    return _pooled_result(full, runs, folds)
+    result = _pooled_result(full, runs, folds)
+    few = [_few_trained(d, f, folds) for d, f in zip(data, labels, strict=True)]
+    return dataclasses.replace(result, notes=(*result.notes, *filter(None, few)))
+
+
+def _few_trained(data, labels: np.ndarray, folds: int) -> str | None:
+    """The note of a term whose smallest fold's fit trains on few postures (few_postures)."""
+    fewest = min(
+        (_subset(data, labels != k) for k in range(folds)),
+        key=lambda rows: count(rows.q, rows.ids if isinstance(rows, ContactData) else None),
+    )
+    return few_postures(fewest, "the folds' verdict is of fits on as few as")
 
 
 def _fold(fit: Fit, data: Sequence, labels: list, k: int, folds: int):
