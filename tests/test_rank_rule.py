@@ -136,11 +136,12 @@ def test_auto_holds_nothing_where_its_fit_is_exact():
     assert r.selection.kept == r.free
 
 
-def test_a_fit_stopped_by_the_evaluation_cap_says_where_it_stalled_not_to_raise_the_cap():
+def test_a_fit_stopped_by_the_evaluation_cap_says_where_it_stalled_then_what_to_raise():
     """A refusal for not converging names the combination the data do not determine where it
-    stopped first (the cause; before checks48 the cap led), then the cap it met. Not the
-    option to raise (before verdict48: ``a larger max_iterations may let it finish``): at
-    the default cap (100) the fit converges and is refused for the same combination."""
+    stopped first (the cause; before checks48 the cap led), then the cap it met and the
+    option to raise, which only *may* let it finish: here, at the default cap (100), the fit
+    converges and is refused for the same combination (on other data a larger cap is the way
+    out: a contact case of converge45, seed 226, is accepted at 400)."""
     chain = _chain(_urdf(COINCIDENT, COINCIDENT_TOOL))
     data = simulate(chain, 25, "pose", noise_mm=0.05, seed=1).measurements
     r = calibrate(chain, data, params="complete", max_iterations=5)
@@ -148,7 +149,7 @@ def test_a_fit_stopped_by_the_evaluation_cap_says_where_it_stalled_not_to_raise_
     assert r.refusal is not None and r.refusal.startswith(cause), r.refusal
     stop = "; assessed where the fit stopped: the solver did not converge"
     assert stop in r.refusal and "stopped after 5 residual evaluations" in r.refusal
-    assert "max_iterations" not in r.refusal, r.refusal
+    assert "a larger max_iterations may let it finish" in r.refusal, r.refusal
     more = calibrate(chain, data, params="complete")
     assert not more.stalled and more.refusal is not None and more.refusal.startswith(cause)
 
@@ -425,4 +426,3 @@ def test_a_pixel_calibration_from_five_images_is_refused_for_its_cause_first(tmp
     assert refusal.startswith(f"the data cannot separate {' and '.join(weak)}: "), refusal
     stop = "; assessed where the fit stopped: the solver did not converge"
     assert stop in refusal and "stopped after 100 residual evaluations" in refusal, refusal
-    assert "--max-iterations" not in refusal, refusal  # 400 and 2000 stall too (checks48)

@@ -336,8 +336,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     refusal, found = result.refusal or stopped or rank, list[Direction]()
     if result.refusal is None and rank is None:  # accepted so far, or only stalled
         weak, found = assess(generic, fitted, cov, polished)
-        stop = unconverged(fitted, hint=False)  # more evaluations stall in what it names
-        stalled = stopped and weak and f"{weak}; assessed where the fit stopped: {stop}"
+        stalled = stopped and weak and f"{weak}; assessed where the fit stopped: {stopped}"
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
