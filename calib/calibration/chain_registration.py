@@ -250,8 +250,8 @@ def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]
 
 
 _WORDS = diagnosis.Words(
-    mistakes="swapped joint columns, degrees, millimetres, centimetres, swapped coordinate "
-    "columns, quaternion order"
+    mistakes="swapped joint columns, degrees, a joint too many at an end of the chain, "
+    "millimetres, centimetres, swapped coordinate columns, quaternion order"
 )
 _TURNS = diagnosis.Words(
     error="orientation error",

@@ -227,7 +227,7 @@ class Words:
     data: str = "data"
     row: str = "row"
     error: str = "error"
-    mistakes: str = "swapped joint columns, degrees"
+    mistakes: str = "swapped joint columns, degrees, a joint too many at an end of the chain"
     check: str = "the data and the chain"
 
 
