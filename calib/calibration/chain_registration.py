@@ -250,8 +250,8 @@ def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]
 
 
 _WORDS = diagnosis.Words(
-    mistakes="swapped joint columns, degrees, millimetres, centimetres, swapped coordinate "
-    "columns, quaternion order"
+    mistakes="swapped joint columns, degrees, a joint too many at an end of the chain, "
+    "millimetres, centimetres, swapped coordinate columns, quaternion order"
 )
 _TURNS = diagnosis.Words(
     error="orientation error",
@@ -329,15 +329,15 @@ class Rows:
             return validation.stats(at(unit).state.inner, d, None, at(unit).kin)
 
         first = errors(rows)
-        revolute, rot = self.chain.sigma == 0, first.orientation_rms
+        chain, rot = self.chain, first.orientation_rms
         position = lambda d: errors(d).position_rms  # noqa: E731
         notes = diagnosis.explain(
-            rows, revolute, position, first.position_rms, opts.noise, _WORDS, joints_only=False
+            rows, chain, position, first.position_rms, opts.noise, _WORDS, joints_only=False
         )
         if notes or rot is None:  # the positions are suspect: the orientations are not read
             return notes
         turns = lambda d: errors(d).orientation_rms  # noqa: E731
-        return diagnosis.explain(rows, revolute, turns, rot, None, _TURNS, orientation=True)
+        return diagnosis.explain(rows, chain, turns, rot, None, _TURNS, orientation=True)
 
 
 def validation_steps(steps: Rows, held: Measurements | None) -> list[tuple[Rows, str]]:

@@ -270,7 +270,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
     unseen = result.accepted and not any(h is not None for h in r.held) and nothing_held(result)
     few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
-    added = [n for n in (nothing_fitted(result, bool(opts.fix)), unseen, *few) if n]
+    far = turned_far(result) if result.accepted else None
+    added = [n for n in (nothing_fitted(result, bool(opts.fix)), far, unseen, *few) if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
@@ -286,6 +287,38 @@ def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float
     markers = part.data.n_markers if isinstance(part, MeasuredChain) else None
     noise = noise if isinstance(part, MeasuredChain) else None
     validation.check_fitted_errors(part.stats, markers, noise, part.source, part.chain)
+
+
+TURNED_STD = 10.0
+"""A fitted angle over :data:`~.validation.ORIENTATION_REFUSED` is said (:func:`turned_far`)
+when it is this many standard deviations from 0: the data determine it (a combination the
+data leave loose may drift that far: the rank notes say so)."""
+
+
+def turned_far(result: ContactChainsCalibration) -> str | None:
+    """The note of fitted angles that no geometric error reaches, or None.
+
+    Over :data:`~.validation.ORIENTATION_REFUSED` (29 deg: errors of assembly are mrad),
+    ``TURNED_STD`` std from 0: a joint zero that far off in the URDF, or a frame given on the
+    wrong link (the fit turns a joint's axis onto the frame, or turns the joint before it).
+    Rationale and measurements: docs/developers/engine.md#turned_std
+    """
+    far = [
+        e
+        for e in result.entries()
+        if e["unit"] == "rad"
+        and abs(e["value"]) > validation.ORIENTATION_REFUSED
+        and abs(e["value"]) > TURNED_STD * e["std"]  # NaN: undefined, not said
+    ]
+    if not far:
+        return None
+    said = ", ".join(f"{e['name']} by {np.degrees(e['value']):.3g} deg" for e in far)
+    return (
+        f"the fit turns {said}, far beyond any geometric error (over "
+        f"{np.degrees(validation.ORIENTATION_REFUSED):.3g} deg): a joint zero that far off in "
+        "the URDF, or a frame given on the wrong link (a joint in its chain that does not move "
+        "it, or one left out)?"
+    )
 
 
 NOTHING_HELD = "nothing held out: not checked on unseen postures (hold some out: "

@@ -252,7 +252,7 @@ class ContactChainsCalibration(Result, ChainView):
         )
         return {compliance_path(out): json_text(document)}
 
-    def _entries(self) -> list[dict]:
+    def entries(self) -> list[dict]:
         """``fitted``'s report entries with their joints (one chain: as its MDH rows name them)."""
         part, sigma = self.chains[0], None
         if len(self.chains) == 1 and isinstance(part, ChainContacts | MeasuredChain):
@@ -379,7 +379,7 @@ class ContactChainsCalibration(Result, ChainView):
             "parameters": [
                 *{p["name"]: p for c in self._of(MeasuredChain) for p in c.parameters}.values(),
                 *(p for c in self._of(PixelChain) for p in c.parameters),
-                *self._entries(),
+                *self.entries(),
             ],
             "errors": {
                 **instrument_errors(self._instrument()),
@@ -482,7 +482,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines += [line for c in (() if one else self.chains) for line in c.lines()]
         lines += chain_lines(self) if one else instrument_lines(self._instrument())
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
-        lines += parameter_lines(self._entries())
+        lines += parameter_lines(self.entries())
         lines += [f"note: {n}" for n in self.notes]
         lines += _fold_lines(self.folds, self.chains)
         lines.append(self._verdict())

@@ -196,7 +196,7 @@ class _Touches:
             return float(np.sqrt(np.mean(length_errors(s, d)[0] ** 2)))
 
         first = float(np.sqrt(np.mean(length_errors(state, rows)[0] ** 2)))
-        return diagnosis.explain(rows, self.chain.sigma == 0, gap, first, None, _WORDS)
+        return diagnosis.explain(rows, self.chain, gap, first, None, _WORDS)
 
 
 def _registrable(data: ContactData) -> bool:

@@ -2,10 +2,10 @@
 
 When the registration leaves errors above ``SUSPECT`` [m] RMS (or ``NOISE_FACTOR`` times the
 noise; orientations: ``ORIENTATION_SUSPECT`` [rad]), the data are read again under each usual
-mistake (swapped joint columns, degrees, mm/cm/m, swapped coordinate columns, quaternion
-order, rpy order); the one whose correction leaves an RMS ``EXPLAINS`` times lower is named,
-unless it explains the rows with shuffled joint columns as well; a joint column with one
-value is named first.
+mistake (swapped joint columns, degrees, an end joint of the chain that does not move
+its end's frame, mm/cm/m, swapped coordinate columns, quaternion order, rpy order); the
+one whose correction leaves an RMS ``EXPLAINS`` times lower is named, unless it explains
+the rows with shuffled joint columns as well; a joint column with one value is named first.
 
 Rationale and measurements: docs/developers/engine.md#diagnosis
 """
@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import CalibError, DataError
+from ..kinematics.frames import end_joint_links
 from ..measurements.data import MAX_COORDINATE
 
 __all__ = [
@@ -47,9 +48,12 @@ SHUFFLE_SEED = 29
 """Seed of the shuffle of the joint columns that a correction must not explain too."""
 
 
-def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
-    names = data.joint_names
+def _mistakes(data, chain, joints_only: bool) -> Iterator[tuple[str, object]]:
+    """(description, corrected data) for each usual mistake (of the joints only, or all).
+
+    ``chain``: the data's chain (its joints' kinds, its end joints), or a tree.
+    """
+    names, revolute = data.joint_names, chain.sigma == 0
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             q = data.q.copy()
@@ -59,6 +63,7 @@ def _mistakes(data, revolute: np.ndarray, joints_only: bool) -> Iterator[tuple[s
         q = data.q.copy()
         q[:, revolute] = np.deg2rad(q[:, revolute])
         yield "revolute joint positions in degrees, not radians", dataclasses.replace(data, q=q)
+    yield from _still_ends(data, chain)
     if joints_only:
         return
     for unit, size in (("millimetres", 1e-3), ("centimetres", 1e-2)):
@@ -98,6 +103,27 @@ def _swapped_coordinates(data) -> Iterator[tuple[str, object]]:
             position[:, first + second] = data.position[:, second + first]
             said = what if len(points) == k else f"{what} {'xyz'[a]} and {'xyz'[b]} columns swapped"
             yield said, dataclasses.replace(data, position=position)
+
+
+def _still_ends(data, chain) -> Iterator[tuple[str, object]]:
+    """Each end joint of ``chain`` held at 0: a frame given one link too far (a joint too many).
+
+    A tree's tools: none tried.
+    """
+    if chain.is_tree:
+        return
+    ends = (chain.base_frame, chain.tool_frame)
+    found = end_joint_links(chain.model, chain.joint_names, chain.sign, ends)
+    for name, (frame, link) in found.items():
+        if name not in data.joint_names:
+            continue
+        q = data.q.copy()
+        q[:, data.joint_names.index(name)] = 0.0
+        yield (
+            f"a joint too many in the chain: {name} does not move what is fixed to {frame} "
+            f"(is it on {link}?)",
+            dataclasses.replace(data, q=q),
+        )
 
 
 ORIENTATION_SUSPECT = 0.1
@@ -157,7 +183,7 @@ def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: floa
 
 def _likely_cause(
     data,
-    revolute: np.ndarray,
+    chain,
     registration_rms: Callable[[object], float],
     before: float,
     orientation: bool = False,
@@ -165,16 +191,15 @@ def _likely_cause(
 ) -> tuple[str, float] | None:
     """(description, RMS [m or rad]) of the usual mistake that best explains the data, or None.
 
-    ``registration_rms``: the registration's RMS error per point [m] (``orientation``: RMS
-    orientation error [rad], the orientation columns' mistakes) of some data; ``before``:
-    that of ``data`` as they are; ``joints_only``: the joint columns' mistakes only (data
-    that record the joints alone: contacts).
+    ``chain``: as :func:`_mistakes` reads it; ``registration_rms``: the registration's RMS
+    error per point [m] (``orientation``: RMS orientation error [rad], the orientation
+    columns' mistakes) of some data; ``before``: that of ``data`` as they are;
+    ``joints_only``: the joint columns' mistakes only (data that record the joints alone:
+    contacts).
     """
     best = None
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT
-    mistakes = (
-        _orientation_mistakes(data) if orientation else _mistakes(data, revolute, joints_only)
-    )
+    mistakes = _orientation_mistakes(data) if orientation else _mistakes(data, chain, joints_only)
     for what, fixed in mistakes:
         try:
             rms = registration_rms(fixed)
@@ -202,16 +227,17 @@ class Words:
     data: str = "data"
     row: str = "row"
     error: str = "error"
-    mistakes: str = "swapped joint columns, degrees"
+    mistakes: str = "swapped joint columns, degrees, a joint too many at an end of the chain"
     check: str = "the data and the chain"
 
 
 def explain(
-    data, revolute, error, first: float, noise, words: Words, joints_only=True, orientation=False
+    data, chain, error, first: float, noise, words: Words, joints_only=True, orientation=False
 ) -> list[str]:
     """Raise the usual mistake behind a registration's absurd error; else a note of it.
 
-    ``data``: rows with ``joint_names``, ``q``, ``m``, ``source``; ``error``: the
+    ``data``: rows with ``joint_names``, ``q``, ``m``, ``source``; ``chain``: their chain
+    (or tree: its ``sigma``, its end joints, :func:`_still_ends`); ``error``: the
     registration's RMS error [m] of some rows (``data`` corrected), ``first`` that of
     ``data`` (infinite: no registration); ``noise`` [m] or None; ``orientation``: the errors
     are orientation errors [rad] (suspect above ``ORIENTATION_SUSPECT``), the mistakes the
@@ -237,7 +263,7 @@ def explain(
             f"{', '.join(still)} hold one value in every {words.row}: were those "
             "joints logged?",
         )
-    cause = _likely_cause(data, revolute, error, first, orientation, joints_only)
+    cause = _likely_cause(data, chain, error, first, orientation, joints_only)
     if cause is not None:
         before = amount(first) if known else "no registration"
         raise DataError(

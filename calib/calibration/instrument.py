@@ -263,7 +263,5 @@ def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, Res
 
     reg, first = registered(data)
     rms = lambda d: registered(d)[1].position_rms  # [m]  # noqa: E731
-    diagnosis.explain(
-        data, tree.sigma == 0, rms, first.position_rms, None, _WORDS, joints_only=False
-    )
+    diagnosis.explain(data, tree, rms, first.position_rms, None, _WORDS, joints_only=False)
     return reg, first

@@ -243,7 +243,7 @@ def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
         return _rms_m(_registered(chain, moved, strict=False), moved)
 
     joints = _Joints(chain.joint_names, part.rows.q, part.source)
-    notes = diagnosis.explain(joints, chain.sigma == 0, error, first, None, _WORDS)
+    notes = diagnosis.explain(joints, chain, error, first, None, _WORDS)
     return [f"camera {part.data.camera.name}: {n}" for n in notes]
 
 

@@ -23,6 +23,7 @@ __all__ = [
     "PLACEMENT_TOL",
     "default_tool",
     "describe_joint",
+    "end_joint_links",
     "frame_placement",
     "joint_kind",
     "joint_placements",
@@ -265,6 +266,27 @@ def path_joints(model: pin.Model, jb: int, jt: int) -> tuple[tuple[int, ...], tu
     backwards = tuple(reversed(up[common:]))
     forwards = tuple(down[common:])
     return backwards + forwards, (-1,) * len(backwards) + (1,) * len(forwards)
+
+
+def end_joint_links(
+    model: pin.Model, names: tuple[str, ...], sign, ends: tuple[str, str]
+) -> dict[str, tuple[str, str]]:
+    """The frames a chain's end joints move, and the links beyond those joints.
+
+    ``{joint: (end frame, link)}`` for the first joint (``ends[0]``, the base frame) and the
+    last (``ends[1]``, the tool frame) of a chain of joints ``names`` and ``sign``
+    (:func:`path_joints`): a frame given at that end but fixed to ``link`` does not move with
+    the joint (a joint too many in its chain). A one-joint chain: its base end only.
+    """
+    out: dict[str, tuple[str, str]] = {}
+    if not names:
+        return out
+    for k, end, toward in ((0, ends[0], -1), (-1, ends[1], 1)):
+        frame = model.getFrameId(names[k], pin.FrameType.JOINT)
+        below = [f.name for f in model.frames if f.parentFrame == frame]  # the child link's
+        parent = model.frames[model.frames[frame].parentFrame].name
+        out.setdefault(names[k], (end, parent if sign[k] == toward else below[0]))
+    return out
 
 
 def sampling_bounds(model: pin.Model, jid: int) -> tuple[float, float]:
