@@ -277,8 +277,7 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
     )
     judged = (part,) if held is None or stopped else (part, held)  # stopped: no held verdict
     errors = [
-        np.linalg.norm(own.state.residuals(ChainsData((p,))), axis=1) * state.weight
-        for p in judged
+        np.linalg.norm(own.state.residuals(ChainsData((p,))), axis=1) * state.weight for p in judged
     ]
     return errors[0], errors[1] if len(errors) > 1 else None, stopped or None
 
