@@ -219,10 +219,10 @@ def test_summary_names_each_kind_of_object_and_its_own_rows():
     """Planes, points and poses counted by their kind; each chain's line gives its rows' units."""
     chain = load_robot("panda")
     want = {
-        "plane": ("2 plane(s)", "plane 'table1', 'table2' (gaps: height [mm], roll [deg], pitch"),
-        "plane-point": ("2 plane(s)", "plane 'table1', 'table2' (gaps: height [mm]):"),
-        "fixed-point": ("2 point(s)", "point 'point1', 'point2' (gaps: x [mm], y [mm], z [mm]):"),
-        "fixed-pose": ("2 pose(s)", "pose 'point1', 'point2' (gaps: x [mm], y [mm], z [mm], rx"),
+        "plane": ("2 planes", "plane 'table1', 'table2' (gaps: height [mm], roll [deg], pitch"),
+        "plane-point": ("2 planes", "plane 'table1', 'table2' (gaps: height [mm]):"),
+        "fixed-point": ("2 points", "point 'point1', 'point2' (gaps: x [mm], y [mm], z [mm]):"),
+        "fixed-pose": ("2 poses", "pose 'point1', 'point2' (gaps: x [mm], y [mm], z [mm], rx"),
     }
     for kind, (objects, heading) in want.items():
         data = simulate_contacts(chain, 40, kind, contacts=2, seed=1).data

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from pixel_setups import INTRINSICS, setup
 
-from calib import Problem, Term, calibrate, load_chain, simulate_contacts
+from calib import Problem, Term, calibrate, load_chain, simulate, simulate_contacts
 from calib.calibration.pixel_chain import PixelData
 from calib.calibration.pixel_term import PixelCamera
 from calib.exceptions import DataError
@@ -28,6 +28,24 @@ def test_one_term_is_one_chain():
     touches = simulate_contacts(load_chain("ur5"), 40, "plane", contacts=2, seed=0).data
     first = calibrate(load_chain("ur5"), touches, params="complete").summary().splitlines()[0]
     assert ": 1 chain, " in first and "chains" not in first
+
+
+def test_the_first_line_says_a_count_of_one_in_the_singular(tmp_path):
+    """One chain with one plane, one measured term or one camera: each count in one style
+    (``1 chain, 1 plane``; before, ``1 chain, 1 plane(s)``)."""
+    chain = load_chain("ur5")
+    marker = (0.05, 0.02, 0.1)
+    touches = simulate_contacts(chain, 40, "plane", seed=0).data
+    rows = simulate(chain, 30, "position", marker=marker, noise_mm=0.05, seed=1).measurements
+    _, obs, problem = _pixels(tmp_path)
+    results = {
+        "1 plane": calibrate(chain, touches),
+        "1 measured term": calibrate(chain, rows, marker=marker),
+        "1 camera": calibrate(problem(obs)),
+    }
+    for objects, result in results.items():
+        first = result.summary().splitlines()[0]
+        assert f": 1 chain, {objects}, " in first and "(s)" not in first, first
 
 
 def test_a_camera_only_problem_says_the_data_determine(tmp_path):

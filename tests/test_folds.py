@@ -285,8 +285,30 @@ def test_tree_pooled_as_explicit_validation_runs():
     for k, r in enumerate(runs):
         for c, tool in enumerate(("wrist_3_link", "forearm_link")):
             b, a = (r.chains[c].stats[w] for w in ("held_out_registration", "held_out"))
-            line = f"  fold {k + 1}, term {c + 1} ({tool}, position): {b.weighted_mm:.3f} -> "
+            term = f"term {c + 1} (base_link -> {tool}, position)"
+            line = f"  fold {k + 1}, {term}: {b.weighted_mm:.3f} -> "
             assert f"{line}{a.weighted_mm:.3f} ({a.m} rows)" in lines, (line, lines)
+
+
+def test_fold_lines_name_each_term_by_its_base_too():
+    """Two touch terms on one tool from different bases: each fold line names the term as the
+    summary's term lines do (base -> tool, kind), so the two differ beyond their number."""
+    from calib import Problem, Term
+
+    bases = ("base_link", "shoulder_link")
+    chains = [load_chain("ur5", base, "wrist_3_link") for base in bases]
+    terms = [
+        Term(c, simulate_contacts(c, 30, "plane", seed=k + 1).data) for k, c in enumerate(chains)
+    ]
+    lines = cross_validate(Problem(tuple(terms)), folds=2).summary().splitlines()
+    for base in bases:
+        assert any(line.startswith(f"{base} -> wrist_3_link, plane ") for line in lines), base
+    for k in (1, 2):
+        said = [line for line in lines if line.startswith(f"  fold {k}, ")]
+        named = [
+            f"  fold {k}, term {c + 1} ({b} -> wrist_3_link, plane): " for c, b in enumerate(bases)
+        ]
+        assert [line[: len(n)] for line, n in zip(said, named, strict=True)] == named, said
 
 
 def test_a_fold_whose_own_fit_is_refused_refuses_the_cross_validation():

@@ -7,11 +7,12 @@ there. Whether anything was held out is read from the report (each term's held-o
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from conftest import chain_of
 from pixel_setups import INTRINSICS, calibrated, setup
 
-from calib import calibrate, cross_validate, simulate, simulate_contacts
+from calib import Problem, Term, calibrate, cross_validate, load_chain, simulate, simulate_contacts
 from calib.calibration.contact_chains import NOTHING_HELD
 from calib.calibration.pixel_term import PixelCamera
 from calib.cli.flags import in_flags
@@ -67,11 +68,39 @@ def test_folds_hold_every_row_out_once_so_no_note():
     assert not any(n.startswith(NOTHING_HELD) for n in folded.notes)
 
 
+def test_a_term_with_nothing_held_out_beside_one_with_validation_is_named():
+    """Two terms, the first with validation rows, the second (touches) with none: accepted, and
+    the note names the second (before: no note). The same terms with no validation at all keep
+    the one note of every term."""
+    arm = chain_of("ur5")
+    rows = simulate(arm, 55, "position", marker=MARKER, noise_mm=0.05, seed=1).measurements
+    first = np.arange(rows.m) < 40
+    wrist = load_chain("ur5", "base_link", "wrist_2_link")
+    touches = simulate_contacts(wrist, 40, "plane", seed=1).data
+    some = calibrate(
+        Problem((Term(arm, rows.subset(first), rows.subset(~first)), Term(wrist, touches)))
+    )
+    none = calibrate(Problem((Term(arm, rows.subset(first)), Term(wrist, touches))))
+    assert some.accepted and none.accepted, (some.refusal, none.refusal)
+    assert [h is None for h in _held_out(some)] == [False, True]
+    term = "term 2 (base_link -> wrist_2_link, plane): "
+    note = term + "nothing held out: not checked on unseen postures (hold some out: a term's "
+    note += "validate, as the other terms)"
+    assert note in some.notes and f"note: {note}" in some.summary()
+    assert not any(n.startswith(NOTHING_HELD) for n in some.notes)
+    assert NOTHING_HELD + "holdout, validate or folds)" in none.notes
+    assert not any(n.startswith("term ") for n in none.notes)
+
+
 @pytest.mark.parametrize(
     ("ways", "flags"),
     [
         ("holdout, validate or folds)", "--holdout, --validate or --folds)"),
         ("holdout or validate)", "--holdout or --validate)"),
+        (
+            "a term's validate, as the other terms)",
+            "a --term's VALIDATION file, as the other terms)",
+        ),
     ],
 )
 def test_the_command_line_names_its_flags(ways, flags):

@@ -438,7 +438,7 @@ def test_a_measured_term_gets_a_chains_checks(talos_data):
 
 def test_summary_names_the_measured_term(joint_fit):
     text = joint_fit[3].summary()
-    assert "2 plane(s), 1 measured term(s)" in text.splitlines()[0]
+    assert "2 planes, 1 measured term" in text.splitlines()[0]
     assert "rgbd_optical_frame -> gripper_left_base_link, measured position" in text
     assert "the measuring frame in joint 'rgbd_optical_joint'" in text
 

@@ -51,6 +51,7 @@ from .solve import fit, fitted_values, gauss_newton_finish, unconverged
 __all__ = [
     "HOLDS",
     "NOTHING_HELD",
+    "OWN_VALIDATE",
     "POLISH_GAIN",
     "ROUND_OFF",
     "Registered",
@@ -211,15 +212,8 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     one of largest component in the weakest (held at its nominal value, a note), at most
     ``HOLDS`` times. ``stalled``: some fit made did not converge (no outliers are read from it).
     """
-    run, train, plane_of, load, torques, comp, start = (
-        r.run,
-        r.train,
-        r.plane_of,
-        r.load,
-        r.torques,
-        r.comp,
-        r.start,
-    )
+    run, train, plane_of, start = r.run, r.train, r.plane_of, r.start
+    load, torques, comp = r.load, r.torques, r.comp
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
     level, seed = opts.level, opts.seed
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
@@ -263,15 +257,28 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
-    if not fitted.converged:  # where it stopped: data no calibration explains are named
+    return _finished(r, result, converged, identifiable)
+
+
+def _finished(r: Registered, result, converged: list[bool], identifiable: int):
+    """The last fit's ``result`` with what the run adds (:func:`fit_registered`).
+
+    A last fit that did not converge first stops on the data no calibration explains (where
+    it stopped); then the level, the ``identifiable`` count, whether any fit made stalled
+    (``converged``: each fit's), and the notes of what it fitted and held out.
+    """
+    opts = r.run.options
+    if not converged[-1]:
         for part in result.chains:
             _check_fitted(part, opts.noise)
     stalled = not all(converged)
-    result = dataclasses.replace(result, params=level, identifiable=identifiable, stalled=stalled)
-    unseen = result.accepted and not any(h is not None for h in r.held) and nothing_held(result)
+    result = dataclasses.replace(
+        result, params=opts.level, identifiable=identifiable, stalled=stalled
+    )
     few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
     far = turned_far(result) if result.accepted else None
-    added = [n for n in (nothing_fitted(result, bool(opts.fix)), far, unseen, *few) if n]
+    notes = (nothing_fitted(result, bool(opts.fix)), far, nothing_held(result), *few)
+    added = [n for n in notes if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
@@ -325,9 +332,21 @@ NOTHING_HELD = "nothing held out: not checked on unseen postures (hold some out:
 """The head of the note of an accepted fit of every kind that held no row out (folds: its full
 fit's), :func:`nothing_held`."""
 
+OWN_VALIDATE = "a term's validate, as the other terms)"
+"""The way out of :func:`nothing_held`'s note on terms beside terms with validation rows."""
 
-def nothing_held(result: ContactChainsCalibration) -> str:
-    """The nothing-held-out note of ``result``, naming the ways out its terms have."""
+
+def nothing_held(result: ContactChainsCalibration) -> str | None:
+    """The nothing-held-out note of an accepted ``result``, or None (every term held rows out).
+
+    No term held rows out: :data:`NOTHING_HELD` and the ways out its terms have. Some did:
+    the note names the terms that did not, and :data:`OWN_VALIDATE`.
+    """
+    none = [c.named(k) for k, c in enumerate(result.chains) if c.held_source is None]
+    if not result.accepted or not none:
+        return None
+    if len(none) < len(result.chains):
+        return f"{', '.join(none)}: {NOTHING_HELD}{OWN_VALIDATE}"
     pixels = any(isinstance(c, PixelChain) for c in result.chains)  # not cross-validated
     return NOTHING_HELD + ("holdout or validate)" if pixels else "holdout, validate or folds)")
 

@@ -35,8 +35,8 @@ from .pixel_chain_result import PixelChain
 from .placements import Placements
 from .report import (
     build_report,
-    errors_part,
     fit_dict,
+    fold_lines,
     model_choice,
     one_term,
     outlier_dict,
@@ -44,6 +44,7 @@ from .report import (
     parameter_lines,
     pose_dict,
     selection_dict,
+    with_folds,
 )
 from .selection import Selection
 
@@ -348,7 +349,7 @@ class ContactChainsCalibration(Result, ChainView):
             fields, legacy = _single_contact_report(self, fields)
         else:
             legacy = self._format2(origins)
-        return _with_folds(build_report(fields, legacy), self.folds)
+        return with_folds(build_report(fields, legacy), self.folds)
 
     def _fields(self, origins: dict) -> dict:
         """The report's fields of every shape (``origins``: ``model.joint_origins``)."""
@@ -457,7 +458,7 @@ class ContactChainsCalibration(Result, ChainView):
     def _headline(self) -> str:
         """The summary's first line: the chains, the terms' objects, what is fitted, determined.
 
-        The objects (``2 plane(s)``, ``1 camera(s)``): a contact term's by their kind (a
+        The objects (``2 planes``, ``1 camera``): a contact term's by their kind (a
         plane-point's plane is a plane), a plane shared by chains once.
         """
         names = self._object_names()
@@ -466,9 +467,9 @@ class ContactChainsCalibration(Result, ChainView):
             objects.setdefault(c.kind.object_name, set()).update(names[id(c)].values())
         measured, cameras = len(self._of(MeasuredChain)), len(self._of(PixelChain))
         parts = [counted(len(self.chains), "chains")]
-        parts += [f"{len(ids)} {kind}(s)" for kind, ids in objects.items()]
-        parts += [f"{measured} measured term(s)"] if measured else []
-        parts += [f"{cameras} camera(s)"] if cameras else []
+        parts += [counted(len(ids), f"{kind}s") for kind, ids in objects.items()]
+        parts += [counted(measured, "measured terms")] if measured else []
+        parts += [counted(cameras, "cameras")] if cameras else []
         parts += [f"{counted(len(self.free), 'joint placement components')} fitted"]
         parts += [f"{counted(self.unknowns, 'unknowns')} determined"]
         shared = f" (shared joints: {', '.join(self.shared)})" if self.shared else ""
@@ -484,7 +485,7 @@ class ContactChainsCalibration(Result, ChainView):
         lines += [line for c in self._of(ChainContacts) for line in compliance_line(c)]
         lines += parameter_lines(self.entries())
         lines += [f"note: {n}" for n in self.notes]
-        lines += _fold_lines(self.folds, self.chains)
+        lines += fold_lines(self.folds, self.chains)
         lines.append(self._verdict())
         return "\n".join(lines)
 
@@ -571,29 +572,3 @@ def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
         f"no joint placement was fitted: {why}; the URDF written is the nominal robot's {urdf}; "
         f"if you expected a fit, {hint}"
     )
-
-
-def _with_folds(report: dict, folds) -> dict:
-    """``report`` with each fold's held-out errors in every ``held_out`` entry (``folds``)."""
-    if not folds:
-        return report
-    errors = report["errors"]
-    for k, term in enumerate(errors["terms"]):
-        term["held_out"]["folds"] = [errors_part(*fold[k]) for fold in folds]
-    held = errors.get("held_out")
-    if held is not None and len(errors["terms"]) == 1:
-        held["folds"] = errors["terms"][0]["held_out"]["folds"]
-    return report
-
-
-def _fold_lines(folds, chains) -> list[str]:
-    """The summary's errors of each fold's held-out rows: weighted RMS [mm], a line a term."""
-    terms = [f", term {k + 1} ({c.chain.tool_frame}, {c.kind.label})" for k, c in enumerate(chains)]
-    lines = [
-        f"  fold {k + 1}{terms[c] if len(chains) > 1 else ''}: {b.weighted_mm:.3f} -> "
-        f"{a.weighted_mm:.3f} ({counted(a.m, 'rows')})"
-        for k, fold in enumerate(folds)
-        for c, (b, a) in enumerate(fold)
-    ]
-    head = "held out by fold (weighted RMS [mm], registration only -> calibrated):"
-    return [head, *lines] if folds else []

@@ -131,6 +131,11 @@ class TermPart:
         """Its kind's own keys of :meth:`to_dict`."""
         raise NotImplementedError
 
+    def named(self, k: int) -> str:
+        """The term as texts name it, ``k`` its index: ``term 2 (base_link -> tool0, plane)``."""
+        ends = f"{self.chain.base_frame} -> {self.chain.tool_frame}"
+        return f"term {k + 1} ({ends}, {self.kind.label})"
+
     def heading(self) -> str:
         """What the summary says the term is, after its base and tool frames."""
         raise NotImplementedError

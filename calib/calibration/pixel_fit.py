@@ -275,13 +275,11 @@ def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
         f"camera {part.data.camera.name}: the term's own fit did not converge "
         f"({own.message}): it proposed no outliers"
     )
+    judged = (part,) if held is None or stopped else (part, held)  # stopped: no held verdict
     errors = [
-        np.linalg.norm(own.state.residuals(ChainsData((p,))), axis=1) * state.weight
-        for p in (part, held)
-        if p is not None
+        np.linalg.norm(own.state.residuals(ChainsData((p,))), axis=1) * state.weight for p in judged
     ]
-    e_held = errors[1] if held is not None and not stopped else None
-    return errors[0], e_held, stopped or None
+    return errors[0], errors[1] if len(errors) > 1 else None, stopped or None
 
 
 def _size(part: PixelPart) -> int:

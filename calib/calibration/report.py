@@ -15,6 +15,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
+from ..core.words import counted
+
 __all__ = [
     "REPORT_KEYS",
     "URDF_ALONE",
@@ -22,6 +24,7 @@ __all__ = [
     "errors_part",
     "finite",
     "fit_dict",
+    "fold_lines",
     "mm_or_deg",
     "model_choice",
     "one_term",
@@ -31,6 +34,7 @@ __all__ = [
     "pose_dict",
     "selection_dict",
     "term_errors",
+    "with_folds",
 ]
 
 REPORT_KEYS = (
@@ -347,3 +351,32 @@ def one_term(fields: Mapping, errors: dict, chain, compliance: np.ndarray | None
     c = np.zeros(chain.n) if compliance is None else compliance
     joints = dict(zip(chain.joint_names, map(float, c), strict=True))
     return {**fields, "errors": {**errors, "terms": [errors]}, "compliance": joints, **own}
+
+
+def with_folds(report: dict, folds) -> dict:
+    """``report`` with each fold's held-out errors in every ``held_out`` entry (``folds``)."""
+    if not folds:
+        return report
+    errors = report["errors"]
+    for k, term in enumerate(errors["terms"]):
+        term["held_out"]["folds"] = [errors_part(*fold[k]) for fold in folds]
+    held = errors.get("held_out")
+    if held is not None and len(errors["terms"]) == 1:
+        held["folds"] = errors["terms"][0]["held_out"]["folds"]
+    return report
+
+
+def fold_lines(folds, chains) -> list[str]:
+    """The summary's errors of each fold's held-out rows: weighted RMS [mm], a line a term.
+
+    ``chains``: the terms' parts (:class:`~.contact_result.TermPart`), named if several.
+    """
+    terms = [f", {c.named(k)}" if len(chains) > 1 else "" for k, c in enumerate(chains)]
+    lines = [
+        f"  fold {k + 1}{terms[c]}: {b.weighted_mm:.3f} -> {a.weighted_mm:.3f} "
+        f"({counted(a.m, 'rows')})"
+        for k, fold in enumerate(folds)
+        for c, (b, a) in enumerate(fold)
+    ]
+    head = "held out by fold (weighted RMS [mm], registration only -> calibrated):"
+    return [head, *lines] if folds else []

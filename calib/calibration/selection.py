@@ -263,9 +263,9 @@ def best_prefix(sq: np.ndarray) -> int:
     a long path is partly chance, and a difference smaller than its own noise is not kept.
     Errors under ``ROUNDOFF`` of the largest are equal (round-off after an exact step).
     """
-    mean = sq.mean(axis=1)
-    floor = ROUNDOFF * mean[np.isfinite(mean)].max(initial=0.0)
-    root = np.sqrt(np.maximum(mean, floor)).tolist()
+    mse = sq.mean(axis=1)
+    floor = ROUNDOFF * mse[np.isfinite(mse)].max(initial=0.0)
+    root = np.sqrt(np.maximum(mse, floor)).tolist()
     best = 0
     for k, value in enumerate(root):
         if value < (1.0 - MIN_GAIN) * root[best]:
@@ -274,10 +274,10 @@ def best_prefix(sq: np.ndarray) -> int:
         return 0
     d = sq[:best] - sq[best]
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = d.mean(axis=1)
-        dev = d - mean[:, None]
+        gap = d.mean(axis=1)
+        dev = d - gap[:, None]
         se = np.sqrt(np.einsum("kn,kn->k", dev, dev) / (d.shape[1] - 1) / d.shape[1])
-        close = np.isfinite(d).all(axis=1) & (mean <= se)
+        close = np.isfinite(d).all(axis=1) & (gap <= se)
     return int(np.argmax(close)) if close.any() else best
 
 

@@ -40,6 +40,9 @@ FLAGS = {
     "with Columns(units='mm')": "with --units mm",
     "out: holdout, validate or folds)": "out: --holdout, --validate or --folds)",
     "out: holdout or validate)": "out: --holdout or --validate)",
+    "out: a term's validate, as the other terms)": (
+        "out: a --term's VALIDATION file, as the other terms)"
+    ),
 }
 """A library text naming a keyword -> the command line's text naming its flag (the first
 ``--`` word of the value is the flag: a command without it keeps the keyword)."""

@@ -349,20 +349,17 @@ def _postures(chains, configs: int, seed: int, path: str | None = None):
     """
     import numpy as np
 
-    from ..design.configurations import MAX_CONFIGS_BYTES, parse_configurations
-    from ..measurements.csvfile import read_data_text
+    from ..design.configurations import read_chains_configurations
 
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
-    text = None if path is None else read_data_text(path, MAX_CONFIGS_BYTES)
-    q = None
-    for chain in reversed(chains):
-        drawn = (
-            chain.random_configurations(configs, seed)
-            if text is None
-            else parse_configurations(text, chain, str(path))
-        )
-        q = np.zeros((len(drawn), len(joints))) if q is None else q
-        q[:, [joints.index(j) for j in chain.joint_names]] = drawn
+    drawn = (
+        [c.random_configurations(configs, seed) for c in chains]
+        if path is None
+        else read_chains_configurations(path, chains)
+    )
+    q = np.zeros((len(drawn[-1]), len(joints)))
+    for chain, own in reversed(list(zip(chains, drawn, strict=True))):
+        q[:, [joints.index(j) for j in chain.joint_names]] = own
     return joints, q
 
 

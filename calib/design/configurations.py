@@ -18,6 +18,7 @@ another).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,7 @@ from ..measurements.joint_columns import check_followers, column_keys, follower_
 from ..measurements.limits import check_limits
 from ..measurements.pixels import OBSERVATION_COLUMNS
 
-MAX_CONFIGS_BYTES = 256 << 20
+_MAX_CONFIGS_BYTES = 256 << 20
 """Largest configurations file read [B] (a million configurations of 20 joints fit)."""
 
 
@@ -112,7 +113,19 @@ def read_configurations(path: str | Path, chain: Chain | Tree) -> np.ndarray:
     Raises:
         DataError: The file is missing, unreadable or invalid.
     """
-    return parse_configurations(read_data_text(path, MAX_CONFIGS_BYTES), chain, str(path))
+    return read_chains_configurations(path, (chain,))[0]
+
+
+def read_chains_configurations(
+    path: str | Path, chains: Sequence[Chain | Tree]
+) -> list[np.ndarray]:
+    """Each chain's joint positions ``(m, n)`` from one configurations file, read once.
+
+    Raises:
+        DataError: The file is missing, unreadable or invalid for a chain.
+    """
+    text = read_data_text(path, _MAX_CONFIGS_BYTES)
+    return [parse_configurations(text, chain, str(path)) for chain in chains]
 
 
 def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | None:
@@ -122,7 +135,7 @@ def read_readings(path: str | Path, names: tuple[str, ...]) -> JointReadings | N
         DataError: The file is unreadable, or a cell of those columns is not a number.
     """
     src = str(path)
-    records = list(csv_records(read_data_text(path, MAX_CONFIGS_BYTES), src))
+    records = list(csv_records(read_data_text(path, _MAX_CONFIGS_BYTES), src))
     header = [c.strip() for c in records[0][1]] if records else []
     found = tuple(n for n in names if header.count(n) == 1)
     if 0 < len(found) < len(names):  # none: the model's own warning says so
@@ -154,7 +167,7 @@ def recorded_off_chain(path: str | Path, chain: Chain) -> JointReadings | None:
         DataError: The file is unreadable, or a cell of those columns is not a number.
     """
     model = chain.model
-    first = next(csv_records(read_data_text(path, MAX_CONFIGS_BYTES), str(path)), None)
+    first = next(csv_records(read_data_text(path, _MAX_CONFIGS_BYTES), str(path)), None)
     header = [] if first is None else [c.strip() for c in first[1]]
     names = tuple(
         n
@@ -181,9 +194,9 @@ def configurations_csv(
 
 
 __all__ = [
-    "MAX_CONFIGS_BYTES",
     "configurations_csv",
     "parse_configurations",
+    "read_chains_configurations",
     "read_configurations",
     "read_readings",
     "recorded_off_chain",
