@@ -147,3 +147,19 @@ def test_simulate_tree_says_the_count_in_python():
         simulate_tree(tree, 5, np.array(MARKERS))
     with pytest.raises(InvalidArgumentError, match="finite numbers"):
         simulate_tree(tree, 5, [0.0, np.nan, 0.1])
+
+
+def test_the_counts_plot_of_markers_has_no_paper_bar(capsys, tmp_path):
+    """The figure of ``sweep --markers K`` names the markers' formula and has no paper set
+    (its rows have no paper count); one point's keeps both."""
+    from calib.outputs.plots import counts_figure
+
+    rows = sweep(robots=["ur5"], markers=2)
+    labels = [t.get_text() for t in counts_figure(rows, theory="4R+2P+3K").axes[0].legend_.texts]
+    assert labels == ["theory (4R+2P+3K)", "complete set"]
+    labels = [t.get_text() for t in counts_figure(sweep(robots=["ur5"])).axes[0].legend_.texts]
+    assert labels == ["theory (4R+2P+6 or +3)", "paper set", "complete set"]
+    code, _, err = run(
+        capsys, "sweep", "--robots", "ur5", "--markers", 2, "--plot", tmp_path / "p.png"
+    )
+    assert code == 0 and (tmp_path / "p.png").stat().st_size > 0, err

@@ -221,7 +221,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         files[Path(args.csv)] = rows_to_csv(rows)
     if plot_format is not None:  # --plot given
         title = f"Base parameters per chain, {args.measure} measurement"
-        files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
+        formula = {}
+        if args.markers is not None:
+            title += f", {counted(args.markers, 'markers')}"
+            formula = {"theory": "4R+2P+3K" + (" +3" if args.measure == "pose" else "")}
+        fig = counts_figure(rows, title=title, **formula)
+        files[Path(args.plot)] = figure_bytes(fig, plot_format)
     write_outputs(files)
     if args.json:
         print_json(
