@@ -23,6 +23,7 @@ import calib
 from calib import CalibError, Measurement
 from calib.calibration.entry import calibrate_contacts
 from calib.outputs.plots import calibration_figure
+from calib.outputs.sweep import marker_count, sweep
 
 CHAIN = chain_of("ur5")
 ROOTED = calib.load_chain("ur5", base="world")  # measured from the URDF's root link
@@ -326,6 +327,12 @@ def _third_round_cases():
         "analyze tool of a loaded chain": lambda: calib.analyze(CHAIN, tool="wrist_2_link"),
         "load_robot base of a loaded chain": lambda: calib.load_robot(CHAIN, "world"),
         "load_robot tools of a loaded tree": lambda: calib.load_robot(TREE, tool=["FL_FOOT"]),
+        # K markers counted (sweep --markers, analyze --markers): a chain, position or pose.
+        "sweep.sweep markers=0": lambda: sweep(robots=["ur5"], markers=0),
+        "sweep.sweep markers with a contact": lambda: sweep(measure="plane", markers=2),
+        "sweep.marker_count chain=str": lambda: marker_count("ur5", 3),
+        "sweep.marker_count a tree": lambda: marker_count(TREE, 3),
+        "sweep.marker_count markers=text": lambda: marker_count(CHAIN, "3"),
     }
 
 

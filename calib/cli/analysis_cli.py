@@ -146,27 +146,15 @@ def _analyze_terms(args: argparse.Namespace) -> int:
 
 def _analyze_markers(args: argparse.Namespace) -> int:
     """What a calibration with K measured points (and free frame and markers) identifies."""
-    from ..calibration.chain_registration import held_markers, held_note
-    from ..design.observability import identifiable_parameters
-    from ..identification.kinds import kind_of
+    from ..calibration.chain_registration import held_note
+    from ..outputs.sweep import marker_count
 
-    kind = kind_of(args.measure)
-    if not getattr(kind, "is_campaign", False):
-        raise InvalidArgumentError("--markers takes --measure position or pose")
-    paper = ["--params paper"] if args.params == "paper" else []
-    typed = given_options(args, ("marker",)) + paper
-    if typed:  # the count is of every joint placement (complete), the markers' places unknown
-        raise InvalidArgumentError(
-            f"{typed[0]} is not for --markers: it counts every joint placement component with "
-            f"the measurement frame and the {args.markers} markers unknown"
-        )
+    _refuse_with_markers(args)
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if chain.is_tree:
         raise InvalidArgumentError("--markers counts for one chain: give one --tool")
-    held = held_markers(chain, from_chain(chain).idealized())  # as calibrate holds them
-    names = identifiable_parameters(
-        chain, args.markers, args.measure, args.configs, args.seed, held
-    )
+    count = marker_count(chain, args.markers, args.measure, args.configs, args.seed)
+    names, held, theory = count.names, count.held, count.theory
     notes = [held_note(held, None)] if held else []
     if args.json:
         print_json(
@@ -175,6 +163,7 @@ def _analyze_markers(args: argparse.Namespace) -> int:
                 "markers": args.markers,
                 "measure": args.measure,
                 "n_identifiable": len(names),
+                "n_theory": theory,
                 "parameters": list(names),
                 "n_held": len(held),
                 "notes": notes,
@@ -184,7 +173,8 @@ def _analyze_markers(args: argparse.Namespace) -> int:
         print(
             f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
             f"{args.measure}: {counted(len(names), 'identifiable parameters')} (measurement "
-            f"frame and markers free{f', {len(held)} held' if held else ''})"
+            f"frame and markers free{f', {len(held)} held' if held else ''}), theory "
+            f"{'n/a' if theory is None else theory}"
         )
         print("  " + ", ".join(names))
         for note in notes:
@@ -209,6 +199,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from ..outputs.plots import counts_figure, figure_bytes, figure_format
     from ..outputs.sweep import rows_table, rows_to_csv, sweep
 
+    if args.markers is not None:  # the counts of the complete set with K markers unknown
+        _refuse_with_markers(args)
     plot_format = figure_format(args.plot, "--plot") if args.plot else None
     check_output_paths(
         {"--csv": args.csv, "--plot": args.plot}, {f"the URDF {u}": u for u in args.urdf}
@@ -222,13 +214,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         seed=args.seed,
         progress=terminal(args.quiet),
         params=args.params,
+        markers=args.markers,
     )
     files: dict[Path, str | bytes] = {}
     if args.csv:
         files[Path(args.csv)] = rows_to_csv(rows)
     if plot_format is not None:  # --plot given
         title = f"Base parameters per chain, {args.measure} measurement"
-        files[Path(args.plot)] = figure_bytes(counts_figure(rows, title=title), plot_format)
+        formula = {}
+        if args.markers is not None:
+            title += f", {counted(args.markers, 'markers')}"
+            formula = {"theory": "4R+2P+3K" + (" +3" if args.measure == "pose" else "")}
+        fig = counts_figure(rows, title=title, **formula)
+        files[Path(args.plot)] = figure_bytes(fig, plot_format)
     write_outputs(files)
     if args.json:
         print_json(
@@ -241,11 +239,39 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     else:
         print(rows_table(rows))
         bad = sum(r.error is not None for r in rows)
+        verdict = f"verdict for the {args.params} set"
+        if args.markers is not None:
+            verdict = (
+                f"{args.markers} marker(s), measurement frame and markers free: the complete "
+                f"set's count (as analyze --markers {args.markers}), verdict against the theory"
+            )
         print(
             f"\n{len(rows)} chains and trees, {len(rows) - bad} analysed, {bad} with an error "
-            f"(reason in the last column); {args.measure}, verdict for the {args.params} set"
+            f"(reason in the last column); {args.measure}, {verdict}"
         )
     return 0
+
+
+def _refuse_with_markers(args: argparse.Namespace) -> None:
+    """``analyze`` and ``sweep --markers K`` count the complete set, the K markers unknown.
+
+    Raises:
+        InvalidArgumentError: A measure other than position or pose, ``--marker`` or
+            ``--params paper`` given (they would change nothing).
+    """
+    from ..identification.kinds import kind_of
+
+    if not getattr(kind_of(args.measure), "is_campaign", False):
+        raise InvalidArgumentError("--markers takes --measure position or pose")
+    paper = (
+        ["--params paper"] if given_options(args, ("params",)) and args.params == "paper" else []
+    )
+    typed = given_options(args, ("marker",)) + paper
+    if typed:  # the count is of every joint placement (complete), the markers' places unknown
+        raise InvalidArgumentError(
+            f"{typed[0]} is not for --markers: it counts every joint placement component with "
+            f"the measurement frame and the {args.markers} markers unknown"
+        )
 
 
 def add_analysis_parsers(sub) -> None:
@@ -287,12 +313,7 @@ def _add_analyze_parser(sub) -> None:
     add_chain_args(p.add_argument_group("robot"), trees=True)
     g = p.add_argument_group("instrument")
     add_measure_args(g)
-    g.add_argument(
-        "--markers",
-        type=int,
-        help="count what a calibration identifies with K points measured per configuration "
-        "(frame and markers free)",
-    )
+    _add_markers_arg(g)
     g = p.add_argument_group("parameters and configurations")
     g.add_argument(
         "--params",
@@ -328,6 +349,7 @@ def add_sweep_parser(sub) -> None:
             "calib sweep --measure pose --csv sweep.csv",
             "calib sweep --plot survey.png models/mimic_arm.urdf  # and a URDF of yours",
             "calib sweep --robots ur5 panda talos_left_arm -- my_arm.urdf  # these alone",
+            "calib sweep --robots ur5 panda --markers 3  # what 3 points identify, side by side",
         ],
     )
     g = p.add_argument_group("robots")
@@ -338,7 +360,9 @@ def add_sweep_parser(sub) -> None:
         metavar="NAME",
         help="catalog names analysed instead of the whole catalog (see `calib list`)",
     )
-    add_measure_args(p.add_argument_group("instrument"))
+    g = p.add_argument_group("instrument")
+    add_measure_args(g)
+    _add_markers_arg(g)
     g = p.add_argument_group("parameters and configurations")
     g.add_argument(
         "--params",
@@ -353,6 +377,16 @@ def add_sweep_parser(sub) -> None:
     g.add_argument("--plot", help="also save the counts plot to this .png, .svg or .pdf file")
     g.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_sweep)
+
+
+def _add_markers_arg(g) -> None:
+    """The ``--markers K`` option of ``analyze`` and ``sweep``."""
+    g.add_argument(
+        "--markers",
+        type=int,
+        help="count what a calibration identifies with K points measured per configuration "
+        "(frame and markers free)",
+    )
 
 
 def add_demo_parser(sub) -> None:

@@ -199,6 +199,7 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
             f"(--measure {args.measure}): --configs K chooses postures on the contact"
         )
     q = read_configurations(args.evaluate, chain)
+    _check_points(args, chain)
     ind = evaluate(
         chain, q, args.measure, args.marker, args.params, args.seed, args.orientation_weight
     )
@@ -216,6 +217,31 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
                 f"{args.noise_mm * ind.i:.4g} mm"
             )
     return 0
+
+
+def _check_points(args: argparse.Namespace, chain) -> None:
+    """Refuse to score another number of points than the measurement file measures.
+
+    The file's points are fitted (their places are not in it): the user says where they
+    are, one ``--marker`` each; none is one point at the tool origin.
+
+    Raises:
+        InvalidArgumentError: A chain's position file of K points and another number of
+            ``--marker``.
+    """
+    from ..design.configurations import points_in_file
+
+    if chain.is_tree or args.measure != "position":
+        return
+    k, given = points_in_file(args.evaluate, chain), len(args.marker or [None])
+    if k and k != given:
+        how = "once (its place in the tool frame; none: the tool origin)"
+        if k > 1:
+            how = f"{k} times, each point's approximate place in the tool frame"
+        raise InvalidArgumentError(
+            f"{args.evaluate} measures {counted(k, 'points')}, the score would be of "
+            f"{counted(given, 'points')}: give --marker X Y Z {how}"
+        )
 
 
 def add_design_parser(sub) -> None:

@@ -38,6 +38,9 @@ FLAGS = {
     "world_link: ": "--world-link: ",
     "on_robot: ": "--on-robot: ",
     "with Columns(units='mm')": "with --units mm",
+    "takes one marker for all or one per tool": (
+        "takes --marker once for all its tools or once per tool (in --tool order)"
+    ),
     "out: holdout, validate or folds)": "out: --holdout, --validate or --folds)",
     "out: holdout or validate)": "out: --holdout or --validate)",
     "out: a term's validate, as the other terms)": (

@@ -167,8 +167,7 @@ def recorded_off_chain(path: str | Path, chain: Chain) -> JointReadings | None:
         DataError: The file is unreadable, or a cell of those columns is not a number.
     """
     model = chain.model
-    first = next(csv_records(read_data_text(path, _MAX_CONFIGS_BYTES), str(path)), None)
-    header = [] if first is None else [c.strip() for c in first[1]]
+    header = _header(path)
     names = tuple(
         n
         for n in header
@@ -177,6 +176,29 @@ def recorded_off_chain(path: str | Path, chain: Chain) -> JointReadings | None:
         and model.joints[model.getJointId(n)].nv == 1
     )
     return read_readings(path, names) if names else None
+
+
+def _header(path: str | Path) -> list[str]:
+    """The cells of a file's header line (none for an empty file)."""
+    first = next(csv_records(read_data_text(path, _MAX_CONFIGS_BYTES), str(path)), None)
+    return [] if first is None else [c.strip() for c in first[1]]
+
+
+def points_in_file(path: str | Path, chain: Chain | Tree) -> int:
+    """The number of points a measurement file's header measures (0: a configurations file).
+
+    K for ``x1, y1, z1`` to ``xK, yK, zK``, 1 for ``x, y, z``, 0 without them; the chain's
+    joint columns are not read as points.
+
+    Raises:
+        DataError: The file is unreadable.
+    """
+    joints = set(chain.joint_names)
+    free = {c for c in _header(path) if c not in joints and not c.startswith(JOINT_PREFIX)}
+    k = 0
+    while all(f"{a}{k + 1}" in free for a in "xyz"):
+        k += 1
+    return k or int(all(a in free for a in "xyz"))
 
 
 def configurations_csv(
@@ -196,6 +218,7 @@ def configurations_csv(
 __all__ = [
     "configurations_csv",
     "parse_configurations",
+    "points_in_file",
     "read_chains_configurations",
     "read_configurations",
     "read_readings",

@@ -359,6 +359,19 @@ class Measurement:
             return 4 * revolute + 2 * prismatic + 3 - (2 if on_axes else 0)
         return None
 
+    def marker_count(self, sigma: np.ndarray, n_markers: int) -> int | None:
+        """4R + 2P + 3K (+ 3 for a pose) for K markers at generic places, frame and markers free.
+
+        Each marker adds its 3 offsets to the robot's 4R + 2P, a pose the measured frame's
+        rotation (:meth:`unknown_constants` less the measurement frame's 6, which the base's
+        parameters are). For a tool that turns about every direction; None for other row
+        subsets.
+        """
+        if not self.is_campaign:
+            return None
+        revolute, prismatic, _ = count_joints(sigma)
+        return 4 * revolute + 2 * prismatic + self.unknown_constants(n_markers) - 6
+
 
 def count_joints(sigma: np.ndarray) -> tuple[int, int, int]:
     """Revolute joints R, prismatic joints P and joints n of a sigma vector."""

@@ -91,6 +91,10 @@ def simulate_tree(
     n_tools = tree.n_tools
     mk = np.zeros((n_tools, 3)) if markers is None else np.array(markers, dtype=float)
     mk = np.broadcast_to(mk, (n_tools, 3)).copy() if mk.shape == (3,) else mk
+    if mk.ndim == 2 and mk.shape[1] == 3 and len(mk) != n_tools:  # the words of design's
+        raise InvalidArgumentError(
+            f"a tree of {n_tools} tools takes one marker for all or one per tool, got {len(mk)}"
+        )
     if mk.shape != (n_tools, 3) or not np.all(np.isfinite(mk)):
         raise InvalidArgumentError(f"markers must be (3,) or ({n_tools}, 3) finite numbers [m]")
     error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")

@@ -46,12 +46,16 @@ def _groups(rows: Sequence[SweepRow]) -> dict[str, list[SweepRow]]:
     return {g: rs for g, rs in out.items() if rs}
 
 
-def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
+def counts_figure(
+    rows: Sequence[SweepRow], title: str = "", theory: str = "4R+2P+6 or +3"
+) -> Figure:
     """Base-parameter counts per robot (paper and complete sets) against the theory.
 
     One panel per kind of robot (the catalog's sections: arms, arms of humanoids, legs,
     trees, ...; rows of other URDF files last), two panels a row, so that the names stay
     readable (the whole catalog: about 1,400 pixels wide at 120 dpi, not one row of 3,000).
+    ``theory``: the formula the legend names (a sweep of K markers: ``4R+2P+3K``); rows
+    without a paper count (K markers) have no paper bar.
     """
     groups = _groups([r for r in rows if r.error is None]) or {"": []}
     ncols = 2 if len(groups) > 1 else 1
@@ -62,7 +66,7 @@ def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
     )
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     for ax, (group, rs) in zip(axes, groups.items(), strict=False):
-        _counts_panel(ax, rs, widest)
+        _counts_panel(ax, rs, widest, theory)
         ax.set_title(f"{group} ({len(rs)})" if group else "", fontsize=9)
     for ax in axes[len(groups) :]:
         ax.set_visible(False)
@@ -71,14 +75,16 @@ def counts_figure(rows: Sequence[SweepRow], title: str = "") -> Figure:
     return fig
 
 
-def _counts_panel(ax, rows: Sequence[SweepRow], width: int) -> None:
+def _counts_panel(ax, rows: Sequence[SweepRow], width: int, formula: str) -> None:
     """One kind's bars: the paper and complete sets' base parameters, and the theory."""
     x = np.arange(len(rows))
-    ax.bar(x - 0.2, np.array([r.n_base_paper for r in rows], dtype=float), 0.4, label="paper set")
+    paper = np.array([np.nan if r.n_base_paper is None else r.n_base_paper for r in rows])
+    if not np.all(np.isnan(paper)):
+        ax.bar(x - 0.2, paper, 0.4, label="paper set")
     complete = np.array([r.n_base_complete for r in rows], dtype=float)
-    ax.bar(x + 0.2, complete, 0.4, label="complete set")
+    ax.bar(x + 0.2, complete, 0.4, label="complete set", color="C1")
     theory = np.array([np.nan if r.n_theory is None else r.n_theory for r in rows], dtype=float)
-    ax.scatter(x, theory, marker="_", s=120, color="k", zorder=3, label="theory (4R+2P+6 or +3)")
+    ax.scatter(x, theory, marker="_", s=120, color="k", zorder=3, label=f"theory ({formula})")
     ax.set_xticks(x, [r.robot for r in rows], rotation=90, fontsize=6)
     ax.set_xlim(-0.6, max(width, 1) - 0.4)  # every panel at the same scale per robot
     ax.set_ylabel("base parameters", fontsize=8)

@@ -19,12 +19,15 @@ from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.kinds import kind_of
 from ..identification.measures import MeasureKind, Measurement
 from ..kinematics.catalog import catalog, catalog_entry
+from ..kinematics.robot import check_robot
 from ..kinematics.tree import load_robot
 
 __all__ = [
     "COLUMNS",
     "VERDICT_SET",
+    "MarkerCount",
     "SweepRow",
+    "marker_count",
     "rows_table",
     "rows_to_csv",
     "sweep",
@@ -77,8 +80,12 @@ def _sweep_one(
     configs: int,
     seed: int,
     params: str = "paper",
+    markers: int | None = None,
 ) -> SweepRow:
-    """Analyse one chain or tree with the paper and the complete sets; errors become a row."""
+    """Analyse one chain or tree with the paper and the complete sets; errors become a row.
+
+    ``markers``: count instead what that many measured points identify (:func:`_markers_row`).
+    """
     t0 = time.perf_counter()
     tools = (tool,) if tool is None or isinstance(tool, str) else tool
     label = f"{base or '?'} -> {', '.join(t or '?' for t in tools)}"
@@ -93,6 +100,8 @@ def _sweep_one(
                 "configs": configs,
                 "seed": seed,
             }
+            if markers is not None:
+                return _markers_row(str(robot), label, chain, markers, kw, t0)
             paper = analyze(chain, params="paper", **kw)
             full = analyze(chain, params="complete", **kw)
     except CalibError as exc:
@@ -122,6 +131,78 @@ def _sweep_one(
     )
 
 
+@dataclass(frozen=True)
+class MarkerCount:
+    """What a calibration with K measured points identifies (``calib analyze --markers K``).
+
+    Attributes:
+        names: The identifiable parameters: frame, markers (and tool), then the MDH base.
+        held: The first marker's coordinates a calibration holds, not counted (0-based).
+        theory: 4R + 2P + 3K (+ 3 for a pose), or None: mimic joints, or a tool that does
+            not turn about every direction (coordinates held).
+    """
+
+    names: tuple[str, ...]
+    held: tuple[int, ...]
+    theory: int | None
+
+
+def marker_count(
+    chain, k: int, measure: str = DEFAULT_MEASURE, configs: int = DEFAULT_CONFIGS, seed: int = 0
+) -> MarkerCount:
+    """Count what K points measured per configuration identify, frame and markers free.
+
+    Raises:
+        InvalidArgumentError: Not a chain (a tree: the count is for one), a measure other than
+            position or pose, or a count too large.
+    """
+    from ..calibration.chain_registration import held_markers
+    from ..design.observability import identifiable_parameters
+    from ..kinematics.mdh import from_chain
+
+    kind = kind_of(measure)
+    if not isinstance(kind, Measurement) or not kind.is_campaign:
+        raise InvalidArgumentError("markers are counted with measure position or pose")
+    if check_robot(chain, "chain").is_tree:
+        raise InvalidArgumentError("markers are counted for one chain: give one tool")
+    held = held_markers(chain, from_chain(chain).idealized())  # as calibrate holds them
+    names = identifiable_parameters(chain, k, kind.label, configs, seed, held)
+    if chain.coupling is not None or held:  # the formula: independent joints, a turning tool
+        return MarkerCount(names, held, None)
+    return MarkerCount(names, held, kind.marker_count(chain.sigma, k))
+
+
+def _markers_row(robot: str, label: str, chain, k: int, kw: dict, t0: float) -> SweepRow:
+    """The row of K measured points: :func:`marker_count`'s count (complete set) and theory.
+
+    The paper set's count is not made; the verdict compares the count with the theory.
+    """
+    count = marker_count(chain, k, kw["measure"].label, kw["configs"], kw["seed"])
+    n, theory = len(count.names), count.theory
+    return SweepRow(
+        robot=robot,
+        chain=label,
+        revolute=chain.n_revolute,
+        prismatic=chain.n_prismatic,
+        tools=1,
+        n_base_complete=n,
+        n_theory=theory,
+        verdict="-" if theory is None else "complete" if n >= theory else f"misses {theory - n}",
+        time_ms=1e3 * (time.perf_counter() - t0),
+        note=_marker_note(chain, count),
+    )
+
+
+def _marker_note(chain, count: MarkerCount) -> str:
+    """Why a row of :func:`_markers_row` has no theory: mimic joints, or coordinates held."""
+    from ..calibration.chain_registration import held_note
+
+    notes = [] if chain.coupling is None else ["coupled (mimic) joints: no theory"]
+    if count.held:
+        notes.append(f"no theory: {held_note(count.held, None)}")
+    return "; ".join(notes)
+
+
 def sweep(
     robots: Iterable[str] | None = None,
     extra: Sequence[str] = (),
@@ -131,6 +212,7 @@ def sweep(
     seed: int = 0,
     progress: Callable[[Iterable], Iterable] | None = None,
     params: str = VERDICT_SET,
+    markers: int | None = None,
 ) -> list[SweepRow]:
     """Analyse every catalog chain and tree (or the given names) and extra URDF files.
 
@@ -153,6 +235,11 @@ def sweep(
             ``calib sweep``) or ``complete``. Unlike ``analyze``'s default (``complete``): the
             complete set reaches the rank on every chain, so a verdict on it says nothing;
             each row has the counts of both sets whatever the verdict's.
+        markers: Count instead what K points measured per configuration identify, the
+            measurement frame and the markers free (:func:`marker_count`, as ``calib analyze
+            --markers K``): each chain's row has that count in ``n_base_complete``, its theory
+            in ``n_theory`` and the verdict compares them (``params`` is not used; the paper
+            set is not counted; a tree is a row with its reason). Default None: one point.
 
     Returns:
         One row per chain, in order.
@@ -160,8 +247,11 @@ def sweep(
     Raises:
         RobotNotFoundError: A name of ``robots`` is neither in the catalog nor a file (before
             any work).
+        InvalidArgumentError: A bad argument (before any work).
     """
     measurement = kind_of(measure, marker)
+    if markers is not None:
+        _check_markers(markers, measurement, marker)
     check_count(configs, "the number of configurations")
     check_count(seed, "the seed", minimum=0)
     check_work(configs, 1, "even a 1-joint chain")  # what no chain can afford
@@ -176,7 +266,23 @@ def sweep(
         jobs = [_job(n) for n in robots]
     jobs += [(str(Path(p)), None, None) for p in extra]
     it = steps(progress, jobs, "calib sweep", len(jobs))
-    return [_sweep_one(r, b, t, measurement, configs, seed, params) for r, b, t in it]
+    return [_sweep_one(r, b, t, measurement, configs, seed, params, markers) for r, b, t in it]
+
+
+def _check_markers(markers: int, measurement: MeasureKind, marker) -> None:
+    """Refuse, before any work, what a count of K markers cannot take.
+
+    Raises:
+        InvalidArgumentError: A bad count, a measure other than position or pose, or a marker
+            given (the K markers' places are unknown).
+    """
+    check_count(markers, "the number of markers")
+    if not isinstance(measurement, Measurement) or not measurement.is_campaign:
+        raise InvalidArgumentError("markers are counted with measure position or pose")
+    if marker is not None:
+        raise InvalidArgumentError(
+            "marker with markers: the count is of K markers at unknown places, give no marker"
+        )
 
 
 def _job(name: str) -> tuple[str, str | None, str | tuple[str, ...] | None]:
