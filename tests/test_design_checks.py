@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import chain_of
 
 import calib
 from calib import InvalidArgumentError
+from calib.design.collision import _geometry
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import (
     RANDOM_POOL,
@@ -228,3 +231,41 @@ def test_candidates_recording_the_joints_off_the_chain_are_checked_as_recorded(t
     assert "collision rejects 30" in err
     with pytest.raises(InvalidArgumentError, match="JointReadings of the joints off a chain"):
         design(chain, 8, candidates=30, readings=readings)
+
+
+TRIANGLE_STL = """solid t
+facet normal 0 0 1
+outer loop
+vertex 0 0 0
+vertex 0.01 0 0
+vertex 0 0.01 0
+endloop
+endfacet
+endsolid t
+"""
+
+
+def test_package_meshes_of_a_ros_package_layout_are_found(tmp_path, monkeypatch):
+    """A user's description package, NAME/urdf/robot.urdf with package://NAME/meshes/...:
+    the mesh is found without ROS_PACKAGE_PATH (it was looked up one and two folders up
+    only, and the design refused the file)."""
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    package = tmp_path / "scara_description"
+    (package / "urdf").mkdir(parents=True)
+    (package / "meshes").mkdir()
+    (package / "meshes" / "link1.stl").write_text(TRIANGLE_STL)
+    mesh = '<collision><geometry><mesh filename="package://scara_description/meshes/link1.stl"/>'
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    urdf = package / "urdf" / "scara.urdf"
+    urdf.write_text(
+        text.replace(
+            '<link name="link1"/>', f'<link name="link1">{mesh}</geometry></collision></link>'
+        )
+    )
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    geometry = _geometry(chain)
+    assert [g.meshPath for g in geometry.geometryObjects] == [str(package / "meshes" / "link1.stl")]
+    assert design(chain, 5).q.shape == (5, 4)
+    (package / "meshes" / "link1.stl").unlink()
+    with pytest.raises(calib.URDFError, match="package:// is looked up in the URDF's folders"):
+        design(chain, 5)

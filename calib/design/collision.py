@@ -241,7 +241,12 @@ def _first_line(exc: Exception) -> str:
 
 
 def _package_dirs(urdf: Path) -> list[str]:
-    dirs = [str(urdf.parent), str(urdf.parent.parent)]
+    """Folders where ``package://NAME/...`` meshes are looked for.
+
+    Example-robot-data's, then the URDF's folders, nearest first (a ROS package's
+    ``NAME/urdf/robot.urdf``: three up); Pinocchio adds ``ROS_PACKAGE_PATH``.
+    """
+    dirs = [str(folder) for folder in urdf.absolute().parents]
     with contextlib.suppress(CalibError):
         dirs.insert(0, str(erd_robots_dir().parent.parent))
     return dirs
@@ -274,7 +279,8 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
     if isinstance(geom, Exception):
         raise URDFError(
             str(path),
-            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths"
+            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths "
+            "(package:// is looked up in the URDF's folders and ROS_PACKAGE_PATH)"
             + (
                 f", or skip the collision check ({NO_COLLISION})"
                 if self_collision
