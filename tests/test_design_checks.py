@@ -269,3 +269,20 @@ def test_package_meshes_of_a_ros_package_layout_are_found(tmp_path, monkeypatch)
     (package / "meshes" / "link1.stl").unlink()
     with pytest.raises(calib.URDFError, match="package:// is looked up in the URDF's folders"):
         design(chain, 5)
+
+
+def test_a_joint_without_limit_tag_does_not_stop_the_collision_check(tmp_path):
+    """A revolute or prismatic joint without <limit> (calib: no usable limits, sampled over
+    a default range) made Pinocchio's geometry parser refuse the file: the design said
+    "cannot load its collision geometry (Unable to parse URDF): check the mesh paths"."""
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+    shoulder = '<limit lower="-2.5" upper="2.5" effort="100" velocity="3"/>'
+    box = '<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>'
+    bare = text.replace(quill, "").replace(shoulder, "", 1)
+    urdf = tmp_path / "scara_no_limits.urdf"
+    urdf.write_text(bare.replace('<link name="link1"/>', f'<link name="link1">{box}</link>'))
+    assert bare.count("<limit") == 2  # j2 and j4 keep theirs
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    assert [g.name for g in _geometry(chain).geometryObjects] == ["link1_0"]
+    assert design(chain, 5).q.shape == (5, 4)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -270,7 +271,10 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
     with console_captured() as captured:
         try:
             geom = pin.buildGeomFromUrdfString(
-                robot.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(read)
+                robot.model,
+                _limits_completed(text, str(path)),
+                pin.GeometryType.COLLISION,
+                package_dirs=_package_dirs(read),
             )
         except (RuntimeError, ValueError) as exc:
             geom = exc
@@ -288,6 +292,23 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
             ),
         )
     return geom
+
+
+def _limits_completed(text: str, src: str) -> str:
+    """The URDF with a ``<limit>`` on each revolute or prismatic joint that has none.
+
+    Pinocchio's URDF parser refuses such a joint ("Unable to parse URDF"); calib reads it as
+    a joint without usable limits, and the collision geometry does not depend on limits.
+    """
+    root = parse_xml(text.encode(), src)
+    bare = [
+        joint
+        for joint in root.findall("joint")
+        if joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None
+    ]
+    for joint in bare:
+        ET.SubElement(joint, "limit", effort="0", velocity="0")
+    return ET.tostring(root, encoding="unicode") if bare else text
 
 
 def _reason(exc: Exception) -> str:
