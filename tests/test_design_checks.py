@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -285,4 +286,29 @@ def test_a_joint_without_limit_tag_does_not_stop_the_collision_check(tmp_path):
     assert bare.count("<limit") == 2  # j2 and j4 keep theirs
     chain = calib.load_chain(urdf, "base_link", "tool0")
     assert [g.name for g in _geometry(chain).geometryObjects] == ["link1_0"]
-    assert design(chain, 5).q.shape == (5, 4)
+    with pytest.warns(calib.DataWarning, match=r"for j1 \(drawn .*\), j3 \(drawn "):
+        assert design(chain, 5, constraints=Constraints(collision=True)).q.shape == (5, 4)
+
+
+def test_candidates_in_a_default_range_are_named(tmp_path):
+    """A joint without usable URDF limits is drawn in calib's default range (a turn, +-0.1 m:
+    conventions.md), which the robot may not reach: the design says which joints; not for
+    limited or continuous joints, nor for candidates the user gives."""
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+    wrist = '<joint name="j4" type="revolute">'
+    urdf = tmp_path / "scara_no_quill_limit.urdf"
+    urdf.write_text(text.replace(quill, "").replace(wrist, wrist.replace("revolute", "continuous")))
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    with pytest.warns(calib.DataWarning) as caught:
+        picked = design(chain, 5, constraints=Constraints(collision=False))
+    said = [str(w.message) for w in caught if "<limit>" in str(w.message)]
+    assert said == [
+        "no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m): calib's default "
+        "range, which the robot may not reach (add the <limit>, or give your own candidates)"
+    ]
+    limited = calib.load_chain(Path(__file__).parent / "data" / "scara.urdf", "base_link", "tool0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", calib.DataWarning)
+        design(limited, 5, constraints=Constraints(collision=False))
+        design(chain, 5, candidates=picked.q, constraints=Constraints(collision=False))
