@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import warnings
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import chain_of
 
 import calib
 from calib import InvalidArgumentError
+from calib.design.collision import _geometry
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import (
     RANDOM_POOL,
@@ -228,3 +232,83 @@ def test_candidates_recording_the_joints_off_the_chain_are_checked_as_recorded(t
     assert "collision rejects 30" in err
     with pytest.raises(InvalidArgumentError, match="JointReadings of the joints off a chain"):
         design(chain, 8, candidates=30, readings=readings)
+
+
+TRIANGLE_STL = """solid t
+facet normal 0 0 1
+outer loop
+vertex 0 0 0
+vertex 0.01 0 0
+vertex 0 0.01 0
+endloop
+endfacet
+endsolid t
+"""
+
+
+def test_package_meshes_of_a_ros_package_layout_are_found(tmp_path, monkeypatch):
+    """A user's description package, NAME/urdf/robot.urdf with package://NAME/meshes/...:
+    the mesh is found without ROS_PACKAGE_PATH (it was looked up one and two folders up
+    only, and the design refused the file)."""
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    package = tmp_path / "scara_description"
+    (package / "urdf").mkdir(parents=True)
+    (package / "meshes").mkdir()
+    (package / "meshes" / "link1.stl").write_text(TRIANGLE_STL)
+    mesh = '<collision><geometry><mesh filename="package://scara_description/meshes/link1.stl"/>'
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    urdf = package / "urdf" / "scara.urdf"
+    urdf.write_text(
+        text.replace(
+            '<link name="link1"/>', f'<link name="link1">{mesh}</geometry></collision></link>'
+        )
+    )
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    geometry = _geometry(chain)
+    assert [g.meshPath for g in geometry.geometryObjects] == [str(package / "meshes" / "link1.stl")]
+    assert design(chain, 5).q.shape == (5, 4)
+    (package / "meshes" / "link1.stl").unlink()
+    with pytest.raises(calib.URDFError, match="package:// is looked up in the URDF's folders"):
+        design(chain, 5)
+
+
+def test_a_joint_without_limit_tag_does_not_stop_the_collision_check(tmp_path):
+    """A revolute or prismatic joint without <limit> (calib: no usable limits, sampled over
+    a default range) made Pinocchio's geometry parser refuse the file: the design said
+    "cannot load its collision geometry (Unable to parse URDF): check the mesh paths"."""
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+    shoulder = '<limit lower="-2.5" upper="2.5" effort="100" velocity="3"/>'
+    box = '<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>'
+    bare = text.replace(quill, "").replace(shoulder, "", 1)
+    urdf = tmp_path / "scara_no_limits.urdf"
+    urdf.write_text(bare.replace('<link name="link1"/>', f'<link name="link1">{box}</link>'))
+    assert bare.count("<limit") == 2  # j2 and j4 keep theirs
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    assert [g.name for g in _geometry(chain).geometryObjects] == ["link1_0"]
+    with pytest.warns(calib.DataWarning, match=r"for j1 \(drawn .*\), j3 \(drawn "):
+        assert design(chain, 5, constraints=Constraints(collision=True)).q.shape == (5, 4)
+
+
+def test_candidates_in_a_default_range_are_named(tmp_path):
+    """A joint without usable URDF limits is drawn in calib's default range (a turn, +-0.1 m:
+    conventions.md), which the robot may not reach: the design says which joints; not for
+    limited or continuous joints, nor for candidates the user gives."""
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+    wrist = '<joint name="j4" type="revolute">'
+    urdf = tmp_path / "scara_no_quill_limit.urdf"
+    urdf.write_text(text.replace(quill, "").replace(wrist, wrist.replace("revolute", "continuous")))
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    with pytest.warns(calib.DataWarning) as caught:
+        picked = design(chain, 5, constraints=Constraints(collision=False))
+    said = [str(w.message) for w in caught if "<limit>" in str(w.message)]
+    assert said == [
+        "no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m): calib's default "
+        "range, which the robot may not reach (add the <limit>, or give your own candidates)"
+    ]
+    limited = calib.load_chain(Path(__file__).parent / "data" / "scara.urdf", "base_link", "tool0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", calib.DataWarning)
+        design(limited, 5, constraints=Constraints(collision=False))
+        design(chain, 5, candidates=picked.q, constraints=Constraints(collision=False))

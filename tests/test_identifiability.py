@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -532,3 +533,49 @@ def test_checked_selection_refuses_a_wrong_guess():
     dependent = next(i for i in order if i not in kept)
     assert checked_selection(R, order, kept[:-1], threshold) is None
     assert checked_selection(R, order, [*kept, dependent], threshold) is None
+
+
+def _pinocchio_rank(urdf, tool: str, points, m: int = 60, seed: int = 7) -> int:
+    """Rank of the points' positions against every joint placement, the base and the tool
+    frame (6 each, finite differences on Pinocchio's model alone): the identifiable count."""
+    model0 = pin.buildModelFromUrdf(str(urdf))
+    rng = np.random.default_rng(seed)
+    lo, hi = model0.lowerPositionLimit, model0.upperPositionLimit
+    qs = lo + (hi - lo) * rng.random((m, model0.nq))
+    fid, n = model0.getFrameId(tool), 6 * (model0.njoints + 1)
+
+    def positions(delta):
+        model = model0.copy()
+        for j in range(1, model0.njoints):
+            move = pin.exp6(pin.Motion(delta[6 * j : 6 * j + 6]))
+            model.jointPlacements[j] = model.jointPlacements[j] * move
+        frame = model.frames[fid]
+        frame.placement = frame.placement * pin.exp6(pin.Motion(delta[6 * model0.njoints :]))
+        model.frames[fid] = frame
+        data, base = model.createData(), pin.exp6(pin.Motion(delta[:6]))
+        out = []
+        for q in qs:
+            pin.framesForwardKinematics(model, data, q)
+            out += [(base * data.oMf[fid]).act(np.asarray(p, float)) for p in points]
+        return np.concatenate(out)
+
+    p0, eps = positions(np.zeros(n)), 1e-6
+    J = np.column_stack([(positions(eps * e) - p0) / eps for e in np.eye(n)])
+    s = np.linalg.svd(J, compute_uv=False)
+    return int(np.sum(s > 1e-6 * s[0]))
+
+
+def test_a_hand_written_scara_counts_as_pinocchio_alone_does():
+    """tests/data/scara.urdf (parallel revolute axes, a prismatic quill, rounded numbers):
+    4R + 2P + 3 = 17 from a point off the last axis, 2 fewer on it, 4R + 2P + 6 = 20 from
+    the pose (three points), each the rank of Pinocchio's own finite differences."""
+    urdf = Path(__file__).parent / "data" / "scara.urdf"
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    marker = (0.03, 0.02, 0.01)
+    cases = [
+        (calib.analyze(chain).n_base, [(0, 0, 0)], 15),
+        (calib.analyze(chain, marker=marker).n_base, [marker], 17),
+        (calib.analyze(chain, measure="pose").n_base, [(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0)], 20),
+    ]
+    for n_base, points, theory in cases:
+        assert n_base == _pinocchio_rank(urdf, "tool0", points) == theory

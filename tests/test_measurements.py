@@ -8,6 +8,7 @@ import dataclasses
 import json
 import math
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -96,6 +97,30 @@ def test_continuous_joints_are_unbounded():
         + ",".join([*(repr(float(v)) for v in q), "0", "0", "0"])
     )
     assert parse_measurements(text, chain).q[0, 5] == 10.0
+
+
+SCARA = Path(__file__).parent / "data" / "scara.urdf"
+
+
+def test_joints_without_urdf_limits_read_any_value(tmp_path):
+    # a <limit> tag left out: calib samples +-0.1 m (prismatic) or a turn, but a reading
+    # outside that range is no mistake; the limits the URDF gives are still checked
+    text = SCARA.read_text()
+    quill, wrist = '<limit lower="0" upper="0.2"', '<limit lower="-3" upper="3"'
+    assert quill in text and wrist in text
+    bare = tmp_path / "scara_no_limits.urdf"
+    bare.write_text(text.replace(quill, "<limit").replace(wrist, "<limit"))
+    row = ["0.5", "-1.0", "0.19", "4.0", "0.5", "0.1", "0.2"]  # j3 0.19 m, j4 4 rad
+    header = ["j1", "j2", "j3", "j4", "x", "y", "z"]
+    chain = load_chain(bare, "base_link", "tool0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)  # not even "past the URDF joint limits"
+        q = parse_measurements(_text(chain, [row], header), chain).q
+    assert q[0, 2] == 0.19 and q[0, 3] == 4.0
+    limited = load_chain(SCARA, "base_link", "tool0")
+    row[2] = "0.3"
+    with pytest.raises(DataError, match=r"j3.*joint limits \[0, 0.2\] m"):
+        parse_measurements(_text(limited, [row], header), limited)
 
 
 # --- bad input --------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -241,7 +242,12 @@ def _first_line(exc: Exception) -> str:
 
 
 def _package_dirs(urdf: Path) -> list[str]:
-    dirs = [str(urdf.parent), str(urdf.parent.parent)]
+    """Folders where ``package://NAME/...`` meshes are looked for.
+
+    Example-robot-data's, then the URDF's folders, nearest first (a ROS package's
+    ``NAME/urdf/robot.urdf``: three up); Pinocchio adds ``ROS_PACKAGE_PATH``.
+    """
+    dirs = [str(folder) for folder in urdf.absolute().parents]
     with contextlib.suppress(CalibError):
         dirs.insert(0, str(erd_robots_dir().parent.parent))
     return dirs
@@ -265,7 +271,10 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
     with console_captured() as captured:
         try:
             geom = pin.buildGeomFromUrdfString(
-                robot.model, text, pin.GeometryType.COLLISION, package_dirs=_package_dirs(read)
+                robot.model,
+                _limits_completed(text, str(path)),
+                pin.GeometryType.COLLISION,
+                package_dirs=_package_dirs(read),
             )
         except (RuntimeError, ValueError) as exc:
             geom = exc
@@ -274,7 +283,8 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
     if isinstance(geom, Exception):
         raise URDFError(
             str(path),
-            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths"
+            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths "
+            "(package:// is looked up in the URDF's folders and ROS_PACKAGE_PATH)"
             + (
                 f", or skip the collision check ({NO_COLLISION})"
                 if self_collision
@@ -282,6 +292,23 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
             ),
         )
     return geom
+
+
+def _limits_completed(text: str, src: str) -> str:
+    """The URDF with a ``<limit>`` on each revolute or prismatic joint that has none.
+
+    Pinocchio's URDF parser refuses such a joint ("Unable to parse URDF"); calib reads it as
+    a joint without usable limits, and the collision geometry does not depend on limits.
+    """
+    root = parse_xml(text.encode(), src)
+    bare = [
+        joint
+        for joint in root.findall("joint")
+        if joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None
+    ]
+    for joint in bare:
+        ET.SubElement(joint, "limit", effort="0", velocity="0")
+    return ET.tostring(root, encoding="unicode") if bare else text
 
 
 def _reason(exc: Exception) -> str:

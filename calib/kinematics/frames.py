@@ -31,6 +31,7 @@ __all__ = [
     "path_joints",
     "resolve_frame",
     "sampling_bounds",
+    "urdf_limits",
 ]
 
 
@@ -289,15 +290,23 @@ def end_joint_links(
     return out
 
 
-def sampling_bounds(model: pin.Model, jid: int) -> tuple[float, float]:
-    """Sampling bounds of a 1-DOF joint [rad or m]: its limits, else a default range."""
+def urdf_limits(model: pin.Model, jid: int) -> tuple[float, float] | None:
+    """A 1-DOF joint's URDF limits [rad or m], None for a continuous one or unusable limits."""
     joint = model.joints[jid]
     if joint.nq == 2:  # continuous
-        return -math.pi, math.pi
+        return None
     lo = float(model.lowerPositionLimit[joint.idx_q])
     hi = float(model.upperPositionLimit[joint.idx_q])
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        prismatic = joint_kind(joint.shortname()) == "prismatic"
-        half = DEFAULT_PRISMATIC_RANGE if prismatic else math.pi
-        return -half, half
+        return None
     return lo, hi
+
+
+def sampling_bounds(model: pin.Model, jid: int) -> tuple[float, float]:
+    """Sampling bounds of a 1-DOF joint [rad or m]: its limits, else a default range."""
+    limits = urdf_limits(model, jid)
+    if limits is not None:
+        return limits
+    prismatic = joint_kind(model.joints[jid].shortname()) == "prismatic"
+    half = DEFAULT_PRISMATIC_RANGE if prismatic else math.pi
+    return -half, half

@@ -10,10 +10,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import DataError
+from .frames import urdf_limits
 from .robot import Chain
 from .tree import Tree
 
-__all__ = ["LIMIT_MARGIN", "LIMIT_TOL", "joint_bounds", "joint_unit", "refuse_far_past_limits"]
+__all__ = [
+    "LIMIT_MARGIN",
+    "LIMIT_TOL",
+    "joint_bounds",
+    "joint_unit",
+    "reading_bounds",
+    "refuse_far_past_limits",
+]
 
 
 LIMIT_TOL = 1e-9
@@ -32,6 +40,19 @@ def joint_bounds(robot: Chain | Tree) -> tuple[np.ndarray, np.ndarray]:
     """Limits a measured joint position must respect [rad or m]: infinite for continuous joints."""
     lower = np.where(robot.continuous, -np.inf, robot.lower)
     upper = np.where(robot.continuous, np.inf, robot.upper)
+    return lower, upper
+
+
+def reading_bounds(robot: Chain | Tree) -> tuple[np.ndarray, np.ndarray]:
+    """The URDF's limits of each joint [rad or m]: infinite where it gives none it can use.
+
+    A joint without usable limits (continuous, or a ``<limit>`` missing, equal or infinite) is
+    sampled in a default range (:func:`~calib.kinematics.frames.sampling_bounds`), but a
+    reading outside that range is no mistake: only limits the URDF gives are checked.
+    """
+    limits = [urdf_limits(robot.model, j) for j in robot.joint_ids]
+    lower = np.array([-np.inf if b is None else b[0] for b in limits])
+    upper = np.array([np.inf if b is None else b[1] for b in limits])
     return lower, upper
 
 
@@ -54,7 +75,7 @@ def refuse_far_past_limits(
     Raises:
         DataError: A value farther than ``LIMIT_MARGIN`` outside its limits (the first one).
     """
-    lower, upper = joint_bounds(robot)
+    lower, upper = reading_bounds(robot)
     margin = np.where(robot.sigma == 1, LIMIT_MARGIN[1], LIMIT_MARGIN[0])
     past = np.maximum(lower - q, q - upper)
     if robot.coupling is not None:  # a mimic joint's position is computed, not read
@@ -67,7 +88,7 @@ def refuse_far_past_limits(
         raise DataError(
             source,
             f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
-            f"[{robot.lower[k]:.9g}, {robot.upper[k]:.9g}] {unit} by more than "
+            f"[{lower[k]:.9g}, {upper[k]:.9g}] {unit} by more than "
             f"{margin[k]:g} {unit} (a wrong column, or {mistake}?)",
             row=int(rows[i]),
             column=robot.joint_names[k],
