@@ -11,6 +11,7 @@ from conftest import chain_of
 
 import calib
 from calib import InvalidArgumentError
+from calib.cli.commands import main
 from calib.design.collision import _geometry
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import (
@@ -312,3 +313,31 @@ def test_candidates_in_a_default_range_are_named(tmp_path):
         warnings.simplefilter("error", calib.DataWarning)
         design(limited, 5, constraints=Constraints(collision=False))
         design(chain, 5, candidates=picked.q, constraints=Constraints(collision=False))
+
+
+def test_simulated_configurations_in_a_default_range_are_named(tmp_path, capsys):
+    """``simulate`` draws its random configurations as ``design`` draws candidates: the same
+    warning names the joint without usable URDF limits (the range from conventions.md); not
+    for configurations the user gives, nor for the limited SCARA; the CLI prints it once."""
+    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
+    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+    urdf = tmp_path / "scara_no_quill_limit.urdf"
+    urdf.write_text(text.replace(quill, ""))
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    with pytest.warns(calib.DataWarning) as caught:
+        campaign = calib.simulate(chain, 12, seed=3)
+    said = [str(w.message) for w in caught if "<limit>" in str(w.message)]
+    assert said == [
+        "no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m): calib's default "
+        "range, which the robot may not reach (add the <limit>, or give your own configurations)"
+    ]
+    limited = calib.load_chain(Path(__file__).parent / "data" / "scara.urdf", "base_link", "tool0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", calib.DataWarning)
+        calib.simulate(limited, 12, seed=3)
+        calib.simulate(chain, campaign.measurements.q, seed=3)
+    argv = ["simulate", str(urdf), "--tool", "tool0", "--configs", "12", "--out"]
+    with warnings.catch_warnings():  # as the command line runs: warnings printed, not raised
+        warnings.simplefilter("default")
+        assert main([*argv, str(tmp_path / "sim.csv")]) == 0
+    assert capsys.readouterr().err.count("no usable <limit> in the URDF for j3") == 1
