@@ -134,6 +134,11 @@ def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, ca
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "assimp.cpp" not in err, err
     assert "Could not load resource /nonexistent/base.stl" in err and "(--no-collision)" in err
+    # the URDF loads, only its meshes do not: the message says which, and what needs none
+    assert err.startswith(f"calib: error: cannot load the collision geometry of URDF '{urdf}'")
+    assert "its kinematics loads (show, analyze, simulate and calibrate need no mesh)" in err
+    assert main(["show", str(urdf), "--base", "base", "--tool", "tool"]) == 0
+    capsys.readouterr()
     assert main([*argv, "--no-collision"]) == 0
     capsys.readouterr()
     sight = one_line_error(capsys, [*argv, "--no-collision", "--line-of-sight", "2", "0", "1"])
