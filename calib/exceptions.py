@@ -76,12 +76,16 @@ class RobotNotFoundError(CalibError):
 
 
 class URDFError(CalibError):
-    """A URDF file is missing, unreadable or malformed."""
+    """A URDF file is missing, unreadable or malformed (or only its collision geometry is).
 
-    def __init__(self, path: str, reason: str):
+    ``message`` replaces the default ``cannot load URDF 'path': reason`` where only a part of
+    the file fails (its meshes) and the rest loads.
+    """
+
+    def __init__(self, path: str, reason: str, message: str | None = None):
         self.path = path
         self.reason = reason
-        super().__init__(f"cannot load URDF '{path}': {reason}")
+        super().__init__(message or f"cannot load URDF '{path}': {reason}")
 
 
 def _closest_first(name: str, candidates: Iterable[str]) -> list[str]:

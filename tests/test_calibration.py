@@ -397,8 +397,15 @@ def test_a_prismatic_joint_far_past_its_limit_suggests_millimetres_not_degrees(t
     q[:, k] *= 1000.0
     path = tmp_path / "m.csv"
     path.write_text(measurements_csv(dataclasses.replace(data, q=q)))
-    with pytest.raises(DataError, match=r"\(a wrong column, or millimetres for metres\?\)$"):
+    said = (
+        r"\(a wrong column, or millimetres for metres\? joint readings are in m and rad: "
+        r"--units scales the measured points only\)$"
+    )
+    with pytest.raises(DataError, match=said):
         read_measurements(path, chain)
+    # the points read as millimetres change nothing for the joints (measurement-csv.md)
+    with pytest.raises(DataError, match=said):
+        read_measurements(path, chain, calib.Columns(units="mm"))
 
 
 def past_a_limit(data, chain):

@@ -11,6 +11,7 @@ from conftest import chain_of
 
 import calib
 from calib import InvalidArgumentError
+from calib.cli.commands import main
 from calib.design.collision import _geometry
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import (
@@ -133,6 +134,11 @@ def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, ca
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "assimp.cpp" not in err, err
     assert "Could not load resource /nonexistent/base.stl" in err and "(--no-collision)" in err
+    # the URDF loads, only its meshes do not: the message says which, and what needs none
+    assert err.startswith(f"calib: error: cannot load the collision geometry of URDF '{urdf}'")
+    assert "its kinematics loads (show, analyze, simulate and calibrate need no mesh)" in err
+    assert main(["show", str(urdf), "--base", "base", "--tool", "tool"]) == 0
+    capsys.readouterr()
     assert main([*argv, "--no-collision"]) == 0
     capsys.readouterr()
     sight = one_line_error(capsys, [*argv, "--no-collision", "--line-of-sight", "2", "0", "1"])
@@ -290,25 +296,56 @@ def test_a_joint_without_limit_tag_does_not_stop_the_collision_check(tmp_path):
         assert design(chain, 5, constraints=Constraints(collision=True)).q.shape == (5, 4)
 
 
+SCARA = Path(__file__).parent / "data" / "scara.urdf"
+QUILL_LIMIT = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+DEFAULT_RANGE = (
+    "no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m): calib's default "
+    "range, which the robot may not reach (add the <limit>, or give your own {}"
+)
+
+
+def _default_range_said(draw) -> list[str]:
+    """The ``<limit>`` warnings ``draw()`` gives (it must give a DataWarning)."""
+    with pytest.warns(calib.DataWarning) as caught:
+        draw()
+    return [str(w.message) for w in caught if "<limit>" in str(w.message)]
+
+
 def test_candidates_in_a_default_range_are_named(tmp_path):
     """A joint without usable URDF limits is drawn in calib's default range (a turn, +-0.1 m:
     conventions.md), which the robot may not reach: the design says which joints; not for
     limited or continuous joints, nor for candidates the user gives."""
-    text = (Path(__file__).parent / "data" / "scara.urdf").read_text()
-    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
     wrist = '<joint name="j4" type="revolute">'
     urdf = tmp_path / "scara_no_quill_limit.urdf"
-    urdf.write_text(text.replace(quill, "").replace(wrist, wrist.replace("revolute", "continuous")))
+    bare = SCARA.read_text().replace(QUILL_LIMIT, "")
+    urdf.write_text(bare.replace(wrist, wrist.replace("revolute", "continuous")))
     chain = calib.load_chain(urdf, "base_link", "tool0")
-    with pytest.warns(calib.DataWarning) as caught:
-        picked = design(chain, 5, constraints=Constraints(collision=False))
-    said = [str(w.message) for w in caught if "<limit>" in str(w.message)]
-    assert said == [
-        "no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m): calib's default "
-        "range, which the robot may not reach (add the <limit>, or give your own candidates)"
-    ]
-    limited = calib.load_chain(Path(__file__).parent / "data" / "scara.urdf", "base_link", "tool0")
+    free = Constraints(collision=False)
+    picked = []
+    said = _default_range_said(lambda: picked.append(design(chain, 5, constraints=free)))
+    assert said == [DEFAULT_RANGE.format("candidates)")]
     with warnings.catch_warnings():
         warnings.simplefilter("error", calib.DataWarning)
-        design(limited, 5, constraints=Constraints(collision=False))
-        design(chain, 5, candidates=picked.q, constraints=Constraints(collision=False))
+        design(calib.load_chain(SCARA, "base_link", "tool0"), 5, constraints=free)
+        design(chain, 5, candidates=picked[0].q, constraints=free)
+
+
+def test_simulated_configurations_in_a_default_range_are_named(tmp_path, capsys):
+    """``simulate`` draws its random configurations as ``design`` draws candidates: the same
+    warning names the joint without usable URDF limits (the range from conventions.md); not
+    for configurations the user gives, nor for the limited SCARA; the CLI prints it once."""
+    urdf = tmp_path / "scara_no_quill_limit.urdf"
+    urdf.write_text(SCARA.read_text().replace(QUILL_LIMIT, ""))
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    drawn = []
+    said = _default_range_said(lambda: drawn.append(calib.simulate(chain, 12, seed=3)))
+    assert said == [DEFAULT_RANGE.format("configurations)")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", calib.DataWarning)
+        calib.simulate(calib.load_chain(SCARA, "base_link", "tool0"), 12, seed=3)
+        calib.simulate(chain, drawn[0].measurements.q, seed=3)
+    argv = ["simulate", str(urdf), "--tool", "tool0", "--configs", "12", "--out"]
+    with warnings.catch_warnings():  # as the command line runs: warnings printed, not raised
+        warnings.simplefilter("default")
+        assert main([*argv, str(tmp_path / "sim.csv")]) == 0
+    assert capsys.readouterr().err.count("no usable <limit> in the URDF for j3") == 1

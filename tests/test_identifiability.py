@@ -309,8 +309,19 @@ def test_a_round_off_seven_digits_hide_is_listed_with_its_change():
     where the two values print alike (a value snapped to 0 keeps its line)."""
     snapped = calib.analyze("tiago").snapped
     alpha3 = next(s for s in snapped if s.startswith("alpha3:"))
-    assert alpha3 == "alpha3: -1.570796 rad -> -1.570796 (-4.9e-12 rad)", alpha3
+    assert alpha3 == "alpha3: -1.570796 rad (was +4.9e-12 rad off)", alpha3
     assert "theta4: 4.896583e-12 rad -> 0" in snapped
+
+
+def test_a_round_off_seven_digits_hide_reads_as_round_off():
+    """The SCARA's tool0 ``rpy="3.1416 0 0"`` snapped to pi moves r5 (0.33 m before the
+    flip) by 0.33 (1 - cos(3.1416 - pi)) = 8.9e-12 m: printed as ``-0.33 -> -0.33
+    (-8.9e-12 m)``, a change a user reads as none; now the value once, and how far off."""
+    snapped = calib.analyze(Path(__file__).parent / "data" / "scara.urdf").snapped
+    off = 0.33 * (1 - math.cos(3.1416 - math.pi))
+    assert f"beta5: {math.pi - 3.1416:.6g} rad -> 0" in snapped, snapped
+    assert f"r5: -0.33 m (was {off:+.2g} m off)" in snapped, snapped
+    assert not any("-0.33 m -> -0.33" in s for s in snapped), snapped
 
 
 def test_the_scale_is_unseen_by_a_contact_only_without_a_prismatic_joint():

@@ -281,9 +281,12 @@ def _geometry(robot: Chain | Tree, self_collision: bool = True) -> pin.GeometryM
     if captured and captured[0].strip():
         _LOG.info("Pinocchio on %s:\n%s", path, captured[0].rstrip())
     if isinstance(geom, Exception):
+        reason = _reason(geom)
         raise URDFError(
             str(path),
-            f"cannot load its collision geometry ({_reason(geom)}): check the mesh paths "
+            reason,
+            f"cannot load the collision geometry of URDF '{path}' ({reason}); its kinematics "
+            "loads (show, analyze, simulate and calibrate need no mesh): check the mesh paths "
             "(package:// is looked up in the URDF's folders and ROS_PACKAGE_PATH)"
             + (
                 f", or skip the collision check ({NO_COLLISION})"

@@ -23,16 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from ..core.checks import real_array
-from ..exceptions import InvalidArgumentError, warn_user
+from ..exceptions import InvalidArgumentError
 from ..identification.jacobian import measured_point
-from ..kinematics.frames import urdf_limits
-from ..kinematics.limits import joint_unit
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import from_tree
-from ..measurements.data import DataWarning
 
 
 @dataclass(frozen=True)
@@ -148,29 +145,6 @@ def variable_bounds(robot: Chain | Tree, margin: float) -> tuple[np.ndarray, np.
     endless = {n for n, c in zip(robot.joint_names, robot.continuous, strict=True) if c}
     continuous = np.array([n in endless for n in coupling.names], dtype=bool)
     return _shrunk(coupling.lower, coupling.upper, continuous, coupling.names, margin)
-
-
-def warn_default_ranges(robot: Chain | Tree) -> None:
-    """Warn that joints without usable URDF limits are drawn in calib's default range.
-
-    A candidate there may be out of the real robot's reach (a quill of 0..0.2 m drawn in
-    +-0.1 m); continuous joints (a full turn) and mimic joints (they follow) are not named.
-    """
-    mimic = set() if robot.coupling is None else {mj.joint for mj in robot.coupling.mimic}
-    named = [
-        f"{robot.joint_names[k]} (drawn in [{robot.lower[k]:.6g}, {robot.upper[k]:.6g}] "
-        f"{joint_unit(int(robot.sigma[k]))})"
-        for k, jid in enumerate(robot.joint_ids)
-        if k not in mimic
-        and robot.model.joints[jid].nq == 1
-        and urdf_limits(robot.model, jid) is None
-    ]
-    if named:
-        warn_user(
-            f"no usable <limit> in the URDF for {', '.join(named)}: calib's default range, "
-            f"which the robot may not reach (add the <limit>, or give your own candidates)",
-            DataWarning,
-        )
 
 
 def measured_points(robot: Chain | Tree, q: np.ndarray, markers: np.ndarray) -> np.ndarray:
@@ -348,5 +322,4 @@ __all__ = [
     "margin_bounds",
     "measured_points",
     "variable_bounds",
-    "warn_default_ranges",
 ]

@@ -26,14 +26,8 @@ from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
-from ..measurements.limits import check_limits
-from .constraints import (
-    Constraints,
-    FilterReport,
-    cheap_filters,
-    variable_bounds,
-    warn_default_ranges,
-)
+from ..measurements.limits import check_limits, warn_default_ranges
+from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
 from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, optimal_subset
 from .observability import (
@@ -315,7 +309,7 @@ def _checked_options(criterion: str, constraints, progress) -> Constraints:
 def _instrument_candidates(chain: Chain | Tree, candidates, seed: int, margin: float):
     """Random candidates within the limits, or the user's ``(N, n)`` checked."""
     if isinstance(candidates, int | np.integer) and not isinstance(candidates, bool):
-        warn_default_ranges(chain)
+        warn_default_ranges(chain, "give your own candidates")
         return candidate_configurations(chain, int(candidates), seed, margin)
     return _within_limits(chain, candidates, "the candidates")
 

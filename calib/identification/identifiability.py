@@ -415,7 +415,8 @@ def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> 
     """What :meth:`MDHModel.idealized` changed, as ``name: value -> new`` strings.
 
     Changes under 1e-14 (float noise of the conversion) and over :data:`SNAPPED_CHANGE` are
-    not listed; angles are compared modulo 2 pi.
+    not listed; angles are compared modulo 2 pi. A change that 7 digits do not show is
+    written as the value and how far off it was: ``r5: -0.33 m (was +8.9e-12 m off)``.
     """
     out = []
     for kind in Kind:
@@ -428,8 +429,10 @@ def snapped_values(exact: MDHModel | TreeMDH, idealized: MDHModel | TreeMDH) -> 
         unit = "rad" if kind.is_rotation else "m"
         for k in np.flatnonzero((np.abs(diff) > 1e-14) & (np.abs(diff) <= SNAPPED_CHANGE)):
             was, new = f"{a[k]:.7g}", f"{b[k]:.7g}"
-            change = f" ({diff[k]:+.2g} {unit})" if was == new else ""  # past 7 digits
-            out.append(f"{kind.value}{k}: {was} {unit} -> {new}{change}")
+            if was == new:  # past 7 digits: the value printed once, with how far off it was
+                out.append(f"{kind.value}{k}: {new} {unit} (was {-diff[k]:+.2g} {unit} off)")
+            else:
+                out.append(f"{kind.value}{k}: {was} {unit} -> {new}")
     return tuple(out)
 
 

@@ -84,12 +84,17 @@ def refuse_far_past_limits(
     if np.any(far):
         i, k = (int(v) for v in np.argwhere(far)[0])
         unit = joint_unit(int(robot.sigma[k]))
-        mistake = "millimetres for metres" if unit == "m" else "degrees for radians"
+        mistake = "degrees for radians?"
+        if unit == "m":  # the points' --units never scales a joint reading
+            mistake = (
+                "millimetres for metres? joint readings are in m and rad: --units scales "
+                "the measured points only"
+            )
         raise DataError(
             source,
             f"joint value {q[i, k]:.9g} {unit} is outside the joint limits "
             f"[{lower[k]:.9g}, {upper[k]:.9g}] {unit} by more than "
-            f"{margin[k]:g} {unit} (a wrong column, or {mistake}?)",
+            f"{margin[k]:g} {unit} (a wrong column, or {mistake})",
             row=int(rows[i]),
             column=robot.joint_names[k],
         )

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DataError, InvalidArgumentError, warn_user
+from ..kinematics.frames import urdf_limits
 from ..kinematics.limits import (
     LIMIT_MARGIN,
     LIMIT_TOL,
@@ -26,6 +27,7 @@ __all__ = [
     "check_tools",
     "joint_bounds",
     "tool_frames",
+    "warn_default_ranges",
 ]
 
 
@@ -95,5 +97,33 @@ def check_limits(
         warn_user(
             f"{source}: {n} row{'s' if n != 1 else ''} read past the URDF joint limits "
             f"({'; '.join(worst)}): accepted (kinematics does not need the limits)",
+            DataWarning,
+        )
+
+
+def warn_default_ranges(robot: Chain | Tree, remedy: str) -> None:
+    """Warn that joints without usable URDF limits are drawn in calib's default range.
+
+    A posture drawn there may be out of the real robot's reach (a quill of 0..0.2 m drawn in
+    +-0.1 m); continuous joints (a full turn) and mimic joints (they follow) are not named.
+    ``design``'s random candidates and ``simulate``'s random configurations say it alike.
+
+    Args:
+        robot: A chain or a tree.
+        remedy: The other way out than adding the ``<limit>`` ("give your own candidates").
+    """
+    mimic = set() if robot.coupling is None else {mj.joint for mj in robot.coupling.mimic}
+    named = [
+        f"{robot.joint_names[k]} (drawn in [{robot.lower[k]:.6g}, {robot.upper[k]:.6g}] "
+        f"{joint_unit(int(robot.sigma[k]))})"
+        for k, jid in enumerate(robot.joint_ids)
+        if k not in mimic
+        and robot.model.joints[jid].nq == 1
+        and urdf_limits(robot.model, jid) is None
+    ]
+    if named:
+        warn_user(
+            f"no usable <limit> in the URDF for {', '.join(named)}: calib's default range, "
+            f"which the robot may not reach (add the <limit>, or {remedy})",
             DataWarning,
         )

@@ -33,7 +33,7 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
 from .data import Measurements
-from .limits import check_limits
+from .limits import check_limits, warn_default_ranges
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,6 +200,8 @@ def simulate(
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
 
+    if not given:
+        warn_default_ranges(chain, "give your own configurations")
     q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
     m = len(q)
     if given:  # as a configurations file is read: far past a limit (degrees?) is an error

@@ -21,7 +21,7 @@ from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
 from .data import Measurements
-from .limits import check_limits
+from .limits import check_limits, warn_default_ranges
 
 __all__ = ["TreeCampaign", "simulate_tree", "true_points"]
 
@@ -102,6 +102,7 @@ def simulate_tree(
     nominal = from_tree(tree)
     pset = tree_parameters(nominal, params)
     if isinstance(configs, int | np.integer) and not isinstance(configs, bool):
+        warn_default_ranges(tree, "give your own configurations")
         q = tree.random_configurations(int(configs), seed)
     else:  # as a configurations file is read: far past a limit (degrees?) is an error
         q = tree.check_configurations(configs)
