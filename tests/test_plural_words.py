@@ -8,6 +8,9 @@ arguments given here, the distinct ids in the touches' own column.
 
 from __future__ import annotations
 
+import dataclasses
+import re
+
 import numpy as np
 import pytest
 
@@ -23,7 +26,7 @@ from calib import (
 )
 from calib.calibration.outliers import Outlier, set_aside_note
 from calib.core.words import counted, noun
-from calib.exceptions import InvalidArgumentError
+from calib.exceptions import DataError, InvalidArgumentError
 
 CHAIN = load_chain("ur5")
 
@@ -93,3 +96,18 @@ def test_one_unknown_argument_and_two():
         calibrate(CHAIN, data, levl="paper")
     with pytest.raises(InvalidArgumentError, match="unknown arguments levl, noize"):
         calibrate(CHAIN, data, levl="paper", noize=1)
+
+
+@pytest.mark.parametrize("still", [(1,), (1, 2)])
+def test_one_joint_column_not_logged_and_two(still):
+    data = simulate(CHAIN, 30, "position", marker=(0.05, 0.02, 0.1), seed=2).measurements
+    q = data.q.copy()
+    q[:, list(still)] = 0.3
+    names = ", ".join(CHAIN.joint_names[j] for j in still)
+    said = (
+        f"joint column {names} holds one value in every row: was that joint logged?"
+        if len(still) == 1
+        else f"joint columns {names} hold one value in every row: were those joints logged?"
+    )
+    with pytest.raises(DataError, match=re.escape(said)):
+        calibrate(CHAIN, dataclasses.replace(data, q=q))
