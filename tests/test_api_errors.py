@@ -402,9 +402,9 @@ def test_results_and_data_print_in_one_line():
         calib.design(CHAIN, 12, candidates=200): "<Design ur5: 12 configurations of ",
         campaign: "<Campaign ur5: 12 configurations, measure position, noise 0.05 mm, seed 1>",
         campaign.measurements: "<Measurements <simulated ur5>: 12 rows of 6 joints, position, "
-        "1 marker(s)>",
-        touches: "<ContactCampaign ur5: 12 plane touches of 2 plane(s), seed 0>",
-        touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 plane(s), 6 joints>",
+        "1 marker>",
+        touches: "<ContactCampaign ur5: 12 plane touches of 2 planes, seed 0>",
+        touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 planes, 6 joints>",
         calib.simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
         "tools (FL_FOOT, FR_FOOT), ",
         CHAIN: "<Chain ur5: base_link -> tool0, 6 joints>",
@@ -412,7 +412,7 @@ def test_results_and_data_print_in_one_line():
         calib.load_robot("ur5", tool=("wrist_2_link", "tool0")): "<Tree ur5: base_link -> "
         "wrist_2_link, tool0, 6 joints>",
         calib.analyze(calib.Problem(calib.Term(CHAIN, campaign.measurements))): "<ProblemAnalysis "
-        "ur5: chain, 1 term(s), ",
+        "ur5: chain, 1 term, ",
     }
     for value, start in shown.items():
         assert repr(value).startswith(start) and "\n" not in repr(value), repr(value)
@@ -447,7 +447,7 @@ def test_a_cameras_data_print_in_one_line():
         pinhole: "Pinhole(fx=600.0, fy=600.0, cx=320.0, cy=240.0, distortion=(-0.1, ",
         intr: "<Intrinsics intr.yaml: 640x480 px, fx 600, fy 600, cx 320, cy 240 px>",
         target: "<Target target.csv: 3 points on the tool>",
-        obs: "<PixelObservations <observations>: 200 pixels of 3 points, camera(s) cam, 6 joints>",
+        obs: "<PixelObservations <observations>: 200 pixels of 3 points, camera cam, 6 joints>",
         camera: "<PixelCamera cam on world, intr.yaml, placed from the URDF or the pixels>",
         calib.PixelData(camera, target, obs): "<PixelData <observations>: 200 pixels of camera "
         "cam>",

@@ -642,7 +642,7 @@ def test_elastic_on_rigid_data_says_no_compliance_was_kept():
     assert not result.elastic and result.compliance_files(Path("cal.urdf")) == {}
     said = [n for n in result.to_dict()["warnings"] if n.startswith("elastic: ")]
     assert said == [
-        "elastic: the compliance of 3 joint(s) was offered (shoulder_lift_joint, elbow_joint, "
+        "elastic: the compliance of 3 joints was offered (shoulder_lift_joint, elbow_joint, "
         "wrist_1_joint) and none was kept; the URDF is the whole model (no compliance file)"
     ]
     assert f"note: {said[0]}" in result.summary()

@@ -533,7 +533,7 @@ def test_a_joint_column_holding_one_value_is_named_first():
     data = simulate(chain, configs=30, measure="position", marker=MARKER, seed=2).measurements
     q = data.q.copy()
     q[:, 1] = 0.3  # shoulder_lift_joint not logged
-    with pytest.raises(DataError, match=r"joint column\(s\) shoulder_lift_joint hold one value"):
+    with pytest.raises(DataError, match=r"joint column shoulder_lift_joint holds one value"):
         calibrate(chain, dataclasses.replace(data, q=q))
 
 

@@ -76,7 +76,7 @@ def test_chain_and_tree_calibrations_take_the_same_arguments():
     [
         (lambda c, d: calibrate(c, d, None, "complete"), "by name"),
         (lambda c, d: calibrate(c, d, level="paper"), "level is called params"),
-        (lambda c, d: calibrate(c, d, levl="paper"), "unknown argument(s) levl"),
+        (lambda c, d: calibrate(c, d, levl="paper"), "unknown argument levl"),
         (lambda c, d: calibrate(chain=c, data=d), "chain is called robot"),
         (lambda c, d: calibrate(c), "missing a required argument: 'data'"),
     ],

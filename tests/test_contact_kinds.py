@@ -317,7 +317,7 @@ def test_an_object_of_too_few_touches_names_the_file(capsys, tmp_path):
     out = tmp_path / "cal.urdf"
     argv = ("calibrate", "ur5", "--data", str(csv), "--measure", "fixed-point", "--out", str(out))
     code, err = _cli(capsys, *argv)
-    assert code == 2 and f"{csv}: 't2' has 2 touch(es): at least 3 are needed" in err
+    assert code == 2 and f"{csv}: 't2' has 2 touches: at least 3 are needed" in err
     assert not out.exists()
 
 

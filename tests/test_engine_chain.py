@@ -208,7 +208,7 @@ def test_the_marker_guess_starts_the_measured_terms_registration(tiago, monkeypa
     ("marker", "message"),
     [
         ((0.1, 0.2), "a marker is 3 numbers"),
-        ((0.0, 0.0, 0.1, 0.0, 0.0, 0.2), "2 marker guesses for 1 measured points"),
+        ((0.0, 0.0, 0.1, 0.0, 0.0, 0.2), "2 marker guesses for 1 measured point$"),
         ((0.0, 0.0, np.inf), "3 finite numbers"),
     ],
 )

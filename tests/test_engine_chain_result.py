@@ -84,7 +84,7 @@ def test_a_calibrated_model_refuses_degrees_as_calib_predict_does(ur5_fit, tmp_p
     report.write_text(json.dumps(result.to_dict()))
     model = load_calibrated(urdf, report)
     shown = repr(model)  # failed before: 21 lines of arrays
-    assert shown.endswith(": base_link -> tool0, 6 joints, 0 compliant, 1 marker(s)>"), shown
+    assert shown.endswith(": base_link -> tool0, 6 joints, 0 compliant, 1 marker>"), shown
     assert shown.startswith("<ElasticModel ") and "\n" not in shown, shown
     degrees = np.degrees(truth.q)
     for call in (
@@ -107,18 +107,18 @@ def test_a_results_methods_name_an_unknown_keyword(ur5_fit, tmp_path):
     _, result, _ = ur5_fit
     out = tmp_path / "cal.urdf"
     calls = {
-        "urdf: unknown argument(s) foo (it takes world_link, on_robot)": lambda: result.urdf(foo=1),
-        "to_dict: unknown argument(s) world (it takes world_link": lambda: result.to_dict(
+        "urdf: unknown argument foo (it takes world_link, on_robot)": lambda: result.urdf(foo=1),
+        "to_dict: unknown argument world (it takes world_link": lambda: result.to_dict(
             world="tracker"
         ),
-        "summary: unknown argument(s) verbose (it takes no argument)": lambda: result.summary(
+        "summary: unknown argument verbose (it takes no argument)": lambda: result.summary(
             verbose=True
         ),
-        "write: unknown argument(s) reprot (it takes out, report)": lambda: result.write(
+        "write: unknown argument reprot (it takes out, report)": lambda: result.write(
             out, reprot=tmp_path / "cal.json"
         ),
         "write: too many positional arguments": lambda: result.write(out, out, out),
-        "origins: unknown argument(s) foo": lambda: result.origins(foo=1),
+        "origins: unknown argument foo": lambda: result.origins(foo=1),
     }
     for said, call in calls.items():
         with pytest.raises(InvalidArgumentError, match=re.escape(said)):

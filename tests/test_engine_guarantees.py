@@ -23,7 +23,7 @@ def test_one_chain_touching_too_big_for_memory_is_refused_before_any_work(monkey
     monkeypatch.setattr(contact_register, "_checked", lambda *a: registered.append(a))
     with pytest.raises(InvalidArgumentError, match=r"GB: fewer touches or planes$") as err:
         calibrate(chain, data, params="complete")
-    assert "40 touches of 2 plane(s) (6 of their unknowns)" in str(err.value)
+    assert "40 touches of 2 planes (6 of their unknowns)" in str(err.value)
     assert registered == []  # no work done
 
 

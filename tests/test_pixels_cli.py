@@ -407,7 +407,7 @@ def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):
         capsys, folder, tmp_path / "obs.csv", folder / "target.csv", tmp_path
     )
     assert code == 0, err
-    assert "1 outlier row(s) set aside" in text and "row 11 (" in text  # line 11 of the file
+    assert "1 outlier row set aside" in text and "row 11 (" in text  # line 11 of the file
     doc = json.loads(report.read_text())
     assert [o["row"] for o in doc["outliers"]] == [11]
     assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_max_px"] < 1e-9

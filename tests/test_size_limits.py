@@ -100,7 +100,7 @@ def test_a_contact_calibration_too_big_for_memory_is_refused_up_front(monkeypatc
     monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense) + 1, 0))
     with pytest.raises(InvalidArgumentError, match="give a level") as err:
         calibrate_contacts(chain, data)
-    assert f"40 touches of 2 plane(s) (6 of their unknowns, {dense} other columns to select)" in (
+    assert f"40 touches of 2 planes (6 of their unknowns, {dense} other columns to select)" in (
         str(err.value)
     )
     assert calibrate_contacts(chain, data, params="complete").selection is None  # no selection

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, cast, overload
 
 from ..core.choices import DEFAULT_CONFIGS, DEFAULT_MEASURE, DEFAULT_SET
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification import identifiability
 from ..identification.identifiability import Identifiability
@@ -60,7 +61,7 @@ class ProblemAnalysis:
     def __repr__(self) -> str:
         """One line (the names are in the attributes, the full text in ``summary()``)."""
         return (
-            f"<ProblemAnalysis {self.robot}: {self.shape}, {len(self.terms)} term(s), "
+            f"<ProblemAnalysis {self.robot}: {self.shape}, {counted(len(self.terms), 'terms')}, "
             f"{self.n_base} of {self.n_unknowns} unknowns determined>"
         )
 
@@ -82,7 +83,7 @@ class ProblemAnalysis:
 
     def summary(self) -> str:
         """The analysis in a few lines: the terms, then the count and what is determined."""
-        lines = [f"{self.robot}: {len(self.terms)} term(s), {self.shape}"]
+        lines = [f"{self.robot}: {counted(len(self.terms), 'terms')}, {self.shape}"]
         lines += [f"  {t}" for t in self.terms]
         lines.append(
             f"unknowns determined: {self.n_base} of {self.n_unknowns} (objects, frames and "

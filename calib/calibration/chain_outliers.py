@@ -221,7 +221,7 @@ def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, 
             new = tuple(behind.get(o.row, dataclasses.replace(o, kind="pixels")) for o in new)
         if not new or new == part.outliers:
             continue
-        words = ("touch(es)", "gap") if isinstance(part, ChainContacts) else ()
+        words = ("touches", "gap") if isinstance(part, ChainContacts) else ()
         head = f"{part.chain.base_frame} -> {part.chain.tool_frame}: "
         old = head + set_aside_note(part.outliers, *words) if part.outliers else None
         notes = [n for n in notes if n != old] + [head + set_aside_note(new, *words)]

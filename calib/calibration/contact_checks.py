@@ -20,7 +20,7 @@ from functools import partial
 
 import numpy as np
 
-from ..core.words import counted
+from ..core.words import counted, noun
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import PlaneContact
 from ..kinematics.mdh import MDHModel
@@ -227,7 +227,7 @@ def checked_registration(
     if validate is not None and _registrable(validate):
         checks.append((_Touches(chain, nominal, validate, guess), validate.source))
     aside, notes = term_checks.checked(_Touches(chain, nominal, train, guess), checks)
-    kept, found, words = aside.kept, list(aside.found), ("touch(es)", "gap")
+    kept, found, words = aside.kept, list(aside.found), ("touches", "gap")
     start = registration(nominal, kept, guess, weight, aside.state.frames)
     notes += [outliers.set_aside_note(found, *words)] if found else []
     if held is not None:
@@ -236,7 +236,8 @@ def checked_registration(
         rows, cut = term_checks.file_lines(held), partial(subset, held)
         held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
     notes += filter(None, [_isolated_postures(chain, kept, held)])
-    what = f"unknowns of {chain.tool_frame}'s {kept.kind.object_name}(s) and contact frame"
+    objects = noun(len(kept.contacts), f"{kept.kind.object_name}s")
+    what = f"unknowns of {chain.tool_frame}'s {objects} and contact frame"
     rows_each, out = len(kept.kind.row_names), 0 if held is None else held.m
     determined.check_equations(
         kept.m, rows_each, start.frames.size, what, kept.source, held=out, unit="touches"

@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..core.checks import MAX_WORK_BYTES
+from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contact_postures import in_frame, joint_offsets, project
 from ..identification.contacts import CONTACT_TOL
@@ -77,7 +78,7 @@ def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
             way = f"give a level (params complete, paper, offsets or frames), or {way}"
         selected = f", {dense} other columns to select" if auto else ""
         raise InvalidArgumentError(
-            f"{d.m} touches of {len(d.contacts)} {kind.object_name}(s) ({objects} of "
+            f"{d.m} touches of {counted(len(d.contacts), kind.object_name + 's')} ({objects} of "
             f"their unknowns{selected}) would need about {need / 2**30:.3g} GB, calib allows "
             f"{MAX_WORK_BYTES / 2**30:g} GB: {way}"
         )

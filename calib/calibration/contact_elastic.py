@@ -20,6 +20,7 @@ import dataclasses
 
 import numpy as np
 
+from ..core.words import counted
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import PlaneContact
 from ..kinematics import elastic
@@ -89,8 +90,8 @@ def none_kept_note(part, offered: tuple[int, ...], load) -> list[str]:
         return ["elastic: no joint compliance was kept; the URDF is the whole model"]
     names = ", ".join(part.chain.joint_names[j] for j in offered)
     return [
-        f"elastic: the compliance of {len(offered)} joint(s) was offered ({names}) and none "
-        f"was kept; the URDF is the whole model (no compliance file)"
+        f"elastic: the compliance of {counted(len(offered), 'joints')} was offered ({names}) "
+        f"and none was kept; the URDF is the whole model (no compliance file)"
     ]
 
 

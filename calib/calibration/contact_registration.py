@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..core.words import counted, noun
 from ..exceptions import ContactGeometryError
 from ..identification.contacts import (
     Contact,
@@ -62,7 +63,8 @@ def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
     for name, count in zip(names, counts, strict=True):
         if count < MIN_TOUCHES:
             raise ContactGeometryError(
-                f"'{name}' has {count} touch(es): at least {MIN_TOUCHES} are needed to fit it"
+                f"'{name}' has {counted(count, 'touches')}: at least {MIN_TOUCHES} are needed "
+                "to fit it"
             )
     return names, index
 
@@ -113,8 +115,9 @@ def refine(
             found = [d for d in found if d.condition >= 1 / CONDITION_LIMIT]
             named = [n for n in names if any(n in d.names for d in found)]
             which = f" (they cannot separate {', '.join(named)})" if named else ""
+            objects = noun(len(frames.ids), f"{frames.kind.object_name}s")
             raise ContactGeometryError(
-                f"the touches do not fix the {frames.kind.object_name}(s) and the contact frame"
+                f"the touches do not fix the {objects} and the contact frame"
                 f"{which}: touch at several orientations, or at spots that span each "
                 f"{frames.kind.object_name}"
             )

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
 from .model import ErrorModel, MeasuredKind, State, generic_measurements
@@ -294,7 +295,7 @@ def ill_posed_text(
         f"would be arbitrary"
     )
     if len(found) > 1:
-        text += f" ({len(found) - 1} more such combination(s))"
+        text += f" ({counted(len(found) - 1, 'more such combinations')})"
     return text + (
         f"; {posture}" if posture else "; fix one of them or measure more varied postures"
     )

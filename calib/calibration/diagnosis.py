@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.words import noun
 from ..exceptions import CalibError, DataError
 from ..kinematics.frames import end_joint_links
 from ..measurements.data import MAX_COORDINATE
@@ -259,9 +260,9 @@ def explain(
     if still:
         raise DataError(
             data.source,
-            f"the registration {leaves} and joint column(s) "
-            f"{', '.join(still)} hold one value in every {words.row}: were those "
-            "joints logged?",
+            f"the registration {leaves} and {noun(len(still), 'joint columns')} "
+            f"{', '.join(still)} {noun(len(still), 'hold', 'holds')} one value in every "
+            f"{words.row}: {noun(len(still), 'were those joints', 'was that joint')} logged?",
         )
     cause = _likely_cause(data, chain, error, first, orientation, joints_only)
     if cause is not None:

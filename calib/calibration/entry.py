@@ -86,7 +86,7 @@ def calibrate(
             (:class:`~calib.measurements.contact_campaign.ContactData`).
         params: Parameter level, one of ``LEVELS`` (default ``auto``; a tree:
             ``TREE_LEVELS``, default ``complete``).
-        marker: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)``
+        marker: Guess of each measured point in the tool frame, 3 numbers or ``(K, 3)``
             [m], or of a contact frame (:attr:`~.problem.Term.guess`; default: the tool
             origin).
         validate: Data of other postures to score the result on (never fitted).

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
@@ -91,7 +92,8 @@ def marker_guess(marker, k: int) -> np.ndarray:
     if len(mk) == 1:
         mk = np.repeat(mk, k, axis=0)
     if len(mk) != k:
-        raise InvalidArgumentError(f"{len(mk)} marker guesses for {k} measured points")
+        guesses = counted(len(mk), "marker guesses")
+        raise InvalidArgumentError(f"{guesses} for {counted(k, 'measured points')}")
     return mk
 
 

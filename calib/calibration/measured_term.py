@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..core.words import counted
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain
@@ -88,7 +89,7 @@ def check_measured(
         if measured_kind(part) != measured_kind(data):
             raise InvalidArgumentError(
                 f"{part.source}: validation rows of another kind than the term's "
-                f"({measured_kind(part).label}, {part.n_markers} marker(s) against "
+                f"({measured_kind(part).label}, {counted(part.n_markers, 'markers')} against "
                 f"{measured_kind(data).label}, {data.n_markers})"
             )
     postures = count(data.q, data.tool)

@@ -21,6 +21,7 @@ from typing import ParamSpec, TypeVar
 import numpy as np
 
 from ..core.checks import shown
+from ..core.words import noun
 from ..exceptions import InvalidArgumentError
 
 __all__ = [
@@ -245,7 +246,7 @@ def _argument_error(name: str, signature: inspect.Signature, kwargs, exc: TypeEr
         if method:
             hints = [f"it takes {', '.join(list(signature.parameters)[1:]) or 'no argument'}"]
         hint = f" ({'; '.join(hints)})" if hints else ""
-        return f"{name}: unknown argument(s) {', '.join(unknown)}{hint}"
+        return f"{name}: unknown {noun(len(unknown), 'arguments')} {', '.join(unknown)}{hint}"
     if "positional" in str(exc) and not method:
         return (
             f"{name} takes the robot and the data by position and every other argument by "

@@ -18,6 +18,7 @@ from typing import NamedTuple, TypeVar
 import numpy as np
 from scipy.stats import chi
 
+from ..core.words import counted
 from ..exceptions import DataError
 
 __all__ = [
@@ -99,13 +100,15 @@ class Outlier:
         return f"row {self.row} ({1e3 * self.error:.3g} mm)"
 
 
-def set_aside_note(dropped, unit: str = "row(s)", gap: str = "error") -> str:
+def set_aside_note(dropped, unit: str = "rows", gap: str = "error") -> str:
     """The note listing the outliers set aside (one line).
 
-    For example ``2 outlier row(s) set aside (error > 5 x the median): row 4 (5.3 mm), row 9
-    (6.1 mm)``; contacts' ``unit`` and ``gap``: ``touch(es)``, ``gap``.
+    For example ``2 outlier rows set aside (error > 5 x the median): row 4 (5.3 mm), row 9
+    (6.1 mm)``, ``1 outlier row set aside ...``; ``unit``: the plural; contacts' ``unit`` and
+    ``gap``: ``touches``, ``gap``.
     """
-    return f"{len(dropped)} outlier {unit} set aside ({gap} > {FACTOR:g} x the median): " + (
+    outliers = counted(len(dropped), f"outlier {unit}")
+    return f"{outliers} set aside ({gap} > {FACTOR:g} x the median): " + (
         ", ".join(o.text() for o in dropped)
     )
 

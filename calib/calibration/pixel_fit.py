@@ -13,6 +13,7 @@ from typing import cast
 
 import numpy as np
 
+from ..core.words import counted, noun
 from ..exceptions import DataError
 from ..identification.pinhole import Pinhole
 from ..kinematics.placement_export import camera_placement
@@ -192,8 +193,8 @@ def _registered(chain: Chain, part: PixelPart, strict: bool = True) -> PixelTerm
     if len(behind):
         raise DataError(
             part.source,
-            f"{len(behind)} observation(s) see a point behind the "
-            f"camera on the starting model (first: row {rows.lines[behind[0]]}): "
+            f"{counted(len(behind), 'observations')} {noun(len(behind), 'see', 'sees')} a point "
+            f"behind the camera on the starting model (first: row {rows.lines[behind[0]]}): "
             "check the camera's link and placement",
         )
     mdh = placements.chain_models((chain,))[0]

@@ -47,7 +47,7 @@ class Term:
             a camera's pixels (:class:`~.pixel_chain.PixelData`: always a term of the joint
             fit, ``shape`` ``chains``, even alone).
         validate: Data of the same kind at other postures, scored and never fitted, or None.
-        guess: Guess of the measured point(s) in the tool frame, 3 numbers or ``(K, 3)`` [m]
+        guess: Guess of each measured point in the tool frame, 3 numbers or ``(K, 3)`` [m]
             (measurements), or of the contact frame in the tool frame, ``(4, 4)`` or
             ``X Y Z [RX RY RZ]`` [m, rad] (touches); None: the tool frame.
     """

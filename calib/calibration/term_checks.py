@@ -119,7 +119,7 @@ def held_out(
     subset: Callable[[np.ndarray], D],
     notes: list[str],
     noise: float | None = None,
-    words: tuple[str, str] = ("row(s)", "error"),
+    words: tuple[str, str] = ("rows", "error"),
 ) -> D:
     """The held-out rows without the outliers the training rule finds among them.
 

@@ -171,7 +171,8 @@ def _analyze_markers(args: argparse.Namespace) -> int:
         )
     else:
         print(
-            f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, {args.markers} marker(s), "
+            f"{chain.name}: {chain.base_frame} -> {chain.tool_frame}, "
+            f"{counted(args.markers, 'markers')}, "
             f"{args.measure}: {counted(len(names), 'identifiable parameters')} (measurement "
             f"frame and markers free{f', {len(held)} held' if held else ''}), theory "
             f"{'n/a' if theory is None else theory}"
@@ -242,8 +243,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         verdict = f"verdict for the {args.params} set"
         if args.markers is not None:
             verdict = (
-                f"{args.markers} marker(s), measurement frame and markers free: the complete "
-                f"set's count (as analyze --markers {args.markers}), verdict against the theory"
+                f"{counted(args.markers, 'markers')}, measurement frame and markers free: the "
+                f"complete set's count (as analyze --markers {args.markers}), verdict against "
+                "the theory"
             )
         print(
             f"\n{len(rows)} chains and trees, {len(rows) - bad} analysed, {bad} with an error "

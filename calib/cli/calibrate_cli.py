@@ -451,7 +451,7 @@ def _add_model_args(g: Group) -> None:
         nargs="+",
         type=float,
         metavar="X",
-        help="guess of the marker(s) in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
+        help="guess of each marker in the tool frame [m]: X Y Z, or 3 K numbers (default: 0)",
     )
     g.add_argument(
         "--fix",

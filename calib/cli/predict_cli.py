@@ -31,7 +31,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     where = (
         "the contact's origin in the base frame"
         if model.contact is not None
-        else f"{len(model.markers)} point(s) in the measurement frame"
+        else f"{counted(len(model.markers), 'points')} in the measurement frame"
     )
     if readings is not None:
         off = counted(len(readings.names), "joints")

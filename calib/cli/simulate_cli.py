@@ -81,9 +81,10 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
     )
     truth = campaign.truth
     write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
+    objects = counted(len(campaign.data.contacts), f"{campaign.data.id_column}s")
     print(
         f"{chain.name}: {counted(campaign.data.m, 'touches')}, measure {args.measure}, "
-        f"{len(campaign.data.contacts)} {campaign.data.id_column}(s), {len(truth.params)} "
+        f"{objects}, {len(truth.params)} "
         f"{truth.params.label} parameters perturbed ({truth.error_mm:g} mm, "
         f"{truth.error_mrad:g} mrad), joint noise {truth.noise_mrad:g} mrad, seed {truth.seed}"
     )

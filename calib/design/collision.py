@@ -31,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.fileio import read_bytes_limited, read_failure, read_text_limited
+from ..core.words import counted
 from ..exceptions import CalibError, InvalidArgumentError, URDFError
 from ..kinematics.catalog import erd_robots_dir
 from ..kinematics.robot import Chain
@@ -231,7 +232,10 @@ def _read_srdf(path: str | Path, robot: Chain | Tree) -> tuple[str, tuple[str, .
     notes = (
         ()
         if known == len(pairs)
-        else (f"{len(pairs) - known} pair(s) of {path.name} name links not in the URDF: skipped",)
+        else (
+            f"{counted(len(pairs) - known, 'pairs')} of {path.name} name links not in the URDF: "
+            "skipped",
+        )
     )
     return text, notes
 
@@ -368,7 +372,9 @@ def _keep_pairs(robot: Chain | Tree, geom: pin.GeometryModel, srdf: Path | None)
                 pin.removeCollisionPairsFromXML(model, geom, srdf_text)
             except (RuntimeError, ValueError) as exc:
                 raise _srdf_error(srdf, f"Pinocchio cannot read it ({_first_line(exc)})") from None
-        notes.append(f"{before - len(geom.collisionPairs)} pair(s) disabled by {srdf.name}")
+        notes.append(
+            f"{counted(before - len(geom.collisionPairs), 'pairs')} disabled by {srdf.name}"
+        )
     data, gdata = model.createData(), pin.GeometryData(geom)
     q0 = robot.pin_configurations(reference_configuration(robot))[0]
     pin.computeCollisions(model, data, geom, gdata, q0, False)
@@ -380,7 +386,9 @@ def _keep_pairs(robot: Chain | Tree, geom: pin.GeometryModel, srdf: Path | None)
     for pair in touching:
         geom.removeCollisionPair(pair)
     if touching:
-        notes.append(f"{len(touching)} pair(s) in contact at the reference configuration skipped")
+        notes.append(
+            f"{counted(len(touching), 'pairs')} in contact at the reference configuration skipped"
+        )
     return notes
 
 

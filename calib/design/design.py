@@ -539,8 +539,8 @@ def design_text(d: Design, noise_mm: float = 0.05) -> str:
         + f", criterion {d.criterion}, {counted(d.model.rows, 'rows')} per configuration, "
         f"{d.model.b} parameters",
         *(f"note: {n}" for n in d.filters.notes),
-        f"greedy start then {d.exchanges} exchange(s) in {d.sweeps} sweep(s); angles scaled by "
-        f"L = {d.model.length:.4g} m",
+        f"greedy start then {counted(d.exchanges, 'exchanges')} in {counted(d.sweeps, 'sweeps')}; "
+        f"angles scaled by L = {d.model.length:.4g} m",
         "",
         indices_table(
             {

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from ..core.words import counted
 from ..kinematics.mdh import MDHModel
 from ..kinematics.mimic import MimicJoint
 from ..kinematics.tree_model import TreeMDH
@@ -132,8 +133,8 @@ def analysis_text(res: Identifiability) -> str:
         lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
     if res.missing:
         lines.append(
-            f"incomplete: the {res.params.label} set misses {res.n_complete - res.n_base} "
-            f"error direction(s) a complete model has:"
+            f"incomplete: the {res.params.label} set misses "
+            f"{counted(res.n_complete - res.n_base, 'error directions')} a complete model has:"
         )
         lines += [f"  - {m}" for m in res.missing]
     else:

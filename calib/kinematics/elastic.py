@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.fileio import read_bytes_limited, read_failure, read_text_limited
+from ..core.words import counted
 from ..exceptions import (
     AmbiguousFrameError,
     CalibError,
@@ -131,7 +132,7 @@ class ElasticModel:
         return (
             f"<ElasticModel {chain.name}: {chain.base_frame} -> {chain.tool_frame}, "
             f"{chain.n} joints, {int(np.count_nonzero(self.compliance))} compliant, "
-            f"{len(self.markers)} marker(s){extra}>"
+            f"{counted(len(self.markers), 'markers')}{extra}>"
         )
 
     def torques(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:

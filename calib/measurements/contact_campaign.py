@@ -27,6 +27,7 @@ import numpy as np
 
 from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, angle_mrad, check_count, check_size, length_mm
 from ..core.fileio import write_atomic
+from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..identification.contact_postures import contact_model, contact_postures
 from ..identification.contacts import Contact
@@ -116,7 +117,8 @@ class ContactData:
     @property
     def touches(self) -> str:
         """How many touches of which kind on how many contacts, in words."""
-        return f"{self.m} {self.kind.label} touches of {len(self.contacts)} {self.id_column}(s)"
+        objects = counted(len(self.contacts), f"{self.id_column}s")
+        return f"{self.m} {self.kind.label} touches of {objects}"
 
     @property
     def m(self) -> int:

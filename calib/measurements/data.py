@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.checks import read_only
+from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.measures import POSE, POSITION, Measurement, Observed
 from ..kinematics.mimic import Coupling
@@ -185,7 +186,7 @@ class Measurements:
         tools = "" if self.tool is None else f", tools {', '.join(dict.fromkeys(self.tool))}"
         return (
             f"<Measurements {self.source}: {self.m} rows of {len(self.joint_names)} joints, "
-            f"{self.kind.label}, {self.n_markers} marker(s){tools}>"
+            f"{self.kind.label}, {counted(self.n_markers, 'markers')}{tools}>"
         )
 
     @property

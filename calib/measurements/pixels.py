@@ -36,6 +36,7 @@ import numpy as np
 
 from ..core.checks import check_size, real_array
 from ..core.fileio import csv_text, write_atomic
+from ..core.words import noun
 from ..exceptions import DataError, InvalidArgumentError, warn_user
 from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
@@ -196,7 +197,8 @@ class PixelObservations:
         """One line (the arrays are in the attributes)."""
         return (
             f"<PixelObservations {self.source}: {self.m} pixels of {len(set(self.point))} "
-            f"points, camera(s) {', '.join(self.cameras)}, {len(self.joint_names)} joints>"
+            f"points, {noun(len(self.cameras), 'cameras')} {', '.join(self.cameras)}, "
+            f"{len(self.joint_names)} joints>"
         )
 
     @property

@@ -14,6 +14,7 @@ from typing import Any
 from ..core.checks import check_count, check_work, shown
 from ..core.choices import DEFAULT_MEASURE, VERDICT_SET
 from ..core.progress import steps
+from ..core.words import counted
 from ..exceptions import CalibError, InvalidArgumentError, RobotNotFoundError
 from ..identification.identifiability import DEFAULT_CONFIGS, analyze
 from ..identification.kinds import kind_of
@@ -112,7 +113,7 @@ def _sweep_one(
     )
     notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
     if full.mimic:  # the formula is for independent joints
-        notes.append(f"{len(full.mimic)} coupled (mimic) joint(s): no theory")
+        notes.append(f"{counted(len(full.mimic), 'coupled (mimic) joints')}: no theory")
     notes += list(dict.fromkeys(paper.warnings + full.warnings))
     return SweepRow(
         robot=str(robot),
