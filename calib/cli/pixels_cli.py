@@ -350,8 +350,12 @@ def _postures(chains, configs: int, seed: int, path: str | None = None):
     import numpy as np
 
     from ..design.configurations import read_chains_configurations
+    from ..measurements.limits import warn_default_ranges
 
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    if path is None:
+        for chain in chains:
+            warn_default_ranges(chain, "give your own configurations")
     drawn = (
         [c.random_configurations(configs, seed) for c in chains]
         if path is None
