@@ -1,9 +1,6 @@
 """A measured chain's options on the joint engine: ``fix``, ``free``, ``elastic``, ``marker``.
 
-:func:`~.entry.calibrate` of a chain and its measurements fits it with the joint engine; each
-option is checked before the fit, in one line that says why: the parameters ``fix`` and
-``free`` name (:func:`level_offer`), the compliances ``elastic`` offers (:func:`compliance_torques`)
-and the markers' guess (:func:`marker_guess`).
+Each is checked before the fit, in one line that says why.
 """
 
 from __future__ import annotations
@@ -44,11 +41,9 @@ def _compliance(name: str) -> bool:
 def compliance_torques(chains, train, held, opts: Options | None, load=None):
     """Gravity torques of the fitted and held-out rows, and the joints whose compliance is offered.
 
-    A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
-    joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
-    ``free``): the URDF cannot hold it. The joints offered are those gravity loads (over
-    :data:`NO_LOAD` of the largest torque), less the compliances fixed. Returns ``(torques
-    of train, of held or None)`` (``(None, None)``: rigid joints) and the joints (0-based).
+    A chain touching under a standing ``load``: its torques, every joint. A measured chain:
+    opt-in (``elastic``, or a compliance in ``free``), the joints gravity loads (over
+    :data:`NO_LOAD` of the largest torque) less those fixed. ``(None, None)``: rigid joints.
 
     Raises:
         InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
@@ -101,13 +96,9 @@ def marker_guess(marker, k: int) -> np.ndarray:
 class Asked:
     """Parameters a measured chain's ``fix`` and ``free`` name, resolved on its joints.
 
-    Attributes:
-        fix: The fixed parameters' engine names (``<joint>:<parameter>``).
-        free: The free parameters' engine names (compliances as ``c<k>``).
-        given: Each engine name's name as the user wrote it.
-        extra: Directions ``(6 J,)`` of the parameters named, by engine name (a free one a
-            level may not offer is added; a fixed one holds every offered direction along
-            it).
+    ``fix``, ``free``: engine names; ``given``: each one's name as the user wrote it;
+    ``extra``: directions ``(6 J,)`` of those named (a free one is added to a level, a fixed
+    one holds every offered direction along it).
     """
 
     fix: tuple[str, ...]
@@ -116,11 +107,7 @@ class Asked:
     extra: dict[str, np.ndarray]
 
     def offer(self, directions, names, offered):
-        """The level's offer with the fixed parameters out and the free ones in.
-
-        ``directions`` ``(D, 6 J)``, or None: the components. Returns the directions, names,
-        indices offered and the names ``auto`` must keep.
-        """
+        """The level's offer (directions, or None: components) with ``fix`` out, ``free`` in."""
         missing = [n for n in self.free if n in self.extra and n not in names]
         if missing:
             base = np.eye(len(names)) if directions is None else directions
@@ -165,20 +152,10 @@ class Asked:
 
 
 def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
-    """What a joint fit offers at ``level``, and the parameters ``fix`` and ``free`` name.
+    """What a joint fit offers at ``level``, and the :class:`Asked` (None: no name given).
 
-    A tree's ``complete`` offers every joint placement component (the rank keeps a basis); one
-    chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` (one
-    measured chain's) name parameters as the printed table does: ``elbow_joint:d3`` (the
-    chart's, :func:`~.placements.mdh_directions`; ``d3`` alone), ``elbow_joint:x`` .. ``:rz``
-    (a placement component; one that is a chart's parameter, ``shoulder_lift_joint:rz``, is
-    that parameter, ``theta2``), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
-    are fitted (``free`` of them asks nothing, ``fix`` is refused) but for the first marker's
-    coordinates no posture separates from the frame, held at their given value
-    (:func:`~.chain_registration.held_markers`: a gantry's).
-
-    ``chain``: the first term's; ``start``: the registration; ``opts``: a measured chain's,
-    or None. Returns the :class:`Asked` (None: no parameter named) and the level offered.
+    A tree's ``complete`` offers every joint placement component. Names:
+    docs/developers/engine.md#measured_options.
 
     Raises:
         InvalidArgumentError: An unknown name, or ``fix`` of a group.
