@@ -76,9 +76,8 @@ class Generic:
     def check(self, wide, kept, generic, flush, level: str) -> None:
         """Refuse a level (not ``auto``) the rows do not determine, before the fit.
 
-        ``kept``: the columns of ``wide`` the rows (``flush``) determine, ``generic``: those
-        generic configurations do. One chain: any level, its postures counted; a tree:
-        ``components``, its rows counted.
+        ``kept``, ``generic``: the columns of ``wide`` the rows (``flush``), and generic
+        configurations, determine.
 
         Raises:
             DataError: Rows that do not determine the frame and markers, too few equations,

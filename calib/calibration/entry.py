@@ -175,11 +175,9 @@ calibrate_tree = calibrate
 def calibrate_contacts(
     chain: Chain, data: ContactData, *, validate: ContactData | None = None, **options
 ) -> ContactChainsCalibration:
-    """One chain touching: the joint engine's fit of one term (the name of its own route once).
+    """One chain touching: :func:`~.contact_chains.calibrate_contact_chains` of one term.
 
-    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]``, its other
-    arguments as they are (``contact``, ``params``, ``elastic``, ``support``: the load split
-    with a second foot, ``holdout``, ...).
+    Its other arguments as they are (``contact``, ``params``, ``elastic``, ``support``, ...).
 
     Raises:
         InvalidArgumentError: A bad or unknown argument.

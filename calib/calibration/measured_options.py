@@ -17,14 +17,7 @@ from .model import compliance_name
 from .options import Options
 from .placements import component_of, mdh_directions
 
-__all__ = [
-    "GROUPS",
-    "NO_LOAD",
-    "Asked",
-    "compliance_torques",
-    "level_offer",
-    "marker_guess",
-]
+__all__ = ["GROUPS", "NO_LOAD", "Asked", "compliance_torques", "level_offer", "marker_guess"]
 
 GROUPS = ("frame", "markers", "tool")
 """Names of a measured term's own unknowns, by group."""
@@ -41,13 +34,11 @@ def _compliance(name: str) -> bool:
 def compliance_torques(chains, train, held, opts: Options | None, load=None):
     """Gravity torques of the fitted and held-out rows, and the joints whose compliance is offered.
 
-    A chain touching under a standing ``load``: its torques, every joint. A measured chain:
-    opt-in (``elastic``, or a compliance in ``free``), the joints gravity loads (over
-    :data:`NO_LOAD` of the largest torque) less those fixed. ``(None, None)``: rigid joints.
+    A measured chain's compliance is opt-in (``elastic``, or one in ``free``): the joints
+    gravity loads (:data:`NO_LOAD`) less those fixed. ``(None, None)``: rigid joints.
 
     Raises:
-        InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
-            compliance of a joint it never loads.
+        InvalidArgumentError: Compliance where gravity loads no joint, or a free one it never loads.
     """
     if load is not None:
         tau = [None if d is None else load.torques(d.q, d.readings) for d in (train[0], held[0])]
@@ -94,11 +85,9 @@ def marker_guess(marker, k: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Asked:
-    """Parameters a measured chain's ``fix`` and ``free`` name, resolved on its joints.
+    """Parameters a measured chain's ``fix`` and ``free`` name, as engine names.
 
-    ``fix``, ``free``: engine names; ``given``: each one's name as the user wrote it;
-    ``extra``: directions ``(6 J,)`` of those named (a free one is added to a level, a fixed
-    one holds every offered direction along it).
+    ``given``: each one's name as the user wrote it; ``extra``: directions ``(6 J,)`` of those.
     """
 
     fix: tuple[str, ...]
@@ -131,8 +120,7 @@ class Asked:
         """Refuse a free parameter the data cannot fit on its own, saying why.
 
         Raises:
-            InvalidArgumentError: A free parameter whose column the frame and markers carry,
-                or that is regrouped with parameters kept before it.
+            InvalidArgumentError: The frame and markers carry it, or it is regrouped.
         """
         every, fixed = wide.names(), wide.fixed
         cand = [every[k] for k in kept]

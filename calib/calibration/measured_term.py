@@ -25,21 +25,14 @@ from .residuals import ResidualStats
 from .solve import unconverged
 from .weighting import DEFAULT_WEIGHT
 
-__all__ = [
-    "check_measured",
-    "checked_measured",
-    "measuring_joint",
-    "one_term_per_frame",
-    "unseen",
-]
+__all__ = ["check_measured", "checked_measured", "measuring_joint", "one_term_per_frame", "unseen"]
 
 
 def measuring_joint(chain: Chain) -> str:
     """The fixed joint that places the chain's base frame (the measuring frame) on the robot.
 
     Raises:
-        InvalidArgumentError: No fixed joint fixes the base frame to a link (the root link,
-            or a frame a joint moves): its placement has nowhere to go in the URDF.
+        InvalidArgumentError: No fixed joint fixes the base frame to a link.
     """
     _, root = read_urdf_source(chain)
     try:
@@ -61,8 +54,7 @@ def check_measured(
     markers; ``instrument``: its base frame need not be on the robot.
 
     Raises:
-        InvalidArgumentError: The base frame not on the robot, validation rows of another
-            kind, or several tools.
+        InvalidArgumentError: The base frame not on the robot, held rows of another kind or tool.
         DataError: Joints not the chain's, or too few postures.
     """
     if not instrument:

@@ -60,13 +60,9 @@ Measurements: docs/developers/performance.md#configuration_block-model"""
 class State:
     """A complete model of the measurements: geometry, measurement frame, markers, compliance.
 
-    Attributes:
-        mdh: MDH model in the URDF base frame (frame -1).
-        frame: Pose of the URDF base frame in the measurement frame ``(4, 4)``.
-        markers: Measured points in the tool frame ``(K, 3)`` [m].
-        tool_rotation: Orientation of the measured frame in the tool frame ``(3, 3)``, or
-            None for position data.
-        compliance: Joint compliance ``(n,)`` [rad/(N m) or m/N].
+    ``mdh``: in the URDF base frame (frame -1); ``frame``: its pose in the measurement frame
+    ``(4, 4)``; ``markers`` ``(K, 3)`` [m] and ``tool_rotation`` ``(3, 3)`` (None: position
+    data) in the tool frame; ``compliance`` ``(n,)`` [rad/(N m) or m/N].
     """
 
     mdh: MDHModel
@@ -295,16 +291,10 @@ def measured_kind(data: Measurements, held: tuple[int, ...] = ()) -> MeasuredKin
 
 @dataclass(frozen=True, eq=False)
 class ErrorModel:
-    """A measured chain's own unknowns and MDH base values, linearised at a state.
+    """A measured chain's own unknowns (``own``) and MDH base values, linearised at a state.
 
-    What rows determine (:mod:`.determined`, the designs) and the outlier proposals; the
-    fits move the geometry through :mod:`.placements`, never these columns.
-
-    Attributes:
-        params: Standard MDH parameter set the base values come from.
-        base: Names of the MDH parameters whose columns follow the own unknowns'
-            (:func:`moved`).
-        own: The chain's own unknowns and rows.
+    What rows determine and the outlier proposals; the fits move the geometry through
+    :mod:`.placements`, never these columns. ``base``: names of ``params`` (:func:`moved`).
     """
 
     params: ParameterSet
@@ -380,13 +370,8 @@ def registration_state(
     mdh: MDHModel, frame: np.ndarray, markers: np.ndarray, tool_rotation: np.ndarray | None
 ) -> State:
     """A state with the nominal geometry, no compliance, and the given frame and markers."""
-    return State(
-        mdh,
-        np.array(frame, dtype=float),
-        np.array(markers, dtype=float),
-        tool_rotation,
-        np.zeros(mdh.n),
-    )
+    frame, markers = np.array(frame, dtype=float), np.array(markers, dtype=float)
+    return State(mdh, frame, markers, tool_rotation, np.zeros(mdh.n))
 
 
 def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> State:
