@@ -142,8 +142,8 @@ class Asked:
 def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
     """What a joint fit offers at ``level``, and the :class:`Asked` (None: no name given).
 
-    A tree's ``complete`` offers every joint placement component. Names:
-    docs/developers/engine.md#measured_options.
+    A tree's ``complete`` offers every joint placement component.
+    Names: docs/developers/engine.md#level_offer
 
     Raises:
         InvalidArgumentError: An unknown name, or ``fix`` of a group.
