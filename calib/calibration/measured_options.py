@@ -152,8 +152,7 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     offer = "components" if tree and level == "complete" else level
     if opts is None or not (opts.fix or opts.free):
         return None, offer
-    held = [n for n in opts.fix if n in GROUPS]
-    if held:
+    if held := [n for n in opts.fix if n in GROUPS]:
         raise InvalidArgumentError(
             f"fix {held[0]}: the joint engine fits the instrument's frame and markers (and the "
             f"measured frame's rotation), holding at its given value only a marker coordinate "

@@ -126,8 +126,7 @@ def checked_measured(
     steps = chain_registration.Rows(chain, nominal, data, guess, opts, at, hold=pinned)
     validated = chain_registration.validation_steps(steps, validate)
     registered, notes = term_checks.checked(steps, validated)
-    stopped = unconverged(registered.state, "the registration")
-    if stopped:
+    if stopped := unconverged(registered.state, "the registration"):
         raise DataError(data.source, stopped)
     reg, kept, kin = registered.state.state.inner, registered.kept, steps.register().kin
     notes = [held_note(pinned, guess), *notes] if pinned else notes
@@ -172,8 +171,7 @@ def one_term_per_frame(chains, data) -> None:
     measuring = [
         c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
     ]
-    shared = sorted({f for f in measuring if measuring.count(f) > 1})
-    if shared:
+    if shared := sorted({f for f in measuring if measuring.count(f) > 1}):
         raise InvalidArgumentError(
             f"two measured terms measure from '{shared[0]}': one fit takes one measured term per "
             "measuring frame (fit the other tool's rows apart)"
