@@ -42,8 +42,7 @@ __all__ = ["fit_terms_until_stable", "proposals"]
 
 
 def proposals(start: ChainsState, c: int, data: Measurements, noise: float | None) -> np.ndarray:
-    """Rows a robust fit of every identifiable parameter of term ``c`` at the registration
-    ``start``, linearised, finds outlying; none unless some row is far (:func:`spread_out`)."""
+    """Rows a robust fit of term ``c``'s identifiable parameters at ``start`` finds outlying."""
     state = cast(MeasuredState, start.states[c])
     residuals = state.inner.residuals(data, None, state.frames_at(data))  # the registration's
     if not spread_out(point_errors(residuals, data.n_markers)):
@@ -70,9 +69,7 @@ def fit_terms_until_stable(
 ) -> ContactChainsCalibration:
     """The run's fit without the rows each term's errors under it find outlying.
 
-    From the rows each registration set aside (:func:`_aside`); the fit of every row is made
-    only if the loop comes to it. Each term's outliers in the fit returned are the loop's and
-    its registration's, their errors the last fit's.
+    Each term's outliers in the fit returned are the loop's and its registration's.
     """
     first = register(run)
     again, train = _drawn(run)
@@ -119,11 +116,7 @@ def fit_terms_until_stable(
 
 
 def _aside(data, state, dropped, rows, noise, start, c) -> tuple[np.ndarray, np.ndarray]:
-    """A term's rows that stay aside, and those the loop starts without (masks of ``rows``).
-
-    The registration's outliers (``dropped``), both; a measured term's: none, and its
-    :func:`proposals`.
-    """
+    """A term's rows that stay aside, and those the loop starts without (masks of ``rows``)."""
     if isinstance(state, MeasuredState):
         return np.zeros(len(rows), dtype=bool), proposals(start, c, data, noise)
     inner = np.isin(rows, [o.row for o in dropped])
@@ -151,10 +144,7 @@ def _subset(data, keep: np.ndarray):
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
-    """Each term's errors at every training row under a fit (the last one's kept).
-
-    ``torque``: the first term's gravity torques at its rows, or None.
-    """
+    """Each term's errors at every training row under a fit (the last one's kept)."""
     last: list = []
 
     def errors(result: ContactChainsCalibration) -> list[Errors]:

@@ -51,10 +51,7 @@ def _configs_needed(unknowns: int, rows: int) -> int:
 def check_equations(
     m: int, rows: int, unknowns: int, what: str, source: str, *, held: int = 0, unit: str = ""
 ) -> None:
-    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` equations.
-
-    ``m``: configurations (or ``unit``s); ``what``, ``source`` and ``held`` are for the message.
-    """
+    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` rows."""
     if m * rows > unknowns:
         return
     unit, out = unit or "configurations", f" ({held} held out)" if held else ""
@@ -89,8 +86,7 @@ def check_rank(
 ) -> None:
     """Refuse (DataError) a level the measured configurations do not determine (rank of W_b).
 
-    ``generic``: the parameters the level fits at generic configurations; ``lost``: the
-    unknowns they separate and the measured ones do not (named).
+    ``generic``: what generic configurations determine; ``lost``: the unknowns they alone do.
     """
     check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
     if determined >= generic:
@@ -154,8 +150,7 @@ differ by ~1e-16 of the largest): :func:`ill_posed` skips the vectors."""
 
 @dataclass(frozen=True)
 class Direction:
-    """A combination of fitted unknowns the data cannot determine: the unknowns it moves
-    (components of at least ``NAMED``), their components, the largest singular value over its."""
+    """A combination of fitted unknowns the data cannot determine (its ``NAMED`` components)."""
 
     names: tuple[str, ...]
     weights: tuple[float, ...]
@@ -176,10 +171,7 @@ the same (noise-free or very precise data)."""
 
 
 def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
-    """Directions of the unknowns (columns of ``J``) the rows do not determine, weakest first.
-
-    ``overwrite``: ``J`` scaled in place (no copy).
-    """
+    """Directions of the unknowns (columns of ``J``) the rows do not determine, weakest first."""
     if J.shape[1] == 0:
         return []
     norms = np.linalg.norm(J, axis=0)
@@ -200,8 +192,7 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) ->
 def separating_posture(
     jacobian_at: Callable[[np.ndarray], np.ndarray], q: np.ndarray, direction: np.ndarray
 ) -> tuple[np.ndarray, float]:
-    """The configuration of ``q`` where a direction of the unknowns moves the rows most, and
-    the condition of the unknowns at all of ``q`` (``direction``: on unit-norm columns)."""
+    """The configuration of ``q`` where a direction moves the rows most; the condition at ``q``."""
     J = jacobian_at(q)
     flat = J.reshape(-1, J.shape[2])
     norms = np.linalg.norm(flat, axis=0)
@@ -242,10 +233,7 @@ def separating_text(
 def ill_posed_text(
     found: list[Direction], std: dict[str, float], posture: str | None = None
 ) -> str | None:
-    """The refusal's sentence for undetermined directions (None: there are none).
-
-    ``std``: standard deviations [m or rad]; ``posture``: what postures would separate them.
-    """
+    """The refusal's sentence for undetermined directions (None: none); ``std`` [m or rad]."""
     if not found:
         return None
     d = found[0]
@@ -283,10 +271,7 @@ def still_axes(R: np.ndarray) -> tuple[int, ...]:
 def generic_jacobian(
     model: ErrorModel, state: State, joint_names: tuple[str, ...], weight: float = 1.0
 ) -> Callable[[np.ndarray], np.ndarray]:
-    """The weighted Jacobian ``(m, rows, size)`` at ``state`` at configurations ``(m, n)``.
-
-    ``weight``: of the orientation rows [m/rad].
-    """
+    """The weighted Jacobian ``(m, rows, size)`` at configurations ``(m, n)`` (weight [m/rad])."""
     weights = model.own.row_weights(weight)
 
     def at(q: np.ndarray) -> np.ndarray:
@@ -297,10 +282,7 @@ def generic_jacobian(
 
 
 def determined_columns(J: np.ndarray, order: list[int] | None = None) -> list[int]:
-    """The columns of a Jacobian ``(..., p)`` its rows determine, sorted (pivoted QR).
-
-    ``order``: the columns, most preferred first (default: theirs).
-    """
+    """The columns of a Jacobian ``(..., p)`` its rows determine, sorted (pivoted QR, ``order``)."""
     p = J.shape[-1]
     order = list(range(p)) if order is None else order
     return sorted(independent_columns(J.reshape(-1, p), order)[2])

@@ -39,10 +39,7 @@ fraction of its value when they were last computed afresh."""
 
 
 def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Squared leave-one-out errors ``(c, m)`` from ``M = I - H`` ``(c, m, rows, rows)`` and ``r``.
-
-    By LAPACK's LU; inf where a block is singular.
-    """
+    """Squared leave-one-out errors ``(c, m)`` from ``M = I - H`` and ``r`` (LU; inf: singular)."""
     c, m, rows = r.shape
     try:  # a leverage of 1 or near it: LAPACK's LU (with pivoting) tells
         loo = np.linalg.solve(M, r[..., None])
@@ -55,11 +52,7 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def spd_solve(M: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Solutions ``(n, systems)`` of many small SPD systems ``M`` ``(n, n, systems)``, ``y``.
-
-    Gaussian elimination without pivoting, vectorised over the systems (one array operation per
-    step, not a LAPACK call per system); a singular system gives inf or nan.
-    """
+    """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting)."""
     n = len(y)
     a, x = np.array(M, order="C"), np.array(y, order="C")
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -106,12 +99,8 @@ def paths(
 class _Batch:
     """Working state of :func:`paths`: every subset's fit as the columns are added.
 
-    Arrays by configuration end with it (rows component-major): ``r`` residuals ``(b, rows,
-    m)``; ``H0`` the start's hat blocks, ``added`` the unit columns since; ``Minv`` ``(I -
-    H_ii)^-1``, ``v = M r``, ``vv`` its squares; ``C`` the candidates orthogonal to each fit
-    ``(k, b, rows, m)`` (``floor2``: dependent under it, ``index``: their positions, ``nu2``:
-    squared norms); ``S``: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K``, ``2 L`` (empty: to
-    compute afresh; ``lim``: the norm under which they are); ``lost``: leverage 1 reached.
+    Arrays by configuration end with it, rows component-major: ``r`` ``(b, rows, m)``, ``C``
+    the candidates ``(k, b, rows, m)``, ``S`` their sums ``D, N, K, 2 L`` (names of the page).
     """
 
     def __init__(self, A, e, rows, start, candidates, train, objects=None):
@@ -134,10 +123,7 @@ class _Batch:
         return self.H0 + np.einsum("sbim,sbjm->bijm", q, q)
 
     def _invert(self, H: np.ndarray) -> None:
-        """``Minv`` of the hat blocks ``H`` (the lost ones left out), then ``v``; ``S`` to redo.
-
-        A block of leverage exactly 1 is lost from then on.
-        """
+        """``Minv`` of the hat blocks ``H`` (leverage 1: lost from then on), then ``v``."""
         M = np.eye(self.rows) - np.moveaxis(H * ~self.lost[:, None, None, :], 3, 1)
         try:
             inv = np.linalg.inv(M)
@@ -171,9 +157,7 @@ class _Batch:
     def totals(self) -> np.ndarray:
         """Summed squared left-out errors of each subset's fit with each candidate ``(k, b)``.
 
-        Configuration i's is ``|v_i|^2 + U (2 L + U K)`` with ``U = N / D``; inf where the
-        candidate is dead, a configuration alone would determine it (``D / |c|^2 <= 1e-12``)
-        or is ``lost``, or the sum is not finite.
+        Inf where the candidate is dead, one configuration would determine it or is ``lost``.
         """
         if not self.S:
             self._fresh(self.Minv)
@@ -197,10 +181,7 @@ class _Batch:
         return np.where(ok, total, np.inf)
 
     def errors_of(self, j: np.ndarray, stuck: bool) -> np.ndarray:
-        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added.
-
-        ``stuck``: some subset's candidate has an infinite total.
-        """
+        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added."""
         sq = np.maximum(self.sq[j, self.b], 0.0)  # a square: round-off in the sums, not < 0
         if stuck:
             sq[~np.isfinite(sq)] = np.inf
@@ -265,10 +246,7 @@ class _Batch:
         self.C -= beta[:, :, None, None] * q
 
     def _update_sums(self, Minv, a, d, h, psi, av, beta) -> None:
-        """The sums ``S`` after the columns q are added (before ``C``, ``r`` and ``M``).
-
-        The formulas: docs/developers/engine.md#forward_paths
-        """
+        """The sums ``S`` after the columns q are added (engine.md#forward_paths's formulas)."""
         Y = np.einsum("bim,kbim->kbm", np.einsum("bjim,bjm->bim", Minv, a), self.C)
         W = np.einsum("bim,kbim->kbm", a, self.C)
         mu = psi * h
@@ -292,8 +270,7 @@ class _Batch:
 
 
 def _start(A, e, rows, start, candidates, train, objects=None):
-    """Each subset's fit of the columns ``start``: residuals, hat blocks, the candidates
-    orthogonal to it and the squared norms under which they are dependent."""
+    """Each subset's fit of ``start``: residuals, hat blocks, candidates orthogonal, floors."""
     b, m = train.shape
     Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)
     w = np.tile(train, rows).astype(float)
@@ -328,8 +305,7 @@ def residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def _pick(total: np.ndarray, alive: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Per subset, the candidate of least total ``(b,)``, the first live one where every live
-    total is infinite; and whether that happened."""
+    """Per subset, the candidate of least total (else the first live one); and whether else."""
     b = np.arange(total.shape[1])
     j = total.argmin(axis=0)
     stuck = np.isinf(total[j, b])

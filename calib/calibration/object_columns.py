@@ -18,10 +18,7 @@ direction (a singular value under 1e-7 of the largest)."""
 
 @dataclass(frozen=True, eq=False)
 class ObjectColumns:
-    """Each configuration's rows ``own`` ``(m, rows, o)`` on its own object's unknowns.
-
-    ``index``: each configuration's object ``(m,)``; ``objects``: their number K.
-    """
+    """Each configuration's rows ``own`` ``(m, rows, o)`` on its object ``index`` (of K)."""
 
     own: np.ndarray
     index: np.ndarray
@@ -48,8 +45,7 @@ class ObjectColumns:
         return np.add.reduceat(X[:, order], starts, axis=1)
 
     def transform(self, w: np.ndarray) -> np.ndarray:
-        """Each subset's ``W_k`` ``(b, K, o, o)``: ``F_k W_k`` an orthonormal basis of object k's
-        columns on the subset's rows ``w`` ``(b, m)`` (zero where a direction is undetermined)."""
+        """Each subset's ``W_k`` ``(b, K, o, o)``: ``F_k W_k`` orthonormal (0: undetermined)."""
         o = self.own.shape[2]
         F = self.own[None] * w[:, :, None, None]
         W = np.broadcast_to(np.eye(o), (len(w), self.objects, o, o))
@@ -78,7 +74,7 @@ class ObjectColumns:
 
 
 def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """Each posture's rows of ``X`` ``(m, ...)`` summed over the root of their count ``(P, ...)``."""
+    """Each posture's rows of ``X`` ``(m, ...)`` summed over the root of their count."""
     root = np.sqrt(np.bincount(groups).astype(float))
     out = np.zeros((len(root), *X.shape[1:]))
     np.add.at(out, groups, X)
@@ -88,11 +84,9 @@ def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
 def object_moments(
     A: np.ndarray, e: np.ndarray, rows: int, train: np.ndarray, objects: ObjectColumns
 ) -> tuple[np.ndarray, ...]:
-    """The guard's moments of each fold with the objects' unknowns eliminated.
+    """The guard's moments of each fold, objects eliminated (as :func:`~.selection.outer_cv`'s).
 
-    Returns the whole data's least-squares fit ``x``, then per fold: the training normal
-    matrices and right-hand sides (about 0), the held-out moments (about ``x``), as
-    :func:`~.selection.outer_cv`'s. How: docs/developers/engine.md#object_columns
+    How: docs/developers/engine.md#object_columns
     """
     m = train.shape[1]
     D = A.reshape(m, rows, -1)
@@ -121,8 +115,7 @@ def object_moments(
 
 
 class FixedBasis:
-    """Each subset's basis of the fixed columns: the objects' (by block), then the dense ``D``
-    ``(m, rows, f)`` made orthogonal to them (QR); ``w`` ``(b, m)``: 1 in the subset, 0 out."""
+    """Each subset's basis of the fixed columns: the objects' (by block), then the dense ``D``."""
 
     def __init__(self, objects: ObjectColumns, D: np.ndarray, w: np.ndarray) -> None:
         self.objects = objects

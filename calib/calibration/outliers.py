@@ -38,8 +38,7 @@ T = TypeVar("T")
 
 
 class Errors(NamedTuple):
-    """Each unit's position [m] and orientation [rad] (or None) errors ``(m,)``, and how many
-    components each is the norm of (3 for a point or a rotation vector; a plane's height: 1)."""
+    """Each unit's position [m] and orientation [rad] errors, norms of ``dims`` components."""
 
     position: np.ndarray
     orientation: np.ndarray | None = None
@@ -63,8 +62,7 @@ IRLS_ROUNDS = 60
 
 @dataclass(frozen=True)
 class Outlier:
-    """A configuration set aside: its file row, its error [m, or rad for ``kind``
-    ``orientation``] under the model that set it aside and the median error then."""
+    """A configuration set aside: its file row, error and the median then [m, or rad]."""
 
     row: int
     error: float
@@ -91,10 +89,7 @@ def set_aside_note(dropped, unit: str = "rows", gap: str = "error") -> str:
 
 
 def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
-    """Each configuration's largest point error [m] and orientation error [rad] (or None).
-
-    ``residual``: ``(m, 3 K [+ 3])``, the orientation rows last.
-    """
+    """Each configuration's largest point error [m] and orientation error [rad] (or None)."""
     rot = None
     if residual.shape[1] == 3 * n_markers + 3:
         rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
@@ -104,8 +99,7 @@ def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
 
 @functools.cache
 def factor(dims: int) -> float:
-    """The multiple of the median that the norm of ``dims`` Gaussian components exceeds as
-    rarely as 3 components exceed ``FACTOR`` times theirs (the chi distribution)."""
+    """The outlier factor for errors that are norms of ``dims`` components (``FACTOR``: 3)."""
     if dims == 3:
         return FACTOR
     tail = chi.sf(FACTOR * chi.median(3), 3)
@@ -126,10 +120,7 @@ def _find_outliers(errors: np.ndarray, noise: float | None, dims: int = 3) -> np
 def find_outliers(
     found: Errors, noise: float | None, rows: tuple[int, ...]
 ) -> tuple[np.ndarray, list[Outlier]]:
-    """Outliers of per-configuration errors (by position, and by orientation): mask, records.
-
-    ``noise`` [m] or None; ``rows``: each configuration's file row.
-    """
+    """Outliers of per-configuration errors (by position, and by orientation): mask, records."""
     errors, orientation, dims = found
     bad = _find_outliers(errors, noise, dims[0])
     if orientation is not None:
@@ -149,9 +140,7 @@ def until_stable(
 ) -> tuple[T, np.ndarray, list[Outlier]]:
     """Refit without the outliers and test every unit again, until the set stops changing.
 
-    ``refit``: the fit of the units a mask keeps; ``errors``: every unit's under a fit;
-    ``allowed``, ``converged``: as :func:`stable_set`'s. Returns the last fit, the mask of the
-    outliers it was fitted without, and the outliers.
+    Returns the last fit, the mask of the outliers it was fitted without, and the outliers.
     """
 
     def rule(result: T) -> np.ndarray | None:
@@ -171,9 +160,8 @@ def stable_set(
 ) -> tuple[T, np.ndarray]:
     """:func:`until_stable`'s loop: the outliers ``rule`` finds under a fit (a mask) each round.
 
-    From ``start``; returns the last fit and the mask of the units it was fitted without. A
-    ``rule`` returning None (the fit stalled) ends the loop on the round before; a set
-    ``allowed`` refuses, or whose refit raises a DataError, ends it on the last set.
+    Returns the last fit and the mask of the units it was fitted without (how it ends:
+    docs/developers/engine.md#outliers).
 
     Raises:
         DataError: The first fit's.
@@ -228,12 +216,7 @@ def robust_proposals(
     noise: float | None,
     rows: tuple[int, ...],
 ) -> np.ndarray:
-    """The units a robust fit of a linearised model finds outlying (a boolean mask).
-
-    IRLS, each unit weighing ``min(1, median / error)``, then :func:`find_outliers`; none
-    under twice as many equations as unknowns. ``J`` ``(m, rows, p)``, ``residual``
-    ``(m, rows)``: weighted, at the model's start.
-    """
+    """The units a robust fit (IRLS) of a linearised model finds outlying (a boolean mask)."""
     m, rows_each = residual.shape
     if m * rows_each < 2 * J.shape[2]:  # nearly interpolated: nothing to tell
         return np.zeros(m, dtype=bool)

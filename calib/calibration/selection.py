@@ -46,8 +46,11 @@ STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 
 @dataclass(frozen=True)
 class Step:
-    """One step of the forward selection: the parameter added (``registration`` first) and the
-    leave-one-configuration-out RMS error per point after it [m]."""
+    """One step of the forward selection.
+
+    The parameter added (``registration`` first); ``loo``: the leave-one-configuration-out RMS
+    error per point after it [m].
+    """
 
     name: str
     loo: float

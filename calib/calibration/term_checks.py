@@ -23,10 +23,7 @@ S = TypeVar("S")
 
 @dataclass(frozen=True)
 class Aside(Generic[D, S]):
-    """A registration (``state``) of the rows ``kept``, without the outlier rows ``bad`` (mask).
-
-    ``held``: the held-out rows without their outliers, where the step sets them aside, or None.
-    """
+    """A registration (``state``) of the rows ``kept``, without the outlier rows ``bad`` (mask)."""
 
     state: S
     bad: np.ndarray
@@ -77,10 +74,7 @@ def file_lines(data: FileRows) -> tuple[int, ...]:
 def checked(
     steps: Steps[D, S], validation: Sequence[tuple[Steps, str]] = ()
 ) -> tuple[Aside[D, S], list[str]]:
-    """The rows registered, their outliers set aside, diagnosed; and the notes.
-
-    ``validation``: the steps on validation rows, each with the label of its notes.
-    """
+    """The rows registered, their outliers set aside, diagnosed (validation rows too); notes."""
     aside, notes = _sequence(steps)
     for other, label in validation:
         notes += [f"{label}: {n}" for n in _sequence(other)[1]]
@@ -107,11 +101,7 @@ def held_out(
     noise: float | None = None,
     words: tuple[str, str] = ("rows", "error"),
 ) -> D:
-    """The held-out rows without the outliers the training rule finds among them.
-
-    The rule on the ``fitted`` and held-out rows' ``errors`` together (one median); none set
-    aside when that would be half of them or more. The note is appended to ``notes``.
-    """
+    """The held-out rows without the outliers the training rule finds among them (noted)."""
     m = len(fitted.position)
     rot = None
     if fitted.orientation is not None and errors.orientation is not None:

@@ -180,8 +180,8 @@ def check_held_out_errors(
 ) -> None:
     """Stop on held-out errors far above any geometric error while the data fit well.
 
-    ``fitted``, ``held``: the fitted and held-out rows' RMS position errors (touches: gaps) [m]
-    under the training registration; ``words``: :data:`ROWS` or :data:`TOUCHES`.
+    ``fitted``, ``held``: the rows' RMS position errors (touches: gaps) [m]; ``words``:
+    :data:`ROWS` or :data:`TOUCHES`.
 
     Raises:
         DataError: The held-out error is suspect (measured in another frame, or of another
@@ -255,10 +255,7 @@ def stats(
 
 
 def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
-    """RMS over configurations and points of the predicted position std [m].
-
-    sqrt(mean over points of trace(J_k C J_k^T)), ``J_points``' first ``3 n_markers`` rows.
-    """
+    """RMS over configurations and points of the predicted position std [m]: trace(J C J^T)."""
     if covariance.size == 0:
         return 0.0
     if not np.all(np.isfinite(covariance)):
