@@ -144,8 +144,7 @@ NAMED = 0.3
 """Smallest component, in an undetermined unit direction, of an unknown it names."""
 
 CLEAR = 1.01
-"""Margin over the weak threshold above which the singular values alone suffice (the vectors'
-differ by ~1e-16 of the largest): :func:`ill_posed` skips the vectors."""
+"""Margin over the weak threshold above which :func:`ill_posed` skips the singular vectors."""
 
 
 @dataclass(frozen=True)
@@ -166,8 +165,7 @@ class Direction:
 
 
 ILL_STD = 1e-4
-"""Standard deviation [m or rad] under which a weak direction's unknowns are determined all
-the same (noise-free or very precise data)."""
+"""Standard deviation [m or rad] under which a weak direction's unknowns are determined."""
 
 
 def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
@@ -252,8 +250,7 @@ def ill_posed_text(
 
 
 STILL = 1e-9
-"""Singular value [per rotation entry] of the tool's rotation changes under which a direction
-of the tool frame never turns."""
+"""Singular value [per rotation entry] of the tool's rotation changes: a direction never turns."""
 
 
 def still_axes(R: np.ndarray) -> tuple[int, ...]:

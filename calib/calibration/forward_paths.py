@@ -27,15 +27,13 @@ DEPENDENT = 1e-8
 """A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
 
 REFRESH = 0.1
-"""``(I - H_ii)^-1`` follow each step by Sherman-Morrison while every ``1 - q_i^T (I -
-H_ii)^-1 q_i`` exceeds this; else (a leverage near 1: digits lost) they are inverted afresh."""
+"""Least ``1 - q_i^T (I - H_ii)^-1 q_i`` of a step updated by Sherman-Morrison (else inverted)."""
 
 SMALL = 8
 """Blocks of at most this many rows are solved by :func:`spd_solve` (larger: LAPACK)."""
 
 SHRINK = 1e-2
-"""A candidate's sums are updated while its squared norm outside the fit stays above this
-fraction of its value when they were last computed afresh."""
+"""A candidate's sums are computed afresh when its squared norm falls under this fraction."""
 
 
 def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:

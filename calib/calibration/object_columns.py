@@ -12,8 +12,7 @@ import numpy as np
 __all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_moments", "posture_sums"]
 
 UNDETERMINED = 1e-14
-"""Gram eigenvalue, relative to the object's largest, under which its rows do not determine a
-direction (a singular value under 1e-7 of the largest)."""
+"""Relative Gram eigenvalue under which an object's direction is undetermined (1e-7 singular)."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -46,9 +46,7 @@ class Errors(NamedTuple):
 
 
 FACTOR = 5.0
-"""An outlier's error is more than this many times the median configuration error (errors of
-3 components, a point's; for k components, the factor of the same Gaussian tail probability,
-:func:`factor`: 10.6 for a plane's height alone, 6.3 for its two tilts)."""
+"""An outlier's error exceeds this many times the median (3 components; else :func:`factor`)."""
 
 NOISE_FACTOR = 6.0
 """... and more than this many times the instrument noise, when it is given."""

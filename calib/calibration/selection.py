@@ -30,15 +30,13 @@ MIN_GAIN = 0.02
 """Relative decrease of the leave-one-out error a longer prefix of the path must bring."""
 
 ROUNDOFF = 1e-13
-"""Mean squared left-out errors under this fraction of the path's largest are equal (round-off
-after an exact step): the shorter prefix is kept."""
+"""Fraction of the path's largest mean squared left-out error under which errors are equal."""
 
 OUTER_FOLDS = 10
 """Folds of the guard's cross-validation (configuration i in fold i mod OUTER_FOLDS)."""
 
 RICH = 10
-"""Equations (distinct postures times rows) per parameter of the complete fit from which the
-complete fit is a candidate against the selection."""
+"""Equations per parameter from which the complete fit is a candidate against the selection."""
 
 STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 """Prior strengths tried (on unit-norm columns), besides zero."""

@@ -39,15 +39,13 @@ __all__ = [
 ]
 
 COPY = 1e-6
-"""Largest difference [rad, m, px] of every value of a validation row from a training row's
-that makes it a copy (perhaps rounded to 6 decimals; a repeated reading differs by its noise)."""
+"""Largest difference [rad, m, px] of every value of a validation row from a training row's copy."""
 
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
 
 ROUND_OFF = 1e-12
-"""Absolute difference [m, rad] under which two RMS errors are the same (a noise-free fit's
-errors are a few 1e-13)."""
+"""Absolute difference [m, rad] under which two RMS errors are the same (noise-free: 1e-13)."""
 
 ROWS = (
     "validation rows",
@@ -197,8 +195,7 @@ def check_held_out_errors(
 
 
 ORIENTATION_REFUSED = 0.5
-"""RMS orientation error [rad] (29 deg) over which orientations that the registration and the
-calibrated model both miss are refused (:func:`check_fitted_errors`).
+"""RMS orientation error [rad] (29 deg) both the registration and the model missing is refused.
 Rationale and measurements: docs/developers/engine.md#orientation_refused"""
 
 
