@@ -1,7 +1,5 @@
 """Model selection (``auto``): which identifiable parameters the data support.
 
-A prefix of a forward path (block PRESS) on the model linearised at the registration, shrunk
-by a ridge prior, guarded by ``OUTER_FOLDS`` folds, against the complete fit from ``RICH``.
 Rationale and measurements: docs/developers/engine.md#selection
 """
 
@@ -44,11 +42,7 @@ STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 
 @dataclass(frozen=True)
 class Step:
-    """One step of the forward selection.
-
-    The parameter added (``registration`` first); ``loo``: the leave-one-configuration-out RMS
-    error per point after it [m].
-    """
+    """One step of the forward selection: the parameter added, the RMS left-out error [m]."""
 
     name: str
     loo: float
@@ -98,12 +92,10 @@ def ridge_strengths(
     cols: list[list[int]],
     objects: ObjectColumns | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Leave-one-out errors at the best prior strength (0 or ``STRENGTHS``) of several subsets.
+    """Leave-one-out errors ``(b, m)`` at the best prior strength ``(b,)`` of several subsets.
 
-    Subset s fits the first ``fixed`` columns of ``A`` (unit norm, ``(m rows, p)``) free and
-    ``cols[s]`` under the prior, on its configurations ``train[s]``. Returns each subset's
-    squared left-out errors ``(b, m)`` (zero outside it) and strengths ``(b,)``.
-    How: docs/developers/engine.md#selection
+    Subset s fits the first ``fixed`` columns free and ``cols[s]`` under the prior, on its
+    configurations ``train[s]``. How: docs/developers/engine.md#selection
     """
     per = _per_batch(A.shape[0] * A.shape[1], len(train))
     parts = [
@@ -151,11 +143,7 @@ def _ridge_batch(A, e, rows, fixed, train, cols, objects=None) -> tuple[np.ndarr
 
 
 def _ridge_errors(Q, U, wt, r, rows, hat=None) -> np.ndarray:
-    """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
-
-    By blocks of configurations (:data:`BLOCK`); ``hat``: the fixed columns' hat blocks, if
-    given instead of their basis ``Q``; ``r``: the fixed columns' fit's residuals.
-    """
+    """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``."""
     b, n, width = U.shape
     m, S = n // rows, wt.shape[1]
     coef = wt * np.einsum("bnk,bn->bk", U, r)[:, None]  # (b, strengths, width)
@@ -200,10 +188,7 @@ def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
 
 
 def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
-    """``-U diag(wt) U^T`` of each configuration at each strength ``(rows, rows, b, s, m)``.
-
-    The upper triangle computed, mirrored below (half the products).
-    """
+    """``-U diag(wt) U^T`` of each configuration at each strength ``(rows, rows, b, s, m)``."""
     rows = len(Uc)
     i, j = np.triu_indices(rows)
     upper = -(wt @ (Uc[i] * Uc[j]))  # (pairs, b, strengths, m)
@@ -214,11 +199,7 @@ def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
 
 
 def best_prefix(sq: np.ndarray) -> int:
-    """Length of the path's prefix kept, from its squared left-out errors ``(prefixes, m)``.
-
-    The least error (a longer prefix only if ``MIN_GAIN`` better), then the shortest prefix
-    within one paired standard error of it; errors under ``ROUNDOFF`` of the largest are equal.
-    """
+    """Length of the path's prefix kept, from its squared left-out errors ``(prefixes, m)``."""
     mse = sq.mean(axis=1)
     floor = ROUNDOFF * mse[np.isfinite(mse)].max(initial=0.0)
     root = np.sqrt(np.maximum(mse, floor)).tolist()
@@ -238,11 +219,7 @@ def best_prefix(sq: np.ndarray) -> int:
 
 
 def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
-    """The forward selection on each subset ``train`` ``(b, m)``.
-
-    Per subset: the kept candidates (into ``names``) and steps, then the whole path's order and
-    steps; ``forced``: always kept; ``repeats``: :func:`_by_posture`'s spread and counts.
-    """
+    """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps."""
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
@@ -276,11 +253,7 @@ def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarra
 
 
 def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """The rows of each posture once: its repeats' mean, times the square root of their count.
-
-    Also returns each posture's spread about the mean (summed squares, which no model explains:
-    added to the left-out errors) and count; ``groups``: each configuration's posture, or None.
-    """
+    """The rows of each posture once (times the root of its count), and its spread and count."""
     m = len(e)
     if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
         return J, e, (np.zeros(m), np.ones(m))  # numbered by first appearance: same order
@@ -303,10 +276,7 @@ def _unit_columns(J, e, groups, objects):
 
 
 def _guard_models(fixed: int, lists, fits, folds: int) -> list[list[tuple[list[int], float]]]:
-    """The guard's candidates by fold: the registration, then the procedures ``fits``.
-
-    ``fits``: the strengths each chose on the whole data then each fold; ``lists``: their columns.
-    """
+    """The guard's candidates by fold: the registration, then the procedures ``fits``."""
     frame, n = list(range(fixed)), len(fits[0])
     models = [[(frame, 0.0)] * folds]
     for k, fit in enumerate(fits):
@@ -324,12 +294,10 @@ def select(
     groups: np.ndarray | None = None,
     objects: ObjectColumns | None = None,
 ) -> tuple[Selection, np.ndarray]:
-    """Choose the parameters the data support.
+    """Choose the parameters the data support; and each kept one's prior weight.
 
-    ``J`` ``(m, rows, fixed + len(names))`` (the always-free frame and marker columns first)
-    and ``e`` ``(m, rows)`` (measured - model), weighted, at the registration; ``forced``:
-    indices into ``names`` always kept; ``groups``: each configuration's posture, or None.
-    Returns the selection and each kept parameter's prior weight ``sqrt(strength) |column|``.
+    ``J`` ``(m, rows, fixed + len(names))`` (the always-free columns first) and ``e`` ``(m,
+    rows)``, weighted, at the registration; ``forced``: indices into ``names`` always kept.
     """
     points, rows = e.size / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)
@@ -367,11 +335,7 @@ def select(
 
 
 def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
-    """Held-out squared error ``(candidates, folds)`` of each candidate's ridge fit by fold.
-
-    From the held-out rows' moments about the whole data's least-squares fit (no array larger
-    than the data); ``models``: per candidate, per fold, its columns and prior strength.
-    """
+    """Held-out squared error ``(candidates, folds)`` of each candidate's ridge fit by fold."""
     if objects is None:
         x_all = np.linalg.lstsq(A, e, rcond=None)[0]
         ec = e - A @ x_all
@@ -396,10 +360,7 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
 
 
 def _ridge_solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """Ridge normal equations of column subsets ``use`` (prior ``lam``), as lstsq would solve.
-
-    Eigenvalues under ``eps p`` times the largest are dropped; zero off each subset's columns.
-    """
+    """Ridge normal equations of column subsets ``use`` (prior ``lam``), as lstsq would solve."""
     both = use[..., :, None] & use[..., None, :]
     M = np.where(both, N[None], 0.0)
     diag = np.arange(N.shape[1])

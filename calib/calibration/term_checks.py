@@ -37,8 +37,7 @@ class Steps(Protocol[D, S]):
     """A kind's steps on its rows, which :func:`checked` runs."""
 
     @property
-    def rows(self) -> D:
-        """The rows."""
+    def rows(self) -> D: ...
 
     @property
     def diagnose_first(self) -> bool:
@@ -62,8 +61,7 @@ class FileRows(Protocol):
         """Each row's line in its file (the header is line 1), or None (no file)."""
 
     @property
-    def m(self) -> int:
-        """Number of rows."""
+    def m(self) -> int: ...
 
 
 def file_lines(data: FileRows) -> tuple[int, ...]:

@@ -6,7 +6,7 @@ Rationale and measurements: docs/developers/engine.md#validation
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Protocol, Self, TypeVar
+from typing import Protocol, Self, TypeVar
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -72,9 +72,6 @@ class _Rows(Protocol):
 
     @property
     def q(self) -> np.ndarray: ...
-
-    @property
-    def tool(self) -> Any: ...
 
     @property
     def m(self) -> int: ...
