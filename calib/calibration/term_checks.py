@@ -37,7 +37,8 @@ class Steps(Protocol[D, S]):
     """A kind's steps on its rows, which :func:`checked` runs."""
 
     @property
-    def rows(self) -> D: ...
+    def rows(self) -> D:
+        """The rows."""
 
     @property
     def diagnose_first(self) -> bool:
@@ -61,7 +62,8 @@ class FileRows(Protocol):
         """Each row's line in its file (the header is line 1), or None (no file)."""
 
     @property
-    def m(self) -> int: ...
+    def m(self) -> int:
+        """Number of rows."""
 
 
 def file_lines(data: FileRows) -> tuple[int, ...]:
