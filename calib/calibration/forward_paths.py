@@ -27,7 +27,7 @@ DEPENDENT = 1e-8
 """A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
 
 REFRESH = 0.1
-"""Least ``1 - q_i^T (I - H_ii)^-1 q_i`` of a step updated by Sherman-Morrison (else inverted)."""
+"""Least ``1 - q_i^T (I - H_ii)^-1 q_i`` for a Sherman-Morrison update (else inverted afresh)."""
 
 SMALL = 8
 """Blocks of at most this many rows are solved by :func:`spd_solve` (larger: LAPACK)."""
@@ -303,7 +303,7 @@ def residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def _pick(total: np.ndarray, alive: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Per subset, the candidate of least total (else the first live one); and whether else."""
+    """Per subset, the candidate of least total, or the first live one if all are inf (and if)."""
     b = np.arange(total.shape[1])
     j = total.argmin(axis=0)
     stuck = np.isinf(total[j, b])
