@@ -100,12 +100,11 @@ def _count(problem: Problem) -> ProblemAnalysis:
         chains, data = list(tree.chains), prepare_tree(tree, rows, None, 0.0, 0)[0]
     else:
         chains, data = [cast(Chain, t.robot) for t in terms], [t.data for t in terms]
-    options = Options(max_iterations=problem.max_iterations)  # every row, as registered
     run = Run(
         chains,
         data,
         None,
-        options,
+        Options(max_iterations=problem.max_iterations),  # every row, as registered
         guesses[0] if guesses else None,
         shared_planes=problem.shared_planes,
         pose_weight=problem.pose_weight,

@@ -51,14 +51,12 @@ def proposals(start: ChainsState, c: int, data: Measurements, noise: float | Non
     names = start.placements.names()
     wide = chains_model(alone, (0,), range(len(names)), names)
     J = wide.jacobian(alone, np.zeros(wide.size()), ChainsData((data,)))
-    w = state.row_weights()
-    rows = term_checks.file_lines(data)
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],
-        residuals * w,
+        residuals * state.row_weights(),
         lambda r: point_errors(r, data.n_markers),
         noise,
-        rows,
+        term_checks.file_lines(data),
     )
 
 
