@@ -1,16 +1,7 @@
-"""A pixel term among several chains: a camera on a link sees a target on a tool, in pixels.
+"""A pixel term of the joint engine: a camera on a link sees a target on a tool, in pixels.
 
-A kind of term of the joint engine (:func:`~.contact_chains.calibrate_contact_chains`): its
-data are :class:`PixelData`, its chain, rows ``u, v`` [px] and own unknowns (the camera's 6
-and the optional ones of :class:`~.pixel_term.Unknowns`) are :mod:`.pixel_term`'s; the joint
-placement columns are shared with every other term through the joints.
-
-Weight: each pixel enters the joint fit times :attr:`PixelTermState.weight` [m/px] (the
-target's median depth in the camera at the registration over the mean focal length), so the
-refusal rule (``validation.worse``) and the outlier rule (:func:`~.outliers.find_outliers`)
-read millimetres at the target; the report gives both (px and mm).
-
-Registration and outliers: :func:`~.pixel_fit.checked_pixels`.
+Its data (:class:`PixelData`), layout and state; the model is :mod:`.pixel_term`'s, the
+registration :mod:`.pixel_fit`'s. Weight: docs/developers/engine.md#pixel_chain
 """
 
 from __future__ import annotations
@@ -70,7 +61,6 @@ class PixelData:
     what: Unknowns = KNOWN
 
     def __repr__(self) -> str:
-        """One line (what it holds is in the attributes)."""
         return f"<PixelData {self.source}: {self.m} pixels of camera {self.camera.name}>"
 
     @property
@@ -119,11 +109,7 @@ class PixelPart:
         return PixelPart(self.data, self.rows.subset(keep))
 
     def as_data(self) -> PixelData:
-        """The term's data of these rows only, each keeping its line: a run's data again.
-
-        :func:`pixel_part` of it on the chain gives these rows (the outlier loop's subsets
-        and held-out rows, :mod:`.chain_outliers`).
-        """
+        """The term's data of these rows only, each keeping its line: a run's data again."""
         obs = self.data.obs
         lines = term_checks.file_lines(obs)
         keep = np.isin(lines, self.rows.lines)
@@ -172,17 +158,10 @@ class PixelKind:
 
 @dataclass(frozen=True, eq=False)
 class PixelTermState:
-    """A pixel term's state: its chain on the robot, the camera, the target, the lens.
+    """A pixel term's state: its chain's MDH model, the camera, the target, the lens.
 
-    The joint fit's, and a term's fitted alone (:mod:`.pixel_fit`, weight 1: rows in px).
-
-    Attributes:
-        mdh: The chain's MDH model on the perturbed robot.
-        camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
-        target: The target points in the tool frame ``(k, 3)`` [m].
-        lens: The intrinsics.
-        weight: Metres per pixel at the target (the rows' weight in the joint fit) [m/px].
-        what: The optional unknowns.
+    ``camera``: the optical frame in the chain's base link ``(4, 4)`` [m]; ``target``: the
+    points in the tool frame ``(k, 3)`` [m]; ``weight``: the rows' weight [m/px at the target].
     """
 
     mdh: MDHModel
@@ -198,11 +177,7 @@ class PixelTermState:
         return PixelKind(len(self.target), len(self.lens.parameters), self.what)
 
     def seen(self, part: PixelPart, kin=None) -> np.ndarray:
-        """The rows' points in the camera frame ``(m, 3)`` [m].
-
-        ``kin``: the chain's frames at the rows' joints (the last the tool's; a joint fit's),
-        or None: its MDH model's.
-        """
+        """The rows' points in the camera frame ``(m, 3)`` [m] (``kin``: None: the MDH model's)."""
         if kin is None:
             kin = self.mdh.kinematics(part.rows.q)
         return camera_points(kin, self.camera, self.target[part.rows.point])[0]
@@ -216,7 +191,7 @@ class PixelTermState:
         return -self.pixel_errors(part, kin) * self.weight
 
     def moved(self, x: np.ndarray) -> PixelTermState:
-        """The state with its own unknowns (:attr:`kind`'s) at ``x`` (as :mod:`.pixel_term`)."""
+        """The state with its own unknowns (:attr:`kind`'s) at ``x``."""
         step = np.eye(4)
         step[:3, :3], step[:3, 3] = rotation_matrix(x[3:6]), x[:3]
         target, lens, what, start = np.array(self.target, dtype=float), self.lens, self.what, 6
@@ -241,17 +216,9 @@ class PixelTermState:
 def pixel_block(
     placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift, kin
 ):
-    """Weighted rows of a pixel term: its own columns and the free placement directions.
+    """Weighted rows of a pixel term: ``(m, 2, own)`` by ``x`` and ``(m, 2, free)`` by ``lift``.
 
-    The own columns are the derivatives by ``x`` itself (:meth:`PixelTermState.moved`'s,
-    from ``start``). ``C = C0 [R(w) | v]``: d/dv is the step's translation column times
-    ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``. The mounting
-    ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
-    ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
-
-    ``state`` at ``x``, ``start`` at x = 0; ``lift``: the free directions ``(free, 6 J)``;
-    ``kin``: :meth:`~.placements.Placements.frames` at the rows. Returns ``(m, 2, own)`` and
-    ``(m, 2, free)`` [m-equivalent per unit].
+    ``state`` at ``x``, ``start`` at x = 0. Derivation: docs/developers/engine.md#pixel_chain
     """
     J = pixel_jacobian(placements, state, chain, part.rows, len(lift) > 0, kin)[1]
     n = placements.y.size
@@ -269,13 +236,9 @@ def pixel_block(
 
 
 def with_tool(placements, chain: Chain, state, D: np.ndarray, labels):
-    """A pixel term's offered directions with its tool's placement (a target known on it).
+    """A pixel term's offered directions with its last joint's six (a target known on its tool).
 
-    A chain's MDH directions cover its joint rows, not the tool's own placement, which a
-    measured or contact term's own unknowns hold. A target known on its link (no mounting
-    unknown) sees it: the six components of the chain's last joint (its origin carries the
-    tool: ``panda_joint1``'s in ``panda_link0`` for a board on the Panda's root) are offered
-    too (the rank test keeps those determined). Other terms: ``D`` and ``labels`` as given.
+    Why: docs/developers/engine.md#pixel_chain. Other terms: ``D`` and ``labels`` as given.
     """
     if not isinstance(state, PixelTermState) or state.what.mount:
         return D, labels
@@ -322,7 +285,7 @@ def pixel_part(chain: Chain, data: PixelData) -> PixelPart:
 
 
 def pixel_parts(chains, data) -> list:
-    """The terms' data with each :class:`PixelData` as its rows on its chain (the rest kept)."""
+    """The terms' data, each :class:`PixelData` as its rows on its chain."""
     return [
         pixel_part(c, d) if isinstance(d, PixelData) else d
         for c, d in zip(chains, data, strict=True)

@@ -1,8 +1,6 @@
 """What cameras' pixels determine (``calib analyze --measure pixels``).
 
-The rank of the pixel rows' Jacobian (:func:`~.pixel_term.pixel_jacobian`'s columns: each
-camera's 6, the chains' joint placements, with ``--params complete`` the target's mounting)
-on the nominal robot at random postures where the cameras see the target.
+The rank of the rows' Jacobian on the nominal robot at postures where the cameras see the target.
 """
 
 from __future__ import annotations
@@ -19,11 +17,7 @@ __all__ = ["pixel_count"]
 
 
 def _stacked(names, cameras, rows, chains, placements: Placements, target, what) -> np.ndarray:
-    """The rows' Jacobian ``(r, c)``: each camera's 6 (by name), the joints', the mounting.
-
-    A camera with targets on several links (one chain each) has one placement: each row moves
-    its camera's 6 columns.
-    """
+    """The rows' Jacobian ``(r, c)``: each camera's 6 (one per name), the joints', the mounting."""
     blocks = []
     models = placements.chain_models(tuple(chains))
     for chain, camera, part, mdh in zip(chains, cameras, rows, models, strict=True):
@@ -41,20 +35,11 @@ def _stacked(names, cameras, rows, chains, placements: Placements, target, what)
 def pixel_count(
     chains, cameras: tuple[PixelCamera, ...], target: Target, joints, q, params: str | None
 ) -> dict:
-    """The unknowns cameras' pixels determine at postures where they see the target.
+    """The unknowns cameras' pixels determine (``n_base``) at postures ``q`` [rad or m].
 
-    Args:
-        chains: Each camera's chain (its link to the target's tool), one robot; a target on
-            several links: one chain per link, the camera given once per chain.
-        cameras: Each chain's camera, placed.
-        target: The target points in the tool frame [m].
-        joints: The columns of ``q``: every joint of the chains.
-        q: The postures ``(m, len(joints))`` [rad or m].
-        params: ``complete``: the target's mounting is an unknown too.
-
-    Returns:
-        ``n_base`` (the rank of the rows' Jacobian on the nominal robot), ``n_unknowns`` and
-        the rows, postures and cameras counted.
+    ``chains``: each camera's chain to the target's tool (a target on several links: a chain
+    per link, the camera given once per chain); ``joints``: ``q``'s columns; ``params``
+    ``complete``: the target's mounting is an unknown too.
     """
     views = tuple((camera.name, camera.placement, camera.intrinsics) for camera in cameras)
     obs = simulate_cameras(chains, views, target, joints, q)

@@ -1,35 +1,8 @@
 """The pixel kind: a camera fixed to a link sees target points fixed to a tool, in pixels.
 
-A camera is fixed to a link of the robot (the root link for a camera in the cell, a flange for
-a camera on the wrist, a head link). Its chain runs from that link (the chain's base frame)
-to the tool that carries the target (the root link for a target in the cell: the chain then
-traverses the arm backwards). A target point ``X`` in the tool frame is seen at::
-
-    p = C^-1 T(q) X,    pixel = pinhole(p)
-
-with ``T(q)`` the tool in the link's frame on the robot with its joint placement errors
-(:mod:`.placements`), ``C`` the camera's optical frame (z forward, x right, y down) in the
-link's frame. The residual is the reprojection error ``pixel - observed`` [px].
-
-Unknowns, in this order (the columns of :func:`pixel_jacobian`):
-
-* the camera's placement: ``C -> C [R(w) | v]`` (``v`` [m], ``w`` [rad], in the camera
-  frame), 6;
-* every joint placement error of the chain's joints (``<joint>:x ... :rz``, 6 each);
-* with ``mount``, the target's mounting on its link: ``X -> R(w) X + v`` for every point
-  (``v`` [m], ``w`` [rad], in the tool frame), 6 (the tool's own placement, which no joint
-  placement holds: ``--params complete``; by default the target file's points are exact);
-* with ``refine_targets``, the target points beyond the first three (3 each [m]): moving the
-  whole target rigidly is moving the tool, and its size is the only scale the pixels have,
-  so the first three points stay as given (the gauge);
-* with ``refine_intrinsics``, the camera's intrinsics (``fx, fy, cx, cy`` [px] and the
-  distortion coefficients, :attr:`~calib.identification.pinhole.Pinhole.parameter_names`);
-  otherwise they stay fixed.
-
-:class:`Unknowns` says which of the optional blocks are unknowns. The Jacobian is analytic:
-the pinhole's derivative by the point
-(:meth:`~calib.identification.pinhole.Pinhole.projection`) times the point's motion per
-unknown (:func:`~.placements.joint_twists` for the joint placements).
+``pixel = pinhole(C^-1 T(q) X)``; the unknowns (the columns of :func:`pixel_jacobian`): the
+camera's 6, the joint placements, the optional blocks of :class:`Unknowns` (the target's
+mounting, target points, intrinsics). Model and units: docs/developers/engine.md#pixel_term
 """
 
 from __future__ import annotations
@@ -92,10 +65,7 @@ KNOWN = Unknowns()
 
 
 def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points ``X`` ``(m, 3)`` of the tool, in the camera ``(m, 3)`` and the base link [m].
-
-    ``kin``: each row's kinematics of the chain; ``camera``: its frame ``(4, 4)`` [m].
-    """
+    """Points ``X`` ``(m, 3)`` of the tool, in the camera ``(m, 3)`` and the base link [m]."""
     p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
     return (p_link - camera[:3, 3]) @ camera[:3, :3], p_link
 
@@ -108,13 +78,10 @@ def pixel_jacobian(
     robot: bool = True,
     kin=None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The residuals ``(m, 2)`` and their derivatives by every unknown ``(m, 2, c)``.
+    """The residuals ``pixel - observed`` ``(m, 2)`` [px] and their derivatives ``(m, 2, c)``.
 
-    Columns: the unknowns in the module's order, the mounting's 6 always, the target points'
-    and the intrinsics' those of ``state.what`` (``state``'s MDH model unused). ``robot``
-    False: the joint placement columns are zero (a fit moving none); ``kin``:
-    :meth:`~.placements.Placements.frames` at the rows, if made. ``pixel - observed`` [px],
-    its derivatives [px per m, rad or px].
+    Columns in the module's order, the mounting's 6 always, the target points' and the
+    intrinsics' per ``state.what``; ``robot`` False: the joint placement columns are zero.
     """
     if kin is None:
         kin = placements.frames(chain, rows.q)
@@ -148,12 +115,9 @@ def free_columns(
 ) -> tuple[int, ...]:
     """The columns of ``W`` ``(r, c)`` the rows determine, in order of preference.
 
-    ``W``'s columns: each camera's 6, the joint placements, the mounting, the target points,
-    each camera's intrinsics. They are scaled to unit length first (metres and radians,
-    pixels per each). Without ``what.mount``, the target's mounting is known (its columns
-    are never free). Preferred: the cameras, the mounting, the joints' offsets, their other
-    components, the target points, the intrinsics (the camera and the mounting absorb what
-    the chain's end joints also explain).
+    ``W``'s columns: each camera's 6, the joint placements, the mounting (never free without
+    ``what.mount``), the target points, the intrinsics.
+    Order of preference: docs/developers/engine.md#pixel_term
     """
     norms = np.linalg.norm(W, axis=0)
     used = norms > 0
