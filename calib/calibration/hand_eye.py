@@ -17,10 +17,9 @@ import numpy as np
 from ..kinematics.robot import Chain
 from ..measurements.pixels import PixelObservations, Target
 from .contact_chains import calibrate_contact_chains
-from .pixel_chain import PixelData
+from .pixel_chain import PixelCamera, PixelData, Unknowns
 from .pixel_chain_result import PixelChain
 from .pixel_fit import MAX_EVALUATIONS
-from .pixel_term import PixelCamera, Unknowns
 from .registration import rigid_fit
 
 __all__ = ["HandEye", "hand_eye"]

@@ -18,8 +18,15 @@ from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
 from . import determined, diagnosis, outliers, term_checks
 from .contact_chains_model import ChainsData, ChainsState
-from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .pixel_term import camera_points, free_columns, pixel_jacobian
+from .pixel_chain import (
+    PixelKind,
+    PixelPart,
+    PixelTermState,
+    camera_points,
+    free_columns,
+    pixel_block,
+    pixel_jacobian,
+)
 from .placements import Placements
 from .registration import nearest_rotation
 from .solve import fit, unconverged
@@ -88,7 +95,7 @@ def _camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.nda
 
 @dataclass(frozen=True, eq=False)
 class _Steps:
-    """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian` as a model of one term."""
+    """The columns ``free`` of :func:`~.pixel_chain.pixel_jacobian` as a model of one term."""
 
     free: tuple[int, ...]
 
