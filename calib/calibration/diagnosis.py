@@ -75,10 +75,7 @@ def _mistakes(data, chain, joints_only: bool) -> Iterator[tuple[str, object]]:
 
 
 def _swapped_coordinates(data) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for coordinate columns swapped: in every point, or one's.
-
-    In every point alike, one swap is tried (a mirror: any other undoes it up to a rotation).
-    """
+    """(description, corrected data) for coordinate columns swapped: in every point, or one's."""
     k = data.position.shape[1] // 3
     mirrored = "mirrored points (two of the x, y, z columns swapped, or a left-handed frame)"
     pairs: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 2))

@@ -1,9 +1,6 @@
 """Hand-eye calibration from pixels, the robot's joint geometry taken as exact.
 
-OpenCV's ``cv2.calibrateHandEye`` problem (``AX = XB``) by every corner's reprojection error:
-the camera's placement on its link (6) and the target's mounting on its link (6) unknown, the
-joint engine's problem of one pixel term at the level ``frames``.
-
+OpenCV's ``cv2.calibrateHandEye`` problem by every corner's reprojection error.
 Rationale and measurements: docs/developers/engine.md#hand_eye
 """
 

@@ -81,10 +81,7 @@ def by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
 
 
 def shared_frame(states: list, train: list) -> list:
-    """The instrument terms' frame and markers registered together in closed form.
-
-    The other states are returned as they are; held markers kept.
-    """
+    """The instrument terms' frame and markers registered together in closed form (others kept)."""
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
         return states
@@ -166,10 +163,7 @@ def instrument_lines(parts) -> list[str]:
 
 
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
-    """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m].
-
-    ``parts``: a tree calibration's ``result.chains``; ``paths``: each tool's joints.
-    """
+    """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m]."""
     q = np.asarray(q, dtype=float)
     return np.stack(
         [c.state.inner.predict(q[:, path])[0][:, 0] for c, path in zip(parts, paths, strict=True)],

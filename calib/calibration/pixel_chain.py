@@ -168,6 +168,7 @@ class PixelData:
     what: Unknowns = KNOWN
 
     def __repr__(self) -> str:
+        """One line (what it holds is in the attributes)."""
         return f"<PixelData {self.source}: {self.m} pixels of camera {self.camera.name}>"
 
     @property
@@ -343,10 +344,7 @@ def pixel_block(
 
 
 def with_tool(placements, chain: Chain, state, D: np.ndarray, labels):
-    """A pixel term's offered directions with its last joint's six (a target known on its tool).
-
-    Why: docs/developers/engine.md#pixel_chain. Other terms: ``D`` and ``labels`` as given.
-    """
+    """A pixel term's offered directions with its last joint's six (a target known on its tool)."""
     if not isinstance(state, PixelTermState) or state.what.mount:
         return D, labels
     j = placements.joints.index(chain.joint_names[-1])

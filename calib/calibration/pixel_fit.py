@@ -1,6 +1,7 @@
 """A pixel term's registration and outliers: its camera placed, the term fitted alone.
 
 Both fits are the engine's (:func:`~.solve.fit`) on one chain, the rows in pixels.
+How and why: docs/developers/engine.md#pixel_fit
 """
 
 from __future__ import annotations
@@ -245,10 +246,7 @@ def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
 
 
 def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
-    """Each row's error [m at the target] on the term's own fit, the held-out rows', why stopped.
-
-    Rationale: docs/developers/engine.md#pixel_fit
-    """
+    """Each row's error [m at the target] on the term's own fit, the held-out rows', why stopped."""
     placements = Placements.of((chain,))
     kin = placements.frames(chain, part.rows.q)
     J = pixel_jacobian(placements, state, chain, part.rows, kin=kin)[1]
@@ -327,10 +325,7 @@ class _Camera:
 
 
 def checked_pixels(chain: Chain, part: PixelPart, held):
-    """A pixel term's registration and outliers, as :func:`~.measured_term.checked_measured`.
-
-    Outliers: rows seen from behind, and the shared rule on the term's own fit (mm at the target).
-    """
+    """A pixel term's registration and outliers, as :func:`~.measured_term.checked_measured`."""
     what = f"unknowns of camera {part.data.camera.name}'s placement"
     determined.check_equations(
         part.m,
