@@ -27,10 +27,7 @@ from .determined import determined_columns
 from .placements import Placements, joint_twists, offset_component
 
 __all__ = [
-    "CAMERA_NAMES",
     "GAUGE_POINTS",
-    "KNOWN",
-    "MOUNT_NAMES",
     "PixelCamera",
     "PixelData",
     "PixelKind",
