@@ -1,8 +1,6 @@
-"""The result of every calibration (one robot, one URDF), and one chain touching's layout.
+"""The result of every calibration (one robot, one URDF), and a chain touching's part of it.
 
-A fit of one contact term keeps the report's layout users' scripts, ``calib predict`` and
-``load_calibrated`` read for one chain touching (``shape`` ``contacts``); one chain measured
-by an instrument keeps a chain's (:mod:`.measured_report`).
+One term keeps its shape's report layout (``contacts`` here, a chain's: :mod:`.measured_report`).
 """
 
 from __future__ import annotations
@@ -55,18 +53,14 @@ _T = TypeVar("_T")
 
 @dataclass(frozen=True, eq=False)
 class ChainContacts(TermPart):
-    """One chain touching's part of the result.
+    """One chain touching's part of the result (besides :class:`~.contact_result.TermPart`'s).
 
-    Attributes (besides :class:`~.contact_result.TermPart`'s: ``chain``, ``source``, ``stats``,
-    ``held_source``, ``compliance`` fitted with ``elastic``):
-        plane_id: The plane's (or the fixed pose's) id.
-        plane: The plane in the chain's base frame ``(4, 4)``, z = normal (a
-            ``fixed-pose`` chain: the fixed pose of its contact frame).
+    Attributes:
+        plane_id, plane: The first object's id and pose in the base frame ``(4, 4)`` (a
+            plane's z: its normal; a ``fixed-pose`` chain's: the pose of its contact frame).
         contact: The contact frame in the tool frame ``(4, 4)``.
-        nominal: The chain's nominal MDH model.
-        calibrated: Its MDH model on the calibrated robot.
+        nominal, calibrated: The chain's MDH model, nominal and on the calibrated robot.
         weight: Weight of its tilt rows [m/rad].
-        kind: The chain's contact kind (``plane`` or ``fixed-pose``).
         outliers: Its touches set aside after its registration.
         placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
             origin at its touches' contact points, projected), or None: :attr:`plane`.
@@ -119,7 +113,7 @@ class ChainContacts(TermPart):
 
 
 def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
-    """One chain touching (``result``): ``fields`` of its layout (a copy), format 2's keys."""
+    """One chain touching's report fields (a copy of ``fields``) and format 2's keys."""
     part = result.chains[0]
     chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
@@ -294,7 +288,7 @@ class ContactChainsCalibration(Result, ChainView):
         return out
 
     def _of(self, kind: type[_T]) -> tuple[_T, ...]:
-        """The terms of one kind (:class:`ChainContacts`, :class:`MeasuredChain`, ...)."""
+        """The terms of one kind."""
         return tuple(c for c in self.chains if isinstance(c, kind))
 
     def _instrument(self) -> tuple[MeasuredChain, ...]:
@@ -402,10 +396,8 @@ class ContactChainsCalibration(Result, ChainView):
     def _object_names(self) -> dict[int, dict[str, str]]:
         """Each touching term's objects' names in the report, by term (``id``) and object id.
 
-        Terms that touch distinct objects of one id (each arm its own ``table``: planes not
-        shared) name theirs ``<id>@<tool>`` (``@<base>-><tool>`` where they share their tool),
-        as the parameters two chains name alike; a plane shared (one base, one plane) keeps
-        its id.
+        Distinct objects of one id (each arm its own ``table``) are ``<id>@<tool>``
+        (``@<base>-><tool>`` where terms share their tool); a plane shared keeps its id.
         """
         parts = self._of(ChainContacts)
         seen = [(c, i, F) for c in parts for i, F in c.objects().items()]
@@ -441,7 +433,7 @@ class ContactChainsCalibration(Result, ChainView):
         return out
 
     def _format2(self, origins: dict) -> dict:
-        """Format 2's keys that format 3 replaced (``origins``: ``joint_origins``)."""
+        """Format 2's keys that format 3 replaced."""
         if self.shape == "tree":  # a tree's own keys of format 2
             return instrument_format2(self._instrument())
         return {
@@ -456,11 +448,7 @@ class ContactChainsCalibration(Result, ChainView):
         }
 
     def _headline(self) -> str:
-        """The summary's first line: the chains, the terms' objects, what is fitted, determined.
-
-        The objects (``2 planes``, ``1 camera``): a contact term's by their kind (a
-        plane-point's plane is a plane), a plane shared by chains once.
-        """
+        """The summary's first line: the chains, the objects by kind, what is fitted, determined."""
         names = self._object_names()
         objects: dict[str, set[str]] = {}
         for c in self._of(ChainContacts):
@@ -540,10 +528,9 @@ class ContactChainsCalibration(Result, ChainView):
 
 
 def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
-    """The note of an accepted fit that moved no joint placement (``frames`` not asked).
+    """The note of an accepted fit that moved no joint placement (``frames`` not asked), or None.
 
-    Its URDF (:meth:`~ContactChainsCalibration.urdf`) is the nominal robot's, with only the
-    registered frames a measured term or a camera adds; ``fixed``: ``fix`` named some.
+    ``fixed``: ``fix`` named some.
     """
     if result.free or result.elastic or result.params == "frames" or not result.accepted:
         return None
