@@ -184,14 +184,12 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         )
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
-        one = instrument and len(chains) == 1  # its MDH directions span what it sees
-        identifiable = (
-            len(kept)
-            if one
-            else model.size()
-            if offer == "components"
-            else len(structural(wide, start, flush))
-        )
+        if instrument and len(chains) == 1:  # its MDH directions span what it sees
+            identifiable = len(kept)
+        elif offer == "components":
+            identifiable = model.size()
+        else:
+            identifiable = len(structural(wide, start, flush))
     clock.append(time.perf_counter())
     given = () if asked is None else asked.free
     converged = []
@@ -216,10 +214,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
 
 
 def _finished(r: Registered, result, converged: list[bool], identifiable: int):
-    """The last fit's ``result`` with the run's level, counts, ``stalled`` flag and notes.
-
-    A last fit that did not converge first stops on data no calibration explains.
-    """
+    """The last fit's ``result`` with the run's level, counts and notes (stalled: checked)."""
     opts = r.run.options
     if not converged[-1]:
         for part in result.chains:
@@ -332,10 +327,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
 
 
 def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | None:
-    """The parameter ``auto`` chose to hold and its combination, or None (no hold would help).
-
-    The one of largest component in the weakest combination ``found``, not ``given``.
-    """
+    """The parameter ``auto`` chose (not ``given``) to hold and its combination, or None."""
     chosen = set(() if selection is None else selection.kept) - set(given)
     named = [
         [(abs(w), n) for n, w in zip(d.names, d.weights, strict=True) if n in chosen] for d in found
@@ -419,77 +411,40 @@ def _fit(
 
 
 def _assemble(r: Registered, solution, model, selection, notes, clock) -> ContactChainsCalibration:
-    """The result of a run's fit: each term's part, the notes, the stage times.
-
-    Refused here for a held-out error only (:func:`_assessed` adds the rest); data no
-    calibration explains stop here (a DataError).
-    """
-    start, train, held, plane_of = r.start, r.train, r.held, r.plane_of
-    elastic = (r.load, r.torques)
+    """The result of a run's fit, refused for a held-out error only (:func:`_assessed`: more)."""
     fitted = solution.fit
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's (the solver's: _assessed)
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     for c, chain in enumerate(state.chains):
-        s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
-        if isinstance(s, MeasuredState | PixelTermState):
-            cov = solution.covariance()[0]
-            own = fitted.model.own_columns(c)
-            std = np.sqrt(np.diag(cov))[own]
-            part = (
-                pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
-                if isinstance(s, PixelTermState)
-                else measured_part(chain, d, h, s0, s, std, c + 1, elastic[1], notes)
-            )
-            if fitted.converged:  # else refused, or fitted again (auto): fit_registered
-                _check_fitted(part, r.run.options.noise)
-            if h is not None:
-                refusal = refusal or held_out_refusal(part.stats, chain, "errors")
-            notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
+        s, s0, d, h = state.states[c], r.start.states[c], r.train[c], r.held[c]
+        if not isinstance(s, MeasuredState | PixelTermState):
+            part, why = _touching(r, c, s0, s, fitted.converged, notes)
+            refusal = refusal or why
             parts.append(part)
             continue
-        load, torque = elastic if c == 0 else (None, (None, None))
-        torques = {id(d): torque[0], id(h): torque[1]}  # the fitted state's deflect
-
-        def stat(st, rows, fitted=s, torques=torques):
-            return gap_stats(st, rows.q, rows.ids, torques[id(rows)] if st is fitted else None)
-
-        stats = part_stats(stat, s0, s, d, h)
-        if fitted.converged:  # a fit that stalled is refused, or fitted again (auto)
-            validation.check_fitted_errors(stats, None, None, d.source, chain)
-        if h is not None:
-            near, far = (
-                1e-3 * stats[f"{k}_registration"].length_rms_mm for k in ("train", "held_out")
-            )
-            validation.check_held_out_errors(near, far, h.source, validation.TOUCHES)
-            refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
-        objects = contact_objects(s, d, torque[0])
-        parts.append(
-            ChainContacts(
-                chain,
-                d.source,
-                d.contacts[0],
-                objects[d.contacts[0]],
-                s.contact,
-                s0.mdh,
-                s.mdh,
-                s.weight,
-                stats,
-                s.kind,
-                placed=objects,
-                compliance=compliance,
-                load=None if compliance is None else load,
-                readings=() if compliance is None or d.readings is None else d.readings.names,
-            )
+        own = fitted.model.own_columns(c)
+        std = np.sqrt(np.diag(solution.covariance()[0]))[own]
+        part = (
+            pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
+            if isinstance(s, PixelTermState)
+            else measured_part(chain, d, h, s0, s, std, c + 1, r.torques, notes)
         )
+        if fitted.converged:  # else refused, or fitted again (auto): fit_registered
+            _check_fitted(part, r.run.options.noise)
+        if h is not None:
+            refusal = refusal or held_out_refusal(part.stats, chain, "errors")
+        notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
+        parts.append(part)
     notes += contact_elastic.none_kept_note(parts[0], r.comp, r.load)
     joints = [name for c in state.chains for name in c.joint_names]
     shared = tuple(n for n in dict.fromkeys(joints) if joints.count(n) > 1)
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
     spans = zip(stages, clock[:-1], clock[1:], strict=True)
-    planes = {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
+    planes = {
+        p for p, s in zip(r.plane_of, state.states, strict=True) if isinstance(s, ContactState)
+    }
     return ContactChainsCalibration(
         chains=tuple(parts),
         placements=state.placements,
@@ -502,3 +457,41 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         notes=tuple(notes),
         timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
     )
+
+
+def _touching(r: Registered, c: int, s0, s: ContactState, converged: bool, notes):
+    """Touching chain c's part of a fit's result, and its held-out refusal (or None)."""
+    chain, d, h = r.start.chains[c], r.train[c], r.held[c]
+    load, torque = (r.load, r.torques) if c == 0 else (None, (None, None))
+    torques = {id(d): torque[0], id(h): torque[1]}  # the fitted state's deflect
+
+    def stat(st, rows):
+        return gap_stats(st, rows.q, rows.ids, torques[id(rows)] if st is s else None)
+
+    stats = part_stats(stat, s0, s, d, h)
+    if converged:  # a fit that stalled is refused, or fitted again (auto)
+        validation.check_fitted_errors(stats, None, None, d.source, chain)
+    refusal = None
+    if h is not None:
+        near, far = (1e-3 * stats[f"{k}_registration"].length_rms_mm for k in ("train", "held_out"))
+        validation.check_held_out_errors(near, far, h.source, validation.TOUCHES)
+        refusal = held_out_refusal(stats, chain, "gaps")
+    compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
+    objects = contact_objects(s, d, torque[0])
+    part = ChainContacts(
+        chain,
+        d.source,
+        d.contacts[0],
+        objects[d.contacts[0]],
+        s.contact,
+        s0.mdh,
+        s.mdh,
+        s.weight,
+        stats,
+        s.kind,
+        placed=objects,
+        compliance=compliance,
+        load=None if compliance is None else load,
+        readings=() if compliance is None or d.readings is None else d.readings.names,
+    )
+    return part, refusal

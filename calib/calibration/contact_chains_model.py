@@ -25,7 +25,7 @@ from .model import MeasuredKind, compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
 
-__all__ = ["ChainsData", "ChainsModel", "ChainsState", "joint_rows", "on_models", "padded"]
+__all__ = ["ChainsData", "ChainsModel", "ChainsState", "joint_motions", "on_models", "padded"]
 
 
 def padded(a: np.ndarray, rows: int) -> np.ndarray:
@@ -70,7 +70,7 @@ def _with(s, **changes):
     return dataclasses.replace(s, **changes)
 
 
-def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """The tool side's linear (at the base origin) and angular velocity ``(m, 3, k)`` per joint.
 
     Each joint turns about (slides along) its frame's z in ``kin``, signed by ``path``'s
@@ -81,11 +81,6 @@ def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray
     ang = np.where(slide, 0.0, z)
     lin = np.where(slide, z, np.cross(kin.p[:, joints], ang))
     return np.swapaxes(lin, 1, 2), np.swapaxes(ang, 1, 2)
-
-
-def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
-    """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``."""
-    return s.motion_rows(kin, d, *_joint_motions(path, kin, joints))
 
 
 def _deflection(s) -> np.ndarray:
@@ -325,7 +320,7 @@ class ChainsModel:
         if self.free:
             out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
         if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
-            motions = _joint_motions(state.placements.path(chain), kin, list(self.compliance))
+            motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
             gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]  # (m, 1, k)
             out.append(rows_of(*motions) * gain)
         return out

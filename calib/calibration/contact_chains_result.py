@@ -157,9 +157,8 @@ class ContactChainsCalibration(Result, ChainView):
         chains: Each chain's part, in the order given.
         placements: The fitted joint placement errors (one per URDF joint on any chain).
         shared: Joints on two chains or more (fitted once for all of them).
-        planes: The touching chains' sets of objects: one per chain (whatever the planes,
-            points or poses it touches), a plane shared by chains once (format 2's
-            ``planes``; the summary counts the objects themselves).
+        planes: The touching chains' sets of objects, a plane shared by chains once (format
+            2's ``planes``; the summary counts the objects themselves).
         free: The placement components fitted (``<joint>:x`` ... ``:rz``).
         selection: The automatic choice (``auto``), or None.
         refusal: Why the model must not be used, or None.
@@ -170,16 +169,13 @@ class ContactChainsCalibration(Result, ChainView):
         std: Their standard deviations (NaN where undefined).
         fitted: The names of ``estimate`` (``free``, or every component after a polish).
         solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
-        unknowns: The unknowns the data determine (the structural rank at the nominal
-            robot): the objects', contacts' and measured terms' own, and the joint placement
-            directions kept (``free``).
+        unknowns: The unknowns the data determine at the nominal robot: the objects',
+            contacts' and measured terms' own, and the joint placement directions ``free``.
         shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
             instrument (:mod:`.instrument`).
-        identifiable: The rank of the rows' Jacobian over every unknown and every joint
-            placement component, at the nominal robot (flush touches): what the data
-            determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
-            combinations of shared joints that no chain's MDH rows name: the polish finds
-            them).
+        identifiable: What the data determine whatever the parameters offered: the rank of
+            the rows' Jacobian by every unknown and joint placement component, at the nominal
+            robot (``unknowns`` at ``complete`` may miss combinations of shared joints).
         inputs: The files it read (:func:`~.delivery.read_files`), which ``write`` never
             overwrites; empty: those the report names.
         stalled: A fit made did not converge (the last, or one ``auto`` held a parameter

@@ -24,7 +24,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
 from .chain_counts import sampled
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_rows
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_motions
 from .contact_checks import check_level_equations
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
@@ -208,7 +208,7 @@ def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsDa
         for _ in range(2):
             kin = start.placements.frames(chain, q)
             g = s.gaps(q, d.ids, None, kin) * s.row_weights()
-            J = joint_rows(path, s, d, kin, list(range(chain.n)))
+            J = s.motion_rows(kin, d, *joint_motions(path, kin, list(range(chain.n))))
             q[reached] -= (np.linalg.pinv(J) @ g[..., None])[reached, :, 0]
         parts.append(dataclasses.replace(d, q=q))
     first = parts[0]

@@ -42,11 +42,7 @@ __all__ = ["Registered", "Run", "determined_unknowns", "drawn", "register_contac
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Run:
-    """One run of the joint engine: its terms and every argument, written once.
-
-    The fields are :func:`~.contact_chains.calibrate_contact_chains`'s arguments, the options
-    one checked :class:`~.options.Options`.
-    """
+    """One run of the joint engine: :func:`~.contact_chains.calibrate_contact_chains`'s args."""
 
     chains: Sequence[Chain]
     data: Sequence[ContactData | Measurements | PixelData]

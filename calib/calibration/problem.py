@@ -81,9 +81,8 @@ class Term:
         return "position" if self.data.position.shape[1] == 3 else "markers"
 
     def __repr__(self) -> str:
-        r = self.robot
-        tools = ", ".join(r.tool_frames)
-        return f"Term({r.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
+        tools = ", ".join(self.robot.tool_frames)
+        return f"Term({self.robot.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
 
 
 @dataclass(frozen=True)
