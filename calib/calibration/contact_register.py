@@ -65,12 +65,8 @@ def _check(run: Run) -> None:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
     for c in chains:
         check_chain(c, "each chain")
-    first = chains[0]
-    for c in chains[1:]:
-        if c.urdf_resolved != first.urdf_resolved or tuple(c.model.names) != tuple(
-            first.model.names
-        ):
-            raise InvalidArgumentError("the chains must be chains of one robot (one URDF)")
+    if len({(c.urdf_resolved, tuple(c.model.names)) for c in chains}) > 1:
+        raise InvalidArgumentError("the chains must be chains of one robot (one URDF)")
     pairs = [(c.base_frame, c.tool_frame) for c in chains]
     if len(set(pairs)) != len(pairs):
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
