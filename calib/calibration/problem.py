@@ -1,8 +1,8 @@
 """A calibration problem: the terms recorded on one robot, and the options of one fit.
 
 ``calibrate(Problem((Term(left_arm, left_touches), Term(right_arm, right_touches))))``;
-``calibrate(chain, data, **options)`` is the problem of one term. Which options apply to
-which shape is one table, :data:`~.options.APPLIES`.
+``calibrate(chain, data, **options)`` is the problem of one term. Terms, shapes and the
+options of each: docs/developers/engine.md#problem
 """
 
 from __future__ import annotations
