@@ -226,21 +226,17 @@ class ContactChainsCalibration(Result, ChainView):
         if not self.elastic:
             return {}
         part = self.chains[0]
-        document = (
-            chain_compliance_document(
+        if isinstance(part, MeasuredChain):
+            frame = np.eye(4) if on_robot else self.measurement_to_base
+            document = chain_compliance_document(
                 self.chain,
                 self.state.compliance,
                 str(out),
                 tool_frame=self.urdf_tool_frame,
-                measured=(
-                    np.eye(4) if on_robot else self.measurement_to_base,
-                    self.urdf_markers,
-                    self.marker_links,
-                ),
+                measured=(frame, self.urdf_markers, self.marker_links),
             )
-            if isinstance(part, MeasuredChain)
-            else compliance_document(part, str(out))
-        )
+        else:
+            document = compliance_document(part, str(out))
         return {compliance_path(out): json_text(document)}
 
     def entries(self) -> list[dict]:
