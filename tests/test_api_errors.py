@@ -404,6 +404,13 @@ def test_results_and_data_print_in_one_line():
         campaign.measurements: "<Measurements <simulated ur5>: 12 rows of 6 joints, position, "
         "1 marker>",
         touches: "<ContactCampaign ur5: 12 plane touches of 2 planes, seed 0>",
+        campaign.truth: "<SimulationTruth ur5: base_link -> tool0, measure position, 33 "
+        "complete parameters perturbed (1 mm, 1 mrad), noise 0.05 mm, seed 1>",
+        calib.simulate(CHAIN, 12, "pose", noise_mm=0.05, noise_mrad=0.1).truth: "<Simulation"
+        "Truth ur5: base_link -> tool0, measure pose, 33 complete parameters perturbed (1 mm, "
+        "1 mrad), noise 0.05 mm, 0.1 mrad, seed 0>",
+        touches.truth: "<ContactTruth ur5: 2 planes (table1, table2), 33 complete parameters "
+        "perturbed (1 mm, 1 mrad), joint noise 0 mrad, seed 0>",
         touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 planes, 6 joints>",
         calib.simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
         "tools (FL_FOOT, FR_FOOT), ",
