@@ -173,7 +173,9 @@ def test_the_lines_the_prose_names_are_the_printed_ones(name, monkeypatch, capsy
     code cells before it print (run here in-process, the notebooks' folder as the cwd; the
     tracker's ``held out (FILE), registration only`` is named without its file)."""
     nb = nbformat.read(NOTEBOOKS_DIR / name, as_version=4)
-    k = next(i for i, c in enumerate(nb.cells) if c.cell_type == "markdown" and "**held" in c.source)
+    k = next(
+        i for i, c in enumerate(nb.cells) if c.cell_type == "markdown" and "**held" in c.source
+    )
     monkeypatch.chdir(NOTEBOOKS_DIR)
     namespace: dict = {}
     for cell in nb.cells[:k]:
