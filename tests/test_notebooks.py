@@ -160,3 +160,31 @@ def test_notebook_without_the_real_data_says_where_to_run_it(path, tmp_path, mon
     monkeypatch.chdir(tmp_path)
     with pytest.raises(FileNotFoundError, match="notebooks/ folder of a clone"):
         exec(compile(code, path.name, "exec"), {})
+
+
+SUMMARY_PROSE = ["02_calibrate_from_a_tracker.ipynb", "04_humanoid_contacts.ipynb"]
+
+
+@pytest.mark.parametrize("name", SUMMARY_PROSE)
+def test_the_lines_the_prose_names_are_the_printed_ones(name, monkeypatch, capsys):
+    """Notebook 04's prose named the lines **held out, registration only** and **held out,
+    calibrated**, a tracker's summary's: a contact fit prints ``held_out_registration`` and
+    ``held_out``. The first cell naming summary lines in bold names lines of the text the
+    code cells before it print (run here in-process, the notebooks' folder as the cwd; the
+    tracker's ``held out (FILE), registration only`` is named without its file)."""
+    nb = nbformat.read(NOTEBOOKS_DIR / name, as_version=4)
+    k = next(
+        i for i, c in enumerate(nb.cells) if c.cell_type == "markdown" and "**held" in c.source
+    )
+    monkeypatch.chdir(NOTEBOOKS_DIR)
+    namespace: dict = {}
+    for cell in nb.cells[:k]:
+        if cell.cell_type == "code":
+            code = "\n".join(line for line in cell.source.splitlines() if not line.startswith("%"))
+            exec(compile(code, name, "exec"), namespace)
+    out = capsys.readouterr().out  # "held out (FILE), registration only" is named without FILE
+    printed = {re.sub(r" \([^)]*\)", "", line).strip() for line in out.splitlines()}
+    named = re.findall(r"\*\*(.+?)\*\*", nb.cells[k].source)
+    assert named, nb.cells[k].source
+    missing = [n for n in named if not any(line.startswith(n + " ") for line in printed)]
+    assert not missing, (missing, sorted(printed))

@@ -340,6 +340,15 @@ class ContactTruth:
     error_mrad: float
     noise_mrad: float
 
+    def __repr__(self) -> str:
+        """One line (the errors, the true model and the objects are attributes)."""
+        objects = counted(len(self.frames), f"{self.kind.object_name}s")
+        return (
+            f"<ContactTruth {self.robot}: {objects} ({', '.join(self.frames)}), "
+            f"{len(self.params)} {self.params.label} parameters perturbed ({self.error_mm:g} mm, "
+            f"{self.error_mrad:g} mrad), joint noise {self.noise_mrad:g} mrad, seed {self.seed}>"
+        )
+
     def to_dict(self) -> dict:
         """JSON-ready record (radians, metres)."""
         key = f"{self.kind.object_name}s"

@@ -77,6 +77,17 @@ class SimulationTruth:
     noise_mrad: float
     markers: np.ndarray | None = None
 
+    def __repr__(self) -> str:
+        """One line (the errors and the true model are attributes, ``to_dict()`` all of it)."""
+        angles = any(row >= 3 for row in getattr(self.measurement, "rows", ()))
+        noise = f"{self.noise_mm:g} mm" + (f", {self.noise_mrad:g} mrad" if angles else "")
+        return (
+            f"<SimulationTruth {self.robot}: {self.base_frame} -> {self.tool_frame}, measure "
+            f"{self.measurement.label}, {len(self.params)} {self.params.label} parameters "
+            f"perturbed ({self.error_mm:g} mm, {self.error_mrad:g} mrad), noise {noise}, "
+            f"seed {self.seed}>"
+        )
+
     def to_dict(self) -> dict:
         """JSON-ready record of the truth (radians, metres)."""
         return {
