@@ -23,6 +23,7 @@ from .residuals import ResidualStats
 from .solve import FitState
 
 __all__ = [
+    "HELD_OUT_RATIO",
     "ORIENTATION_REFUSED",
     "RANK_TOL",
     "ROUND_OFF",
@@ -56,6 +57,10 @@ ROWS = (
 
 TOUCHES = ("held-out touches", "contact", "touched another object, or on another robot?")
 """Held-out touches far off (:func:`check_held_out_errors`' words)."""
+
+HELD_OUT_RATIO = 3.0
+"""How many times the fitted rows' RMS the held-out rows' must exceed to be of another frame.
+Rationale and measurements: docs/developers/engine.md#held_out_ratio"""
 
 
 def worse(after: float, before: float, unit: float = 1.0) -> bool:
@@ -173,7 +178,7 @@ def check_held_out(data, held) -> None:
 def check_held_out_errors(
     fitted: float, held: float, source: str, words: tuple[str, str, str] = ROWS
 ) -> None:
-    """Stop on held-out errors far above any geometric error while the data fit well.
+    """Stop on held-out errors far above any geometric error and the fitted rows' errors.
 
     ``fitted``, ``held``: the rows' RMS position errors (touches: gaps) [m]; ``words``:
     :data:`ROWS` or :data:`TOUCHES`.
@@ -182,7 +187,7 @@ def check_held_out_errors(
         DataError: The held-out error is suspect (measured in another frame, or of another
             robot) and the fitted one is not; names ``source`` (the held-out data).
     """
-    if suspect(held, None) and not suspect(fitted, None):
+    if suspect(held, None) and not suspect(fitted, None) and held > HELD_OUT_RATIO * fitted:
         rows, missed, cause = words
         raise DataError(
             source,
