@@ -209,3 +209,44 @@ def test_one_urdf_is_one_file_whatever_its_name(tmp_path, monkeypatch):
     other = load_robot("robot.urdf", "base_link", "forearm_link")
     with pytest.raises(InvalidArgumentError, match="one URDF, got 2"):
         Problem((Term(first, data), Term(other, other_data)))
+
+
+def test_a_results_shape_is_its_problems_and_other_shapes_attributes_are_missing():
+    """One chain touching is shape ``contacts`` for the problem, the result and its report
+    alike (the result said ``chains``); a measured chain's attributes on it are missing as
+    Python means it (``hasattr`` False) with a CalibError that says where its errors are."""
+    chain = load_robot("ur5")
+    touches = simulate_contacts(chain, 30, "plane", seed=2).data
+    problem = Problem((Term(chain, touches),))
+    result = calibrate(problem)
+    assert problem.shape == result.shape == result.to_dict()["shape"] == "contacts"
+    wrist = load_robot("ur5", chain.base_frame, "wrist_3_link")
+    other = simulate_contacts(wrist, 30, "plane", seed=3).data
+    two = Problem((Term(chain, touches), Term(wrist, other)))
+    assert two.shape == calibrate(two).shape == "chains"
+    assert not hasattr(result, "validation") and not hasattr(result, "robot")
+    for error in (calib.InvalidArgumentError, AttributeError):
+        with pytest.raises(error, match=r"^only a chain measured .* result.chains \(its errors: "):
+            result.points(touches.q[:1])
+
+
+@pytest.mark.parametrize(
+    ("make", "said"),
+    [
+        (
+            lambda t, c, d: Term(c, d, marker=(0, 0, 0.1)),
+            "unknown argument marker; a term's guess=",
+        ),
+        (lambda t, c, d: Problem((t,), "auto"), "its options by name"),
+        (lambda t, c, d: Problem(t, t), "by position, as one tuple"),
+        (lambda t, c, d: Problem((t,), folds=5), "unknown argument folds; K folds: calib.cross"),
+    ],
+)
+def test_wrong_arguments_of_a_term_or_problem_are_one_line_errors(make, said):
+    """calibrate's keyword for a term's guess, an option by position, terms not in one tuple,
+    cross_validate's folds: one line naming the way, not Python's TypeError."""
+    chain = load_robot("ur5")
+    touches = simulate_contacts(chain, 12, "plane", seed=2).data
+    with pytest.raises(calib.InvalidArgumentError, match=said) as info:
+        make(Term(chain, touches), chain, touches)
+    assert "\n" not in str(info.value)

@@ -11,6 +11,7 @@ the planes and contact frames (Pinocchio alone).
 from __future__ import annotations
 
 import json
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pinocchio as pin
@@ -301,8 +302,12 @@ def test_a_measured_term_must_measure_from_the_robot(talos_data):
     nominal, data = talos_data
     off = load_robot(URDF, "base_link", CAMERA[1])
     rows = simulate(off, 12, "position", seed=1).measurements
-    what = "base frame 'base_link' is not on the robot"
+    what = "base frame 'base_link' is the robot's root link, not fixed to a link"
     _one_line_error(InvalidArgumentError, what, [*nominal[:2], off], [*data[:2], rows])
+    moved = load_robot(URDF, "head_2_link", CAMERA[1])  # the camera's link, a joint moves it
+    rows = simulate(moved, 12, "position", seed=1).measurements
+    what = "base frame 'head_2_link' is the link of the moving joint head_2_joint, not fixed"
+    _one_line_error(InvalidArgumentError, what, [*nominal[:2], moved], [*data[:2], rows])
 
 
 def test_rows_of_the_wrong_kind_are_refused(talos_data):
@@ -594,3 +599,17 @@ def test_two_measured_terms_keep_their_own_frames_and_markers_in_the_report():
     names = [p["name"] for p in result.to_dict()["parameters"]]
     assert len(names) == len(set(names)) == 2 * (6 + 3)
     assert {"term1.frame.x", "term2.frame.x", "term1.marker1.z", "term2.marker1.z"} <= set(names)
+
+
+def test_a_fit_that_keeps_no_joint_placement_says_where_the_camera_goes(talos_data):
+    """Noise-free touches and camera points of the nominal TALOS: nothing to fit, so the note
+    says what the URDF gets: the camera's frame in its fixed joint (rgbd_optical_joint, the
+    URDF's), not with world_link (an instrument's, which a term on the robot does not take)."""
+    nominal, data = talos_data
+    result = calibrate_contact_chains(nominal, data)
+    (note,) = [n for n in result.notes if n.startswith("no joint placement was fitted")]
+    joints = ET.parse(nominal[2].urdf_path).getroot().iter("joint")
+    joint = [j for j in joints if j.find(f"child[@link='{CAMERA[0]}']") is not None]
+    assert [j.get("type") for j in joint] == ["fixed"]
+    assert f"the measurement frame in its fixed joint {joint[0].get('name')})" in note
+    assert "world_link" not in note

@@ -445,8 +445,10 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
     planes = {
         p for p, s in zip(r.plane_of, state.states, strict=True) if isinstance(s, ContactState)
     }
+    one_touching = len(parts) == 1 and isinstance(parts[0], ChainContacts)
     return ContactChainsCalibration(
         chains=tuple(parts),
+        shape="contacts" if one_touching else "chains",
         placements=state.placements,
         shared=shared,
         planes=len(planes),

@@ -171,8 +171,9 @@ class ContactChainsCalibration(Result, ChainView):
         solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
         unknowns: The unknowns the data determine at the nominal robot: the objects',
             contacts' and measured terms' own, and the joint placement directions ``free``.
-        shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
-            instrument (:mod:`.instrument`).
+        shape: The problem's (``Problem.shape``): ``chain``, ``tree`` (a tree's tools
+            measured by one instrument: :mod:`.instrument`), ``contacts`` (one chain
+            touching) or ``chains``.
         identifiable: What the data determine whatever the parameters offered: the rank of
             the rows' Jacobian by every unknown and joint placement component, at the nominal
             robot (``unknowns`` at ``complete`` may miss combinations of shared joints).
@@ -331,7 +332,7 @@ class ContactChainsCalibration(Result, ChainView):
         fields = self._fields(origins)
         if frame is not None:  # one chain measured by an instrument
             fields, legacy = chain_report(self, fields, world_link, on_robot)
-        elif len(self.chains) == 1 and isinstance(self.chains[0], ChainContacts):
+        elif self.shape == "contacts":
             fields, legacy = _single_contact_report(self, fields)
         else:
             legacy = self._format2(origins)
@@ -533,11 +534,13 @@ def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
         else f"params '{result.params}'{' with fix' if fixed else ''} left none to fit"
     )
     frames = []
-    if result._of(MeasuredChain):
-        frames.append("the markers as links on the tool, the measurement frame with world_link")
+    for part in result._of(MeasuredChain):
+        where = f"in its fixed joint {part.joint}" if part.joint else "with world_link"
+        frames.append(f"the markers as links on the tool, the measurement frame {where}")
     if result._of(PixelChain):
         frames.append("the cameras' placements")
-    urdf = f"with only the registered frames added ({'; '.join(frames)})" if frames else "as is"
+    added = "; ".join(dict.fromkeys(frames))
+    urdf = f"with only the registered frames added ({added})" if frames else "as is"
     hint = (
         "measure more or more varied postures (auto keeps what held-out errors support); "
         "params='complete' fits every parameter the data determine, noise included (check it "

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import pinocchio as pin
+
 from ..core.words import counted
 from ..exceptions import CalibError, DataError, InvalidArgumentError
 from ..kinematics.mdh import from_chain
@@ -38,9 +40,16 @@ def measuring_joint(chain: Chain) -> str:
     try:
         return base_joint(root, chain).get("name", "")
     except CalibError:
+        frame = chain.model.frames[chain.base_id]
+        placed = chain.model.frames[frame.parentFrame]
+        where = (
+            f"the link of the moving joint {placed.name}"
+            if placed.type == pin.FrameType.JOINT
+            else "the robot's root link"
+        )
         raise InvalidArgumentError(
-            f"a measured term's base frame '{chain.base_frame}' is not on the robot (not fixed "
-            f"to a link by a fixed joint): measure from a frame on the robot (a head camera), "
+            f"a measured term's base frame '{chain.base_frame}' is {where}, not fixed to a link "
+            f"by a fixed joint: measure from a frame fixed on the robot (a head camera's), "
             f"or calibrate an instrument outside it with calib.calibrate(chain, measurements)"
         ) from None
 

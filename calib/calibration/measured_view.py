@@ -32,7 +32,15 @@ from .report import parameter_entries
 from .residuals import ResidualStats, Validation
 from .solve import Fit, condition, covariance
 
-__all__ = ["ChainView", "MeasuredChain", "Solution", "measured_part", "residual_stats", "world_of"]
+__all__ = [
+    "ChainView",
+    "MeasuredChain",
+    "NotOneChainError",
+    "Solution",
+    "measured_part",
+    "residual_stats",
+    "world_of",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,6 +185,10 @@ def world_of(
     return None if world_link is None or frame is None else (world_link, frame)
 
 
+class NotOneChainError(InvalidArgumentError, AttributeError):
+    """A chain measured by an instrument's attribute asked of another fit (``hasattr``: False)."""
+
+
 @dataclass(frozen=True, eq=False)
 class Solution:
     """The joint fit's final fit and prior weights, kept for its uncertainty."""
@@ -221,11 +233,12 @@ class ChainView:
     folds: tuple[Any, ...]
 
     def one_chain(self) -> MeasuredChain:
-        """The one term of a chain measured by an instrument (else InvalidArgumentError)."""
+        """The one term of a chain measured by an instrument (else :class:`NotOneChainError`)."""
         part = self.chains[0]
         if self.shape != "chain" or not isinstance(part, MeasuredChain) or part.joint:
-            raise InvalidArgumentError(
-                f"a fit of shape '{self.shape}': a chain measured by an instrument's attribute"
+            raise NotOneChainError(
+                f"only a chain measured by an instrument has this attribute, not a fit of shape "
+                f"'{self.shape}': each term's part is in result.chains (its errors: .stats)"
             )
         return part
 

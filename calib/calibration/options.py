@@ -33,6 +33,7 @@ __all__ = [
     "Options",
     "check_tree_level",
     "checked_arguments",
+    "checked_init",
     "options_given",
 ]
 
@@ -226,6 +227,35 @@ def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
         return function(*args, **kwargs)
 
     return checked
+
+
+def checked_init(usage: str, hints: dict[str, str]) -> Callable[[type[R]], type[R]]:
+    """A class decorator: wrong arguments of the class are a one-line InvalidArgumentError.
+
+    It says ``usage`` (how the class is called) and, for an unknown keyword, its hint in
+    ``hints`` (what the user meant, by keyword) if any.
+    """
+
+    def decorate(cls: type[R]) -> type[R]:
+        init = cls.__init__
+        signature = inspect.signature(init)
+
+        @functools.wraps(init)
+        def checked(self, *args, **kwargs) -> None:
+            try:
+                signature.bind(self, *args, **kwargs)
+            except TypeError:
+                unknown = sorted(set(kwargs) - set(signature.parameters))
+                said = [f"unknown {noun(len(unknown), 'arguments')} {', '.join(unknown)}"]
+                said += [hints[u] for u in unknown if u in hints]
+                told = f": {'; '.join(said)}" if unknown else ""
+                raise InvalidArgumentError(f"{usage}{told}") from None
+            init(self, *args, **kwargs)
+
+        cls.__init__ = checked  # type: ignore[method-assign]
+        return cls
+
+    return decorate
 
 
 def _argument_error(name: str, signature: inspect.Signature, kwargs, exc: TypeError) -> str:

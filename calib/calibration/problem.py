@@ -17,12 +17,19 @@ from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
-from .options import APPLIES, SHAPE_LABELS, Options
+from .options import APPLIES, SHAPE_LABELS, Options, checked_init
 from .pixel_chain import PixelData
 
 __all__ = ["Problem", "Term", "check_weighed"]
 
 
+_GUESS = "a term's guess= is calibrate's marker= (measurements) or contact= (touches)"
+
+
+@checked_init(
+    "Term takes the robot and the data by position, validate= and guess= by name",
+    {"marker": _GUESS, "markers": _GUESS, "contact": _GUESS},
+)
 @dataclass(frozen=True, eq=False)
 class Term:
     """One chain (or tree) of the robot and what was recorded on it.
@@ -85,6 +92,11 @@ class Term:
         return f"Term({self.robot.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
 
 
+@checked_init(
+    "Problem takes its terms by position, as one tuple, and its options by name: "
+    "Problem((term1, term2), params='complete')",
+    {"folds": "K folds: calib.cross_validate(problem, folds=K)"},
+)
 @dataclass(frozen=True)
 class Problem(Options):
     """Terms of one robot fitted together, and the options of the fit.
