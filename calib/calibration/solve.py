@@ -218,7 +218,8 @@ def solved(model, start, state, x, J, f, status: int, message: str, counts, kin=
     finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
     if not finite:
         message = "non-finite parameters or residuals"
-    return Fit(model, start, state, x, J, f, status > 0 and finite, status, message, *counts, kin)
+    ok, (njev, nfev) = status > 0 and finite, counts
+    return Fit(model, start, state, x, J, f, ok, status, message, njev, nfev, kin)
 
 
 def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fit[_Model, _State]:
