@@ -218,8 +218,9 @@ def solved(model, start, state, x, J, f, status: int, message: str, counts, kin=
     finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
     if not finite:
         message = "non-finite parameters or residuals"
-    ok, (njev, nfev) = status > 0 and finite, counts
-    return Fit(model, start, state, x, J, f, ok, status, message, njev, nfev, kin)
+    converged = status > 0 and finite
+    njev, nfev = counts
+    return Fit(model, start, state, x, J, f, converged, status, message, njev, nfev, kin)
 
 
 def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fit[_Model, _State]:
