@@ -1,15 +1,7 @@
 """A contact term's registration, checks, holdout and guess: mistakes, outliers, refusal.
 
-The checks of measured data (:mod:`calib.calibration.validation`,
-:mod:`calib.calibration.term_checks`) on the kind's gaps: the registration
-(:func:`registration`, the angle weight estimated when not given);
-the usual mistakes (:mod:`calib.calibration.diagnosis`) when it leaves a length gap above
-``diagnosis.SUSPECT``; outliers (:mod:`calib.calibration.outliers`, each object keeping
-``MIN_TOUCHES``); refusal of a fit whose held-out or rank checks fail
-(:func:`held_out_refusal`, :func:`rank_refusal`). What the touches need beside the joint
-engine's model: the contact frame's guess (:func:`contact_frame`), the touches held out by
-object (:func:`split_contacts`), the objects as reported (:func:`contact_objects`), the
-equations a level needs and the held-out touches that are another object's (the checks).
+The measured data's checks (:mod:`.term_checks`) on the kind's gaps, and what the touches need
+beside the joint engine's model. Rationale: docs/developers/engine.md#contact_checks
 """
 
 from __future__ import annotations
@@ -77,17 +69,11 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
 
 
 POSTURE_TOL = 1e-2
-"""Postures whose joints agree within this [rad or m] (angles modulo a turn: their cosines and
-sines) are one posture (:func:`~calib.measurements.postures.posture_groups`)."""
+"""Postures whose joints agree within this [rad or m] (angles modulo a turn) are one posture."""
 
 
 def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
-    """A note when the contact leaves the chain finitely many postures (None otherwise).
-
-    A chain with no more joints than the contact has conditions (a 6-joint arm holding a fixed
-    pose) cannot move while the contact holds: its touches repeat its inverse-kinematics
-    branches, and held-out touches at the fitted postures check nothing else.
-    """
+    """A note when the contact leaves the chain finitely many postures (None otherwise)."""
     kind = train.kind
     if chain.n > kind.n_rows:
         return None
@@ -110,9 +96,8 @@ def registration(
 ) -> ContactState:
     """The nominal robot with the objects and the contact frame registered (closed form).
 
-    ``guess``: the contact frame's in the tool frame ``(4, 4)``; ``weight``: the angle rows'
-    [m/rad], or None: estimated from the gaps (:func:`.weighting.estimate_weight`,
-    ``WEIGHT_ROUNDS`` registrations); ``first``: the registration at ``DEFAULT_WEIGHT``, if made.
+    ``weight`` [m/rad], or None: estimated (``WEIGHT_ROUNDS`` registrations); ``first``: the
+    registration at ``DEFAULT_WEIGHT``, if made.
     """
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
@@ -132,10 +117,7 @@ def registration(
 
 
 def length_errors(state: ContactState, data: ContactData, torque=None) -> outliers.Errors:
-    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms.
-
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints, or None.
-    """
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms."""
     g = state.gaps(data.q, data.ids, torque)
     angle = np.array(state.kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
@@ -209,15 +191,7 @@ def _registrable(data: ContactData) -> bool:
 def checked_registration(
     chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None, held=None
 ):
-    """Outliers set aside, diagnosis (the touches, and validation touches), registration.
-
-    The steps of every kind of term (:func:`~.term_checks.checked`, at the default weight),
-    then the touches kept registered at ``weight`` (None: estimated); the held-out touches'
-    outliers set aside by the same rule (:func:`~.term_checks.held_out`; each held-out
-    object must be one of the registration's), a chain the contact leaves finitely many
-    postures noted (:func:`_isolated_postures`), and the touches kept must determine the
-    objects and the contact frame. Returns what :func:`~.measured_term.checked_measured`
-    does (the outliers' gaps: under the registration that set them aside).
+    """Outliers set aside, diagnosis, registration: :func:`~.measured_term.checked_measured`'s.
 
     Raises:
         DataError: A held-out touch of an object the training touches do not touch, or too
@@ -258,17 +232,12 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
 
 
 FEW_POSTURES = 8
-"""Fewest postures a held-out verdict rests on without a note (:func:`few_postures`): an RMS
-over n postures is known to about 1/sqrt(2n) of itself (a chi distribution's n degrees of
-freedom; a posture's rows err together), over 25% under 8 (27% at 7, 41% at 3, 71% at 1)."""
+"""Fewest postures a held-out verdict rests on without a note.
+Rationale: docs/developers/engine.md#few_postures"""
 
 
 def few_postures(data, what: str) -> str | None:
-    """A note where ``data`` (held-out rows; a fold's training rows) hold under FEW_POSTURES.
-
-    Postures counted once (:func:`~calib.measurements.postures.count`; touches: by object).
-    ``what``: the sentence's start before the count.
-    """
+    """A note where ``data`` hold under FEW_POSTURES postures; ``what``: the text's start."""
     n = count_postures(data.q, data.ids if isinstance(data, ContactData) else None)
     if n >= FEW_POSTURES:
         return None
@@ -279,12 +248,8 @@ def few_postures(data, what: str) -> str | None:
 
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
-    """Why a fit with a rank-deficient Jacobian at its solution is refused, or None.
+    """Why a fit whose data rows ``J`` (past ``fixed`` columns) are rank-deficient is refused.
 
-    ``J``: the data rows' (no prior rows: the data must determine what is fitted);
-    ``fixed``: its first columns, not tested (the objects' and contacts' unknowns). The rule:
-    unit-norm columns, smallest singular value over ``validation.RANK_TOL`` of the largest
-    (:func:`~.solve.condition`).
     Rationale and measurements: docs/developers/engine.md#rank_refusal
     """
     if condition(J[:, fixed:]) < 1 / validation.RANK_TOL:
@@ -298,9 +263,7 @@ def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
 def plane_groups(chains, data, shared: bool, instrument: bool = False) -> tuple[int, ...]:
     """Index of each chain's object: one per chain, or shared by base frame and plane id.
 
-    The pixel terms of one camera (its targets on several links: one term per link) share
-    their object, the camera, whatever ``shared``; shared planes need one object per chain;
-    with ``instrument``, every measured term's frame is one object (:mod:`.instrument`).
+    One camera's pixel terms share it always; with ``instrument``, every measured term's frame.
     """
     several = [d for d in data if isinstance(d, ContactData) and len(d.contacts) != 1]
     if shared and several:
@@ -328,11 +291,7 @@ def plane_groups(chains, data, shared: bool, instrument: bool = False) -> tuple[
 
 
 def check_level_equations(train, unknowns: int, level: str) -> None:
-    """One chain's touches must give more equations than a level's unknowns (not ``auto``).
-
-    Distinct touches count (a touch recorded again adds no equation); the selection of
-    ``auto`` keeps what the touches support. A DataError otherwise.
-    """
+    """DataError unless one chain's distinct touches give more equations than a level's unknowns."""
     if level == "auto" or len(train) != 1 or not isinstance(train[0], ContactData):
         return
     d = train[0]
@@ -342,12 +301,9 @@ def check_level_equations(train, unknowns: int, level: str) -> None:
 
 
 def contact_frame(contact) -> np.ndarray:
-    """The contact frame ``(4, 4)`` in the tool frame from a 4x4, 3 or 6 numbers (m, rad).
+    """The contact frame ``(4, 4)`` in the tool frame from a 4x4, ``X Y Z [RX RY RZ]`` or None.
 
-    Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame. A point
-    farther from the tool frame than a target may be from its link
-    (:data:`~calib.measurements.pixels.MAX_TARGET_DISTANCE`: millimetres?) or an angle
-    beyond a turn (degrees?) is refused.
+    InvalidArgumentError: beyond ``MAX_TARGET_DISTANCE`` (mm?) or a turn (degrees?).
     """
     if contact is None:
         return np.eye(4)
@@ -386,7 +342,6 @@ def split_contacts(
     """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
 
     A touch recorded several times (the same posture on the same object) is held out whole.
-    ``holdout`` in (0, 1) (:class:`~.options.Options` checks it).
     """
     rng = np.random.default_rng([seed, 21])
     ids = np.array(data.ids)
