@@ -1,18 +1,7 @@
 """The unknown constants of contacts: the objects touched and the contact frame, and the gaps.
 
-A touch is the tool's placement ``(R_t, p_t)`` in the chain's base frame. The contact frame
-``C`` is fixed to the tool (in the tool frame); the object ``F_k`` it touches (a plane, point
-or pose, named by an id) is fixed in the base frame. The contact frame's placement in the
-object's frame, ``(R, p) = F_k^-1 [R_t, p_t] C``, goes to the contact kind
-(:mod:`calib.identification.contacts`), which alone defines the gap
-(``kind.residual(R, p)``) and its rows (``kind.jacobian_rows(W6, R)``, ``W6`` the
-displacement of the contact origin [m] and the rotation [rad] in the object's frame): every
-gap calib fits, registers, reports or refuses on is evaluated here, from the kind.
-
-The unknowns: each object moves as ``F' = F [Exp(r), t]`` and the contact frame as
-``C' = C [Exp(r), t]``, the 6-vector ``(t, r)`` in their own frames zero except at the kind's
-``object_dofs`` and ``contact_dofs`` (what the touches see: a plane's height and tilts, a
-point's position, a pose's six; a flush contact's tilts, a tip's position).
+Every gap is the kind's, of ``(R, p) = F_k^-1 [R_t, p_t] C``.
+Rationale: docs/developers/engine.md#contact_frames
 """
 
 from __future__ import annotations
@@ -41,11 +30,7 @@ def _moved(T: np.ndarray, v: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 
 def _twist_maps(v: np.ndarray) -> np.ndarray:
-    """Local twist of the frames moved by ``v`` ``(..., 6)`` per unit of it ``(..., 6, 6)``.
-
-    Exact at any ``v``: the moved frame turns by ``Jr(r) dr`` about its own axes and its origin
-    moves by ``Exp(-r) dt`` in them.
-    """
+    """Local twist ``(Exp(-r) dt, Jr(r) dr)`` of frames moved by ``v`` per unit ``(..., 6, 6)``."""
     A = np.zeros((*v.shape[:-1], 6, 6))
     A[..., :3, :3] = rotation_matrix(-v[..., 3:])
     A[..., 3:, 3:] = left_jacobian(-v[..., 3:])  # Jr(r) = Jl(-r)
@@ -54,14 +39,9 @@ def _twist_maps(v: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ContactFrames:
-    """The contact frame and the objects of a contact kind.
+    """A kind's contact frame ``(4, 4)`` (tool frame) and objects ``(K, 4, 4)`` (base frame).
 
-    Attributes:
-        kind: The contact kind.
-        contact: The contact frame in the tool frame ``(4, 4)``.
-        objects: The planes, points or poses in the base frame ``(K, 4, 4)`` (a plane's z:
-            its normal; a point: its origin, base axes).
-        ids: The objects' ids ``(K,)``.
+    A plane's z is its normal; a point is an origin with the base axes.
     """
 
     kind: Contact
@@ -114,11 +94,7 @@ class ContactFrames:
     def relative(
         self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The contact frame in its object's frame: rotations ``(m, 3, 3)``, origins ``(m, 3)``.
-
-        From the tool's ``Rt`` ``(m, 3, 3)`` and ``pt`` ``(m, 3)`` [m] in the base frame;
-        ``index``: each touch's object (:meth:`index`).
-        """
+        """The contact frame in its object's frame ``(m, 3, 3)``, ``(m, 3)``, from the tool's."""
         F = self.objects[index]
         FRt = np.swapaxes(F[:, :3, :3], 1, 2)
         R = FRt @ Rt @ self.contact[:3, :3]
@@ -132,13 +108,9 @@ class ContactFrames:
     def parts(
         self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray, w: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The kind's gap rows, each weighted by ``w`` (:func:`row_weights`), by block.
+        """The kind's weighted gap rows by block: own object's ``(m, rows, o)``, contact's.
 
-        Columns: the unknowns of these frames moved by ``x`` from a start (:meth:`moved`),
-        at that start's ``x``; ``(R, p)`` are :meth:`relative` of the moved frames. Each
-        touch's own object's ``(m, rows, o)`` (the other objects' columns are zero) and the
-        contact's ``(m, rows, len(contact_dofs))``, shared by every touch
-        (:func:`~.contact_blocks.dense` makes them one matrix).
+        Columns of these frames' unknowns at ``x`` (:meth:`moved`); ``(R, p)``: :meth:`relative`.
         """
         m, o = len(p), len(self.kind.object_dofs)
         A = _twist_maps(self._twists(x))  # the objects' and the contact's at once
@@ -161,10 +133,7 @@ class ContactFrames:
         return self.kind.jacobian_rows(own, R) * rows, self.kind.jacobian_rows(shared, R) * rows
 
     def centred(self, Rt: np.ndarray, pt: np.ndarray, index: np.ndarray) -> ContactFrames:
-        """The planes, each origin its touches' contact points' centroid (other kinds: self).
-
-        ``Rt``, ``pt``, ``index``: as :meth:`relative`'s.
-        """
+        """The planes, each origin its touches' contact points' centroid (other kinds: self)."""
         if self.kind.object_name != "plane":
             return self
         normals = self.objects[:, :3, 2]

@@ -1,11 +1,7 @@
 """A contact term's state: the robot, the contact frame and the objects touched.
 
-A state is the robot's MDH model (frame -1: the chain's base frame) with the contact frame
-and the objects (:class:`~calib.calibration.contact_frames.ContactFrames`, which defines
-every kind's gap). Its own unknowns x are the objects' and the contact's
-(:meth:`ContactState.moved`), their Jacobian the kind's rows of :meth:`ContactFrames.parts`
-(:meth:`ContactState.blocks`); the robot's columns (joint placement directions, compliances
-``q' = q + c tau``) are the joint engine's (:mod:`.contact_chains_model`).
+Its own unknowns are the objects' and the contact's; the robot's columns are the joint
+engine's (:mod:`.contact_chains_model`).
 """
 
 from __future__ import annotations
@@ -29,13 +25,9 @@ __all__ = ["ContactState"]
 
 @dataclass(frozen=True, eq=False)
 class ContactState:
-    """The robot, the contact frame and the objects touched.
+    """The robot (``mdh``, frame -1 the base), the contact frame and the objects (``frames``).
 
-    Attributes:
-        mdh: The robot's MDH model (frame -1: the chain's base frame).
-        frames: The contact frame (tool frame) and the objects (base frame).
-        weight: Weight of the angle rows [m/rad].
-        compliance: Joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid joints).
+    ``weight``: the angle rows' [m/rad]; ``compliance`` ``(n,)`` [rad/(N m) or m/N], or None.
     """
 
     mdh: MDHModel
@@ -61,11 +53,7 @@ class ContactState:
         return q + np.asarray(torque, dtype=float) * self.compliance
 
     def kinematics(self, q: np.ndarray, torque: np.ndarray | None = None) -> Kinematics:
-        """The robot's frames at configurations ``q`` ``(m, n)``.
-
-        ``torque`` (gravity torques ``(m, n)`` [N m or N]) deflects compliant joints
-        (:meth:`joints`); a rigid state ignores it.
-        """
+        """The robot's frames at ``q`` ``(m, n)``, deflected by gravity ``torque`` [N m or N]."""
         return self.mdh.kinematics(self.joints(q, torque))
 
     def gaps(
@@ -75,11 +63,7 @@ class ContactState:
         torque: np.ndarray | None = None,
         kin: Kinematics | JointFrames | None = None,
     ) -> np.ndarray:
-        """The kind's gap ``(m, rows)`` [m, rad] of touches ``q`` of objects ``ids``.
-
-        ``ids`` may be left out with one object. ``kin``: the robot's frames at the touches
-        (the last the tool's; a joint fit's), or None: :meth:`kinematics`.
-        """
+        """The kind's gap ``(m, rows)`` [m, rad] of touches ``q`` of ``ids`` (None: one object)."""
         if kin is None:
             kin = self.kinematics(q, torque)
         index = self._index(ids, len(kin.p))
@@ -112,13 +96,9 @@ class ContactState:
     def blocks(
         self, x: np.ndarray, data, kin=None, moved: ContactState | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Weighted d(gap)/dx at the touches of ``data`` by block, x the unknowns from self.
+        """Weighted d(gap)/dx by block (:meth:`ContactFrames.parts`) and each touch's object.
 
-        ``kin``: the robot's frames at the touches, the last the tool's (a joint fit's), or
-        None: the moved state's (rigid); ``moved``: :meth:`moved` at x, if made. Returns the
-        rows on each touch's own object's unknowns ``(m, rows, o)``
-        (:func:`~.contact_blocks.dense` makes one matrix), on the contact's
-        ``(m, rows, size - K o)``, and each touch's object.
+        ``kin``: the robot's frames at the touches, or None (rigid); ``moved``: at x, if made.
         """
         s = self.moved(x) if moved is None else moved
         if kin is None:
@@ -132,11 +112,7 @@ class ContactState:
         return dense(*self.blocks(x, data, kin, moved), len(self.frames.ids))
 
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
-        """Weighted gap rows ``(m, r, k)`` of k motions of the tool side of the chain.
-
-        ``lin``, ``ang`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving
-        with the tool side, and its angular velocity; ``kin``: the chain's frames at the touches.
-        """
+        """Weighted gap rows ``(m, r, k)`` of k motions ``lin``, ``ang`` of the tool side."""
         R, p = kin.R[:, -1], kin.p[:, -1]
         point = p + R @ self.contact[:3, 3]
         W6 = np.concatenate([lin - skew(point) @ ang, ang], axis=1)  # the contact point's motion
