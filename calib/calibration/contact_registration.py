@@ -1,9 +1,5 @@
 """Registration of contacts: planes, fixed points and fixed poses on the nominal model.
 
-:func:`register_contacts` estimates the objects and the contact frame from the nominal tool
-placements: each kind's closed form, then (but for a fixed point) :func:`refine`, Gauss-Newton
-on the kind's gap until the step is under ``STEP_TOLERANCE``.
-
 Rationale and measurements: docs/developers/engine.md#contact_registration
 """
 
@@ -39,20 +35,11 @@ __all__ = [
     "register_contacts",
 ]
 
-MIN_TOUCHES = 3
-"""Fewest touches of one plane, point or pose."""
-
-ITERATIONS = 50
-"""Most Gauss-Newton steps."""
-
-STEP_TOLERANCE = 1e-13
-"""Largest parameter step [m or rad] at which Gauss-Newton stops."""
-
-CONDITION_LIMIT = 1e-9
-"""Smallest singular value of the plane fit's Jacobian, relative to the largest, accepted."""
-
-MIN_SPREAD = 1e-6
-"""Smallest RMS spread of the tool's orientations about any axis [rad] for a fixed point."""
+MIN_TOUCHES = 3  # fewest touches of one plane, point or pose
+ITERATIONS = 50  # most Gauss-Newton steps
+STEP_TOLERANCE = 1e-13  # largest parameter step [m or rad] at which Gauss-Newton stops
+CONDITION_LIMIT = 1e-9  # smallest singular value accepted, relative to the largest
+MIN_SPREAD = 1e-6  # smallest RMS spread [rad] of the tool's orientations about any axis (a tip)
 
 
 def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -93,12 +80,9 @@ def refine(
     index: np.ndarray,
     weight: float = DEFAULT_WEIGHT,
 ) -> ContactFrames:
-    """The frames at the least-squares minimum of the kind's weighted gap, from ``frames``.
+    """The frames at the least-squares minimum of the kind's weighted gap (Gauss-Newton).
 
-    Gauss-Newton on their unknowns, the tool's ``rotations`` ``(m, 3, 3)`` and ``positions``
-    ``(m, 3)`` [m] in the base frame held; ``index``: each touch's object ``(m,)``;
-    ``weight``: the angle rows' [m/rad]. ContactGeometryError where the touches do not fix
-    the unknowns.
+    ContactGeometryError where the touches do not fix the unknowns.
     """
     w = row_weights(frames.kind, weight)
     x = np.zeros(frames.size)
@@ -214,13 +198,10 @@ def register_contacts(
     weight: float = DEFAULT_WEIGHT,
     source: str | None = None,
 ) -> ContactFrames:
-    """The objects and the contact frame of any kind, registered (see the module's text).
+    """The objects and the contact frame registered from the tool's placements (nominal model).
 
-    At the least-squares minimum of the kind's gap, from the tool ``rotations`` ``(m, 3, 3)``
-    and ``positions`` ``(m, 3)`` [m] in the base frame (nominal model), each touch's object
-    id, the contact frame's guess in the tool frame ``(4, 4)`` (a fixed pose's kept, a tip's
-    rotation kept) and the angle rows' ``weight`` [m/rad] (1 mrad counts as ``weight`` mm).
-    ``source``: the touches' file, which the errors name first (or None).
+    ``contact``: the contact frame's guess (a fixed pose's and a tip's rotation kept);
+    ``weight`` [m/rad]; ``source``: the touches' file, which the errors name first.
 
     Raises:
         ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry
