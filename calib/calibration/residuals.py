@@ -1,9 +1,4 @@
-"""Errors of a calibrated model on measured rows: the statistics every result reports.
-
-:class:`ResidualStats` (position and orientation RMS / max of a set of measurements) and
-:class:`Validation` (the same on held-out rows, with the registration's and the predicted
-standard deviation), in metres and radians.
-"""
+"""Errors of a calibrated model on measured rows (metres, radians): what every result reports."""
 
 from __future__ import annotations
 
@@ -66,8 +61,7 @@ class ResidualStats:
         return {"configs": self.configs, **{k: finite(getattr(self, k)) for k in _FIGURES}}
 
 
-_FIGURES = ("position_rms", "position_max", "orientation_rms", "orientation_max")
-""":class:`ResidualStats`' figures, in the reports' order."""
+_FIGURES = ("position_rms", "position_max", "orientation_rms", "orientation_max")  # in reports
 
 
 @dataclass(frozen=True)
