@@ -24,8 +24,7 @@ from ..measurements.pixels import MAX_TARGET_DISTANCE
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import determined, diagnosis, outliers, term_checks, validation
-from .contact_frames import ContactFrames
-from .contact_model import ContactState
+from .contact_model import ContactFrames, ContactState
 from .contact_registration import MIN_TOUCHES, register_contacts
 from .pixel_chain import PixelPart
 from .solve import condition

@@ -20,7 +20,7 @@ from ..identification.contacts import (
 )
 from ..kinematics.so3 import rotation_matrix
 from .contact_blocks import BlockSystem, block_lstsq, dense
-from .contact_frames import ContactFrames, plane_frames, row_weights
+from .contact_model import ContactFrames, plane_frames, row_weights
 from .determined import ill_posed
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
