@@ -33,7 +33,6 @@ from .weighting import DEFAULT_WEIGHT, estimate_weight
 
 __all__ = [
     "FEW_POSTURES",
-    "WEIGHT_ROUNDS",
     "check_level_equations",
     "checked_registration",
     "contact_frame",

@@ -25,15 +25,7 @@ from .determined import ill_posed
 from .registration import nearest_rotation
 from .weighting import DEFAULT_WEIGHT
 
-__all__ = [
-    "CONDITION_LIMIT",
-    "ITERATIONS",
-    "MIN_SPREAD",
-    "MIN_TOUCHES",
-    "STEP_TOLERANCE",
-    "refine",
-    "register_contacts",
-]
+__all__ = ["MIN_TOUCHES", "refine", "register_contacts"]
 
 MIN_TOUCHES = 3  # fewest touches of one plane, point or pose
 ITERATIONS = 50  # most Gauss-Newton steps

@@ -25,7 +25,6 @@ from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
 __all__ = [
     "COMPONENTS",
-    "DIRECTION_CONFIGS",
     "ChainPath",
     "JointFrames",
     "Placements",

@@ -28,6 +28,8 @@ __all__ = [
 TOLERANCE = 1e-10
 """Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
 
+_TOLERANCES = {"ftol": TOLERANCE, "xtol": TOLERANCE, "gtol": TOLERANCE}
+
 
 @runtime_checkable
 class FitState(Protocol):
@@ -199,10 +201,8 @@ def fit(
             method="trf",
             loss=loss,
             f_scale=scale,
-            ftol=TOLERANCE,
-            xtol=TOLERANCE,
-            gtol=TOLERANCE,
             max_nfev=max_iterations,
+            **_TOLERANCES,
         )
         x, status, message = sol.x, int(sol.status), str(sol.message)
         njev = int(sol.njev if sol.njev is not None else sol.nfev)
@@ -275,10 +275,8 @@ def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
         np.zeros(p),
         Dfun=problem.jac,
         full_output=True,
-        ftol=TOLERANCE,
-        xtol=TOLERANCE,
-        gtol=TOLERANCE,
         maxfev=max_iterations,
+        **_TOLERANCES,
     )
     status = _MINPACK_STATUS.get(int(code), -1)
     nfev = int(info["nfev"])

@@ -10,16 +10,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = [
-    "BOUNDS",
-    "DEFAULT_WEIGHT",
-    "ITERATIONS",
-    "TINY",
-    "TOLERANCE",
-    "estimate_weight",
-    "pose_angles",
-    "variance_ratio",
-]
+__all__ = ["DEFAULT_WEIGHT", "estimate_weight", "pose_angles", "variance_ratio"]
 
 DEFAULT_WEIGHT = 1.0  # [m/rad] (1 mrad counts as 1 mm), kept when the data cannot tell
 BOUNDS = (1e-3, 1e3)  # range of an estimated weight [m/rad]
