@@ -29,10 +29,7 @@ class BlockSystem:
 
 @dataclass(frozen=True, eq=False)
 class BlockSolution:
-    """The unknowns ``objects`` ``(K, o)``, ``shared`` ``(s,)`` and the extreme singular values.
-
-    ``smallest``, ``largest``: of the objects' triangular factors and the shared system.
-    """
+    """The unknowns ``objects`` ``(K, o)``, ``shared`` ``(s,)`` and the extreme singular values."""
 
     objects: np.ndarray
     shared: np.ndarray
@@ -75,11 +72,7 @@ def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.
 def block_lstsq(
     system: BlockSystem, damping: np.ndarray | None = None, shared_rows: np.ndarray | None = None
 ) -> BlockSolution:
-    """The least squares of ``system`` (least-norm in undetermined shared unknowns).
-
-    Extra rows: ``diag(damping[k])`` on each object's unknowns; ``shared_rows`` ``[C | c]``
-    ``(n, s + 1)`` on the shared unknowns alone.
-    """
+    """The least squares of ``system`` and extra rows: ``damping`` (objects), ``shared_rows``."""
     o, s, K = system.own.shape[2], system.shared.shape[2], system.objects
     F = block_factors(system, damping)
     R, S, y = F[:, :o, :o], F[:, :o, o : o + s], F[:, :o, -1]

@@ -1,7 +1,6 @@
 """A contact term's registration, checks, holdout and guess: mistakes, outliers, refusal.
 
-The measured data's checks (:mod:`.term_checks`) on the kind's gaps, and what the touches need
-beside the joint engine's model. Rationale: docs/developers/engine.md#contact_checks
+Rationale: docs/developers/engine.md#contact_checks
 """
 
 from __future__ import annotations
@@ -92,10 +91,9 @@ def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | Non
 def registration(
     nominal: MDHModel, data: ContactData, guess: np.ndarray, weight: float | None, first=None
 ) -> ContactState:
-    """The nominal robot with the objects and the contact frame registered (closed form).
+    """The nominal robot with the objects and the contact frame registered at ``weight``.
 
-    ``weight`` [m/rad], or None: estimated (``WEIGHT_ROUNDS`` registrations); ``first``: the
-    registration at ``DEFAULT_WEIGHT``, if made.
+    ``weight`` [m/rad] None: estimated; ``first``: the registration at ``DEFAULT_WEIGHT``.
     """
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
@@ -259,10 +257,7 @@ def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
 
 
 def plane_groups(chains, data, shared: bool, instrument: bool = False) -> tuple[int, ...]:
-    """Index of each chain's object: one per chain, or shared by base frame and plane id.
-
-    One camera's pixel terms share it always; with ``instrument``, every measured term's frame.
-    """
+    """Index of each chain's object: one per chain, or shared by base frame and plane id."""
     several = [d for d in data if isinstance(d, ContactData) and len(d.contacts) != 1]
     if shared and several:
         raise InvalidArgumentError(
@@ -337,10 +332,7 @@ def contact_frame(contact) -> np.ndarray:
 def split_contacts(
     data: ContactData, holdout: float, seed: int
 ) -> tuple[ContactData, ContactData | None]:
-    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
-
-    A touch recorded several times (the same posture on the same object) is held out whole.
-    """
+    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept."""
     rng = np.random.default_rng([seed, 21])
     ids = np.array(data.ids)
     groups = posture_groups(data.q, data.ids)  # a touch repeated is held out whole

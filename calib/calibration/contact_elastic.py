@@ -90,10 +90,7 @@ def fitted_compliance(
 
 
 def urdf_alone(score, sets, stats: dict, notes: list[str], rows: str) -> None:
-    """The URDF alone (``score(rows)``) of a fit with compliance into ``stats``, noted if worse.
-
-    ``sets``: the training and held-out rows (or None); ``rows``: what the notes call them.
-    """
+    """The URDF alone (``score``) of a fit with compliance on ``sets``, into ``stats``, noted."""
     notes.append(
         "joint compliance was fitted: the calibrated URDF cannot hold it; it is written to the "
         "compliance file (apply it with calib predict or calib.load_calibrated)"

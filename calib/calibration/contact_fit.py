@@ -50,10 +50,7 @@ def block_fit(
     prior: np.ndarray | None = None,
     max_iterations: int = 100,
 ) -> Fit:
-    """Levenberg-Marquardt from x = 0 with the objects eliminated by block (:func:`.solve.fit`).
-
-    ``prior``: zero on the objects and the contact; ``J``: the dense Jacobian at the solution.
-    """
+    """Levenberg-Marquardt from x = 0 with the objects eliminated by block (:func:`.solve.fit`)."""
     K, o = model.object_blocks()
     split = K * o
     prior_s = None if prior is None else prior[split:]
@@ -113,11 +110,7 @@ def _result(model, start, data, x, f, status, counts) -> Fit:
 
 
 def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData) -> list[int]:
-    """The columns the touches determine (:func:`~.contact_choice.structural`), by block.
-
-    Every object's if each object's triangular factor has full rank (else none: refused), and
-    the shared ones the pivoted QR of the shared system, objects eliminated, keeps.
-    """
+    """The columns the touches determine (:func:`~.contact_choice.structural`), by block."""
     K, o = model.object_blocks()
     own, shared, index = model.blocks(start, np.zeros(model.size()), data)
     F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))

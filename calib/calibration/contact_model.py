@@ -1,7 +1,6 @@
 """A contact term's model: the objects touched, the contact frame, the gaps and the state.
 
-Every gap is the kind's, of ``(R, p) = F_k^-1 [R_t, p_t] C``; the robot's columns are the joint
-engine's (:mod:`.contact_chains_model`). Rationale: docs/developers/engine.md#contact_model
+Rationale: docs/developers/engine.md#contact_model
 """
 
 from __future__ import annotations
@@ -50,10 +49,7 @@ def _twist_maps(v: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ContactFrames:
-    """A kind's contact frame ``(4, 4)`` (tool frame) and objects ``(K, 4, 4)`` (base frame).
-
-    A plane's z is its normal; a point is an origin with the base axes.
-    """
+    """A kind's contact frame ``(4, 4)`` (tool frame) and objects ``(K, 4, 4)`` (base frame)."""
 
     kind: Contact
     contact: np.ndarray
@@ -119,10 +115,7 @@ class ContactFrames:
     def parts(
         self, R: np.ndarray, p: np.ndarray, index: np.ndarray, x: np.ndarray, w: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The kind's weighted gap rows by block: own object's ``(m, rows, o)``, contact's.
-
-        Columns of these frames' unknowns at ``x`` (:meth:`moved`); ``(R, p)``: :meth:`relative`.
-        """
+        """Weighted gap rows by block at ``x``: own object's ``(m, rows, o)``, contact's."""
         m, o = len(p), len(self.kind.object_dofs)
         A = _twist_maps(self._twists(x))  # the objects' and the contact's at once
         own = np.zeros((m, 6, o))
@@ -180,10 +173,7 @@ def plane_frames(normals, heights, x: np.ndarray, index: np.ndarray) -> np.ndarr
 
 @dataclass(frozen=True, eq=False)
 class ContactState:
-    """The robot (``mdh``, frame -1 the base), the contact frame and the objects (``frames``).
-
-    ``weight``: the angle rows' [m/rad]; ``compliance`` ``(n,)`` [rad/(N m) or m/N], or None.
-    """
+    """The robot (``mdh``), the contact frame and objects, angle ``weight`` [m/rad], compliance."""
 
     mdh: MDHModel
     frames: ContactFrames
@@ -251,10 +241,7 @@ class ContactState:
     def blocks(
         self, x: np.ndarray, data, kin=None, moved: ContactState | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Weighted d(gap)/dx by block (:meth:`ContactFrames.parts`) and each touch's object.
-
-        ``kin``: the robot's frames at the touches, or None (rigid); ``moved``: at x, if made.
-        """
+        """Weighted d(gap)/dx by block (:meth:`ContactFrames.parts`) and each touch's object."""
         s = self.moved(x) if moved is None else moved
         if kin is None:
             kin = s.kinematics(data.q)

@@ -79,9 +79,7 @@ class GapStats:
 class TermPart:
     """What every term's part of a result offers, whatever its kind: errors, report, lines.
 
-    A frozen dataclass of each kind adds its :meth:`heading`, :meth:`_own` report entries and
-    :attr:`rows` (``touches``, ``pixels``); ``kind``: the term's layout (``label``,
-    ``row_names``, ``angular``); ``compliance`` ``(n,)`` [rad/(N m) or m/N], or None.
+    Each kind's frozen dataclass adds :meth:`heading`, :meth:`_own` and :attr:`rows`.
     """
 
     chain: Chain

@@ -77,11 +77,7 @@ def component_of(direction: np.ndarray) -> int | None:
 
 
 class JointFrames(NamedTuple):
-    """A chain's frames ``R`` ``(m, n + 1, 3, 3)``, ``p`` ``(m, n + 1, 3)`` [m] in its base frame.
-
-    Frame k < n: joint k's axis frame where its error acts (before its motion, after it for a
-    joint traversed backwards); frame n: the tool's.
-    """
+    """A chain's frames ``R`` ``(m, n + 1, 3, 3)``, ``p`` ``(m, n + 1, 3)`` [m], the tool's last."""
 
     R: np.ndarray
     p: np.ndarray
@@ -89,12 +85,7 @@ class JointFrames(NamedTuple):
 
 @dataclass(frozen=True, eq=False)
 class ChainPath:
-    """A chain as arrays: ``fixed`` ``(n + 1, 4, 4)`` transforms between its joints' axis frames.
-
-    ``fixed``: the first axis frame in the base frame, each next one in the previous after its
-    motion, the tool frame last (q = 0, errors zero); ``prismatic``, ``sign`` (-1: traversed
-    backwards) ``(n,)``; ``columns``: each joint's index among the placements' joints.
-    """
+    """A chain as arrays: ``fixed`` ``(n + 1, 4, 4)`` transforms between its joints' axis frames."""
 
     fixed: np.ndarray
     prismatic: np.ndarray
@@ -113,10 +104,7 @@ class ChainPath:
         return ChainPath(fixed, sigma == 1, sign, np.asarray(columns))
 
     def composed(self, y: np.ndarray, turns: np.ndarray | None = None) -> np.ndarray:
-        """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed (``turns``: their ``R(w)``).
-
-        ``E`` follows the transform into its axis frame; backwards, ``E^-1`` precedes the next.
-        """
+        """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed (``turns``: their ``R(w)``)."""
         rows = y[self.columns]
         if not rows.any():
             return self.fixed
@@ -183,10 +171,7 @@ def chain_frames(
 class Placements:
     """The placement errors ``y`` ``(J, 6)`` (x y z [m], rx ry rz [rad]) of chains' joints.
 
-    ``y`` acts on ``model``: ``nominal`` or a robot already fitted (:meth:`rebased`, so that
-    each round composes its errors with the previous ones, exactly). ``joints``, ``ids``: the
-    joints on any chain, once each; ``bases``: their axis frames; ``paths``: each chain on
-    ``model``.
+    ``y`` acts on ``model``: ``nominal`` or a robot already fitted (:meth:`rebased`).
     """
 
     nominal: pin.Model
@@ -381,9 +366,8 @@ def mdh_directions(
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """The chain's MDH parameters of rows 1..n as directions ``(D, 6 J)`` of placement errors.
 
-    Each matched exactly at ``DIRECTION_CONFIGS`` configurations, or not offered (see
-    docs/developers/engine.md#mdh_directions); names ``<joint>:<parameter>``, in the chart's
-    order of preference. ``placements``: zero errors; ``label``: a level or a parameter set.
+    Names ``<joint>:<parameter>``; ``placements``: zero errors; ``label``: a level or a set.
+    Rationale: docs/developers/engine.md#mdh_directions
     """
     pset = parameter_set(mdh, label) if isinstance(label, str) else label
     chosen, n = [pset.parameters[i] for i in preference_order(mdh, pset)], chain.n

@@ -309,10 +309,7 @@ def condition(J: np.ndarray) -> float:
 
 
 def fitted_values(fitted: Fit, cov: np.ndarray) -> dict:
-    """Keys ``fitted``, ``estimate``, ``std`` (NaN: undefined), ``solver`` of a fit's robot part.
-
-    The columns past ``model.fixed`` (frames and objects); ``cov``: :func:`covariance`'s.
-    """
+    """Keys ``fitted``, ``estimate``, ``std`` (NaN: undefined), ``solver`` past ``model.fixed``."""
     fixed = fitted.model.fixed
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))[fixed:] if fitted.x.size else np.zeros(0)

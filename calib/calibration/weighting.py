@@ -39,10 +39,7 @@ def estimate_weight(
     rounds: int = ITERATIONS,
     tolerance: float = TOLERANCE,
 ) -> float:
-    """The orientation weight [m/rad] at which the variance ratio of ``residuals_at(w)`` settles.
-
-    ``DEFAULT_WEIGHT`` without both lengths and angles; ``tolerance`` 0: ``rounds`` fits.
-    """
+    """The orientation weight [m/rad] at which the variance ratio of ``residuals_at(w)`` settles."""
     weight = DEFAULT_WEIGHT
     angle = np.asarray(angle, dtype=bool)
     if angle.all() or not angle.any():
