@@ -264,8 +264,7 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
     )
 
 
-POSTURE_TOL = 1e-2
-"""Postures whose joints agree within this [rad or m] (angles modulo a turn) are one posture."""
+POSTURE_TOL = 1e-2  # [rad or m]: postures whose joints agree within it (modulo a turn) are one
 
 
 def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:

@@ -15,9 +15,7 @@ from .solve import TOLERANCE, Fit, solved
 
 __all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
 
-BLOCK_UNKNOWNS = 90
-"""Objects' unknowns (30 planes) from which the fit and the structural check go by block."""
-
+BLOCK_UNKNOWNS = 90  # objects' unknowns (30 planes) from which the fit and the check go by block
 ACCEPT = 1e-4  # smallest ratio of the actual to the predicted reduction of an accepted step
 
 

@@ -96,14 +96,8 @@ class TermPart:
 
     def to_dict(self) -> dict:
         """Format 2's ``chains`` entry: base, tool, data, kind, then its kind's own keys."""
-        chain = self.chain
-        return {
-            "base": chain.base_frame,
-            "tool": chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
-            **self._own(),
-        }
+        ends = {"base": self.chain.base_frame, "tool": self.chain.tool_frame}
+        return {**ends, "data": self.source, "kind": self.kind.label, **self._own()}
 
     def _own(self) -> dict:
         """Its kind's own keys of :meth:`to_dict`."""

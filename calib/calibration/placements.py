@@ -37,8 +37,7 @@ __all__ = [
     "zero_frames",
 ]
 
-COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
-"""The six components of a joint's placement error, in its axis frame."""
+COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")  # of a joint's placement error, in its axis frame
 
 
 def _axis_bases(model: pin.Model, ids) -> np.ndarray:

@@ -36,16 +36,11 @@ class ResidualStats:
         residual = np.asarray(residual, dtype=float)
         m = len(residual)
         pos = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
-        rot = None
-        if residual.shape[1] == 3 * n_markers + 3:
-            rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-        return ResidualStats(
-            configs=m,
-            position_rms=float(np.sqrt(np.mean(pos**2))),
-            position_max=float(np.max(pos)),
-            orientation_rms=None if rot is None else float(np.sqrt(np.mean(rot**2))),
-            orientation_max=None if rot is None else float(np.max(rot)),
-        )
+        rms, top = float(np.sqrt(np.mean(pos**2))), float(np.max(pos))
+        if residual.shape[1] != 3 * n_markers + 3:
+            return ResidualStats(m, rms, top)
+        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+        return ResidualStats(m, rms, top, float(np.sqrt(np.mean(rot**2))), float(np.max(rot)))
 
     def in_mm(self) -> dict:
         """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
@@ -74,9 +69,8 @@ class Validation:
         calibrated: Errors of the calibrated model.
         predicted_std: Predicted position standard deviation of the calibrated model at
             these configurations, RMS over them [m].
-        urdf: Errors of the calibrated URDF alone (the geometry, frame and markers, without
-            the joint compliance), or None when no compliance was fitted (then it is
-            ``calibrated``).
+        urdf: Errors of the calibrated URDF alone (without the joint compliance), or None
+            when no compliance was fitted (then it is ``calibrated``).
         rows: The held-out measurements themselves (for per-configuration errors), or None.
     """
 

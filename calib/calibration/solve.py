@@ -249,10 +249,8 @@ def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fi
     return best
 
 
-_MINPACK_STATUS = {0: -1, 1: 2, 2: 3, 3: 4, 4: 1, 5: 0}
-"""MINPACK's ``info`` as ``scipy.optimize.least_squares``'s status."""
-
-_STATUS_MESSAGES = {
+_MINPACK_STATUS = {0: -1, 1: 2, 2: 3, 3: 4, 4: 1, 5: 0}  # MINPACK's info as least_squares' status
+_STATUS_MESSAGES = {  # least_squares' message of each status (the results read as they did)
     -1: "Improper input parameters status returned from `leastsq`",
     0: "The maximum number of function evaluations is exceeded.",
     1: "`gtol` termination condition is satisfied.",
@@ -260,7 +258,6 @@ _STATUS_MESSAGES = {
     3: "`xtol` termination condition is satisfied.",
     4: "Both `ftol` and `xtol` termination conditions are satisfied.",
 }
-"""``least_squares``'s message of each status (the results read as they did)."""
 
 
 def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
