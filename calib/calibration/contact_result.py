@@ -20,19 +20,11 @@ __all__ = ["GapStats", "TermPart", "gap_stats", "part_stats", "row_stats", "unit
 
 @dataclass(frozen=True)
 class GapStats:
-    """Gaps of touches: the kind's rows (lengths in mm, angles in degrees).
+    """Gaps of ``m`` touches by the kind's row (``names``, ``angular``): mm and degrees.
 
-    Attributes:
-        m: Touches.
-        names: The kind's row names.
-        angular: Whether each row is an angle.
-        rms: RMS of each row [mm or deg].
-        max: Largest absolute value of each row [mm or deg].
-        weighted_mm: RMS of ``per_row`` [mm] (angles times the orientation weight).
-        per_row: Each touch's weighted gap norm ``(m,)`` [mm], or None.
-        residuals: The rows themselves ``(m, rows)`` [m, rad], or None.
-
-    Each row's figures also read as attributes: ``height_rms_mm``, ``roll_max_deg``, ...
+    ``rms`` and ``max`` (absolute) of each row, also read as ``height_rms_mm``, ``roll_max_deg``,
+    ...; ``per_row``: each touch's weighted gap norm [mm] (angles times the orientation weight),
+    ``weighted_mm`` their RMS; ``residuals``: the rows ``(m, rows)`` [m, rad], or None.
     """
 
     m: int
