@@ -289,10 +289,7 @@ def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | Non
 def registration(
     nominal: MDHModel, data: ContactData, guess: np.ndarray, weight: float | None, first=None
 ) -> ContactState:
-    """The nominal robot with the objects and the contact frame registered at ``weight``.
-
-    ``weight`` [m/rad] None: estimated; ``first``: the registration at ``DEFAULT_WEIGHT``.
-    """
+    """The nominal robot, objects and contact frame registered (``weight`` None: estimated)."""
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
 

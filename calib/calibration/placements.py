@@ -168,10 +168,7 @@ def chain_frames(
 
 @dataclass(frozen=True, eq=False)
 class Placements:
-    """The placement errors ``y`` ``(J, 6)`` (x y z [m], rx ry rz [rad]) of chains' joints.
-
-    ``y`` acts on ``model``: ``nominal`` or a robot already fitted (:meth:`rebased`).
-    """
+    """The placement errors ``y`` ``(J, 6)`` (x y z [m], rx ry rz [rad]) acting on ``model``."""
 
     nominal: pin.Model
     model: pin.Model

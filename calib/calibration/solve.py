@@ -71,8 +71,7 @@ class Fit(Generic[_Model, _State]):
     """A solved fit: ``model`` (what was free) from ``start`` (x = 0) to ``state`` at ``x``.
 
     ``J`` ``(r, p)``, ``f`` ``(r,)`` [m]: the data rows' weighted Jacobian and model - measured
-    at the solution; ``status``, ``message``: scipy's; ``iterations``, ``evaluations``: of the
-    Jacobian and the residuals; ``kin``: ``state``'s kinematics at the data's joints, or None.
+    at the solution; ``iterations``, ``evaluations``: of the Jacobian and the residuals.
     """
 
     model: _Model
@@ -102,8 +101,6 @@ def unconverged(fitted: Fit, what: str = "the solver", hint: bool = True) -> str
 class Problem:
     """Residuals model - measured (weighted by the state) and prior rows, their Jacobian, of x.
 
-    The state at the last two x is kept (its kinematics reused while x moves no geometry),
-    and the Jacobian at the last x.
     Measurements: docs/developers/performance.md#problem-solve
     """
 
