@@ -16,8 +16,7 @@ __all__ = ["BlockSolution", "BlockSystem", "block_factors", "block_lstsq", "dens
 class BlockSystem:
     """``min |A x_o + B x_s + r|``, A block diagonal by object, given touch by touch.
 
-    ``own`` ``(m, rows, o)``, ``shared`` ``(m, rows, s)``, ``residual`` ``(m, rows)``;
-    ``index``: each touch's object (each of the K ``objects`` has touches).
+    ``own`` ``(m, rows, o)``, ``shared`` ``(m, rows, s)``, ``residual``; ``index``: the objects.
     """
 
     own: np.ndarray

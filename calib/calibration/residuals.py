@@ -67,10 +67,8 @@ class Validation:
         source: ``holdout`` (rows set aside) or the validation file.
         registration: Errors of the registration alone (nominal geometry).
         calibrated: Errors of the calibrated model.
-        predicted_std: Predicted position standard deviation of the calibrated model at
-            these configurations, RMS over them [m].
-        urdf: Errors of the calibrated URDF alone (without the joint compliance), or None
-            when no compliance was fitted (then it is ``calibrated``).
+        predicted_std: Predicted position std of the calibrated model, RMS over them [m].
+        urdf: Errors of the calibrated URDF alone (without joint compliance), or None.
         rows: The held-out measurements themselves (for per-configuration errors), or None.
     """
 
