@@ -51,7 +51,6 @@ __all__ = [
     "length_errors",
     "plane_groups",
     "rank_refusal",
-    "refine",
     "register_contacts",
     "registration",
     "split_contacts",
