@@ -62,6 +62,9 @@ ITERATIONS = 50  # most Gauss-Newton steps
 STEP_TOLERANCE = 1e-13  # largest parameter step [m or rad] at which Gauss-Newton stops
 CONDITION_LIMIT = 1e-9  # smallest singular value accepted, relative to the largest
 MIN_SPREAD = 1e-6  # smallest RMS spread [rad] of the tool's orientations about any axis (a tip)
+WEIGHT_ROUNDS = 5  # the angle weight's registrations: docs/developers/engine.md#weight_rounds
+POSTURE_TOL = 1e-2  # [rad or m]: postures whose joints agree within it (modulo a turn) are one
+FEW_POSTURES = 8  # fewest postures of a held-out verdict: docs/developers/engine.md#few_postures
 
 
 def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -246,11 +249,6 @@ def register_contacts(
     return frames.centred(R, p, index)
 
 
-WEIGHT_ROUNDS = 5
-"""Registrations of the angle weight's estimate (all of them: no tolerance).
-Rationale and measurements: docs/developers/engine.md#weight_rounds"""
-
-
 def subset(data: ContactData, keep: np.ndarray) -> ContactData:
     """The touches of a boolean mask (or of indices)."""
     rows = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep)
@@ -261,9 +259,6 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
         rows=None if data.rows is None else tuple(data.rows[i] for i in rows),
         readings=None if data.readings is None else data.readings.take(rows),
     )
-
-
-POSTURE_TOL = 1e-2  # [rad or m]: postures whose joints agree within it (modulo a turn) are one
 
 
 def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
@@ -419,11 +414,6 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
             f"{base:.3f} mm weighted RMS)"
         )
     return None
-
-
-FEW_POSTURES = 8
-"""Fewest postures a held-out verdict rests on without a note.
-Rationale: docs/developers/engine.md#few_postures"""
 
 
 def few_postures(data, what: str) -> str | None:

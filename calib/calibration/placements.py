@@ -38,6 +38,7 @@ __all__ = [
 ]
 
 COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")  # of a joint's placement error, in its axis frame
+DIRECTION_CONFIGS = 12  # random configurations matching an MDH parameter to a joint's errors
 
 
 def _axis_bases(model: pin.Model, ids) -> np.ndarray:
@@ -348,9 +349,6 @@ def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
         wv = RF + 0.0  # make a zero +0.0 (the sign Householder reflections read later)
         by_v = wv
     return by_v, wv, skew(kin.p[:, :n]) @ wv  # and the linear per dw
-
-
-DIRECTION_CONFIGS = 12  # random configurations matching an MDH parameter to a joint's errors
 
 
 def mdh_directions(

@@ -25,9 +25,7 @@ __all__ = [
     "unconverged",
 ]
 
-TOLERANCE = 1e-10
-"""Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
-
+TOLERANCE = 1e-10  # relative, on the cost, the step and the gradient (scipy's ftol, xtol, gtol)
 _TOLERANCES = {"ftol": TOLERANCE, "xtol": TOLERANCE, "gtol": TOLERANCE}
 
 
