@@ -42,7 +42,7 @@ from pixel_setups import INTRINSICS, SETUPS, look_at  # noqa: E402
 
 from calib import load_chain  # noqa: E402
 from calib.calibration.hand_eye import hand_eye  # noqa: E402
-from calib.calibration.pixel_term import PixelCamera  # noqa: E402
+from calib.calibration.pixel_chain import PixelCamera  # noqa: E402
 from calib.kinematics.mdh import from_chain  # noqa: E402
 from calib.measurements.pixel_simulation import simulate_pixels  # noqa: E402
 from calib.measurements.pixels import Target  # noqa: E402

@@ -28,7 +28,7 @@ one_core()
 import numpy as np  # noqa: E402
 from pixel_setups import INTRINSICS, calibrated, pixels, setup  # noqa: E402
 
-from calib.calibration.pixel_term import PixelCamera  # noqa: E402
+from calib.calibration.pixel_chain import PixelCamera  # noqa: E402
 from calib.measurements.pixel_simulation import simulate_pixels  # noqa: E402
 
 REPEATS = int(os.environ.get("CALIB_BENCH_REPEATS", "5"))

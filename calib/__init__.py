@@ -96,8 +96,8 @@ _LAZY = {
     "write_calibrated_tree_urdf": "kinematics.tree_export",
     "ElasticModel": "kinematics.elastic",
     "load_calibrated": "kinematics.elastic",
-    "PixelCamera": "calibration.pixel_term",
-    "Unknowns": "calibration.pixel_term",
+    "PixelCamera": "calibration.pixel_chain",
+    "Unknowns": "calibration.pixel_chain",
     "PixelData": "calibration.pixel_chain",
     "hand_eye": "calibration.hand_eye",
     "Pinhole": "identification.pinhole",
@@ -135,8 +135,7 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_publ
     from .calibration.delivery import Result
     from .calibration.entry import calibrate_tree
     from .calibration.hand_eye import hand_eye
-    from .calibration.pixel_chain import PixelData
-    from .calibration.pixel_term import PixelCamera, Unknowns
+    from .calibration.pixel_chain import PixelCamera, PixelData, Unknowns
     from .calibration.problem import Problem, Term
     from .design.design import design
     from .design.folds import cross_validate

@@ -130,8 +130,7 @@ def calibrated(chains, cameras, target, obs, validate=None, what=None, **options
     ``chains`` and ``cameras``: one each, or tuples of one per camera.
     """
     from calib import Problem, Term, calibrate
-    from calib.calibration.pixel_chain import PixelData
-    from calib.calibration.pixel_term import Unknowns
+    from calib.calibration.pixel_chain import PixelData, Unknowns
 
     chains = chains if isinstance(chains, tuple) else (chains,)
     cameras = cameras if isinstance(cameras, tuple) else (cameras,)

@@ -17,7 +17,7 @@ from test_pixel_calibration import _fd_rank as pixel_rank
 from test_self_measure import _frame, _joints, _Robot
 
 import calib
-from calib.calibration.pixel_term import pixel_rows
+from calib.calibration.pixel_chain import pixel_rows
 from calib.exceptions import InvalidArgumentError
 from calib.measurements.pixel_simulation import simulate_pixels
 

@@ -349,3 +349,21 @@ def test_simulated_configurations_in_a_default_range_are_named(tmp_path, capsys)
         warnings.simplefilter("default")
         assert main([*argv, str(tmp_path / "sim.csv")]) == 0
     assert capsys.readouterr().err.count("no usable <limit> in the URDF for j3") == 1
+
+
+def test_simulated_touches_in_a_default_range_are_named(tmp_path):
+    """``simulate_contacts`` draws its touches and contacts at random postures as ``simulate``
+    does: the same warning names the joint without usable URDF limits, with no other remedy
+    than the ``<limit>`` (touches take no configurations); none for the limited SCARA."""
+    urdf = tmp_path / "scara_no_quill_limit.urdf"
+    urdf.write_text(SCARA.read_text().replace(QUILL_LIMIT, ""))
+    chain = calib.load_chain(urdf, "base_link", "tool0")
+    said = _default_range_said(lambda: calib.simulate_contacts(chain, 12, "fixed-point", seed=3))
+    assert said == [
+        "no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m): calib's default "
+        "range, which the robot may not reach (add the <limit>)"
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", calib.DataWarning)
+        limited = calib.load_chain(SCARA, "base_link", "tool0")
+        calib.simulate_contacts(limited, 12, "fixed-point", seed=3)

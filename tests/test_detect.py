@@ -282,7 +282,7 @@ def test_rendered_board_round_trip(capsys, tmp_path):
 
     from calib import load_chain
     from calib.calibration.hand_eye import hand_eye
-    from calib.calibration.pixel_term import PixelCamera
+    from calib.calibration.pixel_chain import PixelCamera
     from calib.identification.pinhole import Pinhole
     from calib.kinematics.mdh import from_chain
     from calib.measurements.intrinsics import Intrinsics, write_intrinsics

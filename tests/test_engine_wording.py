@@ -10,8 +10,7 @@ import pytest
 from pixel_setups import INTRINSICS, setup
 
 from calib import Problem, Term, calibrate, load_chain, simulate, simulate_contacts
-from calib.calibration.pixel_chain import PixelData
-from calib.calibration.pixel_term import PixelCamera
+from calib.calibration.pixel_chain import PixelCamera, PixelData
 from calib.exceptions import DataError
 from calib.measurements.pixel_simulation import simulate_pixels
 

@@ -121,8 +121,7 @@ def _ur5_pixels(noise_px: float, postures: int, seed: int, **errors):
     default errors unless given)."""
     from pixel_setups import INTRINSICS, grid, look_at
 
-    from calib.calibration.pixel_chain import PixelData
-    from calib.calibration.pixel_term import PixelCamera
+    from calib.calibration.pixel_chain import PixelCamera, PixelData
     from calib.measurements.pixel_simulation import simulate_pixels
     from calib.measurements.true_robot import true_robot
 

@@ -16,7 +16,7 @@ from pixel_setups import INTRINSICS, look_at
 
 from calib import load_chain
 from calib.calibration.hand_eye import hand_eye
-from calib.calibration.pixel_term import PixelCamera
+from calib.calibration.pixel_chain import PixelCamera
 from calib.exceptions import InvalidArgumentError
 from calib.measurements.pixel_simulation import simulate_pixels
 from calib.measurements.pixels import Target

@@ -274,8 +274,7 @@ def test_a_pixel_terms_own_fit_stopped_by_its_cap_sets_no_row_aside(tmp_path, mo
     from pixel_setups import INTRINSICS, setup
 
     from calib.calibration import pixel_fit
-    from calib.calibration.pixel_chain import PixelData, pixel_part
-    from calib.calibration.pixel_term import PixelCamera
+    from calib.calibration.pixel_chain import PixelCamera, PixelData, pixel_part
     from calib.measurements.pixel_simulation import simulate_pixels
 
     s = setup("ur5", tmp_path, postures=30)
@@ -309,8 +308,7 @@ def test_a_pixel_cameras_registration_stopped_by_its_cap_is_an_error(tmp_path, m
     from pixel_setups import INTRINSICS, setup
 
     from calib.calibration import pixel_fit
-    from calib.calibration.pixel_chain import PixelData, pixel_part
-    from calib.calibration.pixel_term import PixelCamera
+    from calib.calibration.pixel_chain import PixelCamera, PixelData, pixel_part
     from calib.measurements.pixel_simulation import simulate_pixels
 
     s = setup("ur5", tmp_path, postures=30)

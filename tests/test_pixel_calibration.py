@@ -13,7 +13,7 @@ import pytest
 from pixel_scorer import link_points, moved_model, numerical_rank, seen_pixels
 from pixel_setups import INTRINSICS, SETUPS, calibrated, pixels, setup
 
-from calib.calibration.pixel_term import PixelCamera, Unknowns, pixel_rows
+from calib.calibration.pixel_chain import PixelCamera, Unknowns, pixel_rows
 from calib.measurements.pixel_simulation import simulate_pixels
 from calib.measurements.pixels import Target
 

@@ -15,8 +15,7 @@ from pixel_scorer import moved_model, numerical_rank, seen_pixels
 from pixel_setups import INTRINSICS, calibrated, grid, look_at, pixels
 
 from calib import Problem, Term, calibrate, load_chain
-from calib.calibration.pixel_chain import PixelData
-from calib.calibration.pixel_term import PixelCamera, pixel_rows
+from calib.calibration.pixel_chain import PixelCamera, PixelData, pixel_rows
 from calib.measurements.pixel_simulation import simulate_cameras, simulate_pixels
 from calib.measurements.pixels import PixelObservations, Target
 from calib.measurements.true_robot import true_robot

@@ -13,8 +13,7 @@ import pytest
 from pixel_scorer import link_points, moved_model, seen_pixels
 
 from calib import load_chain
-from calib.calibration.pixel_chain import PixelTermState
-from calib.calibration.pixel_term import PixelRows, Unknowns, pixel_jacobian
+from calib.calibration.pixel_chain import PixelRows, PixelTermState, Unknowns, pixel_jacobian
 from calib.calibration.placements import Placements
 from calib.identification.pinhole import Pinhole
 

@@ -24,10 +24,9 @@ from test_contact_chains import central_differences
 import calib
 from calib import Problem, Term, calibrate, calibrate_contact_chains, load_robot
 from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
-from calib.calibration.pixel_chain import PixelData, pixel_part
+from calib.calibration.pixel_chain import PixelCamera, PixelData, Unknowns, pixel_part, pixel_rows
 from calib.calibration.pixel_chain_result import PixelChain
 from calib.calibration.pixel_fit import checked_pixels
-from calib.calibration.pixel_term import PixelCamera, Unknowns, pixel_rows
 from calib.calibration.placements import Placements
 from calib.calibration.report import REPORT_KEYS
 from calib.exceptions import DataError

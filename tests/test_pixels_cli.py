@@ -662,3 +662,24 @@ def test_the_configurations_file_of_several_cameras_is_read_once(tmp_path, monke
     joints, q = pixels_cli._postures(chains, 0, 0, str(tmp_path / "plan.csv"))
     assert len(reads) == 1
     assert joints == UR5_JOINTS and np.array_equal(q, plan)
+
+
+def test_simulated_pixels_in_a_default_range_are_named(capsys, tmp_path):
+    """simulate --measure pixels draws its postures as simulate does: the same warning names a
+    joint without usable URDF limits (the SCARA's quill, drawn in +-0.1 m), once; none for the
+    SCARA with its limits."""
+    scara = Path(__file__).parent / "data" / "scara.urdf"
+    bare = tmp_path / "scara_no_quill_limit.urdf"
+    quill = '<limit lower="0" upper="0.2" effort="100" velocity="1"/>'
+    bare.write_text(scara.read_text().replace(quill, ""))
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
+    placement = _placement_numbers(look_at(np.array([0.2, 0.1, -0.8]), [0, 0, 0.3]))
+    camera = ["--camera", "cam", "base_link", tmp_path / "intr.yaml", *placement]
+    argv = ["--measure", "pixels", *camera, "--target", tmp_path / "target.csv"]
+    argv += ["--tool", "tool0", "--configs", 60, "--out", tmp_path / "obs.csv"]
+    code, _, err = run(capsys, "simulate", bare, *argv)
+    assert code == 0, err
+    assert err.count("no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m)") == 1
+    code, _, err = run(capsys, "simulate", scara, *argv)
+    assert code == 0 and "<limit>" not in err, err

@@ -333,8 +333,7 @@ def _pixels_of(tmp_path: Path, joints, tool, seed: int):
     import pinocchio as pin
     from pixel_setups import INTRINSICS, grid, look_at
 
-    from calib.calibration.pixel_chain import PixelData
-    from calib.calibration.pixel_term import PixelCamera
+    from calib.calibration.pixel_chain import PixelCamera, PixelData
     from calib.measurements.pixel_simulation import simulate_pixels
     from calib.measurements.true_robot import true_robot
 

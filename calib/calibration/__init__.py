@@ -1,14 +1,9 @@
 """Calibration from measurements: registration, model choice, fit, validation.
 
 :func:`calibrate` fits a :class:`~.problem.Problem` (a robot and its terms) with the joint
-engine (:mod:`.contact_chains`): one module per step, each once for every kind and shape:
-:mod:`.registration` (frames and markers in closed form), :mod:`.diagnosis` (the usual data
-mistakes), :mod:`.outliers` (robust fitting), :mod:`.selection` (which parameters the data
-support), :mod:`.solve` (the nonlinear fit), :mod:`.validation` (held-out errors and the
-checks); :mod:`.contact_chains_result` holds the one result.
-
-May import: :mod:`calib.measurements`, :mod:`calib.identification`, :mod:`calib.kinematics`
-and the bottom modules.
+engine (:mod:`.contact_chains`), one module per step for every kind and shape
+(docs/developers/architecture.md). May import: :mod:`calib.measurements`,
+:mod:`calib.identification`, :mod:`calib.kinematics` and the bottom modules.
 """
 
 from ..core.lazy import attributes

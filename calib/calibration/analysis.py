@@ -1,15 +1,7 @@
 """``analyze``: which parameters a robot's instrument, or a calibration problem, determines.
 
-``analyze(robot, ...)`` is the analysis of one chain or tree at random configurations
-(:func:`~calib.identification.identifiability.analyze`, what ``calib analyze ROBOT`` prints);
-``analyze(problem)`` counts what a calibration of the problem's terms would determine
-together, at their own rows: every kind (measured, touches, pixels), several terms, a tree.
-A robot's analysis imports no more than
-:mod:`~calib.identification.identifiability` (``calib analyze`` starts without SciPy). The
-count is the joint fit's (:func:`~.contact_chains.determined_unknowns`): the data
-checked and registered as a calibration does, then the rank of the Jacobian of every row by
-every unknown (objects, contact, measuring and camera frames, markers, every joint placement
-component) on the nominal robot.
+A robot's analysis imports no more than :mod:`~calib.identification.identifiability` (``calib
+analyze`` starts without SciPy). Rationale: docs/developers/engine.md#analysis
 """
 
 from __future__ import annotations
@@ -94,11 +86,7 @@ class ProblemAnalysis:
 
 
 def _count(problem: Problem) -> ProblemAnalysis:
-    """The joint fit's count of a problem's terms (module text).
-
-    A tree is one measured term per tool; one chain or tree measured is measured by an
-    instrument, its frame one unknown.
-    """
+    """The joint fit's count of a problem's terms (a tree: one measured term per tool)."""
     from ..measurements.data import Measurements
     from .contact_chains import Run, determined_unknowns
     from .instrument import prepare_tree
@@ -112,12 +100,11 @@ def _count(problem: Problem) -> ProblemAnalysis:
         chains, data = list(tree.chains), prepare_tree(tree, rows, None, 0.0, 0)[0]
     else:
         chains, data = [cast(Chain, t.robot) for t in terms], [t.data for t in terms]
-    options = Options(max_iterations=problem.max_iterations)  # every row, as registered
     run = Run(
         chains,
         data,
         None,
-        options,
+        Options(max_iterations=problem.max_iterations),  # every row, as registered
         guesses[0] if guesses else None,
         shared_planes=problem.shared_planes,
         pose_weight=problem.pose_weight,

@@ -1,9 +1,7 @@
 """What a measured chain's structure lets rows determine, and the joint engine's counts of it.
 
-A level of one chain (or a tree's tools) measured by an instrument offers the joint placement
-directions generic configurations determine with the frame and markers (:class:`Generic`): the
-reduction the structure forces is the level's, not the data's. One chain's checks are
-:mod:`.determined`'s (postures counted once), its unknowns named as a chain's (:func:`chain_name`).
+A level measured by an instrument offers the directions generic configurations determine
+(:class:`Generic`): the reduction the structure forces is the level's, not the data's.
 """
 
 from __future__ import annotations
@@ -36,10 +34,7 @@ def chain_name(name: str) -> str:
 
 
 def rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
-    """Rows of ``data``'s kind (its markers, an orientation or not) at the joints ``q``.
-
-    Their values are zero points and identity orientations: a Jacobian's rank does not read them.
-    """
+    """Rows of ``data``'s kind at the joints ``q`` (zeros: a Jacobian's rank does not read them)."""
     m = len(q)
     turn = None if data.quaternion is None else np.tile([0.0, 0.0, 0.0, 1.0], (m, 1))
     return Measurements(joint_names, q, np.zeros((m, 3 * data.n_markers)), turn)
@@ -47,14 +42,7 @@ def rows_like(data: Measurements, joint_names, q: np.ndarray) -> Measurements:
 
 @dataclass(frozen=True)
 class Generic:
-    """Generic configurations of the terms an instrument measures.
-
-    The rank of the engine's own Jacobian at random configurations within the joint limits,
-    rows of the data's kind, is what the structure lets rows determine.
-
-    ``start``: the registration the Jacobians are linearised at; ``train``: each term's rows
-    (their kinds).
-    """
+    """Generic configurations of the terms an instrument measures (``start``: linearised at)."""
 
     start: ChainsState
     train: tuple[Measurements, ...]
@@ -66,12 +54,7 @@ class Generic:
         return len(self.start.chains) == 1
 
     def rows(self, q: np.ndarray | None = None, size: int = 0, elastic=False) -> ChainsData:
-        """Rows of each term's kind at ``q`` (one chain's or the tree's joints).
-
-        ``q`` None: drawn (seeded), enough for ``GENERIC_EXCESS`` equations per unknown of
-        ``size`` (at most :data:`~calib.core.choices.DEFAULT_CONFIGS`). ``elastic``: one
-        chain's compliances are fitted (its gravity torques at ``q`` given).
-        """
+        """Rows of each term's kind at ``q``; None: drawn, ``GENERIC_EXCESS`` per unknown."""
         chains = self.start.chains
         per = sum(d.kind.rows_of(d.n_markers) for d in self.train)
         m = min(DEFAULT_CONFIGS, max(1, -(-GENERIC_EXCESS * size // per)))
@@ -93,22 +76,12 @@ class Generic:
     def check(self, wide, kept, generic, flush, level: str) -> None:
         """Refuse a level (not ``auto``) the rows do not determine, before the fit.
 
-        One chain: any level, its postures counted, the unknowns they cannot separate named;
-        a tree: ``complete`` (offered as ``components``: every joint placement component),
-        its rows counted.
-
-        The frame and markers must be determined, as many unknowns as they are (which of
-        them the rows cannot separate, if any, refuses the fit: :func:`assess`).
-
-        ``wide``: the level's model (every direction it offers); ``kept``: its columns the
-        rows (``flush``) determine at the registration, ``generic``: those generic
-        configurations determine.
+        ``kept``, ``generic``: the columns of ``wide`` the rows (``flush``), and generic
+        configurations, determine.
 
         Raises:
-            DataError: Rows that do not determine as many unknowns as the frame and markers
-                have, too few equations for the level's unknowns, or rows that determine
-                fewer than generic configurations (:func:`~.determined.check_rank`, naming
-                the unknowns they cannot separate).
+            DataError: Rows that do not determine the frame and markers, too few equations,
+                or fewer unknowns than generic configurations (those lost named).
         """
         d = self.train[0]
         if len(kept) < wide.fixed:
@@ -147,10 +120,7 @@ class Generic:
         return posture_groups(d.q, d.tool)
 
     def sample(self, fixed: int, candidates: int, notes: list[str]) -> np.ndarray | None:
-        """The rows ``auto`` chooses on beyond the work bound (a note says so), or None: all.
-
-        Whole postures drawn with the seed (:func:`~calib.measurements.postures.
-        sample_postures`); the fit uses every row.
+        """The rows ``auto`` chooses on beyond the work bound (whole postures, seeded), or None.
 
         Raises:
             InvalidArgumentError: A sample within the bound too small to choose on
@@ -178,16 +148,9 @@ def assess(
 ) -> tuple[str | None, list[determined.Direction]]:
     """One chain's refusal for fitted unknowns its rows cannot separate, and those combinations.
 
-    The refusal (None: none) names the posture, among random ones within the joint limits,
-    that separates them best (:func:`~.determined.separating_posture`); the combinations are
-    :func:`~.determined.undetermined`'s (the weakest first, the unknowns named as a chain's).
-    A fit that did not converge without ``generic`` (touches, pixels: no instrument) is
-    assessed where it stopped, its unknowns named as the model does, without a posture.
-
-    Not assessed: a converged fit without ``generic`` (the rank rule's:
-    :func:`~.contact_checks.rank_refusal`), a tree's (``generic`` of several chains), or a
-    ``polished`` fit (every component). ``cov``: :func:`~.solve.covariance` of ``fitted``,
-    with its prior weights.
+    The refusal (None: none) names the random posture that separates them best. Not
+    assessed: a converged fit without ``generic`` (the rank rule's), a tree's, a ``polished``
+    one. docs/developers/engine.md#chain_counts
     """
     skipped = fitted.converged if generic is None else not generic.one
     if skipped or polished:

@@ -1,10 +1,5 @@
 """The engine's outlier loop: each term's outliers set aside after each fit, until stable.
 
-Each term's training rows are tested under the fitted model with its kind's errors
-(:func:`~.outliers.find_outliers` per term), and the run registered and fitted again without
-them until the set stops changing (:func:`~.outliers.stable_set`); a stalled fit ends the loop.
-A measured term's loop starts from a robust fit's :func:`proposals`.
-
 Rationale and measurements: docs/developers/engine.md#chain_outliers
 """
 
@@ -47,13 +42,7 @@ __all__ = ["fit_terms_until_stable", "proposals"]
 
 
 def proposals(start: ChainsState, c: int, data: Measurements, noise: float | None) -> np.ndarray:
-    """Rows a robust fit of every identifiable parameter, linearised, finds outlying.
-
-    The engine's model of term ``c`` alone at the registration ``start``: every component of
-    its chain's joint placements, its frame and markers. None where no row of the
-    registration is far from the others (:func:`.outliers.spread_out`): outliers that could
-    mask each other stand out there. ``noise``: the instrument's [m], or None.
-    """
+    """Rows a robust fit of term ``c``'s identifiable parameters at ``start`` finds outlying."""
     state = cast(MeasuredState, start.states[c])
     residuals = state.inner.residuals(data, None, state.frames_at(data))  # the registration's
     if not spread_out(point_errors(residuals, data.n_markers)):
@@ -62,14 +51,12 @@ def proposals(start: ChainsState, c: int, data: Measurements, noise: float | Non
     names = start.placements.names()
     wide = chains_model(alone, (0,), range(len(names)), names)
     J = wide.jacobian(alone, np.zeros(wide.size()), ChainsData((data,)))
-    w = state.row_weights()
-    rows = term_checks.file_lines(data)
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],
-        residuals * w,
+        residuals * state.row_weights(),
         lambda r: point_errors(r, data.n_markers),
         noise,
-        rows,
+        term_checks.file_lines(data),
     )
 
 
@@ -78,16 +65,9 @@ def fit_terms_until_stable(
     register: Callable[[Run], Registered],
     fit: Callable[[Registered], ContactChainsCalibration],
 ) -> ContactChainsCalibration:
-    """The run's fit without the rows each term's errors under it find outlying (module text).
+    """The run's fit without the rows each term's errors under it find outlying.
 
-    The loop starts from the rows each term's registration set aside (which stay aside) and
-    the run's fit as it is; a loop that sets no other row aside leaves it unchanged. A
-    measured term's start and rows tested are its own (:func:`_aside`); the proposals read
-    the registration of every row only: the fit of every row is made only if the loop comes
-    to it (no proposal, or a later round keeping every row). ``register``:
-    :func:`~.contact_register.register_contact_chains`; ``fit``:
-    :func:`~.contact_chains.fit_registered`. In the last fit returned, each term's outliers
-    are those the loop and its registration set aside, their errors the last fit's.
+    Each term's outliers in the fit returned are the loop's and its registration's.
     """
     first = register(run)
     again, train = _drawn(run)
@@ -134,12 +114,7 @@ def fit_terms_until_stable(
 
 
 def _aside(data, state, dropped, rows, noise, start, c) -> tuple[np.ndarray, np.ndarray]:
-    """A term's rows that stay aside, and those the loop starts without (masks of ``rows``).
-
-    The registration's outliers (``dropped``), both; a measured term's: none stays aside
-    (every row is tested again), and the loop starts from the :func:`proposals` of its
-    registration ``state``, term ``c`` of ``start`` (``noise``: the instrument's [m]).
-    """
+    """A term's rows that stay aside, and those the loop starts without (masks of ``rows``)."""
     if isinstance(state, MeasuredState):
         return np.zeros(len(rows), dtype=bool), proposals(start, c, data, noise)
     inner = np.isin(rows, [o.row for o in dropped])
@@ -147,11 +122,7 @@ def _aside(data, state, dropped, rows, noise, start, c) -> tuple[np.ndarray, np.
 
 
 def _drawn(run: Run) -> tuple[Run, list]:
-    """The run with its held-out rows drawn (given as validation rows), and its training rows.
-
-    A pixel term's rows are its camera's on its chain (:func:`~.pixel_chain.pixel_parts`), as
-    the registration draws them; given to the run again as :class:`PixelData`.
-    """
+    """The run with its held-out rows drawn (given as validation rows), and its training rows."""
     opts = run.options
     parts = pixel_parts(run.chains, run.data)
     if opts.holdout == 0:
@@ -171,10 +142,7 @@ def _subset(data, keep: np.ndarray):
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
-    """Each term's errors at every training row under a fit (the last one's kept).
-
-    ``torque``: the first term's gravity torques at its rows (its compliance), or None.
-    """
+    """Each term's errors at every training row under a fit (the last one's kept)."""
     last: list = []
 
     def errors(result: ContactChainsCalibration) -> list[Errors]:
@@ -208,10 +176,7 @@ def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], li
 
 
 def _recorded(result: ContactChainsCalibration, found: list[Errors], bad: list, rows: list):
-    """The result with each term's outliers (the loop's and its registration's) recorded anew.
-
-    Their errors and the median are the fit's; each term's note of them replaced.
-    """
+    """The result with each term's outliers recorded anew (the fit's errors), notes replaced."""
     chains, notes = list(result.chains), list(result.notes)
     for c, part in enumerate(result.chains):
         inner = np.isin(rows[c], [o.row for o in part.outliers])

@@ -1,10 +1,7 @@
 """A measured chain's registration: its measuring frame and markers on the nominal model, checked.
 
-Closed form refined by Levenberg-Marquardt (:func:`registrations`), then the steps of every
-kind of term (:mod:`.term_checks`) on its rows (:class:`Rows`, :func:`validation_steps`).
-Marker coordinates no posture within the joint limits separates from the frame's translation
-(a gantry's tool never turns: :func:`held_markers`) are held at their given value, the frame
-absorbing them (:func:`held_note`).
+Closed form refined by Levenberg-Marquardt (:func:`registrations`), then every kind's steps
+(:mod:`.term_checks`) on its rows (:class:`Rows`). docs/developers/engine.md#chain_registration
 """
 
 from __future__ import annotations
@@ -42,23 +39,16 @@ __all__ = [
 
 
 STRUCTURE_CONFIGS = 20
-"""Random configurations :func:`held_markers` reads the tool's rotations at: a tool that turns
-about two axes turns its every direction at almost any two of them."""
-
+"""Random configurations :func:`held_markers` reads the tool's rotations at."""
 
 TURNS = 0.1
-"""Range [rad] of two revolute joints, and sine of the angle between their axes, over which a
-tool turns about two axes at every posture (:func:`held_markers` holds nothing)."""
+"""Range [rad] of two revolute joints, and sine of their axes' angle, that turn every tool."""
 
 
 def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
     """The first marker's coordinates no posture within the joint limits separates from the frame.
 
-    :func:`~.determined.still_axes` of the ``nominal`` tool's rotations at
-    ``STRUCTURE_CONFIGS`` random configurations of ``chain`` (seed 0: the robot's structure,
-    not the data's); 0-based among the markers' ``3 K``. None without them when two revolute
-    joints of independent ranges over :data:`TURNS` turn about axes :data:`TURNS` apart at
-    the middle of the limits: every direction of the tool turns there.
+    0-based among the markers' ``3 K``; docs/developers/engine.md#chain_registration.
     """
     if chain.coupling is None:
         turning = (chain.sigma == 0) & (chain.upper - chain.lower > TURNS)
@@ -71,10 +61,7 @@ def held_markers(chain: Chain, nominal: MDHModel) -> tuple[int, ...]:
 
 
 def held_note(held: tuple[int, ...], guess: np.ndarray | None) -> str:
-    """The note of marker coordinates held at their given value (:func:`held_markers`).
-
-    ``guess``: the markers' given values [m] (None: not said, as ``calib analyze`` does).
-    """
+    """The note of marker coordinates held at their given ``guess`` [m] (None: not said)."""
     whole = [k for k in range(max(held) // 3 + 1) if all(3 * k + a in held for a in range(3))]
     named = [f"marker{k + 1}" for k in whole] + [
         f"marker{c // 3 + 1}.{'xyz'[c % 3]}" for c in held if c // 3 not in whole
@@ -104,15 +91,8 @@ class Seen:
 class MeasuredState:
     """A measured term's state: its chain's model on the robot, frame, markers and weight.
 
-    Attributes:
-        inner: The single chain's state (its ``mdh`` the chain on the perturbed robot,
-            ``frame`` the pose of the nominal base frame in the measuring frame).
-        weight: Weight of the rotation rows [m/rad].
-        instrument: Measured by an instrument outside the robot, shared by every such term
-            (:attr:`~.model.MeasuredKind.instrument`).
-        seen: The registration's frames of the nominal robot at its rows (kept and held
-            out), read by :meth:`frames_at`; None once the state moves (:meth:`moved`).
-        held: Marker coordinates held at their given value (:attr:`~.model.MeasuredKind.held`).
+    ``weight``: of the rotation rows [m/rad]; ``seen``: the registration's frames at its rows,
+    None once the state moves; ``instrument``, ``held``: :class:`~.model.MeasuredKind`'s.
     """
 
     inner: State
@@ -145,20 +125,13 @@ class MeasuredState:
         return self.inner.same_geometry(other.inner)
 
     def weighed(self, rows: np.ndarray) -> np.ndarray:
-        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place.
-
-        The rotation rows only: a point row's weight is 1 (the same numbers untouched).
-        """
+        """``rows`` ``(m, rows, ...)`` (a fresh array) times :meth:`row_weights`, in place."""
         if self.inner.tool_rotation is not None:
             rows[:, 3 * self.inner.n_markers :] *= self.weight
         return rows
 
     def residuals(self, data, torque=None, kin=None) -> np.ndarray:
-        """Weighted measured - predicted ``(m, rows)`` [m].
-
-        ``kin``: the chain's frames at the data's joints (the joint fit's), or None: its
-        MDH model's.
-        """
+        """Weighted measured - predicted ``(m, rows)`` [m] (``kin``: the joint fit's frames)."""
         return self.weighed(self.inner.residuals(data, None, kin))
 
     def moved(self, x: np.ndarray) -> MeasuredState:
@@ -166,11 +139,7 @@ class MeasuredState:
         return dataclasses.replace(self, inner=self.kind.apply(self.inner, x), seen=None)
 
     def frames_at(self, data: Measurements) -> Kinematics:
-        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made.
-
-        The registration's when the model is its and ``data`` are its rows (the same
-        arrays), else made.
-        """
+        """:attr:`inner`'s frames at ``data``'s joints, undeflected: :attr:`seen`'s if made."""
         s = self.seen
         if s is not None and s.mdh is self.inner.mdh:
             for q, kin in zip(s.q, s.kin, strict=True):
@@ -181,19 +150,15 @@ class MeasuredState:
     def own_rows(
         self, x: np.ndarray, data: Measurements, kin, moved: MeasuredState | None = None
     ) -> np.ndarray:
-        """Weighted d(prediction)/d(own unknowns) at ``x`` from this state ``(m, rows, own)``.
-
-        ``kin``: the chain's frames at the data's joints at x (the joint fit's); ``moved``:
-        :meth:`moved` at x, if already made.
-        """
+        """Weighted d(prediction)/d(own unknowns) at ``x`` ``(m, rows, own)`` (``moved``: at x)."""
         inner = None if moved is None else moved.inner
         return self.weighed(self.kind.jacobian(self.inner, x, data, None, inner, kin))
 
     def motion_rows(self, kin, data, lin: np.ndarray, ang: np.ndarray) -> np.ndarray:
-        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the chain's tool side.
+        """Weighted d(prediction) ``(m, rows, k)`` per unit of k motions of the tool side.
 
-        ``lin`` ``(m, 3, k)``: each motion's velocity of the base frame's origin moving with
-        the tool side (base frame); ``ang`` ``(m, 3, k)``: its angular velocity.
+        ``lin``, ``ang`` ``(m, 3, k)``: the velocity of the base frame's origin moving with
+        the tool side, and the angular velocity (base frame).
         """
         s = self.inner
         R, p = kin.R[:, -1], kin.p[:, -1]
@@ -212,26 +177,20 @@ class _Own:
     kind: MeasuredKind
 
     def size(self) -> int:
-        """Number of unknowns."""
         return self.kind.size()
 
     def apply(self, start: MeasuredState, x: np.ndarray) -> MeasuredState:
-        """The state at unknowns x (:meth:`MeasuredState.moved`)."""
         return start.moved(x)
 
     def jacobian(self, start: MeasuredState, x, data, torque, state, kin) -> np.ndarray:
-        """Weighted d(model)/dx ``(m, rows, size)`` (:meth:`MeasuredState.own_rows`)."""
         return start.own_rows(x, data, kin, state)
 
 
 def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]:
     """The registration of ``data`` at an orientation weight, each weight run once.
 
-    Closed form (Horn/Umeyama), refined by Levenberg-Marquardt (frame and markers only, the
-    rows weighted by the :class:`MeasuredState`). The nominal kinematics at the data's
-    joints (the fit moves no geometry) and the closed-form start (no weight changes it) are
-    made once, the start on the first call. ``held``: marker coordinates held at the
-    ``guess`` (:func:`held_markers`).
+    The nominal kinematics and the closed-form start (on the first call) are made once;
+    ``held``: marker coordinates held at the ``guess``.
     """
     kin = nominal.kinematics(data.q)
     model = _Own(measured_kind(data, held))
@@ -264,10 +223,8 @@ _TURNS = diagnosis.Words(
 class Rows:
     """A chain's steps on one set of measurements (:class:`~.term_checks.Steps`).
 
-    ``guess``: the markers' in the tool frame [m]; ``opts``: with the orientation weight;
     ``at``: :func:`registrations` of ``rows``; ``frames``: the registration's model when the
-    outliers may not leave fewer equations than its unknowns (validation data: the outliers
-    stay), else None (that is an error); ``hold``: marker coordinates held at the ``guess``.
+    outliers may not leave fewer equations than its unknowns (validation data), else None.
     """
 
     chain: Chain
@@ -289,7 +246,7 @@ class Rows:
         """The registration without the outlier rows, until stable (:mod:`.outliers`).
 
         A registration stopped by the evaluation cap sets no row aside (its errors are not
-        the data's): the last converged one's set stays, or none.
+        the data's).
         """
         nominal, data, guess, opts = self.nominal, self.rows, self.guess, self.opts
         weight = cast(float, opts.orientation_weight)
@@ -318,9 +275,8 @@ class Rows:
     def diagnose(self, rows: Measurements, state: Fit) -> list[str]:
         """Raise the rows' likely mistake if they cannot be registered; a note if none explains it.
 
-        It runs at the default orientation weight: an estimated weight would let wrong
-        orientations (e.g. quaternions in the wrong order) weigh nothing and go unnoticed. The
-        points are diagnosed first, then the orientations (on the orientation error).
+        At the default orientation weight: an estimated one could weigh wrong orientations
+        (quaternions in the wrong order) to nothing. Points first, then orientations.
         """
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 

@@ -1,12 +1,8 @@
-"""Several chains of one robot calibrated together from their touches: shared joints once.
+"""The joint engine: every term of one robot fitted together, shared joints once.
 
-:func:`calibrate_contact_chains`: a run is registered
-(:func:`~.contact_register.register_contact_chains`), its model chosen
-(:mod:`.contact_choice`), fitted (:func:`fit_registered`) and refused where its held-out gaps
-are worse than the registration's. Every URDF joint has one placement error (:mod:`.placements`);
-each chain its own contact frame and objects (unless ``shared_planes``).
-
-Rationale and measurements: docs/developers/engine.md#contact_chains
+A run is registered (:mod:`.contact_register`), its model chosen (:mod:`.contact_choice`),
+fitted (:func:`fit_registered`) and refused where its held-out errors are worse than the
+registration's. Rationale and measurements: docs/developers/engine.md#contact_chains
 """
 
 from __future__ import annotations
@@ -87,52 +83,18 @@ def calibrate_contact_chains(
     support: Support | None = None,
     marker=None,
 ) -> ContactChainsCalibration:
-    """Calibrate several chains of one robot from flush touches, together (module text).
+    """Calibrate several chains of one robot together: a problem's terms, as arguments.
 
-    The arguments are made one :class:`Run` (its options one :class:`~.options.Options`),
-    registered (:func:`register_contact_chains`) and fitted (:func:`fit_registered`), each
-    term's outliers set aside after each fit until stable (:func:`fit_run`).
-
-    Args:
-        chains: The nominal chains (one URDF; each base: where its plane is expressed;
-            each tool: its contact's).
-        data: Each chain's touches of one plane (``plane`` kind,
-            :func:`~calib.measurements.contact_campaign.read_contacts`) or of one fixed pose
-            (``fixed-pose`` kind, a closed loop:
-            :func:`~calib.measurements.contact_loops.read_loop`); a chain's kind is its
-            touches'; or a camera's pixels (:class:`~.pixel_chain.PixelData`: a pixel term).
-        contact: Guess of every plane chain's contact frame in its tool frame: ``(4, 4)``
-            or ``X Y Z [RX RY RZ]`` [m, rad] (default: the tool frame; a fixed-pose chain's
-            is its tool frame).
-        params: ``auto`` (default), ``frames`` (the registration only), ``offsets``,
-            ``paper`` or ``complete``.
-        validate: Per chain, touches of other postures to score the result on, or None.
-        orientation_weight: Weight of the tilt rows [m/rad] (default: each chain's
-            :func:`~.weighting.estimate_weight` on its registration).
-        shared_planes: Chains of one base frame whose touches name the same plane touch one
-            plane (default: each chain its own plane).
-        pose_weight: Factor of the ``fixed-pose`` chains' rows against the plane chains'
-            (default 1: metres against metres; a loop that closes far better than the table
-            is touched may weigh more, a near-hard constraint).
-        max_iterations: Most residual evaluations of the solver.
-        holdout: Fraction of each chain's touches set aside (seeded).
-        seed: Seed of the holdout draw.
-        progress: Progress bars of the registration, the selection and the fit
-            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
-        instrument: The measured terms are a tree's tools measured by one instrument outside
-            the robot (:mod:`.instrument`): its frame one unknown; ``complete`` offers every
-            joint placement component.
-        held_label: The label of the rows given as ``validate`` in the result (``holdout``:
-            rows the caller held out of the data, a tree's, diagnosed with the data by the
-            caller, not again); None: each one's source.
-        elastic: One chain touching planes: its joint compliances are candidates too, under
-            the gravity torques of the robot standing on the chain's base frame
-            (:mod:`.contact_elastic`; the URDF cannot hold them: a compliance file); one
-            chain measured: under the URDF's gravity torques (:mod:`.measured_options`).
-        support: With ``elastic``: the load split with a second foot
-            (:class:`~calib.kinematics.standing.Support`; default: the base foot carries all).
-        marker: Guess of each measured term's markers in its tool frame [m]: one point
-            for all or one per marker (default: zeros), the registration's start.
+    ``chains`` and ``data`` are each term's robot and data, ``validate`` each one's
+    validation data (or None), ``contact`` the touching terms' contact frame guess; the
+    options are :class:`~.problem.Problem`'s (``pose_weight``: a loop that closes far better
+    than the table is touched may weigh more). Besides: ``instrument``: the measured terms
+    are a tree's tools measured by one instrument outside the robot (:mod:`.instrument`);
+    ``held_label``: the label of the ``validate`` rows in the result (``holdout``: rows the
+    caller held out and diagnosed; None: each one's source); ``support``: with ``elastic``,
+    the load split with a second foot (:class:`~calib.kinematics.standing.Support`);
+    ``marker``: a guess of each measured term's markers in its tool frame [m] (one point or
+    one per marker; default: zeros); ``progress``: progress bars (:mod:`calib.core.progress`).
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -174,9 +136,8 @@ def calibrate_contact_chains(
 def check_readings(chain: object, *parts: object) -> None:
     """A chain's joint readings in each part against its limits: past one warned, far refused.
 
-    Measurements of the chain's joints and a pixel term's rows of its camera are checked;
-    other parts pass (other joints: the term's checks say so; touches: read with theirs; a
-    tree's rows: prepared with the tree).
+    Measurements and a pixel term's rows are checked here; touches when read, a tree's rows
+    with the tree.
     """
     if not isinstance(chain, Chain):
         return
@@ -195,48 +156,40 @@ def check_readings(chain: object, *parts: object) -> None:
 
 
 def fit_run(run: Run) -> ContactChainsCalibration:
-    """A run registered and fitted, each term's outliers set aside after each fit until stable.
-
-    :func:`~.chain_outliers.fit_terms_until_stable` of :func:`register_contact_chains` and
-    :func:`fit_registered`.
-    """
+    """A run registered and fitted, each term's outliers set aside after each fit until stable."""
     return fit_terms_until_stable(run, register_contact_chains, fit_registered)
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:
-    """Select, fit and assemble a registered run (:func:`calibrate_contact_chains`).
+    """Select, fit and assemble a registered run.
 
-    A fit refused for combinations that each name a parameter ``auto`` chose (not ``free``;
-    :func:`~.chain_counts.assess`), or that did not converge where such combinations stall
-    it (touches and pixels too: assessed where they stopped), is fitted again without the
-    one of largest component in the weakest (held at its nominal value, a note), at most
-    ``HOLDS`` times. ``stalled``: some fit made did not converge (no outliers are read from it).
+    A fit refused (or stalled) for combinations that each name a parameter ``auto`` chose
+    (not ``free``; :func:`~.chain_counts.assess`) is fitted again without the one of largest
+    component in the weakest (held at its nominal value, a note), at most ``HOLDS`` times.
+    Rationale: docs/developers/engine.md#holds
     """
     run, train, plane_of, start = r.run, r.train, r.plane_of, r.start
     load, torques, comp = r.load, r.torques, r.comp
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
-    level, seed = opts.level, opts.seed
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
     with phase(progress, "calibrate: selection"):
-        asked, offer = level_offer(chains[0], start, level, instrument, opts)
+        asked, offer = level_offer(chains[0], start, opts.level, instrument, opts)
         flush = flush_data(start, train, load)
         rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
-        generic = Generic(start, tuple(train), seed) if instrument else None
+        generic = Generic(start, tuple(train), opts.seed) if instrument else None
         kept: list[int] = []
         model, kin, selection, prior = choose(
             start, rows, flush, plane_of, offer, notes, comp, asked, generic, kept
         )
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
-        one = instrument and len(chains) == 1  # its MDH directions span what it sees
-        identifiable = (
-            len(kept)
-            if one
-            else model.size()
-            if offer == "components"
-            else len(structural(wide, start, flush))
-        )
+        if instrument and len(chains) == 1:  # its MDH directions span what it sees
+            identifiable = len(kept)
+        elif offer == "components":
+            identifiable = model.size()
+        else:
+            identifiable = len(structural(wide, start, flush))
     clock.append(time.perf_counter())
     given = () if asked is None else asked.free
     converged = []
@@ -261,12 +214,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
 
 
 def _finished(r: Registered, result, converged: list[bool], identifiable: int):
-    """The last fit's ``result`` with what the run adds (:func:`fit_registered`).
-
-    A last fit that did not converge first stops on the data no calibration explains (where
-    it stopped); then the level, the ``identifiable`` count, whether any fit made stalled
-    (``converged``: each fit's), and the notes of what it fitted and held out.
-    """
+    """The last fit's ``result`` with the run's level, counts and notes (stalled: checked)."""
     opts = r.run.options
     if not converged[-1]:
         for part in result.chains:
@@ -283,11 +231,7 @@ def _finished(r: Registered, result, converged: list[bool], identifiable: int):
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:
-    """Stop on a term's data no calibration explains (a DataError naming them).
-
-    :func:`~.validation.check_fitted_errors` (``noise`` [m]: a measured term's) or, pixels,
-    :func:`~.pixel_chain_result.check_fitted_pixels`.
-    """
+    """Stop on a term's data no calibration explains (a DataError); ``noise`` [m]."""
     if isinstance(part, PixelChain):
         check_fitted_pixels(part)
         return
@@ -297,17 +241,12 @@ def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float
 
 
 TURNED_STD = 10.0
-"""A fitted angle over :data:`~.validation.ORIENTATION_REFUSED` is said (:func:`turned_far`)
-when it is this many standard deviations from 0: the data determine it (a combination the
-data leave loose may drift that far: the rank notes say so)."""
+"""Standard deviations from 0 over which a far-turned angle is said (:func:`turned_far`)."""
 
 
 def turned_far(result: ContactChainsCalibration) -> str | None:
-    """The note of fitted angles that no geometric error reaches, or None.
+    """The note of fitted angles over :data:`~.validation.ORIENTATION_REFUSED`, or None.
 
-    Over :data:`~.validation.ORIENTATION_REFUSED` (29 deg: errors of assembly are mrad),
-    ``TURNED_STD`` std from 0: a joint zero that far off in the URDF, or a frame given on the
-    wrong link (the fit turns a joint's axis onto the frame, or turns the joint before it).
     Rationale and measurements: docs/developers/engine.md#turned_std
     """
     far = [
@@ -329,19 +268,14 @@ def turned_far(result: ContactChainsCalibration) -> str | None:
 
 
 NOTHING_HELD = "nothing held out: not checked on unseen postures (hold some out: "
-"""The head of the note of an accepted fit of every kind that held no row out (folds: its full
-fit's), :func:`nothing_held`."""
+"""The head of :func:`nothing_held`'s note (folds drop it from their full fit's notes)."""
 
 OWN_VALIDATE = "a term's validate, as the other terms)"
 """The way out of :func:`nothing_held`'s note on terms beside terms with validation rows."""
 
 
 def nothing_held(result: ContactChainsCalibration) -> str | None:
-    """The nothing-held-out note of an accepted ``result``, or None (every term held rows out).
-
-    No term held rows out: :data:`NOTHING_HELD` and the ways out its terms have. Some did:
-    the note names the terms that did not, and :data:`OWN_VALIDATE`.
-    """
+    """The note of an accepted ``result`` with terms that held no row out, or None."""
     none = [c.named(k) for k, c in enumerate(result.chains) if c.held_source is None]
     if not result.accepted or not none:
         return None
@@ -358,9 +292,7 @@ HOLDS = 3
 def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     """A fit's result and the combinations :func:`~.chain_counts.assess` refused it for.
 
-    A fit refused only for not converging is assessed too: the combinations it stalled in
-    (its refusal names them first, the stop after). Empty: accepted, or refused for a
-    held-out error or (a converged fit) the rank rule. ``fit_of``: the fit, whether it was
+    A stalled fit is assessed where it stopped. ``fit_of``: the fit, whether it was
     polished, its prior weights and :class:`~.chain_counts.Generic` configurations (or None).
     """
     fitted, polished, prior, generic = fit_of
@@ -395,11 +327,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
 
 
 def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | None:
-    """The parameter ``auto`` chose (not ``given``) to hold, and the combination that names it.
-
-    Of largest component in the weakest of the combinations ``found``; None: one of them
-    names none (the frame, markers and tool alone: no hold would lift the refusal).
-    """
+    """The parameter ``auto`` chose (not ``given``) to hold and its combination, or None."""
     chosen = set(() if selection is None else selection.kept) - set(given)
     named = [
         [(abs(w), n) for n, w in zip(d.names, d.weights, strict=True) if n in chosen] for d in found
@@ -422,8 +350,7 @@ def _without(model: ChainsModel, prior, selection: Selection, name: str):
 
 
 PIN = 1e-6
-"""Weight [m per m or rad] of the polish's pull toward the first fit: the undetermined components
-stay put (one solution, whatever the round-off), the determined ones are not held back."""
+"""Weight [m per m or rad] of the polish's pull toward the first fit (undetermined: stay put)."""
 
 POLISH_GAIN = 1e-2
 """A polish is kept when it leaves less than this fraction of the fit's cost (see ``_fit``)."""
@@ -442,17 +369,10 @@ def _fit(
     opts: Options,
     kin=None,
 ):
-    """Least squares; at ``complete``, polished from its result.
+    """Least squares; at ``complete``, polished by every component (``wide``) where it helps.
 
-    The polish refits every joint placement component (``wide``) from the fitted robot and is
-    kept only if the cost falls below ``POLISH_GAIN`` of the fit's; a kept polish is finished on
-    the data rows alone (:func:`~.solve.gauss_newton_finish`). Not polished: one chain alone,
-    ``auto``, ``offsets``, ``components``, an exact fit (``ROUND_OFF``), a robust loss; a polish
-    whose chain models are refused is dropped.
-    Rationale and measurements: docs/developers/engine.md#_fit
-
-    ``kin``: the start's kinematics at ``train`` (:func:`~.contact_choice.choose`'s), or None.
     Returns the fit and whether it was polished.
+    Rationale and measurements: docs/developers/engine.md#_fit
     """
     data, iters = train, opts.max_iterations
     if by_block(model, start):
@@ -491,77 +411,40 @@ def _fit(
 
 
 def _assemble(r: Registered, solution, model, selection, notes, clock) -> ContactChainsCalibration:
-    """The result of a run's fit: each term's part, the notes, the stage times.
-
-    Its refusal: a held-out error worse than the registration's only (:func:`_assessed` adds
-    the solver's and the rank's). Data no calibration explains stop here (a DataError).
-    """
-    start, train, held, plane_of = r.start, r.train, r.held, r.plane_of
-    elastic = (r.load, r.torques)
+    """The result of a run's fit, refused for a held-out error only (:func:`_assessed`: more)."""
     fitted = solution.fit
     state: ChainsState = fitted.state.settled()
     refusal = None  # a held-out error worse than the registration's (the solver's: _assessed)
     parts: list[ChainContacts | MeasuredChain | PixelChain] = []
     for c, chain in enumerate(state.chains):
-        s, s0, d, h = state.states[c], start.states[c], train[c], held[c]
-        if isinstance(s, MeasuredState | PixelTermState):
-            cov = solution.covariance()[0]
-            own = fitted.model.own_columns(c)
-            std = np.sqrt(np.diag(cov))[own]
-            part = (
-                pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
-                if isinstance(s, PixelTermState)
-                else measured_part(chain, d, h, s0, s, std, c + 1, elastic[1], notes)
-            )
-            if fitted.converged:  # else refused, or fitted again (auto): fit_registered
-                _check_fitted(part, r.run.options.noise)
-            if h is not None:
-                refusal = refusal or held_out_refusal(part.stats, chain, "errors")
-            notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
+        s, s0, d, h = state.states[c], r.start.states[c], r.train[c], r.held[c]
+        if not isinstance(s, MeasuredState | PixelTermState):
+            part, why = _touching(r, c, s0, s, fitted.converged, notes)
+            refusal = refusal or why
             parts.append(part)
             continue
-        load, torque = elastic if c == 0 else (None, (None, None))
-        torques = {id(d): torque[0], id(h): torque[1]}  # the fitted state's deflect
-
-        def stat(st, rows, fitted=s, torques=torques):
-            return gap_stats(st, rows.q, rows.ids, torques[id(rows)] if st is fitted else None)
-
-        stats = part_stats(stat, s0, s, d, h)
-        if fitted.converged:  # a fit that stalled is refused, or fitted again (auto)
-            validation.check_fitted_errors(stats, None, None, d.source, chain)
-        if h is not None:
-            near, far = (
-                1e-3 * stats[f"{k}_registration"].length_rms_mm for k in ("train", "held_out")
-            )
-            validation.check_held_out_errors(near, far, h.source, validation.TOUCHES)
-            refusal = refusal or held_out_refusal(stats, chain, "gaps")
-        compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
-        objects = contact_objects(s, d, torque[0])
-        parts.append(
-            ChainContacts(
-                chain,
-                d.source,
-                d.contacts[0],
-                objects[d.contacts[0]],
-                s.contact,
-                s0.mdh,
-                s.mdh,
-                s.weight,
-                stats,
-                s.kind,
-                placed=objects,
-                compliance=compliance,
-                load=None if compliance is None else load,
-                readings=() if compliance is None or d.readings is None else d.readings.names,
-            )
+        own = fitted.model.own_columns(c)
+        std = np.sqrt(np.diag(solution.covariance()[0]))[own]
+        part = (
+            pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
+            if isinstance(s, PixelTermState)
+            else measured_part(chain, d, h, s0, s, std, c + 1, r.torques, notes)
         )
+        if fitted.converged:  # else refused, or fitted again (auto): fit_registered
+            _check_fitted(part, r.run.options.noise)
+        if h is not None:
+            refusal = refusal or held_out_refusal(part.stats, chain, "errors")
+        notes.extend(part.warnings() if isinstance(part, PixelChain) else ())
+        parts.append(part)
     notes += contact_elastic.none_kept_note(parts[0], r.comp, r.load)
     joints = [name for c in state.chains for name in c.joint_names]
     shared = tuple(n for n in dict.fromkeys(joints) if joints.count(n) > 1)
     clock.append(time.perf_counter())
     stages = ("registration", "selection", "fit", "validation")
     spans = zip(stages, clock[:-1], clock[1:], strict=True)
-    planes = {p for p, s in zip(plane_of, state.states, strict=True) if isinstance(s, ContactState)}
+    planes = {
+        p for p, s in zip(r.plane_of, state.states, strict=True) if isinstance(s, ContactState)
+    }
     return ContactChainsCalibration(
         chains=tuple(parts),
         placements=state.placements,
@@ -574,3 +457,41 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
         notes=tuple(notes),
         timings_ms={k: 1e3 * (b - a) for k, a, b in spans},
     )
+
+
+def _touching(r: Registered, c: int, s0, s: ContactState, converged: bool, notes):
+    """Touching chain c's part of a fit's result, and its held-out refusal (or None)."""
+    chain, d, h = r.start.chains[c], r.train[c], r.held[c]
+    load, torque = (r.load, r.torques) if c == 0 else (None, (None, None))
+    torques = {id(d): torque[0], id(h): torque[1]}  # the fitted state's deflect
+
+    def stat(st, rows):
+        return gap_stats(st, rows.q, rows.ids, torques[id(rows)] if st is s else None)
+
+    stats = part_stats(stat, s0, s, d, h)
+    if converged:  # a fit that stalled is refused, or fitted again (auto)
+        validation.check_fitted_errors(stats, None, None, d.source, chain)
+    refusal = None
+    if h is not None:
+        near, far = (1e-3 * stats[f"{k}_registration"].length_rms_mm for k in ("train", "held_out"))
+        validation.check_held_out_errors(near, far, h.source, validation.TOUCHES)
+        refusal = held_out_refusal(stats, chain, "gaps")
+    compliance = contact_elastic.fitted_compliance(s, (d, h), stats, notes)
+    objects = contact_objects(s, d, torque[0])
+    part = ChainContacts(
+        chain,
+        d.source,
+        d.contacts[0],
+        objects[d.contacts[0]],
+        s.contact,
+        s0.mdh,
+        s.mdh,
+        s.weight,
+        stats,
+        s.kind,
+        placed=objects,
+        compliance=compliance,
+        load=None if compliance is None else load,
+        readings=() if compliance is None or d.readings is None else d.readings.names,
+    )
+    return part, refusal

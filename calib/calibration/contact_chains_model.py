@@ -1,10 +1,4 @@
-"""The joint fit's error model: terms on several chains of one robot, fitted together.
-
-A state is the robot's joint placement errors (:class:`~.placements.Placements`) and each
-term's state; a fit step moves the errors (:meth:`ChainsState.kinematics`), and
-:meth:`ChainsState.settled` composes them into the robot. x: each object's unknowns, each
-chain's own, the free placement directions, the first chain's free compliances. Rows: each
-chain's in order, zero-padded to the most rows of a kind.
+"""The joint fit's error model: the robot's joint placement errors and each term's state.
 
 Rationale and measurements: docs/developers/engine.md#contact_chains_model
 """
@@ -30,12 +24,7 @@ from .model import MeasuredKind, compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns
 
-__all__ = ["ChainsData", "ChainsModel", "ChainsState", "joint_rows", "on_models", "padded"]
-
-
-def _row_count(kinds) -> int:
-    """Rows per touch of a fit of chains of these kinds: the most of any kind."""
-    return max(len(k.row_names) for k in kinds)
+__all__ = ["ChainsData", "ChainsModel", "ChainsState", "joint_motions", "on_models", "padded"]
 
 
 def padded(a: np.ndarray, rows: int) -> np.ndarray:
@@ -48,11 +37,7 @@ def padded(a: np.ndarray, rows: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ChainsData:
-    """Touches of each chain (one :class:`ContactData` per chain, in chain order).
-
-    ``torques``: each chain's gravity torques at its touches, which deflect its compliant
-    joints (``elastic``), or None (rigid joints).
-    """
+    """Each chain's rows, in chain order, and its gravity torques there (None: rigid)."""
 
     parts: tuple[ContactData | Measurements | PixelPart, ...]
     torques: tuple[np.ndarray | None, ...] | None = None
@@ -63,7 +48,7 @@ class ChainsData:
         return sum(d.m for d in self.parts)
 
     def torque(self, c: int) -> np.ndarray | None:
-        """Chain c's gravity torques ``(m, n)`` [N m or N] (joint compliance), or None."""
+        """Chain c's gravity torques ``(m, n)`` [N m or N], or None."""
         return None if self.torques is None else self.torques[c]
 
 
@@ -84,24 +69,17 @@ def _with(s, **changes):
     return dataclasses.replace(s, **changes)
 
 
-def _joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """The tool side's motion per unit motion of a chain's joints ``joints``.
+def joint_motions(path, kin, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The tool side's linear (at the base origin) and angular velocity ``(m, 3, k)`` per joint.
 
-    Joint j's motion is a turn about (a slide along) the z axis of its frame in ``kin``,
-    signed by the chain's direction through it (``path``: the chain's
-    :class:`~.placements.ChainPath`). Returns the velocity of the base frame's origin moving
-    with the tool side ``(m, 3, k)`` and the angular velocity ``(m, 3, k)``.
+    Each joint turns about (slides along) its frame's z in ``kin``, signed by ``path``'s
+    direction through it.
     """
     z = kin.R[:, joints][..., 2] * np.asarray(path.sign, dtype=float)[joints, None]  # (m, k, 3)
     slide = np.asarray(path.prismatic)[joints][None, :, None]
     ang = np.where(slide, 0.0, z)
     lin = np.where(slide, z, np.cross(kin.p[:, joints], ang))
     return np.swapaxes(lin, 1, 2), np.swapaxes(ang, 1, 2)
-
-
-def joint_rows(path, s: ContactState, d: ContactData, kin, joints: list[int]) -> np.ndarray:
-    """Weighted gap rows ``(m, r, k)`` per unit motion of a chain's joints ``joints``."""
-    return s.motion_rows(kin, d, *_joint_motions(path, kin, joints))
 
 
 def _deflection(s) -> np.ndarray:
@@ -111,7 +89,7 @@ def _deflection(s) -> np.ndarray:
 
 
 def _compliant(s, joints: list[int], dc: np.ndarray):
-    """A touching or measured chain's state with the compliances of ``joints`` moved by ``dc``."""
+    """A chain's state with the compliances of ``joints`` moved by ``dc``."""
     part = _robot_part(s)
     if isinstance(part, PixelTermState):
         raise InvalidArgumentError("joint compliance is fitted for a chain touching or measured")
@@ -122,16 +100,10 @@ def _compliant(s, joints: list[int], dc: np.ndarray):
 
 @dataclass(frozen=True, eq=False)
 class ChainsState:
-    """The robot's joint placement errors and each chain's contact state.
+    """The robot's joint placement errors and each chain's state.
 
-    Attributes:
-        chains: The nominal chains (one robot).
-        placements: The joint placement errors.
-        states: Each chain's state, its MDH model the chain on ``placements.model`` (the
-            robot the errors act on): the robot with its errors is seen through
-            :meth:`kinematics` (:meth:`settled`: the models of the robot with its errors).
-        scales: Factor of each chain's weighted rows in the fit (None: 1 each): a loop's
-            rows may weigh more than a table's (``pose_weight``).
+    Each state's MDH model is its chain on ``placements.model`` (the errors are seen through
+    :meth:`kinematics`); ``scales``: each chain's row factor (``pose_weight``; None: 1 each).
     """
 
     chains: tuple[Chain, ...]
@@ -144,11 +116,7 @@ class ChainsState:
         return 1.0 if self.scales is None else float(self.scales[c])
 
     def kinematics(self, data: ChainsData, torque=None) -> tuple[JointFrames, ...]:
-        """Each chain's frames at its data's joints, the errors included (once per step).
-
-        A compliant chain's joints deflect under the data's gravity torques (``torque`` is
-        the solver's argument, unused).
-        """
+        """Each chain's frames at its data's joints, errors and deflections included."""
         frames = []
         for c, (chain, s, d) in enumerate(zip(self.chains, self.states, data.parts, strict=True)):
             robot, q = _robot_part(s), np.asarray(d.q, dtype=float)  # a pixel part's: its rows'
@@ -159,10 +127,7 @@ class ChainsState:
     step_kinematics = kinematics  # what :class:`~.solve.Problem` makes once per x
 
     def same_geometry(self, other) -> bool:
-        """Whether ``other``'s kinematics at the same data are this state's.
-
-        The same placements and the same compliances (they deflect the joints).
-        """
+        """Whether ``other``'s kinematics at the same data are this state's."""
         return (
             isinstance(other, ChainsState)
             and other.placements is self.placements
@@ -173,11 +138,7 @@ class ChainsState:
         )
 
     def settled(self) -> ChainsState:
-        """The same robot with its errors composed into its model and the MDH models remade.
-
-        Each chain state's MDH model is then its chain on the robot with the errors (what a
-        result reports and a refinement starts from).
-        """
+        """The same robot with its errors composed into its model and the MDH models remade."""
         if not self.placements.y.any():
             return self
         placements = self.placements.rebased()
@@ -187,13 +148,10 @@ class ChainsState:
         )
 
     def residuals(self, data: ChainsData, torque=None, kin=None) -> np.ndarray:
-        """Weighted ``0 - gap`` of every touch ``(m, rows)``, chain after chain (padded).
-
-        ``kin``: :meth:`kinematics` at ``data``, if already made.
-        """
+        """Weighted ``0 - gap`` of every row ``(m, rows)``, chain after chain (padded)."""
         if kin is None:
             kin = self.kinematics(data, torque)
-        rows = _row_count(s.kind for s in self.states)
+        rows = max(len(s.kind.row_names) for s in self.states)
         parts = zip(self.states, data.parts, kin, strict=True)
         out = [s.residuals(d, None, k) for s, d, k in parts]
         scaled = (r if self.scale(c) == 1.0 else self.scale(c) * r for c, r in enumerate(out))
@@ -205,18 +163,13 @@ class ChainsModel:
     """What is free: the objects, the contacts' unknowns and joint placement components.
 
     Attributes:
-        plane_of: Index of each chain's object (a plane, or a fixed pose).
-        planes: Number of objects.
-        free: The free directions, as indices into ``names_all``.
-        names_all: Names of the directions offered.
-        directions: The directions offered ``(D, 6 J)``, each a combination of the joint
-            placement components (``Placements.names()`` order); None: each component alone
-            (``names_all`` is then ``Placements.names()``).
-        kinds: Each chain's contact kind (None: all ``plane``).
-        counts: Each chain's number of objects (None: one each; a ``fixed-pose`` chain may
-            hold several poses, e.g. one per session: the feet stood elsewhere).
-        compliance: The first chain's joints (0-based) whose compliance is free, columns
-            after the placement directions (``c<row>``; ``elastic``: one chain touching).
+        plane_of: Index of each chain's object group; ``planes``: their number.
+        free: The free directions, as indices into ``names_all`` (the names offered).
+        directions: The directions offered ``(D, 6 J)`` in the components
+            (``Placements.names()`` order); None: each component alone.
+        kinds: Each chain's kind (None: all ``plane``).
+        counts: Each chain's number of objects (None: one each).
+        compliance: The first chain's joints (0-based) whose compliance is free.
     """
 
     plane_of: tuple[int, ...]
@@ -262,7 +215,7 @@ class ChainsModel:
         return self.fixed + len(self.free) + len(self.compliance)
 
     def object_blocks(self) -> tuple[int, int]:
-        """Objects and unknowns of each (a fit by block: one chain touching, the first)."""
+        """The first chain's objects and unknowns of each (a fit by block)."""
         return self._count(0), len(self.chain_kinds()[0].object_dofs)
 
     def names(self) -> tuple[str, ...]:
@@ -317,9 +270,6 @@ class ChainsModel:
         """Chain c's own columns in x (a measured term's frame, markers and tool rotation)."""
         return self._columns[c][2]
 
-    def _chain_x(self, x: np.ndarray, c: int) -> np.ndarray:
-        return x[self._columns[c][2]]
-
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
         """The state at parameters x (x = 0 is ``start``): no MDH model is remade."""
         x = np.asarray(x, dtype=float)
@@ -327,7 +277,7 @@ class ChainsModel:
         end = self.fixed + len(self.free)
         if len(self.free):
             placements = placements.shifted(self._lift.T @ x[self.fixed : end])
-        states = tuple(s.moved(self._chain_x(x, c)) for c, s in enumerate(start.states))
+        states = tuple(s.moved(x[self.own_columns(c)]) for c, s in enumerate(start.states))
         if self.compliance:  # the first chain's joints deflect: q' = q + c tau
             states = (_compliant(states[0], list(self.compliance), x[end:]), *states[1:])
         return dataclasses.replace(start, placements=placements, states=states)
@@ -337,14 +287,13 @@ class ChainsModel:
     ):
         """Weighted d(gap)/dx ``(m, rows, size)``, chain after chain (padded rows).
 
-        ``state`` (:meth:`apply` at x) and ``kin`` (its :meth:`ChainsState.kinematics` at
-        ``data``): if already made.
+        ``state`` (:meth:`apply` at x) and ``kin`` (its kinematics at ``data``): if made.
         """
         if state is None:
             state = self.apply(start, x)
         if kin is None:
             kin = state.kinematics(data, torque)
-        rows = _row_count(self.chain_kinds())
+        rows = max(len(k.row_names) for k in self.chain_kinds())
         blocks = []
         for c, d in enumerate(data.parts):
             block = self._block(start, state, x, c, d, kin[c], data.torque(c))
@@ -354,40 +303,29 @@ class ChainsModel:
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)  # one term: no copy
 
     def blocks(self, start: ChainsState, x: np.ndarray, data: ChainsData):
-        """:meth:`jacobian` of one chain touching by block (:mod:`.contact_fit`).
-
-        As :meth:`~.contact_model.ContactState.blocks`, the shared unknowns' rows the
-        contact's, the placement directions' and the compliances'.
-        """
+        """One chain touching's :meth:`jacobian` by block (robot columns: shared)."""
         if len(self.plane_of) != 1 or not isinstance(start.states[0], ContactState):
             raise InvalidArgumentError("a fit by block is of one chain touching")
         state = self.apply(start, x)
         kin, s, d = state.kinematics(data)[0], cast(ContactState, state.states[0]), data.parts[0]
-        own, shared, index = start.states[0].blocks(self._chain_x(x, 0), d, kin, s)
+        own, shared, index = start.states[0].blocks(x[self.own_columns(0)], d, kin, s)
         robot = self._robot_rows(state, 0, kin, data.torque(0), partial(s.motion_rows, kin, d))
         shared = np.concatenate([shared, *robot], axis=2)
         return start.scale(0) * own, start.scale(0) * shared, index
 
     def _robot_rows(self, state: ChainsState, c: int, kin, torque, rows_of) -> list[np.ndarray]:
-        """Chain c's rows of the free placement directions, then compliances (``(m, r, k)``).
-
-        ``rows_of(lin, ang)``: the chain's weighted rows of k motions of its tool side.
-        """
+        """Chain c's rows ``(m, r, k)`` of the free directions, then compliances, by ``rows_of``."""
         chain, out = state.chains[c], []
         if self.free:
             out.append(rows_of(*twist_columns(state.placements, chain, kin, self._lift)))
         if self.compliance and c == 0:  # q' = q + c tau: d/dc_j = tau_j d/dq_j
-            motions = _joint_motions(state.placements.path(chain), kin, list(self.compliance))
+            motions = joint_motions(state.placements.path(chain), kin, list(self.compliance))
             gain = np.asarray(torque, dtype=float)[:, None, list(self.compliance)]  # (m, 1, k)
             out.append(rows_of(*motions) * gain)
         return out
 
     def _block(self, start: ChainsState, state: ChainsState, x: np.ndarray, c: int, d, kin, torque):
-        """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded).
-
-        ``kin``: chain c's frames at its data (:meth:`ChainsState.kinematics`); ``torque``:
-        its gravity torques (compliance), or None.
-        """
+        """Chain c's weighted rows ``(m, rows, size)`` (not scaled, not padded)."""
         s, s0, chain, lift = state.states[c], start.states[c], state.chains[c], self._lift
         J = np.zeros((d.m, len(s.kind.row_names), self.size()))
         mine = self._columns[c][2]

@@ -1,8 +1,6 @@
-"""The result of every calibration (one robot, one URDF), and one chain touching's layout.
+"""The result of every calibration (one robot, one URDF), and a chain touching's part of it.
 
-A fit of one contact term keeps the report's layout users' scripts, ``calib predict`` and
-``load_calibrated`` read for one chain touching (``shape`` ``contacts``); one chain measured
-by an instrument keeps a chain's (:mod:`.measured_report`).
+One term keeps its shape's report layout (``contacts`` here, a chain's: :mod:`.measured_report`).
 """
 
 from __future__ import annotations
@@ -55,18 +53,14 @@ _T = TypeVar("_T")
 
 @dataclass(frozen=True, eq=False)
 class ChainContacts(TermPart):
-    """One chain touching's part of the result.
+    """One chain touching's part of the result (besides :class:`~.contact_result.TermPart`'s).
 
-    Attributes (besides :class:`~.contact_result.TermPart`'s: ``chain``, ``source``, ``stats``,
-    ``held_source``, ``compliance`` fitted with ``elastic``):
-        plane_id: The plane's (or the fixed pose's) id.
-        plane: The plane in the chain's base frame ``(4, 4)``, z = normal (a
-            ``fixed-pose`` chain: the fixed pose of its contact frame).
+    Attributes:
+        plane_id, plane: The first object's id and pose in the base frame ``(4, 4)`` (a
+            plane's z: its normal; a ``fixed-pose`` chain's: the pose of its contact frame).
         contact: The contact frame in the tool frame ``(4, 4)``.
-        nominal: The chain's nominal MDH model.
-        calibrated: Its MDH model on the calibrated robot.
+        nominal, calibrated: The chain's MDH model, nominal and on the calibrated robot.
         weight: Weight of its tilt rows [m/rad].
-        kind: The chain's contact kind (``plane`` or ``fixed-pose``).
         outliers: Its touches set aside after its registration.
         placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
             origin at its touches' contact points, projected), or None: :attr:`plane`.
@@ -119,7 +113,7 @@ class ChainContacts(TermPart):
 
 
 def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
-    """One chain touching (``result``): ``fields`` of its layout (a copy), format 2's keys."""
+    """One chain touching's report fields (a copy of ``fields``) and format 2's keys."""
     part = result.chains[0]
     chain, weight = part.chain, part.weight if any(part.kind.angular) else None
     errors, load = part.errors(), load_record(part)
@@ -163,9 +157,8 @@ class ContactChainsCalibration(Result, ChainView):
         chains: Each chain's part, in the order given.
         placements: The fitted joint placement errors (one per URDF joint on any chain).
         shared: Joints on two chains or more (fitted once for all of them).
-        planes: The touching chains' sets of objects: one per chain (whatever the planes,
-            points or poses it touches), a plane shared by chains once (format 2's
-            ``planes``; the summary counts the objects themselves).
+        planes: The touching chains' sets of objects, a plane shared by chains once (format
+            2's ``planes``; the summary counts the objects themselves).
         free: The placement components fitted (``<joint>:x`` ... ``:rz``).
         selection: The automatic choice (``auto``), or None.
         refusal: Why the model must not be used, or None.
@@ -176,16 +169,13 @@ class ContactChainsCalibration(Result, ChainView):
         std: Their standard deviations (NaN where undefined).
         fitted: The names of ``estimate`` (``free``, or every component after a polish).
         solver: ``(converged, message, Jacobian evaluations)`` of the final fit.
-        unknowns: The unknowns the data determine (the structural rank at the nominal
-            robot): the objects', contacts' and measured terms' own, and the joint placement
-            directions kept (``free``).
+        unknowns: The unknowns the data determine at the nominal robot: the objects',
+            contacts' and measured terms' own, and the joint placement directions ``free``.
         shape: ``chains``, or ``tree``: the terms are a tree's tools measured by one
             instrument (:mod:`.instrument`).
-        identifiable: The rank of the rows' Jacobian over every unknown and every joint
-            placement component, at the nominal robot (flush touches): what the data
-            determine whatever the parameters offered (``unknowns`` at ``complete`` may miss
-            combinations of shared joints that no chain's MDH rows name: the polish finds
-            them).
+        identifiable: What the data determine whatever the parameters offered: the rank of
+            the rows' Jacobian by every unknown and joint placement component, at the nominal
+            robot (``unknowns`` at ``complete`` may miss combinations of shared joints).
         inputs: The files it read (:func:`~.delivery.read_files`), which ``write`` never
             overwrites; empty: those the report names.
         stalled: A fit made did not converge (the last, or one ``auto`` held a parameter
@@ -236,21 +226,17 @@ class ContactChainsCalibration(Result, ChainView):
         if not self.elastic:
             return {}
         part = self.chains[0]
-        document = (
-            chain_compliance_document(
+        if isinstance(part, MeasuredChain):
+            frame = np.eye(4) if on_robot else self.measurement_to_base
+            document = chain_compliance_document(
                 self.chain,
                 self.state.compliance,
                 str(out),
                 tool_frame=self.urdf_tool_frame,
-                measured=(
-                    np.eye(4) if on_robot else self.measurement_to_base,
-                    self.urdf_markers,
-                    self.marker_links,
-                ),
+                measured=(frame, self.urdf_markers, self.marker_links),
             )
-            if isinstance(part, MeasuredChain)
-            else compliance_document(part, str(out))
-        )
+        else:
+            document = compliance_document(part, str(out))
         return {compliance_path(out): json_text(document)}
 
     def entries(self) -> list[dict]:
@@ -294,7 +280,7 @@ class ContactChainsCalibration(Result, ChainView):
         return out
 
     def _of(self, kind: type[_T]) -> tuple[_T, ...]:
-        """The terms of one kind (:class:`ChainContacts`, :class:`MeasuredChain`, ...)."""
+        """The terms of one kind."""
         return tuple(c for c in self.chains if isinstance(c, kind))
 
     def _instrument(self) -> tuple[MeasuredChain, ...]:
@@ -402,10 +388,8 @@ class ContactChainsCalibration(Result, ChainView):
     def _object_names(self) -> dict[int, dict[str, str]]:
         """Each touching term's objects' names in the report, by term (``id``) and object id.
 
-        Terms that touch distinct objects of one id (each arm its own ``table``: planes not
-        shared) name theirs ``<id>@<tool>`` (``@<base>-><tool>`` where they share their tool),
-        as the parameters two chains name alike; a plane shared (one base, one plane) keeps
-        its id.
+        Distinct objects of one id (each arm its own ``table``) are ``<id>@<tool>``
+        (``@<base>-><tool>`` where terms share their tool); a plane shared keeps its id.
         """
         parts = self._of(ChainContacts)
         seen = [(c, i, F) for c in parts for i, F in c.objects().items()]
@@ -441,7 +425,7 @@ class ContactChainsCalibration(Result, ChainView):
         return out
 
     def _format2(self, origins: dict) -> dict:
-        """Format 2's keys that format 3 replaced (``origins``: ``joint_origins``)."""
+        """Format 2's keys that format 3 replaced."""
         if self.shape == "tree":  # a tree's own keys of format 2
             return instrument_format2(self._instrument())
         return {
@@ -456,11 +440,7 @@ class ContactChainsCalibration(Result, ChainView):
         }
 
     def _headline(self) -> str:
-        """The summary's first line: the chains, the terms' objects, what is fitted, determined.
-
-        The objects (``2 planes``, ``1 camera``): a contact term's by their kind (a
-        plane-point's plane is a plane), a plane shared by chains once.
-        """
+        """The summary's first line: the chains, the objects by kind, what is fitted, determined."""
         names = self._object_names()
         objects: dict[str, set[str]] = {}
         for c in self._of(ChainContacts):
@@ -540,10 +520,9 @@ class ContactChainsCalibration(Result, ChainView):
 
 
 def nothing_fitted(result: ContactChainsCalibration, fixed: bool) -> str | None:
-    """The note of an accepted fit that moved no joint placement (``frames`` not asked).
+    """The note of an accepted fit that moved no joint placement (``frames`` not asked), or None.
 
-    Its URDF (:meth:`~ContactChainsCalibration.urdf`) is the nominal robot's, with only the
-    registered frames a measured term or a camera adds; ``fixed``: ``fix`` named some.
+    ``fixed``: ``fix`` named some.
     """
     if result.free or result.elastic or result.params == "frames" or not result.accepted:
         return None

@@ -1,10 +1,7 @@
-"""The joint engine's model, chosen before its fit (:mod:`.contact_chains`).
+"""The joint engine's model, chosen before its fit (:func:`choose`).
 
-The directions a level offers (:func:`_offer_directions`), those the data determine (at touching
-postures, :func:`flush_data`; by block with many objects, :func:`structural`), the joint
-compliances offered (``elastic``), the selection's columns (:func:`_selection_columns`) and
-the choice (:func:`choose`); and the memory a contact term would need (refused up front
-beyond 2 GB, :func:`check_selection_memory`).
+The directions a level offers, those the data determine at touching postures, ``auto``'s
+selection; and the memory a contact term would need (:func:`check_selection_memory`).
 """
 
 from __future__ import annotations
@@ -27,7 +24,7 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
 from .chain_counts import sampled
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_rows
+from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_motions
 from .contact_checks import check_level_equations
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
@@ -54,11 +51,10 @@ Measurements: docs/developers/performance.md#selection_bytes-contact_choice"""
 
 
 def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
-    """Refuse in one line, before any work, contact terms that would need more than 2 GB.
+    """Refuse, before any work, contact terms that would need over ``MAX_WORK_BYTES``.
 
-    InvalidArgumentError (saying what to do) where a touching term's estimate
-    (:data:`SELECTION_BYTES`) exceeds ``MAX_WORK_BYTES`` (``auto`` selects among dense
-    columns); ``comp``: the joint compliance columns offered (``elastic``).
+    Raises:
+        InvalidArgumentError: A touching term's estimate (:data:`SELECTION_BYTES`) over it.
     """
     per_touch, per_column, per_object = SELECTION_BYTES
     auto = level == "auto"
@@ -87,10 +83,8 @@ def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:
 def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarray, np.ndarray]:
     """Postures near ``q`` where the contact of ``start`` holds on each touch's object.
 
-    Each object's touches are Newton-projected onto it, the model re-expressed in its frame
-    with the contact as its tool (:func:`~calib.identification.contact_postures.project`).
-    Returns the postures ``(m, n)`` (the given one where the projection failed) and which
-    reached the contact ``(m,)``.
+    Returns the postures ``(m, n)`` (``q``'s where the projection failed) and which reached
+    the contact ``(m,)``.
     """
     q = np.asarray(q, dtype=float)
     index = start.frames.index(ids)
@@ -108,11 +102,7 @@ def touching_postures(start: ContactState, q: np.ndarray, ids) -> tuple[np.ndarr
 def chains_model(
     state: ChainsState, plane_of, free, names, directions=None, comp=()
 ) -> ChainsModel:
-    """The engine's model of a state: its objects, contacts, directions and compliances.
-
-    ``free`` of the directions ``names`` (rows of ``directions``; None: components), and the
-    joints ``comp`` whose compliance is free.
-    """
+    """The engine's model of a state: ``free`` of the directions ``names``, ``comp`` compliant."""
     p, c, kinds = tuple(plane_of), tuple(comp), tuple(s.kind for s in state.states)
     counts = tuple(len(s.frames.ids) if isinstance(s, ContactState) else 1 for s in state.states)
     return ChainsModel(p, len(set(p)), tuple(free), tuple(names), directions, kinds, counts, c)
@@ -123,13 +113,7 @@ def _offer_directions(
 ) -> tuple[np.ndarray | None, tuple[str, ...], list]:
     """Directions a level offers: (directions or None for components, names, indices).
 
-    ``offsets``: each joint's offset component (``<joint>:rz``, ``:z`` prismatic), named as
-    ``complete`` names that parameter (``<joint>:theta2``, :func:`_offset_names`).
-    ``paper``, ``complete`` and ``auto``: each chain's MDH parameters of joint rows 1..n
-    (``paper``'s set or the complete one) as directions of joint placement errors
-    (:func:`~.placements.mdh_directions`), chain after chain, those another chain already
-    offers (a shared joint's) once; ``complete`` first the components where chains meet
-    (:func:`_branch_components`).
+    Rationale: docs/developers/engine.md#_offer_directions
     """
     pl = start.placements
     if level == "frames":
@@ -166,9 +150,6 @@ def _offer_directions(
 def _branch_components(start: ChainsState) -> list[int]:
     """The components of the joints shared by chains and of their neighbours on a path.
 
-    Offered before the MDH directions, so that the rank keeps a basis of these joints'
-    components: a placement component one chain leaves out, another chain through a shared
-    joint may tell apart.
     Rationale and measurements: docs/developers/engine.md#_branch_components
     """
     pl = start.placements
@@ -185,13 +166,7 @@ def _branch_components(start: ChainsState) -> list[int]:
 
 
 def _offset_names(start: ChainsState, offsets: list[int]) -> tuple[str, ...]:
-    """The components' names, each joint offset (``offsets``) as the chart names it.
-
-    The offset component of a joint is the MDH joint offset (``theta_k``, ``r_k``) that
-    ``paper`` and ``complete`` offer where that parameter moves the component alone
-    (:func:`~.placements.component_of`): one name for one parameter (a shared joint's as
-    the first chain names it, as they do).
-    """
+    """The components' names, each joint offset (``offsets``) as ``complete`` names it."""
     pl, chart = start.placements, dict[int | None, str]()
     for chain, s in zip(start.chains, start.states, strict=True):
         D, labels = mdh_directions(pl, chain, s.mdh, 0, joint_offsets(s.mdh))
@@ -203,9 +178,7 @@ def _offset_names(start: ChainsState, offsets: list[int]) -> tuple[str, ...]:
 def _unique(labels: list[tuple[str, Chain]]) -> tuple[str, ...]:
     """Each direction's name, one that several chains give saying whose it is.
 
-    A shared joint's MDH parameter of the same row in two chains is two directions of one
-    name: ``torso_1_joint:d7@gripper_left_base_link`` (its chain's tool, or ``@base->tool``
-    where those chains share their tool).
+    ``torso_1_joint:d7@gripper_left_base_link`` (``@base->tool`` where chains share a tool).
     """
     out = []
     for name, chain in labels:
@@ -223,12 +196,7 @@ def _unique(labels: list[tuple[str, Chain]]) -> tuple[str, ...]:
 def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsData:
     """Each chain's touches at flush postures near them (a measured term's rows as they are).
 
-    The projection (:func:`touching_postures`) is flush on the chain's MDH model, which
-    differs from the joint placements' frames the rank test differentiates by round-off
-    (~1e-13 m): dependencies that hold exactly at flush postures would then show at the
-    1e-12 level, above the rank's tolerance. Two Newton steps on the joint positions of the
-    touches that reached their object remove that gap. With a standing load (``elastic``,
-    one chain touching) the torques are the flush postures'.
+    Rationale: docs/developers/engine.md#flush_data
     """
     parts: list[ContactData | Measurements | PixelPart] = []
     for chain, s, d in zip(start.chains, start.states, train, strict=True):
@@ -240,7 +208,7 @@ def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsDa
         for _ in range(2):
             kin = start.placements.frames(chain, q)
             g = s.gaps(q, d.ids, None, kin) * s.row_weights()
-            J = joint_rows(path, s, d, kin, list(range(chain.n)))
+            J = s.motion_rows(kin, d, *joint_motions(path, kin, list(range(chain.n))))
             q[reached] -= (np.linalg.pinv(J) @ g[..., None])[reached, :, 0]
         parts.append(dataclasses.replace(d, q=q))
     first = parts[0]
@@ -253,10 +221,8 @@ def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsDa
 class AtStart:
     """A model's Jacobian at the registration (``x = 0``), made once for the same rows.
 
-    The rank test, the selection and the fit of a measured term differentiate the same rows
-    (its flush postures are its rows as they are, :func:`flush_data`): one Jacobian serves
-    the first two, the kinematics under it all three (the selection's residuals, the fit's
-    first step). The arrays returned are shared: read only.
+    The rank test and the selection share the Jacobian, the fit its kinematics too. The
+    arrays returned are shared: read only.
     """
 
     def __init__(self, wide: ChainsModel, start: ChainsState) -> None:
@@ -265,7 +231,7 @@ class AtStart:
         self._last: tuple[ChainsData, np.ndarray] | None = None
 
     def kinematics(self, data: ChainsData) -> tuple[JointFrames, ...]:
-        """The registration's kinematics at the rows ``data`` (:meth:`ChainsState.kinematics`)."""
+        """The registration's kinematics at the rows ``data``."""
         if self._kin is None or not same_rows(self._kin[0], data):
             self._kin = (data, self.start.kinematics(data))
         return self._kin[1]
@@ -292,10 +258,7 @@ def same_rows(a: ChainsData, b: ChainsData) -> bool:
 def structural(
     wide: ChainsModel, start: ChainsState, flush: ChainsData, at: AtStart | None = None
 ) -> list[int]:
-    """The columns the touches determine, from the Jacobian at flush postures (``flush_data``).
-
-    ``at``: the Jacobians at the registration made so far (:class:`AtStart`), or None.
-    """
+    """The columns the touches determine, from the Jacobian at flush postures (``flush_data``)."""
     if by_block(wide, start):
         return block_structural(wide, start, flush)
     A = (at or AtStart(wide, start))(flush).reshape(-1, wide.size())
@@ -314,18 +277,13 @@ def choose(
     generic=None,
     kept_out: list[int] | None = None,
 ):
-    """The model, the registration's kinematics at ``data``, the selection, the prior weights.
+    """The model, the start's kinematics at ``data``, ``auto``'s selection, the prior weights.
 
-    The model: its free components and compliances; the kinematics: for the fit's first
-    step (None for a fit by block); the selection: ``auto``'s, else None.
-
-    ``comp``: the joints whose compliance is offered (``elastic``), after the directions;
-    ``asked``: a measured chain's ``fix`` and ``free`` (:class:`~.measured_options.Asked`),
-    or None. ``generic``: terms measured by an instrument (:class:`~.chain_counts.Generic`):
-    the level offers what generic configurations determine (a note only when the data
-    determine less), and one chain gets a chain's checks and posture counts; or None.
-    ``kept_out``: a list given is filled with the columns the data determine (of the level's
-    model), as ``notes`` with the remarks.
+    The kinematics: None for a fit by block. ``comp``: the joints whose compliance is offered;
+    ``asked``: a measured chain's ``fix`` and ``free`` (:class:`~.measured_options.Asked`), or
+    None; ``generic``: the generic configurations of terms measured by an instrument
+    (:class:`~.chain_counts.Generic`), or None; ``kept_out``: filled with the columns the
+    data determine, as ``notes`` with remarks.
     """
     train, rows = list(data.parts), data
     directions, names, offered = _offer_directions(start, level)
@@ -387,13 +345,10 @@ def _postures(data: ChainsData) -> np.ndarray | None:
 def _selection_columns(
     wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart | None = None
 ):
-    """The selection's columns (the always-free ones, then ``columns``), its objects' block.
+    """The selection's dense columns (the always-free ones, then ``columns``), and the rest.
 
-    Many objects (:func:`~.contact_fit.by_block`): the objects' columns by block
-    (:class:`~.object_columns.ObjectColumns`), the rest dense; else all dense. ``at``: the
-    Jacobians at the registration made so far (:class:`AtStart`), or None. Returns the dense
-    columns ``(m, rows, free + len(columns))``, the objects (or None) and the number of
-    always-free dense columns.
+    Returns them, the objects by block (:class:`~.object_columns.ObjectColumns`) or None,
+    and the number of always-free dense columns.
     """
     x = np.zeros(wide.size())
     if not by_block(wide, start):

@@ -1,12 +1,7 @@
 """A joint fit's steps before its choice (:func:`register_contact_chains`).
 
-A :class:`Run` (the engine's terms and arguments, once) checked, its held-out rows drawn,
-its outliers set aside, each chain registered on the nominal robot.
-
-:func:`~.contact_chains.calibrate_contact_chains` is :func:`register_contact_chains` then
-:func:`~.contact_chains.fit_registered`; one chain measured by an instrument is registered
-first by its outlier loop (:mod:`.chain_outliers`), whose proposals read the registration
-of every row before any fit. :func:`determined_unknowns` is the same steps, then the rank.
+A :class:`Run` checked, its held-out rows drawn, its outliers set aside, each chain
+registered on the nominal robot; :func:`~.contact_chains.fit_registered` continues.
 """
 
 from __future__ import annotations
@@ -47,20 +42,7 @@ __all__ = ["Registered", "Run", "determined_unknowns", "drawn", "register_contac
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Run:
-    """One run of the joint engine: its terms and every argument, written once.
-
-    Made by :func:`~.contact_chains.calibrate_contact_chains` from its keywords and by
-    :func:`~.entry.calibrate` from a problem; checked by :func:`register_contact_chains`.
-
-    Attributes:
-        options: The options, one checked value (:class:`~.options.Options`: the level,
-            ``orientation_weight``, ``max_iterations``, ``holdout``, ``seed``, ``elastic``;
-            one measured chain's ``fix``/``free``, ``loss``, ``noise_mm``:
-            :mod:`.measured_options`).
-        chains, data, validate, contact, marker, shared_planes, pose_weight, instrument,
-            held_label, support, progress: As
-            :func:`~.contact_chains.calibrate_contact_chains`'s arguments.
-    """
+    """One run of the joint engine: :func:`~.contact_chains.calibrate_contact_chains`'s args."""
 
     chains: Sequence[Chain]
     data: Sequence[ContactData | Measurements | PixelData]
@@ -83,12 +65,8 @@ def _check(run: Run) -> None:
         raise InvalidArgumentError("give the chains as a non-empty list of Chain")
     for c in chains:
         check_chain(c, "each chain")
-    first = chains[0]
-    for c in chains[1:]:
-        if c.urdf_resolved != first.urdf_resolved or tuple(c.model.names) != tuple(
-            first.model.names
-        ):
-            raise InvalidArgumentError("the chains must be chains of one robot (one URDF)")
+    if len({(c.urdf_resolved, tuple(c.model.names)) for c in chains}) > 1:
+        raise InvalidArgumentError("the chains must be chains of one robot (one URDF)")
     pairs = [(c.base_frame, c.tool_frame) for c in chains]
     if len(set(pairs)) != len(pairs):
         raise InvalidArgumentError("a chain is given twice (same base and tool frames)")
@@ -135,21 +113,10 @@ def _check(run: Run) -> None:
             validation.check_held_out(d, v)
 
 
-def _objects(run: Run, data) -> tuple[int, ...]:
-    """Each term's object (:func:`~.contact_checks.plane_groups`, an instrument shared)."""
-    plane_of = contact_checks.plane_groups(run.chains, data, run.shared_planes, run.instrument)
-    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
-    return plane_of
-
-
 def _holds(run: Run, train) -> list[bool]:
     """Which measured terms hold the marker coordinates no posture separates from their frame.
 
-    Each term its own frame: every one (:func:`~.chain_registration.held_markers`). A tree's
-    tools share one frame (``run.instrument``): a tool that turns determines it, and nothing
-    is held; if no tool turns, the frame's translation and every marker move together, and
-    the first tool's marker alone is held (the others' offsets from it are determined). A
-    revolute joint is read as turning its tool (no structure computed: most trees).
+    Rationale: docs/developers/engine.md#_holds
     """
     if not run.instrument or len(run.chains) == 1:
         return [True] * len(run.chains)
@@ -162,15 +129,9 @@ def _holds(run: Run, train) -> list[bool]:
 
 
 def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
-    """Each term's rows checked by its kind's checks, each returning the same five things.
+    """Each term's rows checked by its kind's checks (``held[c]`` replaced by its rows kept).
 
-    :func:`~.pixel_fit.checked_pixels`, :func:`checked_measured` (a single chain's checks),
-    :func:`~.contact_checks.checked_registration`: the usual mistakes diagnosed (``validate``
-    too, or None), outliers set aside (the held-out ones' too: ``held[c]`` replaced), the
-    rows kept enough for the term's unknowns. ``guess``: the contact frame's
-    (:func:`~.contact_checks.contact_frame`); ``zeros``: :func:`~.placements.zero_frames` or None.
-    Returns each chain's rows kept and outliers, and each term's registration on the nominal
-    robot (a contact chain's: of the touches kept).
+    Returns each chain's rows kept, its outliers and its registration on the nominal robot.
     """
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
@@ -211,12 +172,7 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
 
 
 def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsState:
-    """Each chain's registration on the nominal robot (a plane shared by chains: refined).
-
-    ``measured``: each term's registration (``_checked``: a contact chain's objects and
-    contact in closed form, a measured term's frames, a pixel term's camera); ``zeros``:
-    the chains' frames at zero (:func:`~.placements.zero_frames`), or None.
-    """
+    """The terms' registrations ``measured`` on the nominal robot (a plane shared: refined)."""
     chains, pose_weight = run.chains, run.pose_weight
     placements = Placements.of(tuple(chains), zeros)
     states = list(on_models(tuple(measured), placements.start_models(tuple(chains), measured)))
@@ -252,13 +208,11 @@ def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsS
 
 
 def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """What a joint fit of these terms would determine: the steps before its choice.
+    """What a joint fit of these terms would determine, and every unknown's name.
 
-    The run's data (every row: no validation, no holdout, rigid) checked, outliers set aside
-    and registered by :func:`register_contact_chains`; the rank of the Jacobian of every row
-    by every unknown (objects, contact frames, measuring frames, markers, and every joint
-    placement component) at flush postures is what the data determine. Returns the names
-    of the unknowns determined (a basis, in the columns' order) and of all.
+    The rank, at flush postures, of the run's rows (every row: no validation, no holdout,
+    rigid) registered, by every unknown and joint placement component; the names determined
+    are a basis, in the columns' order.
     """
     complete = dataclasses.replace(run.options, params="complete")  # its memory estimate
     r = register_contact_chains(dataclasses.replace(run, options=complete))
@@ -271,12 +225,7 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 @dataclasses.dataclass(frozen=True)
 class Registered:
-    """A run up to its registration (:func:`register_contact_chains`), to be fitted.
-
-    The state :func:`~.contact_chains.fit_registered` continues from: the rows kept and held
-    out, the outliers set aside, the notes so far, the load and compliance torques, the
-    registered state ``start`` and the stage clock, and the ``run`` itself.
-    """
+    """A run up to its registration, to be fitted (:func:`~.contact_chains.fit_registered`)."""
 
     run: Run
     train: list
@@ -294,8 +243,7 @@ class Registered:
 def drawn(data: Sequence, holdout: float, seed: int) -> list[tuple]:
     """Each term's rows split into training and held-out rows (``(rows, None)``: none held).
 
-    By posture for measurements and pixels (:func:`~.validation.split`), by object for
-    touches (:func:`~.contact_checks.split_contacts`); seeded.
+    By posture (measurements, pixels) or by object (touches); seeded.
     """
     return [
         (d, None)
@@ -308,11 +256,7 @@ def drawn(data: Sequence, holdout: float, seed: int) -> list[tuple]:
 
 
 def register_contact_chains(run: Run) -> Registered:
-    """A run checked and registered: the joint fit's steps before its choice.
-
-    The rows checked, held out (``holdout``), their outliers set aside, each chain registered
-    on the nominal robot: :func:`~.contact_chains.fit_registered` continues (the outlier
-    loop reads the registration first).
+    """A run checked, held out, its outliers set aside, each chain registered.
 
     Raises:
         InvalidArgumentError: A bad argument.
@@ -334,7 +278,8 @@ def register_contact_chains(run: Run) -> Registered:
     train = [s[0] for s in splits]
     given = validate or [None] * len(data)
     held = [v if v is not None else s[1] for s, v in zip(splits, given, strict=True)]
-    plane_of = _objects(run, data)
+    plane_of = contact_checks.plane_groups(chains, data, run.shared_planes, run.instrument)
+    check_number(run.pose_weight, "pose_weight", 0.0, MAX_WEIGHT, above=True)
     notes: list[str] = []
     diagnosed = None if run.held_label == "holdout" else validate  # a holdout: with its data's
     zeros = zero_frames(tuple(chains))  # one walk: the registrations' models and the paths

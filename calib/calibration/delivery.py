@@ -1,7 +1,6 @@
-"""What every calibration result offers, whatever its shape: ``write``, ``origins``, ``repr``.
+"""What every calibration result offers, whatever its shape: :class:`Result`.
 
-:class:`Result` builds them on a result's ``to_dict``, ``urdf``, ``refusal`` and compliance
-files; :class:`RowErrors`: the error of each configuration, which ``plot`` draws.
+:class:`RowErrors`: the error of each configuration, which ``plot`` draws.
 """
 
 from __future__ import annotations
@@ -23,8 +22,7 @@ from .options import checked_arguments
 
 __all__ = ["Result", "RowErrors", "compliance_path", "paired_files", "paired_report", "read_files"]
 
-_NOMINAL_URDF = "the nominal URDF"
-"""What the files a calibration read (:func:`read_files`) call the nominal URDF."""
+_NOMINAL_URDF = "the nominal URDF"  # its name among the files read (read_files)
 
 
 @dataclass(frozen=True)
@@ -52,11 +50,10 @@ class RowErrors:
 
     @staticmethod
     def of(terms: list[tuple[str, Mapping]]) -> RowErrors:
-        """Each term's rows, term after term, each term's held-out rows after its fitted ones.
+        """Each term's rows (``terms``: name, statistics by part), held-out after fitted ones.
 
-        ``terms``: each one's name and statistics by part (``train``, ``train_registration``,
-        ``held_out``, ``held_out_registration``), each with ``per_row`` ``(m,)`` [mm] (else
-        InvalidArgumentError).
+        Raises:
+            InvalidArgumentError: Statistics without ``per_row`` errors.
         """
         parts = [
             (k, p, s) for k, (_, s) in enumerate(terms) for p in ("train", "held_out") if p in s
@@ -87,11 +84,7 @@ def compliance_path(out: Path) -> Path:
 
 
 def paired_report(doc: dict, urdf: bytes | str) -> dict:
-    """The report written with the URDF ``urdf``: its digest in ``model.urdf_sha256``.
-
-    :func:`calib.kinematics.elastic.load_calibrated` (``calib predict``) then refuses
-    another URDF with it.
-    """
+    """The report written with the URDF ``urdf``: its digest in ``model.urdf_sha256``."""
     return {**doc, "model": {**doc["model"], "urdf_sha256": urdf_digest(urdf)}}
 
 
@@ -100,10 +93,7 @@ def read_files(
 ) -> tuple[tuple[str, str], ...]:
     """The files a calibration read, by what they are: what :meth:`Result.write` never overwrites.
 
-    Each data file as its reader resolved it (``path``: absolute, links followed, whatever
-    the working directory is later), else as named (``source``); a pixel term's target and
-    intrinsics too; the nominal URDF as resolved when it was loaded (``urdf_resolved``).
-    ``robots``: each term's chain or tree; ``validate``: each term's (None: none), or None.
+    Each as resolved when read (absolute, links followed), else as named (``source``).
     """
     found = [(_NOMINAL_URDF, str(robots[0].urdf_resolved))]
     held = [None] * len(data) if validate is None else validate
@@ -120,23 +110,19 @@ def read_files(
 
 
 def _term_files(k: int) -> tuple[str, str]:
-    """What the files read call term ``k``'s data and validation data (1-based ``k``)."""
+    """The names of term ``k``'s data and validation data among the files read."""
     return f"the data of term {k}", f"the validation data of term {k}"
 
 
 def _file_path(what: str, path: object) -> Path:
-    """``path`` as a Path: InvalidArgumentError if it is not a file path (``what``: its name)."""
+    """``path`` as a Path: InvalidArgumentError if it is not a file path."""
     if not isinstance(path, str | os.PathLike):
         raise InvalidArgumentError(f"{what} must be a file path, got {path!r:.60}")
     return Path(path)
 
 
 def paired_files(files: Mapping[Path, str | bytes], out: Path) -> dict[Path, str | bytes]:
-    """The files written with the URDF ``out``: its compliance file with its digest too.
-
-    The compliance file (:func:`compliance_path`), if one of ``files``, records the URDF's
-    digest (``urdf_sha256``), as :func:`paired_report` does in a report.
-    """
+    """The files written with the URDF ``out``: its compliance file, if any, with its digest."""
     comp = compliance_path(out)
     if comp not in files:
         return dict(files)
@@ -265,15 +251,13 @@ class Result:
         write_files_atomic({path: urdf})
 
     def _read(self, doc: dict | None = None) -> dict[str, str | None]:
-        """The files it read: :attr:`inputs`, else those its report (``doc``) names."""
+        """The files it read: :attr:`inputs`, else those its report names."""
         return dict(self.inputs) if self.inputs else _inputs(doc or self.to_dict())
 
     def _verdict(self) -> str:
-        """The summary's last word: ``accepted`` or ``REFUSED: <why>``."""
         return "accepted" if self.refusal is None else f"REFUSED: {self.refusal}"
 
     def _accepted(self) -> None:
-        """Raise :class:`CalibrationRefusedError` where the model was refused."""
         if self.refusal is not None:
             raise CalibrationRefusedError(f"calibration refused: {self.refusal}")
 

@@ -1,9 +1,6 @@
 """No silent overfit: the rows must determine the parameters a level fits, or calib refuses.
 
-Before the fit: equations against unknowns, and the level's rank at generic configurations
-against the measured ones. After it: the conditioning of the fitted unknowns
-(:func:`ill_posed`, ``ILL_CONDITION``), refused with the posture that separates them best.
-
+Before the fit: equations and rank; after it: the conditioning of the fitted unknowns.
 Rationale and measurements: docs/developers/engine.md#determined
 """
 
@@ -54,12 +51,7 @@ def _configs_needed(unknowns: int, rows: int) -> int:
 def check_equations(
     m: int, rows: int, unknowns: int, what: str, source: str, *, held: int = 0, unit: str = ""
 ) -> None:
-    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` equations.
-
-    ``m``: configurations fitted (or what ``unit`` names: a tree's file rows, touches);
-    ``what`` (e.g. ``parameters of params 'complete'``), ``source`` and ``held`` (the
-    configurations held out) are for the message.
-    """
+    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` rows."""
     if m * rows > unknowns:
         return
     unit, out = unit or "configurations", f" ({held} held out)" if held else ""
@@ -78,10 +70,7 @@ FRAMES = "measurement frame and marker parameters"
 def check_frames(
     kind: MeasuredKind, m: int, source: str, what: str = FRAMES, *, held: int = 0
 ) -> None:
-    """Refuse (DataError) ``m`` configurations too few for a measured chain's own unknowns.
-
-    :func:`check_equations` on ``kind``'s rows and unknowns (``what``, ``source``, ``held``).
-    """
+    """Refuse (DataError) ``m`` configurations too few for a measured chain's own unknowns."""
     check_equations(m, kind.rows, kind.size(), what, source, held=held)
 
 
@@ -97,9 +86,7 @@ def check_rank(
 ) -> None:
     """Refuse (DataError) a level the measured configurations do not determine (rank of W_b).
 
-    ``determined < generic`` (the parameters the level fits at generic configurations), or
-    too few equations (``m`` configurations, or ``unit``, of ``rows`` each); ``lost``: the
-    unknowns that generic configurations separate and the measured ones do not (named).
+    ``generic``: what generic configurations determine; ``lost``: the unknowns they alone do.
     """
     check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
     if determined >= generic:
@@ -116,9 +103,7 @@ def check_rank(
 
 
 SELECTION_WORK = 4e9
-"""Largest ``rows x (fixed + candidates)^2 x candidates`` the selection of ``--params auto``
-is run on; a larger campaign is chosen on a sample (:data:`SAMPLE_WORK`,
-:func:`selection_configurations`).
+"""Largest ``rows x (fixed + candidates)^2 x candidates`` the selection is run on (else a sample).
 Measurements: docs/developers/performance.md#selection_work-determined"""
 
 SAMPLE_WORK = 1e9
@@ -126,21 +111,15 @@ SAMPLE_WORK = 1e9
 Measurements: docs/developers/performance.md#sample_work-determined"""
 
 SAMPLE_EQUATIONS = 200
-"""Fewest equations per selection column (frame, markers and candidates) a sample of the
-configurations must keep for the selection to choose on it.
+"""Fewest equations per selection column a sample must keep to be chosen on.
 Measurements: docs/developers/performance.md#sample_equations-determined"""
 
 
 def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> int:
-    """Configurations the selection (``--params auto``) chooses on: all, or a sample's size.
-
-    A campaign within :data:`SELECTION_WORK` is chosen on all its configurations; a larger
-    one on as many as :data:`SAMPLE_WORK` allows (the fit then uses all of them). ``fixed``:
-    the frame and marker columns; returns ``m`` or the sample's size (``< m``).
+    """Configurations the selection (``--params auto``) chooses on: ``m``, or a sample's size.
 
     Raises:
-        InvalidArgumentError: The sample the bound allows would keep fewer than
-            :data:`SAMPLE_EQUATIONS` equations per column; says what to do.
+        InvalidArgumentError: The sample would keep under :data:`SAMPLE_EQUATIONS` per column.
     """
     per_configuration = rows * (fixed + candidates) ** 2 * candidates
     if m * per_configuration <= SELECTION_WORK:
@@ -158,28 +137,19 @@ def selection_configurations(m: int, rows: int, fixed: int, candidates: int) -> 
 
 
 ILL_CONDITION = 1e3
-"""Singular value, relative to the largest, of the unit-norm columns of the fitted unknowns
-under which a direction of them is undetermined.
-Rationale and measurements: docs/developers/engine.md#ill_condition"""
+"""Largest over smallest singular value of the fitted unknowns' unit-norm columns over which a
+direction of them is undetermined. Rationale: docs/developers/engine.md#ill_condition"""
 
 NAMED = 0.3
 """Smallest component, in an undetermined unit direction, of an unknown it names."""
 
 CLEAR = 1.01
-"""Factor over the weak threshold (``1 / ILL_CONDITION`` of the largest) of the smallest
-singular value computed alone by which no singular value computed with the vectors can be
-under it (their round-offs differ by ~1e-16 of the largest): :func:`ill_posed` skips them."""
+"""Margin over the weak threshold above which :func:`ill_posed` skips the singular vectors."""
 
 
 @dataclass(frozen=True)
 class Direction:
-    """A combination of fitted unknowns the data cannot determine.
-
-    Attributes:
-        names: The unknowns it moves (components of at least ``NAMED``).
-        weights: Their components in the unit direction (of the unit-norm columns).
-        condition: Largest singular value over this direction's.
-    """
+    """A combination of fitted unknowns the data cannot determine (its ``NAMED`` components)."""
 
     names: tuple[str, ...]
     weights: tuple[float, ...]
@@ -195,17 +165,11 @@ class Direction:
 
 
 ILL_STD = 1e-4
-"""A weak direction whose unknowns all have standard deviations under this [m or rad] is
-determined all the same (noise-free or very precise data): it is not refused."""
+"""Standard deviation [m or rad] under which a weak direction's unknowns are determined."""
 
 
 def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) -> list[Direction]:
-    """Directions of the unknowns (columns of ``J``) the rows do not determine.
-
-    One :class:`Direction` per singular value of the unit-norm columns under
-    ``1 / ILL_CONDITION`` times the largest, the weakest first. ``J`` ``(rows, p)``: weighted
-    rows (scaled in place with ``overwrite``: no copy).
-    """
+    """Directions of the unknowns (columns of ``J``) the rows do not determine, weakest first."""
     if J.shape[1] == 0:
         return []
     norms = np.linalg.norm(J, axis=0)
@@ -226,12 +190,7 @@ def ill_posed(J: np.ndarray, names: tuple[str, ...], overwrite: bool = False) ->
 def separating_posture(
     jacobian_at: Callable[[np.ndarray], np.ndarray], q: np.ndarray, direction: np.ndarray
 ) -> tuple[np.ndarray, float]:
-    """The configuration of ``q`` where a direction of the unknowns moves the rows most.
-
-    ``jacobian_at``: the Jacobian ``(m, rows, p)`` at configurations ``(m, n)``; ``q``:
-    candidates within the joint limits; ``direction`` ``(p,)``: unit-norm columns' scale.
-    Returns it and the condition of the unknowns at all of ``q``.
-    """
+    """The configuration of ``q`` where a direction moves the rows most; the condition at ``q``."""
     J = jacobian_at(q)
     flat = J.reshape(-1, J.shape[2])
     norms = np.linalg.norm(flat, axis=0)
@@ -241,11 +200,7 @@ def separating_posture(
 
 
 def undetermined(J: np.ndarray, names: tuple[str, ...], std) -> list[Direction]:
-    """The undetermined directions of :func:`ill_posed` but those it determines all the same.
-
-    A direction all of whose unknowns have standard deviations under :data:`ILL_STD` is
-    determined all the same (NaN: undetermined); ``std`` [m or rad].
-    """
+    """The directions of :func:`ill_posed` but those whose ``std`` are all under :data:`ILL_STD`."""
     spread = dict(zip(names, std, strict=True))
     return [d for d in ill_posed(J, names) if not all(spread[n] <= ILL_STD for n in d.names)]
 
@@ -257,10 +212,7 @@ def separating_text(
     direction: Direction,
     joint_names,
 ) -> str:
-    """``postures such as <joint> <q> ...`` that separate a direction, or that none does.
-
-    As :func:`separating_posture`, ``direction`` of :func:`ill_posed` in the unknowns ``names``.
-    """
+    """``postures such as <joint> <q> ...`` that separate a direction, or that none does."""
     v = np.zeros(len(names))
     v[[names.index(n) for n in direction.names]] = direction.weights
     best, cond = separating_posture(jacobian_at, q, v)
@@ -279,11 +231,7 @@ def separating_text(
 def ill_posed_text(
     found: list[Direction], std: dict[str, float], posture: str | None = None
 ) -> str | None:
-    """The refusal's sentence for undetermined directions (None: there are none).
-
-    ``std``: each fitted unknown's standard deviation [m or rad]; ``posture``: what
-    postures would separate them, or None.
-    """
+    """The refusal's sentence for undetermined directions (None: none); ``std`` [m or rad]."""
     if not found:
         return None
     d = found[0]
@@ -302,23 +250,15 @@ def ill_posed_text(
 
 
 STILL = 1e-9
-"""Singular value [per rotation entry] of the tool's rotations' changes between random
-configurations under which a direction in the tool frame never turns (:func:`still_axes`)."""
+"""Singular value [per rotation entry] of the tool's rotation changes: a direction never turns."""
 
 
 def still_axes(R: np.ndarray) -> tuple[int, ...]:
-    """The tool-frame coordinates a marker's offset along the axes that never turn hides in.
+    """The tool-frame coordinates (0-based) a marker's offset along axes that never turn hides in.
 
-    ``R`` ``(m, 3, 3)``: the tool's rotations at random configurations within the joint
-    limits. A direction ``a`` of the tool frame with ``R_i a`` the same at every posture (all
-    three for a gantry's tool, which never turns; the axis a SCARA's tool turns about) moves
-    a marker's predicted points as the measurement frame's translation does: the robot's
-    structure, not the data's, leaves them one unknown. Returns as many coordinates (0-based:
-    x, y, z) as there are such directions (none, one or all three: a rotation that keeps two
-    keeps their cross product), those they move most: holding the first marker's at its given
-    value leaves the frame to absorb it, as a non-identifiable MDH parameter regroups into a
-    base parameter (the other markers' offsets from it stay determined). Empty: the tool
-    turns about two axes or more (a weak data set is :func:`ill_posed`'s).
+    ``R`` ``(m, 3, 3)``: the tool's rotations at random configurations. One coordinate per
+    such direction (none, one or all three), those they move most.
+    Rationale: docs/developers/engine.md#still_axes
     """
     _, s, vt = np.linalg.svd((R[1:] - R[0]).reshape(-1, 3), full_matrices=False)
     still = vt[s < STILL * np.sqrt(len(R))]
@@ -328,11 +268,7 @@ def still_axes(R: np.ndarray) -> tuple[int, ...]:
 def generic_jacobian(
     model: ErrorModel, state: State, joint_names: tuple[str, ...], weight: float = 1.0
 ) -> Callable[[np.ndarray], np.ndarray]:
-    """The weighted Jacobian ``(m, rows, size)`` at ``state`` at configurations ``(m, n)``.
-
-    Of what ``state`` measures there (:func:`~.model.generic_measurements`); ``weight``: of
-    the orientation rows [m/rad].
-    """
+    """The weighted Jacobian ``(m, rows, size)`` at configurations ``(m, n)`` (weight [m/rad])."""
     weights = model.own.row_weights(weight)
 
     def at(q: np.ndarray) -> np.ndarray:
@@ -343,11 +279,7 @@ def generic_jacobian(
 
 
 def determined_columns(J: np.ndarray, order: list[int] | None = None) -> list[int]:
-    """The columns of a Jacobian ``(..., p)`` its rows determine, sorted (pivoted QR).
-
-    ``order``: the columns, most preferred first (default: theirs); of dependent columns,
-    those met first are kept (:func:`~calib.identification.base_columns.independent_columns`).
-    """
+    """The columns of a Jacobian ``(..., p)`` its rows determine, sorted (pivoted QR, ``order``)."""
     p = J.shape[-1]
     order = list(range(p)) if order is None else order
     return sorted(independent_columns(J.reshape(-1, p), order)[2])

@@ -1,12 +1,7 @@
 """Likely causes of data that no calibration can fit: the usual mistakes, each tried.
 
-When the registration leaves errors above ``SUSPECT`` [m] RMS (or ``NOISE_FACTOR`` times the
-noise; orientations: ``ORIENTATION_SUSPECT`` [rad]), the data are read again under each usual
-mistake (swapped joint columns, degrees, an end joint of the chain that does not move
-its end's frame, mm/cm/m, swapped coordinate columns, quaternion order, rpy order); the
-one whose correction leaves an RMS ``EXPLAINS`` times lower is named, unless it explains
-the rows with shuffled joint columns as well; a joint column with one value is named first.
-
+Above ``SUSPECT`` the data are read again under each usual mistake; the one whose correction
+leaves an RMS ``EXPLAINS`` times lower (and not on shuffled joints) is named.
 Rationale and measurements: docs/developers/engine.md#diagnosis
 """
 
@@ -50,10 +45,7 @@ SHUFFLE_SEED = 29
 
 
 def _mistakes(data, chain, joints_only: bool) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for each usual mistake (of the joints only, or all).
-
-    ``chain``: the data's chain (its joints' kinds, its end joints), or a tree.
-    """
+    """(description, corrected data) for each usual mistake (of the joints only, or all)."""
     names, revolute = data.joint_names, chain.sigma == 0
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
@@ -83,12 +75,7 @@ def _mistakes(data, chain, joints_only: bool) -> Iterator[tuple[str, object]]:
 
 
 def _swapped_coordinates(data) -> Iterator[tuple[str, object]]:
-    """(description, corrected data) for coordinate columns swapped: in every point, or one's.
-
-    A swap mirrors the points, which no registration of the instrument's frame undoes. In
-    every point alike, any swap undoes any other (the two make a rotation, which the frame
-    takes): one is tried, and named as a mirror. In one point of several, each swap is its own.
-    """
+    """(description, corrected data) for coordinate columns swapped: in every point, or one's."""
     k = data.position.shape[1] // 3
     mirrored = "mirrored points (two of the x, y, z columns swapped, or a left-handed frame)"
     pairs: tuple[tuple[int, int], ...] = ((0, 1), (0, 2), (1, 2))
@@ -107,10 +94,7 @@ def _swapped_coordinates(data) -> Iterator[tuple[str, object]]:
 
 
 def _still_ends(data, chain) -> Iterator[tuple[str, object]]:
-    """Each end joint of ``chain`` held at 0: a frame given one link too far (a joint too many).
-
-    A tree's tools: none tried.
-    """
+    """Each end joint of a chain (not a tree) held at 0: a frame given one link too far."""
     if chain.is_tree:
         return
     ends = (chain.base_frame, chain.tool_frame)
@@ -169,10 +153,7 @@ def suspect(rms: float, noise: float | None) -> bool:
 
 
 def _beats_shuffle(registration_rms: Callable[[object], float], fixed, rms: float) -> bool:
-    """Whether corrected rows fit ``EXPLAINS`` times better than the same rows shuffled.
-
-    Shuffled: each joint column permuted across the rows (seeded), no posture kept.
-    """
+    """Whether corrected rows fit ``EXPLAINS`` times better than with shuffled joint columns."""
     rng = np.random.default_rng(SHUFFLE_SEED)
     try:
         q = np.column_stack([rng.permutation(col) for col in fixed.q.T])
@@ -192,11 +173,8 @@ def _likely_cause(
 ) -> tuple[str, float] | None:
     """(description, RMS [m or rad]) of the usual mistake that best explains the data, or None.
 
-    ``chain``: as :func:`_mistakes` reads it; ``registration_rms``: the registration's RMS
-    error per point [m] (``orientation``: RMS orientation error [rad], the orientation
-    columns' mistakes) of some data; ``before``: that of ``data`` as they are;
-    ``joints_only``: the joint columns' mistakes only (data that record the joints alone:
-    contacts).
+    ``registration_rms``: the registration's RMS error of some data [m, or rad with
+    ``orientation``]; ``before``: that of ``data`` as they are.
     """
     best = None
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT
@@ -215,15 +193,7 @@ def _likely_cause(
 
 @dataclass(frozen=True)
 class Words:
-    """How a kind's rows are named in :func:`explain`'s messages.
-
-    Attributes:
-        data: The rows as a whole (``the touches look like degrees``).
-        row: One row (``hold one value in every touch``).
-        error: The registration's error (``the registration's gap drops from ...``).
-        mistakes: The usual mistakes tried, for the note when none explains the rows.
-        check: What to check then.
-    """
+    """How a kind's rows, row, error, mistakes tried and what to check are named in messages."""
 
     data: str = "data"
     row: str = "row"
@@ -237,13 +207,11 @@ def explain(
 ) -> list[str]:
     """Raise the usual mistake behind a registration's absurd error; else a note of it.
 
-    ``data``: rows with ``joint_names``, ``q``, ``m``, ``source``; ``chain``: their chain
-    (or tree: its ``sigma``, its end joints, :func:`_still_ends`); ``error``: the
-    registration's RMS error [m] of some rows (``data`` corrected), ``first`` that of
-    ``data`` (infinite: no registration); ``noise`` [m] or None; ``orientation``: the errors
-    are orientation errors [rad] (suspect above ``ORIENTATION_SUSPECT``), the mistakes the
-    orientation columns'. No note when the error is not suspect (:func:`suspect`). A
-    DataError names joint columns holding one value in every row, or the mistake.
+    ``error``: the registration's RMS error [m] of corrected ``data``, ``first`` that of
+    ``data`` (infinite: no registration); ``orientation``: errors [rad], its mistakes.
+
+    Raises:
+        DataError: Joint columns holding one value in every row, or the mistake named.
     """
     if not (first > ORIENTATION_SUSPECT if orientation else suspect(first, noise)):
         return []

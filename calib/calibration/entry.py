@@ -2,15 +2,7 @@
 
 ``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
 is the problem of one term. Every shape is fitted by the one joint engine
-(:func:`~.contact_chains.calibrate_contact_chains`, URDF joint placements shared by the
-terms): one chain measured by an instrument (:func:`measured_chain`), one chain touching
-(any contact kind, any number of objects, joint compliance included), several terms, and a
-tree measured by one instrument (one measured term per tool sharing the instrument's frame:
-:mod:`~.instrument`). Each takes the steps of every calibration: prepare (checks, held-out
-rows, validation data that are the training data refused), register, set outliers aside,
-diagnose usual mistakes, choose the parameters, fit, assess (a model worse than its start on
-held-out data is refused) and deliver a result with ``summary()``, ``to_dict()`` (report
-format 3), ``urdf()`` and ``write()``.
+(:func:`~.contact_chains.calibrate_contact_chains`). docs/developers/engine.md#entry
 """
 
 from __future__ import annotations
@@ -183,11 +175,9 @@ calibrate_tree = calibrate
 def calibrate_contacts(
     chain: Chain, data: ContactData, *, validate: ContactData | None = None, **options
 ) -> ContactChainsCalibration:
-    """One chain touching: the joint engine's fit of one term (the name of its own route once).
+    """One chain touching: :func:`~.contact_chains.calibrate_contact_chains` of one term.
 
-    :func:`~.contact_chains.calibrate_contact_chains` of ``[chain]`` and ``[data]``, its other
-    arguments as they are (``contact``, ``params``, ``elastic``, ``support``: the load split
-    with a second foot, ``holdout``, ...).
+    Its other arguments as they are (``contact``, ``params``, ``elastic``, ``support``, ...).
 
     Raises:
         InvalidArgumentError: A bad or unknown argument.
@@ -198,12 +188,7 @@ def calibrate_contacts(
 
 
 def _tree(problem: Problem, progress: Progress | None) -> ContactChainsCalibration:
-    """A tree measured by one instrument: a joint fit of one measured term per tool.
-
-    The terms share the instrument's frame and the joints they run through
-    (:mod:`~.instrument`); the level is a tree's (:data:`~.options.TREE_LEVELS`, default
-    ``complete``).
-    """
+    """A tree measured by one instrument: a joint fit of one measured term per tool."""
     term = problem.terms[0]  # a tree's robot and data (Problem checks them)
     if term.guess is not None:
         raise InvalidArgumentError(
@@ -227,15 +212,7 @@ def _tree(problem: Problem, progress: Progress | None) -> ContactChainsCalibrati
 def measured_chain(run: Run) -> ContactChainsCalibration:
     """One chain measured by an instrument, fitted by the joint engine as a one-term run.
 
-    The way a tree is (:func:`_tree`): one measured term whose frame is the instrument's
-    (``instrument=True``), its rows checked, registered and weighted by the measured term's
-    own steps (:func:`~.measured_term.checked_measured`). Its options (``fix``/``free``,
-    ``elastic``, a robust ``loss``, ``noise_mm``) are the engine's
-    (:mod:`~.measured_options`). The held-out rows are drawn first (``holdout``), then the
-    rows the fit's errors call outliers are set aside and the fit made again until they are
-    stable, every row tested again from a robust fit's proposals
-    (:func:`~.chain_outliers.fit_terms_until_stable`). The run's ``instrument`` and
-    ``held_label`` are set here.
+    Held-out rows drawn first, then the fit made again until its outliers are stable.
 
     Raises:
         InvalidArgumentError: A bad option (an unknown parameter name, compliance without

@@ -1,9 +1,6 @@
-"""Forward paths of the selection (:mod:`calib.calibration.selection`), batched over subsets.
+"""Forward paths of the selection (:mod:`.selection`), batched over subsets of configurations.
 
-:func:`paths` runs the paths of several subsets of the configurations at once (a subset is the
-whole problem with its other rows zeroed), each step by rank-one updates of the
-leave-one-configuration-out sums.
-
+Each step by rank-one updates of the leave-one-configuration-out sums.
 Rationale and measurements: docs/developers/engine.md#forward_paths
 """
 
@@ -30,25 +27,17 @@ DEPENDENT = 1e-8
 """A unit-norm candidate whose part outside the fitted columns is shorter is dependent."""
 
 REFRESH = 0.1
-"""The inverse hat blocks ``(I - H_ii)^-1`` follow each step by Sherman-Morrison while every
-``1 - q_i^T (I - H_ii)^-1 q_i`` of the added column exceeds this; otherwise (a leverage
-near 1, where the update would lose digits) they are inverted afresh."""
+"""Least ``1 - q_i^T (I - H_ii)^-1 q_i`` for a Sherman-Morrison update (else inverted afresh)."""
 
 SMALL = 8
 """Blocks of at most this many rows are solved by :func:`spd_solve` (larger: LAPACK)."""
 
 SHRINK = 1e-2
-"""A candidate's sums follow the steps by rank-one updates while its squared norm (outside
-the fit) stays above this fraction of what it was when they were last computed afresh."""
+"""A candidate's sums are computed afresh when its squared norm falls under this fraction."""
 
 
 def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Squared leave-one-configuration-out errors of several fits, by LAPACK's LU.
-
-    From the blocks ``M = I - H`` ``(c, m, rows, rows)`` (any strides), ``H`` the hat-matrix
-    blocks, and each fit's residuals ``r`` ``(c, m, rows)``: ``(c, m)``, inf where a block is
-    singular.
-    """
+    """Squared leave-one-out errors ``(c, m)`` from ``M = I - H`` and ``r`` (LU; inf: singular)."""
     c, m, rows = r.shape
     try:  # a leverage of 1 or near it: LAPACK's LU (with pivoting) tells
         loo = np.linalg.solve(M, r[..., None])
@@ -61,13 +50,7 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def spd_solve(M: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Solutions of many small symmetric positive definite systems, component-major.
-
-    Gaussian elimination without pivoting (stable for positive definite matrices), vectorised
-    over the systems: one array operation per step of the elimination instead of a LAPACK
-    call per system. A singular system gives inf or nan. ``M`` ``(n, n, systems)`` and ``y``
-    ``(n, systems)`` (both copied): ``x`` ``(n, systems)``.
-    """
+    """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting)."""
     n = len(y)
     a, x = np.array(M, order="C"), np.array(y, order="C")
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -91,22 +74,11 @@ def paths(
     train: np.ndarray,
     objects: ObjectColumns | None = None,
 ) -> list[tuple[list[int], np.ndarray]]:
-    """The greedy forward paths of several subsets of the configurations at once.
+    """The greedy forward paths of the subsets ``train`` ``(subsets, m)`` at once.
 
-    Each step adds, in each subset, the candidate of least leave-one-out error.
-
-    Args:
-        A: Columns, configuration-major rows ``(m rows, p)``.
-        e: Residuals to explain ``(m rows,)``.
-        rows: Rows per configuration.
-        start: Columns always in.
-        candidates: Columns to add, until none is left or independent of those in.
-        train: Configurations of each subset ``(subsets, m)`` [bool].
-        objects: Objects' columns always in too, by block (:mod:`.object_columns`), or None.
-
-    Returns:
-        Per subset: the columns in the order added, and the squared left-out error of each of
-        its configurations before the first and after each addition ``(steps + 1, m_subset)``.
+    Each step adds, in each subset, the candidate of least leave-one-out error to ``start``
+    (and ``objects``). Per subset: the columns in the order added, and its configurations'
+    squared left-out errors before the first and after each addition ``(steps + 1, m_subset)``.
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         state = _Batch(A, e, rows, start, candidates, train, objects)
@@ -125,28 +97,8 @@ def paths(
 class _Batch:
     """Working state of :func:`paths`: every subset's fit as the columns are added.
 
-    Rows are held component-major within each subset (row ``r m + i`` is component r of
-    configuration i): the arrays by configuration end with the configurations, vectors
-    ``(b, rows, m)`` and blocks ``(b, rows, rows, m)``.
-
-    Attributes:
-        m, rows: Configurations and rows per configuration.
-        r: Residuals of each subset's fit ``(b, rows, m)``.
-        H0, added: Hat blocks of the start ``(b, rows, rows, m)`` and the unit columns added
-            since (the hat blocks, :meth:`hat`, are only needed to invert them afresh).
-        Minv: ``(I - H_ii)^-1`` (identity on the ``lost`` blocks); ``v`` the left-out errors
-            ``M r``, ``vv`` their squares ``(b, m)``.
-        C: Candidates orthogonal to each fit ``(k, b, rows, m)``; ``floor2`` the squared norm
-            under which one is dependent ``(k, b)``, ``alive`` those a subset may still add,
-            ``index`` their positions in the candidate list (columns no subset can add are
-            dropped); ``nu2`` their squared norms (``|c|^2 - beta^2`` after a step, computed
-            afresh with the sums).
-        S: ``D = |c|^2 - G``, ``N = T - c^T r``, ``K`` and ``2 L``, each ``(k, b, m)`` (empty:
-            to compute afresh, with the norms); ``lim`` the squared norm under which a live
-            candidate's sums and norm are computed afresh (at least twice ``floor2``: the
-            dependence test reads fresh norms only).
-        lost: Configurations of each subset that reached a leverage of 1 ``(b, m)``: their
-            left-out error is infinite from then on (their blocks are left out of ``Minv``).
+    Arrays by configuration end with it, rows component-major: ``r`` ``(b, rows, m)``, ``C``
+    the candidates ``(k, b, rows, m)``, ``S`` their sums ``D, N, K, 2 L`` (names of the page).
     """
 
     def __init__(self, A, e, rows, start, candidates, train, objects=None):
@@ -169,11 +121,7 @@ class _Batch:
         return self.H0 + np.einsum("sbim,sbjm->bijm", q, q)
 
     def _invert(self, H: np.ndarray) -> None:
-        """``Minv`` of the hat blocks ``H`` (the lost ones left out), then ``v``; ``S`` to redo.
-
-        A block of leverage exactly 1 (singular ``I - H_ii``: LAPACK's LU meets a zero pivot)
-        is lost from then on, as one that reaches it by a step.
-        """
+        """``Minv`` of the hat blocks ``H`` (leverage 1: lost from then on), then ``v``."""
         M = np.eye(self.rows) - np.moveaxis(H * ~self.lost[:, None, None, :], 3, 1)
         try:
             inv = np.linalg.inv(M)
@@ -207,11 +155,7 @@ class _Batch:
     def totals(self) -> np.ndarray:
         """Summed squared left-out errors of each subset's fit with each candidate ``(k, b)``.
 
-        With the unit candidate ``q = c / |c|``, ``D = |c|^2 - G`` and ``U = N / D``, the
-        squared error of configuration i is ``|v_i|^2 + U (2 L + U K)`` (``|v_i + a_i s|^2``
-        expanded, ``s = |c| U``). Inf where the candidate is dead, a configuration alone would
-        determine it (``1 - q_i^T a_i = D / |c|^2`` <= 1e-12) or has already determined one
-        (``lost``), or the sum is not finite.
+        Inf where the candidate is dead, one configuration would determine it or is ``lost``.
         """
         if not self.S:
             self._fresh(self.Minv)
@@ -235,11 +179,7 @@ class _Batch:
         return np.where(ok, total, np.inf)
 
     def errors_of(self, j: np.ndarray, stuck: bool) -> np.ndarray:
-        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added.
-
-        ``stuck``: some subset's candidate has an infinite total (else every configuration's
-        error is finite).
-        """
+        """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added."""
         sq = np.maximum(self.sq[j, self.b], 0.0)  # a square: round-off in the sums, not < 0
         if stuck:
             sq[~np.isfinite(sq)] = np.inf
@@ -304,16 +244,7 @@ class _Batch:
         self.C -= beta[:, :, None, None] * q
 
     def _update_sums(self, Minv, a, d, h, psi, av, beta) -> None:
-        """The sums ``S`` after the columns q are added (before ``C``, ``r`` and ``M``).
-
-        With ``a = M q``, ``d = 1 - q^T a``, ``h = |a|^2`` and ``psi = (a^T r - kappa) / d``
-        by configuration, ``beta = q^T c``, ``X = a^T c``, ``Y = a^T M c``, ``W = X - beta``
-        and ``phi = W / d``: the update ``c' = c - beta q``, ``r' = r - kappa q``,
-        ``M' = M + a a^T / d`` gives ``v' = v + psi a``, ``M' c' = M c + phi a``, and so
-        ``D' = D - W phi``, ``N' = N + psi W``, ``K' = K + phi (2 Y + phi h)``,
-        ``L' = L + psi Y + phi (a^T v + psi h)`` (``|c'|^2 = |c|^2 - beta^2``,
-        ``c'^T r' = c^T r - kappa beta``).
-        """
+        """The sums ``S`` after the columns q are added (engine.md#forward_paths's formulas)."""
         Y = np.einsum("bim,kbim->kbm", np.einsum("bjim,bjm->bim", Minv, a), self.C)
         W = np.einsum("bim,kbim->kbm", a, self.C)
         mu = psi * h
@@ -337,12 +268,7 @@ class _Batch:
 
 
 def _start(A, e, rows, start, candidates, train, objects=None):
-    """Each subset's fit of the columns ``start`` (rows component-major).
-
-    Returns its residuals ``(b, rows, m)``, hat blocks ``(b, rows, rows, m)``, the candidates
-    orthogonal to it ``(k, b, rows, m)`` and the squared norms under which they are
-    dependent ``(k, b)``.
-    """
+    """Each subset's fit of ``start``: residuals, hat blocks, candidates orthogonal, floors."""
     b, m = train.shape
     Ap = np.swapaxes(A.reshape(m, rows, -1), 0, 1).reshape(m * rows, -1)
     w = np.tile(train, rows).astype(float)
@@ -377,11 +303,7 @@ def residual(Q: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def _pick(total: np.ndarray, alive: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Per subset, the candidate of least total (inf when dead) ``(b,)`` (arrays ``(k, b)``).
-
-    The first live one when every live total is infinite (as :func:`numpy.argmin` of the live
-    candidates alone would); and whether that happened.
-    """
+    """Per subset, the candidate of least total, or the first live one if all are inf (and if)."""
     b = np.arange(total.shape[1])
     j = total.argmin(axis=0)
     stuck = np.isinf(total[j, b])

@@ -1,9 +1,6 @@
 """Hand-eye calibration from pixels, the robot's joint geometry taken as exact.
 
-OpenCV's ``cv2.calibrateHandEye`` problem (``AX = XB``) by every corner's reprojection error:
-the camera's placement on its link (6) and the target's mounting on its link (6) unknown, the
-joint engine's problem of one pixel term at the level ``frames``.
-
+OpenCV's ``cv2.calibrateHandEye`` problem by every corner's reprojection error.
 Rationale and measurements: docs/developers/engine.md#hand_eye
 """
 
@@ -17,10 +14,9 @@ import numpy as np
 from ..kinematics.robot import Chain
 from ..measurements.pixels import PixelObservations, Target
 from .contact_chains import calibrate_contact_chains
-from .pixel_chain import PixelData
+from .pixel_chain import PixelCamera, PixelData, Unknowns
 from .pixel_chain_result import PixelChain
 from .pixel_fit import MAX_EVALUATIONS
-from .pixel_term import PixelCamera, Unknowns
 from .registration import rigid_fit
 
 __all__ = ["HandEye", "hand_eye"]

@@ -1,14 +1,8 @@
 """A tree measured by one instrument: one measured term per tool, the instrument's frame shared.
 
-A tree (TALOS's two hands below the torso) measured by an instrument outside the robot (a laser
-tracker; the CSV's ``tool`` column says which tool) is a problem of the joint engine
-(:func:`~.contact_chains.calibrate_contact_chains` with ``instrument=True``): one measured term
-(:mod:`.measured_term`) per tool, sharing the joint placements of the joints they run through
-and the instrument's frame (:func:`~.contact_checks.plane_groups`, :func:`shared_frame`). Here:
-the rows cut by tool, the checks of the tree's rows as a whole before the joint fit (each
-tool's rows get a single chain's checks in it: :func:`prepare_tree`, on the closed-form
-registration of the nominal tree), the shared frame's registration, and the report's errors of
-every tool together.
+Here: the rows cut by tool, the tree's checks before the joint fit, the shared frame's
+registration, the report's errors of every tool together.
+How it works: docs/developers/engine.md#instrument
 """
 
 from __future__ import annotations
@@ -47,9 +41,7 @@ __all__ = [
 def tool_parts(
     tree: Tree, data: Measurements | None, every: bool = True
 ) -> list[Measurements | None]:
-    """A tree's rows cut by tool: each tool's rows on its chain's joints (None: no data).
-
-    ``every``: each tool must have rows (else a tool without rows gets None).
+    """A tree's rows cut by tool on its chain's joints (None: none; ``every``: each tool has rows).
 
     Raises:
         DataError: Data of other joints, pose or several-point rows, a tool no row measures.
@@ -89,13 +81,7 @@ def by_tool(tree: Tree, data: Measurements) -> list[Measurements | None]:
 
 
 def shared_frame(states: list, train: list) -> list:
-    """The instrument terms' frame and markers registered together in closed form.
-
-    :func:`~.registration.register_points` on every tool's predicted points, from each
-    term's own markers: the :class:`MeasuredState` with ``instrument`` among ``states`` get
-    one frame and their markers (those :attr:`~.chain_registration.MeasuredState.held` kept), the
-    others are returned as they are.
-    """
+    """The instrument terms' frame and markers registered together in closed form (others kept)."""
     terms = [c for c, s in enumerate(states) if isinstance(s, MeasuredState) and s.instrument]
     if not terms:
         return states
@@ -140,12 +126,7 @@ def instrument_format2(measured) -> dict:
 
 
 def pooled(parts) -> dict[str, ResidualStats]:
-    """Position errors of every tool's rows together, by part (those a tool has).
-
-    The parts are ``train``, ``train_registration`` and, with held-out rows or compliance,
-    ``held_out``, ``held_out_registration``, ``train_urdf`` and ``held_out_urdf``; each
-    part's ``stats`` are :class:`GapStats` whose ``per_row`` are the point errors [mm].
-    """
+    """Position errors of every tool's rows together, by part (those a tool has) [m]."""
     out = {}
     for key in dict.fromkeys(k for c in parts for k in c.stats):
         rows = [c.stats[key].per_row for c in parts if key in c.stats]
@@ -156,10 +137,7 @@ def pooled(parts) -> dict[str, ResidualStats]:
 
 
 def instrument_errors(parts) -> dict:
-    """The report's ``errors.train`` and ``errors.held_out`` of every tool together (format 3).
-
-    ``urdf``: the URDF alone, without a fitted compliance (else ``calibrated``).
-    """
+    """The report's ``errors.train`` and ``errors.held_out`` of every tool together."""
     if not parts:
         return {"train": None, "held_out": None}
     return term_errors(pooled(parts), parts[0].held_source)
@@ -185,12 +163,7 @@ def instrument_lines(parts) -> list[str]:
 
 
 def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
-    """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m].
-
-    ``parts``: a tree calibration's ``result.chains`` (tool order); ``paths``: each tool's
-    joints among the tree's (:attr:`~calib.kinematics.tree.Tree.paths`); ``q`` ``(m, n)``
-    [rad or m].
-    """
+    """Each tool's marker predicted in the instrument's frame ``(m, T, 3)`` [m]."""
     q = np.asarray(q, dtype=float)
     return np.stack(
         [c.state.inner.predict(q[:, path])[0][:, 0] for c, path in zip(parts, paths, strict=True)],
@@ -201,22 +174,14 @@ def tree_points(parts, paths, q: np.ndarray) -> np.ndarray:
 def prepare_tree(
     tree: Tree, data: Measurements, validate: Measurements | None, holdout: float, seed: int
 ):
-    """Check a tree's rows as a whole; each tool's rows and held-out rows.
+    """Check a tree's rows as a whole; each tool's rows and held-out rows (None: none).
 
-    Enough rows for the frame and every marker (``6 + 3 T`` unknowns, held-out rows apart);
-    validation rows that are training rows refused; usual mistakes across the branches (two
-    joints of different tools' chains swapped, degrees, millimetres: :func:`~.diagnosis.explain`)
-    in the data and the validation rows; validation rows measured in another frame.
-
-    The rows held out (``holdout``, seeded) are drawn among the tree's postures, every tool's
-    together (:func:`~.validation.split`), as the validation rows are given. Returns each
-    tool's rows and held-out rows (None: none, or a tool without held-out rows).
+    Held-out rows are drawn among the tree's postures, every tool's together.
 
     Raises:
         DataError: Rows of other joints, pose or several-point rows, a tool no row measures,
             too few rows, a usual mistake (named), validation rows that are training rows or
-            measured in another frame (validation rows with a holdout fraction: refused
-            by :class:`~.problem.Problem` before).
+            measured in another frame.
     """
     tool_parts(tree, data)
     out = round(holdout * data.m)
@@ -253,7 +218,8 @@ _WORDS = diagnosis.Words(mistakes="swapped joint columns, degrees, millimetres, 
 def _diagnosed(tree: Tree, nominal: list, data: Measurements) -> tuple[list, ResidualStats]:
     """``data`` registered on the ``nominal`` tree (:func:`shared_frame`), its errors.
 
-    A DataError names the usual mistake that explains the registration's error, if one does.
+    Raises:
+        DataError: The usual mistake that explains the registration's error, if one does.
     """
 
     def registered(d: Measurements) -> tuple[list, ResidualStats]:

@@ -1,9 +1,6 @@
 """A measured chain's options on the joint engine: ``fix``, ``free``, ``elastic``, ``marker``.
 
-:func:`~.entry.calibrate` of a chain and its measurements fits it with the joint engine; each
-option is checked before the fit, in one line that says why: the parameters ``fix`` and
-``free`` name (:func:`level_offer`), the compliances ``elastic`` offers (:func:`compliance_torques`)
-and the markers' guess (:func:`marker_guess`).
+Each is checked before the fit, in one line that says why.
 """
 
 from __future__ import annotations
@@ -20,14 +17,7 @@ from .model import compliance_name
 from .options import Options
 from .placements import component_of, mdh_directions
 
-__all__ = [
-    "GROUPS",
-    "NO_LOAD",
-    "Asked",
-    "compliance_torques",
-    "level_offer",
-    "marker_guess",
-]
+__all__ = ["GROUPS", "NO_LOAD", "Asked", "compliance_torques", "level_offer", "marker_guess"]
 
 GROUPS = ("frame", "markers", "tool")
 """Names of a measured term's own unknowns, by group."""
@@ -44,15 +34,11 @@ def _compliance(name: str) -> bool:
 def compliance_torques(chains, train, held, opts: Options | None, load=None):
     """Gravity torques of the fitted and held-out rows, and the joints whose compliance is offered.
 
-    A chain touching under a standing ``load`` (:mod:`.contact_elastic`): its torques, every
-    joint. A measured chain: compliance is opt-in (``elastic``, or a compliance named in
-    ``free``): the URDF cannot hold it. The joints offered are those gravity loads (over
-    :data:`NO_LOAD` of the largest torque), less the compliances fixed. Returns ``(torques
-    of train, of held or None)`` (``(None, None)``: rigid joints) and the joints (0-based).
+    A measured chain's compliance is opt-in (``elastic``, or one in ``free``): the joints
+    gravity loads (:data:`NO_LOAD`) less those fixed. ``(None, None)``: rigid joints.
 
     Raises:
-        InvalidArgumentError: Compliance asked for where gravity loads no joint, or a free
-            compliance of a joint it never loads.
+        InvalidArgumentError: Compliance where gravity loads no joint, or a free one it never loads.
     """
     if load is not None:
         tau = [None if d is None else load.torques(d.q, d.readings) for d in (train[0], held[0])]
@@ -99,15 +85,9 @@ def marker_guess(marker, k: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Asked:
-    """Parameters a measured chain's ``fix`` and ``free`` name, resolved on its joints.
+    """Parameters a measured chain's ``fix`` and ``free`` name, as engine names.
 
-    Attributes:
-        fix: The fixed parameters' engine names (``<joint>:<parameter>``).
-        free: The free parameters' engine names (compliances as ``c<k>``).
-        given: Each engine name's name as the user wrote it.
-        extra: Directions ``(6 J,)`` of the parameters named, by engine name (a free one a
-            level may not offer is added; a fixed one holds every offered direction along
-            it).
+    ``given``: each one's name as the user wrote it; ``extra``: directions ``(6 J,)`` of those.
     """
 
     fix: tuple[str, ...]
@@ -116,11 +96,7 @@ class Asked:
     extra: dict[str, np.ndarray]
 
     def offer(self, directions, names, offered):
-        """The level's offer with the fixed parameters out and the free ones in.
-
-        ``directions`` ``(D, 6 J)``, or None: the components. Returns the directions, names,
-        indices offered and the names ``auto`` must keep.
-        """
+        """The level's offer (directions, or None: components) with ``fix`` out, ``free`` in."""
         missing = [n for n in self.free if n in self.extra and n not in names]
         if missing:
             base = np.eye(len(names)) if directions is None else directions
@@ -144,8 +120,7 @@ class Asked:
         """Refuse a free parameter the data cannot fit on its own, saying why.
 
         Raises:
-            InvalidArgumentError: A free parameter whose column the frame and markers carry,
-                or that is regrouped with parameters kept before it.
+            InvalidArgumentError: The frame and markers carry it, or it is regrouped.
         """
         every, fixed = wide.names(), wide.fixed
         cand = [every[k] for k in kept]
@@ -165,20 +140,10 @@ class Asked:
 
 
 def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
-    """What a joint fit offers at ``level``, and the parameters ``fix`` and ``free`` name.
+    """What a joint fit offers at ``level``, and the :class:`Asked` (None: no name given).
 
-    A tree's ``complete`` offers every joint placement component (the rank keeps a basis); one
-    chain's, its MDH directions (those ``auto`` chooses among). ``fix`` and ``free`` (one
-    measured chain's) name parameters as the printed table does: ``elbow_joint:d3`` (the
-    chart's, :func:`~.placements.mdh_directions`; ``d3`` alone), ``elbow_joint:x`` .. ``:rz``
-    (a placement component; one that is a chart's parameter, ``shoulder_lift_joint:rz``, is
-    that parameter, ``theta2``), ``c1`` .. ``cN`` (a compliance); ``frame``, ``markers``, ``tool``
-    are fitted (``free`` of them asks nothing, ``fix`` is refused) but for the first marker's
-    coordinates no posture separates from the frame, held at their given value
-    (:func:`~.chain_registration.held_markers`: a gantry's).
-
-    ``chain``: the first term's; ``start``: the registration; ``opts``: a measured chain's,
-    or None. Returns the :class:`Asked` (None: no parameter named) and the level offered.
+    A tree's ``complete`` offers every joint placement component.
+    Names: docs/developers/engine.md#level_offer
 
     Raises:
         InvalidArgumentError: An unknown name, or ``fix`` of a group.
@@ -187,8 +152,7 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
     offer = "components" if tree and level == "complete" else level
     if opts is None or not (opts.fix or opts.free):
         return None, offer
-    held = [n for n in opts.fix if n in GROUPS]
-    if held:
+    if held := [n for n in opts.fix if n in GROUPS]:
         raise InvalidArgumentError(
             f"fix {held[0]}: the joint engine fits the instrument's frame and markers (and the "
             f"measured frame's rotation), holding at its given value only a marker coordinate "

@@ -28,11 +28,7 @@ __all__ = ["chain_frames", "chain_lines", "chain_report", "chain_writing", "writ
 
 
 def tool_pose(inner: State) -> np.ndarray:
-    """The calibrated tool: the measured frame in the tool frame ``(4, 4)``.
-
-    Pose data: marker 1 and the measured frame's rotation (the written URDF's tool frame is
-    the measured frame); position data: identity.
-    """
+    """The calibrated tool: the measured frame in the tool frame ``(4, 4)`` (or identity)."""
     T = np.eye(4)
     if inner.tool_rotation is not None:
         T[:3, :3], T[:3, 3] = inner.tool_rotation, inner.markers[0]
@@ -46,11 +42,7 @@ def written_markers(inner: State) -> np.ndarray:
 
 
 def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = False) -> dict:
-    """The report's ``frames`` of a chain's (one measurement frame, marker links by name).
-
-    ``on_robot``: the URDF was written with the measurement frame in the base frame's fixed
-    joint (``frames.measurement`` is then in the URDF).
-    """
+    """The report's ``frames`` of a chain's (one measurement frame, marker links by name)."""
     inner = part.state.inner
     links = marker_link_names(part.chain.tool_frame, inner.n_markers)
     return {
@@ -67,10 +59,8 @@ def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = F
 def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
     """``marker_urdf``'s ``errors``, ``markers`` and ``tool`` of one chain measured.
 
-    The calibrated tool (:func:`tool_pose`) and its markers as a chain's calibration writes
-    them; ``on_robot``: the base frame's fixed joint moved so that forward kinematics from
-    the base frame gives measured coordinates (its new origin ``O F^-1``, ``F`` the nominal
-    base frame's pose in the measuring frame).
+    ``on_robot``: the base frame's fixed joint gets origin ``O F^-1`` (``F``: the base frame
+    in the measuring frame), so that forward kinematics gives measured coordinates.
 
     Raises:
         CalibError: ``on_robot`` with a base frame not fixed to a link by a fixed joint.
@@ -83,10 +73,7 @@ def chain_writing(part: MeasuredChain, errors: dict, on_robot: bool) -> tuple:
 
 
 def chain_lines(view: ChainView) -> list[str]:
-    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm].
-
-    Cross-validated (``folds``): the std is the fit of every row's only, and says so.
-    """
+    """A chain's summary lines: its errors table (fitted, held out) and the predicted std [mm]."""
     held, what = view.validation, ("registration only", "calibrated", URDF_ALONE)
     parts = [("fitted", (view.before, view.after, view.urdf_after))]
     if held is not None:
@@ -110,7 +97,7 @@ def chain_lines(view: ChainView) -> list[str]:
 
 
 def _row(label: str, st: ResidualStats) -> list[str]:
-    """A row of the errors table: configurations, position (and rotation) RMS and max [mm]."""
+    """A row of the errors table [mm, mrad]."""
     figures: list[float | None] = [st.position_rms, st.position_max]
     if st.orientation_rms is not None:
         figures += [st.orientation_rms, st.orientation_max]
@@ -122,14 +109,7 @@ def _row(label: str, st: ResidualStats) -> list[str]:
 def chain_report(
     view: ChainView, fields: dict, world_link: str | None, on_robot: bool = False
 ) -> tuple[dict, dict]:
-    """One chain measured: the report's fields of its layout, and its format 2's keys.
-
-    Its own ``parameters`` names (:func:`~.chain_counts.chain_name`: ``frame.z``), its
-    :class:`~.residuals.ResidualStats` under ``errors``, :func:`chain_frames`, ``fit``,
-    ``compliance`` (zero per rigid joint) and its MDH rows and gravity under ``model``:
-    ``fields`` (a copy) of ``view`` (shape ``chain``), its URDF written with ``world_link``
-    (None: none) and ``on_robot``.
-    """
+    """One chain measured: the report's ``fields`` (a copy) completed, and format 2's keys."""
     part, held = view.one_chain(), view.validation
     train = (view.before, view.after, view.urdf_after)
     errors = {"train": errors_part(*train), "held_out": None if held is None else held.in_mm()}

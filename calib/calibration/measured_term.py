@@ -1,11 +1,8 @@
 """A measured term: a frame (on the robot, or an instrument outside it) measures a chain's tool.
 
-A head camera (TIAGo's ``xtion_optical_frame``) measuring the hand, or a laser tracker: the
-chain runs from the measuring frame (its base) to the tool, the data are
-:class:`~calib.measurements.data.Measurements` in that frame. In a joint fit
-(:func:`~.contact_chains.calibrate_contact_chains`) the term shares every joint placement error
-(:mod:`.placements`) with the other terms; its own unknowns (:meth:`~.model.MeasuredKind.names`) are
-registered on the nominal robot (:mod:`.chain_registration`), then refined with the placements.
+A head camera measuring the hand, or a laser tracker: the chain runs from the measuring frame
+(its base) to the tool. Its own unknowns are registered on the nominal robot
+(:mod:`.chain_registration`), then refined with the joint placements the terms share.
 """
 
 from __future__ import annotations
@@ -28,21 +25,14 @@ from .residuals import ResidualStats
 from .solve import unconverged
 from .weighting import DEFAULT_WEIGHT
 
-__all__ = [
-    "check_measured",
-    "checked_measured",
-    "measuring_joint",
-    "one_term_per_frame",
-    "unseen",
-]
+__all__ = ["check_measured", "checked_measured", "measuring_joint", "one_term_per_frame", "unseen"]
 
 
 def measuring_joint(chain: Chain) -> str:
     """The fixed joint that places the chain's base frame (the measuring frame) on the robot.
 
     Raises:
-        InvalidArgumentError: No fixed joint fixes the base frame to a link (the root link,
-            or a frame a joint moves): its placement has nowhere to go in the URDF.
+        InvalidArgumentError: No fixed joint fixes the base frame to a link.
     """
     _, root = read_urdf_source(chain)
     try:
@@ -60,13 +50,11 @@ def check_measured(
 ) -> None:
     """A measured term's data: its chain's joints, one tool, held-out rows of its kind.
 
-    ``instrument``: its base frame need not be on the robot. The postures left once
-    ``holdout`` of them are set aside (a repeated posture counts once) must give more
-    equations than the frame and markers have unknowns.
+    The postures left once ``holdout`` of them are set aside must determine the frame and
+    markers; ``instrument``: its base frame need not be on the robot.
 
     Raises:
-        InvalidArgumentError: The base frame not on the robot, validation rows of another
-            kind, or several tools.
+        InvalidArgumentError: The base frame not on the robot, held rows of another kind or tool.
         DataError: Joints not the chain's, or too few postures.
     """
     if not instrument:
@@ -109,25 +97,15 @@ def checked_measured(
     zero: tuple | None = None,
     hold: bool = True,
 ):
-    """A measured term's rows checked as one chain's are, and its registration.
+    """A measured term's rows checked as every kind's are (:func:`~.term_checks.checked`).
 
-    Its rows (before outliers are set aside) must determine the frame and markers; then
-    the steps of every kind of term (:func:`~.term_checks.checked`) on the nominal chain's
-    registration (:class:`~.chain_registration.Rows`; ``validate`` diagnosed too), the
-    orientation weight estimated before (unless given), and the held-out rows' (``held``)
-    outliers set aside by the same rule (:func:`~.term_checks.held_out`). ``weight``
-    [m/rad] None: estimated; ``marker`` [m]: :func:`~.measured_options.marker_guess`'s;
-    ``noise_mm`` [mm] or None; ``zero``: the chain's
-    :meth:`~calib.kinematics.robot.Chain.zero_frames`, if already made; ``hold``: marker
-    coordinates no posture separates from the frame's translation are held at ``marker``
-    (:func:`~.chain_registration.held_markers`, a note says so), not a tree's tools (their
-    shared frame may be determined by another tool).
+    ``weight`` [m/rad] None: estimated first; ``zero``: the chain's zero frames, if made;
+    ``hold``: hold the coordinates of :func:`~.chain_registration.held_markers` (not a tree's
+    tools: another tool may determine their shared frame).
 
     Returns:
-        Its registered state (:attr:`MeasuredState.seen` set), its rows kept, the outliers,
-        the notes (the outliers' last) and its held-out rows without their outliers (or None):
-        every kind's checks return these (:func:`~.contact_checks.checked_registration`,
-        :func:`~.pixel_fit.checked_pixels`).
+        Its registered state, rows kept, outliers, notes and held-out rows without their
+        outliers (or None), as every kind's checks return them.
     """
     what = f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
@@ -148,8 +126,7 @@ def checked_measured(
     steps = chain_registration.Rows(chain, nominal, data, guess, opts, at, hold=pinned)
     validated = chain_registration.validation_steps(steps, validate)
     registered, notes = term_checks.checked(steps, validated)
-    stopped = unconverged(registered.state, "the registration")
-    if stopped:
+    if stopped := unconverged(registered.state, "the registration"):
         raise DataError(data.source, stopped)
     reg, kept, kin = registered.state.state.inner, registered.kept, steps.register().kin
     notes = [held_note(pinned, guess), *notes] if pinned else notes
@@ -163,11 +140,7 @@ def checked_measured(
 
 
 def _held_out(state: MeasuredState, kept, held: Measurements, notes: list[str], noise):
-    """The held-out rows without their outliers (:func:`~.term_checks.held_out`), checked.
-
-    ``kept``: the registration's rows; the outliers' note appended to ``notes``; ``noise``:
-    the instrument's [m] or None.
-    """
+    """The held-out rows without their outliers, checked (``notes`` appended; ``noise`` [m])."""
     reg, k, at = state.inner, held.n_markers, state.frames_at
     fitted, errors = (reg.residuals(d, None, at(d)) for d in (kept, held))
     aside = term_checks.held_out(
@@ -186,10 +159,7 @@ def _held_out(state: MeasuredState, kept, held: Measurements, notes: list[str], 
 
 
 def unseen(states: tuple) -> tuple:
-    """The states without the registration's frames (:attr:`MeasuredState.seen`).
-
-    What a result keeps: the frames at every row would double a large campaign's memory.
-    """
+    """The states without the registration's frames (they would double a result's memory)."""
     return tuple(
         dataclasses.replace(s, seen=None) if isinstance(s, MeasuredState) and s.seen else s
         for s in states
@@ -201,8 +171,7 @@ def one_term_per_frame(chains, data) -> None:
     measuring = [
         c.base_frame for c, d in zip(chains, data, strict=True) if isinstance(d, Measurements)
     ]
-    shared = sorted({f for f in measuring if measuring.count(f) > 1})
-    if shared:
+    if shared := sorted({f for f in measuring if measuring.count(f) > 1}):
         raise InvalidArgumentError(
             f"two measured terms measure from '{shared[0]}': one fit takes one measured term per "
             "measuring frame (fit the other tool's rows apart)"

@@ -1,8 +1,6 @@
-"""A chain measured by an instrument, fitted by the joint engine, seen as a chain's result.
+"""A measured term's part of the result (:class:`MeasuredChain`), and a chain's result.
 
-A measured term's part of the result (:class:`MeasuredChain`), and what users of a chain's
-result read on a one-term joint fit (:class:`ChainView`), as :func:`calib.load_calibrated` and
-``calib predict`` read it.
+:class:`ChainView`: what users of a chain's result read on a one-term joint fit.
 """
 
 from __future__ import annotations
@@ -39,24 +37,12 @@ __all__ = ["ChainView", "MeasuredChain", "Solution", "measured_part", "residual_
 
 @dataclass(frozen=True, eq=False)
 class MeasuredChain(TermPart):
-    """A measured term's part of the result (a frame on the robot measuring its tool).
+    """A measured term's part of the result (a frame measuring its chain's tool).
 
-    Attributes (besides :class:`~.contact_result.TermPart`'s: ``source``, ``stats`` in mm and
-    degrees, ``held_source``, ``compliance``):
-        chain: The nominal chain (its base frame: the measuring frame).
-        joint: The fixed joint that places the measuring frame on its link (None: an
-            instrument outside the robot, :mod:`.instrument`).
-        registered: Its registration on the nominal robot.
-        state: Its fitted state (``inner.frame``: the nominal base frame in the measuring
-            frame; markers and measured-frame rotation in the tool frame).
-        data: Its rows fitted (held-out rows and outliers left out).
-        held: Its held-out rows (their outliers left out), or None.
-        parameters: Its unknowns' report entries (the frame's ``joint`` is :attr:`joint`).
-        outliers: Its rows set aside by the registration (the fit's outlier loop refits
-            without the rows it sets aside: :mod:`~.chain_outliers`).
-        residuals: The fitted state's residuals at :attr:`data` ``(m, rows)`` [m, rad] (no
-            gravity torque given: rigid joints), or None: what the outlier loop reads again
-            (:mod:`.chain_outliers`).
+    ``joint``: the fixed joint placing the measuring frame (None: an instrument outside the
+    robot); ``data``/``held``: its rows fitted and held out (outliers left out);
+    ``outliers``: the registration's; ``residuals``: the fitted state's at ``data`` ``(m,
+    rows)`` [m, rad], rigid joints only (else None), read again by :mod:`.chain_outliers`.
     """
 
     chain: Chain
@@ -105,11 +91,8 @@ def measured_part(
 ) -> MeasuredChain:
     """A measured term's part: its errors, and its unknowns' report entries.
 
-    With joint compliance fitted (``torques``: the gravity torques ``(m, n)`` of ``train``
-    and ``held``, None each: rigid), its errors are the whole model's and the URDF alone's
-    (``train_urdf``, ``held_out_urdf``; ``notes`` completed, :func:`~.contact_elastic.urdf_alone`).
-    ``registered``: on the nominal robot; ``std``: its unknowns' in the fit; ``term``: its
-    number (1-based) in its unknowns' names.
+    ``torques``: the gravity torques ``(m, n)`` of ``train`` and ``held`` (None: rigid); with
+    compliance fitted, the URDF alone's errors too (``notes`` completed); ``term``: 1-based.
     """
     deflect = {id(train): torques[0], id(held): torques[1]}
     rigid = None if torques[0] is not None else state.inner.residuals(train, None)
@@ -154,11 +137,7 @@ def measured_part(
 def _measured_stats(
     state: MeasuredState, data: Measurements, torque=None, residuals=None
 ) -> GapStats:
-    """Errors of a measured term's rows (mm, degrees) as :class:`GapStats`.
-
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints (or None);
-    ``residuals``: the state's at the data (with ``torque``), if already made.
-    """
+    """Errors of a measured term's rows (mm, degrees); ``residuals``: if already made."""
     if residuals is None:
         kin = state.frames_at(data) if torque is None else None
         residuals = state.inner.residuals(data, torque, kin)
@@ -166,11 +145,7 @@ def _measured_stats(
 
 
 def _own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
-    """The term's unknowns from the registration to ``state`` (x of its own unknowns' model).
-
-    The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
-    changes [m], the measured frame's rotation vector of ``R_t0^T R_t`` [rad] (pose).
-    """
+    """The term's own unknowns x from the registration to ``state`` [rad, m]."""
     a, b = registered.inner, state.inner
     parts = [
         rotation_vector((b.frame[:3, :3] @ a.frame[:3, :3].T)[None])[0],
@@ -187,10 +162,8 @@ def world_of(
 ) -> tuple[str, np.ndarray] | None:
     """The ``world`` argument of the URDF writer (``marker_urdf``).
 
-    Only shape ``chain`` takes ``world_link`` (the instrument frame as a new root link of
-    that name) or ``on_robot`` (the instrument is the base frame, on the robot: its fitted
-    placement goes into the base frame's fixed joint), not both (else InvalidArgumentError);
-    ``frame``: the base frame's pose in the instrument's ``(4, 4)``, or None.
+    Raises:
+        InvalidArgumentError: ``world_link`` or ``on_robot`` not on shape ``chain``, or both.
     """
     for name, given in (("on_robot", on_robot), ("world_link", world_link is not None)):
         if given and (shape != "chain" or frame is None):
@@ -206,12 +179,7 @@ def world_of(
 
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """The joint fit's solution, kept for its uncertainty (read only when asked for).
-
-    Attributes:
-        fit: The final fit (its model, start, x, weighted Jacobian and residuals).
-        prior: The prior weights it was fitted with, or None.
-    """
+    """The joint fit's final fit and prior weights, kept for its uncertainty."""
 
     fit: Fit
     prior: np.ndarray | None = None
@@ -230,11 +198,7 @@ class Solution:
         return condition(self.fit.J)
 
     def point_std(self, data: Measurements, torque: np.ndarray | None = None) -> float:
-        """Predicted position std at one term's rows [m]: the covariance through its Jacobian.
-
-        RMS over the rows and markers (:func:`~.validation.predicted_std`); the fit of one
-        term. ``torque``: the gravity torques at the rows (fitted compliance), or None.
-        """
+        """Predicted position std at one term's rows, RMS [m] (``torque``: fitted compliance)."""
         fit = self.fit
         rows = ChainsData((data,), None if torque is None else (torque,))
         J = fit.model.jacobian(fit.start, fit.x, rows)
@@ -244,11 +208,7 @@ class Solution:
 class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
-    The names users of a chain's result read (those the MDH pipeline's result had until
-    issue 28), where a one-term joint fit has them (shape ``chain``; other shapes raise
-    :class:`~calib.exceptions.InvalidArgumentError`). Not here:
-    ``model`` and ``prior`` (the engine's parameters are joint placement components, not MDH
-    rows; its solution is :attr:`solution`).
+    Other shapes raise :class:`~calib.exceptions.InvalidArgumentError`.
     """
 
     chains: tuple[Any, ...]
@@ -350,10 +310,7 @@ class ChainView:
 
     @property
     def urdf_tool_frame(self) -> str:
-        """The written URDF's frame of the calibrated tool (the measured frame, the markers').
-
-        The tool frame, or ``<tool>_calibrated`` where the tool link is the last joint's.
-        """
+        """The written URDF's calibrated tool frame (``<tool>_calibrated`` on a last joint's)."""
         return urdf_tool_frame(self.chain)
 
     @property
@@ -382,7 +339,6 @@ class ChainView:
         return self._points("train_urdf") if self.one_chain().compliance is not None else None
 
     def _points(self, key: str) -> ResidualStats:
-        """A part of the term's errors (:attr:`MeasuredChain.stats`) by point and rotation."""
         part = self.one_chain()
         rows = cast(np.ndarray, part.stats[key].residuals)  # [m, rad]: measured_part keeps them
         return ResidualStats.of(rows, part.data.n_markers)
@@ -409,11 +365,7 @@ class ChainView:
 
     @cached_property
     def validation(self) -> Validation | None:
-        """Errors on the held-out rows [m, rad], or None without held-out rows.
-
-        Those :attr:`before`, :attr:`after`, :attr:`urdf_after` and :attr:`predicted_std` give
-        on :attr:`data`.
-        """
+        """Errors on the held-out rows [m, rad] (those :attr:`before` .. give), or None."""
         part = self.one_chain()
         held = part.held
         if held is None:
@@ -429,7 +381,6 @@ class ChainView:
         )
 
     def _point_std(self, rows: Measurements) -> float:
-        """:meth:`Solution.point_std` at rows, the joints deflected where compliance was fitted."""
         return self._solution().point_std(rows, _gravity_torque(self.chain, self.state, rows))
 
     def _solution(self) -> Solution:
@@ -437,11 +388,6 @@ class ChainView:
         if self.solution is None:
             raise InvalidArgumentError("this result keeps no solution (its uncertainty is unknown)")
         return self.solution
-
-
-def _stats(chain: Chain, state: State, data: Measurements) -> ResidualStats:
-    """Errors measured - model of a chain's state on rows [m, rad] (its compliance deflecting)."""
-    return validation.stats(state, data, _gravity_torque(chain, state, data))
 
 
 def _gravity_torque(chain: Chain, state: State, data: Measurements) -> np.ndarray | None:
@@ -464,6 +410,6 @@ def residual_stats(result: ChainView, data: Measurements) -> ResidualStats:
         raise InvalidArgumentError(
             "residual_stats takes the result of one chain measured and Measurements"
         )
-    part = result.one_chain()
-    check_against_chain(data, part.chain)
-    return _stats(part.chain, part.state.inner, data)
+    chain, state = result.chain, result.state
+    check_against_chain(data, chain)
+    return validation.stats(state, data, _gravity_torque(chain, state, data))

@@ -1,14 +1,8 @@
 """The calibration model of a measured chain: what predicts a measurement, and its unknowns.
 
-A point k at q is predicted as ``R_f (p_tool(q') + R_tool(q') m_k) + t_f``,
-``q' = q + c * tau(q)`` (frame, marker k [m], MDH tool frame, compliance times gravity
-torque); an orientation as ``R_f R_tool(q') R_m``. A chain's own unknowns x
-(:class:`MeasuredKind`), in order: the frame (rotation vector [rad] on the left, translation
-[m]), the markers (3 each [m], some may be held) and, for pose data, the measured frame's
-rotation (rotation vector [rad] on the right). Geometry and compliance are the state's
-(:mod:`.placements`); :class:`ErrorModel` linearises the MDH parameters at a state.
-
-Rationale and measurements: docs/developers/engine.md#model
+A point k at q is ``R_f (p_tool(q') + R_tool(q') m_k) + t_f``, ``q' = q + c * tau(q)``; x
+(:class:`MeasuredKind`): frame (rotation vector [rad] on the left, translation [m]), markers
+[m], the measured frame's rotation [rad] on the right (pose). docs/developers/engine.md#model
 """
 
 from __future__ import annotations
@@ -58,8 +52,7 @@ def compliance_name(joint: int) -> str:
 
 
 CONFIGURATION_BLOCK = 4096
-"""Configurations whose robot-parameter columns :meth:`ErrorModel.jacobian` computes at once
-(bounds the Jacobian's temporaries).
+"""Configurations :meth:`ErrorModel.jacobian` makes MDH columns of at once (bounds temporaries).
 Measurements: docs/developers/performance.md#configuration_block-model"""
 
 
@@ -67,13 +60,9 @@ Measurements: docs/developers/performance.md#configuration_block-model"""
 class State:
     """A complete model of the measurements: geometry, measurement frame, markers, compliance.
 
-    Attributes:
-        mdh: MDH model in the URDF base frame (frame -1).
-        frame: Pose of the URDF base frame in the measurement frame ``(4, 4)``.
-        markers: Measured points in the tool frame ``(K, 3)`` [m].
-        tool_rotation: Orientation of the measured frame in the tool frame ``(3, 3)``, or
-            None for position data.
-        compliance: Joint compliance ``(n,)`` [rad/(N m) or m/N].
+    ``mdh``: in the URDF base frame (frame -1); ``frame``: its pose in the measurement frame
+    ``(4, 4)``; ``markers`` ``(K, 3)`` [m] and ``tool_rotation`` ``(3, 3)`` (None: position
+    data) in the tool frame; ``compliance`` ``(n,)`` [rad/(N m) or m/N].
     """
 
     mdh: MDHModel
@@ -110,14 +99,11 @@ class State:
         return self.mdh.kinematics(self.joints(q, torque))
 
     def step_kinematics(self, data, torque: np.ndarray | None) -> Kinematics:
-        """:meth:`kinematics` at the data's joints (what a fit makes once per x)."""
+        """:meth:`kinematics` at the data's joints (a fit's, once per x)."""
         return self.kinematics(data.q, torque)
 
     def same_geometry(self, other) -> bool:
-        """Whether ``other``'s kinematics at the same data are this state's.
-
-        True when x moved no geometry (the frame and markers only).
-        """
+        """Whether ``other``'s kinematics at the same data are this state's."""
         return (
             isinstance(other, State)
             and other.mdh is self.mdh
@@ -129,9 +115,7 @@ class State:
     ) -> np.ndarray:
         """Measured - model per configuration ``(m, 3 K [+ 3])`` [m, rad].
 
-        The rows of the data's kind (the state's points only if it has no tool rotation);
-        ``kin``: :meth:`kinematics` at the data's joints (or any frames whose last is the
-        tool's), if already computed.
+        ``kin``: frames at the data's joints whose last is the tool's, if already made.
         """
         kind = data.kind if self.tool_rotation is not None else POSITION
         if kin is None:
@@ -145,19 +129,9 @@ class State:
 class MeasuredKind:
     """A measured chain's own unknowns and rows: the registration's model, a term's layout.
 
-    The unknowns of the module text (frame, markers, measured frame's rotation), moved and
-    derived by a :class:`~.chain_registration.MeasuredState` (the registration's fit, and the
-    joint engine's measured term: its own unknowns, as a contact kind's are read).
-
-    Attributes:
-        n_markers: Points measured per configuration K.
-        pose: The measured frame's orientation is measured too (pose data).
-        instrument: Measured by an instrument outside the robot whose frame every such term
-            shares (a tree's tools): the frame's 6 unknowns are the term's object (one for
-            all), its markers and tool rotation its own (the contact's place in a joint fit).
-        held: Marker coordinates (0-based among the ``3 K``) held at their given value, no
-            unknown: no posture separates them from the frame's translation
-            (:func:`~.chain_registration.held_markers`).
+    ``instrument``: an instrument outside the robot whose frame every such term shares (the
+    frame's 6 unknowns are the term's object); ``held``: marker coordinates (0-based among
+    the ``3 K``) held at their given value (:func:`~.chain_registration.held_markers`).
     """
 
     n_markers: int
@@ -169,7 +143,7 @@ class MeasuredKind:
 
     @property
     def measurement(self) -> Measurement:
-        """What is measured: its rows, residual and Jacobian rows (pose or position)."""
+        """What is measured (pose or position)."""
         return POSE if self.pose else POSITION
 
     @property
@@ -193,7 +167,7 @@ class MeasuredKind:
         return self._kept(6 + 3 * self.n_markers + 3 * self.pose)
 
     def _kept(self, width: int) -> list[int]:
-        """The columns of ``width`` but the held markers' (their place among every column)."""
+        """The columns of ``width`` but the held markers'."""
         return [c for c in range(width) if c - 6 not in self.held]
 
     @property
@@ -210,7 +184,7 @@ class MeasuredKind:
 
     @property
     def object_dofs(self) -> tuple[int, ...]:
-        """One index per unknown of the term's object: all of them, the frame's (instrument)."""
+        """The term's object's unknowns: all of them, or the frame's (instrument)."""
         return tuple(range(len(FRAME_NAMES) if self.instrument else len(self.names())))
 
     @property
@@ -260,12 +234,10 @@ class MeasuredKind:
         state: State | None = None,
         kin: Kinematics | JointFrames | None = None,
     ) -> np.ndarray:
-        """d(model)/dx, ``(m, rows, size)``: the kind's rows (3 K point rows, 3 rotation rows).
+        """d(model)/dx ``(m, rows, size)``; rotation rows: of ``-Log(R_meas R_model^T)``.
 
-        The rotation rows are the derivative of ``-Log(R_meas R_model^T)`` (so that the
-        whole Jacobian is that of model - measured). ``state`` (``apply(start, x)``) and
-        ``kin`` (its :meth:`State.kinematics` at the data's joints, or other frames whose
-        last is the tool's, e.g. a joint fit's): if already computed.
+        ``state`` (``apply(start, x)``) and ``kin`` (its frames at the data's joints, whose
+        last is the tool's): if already made.
         """
         if state is None:
             state = self.apply(start, x)
@@ -276,10 +248,7 @@ class MeasuredKind:
         return self.measured_rows(J, rot, data)
 
     def _columns(self, state: State, xf, xt, m: int, kin, extra: int):
-        """Every own column's full rows ``(m, full rows, 6 + 3 K [+ 3] + extra)``, rotation.
-
-        The held markers' columns included; ``extra`` columns left zero (a wide model's).
-        """
+        """Every own column's full rows (held markers' too, ``extra`` zero ones), rotation."""
         K, kind = state.n_markers, self.measurement
         R = state.frame[:3, :3]
         pts, rot = kind.predict(
@@ -301,11 +270,7 @@ class MeasuredKind:
         return J, rot
 
     def measured_rows(self, J: np.ndarray, rot, data, held: bool = True) -> np.ndarray:
-        """The kind's rows of full rows ``J`` ``(m, 3 K [+ 3], k)``, in place.
-
-        ``rot``: the predicted orientations (pose data), or None; ``held``: the held markers'
-        columns taken out.
-        """
+        """The kind's rows of full rows ``J`` ``(m, 3 K [+ 3], k)``, in place (``held``: out)."""
         kind = self.measurement
         error = kind.rotation_error(data.observed, rot) if rot is not None else None
         J = kind.jacobian_rows(J, rotation_error=error, n_markers=self.n_markers, overwrite=True)
@@ -313,11 +278,7 @@ class MeasuredKind:
 
 
 def point_rows(Rf: np.ndarray, lin, ang, points: np.ndarray, pose: bool) -> np.ndarray:
-    """Full rows ``(m, 3 K [+ 3], k)`` of k motions (velocity ``lin`` at ``points``' origin).
-
-    Each point ``(m, K, 3)`` moves by ``lin - [point]x ang``, the orientation (``pose``) by
-    ``ang``, in the measurement frame (rotation ``Rf``).
-    """
+    """Full rows ``(m, 3 K [+ 3], k)`` of k motions: a point by ``lin - [point]x ang``."""
     m, K = points.shape[:2]
     rows = (Rf @ (lin[:, None] - skew(points) @ ang[:, None])).reshape(m, 3 * K, -1)
     return np.concatenate([rows, Rf @ ang], axis=1) if pose else rows
@@ -330,18 +291,10 @@ def measured_kind(data: Measurements, held: tuple[int, ...] = ()) -> MeasuredKin
 
 @dataclass(frozen=True, eq=False)
 class ErrorModel:
-    """A measured chain's own unknowns and MDH base values, linearised at a state.
+    """A measured chain's own unknowns (``own``) and MDH base values, linearised at a state.
 
-    The columns of :class:`MeasuredKind`'s unknowns, then those of MDH parameters at the
-    state's geometry: what rows determine (:mod:`.determined`, the designs) and the outlier
-    proposals (:func:`~.chain_outliers.proposals`). The fits move the geometry through the
-    joint engine (:mod:`.placements`), never through these columns.
-
-    Attributes:
-        params: Standard MDH parameter set the base values come from.
-        base: Names of the MDH parameters whose columns follow the own unknowns', each a
-            parameter of ``params`` (:func:`moved`).
-        own: The chain's own unknowns and rows (its markers, pose or position).
+    What rows determine and the outlier proposals; the fits move the geometry through
+    :mod:`.placements`, never these columns. ``base``: names of ``params`` (:func:`moved`).
     """
 
     params: ParameterSet
@@ -357,10 +310,7 @@ class ErrorModel:
         return self.own.size() + len(self.base)
 
     def jacobian(self, state: State, data, kin: Kinematics | None = None) -> np.ndarray:
-        """d(model)/d(columns) at ``state`` ``(m, rows, size)`` (x = 0, the data's joints).
-
-        ``kin``: ``state``'s :meth:`State.kinematics` at the data's joints, if already made.
-        """
+        """d(model)/d(columns) at ``state`` ``(m, rows, size)`` (``kin``: if already made)."""
         own, q = self.own, data.q
         if kin is None:
             kin = state.mdh.kinematics(q)
@@ -390,10 +340,7 @@ class ErrorModel:
 
 
 def moved_frame(frame: np.ndarray, xf: np.ndarray) -> np.ndarray:
-    """A copy of a frame ``(4, 4)`` moved by x's frame part ``xf``.
-
-    ``xf``: a rotation vector [rad] applied on the left, then a translation [m].
-    """
+    """A copy of a frame ``(4, 4)`` moved by x's frame part (rotation [rad], translation [m])."""
     out = frame.copy()
     out[:3, :3] = rotation_matrix(xf[:3]) @ frame[:3, :3]
     out[:3, 3] = frame[:3, 3] + xf[3:]
@@ -411,10 +358,7 @@ def selection_lift(params: ParameterSet, base: tuple[str, ...]) -> np.ndarray:
 def moved(
     params: ParameterSet, mdh: MDHModel, offered: Collection[str] | None = None
 ) -> tuple[str, ...]:
-    """An :class:`ErrorModel`'s ``base``: the parameters ``offered`` of ``params`` (default: all).
-
-    In the paper's order of preference at ``mdh`` (:func:`preference_order`).
-    """
+    """An :class:`ErrorModel`'s ``base``: ``offered`` (default: all), in order of preference."""
     return tuple(
         params.names[i]
         for i in preference_order(mdh, params)
@@ -426,31 +370,18 @@ def registration_state(
     mdh: MDHModel, frame: np.ndarray, markers: np.ndarray, tool_rotation: np.ndarray | None
 ) -> State:
     """A state with the nominal geometry, no compliance, and the given frame and markers."""
-    return State(
-        mdh,
-        np.array(frame, dtype=float),
-        np.array(markers, dtype=float),
-        tool_rotation,
-        np.zeros(mdh.n),
-    )
+    frame, markers = np.array(frame, dtype=float), np.array(markers, dtype=float)
+    return State(mdh, frame, markers, tool_rotation, np.zeros(mdh.n))
 
 
 def nominal_state(mdh: MDHModel, markers: np.ndarray, kind: Measurement) -> State:
-    """A registration state in the instrument's own frame, for a kind's generic counts.
-
-    The measured frame is the tool frame when the kind measures orientation rows.
-    """
+    """A registration state in the instrument's own frame, for a kind's generic counts."""
     tool = np.eye(3) if kind.rotation_rows else None
     return registration_state(mdh, np.eye(4), markers, tool)
 
 
 def generic_measurements(state: State, joint_names: tuple[str, ...], q: np.ndarray):
-    """What a state measures at q: its own points and, with a tool rotation, orientations.
-
-    The data the counts of :mod:`~.determined` and the design's Jacobians are evaluated on:
-    exact, so the residual is zero and the Jacobian is the plain linearisation (measured
-    identity orientations would scale the rotation rows by ``Jr^-1`` of the tool's rotation).
-    """
+    """What a state measures at q, exactly (zero residual; docs/developers/engine.md#model)."""
     pts, rot = state.predict(q)
     quat = None if rot is None else matrix_to_quaternion(rot)
     return Measurements(joint_names, q, pts.reshape(len(q), -1), quat)

@@ -1,9 +1,5 @@
 """The selection's object columns by block: each object's unknowns eliminated on its touches.
 
-For each subset of the configurations (rows outside it zeroed) the projection onto the
-objects' columns is block diagonal, each object's ``U_k U_k^T`` (``U_k`` an orthonormal basis
-of its columns on the subset's rows); time and memory linear in configurations and objects.
-
 Rationale and measurements: docs/developers/engine.md#object_columns
 """
 
@@ -16,29 +12,19 @@ import numpy as np
 __all__ = ["UNDETERMINED", "FixedBasis", "ObjectColumns", "object_moments", "posture_sums"]
 
 UNDETERMINED = 1e-14
-"""An object's direction whose Gram eigenvalue is below this fraction of its largest (a
-singular value under 1e-7 of the largest) is not determined by the subset's rows."""
+"""Relative Gram eigenvalue under which an object's direction is undetermined (1e-7 singular)."""
 
 
 @dataclass(frozen=True, eq=False)
 class ObjectColumns:
-    """Each configuration's rows on its own object's unknowns (the others' are zero).
-
-    Attributes:
-        own: The rows ``(m, rows, o)`` (configuration-major, as the selection's).
-        index: The object of each configuration ``(m,)`` (every object has one).
-        objects: Number of objects K.
-    """
+    """Each configuration's rows ``own`` ``(m, rows, o)`` on its object ``index`` (of K)."""
 
     own: np.ndarray
     index: np.ndarray
     objects: int
 
     def by_posture(self, groups: np.ndarray | None, m: int) -> ObjectColumns:
-        """The rows of each posture once, as :func:`~.selection._by_posture` takes them.
-
-        A posture's repeats touch one object: their rows' sum over the root of their count.
-        """
+        """The rows of each posture once, as :func:`~.selection._by_posture` takes them."""
         if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
             return self
         index = np.zeros(int(np.max(groups)) + 1, dtype=int)
@@ -58,11 +44,7 @@ class ObjectColumns:
         return np.add.reduceat(X[:, order], starts, axis=1)
 
     def transform(self, w: np.ndarray) -> np.ndarray:
-        """Each subset's ``W_k``, ``F_k W_k`` an orthonormal basis of object k's columns.
-
-        On the subset's rows (``w`` ``(b, m)``: 1 in, 0 out); zero columns where a direction
-        is undetermined. ``(b, K, o, o)``.
-        """
+        """Each subset's ``W_k`` ``(b, K, o, o)``: ``F_k W_k`` orthonormal (0: undetermined)."""
         o = self.own.shape[2]
         F = self.own[None] * w[:, :, None, None]
         W = np.broadcast_to(np.eye(o), (len(w), self.objects, o, o))
@@ -80,27 +62,18 @@ class ObjectColumns:
         return W
 
     def basis(self, w: np.ndarray) -> np.ndarray:
-        """Each configuration's rows of its object's basis, per subset ``(b, m, rows, o)``.
-
-        Zero outside the subset (see :meth:`transform`).
-        """
+        """Each configuration's rows of its object's basis, per subset ``(b, m, rows, o)``."""
         W = self.transform(w)[:, self.index]
         return np.einsum("bmri,bmij->bmrj", self.own[None] * w[:, :, None, None], W)
 
     def project(self, U: np.ndarray, X: np.ndarray) -> np.ndarray:
-        """``X`` ``(b, m, rows, k)`` minus its projection onto the basis ``U`` ``(b, m, rows, o)``.
-
-        ``U``: :meth:`basis`'s.
-        """
+        """``X`` ``(b, m, rows, k)`` minus its projection onto :meth:`basis`'s ``U``."""
         coef = self.sums(np.einsum("bmro,bmrk->bmok", U, X))  # (b, K, o, k)
         return X - np.einsum("bmro,bmok->bmrk", U, coef[:, self.index])
 
 
 def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """Each posture's rows of ``X`` ``(m, ...)`` summed over the root of their count ``(P, ...)``.
-
-    ``groups``: each configuration's posture ``(m,)``, numbered from 0.
-    """
+    """Each posture's rows of ``X`` ``(m, ...)`` summed over the root of their count."""
     root = np.sqrt(np.bincount(groups).astype(float))
     out = np.zeros((len(root), *X.shape[1:]))
     np.add.at(out, groups, X)
@@ -110,17 +83,9 @@ def posture_sums(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
 def object_moments(
     A: np.ndarray, e: np.ndarray, rows: int, train: np.ndarray, objects: ObjectColumns
 ) -> tuple[np.ndarray, ...]:
-    """The guard's moments of each fold with the objects' unknowns eliminated.
+    """The guard's moments of each fold, objects eliminated (as :func:`~.selection.outer_cv`'s).
 
-    About the whole data's least-squares fit ``x`` of the dense columns (objects eliminated).
-    A fold fits the objects on its training rows: ``x_F = K (e_t - D_t y)`` per object
-    (``K = G^+ F_t^T``), so that its training fit of the dense columns ``D`` is that of the
-    projected rows ``(I - P_t) D_t``, ``(I - P_t) e_t``, and its held-out residual is
-    ``e~_h - D~_h y`` with ``D~_h = D_h - F_h K D_t`` (and ``e~_h`` alike). ``A`` ``(m rows,
-    p)``: configuration-major rows, ``e`` ``(m rows,)``, ``train`` ``(folds, m)`` [bool],
-    ``objects``: unit norm. Returns ``x``, then per fold: the training normal matrices ``(f,
-    p, p)`` and right-hand sides about 0 ``(f, p)``, the held-out moments ``D~_h^T D~_h``,
-    ``D~_h^T e~_h`` and ``|e~_h|^2`` (about ``x``).
+    How: docs/developers/engine.md#object_columns
     """
     m = train.shape[1]
     D = A.reshape(m, rows, -1)
@@ -149,13 +114,7 @@ def object_moments(
 
 
 class FixedBasis:
-    """Each subset's basis of the fixed columns: the objects' (by block), then dense ones.
-
-    The dense fixed columns (the contact's, ...) are made orthogonal to the objects' and
-    factored by QR; the projection onto the fixed columns is the objects' (block diagonal)
-    plus theirs. ``D`` ``(m, rows, f)``: the dense fixed columns by configuration; ``w``
-    ``(b, m)``: each subset's configurations (1 in, 0 out).
-    """
+    """Each subset's basis of the fixed columns: the objects' (by block), then the dense ``D``."""
 
     def __init__(self, objects: ObjectColumns, D: np.ndarray, w: np.ndarray) -> None:
         self.objects = objects

@@ -1,11 +1,7 @@
 """The options of a calibration, chain or tree: one value, one check; cheap to import.
 
-The command line builds its parser from the constants here without importing the
-calibration itself. :func:`~calib.calibration.entry.calibrate` takes the same keyword-only
-arguments for a chain and a tree and turns them into one :class:`Options` (a
-:class:`~calib.calibration.problem.Problem` is its terms and its options), checked once when
-it is made; what applies to some shapes only is one table (:data:`APPLIES`), and a tree's
-level is checked by :func:`check_tree_level`.
+The command line builds its parser from the constants here; what applies to some shapes only
+is one table (:data:`APPLIES`).
 """
 
 from __future__ import annotations
@@ -203,10 +199,7 @@ _RENAMED = {"level": "params", "chain": "robot", "tree": "robot", "markers": "ma
 
 
 def options_given(values: dict[str, object]) -> list[str]:
-    """The options among ``values`` (by name) that are not :class:`Options`'s defaults.
-
-    A name that is no field of :class:`Options` (``marker``, ``validate``) defaults to None.
-    """
+    """The options among ``values`` (by name) that are not :class:`Options`'s defaults (or None)."""
     defaults = {f.name: f.default for f in dataclasses.fields(Options)}
 
     def default(value, given) -> bool:
@@ -219,10 +212,7 @@ def options_given(values: dict[str, object]) -> list[str]:
 def checked_arguments(function: Callable[P, R]) -> Callable[P, R]:
     """A calibration entry point whose wrong arguments are a one-line InvalidArgumentError.
 
-    Python would raise a bare TypeError for an unknown keyword or an option given by
-    position; the wrapped function names the argument instead (and the one meant, for a
-    usual slip such as ``level=`` for ``params=``). A result's method (``self`` first) names
-    the arguments it takes.
+    It names the argument (and the one meant, ``level=`` for ``params=``), not a bare TypeError.
     """
     signature = inspect.signature(function)
 

@@ -1,10 +1,5 @@
 """Robust fitting: configurations whose error is far from the others' are set aside.
 
-:func:`find_outliers`: a unit (a row, a touch; a posture takes its largest error) over
-``FACTOR`` times the median (and ``NOISE_FACTOR`` times the noise, when given) is an outlier,
-orientations tested alike; :func:`stable_set` / :func:`until_stable` iterate to a stable set
-(at most ``ROUNDS`` refits). Outliers are listed by file row.
-
 Rationale and measurements: docs/developers/engine.md#outliers
 """
 
@@ -43,13 +38,7 @@ T = TypeVar("T")
 
 
 class Errors(NamedTuple):
-    """Each unit's errors, and how many components each is the norm of.
-
-    Attributes:
-        position: Position (length) error ``(m,)`` [m].
-        orientation: Orientation (angle) error ``(m,)`` [rad], or None.
-        dims: Components of each (3 for a point or a rotation vector; a plane's height: 1).
-    """
+    """Each unit's position [m] and orientation [rad] errors, norms of ``dims`` components."""
 
     position: np.ndarray
     orientation: np.ndarray | None = None
@@ -57,9 +46,7 @@ class Errors(NamedTuple):
 
 
 FACTOR = 5.0
-"""An outlier's error is more than this many times the median configuration error (errors of
-3 components, a point's; for k components, the factor of the same Gaussian tail probability,
-:func:`factor`: 10.6 for a plane's height alone, 6.3 for its two tilts)."""
+"""An outlier's error exceeds this many times the median (3 components; else :func:`factor`)."""
 
 NOISE_FACTOR = 6.0
 """... and more than this many times the instrument noise, when it is given."""
@@ -73,16 +60,7 @@ IRLS_ROUNDS = 60
 
 @dataclass(frozen=True)
 class Outlier:
-    """A configuration set aside.
-
-    Attributes:
-        row: Its row in the data file.
-        error: Its largest point error [m] (or its orientation error [rad], ``kind``
-            ``orientation``) under the model that set it aside (the registration, or the
-            calibration fitted without it).
-        median: The median configuration error then [m or rad].
-        kind: ``position`` or ``orientation``: which error set it aside.
-    """
+    """A configuration set aside: its file row, error and the median then [m, or rad]."""
 
     row: int
     error: float
@@ -101,12 +79,7 @@ class Outlier:
 
 
 def set_aside_note(dropped, unit: str = "rows", gap: str = "error") -> str:
-    """The note listing the outliers set aside (one line).
-
-    For example ``2 outlier rows set aside (error > 5 x the median): row 4 (5.3 mm), row 9
-    (6.1 mm)``, ``1 outlier row set aside ...``; ``unit``: the plural; contacts' ``unit`` and
-    ``gap``: ``touches``, ``gap``.
-    """
+    """``2 outlier rows set aside (error > 5 x the median): row 4 (5.3 mm), row 9 (6.1 mm)``."""
     outliers = counted(len(dropped), f"outlier {unit}")
     return f"{outliers} set aside ({gap} > {FACTOR:g} x the median): " + (
         ", ".join(o.text() for o in dropped)
@@ -114,10 +87,7 @@ def set_aside_note(dropped, unit: str = "rows", gap: str = "error") -> str:
 
 
 def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
-    """Each configuration's largest point error [m] and orientation error [rad] (or None).
-
-    ``residual``: ``(m, 3 K [+ 3])`` [m, rad], the orientation rows last; ``n_markers``: K.
-    """
+    """Each configuration's largest point error [m] and orientation error [rad] (or None)."""
     rot = None
     if residual.shape[1] == 3 * n_markers + 3:
         rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
@@ -127,13 +97,7 @@ def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
 
 @functools.cache
 def factor(dims: int) -> float:
-    """The outlier factor for errors that are norms of ``dims`` components.
-
-    ``FACTOR`` times the median of the norm of 3 Gaussian components is exceeded with some
-    probability; this is the multiple of the median that the norm of ``dims`` components
-    exceeds with the same probability (the chi distribution), so that the rule sets noise
-    aside as rarely whatever the error's components.
-    """
+    """The outlier factor for errors that are norms of ``dims`` components (``FACTOR``: 3)."""
     if dims == 3:
         return FACTOR
     tail = chi.sf(FACTOR * chi.median(3), 3)
@@ -154,11 +118,7 @@ def _find_outliers(errors: np.ndarray, noise: float | None, dims: int = 3) -> np
 def find_outliers(
     found: Errors, noise: float | None, rows: tuple[int, ...]
 ) -> tuple[np.ndarray, list[Outlier]]:
-    """Outliers of per-configuration errors: by position error, and by orientation error.
-
-    ``noise`` [m] or None; ``rows``: each configuration's file row. Returns the mask of the
-    outliers and the outliers (:func:`records`).
-    """
+    """Outliers of per-configuration errors (by position, and by orientation): mask, records."""
     errors, orientation, dims = found
     bad = _find_outliers(errors, noise, dims[0])
     if orientation is not None:
@@ -178,11 +138,6 @@ def until_stable(
 ) -> tuple[T, np.ndarray, list[Outlier]]:
     """Refit without the outliers and test every unit again, until the set stops changing.
 
-    ``refit``: the fit of the units a mask keeps; ``errors``: every unit's under a fit (those
-    set aside: predicted); ``noise`` [m] or None; ``rows``: each unit's file row. A set that
-    ``allowed`` refuses (e.g. a plane left too few touches), or whose refit raises a
-    ``DataError``, leaves the last one in place. A fit that ``converged`` says stopped short
-    proposes none (:func:`stable_set`: the round before, or the first fit with none aside).
     Returns the last fit, the mask of the outliers it was fitted without, and the outliers.
     """
 
@@ -203,15 +158,11 @@ def stable_set(
 ) -> tuple[T, np.ndarray]:
     """:func:`until_stable`'s loop: the outliers ``rule`` finds under a fit (a mask) each round.
 
-    The engine's loop (:func:`~.chain_outliers.fit_terms_until_stable`) applies the rule to
-    each term's units on its own, from those each term sets aside at first (``start``).
-    Returns the last fit and the mask of the units it was fitted without. A ``rule`` that
-    proposes none (None: the engine's fit did not converge) ends the loop: on the round
-    before, whose fit converged, if there was one. A later round's refit refused (a
-    DataError: too few rows left for the model, or the engine's checks of the data,
-    :func:`~.validation.check_fitted_errors` and the like, on the rows it keeps) ends the
-    loop on the round before too, whose fit passed the same checks; the first fit's
-    DataError is raised.
+    Returns the last fit and the mask of the units it was fitted without (how it ends:
+    docs/developers/engine.md#outliers).
+
+    Raises:
+        DataError: The first fit's.
     """
     bad = start
     result = refit(~bad)
@@ -244,8 +195,7 @@ def records(found: Errors, bad: np.ndarray, rows: tuple[int, ...]) -> list[Outli
 
 
 PROPOSAL_SPREAD = 2.5
-"""A robust fit's proposals are sought only where some unit's error after the registration
-exceeds this many times the median.
+"""Multiple of the median some unit's error must exceed for a robust fit's proposals.
 Rationale and measurements: docs/developers/engine.md#proposal_spread"""
 
 
@@ -264,17 +214,7 @@ def robust_proposals(
     noise: float | None,
     rows: tuple[int, ...],
 ) -> np.ndarray:
-    """The units a robust fit of a linearised model finds outlying (a boolean mask).
-
-    None set aside (an all-False mask) where the units give fewer than twice as many
-    equations as the model's unknowns.
-
-    Iteratively reweighted least squares: each unit weighs ``min(1, median / error)`` (the
-    larger of its position and orientation ratios), reweighted until the weights settle (at
-    most ``IRLS_ROUNDS``); the rule (:func:`find_outliers`) is then applied to its errors.
-    ``J`` ``(m, rows, p)`` and ``residual`` ``(m, rows)``: at the model's start, weighted;
-    ``noise``: the instrument's position noise [m], or None; ``rows``: each unit's file row.
-    """
+    """The units a robust fit (IRLS) of a linearised model finds outlying (a boolean mask)."""
     m, rows_each = residual.shape
     if m * rows_each < 2 * J.shape[2]:  # nearly interpolated: nothing to tell
         return np.zeros(m, dtype=bool)

@@ -1,16 +1,10 @@
-"""A pixel term among several chains: a camera on a link sees a target on a tool, in pixels.
+"""The pixel kind: a camera fixed to a link sees target points fixed to a tool, in pixels.
 
-A kind of term of the joint engine (:func:`~.contact_chains.calibrate_contact_chains`): its
-data are :class:`PixelData`, its chain, rows ``u, v`` [px] and own unknowns (the camera's 6
-and the optional ones of :class:`~.pixel_term.Unknowns`) are :mod:`.pixel_term`'s; the joint
-placement columns are shared with every other term through the joints.
-
-Weight: each pixel enters the joint fit times :attr:`PixelTermState.weight` [m/px] (the
-target's median depth in the camera at the registration over the mean focal length), so the
-refusal rule (``validation.worse``) and the outlier rule (:func:`~.outliers.find_outliers`)
-read millimetres at the target; the report gives both (px and mm).
-
-Registration and outliers: :func:`~.pixel_fit.checked_pixels`.
+``pixel = pinhole(C^-1 T(q) X)``. Here: its unknowns (the columns of :func:`pixel_jacobian`:
+the camera's 6, the joint placements, the optional blocks of :class:`Unknowns`), its data
+(:class:`PixelData`), layout and state in the joint engine, and what pixels determine
+(:func:`pixel_count`); the registration is :mod:`.pixel_fit`'s.
+Model, units and weight: docs/developers/engine.md#pixel_chain
 """
 
 from __future__ import annotations
@@ -25,32 +19,133 @@ from ..identification.pinhole import Pinhole
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
+from ..measurements.pixel_simulation import simulate_cameras
 from ..measurements.pixels import PixelObservations, Target
 from . import term_checks, validation
-from .pixel_term import (
-    CAMERA_NAMES,
-    GAUGE_POINTS,
-    KNOWN,
-    MOUNT_NAMES,
-    PixelCamera,
-    PixelRows,
-    Unknowns,
-    camera_points,
-    pixel_jacobian,
-    pixel_rows,
-)
+from .determined import determined_columns
+from .placements import Placements, joint_twists, offset_component
 
 __all__ = [
+    "GAUGE_POINTS",
+    "PixelCamera",
     "PixelData",
     "PixelKind",
     "PixelPart",
+    "PixelRows",
     "PixelTermState",
+    "Unknowns",
+    "camera_points",
     "check_pixels",
+    "free_columns",
     "pixel_block",
+    "pixel_count",
+    "pixel_jacobian",
     "pixel_part",
     "pixel_parts",
+    "pixel_rows",
     "with_tool",
 ]
+
+CAMERA_NAMES = ("camera.x", "camera.y", "camera.z", "camera.rx", "camera.ry", "camera.rz")
+"""The camera placement's unknowns (in the camera frame)."""
+
+MOUNT_NAMES = ("mount.x", "mount.y", "mount.z", "mount.rx", "mount.ry", "mount.rz")
+"""The target mounting's unknowns (in the tool frame)."""
+
+GAUGE_POINTS = 3
+"""Target points kept as given when the target is refined (the gauge and the scale)."""
+
+
+@dataclass(frozen=True)
+class Unknowns:
+    """The optional unknowns of a pixel term.
+
+    Attributes:
+        mount: The target's mounting on its link (6).
+        targets: The target points after the first :data:`GAUGE_POINTS` (3 each).
+        intrinsics: The camera's intrinsics (4 + the distortion coefficients).
+    """
+
+    mount: bool = False
+    targets: bool = False
+    intrinsics: bool = False
+
+
+KNOWN = Unknowns()
+"""No optional unknown: the target and the intrinsics as given."""
+
+
+def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``X`` ``(m, 3)`` of the tool, in the camera ``(m, 3)`` and the base link [m]."""
+    p_link = kin.p[:, -1] + np.einsum("mij,mj->mi", kin.R[:, -1], X)
+    return (p_link - camera[:3, 3]) @ camera[:3, :3], p_link
+
+
+def pixel_jacobian(
+    placements: Placements,
+    state: PixelTermState,
+    chain: Chain,
+    rows: PixelRows,
+    robot: bool = True,
+    kin=None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The residuals ``pixel - observed`` ``(m, 2)`` [px] and their derivatives ``(m, 2, c)``.
+
+    Columns in the module's order, the mounting's 6 always, the target points' and the
+    intrinsics' per ``state.what``; ``robot`` False: the joint placement columns are zero.
+    """
+    if kin is None:
+        kin = placements.frames(chain, rows.q)
+    X = state.target[rows.point]
+    p_cam, p_link = camera_points(kin, state.camera, X)
+    seen = state.lens.projection(p_cam, derivatives=True)
+    D = np.asarray(seen.d_point)  # (m, 2, 3) [px/m]
+    RcT = state.camera[:3, :3].T
+    m = rows.m
+    moving = np.zeros((m, 3, len(placements.joints), 6))  # the point's motion in the base link
+    if robot:
+        columns = placements.path(chain).columns
+        ang, lin = joint_twists(placements, chain, kin)
+        moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
+    by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
+    mount = RcT @ kin.R[:, -1]  # d(point in the camera) / d(point in the tool)
+    by_mount = mount @ np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), -skew(X)], axis=2)
+    parts = [D @ by_camera, D @ (RcT @ moving.reshape(m, 3, -1)), D @ by_mount]
+    k = len(state.target)
+    if state.what.targets and k > GAUGE_POINTS:
+        by_point = np.zeros((m, 3, k, 3))
+        by_point[np.arange(m), :, rows.point] = mount
+        parts.append(D @ by_point[:, :, GAUGE_POINTS:].reshape(m, 3, -1))
+    if state.what.intrinsics:
+        parts.append(np.asarray(seen.d_parameters))
+    return seen.pixels - rows.pixels, np.concatenate(parts, axis=2)
+
+
+def free_columns(
+    W: np.ndarray, placements: Placements, what: Unknowns, cameras: int = 1
+) -> tuple[int, ...]:
+    """The columns of ``W`` ``(r, c)`` the rows determine, in order of preference.
+
+    ``W``'s columns: each camera's 6, the joint placements, the mounting (never free without
+    ``what.mount``), the target points, the intrinsics.
+    Order of preference: docs/developers/engine.md#pixel_chain
+    """
+    norms = np.linalg.norm(W, axis=0)
+    used = norms > 0
+    n = 6 * cameras + placements.y.size
+    if not what.mount:
+        used[n : n + 6] = False
+    scaled = np.where(used, W / np.where(used, norms, 1.0), 0.0)
+    offsets: list[int] = []
+    others: list[int] = []
+    for j, jid in enumerate(placements.ids):
+        off = ("x", "y", "z", "rx", "ry", "rz").index(offset_component(placements.nominal, jid))
+        for c in range(6):
+            (offsets if c == off else others).append(6 * cameras + 6 * j + c)
+    preferred = [*range(6 * cameras), *range(n, n + 6), *offsets, *others, *range(n + 6, len(W.T))]
+    order = [c for c in preferred if used[c]]
+    return tuple(sorted(order[i] for i in determined_columns(scaled[:, order])))
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,11 +214,7 @@ class PixelPart:
         return PixelPart(self.data, self.rows.subset(keep))
 
     def as_data(self) -> PixelData:
-        """The term's data of these rows only, each keeping its line: a run's data again.
-
-        :func:`pixel_part` of it on the chain gives these rows (the outlier loop's subsets
-        and held-out rows, :mod:`.chain_outliers`).
-        """
+        """The term's data of these rows only, each keeping its line: a run's data again."""
         obs = self.data.obs
         lines = term_checks.file_lines(obs)
         keep = np.isin(lines, self.rows.lines)
@@ -172,17 +263,10 @@ class PixelKind:
 
 @dataclass(frozen=True, eq=False)
 class PixelTermState:
-    """A pixel term's state: its chain on the robot, the camera, the target, the lens.
+    """A pixel term's state: its chain's MDH model, the camera, the target, the lens.
 
-    The joint fit's, and a term's fitted alone (:mod:`.pixel_fit`, weight 1: rows in px).
-
-    Attributes:
-        mdh: The chain's MDH model on the perturbed robot.
-        camera: The camera's optical frame in the chain's base link ``(4, 4)`` [m].
-        target: The target points in the tool frame ``(k, 3)`` [m].
-        lens: The intrinsics.
-        weight: Metres per pixel at the target (the rows' weight in the joint fit) [m/px].
-        what: The optional unknowns.
+    ``camera``: the optical frame in the chain's base link ``(4, 4)`` [m]; ``target``: the
+    points in the tool frame ``(k, 3)`` [m]; ``weight``: the rows' weight [m/px at the target].
     """
 
     mdh: MDHModel
@@ -198,11 +282,7 @@ class PixelTermState:
         return PixelKind(len(self.target), len(self.lens.parameters), self.what)
 
     def seen(self, part: PixelPart, kin=None) -> np.ndarray:
-        """The rows' points in the camera frame ``(m, 3)`` [m].
-
-        ``kin``: the chain's frames at the rows' joints (the last the tool's; a joint fit's),
-        or None: its MDH model's.
-        """
+        """The rows' points in the camera frame ``(m, 3)`` [m] (``kin``: None: the MDH model's)."""
         if kin is None:
             kin = self.mdh.kinematics(part.rows.q)
         return camera_points(kin, self.camera, self.target[part.rows.point])[0]
@@ -216,7 +296,7 @@ class PixelTermState:
         return -self.pixel_errors(part, kin) * self.weight
 
     def moved(self, x: np.ndarray) -> PixelTermState:
-        """The state with its own unknowns (:attr:`kind`'s) at ``x`` (as :mod:`.pixel_term`)."""
+        """The state with its own unknowns (:attr:`kind`'s) at ``x``."""
         step = np.eye(4)
         step[:3, :3], step[:3, 3] = rotation_matrix(x[3:6]), x[:3]
         target, lens, what, start = np.array(self.target, dtype=float), self.lens, self.what, 6
@@ -232,7 +312,7 @@ class PixelTermState:
         return dataclasses.replace(self, camera=self.camera @ step, target=target, lens=lens)
 
     def own_columns(self, n: int) -> np.ndarray:
-        """Its own unknowns' columns among :func:`~.pixel_term.pixel_jacobian`'s (``n`` joints')."""
+        """Its own unknowns' columns among :func:`pixel_jacobian`'s (``n`` joints')."""
         extra = len(self.kind.names()) - 6 - 6 * self.what.mount  # target points, intrinsics
         mount = range(6 + n, 12 + n) if self.what.mount else ()
         return np.r_[0:6, list(mount), 12 + n : 12 + n + extra].astype(int)
@@ -241,17 +321,9 @@ class PixelTermState:
 def pixel_block(
     placements, chain, state: PixelTermState, start: PixelTermState, x, part, lift, kin
 ):
-    """Weighted rows of a pixel term: its own columns and the free placement directions.
+    """Weighted rows of a pixel term: ``(m, 2, own)`` by ``x`` and ``(m, 2, free)`` by ``lift``.
 
-    The own columns are the derivatives by ``x`` itself (:meth:`PixelTermState.moved`'s,
-    from ``start``). ``C = C0 [R(w) | v]``: d/dv is the step's translation column times
-    ``R(w)^T``, d/dw its rotation column times the right Jacobian ``Jl(-w)``. The mounting
-    ``X = R(w) X0 + v``: d/dw is ``(rotation + translation skew(v + d))`` columns times
-    ``Jl(w)``, ``d`` the row's point's own change (``what.targets``).
-
-    ``state`` at ``x``, ``start`` at x = 0; ``lift``: the free directions ``(free, 6 J)``;
-    ``kin``: :meth:`~.placements.Placements.frames` at the rows. Returns ``(m, 2, own)`` and
-    ``(m, 2, free)`` [m-equivalent per unit].
+    ``state`` at ``x``, ``start`` at x = 0. Derivation: docs/developers/engine.md#pixel_chain
     """
     J = pixel_jacobian(placements, state, chain, part.rows, len(lift) > 0, kin)[1]
     n = placements.y.size
@@ -269,14 +341,7 @@ def pixel_block(
 
 
 def with_tool(placements, chain: Chain, state, D: np.ndarray, labels):
-    """A pixel term's offered directions with its tool's placement (a target known on it).
-
-    A chain's MDH directions cover its joint rows, not the tool's own placement, which a
-    measured or contact term's own unknowns hold. A target known on its link (no mounting
-    unknown) sees it: the six components of the chain's last joint (its origin carries the
-    tool: ``panda_joint1``'s in ``panda_link0`` for a board on the Panda's root) are offered
-    too (the rank test keeps those determined). Other terms: ``D`` and ``labels`` as given.
-    """
+    """A pixel term's offered directions with its last joint's six (a target known on its tool)."""
     if not isinstance(state, PixelTermState) or state.what.mount:
         return D, labels
     j = placements.joints.index(chain.joint_names[-1])
@@ -322,8 +387,59 @@ def pixel_part(chain: Chain, data: PixelData) -> PixelPart:
 
 
 def pixel_parts(chains, data) -> list:
-    """The terms' data with each :class:`PixelData` as its rows on its chain (the rest kept)."""
+    """The terms' data, each :class:`PixelData` as its rows on its chain."""
     return [
         pixel_part(c, d) if isinstance(d, PixelData) else d
         for c, d in zip(chains, data, strict=True)
     ]
+
+
+def _stacked(names, cameras, rows, chains, placements: Placements, target, what) -> np.ndarray:
+    """The rows' Jacobian ``(r, c)``: each camera's 6 (one per name), the joints', the mounting."""
+    blocks = []
+    models = placements.chain_models(tuple(chains))
+    for chain, camera, part, mdh in zip(chains, cameras, rows, models, strict=True):
+        lens = camera.intrinsics.camera
+        state = PixelTermState(mdh, np.asarray(camera.placement), target.position, lens, 1.0, what)
+        J = pixel_jacobian(placements, state, chain, part)[1]
+        W = np.zeros((part.m, 2, 6 * len(names) + J.shape[2] - 6))
+        i = names.index(camera.name)
+        W[:, :, 6 * i : 6 * i + 6] = J[:, :, :6]
+        W[:, :, 6 * len(names) :] = J[:, :, 6:]
+        blocks.append(W.reshape(-1, W.shape[2]))
+    return np.concatenate(blocks)
+
+
+def pixel_count(
+    chains, cameras: tuple[PixelCamera, ...], target: Target, joints, q, params: str | None
+) -> dict:
+    """The unknowns cameras' pixels determine (``n_base``) at postures ``q`` [rad or m].
+
+    ``chains``: each camera's chain to the target's tool (a target on several links: a chain
+    per link, the camera given once per chain); ``joints``: ``q``'s columns; ``params``
+    ``complete``: the target's mounting is an unknown too.
+    """
+    views = tuple((camera.name, camera.placement, camera.intrinsics) for camera in cameras)
+    obs = simulate_cameras(chains, views, target, joints, q)
+    placements = Placements.of(tuple(chains))
+    what = Unknowns(mount=params == "complete")
+    rows = [pixel_rows(c, obs, target, cam.name) for c, cam in zip(chains, cameras, strict=True)]
+    names = tuple(dict.fromkeys(c.name for c in cameras))
+    W = _stacked(names, cameras, rows, chains, placements, target, what)
+    free = free_columns(W, placements, what, len(names))
+    first = cameras[0]
+    return {
+        "kind": "pixels",
+        "camera": first.name,
+        "link": first.link,
+        "cameras": [
+            {"name": c.name, "link": c.link, "rows": r.m}
+            for c, r in zip(cameras, rows, strict=True)
+        ],
+        "tool": chains[0].tool_frame,
+        "rows": int(obs.m),
+        "postures": len(np.unique(obs.q, axis=0)),
+        "mount": what.mount,
+        "n_unknowns": 6 * len(names) + placements.y.size + 6 * what.mount,
+        "n_base": len(free),
+    }

@@ -41,10 +41,7 @@ Rationale and measurements: docs/developers/engine.md#refused_px"""
 
 
 def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:
-    """The rows' errors in mm at the target (u and v times the weight), and in pixels.
-
-    The pixels' RMS and largest reprojection error [px], from one reprojection.
-    """
+    """The rows' errors in mm at the target (u and v times the weight), and in pixels (RMS, max)."""
     e = state.pixel_errors(part)  # [px]
     r = np.linalg.norm(e, axis=1)
     rms, top = float(np.sqrt(np.mean(r**2))), float(np.max(r, initial=0.0))
@@ -56,16 +53,9 @@ def _errors(state: PixelTermState, part: PixelPart) -> tuple[GapStats, dict]:
 class PixelChain(TermPart):
     """A pixel term's part of the result (a camera on a link seeing a target on a tool).
 
-    Attributes (besides :class:`~.contact_result.TermPart`'s: ``source``, ``held_source``):
-        chain: The nominal chain (its base: the camera's link).
-        name: The camera's name (its link in the calibrated URDF).
-        registered: Its registration on the nominal robot.
-        state: Its fitted state (camera, target, lens).
-        stats: Errors in mm at the target of ``train``, ``train_registration`` and, with
-            held-out rows, ``held_out`` and ``held_out_registration``.
-        pixels: The same parts' reprojection errors [px].
-        parameters: Its unknowns' report entries (changes from the registration).
-        outliers: Its rows set aside.
+    ``name``: the camera's (its link in the calibrated URDF); ``stats``: errors in mm at the
+    target by part (``train``, ``train_registration``, ``held_out``...); ``pixels``: the same
+    parts' reprojection errors [px].
     """
 
     chain: Chain
@@ -147,9 +137,7 @@ class PixelChain(TermPart):
 def pixel_result(chain, train, held, registered, state, x, std, term: int) -> PixelChain:
     """A pixel term's part: its errors (mm and px), and its unknowns' report entries.
 
-    ``chain``: from the camera's link to the target's tool; ``train``: the rows fitted
-    (outliers out), ``held``: the held-out ones or None; ``registered``: on the nominal
-    robot; ``x``, ``std``: its own unknowns' changes from it and their std; ``term``: its
+    ``x``, ``std``: its own unknowns' changes from ``registered`` and their std; ``term``: its
     number (1-based) in its unknowns' names.
     """
     found = part_stats(_errors, registered, state, train, held)
@@ -165,14 +153,9 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
 def check_fitted_pixels(part: PixelChain) -> None:
     """Stop on pixels the calibrated camera and robot still miss absurdly.
 
-    Their registration was suspect as the diagnosis reads it (:func:`~.diagnosis.suspect`
-    at the target: the usual mistakes were tried, none explained it), the calibrated model
-    still misses them by as much, and by over :data:`REFUSED_PX`: another camera's
-    intrinsics or images, another robot's postures, or another target. A DataError names the
-    pixels' file and the way out (nothing is written).
-
-    Args:
-        part: A fitted pixel term's part (:func:`pixel_result`).
+    Raises:
+        DataError: Registered and calibrated both suspect at the target
+            (:func:`~.diagnosis.suspect`), and over :data:`REFUSED_PX`.
     """
     keys = ("train_registration", "train")
     registered, missed = (1e-3 * part.stats[k].length_rms_mm for k in keys)  # [m at the target]

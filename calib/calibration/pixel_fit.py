@@ -1,8 +1,7 @@
 """A pixel term's registration and outliers: its camera placed, the term fitted alone.
 
-Both least squares (the camera refined on its 6, :func:`_registered`; the term alone, whose
-errors the outlier rule reads, :func:`_judged`) are the engine's (:func:`~.solve.fit`) on its
-state of the one chain, the rows in pixels.
+Both fits are the engine's (:func:`~.solve.fit`) on one chain, the rows in pixels.
+How and why: docs/developers/engine.md#pixel_fit
 """
 
 from __future__ import annotations
@@ -20,8 +19,15 @@ from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
 from . import determined, diagnosis, outliers, term_checks
 from .contact_chains_model import ChainsData, ChainsState
-from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
-from .pixel_term import camera_points, free_columns, pixel_jacobian
+from .pixel_chain import (
+    PixelKind,
+    PixelPart,
+    PixelTermState,
+    camera_points,
+    free_columns,
+    pixel_block,
+    pixel_jacobian,
+)
 from .placements import Placements
 from .registration import nearest_rotation
 from .solve import fit, unconverged
@@ -45,10 +51,7 @@ ROUND_OFF_PX = 1e-6
 
 
 def _rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
-    """The normalised coordinates ``(a, b)`` ``(m, 2)`` of the ray of each pixel.
-
-    Newton's method on ``pinhole((a, b, 1)) = pixel`` from the undistorted guess.
-    """
+    """Each pixel's ray ``(a, b)`` ``(m, 2)``: Newton on ``pinhole((a, b, 1)) = pixel``."""
     ab = (pixels - [camera.cx, camera.cy]) / [camera.fx, camera.fy]
     for _ in range(UNDISTORT_ITERATIONS):
         seen = camera.projection(np.column_stack([ab, np.ones(len(ab))]), derivatives=True)
@@ -61,10 +64,7 @@ def _rays(camera: Pinhole, pixels: np.ndarray) -> np.ndarray:
 
 
 def _camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.ndarray:
-    """The camera's placement in the points' frame ``(4, 4)`` from their rays, in closed form.
-
-    The direct linear transform of the normalised points (centred, mean distance sqrt(3)),
-    its sign chosen so the points are in front, its rotation the nearest one (SVD).
+    """The camera's placement in the points' frame ``(4, 4)`` from their rays (DLT, closed form).
 
     Raises:
         DataError: Fewer than 6 points, or points on one plane or line (no unique solution).
@@ -96,20 +96,15 @@ def _camera_from_rays(points: np.ndarray, ab: np.ndarray, source: str) -> np.nda
 
 @dataclass(frozen=True, eq=False)
 class _Steps:
-    """The columns ``free`` of :func:`~.pixel_term.pixel_jacobian`, in its order, as a model.
-
-    Of the engine's state of one pixel term (its weight 1: rows in pixels), moved and derived
-    as the joint engine moves and derives the term.
-    """
+    """The columns ``free`` of :func:`~.pixel_chain.pixel_jacobian` as a model of one term."""
 
     free: tuple[int, ...]
 
     def size(self) -> int:
-        """Number of free columns."""
         return len(self.free)
 
     def _moves(self, start: ChainsState, x: np.ndarray):
-        """Where x goes: joint-column mask, their components, others' own places, own unknowns."""
+        """Joint-column mask, their components, others' own places, own unknowns."""
         n, free = start.placements.y.size, np.asarray(self.free, dtype=int)
         joint = (free >= 6) & (free < 6 + n)
         own_cols = _term(start).own_columns(n)
@@ -119,7 +114,6 @@ class _Steps:
         return joint, free[joint] - 6, at, own
 
     def apply(self, start: ChainsState, x: np.ndarray) -> ChainsState:
-        """The state at x."""
         joint, comps, _, own = self._moves(start, x)
         dy = np.zeros(start.placements.y.size)
         dy[comps] = x[joint]
@@ -150,17 +144,11 @@ class _Steps:
 
 
 def _term(state: ChainsState) -> PixelTermState:
-    """The pixel term of the engine's state of one term."""
     return cast(PixelTermState, state.states[0])
 
 
 def _fitted(chain: Chain, placements, term: PixelTermState, part: PixelPart, free, kin):
-    """The engine's state of one pixel term fitted alone (:func:`~.solve.fit`, rows in pixels).
-
-    ``term``'s weight is taken as 1; ``free``: the columns of
-    :func:`~.pixel_term.pixel_jacobian` fitted; ``kin``: the chain's frames at the rows'
-    joints on ``placements``. Returns the engine's fit (:class:`~.solve.Fit`).
-    """
+    """One pixel term fitted alone, weight 1 (rows in pixels), on its columns ``free``."""
     start = ChainsState((chain,), placements, (dataclasses.replace(term, weight=1.0),))
     return fit(
         _Steps(tuple(free)),
@@ -219,7 +207,6 @@ class _Joints:
 
     @property
     def m(self) -> int:
-        """Rows."""
         return len(self.q)
 
 
@@ -259,14 +246,7 @@ def _from_behind(state: PixelTermState, part: PixelPart) -> np.ndarray:
 
 
 def _judged(chain: Chain, state: PixelTermState, part: PixelPart, held):
-    """Each row's error [m at the target] on the term's own fit, and the held-out rows'.
-
-    The term alone fitted (its camera and its chain's joint placements: the columns its rows
-    determine, :func:`~.pixel_term.free_columns`): a camera registered on the nominal robot
-    errs by tens of pixels at far postures, which no outlier rule should read as gross.
-    One stopped by its cap proposes no outliers (:func:`~.outliers.until_stable`'s rule): the
-    held-out rows' errors None, and why (third; else None).
-    """
+    """Each row's error [m at the target] on the term's own fit, the held-out rows', why stopped."""
     placements = Placements.of((chain,))
     kin = placements.frames(chain, part.rows.q)
     J = pixel_jacobian(placements, state, chain, part.rows, kin=kin)[1]
@@ -290,10 +270,7 @@ def _size(part: PixelPart) -> int:
 
 @dataclass(frozen=True, eq=False)
 class _Camera:
-    """A pixel term's steps on its rows (:class:`~.term_checks.Steps`), diagnosing every row.
-
-    ``held``: its held-out rows (their outliers set aside by the same own fit), or None.
-    """
+    """A pixel term's steps (:class:`~.term_checks.Steps`); ``held``: held-out rows or None."""
 
     chain: Chain
     rows: PixelPart
@@ -302,7 +279,7 @@ class _Camera:
     diagnose_first = True
 
     def register(self) -> PixelTermState:
-        """The camera registered; no registration (points behind it) is diagnosed too.
+        """The camera registered; a failed registration is diagnosed too.
 
         Raises:
             DataError: The mistake named, or the registration's own error.
@@ -314,7 +291,6 @@ class _Camera:
             raise
 
     def diagnose(self, rows: PixelPart, state: PixelTermState) -> list[str]:
-        """:func:`_explain` of the rows (``state``: their registration)."""
         return _explain(self.chain, rows, _rms_m(state, rows))
 
     def set_aside(self, state: PixelTermState) -> Aside[PixelPart, PixelTermState]:
@@ -349,15 +325,7 @@ class _Camera:
 
 
 def checked_pixels(chain: Chain, part: PixelPart, held):
-    """A pixel term's registration and its outliers (the shared rule, in mm at the target).
-
-    The steps of every kind of term (:func:`~.term_checks.checked`): rows seen from behind
-    their normal, and rows that the shared rule (:func:`~.outliers.find_outliers`) sets
-    aside on the term's own fit (:func:`_judged`), are outliers named by their line; the
-    camera is registered again without them. Held-out rows' outliers: the same rule
-    (:func:`~.term_checks.held_out`). Returns as
-    :func:`~.measured_term.checked_measured` does.
-    """
+    """A pixel term's registration and outliers, as :func:`~.measured_term.checked_measured`."""
     what = f"unknowns of camera {part.data.camera.name}'s placement"
     determined.check_equations(
         part.m,

@@ -1,19 +1,8 @@
-"""A calibration problem: a robot, the terms recorded on it, and the options of one fit.
+"""A calibration problem: the terms recorded on one robot, and the options of one fit.
 
-A *term* is a chain (or a tree) between two frames of one URDF and what was recorded on
-it: measurements by an instrument or by a frame of the robot itself (``Measurements``: the
-chain's base frame is what measures), or touches (``ContactData``: a plane, a plane-point, a
-fixed point, a fixed pose). The robot's joint placements are shared by every term that runs
-through them. :func:`~calib.calibration.entry.calibrate` takes a problem::
-
-    problem = Problem((Term(left_arm, left_touches), Term(right_arm, right_touches)))
-    result = calibrate(problem)
-
-and ``calibrate(chain, data, **options)`` is the problem of one term. The problem's *shape*
-says which of calib's models fits it: ``chain`` (one chain measured), ``tree`` (several tools
-measured in one file), ``contacts`` (one chain touching) or ``chains`` (several terms, joints
-shared). Which options apply to which shape is one table, :data:`~.options.APPLIES`; an
-option that does not apply is an error, here and on the command line.
+``calibrate(Problem((Term(left_arm, left_touches), Term(right_arm, right_touches))))``;
+``calibrate(chain, data, **options)`` is the problem of one term. Terms, shapes and the
+options of each: docs/developers/engine.md#problem
 """
 
 from __future__ import annotations
@@ -92,9 +81,8 @@ class Term:
         return "position" if self.data.position.shape[1] == 3 else "markers"
 
     def __repr__(self) -> str:
-        r = self.robot
-        tools = ", ".join(r.tool_frames)
-        return f"Term({r.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
+        tools = ", ".join(self.robot.tool_frames)
+        return f"Term({self.robot.base_frame} -> {tools}: {self.data.m} rows of {self.kind})"
 
 
 @dataclass(frozen=True)
@@ -181,11 +169,10 @@ class Problem(Options):
 
     def _check_terms(self) -> None:
         """Several terms: chains (no tree), and one contact guess for the touching ones."""
-        for t in self.terms:
-            if t.robot.is_tree:
-                raise InvalidArgumentError(
-                    "the terms of a joint fit are chains (one base, one tool each), got a tree"
-                )
+        if any(t.robot.is_tree for t in self.terms):
+            raise InvalidArgumentError(
+                "the terms of a joint fit are chains (one base, one tool each), got a tree"
+            )
         guesses = [t.guess for t in self.terms if t.touches and t.guess is not None]
         if any(not _same(g, guesses[0]) for g in guesses[1:]):
             raise InvalidArgumentError(
@@ -199,11 +186,7 @@ class Problem(Options):
 
 
 def check_weighed(weight: float | None, data: Sequence) -> None:
-    """Refuse an orientation weight [m/rad] where no term's data have angle rows to weigh.
-
-    Angle rows: measurements' orientations, touches' tilts (pixels have none); an
-    InvalidArgumentError when ``weight`` is not None and no term has one.
-    """
+    """Refuse an orientation weight [m/rad] where no term's data have angle rows to weigh."""
     if weight is None:
         return
     for d in data:

@@ -1,14 +1,7 @@
 """Registration: the measurement frame and the markers in closed form, from the nominal model.
 
-Horn's / Umeyama's rigid motion, then each marker by linear least squares, alternated
-(at most ``ITERATIONS`` times); for pose data the measured frame's rotation. Several tools in
-one frame: :func:`register_points`. The result seeds the ``frames`` fit.
-
-References: B. K. P. Horn, "Closed-form solution of absolute orientation using unit
-quaternions", JOSA A 4(4), 1987; S. Umeyama, "Least-squares estimation of transformation
-parameters between two point patterns", IEEE TPAMI 13(4), 1991.
-
-Rationale and measurements: docs/developers/engine.md#registration
+Horn's / Umeyama's rigid motion and each marker's least squares, alternated.
+Rationale and references: docs/developers/engine.md#registration
 """
 
 from __future__ import annotations
@@ -35,11 +28,7 @@ def rigid_fit(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _rotation(H: np.ndarray) -> np.ndarray:
-    """The rotation R maximising ``trace(R H)``: Umeyama's closed form (cross-covariance H).
-
-    LAPACK's SVD is called directly.
-    Rationale and measurements: docs/developers/engine.md#_rotation
-    """
+    """The rotation R maximising ``trace(R H)``: docs/developers/engine.md#_rotation."""
     U, _, Vt, info = _gesdd(H)
     if info != 0:
         U, _, Vt = np.linalg.svd(H)  # raises LinAlgError
@@ -68,14 +57,8 @@ def nearest_rotation(M: np.ndarray) -> np.ndarray:
 class _Moments:
     """The sums over one tool's configurations that the alternation needs, computed once.
 
-    With ``pred_ik = p_i + R_i m_k`` and the centred measured points ``Y_ik``, the
-    cross-covariance of :func:`rigid_fit` is ``P + sum_kj m_kj G_kj`` and the markers' least
-    squares (``sum_i R_i^T R_i = m I``) is ``m_k = (1/m) sum_i R_i^T (R^T (y_ik - t) - p_i)``:
-    both are small contractions of ``G[k, j, a, b] = sum_i R_i[a, j] Y_ik[b]``, so that an
-    alternation costs the same whatever the number of configurations. ``Rt`` ``(m, 3, 3)``
-    and ``pt`` ``(m, 3)`` [m]: the tool's rotations and origins in the base frame;
-    ``points`` ``(m, K, 3)`` [m]; ``cb``: their centre [m] (several tools: every tool's), or
-    None: of these.
+    ``cb``: the points' centre [m] (several tools: every tool's), or None: of these.
+    How: docs/developers/engine.md#registration.
     """
 
     def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
@@ -104,12 +87,7 @@ class _Moments:
 
 
 class _Tools:
-    """:class:`_Moments` of several tools measured in one frame: their sums, summed.
-
-    The measured points are centred on their mean over every tool, so that the
-    cross-covariance is the sum of the tools' and the centroid their mean weighted by the
-    points; each tool's markers are its own least squares.
-    """
+    """:class:`_Moments` of several tools measured in one frame (centred on every tool's mean)."""
 
     def __init__(self, Rt: list, pt: list, points: list) -> None:
         cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
@@ -132,13 +110,10 @@ class _Tools:
 def register_points(
     Rt: list, pt: list, points: list, markers: list, held: list | None = None
 ) -> tuple[np.ndarray, list]:
-    """Closed-form frame and markers of tools measured in one frame (module text, steps 1-3).
+    """Closed-form frame ``(4, 4)`` and markers ``(K_c, 3)`` [m] of tools measured in one frame.
 
-    Each tool's rotations ``Rt`` ``(m_c, 3, 3)`` and origins ``pt`` ``(m_c, 3)`` [m] in the
-    base frame, points ``(m_c, K_c, 3)`` [m] in the measurement frame and markers' guess
-    ``(K_c, 3)`` [m] in the tool frame; ``held``: each tool's marker coordinates (0-based
-    among its ``3 K_c``) kept at their guess, or None (none). Returns the pose of the base
-    frame in the measurement frame ``(4, 4)`` and each tool's markers ``(K_c, 3)`` [m].
+    Per tool: ``Rt``, ``pt`` the tool's poses in the base frame, ``points`` ``(m_c, K_c, 3)``
+    [m], ``markers``: the guess; ``held``: coordinates kept at the guess (or None).
     """
     sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])
@@ -169,19 +144,10 @@ def register(
     kin: Kinematics | None = None,
     held: tuple[int, ...] = (),
 ) -> State:
-    """Closed-form measurement frame and markers for the nominal geometry (module text).
+    """The nominal geometry with the frame, markers (and measured frame's rotation) registered.
 
-    Args:
-        mdh: The geometry (nominal model, URDF base frame).
-        q: Joint positions the geometry sees ``(m, n)`` [rad or m].
-        points: Measured points ``(m, K, 3)`` [m], measurement frame.
-        rotations: Measured orientations ``(m, 3, 3)``, or None.
-        markers: Guess of the markers in the tool frame ``(K, 3)`` [m] (default: zeros).
-        kin: ``mdh.kinematics(q)``, if already made.
-        held: Marker coordinates (0-based among the ``3 K``) kept at their guess.
-
-    Returns:
-        The nominal geometry with the estimated frame, markers (and measured-frame rotation).
+    ``q`` ``(m, n)`` [rad or m]; ``points`` ``(m, K, 3)`` [m]; ``markers``: their guess ``(K,
+    3)`` [m] (zeros); ``kin``: ``mdh.kinematics(q)``, if made; ``held``: kept at the guess.
     """
     if kin is None:
         kin = mdh.kinematics(q)

@@ -1,9 +1,7 @@
-"""The one report (format 3) of every calibration: its keys, its entries, its units.
+"""The one report (format 3) of every calibration: its keys, the entries every shape shares.
 
-Every calibration writes the keys of :data:`REPORT_KEYS` in that order, whatever its shape
-and kind (the layout: ``docs/reference/formats.md``); format 2's keys that format 3 replaced
-are written beside them until format 4, each listed in ``deprecated`` (:data:`FORMAT2_MOVED`).
-The helpers here build the entries every shape shares.
+The layout: ``docs/reference/formats.md``; format 2's replaced keys are written beside them
+until format 4 (:data:`FORMAT2_MOVED`).
 """
 
 from __future__ import annotations
@@ -69,18 +67,12 @@ URDF_ALONE = "URDF alone (no compliance)"
 
 _ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
 _PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz]|(?:alpha|beta|gamma|theta|offset|[dryb])\d+)")
-"""A joint placement component (``arm_5_joint:rz``) or an MDH parameter of a chain's rows as a
-direction of joint placement errors (``arm_5_joint:alpha7``, in that parameter's unit)."""
+"""A joint placement component (``arm_5_joint:rz``) or direction (``arm_5_joint:alpha7``)."""
 _ANGLES = ("alpha", "beta", "gamma", "theta")
 
 
 def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
-    """The URDF joint a parameter belongs to, or None for a frame, marker or object.
-
-    An MDH row's parameter (``theta6``, a mimic ``offset4``) and a compliance (``c6``) belong
-    to the joint of their row (rows 0 and n+1, the frames: none), a joint placement component
-    (``arm_5_joint:rz``) to its joint. ``joint_names``: each row's (None: the frame rows).
-    """
+    """The URDF joint a parameter belongs to (of its MDH row, or named), or None for a frame."""
     name = name.partition("@")[0]  # a direction two chains name alike: whose (<name>@<tool>)
     row = _ROW_NAME.fullmatch(name)
     if row is not None:
@@ -91,11 +83,7 @@ def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
 
 
 def _unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
-    """The unit of a parameter's value: ``rad``, ``m``, ``rad/(N m)`` or ``m/N``.
-
-    ``sigma``: each row's joint type (0 revolute, 1 prismatic), for a joint offset
-    (``offset<k>``) and a compliance (``c<k>``).
-    """
+    """The unit of a parameter's value: ``rad``, ``m``, ``rad/(N m)`` or ``m/N``."""
     name = name.partition("@")[0]
     row = _ROW_NAME.fullmatch(name)
     if row is not None:
@@ -122,9 +110,8 @@ def parameter_entries(
 ) -> list[dict]:
     """The report's ``parameters``: ``name``, ``joint``, ``value``, ``std``, ``unit``, prior.
 
-    ``values``: changes from the registration, ``stds`` (NaN: undefined) [``unit``];
-    ``joint_names``, ``sigma``: each row's joint (None: frame rows) and type (1 prismatic);
-    ``prior_weight`` is written 0.0 (no route records the fit's prior weights here).
+    ``values``: changes from the registration; ``prior_weight`` is written 0.0 (no route
+    records the fit's prior weights here).
     """
     return [
         {
@@ -183,9 +170,7 @@ FORMAT2_MOVED = {
 def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
     """One part of the report's ``errors``: ``registration``, ``calibrated``, ``urdf``.
 
-    Each statistics' ``in_mm()`` (mm and degrees, the unit in each key), or with ``mm``
-    False ``to_dict()`` (format 2's: metres and radians); ``urdf`` (the URDF alone, no
-    compliance) None: ``calibrated``.
+    In mm and degrees (``mm`` False: format 2's metres and radians); ``urdf`` None: ``calibrated``.
     """
     parts = (registration, calibrated, calibrated if urdf is None else urdf)
     return {
@@ -195,12 +180,7 @@ def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
 
 
 def term_errors(stats: Mapping, held_source: str | None) -> dict:
-    """A term's ``errors.terms`` entry (format 3): ``train`` and ``held_out`` (None: none).
-
-    ``stats`` by part (each with ``in_mm()``): ``train``, ``train_registration``, with
-    held-out rows ``held_out`` and ``held_out_registration`` (from ``held_source``), with
-    compliance ``train_urdf`` and ``held_out_urdf`` (the URDF alone).
-    """
+    """A term's ``errors.terms`` entry (format 3): ``train`` and ``held_out`` (None: none)."""
     out: dict = {"train": None, "held_out": None}
     for key in out:
         if key in stats:
@@ -229,18 +209,12 @@ def model_choice(selection) -> dict | None:
 
 
 def mm_or_deg(angle: bool) -> tuple[str, float]:
-    """The unit the report gives an error in, and its factor from SI units.
-
-    Lengths in mm (1e3 per m), angles in degrees (per rad): ``("mm", 1e3)`` or ``("deg", ...)``.
-    """
+    """The report's unit of an error and its factor from SI: ``("mm", 1e3)`` or ``("deg", ...)``."""
     return ("deg", math.degrees(1.0)) if angle else ("mm", 1e3)
 
 
 def outlier_dict(outlier, term: int = 0) -> dict:
-    """One entry of ``outliers``: ``term``, ``row``, ``kind``, error and median [mm or deg].
-
-    ``term`` is the index in ``terms`` of the data it is a row of.
-    """
+    """One ``outliers`` entry: ``term`` (index in ``terms``), ``row``, ``kind``, error [mm, deg]."""
     unit, scale = mm_or_deg(outlier.kind == "orientation")
     return {
         "term": term,
@@ -304,8 +278,7 @@ def fit_dict(
 def build_report(fields: Mapping[str, object], legacy: Mapping[str, object]) -> dict:
     """A format-3 report: ``fields`` in the order of :data:`REPORT_KEYS`, then format 2's keys.
 
-    ``fields``: every key of :data:`REPORT_KEYS` but the first two; ``legacy``: this shape's
-    format 2 keys that format 3 replaced (:data:`FORMAT2_MOVED`), written until format 4.
+    ``fields``: every key but the first two; ``legacy``: format 2 keys (:data:`FORMAT2_MOVED`).
     KeyError for a missing key or a legacy key without replacement (tests pin the layout).
     """
     deprecated = {
@@ -344,9 +317,8 @@ def _finite_tree(value):
 def one_term(fields: Mapping, errors: dict, chain, compliance: np.ndarray | None, **own) -> dict:
     """The report's ``fields`` of one term's layout (one chain measured or touching).
 
-    ``errors``: the term's ``errors.terms`` entry, the report's ``errors`` too;
-    ``compliance``: its joints' ``(n,)`` [rad/(N m) or m/N], or None (rigid: zeros);
-    ``own``: its layout's other fields (``frames``, ``fit``, ``model``, ...).
+    ``errors``: the term's ``errors.terms`` entry, the report's too; ``compliance``
+    [rad/(N m) or m/N], None: zeros; ``own``: the layout's other fields.
     """
     c = np.zeros(chain.n) if compliance is None else compliance
     joints = dict(zip(chain.joint_names, map(float, c), strict=True))
@@ -367,10 +339,7 @@ def with_folds(report: dict, folds) -> dict:
 
 
 def fold_lines(folds, chains) -> list[str]:
-    """The summary's errors of each fold's held-out rows: weighted RMS [mm], a line a term.
-
-    ``chains``: the terms' parts (:class:`~.contact_result.TermPart`), named if several.
-    """
+    """The summary's errors of each fold's held-out rows: weighted RMS [mm], a line a term."""
     terms = [f", {c.named(k)}" if len(chains) > 1 else "" for k, c in enumerate(chains)]
     lines = [
         f"  fold {k + 1}{terms[c]}: {b.weighted_mm:.3f} -> {a.weighted_mm:.3f} "

@@ -1,10 +1,5 @@
 """Model selection (``auto``): which identifiable parameters the data support.
 
-On the model linearised at the registration: a forward path ordered by the
-leave-one-configuration-out error (block PRESS), a prefix of it kept, shrunk toward the nominal
-model by a ridge prior, guarded by ``OUTER_FOLDS`` folds against selection bias, against the
-complete fit from ``RICH`` equations per parameter; a posture's repeats enter as one.
-
 Rationale and measurements: docs/developers/engine.md#selection
 """
 
@@ -33,18 +28,13 @@ MIN_GAIN = 0.02
 """Relative decrease of the leave-one-out error a longer prefix of the path must bring."""
 
 ROUNDOFF = 1e-13
-"""A prefix's mean squared left-out error under this fraction of the path's largest counts as
-this floor: after a step that fits exactly, the steps' errors are round-off (about eps times
-it), equal, and the shorter prefix is kept."""
+"""Fraction of the path's largest mean squared left-out error under which errors are equal."""
 
 OUTER_FOLDS = 10
-"""Folds of the guard's cross-validation (configuration i goes to fold i mod OUTER_FOLDS)."""
+"""Folds of the guard's cross-validation (configuration i in fold i mod OUTER_FOLDS)."""
 
 RICH = 10
-"""Equations (distinct postures times rows) per parameter of the complete fit from which the
-complete fit with its cross-validated prior is a candidate: the lower cross-validated error
-then chooses between it and the selection (with fewer, a fold's error is that of a few
-postures, and the selection stays as careful as it was)."""
+"""Equations per parameter from which the complete fit is a candidate against the selection."""
 
 STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 """Prior strengths tried (on unit-norm columns), besides zero."""
@@ -52,12 +42,7 @@ STRENGTHS = tuple(10.0 ** np.arange(-4.0, 1.01, 0.25))
 
 @dataclass(frozen=True)
 class Step:
-    """One step of the forward selection.
-
-    Attributes:
-        name: Parameter added (``registration`` for the start).
-        loo: Leave-one-configuration-out RMS error per point after the step [m].
-    """
+    """One step of the forward selection: the parameter added, the RMS left-out error [m]."""
 
     name: str
     loo: float
@@ -67,19 +52,11 @@ class Step:
 class Selection:
     """Outcome of the automatic choice.
 
-    Attributes:
-        kept: Parameters kept (MDH base values and compliances), in the order added.
-        steps: The forward selection, registration first.
-        strength: Prior strength on the unit-norm columns (0: none).
-        registration_cv: Cross-validated RMS error per point of the registration alone [m].
-        selection_cv: The same for the whole selection procedure [m].
-        guarded: The guard rejected the selection (the registration is kept).
-        complete_cv: The same for the complete fit (every candidate) with its prior strength
-            chosen by the leave-one-out error [m].
-        winner: The model delivered: ``registration``, ``selection`` or ``complete``.
-        index: Each kept parameter's position among the candidates (``kept``'s order): two
-            candidates may share a name (a joint two chains share, its MDH parameter in each
-            chain's rows: two directions).
+    ``kept``: parameters kept, in the order added (``index``: their positions among the
+    candidates, whose names two chains sharing a joint may repeat); ``strength``: the prior's on
+    the unit-norm columns (0: none); ``*_cv``: cross-validated RMS errors per point [m] of the
+    registration, the selection and the complete fit; ``guarded``: the guard kept the
+    registration; ``winner``: ``registration``, ``selection`` or ``complete``.
     """
 
     kept: tuple[str, ...]
@@ -115,24 +92,10 @@ def ridge_strengths(
     cols: list[list[int]],
     objects: ObjectColumns | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Leave-one-out errors at the best prior strength of several subsets of the configurations.
-
-    The strength is 0 or one of ``STRENGTHS``, on the columns after the first ``fixed``;
-    each subset has its own configurations and columns.
+    """Leave-one-out errors ``(b, m)`` at the best prior strength ``(b,)`` of several subsets.
 
     Subset s fits the first ``fixed`` columns free and ``cols[s]`` under the prior, on its
-    configurations ``train[s]`` (the others' rows zeroed, which changes neither the fit nor
-    its own hat blocks). With the prior's columns made orthogonal to the fixed ones (``B``,
-    residuals ``r``) and ``B = U S V^T``, the hat matrix at strength ``s`` is
-    ``P_fixed + U diag(S^2 / (S^2 + s)) U^T``: one SVD per subset serves every strength
-    (the block PRESS of the ridge fit ``A^T A + s`` on those columns), and the left-out errors of
-    every subset at every strength are one batch of small solves. The subsets are taken a
-    few at a time, and their configurations in blocks (:data:`BLOCK`): the memory is linear
-    in the data. ``A``: unit-norm columns ``(m rows, p)``; ``train`` ``(subsets, m)``
-    [bool]; ``objects``: objects' columns free too, by block (:mod:`.object_columns`), or
-    None. Returns each subset's squared left-out errors at its strength of least RMS error
-    ``(b, m)`` (zero on the configurations it leaves out), and those strengths ``(b,)`` (0:
-    none; the smallest of equal errors).
+    configurations ``train[s]``. How: docs/developers/engine.md#selection
     """
     per = _per_batch(A.shape[0] * A.shape[1], len(train))
     parts = [
@@ -143,8 +106,7 @@ def ridge_strengths(
 
 
 BLOCK = 2_000_000
-"""Numbers a batch of subsets (or a block of configurations) may hold in one working array:
-the selection's memory is a few times ``8 BLOCK`` bytes beyond the data's own arrays."""
+"""Numbers a batch of subsets (or a block of configurations) may hold in one working array."""
 
 
 def _per_batch(size: int, subsets: int) -> int:
@@ -181,14 +143,7 @@ def _ridge_batch(A, e, rows, fixed, train, cols, objects=None) -> tuple[np.ndarr
 
 
 def _ridge_errors(Q, U, wt, r, rows, hat=None) -> np.ndarray:
-    """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``.
-
-    The configurations are taken in blocks (:data:`BLOCK`): each one's error needs its own
-    rows and the fits' coefficients ``wt U^T r`` only. ``Q`` ``(b, n, fixed)``: the fixed
-    columns' orthonormal basis (or ``hat``, their hat blocks ``(b, m, rows, rows)``); ``U``
-    ``(b, n, width)``: the prior columns' left singular vectors, ``wt`` ``(b, strengths,
-    width)`` their weights; ``r`` ``(b, n)``: the fixed columns' fit's residuals.
-    """
+    """Squared left-out errors ``(b, strengths, m)`` of the hats ``Q Q^T + U diag(wt) U^T``."""
     b, n, width = U.shape
     m, S = n // rows, wt.shape[1]
     coef = wt * np.einsum("bnk,bn->bk", U, r)[:, None]  # (b, strengths, width)
@@ -204,10 +159,7 @@ def _ridge_errors(Q, U, wt, r, rows, hat=None) -> np.ndarray:
 
 
 def _fixed_hat(Fb: np.ndarray, is_hat: bool) -> np.ndarray:
-    """The fixed columns' hat blocks ``(rows, rows, b, m)``.
-
-    From their basis, or their hat blocks, by configuration ``(b, m, rows, .)``.
-    """
+    """The fixed columns' hat blocks ``(rows, rows, b, m)``, from their basis or hat blocks."""
     if is_hat:
         return np.transpose(Fb, (2, 3, 0, 1))
     Qc = np.transpose(Fb, (2, 0, 1, 3))
@@ -215,10 +167,7 @@ def _fixed_hat(Fb: np.ndarray, is_hat: bool) -> np.ndarray:
 
 
 def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
-    """:func:`_ridge_errors` of a block of configurations (arrays by configuration).
-
-    ``fixed``: the fixed columns' hat blocks ``(rows, rows, b, m)``.
-    """
+    """:func:`_ridge_errors` of a block of configurations (arrays by configuration)."""
     b, m = Ub.shape[:2]
     S = wt.shape[1]
     Uc = np.ascontiguousarray(np.transpose(Ub, (2, 0, 3, 1)))  # (rows, b, width, m)
@@ -239,12 +188,7 @@ def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
 
 
 def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
-    """``-U diag(wt) U^T`` of each configuration at each strength, component-major.
-
-    Each entry on and above the diagonal once, mirrored below it (half the products).
-    ``Uc`` ``(rows, b, width, m)``: the prior columns' left singular vectors by row of a
-    configuration; ``wt`` ``(b, strengths, width)``. Returns ``(rows, rows, b, strengths, m)``.
-    """
+    """``-U diag(wt) U^T`` of each configuration at each strength ``(rows, rows, b, s, m)``."""
     rows = len(Uc)
     i, j = np.triu_indices(rows)
     upper = -(wt @ (Uc[i] * Uc[j]))  # (pairs, b, strengths, m)
@@ -255,14 +199,7 @@ def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
 
 
 def best_prefix(sq: np.ndarray) -> int:
-    """Length of the path's prefix kept, from its squared left-out errors ``(prefixes, m)``.
-
-    The prefix of least error (a longer one preferred only if ``MIN_GAIN`` better than every
-    shorter one), then the shortest prefix whose error is within one standard error of it
-    (the standard error of the mean difference over configurations, paired): the minimum of
-    a long path is partly chance, and a difference smaller than its own noise is not kept.
-    Errors under ``ROUNDOFF`` of the largest are equal (round-off after an exact step).
-    """
+    """Length of the path's prefix kept, from its squared left-out errors ``(prefixes, m)``."""
     mse = sq.mean(axis=1)
     floor = ROUNDOFF * mse[np.isfinite(mse)].max(initial=0.0)
     root = np.sqrt(np.maximum(mse, floor)).tolist()
@@ -282,14 +219,7 @@ def best_prefix(sq: np.ndarray) -> int:
 
 
 def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
-    """The forward selection (see the module docstring) on each subset ``train`` ``(b, m)``.
-
-    Each subset's kept candidates (into ``names``) and steps, and the whole path's order
-    (all it reached) and steps; ``forced``: indices into ``names`` always kept (``--free``).
-
-    ``repeats``: each posture's spread, the squared errors every model leaves on it (added
-    to its left-out errors), and its rows in the file (:func:`_by_posture`).
-    """
+    """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps."""
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
@@ -323,15 +253,7 @@ def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarra
 
 
 def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """The rows of each posture once: its repeats' mean, times the square root of their count.
-
-    For the linear model the fit and every left-out error of a posture are those of its
-    repeats (a posture held out leaves with all of them), but for the spread of the repeats
-    about their mean, which no model explains: it is returned, to be added to the errors.
-    ``J`` ``(m, rows, p)`` -> ``(postures, rows, p)``, ``e`` ``(m, rows)`` -> ``(postures,
-    rows)``, then each posture's spread (summed squares) with its count; ``groups``: each
-    configuration's posture ``(m,)`` (from 0), or None.
-    """
+    """The rows of each posture once (times the root of its count), and its spread and count."""
     m = len(e)
     if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
         return J, e, (np.zeros(m), np.ones(m))  # numbered by first appearance: same order
@@ -344,11 +266,7 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
 
 
 def _unit_columns(J, e, groups, objects):
-    """The rows of each posture once (:func:`_by_posture`), the columns of unit norm.
-
-    Returns the columns ``(postures rows, p)``, their norms, the residuals ``(postures
-    rows,)``, the postures' spread and counts, and the objects (by posture) or None.
-    """
+    """The rows of each posture once (:func:`_by_posture`), the columns of unit norm."""
     if objects is not None:
         objects = objects.by_posture(groups, len(e)).unit()
     J, e, repeats = _by_posture(J, e, groups)
@@ -358,11 +276,7 @@ def _unit_columns(J, e, groups, objects):
 
 
 def _guard_models(fixed: int, lists, fits, folds: int) -> list[list[tuple[list[int], float]]]:
-    """The guard's candidates by fold: the registration, then the procedures ``fits``.
-
-    ``fits``: the strengths the selection (then the complete fit) chose on the whole data
-    and each fold, ``lists`` their columns, in that order.
-    """
+    """The guard's candidates by fold: the registration, then the procedures ``fits``."""
     frame, n = list(range(fixed)), len(fits[0])
     models = [[(frame, 0.0)] * folds]
     for k, fit in enumerate(fits):
@@ -380,15 +294,10 @@ def select(
     groups: np.ndarray | None = None,
     objects: ObjectColumns | None = None,
 ) -> tuple[Selection, np.ndarray]:
-    """Choose the parameters the data support (see the module docstring).
+    """Choose the parameters the data support; and each kept one's prior weight.
 
-    At the registration: ``J`` ``(m, rows, fixed + len(names))``, the ``fixed`` always-free
-    columns (frame, markers) first, and ``e`` ``(m, rows)`` measured - model, both weighted.
-    ``forced``: indices into ``names`` kept whatever the data say; ``groups``: each
-    configuration's posture (:func:`~calib.measurements.postures.posture_groups`; repeats
-    count once; None: each its own); ``objects``: always-free object columns by block
-    (:mod:`.object_columns`), or None. Returns the selection and each kept parameter's
-    prior weight (in the units of x: ``sqrt(strength) * |column|``).
+    ``J`` ``(m, rows, fixed + len(names))`` (the always-free columns first) and ``e`` ``(m,
+    rows)``, weighted, at the registration; ``forced``: indices into ``names`` always kept.
     """
     points, rows = e.size / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)
@@ -426,18 +335,7 @@ def select(
 
 
 def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
-    """Held-out squared error of each candidate model's fits, by fold (the selection's guard).
-
-    Each fold's fit of a candidate model (its columns, its prior strength) is a ridge fit of the
-    fold's training rows; its error on the fold's held-out rows comes from the moments of those
-    rows, so that no array larger than the data is made.
-    The held-out rows' moments (``A_h^T A_h``, ``A_h^T e_h``, ``|e_h|^2``) are taken about
-    the whole data's least-squares fit (whose residuals are small: they keep their digits).
-    ``A``: unit-norm columns, configuration-major rows, the first ``fixed`` always in;
-    ``train`` ``(folds, m)``; ``models``: per candidate, per fold, its columns and prior
-    strength; ``objects``: free by block (:func:`.object_columns.object_moments`), or None.
-    Returns ``(candidates, folds)`` [units of e squared].
-    """
+    """Held-out squared error ``(candidates, folds)`` of each candidate's ridge fit by fold."""
     if objects is None:
         x_all = np.linalg.lstsq(A, e, rcond=None)[0]
         ec = e - A @ x_all
@@ -462,13 +360,7 @@ def outer_cv(A, e, rows, fixed, train, models, objects=None) -> np.ndarray:
 
 
 def _ridge_solve(N: np.ndarray, b: np.ndarray, use: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """Ridge normal equations of column subsets, solved as :func:`numpy.linalg.lstsq` would.
-
-    Eigenvalues under ``eps p`` times the largest are dropped (``p`` the subset's columns).
-    ``N`` ``(folds, p, p)`` and ``b`` ``(folds, p)``: each fold's normal equations; ``use``
-    (the columns of each candidate's fit) and ``lam`` (the prior on each column):
-    ``(candidates, folds, p)``. Returns ``(candidates, folds, p)``, zero off their columns.
-    """
+    """Ridge normal equations of column subsets ``use`` (prior ``lam``), as lstsq would solve."""
     both = use[..., :, None] & use[..., None, :]
     M = np.where(both, N[None], 0.0)
     diag = np.arange(N.shape[1])

@@ -1,18 +1,8 @@
 """A term's checks before the joint fit: one sequence for every kind of term.
 
-Each kind (a chain measured by an instrument: :mod:`.chain_registration`; a camera's pixels:
-:mod:`.pixel_chain`; touches: :mod:`.contact_checks`) gives its steps on one set of rows
-(:class:`Steps`) and :func:`checked` runs them in one order:
-
-1. ``register``: the registration on the nominal robot (closed form, refined);
-2. ``set_aside``: the registration without the outlier rows (:mod:`.outliers`);
-3. ``diagnose``: the usual mistakes (:mod:`.diagnosis`) looked for in the rows kept (one
-   bad row is not a mistake of the whole file): one raised, or a note; a kind whose outlier
-   rule reads a fit made from the registration (pixels: the term alone) diagnoses every row
-   before, ``diagnose_first``;
-4. the validation rows the same, on their own (their notes labelled).
-
-The held-out rows' outliers are then set aside by the shared rule (:func:`held_out`).
+Each kind gives its :class:`Steps` on one set of rows; :func:`checked` runs them in one order
+(register, set the outliers aside, diagnose), validation rows alike.
+Rationale: docs/developers/engine.md#term_checks
 """
 
 from __future__ import annotations
@@ -33,12 +23,7 @@ S = TypeVar("S")
 
 @dataclass(frozen=True)
 class Aside(Generic[D, S]):
-    """A registration (``state``) of the rows ``kept``, without the outlier rows ``bad`` (mask).
-
-    ``found``: the outliers, named by their lines; ``held``: the held-out rows without their
-    outliers, where the step sets them aside (pixels: by the same own fit), or None;
-    ``notes``: pixels' held-out outliers'.
-    """
+    """A registration (``state``) of the rows ``kept``, without the outlier rows ``bad`` (mask)."""
 
     state: S
     bad: np.ndarray
@@ -89,12 +74,7 @@ def file_lines(data: FileRows) -> tuple[int, ...]:
 def checked(
     steps: Steps[D, S], validation: Sequence[tuple[Steps, str]] = ()
 ) -> tuple[Aside[D, S], list[str]]:
-    """The rows registered, their outliers set aside, diagnosed (module text).
-
-    ``validation``: the steps on validation rows (registered and diagnosed on their own),
-    each with the label of its notes. Returns the registration without the outlier rows,
-    and the notes.
-    """
+    """The rows registered, their outliers set aside, diagnosed (validation rows too); notes."""
     aside, notes = _sequence(steps)
     for other, label in validation:
         notes += [f"{label}: {n}" for n in _sequence(other)[1]]
@@ -121,16 +101,7 @@ def held_out(
     noise: float | None = None,
     words: tuple[str, str] = ("rows", "error"),
 ) -> D:
-    """The held-out rows without the outliers the training rule finds among them.
-
-    The rule (:func:`~.outliers.find_outliers`) on the fitted and the held-out rows' errors
-    together under one model (the registration), so that the median is the same one; only
-    held-out rows are set aside, and none when that would be half of them or more (then they
-    are not outliers: measured in another frame, or of another robot). ``fitted``,
-    ``errors``: the fitted and the held-out rows' errors; ``rows``: their file rows;
-    ``subset``: the held-out rows a mask keeps; the outliers' note appended to ``notes``
-    (``words``: :func:`~.outliers.set_aside_note`'s); ``noise``: the instrument's [m] or None.
-    """
+    """The held-out rows without the outliers the training rule finds among them (noted)."""
     m = len(fitted.position)
     rot = None
     if fitted.orientation is not None and errors.orientation is not None:

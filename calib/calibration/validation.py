@@ -1,17 +1,12 @@
 """Validation: held-out configurations, predicted uncertainty, and the checks a model must pass.
 
-A model is written only if it converged, fits the training data no worse than the
-registration, has every fitted parameter identified and is no worse held out (:func:`worse`);
-data that no calibration brings near the robot stop with a DataError
-(:func:`check_fitted_errors`).
-
 Rationale and measurements: docs/developers/engine.md#validation
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Protocol, Self, TypeVar
+from typing import Protocol, Self, TypeVar
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -44,16 +39,13 @@ __all__ = [
 ]
 
 COPY = 1e-6
-"""Largest difference [rad, m, px] of every value of a validation row from a training row's
-that makes it that row (a copy, perhaps rounded to 6 decimals); an instrument's repeated
-reading of one posture differs by its noise, far more."""
+"""Largest difference [rad, m, px] of every value of a validation row from a training row's copy."""
 
 SAME = 1e-6
 """Relative difference of two RMS errors under which they are the same (solver round-off)."""
 
 ROUND_OFF = 1e-12
-"""Absolute difference [m, rad] under which two RMS errors are the same: a noise-free fit's
-errors (a few 1e-13) are round-off, not a worse model."""
+"""Absolute difference [m, rad] under which two RMS errors are the same (noise-free: 1e-13)."""
 
 ROWS = (
     "validation rows",
@@ -67,10 +59,7 @@ TOUCHES = ("held-out touches", "contact", "touched another object, or on another
 
 
 def worse(after: float, before: float, unit: float = 1.0) -> bool:
-    """Whether an RMS error is worse than another beyond round-off (the one refusal rule).
-
-    ``after``: the calibrated model's, ``before``: the registration's, in ``unit`` [m or rad].
-    """
+    """Whether an RMS error ``after`` is worse than ``before`` beyond round-off (in ``unit``)."""
     return after > before * (1 + SAME) + ROUND_OFF / unit
 
 
@@ -85,9 +74,6 @@ class _Rows(Protocol):
     def q(self) -> np.ndarray: ...
 
     @property
-    def tool(self) -> Any: ...
-
-    @property
     def m(self) -> int: ...
 
     def subset(self, keep: np.ndarray) -> Self: ...
@@ -99,10 +85,7 @@ _R = TypeVar("_R", bound=_Rows)
 def split(data: _R, fraction: float, seed: int) -> tuple[_R, _R | None]:
     """Set aside a seeded random ``fraction`` of the postures (training, held out).
 
-    A posture recorded several times (:func:`~calib.measurements.postures.posture_groups`)
-    is held out with all its rows: none of its repeats is left to train on, nor (a tree) the
-    rows of its other tools. ``data``: measurements, or a pixel term's rows (every point seen
-    in an image: one posture).
+    A posture recorded several times (or a tree's tools at one posture) leaves with all its rows.
 
     Raises:
         InvalidArgumentError: ``fraction`` outside [0, 1), or > 0 but holding out no row.
@@ -153,11 +136,7 @@ def _row(data, i: int) -> int:
 def check_held_out(data, held) -> None:
     """Refuse validation data that are the training data: the file, or any of its rows.
 
-    Measurements, touches and pixels alike (:class:`Measurements`, :class:`ContactData` or
-    :class:`PixelObservations` of any kind): a validation row that is a training row (the
-    same joint values, and the same measurements, tool or touched object; or the same
-    camera, point and pixel; each number within :data:`COPY`: a copy rounded to 6
-    decimals) is refused.
+    Measurements, touches and pixels alike; a row is the same within :data:`COPY`.
 
     Raises:
         DataError: ``held`` comes from the training file, or a row of it is a training row.
@@ -196,17 +175,12 @@ def check_held_out_errors(
 ) -> None:
     """Stop on held-out errors far above any geometric error while the data fit well.
 
-    Each file passed the usual-mistake diagnosis on its own registration: held-out rows that
-    the training registration still misses by more than ``diagnosis.SUSPECT`` were measured
-    in another frame or of another robot: a DataError names ``source`` (the held-out data)
-    when their error is absurd and the fitted rows' is not.
+    ``fitted``, ``held``: the rows' RMS position errors (touches: gaps) [m]; ``words``:
+    :data:`ROWS` or :data:`TOUCHES`.
 
-    Args:
-        fitted: The fitted rows' RMS position error (a touch's: gap) [m].
-        held: The held-out rows' [m].
-        source: The held-out data.
-        words: The held-out rows, the registered thing they miss and the likely cause
-            (:data:`ROWS`; touches: :data:`TOUCHES`).
+    Raises:
+        DataError: The held-out error is suspect (measured in another frame, or of another
+            robot) and the fitted one is not; names ``source`` (the held-out data).
     """
     if suspect(held, None) and not suspect(fitted, None):
         rows, missed, cause = words
@@ -218,8 +192,7 @@ def check_held_out_errors(
 
 
 ORIENTATION_REFUSED = 0.5
-"""RMS orientation error [rad] (29 deg) over which orientations that the registration and the
-calibrated model both miss are refused (:func:`check_fitted_errors`).
+"""RMS orientation error [rad] (29 deg) both the registration and the model missing is refused.
 Rationale and measurements: docs/developers/engine.md#orientation_refused"""
 
 
@@ -228,20 +201,13 @@ def check_fitted_errors(
 ) -> None:
     """Stop on data whose fitted rows the calibrated model still misses absurdly.
 
-    Registration suspect (:func:`~.diagnosis.suspect`), no usual mistake found, and the
-    calibrated model suspect too on its training rows: a DataError names ``source`` and the
-    way out (the instrument's noise). Orientations registered and calibrated over
-    :data:`ORIENTATION_REFUSED` are refused on their own (way out: the positions alone).
+    ``stats``: a term's ``train_registration`` and ``train`` errors; ``n_markers``: None for
+    touches (their gaps are read); ``noise`` [m] or None.
     Rationale and measurements: docs/developers/engine.md#check_fitted_errors
 
-    Args:
-        stats: A term's ``train_registration`` and ``train`` errors
-            (:func:`~.contact_result.part_stats`).
-        n_markers: The points of an instrument's row (their RMS position error is read), or
-            None (touches: their gap's RMS length).
-        noise: The instrument's noise [m], or None.
-        source: The data.
-        chain: The chain they were fitted to (its base and tool named).
+    Raises:
+        DataError: Registered and calibrated errors both suspect, or orientations both over
+            :data:`ORIENTATION_REFUSED`; names ``source`` and the way out.
     """
 
     def rms(key: str) -> tuple[float, float | None]:  # [m], [rad] (None: positions only)
@@ -278,21 +244,12 @@ def check_fitted_errors(
 def stats(
     state: FitState, data: Measurements, torque: np.ndarray | None, kin=None
 ) -> ResidualStats:
-    """Errors measured - model of a state on some data.
-
-    ``kin``: its kinematics at the data's joints, if already made (a fit's
-    :attr:`~.solve.Fit.kin`).
-    """
+    """Errors measured - model of a state on some data (``kin``: its kinematics there, if made)."""
     return ResidualStats.of(state.residuals(data, torque, kin), data.n_markers)
 
 
 def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
-    """RMS over configurations and points of the predicted position std [m].
-
-    sqrt(mean over points of trace(J_k C J_k^T)): the RMS distance between the predicted and
-    the true point that the parameter uncertainty alone explains. ``J_points`` ``(m, rows,
-    p)``: its first 3 K rows are points (``n_markers``: K); ``covariance`` ``(p, p)``.
-    """
+    """RMS over configurations and points of the predicted position std [m]: trace(J C J^T)."""
     if covariance.size == 0:
         return 0.0
     if not np.all(np.isfinite(covariance)):

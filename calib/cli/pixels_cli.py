@@ -164,7 +164,7 @@ def _cameras(args: argparse.Namespace, several: bool = False) -> tuple:
 
 def _camera(values: list[str]):
     """One ``--camera NAME LINK INTRINSICS [X Y Z RX RY RZ]``."""
-    from ..calibration.pixel_term import PixelCamera
+    from ..calibration.pixel_chain import PixelCamera
     from ..kinematics.so3 import rpy_to_matrix
     from ..measurements.intrinsics import read_intrinsics
 
@@ -265,8 +265,7 @@ def pixel_term_data(args: argparse.Namespace, name: str, chain, path: str):
     unknown (as ``calibrate --measure pixels --params complete``), else it is exact;
     ``--refine-targets`` and ``--refine-intrinsics`` apply.
     """
-    from ..calibration.pixel_chain import PixelData
-    from ..calibration.pixel_term import Unknowns
+    from ..calibration.pixel_chain import PixelData, Unknowns
     from ..measurements.pixels import read_observations
 
     camera = _named(args, name)
@@ -283,8 +282,7 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     placement direction the pixels determine is fitted (the joint fit's ``complete``).
     """
     from ..calibration.entry import calibrate
-    from ..calibration.pixel_chain import PixelData
-    from ..calibration.pixel_term import Unknowns
+    from ..calibration.pixel_chain import PixelData, Unknowns
     from ..calibration.problem import Problem, Term
     from ..measurements.pixels import read_observations
 
@@ -350,8 +348,12 @@ def _postures(chains, configs: int, seed: int, path: str | None = None):
     import numpy as np
 
     from ..design.configurations import read_chains_configurations
+    from ..measurements.limits import warn_default_ranges
 
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    if path is None:
+        for chain in chains:
+            warn_default_ranges(chain, "give your own configurations")
     drawn = (
         [c.random_configurations(configs, seed) for c in chains]
         if path is None
@@ -416,7 +418,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
 
 def analyze_pixels_command(args: argparse.Namespace) -> int:
     """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
-    from ..calibration.pixel_count import pixel_count
+    from ..calibration.pixel_chain import pixel_count
 
     _refuse(args, NOT_PIXELS_ANALYZE)
     refuse_paper(args)

@@ -4,7 +4,7 @@
 a guess of its placement); :func:`pixel_rows` selects one camera's observations
 (:class:`~calib.measurements.pixels.PixelObservations`) of the points of a target on one chain's
 tool, its joint columns in the chain's order (:class:`PixelRows`): what the pixel term of
-:mod:`calib.calibration.pixel_term` fits.
+:mod:`calib.calibration.pixel_chain` fits.
 """
 
 from __future__ import annotations

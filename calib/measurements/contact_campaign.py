@@ -39,7 +39,7 @@ from ..kinematics.standing import JointReadings
 from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .joint_columns import column_keys
-from .limits import check_limits, joint_bounds
+from .limits import check_limits, joint_bounds, warn_default_ranges
 from .simulation import chain_argument
 
 ID_COLUMNS = {
@@ -418,6 +418,7 @@ def simulate_contacts(
     noise_mrad = angle_mrad(noise_mrad, "noise_mrad")
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
+    warn_default_ranges(chain)
     rotation = np.array([p.kind.is_rotation for p in pset.parameters])
     scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
     errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))

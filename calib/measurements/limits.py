@@ -101,16 +101,17 @@ def check_limits(
         )
 
 
-def warn_default_ranges(robot: Chain | Tree, remedy: str) -> None:
+def warn_default_ranges(robot: Chain | Tree, remedy: str | None = None) -> None:
     """Warn that joints without usable URDF limits are drawn in calib's default range.
 
     A posture drawn there may be out of the real robot's reach (a quill of 0..0.2 m drawn in
     +-0.1 m); continuous joints (a full turn) and mimic joints (they follow) are not named.
-    ``design``'s random candidates and ``simulate``'s random configurations say it alike.
+    ``design``'s random candidates and the simulations' random postures say it alike.
 
     Args:
         robot: A chain or a tree.
-        remedy: The other way out than adding the ``<limit>`` ("give your own candidates").
+        remedy: The other way out than adding the ``<limit>`` ("give your own candidates"),
+            if any.
     """
     mimic = set() if robot.coupling is None else {mj.joint for mj in robot.coupling.mimic}
     named = [
@@ -121,9 +122,10 @@ def warn_default_ranges(robot: Chain | Tree, remedy: str) -> None:
         and robot.model.joints[jid].nq == 1
         and urdf_limits(robot.model, jid) is None
     ]
+    other = f", or {remedy}" if remedy else ""
     if named:
         warn_user(
             f"no usable <limit> in the URDF for {', '.join(named)}: calib's default range, "
-            f"which the robot may not reach (add the <limit>, or {remedy})",
+            f"which the robot may not reach (add the <limit>{other})",
             DataWarning,
         )
