@@ -8,8 +8,8 @@ contributes ``M_j Exp(xi_j) X_j(q_j + d_j)`` (forward) or its inverse (backward)
 compliance adds ``c_j tau_j(q)`` to ``q_j``, ``tau_j`` the gravity torque the joint carries
 when the robot stands on the base foot. Residuals and their Jacobian (analytic: the
 adjoint of each error's place, seen at the contact frame) are those of
-:mod:`calib.calibration.contact_registration`: height, roll, pitch of the contact in the
-plane's frame.
+:func:`calib.calibration.contact_checks.register_contacts`: height, roll, pitch of the contact
+in the plane's frame.
 """
 
 from __future__ import annotations

@@ -230,7 +230,7 @@ def _design_figure(errors, B):
 def _nominal_baseline(chain, data, folds) -> str:
     """The table and contact frame fitted on the nominal robot (contact guessed 0.12 m along
     -z of the gripper), pooled held-out RMS height [mm] / roll / pitch [deg]."""
-    from calib.calibration.contact_registration import register_contacts
+    from calib.calibration.contact_checks import register_contacts
     from calib.identification.contacts import PlaneContact
 
     guess = np.eye(4)

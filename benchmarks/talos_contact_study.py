@@ -6,7 +6,7 @@ frame's height [mm], roll and pitch [deg] in the fitted table frame (folds drawn
 the ridge strength of each model is chosen inside each training set by an inner 4-fold CV).
 
 - ``registration``: the table and the contact frame fitted on the nominal robot
-  (:func:`calib.calibration.contact_registration.register_contacts`): no calibration.
+  (:func:`calib.calibration.contact_checks.register_contacts`): no calibration.
 - ``offsets``: + an offset on each of the 15 chain joints.
 - ``offsets+legs``: + a compliance of each leg joint under its gravity torque (standing).
 - ``geometry``: + a 6-vector error of every joint placement of the chain (ridge).
@@ -32,7 +32,7 @@ import contact_model as cm
 import numpy as np
 import pinocchio as pin
 
-from calib.calibration.contact_registration import register_contacts
+from calib.calibration.contact_checks import register_contacts
 from calib.identification.contacts import PlaneContact
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.so3 import rotation_matrix

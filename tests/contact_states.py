@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.calibration.contact_frames import ContactFrames, plane_frame
-from calib.calibration.contact_model import ContactState
+from calib.calibration.contact_model import ContactFrames, ContactState, plane_frame
 from calib.identification.contacts import PlaneContact
 from calib.kinematics.mdh import MDHModel
 

@@ -88,7 +88,7 @@ def test_a_long_recording_of_one_plane_needs_no_touches_by_touches_matrix():
 
     from test_contact_registration import CONTACT, GUESS, PLANES, _flush_touches
 
-    from calib.calibration.contact_registration import register_contacts
+    from calib.calibration.contact_checks import register_contacts
     from calib.identification.contacts import PlaneContact
 
     R, p = _flush_touches(PLANES["table"], CONTACT, 6000, 0)

@@ -12,8 +12,7 @@ from contact_scorer import plane_gaps, read_joints
 from calib import load_robot
 from calib.calibration.contact_blocks import dense
 from calib.calibration.contact_choice import touching_postures
-from calib.calibration.contact_frames import ContactFrames
-from calib.calibration.contact_model import ContactState
+from calib.calibration.contact_model import ContactFrames, ContactState
 from calib.calibration.entry import calibrate_contacts
 from calib.exceptions import CalibrationRefusedError, InvalidArgumentError
 from calib.identification.contacts import PlaneContact

@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from calib.calibration.contact_blocks import dense
-from calib.calibration.contact_frames import ContactFrames, row_weights
+from calib.calibration.contact_model import ContactFrames, row_weights
 from calib.identification.contacts import (
     FixedPointContact,
     FixedPoseContact,

@@ -10,7 +10,7 @@ import pytest
 from contact_scorer import plane_gaps, read_joints, relative_placements
 from scipy.spatial.transform import Rotation
 
-from calib.calibration.contact_registration import register_contacts
+from calib.calibration.contact_checks import register_contacts
 from calib.exceptions import CalibError, ContactGeometryError
 from calib.identification.contacts import FixedPointContact, FixedPoseContact, PlaneContact
 from calib.kinematics.catalog import resolve_urdf

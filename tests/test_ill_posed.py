@@ -116,7 +116,7 @@ def test_ill_posed_finds_a_weak_direction_either_side_of_the_threshold():
 def test_a_ceiling_touched_with_the_tool_up_names_the_tip_and_the_height():
     """Contacts: a drill tip on a ceiling (plane-point), the tool always pointing up: the tip's
     offset along the tool and the ceiling's height are one sum (and the tip's x, y unseen)."""
-    from calib.calibration.contact_registration import register_contacts
+    from calib.calibration.contact_checks import register_contacts
     from calib.exceptions import ContactGeometryError
     from calib.identification.contacts import PlanePointContact
 

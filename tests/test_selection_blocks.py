@@ -12,7 +12,7 @@ from test_calibration import refit_loo
 
 from calib import load_chain
 from calib.calibration import contact_fit
-from calib.calibration.contact_registration import MIN_TOUCHES
+from calib.calibration.contact_checks import MIN_TOUCHES
 from calib.calibration.entry import calibrate_contacts
 from calib.calibration.forward_paths import paths
 from calib.calibration.object_columns import ObjectColumns

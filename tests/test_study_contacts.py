@@ -20,7 +20,7 @@ import pytest
 
 import calib
 from calib import analyze, from_chain, load_chain
-from calib.calibration.contact_registration import register_contacts
+from calib.calibration.contact_checks import register_contacts
 from calib.identification.contacts import PlaneContact
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.standing import standing_load

@@ -1,9 +1,5 @@
 """Linear least squares of contacts with the objects' unknowns eliminated object by object.
 
-``min |A x_o + B x_s + r|`` with ``A = diag(A_k)``: per object a QR factor of ``[A_k | B_k |
-r_k]`` (objects grouped by touch count), the shared unknowns from the stacked remainders, each
-object's by back-substitution; linear time and memory, the dense least squares' solution.
-
 Rationale and measurements: docs/developers/engine.md#contact_blocks
 """
 
@@ -20,12 +16,7 @@ __all__ = ["BlockSolution", "BlockSystem", "block_factors", "block_lstsq", "dens
 class BlockSystem:
     """``min |A x_o + B x_s + r|``, A block diagonal by object, given touch by touch.
 
-    Attributes:
-        own: Rows of each touch on its own object's unknowns ``(m, rows, o)``.
-        shared: Rows of each touch on the shared unknowns ``(m, rows, s)``.
-        residual: Residual rows of each touch ``(m, rows)``.
-        index: The object of each touch ``(m,)`` (each object has touches).
-        objects: Number of objects K.
+    ``own`` ``(m, rows, o)``, ``shared`` ``(m, rows, s)``, ``residual``; ``index``: the objects.
     """
 
     own: np.ndarray
@@ -37,15 +28,7 @@ class BlockSystem:
 
 @dataclass(frozen=True, eq=False)
 class BlockSolution:
-    """The least-squares solution and what says whether it is determined.
-
-    Attributes:
-        objects: Each object's unknowns ``(K, o)``.
-        shared: The shared unknowns ``(s,)``.
-        smallest: Smallest singular value of the objects' triangular factors and of the
-            shared system (0 when something is undetermined).
-        largest: Largest of the same singular values.
-    """
+    """The unknowns ``objects`` ``(K, o)``, ``shared`` ``(s,)`` and the extreme singular values."""
 
     objects: np.ndarray
     shared: np.ndarray
@@ -54,11 +37,7 @@ class BlockSolution:
 
 
 def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.ndarray:
-    """Each object's QR factor of ``[A_k | B_k | r_k]`` ``(K, w, w)``, ``w = o + s + 1``.
-
-    Rows beyond an object's own rank are zero. ``damping`` ``(K, o)``: extra rows
-    ``diag(damping[k])`` (zero residual) of each object's unknowns, or None.
-    """
+    """Each object's QR factor ``(K, w, w)`` of ``[A_k | B_k | r_k]`` and ``diag(damping[k])``."""
     Jo, Js, r, index, K = (system.own, system.shared, system.residual, system.index, system.objects)
     m, rows, o = Jo.shape
     s = Js.shape[2]
@@ -92,12 +71,7 @@ def block_factors(system: BlockSystem, damping: np.ndarray | None = None) -> np.
 def block_lstsq(
     system: BlockSystem, damping: np.ndarray | None = None, shared_rows: np.ndarray | None = None
 ) -> BlockSolution:
-    """The least squares of ``system`` (see the module's text).
-
-    The least-norm one in the shared unknowns if they are undetermined. Extra rows:
-    ``damping`` ``(K, o)``, ``diag(damping[k])`` on each object's unknowns; ``shared_rows``
-    ``(n, s + 1)``, ``[C | c]`` on the shared unknowns alone (``min |C x_s + c|`` joins).
-    """
+    """The least squares of ``system`` and extra rows: ``damping`` (objects), ``shared_rows``."""
     o, s, K = system.own.shape[2], system.shared.shape[2], system.objects
     F = block_factors(system, damping)
     R, S, y = F[:, :o, :o], F[:, :o, o : o + s], F[:, :o, -1]
@@ -119,11 +93,7 @@ def block_lstsq(
 
 
 def dense(own: np.ndarray, shared: np.ndarray, index: np.ndarray, K: int) -> np.ndarray:
-    """The blocks as one matrix ``(m, rows, K o + s)`` (a check or an error message's).
-
-    ``own`` ``(m, rows, o)``: touch i's columns of its object ``index[i]``; ``shared``
-    ``(m, rows, s)``: the shared columns, after the K objects'.
-    """
+    """The blocks as one matrix ``(m, rows, K o + s)``, the shared columns last."""
     m, rows, o = own.shape
     A = np.zeros((m, rows, K * o + shared.shape[2]))
     cols = np.asarray(index)[:, None] * o + np.arange(o)[None, :]

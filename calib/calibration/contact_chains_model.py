@@ -19,8 +19,7 @@ from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .chain_registration import MeasuredState
-from .contact_frames import DOF_NAMES
-from .contact_model import ContactState
+from .contact_model import DOF_NAMES, ContactState
 from .model import MeasuredKind, compliance_name
 from .pixel_chain import PixelKind, PixelPart, PixelTermState, pixel_block
 from .placements import JointFrames, Placements, twist_columns

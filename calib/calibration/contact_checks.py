@@ -1,28 +1,26 @@
 """A contact term's registration, checks, holdout and guess: mistakes, outliers, refusal.
 
-The checks of measured data (:mod:`calib.calibration.validation`,
-:mod:`calib.calibration.term_checks`) on the kind's gaps: the registration
-(:func:`registration`, the angle weight estimated when not given);
-the usual mistakes (:mod:`calib.calibration.diagnosis`) when it leaves a length gap above
-``diagnosis.SUSPECT``; outliers (:mod:`calib.calibration.outliers`, each object keeping
-``MIN_TOUCHES``); refusal of a fit whose held-out or rank checks fail
-(:func:`held_out_refusal`, :func:`rank_refusal`). What the touches need beside the joint
-engine's model: the contact frame's guess (:func:`contact_frame`), the touches held out by
-object (:func:`split_contacts`), the objects as reported (:func:`contact_objects`), the
-equations a level needs and the held-out touches that are another object's (the checks).
+Rationale: docs/developers/engine.md#contact_checks (the registration: #contact_registration)
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
 from ..core.words import counted, noun
-from ..exceptions import DataError, InvalidArgumentError
-from ..identification.contacts import PlaneContact
+from ..exceptions import ContactGeometryError, DataError, InvalidArgumentError
+from ..identification.contacts import (
+    Contact,
+    FixedPointContact,
+    FixedPoseContact,
+    PlaneContact,
+    PlanePointContact,
+)
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_matrix
@@ -32,17 +30,17 @@ from ..measurements.pixels import MAX_TARGET_DISTANCE
 from ..measurements.postures import count as count_postures
 from ..measurements.postures import posture_groups
 from . import determined, diagnosis, outliers, term_checks, validation
-from .contact_frames import ContactFrames
-from .contact_model import ContactState
-from .contact_registration import MIN_TOUCHES, register_contacts
+from .contact_blocks import BlockSystem, block_lstsq, dense
+from .contact_model import ContactFrames, ContactState, plane_frames, row_weights
 from .pixel_chain import PixelPart
+from .registration import nearest_rotation
 from .solve import condition
 from .term_checks import Aside
 from .weighting import DEFAULT_WEIGHT, estimate_weight
 
 __all__ = [
     "FEW_POSTURES",
-    "WEIGHT_ROUNDS",
+    "MIN_TOUCHES",
     "check_level_equations",
     "checked_registration",
     "contact_frame",
@@ -53,15 +51,202 @@ __all__ = [
     "length_errors",
     "plane_groups",
     "rank_refusal",
+    "register_contacts",
     "registration",
     "split_contacts",
     "subset",
 ]
 
+MIN_TOUCHES = 3  # fewest touches of one plane, point or pose
+ITERATIONS = 50  # most Gauss-Newton steps
+STEP_TOLERANCE = 1e-13  # largest parameter step [m or rad] at which Gauss-Newton stops
+CONDITION_LIMIT = 1e-9  # smallest singular value accepted, relative to the largest
+MIN_SPREAD = 1e-6  # smallest RMS spread [rad] of the tool's orientations about any axis (a tip)
+WEIGHT_ROUNDS = 5  # the angle weight's registrations: docs/developers/engine.md#weight_rounds
+POSTURE_TOL = 1e-2  # [rad or m]: postures whose joints agree within it (modulo a turn) are one
+FEW_POSTURES = 8  # fewest postures of a held-out verdict: docs/developers/engine.md#few_postures
 
-WEIGHT_ROUNDS = 5
-"""Registrations of the angle weight's estimate (all of them: no tolerance).
-Rationale and measurements: docs/developers/engine.md#weight_rounds"""
+
+def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
+    """The distinct ids in order of appearance and each touch's index among them."""
+    names = tuple(dict.fromkeys(str(i) for i in ids))
+    index = np.array([names.index(str(i)) for i in ids], dtype=int)
+    counts = np.bincount(index, minlength=len(names))
+    for name, count in zip(names, counts, strict=True):
+        if count < MIN_TOUCHES:
+            raise ContactGeometryError(
+                f"'{name}' has {counted(count, 'touches')}: at least {MIN_TOUCHES} are needed "
+                "to fit it"
+            )
+    return names, index
+
+
+def _tilt_to(b: np.ndarray) -> np.ndarray:
+    """Rotation vector about an axis orthogonal to z that takes e_z to the unit vector b."""
+    axis = np.array([-b[1], b[0], 0.0])
+    s = np.linalg.norm(axis)
+    return np.zeros(2) if s < 1e-300 else (axis * np.arctan2(s, b[2]) / s)[:2]
+
+
+def _point_normals(x: np.ndarray, index: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Each plane's normal through its contact points ``x``, on the side of ``up`` ``(K, 3)``."""
+    normals = []
+    for k, u in enumerate(up):
+        centred = x[index == k] - x[index == k].mean(axis=0)
+        n = np.linalg.svd(centred, full_matrices=False)[2][-1]
+        normals.append(n if n @ u >= 0 else -n)
+    return np.array(normals)
+
+
+def refine(
+    frames: ContactFrames,
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    index: np.ndarray,
+    weight: float = DEFAULT_WEIGHT,
+) -> ContactFrames:
+    """The frames at the least-squares minimum of the kind's weighted gap (Gauss-Newton).
+
+    ContactGeometryError where the touches do not fix the unknowns.
+    """
+    w = row_weights(frames.kind, weight)
+    x = np.zeros(frames.size)
+    K = len(frames.ids)
+    for _ in range(ITERATIONS):
+        cur = frames.moved(x)
+        R, p = cur.relative(rotations, positions, index)
+        r = frames.kind.residual(R, p) * w
+        Jo, Jc = cur.parts(R, p, index, x, w)
+        sol = block_lstsq(BlockSystem(Jo, Jc, r, index, K))
+        if not sol.smallest > CONDITION_LIMIT * sol.largest:
+            names = frames.names()  # the unknowns of the undetermined directions
+            found = determined.ill_posed(dense(Jo, Jc, index, K).reshape(-1, frames.size), names)
+            found = [d for d in found if d.condition >= 1 / CONDITION_LIMIT]
+            named = [n for n in names if any(n in d.names for d in found)]
+            which = f" (they cannot separate {', '.join(named)})" if named else ""
+            objects = noun(len(frames.ids), f"{frames.kind.object_name}s")
+            raise ContactGeometryError(
+                f"the touches do not fix the {objects} and the contact frame"
+                f"{which}: touch at several orientations, or at spots that span each "
+                f"{frames.kind.object_name}"
+            )
+        step = np.r_[sol.objects.ravel(), sol.shared]
+        x = x + step
+        if np.max(np.abs(step)) < STEP_TOLERANCE:
+            break
+    return frames.moved(x)
+
+
+def _planes(kind, R, p, guess, index, names, weight) -> ContactFrames:
+    """Flush touches: the chordal fit of the normals, or the contact points' planes."""
+    K = len(names)
+    M = np.stack([np.sum(np.swapaxes(R[index == k], 1, 2), axis=0) for k in range(K)])
+    U = np.linalg.svd(np.concatenate(list(M), axis=1), full_matrices=False)[0]
+    z0 = guess[:3, 2]
+    a = U[:, 0] if U[:, 0] @ z0 >= 0 else -U[:, 0]
+    x = p + R @ guess[:3, 3]
+    up = np.array([(R[index == k] @ z0).sum(axis=0) for k in range(K)])
+    candidates = []
+    for normals in (np.einsum("kji,j->ki", M, a), _point_normals(x, index, up)):
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        ak = np.einsum("kij,kj->i", M, normals)
+        ak = ak / np.linalg.norm(ak)
+        heights = np.array([np.mean(x[index == k] @ normals[k]) for k in range(K)])
+        C = guess.copy()
+        C[:3, :3] = guess[:3, :3] @ rotation_matrix(np.array([*_tilt_to(guess[:3, :3].T @ ak), 0]))
+        planes = plane_frames(normals, heights, p + R @ C[:3, 3], index)
+        frames = ContactFrames(kind, C, planes, names)
+        cost = np.sum((frames.gaps(R, p, index) * row_weights(kind, weight)) ** 2)
+        candidates.append((float(cost), frames))
+    return min(candidates, key=lambda c: c[0])[1]
+
+
+def _plane_points(kind, R, p, guess, index, names, weight) -> ContactFrames:
+    """A tip's touches: each plane through the tip's points at the guessed tip."""
+    x = p + R @ guess[:3, 3]
+    normals = _point_normals(x, index, np.tile([0.0, 0.0, 1.0], (len(names), 1)))
+    heights = [float(np.mean(x[index == k] @ n)) for k, n in enumerate(normals)]
+    return ContactFrames(kind, guess, plane_frames(normals, np.array(heights), x, index), names)
+
+
+def _points(kind, R, p, guess, index, names, weight) -> ContactFrames:
+    """A tip at fixed points: the tip and the points by linear least squares."""
+    K = len(names)
+    count = np.bincount(index, minlength=K)[:, None]
+    Rbar = np.zeros((K, 3, 3))
+    np.add.at(Rbar, index, R)
+    pbar = np.zeros((K, 3))
+    np.add.at(pbar, index, p)
+    Rbar, pbar = Rbar / count[:, :, None], pbar / count
+    A = (R - Rbar[index]).reshape(-1, 3)
+    tip, _, _, s = np.linalg.lstsq(A, -(p - pbar[index]).ravel(), rcond=None)
+    if s[-1] < MIN_SPREAD * np.sqrt(len(p)):
+        raise ContactGeometryError(
+            "the touches do not fix the tip: touch each point at orientations about several axes"
+        )
+    C = guess.copy()
+    C[:3, 3] = tip
+    points = np.tile(np.eye(4), (K, 1, 1))
+    points[:, :3, 3] = pbar + Rbar @ tip
+    return ContactFrames(kind, C, points, names)
+
+
+def _poses(kind, R, p, C, index, names, weight) -> ContactFrames:
+    """Fixed poses: the mean position, the chordal mean rotation (the contact kept)."""
+    Q = R @ C[:3, :3]
+    x = p + R @ C[:3, 3]
+    poses = np.tile(np.eye(4), (len(names), 1, 1))
+    for k in range(len(names)):
+        poses[k, :3, :3] = nearest_rotation(Q[index == k].sum(axis=0))
+        poses[k, :3, 3] = x[index == k].mean(axis=0)
+    return ContactFrames(kind, C, poses, names)
+
+
+_Start = Callable[..., ContactFrames]
+
+_STARTS: dict[type, tuple[_Start, bool]] = {
+    PlaneContact: (_planes, True),
+    PlanePointContact: (_plane_points, False),
+    FixedPointContact: (_points, False),
+    FixedPoseContact: (_poses, False),
+}
+"""Each kind's closed form, and whether its refinement weighs the angle rows by the weight
+given (a plane-point has none; a pose's rotation is its rows' mean whatever their weight)."""
+
+
+def register_contacts(
+    kind: Contact,
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    ids: Sequence[str],
+    contact: np.ndarray,
+    weight: float = DEFAULT_WEIGHT,
+    source: str | None = None,
+) -> ContactFrames:
+    """The objects and the contact frame registered from the tool's placements (nominal model).
+
+    ``contact``: the contact frame's guess (a fixed pose's and a tip's rotation kept);
+    ``weight`` [m/rad]; ``source``: the touches' file, which the errors name first.
+
+    Raises:
+        ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry
+            that fixes nothing (one orientation and spots on a line for a plane; one
+            orientation, or rotations about one axis only, for a tip).
+        InvalidArgumentError: A weight that is not positive.
+    """
+    start, weighted = _STARTS[type(kind)]
+    R, p, guess = (np.asarray(a, dtype=float) for a in (rotations, positions, contact))
+    try:
+        names, index = _groups(ids)
+        frames = start(kind, R, p, guess, index, names, weight)
+        if isinstance(kind, FixedPointContact):
+            return frames  # the closed form is the least squares
+        frames = refine(frames, R, p, index, weight if weighted else DEFAULT_WEIGHT)
+    except ContactGeometryError as exc:
+        if source is None:
+            raise
+        raise ContactGeometryError(f"{source}: {exc}") from None
+    return frames.centred(R, p, index)
 
 
 def subset(data: ContactData, keep: np.ndarray) -> ContactData:
@@ -76,18 +261,8 @@ def subset(data: ContactData, keep: np.ndarray) -> ContactData:
     )
 
 
-POSTURE_TOL = 1e-2
-"""Postures whose joints agree within this [rad or m] (angles modulo a turn: their cosines and
-sines) are one posture (:func:`~calib.measurements.postures.posture_groups`)."""
-
-
 def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
-    """A note when the contact leaves the chain finitely many postures (None otherwise).
-
-    A chain with no more joints than the contact has conditions (a 6-joint arm holding a fixed
-    pose) cannot move while the contact holds: its touches repeat its inverse-kinematics
-    branches, and held-out touches at the fitted postures check nothing else.
-    """
+    """A note when the contact leaves the chain finitely many postures (None otherwise)."""
     kind = train.kind
     if chain.n > kind.n_rows:
         return None
@@ -108,12 +283,7 @@ def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | Non
 def registration(
     nominal: MDHModel, data: ContactData, guess: np.ndarray, weight: float | None, first=None
 ) -> ContactState:
-    """The nominal robot with the objects and the contact frame registered (closed form).
-
-    ``guess``: the contact frame's in the tool frame ``(4, 4)``; ``weight``: the angle rows'
-    [m/rad], or None: estimated from the gaps (:func:`.weighting.estimate_weight`,
-    ``WEIGHT_ROUNDS`` registrations); ``first``: the registration at ``DEFAULT_WEIGHT``, if made.
-    """
+    """The nominal robot, objects and contact frame registered (``weight`` None: estimated)."""
     kin = nominal.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
 
@@ -132,10 +302,7 @@ def registration(
 
 
 def length_errors(state: ContactState, data: ContactData, torque=None) -> outliers.Errors:
-    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms.
-
-    ``torque``: the gravity torques ``(m, n)`` that deflect compliant joints, or None.
-    """
+    """Each touch's length gap [m] and angle gap [rad] (None without angle rows): norms."""
     g = state.gaps(data.q, data.ids, torque)
     angle = np.array(state.kind.angular)
     rot = np.linalg.norm(g[:, angle], axis=1) if angle.any() else None
@@ -209,15 +376,7 @@ def _registrable(data: ContactData) -> bool:
 def checked_registration(
     chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None, held=None
 ):
-    """Outliers set aside, diagnosis (the touches, and validation touches), registration.
-
-    The steps of every kind of term (:func:`~.term_checks.checked`, at the default weight),
-    then the touches kept registered at ``weight`` (None: estimated); the held-out touches'
-    outliers set aside by the same rule (:func:`~.term_checks.held_out`; each held-out
-    object must be one of the registration's), a chain the contact leaves finitely many
-    postures noted (:func:`_isolated_postures`), and the touches kept must determine the
-    objects and the contact frame. Returns what :func:`~.measured_term.checked_measured`
-    does (the outliers' gaps: under the registration that set them aside).
+    """Outliers set aside, diagnosis, registration: :func:`~.measured_term.checked_measured`'s.
 
     Raises:
         DataError: A held-out touch of an object the training touches do not touch, or too
@@ -257,18 +416,8 @@ def held_out_refusal(stats, chain: Chain, what: str) -> str | None:
     return None
 
 
-FEW_POSTURES = 8
-"""Fewest postures a held-out verdict rests on without a note (:func:`few_postures`): an RMS
-over n postures is known to about 1/sqrt(2n) of itself (a chi distribution's n degrees of
-freedom; a posture's rows err together), over 25% under 8 (27% at 7, 41% at 3, 71% at 1)."""
-
-
 def few_postures(data, what: str) -> str | None:
-    """A note where ``data`` (held-out rows; a fold's training rows) hold under FEW_POSTURES.
-
-    Postures counted once (:func:`~calib.measurements.postures.count`; touches: by object).
-    ``what``: the sentence's start before the count.
-    """
+    """A note where ``data`` hold under FEW_POSTURES postures; ``what``: the text's start."""
     n = count_postures(data.q, data.ids if isinstance(data, ContactData) else None)
     if n >= FEW_POSTURES:
         return None
@@ -279,12 +428,8 @@ def few_postures(data, what: str) -> str | None:
 
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
-    """Why a fit with a rank-deficient Jacobian at its solution is refused, or None.
+    """Why a fit whose data rows ``J`` (past ``fixed`` columns) are rank-deficient is refused.
 
-    ``J``: the data rows' (no prior rows: the data must determine what is fitted);
-    ``fixed``: its first columns, not tested (the objects' and contacts' unknowns). The rule:
-    unit-norm columns, smallest singular value over ``validation.RANK_TOL`` of the largest
-    (:func:`~.solve.condition`).
     Rationale and measurements: docs/developers/engine.md#rank_refusal
     """
     if condition(J[:, fixed:]) < 1 / validation.RANK_TOL:
@@ -296,12 +441,7 @@ def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
 
 
 def plane_groups(chains, data, shared: bool, instrument: bool = False) -> tuple[int, ...]:
-    """Index of each chain's object: one per chain, or shared by base frame and plane id.
-
-    The pixel terms of one camera (its targets on several links: one term per link) share
-    their object, the camera, whatever ``shared``; shared planes need one object per chain;
-    with ``instrument``, every measured term's frame is one object (:mod:`.instrument`).
-    """
+    """Index of each chain's object: one per chain, or shared by base frame and plane id."""
     several = [d for d in data if isinstance(d, ContactData) and len(d.contacts) != 1]
     if shared and several:
         raise InvalidArgumentError(
@@ -328,11 +468,7 @@ def plane_groups(chains, data, shared: bool, instrument: bool = False) -> tuple[
 
 
 def check_level_equations(train, unknowns: int, level: str) -> None:
-    """One chain's touches must give more equations than a level's unknowns (not ``auto``).
-
-    Distinct touches count (a touch recorded again adds no equation); the selection of
-    ``auto`` keeps what the touches support. A DataError otherwise.
-    """
+    """DataError unless one chain's distinct touches give more equations than a level's unknowns."""
     if level == "auto" or len(train) != 1 or not isinstance(train[0], ContactData):
         return
     d = train[0]
@@ -342,12 +478,9 @@ def check_level_equations(train, unknowns: int, level: str) -> None:
 
 
 def contact_frame(contact) -> np.ndarray:
-    """The contact frame ``(4, 4)`` in the tool frame from a 4x4, 3 or 6 numbers (m, rad).
+    """The contact frame ``(4, 4)`` in the tool frame from a 4x4, ``X Y Z [RX RY RZ]`` or None.
 
-    Six numbers are ``X Y Z RX RY RZ`` (a rotation vector); None is the tool frame. A point
-    farther from the tool frame than a target may be from its link
-    (:data:`~calib.measurements.pixels.MAX_TARGET_DISTANCE`: millimetres?) or an angle
-    beyond a turn (degrees?) is refused.
+    InvalidArgumentError: beyond ``MAX_TARGET_DISTANCE`` (mm?) or a turn (degrees?).
     """
     if contact is None:
         return np.eye(4)
@@ -383,11 +516,7 @@ def contact_frame(contact) -> np.ndarray:
 def split_contacts(
     data: ContactData, holdout: float, seed: int
 ) -> tuple[ContactData, ContactData | None]:
-    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept.
-
-    A touch recorded several times (the same posture on the same object) is held out whole.
-    ``holdout`` in (0, 1) (:class:`~.options.Options` checks it).
-    """
+    """Training and held-out touches: ``holdout`` of each object's, seeded, >= MIN_TOUCHES kept."""
     rng = np.random.default_rng([seed, 21])
     ids = np.array(data.ids)
     groups = posture_groups(data.q, data.ids)  # a touch repeated is held out whole

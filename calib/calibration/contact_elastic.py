@@ -1,17 +1,6 @@
 """Joint compliance in a calibration from contacts (``elastic``): load, torques, URDF alone.
 
-With ``elastic=True`` the joint compliances are candidates of the fit beside the robot
-parameters (``q' = q + c tau``, the joint engine's :mod:`~calib.calibration.contact_chains_model`),
-``tau`` the gravity torques of the robot standing on the chain's base frame
-(:mod:`calib.kinematics.standing`, the load split with a second foot as ``support`` says,
-the joints off the chain at their recorded positions where the touches have them:
-``ContactData.readings``).
-The URDF cannot hold them: the checks apply to the whole model (URDF and compliances), the
-URDF alone is scored too (``train_urdf``, ``held_out_urdf``), and a note says so where it is
-worse than the registration (use it only with its compliance file).
-
-Available for the ``plane`` kind (its compliance file records the contact frame and the
-plane).
+Rationale: docs/developers/engine.md#contact_elastic
 """
 
 from __future__ import annotations
@@ -45,8 +34,7 @@ __all__ = [
 def term_load(chains, data, elastic: bool | None, support) -> StandingLoad | None:
     """The standing load of a fit of one chain touching planes (``elastic``), or None (rigid).
 
-    InvalidArgumentError: ``elastic`` for several terms, measurements or a kind other than
-    ``plane``; ``support`` not a :class:`Support`, or without ``elastic``.
+    InvalidArgumentError: ``elastic`` but for one chain touching planes; a wrong ``support``.
     """
     if elastic and (len(chains) != 1 or not isinstance(data[0], ContactData)):
         raise InvalidArgumentError("elastic (joint compliance) is for one chain touching planes")
@@ -78,12 +66,7 @@ def readings_note(load, train, held) -> str | None:
 
 
 def none_kept_note(part, offered: tuple[int, ...], load) -> list[str]:
-    """The note when ``elastic`` offered compliances and the fit kept none (else none).
-
-    ``part``: the first term's part (its ``chain`` and fitted ``compliance``, None: none
-    kept); ``offered``: the joints (0-based) whose compliance was offered; ``load``: a
-    touching chain's standing load (every joint offered), or None (a measured chain).
-    """
+    """The note when ``elastic`` offered compliances (joints, 0-based) and the fit kept none."""
     if not offered or part.compliance is not None:
         return []
     if load is not None:
@@ -98,11 +81,7 @@ def none_kept_note(part, offered: tuple[int, ...], load) -> list[str]:
 def fitted_compliance(
     state: ContactState, sets, stats: dict, notes: list[str]
 ) -> np.ndarray | None:
-    """The fitted compliance ``(n,)`` (None: none kept); the URDF alone scored into ``stats``.
-
-    ``stats`` completed with ``train_urdf`` and ``held_out_urdf``, ``notes`` too (none kept:
-    :func:`none_kept_note`).
-    """
+    """The fitted compliance ``(n,)`` (None: none kept); the URDF alone scored into ``stats``."""
     if state.compliance is None or not np.any(state.compliance):
         return None
     rigid = dataclasses.replace(state, compliance=None)
@@ -111,12 +90,7 @@ def fitted_compliance(
 
 
 def urdf_alone(score, sets, stats: dict, notes: list[str], rows: str) -> None:
-    """The URDF alone of a fit with compliance, scored into ``stats`` and noted where worse.
-
-    ``score(d)``: the :class:`~.contact_result.GapStats` of the fitted state without its
-    compliance on rows ``d``; ``sets``: the training and held-out rows (or None); ``rows``:
-    what they are in the notes (``touches``, ``rows``).
-    """
+    """The URDF alone (``score``) of a fit with compliance on ``sets``, into ``stats``, noted."""
     notes.append(
         "joint compliance was fitted: the calibrated URDF cannot hold it; it is written to the "
         "compliance file (apply it with calib predict or calib.load_calibrated)"
@@ -157,11 +131,7 @@ def compliance_line(part) -> list[str]:
 
 
 def compliance_document(part, urdf: str) -> dict:
-    """The compliance file of the calibrated URDF ``urdf`` (JSON-ready).
-
-    :func:`calib.kinematics.elastic.load_calibrated` reads it back with the URDF. ``part``:
-    the chain touching; CalibrationRefusedError where it fitted no compliance.
-    """
+    """The compliance file of the calibrated URDF ``urdf`` (CalibrationRefusedError: none)."""
     if part.compliance is None or part.load is None:
         raise CalibrationRefusedError("no joint compliance was fitted: no compliance file")
     contact = {

@@ -1,10 +1,5 @@
 """The fit and the structural check of one chain touching many objects, object by object.
 
-From ``BLOCK_UNKNOWNS`` objects' unknowns, with the objects eliminated object by object
-(:mod:`~calib.calibration.contact_blocks`): :func:`block_fit` (MINPACK's Levenberg-Marquardt
-on the same cost, the same minimum) and :func:`block_structural` (the structural rank). Fewer
-objects, and several terms, keep the dense route.
-
 Rationale and measurements: docs/developers/engine.md#contact_fit
 """
 
@@ -16,15 +11,12 @@ from ..identification.base_columns import independent_columns
 from .contact_blocks import BlockSystem, block_factors, block_lstsq
 from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_model import ContactState
-from .solve import TOLERANCE, Fit
+from .solve import TOLERANCE, Fit, solved
 
 __all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
 
-BLOCK_UNKNOWNS = 90
-"""Objects' unknowns (30 planes) from which the fit and the structural check go by block."""
-
-ACCEPT = 1e-4
-"""Smallest ratio of the actual to the predicted reduction of an accepted step."""
+BLOCK_UNKNOWNS = 90  # objects' unknowns (30 planes) from which the fit and the check go by block
+ACCEPT = 1e-4  # smallest ratio of the actual to the predicted reduction of an accepted step
 
 
 def by_block(model: ChainsModel, start: ChainsState) -> bool:
@@ -56,12 +48,7 @@ def block_fit(
     prior: np.ndarray | None = None,
     max_iterations: int = 100,
 ) -> Fit:
-    """Levenberg-Marquardt from x = 0 with the objects eliminated by block (module's text).
-
-    The compliances' torques are the data's; ``prior``: weights of x in extra rows
-    ``prior * x`` (zero on the objects and the contact), or None; ``max_iterations``: of
-    the gaps' evaluations. The fit's ``J`` is the dense weighted Jacobian at the solution.
-    """
+    """Levenberg-Marquardt from x = 0 with the objects eliminated by block (:func:`.solve.fit`)."""
     K, o = model.object_blocks()
     split = K * o
     prior_s = None if prior is None else prior[split:]
@@ -106,38 +93,22 @@ def block_fit(
     return _result(model, start, data, x, f, status, (jacobians, evals))
 
 
+_MESSAGES = {
+    0: "the number of evaluations exceeded max_iterations",
+    1: "both actual and predicted relative reductions are at most the tolerance",
+    2: "the relative step is at most the tolerance",
+}
+
+
 def _result(model, start, data, x, f, status, counts) -> Fit:
     """The :class:`~calib.calibration.solve.Fit` of :func:`block_fit`."""
     J = model.jacobian(start, x, data).reshape(len(f.ravel()), -1)
-    finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
-    messages = {
-        0: "the number of evaluations exceeded max_iterations",
-        1: "both actual and predicted relative reductions are at most the tolerance",
-        2: "the relative step is at most the tolerance",
-    }
-    message = messages[status] if finite else "non-finite parameters or residuals"
-    return Fit(
-        model,
-        start,
-        model.apply(start, x),
-        x,
-        J,
-        f.ravel(),
-        status > 0 and finite,
-        status,
-        message,
-        counts[0],
-        counts[1],
-    )
+    state = model.apply(start, x)
+    return solved(model, start, state, x, J, f.ravel(), status, _MESSAGES[status], counts)
 
 
 def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData) -> list[int]:
-    """The columns the touches determine (:func:`~.contact_choice.structural`), by block.
-
-    Every object's columns are kept when each object's own triangular factor has full rank
-    (else none of them, and the model is refused); the shared columns are those the
-    pivoted QR of the shared system, objects eliminated, keeps (contact columns first).
-    """
+    """The columns the touches determine (:func:`~.contact_choice.structural`), by block."""
     K, o = model.object_blocks()
     own, shared, index = model.blocks(start, np.zeros(model.size()), data)
     F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))

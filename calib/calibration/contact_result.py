@@ -1,8 +1,6 @@
 """A term's part of a result (:class:`TermPart`) and its rows by part (:class:`GapStats`).
 
-The parts: ``train``, ``train_registration`` and, with held-out rows, ``held_out`` and
-``held_out_registration``; with joint compliance also ``train_urdf`` and ``held_out_urdf``
-(the URDF alone, :mod:`.contact_elastic`).
+Parts: ``train``, ``held_out``, each also ``_registration`` and (compliance) ``_urdf``.
 """
 
 from __future__ import annotations
@@ -22,22 +20,11 @@ __all__ = ["GapStats", "TermPart", "gap_stats", "part_stats", "row_stats", "unit
 
 @dataclass(frozen=True)
 class GapStats:
-    """Gaps of touches: the kind's rows (lengths in mm, angles in degrees).
+    """Gaps of ``m`` touches by the kind's row (``names``, ``angular``): mm and degrees.
 
-    Attributes:
-        m: Touches.
-        names: The kind's row names.
-        angular: Whether each row is an angle.
-        rms: RMS of each row [mm or deg].
-        max: Largest absolute value of each row [mm or deg].
-        weighted_mm: RMS over touches of the weighted gap's norm [mm] (angles times the
-            orientation weight).
-        per_row: Each touch's weighted gap norm ``(m,)`` [mm] (``weighted_mm`` is their
-            RMS), or None.
-        residuals: The rows themselves ``(m, rows)`` [m, rad], or None (a measured term's
-            point and rotation errors read them: :class:`~.residuals.ResidualStats`).
-
-    Each row's figures also read as attributes: ``height_rms_mm``, ``roll_max_deg``, ...
+    ``rms`` and ``max`` (absolute) of each row, also read as ``height_rms_mm``, ``roll_max_deg``,
+    ...; ``per_row``: each touch's weighted gap norm [mm] (angles times the orientation weight),
+    ``weighted_mm`` their RMS; ``residuals``: the rows ``(m, rows)`` [m, rad], or None.
     """
 
     m: int
@@ -51,11 +38,8 @@ class GapStats:
 
     def figures(self) -> tuple[str, ...]:
         """``<row>_rms_<unit>`` and ``<row>_max_<unit>`` of every row, in row order."""
-        out = []
-        for name, angle in zip(self.names, self.angular, strict=True):
-            unit = mm_or_deg(angle)[0]
-            out += [f"{name}_rms_{unit}", f"{name}_max_{unit}"]
-        return tuple(out)
+        pairs = zip(self.names, self.angular, strict=True)
+        return tuple(f"{n}_{s}_{mm_or_deg(a)[0]}" for n, a in pairs for s in ("rms", "max"))
 
     def __getattr__(self, key: str) -> float:
         """A row's figure by its key (:meth:`figures`), e.g. ``height_rms_mm``."""
@@ -87,18 +71,7 @@ class GapStats:
 class TermPart:
     """What every term's part of a result offers, whatever its kind: errors, report, lines.
 
-    A part (a chain touching, a chain measured, a camera's pixels) is a frozen dataclass with
-    these attributes; what its kind adds is its :meth:`heading`, its own report entries
-    (:meth:`_own`) and what its rows are (:attr:`rows`).
-
-    Attributes:
-        chain: The nominal chain.
-        source: Its rows' file (or description).
-        kind: The term's layout (its ``label``, ``row_names`` and ``angular``).
-        stats: Its errors by part (:class:`GapStats`).
-        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
-        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
-        rows: What its rows are in the summary (``configurations``, ``touches``, ``pixels``).
+    Each kind's frozen dataclass adds :meth:`heading`, :meth:`_own` and :attr:`rows`.
     """
 
     chain: Chain
@@ -114,18 +87,9 @@ class TermPart:
         return term_errors(self.stats, self.held_source)
 
     def to_dict(self) -> dict:
-        """Format 2's ``chains`` entry: base, tool, data, kind, then its kind's own keys.
-
-        Metres and radians; errors in mm and degrees (a camera's also in pixels).
-        """
-        chain = self.chain
-        return {
-            "base": chain.base_frame,
-            "tool": chain.tool_frame,
-            "data": self.source,
-            "kind": self.kind.label,
-            **self._own(),
-        }
+        """Format 2's ``chains`` entry: base, tool, data, kind, then its kind's own keys."""
+        ends = {"base": self.chain.base_frame, "tool": self.chain.tool_frame}
+        return {**ends, "data": self.source, "kind": self.kind.label, **self._own()}
 
     def _own(self) -> dict:
         """Its kind's own keys of :meth:`to_dict`."""
@@ -164,11 +128,7 @@ def units(kind) -> str:
 
 
 def part_stats(stat, registered, state, train, held) -> dict:
-    """``stat(s, rows)`` of the fitted and the registered states on a term's rows.
-
-    Keys ``train``, ``train_registration`` and, with held-out rows (``held`` not None),
-    ``held_out`` and ``held_out_registration``.
-    """
+    """``stat(s, rows)`` of the fitted and the registered states on ``train`` and ``held``."""
     parts = {"train": train} if held is None else {"train": train, "held_out": held}
     return {
         key + suffix: stat(s, rows)
@@ -178,31 +138,15 @@ def part_stats(stat, registered, state, train, held) -> dict:
 
 
 def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) -> GapStats:
-    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at touches ``q`` of ``ids``.
-
-    ``ids`` may be left out when the state has one object. ``torque``: the gravity torques
-    ``(m, n)`` that deflect compliant joints (or None).
-    """
+    """:class:`GapStats` of a :class:`~.contact_model.ContactState` at touches ``q`` of ``ids``."""
     return row_stats(state.gaps(q, ids, torque), state.kind, state.row_weights())
 
 
 def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
-    """:class:`GapStats` of rows ``g`` ``(m, rows)`` [m, rad] of a kind.
-
-    ``kind``: its ``row_names`` and ``angular``; ``weights`` ``(rows,)`` [1, m/rad]: the
-    rows' weights in ``weighted_mm``.
-    """
+    """:class:`GapStats` of rows ``g`` ``(m, rows)`` [m, rad], ``weights`` [1, m/rad] each."""
     scale = np.array([mm_or_deg(a)[1] for a in kind.angular])
-    rms = np.sqrt(np.mean(g**2, axis=0)) * scale
-    top = np.max(np.abs(g), axis=0) * scale
+    rms = tuple(float(v) for v in np.sqrt(np.mean(g**2, axis=0)) * scale)
+    top = tuple(float(v) for v in np.max(np.abs(g), axis=0) * scale)
     per_row = 1e3 * np.linalg.norm(g * weights, axis=1)
-    return GapStats(
-        len(g),
-        kind.row_names,
-        kind.angular,
-        tuple(float(v) for v in rms),
-        tuple(float(v) for v in top),
-        float(np.sqrt(np.mean(per_row**2))),
-        per_row,
-        g,
-    )
+    weighted = float(np.sqrt(np.mean(per_row**2)))
+    return GapStats(len(g), kind.row_names, kind.angular, rms, top, weighted, per_row, g)

@@ -1,9 +1,4 @@
-"""Errors of URDF joint placements shared by several chains of one robot.
-
-The calibrated origin of joint j is ``O_j E_j``, ``E_j = [R(w) | v]`` one error per joint
-whatever chains it is on, in the joint's axis frame: ``<joint>:x``, ``:y``, ``:z`` [m],
-``:rx``, ``:ry``, ``:rz`` [rad]. Chains are held as arrays (:class:`ChainPath`); a step
-computes every frame (:meth:`Placements.frames`) with no model rebuilt.
+"""Errors ``E_j`` of URDF joint placements (origin ``O_j E_j``) shared by chains of one robot.
 
 Rationale and measurements: docs/developers/engine.md#placements
 """
@@ -30,7 +25,6 @@ from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 
 __all__ = [
     "COMPONENTS",
-    "DIRECTION_CONFIGS",
     "ChainPath",
     "JointFrames",
     "Placements",
@@ -43,16 +37,12 @@ __all__ = [
     "zero_frames",
 ]
 
-COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
-"""The six components of a joint's placement error, in its axis frame."""
+COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")  # of a joint's placement error, in its axis frame
+DIRECTION_CONFIGS = 12  # random configurations matching an MDH parameter to a joint's errors
 
 
 def _axis_bases(model: pin.Model, ids) -> np.ndarray:
-    """Each joint's axis frame's axes in its joint frame ``(J, 3, 3)``: columns x, y, z.
-
-    z is the joint's axis; x the joint frame's x (its y for an axis near x) made
-    perpendicular to it. Every joint at once (each norm as one joint's is taken).
-    """
+    """Each joint's axis frame in its joint frame ``(J, 3, 3)``: z its axis, x near its x."""
     S = np.array([motion_axis(model.joints[j]) for j in ids]).reshape(-1, 6)
     slides = _norms(S[:, :3]) > 0.5
     u = np.where(slides[:, None], S[:, :3], S[:, 3:])
@@ -64,7 +54,7 @@ def _axis_bases(model: pin.Model, ids) -> np.ndarray:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise ``a x b`` ``(k, 3)``: ``np.cross``'s products and differences, less its overhead."""
+    """Row-wise ``a x b`` ``(k, 3)``: ``np.cross``'s arithmetic without its overhead."""
     i, j = [1, 2, 0], [2, 0, 1]  # component k: a_i b_j - a_j b_i
     return a[:, i] * b[:, j] - a[:, j] * b[:, i]
 
@@ -81,28 +71,13 @@ def offset_component(model: pin.Model, jid: int) -> str:
 
 
 def component_of(direction: np.ndarray) -> int | None:
-    """The one component (its index) a direction ``(6 J,)`` of placement errors moves, or None.
-
-    An MDH parameter's direction (:func:`mdh_directions`) is one component where the
-    parameter is it (``theta2``, ``<joint>:rz`` of a joint traversed forwards): one
-    parameter, which the chart names.
-    """
+    """The one component (its index) a direction ``(6 J,)`` of placement errors moves, or None."""
     c = int(np.argmax(np.abs(direction)))
     return c if direction[c] >= (1.0 - 1e-9) * np.linalg.norm(direction) > 0 else None
 
 
 class JointFrames(NamedTuple):
-    """A chain's frames at m configurations, in its base frame (:func:`chain_frames`).
-
-    Frame k < n is where joint k's placement error acts: its axis frame (z along the axis)
-    before its motion for a joint traversed forwards, after it for one traversed backwards
-    (whose error lies on the base side of its motion). Frame n is the tool frame: the last,
-    as in an MDH model's :class:`~calib.kinematics.mdh.Kinematics`.
-
-    Attributes:
-        R: Rotations ``(m, n + 1, 3, 3)``.
-        p: Origins ``(m, n + 1, 3)`` [m].
-    """
+    """A chain's frames ``R`` ``(m, n + 1, 3, 3)``, ``p`` ``(m, n + 1, 3)`` [m], the tool's last."""
 
     R: np.ndarray
     p: np.ndarray
@@ -110,16 +85,7 @@ class JointFrames(NamedTuple):
 
 @dataclass(frozen=True, eq=False)
 class ChainPath:
-    """A chain of a robot as arrays: the fixed transforms between its joints' axis frames.
-
-    Attributes:
-        fixed: ``(n + 1, 4, 4)``: the first joint's axis frame in the base frame, then each
-            joint's in the previous joint's axis frame after its motion, then the tool frame
-            in the last joint's (at q = 0 on the robot the errors act on, errors zero).
-        prismatic: Prismatic joints ``(n,)`` (the others turn about their axis, z).
-        sign: +1, or -1 for a joint traversed backwards ``(n,)``.
-        columns: Index of each chain joint among the placements' joints ``(n,)``.
-    """
+    """A chain as arrays: ``fixed`` ``(n + 1, 4, 4)`` transforms between its joints' axis frames."""
 
     fixed: np.ndarray
     prismatic: np.ndarray
@@ -128,10 +94,7 @@ class ChainPath:
 
     @staticmethod
     def of(chain: Chain, zero: tuple, bases: np.ndarray, columns: np.ndarray) -> ChainPath:
-        """The path of ``chain`` from its :meth:`~calib.kinematics.robot.Chain.zero_frames`.
-
-        ``bases``: each chain joint's axis frame in its joint frame ``(n, 3, 3)``.
-        """
+        """The path of ``chain`` from its ``zero_frames`` and its joints' axis ``bases``."""
         frames, tool = zero
         A = np.array(frames, dtype=float)  # each joint's axis frame in the base frame
         A[:, :3, :3] = A[:, :3, :3] @ bases
@@ -141,12 +104,7 @@ class ChainPath:
         return ChainPath(fixed, sigma == 1, sign, np.asarray(columns))
 
     def composed(self, y: np.ndarray, turns: np.ndarray | None = None) -> np.ndarray:
-        """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed ``(n + 1, 4, 4)``.
-
-        A joint's error ``E = [R(w) | v]`` (in its axis frame) follows the transform into
-        its axis frame when traversed forwards, precedes (inverted) the next one backwards.
-        ``turns``: the joints' ``R(w)`` ``(n, 3, 3)``, if already made.
-        """
+        """:attr:`fixed` with the errors ``y`` ``(J, 6)`` composed (``turns``: their ``R(w)``)."""
         rows = y[self.columns]
         if not rows.any():
             return self.fixed
@@ -171,12 +129,7 @@ class ChainPath:
 def chain_frames(
     path: ChainPath, y: np.ndarray, q: np.ndarray, turns: np.ndarray | None = None
 ) -> JointFrames:
-    """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``.
-
-    Vectorised over configurations and joints: each joint's motion and the fixed transform
-    after it for every configuration at once, then one product per joint along the chain,
-    each along the configurations. ``turns``: the joints' ``R(w)`` (:meth:`ChainPath.composed`).
-    """
+    """Every frame of the chain at configurations ``q`` ``(m, n)`` with the errors ``y``."""
     fixed = path.composed(y, turns)
     q = np.asarray(q, dtype=float).reshape(-1, len(path.sign))
     m, n = q.shape
@@ -216,23 +169,7 @@ def chain_frames(
 
 @dataclass(frozen=True, eq=False)
 class Placements:
-    """The placement errors of the joints of several chains of one robot.
-
-    The errors ``y`` act on the placements of ``model``, the nominal robot or a robot
-    already fitted (:meth:`rebased`): a fit is refined by fitting again from its result,
-    each round composing its errors with the previous ones (the components kept by a rank
-    test span the identifiable motions to first order only; composing restores exactness).
-
-    Attributes:
-        nominal: The nominal Pinocchio model (never mutated).
-        model: The model the errors ``y`` act on (``nominal`` or a fitted copy).
-        joints: URDF names of the joints on any chain, each once.
-        ids: Their Pinocchio joint indices.
-        bases: Axis frame of each joint in its joint frame ``(J, 3, 3)``.
-        y: Errors in the axis frames ``(J, 6)`` (x y z [m], rx ry rz [rad]).
-        chains: The chains (on the nominal model).
-        paths: Each chain on ``model`` (:class:`ChainPath`).
-    """
+    """The placement errors ``y`` ``(J, 6)`` (x y z [m], rx ry rz [rad]) acting on ``model``."""
 
     nominal: pin.Model
     model: pin.Model
@@ -245,10 +182,7 @@ class Placements:
 
     @staticmethod
     def of(chains: tuple[Chain, ...], zeros: tuple | None = None) -> Placements:
-        """Zero errors on every joint of the chains (which share one model).
-
-        ``zeros``: the chains' :func:`zero_frames`, if already made.
-        """
+        """Zero errors on every joint of the chains (``zeros``: their :func:`zero_frames`)."""
         model = chains[0].model
         ids = tuple(dict.fromkeys(j for c in chains for j in c.joint_ids))
         bases = _axis_bases(model, ids)
@@ -265,11 +199,7 @@ class Placements:
         return tuple(f"{j}:{c}" for j in self.joints for c in COMPONENTS)
 
     def shifted(self, dy: np.ndarray) -> Placements:
-        """The errors plus ``dy`` ``(J * 6,)`` (joint-major); ``self`` for a zero ``dy``.
-
-        Zero: the same robot, whose kinematics at the same data are not made again
-        (``ChainsState.same_geometry``).
-        """
+        """The errors plus ``dy`` ``(J * 6,)`` (``self`` for a zero ``dy``: same geometry)."""
         if not np.asarray(dy).any():
             return self
         return dataclasses.replace(self, y=self.y + np.reshape(dy, self.y.shape))
@@ -284,23 +214,16 @@ class Placements:
         return dataclasses.replace(self, model=self.perturbed_model(), y=y, paths=paths)
 
     def frames(self, chain: Chain, q: np.ndarray) -> JointFrames:
-        """Chain ``chain``'s frames at ``q`` ``(m, n)`` with the errors (:func:`chain_frames`)."""
+        """The chain's frames at ``q`` ``(m, n)`` with the errors (:func:`chain_frames`)."""
         k = self._index(chain)
         return chain_frames(self.paths[k], self.y, q, self._turns[k])
 
     def path(self, chain: Chain) -> ChainPath:
-        """Chain ``chain``'s path on :attr:`model` (a chain of :attr:`chains`).
-
-        Raises:
-            InvalidArgumentError: Not one of :attr:`chains` (its base and tool frames).
-        """
+        """The chain's path on :attr:`model` (InvalidArgumentError: not one of :attr:`chains`)."""
         return self.paths[self._index(chain)]
 
     def turns(self, chain: Chain) -> np.ndarray | None:
-        """The rotations ``R(w)`` ``(n, 3, 3)`` of the chain's joints' errors (None: no error).
-
-        Made once per placements: its frames and its twists read them (read only).
-        """
+        """The rotations ``R(w)`` ``(n, 3, 3)`` of the chain's joints' errors (None: no error)."""
         return self._turns[self._index(chain)]
 
     @cached_property
@@ -317,10 +240,7 @@ class Placements:
         )
 
     def errors(self) -> dict[str, np.ndarray]:
-        """``E_j`` ``(4, 4)`` from the nominal placement, by joint name, of the joints moved.
-
-        The calibrated origin of joint j is ``O_j E_j``.
-        """
+        """``E_j`` ``(4, 4)`` (origin ``O_j E_j``) by joint name, of the joints moved."""
         model = self._robot()
         out = {}
         for name, jid in zip(self.joints, self.ids, strict=True):
@@ -349,12 +269,7 @@ class Placements:
         return model
 
     def start_models(self, chains: tuple[Chain, ...], states) -> tuple[MDHModel, ...]:
-        """:meth:`chain_models` at zero errors, the states' own models when they are those.
-
-        A state's model converted from its chain itself (:func:`~calib.kinematics.mdh.from_chain`,
-        the default tolerance: its ``source``) has the arrays :meth:`chain_models` makes on
-        the unmoved robot (one walk, one conversion): it is not converted again.
-        """
+        """:meth:`chain_models` at zero errors, or the states' own models when they are those."""
         mine = tuple(getattr(s, "mdh", None) for s in states)
         if not self.y.any() and all(
             m is not None
@@ -374,10 +289,7 @@ class Placements:
 
 
 def zero_frames(chains: tuple[Chain, ...]) -> tuple:
-    """Each chain's :meth:`~calib.kinematics.robot.Chain.zero_frames` on the first's model.
-
-    One Pinocchio walk for chains of one zero configuration.
-    """
+    """Each chain's ``zero_frames`` on the first's model (one walk for one zero configuration)."""
     model = chains[0].model
     moved = [
         c if c.model is model else dataclasses.replace(c, model=model, ideal_model=None)
@@ -398,15 +310,7 @@ def zero_frames(chains: tuple[Chain, ...]) -> tuple:
 def joint_twists(
     placements: Placements, chain: Chain, kin: JointFrames
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Motion of the tool side of the chain per unit error of each joint's components.
-
-    An error ``dy`` of joint k moves everything on the chain's tool side of it by the body
-    twist ``(R(w)^T dv, J_r(w) dw)`` of the frame it acts at (frame k of ``kin``, its axis
-    frame), with a minus sign for a joint traversed backwards. ``kin``:
-    :meth:`Placements.frames` at m configurations. Returns the angular and linear velocity
-    ``(m, n, 3, 6)`` of the base-frame origin's point moving with the tool side, per
-    component (x y z rx ry rz).
-    """
+    """Angular, linear velocity ``(m, n, 3, 6)`` of the tool side per unit error of a component."""
     by_v, wv, by_w = _twist_blocks(placements, chain, kin)
     m, n = wv.shape[:2]
     ang, lin = np.zeros((m, n, 3, 6)), np.zeros((m, n, 3, 6))
@@ -417,15 +321,9 @@ def joint_twists(
 def twist_columns(
     placements: Placements, chain: Chain, kin: JointFrames, lift: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`joint_twists` along free directions of the joint placement components.
+    """:func:`joint_twists` (linear, angular ``(m, 3, free)``) along directions ``lift``.
 
-    The twists laid out by row and component (the product's rows, no copy), each direction
-    taken on the chain's joints' components only.
     Rationale and measurements: docs/developers/engine.md#twist_columns
-
-    ``kin``: the chain's frames at m configurations; ``lift``: the free directions
-    ``(free, 6 J)`` (:meth:`Placements.names` order). Returns the linear and angular velocity
-    ``(m, 3, free)`` per unit of each direction.
     """
     by_v, wv, by_w = _twist_blocks(placements, chain, kin)
     m, n = wv.shape[:2]
@@ -453,10 +351,6 @@ def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
     return by_v, wv, skew(kin.p[:, :n]) @ wv  # and the linear per dw
 
 
-DIRECTION_CONFIGS = 12
-"""Random configurations at which an MDH parameter's motion is matched to a joint's errors."""
-
-
 def mdh_directions(
     placements: Placements,
     chain: Chain,
@@ -464,21 +358,10 @@ def mdh_directions(
     seed: int = 0,
     label: str | ParameterSet = "complete",
 ) -> tuple[np.ndarray, tuple[str, ...]]:
-    """The chain's MDH parameters of joint rows 1..n as directions of joint placement errors.
+    """The chain's MDH parameters of rows 1..n as directions ``(D, 6 J)`` of placement errors.
 
-    An MDH parameter of row k moves everything on the tool side of one link rigidly: it is
-    an error of the placement of joint k (of joint k-1 for a row traversed backwards, whose
-    link lies on the base side). Its direction is the combination of that joint's six
-    components that moves the tool as the parameter does, at ``DIRECTION_CONFIGS`` random
-    configurations (exactly, or the parameter is not offered: a row-1 tilt backwards moves
-    the base frame's own fixed joint, which the plane takes). The parameters come in the
-    MDH chart's order of preference
-    (:func:`~calib.identification.identifiability.preference_order`).
-
-    ``placements``: zero errors; ``mdh``: the chain's model on their robot; ``seed``: of the
-    configurations; ``label``: ``complete``, ``paper`` or a set of ``mdh``'s parameters.
-    Returns the directions ``(D, 6 J)`` (in the MDH parameters' units) and their names
-    ``<joint>:<parameter>`` (the parameter's name in this chain's rows).
+    Names ``<joint>:<parameter>``; ``placements``: zero errors; ``label``: a level or a set.
+    Rationale: docs/developers/engine.md#mdh_directions
     """
     pset = parameter_set(mdh, label) if isinstance(label, str) else label
     chosen, n = [pset.parameters[i] for i in preference_order(mdh, pset)], chain.n

@@ -1,9 +1,4 @@
-"""Errors of a calibrated model on measured rows: the statistics every result reports.
-
-:class:`ResidualStats` (position and orientation RMS / max of a set of measurements) and
-:class:`Validation` (the same on held-out rows, with the registration's and the predicted
-standard deviation), in metres and radians.
-"""
+"""Errors of a calibrated model on measured rows (metres, radians): what every result reports."""
 
 from __future__ import annotations
 
@@ -41,16 +36,11 @@ class ResidualStats:
         residual = np.asarray(residual, dtype=float)
         m = len(residual)
         pos = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
-        rot = None
-        if residual.shape[1] == 3 * n_markers + 3:
-            rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-        return ResidualStats(
-            configs=m,
-            position_rms=float(np.sqrt(np.mean(pos**2))),
-            position_max=float(np.max(pos)),
-            orientation_rms=None if rot is None else float(np.sqrt(np.mean(rot**2))),
-            orientation_max=None if rot is None else float(np.max(rot)),
-        )
+        rms, top = float(np.sqrt(np.mean(pos**2))), float(np.max(pos))
+        if residual.shape[1] != 3 * n_markers + 3:
+            return ResidualStats(m, rms, top)
+        rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
+        return ResidualStats(m, rms, top, float(np.sqrt(np.mean(rot**2))), float(np.max(rot)))
 
     def in_mm(self) -> dict:
         """The report's form (format 3): lengths in mm, angles in degrees, unit in each key."""
@@ -66,8 +56,7 @@ class ResidualStats:
         return {"configs": self.configs, **{k: finite(getattr(self, k)) for k in _FIGURES}}
 
 
-_FIGURES = ("position_rms", "position_max", "orientation_rms", "orientation_max")
-""":class:`ResidualStats`' figures, in the reports' order."""
+_FIGURES = ("position_rms", "position_max", "orientation_rms", "orientation_max")  # in reports
 
 
 @dataclass(frozen=True)
@@ -78,11 +67,8 @@ class Validation:
         source: ``holdout`` (rows set aside) or the validation file.
         registration: Errors of the registration alone (nominal geometry).
         calibrated: Errors of the calibrated model.
-        predicted_std: Predicted position standard deviation of the calibrated model at
-            these configurations, RMS over them [m].
-        urdf: Errors of the calibrated URDF alone (the geometry, frame and markers, without
-            the joint compliance), or None when no compliance was fitted (then it is
-            ``calibrated``).
+        predicted_std: Predicted position std of the calibrated model, RMS over them [m].
+        urdf: Errors of the calibrated URDF alone (without joint compliance), or None.
         rows: The held-out measurements themselves (for per-configuration errors), or None.
     """
 

@@ -21,19 +21,17 @@ __all__ = [
     "fit",
     "fitted_values",
     "gauss_newton_finish",
+    "solved",
     "unconverged",
 ]
 
-TOLERANCE = 1e-10
-"""Relative tolerance on the cost, the step and the gradient (scipy's ftol, xtol, gtol)."""
+TOLERANCE = 1e-10  # relative, on the cost, the step and the gradient (scipy's ftol, xtol, gtol)
+_TOLERANCES = {"ftol": TOLERANCE, "xtol": TOLERANCE, "gtol": TOLERANCE}
 
 
 @runtime_checkable
 class FitState(Protocol):
-    """What a fit needs of a state (a chain's :class:`State`, the joint fit's ``ChainsState``).
-
-    Its kinematics are made once per x and passed to the residuals and the Jacobian.
-    """
+    """What a fit needs of a state; its kinematics are made once per x (``step_kinematics``)."""
 
     def step_kinematics(self, data: Any, torque: np.ndarray | None) -> Any:
         """The frames at the data's joints."""
@@ -70,11 +68,8 @@ _Model = TypeVar("_Model", bound=FitModel[Any])
 class Fit(Generic[_Model, _State]):
     """A solved fit: ``model`` (what was free) from ``start`` (x = 0) to ``state`` at ``x``.
 
-    ``J`` ``(r, p)`` and ``f`` ``(r,)`` [m]: the data rows' weighted Jacobian and residuals
-    model - measured at the solution; ``converged``: a convergence criterion met with finite
-    numbers (``status``, ``message``: scipy's); ``iterations``, ``evaluations``: of the
-    Jacobian and the residuals; ``kin``: ``state``'s kinematics at the data's joints (made
-    once per x), or None: what a caller scoring ``state`` on the same data passes on.
+    ``J`` ``(r, p)``, ``f`` ``(r,)`` [m]: the data rows' weighted Jacobian and model - measured
+    at the solution; ``iterations``, ``evaluations``: of the Jacobian and the residuals.
     """
 
     model: _Model
@@ -92,12 +87,7 @@ class Fit(Generic[_Model, _State]):
 
 
 def unconverged(fitted: Fit, what: str = "the solver", hint: bool = True) -> str | None:
-    """Why ``what`` (a fit, a registration) did not converge (None: it converged).
-
-    Stopped by the evaluation cap (status 0), it says so and, with ``hint``, that a larger
-    max_iterations may let it finish (a fit creeping along a weak valley: nearly parallel or
-    intersecting axes); not where the cap is no option's, or the cause is named beside it.
-    """
+    """Why ``what`` (a fit, a registration) did not converge, or None; ``hint``: more iterations."""
     if fitted.converged:
         return None
     capped = fitted.status == 0
@@ -109,8 +99,6 @@ def unconverged(fitted: Fit, what: str = "the solver", hint: bool = True) -> str
 class Problem:
     """Residuals model - measured (weighted by the state) and prior rows, their Jacobian, of x.
 
-    The state at the last two x is kept (its kinematics reused while x moves no geometry),
-    and the Jacobian at the last x.
     Measurements: docs/developers/performance.md#problem-solve
     """
 
@@ -165,11 +153,7 @@ class Problem:
         return kept[3]
 
     def jac(self, x: np.ndarray) -> np.ndarray:
-        """Jacobian of :meth:`fun`.
-
-        A copy for a robust loss, which SciPy scales in place; MINPACK copies the linear
-        loss's into its own array.
-        """
+        """Jacobian of :meth:`fun` (a copy for a robust loss, which SciPy scales in place)."""
         J = self.data_jac(x)
         if self.prior is not None:
             return np.vstack([J, np.diag(self.prior)])
@@ -190,17 +174,10 @@ def fit(
 ) -> Fit[_Model, _State]:
     """Levenberg-Marquardt (least squares) or trust-region (robust loss) from x = 0.
 
-    Args:
-        model: The free parameters.
-        start: The state at x = 0.
-        data: The measurements.
-        torque: Gravity torques ``(m, n)`` for compliance, or None.
-        prior: Weights of x in extra residual rows ``prior * x`` (a Gaussian prior toward
-            the start), or None.
-        loss: One of ``LOSSES``.
-        scale: Residual scale of a robust loss [m].
-        max_iterations: Most residual evaluations.
-        kin: The start's kinematics at the data's joints, if already made.
+    ``torque``: gravity torques ``(m, n)``, or None; ``prior``: weights of x in extra rows
+    ``prior * x`` (a Gaussian prior toward the start), or None; ``loss``: one of ``LOSSES``,
+    ``scale`` its residual scale [m]; ``max_iterations``: most residual evaluations; ``kin``:
+    the start's kinematics at the data's joints, if made.
     """
     import scipy.optimize  # here: importing it costs every calib command 0.1 s at start-up
 
@@ -219,43 +196,33 @@ def fit(
             method="trf",
             loss=loss,
             f_scale=scale,
-            ftol=TOLERANCE,
-            xtol=TOLERANCE,
-            gtol=TOLERANCE,
             max_nfev=max_iterations,
+            **_TOLERANCES,
         )
         x, status, message = sol.x, int(sol.status), str(sol.message)
         njev = int(sol.njev if sol.njev is not None else sol.nfev)
         nfev = int(sol.nfev)
     f = problem.data_rows(x)
     J = problem.data_jac(x) if p else np.zeros((f.size, 0))
+    _, state, kin, _ = problem._at(x)
+    return solved(model, start, state, x, J, f, status, message, (njev, nfev), kin)
+
+
+def solved(model, start, state, x, J, f, status: int, message: str, counts, kin=None) -> Fit:
+    """The :class:`Fit`, converged with a positive ``status`` and finite numbers."""
     finite = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(f)) and np.all(np.isfinite(J)))
-    return Fit(
-        model,
-        start,
-        problem.state(x),
-        x,
-        J,
-        f,
-        status > 0 and finite,
-        status,
-        message if finite else "non-finite parameters or residuals",
-        njev,
-        nfev,
-        problem._at(x)[2],
-    )
+    if not finite:
+        message = "non-finite parameters or residuals"
+    converged = status > 0 and finite
+    njev, nfev = counts
+    return Fit(model, start, state, x, J, f, converged, status, message, njev, nfev, kin)
 
 
 def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fit[_Model, _State]:
-    """A converged fit finished by undamped Gauss-Newton steps on its data rows.
+    """A converged linear-loss fit finished by undamped Gauss-Newton steps on its data rows.
 
-    MINPACK stops once a step lowers the cost by less than :data:`TOLERANCE` of it; on
-    noise-free rows already near their round-off a few steps remove the remainder, one
-    Jacobian each. Each step is the least-norm solution of the linearised data rows (no
-    prior: it moves nothing the rows do not determine) and is kept only if it lowers the
-    data rows' cost; the first that does not ends the finish. ``fitted``: a converged
-    linear-loss fit (:func:`fit`, no torque). Returns the fit at the last step kept
-    (``fitted`` itself when none lowers the cost), its counts including the finish's.
+    Each step kept only if it lowers the cost (``fitted`` itself when none does).
+    Rationale: docs/developers/engine.md#solve
     """
     problem = Problem(fitted.model, fitted.start, data, None, None, robust=False)
     x, f, best = fitted.x, fitted.f, fitted
@@ -277,10 +244,8 @@ def gauss_newton_finish(fitted: Fit[_Model, _State], data, steps: int = 2) -> Fi
     return best
 
 
-_MINPACK_STATUS = {0: -1, 1: 2, 2: 3, 3: 4, 4: 1, 5: 0}
-"""MINPACK's ``info`` as ``scipy.optimize.least_squares``'s status."""
-
-_STATUS_MESSAGES = {
+_MINPACK_STATUS = {0: -1, 1: 2, 2: 3, 3: 4, 4: 1, 5: 0}  # MINPACK's info as least_squares' status
+_STATUS_MESSAGES = {  # least_squares' message of each status (the results read as they did)
     -1: "Improper input parameters status returned from `leastsq`",
     0: "The maximum number of function evaluations is exceeded.",
     1: "`gtol` termination condition is satisfied.",
@@ -288,16 +253,12 @@ _STATUS_MESSAGES = {
     3: "`xtol` termination condition is satisfied.",
     4: "Both `ftol` and `xtol` termination conditions are satisfied.",
 }
-"""``least_squares``'s message of each status (the results read as they did)."""
 
 
 def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
-    """MINPACK's Levenberg-Marquardt on the problem, as ``least_squares(method='lm')`` runs it.
+    """MINPACK's Levenberg-Marquardt through ``leastsq``, as ``least_squares(method='lm')``.
 
-    Through ``scipy.optimize.leastsq`` (same routine and arguments, fewer Jacobian copies).
     Measurements: docs/developers/performance.md#_levenberg_marquardt-solve
-
-    Returns x, status and message (``least_squares``'s), Jacobian and residual evaluations.
     """
     import scipy.optimize
 
@@ -306,10 +267,8 @@ def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
         np.zeros(p),
         Dfun=problem.jac,
         full_output=True,
-        ftol=TOLERANCE,
-        xtol=TOLERANCE,
-        gtol=TOLERANCE,
         maxfev=max_iterations,
+        **_TOLERANCES,
     )
     status = _MINPACK_STATUS.get(int(code), -1)
     nfev = int(info["nfev"])
@@ -317,10 +276,7 @@ def _levenberg_marquardt(problem: Problem, p: int, max_iterations: int):
 
 
 def covariance(J: np.ndarray, rss: float, prior: np.ndarray | None = None):
-    """Covariance ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat = sqrt(RSS / (r - p)).
-
-    A singular information matrix gives infinite variances.
-    """
+    """Covariance ``sigma^2 (J^T J + P^2)^-1`` (inf: singular) and sigma = sqrt(RSS / (r - p))."""
     r, p = J.shape
     sigma = math.sqrt(rss / (r - p)) if r > p else math.nan
     A = J if prior is None else np.vstack([J, np.diag(prior)])
@@ -345,12 +301,7 @@ def condition(J: np.ndarray) -> float:
 
 
 def fitted_values(fitted: Fit, cov: np.ndarray) -> dict:
-    """A fit's free robot parameters for a result: names, values, std and the solver's outcome.
-
-    Past ``fitted``'s first ``model.fixed`` columns (frames and objects); ``cov``:
-    :func:`covariance` with its prior weights. Keys ``fitted`` (names), ``estimate``, ``std``
-    (NaN where undefined), ``solver`` ``(converged, message, Jacobian evaluations)``.
-    """
+    """Keys ``fitted``, ``estimate``, ``std`` (NaN: undefined), ``solver`` past ``model.fixed``."""
     fixed = fitted.model.fixed
     with np.errstate(invalid="ignore"):
         std = np.sqrt(np.diag(cov))[fixed:] if fitted.x.size else np.zeros(0)

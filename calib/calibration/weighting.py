@@ -1,9 +1,4 @@
-"""The orientation weight from the data: variance components of lengths and angles.
-
-Angle rows carry a weight w [m/rad], estimated as sigma_p / sigma_o from the residuals of the
-registration, which is redone with the new weight until it settles (an iterated estimation of
-two variance components; Koch, *Parameter Estimation and Hypothesis Testing in Linear Models*,
-Springer 1999, section 3.6).
+"""The orientation weight w = sigma_p / sigma_o [m/rad] from the data (variance components).
 
 Rationale and measurements: docs/developers/engine.md#weighting
 """
@@ -15,38 +10,17 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = [
-    "BOUNDS",
-    "DEFAULT_WEIGHT",
-    "ITERATIONS",
-    "TINY",
-    "TOLERANCE",
-    "estimate_weight",
-    "pose_angles",
-    "variance_ratio",
-]
+__all__ = ["DEFAULT_WEIGHT", "estimate_weight", "pose_angles", "variance_ratio"]
 
-DEFAULT_WEIGHT = 1.0
-"""Starting weight [m/rad] (1 mrad counts as 1 mm), kept when the data cannot tell."""
-
-BOUNDS = (1e-3, 1e3)
-"""Range of an estimated weight [m/rad]."""
-
-TINY = 1e-9
-"""Residual RMS [m or rad] below which a component is noise-free: the weight is not estimated."""
-
-TOLERANCE = 0.01
-"""Relative change of the weight at which the estimation stops (measured chains)."""
-
-ITERATIONS = 10
-"""Most registrations the estimation runs (measured chains)."""
+DEFAULT_WEIGHT = 1.0  # [m/rad] (1 mrad counts as 1 mm), kept when the data cannot tell
+BOUNDS = (1e-3, 1e3)  # range of an estimated weight [m/rad]
+TINY = 1e-9  # residual RMS [m or rad] of a noise-free component: the weight is not estimated
+TOLERANCE = 0.01  # relative change of the weight that stops the estimation (measured chains)
+ITERATIONS = 10  # most registrations the estimation runs (measured chains)
 
 
 def variance_ratio(residuals: np.ndarray, angle: np.ndarray) -> float | None:
-    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)`` [m, rad], or None if one is ~0.
-
-    ``angle`` ``(rows,)``: which rows are angles.
-    """
+    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)`` [m, rad], or None if one is ~0."""
     sp = math.sqrt(float(np.mean(residuals[:, ~angle] ** 2)))
     so = math.sqrt(float(np.mean(residuals[:, angle] ** 2)))
     if sp < TINY or so < TINY:
@@ -65,13 +39,7 @@ def estimate_weight(
     rounds: int = ITERATIONS,
     tolerance: float = TOLERANCE,
 ) -> float:
-    """The orientation weight [m/rad] at which the residuals' variance ratio settles.
-
-    Residuals without both lengths and angles: ``DEFAULT_WEIGHT``. ``residuals_at(w)``:
-    ``(m, rows)`` [m, rad] of a fit with weight w; ``angle`` ``(rows,)``: which rows are
-    angles (:func:`pose_angles`); ``tolerance``: the relative change of the weight that
-    stops it (0: after ``rounds`` fits).
-    """
+    """The orientation weight [m/rad] at which the variance ratio of ``residuals_at(w)`` settles."""
     weight = DEFAULT_WEIGHT
     angle = np.asarray(angle, dtype=bool)
     if angle.all() or not angle.any():
