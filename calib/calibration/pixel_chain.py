@@ -416,8 +416,10 @@ def pixel_count(
     """The unknowns cameras' pixels determine (``n_base``) at postures ``q`` [rad or m].
 
     ``chains``: each camera's chain to the target's tool (a target on several links: a chain
-    per link, the camera given once per chain); ``joints``: ``q``'s columns; ``params``
-    ``complete``: the target's mounting is an unknown too.
+    per link, the camera given once per chain); ``cameras``: each chain's, placed;
+    ``target``: its points in the tool frame [m]; ``joints``: ``q``'s columns; ``params``
+    ``complete``: the target's mounting is an unknown too. Returns ``n_base`` (the rank on the
+    nominal robot), ``n_unknowns`` and the rows, postures and cameras counted.
     """
     views = tuple((camera.name, camera.placement, camera.intrinsics) for camera in cameras)
     obs = simulate_cameras(chains, views, target, joints, q)
