@@ -1,6 +1,6 @@
 """A contact term's registration, checks, holdout and guess: mistakes, outliers, refusal.
 
-Rationale: docs/developers/engine.md#contact_checks (the registration: #contact_registration)
+Rationale: docs/developers/engine.md#contact_checks, docs/developers/engine.md#register_contacts
 """
 
 from __future__ import annotations
