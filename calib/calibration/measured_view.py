@@ -47,12 +47,14 @@ __all__ = [
 class MeasuredChain(TermPart):
     """A measured term's part of the result (a frame measuring its chain's tool).
 
-    ``state.inner.frame``: the nominal base frame in the measuring frame ``(4, 4)``; markers
-    and the measured frame's rotation in the tool frame.
     ``joint``: the fixed joint placing the measuring frame (None: an instrument outside the
-    robot); ``data``/``held``: its rows fitted and held out (outliers left out);
-    ``outliers``: the registration's; ``residuals``: the fitted state's at ``data`` ``(m,
-    rows)`` [m, rad], rigid joints only (else None), read again by :mod:`.chain_outliers`.
+    robot); ``registered``, ``state``: its registration on the nominal robot and its fitted
+    state (``inner.frame``: the nominal base frame in the measuring frame ``(4, 4)``; markers
+    and the measured frame's rotation in the tool frame); ``data``/``held``: its rows fitted
+    and held out (outliers left out); ``parameters``: its unknowns' report entries (the
+    frame's ``joint`` is :attr:`joint`); ``outliers``: the registration's; ``residuals``: the
+    fitted state's at ``data`` ``(m, rows)`` [m, rad], rigid joints only (else None), read
+    again by :mod:`.chain_outliers`.
     """
 
     chain: Chain
