@@ -230,7 +230,8 @@ class Solution:
 class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
-    Other shapes raise :class:`~calib.exceptions.InvalidArgumentError`.
+    Other shapes raise :class:`NotOneChainError` (an InvalidArgumentError and an
+    AttributeError: ``hasattr`` is False).
     """
 
     chains: tuple[Any, ...]
