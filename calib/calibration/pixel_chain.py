@@ -92,8 +92,9 @@ def pixel_jacobian(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``pixel - observed`` ``(m, 2)`` [px] and their derivatives ``(m, 2, c)``.
 
-    Columns in the module's order, the mounting's 6 always, the target points' and the
-    intrinsics' per ``state.what``; ``robot`` False: the joint placement columns are zero.
+    Columns: the camera's 6, every joint placement's 6, the mounting's 6 (always), then the
+    target points' and the intrinsics' per ``state.what`` [px per m, rad or px]; ``robot``
+    False: the joint placement columns are zero.
     """
     if kin is None:
         kin = placements.frames(chain, rows.q)
