@@ -308,6 +308,10 @@ def test_a_measured_term_must_measure_from_the_robot(talos_data):
     rows = simulate(moved, 12, "position", seed=1).measurements
     what = "base frame 'head_2_link' is the link of the moving joint head_2_joint, not fixed"
     _one_line_error(InvalidArgumentError, what, [*nominal[:2], moved], [*data[:2], rows])
+    joint = load_robot(URDF, "head_2_joint", CAMERA[1])  # the moving joint's own frame
+    rows = simulate(joint, 12, "position", seed=1).measurements
+    what = "base frame 'head_2_joint' is the frame of the moving joint head_2_joint, not fixed"
+    _one_line_error(InvalidArgumentError, what, [*nominal[:2], joint], [*data[:2], rows])
 
 
 def test_rows_of_the_wrong_kind_are_refused(talos_data):

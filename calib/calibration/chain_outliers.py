@@ -42,7 +42,11 @@ __all__ = ["fit_terms_until_stable", "proposals"]
 
 
 def proposals(start: ChainsState, c: int, data: Measurements, noise: float | None) -> np.ndarray:
-    """Rows a robust fit of term ``c``'s identifiable parameters at ``start`` finds outlying."""
+    """Rows a robust fit of term ``c``'s identifiable parameters at ``start`` finds outlying.
+
+    None (an all-False mask) where no row of the registration is far from the others
+    (:func:`~.outliers.spread_out`); ``noise``: the instrument's [m], or None.
+    """
     state = cast(MeasuredState, start.states[c])
     residuals = state.inner.residuals(data, None, state.frames_at(data))  # the registration's
     if not spread_out(point_errors(residuals, data.n_markers)):

@@ -157,8 +157,8 @@ class ContactChainsCalibration(Result, ChainView):
         chains: Each chain's part, in the order given.
         placements: The fitted joint placement errors (one per URDF joint on any chain).
         shared: Joints on two chains or more (fitted once for all of them).
-        planes: The touching chains' sets of objects, a plane shared by chains once (format
-            2's ``planes``; the summary counts the objects themselves).
+        planes: The touching chains' sets of objects: one per chain, a plane shared by chains
+            once (format 2's ``planes``; the summary counts the objects themselves).
         free: The placement components fitted (``<joint>:x`` ... ``:rz``).
         selection: The automatic choice (``auto``), or None.
         refusal: Why the model must not be used, or None.

@@ -1,6 +1,6 @@
 """A contact term's registration, checks, holdout and guess: mistakes, outliers, refusal.
 
-Rationale: docs/developers/engine.md#contact_checks (the registration: #contact_registration)
+Rationale: docs/developers/engine.md#contact_checks, docs/developers/engine.md#register_contacts
 """
 
 from __future__ import annotations
@@ -107,6 +107,8 @@ def refine(
 ) -> ContactFrames:
     """The frames at the least-squares minimum of the kind's weighted gap (Gauss-Newton).
 
+    The tool's ``rotations`` ``(m, 3, 3)`` and ``positions`` ``(m, 3)`` [m] in the base frame
+    held; ``index``: each touch's object ``(m,)``; ``weight``: the angle rows' [m/rad].
     ContactGeometryError where the touches do not fix the unknowns.
     """
     w = row_weights(frames.kind, weight)
@@ -225,8 +227,10 @@ def register_contacts(
 ) -> ContactFrames:
     """The objects and the contact frame registered from the tool's placements (nominal model).
 
-    ``contact``: the contact frame's guess (a fixed pose's and a tip's rotation kept);
-    ``weight`` [m/rad]; ``source``: the touches' file, which the errors name first.
+    ``rotations`` ``(m, 3, 3)``, ``positions`` ``(m, 3)`` [m]: the tool's in the base frame;
+    ``ids``: each touch's object; ``contact``: the contact frame's guess in the tool frame
+    ``(4, 4)`` (a fixed pose's and a tip's rotation kept); ``weight`` [m/rad] (1 mrad counts
+    as ``weight`` mm); ``source``: the touches' file, which the errors name first (or None).
 
     Raises:
         ContactGeometryError: Fewer than ``MIN_TOUCHES`` touches of an object, or a geometry
@@ -429,6 +433,9 @@ def few_postures(data, what: str) -> str | None:
 
 def rank_refusal(J: np.ndarray, fixed: int) -> str | None:
     """Why a fit whose data rows ``J`` (past ``fixed`` columns) are rank-deficient is refused.
+
+    None when they are of full rank: the condition of their unit-norm columns
+    (:func:`~.solve.condition`) under 1 / ``validation.RANK_TOL``.
 
     Rationale and measurements: docs/developers/engine.md#rank_refusal
     """

@@ -347,8 +347,9 @@ def _selection_columns(
 ):
     """The selection's dense columns (the always-free ones, then ``columns``), and the rest.
 
-    Returns them, the objects by block (:class:`~.object_columns.ObjectColumns`) or None,
-    and the number of always-free dense columns.
+    Returns them ``(m, rows, free + len(columns))``, the objects by block
+    (:class:`~.object_columns.ObjectColumns`) or None, and the number of always-free dense
+    columns.
     """
     x = np.zeros(wide.size())
     if not by_block(wide, start):

@@ -72,6 +72,14 @@ class TermPart:
     """What every term's part of a result offers, whatever its kind: errors, report, lines.
 
     Each kind's frozen dataclass adds :meth:`heading`, :meth:`_own` and :attr:`rows`.
+
+    Attributes:
+        chain: The nominal chain.
+        source: Its rows' file (or description).
+        kind: The term's layout (its ``label``, ``row_names`` and ``angular``).
+        stats: Its errors by part (:class:`GapStats`: ``train``, ``held_out``, ...).
+        held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
+        compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
     """
 
     chain: Chain

@@ -42,11 +42,12 @@ def measuring_joint(chain: Chain) -> str:
     except CalibError:
         frame = chain.model.frames[chain.base_id]
         placed = chain.model.frames[frame.parentFrame]
-        where = (
-            f"the link of the moving joint {placed.name}"
-            if placed.type == pin.FrameType.JOINT
-            else "the robot's root link"
-        )
+        if frame.type == pin.FrameType.JOINT:
+            where = f"the frame of the moving joint {frame.name}"
+        elif placed.type == pin.FrameType.JOINT:
+            where = f"the link of the moving joint {placed.name}"
+        else:
+            where = "the robot's root link"
         raise InvalidArgumentError(
             f"a measured term's base frame '{chain.base_frame}' is {where}, not fixed to a link "
             f"by a fixed joint: measure from a frame fixed on the robot (a head camera's), "

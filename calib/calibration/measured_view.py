@@ -48,9 +48,13 @@ class MeasuredChain(TermPart):
     """A measured term's part of the result (a frame measuring its chain's tool).
 
     ``joint``: the fixed joint placing the measuring frame (None: an instrument outside the
-    robot); ``data``/``held``: its rows fitted and held out (outliers left out);
-    ``outliers``: the registration's; ``residuals``: the fitted state's at ``data`` ``(m,
-    rows)`` [m, rad], rigid joints only (else None), read again by :mod:`.chain_outliers`.
+    robot); ``registered``, ``state``: its registration on the nominal robot and its fitted
+    state (``inner.frame``: the nominal base frame in the measuring frame ``(4, 4)``; markers
+    and the measured frame's rotation in the tool frame); ``data``/``held``: its rows fitted
+    and held out (outliers left out); ``parameters``: its unknowns' report entries (the
+    frame's ``joint`` is :attr:`joint`); ``outliers``: the registration's; ``residuals``: the
+    fitted state's at ``data`` ``(m, rows)`` [m, rad], rigid joints only (else None), read
+    again by :mod:`.chain_outliers`.
     """
 
     chain: Chain
@@ -153,7 +157,11 @@ def _measured_stats(
 
 
 def _own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
-    """The term's own unknowns x from the registration to ``state`` [rad, m]."""
+    """The term's own unknowns x from the registration to ``state``, in their order.
+
+    The frame's rotation vector of ``R R_0^T`` [rad] and translation change [m], the markers'
+    changes [m], then (pose) the measured frame's rotation vector of ``R_t0^T R_t`` [rad].
+    """
     a, b = registered.inner, state.inner
     parts = [
         rotation_vector((b.frame[:3, :3] @ a.frame[:3, :3].T)[None])[0],
@@ -168,7 +176,9 @@ def _own_change(registered: MeasuredState, state: MeasuredState) -> np.ndarray:
 def world_of(
     shape: str, frame: np.ndarray | None, world_link: str | None, on_robot: bool
 ) -> tuple[str, np.ndarray] | None:
-    """The ``world`` argument of the URDF writer (``marker_urdf``).
+    """The ``world`` argument of the URDF writer (``marker_urdf``), or None.
+
+    ``frame``: the base frame's pose in the instrument's ``(4, 4)``, or None.
 
     Raises:
         InvalidArgumentError: ``world_link`` or ``on_robot`` not on shape ``chain``, or both.
@@ -220,7 +230,8 @@ class Solution:
 class ChainView:
     """What a chain's result offers, on a joint fit of one chain measured by an instrument.
 
-    Other shapes raise :class:`~calib.exceptions.InvalidArgumentError`.
+    Other shapes raise :class:`NotOneChainError` (an InvalidArgumentError and an
+    AttributeError: ``hasattr`` is False).
     """
 
     chains: tuple[Any, ...]

@@ -248,7 +248,11 @@ class MeasuredKind:
         return self.measured_rows(J, rot, data)
 
     def _columns(self, state: State, xf, xt, m: int, kin, extra: int):
-        """Every own column's full rows (held markers' too, ``extra`` zero ones), rotation."""
+        """Every own column's full rows (held markers' too, ``extra`` zero ones), rotation.
+
+        The columns ``(m, full rows, 6 + 3 K [+ 3] + extra)``: the frame's, the markers', the
+        measured frame's rotation (pose), then ``extra``.
+        """
         K, kind = state.n_markers, self.measurement
         R = state.frame[:3, :3]
         pts, rot = kind.predict(

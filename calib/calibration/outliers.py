@@ -38,7 +38,10 @@ T = TypeVar("T")
 
 
 class Errors(NamedTuple):
-    """Each unit's position [m] and orientation [rad] errors, norms of ``dims`` components."""
+    """Each unit's position [m] and orientation [rad] errors, norms of ``dims`` components.
+
+    ``position`` and ``orientation`` ``(m,)``; ``orientation`` None without angle rows.
+    """
 
     position: np.ndarray
     orientation: np.ndarray | None = None
@@ -60,7 +63,10 @@ IRLS_ROUNDS = 60
 
 @dataclass(frozen=True)
 class Outlier:
-    """A configuration set aside: its file row, error and the median then [m, or rad]."""
+    """A configuration set aside: its file row, error and the median then [m, or rad].
+
+    ``kind``: ``position`` or ``orientation``, which error set it aside (its unit: m or rad).
+    """
 
     row: int
     error: float

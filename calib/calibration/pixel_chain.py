@@ -92,8 +92,9 @@ def pixel_jacobian(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The residuals ``pixel - observed`` ``(m, 2)`` [px] and their derivatives ``(m, 2, c)``.
 
-    Columns in the module's order, the mounting's 6 always, the target points' and the
-    intrinsics' per ``state.what``; ``robot`` False: the joint placement columns are zero.
+    Columns: the camera's 6, every joint placement's 6, the mounting's 6 (always), then the
+    target points' and the intrinsics' per ``state.what`` [px per m, rad or px]; ``robot``
+    False: the joint placement columns are zero.
     """
     if kin is None:
         kin = placements.frames(chain, rows.q)
@@ -416,8 +417,10 @@ def pixel_count(
     """The unknowns cameras' pixels determine (``n_base``) at postures ``q`` [rad or m].
 
     ``chains``: each camera's chain to the target's tool (a target on several links: a chain
-    per link, the camera given once per chain); ``joints``: ``q``'s columns; ``params``
-    ``complete``: the target's mounting is an unknown too.
+    per link, the camera given once per chain); ``cameras``: each chain's, placed;
+    ``target``: its points in the tool frame [m]; ``joints``: ``q``'s columns; ``params``
+    ``complete``: the target's mounting is an unknown too. Returns ``n_base`` (the rank on the
+    nominal robot), ``n_unknowns`` and the rows, postures and cameras counted.
     """
     views = tuple((camera.name, camera.placement, camera.intrinsics) for camera in cameras)
     obs = simulate_cameras(chains, views, target, joints, q)

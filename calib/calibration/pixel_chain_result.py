@@ -55,7 +55,9 @@ class PixelChain(TermPart):
 
     ``name``: the camera's (its link in the calibrated URDF); ``stats``: errors in mm at the
     target by part (``train``, ``train_registration``, ``held_out``...); ``pixels``: the same
-    parts' reprojection errors [px].
+    parts' reprojection errors [px]; ``registered``, ``state``: its registration on the nominal
+    robot and its fitted state (camera, target, lens); ``parameters``: its unknowns' report
+    entries (changes from the registration); ``outliers``: its rows set aside.
     """
 
     chain: Chain

@@ -198,7 +198,12 @@ class Problem(Options):
 
 
 def check_weighed(weight: float | None, data: Sequence) -> None:
-    """Refuse an orientation weight [m/rad] where no term's data have angle rows to weigh."""
+    """Refuse an orientation weight [m/rad] where no term's data have angle rows to weigh.
+
+    Raises:
+        InvalidArgumentError: ``weight`` is not None and no term has angle rows (orientations,
+            tilts).
+    """
     if weight is None:
         return
     for d in data:

@@ -57,7 +57,9 @@ def nearest_rotation(M: np.ndarray) -> np.ndarray:
 class _Moments:
     """The sums over one tool's configurations that the alternation needs, computed once.
 
-    ``cb``: the points' centre [m] (several tools: every tool's), or None: of these.
+    ``Rt`` ``(m, 3, 3)``, ``pt`` ``(m, 3)`` [m]: the tool's rotations and origins in the base
+    frame; ``points`` ``(m, K, 3)`` [m]; ``cb``: their centre [m] (several tools: every
+    tool's), or None: of these.
     How: docs/developers/engine.md#registration.
     """
 

@@ -95,7 +95,9 @@ def ridge_strengths(
     """Leave-one-out errors ``(b, m)`` at the best prior strength ``(b,)`` of several subsets.
 
     Subset s fits the first ``fixed`` columns free and ``cols[s]`` under the prior, on its
-    configurations ``train[s]``. How: docs/developers/engine.md#selection
+    configurations ``train[s]`` (``(b, m)`` bool). ``A``: unit-norm columns ``(m rows, p)``;
+    ``objects``: free too, by block, or None. The errors are zero on the configurations a
+    subset leaves out; a strength 0 is no prior. How: docs/developers/engine.md#selection
     """
     per = _per_batch(A.shape[0] * A.shape[1], len(train))
     parts = [
@@ -253,7 +255,11 @@ def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarra
 
 
 def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """The rows of each posture once (times the root of its count), and its spread and count."""
+    """The rows of each posture once (times the root of its count), and its spread and count.
+
+    ``J`` ``(m, rows, p)`` -> ``(postures, rows, p)``, ``e`` ``(m, rows)`` -> ``(postures,
+    rows)``; ``groups``: each configuration's posture ``(m,)`` (from 0), or None (each its own).
+    """
     m = len(e)
     if groups is None or int(np.max(groups, initial=-1)) + 1 == m:
         return J, e, (np.zeros(m), np.ones(m))  # numbered by first appearance: same order
@@ -266,7 +272,11 @@ def _by_posture(J: np.ndarray, e: np.ndarray, groups) -> tuple[np.ndarray, np.nd
 
 
 def _unit_columns(J, e, groups, objects):
-    """The rows of each posture once (:func:`_by_posture`), the columns of unit norm."""
+    """The rows of each posture once (:func:`_by_posture`), the columns of unit norm.
+
+    Returns the columns ``(postures rows, p)``, their norms, the residuals ``(postures
+    rows,)``, the postures' spread and counts, and the objects (by posture) or None.
+    """
     if objects is not None:
         objects = objects.by_posture(groups, len(e)).unit()
     J, e, repeats = _by_posture(J, e, groups)
@@ -297,7 +307,10 @@ def select(
     """Choose the parameters the data support; and each kept one's prior weight.
 
     ``J`` ``(m, rows, fixed + len(names))`` (the always-free columns first) and ``e`` ``(m,
-    rows)``, weighted, at the registration; ``forced``: indices into ``names`` always kept.
+    rows)``, weighted, at the registration; ``forced``: indices into ``names`` always kept;
+    ``groups``: each configuration's posture (repeats count once; None: each its own);
+    ``objects``: always-free object columns by block, or None. The prior weights are in the
+    units of x (``sqrt(strength) * |column|``).
     """
     points, rows = e.size / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)

@@ -39,7 +39,12 @@ def estimate_weight(
     rounds: int = ITERATIONS,
     tolerance: float = TOLERANCE,
 ) -> float:
-    """The orientation weight [m/rad] at which the variance ratio of ``residuals_at(w)`` settles."""
+    """The orientation weight [m/rad] at which the variance ratio of ``residuals_at(w)`` settles.
+
+    ``residuals_at(w)``: ``(m, rows)`` [m, rad] of a fit at weight w; ``angle`` ``(rows,)``:
+    which rows are angles; ``tolerance``: the relative change that stops it (0: ``rounds``
+    fits). Residuals without both lengths and angles: ``DEFAULT_WEIGHT``.
+    """
     weight = DEFAULT_WEIGHT
     angle = np.asarray(angle, dtype=bool)
     if angle.all() or not angle.any():

@@ -142,7 +142,7 @@ def marker_urdf(
             tool frame (with ``tool``: in the calibrated tool's).
         tool: One chain's calibrated tool ``(4, 4)`` (the measured frame in the tool frame;
             identity for position data), written as a chain's calibration writes it
-            (:func:`~.urdf_export.place_calibrated_tool`: a tool link carried by the chain's
+            (:func:`place_calibrated_tool`: a tool link carried by the chain's
             last joint is allowed), the markers hung from it; None: a tree's tools, each
             marker on its tool's link (a fixed one, or the link of the tool chain's last
             joint: TALOS's ``left_sole_link``, a UR5's ``wrist_2_link``).
