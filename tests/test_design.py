@@ -344,7 +344,12 @@ def test_configurations_csv_round_trip_and_errors():
         + "\n".join("1.0," + ",".join(repr(float(v)) for v in row[::-1]) for row in q)
     )
     np.testing.assert_array_equal(parse_configurations(shuffled, chain), q)
-    with pytest.raises(DataError, match="missing joint column"):
+    with pytest.raises(DataError, match="column 'shoulder_pan_joint'.*missing joint column"):
+        parse_configurations(",".join(chain.joint_names[1:]) + "\n" + "0," * 4 + "0\n", chain)
+    # none of the chain's joints: another robot's file, its columns shown
+    with pytest.raises(
+        DataError, match=r"row 1\): no joint column of ur5 .*columns: a, b: a file of another"
+    ):
         parse_configurations("a,b\n1,2\n", chain)
     bad = text.replace(repr(float(q[2, 1])), "1_0")
     with pytest.raises(DataError, match=r"row 4.*not a number"):

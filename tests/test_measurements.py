@@ -142,6 +142,16 @@ BAD_CASES = {
         "shoulder_pan_joint",
         "missing joint column",
     ),
+    "another robot's file": (  # a Panda's campaign read for the UR5: no joint of it, not one
+        lambda c: _text(
+            c, [["0.1"] * 10], [f"panda_joint{i}" for i in range(1, 8)] + ["x", "y", "z"]
+        ),
+        1,
+        None,
+        "no joint column of ur5 base_link -> tool0 (its 6 joints: shoulder_pan_joint, ...); the "
+        "file's columns: panda_joint1, panda_joint2, panda_joint3, panda_joint4, panda_joint5, "
+        "panda_joint6, ...: a file of another robot or chain?",
+    ),
     "number with an underscore": (
         lambda c: _text(c, [[*_good_row(c)[:6], "1_0", *_good_row(c)[7:]]]),
         2,

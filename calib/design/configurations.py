@@ -30,7 +30,12 @@ from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree
 from ..measurements.csvfile import csv_records, parse_number, read_data_text
 from ..measurements.data import JOINT_PREFIX, TOOL_COLUMN, DataWarning
-from ..measurements.joint_columns import check_followers, column_keys, follower_names
+from ..measurements.joint_columns import (
+    check_followers,
+    column_keys,
+    follower_names,
+    no_joint_of,
+)
 from ..measurements.limits import check_limits
 from ..measurements.pixels import OBSERVATION_COLUMNS
 
@@ -64,7 +69,8 @@ def parse_configurations(text: str, chain: Chain | Tree, source: str = "<text>")
     leaders = _leaders(chain, keys)
     for name in leaders:
         if JOINT_PREFIX + name not in keys:
-            raise DataError(source, "missing joint column", row=line, column=name)
+            missing = DataError(source, "missing joint column", row=line, column=name)
+            raise no_joint_of(chain, header, source, line) or missing
     read = [*leaders, *(n for n in follower_names(chain) if JOINT_PREFIX + n in keys)]
     read = list(dict.fromkeys(read))
     cols = [keys.index(JOINT_PREFIX + n) for n in read]

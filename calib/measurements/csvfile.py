@@ -52,7 +52,7 @@ from .data import (
     DataWarning,
     Measurements,
 )
-from .joint_columns import check_followers, column_keys, follower_names
+from .joint_columns import check_followers, column_keys, follower_names, no_joint_of
 from .limits import (
     LIMIT_MARGIN,
     LIMIT_TOL,
@@ -267,7 +267,7 @@ def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, l
     for name in chain.variable_names:
         if JOINT_PREFIX + name not in keys:
             tools = ", ".join(chain.tool_frames)
-            raise DataError(
+            raise no_joint_of(chain, names, src, line) or DataError(
                 src,
                 f"missing joint column: the chain {chain.base_frame} -> {tools} moves that joint "
                 "(its base and tool frames choose the joints read)",

@@ -19,11 +19,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..core.words import counted
 from ..exceptions import DataError
-from ..kinematics.robot import CoupledJoints
+from ..kinematics.robot import CoupledJoints, Robot
 from .data import JOINT_PREFIX
 
-__all__ = ["FOLLOWER_TOL", "check_followers", "column_keys", "follower_names"]
+__all__ = ["FOLLOWER_TOL", "check_followers", "column_keys", "follower_names", "no_joint_of"]
 
 FOLLOWER_TOL = 1e-6
 """Largest difference between a follower's column and its mimic relation [rad or m] (the
@@ -39,6 +40,27 @@ def column_keys(names: Sequence[str], joints: Sequence[str]) -> list[str]:
     joint_set = set(joints)
     prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joint_set
     return [JOINT_PREFIX + n if n in joint_set and n not in prefixed else n for n in names]
+
+
+def no_joint_of(robot: Robot, header: Sequence[str], source: str, row: int) -> DataError | None:
+    """The error of a header with no column of the robot's joints (another robot's file), or None.
+
+    A file of another robot or chain (the candidates of a Panda read for a UR10, the right
+    arm's touches for the left arm) lacks every joint, not one: the error says so and shows
+    the file's columns, instead of naming the first joint missing.
+    """
+    keys = column_keys(header, (*robot.variable_names, *follower_names(robot)))
+    if any(JOINT_PREFIX + n in keys for n in robot.variable_names):
+        return None
+    ends = f"{robot.base_frame} -> {', '.join(robot.tool_frames)}"
+    theirs = ", ".join(header[:6]) + (", ..." if len(header) > 6 else "")
+    return DataError(
+        source,
+        f"no joint column of {robot.name} {ends} (its {counted(len(robot.variable_names), 'joints')}"
+        f": {robot.variable_names[0]}, ...); the file's columns: {theirs}: a file of another "
+        "robot or chain?",
+        row=row,
+    )
 
 
 def follower_names(robot: CoupledJoints) -> tuple[str, ...]:
