@@ -485,3 +485,18 @@ def test_every_function_takes_the_measured_point_as_marker():
     plan = design(chain, 12, candidates=200, marker=marker, random_sets=2, seed=3)
     assert plan.indices.d == pytest.approx(evaluate(chain, plan.q, marker=marker).d, rel=1e-12)
     assert plan.indices.d != pytest.approx(evaluate(chain, plan.q).d, rel=1e-6)
+
+
+def test_cli_evaluate_of_too_few_configurations_says_why_no_prediction(tmp_path, capsys):
+    # 2 configurations of a point give 6 rows: rank 6 of the UR5's 25 (4R + 2P + 3 - 2, the
+    # flange's origin on the last axis); the missing 19 directions are said, no prediction
+    path = tmp_path / "two.csv"
+    path.write_text(
+        configurations_csv(chain_of("ur5"), candidate_configurations(chain_of("ur5"), 2, 0))
+    )
+    assert main(["design", "ur5", "--evaluate", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "25 parameters, rank 6" in out and "predicted RMS" not in out
+    assert (
+        "rank 6 of 25 parameters: these configurations leave 19 parameter directions unseen" in out
+    )

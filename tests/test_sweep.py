@@ -131,6 +131,14 @@ def test_cli_sweep_writes_csv_png_and_json(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.csv", "s.png"]  # no temp files
 
 
+def test_cli_sweep_of_one_robot_says_what_it_wrote(tmp_path, capsys):
+    out_csv = tmp_path / "s.csv"
+    assert main(["sweep", "--configs", "30", "--robots", "ur5", "--csv", str(out_csv)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2].startswith("1 chain or tree, 1 analysed, 0 with an error")
+    assert lines[-1] == f"wrote {out_csv}" and out_csv.exists()
+
+
 def test_cli_sweep_plain_output_without_progress_bar(capsys):
     assert main(["sweep", "--configs", "30"]) == 0
     out, err = capsys.readouterr()
@@ -215,3 +223,16 @@ def test_cli_sweep_robots_with_a_urdf_file_among_the_names_analyses_it(capsys):
     assert code == 0
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert [r["robot"] for r in rows] == ["ur5", good] and rows[1]["error"] is None
+
+
+def test_counts_figure_of_a_few_robots_keeps_long_panel_titles_inside(capsys):
+    # six robots in four kinds make a narrow figure: "Mobile and legged/aerial manipulators
+    # (1)" ran past its right edge; the PNG's rightmost pixel columns must be background
+    from matplotlib.image import imread
+
+    from calib.outputs.plots import figure_bytes
+
+    rows = sweep(robots=["ur5", "ur10", "panda", "tiago", "talos_left_arm", "stanford"], configs=30)
+    pixels = imread(io.BytesIO(figure_bytes(counts_figure(rows))))
+    assert pixels.shape[1] < 800  # the narrow case
+    assert (pixels[:, -3:, :3] == 1.0).all()  # white: nothing drawn at the right edge

@@ -248,9 +248,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                 "the theory"
             )
         print(
-            f"\n{len(rows)} chains and trees, {len(rows) - bad} analysed, {bad} with an error "
-            f"(reason in the last column); {args.measure}, {verdict}"
+            f"\n{counted(len(rows), 'chains and trees', 'chain or tree')}, {len(rows) - bad} "
+            f"analysed, {bad} with an error (reason in the last column); {args.measure}, {verdict}"
         )
+        for path in files:  # as design, simulate and calibrate say what they wrote
+            print(f"wrote {path}")
     return 0
 
 

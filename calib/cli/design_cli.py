@@ -211,7 +211,13 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
             f"{ind.parameters} parameters, rank {ind.rank}"
         )
         print(indices_table({"set": [ind.value(c) for c in CRITERIA]}))
-        if ind.i is not None and math.isfinite(ind.i):
+        if ind.rank < ind.parameters:  # I is infinite: say why, and what to do
+            print(
+                f"\nrank {ind.rank} of {ind.parameters} parameters: these configurations leave "
+                f"{counted(ind.parameters - ind.rank, 'parameter directions')} unseen, no error "
+                "prediction; measure more (or more varied) configurations"
+            )
+        elif ind.i is not None and math.isfinite(ind.i):
             print(
                 f"\npredicted RMS position error after calibration at {args.noise_mm:g} mm noise: "
                 f"{args.noise_mm * ind.i:.4g} mm"

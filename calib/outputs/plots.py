@@ -67,7 +67,7 @@ def counts_figure(
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     for ax, (group, rs) in zip(axes, groups.items(), strict=False):
         _counts_panel(ax, rs, widest, theory)
-        ax.set_title(f"{group} ({len(rs)})" if group else "", fontsize=9)
+        ax.set_title(f"{group} ({len(rs)})" if group else "", fontsize=9, wrap=True)
     for ax in axes[len(groups) :]:
         ax.set_visible(False)
     axes[0].legend(fontsize=7)
