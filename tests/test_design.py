@@ -500,3 +500,31 @@ def test_cli_evaluate_of_too_few_configurations_says_why_no_prediction(tmp_path,
     assert (
         "rank 6 of 25 parameters: these configurations leave 19 parameter directions unseen" in out
     )
+
+
+@pytest.mark.parametrize(
+    ("extra", "fact"),
+    [
+        (["--workspace", "5", "5", "5", "6", "6", "6"], "workspace rejects 500"),  # out of reach
+        (["--workspace", "1", "1", "1", "0", "0", "0"], "with min < max"),
+        (["--workspace", "nan", "0", "0", "1", "1", "1"], "box must be finite numbers, got NaN"),
+        (["--obstacle", "1", "1", "1", "0", "0", "0"], "an obstacle box is xmin"),
+        (["--configs", "0"], "integer >= 1, got 0"),
+        (["--configs", "3"], "choose at least 9 configurations"),  # 9 rows for 25 parameters
+        (["--tool", "tool00"], "no frame named 'tool00'"),
+        (["--candidates", "10000000"], "use at most"),
+        (["--candidates", "20"], "20 of 20 candidates pass the filters"),
+    ],
+)
+def test_cli_design_refuses_a_planners_bad_input_in_one_line_and_writes_nothing(
+    tmp_path, capsys, extra, fact
+):
+    out = tmp_path / "configs.csv"
+    defaults = {"--configs": "30", "--candidates": "500"}  # an option is given once
+    given = [a for k, v in defaults.items() if k not in extra for a in (k, v)]
+    argv = ["design", "ur5", *given, *extra, "--out", str(out)]
+    assert main(argv) == 2
+    std, err = capsys.readouterr()
+    assert std == "" and err.count("\n") == 1 and err.startswith("calib: error: ")
+    assert fact in err, err
+    assert list(tmp_path.iterdir()) == []

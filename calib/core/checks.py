@@ -199,7 +199,7 @@ def real_array(
         wanted = "(" + ", ".join("m" if s is None else str(s) for s in shape) + ")"
         raise InvalidArgumentError(f"{what} must have shape {wanted}, got {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise InvalidArgumentError(f"{what} contain NaN or infinity")
+        raise InvalidArgumentError(f"{what} must be finite numbers, got NaN or infinity")
     if bound is not None and a.size and float(np.max(np.abs(a))) > bound:
         raise InvalidArgumentError(f"{what} must be within {bound:g} in absolute value")
     return a
