@@ -512,6 +512,7 @@ def test_cli_evaluate_of_too_few_configurations_says_why_no_prediction(tmp_path,
         (["--configs", "0"], "integer >= 1, got 0"),
         (["--configs", "3"], "choose at least 9 configurations"),  # 9 rows for 25 parameters
         (["--tool", "tool00"], "no frame named 'tool00'"),
+        (["--marker", "0", "0", "0.1", "--marker", "0", "0", "0.1"], "markers 1 and 2 are at one"),
         (["--candidates", "10000000"], "use at most"),
         (["--candidates", "20"], "20 of 20 candidates pass the filters"),
     ],

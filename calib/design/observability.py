@@ -245,6 +245,14 @@ def observation_model(
         return _tree_observation_model(chain, measure, markers, params, structure_q, seed)
     check_model_arguments(measure, params, orientation_weight)
     mk = marker_array(markers)
+    twice = next(
+        ((i, j) for j in range(len(mk)) for i in range(j) if np.allclose(mk[i], mk[j])), None
+    )
+    if twice is not None:  # one point measured twice: the score of fewer columns than the fit's
+        raise InvalidArgumentError(
+            f"markers {twice[0] + 1} and {twice[1] + 1} are at one place, {mk[twice[1]].tolist()}"
+            " m: give each marker where it is on the tool (its approximate place)"
+        )
     kind = campaign_kind(measure)
     nominal = from_chain(chain).idealized()
     pset, names = _level_names(nominal, params)
