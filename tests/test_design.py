@@ -344,7 +344,7 @@ def test_configurations_csv_round_trip_and_errors():
         + "\n".join("1.0," + ",".join(repr(float(v)) for v in row[::-1]) for row in q)
     )
     np.testing.assert_array_equal(parse_configurations(shuffled, chain), q)
-    with pytest.raises(DataError, match="column 'shoulder_pan_joint'.*missing joint column"):
+    with pytest.raises(DataError, match=r"column 'shoulder_pan_joint'.*missing joint column"):
         parse_configurations(",".join(chain.joint_names[1:]) + "\n" + "0," * 4 + "0\n", chain)
     # none of the chain's joints: another robot's file, its columns shown
     with pytest.raises(

@@ -52,13 +52,13 @@ def no_joint_of(robot: Robot, header: Sequence[str], source: str, row: int) -> D
     keys = column_keys(header, (*robot.variable_names, *follower_names(robot)))
     if any(JOINT_PREFIX + n in keys for n in robot.variable_names):
         return None
-    ends = f"{robot.base_frame} -> {', '.join(robot.tool_frames)}"
+    ends = f"{robot.chains[0].base_frame} -> {', '.join(robot.tool_frames)}"
+    joints = counted(len(robot.variable_names), "joints")
     theirs = ", ".join(header[:6]) + (", ..." if len(header) > 6 else "")
     return DataError(
         source,
-        f"no joint column of {robot.name} {ends} (its {counted(len(robot.variable_names), 'joints')}"
-        f": {robot.variable_names[0]}, ...); the file's columns: {theirs}: a file of another "
-        "robot or chain?",
+        f"no joint column of {robot.name} {ends} (its {joints}: {robot.variable_names[0]}, "
+        f"...); the file's columns: {theirs}: a file of another robot or chain?",
         row=row,
     )
 
