@@ -87,8 +87,8 @@ _LAZY = {
     "calibrated_urdf": "kinematics.urdf_export",
     "measurement_to_base": "kinematics.urdf_export",
     "write_calibrated_urdf": "kinematics.urdf_export",
-    "ContactChainsCalibration": "calibration.contact_chains_result",
-    "calibrate_contact_chains": "calibration.contact_chains",
+    "ContactChainsCalibration": "calibration.engine_result",
+    "calibrate_contact_chains": "calibration.engine",
     "calibrate_tree": "calibration.entry",
     "TreeCampaign": "measurements.tree_campaign",
     "simulate_tree": "measurements.tree_campaign",
@@ -130,9 +130,9 @@ TYPE_CHECKING = False  # True for type checkers; importing typing would cost sta
 if TYPE_CHECKING:  # what the lazy names are, for type checkers (tests/test_public.py)
     from .calibration import ResidualStats, calibrate, residual_stats
     from .calibration.analysis import ProblemAnalysis, analyze
-    from .calibration.contact_chains import calibrate_contact_chains
-    from .calibration.contact_chains_result import ContactChainsCalibration
     from .calibration.delivery import Result
+    from .calibration.engine import calibrate_contact_chains
+    from .calibration.engine_result import ContactChainsCalibration
     from .calibration.entry import calibrate_tree
     from .calibration.hand_eye import hand_eye
     from .calibration.pixel_chain import PixelCamera, PixelData, Unknowns

@@ -437,7 +437,7 @@ def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, 
     auto is refused before the selection starts, naming the levels to give instead."""
     import numpy as np
 
-    import calib.calibration.contact_choice as choice
+    import calib.calibration.choice as choice
     from calib.kinematics.robot import load_chain
 
     chain = load_chain("ur5")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from calib import load_chain
-from calib.calibration import contact_chains, contact_choice, contact_fit
+from calib.calibration import choice, contact_fit, engine
 from calib.calibration.contact_blocks import BlockSystem, block_lstsq
 from calib.calibration.entry import calibrate_contacts
 
@@ -64,7 +64,7 @@ def test_the_engine_by_block_reaches_the_dense_engines_minimum(
     for name in ("block_fit", "block_structural"):
         real = getattr(contact_fit, name)
         spy = (lambda f, n: lambda *a, **k: calls.append(n) or f(*a, **k))(real, name)
-        target = contact_chains if name == "block_fit" else contact_choice
+        target = engine if name == "block_fit" else choice
         monkeypatch.setattr(target, name, spy)
     kw = {"params": params, "elastic": elastic, "holdout": 0.2, "seed": 1}
     block = calibrate_contacts(chain, train, **kw)

@@ -10,8 +10,8 @@ import pytest
 from contact_scorer import plane_gaps, read_joints
 
 from calib import load_robot
+from calib.calibration.choice import touching_postures
 from calib.calibration.contact_blocks import dense
-from calib.calibration.contact_choice import touching_postures
 from calib.calibration.contact_model import ContactFrames, ContactState
 from calib.calibration.entry import calibrate_contacts
 from calib.exceptions import CalibrationRefusedError, InvalidArgumentError

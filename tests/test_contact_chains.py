@@ -20,8 +20,8 @@ from contact_scorer import plane_gaps, read_joints, relative_placements
 from contact_states import plane_state
 
 from calib import calibrate_contact_chains, load_robot, simulate
-from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_checks import split_contacts
+from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.placements import Placements
 from calib.cli.commands import main
 from calib.exceptions import CalibrationRefusedError, DataError, InvalidArgumentError
@@ -371,7 +371,7 @@ def test_shared_plane_is_one_plane():
 def test_a_fit_step_makes_each_chains_frames_once(monkeypatch):
     """The solver's residuals and Jacobian at one x: each chain's frames made once, from the
     placements (no MDH model made)."""
-    from calib.calibration import contact_chains_model, placements
+    from calib.calibration import engine_model, placements
     from calib.calibration.solve import Problem
 
     chains = tuple(_chains())
@@ -390,9 +390,7 @@ def test_a_fit_step_makes_each_chains_frames_once(monkeypatch):
     monkeypatch.setattr(
         placements.Placements, "frames", lambda self, *a: made.append(a[0]) or frames(self, *a)
     )
-    monkeypatch.setattr(
-        contact_chains_model.MDHModel, "kinematics", lambda *a: pytest.fail("an MDH model")
-    )
+    monkeypatch.setattr(engine_model.MDHModel, "kinematics", lambda *a: pytest.fail("an MDH model"))
     problem = Problem(model, start, data, None)
     x = 1e-3 * np.ones(model.size())
     problem.fun(x)
@@ -407,7 +405,7 @@ def test_the_engines_keywords_are_its_run_and_its_options():
     import dataclasses
     import inspect
 
-    from calib.calibration.contact_chains import Run
+    from calib.calibration.engine import Run
     from calib.calibration.options import Options
 
     given = set(list(inspect.signature(calibrate_contact_chains).parameters)[2:])

@@ -531,7 +531,7 @@ def test_engine_compliance_columns_match_central_differences():
     its gaps under the standing torques; its blocks (the fit by block) are those columns."""
     from test_contact_chains import central_differences, moved_chains
 
-    from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
+    from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 
     chain = load_robot(*TALOS)
     rng = np.random.default_rng(2)

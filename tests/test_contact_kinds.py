@@ -16,7 +16,7 @@ import pytest
 from contact_scorer import contact_gaps, read_joints
 
 from calib import load_robot
-from calib.calibration import contact_choice
+from calib.calibration import choice
 from calib.calibration.contact_checks import registration, split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
@@ -84,13 +84,13 @@ def test_rank_postures_are_flush_on_the_joint_frames(monkeypatch):
     joint frames, not only the MDH model (the UR5's differ by 4e-13 m, which made dependent
     directions independent at 1e-12 and dropped two of the fixed point's 26 columns)."""
     seen = []
-    structural = contact_choice.structural
+    structural = choice.structural
 
     def spy(wide, start, flush, *rest):
         seen.append((start, flush))
         return structural(wide, start, flush, *rest)
 
-    monkeypatch.setattr(contact_choice, "structural", spy)
+    monkeypatch.setattr(choice, "structural", spy)
     chain = load_robot(*CHAINS["ur5"])
     camp = simulate_contacts(chain, 80, "fixed-point", contacts=2, seed=3)
     calibrate_contacts(chain, camp.data, params="complete", holdout=0.3, seed=1)

@@ -20,9 +20,9 @@ from contact_states import plane_state
 from test_contact_chains import central_differences, moved_chains, true_robot
 
 from calib import calibrate_contact_chains, load_robot
-from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.contact_checks import split_contacts, subset
 from calib.calibration.contact_model import ContactFrames, ContactState
+from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.cli.commands import main
 from calib.exceptions import InvalidArgumentError
 from calib.identification.contacts import FixedPointContact, FixedPoseContact, PlaneContact

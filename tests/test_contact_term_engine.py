@@ -14,7 +14,7 @@ import pytest
 from test_contact_kinds import _invariants, _placements, _scale_fit, _similarity_fit
 
 from calib import Problem, Term, calibrate, load_robot, simulate_contacts
-from calib.calibration.contact_chains_result import ContactChainsCalibration
+from calib.calibration.engine_result import ContactChainsCalibration
 from calib.exceptions import DataError, InvalidArgumentError
 
 KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")
@@ -69,7 +69,7 @@ def test_joint_compliance_and_many_objects_are_fitted_by_the_engine(monkeypatch)
     """``elastic`` and 30 planes or more: the engine's result. Many objects go by block
     (:func:`~calib.calibration.contact_fit.block_fit`, called) and reach the minimum of the
     dense fit (MINPACK on the whole Jacobian) at every level."""
-    from calib.calibration import contact_chains, contact_fit
+    from calib.calibration import contact_fit, engine
 
     chain = load_robot(*TALOS)
     few = simulate_contacts(chain, 60, "plane", seed=3).data
@@ -84,7 +84,7 @@ def test_joint_compliance_and_many_objects_are_fitted_by_the_engine(monkeypatch)
 
     for params in ("offsets", "auto"):
         with monkeypatch.context() as m:
-            m.setattr(contact_chains, "block_fit", spy)
+            m.setattr(engine, "block_fit", spy)
             blocks = calibrate(chain, many, params=params, holdout=0.2)
         with monkeypatch.context() as m:
             m.setattr(contact_fit, "BLOCK_UNKNOWNS", 10**9)  # the dense route

@@ -289,13 +289,13 @@ def test_proposed_outliers_are_set_aside_before_any_fit(monkeypatch):
 def test_the_choice_differentiates_the_measured_rows_once(monkeypatch):
     """The rank test and the selection of ``auto`` read one Jacobian at the measured rows
     (the same rows at the registration), not one each; the generic configurations' own."""
-    import calib.calibration.contact_chains as contact_chains
-    from calib.calibration.contact_chains_model import ChainsModel
+    import calib.calibration.engine as engine
+    from calib.calibration.engine_model import ChainsModel
 
     chain = load_chain("ur5")
     data = calib.simulate(chain, 40, "position", (0.01, 0.02, 0.05), noise_mm=0.05, seed=5)
     rows: list[int] = []
-    inner, choose = ChainsModel.jacobian, contact_chains.choose
+    inner, choose = ChainsModel.jacobian, engine.choose
     choosing = [False]
 
     def counting(self, start, x, d, *args, **kwargs):
@@ -311,7 +311,7 @@ def test_the_choice_differentiates_the_measured_rows_once(monkeypatch):
             choosing[0] = False
 
     monkeypatch.setattr(ChainsModel, "jacobian", counting)
-    monkeypatch.setattr(contact_chains, "choose", counted)
+    monkeypatch.setattr(engine, "choose", counted)
     result = calibrate(chain, data.measurements, marker=(0.01, 0.02, 0.05))
     assert result.selection is not None
     assert rows.count(40) == 1

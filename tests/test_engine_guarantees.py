@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 
 from calib import calibrate, load_chain, simulate_contacts
-from calib.calibration import contact_chains, contact_choice, contact_register
-from calib.calibration.contact_chains_result import ContactChainsCalibration
+from calib.calibration import choice, engine, register
+from calib.calibration.engine_result import ContactChainsCalibration
 from calib.exceptions import InvalidArgumentError
 
 
@@ -18,9 +18,9 @@ def _touches():
 def test_one_chain_touching_too_big_for_memory_is_refused_before_any_work(monkeypatch):
     """The bound (per touch and object column) exceeded: one line, before the registration."""
     chain, data = load_chain("ur5"), _touches()
-    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6) + 1))
+    monkeypatch.setattr(choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6) + 1))
     registered = []
-    monkeypatch.setattr(contact_register, "_checked", lambda *a: registered.append(a))
+    monkeypatch.setattr(register, "_checked", lambda *a: registered.append(a))
     with pytest.raises(InvalidArgumentError, match=r"GB: fewer touches or planes$") as err:
         calibrate(chain, data, params="complete")
     assert "40 touches of 2 planes (6 of their unknowns)" in str(err.value)
@@ -29,7 +29,7 @@ def test_one_chain_touching_too_big_for_memory_is_refused_before_any_work(monkey
 
 def test_one_chain_touching_at_the_memory_bound_is_fitted(monkeypatch):
     chain, data = load_chain("ur5"), _touches()
-    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6)))
+    monkeypatch.setattr(choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6)))
     r = calibrate(chain, data, params="complete")
     assert isinstance(r, ContactChainsCalibration) and r.accepted, r.refusal
 
@@ -38,13 +38,13 @@ def test_a_rank_deficient_fit_is_refused(monkeypatch):
     """The same direction offered twice (two equal columns): an SVD of the Jacobian the test
     builds from the result confirms the deficiency, and the engine refuses in one line."""
     chain, data = load_chain("ur5"), _touches()
-    choose = contact_chains.choose
+    choose = engine.choose
 
     def twice(*args):
         model, wide, selection, prior = choose(*args)
         return model.with_free((*model.free, model.free[0])), wide, selection, prior
 
-    monkeypatch.setattr(contact_chains, "choose", twice)
+    monkeypatch.setattr(engine, "choose", twice)
     r = calibrate(chain, data, params="complete")
     assert r.free.count(r.free[-1]) == 2  # offered twice indeed
     assert not r.accepted

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-import calib.calibration.contact_chains as contact_chains
+import calib.calibration.engine as engine
 from calib import load_chain, simulate
 from calib.calibration import calibrate
 from calib.calibration.solve import TOLERANCE, Problem, fit
@@ -27,7 +27,7 @@ def engine_fit(monkeypatch, chain, data, **options) -> dict:
         seen["fitted"] = fit(model, start, rows, torque, **kwargs)
         return seen["fitted"]
 
-    monkeypatch.setattr(contact_chains, "fit", spy)
+    monkeypatch.setattr(engine, "fit", spy)
     calibrate(chain, data, **options)
     return seen
 

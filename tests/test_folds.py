@@ -395,15 +395,15 @@ def test_a_folds_held_out_refusal_is_told_by_its_rule_not_by_its_text(monkeypatc
     fold fitted by hand, in docs/howto/validate.md). The fit's held-out refusal reworded: before,
     the fold's refusal was told from the rule's by its text, so the reworded one passed for the
     fold's own ("fold 3 of 5: ..."); now by the rule itself, the verdict is the pooled one."""
-    from calib.calibration import contact_chains
+    from calib.calibration import engine
 
-    held_out_refusal = contact_chains.held_out_refusal
+    held_out_refusal = engine.held_out_refusal
 
     def reworded(stats, chain, what):
         text = held_out_refusal(stats, chain, what)
         return None if text is None else f"reworded: {text}"
 
-    monkeypatch.setattr(contact_chains, "held_out_refusal", reworded)
+    monkeypatch.setattr(engine, "held_out_refusal", reworded)
     chain, data = _ur10(pose=False)
     folded = cross_validate(chain, data, folds=5)
     assert folded.refusal.startswith("the calibrated model's held-out errors"), folded.refusal

@@ -13,7 +13,7 @@ from conftest import chain_of
 from pixel_setups import INTRINSICS, calibrated, setup
 
 from calib import Problem, Term, calibrate, cross_validate, load_chain, simulate, simulate_contacts
-from calib.calibration.contact_chains import NOTHING_HELD
+from calib.calibration.engine import NOTHING_HELD
 from calib.calibration.pixel_chain import PixelCamera
 from calib.cli.flags import in_flags
 from calib.measurements.pixel_simulation import simulate_pixels

@@ -14,7 +14,7 @@ import pinocchio as pin
 import xacro  # the test extra installs it (the registry package, no ROS)
 
 import calib
-from calib.calibration.contact_chains import calibrate_contact_chains
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.entry import calibrate as calibrate_tree
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main

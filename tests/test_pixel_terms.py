@@ -23,7 +23,7 @@ from test_contact_chains import central_differences
 
 import calib
 from calib import Problem, Term, calibrate, calibrate_contact_chains, load_robot
-from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
+from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.pixel_chain import PixelCamera, PixelData, Unknowns, pixel_part, pixel_rows
 from calib.calibration.pixel_chain_result import PixelChain
 from calib.calibration.pixel_fit import checked_pixels
@@ -339,8 +339,8 @@ def test_the_loop_keeps_the_pixel_rows_its_holdout_drew(campaign):
     """With ``holdout``, the fit made again after the loop's pixel outlier is scored on the
     rows the first draw held out: the same as the training rows less the outlier fitted with
     every term's held-out rows given as validation rows (the pixels' as data again)."""
-    from calib.calibration.contact_register import drawn
     from calib.calibration.pixel_chain import pixel_parts
+    from calib.calibration.register import drawn
 
     nominal, data = _hidden_pixel_error(campaign, 8, 0, 2.0)
     res = calibrate_contact_chains(nominal, data, params="complete", holdout=0.25, seed=0)

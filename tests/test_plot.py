@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import calib
-from calib.calibration.contact_chains import calibrate_contact_chains
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.entry import calibrate as calibrate_tree
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main

@@ -86,7 +86,7 @@ def test_an_orientation_weight_without_angle_rows_is_refused():
         with pytest.raises(InvalidArgumentError, match="no term has any") as info:
             Problem(terms, orientation_weight=0.5)
         assert "\n" not in str(info.value)
-    from calib.calibration.contact_chains import calibrate_contact_chains
+    from calib.calibration.engine import calibrate_contact_chains
     from calib.calibration.entry import calibrate_contacts
 
     with pytest.raises(InvalidArgumentError, match="no term has any"):  # the engine's entries

@@ -24,7 +24,7 @@ from test_tree_properties import RandomTree, urdf_text
 
 import calib
 from calib import calibrate, load_chain, simulate, simulate_contacts
-from calib.calibration import contact_chains, contact_checks, solve
+from calib.calibration import contact_checks, engine, solve
 
 # A prismatic joint, then a revolute one 3.5e-5 rad from parallel to it, a prismatic joint on
 # the revolute's axis and two generic revolute ones (a seeded random chain of rank44's search):
@@ -221,14 +221,14 @@ def test_a_stalled_contact_fit_names_what_the_touches_cannot_separate(monkeypatc
     came out a negative square, NaN, and ``auto`` kept one column of two, whose fit converged.)
     The combination is checked on the stopped fit's Jacobian by central differences."""
     fits: list = []
-    real = contact_chains._fit
+    real = engine._fit
 
     def recorded(model, wide, start, train, prior, level, opts, kin=None):
         out = real(model, wide, start, train, prior, level, opts, kin)
         fits.append((out[0], train))
         return out
 
-    monkeypatch.setattr(contact_chains, "_fit", recorded)
+    monkeypatch.setattr(engine, "_fit", recorded)
     chain = _chain(_urdf(SLIDES, SLIDES_TOOL))
     data = simulate_contacts(chain, 38, "plane", contacts=2, seed=226).data
     r = calibrate(chain, data, params="auto", max_iterations=50)
@@ -277,7 +277,7 @@ def test_a_fit_that_did_not_converge_sets_no_touch_aside():
 
 def _start_checks(found: list, monkeypatch) -> None:
     """Each fit's model checked at its start (x = 0) by the rank refusal's own rule."""
-    real = contact_chains._fit
+    real = engine._fit
 
     def checked(model, wide, start, train, prior, level, opts, kin=None):
         p = model.size()
@@ -285,7 +285,7 @@ def _start_checks(found: list, monkeypatch) -> None:
         found.append((level, contact_checks.rank_refusal(J, model.fixed)))
         return real(model, wide, start, train, prior, level, opts, kin)
 
-    monkeypatch.setattr(contact_chains, "_fit", checked)
+    monkeypatch.setattr(engine, "_fit", checked)
 
 
 def _inseparable(refusal: str | None) -> list[str]:
@@ -402,7 +402,7 @@ def test_a_pixel_calibration_from_five_images_is_refused_for_its_cause_first(tmp
     more = ["--configs", "5", "--noise-px", "0.5", "--seed", "2", "--out", obs]
     assert main([str(a) for a in (*simulated, *more)]) == 0
     fits: list = []
-    real = contact_chains._fit
+    real = engine._fit
 
     def recorded(*args, **kwargs):
         out = real(*args, **kwargs)
@@ -411,7 +411,7 @@ def test_a_pixel_calibration_from_five_images_is_refused_for_its_cause_first(tmp
 
     argv = ["calibrate", "ur5", "--measure", "pixels", "--data", obs, *camera, *common]
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(contact_chains, "_fit", recorded)
+        patch.setattr(engine, "_fit", recorded)
         code = main([str(a) for a in (*argv, "--out", tmp_path / "cal.urdf")])
     assert code != 0 and not (tmp_path / "cal.urdf").exists()
     refusal = capsys.readouterr().err.split("calibration refused: ", 1)[1]

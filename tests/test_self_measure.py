@@ -22,7 +22,7 @@ from test_contact_chains import central_differences, moved_chains
 
 from calib import calibrate_contact_chains, load_chain, load_robot, simulate
 from calib.calibration.chain_registration import MeasuredState
-from calib.calibration.contact_chains_model import ChainsData, ChainsModel, ChainsState
+from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.measured_view import MeasuredChain
 from calib.calibration.model import registration_state
 from calib.calibration.report import REPORT_KEYS

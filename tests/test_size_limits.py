@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-import calib.calibration.contact_choice as contact_choice
-import calib.calibration.contact_register as contact_register
+import calib.calibration.choice as choice
 import calib.calibration.entry as entry
+import calib.calibration.register as register
 import calib.core.checks
 import calib.measurements.contact_campaign as contact_campaign
 import calib.measurements.csvfile as csvfile
@@ -57,7 +57,7 @@ def test_too_many_touches_or_planes_in_a_file_is_one_line(tmp_path, capsys, monk
     assert not (tmp_path / "o").exists()
     with pytest.raises(InvalidArgumentError, match="4 planes"):
         simulate_contacts(chain, 12, "plane", contacts=4)
-    monkeypatch.setattr(contact_register, "MAX_TOUCHES", 11)
+    monkeypatch.setattr(register, "MAX_TOUCHES", 11)
     with pytest.raises(InvalidArgumentError, match="12 touches"):
         calibrate_contacts(chain, data)  # data made by the API are held to the same maxima
 
@@ -80,7 +80,7 @@ def test_the_memory_bound_of_the_measured_cases():
     """The estimate covers the measured whole-process peaks (TALOS sole to gripper, params
     auto: 62 columns to select beside the planes' unknowns), which now run; at the stated
     maxima, 50,000 touches of one plane run and 2,000 planes of 4 touches are refused."""
-    per_touch, per_column, per_object = contact_choice.SELECTION_BYTES
+    per_touch, per_column, per_object = choice.SELECTION_BYTES
     limit = calib.core.checks.MAX_WORK_BYTES
     for m, objects, peak in ((20000, 3, PEAK_ONE_PLANE), (2000, 1500, PEAK_500_PLANES)):
         need = m * (per_touch + 62 * per_column + objects * per_object)
@@ -97,15 +97,15 @@ def test_a_contact_calibration_too_big_for_memory_is_refused_up_front(monkeypatc
     data = simulate_contacts(chain, 40, "plane", contacts=2, seed=0).data
     mdh = from_chain(chain)  # auto's candidates: the complete set's joint rows 1..n
     dense = 2 + sum(1 <= p.row <= mdh.n for p in parameter_set(mdh, "complete").parameters)
-    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense) + 1, 0))
+    monkeypatch.setattr(choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense) + 1, 0))
     with pytest.raises(InvalidArgumentError, match="give a level") as err:
         calibrate_contacts(chain, data)
     assert f"40 touches of 2 planes (6 of their unknowns, {dense} other columns to select)" in (
         str(err.value)
     )
     assert calibrate_contacts(chain, data, params="complete").selection is None  # no selection
-    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense), 0))
+    monkeypatch.setattr(choice, "SELECTION_BYTES", (0, 2**31 // (40 * dense), 0))
     assert calibrate_contacts(chain, data).selection is not None  # at the bound: selected
-    monkeypatch.setattr(contact_choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6) + 1))
+    monkeypatch.setattr(choice, "SELECTION_BYTES", (0, 0, 2**31 // (40 * 6) + 1))
     with pytest.raises(InvalidArgumentError, match=r"GB: fewer touches or planes$"):
         calibrate_contacts(chain, data, params="complete")

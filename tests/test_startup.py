@@ -53,7 +53,7 @@ NOT_FOR_ANALYZE = (
     "calib.design.constraints",
     "calib.design.configurations",
     "calib.measurements.csvfile",
-    "calib.calibration.contact_chains",
+    "calib.calibration.engine",
     "calib.calibration.solve",
     "calib.kinematics.elastic",
     "calib.outputs.sweep",

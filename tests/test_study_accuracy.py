@@ -18,7 +18,7 @@ import pytest
 from pinref import instrument_points
 
 import calib
-from calib.calibration.contact_chains import NOTHING_HELD
+from calib.calibration.engine import NOTHING_HELD
 
 pytestmark = pytest.mark.slow
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from calib import Columns, calibrate, load_chain, read_measurements
-from calib.calibration.contact_chains_model import ChainsData
+from calib.calibration.engine_model import ChainsData
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::calib.DataWarning")]
 

@@ -1,7 +1,7 @@
 """Calibration from measurements: registration, model choice, fit, validation.
 
 :func:`calibrate` fits a :class:`~.problem.Problem` (a robot and its terms) with the joint
-engine (:mod:`.contact_chains`), one module per step for every kind and shape
+engine (:mod:`.engine`), one module per step for every kind and shape
 (docs/developers/architecture.md). May import: :mod:`calib.measurements`,
 :mod:`calib.identification`, :mod:`calib.kinematics` and the bottom modules.
 """

@@ -88,7 +88,7 @@ class ProblemAnalysis:
 def _count(problem: Problem) -> ProblemAnalysis:
     """The joint fit's count of a problem's terms (a tree: one measured term per tool)."""
     from ..measurements.data import Measurements
-    from .contact_chains import Run, determined_unknowns
+    from .engine import Run, determined_unknowns
     from .instrument import prepare_tree
     from .options import Options
 

@@ -17,7 +17,7 @@ from ..kinematics.tree import tree_of_chains
 from ..measurements.data import Measurements
 from ..measurements.postures import count, posture_groups, sample_postures
 from . import determined
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState
+from .engine_model import ChainsData, ChainsModel, ChainsState
 
 __all__ = ["GENERIC_EXCESS", "Generic", "assess", "chain_name", "sampled"]
 

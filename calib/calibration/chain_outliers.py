@@ -16,12 +16,11 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import determined, term_checks
 from .chain_registration import MeasuredState
-from .contact_chains_model import ChainsData, ChainsState
-from .contact_chains_result import ChainContacts, ContactChainsCalibration
+from .choice import chains_model
 from .contact_checks import enough_touches, length_errors, subset
-from .contact_choice import chains_model
 from .contact_model import ContactState
-from .contact_register import Registered, Run, drawn
+from .engine_model import ChainsData, ChainsState
+from .engine_result import ChainContacts, ContactChainsCalibration
 from .measured_options import compliance_torques
 from .measured_view import MeasuredChain
 from .outliers import (
@@ -37,6 +36,7 @@ from .outliers import (
 from .pixel_chain import PixelPart, PixelTermState, pixel_parts
 from .pixel_chain_result import PixelChain
 from .pixel_fit import ROUND_OFF_PX
+from .register import Registered, Run, drawn
 
 __all__ = ["fit_terms_until_stable", "proposals"]
 

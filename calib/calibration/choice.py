@@ -24,10 +24,10 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from ..measurements.postures import posture_groups
 from .chain_counts import sampled
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState, joint_motions
 from .contact_checks import check_level_equations
 from .contact_fit import block_structural, by_block
 from .contact_model import ContactState
+from .engine_model import ChainsData, ChainsModel, ChainsState, joint_motions
 from .object_columns import ObjectColumns
 from .pixel_chain import PixelPart, with_tool
 from .placements import COMPONENTS, JointFrames, component_of, mdh_directions, offset_component
@@ -47,7 +47,7 @@ __all__ = [
 SELECTION_BYTES = (12_000, 330, 130)
 """Peak memory [B] of a contact calibration per touch, per touch and column of the dense
 selection (``params auto``), and per touch and object column.
-Measurements: docs/developers/performance.md#selection_bytes-contact_choice"""
+Measurements: docs/developers/performance.md#selection_bytes-choice"""
 
 
 def check_selection_memory(chains, data, level: str, comp: int = 0) -> None:

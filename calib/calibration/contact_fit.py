@@ -9,8 +9,8 @@ import numpy as np
 
 from ..identification.base_columns import independent_columns
 from .contact_blocks import BlockSystem, block_factors, block_lstsq
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState
 from .contact_model import ContactState
+from .engine_model import ChainsData, ChainsModel, ChainsState
 from .solve import TOLERANCE, Fit, solved
 
 __all__ = ["BLOCK_UNKNOWNS", "block_fit", "block_structural", "by_block"]
@@ -108,7 +108,7 @@ def _result(model, start, data, x, f, status, counts) -> Fit:
 
 
 def block_structural(model: ChainsModel, start: ChainsState, data: ChainsData) -> list[int]:
-    """The columns the touches determine (:func:`~.contact_choice.structural`), by block."""
+    """The columns the touches determine (:func:`~.choice.structural`), by block."""
     K, o = model.object_blocks()
     own, shared, index = model.blocks(start, np.zeros(model.size()), data)
     F = block_factors(BlockSystem(own, shared, np.zeros(own.shape[:2]), index, K))

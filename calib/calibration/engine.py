@@ -1,8 +1,8 @@
 """The joint engine: every term of one robot fitted together, shared joints once.
 
-A run is registered (:mod:`.contact_register`), its model chosen (:mod:`.contact_choice`),
+A run is registered (:mod:`.register`), its model chosen (:mod:`.choice`),
 fitted (:func:`fit_registered`) and refused where its held-out errors are worse than the
-registration's. Rationale and measurements: docs/developers/engine.md#contact_chains
+registration's. Rationale and measurements: docs/developers/engine.md#engine
 """
 
 from __future__ import annotations
@@ -24,16 +24,15 @@ from . import contact_checks, contact_elastic, term_checks, validation
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .chain_registration import MeasuredState
-from .contact_chains_model import ChainsData, ChainsModel, ChainsState
-from .contact_chains_result import ChainContacts, ContactChainsCalibration, nothing_fitted
+from .choice import chains_model, choose, flush_data, structural
 from .contact_checks import contact_objects, few_postures, held_out_refusal
-from .contact_choice import chains_model, choose, flush_data, structural
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
-from .contact_register import Registered, Run, determined_unknowns, register_contact_chains
 from .contact_result import gap_stats, part_stats
 from .delivery import read_files
 from .determined import ILL_CONDITION, Direction
+from .engine_model import ChainsData, ChainsModel, ChainsState
+from .engine_result import ChainContacts, ContactChainsCalibration, nothing_fitted
 from .measured_options import level_offer
 from .measured_term import unseen
 from .measured_view import MeasuredChain, Solution, measured_part
@@ -41,6 +40,7 @@ from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import PixelData, PixelTermState
 from .pixel_chain_result import PixelChain, check_fitted_pixels, pixel_result
 from .problem import check_weighed
+from .register import Registered, Run, determined_unknowns, register_contact_chains
 from .selection import Selection
 from .solve import fit, fitted_values, gauss_newton_finish, unconverged
 

@@ -1,6 +1,6 @@
 """The joint fit's error model: the robot's joint placement errors and each term's state.
 
-Rationale and measurements: docs/developers/engine.md#contact_chains_model
+Rationale and measurements: docs/developers/engine.md#engine_model
 """
 
 from __future__ import annotations

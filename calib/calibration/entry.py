@@ -2,7 +2,7 @@
 
 ``calibrate(problem)`` fits a :class:`~.problem.Problem`; ``calibrate(robot, data, **options)``
 is the problem of one term. Every shape is fitted by the one joint engine
-(:func:`~.contact_chains.calibrate_contact_chains`). docs/developers/engine.md#entry
+(:func:`~.engine.calibrate_contact_chains`). docs/developers/engine.md#entry
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from .chain_outliers import fit_terms_until_stable
-from .contact_chains import (
+from .delivery import read_files
+from .engine import (
     Registered,
     Run,
     calibrate_contact_chains,
@@ -27,8 +28,7 @@ from .contact_chains import (
     fit_run,
     register_contact_chains,
 )
-from .contact_chains_result import ContactChainsCalibration
-from .delivery import read_files
+from .engine_result import ContactChainsCalibration
 from .instrument import prepare_tree
 from .measured_term import check_measured
 from .options import (
@@ -175,7 +175,7 @@ calibrate_tree = calibrate
 def calibrate_contacts(
     chain: Chain, data: ContactData, *, validate: ContactData | None = None, **options
 ) -> ContactChainsCalibration:
-    """One chain touching: :func:`~.contact_chains.calibrate_contact_chains` of one term.
+    """One chain touching: :func:`~.engine.calibrate_contact_chains` of one term.
 
     Its other arguments as they are (``contact``, ``params``, ``elastic``, ``support``, ...).
 

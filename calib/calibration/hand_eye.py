@@ -13,7 +13,7 @@ import numpy as np
 
 from ..kinematics.robot import Chain
 from ..measurements.pixels import PixelObservations, Target
-from .contact_chains import calibrate_contact_chains
+from .engine import calibrate_contact_chains
 from .pixel_chain import PixelCamera, PixelData, Unknowns
 from .pixel_chain_result import PixelChain
 from .pixel_fit import MAX_EVALUATIONS

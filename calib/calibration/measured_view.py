@@ -21,9 +21,9 @@ from ..measurements.csvfile import check_against_chain
 from ..measurements.data import Measurements
 from . import validation
 from .chain_registration import MeasuredState
-from .contact_chains_model import ChainsData
 from .contact_elastic import urdf_alone
 from .contact_result import GapStats, TermPart, part_stats, row_stats, units
+from .engine_model import ChainsData
 from .measured_report import chain_frames, written_markers
 from .measured_term import measuring_joint
 from .model import State

@@ -117,7 +117,7 @@ class Options:
     """The options of a calibration, chain or tree, checked when made (by name).
 
     A :class:`~.problem.Problem` is its terms and these (and the joint fit's own), and the
-    joint engine's run carries them (:class:`~.contact_register.Run`).
+    joint engine's run carries them (:class:`~.register.Run`).
 
     Attributes:
         params: Parameter level, one of :data:`LEVELS`, or None: the shape's default

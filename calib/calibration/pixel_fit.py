@@ -18,7 +18,7 @@ from ..identification.pinhole import Pinhole
 from ..kinematics.placement_export import camera_placement
 from ..kinematics.robot import Chain
 from . import determined, diagnosis, outliers, term_checks
-from .contact_chains_model import ChainsData, ChainsState
+from .engine_model import ChainsData, ChainsState
 from .pixel_chain import (
     PixelKind,
     PixelPart,

@@ -1,7 +1,7 @@
 """A joint fit's steps before its choice (:func:`register_contact_chains`).
 
 A :class:`Run` checked, its held-out rows drawn, its outliers set aside, each chain
-registered on the nominal robot; :func:`~.contact_chains.fit_registered` continues.
+registered on the nominal robot; :func:`~.engine.fit_registered` continues.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from ..measurements.contact_campaign import ContactData
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, validation
 from .chain_registration import MeasuredState, held_markers
-from .contact_chains_model import ChainsData, ChainsState, on_models
-from .contact_choice import chains_model, check_selection_memory, flush_data, structural
+from .choice import chains_model, check_selection_memory, flush_data, structural
 from .contact_model import ContactState
+from .engine_model import ChainsData, ChainsState, on_models
 from .instrument import shared_frame
 from .measured_options import compliance_torques
 from .measured_term import check_measured, checked_measured, one_term_per_frame
@@ -42,7 +42,7 @@ __all__ = ["Registered", "Run", "determined_unknowns", "drawn", "register_contac
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Run:
-    """One run of the joint engine: :func:`~.contact_chains.calibrate_contact_chains`'s args."""
+    """One run of the joint engine: :func:`~.engine.calibrate_contact_chains`'s args."""
 
     chains: Sequence[Chain]
     data: Sequence[ContactData | Measurements | PixelData]
@@ -225,7 +225,7 @@ def determined_unknowns(run: Run) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 @dataclasses.dataclass(frozen=True)
 class Registered:
-    """A run up to its registration, to be fitted (:func:`~.contact_chains.fit_registered`)."""
+    """A run up to its registration, to be fitted (:func:`~.engine.fit_registered`)."""
 
     run: Run
     train: list

@@ -149,8 +149,8 @@ def calibrate_contacts_command(args: argparse.Namespace, chain: Chain | Tree, re
 
 
 def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support):
-    """One chain's touches fitted by the joint engine (:mod:`calib.calibration.contact_chains`)."""
-    from ..calibration.contact_chains import calibrate_contact_chains
+    """One chain's touches fitted by the joint engine (:mod:`calib.calibration.engine`)."""
+    from ..calibration.engine import calibrate_contact_chains
 
     def fit(rows: list, held: list | None):
         return calibrate_contact_chains(

@@ -24,10 +24,10 @@ from typing import Any, cast
 
 import numpy as np
 
-from ..calibration.contact_chains import NOTHING_HELD
-from ..calibration.contact_chains_result import ChainContacts, ContactChainsCalibration
 from ..calibration.contact_checks import few_postures, held_out_refusal, subset
 from ..calibration.contact_result import GapStats
+from ..calibration.engine import NOTHING_HELD
+from ..calibration.engine_result import ChainContacts, ContactChainsCalibration
 from ..calibration.entry import calibrate
 from ..calibration.measured_view import MeasuredChain
 from ..calibration.problem import Problem, Term
@@ -280,7 +280,7 @@ def _own_refusal(run: ContactChainsCalibration) -> str | None:
     Its held-out rule is the pooled one's business; a fit that stalled, or that its data do
     not determine, gives held-out errors of no fitted model. Told by the rule, not by the
     text: a fit whose held-out rule fails on a term is refused by it, before the solver's
-    and the rank's reasons (:func:`~calib.calibration.contact_chains._assessed`), so a stall
+    and the rank's reasons (:func:`~calib.calibration.engine._assessed`), so a stall
     it hides is asked of the solution.
     """
     held_out = any(_held_out_refusal(p, p.stats) for p in run.chains if "held_out" in p.stats)

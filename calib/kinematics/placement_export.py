@@ -1,6 +1,6 @@
 """Write a URDF whose joint origins are moved by given rigid errors: ``O_j -> O_j E_j``.
 
-The calibration of several chains of one robot (:mod:`calib.calibration.contact_chains`)
+The calibration of several chains of one robot (:mod:`calib.calibration.engine`)
 fits one error per URDF joint, shared by every chain through it; its URDF is the nominal
 file with those joints' ``<origin>`` edited, nothing else (joints without error keep their
 bytes).
