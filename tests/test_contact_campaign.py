@@ -220,3 +220,22 @@ def test_repeated_touches_are_warned_about_as_repeated_configurations():
     text = f"plane,{JOINTS}\nt,{ROW}\nu,{ROW}\nt,0.2,0.2,0.3,0.4,0.5,0.6\nt,{ROW}\n"
     with pytest.warns(DataWarning, match=r"1 of 4 touches repeat .* \(first: row 5\)"):
         parse_contacts(text, load_chain("ur5"), "plane", "t.csv")
+
+
+@pytest.mark.parametrize("keep", [[5, 2, 9], np.arange(21) % 4 == 1])
+def test_a_subset_of_touches_is_the_file_of_those_lines(keep):
+    """``ContactData.subset`` (indices in their order, or a mask), as ``Measurements.subset``:
+    the touches, ids, file rows and other joints' readings of a file holding only those lines."""
+    chain = load_chain("talos_left_arm_full")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = read_contacts(REAL / "left_train.csv", chain, "plane")
+        lines = (REAL / "left_train.csv").read_text().splitlines()
+        picked = np.arange(data.m)[keep]
+        text = "\n".join([lines[0], *(lines[data.rows[i] - 1] for i in picked)])
+        want = parse_contacts(text, chain, "plane")
+    sub = data.subset(keep)
+    assert sub.m == len(picked) and np.array_equal(sub.q, want.q) and sub.ids == want.ids
+    assert sub.rows == tuple(data.rows[i] for i in picked)
+    assert np.array_equal(sub.readings.values, want.readings.values)
+    assert sub.readings.names == want.readings.names and sub.source == data.source

@@ -20,7 +20,7 @@ from contact_states import plane_state
 from test_contact_chains import central_differences, moved_chains, true_robot
 
 from calib import calibrate_contact_chains, load_robot
-from calib.calibration.contact_checks import split_contacts, subset
+from calib.calibration.contact_checks import split_contacts
 from calib.calibration.contact_model import ContactFrames, ContactState
 from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.cli.commands import main
@@ -185,7 +185,7 @@ def test_real_talos_loop_on_the_command_line(capsys, tmp_path, monkeypatch):
             if w.startswith(f"{chain.base_frame} -> {chain.tool_frame}: held out:")
             for row in re.findall(r"row (\d+)", w)
         }
-        held = subset(held, np.array([r not in named for r in held.rows]))
+        held = held.subset(np.array([r not in named for r in held.rows]))
         joints = {name: held.q[:, k] for k, name in enumerate(chain.joint_names)}
         (obj,) = part["contact"]["planes" if part["kind"] == "plane" else "poses"].values()
         (frame,) = part["contact"]["frames"].values()

@@ -245,12 +245,10 @@ def _pooled_by_hand(results, what: str) -> float:
 
 def test_touches_pooled_as_explicit_validation_runs():
     """A chain touching two planes, 3 folds: each plane's touches cut in order by hand."""
-    from calib.calibration.contact_checks import subset
-
     chain = load_chain("ur5")
     data = simulate_contacts(chain, 36, contacts=2, seed=4, noise_mrad=0.05).data
     held = _by_hand(lambda d: list(d.ids), data, 3)
-    runs = [calibrate(chain, subset(data, ~h), validate=subset(data, h)) for h in held]
+    runs = [calibrate(chain, data.subset(~h), validate=data.subset(h)) for h in held]
     folded = cross_validate(chain, data, folds=3)
     stats = folded.chains[0].stats
     for what in ("held_out", "held_out_registration"):

@@ -212,7 +212,7 @@ def test_the_loop_keeps_the_rows_its_holdout_drew():
     """With ``holdout``, the fit made again after the loop's outlier is scored on the rows the
     first draw held out: the same as the training rows less the outlier fitted with those
     rows given as validation touches."""
-    from calib.calibration.contact_checks import split_contacts, subset
+    from calib.calibration.contact_checks import split_contacts
 
     chain, _, data = _hidden_touch_error()
     train, held = split_contacts(data, 0.25, 0)
@@ -221,7 +221,7 @@ def test_the_loop_keeps_the_rows_its_holdout_drew():
     assert [o.row for o in res.chains[0].outliers] == [42]
     keep = np.array([r != 42 for r in train.rows])
     same = calibrate(chain, train, params="paper", validate=held)
-    again = calibrate(chain, subset(train, keep), params="paper", validate=held)
+    again = calibrate(chain, train.subset(keep), params="paper", validate=held)
     assert same.chains[0].outliers[0].row == 42  # the loop finds it from the given rows too
     for r in (same, again):
         got, want = res.stats["held_out"], r.stats["held_out"]

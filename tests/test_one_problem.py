@@ -25,7 +25,7 @@ from calib import (
     simulate,
     simulate_tree,
 )
-from calib.calibration.contact_checks import held_out_refusal, subset
+from calib.calibration.contact_checks import held_out_refusal
 from calib.calibration.contact_result import GapStats
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
@@ -46,7 +46,7 @@ def test_contact_validation_that_is_the_data_is_refused(kind, tmp_path, capsys):
     copy = tmp_path / "copy.csv"
     shutil.copy(train, copy)
     some = tmp_path / "some.csv"
-    write_contacts(some, subset(data, np.arange(30) < 5))
+    write_contacts(some, data.subset(np.arange(30) < 5))
     frames = ["--base", LEFT[0], "--tool", LEFT[1], "--measure", kind]
     for check in (train, copy, some):
         out = tmp_path / "cal.urdf"
@@ -73,7 +73,7 @@ def test_api_contact_validation_rows_of_the_data_are_refused():
     data = simulate_contacts(chain, 30, "plane", seed=3).data
     with pytest.raises(DataError, match="validation rows are rows of the data"):
         calibrate_contacts(
-            chain, data, validate=subset(data, (np.arange(30) >= 3) & (np.arange(30) < 9))
+            chain, data, validate=data.subset((np.arange(30) >= 3) & (np.arange(30) < 9))
         )
 
 

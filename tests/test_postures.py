@@ -14,7 +14,7 @@ from test_calibration import refit_loo
 
 from calib import DataError, load_chain, simulate
 from calib.calibration import calibrate
-from calib.calibration.contact_checks import split_contacts, subset
+from calib.calibration.contact_checks import split_contacts
 from calib.calibration.entry import calibrate_contacts
 from calib.calibration.selection import OUTER_FOLDS, RICH, STRENGTHS, select
 from calib.calibration.validation import split
@@ -93,9 +93,9 @@ def test_touches_twice_give_the_selection_of_the_touches_once():
     chain = load_chain("ur5")
     data = simulate_contacts(chain, 60, "plane", noise_mrad=0.05, seed=3).data
     once = calibrate_contacts(chain, data).selection
-    twice = calibrate_contacts(chain, subset(data, np.repeat(np.arange(data.m), 2))).selection
+    twice = calibrate_contacts(chain, data.subset(np.repeat(np.arange(data.m), 2))).selection
     assert twice.kept == once.kept and twice.strength == once.strength
-    train, held = split_contacts(subset(data, np.repeat(np.arange(data.m), 2)), 0.3, 1)
+    train, held = split_contacts(data.subset(np.repeat(np.arange(data.m), 2)), 0.3, 1)
     seen = {tuple(q) for q in train.q}
     assert held.m % 2 == 0 and not any(tuple(q) in seen for q in held.q)
 

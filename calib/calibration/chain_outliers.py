@@ -17,7 +17,7 @@ from ..measurements.data import Measurements
 from . import determined, term_checks
 from .chain_registration import MeasuredState
 from .choice import chains_model
-from .contact_checks import enough_touches, length_errors, subset
+from .contact_checks import enough_touches, length_errors
 from .contact_model import ContactState
 from .engine_model import ChainsData, ChainsState
 from .engine_result import ChainContacts, ContactChainsCalibration
@@ -142,7 +142,7 @@ def _subset(data, keep: np.ndarray):
     """A term's rows a boolean mask keeps (touches, measurements, or pixels as PixelData)."""
     if isinstance(data, PixelPart):
         return data.subset(keep).as_data()
-    return subset(data, keep) if isinstance(data, ContactData) else data.subset(keep)
+    return data.subset(keep)
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:

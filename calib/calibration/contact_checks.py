@@ -5,10 +5,8 @@ Rationale: docs/developers/engine.md#contact_checks, docs/developers/engine.md#r
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 
@@ -54,7 +52,6 @@ __all__ = [
     "register_contacts",
     "registration",
     "split_contacts",
-    "subset",
 ]
 
 MIN_TOUCHES = 3  # fewest touches of one plane, point or pose
@@ -253,18 +250,6 @@ def register_contacts(
     return frames.centred(R, p, index)
 
 
-def subset(data: ContactData, keep: np.ndarray) -> ContactData:
-    """The touches of a boolean mask (or of indices)."""
-    rows = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep)
-    return dataclasses.replace(
-        data,
-        q=data.q[rows],
-        ids=tuple(data.ids[i] for i in rows),
-        rows=None if data.rows is None else tuple(data.rows[i] for i in rows),
-        readings=None if data.readings is None else data.readings.take(rows),
-    )
-
-
 def _isolated_postures(chain: Chain, train: ContactData, held: ContactData | None) -> str | None:
     """A note when the contact leaves the chain finitely many postures (None otherwise)."""
     kind = train.kind
@@ -351,13 +336,13 @@ class _Touches:
         def refit(keep: np.ndarray) -> ContactState:
             if keep.all():
                 return state
-            return registration(nominal, subset(data, keep), guess, DEFAULT_WEIGHT)
+            return registration(nominal, data.subset(keep), guess, DEFAULT_WEIGHT)
 
         rows = term_checks.file_lines(data)
         state, bad, found = outliers.until_stable(
             refit, lambda s: length_errors(s, data), None, rows, allowed=enough_touches(data)
         )
-        return Aside(state, bad, subset(data, ~bad) if bad.any() else data, tuple(found))
+        return Aside(state, bad, data.subset(~bad) if bad.any() else data, tuple(found))
 
     def diagnose(self, rows: ContactData, state: ContactState) -> list[str]:
         """The usual mistakes of the touches kept (``state``: their registration)."""
@@ -396,7 +381,7 @@ def checked_registration(
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
         fitted, errors = (length_errors(start, d) for d in (kept, held))
-        rows, cut = term_checks.file_lines(held), partial(subset, held)
+        rows, cut = term_checks.file_lines(held), held.subset
         held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
     notes += filter(None, [_isolated_postures(chain, kept, held)])
     objects = noun(len(kept.contacts), f"{kept.kind.object_name}s")
@@ -535,7 +520,7 @@ def split_contacts(
             held[np.isin(groups, touches[rng.permutation(len(touches))[:out]])] = True
     if not held.any():
         raise DataError(data.source, f"too few touches to hold {holdout:g} of them out")
-    return subset(data, ~held), subset(data, held)
+    return data.subset(~held), data.subset(held)
 
 
 def contact_objects(state: ContactState, train: ContactData, torque=None) -> dict[str, np.ndarray]:

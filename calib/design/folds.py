@@ -24,7 +24,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from ..calibration.contact_checks import few_postures, held_out_refusal, subset
+from ..calibration.contact_checks import few_postures, held_out_refusal
 from ..calibration.contact_result import GapStats
 from ..calibration.engine import NOTHING_HELD
 from ..calibration.engine_result import ChainContacts, ContactChainsCalibration
@@ -78,11 +78,6 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
         for k, part in enumerate(np.array_split(own, folds)):
             out[np.isin(groups, part)] = k
     return out
-
-
-def _subset(data, keep: np.ndarray):
-    """A term's rows ``keep`` (a boolean mask): measurements or touches."""
-    return subset(data, keep) if isinstance(data, ContactData) else data.subset(keep)
 
 
 def pooled(parts: list[GapStats]) -> GapStats:
@@ -167,7 +162,7 @@ def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
 def _few_trained(data, labels: np.ndarray, folds: int) -> str | None:
     """The note of a term whose smallest fold's fit trains on few postures (few_postures)."""
     fewest = min(
-        (_subset(data, labels != k) for k in range(folds)),
+        (data.subset(labels != k) for k in range(folds)),
         key=lambda rows: count(rows.q, rows.ids if isinstance(rows, ContactData) else None),
     )
     return few_postures(fewest, "the folds' verdict is of fits on as few as")
@@ -177,7 +172,7 @@ def _fold(fit: Fit, data: Sequence, labels: list, k: int, folds: int):
     """The fit of fold ``k`` held out; a DataError of its rows says which fold it is."""
     pairs = list(zip(data, labels, strict=True))
     try:
-        return fit([_subset(d, f != k) for d, f in pairs], [_subset(d, f == k) for d, f in pairs])
+        return fit([d.subset(f != k) for d, f in pairs], [d.subset(f == k) for d, f in pairs])
     except DataError as exc:
         where = str(DataError(exc.path, "", exc.row, exc.column))
         reason = str(exc).removeprefix(where)

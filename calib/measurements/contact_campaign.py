@@ -114,6 +114,17 @@ class ContactData:
         """One line (the arrays are in the attributes)."""
         return f"<ContactData {self.source}: {self.touches}, {len(self.joint_names)} joints>"
 
+    def subset(self, index: np.ndarray) -> ContactData:
+        """The touches ``index`` (an integer array or a boolean mask), in its order."""
+        rows = np.arange(self.m)[index]
+        return dataclasses.replace(
+            self,
+            q=self.q[rows],
+            ids=tuple(self.ids[i] for i in rows),
+            rows=None if self.rows is None else tuple(self.rows[i] for i in rows),
+            readings=None if self.readings is None else self.readings.take(rows),
+        )
+
     @property
     def touches(self) -> str:
         """How many touches of which kind on how many contacts, in words."""
