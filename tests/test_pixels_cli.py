@@ -311,7 +311,8 @@ BAD = {
     "normalised pixels": "normalised",
     "wrong image size": "outside the 640x480 image",
     "behind the camera": "behind the camera",
-    "camera numbers": "--camera takes",
+    "camera numbers": "--camera cam: its placement is 6 numbers X Y Z RX RY RZ after INTRINSICS "
+    "(or none), got 2",
     "params": "not --params offsets",
 }
 

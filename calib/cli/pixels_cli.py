@@ -168,9 +168,14 @@ def _camera(values: list[str]):
     from ..kinematics.so3 import rpy_to_matrix
     from ..measurements.intrinsics import read_intrinsics
 
+    if len(values) < 3:
+        raise InvalidArgumentError(
+            f"--camera takes NAME LINK INTRINSICS [X Y Z RX RY RZ], got {len(values)} values"
+        )
     if len(values) not in (3, 9):
         raise InvalidArgumentError(
-            f"--camera takes NAME LINK INTRINSICS [6 numbers], got {len(values)} values"
+            f"--camera {values[0]}: its placement is 6 numbers X Y Z RX RY RZ after INTRINSICS "
+            f"(or none), got {len(values) - 3}"
         )
     name, link, path = values[:3]
     placement = None
