@@ -105,6 +105,28 @@ def test_pixels_with_u_and_v_swapped_are_named_so():
     assert "swapped" not in str(caught.value)
 
 
+def _wrist_rows(pixels) -> str:
+    rows = (f"0,0,{k},wrist,c0,{u!r},{v!r}" for k, (u, v) in enumerate(pixels.tolist()))
+    return OBS.splitlines()[0] + "\n" + "\n".join(rows) + "\n"
+
+
+def test_pixels_on_the_top_left_quarter_only_are_warned_about():
+    """The wrist camera's intrinsics are of a 1280x720 image: pixels spread over its top-left
+    quarter (u <= 639.5, v <= 359.5), as a 640x360 image's would, are warned about; pixels
+    over the whole image, a cluster in that quarter, or one pixel past it are not."""
+    rng = np.random.default_rng(7)
+    quarter = rng.uniform(0, 1, (40, 2)) * [640, 360] - 0.5
+    with pytest.warns(DataWarning, match=r"o.csv: camera 'wrist': every pixel is in the top-lef"):
+        parse_observations(_wrist_rows(quarter), JOINTS, CAMERAS, None, "o.csv")
+    with pytest.warns(DataWarning, match=r"for images of 640x360\?"):
+        parse_observations(_wrist_rows(quarter), JOINTS, CAMERAS, None, "o.csv")
+    past = np.vstack([quarter, [[641.0, 100.0]]])
+    for pixels in (2 * quarter + 0.5, 100 + 0.3 * quarter, past):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            parse_observations(_wrist_rows(pixels), JOINTS, CAMERAS, None, "o.csv")
+
+
 @pytest.mark.parametrize(
     ("text", "match"),
     [

@@ -130,6 +130,25 @@ class Intrinsics:
             & (uv[:, 1] <= self.height - 0.5)
         )
 
+    def half_size_hint(self, pixels) -> str:
+        """What to say when pixels ``(m, 2)`` fill the top-left quarter of the image only.
+
+        Pixels spread over more than half of the quarter's width and height, none past it: the
+        intrinsics of this camera at twice the images' resolution, most likely. "" otherwise.
+        """
+        uv = real_array(pixels, "pixels", (None, 2))
+        half = np.array([self.width, self.height]) / 2
+        if len(uv) < 2 or np.any(uv.max(axis=0) > half - 0.5):
+            return ""
+        if np.any(np.ptp(uv, axis=0) <= half / 2):
+            return ""
+        return (
+            f"every pixel is in the top-left quarter of the {self.width}x{self.height} image "
+            f"(u <= {half[0] - 0.5:g}, v <= {half[1] - 0.5:g}) and spreads over it: intrinsics "
+            f"of a {self.width}x{self.height} camera for images of {half[0]:g}x{half[1]:g}? "
+            "give the intrinsics calibrated at the images' resolution"
+        )
+
 
 def read_intrinsics(path: str | Path) -> Intrinsics:
     """Read and check an intrinsics file (see the module docstring for the formats).

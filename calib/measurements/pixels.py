@@ -503,6 +503,8 @@ def _check_pixels(obs: PixelObservations, cameras: Mapping[str, Intrinsics]) -> 
                 ),
                 row=rows[i],
             )
+        if hint := intr.half_size_hint(uv):
+            warn_user(f"{obs.source}: camera '{name}': {hint}", DataWarning)
 
 
 def _check_repeats(obs: PixelObservations) -> None:
