@@ -414,15 +414,13 @@ def test_a_gross_pixel_error_is_a_named_outlier(capsys, tmp_path, ur5):
     assert doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_max_px"] < 1e-9
 
 
-def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_path, ur5):
-    """The board's normals given as +z of tool0, which the camera sees from behind in some
-    postures: those rows are set aside and named (the test finds them with Pinocchio on the
-    nominal robot, away from the board's plane by more than 1 cm)."""
-    folder, _ = ur5
+def _behind_the_board(folder: Path, obs_file: Path, tmp_path: Path) -> np.ndarray:
+    """Each row's camera distance behind the board's plane [m] (Pinocchio, nominal UR5), the
+    board's normals written as +z of tool0 in ``tmp_path / "target.csv"``."""
     target = read_target(folder / "target.csv")
     normal = np.tile([0.0, 0.0, 1.0], (len(target.point), 1))
     write_target(tmp_path / "target.csv", Target(target.point, target.position, normal=normal))
-    obs = read_observations(folder / "obs.csv", UR5_JOINTS, {"cam": INTRINSICS})
+    obs = read_observations(obs_file, UR5_JOINTS, {"cam": INTRINSICS})
     model = pin.buildModelFromUrdf(str(load_chain("ur5").urdf_path))
     data = model.createData()
     C = look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3])
@@ -433,7 +431,15 @@ def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_pat
         tool = data.oMf[pin_frame(model, "world")].actInv(data.oMf[pin_frame(model, "tool0")])
         X = tool.act(target.position[target.index[obs.point[i]]])
         behind.append(float((tool.rotation @ [0, 0, 1]) @ (X - C[:3, 3])))  # [m]
-    behind = np.array(behind)  # the camera's signed distance behind the board's plane
+    return np.array(behind)
+
+
+def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_path, ur5):
+    """The board's normals given as +z of tool0, which the camera sees from behind in some
+    postures: those rows are set aside and named (the test finds them with Pinocchio on the
+    nominal robot, away from the board's plane by more than 1 cm)."""
+    folder, _ = ur5
+    behind = _behind_the_board(folder, folder / "obs.csv", tmp_path)
     assert np.any(behind > 0.01) and np.any(behind < -0.01)
     report = tmp_path / "r.json"
     code, _, err = _calibrate_ur5(
@@ -444,6 +450,32 @@ def test_points_seen_from_behind_their_normal_are_named_outliers(capsys, tmp_pat
     lines = np.arange(len(behind)) + 2  # the header is line 1
     assert set(lines[behind > 0.01]) <= named  # (within 1 cm of the plane: either)
     assert not set(lines[behind < -0.01]) & named
+
+
+def test_held_out_points_seen_from_behind_are_not_scored(capsys, tmp_path, ur5):
+    """Validation rows seen from behind the board are set aside as the training rows are
+    (they were scored: 455 held-out pixels, those behind included), and the note says why,
+    naming at most 10 rows (it listed all 512, as outliers "error > 5 x the median")."""
+    folder, _ = ur5
+    head, *rows = (folder / "obs.csv").read_text().splitlines()
+    posture = [row.split(",cam,")[0] for row in rows]
+    train = set(list(dict.fromkeys(posture))[:80])
+    for name, kept in (("a.csv", True), ("b.csv", False)):
+        chosen = [r for r, p in zip(rows, posture, strict=True) if (p in train) == kept]
+        (tmp_path / name).write_text("\n".join([head, *chosen]) + "\n")
+    behind = _behind_the_board(folder, tmp_path / "b.csv", tmp_path)
+    report = tmp_path / "r.json"
+    validate = ["--validate", tmp_path / "b.csv"]
+    data, target = tmp_path / "a.csv", tmp_path / "target.csv"
+    code, out, err = _calibrate_ur5(capsys, folder, data, target, tmp_path, *validate)
+    assert code == 0, err
+    held = json.loads(report.read_text())["errors"]["terms"][0]["held_out"]["calibrated"]
+    assert np.sum(behind < -0.01) <= held["configs"] <= np.sum(behind <= 0.01) < len(behind)
+    note = "rows seen from behind set aside (the target's normals face away from camera cam)"
+    text = out + err
+    assert f"held out: {len(behind) - held['configs']} {note}" in text
+    assert "outlier rows set aside" not in text  # noise-free pixels: none far off
+    assert all(line.count(", ") <= 10 for line in text.splitlines() if "from behind" in line)
 
 
 def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_path, ur5):

@@ -19,12 +19,14 @@ from ..exceptions import DataError
 __all__ = [
     "FACTOR",
     "IRLS_ROUNDS",
+    "LISTED",
     "NOISE_FACTOR",
     "PROPOSAL_SPREAD",
     "ROUNDS",
     "Errors",
     "Outlier",
     "find_outliers",
+    "listed",
     "point_errors",
     "records",
     "robust_proposals",
@@ -60,6 +62,9 @@ ROUNDS = 10
 IRLS_ROUNDS = 60
 """Most reweightings of the robust fit of :func:`robust_proposals`."""
 
+LISTED = 10
+"""Most rows a note names one by one (the result's ``outliers`` hold every one)."""
+
 
 @dataclass(frozen=True)
 class Outlier:
@@ -84,11 +89,17 @@ class Outlier:
         return f"row {self.row} ({1e3 * self.error:.3g} mm)"
 
 
+def listed(items: list[str]) -> str:
+    """The first :data:`LISTED` of ``items`` joined by commas, and how many more."""
+    more = len(items) - LISTED
+    return ", ".join(items[:LISTED]) + (f" and {more} more" if more > 0 else "")
+
+
 def set_aside_note(dropped, unit: str = "rows", gap: str = "error") -> str:
     """``2 outlier rows set aside (error > 5 x the median): row 4 (5.3 mm), row 9 (6.1 mm)``."""
     outliers = counted(len(dropped), f"outlier {unit}")
-    return f"{outliers} set aside ({gap} > {FACTOR:g} x the median): " + (
-        ", ".join(o.text() for o in dropped)
+    return f"{outliers} set aside ({gap} > {FACTOR:g} x the median): " + listed(
+        [o.text() for o in dropped]
     )
 
 

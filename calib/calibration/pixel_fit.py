@@ -297,6 +297,11 @@ class _Camera:
         """Rows seen from behind or far off the own fit set aside (:func:`checked_pixels`)."""
         chain, part, held = self.chain, self.rows, self.held
         behind = _from_behind(state, part)
+        notes: list[str] = []
+        away = None if held is None else _from_behind(state, held)
+        if held is not None and away is not None and away.any():  # no held-out verdict on them
+            notes.append(f"held out: {_behind_note(np.asarray(held.rows.lines)[away], part)}")
+            held = None if away.all() else held.subset(~away)
         errors, e_held, stopped = _judged(chain, state, part, held)
         floor = ROUND_OFF_PX * state.weight  # as the instrument noise: 6 x it, never an outlier
         pixel = outliers.Errors(errors, None, (2, 3))
@@ -316,7 +321,7 @@ class _Camera:
                 raise DataError(part.source, f"camera {part.data.camera.name}: too few rows kept")
             kept = part.subset(~bad)
             state = _registered(chain, kept)
-        notes = [stopped] if stopped else []
+        notes += [stopped] if stopped else []
         if held is not None and e_held is not None:
             fitted, other = (outliers.Errors(e, None, (2, 3)) for e in (errors[~bad], e_held))
             held = term_checks.held_out(fitted, other, held, held.rows.lines, held.subset, notes)
@@ -338,5 +343,17 @@ def checked_pixels(chain: Chain, part: PixelPart, held):
     )
     aside, notes = term_checks.checked(_Camera(chain, part, held))
     found = list(aside.found)
-    notes += [outliers.set_aside_note(found)] if found else []
+    far = [o for o in found if o.kind != "from behind"]
+    away = [o.row for o in found if o.kind == "from behind"]
+    notes += [outliers.set_aside_note(far)] if far else []
+    notes += [_behind_note(np.array(away), part)] if away else []
     return aside.state, aside.kept, found, notes, aside.held
+
+
+def _behind_note(lines: np.ndarray, part: PixelPart) -> str:
+    """``3 rows seen from behind set aside (...): rows 4, 9, 12``: file ``lines``."""
+    rows = outliers.listed([str(line) for line in lines])
+    return (
+        f"{counted(len(lines), 'rows')} seen from behind set aside (the target's normals face "
+        f"away from camera {part.data.camera.name}): {noun(len(lines), 'rows')} {rows}"
+    )
