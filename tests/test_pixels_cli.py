@@ -716,3 +716,25 @@ def test_simulated_pixels_in_a_default_range_are_named(capsys, tmp_path):
     assert err.count("no usable <limit> in the URDF for j3 (drawn in [-0.1, 0.1] m)") == 1
     code, _, err = run(capsys, "simulate", scara, *argv)
     assert code == 0 and "<limit>" not in err, err
+
+
+def test_a_camera_placed_from_the_pixels_behind_them_says_so(capsys, tmp_path):
+    """An eye-in-hand Panda whose camera is given on panda_link6 (the hand's joint left out)
+    without a placement: the camera placed from the pixels alone sees the floor's points
+    behind it, and the error says that placement came from the pixels and how to give one
+    (it said "check the camera's link and placement", a placement the user never gave)."""
+    write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
+    write_target(tmp_path / "floor.csv", grid(6, 5, 0.06, corner=(0.5, -0.12)))
+    camera = ["--camera", "cam", "panda_hand", tmp_path / "intr.yaml"]
+    argv = ["--measure", "pixels", "--target", tmp_path / "floor.csv", "--tool", "panda_link0"]
+    placed = [*camera, 0.05, 0, 0.05, 0, 0, 3.1416, "--configs", 600, "--seed", 2]
+    code, _, err = run(capsys, "simulate", "panda", *argv, *placed, "--out", tmp_path / "o.csv")
+    assert code == 0, err
+    camera[2] = "panda_link6"
+    data = ["--data", tmp_path / "o.csv", "--out", tmp_path / "cal.urdf"]
+    code, _, err = run(capsys, "calibrate", "panda", *argv, *camera, *data)
+    assert code == 2 and not (tmp_path / "cal.urdf").exists()
+    (line,) = [e for e in err.splitlines() if e.startswith("calib: error:")]
+    assert "behind the camera on the starting model" in line
+    assert "the camera placed from the pixels alone" in line
+    assert "give the camera's placement (--camera NAME LINK INTRINSICS X Y Z RX RY RZ" in line

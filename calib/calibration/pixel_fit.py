@@ -171,19 +171,25 @@ def _registered(chain: Chain, part: PixelPart, strict: bool = True) -> PixelTerm
     placements = Placements.of((chain,))
     kin = placements.frames(chain, rows.q)
     lens, X = cam.intrinsics.camera, part.data.target.position
-    guess = cam.placement
+    guess, check = cam.placement, "check the camera's link and the placement given"
     if guess is None:
-        guess = camera_placement(chain, cam.name, cam.link)
+        guess, check = camera_placement(chain, cam.name, cam.link), "check the camera's link"
     if guess is None:
         p_link = camera_points(kin, np.eye(4), X[rows.point])[1]
         guess = _camera_from_rays(p_link, _rays(lens, rows.pixels), part.source)
+        check = (
+            "the camera placed from the pixels alone does not see them in front of it: check "
+            "the camera's link and the target's points in the tool frame, or give the "
+            "camera's placement (--camera NAME LINK INTRINSICS X Y Z RX RY RZ; Python: "
+            "PixelCamera(..., placement))"
+        )
     behind = np.flatnonzero(camera_points(kin, guess, X[rows.point])[0][:, 2] <= 0)
     if len(behind):
         raise DataError(
             part.source,
             f"{counted(len(behind), 'observations')} {noun(len(behind), 'see', 'sees')} a point "
             f"behind the camera on the starting model (first: row {rows.lines[behind[0]]}): "
-            "check the camera's link and placement",
+            f"{check}",
         )
     mdh = placements.chain_models((chain,))[0]
     start = PixelTermState(mdh, guess, X, lens, 1.0)
