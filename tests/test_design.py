@@ -569,3 +569,20 @@ def test_cli_evaluate_takes_the_workspace_of_the_design(tmp_path, capsys):
     assert main(["design", "ur10", "--evaluate", str(plan), "--marker", "0", "0", "0", *far]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "no reference posture" in err and "workspace rejects 2000" in err
+
+
+def test_design_and_evaluate_take_a_robot_name_as_analyze_does():
+    """``calib.design("ur10", ...)`` is the design of ``load_chain("ur10")`` (the catalog's
+    base and tool), as ``calib.analyze("ur10")`` loads it (planner49 #8)."""
+    import calib
+
+    chain = load_chain("ur10")
+    named = calib.design("ur10", 10, candidates=150, random_sets=2, seed=4)
+    loaded = calib.design(chain, 10, candidates=150, random_sets=2, seed=4)
+    assert np.array_equal(named.q, loaded.q) and named.indices.i == loaded.indices.i
+    assert named.tools == (chain.tool_frame,) and named.robot == chain.name
+    assert evaluate("ur10", loaded.q).i == evaluate(chain, loaded.q).i
+    path = chain.urdf_path
+    assert calib.design(path, 10, candidates=150, random_sets=2, seed=4).tools == (
+        load_chain(path).tool_frame,
+    )

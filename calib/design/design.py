@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -23,9 +24,9 @@ from ..core.progress import phase, steps
 from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
-from ..kinematics.robot import Chain, check_robot
+from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
-from ..kinematics.tree import Tree
+from ..kinematics.tree import Tree, robot_argument
 from ..measurements.limits import check_limits, warn_default_ranges
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
@@ -164,7 +165,7 @@ def _subset(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def design(
-    chain: Chain | Tree,
+    chain: Chain | Tree | str | Path,
     configs: int,
     *,
     candidates: int | np.ndarray = DEFAULT_CANDIDATES,
@@ -182,7 +183,9 @@ def design(
     """Choose K configurations to measure.
 
     Args:
-        chain: The chain, or a tree (its tools measured at every configuration).
+        chain: The chain, or a tree (its tools measured at every configuration), or a
+            catalog name or URDF path (loaded as :func:`calib.analyze` loads it: the catalog's
+            base and tool).
         configs: Number of configurations K.
         candidates: Number of random candidates, or the candidates ``(N, n)`` themselves
             (configurations known to be reachable).
@@ -215,7 +218,7 @@ def design(
             cannot identify the parameters.
     """
     clock = [time.perf_counter()]
-    check_robot(chain, "chain")
+    chain = robot_argument(chain, "chain")
     k = check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
     constraints = _checked_options(criterion, constraints, progress)
@@ -419,7 +422,7 @@ def _indices_rows(J: np.ndarray, rows: np.ndarray, ref: Reference) -> Indices:
 
 
 def evaluate(
-    chain: Chain | Tree,
+    chain: Chain | Tree | str | Path,
     q: np.ndarray,
     measure: str = DEFAULT_MEASURE,
     marker=None,
@@ -445,7 +448,7 @@ def evaluate(
         InvalidArgumentError: A bad argument, a contact (its postures are not scored yet), or
             limits no candidate passes.
     """
-    check_robot(chain, "chain")
+    chain = robot_argument(chain, "chain")
     contact = _contact_of(measure)
     if contact is not None:
         raise InvalidArgumentError(
