@@ -183,7 +183,7 @@ def _third_round_cases():
     write_contacts(touches_csv, touches)
     no_touches = dataclasses.replace(touches, q=np.zeros((0, 6)), ids=(), rows=())
     return {
-        "simulate chain=str": lambda: calib.simulate("ur5", 5),
+        "simulate chain=str": lambda: calib.simulate("no_such_robot", 5),
         "simulate configs=str": lambda: calib.simulate(CHAIN, "abc"),
         "simulate seed=-1": lambda: calib.simulate(CHAIN, 5, seed=-1),
         "simulate error_mm=1e300": lambda: calib.simulate(CHAIN, 5, error_mm=1e300),
@@ -216,7 +216,7 @@ def _third_round_cases():
         "calibrate_contact_chains empty set": lambda: calib.calibrate_contact_chains(
             [CHAIN], [no_touches]
         ),
-        "design chain=str": lambda: calib.design("ur5", 5),
+        "design chain=str": lambda: calib.design("no_such_robot", 5),
         "design configs=0": lambda: calib.design(CHAIN, 0),
         "design constraints=str": lambda: calib.design(CHAIN, 10, constraints="margin 0.1"),
         "design progress=3": lambda: calib.design(CHAIN, 10, progress=3),
@@ -240,9 +240,9 @@ def _third_round_cases():
         "calibrate problem and data": lambda: calib.calibrate(
             calib.Problem((calib.Term(CHAIN, data),)), data
         ),
-        "design.design chain=str": lambda: design("ur5", 5),
+        "design.design chain=int": lambda: design(5, 5),
         "design.design configs=str": lambda: design(CHAIN, "abc"),
-        "design.evaluate chain=str": lambda: evaluate("ur5", Q),
+        "design.evaluate chain=str": lambda: evaluate("no_such_robot", Q),
         "design.evaluate q=str": lambda: evaluate(CHAIN, "abc"),
         "design.evaluate no row": lambda: evaluate(CHAIN, np.zeros((0, 6))),
         "design.least_i J=str": lambda: least_i("abc", 3, np.eye(3)),
@@ -251,7 +251,7 @@ def _third_round_cases():
             touches_csv, "ur5", "plane"
         ),
         "contact_campaign.read_contacts path=None": lambda: read_contacts(None, CHAIN, "plane"),
-        "contact_campaign.simulate_contacts chain=str": lambda: simulate_contacts("ur5", 30),
+        "contact_campaign.simulate_contacts chain=int": lambda: simulate_contacts(5, 30),
         "contact_campaign.simulate_contacts contacts>configs": lambda: simulate_contacts(
             CHAIN, 3, contacts=10
         ),
@@ -394,18 +394,33 @@ def test_every_function_the_docs_document_is_covered():
 
 
 def test_simulate_names_the_function_called_and_the_tree_route():
-    """``calib.simulate("ur5")`` named ``from_chain`` (a function the user did not call), and
-    ``simulate_contacts`` said "contacts are simulated on must be a Chain"."""
+    """``calib.simulate(5)`` named ``from_chain`` (a function the user did not call), and
+    ``simulate_contacts`` said "contacts are simulated on must be a Chain"; a tree's name
+    is refused as the tree is (evaluate49: a name loads as calib.analyze loads it)."""
     tree = calib.load_robot("bolt")
     cases = {
-        (calib.simulate, "ur5"): "simulate takes a Chain (see load_chain), got str 'ur5'",
+        (calib.simulate, 5): "simulate takes a Chain (see load_chain), a catalog name or a "
+        "URDF path, got int 5",
+        (calib.simulate, "bolt"): "got the tree 'bolt': a tree's campaign is calib.simulate_tree",
         (calib.simulate, tree): "got the tree 'bolt': a tree's campaign is calib.simulate_tree",
-        (calib.simulate_contacts, "ur5"): "simulate_contacts takes a Chain (see load_chain)",
+        (calib.simulate_contacts, 5): "simulate_contacts takes a Chain (see load_chain)",
         (calib.simulate_contacts, tree): "got the tree 'bolt': contacts are simulated on one",
     }
     for (function, robot), said in cases.items():
         with pytest.raises(calib.InvalidArgumentError, match=re.escape(said)):
             function(robot, 10)
+
+
+def test_simulate_takes_a_robot_name_as_analyze_does():
+    """``calib.simulate("ur10", ...)`` is the campaign of ``load_chain("ur10")`` (the catalog's
+    base and tool, as ``calib.analyze("ur10")`` loads it; planner49 #8), touches too."""
+    named = calib.simulate("ur10", 12, noise_mm=0.05, seed=3)
+    loaded = calib.simulate(calib.load_chain("ur10"), 12, noise_mm=0.05, seed=3)
+    assert np.array_equal(named.measurements.q, loaded.measurements.q)
+    assert np.array_equal(named.measurements.position, loaded.measurements.position)
+    assert named.truth.robot == loaded.truth.robot == "ur10"
+    touches = calib.simulate_contacts("ur5", 12, "plane", seed=0).data
+    assert np.array_equal(touches.q, calib.simulate_contacts(CHAIN, 12, "plane", seed=0).data.q)
 
 
 def test_results_and_data_print_in_one_line():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import json
 import math
 
 import numpy as np
@@ -529,3 +530,59 @@ def test_cli_design_refuses_a_planners_bad_input_in_one_line_and_writes_nothing(
     assert std == "" and err.count("\n") == 1 and err.startswith("calib: error: ")
     assert fact in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+# --- evaluate over the design's reference postures (evaluate49) ------------------------
+
+UR10_BOX = (-0.2, -1.2, 0.05, 1.3, 1.2, 1.6)
+UR10_MARKER = (0.03, 0.0, 0.05)
+
+
+def test_evaluate_within_the_designs_limits_predicts_the_designs_error():
+    """The same plan, the same limits: evaluate's I is the design's (both average over the
+    same reference postures), not the whole joint space's (planner49 #7)."""
+    chain = chain_of("ur10")
+    limits = Constraints(workspace=UR10_BOX, line_of_sight=(2.5, 0.0, 0.8))
+    plan = design(
+        chain, 30, candidates=600, marker=UR10_MARKER, constraints=limits, random_sets=2, seed=2
+    )
+    kept = evaluate(chain, plan.q, marker=UR10_MARKER, seed=2, candidates=600, constraints=limits)
+    assert kept.i == pytest.approx(plan.indices.i, rel=1e-9)
+    assert kept.d == pytest.approx(plan.indices.d, rel=1e-9)  # the same set, whatever the ref
+    anywhere = evaluate(chain, plan.q, marker=UR10_MARKER, seed=2)
+    assert anywhere.d == pytest.approx(plan.indices.d, rel=1e-9)
+    assert anywhere.i != pytest.approx(plan.indices.i, rel=1e-3)
+
+
+def test_cli_evaluate_takes_the_workspace_of_the_design(tmp_path, capsys):
+    """``--evaluate plan.csv --workspace ...`` prints the figure ``--configs 30 --workspace``
+    printed for that plan; a box no posture reaches is one line saying so."""
+    plan = tmp_path / "plan.csv"
+    box = [str(v) for v in UR10_BOX]
+    limits = ["--marker", *map(str, UR10_MARKER), "--workspace", *box, "--candidates", "600"]
+    argv = ["design", "ur10", "--configs", "30", *limits, "--seed", "2", "--quiet"]
+    assert main([*argv, "--out", str(plan), "--json"]) == 0
+    designed = json.loads(capsys.readouterr().out)["design"]["I"]
+    assert main(["design", "ur10", "--evaluate", str(plan), *limits, "--seed", "2", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["I"] == pytest.approx(designed, rel=1e-9)
+    far = ["--workspace", "5", "5", "5", "6", "6", "6"]
+    assert main(["design", "ur10", "--evaluate", str(plan), "--marker", "0", "0", "0", *far]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "no reference posture" in err and "workspace rejects 2000" in err
+
+
+def test_design_and_evaluate_take_a_robot_name_as_analyze_does():
+    """``calib.design("ur10", ...)`` is the design of ``load_chain("ur10")`` (the catalog's
+    base and tool), as ``calib.analyze("ur10")`` loads it (planner49 #8)."""
+    import calib
+
+    chain = load_chain("ur10")
+    named = calib.design("ur10", 10, candidates=150, random_sets=2, seed=4)
+    loaded = calib.design(chain, 10, candidates=150, random_sets=2, seed=4)
+    assert np.array_equal(named.q, loaded.q) and named.indices.i == loaded.indices.i
+    assert named.tools == (chain.tool_frame,) and named.robot == chain.name
+    assert evaluate("ur10", loaded.q).i == evaluate(chain, loaded.q).i
+    path = chain.urdf_path
+    assert calib.design(path, 10, candidates=150, random_sets=2, seed=4).tools == (
+        load_chain(path).tool_frame,
+    )

@@ -266,6 +266,6 @@ def test_the_callable_design_package_shows_its_function_and_modules():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
-    assert lines[0].startswith("(chain: 'Chain | Tree', configs: 'int', *, candidates"), lines
+    assert lines[0].startswith("(chain: 'Chain | Tree | str | Path', configs: 'int', *, "), lines
     assert lines[1].startswith("evaluate Constraints(margin=0.0"), lines
     assert lines[2] == "True False", lines

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+from typing import Any
 
 from ..core.choices import (
     CAMPAIGN_MEASURES,
@@ -36,14 +37,14 @@ from .common import (
     write_outputs,
 )
 
-__all__ = ["CHOOSING", "add_design_parser", "cmd_design"]
+__all__ = ["CHOOSING", "REFERENCE", "add_design_parser", "cmd_design"]
 
-CHOOSING = (
-    "configs",
+CHOOSING = ("configs", "criterion", "out")
+"""Options of the choice of configurations, which ``--evaluate`` does not take."""
+
+REFERENCE = (
     "candidates",
     "candidates_file",
-    "criterion",
-    "out",
     "margin",
     "workspace",
     "line_of_sight",
@@ -51,7 +52,7 @@ CHOOSING = (
     "srdf",
     "collision",
 )
-"""Options of the choice of configurations, which ``--evaluate`` does not take."""
+"""Options of the candidates and their limits: with ``--evaluate``, those of the reference set."""
 
 
 def _check_design_options(args: argparse.Namespace) -> None:
@@ -66,8 +67,10 @@ def _check_design_options(args: argparse.Namespace) -> None:
         if ignored:
             raise InvalidArgumentError(
                 f"{ignored[0]} is for choosing configurations; --evaluate takes only --tool, "
-                f"--base, --measure, --marker, --params, --orientation-weight, --noise-mm "
-                f"and --seed"
+                f"--base, --measure, --marker, --params, --orientation-weight, --noise-mm, "
+                f"--seed and the limits of the reference postures (--candidates, "
+                f"--candidates-file, --margin, --workspace, --line-of-sight, --obstacle, "
+                f"--srdf, --collision)"
             )
     count = given_options(args, ("candidates",))
     if count and args.candidates_file:
@@ -200,8 +203,19 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
         )
     q = read_configurations(args.evaluate, chain)
     _check_points(args, chain)
+    limits: dict[str, Any] = {}
+    if given_options(args, REFERENCE):  # the design's reference postures, these limits'
+        candidates, readings = _candidates(args, chain, None)
+        limits = {"candidates": candidates, "constraints": _constraints(args), "readings": readings}
     ind = evaluate(
-        chain, q, args.measure, args.marker, args.params, args.seed, args.orientation_weight
+        chain,
+        q,
+        args.measure,
+        args.marker,
+        args.params,
+        args.seed,
+        args.orientation_weight,
+        **limits,
     )
     if args.json:
         print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})
@@ -221,6 +235,7 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
             print(
                 f"\npredicted RMS position error after calibration at {args.noise_mm:g} mm noise: "
                 f"{args.noise_mm * ind.i:.4g} mm"
+                + (" (over the postures these limits keep)" if limits else "")
             )
     return 0
 
@@ -269,7 +284,8 @@ def add_design_parser(sub) -> None:
     g.add_argument(
         "--evaluate",
         metavar="CONFIGS.csv",
-        help="print the observability indices of these configurations instead",
+        help="print the observability indices of these configurations instead (given the "
+        "candidates or their limits, averaged over the design's reference postures they keep)",
     )
     g.add_argument(
         "--candidates",

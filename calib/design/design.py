@@ -13,23 +13,24 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
-from ..core.checks import check_count, check_work, real_array, shown
+from ..core.checks import check_count, check_work, shown
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES, DEFAULT_MEASURE, DEFAULT_SET
 from ..core.progress import phase, steps
 from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
-from ..kinematics.robot import Chain, check_robot
+from ..kinematics.robot import Chain
 from ..kinematics.standing import JointReadings
-from ..kinematics.tree import Tree
+from ..kinematics.tree import Tree, robot_argument
 from ..measurements.limits import check_limits, warn_default_ranges
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
 from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
-from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, optimal_subset
+from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, least_i, optimal_subset
 from .observability import (
     CRITERIA,
     REFERENCE_CONFIGS,
@@ -164,7 +165,7 @@ def _subset(n: int, k: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def design(
-    chain: Chain | Tree,
+    chain: Chain | Tree | str | Path,
     configs: int,
     *,
     candidates: int | np.ndarray = DEFAULT_CANDIDATES,
@@ -182,7 +183,9 @@ def design(
     """Choose K configurations to measure.
 
     Args:
-        chain: The chain, or a tree (its tools measured at every configuration).
+        chain: The chain, or a tree (its tools measured at every configuration), or a
+            catalog name or URDF path (loaded as :func:`calib.analyze` loads it: the catalog's
+            base and tool).
         configs: Number of configurations K.
         candidates: Number of random candidates, or the candidates ``(N, n)`` themselves
             (configurations known to be reachable).
@@ -215,7 +218,7 @@ def design(
             cannot identify the parameters.
     """
     clock = [time.perf_counter()]
-    check_robot(chain, "chain")
+    chain = robot_argument(chain, "chain")
     k = check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
     constraints = _checked_options(criterion, constraints, progress)
@@ -356,11 +359,15 @@ def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: in
 def _too_few(report: FilterReport, k: int) -> InvalidArgumentError:
     """The error of filters that leave fewer than k candidates."""
     return InvalidArgumentError(
-        f"{report.kept} of {report.candidates} candidates pass the filters ("
-        + ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
-        + f"), fewer than the {k} configurations asked: draw more candidates or relax the "
-        f"constraints"
+        f"{_passing(report)}, fewer than the {k} configurations asked: draw more candidates "
+        f"or relax the constraints"
     )
+
+
+def _passing(report: FilterReport) -> str:
+    """How many candidates pass the filters, and what each filter rejects."""
+    rejects = ", ".join(f"{name} rejects {n}" for name, n in report.rejected)
+    return f"{report.kept} of {report.candidates} candidates pass the filters ({rejects})"
 
 
 def _lazily_rejected(report: FilterReport) -> int:
@@ -414,77 +421,34 @@ def _indices_rows(J: np.ndarray, rows: np.ndarray, ref: Reference) -> Indices:
     return indices_of(J[rows], ref)
 
 
-def least_i(
-    J: np.ndarray, k: int, L: np.ndarray, tolerance: float = 1e-3, iterations: int = 5000
-) -> float:
-    """A certified lower bound of I over every set of ``k`` of the candidates.
-
-    No design of ``k`` of these candidates predicts a lower error, whatever the algorithm:
-    the bound says how much a design can buy over random sets. Relaxation: weights
-    ``w >= 0`` summing to k, ``M(w) = sum_c w_c J_c^T J_c`` and ``f(w) = trace(L M(w)^-1)``,
-    convex; every set is a 0/1 point of it. Multiplicative updates
-    ``w_c <- w_c sqrt(g_c k / f)`` with ``g_c = -df/dw_c = trace(J_c M^-1 L M^-1 J_c^T)``
-    (``sum_c w_c g_c = f``) lower f; by convexity, ``f(any set) >= 2 f(w) - k max_c g_c``,
-    the certificate kept.
-
-    Args:
-        J: Scaled rows of the candidates ``(N, r, b)`` (:meth:`ObservationModel.jacobian`).
-        k: Set size K.
-        L: Reference information ``(b, b)`` (:attr:`Reference.mean`): I^2 = trace(L M^-1).
-        tolerance: Stop when the certificate is within this fraction of f.
-        iterations: Most updates (the bound is valid, if weaker, when they run out).
-
-    Returns:
-        The bound of I [per unit noise] (0 if no certificate is positive).
-
-    Raises:
-        InvalidArgumentError: A bad k, or candidates that cannot identify the parameters.
-    """
-    k = check_count(k, "the number of configurations")
-    J = real_array(J, "the candidates' rows J", (None, None, None))
-    L = real_array(L, "the reference information L", (J.shape[2], J.shape[2]))
-    if not len(J):
-        raise InvalidArgumentError("J has no candidate")
-    n, r, b = J.shape
-    A = J.reshape(n * r, b)
-    w = np.full(n, k / n)
-    best = 0.0
-    for _ in range(check_count(iterations, "the number of iterations")):
-        S = A * np.repeat(np.sqrt(w), r)[:, None]
-        try:
-            Mi = np.linalg.inv(S.T @ S)
-        except np.linalg.LinAlgError:
-            raise InvalidArgumentError("the candidates cannot identify the parameters") from None
-        g = np.sum((A @ (Mi @ L @ Mi)) * A, axis=1).reshape(n, r).sum(axis=1)
-        f = float(w @ g)
-        best = max(best, 2.0 * f - k * float(g.max()))
-        if best >= (1.0 - tolerance) * f:
-            break
-        w = w * np.sqrt(np.maximum(g, 0.0) * k / f)
-        w *= k / w.sum()
-    return float(np.sqrt(best))
-
-
 def evaluate(
-    chain: Chain | Tree,
+    chain: Chain | Tree | str | Path,
     q: np.ndarray,
     measure: str = DEFAULT_MEASURE,
     marker=None,
     params: str = DEFAULT_SET,
     seed: int = 0,
     orientation_weight: float = 1.0,
+    *,
+    candidates: int | np.ndarray | None = None,
+    constraints: Constraints | None = None,
+    readings: JointReadings | None = None,
 ) -> Indices:
     """Observability indices of a user's configurations ``(K, n)`` of a chain or tree.
 
     The reference set of I and G: ``REFERENCE_CONFIGS`` random configurations within the
-    joint limits (seed ``seed``); the independent columns are chosen at random
-    configurations too, so that the set's own rank deficiency shows. The other arguments
-    are :func:`design`'s.
+    joint limits (seed ``seed``), or, given ``candidates``, ``constraints`` or
+    ``readings`` (:func:`design`'s), the design's own: as many of the candidates the
+    constraints keep, drawn as :func:`design` draws them (the same seed and limits: the
+    same figure as the design's). The independent columns are chosen at random
+    configurations, so that the set's own rank deficiency shows. The other arguments are
+    :func:`design`'s.
 
     Raises:
-        InvalidArgumentError: A bad argument, or a contact (its postures are not scored yet).
+        InvalidArgumentError: A bad argument, a contact (its postures are not scored yet), or
+            limits no candidate passes.
     """
-    check_robot(chain, "chain")
+    chain = robot_argument(chain, "chain")
     contact = _contact_of(measure)
     if contact is not None:
         raise InvalidArgumentError(
@@ -496,8 +460,34 @@ def evaluate(
     if not len(q):
         raise InvalidArgumentError("no configuration to evaluate: q has no row")
     model = observation_model(chain, measure, marker, params, orientation_weight, seed=seed)
-    ref = reference(model, candidate_configurations(chain, REFERENCE_CONFIGS, seed))
-    return indices(model, q, ref)
+    if candidates is None and constraints is None and readings is None:
+        ref_q = candidate_configurations(chain, REFERENCE_CONFIGS, seed)
+    else:
+        ref_q = _design_reference(chain, marker, seed, candidates, constraints, readings)
+    return indices(model, q, reference(model, ref_q))
+
+
+def _design_reference(chain, marker, seed: int, candidates, constraints, readings) -> np.ndarray:
+    """The reference postures :func:`design` averages over with these arguments.
+
+    Raises:
+        InvalidArgumentError: Limits that no candidate passes.
+    """
+    limits = _checked_options("D", constraints, None)
+    drawn = DEFAULT_CANDIDATES if candidates is None else candidates
+    readings = _checked_readings(chain, drawn, readings)
+    q_all = _instrument_candidates(chain, drawn, check_count(seed, "the seed", 0), limits.margin)
+    keep, lazy = cheap_filters(chain, q_all, robot_markers(chain, marker), limits, readings)
+    check = lazy.ok if lazy.active else None
+    rows = _draw(
+        int(np.count_nonzero(keep)), REFERENCE_CONFIGS, np.random.default_rng([seed, 6]), check
+    )
+    if not len(rows):
+        raise InvalidArgumentError(
+            f"no reference posture: {_passing(lazy.report())}; the prediction averages over "
+            f"the postures the limits keep: draw more candidates or relax the constraints"
+        )
+    return q_all[keep][rows]
 
 
 _LABELS = {

@@ -25,6 +25,7 @@ predicted position variance). The start is greedy on D (sequential D-optimal des
 reaches full rank fastest); the exchange then visits the design points in turn and swaps
 each for the candidate that improves the criterion most (Cook and Nachtsheim's modified
 Fedorov exchange), sweep after sweep, until a whole sweep improves nothing.
+:func:`least_i` bounds from below the I of every set of K of the candidates.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.checks import shown
+from ..core.checks import check_count, real_array, shown
 from ..core.choices import EXCHANGE_CRITERIA
 from ..core.progress import steps
 from ..exceptions import InvalidArgumentError
@@ -523,6 +524,57 @@ def optimal_subset(
     return ExchangeResult(tuple(state.design), tuple(greedy), exchanges, sweeps)
 
 
+def least_i(
+    J: np.ndarray, k: int, L: np.ndarray, tolerance: float = 1e-3, iterations: int = 5000
+) -> float:
+    """A certified lower bound of I over every set of ``k`` of the candidates.
+
+    No design of ``k`` of these candidates predicts a lower error, whatever the algorithm:
+    the bound says how much a design can buy over random sets. Relaxation: weights
+    ``w >= 0`` summing to k, ``M(w) = sum_c w_c J_c^T J_c`` and ``f(w) = trace(L M(w)^-1)``,
+    convex; every set is a 0/1 point of it. Multiplicative updates
+    ``w_c <- w_c sqrt(g_c k / f)`` with ``g_c = -df/dw_c = trace(J_c M^-1 L M^-1 J_c^T)``
+    (``sum_c w_c g_c = f``) lower f; by convexity, ``f(any set) >= 2 f(w) - k max_c g_c``,
+    the certificate kept.
+
+    Args:
+        J: Scaled rows of the candidates ``(N, r, b)`` (:meth:`ObservationModel.jacobian`).
+        k: Set size K.
+        L: Reference information ``(b, b)`` (:attr:`Reference.mean`): I^2 = trace(L M^-1).
+        tolerance: Stop when the certificate is within this fraction of f.
+        iterations: Most updates (the bound is valid, if weaker, when they run out).
+
+    Returns:
+        The bound of I [per unit noise] (0 if no certificate is positive).
+
+    Raises:
+        InvalidArgumentError: A bad k, or candidates that cannot identify the parameters.
+    """
+    k = check_count(k, "the number of configurations")
+    J = real_array(J, "the candidates' rows J", (None, None, None))
+    L = real_array(L, "the reference information L", (J.shape[2], J.shape[2]))
+    if not len(J):
+        raise InvalidArgumentError("J has no candidate")
+    n, r, b = J.shape
+    A = J.reshape(n * r, b)
+    w = np.full(n, k / n)
+    best = 0.0
+    for _ in range(check_count(iterations, "the number of iterations")):
+        S = A * np.repeat(np.sqrt(w), r)[:, None]
+        try:
+            Mi = np.linalg.inv(S.T @ S)
+        except np.linalg.LinAlgError:
+            raise InvalidArgumentError("the candidates cannot identify the parameters") from None
+        g = np.sum((A @ (Mi @ L @ Mi)) * A, axis=1).reshape(n, r).sum(axis=1)
+        f = float(w @ g)
+        best = max(best, 2.0 * f - k * float(g.max()))
+        if best >= (1.0 - tolerance) * f:
+            break
+        w = w * np.sqrt(np.maximum(g, 0.0) * k / f)
+        w *= k / w.sum()
+    return float(np.sqrt(best))
+
+
 __all__ = [
     "EXCHANGE_CRITERIA",
     "CandidatesExhaustedError",
@@ -530,5 +582,6 @@ __all__ = [
     "ExchangeResult",
     "ExchangeState",
     "greedy_start",
+    "least_i",
     "optimal_subset",
 ]

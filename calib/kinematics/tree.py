@@ -31,7 +31,7 @@ from .robot import (
 )
 from .urdf_model import read_urdf_file
 
-__all__ = ["Tree", "load_robot", "load_tree", "tree_of_chains"]
+__all__ = ["Tree", "load_robot", "load_tree", "robot_argument", "tree_of_chains"]
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -278,3 +278,23 @@ def load_robot(
     if tools[0] is None and (entry := robot_source(robot)[2]) is not None and entry.is_tree:
         return load_tree(robot, base)
     return load_chain(robot, base, tools[0])
+
+
+def robot_argument(value: str | Path | Chain | Tree, what: str = "the robot") -> Chain | Tree:
+    """A chain or tree as given, or the robot a catalog name or URDF path names.
+
+    A name or path loads as :func:`calib.analyze` loads it, by :func:`load_robot` (the
+    catalog's base and tool, or the URDF's root and deepest tip): to choose the frames, load
+    the robot first.
+
+    Raises:
+        CalibError: Anything else, named with ``what``, or what loading raises.
+    """
+    if isinstance(value, str | Path):
+        return load_robot(value)
+    if not isinstance(value, Chain | Tree):
+        raise InvalidArgumentError(
+            f"{what} must be a Chain, a Tree (see load_robot), a catalog name or a URDF path, "
+            f"got {value!r:.60}"
+        )
+    return value

@@ -394,7 +394,7 @@ class ContactCampaign:
 
 
 def simulate_contacts(
-    chain: Chain,
+    chain: Chain | str | Path,
     configs: int = 100,
     measure: str = "plane",
     *,
@@ -412,7 +412,8 @@ def simulate_contacts(
     configuration projected onto its contact on the true model, kept within the joint limits.
 
     Args:
-        chain: The nominal chain (no mimic joints).
+        chain: The nominal chain (no mimic joints), or a catalog name or URDF path (as
+            :func:`~calib.measurements.simulation.simulate`).
         configs: Number of touches (>= 1).
         measure: ``plane``, ``plane-point``, ``fixed-point`` or ``fixed-pose``.
         contacts: Number of planes or points (>= 1, at most ``configs``: each is touched).

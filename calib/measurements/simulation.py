@@ -18,6 +18,7 @@ configuration, each with noise of its own, drawn after marker 1's.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
+from ..kinematics.tree import load_robot
 from .data import Measurements
 from .limits import check_limits, warn_default_ranges
 
@@ -138,22 +140,29 @@ class Campaign:
 
 
 def chain_argument(value: object, caller: str, tree_hint: str = "") -> Chain:
-    """``value`` if it is a :class:`Chain`.
+    """``value`` if it is a :class:`Chain`, or the chain a catalog name or URDF path names.
+
+    A name or path loads as :func:`calib.analyze` loads it
+    (:func:`~calib.kinematics.tree.load_robot`: the catalog's base and tool).
 
     Raises:
-        InvalidArgumentError: Anything else (a catalog name, a path, a tree), named with the
+        InvalidArgumentError: Anything else (a tree, loaded or named), named with the
             function the user called (``caller``) and, for a tree, ``tree_hint``.
     """
+    if isinstance(value, str | Path):
+        value = load_robot(value)
     if isinstance(value, Chain):
         return value
     got = f"{type(value).__name__} {value!r:.60}"
     if getattr(value, "is_tree", False):  # a robot says what it is (no class dispatch)
         got = f"the tree {getattr(value, 'name', '')!r}{tree_hint}"
-    raise InvalidArgumentError(f"{caller} takes a Chain (see load_chain), got {got}")
+    raise InvalidArgumentError(
+        f"{caller} takes a Chain (see load_chain), a catalog name or a URDF path, got {got}"
+    )
 
 
 def simulate(
-    chain: Chain,
+    chain: Chain | str | Path,
     configs: int | np.ndarray = 100,
     measure: str | MeasureKind = DEFAULT_MEASURE,
     marker=None,
@@ -170,7 +179,8 @@ def simulate(
     joint limits); the errors and the noise come from two further streams of the same seed.
 
     Args:
-        chain: The nominal chain.
+        chain: The nominal chain, or a catalog name or URDF path (loaded as
+            :func:`calib.analyze` loads it: the catalog's base and tool).
         configs: Number of configurations m (an integer >= 1), or the configurations
             themselves ``(m, n)`` [rad or m] (a designed set).
         measure: ``position`` (default, as ``analyze`` and ``design``) or ``pose`` (a name
