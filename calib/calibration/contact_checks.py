@@ -381,8 +381,8 @@ def checked_registration(
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted
         fitted, errors = (length_errors(start, d) for d in (kept, held))
-        rows, cut = term_checks.file_lines(held), held.subset
-        held = term_checks.held_out(fitted, errors, held, rows, cut, notes, None, words)
+        rows = term_checks.file_lines(held)
+        held = term_checks.held_out(fitted, errors, held, rows, notes, None, words)
     notes += filter(None, [_isolated_postures(chain, kept, held)])
     objects = noun(len(kept.contacts), f"{kept.kind.object_name}s")
     what = f"unknowns of {chain.tool_frame}'s {objects} and contact frame"

@@ -158,7 +158,6 @@ def _held_out(state: MeasuredState, kept, held: Measurements, notes: list[str], 
         outliers.point_errors(errors, k),
         held,
         term_checks.file_lines(held),
-        held.subset,
         notes,
         noise,
     )

@@ -330,7 +330,7 @@ class _Camera:
         notes += [stopped] if stopped else []
         if held is not None and e_held is not None:
             fitted, other = (outliers.Errors(e, None, (2, 3)) for e in (errors[~bad], e_held))
-            held = term_checks.held_out(fitted, other, held, held.rows.lines, held.subset, notes)
+            held = term_checks.held_out(fitted, other, held, held.rows.lines, notes)
         found.sort(key=lambda o: o.row)
         return Aside(state, bad, kept, tuple(found), held, tuple(notes))
 

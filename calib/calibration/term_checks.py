@@ -7,15 +7,15 @@ Rationale: docs/developers/engine.md#term_checks
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Generic, Protocol, TypeVar
+from typing import Generic, Protocol, Self, TypeVar
 
 import numpy as np
 
 from . import outliers
 
-__all__ = ["Aside", "FileRows", "Steps", "checked", "file_lines", "held_out"]
+__all__ = ["Aside", "FileRows", "Steps", "Subsets", "checked", "file_lines", "held_out"]
 
 D = TypeVar("D")
 S = TypeVar("S")
@@ -66,6 +66,16 @@ class FileRows(Protocol):
         """Number of rows."""
 
 
+class Subsets(Protocol):
+    """Rows that a mask or indices select (measurements, touches, a camera's points)."""
+
+    def subset(self, index: np.ndarray, /) -> Self:
+        """The rows ``index``."""
+
+
+R = TypeVar("R", bound=Subsets)
+
+
 def file_lines(data: FileRows) -> tuple[int, ...]:
     """Each row's line in its file; without a file, row i's is i + 1."""
     return data.rows or tuple(range(1, data.m + 1))
@@ -94,13 +104,12 @@ def _sequence(steps: Steps[D, S]) -> tuple[Aside[D, S], list[str]]:
 def held_out(
     fitted: outliers.Errors,
     errors: outliers.Errors,
-    held: D,
+    held: R,
     rows: tuple[int, ...],
-    subset: Callable[[np.ndarray], D],
     notes: list[str],
     noise: float | None = None,
     words: tuple[str, str] = ("rows", "error"),
-) -> D:
+) -> R:
     """The held-out rows without the outliers the training rule finds among them (noted)."""
     m = len(fitted.position)
     rot = None
@@ -114,4 +123,4 @@ def held_out(
     dropped = outliers.records(pooled, np.concatenate([np.zeros(m, dtype=bool), bad]), units)
     note = outliers.set_aside_note(dropped, *words)
     notes.append(f"held out: {note}; the held-out statistics leave them out")
-    return subset(~bad)
+    return held.subset(~bad)
