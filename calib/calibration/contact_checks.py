@@ -18,6 +18,7 @@ from ..identification.contacts import (
     FixedPoseContact,
     PlaneContact,
     PlanePointContact,
+    known_plane,
 )
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
@@ -362,10 +363,33 @@ def _registrable(data: ContactData) -> bool:
     return enough_touches(data)(np.zeros(data.m, dtype=bool)) and data.m * kind.n_rows > unknowns
 
 
+def _held_planes(state: ContactState, data: ContactData, known: dict) -> ContactState:
+    """The registration on planes given (``known``, by id): the contact frame refined alone."""
+    kin = state.kinematics(data.q)
+    R, p = kin.R[:, -1], kin.p[:, -1]
+    planes = np.array([known[i] for i in state.frames.ids])
+    frames = ContactFrames(known_plane(state.kind), state.contact, planes, state.frames.ids)
+    index = frames.index(data.ids, data.source)
+    try:
+        frames = refine(frames, R, p, index, state.weight)
+    except ContactGeometryError as exc:
+        raise ContactGeometryError(f"{data.source}: {exc}") from None
+    return ContactState(state.mdh, frames.centred(R, p, index), state.weight, state.compliance)
+
+
 def checked_registration(
-    chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None, held=None
+    chain,
+    nominal: MDHModel,
+    train: ContactData,
+    validate,
+    guess,
+    weight: float | None,
+    held=None,
+    known: dict | None = None,
 ):
     """Outliers set aside, diagnosis, registration: :func:`~.measured_term.checked_measured`'s.
+
+    ``known``: the planes given, by id (every object of the touches): held, not fitted.
 
     Raises:
         DataError: A held-out touch of an object the training touches do not touch, or too
@@ -377,6 +401,12 @@ def checked_registration(
     aside, notes = term_checks.checked(_Touches(chain, nominal, train, guess), checks)
     kept, found, words = aside.kept, list(aside.found), ("touches", "gap")
     start = registration(nominal, kept, guess, weight, aside.state.frames)
+    if known:
+        start = _held_planes(start, kept, known)
+        given = ", ".join(f"'{k}'" for k in known)
+        notes.append(
+            f"{noun(len(known), 'planes')} {given} given: held, the contact frame's height fitted instead"
+        )
     notes += [outliers.set_aside_note(found, *words)] if found else []
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted

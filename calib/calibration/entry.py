@@ -164,6 +164,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
         shared_planes=problem.shared_planes,
         pose_weight=problem.pose_weight,
         progress=progress,
+        known_planes=problem.known_planes,
     )
     return dataclasses.replace(measured_chain(run) if chain else fit_run(run), inputs=files)
 
