@@ -63,6 +63,7 @@ MIN_SPREAD = 1e-6  # smallest RMS spread [rad] of the tool's orientations about 
 WEIGHT_ROUNDS = 5  # the angle weight's registrations: docs/developers/engine.md#weight_rounds
 POSTURE_TOL = 1e-2  # [rad or m]: postures whose joints agree within it (modulo a turn) are one
 FEW_POSTURES = 8  # fewest postures of a held-out verdict: docs/developers/engine.md#few_postures
+KNOWN_PLANE_OFF = (0.05, 0.1)  # farthest [m], most tilted [rad] a plane given from its touches
 
 
 def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -368,6 +369,15 @@ def _held_planes(state: ContactState, data: ContactData, known: dict) -> Contact
     kin = state.kinematics(data.q)
     R, p = kin.R[:, -1], kin.p[:, -1]
     planes = np.array([known[i] for i in state.frames.ids])
+    for name, given, fitted in zip(state.frames.ids, planes, state.frames.objects, strict=True):
+        tilt = np.arccos(np.clip(given[:3, 2] @ fitted[:3, 2], -1.0, 1.0))
+        off = abs(given[:3, 2] @ (fitted[:3, 3] - given[:3, 3]))
+        if off > KNOWN_PLANE_OFF[0] or tilt > KNOWN_PLANE_OFF[1]:
+            raise DataError(
+                data.source,
+                f"the touches put plane '{name}' {off:.3g} m and {np.degrees(tilt):.3g} deg "
+                f"from where it is given: is it given in the chain's base frame, in metres?",
+            )
     frames = ContactFrames(known_plane(state.kind), state.contact, planes, state.frames.ids)
     index = frames.index(data.ids, data.source)
     try:

@@ -61,6 +61,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    known_planes=None,
     progress: Progress | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate a robot from what was recorded on it: a model that predicts unseen postures.
@@ -96,6 +97,7 @@ def calibrate(
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
+        known_planes: Touches: planes given, held (:attr:`~.problem.Problem.known_planes`).
         progress: Progress bars of the registration, the selection and the fit
             (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
@@ -120,6 +122,7 @@ def calibrate(
         max_iterations=max_iterations,
         holdout=holdout,
         seed=seed,
+        known_planes=known_planes,
     )
     if isinstance(robot, Problem):
         _alone(data, options_given(dict(marker=marker, validate=validate, **options)))

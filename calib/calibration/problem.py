@@ -152,10 +152,10 @@ class Problem(Options):
                 f"{', '.join(sorted(urdfs))}"
             )
         super().__post_init__()  # the values, checked once (the level by the model of the shape)
-        term_planes([t.robot for t in self.terms], [t.data for t in self.terms], self.known_planes)
         if self.holdout > 0 and any(t.validate is not None for t in self.terms):
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         self._check_applicable()
+        term_planes([t.robot for t in self.terms], [t.data for t in self.terms], self.known_planes)
 
     def options(self) -> Options:
         """The problem's options alone, as one value (its terms and the joint fit's left)."""
