@@ -413,10 +413,8 @@ def checked_registration(
     start = registration(nominal, kept, guess, weight, aside.state.frames)
     if known:
         start = _held_planes(start, kept, known)
-        given = ", ".join(f"'{k}'" for k in known)
-        notes.append(
-            f"{noun(len(known), 'planes')} {given} given: held, the contact frame's height fitted instead"
-        )
+        given = f"{noun(len(known), 'planes')} {', '.join(repr(k) for k in known)}"
+        notes.append(f"{given} given: held, the contact frame's height fitted instead")
     notes += [outliers.set_aside_note(found, *words)] if found else []
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted

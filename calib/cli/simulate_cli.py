@@ -24,12 +24,12 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from . import pixels_cli
 from .common import (
+    PLANE_METAVAR,
     Group,
     add_chain_args,
     add_marker_arg,
     check_output_paths,
     command_parser,
-    PLANE_METAVAR,
     given_options,
     named_planes,
     nonnegative_number,

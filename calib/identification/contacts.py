@@ -140,8 +140,8 @@ class PlaneContact(Contact):
 
     label: str = "plane"
     object_name = "plane"
-    object_dofs = (2, 3, 4)  # its height and two tilts
-    contact_dofs = (3, 4)
+    object_dofs: ClassVar[tuple[int, ...]] = (2, 3, 4)  # its height and two tilts
+    contact_dofs: ClassVar[tuple[int, ...]] = (3, 4)
 
     @property
     def row_names(self) -> tuple[str, ...]:
@@ -238,7 +238,7 @@ class PlanePointContact(Contact):
 
     label: str = "plane-point"
     object_name = "plane"
-    object_dofs = (2, 3, 4)
+    object_dofs: ClassVar[tuple[int, ...]] = (2, 3, 4)
     contact_dofs = (0, 1, 2)
 
     @property

@@ -26,8 +26,11 @@ MAX_OBJECT_DISTANCE = 100.0
 
 
 def plane_through(point, normal) -> np.ndarray:
-    """The plane ``(4, 4)`` through ``point`` [m] with z along ``normal`` (x: the base x, made
-    perpendicular, or the base y when the normal is near x)."""
+    """The plane ``(4, 4)`` through ``point`` [m] with z along ``normal``.
+
+    Its x axis: the base x made perpendicular to the normal (the base y when the normal is
+    near x).
+    """
     n = np.asarray(normal, dtype=float)
     n = n / np.linalg.norm(n)
     helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
