@@ -160,7 +160,7 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
             f"parameters or compliances"
         )
     placements = start.placements
-    D, labels = mdh_directions(placements, chain, start.states[0].mdh, 0, "complete")
+    D, labels = mdh_directions(placements, chain, start.states[0].mdh, "complete")
     chart = dict(zip(labels, D, strict=True))
     components = dict(zip(placements.names(), np.eye(len(placements.names())), strict=True))
     bare = {label.split(":", 1)[1]: label for label in labels}
