@@ -36,7 +36,7 @@ from .outliers import (
 from .pixel_chain import PixelPart, PixelTermState, pixel_parts
 from .pixel_chain_result import PixelChain
 from .pixel_fit import ROUND_OFF_PX
-from .register import Registered, Run, drawn
+from .register import Registered, Run, drawn, register_contact_chains
 
 __all__ = ["fit_terms_until_stable", "proposals"]
 
@@ -65,15 +65,13 @@ def proposals(start: ChainsState, c: int, data: Measurements, noise: float | Non
 
 
 def fit_terms_until_stable(
-    run: Run,
-    register: Callable[[Run], Registered],
-    fit: Callable[[Registered], ContactChainsCalibration],
+    run: Run, fit: Callable[[Registered], ContactChainsCalibration]
 ) -> ContactChainsCalibration:
     """The run's fit without the rows each term's errors under it find outlying.
 
     Each term's outliers in the fit returned are the loop's and its registration's.
     """
-    first = register(run)
+    first = register_contact_chains(run)
     again, train = _drawn(run)
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
@@ -99,7 +97,7 @@ def fit_terms_until_stable(
             fitted[:] = fitted or [fit(first)]
             return fitted[0]
         kept = [_subset(d, keep[p]) for d, p in zip(train, parts, strict=True)]
-        return fit(register(dataclasses.replace(again, data=kept)))
+        return fit(register_contact_chains(dataclasses.replace(again, data=kept)))
 
     def rule(result: ContactChainsCalibration) -> np.ndarray | None:
         if result.stalled:  # gaps where a fit stopped, or of the parameters held after: none

@@ -157,7 +157,7 @@ def check_readings(chain: object, *parts: object) -> None:
 
 def fit_run(run: Run) -> ContactChainsCalibration:
     """A run registered and fitted, each term's outliers set aside after each fit until stable."""
-    return fit_terms_until_stable(run, register_contact_chains, fit_registered)
+    return fit_terms_until_stable(run, fit_registered)
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:
