@@ -343,7 +343,7 @@ def _postures(data: ChainsData) -> np.ndarray | None:
 
 
 def _selection_columns(
-    wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart | None = None
+    wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart
 ):
     """The selection's dense columns (the always-free ones, then ``columns``), and the rest.
 
@@ -353,8 +353,7 @@ def _selection_columns(
     """
     x = np.zeros(wide.size())
     if not by_block(wide, start):
-        J = (at or AtStart(wide, start))(data)
-        return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
+        return at(data)[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
     own, shared, index = wide.blocks(start, x, data)
     K, o = wide.object_blocks()
     cols = list(range(wide.fixed - K * o)) + [c - K * o for c in columns]
