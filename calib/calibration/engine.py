@@ -312,7 +312,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     ]
     pairs = zip(result.chains, labels, r.dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
-    cov = solution.covariance()[0]
+    cov = solution.covariance[0]
     values = fitted_values(fitted, cov)
     stopped = unconverged(fitted)
     ranked = polished or not fitted.converged  # a stalled fit's rank is not judged
@@ -424,7 +424,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             parts.append(part)
             continue
         own = fitted.model.own_columns(c)
-        std = np.sqrt(np.diag(solution.covariance()[0]))[own]
+        std = np.sqrt(np.diag(solution.covariance[0]))[own]
         part = (
             pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
             if isinstance(s, PixelTermState)
