@@ -272,12 +272,13 @@ class ContactChainsCalibration(Result, ChainView):
     def joint_errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
 
-        A measured term's measuring frame moves its fixed joint (:class:`MeasuredChain`).
+        A measured term's measuring frame moves its fixed joint (:class:`MeasuredChain`): its
+        ``E`` is the inverse of the base frame's pose in the measuring frame.
         """
         out = self.placements.errors()
         for c in self._of(MeasuredChain):
             if c.joint is not None:
-                out[c.joint] = c.placement_error()
+                out[c.joint] = np.linalg.inv(c.state.inner.frame)
         return out
 
     def _of(self, kind: type[_T]) -> tuple[_T, ...]:

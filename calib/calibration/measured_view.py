@@ -76,10 +76,6 @@ class MeasuredChain(TermPart):
         """The term's layout (:class:`~.model.MeasuredKind`)."""
         return self.state.kind
 
-    def placement_error(self) -> np.ndarray:
-        """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
-        return np.linalg.inv(self.state.inner.frame)
-
     def heading(self) -> str:
         """Its kind, its rows' units and what measures it (the instrument, a frame's joint)."""
         joint = self.joint
