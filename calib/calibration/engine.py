@@ -491,7 +491,7 @@ def _touching(r: Registered, c: int, s0, s: ContactState, converged: bool, notes
         s.weight,
         stats,
         s.kind,
-        placed=objects,
+        objects,
         compliance=compliance,
         load=None if compliance is None else load,
         readings=() if compliance is None or d.readings is None else d.readings.names,

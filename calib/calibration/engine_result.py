@@ -63,7 +63,7 @@ class ChainContacts(TermPart):
         weight: Weight of its tilt rows [m/rad].
         outliers: Its touches set aside after its registration.
         placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
-            origin at its touches' contact points, projected), or None: :attr:`plane`.
+            origin at its touches' contact points, projected).
         load: The gravity load the compliance acts under, or None.
         readings: The joints off the chain the load takes at their recorded positions.
     """
@@ -77,18 +77,17 @@ class ChainContacts(TermPart):
     calibrated: MDHModel
     weight: float
     stats: dict[str, GapStats]
-    kind: Contact = field(default_factory=PlaneContact)
+    kind: Contact
+    placed: dict[str, np.ndarray]
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
-    placed: dict[str, np.ndarray] | None = None
     compliance: np.ndarray | None = None
     load: StandingLoad | None = None
     readings: tuple[str, ...] = ()
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
-        placed = {self.plane_id: self.plane} if self.placed is None else self.placed
-        return {i: F.copy() for i, F in placed.items()}
+        return {i: F.copy() for i, F in self.placed.items()}
 
     rows: ClassVar[str] = "touches"
 
