@@ -173,7 +173,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
     with phase(progress, "calibrate: selection"):
-        asked, offer = level_offer(chains[0], start, opts.level, instrument, opts)
+        asked, offer = level_offer(chains[0], start, instrument, opts)
         flush = flush_data(start, train, load)
         rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
