@@ -96,7 +96,7 @@ def fit_terms_until_stable(
         if np.array_equal(~keep, inner):  # those that stay aside alone: the first fit
             fitted[:] = fitted or [fit(first)]
             return fitted[0]
-        kept = [_subset(d, keep[p]) for d, p in zip(train, parts, strict=True)]
+        kept = [_as_data(d.subset(keep[p])) for d, p in zip(train, parts, strict=True)]
         return fit(register_contact_chains(dataclasses.replace(again, data=kept)))
 
     def rule(result: ContactChainsCalibration) -> np.ndarray | None:
@@ -131,16 +131,14 @@ def _drawn(run: Run) -> tuple[Run, list]:
         return run, parts
     splits = drawn(parts, opts.holdout, opts.seed)  # as the registration draws them
     once = dataclasses.replace(opts, holdout=0.0)  # drawn here, not again
-    held = [s[1].as_data() if isinstance(s[1], PixelPart) else s[1] for s in splits]
+    held = [_as_data(s[1]) for s in splits]
     again = dataclasses.replace(run, validate=held, options=once, held_label="holdout")
     return again, [s[0] for s in splits]
 
 
-def _subset(data, keep: np.ndarray):
-    """A term's rows a boolean mask keeps (touches, measurements, or pixels as PixelData)."""
-    if isinstance(data, PixelPart):
-        return data.subset(keep).as_data()
-    return data.subset(keep)
+def _as_data(rows):
+    """A term's rows as a run's data: a pixel term's as PixelData (others, None: as they are)."""
+    return rows.as_data() if isinstance(rows, PixelPart) else rows
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:
