@@ -146,16 +146,7 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros):
             state, d, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
             state, d, found, more, held[c] = checked_measured(
-                chain,
-                d,
-                v,
-                held[c],
-                weight,
-                opts.max_iterations,
-                run.marker,
-                opts.noise_mm,
-                zero,
-                holds[c],
+                chain, d, v, held[c], weight, opts, run.marker, zero, holds[c]
             )
             state = dataclasses.replace(state, instrument=run.instrument)
         else:
