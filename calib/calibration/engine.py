@@ -37,7 +37,7 @@ from .measured_options import level_offer
 from .measured_term import unseen
 from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
-from .pixel_chain import PixelData, PixelTermState
+from .pixel_chain import PixelData, PixelPart, PixelTermState
 from .pixel_chain_result import PixelChain, check_fitted_pixels, pixel_result
 from .problem import check_weighed
 from .register import Registered, Run, determined_unknowns, register_contact_chains
@@ -310,8 +310,11 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
         None if h is None else "holdout" if v is None else r.run.held_label or v.source
         for h, v in zip(r.held, given, strict=True)
     ]
-    pairs = zip(result.chains, labels, r.dropped, strict=True)
-    parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
+    pairs = zip(result.chains, labels, map(_lines, r.held), r.dropped, strict=True)
+    parts = tuple(
+        dataclasses.replace(c, held_source=lab, held_rows=rows, outliers=o)
+        for c, lab, rows, o in pairs
+    )
     cov = solution.covariance[0]
     values = fitted_values(fitted, cov)
     stopped = unconverged(fitted)
@@ -324,6 +327,13 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
+
+
+def _lines(held) -> tuple[int, ...] | None:
+    """Held-out rows' lines in their file (pixels: each point's), or None: none held out."""
+    if held is None:
+        return None
+    return held.rows.lines if isinstance(held, PixelPart) else term_checks.file_lines(held)
 
 
 def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | None:

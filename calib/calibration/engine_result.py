@@ -80,6 +80,7 @@ class ChainContacts(TermPart):
     kind: Contact
     placed: dict[str, np.ndarray]
     held_source: str | None = None
+    held_rows: tuple[int, ...] | None = None
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
     load: StandingLoad | None = None
@@ -306,7 +307,7 @@ class ContactChainsCalibration(Result, ChainView):
             "world_link": None,
             "tool_link": None,
             "on_robot": any(c.joint is not None for c in measured) or bool(cameras),
-            **({"cameras": cameras} if cameras else {}),
+            "cameras": cameras,
         }
 
     @checked_arguments
@@ -353,7 +354,7 @@ class ContactChainsCalibration(Result, ChainView):
                     "tool": c.chain.tool_frame,
                     "kind": c.kind.label,
                     "data": c.source,
-                    "configs": int(c.stats["train"].m),
+                    "configs": int(c.configs()),
                     "objects": list(names.get(id(c), {}).values()),
                 }
                 for c in self.chains

@@ -67,6 +67,7 @@ class MeasuredChain(TermPart):
     held: Measurements | None
     parameters: tuple[dict, ...] = ()
     held_source: str | None = None
+    held_rows: tuple[int, ...] | None = None
     outliers: tuple[Outlier, ...] = ()
     compliance: np.ndarray | None = None
     residuals: np.ndarray | None = None
