@@ -1,10 +1,11 @@
 """Every kind is a term of one problem, in Python and on the command line alike.
 
 Point feet (``plane-point``), fixed points and fixed poses, several objects per chain, beside
-each other and beside a head camera's markers or poses: a noise-free campaign on a true TALOS
-(every joint of the torso and both legs moved, calib.measurements.true_robot) fitted as one
-problem, then checked by Pinocchio alone on the written URDF (tests/contact_scorer.py: each
-touch's contact frame on its fitted object, exact to 1e-9). What a problem of two point feet
+each other and beside a head camera's markers, poses or pixels: a noise-free campaign on a
+true TALOS (every joint of the torso, both legs and the left arm moved, and the head camera,
+calib.measurements.true_robot) fitted as one problem, then checked by Pinocchio alone on the
+written URDF (tests/contact_scorer.py: each touch's contact frame on its fitted object;
+tests/pixel_scorer.py: the pixels), exact to 1e-9. What a problem of two point feet
 determines is the rank of Pinocchio's central differences (tests/test_self_measure.py's
 ``_Robot``, its rows those of a point on a plane). What does not apply to several terms is a
 one-line error, in Python and on the command line.
@@ -20,15 +21,20 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from contact_scorer import contact_gaps, relative_placements
+from pixel_scorer import seen_pixels
+from pixel_setups import INTRINSICS, grid
+from test_pixel_terms import _optical, _seen_postures
 from test_self_measure import _camera_rows, _joints, _Robot
 
 import calib
 from calib import Problem, Term, calibrate, load_robot
+from calib.calibration.pixel_chain import PixelCamera, PixelData, pixel_rows
 from calib.cli.commands import main
 from calib.cli.contact_chains_cli import TERM_KINDS
 from calib.core.choices import CONTACT_MEASURES
 from calib.exceptions import InvalidArgumentError
 from calib.measurements.contact_campaign import simulate_contacts, write_contacts
+from calib.measurements.pixel_simulation import simulate_pixels
 from calib.measurements.true_robot import true_robot
 
 URDF = "talos_full_v2.urdf"
@@ -122,6 +128,36 @@ def test_a_camera_term_beside_a_point_foot_round_trips(truth, pose, tmp_path):
         R = np.array([M.rotation @ fitted.tool_rotation for M in T])
         want = np.array([pin.Quaternion(*c[[3, 0, 1, 2]]).matrix() for c in seen.quaternion])
         assert np.max(np.abs(R - want)) < 1e-9
+
+
+def test_a_camera_seeing_the_hand_beside_a_point_foot_round_trips(truth, tmp_path):
+    """The head camera's pixels of a grid on the left hand (its placement on ``rgbd_link``
+    unknown) while the left foot touches a plane as a point: every pixel through the written
+    URDF's camera link (Pinocchio, a textbook pinhole) to 1e-9 px, every touch on its plane."""
+    foot, head = load_robot(URDF, *FEET[0]), load_robot(URDF, "rgbd_link", CAMERA[1])
+    target, C = grid(4, 3, 0.03), _optical(head)
+    true_head = load_robot(str(truth), "rgbd_link", CAMERA[1])
+    q = _seen_postures(head, true_head, C, 40)
+    obs = simulate_pixels(true_head, CAMERA[0], C, INTRINSICS, target, q)
+    camera = PixelCamera(CAMERA[0], "rgbd_link", INTRINSICS, None)
+    touches = _touches(truth, FEET[0], "plane-point", 1)
+    terms = (Term(foot, touches), Term(head, PixelData(camera, target, obs)))
+    result = calibrate(Problem(terms, params="complete"))
+    assert result.accepted, result.refusal
+    out = tmp_path / "cal.urdf"
+    result.write(out)
+    assert _flush(out, foot, touches, result.chains[0]) < 1e-9
+    rows = pixel_rows(head, obs, target, CAMERA[0])
+    K, dist = INTRINSICS.camera.camera_matrix, INTRINSICS.camera.distortion
+    X = target.position[rows.point]
+    worst = []
+    for urdf in (out, head.urdf_path):  # the written URDF, and the nominal one: something to fix
+        model = pin.buildModelFromUrdf(str(urdf))
+        seen = seen_pixels(
+            model, CAMERA[0], CAMERA[1], head.joint_names, rows.q, X, np.eye(4), K, dist
+        )
+        worst.append(np.max(np.linalg.norm(seen - rows.pixels, axis=1)))
+    assert rows.m > 200 and worst[0] < 1e-9 and worst[1] > 1.0
 
 
 class _PointFeet(_Robot):
