@@ -470,10 +470,10 @@ def test_held_out_points_seen_from_behind_are_not_scored(capsys, tmp_path, ur5):
     code, out, err = _calibrate_ur5(capsys, folder, data, target, tmp_path, *validate)
     assert code == 0, err
     held = json.loads(report.read_text())["errors"]["terms"][0]["held_out"]["calibrated"]
-    assert np.sum(behind < -0.01) <= held["configs"] <= np.sum(behind <= 0.01) < len(behind)
+    assert np.sum(behind < -0.01) <= held["pixels"] <= np.sum(behind <= 0.01) < len(behind)
     note = "rows seen from behind set aside (the target's normals face away from camera cam)"
     text = out + err
-    assert f"held out: {len(behind) - held['configs']} {note}" in text
+    assert f"held out: {len(behind) - held['pixels']} {note}" in text
     assert "outlier rows set aside" not in text  # noise-free pixels: none far off
     assert all(line.count(", ") <= 10 for line in text.splitlines() if "from behind" in line)
 

@@ -18,15 +18,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pixel_setups import INTRINSICS, grid, look_at
 
 from calib import (
     DataWarning,
+    PixelCamera,
+    PixelData,
+    Problem,
+    Term,
     calibrate,
     calibrate_contact_chains,
     load_chain,
     load_robot,
     read_measurements,
     simulate,
+    simulate_pixels,
     simulate_tree,
 )
 from calib.calibration.entry import calibrate_contacts
@@ -45,7 +51,8 @@ TOP = [
 
 PARAMETER = {"name", "joint", "value", "std", "unit", "prior_weight"}
 TERM = {"base", "tool", "kind", "data", "configs", "objects"}
-FRAMES = {"measurement", "measured", "markers", "contacts", "world_link", "tool_link", "on_robot"}
+FRAMES = {"measurement", "measured", "markers", "contacts", "world_link", "tool_link"}
+FRAMES |= {"on_robot", "cameras"}
 FIT = {"sigma", "condition_number", "predicted_std_mm", "orientation_weight"}
 UNITS = {"m", "rad", "rad/(N m)", "m/N"}
 
@@ -82,8 +89,19 @@ def _chains_report():
     return calibrate_contact_chains(chains, data, params="offsets", holdout=0.25).to_dict()
 
 
+def _pixel_report():
+    chain = load_robot("ur5", "world", "tool0")
+    board, camera = grid(4, 3, 0.03), PixelCamera("cam", "world", INTRINSICS, None)
+    seen = look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3])
+    q = chain.random_configurations(300, 1)
+    obs = simulate_pixels(chain, "cam", seen, INTRINSICS, board, q, noise_px=0.3, seed=1)
+    terms = (Term(chain, PixelData(camera, board, obs)),)
+    return calibrate(Problem(terms, params="complete", holdout=0.25)).to_dict()
+
+
 SHAPES = {
     "chain": _chain_report,
+    "chains-pixels": _pixel_report,
     "tree": _tree_report,
     "contacts-plane": lambda: _contact_report("plane"),
     "contacts-fixed-point": lambda: _contact_report("fixed-point"),
@@ -121,11 +139,30 @@ def test_errors_are_in_mm_and_degrees_with_the_unit_in_the_key(reports, shape):
     keys = set()
     for part in reports[shape]["errors"]["terms"]:
         for group in (part["train"], part["held_out"] or {}):
-            for stats in group.values():
-                if isinstance(stats, dict):
+            for key, stats in group.items():
+                if key == "pixels":  # a camera's reprojection errors, by model [px]
+                    keys |= {k for model in stats.values() for k in model}
+                elif isinstance(stats, dict):
                     keys |= set(stats)
     assert keys
-    assert all(re.fullmatch(r"configs|\w+_(mm|deg)", k) for k in keys), keys
+    assert all(re.fullmatch(r"configs|pixels|\w+_(mm|deg|px)", k) for k in keys), keys
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_every_held_out_entry_lists_the_rows_it_scored(reports, shape):
+    """``held_out.rows``: the rows scored by their line (no file: row i is i + 1), sorted,
+    as many as the entry counts (a camera's: its pixels), none a training outlier; a
+    tree's pooled entry lists every tool's."""
+    errors = reports[shape]["errors"]
+    terms = [t["held_out"] for t in errors["terms"]]
+    for held in [*terms, errors["held_out"] or terms[0]]:
+        rows, counted = held["rows"], held["calibrated"]
+        assert rows == sorted(set(rows)) and min(rows) >= 1, shape
+        assert len(rows) == counted.get("pixels", counted["configs"]), shape
+    if errors["held_out"] is not None and len(terms) > 1:
+        assert errors["held_out"]["rows"] == sorted(n for t in terms for n in t["rows"])
+    aside = {(o["term"], o["row"]) for o in reports[shape]["outliers"]}
+    assert not aside & {(k, n) for k, t in enumerate(terms) for n in t["rows"]}
 
 
 def test_chain_errors_are_the_format_2_figures_in_mm(reports):

@@ -79,6 +79,7 @@ class TermPart:
         kind: The term's layout (its ``label``, ``row_names`` and ``angular``).
         stats: Its errors by part (:class:`GapStats`: ``train``, ``held_out``, ...).
         held_source: Its held-out rows' source (``holdout`` or the validation file), or None.
+        held_rows: Its held-out rows scored, by their line in that file (None: none held out).
         compliance: Its fitted joint compliance ``(n,)`` [rad/(N m) or m/N], or None (rigid).
     """
 
@@ -87,12 +88,17 @@ class TermPart:
     kind: Any
     stats: dict[str, GapStats]
     held_source: str | None
+    held_rows: tuple[int, ...] | None
     compliance: np.ndarray | None = None
     rows: ClassVar[str] = "configurations"
 
     def errors(self) -> dict:
         """The report's ``errors.terms`` entry: ``train`` and ``held_out`` errors (format 3)."""
-        return term_errors(self.stats, self.held_source)
+        return term_errors(self.stats, self.held_source, self.held_rows)
+
+    def configs(self) -> int:
+        """Its fitted postures (the report's ``terms[k].configs``): a row is one."""
+        return self.stats["train"].m
 
     def to_dict(self) -> dict:
         """Format 2's ``chains`` entry: base, tool, data, kind, then its kind's own keys."""

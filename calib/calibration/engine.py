@@ -37,7 +37,7 @@ from .measured_options import level_offer
 from .measured_term import unseen
 from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
-from .pixel_chain import PixelData, PixelTermState
+from .pixel_chain import PixelData, PixelPart, PixelTermState
 from .pixel_chain_result import PixelChain, check_fitted_pixels, pixel_result
 from .problem import check_weighed
 from .register import Registered, Run, determined_unknowns, register_contact_chains
@@ -160,7 +160,7 @@ def check_readings(chain: object, *parts: object) -> None:
 
 def fit_run(run: Run) -> ContactChainsCalibration:
     """A run registered and fitted, each term's outliers set aside after each fit until stable."""
-    return fit_terms_until_stable(run, register_contact_chains, fit_registered)
+    return fit_terms_until_stable(run, fit_registered)
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:
@@ -176,7 +176,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
     with phase(progress, "calibrate: selection"):
-        asked, offer = level_offer(chains[0], start, opts.level, instrument, opts)
+        asked, offer = level_offer(chains[0], start, instrument, opts)
         flush = flush_data(start, train, load)
         rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
@@ -313,9 +313,12 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
         None if h is None else "holdout" if v is None else r.run.held_label or v.source
         for h, v in zip(r.held, given, strict=True)
     ]
-    pairs = zip(result.chains, labels, r.dropped, strict=True)
-    parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
-    cov = solution.covariance()[0]
+    pairs = zip(result.chains, labels, map(_lines, r.held), r.dropped, strict=True)
+    parts = tuple(
+        dataclasses.replace(c, held_source=lab, held_rows=rows, outliers=o)
+        for c, lab, rows, o in pairs
+    )
+    cov = solution.covariance[0]
     values = fitted_values(fitted, cov)
     stopped = unconverged(fitted)
     ranked = polished or not fitted.converged  # a stalled fit's rank is not judged
@@ -327,6 +330,13 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
         refusal = stalled or refusal or weak
     out = dataclasses.replace(result, chains=parts, refusal=refusal, solution=solution, **values)
     return out, found
+
+
+def _lines(held) -> tuple[int, ...] | None:
+    """Held-out rows' lines in their file (pixels: each point's), or None: none held out."""
+    if held is None:
+        return None
+    return held.rows.lines if isinstance(held, PixelPart) else term_checks.file_lines(held)
 
 
 def _held(found, selection: Selection | None, given) -> tuple[str, Direction] | None:
@@ -427,7 +437,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             parts.append(part)
             continue
         own = fitted.model.own_columns(c)
-        std = np.sqrt(np.diag(solution.covariance()[0]))[own]
+        std = np.sqrt(np.diag(solution.covariance[0]))[own]
         part = (
             pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
             if isinstance(s, PixelTermState)
@@ -494,7 +504,7 @@ def _touching(r: Registered, c: int, s0, s: ContactState, converged: bool, notes
         s.weight,
         stats,
         s.kind,
-        placed=objects,
+        objects,
         compliance=compliance,
         load=None if compliance is None else load,
         readings=() if compliance is None or d.readings is None else d.readings.names,

@@ -140,7 +140,8 @@ def instrument_errors(parts) -> dict:
     """The report's ``errors.train`` and ``errors.held_out`` of every tool together."""
     if not parts:
         return {"train": None, "held_out": None}
-    return term_errors(pooled(parts), parts[0].held_source)
+    rows = [r for c in parts for r in c.held_rows or ()]  # every tool's (None: none held)
+    return term_errors(pooled(parts), parts[0].held_source, rows or None)
 
 
 def instrument_lines(parts) -> list[str]:

@@ -53,6 +53,7 @@ def chain_frames(part: MeasuredChain, world_link: str | None, on_robot: bool = F
         "world_link": world_link,
         "tool_link": urdf_tool_frame(part.chain),
         "on_robot": on_robot,
+        "cameras": {},
     }
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -57,7 +57,8 @@ class PixelChain(TermPart):
     target by part (``train``, ``train_registration``, ``held_out``...); ``pixels``: the same
     parts' reprojection errors [px]; ``registered``, ``state``: its registration on the nominal
     robot and its fitted state (camera, target, lens); ``parameters``: its unknowns' report
-    entries (changes from the registration); ``outliers``: its rows set aside.
+    entries (changes from the registration); ``outliers``: its rows set aside;
+    ``postures``: the postures of ``train`` and ``held_out`` (a row is a pixel).
     """
 
     chain: Chain
@@ -68,8 +69,10 @@ class PixelChain(TermPart):
     stats: dict[str, GapStats]
     pixels: dict[str, dict]
     held_source: str | None = None
+    held_rows: tuple[int, ...] | None = None
     parameters: tuple[dict, ...] = ()
     outliers: tuple[Outlier, ...] = ()
+    postures: dict[str, int] = field(default_factory=dict)
     rows: ClassVar[str] = "pixels"
 
     def camera_dict(self) -> dict:
@@ -88,15 +91,26 @@ class PixelChain(TermPart):
         return self.state.kind
 
     def errors(self) -> dict:
-        """``errors.terms``: train and held out, mm at the target and px (format 3)."""
+        """``errors.terms``: train and held out, mm at the target and px (format 3).
+
+        Each error entry's ``configs`` counts postures, its ``pixels`` the pixels.
+        """
         out = super().errors()
         for part in ("train", "held_out"):
             if out[part] is not None:
+                for key in ("registration", "calibrated", "urdf"):
+                    entry = out[part][key]
+                    counts = {"configs": self.postures[part], "pixels": entry.pop("configs")}
+                    out[part][key] = {**counts, **entry}
                 out[part]["pixels"] = {
                     "registration": self.pixels[f"{part}_registration"],
                     "calibrated": self.pixels[part],
                 }
         return out
+
+    def configs(self) -> int:
+        """Its fitted postures (the report's ``terms[k].configs``; its pixels are more)."""
+        return self.postures["train"]
 
     def warnings(self) -> list[str]:
         """A calibrated reprojection error above :data:`EXPECTED_PX` (RMS), said once."""
@@ -147,8 +161,18 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
     names = [f"term{term}.{n}" for n in state.kind.names()]
     entries = parameter_entries(names, x, std, ())
     name = train.data.camera.name
+    parts = {"train": train} if held is None else {"train": train, "held_out": held}
+    postures = {k: len(np.unique(p.q, axis=0)) for k, p in parts.items()}
     return PixelChain(
-        chain, train.source, name, registered, state, stats, pixels, parameters=tuple(entries)
+        chain,
+        train.source,
+        name,
+        registered,
+        state,
+        stats,
+        pixels,
+        parameters=tuple(entries),
+        postures=postures,
     )
 
 

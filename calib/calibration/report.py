@@ -23,6 +23,7 @@ __all__ = [
     "finite",
     "fit_dict",
     "fold_lines",
+    "held_entry",
     "mm_or_deg",
     "model_choice",
     "one_term",
@@ -179,14 +180,25 @@ def errors_part(registration, calibrated, urdf=None, mm: bool = True) -> dict:
     }
 
 
-def term_errors(stats: Mapping, held_source: str | None) -> dict:
-    """A term's ``errors.terms`` entry (format 3): ``train`` and ``held_out`` (None: none)."""
+def term_errors(
+    stats: Mapping, held_source: str | None, held_rows: Sequence[int] | None = None
+) -> dict:
+    """A term's ``errors.terms`` entry (format 3): ``train`` and ``held_out`` (None: none).
+
+    ``held_rows``: the held-out rows scored, by their line in ``held_source``'s file (None:
+    unknown), written sorted as ``held_out.rows``.
+    """
     out: dict = {"train": None, "held_out": None}
     for key in out:
         if key in stats:
             part = errors_part(stats[f"{key}_registration"], stats[key], stats.get(f"{key}_urdf"))
-            out[key] = part if key == "train" else {"source": held_source, **part}
+            out[key] = part if key == "train" else {**held_entry(held_source, held_rows), **part}
     return out
+
+
+def held_entry(source: str | None, rows: Sequence[int] | None) -> dict:
+    """A ``held_out`` entry's ``source`` and ``rows`` (the rows scored, sorted; None: unknown)."""
+    return {"source": source, "rows": None if rows is None else sorted(int(r) for r in rows)}
 
 
 def selection_dict(selection) -> dict | None:

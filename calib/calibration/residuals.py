@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..measurements.data import Measurements
-from .report import errors_part, finite, mm_or_deg
+from .report import errors_part, finite, held_entry, mm_or_deg
 
 __all__ = ["ResidualStats", "Validation"]
 
@@ -80,9 +80,10 @@ class Validation:
     rows: Measurements | None = None
 
     def in_mm(self) -> dict:
-        """The report's ``errors.held_out`` (format 3): mm and degrees."""
+        """The report's ``errors.held_out`` (format 3): mm and degrees, the rows by line."""
+        rows = None if self.rows is None else self.rows.file_rows().tolist()
         return {
-            "source": self.source,
+            **held_entry(self.source, rows),
             **errors_part(self.registration, self.calibrated, self.urdf),
             "predicted_std_mm": finite(1e3 * self.predicted_std),
         }

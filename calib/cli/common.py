@@ -42,6 +42,7 @@ __all__ = [
     "command_parser",
     "compliance_path",
     "cross_validated",
+    "fold_seed",
     "given_options",
     "look_outputs",
     "named_planes",

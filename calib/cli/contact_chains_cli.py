@@ -7,6 +7,9 @@ plane), ``--term loop left_sole_link right_sole_link left.csv`` (a closed loop, 
 every row a touch of one pose, :func:`~calib.measurements.contact_loops.read_loop`),
 ``--term position rgbd_optical_frame gripper_left_base_link head.csv`` (a measurement CSV of
 points measured in BASE, a frame of the robot: a head camera; ``pose`` with its orientations).
+Every contact kind of ``--measure`` is a kind of ``--term`` (``plane-point``, ``fixed-point``,
+``fixed-pose``: its contact CSV, as ``--measure`` reads it); ``--contact`` is the touching
+terms' contact frame guess (a loop's contact frame is its tool frame).
 ``--chain BASE TOOL DATA`` (with ``--measure plane``) is ``--term plane ...`` and ``--loop``
 is ``--term loop ...``. Joints on several chains (a humanoid's torso) are fitted once; one URDF
 of the whole robot is written. The terms make a :class:`~calib.calibration.problem.Problem`,
@@ -18,6 +21,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..core.choices import CONTACT_MEASURES
 from ..core.fileio import check_outputs
 from ..core.progress import terminal
 from ..exceptions import DataError, InvalidArgumentError
@@ -44,8 +48,8 @@ __all__ = [
 ]
 
 
-TERM_KINDS = ("plane", "loop", "position", "pose", "pixels")
-"""Kinds a ``--term`` may name."""
+TERM_KINDS = (*CONTACT_MEASURES, "loop", "position", "pose", "pixels")
+"""Kinds a ``--term`` may name: ``--measure``'s (``auto`` aside) and ``loop``."""
 
 
 def add_chain_arguments(p: argparse._ActionsContainer) -> None:
@@ -82,7 +86,8 @@ def add_chain_arguments(p: argparse._ActionsContainer) -> None:
         type=float,
         default=None,
         metavar="W",
-        help="with --loop: factor of the loops' rows against the chains' (default 1)",
+        help="with --loop (or --term fixed-pose): factor of the loops' (fixed poses') rows "
+        "against the other terms' (default 1)",
     )
     p.add_argument(
         "--shared-planes",
@@ -100,9 +105,15 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
     kinds = {t[0] for t in terms}
     if args.chain and args.measure != "plane":
         raise InvalidArgumentError("--chain takes --measure plane")
-    if kinds <= {"loop"}:
+    if args.loop and not args.chain and not args.term:  # --loop's own rule: with --chain
         raise InvalidArgumentError(
-            "--loop is fitted with other terms: give --chain too (or --term plane|position|pose)"
+            "--loop is fitted with other terms: give --chain too (or --term KIND, KIND one of "
+            f"{', '.join(k for k in TERM_KINDS if k != 'loop')})"
+        )
+    if args.contact is not None and not kinds & set(CONTACT_MEASURES):
+        raise InvalidArgumentError(
+            "--contact is the contact frame of the touching terms: give one (--term "
+            f"{'|'.join(CONTACT_MEASURES)}), or leave --contact out"
         )
     if len(terms) < 2 and not args.chain:
         raise InvalidArgumentError(
@@ -113,8 +124,10 @@ def _check(args: argparse.Namespace) -> list[tuple[str, str, str, str, str | Non
             f"{given_options(args, ('measure',))[0]} is not for --term or --loop: each term "
             f"names its kind (--term KIND BASE TOOL DATA)"
         )
-    if args.pose_weight is not None and "loop" not in kinds:
-        raise InvalidArgumentError("--pose-weight weighs the rows of --loop: give --loop too")
+    if args.pose_weight is not None and not kinds & {"loop", "fixed-pose"}:
+        raise InvalidArgumentError(
+            "--pose-weight weighs the rows of --loop (or --term fixed-pose): give --loop too"
+        )
     if args.params == "paper":
         raise InvalidArgumentError("--params paper is a chain's MDH set: not with --chain")
     if args.shared_planes and len(terms) < 2:
@@ -234,7 +247,7 @@ def read_terms(args: argparse.Namespace, asked, chains: list[Chain]) -> tuple:
     for chain, (kind, name, _, path, check) in zip(chains, asked, strict=True):
         data = _read(kind, path, chain, args, name)
         validate = _read(kind, check, chain, args, name) if check else None
-        guess = getattr(args, "contact", None) if kind == "plane" else None
+        guess = getattr(args, "contact", None) if kind in CONTACT_MEASURES else None
         terms.append(Term(chain, data, validate, guess))
     return tuple(terms)
 

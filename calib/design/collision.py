@@ -14,8 +14,10 @@ Pairs checked: every pair of geometries that its joints move relative to each ot
 The joints off the chain (another arm, the other leg) are at their neutral positions (zero)
 in the checks, or where a recorded posture has them (``readings``). Obstacles are
 boxes in the chain's base frame, checked against every moving geometry. The line of sight
-from an instrument to a measured point is a thin capsule checked against every geometry
-except those of the point's tool link and the links it carries (the marker sits on them).
+from an instrument to a measured point is a thin capsule, drawn where each configuration puts
+the base frame (a head camera turns with the head), checked against every geometry except
+those of the point's tool link and the links it carries (the marker sits on them) and, when a
+joint moves the base frame, those of the body that carries it (the head around the camera).
 """
 
 from __future__ import annotations
@@ -56,8 +58,6 @@ class CollisionChecker:
         moving: Geometry indices that move with the robot's joints.
         tool_geometries: For each tool, the geometry indices on the tool frame's link and the
             links beyond it (a gripper's fingers): the measured point sits among them.
-        base_placement: The base frame in Pinocchio's world at the reference configuration
-            ``(4, 4)``.
         notes: What was disabled, or why nothing is checked.
     """
 
@@ -65,7 +65,6 @@ class CollisionChecker:
     geometry: pin.GeometryModel
     moving: tuple[int, ...]
     tool_geometries: tuple[tuple[int, ...], ...]
-    base_placement: np.ndarray
     notes: tuple[str, ...]
 
     @property
@@ -87,13 +86,27 @@ class CollisionChecker:
         return readings.configurations(self.robot, q)
 
     def _placements(self, q: np.ndarray, readings: JointReadings | None):
-        """Pinocchio data for each configuration: yields (index, geometry data)."""
+        """Pinocchio data for each configuration: yields (index, base frame, geometry data).
+
+        The base frame ``(4, 4)`` is where the configuration puts it (a head camera's).
+        """
         model = self.robot.model
         data = model.createData()
         gdata = pin.GeometryData(self.geometry)
         for i, qp in enumerate(self._configurations(q, readings)):
             pin.updateGeometryPlacements(model, data, self.geometry, gdata, qp)
-            yield i, gdata
+            yield i, pin.updateFramePlacement(model, data, self.robot.base_id).homogeneous, gdata
+
+    def instrument_geometries(self) -> tuple[int, ...]:
+        """The geometries of the body that carries the base frame, if a joint moves it.
+
+        A head camera's head, around the camera: they do not hide its view (none for an
+        instrument in the cell).
+        """
+        model = self.robot.model
+        joint = model.frames[self.robot.base_id].parentJoint
+        objects = enumerate(self.geometry.geometryObjects)
+        return tuple(g for g, o in objects if joint != 0 and o.parentJoint == joint)
 
     def colliding(self, q: np.ndarray, readings: JointReadings | None = None) -> np.ndarray:
         """Whether each configuration ``(m, n)`` has a pair in contact ``(m,)``.
@@ -132,15 +145,14 @@ class CollisionChecker:
         """
         out = np.zeros(len(points), dtype=bool)
         every = range(len(self.geometry.geometryObjects))
+        own = self.instrument_geometries()
         others = [
-            [g for g in every if g not in tool] for tool in self.tool_geometries
+            [g for g in every if g not in tool and g not in own] for tool in self.tool_geometries
         ]  # what may hide a point on each tool
-        world = self.base_placement
-        src = world[:3, :3] @ instrument + world[:3, 3]
-        pts = points @ world[:3, :3].T + world[:3, 3]
         request, shapes = coal.CollisionRequest(), self.geometry.geometryObjects
-        for i, gdata in self._placements(q, readings):
-            for k, p in enumerate(pts[i]):
+        for i, world, gdata in self._placements(q, readings):
+            src = world[:3, :3] @ instrument + world[:3, 3]
+            for k, p in enumerate(points[i] @ world[:3, :3].T + world[:3, 3]):
                 capsule, tf = _segment(src, p)
                 if capsule is None:
                     continue
@@ -455,7 +467,7 @@ def collision_checker(
     else:
         notes = _keep_pairs(robot, geom, srdf_path)
     _add_obstacles(robot, geom, moving, obstacles, base)
-    return CollisionChecker(robot, geom, tuple(moving), tool, base, tuple(notes))
+    return CollisionChecker(robot, geom, tuple(moving), tool, tuple(notes))
 
 
 __all__ = [

@@ -357,10 +357,19 @@ def _filtered(chain, q_all: np.ndarray, markers, constraints: Constraints, k: in
 
 
 def _too_few(report: FilterReport, k: int) -> InvalidArgumentError:
-    """The error of filters that leave fewer than k candidates."""
+    """The error of filters that leave fewer than k candidates.
+
+    It says why when the line of sight hid every candidate it looked at.
+    """
+    hidden = report.kept == 0 and dict(report.rejected).get("line_of_sight", 0) > 0
+    why = (
+        ": the line of sight hid every candidate it checked: is the measured point inside a "
+        "link's collision geometry (a flange's origin often is: give a point on the tool's "
+        "surface, --marker)?"
+    )
     return InvalidArgumentError(
         f"{_passing(report)}, fewer than the {k} configurations asked: draw more candidates "
-        f"or relax the constraints"
+        f"or relax the constraints{why if hidden else ''}"
     )
 
 

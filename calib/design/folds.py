@@ -273,6 +273,8 @@ def _pooled_result(
         extra: dict[str, Any] = {}
         if isinstance(part, MeasuredChain):
             extra["held"] = _stacked([cast(Measurements, cast(MeasuredChain, p).held) for p in own])
+        rows = [r for p in own for r in p.held_rows or ()]  # each row held out once
+        extra["held_rows"] = tuple(sorted(rows))
         parts.append(dataclasses.replace(part, stats=stats, held_source=label, **extra))
         refusal = refusal or _held_out_refusal(part, stats)
     refused = [_own_refusal(r) for r in runs]
