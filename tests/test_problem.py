@@ -36,6 +36,7 @@ def shapes():
     measured = simulate(ur5, 12, "position", seed=0).measurements
     arms = [load_robot(URDF, b, t) for b, t in PAIRS]
     touches = [simulate_contacts(c, 12, "plane", seed=1).data for c in arms]
+    touches[1] = dataclasses.replace(touches[1], ids=("table2",) * 12)  # one table per base
     tree = load_robot("ur5", tool=("wrist_2_link", "tool0"))
     return {
         "chain": (Term(ur5, simulate(ur5, 12, "pose", seed=0).measurements),),
@@ -54,6 +55,7 @@ VALUES = {
     "orientation_weight": 0.5,
     "pose_weight": 2.0,
     "shared_planes": True,
+    "known_planes": {"table1": (0.0, 0.0, 0.0, 0.0, 0.0, 1.0)},
 }
 
 

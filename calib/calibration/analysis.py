@@ -109,6 +109,7 @@ def _count(problem: Problem) -> ProblemAnalysis:
         shared_planes=problem.shared_planes,
         pose_weight=problem.pose_weight,
         instrument=problem.shape in ("chain", "tree"),
+        known_planes=problem.known_planes,
     )
     base, unknowns = determined_unknowns(run)
     return ProblemAnalysis(

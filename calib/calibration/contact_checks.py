@@ -18,6 +18,7 @@ from ..identification.contacts import (
     FixedPoseContact,
     PlaneContact,
     PlanePointContact,
+    known_plane,
 )
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
@@ -62,6 +63,7 @@ MIN_SPREAD = 1e-6  # smallest RMS spread [rad] of the tool's orientations about 
 WEIGHT_ROUNDS = 5  # the angle weight's registrations: docs/developers/engine.md#weight_rounds
 POSTURE_TOL = 1e-2  # [rad or m]: postures whose joints agree within it (modulo a turn) are one
 FEW_POSTURES = 8  # fewest postures of a held-out verdict: docs/developers/engine.md#few_postures
+KNOWN_PLANE_OFF = (0.05, 0.1)  # farthest [m], most tilted [rad] a plane given from its touches
 
 
 def _groups(ids: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -362,10 +364,42 @@ def _registrable(data: ContactData) -> bool:
     return enough_touches(data)(np.zeros(data.m, dtype=bool)) and data.m * kind.n_rows > unknowns
 
 
+def _held_planes(state: ContactState, data: ContactData, known: dict) -> ContactState:
+    """The registration on planes given (``known``, by id): the contact frame refined alone."""
+    kin = state.kinematics(data.q)
+    R, p = kin.R[:, -1], kin.p[:, -1]
+    planes = np.array([known[i] for i in state.frames.ids])
+    for name, given, fitted in zip(state.frames.ids, planes, state.frames.objects, strict=True):
+        tilt = np.arccos(np.clip(given[:3, 2] @ fitted[:3, 2], -1.0, 1.0))
+        off = abs(given[:3, 2] @ (fitted[:3, 3] - given[:3, 3]))
+        if off > KNOWN_PLANE_OFF[0] or tilt > KNOWN_PLANE_OFF[1]:
+            raise DataError(
+                data.source,
+                f"the touches put plane '{name}' {off:.3g} m and {np.degrees(tilt):.3g} deg "
+                f"from where it is given: is it given in the chain's base frame, in metres?",
+            )
+    frames = ContactFrames(known_plane(state.kind), state.contact, planes, state.frames.ids)
+    index = frames.index(data.ids, data.source)
+    try:
+        frames = refine(frames, R, p, index, state.weight)
+    except ContactGeometryError as exc:
+        raise ContactGeometryError(f"{data.source}: {exc}") from None
+    return ContactState(state.mdh, frames.centred(R, p, index), state.weight, state.compliance)
+
+
 def checked_registration(
-    chain, nominal: MDHModel, train: ContactData, validate, guess, weight: float | None, held=None
+    chain,
+    nominal: MDHModel,
+    train: ContactData,
+    validate,
+    guess,
+    weight: float | None,
+    held=None,
+    known: dict | None = None,
 ):
     """Outliers set aside, diagnosis, registration: :func:`~.measured_term.checked_measured`'s.
+
+    ``known``: the planes given, by id (every object of the touches): held, not fitted.
 
     Raises:
         DataError: A held-out touch of an object the training touches do not touch, or too
@@ -377,6 +411,10 @@ def checked_registration(
     aside, notes = term_checks.checked(_Touches(chain, nominal, train, guess), checks)
     kept, found, words = aside.kept, list(aside.found), ("touches", "gap")
     start = registration(nominal, kept, guess, weight, aside.state.frames)
+    if known:
+        start = _held_planes(start, kept, known)
+        given = f"{noun(len(known), 'planes')} {', '.join(repr(k) for k in known)}"
+        notes.append(f"{given} given: held, the contact frame's height fitted instead")
     notes += [outliers.set_aside_note(found, *words)] if found else []
     if held is not None:
         start.frames.index(held.ids, held.source)  # every held-out object was fitted

@@ -82,6 +82,7 @@ def calibrate_contact_chains(
     elastic: bool | None = None,
     support: Support | None = None,
     marker=None,
+    known_planes=None,
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot together: a problem's terms, as arguments.
 
@@ -94,7 +95,8 @@ def calibrate_contact_chains(
     caller held out and diagnosed; None: each one's source); ``support``: with ``elastic``,
     the load split with a second foot (:class:`~calib.kinematics.standing.Support`);
     ``marker``: a guess of each measured term's markers in its tool frame [m] (one point or
-    one per marker; default: zeros); ``progress``: progress bars (:mod:`calib.core.progress`).
+    one per marker; default: zeros); ``known_planes``: planes held, not fitted
+    (:class:`~.problem.Problem`'s); ``progress``: progress bars (:mod:`calib.core.progress`).
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -129,6 +131,7 @@ def calibrate_contact_chains(
         held_label,
         support,
         progress,
+        known_planes,
     )
     return dataclasses.replace(fit_run(run), inputs=read_files(chains, data, validate))
 

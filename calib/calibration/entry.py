@@ -60,6 +60,7 @@ def calibrate(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     holdout: float = 0.0,
     seed: int = 0,
+    known_planes=None,
     progress: Progress | None = None,
 ) -> ContactChainsCalibration:
     """Calibrate a robot from what was recorded on it: a model that predicts unseen postures.
@@ -95,6 +96,7 @@ def calibrate(
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
+        known_planes: Touches: planes given, held (:attr:`~.problem.Problem.known_planes`).
         progress: Progress bars of the registration, the selection and the fit
             (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
@@ -119,6 +121,7 @@ def calibrate(
         max_iterations=max_iterations,
         holdout=holdout,
         seed=seed,
+        known_planes=known_planes,
     )
     if isinstance(robot, Problem):
         _alone(data, options_given(dict(marker=marker, validate=validate, **options)))
@@ -163,6 +166,7 @@ def solve(problem: Problem, progress: Progress | None = None) -> ContactChainsCa
         shared_planes=problem.shared_planes,
         pose_weight=problem.pose_weight,
         progress=progress,
+        known_planes=problem.known_planes,
     )
     return dataclasses.replace(measured_chain(run) if chain else fit_run(run), inputs=files)
 

@@ -79,6 +79,7 @@ APPLIES: dict[str, tuple[str, ...]] = {
     "orientation_weight": ("chain", "contacts", "chains"),
     "pose_weight": ("chains",),
     "shared_planes": ("chains",),
+    "known_planes": ("contacts", "chains"),
 }
 """The one table of the options that apply to some shapes only: option -> the shapes it
 applies to. Every other option applies to every shape; one given where it does not apply is

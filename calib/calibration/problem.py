@@ -7,7 +7,7 @@ options of each: docs/developers/engine.md#problem
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import KW_ONLY, dataclass, fields
 
 import numpy as np
@@ -16,6 +16,7 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
+from ..measurements.contact_objects import term_planes
 from ..measurements.data import Measurements
 from .options import APPLIES, SHAPE_LABELS, Options, checked_init
 from .pixel_chain import PixelData
@@ -121,12 +122,18 @@ class Problem(Options):
         shared_planes: Terms of one base frame whose touches name the same plane touch one
             plane (default: a plane per term).
         pose_weight: Factor of the fixed-pose (closed loop) terms' rows against the others'.
+        known_planes: Planes given, by the id the touches name them, each in the base frame of
+            the terms that touch it: a frame ``(4, 4)`` (z its normal) or a point and a normal
+            ``(x, y, z, nx, ny, nz)`` [m] (:mod:`~calib.measurements.contact_objects`). Held,
+            not fitted: their terms fit the contact frame's height along the normal instead
+            (default: every plane fitted).
     """
 
     terms: tuple[Term, ...]
     _: KW_ONLY
     shared_planes: bool = False
     pose_weight: float = 1.0
+    known_planes: Mapping | None = None
 
     def __post_init__(self) -> None:
         terms = self.terms
@@ -148,6 +155,7 @@ class Problem(Options):
         if self.holdout > 0 and any(t.validate is not None for t in self.terms):
             raise InvalidArgumentError("give a validation file or a holdout fraction, not both")
         self._check_applicable()
+        term_planes([t.robot for t in self.terms], [t.data for t in self.terms], self.known_planes)
 
     def options(self) -> Options:
         """The problem's options alone, as one value (its terms and the joint fit's left)."""

@@ -21,6 +21,7 @@ from ..kinematics.mdh import from_chain
 from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import Support
 from ..measurements.contact_campaign import ContactData
+from ..measurements.contact_objects import term_planes
 from ..measurements.data import Measurements
 from . import contact_checks, contact_elastic, validation
 from .chain_registration import MeasuredState, held_markers
@@ -56,6 +57,7 @@ class Run:
     held_label: str | None = None
     support: Support | None = None
     progress: Progress | None = None
+    known_planes: Any = None
 
 
 def _check(run: Run) -> None:
@@ -133,6 +135,7 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros):
 
     Returns each chain's rows kept, its outliers and its registration on the nominal robot.
     """
+    known = term_planes(run.chains, run.data, run.known_planes)
     kept: list[ContactData | Measurements | PixelPart] = []
     dropped: list[tuple[Outlier, ...]] = []
     registered: list[MeasuredState | PixelTermState | ContactState] = []
@@ -153,7 +156,7 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros):
             loop = len(chains) > 1 and isinstance(d.kind, FixedPoseContact)  # a closed loop
             g = np.eye(4) if loop else guess  # (TALOS's soles): from its tool frame
             state, d, found, more, held[c] = contact_checks.checked_registration(
-                chain, from_chain(chain, zero=zero), d, v, g, weight, held[c]
+                chain, from_chain(chain, zero=zero), d, v, g, weight, held[c], known[c]
             )
         notes += [f"{chain.base_frame} -> {chain.tool_frame}: {n}" for n in more]
         kept.append(d)

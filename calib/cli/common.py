@@ -45,6 +45,7 @@ __all__ = [
     "fold_seed",
     "given_options",
     "look_outputs",
+    "named_planes",
     "nonnegative_number",
     "one_line",
     "orientation_wanted",
@@ -152,6 +153,33 @@ def given_options(args: argparse.Namespace, dests) -> list[str]:
     """The options among ``dests`` (argparse dests) the user gave, as typed (``--no-x``)."""
     given = getattr(args, "given", {})
     return [given[d] for d in dests if given.get(d)]
+
+
+PLANE_METAVAR = ("NAME", "X", "Y", "Z", "NX", "NY", "NZ")
+"""A plane given on the command line: its name, a point and its normal in the base frame [m]."""
+
+
+def named_planes(given: list[list[str]] | None, flag: str) -> dict[str, list[float]] | None:
+    """``FLAG NAME X Y Z NX NY NZ`` (repeated) as ``{name: [x, y, z, nx, ny, nz]}``, or None.
+
+    Raises:
+        InvalidArgumentError: A value that is not a number, or a name given twice.
+    """
+    if not given:
+        return None
+    planes: dict[str, list[float]] = {}
+    for name, *values in given:
+        try:
+            numbers = [float(v) for v in values]
+        except ValueError:
+            raise InvalidArgumentError(
+                f"{flag} takes NAME X Y Z NX NY NZ (a point and a normal in the base frame, m), "
+                f"got {' '.join([name, *values])}"
+            ) from None
+        if name in planes:
+            raise InvalidArgumentError(f"{flag} names plane '{name}' twice")
+        planes[name] = numbers
+    return planes
 
 
 SHAPE_LABELS = {

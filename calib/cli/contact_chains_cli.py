@@ -32,6 +32,7 @@ from .common import (
     fold_seed,
     given_options,
     look_outputs,
+    named_planes,
     orientation_wanted,
     write_calibration,
 )
@@ -196,6 +197,7 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
         params=args.params,
         orientation_weight=weight,
         shared_planes=args.shared_planes,
+        known_planes=named_planes(args.known_planes, "--known-plane"),
         pose_weight=1.0 if args.pose_weight is None else args.pose_weight,
         max_iterations=args.max_iterations,
         holdout=args.holdout,

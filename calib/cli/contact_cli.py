@@ -12,9 +12,11 @@ from ..exceptions import InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
 from .common import (
+    PLANE_METAVAR,
     compliance_path,
     cross_validated,
     look_outputs,
+    named_planes,
     refuse_unused_weight,
     write_calibration,
 )
@@ -31,6 +33,16 @@ def add_contact_arguments(p: argparse._ActionsContainer) -> None:
         metavar="X",
         help="contacts: guess of the contact frame in the tool frame, X Y Z [RX RY RZ] "
         "[m, rad] (default: the tool frame)",
+    )
+    p.add_argument(
+        "--known-plane",
+        dest="known_planes",
+        nargs=7,
+        action="append",
+        metavar=PLANE_METAVAR,
+        help="contacts: a plane known (the floor under the base foot), held, not fitted: the "
+        "id the touches name it, a point and its normal in the base frame [m]; repeat for "
+        "several (default: every plane fitted)",
     )
     p.add_argument(
         "--other-foot",
@@ -166,6 +178,7 @@ def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support
             progress=terminal(args.quiet),
             elastic=args.elastic,
             support=support,
+            known_planes=named_planes(args.known_planes, "--known-plane"),
         )
 
     return cross_validated(args, fit, [data], None if check is None else [check])

@@ -63,6 +63,7 @@ NOT_PIXELS = (
     "other_foot",
     "pose_weight",
     "shared_planes",
+    "known_planes",
     "term",
     "chain",
     "loop",
@@ -71,7 +72,7 @@ NOT_PIXELS = (
 ``--term pixels NAME TOOL OBS.csv``, without ``--measure``; ``plot`` and ``origins``: not
 yet for pixels): refused, never ignored."""
 
-NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "params")
+NOT_PIXELS_SIMULATE = ("marker", "noise_mm", "noise_mrad", "contacts", "plane", "params")
 """``simulate`` options of the other campaigns, refused with ``--measure pixels`` (its robot
 is perturbed in every joint placement, its noise ``--noise-px``)."""
 

@@ -24,12 +24,14 @@ from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree, load_robot
 from . import pixels_cli
 from .common import (
+    PLANE_METAVAR,
     Group,
     add_chain_args,
     add_marker_arg,
     check_output_paths,
     command_parser,
     given_options,
+    named_planes,
     nonnegative_number,
     tool_arg,
     write_outputs,
@@ -64,6 +66,11 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
     if args.truth is None and written_in_place(out):
         raise InvalidArgumentError(f"--out {out} is no regular file: give --truth FILE too")
     truth_path = Path(args.truth) if args.truth else out.with_suffix(".truth.json")
+    planes = named_planes(args.plane, "--plane")
+    if planes and args.measure not in ("plane", "plane-point"):
+        raise InvalidArgumentError(
+            f"--plane is for --measure plane|plane-point, not {args.measure}"
+        )
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if chain.is_tree:
         raise InvalidArgumentError("a contact campaign is simulated on one chain: one --tool")
@@ -78,6 +85,7 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
         noise_mrad=args.noise_mrad or 0.0,
         seed=args.seed,
         params=args.params,
+        objects=planes,
     )
     truth = campaign.truth
     write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
@@ -136,9 +144,10 @@ def _campaign_kind(args: argparse.Namespace) -> Measurement:
     from ..identification.kinds import campaign_kind
 
     kind = campaign_kind(args.measure, _first_marker(args))
-    if given_options(args, ["contacts"]):
+    typed = given_options(args, ["contacts", "plane"])
+    if typed:
         raise InvalidArgumentError(
-            f"--contacts counts the planes or points of a contact campaign, not of --measure "
+            f"{typed[0]} gives the planes or points of a contact campaign, not of --measure "
             f"{args.measure}"
         )
     if given_options(args, ["noise_mrad"]) and not kind.is_pose:  # a tree: positions only
@@ -248,6 +257,8 @@ def add_simulate_parser(sub) -> None:
             "calib simulate ur5 --measure pose --out poses.csv --noise-mm 0.05 --noise-mrad 0.1",
             "calib simulate ur5 --configs-file configs.csv --out meas.csv  # from calib design",
             "calib simulate ur5 --measure plane --contacts 2 --out touches.csv",
+            "calib simulate talos --base torso_2_link --tool left_sole_link --measure plane "
+            "--plane floor 0 0 -1.1 0 0 1 --out left.csv",
         ],
     )
     add_chain_args(p.add_argument_group("robot"), trees=True)
@@ -266,6 +277,15 @@ def add_simulate_parser(sub) -> None:
         type=int,
         default=1,
         help="planes or points the touches share, with --measure plane|... (default: 1)",
+    )
+    g.add_argument(
+        "--plane",
+        nargs=7,
+        action="append",
+        metavar=PLANE_METAVAR,
+        help="with --measure plane|plane-point: a plane touched, given (a floor, a known "
+        "table): its name, a point and its normal in the base frame [m]; repeat for several "
+        "(default: --contacts planes, each where the true contact is at a random posture)",
     )
     g = p.add_argument_group("configurations")
     g.add_argument(

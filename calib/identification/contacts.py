@@ -140,8 +140,8 @@ class PlaneContact(Contact):
 
     label: str = "plane"
     object_name = "plane"
-    object_dofs = (2, 3, 4)  # its height and two tilts
-    contact_dofs = (3, 4)
+    object_dofs: ClassVar[tuple[int, ...]] = (2, 3, 4)  # its height and two tilts
+    contact_dofs: ClassVar[tuple[int, ...]] = (3, 4)
 
     @property
     def row_names(self) -> tuple[str, ...]:
@@ -238,7 +238,7 @@ class PlanePointContact(Contact):
 
     label: str = "plane-point"
     object_name = "plane"
-    object_dofs = (2, 3, 4)
+    object_dofs: ClassVar[tuple[int, ...]] = (2, 3, 4)
     contact_dofs = (0, 1, 2)
 
     @property
@@ -386,6 +386,63 @@ class FixedPoseContact(Contact):
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1)
 
 
+@dataclass(frozen=True)
+class KnownPlaneContact(PlaneContact):
+    """The contact frame flush on a plane given (a floor): the plane has no unknown.
+
+    The contact frame's height along its normal, which a plane fitted takes in its own
+    height, is seen then (3 unknowns: its height and two tilts).
+    """
+
+    object_dofs = ()
+    contact_dofs = (2, 3, 4)
+
+    @property
+    def unseen(self) -> tuple[str, ...]:
+        """What these contacts can never identify."""
+        return (
+            "the contact frame's position within the plane and its yaw (x, y, rz of the "
+            "tool frame): the contact slides and turns on the plane",
+        )
+
+    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
+        """None: calib has no proved formula with the plane given."""
+        return None
+
+
+@dataclass(frozen=True)
+class KnownPlanePointContact(PlanePointContact):
+    """A probe tip on a plane given: the plane has no unknown, the tip's 3 stay."""
+
+    object_dofs = ()
+
+    @property
+    def unseen(self) -> tuple[str, ...]:
+        """What these contacts can never identify."""
+        return ("the tip's orientation: only the tip point is constrained",)
+
+    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
+        """None: calib has no proved formula with the plane given."""
+        return None
+
+
+def known_plane(kind: Contact) -> Contact:
+    """The kind touching a plane given (no unknown of its own) instead of a plane fitted.
+
+    Raises:
+        InvalidArgumentError: Not a plane kind.
+    """
+    if isinstance(kind, KnownPlaneContact | KnownPlanePointContact):
+        return kind
+    if isinstance(kind, PlaneContact):
+        return KnownPlaneContact()
+    if isinstance(kind, PlanePointContact):
+        return KnownPlanePointContact()
+    raise InvalidArgumentError(
+        f"a known plane is touched by plane or plane-point, not {kind.label}"
+    )
+
+
 _KINDS = {
     k.label: k
     for k in (PlaneContact(), PlanePointContact(), FixedPointContact(), FixedPoseContact())
@@ -408,7 +465,10 @@ __all__ = [
     "Contact",
     "FixedPointContact",
     "FixedPoseContact",
+    "KnownPlaneContact",
+    "KnownPlanePointContact",
     "PlaneContact",
     "PlanePointContact",
     "contact_kind",
+    "known_plane",
 ]

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,13 +30,14 @@ from ..core.checks import MAX_OBJECTS, MAX_TOUCHES, angle_mrad, check_count, che
 from ..core.fileio import write_atomic
 from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError, warn_user
-from ..identification.contact_postures import contact_model, contact_postures
+from ..identification.contact_postures import contact_model, contact_postures, in_frame
 from ..identification.contacts import Contact
 from ..identification.kinds import kind_of
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import JointReadings
+from .contact_objects import given_objects
 from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .joint_columns import column_keys
@@ -404,12 +406,14 @@ def simulate_contacts(
     noise_mrad: float = 0.0,
     seed: int = 0,
     params: str = "complete",
+    objects: Mapping | None = None,
 ) -> ContactCampaign:
     """Simulate touches of a perturbed ("true") copy of a chain on planes or points.
 
     Each plane (point, pose) is the true contact frame's placement at a seeded random
-    configuration; ``configs`` touches are shared between them (in turn), each a random
-    configuration projected onto its contact on the true model, kept within the joint limits.
+    configuration, or the one given in ``objects``; ``configs`` touches are shared between
+    them (in turn), each a random configuration projected onto its contact on the true model,
+    kept within the joint limits.
 
     Args:
         chain: The nominal chain (no mimic joints), or a catalog name or URDF path (as
@@ -422,15 +426,26 @@ def simulate_contacts(
         noise_mrad: Standard deviation of the recorded joints' noise [mrad; mm for prismatic].
         seed: Seed (an integer >= 0).
         params: Parameter set perturbed: ``complete`` or ``paper``.
+        objects: The objects touched, by name, in the base frame (a floor, a known table:
+            ``{"floor": (x, y, z, nx, ny, nz)}``; :mod:`~.contact_objects`), instead of
+            ``contacts`` drawn ones. With ``error_mm=0, error_mrad=0`` on a chain of a
+            :func:`~.true_robot.true_robot`'s URDF, several chains touch one floor of one
+            true robot.
 
     Raises:
         InvalidArgumentError: A bad argument, or a contact the chain cannot hold often enough
-            within its limits.
+            within its limits (a given object out of its reach).
     """
     kind = _contact(measure)
     chain = chain_argument(chain, "simulate_contacts", ": contacts are simulated on one chain")
     if chain.coupling is not None:
         raise InvalidArgumentError("contact campaigns are simulated on chains without mimic joints")
+    given = None if objects is None else given_objects(objects, kind)
+    if given is not None and contacts not in (1, len(given)):
+        raise InvalidArgumentError(
+            f"{contacts} contacts for {len(given)} objects given: give the objects or their number"
+        )
+    contacts = contacts if given is None else len(given)
     configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)
     contacts = check_count(contacts, "contacts", 1, configs)  # each touched at least once
     check_size(int(configs), MAX_TOUCHES, "touches")
@@ -447,7 +462,8 @@ def simulate_contacts(
     frames, ids, qs = {}, [], []
     for j in range(int(contacts)):
         count = int(configs) // int(contacts) + (1 if j < int(configs) % int(contacts) else 0)
-        name, frame, q = _touches(chain, true_mdh, kind, j, count, seed)
+        object_ = None if given is None else list(given.items())[j]
+        name, frame, q = _touches(chain, true_mdh, kind, (j, count, seed), object_)
         frames[name] = frame
         qs.append(q)
         ids += [name] * len(q)
@@ -471,19 +487,27 @@ def simulate_contacts(
     return ContactCampaign(data, truth)
 
 
-def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, j: int, count: int, seed: int):
-    """Contact j of a simulation: its name, its frame in the base frame and its touches."""
+def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, draw: tuple, given=None):
+    """Contact j of a simulation: its name, its frame in the base frame and its touches.
+
+    ``draw``: ``(j, count, seed)``; ``given``: its name and frame, or None (drawn).
+    """
+    j, count, seed = draw
     lower, upper = joint_bounds(chain)
     column = ID_COLUMNS[kind.label]
     start = int(np.random.default_rng([seed, 3, j]).integers(2**31))
     q0 = chain.random_configurations(1, start)[0]
     name = f"{'table' if column == 'plane' else 'point'}{j + 1}"
     frame = true_mdh.forward(q0[None])[0]
+    model = contact_model(true_mdh, q0, name)
+    if given is not None:
+        name, frame = given
+        model = in_frame(true_mdh, frame)
     if count == 0:
         return name, frame, np.zeros((0, chain.n))
     try:
         q = contact_postures(
-            contact_model(true_mdh, q0, name),
+            model,
             kind,
             lambda c, r: chain.random_configurations(c, start + 1 + r),
             count,
@@ -491,7 +515,8 @@ def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, j: int, count: int
             bounds=(lower, upper),
         )
     except InvalidArgumentError as exc:
-        raise InvalidArgumentError(f"{ID_COLUMNS[kind.label]} {name}: {exc}") from None
+        reach = " (is the given one within the chain's reach, in its base frame?)" if given else ""
+        raise InvalidArgumentError(f"{ID_COLUMNS[kind.label]} {name}: {exc}{reach}") from None
     return name, frame, q
 
 
