@@ -47,6 +47,17 @@ class ChainsData:
         """Touches of all chains."""
         return sum(d.m for d in self.parts)
 
+    def seen_rows(self, width: int) -> np.ndarray | None:
+        """Which rows of ``width`` per row were measured ``(m, width)`` (None: all; padded: kept)."""
+        if not any(isinstance(d, Measurements) and d.partial for d in self.parts):
+            return None
+        return np.concatenate(
+            [
+                d.seen_rows(width) if isinstance(d, Measurements) and d.partial else np.ones((d.m, width), bool)
+                for d in self.parts
+            ]
+        )
+
     def torque(self, c: int) -> np.ndarray | None:
         """Chain c's gravity torques ``(m, n)`` [N m or N], or None."""
         return None if self.torques is None else self.torques[c]
