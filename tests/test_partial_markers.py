@@ -70,7 +70,9 @@ def test_empty_cells_of_a_marker_are_that_marker_not_seen(tmp_path, capsys):
     assert markers_seen(full, chain) is None
 
 
-@pytest.mark.parametrize(("cells", "column", "count"), [(("x2",), "x2", 1), (("y2", "z2"), "y2", 2)])
+@pytest.mark.parametrize(
+    ("cells", "column", "count"), [(("x2",), "x2", 1), (("y2", "z2"), "y2", 2)]
+)
 def test_one_or_two_empty_cells_of_a_marker_are_an_error(tmp_path, cells, column, count):
     full = simulate(tmp_path / "m.csv", 6, 1, 0.0)
     with full.open(newline="") as f:

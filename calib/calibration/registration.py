@@ -154,7 +154,8 @@ def register_points(
     """Closed-form frame ``(4, 4)`` and markers ``(K_c, 3)`` [m] of tools measured in one frame.
 
     Per tool: ``Rt``, ``pt`` the tool's poses in the base frame, ``points`` ``(m_c, K_c, 3)``
-    [m] (NaN: a marker not seen in a row), ``markers``: the guess; ``held``: coordinates kept at the guess (or None).
+    [m] (NaN: a marker not seen in a row), ``markers``: the guess; ``held``: coordinates
+    kept at the guess (or None).
     """
     sums = _moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])

@@ -53,7 +53,6 @@ from .data import (
     Measurements,
 )
 from .joint_columns import check_followers, column_keys, follower_names, no_joint_of
-from .unseen import check_every_marker_seen, marker_cells
 from .limits import (
     LIMIT_MARGIN,
     LIMIT_TOL,
@@ -63,6 +62,7 @@ from .limits import (
     joint_bounds,
     tool_frames,
 )
+from .unseen import check_every_marker_seen, marker_cells
 
 __all__ = [
     "DEFAULT_ORIENTATION_COLUMNS",
@@ -374,10 +374,10 @@ def parse_measurements(
     check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     _check_coordinates(position, pos_cols, lines, source, columns.units)
-    check_every_marker_seen(position, pos_cols, source)
+    check_every_marker_seen(position, pos_cols, source, lines if fmt == MARKERS else None)
     quat, angles = None, None
     if fmt == MARKERS:
-        position, quat = _marker_set(position, source, lines, pos_cols)
+        position, quat = _marker_set(position, source, lines)
     elif fmt is not None:
         ori = table[:, [col[n] for n in ori_cols]]
         quat = _orientation(ori, fmt, source, lines)
@@ -457,8 +457,7 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
             raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
         for j in others:
             values[i, j] = parse_number(cells[j], source, line, shown[j])
-        shown_points = [shown[j] for j in points]
-        values[i, points] = marker_cells(cells, points, shown_points, source, line)
+        values[i, points] = marker_cells(cells, points, [shown[j] for j in points], source, line)
     tools += [] if at is None else [cells[at].strip() for _, cells in chunk]
     return values
 
@@ -506,17 +505,12 @@ def _warn_repeats(data: Measurements) -> None:
         )
 
 
-def _marker_set(position: np.ndarray, src: str, lines, names) -> tuple[np.ndarray, np.ndarray]:
+def _marker_set(position: np.ndarray, src: str, lines) -> tuple[np.ndarray, np.ndarray]:
     """Marker 1's position and the orientation of a rigid set of K >= 3 markers.
 
     A set that is not rigid is warned about, with the row and marker farthest off it (an
-    outlier, or two markers' labels swapped in that row). Every marker is needed in every row.
+    outlier, or two markers' labels swapped in that row).
     """
-    if np.isnan(position).any():
-        i, j = (int(v) for v in np.argwhere(np.isnan(position))[0])
-        raise DataError(
-            src, "empty cell: orientation 'markers' needs every marker in every row", lines[i], names[j]
-        )
     pose = marker_set.marker_set_pose(position.reshape(len(position), -1, 3))
     if pose.flat < marker_set.MIN_FLATNESS:
         raise DataError(src, "the markers lie on a line: their set has no orientation")

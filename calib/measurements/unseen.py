@@ -51,12 +51,19 @@ def marker_cells(cells: list[str], index: list[int], names: list[str], src: str,
     return out
 
 
-def check_every_marker_seen(position: np.ndarray, names, src: str) -> None:
+def check_every_marker_seen(position: np.ndarray, names, src: str, rows=None) -> None:
     """Refuse a marker that no row sees (``position`` ``(m, 3 K)`` [m], NaN where unseen).
 
+    ``rows``: the rows' numbers when every marker is needed in every row (a rigid set read
+    as a pose, ``--orientation markers``), else None.
+
     Raises:
-        DataError: Naming the marker's first column.
+        DataError: Naming the marker's first column (and the row).
     """
+    if rows is not None and np.isnan(position).any():
+        i, j = (int(v) for v in np.argwhere(np.isnan(position))[0])
+        why = "empty cell: orientation 'markers' needs every marker in every row"
+        raise DataError(src, why, row=rows[i], column=names[j])
     never = np.all(np.isnan(position[:, ::3]), axis=0)
     if np.any(never):
         k = int(np.argmax(never))
