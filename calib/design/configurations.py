@@ -247,6 +247,7 @@ def configurations_csv(
 
 __all__ = [
     "configurations_csv",
+    "markers_seen",
     "parse_configurations",
     "points_in_file",
     "read_chains_configurations",
