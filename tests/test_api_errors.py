@@ -321,7 +321,10 @@ def _third_round_cases():
         "cross_validate folds=array": lambda: calib.cross_validate(CHAIN, DATA, folds=ARRAY),
         "cross_validate holdout=": lambda: calib.cross_validate(CHAIN, DATA, holdout=0.2),
         "cross_validate no data": lambda: calib.cross_validate(CHAIN),
-        "cross_validate problem, seed=": lambda: calib.cross_validate(PROBLEM, seed=3),
+        # a problem's options are in it; seed= is the folds' own (shuffled), an integer >= 0
+        "cross_validate problem, params=": lambda: calib.cross_validate(PROBLEM, params="frames"),
+        "cross_validate problem, seed=-1": lambda: calib.cross_validate(PROBLEM, seed=-1),
+        "cross_validate seed=text": lambda: calib.cross_validate(CHAIN, DATA, seed="3"),
         # A loaded robot's frames are its own: another base or tool was ignored (the whole
         # chain analysed where the user asked for a shorter one).
         "analyze tool of a loaded chain": lambda: calib.analyze(CHAIN, tool="wrist_2_link"),

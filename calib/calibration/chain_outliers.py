@@ -36,7 +36,7 @@ from .outliers import (
 from .pixel_chain import PixelPart, PixelTermState, pixel_parts
 from .pixel_chain_result import PixelChain
 from .pixel_fit import ROUND_OFF_PX
-from .register import Registered, Run, drawn
+from .register import Registered, Run, drawn, register_contact_chains
 
 __all__ = ["fit_terms_until_stable", "proposals"]
 
@@ -66,15 +66,13 @@ def proposals(start: ChainsState, c: int, data: Measurements, noise: float | Non
 
 
 def fit_terms_until_stable(
-    run: Run,
-    register: Callable[[Run], Registered],
-    fit: Callable[[Registered], ContactChainsCalibration],
+    run: Run, fit: Callable[[Registered], ContactChainsCalibration]
 ) -> ContactChainsCalibration:
     """The run's fit without the rows each term's errors under it find outlying.
 
     Each term's outliers in the fit returned are the loop's and its registration's.
     """
-    first = register(run)
+    first = register_contact_chains(run)
     again, train = _drawn(run)
     torque = compliance_torques(run.chains, train, [None] * len(train), run.options, first.load)
     ends = np.cumsum([0, *(d.m for d in train)])
@@ -99,8 +97,8 @@ def fit_terms_until_stable(
         if np.array_equal(~keep, inner):  # those that stay aside alone: the first fit
             fitted[:] = fitted or [fit(first)]
             return fitted[0]
-        kept = [_subset(d, keep[p]) for d, p in zip(train, parts, strict=True)]
-        return fit(register(dataclasses.replace(again, data=kept)))
+        kept = [_as_data(d.subset(keep[p])) for d, p in zip(train, parts, strict=True)]
+        return fit(register_contact_chains(dataclasses.replace(again, data=kept)))
 
     def rule(result: ContactChainsCalibration) -> np.ndarray | None:
         if result.stalled:  # gaps where a fit stopped, or of the parameters held after: none
@@ -134,16 +132,14 @@ def _drawn(run: Run) -> tuple[Run, list]:
         return run, parts
     splits = drawn(parts, opts.holdout, opts.seed)  # as the registration draws them
     once = dataclasses.replace(opts, holdout=0.0)  # drawn here, not again
-    held = [s[1].as_data() if isinstance(s[1], PixelPart) else s[1] for s in splits]
+    held = [_as_data(s[1]) for s in splits]
     again = dataclasses.replace(run, validate=held, options=once, held_label="holdout")
     return again, [s[0] for s in splits]
 
 
-def _subset(data, keep: np.ndarray):
-    """A term's rows a boolean mask keeps (touches, measurements, or pixels as PixelData)."""
-    if isinstance(data, PixelPart):
-        return data.subset(keep).as_data()
-    return data.subset(keep)
+def _as_data(rows):
+    """A term's rows as a run's data: a pixel term's as PixelData (others, None: as they are)."""
+    return rows.as_data() if isinstance(rows, PixelPart) else rows
 
 
 def _term_errors(train: list, torque) -> Callable[[ContactChainsCalibration], list[Errors]]:

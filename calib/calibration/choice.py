@@ -134,7 +134,7 @@ def _offer_directions(
         labels.extend((pl.names()[c], start.chains[0]) for c in branch)
     for chain, s in zip(start.chains, start.states, strict=True):
         mdh_set = "paper" if level == "paper" else "complete"
-        D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, 0, mdh_set))
+        D, more = with_tool(pl, chain, s, *mdh_directions(pl, chain, s.mdh, mdh_set))
         rows.extend(D)
         labels.extend((name, chain) for name in more)
     offered = np.array(rows).reshape(len(rows), -1)
@@ -169,7 +169,7 @@ def _offset_names(start: ChainsState, offsets: list[int]) -> tuple[str, ...]:
     """The components' names, each joint offset (``offsets``) as ``complete`` names it."""
     pl, chart = start.placements, dict[int | None, str]()
     for chain, s in zip(start.chains, start.states, strict=True):
-        D, labels = mdh_directions(pl, chain, s.mdh, 0, joint_offsets(s.mdh))
+        D, labels = mdh_directions(pl, chain, s.mdh, joint_offsets(s.mdh))
         chart = {component_of(d): label for d, label in zip(D, labels, strict=True)} | chart
     names = pl.names()
     return tuple(chart.get(c, names[c]) if c in offsets else names[c] for c in range(len(names)))
@@ -345,7 +345,7 @@ def _postures(data: ChainsData) -> np.ndarray | None:
 
 
 def _selection_columns(
-    wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart | None = None
+    wide: ChainsModel, start: ChainsState, data: ChainsData, columns, at: AtStart
 ):
     """The selection's dense columns (the always-free ones, then ``columns``), and the rest.
 
@@ -355,8 +355,7 @@ def _selection_columns(
     """
     x = np.zeros(wide.size())
     if not by_block(wide, start):
-        J = (at or AtStart(wide, start))(data)
-        return J[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
+        return at(data)[:, :, list(range(wide.fixed)) + list(columns)], None, wide.fixed
     own, shared, index = wide.blocks(start, x, data)
     K, o = wide.object_blocks()
     cols = list(range(wide.fixed - K * o)) + [c - K * o for c in columns]

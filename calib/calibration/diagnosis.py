@@ -17,6 +17,7 @@ from ..core.words import noun
 from ..exceptions import CalibError, DataError
 from ..kinematics.frames import end_joint_links
 from ..measurements.data import MAX_COORDINATE
+from .report import mm_or_deg
 
 __all__ = [
     "EXPLAINS",
@@ -216,7 +217,7 @@ def explain(
     if not (first > ORIENTATION_SUSPECT if orientation else suspect(first, noise)):
         return []
     known = bool(np.isfinite(first))
-    unit, scale = ("deg", np.degrees(1.0)) if orientation else ("mm", 1e3)
+    unit, scale = mm_or_deg(orientation)
 
     def amount(e: float) -> str:
         return f"{scale * e:.4g} {unit}"

@@ -157,7 +157,7 @@ def check_readings(chain: object, *parts: object) -> None:
 
 def fit_run(run: Run) -> ContactChainsCalibration:
     """A run registered and fitted, each term's outliers set aside after each fit until stable."""
-    return fit_terms_until_stable(run, register_contact_chains, fit_registered)
+    return fit_terms_until_stable(run, fit_registered)
 
 
 def fit_registered(r: Registered) -> ContactChainsCalibration:
@@ -173,7 +173,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
     chains, opts, instrument, progress = run.chains, run.options, run.instrument, run.progress
     notes, clock = list(r.notes), list(r.clock)  # a registration fitted twice: its own lists
     with phase(progress, "calibrate: selection"):
-        asked, offer = level_offer(chains[0], start, opts.level, instrument, opts)
+        asked, offer = level_offer(chains[0], start, instrument, opts)
         flush = flush_data(start, train, load)
         rows = ChainsData(tuple(train), None if torques[0] is None else torques[:1])
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
@@ -312,7 +312,7 @@ def _assessed(r: Registered, fit_of, model, selection, notes, clock):
     ]
     pairs = zip(result.chains, labels, r.dropped, strict=True)
     parts = tuple(dataclasses.replace(c, held_source=lab, outliers=o) for c, lab, o in pairs)
-    cov = solution.covariance()[0]
+    cov = solution.covariance[0]
     values = fitted_values(fitted, cov)
     stopped = unconverged(fitted)
     ranked = polished or not fitted.converged  # a stalled fit's rank is not judged
@@ -424,7 +424,7 @@ def _assemble(r: Registered, solution, model, selection, notes, clock) -> Contac
             parts.append(part)
             continue
         own = fitted.model.own_columns(c)
-        std = np.sqrt(np.diag(solution.covariance()[0]))[own]
+        std = np.sqrt(np.diag(solution.covariance[0]))[own]
         part = (
             pixel_result(chain, d, h, s0, s, fitted.x[own], std, c + 1)
             if isinstance(s, PixelTermState)
@@ -491,7 +491,7 @@ def _touching(r: Registered, c: int, s0, s: ContactState, converged: bool, notes
         s.weight,
         stats,
         s.kind,
-        placed=objects,
+        objects,
         compliance=compliance,
         load=None if compliance is None else load,
         readings=() if compliance is None or d.readings is None else d.readings.names,

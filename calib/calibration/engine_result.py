@@ -63,7 +63,7 @@ class ChainContacts(TermPart):
         weight: Weight of its tilt rows [m/rad].
         outliers: Its touches set aside after its registration.
         placed: Each object in the base frame ``(4, 4)`` by id, as reported (a plane's
-            origin at its touches' contact points, projected), or None: :attr:`plane`.
+            origin at its touches' contact points, projected).
         load: The gravity load the compliance acts under, or None.
         readings: The joints off the chain the load takes at their recorded positions.
     """
@@ -77,18 +77,17 @@ class ChainContacts(TermPart):
     calibrated: MDHModel
     weight: float
     stats: dict[str, GapStats]
-    kind: Contact = field(default_factory=PlaneContact)
+    kind: Contact
+    placed: dict[str, np.ndarray]
     held_source: str | None = None
     outliers: tuple[Outlier, ...] = ()
-    placed: dict[str, np.ndarray] | None = None
     compliance: np.ndarray | None = None
     load: StandingLoad | None = None
     readings: tuple[str, ...] = ()
 
     def objects(self) -> dict[str, np.ndarray]:
         """Each object (a plane, a point, a pose) in the base frame ``(4, 4)``, by id."""
-        placed = {self.plane_id: self.plane} if self.placed is None else self.placed
-        return {i: F.copy() for i, F in placed.items()}
+        return {i: F.copy() for i, F in self.placed.items()}
 
     rows: ClassVar[str] = "touches"
 
@@ -272,12 +271,13 @@ class ContactChainsCalibration(Result, ChainView):
     def joint_errors(self) -> dict[str, np.ndarray]:
         """``E_j`` ``(4, 4)`` of every joint that moved (the new origin is ``O_j E_j``).
 
-        A measured term's measuring frame moves its fixed joint (:class:`MeasuredChain`).
+        A measured term's measuring frame moves its fixed joint (:class:`MeasuredChain`): its
+        ``E`` is the inverse of the base frame's pose in the measuring frame.
         """
         out = self.placements.errors()
         for c in self._of(MeasuredChain):
             if c.joint is not None:
-                out[c.joint] = c.placement_error()
+                out[c.joint] = np.linalg.inv(c.state.inner.frame)
         return out
 
     def _of(self, kind: type[_T]) -> tuple[_T, ...]:

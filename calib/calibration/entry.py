@@ -26,7 +26,6 @@ from .engine import (
     check_readings,
     fit_registered,
     fit_run,
-    register_contact_chains,
 )
 from .engine_result import ContactChainsCalibration
 from .instrument import prepare_tree
@@ -239,4 +238,4 @@ def measured_chain(run: Run) -> ContactChainsCalibration:
     def fit(registered: Registered) -> ContactChainsCalibration:
         return dataclasses.replace(fit_registered(registered), shape="chain")
 
-    return fit_terms_until_stable(run, register_contact_chains, fit)
+    return fit_terms_until_stable(run, fit)

@@ -31,7 +31,7 @@ def _compliance(name: str) -> bool:
     return name[:1] == "c" and name[1:].isdigit()
 
 
-def compliance_torques(chains, train, held, opts: Options | None, load=None):
+def compliance_torques(chains, train, held, opts: Options, load):
     """Gravity torques of the fitted and held-out rows, and the joints whose compliance is offered.
 
     A measured chain's compliance is opt-in (``elastic``, or one in ``free``): the joints
@@ -43,8 +43,8 @@ def compliance_torques(chains, train, held, opts: Options | None, load=None):
     if load is not None:
         tau = [None if d is None else load.torques(d.q, d.readings) for d in (train[0], held[0])]
         return (tau[0], tau[1]), tuple(range(chains[0].n))
-    forced = opts is not None and any(_compliance(n) for n in opts.free)
-    if opts is None or not (opts.elastic or (opts.elastic is None and forced)):
+    forced = any(_compliance(n) for n in opts.free)
+    if not (opts.elastic or (opts.elastic is None and forced)):
         return (None, None), ()
     chain = chains[0]
     tau = chain.gravity_torques(train[0].q)
@@ -139,8 +139,8 @@ class Asked:
             raise InvalidArgumentError(f"free {given} cannot be fitted: {why}; drop it from free")
 
 
-def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options | None):
-    """What a joint fit offers at ``level``, and the :class:`Asked` (None: no name given).
+def level_offer(chain: Chain, start, instrument: bool, opts: Options):
+    """What a joint fit offers at the options' level, and the :class:`Asked` (None: none named).
 
     A tree's ``complete`` offers every joint placement component.
     Names: docs/developers/engine.md#level_offer
@@ -149,8 +149,8 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
         InvalidArgumentError: An unknown name, or ``fix`` of a group.
     """
     tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
-    offer = "components" if tree and level == "complete" else level
-    if opts is None or not (opts.fix or opts.free):
+    offer = "components" if tree and opts.level == "complete" else opts.level
+    if not (opts.fix or opts.free):
         return None, offer
     if held := [n for n in opts.fix if n in GROUPS]:
         raise InvalidArgumentError(
@@ -160,7 +160,7 @@ def level_offer(chain: Chain, start, level: str, instrument: bool, opts: Options
             f"parameters or compliances"
         )
     placements = start.placements
-    D, labels = mdh_directions(placements, chain, start.states[0].mdh, 0, "complete")
+    D, labels = mdh_directions(placements, chain, start.states[0].mdh, "complete")
     chart = dict(zip(labels, D, strict=True))
     components = dict(zip(placements.names(), np.eye(len(placements.names())), strict=True))
     bare = {label.split(":", 1)[1]: label for label in labels}

@@ -96,20 +96,12 @@ def check_measured(
 
 
 def checked_measured(
-    chain: Chain,
-    data: Measurements,
-    validate,
-    held,
-    weight,
-    max_iterations: int,
-    marker=None,
-    noise_mm: float | None = None,
-    zero: tuple | None = None,
-    hold: bool = True,
+    chain: Chain, data: Measurements, validate, held, weight, opts: Options, marker, zero, hold
 ):
     """A measured term's rows checked as every kind's are (:func:`~.term_checks.checked`).
 
-    ``weight`` [m/rad] None: estimated first; ``zero``: the chain's zero frames, if made;
+    ``weight`` [m/rad] None: estimated first; ``opts``: the run's (its iterations and noise);
+    ``marker``: the markers' guess; ``zero``: the chain's zero frames, if made (or None);
     ``hold``: hold the coordinates of :func:`~.chain_registration.held_markers` (not a tree's
     tools: another tool may determine their shared frame).
 
@@ -120,7 +112,6 @@ def checked_measured(
     what = f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
     determined.check_frames(measured_kind(data), data.m, data.source, what, held=out)
-    opts = Options(orientation_weight=weight, max_iterations=max_iterations, noise_mm=noise_mm)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()

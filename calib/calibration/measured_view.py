@@ -76,10 +76,6 @@ class MeasuredChain(TermPart):
         """The term's layout (:class:`~.model.MeasuredKind`)."""
         return self.state.kind
 
-    def placement_error(self) -> np.ndarray:
-        """``E`` ``(4, 4)`` of the measuring frame's fixed joint: its new origin is ``O E``."""
-        return np.linalg.inv(self.state.inner.frame)
-
     def heading(self) -> str:
         """Its kind, its rows' units and what measures it (the instrument, a frame's joint)."""
         joint = self.joint
@@ -206,12 +202,9 @@ class Solution:
     fit: Fit
     prior: np.ndarray | None = None
 
+    @cached_property
     def covariance(self) -> tuple[np.ndarray, float]:
         """Covariance of x ``sigma^2 (J^T J + P^2)^-1`` and sigma_hat [m] (``solve.covariance``)."""
-        return self._covariance
-
-    @cached_property
-    def _covariance(self) -> tuple[np.ndarray, float]:
         f = self.fit.f
         return covariance(self.fit.J, float(f @ f), self.prior)
 
@@ -225,7 +218,7 @@ class Solution:
         rows = ChainsData((data,), None if torque is None else (torque,))
         J = fit.model.jacobian(fit.start, fit.x, rows)
         seen = int(data.seen.sum()) if data.partial else None
-        return validation.predicted_std(J, self.covariance()[0], data.n_markers, seen)
+        return validation.predicted_std(J, self.covariance[0], data.n_markers, seen)
 
 
 class ChainView:
@@ -371,12 +364,12 @@ class ChainView:
     @property
     def covariance(self) -> np.ndarray:
         """Covariance of the fit's unknowns (the term's own, then ``fitted``) ``(p, p)``."""
-        return self._solution().covariance()[0]
+        return self._solution().covariance[0]
 
     @property
     def sigma(self) -> float:
         """Estimated noise of a weighted row sigma_hat = sqrt(RSS / (r - p)) [m]."""
-        return self._solution().covariance()[1]
+        return self._solution().covariance[1]
 
     @property
     def condition(self) -> float:

@@ -352,11 +352,7 @@ def _twist_blocks(placements: Placements, chain: Chain, kin: JointFrames):
 
 
 def mdh_directions(
-    placements: Placements,
-    chain: Chain,
-    mdh: MDHModel,
-    seed: int = 0,
-    label: str | ParameterSet = "complete",
+    placements: Placements, chain: Chain, mdh: MDHModel, label: str | ParameterSet
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """The chain's MDH parameters of rows 1..n as directions ``(D, 6 J)`` of placement errors.
 
@@ -366,7 +362,7 @@ def mdh_directions(
     pset = parameter_set(mdh, label) if isinstance(label, str) else label
     chosen, n = [pset.parameters[i] for i in preference_order(mdh, pset)], chain.n
     params = ParameterSet(pset.label, tuple(p for p in chosen if 1 <= p.row <= n))
-    q = chain.random_configurations(DIRECTION_CONFIGS, seed)
+    q = chain.random_configurations(DIRECTION_CONFIGS, 0)
     pose = Measurement.of("pose", (0.0, 0.0, 0.0))
     W = identification_jacobian(mdh, params, q, pose).reshape(len(q), 6, -1)
     columns = placements.path(chain).columns

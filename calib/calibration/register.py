@@ -128,7 +128,7 @@ def _holds(run: Run, train) -> list[bool]:
     return [still and c == tools[0] for c in range(len(run.chains))]
 
 
-def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
+def _checked(run: Run, train, validate, guess, held, notes, zeros):
     """Each term's rows checked by its kind's checks (``held[c]`` replaced by its rows kept).
 
     Returns each chain's rows kept, its outliers and its registration on the nominal robot.
@@ -141,21 +141,12 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     holds = _holds(run, train)
     for c, (chain, d) in enumerate(zip(chains, train, strict=True)):
         v = None if validate is None else validate[c]
-        zero = None if zeros is None or chain.model is not chains[0].model else zeros[c]
+        zero = zeros[c] if chain.model is chains[0].model else None
         if isinstance(d, PixelPart):
             state, d, found, more, held[c] = checked_pixels(chain, d, held[c])
         elif isinstance(d, Measurements):
             state, d, found, more, held[c] = checked_measured(
-                chain,
-                d,
-                v,
-                held[c],
-                weight,
-                opts.max_iterations,
-                run.marker,
-                opts.noise_mm,
-                zero,
-                holds[c],
+                chain, d, v, held[c], weight, opts, run.marker, zero, holds[c]
             )
             state = dataclasses.replace(state, instrument=run.instrument)
         else:
@@ -171,7 +162,7 @@ def _checked(run: Run, train, validate, guess, held, notes, zeros=None):
     return kept, dropped, registered
 
 
-def _register(run: Run, train, measured, plane_of, notes, zeros=None) -> ChainsState:
+def _register(run: Run, train, measured, plane_of, notes, zeros) -> ChainsState:
     """The terms' registrations ``measured`` on the nominal robot (a plane shared: refined)."""
     chains, pose_weight = run.chains, run.pose_weight
     placements = Placements.of(tuple(chains), zeros)

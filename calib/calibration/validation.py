@@ -21,6 +21,7 @@ from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .residuals import ResidualStats
 from .solve import FitState
+from .term_checks import file_lines
 
 __all__ = [
     "HELD_OUT_RATIO",
@@ -137,11 +138,6 @@ def _values(data) -> tuple[np.ndarray, tuple[str, ...] | None]:
     return np.hstack(parts), data.tool
 
 
-def _row(data, i: int) -> int:
-    """Row of configuration (or touch) i in its source (i + 1 without a file)."""
-    return data.rows[i] if data.rows is not None else i + 1
-
-
 def check_held_out(data, held) -> None:
     """Refuse validation data that are the training data: the file, or any of its rows.
 
@@ -174,8 +170,8 @@ def check_held_out(data, held) -> None:
         raise DataError(
             held.source,
             f"{int(repeated.sum())} of the {held.m} validation rows are rows of the data "
-            f"(row {_row(held, i)} is row {_row(data, j)} of {data.source}): held out must "
-            f"mean held out",
+            f"(row {file_lines(held)[i]} is row {file_lines(data)[j]} of {data.source}): held out "
+            f"must mean held out",
         )
 
 

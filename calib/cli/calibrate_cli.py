@@ -378,7 +378,13 @@ def add_calibrate_parser(sub) -> None:
         default=0.0,
         help="fraction of the rows set aside for validation (default: 0)",
     )
-    g.add_argument("--seed", type=int, default=0, help="seed of the holdout split (default: 0)")
+    g.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the holdout split, and with --folds of random folds: the postures "
+        "shuffled before they are cut (default: 0; --folds without --seed: contiguous folds)",
+    )
     g.add_argument(
         "--folds",
         type=int,

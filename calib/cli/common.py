@@ -188,13 +188,19 @@ def cross_validated(args: argparse.Namespace, fit: Callable, data: list, validat
 
     ``fit``: a route's calibration of its terms' data, each with its validation data (a
     list, or None: none); with ``--folds``, :func:`calib.design.folds.k_fold` calls it K + 1
-    times (``--holdout`` and ``--validate`` refused before: :func:`check_applicable`).
+    times (``--holdout`` and ``--validate`` refused before: :func:`check_applicable`), the
+    folds shuffled by ``--seed`` where it is given (:func:`fold_seed`).
     """
     if getattr(args, "folds", None) is None:
         return fit(data, validate)
     from ..design.folds import k_fold  # numpy: only when calibrating
 
-    return k_fold(fit, data, args.folds)
+    return k_fold(fit, data, args.folds, fold_seed(args))
+
+
+def fold_seed(args: argparse.Namespace) -> int | None:
+    """``--seed`` where it is given (``--folds``: random folds), else None (contiguous)."""
+    return args.seed if given_options(args, ("seed",)) else None
 
 
 def check_applicable(args: argparse.Namespace, shape: str) -> None:

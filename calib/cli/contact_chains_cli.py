@@ -24,7 +24,13 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import load_robot
 from . import pixels_cli
-from .common import given_options, look_outputs, orientation_wanted, write_calibration
+from .common import (
+    fold_seed,
+    given_options,
+    look_outputs,
+    orientation_wanted,
+    write_calibration,
+)
 from .contact_cli import check_contact
 
 __all__ = [
@@ -185,7 +191,9 @@ def calibrate_chains_command(args: argparse.Namespace, recorded=()) -> int:
     result = (
         calibrate(problem, progress=terminal(args.quiet))  # each term's validation data
         if args.folds is None
-        else cross_validate(problem, folds=args.folds, progress=terminal(args.quiet))
+        else cross_validate(
+            problem, folds=args.folds, seed=fold_seed(args), progress=terminal(args.quiet)
+        )
     )
     return write_calibration(
         args,

@@ -2,14 +2,14 @@
 
 :func:`cross_validate` splits each term's postures into K contiguous folds (the rows of one
 posture together; a chain touching: each object's touches, a repeated touch whole, as the
-holdout draws them), fits the problem K times, each fold's rows given as its validation data
-and the others fitted with the same options, and pools the held-out errors of the K fits
-(the calibrated model's and the registration's on the same rows). The model delivered is the
-fit on every row; it is refused where the pooled held-out error is worse than the
-registration's (the rule a held-out file's errors obey,
-:func:`~calib.calibration.contact_checks.held_out_refusal`), where a fold's fit is refused
-for another reason (it stalled: its held-out errors are no fitted model's), or for its own
-reasons.
+holdout draws them; given a seed, the postures shuffled by it first), fits the problem K
+times, each fold's rows given as its validation data and the others fitted with the same
+options, and pools the held-out errors of the K fits (the calibrated model's and the
+registration's on the same rows). The model delivered is the fit on every row; it is refused
+where the pooled held-out error is worse than the registration's (the rule a held-out file's
+errors obey, :func:`~calib.calibration.contact_checks.held_out_refusal`), where a fold's fit
+is refused for another reason (it stalled: its held-out errors are no fitted model's), or for
+its own reasons.
 
 It is a driver of fits, as :func:`~calib.design.design.evaluate` is a driver of
 information matrices: the calibration's pipeline is run as it is, K + 1 times.
@@ -32,7 +32,7 @@ from ..calibration.entry import calibrate
 from ..calibration.measured_view import MeasuredChain
 from ..calibration.problem import Problem, Term
 from ..calibration.solve import unconverged
-from ..core.checks import shown
+from ..core.checks import check_count, shown
 from ..exceptions import DataError, InvalidArgumentError
 from ..kinematics.robot import Chain
 from ..kinematics.tree import Tree
@@ -43,15 +43,18 @@ from ..measurements.postures import count, posture_groups
 __all__ = ["NOT_WITH", "cross_validate", "fold_of_rows", "k_fold", "pooled"]
 
 
-def fold_of_rows(data, folds: int) -> np.ndarray:
+def fold_of_rows(data, folds: int, seed: int | None = None) -> np.ndarray:
     """The fold (0 .. ``folds`` - 1) of each row of a term's data ``(m,)``: contiguous postures.
 
     Measurements: the postures in order of first appearance, split into ``folds``
     runs of sizes differing by one at most (``numpy.array_split``); touches: each object's
-    touches so (a touch repeated counts once).
+    touches so (a touch repeated counts once). ``seed``: the postures shuffled first
+    (``numpy.random.default_rng(seed).permutation``, each object's in turn), so that the
+    folds are drawn at random; None: contiguous, in file order.
 
     Raises:
-        InvalidArgumentError: ``folds`` under 2 or over the postures (an object's touches).
+        InvalidArgumentError: ``folds`` under 2 or over the postures (an object's touches),
+            or a bad seed.
     """
     if isinstance(folds, bool) or not isinstance(folds, numbers.Integral):
         raise InvalidArgumentError(
@@ -62,6 +65,7 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
             f"folds are for measurements and touches, not {type(data).__name__} (pixels: "
             "hold rows out with holdout or validate)"
         )
+    rng = None if seed is None else np.random.default_rng(check_count(seed, "the seed", 0))
     touches = isinstance(data, ContactData)
     ids = data.ids if isinstance(data, ContactData) else None
     groups = posture_groups(data.q, ids)
@@ -75,6 +79,8 @@ def fold_of_rows(data, folds: int) -> np.ndarray:
                 f"the number of folds must be in [2, {len(own)}] (the {what} in "
                 f"{data.source}), got {shown(folds)}"
             )
+        if rng is not None:
+            own = rng.permutation(own)
         for k, part in enumerate(np.array_split(own, folds)):
             out[np.isin(groups, part)] = k
     return out
@@ -139,7 +145,9 @@ NOT_WITH = "folds hold every posture out in turn: not with holdout or validate (
 flags: :data:`calib.cli.flags.FLAGS`)."""
 
 
-def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
+def k_fold(
+    fit: Fit, data: Sequence, folds: int, seed: int | None = None
+) -> ContactChainsCalibration:
     """``fit`` of every row, its held-out errors the pooled ones of ``folds`` fits (module text).
 
     Args:
@@ -147,14 +155,18 @@ def k_fold(fit: Fit, data: Sequence, folds: int) -> ContactChainsCalibration:
             the same options every time.
         data: Each term's data (measurements or touches).
         folds: K, in [2, postures] (each term's; touches: each object's).
+        seed: The postures shuffled by it before they are cut (each term's alike); None:
+            contiguous folds, in file order.
 
     Raises:
-        InvalidArgumentError: ``folds`` out of range, or data of another kind (pixels).
+        InvalidArgumentError: ``folds`` out of range, a bad seed, or data of another kind
+            (pixels).
     """
-    labels = [fold_of_rows(d, folds) for d in data]
+    labels = [fold_of_rows(d, folds, seed) for d in data]
     full = fit(list(data), None)
     runs = [_fold(fit, data, labels, k, folds) for k in range(folds)]
-    result = _pooled_result(full, runs, folds)
+    label = f"{folds} folds" if seed is None else f"{folds} folds, seed {seed}"
+    result = _pooled_result(full, runs, label)
     few = [_few_trained(d, f, folds) for d, f in zip(data, labels, strict=True)]
     return dataclasses.replace(result, notes=(*result.notes, *filter(None, few)))
 
@@ -182,7 +194,12 @@ def _fold(fit: Fit, data: Sequence, labels: list, k: int, folds: int):
 
 
 def cross_validate(
-    robot: Problem | Chain | Tree, data=None, *, folds: int = 5, **options
+    robot: Problem | Chain | Tree,
+    data=None,
+    *,
+    folds: int = 5,
+    seed: int | None = None,
+    **options,
 ) -> ContactChainsCalibration:
     """Calibrate on every row, and score the model by K-fold cross-validation (module text).
 
@@ -191,6 +208,9 @@ def cross_validate(
             nominal chain or tree of a problem of one term.
         data: Its data (not with a problem).
         folds: K, in [2, postures] (each term's; touches: each object's).
+        seed: Random folds: the postures shuffled by it before they are cut (each term's
+            alike; with a robot and its data, the problem's ``seed`` too, as ``calibrate``'s).
+            None (default): contiguous folds in file order, the problem's seed its own.
         options: :func:`~calib.calibration.entry.calibrate`'s (``progress`` included; not
             ``holdout`` nor ``validate``).
 
@@ -218,6 +238,8 @@ def cross_validate(
         if data is None:
             raise InvalidArgumentError("cross_validate takes a Problem, or a robot and its data")
         marker = options.pop("marker", None)
+        if seed is not None:
+            options["seed"] = seed
         problem = Problem((Term(robot, data, None, marker),), **options)
     if problem.holdout > 0 or any(t.validate is not None for t in problem.terms):
         raise InvalidArgumentError(NOT_WITH)
@@ -230,14 +252,17 @@ def cross_validate(
         )
         return calibrate(dataclasses.replace(problem, terms=terms), progress=progress)
 
-    return k_fold(fit, [t.data for t in problem.terms], folds)
+    return k_fold(fit, [t.data for t in problem.terms], folds, seed)
 
 
 def _pooled_result(
-    full: ContactChainsCalibration, runs: list[ContactChainsCalibration], folds: int
+    full: ContactChainsCalibration, runs: list[ContactChainsCalibration], label: str
 ) -> ContactChainsCalibration:
-    """``full`` with each term's held-out errors the folds' pooled, and its refusal by them."""
-    label = f"{folds} folds"
+    """``full`` with each term's held-out errors the folds' pooled, and its refusal by them.
+
+    ``label``: the held-out rows' source (``K folds``, ``K folds, seed S``).
+    """
+    folds = len(runs)
     parts, refusal = [], None
     for c, part in enumerate(full.chains):
         own = [r.chains[c] for r in runs]
