@@ -24,6 +24,7 @@ from calib.calibration.registration import register
 from calib.cli.commands import main
 from calib.design.configurations import markers_seen
 from calib.design.design import evaluate
+from calib.measurements.data import Measurements
 
 MARKERS = ((0.05, 0.0, 0.1), (-0.04, 0.03, 0.08), (0.0, -0.05, 0.12))
 
@@ -191,3 +192,18 @@ def test_design_evaluate_scores_the_markers_measured(tmp_path, capsys):
     argv = ["design", "ur5", "--evaluate", str(tmp_path / "b.csv"), "--json"]
     assert main([*argv, *(a for m in MARKERS for a in ("--marker", *map(str, m)))]) == 0
     assert f'"D": {partial.d!r}' in capsys.readouterr().out.replace("\n", "")
+
+
+def test_a_marker_seen_in_one_row_left_to_fit_is_refused(tmp_path):
+    """One row places a marker and says nothing more (the selection's folds without that row
+    could not place it): a marker fitted needs 2 rows, held-out rows and outliers aside."""
+    chain = load_chain("ur5")
+    data = read_measurements(simulate(tmp_path / "m.csv", 30, 14, 0.05), chain)
+    position = data.position.copy()
+    position[2:, 6:] = np.nan  # marker 3: rows 2 and 3 of the file only
+    two = Measurements(data.joint_names, data.q, position, source="two")
+    assert calibrate(chain, two, params="complete").after.position_rms < 2e-4
+    position[1, 6:] = np.nan
+    one = Measurements(data.joint_names, data.q, position, source="one")
+    with pytest.raises(CalibError, match=r"^one: marker 3 is seen in 1 row of those fitted"):
+        calibrate(chain, one)

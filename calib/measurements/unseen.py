@@ -13,7 +13,7 @@ import numpy as np
 from ..exceptions import DataError
 from .csv_text import parse_number
 
-__all__ = ["check_every_marker_seen", "marker_cells"]
+__all__ = ["FIT_ROWS", "check_every_marker_seen", "marker_cells", "never_seen"]
 
 
 def marker_cells(cells: list[str], index: list[int], names: list[str], src: str, line: int):
@@ -64,12 +64,25 @@ def check_every_marker_seen(position: np.ndarray, names, src: str, rows=None) ->
         i, j = (int(v) for v in np.argwhere(np.isnan(position))[0])
         why = "empty cell: orientation 'markers' needs every marker in every row"
         raise DataError(src, why, row=rows[i], column=names[j])
-    never = np.all(np.isnan(position[:, ::3]), axis=0)
-    if np.any(never):
-        k = int(np.argmax(never))
+    k = never_seen(position)
+    if k is not None:
         raise DataError(
             src,
             f"no row sees marker {k + 1} (its cells are all empty): fit the other points only "
             "(Columns' points)",
             column=names[3 * k],
         )
+
+
+def never_seen(position: np.ndarray, least: int = 1) -> int | None:
+    """The first marker (0-based) fewer than ``least`` rows see, or None.
+
+    ``position`` ``(m, 3 K)`` [m], NaN where a marker is not seen.
+    """
+    rare = np.sum(~np.isnan(position[:, ::3]), axis=0) < least
+    return int(np.argmax(rare)) if rare.any() else None
+
+
+FIT_ROWS = 2
+"""Fewest rows that must see a marker to fit it: one row's 3 equations only place the marker
+(no redundancy), and the selection's folds that leave that row out could not place it."""
