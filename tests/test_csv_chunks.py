@@ -42,8 +42,8 @@ def test_chunks_give_python_float_of_every_cell(ur5, monkeypatch):
         ("0x10", "f.csv (row 9, column 'z'): not a number: '0x10'"),
         (
             "",
-            "f.csv (row 9, column 'z'): empty cell: a marker not seen in this row? every "
-            "row needs each point fitted: leave the row out (start it with #)",
+            "f.csv (row 9, column 'z'): empty cell: a marker not seen leaves all of x, y, z "
+            "empty, this row has 1 of them",
         ),
         ("1,2", "f.csv (row 9): expected 9 cells, found 10"),
     ],

@@ -107,33 +107,33 @@ def test_points_not_chosen_are_not_read_nor_warned_about(tmp_path):
         warnings.simplefilter("error")
         data = read_measurements(path, chain, Columns(points=(1,)))
     assert data.position.tolist() == [[0.5, 0.1, 0.2], [0.4, 0.2, 0.1]]
-    with pytest.raises(CalibError, match="empty cell"):
+    with pytest.raises(CalibError, match="no row sees marker 2"):
         read_measurements(path, chain)
 
 
-def test_a_marker_not_seen_says_how_to_leave_it_out(tmp_path, capsys):
-    """An empty coordinate of a fitted point (an occluded marker) says the two ways out, each
-    of which then reads the file: the row commented out, or the other points chosen."""
+def test_a_marker_not_seen_is_read_or_says_how_to_leave_it_out(tmp_path, capsys):
+    """A fitted point's 3 empty cells (an occluded marker) are that marker not seen in the row
+    (tests/test_partial_markers.py); a point seen in no row says the way out: the other points
+    chosen; a row that sees no point: the row commented out."""
     path = tmp_path / "m.csv"
     chain = load_chain("ur5")
     header = ",".join(chain.joint_names) + ",x1,y1,z1,x2,y2,z2\n"
     seen = "0.1,0.2,0.3,0.4,0.5,0.6,0.5,0.1,0.2,0.6,0.1,0.2\n"
     unseen = "0.2,0.2,0.3,0.4,0.5,0.6,0.4,0.2,0.1,,,\n"
     path.write_text(header + seen + unseen)
+    assert read_measurements(path, chain).seen.tolist() == [[True, True], [True, False]]
+    path.write_text(header + unseen)
     with pytest.raises(CalibError) as error:
         read_measurements(path, chain)
     assert str(error.value).endswith(
-        "(row 3, column 'x2'): empty cell: a marker not seen in this row? every row needs each "
-        "point fitted: leave the row out (start it with #) or fit the other points only "
-        "(Columns' points)"
+        "(column 'x2'): no row sees marker 2 (its cells are all empty): fit the other points "
+        "only (Columns' points)"
     )
     assert main(["calibrate", "ur5", "--data", str(path), "--out", str(tmp_path / "c.urdf")]) == 2
     assert capsys.readouterr().err.rstrip().endswith("fit the other points only (--points)")
-    assert read_measurements(path, chain, Columns(points=(1,))).m == 2
-    path.write_text(header + seen + "# " + unseen)
-    assert read_measurements(path, chain).rows == (2,)
-    path.write_text(header.replace(",x2,y2,z2", "") + "0.1,0.2,0.3,0.4,0.5,0.6,,0.1,0.2\n")
-    with pytest.raises(CalibError, match=r"'x1'\): empty cell: .* \(start it with #\)$"):
+    assert read_measurements(path, chain, Columns(points=(1,))).m == 1
+    path.write_text(header.replace(",x2,y2,z2", "") + "0.1,0.2,0.3,0.4,0.5,0.6,,,\n")
+    with pytest.raises(CalibError, match=r"\(row 2\): empty cells: .* \(start it with #\)$"):
         read_measurements(path, chain)  # one point: no other to fit
 
 

@@ -55,9 +55,10 @@ def proposals(start: ChainsState, c: int, data: Measurements, noise: float | Non
     names = start.placements.names()
     wide = chains_model(alone, (0,), range(len(names)), names)
     J = wide.jacobian(alone, np.zeros(wide.size()), ChainsData((data,)))
+    seen = data.seen_rows(residuals.shape[1])  # a marker not seen: its rows 0 (no equation)
     return robust_proposals(
         J[:, :, determined.determined_columns(J)],
-        residuals * state.row_weights(),
+        (residuals if seen is None else np.where(seen, residuals, 0.0)) * state.row_weights(),
         lambda r: point_errors(r, data.n_markers),
         noise,
         term_checks.file_lines(data),

@@ -14,10 +14,13 @@ from typing import cast
 
 import numpy as np
 
+from ..core.words import counted
+from ..exceptions import DataError
 from ..identification.measures import POSE
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
+from ..measurements.unseen import FIT_ROWS, never_seen
 from . import determined, diagnosis, outliers, term_checks, validation, weighting
 from .model import MeasuredKind, State, measured_kind, point_rows
 from .options import Options
@@ -192,6 +195,14 @@ def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]
     The nominal kinematics and the closed-form start (on the first call) are made once;
     ``held``: marker coordinates held at the ``guess``.
     """
+    if data.partial and (k := never_seen(data.position, FIT_ROWS)) is not None:
+        seen = counted(int(np.sum(data.seen[:, k])), "rows")
+        raise DataError(
+            data.source,
+            f"marker {k + 1} is seen in {seen} of those fitted (held-out rows and outliers "
+            f"aside), fewer than {FIT_ROWS}: its place cannot be fitted; hold out fewer rows, "
+            "or fit the other points only (Columns' points)",
+        )
     kin = nominal.kinematics(data.q)
     model = _Own(measured_kind(data, held))
 
@@ -301,7 +312,8 @@ def validation_steps(steps: Rows, held: Measurements | None) -> list[tuple[Rows,
     if held is None:
         return []
     frames = measured_kind(held, steps.hold)
-    if not frames.determined_by(held.m):  # too few rows to register on their own
+    unseen = held.partial and never_seen(held.position) is not None
+    if unseen or not frames.determined_by(held.m):  # too few rows to register on their own
         return []
     at = registrations(steps.nominal, held, steps.guess, steps.opts, steps.hold)
     return [(dataclasses.replace(steps, rows=held, at=at, frames=frames), held.source)]

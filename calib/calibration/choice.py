@@ -319,8 +319,12 @@ def choose(
         J, objects, free = _selection_columns(wide, start, data, columns, at)
         groups = _postures(data) if generic is None else generic.groups(drawn)
         e = start.residuals(data, None, at.kinematics(data))
+        seen = data.seen_rows(e.shape[1])  # a marker not seen: its rows 0 (no equation)
+        e, measured = (e, None) if seen is None else (np.where(seen, e, 0.0), seen.sum(axis=1))
         keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
-        selection, weights = select(J, e, free, cand_names, keep, groups=groups, objects=objects)
+        selection, weights = select(
+            J, e, free, cand_names, keep, groups=groups, objects=objects, measured=measured
+        )
         columns = [columns[k] for k in selection.index]  # by position: names may repeat
         if np.any(weights):
             prior = np.r_[np.zeros(fixed), weights]

@@ -157,10 +157,15 @@ def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) 
 
 
 def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
-    """:class:`GapStats` of rows ``g`` ``(m, rows)`` [m, rad], ``weights`` [1, m/rad] each."""
+    """:class:`GapStats` of rows ``g`` ``(m, rows)`` [m, rad], ``weights`` [1, m/rad] each.
+
+    NaN: a marker not seen in a configuration, no row of its figures.
+    """
     scale = np.array([mm_or_deg(a)[1] for a in kind.angular])
-    rms = tuple(float(v) for v in np.sqrt(np.mean(g**2, axis=0)) * scale)
-    top = tuple(float(v) for v in np.max(np.abs(g), axis=0) * scale)
-    per_row = 1e3 * np.linalg.norm(g * weights, axis=1)
+    unseen = np.isnan(g).any()
+    mean, big = (np.nanmean, np.nanmax) if unseen else (np.mean, np.max)
+    rms = tuple(float(v) for v in np.sqrt(mean(g**2, axis=0)) * scale)
+    top = tuple(float(v) for v in big(np.abs(g), axis=0) * scale)
+    per_row = 1e3 * np.linalg.norm((np.nan_to_num(g) if unseen else g) * weights, axis=1)
     weighted = float(np.sqrt(np.mean(per_row**2)))
     return GapStats(len(g), kind.row_names, kind.angular, rms, top, weighted, per_row, g)

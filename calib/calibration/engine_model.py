@@ -47,6 +47,14 @@ class ChainsData:
         """Touches of all chains."""
         return sum(d.m for d in self.parts)
 
+    def seen_rows(self, width: int) -> np.ndarray | None:
+        """Rows of ``width`` per row measured ``(m, width)``, None: all (padded rows kept)."""
+        seen = [d.seen_rows(width) if isinstance(d, Measurements) else None for d in self.parts]
+        if all(s is None for s in seen):
+            return None
+        ones = (np.ones((d.m, width), dtype=bool) for d in self.parts)
+        return np.concatenate([o if s is None else s for o, s in zip(ones, seen, strict=True)])
+
     def torque(self, c: int) -> np.ndarray | None:
         """Chain c's gravity torques ``(m, n)`` [N m or N], or None."""
         return None if self.torques is None else self.torques[c]

@@ -218,7 +218,8 @@ class Solution:
         fit = self.fit
         rows = ChainsData((data,), None if torque is None else (torque,))
         J = fit.model.jacobian(fit.start, fit.x, rows)
-        return validation.predicted_std(J, self.covariance[0], data.n_markers)
+        seen = int(data.seen.sum()) if data.partial else None
+        return validation.predicted_std(J, self.covariance[0], data.n_markers, seen)
 
 
 class ChainView:

@@ -278,6 +278,9 @@ class MeasuredKind:
         kind = self.measurement
         error = kind.rotation_error(data.observed, rot) if rot is not None else None
         J = kind.jacobian_rows(J, rotation_error=error, n_markers=self.n_markers, overwrite=True)
+        seen = data.seen_rows(J.shape[1])  # a marker not seen: no rows (solve drops them)
+        if seen is not None:
+            J[~seen] = 0.0
         return J[..., self._kept(J.shape[2])] if held and self.held else J
 
 

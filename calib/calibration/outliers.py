@@ -104,12 +104,15 @@ def set_aside_note(dropped, unit: str = "rows", gap: str = "error") -> str:
 
 
 def point_errors(residual: np.ndarray, n_markers: int) -> Errors:
-    """Each configuration's largest point error [m] and orientation error [rad] (or None)."""
+    """Each configuration's largest point error [m] and orientation error [rad] (or None).
+
+    A marker not seen in a row (NaN) is not among its points.
+    """
     rot = None
     if residual.shape[1] == 3 * n_markers + 3:
         rot = np.linalg.norm(residual[:, 3 * n_markers :], axis=1)
-    pts = residual[:, : 3 * n_markers].reshape(len(residual), n_markers, 3)
-    return Errors(np.max(np.linalg.norm(pts, axis=2), axis=1), rot)
+    pts = np.linalg.norm(residual[:, : 3 * n_markers].reshape(len(residual), n_markers, 3), axis=2)
+    return Errors(np.nanmax(pts, axis=1) if np.isnan(pts).any() else np.max(pts, axis=1), rot)
 
 
 @functools.cache

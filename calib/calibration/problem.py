@@ -18,6 +18,7 @@ from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
 from ..measurements.contact_objects import term_planes
 from ..measurements.data import Measurements
+from ..measurements.unseen import check_every_marker_seen
 from .options import APPLIES, SHAPE_LABELS, Options, checked_init
 from .pixel_chain import PixelData
 
@@ -65,6 +66,10 @@ class Term:
             raise InvalidArgumentError(
                 "touches are recorded on a chain (one base, one tool), got a tree: give one "
                 "term per chain"
+            )
+        if isinstance(self.data, Measurements) and self.data.partial:  # each marker fitted
+            check_every_marker_seen(
+                self.data.position, self.data.position_columns, self.data.source
             )
         if self.validate is not None and type(self.validate) is not type(self.data):
             raise InvalidArgumentError(

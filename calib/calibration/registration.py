@@ -66,6 +66,7 @@ class _Moments:
     def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
         m, K = points.shape[:2]
         self.m, self.K, self.slices = m, K, [slice(None)]  # the markers: all of them
+        self.count = m * K  # points
         self.cb = points.reshape(-1, 3).mean(axis=0) if cb is None else cb
         Y = points - self.cb  # (m, K, 3)
         self.G = np.ascontiguousarray(np.einsum("iaj,ikb->kjab", Rt, Y).reshape(3 * K, 9))
@@ -88,13 +89,51 @@ class _Moments:
         return (new + (self.R_mean.T @ ca - self.back)).ravel()
 
 
+class _Partial(_Moments):
+    """:class:`_Moments` of points some markers of which were not seen (NaN) in some rows.
+
+    ``seen`` ``(m, K)``: the sums run over the points seen (the rows of a marker not seen
+    are left out; docs/developers/engine.md#registration).
+    """
+
+    def __init__(self, Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> None:
+        m, K = points.shape[:2]
+        seen = ~np.isnan(points[..., 0])
+        w = seen.astype(float)
+        self.m, self.K, self.slices = m, K, [slice(None)]
+        self.n, self.count = w.sum(axis=0), float(w.sum())  # per marker, in all
+        self.cb = points[seen].mean(axis=0) if cb is None else cb
+        Y = np.where(seen[..., None], points - self.cb, 0.0)  # (m, K, 3)
+        self.G = np.ascontiguousarray(np.einsum("iaj,ikb->kjab", Rt, Y).reshape(3 * K, 9))
+        self.P = pt.T @ Y.sum(axis=1)
+        self.p_mean = w.sum(axis=1) @ pt / self.count
+        self.RW = np.einsum("ik,iab->kab", w, Rt)  # sum of the rotations seeing each marker
+        self.back = np.einsum("ik,iba,ib->ka", w, Rt, pt)  # sum of their R_i^T p_i
+
+    def sums(self, mk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cross-covariance and the centroid of the points seen (markers ``(3 K,)``)."""
+        mean = np.einsum("kab,kb->a", self.RW, mk.reshape(-1, 3)) / self.count
+        return self.P + (mk @ self.G).reshape(3, 3), self.p_mean + mean
+
+    def markers(self, R: np.ndarray, ca: np.ndarray) -> np.ndarray:
+        """Each marker's least squares over the rows that see it, the frame held ``(3 K,)``."""
+        new = (self.G @ R.T.ravel()).reshape(self.K, 3)
+        return ((new + np.swapaxes(self.RW, 1, 2) @ ca - self.back) / self.n[:, None]).ravel()
+
+
+def _moments(Rt, pt, points: np.ndarray, cb: np.ndarray | None = None) -> _Moments:
+    """The sums of one tool's points: :class:`_Partial` if a marker was not seen in some row."""
+    return _Partial(Rt, pt, points, cb) if np.isnan(points).any() else _Moments(Rt, pt, points, cb)
+
+
 class _Tools:
     """:class:`_Moments` of several tools measured in one frame (centred on every tool's mean)."""
 
     def __init__(self, Rt: list, pt: list, points: list) -> None:
-        cb = np.concatenate([p.reshape(-1, 3) for p in points]).mean(axis=0)
-        self.tools = [_Moments(*t, cb) for t in zip(Rt, pt, points, strict=True)]
-        self.cb, self.sizes = cb, [t.m * t.K for t in self.tools]
+        every = np.concatenate([p.reshape(-1, 3) for p in points])
+        cb = (every[~np.isnan(every[:, 0])] if np.isnan(every).any() else every).mean(axis=0)
+        self.tools = [_moments(*t, cb) for t in zip(Rt, pt, points, strict=True)]
+        self.cb, self.sizes = cb, [t.count for t in self.tools]
         ends = accumulate(3 * t.K for t in self.tools)
         self.slices = [slice(end - 3 * t.K, end) for t, end in zip(self.tools, ends, strict=True)]
 
@@ -115,9 +154,10 @@ def register_points(
     """Closed-form frame ``(4, 4)`` and markers ``(K_c, 3)`` [m] of tools measured in one frame.
 
     Per tool: ``Rt``, ``pt`` the tool's poses in the base frame, ``points`` ``(m_c, K_c, 3)``
-    [m], ``markers``: the guess; ``held``: coordinates kept at the guess (or None).
+    [m] (NaN: a marker not seen in a row), ``markers``: the guess; ``held``: coordinates
+    kept at the guess (or None).
     """
-    sums = _Moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
+    sums = _moments(Rt[0], pt[0], points[0]) if len(Rt) == 1 else _Tools(Rt, pt, points)
     flat = np.concatenate([np.asarray(m, dtype=float).ravel() for m in markers])
     keep = [(c.start or 0) + k for c, h in zip(sums.slices, held or (), strict=False) for k in h]
     for _ in range(ITERATIONS):

@@ -32,10 +32,15 @@ class ResidualStats:
 
     @staticmethod
     def of(residual: np.ndarray, n_markers: int = 1) -> ResidualStats:
-        """Statistics of residuals ``(m, 3 K)`` or, with orientations, ``(m, 3 K + 3)``."""
+        """Statistics of residuals ``(m, 3 K)`` or, with orientations, ``(m, 3 K + 3)``.
+
+        A marker not seen in a row (NaN: partial marker rows) is no point of the statistics.
+        """
         residual = np.asarray(residual, dtype=float)
         m = len(residual)
         pos = np.linalg.norm(residual[:, : 3 * n_markers].reshape(m, n_markers, 3), axis=2)
+        if np.isnan(pos).any():
+            pos = pos[~np.isnan(pos)]
         rms, top = float(np.sqrt(np.mean(pos**2))), float(np.max(pos))
         if residual.shape[1] != 3 * n_markers + 3:
             return ResidualStats(m, rms, top)

@@ -303,17 +303,23 @@ def select(
     forced=(),
     groups: np.ndarray | None = None,
     objects: ObjectColumns | None = None,
+    measured: np.ndarray | None = None,
 ) -> tuple[Selection, np.ndarray]:
     """Choose the parameters the data support; and each kept one's prior weight.
 
     ``J`` ``(m, rows, fixed + len(names))`` (the always-free columns first) and ``e`` ``(m,
     rows)``, weighted, at the registration; ``forced``: indices into ``names`` always kept;
     ``groups``: each configuration's posture (repeats count once; None: each its own);
-    ``objects``: always-free object columns by block, or None. The prior weights are in the
-    units of x (``sqrt(strength) * |column|``).
+    ``objects``: always-free object columns by block, or None; ``measured``: each
+    configuration's rows measured (partial marker rows: those of a marker not seen are 0 in
+    ``J`` and ``e``, no equation), None: all. The prior weights are in the units of x
+    (``sqrt(strength) * |column|``).
     """
-    points, rows = e.size / 3, J.shape[1]
+    points, rows = (e.size if measured is None else float(np.sum(measured))) / 3, J.shape[1]
     A, norms, ev, repeats, objects = _unit_columns(J, e, groups, objects)
+    if measured is not None:  # each posture counts the points it measured
+        per = measured if groups is None else np.bincount(groups, weights=measured)
+        repeats = (repeats[0], per / rows)
     m = len(ev) // rows
     # the guard's folds' training configurations: fold f leaves out those i mod OUTER_FOLDS = f
     folds = (np.arange(m) % OUTER_FOLDS)[None, :] != np.arange(min(OUTER_FOLDS, m))[:, None]

@@ -108,6 +108,14 @@ class Problem:
         self.prior = prior  # (p,) weights of x in the prior rows, or None
         self.robust = robust  # SciPy scales the Jacobian it is given in place (a robust loss)
         self._kept: list[list] = []  # [x, state, kinematics or None, data Jacobian or None]
+        self._seen: dict[int, np.ndarray | None] = {}  # the rows measured, by width
+
+    def seen(self, rows: int) -> np.ndarray | None:
+        """Which data rows ``(m, rows)`` were measured (None: all): a marker not seen has none."""
+        if rows not in self._seen:
+            seen_rows = getattr(self.data, "seen_rows", None)  # measured data (partial rows)
+            self._seen[rows] = None if seen_rows is None else seen_rows(rows)
+        return self._seen[rows]
 
     def state(self, x: np.ndarray):
         """The model's state at x."""
@@ -131,9 +139,11 @@ class Problem:
         return self._kept[0]
 
     def data_rows(self, x: np.ndarray) -> np.ndarray:
-        """Weighted model - measured of the data, configuration-major ``(m rows,)``."""
+        """Weighted model - measured of the data, configuration-major ``(m rows,)`` (measured)."""
         _, state, kin, _ = self._at(x)  # kin None: another geometry's made since
-        return -state.residuals(self.data, self.torque, kin).ravel()
+        r = state.residuals(self.data, self.torque, kin)
+        seen = self.seen(r.shape[1])
+        return -r.ravel() if seen is None else -r[seen]
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         """Data rows, then the prior rows ``prior * x``."""
@@ -149,7 +159,8 @@ class Problem:
                     other[3] = None
             _, state, kin, _ = kept
             J = self.model.jacobian(self.start, x, self.data, self.torque, state, kin)
-            kept[3] = J.reshape(-1, J.shape[2])
+            seen = self.seen(J.shape[1])
+            kept[3] = J.reshape(-1, J.shape[2]) if seen is None else J[seen]
         return kept[3]
 
     def jac(self, x: np.ndarray) -> np.ndarray:

@@ -114,6 +114,10 @@ def split(data: _R, fraction: float, seed: int) -> tuple[_R, _R | None]:
     return data.subset(~held), data.subset(held)
 
 
+UNSEEN = 1e4
+"""A coordinate [m] no marker has (beyond ``MAX_COORDINATE``): a marker not seen's, compared."""
+
+
 def _same_file(a: str, b: str) -> bool:
     try:
         return Path(a).is_file() and Path(b).is_file() and Path(a).samefile(b)
@@ -128,7 +132,7 @@ def _values(data) -> tuple[np.ndarray, tuple[str, ...] | None]:
     if isinstance(data, PixelObservations):
         labels = tuple(f"{c}\0{p}" for c, p in zip(data.camera, data.point, strict=True))
         return np.hstack([data.q, data.pixels]), labels
-    parts = [data.q, data.position]
+    parts = [data.q, np.nan_to_num(data.position, nan=UNSEEN)]  # unseen: as another unseen
     if data.quaternion is not None:
         parts.append(data.quaternion)
     return np.hstack(parts), data.tool
@@ -249,12 +253,19 @@ def stats(
     return ResidualStats.of(state.residuals(data, torque, kin), data.n_markers)
 
 
-def predicted_std(J_points: np.ndarray, covariance: np.ndarray, n_markers: int) -> float:
-    """RMS over configurations and points of the predicted position std [m]: trace(J C J^T)."""
+def predicted_std(
+    J_points: np.ndarray, covariance: np.ndarray, n_markers: int, seen: int | None = None
+) -> float:
+    """RMS over configurations and points of the predicted position std [m]: trace(J C J^T).
+
+    ``seen``: the points measured, when some marker was not seen in some row (its rows 0).
+    """
     if covariance.size == 0:
         return 0.0
     if not np.all(np.isfinite(covariance)):
         return float("inf")
     Jp = J_points[:, : 3 * n_markers]
-    var = np.einsum("mrp,pq,mrq->m", Jp, covariance, Jp) / n_markers
-    return float(np.sqrt(np.mean(var)))
+    var = np.einsum("mrp,pq,mrq->m", Jp, covariance, Jp)
+    if seen is not None:
+        return float(np.sqrt(np.sum(var) / seen))
+    return float(np.sqrt(np.mean(var / n_markers)))

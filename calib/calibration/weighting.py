@@ -20,8 +20,14 @@ ITERATIONS = 10  # most registrations the estimation runs (measured chains)
 
 
 def variance_ratio(residuals: np.ndarray, angle: np.ndarray) -> float | None:
-    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)`` [m, rad], or None if one is ~0."""
-    sp = math.sqrt(float(np.mean(residuals[:, ~angle] ** 2)))
+    """sigma_p / sigma_o [m/rad] of residuals ``(m, rows)`` [m, rad], or None if one is ~0.
+
+    A marker not seen in a row (NaN) has no rows.
+    """
+    lengths = residuals[:, ~angle] ** 2
+    if np.isnan(lengths).any():
+        lengths = lengths[~np.isnan(lengths)]
+    sp = math.sqrt(float(np.mean(lengths)))
     so = math.sqrt(float(np.mean(residuals[:, angle] ** 2)))
     if sp < TINY or so < TINY:
         return None

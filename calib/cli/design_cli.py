@@ -192,7 +192,7 @@ def _off_chain(path: str, chain, candidates):
 
 def _evaluate(args: argparse.Namespace, chain) -> int:
     """``calib design --evaluate``: the indices of a given set of configurations."""
-    from ..design.configurations import read_configurations
+    from ..design.configurations import markers_seen, read_configurations
     from ..design.design import evaluate, indices_table
     from ..design.observability import CRITERIA
 
@@ -216,6 +216,7 @@ def _evaluate(args: argparse.Namespace, chain) -> int:
         args.seed,
         args.orientation_weight,
         **limits,
+        seen=None if chain.is_tree else markers_seen(args.evaluate, chain),
     )
     if args.json:
         print_json({"robot": chain.name, "configs_file": args.evaluate, **ind.to_dict()})

@@ -207,6 +207,30 @@ def points_in_file(path: str | Path, chain: Chain | Tree) -> int:
     return k or int(all(a in free for a in "xyz"))
 
 
+def markers_seen(path: str | Path, chain: Chain | Tree) -> np.ndarray | None:
+    """Which of a measurement file's points each row sees ``(m, K)``, None: every one.
+
+    A point's ``x, y, z`` cells all empty in a row: not seen there (an occluded marker,
+    :mod:`calib.measurements.unseen`); a file of a tree's tools (a ``tool`` column) or of no
+    point: None.
+
+    Raises:
+        DataError: The file is unreadable.
+    """
+    k = points_in_file(path, chain)
+    records = csv_records(read_data_text(path, _MAX_CONFIGS_BYTES), str(path))
+    header = [c.strip() for c in next(records)[1]]
+    if not k or TOOL_COLUMN in header:
+        return None
+    names = [f"{a}{i + 1}" for i in range(k) for a in "xyz"] if "x1" in header else list("xyz")
+    index = [header.index(n) for n in names]
+    seen = [
+        [any(cells[j].strip() for j in index[3 * i : 3 * i + 3]) for i in range(k)]
+        for _, cells in records
+    ]
+    return None if all(map(all, seen)) else np.array(seen)
+
+
 def configurations_csv(
     chain: Chain | Tree, q: np.ndarray, readings: JointReadings | None = None
 ) -> str:
@@ -223,6 +247,7 @@ def configurations_csv(
 
 __all__ = [
     "configurations_csv",
+    "markers_seen",
     "parse_configurations",
     "points_in_file",
     "read_chains_configurations",

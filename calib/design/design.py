@@ -442,6 +442,7 @@ def evaluate(
     candidates: int | np.ndarray | None = None,
     constraints: Constraints | None = None,
     readings: JointReadings | None = None,
+    seen: np.ndarray | None = None,
 ) -> Indices:
     """Observability indices of a user's configurations ``(K, n)`` of a chain or tree.
 
@@ -450,7 +451,9 @@ def evaluate(
     ``readings`` (:func:`design`'s), the design's own: as many of the candidates the
     constraints keep, drawn as :func:`design` draws them (the same seed and limits: the
     same figure as the design's). The independent columns are chosen at random
-    configurations, so that the set's own rank deficiency shows. The other arguments are
+    configurations, so that the set's own rank deficiency shows. ``seen`` ``(K, markers)``:
+    the markers each configuration measured (None: all; a measurement file's partial
+    marker rows, :func:`~calib.design.configurations.markers_seen`). The other arguments are
     :func:`design`'s.
 
     Raises:
@@ -473,7 +476,7 @@ def evaluate(
         ref_q = candidate_configurations(chain, REFERENCE_CONFIGS, seed)
     else:
         ref_q = _design_reference(chain, marker, seed, candidates, constraints, readings)
-    return indices(model, q, reference(model, ref_q))
+    return indices(model, q, reference(model, ref_q), seen)
 
 
 def _design_reference(chain, marker, seed: int, candidates, constraints, readings) -> np.ndarray:

@@ -477,8 +477,13 @@ def indices_of(J: np.ndarray, ref: Reference | None = None) -> Indices:
     )
 
 
-def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None) -> Indices:
+def indices(
+    model: ObservationModel, q: np.ndarray, ref: Reference | None = None, seen=None
+) -> Indices:
     """Observability indices of configurations ``q`` ``(K, n)`` under a model.
+
+    ``seen`` ``(K, markers)``: which markers each configuration measures (None: all); a
+    marker not seen gives no rows (its rows are 0: the information of those measured).
 
     Raises:
         InvalidArgumentError: ``model`` is no :class:`ObservationModel`, ``ref`` no
@@ -490,7 +495,15 @@ def indices(model: ObservationModel, q: np.ndarray, ref: Reference | None = None
         )
     if ref is not None and not isinstance(ref, Reference):
         raise InvalidArgumentError(f"ref must be a Reference (reference) or None, got {ref!r:.60}")
-    return indices_of(model.jacobian(q), ref)
+    J = model.jacobian(q)
+    if seen is not None:
+        seen = np.asarray(seen, dtype=bool)
+        if seen.shape != (len(J), model.n_markers):
+            raise InvalidArgumentError(
+                f"seen must be ({len(J)}, {model.n_markers}) booleans, got {seen.shape}"
+            )
+        J[:, : 3 * model.n_markers][~np.repeat(seen, 3, axis=1)] = 0.0
+    return indices_of(J, ref)
 
 
 def identifiable_parameters(

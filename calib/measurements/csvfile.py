@@ -62,6 +62,7 @@ from .limits import (
     joint_bounds,
     tool_frames,
 )
+from .unseen import check_every_marker_seen, marker_cells
 
 __all__ = [
     "DEFAULT_ORIENTATION_COLUMNS",
@@ -373,6 +374,7 @@ def parse_measurements(
     check_limits(chain, q, source, np.array(lines), warn=False)
     position = table[:, [col[n] for n in pos_cols]] * UNITS[columns.units]
     _check_coordinates(position, pos_cols, lines, source, columns.units)
+    check_every_marker_seen(position, pos_cols, source, lines if fmt == MARKERS else None)
     quat, angles = None, None
     if fmt == MARKERS:
         position, quat = _marker_set(position, source, lines)
@@ -446,25 +448,18 @@ def _chunk_values(chunk, header, chain, source: str, tools: list[str]) -> np.nda
             values[:, numbers] = parsed.reshape(len(chunk), len(numbers))
             tools += names
             return values
-    for i, (line, cells) in enumerate(chunk):  # the first error, named
+    points = [keys.index(k) for k in header[1]]
+    others = [j for j in numbers if keys[j] not in header[1]]
+    for i, (line, cells) in enumerate(chunk):  # row by row: the first error, named
         if len(cells) != len(keys):
             raise DataError(source, f"expected {len(keys)} cells, found {len(cells)}", row=line)
         if at is not None and not cells[at].strip():
             raise DataError(source, "empty cell", row=line, column=TOOL_COLUMN)
-        for j in numbers:
-            if keys[j] in header[1] and not cells[j].strip():
-                raise DataError(source, _unseen(header[1]), row=line, column=shown[j])
+        for j in others:
             values[i, j] = parse_number(cells[j], source, line, shown[j])
-    return values  # not reached: a row above is invalid
-
-
-def _unseen(position_keys) -> str:
-    """The message of an empty measured coordinate: a marker not seen, and the ways out."""
-    others = " or fit the other points only (Columns' points)" if len(position_keys) > 3 else ""
-    return (
-        "empty cell: a marker not seen in this row? every row needs each point fitted: "
-        f"leave the row out (start it with #){others}"
-    )
+        values[i, points] = marker_cells(cells, points, [shown[j] for j in points], source, line)
+    tools += [] if at is None else [cells[at].strip() for _, cells in chunk]
+    return values
 
 
 MM_HINT = ": millimetres? read them with Columns(units='mm')"
@@ -482,7 +477,7 @@ def _check_coordinates(
     far = np.abs(position) > MAX_COORDINATE
     if np.any(far):
         i, j = (int(v) for v in np.argwhere(far)[0])
-        in_mm = np.max(np.abs(position)) * UNITS["mm"] / UNITS[units] <= MAX_COORDINATE
+        in_mm = np.nanmax(np.abs(position)) * UNITS["mm"] / UNITS[units] <= MAX_COORDINATE
         raise DataError(
             source,
             f"{position[i, j]:.9g} m is not a plausible measurement (coordinates are within "

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -77,6 +78,16 @@ def _unit_quaternions(quat: np.ndarray) -> np.ndarray:
     return unit / np.linalg.norm(unit, axis=1)[:, None]
 
 
+def _finite_or_unseen(pos: np.ndarray) -> bool:
+    """Every coordinate finite, but markers not seen: NaN in all 3 of a row's coordinates."""
+    nan = np.isnan(pos)
+    if not nan.any():
+        return bool(np.all(np.isfinite(pos)))
+    triples = nan.reshape(len(pos), -1, 3)
+    whole = bool(np.all(triples == triples[..., :1]))
+    return whole and bool(np.all(np.isfinite(pos[~nan])))
+
+
 @dataclass(frozen=True, eq=False)
 class Angles:
     """Orientation columns of a file in an angle format, as read (before any conversion).
@@ -106,7 +117,9 @@ class Measurements:
         joint_names: URDF joint of each column of ``q``, base to tool.
         q: Joint positions ``(m, n)`` [rad or m].
         position: Measured points in the measurement frame ``(m, 3 K)`` [m]: x, y, z of
-            marker 1, then of marker 2, ...; every coordinate within ``MAX_COORDINATE``.
+            marker 1, then of marker 2, ...; every coordinate within ``MAX_COORDINATE``. A
+            marker not seen in a row (occluded) is NaN in its 3 coordinates there
+            (:attr:`seen`): its rows are left out of every fit and error.
         quaternion: Measured tool orientation ``(m, 4)`` (qx, qy, qz, qw; unit norm), or
             None for position-only data.
         source: Where the data came from (a file path), for messages.
@@ -149,8 +162,16 @@ class Measurements:
                 f"positions must have shape ({m}, 3 K) or ({m}, K, 3), got "
                 f"{np.shape(self.position)}"
             )
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(pos))):
-            raise InvalidArgumentError("measurements contain NaN or infinity")
+        if not (np.all(np.isfinite(q)) and _finite_or_unseen(pos)):
+            raise InvalidArgumentError(
+                "measurements contain NaN or infinity (a marker not seen: NaN in its x, y and z)"
+            )
+        blind = np.all(np.isnan(pos), axis=1)
+        if np.any(blind):
+            raise InvalidArgumentError(
+                f"configuration {int(np.argmax(blind)) + 1} sees no marker: every row "
+                "measures at least one"
+            )
         if np.any(np.abs(pos) > MAX_COORDINATE):
             i, j = (int(v) for v in np.argwhere(np.abs(pos) > MAX_COORDINATE)[0])
             raise InvalidArgumentError(
@@ -198,6 +219,29 @@ class Measurements:
     def n_markers(self) -> int:
         """Number of points K measured per configuration."""
         return self.position.shape[1] // 3
+
+    @cached_property
+    def seen(self) -> np.ndarray:
+        """Whether each marker was seen in each row ``(m, K)`` (read only)."""
+        seen = ~np.isnan(self.position[:, ::3])
+        seen.setflags(write=False)
+        return seen
+
+    @cached_property
+    def partial(self) -> bool:
+        """Whether some marker was not seen in some row (partial marker rows)."""
+        return not bool(self.seen.all())
+
+    def seen_rows(self, width: int) -> np.ndarray | None:
+        """Which of ``width`` residual rows per row were measured ``(m, width)``, None: all.
+
+        A marker's 3 rows are those of :attr:`seen`; the rows past them (orientation): all.
+        """
+        if not self.partial:
+            return None
+        rows = np.ones((self.m, width), dtype=bool)
+        rows[:, : self.position.shape[1]] = np.repeat(self.seen, 3, axis=1)
+        return rows
 
     @property
     def points(self) -> np.ndarray:
