@@ -174,7 +174,9 @@ def test_a_camera_without_numbers_nor_urdf_link_is_refused_by_simulate(capsys, t
 
 def test_a_head_camera_on_the_wrong_link_is_refused_naming_the_link(capsys, tmp_path):
     """TIAGo's head camera given on head_1_link: its chain misses head_2_joint, so no camera
-    placement explains the pixels; the refusal names the link as a suspect."""
+    placement explains the pixels; the file's head_2_joint column, read again, does on the
+    chain from head_2_link: the refusal names the joint and the link (nearlink50; failed
+    before: "the camera on another link than head_1_link", no link named)."""
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
     write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
     target = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
@@ -190,8 +192,9 @@ def test_a_head_camera_on_the_wrong_link_is_refused_naming_the_link(capsys, tmp_
     argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv"]
     code, _, err = run(capsys, *argv, *camera, *target, "--out", out)
     assert code == 2
-    assert "the pixels do not match camera cam and head_1_link -> arm_tool_link" in err
-    assert "the camera on another link than head_1_link" in err
+    assert "the pixels look like a joint left out of the chain: the file logs head_2_joint " in err
+    assert "beyond head_1_link (is the camera on head_2_link?)" in err
+    assert "columns ignored (not joints of the chains, camera, point, u or v): head_2_joint" in err
     assert not out.exists()
 
 
