@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from pinref import urdf_links
 
 import calib
 from calib import Problem, Term, calibrate, load_chain
@@ -85,13 +85,6 @@ def test_touches_one_link_too_near_are_refused_naming_the_link(tmp_path, measure
     assert NAMED.format("contact frame") in str(e.value)
 
 
-def _urdf_links(chain, joint: str) -> set[str]:
-    """The parent and child links of a joint, read from the URDF's XML."""
-    root = ET.parse(chain.urdf_resolved).getroot()
-    (j,) = [e for e in root.findall("joint") if e.get("name") == joint]
-    return {j.find("parent").get("link"), j.find("child").get("link")}
-
-
 @pytest.mark.parametrize(
     ("robot", "base", "tool", "expected"),
     [  # read off the URDFs: the joints at each end off the chain, and the link beyond them
@@ -114,7 +107,7 @@ def test_beyond_ends_are_the_links_one_joint_out(robot, base, tool, expected):
     chain = load_chain(robot, base=base, tool=tool)
     ends = (chain.base_id, chain.tool_id)
     assert beyond_ends(chain.model, chain.joint_ids, ends) == expected
-    assert all(link in _urdf_links(chain, j) for j, (_, link) in expected.items())
+    assert all(link in urdf_links(chain.urdf_resolved, j) for j, (_, link) in expected.items())
     assert not set(expected) & set(chain.joint_names)
 
 
