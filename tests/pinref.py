@@ -199,6 +199,13 @@ class PinTree:
         return int(np.sum(s > 1e-7 * s[0]))
 
 
+def urdf_links(path, joint: str) -> set[str]:
+    """The parent and child links of a joint, read from a URDF's XML."""
+    root = ET.parse(str(path)).getroot()
+    (j,) = [e for e in root.findall("joint") if e.get("name") == joint]
+    return {j.find("parent").get("link"), j.find("child").get("link")}
+
+
 def mimic_tags(root: ET.Element) -> dict[str, tuple[str, float, float]]:
     """The URDF's mimic tags, read here: joint -> (leader, multiplier, offset)."""
     tags = {}

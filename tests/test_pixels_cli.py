@@ -174,7 +174,9 @@ def test_a_camera_without_numbers_nor_urdf_link_is_refused_by_simulate(capsys, t
 
 def test_a_head_camera_on_the_wrong_link_is_refused_naming_the_link(capsys, tmp_path):
     """TIAGo's head camera given on head_1_link: its chain misses head_2_joint, so no camera
-    placement explains the pixels; the refusal names the link as a suspect."""
+    placement explains the pixels; the file's head_2_joint column, read again, does on the
+    chain from head_2_link: the refusal names the joint and the link (nearlink50; failed
+    before: "the camera on another link than head_1_link", no link named)."""
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
     write_target(tmp_path / "target.csv", grid(4, 3, 0.03))
     target = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
@@ -190,8 +192,9 @@ def test_a_head_camera_on_the_wrong_link_is_refused_naming_the_link(capsys, tmp_
     argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv"]
     code, _, err = run(capsys, *argv, *camera, *target, "--out", out)
     assert code == 2
-    assert "the pixels do not match camera cam and head_1_link -> arm_tool_link" in err
-    assert "the camera on another link than head_1_link" in err
+    assert "the pixels look like a joint left out of the chain: the file logs head_2_joint " in err
+    assert "beyond head_1_link (is the camera on head_2_link?)" in err
+    assert "columns ignored (not joints of the chains, camera, point, u or v): head_2_joint" in err
     assert not out.exists()
 
 
@@ -722,7 +725,8 @@ def test_a_camera_placed_from_the_pixels_behind_them_says_so(capsys, tmp_path):
     """An eye-in-hand Panda whose camera is given on panda_link6 (the hand's joint left out)
     without a placement: the camera placed from the pixels alone sees the floor's points
     behind it, and the error says that placement came from the pixels and how to give one
-    (it said "check the camera's link and placement", a placement the user never gave)."""
+    (it said "check the camera's link and placement", a placement the user never gave).
+    The file logging panda_joint7, the joint left out is named instead (nearlink50)."""
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
     write_target(tmp_path / "floor.csv", grid(6, 5, 0.06, corner=(0.5, -0.12)))
     camera = ["--camera", "cam", "panda_hand", tmp_path / "intr.yaml"]
@@ -732,6 +736,12 @@ def test_a_camera_placed_from_the_pixels_behind_them_says_so(capsys, tmp_path):
     assert code == 0, err
     camera[2] = "panda_link6"
     data = ["--data", tmp_path / "o.csv", "--out", tmp_path / "cal.urdf"]
+    code, _, err = run(capsys, "calibrate", "panda", *argv, *camera, *data)
+    assert code == 2 and not (tmp_path / "cal.urdf").exists()
+    assert "the file logs panda_joint7 beyond panda_link6 (is the camera on panda_link7?)" in err
+    rows = [line.split(",") for line in (tmp_path / "o.csv").read_text().splitlines()]
+    k = rows[0].index("panda_joint7")  # not logged: the joint left out cannot be tried
+    (tmp_path / "o.csv").write_text("\n".join(",".join(r[:k] + r[k + 1 :]) for r in rows))
     code, _, err = run(capsys, "calibrate", "panda", *argv, *camera, *data)
     assert code == 2 and not (tmp_path / "cal.urdf").exists()
     (line,) = [e for e in err.splitlines() if e.startswith("calib: error:")]

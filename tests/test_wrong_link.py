@@ -11,11 +11,11 @@ nothing of it. (The TIAGo's head camera: tests/test_pixels_cli.py.)
 from __future__ import annotations
 
 import dataclasses
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
+from pinref import urdf_links
 
 import calib
 from calib import calibrate, load_chain
@@ -100,13 +100,6 @@ def test_real_fits_have_no_far_turn_note():
     assert not any("far beyond any geometric error" in n for n in result.notes)
 
 
-def _urdf_links(chain, joint: str) -> set[str]:
-    """The parent and child links of a joint, read from the URDF's XML."""
-    root = ET.parse(chain.urdf_resolved).getroot()
-    (j,) = [e for e in root.findall("joint") if e.get("name") == joint]
-    return {j.find("parent").get("link"), j.find("child").get("link")}
-
-
 @pytest.mark.parametrize(
     ("robot", "base", "tool", "expected"),
     [  # read off the URDFs: the link on the far side of each end joint from its end
@@ -135,4 +128,4 @@ def test_end_joint_links_are_the_links_beyond_the_ends(robot, base, tool, expect
     chain = load_chain(robot, base=base, tool=tool)
     found = end_joint_links(chain.model, chain.joint_names, chain.sign, (base, tool))
     assert found == {j: (end, expected[j]) for j, end in zip(expected, (base, tool), strict=True)}
-    assert all(link in _urdf_links(chain, j) for j, link in expected.items())
+    assert all(link in urdf_links(chain.urdf_resolved, j) for j, link in expected.items())

@@ -17,7 +17,7 @@ import numpy as np
 from ..core.words import counted
 from ..exceptions import DataError
 from ..identification.measures import POSE
-from ..kinematics.mdh import Kinematics, MDHModel
+from ..kinematics.mdh import Kinematics, MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..measurements.csvfile import Measurements
 from ..measurements.unseen import FIT_ROWS, never_seen
@@ -220,8 +220,8 @@ def registrations(nominal, data, guess, opts, held=()) -> Callable[[float], Fit]
 
 
 _WORDS = diagnosis.Words(
-    mistakes="swapped joint columns, degrees, a joint too many at an end of the chain, "
-    "millimetres, centimetres, swapped coordinate columns, quaternion order"
+    mistakes="swapped joint columns, degrees, a joint too many or left out (logged) at an end of "
+    "the chain, millimetres, centimetres, swapped coordinate columns, quaternion order"
 )
 _TURNS = diagnosis.Words(
     error="orientation error",
@@ -291,15 +291,18 @@ class Rows:
         """
         nominal, guess, opts, unit = self.nominal, self.guess, self.opts, weighting.DEFAULT_WEIGHT
 
-        def errors(d):  # the registration's kin: the nominal's at d's joints
-            at = self.at if d is self.rows else registrations(nominal, d, guess, opts, self.hold)
+        def errors(d, mdh=nominal, hold=self.hold):  # the registration's kin: mdh's at d's joints
+            at = self.at if d is self.rows else registrations(mdh, d, guess, opts, hold)
             return validation.stats(at(unit).state.inner, d, None, at(unit).kin)
+
+        def on(longer: Chain):  # another chain's registration (no marker held)
+            return lambda d: errors(d, from_chain(longer), ()).position_rms
 
         first = errors(rows)
         chain, rot = self.chain, first.orientation_rms
         position = lambda d: errors(d).position_rms  # noqa: E731
         notes = diagnosis.explain(
-            rows, chain, position, first.position_rms, opts.noise, _WORDS, joints_only=False
+            rows, chain, position, first.position_rms, opts.noise, _WORDS, False, other=on
         )
         if notes or rot is None:  # the positions are suspect: the orientations are not read
             return notes

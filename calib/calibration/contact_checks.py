@@ -20,7 +20,7 @@ from ..identification.contacts import (
     PlanePointContact,
     known_plane,
 )
-from ..kinematics.mdh import MDHModel
+from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import rotation_matrix
 from ..measurements.contact_campaign import ContactData
@@ -302,7 +302,11 @@ def length_errors(state: ContactState, data: ContactData, torque=None) -> outlie
 
 
 _WORDS = diagnosis.Words(
-    "touches", "touch", "gap", check="the touches, the chain and the contact frame's guess"
+    "touches",
+    "touch",
+    "gap",
+    check="the touches, the chain and the contact frame's guess",
+    ends=("base frame", "contact frame"),
 )
 
 
@@ -349,12 +353,15 @@ class _Touches:
     def diagnose(self, rows: ContactData, state: ContactState) -> list[str]:
         """The usual mistakes of the touches kept (``state``: their registration)."""
 
-        def gap(d) -> float:  # d: the touches, or a corrected copy
-            s = registration(self.nominal, d, self.guess, DEFAULT_WEIGHT)
+        def gap(d, nominal=self.nominal) -> float:  # d: the touches, or a corrected copy
+            s = registration(nominal, d, self.guess, DEFAULT_WEIGHT)
             return float(np.sqrt(np.mean(length_errors(s, d)[0] ** 2)))
 
+        def on(longer: Chain):  # the touches' registration on another chain
+            return lambda d: gap(d, from_chain(longer))
+
         first = float(np.sqrt(np.mean(length_errors(state, rows)[0] ** 2)))
-        return diagnosis.explain(rows, self.chain, gap, first, None, _WORDS)
+        return diagnosis.explain(rows, self.chain, gap, first, None, _WORDS, other=on)
 
 
 def _registrable(data: ContactData) -> bool:

@@ -8,15 +8,20 @@ Rationale and measurements: docs/developers/engine.md#diagnosis
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..core.words import noun
 from ..exceptions import CalibError, DataError
-from ..kinematics.frames import end_joint_links
+from ..kinematics.frames import beyond_ends, end_joint_links
+from ..kinematics.robot import Chain, load_chain
+from ..measurements.csvfile import read_data_text
 from ..measurements.data import MAX_COORDINATE
+from ..measurements.joint_columns import logged_joints
 from .report import mm_or_deg
 
 __all__ = [
@@ -112,6 +117,55 @@ def _still_ends(data, chain) -> Iterator[tuple[str, object]]:
         )
 
 
+Other = Callable[[Chain], Callable[[Any], float]]
+"""The registration's RMS error of data on another chain (``other(chain)(data)``)."""
+
+
+def _left_out(data, chain, other: Other, ends: tuple[str, str]):
+    """(description, data, their RMS error) of each joint one step beyond a chain's end.
+
+    A frame given one link too near leaves its joint out of the chain: each joint beyond an end
+    of a chain (not a tree) that the data's file logs (read again) is tried, the chain moved to
+    the link beyond it. ``ends``: what is at the base and at the tool end, in words.
+    """
+    path, rows = getattr(data, "path", None), data.rows
+    ids = (chain.base_id, chain.tool_id)
+    beyond = {} if chain.is_tree else beyond_ends(chain.model, chain.joint_ids, ids)
+    if not beyond or path is None or rows is None:
+        return
+    try:
+        logged = logged_joints(read_data_text(path), data.source, tuple(beyond), rows)
+    except CalibError:  # the file gone or changed: no hypothesis
+        return
+    frames = (chain.base_frame, chain.tool_frame)
+    for name, values in logged.items():
+        end, link = beyond[name]
+        longer = _longer(chain, end, link, name)
+        if longer is None:
+            continue
+        q = np.insert(data.q, data.q.shape[1] if end else 0, values, axis=1)
+        yield (
+            f"a joint left out of the chain: the file logs {name} beyond {frames[end]} (is "
+            f"the {ends[end]} on {link}?)",
+            dataclasses.replace(data, joint_names=longer.joint_names, q=q),
+            other(longer),
+        )
+
+
+def _longer(chain, end: int, link: str, joint: str):
+    """The chain with its base (``end`` 0) or tool (1) moved to ``link``, or None.
+
+    None too unless it is one joint longer, ``joint``, without mimic joints.
+    """
+    base, tool = (link, chain.tool_frame) if end == 0 else (chain.base_frame, link)
+    try:
+        longer = load_chain(chain.urdf_resolved, base=base, tool=tool)
+    except CalibError:
+        return None
+    names = (joint, *chain.joint_names) if end == 0 else (*chain.joint_names, joint)
+    return longer if longer.joint_names == names and longer.coupling is None else None
+
+
 ORIENTATION_SUSPECT = 0.1
 """Registration RMS orientation error [rad] above which the orientation mistakes are tried."""
 
@@ -171,22 +225,28 @@ def _likely_cause(
     before: float,
     orientation: bool = False,
     joints_only: bool = False,
+    other: tuple[Other, tuple[str, str]] | None = None,
 ) -> tuple[str, float] | None:
     """(description, RMS [m or rad]) of the usual mistake that best explains the data, or None.
 
     ``registration_rms``: the registration's RMS error of some data [m, or rad with
-    ``orientation``]; ``before``: that of ``data`` as they are.
+    ``orientation``]; ``before``: that of ``data`` as they are; ``other``: the registration's
+    on another chain and the ends' words (:func:`_left_out`), or None: not tried.
     """
     best = None
     limit = ORIENTATION_SUSPECT if orientation else SUSPECT
     mistakes = _orientation_mistakes(data) if orientation else _mistakes(data, chain, joints_only)
-    for what, fixed in mistakes:
+    tried: Iterator[tuple[str, Any, Callable]]
+    tried = ((what, fixed, registration_rms) for what, fixed in mistakes)
+    if other is not None and not orientation:  # one at a time: each a copy of the data
+        tried = itertools.chain(tried, _left_out(data, chain, *other))
+    for what, fixed, error in tried:
         try:
-            rms = registration_rms(fixed)
+            rms = error(fixed)
         except (CalibError, np.linalg.LinAlgError, ValueError):  # no valid data: no explanation
             continue
         if rms * EXPLAINS < before and rms < limit and (best is None or rms < best[1]):
-            if not _beats_shuffle(registration_rms, fixed, rms):
+            if not _beats_shuffle(error, fixed, rms):
                 continue  # nearly one posture: any fit there explains nothing
             best = (what, rms)
     return best
@@ -199,17 +259,30 @@ class Words:
     data: str = "data"
     row: str = "row"
     error: str = "error"
-    mistakes: str = "swapped joint columns, degrees, a joint too many at an end of the chain"
+    mistakes: str = (
+        "swapped joint columns, degrees, a joint too many or left out (logged) at an end of the "
+        "chain"
+    )
     check: str = "the data and the chain"
+    ends: tuple[str, str] = ("base frame", "tool")
 
 
 def explain(
-    data, chain, error, first: float, noise, words: Words, joints_only=True, orientation=False
+    data,
+    chain,
+    error,
+    first: float,
+    noise,
+    words: Words,
+    joints_only=True,
+    orientation=False,
+    other: Other | None = None,
 ) -> list[str]:
     """Raise the usual mistake behind a registration's absurd error; else a note of it.
 
     ``error``: the registration's RMS error [m] of corrected ``data``, ``first`` that of
-    ``data`` (infinite: no registration); ``orientation``: errors [rad], its mistakes.
+    ``data`` (infinite: no registration); ``orientation``: errors [rad], its mistakes;
+    ``other``: the registration's error on another chain (a joint left out tried), or None.
 
     Raises:
         DataError: Joint columns holding one value in every row, or the mistake named.
@@ -233,7 +306,8 @@ def explain(
             f"{', '.join(still)} {noun(len(still), 'hold', 'holds')} one value in every "
             f"{words.row}: {noun(len(still), 'were those joints', 'was that joint')} logged?",
         )
-    cause = _likely_cause(data, chain, error, first, orientation, joints_only)
+    longer = None if other is None else (other, words.ends)
+    cause = _likely_cause(data, chain, error, first, orientation, joints_only, longer)
     if cause is not None:
         before = amount(first) if known else "no registration"
         raise DataError(

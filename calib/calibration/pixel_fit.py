@@ -210,6 +210,8 @@ class _Joints:
     joint_names: tuple[str, ...]
     q: np.ndarray
     source: str
+    path: str | None = None
+    rows: tuple[int, ...] | None = None
 
     @property
     def m(self) -> int:
@@ -226,18 +228,27 @@ _WORDS = diagnosis.Words(
     "row of the pixels",
     "error at the target",
     check="the pixels, the camera's link and the target",
+    ends=("camera", "target"),
 )
 
 
 def _explain(chain: Chain, part: PixelPart, first: float) -> list[str]:
     """:func:`~.diagnosis.explain` of the rows' joint columns (``first``: error [m])."""
 
-    def error(fixed: object) -> float:  # the registration's at the joints corrected
-        moved = PixelPart(part.data, dataclasses.replace(part.rows, q=cast(_Joints, fixed).q))
-        return _rms_m(_registered(chain, moved, strict=False), moved)
+    def error(fixed: object, on: Chain = chain) -> float:  # the registration's, joints corrected
+        data = part.data
+        if on.base_frame != data.camera.link:  # on the link beyond, placed from the pixels
+            moved = dataclasses.replace(data.camera, link=on.base_frame, placement=None)
+            data = dataclasses.replace(data, camera=moved)
+        rows = PixelPart(data, dataclasses.replace(part.rows, q=cast(_Joints, fixed).q))
+        return _rms_m(_registered(on, rows, strict=False), rows)
 
-    joints = _Joints(chain.joint_names, part.rows.q, part.source)
-    notes = diagnosis.explain(joints, chain, error, first, None, _WORDS)
+    def other(longer: Chain):
+        return lambda fixed: error(fixed, longer)
+
+    obs = part.data.obs
+    joints = _Joints(chain.joint_names, part.rows.q, part.source, obs.path, part.rows.lines)
+    notes = diagnosis.explain(joints, chain, error, first, None, _WORDS, other=other)
     return [f"camera {part.data.camera.name}: {n}" for n in notes]
 
 

@@ -21,6 +21,7 @@ from ..exceptions import (
 __all__ = [
     "DEFAULT_PRISMATIC_RANGE",
     "PLACEMENT_TOL",
+    "beyond_ends",
     "default_tool",
     "describe_joint",
     "end_joint_links",
@@ -287,6 +288,32 @@ def end_joint_links(
         below = [f.name for f in model.frames if f.parentFrame == frame]  # the child link's
         parent = model.frames[model.frames[frame].parentFrame].name
         out.setdefault(names[k], (end, parent if sign[k] == toward else below[0]))
+    return out
+
+
+def beyond_ends(model: pin.Model, joints, ends: tuple[int, int]) -> dict[str, tuple[int, str]]:
+    """The joints one step beyond a chain's ends, and the links they move.
+
+    ``{joint: (end, link)}``: each 1-DOF joint off the chain (``joints``: its Pinocchio
+    indices) whose parent or child is the body of an end frame (``ends``: the base and tool
+    frames' indices in ``model.frames``; ``end`` 0 or 1), and the link on its far side from
+    that end. A frame given at that end but fixed to ``link`` misses that joint (a joint left
+    out of its chain).
+    """
+    out: dict[str, tuple[int, str]] = {}
+    for k, fid in enumerate(ends):
+        body = model.frames[fid].parentJoint
+        for jid in range(1, model.njoints):
+            kind = joint_kind(model.joints[jid].shortname())
+            if jid in joints or kind is None or body not in (jid, model.parents[jid]):
+                continue
+            frame = model.getFrameId(model.names[jid], pin.FrameType.JOINT)
+            if jid == body:  # the end's body hangs on it: its parent's link
+                link = model.frames[model.frames[frame].parentFrame].name
+            else:
+                below = (f for f in model.frames if f.parentFrame == frame)
+                link = next(f.name for f in below if f.type == pin.FrameType.BODY)
+            out.setdefault(model.names[jid], (k, link))
     return out
 
 

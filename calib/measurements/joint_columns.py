@@ -22,9 +22,17 @@ import numpy as np
 from ..core.words import counted
 from ..exceptions import DataError
 from ..kinematics.robot import CoupledJoints, Robot
+from .csv_text import csv_records, parse_number
 from .data import JOINT_PREFIX
 
-__all__ = ["FOLLOWER_TOL", "check_followers", "column_keys", "follower_names", "no_joint_of"]
+__all__ = [
+    "FOLLOWER_TOL",
+    "check_followers",
+    "column_keys",
+    "follower_names",
+    "logged_joints",
+    "no_joint_of",
+]
 
 FOLLOWER_TOL = 1e-6
 """Largest difference between a follower's column and its mimic relation [rad or m] (the
@@ -40,6 +48,32 @@ def column_keys(names: Sequence[str], joints: Sequence[str]) -> list[str]:
     joint_set = set(joints)
     prefixed = {n[len(JOINT_PREFIX) :] for n in names if n.startswith(JOINT_PREFIX)} & joint_set
     return [JOINT_PREFIX + n if n in joint_set and n not in prefixed else n for n in names]
+
+
+def logged_joints(
+    text: str, source: str, joints: Sequence[str], lines: Sequence[int]
+) -> dict[str, np.ndarray]:
+    """The columns of some joints in a file's text, at its rows ``lines``: those it logs.
+
+    What reading a campaign ignores (joints off its chain), read again. A joint is left out
+    when the file has no column of it, or a row of ``lines`` holds no number in it.
+
+    Raises:
+        DataError: Text that is no CSV.
+    """
+    records = csv_records(text, source)
+    header: list[str] = next(records, (0, []))[1]
+    keys = column_keys([c.strip() for c in header], joints)
+    at = {j: keys.index(JOINT_PREFIX + j) for j in joints if JOINT_PREFIX + j in keys}
+    wanted = set(lines)
+    cells = {line: row for line, row in records if line in wanted}
+    out = {}
+    for joint, k in at.items():
+        try:
+            out[joint] = np.array([parse_number(cells[n][k], source, n, joint) for n in lines])
+        except (KeyError, IndexError, DataError):  # a row not there, or no number: not logged
+            continue
+    return out
 
 
 def no_joint_of(robot: Robot, header: Sequence[str], source: str, row: int) -> DataError | None:
