@@ -54,8 +54,9 @@ def test_chain_and_tree_calibrations_take_the_same_arguments():
     chain = inspect.signature(calibrate).parameters
     tree = inspect.signature(calibrate_tree).parameters
     assert list(chain)[2:] == list(tree)[2:]
-    # marker, validate, and progress (what is shown, not an option of the calibration)
-    assert len(chain) == len(tree) == 2 + len(dataclasses.fields(Options)) + 3
+    # marker, validate, known_planes (what a touch term holds: its objects), and progress (what
+    # is shown, not an option of the calibration)
+    assert len(chain) == len(tree) == 2 + len(dataclasses.fields(Options)) + 4
     for name in list(chain)[2:]:
         assert chain[name].kind is inspect.Parameter.KEYWORD_ONLY, name
         assert chain[name].default == tree[name].default, name

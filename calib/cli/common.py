@@ -28,6 +28,7 @@ from .flags import in_flags, report_in_flags
 __all__ = [
     "APPLIES",
     "GIVEN",
+    "PLANE_METAVAR",
     "SHAPE_LABELS",
     "BooleanOnce",
     "Group",
