@@ -68,12 +68,16 @@ def test_touches_are_on_the_objects_given(tmp_path, kind, given):
         ({"floor": np.diag([1.0, 1.0, 2.0, 1.0])}, "not a rigid frame"),
         ({"floor": (0, 0, 1)}, "a point and a normal"),
         ({}, "by name"),
+        ({"floor": (0, 0, -1, 0, 0, 1), "wall": (0, 0, -1, 0, 0, 1)}, "^contacts=3 for 2 objects"),
+        ({"floor": (0, 0, -1, 0, 0, 1)}, "^contacts=3 for 1 object given: give as many objects"),
     ],
 )
 def test_bad_objects_are_one_line_errors(objects, message):
     chain = calib.load_chain("talos", "torso_2_link", "left_sole_link")
     with pytest.raises(InvalidArgumentError, match=message) as error:
-        simulate_contacts(chain, 10, "plane", objects=objects, seed=1)
+        simulate_contacts(
+            chain, 10, "plane", contacts=3 if "=3" in message else 1, objects=objects, seed=1
+        )
     assert "\n" not in str(error.value)
 
 
@@ -146,3 +150,6 @@ def test_command_lines(tmp_path, capsys, monkeypatch):
         assert said in capsys.readouterr().err
     bad = ["simulate", *feet, "--out", "u.csv", "--plane", "floor", "0", "0", "0", "0", "0", "0"]
     assert main(bad) == 2 and "its normal is zero" in capsys.readouterr().err
+    two = ["simulate", *feet, "--out", "u.csv", "--plane", *floor, "--contacts", "2"]
+    said = "--contacts 2 for 1 plane given (--plane): give as many --plane, or leave --contacts out"
+    assert main(two) == 2 and said in capsys.readouterr().err

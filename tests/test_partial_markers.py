@@ -11,7 +11,9 @@ were completed (the noise estimate's count of equations).
 from __future__ import annotations
 
 import csv
+import json
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -207,3 +209,41 @@ def test_a_marker_seen_in_one_row_left_to_fit_is_refused(tmp_path):
     one = Measurements(data.joint_names, data.q, position, source="one")
     with pytest.raises(CalibError, match=r"^one: marker 3 is seen in 1 row of those fitted"):
         calibrate(chain, one)
+
+
+def test_validation_rows_that_see_a_marker_once_are_scored_not_refused(tmp_path):
+    """Held-out rows are not registered on their own when a marker is seen in fewer rows than
+    a fit needs (2): seen once there, they are scored (noise-free: exactly), not refused."""
+    chain = load_chain("ur5")
+    data = read_measurements(simulate(tmp_path / "m.csv", 50, 15, 0.0), chain)
+    held = data.subset(np.arange(40, 50))
+    position = held.position.copy()
+    position[1:, 6:] = np.nan  # marker 3: the first held-out row only
+    once = Measurements(held.joint_names, held.q, position, source="once")
+    result = calibrate(chain, data.subset(np.arange(40)), validate=once, params="complete")
+    assert result.accepted
+    assert result.validation.calibrated.position_rms < 1e-9
+
+
+def test_folds_whose_held_out_rows_miss_a_marker_report_it_null(tmp_path):
+    """Folds none of whose held-out rows sees marker 3: its figures null (strict JSON), no
+    NumPy warning; the other markers' figures are numbers."""
+    full = simulate(tmp_path / "m.csv", 40, 16, 0.05)
+    with full.open(newline="") as f:
+        table = list(csv.reader(f))
+    at = table[0].index("x3")
+    for row in table[21:]:  # marker 3 seen in the first two folds (rows 2-21 of the file) only
+        row[at : at + 3] = ["", "", ""]
+    with (tmp_path / "b.csv").open("w", newline="") as f:
+        csv.writer(f).writerows(table)
+    report = tmp_path / "r.json"
+    argv = ["calibrate", "ur5", "--data", str(tmp_path / "b.csv"), "--folds", "4"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert main([*argv, "--out", str(tmp_path / "c.urdf"), "--report", str(report)]) == 0
+    folds = json.loads(report.read_text())["errors"]["held_out"]["folds"]
+    for k, fold in enumerate(folds):
+        figures = fold["calibrated"]
+        assert all(isinstance(figures[f"{a}1_rms_mm"], float) for a in "xyz")
+        nulls = [figures[f"{a}3_{s}_mm"] is None for a in "xyz" for s in ("rms", "max")]
+        assert nulls == [k >= 2] * 6

@@ -315,7 +315,7 @@ def validation_steps(steps: Rows, held: Measurements | None) -> list[tuple[Rows,
     if held is None:
         return []
     frames = measured_kind(held, steps.hold)
-    unseen = held.partial and never_seen(held.position) is not None
+    unseen = held.partial and never_seen(held.position, FIT_ROWS) is not None
     if unseen or not frames.determined_by(held.m):  # too few rows to register on their own
         return []
     at = registrations(steps.nominal, held, steps.guess, steps.opts, steps.hold)

@@ -6,6 +6,7 @@ Parts: ``train``, ``held_out``, each also ``_registration`` and (compliance) ``_
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -63,7 +64,8 @@ class GapStats:
 
     def to_dict(self) -> dict:
         """JSON-ready form: ``m``, each row's RMS and largest value, ``weighted_mm``."""
-        values = [v for pair in zip(self.rms, self.max, strict=True) for v in pair]
+        pairs = zip(self.rms, self.max, strict=True)
+        values = [None if math.isnan(v) else v for pair in pairs for v in pair]  # none seen
         figures = dict(zip(self.figures(), values, strict=True))
         return {"m": self.m, **figures, "weighted_mm": self.weighted_mm}
 
@@ -159,13 +161,16 @@ def gap_stats(state, q: np.ndarray, ids=None, torque: np.ndarray | None = None) 
 def row_stats(g: np.ndarray, kind, weights: np.ndarray) -> GapStats:
     """:class:`GapStats` of rows ``g`` ``(m, rows)`` [m, rad], ``weights`` [1, m/rad] each.
 
-    NaN: a marker not seen in a configuration, no row of its figures.
+    NaN: a marker not seen in a configuration, no row of its figures (none of the rows sees
+    it: its figures NaN, ``null`` in the report).
     """
     scale = np.array([mm_or_deg(a)[1] for a in kind.angular])
     unseen = np.isnan(g).any()
     mean, big = (np.nanmean, np.nanmax) if unseen else (np.mean, np.max)
-    rms = tuple(float(v) for v in np.sqrt(mean(g**2, axis=0)) * scale)
-    top = tuple(float(v) for v in big(np.abs(g), axis=0) * scale)
+    with warnings.catch_warnings():  # a column all NaN (a marker none sees): NaN, not a warning
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rms = tuple(float(v) for v in np.sqrt(mean(g**2, axis=0)) * scale)
+        top = tuple(float(v) for v in big(np.abs(g), axis=0) * scale)
     per_row = 1e3 * np.linalg.norm((np.nan_to_num(g) if unseen else g) * weights, axis=1)
     weighted = float(np.sqrt(np.mean(per_row**2)))
     return GapStats(len(g), kind.row_names, kind.angular, rms, top, weighted, per_row, g)

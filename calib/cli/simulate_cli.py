@@ -71,6 +71,11 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(
             f"--plane is for --measure plane|plane-point, not {args.measure}"
         )
+    if planes and args.contacts not in (1, len(planes)):  # the library's check, in flags
+        raise InvalidArgumentError(
+            f"--contacts {args.contacts} for {counted(len(planes), 'planes')} given (--plane): "
+            "give as many --plane, or leave --contacts out"
+        )
     chain = load_robot(args.robot, args.base, tool_arg(args))
     if chain.is_tree:
         raise InvalidArgumentError("a contact campaign is simulated on one chain: one --tool")

@@ -443,7 +443,8 @@ def simulate_contacts(
     given = None if objects is None else given_objects(objects, kind)
     if given is not None and contacts not in (1, len(given)):
         raise InvalidArgumentError(
-            f"{contacts} contacts for {len(given)} objects given: give the objects or their number"
+            f"contacts={contacts} for {counted(len(given), 'objects')} given: give as many "
+            "objects, or leave contacts out"
         )
     contacts = contacts if given is None else len(given)
     configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)
