@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 
@@ -239,7 +240,7 @@ def _above_noise(result: ContactChainsCalibration, noise: float | None) -> str |
     part = result.chains[0]
     if noise is None or len(result.chains) > 1 or not isinstance(part, MeasuredChain):
         return None
-    rows = part.stats["train"].residuals
+    rows = cast(np.ndarray, part.stats["train"].residuals)  # measured_part keeps them
     found = validation.far_above_noise(rows, part.data.n_markers, result.unknowns, noise)
     return found and f"{part.chain.base_frame} -> {part.chain.tool_frame}: {found}"
 

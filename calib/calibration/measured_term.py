@@ -114,8 +114,9 @@ def checked_measured(
     """
     what = f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
-    kind, seen = measured_kind(data), determined.seen_equations(data, measured_kind(data).rows)
-    determined.check_frames(kind, data.m, data.source, what, held=out, equations=seen)
+    kind = measured_kind(data)
+    equations = determined.seen_equations(data, kind.rows)
+    determined.check_frames(kind, data.m, data.source, what, held=out, equations=equations)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()
