@@ -247,3 +247,42 @@ def test_folds_whose_held_out_rows_miss_a_marker_report_it_null(tmp_path):
         assert all(isinstance(figures[f"{a}1_rms_mm"], float) for a in "xyz")
         nulls = [figures[f"{a}3_{s}_mm"] is None for a in "xyz" for s in ("rms", "max")]
         assert nulls == [k >= 2] * 6
+
+
+def _equations(message: str) -> tuple[int, int]:
+    """The equations and unknowns an equation-count refusal says."""
+    found = re.search(r"give (\d+) equations \(the points seen\) for the (\d+) ", message)
+    assert found, message
+    return int(found[1]), int(found[2])
+
+
+def test_too_few_points_seen_for_the_frame_are_refused_before_the_fit(tmp_path):
+    """2 rows of 3 markers count 18 equations for the frame and markers' 15 unknowns (6 + 9),
+    but 2 points seen in each give 12: refused by the count, as 2 full rows of 1 marker are."""
+    chain = load_chain("ur5")
+    data = read_measurements(simulate(tmp_path / "m.csv", 2, 3, 0.05), chain)
+    position = data.position.copy()
+    position[0, 6:], position[1, :3] = np.nan, np.nan  # row 1 sees markers 1, 2; row 2: 2, 3
+    seen = 3 * int(np.isfinite(position[:, ::3]).sum())
+    rows = Measurements(data.joint_names, data.q, position, source="seen")
+    with pytest.raises(CalibError, match=r"^seen: 2 configurations to fit give") as info:
+        calibrate(chain, rows, params="frames")
+    assert _equations(str(info.value)) == (seen, 6 + 3 * 3)
+    assert seen == 12 <= 15 < 2 * 9
+
+
+def test_too_few_points_seen_for_a_level_are_refused_by_their_count(tmp_path):
+    """A level's equations are the points seen at distinct postures: one marker blanked in a
+    few rows takes the count under the level's unknowns where the full rows were over it."""
+    chain = load_chain("ur5")
+    data = read_measurements(simulate(tmp_path / "m.csv", 5, 4, 0.05), chain)
+    position = data.position.copy()
+    position[:2, 3:6] = np.nan  # marker 2 not seen in rows 1 and 2, marker 3 in rows 3 and 4
+    position[2:4, 6:] = np.nan
+    seen = 3 * int(np.isfinite(position[:, ::3]).sum())
+    rows = Measurements(data.joint_names, data.q, position, source="seen")
+    with pytest.raises(CalibError, match=r"^seen: 5 configurations to fit give") as info:
+        calibrate(chain, rows, params="complete")
+    equations, unknowns = _equations(str(info.value))
+    assert equations == seen == 33
+    assert seen <= unknowns < 5 * 9  # refused by the points seen, not by the rows

@@ -101,7 +101,10 @@ class Generic:
         m = count(d.q, d.tool) if self.one else sum(t.m for t in self.train)
         level, unit = (level, "") if self.one else ("complete", "rows")
         rows = d.kind.rows_of(d.n_markers)
-        determined.check_rank(len(kept), len(generic), m, rows, level, d.source, unit, lost)
+        seen = determined.seen_equations(d, rows, True) if self.one else None  # a tree: seen
+        determined.check_rank(
+            len(kept), len(generic), m, rows, level, d.source, unit, lost, equations=seen
+        )
 
     def note(self, kept: int, generic: int) -> str:
         """The note of rows that determine ``kept`` of the ``generic`` unknowns (``auto``)."""

@@ -267,7 +267,9 @@ class Rows:
                 return state
             sub = data.subset(keep)
             what = f"{determined.FRAMES} once the outliers are set aside"
-            determined.check_frames(measured_kind(sub, self.hold), sub.m, sub.source, what)
+            kind = measured_kind(sub, self.hold)
+            seen = determined.seen_equations(sub, kind.rows)
+            determined.check_frames(kind, sub.m, sub.source, what, equations=seen)
             return registrations(nominal, sub, guess, opts, self.hold)(weight)
 
         def errors(reg: Fit) -> outliers.Errors:  # every registration's kin: the nominal's

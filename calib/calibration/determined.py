@@ -14,6 +14,8 @@ import numpy as np
 from ..core.words import counted
 from ..exceptions import DataError, InvalidArgumentError
 from ..identification.base_columns import independent_columns
+from ..measurements.data import Measurements
+from ..measurements.postures import posture_groups
 from .model import ErrorModel, MeasuredKind, State, generic_measurements
 from .solve import condition
 
@@ -35,6 +37,7 @@ __all__ = [
     "generic_jacobian",
     "ill_posed",
     "ill_posed_text",
+    "seen_equations",
     "selection_configurations",
     "separating_posture",
     "separating_text",
@@ -49,18 +52,53 @@ def _configs_needed(unknowns: int, rows: int) -> int:
 
 
 def check_equations(
-    m: int, rows: int, unknowns: int, what: str, source: str, *, held: int = 0, unit: str = ""
+    m: int,
+    rows: int,
+    unknowns: int,
+    what: str,
+    source: str,
+    *,
+    held: int = 0,
+    unit: str = "",
+    equations: int | None = None,
 ) -> None:
-    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` rows."""
-    if m * rows > unknowns:
+    """Refuse (DataError) fitting ``unknowns`` parameters from ``m * rows <= unknowns`` rows.
+
+    ``equations``: those of the points seen (:func:`seen_equations`), None: ``m * rows``.
+    """
+    full = equations is None
+    equations = m * rows if equations is None else equations
+    if equations > unknowns:
         return
     unit, out = unit or "configurations", f" ({held} held out)" if held else ""
+    needs = (
+        f"at least {_configs_needed(unknowns, rows)} {unit}"
+        if full
+        else f"more {unit}, or more points seen in them (3 equations each)"
+    )
+    seen = "" if full else " (the points seen)"
     raise DataError(
         source,
-        f"{m} {unit} to fit{out} give {m * rows} equations for the {unknowns} {what}: it "
-        f"needs at least {_configs_needed(unknowns, rows)} {unit} (more equations than "
-        f"unknowns)",
+        f"{m} {unit} to fit{out} give {equations} equations{seen} for the {unknowns} {what}: "
+        f"it needs {needs} (more equations than unknowns)",
     )
+
+
+def seen_equations(data: Measurements, rows: int, postures: bool = False) -> int | None:
+    """Equations of the points seen (3 each, and each row's others), or None: every point seen.
+
+    ``postures``: a point seen at a posture counts once, as the posture does
+    (:func:`~calib.measurements.postures.posture_groups`).
+    """
+    if not data.partial:
+        return None
+    seen = data.seen
+    if postures:
+        groups = posture_groups(data.q, data.tool)
+        merged = np.zeros((int(groups.max()) + 1, seen.shape[1]), dtype=bool)
+        np.logical_or.at(merged, groups, seen)
+        seen = merged
+    return 3 * int(seen.sum()) + (rows - 3 * seen.shape[1]) * len(seen)
 
 
 FRAMES = "measurement frame and marker parameters"
@@ -68,10 +106,19 @@ FRAMES = "measurement frame and marker parameters"
 
 
 def check_frames(
-    kind: MeasuredKind, m: int, source: str, what: str = FRAMES, *, held: int = 0
+    kind: MeasuredKind,
+    m: int,
+    source: str,
+    what: str = FRAMES,
+    *,
+    held: int = 0,
+    equations: int | None = None,
 ) -> None:
-    """Refuse (DataError) ``m`` configurations too few for a measured chain's own unknowns."""
-    check_equations(m, kind.rows, kind.size(), what, source, held=held)
+    """Refuse (DataError) ``m`` configurations too few for a measured chain's own unknowns.
+
+    ``equations``: those of the points seen, None: every point seen (:func:`check_equations`).
+    """
+    check_equations(m, kind.rows, kind.size(), what, source, held=held, equations=equations)
 
 
 def check_rank(
@@ -83,12 +130,15 @@ def check_rank(
     source: str,
     unit: str = "",
     lost: tuple[str, ...] = (),
+    equations: int | None = None,
 ) -> None:
     """Refuse (DataError) a level the measured configurations do not determine (rank of W_b).
 
-    ``generic``: what generic configurations determine; ``lost``: the unknowns they alone do.
+    ``generic``: what generic configurations determine; ``lost``: the unknowns they alone do;
+    ``equations``: those of the points seen, None: every point seen.
     """
-    check_equations(m, rows, generic, f"parameters of params {level!r}", source, unit=unit)
+    what = f"parameters of params {level!r}"
+    check_equations(m, rows, generic, what, source, unit=unit, equations=equations)
     if determined >= generic:
         return
     unit = unit or "configurations"

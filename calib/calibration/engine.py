@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 
@@ -228,9 +229,20 @@ def _finished(r: Registered, result, converged: list[bool], identifiable: int):
     )
     few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
     far = turned_far(result) if result.accepted else None
-    notes = (nothing_fitted(result, bool(opts.fix)), far, nothing_held(result), *few)
+    missed = _above_noise(result, opts.noise)
+    notes = (nothing_fitted(result, bool(opts.fix)), far, missed, nothing_held(result), *few)
     added = [n for n in notes if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
+
+
+def _above_noise(result: ContactChainsCalibration, noise: float | None) -> str | None:
+    """The warning of a chain measured whose fitted rows are missed far above ``noise`` [m]."""
+    part = result.chains[0]
+    if noise is None or len(result.chains) > 1 or not isinstance(part, MeasuredChain):
+        return None
+    rows = cast(np.ndarray, part.stats["train"].residuals)  # measured_part keeps them
+    found = validation.far_above_noise(rows, part.data.n_markers, result.unknowns, noise)
+    return found and f"{part.chain.base_frame} -> {part.chain.tool_frame}: {found}"
 
 
 def _check_fitted(part: ChainContacts | MeasuredChain | PixelChain, noise: float | None) -> None:

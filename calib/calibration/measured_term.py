@@ -92,7 +92,10 @@ def check_measured(
             )
     postures = count(data.q, data.tool)
     out = round(holdout * postures)
-    determined.check_frames(measured_kind(data), postures - out, data.source, held=out)
+    kind = measured_kind(data)
+    seen = determined.seen_equations(data, kind.rows, True)  # the points seen: their share
+    kept = None if seen is None else seen * (postures - out) // postures
+    determined.check_frames(kind, postures - out, data.source, held=out, equations=kept)
 
 
 def checked_measured(
@@ -111,7 +114,9 @@ def checked_measured(
     """
     what = f"unknowns of {chain.base_frame}'s placement and the markers"
     out = 0 if held is None else held.m
-    determined.check_frames(measured_kind(data), data.m, data.source, what, held=out)
+    kind = measured_kind(data)
+    equations = determined.seen_equations(data, kind.rows)
+    determined.check_frames(kind, data.m, data.source, what, held=out, equations=equations)
     guess = marker_guess(marker, data.n_markers)
     nominal = from_chain(chain, zero=zero)
     pinned = held_markers(chain, nominal) if hold else ()

@@ -24,6 +24,7 @@ from .solve import FitState
 from .term_checks import file_lines
 
 __all__ = [
+    "ABOVE_NOISE",
     "HELD_OUT_RATIO",
     "ORIENTATION_REFUSED",
     "RANK_TOL",
@@ -31,9 +32,11 @@ __all__ = [
     "ROWS",
     "SAME",
     "TOUCHES",
+    "UNMODELLED",
     "check_fitted_errors",
     "check_held_out",
     "check_held_out_errors",
+    "far_above_noise",
     "predicted_std",
     "split",
     "stats",
@@ -244,6 +247,45 @@ def check_fitted_errors(
             f"(registered: {np.degrees(turned):.4g} deg): another frame's orientations, or "
             "another convention? fit the positions alone (the data's position_only())",
         )
+
+
+ABOVE_NOISE = 10.0
+"""Times the noise given [per axis] the calibrated rows' noise estimate must exceed to be said.
+Rationale and measurements: docs/developers/engine.md#above_noise"""
+
+UNMODELLED = 0.005
+"""RMS error per point [m] a calibrated model of a real robot may leave whatever the noise given
+(its errors beyond the geometry): under it nothing is said. Measurements: as ``ABOVE_NOISE``."""
+
+
+def far_above_noise(
+    residuals: np.ndarray, n_markers: int, unknowns: int, noise: float | None
+) -> str | None:
+    """The warning of fitted rows the calibrated model misses far above the noise given, or None.
+
+    ``residuals``: the rows fitted ``(m, 3 K [+ 3])`` [m, rad] (NaN: a marker not seen);
+    ``unknowns``: the fit's; ``noise`` [m per axis] or None (nothing said). With the noise
+    right, ``RSS / noise^2`` of the positions is chi-square with their share of the fit's
+    ``rows - unknowns`` degrees of freedom.
+    """
+    if noise is None:
+        return None
+    positions = residuals[:, : 3 * n_markers]
+    seen = positions[~np.isnan(positions)]
+    rows = seen.size + len(residuals) * (residuals.shape[1] - positions.shape[1])
+    free = seen.size * max(rows - unknowns, 1) / rows
+    rss = float(seen @ seen)
+    per_point = np.sqrt(3 * rss / seen.size)
+    ratio = np.sqrt(rss / free) / noise
+    if ratio <= ABOVE_NOISE or per_point <= UNMODELLED:
+        return None
+    return (
+        f"the calibrated model misses the rows fitted by {1e3 * per_point:.4g} mm RMS, "
+        f"{ratio:.3g} times the noise given ({1e3 * noise:.3g} mm per axis): the model lacks "
+        "something the data show: a joint left out of the chain or one too many, the marker "
+        "on another link, a marker moved during the campaign, or lengths in other units? "
+        "(or the robot's errors beyond its geometry: compliance, backlash)"
+    )
 
 
 def stats(
