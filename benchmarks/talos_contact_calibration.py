@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 
 from calib import calibrate, load_robot
-from calib.calibration.contact_checks import subset
 from calib.calibration.entry import calibrate_contacts
 from calib.kinematics.standing import Support
 from calib.measurements.contact_campaign import ContactData, read_contacts
@@ -61,7 +60,7 @@ def cross_validate(chain, data: ContactData, params: str | None, **elastic):
     fit, delivered, base, alone, refused = [], [], [], [], 0
     for f in range(FOLDS):
         train = np.setdiff1d(np.arange(data.m), folds[f])
-        r, stats = _fit(chain, subset(data, train), subset(data, folds[f]), params, elastic)
+        r, stats = _fit(chain, data.subset(train), data.subset(folds[f]), params, elastic)
         h, b = stats["held_out"], stats["held_out_registration"]
         row, brow = _row(h), _row(b)
         fit.append(row)

@@ -41,7 +41,6 @@ from pathlib import Path
 import numpy as np
 
 from calib import calibrate_contact_chains, load_robot
-from calib.calibration.contact_checks import subset
 from calib.measurements.contact_campaign import ContactData, read_contacts
 from calib.measurements.contact_loops import join_loops, read_loop
 
@@ -108,10 +107,9 @@ def cross_validate(chains, data, shared_planes: bool = False, params=None) -> li
     pools = [Pool() for _ in chains]
     for f in range(FOLDS):
         train = [
-            subset(d, np.setdiff1d(np.arange(d.m), fo[f]))
-            for d, fo in zip(data, folds, strict=True)
+            d.subset(np.setdiff1d(np.arange(d.m), fo[f])) for d, fo in zip(data, folds, strict=True)
         ]
-        held = [subset(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
+        held = [d.subset(fo[f]) for d, fo in zip(data, folds, strict=True)]
         r = calibrate_contact_chains(
             chains,
             train,
@@ -134,10 +132,10 @@ def with_loop(chains, data, loop, loops, params=None, pose_weight=1.0) -> list[P
     pools = [Pool() for _ in range(len(chains) + 1)]
     for f in range(FOLDS):
         keep = [np.setdiff1d(np.arange(d.m), fo[f]) for d, fo in zip(data, folds, strict=True)]
-        train = [subset(d, k) for d, k in zip(data, keep, strict=True)]
-        held = [subset(d, fo[f]) for d, fo in zip(data, folds, strict=True)]
-        train.append(join_loops([subset(lp, k) for lp, k in zip(loops, keep, strict=True)]))
-        held.append(join_loops([subset(lp, fo[f]) for lp, fo in zip(loops, folds, strict=True)]))
+        train = [d.subset(k) for d, k in zip(data, keep, strict=True)]
+        held = [d.subset(fo[f]) for d, fo in zip(data, folds, strict=True)]
+        train.append(join_loops([lp.subset(k) for lp, k in zip(loops, keep, strict=True)]))
+        held.append(join_loops([lp.subset(fo[f]) for lp, fo in zip(loops, folds, strict=True)]))
         r = calibrate_contact_chains(
             [*chains, loop],
             train,
