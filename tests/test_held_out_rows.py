@@ -166,19 +166,8 @@ def test_held_out_rows_are_the_files_own_line_numbers(capsys, tmp_path):
     listed = []
     for data in (plain, noted):
         report, urdf = (tmp_path / f"{data.stem}.{ext}" for ext in ("json", "urdf"))
-        run(
-            capsys,
-            "calibrate",
-            "ur5",
-            "--data",
-            data,
-            "--holdout",
-            0.3,
-            "--out",
-            urdf,
-            "--report",
-            report,
-        )
+        outputs = ["--out", urdf, "--report", report]
+        run(capsys, "calibrate", "ur5", "--data", data, "--holdout", 0.3, *outputs)
         listed.append(json.loads(report.read_text())["errors"]["held_out"]["rows"])
     assert len(listed[0]) == 9 and min(listed[0]) >= 2
     shift = [n + 2 if n <= 10 else n + 4 for n in listed[0]]  # the lines added above each row

@@ -77,8 +77,10 @@ class Generic:
         return determined.determined_columns(self._jacobian(wide))
 
     def fewest(self, wide: ChainsModel, generic: list[int]) -> int:
-        """Fewest generic configurations (every point seen) that determine ``generic``: the
-        first ones of the draw :meth:`columns` reads (the rank only grows with rows)."""
+        """Fewest generic configurations (every point seen) that determine ``generic``.
+
+        The first ones of the draw :meth:`columns` reads (the rank only grows with rows).
+        """
         J = self._jacobian(wide)[:, :, generic]
         lo, hi = 0, len(J)  # hi determine them (the whole draw), lo do not
         while hi - lo > 1:
