@@ -153,3 +153,24 @@ def test_a_position_holdout_lists_the_rows_its_errors_are_of(capsys, tmp_path):
     assert len(e) == held["urdf"]["configs"] == 30
     assert np.isclose(1e3 * np.sqrt(np.mean(np.square(e))), held["urdf"]["position_rms_mm"])
     assert np.isclose(1e3 * np.max(e), held["urdf"]["position_max_mm"])
+
+
+def test_held_out_rows_are_the_files_own_line_numbers(capsys, tmp_path):
+    """Comment and blank lines above the header and between rows count (docs/reference/
+    formats.md, ``rows``): the lines listed are the same records as without them."""
+    plain, noted = tmp_path / "plain.csv", tmp_path / "noted.csv"
+    run(capsys, "simulate", "ur5", "--configs", 30, "--seed", 3, "--out", plain)
+    lines = plain.read_text().splitlines(keepends=True)
+    notes = ["# exported by an instrument\n", "\n"]
+    noted.write_text("".join([*notes, *lines[:10], "# a row left out\n", "\n", *lines[10:]]))
+    listed = []
+    for data in (plain, noted):
+        report, urdf = (tmp_path / f"{data.stem}.{ext}" for ext in ("json", "urdf"))
+        outputs = ["--out", urdf, "--report", report]
+        run(capsys, "calibrate", "ur5", "--data", data, "--holdout", 0.3, *outputs)
+        listed.append(json.loads(report.read_text())["errors"]["held_out"]["rows"])
+    assert len(listed[0]) == 9 and min(listed[0]) >= 2
+    shift = [n + 2 if n <= 10 else n + 4 for n in listed[0]]  # the lines added above each row
+    assert listed[1] == shift
+    text = noted.read_text().splitlines(keepends=True)
+    assert [text[n - 1] for n in listed[1]] == [lines[n - 1] for n in listed[0]]

@@ -128,6 +128,28 @@ def test_a_term_touching_planes_given_and_not_is_refused(feet):
         calib.Problem((calib.Term(chain, mixed),), known_planes=FLOOR)
 
 
+def test_a_shared_plane_given_is_said_held_not_fitted():
+    """Both soles on one floor, shared: fitted once; the same floor given: held (its frame
+    is the one given), never "fitted"."""
+    urdf = calib.load_chain("talos_left_leg").urdf_path
+    floor = {"floor": (0.0, 0.0, -1.105, 0.0, 0.0, 1.0)}
+    legs = [calib.load_chain(urdf, "torso_2_link", f"{s}_sole_link") for s in ("left", "right")]
+    terms = tuple(
+        calib.Term(leg, simulate_contacts(leg, 40, "plane", objects=floor, seed=10 + k).data)
+        for k, leg in enumerate(legs)
+    )
+    shared = [
+        [n for n in calib.calibrate(problem).notes if "several chains" in n]
+        for problem in (
+            calib.Problem(terms, shared_planes=True, params="complete"),
+            calib.Problem(terms, shared_planes=True, params="complete", known_planes=floor),
+        )
+    ]
+    assert shared[0] == ["a plane touched by several chains is fitted once (shared planes)"]
+    assert len(shared[1]) == 1 and "given: held" in shared[1][0]
+    assert "fitted" not in shared[1][0]
+
+
 def test_command_lines(tmp_path, capsys, monkeypatch):
     """``simulate --plane`` writes touches of the plane named; ``calibrate --known-plane``
     holds it (the report's plane is the one given); bad values are one-line errors."""

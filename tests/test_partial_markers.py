@@ -286,3 +286,49 @@ def test_too_few_points_seen_for_a_level_are_refused_by_their_count(tmp_path):
     equations, unknowns = _equations(str(info.value))
     assert equations == seen == 33
     assert seen <= unknowns < 5 * 9  # refused by the points seen, not by the rows
+
+
+def _pinocchio_fewest(chain, configs: int = 12) -> tuple[int, int]:
+    """The 3 markers' generic rank (every joint placement, the base and tool frames moved by
+    Pinocchio, finite differences; each marker's own 3 columns) and the fewest random
+    configurations that reach it."""
+    ref = PinTree.of_file(chain.urdf_path, chain.base_frame, [chain.tool_frame])
+    q = np.random.default_rng(5).uniform(-np.pi, np.pi, (configs, chain.n))
+    R = ref.poses(chain.joint_names, q)[:, 0, :3, :3]
+    blocks = []
+    for k, marker in enumerate(MARKERS):
+        W = ref.placement_jacobian(chain.joint_names, q, marker).reshape(configs, 6, -1)[:, :3]
+        own = np.zeros((configs, 3, 3 * len(MARKERS)))
+        own[:, :, 3 * k : 3 * k + 3] = R
+        blocks.append(np.concatenate([W, own], axis=2))
+    J = np.stack(blocks, axis=1).reshape(configs, 3 * len(MARKERS), -1)
+    ranks = []
+    for k in range(1, configs + 1):
+        s = np.linalg.svd(J[:k].reshape(-1, J.shape[-1]), compute_uv=False)
+        ranks.append(int(np.sum(s > 1e-7 * s[0])))
+    return ranks[-1], ranks.index(ranks[-1]) + 1
+
+
+def test_the_rank_refusal_asks_for_the_configurations_that_determine_the_level(tmp_path):
+    """3 markers, ``complete``: each configuration past the first adds 6 directions (the
+    tool's twist), so more than ``unknowns / 9`` are needed; the refusal asks for Pinocchio's
+    fewest, and with that many given (a marker unseen once), for more, not for fewer."""
+    chain = load_chain("ur5")
+    generic, fewest = _pinocchio_fewest(chain)
+    data = read_measurements(simulate(tmp_path / "m.csv", fewest, 4, 0.05), chain)
+    few = data.subset(np.arange(fewest - 1))
+    with pytest.raises(CalibError, match="rank of the identification Jacobian") as info:
+        calibrate(chain, few, params="complete")
+    message = str(info.value)
+    assert "parameters of params 'complete'" in message and f" of the {generic} " in message
+    assert f"measure at least {fewest} configurations that move every joint," in message
+    assert (fewest - 1) * 9 > generic  # the count alone (more equations) let them through
+    position = data.position.copy()
+    position[0, :3] = np.nan  # marker 1 unseen in the first row: 3 fewer equations
+    rows = Measurements(data.joint_names, data.q, position, source="seen")
+    with pytest.raises(CalibError, match="rank of the identification Jacobian") as info:
+        calibrate(chain, rows, params="complete")
+    message = str(info.value)
+    assert "measure at least" not in message
+    more = "measure more configurations that move every joint and see every marker"
+    assert f"{more} ({fewest} at generic postures are enough)," in message

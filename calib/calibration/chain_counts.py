@@ -67,11 +67,29 @@ class Generic:
         pairs = zip(chains, self.train, tree.paths, strict=True)
         return ChainsData(tuple(rows_like(d, c.joint_names, q[:, path]) for c, d, path in pairs))
 
+    def _jacobian(self, wide: ChainsModel) -> np.ndarray:
+        """``wide``'s Jacobian at the generic configurations ``(m, rows, size)``."""
+        size, elastic = wide.size(), bool(wide.compliance)
+        return wide.jacobian(self.start, np.zeros(size), self.rows(None, size, elastic))
+
     def columns(self, wide: ChainsModel) -> list[int]:
         """The columns of ``wide`` generic configurations determine (in column order)."""
-        size, elastic = wide.size(), bool(wide.compliance)
-        rows = self.rows(None, size, elastic)
-        return determined.determined_columns(wide.jacobian(self.start, np.zeros(size), rows))
+        return determined.determined_columns(self._jacobian(wide))
+
+    def fewest(self, wide: ChainsModel, generic: list[int]) -> int:
+        """Fewest generic configurations (every point seen) that determine ``generic``.
+
+        The first ones of the draw :meth:`columns` reads (the rank only grows with rows).
+        """
+        J = self._jacobian(wide)[:, :, generic]
+        lo, hi = 0, len(J)  # hi determine them (the whole draw), lo do not
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if len(determined.determined_columns(J[:mid])) == len(generic):
+                hi = mid
+            else:
+                lo = mid
+        return hi
 
     def check(self, wide, kept, generic, flush, level: str) -> None:
         """Refuse a level (not ``auto``) the rows do not determine, before the fit.
@@ -92,7 +110,9 @@ class Generic:
         if level == "auto" or (not self.one and level != "components"):
             return
         lost: tuple[str, ...] = ()
+        fewest = None
         if self.one and len(kept) < len(generic):
+            fewest = self.fewest(wide, generic)
             A = wide.jacobian(self.start, np.zeros(wide.size()), flush).reshape(-1, wide.size())
             names = tuple(chain_name(wide.names()[c]) for c in generic)
             found = determined.ill_posed(A[:, generic], names, overwrite=True)
@@ -103,7 +123,7 @@ class Generic:
         rows = d.kind.rows_of(d.n_markers)
         seen = determined.seen_equations(d, rows, True) if self.one else None  # a tree: seen
         determined.check_rank(
-            len(kept), len(generic), m, rows, level, d.source, unit, lost, equations=seen
+            len(kept), len(generic), m, rows, level, d.source, unit, lost, seen, fewest
         )
 
     def note(self, kept: int, generic: int) -> str:

@@ -131,11 +131,13 @@ def check_rank(
     unit: str = "",
     lost: tuple[str, ...] = (),
     equations: int | None = None,
+    fewest: int | None = None,
 ) -> None:
     """Refuse (DataError) a level the measured configurations do not determine (rank of W_b).
 
     ``generic``: what generic configurations determine; ``lost``: the unknowns they alone do;
-    ``equations``: those of the points seen, None: every point seen.
+    ``equations``: those of the points seen, None: every point seen; ``fewest``: the fewest
+    generic configurations that determine the ``generic`` (None: unknown, the count's bound).
     """
     what = f"parameters of params {level!r}"
     check_equations(m, rows, generic, what, source, unit=unit, equations=equations)
@@ -143,12 +145,17 @@ def check_rank(
         return
     unit = unit or "configurations"
     which = f": they cannot separate {', '.join(lost)}" if lost else ""
+    needed = max(_configs_needed(generic, rows), fewest or 0)
+    seen = "" if equations is None else " and see every marker"
+    moving = f"{unit} that move every joint{seen}"
+    more = f"at least {needed} {moving}" if m < needed else f"more {moving}"
+    if m >= needed and fewest is not None:
+        more += f" ({needed} at generic postures are enough)"
     raise DataError(
         source,
         f"the {m} {unit} determine only {determined} of the {generic} parameters of params "
-        f"{level!r} (rank of the identification Jacobian){which}: measure at least "
-        f"{_configs_needed(generic, rows)} {unit} that move every joint, or choose a lower "
-        f"level or fix parameters",
+        f"{level!r} (rank of the identification Jacobian){which}: measure {more}, or choose a "
+        f"lower level or fix parameters",
     )
 
 

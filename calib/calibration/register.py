@@ -195,9 +195,15 @@ def _register(run: Run, train, measured, plane_of, notes, zeros) -> ChainsState:
             train[0].source,
             f"the registration of the shared plane did not converge ({refined.message})",
         )
-    planes = [p for p, s in zip(plane_of, states, strict=True) if isinstance(s, ContactState)]
-    if len(set(planes)) < len(planes):
-        notes.append("a plane touched by several chains is fitted once (shared planes)")
+    given = [  # a plane given has no unknown of its own
+        (p, not s.frames.kind.object_dofs)
+        for p, s in zip(plane_of, states, strict=True)
+        if isinstance(s, ContactState)
+    ]
+    for held, word in ((False, "fitted once"), (True, "given: held, the same for each")):
+        planes = [p for p, h in given if h == held]
+        if len(set(planes)) < len(planes):
+            notes.append(f"a plane touched by several chains is {word} (shared planes)")
     return refined.state
 
 

@@ -267,31 +267,7 @@ def add_simulate_parser(sub) -> None:
         ],
     )
     add_chain_args(p.add_argument_group("robot"), trees=True)
-    g = p.add_argument_group("instrument")
-    g.add_argument(
-        "--measure",
-        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES, "pixels"),
-        default=DEFAULT_MEASURE,
-        help="position (a point), pose (point + orientation), or a contact: touches recorded "
-        "by the joints alone, on the true robot; or pixels: what --camera sees of --target "
-        f"(default: {DEFAULT_MEASURE}, as analyze and design)",
-    )
-    add_marker_arg(g, several=True)
-    g.add_argument(
-        "--contacts",
-        type=int,
-        default=1,
-        help="planes or points the touches share, with --measure plane|... (default: 1)",
-    )
-    g.add_argument(
-        "--plane",
-        nargs=7,
-        action="append",
-        metavar=PLANE_METAVAR,
-        help="with --measure plane|plane-point: a plane touched, given (a floor, a known "
-        "table): its name, a point and its normal in the base frame [m]; repeat for several "
-        "(default: --contacts planes, each where the true contact is at a random posture)",
-    )
+    _add_instrument_args(p.add_argument_group("instrument"))
     g = p.add_argument_group("configurations")
     g.add_argument(
         "--configs",
@@ -319,6 +295,34 @@ def add_simulate_parser(sub) -> None:
         help="JSON of the true errors (default: OUT with .truth.json; needed if OUT is '-')",
     )
     p.set_defaults(func=cmd_simulate)
+
+
+def _add_instrument_args(g: Group) -> None:
+    """The instrument group of ``simulate``: what is measured, and where."""
+    g.add_argument(
+        "--measure",
+        choices=(*CAMPAIGN_MEASURES, *CONTACT_MEASURES, "pixels"),
+        default=DEFAULT_MEASURE,
+        help="position (a point), pose (point + orientation), or a contact: touches recorded "
+        "by the joints alone, on the true robot; or pixels: what --camera sees of --target "
+        f"(default: {DEFAULT_MEASURE}, as analyze and design)",
+    )
+    add_marker_arg(g, several=True)
+    g.add_argument(
+        "--contacts",
+        type=int,
+        default=1,
+        help="planes or points the touches share, with --measure plane|... (default: 1)",
+    )
+    g.add_argument(
+        "--plane",
+        nargs=7,
+        action="append",
+        metavar=PLANE_METAVAR,
+        help="with --measure plane|plane-point: a plane touched, given (a floor, a known "
+        "table): its name, a point and its normal in the base frame [m]; repeat for several "
+        "(default: --contacts planes, each where the true contact is at a random posture)",
+    )
 
 
 def _add_error_args(g: Group) -> None:

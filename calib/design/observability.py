@@ -442,9 +442,6 @@ def indices_of(J: np.ndarray, ref: Reference | None = None) -> Indices:
     Args:
         J: Rows of ``W_b`` per configuration (:meth:`ObservationModel.jacobian`).
         ref: Reference set of the predicted position error (None: I and G are None).
-
-    Returns:
-        The indices, computed from the singular value decomposition of ``W_b``.
     """
     K, _, b = J.shape
     W = J.reshape(-1, b)
@@ -524,10 +521,8 @@ def identifiable_parameters(
         measure: ``position`` or ``pose`` (the orientation of the tool is measured too).
         configs: Random configurations m.
         seed: Seed of the configurations and of the marker places.
-        held: Marker coordinates (0-based among the ``3 K``) the calibration holds at their
-            given value, not counted (None: those it holds,
-            :func:`~calib.calibration.chain_registration.held_markers`: a gantry's first
-            marker).
+        held: Marker coordinates (0-based among the ``3 K``) held at their given value, not
+            counted (None: :func:`~calib.calibration.chain_registration.held_markers`).
 
     Returns:
         Frame, marker (and tool) parameters, then the MDH base parameters.
