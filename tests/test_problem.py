@@ -65,12 +65,22 @@ def test_each_problem_has_the_shape_of_its_terms(shapes):
     }
 
 
+@pytest.fixture(scope="module")
+def loop(shapes):
+    """Several terms, one of them fixed-pose (a closed loop): what ``pose_weight`` weighs."""
+    arm = shapes["chains"][1].robot
+    return (shapes["chains"][0], Term(arm, simulate_contacts(arm, 12, "fixed-pose", seed=2).data))
+
+
 @pytest.mark.parametrize("option", sorted(APPLIES))
 @pytest.mark.parametrize("shape", ["chain", "tree", "contacts", "chains"])
-def test_an_option_applies_where_the_table_says_and_is_refused_elsewhere(shapes, option, shape):
+def test_an_option_applies_where_the_table_says_and_is_refused_elsewhere(
+    shapes, loop, option, shape
+):
     assert set(VALUES) == set(APPLIES)  # every option of the table is tried
     if shape in APPLIES[option]:
-        assert Problem(shapes[shape], **{option: VALUES[option]}).shape == shape
+        terms = loop if option == "pose_weight" else shapes[shape]
+        assert Problem(terms, **{option: VALUES[option]}).shape == shape
         return
     with pytest.raises(InvalidArgumentError) as info:
         Problem(shapes[shape], **{option: VALUES[option]})
@@ -98,6 +108,19 @@ def test_an_orientation_weight_without_angle_rows_is_refused():
     planes = simulate_contacts(ur5, 12, "plane", seed=1).data  # a touch's tilts: weighed
     mixed = (Term(ur5, positions), Term(ur5, planes))
     assert Problem(mixed, orientation_weight=0.5).shape == "chains"
+
+
+def test_a_pose_weight_without_a_fixed_pose_term_is_refused(shapes):
+    """It weighs the rows of closed loops: several plane terms have none (it weighed nothing,
+    where the command line's --pose-weight without --loop was refused)."""
+    from calib.calibration.engine import calibrate_contact_chains
+
+    with pytest.raises(InvalidArgumentError, match="no term is one") as info:
+        Problem(shapes["chains"], pose_weight=2.0)
+    assert "\n" not in str(info.value)
+    arms, touches = zip(*((t.robot, t.data) for t in shapes["chains"]), strict=True)
+    with pytest.raises(InvalidArgumentError, match="no term is one"):  # the engine's entry
+        calibrate_contact_chains(list(arms), list(touches), pose_weight=2.0)
 
 
 def test_a_default_value_given_is_not_refused(shapes):

@@ -40,7 +40,7 @@ from .measured_view import MeasuredChain, Solution, measured_part
 from .options import DEFAULT_MAX_ITERATIONS, Options, checked_arguments
 from .pixel_chain import PixelData, PixelPart, PixelTermState
 from .pixel_chain_result import PixelChain, check_fitted_pixels, pixel_result
-from .problem import check_weighed
+from .problem import check_pose_weighed, check_weighed
 from .register import Registered, Run, determined_unknowns, register_contact_chains
 from .selection import Selection
 from .solve import fit, fitted_values, gauss_newton_finish, unconverged
@@ -107,6 +107,7 @@ def calibrate_contact_chains(
         DataError: Touches that do not belong to their chain or determine too little.
     """
     check_weighed(orientation_weight, data)
+    check_pose_weighed(pose_weight, data)
     if isinstance(chains, Sequence) and isinstance(data, Sequence):  # else refused later
         held = validate if isinstance(validate, Sequence) else [None] * len(data)
         for c, d, v in zip(chains, data, held, strict=False):

@@ -13,6 +13,7 @@ from dataclasses import KW_ONLY, dataclass, fields
 import numpy as np
 
 from ..exceptions import InvalidArgumentError
+from ..identification.contacts import FixedPoseContact
 from ..kinematics.robot import Chain, check_robot
 from ..kinematics.tree import Tree
 from ..measurements.contact_campaign import ContactData
@@ -22,7 +23,7 @@ from ..measurements.unseen import check_every_marker_seen
 from .options import APPLIES, SHAPE_LABELS, Options, checked_init
 from .pixel_chain import PixelData
 
-__all__ = ["Problem", "Term", "check_weighed"]
+__all__ = ["Problem", "Term", "check_pose_weighed", "check_weighed"]
 
 
 _GUESS = "a term's guess= is calibrate's marker= (measurements) or contact= (touches)"
@@ -191,6 +192,7 @@ class Problem(Options):
         check_weighed(self.orientation_weight, [t.data for t in self.terms])
         if shape == "chains":
             self._check_terms()
+            check_pose_weighed(self.pose_weight, [t.data for t in self.terms])
 
     def _check_terms(self) -> None:
         """Several terms: chains (no tree), and one contact guess for the touching ones."""
@@ -227,6 +229,20 @@ def check_weighed(weight: float | None, data: Sequence) -> None:
     raise InvalidArgumentError(
         "orientation_weight weighs orientation or tilt rows: no term has any (positions, "
         "plane-point or fixed-point touches, image points)"
+    )
+
+
+def check_pose_weighed(weight: float, data: Sequence) -> None:
+    """Refuse a ``pose_weight`` other than 1 where no term's data are fixed-pose touches.
+
+    Raises:
+        InvalidArgumentError: It would weigh nothing (the command line's ``--pose-weight``
+            without ``--loop`` or ``--term fixed-pose``).
+    """
+    if weight == 1.0 or any(isinstance(getattr(d, "kind", None), FixedPoseContact) for d in data):
+        return
+    raise InvalidArgumentError(
+        "pose_weight weighs the rows of fixed-pose (closed loop) terms: no term is one"
     )
 
 
