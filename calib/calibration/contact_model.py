@@ -15,6 +15,7 @@ from ..exceptions import DataError, InvalidArgumentError
 from ..identification.contacts import Contact
 from ..kinematics.mdh import Kinematics, MDHModel
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
+from ..measurements.contact_objects import plane_rotation
 from .contact_blocks import dense
 from .placements import JointFrames
 
@@ -156,11 +157,8 @@ def row_weights(kind: Contact, weight: float) -> np.ndarray:
 def plane_frame(normal: np.ndarray, height: float, centre: np.ndarray) -> np.ndarray:
     """The plane ``(4, 4)``: z = normal, origin the projected ``centre`` [m], x the base x."""
     n = np.asarray(normal, dtype=float)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    ex = helper - (helper @ n) * n
-    ex /= np.linalg.norm(ex)
     T = np.eye(4)
-    T[:3, :3] = np.column_stack([ex, np.cross(n, ex), n])
+    T[:3, :3] = plane_rotation(n)
     T[:3, 3] = centre - (n @ centre - height) * n
     return T
 

@@ -17,7 +17,14 @@ import numpy as np
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact, PlanePointContact
 
-__all__ = ["MAX_OBJECT_DISTANCE", "given_objects", "object_frame", "plane_through", "term_planes"]
+__all__ = [
+    "MAX_OBJECT_DISTANCE",
+    "given_objects",
+    "object_frame",
+    "plane_rotation",
+    "plane_through",
+    "term_planes",
+]
 
 _PLANES = (PlaneContact, PlanePointContact)
 
@@ -25,19 +32,23 @@ MAX_OBJECT_DISTANCE = 100.0
 """Farthest an object may be given from the base frame [m] (further: millimetres?)."""
 
 
-def plane_through(point, normal) -> np.ndarray:
-    """The plane ``(4, 4)`` through ``point`` [m] with z along ``normal``.
+def plane_rotation(n: np.ndarray) -> np.ndarray:
+    """The rotation ``(3, 3)`` of a plane whose unit normal is ``n``.
 
-    Its x axis: the base x made perpendicular to the normal (the base y when the normal is
+    Its z is ``n``, its x the base x made perpendicular to it (the base y when the normal is
     near x).
     """
-    n = np.asarray(normal, dtype=float)
-    n = n / np.linalg.norm(n)
     helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     ex = helper - (helper @ n) * n
     ex /= np.linalg.norm(ex)
+    return np.column_stack([ex, np.cross(n, ex), n])
+
+
+def plane_through(point, normal) -> np.ndarray:
+    """The plane ``(4, 4)`` through ``point`` [m], z along ``normal`` (:func:`plane_rotation`)."""
+    n = np.asarray(normal, dtype=float)
     T = np.eye(4)
-    T[:3, :3] = np.column_stack([ex, np.cross(n, ex), n])
+    T[:3, :3] = plane_rotation(n / np.linalg.norm(n))
     T[:3, 3] = np.asarray(point, dtype=float)
     return T
 
