@@ -354,7 +354,8 @@ def test_a_name_that_left_the_top_level_still_reads_and_warns_once(name):
         "print(seen[0].category.__name__, seen[0].filename, seen[0].lineno)\n"
         "print(seen[0].message)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    root = PACKAGE.parent  # this tree's calib
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
     assert lines[0] == "False True 1", lines
