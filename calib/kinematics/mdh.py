@@ -534,7 +534,7 @@ def in_chart_of(model: MDHModel, reference: MDHModel) -> MDHModel:
         if abs(_wrapped(theta[k] - reference.theta[k])) > math.pi / 2:
             theta[k : k + 2] = _wrapped(theta[k : k + 2] + math.pi)
             for values in later.values():
-                values[k + 1] = -values[k + 1]
+                values[k + 1] = 0.0 - values[k + 1]  # no -0.0
     if all(np.array_equal(a, getattr(model, n)) for n, a in [("theta", theta), *later.items()]):
         return model
     return model.replace(theta=theta, **later)
