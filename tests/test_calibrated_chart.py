@@ -103,6 +103,25 @@ def test_a_robot_past_the_nominal_90_degrees_is_charted_as_the_nominal(tmp_path)
     assert in_chart_of(nominal, nominal) is nominal
 
 
+def test_parallel_axes_tilted_past_the_tolerance_keep_the_nominal_beta_row(tmp_path):
+    """The elbow's axis tilted 15 mrad from the pitch joint's (PARALLEL_TOL 10 mrad): converted
+    afresh, along a common normal some 40 m away; in the nominal's chart, with its beta row."""
+    nominal = from_chain(load_chain(arm_urdf(tmp_path / "a.urdf"), "l0", "tcp"))
+    path = arm_urdf(tmp_path / "b.urdf", {"elbow": ("0.0006 0 0.6", "0.015 0 0")})
+    moved = from_chain(load_chain(path, "l0", "tcp"))
+    assert nominal.parallel[3] and not moved.parallel[3]
+    assert max(abs(moved.r[2]), abs(moved.r[3])) > 10.0  # metres: the far common normal
+    charted = in_chart_of(moved, nominal)
+    assert charted.parallel[3] and charted.beta[3] == pytest.approx(-0.015, abs=1e-6)
+    rows = charted.rows()
+    for row, ref in zip(rows, nominal.rows(), strict=True):
+        for key in ("beta", "alpha", "d", "theta", "r", "y"):
+            assert abs(row[key] - ref[key]) < 0.02, (row["name"], key)
+    rng = np.random.default_rng(52)
+    for q in rng.uniform(-1.5, 1.5, (20, 6)):
+        assert np.allclose(mdh_tool(rows, q), pin_tool(path, "tcp", q), atol=1e-12)
+
+
 def test_the_report_rows_compare_with_the_nominal_and_place_the_written_tool(tmp_path):
     """Calibrated from the moved arm's exact points (Pinocchio): the report's mdh_calibrated
     row by row within 5 mrad / 5 mm of mdh_nominal, and the written URDF's tool frame."""

@@ -521,7 +521,8 @@ def in_chart_of(model: MDHModel, reference: MDHModel) -> MDHModel:
     the other sign). Here frame k (k = 0..n; the tool's is fixed) is turned back where its
     theta lies more than 90 degrees from the reference's, frames 0..k-1 already matched:
     theta_k and theta_{k+1} gain pi, and beta, alpha, d and y of row k+1 change sign (the
-    frames after k and the kinematics are unchanged).
+    frames after k and the kinematics are unchanged). Rows the reference places with
+    Hayati's beta (parallel axes) are placed so here too, whatever their tilt.
 
     Raises:
         InvalidArgumentError: The models have different numbers of rows.
@@ -529,6 +530,9 @@ def in_chart_of(model: MDHModel, reference: MDHModel) -> MDHModel:
     if reference.n != model.n:
         why = f"in_chart_of: {model.n} joints against a reference of {reference.n}"
         raise InvalidArgumentError(why)
+    beta_rows = reference.parallel | model.parallel
+    if not np.array_equal(beta_rows, model.parallel):
+        model = _with_beta_rows(model, beta_rows)
     theta, later = model.theta.copy(), {a: getattr(model, a).copy() for a in _FLIPPED}
     for k in range(model.n + 1):
         if abs(_wrapped(theta[k] - reference.theta[k])) > math.pi / 2:
@@ -538,6 +542,21 @@ def in_chart_of(model: MDHModel, reference: MDHModel) -> MDHModel:
     if all(np.array_equal(a, getattr(model, n)) for n, a in [("theta", theta), *later.items()]):
         return model
     return model.replace(theta=theta, **later)
+
+
+def _with_beta_rows(model: MDHModel, beta_rows: np.ndarray) -> MDHModel:
+    """``model``'s robot converted again, Hayati's beta on ``beta_rows`` (``(n+2,)`` bool).
+
+    A nominal pair of parallel axes tilted past :data:`PARALLEL_TOL` by a calibration (the
+    TIAGo's torso lift and first arm joint: 0.02 rad) is converted along a common normal
+    metres away; the nominal's beta row keeps it beside the nominal's.
+    """
+    T = frames_at_zero(model)  # frame k's z and origin lie on line k (k = 1..n)
+    beta, alpha, d, theta, r, parallel, coincident = line_rows(
+        T[1:-1, :3, 3], T[1:-1, :3, 2], T[-1], PARALLEL_TOL, beta_rows
+    )
+    rows = {"beta": beta, "alpha": alpha, "d": d, "theta": theta, "r": r}
+    return model.replace(**rows, y=np.zeros(model.n + 2), parallel=parallel, coincident=coincident)
 
 
 _FLIPPED = ("beta", "alpha", "d", "y")
