@@ -137,3 +137,25 @@ def test_header_errors_name_the_header_row_below_comment_lines(ur5, tmp_path):
     path.write_text(f"{NOTES}{joints}\n0,0,0,0,0\n")
     with pytest.raises(DataError, match=r"row 3\): no 'image' column"):
         read_image_joints(path)
+
+
+def test_a_point_not_seen_written_nan_is_refused_with_the_way_to_write_it(ur5, tmp_path, capsys):
+    """A tracker's export with its lost beam written NaN (MATLAB, NumPy): one line saying how
+    calib reads a point not seen (empty cells), exit 2, nothing written; the file written
+    that way is then read, without the row."""
+    lines = _lines(ur5)
+    cells = lines[3].split(",")
+    nan_row = ",".join([*cells[:6], "NaN", "NaN", "NaN"])
+    path, out = tmp_path / "tracker.csv", tmp_path / "cal.urdf"
+    path.write_text("\n".join([*lines[:3], nan_row, *lines[4:]]) + "\n")
+    assert main(["calibrate", "ur5", "--data", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [
+        f"calib: error: {path} (row 4, column 'x'): 'NaN': a point not seen leaves its x, y, z "
+        "cells empty (a row that sees no point: start it with #)"
+    ]
+    assert not out.exists()
+    path.write_text("\n".join([*lines[:3], "#" + nan_row, *lines[4:]]) + "\n")
+    data = read_measurements(path, ur5)
+    assert data.rows == (2, 3, *range(5, len(lines) + 1))
+    assert np.array_equal(data.position, _cells([*lines[1:3], *lines[4:]])[:, 6:9])

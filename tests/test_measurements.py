@@ -178,11 +178,24 @@ BAD_CASES = {
         "qw",
         "missing orientation column",
     ),
-    "NaN cell": (
+    "NaN cell": (  # a point not seen, as NumPy writes it: the way calib reads it
         lambda c: _text(c, [_good_row(c), [*_good_row(c)[:7], "nan", "0.2"]]),
         3,
         "y",
-        "not a number: 'nan'",
+        "'nan': a point not seen leaves its x, y, z cells empty (a row that sees no point: "
+        "start it with #)",
+    ),
+    "point not seen written NaN": (  # MATLAB's writematrix of a tracker's lost beam
+        lambda c: _text(c, [_good_row(c), [*_good_row(c)[:6], "NaN", "NaN", "NaN"]]),
+        3,
+        "x",
+        "'NaN': a point not seen leaves its x, y, z cells empty",
+    ),
+    "joint written NaN": (
+        lambda c: _text(c, [[*_good_row(c)[:3], " -NaN", *_good_row(c)[4:]]]),
+        2,
+        "wrist_1_joint",
+        "'-NaN': a value not measured leaves the row out (start it with #)",
     ),
     "infinite cell": (
         lambda c: _text(c, [[*_good_row(c)[:2], "-inf", *_good_row(c)[3:]]]),

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import DataError
-from .csv_text import parse_number
+from .csv_text import is_nan_text, parse_number
 
 __all__ = ["FIT_ROWS", "check_every_marker_seen", "marker_cells", "never_seen"]
 
@@ -26,6 +26,7 @@ def marker_cells(cells: list[str], index: list[int], names: list[str], src: str,
     """
     out = np.full(len(index), np.nan)
     for k in range(0, len(index), 3):
+        _refuse_nan(cells, index[k : k + 3], names[k : k + 3], src, line)
         empty = [not cells[j].strip() for j in index[k : k + 3]]
         if all(empty):
             continue
@@ -49,6 +50,17 @@ def marker_cells(cells: list[str], index: list[int], names: list[str], src: str,
             row=line,
         )
     return out
+
+
+def _refuse_nan(cells: list[str], index: list[int], names: list[str], src: str, line: int):
+    """Refuse a marker's cell written NaN (a point not seen is written as empty cells)."""
+    for j, name in zip(index, names, strict=True):
+        if is_nan_text(cells[j]):
+            why = (
+                f"{cells[j].strip()!r}: a point not seen leaves its {', '.join(names)} cells "
+                "empty (a row that sees no point: start it with #)"
+            )
+            raise DataError(src, why, row=line, column=name)
 
 
 def check_every_marker_seen(position: np.ndarray, names, src: str, rows=None) -> None:
