@@ -139,20 +139,20 @@ def test_header_errors_name_the_header_row_below_comment_lines(ur5, tmp_path):
         read_image_joints(path)
 
 
-def test_a_point_not_seen_written_nan_is_refused_with_the_way_to_write_it(ur5, tmp_path, capsys):
-    """A tracker's export with its lost beam written NaN (MATLAB, NumPy): one line saying how
-    calib reads a point not seen (empty cells), exit 2, nothing written; the file written
-    that way is then read, without the row."""
+def test_a_row_whose_one_point_is_written_nan_says_to_leave_it_out(ur5, tmp_path, capsys):
+    """A tracker's export with its lost beam written NaN (MATLAB, NumPy): the point is not
+    seen, so a row of one point measures nothing: one line saying so, exit 2, nothing
+    written; the row commented out, the file is read without it."""
     lines = _lines(ur5)
     cells = lines[3].split(",")
-    nan_row = ",".join([*cells[:6], "NaN", "NaN", "NaN"])
+    nan_row = ",".join([*cells[:6], "NaN", "nan", "NaN"])
     path, out = tmp_path / "tracker.csv", tmp_path / "cal.urdf"
     path.write_text("\n".join([*lines[:3], nan_row, *lines[4:]]) + "\n")
     assert main(["calibrate", "ur5", "--data", str(path), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.strip().splitlines() == [
-        f"calib: error: {path} (row 4, column 'x'): 'NaN': a point not seen leaves its x, y, z "
-        "cells empty (a row that sees no point: start it with #)"
+        f"calib: error: {path} (row 4): empty cells: this row measures no point: leave the row "
+        "out (start it with #)"
     ]
     assert not out.exists()
     path.write_text("\n".join([*lines[:3], "#" + nan_row, *lines[4:]]) + "\n")

@@ -178,18 +178,18 @@ BAD_CASES = {
         "qw",
         "missing orientation column",
     ),
-    "NaN cell": (  # a point not seen, as NumPy writes it: the way calib reads it
+    "NaN cell": (  # one coordinate of a point missing, as NumPy writes it
         lambda c: _text(c, [_good_row(c), [*_good_row(c)[:7], "nan", "0.2"]]),
         3,
         "y",
-        "'nan': a point not seen leaves its x, y, z cells empty (a row that sees no point: "
-        "start it with #)",
+        "empty cell: a marker not seen leaves all of x, y, z empty (or NaN), this row has 1 of "
+        "them",
     ),
     "point not seen written NaN": (  # MATLAB's writematrix of a tracker's lost beam
         lambda c: _text(c, [_good_row(c), [*_good_row(c)[:6], "NaN", "NaN", "NaN"]]),
         3,
-        "x",
-        "'NaN': a point not seen leaves its x, y, z cells empty",
+        None,
+        "empty cells: this row measures no point: leave the row out (start it with #)",
     ),
     "joint written NaN": (
         lambda c: _text(c, [[*_good_row(c)[:3], " -NaN", *_good_row(c)[4:]]]),
