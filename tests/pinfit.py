@@ -12,21 +12,33 @@ so the held-out errors are the ones a correct calib fit of that level must give.
 
 from __future__ import annotations
 
+import csv
+
 import numpy as np
 import pinocchio as pin
 from pinref import pin_config, pin_frame
 from scipy.optimize import least_squares
 
 
+def csv_rows(path, joint_names, point: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """A measurement file's joint positions and one point, read by the csv module alone."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    q = np.array([[float(r[name]) for name in joint_names] for r in rows])
+    return q, np.array([[float(r[f"{c}{point}"]) for c in "xyz"] for r in rows])
+
+
 class PinChainFit:
     """The chain between two frames of a URDF file, posed once per row by Pinocchio."""
 
-    def __init__(self, urdf, base: str, tool: str, joint_names) -> None:
+    def __init__(self, urdf, base: str, tool: str) -> None:
         model = pin.buildModelFromUrdf(str(urdf))
         data = model.createData()
         b, t = pin_frame(model, base), pin_frame(model, tool)
         self.model, self.data = model, data
-        self.joints = [model.getJointId(name) for name in joint_names]
+        support = list(model.supports[model.frames[t].parentJoint])
+        self.joints = support[support.index(model.frames[b].parentJoint) + 1 :]
+        self.names = [model.names[j] for j in self.joints]
         pin.framesForwardKinematics(model, data, pin.neutral(model))
         first = self.joints[0]
         self.prefix = (data.oMf[b].inverse() * data.oMi[model.parents[first]]).homogeneous

@@ -7,14 +7,13 @@ simulated rows the fit never saw.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import functools
 from pathlib import Path
 
 import numpy as np
 import pytest
-from pinfit import PinChainFit
+from pinfit import PinChainFit, csv_rows
 from pinref import instrument_points
 
 import calib
@@ -56,26 +55,16 @@ def tiago():
     return chain, one[0], one[1]
 
 
-def _tiago_rows(day: int) -> tuple[np.ndarray, np.ndarray]:
-    """A TIAGo session's joint positions and marker 1, read by the csv module, not by calib."""
-    path = REAL / "tiago" / f"qualisys_2021-11-{day}_static_postures.csv"
-    with path.open(newline="") as f:
-        rows = list(csv.DictReader(f))
-    q = np.array([[float(r[name]) for name in TIAGO_JOINTS] for r in rows])
-    return q, np.array([[float(r[c]) for c in ("x1", "y1", "z1")] for r in rows])
-
-
-TIAGO_JOINTS = ["torso_lift_joint", *(f"arm_{i}_joint" for i in range(1, 8))]
-
-
 @functools.cache
 def independent_held_out(level: str) -> tuple[float, float]:
     """Held-out errors [mm, RMS / max] on the 2021-11-26 session of a fit of the 2021-11-30
     one at a level, by Pinocchio and scipy alone (tests/pinfit.py). They are the figures of
     docs/explanation/validation.md (4.87 / 12.20, 4.23 / 11.95, 4.17 / 21.08)."""
-    urdf = REAL / "tiago" / "tiago_48_schunk.urdf"
-    fit = PinChainFit(urdf, "base_footprint", "wrist_ft_tool_link", TIAGO_JOINTS)
-    return fit.held_out_mm(level, _tiago_rows(30), _tiago_rows(26))
+    tiago = REAL / "tiago"
+    fit = PinChainFit(tiago / "tiago_48_schunk.urdf", "base_footprint", "wrist_ft_tool_link")
+    files = [tiago / f"qualisys_2021-11-{d}_static_postures.csv" for d in (30, 26)]
+    sessions = [csv_rows(path, fit.names) for path in files]
+    return fit.held_out_mm(level, *sessions)
 
 
 @pytest.mark.parametrize("level", ["complete", "frames", "offsets"])
