@@ -549,14 +549,19 @@ def test_tiago_positions_in_centimetres_are_named_and_no_urdf_is_written(tmp_pat
     """The TIAGo's positions in centimetres read as metres: the registration leaves 16,770 mm
     RMS and was only noted (centimetres were not among the usual mistakes); the fit was
     accepted (6,232 mm, arm lengths changed by metres) and the URDF written. Named now as
-    millimetres are; ``units cm`` reads the file (the metres' fit)."""
+    millimetres are; ``units cm`` reads the file: the fit of the rows written in metres."""
     argv, out = _tiago_cli_with_positions(tmp_path, lambda k, p: 100.0 * p)
     assert main(argv) != 0 and not out.exists()
     err = capsys.readouterr().err
     assert "the data look like positions in centimetres, not metres (units cm)" in err
     assert "Traceback" not in err
     assert main([*argv, "--units", "cm"]) == 0 and out.exists()
-    assert "fitted, calibrated              37     1.736     3.324" in capsys.readouterr().out
+    (cm,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("fitted, calib")]
+    (tmp_path / "m").mkdir()
+    metres, _ = _tiago_cli_with_positions(tmp_path / "m", lambda k, p: p)
+    assert main(metres) == 0  # the same rows, written in metres: the figures to print
+    (m,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("fitted, calib")]
+    assert cm == m
 
 
 def _swapped(point: int, a: int, b: int):
