@@ -126,8 +126,10 @@ def test_tree_api_refuses_validation_with_a_holdout_fraction(files):
     with pytest.raises(InvalidArgumentError, match="not both"):
         calibrate_tree(tree, camp.measurements, validate=other.measurements, holdout=0.2)
     for bad in ({"max_iterations": 0}, {"seed": -1}, {"holdout": 1.0}, {"seed": True}):
-        with pytest.raises(InvalidArgumentError):
+        with pytest.raises(InvalidArgumentError) as info:
             calibrate_tree(tree, camp.measurements, **bad)
+        (name, value) = bad.popitem()
+        assert f"got {value!r}" in str(info.value) and name.split("_")[0] in str(info.value)
 
 
 def test_tree_report_has_the_documented_schema(files, tmp_path):

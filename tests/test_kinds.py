@@ -62,8 +62,9 @@ def test_unknown_constants_of_instruments():
 
 @pytest.mark.parametrize("bad", ["planes", "", "x,q", 3])
 def test_bad_names(bad):
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError) as info:
         kind_of(bad)
+    assert repr(bad) in str(info.value)
 
 
 def test_campaign_kind_refuses_rows_and_contacts():

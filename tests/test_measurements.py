@@ -444,8 +444,10 @@ def test_truth_base_values_are_the_regrouped_errors():
     ],
 )
 def test_simulate_rejects_bad_arguments(kwargs):
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError) as info:
         simulate(chain_of("ur5"), **{"configs": 5, **kwargs})
+    (bad,) = kwargs.values()
+    assert repr(bad) in str(info.value)  # refused for this argument, not for another
 
 
 def test_simulate_accepts_numpy_integers():
