@@ -109,7 +109,16 @@ def test_the_weight_iteration_stops_where_the_ratio_settles():
         return np.hstack([np.full((4, 3), 1e-3), np.full((4, 3), 1e-3 / (1 + w))])
 
     w = estimate_weight(residuals_at, pose_angles(1))
-    assert abs(w - (1 + w)) / w < 0.1 or len(calls) == 10  # no fixed point: runs out
+    # no fixed point (the ratio is 1 + w): each fit moves w by 1 from 1, until the 10 fits run out
+    assert calls == pytest.approx(list(range(1, 11))) and w == pytest.approx(11)
+    calls.clear()
+
+    def settling(w):  # the ratio is 3 sqrt(w): its fixed point 9, reached at half the gap a fit
+        calls.append(w)
+        return np.hstack([np.full((4, 3), 1e-3), np.full((4, 3), 1e-3 / (3 * np.sqrt(w)))])
+
+    w = estimate_weight(settling, pose_angles(1))
+    assert w == pytest.approx(9, rel=0.02) and len(calls) < 10  # stopped where it settles
     fixed = estimate_weight(
         lambda w: np.hstack([np.ones((2, 3)), np.full((2, 3), 4.0)]), pose_angles(1)
     )
