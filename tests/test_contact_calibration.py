@@ -164,9 +164,9 @@ def test_worse_model_refused(tmp_path):
 def test_bad_arguments():
     chain = load_robot("ur5")
     data = simulate_contacts(chain, 20, "plane", seed=0).data
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match="the contact frame takes X Y Z"):
         calibrate_contacts(chain, data, contact=[1, 2])
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match="unknown parameter level 'wild'"):
         calibrate_contacts(chain, data, params="wild")
     point = simulate_contacts(chain, 20, "fixed-point", seed=0).data
     with pytest.raises(InvalidArgumentError, match="kind 'fixed-point' for 'plane'"):

@@ -469,7 +469,7 @@ def test_bad_arguments(kwargs):
 
 def test_status_of_unknown_parameter():
     res = analyze("aid", measure="position", params="paper", configs=30)
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match="'beta1' is not a parameter of the paper set"):
         res.status("beta1")
 
 

@@ -291,13 +291,13 @@ def test_missing_and_unreadable_files(tmp_path):
 
 def test_measurements_value_checks():
     names = ("a", "b")
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match=r"joint positions .* got \(3, 3\)"):
         Measurements(names, np.zeros((3, 3)), np.zeros((3, 3)))
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match=r"^positions .* got \(2, 3\)"):
         Measurements(names, np.zeros((3, 2)), np.zeros((2, 3)))
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match="NaN or infinity"):
         Measurements(names, np.zeros((1, 2)), [[0, np.nan, 0]])
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match="quaternions must be finite and non-zero"):
         Measurements(names, np.zeros((1, 2)), np.zeros((1, 3)), np.zeros((1, 4)))
     with pytest.raises(InvalidArgumentError, match="not a plausible measurement in metres"):
         Measurements(names, np.zeros((1, 2)), [[0, 1e300, 0]])
