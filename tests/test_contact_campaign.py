@@ -89,6 +89,8 @@ def test_seeded(tmp_path):
     a = simulate_contacts(chain, 6, "plane", seed=1).data
     b = simulate_contacts(chain, 6, "plane", seed=1).data
     np.testing.assert_array_equal(a.q, b.q)
+    other = simulate_contacts(chain, 6, "plane", seed=2).data  # the seed is used, not ignored
+    assert not np.allclose(a.q, other.q)
 
 
 def _csv(header: str, row: str) -> str:
