@@ -85,6 +85,22 @@ def test_bounds_never_below_the_gain_of_any_exchange(seed, r, b):
                     assert bound[c] >= fresh - tol
 
 
+@pytest.mark.parametrize("kind", ["D", "A", "I"])
+def test_a_point_without_which_the_matrix_is_singular_is_never_removed(kind):
+    """The branch the property above takes only when det M_-j / det M < MIN_DET_RATIO, which
+    its random draws never meet: here design point 0 alone has a last column of size 1, the
+    others of 1e-7 (det M_-0 / det M about 1e-14, not 0: the ratio decides, not a failed
+    solve), so every exchange that removes it is refused: gains and bounds -inf."""
+    rng, J, design = _instance(11, 18, 2, 4, 4)
+    J[:, :, -1] *= 1e-7
+    J[design[0], :, -1] = 1.0
+    state = ExchangeState(J, design, _weight(kind, 4, rng), 0.0)
+    assert np.all(state.gains(design[0]) == -np.inf)
+    assert np.all(state.bounds(design[0]) == -np.inf)
+    assert np.all(state.coarse_bounds(design[0]) == -np.inf)
+    assert np.isfinite(state.gains(design[1])).any()  # another point can be exchanged
+
+
 @CI
 @given(st.integers(0, 2**31 - 1), st.integers(1, 4), st.integers(2, 7))
 def test_add_bounds_never_below_the_gain_of_any_addition(seed, r, b):
