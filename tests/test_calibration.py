@@ -732,18 +732,18 @@ def test_robust_loss_fits_and_bad_options_are_one_line_errors():
     assert np.sqrt(np.mean(np.sum(err**2, axis=1))) < 0.3e-3
     from calib import InvalidArgumentError
 
-    for bad in (
-        {"loss": "cauchy"},
-        {"params": "all"},
-        {"fix": ("nope",)},
-        {"holdout": 1.5},
-        {"fix": ("theta3",), "free": ("theta3",)},
-        {"noise_mm": -1.0},
-        {"speed": 2},
+    for bad, why in (
+        ({"loss": "cauchy"}, "unknown loss 'cauchy'"),
+        ({"params": "all"}, "unknown parameter level 'all'"),
+        ({"fix": ("nope",)}, "unknown parameter 'nope'"),
+        ({"holdout": 1.5}, "holdout fraction must be in [0, 1), got 1.5"),
+        ({"fix": ("theta3",), "free": ("theta3",)}, "theta3 both fixed and free"),
+        ({"noise_mm": -1.0}, "noise must be a finite number > 0 and at most 1000, got -1.0"),
+        ({"speed": 2}, "unknown argument speed"),
     ):
         with pytest.raises(InvalidArgumentError) as info:
             calibrate(chain, campaign.measurements, **bad)
-        assert "\n" not in str(info.value)
+        assert "\n" not in str(info.value) and why in str(info.value), (bad, str(info.value))
 
 
 def test_gravity_torques_match_pinocchio_on_the_original_file():

@@ -464,6 +464,8 @@ def test_bad_arguments(kwargs):
     with pytest.raises(InvalidArgumentError) as info:
         analyze("aid", **kwargs)
     assert "\n" not in str(info.value)
+    (bad,) = kwargs.values()
+    assert repr(bad) in str(info.value)  # refused for this argument, not for another
     assert isinstance(info.value, calib.CalibError)
 
 
