@@ -536,7 +536,7 @@ def test_write_never_overwrites_the_nominal_urdf_and_refuses_a_refused_model(res
     r = results["contacts"]
     nominal = Path(r.to_dict()["urdf"])
     before = nominal.read_bytes()
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(InvalidArgumentError, match="would overwrite"):
         r.write(nominal)
     assert nominal.read_bytes() == before
     refused = dataclasses.replace(r, refusal="a test refusal")
