@@ -79,6 +79,10 @@ nb_render_markdown_format = "gfm"  # tables in the notebooks' Markdown outputs (
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 autodoc_typehints_format = "short"
+# Types in the text for the arguments an Args section documents, and the return value: a
+# dataclass's fields are its Attributes (types from the annotations), not its constructor's
+# parameters again (which named every internal type a field holds).
+autodoc_typehints_description_target = "documented_params"
 autodoc_preserve_defaults = True
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False

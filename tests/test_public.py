@@ -374,7 +374,7 @@ def test_the_api_page_documents_each_name_at_its_path():
     moved one at its module's path, and every error class of calib.exceptions; errors.md's
     table gives each one's import. The page had left out ``Columns`` and ``cross_validate``."""
     page = API_PAGE.read_text(encoding="utf-8")
-    blocks = re.findall(r"```\{auto(?:function|class)\} (calib\.[\w.]+)\n", page)
+    blocks = re.findall(r"^\.\. auto(?:function|class):: (calib\.[\w.]+)$", page, re.M)
     documented = set(blocks)
     assert len(blocks) == len(documented) > 40
     public = {f"calib.{n}" for n in calib.__all__} - {"calib.design"}

@@ -95,7 +95,7 @@ class MeasuredState:
     """A measured term's state: its chain's model on the robot, frame, markers and weight.
 
     ``weight``: of the rotation rows [m/rad]; ``seen``: the registration's frames at its rows,
-    None once the state moves; ``instrument``, ``held``: :class:`~.model.MeasuredKind`'s.
+    None once the state moves; ``instrument``, ``held``: :class:`!model.MeasuredKind`'s.
     """
 
     inner: State

@@ -73,7 +73,7 @@ class GapStats:
 class TermPart:
     """What every term's part of a result offers, whatever its kind: errors, report, lines.
 
-    Each kind's frozen dataclass adds :meth:`heading`, :meth:`_own` and :attr:`rows`.
+    Each kind's frozen dataclass adds :meth:`!heading`, :meth:`!_own` and :attr:`!rows`.
 
     Attributes:
         chain: The nominal chain.

@@ -131,7 +131,7 @@ def paired_files(files: Mapping[Path, str | bytes], out: Path) -> dict[Path, str
 
 
 class Result:
-    """A calibration's result, whatever the problem (:func:`~calib.calibration.entry.calibrate`).
+    """A calibration's result, whatever the problem (:func:`~calib.calibrate`).
 
     A result (a chain measured by an instrument, a tree, one chain touching, several terms)
     provides ``to_dict``, ``urdf``, ``summary``, ``refusal``, ``compliance_files`` and
@@ -141,7 +141,7 @@ class Result:
 
     refusal: str | None
     inputs: tuple[tuple[str, str], ...]
-    """The files it read, by what they are (:func:`read_files`); empty: those its report
+    """The files it read, by what they are (:func:`!read_files`); empty: those its report
     names."""
 
     def to_dict(self) -> dict:
@@ -168,7 +168,7 @@ class Result:
     def plot(self):
         """A matplotlib Figure: errors per configuration before and after, and the parameters.
 
-        See :func:`calib.outputs.plots.calibration_figure` (needs matplotlib).
+        See :func:`!calib.outputs.plots.calibration_figure` (needs matplotlib).
         """
         from ..outputs.plots import calibration_figure  # the one upward import (pyproject)
 
@@ -183,7 +183,7 @@ class Result:
         joint the calibration added: markers, a camera, the world link) to its ``parent``,
         ``child``, calibrated ``xyz`` [m] and ``rpy`` [rad] as the calibrated URDF writes them,
         ``nominal_xyz`` and ``nominal_rpy`` (None for an added joint) and ``added``
-        (:func:`calib.kinematics.origins.origins_yaml` writes it as YAML).
+        (:func:`!calib.kinematics.origins.origins_yaml` writes it as YAML).
 
         Args:
             urdf: The calibrated URDF they are read from (default: :meth:`urdf`; give a
@@ -210,7 +210,7 @@ class Result:
         """Write the calibrated URDF (and compliance file) and the report, all or none.
 
         A refused model writes the report only, then raises. The report and the compliance
-        file record the URDF's digest (:func:`paired_report`, :func:`paired_files`). The
+        file record the URDF's digest (:func:`!paired_report`, :func:`!paired_files`). The
         outputs are checked before anything is written: never an input (the nominal URDF,
         each term's data and validation file, a pixel term's target and intrinsics:
         :attr:`inputs`, as resolved when they were read), never two the same.

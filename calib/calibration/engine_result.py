@@ -172,16 +172,16 @@ class ContactChainsCalibration(Result, ChainView):
         unknowns: The unknowns the data determine at the nominal robot: the objects',
             contacts' and measured terms' own, and the joint placement directions ``free``.
         shape: The problem's (``Problem.shape``): ``chain``, ``tree`` (a tree's tools
-            measured by one instrument: :mod:`.instrument`), ``contacts`` (one chain
+            measured by one instrument: :mod:`!instrument`), ``contacts`` (one chain
             touching) or ``chains``.
         identifiable: What the data determine whatever the parameters offered: the rank of
             the rows' Jacobian by every unknown and joint placement component, at the nominal
             robot (``unknowns`` at ``complete`` may miss combinations of shared joints).
-        inputs: The files it read (:func:`~.delivery.read_files`), which ``write`` never
+        inputs: The files it read (:func:`!delivery.read_files`), which ``write`` never
             overwrites; empty: those the report names.
         stalled: A fit made did not converge (the last, or one ``auto`` held a parameter
             after): the outlier loop reads no outliers from its errors.
-        folds: Cross-validated (:func:`calib.design.folds.cross_validate`): each fold's
+        folds: Cross-validated (:func:`calib.cross_validate`): each fold's
             held-out errors, term by term ``(registration, calibrated)``; empty: not.
     """
 

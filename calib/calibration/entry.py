@@ -74,12 +74,12 @@ def calibrate(
         robot: A :class:`~.problem.Problem` (its options inside it; no ``data``), or the
             nominal chain or tree of a problem of one term.
         data: What was recorded on ``robot``: measurements (joints in chain order; see
-            :mod:`calib.measurements.csvfile`) or touches
+            :mod:`!calib.measurements.csvfile`) or touches
             (:class:`~calib.measurements.contact_campaign.ContactData`).
         params: Parameter level, one of ``LEVELS`` (default ``auto``; a tree:
             ``TREE_LEVELS``, default ``complete``).
         marker: Guess of each measured point in the tool frame, 3 numbers or ``(K, 3)``
-            [m], or of a contact frame (:attr:`~.problem.Term.guess`; default: the tool
+            [m], or of a contact frame (:attr:`~calib.Term.guess`; default: the tool
             origin).
         validate: Data of other postures to score the result on (never fitted).
         fix: Parameter names held at their start, as the printed table names them
@@ -92,13 +92,13 @@ def calibrate(
         loss: ``linear``, ``soft_l1`` or ``huber`` (scale ``noise_mm``).
         noise_mm: Instrument noise [mm] (default: unknown).
         orientation_weight: Weight of the orientation rows [m/rad] (default: estimated from
-            the data, :mod:`calib.calibration.weighting`).
+            the data, :mod:`!calib.calibration.weighting`).
         max_iterations: Most residual evaluations of each solver run.
         holdout: Fraction of the rows set aside (seeded); not with ``validate``.
         seed: Seed of the holdout draw and of the generic configurations of the rank check.
-        known_planes: Touches: planes given, held (:attr:`~.problem.Problem.known_planes`).
+        known_planes: Touches: planes given, held (:attr:`~calib.Problem.known_planes`).
         progress: Progress bars of the registration, the selection and the fit
-            (:mod:`calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
+            (:mod:`!calib.core.progress`; e.g. ``tqdm.tqdm``), or None.
 
     Returns:
         The result: check ``accepted`` (or call its ``check()``).
@@ -107,7 +107,7 @@ def calibrate(
         DataError: The data do not belong to the robot, are too few, or match it only under
             a usual mistake (which is named).
         InvalidArgumentError: A bad argument, one that does not apply to the problem's shape
-            (:data:`~.options.APPLIES`), an unknown one, or one given by position after
+            (:data:`!options.APPLIES`), an unknown one, or one given by position after
             ``data``.
     """
     options: dict[str, Any] = dict(

@@ -52,9 +52,9 @@ class MeasuredChain(TermPart):
     state (``inner.frame``: the nominal base frame in the measuring frame ``(4, 4)``; markers
     and the measured frame's rotation in the tool frame); ``data``/``held``: its rows fitted
     and held out (outliers left out); ``parameters``: its unknowns' report entries (the
-    frame's ``joint`` is :attr:`joint`); ``outliers``: the registration's; ``residuals``: the
+    frame's ``joint`` is :attr:`!joint`); ``outliers``: the registration's; ``residuals``: the
     fitted state's at ``data`` ``(m, rows)`` [m, rad], rigid joints only (else None), read
-    again by :mod:`.chain_outliers`.
+    again by :mod:`!chain_outliers`.
     """
 
     chain: Chain

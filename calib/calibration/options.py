@@ -118,16 +118,16 @@ class Options:
     """The options of a calibration, chain or tree, checked when made (by name).
 
     A :class:`~.problem.Problem` is its terms and these (and the joint fit's own), and the
-    joint engine's run carries them (:class:`~.register.Run`).
+    joint engine's run carries them (:class:`!register.Run`).
 
     Attributes:
-        params: Parameter level, one of :data:`LEVELS`, or None: the shape's default
-            (``auto``, a tree's ``complete``: :attr:`level`; a tree takes :data:`TREE_LEVELS`,
-            :func:`check_tree_level`).
+        params: Parameter level, one of :data:`!LEVELS`, or None: the shape's default
+            (``auto``, a tree's ``complete``: :attr:`!level`; a tree takes :data:`!TREE_LEVELS`,
+            :func:`!check_tree_level`).
         fix: Parameter names (or ``frame``, ``markers``, ``tool``) held at their start.
         free: Parameter names (a compliance ``c1``.. included) always fitted.
         elastic: Fit joint compliance under gravity (None: only if ``free`` names one).
-        loss: One of :data:`LOSSES` (a robust one's scale: ``noise_mm``).
+        loss: One of :data:`!LOSSES` (a robust one's scale: ``noise_mm``).
         noise_mm: Instrument noise [mm], or None (unknown).
         orientation_weight: Weight of the orientation rows [m/rad], or None: estimated.
         max_iterations: Most residual evaluations of each solver run.

@@ -63,7 +63,7 @@ class Unknowns:
 
     Attributes:
         mount: The target's mounting on its link (6).
-        targets: The target points after the first :data:`GAUGE_POINTS` (3 each).
+        targets: The target points after the first :data:`!GAUGE_POINTS` (3 each).
         intrinsics: The camera's intrinsics (4 + the distortion coefficients).
     """
 

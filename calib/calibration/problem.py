@@ -38,7 +38,7 @@ class Term:
     """One chain (or tree) of the robot and what was recorded on it.
 
     Attributes:
-        robot: The nominal chain or tree (:func:`~calib.kinematics.tree.load_robot`); its
+        robot: The nominal chain or tree (:func:`~calib.load_robot`); its
             base frame is where the data are expressed (an instrument's frame is registered,
             a frame of the robot measures itself), its tool what is measured or touches.
         data: Measurements (position, pose, several markers), touches
@@ -80,12 +80,12 @@ class Term:
 
     @property
     def touches(self) -> bool:
-        """Whether the term's data are touches (no instrument: the joints alone)."""
+        """Whether the term's data are touches (no instrument, the joints alone)."""
         return isinstance(self.data, ContactData)
 
     @property
     def kind(self) -> str:
-        """The data's kind: ``position``, ``pose``, ``markers``, or a contact kind's label."""
+        """The data's kind, ``position``, ``pose``, ``markers``, or a contact kind's label."""
         if isinstance(self.data, ContactData):
             return self.data.kind.label
         if isinstance(self.data, PixelData):
@@ -130,7 +130,7 @@ class Problem(Options):
         pose_weight: Factor of the fixed-pose (closed loop) terms' rows against the others'.
         known_planes: Planes given, by the id the touches name them, each in the base frame of
             the terms that touch it: a frame ``(4, 4)`` (z its normal) or a point and a normal
-            ``(x, y, z, nx, ny, nz)`` [m] (:mod:`~calib.measurements.contact_objects`). Held,
+            ``(x, y, z, nx, ny, nz)`` [m] (:mod:`!calib.measurements.contact_objects`). Held,
             not fitted: their terms fit the contact frame's height along the normal instead
             (default: every plane fitted).
     """

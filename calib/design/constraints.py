@@ -85,7 +85,7 @@ class FilterReport:
         rejected: ``(filter, count)`` per filter applied, in order.
         notes: Remarks (collision pairs disabled, no geometry, ...).
         checked: Candidates the collision and line-of-sight checks looked at (a design
-            checks those it considers, :class:`LazyChecks`), or None (no such check).
+            checks those it considers, :class:`!LazyChecks`), or None (no such check).
     """
 
     candidates: int

@@ -193,7 +193,7 @@ def design(
             ``I`` (mean predicted position error on the reference set).
         measure: ``position`` or ``pose`` (a tree: ``position``), or a contact (``plane``,
             ``plane-point``, ``fixed-point``, ``fixed-pose``; a chain): the candidates are
-            then postures on the contact (:mod:`calib.design.contact_design`).
+            then postures on the contact (:mod:`!calib.design.contact_design`).
         marker: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (a tree: one
             point for every tool, or one per tool; a contact: none).
         params: The calibration's parameter level (``DESIGN_LEVELS``; a tree: ``frames`` or
@@ -204,7 +204,7 @@ def design(
         constraints: Limits of the campaign (default: self-collision checked, no margin).
         seed: Seed of the candidates, the reference set and the random sets.
         random_sets: Random sets of K candidates to compare with.
-        progress: Progress bars of the phases (:mod:`calib.core.progress`; e.g.
+        progress: Progress bars of the phases (:mod:`!calib.core.progress`; e.g.
             ``tqdm.tqdm``), or None.
         readings: Positions of joints off the chain, a row per given candidate (a
             recording's other arm and leg), where the collision and line-of-sight checks
@@ -453,8 +453,24 @@ def evaluate(
     same figure as the design's). The independent columns are chosen at random
     configurations, so that the set's own rank deficiency shows. ``seen`` ``(K, markers)``:
     the markers each configuration measured (None: all; a measurement file's partial
-    marker rows, :func:`~calib.design.configurations.markers_seen`). The other arguments are
-    :func:`design`'s.
+    marker rows, :func:`!calib.design.configurations.markers_seen`).
+
+    Args:
+        chain: The chain or tree, or a catalog name or URDF path (as :func:`design`'s).
+        q: The configurations to score ``(K, n)`` [rad or m].
+        measure: ``position`` or ``pose`` (a tree: ``position``).
+        marker: Measured points in the tool frame ``(3,)`` or ``(K, 3)`` [m] (as
+            :func:`design`'s).
+        params: The calibration's parameter level (as :func:`design`'s).
+        seed: Seed of the reference set and of the configurations of the independent columns.
+        orientation_weight: Weight of the orientation rows of pose data [m/rad].
+        candidates: As :func:`design`'s; given, the reference set is the design's own.
+        constraints: As :func:`design`'s; given, the reference set is the design's own.
+        readings: As :func:`design`'s; given, the reference set is the design's own.
+        seen: The markers each configuration measured ``(K, markers)``, or None: all.
+
+    Returns:
+        The observability indices of ``q`` (I and G over the reference set).
 
     Raises:
         InvalidArgumentError: A bad argument, a contact (its postures are not scored yet), or

@@ -211,7 +211,7 @@ def cross_validate(
         seed: Random folds: the postures shuffled by it before they are cut (each term's
             alike; with a robot and its data, the problem's ``seed`` too, as ``calibrate``'s).
             None (default): contiguous folds in file order, the problem's seed its own.
-        options: :func:`~calib.calibration.entry.calibrate`'s (``progress`` included; not
+        options: :func:`~calib.calibrate`'s (``progress`` included; not
             ``holdout`` nor ``validate``).
 
     Returns:

@@ -61,8 +61,8 @@ class Identifiability:
         n_configs: Number of random configurations m.
         seed: Seed of the configurations.
         n_rows: Rows r of the observation matrix.
-        diag: |R_ii| of the pivoted QR, non-increasing.
-        tolerance: tau = r eps |R_11|.
+        diag: ``|R_ii|`` of the pivoted QR, non-increasing.
+        tolerance: ``tau = r eps |R_11|``.
         base: Base parameters kept, in the order of preference.
         others: Standard parameters not kept (regrouped or zero), in set order.
         zero: Parameters with no effect (zero columns).
@@ -73,11 +73,11 @@ class Identifiability:
         missing: One sentence per error direction the set cannot represent.
         warnings: Reasons not to trust the rank.
         per_tool: For a tree, each tool's chain alone: its name and theoretical count (the
-            tree's count is lower where tools share joints: see :func:`tree_theoretical_count`).
-        snapped: URDF round-off removed before the analysis (by :func:`analyze`), one
+            tree's count is lower where tools share joints: see :func:`!tree_theoretical_count`).
+        snapped: URDF round-off removed before the analysis (by :func:`~calib.analyze`), one
             ``name: value -> snapped`` string per changed parameter.
         timings_ms: Time of each stage [ms].
-        mimic: The chain's mimic joints (set by :func:`analyze`): the offset of each one's
+        mimic: The chain's mimic joints (set by :func:`~calib.analyze`): the offset of each one's
             mimic expression, named ``offset<k>`` after its row k, is one parameter with its
             joint offset (theta_k or r_k) and regroups with it.
     """
@@ -122,12 +122,12 @@ class Identifiability:
 
     @property
     def n_base(self) -> int:
-        """Number of base (identifiable) parameters: the rank."""
+        """Number of base (identifiable) parameters, the rank."""
         return len(self.base)
 
     @property
     def tool_frames(self) -> tuple[str, ...]:
-        """The tool frames: one for a chain, several for a tree."""
+        """The tool frames, one for a chain, several for a tree."""
         return getattr(self.mdh, "tool_frames", (self.tool_frame,))
 
     @property
@@ -142,7 +142,7 @@ class Identifiability:
 
     @property
     def rank(self) -> int:
-        """Numerical rank: #{|R_ii| > tau} of the pivoted QR."""
+        """Numerical rank, the number of pivots ``|R_ii| > tau`` of the pivoted QR."""
         return numerical_rank(self.diag, self.n_rows)[0]
 
     def regrouping_coefficients(
@@ -178,7 +178,7 @@ class Identifiability:
 
     @property
     def gap(self) -> tuple[float, float | None]:
-        """|R_bb| and |R_(b+1)(b+1)|: the smallest kept and largest dropped pivots."""
+        """``|R_bb|`` and ``|R_(b+1)(b+1)|``, the smallest kept and largest dropped pivots."""
         b = self.rank
         last = float(self.diag[b - 1]) if b else 0.0
         nxt = float(self.diag[b]) if b < len(self.diag) else None
@@ -207,7 +207,7 @@ class Identifiability:
         raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
 
     def summary(self) -> str:
-        """The text ``calib analyze`` prints (:func:`~.report.analysis_text`)."""
+        """The text ``calib analyze`` prints (:func:`!report.analysis_text`)."""
         from .report import analysis_text  # the report reads this module
 
         return analysis_text(self)
@@ -222,7 +222,7 @@ class Identifiability:
 
     @property
     def unseen(self) -> tuple[str, ...]:
-        """What the contact can never identify (the scale: only without a prismatic joint)."""
+        """What the contact can never identify (the scale, only without a prismatic joint)."""
         lines = tuple(getattr(self.measurement, "unseen", ()))
         if lines and np.any(self.mdh.sigma == 1):  # a prismatic reading fixes the scale
             lines = tuple(u for u in lines if not u.startswith("without a prismatic joint"))

@@ -52,7 +52,7 @@ class MeasureKind(Protocol):
     Attributes:
         label: The name the kind is given by (``pose``, ``plane``, ...).
         marker: The point of the tool frame whose displacement the position rows of
-            :meth:`jacobian_rows`'s pose-error Jacobian describe [m].
+            :meth:`~calib.Measurement.jacobian_rows`'s pose-error Jacobian describe [m].
         row_names: One name per row.
     """
 
@@ -172,12 +172,12 @@ class Measurement:
 
     @property
     def is_campaign(self) -> bool:
-        """A kind a measured campaign (CSV, simulation, calibration) can hold: pose or position."""
+        """A kind a measured campaign (CSV, simulation, calibration) can hold, pose or position."""
         return self.is_pose or self.is_position
 
     @property
     def is_contact(self) -> bool:
-        """False: an instrument measures the tool."""
+        """False, an instrument measures the tool."""
         return False
 
     def unknown_constants(self, n_markers: int = 1) -> int:
@@ -267,8 +267,9 @@ class Measurement:
         Args:
             R: Predicted tool rotations in the base frame ``(m, 3, 3)``.
             p: Predicted tool origins in the base frame ``(m, 3)`` [m].
-            measured: What was measured (:class:`Observed`), or the measured pose of the
-                tool per configuration ``(m, 4, 4)`` in the instrument's frame.
+            measured: What was measured
+                (:class:`~calib.identification.measures.Observed`), or the measured pose
+                of the tool per configuration ``(m, 4, 4)`` in the instrument's frame.
             markers: The points of :meth:`predict` (default: this kind's marker).
             frame: The instrument's frame of :meth:`predict`.
             tool_rotation: The measured frame of :meth:`predict`.

@@ -96,10 +96,10 @@ class Pinhole:
     """A pinhole camera with OpenCV's distortion model (the module docstring has it).
 
     Attributes:
-        fx: Focal length along the columns [px], positive, at most :data:`MAX_PIXELS`.
-        fy: Focal length along the rows [px], positive, at most :data:`MAX_PIXELS`.
-        cx: Column of the principal point [px], within :data:`MAX_PIXELS` of 0.
-        cy: Row of the principal point [px], within :data:`MAX_PIXELS` of 0.
+        fx: Focal length along the columns [px], positive, at most :data:`!MAX_PIXELS`.
+        fy: Focal length along the rows [px], positive, at most :data:`!MAX_PIXELS`.
+        cx: Column of the principal point [px], within :data:`!MAX_PIXELS` of 0.
+        cy: Row of the principal point [px], within :data:`!MAX_PIXELS` of 0.
         distortion: The distortion coefficients in OpenCV's order, 4, 5, 8, 12 or 14 of
             them (``tx``, ``ty`` [rad]; the others have no unit).
     """

@@ -140,7 +140,7 @@ class MDHModel:
         sign: +1, or -1 for a joint traversed backwards (its URDF position enters its row
             negated), shape ``(n+2,)``; +1 for the fixed rows. Default: all +1.
         source: The chain a model was converted from and the parallel tolerance of the
-            conversion (set by :func:`from_chain`): :meth:`idealized` then converts the
+            conversion (set by :func:`~calib.from_chain`): :meth:`idealized` then converts the
             chain's URDF with round-off removed. None for other models.
     """
 
@@ -227,7 +227,7 @@ class MDHModel:
     def idealized(self, angle_tol: float = SNAP_ANGLE, length_tol: float = SNAP_LENGTH) -> MDHModel:
         """A copy with URDF round-off removed, for structural (rank) analysis.
 
-        A model converted from a URDF chain (:func:`from_chain`) starts from the conversion
+        A model converted from a URDF chain (:func:`~calib.from_chain`) starts from the conversion
         of the URDF geometry itself with round-off removed (each ``rpy`` angle within
         ``SNAP_ANGLE`` of a multiple of 90 degrees snapped to it, each ``xyz`` coordinate and
         axis component under ``SNAP_LENGTH`` / ``SNAP_ANGLE`` to zero): the lengths that a
@@ -256,12 +256,12 @@ class MDHModel:
 
     @property
     def antecedent(self) -> np.ndarray:
-        """Row each row is placed from: ``k - 1`` (-1 for row 0), as a tree's antecedents."""
+        """Row each row is placed from, ``k - 1`` (-1 for row 0), as a tree's antecedents."""
         return np.arange(-1, self.n + 1)
 
     @property
     def tool_rows(self) -> tuple[int, ...]:
-        """Rows of the tool frames: ``(n + 1,)``."""
+        """Rows of the tool frames, ``(n + 1,)``."""
         return (self.n + 1,)
 
     def kinematics(self, q: np.ndarray) -> Kinematics:
@@ -275,7 +275,7 @@ class MDHModel:
 
         Raises:
             InvalidArgumentError: ``q`` has the wrong shape, NaN or values beyond
-                :data:`~calib.core.checks.MAX_JOINT_POSITION`.
+                :data:`!calib.core.checks.MAX_JOINT_POSITION`.
         """
         q = joint_positions(q, self.n)
         m, rows, n = q.shape[0], self.n + 2, self.n
@@ -477,7 +477,7 @@ def from_chain(
     Args:
         chain: The serial chain.
         parallel_tol: Parallel-axis tolerance [rad].
-        zero: The chain's :meth:`~.robot.Chain.zero_frames`, when already computed.
+        zero: The chain's :meth:`~calib.Chain.zero_frames`, when already computed.
 
     Returns:
         The MDH model, whose forward kinematics equals Pinocchio's.

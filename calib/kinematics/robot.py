@@ -205,7 +205,7 @@ class Chain(Robot):
     the two frames, then down to the tool frame. The joints of the first part (none when the
     base is an ancestor of the tool) are traversed backwards, from child to parent: their
     ``sign`` is -1, and a positive URDF position moves the tool side by the opposite motion
-    (see :mod:`calib.kinematics.mdh`).
+    (see :mod:`!calib.kinematics.mdh`).
 
     Attributes:
         name: Robot name (catalog name or URDF file stem).
@@ -229,7 +229,7 @@ class Chain(Robot):
         q_ref: Pinocchio configuration of the joints outside the chain.
         ideal_model: The same model built from the URDF with round-off removed (see
             :meth:`idealized`), or None.
-        coupling: How mimic joints follow the independent ones (:mod:`calib.kinematics.mimic`),
+        coupling: How mimic joints follow the independent ones (:mod:`!calib.kinematics.mimic`),
             or None (no chain joint has a ``<mimic>`` tag).
     """
 
@@ -270,7 +270,7 @@ class Chain(Robot):
     def idealized(self) -> Chain:
         """The chain on its URDF with round-off removed, for structural analysis.
 
-        The model is built from :func:`~.urdf_xml.kinematic_xml` with ``snap``; a chain
+        The model is built from :func:`!urdf_xml.kinematic_xml` with ``snap``; a chain
         without such a model returns itself.
         """
         if self.ideal_model is None:
@@ -317,7 +317,7 @@ class Chain(Robot):
 
         Raises:
             InvalidArgumentError: Bad count or seed, or an analysis of that many
-                configurations would not fit in :data:`~calib.core.checks.MAX_WORK_BYTES`.
+                configurations would not fit in :data:`!calib.core.checks.MAX_WORK_BYTES`.
         """
         check_count(m, "the number of configurations")
         check_count(seed, "the seed", minimum=0)
@@ -384,7 +384,7 @@ class Chain(Robot):
         """Each chain joint's frame (before its motion) and the tool frame at q = 0.
 
         Args:
-            oMi: The model's :func:`~.frames.joint_placements` at this chain's zero
+            oMi: The model's :func:`!frames.joint_placements` at this chain's zero
                 configuration, holding the base and tool frames' joints and their ancestors
                 (default: computed).
 

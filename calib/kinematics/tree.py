@@ -46,8 +46,6 @@ class Tree(Robot):
     Attributes:
         name: Robot name (catalog name or URDF file stem).
         urdf_path: The URDF file, as given (messages and reports name it).
-        urdf_resolved: The same file resolved when it was read (the chains'
-            :attr:`~calib.kinematics.robot.Chain.urdf_resolved`).
         chains: The chain to each tool, in tool order (they share one Pinocchio model).
         joint_ids: Pinocchio joint indices of the tree, antecedents first.
         joint_names: URDF names of those joints.
@@ -57,7 +55,7 @@ class Tree(Robot):
         lower: Lower sampling bound per joint [rad or m].
         upper: Upper sampling bound per joint [rad or m].
         coupling: How the tree's mimic joints follow the independent joints
-            (:func:`~calib.kinematics.mimic.tree_coupling`), or None when no tree joint has a
+            (:func:`!calib.kinematics.mimic.tree_coupling`), or None when no tree joint has a
             ``<mimic>`` tag.
     """
 
@@ -76,7 +74,10 @@ class Tree(Robot):
 
     @property
     def urdf_resolved(self) -> Path:
-        """The URDF file resolved when it was read (its chains')."""
+        """The URDF file resolved when it was read.
+
+        The chains' :attr:`~calib.Chain.urdf_resolved`, which they share.
+        """
         return self.chains[0].urdf_resolved
 
     @property
@@ -254,7 +255,7 @@ def load_robot(
             catalog entry's tool or tools, or a URDF's deepest tip.
 
     Raises:
-        CalibError: See :func:`~calib.kinematics.robot.load_chain` and :func:`load_tree`;
+        CalibError: See :func:`~calib.load_chain` and :func:`!load_tree`;
             a loaded robot with another base or tool (ignored before).
     """
     if isinstance(robot, Robot):

@@ -74,7 +74,7 @@ class TreeMDH:
         base_frame: Name of frame -1.
         tool_frames: Names of the tool frames, one per tool row.
         source: The tree a model was converted from and the parallel tolerance (set by
-            :func:`from_tree`), or None.
+            :func:`~calib.from_tree`), or None.
     """
 
     antecedent: np.ndarray
@@ -262,7 +262,7 @@ def _paths(model: TreeMDH) -> list[np.ndarray]:
 def from_tree(tree: Tree, parallel_tol: float = PARALLEL_TOL) -> TreeMDH:
     """Convert a tree to its Khalil-Kleinfinger MDH model (base frame = frame -1).
 
-    Each path is converted as a chain (:func:`~calib.kinematics.mdh.from_chain`); where a frame has
+    Each path is converted as a chain (:func:`~calib.from_chain`); where a frame has
     several children, the path through its first child fixes its x axis, and every other
     child gets gamma and b, the difference of the angle and distance that close the
     antecedent's row along its own path.

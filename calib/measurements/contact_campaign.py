@@ -306,7 +306,23 @@ def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str
 
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
-    """Read and check a contact CSV file (see the module docstring for the format)."""
+    """Read and check a contact CSV file (see the module docstring for the format).
+
+    Args:
+        path: The CSV file: an id column (``plane`` or ``point``, by the kind) and the
+            chain's joint positions [rad or m], one touch per line.
+        chain: The chain that touches (without mimic joints).
+        measure: The contact kind, as its label (``plane``, ``plane-point``,
+            ``fixed-point``, ``fixed-pose``) or a contact kind object.
+
+    Returns:
+        The touches, ``path`` resolved.
+
+    Raises:
+        DataError: The file is missing, unreadable or too large, or its content is not valid
+            (a missing joint, an id column that does not match the kind, a bad cell).
+        InvalidArgumentError: Not a contact kind, or a chain with mimic joints.
+    """
     data = parse_contacts(read_data_text(path), chain, measure, str(path))
     return dataclasses.replace(data, path=str(Path(path).resolve()))
 
@@ -417,7 +433,7 @@ def simulate_contacts(
 
     Args:
         chain: The nominal chain (no mimic joints), or a catalog name or URDF path (as
-            :func:`~calib.measurements.simulation.simulate`).
+            :func:`~calib.simulate`).
         configs: Number of touches (>= 1).
         measure: ``plane``, ``plane-point``, ``fixed-point`` or ``fixed-pose``.
         contacts: Number of planes or points (>= 1, at most ``configs``: each is touched).
@@ -427,9 +443,9 @@ def simulate_contacts(
         seed: Seed (an integer >= 0).
         params: Parameter set perturbed: ``complete`` or ``paper``.
         objects: The objects touched, by name, in the base frame (a floor, a known table:
-            ``{"floor": (x, y, z, nx, ny, nz)}``; :mod:`~.contact_objects`), instead of
+            ``{"floor": (x, y, z, nx, ny, nz)}``; :mod:`!contact_objects`), instead of
             ``contacts`` drawn ones. With ``error_mm=0, error_mrad=0`` on a chain of a
-            :func:`~.true_robot.true_robot`'s URDF, several chains touch one floor of one
+            :func:`!true_robot.true_robot`'s URDF, several chains touch one floor of one
             true robot.
 
     Raises:

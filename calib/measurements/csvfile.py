@@ -122,7 +122,7 @@ class Columns:
         orientation: ``auto`` (from the column names: qx..qw, rx..rz or roll, pitch, yaw;
             none: position only), one of ``ORIENTATION_FORMATS``, or ``markers``: K >= 3
             points of one rigid set read as a pose, marker 1's position and the set's
-            orientation (:mod:`calib.measurements.marker_set`).
+            orientation (:mod:`!calib.measurements.marker_set`).
         orientation_columns: Column names of the orientation, in the format's order
             (default: the format's names, see ``DEFAULT_ORIENTATION_COLUMNS``).
         units: Unit of the position columns, ``m`` or ``mm``.
@@ -539,8 +539,8 @@ def read_measurements(
 
     Raises:
         DataError: The file is missing, unreadable, not UTF-8 or larger than
-            :data:`MAX_MEASUREMENTS_BYTES`, or its content is invalid (see
-            :func:`parse_measurements`).
+            :data:`!MAX_MEASUREMENTS_BYTES`, or its content is invalid (see
+            :func:`!parse_measurements`).
     """
     text = read_data_text(path)
     return parse_measurements(text, chain, str(path), columns, str(Path(path).resolve()))
@@ -581,6 +581,10 @@ def measurements_csv(data: Measurements) -> str:
 
 def write_measurements(path: str | Path, data: Measurements) -> None:
     """Write measurements as CSV atomically (the file is complete or not written at all).
+
+    Args:
+        path: The CSV file to write (replaced if it exists).
+        data: The measurements, written as :func:`read_measurements` reads them back.
 
     Raises:
         InvalidArgumentError: ``data`` is no :class:`Measurements`, or ``path`` no path.

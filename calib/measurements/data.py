@@ -93,7 +93,7 @@ class Angles:
     """Orientation columns of a file in an angle format, as read (before any conversion).
 
     Kept so that the usual mistakes of such columns (degrees, the order of roll, pitch and
-    yaw) can be tried on them (:mod:`calib.calibration.diagnosis`).
+    yaw) can be tried on them (:mod:`!calib.calibration.diagnosis`).
 
     Attributes:
         format: ``rotvec`` or ``rpy``.
@@ -250,7 +250,7 @@ class Measurements:
 
     @property
     def kind(self) -> Measurement:
-        """What was measured: the pose when orientations are present, else the position."""
+        """What was measured, the pose when orientations are present, else the position."""
         return POSITION if self.quaternion is None else POSE
 
     @property
@@ -308,12 +308,12 @@ class Measurements:
 
     @property
     def joint_columns(self) -> tuple[str, ...]:
-        """Names of the joint columns: the joints, or the independent ones (mimic joints)."""
+        """Names of the joint columns, the joints or the independent ones (mimic joints)."""
         return self.joint_names if self.coupling is None else self.coupling.names
 
     @property
     def position_columns(self) -> tuple[str, ...]:
-        """Names of the position columns: ``x, y, z`` or ``x1, y1, z1, ..., zK``."""
+        """Names of the position columns, ``x, y, z`` or ``x1, y1, z1, ..., zK``."""
         if self.n_markers == 1 and not set(POSITION_COLUMNS) & set(self.joint_columns):
             return POSITION_COLUMNS
         return tuple(f"{a}{k + 1}" for k in range(self.n_markers) for a in POSITION_COLUMNS)

@@ -153,9 +153,12 @@ class Intrinsics:
 def read_intrinsics(path: str | Path) -> Intrinsics:
     """Read and check an intrinsics file (see the module docstring for the formats).
 
+    Args:
+        path: The file: OpenCV's FileStorage YAML, plain YAML or JSON.
+
     Raises:
         DataError: The file is missing, unreadable or too large, or its content is not valid
-            (see :func:`parse_intrinsics`).
+            (see :func:`!parse_intrinsics`).
     """
     found = parse_intrinsics(read_data_text(path, MAX_INTRINSICS_BYTES), str(path))
     return dataclasses.replace(found, path=str(Path(path).resolve()))

@@ -355,9 +355,12 @@ def _check_metres(position: np.ndarray, link, source: str, lines: list[int]) -> 
 def read_target(path: str | Path) -> Target:
     """Read and check a target file (see the module docstring for the format).
 
+    Args:
+        path: The target file.
+
     Raises:
         DataError: The file is missing or unreadable, or its content is not valid
-            (:func:`parse_target`).
+            (:func:`!parse_target`).
     """
     return parse_target(read_data_text(path), str(path), str(Path(path).resolve()))
 
@@ -529,7 +532,16 @@ def read_observations(
     cameras: Mapping[str, Intrinsics],
     target: Target | None = None,
 ) -> PixelObservations:
-    """Read and check an observation file (arguments as :func:`parse_observations`).
+    """Read and check an observation file (see the module docstring for the format).
+
+    Args:
+        path: The observation CSV file.
+        joints: The joints whose columns are read (those of the chains involved).
+        cameras: Each camera's intrinsics, by the name the ``camera`` column gives.
+        target: The target, whose point ids the ``point`` column names; None: not checked.
+
+    Returns:
+        The observations, joints in the order of ``joints``.
 
     Raises:
         DataError: The file is missing or unreadable, or its content is not valid.
