@@ -221,7 +221,10 @@ def best_prefix(sq: np.ndarray) -> int:
 
 
 def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
-    """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps."""
+    """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps.
+
+    The steps are the first subset's (the whole data) only: the folds' are not read.
+    """
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
@@ -236,13 +239,19 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
-        points = float(np.sum(count[mask])) * rows / 3  # the file's points they stand for
-        loo = [float(v) for v in np.sqrt(np.sum(errors, axis=-1) / points)]  # RMS per point
-        steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
-        steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
         whole = sel + [c - fixed for c in order]
-        out.append((sel + [c - fixed for c in order[:k]], steps[: k + 1], whole, steps))
+        steps = [] if out else _steps(errors, count[mask], rows, names, sel, whole)
+        out.append((whole[: len(sel) + k], steps[: k + 1], whole, steps))
     return out
+
+
+def _steps(errors, count, rows, names, sel, whole) -> list[Step]:
+    """A path's steps: the start's RMS left-out error per point, then each addition's."""
+    points = float(np.sum(count)) * rows / 3  # the file's points they stand for
+    loo = [float(v) for v in np.sqrt(np.sum(errors, axis=-1) / points)]  # RMS per point
+    steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
+    added = whole[len(sel) :]
+    return steps + [Step(names[c], v) for c, v in zip(added, loo[1:], strict=True)]
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
