@@ -49,10 +49,13 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.sum(loo**2, axis=(2, 3))
 
 
-def spd_solve(M: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting)."""
+def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting).
+
+    ``overwrite``: ``M`` and ``y`` (C-contiguous) are worked on in place, not copied.
+    """
     n = len(y)
-    a, x = np.array(M, order="C"), np.array(y, order="C")
+    a, x = (M, y) if overwrite else (np.array(M, order="C"), np.array(y, order="C"))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for p in range(n - 1):
             f = a[p + 1 :, p] / a[p, p]

@@ -173,20 +173,28 @@ def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
     b, m = Ub.shape[:2]
     S = wt.shape[1]
     Uc = np.ascontiguousarray(np.transpose(Ub, (2, 0, 3, 1)))  # (rows, b, width, m)
-    M = _symmetric_hats(Uc, wt)  # (rows, rows, b, strengths, m): component-major
-    M -= fixed[:, :, :, None]
-    diag = np.arange(rows)
-    M[diag, diag] += 1.0
-    fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
-    y = np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
-    if rows <= SMALL:
-        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1))  # M kept for LAPACK
+    system = (Uc, wt, fixed, coef, Ub, rb)
+    if rows <= SMALL:  # solved in place (no copies this large), made again for LAPACK
+        M, y = _system(*system)
+        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1), overwrite=True)
         sq = np.einsum("is,is->s", x, x).reshape(b, S, m)
         if np.isfinite(sq).all():
             return sq
+    M, y = _system(*system)
+    diag = np.arange(rows)
     M[diag, diag] = 1.0 - (1.0 - M[diag, diag])  # I - (I - M): the digits LAPACK always had
     blocks = np.moveaxis(M.reshape(rows, rows, b * S, m), (0, 1), (2, 3))  # a view: no copy
     return lu_errors(blocks, np.moveaxis(y.reshape(rows, b * S, m), 0, 2)).reshape(b, S, m)
+
+
+def _system(Uc, wt, fixed, coef, Ub, rb) -> tuple[np.ndarray, np.ndarray]:
+    """``I - hat`` ``(rows, rows, b, strengths, m)`` and the residuals ``(rows, b, s, m)``."""
+    M = _symmetric_hats(Uc, wt)  # component-major
+    M -= fixed[:, :, :, None]
+    diag = np.arange(len(Uc))
+    M[diag, diag] += 1.0
+    fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
+    return M, np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
 
 
 def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
