@@ -52,8 +52,7 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
 def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
     """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting).
 
-    ``overwrite``: ``M`` and ``y`` (C-contiguous) are worked on in place, not copied.
-    """
+    ``overwrite``: ``M`` and ``y`` (C-contiguous) worked on in place, not copied."""
     n = len(y)
     a, x = (M, y) if overwrite else (np.array(M, order="C"), np.array(y, order="C"))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):

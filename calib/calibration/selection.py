@@ -231,8 +231,7 @@ def best_prefix(sq: np.ndarray) -> int:
 def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
     """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps.
 
-    The steps are the first subset's (the whole data) only: the folds' are not read.
-    """
+    Steps: the first subset's (the whole data) only, the folds' not read."""
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
