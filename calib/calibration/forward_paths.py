@@ -50,10 +50,8 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
-    """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting).
-
-    ``overwrite``: ``M`` and ``y`` (C-contiguous) worked on in place, not copied."""
-    n = len(y)
+    """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting)."""
+    n = len(y)  # overwrite: M and y (C-contiguous) worked on in place, not copied
     a, x = (M, y) if overwrite else (np.array(M, order="C"), np.array(y, order="C"))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for p in range(n - 1):
@@ -115,7 +113,7 @@ class _Batch:
         self.lost, self.any_lost = np.zeros((b, m), dtype=bool), False
         self.S: list[np.ndarray] = []  # empty: to compute afresh
         self.nu2 = self.lim = np.zeros(self.alive.shape)
-        self.Minv = self.v = self.vv = self.sq = self.single = np.zeros(0)
+        self.Minv = self.v = self.vv = self.sq = np.zeros(0)
         self._invert(self.H0)
 
     def hat(self) -> np.ndarray:

@@ -229,14 +229,12 @@ def best_prefix(sq: np.ndarray) -> int:
 
 
 def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
-    """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps.
-
-    Steps: the first subset's (the whole data) only, the folds' not read."""
+    """Per subset ``train``: the kept candidates and steps, then the whole path's order, steps."""
     sel = list(forced)
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
     spread, count = repeats
-    out = []
+    out: list[tuple[list[int], list[Step], list[int], list[Step]]] = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
     found = (  # a batch at a time: each path's errors (steps x configurations) then dropped
         p
@@ -247,7 +245,7 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
         errors = errors + spread[mask]
         k = best_prefix(errors)
         whole = sel + [c - fixed for c in order]
-        steps = [] if out else _steps(errors, count[mask], rows, names, sel, whole)
+        steps = [] if out else _steps(errors, count[mask], rows, names, sel, whole)  # folds' unread
         out.append((whole[: len(sel) + k], steps[: k + 1], whole, steps))
     return out
 
