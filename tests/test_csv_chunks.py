@@ -43,7 +43,7 @@ def test_chunks_give_python_float_of_every_cell(ur5, monkeypatch):
         (
             "",
             "f.csv (row 9, column 'z'): empty cell: a marker not seen leaves all of x, y, z "
-            "empty, this row has 1 of them",
+            "empty (or NaN), this row has 1 of them",
         ),
         ("1,2", "f.csv (row 9): expected 9 cells, found 10"),
     ],

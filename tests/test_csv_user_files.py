@@ -137,3 +137,25 @@ def test_header_errors_name_the_header_row_below_comment_lines(ur5, tmp_path):
     path.write_text(f"{NOTES}{joints}\n0,0,0,0,0\n")
     with pytest.raises(DataError, match=r"row 3\): no 'image' column"):
         read_image_joints(path)
+
+
+def test_a_row_whose_one_point_is_written_nan_says_to_leave_it_out(ur5, tmp_path, capsys):
+    """A tracker's export with its lost beam written NaN (MATLAB, NumPy): the point is not
+    seen, so a row of one point measures nothing: one line saying so, exit 2, nothing
+    written; the row commented out, the file is read without it."""
+    lines = _lines(ur5)
+    cells = lines[3].split(",")
+    nan_row = ",".join([*cells[:6], "NaN", "nan", "NaN"])
+    path, out = tmp_path / "tracker.csv", tmp_path / "cal.urdf"
+    path.write_text("\n".join([*lines[:3], nan_row, *lines[4:]]) + "\n")
+    assert main(["calibrate", "ur5", "--data", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [
+        f"calib: error: {path} (row 4): empty cells: this row measures no point: leave the row "
+        "out (start it with #)"
+    ]
+    assert not out.exists()
+    path.write_text("\n".join([*lines[:3], "#" + nan_row, *lines[4:]]) + "\n")
+    data = read_measurements(path, ur5)
+    assert data.rows == (2, 3, *range(5, len(lines) + 1))
+    assert np.array_equal(data.position, _cells([*lines[1:3], *lines[4:]])[:, 6:9])

@@ -23,6 +23,7 @@ from calib.design.design import (
     evaluate,
 )
 from calib.design.exchange import optimal_subset
+from calib.exceptions import URDFError
 
 
 def _same_rows(a: np.ndarray, b: np.ndarray) -> bool:
@@ -145,7 +146,7 @@ def test_a_missing_mesh_names_the_mesh_and_the_option_that_skips_it(tmp_path, ca
     assert sight.endswith("(the line of sight and the obstacles are checked against the meshes)")
     chain = calib.load_chain(urdf, "base", "tool")
     hint = "(constraints=calib.design.constraints.Constraints(collision=False))"
-    with pytest.raises(calib.URDFError) as info:  # Constraints is not in calib's namespace
+    with pytest.raises(URDFError) as info:  # Constraints is not in calib's namespace
         design(chain, 5)
     assert str(info.value).endswith(hint), info.value
     assert design(chain, 5, constraints=calib.design.constraints.Constraints(collision=False))
@@ -274,7 +275,7 @@ def test_package_meshes_of_a_ros_package_layout_are_found(tmp_path, monkeypatch)
     assert [g.meshPath for g in geometry.geometryObjects] == [str(package / "meshes" / "link1.stl")]
     assert design(chain, 5).q.shape == (5, 4)
     (package / "meshes" / "link1.stl").unlink()
-    with pytest.raises(calib.URDFError, match="package:// is looked up in the URDF's folders"):
+    with pytest.raises(URDFError, match="package:// is looked up in the URDF's folders"):
         design(chain, 5)
 
 

@@ -28,13 +28,13 @@ import calib
 from calib import (
     CalibError,
     InvalidArgumentError,
-    URDFError,
     analyze,
     from_chain,
     load_chain,
 )
 from calib.cli.commands import main
 from calib.core.fileio import read_bytes_limited, read_text_limited
+from calib.exceptions import URDFError
 from calib.kinematics.urdf_xml import MAX_COORDINATE, MAX_URDF_BYTES
 
 DATA = Path(__file__).parent / "data"

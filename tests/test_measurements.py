@@ -178,11 +178,24 @@ BAD_CASES = {
         "qw",
         "missing orientation column",
     ),
-    "NaN cell": (
+    "NaN cell": (  # one coordinate of a point missing, as NumPy writes it
         lambda c: _text(c, [_good_row(c), [*_good_row(c)[:7], "nan", "0.2"]]),
         3,
         "y",
-        "not a number: 'nan'",
+        "empty cell: a marker not seen leaves all of x, y, z empty (or NaN), this row has 1 of "
+        "them",
+    ),
+    "point not seen written NaN": (  # MATLAB's writematrix of a tracker's lost beam
+        lambda c: _text(c, [_good_row(c), [*_good_row(c)[:6], "NaN", "NaN", "NaN"]]),
+        3,
+        None,
+        "empty cells: this row measures no point: leave the row out (start it with #)",
+    ),
+    "joint written NaN": (
+        lambda c: _text(c, [[*_good_row(c)[:3], " -NaN", *_good_row(c)[4:]]]),
+        2,
+        "wrist_1_joint",
+        "'-NaN': a value not measured leaves the row out (start it with #)",
     ),
     "infinite cell": (
         lambda c: _text(c, [[*_good_row(c)[:2], "-inf", *_good_row(c)[3:]]]),

@@ -21,8 +21,9 @@ from conftest import ANALYSABLE, COUPLED, chain_of
 from pinref import MimicChain
 
 import calib
-from calib import ChainError, DataError, URDFError, analyze, from_chain, load_chain
+from calib import DataError, analyze, from_chain, load_chain
 from calib.cli.commands import main
+from calib.exceptions import ChainError, URDFError
 from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
 from calib.measurements.csvfile import measurements_csv, parse_measurements, simulate
 

@@ -73,6 +73,29 @@ def test_empty_cells_of_a_marker_are_that_marker_not_seen(tmp_path, capsys):
     assert markers_seen(full, chain) is None
 
 
+def test_a_marker_written_nan_is_that_marker_not_seen(tmp_path):
+    """MATLAB, NumPy and spreadsheets write a lost reading NaN (or #N/A): read as empty cells,
+    by the reader and by ``design``'s file reading alike."""
+    full = simulate(tmp_path / "m.csv", 12, 1, 0.0)
+    seen = blank(full, tmp_path / "b.csv", 2)
+    text = (tmp_path / "b.csv").read_text()
+    nans = iter(["NaN", "nan", "#N/A", "-NaN"] * len(text))
+    (tmp_path / "n.csv").write_text(
+        "\n".join(",".join(c or next(nans) for c in r.split(",")) for r in text.splitlines())
+    )
+    assert (
+        "NaN" in (tmp_path / "n.csv").read_text() and ",," not in (tmp_path / "n.csv").read_text()
+    )
+    chain = load_chain("ur5")
+    data, empty = (
+        read_measurements(tmp_path / "n.csv", chain),
+        read_measurements(tmp_path / "b.csv", chain),
+    )
+    assert np.array_equal(data.seen, seen) and not seen.all()
+    assert np.array_equal(data.position, empty.position, equal_nan=True)
+    assert np.array_equal(markers_seen(tmp_path / "n.csv", chain), seen)
+
+
 @pytest.mark.parametrize(
     ("cells", "column", "count"), [(("x2",), "x2", 1), (("y2", "z2"), "y2", 2)]
 )
@@ -88,7 +111,7 @@ def test_one_or_two_empty_cells_of_a_marker_are_an_error(tmp_path, cells, column
         read_measurements(tmp_path / "b.csv", load_chain("ur5"))
     assert str(error.value).endswith(
         f"b.csv (row 5, column '{column}'): empty cell: a marker not seen leaves all of "
-        f"x2, y2, z2 empty, this row has {count} of them"
+        f"x2, y2, z2 empty (or NaN), this row has {count} of them"
     )
 
 

@@ -20,7 +20,6 @@ from pinref import PathRef, own_random_q, rot, trans
 
 import calib
 from calib import (
-    ChainError,
     InvalidArgumentError,
     Kind,
     Measurement,
@@ -38,6 +37,7 @@ from calib import (
     simulate,
 )
 from calib.cli.commands import main
+from calib.exceptions import ChainError
 from calib.kinematics.catalog import catalog_entry
 
 FK_TOL = 1e-10

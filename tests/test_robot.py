@@ -16,15 +16,14 @@ from conftest import ANALYSABLE, chain_of, mdh_of
 from pinref import own_random_q, pin_config, pin_frame
 
 import calib
-from calib import (
+from calib import CalibError, load_chain
+from calib.exceptions import (
     AmbiguousFrameError,
-    CalibError,
     ChainError,
     FrameNotFoundError,
     RobotNotFoundError,
     UnsupportedJointError,
     URDFError,
-    load_chain,
 )
 
 DATA = Path(__file__).parent / "data"

@@ -31,6 +31,7 @@ from calib import (
     tree_parameters,
 )
 from calib.cli.commands import main
+from calib.exceptions import ChainError
 
 FK_TOL = 1e-10
 MARKER = (0.011, 0.023, 0.037)
@@ -360,7 +361,7 @@ def test_cli_tree_errors_are_one_line(capsys):
 
 
 def test_load_chain_of_a_catalog_tree_names_its_tools():
-    with pytest.raises(calib.ChainError, match="tree of 5 tools"):
+    with pytest.raises(ChainError, match="tree of 5 tools"):
         load_chain("talos")
     assert load_chain("talos", tool="left_sole_link").n == 6
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..identification.report import format_table
 from ..kinematics.elastic import gravity_in_base
+from ..kinematics.mdh import in_chart_of
 from ..kinematics.placement_export import instrument_joint
 from ..kinematics.urdf_export import read_urdf_source, urdf_tool_frame
 from ..kinematics.urdf_links import marker_link_names
@@ -115,7 +116,8 @@ def chain_report(
     train = (view.before, view.after, view.urdf_after)
     errors = {"train": errors_part(*train), "held_out": None if held is None else held.in_mm()}
     own = {p["name"] for p in part.parameters}  # named as the chain names them: frame.z
-    nominal, calibrated = view.nominal.rows(), view.calibrated.rows()
+    nominal = view.nominal.rows()
+    calibrated = in_chart_of(view.calibrated, view.nominal).rows()  # comparable row by row
     g = gravity_in_base(part.chain).tolist()  # [m/s^2]
     gravity = {"frame": part.chain.base_frame, "vector": g}
     std, weight = view.predicted_std, view.orientation_weight

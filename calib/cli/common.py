@@ -346,10 +346,15 @@ def add_chain_args(p: Group, trees: bool = False) -> None:
             "--tool",
             action="append",
             help="tool frame; give it several times for a tree: the chains to each tool, "
-            "shared joints once (default: the catalog's tool or tools, or the deepest tip)",
+            "shared joints once (default: the catalog's tool or tools, or the deepest tip, a "
+            "mimic gripper's fingers passed over)",
         )
     else:
-        p.add_argument("--tool", help="tool frame (default: the catalog's, or the deepest tip)")
+        p.add_argument(
+            "--tool",
+            help="tool frame (default: the catalog's, or the deepest tip, a mimic gripper's "
+            "fingers passed over)",
+        )
 
 
 def add_marker_arg(p: Group, several: bool = False) -> None:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import importlib
 import sys
+import warnings
 from collections.abc import Callable, Mapping
 
-__all__ = ["attributes"]
+__all__ = ["attributes", "moved"]
 
 
 def attributes(package: str, table: Mapping[str, str]) -> Callable[[str], object]:
@@ -22,6 +23,34 @@ def attributes(package: str, table: Mapping[str, str]) -> Callable[[str], object
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         value = getattr(importlib.import_module(f"{package}.{table[name]}"), name)
         setattr(sys.modules[package], name, value)  # the next use is a plain attribute
+        return value
+
+    return lookup
+
+
+def moved(package: str, table: Mapping[str, str], until: str) -> Callable[[str], object]:
+    """A module ``__getattr__`` for names that left ``package``'s top level.
+
+    ``package.<name>`` still gives ``package.<table[name]>.<name>``, with a
+    ``DeprecationWarning`` naming that path, once: the name is then a plain attribute (kept
+    out of ``__all__`` and ``dir()``).
+
+    Args:
+        package: The package's ``__name__``.
+        table: Attribute name -> submodule (relative to the package) where it now lives.
+        until: The version of ``package`` that removes the old names (``"0.2"``).
+    """
+
+    def lookup(name: str) -> object:
+        path = f"{package}.{table[name]}"
+        value = getattr(importlib.import_module(path), name)
+        warnings.warn(
+            f"{package}.{name} is {path}.{name}: import it from there "
+            f"({package}.{name} goes in {package} {until})",
+            DeprecationWarning,
+            stacklevel=3,  # the caller of the package's __getattr__: the user's line
+        )
+        setattr(sys.modules[package], name, value)  # warned once: the next use is plain
         return value
 
     return lookup

@@ -38,6 +38,7 @@ from ..measurements.joint_columns import (
 )
 from ..measurements.limits import check_limits
 from ..measurements.pixels import OBSERVATION_COLUMNS
+from ..measurements.unseen import left_blank
 
 _MAX_CONFIGS_BYTES = 256 << 20
 """Largest configurations file read [B] (a million configurations of 20 joints fit)."""
@@ -210,7 +211,7 @@ def points_in_file(path: str | Path, chain: Chain | Tree) -> int:
 def markers_seen(path: str | Path, chain: Chain | Tree) -> np.ndarray | None:
     """Which of a measurement file's points each row sees ``(m, K)``, None: every one.
 
-    A point's ``x, y, z`` cells all empty in a row: not seen there (an occluded marker,
+    A point's ``x, y, z`` cells all empty (or ``NaN``) in a row: not seen there (an occluded marker,
     :mod:`calib.measurements.unseen`); a file of a tree's tools (a ``tool`` column) or of no
     point: None.
 
@@ -225,7 +226,7 @@ def markers_seen(path: str | Path, chain: Chain | Tree) -> np.ndarray | None:
     names = [f"{a}{i + 1}" for i in range(k) for a in "xyz"] if "x1" in header else list("xyz")
     index = [header.index(n) for n in names]
     seen = [
-        [any(cells[j].strip() for j in index[3 * i : 3 * i + 3]) for i in range(k)]
+        [not all(map(left_blank, (cells[j] for j in index[3 * i : 3 * i + 3]))) for i in range(k)]
         for _, cells in records
     ]
     return None if all(map(all, seen)) else np.array(seen)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 
 import numpy as np
 import pinocchio as pin
@@ -25,6 +26,7 @@ __all__ = [
     "default_tool",
     "describe_joint",
     "end_joint_links",
+    "finger_joints",
     "frame_placement",
     "joint_kind",
     "joint_placements",
@@ -234,19 +236,60 @@ def _calib_marker(model: pin.Model, frame) -> bool:
     return model.frames[model.getFrameId(match["tool"])].parentJoint == frame.parentJoint
 
 
-def default_tool(model: pin.Model) -> int:
+def finger_joints(model: pin.Model, mimics: Mapping[str, str]) -> frozenset[int]:
+    """The joints of the fingers of a gripper whose fingers are coupled by ``<mimic>`` tags.
+
+    ``mimics``: each joint with a ``<mimic>`` tag and the joint the tag names. Fingers: two
+    or more revolute or prismatic joints hanging on one body (links fixed together) that
+    follow one joint, the end of their ``<mimic>`` tags (one of them may be that joint),
+    with no revolute or prismatic joint beyond them that does not follow it too (a finger's
+    tip joint may). A linkage coupled by ``<mimic>`` tags that carries further joints (an
+    arm's parallelogram) is no gripper; fingers without ``<mimic>`` tags are not told apart.
+    """
+    moving = [j for j in range(1, model.njoints) if joint_kind(model.joints[j].shortname())]
+    follows = {j: _tags_end(mimics, model.names[j]) for j in moving}
+    hanging: dict[tuple[int, str], list[int]] = {}
+    for j in moving:
+        hanging.setdefault((model.parents[j], follows[j]), []).append(j)
+    fingers: set[int] = set()
+    for (_, end), joints in hanging.items():
+        beyond = (k for k in moving if not set(joints).isdisjoint(model.supports[k]))
+        if len(joints) > 1 and all(follows[k] == end for k in beyond):
+            fingers.update(joints)
+    return frozenset(fingers)
+
+
+def _tags_end(mimics: Mapping[str, str], name: str) -> str:
+    """The joint at the end of a joint's ``<mimic>`` tags (itself without one; cycles stop)."""
+    seen = {name}
+    while (name := mimics.get(name, name)) not in seen:
+        seen.add(name)
+    return name
+
+
+def default_tool(model: pin.Model, mimics: Mapping[str, str] | None = None) -> int:
     """The frame at the tip of the deepest joint path (last such frame in model order).
 
-    The marker links of a calibrated URDF (``<tool>_markerK``, fixed under its tool) are
-    passed over: the calibrated URDF keeps the tool its nominal URDF has by default.
+    Passed over:
+
+    - the marker links of a calibrated URDF (``<tool>_markerK``, fixed under its tool): the
+      calibrated URDF keeps the tool its nominal URDF has by default;
+    - the frames beyond the fingers of a gripper (:func:`finger_joints` of ``mimics``, each
+      joint with a ``<mimic>`` tag and the joint it names), unless nothing but the fingers
+      moves: where no other branch is deeper, the default is then the link that carries the
+      fingers or a frame fixed on it, the one last in model order (a hand's TCP frame).
     """
     depth = [len(model.supports[f.parentJoint]) for f in model.frames]
-    best = max(depth)
-    return max(
+    fingers = finger_joints(model, mimics or {})
+    kept = [
         i
-        for i, (d, f) in enumerate(zip(depth, model.frames, strict=True))
-        if d == best and not _calib_marker(model, f)
-    )
+        for i, f in enumerate(model.frames)
+        if fingers.isdisjoint(model.supports[f.parentJoint]) and not _calib_marker(model, f)
+    ]
+    if max(depth[i] for i in kept) == 1:  # nothing moves but the fingers: keep them
+        kept = [i for i, f in enumerate(model.frames) if not _calib_marker(model, f)]
+    best = max(depth[i] for i in kept)
+    return max(i for i in kept if depth[i] == best)
 
 
 def path_joints(model: pin.Model, jb: int, jt: int) -> tuple[tuple[int, ...], tuple[int, ...]]:

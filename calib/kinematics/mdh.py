@@ -43,6 +43,7 @@ __all__ = [
     "frames_at_zero",
     "from_chain",
     "from_lines",
+    "in_chart_of",
     "snap_angle",
     "snap_length",
 ]
@@ -508,3 +509,60 @@ def frames_at_zero(mdh: MDHModel) -> np.ndarray:
     T = np.zeros((mdh.n + 2, 4, 4))
     T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = kin.R[0], kin.p[0], 1.0
     return T
+
+
+def in_chart_of(model: MDHModel, reference: MDHModel) -> MDHModel:
+    """``model``'s robot in ``reference``'s choice of x axes: the same frames up to a half turn.
+
+    :func:`from_lines` turns x_k so that theta_k lies in (-90, 90] degrees; a nominal offset
+    of 90 degrees (a URDF's pitch joint after a yaw one) moved a little past it on a
+    calibrated robot turns x_k, and with it every later x axis, by a half turn: the rows are
+    right but no longer comparable with the nominal's (theta 180 degrees apart, alpha and d of
+    the other sign). Here frame k (k = 0..n; the tool's is fixed) is turned back where its
+    theta lies more than 90 degrees from the reference's, frames 0..k-1 already matched:
+    theta_k and theta_{k+1} gain pi, and beta, alpha, d and y of row k+1 change sign (the
+    frames after k and the kinematics are unchanged). Rows the reference places with
+    Hayati's beta (parallel axes) are placed so here too, whatever their tilt.
+
+    Raises:
+        InvalidArgumentError: The models have different numbers of rows.
+    """
+    if reference.n != model.n:
+        why = f"in_chart_of: {model.n} joints against a reference of {reference.n}"
+        raise InvalidArgumentError(why)
+    beta_rows = reference.parallel | model.parallel
+    if not np.array_equal(beta_rows, model.parallel):
+        model = _with_beta_rows(model, beta_rows)
+    theta, later = model.theta.copy(), {a: getattr(model, a).copy() for a in _FLIPPED}
+    for k in range(model.n + 1):
+        if abs(_wrapped(theta[k] - reference.theta[k])) > math.pi / 2:
+            theta[k : k + 2] = _wrapped(theta[k : k + 2] + math.pi)
+            for values in later.values():
+                values[k + 1] = 0.0 - values[k + 1]  # no -0.0
+    if all(np.array_equal(a, getattr(model, n)) for n, a in [("theta", theta), *later.items()]):
+        return model
+    return model.replace(theta=theta, **later)
+
+
+def _with_beta_rows(model: MDHModel, beta_rows: np.ndarray) -> MDHModel:
+    """``model``'s robot converted again, Hayati's beta on ``beta_rows`` (``(n+2,)`` bool).
+
+    A nominal pair of parallel axes tilted past :data:`PARALLEL_TOL` by a calibration (the
+    TIAGo's torso lift and first arm joint: 0.02 rad) is converted along a common normal
+    metres away; the nominal's beta row keeps it beside the nominal's.
+    """
+    T = frames_at_zero(model)  # frame k's z and origin lie on line k (k = 1..n)
+    beta, alpha, d, theta, r, parallel, coincident = line_rows(
+        T[1:-1, :3, 3], T[1:-1, :3, 2], T[-1], PARALLEL_TOL, beta_rows
+    )
+    rows = {"beta": beta, "alpha": alpha, "d": d, "theta": theta, "r": r}
+    return model.replace(**rows, y=np.zeros(model.n + 2), parallel=parallel, coincident=coincident)
+
+
+_FLIPPED = ("beta", "alpha", "d", "y")
+"""Row k+1's parameters that change sign when frame k turns a half turn about z_k."""
+
+
+def _wrapped(angle):
+    """``angle`` [rad] in [-pi, pi)."""
+    return (np.asarray(angle) + math.pi) % (2 * math.pi) - math.pi

@@ -127,7 +127,11 @@ def _parallel_row(z: _Vec, entry: _Vec, x_zero: _Vec, pk: _Vec, uk: _Vec) -> _Ro
 
 
 def line_rows(
-    points: np.ndarray, directions: np.ndarray, tool: np.ndarray, parallel_tol: float
+    points: np.ndarray,
+    directions: np.ndarray,
+    tool: np.ndarray,
+    parallel_tol: float,
+    parallel_rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """The MDH rows 0..n+1 of joint lines already checked (see ``from_lines``).
 
@@ -139,6 +143,8 @@ def line_rows(
         directions: Unit direction of each joint axis ``(n, 3)``.
         tool: Tool pose ``(4, 4)`` in the base frame (a rigid transform).
         parallel_tol: Parallel-axis tolerance [rad].
+        parallel_rows: Rows 0..n+1 placed with Hayati's beta whatever their angle (``(n+2,)``
+            bool, a model's ``parallel``), or None: those within ``parallel_tol``.
 
     Returns:
         beta, alpha, d, theta, r ``(n+2,)`` [rad, m], and which rows are parallel to the
@@ -154,7 +160,11 @@ def line_rows(
         strict=True,
     )
     for k, (pk, uk) in enumerate(lines, start=1):
-        parallel[k] = math.acos(min(abs(_dot(z, uk)), 1.0)) < parallel_tol
+        parallel[k] = (
+            bool(parallel_rows[k])
+            if parallel_rows is not None
+            else math.acos(min(abs(_dot(z, uk)), 1.0)) < parallel_tol
+        )
         row = (_parallel_row if parallel[k] else _skew_row)(z, entry, x_zero, pk, uk)
         # Close row k-1: its offset theta and its distance r along z_{k-1}.
         theta[k - 1] = _signed_angle(x_zero, row.x, z)

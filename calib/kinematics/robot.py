@@ -494,7 +494,7 @@ def chain_between(robot: RobotModels, base: str | None, tool: str | None) -> Cha
     """
     name, path, info, model = robot.name, robot.path, robot.info, robot.model
     base_id = resolve_frame(model, base) if base else resolve_frame(model, info.root_link)
-    tool_id = resolve_frame(model, tool) if tool else default_tool(model)
+    tool_id = resolve_frame(model, tool) if tool else default_tool(model, info.mimics)
     base_name, tool_name = model.frames[base_id].name, model.frames[tool_id].name
     frames = model.frames
     joint_ids, signs = path_joints(model, frames[base_id].parentJoint, frames[tool_id].parentJoint)

@@ -128,6 +128,7 @@ class URDFInfo:
         links: Link names, in file order.
         joints: The joints, in file order.
         mimic_joints: Names of joints carrying a ``<mimic>`` tag.
+        mimics: Each joint with a ``<mimic>`` tag and the joint its tag names.
         masses: ``(link, mass [kg], centre of mass [m])`` of the links with a usable
             ``<inertial>`` (for gravity torques; rotational inertia is not kept).
     """
@@ -142,6 +143,11 @@ class URDFInfo:
     def mimic_joints(self) -> frozenset[str]:
         """Names of the joints carrying a ``<mimic>`` tag."""
         return frozenset(j.name for j in self.joints if j.mimic)
+
+    @property
+    def mimics(self) -> dict[str, str]:
+        """Each joint with a ``<mimic>`` tag and the joint its tag names."""
+        return {j.name: j.mimic.joint for j in self.joints if j.mimic}
 
 
 def parse_xml(raw: bytes, src: str) -> ET.Element:

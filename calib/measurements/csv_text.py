@@ -15,7 +15,7 @@ import re
 
 from ..exceptions import DataError
 
-__all__ = ["NUMBER", "csv_records", "parse_number"]
+__all__ = ["NUMBER", "csv_records", "is_nan_text", "parse_number"]
 
 
 NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
@@ -27,12 +27,20 @@ def parse_number(cell: str, src: str, line: int, column: str) -> float:
     text = cell.strip()
     if not text:
         raise DataError(src, "empty cell", row=line, column=column)
+    if is_nan_text(text):
+        why = f"{text!r}: a value not measured leaves the row out (start it with #)"
+        raise DataError(src, why, row=line, column=column)
     if not NUMBER.fullmatch(text):
         raise DataError(src, f"not a number: {text!r}", row=line, column=column)
     value = float(text)
     if not math.isfinite(value):
         raise DataError(src, f"{text!r} is not a finite number", row=line, column=column)
     return value
+
+
+def is_nan_text(text: str) -> bool:
+    """Whether a cell's text is a NaN as NumPy, MATLAB or a spreadsheet writes a value missing."""
+    return text.strip().lower().lstrip("+-") in ("nan", "#n/a")
 
 
 def _lines(text: str):

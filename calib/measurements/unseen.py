@@ -11,13 +11,16 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import DataError
-from .csv_text import parse_number
+from .csv_text import is_nan_text, parse_number
 
-__all__ = ["FIT_ROWS", "check_every_marker_seen", "marker_cells", "never_seen"]
+__all__ = ["FIT_ROWS", "check_every_marker_seen", "left_blank", "marker_cells", "never_seen"]
 
 
 def marker_cells(cells: list[str], index: list[int], names: list[str], src: str, line: int):
     """A row's coordinates of the markers at cell ``index`` (x, y, z each): NaN where unseen.
+
+    A marker not seen has its three cells empty, or written ``NaN`` as MATLAB, NumPy and
+    spreadsheets write a value missing.
 
     ``names``: the columns' names (messages).
 
@@ -26,7 +29,7 @@ def marker_cells(cells: list[str], index: list[int], names: list[str], src: str,
     """
     out = np.full(len(index), np.nan)
     for k in range(0, len(index), 3):
-        empty = [not cells[j].strip() for j in index[k : k + 3]]
+        empty = [left_blank(cells[j]) for j in index[k : k + 3]]
         if all(empty):
             continue
         if any(empty):
@@ -34,8 +37,8 @@ def marker_cells(cells: list[str], index: list[int], names: list[str], src: str,
             triple = ", ".join(names[k : k + 3])
             raise DataError(
                 src,
-                f"empty cell: a marker not seen leaves all of {triple} empty, this row has "
-                f"{sum(empty)} of them",
+                f"empty cell: a marker not seen leaves all of {triple} empty (or NaN), this "
+                f"row has {sum(empty)} of them",
                 row=line,
                 column=names[first],
             )
@@ -49,6 +52,11 @@ def marker_cells(cells: list[str], index: list[int], names: list[str], src: str,
             row=line,
         )
     return out
+
+
+def left_blank(cell: str) -> bool:
+    """Whether a marker's cell says the marker was not seen: empty, or ``NaN``."""
+    return not cell.strip() or is_nan_text(cell)
 
 
 def check_every_marker_seen(position: np.ndarray, names, src: str, rows=None) -> None:
