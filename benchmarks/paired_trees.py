@@ -14,12 +14,16 @@ B / A::
 ur5pos, ur5pos_c, ur5pose, ur5pose_c (those of ``calibration_stages.py`` and the UR5's 100
 simulated configurations of ``bench_calibration.py``; ``_c``: ``params="complete"``);
 ``N``: pairs per case (default 15; a third of it, at least 5, for the slow cases).
+``--processes`` (anywhere): each tree in a process of its own, still alternated call by call.
+In one process the trees share one heap: a change to how much memory a call takes and gives
+back (fresh pages, page faults) weighs on both trees alike and does not show.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
+import multiprocessing
 import shutil
 import statistics
 import sys
@@ -80,22 +84,55 @@ def cases(package: str) -> dict[str, Callable[[], object]]:
     }
 
 
-def paired(a: Callable[[], object], b: Callable[[], object], n: int) -> tuple[float, float, float]:
-    """CPU medians of ``a`` and ``b`` [ms] and the median of the ratios ``b / a``, ABBA order."""
+def timed(f: Callable[[], object]) -> Callable[[], float]:
+    """``f`` returning the process CPU time [s] it took."""
+
+    def run() -> float:
+        c0 = time.process_time()
+        f()
+        return time.process_time() - c0
+
+    return run
+
+
+def paired(a: Callable[[], float], b: Callable[[], float], n: int) -> tuple[float, float, float]:
+    """CPU medians of ``a`` and ``b`` [ms] and the median of the ratios ``b / a``, ABBA order.
+
+    ``a``, ``b``: each call returns the CPU time [s] it took (:func:`timed`, or a worker's).
+    """
     a(), b()
     ta: list[float] = []
     tb: list[float] = []
     for i in range(n):
         for f, t in ((a, ta), (b, tb)) if i % 2 == 0 else ((b, tb), (a, ta)):
-            c0 = time.process_time()
-            f()
-            t.append(time.process_time() - c0)
+            t.append(f())
     ratio = statistics.median(y / x for x, y in zip(ta, tb, strict=True))
     return 1e3 * statistics.median(ta), 1e3 * statistics.median(tb), ratio
 
 
+def _worker(path: str, package: str, conn) -> None:
+    """A tree's process: runs the case named on ``conn``, answers its CPU time (None: stop)."""
+    sys.path.insert(0, path)
+    calls = {name: timed(f) for name, f in cases(package).items()}
+    conn.send(list(calls))
+    while (name := conn.recv()) is not None:
+        conn.send(calls[name]())
+
+
+def _remote(conn, name: str) -> Callable[[], float]:
+    """A worker's case as a call returning its CPU time."""
+
+    def run() -> float:
+        conn.send(name)
+        return conn.recv()
+
+    return run
+
+
 def main(argv: list[str]) -> None:
     """Time the cases of two trees (module text)."""
+    apart = "--processes" in argv
+    argv = [a for a in argv if a != "--processes"]
     trees = [Path(p).resolve() for p in argv[:2]]
     only = argv[2].split(",") if len(argv) > 2 else None
     repeats = int(argv[3]) if len(argv) > 3 else 15
@@ -103,14 +140,28 @@ def main(argv: list[str]) -> None:
         for name, tree in zip(("calib_a", "calib_b"), trees, strict=True):
             skip = shutil.ignore_patterns("*.pyc")
             shutil.copytree(tree / "calib", Path(tmp) / name, ignore=skip)
-        sys.path.insert(0, tmp)
-        ca, cb = cases("calib_a"), cases("calib_b")
-        print(f"A = {trees[0]}, B = {trees[1]} [ms of process CPU time, medians]", flush=True)
+        pipes, workers = [], []
+        if apart:  # forked before any tree is imported: each process imports its own
+            for package in ("calib_a", "calib_b"):
+                ours, theirs = multiprocessing.Pipe()
+                workers.append(multiprocessing.Process(target=_worker, args=(tmp, package, theirs)))
+                workers[-1].start()
+                pipes.append(ours)
+            listed = [p.recv() for p in pipes]  # each worker's cases, once imported
+            ca, cb = ({n: _remote(p, n) for n in k} for p, k in zip(pipes, listed, strict=True))
+        else:
+            sys.path.insert(0, tmp)
+            ca, cb = ({n: timed(f) for n, f in cases(p).items()} for p in ("calib_a", "calib_b"))
+        where = "one process per tree" if apart else "one process"
+        print(f"A = {trees[0]}, B = {trees[1]} [ms of CPU time, medians; {where}]", flush=True)
         for name in ca:
             if only is None or name in only:
                 n = max(5, repeats // 3) if name in SLOW else repeats
                 ma, mb, ratio = paired(ca[name], cb[name], n)
                 print(f"{name:10s} A {ma:7.1f}  B {mb:7.1f}  B/A {ratio:.3f}", flush=True)
+        for p, w in zip(pipes, workers, strict=True):
+            p.send(None)
+            w.join()
 
 
 if __name__ == "__main__":

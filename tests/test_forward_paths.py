@@ -185,6 +185,20 @@ def test_spd_solve_equals_lapack(n):
     assert np.allclose(got.T, want, rtol=1e-12, atol=0)
 
 
+def test_spd_solve_in_place_gives_the_same_numbers_in_the_right_hand_side():
+    """overwrite=True works on the arrays given (no copies of large blocks): the solution
+    is written over y, bit for bit the one of the copying solve."""
+    rng = np.random.default_rng(7)
+    X = rng.normal(size=(40, 3, 6))
+    M = np.ascontiguousarray(np.moveaxis(np.eye(3) + X @ np.swapaxes(X, 1, 2) / 3, 0, 2))
+    y = rng.normal(size=(3, 40))
+    want = np.linalg.solve(np.moveaxis(M, 2, 0), y.T[..., None])[..., 0].T
+    copied = spd_solve(M, y)
+    got = spd_solve(M, y, overwrite=True)
+    assert got is y and np.array_equal(got, copied)
+    assert np.allclose(got, want, rtol=1e-12, atol=0)
+
+
 def test_lu_errors_of_a_singular_block_are_infinite_for_its_fit():
     """A configuration of leverage exactly 1 makes its fit's errors infinite (as LAPACK's
     singular solve said before); the other fits keep their exact errors."""

@@ -49,10 +49,10 @@ def lu_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.sum(loo**2, axis=(2, 3))
 
 
-def spd_solve(M: np.ndarray, y: np.ndarray) -> np.ndarray:
+def spd_solve(M: np.ndarray, y: np.ndarray, overwrite: bool = False) -> np.ndarray:
     """Solutions ``(n, systems)`` of small SPD systems ``M`` ``(n, n, systems)`` (no pivoting)."""
-    n = len(y)
-    a, x = np.array(M, order="C"), np.array(y, order="C")
+    n = len(y)  # overwrite: M and y (C-contiguous) worked on in place, not copied
+    a, x = (M, y) if overwrite else (np.array(M, order="C"), np.array(y, order="C"))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for p in range(n - 1):
             f = a[p + 1 :, p] / a[p, p]
@@ -106,6 +106,7 @@ class _Batch:
         self.m, self.rows, self.b = m, rows, np.arange(b)
         begin = _start if objects is None else _block_start
         self.r, self.H0, self.C, self.floor2 = begin(A, e, rows, start, candidates, train, objects)
+        self.work = np.empty(self.C.shape)
         self.added: list[np.ndarray] = []
         self.alive = np.ones((len(candidates), b), dtype=bool)
         self.index = np.arange(len(candidates))
@@ -165,22 +166,19 @@ class _Batch:
         U += L2
         P *= U
         P += self.vv
-        self.sq = P
+        self.sq, self.single = P, (1e-12 * self.nu2)[:, :, None] >= D
         total = np.einsum("kbm->kb", P)
-        single = (1e-12 * self.nu2)[:, :, None] >= D
-        if single.any():
-            P[single] = np.inf
-            total[single.any(axis=2)] = np.inf
-        if self.any_lost:
-            P[:, self.lost] = np.inf
-            total[:, self.lost.any(axis=1)] = np.inf
-        ok = np.isfinite(total)
+        ok = ~self.single.any(axis=2)
         ok &= self.alive
+        if self.any_lost:
+            ok &= ~self.lost.any(axis=1)
+        ok &= np.isfinite(total)
         return np.where(ok, total, np.inf)
 
     def errors_of(self, j: np.ndarray, stuck: bool) -> np.ndarray:
         """Squared left-out errors ``(b, m)`` of each subset's fit with its candidate j added."""
         sq = np.maximum(self.sq[j, self.b], 0.0)  # a square: round-off in the sums, not < 0
+        sq[self.single[j, self.b] | self.lost] = np.inf
         if stuck:
             sq[~np.isfinite(sq)] = np.inf
         return sq
@@ -220,7 +218,9 @@ class _Batch:
                 return
             a *= ~self.lost[:, None, :]
             d[self.lost] = 1.0
-        h, ar, av = (np.stack((a, self.r, self.v)) * a).sum(axis=2)
+        hav = np.array((a, self.r, self.v))
+        hav *= a
+        h, ar, av = hav.sum(axis=2)
         psi = ar - kappa[:, None]
         psi /= d
         self.lim[j, b] = -np.inf
@@ -241,7 +241,8 @@ class _Batch:
     def _update_columns(self, q: np.ndarray, kappa: np.ndarray, beta: np.ndarray) -> None:
         """Residuals and candidates made orthogonal to the added unit columns ``q``."""
         self.r -= q * kappa[:, None, None]
-        self.C -= beta[:, :, None, None] * q
+        work = np.multiply(beta[:, :, None, None], q, out=self.work[: len(self.C)])
+        self.C -= work  # a buffer kept: a new array this large would be new pages each step
 
     def _update_sums(self, Minv, a, d, h, psi, av, beta) -> None:
         """The sums ``S`` after the columns q are added (engine.md#forward_paths's formulas)."""

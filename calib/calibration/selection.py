@@ -173,20 +173,28 @@ def _ridge_block(fixed, Ub, wt, coef, rb, rows) -> np.ndarray:
     b, m = Ub.shape[:2]
     S = wt.shape[1]
     Uc = np.ascontiguousarray(np.transpose(Ub, (2, 0, 3, 1)))  # (rows, b, width, m)
-    M = _symmetric_hats(Uc, wt)  # (rows, rows, b, strengths, m): component-major
-    M -= fixed[:, :, :, None]
-    diag = np.arange(rows)
-    M[diag, diag] += 1.0
-    fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
-    y = np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
-    if rows <= SMALL:
-        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1))  # M kept for LAPACK
+    system = (Uc, wt, fixed, coef, Ub, rb)
+    if rows <= SMALL:  # solved in place (no copies this large), made again for LAPACK
+        M, y = _system(*system)
+        x = spd_solve(M.reshape(rows, rows, -1), y.reshape(rows, -1), overwrite=True)
         sq = np.einsum("is,is->s", x, x).reshape(b, S, m)
         if np.isfinite(sq).all():
             return sq
+    M, y = _system(*system)
+    diag = np.arange(rows)
     M[diag, diag] = 1.0 - (1.0 - M[diag, diag])  # I - (I - M): the digits LAPACK always had
     blocks = np.moveaxis(M.reshape(rows, rows, b * S, m), (0, 1), (2, 3))  # a view: no copy
     return lu_errors(blocks, np.moveaxis(y.reshape(rows, b * S, m), 0, 2)).reshape(b, S, m)
+
+
+def _system(Uc, wt, fixed, coef, Ub, rb) -> tuple[np.ndarray, np.ndarray]:
+    """``I - hat`` ``(rows, rows, b, strengths, m)`` and the residuals ``(rows, b, s, m)``."""
+    M = _symmetric_hats(Uc, wt)  # component-major
+    M -= fixed[:, :, :, None]
+    diag = np.arange(len(Uc))
+    M[diag, diag] += 1.0
+    fitted = np.einsum("bsk,bmik->ibsm", coef, Ub)
+    return M, np.ascontiguousarray(np.transpose(rb, (2, 0, 1))[:, :, None, :] - fitted)
 
 
 def _symmetric_hats(Uc: np.ndarray, wt: np.ndarray) -> np.ndarray:
@@ -226,7 +234,7 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
     start = list(range(fixed)) + [fixed + s for s in sel]
     rest = [fixed + u for u in range(len(names)) if u not in sel]
     spread, count = repeats
-    out = []
+    out: list[tuple[list[int], list[Step], list[int], list[Step]]] = []
     per = _per_batch(A.shape[0] * max(len(rest), 1), len(train))
     found = (  # a batch at a time: each path's errors (steps x configurations) then dropped
         p
@@ -236,13 +244,19 @@ def _paths_of(A, e, rows, fixed, names, forced, train, repeats, objects):
     for (order, errors), mask in zip(found, train, strict=True):
         errors = errors + spread[mask]
         k = best_prefix(errors)
-        points = float(np.sum(count[mask])) * rows / 3  # the file's points they stand for
-        loo = [float(v) for v in np.sqrt(np.sum(errors, axis=-1) / points)]  # RMS per point
-        steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
-        steps += [Step(names[c - fixed], v) for c, v in zip(order, loo[1:], strict=True)]
         whole = sel + [c - fixed for c in order]
-        out.append((sel + [c - fixed for c in order[:k]], steps[: k + 1], whole, steps))
+        steps = [] if out else _steps(errors, count[mask], rows, names, sel, whole)  # folds' unread
+        out.append((whole[: len(sel) + k], steps[: k + 1], whole, steps))
     return out
+
+
+def _steps(errors, count, rows, names, sel, whole) -> list[Step]:
+    """A path's steps: the start's RMS left-out error per point, then each addition's."""
+    points = float(np.sum(count)) * rows / 3  # the file's points they stand for
+    loo = [float(v) for v in np.sqrt(np.sum(errors, axis=-1) / points)]  # RMS per point
+    steps = [Step("registration" if not sel else "+".join(names[s] for s in sel), loo[0])]
+    added = whole[len(sel) :]
+    return steps + [Step(names[c], v) for c, v in zip(added, loo[1:], strict=True)]
 
 
 def _padded(A: np.ndarray, cols: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
