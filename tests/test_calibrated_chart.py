@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from calib import from_chain, load_chain
+from calib import calibrate, from_chain, load_chain, simulate_contacts
 from calib.cli import main
 from calib.kinematics.mdh import in_chart_of
 
@@ -143,4 +143,23 @@ def test_the_report_rows_compare_with_the_nominal_and_place_the_written_tool(tmp
         for key in ("beta", "alpha", "d", "theta", "r", "y"):
             assert abs(row[key] - ref[key]) < 5e-3, (row["name"], key)
     for qi in q[:10]:
+        assert np.allclose(mdh_tool(model["mdh_calibrated"], qi), pin_tool(out, "tcp", qi))
+
+
+def test_a_touching_chain_report_rows_compare_with_the_nominal(tmp_path):
+    """Touches of three planes by the moved arm (simulated on its URDF, no error added): the
+    contact report's mdh_calibrated row by row within 5 mrad / 5 mm of mdh_nominal, and the
+    rows place the written URDF's tool frame (Pinocchio)."""
+    nominal, real = arm_urdf(tmp_path / "a.urdf"), arm_urdf(tmp_path / "real.urdf", MOVED)
+    touches = simulate_contacts(
+        load_chain(real, "l0", "tcp"), 60, "plane", contacts=3, error_mm=0, error_mrad=0, seed=1
+    )
+    result = calibrate(load_chain(nominal, "l0", "tcp"), touches.data, params="complete")
+    model = result.to_dict()["model"]
+    for row, ref in zip(model["mdh_calibrated"], model["mdh_nominal"], strict=True):
+        for key in ("beta", "alpha", "d", "theta", "r", "y"):
+            assert abs(row[key] - ref[key]) < 5e-3, (row["name"], key)
+    out = tmp_path / "cal.urdf"
+    result.write(out)
+    for qi in touches.data.q[:10]:
         assert np.allclose(mdh_tool(model["mdh_calibrated"], qi), pin_tool(out, "tcp", qi))

@@ -17,7 +17,7 @@ from ..core.words import counted
 from ..exceptions import CalibrationRefusedError, InvalidArgumentError
 from ..identification.contacts import Contact, PlaneContact
 from ..kinematics.elastic import compliance_document as chain_compliance_document
-from ..kinematics.mdh import MDHModel
+from ..kinematics.mdh import MDHModel, in_chart_of
 from ..kinematics.placement_export import camera_urdf, marker_urdf, moved_origins_urdf
 from ..kinematics.robot import Chain
 from ..kinematics.standing import StandingLoad
@@ -128,7 +128,7 @@ def _single_contact_report(result, fields: dict) -> tuple[dict, dict]:
         model={
             **fields["model"],
             "mdh_nominal": part.nominal.rows(),
-            "mdh_calibrated": part.calibrated.rows(),
+            "mdh_calibrated": in_chart_of(part.calibrated, part.nominal).rows(),
             "load": load,
         },
     )
