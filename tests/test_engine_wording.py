@@ -71,3 +71,22 @@ def test_too_few_pixel_observations_say_observations(tmp_path):
     with pytest.raises(DataError, match="observations") as err:
         calibrate(problem(few))
     assert "configurations" not in str(err.value)
+
+
+@pytest.mark.parametrize("configs", [4, 8])
+def test_too_few_configurations_are_told_how_many_determine_every_parameter(configs):
+    """auto on too few postures says how many generic ones determine every parameter: a point
+    gives 3 equations a configuration, and generic configurations reach the identifiable count
+    (Everett's 4R + 3 for a point) as soon as they give that many equations: 9 on a UR5 (theory,
+    not calib's own count)."""
+    chain = load_chain("ur5")
+    data = simulate(chain, configs, "position", marker=(0.01, 0.02, 0.05), seed=3, noise_mm=0.05)
+    identifiable = 4 * chain.n_revolute + 3
+    res = calibrate(chain, data.measurements)
+    note = (
+        f"the {configs} configurations determine {3 * configs} of the {identifiable} parameters "
+        "generic configurations would: params 'auto' chooses among those only; "
+        f"{-(-identifiable // 3)} configurations at generic postures determine them all (calib "
+        "design plans them)"
+    )
+    assert note in res.notes, res.notes

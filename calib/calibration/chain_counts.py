@@ -126,13 +126,22 @@ class Generic:
             len(kept), len(generic), m, rows, level, d.source, unit, lost, seen, fewest
         )
 
-    def note(self, kept: int, generic: int) -> str:
-        """The note of rows that determine ``kept`` of the ``generic`` unknowns (``auto``)."""
+    def note(self, wide: ChainsModel, kept: int, generic: list[int]) -> str:
+        """The note of rows that determine ``kept`` of the ``generic`` columns (``auto``).
+
+        One chain: with the fewest generic configurations that determine them all.
+        """
         d = self.train[0]
         rows = f"{d.m} configurations" if self.one else f"{sum(t.m for t in self.train)} rows"
+        more = ""
+        if self.one:
+            more = (
+                f"; {self.fewest(wide, generic)} configurations at generic postures determine "
+                "them all (calib design plans them)"
+            )
         return (
-            f"the {rows} determine {kept} of the {generic} parameters generic configurations "
-            f"would: params 'auto' chooses among those only"
+            f"the {rows} determine {kept} of the {len(generic)} parameters generic "
+            f"configurations would: params 'auto' chooses among those only{more}"
         )
 
     def groups(self, keep: np.ndarray | None) -> np.ndarray | None:

@@ -299,7 +299,7 @@ def choose(
     if generic is not None:
         allowed = generic.columns(wide)
         generic.check(wide, kept, allowed, flush, level)
-        notes += [generic.note(len(kept), len(allowed))] if len(kept) < len(allowed) else []
+        notes += [generic.note(wide, len(kept), allowed)] if len(kept) < len(allowed) else []
     elif sorted(kept[:fixed]) != list(range(fixed)):
         raise DataError(train[0].source, "the touches do not determine the planes and the contacts")
     columns = [c for c in kept if c >= fixed]
