@@ -150,7 +150,10 @@ def test_pixels_on_the_top_left_quarter_only_are_warned_about():
         (OBS.replace("shoulder,", "shoulder_joint,"), "column 'shoulder'.*missing joint column"),
         (OBS.replace("head,c1", ",c1"), "row 3, column 'camera'.*empty cell"),
         (OBS.replace("110,210", "110,abc"), "row 3, column 'v'.*not a number"),
-        (OBS.replace("110,210", "110,nan"), "row 3, column 'v'.*'nan': a value not measured leaves the row out"),
+        (
+            OBS.replace("110,210", "110,nan"),
+            "row 3, column 'v'.*'nan': a value not measured leaves the row out",
+        ),
         (OBS.replace("0,0,0,head,c1", "0,0,head,c1"), "row 3.*expected 7 cells, found 6"),
         (OBS.splitlines()[0] + "\n", "no observations after the header"),
         ("", "empty file"),
