@@ -207,13 +207,14 @@ class Identifiability:
         raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
 
     def joint_of(self, name: str) -> str | None:
-        """The URDF joint of a parameter's MDH row (``theta6``, ``offset3``), as calibrate's
-        report names it; None for the base frame's row 0 and a tool frame's row."""
+        """The URDF joint of a parameter's MDH row, as calibrate's report names it.
+
+        None for the base frame's row 0 and a tool frame's row (``theta7`` of a 6-joint chain).
+        """
         return joint_of(name, self.mdh.joint_names)
 
     def row_frame(self, k: int) -> str | None:
-        """The fixed frame row k stands for: the base frame (row 0), a tool frame (a tool's
-        row), None for a joint's row."""
+        """The fixed frame of row k: the base frame (row 0), a tool's; None for a joint's."""
         if k == 0:
             return self.base_frame
         return dict(zip(self.mdh.tool_rows, self.tool_frames, strict=True)).get(k)

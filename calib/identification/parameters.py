@@ -17,11 +17,11 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH
 
 __all__ = [
+    "ROW_NAME",
     "ColumnLayout",
     "Kind",
     "Parameter",
     "ParameterSet",
-    "ROW_NAME",
     "complete_parameters",
     "joint_of",
     "paper_parameters",

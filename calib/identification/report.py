@@ -48,8 +48,10 @@ def _row_cells(mdh: MDHModel | TreeMDH, k: int) -> list[str]:
 
 
 def row_label(model: MDHModel | TreeMDH, k: int) -> str:
-    """Row k's URDF joint, or the fixed frame it stands for: ``(base frame)``, ``(tool
-    frame)``, a tree's ``(tool <name>)``."""
+    """Row k's URDF joint, or the fixed frame it stands for, in parentheses.
+
+    ``(base frame)`` (row 0), ``(tool frame)`` (a chain's row n+1), ``(tool <name>)`` (a tree's).
+    """
     if model.joint_names[k] is not None:
         return str(model.joint_names[k])
     if k == 0:
@@ -110,8 +112,7 @@ def _label(res: Identifiability, name: str) -> str:
 
 
 def _named(res: Identifiability, name: str) -> str:
-    """A parameter with its row's joint or frame: ``theta6 (wrist_3_joint)``, ``theta7 (tool
-    frame)``."""
+    """A parameter and its row's joint or frame: ``theta6 (wrist_3_joint)``."""
     label = _label(res, name)
     return f"{name} {label if label.startswith('(') else f'({label})'}"
 
@@ -163,9 +164,7 @@ def analysis_text(res: Identifiability) -> str:
         lines.append(f"a {res.measurement.label} contact can never identify:")
         lines += [f"  - {u}" for u in unseen]
     if res.zero:
-        lines.append(
-            f"no effect (not identifiable): {', '.join(_named(res, n) for n in res.zero)}"
-        )
+        lines.append(f"no effect (not identifiable): {', '.join(_named(res, n) for n in res.zero)}")
     if res.missing:
         lines.append(
             f"incomplete: the {res.params.label} set misses "
