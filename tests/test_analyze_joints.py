@@ -154,6 +154,7 @@ NEXT = {
     "paper": ["aid", "--params", "paper"],  # design's rows reach the complete model's 25
     "plane": ["ur5", "--measure", "plane"],
     "tree": CASES["talos"],
+    "tree paper": [*CASES["talos"], "--params", "paper"],  # a tree's design: complete
 }
 
 
@@ -186,3 +187,15 @@ def test_the_next_step_runs_for_the_least_k(capsys, tmp_path, monkeypatch):
     design, least, _ = next_step(capsys, NEXT["ur5"])
     assert main([*design, "--configs", str(least), "--quiet", "--candidates", "200"]) == 0
     assert len((tmp_path / "plan.csv").read_text().splitlines()) == least + 1  # a header
+
+
+def test_a_tree_measured_in_pose_is_sent_to_its_positions(capsys, tmp_path, monkeypatch):
+    """design and calibrate take a tree's positions: the line sends to their analysis, whose
+    own next step design takes."""
+    last = run(capsys, ["analyze", *CASES["talos"], "--measure", "pose"]).splitlines()[-1]
+    found = re.search(r"calib (analyze .*--measure position) counts", last)
+    assert found is not None, last
+    monkeypatch.chdir(tmp_path)
+    design, least, _ = next_step(capsys, shlex.split(found.group(1))[1:])
+    assert main([*design, "--configs", str(least - 1), "--quiet", "--candidates", "200"]) == 2
+    assert f"choose at least {least} configurations" in capsys.readouterr().err

@@ -130,7 +130,8 @@ def _next_step(args: argparse.Namespace, res) -> str:
     """The closing line of ``calib analyze``: plan the postures, measure (or touch), calibrate.
 
     K's least value is design's: its rows reach the complete model's rank (the frame and
-    markers free make up what the paper set misses; a contact's design fits the complete model).
+    markers free make up what the paper set misses; a contact's or a tree's design and
+    calibration fit the complete model).
     """
     kind, robot = res.measurement, _robot_words(args)
     least = -(-res.n_complete // (kind.n_rows * len(res.tool_frames)))
@@ -142,14 +143,21 @@ def _next_step(args: argparse.Namespace, res) -> str:
             f"first, places it where yours is); touch at them, then calib calibrate {robot}"
             f"{measure} --data TOUCHES.csv --out calibrated.urdf"
         )
-    params = " --params paper" if res.params.label == "paper" else ""
+    paper = res.params.label == "paper" and len(res.tool_frames) == 1  # a tree: complete
+    params = " --params paper" if paper else ""
     if not getattr(kind, "is_campaign", False):
         return (
             f"next: calib design and calibrate take a point's position or the pose (--measure "
             f"position or pose), not the rows {kind.label} alone"
         )
-    measure = " --measure pose" if kind.n_rows == 6 else ""
     marker = " --marker " + " ".join(f"{x:g}" for x in kind.marker) if any(kind.marker) else ""
+    if kind.n_rows == 6 and len(res.tool_frames) > 1:
+        return (
+            f"next: a tree is designed and calibrated from the positions of a point on each "
+            f"tool: calib analyze {robot}{marker} --measure position counts what they identify "
+            "and says what then"
+        )
+    measure = " --measure pose" if kind.n_rows == 6 else ""
     return (
         f"next: calib design {robot}{measure}{marker}{params} --configs K --out plan.csv "
         f"chooses K >= {least} postures (its last line predicts the error for K); measure "
