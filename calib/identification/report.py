@@ -17,7 +17,6 @@ __all__ = [
     "coupling_lines",
     "format_table",
     "mdh_table",
-    "row_label",
     "tree_table",
 ]
 
@@ -47,17 +46,18 @@ def _row_cells(mdh: MDHModel | TreeMDH, k: int) -> list[str]:
     return [beta, alpha, _num(mdh.d[k]), theta, r]
 
 
-def row_label(model: MDHModel | TreeMDH, k: int) -> str:
+def _row_label(model: MDHModel | TreeMDH, k: int, frame: str = "") -> str:
     """Row k's URDF joint, or the fixed frame it stands for, in parentheses.
 
-    ``(base frame)`` (row 0), ``(tool frame)`` (a chain's row n+1), ``(tool <name>)`` (a tree's).
+    ``(base)`` (row 0), ``(tool)`` (a chain's row n+1), ``(tool <name>)`` (a tree's); ``frame``
+    follows base and a chain's tool (``" frame"``: ``(base frame)``).
     """
     if model.joint_names[k] is not None:
         return str(model.joint_names[k])
     if k == 0:
-        return "(base frame)"
+        return f"(base{frame})"
     if isinstance(model, MDHModel):
-        return "(tool frame)"
+        return f"(tool{frame})"
     tools = dict(zip(model.tool_rows, model.tool_frames, strict=True))
     return f"(tool {tools[k]})"
 
@@ -68,7 +68,7 @@ def mdh_table(mdh: MDHModel) -> str:
     rows = []
     for k in range(mdh.n + 2):
         s = int(mdh.sigma[k])
-        rows.append([str(k), row_label(mdh, k), "fixed" if s < 0 else str(s), *_row_cells(mdh, k)])
+        rows.append([str(k), _row_label(mdh, k), "fixed" if s < 0 else str(s), *_row_cells(mdh, k)])
     return format_table(header, rows)
 
 
@@ -79,7 +79,7 @@ def tree_table(model: TreeMDH) -> str:
     rows = []
     for k in range(len(model.sigma)):
         s = int(model.sigma[k])
-        name = row_label(model, k)
+        name = _row_label(model, k)
         gamma, b = _num(math.degrees(model.gamma[k]), 3), _num(model.b[k])
         fixed = "fixed" if s < 0 else str(s)
         rows.append([str(k), str(int(model.antecedent[k])), name, fixed, gamma, b])
@@ -97,7 +97,7 @@ def _status_table(res: Identifiability) -> str:
     names = set(res.params.names)
     rows = []
     for k in range(len(res.mdh.sigma)):
-        row = [str(k), row_label(res.mdh, k)]
+        row = [str(k), _row_label(res.mdh, k, " frame")]
         for kind in kinds:
             name = f"{kind.value}{k}"
             row.append(_STATUS[res.status(name)] if name in names else "-")
@@ -108,7 +108,7 @@ def _status_table(res: Identifiability) -> str:
 def _label(res: Identifiability, name: str) -> str:
     """The joint of a parameter's row (or the frame the row stands for): ``wrist_3_joint``."""
     row = ROW_NAME.fullmatch(name)
-    return "" if row is None else row_label(res.mdh, int(row.group(2)))
+    return "" if row is None else _row_label(res.mdh, int(row.group(2)), " frame")
 
 
 def _named(res: Identifiability, name: str) -> str:
