@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 import tomllib
@@ -157,10 +158,12 @@ def test_analyze_aid_text(capsys):
     lines = out.splitlines()
     # Table-2 style status table: one row per frame 0..7, parameter kinds as columns.
     i = next(k for k, line in enumerate(lines) if line.split()[:1] == ["j"])
-    assert lines[i].split() == ["j", "beta", "alpha", "d", "theta", "r"]
-    rows = [line.split() for line in lines[i + 2 : i + 10]]
+    assert lines[i].split() == ["j", "joint", "beta", "alpha", "d", "theta", "r"]
+    rows = [re.split(r"\s{2,}", line.strip()) for line in lines[i + 2 : i + 10]]
     assert [r[0] for r in rows] == [str(k) for k in range(8)]
-    cells = [c for r in rows for c in r[1:]]
+    joints = [f"joint{k}" for k in range(1, 7)]  # the joints of models/aid.urdf
+    assert [r[1] for r in rows] == ["(base frame)", *joints, "(tool frame)"]
+    cells = [c for r in rows for c in r[2:]]
     assert set(cells) <= {"id", "reg", "0", "-"}
     assert sum(c == "id" for c in cells) == 23
     assert sum(c in ("id", "reg", "0") for c in cells) == 30

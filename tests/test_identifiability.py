@@ -301,7 +301,10 @@ def test_an_analysis_says_its_text_as_every_result_does(capsys):
     from calib.cli.commands import main
 
     assert main(["analyze", "ur5", "--measure", "pose"]) == 0
-    assert calib.analyze("ur5", measure="pose").summary() + "\n" == capsys.readouterr().out
+    out = capsys.readouterr().out  # the summary, then the command line's next step
+    text = calib.analyze("ur5", measure="pose").summary() + "\n"
+    assert out.startswith(text) and out[len(text) :].startswith("next: calib design ur5")
+    assert out.count("\n") == text.count("\n") + 1
 
 
 def test_a_round_off_seven_digits_hide_is_listed_with_its_change():

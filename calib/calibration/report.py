@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.words import counted
+from ..identification.parameters import ROW_NAME, joint_of
 
 __all__ = [
     "REPORT_KEYS",
@@ -66,27 +67,13 @@ REPORT_KEYS = (
 URDF_ALONE = "URDF alone (no compliance)"
 """The summaries' name of the calibrated URDF without its fitted joint compliance."""
 
-_ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
-_PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz]|(?:alpha|beta|gamma|theta|offset|[dryb])\d+)")
-"""A joint placement component (``arm_5_joint:rz``) or direction (``arm_5_joint:alpha7``)."""
 _ANGLES = ("alpha", "beta", "gamma", "theta")
-
-
-def _joint(name: str, joint_names: Sequence[str | None]) -> str | None:
-    """The URDF joint a parameter belongs to (of its MDH row, or named), or None for a frame."""
-    name = name.partition("@")[0]  # a direction two chains name alike: whose (<name>@<tool>)
-    row = _ROW_NAME.fullmatch(name)
-    if row is not None:
-        k = int(row.group(2))
-        return joint_names[k] if 0 <= k < len(joint_names) else None
-    placement = _PLACEMENT_NAME.fullmatch(name)
-    return None if placement is None else placement.group(1)
 
 
 def _unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
     """The unit of a parameter's value: ``rad``, ``m``, ``rad/(N m)`` or ``m/N``."""
     name = name.partition("@")[0]
-    row = _ROW_NAME.fullmatch(name)
+    row = ROW_NAME.fullmatch(name)
     if row is not None:
         kind, k = row.group(1), int(row.group(2))
         prismatic = sigma is not None and 0 <= k < len(sigma) and sigma[k] == 1
@@ -96,7 +83,7 @@ def _unit(name: str, sigma: Sequence[int] | np.ndarray | None = None) -> str:
             return "m" if prismatic else "rad"
         return "rad" if kind in _ANGLES else "m"
     axis = re.split(r"[.:]", name)[-1]
-    direction = _ROW_NAME.fullmatch(axis) if ":" in name else None  # <joint>:<MDH parameter>
+    direction = ROW_NAME.fullmatch(axis) if ":" in name else None  # <joint>:<MDH parameter>
     if direction is not None:
         return "rad" if direction.group(1) in (*_ANGLES, "offset") else "m"
     return "rad" if axis in ("rx", "ry", "rz") else "m"
@@ -117,7 +104,7 @@ def parameter_entries(
     return [
         {
             "name": n,
-            "joint": _joint(n, joint_names),
+            "joint": joint_of(n, joint_names),
             "value": finite(v),
             "std": finite(s),
             "unit": _unit(n, sigma),

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import shlex
 from pathlib import Path
 
 from ..calibration.analysis import analyze
@@ -113,7 +114,56 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         print_json(res.to_dict())
     else:
         print(analysis_text(res))
+        print(_next_step(args, res))
     return 0
+
+
+def _robot_words(args: argparse.Namespace) -> str:
+    """The robot, ``--base`` and ``--tool`` as the user gave them (quoted for a shell)."""
+    words = [args.robot] + (["--base", args.base] if args.base else [])
+    for tool in args.tool or ():
+        words += ["--tool", tool]
+    return shlex.join(words)
+
+
+def _next_step(args: argparse.Namespace, res) -> str:
+    """The closing line of ``calib analyze``: plan the postures, measure (or touch), calibrate.
+
+    K's least value is design's: its rows reach the complete model's rank (the frame and
+    markers free make up what the paper set misses; a contact's or a tree's design and
+    calibration fit the complete model).
+    """
+    kind, robot = res.measurement, _robot_words(args)
+    least = -(-res.n_complete // (kind.n_rows * len(res.tool_frames)))
+    if kind.is_contact:
+        measure = f" --measure {kind.label}"
+        return (
+            f"next: calib design {robot}{measure} --configs K --out touches.csv chooses K >= "
+            f"{least} postures on the {kind.label} contact (--candidates-file, a recorded touch "
+            f"first, places it where yours is); touch at them, then calib calibrate {robot}"
+            f"{measure} --data TOUCHES.csv --out calibrated.urdf"
+        )
+    paper = res.params.label == "paper" and len(res.tool_frames) == 1  # a tree: complete
+    params = " --params paper" if paper else ""
+    if not getattr(kind, "is_campaign", False):
+        return (
+            f"next: calib design and calibrate take a point's position or the pose (--measure "
+            f"position or pose), not the rows {kind.label} alone"
+        )
+    marker = " --marker " + " ".join(f"{x:g}" for x in kind.marker) if any(kind.marker) else ""
+    if kind.n_rows == 6 and len(res.tool_frames) > 1:
+        return (
+            f"next: a tree is designed and calibrated from the positions of a point on each "
+            f"tool: calib analyze {robot}{marker} --measure position counts what they identify "
+            "and says what then"
+        )
+    measure = " --measure pose" if kind.n_rows == 6 else ""
+    return (
+        f"next: calib design {robot}{measure}{marker}{params} --configs K --out plan.csv "
+        f"chooses K >= {least} postures (its last line predicts the error for K); measure "
+        f"them, then calib calibrate {robot}{marker}{params} --data MEASURED.csv --out "
+        "calibrated.urdf"
+    )
 
 
 TERM_REFUSES = ("base", "tool", "measure", "marker", "markers", "configs", "seed")

@@ -34,7 +34,7 @@ from .contacts import Contact
 from .jacobian import complete_jacobian, identification_jacobian
 from .kinds import kind_of
 from .measures import MeasureKind, Measurement
-from .parameters import Kind, Parameter, ParameterSet, parameter_set
+from .parameters import Kind, Parameter, ParameterSet, joint_of, parameter_set
 from .rank_notes import missing_errors, rank_notes
 from .theory import axes_through_point, per_tool_theory, theoretical_count
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
@@ -206,6 +206,19 @@ class Identifiability:
             return "regrouped"
         raise InvalidArgumentError(f"'{name}' is not a parameter of the {self.params.label} set")
 
+    def joint_of(self, name: str) -> str | None:
+        """The URDF joint of a parameter's MDH row, as calibrate's report names it.
+
+        None for the base frame's row 0 and a tool frame's row (``theta7`` of a 6-joint chain).
+        """
+        return joint_of(name, self.mdh.joint_names)
+
+    def row_frame(self, k: int) -> str | None:
+        """The fixed frame of row k: the base frame (row 0), a tool's; None for a joint's."""
+        if k == 0:
+            return self.base_frame
+        return dict(zip(self.mdh.tool_rows, self.tool_frames, strict=True)).get(k)
+
     def summary(self) -> str:
         """The text ``calib analyze`` prints (:func:`!report.analysis_text`)."""
         from .report import analysis_text  # the report reads this module
@@ -252,6 +265,16 @@ class Identifiability:
             "point_on_last_axis": self.on_last_axis,
             "point_on_axes": list(self.on_axes),
             "standard_parameters": list(self.params.names),
+            "parameters": [
+                {
+                    "name": p.name,
+                    "row": p.row,
+                    "joint": self.joint_of(p.name),
+                    "frame": self.row_frame(p.row),
+                    "status": self.status(p.name),
+                }
+                for p in self.params.parameters
+            ],
             "base_parameters": list(self.base),
             "nonidentifiable": list(self.zero),
             "regrouped": [n for n in self.others if n not in self.zero],

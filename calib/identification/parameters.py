@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import enum
 import functools
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -15,14 +17,42 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.tree_model import TreeMDH
 
 __all__ = [
+    "ROW_NAME",
     "ColumnLayout",
     "Kind",
     "Parameter",
     "ParameterSet",
     "complete_parameters",
+    "joint_of",
     "paper_parameters",
     "parameter_set",
 ]
+
+ROW_NAME = re.compile(r"(alpha|beta|gamma|theta|offset|[dryb]|c)(\d+)")
+"""A parameter of an MDH row by its name: its kind (a mimic joint's ``offset``, a compliance
+``c`` included) and its row k."""
+_PLACEMENT_NAME = re.compile(r"(.+):(r?[xyz]|(?:alpha|beta|gamma|theta|offset|[dryb])\d+)")
+"""A joint placement component (``arm_5_joint:rz``) or direction (``arm_5_joint:alpha7``)."""
+
+
+def joint_of(name: str, joint_names: Sequence[str | None]) -> str | None:
+    """The URDF joint a parameter belongs to (of its MDH row, or named), or None for a frame.
+
+    Args:
+        name: A parameter's name: of an MDH row (``theta6``: ``joint_names[6]``), or a joint
+            placement's (``arm_5_joint:rz``, ``arm_5_joint:alpha7``: the joint it names); a
+            direction two chains name alike may end in ``@<tool>``.
+        joint_names: The URDF joint of each MDH row (``MDHModel.joint_names``,
+            ``TreeMDH.joint_names``: None for the base and tool rows).
+    """
+    name = name.partition("@")[0]
+    row = ROW_NAME.fullmatch(name)
+    if row is not None:
+        k = int(row.group(2))
+        return joint_names[k] if 0 <= k < len(joint_names) else None
+    placement = _PLACEMENT_NAME.fullmatch(name)
+    return None if placement is None else placement.group(1)
+
 
 #: A chain's or a tree's MDH model: :meth:`ParameterSet.apply` returns the kind it is given.
 _Model = TypeVar("_Model", MDHModel, TreeMDH)

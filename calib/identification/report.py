@@ -9,7 +9,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.mimic import MimicJoint
 from ..kinematics.tree_model import TreeMDH
 from .identifiability import Identifiability
-from .parameters import Kind
+from .parameters import ROW_NAME, Kind
 from .table import format_table
 
 __all__ = [
@@ -46,14 +46,29 @@ def _row_cells(mdh: MDHModel | TreeMDH, k: int) -> list[str]:
     return [beta, alpha, _num(mdh.d[k]), theta, r]
 
 
+def _row_label(model: MDHModel | TreeMDH, k: int, frame: str = "") -> str:
+    """Row k's URDF joint, or the fixed frame it stands for, in parentheses.
+
+    ``(base)`` (row 0), ``(tool)`` (a chain's row n+1), ``(tool <name>)`` (a tree's); ``frame``
+    follows base and a chain's tool (``" frame"``: ``(base frame)``).
+    """
+    if model.joint_names[k] is not None:
+        return str(model.joint_names[k])
+    if k == 0:
+        return f"(base{frame})"
+    if isinstance(model, MDHModel):
+        return f"(tool{frame})"
+    tools = dict(zip(model.tool_rows, model.tool_frames, strict=True))
+    return f"(tool {tools[k]})"
+
+
 def mdh_table(mdh: MDHModel) -> str:
     """The MDH rows in degrees and metres, frame 0 to frame n+1."""
     header = ["j", "joint", "sigma", "beta[deg]", "alpha[deg]", "d[m]", "theta[deg]", "r[m]"]
     rows = []
     for k in range(mdh.n + 2):
         s = int(mdh.sigma[k])
-        name = mdh.joint_names[k] or ("(base)" if k == 0 else "(tool)")
-        rows.append([str(k), name, "fixed" if s < 0 else str(s), *_row_cells(mdh, k)])
+        rows.append([str(k), _row_label(mdh, k), "fixed" if s < 0 else str(s), *_row_cells(mdh, k)])
     return format_table(header, rows)
 
 
@@ -61,11 +76,10 @@ def tree_table(model: TreeMDH) -> str:
     """The rows of a tree in degrees and metres: antecedent, gamma and b, then a chain's."""
     header = ["j", "a(j)", "joint", "sigma", "gamma[deg]", "b[m]"]
     header += ["beta[deg]", "alpha[deg]", "d[m]", "theta[deg]", "r[m]"]
-    tools = dict(zip(model.tool_rows, model.tool_frames, strict=False))
     rows = []
     for k in range(len(model.sigma)):
         s = int(model.sigma[k])
-        name = model.joint_names[k] or ("(base)" if k == 0 else f"(tool {tools.get(k, '')})")
+        name = _row_label(model, k)
         gamma, b = _num(math.degrees(model.gamma[k]), 3), _num(model.b[k])
         fixed = "fixed" if s < 0 else str(s)
         rows.append([str(k), str(int(model.antecedent[k])), name, fixed, gamma, b])
@@ -83,12 +97,33 @@ def _status_table(res: Identifiability) -> str:
     names = set(res.params.names)
     rows = []
     for k in range(len(res.mdh.sigma)):
-        row = [str(k)]
+        row = [str(k), _row_label(res.mdh, k, " frame")]
         for kind in kinds:
             name = f"{kind.value}{k}"
             row.append(_STATUS[res.status(name)] if name in names else "-")
         rows.append(row)
-    return format_table(["j", *[k.value for k in kinds]], rows)
+    return format_table(["j", "joint", *[k.value for k in kinds]], rows)
+
+
+def _label(res: Identifiability, name: str) -> str:
+    """The joint of a parameter's row (or the frame the row stands for): ``wrist_3_joint``."""
+    row = ROW_NAME.fullmatch(name)
+    return "" if row is None else _row_label(res.mdh, int(row.group(2)), " frame")
+
+
+def _named(res: Identifiability, name: str) -> str:
+    """A parameter and its row's joint or frame: ``theta6 (wrist_3_joint)``."""
+    label = _label(res, name)
+    return f"{name} {label if label.startswith('(') else f'({label})'}"
+
+
+def _base_lines(res: Identifiability) -> list[str]:
+    """Each base parameter, its row's joint (or frame), and what it stands for."""
+    regrouping = res.regrouping()
+    width = max((len(n) for n in regrouping), default=0)
+    joints = {n: _label(res, n) for n in regrouping}
+    jw = max((len(j) for j in joints.values()), default=0)
+    return [f"  {n:>{width}} {joints[n]:<{jw}} = {e}" for n, e in regrouping.items()]
 
 
 def analysis_text(res: Identifiability) -> str:
@@ -101,14 +136,13 @@ def analysis_text(res: Identifiability) -> str:
         + (f" at marker {tuple(res.measurement.marker)} m" if any(res.measurement.marker) else "")
         + f", {res.params.label} set, {res.n_configs} configurations (seed {res.seed})",
         "",
-        "Status of the standard parameters"
+        "Status of the standard parameters by MDH row j and its URDF joint"
         " (id identifiable, reg regrouped/eliminated, 0 no effect):",
         _status_table(res),
         "",
-        f"Base parameters ({res.n_base}) and what they stand for:",
+        f"Base parameters ({res.n_base}) with the joint of their row, and what they stand for:",
+        *_base_lines(res),
     ]
-    for name, expr in res.regrouping().items():
-        lines.append(f"  {name:>8} = {expr}")
     last, nxt = res.gap
     gap = (
         f"|R_bb| = {last:.3g}, next {nxt:.3g}"
@@ -130,7 +164,7 @@ def analysis_text(res: Identifiability) -> str:
         lines.append(f"a {res.measurement.label} contact can never identify:")
         lines += [f"  - {u}" for u in unseen]
     if res.zero:
-        lines.append(f"no effect (not identifiable): {', '.join(res.zero)}")
+        lines.append(f"no effect (not identifiable): {', '.join(_named(res, n) for n in res.zero)}")
     if res.missing:
         lines.append(
             f"incomplete: the {res.params.label} set misses "
