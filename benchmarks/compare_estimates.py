@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.measurements.tree_campaign import simulate_tree
+
 SKIPPED = ("timings_ms", "timings", "created", "calib_version")
 """Report keys that differ between runs by nature."""
 
@@ -65,7 +67,7 @@ def dump(root: Path, out: Path) -> None:
     touches = read_contacts(data / "talos_contact" / "left_train.csv", talos, "plane")
     tools = ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
     hands = load_robot("talos", "base_link", tools)
-    seen = calib.simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
+    seen = simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
     ur10 = load_chain(data / "ur10" / "ur10_robot.urdf", "universe", "wrist_3_link")
     ur10_data = read_measurements(data / "ur10" / "calibration.csv", ur10)
     marker = (0, 0, -0.12)
