@@ -396,11 +396,18 @@ print(seen[0].message)
 """
 
 
+def fresh(code: str) -> str:
+    """What ``code`` prints, run by this tree's calib in a fresh interpreter."""
+    root = PACKAGE.parent
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
 @pytest.fixture(scope="module")
 def moved_uses() -> dict[str, list[str]]:
     """Each moved name's three printed lines, from its own script (``<NAME>``, line 6)."""
     code = (
-        "import sys\n"
         f"for name, path in {MOVED!r}.items():\n"
         f"    text = {USE!r}.format(name=name, path=path)\n"
         "    try:\n"
@@ -409,11 +416,9 @@ def moved_uses() -> dict[str, list[str]]:
         "        print('failed:', repr(error))\n"
         "    print('--', flush=True)\n"
     )
-    root = PACKAGE.parent  # this tree's calib
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
-    assert done.returncode == 0, done.stderr
-    printed = [part.strip().splitlines() for part in done.stdout.split("--\n")[:-1]]
-    assert len(printed) == len(MOVED), done.stdout
+    out = fresh(code)
+    printed = [part.strip().splitlines() for part in out.split("--\n")[:-1]]
+    assert len(printed) == len(MOVED), out
     return dict(zip(MOVED, printed, strict=True))
 
 
@@ -446,10 +451,7 @@ def test_calib_resolves_its_public_face_its_modules_and_the_moved_names_only():
         "print(sorted(n for n in names if not isinstance(getattr(calib, n), types.ModuleType)))\n"
         "print(sorted(n for n in names if isinstance(getattr(calib, n), types.ModuleType)))\n"
     )
-    root = PACKAGE.parent  # this tree's calib
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
-    assert done.returncode == 0, done.stderr
-    plain, modules = done.stdout.splitlines()
+    plain, modules = fresh(code).splitlines()
     assert plain == str(sorted(set(calib.__all__) - {"design"})), plain
     packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
     assert set(ast.literal_eval(modules)) <= packages | {"exceptions", "design"}, modules
