@@ -21,8 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.measurements.tree_campaign import simulate_tree
-
 SKIPPED = ("timings_ms", "timings", "created", "calib_version")
 """Report keys that differ between runs by nature."""
 
@@ -53,6 +51,7 @@ def dump(root: Path, out: Path) -> None:
     from calib import calibrate, load_chain, load_robot, read_measurements
     from calib.measurements.contact_campaign import read_contacts
     from calib.measurements.csvfile import Columns
+    from calib.measurements.tree_campaign import simulate_tree
 
     if not Path(calib.__file__).is_relative_to(root):
         sys.exit(f"calib imported from {calib.__file__}, not from {root}")
