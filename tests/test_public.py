@@ -271,6 +271,18 @@ def test_the_callable_design_package_shows_its_function_and_modules():
     assert lines[2] == "True False", lines
 
 
+def test_the_design_package_lists_its_modules_only():
+    """``dir(calib.design)`` (tab completion) listed ``importlib``, ``sys`` and ``types``, its
+    own imports, beside its modules; ``calib.design.sys`` resolved."""
+    from calib import design
+
+    modules = sorted(p.stem for p in (PACKAGE / "design").glob("*.py") if p.stem != "__init__")
+    assert [n for n in dir(design) if not n.startswith("_")] == modules
+    assert not [n for n in vars(design) if not n.startswith("_") and n not in modules]
+    with pytest.raises(AttributeError, match="has no attribute 'sys'"):
+        design.sys  # noqa: B018
+
+
 PUBLIC = {
     "loading": {"load_robot", "load_chain", "catalog", "Chain", "Tree"},
     "models and analysis": {"from_chain", "from_tree", "analyze", "Measurement", "RankWarning"},
